@@ -1,0 +1,1 @@
+"""Robot descriptions and symbolic identification models (CasADi)."""

@@ -1,0 +1,274 @@
+"""Serial-chain robot descriptions as plain data.
+
+A robot is a chain of ``n`` one-degree-of-freedom joints. Link ``i`` carries a frame ``F_i`` in
+which its standard inertial parameters are expressed; frames are chained as
+
+.. math::  {}^{i-1}T_i(q_i) = A_i \\; J_i(q_i) \\; B_i ,
+
+where ``A_i`` is the fixed placement of joint ``i`` in ``F_{i-1}`` (``F_0`` is the base frame),
+``J_i`` the joint motion (rotation about, or translation along, the unit ``axis`` given in the
+joint frame) and ``B_i`` a fixed transform from the joint frame to the link frame. A URDF has
+``B_i = I`` (parameters in the child-link frame); a standard DH table has ``A_i = I``,
+``J_i = R_z(q_i)`` and ``B_i = T_z(d_i) T_x(a_i) R_x(alpha_i)``, so that ``F_i`` is the DH frame
+``i`` in which the DH literature gives inertial data.
+
+Standard inertial parameters of one link, in this order, expressed in ``F_i``::
+
+    m, mx, my, mz, Ixx, Ixy, Iyy, Ixz, Iyz, Izz
+
+with ``(mx, my, mz) = m * c`` the first moments (``c``: centre of mass in ``F_i``) and ``I``
+the rotational inertia **about the origin of** ``F_i`` (Pinocchio's ``toDynamicParameters``
+order).
+"""
+
+from __future__ import annotations
+
+import enum
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from dynamics.errors import RobotDescriptionError
+
+LINK_PARAMETER_NAMES: tuple[str, ...] = ("m", "mx", "my", "mz", "Ixx", "Ixy", "Iyy", "Ixz", "Iyz", "Izz")
+N_LINK_PARAMETERS = len(LINK_PARAMETER_NAMES)
+DEFAULT_GRAVITY: tuple[float, float, float] = (0.0, 0.0, -9.81)
+
+
+class JointType(str, enum.Enum):
+    """Kinds of one-degree-of-freedom joints a serial chain may hold."""
+
+    REVOLUTE = "revolute"
+    PRISMATIC = "prismatic"
+
+
+def _as_transform(value: ArrayLike | None, what: str) -> NDArray[np.float64]:
+    if value is None:
+        return np.eye(4)
+    transform = np.asarray(value, dtype=float)
+    if transform.shape != (4, 4):
+        raise RobotDescriptionError(f"{what} must be a 4x4 homogeneous transform, got shape {transform.shape}")
+    if not np.all(np.isfinite(transform)):
+        raise RobotDescriptionError(f"{what} holds NaN or inf")
+    rotation = transform[:3, :3]
+    if not np.allclose(rotation.T @ rotation, np.eye(3), atol=1e-9) or np.linalg.det(rotation) < 0:
+        raise RobotDescriptionError(f"{what} does not hold a proper rotation matrix")
+    return transform
+
+
+@dataclass(frozen=True, eq=False)
+class Joint:
+    """One joint of the chain and the link it moves.
+
+    Parameters
+    ----------
+    name
+        Joint name (from the URDF, or ``joint1``… for a DH table).
+    joint_type
+        Revolute (``q`` in rad) or prismatic (``q`` in m).
+    axis
+        Unit vector of the joint axis in the joint frame.
+    placement
+        ``A_i``: 4x4 transform of the joint frame (at ``q = 0``) in the previous link frame.
+    link_transform
+        ``B_i``: 4x4 transform of the link frame ``F_i`` in the joint frame.
+    inertial
+        The ten standard parameters of the link, in ``F_i`` (see module docstring).
+    lower, upper, velocity, effort
+        Limits (``inf`` where unknown).
+    """
+
+    name: str
+    joint_type: JointType
+    axis: NDArray[np.float64]
+    placement: NDArray[np.float64]
+    link_transform: NDArray[np.float64]
+    inertial: NDArray[np.float64]
+    lower: float = -np.inf
+    upper: float = np.inf
+    velocity: float = np.inf
+    effort: float = np.inf
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.joint_type, JointType):
+            try:
+                object.__setattr__(self, "joint_type", JointType(self.joint_type))
+            except ValueError:
+                raise RobotDescriptionError(
+                    f"joint {self.name!r}: unsupported joint type {self.joint_type!r}; "
+                    f"expected one of {[kind.value for kind in JointType]}"
+                ) from None
+        axis = np.asarray(self.axis, dtype=float).reshape(-1)
+        if axis.shape != (3,) or not np.all(np.isfinite(axis)) or np.linalg.norm(axis) < 1e-12:
+            raise RobotDescriptionError(f"joint {self.name!r}: axis must be a finite non-zero 3-vector")
+        object.__setattr__(self, "axis", axis / np.linalg.norm(axis))
+        object.__setattr__(self, "placement", _as_transform(self.placement, f"joint {self.name!r} placement"))
+        object.__setattr__(
+            self, "link_transform", _as_transform(self.link_transform, f"joint {self.name!r} link transform")
+        )
+        inertial = np.asarray(self.inertial, dtype=float).reshape(-1)
+        if inertial.shape != (N_LINK_PARAMETERS,):
+            raise RobotDescriptionError(
+                f"joint {self.name!r}: inertial parameters must have {N_LINK_PARAMETERS} entries "
+                f"{LINK_PARAMETER_NAMES}, got {inertial.shape[0]}"
+            )
+        if not np.all(np.isfinite(inertial)):
+            raise RobotDescriptionError(f"joint {self.name!r}: inertial parameters hold NaN or inf")
+        if inertial[0] < 0:
+            raise RobotDescriptionError(f"joint {self.name!r}: negative link mass {inertial[0]}")
+        object.__setattr__(self, "inertial", inertial)
+        if self.lower > self.upper:
+            raise RobotDescriptionError(f"joint {self.name!r}: lower limit {self.lower} above upper {self.upper}")
+
+
+@dataclass(frozen=True, eq=False)
+class RobotModel:
+    """A serial chain of one-degree-of-freedom joints, with gravity.
+
+    Instances are immutable and compared by identity, so that models built from them can be
+    cached per robot.
+
+    Parameters
+    ----------
+    name
+        A label for reports.
+    joints
+        The joints from base to tip.
+    gravity
+        Gravity vector in the base frame, m/s² (default ``(0, 0, -9.81)``: z up).
+    geometry
+        Named lengths of the description (``a2``, ``d3``…), used only to print base-parameter
+        groupings as readable expressions.
+    """
+
+    name: str
+    joints: tuple[Joint, ...]
+    gravity: NDArray[np.float64] = field(default_factory=lambda: np.array(DEFAULT_GRAVITY))
+    geometry: Mapping[str, float] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        joints = tuple(self.joints)
+        if not joints:
+            raise RobotDescriptionError(f"robot {self.name!r} has no joints")
+        if not all(isinstance(joint, Joint) for joint in joints):
+            raise TypeError("joints must be dynamics.robot.Joint instances")
+        names = [joint.name for joint in joints]
+        if len(set(names)) != len(names):
+            raise RobotDescriptionError(f"robot {self.name!r}: duplicate joint names {names}")
+        object.__setattr__(self, "joints", joints)
+        gravity = np.asarray(self.gravity, dtype=float).reshape(-1)
+        if gravity.shape != (3,) or not np.all(np.isfinite(gravity)):
+            raise RobotDescriptionError("gravity must be a finite 3-vector")
+        object.__setattr__(self, "gravity", gravity)
+        object.__setattr__(self, "geometry", dict(self.geometry))
+
+    @property
+    def n_joints(self) -> int:
+        """Number of joints ``n``."""
+        return len(self.joints)
+
+    @property
+    def joint_names(self) -> list[str]:
+        return [joint.name for joint in self.joints]
+
+    @property
+    def standard_parameter_names(self) -> list[str]:
+        """Names of the ``10 n`` standard inertial parameters, link by link (``m1, mx1, …, Izz_n``)."""
+        return [f"{name}{index}" for index in range(1, self.n_joints + 1) for name in LINK_PARAMETER_NAMES]
+
+    @property
+    def standard_parameters(self) -> NDArray[np.float64]:
+        """The ``10 n`` standard inertial parameters of the description, stacked link by link."""
+        return np.concatenate([joint.inertial for joint in self.joints])
+
+    @property
+    def lower(self) -> NDArray[np.float64]:
+        return np.array([joint.lower for joint in self.joints])
+
+    @property
+    def upper(self) -> NDArray[np.float64]:
+        return np.array([joint.upper for joint in self.joints])
+
+    @property
+    def velocity_limit(self) -> NDArray[np.float64]:
+        return np.array([joint.velocity for joint in self.joints])
+
+    def with_gravity(self, gravity: ArrayLike) -> RobotModel:
+        """Return a copy with another gravity vector."""
+        return RobotModel(self.name, self.joints, np.asarray(gravity, dtype=float), self.geometry)
+
+    def with_parameters(self, theta: ArrayLike) -> RobotModel:
+        """Return a copy whose links carry the standard parameters ``theta`` (``10 n`` values)."""
+        theta = np.asarray(theta, dtype=float).reshape(-1)
+        expected = N_LINK_PARAMETERS * self.n_joints
+        if theta.shape != (expected,):
+            raise ValueError(f"expected {expected} standard parameters, got {theta.shape[0]}")
+        joints = tuple(
+            Joint(
+                joint.name, joint.joint_type, joint.axis, joint.placement, joint.link_transform,
+                theta[N_LINK_PARAMETERS * index : N_LINK_PARAMETERS * (index + 1)],
+                joint.lower, joint.upper, joint.velocity, joint.effort,
+            )
+            for index, joint in enumerate(self.joints)
+        )
+        return RobotModel(self.name, joints, self.gravity, self.geometry)
+
+
+def inertial_parameters(mass: float, com: ArrayLike, inertia_com: ArrayLike) -> NDArray[np.float64]:
+    """Standard parameters from mass, centre of mass and inertia about the centre of mass.
+
+    Uses the parallel-axis theorem ``I_O = I_C + m (|c|² 1 − c cᵀ)``.
+
+    Parameters
+    ----------
+    mass
+        Link mass, kg.
+    com
+        Centre of mass in the link frame, m.
+    inertia_com
+        3x3 inertia matrix about the centre of mass, or its 6 entries
+        ``(Ixx, Iyy, Izz, Ixy, Iyz, Ixz)`` (the order of Corke's toolbox), kg·m².
+    """
+    com = np.asarray(com, dtype=float).reshape(3)
+    inertia = np.asarray(inertia_com, dtype=float)
+    if inertia.shape == (6,):
+        ixx, iyy, izz, ixy, iyz, ixz = inertia
+        inertia = np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]])
+    if inertia.shape != (3, 3):
+        raise ValueError("inertia_com must be a 3x3 matrix or 6 values (Ixx, Iyy, Izz, Ixy, Iyz, Ixz)")
+    inertia_origin = inertia + mass * (com @ com * np.eye(3) - np.outer(com, com))
+    return np.array(
+        [
+            mass, *(mass * com),
+            inertia_origin[0, 0], inertia_origin[0, 1], inertia_origin[1, 1],
+            inertia_origin[0, 2], inertia_origin[1, 2], inertia_origin[2, 2],
+        ]
+    )
+
+
+def translation(x: float, y: float, z: float) -> NDArray[np.float64]:
+    transform = np.eye(4)
+    transform[:3, 3] = (x, y, z)
+    return transform
+
+
+def rotation_x(angle: float) -> NDArray[np.float64]:
+    cos, sin = np.cos(angle), np.sin(angle)
+    transform = np.eye(4)
+    transform[1:3, 1:3] = [[cos, -sin], [sin, cos]]
+    return transform
+
+
+def rotation_z(angle: float) -> NDArray[np.float64]:
+    cos, sin = np.cos(angle), np.sin(angle)
+    transform = np.eye(4)
+    transform[0:2, 0:2] = [[cos, -sin], [sin, cos]]
+    return transform
+
+
+def check_joint_count(robot: RobotModel, values: Sequence[object], what: str) -> None:
+    """Raise if ``values`` does not hold one entry per joint."""
+    if len(values) != robot.n_joints:
+        raise ValueError(f"{what}: expected {robot.n_joints} values (one per joint), got {len(values)}")

@@ -1,0 +1,59 @@
+"""Built-in robot descriptions, as data, and the one place that resolves a robot by name or file."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+
+from dynamics.errors import RobotDescriptionError
+from dynamics.robot import RobotModel
+from dynamics.robots.puma560 import puma560
+from dynamics.robots.servo_arm import servo_arm
+from dynamics.urdf import robot_from_urdf
+
+BUILT_IN_ROBOTS: dict[str, Callable[[], RobotModel]] = {
+    "puma560": puma560,
+    "servo_arm": servo_arm,
+}
+
+
+def truncate(robot: RobotModel, joints: int) -> RobotModel:
+    """Keep the first ``joints`` joints (and their links) of a chain."""
+    if not isinstance(joints, int) or isinstance(joints, bool):
+        raise TypeError(f"joints must be an integer, got {type(joints).__name__}")
+    if not 1 <= joints <= robot.n_joints:
+        raise RobotDescriptionError(f"{robot.name} has {robot.n_joints} joints; cannot keep {joints}")
+    if joints == robot.n_joints:
+        return robot
+    kept = robot.joints[:joints]
+    geometry = {
+        name: value for name, value in robot.geometry.items() if int("".join(filter(str.isdigit, name))) <= joints
+    }
+    return RobotModel(f"{robot.name}[{joints}]", kept, robot.gravity, geometry)
+
+
+def load_robot(name: str | None = None, *, urdf: str | Path | None = None, joints: int | None = None) -> RobotModel:
+    """Return a built-in robot by name, or one read from a URDF file.
+
+    Parameters
+    ----------
+    name
+        One of :data:`BUILT_IN_ROBOTS` (``puma560``, ``servo_arm``). Ignored when ``urdf`` is given.
+    urdf
+        Path of a URDF file describing a serial chain.
+    joints
+        Keep only the first ``joints`` joints (the PUMA paper uses 3); default all.
+    """
+    if urdf is not None:
+        robot = robot_from_urdf(urdf)
+    elif name is None:
+        raise RobotDescriptionError("name a robot (one of " + ", ".join(sorted(BUILT_IN_ROBOTS)) + ") or a URDF file")
+    else:
+        key = name.strip().lower()
+        if key not in BUILT_IN_ROBOTS:
+            raise RobotDescriptionError(
+                f"unknown robot {name!r}; built-in robots are {', '.join(sorted(BUILT_IN_ROBOTS))} "
+                "(or pass a URDF file)"
+            )
+        robot = BUILT_IN_ROBOTS[key]()
+    return robot if joints is None else truncate(robot, joints)

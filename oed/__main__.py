@@ -1,0 +1,7 @@
+"""Allow ``python -m oed``."""
+
+import sys
+
+from oed.cli import main
+
+sys.exit(main())

@@ -1,0 +1,53 @@
+"""The ``oed`` command line.
+
+Each verb lives in its own module of this package and exposes two functions::
+
+    register(subparsers) -> argparse.ArgumentParser   # adds the verb and its options
+    run(args: argparse.Namespace) -> int               # does the work, returns the exit code
+
+Errors a user can cause (bad input files, impossible bounds, unknown robots) are raised as
+``ValueError``/``TypeError``/``OSError`` subclasses by the library; :func:`main` turns them into
+a one-line message on stderr and exit code 2, never a traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+from collections.abc import Sequence
+
+# verb module names, in the order ``oed --help`` lists them
+VERB_MODULES: tuple[str, ...] = ("model",)
+
+EXIT_USER_ERROR = 2
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """Return the top-level parser with every verb registered."""
+    parser = argparse.ArgumentParser(
+        prog="oed",
+        description="Optimal experiment design and dynamic-parameter identification of robot manipulators.",
+    )
+    subparsers = parser.add_subparsers(dest="verb", metavar="VERB")
+    subparsers.required = True
+    for name in VERB_MODULES:
+        module = importlib.import_module(f"oed.cli.{name}")
+        verb_parser = module.register(subparsers)
+        verb_parser.set_defaults(run=module.run)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of the ``oed`` console script."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args.run(args))
+    except (ValueError, TypeError, OSError, KeyError, RuntimeError) as error:
+        message = str(error) or error.__class__.__name__
+        print(f"oed {args.verb}: error: {message}", file=sys.stderr)
+        return EXIT_USER_ERROR
+    except KeyboardInterrupt:
+        print(f"oed {args.verb}: interrupted", file=sys.stderr)
+        return 130
