@@ -1,0 +1,173 @@
+"""Extra regressor columns beyond rigid-body dynamics: friction, offsets, armature, plate offsets.
+
+Each effect is a small frozen object that adds columns to the joint rows and/or to the base
+wrench rows of a model, built on the same CasADi symbols ``q, dq, ddq``. New effects (a user's
+own, or those of the residual diagnosis) implement the same two methods; nothing else changes.
+
+The PUMA paper's model (eq. 14–15) uses viscous friction only, on the joint rows only: friction
+is internal to the robot, so the force plate does not see it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+from typing import ClassVar, Protocol, runtime_checkable
+
+import casadi
+
+from dynamics.robot import RobotModel
+
+WRENCH_CHANNELS: tuple[str, ...] = ("fx", "fy", "fz", "mx", "my", "mz")
+
+
+@runtime_checkable
+class Effect(Protocol):
+    """What an extra set of regressor columns provides."""
+
+    name: str
+
+    def parameter_names(self, robot: RobotModel) -> list[str]:
+        """Names of the new parameters, one per column."""
+        ...
+
+    def columns(
+        self, robot: RobotModel, q: casadi.SX, dq: casadi.SX, ddq: casadi.SX
+    ) -> tuple[casadi.SX | None, casadi.SX | None]:
+        """``(joint_columns n x k, wrench_columns 6 x k)``; ``None`` where the effect has no rows."""
+        ...
+
+
+def _joint_indices(robot: RobotModel, joints: tuple[int, ...] | None, effect: str) -> tuple[int, ...]:
+    if joints is None:
+        return tuple(range(robot.n_joints))
+    for joint in joints:
+        if not 0 <= joint < robot.n_joints:
+            raise ValueError(f"effect {effect!r}: joint index {joint} outside 0..{robot.n_joints - 1}")
+    return tuple(joints)
+
+
+@dataclass(frozen=True)
+class _PerJointEffect:
+    """An effect with one parameter per selected joint, acting on that joint's row only."""
+
+    joints: tuple[int, ...] | None = None
+    name: ClassVar[str] = ""
+    symbol: ClassVar[str] = ""
+
+    def parameter_names(self, robot: RobotModel) -> list[str]:
+        return [f"{self.symbol}{index + 1}" for index in _joint_indices(robot, self.joints, self.name)]
+
+    def term(self, q: casadi.SX, dq: casadi.SX, ddq: casadi.SX) -> casadi.SX:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    def columns(self, robot, q, dq, ddq):
+        indices = _joint_indices(robot, self.joints, self.name)
+        block = casadi.SX.zeros(robot.n_joints, len(indices))
+        for column, index in enumerate(indices):
+            block[index, column] = self.term(q[index], dq[index], ddq[index])
+        return block, None
+
+
+@dataclass(frozen=True)
+class ViscousFriction(_PerJointEffect):
+    """``tau_i += fv_i · dq_i`` (PUMA paper, eq. 14)."""
+
+    name: ClassVar[str] = "viscous"
+    symbol: ClassVar[str] = "fv"
+
+    def term(self, q, dq, ddq):
+        return dq
+
+
+@dataclass(frozen=True)
+class CoulombFriction(_PerJointEffect):
+    """``tau_i += fc_i · sign(dq_i)``, or ``fc_i · tanh(dq_i / smoothing)`` when ``smoothing`` is set."""
+
+    smoothing: float | None = None
+    name: ClassVar[str] = "coulomb"
+    symbol: ClassVar[str] = "fc"
+
+    def __post_init__(self) -> None:
+        if self.smoothing is not None and not self.smoothing > 0:
+            raise ValueError(f"coulomb smoothing must be a positive velocity, got {self.smoothing}")
+
+    def term(self, q, dq, ddq):
+        return casadi.sign(dq) if self.smoothing is None else casadi.tanh(dq / self.smoothing)
+
+
+@dataclass(frozen=True)
+class JointOffset(_PerJointEffect):
+    """``tau_i += off_i``: a constant torque (force) offset of joint ``i`` (drive or sensor bias)."""
+
+    name: ClassVar[str] = "offset"
+    symbol: ClassVar[str] = "off"
+
+    def term(self, q, dq, ddq):
+        return casadi.SX(1)
+
+
+@dataclass(frozen=True)
+class Armature(_PerJointEffect):
+    """``tau_i += Ia_i · ddq_i``: rotor inertia reflected through the gear (joint rows only)."""
+
+    name: ClassVar[str] = "armature"
+    symbol: ClassVar[str] = "Ia"
+
+    def term(self, q, dq, ddq):
+        return ddq
+
+
+@dataclass(frozen=True)
+class WrenchOffset:
+    """Constant offsets of the force-plate channels (external rows only)."""
+
+    channels: tuple[str, ...] = WRENCH_CHANNELS
+    name: ClassVar[str] = "wrench_offset"
+
+    def __post_init__(self) -> None:
+        unknown = [channel for channel in self.channels if channel not in WRENCH_CHANNELS]
+        if unknown:
+            raise ValueError(f"wrench_offset: unknown channels {unknown}; expected some of {WRENCH_CHANNELS}")
+
+    def parameter_names(self, robot: RobotModel) -> list[str]:
+        return [f"{channel}_off" for channel in self.channels]
+
+    def columns(self, robot, q, dq, ddq):
+        block = casadi.SX.zeros(6, len(self.channels))
+        for column, channel in enumerate(self.channels):
+            block[WRENCH_CHANNELS.index(channel), column] = 1
+        return None, block
+
+
+EFFECTS: dict[str, type] = {
+    effect.name: effect for effect in (ViscousFriction, CoulombFriction, JointOffset, Armature, WrenchOffset)
+}
+
+
+def parse_effects(spec: str | Iterable[str | Effect] | None) -> tuple[Effect, ...]:
+    """Effects from a comma-separated list of names (``"viscous,coulomb"``) or a sequence.
+
+    Names: ``viscous``, ``coulomb``, ``offset``, ``armature``, ``wrench_offset`` (alias
+    ``plate_offset``); ``none`` or an empty string for rigid-body only.
+    """
+    if spec is None:
+        return ()
+    items: Sequence[str | Effect]
+    if isinstance(spec, str):
+        items = [item.strip() for item in spec.split(",") if item.strip() and item.strip().lower() != "none"]
+    else:
+        items = list(spec)
+    effects: list[Effect] = []
+    for item in items:
+        if isinstance(item, str):
+            key = "wrench_offset" if item.lower() in ("plate_offset", "plate_offsets") else item.lower()
+            if key not in EFFECTS:
+                raise ValueError(f"unknown effect {item!r}; known effects are {', '.join(EFFECTS)}")
+            item = EFFECTS[key]()
+        if not isinstance(item, Effect):
+            raise TypeError(f"{item!r} is not an effect (needs name, parameter_names and columns)")
+        if any(existing == item for existing in effects):
+            raise ValueError(f"effect {item.name!r} given twice")
+        effects.append(item)
+    return tuple(effects)
