@@ -142,14 +142,16 @@ _MOMENT_ORDER = ("mx", "my", "mz")
 
 
 def _priority(name: str, column: int) -> tuple[int, int, int]:
-    """Leader preference: effect parameters, then inertias, then first moments, then masses.
+    """Leader preference: plate offsets, inertias, first moments, masses, then joint effects.
 
     This reproduces the groupings of the PUMA paper's Tables III–V (masses and far-link terms
     regrouped into inertias and first moments of nearer links).
     """
     match = re.fullmatch(r"(Ixx|Ixy|Iyy|Ixz|Iyz|Izz|mx|my|mz|m)(\d+)", name)
     if match is None:
-        return (0, 0, column)
+        # plate offsets lead (they absorb the static weight); joint effects such as armature are
+        # regrouped into the inertias they cannot be told apart from
+        return (0, 0, column) if name.endswith("_off") else (4, 0, column)
     kind, link = match.group(1), int(match.group(2))
     if kind in _INERTIA_ORDER:
         return (1, link, _INERTIA_ORDER.index(kind))

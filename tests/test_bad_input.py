@@ -1,0 +1,83 @@
+"""Bad input raises an error that names the problem."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from dynamics.errors import RobotDescriptionError, SampleShapeError
+from dynamics.models import build_model
+from dynamics.robots import load_robot
+
+LINK = """<link name="{name}"><inertial><mass value="1"/><inertia ixx="0.1" ixy="0" ixz="0" iyy="0.1" iyz="0" izz="0.1"/></inertial></link>"""
+
+
+def _urdf(tmp_path, joints: str, links=("base", "a", "b", "c")) -> str:
+    path = tmp_path / "robot.urdf"
+    path.write_text('<robot name="r">' + "".join(LINK.format(name=name) for name in links) + joints + "</robot>")
+    return str(path)
+
+
+def test_unknown_robot_name():
+    with pytest.raises(RobotDescriptionError, match="unknown robot 'kuka'"):
+        load_robot("kuka")
+
+
+def test_too_many_joints_requested():
+    with pytest.raises(RobotDescriptionError, match="has 6 joints"):
+        load_robot("puma560", joints=7)
+
+
+def test_floating_joint_in_urdf(tmp_path):
+    path = _urdf(tmp_path, '<joint name="float" type="floating"><parent link="base"/><child link="a"/></joint>', ("base", "a"))
+    with pytest.raises(RobotDescriptionError, match="float.*(FreeFlyer|degrees of freedom)"):
+        load_robot(urdf=path)
+
+
+def test_planar_joint_in_urdf(tmp_path):
+    path = _urdf(tmp_path, '<joint name="plane" type="planar"><parent link="base"/><child link="a"/><axis xyz="0 0 1"/></joint>', ("base", "a"))
+    with pytest.raises(RobotDescriptionError, match="plane"):
+        load_robot(urdf=path)
+
+
+def test_spherical_joint_in_urdf(tmp_path):
+    path = _urdf(tmp_path, '<joint name="ball" type="spherical"><parent link="base"/><child link="a"/></joint>', ("base", "a"))
+    with pytest.raises(RobotDescriptionError, match="ball|parse|spherical|Spherical"):
+        load_robot(urdf=path)
+
+
+def test_branching_chain_in_urdf(tmp_path):
+    joints = "".join(
+        f'<joint name="{name}" type="revolute"><parent link="{parent}"/><child link="{child}"/><axis xyz="0 0 1"/>'
+        '<limit lower="-1" upper="1" effort="1" velocity="1"/></joint>'
+        for name, parent, child in (("j1", "base", "a"), ("j2", "a", "b"), ("j3", "a", "c"))
+    )
+    with pytest.raises(RobotDescriptionError, match="branching"):
+        load_robot(urdf=_urdf(tmp_path, joints))
+
+
+def test_missing_urdf_file(tmp_path):
+    with pytest.raises(RobotDescriptionError, match="not found"):
+        load_robot(urdf=tmp_path / "absent.urdf")
+
+
+def test_wrong_array_shapes_and_nan_are_named():
+    model = build_model(load_robot("puma560", joints=3), "internal")
+    with pytest.raises(SampleShapeError, match=r"q must have shape \(N, 3\)"):
+        model.evaluate(np.zeros((5, 4)), np.zeros((5, 3)), np.zeros((5, 3)))
+    with pytest.raises(SampleShapeError, match="same number of samples"):
+        model.evaluate(np.zeros((5, 3)), np.zeros((4, 3)), np.zeros((5, 3)))
+    ddq = np.zeros((5, 3))
+    ddq[2, 1] = np.nan
+    with pytest.raises(SampleShapeError, match=r"ddq holds NaN or inf \(sample 2, joint 2\)"):
+        model.evaluate(np.zeros((5, 3)), np.zeros((5, 3)), ddq)
+    with pytest.raises(ValueError, match="theta has 4 values"):
+        model.predict(np.ones(4), np.zeros(3), np.zeros(3), np.zeros(3))
+
+
+def test_unknown_model_and_effect():
+    robot = load_robot("puma560", joints=3)
+    with pytest.raises(ValueError, match="unknown model 'reaction'"):
+        build_model(robot, "reaction")
+    with pytest.raises(ValueError, match="unknown effect 'stiction'"):
+        build_model(robot, "internal", "viscous,stiction")
