@@ -1,0 +1,1 @@
+"""Estimators and measured-data handling: least squares, recursive least squares, Kalman fusion."""

@@ -1,0 +1,118 @@
+"""The measured-data container and its file format.
+
+Columns (CSV or Parquet, SI units)::
+
+    t, q1..qn                       always
+    dq1..dqn, ddq1..ddqn            optional (derived by preprocessing when absent)
+    tau1..taun                      joint torques/forces (internal model)
+    fx fy fz mx my mz               reaction wrench on the robot from its base, in the base
+                                    frame, moments about the base origin (external model)
+
+Reading with checks (missing columns, NaN, time, degrees…) lives in :mod:`estimation.loading`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+from numpy.typing import NDArray
+
+from dynamics.effects import WRENCH_CHANNELS
+
+
+def joint_columns(prefix: str, n_joints: int) -> list[str]:
+    """``[prefix1, …, prefixn]``."""
+    return [f"{prefix}{index}" for index in range(1, n_joints + 1)]
+
+
+@dataclass(frozen=True)
+class Measurements:
+    """Samples of one experiment.
+
+    Attributes
+    ----------
+    t
+        ``(N,)`` time, s, strictly increasing.
+    q, dq, ddq
+        ``(N, n)`` joint positions, velocities, accelerations (``dq``/``ddq`` may be ``None``).
+    tau
+        ``(N, n)`` joint torques/forces or ``None``.
+    wrench
+        ``(N, 6)`` base reaction wrench ``fx fy fz mx my mz`` or ``None``.
+    metadata
+        Free-form provenance (robot, trajectory, seed, effects simulated…).
+    """
+
+    t: NDArray[np.float64]
+    q: NDArray[np.float64]
+    dq: NDArray[np.float64] | None = None
+    ddq: NDArray[np.float64] | None = None
+    tau: NDArray[np.float64] | None = None
+    wrench: NDArray[np.float64] | None = None
+    metadata: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def n_samples(self) -> int:
+        return self.t.shape[0]
+
+    @property
+    def n_joints(self) -> int:
+        return self.q.shape[1]
+
+    def channels(self, names: tuple[str, ...] | list[str]) -> NDArray[np.float64]:
+        """Measured values of the named channels (``tau2``, ``fz``…) as ``(N, len(names))``."""
+        columns = []
+        for name in names:
+            if name in WRENCH_CHANNELS:
+                if self.wrench is None:
+                    raise ValueError(f"channel {name!r} needs the base wrench, which these measurements lack")
+                columns.append(self.wrench[:, WRENCH_CHANNELS.index(name)])
+            elif name.startswith("tau") and name[3:].isdigit():
+                if self.tau is None:
+                    raise ValueError(f"channel {name!r} needs joint torques, which these measurements lack")
+                index = int(name[3:]) - 1
+                if not 0 <= index < self.n_joints:
+                    raise ValueError(f"channel {name!r}: the data have {self.n_joints} joints")
+                columns.append(self.tau[:, index])
+            else:
+                raise ValueError(f"unknown channel {name!r}")
+        return np.column_stack(columns)
+
+    def select(self, indices: slice | NDArray[np.int_]) -> Measurements:
+        """A subset of the samples."""
+        def take(values):
+            return None if values is None else values[indices]
+        return replace(
+            self, t=self.t[indices], q=self.q[indices], dq=take(self.dq), ddq=take(self.ddq),
+            tau=take(self.tau), wrench=take(self.wrench),
+        )
+
+    def to_frame(self) -> pd.DataFrame:
+        """The file format as a ``DataFrame``."""
+        n = self.n_joints
+        data: dict[str, NDArray[np.float64]] = {"t": self.t}
+        for prefix, values in (("q", self.q), ("dq", self.dq), ("ddq", self.ddq), ("tau", self.tau)):
+            if values is not None:
+                data.update(zip(joint_columns(prefix, n), values.T))
+        if self.wrench is not None:
+            data.update(zip(WRENCH_CHANNELS, self.wrench.T))
+        return pd.DataFrame(data)
+
+    def write(self, path: str | Path) -> None:
+        """Write CSV (``.csv``) or Parquet (``.parquet``), atomically."""
+        from oed.cli.common import atomic_output  # local: the CLI helpers depend on nothing here
+
+        path = Path(path)
+        frame = self.to_frame()
+        if path.suffix.lower() == ".parquet":
+            with atomic_output(path, "wb") as stream:
+                frame.to_parquet(stream, index=False)
+        elif path.suffix.lower() == ".csv":
+            with atomic_output(path) as stream:
+                frame.to_csv(stream, index=False, float_format="%.10g")
+        else:
+            raise ValueError(f"unknown data format {path.suffix!r} for {path}: use .csv or .parquet")
