@@ -25,6 +25,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from dynamics.base_parameters import BaseParameters, random_states, reduce_to_base
+from dynamics.compiled import SampleEvaluator
 from dynamics.effects import WRENCH_CHANNELS, Effect, parse_effects
 from dynamics.errors import SampleShapeError
 from dynamics.newton_euler import RigidBodyRegressors, rigid_body_regressors
@@ -61,7 +62,7 @@ class IdentificationModel:
     regressor: casadi.Function
     base: BaseParameters
     base_regressor: casadi.Function
-    _transposed: dict[str, casadi.Function] = field(repr=False)
+    _evaluators: dict[str, SampleEvaluator] = field(repr=False)
 
     @property
     def n_parameters(self) -> int:
@@ -119,17 +120,9 @@ class IdentificationModel:
 
     def _evaluate(self, which: str, q: ArrayLike, dq: ArrayLike, ddq: ArrayLike) -> NDArray[np.float64]:
         states = check_states(self.robot.n_joints, q, dq, ddq)
-        n_samples = states[0].shape[0]
-        mapped = _mapped(self._transposed[which], n_samples)
-        # per sample the function returns Yᵀ (p x rows): the mapped result is p x (rows·N), whose
-        # transpose is the sample-major stack (N·rows x p) without any reordering copy.
-        stacked = np.asarray(mapped(*(state.T for state in states))).T
-        return stacked.reshape(n_samples, self.n_channels, -1)
-
-
-@functools.lru_cache(maxsize=64)
-def _mapped(function: casadi.Function, n_samples: int) -> casadi.Function:
-    return function.map(n_samples)
+        # per sample the function returns Yᵀ (p x rows), whose column-major flattening is Y in
+        # row-major order: the (N, rows·p) result reshapes to (N, rows, p) without a copy.
+        return self._evaluators[which](*states).reshape(states[0].shape[0], self.n_channels, -1)
 
 
 def check_states(n_joints: int, *arrays: ArrayLike, names: Iterable[str] = STATE_NAMES) -> list[NDArray[np.float64]]:
@@ -229,16 +222,17 @@ def _build_model(
         ModelKind.COMBINED: casadi.vertcat(wrench_rows, joint_rows),
     }[kind]
     label = kind.value
+    Y = casadi.cse(Y)  # common subexpressions shared across columns: fewer operations per sample
     regressor = casadi.Function(f"{label}_regressor", [q, dq, ddq], [Y], list(STATE_NAMES), ["Y"])
     transposed_full = casadi.Function(f"{label}_regressor_t", [q, dq, ddq], [Y.T], list(STATE_NAMES), ["Yt"])
 
     samples = reduction_samples or max(40, int(np.ceil(4 * Y.shape[1] / Y.shape[0])))
     prismatic = [joint.joint_type is JointType.PRISMATIC for joint in robot.joints]
     states = random_states(robot.n_joints, samples, seed=seed, prismatic=prismatic)
-    stacked = np.asarray(transposed_full.map(samples)(*(state.T for state in states))).T
+    stacked = np.asarray(transposed_full.map(samples)(*(state.T for state in states))).T  # once, at build
     base = reduce_to_base(stacked, names, geometry=robot.geometry)
 
-    Y_base = Y[:, list(base.independent)]
+    Y_base = casadi.cse(Y[:, list(base.independent)])
     base_regressor = casadi.Function(f"{label}_base_regressor", [q, dq, ddq], [Y_base], list(STATE_NAMES), ["Y_base"])
     transposed_base = casadi.Function(
         f"{label}_base_regressor_t", [q, dq, ddq], [Y_base.T], list(STATE_NAMES), ["Y_base_t"]
@@ -252,5 +246,5 @@ def _build_model(
         regressor=regressor,
         base=base,
         base_regressor=base_regressor,
-        _transposed={"full": transposed_full, "base": transposed_base},
+        _evaluators={"full": SampleEvaluator(transposed_full), "base": SampleEvaluator(transposed_base)},
     )

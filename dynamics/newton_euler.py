@@ -49,10 +49,27 @@ def _inertia_map(w: casadi.SX) -> casadi.SX:
 
 
 def _rodrigues(axis: np.ndarray, angle: casadi.SX) -> casadi.SX:
-    skew = casadi.DM(
-        [[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]]
-    )
-    return casadi.DM.eye(3) + casadi.sin(angle) * skew + (1 - casadi.cos(angle)) * (skew @ skew)
+    """Rotation by ``angle`` about the unit ``axis``: ``u uᵀ + cos (1 − u uᵀ) + sin [u]×``.
+
+    Built entry by entry with the zero coefficients left out, so that an axis-aligned joint
+    gives the plain ``cos``/``sin`` matrix (fewer operations in the generated code).
+    """
+    outer = np.outer(axis, axis)
+    skew = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+    identity = np.eye(3)
+    cos, sin = casadi.cos(angle), casadi.sin(angle)
+    rotation = casadi.SX.zeros(3, 3)
+    for row in range(3):
+        for column in range(3):
+            entry = casadi.SX(0)
+            if abs(outer[row, column]) > 1e-15:
+                entry += outer[row, column]
+            if abs(identity[row, column] - outer[row, column]) > 1e-15:
+                entry += (identity[row, column] - outer[row, column]) * cos
+            if abs(skew[row, column]) > 1e-15:
+                entry += skew[row, column] * sin
+            rotation[row, column] = entry
+    return rotation
 
 
 def link_regressor(velocity: casadi.SX, acceleration: casadi.SX) -> casadi.SX:

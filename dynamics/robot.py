@@ -52,6 +52,9 @@ def _as_transform(value: ArrayLike | None, what: str) -> NDArray[np.float64]:
         raise RobotDescriptionError(f"{what} must be a 4x4 homogeneous transform, got shape {transform.shape}")
     if not np.all(np.isfinite(transform)):
         raise RobotDescriptionError(f"{what} holds NaN or inf")
+    # exact zeros and ones (cos(pi/2) is 6e-17, not 0) let CasADi drop the products they cancel
+    transform = np.where(np.abs(transform) < 1e-14, 0.0, transform)
+    transform = np.where(np.abs(np.abs(transform) - 1.0) < 1e-14, np.sign(transform), transform)
     rotation = transform[:3, :3]
     if not np.allclose(rotation.T @ rotation, np.eye(3), atol=1e-9) or np.linalg.det(rotation) < 0:
         raise RobotDescriptionError(f"{what} does not hold a proper rotation matrix")

@@ -1,0 +1,53 @@
+"""Compiled evaluation equals the CasADi virtual machine, and falls back without a compiler."""
+
+from __future__ import annotations
+
+import casadi
+import numpy as np
+import pytest
+
+import dynamics.compiled as compiled
+from dynamics.compiled import SampleEvaluator
+from dynamics.models import build_model
+from dynamics.robots import load_robot
+from tests.conftest import random_states
+
+
+def test_compiled_regressor_equals_virtual_machine(tmp_path, monkeypatch):
+    if compiled.find_compiler() is None:
+        pytest.skip("no C compiler on this machine: only the virtual machine can run")
+    monkeypatch.setenv("ROBOT_OED_CACHE", str(tmp_path))
+    model = build_model(load_robot("puma560", joints=6), "combined", "viscous,coulomb")
+    function = model.regressor
+    q, dq, ddq = random_states(6, 50, seed=1)
+    fast = SampleEvaluator(function, backend="compiled")(q, dq, ddq)
+    slow = SampleEvaluator(function, backend="vm")(q, dq, ddq)
+    assert fast.shape == (50, function.numel_out(0))
+    np.testing.assert_allclose(fast, slow, rtol=1e-12, atol=1e-12)
+    assert fast.shape[1] == model.n_channels * model.n_parameters
+    assert list(tmp_path.glob("combined_regressor_*.so")), "the compiled library is cached on disk"
+
+
+def test_sparse_output_is_scattered_into_place():
+    x = casadi.SX.sym("x", 2)
+    function = casadi.Function("sparse_out", [x], [casadi.diag(x * 3)], ["x"], ["y"])
+    assert not function.sparsity_out(0).is_dense()
+    values = np.array([[1.0, 2.0], [3.0, 4.0]])
+    result = SampleEvaluator(function, backend="vm")(values)
+    np.testing.assert_array_equal(result, [[3, 0, 0, 6], [9, 0, 0, 12]])
+
+
+def test_falls_back_to_virtual_machine_without_compiler(monkeypatch):
+    monkeypatch.setattr(compiled, "find_compiler", lambda: None)
+    x = casadi.SX.sym("x", 2)
+    function = casadi.Function("no_compiler_case", [x], [x * 2], ["x"], ["y"])
+    assert compiled.compile_function.__wrapped__(function, "auto") is function
+    with pytest.raises(RuntimeError, match="no C compiler"):
+        compiled.compile_function.__wrapped__(function, "compiled")
+
+
+def test_wrong_input_width_is_named():
+    x = casadi.SX.sym("x", 3)
+    evaluator = SampleEvaluator(casadi.Function("width", [x], [x], ["x"], ["y"]), backend="vm")
+    with pytest.raises(ValueError, match=r"input x must be \(4, 3\)"):
+        evaluator(np.zeros((4, 2)))
