@@ -119,6 +119,38 @@ class Armature(_PerJointEffect):
 
 
 @dataclass(frozen=True)
+class StribeckFriction(_PerJointEffect):
+    """``tau_i += fs_i · exp(−(dq_i / velocity)²) · sign(dq_i)``: the static-friction bump at low speed.
+
+    The Stribeck velocity is fixed (default 0.05 rad/s or m/s), which keeps the model linear in
+    ``fs_i``; a user who knows it better passes another value.
+    """
+
+    velocity: float = 0.05
+    name: ClassVar[str] = "stribeck"
+    symbol: ClassVar[str] = "fs"
+
+    def __post_init__(self) -> None:
+        if not self.velocity > 0:
+            raise ValueError(f"stribeck velocity must be positive, got {self.velocity}")
+
+    def term(self, q, dq, ddq):
+        return casadi.exp(-((dq / self.velocity) ** 2)) * casadi.sign(dq)
+
+
+@dataclass(frozen=True)
+class Spring(_PerJointEffect):
+    """``tau_i += k_i · (q_i − q_ref)``: a cable harness or a gravity compensator acting on joint ``i``."""
+
+    reference: float = 0.0
+    name: ClassVar[str] = "spring"
+    symbol: ClassVar[str] = "k"
+
+    def term(self, q, dq, ddq):
+        return q - self.reference
+
+
+@dataclass(frozen=True)
 class WrenchOffset:
     """Constant offsets of the force-plate channels (external rows only)."""
 
@@ -141,15 +173,16 @@ class WrenchOffset:
 
 
 EFFECTS: dict[str, type] = {
-    effect.name: effect for effect in (ViscousFriction, CoulombFriction, JointOffset, Armature, WrenchOffset)
+    effect.name: effect
+    for effect in (ViscousFriction, CoulombFriction, JointOffset, Armature, StribeckFriction, Spring, WrenchOffset)
 }
 
 
 def parse_effects(spec: str | Iterable[str | Effect] | None) -> tuple[Effect, ...]:
     """Effects from a comma-separated list of names (``"viscous,coulomb"``) or a sequence.
 
-    Names: ``viscous``, ``coulomb``, ``offset``, ``armature``, ``wrench_offset`` (alias
-    ``plate_offset``); ``none`` or an empty string for rigid-body only.
+    Names: ``viscous``, ``coulomb``, ``offset``, ``armature``, ``stribeck``, ``spring``,
+    ``wrench_offset`` (alias ``plate_offset``); ``none`` or an empty string for rigid-body only.
     """
     if spec is None:
         return ()

@@ -131,3 +131,16 @@ def test_dh_conversion_reproduces_the_dh_product_and_corke_zero_pose():
         np.testing.assert_allclose(tip, dh_forward_kinematics(PUMA560_DH, q), atol=1e-12)
     # Corke, Robotics Toolbox: p560.fkine(qz) puts the wrist centre at (0.4521, -0.15005, 0.4318)
     np.testing.assert_allclose(dh_forward_kinematics(PUMA560_DH, np.zeros(6))[:3, 3], [0.4521, -0.15005, 0.4318])
+
+
+def test_stribeck_and_spring_columns_follow_their_definitions():
+    from dynamics.effects import Spring, StribeckFriction
+
+    robot = load_robot("puma560", joints=3)
+    model = build_model(robot, "internal", (StribeckFriction(velocity=0.1, joints=(1,)), Spring(reference=0.3, joints=(0, 2))))
+    assert [name for name in model.parameter_names[30:]] == ["fs2", "k1", "k3"]
+    q, dq, ddq = random_states(3, 4, seed=10)
+    Y = model.evaluate(q, dq, ddq)
+    np.testing.assert_allclose(Y[:, 1, 30], np.exp(-((dq[:, 1] / 0.1) ** 2)) * np.sign(dq[:, 1]))
+    np.testing.assert_allclose(Y[:, [0, 2], [31, 32]], q[:, [0, 2]] - 0.3)
+    assert np.all(Y[:, [1, 2], 31] == 0) and np.all(Y[:, [0, 2], 30] == 0)
