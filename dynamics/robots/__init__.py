@@ -7,13 +7,22 @@ from pathlib import Path
 
 from dynamics.errors import RobotDescriptionError
 from dynamics.robot import RobotModel
+from importlib import resources
+
 from dynamics.robots.puma560 import puma560
 from dynamics.robots.servo_arm import servo_arm
 from dynamics.urdf import robot_from_urdf
 
+def emps() -> RobotModel:
+    """The EMPS linear axis (one prismatic joint), described by the packaged ``emps.urdf``."""
+    with resources.as_file(resources.files("dynamics.robots").joinpath("emps.urdf")) as path:
+        return robot_from_urdf(path)
+
+
 BUILT_IN_ROBOTS: dict[str, Callable[[], RobotModel]] = {
     "puma560": puma560,
     "servo_arm": servo_arm,
+    "emps": emps,
 }
 
 
@@ -38,7 +47,7 @@ def load_robot(name: str | None = None, *, urdf: str | Path | None = None, joint
     Parameters
     ----------
     name
-        One of :data:`BUILT_IN_ROBOTS` (``puma560``, ``servo_arm``). Ignored when ``urdf`` is given.
+        One of :data:`BUILT_IN_ROBOTS` (``puma560``, ``servo_arm``, ``emps``). Ignored when ``urdf`` is given.
     urdf
         Path of a URDF file describing a serial chain.
     joints
