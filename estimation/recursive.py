@@ -66,6 +66,11 @@ def _layout(na: int, nb: int, nk: int, nc: int) -> dict[str, slice]:
     return layout
 
 
+def _head(v: casadi.SX, n: int) -> casadi.SX:
+    """First ``n`` entries of a column (``n = 0`` gives an empty column, unlike ``v[:0]``)."""
+    return v[:n] if n > 0 else casadi.SX(0, 1)
+
+
 @functools.lru_cache(maxsize=None)
 def erls_step_function(na: int, nb: int, nk: int, nc: int, forgetting: float) -> casadi.Function:
     """One ERLS step (eqs. 23–25) as ``casadi.Function`` ``erls_step``: ``(x, d) -> (x_next, e)``.
@@ -90,7 +95,7 @@ def erls_step_function(na: int, nb: int, nk: int, nc: int, forgetting: float) ->
     P_next = 0.5 * (P_next + P_next.T)  # keep P symmetric: without this, round-off makes it indefinite when λ < 1
     eps = y - casadi.dot(phi, theta_next)
     x_upd = casadi.vertcat(
-        theta_next, casadi.vec(P_next), casadi.vertcat(y, ymem)[:na], umem_now[: nk + nb - 1], casadi.vertcat(eps, emem)[:nc]
+        theta_next, casadi.vec(P_next), _head(casadi.vertcat(y, ymem), na), _head(umem_now, nk + nb - 1), _head(casadi.vertcat(eps, emem), nc)
     )
     x_next = w * x_upd + (1 - w) * x
     return casadi.Function("erls_step", [x, d], [x_next, w * e], ["x", "d"], ["x_next", "e"])
