@@ -160,7 +160,7 @@ def fit_servo_joint(
     one_step = polys.one_step_prediction(u, q)
     p = theta.size
     V = cost_v(q[2:n_est], one_step[2:n_est])
-    simulated = free_run((a1, a2, K), u[n_est - 1 : -1], (q[n_est - 1], q[n_est - 2]))
+    simulated = free_run((a1, a2, K), u[n_est:], (q[n_est - 1], q[n_est - 2]), u_initial=u[n_est - 1])
     gray = None if mass is None else discrete_to_gray_box(a1, a2, K, mass=mass, dt=dt)
     q_val = q[n_est:]
     return ServoJointFit(

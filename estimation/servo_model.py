@@ -143,17 +143,19 @@ def discrete_to_gray_box(a1: float, a2: float, K: float, *, mass: float, dt: flo
     return GrayBoxParameters(b=float(b), k=float(k), sigma=float(sigma), mass=float(mass))
 
 
-def free_run(coefficients: ArrayLike, u: ArrayLike, q_initial: ArrayLike) -> np.ndarray:
-    """Free-run simulation of eq. 14: ``q(n) = −a1 q(n−1) − a2 q(n−2) + K u(n−1)``.
+def free_run(coefficients: ArrayLike, u: ArrayLike, q_initial: ArrayLike, *, u_initial: float = 0.0) -> np.ndarray:
+    """Free-run simulation of eq. 14: ``q(n) = −a1 q(n−1) − a2 q(n−2) + K u(n−1)``, for ``n = 0 … N−1``.
 
     Parameters
     ----------
     coefficients
         ``(a1, a2, K)``.
     u
-        Input samples ``u(0) … u(N−1)`` [rad]; the first is ``u(n−1)`` for the first simulated sample.
+        Input samples ``u(0) … u(N−1)`` [rad], aligned with the output samples (``u(n)`` acts on ``q(n+1)``).
     q_initial
         ``(q(−1), q(−2))``: the two angles before the first simulated sample.
+    u_initial
+        ``u(−1)``, the input before the first sample (acts on ``q(0)``).
 
     Returns
     -------
@@ -165,7 +167,8 @@ def free_run(coefficients: ArrayLike, u: ArrayLike, q_initial: ArrayLike) -> np.
     c = np.asarray(coefficients, dtype=float).reshape(3)
     if u.size == 0:
         return np.zeros(0)
-    _, q = _free_run_map(int(u.size))(x0, u.reshape(1, -1), c)
+    delayed = np.concatenate(([float(u_initial)], u[:-1]))
+    _, q = _free_run_map(int(u.size))(x0, delayed.reshape(1, -1), c)
     return np.asarray(q).reshape(-1)
 
 
