@@ -175,9 +175,11 @@ def fit_servo_joint(
 def fit_servo_arm(
     t: ArrayLike, u: ArrayLike, q: ArrayLike, *, masses: tuple[float, ...] | None = None, method: Method = "erls",
     estimation_fraction: float = 0.8, nc: int = 1, forgetting: float = 1.0, remove_mean: bool = True,
-    backend: str = "compiled",
+    backend: str = "compiled", dt: float | None = None,
 ) -> ServoArmFit:
     """Run :func:`fit_servo_joint` on every column of ``u``/``q`` (shape (N, joints)) sampled at times ``t``.
+
+    ``dt`` is the expected sample time (default: the median step of ``t``); ``t`` must be uniform either way.
 
     Raises
     ------
@@ -189,7 +191,7 @@ def fit_servo_arm(
     t = np.asarray(t, dtype=float).reshape(-1)
     u = np.atleast_2d(np.asarray(u, dtype=float))
     q = np.atleast_2d(np.asarray(q, dtype=float))
-    dt = check_uniform_time(t)
+    dt = check_uniform_time(t, dt=dt)
     if u.shape != q.shape or u.shape[0] != t.size:
         raise ValueError(f"u {u.shape} and q {q.shape} must both have shape ({t.size}, joints)")
     if method not in METHODS:
