@@ -26,18 +26,19 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from estimation.arx import ARXEstimator, OrderCandidate, OrderSelection, Polynomials, as_signal_pair, information_criterion
-from estimation.recursive import ExtendedRecursiveLeastSquares
+from estimation.recursive import Backend, ExtendedRecursiveLeastSquares
 
 
 def select_orders(
     u: ArrayLike, y: ArrayLike, *, na: Iterable[int] = range(1, 7), nb: Iterable[int] = range(1, 7), nc: Iterable[int] = (0,),
-    nk: int = 1, criterion: Literal["aic", "bic", "fpe"] = "aic", require_stable: bool = True,
+    nk: int = 1, criterion: Literal["aic", "bic", "fpe"] = "aic", require_stable: bool = True, backend: Backend = "vm",
 ) -> OrderSelection:
     """Fit every ``(na, nb, nc)`` (``nc = 0``: ARX by least squares; ``nc > 0``: ARMAX by ERLS) and keep the best.
 
     The score uses the one-step residuals of the final model over the same samples for every candidate
     (those after the longest lag), so candidates are compared on equal terms. With ``require_stable``,
     candidates whose ``A(z)`` has a root on or outside the unit circle (a free run would diverge) are skipped.
+    ERLS runs on ``backend``; the default CasADi VM avoids compiling C code for every order tried.
     """
     u, y = as_signal_pair(u, y)
     na, nb, nc = list(na), list(nb), list(nc)
@@ -49,7 +50,7 @@ def select_orders(
                 if c == 0:
                     theta = ARXEstimator(na=a, nb=b, nk=nk).fit(u, y).theta_
                 else:
-                    theta = ExtendedRecursiveLeastSquares(na=a, nb=b, nc=c, nk=nk).fit(u, y).theta_
+                    theta = ExtendedRecursiveLeastSquares(na=a, nb=b, nc=c, nk=nk, backend=backend).fit(u, y).theta_
                 if require_stable and a > 0 and np.max(np.abs(np.roots(np.concatenate(([1.0], theta[:a]))))) >= 1.0:
                     continue
                 residual = y[start:] - Polynomials.from_theta(theta, a, b, nk, c).one_step_prediction(u, y)[start:]

@@ -34,6 +34,7 @@ from estimation.arx import ARXEstimator, Polynomials
 from estimation.metrics import cost_v, r2_adjusted, rmse
 from estimation.recursive import ExtendedRecursiveLeastSquares, RecursiveLeastSquares
 from estimation.servo_model import discrete_to_gray_box, free_run
+from estimation.signal_checks import check_uniform_time
 
 Method = Literal["erls", "rls", "ls"]
 METHODS: tuple[str, ...] = ("erls", "rls", "ls")
@@ -186,8 +187,6 @@ def fit_servo_arm(
     ValueError
         Non-uniform ``t`` (names the row), mismatched shapes, wrong number of masses, unknown method.
     """
-    from dynamics.servo_simulator import check_uniform_time
-
     t = np.asarray(t, dtype=float).reshape(-1)
     u = np.atleast_2d(np.asarray(u, dtype=float))
     q = np.atleast_2d(np.asarray(q, dtype=float))

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from dynamics.servo_simulator import check_uniform_time
+from estimation.signal_checks import check_uniform_time
 
 
 @dataclass(frozen=True)

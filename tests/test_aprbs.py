@@ -77,3 +77,12 @@ def test_hold_min_tied_to_time_constant():
 def test_bad_designs_raise_named_errors(kwargs, message):
     with pytest.raises(ValueError, match=message):
         APRBSDesign(**kwargs)
+
+
+def test_figure_of_signal_histogram_and_spectrum_is_written(tmp_path):
+    from oed.aprbs_figures import plot_aprbs
+
+    result = design_aprbs(APRBSDesign(duration=10.0), candidates=2, seed=0)
+    path = tmp_path / "aprbs.png"
+    plot_aprbs(result, path)
+    assert path.stat().st_size > 10_000

@@ -18,7 +18,7 @@ import sys
 from collections.abc import Sequence
 
 # verb module names, in the order ``oed --help`` lists them
-VERB_MODULES: tuple[str, ...] = ("model", "aprbs", "servo-simulate", "servo-fit")
+VERB_MODULES: tuple[str, ...] = ("model", "aprbs", "servo_simulate", "servo_fit")
 
 EXIT_USER_ERROR = 2
 
@@ -32,7 +32,7 @@ def build_parser() -> argparse.ArgumentParser:
     subparsers = parser.add_subparsers(dest="verb", metavar="VERB")
     subparsers.required = True
     for name in VERB_MODULES:
-        module_name = f"oed.cli.{name.replace('-', '_')}"
+        module_name = f"oed.cli.{name}"
         try:
             module = importlib.import_module(module_name)
         except ModuleNotFoundError as error:
