@@ -23,7 +23,7 @@ def cache_directory() -> Path:
     return Path(os.environ.get("ROBOT_OED_CACHE", Path.home() / ".cache" / "robot-oed"))
 
 
-def compile_function(function: casadi.Function, *, compiler: str | None = None, flags: tuple[str, ...] = ("-O3", "-march=native")) -> casadi.Function:
+def compile_function(function: casadi.Function, *, compiler: str | None = None, flags: tuple[str, ...] = ("-O3",)) -> casadi.Function:
     """Return ``function`` compiled to a shared library, or ``function`` itself when no compiler is available.
 
     Parameters

@@ -72,7 +72,7 @@ def _kalman_run(n_samples: int) -> casadi.Function:
 
 
 def kalman_fusion(
-    gyro: ArrayLike, acc_angle: ArrayLike, *, dt: float, q: tuple[float, float] = (1e-6, 1e-8), r: float = 1e-3,
+    gyro: ArrayLike, acc_angle: ArrayLike, *, dt: float, q: tuple[float, float] = (1e-5, 1e-8), r: float = 1e-3,
     x0: tuple[float, float] | None = None, p0: float = 1.0,
 ) -> FusionResult:
     """Fuse a gyro rate and an accelerometer angle of one joint (eqs. 1–8).
@@ -117,3 +117,27 @@ def integrated_gyro(gyro: ArrayLike, *, dt: float, angle0: float) -> np.ndarray:
     """Angle from integrating the gyro rate alone (drifts with the bias): ``θ(n) = θ0 + T Σ ω``."""
     gyro = np.asarray(gyro, dtype=float).reshape(-1)
     return angle0 + dt * np.cumsum(gyro)
+
+
+@dataclass(frozen=True)
+class FusionComparison:
+    """RMSE [rad] against the true angle of the Kalman fusion, the accelerometer alone and the integrated gyro."""
+
+    rmse_fused: float
+    rmse_accelerometer: float
+    rmse_integrated_gyro: float
+
+
+def compare_fusion(
+    gyro: ArrayLike, acc_angle: ArrayLike, true_angle: ArrayLike, *, dt: float, q: tuple[float, float] = (1e-5, 1e-8), r: float = 1e-3,
+) -> FusionComparison:
+    """Score the fusion (eqs. 1–8) against accelerometer-only angles and the integrated gyro (simulation only:
+    needs the true angle)."""
+    truth = np.asarray(true_angle, dtype=float).reshape(-1)
+    acc = np.asarray(acc_angle, dtype=float).reshape(-1)
+    if truth.size != acc.size:
+        raise ValueError(f"true_angle has {truth.size} samples but acc_angle has {acc.size}")
+    fused = kalman_fusion(gyro, acc, dt=dt, q=q, r=r).angle
+    gyro_only = integrated_gyro(gyro, dt=dt, angle0=float(acc[0]))
+    rms = lambda estimate: float(np.sqrt(np.mean((estimate - truth) ** 2)))  # noqa: E731
+    return FusionComparison(rmse_fused=rms(fused), rmse_accelerometer=rms(acc), rmse_integrated_gyro=rms(gyro_only))
