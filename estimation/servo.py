@@ -33,7 +33,7 @@ from numpy.typing import ArrayLike
 from estimation.arx import ARXEstimator, Polynomials
 from estimation.metrics import cost_v, r2_adjusted, rmse
 from estimation.recursive import ExtendedRecursiveLeastSquares, RecursiveLeastSquares
-from estimation.servo_model import discrete_to_gray_box, free_run
+from estimation.servo_model import Discretisation, discrete_to_gray_box, free_run
 from estimation.signal_checks import check_uniform_time
 
 Method = Literal["erls", "rls", "ls"]
@@ -119,7 +119,7 @@ def _estimator(method: str, *, nc: int, forgetting: float, backend: str):
 def fit_servo_joint(
     u: ArrayLike, q: ArrayLike, *, dt: float, mass: float | None = None, joint: int = 1, method: Method = "erls",
     estimation_fraction: float = 0.8, nc: int = 1, forgetting: float = 1.0, remove_mean: bool = True,
-    backend: str = "compiled",
+    backend: str = "compiled", discretisation: Discretisation = "backward-euler",
 ) -> ServoJointFit:
     """Identify one joint (eq. 14, ERLS/RLS/LS), map to ``b, k, σ`` with ``mass`` and compute the metrics.
 
@@ -139,6 +139,9 @@ def fit_servo_joint(
         Forgetting factor of RLS/ERLS.
     remove_mean
         Remove the estimation part's means of ``u`` and ``q`` (eq. 16).
+    discretisation
+        Gray-box mapping: ``"backward-euler"`` (exact inverse of eq. 13, default) or ``"zoh"`` (pole mapping,
+        closer to a continuous plant's ``b, k`` when ``ω_n T`` is not small).
     """
     u = np.asarray(u, dtype=float).reshape(-1)
     q = np.asarray(q, dtype=float).reshape(-1)
@@ -162,7 +165,7 @@ def fit_servo_joint(
     p = theta.size
     V = cost_v(q[2:n_est], one_step[2:n_est])
     simulated = free_run((a1, a2, K), u[n_est:], (q[n_est - 1], q[n_est - 2]), u_initial=u[n_est - 1])
-    gray = None if mass is None else discrete_to_gray_box(a1, a2, K, mass=mass, dt=dt)
+    gray = None if mass is None else discrete_to_gray_box(a1, a2, K, mass=mass, dt=dt, discretisation=discretisation)
     q_val = q[n_est:]
     return ServoJointFit(
         joint=joint, method=method, a1=a1, a2=a2, K=K, c=c, mass=None if mass is None else float(mass),
@@ -176,7 +179,7 @@ def fit_servo_joint(
 def fit_servo_arm(
     t: ArrayLike, u: ArrayLike, q: ArrayLike, *, masses: tuple[float, ...] | None = None, method: Method = "erls",
     estimation_fraction: float = 0.8, nc: int = 1, forgetting: float = 1.0, remove_mean: bool = True,
-    backend: str = "compiled", dt: float | None = None,
+    backend: str = "compiled", dt: float | None = None, discretisation: Discretisation = "backward-euler",
 ) -> ServoArmFit:
     """Run :func:`fit_servo_joint` on every column of ``u``/``q`` (shape (N, joints)) sampled at times ``t``.
 
@@ -201,6 +204,7 @@ def fit_servo_arm(
         fit_servo_joint(
             u[:, j], q[:, j], dt=dt, mass=None if masses is None else masses[j], joint=j + 1, method=method,
             estimation_fraction=estimation_fraction, nc=nc, forgetting=forgetting, remove_mean=remove_mean, backend=backend,
+            discretisation=discretisation,
         )
         for j in range(u.shape[1])
     )

@@ -97,3 +97,17 @@ def test_bad_inputs_raise_named_errors():
         fit_servo_arm(t, np.zeros((100, 1)), np.zeros((100, 1)))
     with pytest.raises(ValueError, match="method"):
         fit_servo_arm(np.arange(100) * DT, np.zeros((100, 1)), np.zeros((100, 1)), method="gauss")
+
+
+@pytest.mark.parametrize("m,b,k,sigma", TABLE1)
+def test_zoh_mapping_recovers_a_sampled_continuous_plant(m, b, k, sigma):
+    import scipy.signal
+
+    num, den, _ = scipy.signal.cont2discrete(([sigma / m], [1.0, b / m, k / m]), DT, method="zoh")
+    num = np.ravel(num)
+    a1, a2 = den[1], den[2]
+    K = float(num.sum())  # eq. 14 has one numerator coefficient: keep the static gain
+    zoh = discrete_to_gray_box(a1, a2, K, mass=m, dt=DT, discretisation="zoh")
+    assert np.allclose([zoh.b, zoh.k, zoh.sigma], [b, k, sigma], rtol=1e-8)
+    euler = discrete_to_gray_box(a1, a2, K, mass=m, dt=DT)
+    assert abs(euler.k - k) / k > 0.04  # eq. 13's inverse misreads a sampled continuous plant (k too high here)

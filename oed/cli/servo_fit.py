@@ -15,6 +15,8 @@ def register(subparsers) -> argparse.ArgumentParser:
     parser.add_argument("--nc", type=int, default=1, help="order of C(z) for ERLS")
     parser.add_argument("--forgetting", type=float, default=1.0, help="forgetting factor of RLS/ERLS")
     parser.add_argument("--estimation-fraction", type=float, default=0.8, help="leading fraction used to estimate")
+    parser.add_argument("--discretisation", choices=("backward-euler", "zoh"), default="backward-euler",
+                        help="gray-box mapping: exact inverse of eq. 13 (default) or pole mapping (zero-order hold)")
     parser.add_argument("--out", required=True, help="output JSON")
     return parser
 
@@ -45,7 +47,7 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError(f"{args.data}: {u.shape[1]} input columns u* but {q.shape[1]} angle columns q*")
     fit = fit_servo_arm(
         table.t, u, q, masses=_masses(args.mass, u.shape[1]), method=args.method, estimation_fraction=args.estimation_fraction,
-        nc=args.nc, forgetting=args.forgetting, dt=table.dt,
+        nc=args.nc, forgetting=args.forgetting, dt=table.dt, discretisation=args.discretisation,
     )
     write_text_atomic(args.out, json.dumps(fit.to_dict(), indent=2) + "\n")
     print(fit.table())
