@@ -136,8 +136,8 @@ def discrete_to_gray_box(
     ``k = m (1 + a1 + a2)/(a2 T²)``, ``σ = m K/(a2 T²)`` (module docstring: derivation, and what is wrong
     with the paper's eqs. 27–29). Eq. 13 is only a first-order-accurate discretisation: for a *continuous*
     plant with ``ω_n T`` not small (0.78 for the paper's joint 1 at 10 ms) it misreads ``b`` and ``k``: for
-    Table 1's joints sampled (zero-order hold) at 10 ms it returns ``k`` 5–34 % too high and ``b`` from 84 % too low to 5 %
-    too low. ``discretisation="zoh"`` maps the discrete poles instead, ``s_i = ln(z_i)/T``, so that
+    Table 1's joints sampled (zero-order hold) at 10 ms it returns ``k`` 5–34 % too high and ``b`` anywhere from
+    84 % too low to 5 % too high. ``discretisation="zoh"`` maps the discrete poles instead, ``s_i = ln(z_i)/T``, so that
     ``b/m = −(s1 + s2)``, ``k/m = s1 s2`` (exact for the poles of a sampled continuous plant), and keeps the
     static gain, ``σ = k K/(1 + a1 + a2)``.
 
