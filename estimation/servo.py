@@ -32,7 +32,7 @@ from numpy.typing import ArrayLike
 
 from estimation.arx import ARXEstimator, Polynomials
 from estimation.metrics import cost_v, r2_adjusted, rmse
-from estimation.recursive import ExtendedRecursiveLeastSquares, RecursiveLeastSquares
+from estimation.recursive import Backend, ExtendedRecursiveLeastSquares, RecursiveLeastSquares
 from estimation.servo_model import Discretisation, discrete_to_gray_box, free_run
 from estimation.signal_checks import check_uniform_time
 
@@ -106,7 +106,7 @@ class ServoArmFit:
         return "\n".join(lines)
 
 
-def _estimator(method: str, *, nc: int, forgetting: float, backend: str):
+def _estimator(method: str, *, nc: int, forgetting: float, backend: Backend):
     if method == "ls":
         return ARXEstimator(na=2, nb=1, nk=1)
     if method == "rls":
@@ -119,7 +119,7 @@ def _estimator(method: str, *, nc: int, forgetting: float, backend: str):
 def fit_servo_joint(
     u: ArrayLike, q: ArrayLike, *, dt: float, mass: float | None = None, joint: int = 1, method: Method = "erls",
     estimation_fraction: float = 0.8, nc: int = 1, forgetting: float = 1.0, remove_mean: bool = True,
-    backend: str = "compiled", discretisation: Discretisation = "backward-euler",
+    backend: Backend = "compiled", discretisation: Discretisation = "backward-euler",
 ) -> ServoJointFit:
     """Identify one joint (eq. 14, ERLS/RLS/LS), map to ``b, k, σ`` with ``mass`` and compute the metrics.
 
@@ -179,7 +179,7 @@ def fit_servo_joint(
 def fit_servo_arm(
     t: ArrayLike, u: ArrayLike, q: ArrayLike, *, masses: tuple[float, ...] | None = None, method: Method = "erls",
     estimation_fraction: float = 0.8, nc: int = 1, forgetting: float = 1.0, remove_mean: bool = True,
-    backend: str = "compiled", dt: float | None = None, discretisation: Discretisation = "backward-euler",
+    backend: Backend = "compiled", dt: float | None = None, discretisation: Discretisation = "backward-euler",
 ) -> ServoArmFit:
     """Run :func:`fit_servo_joint` on every column of ``u``/``q`` (shape (N, joints)) sampled at times ``t``.
 

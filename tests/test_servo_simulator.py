@@ -45,3 +45,17 @@ def test_non_uniform_time_is_named():
     t[20:] += 0.004
     with pytest.raises(ValueError, match="not uniform"):
         simulate_servo_arm(t, np.tile([0.0, 1.0, 1.5, 1.0], (50, 1)))
+
+
+def test_end_to_end_linear_regime_recovers_table1_with_zoh_mapping():
+    from estimation.servo import fit_servo_arm
+    from oed.aprbs import APRBSDesign, design_aprbs
+
+    design = design_aprbs(APRBSDesign(duration=60.0), seed=1)
+    record = simulate_servo_arm(design.t, design.u, max_speed=1e3, gravity=False, seed=2)  # no saturation: linear
+    fit = fit_servo_arm(design.t, design.u, record.q, masses=tuple(j.mass for j in PAPER_JOINTS), discretisation="zoh")
+    for joint, truth in zip(fit.joints, PAPER_JOINTS):
+        assert joint.k == pytest.approx(truth.k, rel=0.10)
+        assert joint.sigma == pytest.approx(truth.sigma, rel=0.10)
+        assert joint.b == pytest.approx(truth.b, rel=0.25)
+        assert joint.r2_adj_free_run > 0.99
