@@ -202,7 +202,8 @@ class RecursiveLeastSquares:
             raise ValueError("keep_history=True needs backend='numpy' (the compiled recursion keeps no per-sample history)")
 
     def fit(self, u: ArrayLike, y: ArrayLike) -> "RecursiveLeastSquares":
-        """Run the recursion over the record; sets ``theta_``, ``P_``, ``prediction_errors_``, ``trace_``.
+        """Run the recursion over the record; sets ``theta_``, ``P_``, ``cov_``, ``noise_variance_``,
+        ``prediction_errors_`` (a-priori ``e(n)``) and ``trace_`` (``trace P`` at each chunk end).
 
         Raises
         ------
@@ -213,6 +214,8 @@ class RecursiveLeastSquares:
         u, y = as_signal_pair(u, y)
         na, nb, nk, nc = self.na, self.nb, self.nk, self._nc
         p = na + nb + nc
+        if y.size <= p:
+            raise ValueError(f"{y.size} samples for {p} parameters: the recursion needs more data")
         lay = _layout(na, nb, nk, nc)
         x0 = np.zeros(lay["size"].stop)
         x0[lay["P"]] = (self.delta * np.eye(p)).reshape(-1)
@@ -228,6 +231,9 @@ class RecursiveLeastSquares:
         self.P_ = state[lay["P"]].reshape(p, p, order="F").copy()
         self.prediction_errors_ = errors
         self.trace_ = traces
+        tail = errors[errors.size // 2 :]
+        self.noise_variance_ = float(tail @ tail) / max(tail.size - p, 1)
+        self.cov_ = self.noise_variance_ * self.P_  # λ = 1 and large δ: P ≈ (Φᵀ Φ)⁻¹
         self.n_parameters_ = p
         return self
 

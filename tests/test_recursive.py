@@ -80,3 +80,15 @@ def test_unfitted_and_bad_settings_raise_clear_errors():
         RecursiveLeastSquares(nk=0).fit(np.zeros(10), np.zeros(10))
     with pytest.raises(ValueError, match="samples"):
         RecursiveLeastSquares().fit(np.zeros(10), np.zeros(9))
+
+
+def test_erls_covariance_matches_the_spread_over_repeated_experiments():
+    estimates, covariances = [], []
+    for seed in range(12):
+        u, y = _armax(4000, seed=seed, noise=0.3)
+        model = ExtendedRecursiveLeastSquares(na=2, nb=2, nc=1).fit(u, y)
+        estimates.append(model.theta_)
+        covariances.append(np.diag(model.cov_))
+    spread = np.var(np.array(estimates), axis=0, ddof=1)
+    predicted = np.mean(np.array(covariances), axis=0)
+    assert np.all(spread < 4 * predicted) and np.all(spread > predicted / 4)
