@@ -54,9 +54,13 @@ def compile_function(function: casadi.Function, *, compiler: str | None = None, 
             c_file = Path(build, f"{name}.c")
             c_file.write_text(source)
             target = Path(build, library.name)
-            result = subprocess.run([compiler, *flags, "-shared", "-fPIC", str(c_file), "-o", str(target), "-lm"], capture_output=True, text=True)
-            if result.returncode != 0:
-                warnings.warn(f"compiling {name} failed ({result.stderr.strip()[:200]}): using the CasADi virtual machine", RuntimeWarning, stacklevel=2)
+            try:
+                result = subprocess.run([compiler, *flags, "-shared", "-fPIC", str(c_file), "-o", str(target), "-lm"], capture_output=True, text=True)
+                failure = result.stderr.strip()[:200] if result.returncode != 0 else None
+            except OSError as error:
+                failure = str(error)
+            if failure is not None:
+                warnings.warn(f"compiling {name} with {compiler} failed ({failure}): using the CasADi virtual machine", RuntimeWarning, stacklevel=2)
                 return function
             os.replace(target, library)  # atomic: a concurrent process sees no half-written library
     return casadi.external(name, str(library))
