@@ -1,0 +1,45 @@
+"""Input checks shared by the servo-arm workflow: uniform time columns and per-joint ranges.
+
+Both raise ``ValueError`` with a message that names the column, the row and the bound at fault.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def check_uniform_time(t: np.ndarray, *, dt: float | None = None, name: str = "t") -> float:
+    """Return the sample time of a uniform time column, or raise ``ValueError`` naming the first irregular sample."""
+    t = np.asarray(t, dtype=float).reshape(-1)
+    if t.size < 2:
+        raise ValueError(f"time column {name!r} needs at least two samples")
+    if not np.all(np.isfinite(t)):
+        raise ValueError(f"time column {name!r} holds NaN/inf")
+    steps = np.diff(t)
+    step = float(np.median(steps)) if dt is None else float(dt)
+    if step <= 0:
+        raise ValueError(f"time column {name!r} is not increasing")
+    bad = np.flatnonzero(np.abs(steps - step) > 1e-6 * max(step, 1.0) + 1e-9)
+    if bad.size:
+        i = int(bad[0])
+        raise ValueError(
+            f"time column {name!r} is not uniform: step {steps[i]:.6g} s between rows {i} and {i + 1} "
+            f"(t = {t[i]:.6g} s), expected {step:.6g} s"
+        )
+    return step
+
+
+def check_in_ranges(u: np.ndarray, ranges: tuple[tuple[float, float], ...], *, prefix: str = "u") -> None:
+    """Raise ``ValueError`` naming the column, sample and bound of the first value outside its joint range."""
+    if u.ndim != 2 or u.shape[1] != len(ranges):
+        raise ValueError(f"input must have {len(ranges)} columns {prefix}1..{prefix}{len(ranges)}, got shape {u.shape}")
+    tol = 1e-9
+    for j, (low, high) in enumerate(ranges):
+        column = u[:, j]
+        if not np.all(np.isfinite(column)):
+            raise ValueError(f"column {prefix}{j + 1} holds NaN/inf")
+        below, above = np.flatnonzero(column < low - tol), np.flatnonzero(column > high + tol)
+        if below.size or above.size:
+            i = int(below[0]) if below.size else int(above[0])
+            side, bound = ("below the lower", low) if below.size else ("above the upper", high)
+            raise ValueError(f"column {prefix}{j + 1} = {column[i]:.6g} rad at row {i} is {side} joint-{j + 1} bound {bound} rad")

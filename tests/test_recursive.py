@@ -1,0 +1,109 @@
+"""RLS/ERLS: known ARMAX parameters recovered; compiled CasADi recursion equals the numpy loop; divergence named."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+
+from estimation.arx import ARXEstimator
+from estimation.recursive import (
+    CovarianceBlowUpWarning, ExtendedRecursiveLeastSquares, RecursionDivergedError, RecursiveLeastSquares,
+)
+
+A, B, C = [-1.5, 0.7], [1.0, 0.5], [0.6]
+
+
+def _armax(n: int, seed: int = 0, noise: float = 0.3):
+    rng = np.random.default_rng(seed)
+    u, e = rng.standard_normal(n), noise * rng.standard_normal(n)
+    return u, ARXEstimator.simulate_structure(a=A, b=B, c=C, nk=1, u=u, e=e)
+
+
+def test_erls_recovers_armax_parameters_where_ls_is_biased():
+    u, y = _armax(20000)
+    erls = ExtendedRecursiveLeastSquares(na=2, nb=2, nc=1).fit(u, y)
+    assert np.allclose(erls.theta_, A + B + C, atol=0.03)
+    ls = ARXEstimator(na=2, nb=2).fit(u, y)  # coloured noise biases plain least squares
+    assert np.abs(ls.theta_ - np.array(A + B)).max() > 3 * np.abs(erls.theta_[:4] - np.array(A + B)).max()
+
+
+def test_rls_with_lambda_one_equals_batch_least_squares():
+    u, y = _armax(3000, noise=0.0)
+    rls = RecursiveLeastSquares(na=2, nb=2, delta=1e8, backend="numpy").fit(u, y)
+    ls = ARXEstimator(na=2, nb=2).fit(u, y)
+    assert np.allclose(rls.theta_, ls.theta_, atol=1e-6)
+
+
+@pytest.mark.parametrize("forgetting", [1.0, 0.995])
+@pytest.mark.parametrize("backend", ["compiled", "vm"])
+def test_casadi_erls_equals_numpy_erls(backend, forgetting):
+    u, y = _armax(40000, seed=2)  # spans several compiled blocks, with padding in the last
+    kwargs = dict(na=2, nb=2, nc=1, forgetting=forgetting)
+    ref = ExtendedRecursiveLeastSquares(backend="numpy", **kwargs).fit(u, y)
+    fast = ExtendedRecursiveLeastSquares(backend=backend, **kwargs).fit(u, y)
+    assert np.max(np.abs(fast.theta_ - ref.theta_)) < 1e-9
+    assert np.max(np.abs(fast.P_ - ref.P_)) < 1e-9 * max(1.0, np.abs(ref.P_).max())
+    assert np.max(np.abs(fast.prediction_errors_ - ref.prediction_errors_)) < 1e-9
+    assert np.allclose(fast.trace_, ref.trace_, rtol=1e-9)
+
+
+def test_numpy_history_is_kept_only_when_asked():
+    u, y = _armax(500)
+    plain = ExtendedRecursiveLeastSquares(backend="numpy").fit(u, y)
+    assert not hasattr(plain, "P_history_")
+    kept = ExtendedRecursiveLeastSquares(backend="numpy", keep_history=True).fit(u, y)
+    assert kept.P_history_.shape == (500, 4, 4) and np.allclose(kept.theta_history_[-1], kept.theta_)
+    with pytest.raises(ValueError, match="keep_history"):
+        ExtendedRecursiveLeastSquares(backend="compiled", keep_history=True).fit(u, y)
+
+
+def test_covariance_blow_up_warns_and_divergence_raises():
+    n = 20000
+    u, y = np.zeros(n), np.zeros(n)
+    u[:50] = np.random.default_rng(0).standard_normal(50)  # excitation dies out; λ < 1 winds P up
+    with pytest.warns(CovarianceBlowUpWarning, match="covariance blow-up"):
+        RecursiveLeastSquares(na=2, nb=1, forgetting=0.99, max_trace=1e8).fit(u, y)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", CovarianceBlowUpWarning)
+        with pytest.raises(RecursionDivergedError, match="diverged.*covariance"):
+            RecursiveLeastSquares(na=2, nb=1, forgetting=0.9).fit(u, y)
+
+
+def test_unfitted_and_bad_settings_raise_clear_errors():
+    with pytest.raises(RuntimeError, match="not fitted"):
+        ExtendedRecursiveLeastSquares().predict(np.zeros(10), np.zeros(10))
+    with pytest.raises(ValueError, match="forgetting"):
+        RecursiveLeastSquares(forgetting=1.5).fit(np.zeros(10), np.zeros(10))
+    with pytest.raises(ValueError, match="nk"):
+        RecursiveLeastSquares(nk=0).fit(np.zeros(10), np.zeros(10))
+    with pytest.raises(ValueError, match="samples"):
+        RecursiveLeastSquares().fit(np.zeros(10), np.zeros(9))
+
+
+def test_erls_covariance_matches_the_spread_over_repeated_experiments():
+    estimates, covariances = [], []
+    for seed in range(12):
+        u, y = _armax(4000, seed=seed, noise=0.3)
+        model = ExtendedRecursiveLeastSquares(na=2, nb=2, nc=1).fit(u, y)
+        estimates.append(model.theta_)
+        covariances.append(np.diag(model.cov_))
+    spread = np.var(np.array(estimates), axis=0, ddof=1)
+    predicted = np.mean(np.array(covariances), axis=0)
+    assert np.all(spread < 4 * predicted) and np.all(spread > predicted / 4)
+
+
+def test_codegen_falls_back_to_the_virtual_machine_without_a_compiler(tmp_path, monkeypatch):
+    import casadi
+
+    from estimation.codegen import compile_function
+
+    monkeypatch.setenv("ROBOT_OED_CACHE", str(tmp_path))
+    x = casadi.SX.sym("x")
+    function = casadi.Function("square_fallback", [x], [x**2])
+    with pytest.warns(RuntimeWarning, match="virtual machine"):
+        same = compile_function(function, compiler=str(tmp_path / "no-such-cc"))
+    assert same is function
+    compiled = compile_function(function)
+    assert float(compiled(3.0)) == 9.0 and list(tmp_path.glob("square_fallback_*.so"))
