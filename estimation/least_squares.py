@@ -204,7 +204,9 @@ def solve(problem: IdentificationProblem, weights: NDArray[np.float64]) -> tuple
     scale = np.linalg.norm(Yw, axis=0)
     zero = np.flatnonzero(scale == 0)
     if zero.size:
-        raise IdentifiabilityError(f"parameter {problem.names[zero[0]]} has an all-zero column: these data do not excite it")
+        raise IdentifiabilityError(
+            f"parameter(s) {[problem.names[i] for i in zero]} have all-zero columns: these data do not excite them"
+        )
     Q, R = np.linalg.qr(Yw / scale)
     diagonal = np.abs(np.diag(R))
     weak = np.flatnonzero(diagonal < IDENTIFIABILITY_TOLERANCE * diagonal.max())
