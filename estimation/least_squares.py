@@ -22,6 +22,7 @@ from dataclasses import dataclass, field, replace
 from typing import Any, Literal
 
 import numpy as np
+import scipy.linalg
 from numpy.typing import ArrayLike, NDArray
 
 from dynamics.models import IdentificationModel
@@ -207,7 +208,7 @@ def solve(problem: IdentificationProblem, weights: NDArray[np.float64]) -> tuple
         raise IdentifiabilityError(
             f"parameter(s) {[problem.names[i] for i in zero]} have all-zero columns: these data do not excite them"
         )
-    Q, R = np.linalg.qr(Yw / scale)
+    Q, R = scipy.linalg.qr(Yw / scale, mode="economic", check_finite=False)
     diagonal = np.abs(np.diag(R))
     weak = np.flatnonzero(diagonal < IDENTIFIABILITY_TOLERANCE * diagonal.max())
     if weak.size:
@@ -315,23 +316,39 @@ class WeightedLeastSquares(LeastSquares):
         problem = _as_problem(problem, measurements)
         _check_size(problem)
         floor = self.variance_floor * np.maximum(np.mean(problem.y**2, axis=0), np.finfo(float).tiny)
-        theta, unscaled, cond = solve(problem, np.ones(problem.n_channels))
-        variance = np.maximum(channel_variance(problem.residuals(theta), problem.n_parameters), floor)
-        iterations = 1
-        for _ in range(int(self.max_iter)):
-            weights = 1.0 / variance
-            theta, unscaled, cond = solve(problem, weights)
+        # The weights are iterated on per-channel Gram matrices (r x r each, formed once): every
+        # iteration costs O(m r²) instead of a factorisation of the N·m x r regressor. The final
+        # solve, covariance and residuals come from the QR factorisation, not the normal equations.
+        gram = np.matmul(problem.Y.transpose(1, 2, 0), problem.Y.transpose(1, 0, 2))  # (m, r, r)
+        moment = np.matmul(problem.Y.transpose(1, 2, 0), problem.y.T[:, :, None])[:, :, 0]  # (m, r)
+        power = np.sum(problem.y**2, axis=0)  # (m,)
+        dof = problem.n_samples - problem.n_parameters / problem.n_channels
+        weights = np.ones(problem.n_channels)
+        variance = None
+        iterations = 0
+        for _ in range(int(self.max_iter) + 1):
+            theta = _normal_solve(np.tensordot(weights, gram, axes=1), weights @ moment)
             iterations += 1
-            updated = np.maximum(channel_variance(problem.residuals(theta), problem.n_parameters), floor)
-            change = np.max(np.abs(updated - variance) / variance)
+            updated = np.maximum((power - 2 * moment @ theta + np.einsum("r,mrs,s->m", theta, gram, theta)) / dof, floor)
+            change = np.inf if variance is None else np.max(np.abs(updated - variance) / variance)
             variance = updated
+            weights = 1.0 / variance
             if change < self.tol:
                 break
+        theta, unscaled, cond = solve(problem, weights)
         residuals = problem.residuals(theta)
         dof = problem.n_samples * problem.n_channels - problem.n_parameters
         scale = float(np.sum(residuals**2 * weights)) / dof  # ≈ 1 once the weights are the inverse variances
         self._store(problem, theta, scale * unscaled, cond, residuals, weights, iterations)
         return self
+
+
+def _normal_solve(normal: NDArray[np.float64], right: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Solve the (symmetrically equilibrated) normal equations; used only to iterate weights."""
+    scale = np.sqrt(np.diag(normal))
+    if np.any(scale == 0):
+        raise IdentifiabilityError("a parameter has an all-zero column: these data do not excite it")
+    return np.linalg.lstsq(normal / np.outer(scale, scale), right / scale, rcond=None)[0] / scale
 
 
 def _as_problem(problem, measurements) -> IdentificationProblem:
