@@ -10,8 +10,8 @@ and the ``m`` channels of a model, ``y = Y_base θ_base + ε``, with ``Y_base`` 
   variances settle (Gautier's weighting). The combined model mixes ``N`` wrench rows in N and N·m
   with ``N`` joint rows: without weighting the largest channels dominate.
 
-Both solve through a QR factorisation of the column-equilibrated (weighted) regressor, not the
-normal equations, and report the relative standard deviation ``100 σ_θ / |θ|`` (%) and the
+Both solve semi-normal equations with iterative refinement on the exact residuals (see
+:func:`solve`), and report the relative standard deviation ``100 σ_θ / |θ|`` (%) and the
 condition number of the (weighted) regressor. Estimators follow scikit-learn: settings in
 ``__init__``, ``fit`` returns ``self``, fitted attributes end in ``_``.
 """
@@ -25,11 +25,12 @@ import numpy as np
 import scipy.linalg
 from numpy.typing import ArrayLike, NDArray
 
+from dynamics.fast_eval import evaluate_base_fast
 from dynamics.models import IdentificationModel
 from estimation.measurements import Measurements
 
-#: ``|R_kk|`` of the equilibrated regressor below this (relative) means a parameter is not excited
-IDENTIFIABILITY_TOLERANCE = 1e-10
+#: smallest/largest eigenvalue of the equilibrated ``YᵀWY`` below this: a parameter is not excited
+IDENTIFIABILITY_TOLERANCE = 1e-13
 
 
 class IdentifiabilityError(ValueError):
@@ -136,7 +137,7 @@ def stack(model: IdentificationModel, measurements: Measurements) -> Identificat
     if measurements.n_joints != model.robot.n_joints:
         raise ValueError(f"the data have {measurements.n_joints} joints, the robot {model.robot.n_joints}")
     measured = measurements.channels(model.channels)
-    Y = model.evaluate_base(measurements.q, measurements.dq, measurements.ddq)
+    Y = evaluate_base_fast(model, measurements.q, measurements.dq, measurements.ddq)  # zero-copy mapped call
     return IdentificationProblem(Y, measured, model.channels, model.base.names, model.base.expressions)
 
 
@@ -196,30 +197,50 @@ class Estimate:
         return {channel: float(value) for channel, value in zip(self.channels, np.sqrt(np.mean(self.residuals**2, axis=0)))}
 
 
-def solve(problem: IdentificationProblem, weights: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64], float]:
-    """``θ̂``, ``(YᵀWY)⁻¹`` and ``cond(W^½ Y)`` for channel weights ``(m,)`` by QR of the
-    column-equilibrated weighted regressor."""
-    root = np.sqrt(weights)
-    Yw = (problem.Y * root[None, :, None]).reshape(-1, problem.n_parameters)
-    yw = (problem.y * root[None, :]).reshape(-1)
-    scale = np.linalg.norm(Yw, axis=0)
+def channel_gram(problem: IdentificationProblem) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Per-channel ``Y_cᵀ Y_c`` ``(m, r, r)`` and ``Y_cᵀ y_c`` ``(m, r)``."""
+    by_channel = problem.Y.transpose(1, 2, 0)  # (m, r, N)
+    return np.matmul(by_channel, problem.Y.transpose(1, 0, 2)), np.matmul(by_channel, problem.y.T[:, :, None])[:, :, 0]
+
+
+def solve(
+    problem: IdentificationProblem,
+    weights: NDArray[np.float64],
+    gram: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None,
+) -> tuple[NDArray[np.float64], NDArray[np.float64], float]:
+    """``θ̂``, ``(YᵀWY)⁻¹`` and ``cond(W^½ Y)`` for channel weights ``(m,)``.
+
+    Semi-normal equations: Cholesky factor of the equilibrated ``YᵀWY`` (summed from the
+    per-channel Gram matrices, so a change of weights costs ``O(m r²)``), then one step of
+    iterative refinement on the exact residual ``y − Y θ̂`` — as accurate as a QR
+    factorisation of ``W^½ Y`` for the condition numbers of identification (Björck), and
+    several times faster on ``N·m x r`` regressors.
+    """
+    gram_matrices, moments = channel_gram(problem) if gram is None else gram
+    normal = np.tensordot(weights, gram_matrices, axes=1)
+    scale = np.sqrt(np.diag(normal))
     zero = np.flatnonzero(scale == 0)
     if zero.size:
         raise IdentifiabilityError(
             f"parameter(s) {[problem.names[i] for i in zero]} have all-zero columns: these data do not excite them"
         )
-    Q, R = scipy.linalg.qr(Yw / scale, mode="economic", check_finite=False)
-    diagonal = np.abs(np.diag(R))
-    weak = np.flatnonzero(diagonal < IDENTIFIABILITY_TOLERANCE * diagonal.max())
-    if weak.size:
+    equilibrated = normal / np.outer(scale, scale)
+    eigenvalues, eigenvectors = np.linalg.eigh(equilibrated)
+    if eigenvalues[0] < IDENTIFIABILITY_TOLERANCE * eigenvalues[-1]:
+        direction = np.abs(eigenvectors[:, 0])
+        weak = [problem.names[i] for i in np.flatnonzero(direction > 0.3 * direction.max())]
         raise IdentifiabilityError(
-            f"the data do not determine parameter(s) {[problem.names[i] for i in weak]}: the regressor is rank "
-            "deficient (excite the robot more, or drop those columns)"
+            f"the data do not determine parameter(s) {weak}: the regressor is rank deficient "
+            "(excite the robot more, or drop those columns)"
         )
-    theta = np.linalg.solve(R, Q.T @ yw) / scale
-    R_inverse = np.linalg.solve(R, np.eye(R.shape[0])) / scale[:, None]
-    singular = np.linalg.svd(R * scale, compute_uv=False)
-    return theta, R_inverse @ R_inverse.T, float(singular[0] / singular[-1])
+    factor = scipy.linalg.cho_factor(equilibrated, check_finite=False)
+    theta = scipy.linalg.cho_solve(factor, (weights @ moments) / scale, check_finite=False) / scale
+    residuals = problem.residuals(theta)
+    correction = np.matmul(problem.Y.transpose(1, 2, 0), residuals.T[:, :, None])[:, :, 0]  # (m, r)
+    theta = theta + scipy.linalg.cho_solve(factor, (weights @ correction) / scale, check_finite=False) / scale
+    inverse = scipy.linalg.cho_solve(factor, np.eye(scale.shape[0]), check_finite=False) / np.outer(scale, scale)
+    extremes = np.linalg.eigvalsh(normal)[[0, -1]]
+    return theta, inverse, float(np.sqrt(extremes[1] / max(extremes[0], np.finfo(float).tiny)))
 
 
 def channel_variance(residuals: NDArray[np.float64], n_parameters: int) -> NDArray[np.float64]:
@@ -317,10 +338,8 @@ class WeightedLeastSquares(LeastSquares):
         _check_size(problem)
         floor = self.variance_floor * np.maximum(np.mean(problem.y**2, axis=0), np.finfo(float).tiny)
         # The weights are iterated on per-channel Gram matrices (r x r each, formed once): every
-        # iteration costs O(m r²) instead of a factorisation of the N·m x r regressor. The final
-        # solve, covariance and residuals come from the QR factorisation, not the normal equations.
-        gram = np.matmul(problem.Y.transpose(1, 2, 0), problem.Y.transpose(1, 0, 2))  # (m, r, r)
-        moment = np.matmul(problem.Y.transpose(1, 2, 0), problem.y.T[:, :, None])[:, :, 0]  # (m, r)
+        # iteration costs O(m r²). The final solve refines on the exact residuals (see solve).
+        gram, moment = channel_gram(problem)  # (m, r, r), (m, r)
         power = np.sum(problem.y**2, axis=0)  # (m,)
         dof = problem.n_samples - problem.n_parameters / problem.n_channels
         weights = np.ones(problem.n_channels)
@@ -335,7 +354,7 @@ class WeightedLeastSquares(LeastSquares):
             weights = 1.0 / variance
             if change < self.tol:
                 break
-        theta, unscaled, cond = solve(problem, weights)
+        theta, unscaled, cond = solve(problem, weights, (gram, moment))
         residuals = problem.residuals(theta)
         dof = problem.n_samples * problem.n_channels - problem.n_parameters
         scale = float(np.sum(residuals**2 * weights)) / dof  # ≈ 1 once the weights are the inverse variances
