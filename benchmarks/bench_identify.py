@@ -119,7 +119,7 @@ def main() -> None:
 
     time_ours, estimator = timed(lambda: ours(model, data), args.repeats)
     iterations = estimator.estimate_.n_iterations
-    time_base, theta_base = timed(lambda: baseline(model, data, iterations), 1)
+    time_base, theta_base = timed(lambda: baseline(model, data, iterations), args.repeats)
     agreement = np.max(np.abs(estimator.theta_ - theta_base) / np.maximum(estimator.std_, 1e-12))
 
     start = time.perf_counter()
