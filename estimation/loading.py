@@ -1,0 +1,272 @@
+"""Reading measured data with checks: columns, finiteness, time base, units, sample count.
+
+The file format is that of :mod:`estimation.measurements` (CSV or Parquet, SI units)::
+
+    t, q1..qn [, dq1..dqn, ddq1..ddqn] [, tau1..taun] [, fx fy fz mx my mz]
+
+:func:`read_measurements` says what is wrong with a file rather than failing later inside a
+regressor: each problem raises a :class:`MeasurementError` subclass (a ``ValueError``) naming the
+column (and row) at fault, or, when the data can be repaired, a :class:`MeasurementWarning`
+subclass saying what was done (irregular sampling is resampled onto a uniform grid).
+"""
+
+from __future__ import annotations
+
+import re
+import warnings
+from collections.abc import Iterable
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+from numpy.typing import NDArray
+
+from dynamics.effects import WRENCH_CHANNELS
+from dynamics.models import IdentificationModel, ModelKind
+from dynamics.robot import JointType
+from estimation.measurements import Measurements, joint_columns
+
+#: groups of columns a caller may require besides those the model needs
+COLUMN_GROUPS: tuple[str, ...] = ("q", "dq", "ddq", "tau", "wrench")
+
+#: relative spread of the sampling interval above which the time base counts as irregular
+IRREGULAR_TOLERANCE = 1e-3
+
+#: a revolute joint whose |q| exceeds this (rad) most likely holds degrees (2π plus a margin)
+DEGREES_THRESHOLD = 2 * np.pi + 0.5
+
+
+class MeasurementError(ValueError):
+    """The data cannot be used as they are."""
+
+
+class MissingColumnError(MeasurementError):
+    """A column the chosen model (or the caller) needs is absent."""
+
+
+class NonFiniteError(MeasurementError):
+    """A column holds NaN or inf."""
+
+
+class TimeBaseError(MeasurementError):
+    """The time column is not strictly increasing (duplicated or decreasing samples)."""
+
+
+class AngleUnitError(MeasurementError):
+    """Revolute joint angles look like degrees."""
+
+
+class TooFewSamplesError(MeasurementError):
+    """Fewer equations than base parameters to estimate."""
+
+
+class MeasurementWarning(UserWarning):
+    """The data were repaired; the message says how."""
+
+
+class ResampledWarning(MeasurementWarning):
+    """Irregular sampling: the data were interpolated onto a uniform grid."""
+
+
+def required_groups(model: IdentificationModel | ModelKind | str | None) -> tuple[str, ...]:
+    """Column groups a model needs: ``tau`` (internal), ``wrench`` (external) or both (combined)."""
+    if model is None:
+        return ()
+    kind = model.kind if isinstance(model, IdentificationModel) else ModelKind(model)
+    return {
+        ModelKind.INTERNAL: ("tau",),
+        ModelKind.EXTERNAL: ("wrench",),
+        ModelKind.COMBINED: ("wrench", "tau"),
+    }[kind]
+
+
+def read_measurements(
+    path: str | Path,
+    *,
+    n_joints: int | None = None,
+    model: IdentificationModel | ModelKind | str | None = None,
+    require: Iterable[str] = ("q",),
+    resample: bool = True,
+) -> Measurements:
+    """Read a CSV or Parquet file of measurements and check it.
+
+    Parameters
+    ----------
+    path
+        ``.csv`` or ``.parquet`` file with the columns of :mod:`estimation.measurements`.
+    n_joints
+        Number of joints; default: the model's robot, else the number of ``q`` columns.
+    model
+        The identification model the data are for (or its kind): its channels must be present
+        (``tau1..taun`` internal, ``fx..mz`` external, both combined), the samples must give more
+        equations than base parameters, and revolute angles are checked for degrees.
+    require
+        Further column groups that must be present, among ``q dq ddq tau wrench``.
+    resample
+        Interpolate irregularly sampled data onto a uniform grid (with a
+        :class:`ResampledWarning`); if false, irregular sampling is an error.
+
+    Raises
+    ------
+    MissingColumnError, NonFiniteError, TimeBaseError, AngleUnitError, TooFewSamplesError
+        Each naming the column, row or count at fault.
+    """
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix not in (".csv", ".parquet"):
+        raise MeasurementError(f"unknown data format {path.suffix!r} for {path}: use .csv or .parquet")
+    if not path.is_file():
+        raise FileNotFoundError(f"data file not found: {path}")
+    try:
+        frame = pd.read_parquet(path) if suffix == ".parquet" else pd.read_csv(path)
+    except (ValueError, OSError, pd.errors.ParserError) as error:
+        raise MeasurementError(f"cannot read {path}: {error}") from None
+    measurements = measurements_from_frame(
+        frame, n_joints=n_joints, model=model, require=require, resample=resample, source=str(path)
+    )
+    return measurements
+
+
+def measurements_from_frame(
+    frame: pd.DataFrame,
+    *,
+    n_joints: int | None = None,
+    model: IdentificationModel | ModelKind | str | None = None,
+    require: Iterable[str] = ("q",),
+    resample: bool = True,
+    source: str = "data",
+) -> Measurements:
+    """The checks of :func:`read_measurements` on a ``DataFrame`` already in memory."""
+    frame = frame.rename(columns=lambda name: str(name).strip())
+    if isinstance(model, IdentificationModel):
+        robot_joints = model.robot.n_joints
+        if n_joints is not None and n_joints != robot_joints:
+            raise ValueError(f"n_joints={n_joints} but the model's robot has {robot_joints} joints")
+        n_joints = robot_joints
+    if n_joints is None:
+        n_joints = _count_joint_columns(frame, "q")
+        if n_joints == 0:
+            raise MissingColumnError(f"{source}: no joint position columns q1..qn")
+    groups = set(require) | set(required_groups(model)) | {"q"}
+    unknown = groups - set(COLUMN_GROUPS)
+    if unknown:
+        raise ValueError(f"unknown column groups {sorted(unknown)}; expected some of {COLUMN_GROUPS}")
+
+    _require_columns(frame, ["t"], "the time", source)
+    arrays: dict[str, NDArray[np.float64] | None] = {}
+    for group in ("q", "dq", "ddq", "tau", "wrench"):
+        columns = list(WRENCH_CHANNELS) if group == "wrench" else joint_columns(group, n_joints)
+        present = [column for column in columns if column in frame.columns]
+        if group in groups:
+            _require_columns(frame, columns, _GROUP_MEANING[group], source)
+        elif present and len(present) != len(columns):
+            missing = [column for column in columns if column not in frame.columns]
+            raise MissingColumnError(f"{source}: column(s) {', '.join(missing)} missing (the others of {group} are present)")
+        arrays[group] = _numeric(frame, columns, source) if len(present) == len(columns) else None
+    t = _numeric(frame, ["t"], source)[:, 0]
+    _check_time(t, source)
+    _check_angles(arrays["q"], model, source)
+
+    metadata: dict[str, object] = {"source": source}
+    t, arrays = _uniform(t, arrays, resample, source, metadata)
+    measurements = Measurements(t, arrays["q"], arrays["dq"], arrays["ddq"], arrays["tau"], arrays["wrench"], metadata)
+    if isinstance(model, IdentificationModel):
+        check_sample_count(measurements, model)
+    return measurements
+
+
+def check_sample_count(measurements: Measurements, model: IdentificationModel) -> None:
+    """At least as many samples as base parameters (each sample gives ``m`` equations, but rows of
+    one sample are strongly correlated: the count asked for is the one that makes every base
+    parameter estimable from the joint rows alone)."""
+    if measurements.n_samples <= model.n_base:
+        raise TooFewSamplesError(
+            f"{measurements.n_samples} samples for {model.n_base} base parameters of the {model.kind.value} "
+            f"model: need more than {model.n_base} samples (many more for useful estimates)"
+        )
+
+
+_GROUP_MEANING = {
+    "q": "joint positions",
+    "dq": "joint velocities",
+    "ddq": "joint accelerations",
+    "tau": "joint torques (internal model)",
+    "wrench": "base reaction wrench (external model)",
+}
+
+
+def _count_joint_columns(frame: pd.DataFrame, prefix: str) -> int:
+    pattern = re.compile(rf"^{prefix}(\d+)$")
+    indices = sorted(int(match.group(1)) for column in frame.columns if (match := pattern.match(column)))
+    return len(indices) if indices == list(range(1, len(indices) + 1)) else (max(indices) if indices else 0)
+
+
+def _require_columns(frame: pd.DataFrame, columns: list[str], meaning: str, source: str) -> None:
+    missing = [column for column in columns if column not in frame.columns]
+    if missing:
+        raise MissingColumnError(f"{source}: missing column(s) {', '.join(missing)} ({meaning})")
+
+
+def _numeric(frame: pd.DataFrame, columns: list[str], source: str) -> NDArray[np.float64]:
+    values = np.empty((len(frame), len(columns)))
+    for index, column in enumerate(columns):
+        numbers = pd.to_numeric(frame[column], errors="coerce").to_numpy(dtype=float)
+        bad = ~np.isfinite(numbers)
+        if bad.any():
+            row = int(np.flatnonzero(bad)[0])
+            raise NonFiniteError(
+                f"{source}: column {column} holds {int(bad.sum())} NaN/inf or non-numeric value(s), "
+                f"first at row {row} ({frame[column].iloc[row]!r})"
+            )
+        values[:, index] = numbers
+    return values
+
+
+def _check_time(t: NDArray[np.float64], source: str) -> None:
+    if t.shape[0] < 2:
+        raise TooFewSamplesError(f"{source}: {t.shape[0]} sample(s); need a time series")
+    steps = np.diff(t)
+    duplicated = np.flatnonzero(steps == 0)
+    if duplicated.size:
+        row = int(duplicated[0])
+        raise TimeBaseError(f"{source}: column t has {duplicated.size} duplicated time(s), first t={t[row]} at rows {row} and {row + 1}")
+    decreasing = np.flatnonzero(steps < 0)
+    if decreasing.size:
+        row = int(decreasing[0])
+        raise TimeBaseError(f"{source}: column t decreases at row {row + 1} ({t[row]} -> {t[row + 1]}); sort the samples")
+
+
+def _check_angles(q: NDArray[np.float64], model, source: str) -> None:
+    revolute = [True] * q.shape[1]
+    if isinstance(model, IdentificationModel):
+        revolute = [joint.joint_type is JointType.REVOLUTE for joint in model.robot.joints]
+    for index in range(q.shape[1]):
+        peak = float(np.max(np.abs(q[:, index])))
+        if revolute[index] and peak > DEGREES_THRESHOLD:
+            raise AngleUnitError(
+                f"{source}: column q{index + 1} reaches {peak:.4g}, beyond ±2π rad: the angles look like degrees "
+                "(the format is SI: convert with numpy.deg2rad)"
+            )
+
+
+def _uniform(t, arrays, resample: bool, source: str, metadata: dict):
+    steps = np.diff(t)
+    step = float(np.median(steps))
+    spread = float(np.max(np.abs(steps - step))) / step
+    if spread <= IRREGULAR_TOLERANCE:
+        return t, arrays
+    if not resample:
+        raise TimeBaseError(f"{source}: irregular sampling in column t (step varies by {100 * spread:.3g}% of {step:.4g} s)")
+    grid = t[0] + step * np.arange(int(np.floor((t[-1] - t[0]) / step + 1e-9)) + 1)
+    warnings.warn(
+        f"{source}: irregular sampling in column t (step varies by {100 * spread:.3g}% of the median {step:.4g} s): "
+        f"resampled by linear interpolation onto {grid.shape[0]} uniform samples",
+        ResampledWarning,
+        stacklevel=3,
+    )
+    metadata["resampled_from"] = int(t.shape[0])
+    resampled = {
+        name: None if values is None else np.column_stack([np.interp(grid, t, column) for column in values.T])
+        for name, values in arrays.items()
+    }
+    return grid, resampled

@@ -1,0 +1,239 @@
+"""Velocities and accelerations from measured positions; filtering and decimation.
+
+Two differentiation methods, each a small frozen object with ``apply(measurements)``:
+
+* :class:`FourierDifferentiation` — for periodic excitation (PUMA paper, section IV): average the
+  measured periods (noise on every channel drops by ``√periods``), fit the finite Fourier series
+  of eq. 18 to the averaged positions by linear least squares, and take ``q, dq, ddq``
+  analytically from the fit.
+* :class:`ButterworthDifferentiation` — for any motion: zero-phase Butterworth low-pass
+  (``filtfilt``) of the positions, central differences for ``dq`` and ``ddq``, and the same
+  filter on the torques and wrench so that both sides of ``Y θ = τ`` see the same delay-free
+  attenuation.
+
+:func:`fill_derivatives` applies one of them when ``dq`` or ``ddq`` is missing; :func:`decimate`
+low-passes every channel and keeps one sample in ``factor``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from typing import Protocol
+
+import numpy as np
+import scipy.signal
+from numpy.typing import NDArray
+
+from estimation.measurements import Measurements
+from oed.fourier import FourierTrajectory
+
+
+class Differentiation(Protocol):
+    """How ``dq`` and ``ddq`` are obtained from ``q``."""
+
+    def apply(self, measurements: Measurements) -> Measurements:
+        """Measurements with ``q, dq, ddq`` filled in (and the other channels treated alike)."""
+        ...
+
+
+def sampling_rate(t: NDArray[np.float64]) -> float:
+    """Rate of a uniform time base, Hz (the loader resamples irregular data)."""
+    steps = np.diff(t)
+    if steps.size == 0:
+        raise ValueError("need at least two samples to know the sampling rate")
+    step = float(np.median(steps))
+    if np.max(np.abs(steps - step)) > 1e-3 * step:
+        raise ValueError("irregular sampling: resample first (estimation.loading.read_measurements does)")
+    return 1.0 / step
+
+
+def average_periods(measurements: Measurements, frequency_hz: float) -> Measurements:
+    """Average the whole periods of a periodic experiment into one period (PUMA paper, section IV).
+
+    Keeps ``floor(N / P)`` whole periods of ``P = rate / f`` samples (``P`` must be an integer:
+    the sampling rate a multiple of the excitation frequency), drops the tail, and averages
+    every channel sample by sample. The time base is that of the first period.
+    """
+    rate = sampling_rate(measurements.t)
+    per_period = rate / frequency_hz
+    samples = int(round(per_period))
+    if abs(per_period - samples) > 1e-6 * per_period:
+        raise ValueError(
+            f"the sampling rate {rate:.6g} Hz is not a multiple of the excitation frequency {frequency_hz} Hz: "
+            "periods cannot be averaged sample by sample"
+        )
+    periods = measurements.n_samples // samples
+    if periods < 1:
+        raise ValueError(
+            f"{measurements.n_samples} samples hold less than one period ({samples} samples at {frequency_hz} Hz)"
+        )
+
+    def fold(values):
+        if values is None:
+            return None
+        return values[: periods * samples].reshape(periods, samples, -1).mean(axis=0)
+
+    metadata = dict(measurements.metadata, periods_averaged=periods)
+    return Measurements(
+        measurements.t[:samples], fold(measurements.q), fold(measurements.dq), fold(measurements.ddq),
+        fold(measurements.tau), fold(measurements.wrench), metadata,
+    )
+
+
+def fit_fourier(t: NDArray[np.float64], q: NDArray[np.float64], frequency_hz: float, harmonics: int) -> FourierTrajectory:
+    """Least-squares fit of the finite Fourier series of eq. 18 (PUMA paper) to positions ``q (T, n)``.
+
+    The series is linear in ``(q0, a, b)``: ``q = q0 + (sin ω_l t / ω_l) a_l − (cos ω_l t / ω_l) b_l``.
+    """
+    t = np.asarray(t, dtype=float)
+    if harmonics < 1:
+        raise ValueError(f"harmonics must be at least 1, got {harmonics}")
+    if t.shape[0] < 2 * harmonics + 1:
+        raise ValueError(f"{t.shape[0]} samples cannot determine {2 * harmonics + 1} Fourier coefficients per joint")
+    omega = 2 * np.pi * frequency_hz * np.arange(1, harmonics + 1)
+    phase = np.outer(t, omega)
+    design = np.hstack([np.ones((t.shape[0], 1)), np.sin(phase) / omega, -np.cos(phase) / omega])
+    coefficients, *_ = np.linalg.lstsq(design, q, rcond=None)  # (2N+1, n)
+    return FourierTrajectory(
+        frequency_hz, coefficients[0], coefficients[1 : 1 + harmonics].T, coefficients[1 + harmonics :].T
+    )
+
+
+@dataclass(frozen=True)
+class FourierDifferentiation:
+    """Period averaging and analytic derivatives of a Fourier fit (periodic excitation).
+
+    Attributes
+    ----------
+    frequency_hz
+        Fundamental frequency of the excitation (0.2 Hz in the PUMA paper).
+    harmonics
+        Harmonics of the fit (5 in the paper); more than the excitation's is harmless.
+    average
+        Average whole periods first (the torques and wrench too).
+    """
+
+    frequency_hz: float
+    harmonics: int = 5
+    average: bool = True
+
+    def __post_init__(self) -> None:
+        if not (np.isfinite(self.frequency_hz) and self.frequency_hz > 0):
+            raise ValueError(f"frequency_hz must be positive, got {self.frequency_hz}")
+        if int(self.harmonics) != self.harmonics or self.harmonics < 1:
+            raise ValueError(f"harmonics must be a positive integer, got {self.harmonics}")
+
+    def apply(self, measurements: Measurements) -> Measurements:
+        if self.average:
+            measurements = average_periods(measurements, self.frequency_hz)
+        nyquist = 0.5 * sampling_rate(measurements.t)
+        if self.harmonics * self.frequency_hz >= nyquist:
+            raise ValueError(f"{self.harmonics} harmonics of {self.frequency_hz} Hz reach the Nyquist frequency {nyquist} Hz")
+        fit = fit_fourier(measurements.t, measurements.q, self.frequency_hz, self.harmonics)
+        q, dq, ddq = fit.evaluate(measurements.t)
+        rms = np.sqrt(np.mean((measurements.q - q) ** 2, axis=0))
+        metadata = dict(measurements.metadata, differentiation="fourier", fourier_fit=fit.to_dict(), fit_rms=rms.tolist())
+        return replace(measurements, q=q, dq=dq, ddq=ddq, metadata=metadata)
+
+
+@dataclass(frozen=True)
+class ButterworthDifferentiation:
+    """Zero-phase Butterworth low-pass and central differences (any motion).
+
+    Attributes
+    ----------
+    cutoff_hz
+        Cut-off frequency; ``None`` picks five times the frequency below which 99.9 % of the
+        positions' variance lies (a common rule: well above the motion's bandwidth, well below
+        the noise), capped at 0.8 × Nyquist.
+    order
+        Filter order (``filtfilt`` doubles it and cancels the phase).
+    """
+
+    cutoff_hz: float | None = None
+    order: int = 4
+
+    def __post_init__(self) -> None:
+        if self.cutoff_hz is not None and not (np.isfinite(self.cutoff_hz) and self.cutoff_hz > 0):
+            raise ValueError(f"cutoff_hz must be positive, got {self.cutoff_hz}")
+        if int(self.order) != self.order or self.order < 1:
+            raise ValueError(f"order must be a positive integer, got {self.order}")
+
+    def cutoff(self, measurements: Measurements) -> float:
+        rate = sampling_rate(measurements.t)
+        nyquist = 0.5 * rate
+        if self.cutoff_hz is not None:
+            if self.cutoff_hz >= nyquist:
+                raise ValueError(f"cutoff {self.cutoff_hz} Hz is not below the Nyquist frequency {nyquist} Hz")
+            return float(self.cutoff_hz)
+        return min(5.0 * motion_bandwidth(measurements.q, rate), 0.8 * nyquist)
+
+    def apply(self, measurements: Measurements) -> Measurements:
+        rate = sampling_rate(measurements.t)
+        cutoff = self.cutoff(measurements)
+        sos = scipy.signal.butter(self.order, cutoff, btype="low", fs=rate, output="sos")
+        padding = min(measurements.n_samples - 1, 3 * (2 * len(sos) + 1) * 10)
+
+        def smooth(values):
+            return None if values is None else scipy.signal.sosfiltfilt(sos, values, axis=0, padlen=padding)
+
+        q = smooth(measurements.q)
+        dq = smooth(measurements.dq) if measurements.dq is not None else np.gradient(q, measurements.t, axis=0)
+        ddq = smooth(measurements.ddq) if measurements.ddq is not None else np.gradient(dq, measurements.t, axis=0)
+        metadata = dict(measurements.metadata, differentiation="butterworth", cutoff_hz=cutoff, filter_order=self.order)
+        return replace(
+            measurements, q=q, dq=dq, ddq=ddq, tau=smooth(measurements.tau), wrench=smooth(measurements.wrench),
+            metadata=metadata,
+        )
+
+
+def motion_bandwidth(q: NDArray[np.float64], rate: float, fraction: float = 0.999) -> float:
+    """Frequency below which ``fraction`` of the positions' variance lies, Hz (detrended and
+    Hann-windowed: a record that is not a whole period would otherwise leak power to high frequencies)."""
+    detrended = scipy.signal.detrend(q, axis=0) * scipy.signal.get_window("hann", q.shape[0])[:, None]
+    power = np.abs(np.fft.rfft(detrended, axis=0)) ** 2
+    frequencies = np.fft.rfftfreq(q.shape[0], 1.0 / rate)
+    cumulative = np.cumsum(power.sum(axis=1))
+    if cumulative[-1] == 0:
+        return frequencies[1]
+    return float(frequencies[np.searchsorted(cumulative, fraction * cumulative[-1])])
+
+
+def decimate(measurements: Measurements, factor: int, *, order: int = 8) -> Measurements:
+    """Low-pass every channel (zero-phase Butterworth, cut-off 0.8 × the new Nyquist frequency) and
+    keep one sample in ``factor`` — the parallel decimation of identification practice, applied to
+    positions and torques alike."""
+    if int(factor) != factor or factor < 1:
+        raise ValueError(f"decimation factor must be a positive integer, got {factor}")
+    if factor == 1:
+        return measurements
+    if measurements.n_samples < 30 * factor:
+        raise ValueError(f"{measurements.n_samples} samples are too few to decimate by {factor}")
+    rate = sampling_rate(measurements.t)
+    sos = scipy.signal.butter(order, 0.8 * 0.5 * rate / factor, btype="low", fs=rate, output="sos")
+
+    def reduce(values):
+        return None if values is None else scipy.signal.sosfiltfilt(sos, values, axis=0)[::factor]
+
+    metadata = dict(measurements.metadata, decimation=int(factor))
+    return Measurements(
+        measurements.t[::factor], reduce(measurements.q), reduce(measurements.dq), reduce(measurements.ddq),
+        reduce(measurements.tau), reduce(measurements.wrench), metadata,
+    )
+
+
+def fill_derivatives(
+    measurements: Measurements, method: Differentiation | None = None, *, decimation: int = 1
+) -> Measurements:
+    """Measurements with ``dq`` and ``ddq``, derived by ``method`` when missing, then decimated.
+
+    Without a method: periodic data (``metadata["frequency_hz"]`` set, as the simulator records)
+    use :class:`FourierDifferentiation`, others :class:`ButterworthDifferentiation` with the
+    automatic cut-off. Data that already hold both are left alone unless a method is given.
+    """
+    if method is None and measurements.dq is not None and measurements.ddq is not None:
+        return decimate(measurements, decimation)
+    if method is None:
+        frequency = measurements.metadata.get("frequency_hz")
+        method = FourierDifferentiation(float(frequency)) if frequency else ButterworthDifferentiation()
+    return decimate(method.apply(measurements), decimation)

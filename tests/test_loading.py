@@ -1,0 +1,132 @@
+"""The measured-data loader: round trips, and each problem named in its error or warning."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from dynamics.models import build_model
+from dynamics.robots import load_robot
+from estimation.loading import (
+    AngleUnitError,
+    MissingColumnError,
+    NonFiniteError,
+    ResampledWarning,
+    TimeBaseError,
+    TooFewSamplesError,
+    read_measurements,
+)
+from estimation.measurements import Measurements
+
+
+@pytest.fixture(scope="module")
+def model():
+    return build_model(load_robot("puma560", joints=3), "combined", "viscous")
+
+
+def sample_data(n_samples: int = 200) -> Measurements:
+    generator = np.random.default_rng(0)
+    t = np.arange(n_samples) / 100.0
+    q = np.column_stack([np.sin(t), 0.5 * np.cos(2 * t), 0.2 * t])
+    return Measurements(t, q, np.gradient(q, t, axis=0), None, generator.normal(size=(n_samples, 3)),
+                        generator.normal(size=(n_samples, 6)))
+
+
+@pytest.mark.parametrize("suffix", [".csv", ".parquet"])
+def test_written_measurements_read_back_unchanged(tmp_path, model, suffix):
+    data = sample_data()
+    path = tmp_path / f"data{suffix}"
+    data.write(path)
+    loaded = read_measurements(path, model=model)
+    for name in ("t", "q", "dq", "tau", "wrench"):
+        np.testing.assert_allclose(getattr(loaded, name), getattr(data, name), rtol=1e-9, atol=1e-12)
+    assert loaded.ddq is None
+    assert read_measurements(path).n_joints == 3
+
+
+def write_frame(tmp_path, frame: pd.DataFrame):
+    path = tmp_path / "data.csv"
+    frame.to_csv(path, index=False)
+    return path
+
+
+def test_missing_columns_of_the_model_are_named(tmp_path, model):
+    frame = sample_data().to_frame().drop(columns=["mz"])
+    with pytest.raises(MissingColumnError, match=r"mz .*wrench"):
+        read_measurements(write_frame(tmp_path, frame), model=model)
+    frame = sample_data().to_frame().drop(columns=["tau2"])
+    with pytest.raises(MissingColumnError, match="tau2"):
+        read_measurements(write_frame(tmp_path, frame), model="internal", n_joints=3)
+    # the internal model does not need the wrench
+    frame = sample_data().to_frame().drop(columns=["fx", "fy", "fz", "mx", "my", "mz"])
+    assert read_measurements(write_frame(tmp_path, frame), model="internal").wrench is None
+
+
+def test_nan_is_reported_with_column_and_row(tmp_path, model):
+    frame = sample_data().to_frame()
+    frame.loc[17, "q2"] = np.nan
+    with pytest.raises(NonFiniteError, match=r"column q2 .*row 17"):
+        read_measurements(write_frame(tmp_path, frame), model=model)
+    frame = sample_data().to_frame()
+    frame.loc[3, "fz"] = np.inf
+    with pytest.raises(NonFiniteError, match="fz"):
+        read_measurements(write_frame(tmp_path, frame), model=model)
+
+
+def test_duplicated_and_decreasing_times_are_errors(tmp_path, model):
+    frame = sample_data().to_frame()
+    frame.loc[10, "t"] = frame.loc[9, "t"]
+    with pytest.raises(TimeBaseError, match="duplicated"):
+        read_measurements(write_frame(tmp_path, frame), model=model)
+    frame = sample_data().to_frame()
+    frame.loc[10, "t"] = 0.0
+    with pytest.raises(TimeBaseError, match="decreases at row 10"):
+        read_measurements(write_frame(tmp_path, frame), model=model)
+
+
+def test_irregular_sampling_is_resampled_with_a_warning(tmp_path, model):
+    frame = sample_data().to_frame()
+    jitter = np.random.default_rng(1).uniform(-0.003, 0.003, len(frame))
+    jitter[[0, -1]] = 0
+    frame["t"] = frame["t"] + jitter
+    frame["q1"] = np.sin(frame["t"])
+    with pytest.warns(ResampledWarning, match="irregular sampling"):
+        loaded = read_measurements(write_frame(tmp_path, frame), model=model)
+    steps = np.diff(loaded.t)
+    np.testing.assert_allclose(steps, steps[0], rtol=1e-9)
+    # interpolation of a smooth column stays close to the truth
+    np.testing.assert_allclose(loaded.q[:, 0], np.sin(loaded.t), atol=2e-3)
+    with pytest.raises(TimeBaseError, match="irregular"):
+        read_measurements(write_frame(tmp_path, frame), model=model, resample=False)
+
+
+def test_regular_sampling_gives_no_warning(tmp_path, model):
+    path = tmp_path / "data.csv"
+    sample_data().write(path)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        read_measurements(path, model=model)
+
+
+def test_angles_in_degrees_are_caught(tmp_path, model):
+    frame = sample_data().to_frame()
+    frame["q1"] = np.rad2deg(frame["q1"]) * 3
+    with pytest.raises(AngleUnitError, match=r"q1 .*degrees"):
+        read_measurements(write_frame(tmp_path, frame), model=model)
+
+
+def test_too_few_samples_for_the_parameter_count(tmp_path, model):
+    path = tmp_path / "short.csv"
+    sample_data(model.n_base).write(path)
+    with pytest.raises(TooFewSamplesError, match=f"{model.n_base} base parameters"):
+        read_measurements(path, model=model)
+
+
+def test_unknown_format_and_missing_file(tmp_path):
+    with pytest.raises(ValueError, match="use .csv or .parquet"):
+        read_measurements(tmp_path / "data.txt")
+    with pytest.raises(FileNotFoundError):
+        read_measurements(tmp_path / "absent.csv")
