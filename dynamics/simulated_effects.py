@@ -114,7 +114,12 @@ class _PerJoint:
     def from_json(cls, robot: RobotModel, value: Any):
         if isinstance(value, Mapping):
             return cls(**value)
-        return cls(np.broadcast_to(np.asarray(value, dtype=float), (robot.n_joints,)))
+        values = np.atleast_1d(np.asarray(value, dtype=float))
+        if values.shape not in ((1,), (robot.n_joints,)):
+            raise ValueError(
+                f"effect {cls.name!r}: give one value or {robot.n_joints} (one per joint), got {values.tolist()}"
+            )
+        return cls(np.broadcast_to(values, (robot.n_joints,)))
 
 
 @dataclass(frozen=True)

@@ -229,9 +229,9 @@ class Simulator:
         named = self.true_parameters()
         return np.array([named.get(name, 0.0) for name in model.parameter_names])
 
-    def default_controller(self) -> PDController:
-        """PD at 4 Hz bandwidth, critically damped, on the true joint inertias at ``q = 0``."""
-        kp, kd = pd_gains(self.robot, armature=self._armature())
+    def default_controller(self, bandwidth_hz: float = 4.0) -> PDController:
+        """PD at ``bandwidth_hz``, critically damped, on the true joint inertias (with armature) at ``q = 0``."""
+        kp, kd = pd_gains(self.robot, bandwidth_hz=bandwidth_hz, armature=self._armature())
         return PDController(kp, kd)
 
     def _armature(self) -> NDArray[np.float64]:
