@@ -87,13 +87,38 @@ class RegressorInverseDynamics:
                                                and self.model.n_base != self.model.n_parameters)
         object.__setattr__(self, "_function", function)
         object.__setattr__(self, "_theta", casadi.DM(theta))
+        # per-sample evaluation through a CasADi buffer on numpy memory: ~2 µs a call instead of
+        # ~40 µs with DM conversions (the simulator calls this once per 1 ms step)
+        n = self.model.robot.n_joints
+        state = casadi.SX.sym("state", 3 * n)
+        evaluator = casadi.Function(
+            "inverse_dynamics_fixed_theta", [state],
+            [function(state[:n], state[n : 2 * n], state[2 * n :], casadi.DM(theta))], ["state"], ["tau"],
+        )
+        inputs, outputs = np.zeros(3 * n), np.zeros(n)
+        buffer, trigger = evaluator.buffer()
+        buffer.set_arg(0, memoryview(inputs))
+        buffer.set_res(0, memoryview(outputs))
+        object.__setattr__(self, "_buffer", (buffer, trigger, inputs, outputs))
 
     @property
     def is_base(self) -> bool:
         return len(self.theta) == self.model.n_base and self.model.n_base != self.model.n_parameters
 
     def __call__(self, q: NDArray, dq: NDArray, ddq: NDArray) -> NDArray[np.float64]:
-        return np.asarray(self._function(q, dq, ddq, self._theta)).reshape(-1)  # type: ignore[attr-defined]
+        """``τ`` at one state (``(n,)`` arrays)."""
+        _, trigger, inputs, outputs = self._buffer  # type: ignore[attr-defined]
+        n = outputs.shape[0]
+        inputs[:n], inputs[n : 2 * n], inputs[2 * n :] = q, dq, ddq
+        trigger()
+        return outputs.copy()
+
+    def evaluate(self, q: NDArray, dq: NDArray, ddq: NDArray) -> NDArray[np.float64]:
+        """``τ`` at ``N`` states (``(N, n)`` arrays), one mapped call: ``(N, n)``."""
+        count = np.shape(q)[0]
+        theta = casadi.repmat(self._theta, 1, count)  # type: ignore[attr-defined]
+        mapped = self._function.map(count)  # type: ignore[attr-defined]
+        return np.asarray(mapped(np.asarray(q).T, np.asarray(dq).T, np.asarray(ddq).T, theta)).T
 
 
 @dataclass(frozen=True, eq=False)

@@ -122,3 +122,12 @@ def test_computed_torque_gains_shape_the_error_dynamics(robot, trajectory):
         result = simulator.run(trajectory, controller, duration=0.5, initial_state=start)
         errors.append(np.abs(result.tracking_error[-1]).max())
     assert errors[1] < errors[0] / 10
+
+
+def test_fast_single_state_call_equals_the_mapped_evaluation(robot):
+    model = build_model(robot, "internal")
+    inverse_dynamics = RegressorInverseDynamics(model, tuple(model.nominal_parameters(viscous=1.0)))
+    q, dq, ddq = random_states(3, 6, seed=9)
+    one_by_one = np.array([inverse_dynamics(*state) for state in zip(q, dq, ddq)])
+    np.testing.assert_allclose(one_by_one, inverse_dynamics.evaluate(q, dq, ddq), rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(one_by_one, model.predict(inverse_dynamics.theta, q, dq, ddq), rtol=1e-10, atol=1e-10)
