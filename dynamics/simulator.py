@@ -179,7 +179,9 @@ class Simulator:
     rate_hz
         Sampling and control rate (default 1 kHz).
     substeps
-        RK4 steps per sample (the torque is held over the sample).
+        Least number of RK4 steps per sample (the torque is held over the sample). It is raised
+        automatically so that ``h · λ ≤ 0.5`` for the friction stiffness
+        ``λ_i = (fv_i + fc_i / smoothing) / M_ii(0)`` (a light joint with Coulomb friction).
     """
 
     robot: RobotModel
@@ -233,6 +235,24 @@ class Simulator:
         """PD at ``bandwidth_hz``, critically damped, on the true joint inertias (with armature) at ``q = 0``."""
         kp, kd = pd_gains(self.robot, bandwidth_hz=bandwidth_hz, armature=self._armature())
         return PDController(kp, kd)
+
+    def substeps_needed(self) -> int:
+        """RK4 steps per sample: ``substeps``, or more when friction is stiff for the joint inertia."""
+        from dynamics.controllers import joint_inertia
+        from dynamics.simulated_effects import Coulomb
+
+        damping = np.zeros(self.robot.n_joints)
+        for effect in self.joint_effects:
+            if isinstance(effect, Viscous):
+                damping += np.abs(effect.values)
+            elif isinstance(effect, Coulomb):
+                damping += np.abs(effect.values) / effect.smoothing
+        if not damping.any():
+            return int(self.substeps)
+        inertia = joint_inertia(self.robot, self._armature())
+        inertia = np.where(inertia > 0, inertia, np.inf)
+        stiffness = float(np.max(damping / inertia))
+        return max(int(self.substeps), int(np.ceil(stiffness / self.rate_hz / 0.5)))
 
     def _armature(self) -> NDArray[np.float64]:
         return sum((effect.armature(self.robot) for effect in self.joint_effects), np.zeros(self.robot.n_joints))
@@ -290,13 +310,14 @@ class Simulator:
         q = q_d[0].copy() if initial_state is None else np.asarray(initial_state[0], dtype=float).copy()
         dq = dq_d[0].copy() if initial_state is None else np.asarray(initial_state[1], dtype=float).copy()
         Q, DQ, DDQ, TAU = (np.empty((skip + count, n)) for _ in range(4))
-        h = 1.0 / (self.rate_hz * int(self.substeps))
+        substeps = self.substeps_needed()
+        h = 1.0 / (self.rate_hz * substeps)
         started = time.perf_counter()
         for k in range(skip + count):
             tau = np.asarray(controller.torque(t_all[k], q, dq, q_d[k], dq_d[k], ddq_d[k]), dtype=float).reshape(n)
             a1 = acceleration(q, dq, tau)
             Q[k], DQ[k], DDQ[k], TAU[k] = q, dq, a1, tau
-            for step in range(int(self.substeps)):
+            for step in range(substeps):
                 if step:
                     a1 = acceleration(q, dq, tau)
                 v2 = dq + 0.5 * h * a1
@@ -334,7 +355,7 @@ class Simulator:
             "duration_s": duration,
             "periods": periods if period is not None else None,
             "warmup_periods": int(warmup_periods),
-            "integrator": f"rk4, zero-order-hold torque, {int(self.substeps)} substep(s) per sample",
+            "integrator": f"rk4, zero-order-hold torque, {substeps} substep(s) per sample",
             "seed": seed,
             "with_derivatives": bool(with_derivatives),
             "controller": controller.describe(),

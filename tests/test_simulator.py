@@ -207,3 +207,15 @@ def test_trajectory_with_the_wrong_joint_count_is_refused(robot):
 def test_unstable_gains_report_divergence(robot, trajectory):
     with pytest.raises(RuntimeError, match="diverged"):
         Simulator(robot).run(trajectory, PDController([1e8] * 3, [1e6] * 3), duration=1.0)
+
+
+def test_stiff_friction_on_a_light_joint_gets_more_integration_steps():
+    servo = load_robot("servo_arm")
+    light = Simulator(servo, (Viscous((0.01,) * 4), Coulomb((0.05,) * 4)), noise=NoiseModel.none())
+    assert light.substeps_needed() > 1
+    middle = (servo.lower + servo.upper) / 2
+    still = FourierTrajectory(1.0, middle, np.full((4, 1), 0.2), np.zeros((4, 1)))
+    result = light.run(still, duration=0.5)
+    reference = Simulator(servo, light.effects, noise=NoiseModel.none(), substeps=4 * light.substeps_needed())
+    np.testing.assert_allclose(result.q, reference.run(still, duration=0.5).q, atol=1e-7)
+    assert result.metadata["integrator"].endswith(f"{light.substeps_needed()} substep(s) per sample")
