@@ -1,0 +1,423 @@
+"""The simulated robot: Pinocchio forward dynamics under a controller, sampled like the real set-up.
+
+Plant (true parameters ``θ``, joint effects ``e``)::
+
+    (M(q) + diag(Ia)) ddq + h(q, dq) + Σ_e τ_e(q, dq) = τ                   (pinocchio.aba)
+
+integrated with classic **RK4 at the sampling rate (1 kHz) with a zero-order hold** on the
+controller torque ``τ_k`` over each step ``[t_k, t_k+1)`` (optionally ``substeps`` RK4 steps per
+sample). The controller sees the true state. At each sample ``k`` the record holds the true
+``q_k, dq_k``, ``ddq_k = aba(q_k, dq_k, τ_k)`` (so ``τ_k`` equals the model's prediction at the
+recorded true state to rounding, whatever the step size), the applied torque ``τ_k`` and the
+base reaction wrench from Pinocchio (free-flyer RNEA at a still root; rigid body only: friction
+is internal) plus the plate effects.
+
+Measured channels (what :class:`estimation.measurements.Measurements` holds):
+
+* ``q``: true positions quantised to the encoder resolution (``round(q / res) · res``);
+* ``dq``, ``ddq``: **absent** by default (a real robot measures positions only; preprocessing
+  derives them); with ``with_derivatives=True`` the true, noiseless values;
+* ``tau``: applied torques plus Gaussian noise; ``fx … mz``: wrench plus Gaussian noise.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from dynamics.controllers import Controller, PDController, pd_gains
+from dynamics.effects import WRENCH_CHANNELS
+from dynamics.pinocchio_bridge import to_pinocchio
+from dynamics.robot import RobotModel
+from dynamics.simulated_effects import (
+    PUMA560_GEAR_RATIOS, Armature, Viscous, _is_puma, describe, effects_from_names, is_plate_effect,
+)
+from estimation.measurements import Measurements
+
+ENCODER_COUNTS = 4 * 4096  # quadrature-decoded counts per motor revolution
+DEFAULT_GEAR = 100.0
+
+
+def encoder_resolution(robot: RobotModel) -> NDArray[np.float64]:
+    """Joint resolution ``2π / (4·4096·|G|)`` rad (PUMA gear ratios; ``G = 100`` otherwise; 1 µm prismatic)."""
+    gear = np.full(robot.n_joints, DEFAULT_GEAR)
+    if _is_puma(robot) and robot.n_joints <= 6:
+        gear = np.abs(np.array(PUMA560_GEAR_RATIOS[: robot.n_joints]))
+    resolution = 2 * np.pi / (ENCODER_COUNTS * gear)
+    prismatic = np.array([joint.joint_type.value == "prismatic" for joint in robot.joints])
+    return np.where(prismatic, 1e-6, resolution)
+
+
+@dataclass(frozen=True)
+class NoiseModel:
+    """Sensor models: Gaussian noise on torques and wrench, encoder quantisation of positions.
+
+    Attributes
+    ----------
+    tau_std
+        Standard deviation of the torque noise, N·m (one value or one per joint).
+    wrench_std
+        Standard deviation of the plate noise, one value or six (``fx fy fz`` in N, ``mx my mz``
+        in N·m).
+    q_resolution
+        ``"encoder"`` (default, :func:`encoder_resolution`), a resolution in rad (one or per
+        joint), or ``None`` for exact positions.
+    """
+
+    tau_std: float | tuple[float, ...] = 0.2
+    wrench_std: float | tuple[float, ...] = (0.5, 0.5, 0.5, 0.1, 0.1, 0.1)
+    q_resolution: float | tuple[float, ...] | Literal["encoder"] | None = "encoder"
+
+    def __post_init__(self) -> None:
+        for name in ("tau_std", "wrench_std"):
+            values = np.atleast_1d(np.asarray(getattr(self, name), dtype=float))
+            if not np.all(np.isfinite(values)) or np.any(values < 0):
+                raise ValueError(f"{name} must be finite and non-negative, got {values.tolist()}")
+        if np.atleast_1d(self.wrench_std).shape[0] not in (1, 6):
+            raise ValueError("wrench_std takes one value or six (fx fy fz mx my mz)")
+        if self.q_resolution not in (None, "encoder"):
+            values = np.atleast_1d(np.asarray(self.q_resolution, dtype=float))
+            if not np.all(np.isfinite(values)) or np.any(values <= 0):
+                raise ValueError(f"q_resolution must be positive, got {values.tolist()}")
+
+    @classmethod
+    def none(cls) -> NoiseModel:
+        """Exact sensors: no noise, no quantisation."""
+        return cls(0.0, 0.0, None)
+
+    def resolution(self, robot: RobotModel) -> NDArray[np.float64] | None:
+        if self.q_resolution is None:
+            return None
+        if self.q_resolution == "encoder":
+            return encoder_resolution(robot)
+        return np.broadcast_to(np.asarray(self.q_resolution, dtype=float), (robot.n_joints,)).copy()
+
+    def describe(self, robot: RobotModel) -> dict[str, Any]:
+        resolution = self.resolution(robot)
+        return {
+            "tau_std": np.broadcast_to(self.tau_std, (robot.n_joints,)).tolist(),
+            "wrench_std": np.broadcast_to(self.wrench_std, (6,)).tolist(),
+            "q_resolution": None if resolution is None else resolution.tolist(),
+        }
+
+
+@dataclass(frozen=True)
+class SimulationResult:
+    """One simulated experiment: the measurements and the truth behind them.
+
+    Attributes
+    ----------
+    measurements
+        What the sensors recorded (quantised ``q``, noisy ``tau`` and wrench).
+    t, q, dq, ddq
+        Sample times and the true states, ``(N, n)``.
+    q_desired, dq_desired, ddq_desired
+        The reference at the same times.
+    tau
+        Applied torques (controller output, noiseless), ``(N, n)``.
+    wrench
+        True base reaction wrench including the plate effects (noiseless), ``(N, 6)``.
+    wrench_rigid_body
+        Its rigid-body part only.
+    elapsed_s
+        Wall time of the integration loop.
+    """
+
+    measurements: Measurements
+    t: NDArray[np.float64]
+    q: NDArray[np.float64]
+    dq: NDArray[np.float64]
+    ddq: NDArray[np.float64]
+    q_desired: NDArray[np.float64]
+    dq_desired: NDArray[np.float64]
+    ddq_desired: NDArray[np.float64]
+    tau: NDArray[np.float64]
+    wrench: NDArray[np.float64]
+    wrench_rigid_body: NDArray[np.float64]
+    elapsed_s: float
+    metadata: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def tracking_error(self) -> NDArray[np.float64]:
+        """``q − q_d`` at the samples, ``(N, n)``."""
+        return self.q - self.q_desired
+
+
+def _reference(trajectory: Any, n_joints: int) -> tuple[Callable, float | None]:
+    if hasattr(trajectory, "evaluate"):
+        evaluate = trajectory.evaluate
+    elif callable(trajectory):
+        evaluate = trajectory
+    else:
+        raise TypeError("trajectory must be a FourierTrajectory or a callable t -> (q_d, dq_d, ddq_d)")
+    count = getattr(trajectory, "n_joints", None)
+    if count is not None and count != n_joints:
+        raise ValueError(f"trajectory has {count} joints, the robot {n_joints}")
+    return evaluate, getattr(trajectory, "period", None)
+
+
+@dataclass(frozen=True, eq=False)
+class Simulator:
+    """A simulated robot with its true parameters, extra effects and sensors.
+
+    Parameters
+    ----------
+    robot
+        The chain.
+    effects
+        Simulated effects (:mod:`dynamics.simulated_effects`) or a comma-separated list of their
+        names with default values; ``None``: viscous friction with its default values.
+    theta
+        True standard parameters (``10 n``); default the robot's own.
+    noise
+        Sensor model; default :class:`NoiseModel` ``()``.
+    rate_hz
+        Sampling and control rate (default 1 kHz).
+    substeps
+        Least number of RK4 steps per sample (the torque is held over the sample). It is raised
+        automatically so that ``h · λ ≤ 0.5`` for the friction stiffness
+        ``λ_i = (fv_i + fc_i / smoothing) / M_ii(0)`` (a light joint with Coulomb friction).
+    """
+
+    robot: RobotModel
+    effects: tuple[Any, ...] | str | None = None
+    theta: tuple[float, ...] | None = None
+    noise: NoiseModel = field(default_factory=NoiseModel)
+    rate_hz: float = 1000.0
+    substeps: int = 1
+
+    def __post_init__(self) -> None:
+        robot = self.robot
+        if self.effects is None:
+            effects: tuple[Any, ...] = (Viscous.default(robot),)
+        elif isinstance(self.effects, str):
+            effects = effects_from_names(self.effects, robot)
+        else:
+            effects = tuple(self.effects)
+        for effect in effects:
+            effect.parameters(robot)  # checks sizes against the robot
+        object.__setattr__(self, "effects", effects)
+        theta = robot.standard_parameters if self.theta is None else np.asarray(self.theta, dtype=float).reshape(-1)
+        if theta.shape != (10 * robot.n_joints,) or not np.all(np.isfinite(theta)):
+            raise ValueError(f"theta must hold {10 * robot.n_joints} finite standard parameters")
+        object.__setattr__(self, "theta", tuple(theta.tolist()))
+        if not self.rate_hz > 0 or int(self.substeps) < 1:
+            raise ValueError("rate_hz must be positive and substeps at least 1")
+        if not isinstance(self.noise, NoiseModel):
+            raise TypeError("noise must be a NoiseModel")
+
+    @property
+    def joint_effects(self) -> tuple[Any, ...]:
+        return tuple(effect for effect in self.effects if not is_plate_effect(effect))  # type: ignore[union-attr]
+
+    @property
+    def plate_effects(self) -> tuple[Any, ...]:
+        return tuple(effect for effect in self.effects if is_plate_effect(effect))  # type: ignore[union-attr]
+
+    def true_parameters(self) -> dict[str, float]:
+        """Standard parameters and every effect's values, by name (``m1 … Izz_n, fv1, fc1, mz_off …``)."""
+        named = dict(zip(self.robot.standard_parameter_names, self.theta))  # type: ignore[arg-type]
+        for effect in self.effects:  # type: ignore[union-attr]
+            named.update(effect.parameters(self.robot))
+        return named
+
+    def true_theta(self, model: Any) -> NDArray[np.float64]:
+        """The true standard-parameter vector of an identification model (0 for effects not simulated)."""
+        named = self.true_parameters()
+        return np.array([named.get(name, 0.0) for name in model.parameter_names])
+
+    def default_controller(self, bandwidth_hz: float = 4.0) -> PDController:
+        """PD at ``bandwidth_hz``, critically damped, on the true joint inertias (with armature) at ``q = 0``."""
+        kp, kd = pd_gains(self.robot, bandwidth_hz=bandwidth_hz, armature=self._armature())
+        return PDController(kp, kd)
+
+    def substeps_needed(self) -> int:
+        """RK4 steps per sample: ``substeps``, or more when friction is stiff for the joint inertia."""
+        from dynamics.controllers import joint_inertia
+        from dynamics.simulated_effects import Coulomb
+
+        damping = np.zeros(self.robot.n_joints)
+        for effect in self.joint_effects:
+            if isinstance(effect, Viscous):
+                damping += np.abs(effect.values)
+            elif isinstance(effect, Coulomb):
+                damping += np.abs(effect.values) / effect.smoothing
+        if not damping.any():
+            return int(self.substeps)
+        inertia = joint_inertia(self.robot, self._armature())
+        inertia = np.where(inertia > 0, inertia, np.inf)
+        stiffness = float(np.max(damping / inertia))
+        return max(int(self.substeps), int(np.ceil(stiffness / self.rate_hz / 0.5)))
+
+    def _armature(self) -> NDArray[np.float64]:
+        return sum((effect.armature(self.robot) for effect in self.joint_effects), np.zeros(self.robot.n_joints))
+
+    def run(
+        self,
+        trajectory: Any,
+        controller: Controller | None = None,
+        *,
+        periods: int = 1,
+        duration: float | None = None,
+        warmup_periods: int = 0,
+        with_derivatives: bool = False,
+        initial_state: tuple[ArrayLike, ArrayLike] | None = None,
+        seed: int | None = None,
+    ) -> SimulationResult:
+        """Simulate ``periods`` periods of ``trajectory`` (or ``duration`` s) under ``controller``.
+
+        ``warmup_periods`` whole periods are simulated first and dropped, so that the record
+        starts in the periodic steady state; the record's ``t`` starts at 0. The robot starts at
+        the reference ``q_d(0), dq_d(0)`` unless ``initial_state`` is given.
+        """
+        import pinocchio as pin
+
+        robot, n = self.robot, self.robot.n_joints
+        evaluate, period = _reference(trajectory, n)
+        if duration is None:
+            if period is None:
+                raise ValueError("give duration for a trajectory without a period")
+            if int(periods) < 1 or int(warmup_periods) < 0:
+                raise ValueError("periods must be at least 1 and warmup_periods non-negative")
+            duration = int(periods) * period
+        if not duration > 0:
+            raise ValueError(f"duration must be positive, got {duration}")
+        warmup = int(warmup_periods) * (period or 0.0)
+        count, skip = int(round(duration * self.rate_hz)), int(round(warmup * self.rate_hz))
+        t_all = np.arange(skip + count) / self.rate_hz
+        q_d, dq_d, ddq_d = (np.asarray(values, dtype=float) for values in evaluate(t_all))
+        if q_d.shape != (skip + count, n):
+            raise ValueError(f"the reference must give ({skip + count}, {n}) arrays, got {q_d.shape}")
+        controller = self.default_controller() if controller is None else controller
+        if not isinstance(controller, Controller):
+            raise TypeError("controller needs torque(t, q, dq, q_d, dq_d, ddq_d) and describe()")
+
+        model = to_pinocchio(robot, theta=self.theta)
+        model.armature = self._armature()
+        data = model.createData()
+        joint_effects = [effect for effect in self.joint_effects if not isinstance(effect, Armature)]  # armature: in M
+
+        def acceleration(q, dq, tau):
+            for effect in joint_effects:
+                tau = tau - effect.joint_torque(robot, q, dq)
+            return pin.aba(model, data, q, dq, tau).copy()
+
+        q = q_d[0].copy() if initial_state is None else np.asarray(initial_state[0], dtype=float).copy()
+        dq = dq_d[0].copy() if initial_state is None else np.asarray(initial_state[1], dtype=float).copy()
+        Q, DQ, DDQ, TAU = (np.empty((skip + count, n)) for _ in range(4))
+        substeps = self.substeps_needed()
+        h = 1.0 / (self.rate_hz * substeps)
+        started = time.perf_counter()
+        for k in range(skip + count):
+            tau = np.asarray(controller.torque(t_all[k], q, dq, q_d[k], dq_d[k], ddq_d[k]), dtype=float).reshape(n)
+            a1 = acceleration(q, dq, tau)
+            Q[k], DQ[k], DDQ[k], TAU[k] = q, dq, a1, tau
+            for step in range(substeps):
+                if step:
+                    a1 = acceleration(q, dq, tau)
+                v2 = dq + 0.5 * h * a1
+                a2 = acceleration(q + 0.5 * h * dq, v2, tau)
+                v3 = dq + 0.5 * h * a2
+                a3 = acceleration(q + 0.5 * h * v2, v3, tau)
+                v4 = dq + h * a3
+                a4 = acceleration(q + h * v3, v4, tau)
+                q = q + h / 6 * (dq + 2 * v2 + 2 * v3 + v4)
+                dq = dq + h / 6 * (a1 + 2 * a2 + 2 * a3 + a4)
+            if not (np.all(np.isfinite(q)) and np.all(np.isfinite(dq)) and np.all(np.abs(dq) < 1e4)):
+                raise RuntimeError(
+                    f"simulation diverged at t = {t_all[k]:.3f} s (joint velocities {dq}); "
+                    "lower the controller gains or raise rate_hz/substeps"
+                )
+        elapsed = time.perf_counter() - started
+
+        keep = slice(skip, skip + count)
+        t = t_all[keep] - t_all[skip]
+        Q, DQ, DDQ, TAU = Q[keep], DQ[keep], DDQ[keep], TAU[keep]
+        rigid = base_wrench(robot, self.theta, Q, DQ, DDQ)
+        plate = sum((effect.plate_wrench(robot, Q) for effect in self.plate_effects), np.zeros((count, 6)))
+        wrench = rigid + plate
+
+        generator = np.random.default_rng(seed)
+        tau_noise = generator.normal(size=(count, n)) * np.broadcast_to(self.noise.tau_std, (n,))
+        wrench_noise = generator.normal(size=(count, 6)) * np.broadcast_to(self.noise.wrench_std, (6,))
+        resolution = self.noise.resolution(robot)
+        q_measured = Q.copy() if resolution is None else np.round(Q / resolution) * resolution
+        metadata = {
+            "source": "dynamics.simulator",
+            "robot": robot.name,
+            "joint_names": robot.joint_names,
+            "rate_hz": self.rate_hz,
+            "duration_s": duration,
+            "periods": periods if period is not None else None,
+            "warmup_periods": int(warmup_periods),
+            "integrator": f"rk4, zero-order-hold torque, {substeps} substep(s) per sample",
+            "seed": seed,
+            "with_derivatives": bool(with_derivatives),
+            "controller": controller.describe(),
+            "effects": [describe(effect, robot) for effect in self.effects],  # type: ignore[union-attr]
+            "noise": self.noise.describe(robot),
+            "true_parameters": self.true_parameters(),
+            "wrench_channels": list(WRENCH_CHANNELS),
+        }
+        measurements = Measurements(
+            t=t,
+            q=q_measured,
+            dq=DQ.copy() if with_derivatives else None,
+            ddq=DDQ.copy() if with_derivatives else None,
+            tau=TAU + tau_noise,
+            wrench=wrench + wrench_noise,
+            metadata=metadata,
+        )
+        q_ref, dq_ref, ddq_ref = q_d[keep], dq_d[keep], ddq_d[keep]
+        return SimulationResult(
+            measurements, t, Q, DQ, DDQ, q_ref, dq_ref, ddq_ref, TAU, wrench, rigid, elapsed, metadata
+        )
+
+
+def base_wrench(robot: RobotModel, theta: Sequence[float] | None, q: NDArray, dq: NDArray, ddq: NDArray) -> NDArray:
+    """Rigid-body reaction wrench on the robot from its base, ``(N, 6)`` (Pinocchio free-flyer RNEA).
+
+    Forces then moments about the base origin, base frame; a robot at rest reads ``fz = +m g``.
+    """
+    import pinocchio as pin
+
+    model = to_pinocchio(robot, free_flyer=True, theta=theta)
+    data = model.createData()
+    root = np.array([0, 0, 0, 0, 0, 0, 1.0])
+    zeros = np.zeros(6)
+    wrench = np.empty((q.shape[0], 6))
+    for k in range(q.shape[0]):
+        wrench[k] = pin.rnea(
+            model, data, np.concatenate([root, q[k]]), np.concatenate([zeros, dq[k]]), np.concatenate([zeros, ddq[k]])
+        )[:6]
+    return wrench
+
+
+def simulate(
+    robot: RobotModel,
+    trajectory: Any,
+    *,
+    controller: Controller | None = None,
+    effects: Sequence[Any] | str | None = None,
+    noise: NoiseModel | None = None,
+    theta: ArrayLike | None = None,
+    rate_hz: float = 1000.0,
+    periods: int = 1,
+    warmup_periods: int = 0,
+    with_derivatives: bool = False,
+    seed: int | None = None,
+) -> Measurements:
+    """One-shot simulation returning the measurements (see :class:`Simulator` for the truth)."""
+    simulator = Simulator(
+        robot, effects, None if theta is None else tuple(np.asarray(theta, dtype=float).reshape(-1)),
+        NoiseModel() if noise is None else noise, rate_hz,
+    )
+    return simulator.run(
+        trajectory, controller, periods=periods, warmup_periods=warmup_periods,
+        with_derivatives=with_derivatives, seed=seed,
+    ).measurements

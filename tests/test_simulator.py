@@ -1,0 +1,221 @@
+"""The simulated robot: dynamic consistency, effects on the right channels, sensors, reproducibility."""
+
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from dynamics import effects as model_effects
+from dynamics.controllers import PDController, RegressorInverseDynamics
+from dynamics.models import build_model
+from dynamics.pinocchio_bridge import to_pinocchio
+from dynamics.robots import load_robot
+from dynamics.simulated_effects import (
+    Armature, Coulomb, Offset, PlateCable, PlateOffset, Spring, Viscous, effects_from_names, puma560_link_friction,
+)
+from dynamics.simulator import NoiseModel, Simulator, encoder_resolution, simulate
+from oed.fourier import FourierTrajectory
+
+
+@pytest.fixture(scope="module")
+def robot():
+    return load_robot("puma560", joints=3)
+
+
+@pytest.fixture(scope="module")
+def trajectory():
+    """Random small coefficients: |dq| < 1 rad/s on the 3 PUMA joints, 5 harmonics of 0.2 Hz."""
+    generator = np.random.default_rng(7)
+    return FourierTrajectory(0.2, generator.uniform(-0.2, 0.2, 3), generator.uniform(-0.12, 0.12, (3, 5)),
+                             generator.uniform(-0.12, 0.12, (3, 5)))
+
+
+def test_trajectory_fixture_is_gentle(trajectory):
+    _, _, dq, _ = trajectory.sample(1000)
+    assert np.abs(dq).max() < 1.0
+
+
+def test_default_puma_friction_is_corke_motor_data_reflected_through_the_gears():
+    values = puma560_link_friction(3)
+    np.testing.assert_allclose(values["viscous"], [5.80, 9.50, 3.98], atol=0.01)
+    np.testing.assert_allclose(values["coulomb"], [0.415 * 62.6111, 0.0985 * 107.815, 0.1185 * 53.7063])
+    np.testing.assert_allclose(values["armature"], [200e-6 * 62.6111**2, 200e-6 * 107.815**2, 200e-6 * 53.7063**2])
+
+
+def test_recorded_torques_equal_the_model_prediction_at_the_true_states(robot, trajectory):
+    simulator = Simulator(robot, (Viscous.default(robot), Coulomb.default(robot), Offset.default(robot),
+                                  Armature.default(robot)), noise=NoiseModel.none())
+    result = simulator.run(trajectory, duration=2.0)
+    model = build_model(robot, "internal", ("viscous", model_effects.CoulombFriction(smoothing=0.05), "offset", "armature"))
+    predicted = model.predict(simulator.true_theta(model), result.q, result.dq, result.ddq)
+    np.testing.assert_allclose(predicted, result.tau, atol=1e-8 * np.abs(result.tau).max())
+    # the record is a solution of the ODE: its velocity integrates to its position (trapezoid rule,
+    # error h³/12 · jerk; the acceleration jumps at the samples, where the held torque changes)
+    h = 1e-3
+    np.testing.assert_allclose(np.diff(result.q, axis=0), h * (result.dq[1:] + result.dq[:-1]) / 2, atol=1e-7)
+
+
+def test_integration_has_converged_at_one_step_per_sample(robot, trajectory):
+    effects = "coulomb,armature"
+    coarse = Simulator(robot, effects, noise=NoiseModel.none()).run(trajectory, duration=2.0)
+    fine = Simulator(robot, effects, noise=NoiseModel.none(), substeps=8).run(trajectory, duration=2.0)
+    assert np.abs(coarse.q - fine.q).max() < 1e-8  # far below the encoder resolution (~2e-6 rad)
+
+
+def test_wrench_is_the_rigid_body_base_wrench_friction_is_internal(robot, trajectory):
+    simulator = Simulator(robot, "coulomb,offset", noise=NoiseModel.none())
+    result = simulator.run(trajectory, duration=2.0)
+    external = build_model(robot, "external", ())
+    predicted = external.predict(simulator.true_theta(external), result.q, result.dq, result.ddq)
+    np.testing.assert_allclose(result.wrench, predicted, atol=1e-8 * np.abs(predicted).max())
+
+
+def test_robot_held_still_reads_its_weight(robot):
+    q0 = np.array([0.3, -0.4, 0.5])
+    still = FourierTrajectory(0.5, q0, np.zeros((3, 1)), np.zeros((3, 1)))
+    simulator = Simulator(robot, noise=NoiseModel.none())
+    model = build_model(robot, "internal")
+    gravity = RegressorInverseDynamics(model, tuple(simulator.true_theta(model)))
+    result = simulator.run(still, PDController([100.0] * 3, [10.0] * 3, gravity=gravity))
+    np.testing.assert_allclose(result.q, np.tile(q0, (result.t.shape[0], 1)), atol=1e-12)
+    pinocchio_model = to_pinocchio(robot)
+    data = pinocchio_model.createData()
+    com = pin.centerOfMass(pinocchio_model, data, q0)
+    mass = sum(joint.inertial[0] for joint in robot.joints)
+    weight = mass * 9.81
+    expected = np.array([0.0, 0.0, weight, com[1] * weight, -com[0] * weight, 0.0])
+    np.testing.assert_allclose(result.wrench, np.tile(expected, (result.t.shape[0], 1)), atol=1e-9)
+
+
+def _residuals(robot, trajectory, effects):
+    simulator = Simulator(robot, (Viscous.default(robot), *effects), noise=NoiseModel.none())
+    result = simulator.run(trajectory, duration=2.0)
+    internal, external = build_model(robot, "internal"), build_model(robot, "external", ())
+    tau = result.tau - internal.predict(simulator.true_theta(internal), result.q, result.dq, result.ddq)
+    wrench = result.wrench - external.predict(simulator.true_theta(external), result.q, result.dq, result.ddq)
+    return result, np.abs(tau).max(axis=0), np.abs(wrench).max(axis=0)
+
+
+@pytest.mark.parametrize(
+    ("effect", "tau_rows", "wrench_rows"),
+    [
+        (Coulomb((3.0, 2.0, 1.0)), [0, 1, 2], []),
+        (Offset((0.0, 1.5, 0.0)), [1], []),
+        (Spring(joints=(1,), stiffness=(5.0,), q_ref=(0.4,)), [0], []),
+        (PlateOffset(("mz",), (2.0,)), [], [5]),
+        (PlateCable(joint=1, stiffness=3.0, q_ref=0.1, channel="mx"), [], [3]),
+    ],
+    ids=["coulomb", "offset", "spring", "plate_moment", "cable"],
+)
+def test_effects_appear_on_their_channels_only(robot, trajectory, effect, tau_rows, wrench_rows):
+    _, tau_residual, wrench_residual = _residuals(robot, trajectory, (effect,))
+    floor = 1e-8
+    assert np.all(tau_residual[tau_rows] > 0.1) and np.all(wrench_residual[wrench_rows] > 0.1)
+    assert np.all(np.delete(tau_residual, tau_rows) < floor)
+    assert np.all(np.delete(wrench_residual, wrench_rows) < floor)
+
+
+def test_plate_effects_have_their_true_values(robot, trajectory):
+    cable = PlateCable(joint=1, stiffness=3.0, q_ref=0.1, channel="mx")
+    result, _, _ = _residuals(robot, trajectory, (cable, PlateOffset(("mz",), (2.0,))))
+    plate = result.wrench - result.wrench_rigid_body
+    np.testing.assert_allclose(plate[:, 3], 3.0 * (result.q[:, 0] - 0.1), atol=1e-12)
+    np.testing.assert_allclose(plate[:, 5], 2.0)
+
+
+def test_pd_tracks_and_computed_torque_with_true_parameters_tracks_far_better(robot, trajectory):
+    from dynamics.controllers import ComputedTorqueController, computed_torque_gains
+
+    simulator = Simulator(robot, "coulomb,armature", noise=NoiseModel.none())
+    pd = simulator.run(trajectory, duration=3.0)
+    model = build_model(robot, "internal", ("viscous", model_effects.CoulombFriction(smoothing=0.05), "armature"))
+    kp, kd = computed_torque_gains(n_joints=3)
+    controller = ComputedTorqueController.from_model(model, simulator.true_theta(model), kp=kp, kd=kd)
+    computed = simulator.run(trajectory, controller, duration=3.0)
+    pd_error, ct_error = np.abs(pd.tracking_error).max(), np.abs(computed.tracking_error).max()
+    assert 1e-4 < pd_error < 0.05
+    # a perfect model leaves the error of holding the torque over each 1 ms sample (O(h): ~0.1 mrad)
+    assert ct_error < pd_error / 50
+
+
+def test_seeds_reproduce_and_noise_has_the_requested_level(robot, trajectory):
+    noise = NoiseModel(tau_std=0.3, wrench_std=(1.0, 1.0, 1.0, 0.2, 0.2, 0.2), q_resolution=None)
+    simulator = Simulator(robot, noise=noise)
+    first, again = (simulator.run(trajectory, duration=2.0, seed=11) for _ in range(2))
+    other = simulator.run(trajectory, duration=2.0, seed=12)
+    np.testing.assert_array_equal(first.measurements.tau, again.measurements.tau)
+    np.testing.assert_array_equal(first.measurements.wrench, again.measurements.wrench)
+    assert not np.allclose(first.measurements.tau, other.measurements.tau)
+    np.testing.assert_allclose((first.measurements.tau - first.tau).std(axis=0), 0.3, rtol=0.1)
+    np.testing.assert_allclose((first.measurements.wrench - first.wrench).std(axis=0), noise.wrench_std, rtol=0.1)
+    assert first.metadata["seed"] == 11 and first.metadata["true_parameters"]["fv2"] == pytest.approx(9.4969, abs=1e-3)
+
+
+def test_positions_are_quantised_to_the_encoder_resolution(robot, trajectory):
+    result = Simulator(robot).run(trajectory, duration=1.0, seed=0)
+    resolution = encoder_resolution(robot)
+    np.testing.assert_allclose(resolution, 2 * np.pi / (4 * 4096 * np.array([62.6111, 107.815, 53.7063])))
+    counts = result.measurements.q / resolution
+    np.testing.assert_allclose(counts, np.round(counts), atol=1e-6)
+    assert np.all(np.abs(result.measurements.q - result.q) <= resolution / 2 + 1e-15)
+    assert np.abs(result.measurements.q - result.q).max() > resolution.min() / 10  # not left exact
+
+
+def test_derivatives_are_written_only_when_asked(robot, trajectory):
+    plain = simulate(robot, trajectory, periods=1, seed=0)
+    assert plain.dq is None and plain.ddq is None and plain.tau.shape == (5000, 3) and plain.wrench.shape == (5000, 6)
+    simulator = Simulator(robot)
+    full = simulator.run(trajectory, duration=1.0, with_derivatives=True, seed=0)
+    np.testing.assert_array_equal(full.measurements.dq, full.dq)
+    np.testing.assert_array_equal(full.measurements.ddq, full.ddq)
+
+
+def test_warmup_starts_the_record_in_the_periodic_steady_state(robot):
+    fast = FourierTrajectory(1.0, np.zeros(3), np.full((3, 2), 0.1), np.full((3, 2), -0.1))
+    simulator = Simulator(robot, noise=NoiseModel.none())
+    result = simulator.run(fast, periods=1, warmup_periods=3)
+    assert result.t[0] == 0.0 and result.t.shape == (1000,)
+    # one period later the state repeats: compare the record's start with its extrapolated end
+    following = simulator.run(fast, periods=1, warmup_periods=4)
+    np.testing.assert_allclose(result.q, following.q, atol=1e-6)
+
+
+@pytest.mark.parametrize(
+    ("make", "message"),
+    [
+        (lambda robot: Simulator(robot, "magnets"), "unknown effect 'magnets'"),
+        (lambda robot: Simulator(robot, (Coulomb((1.0, 2.0)),)), "2 values for a robot of 3 joints"),
+        (lambda robot: Simulator(robot, theta=(1.0,) * 10), "30 finite standard parameters"),
+        (lambda robot: Simulator(robot, (Spring(joints=(4,)),)), "joint 4 outside 1..3"),
+        (lambda robot: effects_from_names("coulomb", robot, {"cable": 2.0}), "not simulated"),
+        (lambda robot: NoiseModel(tau_std=-1.0), "tau_std"),
+        (lambda robot: PlateOffset(("mq",), (1.0,)), "channels"),
+    ],
+)
+def test_bad_settings_raise_clear_errors(robot, make, message):
+    with pytest.raises(ValueError, match=message):
+        make(robot)
+
+
+def test_trajectory_with_the_wrong_joint_count_is_refused(robot):
+    other = FourierTrajectory(0.2, np.zeros(4), np.zeros((4, 1)), np.zeros((4, 1)))
+    with pytest.raises(ValueError, match="trajectory has 4 joints, the robot 3"):
+        Simulator(robot).run(other)
+
+
+def test_unstable_gains_report_divergence(robot, trajectory):
+    with pytest.raises(RuntimeError, match="diverged"):
+        Simulator(robot).run(trajectory, PDController([1e8] * 3, [1e6] * 3), duration=1.0)
+
+
+def test_stiff_friction_on_a_light_joint_gets_more_integration_steps():
+    servo = load_robot("servo_arm")
+    light = Simulator(servo, (Viscous((0.01,) * 4), Coulomb((0.05,) * 4)), noise=NoiseModel.none())
+    assert light.substeps_needed() > 1
+    middle = (servo.lower + servo.upper) / 2
+    still = FourierTrajectory(1.0, middle, np.full((4, 1), 0.2), np.zeros((4, 1)))
+    result = light.run(still, duration=0.5)
+    reference = Simulator(servo, light.effects, noise=NoiseModel.none(), substeps=4 * light.substeps_needed())
+    np.testing.assert_allclose(result.q, reference.run(still, duration=0.5).q, atol=1e-7)
+    assert result.metadata["integrator"].endswith(f"{light.substeps_needed()} substep(s) per sample")
