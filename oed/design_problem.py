@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import functools
 import pickle
+import shutil
 import time
 from dataclasses import dataclass, field
 from typing import Any
@@ -64,6 +65,10 @@ class DesignSettings:
         IPOPT settings (L-BFGS Hessian approximation).
     refinements
         Rounds of "add the violated points and re-solve".
+    jit
+        Compile the per-sample regressor and its reverse derivative with the system C compiler
+        (about 3x faster objective gradients for a one-time build of about 0.5 s); default: when a
+        compiler (``cc``/``gcc``) is on the ``PATH``.
     verbose
         Print IPOPT's iteration log.
     """
@@ -77,6 +82,7 @@ class DesignSettings:
     tol: float = 1e-6
     lbfgs_memory: int = 20
     refinements: int = 3
+    jit: bool = field(default_factory=lambda: _compiler() is not None)
     verbose: bool = False
 
     def __post_init__(self) -> None:
@@ -192,7 +198,8 @@ class ExcitationDesign:
             states = [casadi.mtimes(block, casadi.DM(matrix)) for matrix in self._state_matrices(t)]
             Y_base = self.identification_model.base_regressor
             q, dq, ddq = (casadi.SX.sym(name, n) for name in ("q", "dq", "ddq"))
-            transposed = casadi.Function("base_regressor_t", [q, dq, ddq], [Y_base(q, dq, ddq).T], ["q", "dq", "ddq"], ["Yt"])
+            transposed = casadi.Function("base_regressor_t", [q, dq, ddq], [Y_base(q, dq, ddq).T], ["q", "dq", "ddq"],
+                                         ["Yt"], _jit_options() if self.settings.jit else {})
             stacked = transposed.map(N)(*states)  # r x (rows·N)
             information = casadi.mtimes(stacked, stacked.T) / N
             objective = self.criterion.expression(information)
@@ -398,6 +405,17 @@ def _violation_peaks(excess: dict[str, NDArray[np.float64]], tolerance: float = 
             for begin, end in zip(edges[::2], edges[1::2]):
                 peaks.add(int(begin + np.argmax(column[begin:end])))
     return peaks
+
+
+def _compiler() -> str | None:
+    return shutil.which("cc") or shutil.which("gcc")
+
+
+def _jit_options() -> dict[str, Any]:
+    if _compiler() is None:
+        raise RuntimeError("jit=True needs a C compiler (cc or gcc) on the PATH; use jit=False")
+    options = {"jit": True, "compiler": "shell", "jit_options": {"flags": ["-O1"], "verbose": False}}
+    return {**options, "reverse_options": options, "forward_options": options}
 
 
 def default_bounds(robot: RobotModel) -> JointBounds:
