@@ -1,0 +1,114 @@
+"""``oed design``: optimal Fourier excitation trajectory (PUMA paper, section IV.A)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+
+import numpy as np
+
+from dynamics.models import ModelKind
+from oed.bounds import JointBounds
+from oed.cli.common import add_robot_arguments, atomic_output, robot_from_arguments
+from oed.criteria import CRITERIA
+from oed.design import DesignSettings, default_bounds, design_excitation
+
+
+def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
+    parser = subparsers.add_parser(
+        "design",
+        help="optimise a periodic Fourier excitation trajectory",
+        description="Optimise a finite-Fourier-series excitation (eq. 18) for -log det(Y_b'Y_b) or another "
+        "criterion under position, velocity and acceleration bounds (eq. 19) with IPOPT, multi-start.",
+    )
+    add_robot_arguments(parser)
+    parser.add_argument("--model", choices=[k.value for k in ModelKind], default="combined")
+    parser.add_argument("--criterion", choices=sorted(CRITERIA), default="logdet")
+    parser.add_argument("--friction", default="viscous", help="effects columns (as in `oed model`)")
+    parser.add_argument("--bounds", type=Path, help="JSON bounds file {q_min?, q_max, dq_max, ddq_max}")
+    parser.add_argument("--ddq-max", type=float, nargs="+", help="acceleration bounds when the bounds come from the URDF")
+    parser.add_argument("--starts", type=int, default=4)
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--workers", type=int, default=0, help="run the starts in a process pool of this size")
+    parser.add_argument("--frequency", type=float, default=0.2, help="fundamental frequency, Hz (default 0.2)")
+    parser.add_argument("--harmonics", type=int, default=5)
+    parser.add_argument("--samples", type=int, default=250, help="cost samples per period during optimisation")
+    parser.add_argument("--constraint-points", type=int, default=60)
+    parser.add_argument("--max-iter", type=int, default=500)
+    parser.add_argument("--out", type=Path, required=True, help="trajectory JSON")
+    parser.add_argument("--csv", type=Path, help="sampled trajectory t, q1..qn, dq1..dqn, ddq1..ddqn (1 kHz)")
+    parser.add_argument("--plot", type=Path, help="figure of q, dq, ddq with the bounds")
+    verbosity = parser.add_mutually_exclusive_group()
+    verbosity.add_argument("--quiet", action="store_true", help="no progress output")
+    verbosity.add_argument("--verbose", action="store_true", help="IPOPT iteration log")
+    return parser
+
+
+def bounds_from_arguments(args: argparse.Namespace, robot) -> JointBounds:
+    if args.bounds is not None:
+        bounds = JointBounds.load(args.bounds)
+    elif args.ddq_max is not None:
+        bounds = JointBounds.from_robot(robot, ddq_max=args.ddq_max)
+    else:
+        bounds = default_bounds(robot)
+    bounds.check_joint_count(robot.n_joints)
+    return bounds
+
+
+def trajectory_table(trajectory, rate_hz: float = 1000.0) -> tuple[list[str], np.ndarray]:
+    """Columns ``t, q1..qn, dq1..dqn, ddq1..ddqn`` and the samples of one period."""
+    t, q, dq, ddq = trajectory.sample(rate_hz)
+    n = trajectory.n_joints
+    header = ["t"] + [f"{state}{i}" for state in ("q", "dq", "ddq") for i in range(1, n + 1)]
+    return header, np.column_stack([t, q, dq, ddq])
+
+
+def run(args: argparse.Namespace) -> int:
+    robot = robot_from_arguments(args)
+    bounds = bounds_from_arguments(args, robot)
+    settings = DesignSettings(
+        frequency_hz=args.frequency, harmonics=args.harmonics, cost_samples=args.samples,
+        constraint_points=args.constraint_points, max_iter=args.max_iter, verbose=args.verbose,
+    )
+    if args.starts < 1:
+        raise ValueError(f"--starts must be at least 1, got {args.starts}")
+
+    def progress(start, total) -> None:
+        if not args.quiet:
+            print(f"start {start.index + 1}/{total}: {start.status}, {start.iterations} iterations, "
+                  f"{start.time_s:.2f} s, cost {start.cost:.4f}" + ("" if start.feasible else " (bounds not met)"),
+                  file=sys.stderr, flush=True)
+
+    options = dict(model=args.model, bounds=bounds, criterion=args.criterion, effects=args.friction,
+                   starts=args.starts, seed=args.seed, settings=settings, progress=progress)
+    if args.workers > 0:
+        with ProcessPoolExecutor(args.workers) as executor:
+            result = design_excitation(robot, executor=executor, **options)
+    else:
+        result = design_excitation(robot, **options)
+    trajectory = result.trajectory
+    # everything is computed before any file is written; each file is written atomically
+    figure = None
+    if args.plot is not None:
+        from oed.design_plot import plot_trajectory
+
+        figure = plot_trajectory(trajectory, bounds, rate_hz=settings.rate_hz,
+                                 title=f"{robot.name}, {args.model} model, cost {result.cost:.2f}")
+    with atomic_output(args.out) as stream:
+        json.dump(trajectory.to_dict(), stream, indent=2)
+    if args.csv is not None:
+        header, table = trajectory_table(trajectory, settings.rate_hz)
+        with atomic_output(args.csv) as stream:
+            np.savetxt(stream, table, delimiter=",", header=",".join(header), comments="", fmt="%.10g")
+    if figure is not None:
+        from oed.design_plot import save_figure
+
+        save_figure(figure, args.plot)
+    if not args.quiet:
+        print(f"{robot.name}, {args.model} model, {args.criterion}: best start {result.best + 1}/{len(result.starts)}, "
+              f"cost -log det(Y'Y) = {result.cost:.4f}, cond = {result.cond:.2f}, "
+              f"{result.total_time_s:.2f} s -> {args.out}", file=sys.stderr)
+    return 0

@@ -1,0 +1,83 @@
+"""Figure of an excitation trajectory with its bounds, like the PUMA paper's Figs. 4–6."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+from oed.bounds import JointBounds
+from oed.fourier import FourierTrajectory
+
+
+def plot_trajectory(
+    trajectory: FourierTrajectory,
+    bounds: JointBounds | None = None,
+    *,
+    rate_hz: float = 1000.0,
+    executed: Sequence[np.ndarray] | None = None,
+    title: str | None = None,
+):
+    """``q, dq, ddq`` (rows) of each joint (columns) over one period, bounds dashed.
+
+    Parameters
+    ----------
+    trajectory
+        The designed trajectory (eq. 18).
+    bounds
+        Drawn as dashed lines (eq. 19).
+    executed
+        Optional ``(t, q, dq, ddq)`` of the trajectory as executed by the robot, drawn on top
+        (the paper's "real" trajectories).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+
+    t, q, dq, ddq = trajectory.sample(rate_hz)
+    n = trajectory.n_joints
+    figure, axes = plt.subplots(3, n, figsize=(3.2 * n, 6.5), sharex=True, squeeze=False)
+    labels = ("q [rad]", "dq [rad/s]", "ddq [rad/s²]")
+    for row, (values, label) in enumerate(zip((q, dq, ddq), labels)):
+        for joint in range(n):
+            axis = axes[row, joint]
+            axis.plot(t, values[:, joint], lw=1.2, label="optimised")
+            if executed is not None:
+                axis.plot(executed[0], executed[row + 1][:, joint], lw=0.8, ls="-", alpha=0.8, label="executed")
+            if bounds is not None:
+                low, high = {
+                    0: (bounds.q_min[joint], bounds.q_max[joint]),
+                    1: (-bounds.dq_max[joint], bounds.dq_max[joint]),
+                    2: (-bounds.ddq_max[joint], bounds.ddq_max[joint]),
+                }[row]
+                for level in (low, high):
+                    axis.axhline(level, color="k", ls="--", lw=0.8)
+            if row == 0:
+                axis.set_title(trajectory.joint_names[joint])
+            if joint == 0:
+                axis.set_ylabel(label)
+            if row == 2:
+                axis.set_xlabel("t [s]")
+            axis.grid(alpha=0.3)
+    if title:
+        figure.suptitle(title)
+    figure.tight_layout()
+    return figure
+
+
+def save_figure(figure, path: str | Path) -> None:
+    """Save atomically (no half-written file), format from the suffix."""
+    from oed.cli.common import atomic_output
+
+    path = Path(path)
+    with atomic_output(path, "wb") as stream:
+        figure.savefig(stream, format=path.suffix.lstrip(".") or "png", dpi=120)
+    import matplotlib.pyplot as plt
+
+    plt.close(figure)

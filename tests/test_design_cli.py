@@ -1,0 +1,78 @@
+"""``oed design``: outputs, bad input (clear error, exit code 2, no half-written files)."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from dynamics.robots import load_robot
+from oed.bounds import InfeasibleBoundsError, JointBounds
+from oed.cli import main
+from oed.design import DesignError, DesignSettings, design_excitation
+
+
+def test_cli_writes_json_csv_and_figure(tmp_path):
+    out, csv, png = tmp_path / "traj.json", tmp_path / "traj.csv", tmp_path / "traj.png"
+    code = main(["design", "--robot", "puma560", "--joints", "3", "--model", "internal", "--starts", "1",
+                 "--seed", "2", "--out", str(out), "--csv", str(csv), "--plot", str(png), "--quiet"])
+    assert code == 0
+    document = json.loads(out.read_text())
+    for key in ("frequency_hz", "harmonics", "q0", "a", "b", "joint_names", "model", "criterion", "cost", "cond",
+                "bounds", "solver"):
+        assert key in document
+    assert np.shape(document["a"]) == (3, 5) and document["frequency_hz"] == 0.2
+    table = np.loadtxt(csv, delimiter=",", skiprows=1)
+    assert table.shape == (5000, 10)
+    assert csv.read_text().splitlines()[0] == "t,q1,q2,q3,dq1,dq2,dq3,ddq1,ddq2,ddq3"
+    assert png.stat().st_size > 1000
+
+
+def test_impossible_bounds_file_fails_cleanly(tmp_path, capsys):
+    bounds = tmp_path / "bounds.json"
+    bounds.write_text(json.dumps({"q_min": [0, 0, 0], "q_max": [1, -1, 1], "dq_max": [1, 1, 1], "ddq_max": [1, 1, 1]}))
+    out = tmp_path / "traj.json"
+    code = main(["design", "--joints", "3", "--bounds", str(bounds), "--out", str(out), "--quiet"])
+    assert code == 2
+    assert "joint2" in capsys.readouterr().err
+    assert not out.exists() and list(tmp_path.iterdir()) == [bounds]
+
+
+def test_non_positive_frequency_fails_cleanly(tmp_path, capsys):
+    out = tmp_path / "traj.json"
+    assert main(["design", "--joints", "3", "--frequency", "0", "--out", str(out), "--quiet"]) == 2
+    assert "frequency" in capsys.readouterr().err
+    assert not out.exists()
+
+
+def test_solver_failure_names_the_status(tmp_path, capsys):
+    out = tmp_path / "traj.json"
+    code = main(["design", "--joints", "3", "--model", "internal", "--max-iter", "2", "--starts", "2",
+                 "--out", str(out), "--quiet"])
+    assert code == 2
+    assert "Maximum_Iterations_Exceeded" in capsys.readouterr().err
+    assert not out.exists()
+
+
+def test_zero_velocity_bound_is_infeasible():
+    with pytest.raises(InfeasibleBoundsError, match="dq_max"):
+        JointBounds.symmetric([1, 1], [1, 0], [1, 1])
+
+
+def test_urdf_bounds_need_accelerations(prismatic_urdf):
+    robot = load_robot(urdf=prismatic_urdf)
+    with pytest.raises(ValueError, match="ddq_max"):
+        JointBounds.from_robot(robot)
+
+
+def test_bounds_for_another_joint_count_are_rejected():
+    robot = load_robot("puma560", joints=3)
+    with pytest.raises(ValueError, match="2 joints"):
+        design_excitation(robot, bounds=JointBounds.symmetric([1, 1], [1, 1], [1, 1]), starts=1)
+
+
+def test_design_error_is_a_runtime_error():
+    robot = load_robot("puma560", joints=3)
+    with pytest.raises(DesignError, match="start 0"):
+        design_excitation(robot, model="internal", starts=1, settings=DesignSettings(max_iter=1))
