@@ -25,7 +25,6 @@ import numpy as np
 import scipy.linalg
 from numpy.typing import ArrayLike, NDArray
 
-from dynamics.fast_eval import evaluate_base_fast
 from dynamics.models import IdentificationModel
 from estimation.measurements import Measurements
 
@@ -137,7 +136,7 @@ def stack(model: IdentificationModel, measurements: Measurements) -> Identificat
     if measurements.n_joints != model.robot.n_joints:
         raise ValueError(f"the data have {measurements.n_joints} joints, the robot {model.robot.n_joints}")
     measured = measurements.channels(model.channels)
-    Y = evaluate_base_fast(model, measurements.q, measurements.dq, measurements.ddq)  # zero-copy mapped call
+    Y = model.evaluate_base(measurements.q, measurements.dq, measurements.ddq)  # compiled, zero-copy
     return IdentificationProblem(Y, measured, model.channels, model.base.names, model.base.expressions)
 
 
