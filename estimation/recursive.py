@@ -40,7 +40,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from estimation.arx import Polynomials, as_signal_pair, check_orders
-from estimation.codegen import compile_function
+from dynamics.compiled import compile_function
 
 Backend = Literal["compiled", "numpy", "vm"]
 CHUNK = 256  # samples per inner mapaccum; the state is returned once per chunk

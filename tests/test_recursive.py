@@ -93,17 +93,3 @@ def test_erls_covariance_matches_the_spread_over_repeated_experiments():
     predicted = np.mean(np.array(covariances), axis=0)
     assert np.all(spread < 4 * predicted) and np.all(spread > predicted / 4)
 
-
-def test_codegen_falls_back_to_the_virtual_machine_without_a_compiler(tmp_path, monkeypatch):
-    import casadi
-
-    from estimation.codegen import compile_function
-
-    monkeypatch.setenv("ROBOT_OED_CACHE", str(tmp_path))
-    x = casadi.SX.sym("x")
-    function = casadi.Function("square_fallback", [x], [x**2])
-    with pytest.warns(RuntimeWarning, match="virtual machine"):
-        same = compile_function(function, compiler=str(tmp_path / "no-such-cc"))
-    assert same is function
-    compiled = compile_function(function)
-    assert float(compiled(3.0)) == 9.0 and list(tmp_path.glob("square_fallback_*.so"))
