@@ -83,3 +83,35 @@ def test_bad_alpha_is_named(robot):
     train, validate = _experiments(model, true_parameters(model))
     with pytest.raises(ValueError, match="alpha"):
         diagnose(model, train, validate, alpha=2.0)
+
+
+def test_diagnose_cli_writes_the_promised_json_and_report(tmp_path, robot, capsys):
+    import json
+
+    from oed.cli import main
+
+    truth = build_model(robot, "internal", ("viscous", CoulombFriction(joints=(2,))))
+    train, validate = _experiments(truth, true_parameters(truth, seed=0, coulomb=[6.0]))
+    train.write(tmp_path / "train.csv")
+    validate.write(tmp_path / "val.csv")
+    code = main([
+        "diagnose", "--robot", "puma560", "--joints", "3", "--model", "internal", "--data", str(tmp_path / "train.csv"),
+        "--validate", str(tmp_path / "val.csv"), "--out", str(tmp_path / "report.json"), "--report", str(tmp_path / "report.md"),
+    ])
+    assert code == 0, capsys.readouterr().err
+    document = json.loads((tmp_path / "report.json").read_text())
+    effect = document["effects"][0]
+    assert set(effect) >= {"name", "channels", "values", "std", "p_value"}
+    assert (effect["name"], effect["channels"]) == ("coulomb", ["tau3"])
+    assert set(document["validation"]["before"]["mse"]) == {"tau1", "tau2", "tau3"}
+    assert "coulomb" in (tmp_path / "report.md").read_text()
+    assert (tmp_path / "report.residuals.png").exists()
+
+
+def test_diagnose_cli_bad_file_is_a_message(tmp_path, capsys):
+    from oed.cli import main
+
+    code = main(["diagnose", "--robot", "puma560", "--joints", "3", "--data", str(tmp_path / "absent.csv"),
+                 "--validate", str(tmp_path / "absent.csv"), "--out", str(tmp_path / "r.json")])
+    assert code == 2 and "absent.csv" in capsys.readouterr().err
+    assert not (tmp_path / "r.json").exists()

@@ -18,7 +18,7 @@ import sys
 from collections.abc import Sequence
 
 # verb module names, in the order ``oed --help`` lists them
-VERB_MODULES: tuple[str, ...] = ("model", "design", "simulate", "identify", "aprbs", "servo_simulate", "servo_fit", "demo")
+VERB_MODULES: tuple[str, ...] = ("model", "design", "simulate", "identify", "aprbs", "servo_simulate", "servo_fit", "diagnose", "demo")
 
 EXIT_USER_ERROR = 2
 

@@ -1,0 +1,74 @@
+"""``oed diagnose``: find what an identified model lacks in measured data, add it, report before/after."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import warnings
+from pathlib import Path
+
+from dynamics.models import ModelKind, build_model
+from estimation.diagnosis import diagnose
+from estimation.diagnosis_report import markdown_report, plot_residuals
+from oed.cli.common import add_robot_arguments, atomic_output, robot_from_arguments
+from oed.cli.identify import prepare
+
+
+def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
+    parser = subparsers.add_parser(
+        "diagnose",
+        help="find the effects a model lacks in measured data and report the error before and after",
+        description="Identify the declared model, test candidate effects (Coulomb, offsets, armature, Stribeck, "
+        "springs, plate offsets) by forward selection on the training data, keep only those that lower the "
+        "validation error, and report the validation MSE per channel before and after.",
+    )
+    add_robot_arguments(parser)
+    parser.add_argument("--model", choices=[kind.value for kind in ModelKind], default="internal")
+    parser.add_argument("--friction", default="viscous", help="declared effects (default: viscous)")
+    parser.add_argument("--data", type=Path, required=True, help="training data (.csv or .parquet)")
+    parser.add_argument("--validate", type=Path, required=True, help="held-out data from another experiment")
+    parser.add_argument("--out", type=Path, required=True, help="report JSON")
+    parser.add_argument("--report", type=Path, help="Markdown report (a residual figure is written beside it)")
+    parser.add_argument("--alpha", type=float, default=1e-3, help="significance level of the F test (default 1e-3)")
+    derivatives = parser.add_argument_group("derivatives (only when dq/ddq columns are absent)")
+    derivatives.add_argument("--frequency", type=float, help="periodic excitation: fundamental frequency, Hz")
+    derivatives.add_argument("--harmonics", type=int, default=5)
+    derivatives.add_argument("--cutoff", type=float, help="Butterworth cut-off, Hz (default: automatic)")
+    derivatives.add_argument("--decimate", type=int, default=1)
+    return parser
+
+
+def run(args: argparse.Namespace) -> int:
+    robot = robot_from_arguments(args)
+    model = build_model(robot, args.model, args.friction)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        train = prepare(args.data, model, args)
+        validate = prepare(args.validate, model, args)
+    for warning in caught:
+        print(f"oed diagnose: warning: {warning.message}")
+    diagnosis = diagnose(model, train, validate, alpha=args.alpha)
+    with atomic_output(args.out) as stream:
+        json.dump(diagnosis.to_dict(), stream, indent=2)
+    if args.report is not None:
+        figure = args.report.with_suffix(".residuals.png")
+        plot_residuals(diagnosis, train, figure)
+        with atomic_output(args.report) as stream:
+            stream.write(markdown_report(diagnosis, figure.name))
+    print_summary(diagnosis)
+    print(f"wrote {args.out}" + (f" and {args.report}" if args.report else ""))
+    return 0
+
+
+def print_summary(diagnosis) -> None:
+    """Effects found and the validation MSE per channel before and after."""
+    if diagnosis.effects:
+        for effect in diagnosis.effects:
+            values = ", ".join(f"{n} = {v:.4g} ± {s:.2g}" for n, v, s in zip(effect.parameters, effect.values, effect.std))
+            print(f"found {effect.name} on {', '.join(effect.channels)}: {values} (p = {effect.p_value:.2g})")
+    else:
+        print("found nothing: the declared model explains the data")
+    before, after = diagnosis.before.validation.mse, diagnosis.after.validation.mse
+    print("validation MSE   " + "  ".join(f"{channel:>9s}" for channel in before))
+    print("  before         " + "  ".join(f"{value:9.4g}" for value in before.values()))
+    print("  after          " + "  ".join(f"{after[channel]:9.4g}" for channel in before))
