@@ -12,8 +12,10 @@ Procedure (forward selection on nested linear models):
 3. Fit each identifiable candidate on the training data and test the nested models with the
    F statistic ``F = ((RSS₀ − RSS₁)/k) / (RSS₁/(N m − p₁))`` on weighted residual sums of
    squares; the threshold is ``alpha`` divided by the number of candidates (Bonferroni).
-4. The most significant candidate is added only if it also lowers the weighted validation error
-   on the held-out data; then the search repeats. It stops when nothing significant remains.
+4. The most significant candidate is added only if its estimate has the physical sign (Coulomb,
+   Stribeck, armature: positive) and it lowers the weighted validation error on the held-out
+   data by at least ``min_improvement``; then the search repeats. It stops when nothing
+   significant remains.
 5. Re-identify the augmented model and report the validation MSE per channel before and after.
 """
 
@@ -45,6 +47,8 @@ from estimation.least_squares import stack
 from estimation.measurements import Measurements
 
 JOINT_CANDIDATES: tuple[type, ...] = (CoulombFriction, JointOffset, Armature, StribeckFriction, Spring)
+# effects whose parameters are positive by physics: an estimate of the other sign is not that effect
+POSITIVE_EFFECTS: frozenset[str] = frozenset({"viscous", "coulomb", "stribeck", "armature"})
 
 
 @dataclass(frozen=True)
@@ -196,6 +200,7 @@ def diagnose(
     *,
     candidates: Iterable[Effect] | None = None,
     alpha: float = 1e-3,
+    min_improvement: float = 0.01,
     max_effects: int = 10,
 ) -> Diagnosis:
     """Find, by forward selection, the effects ``model`` lacks in ``train``, confirmed on ``validate``.
@@ -210,11 +215,15 @@ def diagnose(
         Effects to try (default: :func:`default_candidates`).
     alpha
         Family-wise significance level of the F test (Bonferroni over the candidates).
+    min_improvement
+        Smallest relative decrease of the weighted validation MSE for an effect to be added.
     max_effects
         Most effects added.
     """
     if not 0 < alpha < 1:
         raise ValueError(f"alpha must lie in (0, 1), got {alpha}")
+    if not 0 <= min_improvement < 1:
+        raise ValueError(f"min_improvement must lie in [0, 1), got {min_improvement}")
     candidates = tuple(default_candidates(model) if candidates is None else candidates)
     for candidate in candidates:
         if not isinstance(candidate, Effect):
@@ -259,13 +268,21 @@ def diagnose(
             if p_value >= threshold:
                 break
             candidate = candidates[index]
+            count = len(candidate.parameter_names(model.robot))
+            if candidate.name in POSITIVE_EFFECTS and np.any(theta_aug[-count:] <= 0):
+                rejected[index] = RejectedEffect(
+                    candidate.name, effect_channels(candidate, model),
+                    f"significant on training (p = {p_value:.2g}) but estimated with a non-physical sign",
+                )
+                continue
             columns_validate = candidate_columns(model, candidate, validate)
             Y_validate_aug = np.concatenate([Y_validate, columns_validate], axis=2)
             error = _weighted_mse(Y_validate_aug, y_validate, theta_aug, weights)
-            if error >= validation_error:
+            if error >= (1.0 - min_improvement) * validation_error:
                 rejected[index] = RejectedEffect(
                     candidate.name, effect_channels(candidate, model),
-                    f"significant on training (p = {p_value:.2g}) but does not lower the validation error",
+                    f"significant on training (p = {p_value:.2g}) but lowers the validation error by less than "
+                    f"{100 * min_improvement:g} % ({validation_error:.4g} -> {error:.4g})",
                 )
                 continue
             selected.append((candidate, p_value, -negative_statistic))

@@ -1,0 +1,32 @@
+"""Real data, EMPS (Janot, Gautier & Brunot): from mass + viscous friction, the diagnosis must find
+Coulomb friction and the offset, cut the validation error, and land near the published IDIM-LS values
+(M = 95.1 kg, Fv = 203.5 N·s/m, Fc = 20.4 N, offset = −3.16 N)."""
+
+from __future__ import annotations
+
+import pytest
+
+from dynamics.models import build_model
+from dynamics.robots import load_robot
+from estimation.datasets import emps_measurements
+from estimation.diagnosis import diagnose
+from tests.conftest import shared_data
+
+pytestmark = pytest.mark.realdata
+
+
+def test_emps_diagnosis_finds_coulomb_friction_and_offset_near_published_values():
+    folder = shared_data("emps")
+    train = emps_measurements(folder, "estimation")
+    validate = emps_measurements(folder, "validation")
+    diagnosis = diagnose(build_model(load_robot("emps"), "internal", "viscous"), train, validate)
+    found = {effect.name: effect for effect in diagnosis.effects}
+    assert {"coulomb", "offset"} <= set(found)
+    assert found["coulomb"].channels == ("tau1",) and found["offset"].channels == ("tau1",)
+    values = {record["name"]: record["value"] for record in diagnosis.after.estimate.records()}
+    assert values["m1"] == pytest.approx(95.1, rel=0.05)
+    assert values["fv1"] == pytest.approx(203.5, rel=0.10)
+    assert values["fc1"] == pytest.approx(20.4, rel=0.10)
+    assert values["off1"] == pytest.approx(-3.16, rel=0.15)
+    before, after = diagnosis.before.validation.mse["tau1"], diagnosis.after.validation.mse["tau1"]
+    assert after < 0.2 * before
