@@ -1,0 +1,91 @@
+"""The main job (``make demo``): the whole loop on the built-in PUMA 560, first three joints.
+
+1. Design two optimal Fourier excitations (identification and validation; PUMA paper §IV.A).
+2. Simulate both experiments on a robot whose joints have Coulomb friction and a torque offset
+   that the declared model (rigid body + viscous friction) does not know about.
+3. Average the periods and take dq, ddq from a Fourier fit of the measured positions.
+   (The simulated Coulomb law is ``tanh(dq/0.05)``, the candidate ``sign(dq)``: the estimates
+   come out about 10 % low and the error after stays above the noise floor near velocity
+   reversals; the synthetic cases of ``tests/test_diagnosis.py`` reach the floor.)
+4. Identify the declared model; diagnose the residual; re-identify with what was found.
+5. Print the validation error before and after, and write the report and figures.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+from dynamics.models import build_model
+from dynamics.robots import load_robot
+from dynamics.simulator import NoiseModel, Simulator
+from estimation.diagnosis import diagnose
+from estimation.diagnosis_report import markdown_report, plot_residuals
+from estimation.preprocessing import FourierDifferentiation, fill_derivatives
+from estimation.validation import plot_comparison
+from oed.design import design_excitation
+from oed.design_plot import plot_trajectory
+
+UNDECLARED_EFFECTS = "viscous,coulomb,offset"
+
+
+def run_demo(out: str | Path, *, say: Callable[[str], None] = print) -> dict:
+    """Run the loop, write everything under ``out``, return the diagnosis document."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    start = time.perf_counter()
+    robot = load_robot("puma560", joints=3)
+
+    say("1. designing the excitation trajectories (IPOPT, exact gradients)...")
+    designs = {}
+    for label, seed in (("train", 0), ("validate", 7)):
+        design = design_excitation(robot, model="internal", starts=2, seed=seed)
+        design.trajectory.save(out / f"trajectory_{label}.json")
+        designs[label] = design
+        say(f"   {label}: -log det(Yb'Yb) = {design.cost:.2f}, cond = {design.cond:.3g}")
+    figure = plot_trajectory(designs["train"].trajectory, title="optimal excitation (identification)")
+    figure.savefig(out / "trajectory_train.png", dpi=90)
+
+    say(f"2. simulating both experiments on a robot with {UNDECLARED_EFFECTS} (the model declares viscous only)...")
+    simulator = Simulator(robot, UNDECLARED_EFFECTS, noise=NoiseModel())
+    truth = simulator.true_parameters()
+    # a stiff joint PD (20 Hz): a soft loop lets Coulomb friction stick the joints at velocity
+    # reversals, a regime no sign(dq) model describes
+    controller = simulator.default_controller(bandwidth_hz=20.0)
+    data = {}
+    for index, (label, design) in enumerate(designs.items()):
+        result = simulator.run(design.trajectory, controller, periods=3, warmup_periods=1, seed=index + 1)
+        result.measurements.write(out / f"data_{label}.csv")
+        # the response carries harmonics the 5-term excitation does not: fit 15
+        differentiation = FourierDifferentiation(frequency_hz=design.trajectory.frequency_hz, harmonics=15)
+        data[label] = fill_derivatives(result.measurements, differentiation)
+
+    say("3. identifying the declared model and diagnosing its residual...")
+    model = build_model(robot, "internal", "viscous")
+    diagnosis = diagnose(model, data["train"], data["validate"])
+    document = diagnosis.to_dict()
+    document["truth"] = {name: value for name, value in truth.items() if name[:2] in ("fc", "of", "fv")}
+    (out / "report.json").write_text(json.dumps(document, indent=2))
+    plot_residuals(diagnosis, data["train"], out / "report.residuals.png")
+    (out / "report.md").write_text(markdown_report(diagnosis, "report.residuals.png"))
+    plot_comparison([diagnosis.before.validation, diagnosis.after.validation], out / "validation.png",
+                    title="validation: declared model vs after diagnosis")
+
+    for effect in diagnosis.effects:
+        estimates = ", ".join(
+            f"{name} = {value:.3g} ± {std:.1g} (true {truth.get(name, float('nan')):.3g})"
+            for name, value, std in zip(effect.parameters, effect.values, effect.std)
+        )
+        say(f"   found {effect.name} on {', '.join(effect.channels)}: {estimates}")
+    before, after = diagnosis.before.validation.mse, diagnosis.after.validation.mse
+    noise_variance = float(np.max(np.atleast_1d(simulator.noise.tau_std))) ** 2
+    say(f"4. validation MSE per channel [N^2 m^2] (torque noise variance: {noise_variance:.3g})")
+    for channel in before:
+        say(f"   {channel}: before {before[channel]:9.4g}   after {after[channel]:9.4g}")
+    say(f"report: {out / 'report.md'} (JSON: report.json; figures: report.residuals.png, validation.png, "
+        f"trajectory_train.png); {time.perf_counter() - start:.0f} s in all")
+    return document
