@@ -17,6 +17,9 @@ exceeded are added as constraint points and the problem is re-solved from the pr
 
 from __future__ import annotations
 
+import tempfile
+from pathlib import Path
+
 import functools
 import pickle
 import shutil
@@ -414,7 +417,13 @@ def _compiler() -> str | None:
 def _jit_options() -> dict[str, Any]:
     if _compiler() is None:
         raise RuntimeError("jit=True needs a C compiler (cc or gcc) on the PATH; use jit=False")
-    options = {"jit": True, "compiler": "shell", "jit_options": {"flags": ["-O1"], "verbose": False}}
+    # CasADi writes its JIT sources and objects to the working directory unless told otherwise
+    directory = Path(tempfile.gettempdir()) / "robot-oed-jit"
+    directory.mkdir(parents=True, exist_ok=True)
+    options = {
+        "jit": True, "compiler": "shell",
+        "jit_options": {"flags": ["-O1"], "verbose": False, "directory": str(directory)},
+    }
     return {**options, "reverse_options": options, "forward_options": options}
 
 
