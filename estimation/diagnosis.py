@@ -296,8 +296,9 @@ def diagnose(
         remaining = [index for index in remaining if index not in rejected]
         if not added:
             break
+    reason = f"not tested: {max_effects} effects already added" if len(selected) >= max_effects else "not significant"
     for index in remaining:
-        rejected.setdefault(index, RejectedEffect(candidates[index].name, effect_channels(candidates[index], model), "not significant"))
+        rejected.setdefault(index, RejectedEffect(candidates[index].name, effect_channels(candidates[index], model), reason))
 
     after = identify(current, train, validate) if selected else before
     names = list(after.estimate.names)
