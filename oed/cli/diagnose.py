@@ -11,7 +11,7 @@ from dynamics.models import ModelKind, build_model
 from estimation.diagnosis import diagnose
 from estimation.diagnosis_report import markdown_report, plot_residuals
 from oed.cli.common import add_robot_arguments, atomic_output, robot_from_arguments
-from oed.cli.identify import prepare
+from oed.cli.identify import add_derivative_arguments, prepare
 
 
 def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -30,11 +30,7 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     parser.add_argument("--out", type=Path, required=True, help="report JSON")
     parser.add_argument("--report", type=Path, help="Markdown report (a residual figure is written beside it)")
     parser.add_argument("--alpha", type=float, default=1e-3, help="significance level of the F test (default 1e-3)")
-    derivatives = parser.add_argument_group("derivatives (only when dq/ddq columns are absent)")
-    derivatives.add_argument("--frequency", type=float, help="periodic excitation: fundamental frequency, Hz")
-    derivatives.add_argument("--harmonics", type=int, default=5)
-    derivatives.add_argument("--cutoff", type=float, help="Butterworth cut-off, Hz (default: automatic)")
-    derivatives.add_argument("--decimate", type=int, default=1)
+    add_derivative_arguments(parser)
     return parser
 
 

@@ -36,13 +36,18 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     parser.add_argument("--plot", type=Path, help="figure of measured vs predicted channels (.png, .pdf, .svg)")
     parser.add_argument("--method", choices=("wls", "ols"), default="wls",
                         help="channel-weighted (default) or ordinary least squares")
+    add_derivative_arguments(parser)
+    return parser
+
+
+def add_derivative_arguments(parser: argparse.ArgumentParser) -> None:
+    """``--frequency/--harmonics`` (Fourier fit) or ``--cutoff`` (Butterworth), and ``--decimate``."""
     derivatives = parser.add_argument_group("derivatives (only when dq/ddq columns are absent)")
     derivatives.add_argument("--frequency", type=float, help="periodic excitation: fundamental frequency, Hz "
                              "(average the periods, Fourier-fit the positions)")
     derivatives.add_argument("--harmonics", type=int, default=5, help="harmonics of the Fourier fit (default: 5)")
     derivatives.add_argument("--cutoff", type=float, help="otherwise: Butterworth cut-off, Hz (default: automatic)")
     derivatives.add_argument("--decimate", type=int, default=1, help="keep one sample in K after low-pass filtering")
-    return parser
 
 
 def differentiation(args: argparse.Namespace) -> Differentiation:
