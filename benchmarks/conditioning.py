@@ -5,8 +5,9 @@ Designs an optimal trajectory for each model, evaluates every trajectory under a
 equal unit noise, ``σ_i = sqrt((Y_bᵀY_b)⁻¹_ii) / |θ_b,i|`` at the PUMA's nominal parameters), and
 writes CSV and Markdown tables plus the figure of each trajectory.
 
-The "as-executed" columns (Table II: the trajectory after tracking by the robot) are filled by
-passing executed ``(q, dq, ddq)`` arrays to :func:`conditioning_rows` once a simulator exists.
+The "as-executed" columns (Table II: the trajectory after tracking by the robot) come from the
+simulator: each design is tracked by the PUMA under joint PD control (viscous friction, default
+gains) and the criteria are evaluated at the executed ``(q, dq, ddq)``.
 
     python benchmarks/conditioning.py --out benchmarks/results [--starts 4]
 """
@@ -22,6 +23,7 @@ import pandas as pd
 
 from dynamics.models import ModelKind, build_model
 from dynamics.robots import load_robot
+from dynamics.simulator import NoiseModel, Simulator
 from oed.bounds import PUMA_BOUNDS
 from oed.design import design_excitation
 from oed.design_plot import plot_trajectory, save_figure
@@ -76,9 +78,15 @@ def main() -> None:
         result = design_excitation(robot, model=kind.value, bounds=PUMA_BOUNDS, starts=args.starts, seed=args.seed)
         trajectories[kind.value] = result.trajectory
         print(f"{kind.value}: cost {result.cost:.3f}, cond {result.cond:.2f} ({result.total_time_s:.1f} s)")
-        save_figure(plot_trajectory(result.trajectory, PUMA_BOUNDS, title=f"optimised for the {kind.value} model"),
-                    args.out / f"trajectory_{kind.value}.png")
-    table = conditioning_rows(robot, trajectories)
+    simulator = Simulator(robot, "viscous", noise=NoiseModel.none())
+    executed = {}
+    for kind, trajectory in trajectories.items():
+        run = simulator.run(trajectory, periods=1, warmup_periods=1, with_derivatives=True)
+        executed[kind] = (run.q, run.dq, run.ddq)
+        save_figure(plot_trajectory(trajectory, PUMA_BOUNDS, executed=(run.t - run.t[0], run.q, run.dq, run.ddq),
+                                    title=f"optimised for the {kind} model: designed and executed"),
+                    args.out / f"trajectory_{kind}.png")
+    table = conditioning_rows(robot, trajectories, executed)
     table.to_csv(args.out / "conditioning.csv", index=False)
     (args.out / "conditioning.md").write_text(markdown(table))
     print(table.to_string(index=False))
