@@ -4,21 +4,20 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import matplotlib
+import numpy as np
+from matplotlib.figure import Figure  # no pyplot: no backend switch, no global figure registry
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from estimation.diagnosis import Diagnosis  # noqa: E402
-from estimation.measurements import Measurements  # noqa: E402
+from estimation.diagnosis import Diagnosis
+from estimation.measurements import Measurements
 
 
-def plot_residuals(diagnosis: Diagnosis, train: Measurements, path: str | Path) -> None:
-    """Training residuals of the declared model against q, dq, ddq of their joint, and time."""
+def plot_residuals(diagnosis: Diagnosis, train: Measurements, path: str | Path | None = None) -> Figure:
+    """Training residuals of the declared model against q, dq, ddq of their joint, and time; saved to
+    ``path`` when given."""
     estimate = diagnosis.before.estimate
     channels = estimate.channels
-    figure, axes = plt.subplots(len(channels), 4, figsize=(14, 2.2 * len(channels)), squeeze=False)
+    figure = Figure(figsize=(14, 2.2 * len(channels)))
+    axes = figure.subplots(len(channels), 4, squeeze=False)
     for row, channel in enumerate(channels):
         residual = estimate.residuals[:, row]
         joint = int(channel[3:]) - 1 if channel.startswith("tau") else 0
@@ -32,8 +31,9 @@ def plot_residuals(diagnosis: Diagnosis, train: Measurements, path: str | Path) 
                 axis.set_ylabel(f"residual {channel}")
     figure.suptitle("Residuals of the declared model (training data)")
     figure.tight_layout()
-    figure.savefig(path, dpi=90)
-    plt.close(figure)
+    if path is not None:
+        figure.savefig(path, dpi=90)
+    return figure
 
 
 def markdown_report(diagnosis: Diagnosis, figure: str | None = None) -> str:

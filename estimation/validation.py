@@ -74,13 +74,15 @@ def compare(model: IdentificationModel, theta: ArrayLike, measurements: Measurem
     return Comparison(measurements.t, measurements.channels(model.channels), predicted, model.channels, label)
 
 
-def plot_comparison(comparisons: Comparison | Sequence[Comparison], path: str | Path, *, title: str = "") -> None:
+def plot_comparison(comparisons: Comparison | Sequence[Comparison], path: str | Path | None = None, *, title: str = ""):
     """Measured vs predicted per channel, one row of axes per channel (like Figs. 7–9), written
-    atomically to ``path`` (format from the suffix: ``.png``, ``.pdf``, ``.svg``)."""
-    import matplotlib
+    atomically to ``path`` when given (format from the suffix: ``.png``, ``.pdf``, ``.svg``).
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    from matplotlib.figure import Figure  # no pyplot: no backend switch, no global figure registry
 
     from oed.cli.common import atomic_output
 
@@ -89,9 +91,8 @@ def plot_comparison(comparisons: Comparison | Sequence[Comparison], path: str | 
     comparisons = list(comparisons)
     channels = comparisons[0].channels
     units = {channel: ("N" if channel in ("fx", "fy", "fz") else "N·m") for channel in channels}
-    figure, axes = plt.subplots(
-        len(channels), len(comparisons), figsize=(5.5 * len(comparisons), 1.9 * len(channels)), sharex="col", squeeze=False
-    )
+    figure = Figure(figsize=(5.5 * len(comparisons), 1.9 * len(channels)))
+    axes = figure.subplots(len(channels), len(comparisons), sharex="col", squeeze=False)
     for column, comparison in enumerate(comparisons):
         mse = comparison.mse
         for row, channel in enumerate(channels):
@@ -106,7 +107,8 @@ def plot_comparison(comparisons: Comparison | Sequence[Comparison], path: str | 
     if title:
         figure.suptitle(title)
     figure.tight_layout()
-    path = Path(path)
-    with atomic_output(path, "wb") as stream:
-        figure.savefig(stream, format=path.suffix.lstrip(".").lower() or "png", dpi=120)
-    plt.close(figure)
+    if path is not None:
+        path = Path(path)
+        with atomic_output(path, "wb") as stream:
+            figure.savefig(stream, format=path.suffix.lstrip(".").lower() or "png", dpi=120)
+    return figure

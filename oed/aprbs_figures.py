@@ -17,15 +17,12 @@ def plot_aprbs(result: APRBSResult, path: str | Path | None = None):
     -------
     matplotlib.figure.Figure
     """
-    import matplotlib
-
-    if path is not None:
-        matplotlib.use("Agg", force=False)
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure  # no pyplot: no backend switch, no global figure registry
 
     n_joints = result.u.shape[1]
     fs = 1.0 / result.design.dt
-    fig, axes = plt.subplots(n_joints, 3, figsize=(12, 2.4 * n_joints), squeeze=False)
+    fig = Figure(figsize=(12, 2.4 * n_joints))
+    axes = fig.subplots(n_joints, 3, squeeze=False)
     for j in range(n_joints):
         low, high = result.design.ranges[j]
         axes[j, 0].step(result.t, result.u[:, j], where="post", lw=0.8)
@@ -44,5 +41,4 @@ def plot_aprbs(result: APRBSResult, path: str | Path | None = None):
     fig.tight_layout()
     if path is not None:
         fig.savefig(path)
-        plt.close(fig)
     return fig

@@ -35,14 +35,12 @@ def plot_trajectory(
     -------
     matplotlib.figure.Figure
     """
-    import matplotlib
-
-    matplotlib.use("Agg", force=False)
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure  # no pyplot: no backend switch, no global figure registry
 
     t, q, dq, ddq = trajectory.sample(rate_hz)
     n = trajectory.n_joints
-    figure, axes = plt.subplots(3, n, figsize=(3.2 * n, 6.5), sharex=True, squeeze=False)
+    figure = Figure(figsize=(3.2 * n, 6.5))
+    axes = figure.subplots(3, n, sharex=True, squeeze=False)
     labels = ("q [rad]", "dq [rad/s]", "ddq [rad/s²]")
     for row, (values, label) in enumerate(zip((q, dq, ddq), labels)):
         for joint in range(n):
@@ -78,6 +76,3 @@ def save_figure(figure, path: str | Path) -> None:
     path = Path(path)
     with atomic_output(path, "wb") as stream:
         figure.savefig(stream, format=path.suffix.lstrip(".") or "png", dpi=120)
-    import matplotlib.pyplot as plt
-
-    plt.close(figure)
