@@ -14,7 +14,8 @@ from dynamics.robots import load_robot
 from dynamics.simulated_effects import (
     Armature, Coulomb, Offset, PlateCable, PlateOffset, Spring, Viscous, effects_from_names, puma560_link_friction,
 )
-from dynamics.simulator import NoiseModel, Simulator, encoder_resolution, simulate
+from dynamics.sensors import encoder_resolution
+from dynamics.simulator import NoiseModel, Simulator, simulate
 from oed.fourier import FourierTrajectory
 
 
