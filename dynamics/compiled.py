@@ -194,6 +194,13 @@ class SampleEvaluator:
                 raise ValueError(f"input {function.name_in(index)} of {function.name()} must be dense")
         self.function = function
         self.backend: Backend = backend or default_backend()
+        # CasADi's Python calls cost about a microsecond each: ask once, not at every call
+        self._widths = tuple(function.nnz_in(index) for index in range(function.n_in()))
+        self._numel_out, self._nnz_out = function.numel_out(0), function.nnz_out(0)
+        sparsity = function.sparsity_out(0)
+        rows, columns = sparsity.get_triplet()
+        # where each nonzero goes in the column-major flattening; None for a dense output
+        self._scatter = None if sparsity.is_dense() else np.asarray(columns) * sparsity.size1() + np.asarray(rows)
         self._compiled: casadi.Function | None = None
         self._loop: ctypes._CFuncPtr | None | bool = False  # False: not looked up yet
 
@@ -213,23 +220,21 @@ class SampleEvaluator:
         return self._loop  # type: ignore[return-value]
 
     def __call__(self, *inputs: NDArray[np.float64]) -> NDArray[np.float64]:
-        function = self.function
-        if len(inputs) != function.n_in():
-            raise ValueError(f"{function.name()} takes {function.n_in()} inputs, got {len(inputs)}")
+        if len(inputs) != len(self._widths):
+            raise ValueError(f"{self.function.name()} takes {len(self._widths)} inputs, got {len(inputs)}")
         n_samples = inputs[0].shape[0]
         arrays = []
-        for index, values in enumerate(inputs):
+        for index, (values, expected) in enumerate(zip(inputs, self._widths)):
             values = np.ascontiguousarray(values, dtype=float)
-            expected = function.nnz_in(index)
-            if values.shape[0] != n_samples or values.reshape(n_samples, -1).shape[1] != expected:
+            if values.shape[0] != n_samples or values.size != n_samples * expected:
                 raise ValueError(
-                    f"input {function.name_in(index)} must be ({n_samples}, {expected}), got {values.shape}"
+                    f"input {self.function.name_in(index)} must be ({n_samples}, {expected}), got {values.shape}"
                 )
             arrays.append(values)
-        dense_output = function.sparsity_out(0).is_dense()
-        # a dense output is written whole by the function: no need to zero it first
-        output = (np.empty if dense_output else np.zeros)((n_samples, function.numel_out(0)))
-        target = output if dense_output else np.empty((n_samples, function.nnz_out(0)))
+        if self._scatter is None:  # a dense output is written whole by the function: no need to zero it
+            output = target = np.empty((n_samples, self._numel_out))
+        else:
+            output, target = np.zeros((n_samples, self._numel_out)), np.empty((n_samples, self._nnz_out))
         loop = self.sample_loop
         if loop is not None:
             self._run_loop(loop, arrays, target)
@@ -239,10 +244,8 @@ class SampleEvaluator:
                 buffer.set_arg(index, memoryview(values))
             buffer.set_res(0, memoryview(target))
             trigger()
-        if not dense_output:
-            sparsity = function.sparsity_out(0)
-            rows, columns = sparsity.get_triplet()
-            output[:, np.asarray(columns) * sparsity.size1() + np.asarray(rows)] = target
+        if self._scatter is not None:
+            output[:, self._scatter] = target
         return output
 
     def _run_loop(self, loop: ctypes._CFuncPtr, arrays: list[NDArray[np.float64]], target: NDArray[np.float64]) -> None:
