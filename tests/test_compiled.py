@@ -51,3 +51,20 @@ def test_wrong_input_width_is_named():
     evaluator = SampleEvaluator(casadi.Function("width", [x], [x], ["x"], ["y"]), backend="vm")
     with pytest.raises(ValueError, match=r"input x must be \(4, 3\)"):
         evaluator(np.zeros((4, 2)))
+
+
+def test_compiled_sample_loop_threads_and_sparse_output(tmp_path, monkeypatch):
+    if compiled.find_compiler() is None:
+        pytest.skip("no C compiler on this machine: only the virtual machine can run")
+    monkeypatch.setenv("ROBOT_OED_CACHE", str(tmp_path))
+    x, y = casadi.SX.sym("x", 2), casadi.SX.sym("y")
+    function = casadi.Function("loop_case", [x, y], [casadi.diag(casadi.sin(x) * y)], ["x", "y"], ["z"])
+    values = np.random.default_rng(3).normal(size=(2 * SampleEvaluator.MIN_SAMPLES_PER_THREAD + 7, 3))
+    slow = SampleEvaluator(function, backend="vm")(values[:, :2], values[:, 2:])
+    single = SampleEvaluator(function, backend="compiled")
+    assert single.sample_loop is not None, "the compiled library exports the C sample loop"
+    np.testing.assert_array_equal(single(values[:, :2], values[:, 2:]), slow)
+    threaded = SampleEvaluator(function, backend="compiled", threads=2)
+    np.testing.assert_array_equal(threaded(values[:, :2], values[:, 2:]), slow)
+    np.testing.assert_array_equal(threaded(values[:3, :2], values[:3, 2:]), slow[:3])  # too few to split
+    assert threaded(values[:0, :2], values[:0, 2:]).shape == (0, 4)
