@@ -7,13 +7,15 @@ This module removes both:
 
 - :func:`compile_function` generates C code for a function, compiles it once with the system C
   compiler into an on-disk cache (``$ROBOT_OED_CACHE`` or ``~/.cache/robot-oed``, keyed by a hash
-  of the source, the flags and the CasADi version) and loads it with ``casadi.external``. Without
-  a compiler, or when compilation fails, the function is returned unchanged (virtual machine).
+  of the source, the compiler, its flags and the CasADi version) and loads it with
+  ``casadi.external``. Without a compiler, or when compilation fails, the function is returned
+  unchanged (virtual machine).
 - :class:`SampleEvaluator` evaluates a per-sample function over ``N`` samples, reading the inputs
   from and writing the output into numpy arrays without copies. Compiled, it calls a small C loop
   appended to the generated code (``<name>_samples``) through ``ctypes``: CasADi's ``map`` over an
   external function locks a mutex and checks sparsities at every sample, which cost as much as
-  the 3-joint regressor itself. Without a compiler it uses ``map`` and CasADi's buffer interface.
+  the 3-joint regressor itself (0.19 against 0.08 µs a sample). Without a compiler it uses ``map``
+  and CasADi's buffer interface.
 
 ``ROBOT_OED_BACKEND=vm`` disables compilation (for comparison, or where no compiler may run).
 """
