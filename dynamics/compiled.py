@@ -181,16 +181,40 @@ class SampleEvaluator:
 
     Inputs are ``(N, len_i)`` arrays (one row a sample); the output is ``(N, out.numel())`` with
     each row the per-sample output in column-major order (a sparse output is scattered into
-    place). ``threads > 1`` splits the samples over that many threads, each taking at least
-    ``MIN_SAMPLES_PER_THREAD`` samples (fewer samples run on fewer threads).
+    place).
+
+    Parameters
+    ----------
+    function
+        Per-sample function with dense inputs and one output.
+    backend
+        See :func:`compile_function` (default: ``$ROBOT_OED_BACKEND`` or ``auto``).
+    threads
+        Split the samples over up to that many threads (the C loop frees the GIL).
+    min_samples_per_thread
+        Fewer samples run on fewer threads. Default: enough for about ``WORK_PER_THREAD``
+        CasADi instructions a thread (about 0.4 ms), and at least ``MIN_SAMPLES_PER_THREAD``;
+        below that, starting a thread costs more than it saves.
     """
 
     MIN_SAMPLES_PER_THREAD = 500
+    WORK_PER_THREAD = 2_000_000
 
-    def __init__(self, function: casadi.Function, *, backend: Backend | None = None, threads: int = 1) -> None:
+    def __init__(
+        self,
+        function: casadi.Function,
+        *,
+        backend: Backend | None = None,
+        threads: int = 1,
+        min_samples_per_thread: int | None = None,
+    ) -> None:
         if not isinstance(threads, int) or threads < 1:
             raise ValueError(f"threads must be a positive integer, got {threads!r}")
         self.threads = threads
+        if min_samples_per_thread is None:
+            per_sample = max(1, function.n_instructions())
+            min_samples_per_thread = max(self.MIN_SAMPLES_PER_THREAD, -(-self.WORK_PER_THREAD // per_sample))
+        self.min_samples_per_thread = max(1, int(min_samples_per_thread))
         for index in range(function.n_in()):
             if not function.sparsity_in(index).is_dense():
                 raise ValueError(f"input {function.name_in(index)} of {function.name()} must be dense")
@@ -205,6 +229,10 @@ class SampleEvaluator:
         self._scatter = None if sparsity.is_dense() else np.asarray(columns) * sparsity.size1() + np.asarray(rows)
         self._compiled: casadi.Function | None = None
         self._loop: ctypes._CFuncPtr | None | bool = False  # False: not looked up yet
+
+    def __getstate__(self) -> dict[str, object]:
+        # the loaded library (ctypes) and CasADi's external do not pickle: load them again lazily
+        return {**self.__dict__, "_compiled": None, "_loop": False}
 
     @property
     def compiled(self) -> casadi.Function:
@@ -253,7 +281,7 @@ class SampleEvaluator:
     def _run_loop(self, loop: ctypes._CFuncPtr, arrays: list[NDArray[np.float64]], target: NDArray[np.float64]) -> None:
         """Run the C loop over the samples, in ``self.threads`` slices at most (ctypes frees the GIL)."""
         n_samples = target.shape[0]
-        n_slices = max(1, min(self.threads, n_samples // self.MIN_SAMPLES_PER_THREAD))
+        n_slices = max(1, min(self.threads, n_samples // self.min_samples_per_thread))
         bounds = [n_samples * part // n_slices for part in range(n_slices + 1)]
 
         def run(start: int, stop: int) -> int:
@@ -263,14 +291,17 @@ class SampleEvaluator:
         if n_slices == 1:
             flags = [run(0, n_samples)] if n_samples else []
         else:
-            pending = [_pool(n_slices - 1).submit(run, start, stop) for start, stop in zip(bounds[1:-1], bounds[2:])]
+            pool = _pool(n_slices - 1, os.getpid())
+            pending = [pool.submit(run, start, stop) for start, stop in zip(bounds[1:-1], bounds[2:])]
             flags = [run(bounds[0], bounds[1])] + [job.result() for job in pending]
         if any(flags):
             raise RuntimeError(f"{self.function.name()} failed on some samples (flag {max(flags, key=abs)})")
 
 
 @functools.lru_cache(maxsize=8)
-def _pool(workers: int) -> ThreadPoolExecutor:
+def _pool(workers: int, process: int) -> ThreadPoolExecutor:
+    """Worker threads, one pool per process id: a forked child (ProcessPoolExecutor) inherits
+    the parent's pool object without its threads, and would wait for them forever."""
     return ThreadPoolExecutor(max_workers=workers, thread_name_prefix="robot-oed-samples")
 
 

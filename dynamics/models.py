@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import enum
 import functools
+import os
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 
@@ -32,6 +33,11 @@ from dynamics.newton_euler import RigidBodyRegressors, rigid_body_regressors
 from dynamics.robot import JointType, RobotModel
 
 STATE_NAMES: tuple[str, str, str] = ("q", "dq", "ddq")
+# Threads for model.evaluate on large inputs (SampleEvaluator's default work threshold: about
+# 2 600 samples for the 6-joint PUMA, 10 000 for 3 joints). On a 2-core machine, 6-joint PUMA,
+# 5 000 samples: 0.20 against 0.34 µs a sample when the second core is free, 0.36 against 0.345
+# when another process keeps it busy. Measured with two cores only, hence at most two.
+EVALUATION_THREADS = min(2, os.cpu_count() or 1)
 
 
 class ModelKind(str, enum.Enum):
@@ -122,9 +128,6 @@ class IdentificationModel:
         states = check_states(self.robot.n_joints, q, dq, ddq)
         # per sample the function returns Yᵀ (p x rows), whose column-major flattening is Y in
         # row-major order: the (N, rows·p) result reshapes to (N, rows, p) without a copy.
-        # One thread: a second one did not pay on a shared 2-core machine (6-joint PUMA, 5 000
-        # samples, median 0.345 µs a sample with one thread, 0.360 with two; 0.087/0.097 for 3
-        # joints); SampleEvaluator(..., threads=2) is there where a core is free.
         return self._evaluators[which](*states).reshape(states[0].shape[0], self.n_channels, -1)
 
 
@@ -249,5 +252,8 @@ def _build_model(
         regressor=regressor,
         base=base,
         base_regressor=base_regressor,
-        _evaluators={"full": SampleEvaluator(transposed_full), "base": SampleEvaluator(transposed_base)},
+        _evaluators={
+            "full": SampleEvaluator(transposed_full, threads=EVALUATION_THREADS),
+            "base": SampleEvaluator(transposed_base, threads=EVALUATION_THREADS),
+        },
     )

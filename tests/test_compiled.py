@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import multiprocessing
+from concurrent.futures import ProcessPoolExecutor
+
 import casadi
 import numpy as np
 import pytest
@@ -64,7 +67,22 @@ def test_compiled_sample_loop_threads_and_sparse_output(tmp_path, monkeypatch):
     single = SampleEvaluator(function, backend="compiled")
     assert single.sample_loop is not None, "the compiled library exports the C sample loop"
     np.testing.assert_array_equal(single(values[:, :2], values[:, 2:]), slow)
-    threaded = SampleEvaluator(function, backend="compiled", threads=2)
+    threaded = SampleEvaluator(function, backend="compiled", threads=2, min_samples_per_thread=500)
     np.testing.assert_array_equal(threaded(values[:, :2], values[:, 2:]), slow)
     np.testing.assert_array_equal(threaded(values[:3, :2], values[:3, 2:]), slow[:3])  # too few to split
     assert threaded(values[:0, :2], values[:0, 2:]).shape == (0, 4)
+
+
+def _threaded_sum(evaluator: SampleEvaluator) -> float:
+    return float(evaluator(np.ones((40, 1))).sum())
+
+
+def test_threaded_evaluation_works_in_a_forked_child(tmp_path, monkeypatch):
+    if compiled.find_compiler() is None or "fork" not in multiprocessing.get_all_start_methods():
+        pytest.skip("needs a C compiler and fork")
+    monkeypatch.setenv("ROBOT_OED_CACHE", str(tmp_path))
+    x = casadi.SX.sym("x")
+    evaluator = SampleEvaluator(casadi.Function("fork_case", [x], [3 * x]), threads=2, min_samples_per_thread=10)
+    assert _threaded_sum(evaluator) == 120.0  # the parent's worker threads exist now
+    with ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("fork")) as executor:
+        assert executor.submit(_threaded_sum, evaluator).result(timeout=60) == 120.0
