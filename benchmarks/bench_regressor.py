@@ -9,7 +9,8 @@ Where the time goes, line by line: the CasADi virtual machine; the compiled code
 CasADi's ``map`` over ``casadi.external`` (a mutex and sparsity checks at every sample); the C
 sample loop alone (``<name>_samples`` into a preallocated output: the floor); the same through
 :class:`SampleEvaluator` (adds the output allocation and the checks); and ``model.evaluate``
-(adds the state checks and the reshape to ``(N, rows, p)``, a view).
+(adds the state checks and the reshape to ``(N, rows, p)``, a view; two threads above a work
+threshold, which pays only when the second core is free).
 
 Run: ``python benchmarks/bench_regressor.py`` (add ``--samples N``).
 """
@@ -63,7 +64,10 @@ def run(joints: int, n_samples: int) -> None:
 
     vm = SampleEvaluator(function, backend="vm")
     compiled = SampleEvaluator(function, backend="auto")
-    threaded = SampleEvaluator(function, backend="auto", threads=2)
+    # always split (model.evaluate splits only above a work threshold: 6 joints yes, 3 joints no)
+    threaded = SampleEvaluator(
+        function, backend="auto", threads=2, min_samples_per_thread=SampleEvaluator.MIN_SAMPLES_PER_THREAD
+    )
     start = time.perf_counter()
     compiled(q[:1], dq[:1], ddq[:1])
     compile_time = time.perf_counter() - start
