@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import multiprocessing
+from concurrent.futures import ProcessPoolExecutor
+
 import casadi
 import numpy as np
 import pytest
@@ -51,3 +54,35 @@ def test_wrong_input_width_is_named():
     evaluator = SampleEvaluator(casadi.Function("width", [x], [x], ["x"], ["y"]), backend="vm")
     with pytest.raises(ValueError, match=r"input x must be \(4, 3\)"):
         evaluator(np.zeros((4, 2)))
+
+
+def test_compiled_sample_loop_threads_and_sparse_output(tmp_path, monkeypatch):
+    if compiled.find_compiler() is None:
+        pytest.skip("no C compiler on this machine: only the virtual machine can run")
+    monkeypatch.setenv("ROBOT_OED_CACHE", str(tmp_path))
+    x, y = casadi.SX.sym("x", 2), casadi.SX.sym("y")
+    function = casadi.Function("loop_case", [x, y], [casadi.diag(casadi.sin(x) * y)], ["x", "y"], ["z"])
+    values = np.random.default_rng(3).normal(size=(2 * SampleEvaluator.MIN_SAMPLES_PER_THREAD + 7, 3))
+    slow = SampleEvaluator(function, backend="vm")(values[:, :2], values[:, 2:])
+    single = SampleEvaluator(function, backend="compiled")
+    assert single.sample_loop is not None, "the compiled library exports the C sample loop"
+    np.testing.assert_array_equal(single(values[:, :2], values[:, 2:]), slow)
+    threaded = SampleEvaluator(function, backend="compiled", threads=2, min_samples_per_thread=500)
+    np.testing.assert_array_equal(threaded(values[:, :2], values[:, 2:]), slow)
+    np.testing.assert_array_equal(threaded(values[:3, :2], values[:3, 2:]), slow[:3])  # too few to split
+    assert threaded(values[:0, :2], values[:0, 2:]).shape == (0, 4)
+
+
+def _threaded_sum(evaluator: SampleEvaluator) -> float:
+    return float(evaluator(np.ones((40, 1))).sum())
+
+
+def test_threaded_evaluation_works_in_a_forked_child(tmp_path, monkeypatch):
+    if compiled.find_compiler() is None or "fork" not in multiprocessing.get_all_start_methods():
+        pytest.skip("needs a C compiler and fork")
+    monkeypatch.setenv("ROBOT_OED_CACHE", str(tmp_path))
+    x = casadi.SX.sym("x")
+    evaluator = SampleEvaluator(casadi.Function("fork_case", [x], [3 * x]), threads=2, min_samples_per_thread=10)
+    assert _threaded_sum(evaluator) == 120.0  # the parent's worker threads exist now
+    with ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("fork")) as executor:
+        assert executor.submit(_threaded_sum, evaluator).result(timeout=60) == 120.0
