@@ -4,6 +4,7 @@
   compiled, mapped per-sample function that returns only the upper triangle (the symmetric half).
   The sum is a ``map`` reduction, so neither the stacked ``(rows·N) x r`` regressor nor a large
   matrix product ever appears in the MX graph; its reverse derivative is compiled as well.
+- :func:`violation_peaks` picks the samples to add as constraint points after a ``rate_hz`` check.
 - :func:`ipopt_solver` wraps ``casadi.nlpsol("ipopt")`` for an objective with *linear* constraints
   ``lb ≤ A x ≤ ub`` (constant Jacobian), L-BFGS Hessian and the convergence settings of
   :class:`oed.design_problem.DesignSettings`.
@@ -19,6 +20,7 @@ from typing import Any
 import casadi
 import numpy as np
 import scipy.sparse
+from numpy.typing import NDArray
 
 #: re-solves after adding constraint points start from the previous primal-dual point
 WARM_START = {"warm_start_init_point": "yes", "warm_start_bound_push": 1e-9, "warm_start_mult_bound_push": 1e-9,
@@ -106,3 +108,18 @@ def ipopt_solver(objective: casadi.Function, A: scipy.sparse.spmatrix, *, tol: f
     }
     problem = {"x": x, "f": objective(x), "g": casadi.mtimes(A_dm, x)}
     return casadi.nlpsol("excitation_design", "ipopt", problem, options)
+
+
+def violation_peaks(excess: dict[str, NDArray[np.float64]], tolerance: float = 1e-9) -> set[int]:
+    """Sample indices of the worst point of every run of consecutive violations, per state and joint."""
+    peaks: set[int] = set()
+    for values in excess.values():
+        for column in values.T:
+            violated = column > tolerance
+            if not violated.any():
+                continue
+            # runs of violated samples (periodic: a run may wrap around the end)
+            edges = np.flatnonzero(np.diff(np.concatenate([[False], violated, [False]]).astype(int)))
+            for begin, end in zip(edges[::2], edges[1::2]):
+                peaks.add(int(begin + np.argmax(column[begin:end])))
+    return peaks
