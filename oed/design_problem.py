@@ -7,8 +7,9 @@ constant matrices. Hence
 - the motion bounds (eq. 19) at the constraint points are **linear** constraints ``A x`` with a
   constant, block-sparse Jacobian (each row touches one joint's 11 coefficients);
 - the criterion is ``J(M(x))`` with ``M = (1/N) Σ_k Y_b(q_k, dq_k, ddq_k)ᵀ Y_b(·)`` over ``N``
-  cost samples, built once as a CasADi graph (mapped base regressor, one matrix product, the
-  criterion), differentiated exactly by reverse AD; IPOPT approximates the Hessian by L-BFGS.
+  cost samples, built once as a CasADi graph (a compiled per-sample ``Y_bᵀY_b`` summed by a
+  mapped reduction, :mod:`oed.design_solver`, then the criterion), differentiated exactly by
+  reverse AD; IPOPT approximates the Hessian by L-BFGS.
 
 After each solve the trajectory is checked on the full 1 kHz grid; the samples where a bound is
 exceeded are added as constraint points and the problem is re-solved from the previous solution
@@ -17,12 +18,8 @@ exceeded are added as constraint points and the problem is re-solved from the pr
 
 from __future__ import annotations
 
-import tempfile
-from pathlib import Path
-
 import functools
 import pickle
-import shutil
 import time
 from dataclasses import dataclass, field
 from typing import Any
@@ -37,11 +34,8 @@ from dynamics.models import ModelKind, build_model
 from dynamics.robot import RobotModel
 from oed.bounds import PUMA_BOUNDS, JointBounds
 from oed.criteria import LogDet, criterion_from_name, information_matrix
+from oed.design_solver import compiler, ipopt_solver, sampled_information, violation_peaks
 from oed.fourier import FourierTrajectory, basis, unpack
-
-# re-solves after adding constraint points start from the previous primal-dual point
-_WARM_START = {"warm_start_init_point": "yes", "warm_start_bound_push": 1e-9, "warm_start_mult_bound_push": 1e-9,
-               "warm_start_slack_bound_push": 1e-9, "mu_init": 1e-7}
 
 _BOUND_GUARD = 1e-7
 
@@ -64,13 +58,15 @@ class DesignSettings:
         ``rate_hz`` check fails).
     rate_hz
         Sampling rate of the executed trajectory (paper: 1 kHz).
-    max_iter, tol, lbfgs_memory
-        IPOPT settings (L-BFGS Hessian approximation).
+    max_iter, tol, acceptable_tol, acceptable_iter, lbfgs_memory
+        IPOPT settings (L-BFGS Hessian approximation; IPOPT stops early once ``acceptable_tol`` holds
+        on ``acceptable_iter`` consecutive iterations). The defaults end a PUMA start about 15 %
+        sooner than ``tol=1e-6`` at a cost within 0.02 of it (8 starts, combined and internal model).
     refinements
         Rounds of "add the violated points and re-solve".
     jit
         Compile the per-sample regressor and its reverse derivative with the system C compiler
-        (about 3x faster objective gradients for a one-time build of about 0.5 s); default: when a
+        (about 3x faster objective gradients for a one-time build of about 1 s); default: when a
         compiler (``cc``/``gcc``) is on the ``PATH``.
     verbose
         Print IPOPT's iteration log.
@@ -82,10 +78,12 @@ class DesignSettings:
     constraint_points: int = 60
     rate_hz: float = 1000.0
     max_iter: int = 500
-    tol: float = 1e-6
+    tol: float = 1e-4
+    acceptable_tol: float = 1e-3
+    acceptable_iter: int = 2
     lbfgs_memory: int = 20
     refinements: int = 3
-    jit: bool = field(default_factory=lambda: _compiler() is not None)
+    jit: bool = field(default_factory=lambda: compiler() is not None)
     verbose: bool = False
 
     def __post_init__(self) -> None:
@@ -93,14 +91,15 @@ class DesignSettings:
             raise ValueError(f"frequency_hz must be positive, got {self.frequency_hz}")
         if not (np.isfinite(self.rate_hz) and self.rate_hz > 0):
             raise ValueError(f"rate_hz must be positive, got {self.rate_hz}")
-        for name in ("harmonics", "cost_samples", "constraint_points", "max_iter", "lbfgs_memory"):
+        for name in ("harmonics", "cost_samples", "constraint_points", "max_iter", "lbfgs_memory", "acceptable_iter"):
             value = getattr(self, name)
             if not isinstance(value, (int, np.integer)) or value < 1:
                 raise ValueError(f"{name} must be a positive integer, got {value!r}")
         if self.refinements < 0:
             raise ValueError(f"refinements must be non-negative, got {self.refinements}")
-        if self.tol <= 0:
-            raise ValueError(f"tol must be positive, got {self.tol}")
+        for name in ("tol", "acceptable_tol"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"{name} must be positive, got {getattr(self, name)}")
         if self.rate_hz / self.frequency_hz < 2 * self.harmonics + 1:
             raise ValueError(f"rate_hz {self.rate_hz} is too low for {self.harmonics} harmonics of {self.frequency_hz} Hz")
 
@@ -199,12 +198,8 @@ class ExcitationDesign:
             q0, a, b = unpack(x, n, H)
             block = casadi.horzcat(q0, a, b)  # (n, 2H+1)
             states = [casadi.mtimes(block, casadi.DM(matrix)) for matrix in self._state_matrices(t)]
-            Y_base = self.identification_model.base_regressor
-            q, dq, ddq = (casadi.SX.sym(name, n) for name in ("q", "dq", "ddq"))
-            transposed = casadi.Function("base_regressor_t", [q, dq, ddq], [Y_base(q, dq, ddq).T], ["q", "dq", "ddq"],
-                                         ["Yt"], _jit_options() if self.settings.jit else {})
-            stacked = transposed.map(N)(*states)  # r x (rows·N)
-            information = casadi.mtimes(stacked, stacked.T) / N
+            information = sampled_information(self.identification_model.base_regressor, states,
+                                              self.settings.jit) / N
             objective = self.criterion.expression(information)
             self._cache["cost"] = casadi.Function("design_objective", [x], [objective], ["x"], ["J"])
         return self._cache["cost"]
@@ -250,27 +245,10 @@ class ExcitationDesign:
         if key not in self._cache:
             s = self.settings
             A, lower, upper = self.constraint_matrix(self.constraint_times(extra))
-            csc = A.tocsc()
-            csc.sort_indices()
-            pattern = casadi.Sparsity(A.shape[0], A.shape[1], csc.indptr.tolist(), csc.indices.tolist())
-            A_dm = casadi.DM(pattern, csc.data)  # CasADi stores column-compressed, like CSC
-            x = casadi.MX.sym("x", self.n_variables)
-            options = {
-                "ipopt": {
-                    "hessian_approximation": "limited-memory",
-                    "limited_memory_max_history": s.lbfgs_memory,
-                    "jac_c_constant": "yes",
-                    "jac_d_constant": "yes",
-                    "tol": s.tol,
-                    "max_iter": s.max_iter,
-                    "print_level": 5 if s.verbose else 0,
-                    "sb": "yes",
-                    **(_WARM_START if extra else {}),
-                },
-                "print_time": bool(s.verbose),
-            }
-            problem = {"x": x, "f": self.cost_function()(x), "g": casadi.mtimes(A_dm, x)}
-            self._cache[key] = (casadi.nlpsol("excitation_design", "ipopt", problem, options), lower, upper)
+            solver = ipopt_solver(self.cost_function(), A, tol=s.tol, acceptable_tol=s.acceptable_tol,
+                                  acceptable_iter=s.acceptable_iter, max_iter=s.max_iter,
+                                  lbfgs_memory=s.lbfgs_memory, verbose=s.verbose, warm=bool(extra))
+            self._cache[key] = (solver, lower, upper)
         return self._cache[key]
 
     def _extend_multipliers(self, lam_g: NDArray, old: tuple[int, ...], new: tuple[int, ...]) -> NDArray:
@@ -373,7 +351,7 @@ class ExcitationDesign:
             if status not in SUCCESS_STATUSES:
                 break
             _, q, dq, ddq = self.sample(x)
-            peaks = _violation_peaks(self.bounds.excess(q, dq, ddq))
+            peaks = violation_peaks(self.bounds.excess(q, dq, ddq))
             if s.verbose:
                 print(f"  round {rounds}: {stats.get('iter_count')} iterations, {len(peaks)} points over a bound at {s.rate_hz:g} Hz")
             if not peaks:
@@ -393,38 +371,6 @@ class ExcitationDesign:
             time_s=time.perf_counter() - started, cost=values["cost"], criterion_value=values["criterion"],
             objective=objective, feasible=feasible, refinements=rounds, x=x, x0=x0,
         )
-
-
-def _violation_peaks(excess: dict[str, NDArray[np.float64]], tolerance: float = 1e-9) -> set[int]:
-    """Sample indices of the worst point of every run of consecutive violations, per state and joint."""
-    peaks: set[int] = set()
-    for values in excess.values():
-        for column in values.T:
-            violated = column > tolerance
-            if not violated.any():
-                continue
-            # runs of violated samples (periodic: a run may wrap around the end)
-            edges = np.flatnonzero(np.diff(np.concatenate([[False], violated, [False]]).astype(int)))
-            for begin, end in zip(edges[::2], edges[1::2]):
-                peaks.add(int(begin + np.argmax(column[begin:end])))
-    return peaks
-
-
-def _compiler() -> str | None:
-    return shutil.which("cc") or shutil.which("gcc")
-
-
-def _jit_options() -> dict[str, Any]:
-    if _compiler() is None:
-        raise RuntimeError("jit=True needs a C compiler (cc or gcc) on the PATH; use jit=False")
-    # CasADi writes its JIT sources and objects to the working directory unless told otherwise
-    directory = Path(tempfile.gettempdir()) / "robot-oed-jit"
-    directory.mkdir(parents=True, exist_ok=True)
-    options = {
-        "jit": True, "compiler": "shell",
-        "jit_options": {"flags": ["-O1"], "verbose": False, "directory": str(directory)},
-    }
-    return {**options, "reverse_options": options, "forward_options": options}
 
 
 def default_bounds(robot: RobotModel) -> JointBounds:

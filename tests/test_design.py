@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from concurrent.futures import ProcessPoolExecutor
+
 import casadi
 import numpy as np
 import pytest
@@ -93,6 +95,19 @@ def test_result_records_every_start(result):
     assert {start.index for start in result.starts} == {0, 1}
     assert all(start.iterations > 0 and start.time_s > 0 for start in result.starts)
     assert result.cost == min(start.cost for start in result.starts if start.success)
+
+
+def test_process_pool_gives_the_serial_result(problem, result):
+    """Starts submitted to a process pool (as ``oed design --workers``) reproduce the serial run."""
+    with ProcessPoolExecutor(2) as executor:
+        pooled = design_excitation(problem.robot, starts=2, seed=3, problem=problem, executor=executor)
+    assert [start.index for start in pooled.starts] == [0, 1]
+    for serial_start, pooled_start in zip(result.starts, pooled.starts):
+        np.testing.assert_allclose(pooled_start.x0, serial_start.x0, rtol=0, atol=0)
+        np.testing.assert_allclose(pooled_start.x, serial_start.x, rtol=1e-9, atol=1e-12)
+        assert pooled_start.status == serial_start.status
+    assert pooled.best == result.best
+    assert pooled.cost == pytest.approx(result.cost, rel=1e-12)
 
 
 def test_json_round_trip_keeps_coefficients_and_metadata(result, tmp_path):

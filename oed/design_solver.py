@@ -1,0 +1,125 @@
+"""Numerical building blocks of the excitation design: the sampled information matrix and IPOPT.
+
+- :func:`sampled_information` sums ``Y_b(q_k, dq_k, ddq_k)ᵀ Y_b(·)`` over the cost samples inside one
+  compiled, mapped per-sample function that returns only the upper triangle (the symmetric half).
+  The sum is a ``map`` reduction, so neither the stacked ``(rows·N) x r`` regressor nor a large
+  matrix product ever appears in the MX graph; its reverse derivative is compiled as well.
+- :func:`violation_peaks` picks the samples to add as constraint points after a ``rate_hz`` check.
+- :func:`ipopt_solver` wraps ``casadi.nlpsol("ipopt")`` for an objective with *linear* constraints
+  ``lb ≤ A x ≤ ub`` (constant Jacobian), L-BFGS Hessian and the convergence settings of
+  :class:`oed.design_problem.DesignSettings`.
+"""
+
+from __future__ import annotations
+
+import shutil
+import tempfile
+from pathlib import Path
+from typing import Any
+
+import casadi
+import numpy as np
+import scipy.sparse
+from numpy.typing import NDArray
+
+#: re-solves after adding constraint points start from the previous primal-dual point
+WARM_START = {"warm_start_init_point": "yes", "warm_start_bound_push": 1e-9, "warm_start_mult_bound_push": 1e-9,
+              "warm_start_slack_bound_push": 1e-9, "mu_init": 1e-7}
+
+
+def compiler() -> str | None:
+    """The system C compiler used for JIT (``cc`` or ``gcc``), or ``None``."""
+    return shutil.which("cc") or shutil.which("gcc")
+
+
+def jit_options() -> dict[str, Any]:
+    """CasADi options compiling a function and its forward/reverse derivatives with the C compiler."""
+    if compiler() is None:
+        raise RuntimeError("jit=True needs a C compiler (cc or gcc) on the PATH; use jit=False")
+    # CasADi writes its JIT sources and objects to the working directory unless told otherwise
+    directory = Path(tempfile.gettempdir()) / "robot-oed-jit"
+    directory.mkdir(parents=True, exist_ok=True)
+    options = {
+        "jit": True, "compiler": "shell",
+        "jit_options": {"flags": ["-O1"], "verbose": False, "directory": str(directory)},
+    }
+    return {**options, "reverse_options": options, "forward_options": options}
+
+
+def sampled_information(base_regressor: casadi.Function, states: list[casadi.MX], jit: bool) -> casadi.MX:
+    """``Σ_k Y_b(q_k, dq_k, ddq_k)ᵀ Y_b(q_k, dq_k, ddq_k)`` (symmetric ``r x r``, unscaled).
+
+    Parameters
+    ----------
+    base_regressor
+        ``(q, dq, ddq) -> Y_b`` (``rows x r``) of one sample.
+    states
+        ``q, dq, ddq`` as ``n x N`` MX matrices (one column per cost sample).
+    jit
+        Compile the per-sample function (and its derivatives) with the system C compiler.
+    """
+    n, samples = states[0].shape
+    q, dq, ddq = (casadi.SX.sym(name, n) for name in ("q", "dq", "ddq"))
+    Y = base_regressor(q, dq, ddq)
+    upper = casadi.triu(casadi.mtimes(Y.T, Y))  # only the symmetric half is computed
+    per_sample = casadi.Function("sample_information", [q, dq, ddq], [upper], ["q", "dq", "ddq"], ["M_upper"],
+                                 jit_options() if jit else {})
+    summed = per_sample.map("information_sum", "serial", samples, [], [0])(*states)
+    return summed + casadi.triu(summed, False).T
+
+
+def ipopt_solver(objective: casadi.Function, A: scipy.sparse.spmatrix, *, tol: float, acceptable_tol: float,
+                 acceptable_iter: int, max_iter: int, lbfgs_memory: int, verbose: bool,
+                 warm: bool) -> casadi.Function:
+    """IPOPT for ``min objective(x)`` s.t. ``lbg ≤ A x ≤ ubg`` (bounds given per call).
+
+    Parameters
+    ----------
+    objective
+        ``x -> J`` (scalar, exact derivatives by AD).
+    A
+        Constant constraint matrix (sparse).
+    tol, acceptable_tol, acceptable_iter, max_iter, lbfgs_memory, verbose
+        IPOPT's ``tol``, ``acceptable_tol``, ``acceptable_iter``, ``max_iter``,
+        ``limited_memory_max_history`` and iteration log on/off.
+    warm
+        Start from a given primal-dual point (``x0, lam_x0, lam_g0``) instead of IPOPT's default.
+    """
+    csc = scipy.sparse.csc_matrix(A)
+    csc.sort_indices()
+    pattern = casadi.Sparsity(csc.shape[0], csc.shape[1], csc.indptr.tolist(), csc.indices.tolist())
+    A_dm = casadi.DM(pattern, np.asarray(csc.data, dtype=float))  # CasADi stores column-compressed, like CSC
+    x = casadi.MX.sym("x", csc.shape[1])
+    options = {
+        "ipopt": {
+            "hessian_approximation": "limited-memory",
+            "limited_memory_max_history": lbfgs_memory,
+            "jac_c_constant": "yes",
+            "jac_d_constant": "yes",
+            "tol": tol,
+            "acceptable_tol": acceptable_tol,
+            "acceptable_iter": acceptable_iter,
+            "max_iter": max_iter,
+            "print_level": 5 if verbose else 0,
+            "sb": "yes",
+            **(WARM_START if warm else {}),
+        },
+        "print_time": bool(verbose),
+    }
+    problem = {"x": x, "f": objective(x), "g": casadi.mtimes(A_dm, x)}
+    return casadi.nlpsol("excitation_design", "ipopt", problem, options)
+
+
+def violation_peaks(excess: dict[str, NDArray[np.float64]], tolerance: float = 1e-9) -> set[int]:
+    """Sample indices of the worst point of every run of consecutive violations, per state and joint."""
+    peaks: set[int] = set()
+    for values in excess.values():
+        for column in values.T:
+            violated = column > tolerance
+            if not violated.any():
+                continue
+            # runs of violated samples (periodic: a run may wrap around the end)
+            edges = np.flatnonzero(np.diff(np.concatenate([[False], violated, [False]]).astype(int)))
+            for begin, end in zip(edges[::2], edges[1::2]):
+                peaks.add(int(begin + np.argmax(column[begin:end])))
+    return peaks
