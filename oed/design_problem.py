@@ -29,12 +29,13 @@ import numpy as np
 import scipy.sparse
 from numpy.typing import NDArray
 
+from dynamics.compiled import find_compiler
 from dynamics.effects import parse_effects
 from dynamics.models import ModelKind, build_model
 from dynamics.robot import RobotModel
 from oed.bounds import PUMA_BOUNDS, JointBounds
 from oed.criteria import LogDet, criterion_from_name, information_matrix
-from oed.design_solver import compiler, ipopt_solver, sampled_information, violation_peaks
+from oed.design_solver import ipopt_solver, sampled_information, violation_peaks
 from oed.fourier import FourierTrajectory, basis, unpack
 
 _BOUND_GUARD = 1e-7
@@ -83,7 +84,7 @@ class DesignSettings:
     acceptable_iter: int = 2
     lbfgs_memory: int = 20
     refinements: int = 3
-    jit: bool = field(default_factory=lambda: compiler() is not None)
+    jit: bool = field(default_factory=lambda: find_compiler() is not None)
     verbose: bool = False
 
     def __post_init__(self) -> None:

@@ -12,7 +12,6 @@
 
 from __future__ import annotations
 
-import shutil
 import tempfile
 from pathlib import Path
 from typing import Any
@@ -22,26 +21,25 @@ import numpy as np
 import scipy.sparse
 from numpy.typing import NDArray
 
+from dynamics.compiled import find_compiler
+
 #: re-solves after adding constraint points start from the previous primal-dual point
 WARM_START = {"warm_start_init_point": "yes", "warm_start_bound_push": 1e-9, "warm_start_mult_bound_push": 1e-9,
               "warm_start_slack_bound_push": 1e-9, "mu_init": 1e-7}
 
 
-def compiler() -> str | None:
-    """The system C compiler used for JIT (``cc`` or ``gcc``), or ``None``."""
-    return shutil.which("cc") or shutil.which("gcc")
-
-
 def jit_options() -> dict[str, Any]:
-    """CasADi options compiling a function and its forward/reverse derivatives with the C compiler."""
-    if compiler() is None:
-        raise RuntimeError("jit=True needs a C compiler (cc or gcc) on the PATH; use jit=False")
+    """CasADi options compiling a function and its forward/reverse derivatives with the C compiler
+    of :func:`dynamics.compiled.find_compiler` (``$CC``, ``cc``, ``gcc`` or ``clang``)."""
+    compiler = find_compiler()
+    if compiler is None:
+        raise RuntimeError("jit=True needs a C compiler ($CC, cc, gcc or clang) on the PATH; use jit=False")
     # CasADi writes its JIT sources and objects to the working directory unless told otherwise
     directory = Path(tempfile.gettempdir()) / "robot-oed-jit"
     directory.mkdir(parents=True, exist_ok=True)
     options = {
         "jit": True, "compiler": "shell",
-        "jit_options": {"flags": ["-O1"], "verbose": False, "directory": str(directory)},
+        "jit_options": {"compiler": compiler, "flags": ["-O1"], "verbose": False, "directory": str(directory)},
     }
     return {**options, "reverse_options": options, "forward_options": options}
 
