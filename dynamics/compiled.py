@@ -38,6 +38,8 @@ import casadi
 import numpy as np
 from numpy.typing import NDArray
 
+from dynamics.threads import sample_thread_limit
+
 Backend = Literal["auto", "vm", "compiled"]
 # Portable flags only (no -march=native: the cache may be shared between machines, and it gains
 # nothing measurable here). Hidden visibility lets the compiler inline CasADi's helpers such as
@@ -279,9 +281,11 @@ class SampleEvaluator:
         return output
 
     def _run_loop(self, loop: ctypes._CFuncPtr, arrays: list[NDArray[np.float64]], target: NDArray[np.float64]) -> None:
-        """Run the C loop over the samples, in ``self.threads`` slices at most (ctypes frees the GIL)."""
+        """Run the C loop over the samples, in ``self.threads`` slices at most (ctypes frees the GIL;
+        :func:`dynamics.threads.single_threaded` lowers the limit to one)."""
         n_samples = target.shape[0]
-        n_slices = max(1, min(self.threads, n_samples // self.min_samples_per_thread))
+        threads = min(self.threads, sample_thread_limit() or self.threads)
+        n_slices = max(1, min(threads, n_samples // self.min_samples_per_thread))
         bounds = [n_samples * part // n_slices for part in range(n_slices + 1)]
 
         def run(start: int, stop: int) -> int:

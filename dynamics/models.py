@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import enum
 import functools
-import os
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 
@@ -31,13 +30,14 @@ from dynamics.effects import WRENCH_CHANNELS, Effect, parse_effects
 from dynamics.errors import SampleShapeError
 from dynamics.newton_euler import RigidBodyRegressors, rigid_body_regressors
 from dynamics.robot import JointType, RobotModel
+from dynamics.threads import available_cores
 
 STATE_NAMES: tuple[str, str, str] = ("q", "dq", "ddq")
 # Threads for model.evaluate on large inputs (SampleEvaluator's default work threshold: about
 # 2 600 samples for the 6-joint PUMA, 10 000 for 3 joints). On a 2-core machine, 6-joint PUMA,
 # 5 000 samples: 0.20 against 0.34 µs a sample when the second core is free, 0.36 against 0.345
 # when another process keeps it busy. Measured with two cores only, hence at most two.
-EVALUATION_THREADS = min(2, os.cpu_count() or 1)
+EVALUATION_THREADS = min(2, available_cores())
 
 
 class ModelKind(str, enum.Enum):

@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 
 from dynamics.models import IdentificationModel
+from dynamics.threads import single_threaded
 from estimation.least_squares import Estimate, LeastSquares, WeightedLeastSquares, stack
 from estimation.measurements import Measurements
 from estimation.validation import Comparison, compare
@@ -65,6 +66,7 @@ class IdentificationResult:
         }
 
 
+@single_threaded()
 def identify(
     model: IdentificationModel,
     train: Measurements,

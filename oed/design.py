@@ -24,9 +24,8 @@ from oed.design_problem import (
     ExcitationDesign,
     StartResult,
     default_bounds,
-    payload_of,
-    solve_start,
 )
+from oed.design_parallel import payload_of, solve_start
 from oed.fourier import FourierTrajectory
 
 __all__ = [

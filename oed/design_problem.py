@@ -18,8 +18,6 @@ exceeded are added as constraint points and the problem is re-solved from the pr
 
 from __future__ import annotations
 
-import functools
-import pickle
 import time
 from dataclasses import dataclass, field
 from typing import Any
@@ -33,6 +31,7 @@ from dynamics.compiled import find_compiler
 from dynamics.effects import parse_effects
 from dynamics.models import ModelKind, build_model
 from dynamics.robot import RobotModel
+from dynamics.threads import single_threaded
 from oed.bounds import PUMA_BOUNDS, JointBounds
 from oed.criteria import LogDet, criterion_from_name, information_matrix
 from oed.design_solver import ipopt_solver, sampled_information, violation_peaks
@@ -332,11 +331,20 @@ class ExcitationDesign:
 
     # ---------------------------------------------------------------- solving
     def solve(self, x0: NDArray[np.float64], index: int = 0) -> StartResult:
-        """One IPOPT start from ``x0``, then the ``rate_hz`` check and refinement rounds."""
-        s = self.settings
+        """One IPOPT start from ``x0``, then the ``rate_hz`` check and refinement rounds.
+
+        Runs on one thread (:func:`dynamics.threads.single_threaded`): the matrices are too small for
+        threaded BLAS to gain anything, and starts run side by side in process pools, where extra
+        threads only compete for the cores.
+        """
         x0 = np.asarray(x0, dtype=float).reshape(-1)
         if x0.shape[0] != self.n_variables:
             raise ValueError(f"start vector has {x0.shape[0]} values, the problem {self.n_variables}")
+        with single_threaded():
+            return self._solve(x0, index)
+
+    def _solve(self, x0: NDArray[np.float64], index: int) -> StartResult:
+        s = self.settings
         started = time.perf_counter()
         extra: tuple[int, ...] = ()
         x, iterations, status, objective, rounds = x0, 0, "Not_Started", float("nan"), 0
@@ -382,20 +390,3 @@ def default_bounds(robot: RobotModel) -> JointBounds:
         f"no default bounds for {robot.name} ({robot.n_joints} joints): give JointBounds "
         "(e.g. JointBounds.from_robot(robot, ddq_max=...) or a bounds file)"
     )
-
-
-@functools.lru_cache(maxsize=4)
-def _problem_from_payload(payload: bytes) -> ExcitationDesign:
-    robot, model, bounds, criterion, effects, settings = pickle.loads(payload)
-    return ExcitationDesign(robot, model, bounds, criterion, effects, settings)
-
-
-def solve_start(payload: bytes, x0: NDArray[np.float64], index: int) -> StartResult:
-    """Picklable unit of work for an executor: rebuild (once per worker) the problem and solve one start."""
-    return _problem_from_payload(payload).solve(x0, index)
-
-
-def payload_of(problem: ExcitationDesign) -> bytes:
-    """The problem's definition as bytes a worker process can rebuild it from."""
-    return pickle.dumps((problem.robot, problem.model.value, problem.bounds, problem.criterion,
-                         problem.effects, problem.settings))

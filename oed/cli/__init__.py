@@ -17,6 +17,8 @@ import importlib
 import sys
 from collections.abc import Sequence
 
+from dynamics.threads import single_threaded
+
 # verb module names, in the order ``oed --help`` lists them
 VERB_MODULES: tuple[str, ...] = ("model", "design", "simulate", "identify", "aprbs", "servo_simulate", "servo_fit", "diagnose", "demo")
 
@@ -43,7 +45,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
-        return int(args.run(args))
+        with single_threaded():  # one process: threaded BLAS on thin matrices only loses here
+            return int(args.run(args))
     except (ValueError, TypeError, OSError, KeyError, RuntimeError) as error:
         message = str(error) or error.__class__.__name__
         print(f"oed {args.verb}: error: {message}", file=sys.stderr)
