@@ -2,7 +2,8 @@
 
 The baseline is what a user would otherwise write: ``scipy.optimize.minimize(method="SLSQP")`` with
 finite-difference gradients of the same cost (the same CasADi objective evaluated numerically),
-the same linear bound constraints (also finite-differenced by SciPy) and the same starts.
+the same linear bound constraints (also finite-differenced by SciPy), the same starts and the same
+thread budget (one thread, :func:`dynamics.threads.single_threaded`).
 All ratios are measured in this run.
 
     python benchmarks/bench_design.py [--starts 3] [--skip-5000] [--skip-kuka]
@@ -18,6 +19,7 @@ import numpy as np
 import scipy.optimize
 
 from dynamics.robots import load_robot
+from dynamics.threads import single_threaded
 from oed.bounds import JointBounds
 from oed.design import DesignSettings, ExcitationDesign
 
@@ -38,8 +40,9 @@ def slsqp_start(problem: ExcitationDesign, x0: np.ndarray, max_iter: int = 500) 
         return np.concatenate([g - lower, upper - g])
 
     started = time.perf_counter()
-    solution = scipy.optimize.minimize(cost, x0, method="SLSQP", constraints=[{"type": "ineq", "fun": margins}],
-                                       options={"maxiter": max_iter, "ftol": 1e-9})
+    with single_threaded():  # the same thread budget as ExcitationDesign.solve
+        solution = scipy.optimize.minimize(cost, x0, method="SLSQP", constraints=[{"type": "ineq", "fun": margins}],
+                                           options={"maxiter": max_iter, "ftol": 1e-9})
     elapsed = time.perf_counter() - started
     x = problem.shrink_to_bounds(solution.x)  # same 1 kHz guarantee as the IPOPT path
     return elapsed, problem.evaluate(x)["cost"], int(solution.nit)
