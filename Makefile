@@ -17,8 +17,8 @@ $(STAMP): pyproject.toml
 test: $(STAMP)
 	$(PY) -m pytest -q -n 2
 
-test-slow: $(STAMP)
-	$(PY) -m pytest -q -m slow
+test-slow: $(STAMP)  # exit status 5: no test is marked slow at present
+	$(PY) -m pytest -q -m slow || [ $$? -eq 5 ]
 
 demo: $(STAMP)
 	$(VENV)/bin/oed demo

@@ -58,7 +58,6 @@ def test_friction_model_generalises_to_the_faster_run_in_total_and_on_gravity_jo
     assert identified[1] < 0.2 * baseline[2][1] and identified[3] < 0.5 * baseline[2][3]
 
 
-@pytest.mark.slow  # about a minute: `make test-slow`
 def test_diagnosis_trained_on_run_1_cuts_the_error_on_the_faster_run_3(kuka):
     """From rigid body + viscous friction, the diagnosis adds Coulomb friction on most joints and
     cuts the total validation MSE on run 3 at least two-fold (measured: 17.0 -> 6.3 N²m²)."""
