@@ -12,7 +12,7 @@ import numpy as np
 
 from dynamics.models import ModelKind
 from oed.bounds import JointBounds
-from oed.cli.common import add_robot_arguments, atomic_output, robot_from_arguments
+from oed.cli.common import OutputFiles, add_robot_arguments, check_figure_path, robot_from_arguments
 from oed.criteria import CRITERIA
 from oed.design import DesignSettings, default_bounds, design_excitation
 
@@ -67,6 +67,7 @@ def trajectory_table(trajectory, rate_hz: float = 1000.0) -> tuple[list[str], np
 
 
 def run(args: argparse.Namespace) -> int:
+    check_figure_path(args.plot)
     robot = robot_from_arguments(args)
     bounds = bounds_from_arguments(args, robot)
     settings = DesignSettings(
@@ -90,23 +91,20 @@ def run(args: argparse.Namespace) -> int:
     else:
         result = design_excitation(robot, **options)
     trajectory = result.trajectory
-    # everything is computed before any file is written; each file is written atomically
-    figure = None
-    if args.plot is not None:
-        from oed.design_plot import plot_trajectory
+    # the files are staged and renamed into place together: a failure leaves none of them
+    with OutputFiles() as outputs:
+        with outputs.open(args.out) as stream:
+            json.dump(trajectory.to_dict(), stream, indent=2)
+        if args.csv is not None:
+            header, table = trajectory_table(trajectory, settings.rate_hz)
+            with outputs.open(args.csv) as stream:
+                np.savetxt(stream, table, delimiter=",", header=",".join(header), comments="", fmt="%.10g")
+        if args.plot is not None:
+            from oed.design_plot import plot_trajectory, save_figure
 
-        figure = plot_trajectory(trajectory, bounds, rate_hz=settings.rate_hz,
-                                 title=f"{robot.name}, {args.model} model, cost {result.cost:.2f}")
-    with atomic_output(args.out) as stream:
-        json.dump(trajectory.to_dict(), stream, indent=2)
-    if args.csv is not None:
-        header, table = trajectory_table(trajectory, settings.rate_hz)
-        with atomic_output(args.csv) as stream:
-            np.savetxt(stream, table, delimiter=",", header=",".join(header), comments="", fmt="%.10g")
-    if figure is not None:
-        from oed.design_plot import save_figure
-
-        save_figure(figure, args.plot)
+            figure = plot_trajectory(trajectory, bounds, rate_hz=settings.rate_hz,
+                                     title=f"{robot.name}, {args.model} model, cost {result.cost:.2f}")
+            save_figure(figure, outputs.stage(args.plot))
     if not args.quiet:
         print(f"{robot.name}, {args.model} model, {args.criterion}: best start {result.best + 1}/{len(result.starts)}, "
               f"cost -log det(Y'Y) = {result.cost:.4f}, cond = {result.cond:.2f}, "
