@@ -95,3 +95,11 @@ def test_bounds_too_narrow_for_the_optimiser_name_joint_and_bound(tmp_path, caps
     error = capsys.readouterr().err
     assert re.search(message, error) and "LBG" not in error
     assert not out.exists()
+
+
+def test_urdf_robot_without_bounds_is_told_the_cli_options(tmp_path, capsys, prismatic_urdf):
+    out = tmp_path / "traj.json"
+    assert main(["design", "--urdf", str(prismatic_urdf), "--model", "internal", "--out", str(out), "--quiet"]) == 2
+    error = capsys.readouterr().err
+    assert "--bounds FILE" in error and "--ddq-max" in error
+    assert not out.exists()

@@ -53,7 +53,13 @@ def bounds_from_arguments(args: argparse.Namespace, robot) -> JointBounds:
     elif args.ddq_max is not None:
         bounds = JointBounds.from_robot(robot, ddq_max=args.ddq_max)
     else:
-        bounds = default_bounds(robot)
+        try:
+            bounds = default_bounds(robot)
+        except ValueError:
+            raise ValueError(
+                f"no default bounds for {robot.name} ({robot.n_joints} joints; eq. 19's are for the 3-joint PUMA): "
+                "give --bounds FILE (q_max, dq_max, ddq_max) or --ddq-max to use the URDF's position and velocity limits"
+            ) from None
     bounds.check_joint_count(robot.n_joints)
     return bounds
 
