@@ -395,7 +395,9 @@ def effects_from_names(
         cls = SIMULATED_EFFECTS[name]
         try:
             effect = cls.from_json(robot, values[name]) if name in values else cls.default(robot)
-        except TypeError as error:
+        except (TypeError, ValueError) as error:
+            if str(error).startswith(f"effect {name!r}"):
+                raise
             raise ValueError(f"effect {name!r}: bad values {values.get(name)!r} ({error})") from None
         effect.parameters(robot)  # validate against the robot now, not mid-simulation
         built.append(effect)
