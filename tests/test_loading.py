@@ -154,3 +154,16 @@ def test_cli_identify_with_data_of_more_joints_fails_cleanly(tmp_path, capsys):
                  "--out", str(out)]) == 2
     assert "q4, tau4 beyond the robot's 3 joint" in capsys.readouterr().err
     assert not out.exists()
+
+
+def test_cli_prints_the_resampling_warning_on_stderr(tmp_path, capsys):
+    """stdout carries the result table; a repair of the data is a diagnostic, on stderr."""
+    from oed.cli import main
+
+    frame = sample_data(400).to_frame().drop(index=range(100, 200, 3))
+    out = tmp_path / "result.json"
+    assert main(["identify", "--joints", "3", "--model", "internal", "--data", str(write_frame(tmp_path, frame)),
+                 "--out", str(out)]) == 0
+    captured = capsys.readouterr()
+    assert "oed identify: warning:" in captured.err and "resampled" in captured.err
+    assert "warning" not in captured.out

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 import warnings
 from pathlib import Path
 
@@ -42,7 +43,7 @@ def run(args: argparse.Namespace) -> int:
         train = prepare(args.data, model, args)
         validate = prepare(args.validate, model, args)
     for warning in caught:
-        print(f"oed diagnose: warning: {warning.message}")
+        print(f"oed diagnose: warning: {warning.message}", file=sys.stderr)
     diagnosis = diagnose(model, train, validate, alpha=args.alpha)
     with OutputFiles() as outputs:  # all files or none
         with outputs.open(args.out) as stream:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 import warnings
 from pathlib import Path
 
@@ -71,7 +72,7 @@ def run(args: argparse.Namespace) -> int:
         train = prepare(args.data, model, args)
         validation = None if args.validate is None else prepare(args.validate, model, args)
     for warning in caught:
-        print(f"oed identify: warning: {warning.message}")
+        print(f"oed identify: warning: {warning.message}", file=sys.stderr)
     result = identify(model, train, validation, weighted=args.method == "wls")
     with OutputFiles() as outputs:  # all files or none
         with outputs.open(args.out) as stream:
