@@ -103,3 +103,15 @@ def test_urdf_robot_without_bounds_is_told_the_cli_options(tmp_path, capsys, pri
     error = capsys.readouterr().err
     assert "--bounds FILE" in error and "--ddq-max" in error
     assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    "option,value,message",
+    [("--workers", "-1", "--workers must be 0"), ("--seed", "-1", "--seed must be a non-negative integer")],
+)
+def test_negative_workers_and_seed_are_named(tmp_path, capsys, option, value, message):
+    """--workers -1 used to run silently in turn; --seed -1 said only 'expected non-negative integer'."""
+    out = tmp_path / "traj.json"
+    assert main(["design", "--joints", "3", "--model", "internal", option, value, "--out", str(out), "--quiet"]) == 2
+    assert message in capsys.readouterr().err
+    assert not out.exists()

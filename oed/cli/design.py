@@ -82,6 +82,10 @@ def run(args: argparse.Namespace) -> int:
     )
     if args.starts < 1:
         raise ValueError(f"--starts must be at least 1, got {args.starts}")
+    if args.workers < 0:
+        raise ValueError(f"--workers must be 0 (run the starts in turn) or a pool size, got {args.workers}")
+    if args.seed < 0:
+        raise ValueError(f"--seed must be a non-negative integer, got {args.seed}")
 
     def progress(start, total) -> None:
         if not args.quiet:
