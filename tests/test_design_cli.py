@@ -105,13 +105,21 @@ def test_urdf_robot_without_bounds_is_told_the_cli_options(tmp_path, capsys, pri
     assert not out.exists()
 
 
-@pytest.mark.parametrize(
-    "option,value,message",
-    [("--workers", "-1", "--workers must be 0"), ("--seed", "-1", "--seed must be a non-negative integer")],
-)
-def test_negative_workers_and_seed_are_named(tmp_path, capsys, option, value, message):
-    """--workers -1 used to run silently in turn; --seed -1 said only 'expected non-negative integer'."""
+def test_negative_workers_are_named(tmp_path, capsys):
+    """--workers -1 used to run the starts in turn silently."""
     out = tmp_path / "traj.json"
-    assert main(["design", "--joints", "3", "--model", "internal", option, value, "--out", str(out), "--quiet"]) == 2
-    assert message in capsys.readouterr().err
+    assert main(["design", "--joints", "3", "--model", "internal", "--workers", "-1", "--out", str(out), "--quiet"]) == 2
+    assert "--workers must be 0" in capsys.readouterr().err
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("verb", [["design", "--joints", "3"], ["simulate", "--trajectory", "t.json"], ["aprbs"],
+                                  ["servo-simulate", "--aprbs", "a.csv"]])
+def test_negative_seed_is_an_argument_error_naming_the_option(tmp_path, capsys, verb):
+    """numpy's 'expected non-negative integer' (exit 2 after the work had started) did not say which option."""
+    out = tmp_path / "out.csv"
+    with pytest.raises(SystemExit) as exit_info:
+        main([*verb, "--seed", "-1", "--out", str(out)])
+    assert exit_info.value.code == 2
+    assert "argument --seed: must be a non-negative integer, got -1" in capsys.readouterr().err
     assert not out.exists()

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 
 from dynamics.robots.servo_arm import SERVO_ARM_RANGES
+from oed.cli.common import seed
 
 
 def register(subparsers) -> argparse.ArgumentParser:
@@ -16,7 +17,7 @@ def register(subparsers) -> argparse.ArgumentParser:
     parser.add_argument("--hold-max", type=float, default=None, help="maximum hold time [s] (default 5 x hold-min)")
     parser.add_argument("--levels", type=int, default=12, help="amplitude strata per joint")
     parser.add_argument("--candidates", type=int, default=64, help="random candidates; the best by the criterion is kept")
-    parser.add_argument("--seed", type=int, default=None, help="random seed")
+    parser.add_argument("--seed", type=seed, default=None, help="random seed")
     parser.add_argument("--figure", default=None, help="also save signal/histogram/spectrum figure (PNG/PDF)")
     parser.add_argument("--out", required=True, help="output CSV")
     return parser

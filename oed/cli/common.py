@@ -23,6 +23,17 @@ def add_robot_arguments(parser: argparse.ArgumentParser, *, default: str | None 
     group.add_argument("--joints", type=int, help="keep only the first N joints (the PUMA paper uses 3)")
 
 
+def seed(text: str) -> int:
+    """``--seed`` values: non-negative integers (what ``numpy.random`` accepts), checked by argparse."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a non-negative integer, got {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"must be a non-negative integer, got {value}")
+    return value
+
+
 def robot_from_arguments(args: argparse.Namespace) -> RobotModel:
     return load_robot(args.robot, urdf=args.urdf, joints=args.joints)
 

@@ -12,7 +12,7 @@ import numpy as np
 
 from dynamics.models import ModelKind
 from oed.bounds import JointBounds
-from oed.cli.common import OutputFiles, add_robot_arguments, check_figure_path, robot_from_arguments
+from oed.cli.common import OutputFiles, add_robot_arguments, check_figure_path, robot_from_arguments, seed
 from oed.criteria import CRITERIA
 from oed.design import DesignSettings, default_bounds, design_excitation
 
@@ -31,7 +31,7 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     parser.add_argument("--bounds", type=Path, help="JSON bounds file {q_min?, q_max, dq_max, ddq_max}")
     parser.add_argument("--ddq-max", type=float, nargs="+", help="acceleration bounds when the bounds come from the URDF")
     parser.add_argument("--starts", type=int, default=4)
-    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--seed", type=seed, default=0)
     parser.add_argument("--workers", type=int, default=0, help="run the starts in a process pool of this size")
     parser.add_argument("--frequency", type=float, default=0.2, help="fundamental frequency, Hz (default 0.2)")
     parser.add_argument("--harmonics", type=int, default=5)
@@ -84,8 +84,6 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError(f"--starts must be at least 1, got {args.starts}")
     if args.workers < 0:
         raise ValueError(f"--workers must be 0 (run the starts in turn) or a pool size, got {args.workers}")
-    if args.seed < 0:
-        raise ValueError(f"--seed must be a non-negative integer, got {args.seed}")
 
     def progress(start, total) -> None:
         if not args.quiet:
