@@ -161,10 +161,15 @@ def fit_servo_joint(
     a1, a2, K = (float(v) for v in theta[:3])
     c = tuple(float(v) for v in theta[3:])
     polys = Polynomials.from_theta(theta, 2, 1, 1, len(c))
-    one_step = polys.one_step_prediction(u, q)
+    with np.errstate(over="ignore", invalid="ignore"):  # divergence is reported below, by name
+        one_step = polys.one_step_prediction(u, q)
+        simulated = free_run((a1, a2, K), u[n_est:], (q[n_est - 1], q[n_est - 2]), u_initial=u[n_est - 1])
+    for what, values, polynomial, coefficients in (("one-step predictor", one_step, "C(z)", c),
+                                                   ("free-run simulation", simulated, "A(z)", (a1, a2))):
+        if not np.all(np.isfinite(values)):
+            _diverged(joint, what, polynomial, coefficients, method, forgetting)
     p = theta.size
     V = cost_v(q[2:n_est], one_step[2:n_est])
-    simulated = free_run((a1, a2, K), u[n_est:], (q[n_est - 1], q[n_est - 2]), u_initial=u[n_est - 1])
     gray = None if mass is None else discrete_to_gray_box(a1, a2, K, mass=mass, dt=dt, discretisation=discretisation)
     q_val = q[n_est:]
     return ServoJointFit(
@@ -173,6 +178,17 @@ def fit_servo_joint(
         V=V, rmse=rmse(q_val, one_step[n_est:]), r2_adj=r2_adjusted(q_val, one_step[n_est:], p),
         rmse_free_run=rmse(q_val, simulated), r2_adj_free_run=r2_adjusted(q_val, simulated, p),
         n_parameters=p, n_estimation=n_est, n_validation=n_val,
+    )
+
+
+def _diverged(joint: int, what: str, polynomial: str, coefficients, method: str, forgetting: float) -> None:
+    """Raise the error of an estimated model whose predictor or simulation blows up (a root of
+    ``polynomial`` outside the unit circle), instead of failing later on NaN in a metric."""
+    modulus = float(np.max(np.abs(np.roots(np.r_[1.0, coefficients])))) if len(coefficients) else float("nan")
+    raise ValueError(
+        f"joint {joint}: the {what} of the estimated model diverges: {polynomial} has a root of modulus "
+        f"{modulus:.3g} (outside the unit circle) with method {method!r}, forgetting factor {forgetting:g}; "
+        "the estimate is not usable (use a forgetting factor closer to 1, more data, or another method)"
     )
 
 
