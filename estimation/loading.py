@@ -121,6 +121,8 @@ def read_measurements(
     if suffix not in (".csv", ".parquet"):
         raise MeasurementError(f"unknown data format {path.suffix!r} for {path}: use .csv or .parquet")
     if not path.is_file():
+        if path.is_dir():
+            raise IsADirectoryError(f"data file {path} is a folder")
         raise FileNotFoundError(f"data file not found: {path}")
     try:
         frame = pd.read_parquet(path) if suffix == ".parquet" else pd.read_csv(path)

@@ -71,7 +71,7 @@ def read_csv(path: str | Path, *, required: tuple[str, ...] = ("t",), dt: float 
     """
     path = Path(path)
     if not path.is_file():
-        raise OSError(f"input file {str(path)!r} not found")
+        raise OSError(f"input file {str(path)!r} is a folder" if path.is_dir() else f"input file {str(path)!r} not found")
     with path.open() as stream:
         header = [name.strip() for name in stream.readline().strip().split(",")]
     missing = [name for name in required if name not in header]

@@ -116,3 +116,20 @@ def test_aprbs_with_an_unwritable_figure_leaves_no_csv(tmp_path, blocker, capsys
     assert code == 2
     assert "a_file" in capsys.readouterr().err
     assert _listing(tmp_path) == ["a_file"]
+
+
+@pytest.mark.parametrize(
+    "arguments,message",
+    [
+        (["model", "--urdf", "{folder}"], "URDF file {folder} is a folder"),
+        (["identify", "--joints", "3", "--data", "{folder}.csv", "--out", "{folder}/r.json"], "data file {folder}.csv is a folder"),
+        (["servo-fit", "--data", "{folder}", "--out", "{folder}/f.json"], "input file '{folder}' is a folder"),
+    ],
+)
+def test_an_input_path_that_is_a_folder_is_called_one(tmp_path, capsys, arguments, message):
+    """It was reported as 'not found'."""
+    folder = tmp_path / "inputs"
+    folder.mkdir()
+    (tmp_path / "inputs.csv").mkdir()
+    assert main([argument.format(folder=folder) for argument in arguments]) == 2
+    assert message.format(folder=folder) in capsys.readouterr().err
