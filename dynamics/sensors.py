@@ -10,7 +10,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from dynamics.robot import RobotModel
-from dynamics.simulated_effects import PUMA560_GEAR_RATIOS, _is_puma
+from dynamics.simulated_joint_effects import PUMA560_GEAR_RATIOS, _is_puma
 
 ENCODER_COUNTS = 4 * 4096  # quadrature-decoded counts per motor revolution
 DEFAULT_GEAR = 100.0

@@ -36,7 +36,7 @@ def robot_from_urdf(path: str | Path, *, gravity: np.ndarray | None = None) -> R
 
     path = Path(path)
     if not path.is_file():
-        raise RobotDescriptionError(f"URDF file not found: {path}")
+        raise RobotDescriptionError(f"URDF file {path} is a folder" if path.is_dir() else f"URDF file not found: {path}")
     try:
         model = pin.buildModelFromUrdf(str(path))
     except (RuntimeError, ValueError) as error:

@@ -48,6 +48,10 @@ class NonFiniteError(MeasurementError):
     """A column holds NaN or inf."""
 
 
+class JointCountError(MeasurementError):
+    """The file holds joint columns beyond the robot's joints (data of another robot, or a wrong ``--joints``)."""
+
+
 class TimeBaseError(MeasurementError):
     """The time column is not strictly increasing (duplicated or decreasing samples)."""
 
@@ -108,14 +112,17 @@ def read_measurements(
 
     Raises
     ------
-    MissingColumnError, NonFiniteError, TimeBaseError, AngleUnitError, TooFewSamplesError
-        Each naming the column, row or count at fault.
+    MissingColumnError, NonFiniteError, TimeBaseError, AngleUnitError, TooFewSamplesError, JointCountError
+        Each naming the column, row or count at fault (``JointCountError``: columns such as ``q4``
+        beyond the given or the model's number of joints).
     """
     path = Path(path)
     suffix = path.suffix.lower()
     if suffix not in (".csv", ".parquet"):
         raise MeasurementError(f"unknown data format {path.suffix!r} for {path}: use .csv or .parquet")
     if not path.is_file():
+        if path.is_dir():
+            raise IsADirectoryError(f"data file {path} is a folder")
         raise FileNotFoundError(f"data file not found: {path}")
     try:
         frame = pd.read_parquet(path) if suffix == ".parquet" else pd.read_csv(path)
@@ -147,6 +154,8 @@ def measurements_from_frame(
         n_joints = _count_joint_columns(frame, "q")
         if n_joints == 0:
             raise MissingColumnError(f"{source}: no joint position columns q1..qn")
+    else:
+        _check_no_further_joints(frame, n_joints, source)
     groups = set(require) | set(required_groups(model)) | {"q"}
     unknown = groups - set(COLUMN_GROUPS)
     if unknown:
@@ -199,6 +208,19 @@ def _count_joint_columns(frame: pd.DataFrame, prefix: str) -> int:
     pattern = re.compile(rf"^{prefix}(\d+)$")
     indices = sorted(int(match.group(1)) for column in frame.columns if (match := pattern.match(column)))
     return len(indices) if indices == list(range(1, len(indices) + 1)) else (max(indices) if indices else 0)
+
+
+def _check_no_further_joints(frame: pd.DataFrame, n_joints: int, source: str) -> None:
+    """A column ``q5`` (or ``dq5``, ``tau5``…) in the data of a 4-joint robot: the motion of the joints
+    left out drives the others, so identifying without it would be silently wrong."""
+    pattern = re.compile(r"^(q|dq|ddq|tau)(\d+)$")
+    beyond = [column for column in frame.columns
+              if (match := pattern.match(column)) and int(match.group(2)) > n_joints]
+    if beyond:
+        raise JointCountError(
+            f"{source}: column(s) {', '.join(beyond)} beyond the robot's {n_joints} joint(s): "
+            "the data are for a robot with more joints (check --robot/--urdf/--joints)"
+        )
 
 
 def _require_columns(frame: pd.DataFrame, columns: list[str], meaning: str, source: str) -> None:

@@ -160,19 +160,41 @@ def fit_servo_joint(
     theta = np.asarray(model.theta_)
     a1, a2, K = (float(v) for v in theta[:3])
     c = tuple(float(v) for v in theta[3:])
+    if c and np.max(np.abs(np.roots(np.r_[1.0, c]))) >= 1.0:  # the predictor filters by 1/C(z)
+        _diverged(joint, "one-step predictor", "C(z)", c, method, forgetting)
     polys = Polynomials.from_theta(theta, 2, 1, 1, len(c))
-    one_step = polys.one_step_prediction(u, q)
     p = theta.size
-    V = cost_v(q[2:n_est], one_step[2:n_est])
-    simulated = free_run((a1, a2, K), u[n_est:], (q[n_est - 1], q[n_est - 2]), u_initial=u[n_est - 1])
-    gray = None if mass is None else discrete_to_gray_box(a1, a2, K, mass=mass, dt=dt, discretisation=discretisation)
     q_val = q[n_est:]
+    with np.errstate(over="ignore", invalid="ignore"):  # divergence is reported below, by name
+        one_step = polys.one_step_prediction(u, q)
+        simulated = free_run((a1, a2, K), u[n_est:], (q[n_est - 1], q[n_est - 2]), u_initial=u[n_est - 1])
+        one_step_metrics = (rmse(q_val, one_step[n_est:]), r2_adjusted(q_val, one_step[n_est:], p)) \
+            if np.all(np.isfinite(one_step)) else (np.inf,)
+        free_run_metrics = (rmse(q_val, simulated), r2_adjusted(q_val, simulated, p)) \
+            if np.all(np.isfinite(simulated)) else (np.inf,)
+    for what, metrics, polynomial, coefficients in (("one-step predictor", one_step_metrics, "C(z)", c),
+                                                    ("free-run simulation", free_run_metrics, "A(z)", (a1, a2))):
+        if not np.all(np.isfinite(metrics)):  # overflowed: JSON would get Infinity and the table -inf
+            _diverged(joint, what, polynomial, coefficients, method, forgetting)
+    V = cost_v(q[2:n_est], one_step[2:n_est])
+    gray = None if mass is None else discrete_to_gray_box(a1, a2, K, mass=mass, dt=dt, discretisation=discretisation)
     return ServoJointFit(
         joint=joint, method=method, a1=a1, a2=a2, K=K, c=c, mass=None if mass is None else float(mass),
         b=None if gray is None else gray.b, k=None if gray is None else gray.k, sigma=None if gray is None else gray.sigma,
-        V=V, rmse=rmse(q_val, one_step[n_est:]), r2_adj=r2_adjusted(q_val, one_step[n_est:], p),
-        rmse_free_run=rmse(q_val, simulated), r2_adj_free_run=r2_adjusted(q_val, simulated, p),
+        V=V, rmse=one_step_metrics[0], r2_adj=one_step_metrics[1],
+        rmse_free_run=free_run_metrics[0], r2_adj_free_run=free_run_metrics[1],
         n_parameters=p, n_estimation=n_est, n_validation=n_val,
+    )
+
+
+def _diverged(joint: int, what: str, polynomial: str, coefficients, method: str, forgetting: float) -> None:
+    """Raise the error of an estimated model whose predictor or simulation blows up (a root of
+    ``polynomial`` on or outside the unit circle), instead of NaN/inf metrics."""
+    modulus = float(np.max(np.abs(np.roots(np.r_[1.0, coefficients])))) if len(coefficients) else float("nan")
+    raise ValueError(
+        f"joint {joint}: the {what} of the estimated model diverges: {polynomial} has a root of modulus "
+        f"{modulus:.4g} (not inside the unit circle) with method {method!r}, forgetting factor {forgetting:g}; "
+        "the estimate is not usable (use a forgetting factor closer to 1, more data, or another method)"
     )
 
 

@@ -6,8 +6,6 @@ half-written output. Reads validate the columns and the time column (uniform sam
 
 from __future__ import annotations
 
-import os
-import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -36,37 +34,23 @@ class ServoTable:
 
 def write_csv(path: str | Path, columns: dict[str, np.ndarray]) -> Path:
     """Write equal-length columns to ``path`` as CSV with a header, atomically."""
+    from oed.cli.common import atomic_output  # local: the CLI helpers depend on nothing here
+
     path = Path(path)
     names = list(columns)
     data = np.column_stack([np.asarray(columns[name], dtype=float).reshape(-1) for name in names])
-    directory = path.parent if str(path.parent) else Path(".")
-    if not directory.is_dir():
-        raise OSError(f"output folder {str(directory)!r} does not exist")
-    handle, temp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=directory)
-    try:
-        with os.fdopen(handle, "w") as stream:
-            np.savetxt(stream, data, delimiter=",", header=",".join(names), comments="", fmt="%.10g")
-        os.replace(temp, path)
-    except BaseException:
-        Path(temp).unlink(missing_ok=True)
-        raise
+    with atomic_output(path) as stream:
+        np.savetxt(stream, data, delimiter=",", header=",".join(names), comments="", fmt="%.10g")
     return path
 
 
 def write_text_atomic(path: str | Path, text: str) -> Path:
     """Write ``text`` to ``path`` atomically."""
+    from oed.cli.common import atomic_output
+
     path = Path(path)
-    directory = path.parent if str(path.parent) else Path(".")
-    if not directory.is_dir():
-        raise OSError(f"output folder {str(directory)!r} does not exist")
-    handle, temp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=directory)
-    try:
-        with os.fdopen(handle, "w") as stream:
-            stream.write(text)
-        os.replace(temp, path)
-    except BaseException:
-        Path(temp).unlink(missing_ok=True)
-        raise
+    with atomic_output(path) as stream:
+        stream.write(text)
     return path
 
 
@@ -87,7 +71,7 @@ def read_csv(path: str | Path, *, required: tuple[str, ...] = ("t",), dt: float 
     """
     path = Path(path)
     if not path.is_file():
-        raise OSError(f"input file {str(path)!r} not found")
+        raise OSError(f"input file {str(path)!r} is a folder" if path.is_dir() else f"input file {str(path)!r} not found")
     with path.open() as stream:
         header = [name.strip() for name in stream.readline().strip().split(",")]
     missing = [name for name in required if name not in header]

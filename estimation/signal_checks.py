@@ -15,6 +15,8 @@ def check_uniform_time(t: np.ndarray, *, dt: float | None = None, name: str = "t
         raise ValueError(f"time column {name!r} needs at least two samples")
     if not np.all(np.isfinite(t)):
         raise ValueError(f"time column {name!r} holds NaN/inf")
+    if dt is not None and not (np.isfinite(dt) and dt > 0):
+        raise ValueError(f"sample time dt must be positive and finite, got {dt!r}")
     steps = np.diff(t)
     step = float(np.median(steps)) if dt is None else float(dt)
     if step <= 0:

@@ -54,6 +54,9 @@ class APRBSDesign:
                 raise ValueError(f"joint {j}: range must be (u_min, u_max) with u_min < u_max, got {pair!r}")
         if not (np.isfinite(self.dt) and self.dt > 0):
             raise ValueError(f"dt must be positive, got {self.dt!r}")
+        for label in ("duration", "hold_min") + (("hold_max",) if self.hold_max is not None else ()):
+            if not np.isfinite(getattr(self, label)):
+                raise ValueError(f"{label} must be a finite time in seconds, got {getattr(self, label)!r}")
         if not self.hold_min >= self.dt * (1 - 1e-9):
             raise ValueError(f"hold_min = {self.hold_min} s is shorter than the sample time dt = {self.dt} s")
         if self.hold_max is not None and self.hold_max < self.hold_min:

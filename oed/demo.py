@@ -34,21 +34,36 @@ UNDECLARED_EFFECTS = "viscous,coulomb,offset"
 
 
 def run_demo(out: str | Path, *, say: Callable[[str], None] = print) -> dict:
-    """Run the loop, write everything under ``out``, return the diagnosis document."""
+    """Run the loop, write everything under ``out``, return the diagnosis document.
+
+    The files are staged and renamed into ``out`` together at the end: a run that fails leaves
+    none of them (nor a mix of new files and those of an earlier run).
+    """
+    from oed.cli.common import OutputFiles
+
     out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    if out.exists() and not out.is_dir():
+        raise NotADirectoryError(f"{out} is a file: the demo writes its report and figures into a folder")
     start = time.perf_counter()
     robot = load_robot("puma560", joints=3)
+    with OutputFiles() as outputs:
+        document = _loop(robot, out, outputs, say)
+    say(f"report: {out / 'report.md'} (JSON: report.json; figures: report.residuals.png, validation.png, "
+        f"trajectory_train.png); {time.perf_counter() - start:.0f} s in all")
+    return document
 
+
+def _loop(robot, out: Path, outputs, say: Callable[[str], None]) -> dict:
     say("1. designing the excitation trajectories (IPOPT, exact gradients)...")
     designs = {}
     for label, seed in (("train", 0), ("validate", 7)):
         design = design_excitation(robot, model="internal", starts=2, seed=seed)
-        design.trajectory.save(out / f"trajectory_{label}.json")
+        with outputs.open(out / f"trajectory_{label}.json") as stream:
+            json.dump(design.trajectory.to_dict(), stream, indent=2)
         designs[label] = design
         say(f"   {label}: -log det(Yb'Yb) = {design.cost:.2f}, cond = {design.cond:.3g}")
     figure = plot_trajectory(designs["train"].trajectory, title="optimal excitation (identification)")
-    figure.savefig(out / "trajectory_train.png", dpi=90)
+    figure.savefig(outputs.stage(out / "trajectory_train.png"), dpi=90)
 
     say(f"2. simulating both experiments on a robot with {UNDECLARED_EFFECTS} (the model declares viscous only)...")
     simulator = Simulator(robot, UNDECLARED_EFFECTS, noise=NoiseModel())
@@ -59,7 +74,7 @@ def run_demo(out: str | Path, *, say: Callable[[str], None] = print) -> dict:
     data = {}
     for index, (label, design) in enumerate(designs.items()):
         result = simulator.run(design.trajectory, controller, periods=3, warmup_periods=1, seed=index + 1)
-        result.measurements.write(out / f"data_{label}.csv")
+        result.measurements.write(outputs.stage(out / f"data_{label}.csv"))
         # the response carries harmonics the 5-term excitation does not: fit 15
         differentiation = FourierDifferentiation(frequency_hz=design.trajectory.frequency_hz, harmonics=15)
         data[label] = fill_derivatives(result.measurements, differentiation)
@@ -69,10 +84,12 @@ def run_demo(out: str | Path, *, say: Callable[[str], None] = print) -> dict:
     diagnosis = diagnose(model, data["train"], data["validate"])
     document = diagnosis.to_dict()
     document["truth"] = {name: value for name, value in truth.items() if name[:2] in ("fc", "of", "fv")}
-    (out / "report.json").write_text(json.dumps(document, indent=2))
-    plot_residuals(diagnosis, data["train"], out / "report.residuals.png")
-    (out / "report.md").write_text(markdown_report(diagnosis, "report.residuals.png"))
-    plot_comparison([diagnosis.before.validation, diagnosis.after.validation], out / "validation.png",
+    with outputs.open(out / "report.json") as stream:
+        json.dump(document, stream, indent=2)
+    plot_residuals(diagnosis, data["train"], outputs.stage(out / "report.residuals.png"))
+    with outputs.open(out / "report.md") as stream:
+        stream.write(markdown_report(diagnosis, "report.residuals.png"))
+    plot_comparison([diagnosis.before.validation, diagnosis.after.validation], outputs.stage(out / "validation.png"),
                     title="validation: declared model vs after diagnosis")
 
     for effect in diagnosis.effects:
@@ -86,6 +103,4 @@ def run_demo(out: str | Path, *, say: Callable[[str], None] = print) -> dict:
     say(f"4. validation MSE per channel [N^2 m^2] (torque noise variance: {noise_variance:.3g})")
     for channel in before:
         say(f"   {channel}: before {before[channel]:9.4g}   after {after[channel]:9.4g}")
-    say(f"report: {out / 'report.md'} (JSON: report.json; figures: report.residuals.png, validation.png, "
-        f"trajectory_train.png); {time.perf_counter() - start:.0f} s in all")
     return document

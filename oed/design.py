@@ -17,7 +17,7 @@ import numpy as np
 
 from dynamics.models import ModelKind
 from dynamics.robot import RobotModel
-from oed.bounds import JointBounds
+from oed.bounds import STATE_LABELS, InfeasibleBoundsError, JointBounds
 from oed.design_problem import (
     SUCCESS_STATUSES,
     DesignSettings,
@@ -51,6 +51,23 @@ class DesignResult:
     best: int
     build_time_s: float
     total_time_s: float
+
+
+def check_room_to_move(problem: ExcitationDesign) -> None:
+    """Raise :class:`InfeasibleBoundsError` naming the joint and bound when a bound is so narrow that the
+    optimiser's constraint, pulled in by its safety margin, becomes empty (IPOPT would only report an
+    ill-posed problem on constraint row k)."""
+    _, lower, upper = problem.constraint_matrix(np.zeros(1))
+    bounds = problem.bounds
+    for row in np.flatnonzero(lower > upper):
+        joint, state = divmod(int(row), len(STATE_LABELS))
+        key = ("q", "dq", "ddq")[state]
+        limit = (f"position range [{bounds.q_min[joint]:.10g}, {bounds.q_max[joint]:.10g}]" if key == "q"
+                 else f"{STATE_LABELS[key]} bound {key}_max = {getattr(bounds, key + '_max')[joint]:.3g}")
+        raise InfeasibleBoundsError(
+            f"joint {bounds.joint_names[joint]!r}: {limit} is too narrow: "
+            "no trajectory can be optimised within it (the constraints keep a margin of about 1e-7)"
+        )
 
 
 def design_excitation(
@@ -93,12 +110,15 @@ def design_excitation(
     ------
     DesignError
         When no start ends with a successful solver status and a trajectory within the bounds.
+    InfeasibleBoundsError
+        When a bound is too narrow for the optimiser's constraints (named with its joint).
     """
     if not isinstance(starts, (int, np.integer)) or starts < 1:
         raise ValueError(f"starts must be a positive integer, got {starts!r}")
     started = time.perf_counter()
     if problem is None:
         problem = ExcitationDesign(robot, model, bounds, criterion, effects, settings or DesignSettings())
+    check_room_to_move(problem)
     generator = np.random.default_rng(seed)
     initial = [problem.random_start(generator) for _ in range(starts)]
     results: list[StartResult] = []

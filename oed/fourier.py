@@ -55,9 +55,8 @@ class FourierTrajectory:
     def __post_init__(self) -> None:
         if not (np.isfinite(self.frequency_hz) and self.frequency_hz > 0):
             raise ValueError(f"frequency_hz must be positive, got {self.frequency_hz}")
-        q0 = np.asarray(self.q0, dtype=float).reshape(-1)
-        a = np.atleast_2d(np.asarray(self.a, dtype=float))
-        b = np.atleast_2d(np.asarray(self.b, dtype=float))
+        q0, a, b = (_numbers(values, name) for name, values in (("q0", self.q0), ("a", self.a), ("b", self.b)))
+        q0, a, b = q0.reshape(-1), np.atleast_2d(a), np.atleast_2d(b)
         if a.shape != b.shape or a.shape[0] != q0.shape[0]:
             raise ValueError(f"q0 {q0.shape}, a {a.shape} and b {b.shape} must describe the same joints and harmonics")
         for name, values in (("q0", q0), ("a", a), ("b", b)):
@@ -129,12 +128,18 @@ class FourierTrajectory:
 
     @classmethod
     def from_dict(cls, document: Mapping[str, Any]) -> FourierTrajectory:
+        if not isinstance(document, Mapping):
+            raise ValueError(f"a trajectory document is a JSON object with frequency_hz, q0, a, b; got {type(document).__name__}")
         missing = [key for key in ("frequency_hz", "q0", "a", "b") if key not in document]
         if missing:
             raise ValueError(f"trajectory document lacks {', '.join(missing)}")
         metadata = {key: value for key, value in document.items() if key not in ("frequency_hz", "harmonics", "q0", "a", "b", "joint_names")}
+        try:
+            frequency = float(document["frequency_hz"])
+        except (TypeError, ValueError):
+            raise ValueError(f"trajectory frequency_hz must be a number, got {document['frequency_hz']!r}") from None
         trajectory = cls(
-            float(document["frequency_hz"]), document["q0"], document["a"], document["b"],
+            frequency, document["q0"], document["a"], document["b"],
             tuple(document.get("joint_names", ())), metadata,
         )
         if "harmonics" in document and int(document["harmonics"]) != trajectory.harmonics:
@@ -154,6 +159,13 @@ class FourierTrajectory:
         except json.JSONDecodeError as error:
             raise ValueError(f"trajectory file {path} is not valid JSON: {error}") from None
         return cls.from_dict(document)
+
+
+def _numbers(values: ArrayLike, name: str) -> NDArray[np.float64]:
+    try:
+        return np.asarray(values, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"Fourier coefficients {name} must be numbers in a regular (joints x harmonics) array") from None
 
 
 def unpack(vector: casadi.SX | casadi.MX, n_joints: int, harmonics: int) -> tuple:

@@ -72,6 +72,9 @@ def test_hold_min_tied_to_time_constant():
         (dict(ranges=((1.0, 0.5),)), "joint 1: range"),
         (dict(n_levels=2), "n_levels"),
         (dict(hold_min=0.2, hold_max=0.1), "hold_max"),
+        (dict(duration=float("inf")), "duration must be a finite time"),
+        (dict(hold_max=float("nan")), "hold_max must be a finite time"),
+        (dict(hold_min=float("inf")), "hold_min must be a finite time"),
     ],
 )
 def test_bad_designs_raise_named_errors(kwargs, message):
@@ -86,3 +89,12 @@ def test_figure_of_signal_histogram_and_spectrum_is_written(tmp_path):
     path = tmp_path / "aprbs.png"
     plot_aprbs(result, path)
     assert path.stat().st_size > 10_000
+
+
+def test_cli_infinite_duration_is_a_clear_error_not_a_traceback(tmp_path, capsys):
+    from oed.cli import main
+
+    assert main(["aprbs", "--duration", "inf", "--out", str(tmp_path / "u.csv")]) == 2
+    error = capsys.readouterr().err
+    assert "duration must be a finite time" in error and "Traceback" not in error
+    assert list(tmp_path.iterdir()) == []

@@ -40,3 +40,17 @@ def test_unknown_robot_is_a_message_and_exit_code_2(capsys):
 def test_unknown_friction_is_a_message(capsys):
     assert main(["model", "--friction", "viscous,magic"]) == 2
     assert "unknown effect 'magic'" in capsys.readouterr().err
+
+
+def test_an_unexpected_exception_is_one_line_with_exit_code_1(monkeypatch, capsys):
+    import oed.cli.model
+
+    def broken(args):
+        raise ZeroDivisionError("division by zero")
+
+    monkeypatch.setattr(oed.cli.model, "run", broken)
+    monkeypatch.delenv("OED_TRACEBACK", raising=False)
+    assert main(["model", "--joints", "3"]) == 1
+    error = capsys.readouterr().err
+    assert error.startswith("oed model: internal error: ZeroDivisionError: division by zero")
+    assert "Traceback" not in error

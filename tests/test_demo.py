@@ -15,3 +15,28 @@ def test_demo_loop_finds_coulomb_friction_and_cuts_the_validation_error(tmp_path
     assert all(after[channel] < 0.2 * before[channel] for channel in before)
     assert json.loads((tmp_path / "report.json").read_text())["effects"]
     assert (tmp_path / "report.md").exists() and (tmp_path / "validation.png").exists()
+
+
+def test_demo_into_a_file_path_is_a_clear_error(tmp_path, capsys):
+    from oed.cli import main
+
+    target = tmp_path / "out"
+    target.write_text("a file")
+    assert main(["demo", "--out", str(target)]) == 2
+    assert "is a file: the demo writes its report and figures into a folder" in capsys.readouterr().err
+
+
+def test_a_failing_demo_leaves_none_of_its_files(tmp_path, monkeypatch):
+    """The trajectories of step 1 used to stay behind when a later step failed."""
+    import pytest
+
+    from dynamics.simulator import Simulator
+    from oed.demo import run_demo
+
+    def broken(*args, **kwargs):
+        raise RuntimeError("simulation failed")
+
+    monkeypatch.setattr(Simulator, "run", broken)
+    with pytest.raises(RuntimeError, match="simulation failed"):
+        run_demo(tmp_path / "demo", say=lambda _: None)
+    assert list((tmp_path / "demo").iterdir()) == []

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 
 import numpy as np
 import pytest
@@ -76,3 +77,49 @@ def test_design_error_is_a_runtime_error():
     robot = load_robot("puma560", joints=3)
     with pytest.raises(DesignError, match="start 0"):
         design_excitation(robot, model="internal", starts=1, settings=DesignSettings(max_iter=1))
+
+
+@pytest.mark.parametrize(
+    "bounds,message",
+    [
+        ({"q_max": [1, 1e-9, 1], "dq_max": [1, 1, 1], "ddq_max": [1, 1, 1]}, r"joint 'joint2': position range \[-1e-09, 1e-09\] is too narrow"),
+        ({"q_max": [1, 1, 1], "dq_max": [1, 1, 1e-9], "ddq_max": [1, 1, 1]}, "joint 'joint3': velocity bound dq_max = 1e-09 is too narrow"),
+    ],
+)
+def test_bounds_too_narrow_for_the_optimiser_name_joint_and_bound(tmp_path, capsys, bounds, message):
+    """Such bounds used to reach IPOPT and end in CasADi's 'Ill-posed problem detected: LBG[k] <= UBG[k]'."""
+    path, out = tmp_path / "bounds.json", tmp_path / "traj.json"
+    path.write_text(json.dumps(bounds))
+    code = main(["design", "--joints", "3", "--model", "internal", "--bounds", str(path), "--out", str(out), "--quiet"])
+    assert code == 2
+    error = capsys.readouterr().err
+    assert re.search(message, error) and "LBG" not in error
+    assert not out.exists()
+
+
+def test_urdf_robot_without_bounds_is_told_the_cli_options(tmp_path, capsys, prismatic_urdf):
+    out = tmp_path / "traj.json"
+    assert main(["design", "--urdf", str(prismatic_urdf), "--model", "internal", "--out", str(out), "--quiet"]) == 2
+    error = capsys.readouterr().err
+    assert "--bounds FILE" in error and "--ddq-max" in error
+    assert not out.exists()
+
+
+def test_negative_workers_are_named(tmp_path, capsys):
+    """--workers -1 used to run the starts in turn silently."""
+    out = tmp_path / "traj.json"
+    assert main(["design", "--joints", "3", "--model", "internal", "--workers", "-1", "--out", str(out), "--quiet"]) == 2
+    assert "--workers must be 0" in capsys.readouterr().err
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("verb", [["design", "--joints", "3"], ["simulate", "--trajectory", "t.json"], ["aprbs"],
+                                  ["servo-simulate", "--aprbs", "a.csv"]])
+def test_negative_seed_is_an_argument_error_naming_the_option(tmp_path, capsys, verb):
+    """numpy's 'expected non-negative integer' (exit 2 after the work had started) did not say which option."""
+    out = tmp_path / "out.csv"
+    with pytest.raises(SystemExit) as exit_info:
+        main([*verb, "--seed", "-1", "--out", str(out)])
+    assert exit_info.value.code == 2
+    assert "argument --seed: must be a non-negative integer, got -1" in capsys.readouterr().err
+    assert not out.exists()

@@ -12,6 +12,7 @@ from dynamics.models import build_model
 from dynamics.robots import load_robot
 from estimation.loading import (
     AngleUnitError,
+    JointCountError,
     MissingColumnError,
     NonFiniteError,
     ResampledWarning,
@@ -130,3 +131,39 @@ def test_unknown_format_and_missing_file(tmp_path):
         read_measurements(tmp_path / "data.txt")
     with pytest.raises(FileNotFoundError):
         read_measurements(tmp_path / "absent.csv")
+
+
+def test_joint_columns_beyond_the_robot_are_an_error(tmp_path, model):
+    """Data of a 4-joint robot read for the 3-joint PUMA: joint 4's motion would be silently ignored."""
+    frame = sample_data().to_frame().drop(columns=["dq1", "dq2", "dq3"])
+    frame["q4"], frame["tau4"] = 0.1, 0.0
+    with pytest.raises(JointCountError, match=r"q4, tau4 beyond the robot's 3 joint"):
+        read_measurements(write_frame(tmp_path, frame), model=model)
+    with pytest.raises(JointCountError, match="q4"):
+        read_measurements(write_frame(tmp_path, frame), n_joints=3)
+    assert read_measurements(write_frame(tmp_path, frame)).n_joints == 4  # no robot given: the file says 4
+
+
+def test_cli_identify_with_data_of_more_joints_fails_cleanly(tmp_path, capsys):
+    from oed.cli import main
+
+    frame = sample_data(400).to_frame()
+    frame["q4"], frame["tau4"] = 0.1, 0.0
+    out = tmp_path / "result.json"
+    assert main(["identify", "--joints", "3", "--model", "internal", "--data", str(write_frame(tmp_path, frame)),
+                 "--out", str(out)]) == 2
+    assert "q4, tau4 beyond the robot's 3 joint" in capsys.readouterr().err
+    assert not out.exists()
+
+
+def test_cli_prints_the_resampling_warning_on_stderr(tmp_path, capsys):
+    """stdout carries the result table; a repair of the data is a diagnostic, on stderr."""
+    from oed.cli import main
+
+    frame = sample_data(400).to_frame().drop(index=range(100, 200, 3))
+    out = tmp_path / "result.json"
+    assert main(["identify", "--joints", "3", "--model", "internal", "--data", str(write_frame(tmp_path, frame)),
+                 "--out", str(out)]) == 0
+    captured = capsys.readouterr()
+    assert "oed identify: warning:" in captured.err and "resampled" in captured.err
+    assert "warning" not in captured.out

@@ -43,7 +43,7 @@ def test_cli_errors_name_the_problem_and_leave_no_output(tmp_path, capsys):
     assert "column u4 = 5 rad at row 1 is above the upper joint-4 bound 4.5" in capsys.readouterr().err
     assert main(["servo-fit", "--data", str(tmp_path / "missing.csv"), "--out", str(out)]) == 2
     assert "not found" in capsys.readouterr().err
-    assert not out.exists() and not list(tmp_path.glob(".*.tmp"))
+    assert not out.exists() and not list(tmp_path.glob(".*"))  # nor a staged temporary file
 
 
 def test_servo_fit_checks_dt_against_the_time_column(tmp_path, capsys):
@@ -52,6 +52,9 @@ def test_servo_fit_checks_dt_against_the_time_column(tmp_path, capsys):
     np.savetxt(data, np.column_stack([t, np.sin(t), np.sin(t)]), delimiter=",", header="t,u1,q1", comments="")
     assert main(["servo-fit", "--data", str(data), "--dt", "0.01", "--out", str(tmp_path / "f.json")]) == 2
     assert "expected 0.01 s" in capsys.readouterr().err
+    assert main(["servo-fit", "--data", str(data), "--dt", "-0.02", "--out", str(tmp_path / "f.json")]) == 2
+    assert "dt must be positive and finite, got -0.02" in capsys.readouterr().err  # was: "'t' is not increasing"
+    assert not (tmp_path / "f.json").exists()
 
 
 @pytest.mark.parametrize("verb", ["aprbs", "servo-simulate", "servo-fit"])

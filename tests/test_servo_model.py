@@ -111,3 +111,35 @@ def test_zoh_mapping_recovers_a_sampled_continuous_plant(m, b, k, sigma):
     assert np.allclose([zoh.b, zoh.k, zoh.sigma], [b, k, sigma], rtol=1e-8)
     euler = discrete_to_gray_box(a1, a2, K, mass=m, dt=DT)
     assert abs(euler.k - k) / k > 0.04  # eq. 13's inverse misreads a sampled continuous plant (k too high here)
+
+
+def test_a_diverging_erls_predictor_is_named_not_a_nan_metric():
+    """With forgetting 0.5 ERLS estimates C(z) with a root outside the unit circle: the one-step predictor
+    (filtered by 1/C) blows up. It used to fail later as 'measured or predicted holds NaN/inf'."""
+    import warnings
+
+    from estimation.servo import fit_servo_joint
+
+    rng = np.random.default_rng(0)
+    u = _aprbs_like(6000, 0)
+    a1, a2, K = gray_box_to_discrete(b=2.4919, k=114.06, sigma=106.5, mass=0.239, dt=DT)
+    q = free_run((a1, a2, K), u, (0.0, 0.0), u_initial=0.0) + rng.normal(0, 0.005, u.size)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)  # no numpy overflow warnings on the way
+        with pytest.raises(ValueError, match=r"joint 2: the one-step predictor .* diverges: C\(z\) has a root of modulus"):
+            fit_servo_joint(u, q, dt=DT, mass=0.239, joint=2, forgetting=0.5)
+
+
+@pytest.mark.parametrize("forgetting", [0.95, 0.97])
+def test_erls_noise_polynomial_outside_the_unit_circle_is_an_error_not_an_infinite_rmse(forgetting):
+    """C(z) with a root just outside the unit circle: the one-step metrics used to come out as
+    rmse = inf (JSON 'Infinity', exit code 0) or 1e23 — silent garbage in fit.json."""
+    from estimation.servo import fit_servo_joint
+
+    rng = np.random.default_rng(0)
+    u = _aprbs_like(6000, 0)
+    a1, a2, K = gray_box_to_discrete(b=2.4919, k=114.06, sigma=106.5, mass=0.239, dt=DT)
+    q = free_run((a1, a2, K), u, (0.0, 0.0), u_initial=0.0) + rng.normal(0, 0.005, u.size)
+    with pytest.raises(ValueError, match=r"C\(z\) has a root of modulus 1\.\d+ \(not inside the unit circle\)"):
+        fit_servo_joint(u, q, dt=DT, mass=0.239, forgetting=forgetting)
+    assert np.isfinite(fit_servo_joint(u, q, dt=DT, mass=0.239, forgetting=0.9).rmse)

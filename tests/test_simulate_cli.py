@@ -87,6 +87,7 @@ def test_computed_torque_controller_tracks_closely(tmp_path, trajectory_file, ca
         (["--noise-wrench", "1", "2"], "one value or six"),
         (["--q-resolution", "fine"], "--q-resolution"),
         (["--periods", "0"], "periods"),
+        (["--effect-values", '{"coulomb": "strong"}', "--effects", "coulomb"], "effect 'coulomb': bad values 'strong'"),
     ],
 )
 def test_bad_input_exits_2_without_output(tmp_path, trajectory_file, capsys, arguments, message):
@@ -102,3 +103,22 @@ def test_missing_trajectory_and_bad_output_suffix(tmp_path, trajectory_file, cap
     assert _simulate(trajectory_file, tmp_path / "data.txt") == 2
     assert ".csv or .parquet" in capsys.readouterr().err
     assert not (tmp_path / "data.csv").exists() and not (tmp_path / "data.txt").exists()
+
+
+@pytest.mark.parametrize(
+    ("document", "message"),
+    [
+        ("[1, 2]", "a trajectory document is a JSON object"),
+        ("5", "a trajectory document is a JSON object"),
+        ('{"frequency_hz": 0.2, "q0": [0, 0, 0], "a": [[0, 1], [0], [0]], "b": [[0], [0], [0]]}',
+         "Fourier coefficients a must be numbers in a regular"),
+        ('{"frequency_hz": "fast", "q0": [0, 0, 0], "a": [[0], [0], [0]], "b": [[0], [0], [0]]}',
+         "frequency_hz must be a number, got 'fast'"),
+    ],
+)
+def test_malformed_trajectory_documents_are_named(tmp_path, capsys, document, message):
+    path = tmp_path / "traj.json"
+    path.write_text(document)
+    assert _simulate(path, tmp_path / "data.csv") == 2
+    assert message in capsys.readouterr().err
+    assert not (tmp_path / "data.csv").exists()

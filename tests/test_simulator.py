@@ -220,3 +220,19 @@ def test_stiff_friction_on_a_light_joint_gets_more_integration_steps():
     reference = Simulator(servo, light.effects, noise=NoiseModel.none(), substeps=4 * light.substeps_needed())
     np.testing.assert_allclose(result.q, reference.run(still, duration=0.5).q, atol=1e-7)
     assert result.metadata["integrator"].endswith(f"{light.substeps_needed()} substep(s) per sample")
+
+
+def test_simulated_effects_keeps_its_public_names_after_the_split():
+    """``dynamics.simulated_effects`` is the catalogue; the effects live in a joint and a plate module."""
+    import dynamics.simulated_effects as catalogue
+    import dynamics.simulated_joint_effects as joint
+    import dynamics.simulated_plate_effects as plate
+
+    for name in catalogue.__all__:
+        assert hasattr(catalogue, name), name
+    assert catalogue.Coulomb is joint.Coulomb and catalogue.PlateCable is plate.PlateCable
+    assert set(catalogue.SIMULATED_EFFECTS) == {
+        "viscous", "coulomb", "offset", "armature", "spring", "plate_offset", "plate_moment", "cable"}
+    assert all(cls.__module__ == joint.__name__ for cls in joint.JOINT_EFFECTS)
+    assert catalogue.is_plate_effect(plate.PlateOffset()) and not catalogue.is_plate_effect(joint.Viscous((1.0,)))
+    assert all(cls.__module__ == plate.__name__ for cls in plate.PLATE_EFFECTS)

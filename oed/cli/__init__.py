@@ -7,14 +7,17 @@ Each verb lives in its own module of this package and exposes two functions::
 
 Errors a user can cause (bad input files, impossible bounds, unknown robots) are raised as
 ``ValueError``/``TypeError``/``OSError`` subclasses by the library; :func:`main` turns them into
-a one-line message on stderr and exit code 2, never a traceback.
+a one-line message on stderr and exit code 2, never a traceback. Anything else is a bug: it
+too is one line on stderr (exit code 1; ``OED_TRACEBACK=1`` prints the traceback).
 """
 
 from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
+import traceback
 from collections.abc import Sequence
 
 from dynamics.threads import single_threaded
@@ -23,6 +26,9 @@ from dynamics.threads import single_threaded
 VERB_MODULES: tuple[str, ...] = ("model", "design", "simulate", "identify", "aprbs", "servo_simulate", "servo_fit", "diagnose", "demo")
 
 EXIT_USER_ERROR = 2
+EXIT_INTERNAL_ERROR = 1
+#: set to show the traceback of an internal error
+TRACEBACK_VARIABLE = "OED_TRACEBACK"
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -54,3 +60,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print(f"oed {args.verb}: interrupted", file=sys.stderr)
         return 130
+    except Exception as error:  # a bug rather than bad input: still one readable line, not a bare traceback
+        print(f"oed {args.verb}: internal error: {error.__class__.__name__}: {error} "
+              f"(a bug; set {TRACEBACK_VARIABLE}=1 to see the traceback)", file=sys.stderr)
+        if os.environ.get(TRACEBACK_VARIABLE):
+            traceback.print_exc()
+        return EXIT_INTERNAL_ERROR

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 
 from dynamics.robots.servo_arm import SERVO_ARM_RANGES
+from oed.cli.common import seed
 
 
 def register(subparsers) -> argparse.ArgumentParser:
@@ -16,7 +17,7 @@ def register(subparsers) -> argparse.ArgumentParser:
     parser.add_argument("--hold-max", type=float, default=None, help="maximum hold time [s] (default 5 x hold-min)")
     parser.add_argument("--levels", type=int, default=12, help="amplitude strata per joint")
     parser.add_argument("--candidates", type=int, default=64, help="random candidates; the best by the criterion is kept")
-    parser.add_argument("--seed", type=int, default=None, help="random seed")
+    parser.add_argument("--seed", type=seed, default=None, help="random seed")
     parser.add_argument("--figure", default=None, help="also save signal/histogram/spectrum figure (PNG/PDF)")
     parser.add_argument("--out", required=True, help="output CSV")
     return parser
@@ -25,6 +26,9 @@ def register(subparsers) -> argparse.ArgumentParser:
 def run(args: argparse.Namespace) -> int:
     from estimation.servo_data import write_csv
     from oed.aprbs import APRBSDesign, design_aprbs
+    from oed.cli.common import OutputFiles, check_figure_path
+
+    check_figure_path(args.figure)
 
     if not 1 <= args.joints <= len(SERVO_ARM_RANGES):
         raise ValueError(f"--joints must be between 1 and {len(SERVO_ARM_RANGES)}, got {args.joints}")
@@ -33,11 +37,12 @@ def run(args: argparse.Namespace) -> int:
         hold_max=args.hold_max, n_levels=args.levels,
     )
     result = design_aprbs(design, candidates=args.candidates, seed=args.seed)
-    write_csv(args.out, {"t": result.t, **{f"u{j + 1}": result.u[:, j] for j in range(args.joints)}})
-    if args.figure:
-        from oed.aprbs_figures import plot_aprbs
+    with OutputFiles() as outputs:  # the CSV and the figure, or neither
+        write_csv(outputs.stage(args.out), {"t": result.t, **{f"u{j + 1}": result.u[:, j] for j in range(args.joints)}})
+        if args.figure:
+            from oed.aprbs_figures import plot_aprbs
 
-        plot_aprbs(result, args.figure)
+            plot_aprbs(result, outputs.stage(args.figure))
     print(f"wrote {args.out}: {result.t.size} samples x {args.joints} joints, criterion {result.score:.4f} "
           f"(best of {len(result.candidate_scores)}, worst {min(result.candidate_scores):.4f})")
     return 0

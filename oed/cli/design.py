@@ -12,7 +12,7 @@ import numpy as np
 
 from dynamics.models import ModelKind
 from oed.bounds import JointBounds
-from oed.cli.common import add_robot_arguments, atomic_output, robot_from_arguments
+from oed.cli.common import OutputFiles, add_robot_arguments, check_figure_path, robot_from_arguments, seed
 from oed.criteria import CRITERIA
 from oed.design import DesignSettings, default_bounds, design_excitation
 
@@ -31,7 +31,7 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     parser.add_argument("--bounds", type=Path, help="JSON bounds file {q_min?, q_max, dq_max, ddq_max}")
     parser.add_argument("--ddq-max", type=float, nargs="+", help="acceleration bounds when the bounds come from the URDF")
     parser.add_argument("--starts", type=int, default=4)
-    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--seed", type=seed, default=0)
     parser.add_argument("--workers", type=int, default=0, help="run the starts in a process pool of this size")
     parser.add_argument("--frequency", type=float, default=0.2, help="fundamental frequency, Hz (default 0.2)")
     parser.add_argument("--harmonics", type=int, default=5)
@@ -53,7 +53,13 @@ def bounds_from_arguments(args: argparse.Namespace, robot) -> JointBounds:
     elif args.ddq_max is not None:
         bounds = JointBounds.from_robot(robot, ddq_max=args.ddq_max)
     else:
-        bounds = default_bounds(robot)
+        try:
+            bounds = default_bounds(robot)
+        except ValueError:
+            raise ValueError(
+                f"no default bounds for {robot.name} ({robot.n_joints} joints; eq. 19's are for the 3-joint PUMA): "
+                "give --bounds FILE (q_max, dq_max, ddq_max) or --ddq-max to use the URDF's position and velocity limits"
+            ) from None
     bounds.check_joint_count(robot.n_joints)
     return bounds
 
@@ -67,6 +73,7 @@ def trajectory_table(trajectory, rate_hz: float = 1000.0) -> tuple[list[str], np
 
 
 def run(args: argparse.Namespace) -> int:
+    check_figure_path(args.plot)
     robot = robot_from_arguments(args)
     bounds = bounds_from_arguments(args, robot)
     settings = DesignSettings(
@@ -75,6 +82,8 @@ def run(args: argparse.Namespace) -> int:
     )
     if args.starts < 1:
         raise ValueError(f"--starts must be at least 1, got {args.starts}")
+    if args.workers < 0:
+        raise ValueError(f"--workers must be 0 (run the starts in turn) or a pool size, got {args.workers}")
 
     def progress(start, total) -> None:
         if not args.quiet:
@@ -90,23 +99,20 @@ def run(args: argparse.Namespace) -> int:
     else:
         result = design_excitation(robot, **options)
     trajectory = result.trajectory
-    # everything is computed before any file is written; each file is written atomically
-    figure = None
-    if args.plot is not None:
-        from oed.design_plot import plot_trajectory
+    # the files are staged and renamed into place together: a failure leaves none of them
+    with OutputFiles() as outputs:
+        with outputs.open(args.out) as stream:
+            json.dump(trajectory.to_dict(), stream, indent=2)
+        if args.csv is not None:
+            header, table = trajectory_table(trajectory, settings.rate_hz)
+            with outputs.open(args.csv) as stream:
+                np.savetxt(stream, table, delimiter=",", header=",".join(header), comments="", fmt="%.10g")
+        if args.plot is not None:
+            from oed.design_plot import plot_trajectory, save_figure
 
-        figure = plot_trajectory(trajectory, bounds, rate_hz=settings.rate_hz,
-                                 title=f"{robot.name}, {args.model} model, cost {result.cost:.2f}")
-    with atomic_output(args.out) as stream:
-        json.dump(trajectory.to_dict(), stream, indent=2)
-    if args.csv is not None:
-        header, table = trajectory_table(trajectory, settings.rate_hz)
-        with atomic_output(args.csv) as stream:
-            np.savetxt(stream, table, delimiter=",", header=",".join(header), comments="", fmt="%.10g")
-    if figure is not None:
-        from oed.design_plot import save_figure
-
-        save_figure(figure, args.plot)
+            figure = plot_trajectory(trajectory, bounds, rate_hz=settings.rate_hz,
+                                     title=f"{robot.name}, {args.model} model, cost {result.cost:.2f}")
+            save_figure(figure, outputs.stage(args.plot))
     if not args.quiet:
         print(f"{robot.name}, {args.model} model, {args.criterion}: best start {result.best + 1}/{len(result.starts)}, "
               f"cost -log det(Y'Y) = {result.cost:.4f}, cond = {result.cond:.2f}, "

@@ -4,13 +4,14 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 import warnings
 from pathlib import Path
 
 from dynamics.models import ModelKind, build_model
 from estimation.diagnosis import diagnose
 from estimation.diagnosis_report import markdown_report, plot_residuals
-from oed.cli.common import add_robot_arguments, atomic_output, robot_from_arguments
+from oed.cli.common import OutputFiles, add_robot_arguments, robot_from_arguments
 from oed.cli.identify import add_derivative_arguments, prepare
 
 
@@ -42,15 +43,16 @@ def run(args: argparse.Namespace) -> int:
         train = prepare(args.data, model, args)
         validate = prepare(args.validate, model, args)
     for warning in caught:
-        print(f"oed diagnose: warning: {warning.message}")
+        print(f"oed diagnose: warning: {warning.message}", file=sys.stderr)
     diagnosis = diagnose(model, train, validate, alpha=args.alpha)
-    with atomic_output(args.out) as stream:
-        json.dump(diagnosis.to_dict(), stream, indent=2)
-    if args.report is not None:
-        figure = args.report.with_suffix(".residuals.png")
-        plot_residuals(diagnosis, train, figure)
-        with atomic_output(args.report) as stream:
-            stream.write(markdown_report(diagnosis, figure.name))
+    with OutputFiles() as outputs:  # all files or none
+        with outputs.open(args.out) as stream:
+            json.dump(diagnosis.to_dict(), stream, indent=2)
+        if args.report is not None:
+            figure = args.report.with_suffix(".residuals.png")
+            plot_residuals(diagnosis, train, outputs.stage(figure))
+            with outputs.open(args.report) as stream:
+                stream.write(markdown_report(diagnosis, figure.name))
     print_summary(diagnosis)
     print(f"wrote {args.out}" + (f" and {args.report}" if args.report else ""))
     return 0

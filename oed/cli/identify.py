@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 import warnings
 from pathlib import Path
 
@@ -13,7 +14,7 @@ from estimation.loading import read_measurements
 from estimation.measurements import Measurements
 from estimation.preprocessing import ButterworthDifferentiation, Differentiation, FourierDifferentiation, fill_derivatives
 from estimation.validation import plot_comparison
-from oed.cli.common import add_robot_arguments, atomic_output, robot_from_arguments
+from oed.cli.common import OutputFiles, add_robot_arguments, check_figure_path, robot_from_arguments
 
 
 def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -63,6 +64,7 @@ def prepare(path: Path, model, args: argparse.Namespace) -> Measurements:
 
 
 def run(args: argparse.Namespace) -> int:
+    check_figure_path(args.plot)
     robot = robot_from_arguments(args)
     model = build_model(robot, args.model, args.friction)
     with warnings.catch_warnings(record=True) as caught:
@@ -70,13 +72,15 @@ def run(args: argparse.Namespace) -> int:
         train = prepare(args.data, model, args)
         validation = None if args.validate is None else prepare(args.validate, model, args)
     for warning in caught:
-        print(f"oed identify: warning: {warning.message}")
+        print(f"oed identify: warning: {warning.message}", file=sys.stderr)
     result = identify(model, train, validation, weighted=args.method == "wls")
-    with atomic_output(args.out) as stream:
-        json.dump(result.to_dict(), stream, indent=2)
-    if args.plot is not None:
-        comparisons = [result.train] + ([result.validation] if result.validation is not None else [])
-        plot_comparison(comparisons, args.plot, title=f"{robot.name}: {model.kind.value} model ({args.method})")
+    with OutputFiles() as outputs:  # all files or none
+        with outputs.open(args.out) as stream:
+            json.dump(result.to_dict(), stream, indent=2)
+        if args.plot is not None:
+            comparisons = [result.train] + ([result.validation] if result.validation is not None else [])
+            plot_comparison(comparisons, outputs.stage(args.plot),
+                            title=f"{robot.name}: {model.kind.value} model ({args.method})")
 
     estimate = result.estimate
     print(f"{robot.name}: {model.kind.value} model, {model.n_base} base parameters, {train.n_samples} samples, "

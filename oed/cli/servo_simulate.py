@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import argparse
 
+from oed.cli.common import seed
+
 
 def register(subparsers) -> argparse.ArgumentParser:
     parser = subparsers.add_parser("servo-simulate", help="simulate the servo arm (Kalman-fused angles) from an APRBS CSV")
@@ -12,7 +14,7 @@ def register(subparsers) -> argparse.ArgumentParser:
     parser.add_argument("--raw", action="store_true", help="also write gyro1..4, acc_angle1..4 and q_true1..4")
     parser.add_argument("--no-gravity", action="store_true", help="leave out the gravity load of the links")
     parser.add_argument("--max-speed", type=float, default=5.2, help="rated servo speed [rad/s] (drive saturation); large = linear plant")
-    parser.add_argument("--seed", type=int, default=None, help="seed of the sensor noise")
+    parser.add_argument("--seed", type=seed, default=None, help="seed of the sensor noise")
     return parser
 
 

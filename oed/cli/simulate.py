@@ -18,7 +18,7 @@ from dynamics.controllers import ComputedTorqueController, computed_torque_gains
 from dynamics.models import build_model
 from dynamics.simulated_effects import SIMULATED_EFFECTS, Viscous, effects_from_names
 from dynamics.simulator import NoiseModel, Simulator
-from oed.cli.common import add_robot_arguments, atomic_output, robot_from_arguments
+from oed.cli.common import OutputFiles, add_robot_arguments, robot_from_arguments, seed
 from oed.fourier import FourierTrajectory
 
 CONTROLLERS = ("pd", "computed-torque")
@@ -59,7 +59,7 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     parser.add_argument("--periods", type=int, default=1, help="periods recorded (default: 1)")
     parser.add_argument("--warmup-periods", type=int, default=0, help="periods simulated first and dropped (default: 0)")
     parser.add_argument("--rate", type=float, default=1000.0, help="sampling and control rate, Hz (default: 1000)")
-    parser.add_argument("--seed", type=int, default=None, help="seed of the sensor noise")
+    parser.add_argument("--seed", type=seed, default=None, help="seed of the sensor noise")
     parser.add_argument("--with-derivatives", action="store_true", help="also write the true dq, ddq columns")
     parser.add_argument("--truth", type=Path, default=None, help="write the true parameters and settings as JSON")
     parser.add_argument("--out", type=Path, required=True, help="output data file (.csv or .parquet)")
@@ -124,10 +124,11 @@ def run(args: argparse.Namespace) -> int:
         with_derivatives=args.with_derivatives, seed=args.seed,
     )
     metadata = dict(result.metadata, trajectory=str(args.trajectory), data=str(args.out))
-    result.measurements.write(args.out)
-    if args.truth is not None:
-        with atomic_output(args.truth) as stream:
-            json.dump(metadata, stream, indent=2)
+    with OutputFiles() as outputs:  # the data and the truth file, or neither
+        result.measurements.write(outputs.stage(args.out))
+        if args.truth is not None:
+            with outputs.open(args.truth) as stream:
+                json.dump(metadata, stream, indent=2)
     error = np.abs(result.tracking_error).max(axis=0)
     print(
         f"{robot.name}: {result.t.shape[0]} samples over {result.t[-1] + 1 / args.rate:.3f} s at {args.rate:g} Hz "

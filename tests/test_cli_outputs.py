@@ -1,0 +1,135 @@
+"""Output files of the verbs: all or none on failure, readable permissions, clear messages."""
+
+from __future__ import annotations
+
+import os
+import stat
+
+import numpy as np
+import pytest
+
+from dynamics.models import build_model
+from dynamics.robots import load_robot
+from oed.cli import main
+from oed.cli.common import OutputFiles, atomic_output
+from oed.fourier import FourierTrajectory
+from tests.synthetic import random_fourier, simulate, true_parameters
+
+
+@pytest.fixture
+def blocker(tmp_path):
+    """A plain file: any output path under it cannot be created."""
+    path = tmp_path / "a_file"
+    path.write_text("not a folder")
+    return path
+
+
+def _listing(folder):
+    return sorted(path.name for path in folder.iterdir())
+
+
+@pytest.fixture(scope="module")
+def internal_data(tmp_path_factory):
+    robot = load_robot("puma560", joints=3)
+    model = build_model(robot, "internal", "viscous")
+    theta = true_parameters(model, seed=2)
+    folder = tmp_path_factory.mktemp("outputs")
+    noise = {"tau1": 0.5, "tau2": 0.5, "tau3": 0.2}
+    simulate(model, theta, random_fourier(robot, 3), noise=noise, seed=11).write(folder / "train.csv")
+    simulate(model, theta, random_fourier(robot, 4), noise=noise, seed=12).write(folder / "val.csv")
+    return folder
+
+
+def test_output_files_get_the_umask_permissions_not_0600(tmp_path):
+    old = os.umask(0o022)
+    try:
+        with atomic_output(tmp_path / "a.json") as stream:
+            stream.write("{}")
+    finally:
+        os.umask(old)
+    assert stat.S_IMODE((tmp_path / "a.json").stat().st_mode) == 0o644
+
+
+def test_output_files_all_or_none(tmp_path, blocker):
+    with pytest.raises(OSError, match="a_file"):
+        with OutputFiles() as outputs:
+            with outputs.open(tmp_path / "first.json") as stream:
+                stream.write("{}")
+            outputs.stage(blocker / "second.csv")
+    assert _listing(tmp_path) == ["a_file"]
+
+
+def test_output_into_a_folder_path_is_named(tmp_path):
+    with pytest.raises(IsADirectoryError, match="is a folder"):
+        with atomic_output(tmp_path) as stream:
+            stream.write("x")
+
+
+def test_design_with_an_unwritable_csv_leaves_no_json(tmp_path, blocker, capsys):
+    out = tmp_path / "traj.json"
+    code = main(["design", "--joints", "3", "--model", "internal", "--starts", "1", "--quiet",
+                 "--out", str(out), "--csv", str(blocker / "traj.csv")])
+    assert code == 2
+    assert "a_file" in capsys.readouterr().err
+    assert _listing(tmp_path) == ["a_file"]
+
+
+def test_design_rejects_an_unknown_figure_format_before_solving(tmp_path, capsys):
+    code = main(["design", "--joints", "3", "--model", "internal", "--quiet",
+                 "--out", str(tmp_path / "traj.json"), "--plot", str(tmp_path / "traj.xyz")])
+    assert code == 2
+    assert "unknown format 'xyz'" in capsys.readouterr().err
+    assert _listing(tmp_path) == []
+
+
+def test_identify_with_an_unwritable_figure_leaves_no_json(internal_data, tmp_path, blocker, capsys):
+    out = tmp_path / "result.json"
+    code = main(["identify", "--joints", "3", "--model", "internal", "--data", str(internal_data / "train.csv"),
+                 "--out", str(out), "--plot", str(blocker / "fig.png")])
+    assert code == 2
+    assert "a_file" in capsys.readouterr().err
+    assert _listing(tmp_path) == ["a_file"]
+
+
+def test_diagnose_with_an_unwritable_report_leaves_no_json(internal_data, tmp_path, blocker, capsys):
+    code = main(["diagnose", "--joints", "3", "--model", "internal", "--data", str(internal_data / "train.csv"),
+                 "--validate", str(internal_data / "val.csv"), "--out", str(tmp_path / "report.json"),
+                 "--report", str(blocker / "report.md")])
+    assert code == 2
+    assert "a_file" in capsys.readouterr().err
+    assert _listing(tmp_path) == ["a_file"]
+
+
+def test_simulate_with_an_unwritable_truth_file_leaves_no_data(tmp_path, blocker, capsys):
+    trajectory = tmp_path / "traj.json"
+    FourierTrajectory(1.0, np.zeros(3), np.full((3, 2), 0.05), np.zeros((3, 2))).save(trajectory)
+    code = main(["simulate", "--joints", "3", "--trajectory", str(trajectory), "--out", str(tmp_path / "data.csv"),
+                 "--truth", str(blocker / "truth.json")])
+    assert code == 2
+    assert "a_file" in capsys.readouterr().err
+    assert _listing(tmp_path) == ["a_file", "traj.json"]
+
+
+def test_aprbs_with_an_unwritable_figure_leaves_no_csv(tmp_path, blocker, capsys):
+    code = main(["aprbs", "--joints", "2", "--duration", "4", "--candidates", "2", "--out", str(tmp_path / "u.csv"),
+                 "--figure", str(blocker / "u.png")])
+    assert code == 2
+    assert "a_file" in capsys.readouterr().err
+    assert _listing(tmp_path) == ["a_file"]
+
+
+@pytest.mark.parametrize(
+    "arguments,message",
+    [
+        (["model", "--urdf", "{folder}"], "URDF file {folder} is a folder"),
+        (["identify", "--joints", "3", "--data", "{folder}.csv", "--out", "{folder}/r.json"], "data file {folder}.csv is a folder"),
+        (["servo-fit", "--data", "{folder}", "--out", "{folder}/f.json"], "input file '{folder}' is a folder"),
+    ],
+)
+def test_an_input_path_that_is_a_folder_is_called_one(tmp_path, capsys, arguments, message):
+    """It was reported as 'not found'."""
+    folder = tmp_path / "inputs"
+    folder.mkdir()
+    (tmp_path / "inputs.csv").mkdir()
+    assert main([argument.format(folder=folder) for argument in arguments]) == 2
+    assert message.format(folder=folder) in capsys.readouterr().err
