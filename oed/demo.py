@@ -13,7 +13,6 @@
 
 from __future__ import annotations
 
-import json
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -28,6 +27,7 @@ from estimation.diagnosis_report import markdown_report, plot_residuals
 from estimation.preprocessing import FourierDifferentiation, fill_derivatives
 from estimation.validation import plot_comparison
 from oed.design import design_excitation
+from oed.cli.common import json_text
 from oed.design_plot import plot_trajectory
 
 UNDECLARED_EFFECTS = "viscous,coulomb,offset"
@@ -59,7 +59,7 @@ def _loop(robot, out: Path, outputs, say: Callable[[str], None]) -> dict:
     for label, seed in (("train", 0), ("validate", 7)):
         design = design_excitation(robot, model="internal", starts=2, seed=seed)
         with outputs.open(out / f"trajectory_{label}.json") as stream:
-            json.dump(design.trajectory.to_dict(), stream, indent=2)
+            stream.write(json_text(design.trajectory.to_dict()))
         designs[label] = design
         say(f"   {label}: -log det(Yb'Yb) = {design.cost:.2f}, cond = {design.cond:.3g}")
     figure = plot_trajectory(designs["train"].trajectory, title="optimal excitation (identification)")
@@ -85,7 +85,7 @@ def _loop(robot, out: Path, outputs, say: Callable[[str], None]) -> dict:
     document = diagnosis.to_dict()
     document["truth"] = {name: value for name, value in truth.items() if name[:2] in ("fc", "of", "fv")}
     with outputs.open(out / "report.json") as stream:
-        json.dump(document, stream, indent=2)
+        stream.write(json_text(document))
     plot_residuals(diagnosis, data["train"], outputs.stage(out / "report.residuals.png"))
     with outputs.open(out / "report.md") as stream:
         stream.write(markdown_report(diagnosis, "report.residuals.png"))

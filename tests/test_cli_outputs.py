@@ -133,3 +133,13 @@ def test_an_input_path_that_is_a_folder_is_called_one(tmp_path, capsys, argument
     (tmp_path / "inputs.csv").mkdir()
     assert main([argument.format(folder=folder) for argument in arguments]) == 2
     assert message.format(folder=folder) in capsys.readouterr().err
+
+
+def test_json_documents_are_strict_json_with_null_for_non_finite_numbers():
+    import json
+
+    from oed.cli.common import json_text
+
+    text = json_text({"a": float("nan"), "b": [1.0, float("inf"), {"c": -float("inf")}], "d": (2, "x")})
+    assert "NaN" not in text and "Infinity" not in text
+    assert json.loads(text) == {"a": None, "b": [1.0, None, {"c": None}], "d": [2, "x"]}

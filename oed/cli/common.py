@@ -4,9 +4,12 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import json
+import math
 import os
 import tempfile
 from collections.abc import Iterator
+from typing import Any
 from pathlib import Path
 
 from dynamics.robot import RobotModel
@@ -137,3 +140,19 @@ def atomic_output(path: str | Path, mode: str = "w") -> Iterator:
     """Write ``path`` through a temporary file renamed on success: no half-written output on error."""
     with OutputFiles() as outputs, outputs.open(path, mode) as stream:
         yield stream
+
+
+def _finite_or_null(value: Any) -> Any:
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    if isinstance(value, dict):
+        return {key: _finite_or_null(item) for key, item in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_finite_or_null(item) for item in value]
+    return value
+
+
+def json_text(document: Any) -> str:
+    """``document`` as strict JSON (RFC 8259): a NaN or infinite number becomes ``null``, since
+    ``NaN``/``Infinity``, Python's default, break other tools' parsers (jq, JavaScript, pandas)."""
+    return json.dumps(_finite_or_null(document), indent=2, allow_nan=False) + "\n"

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
@@ -12,7 +11,14 @@ import numpy as np
 
 from dynamics.models import ModelKind
 from oed.bounds import JointBounds
-from oed.cli.common import OutputFiles, add_robot_arguments, check_figure_path, robot_from_arguments, seed
+from oed.cli.common import (
+    OutputFiles,
+    add_robot_arguments,
+    check_figure_path,
+    json_text,
+    robot_from_arguments,
+    seed,
+)
 from oed.criteria import CRITERIA
 from oed.design import DesignSettings, default_bounds, design_excitation
 
@@ -102,7 +108,7 @@ def run(args: argparse.Namespace) -> int:
     # the files are staged and renamed into place together: a failure leaves none of them
     with OutputFiles() as outputs:
         with outputs.open(args.out) as stream:
-            json.dump(trajectory.to_dict(), stream, indent=2)
+            stream.write(json_text(trajectory.to_dict()))
         if args.csv is not None:
             header, table = trajectory_table(trajectory, settings.rate_hz)
             with outputs.open(args.csv) as stream:

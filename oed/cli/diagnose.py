@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import warnings
 from pathlib import Path
@@ -11,7 +10,7 @@ from pathlib import Path
 from dynamics.models import ModelKind, build_model
 from estimation.diagnosis import diagnose
 from estimation.diagnosis_report import markdown_report, plot_residuals
-from oed.cli.common import OutputFiles, add_robot_arguments, robot_from_arguments
+from oed.cli.common import OutputFiles, add_robot_arguments, json_text, robot_from_arguments
 from oed.cli.identify import add_derivative_arguments, prepare
 
 
@@ -47,7 +46,7 @@ def run(args: argparse.Namespace) -> int:
     diagnosis = diagnose(model, train, validate, alpha=args.alpha)
     with OutputFiles() as outputs:  # all files or none
         with outputs.open(args.out) as stream:
-            json.dump(diagnosis.to_dict(), stream, indent=2)
+            stream.write(json_text(diagnosis.to_dict()))
         if args.report is not None:
             figure = args.report.with_suffix(".residuals.png")
             plot_residuals(diagnosis, train, outputs.stage(figure))

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import warnings
 from pathlib import Path
@@ -14,7 +13,7 @@ from estimation.loading import read_measurements
 from estimation.measurements import Measurements
 from estimation.preprocessing import ButterworthDifferentiation, Differentiation, FourierDifferentiation, fill_derivatives
 from estimation.validation import plot_comparison
-from oed.cli.common import OutputFiles, add_robot_arguments, check_figure_path, robot_from_arguments
+from oed.cli.common import OutputFiles, add_robot_arguments, check_figure_path, json_text, robot_from_arguments
 
 
 def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -76,7 +75,7 @@ def run(args: argparse.Namespace) -> int:
     result = identify(model, train, validation, weighted=args.method == "wls")
     with OutputFiles() as outputs:  # all files or none
         with outputs.open(args.out) as stream:
-            json.dump(result.to_dict(), stream, indent=2)
+            stream.write(json_text(result.to_dict()))
         if args.plot is not None:
             comparisons = [result.train] + ([result.validation] if result.validation is not None else [])
             plot_comparison(comparisons, outputs.stage(args.plot),

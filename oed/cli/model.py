@@ -3,10 +3,9 @@
 from __future__ import annotations
 
 import argparse
-import json
 
 from dynamics.models import ModelKind, build_model
-from oed.cli.common import add_robot_arguments, robot_from_arguments
+from oed.cli.common import add_robot_arguments, json_text, robot_from_arguments
 
 
 def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -48,7 +47,7 @@ def run(args: argparse.Namespace) -> int:
     robot = robot_from_arguments(args)
     document = summary(robot, args.friction)
     if args.json:
-        print(json.dumps(document, indent=2))
+        print(json_text(document), end="")
         return 0
     print(f"{robot.name}: {robot.n_joints} joints ({', '.join(robot.joint_names)}), effects: {args.friction}")
     for kind, entry in document.items():

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import json
 
 
 def register(subparsers) -> argparse.ArgumentParser:
@@ -40,6 +39,7 @@ def _masses(text: str | None, n_joints: int) -> tuple[float, ...] | None:
 def run(args: argparse.Namespace) -> int:
     from estimation.servo import fit_servo_arm
     from estimation.servo_data import read_csv, write_text_atomic
+    from oed.cli.common import json_text
 
     table = read_csv(args.data, required=("t", "u1", "q1"), dt=args.dt)
     u, q = table.stack("u"), table.stack("q")
@@ -49,6 +49,6 @@ def run(args: argparse.Namespace) -> int:
         table.t, u, q, masses=_masses(args.mass, u.shape[1]), method=args.method, estimation_fraction=args.estimation_fraction,
         nc=args.nc, forgetting=args.forgetting, dt=table.dt, discretisation=args.discretisation,
     )
-    write_text_atomic(args.out, json.dumps(fit.to_dict(), indent=2) + "\n")
+    write_text_atomic(args.out, json_text(fit.to_dict()))
     print(fit.table())
     return 0

@@ -18,7 +18,7 @@ from dynamics.controllers import ComputedTorqueController, computed_torque_gains
 from dynamics.models import build_model
 from dynamics.simulated_effects import SIMULATED_EFFECTS, Viscous, effects_from_names
 from dynamics.simulator import NoiseModel, Simulator
-from oed.cli.common import OutputFiles, add_robot_arguments, robot_from_arguments, seed
+from oed.cli.common import OutputFiles, add_robot_arguments, json_text, robot_from_arguments, seed
 from oed.fourier import FourierTrajectory
 
 CONTROLLERS = ("pd", "computed-torque")
@@ -128,7 +128,7 @@ def run(args: argparse.Namespace) -> int:
         result.measurements.write(outputs.stage(args.out))
         if args.truth is not None:
             with outputs.open(args.truth) as stream:
-                json.dump(metadata, stream, indent=2)
+                stream.write(json_text(metadata))
     error = np.abs(result.tracking_error).max(axis=0)
     print(
         f"{robot.name}: {result.t.shape[0]} samples over {result.t[-1] + 1 / args.rate:.3f} s at {args.rate:g} Hz "
