@@ -62,3 +62,14 @@ def test_verbs_are_registered(verb, capsys):
     with pytest.raises(SystemExit):
         main([verb, "--help"])
     assert "usage: oed" in capsys.readouterr().out
+
+
+def test_servo_fit_rejects_angles_in_degrees(tmp_path, capsys):
+    t = np.arange(200) * 0.01
+    u = np.sign(np.sin(t * 3))
+    q = np.rad2deg(0.5 * np.sin(t * 3))  # ±28.6: degrees, not radians
+    data = tmp_path / "degrees.csv"
+    np.savetxt(data, np.column_stack([t, u, q]), delimiter=",", header="t,u1,q1", comments="")
+    out = tmp_path / "fit.json"
+    assert main(["servo-fit", "--data", str(data), "--mass", "0.3", "--out", str(out)]) == 2
+    assert "q1 reaches 28.6" in capsys.readouterr().err and not out.exists()

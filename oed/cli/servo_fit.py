@@ -37,6 +37,9 @@ def _masses(text: str | None, n_joints: int) -> tuple[float, ...] | None:
 
 
 def run(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from estimation.loading import DEGREES_THRESHOLD, AngleUnitError
     from estimation.servo import fit_servo_arm
     from estimation.servo_data import read_csv, write_text_atomic
     from oed.cli.common import json_text
@@ -45,6 +48,11 @@ def run(args: argparse.Namespace) -> int:
     u, q = table.stack("u"), table.stack("q")
     if u.shape != q.shape:
         raise ValueError(f"{args.data}: {u.shape[1]} input columns u* but {q.shape[1]} angle columns q*")
+    peak = np.abs(q).max(axis=0)
+    if np.any(peak > DEGREES_THRESHOLD):
+        joint = int(np.argmax(peak > DEGREES_THRESHOLD))
+        raise AngleUnitError(f"{args.data}: column q{joint + 1} reaches {peak[joint]:.4g}, beyond ±2π rad: the angles "
+                             "look like degrees (the format is SI: convert with numpy.deg2rad)")
     fit = fit_servo_arm(
         table.t, u, q, masses=_masses(args.mass, u.shape[1]), method=args.method, estimation_fraction=args.estimation_fraction,
         nc=args.nc, forgetting=args.forgetting, dt=table.dt, discretisation=args.discretisation,
