@@ -79,6 +79,7 @@ def run(joints: int, n_samples: int) -> None:
     buffer.set_res(0, memoryview(output))
     loop, pointers = compiled.sample_loop, (ctypes.c_void_p * 3)(q.ctypes.data, dq.ctypes.data, ddq.ctypes.data)
 
+    reused = np.empty_like(model.evaluate(q, dq, ddq))
     reference = best_time(pinocchio_loop)
     timings = {
         "casadi VM, DM conversion": best_time(vm_with_conversion),
@@ -88,6 +89,7 @@ def run(joints: int, n_samples: int) -> None:
         "compiled C sample loop, SampleEvaluator": best_time(lambda: compiled(q, dq, ddq)),
         "compiled C sample loop, 2 threads": best_time(lambda: threaded(q, dq, ddq)),
         "model.evaluate (what users call)": best_time(lambda: model.evaluate(q, dq, ddq)),
+        "model.evaluate(..., out=reused array)": best_time(lambda: model.evaluate(q, dq, ddq, out=reused)),
     }
     # Pinocchio's regressor takes the parameters in the joint frames, ours in the link (DH)
     # frames: the columns differ, the torques they predict must not.

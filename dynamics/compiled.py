@@ -251,7 +251,9 @@ class SampleEvaluator:
             self._loop = None if library is None else _sample_loop_entry(library, self.function.name())
         return self._loop  # type: ignore[return-value]
 
-    def __call__(self, *inputs: NDArray[np.float64]) -> NDArray[np.float64]:
+    def __call__(self, *inputs: NDArray[np.float64], out: NDArray[np.float64] | None = None) -> NDArray[np.float64]:
+        """The output ``(N, out.numel())`` at the ``N`` samples; ``out``: write into this array instead
+        (float64, C-contiguous, ``N·numel`` elements in any shape) and return it reshaped."""
         if len(inputs) != len(self._widths):
             raise ValueError(f"{self.function.name()} takes {len(self._widths)} inputs, got {len(inputs)}")
         n_samples = inputs[0].shape[0]
@@ -263,10 +265,15 @@ class SampleEvaluator:
                     f"input {self.function.name_in(index)} must be ({n_samples}, {expected}), got {values.shape}"
                 )
             arrays.append(values)
-        if self._scatter is None:  # a dense output is written whole by the function: no need to zero it
-            output = target = np.empty((n_samples, self._numel_out))
+        if out is None:
+            output = np.empty((n_samples, self._numel_out))
         else:
-            output, target = np.zeros((n_samples, self._numel_out)), np.empty((n_samples, self._nnz_out))
+            output = _output_view(out, n_samples, self._numel_out)
+        if self._scatter is None:  # a dense output is written whole by the function: no need to zero it
+            target = output
+        else:
+            output[...] = 0.0
+            target = np.empty((n_samples, self._nnz_out))
         loop = self.sample_loop
         if loop is not None:
             self._run_loop(loop, arrays, target)
@@ -300,6 +307,17 @@ class SampleEvaluator:
             flags = [run(bounds[0], bounds[1])] + [job.result() for job in pending]
         if any(flags):
             raise RuntimeError(f"{self.function.name()} failed on some samples (flag {max(flags, key=abs)})")
+
+
+def _output_view(out: NDArray[np.float64], n_samples: int, width: int) -> NDArray[np.float64]:
+    """``out`` as an ``(n_samples, width)`` view, or a ``TypeError``/``ValueError`` saying why not."""
+    if not isinstance(out, np.ndarray) or out.dtype != np.float64:
+        raise TypeError(f"out must be a float64 numpy array, got {getattr(out, 'dtype', type(out).__name__)}")
+    if not out.flags.c_contiguous or not out.flags.writeable:
+        raise ValueError("out must be C-contiguous and writeable")
+    if out.size != n_samples * width:
+        raise ValueError(f"out has {out.size} elements; {n_samples} samples need {n_samples * width}")
+    return out.reshape(n_samples, width)
 
 
 @functools.lru_cache(maxsize=8)

@@ -104,13 +104,19 @@ class IdentificationModel:
             raise ValueError(f"no such effects in this model: {sorted(effect_values)}")
         return np.concatenate(theta)
 
-    def evaluate(self, q: ArrayLike, dq: ArrayLike, ddq: ArrayLike) -> NDArray[np.float64]:
-        """Regressor at ``N`` samples (arrays ``(N, n)``), as ``(N, channels, p)``."""
-        return self._evaluate("full", q, dq, ddq)
+    def evaluate(self, q: ArrayLike, dq: ArrayLike, ddq: ArrayLike, *,
+                 out: NDArray[np.float64] | None = None) -> NDArray[np.float64]:
+        """Regressor at ``N`` samples (arrays ``(N, n)``), as ``(N, channels, p)``.
 
-    def evaluate_base(self, q: ArrayLike, dq: ArrayLike, ddq: ArrayLike) -> NDArray[np.float64]:
-        """Base regressor at ``N`` samples, as ``(N, channels, r)``."""
-        return self._evaluate("base", q, dq, ddq)
+        ``out``: a float64, C-contiguous ``(N, channels, p)`` array to write into and return (saves
+        allocating, and the page faults of touching fresh memory, when called again and again).
+        """
+        return self._evaluate("full", q, dq, ddq, out)
+
+    def evaluate_base(self, q: ArrayLike, dq: ArrayLike, ddq: ArrayLike, *,
+                      out: NDArray[np.float64] | None = None) -> NDArray[np.float64]:
+        """Base regressor at ``N`` samples, as ``(N, channels, r)`` (``out`` as in :meth:`evaluate`)."""
+        return self._evaluate("base", q, dq, ddq, out)
 
     def predict(self, theta: ArrayLike, q: ArrayLike, dq: ArrayLike, ddq: ArrayLike) -> NDArray[np.float64]:
         """``Y θ`` at ``N`` samples, ``(N, channels)``; ``θ`` standard (``p``) or base (``r``) values."""
@@ -124,11 +130,15 @@ class IdentificationModel:
             f"and {self.n_base} base parameters"
         )
 
-    def _evaluate(self, which: str, q: ArrayLike, dq: ArrayLike, ddq: ArrayLike) -> NDArray[np.float64]:
+    def _evaluate(self, which: str, q: ArrayLike, dq: ArrayLike, ddq: ArrayLike,
+                  out: NDArray[np.float64] | None) -> NDArray[np.float64]:
         states = check_states(self.robot.n_joints, q, dq, ddq)
+        n_samples, width = states[0].shape[0], self.n_parameters if which == "full" else self.n_base
+        if out is not None and np.shape(out) != (n_samples, self.n_channels, width):
+            raise ValueError(f"out must have shape {(n_samples, self.n_channels, width)}, got {np.shape(out)}")
         # per sample the function returns Yᵀ (p x rows), whose column-major flattening is Y in
         # row-major order: the (N, rows·p) result reshapes to (N, rows, p) without a copy.
-        return self._evaluators[which](*states).reshape(states[0].shape[0], self.n_channels, -1)
+        return self._evaluators[which](*states, out=out).reshape(n_samples, self.n_channels, width)
 
 
 def check_states(n_joints: int, *arrays: ArrayLike, names: Iterable[str] = STATE_NAMES) -> list[NDArray[np.float64]]:

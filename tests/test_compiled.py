@@ -86,3 +86,29 @@ def test_threaded_evaluation_works_in_a_forked_child(tmp_path, monkeypatch):
     assert _threaded_sum(evaluator) == 120.0  # the parent's worker threads exist now
     with ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("fork")) as executor:
         assert executor.submit(_threaded_sum, evaluator).result(timeout=60) == 120.0
+
+
+def test_evaluate_writes_into_a_given_array_and_checks_it():
+    model = build_model(load_robot("puma560", joints=3), "combined", "viscous")
+    q, dq, ddq = random_states(3, 40, seed=4)
+    expected = model.evaluate(q, dq, ddq)
+    out = np.full_like(expected, np.nan)
+    result = model.evaluate(q, dq, ddq, out=out)
+    assert np.shares_memory(result, out)
+    np.testing.assert_array_equal(out, expected)
+    base = np.full((40, model.n_channels, model.n_base), np.nan)
+    np.testing.assert_array_equal(model.evaluate_base(q, dq, ddq, out=base), model.evaluate_base(q, dq, ddq))
+    with pytest.raises(ValueError, match="out must have shape"):
+        model.evaluate(q, dq, ddq, out=np.empty((40, model.n_channels, 1)))
+    with pytest.raises(TypeError, match="float64"):
+        model.evaluate(q, dq, ddq, out=out.astype(np.float32))
+    with pytest.raises(ValueError, match="C-contiguous"):
+        model.evaluate(q, dq, ddq, out=np.empty((model.n_parameters, model.n_channels, 40)).T)
+
+
+def test_sparse_output_into_a_given_array_is_zeroed_first():
+    x = casadi.SX.sym("x", 2)
+    function = casadi.Function("sparse_into", [x], [casadi.diag(x * 3)], ["x"], ["y"])
+    out = np.full((2, 4), 7.0)
+    SampleEvaluator(function, backend="vm")(np.array([[1.0, 2.0], [3.0, 4.0]]), out=out)
+    np.testing.assert_array_equal(out, [[3, 0, 0, 6], [9, 0, 0, 12]])
