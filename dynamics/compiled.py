@@ -274,11 +274,12 @@ class SampleEvaluator:
         else:
             output[...] = 0.0
             target = np.empty((n_samples, self._nnz_out))
+        threads = min(self.threads, sample_thread_limit() or self.threads)
         loop = self.sample_loop
         if loop is not None:
-            self._run_loop(loop, arrays, target)
+            self._run_loop(loop, arrays, target, threads)
         elif n_samples:
-            buffer, trigger = _mapped(self.compiled, n_samples, self.threads).buffer()
+            buffer, trigger = _mapped(self.compiled, n_samples, threads).buffer()
             for index, values in enumerate(arrays):
                 buffer.set_arg(index, memoryview(values))
             buffer.set_res(0, memoryview(target))
@@ -287,11 +288,11 @@ class SampleEvaluator:
             output[:, self._scatter] = target
         return output
 
-    def _run_loop(self, loop: ctypes._CFuncPtr, arrays: list[NDArray[np.float64]], target: NDArray[np.float64]) -> None:
-        """Run the C loop over the samples, in ``self.threads`` slices at most (ctypes frees the GIL;
+    def _run_loop(self, loop: ctypes._CFuncPtr, arrays: list[NDArray[np.float64]], target: NDArray[np.float64],
+                  threads: int) -> None:
+        """Run the C loop over the samples, in ``threads`` slices at most (ctypes frees the GIL;
         :func:`dynamics.threads.single_threaded` lowers the limit to one)."""
         n_samples = target.shape[0]
-        threads = min(self.threads, sample_thread_limit() or self.threads)
         n_slices = max(1, min(threads, n_samples // self.min_samples_per_thread))
         bounds = [n_samples * part // n_slices for part in range(n_slices + 1)]
 

@@ -5,10 +5,17 @@ on a ``dask`` worker, a pytest-xdist worker) must stay on one thread. Otherwise 
 OpenBLAS's threads, which spin while idle, and the two slices of :class:`dynamics.compiled.
 SampleEvaluator`'s loop, and the machine runs several runnable threads a core: on this 2-core
 machine ``design_excitation(starts=8)`` through a 2-process pool took 4.5 s against 0.62 s with one
-thread a process (``OPENBLAS_NUM_THREADS=1``), 1.7 s in turn.
+thread a process (``OPENBLAS_NUM_THREADS=1``), 1.7 s in turn. Within one process the spinning BLAS
+threads also slow the tall, thin least-squares problems of identification: the KUKA diagnosis took
+81 s against 17 s.
 
-:func:`single_threaded` sets both budgets for the code it wraps (a context variable for the sample
-loops, :mod:`threadpoolctl` for BLAS) and restores them on exit.
+- :func:`single_threaded`: one BLAS thread and one sample-loop thread (design starts).
+- :func:`single_threaded_blas`: one BLAS thread only (identification, diagnosis, least squares: the
+  sample loop's own threads wait without spinning and still help on large inputs).
+
+The sample-loop budget is a context variable (per thread and task). The BLAS budget is a property of
+the process: the first context to enter limits it, the last one to leave restores it, whichever
+threads they run on.
 """
 
 from __future__ import annotations
@@ -16,11 +23,42 @@ from __future__ import annotations
 import contextlib
 import contextvars
 import os
+import threading
 from collections.abc import Iterator
 
 from threadpoolctl import threadpool_limits
 
 _SAMPLE_THREADS: contextvars.ContextVar[int | None] = contextvars.ContextVar("robot_oed_sample_threads", default=None)
+
+
+class _ProcessBlasLimit:
+    """One BLAS thread while at least one context holds the limit (reference-counted, thread-safe)."""
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self._depth = 0
+        self._limiter: threadpool_limits | None = None
+        # a child forked while another thread held the lock would wait for it forever
+        os.register_at_fork(after_in_child=self._reset_lock)
+
+    def _reset_lock(self) -> None:
+        self._lock = threading.Lock()
+
+    def acquire(self) -> None:
+        with self._lock:
+            if self._depth == 0:
+                self._limiter = threadpool_limits(limits=1, user_api="blas")
+            self._depth += 1
+
+    def release(self) -> None:
+        with self._lock:
+            self._depth -= 1
+            if self._depth == 0 and self._limiter is not None:
+                limiter, self._limiter = self._limiter, None
+                limiter.restore_original_limits()
+
+
+_BLAS_LIMIT = _ProcessBlasLimit()
 
 
 def available_cores() -> int:
@@ -37,11 +75,21 @@ def sample_thread_limit() -> int | None:
 
 
 @contextlib.contextmanager
+def single_threaded_blas() -> Iterator[None]:
+    """Run the wrapped code with one BLAS thread (process-wide while any context holds it)."""
+    _BLAS_LIMIT.acquire()
+    try:
+        yield
+    finally:
+        _BLAS_LIMIT.release()
+
+
+@contextlib.contextmanager
 def single_threaded() -> Iterator[None]:
-    """Run the wrapped code with one sample-loop thread and one BLAS thread, then restore both."""
+    """Run the wrapped code with one sample-loop thread (this context) and one BLAS thread (the process)."""
     token = _SAMPLE_THREADS.set(1)
     try:
-        with threadpool_limits(limits=1, user_api="blas"):
+        with single_threaded_blas():
             yield
     finally:
         _SAMPLE_THREADS.reset(token)

@@ -42,7 +42,7 @@ from dynamics.effects import (
     WrenchOffset,
 )
 from dynamics.models import IdentificationModel, ModelKind, build_model
-from dynamics.threads import single_threaded
+from dynamics.threads import single_threaded_blas
 from estimation.identification import IdentificationResult, identify
 from estimation.least_squares import stack
 from estimation.measurements import Measurements
@@ -194,7 +194,7 @@ def residual_statistics(result: IdentificationResult, *, lags: Sequence[int] = (
     return statistics
 
 
-@single_threaded()
+@single_threaded_blas()
 def diagnose(
     model: IdentificationModel,
     train: Measurements,

@@ -4,7 +4,7 @@
 
     result = identify(build_model(robot, "combined"), train, validate, weighted=True)
     result.estimate.values, result.train.mse, result.validation.mse
-    json.dump(result.to_dict(), stream)        # the ``oed identify`` document
+    stream.write(json_text(result.to_dict()))   # the ``oed identify`` document (estimation.output_files)
 
 For repeated use (several estimators, extra columns) work with
 :func:`estimation.least_squares.stack` and the estimators directly.
@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from dynamics.models import IdentificationModel
-from dynamics.threads import single_threaded
+from dynamics.threads import single_threaded_blas
 from estimation.least_squares import Estimate, LeastSquares, WeightedLeastSquares, stack
 from estimation.measurements import Measurements
 from estimation.validation import Comparison, compare
@@ -66,7 +66,7 @@ class IdentificationResult:
         }
 
 
-@single_threaded()
+@single_threaded_blas()
 def identify(
     model: IdentificationModel,
     train: Measurements,

@@ -26,7 +26,7 @@ import scipy.linalg
 from numpy.typing import ArrayLike, NDArray
 
 from dynamics.models import IdentificationModel
-from dynamics.threads import single_threaded
+from dynamics.threads import single_threaded_blas
 from estimation.measurements import Measurements
 
 #: smallest/largest eigenvalue of the equilibrated ``YᵀWY`` below this: a parameter is not excited
@@ -262,7 +262,7 @@ class LeastSquares:
 
     method: Literal["ols", "wls"] = "ols"
 
-    @single_threaded()
+    @single_threaded_blas()
     def fit(self, problem: IdentificationProblem | IdentificationModel, measurements: Measurements | None = None):
         problem = _as_problem(problem, measurements)
         _check_size(problem)
@@ -330,7 +330,7 @@ class WeightedLeastSquares(LeastSquares):
         self.tol = tol
         self.variance_floor = variance_floor
 
-    @single_threaded()
+    @single_threaded_blas()
     def fit(self, problem: IdentificationProblem | IdentificationModel, measurements: Measurements | None = None):
         if int(self.max_iter) != self.max_iter or self.max_iter < 1:
             raise ValueError(f"max_iter must be a positive integer, got {self.max_iter}")

@@ -22,6 +22,7 @@ import pandas as pd
 from numpy.typing import NDArray
 
 from dynamics.effects import WRENCH_CHANNELS
+from estimation.output_files import atomic_output
 
 
 def joint_columns(prefix: str, n_joints: int) -> list[str]:
@@ -104,7 +105,6 @@ class Measurements:
 
     def write(self, path: str | Path) -> None:
         """Write CSV (``.csv``) or Parquet (``.parquet``), atomically."""
-        from oed.cli.common import atomic_output  # local: the CLI helpers depend on nothing here
 
         path = Path(path)
         frame = self.to_frame()

@@ -24,8 +24,9 @@ Examples
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass
-from typing import Literal
+from typing import Literal, NoReturn
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -162,6 +163,8 @@ def fit_servo_joint(
     c = tuple(float(v) for v in theta[3:])
     if c and np.max(np.abs(np.roots(np.r_[1.0, c]))) >= 1.0:  # the predictor filters by 1/C(z)
         _diverged(joint, "one-step predictor", "C(z)", c, method, forgetting)
+    if np.max(np.abs(np.roots([1.0, a1, a2]))) >= 1.0:  # the simulation filters by K/A(z)
+        _diverged(joint, "free-run simulation", "A(z)", (a1, a2), method, forgetting)
     polys = Polynomials.from_theta(theta, 2, 1, 1, len(c))
     p = theta.size
     q_val = q[n_est:]
@@ -187,14 +190,16 @@ def fit_servo_joint(
     )
 
 
-def _diverged(joint: int, what: str, polynomial: str, coefficients, method: str, forgetting: float) -> None:
+def _diverged(joint: int, what: str, polynomial: str, coefficients: Sequence[float], method: str,
+              forgetting: float) -> NoReturn:
     """Raise the error of an estimated model whose predictor or simulation blows up (a root of
-    ``polynomial`` on or outside the unit circle), instead of NaN/inf metrics."""
+    ``polynomial`` on or outside the unit circle, or metrics that overflowed), instead of NaN/inf metrics."""
     modulus = float(np.max(np.abs(np.roots(np.r_[1.0, coefficients])))) if len(coefficients) else float("nan")
+    cause = (f"{polynomial} has a root of modulus {modulus:.4g} (not inside the unit circle)" if modulus >= 1.0
+             else f"its metrics overflowed ({polynomial}'s largest root modulus {modulus:.4g})")
     raise ValueError(
-        f"joint {joint}: the {what} of the estimated model diverges: {polynomial} has a root of modulus "
-        f"{modulus:.4g} (not inside the unit circle) with method {method!r}, forgetting factor {forgetting:g}; "
-        "the estimate is not usable (use a forgetting factor closer to 1, more data, or another method)"
+        f"joint {joint}: the {what} of the estimated model diverges: {cause} with method {method!r}, forgetting "
+        f"factor {forgetting:g}; the estimate is not usable (use a forgetting factor closer to 1, more data, or another method)"
     )
 
 

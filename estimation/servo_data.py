@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
+from estimation.output_files import atomic_output
 from estimation.signal_checks import check_uniform_time
 
 
@@ -34,7 +35,6 @@ class ServoTable:
 
 def write_csv(path: str | Path, columns: dict[str, np.ndarray]) -> Path:
     """Write equal-length columns to ``path`` as CSV with a header, atomically."""
-    from oed.cli.common import atomic_output  # local: the CLI helpers depend on nothing here
 
     path = Path(path)
     names = list(columns)
@@ -46,7 +46,6 @@ def write_csv(path: str | Path, columns: dict[str, np.ndarray]) -> Path:
 
 def write_text_atomic(path: str | Path, text: str) -> Path:
     """Write ``text`` to ``path`` atomically."""
-    from oed.cli.common import atomic_output
 
     path = Path(path)
     with atomic_output(path) as stream:

@@ -16,6 +16,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from dynamics.models import IdentificationModel
 from estimation.measurements import Measurements
+from estimation.output_files import atomic_output
 
 
 @dataclass(frozen=True)
@@ -84,7 +85,6 @@ def plot_comparison(comparisons: Comparison | Sequence[Comparison], path: str | 
     """
     from matplotlib.figure import Figure  # no pyplot: no backend switch, no global figure registry
 
-    from oed.cli.common import atomic_output
 
     if isinstance(comparisons, Comparison):
         comparisons = [comparisons]

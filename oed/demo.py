@@ -24,10 +24,10 @@ from dynamics.robots import load_robot
 from dynamics.simulator import NoiseModel, Simulator
 from estimation.diagnosis import diagnose
 from estimation.diagnosis_report import markdown_report, plot_residuals
+from estimation.output_files import OutputFiles, json_text
 from estimation.preprocessing import FourierDifferentiation, fill_derivatives
 from estimation.validation import plot_comparison
 from oed.design import design_excitation
-from oed.cli.common import json_text
 from oed.design_plot import plot_trajectory
 
 UNDECLARED_EFFECTS = "viscous,coulomb,offset"
@@ -39,8 +39,6 @@ def run_demo(out: str | Path, *, say: Callable[[str], None] = print) -> dict:
     The files are staged and renamed into ``out`` together at the end: a run that fails leaves
     none of them (nor a mix of new files and those of an earlier run).
     """
-    from oed.cli.common import OutputFiles
-
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise NotADirectoryError(f"{out} is a file: the demo writes its report and figures into a folder")
@@ -63,7 +61,7 @@ def _loop(robot, out: Path, outputs, say: Callable[[str], None]) -> dict:
         designs[label] = design
         say(f"   {label}: -log det(Yb'Yb) = {design.cost:.2f}, cond = {design.cond:.3g}")
     figure = plot_trajectory(designs["train"].trajectory, title="optimal excitation (identification)")
-    figure.savefig(outputs.stage(out / "trajectory_train.png"), dpi=90)
+    figure.savefig(outputs.stage_figure(out / "trajectory_train.png"), dpi=90)
 
     say(f"2. simulating both experiments on a robot with {UNDECLARED_EFFECTS} (the model declares viscous only)...")
     simulator = Simulator(robot, UNDECLARED_EFFECTS, noise=NoiseModel())
@@ -86,10 +84,10 @@ def _loop(robot, out: Path, outputs, say: Callable[[str], None]) -> dict:
     document["truth"] = {name: value for name, value in truth.items() if name[:2] in ("fc", "of", "fv")}
     with outputs.open(out / "report.json") as stream:
         stream.write(json_text(document))
-    plot_residuals(diagnosis, data["train"], outputs.stage(out / "report.residuals.png"))
+    plot_residuals(diagnosis, data["train"], outputs.stage_figure(out / "report.residuals.png"))
     with outputs.open(out / "report.md") as stream:
         stream.write(markdown_report(diagnosis, "report.residuals.png"))
-    plot_comparison([diagnosis.before.validation, diagnosis.after.validation], outputs.stage(out / "validation.png"),
+    plot_comparison([diagnosis.before.validation, diagnosis.after.validation], outputs.stage_figure(out / "validation.png"),
                     title="validation: declared model vs after diagnosis")
 
     for effect in diagnosis.effects:

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import functools
 import pickle
+import threading
 
 import numpy as np
 from numpy.typing import NDArray
@@ -16,15 +17,16 @@ from numpy.typing import NDArray
 from oed.design_problem import ExcitationDesign, StartResult
 
 
-@functools.lru_cache(maxsize=4)
-def _problem_from_payload(payload: bytes) -> ExcitationDesign:
+@functools.lru_cache(maxsize=8)
+def _problem_from_payload(payload: bytes, thread: int) -> ExcitationDesign:
+    """One problem per definition and thread: a CasADi solver must not run in two threads at once."""
     robot, model, bounds, criterion, effects, settings = pickle.loads(payload)
     return ExcitationDesign(robot, model, bounds, criterion, effects, settings)
 
 
 def solve_start(payload: bytes, x0: NDArray[np.float64], index: int) -> StartResult:
     """Picklable unit of work for an executor: rebuild (once per worker) the problem and solve one start."""
-    return _problem_from_payload(payload).solve(x0, index)
+    return _problem_from_payload(payload, threading.get_ident()).solve(x0, index)
 
 
 def payload_of(problem: ExcitationDesign) -> bytes:

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
+from estimation.output_files import atomic_output
 from oed.bounds import JointBounds
 from oed.fourier import FourierTrajectory
 
@@ -70,9 +71,7 @@ def plot_trajectory(
 
 
 def save_figure(figure, path: str | Path) -> None:
-    """Save atomically (no half-written file), format from the suffix."""
-    from oed.cli.common import atomic_output
-
+    """Save atomically (no half-written file), format from the suffix (none: PNG)."""
     path = Path(path)
     with atomic_output(path, "wb") as stream:
         figure.savefig(stream, format=path.suffix.lstrip(".") or "png", dpi=120)

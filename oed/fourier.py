@@ -25,6 +25,8 @@ import casadi
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from estimation.output_files import atomic_output, json_text
+
 
 @dataclass(frozen=True)
 class FourierTrajectory:
@@ -147,7 +149,9 @@ class FourierTrajectory:
         return trajectory
 
     def save(self, path: str | Path) -> None:
-        Path(path).write_text(json.dumps(self.to_dict(), indent=2))
+        """Write the JSON document of :meth:`to_dict` (strict JSON, atomically)."""
+        with atomic_output(path) as stream:
+            stream.write(json_text(self.to_dict()))
 
     @classmethod
     def load(cls, path: str | Path) -> FourierTrajectory:

@@ -143,3 +143,28 @@ def test_json_documents_are_strict_json_with_null_for_non_finite_numbers():
     text = json_text({"a": float("nan"), "b": [1.0, float("inf"), {"c": -float("inf")}], "d": (2, "x")})
     assert "NaN" not in text and "Infinity" not in text
     assert json.loads(text) == {"a": None, "b": [1.0, None, {"c": None}], "d": [2, "x"]}
+
+
+def test_a_figure_path_without_suffix_is_written_as_png(tmp_path):
+    figure, data = tmp_path / "aprbs_figure", tmp_path / "u.csv"
+    assert main(["aprbs", "--joints", "2", "--duration", "4", "--candidates", "2", "--out", str(data),
+                 "--figure", str(figure)]) == 0
+    assert figure.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert _listing(tmp_path) == ["aprbs_figure", "u.csv"]
+
+
+def test_a_failed_run_removes_the_folders_it_made_and_names_the_target(tmp_path, blocker):
+    with pytest.raises(OSError, match="a_file"):
+        with OutputFiles() as outputs:
+            with outputs.open(tmp_path / "new" / "deeper" / "first.json") as stream:
+                stream.write("{}")
+            outputs.stage(blocker / "second.csv")
+    assert _listing(tmp_path) == ["a_file"]
+    (tmp_path / "taken").mkdir()
+    (tmp_path / "taken" / "inside").write_text("x")
+    with pytest.raises(OSError, match=r"cannot write .*taken"):
+        with OutputFiles() as outputs:
+            staged = outputs.stage(tmp_path / "taken.json")
+            staged.write_text("{}")
+            outputs._staged[-1] = (staged, tmp_path / "taken")  # the target became a non-empty folder meanwhile
+    assert _listing(tmp_path) == ["a_file", "taken"]

@@ -143,3 +143,18 @@ def test_erls_noise_polynomial_outside_the_unit_circle_is_an_error_not_an_infini
     with pytest.raises(ValueError, match=r"C\(z\) has a root of modulus 1\.\d+ \(not inside the unit circle\)"):
         fit_servo_joint(u, q, dt=DT, mass=0.239, forgetting=forgetting)
     assert np.isfinite(fit_servo_joint(u, q, dt=DT, mass=0.239, forgetting=0.9).rmse)
+
+
+def test_an_unstable_a_polynomial_is_an_error_even_when_the_free_run_stays_finite():
+    """A(z) with a root at 1.002: over 600 samples the free run grows but stays finite, so its
+    metrics used to come out as ordinary (meaningless) numbers with exit code 0."""
+    from estimation.servo import fit_servo_joint
+
+    rng = np.random.default_rng(3)
+    roots = (1.002, 0.5)
+    a1, a2, K = -(roots[0] + roots[1]), roots[0] * roots[1], 0.01
+    u = _aprbs_like(600, 1)
+    q = free_run((a1, a2, K), u, (0.0, 0.0), u_initial=0.0) + rng.normal(0, 1e-5, u.size)
+    assert np.all(np.isfinite(q))
+    with pytest.raises(ValueError, match=r"free-run simulation .* A\(z\) has a root of modulus 1\.00"):
+        fit_servo_joint(u, q, dt=DT, mass=0.239, method="ls", remove_mean=False)

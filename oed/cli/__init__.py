@@ -20,7 +20,7 @@ import sys
 import traceback
 from collections.abc import Sequence
 
-from dynamics.threads import single_threaded
+from dynamics.threads import single_threaded_blas
 
 # verb module names, in the order ``oed --help`` lists them
 VERB_MODULES: tuple[str, ...] = ("model", "design", "simulate", "identify", "aprbs", "servo_simulate", "servo_fit", "diagnose", "demo")
@@ -51,7 +51,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
-        with single_threaded():  # one process: threaded BLAS on thin matrices only loses here
+        with single_threaded_blas():  # threaded BLAS on tall, thin matrices only loses (dynamics.threads)
             return int(args.run(args))
     except (ValueError, TypeError, OSError, KeyError, RuntimeError) as error:
         message = str(error) or error.__class__.__name__

@@ -42,7 +42,7 @@ def run(args: argparse.Namespace) -> int:
         if args.figure:
             from oed.aprbs_figures import plot_aprbs
 
-            plot_aprbs(result, outputs.stage(args.figure))
+            plot_aprbs(result, outputs.stage_figure(args.figure))
     print(f"wrote {args.out}: {result.t.size} samples x {args.joints} joints, criterion {result.score:.4f} "
           f"(best of {len(result.candidate_scores)}, worst {min(result.candidate_scores):.4f})")
     return 0

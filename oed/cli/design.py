@@ -118,7 +118,7 @@ def run(args: argparse.Namespace) -> int:
 
             figure = plot_trajectory(trajectory, bounds, rate_hz=settings.rate_hz,
                                      title=f"{robot.name}, {args.model} model, cost {result.cost:.2f}")
-            save_figure(figure, outputs.stage(args.plot))
+            save_figure(figure, outputs.stage_figure(args.plot))
     if not args.quiet:
         print(f"{robot.name}, {args.model} model, {args.criterion}: best start {result.best + 1}/{len(result.starts)}, "
               f"cost -log det(Y'Y) = {result.cost:.4f}, cond = {result.cond:.2f}, "

@@ -49,7 +49,7 @@ def run(args: argparse.Namespace) -> int:
             stream.write(json_text(diagnosis.to_dict()))
         if args.report is not None:
             figure = args.report.with_suffix(".residuals.png")
-            plot_residuals(diagnosis, train, outputs.stage(figure))
+            plot_residuals(diagnosis, train, outputs.stage_figure(figure))
             with outputs.open(args.report) as stream:
                 stream.write(markdown_report(diagnosis, figure.name))
     print_summary(diagnosis)

@@ -78,7 +78,7 @@ def run(args: argparse.Namespace) -> int:
             stream.write(json_text(result.to_dict()))
         if args.plot is not None:
             comparisons = [result.train] + ([result.validation] if result.validation is not None else [])
-            plot_comparison(comparisons, outputs.stage(args.plot),
+            plot_comparison(comparisons, outputs.stage_figure(args.plot),
                             title=f"{robot.name}: {model.kind.value} model ({args.method})")
 
     estimate = result.estimate
