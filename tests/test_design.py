@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor
 
 import casadi
 import numpy as np
@@ -97,9 +97,11 @@ def test_result_records_every_start(result):
     assert result.cost == min(start.cost for start in result.starts if start.success)
 
 
-def test_process_pool_gives_the_serial_result(problem, result):
-    """Starts submitted to a process pool (as ``oed design --workers``) reproduce the serial run."""
-    with ProcessPoolExecutor(2) as executor:
+@pytest.mark.parametrize("pool", [ProcessPoolExecutor, ThreadPoolExecutor])
+def test_executor_gives_the_serial_result(problem, result, pool):
+    """Starts submitted to a process pool (as ``oed design --workers``) or to threads (as on a dask
+    worker) reproduce the serial run (threads each build their own problem and solver)."""
+    with pool(2) as executor:
         pooled = design_excitation(problem.robot, starts=2, seed=3, problem=problem, executor=executor)
     assert [start.index for start in pooled.starts] == [0, 1]
     for serial_start, pooled_start in zip(result.starts, pooled.starts):
