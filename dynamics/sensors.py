@@ -10,7 +10,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from dynamics.robot import RobotModel
-from dynamics.simulated_joint_effects import PUMA560_GEAR_RATIOS, _is_puma
+from dynamics.simulated_joint_effects import PUMA560_GEAR_RATIOS, is_puma560
 
 ENCODER_COUNTS = 4 * 4096  # quadrature-decoded counts per motor revolution
 DEFAULT_GEAR = 100.0
@@ -19,7 +19,7 @@ DEFAULT_GEAR = 100.0
 def encoder_resolution(robot: RobotModel) -> NDArray[np.float64]:
     """Joint resolution ``2π / (4·4096·|G|)`` rad (PUMA gear ratios; ``G = 100`` otherwise; 1 µm prismatic)."""
     gear = np.full(robot.n_joints, DEFAULT_GEAR)
-    if _is_puma(robot) and robot.n_joints <= 6:
+    if is_puma560(robot) and robot.n_joints <= 6:
         gear = np.abs(np.array(PUMA560_GEAR_RATIOS[: robot.n_joints]))
     resolution = 2 * np.pi / (ENCODER_COUNTS * gear)
     prismatic = np.array([joint.joint_type.value == "prismatic" for joint in robot.joints])

@@ -33,16 +33,16 @@ from dynamics.simulated_joint_effects import (  # noqa: F401  (re-exported)
     Offset,
     Spring,
     Viscous,
-    _is_puma,
-    _PerJoint,
+    is_puma560,
+    SimulatedPerJoint,
     default_joint_values,
     puma560_link_friction,
 )
-from dynamics.simulated_plate_effects import PLATE_EFFECTS, PlateCable, PlateOffset, _PlateMoment  # noqa: F401
+from dynamics.simulated_plate_effects import PLATE_EFFECTS, PlateCable, PlateOffset, PlateMoment  # noqa: F401
 
 SIMULATED_EFFECTS: dict[str, type] = {
     "viscous": Viscous, "coulomb": Coulomb, "offset": Offset, "armature": Armature, "spring": Spring,
-    "plate_offset": PlateOffset, "plate_moment": _PlateMoment, "cable": PlateCable,
+    "plate_offset": PlateOffset, "plate_moment": PlateMoment, "cable": PlateCable,
 }
 
 

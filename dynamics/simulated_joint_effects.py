@@ -40,7 +40,8 @@ PUMA560_GEAR_RATIOS: tuple[float, ...] = (-62.6111, 107.815, -53.7063, 76.0364, 
 GENERIC_DEFAULTS: dict[str, float] = {"viscous": 0.05, "coulomb": 0.05, "offset": 0.02, "armature": 1e-3}
 
 
-def _is_puma(robot: RobotModel) -> bool:
+def is_puma560(robot: RobotModel) -> bool:
+    """Whether ``robot`` is the built-in PUMA 560 (any number of its joints)."""
     return robot.name.split("[")[0] == "puma560"
 
 
@@ -58,12 +59,13 @@ def puma560_link_friction(n_joints: int) -> dict[str, NDArray[np.float64]]:
 
 def default_joint_values(name: str, robot: RobotModel) -> NDArray[np.float64]:
     """Default true values of a per-joint effect (``viscous``, ``coulomb``, ``offset``, ``armature``)."""
-    if _is_puma(robot) and robot.n_joints <= 6:
+    if is_puma560(robot) and robot.n_joints <= 6:
         return puma560_link_friction(robot.n_joints)[name]
     return np.full(robot.n_joints, GENERIC_DEFAULTS[name])
 
 
-def _floats(values: ArrayLike, what: str) -> tuple[float, ...]:
+def finite_floats(values: ArrayLike, what: str) -> tuple[float, ...]:
+    """``values`` (a number or a sequence) as a tuple of floats; ``ValueError`` naming ``what`` on NaN/inf."""
     array = np.atleast_1d(np.asarray(values, dtype=float)).reshape(-1)
     if not np.all(np.isfinite(array)):
         raise ValueError(f"{what} holds NaN or inf")
@@ -71,7 +73,7 @@ def _floats(values: ArrayLike, what: str) -> tuple[float, ...]:
 
 
 @dataclass(frozen=True)
-class _PerJoint:
+class SimulatedPerJoint:
     """One value per joint (all joints of the robot, in order)."""
 
     values: tuple[float, ...]
@@ -79,7 +81,7 @@ class _PerJoint:
     symbol: ClassVar[str] = ""
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "values", _floats(self.values, f"{self.name} values"))
+        object.__setattr__(self, "values", finite_floats(self.values, f"{self.name} values"))
 
     def _check(self, robot: RobotModel) -> NDArray[np.float64]:
         if len(self.values) != robot.n_joints:
@@ -120,7 +122,7 @@ class _PerJoint:
 
 
 @dataclass(frozen=True)
-class Viscous(_PerJoint):
+class Viscous(SimulatedPerJoint):
     """Viscous friction ``fv_i · dq_i`` (N·m·s/rad), joint rows (PUMA paper, eq. 14)."""
 
     name: ClassVar[str] = "viscous"
@@ -131,7 +133,7 @@ class Viscous(_PerJoint):
 
 
 @dataclass(frozen=True)
-class Coulomb(_PerJoint):
+class Coulomb(SimulatedPerJoint):
     """Coulomb friction ``fc_i · tanh(dq_i / smoothing)`` (N·m), joint rows.
 
     The integrator needs a continuous law: ``smoothing`` (rad/s) is the velocity below which the
@@ -156,7 +158,7 @@ class Coulomb(_PerJoint):
 
 
 @dataclass(frozen=True)
-class Offset(_PerJoint):
+class Offset(SimulatedPerJoint):
     """A constant joint torque ``off_i`` (N·m) the drive must supply (bias, asymmetric friction)."""
 
     name: ClassVar[str] = "offset"
@@ -167,7 +169,7 @@ class Offset(_PerJoint):
 
 
 @dataclass(frozen=True)
-class Armature(_PerJoint):
+class Armature(SimulatedPerJoint):
     """Reflected rotor inertia ``Ia_i · ddq_i`` (kg·m²), added to the mass matrix diagonal.
 
     Joint rows only: the rotor's reaction on the stator (``1/G`` of it) is neglected, as in the
@@ -199,7 +201,7 @@ class Spring:
         object.__setattr__(self, "joints", joints)
         for label in ("stiffness", "q_ref"):
             values = np.broadcast_to(np.asarray(getattr(self, label), dtype=float), (len(joints),))
-            object.__setattr__(self, label, _floats(values, f"spring {label}"))
+            object.__setattr__(self, label, finite_floats(values, f"spring {label}"))
 
     def _indices(self, robot: RobotModel) -> list[int]:
         for joint in self.joints:

@@ -21,7 +21,7 @@ from numpy.typing import NDArray
 from dynamics import effects as model_effects
 from dynamics.effects import WRENCH_CHANNELS
 from dynamics.robot import RobotModel
-from dynamics.simulated_joint_effects import _floats
+from dynamics.simulated_joint_effects import finite_floats
 
 @dataclass(frozen=True)
 class PlateOffset:
@@ -41,7 +41,7 @@ class PlateOffset:
         if unknown or len(set(channels)) != len(channels):
             raise ValueError(f"plate offset: channels must be distinct names among {WRENCH_CHANNELS}, got {channels}")
         object.__setattr__(self, "channels_", channels)
-        values = _floats(self.values, "plate offset values")
+        values = finite_floats(self.values, "plate offset values")
         if len(values) != len(channels):
             raise ValueError(f"plate offset: {len(values)} values for channels {channels}")
         object.__setattr__(self, "values", values)
@@ -119,7 +119,7 @@ class PlateCable:
 
 
 @dataclass(frozen=True)
-class _PlateMoment(PlateOffset):
+class PlateMoment(PlateOffset):
     """``plate_moment``: a constant moment offset only (default 2 N·m about z)."""
 
     name: ClassVar[str] = "plate_moment"
