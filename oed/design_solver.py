@@ -13,6 +13,7 @@
 from __future__ import annotations
 
 import tempfile
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -68,7 +69,8 @@ def sampled_information(base_regressor: casadi.Function, states: list[casadi.MX]
 
 def ipopt_solver(objective: casadi.Function, A: scipy.sparse.spmatrix, *, tol: float, acceptable_tol: float,
                  acceptable_iter: int, max_iter: int, lbfgs_memory: int, verbose: bool,
-                 warm: bool) -> casadi.Function:
+                 warm: bool, ipopt_options: Mapping[str, Any] | None = None,
+                 nlpsol_options: Mapping[str, Any] | None = None) -> casadi.Function:
     """IPOPT for ``min objective(x)`` s.t. ``lbg ≤ A x ≤ ubg`` (bounds given per call).
 
     Parameters
@@ -82,6 +84,9 @@ def ipopt_solver(objective: casadi.Function, A: scipy.sparse.spmatrix, *, tol: f
         ``limited_memory_max_history`` and iteration log on/off.
     warm
         Start from a given primal-dual point (``x0, lam_x0, lam_g0``) instead of IPOPT's default.
+    ipopt_options, nlpsol_options
+        Further IPOPT options and CasADi ``nlpsol`` options (e.g. ``hess_lag``), over the above
+        (``benchmarks/design_curvature.py`` uses them to examine the Hessian approximation).
     """
     csc = scipy.sparse.csc_matrix(A)
     csc.sort_indices()
@@ -101,8 +106,10 @@ def ipopt_solver(objective: casadi.Function, A: scipy.sparse.spmatrix, *, tol: f
             "print_level": 5 if verbose else 0,
             "sb": "yes",
             **(WARM_START if warm else {}),
+            **(ipopt_options or {}),
         },
         "print_time": bool(verbose),
+        **(nlpsol_options or {}),
     }
     problem = {"x": x, "f": objective(x), "g": casadi.mtimes(A_dm, x)}
     return casadi.nlpsol("excitation_design", "ipopt", problem, options)
