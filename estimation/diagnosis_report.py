@@ -9,6 +9,7 @@ from matplotlib.figure import Figure  # no pyplot: no backend switch, no global 
 
 from estimation.diagnosis import Diagnosis
 from estimation.measurements import Measurements
+from estimation.output_files import save_figure
 
 
 def plot_residuals(diagnosis: Diagnosis, train: Measurements, path: str | Path | None = None) -> Figure:
@@ -32,7 +33,7 @@ def plot_residuals(diagnosis: Diagnosis, train: Measurements, path: str | Path |
     figure.suptitle("Residuals of the declared model (training data)")
     figure.tight_layout()
     if path is not None:
-        figure.savefig(path, dpi=90)
+        save_figure(figure, path, dpi=90)
     return figure
 
 

@@ -14,7 +14,10 @@ import tempfile
 from collections.abc import Iterator
 from pathlib import Path
 from types import TracebackType
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 FIGURE_DEFAULT_SUFFIX = ".png"
 
@@ -144,6 +147,13 @@ def atomic_output(path: str | Path, mode: str = "w") -> Iterator[Any]:
     """Write ``path`` through a temporary file renamed on success: no half-written output on error."""
     with OutputFiles() as outputs, outputs.open(path, mode) as stream:
         yield stream
+
+
+def save_figure(figure: Figure, path: str | Path, *, dpi: int = 120) -> None:
+    """Save a matplotlib figure atomically (no half-written file), format from the suffix (none: PNG)."""
+    path = Path(path)
+    with atomic_output(path, "wb") as stream:
+        figure.savefig(stream, format=path.suffix.lstrip(".").lower() or FIGURE_DEFAULT_SUFFIX.lstrip("."), dpi=dpi)
 
 
 def _finite_or_null(value: Any) -> Any:

@@ -16,7 +16,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from dynamics.models import IdentificationModel
 from estimation.measurements import Measurements
-from estimation.output_files import atomic_output
+from estimation.output_files import save_figure
 
 
 @dataclass(frozen=True)
@@ -108,7 +108,5 @@ def plot_comparison(comparisons: Comparison | Sequence[Comparison], path: str | 
         figure.suptitle(title)
     figure.tight_layout()
     if path is not None:
-        path = Path(path)
-        with atomic_output(path, "wb") as stream:
-            figure.savefig(stream, format=path.suffix.lstrip(".").lower() or "png", dpi=120)
+        save_figure(figure, path)
     return figure

@@ -7,6 +7,7 @@ from pathlib import Path
 import numpy as np
 import scipy.signal
 
+from estimation.output_files import save_figure
 from oed.aprbs import APRBSResult
 
 
@@ -40,5 +41,5 @@ def plot_aprbs(result: APRBSResult, path: str | Path | None = None):
     axes[0, 2].set_title("power spectral density [rad²/Hz]")
     fig.tight_layout()
     if path is not None:
-        fig.savefig(path)
+        save_figure(fig, path, dpi=100)
     return fig

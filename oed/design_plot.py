@@ -3,11 +3,9 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
-from pathlib import Path
 
 import numpy as np
 
-from estimation.output_files import atomic_output
 from oed.bounds import JointBounds
 from oed.fourier import FourierTrajectory
 
@@ -69,9 +67,3 @@ def plot_trajectory(
     figure.tight_layout()
     return figure
 
-
-def save_figure(figure, path: str | Path) -> None:
-    """Save atomically (no half-written file), format from the suffix (none: PNG)."""
-    path = Path(path)
-    with atomic_output(path, "wb") as stream:
-        figure.savefig(stream, format=path.suffix.lstrip(".") or "png", dpi=120)

@@ -114,7 +114,8 @@ def run(args: argparse.Namespace) -> int:
             with outputs.open(args.csv) as stream:
                 np.savetxt(stream, table, delimiter=",", header=",".join(header), comments="", fmt="%.10g")
         if args.plot is not None:
-            from oed.design_plot import plot_trajectory, save_figure
+            from estimation.output_files import save_figure
+            from oed.design_plot import plot_trajectory
 
             figure = plot_trajectory(trajectory, bounds, rate_hz=settings.rate_hz,
                                      title=f"{robot.name}, {args.model} model, cost {result.cost:.2f}")
