@@ -18,14 +18,14 @@ import argparse
 import time
 
 import numpy as np
-import pinocchio as pin
 
 from dynamics.models import build_model
-from dynamics.pinocchio_bridge import to_pinocchio
 from dynamics.robots import load_robot
 from estimation.least_squares import WeightedLeastSquares, channel_variance, stack
 from estimation.measurements import Measurements
 from oed.fourier import FourierTrajectory
+
+from pinocchio_baseline import PinocchioRegressor
 
 NOISE = {"tau1": 0.5, "tau2": 0.5, "tau3": 0.2, "fx": 5.0, "fy": 5.0, "fz": 8.0, "mx": 3.0, "my": 3.0, "mz": 1.0}
 
@@ -43,52 +43,16 @@ def experiment(model, n_samples: int) -> Measurements:
     return Measurements(t, q, dq, ddq, values[:, 6:], values[:, :6])
 
 
-def parameter_map(robot) -> np.ndarray:
-    """``(10 n, 10 n)`` map from our standard parameters (link frames) to Pinocchio's (joint frames)."""
-    reference = np.array([2.0, 0, 0, 0, 5.0, 0, 5.0, 0, 0, 5.0])
-    blocks = []
-    for joint in robot.joints:
-        placement = pin.SE3(joint.link_transform)
-
-        def to_joint(parameters):
-            return pin.Inertia.FromDynamicParameters(parameters).se3Action(placement).toDynamicParameters()
-
-        base = to_joint(reference)
-        blocks.append(np.column_stack([to_joint(reference + np.eye(10)[k]) - base for k in range(10)]))
-    n = robot.n_joints
-    mapping = np.zeros((10 * n, 10 * n))
-    for index, block in enumerate(blocks):
-        mapping[10 * index : 10 * index + 10, 10 * index : 10 * index + 10] = block
-    return mapping
-
-
 def baseline(model, data: Measurements, iterations: int) -> np.ndarray:
     """Plain numpy/Pinocchio pipeline: per-sample regressor loop, then weighted lstsq."""
-    robot = model.robot
-    n = robot.n_joints
-    pin_model = to_pinocchio(robot, free_flyer=True)
-    pin_data = pin_model.createData()
-    mapping = parameter_map(robot)
-    independent = list(model.base.independent)
-    root = np.array([0, 0, 0, 0, 0, 0, 1.0])
-    rows = 6 + n
-    Y = np.empty((data.n_samples, rows, 10 * n + n))
-    for k in range(data.n_samples):
-        regressor = pin.computeJointTorqueRegressor(
-            pin_model, pin_data, np.concatenate([root, data.q[k]]),
-            np.concatenate([np.zeros(6), data.dq[k]]), np.concatenate([np.zeros(6), data.ddq[k]]),
-        )
-        Y[k, :, : 10 * n] = regressor[:, 10:] @ mapping
-        Y[k, :, 10 * n :] = 0.0
-        Y[k, 6 + np.arange(n), 10 * n + np.arange(n)] = data.dq[k]
-    Y_base = Y[:, :, independent]
+    Y_base = PinocchioRegressor(model).base(data.q, data.dq, data.ddq)
     y = np.hstack([data.wrench, data.tau])
-    weights = np.ones(rows)
+    weights = np.ones(Y_base.shape[1])
     for _ in range(iterations):
         root_w = np.sqrt(weights)
-        theta, *_ = np.linalg.lstsq((Y_base * root_w[None, :, None]).reshape(-1, len(independent)),
+        theta, *_ = np.linalg.lstsq((Y_base * root_w[None, :, None]).reshape(-1, Y_base.shape[2]),
                                     (y * root_w).reshape(-1), rcond=None)
-        weights = 1.0 / channel_variance(y - Y_base @ theta, len(independent))
+        weights = 1.0 / channel_variance(y - Y_base @ theta, Y_base.shape[2])
     return theta
 
 
