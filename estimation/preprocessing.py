@@ -12,7 +12,8 @@ Two differentiation methods, each a small frozen object with ``apply(measurement
   attenuation.
 
 :func:`fill_derivatives` applies one of them when ``dq`` or ``ddq`` is missing; :func:`decimate`
-low-passes every channel and keeps one sample in ``factor``.
+low-passes every channel and keeps one sample in ``factor``; :func:`compensate_hold` aligns derived
+motion with joint torques held over each sample (zero-order hold).
 """
 
 from __future__ import annotations
@@ -222,18 +223,52 @@ def decimate(measurements: Measurements, factor: int, *, order: int = 8) -> Meas
     )
 
 
+def compensate_hold(measurements: Measurements) -> Measurements:
+    """Derived motion moved half a sample later, to match joint torques held over each sample.
+
+    A torque command ``τ_k`` held over ``[t_k, t_{k+1})`` makes the acceleration jump at every
+    sample. A smooth fit of the positions (Fourier series or low-pass) cannot follow the jumps: its
+    ``ddq`` is that of the held torque half a sample late, so the motion that satisfies the
+    dynamics with ``τ_k`` is the fit's in the middle of the hold, ``t_k + T/2``: here
+    ``(x_k + x_{k+1}) / 2`` for ``x = q, dq, ddq`` (the last sample extrapolated). The torques are
+    left as measured, so their noise stays white. Measured on ``oed simulate`` data (PUMA, 3 joints,
+    1 kHz, three periods, 15-harmonic Fourier fit), internal model: the largest error of a base
+    parameter fell from 28 standard deviations (viscous friction of joint 1, 0.8 % low) to 3.2.
+
+    For the joint-torque rows only: a wrench sampled at ``t_k`` (a force plate) then lags the motion
+    by half a sample (combined model on the same data: largest error 28 → 8 standard deviations).
+    Not for torques sampled from a continuous sensor, nor when ``dq``/``ddq`` were measured.
+    """
+    if measurements.dq is None or measurements.ddq is None:
+        raise ValueError("compensate_hold moves derived dq/ddq: derive them first")
+    if measurements.n_samples < 2:
+        raise ValueError("compensate_hold needs at least two samples")
+
+    def later(values):
+        following = np.vstack([values[1:], 2 * values[-1:] - values[-2:-1]])
+        return (values + following) / 2
+
+    metadata = dict(measurements.metadata, hold_compensated=True)
+    return replace(measurements, q=later(measurements.q), dq=later(measurements.dq), ddq=later(measurements.ddq),
+                   metadata=metadata)
+
+
 def fill_derivatives(
-    measurements: Measurements, method: Differentiation | None = None, *, decimation: int = 1
+    measurements: Measurements, method: Differentiation | None = None, *, decimation: int = 1,
+    held_torques: bool = False,
 ) -> Measurements:
     """Measurements with ``dq`` and ``ddq``, derived by ``method`` when missing, then decimated.
 
     Without a method: periodic data (``metadata["frequency_hz"]`` set, as the simulator records)
     use :class:`FourierDifferentiation`, others :class:`ButterworthDifferentiation` with the
     automatic cut-off. Data that already hold both are left alone unless a method is given.
+    ``held_torques``: the joint torques were held over each sample; when the derivatives are
+    derived here, :func:`compensate_hold` aligns the motion with them (before decimation).
     """
     if method is None and measurements.dq is not None and measurements.ddq is not None:
         return decimate(measurements, decimation)
     if method is None:
         frequency = measurements.metadata.get("frequency_hz")
         method = FourierDifferentiation(float(frequency)) if frequency else ButterworthDifferentiation()
-    return decimate(method.apply(measurements), decimation)
+    derived = method.apply(measurements)
+    return decimate(compensate_hold(derived) if held_torques else derived, decimation)

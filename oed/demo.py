@@ -3,7 +3,8 @@
 1. Design two optimal Fourier excitations (identification and validation; PUMA paper §IV.A).
 2. Simulate both experiments on a robot whose joints have Coulomb friction and a torque offset
    that the declared model (rigid body + viscous friction) does not know about.
-3. Average the periods and take dq, ddq from a Fourier fit of the measured positions.
+3. Average the periods and take dq, ddq from a Fourier fit of the measured positions, half a
+   sample later to match the torques the simulator holds over each sample (``held_torques``).
    (The simulated Coulomb law is ``tanh(dq/0.05)``, the candidate ``sign(dq)``: the estimates
    come out about 10 % low and the error after stays above the noise floor near velocity
    reversals; the synthetic cases of ``tests/test_diagnosis.py`` reach the floor.)
@@ -75,7 +76,7 @@ def _loop(robot, out: Path, outputs, say: Callable[[str], None]) -> dict:
         result.measurements.write(outputs.stage(out / f"data_{label}.csv"))
         # the response carries harmonics the 5-term excitation does not: fit 15
         differentiation = FourierDifferentiation(frequency_hz=design.trajectory.frequency_hz, harmonics=15)
-        data[label] = fill_derivatives(result.measurements, differentiation)
+        data[label] = fill_derivatives(result.measurements, differentiation, held_torques=True)
 
     say("3. identifying the declared model and diagnosing its residual...")
     model = build_model(robot, "internal", "viscous")

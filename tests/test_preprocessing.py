@@ -11,6 +11,7 @@ from estimation.preprocessing import (
     ButterworthDifferentiation,
     FourierDifferentiation,
     average_periods,
+    compensate_hold,
     decimate,
     fill_derivatives,
 )
@@ -84,3 +85,15 @@ def test_fill_derivatives_chooses_the_fourier_route_for_periodic_data(trajectory
     np.testing.assert_allclose(filled.ddq, ddq[: filled.n_samples], atol=1e-8)
     untouched = Measurements(measured.t, q, dq, ddq)
     assert fill_derivatives(untouched) is untouched
+
+
+def test_compensate_hold_moves_the_derived_motion_half_a_sample_later(trajectory):
+    t, q, dq, ddq = trajectory.sample(200.0)
+    held = compensate_hold(Measurements(t, q, dq, ddq, tau=np.ones_like(q)))
+    later = trajectory.evaluate(t + 0.5 / 200.0)
+    for moved, expected in zip((held.q, held.dq, held.ddq), later):
+        np.testing.assert_allclose(moved, expected, atol=1e-3 * np.abs(expected).max())
+    np.testing.assert_array_equal(held.tau, np.ones_like(q))  # the torques stay as measured
+    assert held.metadata["hold_compensated"] is True
+    with pytest.raises(ValueError, match="derive them first"):
+        compensate_hold(Measurements(t, q, tau=np.ones_like(q)))

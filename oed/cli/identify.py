@@ -48,6 +48,9 @@ def add_derivative_arguments(parser: argparse.ArgumentParser) -> None:
     derivatives.add_argument("--harmonics", type=int, default=5, help="harmonics of the Fourier fit (default: 5)")
     derivatives.add_argument("--cutoff", type=float, help="otherwise: Butterworth cut-off, Hz (default: automatic)")
     derivatives.add_argument("--decimate", type=int, default=1, help="keep one sample in K after low-pass filtering")
+    derivatives.add_argument("--held-torques", action="store_true",
+                             help="joint torques were held over each sample (zero-order hold, as `oed simulate` "
+                                  "and digital current commands): take the derived motion half a sample later")
 
 
 def differentiation(args: argparse.Namespace) -> Differentiation:
@@ -59,7 +62,7 @@ def differentiation(args: argparse.Namespace) -> Differentiation:
 def prepare(path: Path, model, args: argparse.Namespace) -> Measurements:
     measurements = read_measurements(path, model=model)
     method = None if measurements.dq is not None and measurements.ddq is not None else differentiation(args)
-    return fill_derivatives(measurements, method, decimation=args.decimate)
+    return fill_derivatives(measurements, method, decimation=args.decimate, held_torques=args.held_torques)
 
 
 def run(args: argparse.Namespace) -> int:
