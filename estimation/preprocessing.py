@@ -18,6 +18,7 @@ motion with joint torques held over each sample (zero-order hold).
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, replace
 from typing import Protocol
 
@@ -266,6 +267,8 @@ def fill_derivatives(
     derived here, :func:`compensate_hold` aligns the motion with them (before decimation).
     """
     if method is None and measurements.dq is not None and measurements.ddq is not None:
+        if held_torques:
+            warnings.warn("held torques: nothing to align, the data hold measured dq and ddq", stacklevel=2)
         return decimate(measurements, decimation)
     if method is None:
         frequency = measurements.metadata.get("frequency_hz")

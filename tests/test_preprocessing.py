@@ -97,3 +97,5 @@ def test_compensate_hold_moves_the_derived_motion_half_a_sample_later(trajectory
     assert held.metadata["hold_compensated"] is True
     with pytest.raises(ValueError, match="derive them first"):
         compensate_hold(Measurements(t, q, tau=np.ones_like(q)))
+    with pytest.warns(UserWarning, match="nothing to align"):
+        fill_derivatives(Measurements(t, q, dq, ddq, tau=np.ones_like(q)), held_torques=True)
