@@ -135,7 +135,7 @@ def simulate_servo_arm(
     if len(joints) != u.shape[1]:
         raise ValueError(f"{len(joints)} joint plants for {u.shape[1]} input columns")
     if not max_speed > 0:
-        raise ValueError(f"max_speed must be positive, got {max_speed!r}")
+        raise ValueError(f"max_speed must be positive, got {max_speed}")
     if not (isinstance(substeps, int) and substeps >= 1):
         raise ValueError(f"substeps must be a positive integer, got {substeps!r}")
     mass = np.array([j.mass for j in joints])

@@ -32,6 +32,15 @@ import scipy.signal
 from dynamics.robots.servo_arm import SERVO_ARM_RANGES
 
 
+def _plain(value: object) -> str:
+    """``value`` for an error message: numpy scalars as plain numbers (``nan``, not ``np.float64(nan)``)."""
+    try:
+        values = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        return repr(value)
+    return str(values.tolist())
+
+
 @dataclass(frozen=True)
 class APRBSDesign:
     """What to design: per-joint ranges [rad], duration [s], sample time [s], hold-time bounds [s], levels.
@@ -51,12 +60,12 @@ class APRBSDesign:
             raise ValueError("ranges must hold at least one joint")
         for j, pair in enumerate(self.ranges, start=1):
             if len(pair) != 2 or not np.all(np.isfinite(pair)) or not pair[0] < pair[1]:
-                raise ValueError(f"joint {j}: range must be (u_min, u_max) with u_min < u_max, got {pair!r}")
+                raise ValueError(f"joint {j}: range must be (u_min, u_max) with u_min < u_max, got {_plain(pair)}")
         if not (np.isfinite(self.dt) and self.dt > 0):
-            raise ValueError(f"dt must be positive, got {self.dt!r}")
+            raise ValueError(f"dt must be positive, got {_plain(self.dt)}")
         for label in ("duration", "hold_min") + (("hold_max",) if self.hold_max is not None else ()):
             if not np.isfinite(getattr(self, label)):
-                raise ValueError(f"{label} must be a finite time in seconds, got {getattr(self, label)!r}")
+                raise ValueError(f"{label} must be a finite time in seconds, got {_plain(getattr(self, label))}")
         if not self.hold_min >= self.dt * (1 - 1e-9):
             raise ValueError(f"hold_min = {self.hold_min} s is shorter than the sample time dt = {self.dt} s")
         if self.hold_max is not None and self.hold_max < self.hold_min:

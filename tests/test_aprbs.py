@@ -75,6 +75,9 @@ def test_hold_min_tied_to_time_constant():
         (dict(duration=float("inf")), "duration must be a finite time"),
         (dict(hold_max=float("nan")), "hold_max must be a finite time"),
         (dict(hold_min=float("inf")), "hold_min must be a finite time"),
+        # numpy scalars (e.g. taken from a robot's limits) are printed as plain numbers
+        (dict(ranges=((np.float64("nan"), np.float64(1.0)),)), r"got \[nan, 1\.0\]$"),
+        (dict(dt=np.float64("nan")), "dt must be positive, got nan$"),
     ],
 )
 def test_bad_designs_raise_named_errors(kwargs, message):
