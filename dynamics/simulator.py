@@ -211,6 +211,7 @@ class Simulator:
 
         robot, n = self.robot, self.robot.n_joints
         evaluate, period = _reference(trajectory, n)
+        whole_periods = duration is None and period is not None
         if duration is None:
             if period is None:
                 raise ValueError("give duration for a trajectory without a period")
@@ -285,7 +286,10 @@ class Simulator:
             "joint_names": robot.joint_names,
             "rate_hz": self.rate_hz,
             "duration_s": duration,
-            "periods": periods if period is not None else None,
+            "periods": int(periods) if whole_periods else None,
+            # whole periods of a periodic reference: estimation.preprocessing.fill_derivatives fits them
+            "frequency_hz": 1.0 / period if whole_periods else None,
+            "harmonics": getattr(trajectory, "harmonics", None),
             "warmup_periods": int(warmup_periods),
             "integrator": f"rk4, zero-order-hold torque, {substeps} substep(s) per sample",
             "seed": seed,

@@ -172,6 +172,19 @@ def test_derivatives_are_written_only_when_asked(robot, trajectory):
     np.testing.assert_array_equal(full.measurements.ddq, full.ddq)
 
 
+def test_whole_periods_record_the_frequency_for_the_fourier_fit(robot, trajectory):
+    from estimation.preprocessing import fill_derivatives
+
+    periodic = simulate(robot, trajectory, periods=1, seed=0)
+    assert periodic.metadata["frequency_hz"] == pytest.approx(0.2) and periodic.metadata["harmonics"] == 5
+    filled = fill_derivatives(periodic)
+    # three times the reference's harmonics: the tracking error adds harmonics above them
+    assert filled.metadata["differentiation"] == "fourier" and len(filled.metadata["fourier_fit"]["a"][0]) == 15
+    cut = Simulator(robot).run(trajectory, duration=1.0, seed=0).measurements
+    assert cut.metadata["frequency_hz"] is None
+    assert fill_derivatives(cut).metadata["differentiation"] == "butterworth"
+
+
 def test_warmup_starts_the_record_in_the_periodic_steady_state(robot):
     fast = FourierTrajectory(1.0, np.zeros(3), np.full((3, 2), 0.1), np.full((3, 2), -0.1))
     simulator = Simulator(robot, noise=NoiseModel.none())
