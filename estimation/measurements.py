@@ -30,6 +30,14 @@ def joint_columns(prefix: str, n_joints: int) -> list[str]:
     return [f"{prefix}{index}" for index in range(1, n_joints + 1)]
 
 
+def _real_array(values: Any, name: str) -> NDArray[np.float64]:
+    """``values`` as a float array, or a ``TypeError`` naming ``name``."""
+    array = np.asarray(values)
+    if np.iscomplexobj(array) or not (np.issubdtype(array.dtype, np.number) or array.dtype == bool):
+        raise TypeError(f"{name} must hold real numbers, got dtype {array.dtype}")
+    return array.astype(float, copy=False)
+
+
 @dataclass(frozen=True)
 class Measurements:
     """Samples of one experiment.
@@ -55,6 +63,34 @@ class Measurements:
     tau: NDArray[np.float64] | None = None
     wrench: NDArray[np.float64] | None = None
     metadata: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        t = _real_array(self.t, "t")
+        if t.ndim != 1:
+            raise ValueError(f"t must be 1-D (one time per sample), got shape {t.shape}")
+        object.__setattr__(self, "t", t)
+        q = _real_array(self.q, "q")
+        if q.ndim == 1:  # one joint (e.g. a linear axis)
+            q = q.reshape(-1, 1)
+        if q.ndim != 2:
+            raise ValueError(f"q must be (samples, joints), got shape {q.shape}")
+        object.__setattr__(self, "q", q)
+        expected = {"q": q.shape, "dq": q.shape, "ddq": q.shape, "tau": q.shape, "wrench": (q.shape[0], 6)}
+        for name in ("dq", "ddq", "tau", "wrench"):
+            values = getattr(self, name)
+            if values is None:
+                continue
+            values = _real_array(values, name)
+            if values.ndim == 1 and expected[name][1] == 1:
+                values = values.reshape(-1, 1)
+            if values.shape != expected[name]:
+                raise ValueError(f"{name} has shape {values.shape}, expected {expected[name]} (samples, "
+                                 f"{'channels fx..mz' if name == 'wrench' else 'joints'}) to match q")
+            object.__setattr__(self, name, values)
+        if q.shape[0] != t.shape[0]:
+            raise ValueError(f"t has {t.shape[0]} samples, q {q.shape[0]}: they must match")
+        if not isinstance(self.metadata, dict):
+            raise TypeError(f"metadata must be a dict, got {type(self.metadata).__name__}")
 
     @property
     def n_samples(self) -> int:

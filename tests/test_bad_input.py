@@ -81,3 +81,29 @@ def test_unknown_model_and_effect():
         build_model(robot, "reaction")
     with pytest.raises(ValueError, match="unknown effect 'stiction'"):
         build_model(robot, "internal", "viscous,stiction")
+
+
+@pytest.mark.parametrize(
+    "make,error,message",
+    [
+        (lambda t, q: dict(t=t[:10], q=q), ValueError, "t has 10 samples, q 50"),
+        (lambda t, q: dict(t=t, q=q, tau=q[:, :2]), ValueError, r"tau has shape \(50, 2\), expected \(50, 3\)"),
+        (lambda t, q: dict(t=t, q=q, wrench=q), ValueError, r"wrench has shape \(50, 3\), expected \(50, 6\)"),
+        (lambda t, q: dict(t=t.reshape(-1, 1), q=q), ValueError, "t must be 1-D"),
+        (lambda t, q: dict(t=t, q=q.astype(complex)), TypeError, "q must hold real numbers"),
+        (lambda t, q: dict(t=t, q=q.astype(str)), TypeError, "q must hold real numbers"),
+    ],
+)
+def test_measurements_refuse_mismatched_or_non_numeric_arrays(make, error, message):
+    from estimation.measurements import Measurements
+
+    t, q = np.arange(50) * 1e-3, np.zeros((50, 3))
+    with pytest.raises(error, match=message):
+        Measurements(**make(t, q))
+
+
+def test_measurements_take_lists_and_a_single_joint_as_one_column():
+    from estimation.measurements import Measurements
+
+    one_axis = Measurements([0.0, 0.1, 0.2], [1.0, 2.0, 3.0], tau=[0.0, 0.0, 1.0])
+    assert one_axis.q.shape == (3, 1) and one_axis.tau.shape == (3, 1) and one_axis.n_joints == 1
