@@ -84,24 +84,46 @@ class IdentificationModel:
 
     @property
     def effect_slices(self) -> dict[str, slice]:
-        """Column range of the rigid-body block and of each effect."""
+        """Column range of the rigid-body block and of each effect.
+
+        Keys are the effect names; an effect whose name is shared (``coulomb`` on joint 1 and on
+        joint 3, as :func:`estimation.diagnosis.diagnose` adds them) is keyed with its parameters,
+        ``coulomb(fc1)``, ``coulomb(fc3)``.
+        """
         slices = {"rigid_body": slice(0, 10 * self.robot.n_joints)}
         start = slices["rigid_body"].stop
+        names = [effect.name for effect in self.effects]
         for effect in self.effects:
-            stop = start + len(effect.parameter_names(self.robot))
-            slices[effect.name] = slice(start, stop)
+            parameters = effect.parameter_names(self.robot)
+            stop = start + len(parameters)
+            key = effect.name if names.count(effect.name) == 1 else f"{effect.name}({','.join(parameters)})"
+            slices[key] = slice(start, stop)
             start = stop
         return slices
 
     def nominal_parameters(self, **effect_values: ArrayLike) -> NDArray[np.float64]:
-        """The robot's standard parameters, then each effect's values (zero unless given by name)."""
-        theta = [self.robot.standard_parameters]
+        """The robot's standard parameters, then each effect's values (zero unless given by name).
+
+        A value is one number or one per parameter of all the effects of that name together
+        (in model order), e.g. ``coulomb=[fc1, fc3]`` for Coulomb friction on joints 1 and 3.
+        """
+        counts: dict[str, int] = {}
+        for effect in self.effects:
+            counts[effect.name] = counts.get(effect.name, 0) + len(effect.parameter_names(self.robot))
+        unknown = sorted(set(effect_values) - set(counts))
+        if unknown:
+            raise ValueError(f"no such effects in this model: {unknown}; it has {sorted(counts)}")
+        values: dict[str, list[float]] = {}
+        for name, count in counts.items():
+            given = np.asarray(effect_values.get(name, 0.0), dtype=float)
+            if given.size not in (1, count):
+                raise ValueError(f"{name}: give one value or {count} (one per parameter), got {given.size}")
+            values[name] = list(np.broadcast_to(given.reshape(-1), (count,)))
+        theta = [np.asarray(self.robot.standard_parameters, dtype=float)]
         for effect in self.effects:
             count = len(effect.parameter_names(self.robot))
-            values = np.broadcast_to(np.asarray(effect_values.pop(effect.name, 0.0), dtype=float), (count,))
-            theta.append(values)
-        if effect_values:
-            raise ValueError(f"no such effects in this model: {sorted(effect_values)}")
+            theta.append(np.array(values[effect.name][:count]))
+            del values[effect.name][:count]
         return np.concatenate(theta)
 
     def evaluate(self, q: ArrayLike, dq: ArrayLike, ddq: ArrayLike, *,
@@ -227,6 +249,10 @@ def _build_model(
         if not (acts_on_joints or acts_on_wrench):
             continue
         count = len(effect.parameter_names(robot))
+        repeated = sorted(set(effect.parameter_names(robot)) & set(names))
+        if repeated:
+            raise ValueError(f"effect {effect.name!r}: parameter(s) {', '.join(repeated)} already in the model "
+                             "(two effects cover the same joint or channel)")
         joint_blocks.append(joint_columns if joint_columns is not None else casadi.SX.zeros(robot.n_joints, count))
         wrench_blocks.append(wrench_columns if wrench_columns is not None else casadi.SX.zeros(6, count))
         names.extend(effect.parameter_names(robot))

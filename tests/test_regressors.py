@@ -144,3 +144,18 @@ def test_stribeck_and_spring_columns_follow_their_definitions():
     np.testing.assert_allclose(Y[:, 1, 30], np.exp(-((dq[:, 1] / 0.1) ** 2)) * np.sign(dq[:, 1]))
     np.testing.assert_allclose(Y[:, [0, 2], [31, 32]], q[:, [0, 2]] - 0.3)
     assert np.all(Y[:, [1, 2], 31] == 0) and np.all(Y[:, [0, 2], 30] == 0)
+
+
+def test_effects_sharing_a_name_keep_their_own_columns_and_values():
+    from dynamics.effects import CoulombFriction
+
+    robot = load_robot("puma560", joints=3)
+    model = build_model(robot, "internal", ["viscous", CoulombFriction(joints=(0,)), CoulombFriction(joints=(2,))])
+    slices = model.effect_slices
+    assert slices["coulomb(fc1)"] == slice(33, 34) and slices["coulomb(fc3)"] == slice(34, 35)
+    np.testing.assert_array_equal(model.nominal_parameters(coulomb=[5.0, 7.0])[-2:], [5.0, 7.0])
+    np.testing.assert_array_equal(model.nominal_parameters(coulomb=2.0)[-2:], [2.0, 2.0])
+    with pytest.raises(ValueError, match="give one value or 2"):
+        model.nominal_parameters(coulomb=[1.0, 2.0, 3.0])
+    with pytest.raises(ValueError, match="fc1 already in the model"):
+        build_model(robot, "internal", ["coulomb", CoulombFriction(joints=(0,))])
