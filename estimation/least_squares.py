@@ -27,6 +27,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from dynamics.models import IdentificationModel
 from dynamics.threads import single_threaded_blas
+from estimation.errors import NotFittedError
 from estimation.measurements import Measurements
 
 #: smallest/largest eigenvalue of the equilibrated ``YᵀWY`` below this: a parameter is not excited
@@ -37,8 +38,6 @@ class IdentifiabilityError(ValueError):
     """The data do not determine every parameter (rank-deficient regressor)."""
 
 
-class NotFittedError(RuntimeError):
-    """An estimator was used before ``fit``."""
 
 
 @dataclass(frozen=True)

@@ -12,10 +12,14 @@ from numpy.typing import ArrayLike
 
 
 def _pair(measured: ArrayLike, predicted: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
-    y = np.asarray(measured, dtype=float).reshape(-1)
-    y_hat = np.asarray(predicted, dtype=float).reshape(-1)
-    if y.shape != y_hat.shape:
-        raise ValueError(f"measured has {y.size} samples but predicted has {y_hat.size}")
+    def column_as_vector(values: ArrayLike) -> np.ndarray:
+        array = np.asarray(values, dtype=float)
+        return array.reshape(-1) if array.ndim == 2 and array.shape[1] == 1 else array
+
+    y, y_hat = column_as_vector(measured), column_as_vector(predicted)
+    if y.shape != y_hat.shape:  # several channels are compared channel by channel, never reshaped
+        raise ValueError(f"measured has shape {y.shape} but predicted {y_hat.shape}")
+    y, y_hat = y.reshape(-1), y_hat.reshape(-1)
     if y.size == 0:
         raise ValueError("metrics need at least one sample")
     if not (np.all(np.isfinite(y)) and np.all(np.isfinite(y_hat))):

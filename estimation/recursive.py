@@ -40,6 +40,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from estimation.arx import Polynomials, as_signal_pair, check_orders
+from estimation.errors import NotFittedError
 from dynamics.compiled import compile_function
 
 Backend = Literal["compiled", "numpy", "vm"]
@@ -285,7 +286,7 @@ class RecursiveLeastSquares:
     def polynomials_(self) -> Polynomials:
         """The fitted ``A, B, C`` polynomials."""
         if not hasattr(self, "theta_"):
-            raise RuntimeError(f"{type(self).__name__} is not fitted yet: call fit(u, y) first")
+            raise NotFittedError(f"{type(self).__name__} is not fitted yet: call fit(u, y) first")
         return Polynomials.from_theta(self.theta_, self.na, self.nb, self.nk, self._nc)
 
     def predict(self, u: ArrayLike, y: ArrayLike) -> np.ndarray:

@@ -93,3 +93,21 @@ def test_erls_covariance_matches_the_spread_over_repeated_experiments():
     predicted = np.mean(np.array(covariances), axis=0)
     assert np.all(spread < 4 * predicted) and np.all(spread > predicted / 4)
 
+
+
+def test_several_channels_are_refused_not_interleaved_and_unfitted_estimators_lack_theta():
+    from estimation.arx import ARXEstimator
+    from estimation.errors import NotFittedError
+    from estimation.metrics import rmse
+    from estimation.recursive import ExtendedRecursiveLeastSquares
+
+    generator = np.random.default_rng(0)
+    with pytest.raises(ValueError, match=r"signal u must be one channel .* got shape \(1000, 4\)"):
+        ARXEstimator().fit(generator.normal(size=(1000, 4)), generator.normal(size=(1000, 4)))
+    with pytest.raises(ValueError, match="measured has shape"):
+        rmse(np.ones((4, 2)), np.ones(8))
+    assert rmse(np.ones(8), np.ones((8, 1))) == 0.0
+    for estimator in (ARXEstimator(), ExtendedRecursiveLeastSquares(na=2, nb=1, nc=1)):
+        assert not hasattr(estimator, "polynomials_")
+        with pytest.raises(NotFittedError, match="not fitted"):
+            estimator.predict(np.zeros(10), np.zeros(10))
