@@ -111,3 +111,21 @@ def test_several_channels_are_refused_not_interleaved_and_unfitted_estimators_la
         assert not hasattr(estimator, "polynomials_")
         with pytest.raises(NotFittedError, match="not fitted"):
             estimator.predict(np.zeros(10), np.zeros(10))
+
+
+def test_erls_standard_deviations_match_the_spread_over_noise_realisations():
+    """cov_ is the prediction-error covariance σ²(Σψψᵀ)⁻¹, ψ = φ/C: σ²P of the pseudo-linear
+    recursion understated the spread of a1, a2 by ~1.4x."""
+    from estimation.recursive import ExtendedRecursiveLeastSquares
+
+    estimates, deviations = [], []
+    for seed in range(40):
+        generator = np.random.default_rng(100 + seed)
+        u = generator.standard_normal(3000)
+        y = ARXEstimator.simulate_structure(a=[-1.5, 0.7], b=[1.0], c=[0.5], nk=1, u=u,
+                                            e=0.3 * generator.standard_normal(3000))
+        fitted = ExtendedRecursiveLeastSquares(na=2, nb=1, nc=1).fit(u, y)
+        estimates.append(fitted.theta_)
+        deviations.append(np.sqrt(np.diag(fitted.cov_)))
+    ratio = np.std(estimates, axis=0) / np.mean(deviations, axis=0)
+    assert np.all((ratio > 0.75) & (ratio < 1.3)), ratio
