@@ -19,6 +19,9 @@ import casadi
 from dynamics.robot import RobotModel
 
 WRENCH_CHANNELS: tuple[str, ...] = ("fx", "fy", "fz", "mx", "my", "mz")
+#: effects whose parameters are positive by physics (dissipation, inertia): an estimate of the
+#: other sign is not that effect
+POSITIVE_EFFECTS: frozenset[str] = frozenset({"viscous", "coulomb", "stribeck", "armature"})
 
 
 @runtime_checkable

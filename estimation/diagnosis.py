@@ -32,6 +32,7 @@ import scipy.stats
 from numpy.typing import NDArray
 
 from dynamics.effects import (
+    POSITIVE_EFFECTS,
     WRENCH_CHANNELS,
     Armature,
     CoulombFriction,
@@ -48,8 +49,6 @@ from estimation.least_squares import stack
 from estimation.measurements import Measurements
 
 JOINT_CANDIDATES: tuple[type, ...] = (CoulombFriction, JointOffset, Armature, StribeckFriction, Spring)
-# effects whose parameters are positive by physics: an estimate of the other sign is not that effect
-POSITIVE_EFFECTS: frozenset[str] = frozenset({"viscous", "coulomb", "stribeck", "armature"})
 
 
 @dataclass(frozen=True)
@@ -99,6 +98,7 @@ class Diagnosis:
             "effects": [effect.to_dict() for effect in self.effects],
             "rejected": [{"name": r.name, "channels": list(r.channels), "reason": r.reason} for r in self.rejected],
             "residuals": self.residuals,
+            "warnings": {"before": list(self.before.warnings), "after": list(self.after.warnings)},
             "train": {"before": {"mse": self.before.train.mse}, "after": {"mse": self.after.train.mse}},
             "validation": {
                 "before": {"mse": self.before.validation.mse if self.before.validation else None},

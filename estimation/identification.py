@@ -12,16 +12,55 @@ For repeated use (several estimators, extra columns) work with
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
+from dynamics.effects import POSITIVE_EFFECTS
 from dynamics.models import IdentificationModel
 from dynamics.threads import single_threaded_blas
 from estimation.least_squares import Estimate, LeastSquares, WeightedLeastSquares, stack
 from estimation.measurements import Measurements
 from estimation.validation import Comparison, compare
+
+
+#: an estimate this many standard deviations on the wrong side of zero is flagged
+IMPLAUSIBLE_SIGMAS = 3.0
+
+
+class ImplausibleEstimateWarning(UserWarning):
+    """A parameter positive by physics (friction, armature) was estimated clearly negative."""
+
+
+def implausible_estimates(model: IdentificationModel, estimate: Estimate,
+                          sigmas: float = IMPLAUSIBLE_SIGMAS) -> tuple[str, ...]:
+    """Messages for the base parameters that are one positive-by-physics effect parameter alone
+    (``fv5``, ``fc2``, ``Ia3``…; :data:`dynamics.effects.POSITIVE_EFFECTS`) and whose estimate lies
+    more than ``sigmas`` standard deviations below zero.
+
+    Such a value is not friction: it usually absorbs an effect the model lacks (or a torque-sign or
+    unit error); :func:`estimation.diagnosis.diagnose` looks for the missing effect.
+    """
+    positive = {name for effect in model.effects if effect.name in POSITIVE_EFFECTS
+                for name in effect.parameter_names(model.robot)}
+    messages = []
+    for record in estimate.records():
+        if record["expression"].strip() in positive and record["value"] < -sigmas * record["std"]:
+            messages.append(
+                f"{record['name']} = {record['value']:.4g} ± {record['std']:.2g} is negative "
+                f"({-record['value'] / record['std']:.0f} standard deviations), which no {_effect_of(model, record['expression'])} "
+                "can be: the model probably lacks an effect (try `oed diagnose`) or a sign or unit is wrong"
+            )
+    return tuple(messages)
+
+
+def _effect_of(model: IdentificationModel, parameter: str) -> str:
+    for effect in model.effects:
+        if parameter.strip() in effect.parameter_names(model.robot):
+            return effect.name if effect.name == "armature" else f"{effect.name} friction"
+    return "effect"
 
 
 @dataclass(frozen=True)
@@ -38,19 +77,23 @@ class IdentificationResult:
         Measured vs predicted on the identification experiment.
     validation
         The same on the validation experiment, or ``None``.
+    warnings
+        Physically implausible estimates (:func:`implausible_estimates`), also issued as
+        :class:`ImplausibleEstimateWarning`.
     """
 
     model: IdentificationModel
     estimate: Estimate
     train: Comparison
     validation: Comparison | None = None
+    warnings: tuple[str, ...] = ()
 
     def to_dict(self) -> dict[str, Any]:
         """The JSON document of ``oed identify``::
 
             {robot, model, effects, method, n_samples, parameters: [{name, expression, value, std,
              relative_std}], cond, channel_std: {channel: σ}, train: {mse: {channel: value}},
-             validation: {mse: {channel: value}} | null}
+             validation: {mse: {channel: value}} | null, warnings: [text]}
         """
         return {
             "robot": self.model.robot.name,
@@ -63,6 +106,7 @@ class IdentificationResult:
             "channel_std": dict(zip(self.estimate.channels, map(float, np.sqrt(self.estimate.channel_variance)))),
             "train": {"mse": self.train.mse},
             "validation": None if self.validation is None else {"mse": self.validation.mse},
+            "warnings": list(self.warnings),
         }
 
 
@@ -94,7 +138,10 @@ def identify(
     estimate = estimator.fit(stack(model, train)).estimate_
     train_comparison = compare(model, estimate.values, train, label="identification")
     validation = None if validate is None else compare(model, estimate.values, validate, label="validation")
-    return IdentificationResult(model, estimate, train_comparison, validation)
+    notes = implausible_estimates(model, estimate)
+    for note in notes:
+        warnings.warn(note, ImplausibleEstimateWarning, stacklevel=3)  # past the BLAS decorator
+    return IdentificationResult(model, estimate, train_comparison, validation, notes)
 
 
 def _finite(record: dict[str, Any]) -> dict[str, Any]:

@@ -49,7 +49,23 @@ def test_identify_writes_the_promised_json_and_figure(files, capsys):
     for channel, mse in document["validation"]["mse"].items():
         assert mse < 1.2 * NOISE[channel] ** 2
     assert figure.stat().st_size > 10_000
+    assert document["warnings"] == []
     assert "validation MSE" in capsys.readouterr().out
+
+
+def test_negative_friction_is_flagged_in_the_result_and_on_stderr(tmp_path, capsys):
+    robot = load_robot("puma560", joints=3)
+    model = build_model(robot, "internal", "viscous")
+    theta = true_parameters(model, seed=2, viscous=[5.0, -3.0, 4.0])  # joint 2 "pushes": not friction
+    simulate(model, theta, random_fourier(robot, 3), noise={"tau1": 0.5, "tau2": 0.5, "tau3": 0.2},
+             seed=11).write(tmp_path / "train.csv")
+    out = tmp_path / "result.json"
+    code = main(["identify", "--robot", "puma560", "--joints", "3", "--model", "internal", "--data",
+                 str(tmp_path / "train.csv"), "--out", str(out)])
+    assert code == 0
+    warnings = json.loads(out.read_text())["warnings"]
+    assert len(warnings) == 1 and warnings[0].startswith("fv2 = -3") and "viscous friction" in warnings[0]
+    assert "oed identify: warning: fv2 = -3" in capsys.readouterr().err
 
 
 def test_identify_derives_velocities_from_positions_by_fourier_fit(files):

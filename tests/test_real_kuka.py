@@ -9,12 +9,14 @@ and 4 (gravity-dominated) and in total, but not on every wrist joint.
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pytest
 
 from dynamics.models import build_model
 from dynamics.robots import load_robot
-from estimation.identification import identify
+from estimation.identification import ImplausibleEstimateWarning, identify
 from estimation.kuka_data import load_kuka_run
 from estimation.validation import compare
 from tests.conftest import shared_data
@@ -44,7 +46,9 @@ def test_kuka_runs_load_with_seven_joints_and_torques(kuka):
 def test_identified_model_beats_nominal_urdf_on_every_joint_of_the_repeated_run(kuka, effects):
     robot, runs, baseline = kuka
     model = build_model(robot, "internal", effects)
-    result = identify(model, runs[0], runs[1])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ImplausibleEstimateWarning)  # checked below
+        result = identify(model, runs[0], runs[1])
     identified = np.array(list(result.validation.mse.values()))
     assert np.all(identified < baseline[1]), np.round(identified / baseline[1], 3)
 
@@ -52,7 +56,10 @@ def test_identified_model_beats_nominal_urdf_on_every_joint_of_the_repeated_run(
 def test_friction_model_generalises_to_the_faster_run_in_total_and_on_gravity_joints(kuka):
     robot, runs, baseline = kuka
     model = build_model(robot, "internal", "viscous,coulomb,offset")
-    result = identify(model, runs[0], weighted=True)
+    # the fit is better than nominal, yet two viscous coefficients come out clearly negative: flagged
+    with pytest.warns(ImplausibleEstimateWarning, match="viscous friction"):
+        result = identify(model, runs[0], weighted=True)
+    assert [warning.split(" =")[0] for warning in result.warnings] == ["fv5", "fv7"]
     identified = np.array(list(compare(model, result.estimate.values, runs[2]).mse.values()))
     assert identified.sum() < 0.5 * baseline[2].sum()
     assert identified[1] < 0.2 * baseline[2][1] and identified[3] < 0.5 * baseline[2][3]

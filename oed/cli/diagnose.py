@@ -41,9 +41,9 @@ def run(args: argparse.Namespace) -> int:
         warnings.simplefilter("always")
         train = prepare(args.data, model, args)
         validate = prepare(args.validate, model, args)
-    for warning in caught:
-        print(f"oed diagnose: warning: {warning.message}", file=sys.stderr)
-    diagnosis = diagnose(model, train, validate, alpha=args.alpha)
+        diagnosis = diagnose(model, train, validate, alpha=args.alpha)
+    for message in dict.fromkeys(str(warning.message) for warning in caught):  # once each, in order
+        print(f"oed diagnose: warning: {message}", file=sys.stderr)
     with OutputFiles() as outputs:  # all files or none
         with outputs.open(args.out) as stream:
             stream.write(json_text(diagnosis.to_dict()))

@@ -73,9 +73,9 @@ def run(args: argparse.Namespace) -> int:
         warnings.simplefilter("always")
         train = prepare(args.data, model, args)
         validation = None if args.validate is None else prepare(args.validate, model, args)
+        result = identify(model, train, validation, weighted=args.method == "wls")
     for warning in caught:
         print(f"oed identify: warning: {warning.message}", file=sys.stderr)
-    result = identify(model, train, validation, weighted=args.method == "wls")
     with OutputFiles() as outputs:  # all files or none
         with outputs.open(args.out) as stream:
             stream.write(json_text(result.to_dict()))
