@@ -71,6 +71,10 @@ class IdentificationProblem:
         if not np.all(np.isfinite(y)):
             bad = np.argwhere(~np.isfinite(y))[0]
             raise ValueError(f"measured channel {self.channels[bad[1]]} holds NaN or inf (sample {bad[0]})")
+        if not np.all(np.isfinite(Y)):
+            bad = np.argwhere(~np.isfinite(Y))[0]
+            raise ValueError(f"regressor column {self.names[bad[2]]} holds NaN or inf (sample {bad[0]}, channel "
+                             f"{self.channels[bad[1]]}): check the measured q, dq, ddq")
         object.__setattr__(self, "Y", Y)
         object.__setattr__(self, "y", y)
         object.__setattr__(self, "channels", tuple(self.channels))
@@ -183,6 +187,13 @@ class Estimate:
     channels: tuple[str, ...]
     method: Literal["ols", "wls"]
     n_iterations: int
+
+    def __post_init__(self) -> None:
+        # frozen all the way down: estimator.theta_[0] = 0 must not rewrite the estimate
+        for name in ("values", "cov", "std", "relative_std", "residuals", "channel_variance", "weights"):
+            array = np.array(getattr(self, name), dtype=float)
+            array.flags.writeable = False
+            object.__setattr__(self, name, array)
 
     def records(self) -> list[dict[str, Any]]:
         """One dict per parameter: ``name, expression, value, std, relative_std``."""
@@ -301,6 +312,9 @@ class LeastSquares:
         """``Y θ̂`` for a problem or a regressor ``(N, m, r)``."""
         theta = self._fitted().values
         Y = problem.Y if isinstance(problem, IdentificationProblem) else np.asarray(problem, dtype=float)
+        if Y.ndim < 1 or Y.shape[-1] != theta.shape[0]:
+            raise ValueError(f"the regressor has shape {Y.shape}; its last axis must hold the {theta.shape[0]} "
+                             "fitted parameters")
         return Y @ theta
 
     def __repr__(self) -> str:
@@ -333,8 +347,14 @@ class WeightedLeastSquares(LeastSquares):
     def fit(self, problem: IdentificationProblem | IdentificationModel, measurements: Measurements | None = None):
         if int(self.max_iter) != self.max_iter or self.max_iter < 1:
             raise ValueError(f"max_iter must be a positive integer, got {self.max_iter}")
-        if not self.tol > 0:
+        for name in ("tol", "variance_floor"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+                raise TypeError(f"{name} must be a number, got {type(value).__name__}")
+        if not (np.isfinite(self.tol) and self.tol > 0):
             raise ValueError(f"tol must be positive, got {self.tol}")
+        if not (np.isfinite(self.variance_floor) and self.variance_floor >= 0):
+            raise ValueError(f"variance_floor must be a non-negative number, got {self.variance_floor}")
         problem = _as_problem(problem, measurements)
         _check_size(problem)
         floor = self.variance_floor * np.maximum(np.mean(problem.y**2, axis=0), np.finfo(float).tiny)

@@ -130,6 +130,24 @@ def test_unfitted_estimator_and_bad_settings_raise_clear_errors():
         WeightedLeastSquares(max_iter=0).fit(problem)
     with pytest.raises(TypeError, match="measurements are missing"):
         LeastSquares().fit(build_model(load_robot("puma560", joints=3), "internal"))
+    assert not hasattr(LeastSquares(), "theta_")  # NotFittedError is an AttributeError too
+    with pytest.raises(ValueError, match="variance_floor must be a non-negative number, got nan"):
+        WeightedLeastSquares(variance_floor=np.nan).fit(problem)
+    with pytest.raises(TypeError, match="tol must be a number, got str"):
+        WeightedLeastSquares(tol="a").fit(problem)
+    Y = np.ones((5, 1, 1))
+    Y[3] = np.nan
+    with pytest.raises(ValueError, match="regressor column m holds NaN or inf .sample 3, channel tau1"):
+        IdentificationProblem(Y, np.ones((5, 1)), ("tau1",), ("m",))
+
+
+def test_fitted_values_are_read_only_and_predict_checks_the_parameter_axis():
+    problem = IdentificationProblem(np.arange(10.0).reshape(5, 1, 2), np.arange(5.0).reshape(5, 1), ("tau1",), ("m", "c"))
+    estimator = LeastSquares().fit(problem)
+    with pytest.raises(ValueError, match="read-only"):
+        estimator.theta_[0] = 0.0
+    with pytest.raises(ValueError, match="last axis must hold the 2 fitted parameters"):
+        estimator.predict(np.ones((5, 1, 3)))
 
 
 def test_unexcited_parameters_are_named(puma):
