@@ -167,6 +167,8 @@ def check_states(n_joints: int, *arrays: ArrayLike, names: Iterable[str] = STATE
     """Validate joint-state arrays: same ``(N, n)`` shape (a 1-D array is one sample), finite."""
     checked = []
     for name, array in zip(names, arrays):
+        if np.iscomplexobj(array):
+            raise TypeError(f"{name} must be real, got complex values")
         try:
             values = np.asarray(array, dtype=float)
         except (TypeError, ValueError):

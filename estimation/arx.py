@@ -30,6 +30,7 @@ import scipy.signal
 from numpy.typing import ArrayLike
 
 from estimation.errors import NotFittedError
+from estimation.signal_checks import single_channel
 
 
 def check_orders(na: int, nb: int, nk: int, nc: int = 0) -> None:
@@ -41,20 +42,9 @@ def check_orders(na: int, nb: int, nk: int, nc: int = 0) -> None:
             raise ValueError(f"{name} must be >= {low}, got {value}")
 
 
-def _single_channel(values: ArrayLike, name: str) -> np.ndarray:
-    """A 1-D (or ``(N, 1)``) real signal as a 1-D float array; several channels are an error."""
-    array = np.asarray(values)
-    if np.iscomplexobj(array):
-        raise TypeError(f"signal {name} must be real, got complex values")
-    if array.ndim > 2 or (array.ndim == 2 and array.shape[1] != 1):
-        raise ValueError(f"signal {name} must be one channel (N,) or (N, 1), got shape {array.shape}: "
-                         "fit one model per channel")
-    return array.astype(float).reshape(-1)
-
-
 def as_signal_pair(u: ArrayLike, y: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
     """Return ``u, y`` as finite 1-D float arrays of equal length, or raise ``ValueError`` naming the problem."""
-    u, y = _single_channel(u, "u"), _single_channel(y, "y")
+    u, y = single_channel(u, "u"), single_channel(y, "y")
     if u.size != y.size:
         raise ValueError(f"input u has {u.size} samples but output y has {y.size}")
     for name, signal in (("u", u), ("y", y)):

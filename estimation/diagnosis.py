@@ -222,6 +222,10 @@ def diagnose(
     max_effects
         Most effects added.
     """
+    for name, data in (("train", train), ("validate", validate)):
+        if not isinstance(data, Measurements):
+            raise TypeError(f"{name} must be Measurements (diagnose confirms every effect on held-out data), "
+                            f"got {type(data).__name__}")
     if not 0 < alpha < 1:
         raise ValueError(f"alpha must lie in (0, 1), got {alpha}")
     if not 0 <= min_improvement < 1:

@@ -29,6 +29,8 @@ import casadi
 import numpy as np
 from numpy.typing import ArrayLike
 
+from estimation.signal_checks import single_channel
+
 
 @dataclass(frozen=True)
 class FusionResult:
@@ -94,20 +96,23 @@ def kalman_fusion(
     p0
         Initial covariance ``P(0) = p0 I``.
     """
-    gyro = np.asarray(gyro, dtype=float).reshape(-1)
-    acc = np.asarray(acc_angle, dtype=float).reshape(-1)
+    gyro, acc = single_channel(gyro, "gyro"), single_channel(acc_angle, "acc_angle")
     if gyro.size != acc.size:
         raise ValueError(f"gyro has {gyro.size} samples but acc_angle has {acc.size}")
     if gyro.size == 0:
         raise ValueError("kalman_fusion needs at least one sample")
     if not (np.all(np.isfinite(gyro)) and np.all(np.isfinite(acc))):
         raise ValueError("gyro or acc_angle holds NaN/inf")
-    if not dt > 0:
-        raise ValueError(f"dt must be positive, got {dt!r}")
+    if not (np.isfinite(dt) and dt > 0):
+        raise ValueError(f"dt must be positive, got {dt}")
     q = tuple(float(v) for v in q)
-    if len(q) != 2 or min(q) < 0 or r <= 0:
+    if len(q) != 2 or not (np.all(np.isfinite(q)) and min(q) >= 0 and np.isfinite(r) and r > 0):
         raise ValueError(f"Q diagonal must be two non-negative numbers and R positive, got q={q}, r={r}")
-    start = np.array([acc[0], 0.0] if x0 is None else x0, dtype=float)
+    if not (np.isfinite(p0) and p0 > 0):
+        raise ValueError(f"p0 (initial covariance scale) must be positive, got {p0}")
+    start = np.array([acc[0], 0.0] if x0 is None else x0, dtype=float).reshape(-1)
+    if start.shape != (2,) or not np.all(np.isfinite(start)):
+        raise ValueError(f"x0 must be two finite numbers (angle, bias), got {start.tolist()}")
     xp0 = np.concatenate((start, (p0 * np.eye(2)).reshape(-1)))
     out = np.asarray(_kalman_run(gyro.size)(xp0, gyro.reshape(1, -1), acc.reshape(1, -1), dt, q, r))
     return FusionResult(angle=out[0].copy(), bias=out[1].copy(), P=out[2:, -1].reshape(2, 2, order="F"), q=q, r=float(r))

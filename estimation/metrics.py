@@ -54,8 +54,10 @@ def r2_adjusted(measured: ArrayLike, predicted: ArrayLike, n_parameters: int) ->
     """
     y, y_hat = _pair(measured, predicted)
     n = y.size
-    if not isinstance(n_parameters, (int, np.integer)) or n_parameters < 0:
-        raise TypeError(f"n_parameters must be a non-negative integer, got {n_parameters!r}")
+    if not isinstance(n_parameters, (int, np.integer)) or isinstance(n_parameters, bool):
+        raise TypeError(f"n_parameters must be an integer, got {type(n_parameters).__name__}")
+    if n_parameters < 0:
+        raise ValueError(f"n_parameters must be non-negative, got {n_parameters}")
     if n - n_parameters < 1:
         raise ValueError(f"adjusted R² needs more samples ({n}) than parameters ({n_parameters})")
     total = float(np.sum((y - y.mean()) ** 2))

@@ -19,6 +19,7 @@ Examples
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Iterable
 from typing import Literal
 
@@ -27,6 +28,10 @@ from numpy.typing import ArrayLike
 
 from estimation.arx import ARXEstimator, OrderCandidate, OrderSelection, Polynomials, as_signal_pair, information_criterion
 from estimation.recursive import Backend, ExtendedRecursiveLeastSquares
+
+
+class OrderAtEdgeWarning(UserWarning):
+    """The selected order is the largest one searched: the criterion may keep falling beyond it."""
 
 
 def select_orders(
@@ -42,6 +47,9 @@ def select_orders(
     """
     u, y = as_signal_pair(u, y)
     na, nb, nc = list(na), list(nb), list(nc)
+    for name, orders in (("na", na), ("nb", nb), ("nc", nc)):
+        if not orders:
+            raise ValueError(f"{name}: give at least one order to try")
     start = max(max(na), nk + max(nb) - 1, max(nc)) + 1
     candidates = []
     for c in nc:
@@ -59,4 +67,9 @@ def select_orders(
     if not candidates:
         raise ValueError("no candidate order gave a stable A(z): widen the order ranges or set require_stable=False")
     best = min(candidates, key=lambda item: item.score)
+    at_edge = [f"{name} = {value}" for name, value, orders in (("na", best.na, na), ("nb", best.nb, nb), ("nc", best.nc, nc))
+               if len(orders) > 1 and value == max(orders)]
+    if at_edge:
+        warnings.warn(f"{criterion.upper()} picks {', '.join(at_edge)}, the largest order tried: the optimum may lie "
+                      "beyond the searched range (widen it)", OrderAtEdgeWarning, stacklevel=2)
     return OrderSelection(na=best.na, nb=best.nb, nc=best.nc, criterion=criterion, candidates=tuple(candidates))

@@ -1,11 +1,25 @@
-"""Input checks shared by the servo-arm workflow: uniform time columns and per-joint ranges.
+"""Input checks shared by the servo-arm workflow: one-channel signals, uniform time columns and
+per-joint ranges.
 
-Both raise ``ValueError`` with a message that names the column, the row and the bound at fault.
+They raise ``ValueError`` (``TypeError`` for complex values) with a message that names the signal,
+the column, the row or the bound at fault.
 """
 
 from __future__ import annotations
 
 import numpy as np
+
+
+def single_channel(values: np.ndarray, name: str) -> np.ndarray:
+    """A 1-D (or ``(N, 1)``) real signal as a 1-D float array; several channels are an error
+    (they would otherwise be interleaved into one signal)."""
+    array = np.asarray(values)
+    if np.iscomplexobj(array):
+        raise TypeError(f"signal {name} must be real, got complex values")
+    if array.ndim > 2 or (array.ndim == 2 and array.shape[1] != 1):
+        raise ValueError(f"signal {name} must be one channel (N,) or (N, 1), got shape {array.shape}: "
+                         "fit one model per channel")
+    return array.astype(float).reshape(-1)
 
 
 def check_uniform_time(t: np.ndarray, *, dt: float | None = None, name: str = "t") -> float:

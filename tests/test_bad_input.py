@@ -23,6 +23,10 @@ def test_unknown_robot_name():
         load_robot("kuka")
 
 
+def test_joint_count_may_be_a_numpy_integer():
+    assert load_robot("puma560", joints=np.int64(3)).n_joints == 3
+
+
 def test_too_many_joints_requested():
     with pytest.raises(RobotDescriptionError, match="has 6 joints"):
         load_robot("puma560", joints=7)
@@ -107,3 +111,9 @@ def test_measurements_take_lists_and_a_single_joint_as_one_column():
 
     one_axis = Measurements([0.0, 0.1, 0.2], [1.0, 2.0, 3.0], tau=[0.0, 0.0, 1.0])
     assert one_axis.q.shape == (3, 1) and one_axis.tau.shape == (3, 1) and one_axis.n_joints == 1
+
+
+def test_complex_states_are_refused_not_truncated():
+    model = build_model(load_robot("puma560", joints=3), "internal")
+    with pytest.raises(TypeError, match="q must be real"):
+        model.evaluate_base(np.ones((2, 3)) + 1j, np.zeros((2, 3)), np.zeros((2, 3)))

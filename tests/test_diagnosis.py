@@ -83,6 +83,8 @@ def test_bad_alpha_is_named(robot):
     train, validate = _experiments(model, true_parameters(model))
     with pytest.raises(ValueError, match="alpha"):
         diagnose(model, train, validate, alpha=2.0)
+    with pytest.raises(TypeError, match="validate must be Measurements .* got NoneType"):
+        diagnose(model, train, None)
 
 
 def test_diagnose_cli_writes_the_promised_json_and_report(tmp_path, robot, capsys):

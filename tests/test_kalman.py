@@ -40,3 +40,11 @@ def test_fusion_rejects_bad_input():
         kalman_fusion(np.zeros(3), np.zeros(2), dt=0.01)
     with pytest.raises(ValueError, match="R positive"):
         kalman_fusion(np.zeros(3), np.zeros(3), dt=0.01, r=0.0)
+    with pytest.raises(ValueError, match="R positive"):
+        kalman_fusion(np.zeros(3), np.zeros(3), dt=0.01, r=np.nan)  # was all-NaN output
+    with pytest.raises(ValueError, match="p0 .* must be positive, got -1"):
+        kalman_fusion(np.zeros(3), np.zeros(3), dt=0.01, p0=-1)
+    with pytest.raises(ValueError, match="x0 must be two finite numbers"):
+        kalman_fusion(np.zeros(3), np.zeros(3), dt=0.01, x0=(0.0, 0.0, 1.0))
+    with pytest.raises(ValueError, match="signal gyro must be one channel"):
+        kalman_fusion(np.zeros((3, 2)), np.zeros(6), dt=0.01)

@@ -129,3 +129,18 @@ def test_erls_standard_deviations_match_the_spread_over_noise_realisations():
         deviations.append(np.sqrt(np.diag(fitted.cov_)))
     ratio = np.std(estimates, axis=0) / np.mean(deviations, axis=0)
     assert np.all((ratio > 0.75) & (ratio < 1.3)), ratio
+
+
+def test_order_selection_and_metrics_name_bad_settings():
+    from estimation.metrics import r2_adjusted
+    from estimation.order_selection import OrderAtEdgeWarning, select_orders
+
+    generator = np.random.default_rng(0)
+    u = generator.standard_normal(400)
+    y = ARXEstimator.simulate_structure(a=[-1.5, 0.7], b=[1.0], c=[], nk=1, u=u, e=0.05 * generator.standard_normal(400))
+    with pytest.raises(ValueError, match="na: give at least one order"):
+        select_orders(u, y, na=[], nb=[1])
+    with pytest.warns(OrderAtEdgeWarning, match="na = 2, the largest order tried"):
+        select_orders(u, y, na=[1, 2], nb=[1, 2, 3], criterion="bic")  # the truth is (2, 1)
+    with pytest.raises(ValueError, match="n_parameters must be non-negative, got -1"):
+        r2_adjusted(y, y, -1)

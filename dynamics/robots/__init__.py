@@ -5,6 +5,8 @@ from __future__ import annotations
 from collections.abc import Callable
 from pathlib import Path
 
+import numpy as np
+
 from dynamics.errors import RobotDescriptionError
 from dynamics.robot import RobotModel
 from importlib import resources
@@ -28,8 +30,9 @@ BUILT_IN_ROBOTS: dict[str, Callable[[], RobotModel]] = {
 
 def truncate(robot: RobotModel, joints: int) -> RobotModel:
     """Keep the first ``joints`` joints (and their links) of a chain."""
-    if not isinstance(joints, int) or isinstance(joints, bool):
+    if not isinstance(joints, (int, np.integer)) or isinstance(joints, bool):
         raise TypeError(f"joints must be an integer, got {type(joints).__name__}")
+    joints = int(joints)
     if not 1 <= joints <= robot.n_joints:
         raise RobotDescriptionError(f"{robot.name} has {robot.n_joints} joints; cannot keep {joints}")
     if joints == robot.n_joints:
