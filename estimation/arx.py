@@ -30,6 +30,7 @@ import scipy.signal
 from numpy.typing import ArrayLike
 
 from estimation.errors import NotFittedError
+from estimation.estimator import Estimator
 from estimation.signal_checks import single_channel
 
 
@@ -94,7 +95,7 @@ class Polynomials:
         return out
 
 
-class ARXEstimator:
+class ARXEstimator(Estimator):
     """ARX model ``A(z) y = B(z) u + e`` by batch least squares (the servo paper's eqs. 17–19 with ``nc = 0``).
 
     Parameters
@@ -110,6 +111,7 @@ class ARXEstimator:
 
     def fit(self, u: ArrayLike, y: ArrayLike) -> "ARXEstimator":
         """Least-squares estimate ``θ̂ = argmin V`` (eq. 19); sets ``theta_``, ``cov_``, ``noise_variance_``, ``residuals_``."""
+        self._forget_fit()
         check_orders(self.na, self.nb, self.nk)
         u, y = as_signal_pair(u, y)
         phi, target = arx_regressors(u, y, self.na, self.nb, self.nk)

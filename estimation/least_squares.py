@@ -28,6 +28,7 @@ from numpy.typing import ArrayLike, NDArray
 from dynamics.models import IdentificationModel
 from dynamics.threads import single_threaded_blas
 from estimation.errors import NotFittedError
+from estimation.estimator import Estimator
 from estimation.measurements import Measurements
 
 #: smallest/largest eigenvalue of the equilibrated ``YᵀWY`` below this: a parameter is not excited
@@ -262,7 +263,7 @@ def channel_variance(residuals: NDArray[np.float64], n_parameters: int) -> NDArr
     return np.sum(residuals**2, axis=0) / dof
 
 
-class LeastSquares:
+class LeastSquares(Estimator):
     """Ordinary least squares, eq. 20 of the PUMA paper: one noise variance for all channels.
 
     ``fit(problem)`` or ``fit(model, measurements)``; fitted attributes ``theta_``, ``cov_``,
@@ -274,6 +275,7 @@ class LeastSquares:
 
     @single_threaded_blas()
     def fit(self, problem: IdentificationProblem | IdentificationModel, measurements: Measurements | None = None):
+        self._forget_fit()
         problem = _as_problem(problem, measurements)
         _check_size(problem)
         weights = np.ones(problem.n_channels)
@@ -317,9 +319,6 @@ class LeastSquares:
                              "fitted parameters")
         return Y @ theta
 
-    def __repr__(self) -> str:
-        settings = ", ".join(f"{key}={value!r}" for key, value in vars(self).items() if not key.endswith("_"))
-        return f"{type(self).__name__}({settings})"
 
 
 class WeightedLeastSquares(LeastSquares):
@@ -345,6 +344,7 @@ class WeightedLeastSquares(LeastSquares):
 
     @single_threaded_blas()
     def fit(self, problem: IdentificationProblem | IdentificationModel, measurements: Measurements | None = None):
+        self._forget_fit()
         if int(self.max_iter) != self.max_iter or self.max_iter < 1:
             raise ValueError(f"max_iter must be a positive integer, got {self.max_iter}")
         for name in ("tol", "variance_floor"):

@@ -42,6 +42,7 @@ from numpy.typing import ArrayLike
 
 from estimation.arx import Polynomials, as_signal_pair, check_orders
 from estimation.errors import NotFittedError
+from estimation.estimator import Estimator
 from dynamics.compiled import compile_function
 
 Backend = Literal["compiled", "numpy", "vm"]
@@ -154,7 +155,7 @@ def _numpy_run(x: np.ndarray, data: np.ndarray, na: int, nb: int, nk: int, nc: i
     return state, errors, np.asarray(traces), theta_hist, P_hist
 
 
-class RecursiveLeastSquares:
+class RecursiveLeastSquares(Estimator):
     """Recursive least squares for ARX models, with forgetting factor (ERLS with ``nc = 0``).
 
     Parameters
@@ -212,6 +213,7 @@ class RecursiveLeastSquares:
         RecursionDivergedError
             If ``θ`` or ``P`` become NaN/inf (names the chunk where it happened).
         """
+        self._forget_fit()
         self._validate()
         u, y = as_signal_pair(u, y)
         na, nb, nk, nc = self.na, self.nb, self.nk, self._nc

@@ -144,3 +144,21 @@ def test_order_selection_and_metrics_name_bad_settings():
         select_orders(u, y, na=[1, 2], nb=[1, 2, 3], criterion="bic")  # the truth is (2, 1)
     with pytest.raises(ValueError, match="n_parameters must be non-negative, got -1"):
         r2_adjusted(y, y, -1)
+
+
+def test_estimators_share_the_scikit_learn_contract():
+    from estimation.least_squares import WeightedLeastSquares
+    from estimation.recursive import ExtendedRecursiveLeastSquares, RecursiveLeastSquares
+
+    assert repr(ARXEstimator(na=3)) == "ARXEstimator(na=3, nb=1, nk=1)"
+    assert WeightedLeastSquares().get_params() == {"max_iter": 20, "tol": 1e-6, "variance_floor": 1e-14}
+    assert ExtendedRecursiveLeastSquares().set_params(nc=2).get_params()["nc"] == 2
+    with pytest.raises(ValueError, match=r"no setting\(s\) \['foo'\]"):
+        ARXEstimator().set_params(foo=1)
+    generator = np.random.default_rng(0)
+    u = generator.standard_normal(600)
+    y = ARXEstimator.simulate_structure(a=[-0.5], b=[1.0], c=[], nk=1, u=u, e=0.01 * generator.standard_normal(600))
+    estimator = RecursiveLeastSquares(na=1, backend="numpy", keep_history=True).fit(u, y)
+    assert estimator.theta_history_.shape == (600, 2)
+    estimator.set_params(keep_history=False).fit(u[:300], y[:300])
+    assert not hasattr(estimator, "theta_history_")  # nothing of the earlier fit survives
