@@ -76,6 +76,8 @@ class OutputFiles:
         (matplotlib) see the one meant (:meth:`stage_figure`).
         """
         path = Path(path)
+        if any(path.resolve() == target.resolve() for _, target in self._staged):
+            raise ValueError(f"{path} is written twice in one run: each output needs its own path")
         folder = self._output_folder(path)
         try:
             handle, temporary = tempfile.mkstemp(prefix=f".{path.name}.", suffix=path.suffix or default_suffix,

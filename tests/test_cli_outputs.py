@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import re
 import stat
 
 import numpy as np
@@ -168,3 +169,33 @@ def test_a_failed_run_removes_the_folders_it_made_and_names_the_target(tmp_path,
             staged.write_text("{}")
             outputs._staged[-1] = (staged, tmp_path / "taken")  # the target became a non-empty folder meanwhile
     assert _listing(tmp_path) == ["a_file", "taken"]
+    with pytest.raises(ValueError, match="written twice in one run"):
+        with OutputFiles() as outputs:
+            outputs.stage(tmp_path / "one.json")
+            outputs.stage(tmp_path / "." / "one.json")
+    assert _listing(tmp_path) == ["a_file", "taken"]
+
+
+@pytest.mark.parametrize(
+    "arguments,message",
+    [
+        (["identify", "--joints", "3", "--data", "{d}/train.csv", "--out", "{d}/train.csv"],
+         "--out .*train.csv is the input file of --data"),
+        (["identify", "--joints", "3", "--data", "{d}/train.csv", "--out", "{d}/r.png", "--plot", "{d}/r.png"],
+         "--out and --plot are the same file"),
+        (["diagnose", "--joints", "3", "--data", "{d}/train.csv", "--validate", "{d}/val.csv", "--out", "{d}/val.csv"],
+         "--out .*val.csv is the input file of --validate"),
+        (["diagnose", "--joints", "3", "--data", "{d}/train.csv", "--validate", "{d}/val.csv",
+          "--out", "{d}/r.residuals.png", "--report", "{d}/r.md"], "--out and the report's residual figure"),
+        (["diagnose", "--joints", "3", "--data", "{d}/train.csv", "--validate", "{d}/train.csv", "--out", "{d}/x.json"],
+         "--validate is --data"),
+        (["aprbs", "--duration", "5", "--out", "{d}/a.png", "--figure", "{d}/a.png"], "--out and --figure"),
+        (["demo", "--out", ""], "--out is empty"),
+    ],
+)
+def test_an_output_never_replaces_an_input_or_another_output(internal_data, capsys, arguments, message):
+    before = {path.name: path.read_bytes() for path in internal_data.iterdir()}
+    code = main([argument.format(d=internal_data) for argument in arguments])
+    assert code == 2
+    assert re.search(message, capsys.readouterr().err)
+    assert {path.name: path.read_bytes() for path in internal_data.iterdir()} == before  # nothing written or lost

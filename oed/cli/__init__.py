@@ -21,6 +21,7 @@ import traceback
 from collections.abc import Sequence
 
 from dynamics.threads import single_threaded_blas
+from oed.cli.paths import check_paths
 
 # verb module names, in the order ``oed --help`` lists them
 VERB_MODULES: tuple[str, ...] = ("model", "design", "simulate", "identify", "aprbs", "servo_simulate", "servo_fit", "diagnose", "demo")
@@ -42,7 +43,7 @@ def build_parser() -> argparse.ArgumentParser:
     for name in VERB_MODULES:
         module = importlib.import_module(f"oed.cli.{name}")
         verb_parser = module.register(subparsers)
-        verb_parser.set_defaults(run=module.run)
+        verb_parser.set_defaults(run=module.run, derived_outputs=getattr(module, "derived_outputs", None))
     return parser
 
 
@@ -51,6 +52,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
+        check_paths(args, args.derived_outputs)  # before any work: no output over an input or another output
         with single_threaded_blas():  # threaded BLAS on tall, thin matrices only loses (dynamics.threads)
             return int(args.run(args))
     except (ValueError, TypeError, OSError, KeyError, RuntimeError) as error:

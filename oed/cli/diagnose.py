@@ -34,7 +34,20 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     return parser
 
 
+def residual_figure(report: Path) -> Path:
+    """The residual figure written beside the Markdown report."""
+    return report.with_suffix(".residuals.png")
+
+
+def derived_outputs(args: argparse.Namespace) -> dict[str, Path]:
+    """Files written besides the named outputs (checked against them by :func:`oed.cli.paths.check_paths`)."""
+    return {} if args.report is None else {"the report's residual figure": residual_figure(args.report)}
+
+
 def run(args: argparse.Namespace) -> int:
+    if args.data.expanduser().resolve() == args.validate.expanduser().resolve():
+        raise ValueError(f"--validate is --data ({args.data}): diagnose confirms every effect on held-out data "
+                         "from another experiment")
     robot = robot_from_arguments(args)
     model = build_model(robot, args.model, args.friction)
     with warnings.catch_warnings(record=True) as caught:
@@ -48,7 +61,7 @@ def run(args: argparse.Namespace) -> int:
         with outputs.open(args.out) as stream:
             stream.write(json_text(diagnosis.to_dict()))
         if args.report is not None:
-            figure = args.report.with_suffix(".residuals.png")
+            figure = residual_figure(args.report)
             plot_residuals(diagnosis, train, outputs.stage_figure(figure))
             with outputs.open(args.report) as stream:
                 stream.write(markdown_report(diagnosis, figure.name))

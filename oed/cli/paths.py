@@ -1,0 +1,51 @@
+"""One check for every verb: no output file may be an input file or another output file.
+
+Run by :func:`oed.cli.main` before the verb's work, from the option names the verbs share (a verb
+adds the files it derives from its options through ``derived_outputs``). Without it, ``--out`` equal
+to ``--data`` would replace the measurements by the result, and ``--csv`` equal to ``--out`` would
+keep only one of the two files, both with exit code 0.
+"""
+
+from __future__ import annotations
+
+import argparse
+from collections.abc import Callable
+from pathlib import Path
+
+#: options that name files a verb reads
+INPUT_OPTIONS: tuple[str, ...] = ("data", "validate", "trajectory", "bounds", "aprbs", "urdf")
+#: options that name files (or, for ``demo``, the folder) a verb writes
+OUTPUT_OPTIONS: tuple[str, ...] = ("out", "csv", "plot", "figure", "truth", "report")
+
+
+def _flag(option: str) -> str:
+    return f"--{option.replace('_', '-')}"
+
+
+def check_paths(args: argparse.Namespace,
+                derived_outputs: Callable[[argparse.Namespace], dict[str, Path]] | None = None) -> None:
+    """Raise ``ValueError`` when a path option is empty, an output is also an input, or two outputs coincide."""
+    named: dict[str, tuple[str, Path]] = {}
+    for role, options in (("input", INPUT_OPTIONS), ("output", OUTPUT_OPTIONS)):
+        for option in options:
+            value = getattr(args, option, None)
+            if value is None:
+                continue
+            if not str(value).strip():
+                raise ValueError(f"{_flag(option)} is empty: give a file name")
+            named[_flag(option)] = (role, Path(value))
+    if derived_outputs is not None:
+        for label, path in derived_outputs(args).items():
+            named[label] = ("output", Path(path))
+    seen: dict[Path, str] = {}
+    for label, (role, path) in named.items():
+        key = path.expanduser().resolve()
+        if key in seen:
+            first = seen[key]
+            if role == "output" and named[first][0] == "input":
+                raise ValueError(f"{label} {path} is the input file of {first}: it would be overwritten; "
+                                 "write the result elsewhere")
+            if role == "output":
+                raise ValueError(f"{first} and {label} are the same file ({path}): each output needs its own path")
+            continue  # the same file read twice (e.g. --data and --validate) is the verb's business
+        seen[key] = label
