@@ -8,12 +8,60 @@ columns absorb.
 
 from __future__ import annotations
 
+import xml.etree.ElementTree as ElementTree
 from pathlib import Path
 
 import numpy as np
 
 from dynamics.errors import RobotDescriptionError
 from dynamics.robot import DEFAULT_GRAVITY, Joint, JointType, RobotModel
+
+
+#: numeric attributes checked before Pinocchio reads the file (urdfdom turns a bad number into 0)
+_NUMERIC_ATTRIBUTES: dict[str, tuple[str, ...]] = {
+    "mass": ("value",),
+    "inertia": ("ixx", "ixy", "ixz", "iyy", "iyz", "izz"),
+    "origin": ("xyz", "rpy"),
+    "axis": ("xyz",),
+    "limit": ("lower", "upper", "velocity", "effort"),
+}
+
+
+def _check_numbers(path: Path) -> None:
+    """Every number of the links' inertial elements and of the joints must be a finite number.
+
+    urdfdom prints "Error: … is not a float" and carries on with 0 (a massless link), so such a
+    file would give silently wrong dynamics; here it is a :class:`RobotDescriptionError` naming
+    the element. A joint limit with ``lower > upper`` is refused as well.
+    """
+    try:
+        root = ElementTree.parse(path).getroot()
+    except ElementTree.ParseError as error:
+        raise RobotDescriptionError(f"cannot parse URDF {path}: not well-formed XML ({error})") from None
+    for kind in ("link", "joint"):
+        for element in root.iter(kind):
+            owner = f"{kind} {element.get('name')!r}"
+            scope = element.find("inertial") if kind == "link" else element
+            if scope is None:
+                continue
+            for tag, attributes in _NUMERIC_ATTRIBUTES.items():
+                for child in scope.iter(tag):
+                    for attribute in attributes:
+                        text = child.get(attribute)
+                        if text is None:
+                            continue
+                        try:
+                            values = [float(item) for item in text.split()]
+                        except ValueError:
+                            values = []
+                        if not values or not all(np.isfinite(values)):
+                            raise RobotDescriptionError(
+                                f"URDF {path}: {owner}: <{tag} {attribute}=\"{text}\"> is not a finite number")
+            limit = element.find("limit") if kind == "joint" else None
+            if limit is not None and limit.get("lower") is not None and limit.get("upper") is not None:
+                if float(limit.get("lower")) > float(limit.get("upper")):
+                    raise RobotDescriptionError(f"URDF {path}: {owner}: lower limit {limit.get('lower')} is above "
+                                                f"upper limit {limit.get('upper')}")
 
 
 def robot_from_urdf(path: str | Path, *, gravity: np.ndarray | None = None) -> RobotModel:
@@ -37,6 +85,7 @@ def robot_from_urdf(path: str | Path, *, gravity: np.ndarray | None = None) -> R
     path = Path(path)
     if not path.is_file():
         raise RobotDescriptionError(f"URDF file {path} is a folder" if path.is_dir() else f"URDF file not found: {path}")
+    _check_numbers(path)
     try:
         model = pin.buildModelFromUrdf(str(path))
     except (RuntimeError, ValueError) as error:

@@ -117,3 +117,22 @@ def test_complex_states_are_refused_not_truncated():
     model = build_model(load_robot("puma560", joints=3), "internal")
     with pytest.raises(TypeError, match="q must be real"):
         model.evaluate_base(np.ones((2, 3)) + 1j, np.zeros((2, 3)), np.zeros((2, 3)))
+
+
+@pytest.mark.parametrize(
+    "link,limit,message",
+    [
+        ('<link name="a"><inertial><mass value="nan"/></inertial></link>', 'lower="-1" upper="1"',
+         "link 'a': <mass value=\"nan\"> is not a finite number"),
+        ('<link name="a"><inertial><mass value="1"/><inertia ixx="inf" ixy="0" ixz="0" iyy="1" iyz="0" izz="1"/>'
+         '</inertial></link>', 'lower="-1" upper="1"', "<inertia ixx=\"inf\"> is not a finite number"),
+        ('<link name="a"><inertial><mass value="1"/></inertial></link>', 'lower="1" upper="-1"',
+         "joint 'j1': lower limit 1 is above upper limit -1"),
+    ],
+)
+def test_urdf_numbers_that_urdfdom_would_turn_into_zero_are_named(tmp_path, link, limit, message):
+    path = tmp_path / "robot.urdf"
+    path.write_text('<robot name="r"><link name="base"/>' + link + '<joint name="j1" type="revolute"><parent link="base"/>'
+                    f'<child link="a"/><axis xyz="0 0 1"/><limit {limit} effort="1" velocity="1"/></joint></robot>')
+    with pytest.raises(RobotDescriptionError, match=message.replace("(", r"\(")):
+        load_robot(urdf=str(path))
