@@ -33,6 +33,12 @@ COLUMN_GROUPS: tuple[str, ...] = ("q", "dq", "ddq", "tau", "wrench")
 IRREGULAR_TOLERANCE = 1e-3
 
 #: a revolute joint whose |q| exceeds this (rad) most likely holds degrees (2π plus a margin)
+#: a median sample time of this (s) or more is not seconds
+MAX_SAMPLE_TIME = 1.0
+#: above this (s) the time unit is questioned with a warning (10 Hz)
+SLOW_SAMPLE_TIME = 0.1
+#: a step this many times the median is a gap in the record, not jitter
+GAP_FACTOR = 5.0
 DEGREES_THRESHOLD = 2 * np.pi + 0.5
 
 
@@ -172,6 +178,9 @@ def measurements_from_frame(
             missing = [column for column in columns if column not in frame.columns]
             raise MissingColumnError(f"{source}: column(s) {', '.join(missing)} missing (the others of {group} are present)")
         arrays[group] = _numeric(frame, columns, source) if len(present) == len(columns) else None
+    if pd.api.types.is_datetime64_any_dtype(frame["t"]) or pd.api.types.is_timedelta64_dtype(frame["t"]):
+        raise TimeBaseError(f"{source}: column t holds {frame['t'].dtype} dates or durations; "
+                            "the format wants seconds as numbers (e.g. (t - t[0]).dt.total_seconds())")
     t = _numeric(frame, ["t"], source)[:, 0]
     _check_time(t, source)
     _check_angles(arrays["q"], model, source)
@@ -238,10 +247,15 @@ def _numeric(frame: pd.DataFrame, columns: list[str], source: str) -> NDArray[np
             row = int(np.flatnonzero(bad)[0])
             raise NonFiniteError(
                 f"{source}: column {column} holds {int(bad.sum())} NaN/inf or non-numeric value(s), "
-                f"first at row {row} ({frame[column].iloc[row]!r})"
+                f"first at row {row} ({_shown(frame[column].iloc[row])})"
             )
         values[:, index] = numbers
     return values
+
+
+def _shown(value: object) -> str:
+    """A cell for a message: strings quoted, numbers plain (``nan``, not ``np.float64(nan)``)."""
+    return repr(value) if isinstance(value, str) else str(value)
 
 
 def _check_time(t: NDArray[np.float64], source: str) -> None:
@@ -256,6 +270,21 @@ def _check_time(t: NDArray[np.float64], source: str) -> None:
     if decreasing.size:
         row = int(decreasing[0])
         raise TimeBaseError(f"{source}: column t decreases at row {row + 1} ({t[row]} -> {t[row + 1]}); sort the samples")
+    step = float(np.median(steps))
+    if step >= MAX_SAMPLE_TIME:
+        raise TimeBaseError(f"{source}: column t advances by {step:.4g} a sample: the format wants seconds, "
+                            "and these look like milliseconds or nanoseconds (divide t by 1e3 or 1e9)")
+    if step > SLOW_SAMPLE_TIME:
+        warnings.warn(f"{source}: column t advances by {step:.4g} s a sample ({1 / step:.3g} Hz), slow for robot "
+                      "dynamics: is t in seconds?", MeasurementWarning, stacklevel=4)
+    gaps = np.flatnonzero(steps > GAP_FACTOR * step)
+    if gaps.size:
+        row = int(gaps[0])
+        raise TimeBaseError(
+            f"{source}: column t jumps by {steps[row]:.4g} s between rows {row} and {row + 1} (t = {t[row]:.6g} s), "
+            f"{steps[row] / step:.3g} times the median step {step:.4g} s: a gap in the record, which resampling "
+            f"would fill with a straight line ({gaps.size} such gap(s)); split the record there"
+        )
 
 
 def _check_angles(q: NDArray[np.float64], model, source: str) -> None:

@@ -88,6 +88,30 @@ def test_duplicated_and_decreasing_times_are_errors(tmp_path, model):
         read_measurements(write_frame(tmp_path, frame), model=model)
 
 
+def test_time_in_other_units_and_gaps_are_errors_not_resampled(tmp_path, model):
+    frame = sample_data().to_frame()
+    frame["t"] = frame["t"] * 1e3  # milliseconds
+    with pytest.raises(TimeBaseError, match="advances by 10 a sample: .* milliseconds or nanoseconds"):
+        read_measurements(write_frame(tmp_path, frame), model=model)
+    frame = sample_data().to_frame()
+    frame["t"] = pd.Timestamp("2026-01-01") + pd.to_timedelta(frame["t"], unit="s")
+    path = tmp_path / "dates.parquet"
+    frame.to_parquet(path)
+    with pytest.raises(TimeBaseError, match="column t holds datetime64"):
+        read_measurements(path, model=model)
+    frame = sample_data().to_frame()
+    frame.loc[100:, "t"] += 10.0  # the logger stopped for 10 s
+    with pytest.raises(TimeBaseError, match="jumps by 10.01 s between rows 99 and 100 .* split the record"):
+        read_measurements(write_frame(tmp_path, frame), model=model)
+
+
+def test_nan_cells_are_shown_as_plain_numbers(tmp_path, model):
+    frame = sample_data().to_frame()
+    frame.loc[5, "tau1"] = np.nan
+    with pytest.raises(NonFiniteError, match=r"first at row 5 \(nan\)$"):
+        read_measurements(write_frame(tmp_path, frame), model=model)
+
+
 def test_irregular_sampling_is_resampled_with_a_warning(tmp_path, model):
     frame = sample_data().to_frame()
     jitter = np.random.default_rng(1).uniform(-0.003, 0.003, len(frame))
