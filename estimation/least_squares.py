@@ -72,6 +72,11 @@ class IdentificationProblem:
         if not np.all(np.isfinite(y)):
             bad = np.argwhere(~np.isfinite(y))[0]
             raise ValueError(f"measured channel {self.channels[bad[1]]} holds NaN or inf (sample {bad[0]})")
+        with np.errstate(over="ignore"):
+            overflowing = [c for c, value in zip(self.channels, np.sum(y**2, axis=0)) if not np.isfinite(value)]
+        if overflowing:
+            raise ValueError(f"measured channel(s) {', '.join(overflowing)} overflow when squared (values up to "
+                             f"{np.max(np.abs(y)):.3g}): check their units")
         if not np.all(np.isfinite(Y)):
             bad = np.argwhere(~np.isfinite(Y))[0]
             raise ValueError(f"regressor column {self.names[bad[2]]} holds NaN or inf (sample {bad[0]}, channel "
@@ -229,6 +234,8 @@ def solve(
     """
     gram_matrices, moments = channel_gram(problem) if gram is None else gram
     normal = np.tensordot(weights, gram_matrices, axes=1)
+    if not (np.all(np.isfinite(normal)) and np.all(np.isfinite(weights @ moments))):
+        raise ValueError("the regressor or the measured channels overflow in YᵀY: check the units of the data")
     scale = np.sqrt(np.diag(normal))
     zero = np.flatnonzero(scale == 0)
     if zero.size:
@@ -357,7 +364,13 @@ class WeightedLeastSquares(LeastSquares):
             raise ValueError(f"variance_floor must be a non-negative number, got {self.variance_floor}")
         problem = _as_problem(problem, measurements)
         _check_size(problem)
-        floor = self.variance_floor * np.maximum(np.mean(problem.y**2, axis=0), np.finfo(float).tiny)
+        mean_square = np.mean(problem.y**2, axis=0)
+        dead = [channel for channel, value in zip(problem.channels, mean_square) if value == 0]
+        if dead:
+            raise ValueError(f"channel(s) {', '.join(dead)} read zero in every sample (a dead sensor, or a column "
+                             "left empty?): weighted least squares cannot weight them; check the data, or use ordinary "
+                             "least squares (--method ols)")
+        floor = self.variance_floor * mean_square
         # The weights are iterated on per-channel Gram matrices (r x r each, formed once): every
         # iteration costs O(m r²). The final solve refines on the exact residuals (see solve).
         gram, moment = channel_gram(problem)  # (m, r, r), (m, r)

@@ -141,6 +141,17 @@ def test_unfitted_estimator_and_bad_settings_raise_clear_errors():
         IdentificationProblem(Y, np.ones((5, 1)), ("tau1",), ("m",))
 
 
+def test_a_dead_channel_or_overflowing_data_is_named_not_a_lapack_error():
+    Y = np.random.default_rng(0).normal(size=(50, 2, 2))
+    y = np.column_stack([Y[:, 0] @ [1.0, 2.0], np.zeros(50)])  # the second sensor reads nothing
+    problem = IdentificationProblem(Y, y, ("tau1", "tau2"), ("a", "b"))
+    with pytest.raises(ValueError, match="channel.s. tau2 read zero in every sample"):
+        WeightedLeastSquares().fit(problem)
+    assert LeastSquares().fit(problem).theta_.shape == (2,)  # ordinary least squares still works
+    with pytest.raises(ValueError, match="tau1, tau2 overflow when squared .values up to 1e.200"):
+        IdentificationProblem(Y, y + 1e200, ("tau1", "tau2"), ("a", "b"))
+
+
 def test_fitted_values_are_read_only_and_predict_checks_the_parameter_axis():
     problem = IdentificationProblem(np.arange(10.0).reshape(5, 1, 2), np.arange(5.0).reshape(5, 1), ("tau1",), ("m", "c"))
     estimator = LeastSquares().fit(problem)
