@@ -79,9 +79,14 @@ class SimulatedPerJoint:
     values: tuple[float, ...]
     name: ClassVar[str] = ""
     symbol: ClassVar[str] = ""
+    #: friction dissipates and inertia is positive: a negative value would be another effect
+    non_negative: ClassVar[bool] = False
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "values", finite_floats(self.values, f"{self.name} values"))
+        if self.non_negative and min(self.values) < 0:
+            raise ValueError(f"{self.name} values must be non-negative, got {list(self.values)}: a negative "
+                             f"{self.name} term would push the joint, which no {self.name} does")
 
     def _check(self, robot: RobotModel) -> NDArray[np.float64]:
         if len(self.values) != robot.n_joints:
@@ -127,6 +132,7 @@ class Viscous(SimulatedPerJoint):
 
     name: ClassVar[str] = "viscous"
     symbol: ClassVar[str] = "fv"
+    non_negative: ClassVar[bool] = True
 
     def joint_torque(self, robot, q, dq):
         return self._check(robot) * dq
@@ -144,6 +150,7 @@ class Coulomb(SimulatedPerJoint):
     smoothing: float = 0.05
     name: ClassVar[str] = "coulomb"
     symbol: ClassVar[str] = "fc"
+    non_negative: ClassVar[bool] = True
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -178,6 +185,7 @@ class Armature(SimulatedPerJoint):
 
     name: ClassVar[str] = "armature"
     symbol: ClassVar[str] = "Ia"
+    non_negative: ClassVar[bool] = True
 
     def armature(self, robot):
         return self._check(robot)

@@ -93,6 +93,12 @@ def _reference(trajectory: Any, n_joints: int) -> tuple[Callable, float | None]:
     return evaluate, getattr(trajectory, "period", None)
 
 
+#: most samples one simulation records (about 1 GB of states and torques for a 6-joint robot)
+MAX_SAMPLES = 20_000_000
+#: most RK4 steps a sample (stiff friction on a light joint asks for more)
+MAX_SUBSTEPS = 10_000
+
+
 @dataclass(frozen=True, eq=False)
 class Simulator:
     """A simulated robot with its true parameters, extra effects and sensors.
@@ -138,8 +144,8 @@ class Simulator:
         if theta.shape != (10 * robot.n_joints,) or not np.all(np.isfinite(theta)):
             raise ValueError(f"theta must hold {10 * robot.n_joints} finite standard parameters")
         object.__setattr__(self, "theta", tuple(theta.tolist()))
-        if not self.rate_hz > 0 or int(self.substeps) < 1:
-            raise ValueError("rate_hz must be positive and substeps at least 1")
+        if not (np.isfinite(self.rate_hz) and self.rate_hz > 0) or int(self.substeps) < 1:
+            raise ValueError(f"rate_hz must be a positive finite number (got {self.rate_hz}) and substeps at least 1")
         if not isinstance(self.noise, NoiseModel):
             raise TypeError("noise must be a NoiseModel")
 
@@ -174,17 +180,23 @@ class Simulator:
         from dynamics.simulated_effects import Coulomb
 
         damping = np.zeros(self.robot.n_joints)
-        for effect in self.joint_effects:
-            if isinstance(effect, Viscous):
-                damping += np.abs(effect.values)
-            elif isinstance(effect, Coulomb):
-                damping += np.abs(effect.values) / effect.smoothing
+        with np.errstate(over="ignore"):  # an absurd friction gives inf here, refused below
+            for effect in self.joint_effects:
+                if isinstance(effect, Viscous):
+                    damping += np.abs(effect.values)
+                elif isinstance(effect, Coulomb):
+                    damping += np.abs(effect.values) / effect.smoothing
         if not damping.any():
             return int(self.substeps)
         inertia = joint_inertia(self.robot, self._armature())
         inertia = np.where(inertia > 0, inertia, np.inf)
         stiffness = float(np.max(damping / inertia))
-        return max(int(self.substeps), int(np.ceil(stiffness / self.rate_hz / 0.5)))
+        needed = stiffness / self.rate_hz / 0.5
+        if not needed <= MAX_SUBSTEPS:
+            raise ValueError(f"the friction is too stiff for the joint inertia: {stiffness:.3g} 1/s would need more than "
+                             f"{MAX_SUBSTEPS} integration steps a sample at {self.rate_hz:g} Hz (raise the Coulomb "
+                             "smoothing or the rate, or lower the friction)")
+        return max(int(self.substeps), int(np.ceil(needed)))
 
     def _armature(self) -> NDArray[np.float64]:
         return sum((effect.armature(self.robot) for effect in self.joint_effects), np.zeros(self.robot.n_joints))
@@ -221,7 +233,12 @@ class Simulator:
         if not duration > 0:
             raise ValueError(f"duration must be positive, got {duration}")
         warmup = int(warmup_periods) * (period or 0.0)
+        if not np.isfinite(duration * self.rate_hz) or duration * self.rate_hz + warmup * self.rate_hz > MAX_SAMPLES:
+            raise ValueError(f"{duration + warmup:.4g} s at {self.rate_hz:g} Hz is more than {MAX_SAMPLES:.0e} samples: "
+                             "shorten the record or lower the rate")
         count, skip = int(round(duration * self.rate_hz)), int(round(warmup * self.rate_hz))
+        if count < 2:
+            raise ValueError(f"{duration:.4g} s at {self.rate_hz:g} Hz gives {count} sample(s): need at least two")
         t_all = np.arange(skip + count) / self.rate_hz
         q_d, dq_d, ddq_d = (np.asarray(values, dtype=float) for values in evaluate(t_all))
         if q_d.shape != (skip + count, n):

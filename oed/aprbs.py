@@ -32,6 +32,10 @@ import scipy.signal
 from dynamics.robots.servo_arm import SERVO_ARM_RANGES
 
 
+#: longest APRBS designed, in samples
+MAX_APRBS_SAMPLES = 10_000_000
+
+
 def _plain(value: object) -> str:
     """``value`` for an error message: numpy scalars as plain numbers (``nan``, not ``np.float64(nan)``)."""
     try:
@@ -70,6 +74,9 @@ class APRBSDesign:
             raise ValueError(f"hold_min = {self.hold_min} s is shorter than the sample time dt = {self.dt} s")
         if self.hold_max is not None and self.hold_max < self.hold_min:
             raise ValueError(f"hold_max = {self.hold_max} s is shorter than hold_min = {self.hold_min} s")
+        if self.duration / self.dt > MAX_APRBS_SAMPLES:
+            raise ValueError(f"duration {self.duration} s at dt = {self.dt} s is {self.duration / self.dt:.3g} samples, "
+                             f"more than {MAX_APRBS_SAMPLES:.0e}: shorten it or raise dt")
         if not self.duration >= 2 * self.hold_min:
             raise ValueError(f"duration = {self.duration} s must be at least two minimum holds (2 × {self.hold_min} s)")
         if not isinstance(self.n_levels, int) or self.n_levels < 3:

@@ -38,6 +38,8 @@ from oed.design_solver import ipopt_solver, sampled_information, violation_peaks
 from oed.fourier import FourierTrajectory, basis, unpack
 
 _BOUND_GUARD = 1e-7
+#: longest period checked sample by sample at rate_hz (about 3 h at 1 kHz)
+MAX_PERIOD_SAMPLES = 10_000_000
 
 SUCCESS_STATUSES = frozenset({"Solve_Succeeded", "Solved_To_Acceptable_Level"})
 
@@ -102,6 +104,13 @@ class DesignSettings:
                 raise ValueError(f"{name} must be positive, got {getattr(self, name)}")
         if self.rate_hz / self.frequency_hz < 2 * self.harmonics + 1:
             raise ValueError(f"rate_hz {self.rate_hz} is too low for {self.harmonics} harmonics of {self.frequency_hz} Hz")
+        if self.rate_hz / self.frequency_hz > MAX_PERIOD_SAMPLES:
+            raise ValueError(f"one period of {self.frequency_hz:g} Hz at {self.rate_hz:g} Hz is "
+                             f"{self.rate_hz / self.frequency_hz:.3g} samples, more than the {MAX_PERIOD_SAMPLES:.0e} "
+                             "checked at most: raise the frequency or lower rate_hz")
+        if self.cost_samples < 2 * self.harmonics + 1:
+            raise ValueError(f"cost_samples = {self.cost_samples} cannot resolve {self.harmonics} harmonics: "
+                             f"need at least 2 x harmonics + 1 = {2 * self.harmonics + 1}")
 
     @property
     def period_samples(self) -> int:

@@ -123,3 +123,22 @@ def test_negative_seed_is_an_argument_error_naming_the_option(tmp_path, capsys, 
     assert exit_info.value.code == 2
     assert "argument --seed: must be a non-negative integer, got -1" in capsys.readouterr().err
     assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    "settings,message",
+    [
+        (dict(cost_samples=1), "cost_samples = 1 cannot resolve 5 harmonics"),
+        (dict(frequency_hz=1e-9), "more than the 1e.07 checked at most"),  # was a MemoryError of 7 TiB
+    ],
+)
+def test_settings_that_cannot_work_are_refused_up_front(settings, message):
+    with pytest.raises(ValueError, match=message):
+        DesignSettings(**settings)
+
+
+def test_an_aprbs_too_long_to_hold_is_refused():
+    from oed.aprbs import APRBSDesign
+
+    with pytest.raises(ValueError, match="1e.09 samples, more than 1e.07"):
+        APRBSDesign(duration=1e7, dt=0.01)

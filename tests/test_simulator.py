@@ -205,6 +205,11 @@ def test_warmup_starts_the_record_in_the_periodic_steady_state(robot):
         (lambda robot: effects_from_names("coulomb", robot, {"cable": 2.0}), "not simulated"),
         (lambda robot: NoiseModel(tau_std=-1.0), "tau_std"),
         (lambda robot: PlateOffset(("mq",), (1.0,)), "channels"),
+        (lambda robot: Viscous((-5.0, 1.0, 1.0)), "viscous values must be non-negative"),
+        (lambda robot: Simulator(robot, rate_hz=float("inf")), "rate_hz must be a positive finite number"),
+        (lambda robot: Simulator(robot, (Coulomb((1e308,) * 3),)).substeps_needed(), "friction is too stiff"),
+        (lambda robot: Simulator(robot, rate_hz=1e-3).run(
+            FourierTrajectory(0.2, np.zeros(3), np.zeros((3, 1)), np.zeros((3, 1)))), "gives 0 sample"),
     ],
 )
 def test_bad_settings_raise_clear_errors(robot, make, message):

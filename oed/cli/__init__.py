@@ -59,6 +59,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         message = str(error) or error.__class__.__name__
         print(f"oed {args.verb}: error: {message}", file=sys.stderr)
         return EXIT_USER_ERROR
+    except (MemoryError, OverflowError, FloatingPointError) as error:  # sizes or values asked for are too large
+        print(f"oed {args.verb}: error: the request is too large for this machine or for floating point "
+              f"({error.__class__.__name__}: {error or 'no detail'}): reduce the sizes or values given", file=sys.stderr)
+        return EXIT_USER_ERROR
     except KeyboardInterrupt:
         print(f"oed {args.verb}: interrupted", file=sys.stderr)
         return 130
