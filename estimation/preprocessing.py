@@ -130,7 +130,7 @@ class FourierDifferentiation:
             measurements = average_periods(measurements, self.frequency_hz)
         nyquist = 0.5 * sampling_rate(measurements.t)
         if self.harmonics * self.frequency_hz >= nyquist:
-            raise ValueError(f"{self.harmonics} harmonics of {self.frequency_hz} Hz reach the Nyquist frequency {nyquist} Hz")
+            raise ValueError(f"{self.harmonics} harmonics of {self.frequency_hz:g} Hz reach the Nyquist frequency {nyquist:.6g} Hz")
         fit = fit_fourier(measurements.t, measurements.q, self.frequency_hz, self.harmonics)
         q, dq, ddq = fit.evaluate(measurements.t)
         rms = np.sqrt(np.mean((measurements.q - q) ** 2, axis=0))
@@ -166,7 +166,11 @@ class ButterworthDifferentiation:
         nyquist = 0.5 * rate
         if self.cutoff_hz is not None:
             if self.cutoff_hz >= nyquist:
-                raise ValueError(f"cutoff {self.cutoff_hz} Hz is not below the Nyquist frequency {nyquist} Hz")
+                raise ValueError(f"cutoff {self.cutoff_hz:g} Hz is not below the Nyquist frequency {nyquist:.6g} Hz")
+            lowest = 1.0 / (measurements.t[-1] - measurements.t[0])
+            if self.cutoff_hz < lowest:
+                raise ValueError(f"cutoff {self.cutoff_hz:g} Hz is below 1/(record length) = {lowest:.3g} Hz: the "
+                                 "filter would remove the motion itself")
             return float(self.cutoff_hz)
         return min(5.0 * motion_bandwidth(measurements.q, rate), 0.8 * nyquist)
 

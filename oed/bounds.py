@@ -24,7 +24,13 @@ class InfeasibleBoundsError(ValueError):
     """Bounds that no excitation trajectory can meet (or that leave nothing to excite)."""
 
 
+#: a bound beyond this (rad, m, per s, per s²) is no bound: give the real limit
+LARGEST_BOUND = 1e6
+
+
 def _vector(values: ArrayLike, name: str, n: int | None = None) -> NDArray[np.float64]:
+    if any(isinstance(value, (bool, np.bool_, str)) for value in np.ravel(np.asarray(values, dtype=object))):
+        raise TypeError(f"bound {name} must be a sequence of numbers, got {values!r}")
     try:
         array = np.asarray(values, dtype=float).reshape(-1)
     except (TypeError, ValueError):
@@ -34,6 +40,13 @@ def _vector(values: ArrayLike, name: str, n: int | None = None) -> NDArray[np.fl
     if n is not None and array.shape[0] != n:
         raise ValueError(f"bound {name} has {array.shape[0]} values for {n} joints")
     return array
+
+
+def _iterable(values: Any) -> tuple:
+    try:
+        return tuple(values)
+    except TypeError:
+        raise TypeError(f"joint_names must be a list of names, got {values!r}") from None
 
 
 @dataclass(frozen=True)
@@ -64,13 +77,19 @@ class JointBounds:
         values = {"q_min": _vector(self.q_min, "q_min", n), "q_max": q_max}
         values["dq_max"] = _vector(self.dq_max, "dq_max", n)
         values["ddq_max"] = _vector(self.ddq_max, "ddq_max", n)
+        if isinstance(self.joint_names, str) or not all(isinstance(name, str) for name in _iterable(self.joint_names)):
+            raise TypeError(f"joint_names must be a list of names, got {self.joint_names!r}")
         names = tuple(self.joint_names) or tuple(f"joint{i}" for i in range(1, n + 1))
         if len(names) != n:
             raise ValueError(f"{len(names)} joint names for {n} joints in the bounds")
         object.__setattr__(self, "joint_names", names)
-        for key, array in values.items():
+        for key in ("q_max", "q_min", "dq_max", "ddq_max"):  # q_min may be derived from q_max: name q_max first
+            array = values[key]
             for index in np.flatnonzero(~np.isfinite(array)):
                 raise ValueError(f"bound {key} of joint {names[index]!r} is not finite ({array[index]})")
+            for index in np.flatnonzero(np.abs(array) > LARGEST_BOUND):
+                raise ValueError(f"bound {key} of joint {names[index]!r} is {array[index]:.3g}: a bound this large is "
+                                 "no bound; give the joint's real limit")
             object.__setattr__(self, key, array)
         for index in range(n):
             joint = names[index]
@@ -122,7 +141,7 @@ class JointBounds:
             raise ValueError(f"bounds lack {', '.join(missing)}")
         q_max = _vector(document["q_max"], "q_max")
         q_min = _vector(document["q_min"], "q_min", q_max.shape[0]) if "q_min" in document else -q_max
-        return cls(q_min, q_max, document["dq_max"], document["ddq_max"], tuple(document.get("joint_names", ())))
+        return cls(q_min, q_max, document["dq_max"], document["ddq_max"], document.get("joint_names", ()))
 
     @classmethod
     def load(cls, path: str | Path) -> JointBounds:

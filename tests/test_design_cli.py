@@ -142,3 +142,25 @@ def test_an_aprbs_too_long_to_hold_is_refused():
 
     with pytest.raises(ValueError, match="1e.09 samples, more than 1e.07"):
         APRBSDesign(duration=1e7, dt=0.01)
+
+
+@pytest.mark.parametrize(
+    "document,error,message",
+    [
+        ({"q_max": [True, 1, 1], "dq_max": [1, 1, 1], "ddq_max": [5, 5, 5]}, TypeError, "q_max must be a sequence of numbers"),
+        ({"q_max": [1, 1, 1], "dq_max": [1, 1, 1], "ddq_max": [5, 5, 5], "joint_names": "abc"}, TypeError,
+         "joint_names must be a list of names, got 'abc'"),
+        ({"q_max": [1e308, 1, 1], "dq_max": [1, 1, 1], "ddq_max": [5, 5, 5]}, ValueError, "a bound this large is no bound"),
+        ({"q_max": [float("nan"), 1, 1], "dq_max": [1, 1, 1], "ddq_max": [5, 5, 5]}, ValueError, "bound q_max of joint"),
+    ],
+)
+def test_bounds_documents_are_checked_value_by_value(document, error, message):
+    with pytest.raises(error, match=message):
+        JointBounds.from_dict(document)
+
+
+def test_ddq_max_with_a_bounds_file_is_refused_not_ignored(tmp_path, capsys):
+    path = tmp_path / "bounds.json"
+    path.write_text(json.dumps({"q_max": [1, 1, 1], "dq_max": [1, 1, 1], "ddq_max": [5, 5, 5]}))
+    code = main(["design", "--joints", "3", "--bounds", str(path), "--ddq-max", "1", "--out", str(tmp_path / "x.json")])
+    assert code == 2 and "with --bounds give ddq_max in the file" in capsys.readouterr().err

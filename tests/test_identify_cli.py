@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 from dataclasses import replace
 
 import numpy as np
@@ -87,3 +88,18 @@ def test_identify_reports_bad_data_with_exit_code_2(files, tmp_path, capsys):
     assert code == 2
     assert "tau3" in capsys.readouterr().err
     assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    "options,message",
+    [
+        (["--frequency", "0.2", "--cutoff", "5"], "give --frequency .* or --cutoff .*, not both"),
+        (["--cutoff", "1e-6"], "cutoff 1e-06 Hz is below 1/.record length."),
+    ],
+)
+def test_derivative_options_that_contradict_or_cannot_work_are_named(files, capsys, options, message):
+    folder, _, _ = files
+    code = main(["identify", "--joints", "3", "--model", "combined", "--data", str(folder / "train_positions_only.csv"),
+                 "--out", str(folder / "unused.json"), *options])
+    assert code == 2 and re.search(message, capsys.readouterr().err)
+    assert not (folder / "unused.json").exists()

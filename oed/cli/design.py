@@ -55,6 +55,8 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
 
 def bounds_from_arguments(args: argparse.Namespace, robot) -> JointBounds:
     if args.bounds is not None:
+        if args.ddq_max is not None:
+            raise ValueError("--ddq-max completes the URDF's limits; with --bounds give ddq_max in the file")
         bounds = JointBounds.load(args.bounds)
     elif args.ddq_max is not None:
         bounds = JointBounds.from_robot(robot, ddq_max=args.ddq_max)

@@ -54,6 +54,8 @@ def add_derivative_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def differentiation(args: argparse.Namespace) -> Differentiation:
+    if args.frequency is not None and args.cutoff is not None:
+        raise ValueError("give --frequency (Fourier fit of periodic data) or --cutoff (Butterworth filter), not both")
     if args.frequency is not None:
         return FourierDifferentiation(args.frequency, args.harmonics)
     return ButterworthDifferentiation(args.cutoff)
