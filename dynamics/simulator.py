@@ -259,6 +259,12 @@ class Simulator:
 
         q = q_d[0].copy() if initial_state is None else np.asarray(initial_state[0], dtype=float).copy()
         dq = dq_d[0].copy() if initial_state is None else np.asarray(initial_state[1], dtype=float).copy()
+        upper = np.triu(pin.crba(model, data, q))  # CRBA fills the upper triangle
+        inertia = np.linalg.eigvalsh(upper + np.triu(upper, 1).T)
+        if not inertia[0] > 1e-12 * max(inertia[-1], 1e-300):
+            raise ValueError(f"the mass matrix is singular at the start (eigenvalues {inertia[0]:.3g} … {inertia[-1]:.3g}): "
+                             "a joint moves no mass or inertia (a massless link in the description?); "
+                             "the robot cannot be simulated")
         Q, DQ, DDQ, TAU = (np.empty((skip + count, n)) for _ in range(4))
         substeps = self.substeps_needed()
         h = 1.0 / (self.rate_hz * substeps)
@@ -296,6 +302,14 @@ class Simulator:
         tau_noise = generator.normal(size=(count, n)) * np.broadcast_to(self.noise.tau_std, (n,))
         wrench_noise = generator.normal(size=(count, 6)) * np.broadcast_to(self.noise.wrench_std, (6,))
         resolution = self.noise.resolution(robot)
+        if resolution is not None:
+            spans = np.ptp(Q, axis=0)
+            coarse = np.flatnonzero((spans > 0) & (np.broadcast_to(resolution, spans.shape) >= spans))
+            if coarse.size:
+                joint = int(coarse[0])
+                raise ValueError(f"position resolution {np.broadcast_to(resolution, spans.shape)[joint]:.3g} of joint "
+                                 f"{joint + 1} is coarser than its motion (range {spans[joint]:.3g}): its positions "
+                                 "would read almost constant")
         q_measured = Q.copy() if resolution is None else np.round(Q / resolution) * resolution
         metadata = {
             "source": "dynamics.simulator",

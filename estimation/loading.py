@@ -124,11 +124,11 @@ def read_measurements(
     """
     path = Path(path)
     suffix = path.suffix.lower()
+    if path.is_dir():
+        raise IsADirectoryError(f"data file {path} is a folder")
     if suffix not in (".csv", ".parquet"):
         raise MeasurementError(f"unknown data format {path.suffix!r} for {path}: use .csv or .parquet")
     if not path.is_file():
-        if path.is_dir():
-            raise IsADirectoryError(f"data file {path} is a folder")
         raise FileNotFoundError(f"data file not found: {path}")
     try:
         frame = pd.read_parquet(path) if suffix == ".parquet" else pd.read_csv(path)

@@ -254,3 +254,17 @@ def test_simulated_effects_keeps_its_public_names_after_the_split():
     assert all(cls.__module__ == joint.__name__ for cls in joint.JOINT_EFFECTS)
     assert catalogue.is_plate_effect(plate.PlateOffset()) and not catalogue.is_plate_effect(joint.Viscous((1.0,)))
     assert all(cls.__module__ == plate.__name__ for cls in plate.PLATE_EFFECTS)
+
+
+def test_a_massless_chain_and_a_too_coarse_encoder_are_named(robot, trajectory, tmp_path):
+    massless = tmp_path / "massless.urdf"
+    massless.write_text(
+        '<robot name="r"><link name="base"/><link name="a"><inertial><mass value="0"/>'
+        '<inertia ixx="0" ixy="0" ixz="0" iyy="0" iyz="0" izz="0"/></inertial></link>'
+        '<joint name="j1" type="revolute"><parent link="base"/><child link="a"/><axis xyz="0 0 1"/>'
+        '<limit lower="-1" upper="1" effort="1" velocity="1"/></joint></robot>')
+    one_joint = FourierTrajectory(0.2, np.zeros(1), np.full((1, 1), 0.1), np.zeros((1, 1)))
+    with pytest.raises(ValueError, match="mass matrix is singular"):  # was "diverged… lower the gains"
+        Simulator(load_robot(urdf=massless), effects="none").run(one_joint, seed=0)
+    with pytest.raises(ValueError, match="position resolution 10 of joint 1 is coarser than its motion"):
+        Simulator(robot, noise=NoiseModel(q_resolution=10.0)).run(trajectory, duration=1.0, seed=0)

@@ -71,6 +71,8 @@ def _effect_values(text: str | None) -> dict[str, Any]:
         return {}
     path = Path(text)
     if not text.lstrip().startswith("{"):
+        if text.lstrip().startswith(("[", '"')) or text.strip() in ("null", "true", "false"):
+            raise ValueError(f"--effect-values must be a JSON object {{effect: value(s)}}, got {text}")
         if not path.exists():
             raise FileNotFoundError(f"--effect-values: {text!r} is neither JSON text nor an existing file")
         text = path.read_text()
