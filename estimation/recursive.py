@@ -42,6 +42,7 @@ from numpy.typing import ArrayLike
 
 from estimation.arx import Polynomials, as_signal_pair, check_orders
 from estimation.errors import NotFittedError
+from estimation.signal_checks import check_informative, rank_deficiency_message
 from estimation.estimator import Estimator
 from dynamics.compiled import compile_function
 
@@ -216,6 +217,7 @@ class RecursiveLeastSquares(Estimator):
         self._forget_fit()
         self._validate()
         u, y = as_signal_pair(u, y)
+        check_informative(u, y)
         na, nb, nk, nc = self.na, self.nb, self.nk, self._nc
         p = na + nb + nc
         if y.size <= p:
@@ -262,7 +264,10 @@ class RecursiveLeastSquares(Estimator):
                               + [residuals[rows - i] for i in range(1, nc + 1)])
         psi = scipy.signal.lfilter([1.0], polynomials.c, phi, axis=0)
         variance = float(residuals[first:] @ residuals[first:]) / max(rows.size - phi.shape[1], 1)
-        return variance * np.linalg.inv(psi.T @ psi)
+        information = psi.T @ psi
+        if np.linalg.matrix_rank(information) < information.shape[0]:
+            raise ValueError(rank_deficiency_message(f"the regressor of the final model (na={na}, nb={nb}, nc={nc})"))
+        return variance * np.linalg.inv(information)
 
     def _block_run(self, x0: np.ndarray, data: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         block = erls_block_function(self.na, self.nb, self.nk, self._nc, float(self.forgetting), self.backend)

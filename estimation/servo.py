@@ -157,7 +157,10 @@ def fit_servo_joint(
     if remove_mean:
         u = u - u[:n_est].mean()
         q = q - q[:n_est].mean()
-    model = _estimator(method, nc=nc, forgetting=forgetting, backend=backend).fit(u[:n_est], q[:n_est])
+    try:
+        model = _estimator(method, nc=nc, forgetting=forgetting, backend=backend).fit(u[:n_est], q[:n_est])
+    except ValueError as error:
+        raise ValueError(f"joint {joint}: {error}") from None
     theta = np.asarray(model.theta_)
     a1, a2, K = (float(v) for v in theta[:3])
     c = tuple(float(v) for v in theta[3:])

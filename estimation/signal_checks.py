@@ -22,6 +22,19 @@ def single_channel(values: np.ndarray, name: str) -> np.ndarray:
     return array.astype(float).reshape(-1)
 
 
+def check_informative(u: np.ndarray, y: np.ndarray) -> None:
+    """A constant input excites nothing and a constant output shows nothing: ``ValueError`` naming which."""
+    for name, signal, meaning in (("u", u, "input"), ("y", y, "output")):
+        if np.ptp(signal) == 0:
+            raise ValueError(f"{meaning} {name} is constant ({signal[0]:g}) over the record: "
+                             "there is nothing to identify from it")
+
+
+def rank_deficiency_message(what: str) -> str:
+    return (f"{what} is rank deficient: the data do not determine every coefficient (the output a copy or "
+            "a filtered copy of the input, or too little excitation for these orders)")
+
+
 def check_uniform_time(t: np.ndarray, *, dt: float | None = None, name: str = "t") -> float:
     """Return the sample time of a uniform time column, or raise ``ValueError`` naming the first irregular sample."""
     t = np.asarray(t, dtype=float).reshape(-1)

@@ -61,8 +61,9 @@ def test_numpy_history_is_kept_only_when_asked():
 
 def test_covariance_blow_up_warns_and_divergence_raises():
     n = 20000
-    u, y = np.zeros(n), np.zeros(n)
-    u[:50] = np.random.default_rng(0).standard_normal(50)  # excitation dies out; λ < 1 winds P up
+    generator = np.random.default_rng(0)
+    u, y = np.zeros(n), 1e-3 * generator.standard_normal(n)
+    u[:50] = generator.standard_normal(50)  # the input's excitation dies out; λ < 1 winds P up
     with pytest.warns(CovarianceBlowUpWarning, match="covariance blow-up"):
         RecursiveLeastSquares(na=2, nb=1, forgetting=0.99, max_trace=1e8).fit(u, y)
     with warnings.catch_warnings():
@@ -80,6 +81,11 @@ def test_unfitted_and_bad_settings_raise_clear_errors():
         RecursiveLeastSquares(nk=0).fit(np.zeros(10), np.zeros(10))
     with pytest.raises(ValueError, match="samples"):
         RecursiveLeastSquares().fit(np.zeros(10), np.zeros(9))
+    with pytest.raises(ValueError, match="input u is constant"):
+        RecursiveLeastSquares().fit(np.ones(100), np.random.default_rng(0).standard_normal(100))
+    signal = np.random.default_rng(0).standard_normal(100)
+    with pytest.raises(ValueError, match="ARX.2,2. regressor is rank deficient"):  # was numpy's "Singular matrix"
+        ARXEstimator(nb=2).fit(signal, np.concatenate([[0.0], signal[:-1]]))  # y(n) = u(n-1): y(n-1) is u(n-2)
 
 
 def test_erls_covariance_matches_the_spread_over_repeated_experiments():
