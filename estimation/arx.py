@@ -31,7 +31,7 @@ from numpy.typing import ArrayLike
 
 from estimation.errors import NotFittedError
 from estimation.estimator import Estimator
-from estimation.signal_checks import check_informative, rank_deficiency_message, single_channel
+from estimation.signal_checks import check_informative, single_channel
 
 
 def check_orders(na: int, nb: int, nk: int, nc: int = 0) -> None:
@@ -126,10 +126,7 @@ class ARXEstimator(Estimator):
         noise_variance = float(residuals @ residuals) / (target.size - p)
         self.theta_ = theta
         self.noise_variance_ = noise_variance
-        information = phi.T @ phi
-        if np.linalg.matrix_rank(information) < p:
-            raise ValueError(rank_deficiency_message(f"the ARX({self.na},{self.nb}) regressor"))
-        self.cov_ = noise_variance * np.linalg.inv(information)
+        self.cov_ = noise_variance * np.linalg.inv(phi.T @ phi)
         self.residuals_ = residuals
         self.n_parameters_ = p
         return self

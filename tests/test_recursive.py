@@ -84,7 +84,7 @@ def test_unfitted_and_bad_settings_raise_clear_errors():
     with pytest.raises(ValueError, match="input u is constant"):
         RecursiveLeastSquares().fit(np.ones(100), np.random.default_rng(0).standard_normal(100))
     signal = np.random.default_rng(0).standard_normal(100)
-    with pytest.raises(ValueError, match="ARX.2,2. regressor is rank deficient"):  # was numpy's "Singular matrix"
+    with pytest.raises(ValueError, match="rank 3 < 4: input not persistently exciting"):
         ARXEstimator(nb=2).fit(signal, np.concatenate([[0.0], signal[:-1]]))  # y(n) = u(n-1): y(n-1) is u(n-2)
 
 
