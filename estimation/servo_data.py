@@ -6,6 +6,7 @@ half-written output. Reads validate the columns and the time column (uniform sam
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -37,6 +38,8 @@ def write_csv(path: str | Path, columns: dict[str, np.ndarray]) -> Path:
     """Write equal-length columns to ``path`` as CSV with a header, atomically."""
 
     path = Path(path)
+    if path.suffix.lower() != ".csv":
+        raise ValueError(f"{path}: this writes CSV; give a .csv file name")
     names = list(columns)
     data = np.column_stack([np.asarray(columns[name], dtype=float).reshape(-1) for name in names])
     with atomic_output(path) as stream:
@@ -71,15 +74,19 @@ def read_csv(path: str | Path, *, required: tuple[str, ...] = ("t",), dt: float 
     path = Path(path)
     if not path.is_file():
         raise OSError(f"input file {str(path)!r} is a folder" if path.is_dir() else f"input file {str(path)!r} not found")
-    with path.open() as stream:
-        header = [name.strip() for name in stream.readline().strip().split(",")]
+    with path.open(encoding="utf-8-sig") as stream:  # a spreadsheet's byte-order mark is not part of "t"
+        header = [name.strip().strip('"').strip("'").strip() for name in stream.readline().strip().split(",")]
     missing = [name for name in required if name not in header]
     if missing:
         raise ValueError(f"{path.name}: missing column(s) {', '.join(missing)} (found {', '.join(header)})")
     try:
-        data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", UserWarning)  # numpy's "input contained no data": said below
+            data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2, encoding="utf-8-sig")
     except ValueError as error:
         raise ValueError(f"{path.name}: not a numeric CSV ({error})") from None
+    if data.shape[0] == 0:
+        raise ValueError(f"{path.name}: a header but no data rows")
     if data.shape[1] != len(header):
         raise ValueError(f"{path.name}: {len(header)} header names but {data.shape[1]} data columns")
     columns = {name: data[:, i] for i, name in enumerate(header)}

@@ -73,3 +73,18 @@ def test_servo_fit_rejects_angles_in_degrees(tmp_path, capsys):
     out = tmp_path / "fit.json"
     assert main(["servo-fit", "--data", str(data), "--mass", "0.3", "--out", str(out)]) == 2
     assert "q1 reaches 28.6" in capsys.readouterr().err and not out.exists()
+
+
+def test_servo_csv_reader_takes_spreadsheet_headers_and_names_empty_files(tmp_path, capsys):
+    from estimation.servo_data import read_csv, write_csv
+
+    path = tmp_path / "u.csv"
+    path.write_text('\ufeff"t","u1"\n0,0.1\n0.01,0.2\n0.02,0.3\n', encoding="utf-8")  # BOM and quoted names
+    table = read_csv(path, required=("t", "u1"))
+    np.testing.assert_allclose(table.columns["u1"], [0.1, 0.2, 0.3])
+    path.write_text("t,u1,u2,u3,u4\n")
+    with pytest.raises(ValueError, match="a header but no data rows"):
+        read_csv(path, required=("t", "u1"))
+    with pytest.raises(ValueError, match="this writes CSV; give a .csv file name"):
+        write_csv(tmp_path / "so.json", {"t": np.zeros(2)})
+    assert not (tmp_path / "so.json").exists()
