@@ -129,6 +129,8 @@ def simulate_servo_arm(
     t = np.asarray(t, dtype=float).reshape(-1)
     u = np.asarray(u, dtype=float)
     dt = check_uniform_time(t)
+    if dt >= 1.0:
+        raise ValueError(f"the time column advances by {dt:g} a sample: t must be in seconds (milliseconds given?)")
     if u.ndim != 2 or u.shape[0] != t.size:
         raise ValueError(f"u must have shape ({t.size}, {len(joints)}), got {u.shape}")
     check_in_ranges(u, ranges)

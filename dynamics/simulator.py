@@ -285,9 +285,12 @@ class Simulator:
                 q = q + h / 6 * (dq + 2 * v2 + 2 * v3 + v4)
                 dq = dq + h / 6 * (a1 + 2 * a2 + 2 * a3 + a4)
             if not (np.all(np.isfinite(q)) and np.all(np.isfinite(dq)) and np.all(np.abs(dq) < 1e4)):
+                with np.errstate(all="ignore"):
+                    peak = np.max(np.abs(np.nan_to_num(dq_d, nan=np.inf)), axis=0)
                 raise RuntimeError(
-                    f"simulation diverged at t = {t_all[k]:.3f} s (joint velocities {dq}); "
-                    "lower the controller gains or raise rate_hz/substeps"
+                    f"simulation diverged at t = {t_all[k]:.3f} s (joint velocities {np.array2string(dq, precision=3)}); "
+                    f"lower the controller gains or raise rate_hz/substeps, or check the reference (its peak "
+                    f"velocities {np.array2string(peak, precision=3)} rad/s)"
                 )
         elapsed = time.perf_counter() - started
 
