@@ -317,9 +317,12 @@ class LeastSquares(Estimator):
     residuals_ = property(lambda self: self._fitted().residuals, doc="Residuals (N, m).")
     channel_variance_ = property(lambda self: self._fitted().channel_variance, doc="Residual variance per channel.")
 
-    def predict(self, problem: IdentificationProblem | NDArray[np.float64]) -> NDArray[np.float64]:
-        """``Y θ̂`` for a problem or a regressor ``(N, m, r)``."""
+    def predict(self, problem: IdentificationProblem | IdentificationModel | NDArray[np.float64],
+                measurements: Measurements | None = None) -> NDArray[np.float64]:
+        """``Y θ̂`` for a problem, ``(model, measurements)`` as in :meth:`fit`, or a regressor ``(N, m, r)``."""
         theta = self._fitted().values
+        if isinstance(problem, IdentificationModel):
+            problem = _as_problem(problem, measurements)
         Y = problem.Y if isinstance(problem, IdentificationProblem) else np.asarray(problem, dtype=float)
         if Y.ndim < 1 or Y.shape[-1] != theta.shape[0]:
             raise ValueError(f"the regressor has shape {Y.shape}; its last axis must hold the {theta.shape[0]} "
