@@ -32,13 +32,13 @@ COLUMN_GROUPS: tuple[str, ...] = ("q", "dq", "ddq", "tau", "wrench")
 #: relative spread of the sampling interval above which the time base counts as irregular
 IRREGULAR_TOLERANCE = 1e-3
 
-#: a revolute joint whose |q| exceeds this (rad) most likely holds degrees (2π plus a margin)
 #: a median sample time of this (s) or more is not seconds
 MAX_SAMPLE_TIME = 1.0
-#: above this (s) the time unit is questioned with a warning (10 Hz)
+#: from this (s) on the time unit is questioned with a warning (10 Hz)
 SLOW_SAMPLE_TIME = 0.1
-#: a step this many times the median is a gap in the record, not jitter
+#: a step this many times the median, with as many samples missing around it, is a gap in the record
 GAP_FACTOR = 5.0
+#: a revolute joint whose |q| exceeds this (rad) most likely holds degrees (2π plus a margin)
 DEGREES_THRESHOLD = 2 * np.pi + 0.5
 
 
@@ -274,17 +274,27 @@ def _check_time(t: NDArray[np.float64], source: str) -> None:
     if step >= MAX_SAMPLE_TIME:
         raise TimeBaseError(f"{source}: column t advances by {step:.4g} a sample: the format wants seconds, "
                             "and these look like milliseconds or nanoseconds (divide t by 1e3 or 1e9)")
-    if step > SLOW_SAMPLE_TIME:
+    if step >= SLOW_SAMPLE_TIME:
         warnings.warn(f"{source}: column t advances by {step:.4g} s a sample ({1 / step:.3g} Hz), slow for robot "
                       "dynamics: is t in seconds?", MeasurementWarning, stacklevel=4)
-    gaps = np.flatnonzero(steps > GAP_FACTOR * step)
-    if gaps.size:
-        row = int(gaps[0])
+    gaps = [row for row in np.flatnonzero(steps > GAP_FACTOR * step) if _missing_samples(t, int(row), step) > GAP_FACTOR]
+    if gaps:
+        row = gaps[0]
         raise TimeBaseError(
             f"{source}: column t jumps by {steps[row]:.4g} s between rows {row} and {row + 1} (t = {t[row]:.6g} s), "
-            f"{steps[row] / step:.3g} times the median step {step:.4g} s: a gap in the record, which resampling "
-            f"would fill with a straight line ({gaps.size} such gap(s)); split the record there"
+            f"{steps[row] / step:.3g} times the median step {step:.4g} s, and the samples do not catch up: a gap "
+            f"in the record, which resampling would fill with a straight line ({len(gaps)} such gap(s)); split the "
+            "record there"
         )
+
+
+def _missing_samples(t: NDArray[np.float64], row: int, step: float) -> float:
+    """Samples missing around the long step after ``row``: the time spanned by a window around it
+    over the median step, minus the samples there. A logger that stalls and then delivers its
+    backlog has a long step but none missing (jitter, resampled); a hole in the record has many."""
+    reach = int(2 * (t[row + 1] - t[row]) / step) + 20
+    first, last = max(row - reach, 0), min(row + 1 + reach, t.shape[0] - 1)
+    return float((t[last] - t[first]) / step - (last - first))
 
 
 def _check_angles(q: NDArray[np.float64], model, source: str) -> None:

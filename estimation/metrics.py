@@ -10,16 +10,15 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike
 
+from estimation.signal_checks import single_channel
+
 
 def _pair(measured: ArrayLike, predicted: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
-    def column_as_vector(values: ArrayLike) -> np.ndarray:
-        array = np.asarray(values, dtype=float)
-        return array.reshape(-1) if array.ndim == 2 and array.shape[1] == 1 else array
-
-    y, y_hat = column_as_vector(measured), column_as_vector(predicted)
-    if y.shape != y_hat.shape:  # several channels are compared channel by channel, never reshaped
-        raise ValueError(f"measured has shape {y.shape} but predicted {y_hat.shape}")
-    y, y_hat = y.reshape(-1), y_hat.reshape(-1)
+    """One channel each (``(N,)``, ``(N, 1)`` or ``(1, N)``), of equal length: several channels are
+    scored one by one, never pooled (a pooled R² mixes the channels' means into "explained" variance)."""
+    y, y_hat = single_channel(measured, "measured"), single_channel(predicted, "predicted")
+    if y.shape != y_hat.shape:
+        raise ValueError(f"measured has {y.size} samples but predicted {y_hat.size}")
     if y.size == 0:
         raise ValueError("metrics need at least one sample")
     if not (np.all(np.isfinite(y)) and np.all(np.isfinite(y_hat))):

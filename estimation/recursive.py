@@ -240,7 +240,11 @@ class RecursiveLeastSquares(Estimator):
         tail = errors[errors.size // 2 :]
         self.noise_variance_ = float(tail @ tail) / max(tail.size - p, 1)
         self.n_parameters_ = p
-        self.cov_ = self._prediction_error_covariance(u, y)
+        try:
+            self.cov_ = self._prediction_error_covariance(u, y)
+        except ValueError:
+            self._forget_fit()  # no half-fitted estimator
+            raise
         return self
 
     def _prediction_error_covariance(self, u: np.ndarray, y: np.ndarray) -> np.ndarray:
@@ -264,10 +268,11 @@ class RecursiveLeastSquares(Estimator):
                               + [residuals[rows - i] for i in range(1, nc + 1)])
         psi = scipy.signal.lfilter([1.0], polynomials.c, phi, axis=0)
         variance = float(residuals[first:] @ residuals[first:]) / max(rows.size - phi.shape[1], 1)
-        information = psi.T @ psi
-        if np.linalg.matrix_rank(information) < information.shape[0]:
+        scale = np.linalg.norm(psi, axis=0)  # columns in their own units (u and y may differ by decades)
+        if np.any(scale == 0) or np.linalg.matrix_rank(psi / scale) < psi.shape[1]:
             raise ValueError(rank_deficiency_message(f"the regressor of the final model (na={na}, nb={nb}, nc={nc})"))
-        return variance * np.linalg.inv(information)
+        normalised = psi / scale
+        return variance * np.linalg.inv(normalised.T @ normalised) / np.outer(scale, scale)
 
     def _block_run(self, x0: np.ndarray, data: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         block = erls_block_function(self.na, self.nb, self.nk, self._nc, float(self.forgetting), self.backend)

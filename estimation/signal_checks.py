@@ -11,14 +11,13 @@ import numpy as np
 
 
 def single_channel(values: np.ndarray, name: str) -> np.ndarray:
-    """A 1-D (or ``(N, 1)``) real signal as a 1-D float array; several channels are an error
-    (they would otherwise be interleaved into one signal)."""
+    """A real one-channel signal (``(N,)``, ``(N, 1)`` or ``(1, N)``) as a 1-D float array; several
+    channels are an error (they would otherwise be interleaved into one signal)."""
     array = np.asarray(values)
     if np.iscomplexobj(array):
         raise TypeError(f"signal {name} must be real, got complex values")
-    if array.ndim > 2 or (array.ndim == 2 and array.shape[1] != 1):
-        raise ValueError(f"signal {name} must be one channel (N,) or (N, 1), got shape {array.shape}: "
-                         "fit one model per channel")
+    if sum(length > 1 for length in array.shape) > 1:  # (N,), (N, 1) and (1, N) are one channel
+        raise ValueError(f"signal {name} must be one channel, got shape {array.shape}: use one channel at a time")
     return array.astype(float).reshape(-1)
 
 

@@ -105,6 +105,16 @@ def test_time_in_other_units_and_gaps_are_errors_not_resampled(tmp_path, model):
         read_measurements(write_frame(tmp_path, frame), model=model)
 
 
+def test_a_stalled_logger_that_catches_up_is_jitter_not_a_gap(tmp_path, model):
+    frame = sample_data().to_frame()
+    t = frame["t"].to_numpy().copy()
+    t[50:56] = t[56] - 0.001 * np.arange(6, 0, -1) * 0.01  # six samples arrive late, in a burst
+    frame["t"] = t
+    with pytest.warns(ResampledWarning):
+        loaded = read_measurements(write_frame(tmp_path, frame), model=model)
+    assert loaded.n_samples == 200
+
+
 def test_nan_cells_are_shown_as_plain_numbers(tmp_path, model):
     frame = sample_data().to_frame()
     frame.loc[5, "tau1"] = np.nan

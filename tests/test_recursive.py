@@ -104,15 +104,21 @@ def test_erls_covariance_matches_the_spread_over_repeated_experiments():
 def test_several_channels_are_refused_not_interleaved_and_unfitted_estimators_lack_theta():
     from estimation.arx import ARXEstimator
     from estimation.errors import NotFittedError
-    from estimation.metrics import rmse
+    from estimation.metrics import r2_adjusted, rmse
     from estimation.recursive import ExtendedRecursiveLeastSquares
 
     generator = np.random.default_rng(0)
-    with pytest.raises(ValueError, match=r"signal u must be one channel .* got shape \(1000, 4\)"):
+    with pytest.raises(ValueError, match=r"signal u must be one channel, got shape \(1000, 4\)"):
         ARXEstimator().fit(generator.normal(size=(1000, 4)), generator.normal(size=(1000, 4)))
-    with pytest.raises(ValueError, match="measured has shape"):
+    with pytest.raises(ValueError, match=r"signal measured must be one channel, got shape \(4, 2\)"):
         rmse(np.ones((4, 2)), np.ones(8))
-    assert rmse(np.ones(8), np.ones((8, 1))) == 0.0
+    with pytest.raises(ValueError, match=r"signal measured must be one channel"):  # pooled R² was 0.9999
+        r2_adjusted(np.column_stack([generator.normal(size=100), 100 + generator.normal(size=100)]), np.ones((100, 2)), 3)
+    assert rmse(np.ones(8), np.ones((8, 1))) == rmse(np.ones((1, 8)), np.ones(8)) == 0.0  # one channel, any layout
+    u = generator.normal(size=300)
+    y = ARXEstimator.simulate_structure(a=[-0.5], b=[1.0], c=[], nk=1, u=u, e=0.01 * generator.normal(size=300))
+    np.testing.assert_allclose(ARXEstimator(na=1).fit(u.reshape(1, -1), y.reshape(1, -1)).theta_,
+                               ARXEstimator(na=1).fit(u, y).theta_)  # MATLAB-style row vectors
     for estimator in (ARXEstimator(), ExtendedRecursiveLeastSquares(na=2, nb=1, nc=1)):
         assert not hasattr(estimator, "polynomials_")
         with pytest.raises(NotFittedError, match="not fitted"):
