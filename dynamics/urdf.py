@@ -8,6 +8,7 @@ columns absorb.
 
 from __future__ import annotations
 
+import re
 import xml.etree.ElementTree as ElementTree
 from pathlib import Path
 
@@ -25,6 +26,10 @@ _NUMERIC_ATTRIBUTES: dict[str, tuple[str, ...]] = {
     "axis": ("xyz",),
     "limit": ("lower", "upper", "velocity", "effort"),
 }
+
+
+#: a number as urdfdom reads it: no blanks, underscores, hexadecimal, inf or nan
+_NUMBER = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?")
 
 
 def _check_numbers(path: Path) -> None:
@@ -50,18 +55,26 @@ def _check_numbers(path: Path) -> None:
                         text = child.get(attribute)
                         if text is None:
                             continue
-                        try:
-                            values = [float(item) for item in text.split()]
-                        except ValueError:
-                            values = []
-                        if not values or not all(np.isfinite(values)):
+                        tokens = text.split(" ")  # as urdfdom splits (no tabs, no surrounding blanks)
+                        if not all(_NUMBER.fullmatch(token) for token in tokens if token) or not text.strip():
                             raise RobotDescriptionError(
-                                f"URDF {path}: {owner}: <{tag} {attribute}=\"{text}\"> is not a finite number")
+                                f"URDF {path}: {owner}: <{tag} {attribute}=\"{text}\"> is not a finite number "
+                                "(plain decimal numbers separated by single spaces)")
             limit = element.find("limit") if kind == "joint" else None
             if limit is not None and limit.get("lower") is not None and limit.get("upper") is not None:
                 if float(limit.get("lower")) > float(limit.get("upper")):
                     raise RobotDescriptionError(f"URDF {path}: {owner}: lower limit {limit.get('lower')} is above "
                                                 f"upper limit {limit.get('upper')}")
+
+
+def _check_total_mass(path: Path, parsed: float) -> None:
+    """The masses Pinocchio read must add up to those the file states (urdfdom reads a number it
+    cannot parse, e.g. with a tab or a blank around it, as 0 and drops the link's inertial data)."""
+    stated = sum(float(element.get("value", "0")) for element in ElementTree.parse(path).getroot().iter("mass"))
+    if not np.isclose(parsed, stated, rtol=1e-9, atol=1e-12):
+        raise RobotDescriptionError(f"URDF {path}: the links' masses add up to {stated:g} kg in the file but to "
+                                    f"{parsed:g} kg as read: an inertial element could not be parsed (blanks or tabs "
+                                    "inside a number?)")
 
 
 def robot_from_urdf(path: str | Path, *, gravity: np.ndarray | None = None) -> RobotModel:
@@ -92,6 +105,7 @@ def robot_from_urdf(path: str | Path, *, gravity: np.ndarray | None = None) -> R
         raise RobotDescriptionError(f"cannot parse URDF {path}: {error}") from None
     if model.njoints <= 1:
         raise RobotDescriptionError(f"URDF {path} has no movable joint")
+    _check_total_mass(path, sum(model.inertias[index].mass for index in range(model.njoints)))
     for joint_id in range(1, model.njoints):
         parent = model.parents[joint_id]
         if parent != joint_id - 1:

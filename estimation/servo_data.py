@@ -38,8 +38,6 @@ def write_csv(path: str | Path, columns: dict[str, np.ndarray]) -> Path:
     """Write equal-length columns to ``path`` as CSV with a header, atomically."""
 
     path = Path(path)
-    if path.suffix.lower() != ".csv":
-        raise ValueError(f"{path}: this writes CSV; give a .csv file name")
     names = list(columns)
     data = np.column_stack([np.asarray(columns[name], dtype=float).reshape(-1) for name in names])
     with atomic_output(path) as stream:

@@ -128,6 +128,10 @@ def test_complex_states_are_refused_not_truncated():
          '</inertial></link>', 'lower="-1" upper="1"', "<inertia ixx=\"inf\"> is not a finite number"),
         ('<link name="a"><inertial><mass value="1"/></inertial></link>', 'lower="1" upper="-1"',
          "joint 'j1': lower limit 1 is above upper limit -1"),
+        ('<link name="a"><inertial><mass value="1_0"/></inertial></link>', 'lower="-1" upper="1"',
+         "<mass value=\"1_0\"> is not a finite number"),  # Python's float() takes it, urdfdom does not
+        ('<link name="a"><inertial><mass value=" 2 "/></inertial></link>', 'lower="-1" upper="1"',
+         "masses add up to 2 kg in the file but to 0 kg as read"),
     ],
 )
 def test_urdf_numbers_that_urdfdom_would_turn_into_zero_are_named(tmp_path, link, limit, message):

@@ -76,7 +76,7 @@ def test_servo_fit_rejects_angles_in_degrees(tmp_path, capsys):
 
 
 def test_servo_csv_reader_takes_spreadsheet_headers_and_names_empty_files(tmp_path, capsys):
-    from estimation.servo_data import read_csv, write_csv
+    from estimation.servo_data import read_csv
 
     path = tmp_path / "u.csv"
     path.write_text('\ufeff"t","u1"\n0,0.1\n0.01,0.2\n0.02,0.3\n', encoding="utf-8")  # BOM and quoted names
@@ -85,6 +85,7 @@ def test_servo_csv_reader_takes_spreadsheet_headers_and_names_empty_files(tmp_pa
     path.write_text("t,u1,u2,u3,u4\n")
     with pytest.raises(ValueError, match="a header but no data rows"):
         read_csv(path, required=("t", "u1"))
-    with pytest.raises(ValueError, match="this writes CSV; give a .csv file name"):
-        write_csv(tmp_path / "so.json", {"t": np.zeros(2)})
-    assert not (tmp_path / "so.json").exists()
+    assert main(["aprbs", "--duration", "5", "--out", str(tmp_path / "u.json")]) == 2
+    assert "this verb writes CSV" in capsys.readouterr().err and not (tmp_path / "u.json").exists()
+    assert main(["aprbs", "--duration", "5", "--candidates", "2", "--out", str(tmp_path / "plain")]) == 0
+    assert (tmp_path / "plain").read_text().startswith("t,u1")  # no suffix: CSV, as before

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 
 from dynamics.robots.servo_arm import SERVO_ARM_RANGES
-from oed.cli.common import seed
+from oed.cli.common import check_csv_path, seed
 
 
 def register(subparsers) -> argparse.ArgumentParser:
@@ -24,6 +24,7 @@ def register(subparsers) -> argparse.ArgumentParser:
 
 
 def run(args: argparse.Namespace) -> int:
+    check_csv_path(args.out)
     from estimation.servo_data import write_csv
     from oed.aprbs import APRBSDesign, design_aprbs
     from oed.cli.common import OutputFiles, check_figure_path

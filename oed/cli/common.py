@@ -10,9 +10,12 @@ from dynamics.robots import BUILT_IN_ROBOTS, load_robot
 from estimation.output_files import OutputFiles, atomic_output, check_figure_path, json_text
 
 __all__ = [
-    "OutputFiles", "add_robot_arguments", "atomic_output", "check_figure_path", "json_text", "robot_from_arguments",
-    "seed",
+    "OutputFiles", "add_robot_arguments", "atomic_output", "check_csv_path", "check_figure_path", "json_text",
+    "robot_from_arguments", "seed",
 ]
+
+#: suffixes that promise another format than the CSV a verb writes
+NOT_CSV_SUFFIXES = frozenset({".json", ".parquet", ".png", ".pdf", ".svg", ".npz", ".npy", ".mat", ".xlsx", ".md"})
 
 
 def add_robot_arguments(parser: argparse.ArgumentParser, *, default: str | None = "puma560") -> None:
@@ -34,6 +37,12 @@ def seed(text: str) -> int:
     if value < 0:
         raise argparse.ArgumentTypeError(f"must be a non-negative integer, got {value}")
     return value
+
+
+def check_csv_path(path: str | Path, option: str = "--out") -> None:
+    """Refuse, before any work, a CSV output named like another format (``--out u.json``)."""
+    if Path(path).suffix.lower() in NOT_CSV_SUFFIXES:
+        raise ValueError(f"{option} {path}: this verb writes CSV; give a .csv file name")
 
 
 def robot_from_arguments(args: argparse.Namespace) -> RobotModel:

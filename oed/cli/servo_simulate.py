@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from oed.cli.common import seed
+from oed.cli.common import check_csv_path, seed
 
 
 def register(subparsers) -> argparse.ArgumentParser:
@@ -19,6 +19,7 @@ def register(subparsers) -> argparse.ArgumentParser:
 
 
 def run(args: argparse.Namespace) -> int:
+    check_csv_path(args.out)
     from dynamics.servo_simulator import PAPER_JOINTS, simulate_servo_arm
     from estimation.servo_data import read_csv, write_csv
 
