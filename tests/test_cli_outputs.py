@@ -191,9 +191,13 @@ def test_a_failed_run_removes_the_folders_it_made_and_names_the_target(tmp_path,
          "--validate is --data"),
         (["aprbs", "--duration", "5", "--out", "{d}/a.png", "--figure", "{d}/a.png"], "--out and --figure"),
         (["demo", "--out", ""], "--out is empty"),
+        (["design", "--joints", "3", "--starts", "1", "--out", ""], r"--out \. is a folder"),  # Path("") is "."
+        (["simulate", "--joints", "3", "--trajectory", "{d}/traj.json", "--effect-values", "{d}/values.json",
+          "--truth", "{d}/values.json", "--out", "{d}/s.csv"], "--truth .*values.json is the input file of --effect-values"),
     ],
 )
 def test_an_output_never_replaces_an_input_or_another_output(internal_data, capsys, arguments, message):
+    (internal_data / "values.json").write_text('{"viscous": 1.0}')
     before = {path.name: path.read_bytes() for path in internal_data.iterdir()}
     code = main([argument.format(d=internal_data) for argument in arguments])
     assert code == 2

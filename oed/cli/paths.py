@@ -14,7 +14,7 @@ from pathlib import Path
 
 #: options that name files a verb reads
 INPUT_OPTIONS: tuple[str, ...] = ("data", "validate", "trajectory", "bounds", "aprbs", "urdf")
-#: options that name files (or, for ``demo``, the folder) a verb writes
+#: options that name files a verb writes (or folders, for the options a verb lists in ``folder_options``)
 OUTPUT_OPTIONS: tuple[str, ...] = ("out", "csv", "plot", "figure", "truth", "report")
 
 
@@ -22,10 +22,10 @@ def _flag(option: str) -> str:
     return f"--{option.replace('_', '-')}"
 
 
-def check_paths(args: argparse.Namespace,
-                derived_outputs: Callable[[argparse.Namespace], dict[str, Path]] | None = None) -> None:
-    """Raise ``ValueError`` when a path option is empty, an output is also an input, or two outputs coincide."""
+def _named_paths(args: argparse.Namespace) -> dict[str, tuple[str, Path]]:
+    """``{flag: (role, path)}``, the inputs first."""
     named: dict[str, tuple[str, Path]] = {}
+    folders = tuple(getattr(args, "folder_options", ()))
     for role, options in (("input", INPUT_OPTIONS), ("output", OUTPUT_OPTIONS)):
         for option in options:
             value = getattr(args, option, None)
@@ -33,7 +33,20 @@ def check_paths(args: argparse.Namespace,
                 continue
             if not str(value).strip():
                 raise ValueError(f"{_flag(option)} is empty: give a file name")
+            if role == "output" and option not in folders and Path(value).is_dir():  # Path("") is "."
+                raise ValueError(f"{_flag(option)} {value} is a folder: give a file name")
             named[_flag(option)] = (role, Path(value))
+        effect_values = getattr(args, "effect_values", None)  # JSON text or a file of it
+        if role == "input" and effect_values and Path(effect_values).is_file():
+            named["--effect-values"] = ("input", Path(effect_values))
+    return named
+
+
+def check_paths(args: argparse.Namespace,
+                derived_outputs: Callable[[argparse.Namespace], dict[str, Path]] | None = None) -> None:
+    """Raise ``ValueError`` when a path option is empty, an output is a folder or also an input, or
+    two outputs coincide."""
+    named = _named_paths(args)
     if derived_outputs is not None:
         for label, path in derived_outputs(args).items():
             named[label] = ("output", Path(path))
