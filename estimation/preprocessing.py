@@ -266,9 +266,10 @@ def fill_derivatives(
 
     Without a method: periodic data (``metadata["frequency_hz"]`` set, as the simulator records
     for whole periods) use :class:`FourierDifferentiation` with three times the reference's
-    ``metadata["harmonics"]`` (15 if unknown: the tracking error of a controlled robot adds
-    harmonics above the reference's, and a 5-harmonic fit of the paper's 5-harmonic excitation
-    leaves errors of ~20 standard deviations in the estimates), others
+    ``metadata["harmonics"]`` (15 if unknown): the tracking error of a controlled robot adds
+    harmonics above the reference's. With ``held_torques``, a fit with the reference's own count
+    left the largest base-parameter error at 10–20 standard deviations (the paper's 5-harmonic
+    design; 3-harmonic references), three times as many at 2–3 (``tests/test_simulator.py``). Others
     :class:`ButterworthDifferentiation` with the automatic cut-off. Data that already hold both are left alone unless a method is given.
     ``held_torques``: the joint torques were held over each sample; when the derivatives are
     derived here, :func:`compensate_hold` aligns the motion with them (before decimation).

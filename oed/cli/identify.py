@@ -45,7 +45,8 @@ def add_derivative_arguments(parser: argparse.ArgumentParser) -> None:
     derivatives = parser.add_argument_group("derivatives (only when dq/ddq columns are absent)")
     derivatives.add_argument("--frequency", type=float, help="periodic excitation: fundamental frequency, Hz "
                              "(average the periods, Fourier-fit the positions)")
-    derivatives.add_argument("--harmonics", type=int, default=5, help="harmonics of the Fourier fit (default: 5)")
+    derivatives.add_argument("--harmonics", type=int, default=5, help="harmonics of the Fourier fit (default: 5, the paper's; "
+                             "records of a robot under feedback want about three times the reference's)")
     derivatives.add_argument("--cutoff", type=float, help="otherwise: Butterworth cut-off, Hz (default: automatic)")
     derivatives.add_argument("--decimate", type=int, default=1, help="keep one sample in K after low-pass filtering")
     derivatives.add_argument("--held-torques", action="store_true",
