@@ -269,8 +269,9 @@ def fill_derivatives(
     ``metadata["harmonics"]`` (15 if unknown): the tracking error of a controlled robot adds
     harmonics above the reference's. With ``held_torques``, a fit with the reference's own count
     left the largest base-parameter error at 10–20 standard deviations (the paper's 5-harmonic
-    design; 3-harmonic references), three times as many at 2–3 (``tests/test_simulator.py``). Others
-    :class:`ButterworthDifferentiation` with the automatic cut-off. Data that already hold both are left alone unless a method is given.
+    design; 3-harmonic references), three times as many at 2–3 (``tests/test_simulator.py``).
+    Other data use :class:`ButterworthDifferentiation` with the automatic cut-off. Data that
+    already hold both are left alone unless a method is given.
     ``held_torques``: the joint torques were held over each sample; when the derivatives are
     derived here, :func:`compensate_hold` aligns the motion with them (before decimation).
     """
