@@ -84,7 +84,7 @@ class SimulatedPerJoint:
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "values", finite_floats(self.values, f"{self.name} values"))
-        if self.non_negative and min(self.values) < 0:
+        if self.non_negative and any(value < 0 for value in self.values):
             raise ValueError(f"{self.name} values must be non-negative, got {list(self.values)}: a negative "
                              f"{self.name} term would push the joint, which no {self.name} does")
 

@@ -1,6 +1,9 @@
-"""What every estimator shares, after scikit-learn's ``BaseEstimator``: settings as keyword-only
-``__init__`` arguments stored under their own names, ``get_params``/``set_params``, a repr of the
-settings, and a ``fit`` that starts afresh (no fitted attribute of an earlier fit survives)."""
+"""What every estimator shares, after scikit-learn's ``BaseEstimator``.
+
+Settings are keyword-only ``__init__`` arguments stored under their own names, with
+``get_params``/``set_params`` and a repr of them; ``fit`` starts afresh (no fitted attribute of an
+earlier fit survives).
+"""
 
 from __future__ import annotations
 

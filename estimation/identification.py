@@ -47,11 +47,11 @@ def implausible_estimates(model: IdentificationModel, estimate: Estimate,
                 for name in effect.parameter_names(model.robot)}
     messages = []
     for record in estimate.records():
-        if record["expression"].strip() in positive and record["value"] < -sigmas * record["std"]:
+        if record["expression"].strip() in positive and record["std"] > 0 and record["value"] < -sigmas * record["std"]:
             messages.append(
                 f"{record['name']} = {record['value']:.4g} ± {record['std']:.2g} is negative "
                 f"({-record['value'] / record['std']:.0f} standard deviations), which no {_effect_of(model, record['expression'])} "
-                "can be: the model probably lacks an effect (try `oed diagnose`) or a sign or unit is wrong"
+                "can be: the model probably lacks an effect (what `oed diagnose` looks for), or a sign or unit is wrong"
             )
     return tuple(messages)
 
@@ -132,6 +132,12 @@ def identify(
         Channel-weighted least squares (default) rather than ordinary (PUMA paper, eq. 20).
     estimator
         A configured estimator instead (overrides ``weighted``); it is fitted in place.
+
+    Warns
+    -----
+    ImplausibleEstimateWarning
+        For each friction or armature estimate more than :data:`IMPLAUSIBLE_SIGMAS` standard
+        deviations below zero (also in ``result.warnings``).
     """
     if estimator is None:
         estimator = WeightedLeastSquares() if weighted else LeastSquares()

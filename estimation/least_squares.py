@@ -322,13 +322,15 @@ class LeastSquares(Estimator):
         """``Y θ̂`` for a problem, ``(model, measurements)`` as in :meth:`fit`, or a regressor ``(N, m, r)``."""
         theta = self._fitted().values
         if isinstance(problem, IdentificationModel):
-            problem = _as_problem(problem, measurements)
+            if not isinstance(measurements, Measurements) or measurements.dq is None or measurements.ddq is None:
+                raise TypeError("predict(model, measurements): give measurements with q, dq and ddq "
+                                "(estimation.preprocessing.fill_derivatives derives them)")
+            problem = problem.evaluate_base(measurements.q, measurements.dq, measurements.ddq)  # no measured channels needed
         Y = problem.Y if isinstance(problem, IdentificationProblem) else np.asarray(problem, dtype=float)
         if Y.ndim < 1 or Y.shape[-1] != theta.shape[0]:
             raise ValueError(f"the regressor has shape {Y.shape}; its last axis must hold the {theta.shape[0]} "
                              "fitted parameters")
         return Y @ theta
-
 
 
 class WeightedLeastSquares(LeastSquares):

@@ -159,8 +159,12 @@ def fit_servo_joint(
         q = q - q[:n_est].mean()
     try:
         model = _estimator(method, nc=nc, forgetting=forgetting, backend=backend).fit(u[:n_est], q[:n_est])
-    except ValueError as error:
-        raise ValueError(f"joint {joint}: {error}") from None
+    except ValueError as error:  # name the joint, keep the type (RecursionDivergedError…)
+        try:
+            renamed = type(error)(f"joint {joint}: {error}")
+        except TypeError:
+            renamed = ValueError(f"joint {joint}: {error}")
+        raise renamed from error
     theta = np.asarray(model.theta_)
     a1, a2, K = (float(v) for v in theta[:3])
     c = tuple(float(v) for v in theta[3:])

@@ -30,6 +30,7 @@ def check_informative(u: np.ndarray, y: np.ndarray) -> None:
 
 
 def rank_deficiency_message(what: str) -> str:
+    """The message for a regressor (``what``) that does not determine every coefficient."""
     return (f"{what} is rank deficient: the data do not determine every coefficient (the output a copy or "
             "a filtered copy of the input, or too little excitation for these orders)")
 

@@ -120,7 +120,9 @@ def test_fit_accepts_a_model_and_measurements_like_a_stacked_problem(puma):
     assert estimator.residuals_.shape == (data.n_samples, 3)
     assert estimator.cov_.shape == (model.n_base, model.n_base)
     np.testing.assert_allclose(estimator.predict(stack(model, data)), data.tau - estimator.residuals_)
-    np.testing.assert_allclose(estimator.predict(model, data), estimator.predict(stack(model, data)))
+    np.testing.assert_allclose(estimator.predict(model, replace(data, tau=None)), estimator.predict(stack(model, data)))
+    with pytest.raises(TypeError, match="predict.model, measurements.: give measurements"):
+        estimator.predict(model)
 
 
 def test_unfitted_estimator_and_bad_settings_raise_clear_errors():

@@ -220,6 +220,7 @@ def test_warmup_starts_the_record_in_the_periodic_steady_state(robot):
         (lambda robot: NoiseModel(tau_std=-1.0), "tau_std"),
         (lambda robot: PlateOffset(("mq",), (1.0,)), "channels"),
         (lambda robot: Viscous((-5.0, 1.0, 1.0)), "viscous values must be non-negative"),
+        (lambda robot: Simulator(robot, (Viscous(()),)), "0 values for a robot of 3 joints"),
         (lambda robot: Simulator(robot, rate_hz=float("inf")), "rate_hz must be a positive finite number"),
         (lambda robot: Simulator(robot, (Coulomb((1e308,) * 3),)).substeps_needed(), "friction is too stiff"),
         (lambda robot: Simulator(robot, rate_hz=1e-3).run(

@@ -11,7 +11,7 @@ from dynamics.models import ModelKind, build_model
 from estimation.diagnosis import diagnose
 from estimation.diagnosis_report import markdown_report, plot_residuals
 from oed.cli.common import OutputFiles, add_robot_arguments, json_text, robot_from_arguments
-from oed.cli.identify import add_derivative_arguments, prepare
+from oed.cli.identify import add_derivative_arguments, differentiation, prepare
 
 
 def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -48,6 +48,7 @@ def run(args: argparse.Namespace) -> int:
     if args.data.expanduser().resolve() == args.validate.expanduser().resolve():
         raise ValueError(f"--validate is --data ({args.data}): diagnose confirms every effect on held-out data "
                          "from another experiment")
+    differentiation(args)  # contradicting derivative options are an error even when the data hold dq, ddq
     robot = robot_from_arguments(args)
     model = build_model(robot, args.model, args.friction)
     with warnings.catch_warnings(record=True) as caught:

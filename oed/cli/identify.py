@@ -70,6 +70,7 @@ def prepare(path: Path, model, args: argparse.Namespace) -> Measurements:
 
 def run(args: argparse.Namespace) -> int:
     check_figure_path(args.plot)
+    differentiation(args)  # contradicting derivative options are an error even when the data hold dq, ddq
     robot = robot_from_arguments(args)
     model = build_model(robot, args.model, args.friction)
     with warnings.catch_warnings(record=True) as caught:
