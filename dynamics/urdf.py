@@ -8,8 +8,14 @@ columns absorb.
 
 from __future__ import annotations
 
+import contextlib
+import os
 import re
+import sys
+import tempfile
+import warnings
 import xml.etree.ElementTree as ElementTree
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -67,14 +73,40 @@ def _check_numbers(path: Path) -> None:
                                                 f"upper limit {limit.get('upper')}")
 
 
-def _check_total_mass(path: Path, parsed: float) -> None:
+class _CapturedText:
+    """What a C library wrote to the process's standard error inside :func:`_captured_stderr`
+    (filled in when the block ends)."""
+
+    def __init__(self) -> None:
+        self.text = ""
+
+
+@contextlib.contextmanager
+def _captured_stderr() -> Iterator[_CapturedText]:
+    """Redirect file descriptor 2 (where urdfdom prints "Error: … at line 262 in model.cpp") to a
+    temporary file, so that its words can go into one readable message instead of C++ noise."""
+    sys.stderr.flush()
+    captured = _CapturedText()
+    with tempfile.TemporaryFile() as stream:
+        saved = os.dup(2)
+        try:
+            os.dup2(stream.fileno(), 2)
+            yield captured
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+            stream.seek(0)
+            captured.text = stream.read().decode(errors="replace")
+
+
+def _check_total_mass(path: Path, parsed: float, parser_report: str = "") -> None:
     """The masses Pinocchio read must add up to those the file states (urdfdom reads a number it
     cannot parse, e.g. with a tab or a blank around it, as 0 and drops the link's inertial data)."""
     stated = sum(float(element.get("value", "0")) for element in ElementTree.parse(path).getroot().iter("mass"))
     if not np.isclose(parsed, stated, rtol=1e-9, atol=1e-12):
         raise RobotDescriptionError(f"URDF {path}: the links' masses add up to {stated:g} kg in the file but to "
                                     f"{parsed:g} kg as read: an inertial element could not be parsed (blanks or tabs "
-                                    "inside a number?)")
+                                    "inside a number?)" + (f"; the parser reported: {parser_report}" if parser_report else ""))
 
 
 def robot_from_urdf(path: str | Path, *, gravity: np.ndarray | None = None) -> RobotModel:
@@ -99,13 +131,22 @@ def robot_from_urdf(path: str | Path, *, gravity: np.ndarray | None = None) -> R
     if not path.is_file():
         raise RobotDescriptionError(f"URDF file {path} is a folder" if path.is_dir() else f"URDF file not found: {path}")
     _check_numbers(path)
-    try:
-        model = pin.buildModelFromUrdf(str(path))
-    except (RuntimeError, ValueError) as error:
-        raise RobotDescriptionError(f"cannot parse URDF {path}: {error}") from None
+    with _captured_stderr() as parser_output:
+        try:
+            model = pin.buildModelFromUrdf(str(path))
+        except (RuntimeError, ValueError) as error:
+            failure = str(error)
+        else:
+            failure = None
+    details = " ".join(line.strip() for line in parser_output.text.splitlines()
+                       if line.strip() and not line.strip().startswith("at line")).removeprefix("Error:").strip()
+    if failure is not None:
+        raise RobotDescriptionError(f"cannot parse URDF {path}: {details or failure}")
     if model.njoints <= 1:
         raise RobotDescriptionError(f"URDF {path} has no movable joint")
-    _check_total_mass(path, sum(model.inertias[index].mass for index in range(model.njoints)))
+    _check_total_mass(path, sum(model.inertias[index].mass for index in range(model.njoints)), details)
+    if details:  # the parser complained but went on: say so once, readably
+        warnings.warn(f"URDF {path}: the parser reported: {details}", stacklevel=2)
     for joint_id in range(1, model.njoints):
         parent = model.parents[joint_id]
         if parent != joint_id - 1:

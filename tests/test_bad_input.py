@@ -140,3 +140,11 @@ def test_urdf_numbers_that_urdfdom_would_turn_into_zero_are_named(tmp_path, link
                     f'<child link="a"/><axis xyz="0 0 1"/><limit {limit} effort="1" velocity="1"/></joint></robot>')
     with pytest.raises(RobotDescriptionError, match=message.replace("(", r"\(")):
         load_robot(urdf=str(path))
+
+
+def test_urdf_parser_errors_are_one_readable_line(tmp_path, capfd):
+    path = _urdf(tmp_path, '<joint name="j1" type="revolute"><parent link="base"/><child link="nope"/><axis xyz="0 0 1"/>'
+                           '<limit lower="-1" upper="1" effort="1" velocity="1"/></joint>', ("base", "a"))
+    with pytest.raises(RobotDescriptionError, match=r"child link \[nope\] of joint \[j1\] not found"):
+        load_robot(urdf=path)
+    assert "model.cpp" not in capfd.readouterr().err  # urdfdom's C++ location lines are not printed
