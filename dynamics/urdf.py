@@ -13,6 +13,7 @@ import os
 import re
 import sys
 import tempfile
+import threading
 import warnings
 import xml.etree.ElementTree as ElementTree
 from collections.abc import Iterator
@@ -38,6 +39,15 @@ _NUMERIC_ATTRIBUTES: dict[str, tuple[str, ...]] = {
 _NUMBER = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?")
 
 
+def _urdf_numbers(text: str, *, vector: bool) -> bool:
+    """Whether urdfdom reads ``text`` as intended: one number, or for a vector numbers split on
+    single spaces, each plain decimal and finite (urdfdom skips leading blanks, not trailing ones)."""
+    tokens = [token for token in text.split(" ") if token] if vector else [text.lstrip(" ")]
+    if not tokens or (vector and len(tokens) != 3):
+        return False
+    return all(_NUMBER.fullmatch(token) and np.isfinite(float(token)) for token in tokens)
+
+
 def _check_numbers(path: Path) -> None:
     """Every number of the links' inertial elements and of the joints must be a finite number.
 
@@ -61,11 +71,11 @@ def _check_numbers(path: Path) -> None:
                         text = child.get(attribute)
                         if text is None:
                             continue
-                        tokens = text.split(" ")  # as urdfdom splits (no tabs, no surrounding blanks)
-                        if not all(_NUMBER.fullmatch(token) for token in tokens if token) or not text.strip():
+                        if not _urdf_numbers(text, vector=attribute in ("xyz", "rpy")):
                             raise RobotDescriptionError(
-                                f"URDF {path}: {owner}: <{tag} {attribute}=\"{text}\"> is not a finite number "
-                                "(plain decimal numbers separated by single spaces)")
+                                f"URDF {path}: {owner}: <{tag} {attribute}=\"{text}\"> is not "
+                                + ("three finite numbers" if attribute in ("xyz", "rpy") else "one finite number")
+                                + " (plain decimal numbers, separated by single spaces)")
             limit = element.find("limit") if kind == "joint" else None
             if limit is not None and limit.get("lower") is not None and limit.get("upper") is not None:
                 if float(limit.get("lower")) > float(limit.get("upper")):
@@ -81,28 +91,41 @@ class _CapturedText:
         self.text = ""
 
 
+#: one redirection of file descriptor 2 at a time (another thread's would restore the wrong one)
+_STDERR_LOCK = threading.Lock()
+
+
 @contextlib.contextmanager
 def _captured_stderr() -> Iterator[_CapturedText]:
     """Redirect file descriptor 2 (where urdfdom prints "Error: … at line 262 in model.cpp") to a
-    temporary file, so that its words can go into one readable message instead of C++ noise."""
-    sys.stderr.flush()
+    temporary file, so that its words can go into one readable message instead of C++ noise.
+    Without a usable descriptor 2 or temporary folder, nothing is captured."""
     captured = _CapturedText()
-    with tempfile.TemporaryFile() as stream:
-        saved = os.dup(2)
+    with _STDERR_LOCK:
+        if sys.stderr is not None:
+            sys.stderr.flush()
         try:
-            os.dup2(stream.fileno(), 2)
+            stream = tempfile.TemporaryFile()
+            saved = os.dup(2)
+        except OSError:
             yield captured
-        finally:
-            os.dup2(saved, 2)
-            os.close(saved)
-            stream.seek(0)
-            captured.text = stream.read().decode(errors="replace")
+            return
+        with stream:
+            try:
+                os.dup2(stream.fileno(), 2)
+                yield captured
+            finally:
+                os.dup2(saved, 2)
+                os.close(saved)
+                stream.seek(0)
+                captured.text = stream.read().decode(errors="replace")
 
 
 def _check_total_mass(path: Path, parsed: float, parser_report: str = "") -> None:
     """The masses Pinocchio read must add up to those the file states (urdfdom reads a number it
     cannot parse, e.g. with a tab or a blank around it, as 0 and drops the link's inertial data)."""
-    stated = sum(float(element.get("value", "0")) for element in ElementTree.parse(path).getroot().iter("mass"))
+    root = ElementTree.parse(path).getroot()
+    stated = sum(float(element.get("value", "0")) for element in root.findall("link/inertial/mass"))
     if not np.isclose(parsed, stated, rtol=1e-9, atol=1e-12):
         raise RobotDescriptionError(f"URDF {path}: the links' masses add up to {stated:g} kg in the file but to "
                                     f"{parsed:g} kg as read: an inertial element could not be parsed (blanks or tabs "
@@ -145,7 +168,9 @@ def robot_from_urdf(path: str | Path, *, gravity: np.ndarray | None = None) -> R
     if model.njoints <= 1:
         raise RobotDescriptionError(f"URDF {path} has no movable joint")
     _check_total_mass(path, sum(model.inertias[index].mass for index in range(model.njoints)), details)
-    if details:  # the parser complained but went on: say so once, readably
+    if "Error" in parser_output.text:  # urdfdom drops what it cannot read and goes on: not here
+        raise RobotDescriptionError(f"URDF {path}: the parser could not read all of it: {details}")
+    if details:  # the parser remarked on something but read it all: say so once, readably
         warnings.warn(f"URDF {path}: the parser reported: {details}", stacklevel=2)
     for joint_id in range(1, model.njoints):
         parent = model.parents[joint_id]

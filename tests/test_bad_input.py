@@ -123,15 +123,17 @@ def test_complex_states_are_refused_not_truncated():
     "link,limit,message",
     [
         ('<link name="a"><inertial><mass value="nan"/></inertial></link>', 'lower="-1" upper="1"',
-         "link 'a': <mass value=\"nan\"> is not a finite number"),
+         "link 'a': <mass value=\"nan\"> is not one finite number"),
         ('<link name="a"><inertial><mass value="1"/><inertia ixx="inf" ixy="0" ixz="0" iyy="1" iyz="0" izz="1"/>'
-         '</inertial></link>', 'lower="-1" upper="1"', "<inertia ixx=\"inf\"> is not a finite number"),
+         '</inertial></link>', 'lower="-1" upper="1"', "<inertia ixx=\"inf\"> is not one finite number"),
         ('<link name="a"><inertial><mass value="1"/></inertial></link>', 'lower="1" upper="-1"',
          "joint 'j1': lower limit 1 is above upper limit -1"),
         ('<link name="a"><inertial><mass value="1_0"/></inertial></link>', 'lower="-1" upper="1"',
-         "<mass value=\"1_0\"> is not a finite number"),  # Python's float() takes it, urdfdom does not
-        ('<link name="a"><inertial><mass value=" 2 "/></inertial></link>', 'lower="-1" upper="1"',
-         "masses add up to 2 kg in the file but to 0 kg as read"),
+         "<mass value=\"1_0\"> is not one finite number"),  # Python's float() takes it, urdfdom does not
+        ('<link name="a"><inertial><mass value="2 "/></inertial></link>', 'lower="-1" upper="1"',
+         "<mass value=\"2 \"> is not one finite number"),  # urdfdom skips leading blanks, not trailing ones
+        ('<link name="a"><inertial><mass value="1"/><inertia ixx="1e400" ixy="0" ixz="0" iyy="1" iyz="0" izz="1"/>'
+         '</inertial></link>', 'lower="-1" upper="1"', "<inertia ixx=\"1e400\"> is not one finite number"),
     ],
 )
 def test_urdf_numbers_that_urdfdom_would_turn_into_zero_are_named(tmp_path, link, limit, message):
@@ -148,3 +150,13 @@ def test_urdf_parser_errors_are_one_readable_line(tmp_path, capfd):
     with pytest.raises(RobotDescriptionError, match=r"child link \[nope\] of joint \[j1\] not found"):
         load_robot(urdf=path)
     assert "model.cpp" not in capfd.readouterr().err  # urdfdom's C++ location lines are not printed
+
+
+def test_masses_read_are_checked_against_the_file(tmp_path):
+    from dynamics.urdf import _check_total_mass
+
+    path = _urdf(tmp_path, '<joint name="j1" type="revolute"><parent link="base"/><child link="a"/><axis xyz="0 0 1"/>'
+                           '<limit lower="-1" upper="1" effort="1" velocity="1"/></joint>', ("base", "a"))
+    _check_total_mass(tmp_path / "robot.urdf", 2.0)  # base and a: 1 kg each, as LINK writes them
+    with pytest.raises(RobotDescriptionError, match="add up to 2 kg in the file but to 1 kg as read"):
+        _check_total_mass(tmp_path / "robot.urdf", 1.0, "Inertial: mass [x] is not a float")
