@@ -16,8 +16,9 @@ def single_channel(values: np.ndarray, name: str) -> np.ndarray:
     array = np.asarray(values)
     if np.iscomplexobj(array):
         raise TypeError(f"signal {name} must be real, got complex values")
-    if sum(length > 1 for length in array.shape) > 1:  # (N,), (N, 1) and (1, N) are one channel
-        raise ValueError(f"signal {name} must be one channel, got shape {array.shape}: use one channel at a time")
+    if array.ndim not in (1, 2) or sum(length > 1 for length in array.shape) > 1:  # (N,), (N, 1), (1, N)
+        raise ValueError(f"signal {name} must be one channel, (N,), (N, 1) or (1, N), got shape {array.shape}: "
+                         "use one channel at a time")
     return array.astype(float).reshape(-1)
 
 

@@ -203,3 +203,17 @@ def test_an_output_never_replaces_an_input_or_another_output(internal_data, caps
     assert code == 2
     assert re.search(message, capsys.readouterr().err)
     assert {path.name: path.read_bytes() for path in internal_data.iterdir()} == before  # nothing written or lost
+
+
+def test_long_json_text_is_not_taken_for_a_file_name(tmp_path):
+    import argparse
+
+    from oed.cli.paths import check_paths
+
+    text = "{" + " " * 300 + '"viscous": 1.0}'  # longer than a file name may be
+    check_paths(argparse.Namespace(effect_values=text, truth=tmp_path / "truth.json", out=tmp_path / "s.csv"))
+
+
+def test_design_csv_named_like_another_format_is_refused_before_the_work(tmp_path, capsys):
+    code = main(["design", "--joints", "3", "--out", str(tmp_path / "t.json"), "--csv", str(tmp_path / "t.png")])
+    assert code == 2 and "--csv" in capsys.readouterr().err and _listing(tmp_path) == []

@@ -108,9 +108,9 @@ def test_several_channels_are_refused_not_interleaved_and_unfitted_estimators_la
     from estimation.recursive import ExtendedRecursiveLeastSquares
 
     generator = np.random.default_rng(0)
-    with pytest.raises(ValueError, match=r"signal u must be one channel, got shape \(1000, 4\)"):
+    with pytest.raises(ValueError, match=r"signal u must be one channel, .* got shape \(1000, 4\)"):
         ARXEstimator().fit(generator.normal(size=(1000, 4)), generator.normal(size=(1000, 4)))
-    with pytest.raises(ValueError, match=r"signal measured must be one channel, got shape \(4, 2\)"):
+    with pytest.raises(ValueError, match=r"signal measured must be one channel, .* got shape \(4, 2\)"):
         rmse(np.ones((4, 2)), np.ones(8))
     with pytest.raises(ValueError, match=r"signal measured must be one channel"):  # pooled R² was 0.9999
         r2_adjusted(np.column_stack([generator.normal(size=100), 100 + generator.normal(size=100)]), np.ones((100, 2)), 3)

@@ -14,6 +14,7 @@ from oed.bounds import JointBounds
 from oed.cli.common import (
     OutputFiles,
     add_robot_arguments,
+    check_csv_path,
     check_figure_path,
     json_text,
     robot_from_arguments,
@@ -82,6 +83,8 @@ def trajectory_table(trajectory, rate_hz: float = 1000.0) -> tuple[list[str], np
 
 def run(args: argparse.Namespace) -> int:
     check_figure_path(args.plot)
+    if args.csv is not None:
+        check_csv_path(args.csv, "--csv")
     robot = robot_from_arguments(args)
     bounds = bounds_from_arguments(args, robot)
     settings = DesignSettings(

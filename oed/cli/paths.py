@@ -9,6 +9,7 @@ keep only one of the two files, both with exit code 0.
 from __future__ import annotations
 
 import argparse
+import os
 from collections.abc import Callable
 from pathlib import Path
 
@@ -37,7 +38,8 @@ def _named_paths(args: argparse.Namespace) -> dict[str, tuple[str, Path]]:
                 raise ValueError(f"{_flag(option)} {value} is a folder: give a file name")
             named[_flag(option)] = (role, Path(value))
         effect_values = getattr(args, "effect_values", None)  # JSON text or a file of it
-        if role == "input" and effect_values and Path(effect_values).is_file():
+        if role == "input" and effect_values and not effect_values.lstrip().startswith("{") \
+                and os.path.isfile(effect_values):
             named["--effect-values"] = ("input", Path(effect_values))
     return named
 
