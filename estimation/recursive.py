@@ -209,6 +209,9 @@ class RecursiveLeastSquares(Estimator):
         """Run the recursion over the record; sets ``theta_``, ``P_``, ``cov_``, ``noise_variance_``,
         ``prediction_errors_`` (a-priori ``e(n)``) and ``trace_`` (``trace P`` at each chunk end).
 
+        The recursion sees u and y scaled to unit RMS (``delta``, ``max_trace`` and ``trace_`` are
+        in those units); ``theta_``, ``P_`` and the histories are given back in the data's units.
+
         Raises
         ------
         RecursionDivergedError
@@ -225,16 +228,23 @@ class RecursiveLeastSquares(Estimator):
         lay = _layout(na, nb, nk, nc)
         x0 = np.zeros(lay["size"].stop)
         x0[lay["P"]] = (self.delta * np.eye(p)).reshape(-1)
-        data = np.column_stack((y, u, np.ones_like(y)))
+        # The recursion runs on u and y scaled to unit RMS, so that P(0) = δ I is large against the
+        # data whatever their units (on y 1e-4 against u 1e4 it shrank a1 from -0.5 to -0.2);
+        # a and c are unit-free, b scales by y_rms / u_rms.
+        u_rms, y_rms = float(np.sqrt(np.mean(u**2))), float(np.sqrt(np.mean(y**2)))
+        unscale = np.concatenate([np.ones(na), np.full(nb, y_rms / u_rms), np.ones(nc)])
+        data = np.column_stack((y / y_rms, u / u_rms, np.ones_like(y)))
         if self.backend == "numpy":
             state, errors, traces, theta_hist, P_hist = _numpy_run(x0, data, na, nb, nk, nc, float(self.forgetting), self.keep_history)
             if self.keep_history:
-                self.theta_history_, self.P_history_ = theta_hist, P_hist
+                self.theta_history_ = theta_hist * unscale
+                self.P_history_ = P_hist * np.outer(unscale, unscale)
         else:
             state, errors, traces = self._block_run(x0, data)
         self._check_divergence(state[lay["theta"]], traces)
-        self.theta_ = state[lay["theta"]].copy()
-        self.P_ = state[lay["P"]].reshape(p, p, order="F").copy()
+        self.theta_ = state[lay["theta"]] * unscale
+        self.P_ = state[lay["P"]].reshape(p, p, order="F") * np.outer(unscale, unscale)
+        errors = errors * y_rms
         self.prediction_errors_ = errors
         self.trace_ = traces
         tail = errors[errors.size // 2 :]

@@ -174,3 +174,20 @@ def test_estimators_share_the_scikit_learn_contract():
     assert estimator.theta_history_.shape == (600, 2)
     estimator.set_params(keep_history=False).fit(u[:300], y[:300])
     assert not hasattr(estimator, "theta_history_")  # nothing of the earlier fit survives
+
+
+def test_rls_does_not_depend_on_the_units_of_u_and_y():
+    """The recursion runs on unit-RMS signals: with y in 1e-4 and u in 1e4 units, P(0) = δI used to
+    shrink a1 from -0.5 to -0.2 (about 50 standard deviations off the batch fit)."""
+    from estimation.recursive import RecursiveLeastSquares
+
+    generator = np.random.default_rng(0)
+    u = generator.standard_normal(5000)
+    y = ARXEstimator.simulate_structure(a=[-0.5], b=[1.0], c=[], nk=1, u=u, e=0.1 * generator.standard_normal(5000))
+    batch = ARXEstimator(na=1).fit(u * 1e4, y * 1e-4)
+    recursive = RecursiveLeastSquares(na=1, backend="numpy", keep_history=True).fit(u * 1e4, y * 1e-4)
+    np.testing.assert_allclose(recursive.theta_, batch.theta_, rtol=1e-6)
+    np.testing.assert_allclose(np.sqrt(np.diag(recursive.cov_)), np.sqrt(np.diag(batch.cov_)), rtol=1e-3)
+    np.testing.assert_allclose(recursive.theta_history_[-1], recursive.theta_)
+    unit = RecursiveLeastSquares(na=1).fit(u, y)
+    np.testing.assert_allclose(recursive.theta_ * [1, 1e4 / 1e-4], unit.theta_, rtol=1e-6)
