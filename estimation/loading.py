@@ -277,7 +277,14 @@ def _check_time(t: NDArray[np.float64], source: str) -> None:
     if step >= SLOW_SAMPLE_TIME:
         warnings.warn(f"{source}: column t advances by {step:.4g} s a sample ({1 / step:.3g} Hz), slow for robot "
                       "dynamics: is t in seconds?", MeasurementWarning, stacklevel=4)
-    gaps = [row for row in np.flatnonzero(steps > GAP_FACTOR * step) if _missing_samples(t, int(row), step) > GAP_FACTOR]
+    long_steps = [int(row) for row in np.flatnonzero(steps > GAP_FACTOR * step)]
+    gaps = [row for row in long_steps if _missing_samples(t, row, step) > GAP_FACTOR - 1]
+    late = [row for row in long_steps if row not in gaps]
+    if late:
+        warnings.warn(
+            f"{source}: column t stalls for {steps[late[0]]:.4g} s after row {late[0]} and the following samples come "
+            f"in a burst ({len(late)} such stall(s)): receive times rather than sampling times? Resampling places "
+            "those samples by their stamps", MeasurementWarning, stacklevel=4)
     if gaps:
         row = gaps[0]
         raise TimeBaseError(
@@ -290,11 +297,13 @@ def _check_time(t: NDArray[np.float64], source: str) -> None:
 
 def _missing_samples(t: NDArray[np.float64], row: int, step: float) -> float:
     """Samples missing around the long step after ``row``: the time spanned by a window around it
-    over the median step, minus the samples there. A logger that stalls and then delivers its
+    over the local median step, minus the samples there. A logger that stalls and then delivers its
     backlog has a long step but none missing (jitter, resampled); a hole in the record has many."""
     reach = int(2 * (t[row + 1] - t[row]) / step) + 20
     first, last = max(row - reach, 0), min(row + 1 + reach, t.shape[0] - 1)
-    return float((t[last] - t[first]) / step - (last - first))
+    around = np.delete(np.diff(t[first:last + 1]), row - first)
+    local = float(np.median(around)) if around.size else step
+    return float((t[last] - t[first]) / local - (last - first))
 
 
 def _check_angles(q: NDArray[np.float64], model, source: str) -> None:

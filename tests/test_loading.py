@@ -13,6 +13,7 @@ from dynamics.robots import load_robot
 from estimation.loading import (
     AngleUnitError,
     JointCountError,
+    MeasurementWarning,
     MissingColumnError,
     NonFiniteError,
     ResampledWarning,
@@ -110,9 +111,16 @@ def test_a_stalled_logger_that_catches_up_is_jitter_not_a_gap(tmp_path, model):
     t = frame["t"].to_numpy().copy()
     t[50:56] = t[56] - 0.001 * np.arange(6, 0, -1) * 0.01  # six samples arrive late, in a burst
     frame["t"] = t
-    with pytest.warns(ResampledWarning):
+    with pytest.warns(MeasurementWarning) as caught:
         loaded = read_measurements(write_frame(tmp_path, frame), model=model)
     assert loaded.n_samples == 200
+    messages = [str(warning.message) for warning in caught]
+    assert any("stalls for 0.06994 s after row 49 and the following samples come in a burst" in m for m in messages)
+    assert any(isinstance(warning.message, ResampledWarning) for warning in caught)
+    frame["t"] = np.arange(200) * 0.01
+    frame.loc[100:, "t"] += 0.045  # a hole of 5.5 steps: 4.5 samples missing, just over the line
+    with pytest.raises(TimeBaseError, match="a gap in the record"):
+        read_measurements(write_frame(tmp_path, frame), model=model)
 
 
 def test_nan_cells_are_shown_as_plain_numbers(tmp_path, model):
