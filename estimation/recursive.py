@@ -234,13 +234,24 @@ class RecursiveLeastSquares(Estimator):
         u_rms, y_rms = float(np.sqrt(np.mean(u**2))), float(np.sqrt(np.mean(y**2)))
         unscale = np.concatenate([np.ones(na), np.full(nb, y_rms / u_rms), np.ones(nc)])
         data = np.column_stack((y / y_rms, u / u_rms, np.ones_like(y)))
+        # The first update is at the first sample whose regressor holds measured values only; the
+        # samples before it fill the memories (zeros there made the first rows outliers whenever
+        # the signals do not start at 0, and RLS then missed batch ARX by far).
+        first = max(na, nk + nb - 1)
+        memory = nk + nb - 1
+        x0[lay["y"]] = data[first - na:first, 0][::-1]
+        x0[lay["u"]] = data[first - memory:first, 1][::-1]
         if self.backend == "numpy":
-            state, errors, traces, theta_hist, P_hist = _numpy_run(x0, data, na, nb, nk, nc, float(self.forgetting), self.keep_history)
+            state, errors, traces, theta_hist, P_hist = _numpy_run(x0, data[first:], na, nb, nk, nc,
+                                                                   float(self.forgetting), self.keep_history)
             if self.keep_history:
+                theta_hist = np.vstack([np.zeros((first, p)), theta_hist])
+                P_hist = np.concatenate([np.broadcast_to(self.delta * np.eye(p), (first, p, p)), P_hist])
                 self.theta_history_ = theta_hist * unscale
                 self.P_history_ = P_hist * np.outer(unscale, unscale)
         else:
-            state, errors, traces = self._block_run(x0, data)
+            state, errors, traces = self._block_run(x0, data[first:])
+        errors = np.concatenate([np.zeros(first), errors])  # no prediction before the first update
         self._check_divergence(state[lay["theta"]], traces)
         self.theta_ = state[lay["theta"]] * unscale
         self.P_ = state[lay["P"]].reshape(p, p, order="F") * np.outer(unscale, unscale)
