@@ -10,6 +10,8 @@ from __future__ import annotations
 import inspect
 from typing import Any
 
+from estimation.errors import NotFittedError
+
 
 class Estimator:
     """Mixin: ``get_params``, ``set_params``, ``__repr__`` from the ``__init__`` signature."""
@@ -38,6 +40,12 @@ class Estimator:
         """Drop the fitted attributes (names ending in ``_``) of an earlier ``fit``."""
         for name in [name for name in vars(self) if name.endswith("_") and not name.startswith("_")]:
             delattr(self, name)
+
+    def __getattr__(self, name: str) -> Any:
+        # only reached when the attribute is missing: a fitted value asked for before fit
+        if name.endswith("_") and not name.startswith("_"):
+            raise NotFittedError(f"{type(self).__name__} is not fitted yet ({name} is set by fit): call fit first")
+        raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
 
     def __repr__(self) -> str:
         settings = ", ".join(f"{name}={value!r}" for name, value in self.get_params().items())
