@@ -28,6 +28,9 @@ from oed.design_problem import (
 from oed.design_parallel import payload_of, solve_start
 from oed.fourier import FourierTrajectory
 
+#: most starts one design accepts (their start vectors are built up front)
+MAX_STARTS = 100_000
+
 __all__ = [
     "SUCCESS_STATUSES", "DesignError", "DesignResult", "DesignSettings", "ExcitationDesign", "StartResult",
     "default_bounds", "design_excitation", "solve_start",
@@ -113,8 +116,15 @@ def design_excitation(
     InfeasibleBoundsError
         When a bound is too narrow for the optimiser's constraints (named with its joint).
     """
-    if not isinstance(starts, (int, np.integer)) or starts < 1:
-        raise ValueError(f"starts must be a positive integer, got {starts!r}")
+    if isinstance(starts, bool) or not isinstance(starts, (int, np.integer)) or not 1 <= starts <= MAX_STARTS:
+        raise ValueError(f"starts must be an integer from 1 to {MAX_STARTS}, got {starts!r}")
+    if seed is not None and (isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0):
+        raise TypeError(f"seed must be a non-negative integer or None, got {seed!r}")
+    seed = None if seed is None else int(seed)  # a plain int in the JSON metadata
+    if bounds is not None and not isinstance(bounds, JointBounds):
+        raise TypeError(f"bounds must be JointBounds (e.g. JointBounds.from_dict(...)), got {type(bounds).__name__}")
+    if executor is not None and not callable(getattr(executor, "submit", None)):
+        raise TypeError(f"executor must be a concurrent.futures.Executor (with submit), got {type(executor).__name__}")
     started = time.perf_counter()
     if problem is None:
         problem = ExcitationDesign(robot, model, bounds, criterion, effects, settings or DesignSettings())
@@ -132,10 +142,15 @@ def design_excitation(
         build_time = float("nan")  # paid once in each worker
         payload = payload_of(problem)
         futures = [executor.submit(solve_start, payload, x0, index) for index, x0 in enumerate(initial)]
-        for future in as_completed(futures):
-            results.append(future.result())
-            if progress is not None:
-                progress(results[-1], starts)
+        try:
+            for future in as_completed(futures):
+                results.append(future.result())
+                if progress is not None:
+                    progress(results[-1], starts)
+        except BaseException:  # Ctrl-C or a failed start: do not leave the other starts running
+            for future in futures:
+                future.cancel()
+            raise
         results.sort(key=lambda result: result.index)
     good = [result for result in results if result.success]
     if not good:

@@ -19,6 +19,7 @@ exceeded are added as constraint points and the problem is re-solved from the pr
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -36,6 +37,7 @@ from oed.bounds import PUMA_BOUNDS, JointBounds
 from oed.criteria import LogDet, criterion_from_name, information_matrix
 from oed.design_solver import ipopt_solver, sampled_information, violation_peaks
 from oed.fourier import FourierTrajectory, basis, unpack
+from oed.interrupt import interrupt_flag
 
 _BOUND_GUARD = 1e-7
 #: longest period checked sample by sample at rate_hz (about 3 h at 1 kHz)
@@ -349,10 +351,11 @@ class ExcitationDesign:
         x0 = np.asarray(x0, dtype=float).reshape(-1)
         if x0.shape[0] != self.n_variables:
             raise ValueError(f"start vector has {x0.shape[0]} values, the problem {self.n_variables}")
-        with single_threaded():
-            return self._solve(x0, index)
+        with single_threaded(), interrupt_flag() as interrupted:
+            result = self._solve(x0, index, interrupted)
+        return result
 
-    def _solve(self, x0: NDArray[np.float64], index: int) -> StartResult:
+    def _solve(self, x0: NDArray[np.float64], index: int, interrupted: Callable[[], bool] = lambda: False) -> StartResult:
         s = self.settings
         started = time.perf_counter()
         extra: tuple[int, ...] = ()
@@ -362,6 +365,8 @@ class ExcitationDesign:
             solver, lower, upper = self._solver(extra)
             solution = solver(x0=x, lbg=lower, ubg=upper, **multipliers)
             stats = solver.stats()
+            if interrupted():  # CasADi turns Ctrl-C into an IPOPT status; it ends the design, not one start
+                raise KeyboardInterrupt("interrupted during an IPOPT solve")
             x = np.asarray(solution["x"]).reshape(-1)
             iterations += int(stats.get("iter_count", 0))
             status = str(stats.get("return_status", "unknown"))

@@ -131,3 +131,23 @@ def test_250_cost_samples_give_the_5000_sample_objective(puma):
     for _ in range(3):
         x0 = coarse.random_start(generator)
         assert float(coarse.cost_function()(x0)) == pytest.approx(float(fine.cost_function()(x0)), abs=1e-3)
+
+
+def test_ctrl_c_during_a_solve_ends_the_design_instead_of_one_start():
+    """CasADi turns SIGINT into the IPOPT status NonIpopt_Exception_Thrown; the design went on with
+    the next starts and wrote its result."""
+    import os
+    import signal
+
+    problem = ExcitationDesign(load_robot("puma560", joints=3), "combined", settings=DesignSettings(cost_samples=3000))
+    problem.build()
+    x0 = problem.random_start(np.random.default_rng(0))
+    problem.solve(x0)  # the first solve sets up the derivatives: keep it out of the timed one
+    previous = signal.signal(signal.SIGALRM, lambda *_: os.kill(os.getpid(), signal.SIGINT))
+    signal.setitimer(signal.ITIMER_REAL, 0.2)  # inside IPOPT: a start takes well over a second here
+    try:
+        with pytest.raises(KeyboardInterrupt, match="interrupted during an IPOPT solve"):
+            problem.solve(x0)
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, previous)
