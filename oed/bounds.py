@@ -24,6 +24,8 @@ class InfeasibleBoundsError(ValueError):
     """Bounds that no excitation trajectory can meet (or that leave nothing to excite)."""
 
 
+#: the keys of a bounds document (JSON file or dict)
+BOUND_KEYS: tuple[str, ...] = ("q_min", "q_max", "dq_max", "ddq_max", "joint_names")
 #: a bound beyond this (rad, m, per s, per s²) is no bound: give the real limit
 LARGEST_BOUND = 1e6
 
@@ -31,6 +33,8 @@ LARGEST_BOUND = 1e6
 def _vector(values: ArrayLike, name: str, n: int | None = None) -> NDArray[np.float64]:
     if any(isinstance(value, (bool, np.bool_, str)) for value in np.ravel(np.asarray(values, dtype=object))):
         raise TypeError(f"bound {name} must be a sequence of numbers, got {values!r}")
+    if np.ndim(values) > 1:
+        raise ValueError(f"bound {name} must be a flat list, one value per joint, got shape {np.shape(values)}")
     try:
         array = np.asarray(values, dtype=float).reshape(-1)
     except (TypeError, ValueError):
@@ -139,6 +143,9 @@ class JointBounds:
         missing = [key for key in ("q_max", "dq_max", "ddq_max") if key not in document]
         if missing:
             raise ValueError(f"bounds lack {', '.join(missing)}")
+        unknown = sorted(set(document) - set(BOUND_KEYS))
+        if unknown:  # a typo such as "q_mn" would otherwise make the bounds silently symmetric
+            raise ValueError(f"bounds have unknown key(s) {', '.join(unknown)}; expected some of {', '.join(BOUND_KEYS)}")
         q_max = _vector(document["q_max"], "q_max")
         q_min = _vector(document["q_min"], "q_min", q_max.shape[0]) if "q_min" in document else -q_max
         return cls(q_min, q_max, document["dq_max"], document["ddq_max"], document.get("joint_names", ()))

@@ -110,6 +110,14 @@ class DesignSettings:
             raise ValueError(f"one period of {self.frequency_hz:g} Hz at {self.rate_hz:g} Hz is "
                              f"{self.rate_hz / self.frequency_hz:.3g} samples, more than the {MAX_PERIOD_SAMPLES:.0e} "
                              "checked at most: raise the frequency or lower rate_hz")
+        samples_per_period = self.rate_hz / self.frequency_hz
+        if abs(samples_per_period - round(samples_per_period)) > 1e-6 * samples_per_period:
+            raise ValueError(f"one period of {self.frequency_hz:g} Hz is {samples_per_period:.6g} samples at "
+                             f"{self.rate_hz:g} Hz: it must be a whole number, or the bounds checked on one "
+                             "period do not hold on the next")
+        if self.constraint_points < 2 * self.harmonics + 1:
+            raise ValueError(f"constraint_points = {self.constraint_points} cannot bound {self.harmonics} harmonics: "
+                             f"need at least 2 x harmonics + 1 = {2 * self.harmonics + 1}")
         if self.cost_samples < 2 * self.harmonics + 1:
             raise ValueError(f"cost_samples = {self.cost_samples} cannot resolve {self.harmonics} harmonics: "
                              f"need at least 2 x harmonics + 1 = {2 * self.harmonics + 1}")

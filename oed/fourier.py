@@ -28,6 +28,10 @@ from numpy.typing import ArrayLike, NDArray
 from estimation.output_files import atomic_output, json_text
 
 
+#: most samples :meth:`FourierTrajectory.sample` returns
+MAX_SAMPLES = 50_000_000
+
+
 @dataclass(frozen=True)
 class FourierTrajectory:
     """A periodic trajectory of ``n`` joints with ``N`` harmonics of ``frequency_hz``.
@@ -98,9 +102,15 @@ class FourierTrajectory:
 
     def sample(self, rate_hz: float = 1000.0, periods: int = 1) -> tuple[NDArray[np.float64], ...]:
         """``t, q, dq, ddq`` on a uniform grid over whole periods (end point excluded)."""
-        if rate_hz <= 0 or periods < 1:
-            raise ValueError("rate_hz must be positive and periods at least 1")
-        count = int(round(periods * rate_hz / self.frequency_hz))
+        if not (np.isfinite(rate_hz) and rate_hz > 0):
+            raise ValueError(f"rate_hz must be a positive finite number, got {rate_hz}")
+        if isinstance(periods, bool) or not isinstance(periods, (int, np.integer)) or periods < 1:
+            raise ValueError(f"periods must be a whole number of periods, at least 1, got {periods!r}")
+        samples = periods * rate_hz / self.frequency_hz
+        if not 1 <= samples <= MAX_SAMPLES:
+            raise ValueError(f"{periods} period(s) of {self.frequency_hz:g} Hz at {rate_hz:g} Hz are {samples:.3g} "
+                             f"samples; between 1 and {MAX_SAMPLES:.0e} can be sampled")
+        count = int(round(samples))
         t = np.arange(count) / rate_hz
         return (t, *self.evaluate(t))
 
@@ -136,16 +146,20 @@ class FourierTrajectory:
         if missing:
             raise ValueError(f"trajectory document lacks {', '.join(missing)}")
         metadata = {key: value for key, value in document.items() if key not in ("frequency_hz", "harmonics", "q0", "a", "b", "joint_names")}
-        try:
-            frequency = float(document["frequency_hz"])
-        except (TypeError, ValueError):
-            raise ValueError(f"trajectory frequency_hz must be a number, got {document['frequency_hz']!r}") from None
-        trajectory = cls(
-            frequency, document["q0"], document["a"], document["b"],
-            tuple(document.get("joint_names", ())), metadata,
-        )
-        if "harmonics" in document and int(document["harmonics"]) != trajectory.harmonics:
-            raise ValueError(f"trajectory says {document['harmonics']} harmonics but a, b hold {trajectory.harmonics}")
+        frequency = document["frequency_hz"]
+        if isinstance(frequency, bool) or not isinstance(frequency, (int, float)):
+            raise ValueError(f"trajectory frequency_hz must be a number, got {frequency!r}")
+        names = document.get("joint_names", ())
+        if names is None:
+            names = ()
+        if isinstance(names, str) or not isinstance(names, (list, tuple)) or not all(isinstance(n, str) for n in names):
+            raise ValueError(f"trajectory joint_names must be a list of names, got {names!r}")
+        trajectory = cls(float(frequency), document["q0"], document["a"], document["b"], tuple(names), metadata)
+        harmonics = document.get("harmonics", trajectory.harmonics)
+        if isinstance(harmonics, bool) or not isinstance(harmonics, int):
+            raise ValueError(f"trajectory harmonics must be an integer, got {harmonics!r}")
+        if harmonics != trajectory.harmonics:
+            raise ValueError(f"trajectory says {harmonics} harmonics but a, b hold {trajectory.harmonics}")
         return trajectory
 
     def save(self, path: str | Path) -> None:
@@ -166,6 +180,8 @@ class FourierTrajectory:
 
 
 def _numbers(values: ArrayLike, name: str) -> NDArray[np.float64]:
+    if any(isinstance(value, (bool, np.bool_, str)) for value in np.ravel(np.asarray(values, dtype=object))):
+        raise ValueError(f"Fourier coefficients {name} must be numbers, got {values!r}")
     try:
         return np.asarray(values, dtype=float)
     except (TypeError, ValueError):

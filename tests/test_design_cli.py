@@ -164,3 +164,47 @@ def test_ddq_max_with_a_bounds_file_is_refused_not_ignored(tmp_path, capsys):
     path.write_text(json.dumps({"q_max": [1, 1, 1], "dq_max": [1, 1, 1], "ddq_max": [5, 5, 5]}))
     code = main(["design", "--joints", "3", "--bounds", str(path), "--ddq-max", "1", "--out", str(tmp_path / "x.json")])
     assert code == 2 and "with --bounds give ddq_max in the file" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    "change,message",
+    [
+        (dict(frequency_hz=True), "frequency_hz must be a number"),
+        (dict(joint_names="abc"), "joint_names must be a list of names"),
+        (dict(harmonics=5.7), "harmonics must be an integer"),
+        (dict(a=[[True] * 5] * 3), "coefficients a must be numbers"),
+    ],
+)
+def test_hand_edited_trajectory_documents_are_checked_key_by_key(change, message):
+    from oed.fourier import FourierTrajectory
+
+    document = FourierTrajectory(0.2, np.zeros(3), np.full((3, 5), 0.1), np.zeros((3, 5))).to_dict()
+    document.update(change)
+    with pytest.raises(ValueError, match=message):
+        FourierTrajectory.from_dict(document)
+
+
+def test_sampling_and_settings_that_would_mislead_are_refused():
+    from oed.fourier import FourierTrajectory
+
+    trajectory = FourierTrajectory(0.2, np.zeros(1), np.full((1, 5), 0.1), np.zeros((1, 5)))
+    with pytest.raises(ValueError, match="whole number of periods"):
+        trajectory.sample(1000.0, periods=1.5)
+    with pytest.raises(ValueError, match="rate_hz must be a positive finite number"):
+        trajectory.sample(float("nan"))
+    with pytest.raises(ValueError, match="111.111 samples at 1000 Hz: it must be a whole number"):
+        DesignSettings(frequency_hz=9.0, harmonics=5)  # the 1 kHz check of one period would not hold on the next
+    with pytest.raises(ValueError, match="constraint_points = 3 cannot bound 5 harmonics"):
+        DesignSettings(constraint_points=3)
+    with pytest.raises(ValueError, match="unknown key.s. q_mn"):
+        JointBounds.from_dict({"q_mn": [0, 0, 0], "q_max": [1, 1, 1], "dq_max": [1, 1, 1], "ddq_max": [5, 5, 5]})
+    robot = load_robot("puma560", joints=3)
+    with pytest.raises(TypeError, match="seed must be a non-negative integer"):
+        design_excitation(robot, starts=1, seed=np.random.default_rng(3))
+    with pytest.raises(ValueError, match="starts must be an integer from 1"):
+        design_excitation(robot, starts=True)
+
+
+def test_design_out_named_like_another_format_is_refused(tmp_path, capsys):
+    assert main(["design", "--joints", "3", "--out", str(tmp_path / "t.csv")]) == 2
+    assert "this writes JSON" in capsys.readouterr().err

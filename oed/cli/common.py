@@ -10,8 +10,8 @@ from dynamics.robots import BUILT_IN_ROBOTS, load_robot
 from estimation.output_files import OutputFiles, atomic_output, check_figure_path, json_text
 
 __all__ = [
-    "OutputFiles", "add_robot_arguments", "atomic_output", "check_csv_path", "check_figure_path", "json_text",
-    "robot_from_arguments", "seed",
+    "OutputFiles", "add_robot_arguments", "atomic_output", "check_csv_path", "check_figure_path", "check_json_path",
+    "json_text", "robot_from_arguments", "seed",
 ]
 
 #: suffixes that promise another format than the CSV a verb writes
@@ -43,6 +43,13 @@ def check_csv_path(path: str | Path, option: str = "--out") -> None:
     """Refuse, before any work, a CSV output named like another format (``--out u.json``)."""
     if Path(path).suffix.lower() in NOT_CSV_SUFFIXES:
         raise ValueError(f"{option} {path}: this verb writes CSV; give a .csv file name")
+
+
+def check_json_path(path: str | Path, option: str = "--out") -> None:
+    """Refuse, before any work, a JSON output named like another format (``--out t.csv``)."""
+    suffix = Path(path).suffix.lower()
+    if suffix in NOT_CSV_SUFFIXES - {".json"} or suffix == ".csv":
+        raise ValueError(f"{option} {path}: this writes JSON; give a .json file name")
 
 
 def robot_from_arguments(args: argparse.Namespace) -> RobotModel:

@@ -16,6 +16,7 @@ from oed.cli.common import (
     add_robot_arguments,
     check_csv_path,
     check_figure_path,
+    check_json_path,
     json_text,
     robot_from_arguments,
     seed,
@@ -83,6 +84,7 @@ def trajectory_table(trajectory, rate_hz: float = 1000.0) -> tuple[list[str], np
 
 def run(args: argparse.Namespace) -> int:
     check_figure_path(args.plot)
+    check_json_path(args.out)
     if args.csv is not None:
         check_csv_path(args.csv, "--csv")
     robot = robot_from_arguments(args)
