@@ -8,6 +8,7 @@ object :class:`oed.design_problem.ExcitationDesign` (in turn, or through any
 from __future__ import annotations
 
 import time
+import warnings
 from collections.abc import Callable
 from concurrent.futures import as_completed
 from dataclasses import dataclass
@@ -27,6 +28,10 @@ from oed.design_problem import (
 )
 from oed.design_parallel import payload_of, solve_start
 from oed.fourier import FourierTrajectory
+
+class ShrunkDesignWarning(UserWarning):
+    """The returned trajectory was scaled down onto the bounds after the solver's refinements."""
+
 
 #: most starts one design accepts (their start vectors are built up front)
 MAX_STARTS = 100_000
@@ -159,6 +164,11 @@ def design_excitation(
         )
         raise DesignError(f"IPOPT found no acceptable trajectory in {starts} start(s): {details}")
     best = min(good, key=lambda result: result.criterion_value)
+    if best.shrunk:
+        warnings.warn(
+            f"the best start ({best.index}) met the {problem.settings.rate_hz:g} Hz bounds only after its oscillation "
+            "was scaled down onto them: the trajectory is weaker than the optimiser's (more constraint_points or "
+            "refinements avoid it)", ShrunkDesignWarning, stacklevel=2)
     values = problem.evaluate(best.x)
     s = problem.settings
     metadata = {

@@ -49,7 +49,9 @@ class StartResult:
     """One start of the multi-start optimisation.
 
     ``cost`` is ``−log det(Y_bᵀY_b)`` over one period at ``rate_hz`` (unscaled); ``criterion_value``
-    the chosen criterion there; ``objective`` the solver's (sample-normalised) objective.
+    the chosen criterion there; ``objective`` the solver's (sample-normalised) objective; ``shrunk``:
+    the refinement rounds left a bound exceeded at ``rate_hz`` and the oscillation was scaled down
+    onto the bounds (a weaker trajectory than the optimiser's).
     """
 
     index: int
@@ -64,11 +66,12 @@ class StartResult:
     refinements: int
     x: NDArray[np.float64] = field(repr=False)
     x0: NDArray[np.float64] = field(repr=False)
+    shrunk: bool = False
 
     def to_dict(self) -> dict[str, Any]:
         return {key: getattr(self, key) for key in
                 ("index", "status", "success", "iterations", "time_s", "cost", "criterion_value", "objective",
-                 "feasible", "refinements")}
+                 "feasible", "refinements", "shrunk")}
 
 
 @dataclass(frozen=True, eq=False)
@@ -308,7 +311,8 @@ class ExcitationDesign:
                            "lam_g0": self._extend_multipliers(np.asarray(solution["lam_g"]).reshape(-1), extra, new_extra)}
             extra = new_extra
         _, q, dq, ddq = self.sample(x)
-        if self.bounds.violations(q, dq, ddq):
+        shrunk = bool(self.bounds.violations(q, dq, ddq))
+        if shrunk:
             x = self.shrink_to_bounds(x)
             _, q, dq, ddq = self.sample(x)
         feasible = not self.bounds.violations(q, dq, ddq)
@@ -316,7 +320,7 @@ class ExcitationDesign:
         return StartResult(
             index=index, status=status, success=status in SUCCESS_STATUSES and feasible, iterations=iterations,
             time_s=time.perf_counter() - started, cost=values["cost"], criterion_value=values["criterion"],
-            objective=objective, feasible=feasible, refinements=rounds, x=x, x0=x0,
+            objective=objective, feasible=feasible, refinements=rounds, x=x, x0=x0, shrunk=shrunk,
         )
 
 

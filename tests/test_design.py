@@ -151,3 +151,18 @@ def test_ctrl_c_during_a_solve_ends_the_design_instead_of_one_start():
     finally:
         signal.setitimer(signal.ITIMER_REAL, 0)
         signal.signal(signal.SIGALRM, previous)
+
+
+def test_a_trajectory_scaled_onto_the_bounds_is_reported_not_passed_off_as_optimal():
+    """With no margin on a coarse grid and no refinement rounds the 1 kHz check fails and the
+    oscillation is scaled down: the start says so and the design warns."""
+    from oed.design import ShrunkDesignWarning
+
+    class NoMargin(ExcitationDesign):
+        grid_factor = property(lambda self: 1.0)
+
+    problem = NoMargin(load_robot("puma560", joints=3), "internal",
+                       settings=DesignSettings(constraint_points=20, refinements=0))
+    with pytest.warns(ShrunkDesignWarning, match="scaled down onto them"):
+        result = design_excitation(problem.robot, problem=problem, starts=1)
+    assert result.trajectory.metadata["solver"]["per_start"][0]["shrunk"] is True

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+import warnings
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
@@ -22,7 +23,7 @@ from oed.cli.common import (
     seed,
 )
 from oed.criteria import CRITERIA
-from oed.design import DesignSettings, default_bounds, design_excitation
+from oed.design import DesignSettings, ShrunkDesignWarning, default_bounds, design_excitation
 
 
 def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -106,11 +107,15 @@ def run(args: argparse.Namespace) -> int:
 
     options = dict(model=args.model, bounds=bounds, criterion=args.criterion, effects=args.friction,
                    starts=args.starts, seed=args.seed, settings=settings, progress=progress)
-    if args.workers > 0:
-        with ProcessPoolExecutor(args.workers) as executor:
-            result = design_excitation(robot, executor=executor, **options)
-    else:
-        result = design_excitation(robot, **options)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", ShrunkDesignWarning)
+        if args.workers > 0:
+            with ProcessPoolExecutor(args.workers) as executor:
+                result = design_excitation(robot, executor=executor, **options)
+        else:
+            result = design_excitation(robot, **options)
+    for warning in caught:
+        print(f"oed design: warning: {warning.message}", file=sys.stderr)
     trajectory = result.trajectory
     # the files are staged and renamed into place together: a failure leaves none of them
     with OutputFiles() as outputs:
