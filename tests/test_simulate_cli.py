@@ -146,3 +146,10 @@ def test_held_torques_remove_the_half_sample_bias_of_derivatives_from_positions(
         largest[flag] = np.max(np.abs(values - true_base) / std)
     # measured: 8.3 and 1.9 standard deviations
     assert largest[()] > 6 and largest[("--held-torques",)] < 4, largest
+
+
+def test_a_trajectory_designed_for_another_robot_is_flagged(tmp_path, capsys):
+    path = tmp_path / "other.json"
+    FourierTrajectory(0.5, np.zeros(3), np.full((3, 2), 0.05), np.zeros((3, 2)), metadata={"robot": "emps"}).save(path)
+    assert _simulate(path, tmp_path / "data.csv") == 0
+    assert "was designed for emps, and is played on puma560[3]" in capsys.readouterr().err

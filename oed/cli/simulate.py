@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -117,6 +118,10 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError(
             f"trajectory {args.trajectory} has {trajectory.n_joints} joints, the robot {robot.name} has {robot.n_joints}"
         )
+    designed_for = trajectory.metadata.get("robot")
+    if designed_for and designed_for != robot.name:
+        print(f"oed simulate: warning: {args.trajectory} was designed for {designed_for}, and is played on "
+              f"{robot.name}: its bounds were not checked for this robot", file=sys.stderr)
     effects = effects_from_names(args.effects, robot, _effect_values(args.effect_values))
     noise = NoiseModel(args.noise_tau, tuple(args.noise_wrench), _resolution(args.q_resolution))
     simulator = Simulator(robot, effects, noise=noise, rate_hz=args.rate)
