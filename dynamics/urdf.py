@@ -48,8 +48,9 @@ def _urdf_numbers(text: str, *, vector: bool) -> bool:
     return all(_NUMBER.fullmatch(token) and np.isfinite(float(token)) for token in tokens)
 
 
-def _check_numbers(path: Path) -> None:
-    """Every number of the links' inertial elements and of the joints must be a finite number.
+def _check_numbers(path: Path) -> ElementTree.Element:
+    """The file's XML root, after checking that every number of the links' inertial elements and of
+    the joints is a finite number.
 
     urdfdom prints "Error: … is not a float" and carries on with 0 (a massless link), so such a
     file would give silently wrong dynamics; here it is a :class:`RobotDescriptionError` naming
@@ -81,6 +82,7 @@ def _check_numbers(path: Path) -> None:
                 if float(limit.get("lower")) > float(limit.get("upper")):
                     raise RobotDescriptionError(f"URDF {path}: {owner}: lower limit {limit.get('lower')} is above "
                                                 f"upper limit {limit.get('upper')}")
+    return root
 
 
 class _CapturedText:
@@ -121,10 +123,9 @@ def _captured_stderr() -> Iterator[_CapturedText]:
                 captured.text = stream.read().decode(errors="replace")
 
 
-def _check_total_mass(path: Path, parsed: float, parser_report: str = "") -> None:
-    """The masses Pinocchio read must add up to those the file states (urdfdom reads a number it
-    cannot parse, e.g. with a tab or a blank around it, as 0 and drops the link's inertial data)."""
-    root = ElementTree.parse(path).getroot()
+def _check_total_mass(path: Path, root: ElementTree.Element, parsed: float, parser_report: str = "") -> None:
+    """The masses Pinocchio read must add up to those the file (``root``) states (urdfdom reads a
+    number it cannot parse, e.g. with a tab or a blank around it, as 0 and drops the link's inertial data)."""
     stated = sum(float(element.get("value", "0")) for element in root.findall("link/inertial/mass"))
     if not np.isclose(parsed, stated, rtol=1e-9, atol=1e-12):
         raise RobotDescriptionError(f"URDF {path}: the links' masses add up to {stated:g} kg in the file but to "
@@ -153,7 +154,7 @@ def robot_from_urdf(path: str | Path, *, gravity: np.ndarray | None = None) -> R
     path = Path(path)
     if not path.is_file():
         raise RobotDescriptionError(f"URDF file {path} is a folder" if path.is_dir() else f"URDF file not found: {path}")
-    _check_numbers(path)
+    root = _check_numbers(path)
     with _captured_stderr() as parser_output:
         try:
             model = pin.buildModelFromUrdf(str(path))
@@ -167,7 +168,7 @@ def robot_from_urdf(path: str | Path, *, gravity: np.ndarray | None = None) -> R
         raise RobotDescriptionError(f"cannot parse URDF {path}: {details or failure}")
     if model.njoints <= 1:
         raise RobotDescriptionError(f"URDF {path} has no movable joint")
-    _check_total_mass(path, sum(model.inertias[index].mass for index in range(model.njoints)), details)
+    _check_total_mass(path, root, sum(model.inertias[index].mass for index in range(model.njoints)), details)
     if "Error" in parser_output.text:  # urdfdom drops what it cannot read and goes on: not here
         raise RobotDescriptionError(f"URDF {path}: the parser could not read all of it: {details}")
     if details:  # the parser remarked on something but read it all: say so once, readably

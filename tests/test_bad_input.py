@@ -157,6 +157,9 @@ def test_masses_read_are_checked_against_the_file(tmp_path):
 
     path = _urdf(tmp_path, '<joint name="j1" type="revolute"><parent link="base"/><child link="a"/><axis xyz="0 0 1"/>'
                            '<limit lower="-1" upper="1" effort="1" velocity="1"/></joint>', ("base", "a"))
-    _check_total_mass(tmp_path / "robot.urdf", 2.0)  # base and a: 1 kg each, as LINK writes them
+    from dynamics.urdf import _check_numbers
+
+    root = _check_numbers(tmp_path / "robot.urdf")
+    _check_total_mass(tmp_path / "robot.urdf", root, 2.0)  # base and a: 1 kg each, as LINK writes them
     with pytest.raises(RobotDescriptionError, match="add up to 2 kg in the file but to 1 kg as read"):
-        _check_total_mass(tmp_path / "robot.urdf", 1.0, "Inertial: mass [x] is not a float")
+        _check_total_mass(tmp_path / "robot.urdf", root, 1.0, "Inertial: mass [x] is not a float")
