@@ -12,6 +12,7 @@ numpy; it agrees with the compiled cost to rounding (printed). That ratio shows 
 saves a user end to end, not the optimiser alone. All ratios are measured in this run.
 
     python benchmarks/bench_design.py [--starts 3] [--skip-5000] [--skip-pinocchio-5000] [--skip-kuka]
+                                      [--ipopt NAME=VALUE ...]
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ from __future__ import annotations
 import argparse
 import time
 from collections.abc import Callable
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -88,6 +90,19 @@ def ipopt_starts(problem: ExcitationDesign, starts: list[np.ndarray]) -> tuple[l
     return times, costs, iterations
 
 
+def ipopt_option(text: str) -> tuple[str, object]:
+    """``NAME=VALUE`` with VALUE read as an int, a float or else a string (argparse type)."""
+    name, separator, value = text.partition("=")
+    if not separator or not name:
+        raise argparse.ArgumentTypeError(f"expected NAME=VALUE, got {text!r}")
+    for convert in (int, float):
+        try:
+            return name, convert(value)
+        except ValueError:
+            pass
+    return name, value
+
+
 def verdict(value: float, target: float, larger_is_better: bool = True) -> str:
     met = value >= target if larger_is_better else value <= target
     return "met" if met else "NOT met"
@@ -100,11 +115,14 @@ def main() -> None:
     parser.add_argument("--skip-pinocchio-5000", action="store_true",
                         help="skip SLSQP on the Pinocchio cost at 5 000 samples (about 25 s)")
     parser.add_argument("--skip-kuka", action="store_true")
+    parser.add_argument("--ipopt", action="append", default=[], metavar="NAME=VALUE", type=ipopt_option,
+                        help="an IPOPT option for the IPOPT runs (repeatable), e.g. mu_strategy=monotone")
     args = parser.parse_args()
+    options = DesignSettings(ipopt_options=tuple(args.ipopt))
     targets: list[str] = []
 
     robot = load_robot("puma560", joints=3)
-    problem = ExcitationDesign(robot, "combined")
+    problem = ExcitationDesign(robot, "combined", settings=options)
     started = time.perf_counter()
     build = problem.build()
     problem.solve(problem.random_start(np.random.default_rng(99)))  # first call: lazy derivative set-up
@@ -144,7 +162,7 @@ def main() -> None:
                    f"{verdict(np.max(ip_times), 1.0, larger_is_better=False)}")
 
     if not args.skip_5000:
-        fine = ExcitationDesign(robot, "combined", settings=DesignSettings(cost_samples=5000))
+        fine = ExcitationDesign(robot, "combined", settings=replace(options, cost_samples=5000))
         fine.build()
         fine_ip = ipopt_starts(fine, starts[:1])
         print(f"  IPOPT, 5000 cost samples: {fine_ip[0][0]:.2f} s, cost {fine_ip[1][0]:.3f} "
@@ -168,7 +186,7 @@ def main() -> None:
         # stated bounds: 90 % of the URDF position range, the URDF velocity limits, 10 rad/s² everywhere
         bounds = JointBounds.from_robot(kuka, ddq_max=10.0, scale=0.9)
         started = time.perf_counter()
-        design = ExcitationDesign(kuka, "internal", bounds)
+        design = ExcitationDesign(kuka, "internal", bounds, settings=options)
         build = design.build()
         result = design.solve(design.random_start(np.random.default_rng(0)))
         total = time.perf_counter() - started

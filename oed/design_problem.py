@@ -185,7 +185,8 @@ class ExcitationDesign:
             A, lower, upper = self.constraint_matrix(self.constraint_times(extra))
             solver = ipopt_solver(self.cost_function(), A, tol=s.tol, acceptable_tol=s.acceptable_tol,
                                   acceptable_iter=s.acceptable_iter, max_iter=s.max_iter,
-                                  lbfgs_memory=s.lbfgs_memory, verbose=s.verbose, warm=bool(extra))
+                                  lbfgs_memory=s.lbfgs_memory, verbose=s.verbose, warm=bool(extra),
+                                  ipopt_options=dict(s.ipopt_options))
             self._cache[key] = (solver, lower, upper)
         return self._cache[key]
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -40,6 +41,9 @@ class DesignSettings:
         compiler (``cc``/``gcc``) is on the ``PATH``.
     verbose
         Print IPOPT's iteration log.
+    ipopt_options
+        Further IPOPT options as ``(name, value)`` pairs, over the above (e.g.
+        ``(("mu_strategy", "monotone"),)``; ``benchmarks/bench_design.py --ipopt NAME=VALUE``).
     """
 
     frequency_hz: float = 0.2
@@ -55,8 +59,13 @@ class DesignSettings:
     refinements: int = 3
     jit: bool = field(default_factory=lambda: find_compiler() is not None)
     verbose: bool = False
+    ipopt_options: tuple[tuple[str, Any], ...] = ()
 
     def __post_init__(self) -> None:
+        options = tuple(tuple(pair) for pair in self.ipopt_options)
+        if not all(len(pair) == 2 and isinstance(pair[0], str) for pair in options):
+            raise ValueError(f"ipopt_options must be (name, value) pairs, got {self.ipopt_options!r}")
+        object.__setattr__(self, "ipopt_options", options)
         for name in ("frequency_hz", "rate_hz", "tol", "acceptable_tol"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):

@@ -166,3 +166,11 @@ def test_a_trajectory_scaled_onto_the_bounds_is_reported_not_passed_off_as_optim
     with pytest.warns(ShrunkDesignWarning, match="scaled down onto them"):
         result = design_excitation(problem.robot, problem=problem, starts=1)
     assert result.trajectory.metadata["solver"]["per_start"][0]["shrunk"] is True
+
+
+def test_ipopt_options_reach_the_solver_and_are_checked():
+    settings = DesignSettings(ipopt_options=(("max_iter", 1),))  # over the settings' own max_iter
+    problem = ExcitationDesign(load_robot("puma560", joints=3), "internal", settings=settings)
+    assert problem.solve(problem.random_start(np.random.default_rng(0))).status == "Maximum_Iterations_Exceeded"
+    with pytest.raises(ValueError, match="ipopt_options must be .name, value. pairs"):
+        DesignSettings(ipopt_options=(("max_iter",),))
