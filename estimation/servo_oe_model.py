@@ -88,23 +88,24 @@ def zoh_function() -> casadi.Function:
 
 @functools.lru_cache(maxsize=None)
 def sampled_step_function() -> casadi.Function:
-    """``servo_sampled_step``: ``x(n+1) = Φ x(n) + Γ [u(n − l), u(n − l − 1)]ᵀ``, output ``q(n) = x1(n)``."""
+    """``servo_sampled_step``: ``x(n+1) = Φ x(n) + Γ [u(n − l), u(n − l − 1)]ᵀ``, output ``x(n)``."""
     x = casadi.SX.sym("x", 2)
     inputs = casadi.SX.sym("u", 2)
     phi = casadi.SX.sym("phi", 2, 2)
     gamma = casadi.SX.sym("gamma", 2, 2)
     x_next = casadi.mtimes(phi, x) + casadi.mtimes(gamma, inputs)
-    return casadi.Function("servo_sampled_step", [x, inputs, phi, gamma], [x_next, x[0]],
-                           ["x", "u", "phi", "gamma"], ["x_next", "q"])
+    return casadi.Function("servo_sampled_step", [x, inputs, phi, gamma], [x_next, x],
+                           ["x", "u", "phi", "gamma"], ["x_next", "state"])
 
 
 @functools.lru_cache(maxsize=32)
-def simulation_function(n_samples: int) -> casadi.Function:
+def simulation_function(n_samples: int, fused: bool = False) -> casadi.Function:
     """``servo_oe_simulation_<N>``: free run of the sampled model over ``N`` samples (``mapaccum``).
 
     Inputs ``theta`` (3), ``fraction``, ``x0 = (q0, dq0)`` (state at sample 0, without the offset),
-    ``offset`` [rad], ``u`` (2 × N: row 0 ``u(n − l)``, row 1 ``u(n − l − 1)``), ``dt``; output ``q`` (1 × N).
-    Cached per sample count.
+    ``offset`` [rad], ``u`` (2 × N: row 0 ``u(n − l)``, row 1 ``u(n − l − 1)``), ``dt``, ``gains`` (2 × N,
+    :func:`fusion_gains`, used when ``fused``); output ``q`` (1 × N): the angle, or with ``fused`` its Kalman
+    fusion (:func:`fusion_filter_function`). Cached per sample count.
     """
     theta = casadi.MX.sym("theta", 3)
     fraction = casadi.MX.sym("fraction")
@@ -112,11 +113,65 @@ def simulation_function(n_samples: int) -> casadi.Function:
     offset = casadi.MX.sym("offset")
     u = casadi.MX.sym("u", 2, n_samples)
     dt = casadi.MX.sym("dt")
+    gains = casadi.MX.sym("gains", 2, n_samples)
     phi, gamma = zoh_function()(theta, fraction, dt)
     run = sampled_step_function().mapaccum(f"servo_oe_run_{n_samples}", n_samples, ["x"], ["x_next"])
-    _, q = run(x0, u, phi, gamma)
-    return casadi.Function(f"servo_oe_simulation_{n_samples}", [theta, fraction, x0, offset, u, dt], [q + offset],
-                           ["theta", "fraction", "x0", "offset", "u", "dt"], ["q"])
+    _, x = run(x0, u, phi, gamma)
+    q = fusion_filter_function(n_samples, 1)(x[0, :], x[1, :], gains, dt) if fused else x[0, :]
+    return casadi.Function(f"servo_oe_simulation_{n_samples}", [theta, fraction, x0, offset, u, dt, gains], [q + offset],
+                           ["theta", "fraction", "x0", "offset", "u", "dt", "gains"], ["q"])
+
+
+def fusion_gains(n_samples: int, *, dt: float, q: tuple[float, float], r: float, p0: float = 1.0) -> np.ndarray:
+    """Kalman gains ``K(n)`` (2 × N) of the gyro/accelerometer fusion (eqs. 4–8, :mod:`estimation.kalman`).
+
+    They depend on ``Q_d, R_d, P(0)`` and ``T`` only, never on the data: the fusion is a linear time-varying
+    filter, so the fused angle of the model is the filter applied to the model's angle and rate.
+    """
+    a = np.array([[1.0, -dt], [0.0, 1.0]])
+    qd = np.diag(np.asarray(q, dtype=float))
+    p = p0 * np.eye(2)
+    gains = np.empty((2, n_samples))
+    for n in range(n_samples):
+        predicted = a @ p @ a.T + qd
+        gain = predicted[:, 0] / (predicted[0, 0] + r)
+        p = predicted - np.outer(gain, predicted[0, :])
+        gains[:, n] = gain
+    return gains
+
+
+@functools.lru_cache(maxsize=64)
+def fusion_filter_function(n_samples: int, n_columns: int) -> casadi.Function:
+    """``servo_fusion_<N>_<m>``: the Kalman fusion of :mod:`estimation.kalman` (eqs. 4–7) with given gains,
+    applied to ``m`` columns at once: inputs ``angle`` (m × N, the accelerometer's role), ``rate`` (m × N, the
+    gyro's), ``gains`` (2 × N), ``dt``; output the fused angles (m × N). Started, like
+    :func:`estimation.kalman.kalman_fusion`, from ``(angle(0), 0)``. Linear in ``angle`` and ``rate``, so it
+    carries sensitivities as well as values.
+    """
+    state = casadi.SX.sym("e", 2, n_columns)
+    angle = casadi.SX.sym("angle", 1, n_columns)
+    rate = casadi.SX.sym("rate", 1, n_columns)
+    gain = casadi.SX.sym("gain", 2)
+    dt = casadi.SX.sym("dt")
+    predicted = casadi.vertcat(state[0, :] + dt * (rate - state[1, :]), state[1, :])
+    updated = predicted + casadi.mtimes(gain, angle - predicted[0, :])
+    step = casadi.Function("servo_fusion_step", [state, angle, rate, gain, dt], [updated, updated[0, :]],
+                           ["e", "angle", "rate", "gain", "dt"], ["e_next", "fused"])
+    run = step.mapaccum(f"servo_fusion_run_{n_samples}_{n_columns}", n_samples, ["e"], ["e_next"])
+    angles = casadi.MX.sym("angle", n_columns, n_samples)
+    rates = casadi.MX.sym("rate", n_columns, n_samples)
+    gains = casadi.MX.sym("gains", 2, n_samples)
+    step_dt = casadi.MX.sym("dt")
+    start = casadi.vertcat(angles[:, 0].T, casadi.MX.zeros(1, n_columns))
+    _, fused = run(start, casadi.reshape(angles, 1, -1) if n_columns == 1 else _rows(angles),
+                   casadi.reshape(rates, 1, -1) if n_columns == 1 else _rows(rates), gains, step_dt)
+    return casadi.Function(f"servo_fusion_{n_samples}_{n_columns}", [angles, rates, gains, step_dt],
+                           [casadi.reshape(fused, n_columns, n_samples)], ["angle", "rate", "gains", "dt"], ["fused"])
+
+
+def _rows(matrix: casadi.MX) -> casadi.MX:
+    """(m × N) -> (1 × m N), sample after sample (the layout ``mapaccum`` reads a (1 × m) input from)."""
+    return casadi.reshape(matrix, 1, -1)
 
 
 @functools.lru_cache(maxsize=None)
@@ -125,7 +180,7 @@ def sensitivity_step_function() -> casadi.Function:
 
     State ``s = [x (2), S (2×4, column-major), T (2×2)]``: ``S = ∂x/∂(w0..w3)`` (the four variables that enter
     ``Φ, Γ``), ``T = ∂x/∂x0 = Φⁿ``. ``x⁺ = Φx + Γv``, ``S⁺_j = Φ S_j + (∂Φ/∂w_j) x + (∂Γ/∂w_j) v``, ``T⁺ = ΦT``.
-    Output ``[q, ∂q/∂w0..w3, ∂q/∂x0]`` (7) of the current sample (before the update).
+    Output: the state of the current sample (before the update).
     """
     state = casadi.SX.sym("s", 14)
     v = casadi.SX.sym("u", 2)
@@ -140,8 +195,7 @@ def sensitivity_step_function() -> casadi.Function:
                + casadi.mtimes(d_gamma[:, 2 * j:2 * j + 2], v) for j in range(4)]
     state_next = casadi.vertcat(casadi.mtimes(phi, x) + casadi.mtimes(gamma, v), *columns,
                                 casadi.vec(casadi.mtimes(phi, t)))
-    output = casadi.vertcat(x[0], s[0, :].T, t[0, :].T)
-    return casadi.Function("servo_sensitivity_step", [state, v, phi, gamma, d_phi, d_gamma], [state_next, output],
+    return casadi.Function("servo_sensitivity_step", [state, v, phi, gamma, d_phi, d_gamma], [state_next, state],
                            ["s", "u", "phi", "gamma", "d_phi", "d_gamma"], ["s_next", "out"])
 
 
@@ -177,28 +231,38 @@ def zoh_sensitivity_function() -> casadi.Function:
 
 
 @functools.lru_cache(maxsize=32)
-def residual_function(n_samples: int) -> casadi.Function:
+def residual_function(n_samples: int, fused: bool = False) -> casadi.Function:
     """``servo_oe_residual_<N>``: ``(w (7), p) -> (r (N), J (N × 7))``, the free-run residual ``q̂ − q`` and its
-    exact Jacobian (forward sensitivities, :func:`sensitivity_step_function` under ``mapaccum``).
+    exact Jacobian (forward sensitivities, :func:`sensitivity_step_function` under ``mapaccum``; with ``fused``,
+    values and sensitivities both through the linear fusion filter).
 
     ``w = [b/m, k/m, σ/m, f, q0, dq0, offset]`` divided by ``p[0:6] = scale``; ``p = [scale (6), dt, q (N),
-    u (2N, column-major 2 × N)]`` (``scale[5]``, the objective's weight, unused here). Cached per sample count.
+    u (2N, column-major 2 × N), gains (2N, column-major 2 × N)]`` (``scale[5]``, the objective's weight, unused
+    here). Cached per sample count.
     """
     w = casadi.MX.sym("w", 7)
-    p = casadi.MX.sym("p", 7 + 3 * n_samples)
+    p = casadi.MX.sym("p", 7 + 5 * n_samples)
     scale, dt = p[:6], p[6]
     q = p[7:7 + n_samples]
-    u = casadi.reshape(p[7 + n_samples:], 2, n_samples)
+    u = casadi.reshape(p[7 + n_samples:7 + 3 * n_samples], 2, n_samples)
+    gains = casadi.reshape(p[7 + 3 * n_samples:], 2, n_samples)
     phi, gamma, d_phi, d_gamma = zoh_sensitivity_function()(w[:4], scale[:3], dt)
     state0 = casadi.vertcat(scale[3] * w[4], scale[4] * w[5], casadi.MX.zeros(8), 1, 0, 0, 1)
     n_chunks = -(-n_samples // CHUNK)
     padded = casadi.horzcat(u, casadi.MX.zeros(2, n_chunks * CHUNK - n_samples))  # causal: the tail is dropped
     run = sensitivity_chunk_function().mapaccum(f"servo_sensitivity_run_{n_samples}", n_chunks, ["s"], ["s_next"])
-    _, out = run(state0, padded, phi, gamma, d_phi, d_gamma)
-    out = out[:, :n_samples].T
+    _, states = run(state0, padded, phi, gamma, d_phi, d_gamma)
+    states = states[:, :n_samples]
+    # rows: the value and its sensitivities to w0..w3, q0, dq0 (the state is [x, S (2×4), T (2×2)], column-major)
+    angle = casadi.vertcat(states[0, :], states[2, :], states[4, :], states[6, :], states[8, :],
+                           scale[3] * states[10, :], scale[4] * states[12, :])
+    rate = casadi.vertcat(states[1, :], states[3, :], states[5, :], states[7, :], states[9, :],
+                          scale[3] * states[11, :], scale[4] * states[13, :])
+    if fused:
+        angle = fusion_filter_function(n_samples, 7)(angle, rate, gains, dt)
+    out = angle.T
     residual = out[:, 0] + scale[3] * w[6] - q
-    jacobian = casadi.horzcat(out[:, 1:5], scale[3] * out[:, 5], scale[4] * out[:, 6],
-                              scale[3] * casadi.MX.ones(n_samples, 1))
+    jacobian = casadi.horzcat(out[:, 1:7], scale[3] * casadi.MX.ones(n_samples, 1))
     return casadi.Function(f"servo_oe_residual_{n_samples}", [w, p], [residual, jacobian], ["w", "p"], ["r", "J"])
 
 

@@ -43,6 +43,7 @@ from estimation.servo_oe_covariance import sandwich_covariance
 from estimation.servo_oe_model import (
     delayed_inputs,
     discrete_coefficients,
+    fusion_gains,
     simulation_function,
     residual_function,
     zoh_function,
@@ -129,8 +130,19 @@ class ServoOutputErrorJointFit:
     erls: ServoJointFit = field(repr=False)
 
 
+@dataclass(frozen=True)
+class KalmanFusionSettings:
+    """The gyro/accelerometer fusion that produced the angle (eqs. 4–8, :func:`estimation.kalman.kalman_fusion`):
+    ``Q_d`` diagonal ``q``, ``R_d = r``, ``P(0) = p0 I``. Defaults: those of :mod:`dynamics.servo_simulator`
+    (``oed servo-simulate``): ``q = (1e-5, 1e-8)``, ``r = 0.03²``."""
+
+    q: tuple[float, float] = (1e-5, 1e-8)
+    r: float = 0.03**2
+    p0: float = 1.0
+
+
 @functools.lru_cache(maxsize=16)
-def _solver(n_samples: int) -> casadi.Function:
+def _solver(n_samples: int, fused: bool) -> casadi.Function:
     """IPOPT on the free-run error of ``n_samples`` samples; data and scales are NLP parameters.
 
     Exact first derivatives from the forward sensitivities of :func:`residual_function` (gradient ``ρ Jᵀr``) and
@@ -138,16 +150,17 @@ def _solver(n_samples: int) -> casadi.Function:
     (those made one solve 20x slower for the same iterates). Built once per sample count.
     """
     w = casadi.MX.sym("w", 7)
-    p = casadi.MX.sym("p", 7 + 3 * n_samples)
-    residual, jacobian = residual_function(n_samples)(w, p)
+    p = casadi.MX.sym("p", 7 + 5 * n_samples)
+    residual, jacobian = residual_function(n_samples, fused)(w, p)
     weight = p[5]
     objective = 0.5 * weight * casadi.sumsqr(residual)
     # the NLP's own objective: the same free run without sensitivities, in the virtual machine (differentiable,
     # for the multipliers CasADi prepares; IPOPT's gradient and Hessian come from the options below)
     scale, dt = p[:6], p[6]
-    u = casadi.reshape(p[7 + n_samples:], 2, n_samples)
-    simulated = simulation_function(n_samples)(scale[:3] * w[:3], w[3], casadi.vertcat(scale[3] * w[4], scale[4] * w[5]),
-                                                scale[3] * w[6], u, dt)
+    u = casadi.reshape(p[7 + n_samples:7 + 3 * n_samples], 2, n_samples)
+    gains = casadi.reshape(p[7 + 3 * n_samples:], 2, n_samples)
+    simulated = simulation_function(n_samples, fused)(
+        scale[:3] * w[:3], w[3], casadi.vertcat(scale[3] * w[4], scale[4] * w[5]), scale[3] * w[6], u, dt, gains)
     plain_objective = 0.5 * weight * casadi.sumsqr(simulated.T - p[7:7 + n_samples])
     grad_f = casadi.Function(f"servo_output_error_grad_{n_samples}", [w, p],
                              [objective, weight * casadi.mtimes(jacobian.T, residual)], ["x", "p"], ["f", "grad_f_x"])
@@ -158,7 +171,7 @@ def _solver(n_samples: int) -> casadi.Function:
                                ["x", "p", "lam_f", "lam_g"], ["triu_hess_gamma_x_x"])
     options = {"print_time": False, "grad_f": grad_f, "hess_lag": hess_lag, "calc_lam_p": False, "calc_lam_x": False,
                "ipopt": {"print_level": 0, "sb": "yes", "tol": 1e-12, "acceptable_tol": 1e-9, "max_iter": 200}}
-    return casadi.nlpsol(f"servo_output_error_{n_samples}", "ipopt", {"x": w, "p": p, "f": plain_objective}, options)
+    return casadi.nlpsol(f"servo_output_error_{n_samples}_{'fused' if fused else 'angle'}", "ipopt", {"x": w, "p": p, "f": plain_objective}, options)
 
 
 def _check_inputs(u: np.ndarray, mass: float | None, joint: int) -> None:
@@ -195,10 +208,11 @@ class _Solution:
     scale: np.ndarray
     whole: int
     cost: float
+    gains: np.ndarray | None
 
 
 def _solve(name: str, theta: np.ndarray, whole: int, fraction: float, delay: Delay, u: np.ndarray,
-           q: np.ndarray, dt: float) -> tuple[_Solution | None, str]:
+           q: np.ndarray, dt: float, gains: np.ndarray | None) -> tuple[_Solution | None, str]:
     """One IPOPT solve from ``theta`` (b/m, k/m, σ/m) with ``whole`` samples of delay; ``(None, why)`` if skipped."""
     if not (np.all(np.isfinite(theta)) and theta[0] > 0 and theta[1] > 0 and theta[2] != 0):
         return None, "skipped: unstable or degenerate start (b <= 0, k <= 0 or sigma = 0)"
@@ -209,15 +223,17 @@ def _solve(name: str, theta: np.ndarray, whole: int, fraction: float, delay: Del
                       1.0 / max(float(np.sum((q - q.mean()) ** 2)), 1e-300)])
     x0 = np.array([q[0] / q_scale, (q[min(1, n - 1)] - q[0]) / dt / scale[4]])
     w0 = np.array([1.0, 1.0, 1.0, fraction, x0[0], x0[1], 0.0])
-    params = np.concatenate((scale, [dt], q, rows.T.reshape(-1)))  # u column-major (2 × N)
+    fused = gains is not None
+    gain_rows = gains if fused else np.zeros((2, n))
+    params = np.concatenate((scale, [dt], q, rows.T.reshape(-1), gain_rows.T.reshape(-1)))  # column-major (2 × N)
     with np.errstate(all="ignore"):
-        first = np.asarray(simulation_function(n)(theta, fraction, [q[0], 0.0], 0.0, rows, dt)).reshape(-1)
+        first = np.asarray(simulation_function(n, fused)(theta, fraction, [q[0], 0.0], 0.0, rows, dt, gain_rows)).reshape(-1)
     if not np.all(np.isfinite(first)) or np.max(np.abs(first)) > 1e6 * max(np.max(np.abs(q)), 1.0):
         return None, "skipped: the simulation from this start diverges"
     f_bounds = (0.0, 1.0) if delay == "estimate" else (fraction, fraction)
     lower = [1.0 / _RANGE, 1.0 / _RANGE, -_RANGE, f_bounds[0], -np.inf, -np.inf, -np.inf]
     upper = [_RANGE, _RANGE, _RANGE, f_bounds[1], np.inf, np.inf, np.inf]
-    solver = _solver(n)
+    solver = _solver(n, fused)
     try:
         result = solver(x0=w0, p=params, lbx=lower, ubx=upper)
     except RuntimeError as error:  # an evaluation error inside IPOPT (non-finite simulation)
@@ -228,7 +244,7 @@ def _solve(name: str, theta: np.ndarray, whole: int, fraction: float, delay: Del
     if not np.all(np.isfinite(w)) or not np.isfinite(cost) or status not in (
             "Solve_Succeeded", "Solved_To_Acceptable_Level", "Search_Direction_Becomes_Too_Small"):
         return None, f"failed: IPOPT {status}"
-    return _Solution(name=name, w=w, scale=scale, whole=whole, cost=cost), status
+    return _Solution(name=name, w=w, scale=scale, whole=whole, cost=cost, gains=gains), status
 
 
 def _physical(solution: _Solution) -> tuple[np.ndarray, float, np.ndarray, float]:
@@ -237,17 +253,17 @@ def _physical(solution: _Solution) -> tuple[np.ndarray, float, np.ndarray, float
     return s[:3] * w[:3], float(w[3]), np.array([s[3] * w[4], s[4] * w[5]]), float(s[3] * w[6])
 
 
-def _fit_starts(starts, delay: Delay, max_delay: int, u: np.ndarray, q: np.ndarray, dt: float):
+def _fit_starts(starts, delay: Delay, max_delay: int, u: np.ndarray, q: np.ndarray, dt: float, gains: np.ndarray | None):
     outcomes: list[StartOutcome] = []
     best: _Solution | None = None
     for name, theta in starts:
         if theta is None:
             outcomes.append(StartOutcome(name, (np.nan,) * 3, "skipped: the ERLS mapping has no continuous counterpart"))
             continue
-        solution, status = _solve(name, theta, 0, 0.0, delay, u, q, dt)
+        solution, status = _solve(name, theta, 0, 0.0, delay, u, q, dt, gains)
         while solution is not None and delay == "estimate" and solution.w[3] > 0.99 and solution.whole + 1 < max_delay:
             theta_next, *_ = _physical(solution)
-            longer, _ = _solve(name, theta_next, solution.whole + 1, 0.0, delay, u, q, dt)
+            longer, _ = _solve(name, theta_next, solution.whole + 1, 0.0, delay, u, q, dt, gains)
             if longer is None or longer.cost >= solution.cost:
                 break
             solution = longer
@@ -261,7 +277,7 @@ def _fit_starts(starts, delay: Delay, max_delay: int, u: np.ndarray, q: np.ndarr
 def fit_servo_joint_output_error(
     u: ArrayLike, q: ArrayLike, *, dt: float, mass: float | None = None, joint: int = 1, estimation_fraction: float = 0.8,
     remove_mean: bool = True, delay: Delay = "none", max_delay: int = 3, nc: int = 1, forgetting: float = 1.0,
-    discretisation: Discretisation = "backward-euler",
+    discretisation: Discretisation = "backward-euler", fusion: KalmanFusionSettings | None = None,
 ) -> ServoOutputErrorJointFit:
     """Output-error fit of one joint (module docstring), started from its ERLS fit.
 
@@ -277,6 +293,12 @@ def fit_servo_joint_output_error(
         ``"none"`` (zero-order hold only) or ``"estimate"`` (an input delay of up to ``max_delay`` samples).
     discretisation
         Mapping of the ERLS fit reported under ``erls`` (the starts use both).
+    fusion
+        When ``q`` is a Kalman fusion of a gyro and an accelerometer (the paper's, and ``oed servo-simulate``'s),
+        its settings: the model's angle and rate then go through the same fusion, which is linear with gains
+        independent of the data, so its signal distortion is modelled exactly (the paper's eq. 4 integrates the
+        gyro with the rate at the end of the step, which advances the fused angle by about half a sample above
+        the filter's bandwidth: ignored, it biases b, k, σ upwards by 17–47 % on Table 1's joints).
 
     Raises
     ------
@@ -301,11 +323,13 @@ def fit_servo_joint_output_error(
         q = q - q[:n_est].mean()
     u_est, q_est = u[:n_est], q[:n_est]
     starts = _starts(erls, dt)
-    best, outcomes = _fit_starts(starts, delay, max_delay, u_est, q_est, dt)
+    gains = None if fusion is None else fusion_gains(u.size, dt=dt, q=fusion.q, r=fusion.r, p0=fusion.p0)
+    gains_est = None if gains is None else gains[:, :n_est]
+    best, outcomes = _fit_starts(starts, delay, max_delay, u_est, q_est, dt, gains_est)
     if best is None or 1.0 - 2.0 * best.cost < POOR_START_R2:  # cost = ½ (1 − R²) on the estimation part
         seed = next((s for _, s in starts if s is not None and np.all(np.isfinite(s)) and s[1] > 0), None)
         if seed is not None:
-            extra_best, extra = _fit_starts(_extra_starts(seed), delay, max_delay, u_est, q_est, dt)
+            extra_best, extra = _fit_starts(_extra_starts(seed), delay, max_delay, u_est, q_est, dt, gains_est)
             outcomes += extra
             if extra_best is not None and (best is None or extra_best.cost < best.cost):
                 best = extra_best
@@ -313,17 +337,21 @@ def fit_servo_joint_output_error(
         raise OutputErrorDivergedError(
             f"joint {joint}: no start of the output-error fit converged: "
             + "; ".join(f"{o.name} (b/m, k/m, σ/m = {', '.join(f'{v:.4g}' for v in o.theta)}): {o.status}" for o in outcomes))
-    return _report(best, tuple(outcomes), erls, u, q, dt, mass, joint, n_est, n_val, delay)
+    return _report(best, tuple(outcomes), erls, u, q, dt, mass, joint, n_est, n_val, delay, gains)
 
 
 def _report(best: _Solution, outcomes, erls: ServoJointFit, u: np.ndarray, q: np.ndarray, dt: float,
-            mass: float | None, joint: int, n_est: int, n_val: int, delay: Delay) -> ServoOutputErrorJointFit:
+            mass: float | None, joint: int, n_est: int, n_val: int, delay: Delay,
+            gains: np.ndarray | None) -> ServoOutputErrorJointFit:
     theta, fraction, x0, offset = _physical(best)
     n = u.size
     rows = delayed_inputs(u, best.whole)
-    simulated = np.asarray(simulation_function(n)(theta, fraction, x0, offset, rows, dt)).reshape(-1)
-    params = np.concatenate((best.scale, [dt], q[:n_est], rows[:, :n_est].T.reshape(-1)))
-    residual, jacobian = (np.asarray(v) for v in residual_function(n_est)(best.w, params))
+    fused = gains is not None
+    gain_rows = gains if fused else np.zeros((2, n))
+    simulated = np.asarray(simulation_function(n, fused)(theta, fraction, x0, offset, rows, dt, gain_rows)).reshape(-1)
+    params = np.concatenate((best.scale, [dt], q[:n_est], rows[:, :n_est].T.reshape(-1),
+                             gain_rows[:, :n_est].T.reshape(-1)))
+    residual, jacobian = (np.asarray(v) for v in residual_function(n_est, fused)(best.w, params))
     s = best.scale  # from the scaled NLP variables to θ, f, q0, dq0, offset
     jacobian = jacobian / np.array([s[0], s[1], s[2], 1.0, s[3], s[4], s[3]])
     free = [0, 1, 2, 4, 5, 6] + ([3] if delay == "estimate" and 1e-6 < fraction < 1 - 1e-6 else [])
