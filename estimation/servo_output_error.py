@@ -364,7 +364,7 @@ def _report(best: _Solution, outcomes, erls: ServoJointFit, u: np.ndarray, q: np
     # last two errors: q̂(n) = s(n) + a1 (s(n−1) − q(n−1)) + a2 (s(n−2) − q(n−2))
     one_step = simulated.copy()
     one_step[2:] += a1 * (simulated[1:-1] - q[1:-1]) + a2 * (simulated[:-2] - q[:-2])
-    p = len(free)
+    p = len(free) - 2  # as ERLS's count: model parameters, not the initial state (ERLS's are its first samples)
     q_val = q[n_est:]
     scale = 1.0 if mass is None else float(mass)
     physical = [None if mass is None else scale * v for v in theta]
