@@ -126,17 +126,29 @@ def fusion_gains(n_samples: int, *, dt: float, q: tuple[float, float], r: float,
     """Kalman gains ``K(n)`` (2 × N) of the gyro/accelerometer fusion (eqs. 4–8, :mod:`estimation.kalman`).
 
     They depend on ``Q_d, R_d, P(0)`` and ``T`` only, never on the data: the fusion is a linear time-varying
-    filter, so the fused angle of the model is the filter applied to the model's angle and rate.
+    filter, so the fused angle of the model is the filter applied to the model's angle and rate. Computed once
+    per setting (cached; read-only array); once the gain has settled to 1e-15 it is held.
     """
+    return _fusion_gains(int(n_samples), float(dt), (float(q[0]), float(q[1])), float(r), float(p0))
+
+
+@functools.lru_cache(maxsize=16)
+def _fusion_gains(n_samples: int, dt: float, q: tuple[float, float], r: float, p0: float) -> np.ndarray:
     a = np.array([[1.0, -dt], [0.0, 1.0]])
-    qd = np.diag(np.asarray(q, dtype=float))
+    qd = np.diag(q)
     p = p0 * np.eye(2)
     gains = np.empty((2, n_samples))
+    previous = np.full(2, np.inf)
     for n in range(n_samples):
         predicted = a @ p @ a.T + qd
         gain = predicted[:, 0] / (predicted[0, 0] + r)
         p = predicted - np.outer(gain, predicted[0, :])
         gains[:, n] = gain
+        if np.all(np.abs(gain - previous) <= 1e-15 * np.maximum(np.abs(gain), 1e-300)):
+            gains[:, n:] = gain[:, None]
+            break
+        previous = gain
+    gains.setflags(write=False)
     return gains
 
 
@@ -176,27 +188,39 @@ def _rows(matrix: casadi.MX) -> casadi.MX:
 
 @functools.lru_cache(maxsize=None)
 def sensitivity_step_function() -> casadi.Function:
-    """``servo_sensitivity_step``: one sample of the free run with its forward sensitivities.
+    """``servo_sensitivity_step``: one sample of the free run with its forward sensitivities, through the fusion.
 
-    State ``s = [x (2), S (2×4, column-major), T (2×2)]``: ``S = ∂x/∂(w0..w3)`` (the four variables that enter
-    ``Φ, Γ``), ``T = ∂x/∂x0 = Φⁿ``. ``x⁺ = Φx + Γv``, ``S⁺_j = Φ S_j + (∂Φ/∂w_j) x + (∂Γ/∂w_j) v``, ``T⁺ = ΦT``.
-    Output: the state of the current sample (before the update).
+    State ``s = [x (2), S (2×4, column-major), T (2×2), E (2×7, row-major)]``: ``S = ∂x/∂(w0..w3)`` (the four
+    variables that enter ``Φ, Γ``), ``T = ∂x/∂x0 = Φⁿ``; ``x⁺ = Φx + Γv``, ``S⁺_j = Φ S_j + (∂Φ/∂w_j) x +
+    (∂Γ/∂w_j) v``, ``T⁺ = ΦT``. The angle row ``a = [q, ∂q/∂w0..w3, ∂q/∂w4, ∂q/∂w5]`` and the rate row likewise
+    drive the fusion filter ``E`` (eqs. 4–7 with the given gain ``K(n)``; ``K = (1, 0)`` passes the angle through
+    unchanged), whose angle row is the output (7) of the current sample. Input ``v = [u(n−l), u(n−l−1), K(n)]``.
     """
-    state = casadi.SX.sym("s", 14)
-    v = casadi.SX.sym("u", 2)
+    state = casadi.SX.sym("s", 28)
+    v = casadi.SX.sym("v", 4)
     phi = casadi.SX.sym("phi", 2, 2)
     gamma = casadi.SX.sym("gamma", 2, 2)
     d_phi = casadi.SX.sym("d_phi", 2, 8)
     d_gamma = casadi.SX.sym("d_gamma", 2, 8)
+    x_scale = casadi.SX.sym("x_scale", 2)
+    dt = casadi.SX.sym("dt")
     x = state[:2]
     s = casadi.reshape(state[2:10], 2, 4)
     t = casadi.reshape(state[10:14], 2, 2)
+    e_angle, e_bias = state[14:21], state[21:28]
+    inputs, gain = v[:2], v[2:]
+    angle = casadi.vertcat(x[0], s[0, :].T, x_scale[0] * t[0, 0], x_scale[1] * t[0, 1])
+    rate = casadi.vertcat(x[1], s[1, :].T, x_scale[0] * t[1, 0], x_scale[1] * t[1, 1])
+    predicted = e_angle + dt * (rate - e_bias)
+    innovation = angle - predicted
+    fused = predicted + gain[0] * innovation
     columns = [casadi.mtimes(phi, s[:, j]) + casadi.mtimes(d_phi[:, 2 * j:2 * j + 2], x)
-               + casadi.mtimes(d_gamma[:, 2 * j:2 * j + 2], v) for j in range(4)]
-    state_next = casadi.vertcat(casadi.mtimes(phi, x) + casadi.mtimes(gamma, v), *columns,
-                                casadi.vec(casadi.mtimes(phi, t)))
-    return casadi.Function("servo_sensitivity_step", [state, v, phi, gamma, d_phi, d_gamma], [state_next, state],
-                           ["s", "u", "phi", "gamma", "d_phi", "d_gamma"], ["s_next", "out"])
+               + casadi.mtimes(d_gamma[:, 2 * j:2 * j + 2], inputs) for j in range(4)]
+    state_next = casadi.vertcat(casadi.mtimes(phi, x) + casadi.mtimes(gamma, inputs), *columns,
+                                casadi.vec(casadi.mtimes(phi, t)), fused, e_bias + gain[1] * innovation)
+    return casadi.Function("servo_sensitivity_step", [state, v, phi, gamma, d_phi, d_gamma, x_scale, dt],
+                           [state_next, fused], ["s", "v", "phi", "gamma", "d_phi", "d_gamma", "x_scale", "dt"],
+                           ["s_next", "out"])
 
 
 @functools.lru_cache(maxsize=None)
@@ -206,13 +230,15 @@ def sensitivity_chunk_function() -> casadi.Function:
     record of any length runs as ``mapaccum`` over chunks without a per-sample virtual-machine call."""
     step = sensitivity_step_function()
     inner = step.mapaccum("servo_sensitivity_chunk_steps", CHUNK, ["s"], ["s_next"])
-    state = casadi.MX.sym("s", 14)
-    u = casadi.MX.sym("u", 2, CHUNK)
+    state = casadi.MX.sym("s", 28)
+    v = casadi.MX.sym("v", 4, CHUNK)
     phi, gamma = casadi.MX.sym("phi", 2, 2), casadi.MX.sym("gamma", 2, 2)
     d_phi, d_gamma = casadi.MX.sym("d_phi", 2, 8), casadi.MX.sym("d_gamma", 2, 8)
-    states, out = inner(state, u, phi, gamma, d_phi, d_gamma)
-    chunk = casadi.Function("servo_sensitivity_chunk", [state, u, phi, gamma, d_phi, d_gamma],
-                            [states[:, CHUNK - 1], out], ["s", "u", "phi", "gamma", "d_phi", "d_gamma"], ["s_next", "out"])
+    x_scale, dt = casadi.MX.sym("x_scale", 2), casadi.MX.sym("dt")
+    states, out = inner(state, v, phi, gamma, d_phi, d_gamma, x_scale, dt)
+    chunk = casadi.Function("servo_sensitivity_chunk", [state, v, phi, gamma, d_phi, d_gamma, x_scale, dt],
+                            [states[:, CHUNK - 1], out], ["s", "v", "phi", "gamma", "d_phi", "d_gamma", "x_scale", "dt"],
+                            ["s_next", "out"])
     return compile_function(chunk.expand())
 
 
@@ -247,20 +273,17 @@ def residual_function(n_samples: int, fused: bool = False) -> casadi.Function:
     u = casadi.reshape(p[7 + n_samples:7 + 3 * n_samples], 2, n_samples)
     gains = casadi.reshape(p[7 + 3 * n_samples:], 2, n_samples)
     phi, gamma, d_phi, d_gamma = zoh_sensitivity_function()(w[:4], scale[:3], dt)
-    state0 = casadi.vertcat(scale[3] * w[4], scale[4] * w[5], casadi.MX.zeros(8), 1, 0, 0, 1)
+    if not fused:
+        gains = casadi.repmat(casadi.DM([1.0, 0.0]), 1, n_samples)
+    q0 = scale[3] * w[4]
+    state0 = casadi.vertcat(q0, scale[4] * w[5], casadi.MX.zeros(8), 1, 0, 0, 1,
+                            q0, casadi.MX.zeros(4), scale[3], 0, casadi.MX.zeros(7))
     n_chunks = -(-n_samples // CHUNK)
-    padded = casadi.horzcat(u, casadi.MX.zeros(2, n_chunks * CHUNK - n_samples))  # causal: the tail is dropped
+    v = casadi.vertcat(u, gains)
+    padded = casadi.horzcat(v, casadi.MX.zeros(4, n_chunks * CHUNK - n_samples))  # causal: the tail is dropped
     run = sensitivity_chunk_function().mapaccum(f"servo_sensitivity_run_{n_samples}", n_chunks, ["s"], ["s_next"])
-    _, states = run(state0, padded, phi, gamma, d_phi, d_gamma)
-    states = states[:, :n_samples]
-    # rows: the value and its sensitivities to w0..w3, q0, dq0 (the state is [x, S (2×4), T (2×2)], column-major)
-    angle = casadi.vertcat(states[0, :], states[2, :], states[4, :], states[6, :], states[8, :],
-                           scale[3] * states[10, :], scale[4] * states[12, :])
-    rate = casadi.vertcat(states[1, :], states[3, :], states[5, :], states[7, :], states[9, :],
-                          scale[3] * states[11, :], scale[4] * states[13, :])
-    if fused:
-        angle = fusion_filter_function(n_samples, 7)(angle, rate, gains, dt)
-    out = angle.T
+    _, out = run(state0, padded, phi, gamma, d_phi, d_gamma, scale[3:5], dt)
+    out = out[:, :n_samples].T
     residual = out[:, 0] + scale[3] * w[6] - q
     jacobian = casadi.horzcat(out[:, 1:7], scale[3] * casadi.MX.ones(n_samples, 1))
     return casadi.Function(f"servo_oe_residual_{n_samples}", [w, p], [residual, jacobian], ["w", "p"], ["r", "J"])
