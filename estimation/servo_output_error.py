@@ -159,7 +159,7 @@ def _solver(n_samples: int, fused: bool) -> casadi.Function:
     scale, dt = p[:6], p[6]
     u = casadi.reshape(p[7 + n_samples:7 + 3 * n_samples], 2, n_samples)
     gains = casadi.reshape(p[7 + 3 * n_samples:], 2, n_samples)
-    simulated = simulation_function(n_samples, fused)(
+    simulated = simulation_function(n_samples, fused).expand()(
         scale[:3] * w[:3], w[3], casadi.vertcat(scale[3] * w[4], scale[4] * w[5]), scale[3] * w[6], u, dt, gains)
     plain_objective = 0.5 * weight * casadi.sumsqr(simulated.T - p[7:7 + n_samples])
     grad_f = casadi.Function(f"servo_output_error_grad_{n_samples}", [w, p],
