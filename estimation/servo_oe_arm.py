@@ -69,6 +69,8 @@ class ServoArmOutputErrorFit:
             row(label + " OE", ["—" if getattr(j, key) is None else f"{getattr(j, key):.5g} ± {getattr(j, key + '_std'):.2g}"
                                 for j in self.joints])
             row(label + " ERLS", ["—" if getattr(j.erls, key) is None else f"{getattr(j.erls, key):.5g}" for j in self.joints])
+        for label, key in (("b/m OE", "b_over_m"), ("k/m OE", "k_over_m"), ("sigma/m OE", "sigma_over_m")):
+            row(label, [f"{getattr(j, key):.5g} ± {getattr(j, key + '_std'):.2g}" for j in self.joints])
         row("delay (samples)", [f"{j.delay:.3g}" for j in self.joints])
         for label, key in (("RMSE (validation, 1-step)", "rmse"), ("R2adj (validation, 1-step)", "r2_adj"),
                            ("RMSE (validation, free run)", "rmse_free_run"), ("R2adj (validation, free run)", "r2_adj_free_run")):

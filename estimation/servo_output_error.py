@@ -72,7 +72,7 @@ class StartOutcome:
     """One start: its name, ``theta`` (b/m, k/m, σ/m) and what became of it (``status``, final ``cost``)."""
 
     name: str
-    theta: tuple[float, float, float]
+    theta: tuple[float, float, float] | None
     status: str
     cost: float | None = None
 
@@ -175,7 +175,8 @@ def _solver(n_samples: int, fused: bool) -> casadi.Function:
 
 
 def _check_inputs(u: np.ndarray, mass: float | None, joint: int) -> None:
-    if mass is not None and not (isinstance(mass, (int, float, np.floating, np.integer)) and np.isfinite(mass) and mass > 0):
+    if mass is not None and (isinstance(mass, bool) or not (isinstance(mass, (int, float, np.floating, np.integer))
+                                                            and np.isfinite(mass) and mass > 0)):
         raise OutputErrorInputError(f"joint {joint}: the mass must be positive and finite, got {mass!r}")
     if np.ptp(u) == 0.0:
         raise OutputErrorInputError(f"joint {joint}: the input u never changes on the estimation part (constant "
@@ -265,7 +266,7 @@ def _fit_starts(starts, delay: Delay, max_delay: int, u: np.ndarray, q: np.ndarr
     best: _Solution | None = None
     for name, theta in starts:
         if theta is None:
-            outcomes.append(StartOutcome(name, (np.nan,) * 3, "skipped: the ERLS mapping has no continuous counterpart"))
+            outcomes.append(StartOutcome(name, None, "skipped: the ERLS mapping has no continuous counterpart"))
             continue
         solution, status = _solve(name, theta, 0, 0.0, delay, u, q, dt, gains)
         while solution is not None and delay == "estimate" and solution.w[3] > 0.99 and solution.whole + 1 < max_delay:
@@ -344,7 +345,8 @@ def fit_servo_joint_output_error(
     if best is None:
         raise OutputErrorDivergedError(
             f"joint {joint}: no start of the output-error fit converged: "
-            + "; ".join(f"{o.name} (b/m, k/m, σ/m = {', '.join(f'{v:.4g}' for v in o.theta)}): {o.status}" for o in outcomes))
+            + "; ".join(f"{o.name} (b/m, k/m, σ/m = {', '.join(f'{v:.4g}' for v in o.theta) if o.theta else '—'}): {o.status}"
+                        for o in outcomes))
     return _report(best, tuple(outcomes), erls, u, q, dt, mass, joint, n_est, n_val, delay, gains)
 
 
