@@ -175,8 +175,7 @@ def fusion_filter_function(n_samples: int, n_columns: int) -> casadi.Function:
     gains = casadi.MX.sym("gains", 2, n_samples)
     step_dt = casadi.MX.sym("dt")
     start = casadi.vertcat(angles[:, 0].T, casadi.MX.zeros(1, n_columns))
-    _, fused = run(start, casadi.reshape(angles, 1, -1) if n_columns == 1 else _rows(angles),
-                   casadi.reshape(rates, 1, -1) if n_columns == 1 else _rows(rates), gains, step_dt)
+    _, fused = run(start, _rows(angles), _rows(rates), gains, step_dt)
     return casadi.Function(f"servo_fusion_{n_samples}_{n_columns}", [angles, rates, gains, step_dt],
                            [casadi.reshape(fused, n_columns, n_samples)], ["angle", "rate", "gains", "dt"], ["fused"])
 
