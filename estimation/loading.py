@@ -83,10 +83,6 @@ class SegmentTooShortError(MeasurementError):
     """A segment too short for a time series, or for the filter that derives its motion."""
 
 
-class SegmentMismatchError(MeasurementError):
-    """Segments of one record (files or pieces) with different column sets."""
-
-
 class ParquetSupportError(MeasurementError, ImportError):
     """Reading Parquet needs pyarrow, which is not installed."""
 
@@ -306,7 +302,8 @@ def segments_from_frame(
         if t[rows].shape[0] < 3:
             raise SegmentTooShortError(f"{name}: {t[rows].shape[0]} sample(s) between holes (t = {t[rows][0]:.6g} s): "
                                        "too few for a time series; cut them from the file")
-        metadata: dict[str, object] = {"source": source, "segment": index, "repeated_rows_dropped": dropped}
+        metadata: dict[str, object] = {"source": source, "segment": index, "segments_in_file": len(holes) + 1,
+                                       "repeated_rows_dropped": dropped}
         segment_t, piece = _uniform(t[rows], piece, resample, name, metadata, bridged=bool(stalls))
         segments.append(Measurements(segment_t, piece["q"], piece["dq"], piece["ddq"], piece["tau"], piece["wrench"],
                                      metadata))
