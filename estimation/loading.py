@@ -289,8 +289,8 @@ def segments_from_frame(
         )
     if stalls:
         warnings.warn(
-            f"{source}: the logger stalled {len(stalls)} time(s) for at most {max_gap:g} s (--max-gap): "
-            f"{describe(stalls)}; bridged by linear interpolation (resampled onto a uniform grid)", StallWarning, stacklevel=3)
+            f"{source}: the logger stalled {len(stalls)} time(s) for at most {max_gap:g} s (--max-gap), longest at "
+            f"{describe(sorted(stalls, key=lambda gap: -gap.duration))}; bridged by linear interpolation (resampled onto a uniform grid)", StallWarning, stacklevel=3)
     if holes:
         warnings.warn(
             f"{source}: {len(holes)} hole(s) longer than --max-gap {max_gap:g} s at {describe(holes)}: the record is "

@@ -39,7 +39,7 @@ class Gap:
     duration
         Time between the samples around the gap, s.
     missing
-        Samples missing, by the local median step.
+        Samples missing: the gap over the median step, less one.
     """
 
     row: int
@@ -68,13 +68,15 @@ def missing_samples(t: NDArray[np.float64], row: int, step: float) -> float:
 
 
 def find_gaps(t: NDArray[np.float64], step: float) -> list[Gap]:
-    """Steps longer than :data:`STALL_FACTOR` median steps that leave at least half a sample missing."""
+    """Steps longer than :data:`STALL_FACTOR` median steps that leave at least half a sample missing
+    (counted by the local median step, :func:`missing_samples`: a stall whose backlog arrives in a
+    burst leaves none)."""
     steps = np.diff(t)
     gaps = []
     for row in np.flatnonzero(steps > STALL_FACTOR * step):
         missing = missing_samples(t, int(row), step)
         if missing >= 0.5:
-            gaps.append(Gap(int(row), float(t[row]), float(steps[row]), missing))
+            gaps.append(Gap(int(row), float(t[row]), float(steps[row]), float(steps[row] / step - 1)))
     return gaps
 
 

@@ -32,6 +32,8 @@ RISE_THRESHOLD = 0.5
 MIN_PERIODS = 1.5
 #: harmonics of the Fourier fit that refines a detected frequency
 REFINE_HARMONICS = 10
+#: a detected frequency this close (relative) to a round value is that value
+ROUND_TOLERANCE = 2e-5
 #: two frequencies whose ratio is this close to a whole number ≥ 2 are harmonics of each other
 HARMONIC_TOLERANCE = 0.02
 
@@ -114,7 +116,17 @@ def detect_fundamental(t: NDArray[np.float64], q: NDArray[np.float64]) -> Period
         offset = 0.0
     step = (t[-1] - t[0]) / (n - 1)
     frequency = 1.0 / ((lag + offset) * step)
-    return Periodicity(refine_frequency(t, q, frequency, width=2.0 / lag), float(rho[lag]))
+    return Periodicity(rounded(refine_frequency(t, q, frequency, width=2.0 / lag)), float(rho[lag]))
+
+
+def rounded(frequency_hz: float) -> float:
+    """A detected frequency snapped to 3 or 4 significant digits when within :data:`ROUND_TOLERANCE`
+    of it (designed excitations have round fundamentals: 0.075 Hz, not 0.0749999 Hz)."""
+    for digits in (3, 4):
+        candidate = float(f"{frequency_hz:.{digits}g}")
+        if abs(candidate - frequency_hz) <= ROUND_TOLERANCE * frequency_hz:
+            return candidate
+    return frequency_hz
 
 
 def refine_frequency(t: NDArray[np.float64], q: NDArray[np.float64], frequency_hz: float, *, width: float) -> float:

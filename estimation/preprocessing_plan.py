@@ -26,7 +26,7 @@ from typing import Any, Literal
 import numpy as np
 
 from estimation.measurements import Measurements
-from estimation.periodicity import MIN_PERIODS, detect_fundamental, frequency_mismatch
+from estimation.periodicity import detect_fundamental, frequency_mismatch
 from estimation.preprocessing import (
     AverageChoice,
     ButterworthDifferentiation,
@@ -39,6 +39,12 @@ from estimation.preprocessing import (
 from estimation.segments import as_segments, check_same_columns, column_set, concatenate
 
 Method = Literal["measured", "fourier", "butterworth"]
+
+#: harmonics of the fit for a given frequency, unless told (the PUMA paper's 5)
+GIVEN_HARMONICS = 5
+#: harmonics of the fit for a detected frequency, unless told: the reference's count is unknown, and a
+#: robot under feedback adds harmonics above it (three times the paper's 5: :func:`fill_derivatives`)
+DETECTED_HARMONICS = 15
 
 
 class PreprocessingWarning(UserWarning):
@@ -117,7 +123,7 @@ def choose_preprocessing(
     train: Measurements | Sequence[Measurements],
     *,
     frequency_hz: float | None = None,
-    harmonics: int = 5,
+    harmonics: int | None = None,
     cutoff_hz: float | None = None,
     average_periods: AverageChoice = "auto",
     decimation: int = 1,
@@ -125,6 +131,9 @@ def choose_preprocessing(
     detect: bool = True,
 ) -> Preprocessing:
     """The preprocessing of a record, decided on its training segments (module docstring).
+
+    ``harmonics``: of the Fourier fit; default :data:`GIVEN_HARMONICS` for a given frequency,
+    :data:`DETECTED_HARMONICS` for a detected one (capped below the Nyquist frequency).
 
     Warns
     -----
@@ -146,6 +155,7 @@ def choose_preprocessing(
         return Preprocessing("measured", **common)
     longest = max(segments, key=lambda segment: segment.n_samples)
     if frequency_hz is not None:
+        harmonics = GIVEN_HARMONICS if harmonics is None else harmonics
         FourierDifferentiation(frequency_hz, harmonics, average_periods)  # checks the numbers
         check_frequency(segments, frequency_hz)
         return Preprocessing("fourier", float(frequency_hz), int(harmonics), "given", average_periods, **common)
@@ -153,7 +163,7 @@ def choose_preprocessing(
         found = detect_fundamental(longest.t, longest.q).frequency_hz
         if found is not None:
             nyquist_harmonic = int(np.ceil(0.5 * sampling_rate(longest.t) / found)) - 1
-            used = max(1, min(int(harmonics), nyquist_harmonic))
+            used = max(1, min(int(DETECTED_HARMONICS if harmonics is None else harmonics), nyquist_harmonic))
             warnings.warn(
                 f"the positions repeat every {1 / found:.6g} s: periodic excitation of {found:.6g} Hz detected; "
                 f"derivatives from a {used}-harmonic Fourier fit (give --frequency to set it, --cutoff for a filter)",
@@ -175,8 +185,6 @@ def choose_preprocessing(
 def check_frequency(segments: Sequence[Measurements], frequency_hz: float) -> None:
     """Warn (:class:`FrequencyMismatchWarning`) when a segment long enough to tell disagrees with ``frequency_hz``."""
     for segment in segments:
-        if (segment.t[-1] - segment.t[0]) * frequency_hz < MIN_PERIODS:
-            continue
         message = frequency_mismatch(segment.t, segment.q, frequency_hz)
         if message is not None:
             warnings.warn(f"{segment.metadata.get('source', 'data')}: {message}", FrequencyMismatchWarning, stacklevel=3)

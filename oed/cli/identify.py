@@ -62,8 +62,9 @@ def add_derivative_arguments(parser: argparse.ArgumentParser) -> None:
     derivatives.add_argument("--average-periods", choices=("auto", "yes", "no"), default="auto",
                              help="average whole periods before the Fourier fit: auto (default) when there are two or "
                                   "more and a period is a whole number of samples, else fit every sample")
-    derivatives.add_argument("--harmonics", type=int, default=5, help="harmonics of the Fourier fit (default: 5, the paper's; "
-                             "records of a robot under feedback want about three times the reference's)")
+    derivatives.add_argument("--harmonics", type=int, help="harmonics of the Fourier fit (default: 5, the paper's, with "
+                             "--frequency; 15 for a detected frequency; records of a robot under feedback want about "
+                             "three times the reference's)")
     derivatives.add_argument("--cutoff", type=float, help="otherwise: Butterworth cut-off, Hz (default: automatic)")
     derivatives.add_argument("--decimate", type=int, default=1, help="keep one sample in K after low-pass filtering")
     derivatives.add_argument("--held-torques", action="store_true",
@@ -75,7 +76,8 @@ def differentiation(args: argparse.Namespace) -> Differentiation:
     if args.frequency is not None and args.cutoff is not None:
         raise ValueError("give --frequency (Fourier fit of periodic data) or --cutoff (Butterworth filter), not both")
     if args.frequency is not None:
-        return FourierDifferentiation(args.frequency, args.harmonics, args.average_periods)
+        return FourierDifferentiation(args.frequency, 5 if args.harmonics is None else args.harmonics,
+                                      args.average_periods)
     return ButterworthDifferentiation(args.cutoff)
 
 
