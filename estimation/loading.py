@@ -193,6 +193,8 @@ def read_record(
         raise FileNotFoundError(f"data file not found: {path}")
     try:
         frame = _read_parquet(path) if suffix == ".parquet" else pd.read_csv(path)
+    except ParquetSupportError:
+        raise
     except (ValueError, OSError, pd.errors.ParserError) as error:
         raise MeasurementError(f"cannot read {path}: {error}") from None
     return segments_from_frame(frame, n_joints=n_joints, model=model, require=require, resample=resample,

@@ -89,6 +89,9 @@ def split_rows(n_samples: int, holes: list[Gap]) -> list[slice]:
 
 def describe(gaps: list[Gap], limit: int = 4) -> str:
     """``t = 1.234 s (8.5 ms, 7 samples), …`` for a message."""
-    shown = ", ".join(f"t = {gap.t:.6g} s ({1e3 * gap.duration:.3g} ms, {gap.missing:.0f} sample(s))"
-                      for gap in gaps[:limit])
+    shown = ", ".join(f"t = {gap.t:.6g} s ({_duration(gap.duration)}, {gap.missing:.0f} sample(s))" for gap in gaps[:limit])
     return shown + (f" and {len(gaps) - limit} more" if len(gaps) > limit else "")
+
+
+def _duration(seconds: float) -> str:
+    return f"{1e3 * seconds:.3g} ms" if seconds < 0.1 else f"{seconds:.4g} s"

@@ -230,12 +230,15 @@ class ButterworthDifferentiation:
 
     def apply(self, measurements: Measurements) -> Measurements:
         rate = sampling_rate(measurements.t)
-        cutoff = self.cutoff(measurements)
+        given = self.cutoff_hz is not None and self.cutoff_hz < 0.5 * rate
+        cutoff = float(self.cutoff_hz) if given else self.cutoff(measurements)  # the length check first
         trim = self.settling_samples(rate, cutoff) if self.trim else 0
         if self.trim and measurements.n_samples < 4 * trim:
             raise ValueError(f"{measurements.n_samples} samples ({measurements.n_samples / rate:.4g} s) are too few for "
                              f"the {cutoff:.4g} Hz filter: it settles in {trim / rate:.3g} s at each edge, trimmed; "
                              f"need at least {4 * trim} samples")
+        if given:
+            self.cutoff(measurements)  # the cut-off against the record's length
         sos = scipy.signal.butter(self.order, cutoff, btype="low", fs=rate, output="sos")
         padding = min(measurements.n_samples - 1, 3 * (2 * len(sos) + 1) * 10)
 

@@ -117,7 +117,7 @@ def test_a_two_second_hole_splits_the_record_into_segments(logs, clean, capsys):
     code, document = run(folder, "hole", [write(folder, frame, "hole.csv")], "--frequency", "0.2", *FIT)
     error = capsys.readouterr().err
     assert code == 0, error
-    assert "1 hole(s) longer than --max-gap 0.05 s at t = 6.499 s (2e+03 ms" in error
+    assert "1 hole(s) longer than --max-gap 0.05 s at t = 6.499 s (2.001 s" in error
     assert "split into 2 segments there" in error
     assert document["n_samples"] == 13000
     assert_close_to(document, clean)
