@@ -35,7 +35,7 @@ sys.path.insert(0, str(ROOT))
 
 from dynamics.models import build_model  # noqa: E402
 from dynamics.robots import load_robot  # noqa: E402
-from estimation.loading import read_record  # noqa: E402
+from estimation.record_loading import read_record  # noqa: E402
 from estimation.measurements import Measurements  # noqa: E402
 from estimation.preprocessing_plan import choose_preprocessing, prepare  # noqa: E402
 from oed.cli import main  # noqa: E402

@@ -15,7 +15,8 @@ import pytest
 from dynamics.errors import RobotDescriptionError
 from dynamics.models import build_model
 from dynamics.robots import load_robot
-from estimation.loading import AbsurdValueError, HoleError, ParquetSupportError, read_measurements, read_record
+from estimation.loading import AbsurdValueError, HoleError, ParquetSupportError, read_measurements
+from estimation.record_loading import read_record
 from estimation.output_files import OutputFiles
 from oed.cli import main
 from tests.synthetic import random_fourier, simulate, true_parameters

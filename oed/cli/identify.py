@@ -9,7 +9,7 @@ from pathlib import Path
 
 from dynamics.models import ModelKind, build_model
 from estimation.identification import identify
-from estimation.loading import read_record
+from estimation.record_loading import read_record
 from estimation.log_cleaning import DEFAULT_MAX_GAP
 from estimation.measurements import Measurements
 from estimation.preprocessing import ButterworthDifferentiation, Differentiation, FourierDifferentiation
