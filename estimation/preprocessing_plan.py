@@ -25,6 +25,7 @@ from typing import Any, Literal
 
 import numpy as np
 
+from dynamics.threads import single_threaded_blas
 from estimation.measurements import Measurements
 from estimation.periodicity import detect_fundamental, frequency_mismatch
 from estimation.preprocessing import (
@@ -119,6 +120,7 @@ class Preprocessing:
         return "preprocessing: " + ", ".join([text, *extras]) + " (chosen on the training data, used for validation)"
 
 
+@single_threaded_blas()  # tall thin least squares: threaded BLAS only loses (dynamics.threads)
 def choose_preprocessing(
     train: Measurements | Sequence[Measurements],
     *,
@@ -190,6 +192,7 @@ def check_frequency(segments: Sequence[Measurements], frequency_hz: float) -> No
             warnings.warn(f"{segment.metadata.get('source', 'data')}: {message}", FrequencyMismatchWarning, stacklevel=3)
 
 
+@single_threaded_blas()
 def prepare(data: Measurements | Sequence[Measurements], preprocessing: Preprocessing, *,
             role: str = "training data") -> Measurements:
     """Each segment preprocessed on its own by ``preprocessing``, then stacked.
