@@ -59,7 +59,7 @@ def read_record(
     max_gap: float = DEFAULT_MAX_GAP,
     split: bool = True,
 ) -> tuple[Measurements, ...]:
-    """Read a file as one or more segments: :func:`read_measurements`, but a hole longer than
+    """Read a file as one or more segments: :func:`estimation.loading.read_measurements`, but a hole longer than
     ``max_gap`` seconds splits the record (a :class:`SplitWarning`) instead of failing.
 
     Rows repeating the previous row on every channel are dropped (:class:`RepeatedRowsWarning`,
