@@ -169,7 +169,7 @@ def choose_preprocessing(
             warnings.warn(
                 f"the positions repeat every {1 / found:.6g} s: periodic excitation of {found:.6g} Hz detected; "
                 f"derivatives from a {used}-harmonic Fourier fit (give --frequency to set it, --cutoff for a filter)",
-                PreprocessingWarning, stacklevel=2)
+                PreprocessingWarning, stacklevel=3)  # past the BLAS decorator
             return Preprocessing("fourier", found, used, "detected", average_periods, **common)
     rates = [sampling_rate(segment.t) for segment in segments]
     rate = min(rates)
@@ -189,7 +189,7 @@ def check_frequency(segments: Sequence[Measurements], frequency_hz: float) -> No
     for segment in segments:
         message = frequency_mismatch(segment.t, segment.q, frequency_hz)
         if message is not None:
-            warnings.warn(f"{segment.metadata.get('source', 'data')}: {message}", FrequencyMismatchWarning, stacklevel=3)
+            warnings.warn(f"{segment.metadata.get('source', 'data')}: {message}", FrequencyMismatchWarning, stacklevel=4)
 
 
 @single_threaded_blas()
