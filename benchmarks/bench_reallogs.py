@@ -10,11 +10,10 @@ Timed (one run): reading and cleaning the two files, choosing and applying the p
 (frequency check, Fourier fits, recorded channels), then the whole CLI run (which repeats them and
 diagnoses; the truth has 14 effects the declared model lacks, so the search runs to its cap of 10).
 
-Measured 2026-11-23 on the shared 2-core machine while six other jobs ran (CPU time 2m54 of 10m36
-wall for the benchmark): read + clean 0.14 s, preprocessing 3.9 s (0.21 s once it ran with one BLAS thread, as the CLI does), the whole CLI run 292 s (the
-diagnosis loop; target not met here, its speed is the diagnosis work's).
-Target (issue 14): the whole ``diagnose`` under 30 s; the loading and preprocessing part of it is
-this workstream's, the diagnosis loop's speed belongs to the diagnosis work.
+Measured 2026-11-23 on the shared 2-core machine under a load average of 9-10 (other jobs): read +
+clean 0.19 s, preprocessing 0.61 s (one BLAS thread, as the CLI runs it), the whole CLI run 284 s wall
+while the process got 33 % of a CPU (100 s CPU for the whole benchmark): the diagnosis loop's time;
+target not met here, its speed is the diagnosis work's (issue 13).
 
 Run: ``python benchmarks/bench_reallogs.py [--urdf FILE] [--samples N]``.
 """
