@@ -72,7 +72,8 @@ def run(args: argparse.Namespace) -> int:
             figure = residual_figure(args.report)
             plot_residuals(diagnosis, train, outputs.stage_figure(figure))
             with outputs.open(args.report) as stream:
-                stream.write(markdown_report(diagnosis, figure.name))
+                stream.write(markdown_report(diagnosis, figure.name) + f"\n{preprocessing.describe()[0].upper()}"
+                             f"{preprocessing.describe()[1:]}; validation MSEs against the recorded channels.\n")
     print(preprocessing.describe())
     print_summary(diagnosis)
     if len(diagnosis.effects) >= args.max_effects:
