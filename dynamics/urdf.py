@@ -123,6 +123,17 @@ def _captured_stderr() -> Iterator[_CapturedText]:
                 captured.text = stream.read().decode(errors="replace")
 
 
+def _refuse_mimic_joints(path: Path, root: ElementTree.Element) -> None:
+    """A ``<mimic>`` joint follows another (``q_j = multiplier·q_i + offset``): Pinocchio would read it
+    as an independent joint and the constraint would be silently dropped, so it is refused by name."""
+    for joint in root.iter("joint"):
+        mimic = joint.find("mimic")
+        if mimic is not None:
+            raise RobotDescriptionError(
+                f"URDF {path}: joint {joint.get('name')!r} mimics joint {mimic.get('joint')!r} (a <mimic> coupling): "
+                "coupled joints are not supported; the chain would be identified as if it moved freely")
+
+
 def _check_total_mass(path: Path, root: ElementTree.Element, parsed: float, parser_report: str = "") -> None:
     """The masses Pinocchio read must add up to those the file (``root``) states (urdfdom reads a
     number it cannot parse, e.g. with a tab or a blank around it, as 0 and drops the link's inertial data)."""
@@ -147,7 +158,8 @@ def robot_from_urdf(path: str | Path, *, gravity: np.ndarray | None = None) -> R
     ------
     RobotDescriptionError
         If the file cannot be parsed, or the chain branches, or holds a joint that is not a
-        one-degree-of-freedom revolute or prismatic joint (floating, planar, spherical…).
+        one-degree-of-freedom revolute or prismatic joint (floating, planar, spherical…), or a
+        ``<mimic>`` joint (coupled to another).
     """
     import pinocchio as pin
 
@@ -155,6 +167,7 @@ def robot_from_urdf(path: str | Path, *, gravity: np.ndarray | None = None) -> R
     if not path.is_file():
         raise RobotDescriptionError(f"URDF file {path} is a folder" if path.is_dir() else f"URDF file not found: {path}")
     root = _check_numbers(path)
+    _refuse_mimic_joints(path, root)
     with _captured_stderr() as parser_output:
         try:
             model = pin.buildModelFromUrdf(str(path))

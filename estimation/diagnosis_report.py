@@ -30,7 +30,8 @@ def plot_residuals(diagnosis: Diagnosis, train: Measurements, path: str | Path |
             axis.set_xlabel(f"{label}{joint + 1}" if label != "t" else "t [s]")
             if column == 0:
                 axis.set_ylabel(f"residual {channel}")
-    figure.suptitle("Residuals of the declared model (training data)")
+    seen = ", the filtered or period-averaged channels the estimation saw" if train.recorded is not None else ""
+    figure.suptitle(f"Residuals of the declared model (training data{seen})")
     figure.tight_layout()
     if path is not None:
         save_figure(figure, path, dpi=90)

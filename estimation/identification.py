@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import warnings
 from dataclasses import dataclass
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -23,6 +24,7 @@ from dynamics.models import IdentificationModel
 from dynamics.threads import single_threaded_blas
 from estimation.least_squares import Estimate, LeastSquares, WeightedLeastSquares, stack
 from estimation.measurements import Measurements
+from estimation.segments import concatenate
 from estimation.validation import Comparison, compare
 
 
@@ -80,6 +82,9 @@ class IdentificationResult:
     warnings
         Physically implausible estimates (:func:`implausible_estimates`), also issued as
         :class:`ImplausibleEstimateWarning`.
+    preprocessing
+        How the motion was derived (``train.metadata["preprocessing"]``, set by
+        :func:`estimation.preprocessing_plan.prepare`), or ``None``.
     """
 
     model: IdentificationModel
@@ -87,13 +92,18 @@ class IdentificationResult:
     train: Comparison
     validation: Comparison | None = None
     warnings: tuple[str, ...] = ()
+    preprocessing: dict[str, Any] | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """The JSON document of ``oed identify``::
 
             {robot, model, effects, method, n_samples, parameters: [{name, expression, value, std,
-             relative_std}], cond, channel_std: {channel: σ}, train: {mse: {channel: value}},
-             validation: {mse: {channel: value}} | null, warnings: [text]}
+             relative_std}], cond, channel_std: {channel: σ}, train: {mse: {channel: value}
+             [, mse_filtered: {…}]}, validation: {mse…} | null, warnings: [text],
+             preprocessing: {method, cutoff_hz | frequency_hz, harmonics, trimmed_s, …} | null}
+
+        ``mse`` is measured against the torques/wrench as recorded (on the samples kept);
+        ``mse_filtered``, present when preprocessing filtered or averaged them, against those.
         """
         return {
             "robot": self.model.robot.name,
@@ -104,17 +114,18 @@ class IdentificationResult:
             "parameters": [_finite(record) for record in self.estimate.records()],
             "cond": float(self.estimate.cond),
             "channel_std": dict(zip(self.estimate.channels, map(float, np.sqrt(self.estimate.channel_variance)))),
-            "train": {"mse": self.train.mse},
-            "validation": None if self.validation is None else {"mse": self.validation.mse},
+            "train": self.train.to_dict(),
+            "validation": None if self.validation is None else self.validation.to_dict(),
             "warnings": list(self.warnings),
+            "preprocessing": self.preprocessing,
         }
 
 
 @single_threaded_blas()
 def identify(
     model: IdentificationModel,
-    train: Measurements,
-    validate: Measurements | None = None,
+    train: Measurements | Sequence[Measurements],
+    validate: Measurements | Sequence[Measurements] | None = None,
     *,
     weighted: bool = True,
     estimator: LeastSquares | None = None,
@@ -127,7 +138,9 @@ def identify(
         The identification model (internal, external or combined, with its effects).
     train, validate
         Measurements with ``q, dq, ddq`` and the model's channels (see
-        :func:`estimation.preprocessing.fill_derivatives` when ``dq``/``ddq`` are missing).
+        :func:`estimation.preprocessing_plan.prepare` when ``dq``/``ddq`` are missing), or a
+        sequence of segments, each prepared on its own (stacked: :mod:`estimation.segments`).
+        Errors are measured against the channels as recorded (``Measurements.recorded``).
     weighted
         Channel-weighted least squares (default) rather than ordinary (PUMA paper, eq. 20).
     estimator
@@ -139,6 +152,8 @@ def identify(
         For each friction or armature estimate more than :data:`IMPLAUSIBLE_SIGMAS` standard
         deviations below zero (also in ``result.warnings``).
     """
+    train = concatenate(train)
+    validate = None if validate is None else concatenate(validate)
     if estimator is None:
         estimator = WeightedLeastSquares() if weighted else LeastSquares()
     estimate = estimator.fit(stack(model, train)).estimate_
@@ -147,7 +162,8 @@ def identify(
     notes = implausible_estimates(model, estimate)
     for note in notes:
         warnings.warn(note, ImplausibleEstimateWarning, stacklevel=3)  # past the BLAS decorator
-    return IdentificationResult(model, estimate, train_comparison, validation, notes)
+    return IdentificationResult(model, estimate, train_comparison, validation, notes,
+                                train.metadata.get("preprocessing"))
 
 
 def _finite(record: dict[str, Any]) -> dict[str, Any]:

@@ -7,6 +7,7 @@ measurements. The estimators of :mod:`estimation.least_squares` fit it.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -14,6 +15,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from dynamics.models import IdentificationModel
 from estimation.measurements import Measurements
+from estimation.segments import concatenate
 
 
 @dataclass(frozen=True)
@@ -112,10 +114,12 @@ class IdentificationProblem:
         return replace(self, Y=self.Y[:, index], y=self.y[:, index], channels=tuple(channels))
 
 
-def stack(model: IdentificationModel, measurements: Measurements) -> IdentificationProblem:
+def stack(model: IdentificationModel, measurements: Measurements | Sequence[Measurements]) -> IdentificationProblem:
     """The base-parameter problem of ``model`` on ``measurements`` (which need ``dq``, ``ddq``:
     see :func:`estimation.preprocessing.fill_derivatives`), evaluated with the model's CasADi
-    base regressor mapped over the samples."""
+    base regressor mapped over the samples. Several segments (each prepared on its own) are
+    stacked sample by sample (:func:`estimation.segments.concatenate`)."""
+    measurements = concatenate(measurements)
     if measurements.dq is None or measurements.ddq is None:
         raise ValueError("the measurements lack dq/ddq: derive them first (estimation.preprocessing.fill_derivatives)")
     if measurements.n_joints != model.robot.n_joints:

@@ -54,6 +54,11 @@ class Measurements:
         ``(N, 6)`` base reaction wrench ``fx fy fz mx my mz`` or ``None``.
     metadata
         Free-form provenance (robot, trajectory, seed, effects simulated…).
+    recorded
+        After preprocessing (filtered or period-averaged channels): the torques and wrench as
+        recorded, on the samples kept, with the derived motion at their instants; ``None`` when
+        these measurements are themselves as recorded. Errors are measured against it
+        (:func:`estimation.validation.compare`).
     """
 
     t: NDArray[np.float64]
@@ -63,6 +68,7 @@ class Measurements:
     tau: NDArray[np.float64] | None = None
     wrench: NDArray[np.float64] | None = None
     metadata: dict[str, Any] = field(default_factory=dict)
+    recorded: Measurements | None = None
 
     def __post_init__(self) -> None:
         t = _real_array(self.t, "t")
@@ -91,6 +97,11 @@ class Measurements:
             raise ValueError(f"t has {t.shape[0]} samples, q {q.shape[0]}: they must match")
         if not isinstance(self.metadata, dict):
             raise TypeError(f"metadata must be a dict, got {type(self.metadata).__name__}")
+        if self.recorded is not None:
+            if not isinstance(self.recorded, Measurements):
+                raise TypeError(f"recorded must be Measurements, got {type(self.recorded).__name__}")
+            if self.recorded.n_joints != q.shape[1]:
+                raise ValueError(f"recorded has {self.recorded.n_joints} joints, these measurements {q.shape[1]}")
 
     @property
     def n_samples(self) -> int:
@@ -123,10 +134,18 @@ class Measurements:
         """A subset of the samples."""
         def take(values):
             return None if values is None else values[indices]
+        recorded = self.recorded
+        if recorded is not None:  # the same samples when it is on the same grid, else dropped
+            recorded = recorded.select(indices) if recorded.n_samples == self.n_samples else None
         return replace(
             self, t=self.t[indices], q=self.q[indices], dq=take(self.dq), ddq=take(self.ddq),
-            tau=take(self.tau), wrench=take(self.wrench),
+            tau=take(self.tau), wrench=take(self.wrench), recorded=recorded,
         )
+
+    @property
+    def as_recorded(self) -> Measurements:
+        """The channels as recorded (with the derived motion): :attr:`recorded`, or these measurements."""
+        return self if self.recorded is None else self.recorded
 
     def to_frame(self) -> pd.DataFrame:
         """The file format as a ``DataFrame``."""

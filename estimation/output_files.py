@@ -50,6 +50,10 @@ class OutputFiles:
     are removed, with the folders the run created for them. A failed run therefore leaves no
     output, neither a half-written file nor some of the files it was asked for.
 
+    A run killed before it could clean up (SIGKILL, power loss) leaves its staged files behind;
+    they are named ``.<target>.oed-<pid>-<random><suffix>`` and the next run staging the same
+    target removes those whose process is gone (:func:`remove_stale_temporaries`).
+
     The renames at the end are one after another: should the k-th fail (after staging succeeded in
     the same folder, which checks the usual causes), the earlier targets are already replaced.
     """
@@ -79,9 +83,11 @@ class OutputFiles:
         if any(path.resolve() == target.resolve() for _, target in self._staged):
             raise ValueError(f"{path} is written twice in one run: each output needs its own path")
         folder = self._output_folder(path)
+        suffix = path.suffix or default_suffix
+        remove_stale_temporaries(folder, path.name, suffix)
         try:
-            handle, temporary = tempfile.mkstemp(prefix=f".{path.name}.", suffix=path.suffix or default_suffix,
-                                                 dir=folder)
+            handle, temporary = tempfile.mkstemp(prefix=f"{_temporary_prefix(path.name)}{os.getpid()}-",
+                                                 suffix=suffix, dir=folder)
         except OSError as error:
             raise OSError(error.errno, f"cannot write {path}: {error.strerror}") from None
         os.close(handle)
@@ -142,6 +148,40 @@ class OutputFiles:
             raise OSError(error.errno, f"cannot write {path}: cannot create folder {folder} ({error.strerror})") from None
         self._created_folders.extend(reversed(missing))  # outermost first
         return folder
+
+
+def _temporary_prefix(name: str) -> str:
+    return f".{name}.oed-"
+
+
+def _process_alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except (PermissionError, OSError):
+        return True  # someone else's process, or cannot tell: keep its file
+    return True
+
+
+def remove_stale_temporaries(folder: Path, name: str, suffix: str) -> list[Path]:
+    """Remove the staged files of ``name`` left in ``folder`` by runs whose process is gone; return them."""
+    prefix = _temporary_prefix(name)
+    removed = []
+    try:
+        entries = list(os.scandir(folder))
+    except OSError:
+        return removed
+    for entry in entries:
+        if not (entry.name.startswith(prefix) and entry.name.endswith(suffix)):
+            continue
+        pid_text = entry.name[len(prefix):].split("-", 1)[0]
+        if not pid_text.isdigit() or int(pid_text) == os.getpid() or _process_alive(int(pid_text)):
+            continue
+        with contextlib.suppress(OSError):
+            os.unlink(entry.path)
+            removed.append(Path(entry.path))
+    return removed
 
 
 @contextlib.contextmanager

@@ -3,13 +3,18 @@
 Two differentiation methods, each a small frozen object with ``apply(measurements)``:
 
 * :class:`FourierDifferentiation` — for periodic excitation (PUMA paper, section IV): average the
-  measured periods (noise on every channel drops by ``√periods``), fit the finite Fourier series
-  of eq. 18 to the averaged positions by linear least squares, and take ``q, dq, ddq``
-  analytically from the fit.
+  measured periods when the record holds two or more whole periods of a whole number of samples
+  (noise on every channel drops by ``√periods``), fit the finite Fourier series of eq. 18 to the
+  positions by linear least squares on their time stamps (any fundamental, any record of at least
+  one period), and take ``q, dq, ddq`` analytically from the fit.
 * :class:`ButterworthDifferentiation` — for any motion: zero-phase Butterworth low-pass
   (``filtfilt``) of the positions, central differences for ``dq`` and ``ddq``, and the same
   filter on the torques and wrench so that both sides of ``Y θ = τ`` see the same delay-free
   attenuation.
+
+Both keep the torques and wrench as recorded beside the filtered or averaged ones
+(``Measurements.recorded``, with the derived motion at the recorded instants): errors are
+measured against the recording.
 
 :func:`fill_derivatives` applies one of them when ``dq`` or ``ddq`` is missing; :func:`decimate`
 low-passes every channel and keeps one sample in ``factor``; :func:`compensate_hold` aligns derived
@@ -20,14 +25,19 @@ from __future__ import annotations
 
 import warnings
 from dataclasses import dataclass, replace
-from typing import Protocol
+from typing import Literal, Protocol
 
 import numpy as np
 import scipy.signal
 from numpy.typing import NDArray
 
 from estimation.measurements import Measurements
-from oed.fourier import FourierTrajectory
+from estimation.fourier_series import FourierSeries, fit_series
+
+#: period averaging: ``auto`` averages when there are two or more whole periods of a whole number of samples
+AverageChoice = Literal["auto", "yes", "no"]
+#: the edges trimmed after a zero-phase filter: its impulse response there is below this fraction of its peak
+SETTLING_FRACTION = 1e-2
 
 
 class Differentiation(Protocol):
@@ -82,52 +92,76 @@ def average_periods(measurements: Measurements, frequency_hz: float) -> Measurem
     )
 
 
-def fit_fourier(t: NDArray[np.float64], q: NDArray[np.float64], frequency_hz: float, harmonics: int) -> FourierTrajectory:
-    """Least-squares fit of the finite Fourier series of eq. 18 (PUMA paper) to positions ``q (T, n)``.
+def fit_fourier(t: NDArray[np.float64], q: NDArray[np.float64], frequency_hz: float, harmonics: int) -> FourierSeries:
+    """Least-squares fit of the finite Fourier series of eq. 18 (PUMA paper) to positions ``q (T, n)``
+    on their time stamps ``t`` (:func:`estimation.fourier_series.fit_series`)."""
+    return fit_series(t, q, frequency_hz, harmonics)[0]
 
-    The series is linear in ``(q0, a, b)``: ``q = q0 + (sin ω_l t / ω_l) a_l − (cos ω_l t / ω_l) b_l``.
-    """
-    t = np.asarray(t, dtype=float)
-    if harmonics < 1:
-        raise ValueError(f"harmonics must be at least 1, got {harmonics}")
-    if t.shape[0] < 2 * harmonics + 1:
-        raise ValueError(f"{t.shape[0]} samples cannot determine {2 * harmonics + 1} Fourier coefficients per joint")
-    omega = 2 * np.pi * frequency_hz * np.arange(1, harmonics + 1)
-    phase = np.outer(t, omega)
-    design = np.hstack([np.ones((t.shape[0], 1)), np.sin(phase) / omega, -np.cos(phase) / omega])
-    coefficients, *_ = np.linalg.lstsq(design, q, rcond=None)  # (2N+1, n)
-    return FourierTrajectory(
-        frequency_hz, coefficients[0], coefficients[1 : 1 + harmonics].T, coefficients[1 + harmonics :].T
-    )
+
+def whole_periods(measurements: Measurements, frequency_hz: float) -> tuple[int, int] | None:
+    """``(periods, samples per period)`` when a period is a whole number of samples (to 1e-6), else ``None``."""
+    rate = sampling_rate(measurements.t)
+    per_period = rate / frequency_hz
+    samples = int(round(per_period))
+    if samples < 1 or abs(per_period - samples) > 1e-6 * per_period:
+        return None
+    return measurements.n_samples // samples, samples
 
 
 @dataclass(frozen=True)
 class FourierDifferentiation:
-    """Period averaging and analytic derivatives of a Fourier fit (periodic excitation).
+    """Analytic derivatives of a Fourier fit (periodic excitation), after period averaging if chosen.
 
     Attributes
     ----------
     frequency_hz
-        Fundamental frequency of the excitation (0.2 Hz in the PUMA paper).
+        Fundamental frequency of the excitation (0.2 Hz in the PUMA paper); any value.
     harmonics
         Harmonics of the fit (5 in the paper); more than the excitation's is harmless.
     average
-        Average whole periods first (the torques and wrench too).
+        ``"auto"`` (default): average the whole periods first (the torques and wrench too) when
+        there are two or more and a period is a whole number of samples, else fit every sample on
+        its time stamp; ``"yes"`` (or ``True``): average, an error when it cannot; ``"no"``
+        (``False``): fit every sample.
     """
 
     frequency_hz: float
     harmonics: int = 5
-    average: bool = True
+    average: AverageChoice | bool = "auto"
 
     def __post_init__(self) -> None:
         if not (np.isfinite(self.frequency_hz) and self.frequency_hz > 0):
             raise ValueError(f"frequency_hz must be positive, got {self.frequency_hz}")
         if int(self.harmonics) != self.harmonics or self.harmonics < 1:
             raise ValueError(f"harmonics must be a positive integer, got {self.harmonics}")
+        if self.average not in ("auto", "yes", "no", True, False):
+            raise ValueError(f"average must be 'auto', 'yes' or 'no', got {self.average!r}")
+
+    def averages(self, measurements: Measurements) -> bool:
+        """Whether the periods of ``measurements`` are averaged (``ValueError`` for ``yes`` when they cannot be)."""
+        choice = {True: "yes", False: "no"}.get(self.average, self.average) if isinstance(self.average, bool) \
+            else self.average
+        if choice == "no":
+            return False
+        periods = whole_periods(measurements, self.frequency_hz)
+        if choice == "yes":
+            if periods is None:
+                average_periods(measurements, self.frequency_hz)  # raises, naming the rate
+            return True
+        return periods is not None and periods[0] >= 2
 
     def apply(self, measurements: Measurements) -> Measurements:
-        if self.average:
+        duration = measurements.t[-1] - measurements.t[0] + (measurements.t[1] - measurements.t[0])
+        if duration * self.frequency_hz < 1 - 1e-9:
+            raise ValueError(f"{measurements.n_samples} samples ({duration:.4g} s) hold less than one period of "
+                             f"{self.frequency_hz:g} Hz: the Fourier fit is not determined (use a cut-off instead)")
+        raw = measurements
+        averaged = self.averages(measurements)
+        if averaged:
             measurements = average_periods(measurements, self.frequency_hz)
+            kept = raw.select(slice(0, measurements.metadata["periods_averaged"] * measurements.n_samples))
+        else:
+            kept = raw
         nyquist = 0.5 * sampling_rate(measurements.t)
         if self.harmonics * self.frequency_hz >= nyquist:
             raise ValueError(f"{self.harmonics} harmonics of {self.frequency_hz:g} Hz reach the Nyquist frequency {nyquist:.6g} Hz")
@@ -135,7 +169,13 @@ class FourierDifferentiation:
         q, dq, ddq = fit.evaluate(measurements.t)
         rms = np.sqrt(np.mean((measurements.q - q) ** 2, axis=0))
         metadata = dict(measurements.metadata, differentiation="fourier", fourier_fit=fit.to_dict(), fit_rms=rms.tolist())
-        return replace(measurements, q=q, dq=dq, ddq=ddq, metadata=metadata)
+        if not averaged:
+            metadata["periods_averaged"] = 0
+        recorded = None
+        if averaged:  # the recorded channels of every period kept, the fit's motion at their instants
+            q_kept, dq_kept, ddq_kept = fit.evaluate(kept.t)
+            recorded = replace(kept, q=q_kept, dq=dq_kept, ddq=ddq_kept, metadata=dict(metadata), recorded=None)
+        return replace(measurements, q=q, dq=dq, ddq=ddq, metadata=metadata, recorded=recorded)
 
 
 @dataclass(frozen=True)
@@ -150,10 +190,13 @@ class ButterworthDifferentiation:
         the noise), capped at 0.8 × Nyquist.
     order
         Filter order (``filtfilt`` doubles it and cancels the phase).
+    trim
+        Drop the edges where the filter has not settled (:meth:`settling_samples` at each end).
     """
 
     cutoff_hz: float | None = None
     order: int = 4
+    trim: bool = False
 
     def __post_init__(self) -> None:
         if self.cutoff_hz is not None and not (np.isfinite(self.cutoff_hz) and self.cutoff_hz > 0):
@@ -174,9 +217,28 @@ class ButterworthDifferentiation:
             return float(self.cutoff_hz)
         return min(5.0 * motion_bandwidth(measurements.q, rate), 0.8 * nyquist)
 
+    def settling_samples(self, rate: float, cutoff: float) -> int:
+        """Samples after which the zero-phase (forward-backward) impulse response of the filter stays
+        below :data:`SETTLING_FRACTION` of its peak: what ``filtfilt`` smears at each edge of a record."""
+        sos = scipy.signal.butter(self.order, cutoff, btype="low", fs=rate, output="sos")
+        length = int(np.ceil(40 * rate / cutoff)) + 1
+        impulse = np.zeros(length)
+        impulse[0] = 1.0
+        forward = scipy.signal.sosfilt(sos, impulse)
+        response = np.abs(np.correlate(forward, forward, mode="full")[length - 1:])  # centred at lag 0
+        return int(np.flatnonzero(response > SETTLING_FRACTION * response.max())[-1]) + 1
+
     def apply(self, measurements: Measurements) -> Measurements:
         rate = sampling_rate(measurements.t)
-        cutoff = self.cutoff(measurements)
+        given = self.cutoff_hz is not None and self.cutoff_hz < 0.5 * rate
+        cutoff = float(self.cutoff_hz) if given else self.cutoff(measurements)  # the length check first
+        trim = self.settling_samples(rate, cutoff) if self.trim else 0
+        if self.trim and measurements.n_samples < 4 * trim:
+            raise ValueError(f"{measurements.n_samples} samples ({measurements.n_samples / rate:.4g} s) are too few for "
+                             f"the {cutoff:.4g} Hz filter: it settles in {trim / rate:.3g} s at each edge, trimmed; "
+                             f"need at least {4 * trim} samples")
+        if given:
+            self.cutoff(measurements)  # the cut-off against the record's length
         sos = scipy.signal.butter(self.order, cutoff, btype="low", fs=rate, output="sos")
         padding = min(measurements.n_samples - 1, 3 * (2 * len(sos) + 1) * 10)
 
@@ -186,11 +248,15 @@ class ButterworthDifferentiation:
         q = smooth(measurements.q)
         dq = smooth(measurements.dq) if measurements.dq is not None else np.gradient(q, measurements.t, axis=0)
         ddq = smooth(measurements.ddq) if measurements.ddq is not None else np.gradient(dq, measurements.t, axis=0)
-        metadata = dict(measurements.metadata, differentiation="butterworth", cutoff_hz=cutoff, filter_order=self.order)
-        return replace(
+        metadata = dict(measurements.metadata, differentiation="butterworth", cutoff_hz=cutoff, filter_order=self.order,
+                        trimmed_s=trim / rate)
+        filtered = replace(
             measurements, q=q, dq=dq, ddq=ddq, tau=smooth(measurements.tau), wrench=smooth(measurements.wrench),
-            metadata=metadata,
+            metadata=metadata, recorded=None,
         )
+        recorded = replace(filtered, tau=measurements.tau, wrench=measurements.wrench)  # the recording, same motion
+        filtered = replace(filtered, recorded=recorded)
+        return filtered.select(slice(trim, measurements.n_samples - trim)) if trim else filtered
 
 
 def motion_bandwidth(q: NDArray[np.float64], rate: float, fraction: float = 0.999) -> float:
@@ -222,9 +288,19 @@ def decimate(measurements: Measurements, factor: int, *, order: int = 8) -> Meas
         return None if values is None else scipy.signal.sosfiltfilt(sos, values, axis=0)[::factor]
 
     metadata = dict(measurements.metadata, decimation=int(factor))
+    recorded = measurements.recorded
+    if recorded is not None:  # the motion decimated alike, the recorded channels sampled as they are
+        motion = decimate(replace(recorded, recorded=None), factor, order=order)
+        recorded = replace(motion, tau=None if recorded.tau is None else recorded.tau[::factor],
+                           wrench=None if recorded.wrench is None else recorded.wrench[::factor])
+    elif measurements.tau is not None or measurements.wrench is not None:
+        recorded = replace(measurements, q=reduce(measurements.q), dq=reduce(measurements.dq), ddq=reduce(measurements.ddq),
+                           t=measurements.t[::factor], tau=None if measurements.tau is None else measurements.tau[::factor],
+                           wrench=None if measurements.wrench is None else measurements.wrench[::factor],
+                           metadata=metadata, recorded=None)
     return Measurements(
         measurements.t[::factor], reduce(measurements.q), reduce(measurements.dq), reduce(measurements.ddq),
-        reduce(measurements.tau), reduce(measurements.wrench), metadata,
+        reduce(measurements.tau), reduce(measurements.wrench), metadata, recorded,
     )
 
 
@@ -254,8 +330,9 @@ def compensate_hold(measurements: Measurements) -> Measurements:
         return (values + following) / 2
 
     metadata = dict(measurements.metadata, hold_compensated=True)
+    recorded = None if measurements.recorded is None else compensate_hold(measurements.recorded)
     return replace(measurements, q=later(measurements.q), dq=later(measurements.dq), ddq=later(measurements.ddq),
-                   metadata=metadata)
+                   metadata=metadata, recorded=recorded)
 
 
 def fill_derivatives(

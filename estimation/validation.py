@@ -8,7 +8,7 @@ predicted curves (Figs. 7–9).
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -17,6 +17,7 @@ from numpy.typing import ArrayLike, NDArray
 from dynamics.models import IdentificationModel
 from estimation.measurements import Measurements
 from estimation.output_files import save_figure
+from estimation.segments import segment_slices
 
 
 @dataclass(frozen=True)
@@ -33,6 +34,11 @@ class Comparison:
         Channel names, as the data columns.
     label
         What was compared (``train``, ``validation``, a file name…).
+    filtered
+        When ``measured`` is the recording and the estimation saw filtered or period-averaged
+        channels: the same comparison on those (``mse_filtered``), else ``None``.
+    segments
+        Sample ranges of the segments stacked here (plots break their lines there).
     """
 
     t: NDArray[np.float64]
@@ -40,6 +46,8 @@ class Comparison:
     predicted: NDArray[np.float64]
     channels: tuple[str, ...]
     label: str = ""
+    filtered: Comparison | None = None
+    segments: tuple[slice, ...] = ()
 
     @property
     def residuals(self) -> NDArray[np.float64]:
@@ -49,6 +57,18 @@ class Comparison:
     def mse(self) -> dict[str, float]:
         """Mean squared error per channel (Tables VI–VIII of the PUMA paper)."""
         return channel_mse(self.measured, self.predicted, self.channels)
+
+    @property
+    def mse_filtered(self) -> dict[str, float] | None:
+        """MSE against the filtered/averaged channels the estimation saw (``None`` when it saw the recording)."""
+        return None if self.filtered is None else self.filtered.mse
+
+    def to_dict(self) -> dict[str, dict[str, float]]:
+        """``{mse}`` (against the recording) and, when there is one, ``{mse_filtered}``."""
+        document = {"mse": self.mse}
+        if self.filtered is not None:
+            document["mse_filtered"] = self.filtered.mse
+        return document
 
     @property
     def relative_mse(self) -> dict[str, float]:
@@ -68,11 +88,22 @@ def channel_mse(measured: ArrayLike, predicted: ArrayLike, channels: Sequence[st
 
 def compare(model: IdentificationModel, theta: ArrayLike, measurements: Measurements, *, label: str = "") -> Comparison:
     """Predict ``model``'s channels with parameters ``theta`` (base ``r`` or standard ``p`` values)
-    along the measured motion and pair them with the measured channels."""
+    along the measured (or derived) motion and pair them with the channels **as recorded**
+    (``measurements.recorded`` when preprocessing filtered or averaged them; the comparison with
+    the filtered channels is kept as ``filtered``)."""
     if measurements.dq is None or measurements.ddq is None:
         raise ValueError("the measurements lack dq/ddq: derive them first (estimation.preprocessing.fill_derivatives)")
+    filtered = _compare_as_is(model, theta, measurements, label)
+    if measurements.recorded is None:
+        return filtered
+    recorded = _compare_as_is(model, theta, measurements.recorded, label)
+    return replace(recorded, filtered=filtered)
+
+
+def _compare_as_is(model: IdentificationModel, theta: ArrayLike, measurements: Measurements, label: str) -> Comparison:
     predicted = model.predict(theta, measurements.q, measurements.dq, measurements.ddq)
-    return Comparison(measurements.t, measurements.channels(model.channels), predicted, model.channels, label)
+    return Comparison(measurements.t, measurements.channels(model.channels), predicted, model.channels, label,
+                      segments=tuple(segment_slices(measurements)))
 
 
 def plot_comparison(comparisons: Comparison | Sequence[Comparison], path: str | Path | None = None, *, title: str = ""):
@@ -97,11 +128,17 @@ def plot_comparison(comparisons: Comparison | Sequence[Comparison], path: str | 
         mse = comparison.mse
         for row, channel in enumerate(channels):
             axis = axes[row, column]
-            axis.plot(comparison.t, comparison.measured[:, row], color="0.55", linewidth=0.8, label="measured")
-            axis.plot(comparison.t, comparison.predicted[:, row], color="C3", linewidth=1.0, label="predicted")
+            measured_label = "measured (as recorded)" if comparison.filtered is not None else "measured"
+            for number, part in enumerate(comparison.segments or (slice(None),)):
+                axis.plot(comparison.t[part], comparison.measured[part, row], color="0.55", linewidth=0.8,
+                          label=measured_label if number == 0 else None)
+                axis.plot(comparison.t[part], comparison.predicted[part, row], color="C3", linewidth=1.0,
+                          label="predicted" if number == 0 else None)
             axis.set_ylabel(f"{channel} [{units[channel]}]")
-            axis.text(0.99, 0.95, f"MSE {mse[channel]:.3g}", transform=axis.transAxes, ha="right", va="top", fontsize=8)
-        axes[0, column].set_title(comparison.label)
+            axis.text(0.99, 0.95, f"MSE vs recorded {mse[channel]:.3g}" if comparison.filtered is not None
+                      else f"MSE {mse[channel]:.3g}", transform=axis.transAxes, ha="right", va="top", fontsize=8)
+        segments = len(comparison.segments)
+        axes[0, column].set_title(comparison.label + (f" ({segments} segments, t of each)" if segments > 1 else ""))
         axes[-1, column].set_xlabel("t [s]")
     axes[0, 0].legend(loc="upper left", fontsize=8)
     if title:

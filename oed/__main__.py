@@ -2,6 +2,10 @@
 
 import sys
 
-from oed.cli import main
+try:
+    from oed.cli import main
+except KeyboardInterrupt:  # Ctrl-C while Python imports the command line: one line, no traceback
+    print("oed: interrupted", file=sys.stderr)
+    sys.exit(130)
 
 sys.exit(main())

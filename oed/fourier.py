@@ -25,6 +25,7 @@ import casadi
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from estimation.fourier_series import evaluate_series
 from estimation.output_files import atomic_output, json_text
 
 
@@ -91,14 +92,7 @@ class FourierTrajectory:
 
     def evaluate(self, t: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
         """``q, dq, ddq`` at times ``t``, each ``(len(t), n)`` (eq. 18)."""
-        t = np.asarray(t, dtype=float).reshape(-1)
-        omega = 2 * np.pi * self.frequency_hz * np.arange(1, self.harmonics + 1)  # (N,)
-        phase = np.outer(t, omega)  # (T, N)
-        sin, cos = np.sin(phase), np.cos(phase)
-        q = self.q0 + (sin / omega) @ self.a.T - (cos / omega) @ self.b.T
-        dq = cos @ self.a.T + sin @ self.b.T
-        ddq = (-sin * omega) @ self.a.T + (cos * omega) @ self.b.T
-        return q, dq, ddq
+        return evaluate_series(self.frequency_hz, self.q0, self.a, self.b, t)
 
     def sample(self, rate_hz: float = 1000.0, periods: int = 1) -> tuple[NDArray[np.float64], ...]:
         """``t, q, dq, ddq`` on a uniform grid over whole periods (end point excluded)."""

@@ -28,6 +28,8 @@ VERB_MODULES: tuple[str, ...] = ("model", "design", "simulate", "identify", "apr
 
 EXIT_USER_ERROR = 2
 EXIT_INTERNAL_ERROR = 1
+#: Ctrl-C (128 + SIGINT, as shells report it)
+EXIT_INTERRUPTED = 130
 #: set to show the traceback of an internal error
 TRACEBACK_VARIABLE = "OED_TRACEBACK"
 
@@ -49,7 +51,11 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``oed`` console script."""
-    parser = build_parser()
+    try:
+        parser = build_parser()  # imports every verb (numpy, CasADi, Pinocchio): the first seconds of a run
+    except KeyboardInterrupt:
+        print("oed: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
     args = parser.parse_args(argv)
     try:
         check_paths(args, args.derived_outputs)  # before any work: no output over an input or another output
@@ -65,7 +71,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         return EXIT_USER_ERROR
     except KeyboardInterrupt:
         print(f"oed {args.verb}: interrupted", file=sys.stderr)
-        return 130
+        return EXIT_INTERRUPTED
     except Exception as error:  # a bug rather than bad input: still one readable line, not a bare traceback
         print(f"oed {args.verb}: internal error: {error.__class__.__name__}: {error} "
               f"(a bug; set {TRACEBACK_VARIABLE}=1 to see the traceback)", file=sys.stderr)

@@ -11,7 +11,7 @@ from dynamics.models import ModelKind, build_model
 from estimation.diagnosis import diagnose
 from estimation.diagnosis_report import markdown_report, plot_residuals
 from oed.cli.common import OutputFiles, add_robot_arguments, json_text, robot_from_arguments
-from oed.cli.identify import add_derivative_arguments, differentiation, prepare
+from oed.cli.identify import add_data_arguments, add_derivative_arguments, differentiation, prepare_data, print_warnings
 
 
 def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -25,11 +25,12 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     add_robot_arguments(parser)
     parser.add_argument("--model", choices=[kind.value for kind in ModelKind], default="internal")
     parser.add_argument("--friction", default="viscous", help="declared effects (default: viscous)")
-    parser.add_argument("--data", type=Path, required=True, help="training data (.csv or .parquet)")
-    parser.add_argument("--validate", type=Path, required=True, help="held-out data from another experiment")
+    add_data_arguments(parser, validate_required=True)
     parser.add_argument("--out", type=Path, required=True, help="report JSON")
     parser.add_argument("--report", type=Path, help="Markdown report (a residual figure is written beside it)")
     parser.add_argument("--alpha", type=float, default=1e-3, help="significance level of the F test (default 1e-3)")
+    parser.add_argument("--max-effects", type=int, default=10, metavar="N",
+                        help="add at most N effects (default 10); the output says when the cap stopped the search")
     add_derivative_arguments(parser)
     return parser
 
@@ -45,28 +46,40 @@ def derived_outputs(args: argparse.Namespace) -> dict[str, Path]:
 
 
 def run(args: argparse.Namespace) -> int:
-    if args.data.expanduser().resolve() == args.validate.expanduser().resolve():
-        raise ValueError(f"--validate is --data ({args.data}): diagnose confirms every effect on held-out data "
-                         "from another experiment")
+    training = {path.expanduser().resolve(): path for path in args.data}
+    for path in args.validate:
+        if path.expanduser().resolve() in training:
+            raise ValueError(f"--validate is --data ({path}): diagnose confirms every effect on held-out data "
+                             "from another experiment")
+    if isinstance(args.max_effects, bool) or args.max_effects < 1:
+        raise ValueError(f"--max-effects must be a positive integer, got {args.max_effects}")
     differentiation(args)  # contradicting derivative options are an error even when the data hold dq, ddq
     robot = robot_from_arguments(args)
     model = build_model(robot, args.model, args.friction)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        train = prepare(args.data, model, args)
-        validate = prepare(args.validate, model, args)
-        diagnosis = diagnose(model, train, validate, alpha=args.alpha)
-    for message in dict.fromkeys(str(warning.message) for warning in caught):  # once each, in order
-        print(f"oed diagnose: warning: {message}", file=sys.stderr)
+        train, validate, preprocessing = prepare_data(model, args)
+        diagnosis = diagnose(model, train, validate, alpha=args.alpha, max_effects=args.max_effects)
+    print_warnings("diagnose", caught)
+    document = diagnosis.to_dict()
+    document["preprocessing"] = preprocessing.to_dict()
+    document["max_effects"] = args.max_effects
+    document["max_effects_reached"] = len(diagnosis.effects) >= args.max_effects
     with OutputFiles() as outputs:  # all files or none
         with outputs.open(args.out) as stream:
-            stream.write(json_text(diagnosis.to_dict()))
+            stream.write(json_text(document))
         if args.report is not None:
             figure = residual_figure(args.report)
             plot_residuals(diagnosis, train, outputs.stage_figure(figure))
             with outputs.open(args.report) as stream:
-                stream.write(markdown_report(diagnosis, figure.name))
+                stream.write(markdown_report(diagnosis, figure.name) + f"\n{preprocessing.describe()[0].upper()}"
+                             f"{preprocessing.describe()[1:]}; validation MSEs against the recorded channels.\n")
+    print(preprocessing.describe())
     print_summary(diagnosis)
+    if len(diagnosis.effects) >= args.max_effects:
+        untested = sum(rejected.reason.startswith("not tested") for rejected in diagnosis.rejected)
+        print(f"stopped at --max-effects {args.max_effects}: {untested} candidate(s) not tested; raise --max-effects "
+              "to test them")
     print(f"wrote {args.out}" + (f" and {args.report}" if args.report else ""))
     return 0
 
@@ -80,6 +93,7 @@ def print_summary(diagnosis) -> None:
     else:
         print("found nothing: the declared model explains the data")
     before, after = diagnosis.before.validation.mse, diagnosis.after.validation.mse
-    print("validation MSE   " + "  ".join(f"{channel:>9s}" for channel in before))
+    print("validation MSE vs recorded")
+    print("                 " + "  ".join(f"{channel:>9s}" for channel in before))
     print("  before         " + "  ".join(f"{value:9.4g}" for value in before.values()))
     print("  after          " + "  ".join(f"{after[channel]:9.4g}" for channel in before))

@@ -9,9 +9,11 @@ from pathlib import Path
 
 from dynamics.models import ModelKind, build_model
 from estimation.identification import identify
-from estimation.loading import read_measurements
+from estimation.record_loading import read_record
+from estimation.log_cleaning import DEFAULT_MAX_GAP
 from estimation.measurements import Measurements
-from estimation.preprocessing import ButterworthDifferentiation, Differentiation, FourierDifferentiation, fill_derivatives
+from estimation.preprocessing import ButterworthDifferentiation, Differentiation, FourierDifferentiation
+from estimation.preprocessing_plan import Preprocessing, check_frequency, choose_preprocessing, prepare
 from estimation.validation import plot_comparison
 from oed.cli.common import OutputFiles, add_robot_arguments, check_figure_path, json_text, robot_from_arguments
 
@@ -30,8 +32,7 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
         "--friction", default="viscous",
         help="extra columns, comma-separated: viscous, coulomb, offset, armature, wrench_offset (default: viscous; 'none')",
     )
-    parser.add_argument("--data", type=Path, required=True, help="identification data (.csv or .parquet)")
-    parser.add_argument("--validate", type=Path, help="validation data from another trajectory")
+    add_data_arguments(parser, validate_required=False)
     parser.add_argument("--out", type=Path, required=True, help="result JSON file")
     parser.add_argument("--plot", type=Path, help="figure of measured vs predicted channels (.png, .pdf, .svg)")
     parser.add_argument("--method", choices=("wls", "ols"), default="wls",
@@ -40,13 +41,30 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     return parser
 
 
+def add_data_arguments(parser: argparse.ArgumentParser, *, validate_required: bool) -> None:
+    """``--data`` and ``--validate`` (each repeatable: the segments of one record) and ``--max-gap``."""
+    parser.add_argument("--data", type=Path, required=True, action="append",
+                        help="identification data (.csv or .parquet); repeat for several segments (files), each "
+                             "preprocessed on its own and stacked")
+    parser.add_argument("--validate", type=Path, required=validate_required, action="append",
+                        help="validation data from another trajectory; repeatable like --data")
+    parser.add_argument("--max-gap", type=float, default=DEFAULT_MAX_GAP, metavar="SECONDS",
+                        help=f"longest logger stall bridged by interpolation (default {DEFAULT_MAX_GAP:g} s); a longer "
+                             "hole splits a --data file into segments (and is an error in a --validate file)")
+
+
 def add_derivative_arguments(parser: argparse.ArgumentParser) -> None:
     """``--frequency/--harmonics`` (Fourier fit) or ``--cutoff`` (Butterworth), and ``--decimate``."""
     derivatives = parser.add_argument_group("derivatives (only when dq/ddq columns are absent)")
-    derivatives.add_argument("--frequency", type=float, help="periodic excitation: fundamental frequency, Hz "
-                             "(average the periods, Fourier-fit the positions)")
-    derivatives.add_argument("--harmonics", type=int, default=5, help="harmonics of the Fourier fit (default: 5, the paper's; "
-                             "records of a robot under feedback want about three times the reference's)")
+    derivatives.add_argument("--frequency", type=float, help="periodic excitation: fundamental frequency, Hz, any "
+                             "value (Fourier fit of the positions on their time stamps; checked against the period "
+                             "the data show). Default: detected when the positions repeat, else a filter")
+    derivatives.add_argument("--average-periods", choices=("auto", "yes", "no"), default="auto",
+                             help="average whole periods before the Fourier fit: auto (default) when there are two or "
+                                  "more and a period is a whole number of samples, else fit every sample")
+    derivatives.add_argument("--harmonics", type=int, help="harmonics of the Fourier fit (default: 5, the paper's, with "
+                             "--frequency; 15 for a detected frequency; records of a robot under feedback want about "
+                             "three times the reference's)")
     derivatives.add_argument("--cutoff", type=float, help="otherwise: Butterworth cut-off, Hz (default: automatic)")
     derivatives.add_argument("--decimate", type=int, default=1, help="keep one sample in K after low-pass filtering")
     derivatives.add_argument("--held-torques", action="store_true",
@@ -58,14 +76,43 @@ def differentiation(args: argparse.Namespace) -> Differentiation:
     if args.frequency is not None and args.cutoff is not None:
         raise ValueError("give --frequency (Fourier fit of periodic data) or --cutoff (Butterworth filter), not both")
     if args.frequency is not None:
-        return FourierDifferentiation(args.frequency, args.harmonics)
+        return FourierDifferentiation(args.frequency, 5 if args.harmonics is None else args.harmonics,
+                                      args.average_periods)
     return ButterworthDifferentiation(args.cutoff)
 
 
-def prepare(path: Path, model, args: argparse.Namespace) -> Measurements:
-    measurements = read_measurements(path, model=model)
-    method = None if measurements.dq is not None and measurements.ddq is not None else differentiation(args)
-    return fill_derivatives(measurements, method, decimation=args.decimate, held_torques=args.held_torques)
+def read_segments(paths: list[Path], model, args: argparse.Namespace, *, split: bool) -> tuple[Measurements, ...]:
+    """The segments of every file (a hole splits a file when ``split``, else it is an error)."""
+    segments: list[Measurements] = []
+    for path in paths:
+        segments.extend(read_record(path, model=model, max_gap=args.max_gap, split=split))
+    return tuple(segments)
+
+
+def prepare_data(model, args: argparse.Namespace) -> tuple[Measurements, Measurements | None, Preprocessing]:
+    """Training and validation records read, one preprocessing chosen on the training data, both prepared."""
+    if not (args.max_gap > 0 and args.max_gap < float("inf")):
+        raise ValueError(f"--max-gap must be a positive number of seconds, got {args.max_gap}")
+    train = read_segments(args.data, model, args, split=True)
+    validate = None if not args.validate else read_segments(args.validate, model, args, split=False)
+    preprocessing = choose_preprocessing(
+        train, frequency_hz=args.frequency, harmonics=args.harmonics, cutoff_hz=args.cutoff,
+        average_periods=args.average_periods, decimation=args.decimate, held_torques=args.held_torques)
+    if preprocessing.method == "measured" and args.held_torques:
+        warnings.warn("held torques: nothing to align, the data hold measured dq and ddq", stacklevel=2)
+    prepared_train = prepare(train, preprocessing, role="training data")
+    prepared_validate = None
+    if validate is not None:
+        if preprocessing.method == "fourier":
+            check_frequency(validate, preprocessing.frequency_hz)
+        prepared_validate = prepare(validate, preprocessing, role="validation data")
+    return prepared_train, prepared_validate, preprocessing
+
+
+def print_warnings(verb: str, caught) -> None:
+    """Each warning once, in order, on stderr."""
+    for message in dict.fromkeys(str(warning.message) for warning in caught):
+        print(f"oed {verb}: warning: {message}", file=sys.stderr)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -75,11 +122,9 @@ def run(args: argparse.Namespace) -> int:
     model = build_model(robot, args.model, args.friction)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        train = prepare(args.data, model, args)
-        validation = None if args.validate is None else prepare(args.validate, model, args)
+        train, validation, preprocessing = prepare_data(model, args)
         result = identify(model, train, validation, weighted=args.method == "wls")
-    for warning in caught:
-        print(f"oed identify: warning: {warning.message}", file=sys.stderr)
+    print_warnings("identify", caught)
     with OutputFiles() as outputs:  # all files or none
         with outputs.open(args.out) as stream:
             stream.write(json_text(result.to_dict()))
@@ -89,6 +134,7 @@ def run(args: argparse.Namespace) -> int:
                             title=f"{robot.name}: {model.kind.value} model ({args.method})")
 
     estimate = result.estimate
+    print(preprocessing.describe())
     print(f"{robot.name}: {model.kind.value} model, {model.n_base} base parameters, {train.n_samples} samples, "
           f"{estimate.method.upper()}, cond {estimate.cond:.4g}")
     width = max(len(name) for name in estimate.names)
@@ -97,6 +143,9 @@ def run(args: argparse.Namespace) -> int:
         print(f"  {record['name']:<{width}}  {record['value']:+.5g} ± {record['std']:.2g}  ({relative:.3g} %)")
     for label, comparison in (("train", result.train), ("validation", result.validation)):
         if comparison is not None:
-            print(f"{label} MSE: " + "  ".join(f"{channel} {value:.4g}" for channel, value in comparison.mse.items()))
+            print(f"{label} MSE (vs recorded): " + "  ".join(f"{channel} {value:.4g}" for channel, value in comparison.mse.items()))
+            if comparison.mse_filtered is not None:
+                print(f"{label} MSE (vs filtered): " + "  ".join(
+                    f"{channel} {value:.4g}" for channel, value in comparison.mse_filtered.items()))
     print(f"wrote {args.out}" + (f" and {args.plot}" if args.plot else ""))
     return 0

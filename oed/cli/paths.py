@@ -32,11 +32,13 @@ def _named_paths(args: argparse.Namespace) -> dict[str, tuple[str, Path]]:
             value = getattr(args, option, None)
             if value is None:
                 continue
-            if not str(value).strip():
-                raise ValueError(f"{_flag(option)} is empty: give a file name")
-            if role == "output" and option not in folders and Path(value).is_dir():  # Path("") is "."
-                raise ValueError(f"{_flag(option)} {value} is a folder: give a file name")
-            named[_flag(option)] = (role, Path(value))
+            values = value if isinstance(value, (list, tuple)) else [value]  # repeatable options (--data a --data b)
+            for number, value in enumerate(values, start=1):
+                if not str(value).strip():
+                    raise ValueError(f"{_flag(option)} is empty: give a file name")
+                if role == "output" and option not in folders and Path(value).is_dir():  # Path("") is "."
+                    raise ValueError(f"{_flag(option)} {value} is a folder: give a file name")
+                named[_flag(option) + (f" #{number}" if len(values) > 1 else "")] = (role, Path(value))
         effect_values = getattr(args, "effect_values", None)  # JSON text or a file of it
         if role == "input" and effect_values and not effect_values.lstrip().startswith("{") \
                 and os.path.isfile(effect_values):

@@ -1,0 +1,183 @@
+"""Bad input of real logs (issue 14): a named error, exit 2, nothing written; and the audit's list."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from dynamics.errors import RobotDescriptionError
+from dynamics.models import build_model
+from dynamics.robots import load_robot
+from estimation.loading import AbsurdValueError, HoleError, ParquetSupportError, read_measurements
+from estimation.record_loading import read_record
+from estimation.output_files import OutputFiles
+from oed.cli import main
+from tests.synthetic import random_fourier, simulate, true_parameters
+
+NOISE = {"tau1": 0.5, "tau2": 0.5, "tau3": 0.2}
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory):
+    robot = load_robot("puma560", joints=3)
+    model = build_model(robot, "internal", "viscous")
+    theta = true_parameters(model, seed=2)
+    folder = tmp_path_factory.mktemp("bad")
+    for name, seed in (("train", 3), ("val", 4)):
+        data = simulate(model, theta, random_fourier(robot, seed), rate_hz=200.0, periods=2, noise=NOISE, seed=seed)
+        replace(data, dq=None, ddq=None).write(folder / f"{name}.csv")
+        data.write(folder / f"{name}_with_derivatives.csv")
+    return folder
+
+
+def identify(folder, *options):
+    out = folder / "result.json"
+    if out.exists():
+        out.unlink()
+    code = main(["identify", "--joints", "3", "--out", str(out), *options])
+    assert not out.exists() or code == 0
+    return code
+
+
+def test_a_segment_shorter_than_the_filter_needs(files, capsys):
+    frame = pd.read_csv(files / "train.csv")
+    frame.iloc[:60].to_csv(files / "short.csv", index=False)  # 0.3 s at 200 Hz
+    code = identify(files, "--data", str(files / "train.csv"), "--data", str(files / "short.csv"), "--cutoff", "2")
+    error = capsys.readouterr().err
+    assert code == 2 and "short.csv: 60 samples (0.3 s) are too few for the 2 Hz filter" in error, error
+
+
+def test_segments_with_different_column_sets(files, capsys):
+    code = identify(files, "--data", str(files / "train.csv"), "--data", str(files / "val_with_derivatives.csv"))
+    error = capsys.readouterr().err
+    assert code == 2 and "segments with different columns" in error and "dq, ddq, tau" in error, error
+
+
+def test_a_hole_inside_a_validation_file(files, capsys):
+    frame = pd.read_csv(files / "val.csv").drop(index=range(500, 900))  # 2 s without samples
+    frame.to_csv(files / "val_hole.csv", index=False)
+    code = identify(files, "--data", str(files / "train.csv"), "--validate", str(files / "val_hole.csv"),
+                    "--frequency", "0.2")
+    error = capsys.readouterr().err
+    assert code == 2 and "val_hole.csv: column t jumps by 2.005 s" in error and "split the record" in error, error
+    with pytest.raises(HoleError):
+        read_measurements(files / "val_hole.csv")
+    with pytest.warns(UserWarning, match="split into 2 segments"):
+        assert len(read_record(files / "val_hole.csv")) == 2  # as training data: two segments
+
+
+def test_parquet_without_pyarrow_is_a_named_error(files, monkeypatch, capsys):
+    pd.read_csv(files / "train.csv").to_parquet(files / "train.parquet")
+    import builtins
+
+    real_import = builtins.__import__
+
+    def no_pyarrow(name, *args, **kwargs):
+        if name == "pyarrow" or name.startswith("pyarrow."):
+            raise ImportError("No module named 'pyarrow'")
+        return real_import(name, *args, **kwargs)
+
+    monkeypatch.setattr(builtins, "__import__", no_pyarrow)
+    with pytest.raises(ParquetSupportError, match="pip install pyarrow"):
+        read_measurements(files / "train.parquet")
+    code = identify(files, "--data", str(files / "train.parquet"))
+    assert code == 2 and "Parquet needs the pyarrow package (pip install pyarrow)" in capsys.readouterr().err
+
+
+def test_pyarrow_is_a_dependency():
+    text = (Path(__file__).resolve().parents[1] / "pyproject.toml").read_text()
+    dependencies = text.split("dependencies = [", 1)[1].split("]", 1)[0]
+    assert '"pyarrow' in dependencies
+
+
+def test_an_absurd_value_is_named_as_such(files, capsys):
+    frame = pd.read_csv(files / "train.csv")
+    frame.loc[123, "q2"] = 4.9e259
+    frame.to_csv(files / "corrupt.csv", index=False)
+    with pytest.raises(AbsurdValueError, match=r"column q2 holds 4.9e\+259 at row 123"):
+        read_measurements(files / "corrupt.csv")
+    code = identify(files, "--data", str(files / "corrupt.csv"))
+    error = capsys.readouterr().err
+    assert code == 2 and "4.9e+259" in error and "degrees" not in error
+
+
+def test_a_mimic_joint_is_refused_by_name(tmp_path):
+    link = ('<link name="{0}"><inertial><mass value="1"/><inertia ixx="0.1" ixy="0" ixz="0" iyy="0.1" iyz="0" '
+            'izz="0.1"/></inertial></link>')
+    joint = ('<joint name="{0}" type="revolute"><parent link="{1}"/><child link="{2}"/><axis xyz="0 0 1"/>'
+             '<limit lower="-1" upper="1" effort="1" velocity="1"/>{3}</joint>')
+    path = tmp_path / "mimic.urdf"
+    path.write_text('<robot name="r">' + "".join(link.format(name) for name in ("base", "a", "b"))
+                    + joint.format("j1", "base", "a", "")
+                    + joint.format("j2", "a", "b", '<mimic joint="j1" multiplier="-1" offset="0"/>') + "</robot>")
+    with pytest.raises(RobotDescriptionError, match="joint 'j2' mimics joint 'j1'"):
+        load_robot(urdf=path)
+
+
+def test_ctrl_c_while_the_verbs_are_imported_is_one_line(monkeypatch, capsys):
+    import importlib
+
+    def interrupted(name, *args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(importlib, "import_module", interrupted)
+    assert main(["model", "--joints", "3"]) == 130
+    error = capsys.readouterr().err
+    assert error == "oed: interrupted\n"
+
+
+def test_ctrl_c_in_the_first_second_of_a_real_process(tmp_path):
+    process = subprocess.Popen([sys.executable, "-m", "oed", "model", "--joints", "3"], stderr=subprocess.PIPE,
+                               stdout=subprocess.PIPE, text=True, cwd=Path(__file__).resolve().parents[1])
+    import signal
+    import time
+
+    time.sleep(0.4)
+    process.send_signal(signal.SIGINT)
+    _, error = process.communicate(timeout=60)
+    if process.returncode in (0, -2):
+        pytest.skip("the signal came after the verb finished, or before Python installed its handler")
+    assert process.returncode == 130 and len(error.strip().splitlines()) == 1, error
+
+
+def test_temporaries_of_a_killed_run_are_removed_by_the_next(tmp_path):
+    target = tmp_path / "result.json"
+    child = subprocess.Popen([sys.executable, "-c", "pass"])
+    child.wait()  # a pid that is gone
+    stale = tmp_path / f".result.json.oed-{child.pid}-abc123.json"
+    stale.write_text("")  # what SIGKILL during staging leaves
+    alive = tmp_path / f".result.json.oed-{os.getpid()}-def456.json"  # this process's: kept
+    alive.write_text("")
+    other = tmp_path / ".other.json.oed-1-x.json"
+    other.write_text("")
+    with OutputFiles() as outputs, outputs.open(target) as stream:
+        stream.write("{}")
+    assert target.read_text() == "{}"
+    assert not stale.exists() and alive.exists() and other.exists()
+    leftovers = sorted(path.name for path in tmp_path.iterdir())
+    assert leftovers == sorted([".other.json.oed-1-x.json", alive.name, "result.json"])
+
+
+def test_a_killed_identify_leaves_nothing_the_next_run_keeps(files, tmp_path):
+    """SIGKILL while staging: the next run of the verb to the same file removes the dead run's temporaries."""
+    out = tmp_path / "result.json"
+    code = f"""
+import os, signal
+from estimation.output_files import OutputFiles
+outputs = OutputFiles()
+with outputs.open({str(out)!r}) as stream:
+    stream.write('{{"partial')
+    stream.flush()
+    os.kill(os.getpid(), signal.SIGKILL)
+"""
+    subprocess.run([sys.executable, "-c", code], cwd=Path(__file__).resolve().parents[1])
+    assert [path.name for path in tmp_path.iterdir() if path.name.startswith(".result.json.oed-")]
+    assert main(["identify", "--joints", "3", "--data", str(files / "train.csv"), "--out", str(out)]) == 0
+    assert sorted(path.name for path in tmp_path.iterdir()) == ["result.json"]
