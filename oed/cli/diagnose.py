@@ -8,8 +8,11 @@ import warnings
 from pathlib import Path
 
 from dynamics.models import ModelKind, build_model
-from estimation.diagnosis import diagnose
+from estimation.coupling_candidates import coupling_candidates
+from estimation.diagnosis import default_candidates, diagnose
 from estimation.diagnosis_report import markdown_report, plot_residuals
+from oed.cli.asbuilt import (add_asbuilt_arguments, finish_document, model_effects, resolve_transmission, rest_message,
+                             rest_rows, trivial_predictors, worse_after)
 from oed.cli.common import OutputFiles, add_robot_arguments, json_text, robot_from_arguments
 from oed.cli.identify import add_derivative_arguments, differentiation, prepare
 
@@ -24,7 +27,9 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     )
     add_robot_arguments(parser)
     parser.add_argument("--model", choices=[kind.value for kind in ModelKind], default="internal")
-    parser.add_argument("--friction", default="viscous", help="declared effects (default: viscous)")
+    parser.add_argument("--friction", default="viscous", help="declared effects (default: viscous; the grammar of "
+                        "oed identify --friction: coulomb@1-4, motor_coulomb, coulomb[q5+q6])")
+    add_asbuilt_arguments(parser)
     parser.add_argument("--data", type=Path, required=True, help="training data (.csv or .parquet)")
     parser.add_argument("--validate", type=Path, required=True, help="held-out data from another experiment")
     parser.add_argument("--out", type=Path, required=True, help="report JSON")
@@ -50,23 +55,36 @@ def run(args: argparse.Namespace) -> int:
                          "from another experiment")
     differentiation(args)  # contradicting derivative options are an error even when the data hold dq, ddq
     robot = robot_from_arguments(args)
-    model = build_model(robot, args.model, args.friction)
+    transmission = resolve_transmission(args, robot)
+    model = build_model(robot, args.model, model_effects(args, robot, transmission))
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        train = prepare(args.data, model, args)
-        validate = prepare(args.validate, model, args)
-        diagnosis = diagnose(model, train, validate, alpha=args.alpha)
+        train = prepare(args.data, model, args, transmission)
+        validate = prepare(args.validate, model, args, transmission)
+        train, rest_train = rest_rows(train, model, args, "train")
+        validate, rest_validate = rest_rows(validate, model, args, "validation")
+        candidates = default_candidates(model) + coupling_candidates(model, transmission, pairs=False)
+        diagnosis = diagnose(model, train, validate, alpha=args.alpha, candidates=candidates)
+        trivial, notes = trivial_predictors(diagnosis.after, validate)
+        notes += worse_after(diagnosis)
     for message in dict.fromkeys(str(warning.message) for warning in caught):  # once each, in order
         print(f"oed diagnose: warning: {message}", file=sys.stderr)
+    for note in notes:
+        print(f"oed diagnose: warning: {note}", file=sys.stderr)
+    rest_record = {"train": rest_train, "validation": rest_validate}
+    document = finish_document(diagnosis.to_dict(), diagnosis.after, trivial=trivial, warnings=notes, rest=rest_record,
+                               transmission=transmission, warnings_key=("warnings", "after"))
     with OutputFiles() as outputs:  # all files or none
         with outputs.open(args.out) as stream:
-            stream.write(json_text(diagnosis.to_dict()))
+            stream.write(json_text(document))
         if args.report is not None:
             figure = residual_figure(args.report)
             plot_residuals(diagnosis, train, outputs.stage_figure(figure))
             with outputs.open(args.report) as stream:
                 stream.write(markdown_report(diagnosis, figure.name))
     print_summary(diagnosis)
+    if rest_message("diagnose", rest_record):
+        print(rest_message("diagnose", rest_record))
     print(f"wrote {args.out}" + (f" and {args.report}" if args.report else ""))
     return 0
 

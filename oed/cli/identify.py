@@ -9,10 +9,12 @@ from pathlib import Path
 
 from dynamics.models import ModelKind, build_model
 from estimation.identification import identify
-from estimation.loading import read_measurements
+from estimation.motor_data import read_with_transmission
 from estimation.measurements import Measurements
 from estimation.preprocessing import ButterworthDifferentiation, Differentiation, FourierDifferentiation, fill_derivatives
 from estimation.validation import plot_comparison
+from oed.cli.asbuilt import (add_asbuilt_arguments, finish_document, model_effects, resolve_transmission, rest_message,
+                             rest_rows, trivial_predictors)
 from oed.cli.common import OutputFiles, add_robot_arguments, check_figure_path, json_text, robot_from_arguments
 
 
@@ -28,8 +30,11 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     parser.add_argument("--model", choices=[kind.value for kind in ModelKind], default="internal", help="which model (default: internal)")
     parser.add_argument(
         "--friction", default="viscous",
-        help="extra columns, comma-separated: viscous, coulomb, offset, armature, wrench_offset (default: viscous; 'none')",
+        help="extra columns, comma-separated: viscous, coulomb, offset, armature, wrench_offset (default: viscous; 'none'); "
+             "NAME@JOINTS for some joints (coulomb@1-4,offset@2+5); motor_viscous, motor_coulomb, motor_inertia on the "
+             "transmission's motors; coulomb[q5+q6] on a joint combination",
     )
+    add_asbuilt_arguments(parser)
     parser.add_argument("--data", type=Path, required=True, help="identification data (.csv or .parquet)")
     parser.add_argument("--validate", type=Path, help="validation data from another trajectory")
     parser.add_argument("--out", type=Path, required=True, help="result JSON file")
@@ -62,8 +67,8 @@ def differentiation(args: argparse.Namespace) -> Differentiation:
     return ButterworthDifferentiation(args.cutoff)
 
 
-def prepare(path: Path, model, args: argparse.Namespace) -> Measurements:
-    measurements = read_measurements(path, model=model)
+def prepare(path: Path, model, args: argparse.Namespace, transmission=None) -> Measurements:
+    measurements = read_with_transmission(path, model=model, transmission=transmission)
     method = None if measurements.dq is not None and measurements.ddq is not None else differentiation(args)
     return fill_derivatives(measurements, method, decimation=args.decimate, held_torques=args.held_torques)
 
@@ -72,17 +77,27 @@ def run(args: argparse.Namespace) -> int:
     check_figure_path(args.plot)
     differentiation(args)  # contradicting derivative options are an error even when the data hold dq, ddq
     robot = robot_from_arguments(args)
-    model = build_model(robot, args.model, args.friction)
+    transmission = resolve_transmission(args, robot)
+    model = build_model(robot, args.model, model_effects(args, robot, transmission))
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        train = prepare(args.data, model, args)
-        validation = None if args.validate is None else prepare(args.validate, model, args)
+        train = prepare(args.data, model, args, transmission)
+        validation = None if args.validate is None else prepare(args.validate, model, args, transmission)
+        train, rest = rest_rows(train, model, args, "train")
+        if validation is not None:
+            validation, rest_validation = rest_rows(validation, model, args, "validation")
         result = identify(model, train, validation, weighted=args.method == "wls")
+        trivial, notes = trivial_predictors(result, validation)
+        rest_record = {"train": rest, "validation": rest_validation if validation is not None else None}
     for warning in caught:
         print(f"oed identify: warning: {warning.message}", file=sys.stderr)
+    for note in notes:
+        print(f"oed identify: warning: {note}", file=sys.stderr)
+    document = finish_document(result.to_dict(), result, trivial=trivial, warnings=notes, rest=rest_record,
+                               transmission=transmission)
     with OutputFiles() as outputs:  # all files or none
         with outputs.open(args.out) as stream:
-            stream.write(json_text(result.to_dict()))
+            stream.write(json_text(document))
         if args.plot is not None:
             comparisons = [result.train] + ([result.validation] if result.validation is not None else [])
             plot_comparison(comparisons, outputs.stage_figure(args.plot),
@@ -98,5 +113,7 @@ def run(args: argparse.Namespace) -> int:
     for label, comparison in (("train", result.train), ("validation", result.validation)):
         if comparison is not None:
             print(f"{label} MSE: " + "  ".join(f"{channel} {value:.4g}" for channel, value in comparison.mse.items()))
+    if rest_message("identify", rest_record):
+        print(rest_message("identify", rest_record))
     print(f"wrote {args.out}" + (f" and {args.plot}" if args.plot else ""))
     return 0
