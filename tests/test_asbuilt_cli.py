@@ -151,3 +151,14 @@ def test_diagnose_reports_the_new_keys(files, capsys):
     assert document["model_parameters"]["effects"].startswith("viscous,coulomb@2")
     assert document["rest"]["validation"]["dropped"] > 0
     assert "rows at rest" in capsys.readouterr().out
+
+
+def test_a_whole_robot_transmission_file_with_fewer_joints_kept(files, capsys):
+    folder, *_ = files
+    path = folder / "t6.json"
+    path.write_text(json.dumps(puma560_transmission(6).to_dict()))
+    assert _identify(folder, "--transmission", str(path), "--friction", "viscous,motor_coulomb@2", out="t6.json.out.json") == 0
+    document = json.loads((folder / "t6.json.out.json").read_text())
+    assert document["transmission"]["matrix"] == puma560_transmission(3).matrix.tolist()
+    assert document["model_parameters"]["effects"] == "viscous,motor_coulomb@2"
+    assert document["model_parameters"]["transmission"]["matrix"] == puma560_transmission(3).matrix.tolist()

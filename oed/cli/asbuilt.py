@@ -16,8 +16,10 @@ from typing import Any
 
 from dynamics.effect_specs import build_effects
 from dynamics.robot import RobotModel
+from dynamics.robots import load_robot
 from dynamics.simulated_joint_effects import is_puma560
-from dynamics.transmission import Transmission, puma560_transmission, transmission_from_json, transmission_from_urdf
+from dynamics.transmission import (CouplingShapeError, Transmission, TransmissionError, UnknownJointError, puma560_transmission,
+                                   transmission_from_json, transmission_from_urdf)
 from estimation.identification import IdentificationResult
 from estimation.measurements import Measurements
 from estimation.model_parameters import model_parameters
@@ -37,14 +39,31 @@ def add_asbuilt_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def resolve_transmission(args: argparse.Namespace, robot: RobotModel) -> Transmission | None:
-    """``--transmission FILE``, else the URDF's, else the built-in robot's, else ``None``."""
+    """``--transmission FILE``, else the URDF's, else the built-in robot's, else ``None``.
+
+    With ``--joints N`` the transmission is read for the whole robot, then cut to its first ``N``
+    motors (refused when one of them turns with a joint left out).
+    """
+    full = robot
+    if getattr(args, "joints", None) is not None and (getattr(args, "transmission", None) or args.urdf is not None):
+        full = load_robot(args.robot, urdf=args.urdf)
     if getattr(args, "transmission", None):
-        return transmission_from_json(args.transmission, robot)
-    if getattr(args, "urdf", None) is not None:
-        return transmission_from_urdf(args.urdf, robot)
-    if is_puma560(robot):
-        return puma560_transmission(robot.n_joints)
-    return None
+        try:  # a file for the joints kept, or for the whole robot
+            transmission = transmission_from_json(args.transmission, robot)
+        except (CouplingShapeError, UnknownJointError) as error:
+            if full is robot:
+                raise
+            try:
+                transmission = transmission_from_json(args.transmission, full)
+            except TransmissionError:
+                raise error from None
+    elif getattr(args, "urdf", None) is not None:
+        transmission = transmission_from_urdf(args.urdf, full)
+    elif is_puma560(robot):
+        transmission = puma560_transmission(robot.n_joints)
+    else:
+        transmission = None
+    return None if transmission is None else transmission.truncated(robot.n_joints).check(robot)
 
 
 def model_effects(args: argparse.Namespace, robot: RobotModel, transmission: Transmission | None) -> tuple[Any, ...]:
