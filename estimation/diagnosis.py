@@ -133,7 +133,6 @@ def default_candidates(model: IdentificationModel) -> tuple[Effect, ...]:
             candidate = WrenchOffset(channels=(channel,))
             if (candidate.name, candidate.parameter_names(model.robot)[0]) not in declared:
                 candidates.append(candidate)
-    candidates.extend(coupling_candidates(model))  # friction and inertia on joint pairs: coulomb[q5+q6]
     return tuple(candidates)
 
 
@@ -218,7 +217,8 @@ def diagnose(
     train, validate
         Measurements with ``q, dq, ddq`` and the model's channels, from different experiments.
     candidates
-        Effects to try (default: :func:`default_candidates`).
+        Effects to try (default: :func:`default_candidates` and the joint pairs the residual traces,
+        :func:`estimation.coupling_candidates.coupling_candidates`).
     alpha
         Family-wise significance level of the F test (Bonferroni over the candidates).
     min_improvement
@@ -234,7 +234,8 @@ def diagnose(
         raise ValueError(f"alpha must lie in (0, 1), got {alpha}")
     if not 0 <= min_improvement < 1:
         raise ValueError(f"min_improvement must lie in [0, 1), got {min_improvement}")
-    candidates = tuple(default_candidates(model) if candidates is None else candidates)
+    candidates = tuple(default_candidates(model) + coupling_candidates(model, train=train)  # coulomb[q5+q6] …
+                       if candidates is None else candidates)
     for candidate in candidates:
         if not isinstance(candidate, Effect):
             raise TypeError(f"candidate {candidate!r} is not an effect")

@@ -63,7 +63,7 @@ def run(args: argparse.Namespace) -> int:
         validate = prepare(args.validate, model, args, transmission)
         train, rest_train = rest_rows(train, model, args, "train")
         validate, rest_validate = rest_rows(validate, model, args, "validation")
-        candidates = default_candidates(model) + coupling_candidates(model, transmission, pairs=False)
+        candidates = default_candidates(model) + coupling_candidates(model, transmission, train=train)
         diagnosis = diagnose(model, train, validate, alpha=args.alpha, candidates=candidates)
         trivial, notes = trivial_predictors(diagnosis.after, validate)
         notes += worse_after(diagnosis)
