@@ -47,7 +47,7 @@ def _joint_indices(robot: RobotModel, joints: tuple[int, ...] | None, effect: st
         return tuple(range(robot.n_joints))
     for joint in joints:
         if not 0 <= joint < robot.n_joints:
-            raise ValueError(f"effect {effect!r}: joint index {joint} outside 0..{robot.n_joints - 1}")
+            raise ValueError(f"effect {effect!r}: joint {joint + 1} outside 1..{robot.n_joints} (joints count from 1)")
     return tuple(joints)
 
 
