@@ -16,9 +16,8 @@ from dynamics.transmission import (
     UnknownJointError,
     check_power_signs,
     puma560_transmission,
-    transmission_from_json,
-    transmission_from_urdf,
 )
+from dynamics.transmission_files import transmission_from_json, transmission_from_urdf
 
 URDF = """<?xml version="1.0"?>
 <robot name="wrist">

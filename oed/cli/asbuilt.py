@@ -18,8 +18,8 @@ from dynamics.effect_specs import build_effects
 from dynamics.robot import RobotModel
 from dynamics.robots import load_robot
 from dynamics.simulated_joint_effects import is_puma560
-from dynamics.transmission import (CouplingShapeError, Transmission, TransmissionError, UnknownJointError, puma560_transmission,
-                                   transmission_from_json, transmission_from_urdf)
+from dynamics.transmission import CouplingShapeError, Transmission, TransmissionError, UnknownJointError, puma560_transmission
+from dynamics.transmission_files import transmission_from_json, transmission_from_urdf
 from estimation.identification import IdentificationResult
 from estimation.measurements import Measurements
 from estimation.model_parameters import model_parameters
