@@ -162,3 +162,27 @@ def test_a_whole_robot_transmission_file_with_fewer_joints_kept(files, capsys):
     assert document["transmission"]["matrix"] == puma560_transmission(3).matrix.tolist()
     assert document["model_parameters"]["effects"] == "viscous,motor_coulomb@2"
     assert document["model_parameters"]["transmission"]["matrix"] == puma560_transmission(3).matrix.tolist()
+
+
+def test_urdf_transmission_and_motor_friction_on_a_differential(tmp_path, capsys):
+    from dynamics.motor_effects import motor_effects
+    from dynamics.transmission_files import transmission_from_urdf
+    from tests.test_transmission import DIFFERENTIAL, SIMPLE, _urdf
+
+    path = _urdf(tmp_path, SIMPLE + DIFFERENTIAL)
+    robot = load_robot(urdf=path)
+    transmission = transmission_from_urdf(path, robot)
+    truth = build_model(robot, "internal", ("viscous",) + motor_effects(transmission, "coulomb"))
+    theta = truth.nominal_parameters(viscous=[0.5, 0.4, 0.3], **{f"motor_coulomb[m{i}]": value for i, value in
+                                                                  enumerate((0.01, 0.02, 0.015), start=1)})
+    noise = {"tau1": 0.05, "tau2": 0.05, "tau3": 0.05}
+    for name, seed in (("train", 3), ("val", 4)):
+        simulate(truth, theta, random_fourier(robot, seed), noise=noise, seed=seed).write(tmp_path / f"{name}.csv")
+    out = tmp_path / "result.json"
+    assert main(["identify", "--urdf", str(path), "--friction", "viscous,motor_coulomb", "--data", str(tmp_path / "train.csv"),
+                 "--validate", str(tmp_path / "val.csv"), "--out", str(out)]) == 0
+    parameters = json.loads(out.read_text())["model_parameters"]
+    assert parameters["transmission"]["matrix"] == transmission.matrix.tolist()
+    for name, value in (("fcm1", 0.01), ("fcm2", 0.02), ("fcm3", 0.015)):
+        index = parameters["names"].index(name)
+        assert abs(parameters["values"][index] - value) < 3 * parameters["std"][index], (name, parameters["values"][index])
