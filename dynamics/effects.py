@@ -16,6 +16,7 @@ from typing import ClassVar, Protocol, runtime_checkable
 
 import casadi
 
+from dynamics.effect_specs import restricted, split_joints
 from dynamics.robot import RobotModel
 
 WRENCH_CHANNELS: tuple[str, ...] = ("fx", "fy", "fz", "mx", "my", "mz")
@@ -46,7 +47,7 @@ def _joint_indices(robot: RobotModel, joints: tuple[int, ...] | None, effect: st
         return tuple(range(robot.n_joints))
     for joint in joints:
         if not 0 <= joint < robot.n_joints:
-            raise ValueError(f"effect {effect!r}: joint index {joint} outside 0..{robot.n_joints - 1}")
+            raise ValueError(f"effect {effect!r}: joint {joint + 1} outside 1..{robot.n_joints} (joints count from 1)")
     return tuple(joints)
 
 
@@ -186,6 +187,8 @@ def parse_effects(spec: str | Iterable[str | Effect] | None) -> tuple[Effect, ..
 
     Names: ``viscous``, ``coulomb``, ``offset``, ``armature``, ``stribeck``, ``spring``,
     ``wrench_offset`` (alias ``plate_offset``); ``none`` or an empty string for rigid-body only.
+    ``NAME@JOINTS`` restricts a per-joint effect to 1-based joints (``coulomb@1-4``, ``offset@2+5``;
+    :mod:`dynamics.effect_specs`).
     """
     if spec is None:
         return ()
@@ -197,10 +200,11 @@ def parse_effects(spec: str | Iterable[str | Effect] | None) -> tuple[Effect, ..
     effects: list[Effect] = []
     for item in items:
         if isinstance(item, str):
-            key = "wrench_offset" if item.lower() in ("plate_offset", "plate_offsets") else item.lower()
+            text, joints = split_joints(item)  # NAME[:VARIANT][@JOINTS]: @ first (dynamics.effect_specs)
+            key = "wrench_offset" if text.lower() in ("plate_offset", "plate_offsets") else text.lower()
             if key not in EFFECTS:
                 raise ValueError(f"unknown effect {item!r}; known effects are {', '.join(EFFECTS)}")
-            item = EFFECTS[key]()
+            item = restricted(EFFECTS[key], joints, item)
         if not isinstance(item, Effect):
             raise TypeError(f"{item!r} is not an effect (needs name, parameter_names and columns)")
         if any(existing == item for existing in effects):

@@ -186,6 +186,8 @@ class Simulator:
                     damping += np.abs(effect.values)
                 elif isinstance(effect, Coulomb):
                     damping += np.abs(effect.values) / effect.smoothing
+                elif hasattr(effect, "damping"):  # e.g. dynamics.simulated_motor_effects.MotorFriction
+                    damping += effect.damping(self.robot)
         if not damping.any():
             return int(self.substeps)
         inertia = joint_inertia(self.robot, self._armature())

@@ -22,6 +22,7 @@ Procedure (forward selection on nested linear models):
 from __future__ import annotations
 
 import functools
+import re
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -44,6 +45,7 @@ from dynamics.effects import (
 )
 from dynamics.models import IdentificationModel, ModelKind, build_model
 from dynamics.threads import single_threaded_blas
+from estimation.coupling_candidates import coupling_candidates
 from estimation.identification import IdentificationResult, identify
 from estimation.least_squares import stack
 from estimation.measurements import Measurements
@@ -146,7 +148,8 @@ def _columns_function(model: IdentificationModel, effect: Effect) -> casadi.Func
         ModelKind.EXTERNAL: wrench_block,
         ModelKind.COMBINED: casadi.vertcat(wrench_block, joint_block),
     }[model.kind]
-    return casadi.Function(f"{effect.name}_columns", [q, dq, ddq], [casadi.densify(block).T], ["q", "dq", "ddq"], ["Ct"])
+    label = re.sub(r"_+", "_", re.sub(r"\W", "_", effect.name)).strip("_")  # coulomb[q5+q6]: not a CasADi name
+    return casadi.Function(f"{label}_columns", [q, dq, ddq], [casadi.densify(block).T], ["q", "dq", "ddq"], ["Ct"])
 
 
 def _columns_at_random_states(model: IdentificationModel, effect: Effect) -> NDArray[np.float64]:
@@ -214,7 +217,8 @@ def diagnose(
     train, validate
         Measurements with ``q, dq, ddq`` and the model's channels, from different experiments.
     candidates
-        Effects to try (default: :func:`default_candidates`).
+        Effects to try (default: :func:`default_candidates` and the joint pairs the residual traces,
+        :func:`estimation.coupling_candidates.coupling_candidates`).
     alpha
         Family-wise significance level of the F test (Bonferroni over the candidates).
     min_improvement
@@ -230,7 +234,8 @@ def diagnose(
         raise ValueError(f"alpha must lie in (0, 1), got {alpha}")
     if not 0 <= min_improvement < 1:
         raise ValueError(f"min_improvement must lie in [0, 1), got {min_improvement}")
-    candidates = tuple(default_candidates(model) if candidates is None else candidates)
+    candidates = tuple(default_candidates(model) + coupling_candidates(model, train=train)  # coulomb[q5+q6] …
+                       if candidates is None else candidates)
     for candidate in candidates:
         if not isinstance(candidate, Effect):
             raise TypeError(f"candidate {candidate!r} is not an effect")
@@ -275,7 +280,7 @@ def diagnose(
                 break
             candidate = candidates[index]
             count = len(candidate.parameter_names(model.robot))
-            if candidate.name in POSITIVE_EFFECTS and np.any(theta_aug[-count:] <= 0):
+            if getattr(candidate, "physical_kind", candidate.name) in POSITIVE_EFFECTS and np.any(theta_aug[-count:] <= 0):
                 rejected[index] = RejectedEffect(
                     candidate.name, effect_channels(candidate, model),
                     f"significant on training (p = {p_value:.2g}) but estimated with a non-physical sign",
@@ -287,8 +292,7 @@ def diagnose(
             if error >= (1.0 - min_improvement) * validation_error:
                 rejected[index] = RejectedEffect(
                     candidate.name, effect_channels(candidate, model),
-                    f"significant on training (p = {p_value:.2g}) but lowers the validation error by less than "
-                    f"{100 * min_improvement:g} % ({validation_error:.4g} -> {error:.4g})",
+                    f"significant on training (p = {p_value:.2g}) but " + (f"raises the validation error" if error > validation_error else f"lowers the validation error by less than {100 * min_improvement:g} %") + f" ({validation_error:.4g} -> {error:.4g})",
                 )
                 continue
             selected.append((candidate, p_value, -negative_statistic))

@@ -45,7 +45,7 @@ def implausible_estimates(model: IdentificationModel, estimate: Estimate,
     Such a value is not friction: it usually absorbs an effect the model lacks (or a torque-sign or
     unit error); :func:`estimation.diagnosis.diagnose` looks for the missing effect.
     """
-    positive = {name for effect in model.effects if effect.name in POSITIVE_EFFECTS
+    positive = {name for effect in model.effects if getattr(effect, "physical_kind", effect.name) in POSITIVE_EFFECTS
                 for name in effect.parameter_names(model.robot)}
     messages = []
     for record in estimate.records():

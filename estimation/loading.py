@@ -40,6 +40,8 @@ SLOW_SAMPLE_TIME = 0.1
 GAP_FACTOR = 5.0
 #: a revolute joint whose |q| exceeds this (rad) most likely holds degrees (2π plus a margin)
 DEGREES_THRESHOLD = 2 * np.pi + 0.5
+#: read as degrees, a |q| beyond this is more than two turns: motor-side angles rather than degrees
+MOTOR_SIDE_DEGREES = 720.0
 
 
 class MeasurementError(ValueError):
@@ -64,6 +66,16 @@ class TimeBaseError(MeasurementError):
 
 class AngleUnitError(MeasurementError):
     """Revolute joint angles look like degrees."""
+
+
+class MotorSideAnglesError(AngleUnitError):
+    """Revolute joint angles span more turns than the joint can, even read as degrees: motor-side angles."""
+
+
+def _motor_side(peak: float, limit: float) -> bool:
+    """Whether ``peak`` (|q| at most, rad) is too large for degrees: beyond two turns in degrees
+    (720), or beyond 1.5 times the joint's limit in degrees when the description gives one."""
+    return peak > MOTOR_SIDE_DEGREES or (np.isfinite(limit) and peak > 1.5 * np.degrees(limit))
 
 
 class TooFewSamplesError(MeasurementError):
@@ -282,10 +294,18 @@ def _check_time(t: NDArray[np.float64], source: str) -> float:
 
 def _check_angles(q: NDArray[np.float64], model, source: str) -> None:
     revolute = [True] * q.shape[1]
+    limits = [np.inf] * q.shape[1]
     if isinstance(model, IdentificationModel):
         revolute = [joint.joint_type is JointType.REVOLUTE for joint in model.robot.joints]
+        limits = [max(abs(joint.lower), abs(joint.upper)) for joint in model.robot.joints]
     for index in range(q.shape[1]):
         peak = float(np.max(np.abs(q[:, index])))
+        if revolute[index] and peak > DEGREES_THRESHOLD and _motor_side(peak, limits[index]):
+            raise MotorSideAnglesError(
+                f"{source}: column q{index + 1} reaches {peak:.4g} rad and spans {np.ptp(q[:, index]) / (2 * np.pi):.3g} "
+                "turns, more than this joint turns even in degrees: motor-side angles? gear ratio? (divide by the gear "
+                "ratio, or give them as qm1..qmn with the transmission: --transmission FILE)"
+            )
         if revolute[index] and peak > DEGREES_THRESHOLD:
             raise AngleUnitError(
                 f"{source}: column q{index + 1} reaches {peak:.4g}, beyond ±2π rad: the angles look like degrees "

@@ -75,7 +75,7 @@ def read_record(
     if not path.is_file():
         raise FileNotFoundError(f"data file not found: {path}")
     try:
-        frame = _read_parquet(path) if suffix == ".parquet" else pd.read_csv(path)
+        frame = read_parquet_frame(path) if suffix == ".parquet" else pd.read_csv(path)
     except ParquetSupportError:
         raise
     except (ValueError, OSError, pd.errors.ParserError) as error:
@@ -84,7 +84,7 @@ def read_record(
                                source=str(path), max_gap=max_gap, split=split)
 
 
-def _read_parquet(path: Path) -> pd.DataFrame:
+def read_parquet_frame(path: Path) -> pd.DataFrame:
     try:
         import pyarrow  # noqa: F401  (pandas' Parquet engine)
     except ImportError:

@@ -8,8 +8,11 @@ import warnings
 from pathlib import Path
 
 from dynamics.models import ModelKind, build_model
-from estimation.diagnosis import diagnose
+from estimation.coupling_candidates import coupling_candidates
+from estimation.diagnosis import default_candidates, diagnose
 from estimation.diagnosis_report import markdown_report, plot_residuals
+from oed.cli.asbuilt import (add_asbuilt_arguments, finish_document, model_effects, resolve_transmission, rest_message,
+                             rest_rows, trivial_predictors, worse_after)
 from oed.cli.common import OutputFiles, add_robot_arguments, json_text, robot_from_arguments
 from oed.cli.identify import add_data_arguments, add_derivative_arguments, differentiation, prepare_data, print_warnings
 
@@ -24,7 +27,9 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     )
     add_robot_arguments(parser)
     parser.add_argument("--model", choices=[kind.value for kind in ModelKind], default="internal")
-    parser.add_argument("--friction", default="viscous", help="declared effects (default: viscous)")
+    parser.add_argument("--friction", default="viscous", help="declared effects (default: viscous; the grammar of "
+                        "oed identify --friction: coulomb@1-4, motor_coulomb, coulomb[q5+q6])")
+    add_asbuilt_arguments(parser)
     add_data_arguments(parser, validate_required=True)
     parser.add_argument("--out", type=Path, required=True, help="report JSON")
     parser.add_argument("--report", type=Path, help="Markdown report (a residual figure is written beside it)")
@@ -55,13 +60,24 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError(f"--max-effects must be a positive integer, got {args.max_effects}")
     differentiation(args)  # contradicting derivative options are an error even when the data hold dq, ddq
     robot = robot_from_arguments(args)
-    model = build_model(robot, args.model, args.friction)
+    transmission = resolve_transmission(args, robot)
+    model = build_model(robot, args.model, model_effects(args, robot, transmission))
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        train, validate, preprocessing = prepare_data(model, args)
-        diagnosis = diagnose(model, train, validate, alpha=args.alpha, max_effects=args.max_effects)
+        train, validate, preprocessing = prepare_data(model, args, transmission)
+        train, rest_train = rest_rows(train, model, args, "train")
+        validate, rest_validate = rest_rows(validate, model, args, "validation")
+        candidates = default_candidates(model) + coupling_candidates(model, transmission, train=train)
+        diagnosis = diagnose(model, train, validate, alpha=args.alpha, candidates=candidates,
+                             max_effects=args.max_effects)
+        trivial, notes = trivial_predictors(diagnosis.after, validate)
+        notes += worse_after(diagnosis)
     print_warnings("diagnose", caught)
-    document = diagnosis.to_dict()
+    for note in notes:
+        print(f"oed diagnose: warning: {note}", file=sys.stderr)
+    rest_record = {"train": rest_train, "validation": rest_validate}
+    document = finish_document(diagnosis.to_dict(), diagnosis.after, trivial=trivial, warnings=notes, rest=rest_record,
+                               transmission=transmission, warnings_key=("warnings", "after"))
     document["preprocessing"] = preprocessing.to_dict()
     document["max_effects"] = args.max_effects
     document["max_effects_reached"] = len(diagnosis.effects) >= args.max_effects
@@ -80,6 +96,8 @@ def run(args: argparse.Namespace) -> int:
         untested = sum(rejected.reason.startswith("not tested") for rejected in diagnosis.rejected)
         print(f"stopped at --max-effects {args.max_effects}: {untested} candidate(s) not tested; raise --max-effects "
               "to test them")
+    if rest_message("diagnose", rest_record):
+        print(rest_message("diagnose", rest_record))
     print(f"wrote {args.out}" + (f" and {args.report}" if args.report else ""))
     return 0
 

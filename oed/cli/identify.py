@@ -9,12 +9,14 @@ from pathlib import Path
 
 from dynamics.models import ModelKind, build_model
 from estimation.identification import identify
-from estimation.record_loading import read_record
 from estimation.log_cleaning import DEFAULT_MAX_GAP
+from estimation.motor_data import read_record_with_transmission
 from estimation.measurements import Measurements
 from estimation.preprocessing import ButterworthDifferentiation, Differentiation, FourierDifferentiation
 from estimation.preprocessing_plan import Preprocessing, check_frequency, choose_preprocessing, prepare
 from estimation.validation import plot_comparison
+from oed.cli.asbuilt import (add_asbuilt_arguments, finish_document, model_effects, resolve_transmission, rest_message,
+                             rest_rows, trivial_predictors)
 from oed.cli.common import OutputFiles, add_robot_arguments, check_figure_path, json_text, robot_from_arguments
 
 
@@ -30,8 +32,11 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     parser.add_argument("--model", choices=[kind.value for kind in ModelKind], default="internal", help="which model (default: internal)")
     parser.add_argument(
         "--friction", default="viscous",
-        help="extra columns, comma-separated: viscous, coulomb, offset, armature, wrench_offset (default: viscous; 'none')",
+        help="extra columns, comma-separated: viscous, coulomb, offset, armature, wrench_offset (default: viscous; 'none'); "
+             "NAME@JOINTS for some joints (coulomb@1-4,offset@2+5); motor_viscous, motor_coulomb, motor_inertia on the "
+             "transmission's motors; coulomb[q5+q6] on a joint combination",
     )
+    add_asbuilt_arguments(parser)
     add_data_arguments(parser, validate_required=False)
     parser.add_argument("--out", type=Path, required=True, help="result JSON file")
     parser.add_argument("--plot", type=Path, help="figure of measured vs predicted channels (.png, .pdf, .svg)")
@@ -81,20 +86,25 @@ def differentiation(args: argparse.Namespace) -> Differentiation:
     return ButterworthDifferentiation(args.cutoff)
 
 
-def read_segments(paths: list[Path], model, args: argparse.Namespace, *, split: bool) -> tuple[Measurements, ...]:
-    """The segments of every file (a hole splits a file when ``split``, else it is an error)."""
+def read_segments(paths: list[Path], model, args: argparse.Namespace, *, split: bool,
+                  transmission=None) -> tuple[Measurements, ...]:
+    """The segments of every file (a hole splits a file when ``split``, else it is an error); motor-side
+    columns converted by ``transmission``."""
     segments: list[Measurements] = []
     for path in paths:
-        segments.extend(read_record(path, model=model, max_gap=args.max_gap, split=split))
+        segments.extend(read_record_with_transmission(path, model=model, transmission=transmission,
+                                                      max_gap=args.max_gap, split=split))
     return tuple(segments)
 
 
-def prepare_data(model, args: argparse.Namespace) -> tuple[Measurements, Measurements | None, Preprocessing]:
+def prepare_data(model, args: argparse.Namespace,
+                 transmission=None) -> tuple[Measurements, Measurements | None, Preprocessing]:
     """Training and validation records read, one preprocessing chosen on the training data, both prepared."""
     if not (args.max_gap > 0 and args.max_gap < float("inf")):
         raise ValueError(f"--max-gap must be a positive number of seconds, got {args.max_gap}")
-    train = read_segments(args.data, model, args, split=True)
-    validate = None if not args.validate else read_segments(args.validate, model, args, split=False)
+    train = read_segments(args.data, model, args, split=True, transmission=transmission)
+    validate = None if not args.validate else read_segments(args.validate, model, args, split=False,
+                                                                transmission=transmission)
     preprocessing = choose_preprocessing(
         train, frequency_hz=args.frequency, harmonics=args.harmonics, cutoff_hz=args.cutoff,
         average_periods=args.average_periods, decimation=args.decimate, held_torques=args.held_torques)
@@ -119,15 +129,26 @@ def run(args: argparse.Namespace) -> int:
     check_figure_path(args.plot)
     differentiation(args)  # contradicting derivative options are an error even when the data hold dq, ddq
     robot = robot_from_arguments(args)
-    model = build_model(robot, args.model, args.friction)
+    transmission = resolve_transmission(args, robot)
+    model = build_model(robot, args.model, model_effects(args, robot, transmission))
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        train, validation, preprocessing = prepare_data(model, args)
+        train, validation, preprocessing = prepare_data(model, args, transmission)
+        train, rest = rest_rows(train, model, args, "train")
+        rest_validation = None
+        if validation is not None:
+            validation, rest_validation = rest_rows(validation, model, args, "validation")
         result = identify(model, train, validation, weighted=args.method == "wls")
+        trivial, notes = trivial_predictors(result, validation)
+        rest_record = {"train": rest, "validation": rest_validation}
     print_warnings("identify", caught)
+    for note in notes:
+        print(f"oed identify: warning: {note}", file=sys.stderr)
+    document = finish_document(result.to_dict(), result, trivial=trivial, warnings=notes, rest=rest_record,
+                               transmission=transmission)
     with OutputFiles() as outputs:  # all files or none
         with outputs.open(args.out) as stream:
-            stream.write(json_text(result.to_dict()))
+            stream.write(json_text(document))
         if args.plot is not None:
             comparisons = [result.train] + ([result.validation] if result.validation is not None else [])
             plot_comparison(comparisons, outputs.stage_figure(args.plot),
@@ -147,5 +168,7 @@ def run(args: argparse.Namespace) -> int:
             if comparison.mse_filtered is not None:
                 print(f"{label} MSE (vs filtered): " + "  ".join(
                     f"{channel} {value:.4g}" for channel, value in comparison.mse_filtered.items()))
+    if rest_message("identify", rest_record):
+        print(rest_message("identify", rest_record))
     print(f"wrote {args.out}" + (f" and {args.plot}" if args.plot else ""))
     return 0

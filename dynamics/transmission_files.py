@@ -1,0 +1,191 @@
+"""Transmissions read from files: a URDF's ``<transmission>`` elements, or a small JSON file.
+
+The conventions (``θ_m = R q``, ``τ = Rᵀ τ_m``) and the ros_control kinds are described in
+:mod:`dynamics.transmission`.
+"""
+
+from __future__ import annotations
+
+import json
+import xml.etree.ElementTree as ElementTree
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from dynamics.robot import RobotModel
+from dynamics.transmission import (
+    CouplingShapeError,
+    Transmission,
+    TransmissionError,
+    UnknownJointError,
+)
+
+
+def _joint_index(robot: RobotModel, key: Any, where: str) -> int:
+    """0-based index of a joint given by name or 1-based number."""
+    if isinstance(key, str) and key in robot.joint_names:
+        return robot.joint_names.index(key)
+    text = str(key).strip()
+    if text.isdigit() and 1 <= int(text) <= robot.n_joints:
+        return int(text) - 1
+    raise UnknownJointError(f"{where}: joint {key!r} is not a joint of {robot.name} "
+                            f"(joints: {', '.join(robot.joint_names)}, or 1..{robot.n_joints})")
+
+
+def transmission_from_json(source: str | Path | Mapping[str, Any], robot: RobotModel) -> Transmission:
+    """A transmission from a JSON file (or the parsed document).
+
+    Format (SI; joints by name or 1-based number)::
+
+        {"ratios": {"joint1": -62.61, "joint2": 107.8, ...}   # or a list, one per joint
+         "matrix": [[...], ...],                               # or the full R, n x n (motors x joints)
+         "joints": ["joint1", ...],                            # optional: the column order of "matrix"
+         "couplings": {"6": {"5": 76.69, "4": 1.41}},          # optional: extra entries R[motor][joint]
+         "torque_constants": [0.26, ...]}                      # optional, N·m/A, per motor
+
+    Joints not named in ``ratios`` are direct drive (ratio 1).
+    """
+    where = "transmission"
+    if isinstance(source, Mapping):
+        document = dict(source)
+    else:
+        path = Path(source)
+        where = f"transmission {path}"
+        if not path.is_file():
+            raise FileNotFoundError(f"transmission file not found: {path}")
+        try:
+            document = json.loads(path.read_text())
+        except json.JSONDecodeError as error:
+            raise TransmissionError(f"{where}: not valid JSON ({error})") from None
+    if not isinstance(document, dict):
+        raise TransmissionError(f"{where}: expected a JSON object with 'ratios' or 'matrix'")
+    unknown = sorted(set(document) - {"ratios", "matrix", "joints", "couplings", "torque_constants", "motors"})
+    if unknown:
+        raise TransmissionError(f"{where}: unknown key(s) {unknown}; expected ratios, matrix, joints, couplings, "
+                                "torque_constants, motors")
+    n = robot.n_joints
+    if "matrix" in document:
+        if "ratios" in document:
+            raise TransmissionError(f"{where}: give 'ratios' or 'matrix', not both")
+        matrix = np.array(document["matrix"], dtype=float)
+        if matrix.ndim != 2 or matrix.shape[0] != matrix.shape[1]:
+            raise CouplingShapeError(f"{where}: matrix must be square (motors x joints), got shape {matrix.shape}")
+        order = document.get("joints")
+        if order is not None:
+            if len(order) != matrix.shape[1]:
+                raise CouplingShapeError(f"{where}: {len(order)} joints for a {matrix.shape[1]}-column matrix")
+            columns = [_joint_index(robot, key, where) for key in order]
+            if matrix.shape[0] != n:
+                raise CouplingShapeError(f"{where}: matrix is {matrix.shape[0]} x {matrix.shape[1]}, the robot "
+                                         f"{robot.name} has {n} joints: R must be {n} x {n}")
+            full = np.zeros((n, n))
+            full[:, columns] = matrix
+            matrix = full
+        elif matrix.shape != (n, n):
+            raise CouplingShapeError(f"{where}: matrix is {matrix.shape[0]} x {matrix.shape[1]}, the robot "
+                                     f"{robot.name} has {n} joints: R must be {n} x {n}")
+    else:
+        ratios = document.get("ratios", {})
+        matrix = np.eye(n)
+        if isinstance(ratios, Mapping):
+            for key, value in ratios.items():
+                index = _joint_index(robot, key, where)
+                matrix[index, index] = float(value)
+        else:
+            values = np.atleast_1d(np.asarray(ratios, dtype=float))
+            if values.shape != (n,):
+                raise CouplingShapeError(f"{where}: {values.size} ratios for the {n} joints of {robot.name}")
+            matrix = np.diag(values)
+    for motor_key, row in dict(document.get("couplings", {})).items():
+        motor = _joint_index(robot, motor_key, where)
+        for joint_key, value in dict(row).items():
+            matrix[motor, _joint_index(robot, joint_key, where)] = float(value)
+    return Transmission(matrix, tuple(document.get("motors", ())), document.get("torque_constants"),
+                        source=where).check(robot)
+
+
+def _reduction(element: ElementTree.Element | None) -> float:
+    if element is None:
+        return 1.0
+    found = element.find("mechanicalReduction")
+    if found is None or found.text is None:
+        return 1.0
+    try:
+        value = float(found.text.strip())
+    except ValueError:
+        raise TransmissionError(f"mechanicalReduction {found.text!r} is not a number") from None
+    if not np.isfinite(value) or value == 0:
+        raise TransmissionError(f"mechanicalReduction {found.text!r} must be a finite, non-zero number")
+    return value
+
+
+def transmission_from_urdf(path: str | Path, robot: RobotModel) -> Transmission | None:
+    """The transmission declared by a URDF's ``<transmission>`` elements, or ``None`` if it has none.
+
+    Kinds (ros_control ``transmission_interface``): ``SimpleTransmission`` (one joint, one actuator,
+    ``mechanicalReduction`` of the actuator, or of the joint in the older format),
+    ``DifferentialTransmission`` and ``FourBarLinkageTransmission`` (two joints, two actuators,
+    actuator reductions ``ar`` and joint reductions ``jr``, see the module docstring).
+
+    Raises
+    ------
+    UnknownJointError
+        A transmission names a joint the robot lacks.
+    TransmissionError
+        An unsupported kind, or a joint driven by two transmissions.
+    """
+    path = Path(path)
+    try:
+        root = ElementTree.parse(path).getroot()
+    except (ElementTree.ParseError, OSError) as error:
+        raise TransmissionError(f"cannot read the transmissions of {path}: {error}") from None
+    elements = root.findall("transmission")
+    if not elements:
+        return None
+    n = robot.n_joints
+    matrix = np.eye(n)
+    driven: dict[int, str] = {}
+    names = [f"m{index}" for index in range(1, n + 1)]
+    for element in elements:
+        label = element.get("name", "?")
+        where = f"URDF {path}: transmission {label!r}"
+        kind_element = element.find("type")
+        kind = (kind_element.text if kind_element is not None and kind_element.text else element.get("type", "")).strip()
+        joints = element.findall("joint")
+        actuators = element.findall("actuator")
+        indices = [_joint_index(robot, joint.get("name", ""), where) for joint in joints]
+        for index in indices:
+            if index in driven:
+                raise TransmissionError(f"{where}: joint {robot.joint_names[index]!r} is already driven by "
+                                        f"transmission {driven[index]!r}")
+            driven[index] = label
+        short = kind.rsplit("/", 1)[-1]
+        if short == "SimpleTransmission":
+            if len(joints) != 1 or len(actuators) > 1:
+                raise TransmissionError(f"{where}: a SimpleTransmission has one joint and one actuator")
+            reduction = _reduction(actuators[0] if actuators else None) * _reduction(joints[0])
+            matrix[indices[0], indices[0]] = reduction
+            if actuators and actuators[0].get("name"):
+                names[indices[0]] = actuators[0].get("name")
+        elif short in ("DifferentialTransmission", "FourBarLinkageTransmission"):
+            if len(joints) != 2 or len(actuators) != 2:
+                raise TransmissionError(f"{where}: a {short} has two joints and two actuators")
+            ar = [_reduction(actuator) for actuator in actuators]
+            jr = [_reduction(joint) for joint in joints]
+            first, second = indices
+            matrix[first, first] = matrix[second, second] = 0.0
+            if short == "DifferentialTransmission":
+                matrix[first, [first, second]] = (jr[0] * ar[0], jr[1] * ar[0])
+                matrix[second, [first, second]] = (jr[0] * ar[1], -jr[1] * ar[1])
+            else:
+                matrix[first, first] = jr[0] * ar[0]
+                matrix[second, [first, second]] = (ar[1], jr[1] * ar[1])
+            for index, actuator in zip(indices, actuators):
+                if actuator.get("name"):
+                    names[index] = actuator.get("name")
+        else:
+            raise TransmissionError(f"{where}: unsupported transmission type {kind!r} (SimpleTransmission, "
+                                    "DifferentialTransmission, FourBarLinkageTransmission)")
+    return Transmission(matrix, tuple(names), source=f"URDF {path}")

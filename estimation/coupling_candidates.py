@@ -1,0 +1,116 @@
+"""Candidate effects on combinations of joint velocities, for the residual diagnosis.
+
+A residual that follows friction or inertia on a combination of joints (a motor turning with
+``q5 + q6`` in a coupled wrist, a belt, a differential) cannot be described by per-joint effects:
+the torque appears on two rows at once with a law of the combined velocity,
+``τ = r (fc sign(r q̇))`` with ``r = e5 + e6``. :func:`coupling_candidates` proposes
+
+* for each adjacent pair of joints, friction (viscous, Coulomb) and inertia on ``qj + qj+1`` and
+  ``qj − qj+1`` (:func:`dynamics.motor_effects.pair_combinations`): named ``coulomb[q5+q6]``;
+* for each coupled motor of a declared transmission, friction and inertia on that motor
+  (:func:`dynamics.motor_effects.motor_effects`): named ``motor_coulomb[m6]``.
+
+The forward selection of :func:`estimation.diagnosis.diagnose` tests them beside the per-joint
+candidates (F test, identifiability, physical sign, confirmation on held-out data).
+
+Residual tracing (:func:`traced_pairs`, used when training data are given): a pair is proposed
+only when the residual of the declared model follows the combination *rather than* each joint:
+the pair's column must be significant (F test, Bonferroni over the pairs) beyond the per-joint
+effects of the same kind on both of its joints. Without that gate, on a real arm without any
+coupling (the KUKA LWR4+), a pair ``coulomb[qj+qj+1]`` correlates with the per-joint Coulomb
+terms it overlaps and was picked instead of them.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.stats
+
+from dynamics.effects import Armature, CoulombFriction, Effect, ViscousFriction
+from dynamics.models import IdentificationModel, ModelKind
+from dynamics.motor_effects import KINDS, CombinationEffect, motor_effects, pair_combinations
+from dynamics.transmission import Transmission
+from estimation.measurements import Measurements
+
+#: the per-joint effect a pair of each kind must do better than
+PER_JOINT: dict[str, type] = {"viscous": ViscousFriction, "coulomb": CoulombFriction, "inertia": Armature}
+
+
+def coupling_candidates(model: IdentificationModel, transmission: Transmission | None = None, *,
+                        pairs: bool = True, train: Measurements | None = None,
+                        alpha: float = 1e-3) -> tuple[Effect, ...]:
+    """Friction and inertia on adjacent joint pairs (``pairs``) and on the coupled motors of
+    ``transmission``; none for the external model (friction is internal) or a one-joint robot.
+    Candidates already in the model are left out. With ``train``, only the pairs its residual
+    traces (:func:`traced_pairs`) are proposed."""
+    if model.kind is ModelKind.EXTERNAL:
+        return ()
+    declared = {effect.name for effect in model.effects}
+    candidates: list[Effect] = []
+    for kind in KINDS:
+        if transmission is not None:
+            transmission.check(model.robot)
+            candidates.extend(motor_effects(transmission, kind, transmission.coupled_motors()))
+    if pairs:
+        proposed = [pair for kind in KINDS for pair in pair_combinations(model.robot.n_joints, kind)
+                    if pair.name not in declared]
+        candidates.extend(proposed if train is None else traced_pairs(model, train, proposed, alpha=alpha))
+    return tuple(candidate for candidate in candidates if candidate.name not in declared)
+
+
+def _columns(model: IdentificationModel, effect: Effect, train: Measurements) -> np.ndarray:
+    from estimation.diagnosis import candidate_columns  # the same columns the diagnosis fits
+
+    return candidate_columns(model, effect, train).reshape(train.n_samples * model.n_channels, -1)
+
+
+def traced_pairs(model: IdentificationModel, train: Measurements, pairs: list[CombinationEffect], *,
+                 alpha: float = 1e-3) -> list[CombinationEffect]:
+    """The ``pairs`` whose column is significant beyond the declared model plus the per-joint
+    effects of the same kind on both joints of the pair (channel-weighted F test, one column,
+    level ``alpha / len(pairs)``)."""
+    from estimation.least_squares import stack
+
+    if not pairs:
+        return []
+    problem = stack(model, train)
+    Y = problem.Y.reshape(-1, problem.Y.shape[2])
+    y = problem.y.reshape(-1)
+    m = model.n_channels
+    # channel weights from an ordinary fit of the declared model (as WLS's first step)
+    theta, *_ = np.linalg.lstsq(Y, y, rcond=None)
+    residual = (y - Y @ theta).reshape(-1, m)
+    root = 1.0 / np.sqrt(np.maximum(np.mean(residual**2, axis=0), 1e-300))
+    weight = np.tile(root, train.n_samples)
+    Q, _ = np.linalg.qr(Y * weight[:, None])
+    yw = y * weight
+    r0 = yw - Q @ (Q.T @ yw)
+    threshold = alpha / len(pairs)
+    kept = []
+    for pair in pairs:
+        joints = [int(index) for index in np.flatnonzero(pair.weights[0])]
+        per_joint = [PER_JOINT[pair.kind](joints=(joint,)) for joint in joints]
+        present = {(effect.name, tuple(getattr(effect, "joints", None) or range(model.robot.n_joints)))
+                   for effect in model.effects}
+        extra = [effect for effect in per_joint
+                 if not any(name == effect.name and effect.joints[0] in joints_ for name, joints_ in present)]
+        blocks = [_columns(model, effect, train) for effect in extra] + [_columns(model, pair, train)]
+        C = np.concatenate(blocks, axis=1) * weight[:, None]
+        C = C - Q @ (Q.T @ C)  # beyond the declared model
+        base, column = C[:, :-1], C[:, -1:]
+        if base.shape[1]:
+            coefficients, *_ = np.linalg.lstsq(base, r0, rcond=None)
+            r1 = r0 - base @ coefficients
+            column = column - base @ np.linalg.lstsq(base, column, rcond=None)[0]
+        else:
+            r1 = r0
+        norm = float(column[:, 0] @ column[:, 0])
+        if norm <= 1e-12 * max(float(r1 @ r1), 1e-300):
+            continue  # absorbed: nothing beyond the per-joint effects
+        gain = float(column[:, 0] @ r1) ** 2 / norm
+        rss = float(r1 @ r1) - gain
+        dof = y.size - Y.shape[1] - base.shape[1] - 1
+        statistic = gain / (rss / dof)
+        if scipy.stats.f.sf(statistic, 1, dof) < threshold:
+            kept.append(pair)
+    return kept
