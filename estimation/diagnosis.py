@@ -47,6 +47,7 @@ from dynamics.threads import single_threaded_blas
 from estimation.identification import IdentificationResult, identify
 from estimation.least_squares import stack
 from estimation.measurements import Measurements
+from estimation.whiteness import autocorrelation
 
 JOINT_CANDIDATES: tuple[type, ...] = (CoulombFriction, JointOffset, Armature, StribeckFriction, Spring)
 
@@ -184,12 +185,11 @@ def residual_statistics(result: IdentificationResult, *, lags: Sequence[int] = (
     residuals = result.estimate.residuals
     statistics = {}
     for channel, values in zip(result.estimate.channels, residuals.T):
-        centred = values - values.mean()
-        variance = float(np.mean(centred**2)) or 1.0
         entry = {"mean": float(values.mean()), "std": float(values.std()), "rms": float(np.sqrt(np.mean(values**2)))}
+        correlation = autocorrelation(values, max((lag for lag in lags if lag < values.shape[0]), default=0))
         for lag in lags:
-            if lag < values.shape[0]:
-                entry[f"autocorrelation_lag{lag}"] = float(np.mean(centred[lag:] * centred[:-lag]) / variance)
+            if lag < values.shape[0]:  # normalised estimator: within [-1, 1] (estimation.whiteness)
+                entry[f"autocorrelation_lag{lag}"] = float(correlation[lag])
         statistics[channel] = entry
     return statistics
 
