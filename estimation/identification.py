@@ -21,6 +21,7 @@ import numpy as np
 from dynamics.effects import POSITIVE_EFFECTS
 from dynamics.models import IdentificationModel
 from dynamics.threads import single_threaded_blas
+from estimation.covariance import CovarianceMethod
 from estimation.least_squares import Estimate, LeastSquares, WeightedLeastSquares, stack
 from estimation.measurements import Measurements
 from estimation.validation import Comparison, compare
@@ -93,7 +94,7 @@ class IdentificationResult:
 
             {robot, model, effects, method, n_samples, parameters: [{name, expression, value, std,
              relative_std}], cond, channel_std: {channel: σ}, train: {mse: {channel: value}},
-             validation: {mse: {channel: value}} | null, warnings: [text]}
+             validation: {mse: {channel: value}} | null, warnings: [text], cov_method, hac_lags}
         """
         return {
             "robot": self.model.robot.name,
@@ -107,6 +108,8 @@ class IdentificationResult:
             "train": {"mse": self.train.mse},
             "validation": None if self.validation is None else {"mse": self.validation.mse},
             "warnings": list(self.warnings),
+            "cov_method": self.estimate.cov_method,
+            "hac_lags": self.estimate.hac_lags,
         }
 
 
@@ -118,6 +121,7 @@ def identify(
     *,
     weighted: bool = True,
     estimator: LeastSquares | None = None,
+    covariance: CovarianceMethod = "hac",
 ) -> IdentificationResult:
     """Estimate the base parameters of ``model`` from ``train`` and compare with ``validate``.
 
@@ -131,7 +135,11 @@ def identify(
     weighted
         Channel-weighted least squares (default) rather than ordinary (PUMA paper, eq. 20).
     estimator
-        A configured estimator instead (overrides ``weighted``); it is fitted in place.
+        A configured estimator instead (overrides ``weighted`` and ``covariance``); it is fitted in place.
+    covariance
+        Standard deviations: ``"hac"`` (default; Newey–West, they hold when the residuals are
+        correlated in time, and equal the classical ones within sampling error when they are white:
+        :mod:`estimation.covariance`) or ``"classical"`` (white residuals assumed).
 
     Warns
     -----
@@ -140,7 +148,7 @@ def identify(
         deviations below zero (also in ``result.warnings``).
     """
     if estimator is None:
-        estimator = WeightedLeastSquares() if weighted else LeastSquares()
+        estimator = WeightedLeastSquares(covariance=covariance) if weighted else LeastSquares(covariance=covariance)
     estimate = estimator.fit(stack(model, train)).estimate_
     train_comparison = compare(model, estimate.values, train, label="identification")
     validation = None if validate is None else compare(model, estimate.values, validate, label="validation")
