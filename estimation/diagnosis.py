@@ -46,7 +46,9 @@ from dynamics.models import IdentificationModel, ModelKind, build_model
 from dynamics.threads import single_threaded_blas
 from estimation.identification import IdentificationResult, identify
 from estimation.least_squares import stack
+from estimation.diagnosis_statistics import ResidualReport, residual_report
 from estimation.measurements import Measurements
+from estimation.noise_floor import NoiseFloor
 from estimation.whiteness import autocorrelation
 
 JOINT_CANDIDATES: tuple[type, ...] = (CoulombFriction, JointOffset, Armature, StribeckFriction, Spring)
@@ -89,10 +91,11 @@ class Diagnosis:
     before: IdentificationResult
     after: IdentificationResult
     residuals: dict[str, dict[str, float]] = field(repr=False)
+    statistics: ResidualReport | None = field(default=None, repr=False)
 
     def to_dict(self) -> dict[str, Any]:
         """The JSON document of ``oed diagnose``."""
-        return {
+        document = {
             "robot": self.before.model.robot.name,
             "model": self.before.model.kind.value,
             "declared_effects": [effect.name for effect in self.before.model.effects],
@@ -105,7 +108,13 @@ class Diagnosis:
                 "before": {"mse": self.before.validation.mse if self.before.validation else None},
                 "after": {"mse": self.after.validation.mse if self.after.validation else None},
             },
+            "cov_method": self.after.estimate.cov_method,
         }
+        if self.statistics is not None:  # noise floor, tracing, whiteness (estimation.diagnosis_statistics)
+            document.update(self.statistics.to_dict())
+            for which in ("before", "after"):
+                document["validation"][which]["mse_over_floor"] = self.statistics.ratios(which) or None
+        return document
 
 
 def effect_channels(effect: Effect, model: IdentificationModel) -> tuple[str, ...]:
@@ -204,6 +213,7 @@ def diagnose(
     alpha: float = 1e-3,
     min_improvement: float = 0.01,
     max_effects: int = 10,
+    noise_floor: NoiseFloor | None = None,
 ) -> Diagnosis:
     """Find, by forward selection, the effects ``model`` lacks in ``train``, confirmed on ``validate``.
 
@@ -221,6 +231,11 @@ def diagnose(
         Smallest relative decrease of the weighted validation MSE for an effect to be added.
     max_effects
         Most effects added.
+    noise_floor
+        Noise floor of the validation record as recorded (:func:`estimation.noise_floor.noise_floor`,
+        before preprocessing; scaled here for the averaging/filtering ``validate.metadata`` records).
+        ``None``: estimated from ``validate`` when it can be (see
+        :mod:`estimation.diagnosis_statistics`), the method said in the report.
     """
     for name, data in (("train", train), ("validate", validate)):
         if not isinstance(data, Measurements):
@@ -329,4 +344,5 @@ def diagnose(
         before=before,
         after=after,
         residuals=residual_statistics(before),
+        statistics=residual_report(before, after, train, validate, noise_floor),
     )
