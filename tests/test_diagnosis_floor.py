@@ -73,3 +73,20 @@ def test_averaged_validation_is_compared_with_the_averaged_floor(setting):
     estimated = diagnose(declared, train, averaged, candidates=[]).to_dict()  # from the averaged data
     assert estimated["noise_floor"]["method"] == "differences"
     np.testing.assert_allclose(list(estimated["noise_floor"]["mse"].values()), NOISE_TAU**2 / 2, rtol=0.2)
+
+
+def test_cli_prints_how_far_above_the_floor_each_channel_stays(setting, tmp_path, capsys):
+    from oed.cli import main
+
+    _, train, validate = setting
+    train.write(tmp_path / "train.csv")
+    validate.write(tmp_path / "validate.csv")
+    code = main(["diagnose", "--joints", "3", "--data", str(tmp_path / "train.csv"), "--validate",
+                 str(tmp_path / "validate.csv"), "--frequency", "0.2", "--out", str(tmp_path / "report.json"),
+                 "--report", str(tmp_path / "report.md")])
+    out = capsys.readouterr().out
+    assert code == 0
+    assert "noise floor" in out and "(periods;" in out and "after / floor" in out
+    assert out.count("at its floor") == 3
+    assert (tmp_path / "report.trace.png").exists()
+    assert "## Noise floor" in (tmp_path / "report.md").read_text()

@@ -9,7 +9,9 @@ from pathlib import Path
 
 from dynamics.models import ModelKind, build_model
 from estimation.diagnosis import diagnose
-from estimation.diagnosis_report import markdown_report, plot_residuals
+from estimation.diagnosis_report import markdown_report, plot_residuals, plot_trace
+from estimation.loading import read_measurements
+from estimation.noise_floor import NoiseFloor, NoiseFloorError, noise_floor
 from oed.cli.common import OutputFiles, add_robot_arguments, json_text, robot_from_arguments
 from oed.cli.identify import add_derivative_arguments, differentiation, prepare
 
@@ -39,9 +41,29 @@ def residual_figure(report: Path) -> Path:
     return report.with_suffix(".residuals.png")
 
 
+def trace_figure(report: Path) -> Path:
+    """The figure of the residual against its strongest variables, beside the Markdown report."""
+    return report.with_suffix(".trace.png")
+
+
 def derived_outputs(args: argparse.Namespace) -> dict[str, Path]:
     """Files written besides the named outputs (checked against them by :func:`oed.cli.paths.check_paths`)."""
-    return {} if args.report is None else {"the report's residual figure": residual_figure(args.report)}
+    if args.report is None:
+        return {}
+    return {"the report's residual figure": residual_figure(args.report),
+            "the report's tracing figure": trace_figure(args.report)}
+
+
+def recorded_floor(path: Path, model, args: argparse.Namespace) -> NoiseFloor | None:
+    """The noise floor of a record as loaded, before any differentiation, averaging or filtering
+    (period-to-period with ``--frequency`` or the file's frequency, else differences); ``None``
+    with a warning when the record cannot give one."""
+    recorded = read_measurements(path, model=model)
+    try:
+        return noise_floor(recorded, model.channels, frequency_hz=args.frequency)
+    except NoiseFloorError as error:
+        warnings.warn(f"no noise floor from {path}: {error}", stacklevel=2)
+        return None
 
 
 def run(args: argparse.Namespace) -> int:
@@ -55,7 +77,8 @@ def run(args: argparse.Namespace) -> int:
         warnings.simplefilter("always")
         train = prepare(args.data, model, args)
         validate = prepare(args.validate, model, args)
-        diagnosis = diagnose(model, train, validate, alpha=args.alpha)
+        floor = recorded_floor(args.validate, model, args)
+        diagnosis = diagnose(model, train, validate, alpha=args.alpha, noise_floor=floor)
     for message in dict.fromkeys(str(warning.message) for warning in caught):  # once each, in order
         print(f"oed diagnose: warning: {message}", file=sys.stderr)
     with OutputFiles() as outputs:  # all files or none
@@ -64,8 +87,10 @@ def run(args: argparse.Namespace) -> int:
         if args.report is not None:
             figure = residual_figure(args.report)
             plot_residuals(diagnosis, train, outputs.stage_figure(figure))
+            tracing = trace_figure(args.report)
+            plot_trace(diagnosis, validate, outputs.stage_figure(tracing))
             with outputs.open(args.report) as stream:
-                stream.write(markdown_report(diagnosis, figure.name))
+                stream.write(markdown_report(diagnosis, figure.name, tracing.name))
     print_summary(diagnosis)
     print(f"wrote {args.out}" + (f" and {args.report}" if args.report else ""))
     return 0
@@ -83,3 +108,21 @@ def print_summary(diagnosis) -> None:
     print("validation MSE   " + "  ".join(f"{channel:>9s}" for channel in before))
     print("  before         " + "  ".join(f"{value:9.4g}" for value in before.values()))
     print("  after          " + "  ".join(f"{after[channel]:9.4g}" for channel in before))
+    print_floor(diagnosis)
+
+
+def print_floor(diagnosis) -> None:
+    """The noise floor per channel and how far above it each channel stays."""
+    statistics = diagnosis.statistics
+    if statistics is None:
+        return
+    if statistics.floor is None:
+        print(statistics.floor_note)
+        return
+    floor = statistics.floor.mse()
+    print(f"  noise floor    " + "  ".join(f"{floor[channel]:9.4g}" for channel in floor)
+          + f"   ({statistics.floor.method}; {statistics.floor_note})")
+    ratios = statistics.ratios("after")
+    print("  after / floor  " + "  ".join(f"{ratios[channel]:9.3g}" for channel in floor))
+    for text in statistics.statements.values():
+        print(f"  {text}")
