@@ -35,7 +35,7 @@ from dynamics.sensors import NoiseModel
 from dynamics.simulator import Simulator
 from estimation.coverage import EstimateDraw, monte_carlo_coverage
 from estimation.least_squares import WeightedLeastSquares, stack
-from estimation.preprocessing import FourierDifferentiation, fill_derivatives
+from estimation.preprocessing import FourierDifferentiation, average_periods, fill_derivatives
 
 TAU_STD = 0.2
 
@@ -69,9 +69,22 @@ def noisy(clean, std: float = TAU_STD):
 
 
 def linear_estimator(model, differentiation, covariance: str = "hac"):
-    """``measurements -> EstimateDraw``: the demo's preprocessing, then weighted least squares."""
+    """``measurements -> EstimateDraw``: the demo's preprocessing, then weighted least squares.
+
+    The derivatives come from ``q`` only, which every realisation shares (the same array): they
+    are derived once and reused, and each realisation's torques are period-averaged as
+    ``fill_derivatives`` would (the same numbers, 50 times faster at 300 harmonics).
+    """
+    cache: dict[int, object] = {}
+
     def estimate(measurements):
-        data = fill_derivatives(measurements, differentiation, held_torques=True)
+        key = id(measurements.q)
+        if key not in cache:
+            cache.clear()
+            cache[key] = (measurements.q, fill_derivatives(measurements, differentiation, held_torques=True))
+        prepared = cache[key][1]
+        tau = average_periods(measurements, differentiation.frequency_hz).tau
+        data = replace(prepared, tau=tau)
         fit = WeightedLeastSquares(covariance=covariance).fit(stack(model, data)).estimate_
         return EstimateDraw(fit.names, fit.values, fit.std)
     return estimate
