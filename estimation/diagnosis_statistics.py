@@ -125,5 +125,5 @@ def residual_report(
     still = [channel for channel, c in comparison.get("after", {}).items() if c.above] if used is not None else list(channels)
     follows = residual_statements(tracing["after"], still)
     for channel, text in follows.items():
-        statements[channel] = (statements[channel] + "; " if channel in statements else "") + text.split(": ", 1)[1]
+        statements[channel] = statements[channel] + "; " + text.split(": ", 1)[1] if channel in statements else text
     return ResidualReport(used, note, comparison, tracing, checks, statements)
