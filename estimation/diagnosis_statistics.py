@@ -78,7 +78,7 @@ def validation_floor(validate: Measurements, channels: tuple[str, ...]) -> tuple
                       "model-free estimate measures; give the floor of the record as recorded (noise_floor=...)")
     try:
         if metadata.get("periods_averaged"):
-            variance, dof = difference_variance(validate.channels(channels))
+            variance, dof = difference_variance(validate.channels(channels), names=channels)
             floor = NoiseFloor(channels, variance, "differences", dof, validate.n_samples,
                                {"order": 4, "on": f"the average of {metadata['periods_averaged']} periods"})
             return floor, "estimated from the period-averaged validation channels (differences)"

@@ -27,7 +27,8 @@ from the record alone, without any model, so that it can judge every model:
   mean square of the (correlated) differences, ``N / Σ_k ρ_k²`` with ``ρ`` the autocorrelation of
   the difference filter, times the 0.37 efficiency of the MAD. It measures the *white* part of
   the noise: a torque filtered before it was recorded has little high-frequency noise, and this
-  estimate is then too low (prefer periodic records).
+  estimate would be too low: such channels are recognised by the lag-1 correlation of their
+  differences (−0.8 for white noise at ``d = 4``) and refused (prefer periodic records).
 
 :func:`above_floor` is the stopping rule: a channel is above its floor when its validation MSE is
 significantly larger (one-sided F test).
@@ -53,6 +54,8 @@ MAX_HARMONICS = 1000
 DIFFERENCE_ORDER = 4
 #: asymptotic efficiency of the median absolute deviation for Gaussian data
 MAD_EFFICIENCY = 0.37
+#: largest departure of the differences' lag-1 correlation from white noise's
+WHITENESS_TOLERANCE = 0.15
 #: a channel within this factor of its floor is "at its floor" in the plain statements
 AT_FLOOR_RATIO = 1.2
 
@@ -172,7 +175,8 @@ def fourier_residual_variance(t: ArrayLike, values: ArrayLike, frequency_hz: flo
     return rss / dof * scale**2, float(dof), H
 
 
-def difference_variance(values: ArrayLike, *, order: int = DIFFERENCE_ORDER) -> tuple[NDArray[np.float64], float]:
+def difference_variance(values: ArrayLike, *, order: int = DIFFERENCE_ORDER,
+                        names: Sequence[str] | None = None) -> tuple[NDArray[np.float64], float]:
     """Robust difference-based noise variance of ``values (N, m)`` (module docstring); ``(σ̂², ν)``."""
     values = _as_2d(values)
     order = int(order)
@@ -184,6 +188,21 @@ def difference_variance(values: ArrayLike, *, order: int = DIFFERENCE_ORDER) -> 
     gain = comb(2 * order, order)  # Σ of the squared binomial coefficients
     deviation = np.median(np.abs(differences - np.median(differences, axis=0)), axis=0)
     variance = (1.482602218505602 * deviation) ** 2 / gain
+    # white noise gives differences whose lag-1 correlation is −C(2d, d−1)/C(2d, d) (−0.8 for d = 4);
+    # a channel filtered or interpolated before it was recorded does not, and its differences then
+    # measure the filter, not the noise: refuse rather than report a floor that is far too low
+    expected = -comb(2 * order, order - 1) / gain
+    for column in range(values.shape[1]):
+        kept = differences[:, column]
+        kept = kept[np.abs(kept - np.median(kept)) <= 5 * 1.4826 * max(deviation[column], np.finfo(float).tiny)]
+        centred = kept - kept.mean()
+        energy = float(centred @ centred)
+        lag1 = float(centred[1:] @ centred[:-1]) / energy if energy > 0 else 1.0
+        if abs(lag1 - expected) > WHITENESS_TOLERANCE:
+            raise NoiseFloorError(
+                f"channel {names[column] if names else column + 1}: its {order}th differences are not those of white noise (lag-1 correlation "
+                f"{lag1:.2f}, white noise {expected:.2f}): it was probably filtered, interpolated or resampled before "
+                "it was recorded, and no model-free floor can be read from it (a periodic record can give one)")
     return variance, float(MAD_EFFICIENCY * differences.shape[0] / _difference_correlation_sum(order))
 
 
@@ -274,7 +293,7 @@ def noise_floor(
                                   "period-to-period variance needs at least two")
     elif method == "periods":
         raise NoiseFloorError("method 'periods' needs the excitation frequency (frequency_hz)")
-    variance, dof = difference_variance(values)
+    variance, dof = difference_variance(values, names=channels)
     return NoiseFloor(channels, variance, "differences", dof, measurements.n_samples, {"order": DIFFERENCE_ORDER})
 
 

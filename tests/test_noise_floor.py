@@ -121,3 +121,14 @@ def test_stopping_rule_keeps_an_exact_model_at_its_floor_and_flags_a_missing_eff
         assert comparison["tau1"].above and "above its floor" in comparison["tau1"].statement()
     assert sum(calls) <= 2  # alpha = 1 % over 60 channels
     assert "at its floor" in comparison["tau2"].statement()
+
+
+def test_a_filtered_channel_gives_no_difference_floor():
+    import scipy.signal
+
+    t = np.arange(10000) / RATE
+    noisy = np.sin(2 * np.pi * 0.3 * t) + np.random.default_rng(8).normal(size=10000) * 0.1
+    smooth = scipy.signal.sosfiltfilt(scipy.signal.butter(4, 30.0, fs=RATE, output="sos"), noisy)
+    with pytest.raises(NoiseFloorError, match="tau2: its 4th differences are not those of white noise"):
+        noise_floor(_record(np.column_stack([noisy, smooth]), t), ("tau1", "tau2"))
+    assert noise_floor(_record(noisy[:, None], t), ("tau1",)).method == "differences"
