@@ -101,7 +101,7 @@ def statistics_lines(document: dict) -> list[str]:
 
     def strongest(which: str, channel: str) -> str:
         rows = [row for row in tracing[which]["rows"] if row["channel"] == channel][:3]
-        return ", ".join(f"{row['variable']} {100 * row['validation_share']:.0f} %" for row in rows)
+        return ", ".join(f"{row['variable']} {max(100 * row['validation_share'], 0.0):.0f} %" for row in rows)
 
     channels = list(dict.fromkeys(row["channel"] for row in tracing["after"]["rows"]))
     lines += [f"| {channel} | {strongest('before', channel)} | {strongest('after', channel)} |" for channel in channels]

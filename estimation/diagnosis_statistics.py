@@ -81,11 +81,28 @@ def validation_floor(validate: Measurements, channels: tuple[str, ...]) -> tuple
             variance, dof = difference_variance(validate.channels(channels), names=channels)
             floor = NoiseFloor(channels, variance, "differences", dof, validate.n_samples,
                                {"order": 4, "on": f"the average of {metadata['periods_averaged']} periods"})
-            return floor, "estimated from the period-averaged validation channels (differences)"
+            return floor, "estimated from the period-averaged validation channels"
         floor = noise_floor(validate, channels)
-        return floor, f"estimated from the validation record ({floor.method})"
+        return floor, "estimated from the validation record"
     except NoiseFloorError as error:
         return None, f"no noise floor: {error}"
+
+
+def floor_for_validation(validate: Measurements, channels: tuple[str, ...],
+                         floor: NoiseFloor | None = None) -> tuple[NoiseFloor | None, str]:
+    """The floor the validation MSE on ``validate`` is compared with, and how it was had.
+
+    ``floor`` (of the record as recorded) is carried through the preprocessing ``validate``
+    records; without it, :func:`validation_floor`. What the diagnosis loop's stopping rule
+    (:func:`estimation.noise_floor.above_floor`) should be given.
+    """
+    if floor is None:
+        return validation_floor(validate, tuple(channels))
+    if not isinstance(floor, NoiseFloor):
+        raise TypeError(f"noise_floor must be a NoiseFloor, got {type(floor).__name__}")
+    used = prepared_floor(floor, validate)
+    note = f"given ({floor.method})" + (f", scaled for {used.details['scalings'][-1]['why']}" if used is not floor else "")
+    return used, note
 
 
 def residual_report(
@@ -103,14 +120,7 @@ def residual_report(
     ``None``: estimated here when the validation data allow (module docstring).
     """
     channels = tuple(before.estimate.channels)
-    if floor is None:
-        used, note = validation_floor(validate, channels)
-    else:
-        if not isinstance(floor, NoiseFloor):
-            raise TypeError(f"noise_floor must be a NoiseFloor, got {type(floor).__name__}")
-        used = prepared_floor(floor, validate)
-        note = f"given ({floor.method})" + (f", scaled for {used.details['scalings'][-1]['why']}"
-                                             if used is not floor else "")
+    used, note = floor_for_validation(validate, channels, floor)
     comparison, statements = {}, {}
     results = {"before": before, "after": after}
     if used is not None:
