@@ -35,7 +35,7 @@ from estimation.noise_floor import (
     noise_floor,
     prepared_floor,
 )
-from estimation.residual_tracing import ResidualTrace, residual_statements, trace_residuals
+from estimation.residual_tracing import DEFAULT_BINS, ResidualTrace, residual_statements, trace_residuals
 from estimation.whiteness import ResidualChecks, residual_checks
 
 #: significance level of "above its floor"
@@ -130,7 +130,9 @@ def residual_report(
     tracing, checks = {}, {}
     inputs = {f"dq{j + 1}": validate.dq[:, j] for j in range(validate.n_joints)}
     for which, result in results.items():
-        tracing[which] = trace_residuals(result.estimate.residuals, train, result.validation.residuals, validate, channels)
+        bins = max(2, min(DEFAULT_BINS, train.n_samples // 5))  # short records: fewer bins
+        tracing[which] = trace_residuals(result.estimate.residuals, train, result.validation.residuals, validate, channels,
+                                         bins=bins)
         checks[which] = residual_checks(result.validation.residuals, channels, inputs)
     still = [channel for channel, c in comparison.get("after", {}).items() if c.above] if used is not None else list(channels)
     follows = residual_statements(tracing["after"], still)

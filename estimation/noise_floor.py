@@ -54,7 +54,7 @@ MAX_HARMONICS = 1000
 DIFFERENCE_ORDER = 4
 #: asymptotic efficiency of the median absolute deviation for Gaussian data
 MAD_EFFICIENCY = 0.37
-#: largest departure of the differences' lag-1 correlation from white noise's
+#: largest departure of the differences' lag-1 correlation from white noise's (long records)
 WHITENESS_TOLERANCE = 0.15
 #: a channel within this factor of its floor is "at its floor" in the plain statements
 AT_FLOOR_RATIO = 1.2
@@ -198,7 +198,9 @@ def difference_variance(values: ArrayLike, *, order: int = DIFFERENCE_ORDER,
         centred = kept - kept.mean()
         energy = float(centred @ centred)
         lag1 = float(centred[1:] @ centred[:-1]) / energy if energy > 0 else 1.0
-        if abs(lag1 - expected) > WHITENESS_TOLERANCE:
+        # sampling spread of a lag-1 correlation of the differences: about √(Σ ρ_k² / N) (Bartlett)
+        tolerance = max(WHITENESS_TOLERANCE, 4 * np.sqrt(_difference_correlation_sum(order) / max(kept.shape[0], 1)))
+        if abs(lag1 - expected) > tolerance:
             raise NoiseFloorError(
                 f"channel {names[column] if names else column + 1}: its {order}th differences are not those of white noise (lag-1 correlation "
                 f"{lag1:.2f}, white noise {expected:.2f}): it was probably filtered, interpolated or resampled before "
