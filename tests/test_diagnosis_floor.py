@@ -90,3 +90,15 @@ def test_cli_prints_how_far_above_the_floor_each_channel_stays(setting, tmp_path
     assert out.count("at its floor") == 3
     assert (tmp_path / "report.trace.png").exists()
     assert "## Noise floor" in (tmp_path / "report.md").read_text()
+
+
+def test_short_records_still_get_a_report(setting):
+    robot, _, _ = setting
+    model = build_model(robot, "internal", "viscous")
+    theta = true_parameters(model, seed=0)
+    noise = {channel: NOISE_TAU for channel in model.channels}
+    train = simulate(model, theta, random_fourier(robot, seed=3), rate_hz=12.0, noise=noise, seed=1)  # 60 samples
+    validate = simulate(model, theta, random_fourier(robot, seed=4), rate_hz=12.0, noise=noise, seed=2)
+    document = diagnose(model, train, validate, candidates=[]).to_dict()
+    assert document["tracing"]["after"]["bins"] == 12 and "whiteness" in document
+    assert document["noise_floor"]["mse"] is None or document["noise_floor"]["method"] == "differences"
