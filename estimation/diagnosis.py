@@ -48,7 +48,10 @@ from dynamics.threads import single_threaded_blas
 from estimation.coupling_candidates import coupling_candidates
 from estimation.identification import IdentificationResult, identify
 from estimation.least_squares import stack
+from estimation.diagnosis_statistics import ResidualReport, residual_report
 from estimation.measurements import Measurements
+from estimation.noise_floor import NoiseFloor
+from estimation.whiteness import autocorrelation
 
 JOINT_CANDIDATES: tuple[type, ...] = (CoulombFriction, JointOffset, Armature, StribeckFriction, Spring)
 
@@ -90,10 +93,11 @@ class Diagnosis:
     before: IdentificationResult
     after: IdentificationResult
     residuals: dict[str, dict[str, float]] = field(repr=False)
+    statistics: ResidualReport | None = field(default=None, repr=False)
 
     def to_dict(self) -> dict[str, Any]:
         """The JSON document of ``oed diagnose``."""
-        return {
+        document = {
             "robot": self.before.model.robot.name,
             "model": self.before.model.kind.value,
             "declared_effects": [effect.name for effect in self.before.model.effects],
@@ -106,7 +110,13 @@ class Diagnosis:
                 "before": {"mse": self.before.validation.mse if self.before.validation else None},
                 "after": {"mse": self.after.validation.mse if self.after.validation else None},
             },
+            "cov_method": self.after.estimate.cov_method,
         }
+        if self.statistics is not None:  # noise floor, tracing, whiteness (estimation.diagnosis_statistics)
+            document.update(self.statistics.to_dict())
+            for which in ("before", "after"):
+                document["validation"][which]["mse_over_floor"] = self.statistics.ratios(which) or None
+        return document
 
 
 def effect_channels(effect: Effect, model: IdentificationModel) -> tuple[str, ...]:
@@ -187,12 +197,11 @@ def residual_statistics(result: IdentificationResult, *, lags: Sequence[int] = (
     residuals = result.estimate.residuals
     statistics = {}
     for channel, values in zip(result.estimate.channels, residuals.T):
-        centred = values - values.mean()
-        variance = float(np.mean(centred**2)) or 1.0
         entry = {"mean": float(values.mean()), "std": float(values.std()), "rms": float(np.sqrt(np.mean(values**2)))}
+        correlation = autocorrelation(values, max((lag for lag in lags if lag < values.shape[0]), default=0))
         for lag in lags:
-            if lag < values.shape[0]:
-                entry[f"autocorrelation_lag{lag}"] = float(np.mean(centred[lag:] * centred[:-lag]) / variance)
+            if lag < values.shape[0]:  # normalised estimator: within [-1, 1] (estimation.whiteness)
+                entry[f"autocorrelation_lag{lag}"] = float(correlation[lag])
         statistics[channel] = entry
     return statistics
 
@@ -207,6 +216,7 @@ def diagnose(
     alpha: float = 1e-3,
     min_improvement: float = 0.01,
     max_effects: int = 10,
+    noise_floor: NoiseFloor | None = None,
 ) -> Diagnosis:
     """Find, by forward selection, the effects ``model`` lacks in ``train``, confirmed on ``validate``.
 
@@ -225,6 +235,11 @@ def diagnose(
         Smallest relative decrease of the weighted validation MSE for an effect to be added.
     max_effects
         Most effects added.
+    noise_floor
+        Noise floor of the validation record as recorded (:func:`estimation.noise_floor.noise_floor`,
+        before preprocessing; scaled here for the averaging/filtering ``validate.metadata`` records).
+        ``None``: estimated from ``validate`` when it can be (see
+        :mod:`estimation.diagnosis_statistics`), the method said in the report.
     """
     for name, data in (("train", train), ("validate", validate)):
         if not isinstance(data, Measurements):
@@ -333,4 +348,5 @@ def diagnose(
         before=before,
         after=after,
         residuals=residual_statistics(before),
+        statistics=residual_report(before, after, train, validate, noise_floor),
     )

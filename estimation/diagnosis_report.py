@@ -38,8 +38,10 @@ def plot_residuals(diagnosis: Diagnosis, train: Measurements, path: str | Path |
     return figure
 
 
-def markdown_report(diagnosis: Diagnosis, figure: str | None = None) -> str:
-    """The report a person reads: effects found, rejected candidates, MSE before and after."""
+def markdown_report(diagnosis: Diagnosis, figure: str | None = None, trace_figure: str | None = None) -> str:
+    """The report a person reads: effects found, rejected candidates, MSE before and after, the
+    noise floor, what the residual follows and its whiteness (``trace_figure``: the figure of
+    :func:`plot_trace`)."""
     document = diagnosis.to_dict()
     lines = [
         f"# Diagnosis: {document['robot']}, {document['model']} model",
@@ -66,10 +68,65 @@ def markdown_report(diagnosis: Diagnosis, figure: str | None = None) -> str:
     for channel, stats in document["residuals"].items():
         autocorrelation = " / ".join(f"{stats[key]:.2f}" for key in stats if key.startswith("autocorrelation"))
         lines.append(f"| {channel} | {stats['mean']:.4g} | {stats['std']:.4g} | {autocorrelation} |")
+    lines += statistics_lines(document)
     absorbed = [r for r in document["rejected"] if "absorb" in r["reason"]]
     if absorbed:
         lines += ["", "## Not identifiable here", ""]
         lines += [f"- {r['name']} on {', '.join(r['channels'])}: {r['reason']}" for r in absorbed]
     if figure:
         lines += ["", f"![residuals]({figure})"]
+    if trace_figure:
+        lines += ["", f"![residual against its strongest variables]({trace_figure})"]
     return "\n".join(lines) + "\n"
+
+
+def statistics_lines(document: dict) -> list[str]:
+    """Markdown of the noise floor, floor comparison, tracing and whiteness keys of a report."""
+    if "noise_floor" not in document:
+        return []
+    floor = document["noise_floor"]
+    lines = ["", "## Noise floor", "", f"Method: {floor.get('method', 'none')} ({floor['note']})."]
+    if floor["mse"] is not None:
+        lines += ["", "| channel | floor (MSE) | MSE / floor before | MSE / floor after | |", "|---|---|---|---|---|"]
+        comparison = document["floor_comparison"]
+        for channel, value in floor["mse"].items():
+            before, after = comparison["before"][channel], comparison["after"][channel]
+            verdict = f"{after['ratio']:.3g} x above" if after["above"] else "at its floor"
+            lines.append(f"| {channel} | {value:.4g} | {before['ratio']:.3g} | {after['ratio']:.3g} | {verdict} |")
+    if document.get("floor_statements"):
+        lines += [""] + [f"- {text}" for text in document["floor_statements"].values()]
+    lines += ["", "## What the residual follows (share of the validation variance explained by binned means "
+              "fitted on training)", "", "| channel | before: strongest variables | after: strongest variables |",
+              "|---|---|---|"]
+    tracing = document["tracing"]
+
+    def strongest(which: str, channel: str) -> str:
+        rows = [row for row in tracing[which]["rows"] if row["channel"] == channel][:3]
+        return ", ".join(f"{row['variable']} {max(100 * row['validation_share'], 0.0):.0f} %" for row in rows)
+
+    channels = list(dict.fromkeys(row["channel"] for row in tracing["after"]["rows"]))
+    lines += [f"| {channel} | {strongest('before', channel)} | {strongest('after', channel)} |" for channel in channels]
+    whiteness = document["whiteness"]
+    lines += ["", f"## Whiteness and input correlation of the validation residual ({100 * whiteness['after']['confidence']:g} % bands)",
+              "", "| channel | lags outside (before) | lags outside (after) | lag-1 autocorrelation after | correlated with (after) |",
+              "|---|---|---|---|---|"]
+    for channel, check in whiteness["after"]["channels"].items():
+        before = whiteness["before"]["channels"][channel]["whiteness"]
+        correlated = [name for name, entry in check["inputs"].items() if not entry["passed"]]
+        lines.append(f"| {channel} | {before['outside']}/{len(before['lags'])} | {check['whiteness']['outside']}/"
+                     f"{len(check['whiteness']['lags'])} | {check['whiteness']['values'][0]:.2f} | "
+                     f"{', '.join(correlated) or 'none'} |")
+    return lines
+
+
+def plot_trace(diagnosis: Diagnosis, validate: Measurements, path: str | Path | None = None) -> Figure | None:
+    """The augmented model's validation residual against its strongest variables (``None`` without
+    statistics)."""
+    if diagnosis.statistics is None:
+        return None
+    from estimation.residual_tracing import plot_residual_trace
+
+    channels = diagnosis.after.estimate.channels
+    return plot_residual_trace(diagnosis.statistics.tracing["after"], diagnosis.after.validation.residuals, validate,
+                               channels, path, title="Residual after the diagnosis (validation) against its "
+                               "strongest variables")

@@ -22,6 +22,7 @@ import numpy as np
 from dynamics.effects import POSITIVE_EFFECTS
 from dynamics.models import IdentificationModel
 from dynamics.threads import single_threaded_blas
+from estimation.covariance import CovarianceMethod
 from estimation.least_squares import Estimate, LeastSquares, WeightedLeastSquares, stack
 from estimation.measurements import Measurements
 from estimation.segments import concatenate
@@ -100,7 +101,8 @@ class IdentificationResult:
             {robot, model, effects, method, n_samples, parameters: [{name, expression, value, std,
              relative_std}], cond, channel_std: {channel: σ}, train: {mse: {channel: value}
              [, mse_filtered: {…}]}, validation: {mse…} | null, warnings: [text],
-             preprocessing: {method, cutoff_hz | frequency_hz, harmonics, trimmed_s, …} | null}
+             preprocessing: {method, cutoff_hz | frequency_hz, harmonics, trimmed_s, …} | null,
+             cov_method, hac_lags}
 
         ``mse`` is measured against the torques/wrench as recorded (on the samples kept);
         ``mse_filtered``, present when preprocessing filtered or averaged them, against those.
@@ -118,6 +120,8 @@ class IdentificationResult:
             "validation": None if self.validation is None else self.validation.to_dict(),
             "warnings": list(self.warnings),
             "preprocessing": self.preprocessing,
+            "cov_method": self.estimate.cov_method,
+            "hac_lags": self.estimate.hac_lags,
         }
 
 
@@ -129,6 +133,7 @@ def identify(
     *,
     weighted: bool = True,
     estimator: LeastSquares | None = None,
+    covariance: CovarianceMethod = "hac",
 ) -> IdentificationResult:
     """Estimate the base parameters of ``model`` from ``train`` and compare with ``validate``.
 
@@ -144,7 +149,11 @@ def identify(
     weighted
         Channel-weighted least squares (default) rather than ordinary (PUMA paper, eq. 20).
     estimator
-        A configured estimator instead (overrides ``weighted``); it is fitted in place.
+        A configured estimator instead (overrides ``weighted`` and ``covariance``); it is fitted in place.
+    covariance
+        Standard deviations: ``"hac"`` (default; Newey–West, they hold when the residuals are
+        correlated in time, and equal the classical ones within sampling error when they are white:
+        :mod:`estimation.covariance`) or ``"classical"`` (white residuals assumed).
 
     Warns
     -----
@@ -155,7 +164,7 @@ def identify(
     train = concatenate(train)
     validate = None if validate is None else concatenate(validate)
     if estimator is None:
-        estimator = WeightedLeastSquares() if weighted else LeastSquares()
+        estimator = WeightedLeastSquares(covariance=covariance) if weighted else LeastSquares(covariance=covariance)
     estimate = estimator.fit(stack(model, train)).estimate_
     train_comparison = compare(model, estimate.values, train, label="identification")
     validation = None if validate is None else compare(model, estimate.values, validate, label="validation")

@@ -27,6 +27,7 @@ from numpy.typing import NDArray
 
 from dynamics.models import IdentificationModel
 from dynamics.threads import single_threaded_blas
+from estimation.covariance import CovarianceMethod, check_method, hac_covariance
 from estimation.errors import NotFittedError
 from estimation.estimator import Estimator
 from estimation.identification_problem import IdentificationProblem, stack
@@ -75,6 +76,10 @@ class Estimate:
         ``"ols"`` or ``"wls"``.
     n_iterations
         Weighted solves done (1 for ordinary LS).
+    cov_method
+        ``"classical"`` (white residuals) or ``"hac"`` (Newey–West, :mod:`estimation.covariance`).
+    hac_lags
+        Bandwidth of the HAC estimate (``None`` for the classical one).
     """
 
     values: NDArray[np.float64]
@@ -90,6 +95,8 @@ class Estimate:
     channels: tuple[str, ...]
     method: Literal["ols", "wls"]
     n_iterations: int
+    cov_method: CovarianceMethod = "classical"
+    hac_lags: int | None = None
 
     def __post_init__(self) -> None:
         # frozen all the way down: estimator.theta_[0] = 0 must not rewrite the estimate
@@ -173,13 +180,23 @@ class LeastSquares(Estimator):
     ``fit(problem)`` or ``fit(model, measurements)``; fitted attributes ``theta_``, ``cov_``,
     ``std_``, ``relative_std_``, ``cond_``, ``residuals_``, ``channel_variance_``,
     ``estimate_`` (an :class:`Estimate`).
+
+    Parameters
+    ----------
+    covariance
+        ``"classical"`` (``σ̂² (YᵀY)⁻¹``, white residuals) or ``"hac"`` (Newey–West sandwich, holds
+        with residuals correlated in time: :mod:`estimation.covariance`).
     """
 
     method: Literal["ols", "wls"] = "ols"
 
+    def __init__(self, *, covariance: CovarianceMethod = "classical") -> None:
+        self.covariance = covariance
+
     @single_threaded_blas()
     def fit(self, problem: IdentificationProblem | IdentificationModel, measurements: Measurements | None = None):
         self._forget_fit()
+        check_method(getattr(self, "covariance", "classical"))
         problem = _as_problem(problem, measurements)
         _check_size(problem)
         weights = np.ones(problem.n_channels)
@@ -187,10 +204,13 @@ class LeastSquares(Estimator):
         residuals = problem.residuals(theta)
         dof = problem.n_samples * problem.n_channels - problem.n_parameters
         sigma2 = float(np.sum(residuals**2)) / dof
-        self._store(problem, theta, sigma2 * unscaled, cond, residuals, weights, 1)
+        self._store(problem, theta, sigma2 * unscaled, cond, residuals, weights, 1, unscaled)
         return self
 
-    def _store(self, problem, theta, cov, cond, residuals, weights, iterations) -> None:
+    def _store(self, problem, theta, cov, cond, residuals, weights, iterations, unscaled=None) -> None:
+        cov_method, lags = check_method(getattr(self, "covariance", "classical")), None
+        if cov_method == "hac":
+            cov, lags = hac_covariance(problem.Y, residuals, weights, unscaled)
         std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
         with np.errstate(divide="ignore", invalid="ignore"):
             relative = np.where(theta != 0, 100.0 * std / np.abs(theta), np.inf)
@@ -198,7 +218,7 @@ class LeastSquares(Estimator):
             values=theta, cov=cov, std=std, relative_std=relative, cond=cond, residuals=residuals,
             channel_variance=channel_variance(residuals, problem.n_parameters), weights=weights,
             names=problem.names, expressions=problem.expressions, channels=problem.channels,
-            method=self.method, n_iterations=iterations,
+            method=self.method, n_iterations=iterations, cov_method=cov_method, hac_lags=lags,
         )
 
     def _fitted(self) -> Estimate:
@@ -242,18 +262,23 @@ class WeightedLeastSquares(LeastSquares):
     variance_floor
         Smallest channel variance, relative to the channel's mean square (keeps noise-free
         channels from taking infinite weight).
+    covariance
+        ``"classical"`` or ``"hac"``, as :class:`LeastSquares`.
     """
 
     method: Literal["ols", "wls"] = "wls"
 
-    def __init__(self, *, max_iter: int = 20, tol: float = 1e-6, variance_floor: float = 1e-14) -> None:
+    def __init__(self, *, max_iter: int = 20, tol: float = 1e-6, variance_floor: float = 1e-14,
+                 covariance: CovarianceMethod = "classical") -> None:
         self.max_iter = max_iter
         self.tol = tol
         self.variance_floor = variance_floor
+        self.covariance = covariance
 
     @single_threaded_blas()
     def fit(self, problem: IdentificationProblem | IdentificationModel, measurements: Measurements | None = None):
         self._forget_fit()
+        check_method(getattr(self, "covariance", "classical"))
         if int(self.max_iter) != self.max_iter or self.max_iter < 1:
             raise ValueError(f"max_iter must be a positive integer, got {self.max_iter}")
         for name in ("tol", "variance_floor"):
@@ -294,7 +319,7 @@ class WeightedLeastSquares(LeastSquares):
         residuals = problem.residuals(theta)
         dof = problem.n_samples * problem.n_channels - problem.n_parameters
         scale = float(np.sum(residuals**2 * weights)) / dof  # ≈ 1 once the weights are the inverse variances
-        self._store(problem, theta, scale * unscaled, cond, residuals, weights, iterations)
+        self._store(problem, theta, scale * unscaled, cond, residuals, weights, iterations, unscaled)
         return self
 
 

@@ -165,7 +165,8 @@ def test_estimators_share_the_scikit_learn_contract():
     from estimation.recursive import ExtendedRecursiveLeastSquares, RecursiveLeastSquares
 
     assert repr(ARXEstimator(na=3)) == "ARXEstimator(na=3, nb=1, nk=1)"
-    assert WeightedLeastSquares().get_params() == {"max_iter": 20, "tol": 1e-6, "variance_floor": 1e-14}
+    assert WeightedLeastSquares().get_params() == {"max_iter": 20, "tol": 1e-6, "variance_floor": 1e-14,
+                                                   "covariance": "classical"}
     assert ExtendedRecursiveLeastSquares().set_params(nc=2).get_params()["nc"] == 2
     with pytest.raises(ValueError, match=r"no setting\(s\) \['foo'\]"):
         ARXEstimator().set_params(foo=1)

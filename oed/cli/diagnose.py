@@ -10,7 +10,9 @@ from pathlib import Path
 from dynamics.models import ModelKind, build_model
 from estimation.coupling_candidates import coupling_candidates
 from estimation.diagnosis import default_candidates, diagnose
-from estimation.diagnosis_report import markdown_report, plot_residuals
+from estimation.diagnosis_report import markdown_report, plot_residuals, plot_trace
+from estimation.motor_data import read_record_with_transmission
+from estimation.noise_floor import NoiseFloor, NoiseFloorError, noise_floor, pooled_floor
 from oed.cli.asbuilt import (add_asbuilt_arguments, finish_document, model_effects, resolve_transmission, rest_message,
                              rest_rows, trivial_predictors, worse_after)
 from oed.cli.common import OutputFiles, add_robot_arguments, json_text, robot_from_arguments
@@ -45,9 +47,33 @@ def residual_figure(report: Path) -> Path:
     return report.with_suffix(".residuals.png")
 
 
+def trace_figure(report: Path) -> Path:
+    """The figure of the residual against its strongest variables, beside the Markdown report."""
+    return report.with_suffix(".trace.png")
+
+
 def derived_outputs(args: argparse.Namespace) -> dict[str, Path]:
     """Files written besides the named outputs (checked against them by :func:`oed.cli.paths.check_paths`)."""
-    return {} if args.report is None else {"the report's residual figure": residual_figure(args.report)}
+    if args.report is None:
+        return {}
+    return {"the report's residual figure": residual_figure(args.report),
+            "the report's tracing figure": trace_figure(args.report)}
+
+
+def recorded_floor(paths: list[Path], model, args: argparse.Namespace, transmission=None) -> NoiseFloor | None:
+    """The noise floor of the validation record as loaded, before any differentiation, averaging or
+    filtering (period-to-period with ``--frequency`` or the file's frequency, else differences),
+    pooled over its segments; ``None`` with a warning when the record cannot give one."""
+    floors = []
+    for path in paths:
+        for segment in read_record_with_transmission(path, model=model, transmission=transmission,
+                                                     max_gap=args.max_gap, split=False):
+            try:
+                floors.append(noise_floor(segment, model.channels, frequency_hz=args.frequency))
+            except NoiseFloorError as error:
+                warnings.warn(f"no noise floor from {path}: {error}", stacklevel=2)
+                return None
+    return pooled_floor(floors)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -68,8 +94,9 @@ def run(args: argparse.Namespace) -> int:
         train, rest_train = rest_rows(train, model, args, "train")
         validate, rest_validate = rest_rows(validate, model, args, "validation")
         candidates = default_candidates(model) + coupling_candidates(model, transmission, train=train)
+        floor = recorded_floor(args.validate, model, args, transmission)
         diagnosis = diagnose(model, train, validate, alpha=args.alpha, candidates=candidates,
-                             max_effects=args.max_effects)
+                             max_effects=args.max_effects, noise_floor=floor)
         trivial, notes = trivial_predictors(diagnosis.after, validate)
         notes += worse_after(diagnosis)
     print_warnings("diagnose", caught)
@@ -87,8 +114,10 @@ def run(args: argparse.Namespace) -> int:
         if args.report is not None:
             figure = residual_figure(args.report)
             plot_residuals(diagnosis, train, outputs.stage_figure(figure))
+            tracing = trace_figure(args.report)
+            plot_trace(diagnosis, validate, outputs.stage_figure(tracing))
             with outputs.open(args.report) as stream:
-                stream.write(markdown_report(diagnosis, figure.name) + f"\n{preprocessing.describe()[0].upper()}"
+                stream.write(markdown_report(diagnosis, figure.name, tracing.name) + f"\n{preprocessing.describe()[0].upper()}"
                              f"{preprocessing.describe()[1:]}; validation MSEs against the recorded channels.\n")
     print(preprocessing.describe())
     print_summary(diagnosis)
@@ -115,3 +144,21 @@ def print_summary(diagnosis) -> None:
     print("                 " + "  ".join(f"{channel:>9s}" for channel in before))
     print("  before         " + "  ".join(f"{value:9.4g}" for value in before.values()))
     print("  after          " + "  ".join(f"{after[channel]:9.4g}" for channel in before))
+    print_floor(diagnosis)
+
+
+def print_floor(diagnosis) -> None:
+    """The noise floor per channel and how far above it each channel stays."""
+    statistics = diagnosis.statistics
+    if statistics is None:
+        return
+    if statistics.floor is None:
+        print(statistics.floor_note)
+        return
+    floor = statistics.floor.mse()
+    print(f"  noise floor    " + "  ".join(f"{floor[channel]:9.4g}" for channel in floor)
+          + f"   ({statistics.floor.method}; {statistics.floor_note})")
+    ratios = statistics.ratios("after")
+    print("  after / floor  " + "  ".join(f"{ratios[channel]:9.3g}" for channel in floor))
+    for text in statistics.statements.values():
+        print(f"  {text}")
