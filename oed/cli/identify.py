@@ -3,15 +3,21 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import sys
 import warnings
+from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 from dynamics.models import ModelKind, build_model
+from estimation.cluster import SCHEDULER_VARIABLE, connect, scheduler_address
 from estimation.identification import identify
 from estimation.loading import read_measurements
 from estimation.measurements import Measurements
+from estimation.normal_equations import DEFAULT_CHUNK_SIZE
 from estimation.preprocessing import ButterworthDifferentiation, Differentiation, FourierDifferentiation, fill_derivatives
+from estimation.streamed_identification import identify_files
+from estimation.streaming import StreamingUnsupportedError
 from estimation.validation import plot_comparison
 from oed.cli.common import OutputFiles, add_robot_arguments, check_figure_path, json_text, robot_from_arguments
 
@@ -30,14 +36,88 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
         "--friction", default="viscous",
         help="extra columns, comma-separated: viscous, coulomb, offset, armature, wrench_offset (default: viscous; 'none')",
     )
-    parser.add_argument("--data", type=Path, required=True, help="identification data (.csv or .parquet)")
+    parser.add_argument("--data", type=Path, required=True, action="append",
+                        help="identification data (.csv or .parquet); repeat for several files (one estimate from "
+                             "all, by accumulated sums)")
     parser.add_argument("--validate", type=Path, help="validation data from another trajectory")
     parser.add_argument("--out", type=Path, required=True, help="result JSON file")
     parser.add_argument("--plot", type=Path, help="figure of measured vs predicted channels (.png, .pdf, .svg)")
     parser.add_argument("--method", choices=("wls", "ols"), default="wls",
                         help="channel-weighted (default) or ordinary least squares")
     add_derivative_arguments(parser)
+    add_streaming_arguments(parser)
     return parser
+
+
+def add_streaming_arguments(parser: argparse.ArgumentParser) -> None:
+    """``--chunk-size``, ``--scheduler``, ``--workers``: the bounded-memory, distributed path."""
+    streaming = parser.add_argument_group(
+        "bounded memory and clusters (estimation.streamed_identification)",
+        "read and sum the files chunk by chunk (peak memory set by the chunk, not the record); several "
+        "--data files always take this path")
+    streaming.add_argument("--chunk-size", type=int, help=f"samples a chunk (default {DEFAULT_CHUNK_SIZE} when "
+                           "streaming)")
+    streaming.add_argument("--scheduler", help=f"dask scheduler address (tcp://host:8786) to sum the files on a "
+                           f"cluster (default: ${SCHEDULER_VARIABLE}); needs pip install 'robot-oed[cluster]'")
+    streaming.add_argument("--workers", type=int, default=0, help="sum the files in a local process pool of this size")
+
+
+def streaming_requested(args: argparse.Namespace) -> bool:
+    return (len(args.data) > 1 or args.chunk_size is not None or args.workers > 0
+            or scheduler_address(args.scheduler) is not None)
+
+
+@contextlib.contextmanager
+def executor_from_arguments(args: argparse.Namespace):
+    """A dask executor (``--scheduler`` or ``$ROBOT_OED_SCHEDULER``), a process pool (``--workers``) or ``None``."""
+    if args.workers < 0:
+        raise ValueError(f"--workers must be 0 (in this process) or a pool size, got {args.workers}")
+    address = scheduler_address(args.scheduler)
+    if address is not None and args.workers:
+        raise ValueError("give --scheduler (a dask cluster) or --workers (a local pool), not both")
+    if address is not None:
+        with connect(address) as executor:
+            yield executor
+    elif args.workers:
+        with ProcessPoolExecutor(args.workers) as executor:
+            yield executor
+    else:
+        yield None
+
+
+def run_streaming(args: argparse.Namespace, robot, model) -> int:
+    if args.frequency is not None:
+        raise StreamingUnsupportedError("--frequency (period averaging and a Fourier fit) needs each record whole: "
+                                        "give one --data file without --chunk-size/--scheduler/--workers, or use "
+                                        "--cutoff")
+    chunk_size = DEFAULT_CHUNK_SIZE if args.chunk_size is None else args.chunk_size
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        with executor_from_arguments(args) as executor:
+            result = identify_files(model, args.data, [] if args.validate is None else [args.validate],
+                                    method=args.method, chunk_size=chunk_size, cutoff_hz=args.cutoff,
+                                    decimation=args.decimate, held_torques=args.held_torques, executor=executor)
+    for warning in caught:
+        print(f"oed identify: warning: {warning.message}", file=sys.stderr)
+    with OutputFiles() as outputs:
+        with outputs.open(args.out) as stream:
+            stream.write(json_text(result.to_dict()))
+    estimate = result.estimate
+    print(f"{robot.name}: {model.kind.value} model, {model.n_base} base parameters, {result.train.n_samples} samples "
+          f"from {len(result.files)} file(s) in chunks of {chunk_size}, {estimate.method.upper()}, cond {estimate.cond:.4g}")
+    _print_estimate(estimate)
+    print("train MSE: " + "  ".join(f"{channel} {value:.4g}" for channel, value in result.train_mse.items()))
+    if result.validation_mse is not None:
+        print("validation MSE: " + "  ".join(f"{channel} {value:.4g}" for channel, value in result.validation_mse.items()))
+    print(f"wrote {args.out}")
+    return 0
+
+
+def _print_estimate(estimate) -> None:
+    width = max(len(name) for name in estimate.names)
+    for record in estimate.records():
+        relative = record["relative_std"]
+        print(f"  {record['name']:<{width}}  {record['value']:+.5g} ± {record['std']:.2g}  ({relative:.3g} %)")
 
 
 def add_derivative_arguments(parser: argparse.ArgumentParser) -> None:
@@ -73,9 +153,14 @@ def run(args: argparse.Namespace) -> int:
     differentiation(args)  # contradicting derivative options are an error even when the data hold dq, ddq
     robot = robot_from_arguments(args)
     model = build_model(robot, args.model, args.friction)
+    if streaming_requested(args):
+        if args.plot is not None:
+            raise ValueError("--plot draws every sample: not with the streamed path (several --data files, "
+                             "--chunk-size, --scheduler or --workers)")
+        return run_streaming(args, robot, model)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        train = prepare(args.data, model, args)
+        train = prepare(args.data[0], model, args)
         validation = None if args.validate is None else prepare(args.validate, model, args)
         result = identify(model, train, validation, weighted=args.method == "wls")
     for warning in caught:
@@ -91,10 +176,7 @@ def run(args: argparse.Namespace) -> int:
     estimate = result.estimate
     print(f"{robot.name}: {model.kind.value} model, {model.n_base} base parameters, {train.n_samples} samples, "
           f"{estimate.method.upper()}, cond {estimate.cond:.4g}")
-    width = max(len(name) for name in estimate.names)
-    for record in estimate.records():
-        relative = record["relative_std"]
-        print(f"  {record['name']:<{width}}  {record['value']:+.5g} ± {record['std']:.2g}  ({relative:.3g} %)")
+    _print_estimate(estimate)
     for label, comparison in (("train", result.train), ("validation", result.validation)):
         if comparison is not None:
             print(f"{label} MSE: " + "  ".join(f"{channel} {value:.4g}" for channel, value in comparison.mse.items()))

@@ -29,14 +29,17 @@ def _named_paths(args: argparse.Namespace) -> dict[str, tuple[str, Path]]:
     folders = tuple(getattr(args, "folder_options", ()))
     for role, options in (("input", INPUT_OPTIONS), ("output", OUTPUT_OPTIONS)):
         for option in options:
-            value = getattr(args, option, None)
-            if value is None:
+            given = getattr(args, option, None)
+            if given is None:
                 continue
-            if not str(value).strip():
-                raise ValueError(f"{_flag(option)} is empty: give a file name")
-            if role == "output" and option not in folders and Path(value).is_dir():  # Path("") is "."
-                raise ValueError(f"{_flag(option)} {value} is a folder: give a file name")
-            named[_flag(option)] = (role, Path(value))
+            values = given if isinstance(given, list) else [given]  # action="append": several files
+            for index, value in enumerate(values):
+                flag = _flag(option) if len(values) == 1 else f"{_flag(option)} #{index + 1}"
+                if not str(value).strip():
+                    raise ValueError(f"{_flag(option)} is empty: give a file name")
+                if role == "output" and option not in folders and Path(value).is_dir():  # Path("") is "."
+                    raise ValueError(f"{_flag(option)} {value} is a folder: give a file name")
+                named[flag] = (role, Path(value))
         effect_values = getattr(args, "effect_values", None)  # JSON text or a file of it
         if role == "input" and effect_values and not effect_values.lstrip().startswith("{") \
                 and os.path.isfile(effect_values):
