@@ -227,3 +227,18 @@ def test_cli_bad_file_of_a_set_exit_2_nothing_written(files, tmp_path, capsys, m
                  "1000", "--scheduler", "tcp://127.0.0.1:1", "--out", str(out)])
     assert code == 2 and "127.0.0.1:1" in capsys.readouterr().err
     assert not out.exists()
+
+
+def test_design_starts_on_a_dask_scheduler(tmp_path, monkeypatch):
+    distributed = pytest.importorskip("dask.distributed", reason="dask is an optional extra: pip install 'robot-oed[cluster]'")
+    out, serial = tmp_path / "cluster.json", tmp_path / "serial.json"
+    args = ["design", "--joints", "3", "--model", "internal", "--starts", "2", "--max-iter", "200", "--samples", "60",
+            "--constraint-points", "20", "--quiet"]
+    assert main(args + ["--out", str(serial)]) == 0
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False, dashboard_address=None) as cluster:
+        monkeypatch.setenv("ROBOT_OED_SCHEDULER", cluster.scheduler_address)
+        assert main(args + ["--out", str(out)]) == 0
+    a, b = json.loads(serial.read_text()), json.loads(out.read_text())
+    solver_a, solver_b = a.pop("solver"), b.pop("solver")
+    assert a == b  # the same trajectory and cost
+    assert {k: v for k, v in solver_a.items() if "time" not in k} == {k: v for k, v in solver_b.items() if "time" not in k}
