@@ -30,6 +30,7 @@ from numpy.typing import NDArray
 
 from dynamics.memory import check_allocation
 from dynamics.models import IdentificationModel
+from dynamics.threads import single_threaded_blas
 from estimation.errors import NotFittedError
 from estimation.estimator import Estimator
 from estimation.least_squares import IDENTIFIABILITY_TOLERANCE, IdentifiabilityError
@@ -282,6 +283,7 @@ class SummedLeastSquares(Estimator):
         self.tol = tol
         self.variance_floor = variance_floor
 
+    @single_threaded_blas()
     def fit(self, sums: NormalEquations) -> SummedLeastSquares:
         self._forget_fit()
         if self.method not in ("ols", "wls"):
@@ -348,6 +350,7 @@ def check_chunk_size(chunk_size: int, model: IdentificationModel, extra_columns:
     return int(chunk_size)
 
 
+@single_threaded_blas()
 def accumulate(model: IdentificationModel, measurements: Measurements, *, chunk_size: int = DEFAULT_CHUNK_SIZE,
                sums: NormalEquations | None = None, source: str = "") -> NormalEquations:
     """Sums of ``model``'s base-parameter problem on ``measurements`` (with ``dq``, ``ddq``), the
