@@ -96,8 +96,9 @@ def record(folder: Path, n_samples: int, seed: int) -> Path:
     return path
 
 
-def time_identify(path: Path, chunk_size: int, out: Path) -> tuple[float, float]:
-    """Wall time (s) and peak resident memory (MB) of ``oed identify`` on ``path`` in a fresh process."""
+def time_identify(path: Path, chunk_size: int, out: Path) -> tuple[float, float, float]:
+    """Wall time (s), CPU time (user + system, s) and peak resident memory (MB) of ``oed identify`` on
+    ``path`` in a fresh process (the CPU time is the steadier figure on a shared machine)."""
     command = ["/usr/bin/time", "-v", sys.executable, "-m", "oed", "identify", "--urdf", str(URDF), "--model",
                "internal", "--friction", "viscous", "--data", str(path), "--chunk-size", str(chunk_size),
                "--cutoff", str(CUTOFF), "--out", str(out)]
@@ -107,7 +108,8 @@ def time_identify(path: Path, chunk_size: int, out: Path) -> tuple[float, float]
     peak = float(re.search(r"Maximum resident set size \(kbytes\): (\d+)", run.stderr).group(1)) / 1024
     wall = re.search(r"Elapsed \(wall clock\) time \(h:mm:ss or m:ss\): ([\d:.]+)", run.stderr).group(1)
     seconds = sum(float(part) * 60**index for index, part in enumerate(reversed(wall.split(":"))))
-    return seconds, peak
+    cpu = sum(float(re.search(rf"{kind} time \(seconds\): ([\d.]+)", run.stderr).group(1)) for kind in ("User", "System"))
+    return seconds, cpu, peak
 
 
 def bench_lengths(folder: Path, lengths: list[int], chunk_size: int) -> None:
@@ -115,13 +117,13 @@ def bench_lengths(folder: Path, lengths: list[int], chunk_size: int) -> None:
     rows = []
     for length in lengths:
         path = record(folder, length, seed=1)
-        seconds, peak = time_identify(path, chunk_size, folder / f"identify_{length}.json")
-        rows.append((length, seconds, peak))
-        print(f"  {length:>9} samples: {seconds:7.1f} s, peak {peak:7.0f} MB, {1e6 * seconds / length:6.1f} µs a sample",
-              flush=True)
+        seconds, cpu, peak = time_identify(path, chunk_size, folder / f"identify_{length}.json")
+        rows.append((length, seconds, cpu, peak))
+        print(f"  {length:>9} samples: wall {seconds:7.1f} s, CPU {cpu:7.1f} s, peak {peak:7.0f} MB, "
+              f"{1e6 * seconds / length:6.1f} µs a sample", flush=True)
     if len(rows) > 1:
-        (n0, t0, _), (n1, t1, _) = rows[0], rows[-1]
-        print(f"  time ratio {t1 / t0:.2f} for a length ratio {n1 / n0:.2f}")
+        (n0, t0, c0, _), (n1, t1, c1, _) = rows[0], rows[-1]
+        print(f"  wall ratio {t1 / t0:.2f}, CPU ratio {c1 / c0:.2f} for a length ratio {n1 / n0:.2f}")
 
 
 def bench_files(folder: Path, count: int, samples: int, chunk_size: int) -> None:
