@@ -245,3 +245,16 @@ def test_design_starts_on_a_dask_scheduler(tmp_path, monkeypatch):
         return [timeless(item) for item in value] if isinstance(value, list) else value
 
     assert timeless(json.loads(serial.read_text())) == timeless(json.loads(out.read_text()))  # same trajectory, cost
+
+
+def test_diagnose_max_effects_is_an_option_and_says_when_reached(model, files, tmp_path, capsys):
+    out = tmp_path / "diagnosis.json"
+    base = ["diagnose", "--joints", "3", "--model", "internal", "--data", str(files["full"][0]), "--validate",
+            str(files["full"][1]), "--out", str(out)]
+    assert main(base + ["--max-effects", "0"]) == 2
+    assert "--max-effects must be a positive integer" in capsys.readouterr().err
+    assert main(base + ["--max-effects", "1", "--alpha", "0.5"]) == 0
+    printed = capsys.readouterr().out
+    document = json.loads(out.read_text())
+    assert len(document["effects"]) <= 1
+    assert ("stopped at --max-effects 1" in printed) == (len(document["effects"]) == 1)

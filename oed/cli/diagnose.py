@@ -30,6 +30,8 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     parser.add_argument("--out", type=Path, required=True, help="report JSON")
     parser.add_argument("--report", type=Path, help="Markdown report (a residual figure is written beside it)")
     parser.add_argument("--alpha", type=float, default=1e-3, help="significance level of the F test (default 1e-3)")
+    parser.add_argument("--max-effects", type=int, default=10,
+                        help="most effects added (default 10); the search stops there and says so")
     add_derivative_arguments(parser)
     return parser
 
@@ -49,13 +51,15 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError(f"--validate is --data ({args.data}): diagnose confirms every effect on held-out data "
                          "from another experiment")
     differentiation(args)  # contradicting derivative options are an error even when the data hold dq, ddq
+    if args.max_effects < 1:
+        raise ValueError(f"--max-effects must be a positive integer, got {args.max_effects}")
     robot = robot_from_arguments(args)
     model = build_model(robot, args.model, args.friction)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         train = prepare(args.data, model, args)
         validate = prepare(args.validate, model, args)
-        diagnosis = diagnose(model, train, validate, alpha=args.alpha)
+        diagnosis = diagnose(model, train, validate, alpha=args.alpha, max_effects=args.max_effects)
     for message in dict.fromkeys(str(warning.message) for warning in caught):  # once each, in order
         print(f"oed diagnose: warning: {message}", file=sys.stderr)
     with OutputFiles() as outputs:  # all files or none
@@ -67,6 +71,8 @@ def run(args: argparse.Namespace) -> int:
             with outputs.open(args.report) as stream:
                 stream.write(markdown_report(diagnosis, figure.name))
     print_summary(diagnosis)
+    if len(diagnosis.effects) >= args.max_effects:
+        print(f"stopped at --max-effects {args.max_effects}: more effects may be significant (raise it to look further)")
     print(f"wrote {args.out}" + (f" and {args.report}" if args.report else ""))
     return 0
 
