@@ -258,3 +258,8 @@ def test_diagnose_max_effects_is_an_option_and_says_when_reached(model, files, t
     document = json.loads(out.read_text())
     assert len(document["effects"]) <= 1
     assert ("stopped at --max-effects 1" in printed) == (len(document["effects"]) == 1)
+
+
+def test_a_chunk_too_short_for_the_checks_is_refused(model, files):
+    with pytest.raises(ValueError, match="a chunk of 10 samples is shorter"):
+        file_sums(files["full"][0], model, chunk_size=10)

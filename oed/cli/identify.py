@@ -97,8 +97,8 @@ def run_streaming(args: argparse.Namespace, robot, model) -> int:
             result = identify_files(model, args.data, [] if args.validate is None else [args.validate],
                                     method=args.method, chunk_size=chunk_size, cutoff_hz=args.cutoff,
                                     decimation=args.decimate, held_torques=args.held_torques, executor=executor)
-    for warning in caught:
-        print(f"oed identify: warning: {warning.message}", file=sys.stderr)
+    for message in dict.fromkeys(str(warning.message) for warning in caught):  # once each, in order
+        print(f"oed identify: warning: {message}", file=sys.stderr)
     with OutputFiles() as outputs:
         with outputs.open(args.out) as stream:
             stream.write(json_text(result.to_dict()))
