@@ -29,8 +29,9 @@ from typing import Any
 
 from dynamics.models import IdentificationModel, build_model
 from estimation.loading import MeasurementError
-from estimation.normal_equations import NormalEquations, reduce_sums
-from estimation.streaming import FileSums, file_sums
+from estimation.normal_equations import DEFAULT_CHUNK_SIZE, NormalEquations, reduce_sums
+from estimation.streaming import FileSums, file_sums, read_chunks
+from estimation.streaming_periods import periodic_file_sums
 
 __all__ = [
     "SCHEDULER_VARIABLE", "ClusterUnavailableError", "IncompleteSumError", "WorkerLostError", "connect",
@@ -68,7 +69,19 @@ def _model(payload: bytes) -> IdentificationModel:
 
 def file_task(payload: bytes, path: str, options: dict[str, Any]) -> FileSums:
     """Picklable unit of work: the sums of one file (model rebuilt once per worker process)."""
-    return file_sums(path, _model(payload), **options)
+    return sums_of_file(path, _model(payload), **options)
+
+
+def sums_of_file(path: str | Path, model: IdentificationModel, *, frequency_hz: float | None = None,
+                 harmonics: int = 5, **options: Any) -> FileSums:
+    """One file's sums: the Fourier path (:func:`estimation.streaming_periods.periodic_file_sums`) when a
+    ``frequency_hz`` is given and the file lacks ``dq``/``ddq``, else :func:`estimation.streaming.file_sums`
+    (the frequency is then unused, as in memory)."""
+    if frequency_hz is not None:
+        first = next(read_chunks(path, model, chunk_size=options.get("chunk_size", DEFAULT_CHUNK_SIZE)))
+        if first.dq is None or first.ddq is None:
+            return periodic_file_sums(path, model, frequency_hz=frequency_hz, harmonics=harmonics, **options)
+    return file_sums(path, model, **options)
 
 
 def sum_files(
@@ -90,7 +103,7 @@ def sum_files(
         Any ``concurrent.futures.Executor`` (a process pool, ``dask.distributed.Client.get_executor()``);
         ``None``: the files in turn, in this process.
     options
-        For :func:`estimation.streaming.file_sums` (``chunk_size``, ``cutoff_hz``, ``decimation``…).
+        For :func:`sums_of_file` (``chunk_size``, ``cutoff_hz``, ``decimation``, ``frequency_hz``…).
 
     Raises
     ------
@@ -106,7 +119,7 @@ def sum_files(
     if len(set(paths)) != len(paths):
         raise ValueError(f"a data file is given twice: {sorted({p for p in paths if paths.count(p) > 1})}")
     if executor is None:
-        parts = [file_sums(path, model, **options) for path in paths]
+        parts = [sums_of_file(path, model, **options) for path in paths]
     else:
         if not callable(getattr(executor, "submit", None)):
             raise TypeError(f"executor must be a concurrent.futures.Executor (with submit), got {type(executor).__name__}")

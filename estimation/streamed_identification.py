@@ -44,8 +44,8 @@ class StreamedIdentificationResult:
         Mean squared error per channel.
     files, validation_files
         Each file's sums (rows read, samples summed, preprocessing).
-    chunk_size, cutoff_hz
-        The chunk used and the Butterworth cut-off (``None``: the files held ``dq``/``ddq``).
+    chunk_size, cutoff_hz, frequency_hz
+        The chunk used, the Butterworth cut-off and the Fourier path's frequency (``None`` when not used).
     warnings
         Implausible estimates (:func:`estimation.identification.implausible_estimates`).
     """
@@ -61,11 +61,13 @@ class StreamedIdentificationResult:
     chunk_size: int
     cutoff_hz: float | None
     warnings: tuple[str, ...] = ()
+    frequency_hz: float | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """The JSON document of ``oed identify`` (same keys) plus ``streaming``::
 
-            streaming: {chunk_size, cutoff_hz, files: [{path, rows, samples}], validation_files: [...]}
+            streaming: {chunk_size, cutoff_hz, frequency_hz, files: [{path, rows, samples, decimation, margin,
+                        periods_averaged}], validation_files: [...]}
         """
         estimate = self.estimate
         records = [{key: (None if isinstance(value, float) and not np.isfinite(value) else value)
@@ -85,6 +87,7 @@ class StreamedIdentificationResult:
             "streaming": {
                 "chunk_size": self.chunk_size,
                 "cutoff_hz": self.cutoff_hz,
+                "frequency_hz": self.frequency_hz,
                 "files": [_file_record(part) for part in self.files],
                 "validation_files": [_file_record(part) for part in self.validation_files],
             },
@@ -93,7 +96,8 @@ class StreamedIdentificationResult:
 
 def _file_record(part: FileSums) -> dict[str, Any]:
     return {"path": part.path, "rows": part.rows, "samples": part.sums.n_samples,
-            "decimation": part.metadata.get("decimation", 1), "margin": part.metadata.get("margin", 0)}
+            "decimation": part.metadata.get("decimation", 1), "margin": part.metadata.get("margin", 0),
+            "periods_averaged": part.metadata.get("periods_averaged")}
 
 
 def identify_files(
@@ -104,26 +108,34 @@ def identify_files(
     method: Literal["ols", "wls"] = "wls",
     chunk_size: int,
     cutoff_hz: float | None = None,
+    frequency_hz: float | None = None,
+    harmonics: int = 5,
     decimation: int = 1,
     held_torques: bool = False,
     executor: Any = None,
 ) -> StreamedIdentificationResult:
     """Identify ``model`` from the training ``paths`` (one estimate) and validate on ``validate``.
 
-    Without ``dq``/``ddq`` columns and without ``cutoff_hz``, the automatic cut-off of the first
+    ``frequency_hz``: periodic records without ``dq``/``ddq`` take the Fourier path (periods averaged
+    chunk by chunk, :mod:`estimation.streaming_periods`). Otherwise, without ``dq``/``ddq`` columns
+    and without ``cutoff_hz``, the automatic cut-off of the first
     chunk of the first file (:func:`estimation.streaming.automatic_cutoff`) serves every file.
     ``executor``: see :func:`estimation.cluster.sum_files`.
     """
     paths = [str(path) for path in paths]
     if not paths:
         raise ValueError("no training data files")
-    if cutoff_hz is None:
+    if frequency_hz is not None and cutoff_hz is not None:
+        raise ValueError("give frequency_hz (Fourier fit of periodic data) or cutoff_hz (Butterworth filter), not both")
+    if cutoff_hz is None and frequency_hz is None:
         try:
             cutoff_hz = None if _has_derivatives(paths[0], model, chunk_size) else automatic_cutoff(
                 paths[0], model, chunk_size=chunk_size)
         except StopIteration:
             raise StreamingUnsupportedError(f"{paths[0]}: no samples") from None
     options = dict(chunk_size=chunk_size, cutoff_hz=cutoff_hz, decimation=decimation, held_torques=held_torques)
+    if frequency_hz is not None:
+        options.update(frequency_hz=frequency_hz, harmonics=harmonics)
     train, files = sum_files(model, paths, executor=executor, **options)
     validation, validation_files = (None, ()) if not validate else sum_files(model, validate, executor=executor, **options)
     estimate = SummedLeastSquares(method=method).fit(train).estimate_
@@ -134,6 +146,7 @@ def identify_files(
         model, estimate, train, validation, train.channel_mse(estimate.values),
         None if validation is None else validation.channel_mse(estimate.values), files, tuple(validation_files),
         int(chunk_size), None if all(part.metadata.get("cutoff_hz") is None for part in files) else cutoff_hz, notes,
+        frequency_hz if any(part.metadata.get("differentiation") == "fourier" for part in files) else None,
     )
 
 

@@ -71,6 +71,8 @@ class FileSums:
     @property
     def expected_samples(self) -> int:
         """Samples a complete pass sums: every row, one in ``decimation`` after decimation."""
+        if "expected_samples" in self.metadata:  # period averaging: one period
+            return int(self.metadata["expected_samples"])
         return -(-self.rows // int(self.metadata.get("decimation", 1)))
 
 

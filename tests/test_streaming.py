@@ -220,9 +220,9 @@ def test_cli_bad_file_of_a_set_exit_2_nothing_written(files, tmp_path, capsys, m
     assert code == 2
     assert "corrupt.csv" in capsys.readouterr().err
     assert not out.exists()
-    code = main(["identify", "--joints", "3", "--model", "internal", "--data", str(files["full"][0]), "--frequency", "0.2",
+    code = main(["identify", "--joints", "3", "--model", "internal", "--data", str(files["raw"][0]), "--frequency", "0.3",
                  "--chunk-size", "1000", "--out", str(out)])
-    assert code == 2 and "--frequency" in capsys.readouterr().err
+    assert code == 2 and "not a multiple of the excitation frequency 0.3 Hz" in capsys.readouterr().err
     code = main(["identify", "--joints", "3", "--model", "internal", "--data", str(files["full"][0]), "--chunk-size",
                  "1000", "--scheduler", "tcp://127.0.0.1:1", "--out", str(out)])
     assert code == 2 and "127.0.0.1:1" in capsys.readouterr().err
@@ -263,3 +263,28 @@ def test_diagnose_max_effects_is_an_option_and_says_when_reached(model, files, t
 def test_a_chunk_too_short_for_the_checks_is_refused(model, files):
     with pytest.raises(ValueError, match="a chunk of 10 samples is shorter"):
         file_sums(files["full"][0], model, chunk_size=10)
+
+
+@pytest.mark.parametrize("chunk_size, held", [(700, False), (2600, True)])
+def test_fourier_path_averages_periods_chunk_by_chunk(model, files, tmp_path, chunk_size, held):
+    """Two periods of 0.2 Hz at 500 Hz and a 700-sample tail, positions and torques only."""
+    from estimation.preprocessing import FourierDifferentiation
+
+    theta = true_parameters(model, seed=2)
+    data = simulate(model, theta, random_fourier(model.robot, 3), noise=NOISE, seed=5, rate_hz=500.0, periods=3)
+    rng = np.random.default_rng(1)
+    record = data.select(slice(0, 5700))
+    path = tmp_path / "periodic.csv"
+    Measurements(record.t, record.q + 1e-4 * rng.standard_normal(record.q.shape), tau=record.tau).write(path)
+    second = tmp_path / "periodic2.csv"
+    Measurements(data.t, data.q + 1e-4 * rng.standard_normal(data.q.shape), tau=data.tau).write(second)
+    method = FourierDifferentiation(0.2, 15)
+    alone = identify_files(model, [path], chunk_size=chunk_size, frequency_hz=0.2, harmonics=15, held_torques=held)
+    assert relative(alone.estimate.values, in_memory(model, [path], method, held_torques=held).values) < 1e-10
+    assert alone.train.n_samples == 2500
+    both = identify_files(model, [path, second], chunk_size=chunk_size, frequency_hz=0.2, harmonics=15,
+                          held_torques=held)
+    assert relative(both.estimate.values, in_memory(model, [path, second], method, held_torques=held).values) < 1e-10
+    document = both.to_dict()["streaming"]
+    assert document["frequency_hz"] == 0.2 and document["cutoff_hz"] is None
+    assert [(entry["rows"], entry["periods_averaged"]) for entry in document["files"]] == [(5700, 2), (7500, 3)]

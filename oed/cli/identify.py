@@ -17,7 +17,6 @@ from estimation.measurements import Measurements
 from estimation.normal_equations import DEFAULT_CHUNK_SIZE
 from estimation.preprocessing import ButterworthDifferentiation, Differentiation, FourierDifferentiation, fill_derivatives
 from estimation.streamed_identification import identify_files
-from estimation.streaming import StreamingUnsupportedError
 from estimation.validation import plot_comparison
 from oed.cli.common import OutputFiles, add_robot_arguments, check_figure_path, json_text, robot_from_arguments
 
@@ -86,16 +85,13 @@ def executor_from_arguments(args: argparse.Namespace):
 
 
 def run_streaming(args: argparse.Namespace, robot, model) -> int:
-    if args.frequency is not None:
-        raise StreamingUnsupportedError("--frequency (period averaging and a Fourier fit) needs each record whole: "
-                                        "give one --data file without --chunk-size/--scheduler/--workers, or use "
-                                        "--cutoff")
     chunk_size = DEFAULT_CHUNK_SIZE if args.chunk_size is None else args.chunk_size
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         with executor_from_arguments(args) as executor:
             result = identify_files(model, args.data, [] if args.validate is None else [args.validate],
                                     method=args.method, chunk_size=chunk_size, cutoff_hz=args.cutoff,
+                                    frequency_hz=args.frequency, harmonics=args.harmonics,
                                     decimation=args.decimate, held_torques=args.held_torques, executor=executor)
     for message in dict.fromkeys(str(warning.message) for warning in caught):  # once each, in order
         print(f"oed identify: warning: {message}", file=sys.stderr)
