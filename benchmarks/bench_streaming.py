@@ -157,6 +157,7 @@ def bench_files(folder: Path, count: int, samples: int, chunk_size: int) -> None
         theta = SummedLeastSquares().fit(total).theta_
         difference = np.linalg.norm(theta - reference) / np.linalg.norm(reference)
         print(f"  {label:<30} {seconds:7.1f} s  ({total.n_samples} samples; estimate vs serial {difference:.1e})")
+    print(f"  load average {os.getloadavg()[0]:.1f}")
 
 
 def main() -> None:
@@ -169,7 +170,8 @@ def main() -> None:
     args = parser.parse_args()
     folder = args.folder or Path(tempfile.gettempdir()) / "robot_oed_bench_streaming"
     folder.mkdir(parents=True, exist_ok=True)
-    print(f"records in {folder}; {os.cpu_count()} cores")
+    print(f"records in {folder}; {os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f} (other jobs make wall "
+          "times longer: the CPU times of the identify runs are the steadier figure)")
     if args.lengths:
         bench_lengths(folder, args.lengths, args.chunk_size)
     if args.files:

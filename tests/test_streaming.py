@@ -288,3 +288,27 @@ def test_fourier_path_averages_periods_chunk_by_chunk(model, files, tmp_path, ch
     document = both.to_dict()["streaming"]
     assert document["frequency_hz"] == 0.2 and document["cutoff_hz"] is None
     assert [(entry["rows"], entry["periods_averaged"]) for entry in document["files"]] == [(5700, 2), (7500, 3)]
+
+
+@pytest.mark.slow
+def test_a_worker_killed_on_a_dask_cluster_fails_the_run(model, files):
+    import os
+
+    distributed = pytest.importorskip("dask.distributed", reason="dask is an optional extra: pip install 'robot-oed[cluster]'")
+    import dask
+
+    class KillingExecutor:
+        """Submits the second file's task as a worker's death."""
+
+        def __init__(self, inner):
+            self.inner, self.calls = inner, 0
+
+        def submit(self, function, *args):
+            self.calls += 1
+            return self.inner.submit(os._exit, 1) if self.calls == 2 else self.inner.submit(function, *args)
+
+    with dask.config.set({"distributed.scheduler.allowed-failures": 0}), \
+            distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster, \
+            distributed.Client(cluster) as client:
+        with pytest.raises(WorkerLostError, match="full1.csv was lost"):
+            sum_files(model, files["full"], executor=KillingExecutor(client.get_executor()), chunk_size=5000)
