@@ -67,7 +67,10 @@ class StreamedIdentificationResult:
         """The JSON document of ``oed identify`` (same keys) plus ``streaming``::
 
             streaming: {chunk_size, cutoff_hz, frequency_hz, files: [{path, rows, samples, decimation, margin,
-                        periods_averaged}], validation_files: [...]}
+                        periods_averaged, resampled_from}], validation_files: [...]}
+
+        ``rows``: samples read (on the uniform grid when the file was resampled from
+        ``resampled_from`` rows); ``samples``: samples summed (after averaging or decimation).
         """
         estimate = self.estimate
         records = [{key: (None if isinstance(value, float) and not np.isfinite(value) else value)
@@ -97,7 +100,8 @@ class StreamedIdentificationResult:
 def _file_record(part: FileSums) -> dict[str, Any]:
     return {"path": part.path, "rows": part.rows, "samples": part.sums.n_samples,
             "decimation": part.metadata.get("decimation", 1), "margin": part.metadata.get("margin", 0),
-            "periods_averaged": part.metadata.get("periods_averaged")}
+            "periods_averaged": part.metadata.get("periods_averaged"),
+            "resampled_from": part.metadata.get("resampled_from")}
 
 
 def identify_files(

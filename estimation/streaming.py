@@ -23,12 +23,14 @@ Preprocessing at chunk boundaries:
 * Fourier path (period averaging): needs whole periods of the whole record; refused here
   (:class:`StreamingUnsupportedError`).
 
-Irregular sampling is refused rather than resampled (resampling across chunks is not done here).
+Irregular sampling (jitter) is resampled as the loader does, onto the grid of the whole file's
+median step (:mod:`estimation.streaming_time`: one extra pass reading column ``t`` alone).
 """
 
 from __future__ import annotations
 
 import functools
+import warnings
 from collections.abc import Iterator
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -40,10 +42,19 @@ from numpy.typing import NDArray
 
 from dynamics.models import IdentificationModel
 from dynamics.threads import single_threaded_blas
-from estimation.loading import MeasurementError, TimeBaseError, TooFewSamplesError, measurements_from_frame
-from estimation.measurements import Measurements
+from dynamics.effects import WRENCH_CHANNELS
+from estimation.loading import (
+    GAP_FACTOR,
+    MeasurementError,
+    ResampledWarning,
+    TimeBaseError,
+    TooFewSamplesError,
+    measurements_from_frame,
+)
+from estimation.measurements import Measurements, joint_columns
 from estimation.normal_equations import DEFAULT_CHUNK_SIZE, NormalEquations, accumulate, check_chunk_size
 from estimation.preprocessing import ButterworthDifferentiation, compensate_hold, decimate
+from estimation.streaming_time import Resampler, scan_time
 
 __all__ = [
     "FileSums", "MARGIN_TOLERANCE", "StreamingUnsupportedError", "automatic_cutoff", "file_sums", "filter_margin",
@@ -52,6 +63,12 @@ __all__ = [
 
 #: relative size of the impulse response at which the overlap margin ends
 MARGIN_TOLERANCE = 1e-13
+
+_GROUPS = ("q", "dq", "ddq", "tau", "wrench")
+
+
+def _group_columns(group: str, n_joints: int) -> list[str]:
+    return list(WRENCH_CHANNELS) if group == "wrench" else joint_columns(group, n_joints)
 
 
 class StreamingUnsupportedError(MeasurementError):
@@ -76,7 +93,8 @@ class FileSums:
         return -(-self.rows // int(self.metadata.get("decimation", 1)))
 
 
-def _raw_frames(path: Path, chunk_size: int) -> Iterator[pd.DataFrame]:
+def _raw_frames(path: Path, chunk_size: int, only_time: bool = False) -> Iterator[pd.DataFrame]:
+    """The file's rows as frames of ``chunk_size`` (with ``only_time``: column ``t`` alone, if any)."""
     suffix = path.suffix.lower()
     if path.is_dir():
         raise MeasurementError(f"data file {path} is a folder")
@@ -86,7 +104,8 @@ def _raw_frames(path: Path, chunk_size: int) -> Iterator[pd.DataFrame]:
         raise MeasurementError(f"data file not found: {path}")
     try:
         if suffix == ".csv":
-            with pd.read_csv(path, chunksize=chunk_size) as reader:
+            usecols = (lambda name: str(name).strip() == "t") if only_time else None
+            with pd.read_csv(path, chunksize=chunk_size, usecols=usecols) as reader:
                 yield from reader
         else:
             try:
@@ -95,7 +114,8 @@ def _raw_frames(path: Path, chunk_size: int) -> Iterator[pd.DataFrame]:
                 raise MeasurementError(f"{path}: reading Parquet needs pyarrow (pip install pyarrow)") from None
             # without pre-buffering and threads: the default read grew by ~120 MB over a 1 M-sample file
             parquet = pyarrow.parquet.ParquetFile(path, pre_buffer=False, buffer_size=1 << 20)
-            for batch in parquet.iter_batches(batch_size=chunk_size, use_threads=False):
+            columns = [name for name in parquet.schema_arrow.names if name.strip() == "t"] if only_time else None
+            for batch in parquet.iter_batches(batch_size=chunk_size, columns=columns, use_threads=False):
                 yield batch.to_pandas()
     except (ValueError, OSError, pd.errors.ParserError, UnicodeDecodeError) as error:
         if isinstance(error, MeasurementError):
@@ -121,32 +141,83 @@ def read_chunks(path: str | Path, model: IdentificationModel, *, chunk_size: int
     pending: pd.DataFrame | None = None
     row = 0
     previous: tuple[float, float] | None = None  # last time and step of the chunk before
+    scan = scan_time(_raw_frames(path, chunk_size, only_time=True), path)
+    resampler = Resampler(scan) if scan is not None and scan.irregular else None
+    if resampler is not None:
+        warnings.warn(
+            f"{path}: irregular sampling in column t (step varies by {100 * scan.spread:.3g}% of the median "
+            f"{scan.step:.4g} s): resampled by linear interpolation onto {scan.grid_count} uniform samples",
+            ResampledWarning, stacklevel=3)
+    emitted = 0
 
     def checked(frame: pd.DataFrame) -> Measurements:
         nonlocal row, previous
         source = f"{path} (rows {row + 1}-{row + len(frame)})"
+        if resampler is not None:
+            return resampled(frame, source)
         measurements = measurements_from_frame(frame, model=model, resample=False, source=source)
         step = float(np.median(np.diff(measurements.t)))
         if previous is not None:
             gap = measurements.t[0] - previous[0]
             if not abs(gap - previous[1]) <= 1e-3 * previous[1]:
                 raise TimeBaseError(f"{path}: column t goes from {previous[0]:.9g} to {measurements.t[0]:.9g} s at row "
-                                    f"{row + 1}, not one step of {previous[1]:.4g} s: the time base must run on "
-                                    "uniformly (read the file without chunks to resample it)")
+                                    f"{row + 1}, not one step of {previous[1]:.4g} s: a gap or a jump in the record "
+                                    "(split the record there)")
         previous = (float(measurements.t[-1]), step)
         row += len(frame)
         return measurements
+
+    def resampled(frame: pd.DataFrame, source: str) -> Measurements:
+        """The chunk checked as the loader checks it, then put on the whole file's grid."""
+        nonlocal row, previous
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", ResampledWarning)  # once for the file, above
+            checked_chunk = measurements_from_frame(frame, model=model, resample=True, source=source)
+        frame = frame.rename(columns=lambda name: str(name).strip())
+        t = pd.to_numeric(frame["t"], errors="coerce").to_numpy(dtype=float)
+        if previous is not None:
+            if not t[0] > previous[0]:
+                raise TimeBaseError(f"{path}: column t does not increase at row {row + 1} ({previous[0]:.9g} -> "
+                                    f"{t[0]:.9g}); sort the samples")
+            if t[0] - previous[0] > GAP_FACTOR * scan.step:
+                raise TimeBaseError(f"{path}: column t jumps by {t[0] - previous[0]:.4g} s at row {row + 1}, "
+                                    f"{(t[0] - previous[0]) / scan.step:.3g} times the median step: a gap in the "
+                                    "record; split the record there")
+        groups = [name for name in _GROUPS if getattr(checked_chunk, name) is not None]
+        columns = [column for name in groups for column in _group_columns(name, model.robot.n_joints)]
+        values = np.column_stack([pd.to_numeric(frame[column], errors="coerce").to_numpy(dtype=float)
+                                  for column in columns])
+        grid, interpolated = resampler(t, values)
+        arrays, start = {}, 0
+        for name in groups:
+            width = len(_group_columns(name, model.robot.n_joints))
+            arrays[name] = interpolated[:, start:start + width]
+            start += width
+        previous = (float(t[-1]), scan.step)
+        row += len(frame)
+        metadata = dict(checked_chunk.metadata, resampled_from=scan.rows)
+        return Measurements(grid, arrays["q"], arrays.get("dq"), arrays.get("ddq"), arrays.get("tau"),
+                            arrays.get("wrench"), metadata)
 
     for frame in _raw_frames(path, chunk_size):
         if pending is not None and len(frame) < least:
             pending = pd.concat([pending, frame], ignore_index=True)
             continue
         if pending is not None:
-            yield checked(pending)
+            chunk = checked(pending)
+            emitted += chunk.n_samples
+            if chunk.n_samples:
+                yield chunk
         pending = frame
     if pending is None:
         raise TooFewSamplesError(f"{path}: no samples")
-    yield checked(pending)
+    chunk = checked(pending)
+    emitted += chunk.n_samples
+    if resampler is not None and emitted != scan.grid_count:
+        raise TimeBaseError(f"{path}: {emitted} samples resampled of the {scan.grid_count} of the grid (did the file "
+                            "change while it was read?)")
+    if chunk.n_samples:
+        yield chunk
 
 
 def _decay_length(sos: NDArray[np.float64], tolerance: float) -> int:
@@ -287,6 +358,8 @@ def file_sums(path: str | Path, model: IdentificationModel, *, chunk_size: int =
         else:
             buffer = [raw]
     metadata = {"decimation": int(decimation), "margin": margin}
+    if "resampled_from" in first.metadata:
+        metadata["resampled_from"] = int(first.metadata["resampled_from"])
     if method is not None:
         metadata.update(differentiation="butterworth", cutoff_hz=float(cutoff_hz), filter_order=order)
     sums = replace(sums, sources=(str(path),))

@@ -91,5 +91,7 @@ def periodic_file_sums(path: str | Path, model: IdentificationModel, *, frequenc
     metadata = {"decimation": int(decimation), "margin": 0, "differentiation": "fourier",
                 "frequency_hz": float(frequency_hz), "harmonics": int(harmonics),
                 "periods_averaged": int(averaged.metadata["periods_averaged"]), "expected_samples": prepared.n_samples}
+    if "resampled_from" in averaged.metadata:
+        metadata["resampled_from"] = int(averaged.metadata["resampled_from"])
     columns = tuple(name for name in ("dq", "ddq", "tau", "wrench") if getattr(averaged, name) is not None)
     return FileSums(str(path), sums, rows, columns, metadata)
