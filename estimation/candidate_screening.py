@@ -30,7 +30,7 @@ from dynamics.effects import Effect
 from dynamics.models import IdentificationModel
 from dynamics.threads import single_threaded_blas
 from estimation.measurements import Measurements
-from estimation.normal_equations import DEFAULT_CHUNK_SIZE, NormalEquations, _triangular, check_chunk_size
+from estimation.normal_equations import DEFAULT_CHUNK_SIZE, NormalEquations, check_chunk_size, stacked_factor
 
 __all__ = ["CandidateSums", "CandidateTest", "accumulate_candidates", "f_tests", "weighted_fit", "weighted_mse"]
 
@@ -89,7 +89,7 @@ def weighted_fit(sums: NormalEquations, columns: Sequence[int], weights: NDArray
     factors: the R of ``[√w_c R_c(columns, y)]`` stacked over channels; RSS its last diagonal²."""
     selected = sums.select(columns)
     k = len(columns)
-    R = _triangular([np.sqrt(w) * factor for w, factor in zip(np.asarray(weights, dtype=float), selected.factor)], k + 1)
+    R = stacked_factor([np.sqrt(w) * factor for w, factor in zip(np.asarray(weights, dtype=float), selected.factor)], k + 1)
     theta = scipy.linalg.solve_triangular(R[:k, :k], R[:k, k], check_finite=False)
     return theta, float(R[k, k] ** 2)
 

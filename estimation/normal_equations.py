@@ -37,8 +37,8 @@ from estimation.least_squares import IDENTIFIABILITY_TOLERANCE, IdentifiabilityE
 from estimation.measurements import Measurements
 
 __all__ = [
-    "DEFAULT_CHUNK_SIZE", "NormalEquations", "SummedEstimate", "SummedLeastSquares", "accumulate",
-    "reduce_sums", "solve_sums",
+    "DEFAULT_CHUNK_SIZE", "NormalEquations", "SummedEstimate", "SummedLeastSquares", "accumulate", "check_chunk_size",
+    "reduce_sums", "solve_sums", "stacked_factor",
 ]
 
 #: samples a chunk. The regressor of a chunk is ``chunk x m x r`` floats: 10 000 samples of the
@@ -48,7 +48,7 @@ __all__ = [
 DEFAULT_CHUNK_SIZE = 10_000
 
 
-def _triangular(blocks: list[NDArray[np.float64]], width: int) -> NDArray[np.float64]:
+def stacked_factor(blocks: list[NDArray[np.float64]], width: int) -> NDArray[np.float64]:
     """Upper-triangular ``(width, width)`` factor ``R`` of the stacked ``blocks`` (zero rows padded)."""
     stacked = np.vstack(blocks) if len(blocks) > 1 else blocks[0]
     if stacked.shape[0] == 0:
@@ -133,7 +133,7 @@ class NormalEquations:
         moment = np.matmul(by_channel, y.T[:, :, None])[:, :, 0]
         power = np.einsum("nm,nm->m", y, y)
         k = Y.shape[2]
-        factor = np.stack([_triangular([np.column_stack([Y[:, c, :], y[:, c]])], k + 1) for c in range(Y.shape[1])])
+        factor = np.stack([stacked_factor([np.column_stack([Y[:, c, :], y[:, c]])], k + 1) for c in range(Y.shape[1])])
         return cls(gram, moment, power, factor, Y.shape[0], tuple(channels), tuple(names), expressions,
                    (source,) if source else ())
 
@@ -147,7 +147,7 @@ class NormalEquations:
     def __add__(self, other: NormalEquations) -> NormalEquations:
         self._check_compatible(other)
         width = self.n_columns + 1
-        factor = np.stack([_triangular([a, b], width) for a, b in zip(self.factor, other.factor)])
+        factor = np.stack([stacked_factor([a, b], width) for a, b in zip(self.factor, other.factor)])
         return NormalEquations(self.gram + other.gram, self.moment + other.moment, self.power + other.power,
                                factor, self.n_samples + other.n_samples, self.channels, self.names,
                                self.expressions, self.sources + other.sources)
@@ -161,7 +161,7 @@ class NormalEquations:
         by_channel = Y.transpose(1, 2, 0)
         width = self.n_columns + 1
         factor = np.stack([
-            _triangular([self.factor[c], np.column_stack([Y[:, c, :], y[:, c]])], width) for c in range(self.n_channels)
+            stacked_factor([self.factor[c], np.column_stack([Y[:, c, :], y[:, c]])], width) for c in range(self.n_channels)
         ])
         return NormalEquations(
             self.gram + np.matmul(by_channel, Y.transpose(1, 0, 2)),
@@ -175,7 +175,7 @@ class NormalEquations:
         Gram sub-blocks, and factors re-triangularised from the kept columns of ``R_c``."""
         index = [int(i) for i in columns]
         keep = index + [self.n_columns]
-        factor = np.stack([_triangular([R[:, keep]], len(keep)) for R in self.factor])
+        factor = np.stack([stacked_factor([R[:, keep]], len(keep)) for R in self.factor])
         return NormalEquations(self.gram[:, index][:, :, index], self.moment[:, index], self.power, factor,
                                self.n_samples, self.channels, tuple(self.names[i] for i in index),
                                tuple(self.expressions[i] for i in index), self.sources)
@@ -207,7 +207,7 @@ def solve_sums(sums: NormalEquations, weights: NDArray[np.float64]) -> tuple[NDA
     k = sums.n_columns
     if not np.all(np.isfinite(sums.factor)):
         raise ValueError("the regressor or the measured channels overflow: check the units of the data")
-    R = _triangular([np.sqrt(w) * R_c for w, R_c in zip(weights, sums.factor)], k + 1)
+    R = stacked_factor([np.sqrt(w) * R_c for w, R_c in zip(weights, sums.factor)], k + 1)
     R_theta = R[:k, :k]
     scale = np.linalg.norm(R_theta, axis=0)
     zero = np.flatnonzero(scale == 0)
