@@ -21,6 +21,7 @@ import contextlib
 import functools
 import os
 import pickle
+import warnings
 from collections.abc import Iterator, Sequence
 from concurrent.futures import CancelledError
 from concurrent.futures.process import BrokenProcessPool
@@ -67,9 +68,13 @@ def _model(payload: bytes) -> IdentificationModel:
     return build_model(robot, kind, effects)
 
 
-def file_task(payload: bytes, path: str, options: dict[str, Any]) -> FileSums:
-    """Picklable unit of work: the sums of one file (model rebuilt once per worker process)."""
-    return sums_of_file(path, _model(payload), **options)
+def file_task(payload: bytes, path: str, options: dict[str, Any]) -> tuple[FileSums, tuple[tuple[type, str], ...]]:
+    """Picklable unit of work: the sums of one file (model rebuilt once per worker process) and the
+    warnings reading it gave (category, message), for the driver to issue again."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        part = sums_of_file(path, _model(payload), **options)
+    return part, tuple((warning.category, str(warning.message)) for warning in caught)
 
 
 def sums_of_file(path: str | Path, model: IdentificationModel, *, frequency_hz: float | None = None,
@@ -137,7 +142,10 @@ def sum_files(
 
 def _result(future, path: str) -> FileSums:
     try:
-        return future.result()
+        part, caught = future.result()
+        for category, message in caught:  # a worker's warnings, issued here
+            warnings.warn(message, category, stacklevel=3)
+        return part
     except Exception as error:
         lost = isinstance(error, (BrokenProcessPool, CancelledError)) or type(error).__name__ in LOST_WORKER_ERRORS
         if lost:

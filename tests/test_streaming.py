@@ -332,3 +332,14 @@ def test_jittered_time_is_resampled_onto_the_whole_files_grid(model, files, tmp_
     assert relative(result.estimate.values, reference.values) < 1e-10
     entry = result.to_dict()["streaming"]["files"][0]
     assert entry["resampled_from"] == 5000 and entry["rows"] == entry["samples"] == result.train.n_samples
+
+
+def test_warnings_of_a_worker_reach_the_caller(model, files, tmp_path):
+    from estimation.loading import ResampledWarning
+
+    data = read_measurements(files["full"][0], model=model)
+    t = data.t + np.random.default_rng(3).uniform(-0.3, 0.3, data.n_samples) * (data.t[1] - data.t[0])
+    path = tmp_path / "jittered.csv"
+    replace(data, t=t).write(path)
+    with ThreadPoolExecutor(1) as executor, pytest.warns(ResampledWarning, match="jittered.csv: irregular sampling"):
+        sum_files(model, [path], executor=executor, chunk_size=2000)
