@@ -101,6 +101,9 @@ def run_streaming(args: argparse.Namespace, robot, model) -> int:
     estimate = result.estimate
     print(f"{robot.name}: {model.kind.value} model, {model.n_base} base parameters, {result.train.n_samples} samples "
           f"from {len(result.files)} file(s) in chunks of {chunk_size}, {estimate.method.upper()}, cond {estimate.cond:.4g}")
+    if result.cutoff_hz is not None:
+        print(f"Butterworth cut-off {result.cutoff_hz:.4g} Hz" + ("" if args.cutoff is not None else
+              f" (automatic, from the first chunk of {args.data[0]})"))
     _print_estimate(estimate)
     print("train MSE: " + "  ".join(f"{channel} {value:.4g}" for channel, value in result.train_mse.items()))
     if result.validation_mse is not None:
