@@ -12,6 +12,8 @@ Two parts:
 * ``--lengths 100000 300000 1000000``: ``oed identify --chunk-size C --cutoff 5`` on one record
   of each length in a fresh process under ``/usr/bin/time -v`` (peak resident memory, wall time).
   Targets: peak < 1 GB, time linear in the length, 1 M samples in < 2 min.
+* ``--in-memory 100000 300000``: the same without ``--chunk-size`` (the in-memory path), and
+  ``--chunk-sizes 1000 … 100000`` on the 300 000-sample record: the trade-off behind the default.
 * ``--files 10 --file-samples 100000``: the ten records through :func:`estimation.cluster.sum_files`
   serially, in a 2-process pool and on a 2-worker dask ``LocalCluster`` (processes): wall times,
   and the estimates equal to 1e-10 (relative, norm-wise).
@@ -96,12 +98,14 @@ def record(folder: Path, n_samples: int, seed: int) -> Path:
     return path
 
 
-def time_identify(path: Path, chunk_size: int, out: Path) -> tuple[float, float, float]:
+def time_identify(path: Path, chunk_size: int | None, out: Path) -> tuple[float, float, float]:
     """Wall time (s), CPU time (user + system, s) and peak resident memory (MB) of ``oed identify`` on
-    ``path`` in a fresh process (the CPU time is the steadier figure on a shared machine)."""
+    ``path`` in a fresh process (the CPU time is the steadier figure on a shared machine); without
+    ``chunk_size`` the in-memory path."""
     command = ["/usr/bin/time", "-v", sys.executable, "-m", "oed", "identify", "--urdf", str(URDF), "--model",
-               "internal", "--friction", "viscous", "--data", str(path), "--chunk-size", str(chunk_size),
-               "--cutoff", str(CUTOFF), "--out", str(out)]
+               "internal", "--friction", "viscous", "--data", str(path), "--cutoff", str(CUTOFF), "--out", str(out)]
+    if chunk_size is not None:
+        command += ["--chunk-size", str(chunk_size)]
     run = subprocess.run(command, capture_output=True, text=True, cwd=ROOT)
     if run.returncode != 0:
         raise RuntimeError(f"oed identify failed: {run.stderr[-2000:]}")
@@ -126,9 +130,25 @@ def bench_lengths(folder: Path, lengths: list[int], chunk_size: int) -> None:
         print(f"  wall ratio {t1 / t0:.2f}, CPU ratio {c1 / c0:.2f} for a length ratio {n1 / n0:.2f}")
 
 
+def bench_in_memory(folder: Path, lengths: list[int]) -> None:
+    print("identify, in memory (no --chunk-size), for comparison:")
+    for length in lengths:
+        path = record(folder, length, seed=1)
+        seconds, cpu, peak = time_identify(path, None, folder / f"identify_memory_{length}.json")
+        print(f"  {length:>9} samples: wall {seconds:7.1f} s, CPU {cpu:7.1f} s, peak {peak:7.0f} MB", flush=True)
+
+
+def bench_chunk_sizes(folder: Path, length: int, sizes: list[int]) -> None:
+    print(f"identify on {length} samples by chunk size (the choice of the default):")
+    path = record(folder, length, seed=1)
+    for size in sizes:
+        seconds, cpu, peak = time_identify(path, size, folder / f"identify_chunk_{size}.json")
+        print(f"  chunks of {size:>6}: wall {seconds:7.1f} s, CPU {cpu:7.1f} s, peak {peak:7.0f} MB", flush=True)
+
+
 def bench_files(folder: Path, count: int, samples: int, chunk_size: int) -> None:
     from estimation.cluster import sum_files
-    from estimation.normal_equations import SummedLeastSquares
+    from estimation.summed_least_squares import SummedLeastSquares
 
     paths = [record(folder, samples, seed=10 + index) for index in range(count)]
     _, model = robot_and_model()
@@ -167,6 +187,10 @@ def main() -> None:
     parser.add_argument("--file-samples", type=int, default=100_000)
     parser.add_argument("--chunk-size", type=int, default=10_000)
     parser.add_argument("--folder", type=Path)
+    parser.add_argument("--in-memory", type=int, nargs="*", default=[100_000, 300_000],
+                        help="lengths also identified in memory, for comparison")
+    parser.add_argument("--chunk-sizes", type=int, nargs="*", default=[1000, 3000, 10_000, 30_000, 100_000],
+                        help="chunk sizes tried on the 300 000-sample record")
     args = parser.parse_args()
     folder = args.folder or Path(tempfile.gettempdir()) / "robot_oed_bench_streaming"
     folder.mkdir(parents=True, exist_ok=True)
@@ -174,6 +198,10 @@ def main() -> None:
           "times longer: the CPU times of the identify runs are the steadier figure)")
     if args.lengths:
         bench_lengths(folder, args.lengths, args.chunk_size)
+    if args.in_memory:
+        bench_in_memory(folder, args.in_memory)
+    if args.chunk_sizes:
+        bench_chunk_sizes(folder, 300_000, args.chunk_sizes)
     if args.files:
         bench_files(folder, args.files, args.file_samples, args.chunk_size)
 

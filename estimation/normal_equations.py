@@ -11,7 +11,8 @@ triangular factor ``R_c`` of the augmented block ``[Y_c | y_c] = Q_c R_c`` of ev
 accumulated as a TSQR: a chunk's rows are stacked under the current factor and re-factored
 (``[R; A_chunk] = Q' R'``), and two partial sums combine by factoring ``[R_a; R_b]``. Then
 ``A_cᵀA_c = R_cᵀR_c`` exactly, and for channel weights ``w_c`` the weighted problem's factor is that
-of ``[√w_1 R_1; …; √w_m R_m]`` (``m (r+1)`` rows): :func:`solve_sums` solves it by back
+of ``[√w_1 R_1; …; √w_m R_m]`` (``m (r+1)`` rows):
+:func:`estimation.summed_least_squares.solve_sums` solves it by back
 substitution, as accurately as a QR of the full weighted ``(N m) x r`` regressor. Residual sums of
 squares come from the factors too (``‖y_c − Y_c θ‖² = ‖R_c [θ; −1]‖²``), free of the cancellation
 of ``yᵀy − 2θᵀYᵀy + θᵀYᵀYθ``. The Gram sums are kept for what is naturally a sum (sub-blocks of
@@ -22,7 +23,6 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 from dataclasses import dataclass
-from typing import Any, Literal
 
 import numpy as np
 import scipy.linalg
@@ -31,20 +31,15 @@ from numpy.typing import NDArray
 from dynamics.memory import check_allocation
 from dynamics.models import IdentificationModel
 from dynamics.threads import single_threaded_blas
-from estimation.errors import NotFittedError
-from estimation.estimator import Estimator
-from estimation.least_squares import IDENTIFIABILITY_TOLERANCE, IdentifiabilityError
 from estimation.measurements import Measurements
 
-__all__ = [
-    "DEFAULT_CHUNK_SIZE", "NormalEquations", "SummedEstimate", "SummedLeastSquares", "accumulate", "check_chunk_size",
-    "reduce_sums", "solve_sums", "stacked_factor",
-]
+__all__ = ["DEFAULT_CHUNK_SIZE", "NormalEquations", "accumulate", "check_chunk_size", "reduce_sums", "stacked_factor"]
 
 #: samples a chunk. The regressor of a chunk is ``chunk x m x r`` floats: 10 000 samples of the
-#: 7-joint KUKA internal model with viscous friction (m = 7, r = 57) is 32 MB, the QR work as much
-#: again; the fixed cost of a chunk (one compiled CasADi call, 2m LAPACK calls, about 0.1 ms) is
-#: then below 1 % of the per-sample work. Smaller chunks buy nothing, larger ones only memory.
+#: 7-joint KUKA internal model with viscous friction (m = 7, r = 50) is 28 MB, the QR work array
+#: 4 MB, the overlap windows of the filter path a few MB. The fixed cost of a chunk (a compiled
+#: CasADi call, m LAPACK calls on (r+1)² extra rows, the filter margins) is paid once per chunk:
+#: ``benchmarks/bench_streaming.py --chunk-sizes`` measures the trade-off.
 DEFAULT_CHUNK_SIZE = 10_000
 
 
@@ -207,152 +202,6 @@ class NormalEquations:
         if self.n_samples == 0:
             raise ValueError("no samples summed")
         return dict(zip(self.channels, map(float, self.channel_rss(theta) / self.n_samples)))
-
-
-def solve_sums(sums: NormalEquations, weights: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64], float]:
-    """``θ̂``, ``(YᵀWY)⁻¹`` and ``cond(W^½ Y)`` for channel weights ``(m,)`` — the counterpart of
-    :func:`estimation.least_squares.solve` from the sums.
-
-    The weighted factor is the R of ``[√w_c R_c]`` stacked over channels (TSQR); the parameters
-    follow by back substitution. Columns are equilibrated (unit norms) for the rank test, which
-    uses the same tolerance as the in-memory solve (on eigenvalues of the equilibrated ``YᵀWY``,
-    i.e. squared singular values of the equilibrated factor).
-    """
-    weights = np.asarray(weights, dtype=float)
-    k = sums.n_columns
-    if not np.all(np.isfinite(sums.factor)):
-        raise ValueError("the regressor or the measured channels overflow: check the units of the data")
-    R = stacked_factor([np.sqrt(w) * R_c for w, R_c in zip(weights, sums.factor)], k + 1)
-    R_theta = R[:k, :k]
-    scale = np.linalg.norm(R_theta, axis=0)
-    zero = np.flatnonzero(scale == 0)
-    if zero.size:
-        raise IdentifiabilityError(
-            f"parameter(s) {[sums.names[i] for i in zero]} have all-zero columns: these data do not excite them")
-    singular, right = np.linalg.svd(R_theta / scale, full_matrices=False)[1:]
-    if singular[-1] ** 2 < IDENTIFIABILITY_TOLERANCE * singular[0] ** 2:
-        direction = np.abs(right[-1])
-        weak = [sums.names[i] for i in np.flatnonzero(direction > 0.3 * direction.max())]
-        raise IdentifiabilityError(
-            f"the data do not determine parameter(s) {weak}: the regressor is rank deficient "
-            "(excite the robot more, or drop those columns)")
-    theta = scipy.linalg.solve_triangular(R_theta, R[:k, k], check_finite=False)
-    inverse_factor = scipy.linalg.solve_triangular(R_theta, np.eye(k), check_finite=False)
-    inverse = inverse_factor @ inverse_factor.T
-    extremes = np.linalg.svd(R_theta, compute_uv=False)[[0, -1]]
-    return theta, inverse, float(extremes[0] / max(extremes[1], np.finfo(float).tiny))
-
-
-@dataclass(frozen=True)
-class SummedEstimate:
-    """Identified parameters from sums: :class:`estimation.least_squares.Estimate` without the
-    per-sample residuals (``channel_rss`` and ``n_samples`` instead)."""
-
-    values: NDArray[np.float64]
-    cov: NDArray[np.float64]
-    std: NDArray[np.float64]
-    relative_std: NDArray[np.float64]
-    cond: float
-    channel_variance: NDArray[np.float64]
-    channel_rss: NDArray[np.float64]
-    weights: NDArray[np.float64]
-    n_samples: int
-    names: tuple[str, ...]
-    expressions: tuple[str, ...]
-    channels: tuple[str, ...]
-    method: Literal["ols", "wls"]
-    n_iterations: int
-
-    def __post_init__(self) -> None:
-        for name in ("values", "cov", "std", "relative_std", "channel_variance", "channel_rss", "weights"):
-            array = np.array(getattr(self, name), dtype=float)
-            array.flags.writeable = False
-            object.__setattr__(self, name, array)
-
-    def records(self) -> list[dict[str, Any]]:
-        """One dict per parameter: ``name, expression, value, std, relative_std``."""
-        return [
-            {"name": name, "expression": expression, "value": float(value), "std": float(std), "relative_std": float(relative)}
-            for name, expression, value, std, relative in zip(self.names, self.expressions, self.values, self.std, self.relative_std)
-        ]
-
-    def channel_rms(self) -> dict[str, float]:
-        """Root-mean-square residual per channel."""
-        return dict(zip(self.channels, map(float, np.sqrt(self.channel_rss / self.n_samples))))
-
-
-class SummedLeastSquares(Estimator):
-    """Ordinary or channel-weighted (iterated) least squares from :class:`NormalEquations`.
-
-    The same estimator as :class:`estimation.least_squares.WeightedLeastSquares` (weights
-    ``1/σ_c²`` iterated until no channel variance moves by more than ``tol``, variances floored at
-    ``variance_floor`` times the channel's mean square) or, with ``method="ols"``,
-    :class:`estimation.least_squares.LeastSquares`; only the data come as sums.
-    ``fit(sums)`` returns ``self``; fitted attributes ``estimate_``, ``theta_``, ``cov_``, ``std_``.
-    """
-
-    def __init__(self, *, method: Literal["ols", "wls"] = "wls", max_iter: int = 20, tol: float = 1e-6,
-                 variance_floor: float = 1e-14) -> None:
-        self.method = method
-        self.max_iter = max_iter
-        self.tol = tol
-        self.variance_floor = variance_floor
-
-    @single_threaded_blas()
-    def fit(self, sums: NormalEquations) -> SummedLeastSquares:
-        self._forget_fit()
-        if self.method not in ("ols", "wls"):
-            raise ValueError(f"method must be 'ols' or 'wls', got {self.method!r}")
-        if int(self.max_iter) != self.max_iter or self.max_iter < 1:
-            raise ValueError(f"max_iter must be a positive integer, got {self.max_iter}")
-        if not isinstance(sums, NormalEquations):
-            raise TypeError(f"fit expects NormalEquations, got {type(sums).__name__}")
-        N, m, r = sums.n_samples, sums.n_channels, sums.n_columns
-        if N * m <= r:
-            raise ValueError(f"{N * m} equations for {r} parameters: need more samples")
-        dof_channel = N - r / m
-        weights = np.ones(m)
-        iterations = 1
-        if self.method == "wls":
-            dead = [c for c, value in zip(sums.channels, sums.power) if value == 0]
-            if dead:
-                raise ValueError(f"channel(s) {', '.join(dead)} read zero in every sample (a dead sensor, or a column "
-                                 "left empty?): weighted least squares cannot weight them; check the data, or use "
-                                 "ordinary least squares (--method ols)")
-            floor = self.variance_floor * sums.power / N
-            variance = None
-            iterations = 0
-            for _ in range(int(self.max_iter) + 1):
-                theta = solve_sums(sums, weights)[0]
-                iterations += 1
-                updated = np.maximum(sums.channel_rss(theta) / dof_channel, floor)
-                change = np.inf if variance is None else np.max(np.abs(updated - variance) / variance)
-                variance = updated
-                weights = 1.0 / variance
-                if change < self.tol:
-                    break
-        theta, unscaled, cond = solve_sums(sums, weights)
-        rss = sums.channel_rss(theta)
-        scale = float(np.sum(rss * weights)) / (N * m - r)
-        cov = scale * unscaled
-        std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
-        with np.errstate(divide="ignore", invalid="ignore"):
-            relative = np.where(theta != 0, 100.0 * std / np.abs(theta), np.inf)
-        self.estimate_ = SummedEstimate(
-            values=theta, cov=cov, std=std, relative_std=relative, cond=cond, channel_variance=rss / dof_channel,
-            channel_rss=rss, weights=weights, n_samples=N, names=sums.names, expressions=sums.expressions,
-            channels=sums.channels, method=self.method, n_iterations=iterations,
-        )
-        return self
-
-    def _fitted(self) -> SummedEstimate:
-        if not hasattr(self, "estimate_"):
-            raise NotFittedError(f"this {type(self).__name__} is not fitted yet: call fit first")
-        return self.estimate_
-
-    theta_ = property(lambda self: self._fitted().values, doc="Estimated parameters.")
-    cov_ = property(lambda self: self._fitted().cov, doc="Covariance of the estimates.")
-    std_ = property(lambda self: self._fitted().std, doc="Standard deviations.")
 
 
 def check_chunk_size(chunk_size: int, model: IdentificationModel, extra_columns: int = 0) -> int:

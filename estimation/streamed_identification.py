@@ -26,7 +26,8 @@ import numpy as np
 from dynamics.models import IdentificationModel
 from estimation.cluster import sum_files
 from estimation.identification import ImplausibleEstimateWarning, implausible_estimates
-from estimation.normal_equations import NormalEquations, SummedEstimate, SummedLeastSquares
+from estimation.normal_equations import NormalEquations
+from estimation.summed_least_squares import SummedEstimate, SummedLeastSquares
 from estimation.streaming import FileSums, StreamingUnsupportedError, automatic_cutoff
 
 

@@ -8,13 +8,8 @@ import pytest
 from dynamics.models import build_model
 from dynamics.robots import load_robot
 from estimation.least_squares import IdentifiabilityError, LeastSquares, WeightedLeastSquares, solve, stack
-from estimation.normal_equations import (
-    NormalEquations,
-    SummedLeastSquares,
-    accumulate,
-    reduce_sums,
-    solve_sums,
-)
+from estimation.normal_equations import NormalEquations, accumulate, reduce_sums
+from estimation.summed_least_squares import SummedLeastSquares, solve_sums
 from tests.synthetic import random_fourier, simulate, true_parameters
 
 NOISE = {"tau1": 0.5, "tau2": 0.5, "tau3": 0.2, "fx": 5.0, "fy": 5.0, "fz": 8.0, "mx": 3.0, "my": 3.0, "mz": 1.0}

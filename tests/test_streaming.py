@@ -17,7 +17,7 @@ from estimation.identification_problem import IdentificationProblem
 from estimation.least_squares import WeightedLeastSquares, stack
 from estimation.loading import MeasurementError, MissingColumnError, TimeBaseError, read_measurements
 from estimation.measurements import Measurements
-from estimation.normal_equations import SummedLeastSquares
+from estimation.summed_least_squares import SummedLeastSquares
 from estimation.preprocessing import ButterworthDifferentiation, fill_derivatives
 from estimation.streamed_identification import identify_files
 from estimation.streaming import StreamingUnsupportedError, file_sums, filter_margin
