@@ -68,9 +68,13 @@ def _model(payload: bytes) -> IdentificationModel:
     return build_model(robot, kind, effects)
 
 
-def file_task(payload: bytes, path: str, options: dict[str, Any]) -> tuple[FileSums, tuple[tuple[type, str], ...]]:
+def file_task(payload: bytes, path: str, options: dict[str, Any], stamp: tuple[int, int] | None = None
+              ) -> tuple[FileSums, tuple[tuple[type, str], ...]]:
     """Picklable unit of work: the sums of one file (model rebuilt once per worker process) and the
-    warnings reading it gave (category, message), for the driver to issue again."""
+    warnings reading it gave (category, message), for the driver to issue again. ``stamp`` (the
+    file's modification time and size) is not used here: it changes the task's identity when the
+    file changes, so that an executor caching results by their arguments (dask's ``pure=True``)
+    never returns the sums of an older version."""
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         part = sums_of_file(path, _model(payload), **options)
@@ -129,7 +133,7 @@ def sum_files(
         if not callable(getattr(executor, "submit", None)):
             raise TypeError(f"executor must be a concurrent.futures.Executor (with submit), got {type(executor).__name__}")
         payload = model_payload(model)
-        futures = [executor.submit(file_task, payload, path, dict(options)) for path in paths]
+        futures = [executor.submit(file_task, payload, path, dict(options), _stamp(path)) for path in paths]
         parts = []
         try:
             for path, future in zip(paths, futures):
@@ -138,6 +142,14 @@ def sum_files(
             for future in futures:
                 future.cancel()
     return check_parts(model, paths, parts), tuple(parts)
+
+
+def _stamp(path: str) -> tuple[int, int] | None:
+    try:
+        status = os.stat(path)
+    except OSError:
+        return None  # the reader names the file
+    return (status.st_mtime_ns, status.st_size)
 
 
 def _result(future, path: str) -> FileSums:
@@ -198,6 +210,6 @@ def connect(address: str, *, timeout: float | None = None) -> Iterator[Any]:
     except (OSError, TimeoutError) as error:
         raise ClusterUnavailableError(f"cannot reach the dask scheduler at {address}: {error}") from None
     try:
-        yield client.get_executor()
+        yield client.get_executor(pure=False)  # every call computed, never a result cached from an earlier run
     finally:
         client.close()

@@ -105,12 +105,20 @@ def test_several_files_one_estimate_serial_threads_and_validation(model, files):
         assert 0.85 < value / NOISE[channel] ** 2 < 1.2, (channel, value)
 
 
-def test_dask_local_cluster_gives_the_serial_estimate(model, files):
+def test_dask_local_cluster_gives_the_serial_estimate(model, files, tmp_path):
     distributed = pytest.importorskip("dask.distributed", reason="dask is an optional extra: pip install 'robot-oed[cluster]'")
     serial = identify_files(model, files["raw"], chunk_size=2000, cutoff_hz=CUTOFF)
+    changing = tmp_path / "changing.csv"
+    data = read_measurements(files["full"][0], model=model)
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False, dashboard_address=None) as cluster, \
             distributed.Client(cluster) as client:
         clustered = identify_files(model, files["raw"], chunk_size=2000, cutoff_hz=CUTOFF, executor=client.get_executor())
+        # dask caches results by the task's arguments (pure=True by default): a rewritten file is summed anew
+        executor = client.get_executor()
+        data.select(slice(0, 3000)).write(changing)
+        assert sum_files(model, [changing], executor=executor, chunk_size=2000)[0].n_samples == 3000
+        data.select(slice(0, 2500)).write(changing)
+        assert sum_files(model, [changing], executor=executor, chunk_size=2000)[0].n_samples == 2500
     assert relative(clustered.estimate.values, serial.estimate.values) < 1e-10
     assert relative(clustered.estimate.cov, serial.estimate.cov) < 1e-10
 
