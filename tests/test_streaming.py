@@ -351,3 +351,21 @@ def test_warnings_of_a_worker_reach_the_caller(model, files, tmp_path):
     replace(data, t=t).write(path)
     with ThreadPoolExecutor(1) as executor, pytest.warns(ResampledWarning, match="jittered.csv: irregular sampling"):
         sum_files(model, [path], executor=executor, chunk_size=2000)
+
+
+def test_cli_process_pool_and_option_conflicts(model, files, tmp_path, capsys):
+    out = tmp_path / "pool.json"
+    base = ["identify", "--joints", "3", "--model", "internal", "--data", str(files["full"][0]), "--data",
+            str(files["full"][2]), "--out", str(out)]
+    assert main(base + ["--workers", "2"]) == 0
+    reference = in_memory(model, [files["full"][0], files["full"][2]])
+    values = np.array([entry["value"] for entry in json.loads(out.read_text())["parameters"]])
+    assert relative(values, reference.values) < 1e-10
+    out.unlink()
+    assert main(base + ["--workers", "2", "--scheduler", "tcp://127.0.0.1:1"]) == 2
+    assert "not both" in capsys.readouterr().err
+    assert main(base + ["--plot", str(tmp_path / "figure.png")]) == 2
+    assert "--plot draws every sample" in capsys.readouterr().err
+    assert main(base[:-2] + ["--data", str(files["full"][0]), "--out", str(out)]) == 2
+    assert "given twice" in capsys.readouterr().err
+    assert not out.exists()
