@@ -119,6 +119,12 @@ def test_dask_local_cluster_gives_the_serial_estimate(model, files, tmp_path):
         assert sum_files(model, [changing], executor=executor, chunk_size=2000)[0].n_samples == 3000
         data.select(slice(0, 2500)).write(changing)
         assert sum_files(model, [changing], executor=executor, chunk_size=2000)[0].n_samples == 2500
+        out = tmp_path / "cluster.json"
+        args = ["identify", "--joints", "3", "--model", "internal", "--cutoff", str(CUTOFF), "--chunk-size", "2000",
+                "--scheduler", cluster.scheduler_address, "--out", str(out)]
+        assert main(args + [arg for path in files["raw"] for arg in ("--data", str(path))]) == 0
+    values = np.array([entry["value"] for entry in json.loads(out.read_text())["parameters"]])
+    assert relative(values, serial.estimate.values) < 1e-10
     assert relative(clustered.estimate.values, serial.estimate.values) < 1e-10
     assert relative(clustered.estimate.cov, serial.estimate.cov) < 1e-10
 
