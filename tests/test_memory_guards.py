@@ -77,3 +77,21 @@ def test_streaming_chunk_size_guarded():
         check_chunk_size(10**11, model)
     with pytest.raises(ValueError, match="positive integer"):
         check_chunk_size(0, model)
+
+
+def test_cli_identify_in_memory_refused_past_the_memory_with_a_hint(tmp_path, monkeypatch, capsys):
+    import dynamics.memory
+    from oed.cli import main
+    from tests.synthetic import random_fourier, simulate, true_parameters
+
+    model = build_model(load_robot("puma560", joints=3), "internal", "viscous")
+    data = simulate(model, true_parameters(model), random_fourier(model.robot, 1), noise={"tau1": 0.1, "tau2": 0.1,
+                                                                                          "tau3": 0.1})
+    path = tmp_path / "data.csv"
+    data.write(path)
+    out = tmp_path / "out.json"
+    monkeypatch.setattr(dynamics.memory, "available_memory", lambda: 10**5)
+    assert main(["identify", "--joints", "3", "--data", str(path), "--out", str(out)]) == 2
+    assert "use --chunk-size" in capsys.readouterr().err and not out.exists()
+    monkeypatch.setattr(dynamics.memory, "available_memory", lambda: 10**9)
+    assert main(["identify", "--joints", "3", "--data", str(path), "--chunk-size", "500", "--out", str(out)]) == 0
