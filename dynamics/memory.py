@@ -46,16 +46,39 @@ def total_memory() -> int:
     return int(value) if value and value > 0 else FALLBACK_BYTES
 
 
+#: a container's memory limit and use: cgroup v2, then v1 (``/proc/meminfo`` shows the host's)
+CGROUP_FILES: tuple[tuple[str, str], ...] = (
+    ("/sys/fs/cgroup/memory.max", "/sys/fs/cgroup/memory.current"),
+    ("/sys/fs/cgroup/memory/memory.limit_in_bytes", "/sys/fs/cgroup/memory/memory.usage_in_bytes"),
+)
+
+
+def _cgroup_room() -> int | None:
+    """Bytes left under this process's cgroup memory limit, or ``None`` without a limit."""
+    for limit_file, usage_file in CGROUP_FILES:
+        try:
+            limit_text = Path(limit_file).read_text().strip()
+            usage = int(Path(usage_file).read_text().strip())
+        except (OSError, ValueError):
+            continue
+        if limit_text == "max" or not limit_text.isdigit() or int(limit_text) >= 2**60:
+            return None  # no limit set
+        return max(int(limit_text) - usage, 0)
+    return None
+
+
 def available_memory() -> int:
     """Memory a new allocation may take now, bytes: ``MemAvailable`` (free plus reclaimable cache),
-    else ``os.sysconf`` available pages, else the total."""
+    else ``os.sysconf`` available pages, else the total; within a container's cgroup limit."""
     value = _meminfo("MemAvailable")
     if value is None:
         try:
             value = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_AVPHYS_PAGES")
         except (ValueError, OSError, AttributeError):
             value = None
-    return int(value) if value and value > 0 else total_memory()
+    value = int(value) if value and value > 0 else total_memory()
+    room = _cgroup_room()
+    return value if room is None else min(value, room)
 
 
 def _size(count: float) -> str:

@@ -95,3 +95,16 @@ def test_cli_identify_in_memory_refused_past_the_memory_with_a_hint(tmp_path, mo
     assert "use --chunk-size" in capsys.readouterr().err and not out.exists()
     monkeypatch.setattr(dynamics.memory, "available_memory", lambda: 10**9)
     assert main(["identify", "--joints", "3", "--data", str(path), "--chunk-size", "500", "--out", str(out)]) == 0
+
+
+def test_a_container_limit_bounds_the_available_memory(tmp_path, monkeypatch):
+    import dynamics.memory
+
+    limit, usage = tmp_path / "memory.max", tmp_path / "memory.current"
+    limit.write_text("1073741824\n")
+    usage.write_text("268435456\n")
+    monkeypatch.setattr(dynamics.memory, "CGROUP_FILES", ((str(limit), str(usage)),))
+    monkeypatch.setattr(dynamics.memory, "_meminfo", lambda key: 16 * 1024**3)
+    assert available_memory() == 768 * 1024**2  # the container's room, not the host's 16 GiB
+    limit.write_text("max\n")
+    assert available_memory() == 16 * 1024**3
