@@ -375,3 +375,18 @@ def test_cli_process_pool_and_option_conflicts(model, files, tmp_path, capsys):
     assert main(base[:-2] + ["--data", str(files["full"][0]), "--out", str(out)]) == 2
     assert "given twice" in capsys.readouterr().err
     assert not out.exists()
+
+
+def test_combined_model_with_the_base_wrench_streamed(tmp_path):
+    """Joint torques and the base wrench (9 channels), positions only: the filter path on both."""
+    robot = load_robot("puma560", joints=3)
+    combined = build_model(robot, "combined", "viscous")
+    noise = {**NOISE, "fx": 5.0, "fy": 5.0, "fz": 8.0, "mx": 3.0, "my": 3.0, "mz": 1.0}
+    data = simulate(combined, true_parameters(combined, seed=2), random_fourier(robot, 3), noise=noise, seed=4,
+                    rate_hz=500.0, periods=1)
+    path = tmp_path / "combined.parquet"
+    Measurements(data.t, data.q, tau=data.tau, wrench=data.wrench).write(path)
+    reference = in_memory(combined, [path], ButterworthDifferentiation(CUTOFF))
+    estimate = identify_files(combined, [path], chunk_size=800, cutoff_hz=CUTOFF).estimate
+    assert relative(estimate.values, reference.values) < 1e-10
+    assert estimate.channels == combined.channels and len(estimate.channels) == 9
