@@ -32,6 +32,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from dynamics.controllers import Controller, PDController, pd_gains
 from dynamics.effects import WRENCH_CHANNELS
+from dynamics.memory import check_allocation
 from dynamics.pinocchio_bridge import to_pinocchio
 from dynamics.robot import RobotModel
 from dynamics.sensors import NoiseModel
@@ -239,6 +240,8 @@ class Simulator:
             raise ValueError(f"{duration + warmup:.4g} s at {self.rate_hz:g} Hz is more than {MAX_SAMPLES:.0e} samples: "
                              "shorten the record or lower the rate")
         count, skip = int(round(duration * self.rate_hz)), int(round(warmup * self.rate_hz))
+        # t, the reference (q, dq, ddq), the record (q, dq, ddq, tau) and the wrench and frame written from it
+        check_allocation(8.0 * (skip + count) * (1 + 8 * n + 12), f"{duration + warmup:.4g} s at {self.rate_hz:g} Hz")
         if count < 2:
             raise ValueError(f"{duration:.4g} s at {self.rate_hz:g} Hz gives {count} sample(s): need at least two")
         t_all = np.arange(skip + count) / self.rate_hz

@@ -29,6 +29,7 @@ from typing import Protocol
 import numpy as np
 import scipy.signal
 
+from dynamics.memory import check_allocation
 from dynamics.robots.servo_arm import SERVO_ARM_RANGES
 
 
@@ -77,6 +78,8 @@ class APRBSDesign:
         if self.duration / self.dt > MAX_APRBS_SAMPLES:
             raise ValueError(f"duration {self.duration} s at dt = {self.dt} s is {self.duration / self.dt:.3g} samples, "
                              f"more than {MAX_APRBS_SAMPLES:.0e}: shorten it or raise dt")
+        check_allocation(8.0 * 4 * (self.duration / self.dt) * len(self.ranges),
+                         f"an APRBS of {self.duration} s at dt = {self.dt} s")
         if not self.duration >= 2 * self.hold_min:
             raise ValueError(f"duration = {self.duration} s must be at least two minimum holds (2 × {self.hold_min} s)")
         if not isinstance(self.n_levels, int) or self.n_levels < 3:

@@ -29,6 +29,7 @@ import scipy.sparse
 from numpy.typing import NDArray
 
 from dynamics.effects import parse_effects
+from dynamics.memory import check_allocation
 from dynamics.models import ModelKind, build_model
 from dynamics.robot import RobotModel
 from dynamics.threads import single_threaded
@@ -131,6 +132,11 @@ class ExcitationDesign:
         """``design_objective(x) -> J``: criterion of ``M/N`` over ``cost_samples`` samples (cached)."""
         if "cost" not in self._cache:
             n, H, N = self.n_joints, self.settings.harmonics, self.settings.cost_samples
+            model = self.identification_model
+            # the sampled states (3 x (N, 2H+1) and (N, n)) and the mapped regressor's work and
+            # derivative arrays (about four (N, channels, r) blocks): refuse before building them
+            check_allocation(8.0 * N * (3 * (2 * H + 1) + 3 * n + 4 * model.n_channels * model.n_base),
+                             f"cost_samples = {N}")
             t = np.arange(N) / N / self.settings.frequency_hz
             x = casadi.MX.sym("x", self.n_variables)
             q0, a, b = unpack(x, n, H)
@@ -175,6 +181,8 @@ class ExcitationDesign:
     def constraint_times(self, extra: tuple[int, ...] = ()) -> NDArray[np.float64]:
         """The equidistant constraint points plus the ``rate_hz`` samples ``extra`` (sorted, seconds)."""
         s = self.settings
+        check_allocation(8.0 * 2 * (s.constraint_points + len(extra)) * 3 * self.n_joints * self.n_variables,
+                         f"constraint_points = {s.constraint_points}")
         grid = np.arange(s.constraint_points) * s.period_samples // s.constraint_points  # on the rate_hz grid
         return np.union1d(grid, np.asarray(extra, dtype=int)) / s.rate_hz
 

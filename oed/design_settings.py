@@ -97,6 +97,10 @@ class DesignSettings:
         if self.constraint_points < 2 * self.harmonics + 1:
             raise ValueError(f"constraint_points = {self.constraint_points} cannot bound {self.harmonics} harmonics: "
                              f"need at least 2 x harmonics + 1 = {2 * self.harmonics + 1}")
+        if self.constraint_points > self.period_samples:
+            raise ValueError(f"constraint_points = {self.constraint_points} is more than the {self.period_samples} samples "
+                             f"of one period at {self.rate_hz:g} Hz (every sample is checked then): give at most "
+                             f"{self.period_samples}")
         if self.cost_samples < 2 * self.harmonics + 1:
             raise ValueError(f"cost_samples = {self.cost_samples} cannot resolve {self.harmonics} harmonics: "
                              f"need at least 2 x harmonics + 1 = {2 * self.harmonics + 1}")

@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from dynamics.models import ModelKind
+from estimation.cluster import SCHEDULER_VARIABLE, connect, scheduler_address
 from oed.bounds import JointBounds
 from oed.cli.common import (
     OutputFiles,
@@ -42,6 +43,8 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     parser.add_argument("--starts", type=int, default=4)
     parser.add_argument("--seed", type=seed, default=0)
     parser.add_argument("--workers", type=int, default=0, help="run the starts in a process pool of this size")
+    parser.add_argument("--scheduler", help=f"dask scheduler address (tcp://host:8786) to run the starts on a cluster "
+                        f"(default: ${SCHEDULER_VARIABLE}); needs pip install 'robot-oed[cluster]'")
     parser.add_argument("--frequency", type=float, default=0.2, help="fundamental frequency, Hz (default 0.2)")
     parser.add_argument("--harmonics", type=int, default=5)
     parser.add_argument("--samples", type=int, default=250, help="cost samples per period during optimisation")
@@ -109,7 +112,13 @@ def run(args: argparse.Namespace) -> int:
                    starts=args.starts, seed=args.seed, settings=settings, progress=progress)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", ShrunkDesignWarning)
-        if args.workers > 0:
+        address = scheduler_address(args.scheduler)
+        if address is not None and args.workers > 0:
+            raise ValueError("give --scheduler (a dask cluster) or --workers (a local pool), not both")
+        if address is not None:
+            with connect(address) as executor:
+                result = design_excitation(robot, executor=executor, **options)
+        elif args.workers > 0:
             with ProcessPoolExecutor(args.workers) as executor:
                 result = design_excitation(robot, executor=executor, **options)
         else:

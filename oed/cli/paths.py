@@ -29,10 +29,10 @@ def _named_paths(args: argparse.Namespace) -> dict[str, tuple[str, Path]]:
     folders = tuple(getattr(args, "folder_options", ()))
     for role, options in (("input", INPUT_OPTIONS), ("output", OUTPUT_OPTIONS)):
         for option in options:
-            value = getattr(args, option, None)
-            if value is None:
+            given = getattr(args, option, None)
+            if given is None:
                 continue
-            values = value if isinstance(value, (list, tuple)) else [value]  # repeatable options (--data a --data b)
+            values = given if isinstance(given, (list, tuple)) else [given]  # repeatable options (--data a --data b)
             for number, value in enumerate(values, start=1):
                 if not str(value).strip():
                     raise ValueError(f"{_flag(option)} is empty: give a file name")

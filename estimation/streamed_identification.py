@@ -1,0 +1,162 @@
+"""Identification of one estimate from many records in bounded memory (``oed identify --chunk-size``).
+
+::
+
+    result = identify_files(model, ["run1.csv", "run2.parquet"], ["check.csv"], chunk_size=10_000,
+                            cutoff_hz=5.0, executor=client.get_executor())
+    result.to_dict()   # the ``oed identify`` document, plus a ``streaming`` block
+
+The training files reduce to one :class:`~estimation.normal_equations.NormalEquations`
+(:func:`estimation.cluster.sum_files`), the estimator solves from it
+(:class:`~estimation.normal_equations.SummedLeastSquares`, the same iterated channel weighting as
+:class:`~estimation.least_squares.WeightedLeastSquares`), and the MSEs per channel are sums too:
+``‖y_c − Y_c θ̂‖² / N`` from the training sums and from the validation files' own sums.
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Literal
+
+import numpy as np
+
+from dynamics.models import IdentificationModel
+from estimation.cluster import sum_files
+from estimation.identification import ImplausibleEstimateWarning, implausible_estimates
+from estimation.normal_equations import NormalEquations
+from estimation.summed_least_squares import SummedEstimate, SummedLeastSquares
+from estimation.streaming import FileSums, StreamingUnsupportedError, automatic_cutoff
+
+
+@dataclass(frozen=True)
+class StreamedIdentificationResult:
+    """Estimates from sums, with the MSE per channel on the training and validation files.
+
+    Attributes
+    ----------
+    model, estimate
+        The model and its estimate (no per-sample residuals).
+    train, validation
+        Sums of the training files and of the validation files (``None`` without).
+    train_mse, validation_mse
+        Mean squared error per channel.
+    files, validation_files
+        Each file's sums (rows read, samples summed, preprocessing).
+    chunk_size, cutoff_hz, frequency_hz
+        The chunk used, the Butterworth cut-off and the Fourier path's frequency (``None`` when not used).
+    warnings
+        Implausible estimates (:func:`estimation.identification.implausible_estimates`).
+    """
+
+    model: IdentificationModel
+    estimate: SummedEstimate
+    train: NormalEquations
+    validation: NormalEquations | None
+    train_mse: dict[str, float]
+    validation_mse: dict[str, float] | None
+    files: tuple[FileSums, ...]
+    validation_files: tuple[FileSums, ...]
+    chunk_size: int
+    cutoff_hz: float | None
+    warnings: tuple[str, ...] = ()
+    frequency_hz: float | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        """The JSON document of ``oed identify`` (same keys) plus ``streaming``::
+
+            streaming: {chunk_size, cutoff_hz, frequency_hz, files: [{path, rows, samples, decimation, margin,
+                        periods_averaged, resampled_from}], validation_files: [...]}
+
+        ``rows``: samples read (on the uniform grid when the file was resampled from
+        ``resampled_from`` rows); ``samples``: samples summed (after averaging or decimation).
+        """
+        estimate = self.estimate
+        records = [{key: (None if isinstance(value, float) and not np.isfinite(value) else value)
+                    for key, value in record.items()} for record in estimate.records()]
+        return {
+            "robot": self.model.robot.name,
+            "model": self.model.kind.value,
+            "effects": [effect.name for effect in self.model.effects],
+            "method": estimate.method,
+            "n_samples": int(self.train.n_samples),
+            "parameters": records,
+            "cond": float(estimate.cond),
+            "channel_std": dict(zip(estimate.channels, map(float, np.sqrt(estimate.channel_variance)))),
+            "train": {"mse": self.train_mse},
+            "validation": None if self.validation_mse is None else {"mse": self.validation_mse},
+            "warnings": list(self.warnings),
+            "streaming": {
+                "chunk_size": self.chunk_size,
+                "cutoff_hz": self.cutoff_hz,
+                "frequency_hz": self.frequency_hz,
+                "files": [_file_record(part) for part in self.files],
+                "validation_files": [_file_record(part) for part in self.validation_files],
+            },
+        }
+
+
+def _file_record(part: FileSums) -> dict[str, Any]:
+    return {"path": part.path, "rows": part.rows, "samples": part.sums.n_samples,
+            "decimation": part.metadata.get("decimation", 1), "margin": part.metadata.get("margin", 0),
+            "periods_averaged": part.metadata.get("periods_averaged"),
+            "resampled_from": part.metadata.get("resampled_from")}
+
+
+def identify_files(
+    model: IdentificationModel,
+    paths: Sequence[str | Path],
+    validate: Sequence[str | Path] = (),
+    *,
+    method: Literal["ols", "wls"] = "wls",
+    chunk_size: int,
+    cutoff_hz: float | None = None,
+    frequency_hz: float | None = None,
+    harmonics: int = 5,
+    decimation: int = 1,
+    held_torques: bool = False,
+    executor: Any = None,
+) -> StreamedIdentificationResult:
+    """Identify ``model`` from the training ``paths`` (one estimate) and validate on ``validate``.
+
+    ``frequency_hz``: periodic records without ``dq``/``ddq`` take the Fourier path (periods averaged
+    chunk by chunk, :mod:`estimation.streaming_periods`). Otherwise, without ``dq``/``ddq`` columns
+    and without ``cutoff_hz``, the automatic cut-off of the first
+    chunk of the first file (:func:`estimation.streaming.automatic_cutoff`) serves every file.
+    ``executor``: see :func:`estimation.cluster.sum_files`.
+    """
+    paths = [str(path) for path in paths]
+    if not paths:
+        raise ValueError("no training data files")
+    if frequency_hz is not None and cutoff_hz is not None:
+        raise ValueError("give frequency_hz (Fourier fit of periodic data) or cutoff_hz (Butterworth filter), not both")
+    if cutoff_hz is None and frequency_hz is None:
+        try:
+            cutoff_hz = None if _has_derivatives(paths[0], model, chunk_size) else automatic_cutoff(
+                paths[0], model, chunk_size=chunk_size)
+        except StopIteration:
+            raise StreamingUnsupportedError(f"{paths[0]}: no samples") from None
+    options = dict(chunk_size=chunk_size, cutoff_hz=cutoff_hz, decimation=decimation, held_torques=held_torques)
+    if frequency_hz is not None:
+        options.update(frequency_hz=frequency_hz, harmonics=harmonics)
+    train, files = sum_files(model, paths, executor=executor, **options)
+    validation, validation_files = (None, ()) if not validate else sum_files(model, validate, executor=executor, **options)
+    estimate = SummedLeastSquares(method=method).fit(train).estimate_
+    notes = implausible_estimates(model, estimate)  # type: ignore[arg-type]  (records() is all it reads)
+    for note in notes:
+        warnings.warn(note, ImplausibleEstimateWarning, stacklevel=2)
+    return StreamedIdentificationResult(
+        model, estimate, train, validation, train.channel_mse(estimate.values),
+        None if validation is None else validation.channel_mse(estimate.values), files, tuple(validation_files),
+        int(chunk_size), None if all(part.metadata.get("cutoff_hz") is None for part in files) else cutoff_hz, notes,
+        frequency_hz if any(part.metadata.get("differentiation") == "fourier" for part in files) else None,
+    )
+
+
+def _has_derivatives(path: str, model: IdentificationModel, chunk_size: int) -> bool:
+    from estimation.streaming import read_chunks
+
+    first = next(read_chunks(path, model, chunk_size=chunk_size))
+    return first.dq is not None and first.ddq is not None

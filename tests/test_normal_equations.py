@@ -1,0 +1,123 @@
+"""Least squares from accumulated sums against the in-memory estimators (simulated PUMA data)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from dynamics.models import build_model
+from dynamics.robots import load_robot
+from estimation.least_squares import IdentifiabilityError, LeastSquares, WeightedLeastSquares, solve, stack
+from estimation.normal_equations import NormalEquations, accumulate, reduce_sums
+from estimation.summed_least_squares import SummedLeastSquares, solve_sums
+from tests.synthetic import random_fourier, simulate, true_parameters
+
+NOISE = {"tau1": 0.5, "tau2": 0.5, "tau3": 0.2, "fx": 5.0, "fy": 5.0, "fz": 8.0, "mx": 3.0, "my": 3.0, "mz": 1.0}
+
+
+def relative(a, b) -> float:
+    return float(np.linalg.norm(np.asarray(a) - b) / np.linalg.norm(b))
+
+
+@pytest.fixture(scope="module", params=["internal", "combined"])
+def case(request):
+    puma = load_robot("puma560", joints=3)
+    model = build_model(puma, request.param, "viscous")
+    train = simulate(model, true_parameters(model, seed=2), random_fourier(puma, 3), noise=NOISE, seed=11)
+    return model, train
+
+
+def test_summed_wls_equals_in_memory_wls(case):
+    model, train = case
+    reference = WeightedLeastSquares().fit(stack(model, train)).estimate_
+    estimate = SummedLeastSquares().fit(accumulate(model, train, chunk_size=777)).estimate_
+    assert relative(estimate.values, reference.values) < 1e-10
+    assert np.max(np.abs(estimate.values - reference.values) / reference.std) < 1e-6
+    assert relative(estimate.cov, reference.cov) < 1e-10
+    assert relative(estimate.channel_variance, reference.channel_variance) < 1e-10
+    assert estimate.cond == pytest.approx(reference.cond, rel=1e-8)
+    assert estimate.n_iterations == reference.n_iterations
+    assert [r["name"] for r in estimate.records()] == [r["name"] for r in reference.records()]
+    rms = reference.channel_rms()
+    for channel, value in estimate.channel_rms().items():
+        assert value == pytest.approx(rms[channel], rel=1e-10)
+
+
+def test_summed_ols_equals_in_memory_ols(case):
+    model, train = case
+    reference = LeastSquares().fit(stack(model, train)).estimate_
+    estimate = SummedLeastSquares(method="ols").fit(accumulate(model, train, chunk_size=100)).estimate_
+    assert relative(estimate.values, reference.values) < 1e-10
+    assert relative(estimate.cov, reference.cov) < 1e-10
+
+
+def test_tsqr_solve_matches_a_direct_qr_and_the_semi_normal_solve(case):
+    """Fixed weights: the factor route against numpy's QR of the whole weighted regressor."""
+    model, train = case
+    problem = stack(model, train)
+    weights = 1.0 / np.array([NOISE[c] ** 2 for c in model.channels])
+    theta = solve_sums(accumulate(model, train, chunk_size=333), weights)[0]
+    Y = (problem.Y * np.sqrt(weights)[None, :, None]).reshape(-1, problem.n_parameters)
+    y = (problem.y * np.sqrt(weights)).reshape(-1)
+    Q, R = np.linalg.qr(Y)
+    direct = np.linalg.solve(R, Q.T @ y)
+    assert relative(theta, direct) < 1e-12
+    assert relative(theta, solve(problem, weights)[0]) < 1e-12
+
+
+def test_sums_add_in_any_grouping_and_gram_is_exact(case):
+    model, train = case
+    whole = accumulate(model, train, chunk_size=train.n_samples)
+    parts = [accumulate(model, train.select(slice(a, a + 250)), chunk_size=64, source=f"part{a}")
+             for a in range(0, train.n_samples, 250)]
+    total = reduce_sums(parts)
+    assert total.n_samples == train.n_samples
+    assert total.sources == tuple(f"part{a}" for a in range(0, train.n_samples, 250))
+    problem = stack(model, train)
+    gram = np.matmul(problem.Y.transpose(1, 2, 0), problem.Y.transpose(1, 0, 2))
+    assert relative(total.gram, gram) < 1e-13
+    # R_cᵀR_c is the augmented Gram matrix, however the rows were grouped
+    for sums in (whole, total):
+        product = np.matmul(sums.factor.transpose(0, 2, 1), sums.factor)
+        assert relative(product[:, :-1, :-1], gram) < 1e-13
+        assert relative(product[:, :-1, -1], total.moment) < 1e-13
+    rss = total.channel_rss(np.zeros(model.n_base))
+    np.testing.assert_allclose(rss, np.sum(problem.y**2, axis=0), rtol=1e-12)
+    with pytest.raises(ValueError, match="different problems"):
+        total + NormalEquations.empty(model.channels[:1], model.base.names)
+
+
+def test_validation_mse_from_sums_equals_compare(case):
+    from estimation.validation import compare
+
+    model, train = case
+    theta = WeightedLeastSquares().fit(stack(model, train)).theta_
+    mse = accumulate(model, train, chunk_size=300).channel_mse(theta)
+    expected = compare(model, theta, train).mse
+    for channel in model.channels:
+        assert mse[channel] == pytest.approx(expected[channel], rel=1e-10)
+
+
+def test_select_columns_keeps_the_sub_problem(case):
+    model, train = case
+    sums = accumulate(model, train, chunk_size=500)
+    keep = list(range(model.n_base - 3))
+    problem = stack(model, train)
+    from estimation.identification_problem import IdentificationProblem
+
+    sub = IdentificationProblem(problem.Y[:, :, keep], problem.y, problem.channels,
+                                tuple(problem.names[i] for i in keep))
+    reference = WeightedLeastSquares().fit(sub).estimate_
+    estimate = SummedLeastSquares().fit(sums.select(keep)).estimate_
+    assert relative(estimate.values, reference.values) < 1e-10
+
+
+def test_rank_deficient_sums_are_refused(case):
+    model, train = case
+    sums = accumulate(model, train.select(slice(0, 200)))
+    duplicated = np.concatenate([stack(model, train).Y, stack(model, train).Y[:, :, :1]], axis=2)
+    doubled = NormalEquations.from_arrays(duplicated, train.channels(model.channels), model.channels,
+                                          model.base.names + ("copy",))
+    with pytest.raises(IdentifiabilityError, match="do not determine"):
+        SummedLeastSquares().fit(doubled)
+    assert sums.n_samples == 200

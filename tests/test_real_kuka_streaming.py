@@ -1,0 +1,47 @@
+"""Streamed identification on the measured KUKA LWR4+ runs (jittered ~200 Hz, measured dq/ddq):
+the same estimate as the in-memory path, from several files and in chunks."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+
+from dynamics.models import build_model
+from dynamics.robots import load_robot
+from estimation.identification_problem import IdentificationProblem
+from estimation.kuka_data import load_kuka_run
+from estimation.least_squares import WeightedLeastSquares, stack
+from estimation.loading import read_measurements
+from estimation.streamed_identification import identify_files
+from estimation.validation import compare
+from tests.conftest import shared_data
+
+pytestmark = pytest.mark.realdata
+
+
+def test_two_kuka_runs_streamed_in_chunks_equal_the_in_memory_estimate(tmp_path):
+    folder = shared_data("kuka_lwr4")
+    robot = load_robot(urdf=folder / "kuka_lwr4.urdf")
+    model = build_model(robot, "internal", "viscous,coulomb,offset")
+    paths = []
+    for index in (1, 2, 3):
+        path = tmp_path / f"run{index}.parquet"
+        load_kuka_run(folder / f"kuka_lwr4_HW_measurements_{index}.npz").write(path)
+        paths.append(path)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # resampled (jitter), implausible friction: checked elsewhere
+        runs = [read_measurements(path, model=model) for path in paths]
+        problems = [stack(model, run) for run in runs[:2]]
+        joined = IdentificationProblem(np.concatenate([p.Y for p in problems]), np.concatenate([p.y for p in problems]),
+                                       model.channels, model.base.names, model.base.expressions)
+        reference = WeightedLeastSquares().fit(joined).estimate_
+        result = identify_files(model, paths[:2], [paths[2]], chunk_size=1000)
+    assert result.train.n_samples == joined.n_samples
+    error = np.linalg.norm(result.estimate.values - reference.values) / np.linalg.norm(reference.values)
+    assert error < 1e-10
+    expected = compare(model, reference.values, runs[2]).mse
+    for channel, value in result.validation_mse.items():
+        assert value == pytest.approx(expected[channel], rel=1e-9)
+    assert [entry["resampled_from"] for entry in result.to_dict()["streaming"]["files"]] == [5027, 5027]
