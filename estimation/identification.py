@@ -87,6 +87,16 @@ class IdentificationResult:
     train: Comparison
     validation: Comparison | None = None
     warnings: tuple[str, ...] = ()
+    #: fitted shape parameters of shaped effects (:mod:`estimation.shape_identification`), and the
+    #: fit that predicts with them (``None`` for a linear model)
+    shapes: tuple[Any, ...] = ()
+    shaped_fit: Any = None
+
+    def predict(self, measurements: Measurements) -> np.ndarray:
+        """``(N, m)`` predicted channels along ``measurements`` (at the fitted shapes, if any)."""
+        if self.shaped_fit is not None:
+            return self.shaped_fit.predict(measurements)
+        return self.model.predict(self.estimate.values, measurements.q, measurements.dq, measurements.ddq)
 
     def to_dict(self) -> dict[str, Any]:
         """The JSON document of ``oed identify``::
@@ -107,6 +117,8 @@ class IdentificationResult:
             "train": {"mse": self.train.mse},
             "validation": None if self.validation is None else {"mse": self.validation.mse},
             "warnings": list(self.warnings),
+            **({"shape": {value.name: value.value for value in self.shapes},
+                "shape_std": {value.name: value.std for value in self.shapes}} if self.shapes else {}),
         }
 
 
@@ -139,6 +151,12 @@ def identify(
         For each friction or armature estimate more than :data:`IMPLAUSIBLE_SIGMAS` standard
         deviations below zero (also in ``result.warnings``).
     """
+    from dynamics.shape_effects import is_shaped  # noqa: PLC0415
+
+    if any(is_shaped(effect, model.robot) for effect in model.effects):
+        if estimator is not None:
+            raise TypeError("a model with shaped effects is fitted by variable projection: give weighted=, not estimator=")
+        return _identify_shaped(model, train, validate, weighted)
     if estimator is None:
         estimator = WeightedLeastSquares() if weighted else LeastSquares()
     estimate = estimator.fit(stack(model, train)).estimate_
@@ -148,6 +166,19 @@ def identify(
     for note in notes:
         warnings.warn(note, ImplausibleEstimateWarning, stacklevel=3)  # past the BLAS decorator
     return IdentificationResult(model, estimate, train_comparison, validation, notes)
+
+
+def _identify_shaped(model, train, validate, weighted) -> IdentificationResult:
+    """Variable projection for shaped effects (:mod:`estimation.shape_identification`)."""
+    from estimation.shape_identification import fit_shaped_model, shaped_comparison  # noqa: PLC0415
+
+    shaped, estimate = fit_shaped_model(model, train, weighted=weighted)
+    train_comparison = shaped_comparison(shaped, train, "identification")
+    validation = None if validate is None else shaped_comparison(shaped, validate, "validation")
+    notes = implausible_estimates(model, estimate)
+    for note in notes:
+        warnings.warn(note, ImplausibleEstimateWarning, stacklevel=4)
+    return IdentificationResult(model, estimate, train_comparison, validation, notes, shaped.shape_values(), shaped)
 
 
 def _finite(record: dict[str, Any]) -> dict[str, Any]:
