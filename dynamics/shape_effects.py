@@ -304,7 +304,8 @@ class SigmoidFriction(ShapedPerJointEffect):
 
     def law(self, q, dq, ddq, shape):
         slope, shift = shape
-        return [1 / (1 + casadi.exp(-slope * (dq + shift))) - 1 / (1 + casadi.exp(-slope * shift))]
+        # σ(x) = (1 + tanh(x/2)) / 2: the same law, without exp overflowing at steep slopes
+        return [0.5 * (casadi.tanh(0.5 * slope * (dq + shift)) - casadi.tanh(0.5 * slope * shift))]
 
 
 @dataclass(frozen=True)

@@ -28,12 +28,14 @@ from __future__ import annotations
 import functools
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Literal
 
 import casadi
 import numpy as np
 import scipy.linalg
 from numpy.typing import NDArray
 
+from dynamics.compiled import SampleEvaluator
 from dynamics.effects import Effect
 from dynamics.models import ModelKind
 from dynamics.robot import RobotModel
@@ -54,11 +56,12 @@ ROW_CHECK_STATES = 16
 
 
 @functools.lru_cache(maxsize=512)
-def effect_block_functions(kind: ModelKind, robot: RobotModel, effect: Effect) -> tuple[casadi.Function, casadi.Function]:
-    """``(columns, columns_and_jacobian)``: ``(q, dq, ddq, shape) -> Ct`` (``k x m``) and
-    ``-> (Ct, dCt/dshape)`` (``k·m x n_s``, column-major ``Ct``), built once per model kind and effect.
+def effect_block_functions(kind: ModelKind, robot: RobotModel, effect: Effect) -> tuple[SampleEvaluator, SampleEvaluator]:
+    """``(columns, columns_and_jacobian)`` over samples: per sample ``(q, dq, ddq[, shape]) -> vec(Cᵀ)``
+    (``C`` is ``m x k``) and ``-> [vec(Cᵀ); vec(∂vec(Cᵀ)/∂shape)]``, from one named CasADi function each,
+    built once per model kind and effect (compiled when a C compiler is present).
 
-    A plain effect has an empty ``shape`` input.
+    A plain effect has no ``shape`` input.
     """
     n = robot.n_joints
     q, dq, ddq = (casadi.SX.sym(name, n) for name in ("q", "dq", "ddq"))
@@ -76,18 +79,26 @@ def effect_block_functions(kind: ModelKind, robot: RobotModel, effect: Effect) -
         ModelKind.EXTERNAL: wrench_block,
         ModelKind.COMBINED: casadi.vertcat(wrench_block, joint_block),
     }[kind]
-    Ct = casadi.densify(casadi.SX(block)).T
-    label = "".join(character if character.isalnum() else "_" for character in effect.name)
-    names_in = ["q", "dq", "ddq", "shape"]
-    columns = casadi.Function(f"{label}_columns", [q, dq, ddq, shape], [Ct], names_in, ["Ct"])
-    jacobian = casadi.densify(casadi.jacobian(casadi.vec(Ct), shape))
-    both = casadi.Function(f"{label}_columns_jacobian", [q, dq, ddq, shape], [Ct, jacobian], names_in, ["Ct", "dCt_dshape"])
-    return columns, both
+    Ct = casadi.densify(casadi.vec(casadi.SX(block).T))
+    label = "".join(character if character.isalnum() else "_" for character in getattr(effect, "spec", effect.name))
+    joints = getattr(effect, "joints", None)
+    label += "" if joints is None else "_j" + "_".join(str(joint) for joint in joints)
+    inputs, names_in = [q, dq, ddq], ["q", "dq", "ddq"]
+    if parameters:
+        inputs.append(shape)
+        names_in.append("shape")
+    columns = casadi.Function(f"{label}_{kind.value}_columns", inputs, [Ct], names_in, ["Ct"])
+    jacobian = casadi.densify(casadi.jacobian(Ct, shape)) if parameters else casadi.SX(0, 1)
+    both = casadi.Function(f"{label}_{kind.value}_columns_jacobian", inputs,
+                           [casadi.vertcat(Ct, casadi.vec(jacobian))], names_in, ["Ct_dCt"])
+    return SampleEvaluator(columns), SampleEvaluator(both)
 
 
-@functools.lru_cache(maxsize=512)
-def _mapped(function: casadi.Function, n_samples: int) -> casadi.Function:
-    return function.map(n_samples)
+def _evaluate(evaluator: SampleEvaluator, q, dq, ddq, shape: NDArray[np.float64] | None) -> NDArray[np.float64]:
+    inputs = [q, dq, ddq]
+    if shape is not None and np.size(shape):
+        inputs.append(np.broadcast_to(np.asarray(shape, dtype=float), (q.shape[0], np.size(shape))))
+    return evaluator(*inputs)
 
 
 def effect_rows(kind: ModelKind, robot: RobotModel, effect: Effect, n_channels: int) -> tuple[int, ...]:
@@ -103,7 +114,8 @@ def effect_rows(kind: ModelKind, robot: RobotModel, effect: Effect, n_channels: 
     grid = start_grid(shape_parameters(effect, robot))
     reached = np.zeros(n_channels, dtype=bool)
     for point in grid[: max(1, min(len(grid), 4))]:
-        values = np.asarray(_mapped(columns, ROW_CHECK_STATES)(q.T, dq.T, ddq.T, point))  # (k, m·S)
+        inputs = [q.T, dq.T, ddq.T] + ([point] if point.size else [])
+        values = np.asarray(columns.function.map(ROW_CHECK_STATES)(*inputs))  # the VM: no compilation for 16 states
         values = values.T.reshape(ROW_CHECK_STATES, n_channels, -1)
         reached |= np.any(np.nan_to_num(values) != 0, axis=(0, 2))
     return tuple(int(index) for index in np.flatnonzero(reached))
@@ -148,14 +160,12 @@ class Block:
         """Columns on the block's rows ``(N, rows, k)`` and, with ``jacobian``, ``(n_s, N, rows, k)``."""
         n_samples, m, k = states.n_samples, self.n_channels, self.n_linear
         function = self.jacobian_function if jacobian else self.columns_function
-        outputs = _mapped(function, n_samples)(states.q.T, states.dq.T, states.ddq.T, shape)
-        if not jacobian:
-            outputs = [outputs]
+        values = _evaluate(function, states.q, states.dq, states.ddq, shape)  # (N, m·k [+ m·k·n_s])
         rows = list(self.rows)
-        columns = np.asarray(outputs[0]).T.reshape(n_samples, m, k)[:, rows, :]
+        columns = values[:, : m * k].reshape(n_samples, m, k)[:, rows, :]
         if not jacobian:
             return columns
-        derivative = np.asarray(outputs[1]).T.reshape(n_samples, self.n_shape, m, k)[:, :, rows, :].transpose(1, 0, 2, 3)
+        derivative = values[:, m * k:].reshape(n_samples, self.n_shape, m, k)[:, :, rows, :].transpose(1, 0, 2, 3)
         return columns, derivative
 
 
@@ -365,6 +375,7 @@ def fit_shapes(
     refine: int = 3,
     max_iter: int = 60,
     tol: float = 1e-10,
+    covariance: Literal["hac", "white", "none"] = "hac",
 ) -> ShapeFit:
     """Variable projection: the shapes minimising the projected weighted residual, then ``θ`` and
     the full covariance.
@@ -385,6 +396,11 @@ def fit_shapes(
         The best this many grid points (by the linear solve alone) are refined.
     max_iter, tol
         Levenberg–Marquardt iterations and relative decrease of ``f`` that stops it.
+    covariance
+        ``"hac"`` (default): batch-means sandwich ``H⁻¹ (Σ_b S_b S_bᵀ) H⁻¹`` over blocks of
+        consecutive samples (:func:`batch_length`), which holds when the residuals are correlated
+        in time (derivative errors near velocity reversals, unmodelled slow effects); ``"white"``:
+        ``σ̂² H⁻¹``; ``"none"``: skip it (a screening fit).
 
     Raises
     ------
@@ -449,12 +465,64 @@ def fit_shapes(
         information = solution.normal
     dof = fixed.n_rows - information.shape[0]
     sigma2 = solution.rss / max(dof, 1)
+    if covariance == "none":
+        return ShapeFit(np.asarray(s, dtype=float), solution.theta, np.full(information.shape, np.nan), solution.rss,
+                        names, iterations, solution)
     try:
-        cov = sigma2 * _inverse(information)
+        inverse = _inverse(information)
+        if covariance == "hac":
+            scores = sample_scores(fixed, blocks, solution, weights, residual)
+            meat = batch_means(scores, batch_length(residual, weights))
+            cov = inverse @ meat @ inverse * fixed.A.shape[1] / max(fixed.A.shape[1] - information.shape[0], 1)
+            cov = np.maximum(np.diag(cov), sigma2 * np.diag(inverse))  # never below the white-noise value
+            cov = _with_diagonal(sigma2 * inverse, cov)
+        else:
+            cov = sigma2 * inverse
     except np.linalg.LinAlgError:
         raise ShapeSearchError(f"shape parameters {', '.join(names)} are not determined by these data at the optimum "
                                f"({', '.join(f'{n} = {v:.4g}' for n, v in zip(names, s))})") from None
     return ShapeFit(np.asarray(s, dtype=float), solution.theta, cov, solution.rss, names, iterations, solution)
+
+
+def _with_diagonal(matrix: NDArray[np.float64], diagonal: NDArray[np.float64]) -> NDArray[np.float64]:
+    """``matrix`` rescaled to the given diagonal (its correlations kept)."""
+    scale = np.sqrt(np.clip(diagonal, 0.0, None) / np.clip(np.diag(matrix), np.finfo(float).tiny, None))
+    return matrix * np.outer(scale, scale)
+
+
+def sample_scores(fixed: FixedPart, blocks: Sequence[Block], solution: LinearSolution, weights: NDArray[np.float64],
+                  residual: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Per sample ``s_t = Σ_c w_c r_{c,t} J_{c,t}``, ``(N, p + n_s)``, ``J = [A, (∂C/∂s) θ̂]``."""
+    weighted = weights[:, None] * residual  # (m, N)
+    p0 = fixed.n_fixed
+    columns = [np.einsum("cn,cnp->np", weighted, fixed.A)]
+    for block, values in zip(blocks, solution.columns):
+        columns.append(np.einsum("nr,nrk->nk", weighted[list(block.rows)].T, values))
+    if solution.derivatives is not None:
+        for rows, D in _shape_directions(fixed, blocks, solution):
+            columns.append(np.einsum("nr,nr->n", weighted[list(rows)].T, D)[:, None])
+    return np.concatenate(columns, axis=1)
+
+
+def batch_length(residual: NDArray[np.float64], weights: NDArray[np.float64]) -> int:
+    """Samples per batch for :func:`batch_means`: Andrews' (1991) AR(1) plug-in bandwidth
+    ``1.1447 (α N)^{1/3}``, ``α = 4ρ²/(1−ρ)⁴``, ``ρ`` the weighted mean lag-1 autocorrelation of the
+    residuals, at least 1 and at most ``N/20`` (twenty batches)."""
+    n_samples = residual.shape[1]
+    centred = residual - residual.mean(axis=1, keepdims=True)
+    variance = np.sum(centred**2, axis=1)
+    rho_c = np.sum(centred[:, 1:] * centred[:, :-1], axis=1) / np.where(variance > 0, variance, 1.0)
+    rho = float(np.clip(np.sum(weights * variance * rho_c) / max(np.sum(weights * variance), 1e-300), 0.0, 0.999))
+    alpha = 4 * rho**2 / (1 - rho) ** 4
+    return int(np.clip(round(1.1447 * (alpha * n_samples) ** (1 / 3)), 1, max(1, n_samples // 20)))
+
+
+def batch_means(scores: NDArray[np.float64], length: int) -> NDArray[np.float64]:
+    """``Σ_b S_b S_bᵀ`` with ``S_b`` the sum of the scores over batch ``b`` of ``length`` consecutive samples."""
+    n_samples = scores.shape[0]
+    edges = np.arange(0, n_samples, max(1, length))
+    sums = np.add.reduceat(scores, edges, axis=0)
+    return sums.T @ sums
 
 
 def _inverse(matrix: NDArray[np.float64]) -> NDArray[np.float64]:
