@@ -67,12 +67,15 @@ class Trial:
 
 
 def try_candidate(group: tuple[int, ...], blocks: Sequence[Block], fixed: FixedPart, states: States,
-                  weights: NDArray[np.float64], rss: float, *, starts: NDArray[np.float64] | None = None) -> Trial:
+                  weights: NDArray[np.float64], rss: float, *, starts: NDArray[np.float64] | None = None,
+                  search: bool = True) -> Trial:
     """Fit one candidate group; raises :class:`numpy.linalg.LinAlgError` when the current columns
-    absorb plain candidates, :class:`ShapeSearchError` when a shaped search fails."""
+    absorb plain candidates, :class:`ShapeSearchError` when a shaped search fails. Without
+    ``search`` the shapes stay at ``starts`` (a screening by the linear solve alone)."""
     if all(block.n_shape == 0 for block in blocks):
         solve_linear(fixed, blocks, states, [np.zeros(0)] * len(blocks), weights)  # rank check: LinAlgError when absorbed
-    fit = fit_shapes(fixed, blocks, states, weights, starts=starts, refine=3 if starts is None else 1)
+    fit = fit_shapes(fixed, blocks, states, weights, starts=starts, refine=3 if starts is None else 1,
+                     max_iter=60 if search else 0, covariance="none")
     count = sum(block.n_linear + block.n_shape for block in blocks)
     n_rows = fixed.n_rows
     dof = n_rows - fixed.n_fixed - count
@@ -132,10 +135,12 @@ def trial_starts(previous: ShapeFit | None) -> NDArray[np.float64] | None:
 
 
 def fit_or_reason(group: tuple[int, ...], blocks: Sequence[Block], fixed: FixedPart, states: States,
-                  weights: NDArray[np.float64], rss: float, previous: ShapeFit | None) -> Trial | str:
-    """A :class:`Trial`, or the reason the candidate cannot be fitted here."""
+                  weights: NDArray[np.float64], rss: float, previous: ShapeFit | None, *, search: bool = True) -> Trial | str:
+    """A :class:`Trial`, or the reason the candidate cannot be fitted here (``search``: see
+    :func:`try_candidate`; a candidate without a previous fit is always searched)."""
     try:
-        return try_candidate(group, blocks, fixed, states, weights, rss, starts=trial_starts(previous))
+        return try_candidate(group, blocks, fixed, states, weights, rss, starts=trial_starts(previous),
+                             search=search or previous is None)
     except np.linalg.LinAlgError:
         return "not identifiable: the base parameters already absorb it"
     except ShapeSearchError as error:

@@ -58,6 +58,8 @@ from estimation.identification import IdentificationResult, identify
 from estimation.measurements import Measurements
 from estimation.variable_projection import Block, FixedPart, NoRowsError, States, effect_rows, residuals, solve_linear
 
+#: screened candidates whose shapes are searched again in each round after the first
+SCREEN_REFINED = 4
 JOINT_CANDIDATES: tuple[type, ...] = (CoulombFriction, JointOffset, Armature, StribeckFriction, Spring)
 #: candidates whose shape the data give (:mod:`dynamics.shape_effects`)
 SHAPED_CANDIDATES: tuple[type, ...] = (TanhCoulombFriction, ShapedStribeckFriction, SigmoidFriction, PositionRipple)
@@ -296,7 +298,9 @@ def diagnose(
                 if len(group) == 1:
                     reject(group[0], "its joint already has a Coulomb-like friction law")
                 continue
-            outcome = fit_or_reason(group, members, fixed_train, states_train, weights, rss, previous.get(group))
+            # first round: every shape searched from its grid; later rounds: screened at the last optimum
+            outcome = fit_or_reason(group, members, fixed_train, states_train, weights, rss, previous.get(group),
+                                    search=False)
             if isinstance(outcome, str):
                 if len(group) == 1:
                     reject(group[0], outcome)
@@ -304,6 +308,7 @@ def diagnose(
             previous[group] = outcome.fit
             trials.append(outcome)
         groups = [group for group in groups if not any(index in rejected for index in group)]
+        trials = _refine_best(trials, blocks, fixed_train, states_train, weights, rss, previous, SCREEN_REFINED)
         springs_beaten = _offsets_beat_springs(trials, model)
         added = None
         for trial in sorted(trials, key=lambda t: t.bic):
@@ -365,6 +370,20 @@ def _effect_joints(effect: Effect, model: IdentificationModel) -> tuple[int, ...
 
 def _channels(block: Block, model: IdentificationModel) -> tuple[str, ...]:
     return tuple(model.channels[row] for row in block.rows)
+
+
+def _refine_best(trials, blocks, fixed, states, weights, rss, previous, count: int):
+    """The ``count`` best-ranked screened trials with shapes searched again by Levenberg–Marquardt."""
+    ranked = sorted(trials, key=lambda t: t.bic)
+    refined = []
+    for position, trial in enumerate(ranked):
+        if position < count and trial.fit.shape.size:
+            outcome = fit_or_reason(trial.group, list(trial.blocks), fixed, states, weights, rss, trial.fit, search=True)
+            if not isinstance(outcome, str):
+                previous[trial.group] = outcome.fit
+                trial = outcome
+        refined.append(trial)
+    return refined
 
 
 def candidate_groups(blocks: dict[int, Block], model: IdentificationModel) -> list[tuple[int, ...]]:
