@@ -76,7 +76,8 @@ def print_summary(diagnosis) -> None:
     if diagnosis.effects:
         for effect in diagnosis.effects:
             values = ", ".join(f"{n} = {v:.4g} ± {s:.2g}" for n, v, s in zip(effect.parameters, effect.values, effect.std))
-            print(f"found {effect.name} on {', '.join(effect.channels)}: {values} (p = {effect.p_value:.2g})")
+            values += "".join(f", {n} = {v:.4g} ± {effect.shape_std[n]:.2g}" for n, v in effect.shape.items())
+            print(f"found {effect.spec or effect.name} on {', '.join(effect.channels)}: {values} (p = {effect.p_value:.2g})")
     else:
         print("found nothing: the declared model explains the data")
     before, after = diagnosis.before.validation.mse, diagnosis.after.validation.mse

@@ -28,7 +28,9 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     parser.add_argument("--model", choices=[kind.value for kind in ModelKind], default="internal", help="which model (default: internal)")
     parser.add_argument(
         "--friction", default="viscous",
-        help="extra columns, comma-separated: viscous, coulomb, offset, armature, wrench_offset (default: viscous; 'none')",
+        help="extra columns, comma-separated: viscous, coulomb, offset, armature, stribeck, spring, wrench_offset; "
+             "laws whose shape is estimated too (variable projection): coulomb:tanh (smoothing velocity), "
+             "stribeck:velocity, sigmoid (Gaz et al. 2019), ripple (period in position) (default: viscous; 'none')",
     )
     parser.add_argument("--data", type=Path, required=True, help="identification data (.csv or .parquet)")
     parser.add_argument("--validate", type=Path, help="validation data from another trajectory")
@@ -68,11 +70,25 @@ def prepare(path: Path, model, args: argparse.Namespace) -> Measurements:
     return fill_derivatives(measurements, method, decimation=args.decimate, held_torques=args.held_torques)
 
 
+def check_shaped_effects_kept(spec: str, model) -> None:
+    """A declared law with shape parameters that has no rows in this model is an error (a plain
+    effect without rows is left out, as ``build_model`` does)."""
+    from dynamics.effects import parse_effects
+    from dynamics.shape_effects import is_shaped
+    from estimation.variable_projection import NoRowsError
+
+    for effect in parse_effects(spec):
+        if is_shaped(effect, model.robot) and effect not in model.effects:
+            raise NoRowsError(f"effect {getattr(effect, 'spec', effect.name)!r} has no rows in the {model.kind.value} model "
+                              "(friction acts on the joint torques: use --model internal or combined)")
+
+
 def run(args: argparse.Namespace) -> int:
     check_figure_path(args.plot)
     differentiation(args)  # contradicting derivative options are an error even when the data hold dq, ddq
     robot = robot_from_arguments(args)
     model = build_model(robot, args.model, args.friction)
+    check_shaped_effects_kept(args.friction, model)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         train = prepare(args.data, model, args)
@@ -95,6 +111,9 @@ def run(args: argparse.Namespace) -> int:
     for record in estimate.records():
         relative = record["relative_std"]
         print(f"  {record['name']:<{width}}  {record['value']:+.5g} ± {record['std']:.2g}  ({relative:.3g} %)")
+    for value in result.shapes:
+        bound = "  (at its bound)" if value.at_bound else ""
+        print(f"  {value.name:<{width}}  {value.value:+.5g} ± {value.std:.2g}  (shape of {value.effect}){bound}")
     for label, comparison in (("train", result.train), ("validation", result.validation)):
         if comparison is not None:
             print(f"{label} MSE: " + "  ".join(f"{channel} {value:.4g}" for channel, value in comparison.mse.items()))
