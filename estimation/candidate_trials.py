@@ -100,8 +100,7 @@ def wrong_sign(trial: Trial) -> str | None:
         name = block.effect.name
         coefficients = trial.coefficients(position)
         if name in POSITIVE_EFFECTS:
-            positive = [value for parameter, value in zip(block.names, coefficients) if not parameter.startswith("fs")]
-            if np.any(np.asarray(positive) <= 0):
+            if np.any(np.asarray(coefficients) <= 0):
                 return f"{candidate_label(block.effect)} is estimated with a non-physical sign (a friction or inertia below zero)"
         if name == "spring" and np.any(coefficients <= 0):
             return "a negative stiffness is not a physical spring (it pushes away from its rest position)"

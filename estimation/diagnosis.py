@@ -216,7 +216,7 @@ def diagnose(
     candidates: Iterable[Effect] | None = None,
     alpha: float = 1e-3,
     min_improvement: float = 0.01,
-    max_effects: int = 10,
+    max_effects: int = 20,
     stopping_rule: Callable[[SearchState], bool] | None = None,
 ) -> Diagnosis:
     """Find, by forward selection, the effects ``model`` lacks in ``train``, confirmed on ``validate``.
@@ -277,11 +277,18 @@ def diagnose(
     friction_joints = {joint for effect in model.effects if effect.name in FRICTION_LAWS
                        for joint in _effect_joints(effect, model)}
     selected: list[tuple[Effect, float, float]] = []
+    selected_effects: list[Effect] = []
+    selected_shapes: list[NDArray[np.float64]] = []
     previous: dict[tuple[int, ...], Any] = {}
+
+    last_reason: dict[int, str] = {}  # statistical verdicts: the candidate is tried again in later rounds
 
     def reject(index: int, reason: str) -> None:
         block = blocks[index]
         rejected[index] = RejectedEffect(block.effect.name, _channels(block, model), reason, candidate_label(block.effect))
+
+    def defer(index: int, reason: str) -> None:
+        last_reason[index] = reason
 
     while groups and len(selected) < max_effects:
         # ---- stopping rule (noise floor): one call, see provisional_stopping_rule ----
@@ -318,14 +325,14 @@ def diagnose(
             text = f"significant on training (p = {trial.p_value:.2g}) but "
             if reason is not None:
                 if len(trial.group) == 1:
-                    reject(trial.group[0], text + reason)
+                    defer(trial.group[0], text + reason)
                 continue
             error, residual_v = weighted_error(fixed_validate, trial.blocks, states_validate, trial.shapes(),
                                                trial.fit.theta, weights)
             if error >= (1.0 - min_improvement) * validation_error:
                 if len(trial.group) == 1:
-                    reject(trial.group[0], text + f"lowers the validation error by less than {100 * min_improvement:g} % "
-                                                  f"({validation_error:.4g} -> {error:.4g})")
+                    defer(trial.group[0], text + f"lowers the validation error by less than {100 * min_improvement:g} % "
+                                                 f"({validation_error:.4g} -> {error:.4g})")
                 continue
             added = (trial, error, residual_v)
             break
@@ -335,6 +342,8 @@ def diagnose(
         trial, validation_error, validate_residual = added
         for block, shape in zip(trial.blocks, trial.shapes()):
             selected.append((block.effect, trial.p_value, trial.f_statistic))
+            selected_effects.append(block.effect)
+            selected_shapes.append(shape)
             fixed_train = fixed_train.extended(block.evaluate(states_train, shape), block.rows)
             fixed_validate = fixed_validate.extended(block.evaluate(states_validate, shape), block.rows)
             if block.effect.name in FRICTION_LAWS:
@@ -348,12 +357,20 @@ def diagnose(
     reason = f"not tested: {max_effects} effects already added" if len(selected) >= max_effects else "not significant"
     for index, block in blocks.items():
         if index not in rejected and id(block.effect) not in chosen:
-            reject(index, reason)
+            reject(index, last_reason.get(index, reason) if len(selected) < max_effects else reason)
 
     after = before
     if selected:
         current = build_model(model.robot, model.kind, model.effects + tuple(effect for effect, _, _ in selected))
-        after = identify(current, train, validate)
+        starts = {parameter.name: float(value) for effect, shape in zip(selected_effects, selected_shapes)
+                  for parameter, value in zip(shape_parameters(effect, model.robot), shape)}
+        if before.shaped_fit is not None:
+            starts.update({value.name: value.value for value in before.shapes})
+        after = identify(current, train, validate, shape_starts=starts)
+        if any(value.at_bound for value in after.shapes) or _weighted_validation(after, weights) > 1.05 * validation_error:
+            # the joint refit of the shapes wandered off (to a bound, or worse on held-out data than the
+            # shapes as selected): keep the shapes as selected, estimate the rest and the covariance there
+            after = identify(current, train, validate, shape_starts=starts, shape_search=False)
     return Diagnosis(
         effects=tuple(_found(after, effect, p_value, statistic, model) for effect, p_value, statistic in selected),
         rejected=tuple(rejected[index] for index in sorted(rejected)),
@@ -361,6 +378,10 @@ def diagnose(
         after=after,
         residuals=residual_statistics(before),
     )
+
+
+def _weighted_validation(result: IdentificationResult, weights: NDArray[np.float64]) -> float:
+    return float(np.dot(weights, list(result.validation.mse.values())))
 
 
 def _effect_joints(effect: Effect, model: IdentificationModel) -> tuple[int, ...]:

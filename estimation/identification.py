@@ -130,6 +130,8 @@ def identify(
     *,
     weighted: bool = True,
     estimator: LeastSquares | None = None,
+    shape_starts: dict[str, float] | None = None,
+    shape_search: bool = True,
 ) -> IdentificationResult:
     """Estimate the base parameters of ``model`` from ``train`` and compare with ``validate``.
 
@@ -144,6 +146,12 @@ def identify(
         Channel-weighted least squares (default) rather than ordinary (PUMA paper, eq. 20).
     estimator
         A configured estimator instead (overrides ``weighted``); it is fitted in place.
+    shape_starts
+        Start the shape search of shaped effects from these values (by shape-parameter name)
+        instead of their declared grid (:mod:`estimation.shape_identification`).
+    shape_search
+        ``False``: keep the shapes at ``shape_starts`` (the linear coefficients and the full
+        covariance are still estimated).
 
     Warns
     -----
@@ -156,7 +164,7 @@ def identify(
     if any(is_shaped(effect, model.robot) for effect in model.effects):
         if estimator is not None:
             raise TypeError("a model with shaped effects is fitted by variable projection: give weighted=, not estimator=")
-        return _identify_shaped(model, train, validate, weighted)
+        return _identify_shaped(model, train, validate, weighted, shape_starts, shape_search)
     if estimator is None:
         estimator = WeightedLeastSquares() if weighted else LeastSquares()
     estimate = estimator.fit(stack(model, train)).estimate_
@@ -168,11 +176,11 @@ def identify(
     return IdentificationResult(model, estimate, train_comparison, validation, notes)
 
 
-def _identify_shaped(model, train, validate, weighted) -> IdentificationResult:
+def _identify_shaped(model, train, validate, weighted, shape_starts=None, shape_search=True) -> IdentificationResult:
     """Variable projection for shaped effects (:mod:`estimation.shape_identification`)."""
     from estimation.shape_identification import fit_shaped_model, shaped_comparison  # noqa: PLC0415
 
-    shaped, estimate = fit_shaped_model(model, train, weighted=weighted)
+    shaped, estimate = fit_shaped_model(model, train, weighted=weighted, starts=shape_starts, search=shape_search)
     train_comparison = shaped_comparison(shaped, train, "identification")
     validation = None if validate is None else shaped_comparison(shaped, validate, "validation")
     notes = implausible_estimates(model, estimate)

@@ -126,8 +126,13 @@ class ShapedFit:
 
 
 def fit_shaped_model(model: IdentificationModel, train: Measurements, *, weighted: bool = True,
-                     rounds: int = 4) -> tuple[ShapedFit, Estimate]:
-    """Variable-projection fit of a model with shaped effects, and its :class:`Estimate` (base order)."""
+                     rounds: int = 4, starts: dict[str, float] | None = None,
+                     search: bool = True) -> tuple[ShapedFit, Estimate]:
+    """Variable-projection fit of a model with shaped effects, and its :class:`Estimate` (base order).
+
+    ``starts``: shape values by name to start from (the others at their reference), instead of the grid;
+    without ``search`` the shapes stay there.
+    """
     if train.dq is None or train.ddq is None:
         raise ValueError("the measurements lack dq/ddq: derive them first (estimation.preprocessing.fill_derivatives)")
     blocks, replaced = shaped_blocks(model)
@@ -138,9 +143,13 @@ def fit_shaped_model(model: IdentificationModel, train: Measurements, *, weighte
     states = States(train.q, train.dq, train.ddq)
     weights = np.ones(model.n_channels)
     fit = None
+    first = None
+    if starts is not None:
+        first = np.array([[starts.get(parameter.name, parameter.reference) for block in blocks
+                           for parameter in block.parameters]])
     for _ in range(rounds if weighted else 1):
-        starts = None if fit is None else fit.shape[None, :]
-        fit = fit_shapes(fixed, blocks, states, weights, starts=starts)
+        start_points = first if fit is None else fit.shape[None, :]
+        fit = fit_shapes(fixed, blocks, states, weights, starts=start_points, max_iter=60 if search else 0)
         shaped = ShapedFit(model, tuple(blocks), tuple(kept), tuple(replaced), fit, weights)
         residual = y - shaped.predict(train)
         variance = np.maximum(channel_variance(residual, model.n_base + len(fit.names)), 1e-14 * np.mean(y**2, axis=0))
@@ -152,17 +161,13 @@ def fit_shaped_model(model: IdentificationModel, train: Measurements, *, weighte
             break
         weights = updated
     if weighted:  # the final fit at the settled weights
-        fit = fit_shapes(fixed, blocks, states, weights, starts=fit.shape[None, :])
-    else:  # ordinary least squares: one variance for all channels, as LeastSquares does
-        pass
+        fit = fit_shapes(fixed, blocks, states, weights, starts=fit.shape[None, :], max_iter=60 if search else 0)
     shaped = ShapedFit(model, tuple(blocks), tuple(kept), tuple(replaced), fit, weights)
     residual = y - shaped.predict(train)
     order = list(kept) + list(replaced)
     n_linear = len(order)
     cov = np.empty((model.n_base, model.n_base))
     cov[np.ix_(order, order)] = fit.cov[:n_linear, :n_linear]
-    if not weighted:
-        cov *= 1.0  # fit.cov already scales by the residual variance of the single-weight problem
     theta = shaped.theta_base()
     std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     with np.errstate(divide="ignore", invalid="ignore"):
