@@ -270,14 +270,21 @@ def _solve(normal: NDArray[np.float64], right: NDArray[np.float64]) -> NDArray[n
     return scipy.linalg.cho_solve(factor, right / scale, check_finite=False) / scale
 
 
-def residuals(fixed: FixedPart, blocks: Sequence[Block], solution: LinearSolution) -> NDArray[np.float64]:
-    """``y − A θ`` per channel, ``(m, N)``."""
+def residuals(fixed: FixedPart, blocks: Sequence[Block], solution: LinearSolution,
+              rows: Sequence[int] | None = None) -> NDArray[np.float64]:
+    """``y − A θ`` per channel, ``(m, N)``; with ``rows``, only those channels (the others zero)."""
     theta = solution.theta
     p0 = fixed.n_fixed
-    values = fixed.y - np.matmul(fixed.A, theta[:p0])
+    if rows is None:
+        values = fixed.y - np.matmul(fixed.A, theta[:p0])
+    else:
+        values = np.zeros_like(fixed.y)
+        for row in rows:
+            values[row] = fixed.y[row] - fixed.A[row] @ theta[:p0]
     for block, columns, where in zip(blocks, solution.columns, _layout(blocks, p0)):
         for position, row in enumerate(block.rows):
-            values[row] -= columns[:, position, :] @ theta[where]
+            if rows is None or row in rows:
+                values[row] -= columns[:, position, :] @ theta[where]
     return values
 
 
@@ -577,6 +584,7 @@ def _distinct(order: NDArray[np.int64], grid: NDArray[np.float64], count: int) -
 def _levenberg_marquardt(fixed, blocks, states, weights, start, to_u, to_s, u_lower, u_upper, logs, cost, max_iter, tol):
     """Bounded Levenberg–Marquardt on ``u`` (``log s`` for log-scale parameters)."""
     u = np.clip(to_u(np.asarray(start, dtype=float)), u_lower, u_upper)
+    touched = sorted({row for block in blocks for row in block.rows})
     if u.size == 0:
         return to_s(u), cost(to_s(u)), 0
     damping = 1e-3
@@ -587,7 +595,7 @@ def _levenberg_marquardt(fixed, blocks, states, weights, start, to_u, to_s, u_lo
         try:
             with np.errstate(all="ignore"):
                 solution = solve_linear(fixed, blocks, states, _split(blocks, s), weights, jacobian=True)
-                residual = residuals(fixed, blocks, solution)
+                residual = residuals(fixed, blocks, solution, rows=touched)  # the gradient needs the blocks' rows only
                 information, gradient = full_information(fixed, blocks, solution, weights, residual)
         except (np.linalg.LinAlgError, FloatingPointError, ValueError):
             return s, np.inf, iterations
