@@ -11,7 +11,7 @@ from dynamics.models import ModelKind, build_model
 from estimation.diagnosis import diagnose
 from estimation.diagnosis_report import markdown_report, plot_residuals
 from oed.cli.common import OutputFiles, add_robot_arguments, json_text, robot_from_arguments
-from oed.cli.identify import add_derivative_arguments, differentiation, prepare
+from oed.cli.identify import add_derivative_arguments, check_shaped_effects_kept, differentiation, prepare
 
 
 def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -24,7 +24,8 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     )
     add_robot_arguments(parser)
     parser.add_argument("--model", choices=[kind.value for kind in ModelKind], default="internal")
-    parser.add_argument("--friction", default="viscous", help="declared effects (default: viscous)")
+    parser.add_argument("--friction", default="viscous", help="declared effects, as for `oed identify` (shaped laws "
+                        "such as coulomb:tanh included; default: viscous)")
     parser.add_argument("--data", type=Path, required=True, help="training data (.csv or .parquet)")
     parser.add_argument("--validate", type=Path, required=True, help="held-out data from another experiment")
     parser.add_argument("--out", type=Path, required=True, help="report JSON")
@@ -51,6 +52,7 @@ def run(args: argparse.Namespace) -> int:
     differentiation(args)  # contradicting derivative options are an error even when the data hold dq, ddq
     robot = robot_from_arguments(args)
     model = build_model(robot, args.model, args.friction)
+    check_shaped_effects_kept(args.friction, model)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         train = prepare(args.data, model, args)
