@@ -40,6 +40,7 @@ from dynamics.effects import Effect
 from dynamics.models import ModelKind
 from dynamics.robot import RobotModel
 from dynamics.shape_effects import ShapeParameter, shape_parameters, start_grid
+from estimation.batch_means import batch_length, batch_means
 
 
 class ShapeSearchError(ValueError):
@@ -509,27 +510,6 @@ def sample_scores(fixed: FixedPart, blocks: Sequence[Block], solution: LinearSol
         for rows, D in _shape_directions(fixed, blocks, solution):
             columns.append(np.einsum("nr,nr->n", weighted[list(rows)].T, D)[:, None])
     return np.concatenate(columns, axis=1)
-
-
-def batch_length(residual: NDArray[np.float64], weights: NDArray[np.float64]) -> int:
-    """Samples per batch for :func:`batch_means`: Andrews' (1991) AR(1) plug-in bandwidth
-    ``1.1447 (α N)^{1/3}``, ``α = 4ρ²/(1−ρ)⁴``, ``ρ`` the weighted mean lag-1 autocorrelation of the
-    residuals, at least 1 and at most ``N/20`` (twenty batches)."""
-    n_samples = residual.shape[1]
-    centred = residual - residual.mean(axis=1, keepdims=True)
-    variance = np.sum(centred**2, axis=1)
-    rho_c = np.sum(centred[:, 1:] * centred[:, :-1], axis=1) / np.where(variance > 0, variance, 1.0)
-    rho = float(np.clip(np.sum(weights * variance * rho_c) / max(np.sum(weights * variance), 1e-300), 0.0, 0.999))
-    alpha = 4 * rho**2 / (1 - rho) ** 4
-    return int(np.clip(round(1.1447 * (alpha * n_samples) ** (1 / 3)), 1, max(1, n_samples // 20)))
-
-
-def batch_means(scores: NDArray[np.float64], length: int) -> NDArray[np.float64]:
-    """``Σ_b S_b S_bᵀ`` with ``S_b`` the sum of the scores over batch ``b`` of ``length`` consecutive samples."""
-    n_samples = scores.shape[0]
-    edges = np.arange(0, n_samples, max(1, length))
-    sums = np.add.reduceat(scores, edges, axis=0)
-    return sums.T @ sums
 
 
 def _inverse(matrix: NDArray[np.float64]) -> NDArray[np.float64]:
