@@ -22,7 +22,7 @@ from dynamics.robot import RobotModel
 WRENCH_CHANNELS: tuple[str, ...] = ("fx", "fy", "fz", "mx", "my", "mz")
 #: effects whose parameters are positive by physics (dissipation, inertia): an estimate of the
 #: other sign is not that effect
-POSITIVE_EFFECTS: frozenset[str] = frozenset({"viscous", "coulomb", "stribeck", "armature"})
+POSITIVE_EFFECTS: frozenset[str] = frozenset({"viscous", "coulomb", "stribeck", "armature", "sigmoid"})
 
 
 @runtime_checkable
@@ -182,6 +182,21 @@ EFFECTS: dict[str, type] = {
 }
 
 
+def _effect_type(item: str) -> type:
+    """The effect class named ``NAME[:VARIANT]`` (shaped variants: :data:`dynamics.shape_effects.SHAPED_EFFECTS`)."""
+    from dynamics.shape_effects import SHAPED_EFFECTS  # noqa: PLC0415  (that module builds on this one's ideas)
+
+    key = "wrench_offset" if item.lower() in ("plate_offset", "plate_offsets") else item.lower().replace(" ", "")
+    if key.endswith(":sign") and key[: -len(":sign")] == "coulomb":
+        key = "coulomb"
+    if key in SHAPED_EFFECTS:
+        return SHAPED_EFFECTS[key]
+    if key not in EFFECTS:
+        known = ", ".join(list(EFFECTS) + list(SHAPED_EFFECTS))
+        raise ValueError(f"unknown effect {item!r}; known effects are {known}")
+    return EFFECTS[key]
+
+
 def parse_effects(spec: str | Iterable[str | Effect] | None) -> tuple[Effect, ...]:
     """Effects from a comma-separated list of names (``"viscous,coulomb"``) or a sequence.
 
@@ -189,6 +204,8 @@ def parse_effects(spec: str | Iterable[str | Effect] | None) -> tuple[Effect, ..
     ``wrench_offset`` (alias ``plate_offset``); ``none`` or an empty string for rigid-body only.
     ``NAME@JOINTS`` restricts a per-joint effect to 1-based joints (``coulomb@1-4``, ``offset@2+5``;
     :mod:`dynamics.effect_specs`).
+    ``NAME:VARIANT`` selects a variant with shape parameters (:mod:`dynamics.shape_effects`):
+    ``coulomb:tanh``, ``stribeck:velocity``, ``sigmoid``, ``ripple`` (``coulomb:sign`` is ``coulomb``).
     """
     if spec is None:
         return ()
@@ -201,10 +218,7 @@ def parse_effects(spec: str | Iterable[str | Effect] | None) -> tuple[Effect, ..
     for item in items:
         if isinstance(item, str):
             text, joints = split_joints(item)  # NAME[:VARIANT][@JOINTS]: @ first (dynamics.effect_specs)
-            key = "wrench_offset" if text.lower() in ("plate_offset", "plate_offsets") else text.lower()
-            if key not in EFFECTS:
-                raise ValueError(f"unknown effect {item!r}; known effects are {', '.join(EFFECTS)}")
-            item = restricted(EFFECTS[key], joints, item)
+            item = restricted(_effect_type(text), joints, item)
         if not isinstance(item, Effect):
             raise TypeError(f"{item!r} is not an effect (needs name, parameter_names and columns)")
         if any(existing == item for existing in effects):

@@ -274,6 +274,10 @@ def _build_model(
     prismatic = [joint.joint_type is JointType.PRISMATIC for joint in robot.joints]
     states = random_states(robot.n_joints, samples, seed=seed, prismatic=prismatic)
     stacked = np.asarray(transposed_full.map(samples)(*(state.T for state in states))).T  # once, at build
+    if not np.all(np.isfinite(stacked)):
+        bad = names[int(np.argwhere(~np.isfinite(stacked))[0][1])]
+        raise ValueError(f"column {bad} is NaN or inf at generic states (an effect's law, or its reference shape "
+                         "value, is outside its domain)")
     base = reduce_to_base(stacked, names, geometry=robot.geometry)
 
     Y_base = casadi.cse(Y[:, list(base.independent)])

@@ -59,9 +59,11 @@ def coupling_candidates(model: IdentificationModel, transmission: Transmission |
 
 
 def _columns(model: IdentificationModel, effect: Effect, train: Measurements) -> np.ndarray:
-    from estimation.diagnosis import candidate_columns  # the same columns the diagnosis fits
+    from estimation.variable_projection import States, effect_columns  # the same columns the diagnosis fits
 
-    return candidate_columns(model, effect, train).reshape(train.n_samples * model.n_channels, -1)
+    states = States(train.q, train.dq, train.ddq)
+    return effect_columns(model.kind, model.robot, effect, model.n_channels, states).reshape(
+        train.n_samples * model.n_channels, -1)
 
 
 def traced_pairs(model: IdentificationModel, train: Measurements, pairs: list[CombinationEffect], *,

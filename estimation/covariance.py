@@ -37,6 +37,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 CovarianceMethod = Literal["classical", "hac"]
+#: what an estimate's ``cov_method`` may say: a setting above, or the batch-means sandwich of shaped fits
+#: (:mod:`estimation.batch_means`)
+CovarianceLabel = Literal["classical", "hac", "batch_means"]
 COVARIANCE_METHODS: tuple[str, ...] = ("classical", "hac")
 #: largest AR(1) coefficient of the plug-in (a unit root would ask for an infinite window)
 MAX_RHO = 0.999

@@ -5,35 +5,35 @@ Procedure (forward selection on nested linear models):
 1. Identify the declared model by channel-weighted least squares; keep its channel weights
    ``w_c = 1/σ_c²`` fixed for the comparisons that follow.
 2. For every candidate effect (one column block per joint or plate channel: ``coulomb``,
-   ``offset``, ``armature``, ``stribeck``, ``spring``, ``wrench_offset``, or a user's own
-   :class:`dynamics.effects.Effect`) check first that it is **identifiable**: the base-parameter
-   count of the augmented model must grow by the candidate's column count; otherwise the base
-   parameters already absorb it and it is reported as such, never added.
-3. Fit each identifiable candidate on the training data and test the nested models with the
-   F statistic ``F = ((RSS₀ − RSS₁)/k) / (RSS₁/(N m − p₁))`` on weighted residual sums of
-   squares; the threshold is ``alpha`` divided by the number of candidates (Bonferroni).
-4. The most significant candidate is added only if its estimate has the physical sign (Coulomb,
-   Stribeck, armature: positive) and it lowers the weighted validation error on the held-out
-   data by at least ``min_improvement``; then the search repeats. It stops when nothing
-   significant remains.
-5. Re-identify the augmented model and report the validation MSE per channel before and after.
+   ``offset``, ``armature``, ``stribeck``, ``spring``, ``wrench_offset``; the shaped laws
+   ``coulomb:tanh``, ``stribeck:velocity``, ``sigmoid``, ``ripple``; or a user's own effect)
+   find its rows at several random states, then fit it against the current columns
+   (:mod:`estimation.candidate_trials`): plain ones by the linear solve on per-channel Gram
+   matrices, shaped ones by variable projection (:mod:`estimation.variable_projection`). A
+   candidate the current columns absorb (rank-deficient) is reported as such, never added.
+3. Test the nested models with the F statistic ``F = ((RSS₀ − RSS₁)/q) / (RSS₁/(N m − p₁))`` on
+   weighted residual sums of squares (``q`` linear plus shape parameters); the threshold is
+   ``alpha`` divided by the number of candidates (Bonferroni). Rank the significant ones by BIC.
+4. The best-ranked candidate is added only if its estimate is physical (friction, armature
+   positive; a spring's stiffness positive, and a spring only when it explains more than an
+   offset on its joint does), no other Coulomb-like law is on its joint, and it lowers the
+   weighted validation error on the held-out data by at least ``min_improvement``; then the
+   search repeats while the stopping rule (the noise floor; :func:`provisional_stopping_rule`)
+   allows it. It stops when nothing significant and confirmed remains.
+5. Re-identify the augmented model (all shapes refit jointly) and report the validation MSE per
+   channel before and after.
 """
 
 from __future__ import annotations
 
-import functools
-import re
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
-import casadi
 import numpy as np
-import scipy.stats
 from numpy.typing import NDArray
 
 from dynamics.effects import (
-    POSITIVE_EFFECTS,
     WRENCH_CHANNELS,
     Armature,
     CoulombFriction,
@@ -44,16 +44,30 @@ from dynamics.effects import (
     WrenchOffset,
 )
 from dynamics.models import IdentificationModel, ModelKind, build_model
+from dynamics.shape_effects import (
+    FRICTION_LAWS,
+    PositionRipple,
+    ShapedStribeckFriction,
+    SigmoidFriction,
+    TanhCoulombFriction,
+    shape_parameters,
+)
 from dynamics.threads import single_threaded_blas
+from estimation.candidate_trials import candidate_label, fit_or_reason, joints_of, weighted_error, wrong_sign
 from estimation.coupling_candidates import coupling_candidates
+from estimation.diagnosis_statistics import FLOOR_ALPHA, ResidualReport, floor_for_validation, residual_report
 from estimation.identification import IdentificationResult, identify
-from estimation.least_squares import stack
-from estimation.diagnosis_statistics import ResidualReport, residual_report
 from estimation.measurements import Measurements
-from estimation.noise_floor import NoiseFloor
+from estimation.noise_floor import NoiseFloor, above_floor
 from estimation.whiteness import autocorrelation
+from estimation.variable_projection import (Block, FixedPart, NoRowsError, States, effect_columns, effect_rows, residuals,
+                                            solve_linear)
 
+#: screened candidates whose shapes are searched again in each round after the first
+SCREEN_REFINED = 4
 JOINT_CANDIDATES: tuple[type, ...] = (CoulombFriction, JointOffset, Armature, StribeckFriction, Spring)
+#: candidates whose shape the data give (:mod:`dynamics.shape_effects`)
+SHAPED_CANDIDATES: tuple[type, ...] = (TanhCoulombFriction, ShapedStribeckFriction, SigmoidFriction, PositionRipple)
 
 
 @dataclass(frozen=True)
@@ -67,11 +81,15 @@ class FoundEffect:
     std: tuple[float, ...]
     p_value: float
     f_statistic: float
+    spec: str = ""
+    shape: dict[str, float] = field(default_factory=dict)
+    shape_std: dict[str, float] = field(default_factory=dict)
 
     def to_dict(self) -> dict[str, Any]:
         return {
             "name": self.name, "channels": list(self.channels), "parameters": list(self.parameters),
             "values": list(self.values), "std": list(self.std), "p_value": self.p_value, "f_statistic": self.f_statistic,
+            "spec": self.spec or self.name, "shape": dict(self.shape), "shape_std": dict(self.shape_std),
         }
 
 
@@ -82,6 +100,7 @@ class RejectedEffect:
     name: str
     channels: tuple[str, ...]
     reason: str
+    spec: str = ""
 
 
 @dataclass(frozen=True)
@@ -102,7 +121,8 @@ class Diagnosis:
             "model": self.before.model.kind.value,
             "declared_effects": [effect.name for effect in self.before.model.effects],
             "effects": [effect.to_dict() for effect in self.effects],
-            "rejected": [{"name": r.name, "channels": list(r.channels), "reason": r.reason} for r in self.rejected],
+            "rejected": [{"name": r.name, "spec": r.spec or r.name, "channels": list(r.channels), "reason": r.reason}
+                         for r in self.rejected],
             "residuals": self.residuals,
             "warnings": {"before": list(self.before.warnings), "after": list(self.after.warnings)},
             "train": {"before": {"mse": self.before.train.mse}, "after": {"mse": self.after.train.mse}},
@@ -120,23 +140,23 @@ class Diagnosis:
 
 
 def effect_channels(effect: Effect, model: IdentificationModel) -> tuple[str, ...]:
-    """The model channels an effect's columns reach."""
-    values = _columns_at_random_states(model, effect)
-    return tuple(channel for channel, row in zip(model.channels, values) if np.any(row != 0))
+    """The model channels an effect's columns reach (looked for at several random states)."""
+    return tuple(model.channels[row] for row in effect_rows(model.kind, model.robot, effect, model.n_channels))
 
 
 def default_candidates(model: IdentificationModel) -> tuple[Effect, ...]:
-    """One candidate per joint for each joint effect, one per plate channel for the offsets.
+    """One candidate per joint for each joint effect, plain and shaped, one per plate channel for
+    the offsets.
 
     Candidates already in the model are left out.
     """
     declared = {(effect.name, parameter) for effect in model.effects for parameter in effect.parameter_names(model.robot)}
     candidates: list[Effect] = []
     if model.kind is not ModelKind.EXTERNAL:
-        for effect_type in JOINT_CANDIDATES:
+        for effect_type in JOINT_CANDIDATES + SHAPED_CANDIDATES:
             for joint in range(model.robot.n_joints):
                 candidate = effect_type(joints=(joint,))
-                if (candidate.name, candidate.parameter_names(model.robot)[0]) not in declared:
+                if not {(candidate.name, name) for name in candidate.parameter_names(model.robot)} & declared:
                     candidates.append(candidate)
     if model.kind is not ModelKind.INTERNAL:
         for channel in WRENCH_CHANNELS:
@@ -146,46 +166,11 @@ def default_candidates(model: IdentificationModel) -> tuple[Effect, ...]:
     return tuple(candidates)
 
 
-@functools.lru_cache(maxsize=256)
-def _columns_function(model: IdentificationModel, effect: Effect) -> casadi.Function:
-    q, dq, ddq = (casadi.SX.sym(name, model.robot.n_joints) for name in ("q", "dq", "ddq"))
-    joint_columns, wrench_columns = effect.columns(model.robot, q, dq, ddq)
-    count = len(effect.parameter_names(model.robot))
-    joint_block = joint_columns if joint_columns is not None else casadi.SX.zeros(model.robot.n_joints, count)
-    wrench_block = wrench_columns if wrench_columns is not None else casadi.SX.zeros(6, count)
-    block = {
-        ModelKind.INTERNAL: joint_block,
-        ModelKind.EXTERNAL: wrench_block,
-        ModelKind.COMBINED: casadi.vertcat(wrench_block, joint_block),
-    }[model.kind]
-    label = re.sub(r"_+", "_", re.sub(r"\W", "_", effect.name)).strip("_")  # coulomb[q5+q6]: not a CasADi name
-    return casadi.Function(f"{label}_columns", [q, dq, ddq], [casadi.densify(block).T], ["q", "dq", "ddq"], ["Ct"])
-
-
-def _columns_at_random_states(model: IdentificationModel, effect: Effect) -> NDArray[np.float64]:
-    generator = np.random.default_rng(0)
-    states = [generator.normal(size=model.robot.n_joints) for _ in range(3)]
-    return np.asarray(_columns_function(model, effect)(*states)).T  # (m, k)
-
-
 def candidate_columns(model: IdentificationModel, effect: Effect, measurements: Measurements) -> NDArray[np.float64]:
-    """The candidate's columns over the samples, ``(N, m, k)``."""
-    function = _columns_function(model, effect).map(measurements.n_samples)
-    values = np.asarray(function(measurements.q.T, measurements.dq.T, measurements.ddq.T))  # (k, m·N)
-    return values.T.reshape(measurements.n_samples, model.n_channels, -1)
-
-
-def _weighted_fit(Y: NDArray[np.float64], y: NDArray[np.float64], weights: NDArray[np.float64]):
-    """Least squares with fixed channel weights; ``(theta, weighted RSS)``."""
-    root = np.sqrt(weights)
-    A = (Y * root[None, :, None]).reshape(-1, Y.shape[2])
-    b = (y * root[None, :]).reshape(-1)
-    theta, *_ = np.linalg.lstsq(A, b, rcond=None)
-    return theta, float(np.sum((A @ theta - b) ** 2))
-
-
-def _weighted_mse(Y, y, theta, weights) -> float:
-    return float(np.sum(np.mean((y - Y @ theta) ** 2, axis=0) * weights))
+    """The candidate's columns over the samples on every channel, ``(N, m, k)`` (a shaped law at the
+    first start of its shape parameters)."""
+    states = States(measurements.q, measurements.dq, measurements.ddq)
+    return effect_columns(model.kind, model.robot, effect, model.n_channels, states)
 
 
 def residual_statistics(result: IdentificationResult, *, lags: Sequence[int] = (1, 10, 100)) -> dict[str, dict[str, float]]:
@@ -206,6 +191,47 @@ def residual_statistics(result: IdentificationResult, *, lags: Sequence[int] = (
     return statistics
 
 
+@dataclass(frozen=True)
+class SearchState:
+    """What the stopping rule sees before each round of the search.
+
+    Attributes
+    ----------
+    channels
+        Channel names.
+    train_residuals, validate_residuals
+        ``(N, m)`` residuals of the current model (fitted on training) on each record.
+    train, validate
+        The measurements.
+    added
+        Effects added so far.
+    """
+
+    channels: tuple[str, ...]
+    train_residuals: NDArray[np.float64]
+    validate_residuals: NDArray[np.float64]
+    train: Measurements
+    validate: Measurements
+    added: tuple[str, ...]
+
+
+def provisional_stopping_rule(state: SearchState) -> bool:
+    """The rule without a noise floor: always ``True`` (keep searching); the search then stops when
+    no candidate is significant on training and confirmed on validation."""
+    return True
+
+
+def floor_stopping_rule(floor: NoiseFloor, *, alpha: float = FLOOR_ALPHA) -> Callable[[SearchState], bool]:
+    """The noise floor as the stopping rule: ``True`` (keep searching) while some channel's
+    validation MSE against the channels as recorded is significantly above its floor
+    (:func:`estimation.noise_floor.above_floor`, an F test at ``alpha``)."""
+    def rule(state: SearchState) -> bool:
+        residual = state.validate_residuals  # (N, m)
+        mse = {channel: float(np.mean(residual[:, index] ** 2)) for index, channel in enumerate(state.channels)}
+        return any(above_floor(mse, floor, residual.shape[0], alpha=alpha).values())
+    return rule
+
+
 @single_threaded_blas()
 def diagnose(
     model: IdentificationModel,
@@ -215,7 +241,8 @@ def diagnose(
     candidates: Iterable[Effect] | None = None,
     alpha: float = 1e-3,
     min_improvement: float = 0.01,
-    max_effects: int = 10,
+    max_effects: int = 20,
+    stopping_rule: Callable[[SearchState], bool] | None = None,
     noise_floor: NoiseFloor | None = None,
 ) -> Diagnosis:
     """Find, by forward selection, the effects ``model`` lacks in ``train``, confirmed on ``validate``.
@@ -227,19 +254,25 @@ def diagnose(
     train, validate
         Measurements with ``q, dq, ddq`` and the model's channels, from different experiments.
     candidates
-        Effects to try (default: :func:`default_candidates` and the joint pairs the residual traces,
-        :func:`estimation.coupling_candidates.coupling_candidates`).
+        Effects to try, plain or shaped (default: :func:`default_candidates` and the joint pairs the
+        residual traces, :func:`estimation.coupling_candidates.coupling_candidates`).
     alpha
         Family-wise significance level of the F test (Bonferroni over the candidates).
     min_improvement
         Smallest relative decrease of the weighted validation MSE for an effect to be added.
     max_effects
         Most effects added.
+    stopping_rule
+        ``rule(SearchState) -> bool``: keep searching while it says ``True`` (default:
+        :func:`floor_stopping_rule` when a noise floor is had, else :func:`provisional_stopping_rule`).
     noise_floor
         Noise floor of the validation record as recorded (:func:`estimation.noise_floor.noise_floor`,
-        before preprocessing; scaled here for the averaging/filtering ``validate.metadata`` records).
-        ``None``: estimated from ``validate`` when it can be (see
-        :mod:`estimation.diagnosis_statistics`), the method said in the report.
+        before preprocessing). ``None``: estimated from the recorded validation channels when they
+        can give one (:mod:`estimation.diagnosis_statistics`), the method said in the report.
+
+    The validation errors that confirm a candidate, and those reported, are measured against the
+    validation channels as recorded (``validate.recorded`` when preprocessing filtered or averaged
+    them), along the derived motion.
     """
     for name, data in (("train", train), ("validate", validate)):
         if not isinstance(data, Measurements):
@@ -254,99 +287,217 @@ def diagnose(
     for candidate in candidates:
         if not isinstance(candidate, Effect):
             raise TypeError(f"candidate {candidate!r} is not an effect")
+    floor, _ = floor_for_validation(validate, model.channels, noise_floor)
+    if stopping_rule is None:
+        stopping_rule = provisional_stopping_rule if floor is None else floor_stopping_rule(floor)
+    keep_searching = stopping_rule
     before = identify(model, train, validate)
+    recorded = validate.as_recorded  # errors against the channels as recorded, along the derived motion
     weights = before.estimate.weights if before.estimate.method == "wls" else 1.0 / before.estimate.channel_variance
     threshold = alpha / max(len(candidates), 1)
-    problem_train, problem_validate = stack(model, train), stack(model, validate)
-    Y_train, Y_validate = problem_train.Y, problem_validate.Y
-    y_train, y_validate = problem_train.y, problem_validate.y
-    theta, rss = _weighted_fit(Y_train, y_train, weights)
-    validation_error = _weighted_mse(Y_validate, y_validate, theta, weights)
+    regressor = (lambda data: before.shaped_fit.regressor(data)) if before.shaped_fit is not None else (
+        lambda data: model.evaluate_base(data.q, data.dq, data.ddq))
+    fixed_train = FixedPart.from_arrays(regressor(train), train.channels(model.channels))
+    fixed_validate = FixedPart.from_arrays(regressor(recorded), recorded.channels(model.channels))
+    states_train = States(train.q, train.dq, train.ddq)
+    states_validate = States(recorded.q, recorded.dq, recorded.ddq)
+    solution = solve_linear(fixed_train, [], states_train, [], weights)
+    rss = solution.rss
+    validation_error, validate_residual = weighted_error(fixed_validate, [], states_validate, [], solution.theta, weights)
+    train_residual = residuals(fixed_train, [], solution)
 
-    current = model
-    selected: list[tuple[Effect, float, float]] = []
     rejected: dict[int, RejectedEffect] = {}
-    remaining = list(range(len(candidates)))
-    while remaining and len(selected) < max_effects:
-        trials = []
-        for index in remaining:
-            candidate = candidates[index]
-            channels = effect_channels(candidate, model)
-            if not channels:
-                rejected[index] = RejectedEffect(candidate.name, (), "has no rows in this model")
-                continue
-            count = len(candidate.parameter_names(model.robot))
-            augmented = build_model(model.robot, model.kind, current.effects + (candidate,))
-            if augmented.n_base < current.n_base + count:
-                rejected[index] = RejectedEffect(
-                    candidate.name, channels, "not identifiable: the base parameters already absorb it"
-                )
-                continue
-            columns_train = candidate_columns(model, candidate, train)
-            theta_aug, rss_aug = _weighted_fit(np.concatenate([Y_train, columns_train], axis=2), y_train, weights)
-            dof = y_train.size - Y_train.shape[2] - count
-            statistic = ((rss - rss_aug) / count) / (rss_aug / dof)
-            p_value = float(scipy.stats.f.sf(statistic, count, dof))
-            trials.append((p_value, -statistic, index, columns_train, theta_aug, rss_aug))
-        remaining = [index for index in remaining if index not in rejected]
-        added = False
-        for p_value, negative_statistic, index, columns_train, theta_aug, rss_aug in sorted(trials, key=lambda t: (t[0], t[1])):
-            if p_value >= threshold:
-                break
-            candidate = candidates[index]
-            count = len(candidate.parameter_names(model.robot))
-            if getattr(candidate, "physical_kind", candidate.name) in POSITIVE_EFFECTS and np.any(theta_aug[-count:] <= 0):
-                rejected[index] = RejectedEffect(
-                    candidate.name, effect_channels(candidate, model),
-                    f"significant on training (p = {p_value:.2g}) but estimated with a non-physical sign",
-                )
-                continue
-            columns_validate = candidate_columns(model, candidate, validate)
-            Y_validate_aug = np.concatenate([Y_validate, columns_validate], axis=2)
-            error = _weighted_mse(Y_validate_aug, y_validate, theta_aug, weights)
-            if error >= (1.0 - min_improvement) * validation_error:
-                rejected[index] = RejectedEffect(
-                    candidate.name, effect_channels(candidate, model),
-                    f"significant on training (p = {p_value:.2g}) but " + (f"raises the validation error" if error > validation_error else f"lowers the validation error by less than {100 * min_improvement:g} %") + f" ({validation_error:.4g} -> {error:.4g})",
-                )
-                continue
-            selected.append((candidate, p_value, -negative_statistic))
-            current = build_model(model.robot, model.kind, current.effects + (candidate,))
-            Y_train = np.concatenate([Y_train, columns_train], axis=2)
-            Y_validate = Y_validate_aug
-            rss, validation_error = rss_aug, error
-            remaining.remove(index)
-            added = True
-            break
-        remaining = [index for index in remaining if index not in rejected]
-        if not added:
-            break
-    reason = f"not tested: {max_effects} effects already added" if len(selected) >= max_effects else "not significant"
-    for index in remaining:
-        rejected.setdefault(index, RejectedEffect(candidates[index].name, effect_channels(candidates[index], model), reason))
+    blocks: dict[int, Block] = {}
+    for index, candidate in enumerate(candidates):
+        try:
+            blocks[index] = Block(model.kind, model.robot, candidate, model.n_channels)
+        except NoRowsError:
+            rejected[index] = RejectedEffect(candidate.name, (), "has no rows in this model", candidate_label(candidate))
+    groups = candidate_groups(blocks, model)
+    friction_joints = {joint for effect in model.effects if effect.name in FRICTION_LAWS
+                       for joint in _effect_joints(effect, model)}
+    selected: list[tuple[Effect, float, float]] = []
+    selected_effects: list[Effect] = []
+    selected_shapes: list[NDArray[np.float64]] = []
+    previous: dict[tuple[int, ...], Any] = {}
 
-    after = identify(current, train, validate) if selected else before
-    names = list(after.estimate.names)
-    found = []
-    for candidate, p_value, statistic in selected:
-        parameters = tuple(candidate.parameter_names(model.robot))
-        indices = [names.index(name) for name in parameters]
-        found.append(
-            FoundEffect(
-                name=candidate.name,
-                channels=effect_channels(candidate, model),
-                parameters=parameters,
-                values=tuple(float(after.estimate.values[i]) for i in indices),
-                std=tuple(float(after.estimate.std[i]) for i in indices),
-                p_value=p_value,
-                f_statistic=float(statistic),
-            )
-        )
+    stopped_at_floor = False
+    last_reason: dict[int, str] = {}  # statistical verdicts: the candidate is tried again in later rounds
+
+    def reject(index: int, reason: str) -> None:
+        block = blocks[index]
+        rejected[index] = RejectedEffect(block.effect.name, _channels(block, model), reason, candidate_label(block.effect))
+
+    def defer(index: int, reason: str) -> None:
+        last_reason[index] = reason
+
+    while groups and len(selected) < max_effects:
+        # ---- stopping rule (noise floor): one call, see provisional_stopping_rule ----
+        state = SearchState(model.channels, train_residual.T, validate_residual.T, train, recorded,
+                            tuple(candidate_label(effect) for effect, _, _ in selected))
+        if not keep_searching(state):
+            stopped_at_floor = True
+            break
+        trials = []
+        for group in groups:
+            if any(index in rejected for index in group):
+                continue
+            members = [blocks[index] for index in group]
+            if any(block.effect.name in FRICTION_LAWS and set(joints_of(block, model)) & friction_joints for block in members):
+                if len(group) == 1:
+                    reject(group[0], "its joint already has a Coulomb-like friction law")
+                continue
+            # first round: every shape searched from its grid; later rounds: screened at the last optimum
+            outcome = fit_or_reason(group, members, fixed_train, states_train, weights, rss, previous.get(group),
+                                    search=False)
+            if isinstance(outcome, str):
+                if len(group) == 1:
+                    reject(group[0], outcome)
+                continue
+            previous[group] = outcome.fit
+            trials.append(outcome)
+        groups = [group for group in groups if not any(index in rejected for index in group)]
+        trials = _refine_best(trials, blocks, fixed_train, states_train, weights, rss, previous, SCREEN_REFINED)
+        springs_beaten = _offsets_beat_springs(trials, model)
+        added = None
+        for trial in sorted(trials, key=lambda t: t.bic):
+            if trial.p_value >= threshold or len(selected) + len(trial.group) > max_effects:
+                continue
+            reason = wrong_sign(trial) or springs_beaten.get(trial.group)
+            text = f"significant on training (p = {trial.p_value:.2g}) but "
+            if reason is not None:
+                if len(trial.group) == 1:
+                    defer(trial.group[0], text + reason)
+                continue
+            error, residual_v = weighted_error(fixed_validate, trial.blocks, states_validate, trial.shapes(),
+                                               trial.fit.theta, weights)
+            if error >= (1.0 - min_improvement) * validation_error:
+                if len(trial.group) == 1:
+                    change = ("raises the validation error" if error > validation_error else
+                              f"lowers the validation error by less than {100 * min_improvement:g} %")
+                    defer(trial.group[0], text + f"{change} ({validation_error:.4g} -> {error:.4g})")
+                continue
+            added = (trial, error, residual_v)
+            break
+        groups = [group for group in groups if not any(index in rejected for index in group)]
+        if added is None:
+            break
+        trial, validation_error, validate_residual = added
+        for block, shape in zip(trial.blocks, trial.shapes()):
+            selected.append((block.effect, trial.p_value, trial.f_statistic))
+            selected_effects.append(block.effect)
+            selected_shapes.append(shape)
+            fixed_train = fixed_train.extended(block.evaluate(states_train, shape), block.rows)
+            fixed_validate = fixed_validate.extended(block.evaluate(states_validate, shape), block.rows)
+            if block.effect.name in FRICTION_LAWS:
+                friction_joints |= set(joints_of(block, model))
+        solution = solve_linear(fixed_train, [], states_train, [], weights)
+        rss = solution.rss
+        train_residual = residuals(fixed_train, [], solution)
+        # the other candidates restart from their last optima (LM only); groups sharing an added effect go
+        groups = [group for group in groups if not set(group) & set(trial.group)]
+    chosen = {id(effect) for effect, _, _ in selected}
+    reason = f"not tested: {max_effects} effects already added" if len(selected) >= max_effects else "not significant"
+    if stopped_at_floor:
+        reason = "not tested: the stopping rule ended the search (no channel significantly above its noise floor)"
+    for index, block in blocks.items():
+        if index not in rejected and id(block.effect) not in chosen:
+            reject(index, last_reason.get(index, reason) if len(selected) < max_effects else reason)
+
+    after = before
+    if selected:
+        current = build_model(model.robot, model.kind, model.effects + tuple(effect for effect, _, _ in selected))
+        starts = {parameter.name: float(value) for effect, shape in zip(selected_effects, selected_shapes)
+                  for parameter, value in zip(shape_parameters(effect, model.robot), shape)}
+        if before.shaped_fit is not None:
+            starts.update({value.name: value.value for value in before.shapes})
+        after = identify(current, train, validate, shape_starts=starts)
+        if any(value.at_bound for value in after.shapes) or _weighted_validation(after, weights) > 1.05 * validation_error:
+            # the joint refit of the shapes wandered off (to a bound, or worse on held-out data than the
+            # shapes as selected): keep the shapes as selected, estimate the rest and the covariance there
+            after = identify(current, train, validate, shape_starts=starts, shape_search=False)
     return Diagnosis(
-        effects=tuple(found),
+        effects=tuple(_found(after, effect, p_value, statistic, model) for effect, p_value, statistic in selected),
         rejected=tuple(rejected[index] for index in sorted(rejected)),
         before=before,
         after=after,
         residuals=residual_statistics(before),
         statistics=residual_report(before, after, train, validate, noise_floor),
+    )
+
+
+def _weighted_validation(result: IdentificationResult, weights: NDArray[np.float64]) -> float:
+    return float(np.dot(weights, list(result.validation.mse.values())))
+
+
+def _effect_joints(effect: Effect, model: IdentificationModel) -> tuple[int, ...]:
+    joints = getattr(effect, "joints", None)
+    return tuple(range(model.robot.n_joints)) if joints is None else tuple(joints)
+
+
+def _channels(block: Block, model: IdentificationModel) -> tuple[str, ...]:
+    return tuple(model.channels[row] for row in block.rows)
+
+
+def _refine_best(trials, blocks, fixed, states, weights, rss, previous, count: int):
+    """The ``count`` best-ranked screened trials with shapes searched again by Levenberg–Marquardt."""
+    ranked = sorted(trials, key=lambda t: t.bic)
+    refined = []
+    for position, trial in enumerate(ranked):
+        if position < count and trial.fit.shape.size:
+            outcome = fit_or_reason(trial.group, list(trial.blocks), fixed, states, weights, rss, trial.fit, search=True)
+            if not isinstance(outcome, str):
+                previous[trial.group] = outcome.fit
+                trial = outcome
+        refined.append(trial)
+    return refined
+
+
+def candidate_groups(blocks: dict[int, Block], model: IdentificationModel) -> list[tuple[int, ...]]:
+    """Every candidate alone, and each Coulomb-like friction law together with its joint's offset
+    (an asymmetric friction: a sigmoid law with a shift mimics a symmetric law plus an offset, so
+    the pair must compete with it as one candidate)."""
+    groups = [(index,) for index in blocks]
+    offsets = {joints_of(block, model): index for index, block in blocks.items() if block.effect.name == "offset"}
+    for index, block in blocks.items():
+        joints = joints_of(block, model)
+        if block.effect.name in FRICTION_LAWS and block.effect.name != "sigmoid" and joints in offsets:
+            groups.append((index, offsets[joints]))
+    return groups
+
+
+def _offsets_beat_springs(trials, model) -> dict[tuple[int, ...], str]:
+    """Springs whose joint's offset explains as much: a stiffness that is an offset in disguise
+    (``k·mean(q)`` equal to the offset) is not a spring."""
+    offsets = {joints_of(t.blocks[0], model): t for t in trials if len(t.blocks) == 1 and t.blocks[0].effect.name == "offset"}
+    reasons = {}
+    for trial in trials:
+        if len(trial.blocks) != 1 or trial.blocks[0].effect.name != "spring":
+            continue
+        offset = offsets.get(joints_of(trial.blocks[0], model))
+        if offset is None:
+            reasons[trial.group] = "no offset on its joint to compare it with (a spring must explain more than an offset)"
+        elif offset.rss <= trial.rss:
+            reasons[trial.group] = "an offset explains as much (a stiffness that is an offset in disguise)"
+    return reasons
+
+
+def _found(after: IdentificationResult, effect: Effect, p_value: float, statistic: float,
+           model: IdentificationModel) -> FoundEffect:
+    names = list(after.estimate.names)
+    parameters = tuple(effect.parameter_names(model.robot))
+    indices = [names.index(name) for name in parameters]
+    shape_names = {parameter.name for parameter in shape_parameters(effect, model.robot)}
+    shapes = {value.name: value for value in after.shapes if value.name in shape_names}
+    return FoundEffect(
+        name=effect.name,
+        channels=tuple(model.channels[row] for row in effect_rows(model.kind, model.robot, effect, model.n_channels)),
+        parameters=parameters,
+        values=tuple(float(after.estimate.values[i]) for i in indices),
+        std=tuple(float(after.estimate.std[i]) for i in indices),
+        p_value=p_value,
+        f_statistic=float(statistic),
+        spec=candidate_label(effect),
+        shape={name: value.value for name, value in shapes.items()},
+        shape_std={name: value.std for name, value in shapes.items()},
     )

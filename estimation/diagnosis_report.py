@@ -54,9 +54,13 @@ def markdown_report(diagnosis: Diagnosis, figure: str | None = None, trace_figur
     if document["effects"]:
         lines += ["| effect | channels | parameter | value | std | p-value |", "|---|---|---|---|---|---|"]
         for effect in document["effects"]:
-            for name, value, std in zip(effect["parameters"], effect["values"], effect["std"]):
+            label = effect.get("spec", effect["name"])
+            shape = effect.get("shape", {})
+            rows = list(zip(effect["parameters"], effect["values"], effect["std"]))
+            rows += [(f"{name} (shape)", value, effect["shape_std"][name]) for name, value in shape.items()]
+            for name, value, std in rows:
                 lines.append(
-                    f"| {effect['name']} | {', '.join(effect['channels'])} | {name} | {value:.5g} | {std:.2g} | {effect['p_value']:.2g} |"
+                    f"| {label} | {', '.join(effect['channels'])} | {name} | {value:.5g} | {std:.2g} | {effect['p_value']:.2g} |"
                 )
     else:
         lines.append("Nothing significant that also lowers the validation error: the declared model is enough.")

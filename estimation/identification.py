@@ -94,6 +94,16 @@ class IdentificationResult:
     validation: Comparison | None = None
     warnings: tuple[str, ...] = ()
     preprocessing: dict[str, Any] | None = None
+    #: fitted shape parameters of shaped effects (:mod:`estimation.shape_identification`), and the
+    #: fit that predicts with them (``None`` for a linear model)
+    shapes: tuple[Any, ...] = ()
+    shaped_fit: Any = None
+
+    def predict(self, measurements: Measurements) -> np.ndarray:
+        """``(N, m)`` predicted channels along ``measurements`` (at the fitted shapes, if any)."""
+        if self.shaped_fit is not None:
+            return self.shaped_fit.predict(measurements)
+        return self.model.predict(self.estimate.values, measurements.q, measurements.dq, measurements.ddq)
 
     def to_dict(self) -> dict[str, Any]:
         """The JSON document of ``oed identify``::
@@ -122,6 +132,8 @@ class IdentificationResult:
             "preprocessing": self.preprocessing,
             "cov_method": self.estimate.cov_method,
             "hac_lags": self.estimate.hac_lags,
+            **({"shape": {value.name: value.value for value in self.shapes},
+                "shape_std": {value.name: value.std for value in self.shapes}} if self.shapes else {}),
         }
 
 
@@ -134,6 +146,8 @@ def identify(
     weighted: bool = True,
     estimator: LeastSquares | None = None,
     covariance: CovarianceMethod = "hac",
+    shape_starts: dict[str, float] | None = None,
+    shape_search: bool = True,
 ) -> IdentificationResult:
     """Estimate the base parameters of ``model`` from ``train`` and compare with ``validate``.
 
@@ -154,6 +168,12 @@ def identify(
         Standard deviations: ``"hac"`` (default; Newey–West, they hold when the residuals are
         correlated in time, and equal the classical ones within sampling error when they are white:
         :mod:`estimation.covariance`) or ``"classical"`` (white residuals assumed).
+    shape_starts
+        Start the shape search of shaped effects from these values (by shape-parameter name)
+        instead of their declared grid (:mod:`estimation.shape_identification`).
+    shape_search
+        ``False``: keep the shapes at ``shape_starts`` (the linear coefficients and the full
+        covariance are still estimated).
 
     Warns
     -----
@@ -163,6 +183,12 @@ def identify(
     """
     train = concatenate(train)
     validate = None if validate is None else concatenate(validate)
+    from dynamics.shape_effects import is_shaped  # noqa: PLC0415
+
+    if any(is_shaped(effect, model.robot) for effect in model.effects):
+        if estimator is not None:
+            raise TypeError("a model with shaped effects is fitted by variable projection: give weighted=, not estimator=")
+        return _identify_shaped(model, train, validate, weighted, shape_starts, shape_search)
     if estimator is None:
         estimator = WeightedLeastSquares(covariance=covariance) if weighted else LeastSquares(covariance=covariance)
     estimate = estimator.fit(stack(model, train)).estimate_
@@ -173,6 +199,20 @@ def identify(
         warnings.warn(note, ImplausibleEstimateWarning, stacklevel=3)  # past the BLAS decorator
     return IdentificationResult(model, estimate, train_comparison, validation, notes,
                                 train.metadata.get("preprocessing"))
+
+
+def _identify_shaped(model, train, validate, weighted, shape_starts=None, shape_search=True) -> IdentificationResult:
+    """Variable projection for shaped effects (:mod:`estimation.shape_identification`)."""
+    from estimation.shape_identification import fit_shaped_model, shaped_comparison  # noqa: PLC0415
+
+    shaped, estimate = fit_shaped_model(model, train, weighted=weighted, starts=shape_starts, search=shape_search)
+    train_comparison = shaped_comparison(shaped, train, "identification")
+    validation = None if validate is None else shaped_comparison(shaped, validate, "validation")
+    notes = implausible_estimates(model, estimate)
+    for note in notes:
+        warnings.warn(note, ImplausibleEstimateWarning, stacklevel=4)
+    return IdentificationResult(model, estimate, train_comparison, validation, notes, train.metadata.get("preprocessing"),
+                                shaped.shape_values(), shaped)
 
 
 def _finite(record: dict[str, Any]) -> dict[str, Any]:

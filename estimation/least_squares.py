@@ -27,7 +27,7 @@ from numpy.typing import NDArray
 
 from dynamics.models import IdentificationModel
 from dynamics.threads import single_threaded_blas
-from estimation.covariance import CovarianceMethod, check_method, hac_covariance
+from estimation.covariance import CovarianceLabel, CovarianceMethod, check_method, hac_covariance
 from estimation.errors import NotFittedError
 from estimation.estimator import Estimator
 from estimation.identification_problem import IdentificationProblem, stack
@@ -95,7 +95,7 @@ class Estimate:
     channels: tuple[str, ...]
     method: Literal["ols", "wls"]
     n_iterations: int
-    cov_method: CovarianceMethod = "classical"
+    cov_method: CovarianceLabel = "classical"
     hac_lags: int | None = None
 
     def __post_init__(self) -> None:

@@ -10,7 +10,20 @@ from dynamics.effects import CoulombFriction
 from dynamics.models import build_model
 from dynamics.robots import load_robot
 from estimation.candidate_screening import accumulate_candidates, f_tests, weighted_fit, weighted_mse
-from estimation.diagnosis import _weighted_fit, _weighted_mse, candidate_columns, default_candidates
+from estimation.diagnosis import candidate_columns, default_candidates
+
+
+def _weighted_fit(Y, y, weights):
+    """The in-memory reference: least squares with fixed channel weights, ``(theta, weighted RSS)``."""
+    root = np.sqrt(weights)
+    A = (Y * root[None, :, None]).reshape(-1, Y.shape[2])
+    b = (y * root[None, :]).reshape(-1)
+    theta, *_ = np.linalg.lstsq(A, b, rcond=None)
+    return theta, float(np.sum((A @ theta - b) ** 2))
+
+
+def _weighted_mse(Y, y, theta, weights):
+    return float(np.sum(np.mean((y - Y @ theta) ** 2, axis=0) * weights))
 from estimation.least_squares import stack
 from tests.synthetic import random_fourier, simulate, true_parameters
 

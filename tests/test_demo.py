@@ -8,11 +8,22 @@ import json
 def test_demo_loop_finds_coulomb_friction_and_cuts_the_validation_error(tmp_path):
     from oed.demo import run_demo
 
-    document = run_demo(tmp_path, say=lambda _: None)
-    found = {(effect["name"], tuple(effect["channels"])) for effect in document["effects"]}
-    assert {("coulomb", ("tau1",)), ("coulomb", ("tau2",)), ("coulomb", ("tau3",))} <= found
+    lines = []
+    document = run_demo(tmp_path, say=lines.append)
+    found = {(effect["spec"], tuple(effect["channels"])) for effect in document["effects"]}
+    assert {("coulomb:tanh", ("tau1",)), ("coulomb:tanh", ("tau2",)), ("coulomb:tanh", ("tau3",))} <= found
+    assert {spec for spec, _ in found} <= {"coulomb:tanh", "offset"}, found
     before, after = document["validation"]["before"]["mse"], document["validation"]["after"]["mse"]
     assert all(after[channel] < 0.2 * before[channel] for channel in before)
+    # the targets: every joint within 1.5x the torque-noise variance, every estimate within 3 σ
+    assert all(after[channel] < 1.5 * 0.2**2 for channel in after), after
+    truth = document["truth"]
+    for effect in document["effects"]:
+        pairs = list(zip(effect["parameters"], effect["values"], effect["std"]))
+        pairs += [(name, value, effect["shape_std"][name]) for name, value in effect["shape"].items()]
+        for name, value, std in pairs:
+            assert abs(value - truth[name]) < 3 * std, (name, value, std, truth[name])
+    assert any("σ)" in line for line in lines) and any("as recorded" in line for line in lines)
     assert json.loads((tmp_path / "report.json").read_text())["effects"]
     assert (tmp_path / "report.md").exists() and (tmp_path / "validation.png").exists()
 

@@ -8,7 +8,7 @@ import pytest
 from dynamics.effects import CoulombFriction
 from dynamics.models import build_model
 from dynamics.robots import load_robot
-from estimation.diagnosis import diagnose
+from estimation.diagnosis import diagnose, provisional_stopping_rule
 from tests.synthetic import random_fourier, simulate, true_parameters
 
 NOISE_TAU = 0.2
@@ -68,11 +68,23 @@ def test_clean_data_gets_nothing_added(robot):
     assert diagnosis.to_dict()["effects"] == []
 
 
+def test_clean_data_at_the_floor_is_not_searched(robot):
+    truth = build_model(robot, "internal", "viscous")
+    train, validate = _experiments(truth, true_parameters(truth, seed=6))
+    diagnosis = diagnose(truth, train, validate)
+    assert diagnosis.statistics.floor is not None
+    assert diagnosis.effects == ()
+    assert all("noise floor" in rejected.reason for rejected in diagnosis.rejected if rejected.reason.startswith("not tested"))
+    assert any(rejected.reason.startswith("not tested") for rejected in diagnosis.rejected)
+
+
 def test_absorbed_candidates_are_reported_not_added(robot):
     declared = build_model(robot, "internal", "viscous")
     truth = build_model(robot, "internal", "viscous")
     train, validate = _experiments(truth, true_parameters(truth, seed=6))
-    diagnosis = diagnose(declared, train, validate)
+    # clean data sit at their noise floor, where the floor rule ends the search before any candidate is
+    # fitted (test_clean_data_at_the_floor_is_not_searched); without it every candidate is tried
+    diagnosis = diagnose(declared, train, validate, stopping_rule=provisional_stopping_rule)
     reasons = {(r.name, r.channels): r.reason for r in diagnosis.rejected}
     # joint 1's axis is vertical and joint 2's armature merges with Izz2R: the base parameters absorb them
     assert "absorb" in reasons[("armature", ("tau1",))] and "absorb" in reasons[("armature", ("tau2",))]

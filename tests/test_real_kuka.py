@@ -79,6 +79,12 @@ def test_diagnosis_trained_on_run_1_cuts_the_error_on_the_faster_run_3(kuka):
     coulomb = {effect.channels for effect in diagnosis.effects if effect.name == "coulomb"}
     assert len(coulomb) >= 4, coulomb
     before, after = diagnosis.before.validation.mse, diagnosis.after.validation.mse
-    print(f"\nKUKA diagnosis: {[(e.name, e.channels[0]) for e in diagnosis.effects]}; validation MSE total "
+    print(f"\nKUKA diagnosis: {[(e.spec, e.channels[0], e.shape) for e in diagnosis.effects]}; validation MSE total "
           f"{sum(before.values()):.1f} -> {sum(after.values()):.1f}")
     assert sum(after.values()) < 0.5 * sum(before.values())
+    # no estimate of the wrong sign (friction, armature, stiffness), no shape stopped at a bound
+    assert not diagnosis.after.warnings, diagnosis.after.warnings
+    assert not any(value.at_bound for value in diagnosis.after.shapes)
+    for effect in diagnosis.effects:
+        if effect.name in ("coulomb", "stribeck", "sigmoid", "armature", "spring"):
+            assert all(value > 0 for value in effect.values), (effect.spec, effect.values)

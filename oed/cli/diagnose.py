@@ -16,7 +16,8 @@ from estimation.noise_floor import NoiseFloor, NoiseFloorError, noise_floor, poo
 from oed.cli.asbuilt import (add_asbuilt_arguments, finish_document, model_effects, resolve_transmission, rest_message,
                              rest_rows, trivial_predictors, worse_after)
 from oed.cli.common import OutputFiles, add_robot_arguments, json_text, robot_from_arguments
-from oed.cli.identify import add_data_arguments, add_derivative_arguments, differentiation, prepare_data, print_warnings
+from oed.cli.identify import (add_data_arguments, add_derivative_arguments, check_shaped_effects_kept, differentiation,
+                              prepare_data, print_warnings)
 
 
 def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -29,15 +30,15 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     )
     add_robot_arguments(parser)
     parser.add_argument("--model", choices=[kind.value for kind in ModelKind], default="internal")
-    parser.add_argument("--friction", default="viscous", help="declared effects (default: viscous; the grammar of "
-                        "oed identify --friction: coulomb@1-4, motor_coulomb, coulomb[q5+q6])")
+    parser.add_argument("--friction", default="viscous", help="declared effects, as for `oed identify` (shaped laws "
+                        "such as coulomb:tanh, per-joint coulomb@1-4, motor_coulomb, coulomb[q5+q6]; default: viscous)")
     add_asbuilt_arguments(parser)
     add_data_arguments(parser, validate_required=True)
     parser.add_argument("--out", type=Path, required=True, help="report JSON")
     parser.add_argument("--report", type=Path, help="Markdown report (a residual figure is written beside it)")
     parser.add_argument("--alpha", type=float, default=1e-3, help="significance level of the F test (default 1e-3)")
-    parser.add_argument("--max-effects", type=int, default=10, metavar="N",
-                        help="add at most N effects (default 10); the output says when the cap stopped the search")
+    parser.add_argument("--max-effects", type=int, default=20, metavar="N",
+                        help="add at most N effects (default 20); the output says when the cap stopped the search")
     add_derivative_arguments(parser)
     return parser
 
@@ -87,7 +88,9 @@ def run(args: argparse.Namespace) -> int:
     differentiation(args)  # contradicting derivative options are an error even when the data hold dq, ddq
     robot = robot_from_arguments(args)
     transmission = resolve_transmission(args, robot)
-    model = build_model(robot, args.model, model_effects(args, robot, transmission))
+    effects = model_effects(args, robot, transmission)
+    model = build_model(robot, args.model, effects)
+    check_shaped_effects_kept(effects, model)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         train, validate, preprocessing = prepare_data(model, args, transmission)
@@ -136,7 +139,8 @@ def print_summary(diagnosis) -> None:
     if diagnosis.effects:
         for effect in diagnosis.effects:
             values = ", ".join(f"{n} = {v:.4g} ± {s:.2g}" for n, v, s in zip(effect.parameters, effect.values, effect.std))
-            print(f"found {effect.name} on {', '.join(effect.channels)}: {values} (p = {effect.p_value:.2g})")
+            values += "".join(f", {n} = {v:.4g} ± {effect.shape_std[n]:.2g}" for n, v in effect.shape.items())
+            print(f"found {effect.spec or effect.name} on {', '.join(effect.channels)}: {values} (p = {effect.p_value:.2g})")
     else:
         print("found nothing: the declared model explains the data")
     before, after = diagnosis.before.validation.mse, diagnosis.after.validation.mse

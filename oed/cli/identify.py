@@ -38,9 +38,11 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     parser.add_argument("--model", choices=[kind.value for kind in ModelKind], default="internal", help="which model (default: internal)")
     parser.add_argument(
         "--friction", default="viscous",
-        help="extra columns, comma-separated: viscous, coulomb, offset, armature, wrench_offset (default: viscous; 'none'); "
-             "NAME@JOINTS for some joints (coulomb@1-4,offset@2+5); motor_viscous, motor_coulomb, motor_inertia on the "
-             "transmission's motors; coulomb[q5+q6] on a joint combination",
+        help="extra columns, comma-separated: viscous, coulomb, offset, armature, stribeck, spring, wrench_offset "
+             "(default: viscous; 'none'); laws whose shape is estimated too (variable projection): coulomb:tanh "
+             "(smoothing velocity), stribeck:velocity, sigmoid (Gaz et al. 2019), ripple (period in position); "
+             "NAME[:VARIANT]@JOINTS for some joints (coulomb:tanh@1-4,offset@2+5); motor_viscous, motor_coulomb, "
+             "motor_inertia on the transmission's motors; coulomb[q5+q6] on a joint combination",
     )
     add_asbuilt_arguments(parser)
     add_data_arguments(parser, validate_required=False)
@@ -220,12 +222,34 @@ def print_warnings(verb: str, caught) -> None:
         print(f"oed {verb}: warning: {message}", file=sys.stderr)
 
 
+def check_shaped_effects_kept(effects, model) -> None:
+    """A declared law with shape parameters that has no rows in this model is an error (a plain
+    effect without rows is left out, as ``build_model`` does)."""
+    from dynamics.effects import parse_effects
+    from dynamics.shape_effects import is_shaped
+    from estimation.variable_projection import NoRowsError
+
+    for effect in parse_effects(effects):
+        if is_shaped(effect, model.robot) and effect not in model.effects:
+            raise NoRowsError(f"effect {getattr(effect, 'spec', effect.name)!r} has no rows in the {model.kind.value} model "
+                              "(friction acts on the joint torques: use --model internal or combined)")
+
+
+def result_has_shapes(model) -> bool:
+    """Whether ``model`` holds a law with shape parameters (fitted by variable projection)."""
+    from dynamics.shape_effects import is_shaped
+
+    return any(is_shaped(effect, model.robot) for effect in model.effects)
+
+
 def run(args: argparse.Namespace) -> int:
     check_figure_path(args.plot)
     differentiation(args)  # contradicting derivative options are an error even when the data hold dq, ddq
     robot = robot_from_arguments(args)
     transmission = resolve_transmission(args, robot)
-    model = build_model(robot, args.model, model_effects(args, robot, transmission))
+    effects = model_effects(args, robot, transmission)
+    model = build_model(robot, args.model, effects)
+    check_shaped_effects_kept(effects, model)
     if streaming_requested(args):
         if args.plot is not None:
             raise ValueError("--plot draws every sample: not with the streamed path (--chunk-size, --scheduler or "
@@ -233,6 +257,9 @@ def run(args: argparse.Namespace) -> int:
         if args.min_speed is not None:
             raise ValueError("--min-speed drops rows of the whole record: not with the streamed path (--chunk-size, "
                              "--scheduler or --workers)")
+        if result_has_shapes(model):
+            raise ValueError("laws with shape parameters (coulomb:tanh, sigmoid…) are fitted by variable projection "
+                             "in memory: not with the streamed path (--chunk-size, --scheduler or --workers)")
         return run_streaming(args, robot, model)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
@@ -263,6 +290,10 @@ def run(args: argparse.Namespace) -> int:
     print(f"{robot.name}: {model.kind.value} model, {model.n_base} base parameters, {train.n_samples} samples, "
           f"{estimate.method.upper()}, cond {estimate.cond:.4g}")
     _print_estimate(estimate)
+    width = max(len(name) for name in estimate.names)
+    for value in result.shapes:
+        bound = "  (at its bound)" if value.at_bound else ""
+        print(f"  {value.name:<{width}}  {value.value:+.5g} ± {value.std:.2g}  (shape of {value.effect}){bound}")
     for label, comparison in (("train", result.train), ("validation", result.validation)):
         if comparison is not None:
             print(f"{label} MSE (vs recorded): " + "  ".join(f"{channel} {value:.4g}" for channel, value in comparison.mse.items()))

@@ -1,0 +1,176 @@
+"""Shaped effects: the spec grammar, variable projection against known shapes, derivatives, bad input."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from typing import ClassVar
+
+import casadi
+import numpy as np
+import pytest
+
+from dynamics.effects import CoulombFriction, parse_effects
+from dynamics.models import ModelKind, build_model
+from dynamics.robots import load_robot
+from dynamics.shape_effects import (
+    PositionRipple,
+    ShapeBoundsError,
+    ShapedPerJointEffect,
+    ShapeKind,
+    ShapeParameter,
+    SigmoidFriction,
+    TanhCoulombFriction,
+)
+from estimation.identification import identify
+from estimation.variable_projection import Block, NoRowsError, ShapeSearchError, States
+from tests.synthetic import random_fourier, simulate, true_parameters
+
+
+@pytest.fixture(scope="module")
+def robot():
+    return load_robot("puma560", joints=3)
+
+
+@pytest.fixture(scope="module")
+def tanh_records(robot):
+    truth = build_model(robot, "internal", ("viscous", CoulombFriction(smoothing=0.03)))
+    theta = true_parameters(truth, seed=0, coulomb=[8.0, 5.0, 3.0])
+    noise = {"tau1": 0.2, "tau2": 0.2, "tau3": 0.1}
+    return [simulate(truth, theta, random_fourier(robot, seed=seed), noise=noise, seed=seed, rate_hz=250, periods=2)
+            for seed in (3, 4)]
+
+
+def test_spec_grammar_selects_the_shaped_variants():
+    effects = parse_effects("viscous,coulomb:tanh,stribeck:velocity,sigmoid,ripple")
+    assert [getattr(effect, "spec", effect.name) for effect in effects] == [
+        "viscous", "coulomb:tanh", "stribeck:velocity", "sigmoid", "ripple"]
+    assert parse_effects("coulomb:sign") == parse_effects("coulomb")
+    with pytest.raises(ValueError, match="unknown effect 'coulomb:cubic'"):
+        parse_effects("coulomb:cubic")
+
+
+def test_identify_estimates_the_smoothing_velocity_with_its_std(robot, tanh_records):
+    train, validate = tanh_records
+    result = identify(build_model(robot, "internal", "viscous,coulomb:tanh"), train, validate)
+    shapes = {value.name: value for value in result.shapes}
+    assert set(shapes) == {"vc1", "vc2", "vc3"}
+    for value in shapes.values():
+        assert abs(value.value - 0.03) < 4 * value.std and value.std < 0.003
+    values = dict(zip(result.estimate.names, result.estimate.values))
+    assert values["fc1"] == pytest.approx(8.0, abs=0.05) and values["fc3"] == pytest.approx(3.0, abs=0.05)
+    document = result.to_dict()
+    assert set(document["shape"]) == set(document["shape_std"]) == {"vc1", "vc2", "vc3"}
+    assert max(result.validation.mse.values()) < 1.3 * 0.2**2
+
+
+def test_shape_derivatives_match_finite_differences(robot):
+    block = Block(ModelKind.INTERNAL, robot, SigmoidFriction(joints=(1,)), 3)
+    generator = np.random.default_rng(1)
+    states = States(*(generator.normal(scale=0.3, size=(50, 3)) for _ in range(3)))
+    shape = np.array([30.0, 0.05])
+    _, derivative = block.evaluate(states, shape, jacobian=True)
+    for j, step in enumerate((1e-4, 1e-7)):
+        up, down = shape.copy(), shape.copy()
+        up[j] += step
+        down[j] -= step
+        numeric = (block.evaluate(states, up) - block.evaluate(states, down)) / (2 * step)
+        np.testing.assert_allclose(derivative[j], numeric, rtol=1e-5, atol=1e-6)
+
+
+@pytest.mark.parametrize("bounds", [((0.5, 0.1),), ((0.1, 0.1),), ((0.0, 1.0),), ((0.1, np.inf),)])
+def test_empty_or_reversed_shape_bounds_are_named(bounds):
+    with pytest.raises(ShapeBoundsError, match="vc"):
+        TanhCoulombFriction(joints=(0,), bounds=bounds)
+    with pytest.raises(ShapeBoundsError):
+        ShapeParameter("n", 3.0, 2.0, (2.5,))
+
+
+def test_starts_outside_the_bounds_are_named():
+    with pytest.raises(ShapeBoundsError, match="outside the bounds"):
+        PositionRipple(joints=(0,), bounds=((2.0, 5.0),), starts=((7.0,),))
+
+
+@dataclass(frozen=True)
+class _Broken(ShapedPerJointEffect):
+    """A user's law that is NaN for every shape."""
+
+    name: ClassVar[str] = "broken"
+    linear: ClassVar[tuple[str, ...]] = ("b",)
+    kinds: ClassVar[tuple[ShapeKind, ...]] = (ShapeKind("s", 1.0, 2.0, (1.5,)),)
+
+    def law(self, q, dq, ddq, shape):
+        return [dq * casadi.sqrt(-shape[0])]
+
+
+@dataclass(frozen=True)
+class _Flat(ShapedPerJointEffect):
+    """A user's law whose shape the data cannot see: the search must fail by name."""
+
+    name: ClassVar[str] = "flat"
+    linear: ClassVar[tuple[str, ...]] = ("g",)
+    kinds: ClassVar[tuple[ShapeKind, ...]] = (ShapeKind("s", 1.0, 2.0, (1.5,)),)
+
+    def law(self, q, dq, ddq, shape):
+        return [casadi.tanh(dq / 0.1) + 1e-300 * shape[0]]
+
+
+@dataclass(frozen=True)
+class _Silent(ShapedPerJointEffect):
+    """A user's law whose columns are zero everywhere."""
+
+    name: ClassVar[str] = "silent"
+    linear: ClassVar[tuple[str, ...]] = ("z",)
+    kinds: ClassVar[tuple[ShapeKind, ...]] = (ShapeKind("s", 1.0, 2.0, (1.5,)),)
+
+    def law(self, q, dq, ddq, shape):
+        return [0 * shape[0]]
+
+
+def test_a_failing_shape_search_is_named(robot, tanh_records):
+    train, _ = tanh_records
+    with pytest.raises(ShapeSearchError, match="not determined by these data"):
+        identify(build_model(robot, "internal", ("viscous", _Flat(joints=(0,)))), train)
+    with pytest.raises(ValueError, match="NaN or inf at generic states"):
+        build_model(robot, "internal", ("viscous", _Broken(joints=(0,))))
+
+
+def test_an_effect_without_rows_is_named(robot, tanh_records):
+    train, _ = tanh_records
+    with pytest.raises(NoRowsError, match="no rows"):
+        Block(ModelKind.INTERNAL, robot, _Silent(joints=(0,)), 3)
+    with pytest.raises(NoRowsError, match="no rows"):
+        Block(ModelKind.EXTERNAL, robot, TanhCoulombFriction(joints=(0,)), 6)
+
+
+def _cli(tmp_path, records, *extra):
+    from oed.cli import main
+
+    for name, data in zip(("train.csv", "val.csv"), records):
+        data.write(tmp_path / name)
+    return main(["identify", "--robot", "puma560", "--joints", "3", "--data", str(tmp_path / "train.csv"),
+                 "--validate", str(tmp_path / "val.csv"), "--out", str(tmp_path / "result.json"), *extra])
+
+
+def test_identify_cli_reports_shape_values(tmp_path, tanh_records, capsys):
+    assert _cli(tmp_path, tanh_records, "--friction", "viscous,coulomb:tanh") == 0, capsys.readouterr().err
+    document = json.loads((tmp_path / "result.json").read_text())
+    assert set(document["shape"]) == {"vc1", "vc2", "vc3"} and set(document["shape_std"]) == {"vc1", "vc2", "vc3"}
+    assert {"parameters", "validation", "effects"} <= set(document)
+    assert "shape of coulomb:tanh" in capsys.readouterr().out
+
+
+def test_identify_cli_bad_shaped_input_exits_2_and_writes_nothing(tmp_path, tanh_records, capsys, monkeypatch):
+    assert _cli(tmp_path, tanh_records, "--friction", "viscous,coulomb:tanh", "--model", "external") == 2
+    assert "has no rows in the external model" in capsys.readouterr().err
+    assert not (tmp_path / "result.json").exists()
+
+    import estimation.shape_identification as module
+
+    def failing(*args, **kwargs):
+        raise ShapeSearchError("shape search for vc1: the columns are non-finite or singular at every start")
+
+    monkeypatch.setattr(module, "fit_shapes", failing)
+    assert _cli(tmp_path, tanh_records, "--friction", "viscous,coulomb:tanh") == 2
+    assert "oed identify: error: shape search for vc1" in capsys.readouterr().err
+    assert not (tmp_path / "result.json").exists()
