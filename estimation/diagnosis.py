@@ -60,8 +60,8 @@ from estimation.identification import IdentificationResult, identify
 from estimation.measurements import Measurements
 from estimation.noise_floor import NoiseFloor, above_floor
 from estimation.whiteness import autocorrelation
-from estimation.variable_projection import (Block, FixedPart, NoRowsError, States, effect_columns, effect_rows, residuals,
-                                            solve_linear)
+from estimation.variable_projection import (Block, FixedPart, NoRowsError, ShapeSearchError, States, effect_columns,
+                                            effect_rows, residuals, solve_linear)
 
 #: screened candidates whose shapes are searched again in each round after the first
 SCREEN_REFINED = 4
@@ -377,6 +377,11 @@ def diagnose(
                               f"lowers the validation error by less than {100 * min_improvement:g} %")
                     defer(trial.group[0], text + f"{change} ({validation_error:.4g} -> {error:.4g})")
                 continue
+            worse = _channels_made_worse(trial, validate_residual, residual_v, min_improvement, model)
+            if worse:  # a trade between channels (a pair acting on two rows, say) is not a confirmed effect
+                if len(trial.group) == 1:
+                    defer(trial.group[0], text + f"raises the validation error of {worse}")
+                continue
             added = (trial, error, residual_v)
             break
         groups = [group for group in groups if not any(index in rejected for index in group)]
@@ -411,8 +416,12 @@ def diagnose(
                   for parameter, value in zip(shape_parameters(effect, model.robot), shape)}
         if before.shaped_fit is not None:
             starts.update({value.name: value.value for value in before.shapes})
-        after = identify(current, train, validate, shape_starts=starts)
-        if any(value.at_bound for value in after.shapes) or _weighted_validation(after, weights) > 1.05 * validation_error:
+        try:
+            after = identify(current, train, validate, shape_starts=starts)
+        except ShapeSearchError:  # the joint refit ran a shape to where the data do not determine it
+            after = None
+        if after is None or any(value.at_bound for value in after.shapes) \
+                or _weighted_validation(after, weights) > 1.05 * validation_error:
             # the joint refit of the shapes wandered off (to a bound, or worse on held-out data than the
             # shapes as selected): keep the shapes as selected, estimate the rest and the covariance there
             after = identify(current, train, validate, shape_starts=starts, shape_search=False)
@@ -424,6 +433,17 @@ def diagnose(
         residuals=residual_statistics(before),
         statistics=residual_report(before, after, train, validate, noise_floor),
     )
+
+
+def _channels_made_worse(trial, current: NDArray[np.float64], candidate: NDArray[np.float64], tolerance: float,
+                         model: IdentificationModel) -> str:
+    """The channels a trial's effects act on whose validation MSE it raises by more than ``tolerance``
+    (relative), as ``"tau2 (1.08 -> 1.57)"``; empty when none. ``current``, ``candidate``: ``(m, N)``
+    validation residuals without and with the trial."""
+    before, after = np.mean(current**2, axis=1), np.mean(candidate**2, axis=1)
+    rows = sorted({row for block in trial.blocks for row in block.rows})
+    return ", ".join(f"{model.channels[row]} ({before[row]:.4g} -> {after[row]:.4g})"
+                     for row in rows if after[row] > (1.0 + tolerance) * before[row])
 
 
 def _weighted_validation(result: IdentificationResult, weights: NDArray[np.float64]) -> float:
