@@ -19,6 +19,8 @@ against the truth. ``--wrist puma`` uses the PUMA's own (weak) coupling instead 
 from __future__ import annotations
 
 import argparse
+import sys
+from pathlib import Path
 
 import numpy as np
 
@@ -34,7 +36,9 @@ from estimation.diagnosis import diagnose
 from estimation.identification import identify
 from estimation.rest_segments import coulomb_combinations, drop_rest
 from estimation.trivial_predictors import trivial_mse
-from tests.synthetic import random_fourier
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the test suite's trajectories
+from tests.synthetic import random_fourier  # noqa: E402
 
 
 def main() -> None:
