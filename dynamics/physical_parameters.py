@@ -119,21 +119,33 @@ def log_cholesky_from_link(theta: ArrayLike) -> NDArray[np.float64]:
 # ---------------------------------------------------------------------------------------------
 # one link, CasADi
 
-def _upper_factor(phi: casadi.SX) -> casadi.SX:
-    alpha, d1, d2, d3, s12, s23, s13, t1, t2, t3 = (phi[k] for k in range(10))
+def _upper_factor(psi: casadi.SX) -> casadi.SX:
+    """``U`` from the exponential coordinates ``ψ = (e^α, e^d1, e^d2, e^d3, s12, s23, s13, t1, t2, t3)``."""
+    scale, e1, e2, e3, s12, s23, s13, t1, t2, t3 = (psi[k] for k in range(10))
     zero = casadi.SX(0)
     U = casadi.vertcat(
-        casadi.horzcat(casadi.exp(d1), s12, s13, t1),
-        casadi.horzcat(zero, casadi.exp(d2), s23, t2),
-        casadi.horzcat(zero, zero, casadi.exp(d3), t3),
+        casadi.horzcat(e1, s12, s13, t1),
+        casadi.horzcat(zero, e2, s23, t2),
+        casadi.horzcat(zero, zero, e3, t3),
         casadi.horzcat(zero, zero, zero, casadi.SX(1)),
     )
-    return casadi.exp(alpha) * U
+    return scale * U
+
+
+def exponential_coordinates(phi: casadi.SX) -> casadi.SX:
+    """``ψ(φ)``: ``α, d1, d2, d3`` replaced by their exponentials (the plain Cholesky factor's
+    diagonal); ``ψ_k > 0`` for those four is the consistent set, ``ψ_k ≥ 0`` its closure."""
+    return casadi.vertcat(casadi.exp(phi[0:4]), phi[4:10])
 
 
 def _link_expression(phi: casadi.SX) -> tuple[casadi.SX, casadi.SX]:
     """Standard parameters and pseudo-inertia of one link from its ``φ``."""
-    U = _upper_factor(phi)
+    return link_from_psi(exponential_coordinates(phi))
+
+
+def link_from_psi(psi: casadi.SX) -> tuple[casadi.SX, casadi.SX]:
+    """Standard parameters and pseudo-inertia of one link from its exponential coordinates ``ψ``."""
+    U = _upper_factor(psi)
     J = casadi.mtimes(U, U.T)
     sigma = J[:3, :3]
     trace = sigma[0, 0] + sigma[1, 1] + sigma[2, 2]
@@ -270,6 +282,45 @@ class PhysicalParametrisation:
             z = phi[10 * self.n_links + index]
             parts.append(z * z if kind == "nonnegative" else z)
         return casadi.vertcat(*parts)
+
+    def psi_expression(self, psi: casadi.SX) -> casadi.SX:
+        """``θ`` from the solver's coordinates ``ψ``: per link the exponential coordinates
+        (:func:`exponential_coordinates`), per non-negative effect its value ``z²`` itself."""
+        parts = [link_from_psi(psi[10 * k : 10 * (k + 1)])[0] for k in range(self.n_links)]
+        parts.append(psi[10 * self.n_links :])
+        return casadi.vertcat(*parts)
+
+    def psi_from_phi(self, phi: ArrayLike) -> NDArray[np.float64]:
+        psi = np.array(phi, dtype=float).reshape(-1)
+        for k in range(self.n_links):
+            psi[10 * k : 10 * k + 4] = np.exp(psi[10 * k : 10 * k + 4])
+        for index, kind in enumerate(self.effect_kinds):
+            if kind == "nonnegative":
+                psi[10 * self.n_links + index] **= 2
+        return psi
+
+    def phi_from_psi(self, psi: ArrayLike) -> NDArray[np.float64]:
+        """``φ`` of solver coordinates (their exponential coordinates must be positive)."""
+        phi = np.array(psi, dtype=float).reshape(-1)
+        for k in range(self.n_links):
+            with np.errstate(divide="ignore"):
+                phi[10 * k : 10 * k + 4] = np.log(phi[10 * k : 10 * k + 4])
+        for index, kind in enumerate(self.effect_kinds):
+            if kind == "nonnegative":
+                phi[10 * self.n_links + index] = np.sqrt(max(phi[10 * self.n_links + index], 0.0))
+        return phi
+
+    def psi_bounds(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Bounds on ``ψ``: the exponential coordinates and the non-negative effects at or above
+        zero, and the user's bounds (mass: ``e^α ∈ [√m_min, √m_max]``; centre of mass: ``t``)."""
+        lower, upper = self.phi_bounds()
+        for k in range(self.n_links):
+            lower[10 * k : 10 * k + 4] = np.exp(lower[10 * k : 10 * k + 4])
+            upper[10 * k : 10 * k + 4] = np.exp(upper[10 * k : 10 * k + 4])
+        for index, kind in enumerate(self.effect_kinds):
+            if kind == "nonnegative":
+                lower[10 * self.n_links + index] = 0.0
+        return lower, upper
 
     def __call__(self, phi: ArrayLike) -> NDArray[np.float64]:
         """``θ(φ)`` as a numpy vector."""
