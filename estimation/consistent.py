@@ -182,7 +182,7 @@ class _Problem:
 
 
 @functools.lru_cache(maxsize=16)
-def _problem(model: IdentificationModel) -> _Problem:
+def _problem(model: IdentificationModel, max_iter: int = 3000) -> _Problem:
     parametrisation = PhysicalParametrisation.of_model(model)
     n, r, p = model.robot.n_joints, model.n_base, parametrisation.n_phi
     psi = casadi.SX.sym("psi", p)
@@ -209,7 +209,7 @@ def _problem(model: IdentificationModel) -> _Problem:
         {"x": casadi.vertcat(theta, psi[: 10 * n]), "p": parameters, "f": cost,
          "g": theta[: 10 * n] - casadi.vertcat(*links)},
         {"print_time": False, "show_eval_warnings": False, "ipopt.print_level": 0, "ipopt.sb": "yes",
-         "ipopt.tol": 1e-10, "ipopt.acceptable_tol": 1e-7, "ipopt.max_iter": 3000},
+         "ipopt.tol": 1e-10, "ipopt.acceptable_tol": 1e-7, "ipopt.max_iter": int(max_iter)},
     )
     theta_psi = parametrisation.psi_expression(psi)
     mapping = casadi.Function("consistent_theta", [psi], [theta_psi, casadi.jacobian(theta_psi, psi)],
@@ -237,17 +237,20 @@ class ConsistentLeastSquares(Estimator):
         Weight of the pull towards the prior when ``prior_weight`` is 0.
     seed
         Seed of the random starts.
+    max_iter
+        IPOPT's iteration limit per start.
     """
 
     def __init__(self, *, prior_weight: float = 0.0, prior: ArrayLike | None = None,
                  bounds: Mapping[str, LinkBounds] | None = None, starts: int = 2, regularisation: float = 1e-6,
-                 seed: int = 0) -> None:
+                 seed: int = 0, max_iter: int = 3000) -> None:
         self.prior_weight = prior_weight
         self.prior = prior
         self.bounds = bounds
         self.starts = starts
         self.regularisation = regularisation
         self.seed = seed
+        self.max_iter = max_iter
 
     @single_threaded_blas()
     def fit(self, model: IdentificationModel, data: IdentificationProblem | Measurements, *,
@@ -280,7 +283,7 @@ class ConsistentLeastSquares(Estimator):
             return np.concatenate([G.reshape(-1, order="F"), unconstrained.values, [prior_weight], inverses, log_dets])
 
         effective = weight if weight > 0 else float(self.regularisation)
-        compiled = _problem(model)
+        compiled = _problem(model, int(self.max_iter))
         lower, upper = parametrisation.psi_bounds()
         fixed_lower, fixed_upper = parametrisation.phi_bounds()  # the user's bounds (fixed in the reduced Hessian)
         results = []
@@ -312,7 +315,7 @@ class ConsistentLeastSquares(Estimator):
         hessian = J.T @ G @ J
         if weight > 0:
             hessian = hessian + weight * np.asarray(compiled.prior_hessian(psi, parameters(weight)))[np.ix_(free, free)]
-        inverse = _pseudo_inverse(hessian)
+        inverse = _pseudo_inverse(hessian)  # equilibrated inside: ψ mixes scales (a degenerate link's a → 0)
         cov = residual_scale * J @ inverse @ J.T
         theta_std = None
         if weight > 0:
@@ -348,6 +351,8 @@ class ConsistentLeastSquares(Estimator):
             raise ValueError(f"prior_weight must be a finite non-negative number, got {weight}")
         if not (isinstance(self.starts, (int, np.integer)) and not isinstance(self.starts, bool) and 1 <= self.starts <= 1000):
             raise ValueError(f"starts must be an integer from 1 to 1000, got {self.starts!r}")
+        if isinstance(self.max_iter, bool) or not isinstance(self.max_iter, (int, np.integer)) or self.max_iter < 1:
+            raise ValueError(f"max_iter must be a positive integer, got {self.max_iter!r}")
         if not (np.isfinite(self.regularisation) and self.regularisation > 0):
             raise ValueError(f"regularisation must be positive, got {self.regularisation}")
         return float(weight)
@@ -400,9 +405,13 @@ def _inside(bound: NDArray[np.float64], relative: float) -> NDArray[np.float64]:
 
 
 def _pseudo_inverse(matrix: NDArray[np.float64], rcond: float = 1e-12) -> NDArray[np.float64]:
-    eigenvalues, vectors = np.linalg.eigh(0.5 * (matrix + matrix.T))
+    """Pseudo-inverse of a symmetric PSD matrix, equilibrated by its diagonal first."""
+    matrix = 0.5 * (matrix + matrix.T)
+    diagonal = np.sqrt(np.clip(np.diag(matrix), 0.0, None))
+    scale = np.where(diagonal > 0, 1.0 / np.where(diagonal > 0, diagonal, 1.0), 0.0)
+    eigenvalues, vectors = np.linalg.eigh(matrix * np.outer(scale, scale))
     keep = eigenvalues > rcond * max(eigenvalues[-1], 0.0)
-    return (vectors[:, keep] / eigenvalues[keep]) @ vectors[:, keep].T
+    return scale[:, None] * ((vectors[:, keep] / eigenvalues[keep]) @ vectors[:, keep].T) * scale[None, :]
 
 
 def _active_bounds(parametrisation, psi, theta, unconstrained: Estimate, model: IdentificationModel) -> tuple[str, ...]:
