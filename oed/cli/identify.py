@@ -14,6 +14,9 @@ from estimation.measurements import Measurements
 from estimation.preprocessing import ButterworthDifferentiation, Differentiation, FourierDifferentiation, fill_derivatives
 from estimation.validation import plot_comparison
 from oed.cli.common import OutputFiles, add_robot_arguments, check_figure_path, json_text, robot_from_arguments
+from oed.cli.identify_consistent import (
+    add_consistent_arguments, check_consistent_arguments, consistent_refit, print_consistent,
+)
 
 
 def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -37,6 +40,7 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     parser.add_argument("--method", choices=("wls", "ols"), default="wls",
                         help="channel-weighted (default) or ordinary least squares")
     add_derivative_arguments(parser)
+    add_consistent_arguments(parser)
     return parser
 
 
@@ -71,6 +75,7 @@ def prepare(path: Path, model, args: argparse.Namespace) -> Measurements:
 def run(args: argparse.Namespace) -> int:
     check_figure_path(args.plot)
     differentiation(args)  # contradicting derivative options are an error even when the data hold dq, ddq
+    check_consistent_arguments(args)
     robot = robot_from_arguments(args)
     model = build_model(robot, args.model, args.friction)
     with warnings.catch_warnings(record=True) as caught:
@@ -78,11 +83,12 @@ def run(args: argparse.Namespace) -> int:
         train = prepare(args.data, model, args)
         validation = None if args.validate is None else prepare(args.validate, model, args)
         result = identify(model, train, validation, weighted=args.method == "wls")
+    consistent = consistent_refit(args, result, train, validation)  # None without --consistent
     for warning in caught:
         print(f"oed identify: warning: {warning.message}", file=sys.stderr)
     with OutputFiles() as outputs:  # all files or none
         with outputs.open(args.out) as stream:
-            stream.write(json_text(result.to_dict()))
+            stream.write(json_text({**result.to_dict(), **({} if consistent is None else consistent.to_dict())}))
         if args.plot is not None:
             comparisons = [result.train] + ([result.validation] if result.validation is not None else [])
             plot_comparison(comparisons, outputs.stage_figure(args.plot),
@@ -98,5 +104,6 @@ def run(args: argparse.Namespace) -> int:
     for label, comparison in (("train", result.train), ("validation", result.validation)):
         if comparison is not None:
             print(f"{label} MSE: " + "  ".join(f"{channel} {value:.4g}" for channel, value in comparison.mse.items()))
+    print_consistent(consistent)
     print(f"wrote {args.out}" + (f" and {args.plot}" if args.plot else ""))
     return 0
