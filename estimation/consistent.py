@@ -177,8 +177,14 @@ class _Problem:
             ubx=np.concatenate([np.full(n, np.inf), upper[n:], upper[:n]]))
         x = np.asarray(solution["x"]).reshape(-1)
         stats = self.solver.stats()
+        psi = np.concatenate([x[self.n_phi :], x[n : self.n_phi]])
+        psi = np.clip(psi, lower, upper)  # IPOPT relaxes bounds by 1e-8: friction of -1e-8 is zero
+        positive = np.zeros(psi.shape[0], dtype=bool)
+        for k in range(self.n_links):
+            positive[10 * k : 10 * k + 4] = True
+        psi[positive] = np.maximum(psi[positive], np.finfo(float).tiny ** 0.25)  # the Cholesky diagonal stays > 0
         return {"status": stats["return_status"], "iterations": int(stats["iter_count"]), "cost": float(solution["f"]),
-                "psi": np.concatenate([x[self.n_phi :], x[n : self.n_phi]])}
+                "psi": psi}
 
 
 @functools.lru_cache(maxsize=16)
