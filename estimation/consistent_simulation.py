@@ -22,7 +22,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from dynamics.controllers import ComputedTorqueController, computed_torque_gains
-from dynamics.models import IdentificationModel
+from dynamics.effects import CoulombFriction
+from dynamics.models import IdentificationModel, build_model
 from dynamics.robot import RobotModel
 from dynamics.sensors import NoiseModel
 from dynamics.simulated_joint_effects import Armature, Coulomb, Offset, Viscous
@@ -72,9 +73,16 @@ def consistent_simulator(model: IdentificationModel, estimate: ConsistentEstimat
 
 
 def consistent_controller(model: IdentificationModel, estimate: ConsistentEstimate, *, bandwidth_hz: float = 4.0,
-                          damping: float = 1.0) -> ComputedTorqueController:
-    """Computed torque with ``Y(q, dq, ddq) θ`` on the estimate's standard parameters (links and effects)."""
+                          damping: float = 1.0, coulomb_smoothing: float | None = 0.05) -> ComputedTorqueController:
+    """Computed torque with ``Y(q, dq, ddq) θ`` on the estimate's standard parameters (links and effects).
+
+    ``coulomb_smoothing``: the controller's Coulomb law ``tanh(dq / smoothing)``, the simulator's
+    (``None``: the model's own, ``sign`` unless it says otherwise)."""
     kp, kd = computed_torque_gains(bandwidth_hz=bandwidth_hz, damping=damping, n_joints=model.robot.n_joints)
+    if coulomb_smoothing is not None and any(isinstance(effect, CoulombFriction) for effect in model.effects):
+        effects = [CoulombFriction(effect.joints, smoothing=coulomb_smoothing) if isinstance(effect, CoulombFriction)
+                   else effect for effect in model.effects]
+        model = build_model(model.robot, model.kind, effects)
     return ComputedTorqueController.from_model(model, estimate.theta, kp=kp, kd=kd, label="computed torque, consistent")
 
 
