@@ -201,7 +201,7 @@ def monte_carlo(realisations: int):
     model = build_model(load_robot("puma560", joints=3), "internal", "viscous")
     theta = consistent_truth(model)
     truth = model.base.K @ theta
-    errors, relative, inconsistent = [], [], 0
+    errors, relative, coverage, inconsistent = [], [], [], 0
     for seed in range(realisations):
         q, dq, ddq = random_states(3, 25, seed=seed)
         y = model.evaluate(q, dq, ddq) @ theta + np.random.default_rng(seed + 1000).normal(0.0, 2.0, (25, 3))
@@ -214,14 +214,18 @@ def monte_carlo(realisations: int):
         scale = np.abs(truth) + 1e-3
         relative.append((np.median(np.abs(unconstrained.values - truth) / scale),
                          np.median(np.abs(estimate.values - truth) / scale)))
+        coverage.append((np.mean(np.abs(unconstrained.values - truth) < 1.96 * unconstrained.std),
+                         np.mean(np.abs(estimate.values - truth) < 1.96 * estimate.std)))
         inconsistent += estimate.excess_chi2 > 1e-3
-    errors, relative = np.array(errors), np.array(relative)
+    errors, relative, coverage = np.array(errors), np.array(relative), np.array(coverage)
     print(f"3. PUMA internal + viscous, 25 random states, 2 N·m noise, {realisations} realisations: least squares "
           f"inconsistent in {inconsistent} ({100 * inconsistent / realisations:.0f} %)")
     print(f"   error in the data's metric |θb − θb*|_G: WLS {errors[:, 0].mean():.3f}, consistent {errors[:, 1].mean():.3f} "
           f"(mean ratio {np.mean(errors[:, 1] / errors[:, 0]):.3f}, never larger: "
           f"{bool(np.all(errors[:, 1] <= errors[:, 0] * (1 + 1e-6) + 1e-6))}); median relative error per base parameter: "
           f"WLS {100 * relative[:, 0].mean():.1f} %, consistent {100 * relative[:, 1].mean():.1f} %")
+    print(f"   coverage of ±1.96 std (nominal 95 %): WLS {100 * coverage[:, 0].mean():.1f} %, consistent (reduced "
+          f"Hessian) {100 * coverage[:, 1].mean():.1f} %")
 
 
 def simulate_kuka(kuka, model, problem, result, duration: float, figure: Path | None):

@@ -215,7 +215,8 @@ def _problem(model: IdentificationModel, max_iter: int = 3000) -> _Problem:
         {"x": casadi.vertcat(theta, psi[: 10 * n]), "p": parameters, "f": cost,
          "g": theta[: 10 * n] - casadi.vertcat(*links)},
         {"print_time": False, "show_eval_warnings": False, "ipopt.print_level": 0, "ipopt.sb": "yes",
-         "ipopt.tol": 1e-10, "ipopt.acceptable_tol": 1e-7, "ipopt.max_iter": int(max_iter)},
+         "ipopt.tol": 1e-10, "ipopt.acceptable_tol": 1e-7, "ipopt.max_iter": int(max_iter),
+         "ipopt.bound_relax_factor": 0.0},  # the log-det prior needs the Cholesky diagonal > 0 at every trial point
     )
     theta_psi = parametrisation.psi_expression(psi)
     mapping = casadi.Function("consistent_theta", [psi], [theta_psi, casadi.jacobian(theta_psi, psi)],
@@ -292,8 +293,11 @@ class ConsistentLeastSquares(Estimator):
         compiled = _problem(model, int(self.max_iter))
         lower, upper = parametrisation.psi_bounds()
         fixed_lower, fixed_upper = parametrisation.phi_bounds()  # the user's bounds (fixed in the reduced Hessian)
-        results = []
-        for name, phi0 in self._starts(model, parametrisation, unconstrained.values, prior):
+        results: list[dict[str, Any]] = []
+        starts = self._starts(model, parametrisation, unconstrained.values, prior)
+        for count, (name, phi0) in enumerate(starts):
+            if count >= self.starts and any(r["status"] in ACCEPTED_STATUSES for r in results):
+                break  # the extra starts are only for when every configured one failed
             psi0 = np.clip(parametrisation.psi_from_phi(phi0), _inside(lower, +1e-9), _inside(upper, -1e-9))
             results.append({"name": name, **compiled.solve(psi0, parameters(effective), lower, upper)})
         accepted = [result for result in results if result["status"] in ACCEPTED_STATUSES and np.isfinite(result["cost"])]
@@ -385,21 +389,27 @@ class ConsistentLeastSquares(Estimator):
         return prior
 
     def _starts(self, model, parametrisation, values, prior):
-        """(name, φ₀): the projection of the unconstrained estimate, the nominal bodies, random ones."""
+        """(name, φ₀): the projection of the unconstrained estimate, the nominal bodies, random
+        perturbations of the projection (``starts`` in all), then up to three fallbacks (nominal and
+        random ones) tried only when every configured start failed."""
         K = model.base.K
         reference = np.concatenate([prior, np.zeros(K.shape[1] - prior.shape[0])])
         lifted = reference + np.linalg.lstsq(K, values - K @ reference, rcond=None)[0]
         scale = np.abs(lifted[10 * model.robot.n_joints :]).max(initial=1.0)
         projected = parametrisation.project(lifted, floor=1e-6, effect_floor=1e-6 * scale)
-        starts = [("projection", parametrisation.inverse(projected))]
-        if self.starts >= 2:
-            nominal = parametrisation.project(np.concatenate([prior, projected[prior.shape[0]:]]), floor=1e-6,
-                                              effect_floor=1e-6 * scale)
-            starts.append(("nominal", parametrisation.inverse(nominal)))
+        first = parametrisation.inverse(projected)
+        nominal = parametrisation.inverse(parametrisation.project(
+            np.concatenate([prior, projected[prior.shape[0]:]]), floor=1e-6, effect_floor=1e-6 * scale))
         generator = np.random.default_rng(self.seed)
+        yield "projection", first
+        if self.starts >= 2:
+            yield "nominal", nominal
         for index in range(2, self.starts):
-            starts.append((f"random{index - 1}", starts[0][1] + generator.normal(0.0, 0.3, parametrisation.n_phi)))
-        return starts
+            yield f"random{index - 1}", first + generator.normal(0.0, 0.3, parametrisation.n_phi)
+        if self.starts < 2:
+            yield "nominal", nominal
+        for index in range(2):
+            yield f"fallback{index + 1}", first + generator.normal(0.0, 0.3, parametrisation.n_phi)
 
 
 def _inside(bound: NDArray[np.float64], relative: float) -> NDArray[np.float64]:
