@@ -13,12 +13,15 @@ and ``θ_b = K θ`` (:attr:`dynamics.base_parameters.BaseParameters.K`), IPOPT m
 .. math::  f(φ) = ½ (K θ(φ) − \\hat θ_b)^T G (K θ(φ) − \\hat θ_b) + w Σ_i D(J_i(φ), J_{0,i})
 
 over ``φ`` with exact derivatives from CasADi: an ``r x r`` problem whatever the number of samples.
+In practice IPOPT works on the lifted problem ``(θ, ψ)``: ``ψ`` the exponential coordinates of ``φ``
+(the plain Cholesky factor, diagonal ≥ 0 as bounds), each link tied by ``θ_k = θ_k(ψ_k)`` (see
+:class:`_Problem` for why; same optimum, 70–200 iterations where ``φ`` took thousands).
 ``D`` is the entropic (log-det) divergence of each link's pseudo-inertia from a prior one
 (Lee & Park 2018): with ``prior_weight = w > 0`` the prior is the URDF's/DH table's nominal bodies
 (or a user's), a Bayesian prior worth ``w`` in units of ``½χ²``. With ``w = 0`` a pull of weight
-``regularisation`` (default 1e-6, i.e. a millionth of one sample's weight) towards the nominal bodies fixes the
-directions of the standard parameters the data do not see (their base parameters move by less
-than the solver tolerance).
+``regularisation`` (default 1e-6) towards the nominal bodies fixes the directions of the standard
+parameters the data do not see (their base parameters move by less than the solver tolerance).
+Non-negative effects (friction, armature) are bounded at zero; active bounds are reported.
 
 Starts: the projection of the unconstrained estimate onto the consistent set (the minimum-norm
 standard parameters reproducing ``θ̂_b`` around the nominal ones, each link's pseudo-inertia with
@@ -26,11 +29,12 @@ its eigenvalues clipped, friction clipped at zero), the nominal bodies, and rand
 of the first (``starts``); the best solution wins.
 
 Uncertainty (``uncertainty_method = "reduced Hessian"``): the Gauss–Newton Hessian of ``f`` in the
-free coordinates of ``φ`` (those not at a user bound) plus the prior's exact Hessian,
-``cov(θ_b) = s J (JᵀGJ + w ∇²D)⁺ Jᵀ`` with ``J = K ∂θ/∂φ`` and ``s`` the residual scale of the
-unconstrained fit. Without a prior and away from the boundary this is the unconstrained
-covariance (the consistent set is open); a prior shrinks it. Standard deviations of the link
-parameters themselves are given only with a prior (the data alone do not determine them).
+coordinates ``ψ`` that are not at a user bound (mass, centre of mass) plus the prior's exact
+Hessian, ``cov(θ_b) = s J (JᵀGJ + w ∇²D)⁺ Jᵀ`` with ``J = K ∂θ/∂ψ`` and ``s`` the residual scale of
+the unconstrained fit. Coordinates at zero by consistency (a friction, a degenerate body) stay free,
+so their uncertainty is not understated. Without a prior this is the unconstrained covariance; a
+prior shrinks it. Standard deviations of the link parameters themselves are given only with a prior
+(the data alone do not determine them).
 
 Extension point: effects with shape parameters (nonlinear in their parameters) do not fit the
 quadratic form; :func:`check_linear_effects` names them until the variable-projection estimator
@@ -424,7 +428,8 @@ def _pseudo_inverse(matrix: NDArray[np.float64], rcond: float = 1e-12) -> NDArra
     """Pseudo-inverse of a symmetric PSD matrix, equilibrated by its diagonal first."""
     matrix = 0.5 * (matrix + matrix.T)
     diagonal = np.sqrt(np.clip(np.diag(matrix), 0.0, None))
-    scale = np.where(diagonal > 0, 1.0 / np.where(diagonal > 0, diagonal, 1.0), 0.0)
+    kept = diagonal > 1e-30 * max(diagonal.max(initial=0.0), np.finfo(float).tiny)  # no curvature at all: dropped
+    scale = np.where(kept, 1.0 / np.where(kept, diagonal, 1.0), 0.0)
     eigenvalues, vectors = np.linalg.eigh(matrix * np.outer(scale, scale))
     keep = eigenvalues > rcond * max(eigenvalues[-1], 0.0)
     return scale[:, None] * ((vectors[:, keep] / eigenvalues[keep]) @ vectors[:, keep].T) * scale[None, :]

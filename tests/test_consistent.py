@@ -11,7 +11,7 @@ from dynamics.physical_parameters import ConsistencyBoundsError, LinkBounds, is_
 from dynamics.robots import load_robot
 from estimation.consistent import ConsistentLeastSquares, ConsistentSolverError
 from estimation.identification_problem import IdentificationProblem
-from estimation.least_squares import WeightedLeastSquares
+from estimation.least_squares import LeastSquares, WeightedLeastSquares
 
 
 def consistent_truth(model, seed=0):
@@ -48,10 +48,11 @@ def puma():
     return model, consistent_truth(model)
 
 
-def test_agrees_with_weighted_least_squares_when_that_is_already_consistent(puma):
+@pytest.mark.parametrize("estimator", [WeightedLeastSquares, LeastSquares])
+def test_agrees_with_least_squares_when_that_is_already_consistent(puma, estimator):
     model, theta = puma
     problem, _ = simulated_problem(model, theta, 2000, 0.01, seed=3)
-    unconstrained = WeightedLeastSquares().fit(problem).estimate_
+    unconstrained = estimator().fit(problem).estimate_
     estimate = ConsistentLeastSquares().fit(model, problem, unconstrained=unconstrained).estimate_
     scale = np.abs(unconstrained.values) + unconstrained.std
     assert np.max(np.abs(estimate.values - unconstrained.values) / scale) < 1e-4
