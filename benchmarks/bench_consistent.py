@@ -207,7 +207,7 @@ def monte_carlo(realisations: int):
         y = model.evaluate(q, dq, ddq) @ theta + np.random.default_rng(seed + 1000).normal(0.0, 2.0, (25, 3))
         problem = IdentificationProblem(model.evaluate_base(q, dq, ddq), y, model.channels, model.base.names)
         unconstrained = WeightedLeastSquares().fit(problem).estimate_
-        estimate = ConsistentLeastSquares(starts=1).fit(model, problem, unconstrained=unconstrained).estimate_
+        estimate = ConsistentLeastSquares().fit(model, problem, unconstrained=unconstrained).estimate_
         G = np.linalg.inv(unconstrained.cov)
         norm = lambda values: float(np.sqrt((values - truth) @ G @ (values - truth)))  # noqa: E731
         errors.append((norm(unconstrained.values), norm(estimate.values)))

@@ -55,7 +55,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from dynamics.models import IdentificationModel
 from dynamics.physical_parameters import (
-    LinkBounds, link_from_psi, PhysicalParametrisation, consistency_margin, is_consistent, log_det_divergence, project_link,
+    LinkBounds, from_pseudo_inertia, link_from_psi, PhysicalParametrisation, consistency_margin, is_consistent, log_det_divergence, project_link,
     pseudo_inertia,
 )
 from dynamics.threads import single_threaded_blas
@@ -67,6 +67,10 @@ from estimation.measurements import Measurements
 #: IPOPT return statuses accepted as a solution
 ACCEPTED_STATUSES = frozenset({"Solve_Succeeded", "Solved_To_Acceptable_Level"})
 UNCERTAINTY_METHOD = "reduced Hessian"
+#: most restarts from a certified non-optimal stationary point (per start)
+MAX_ESCAPES = 5
+#: IPOPT's iteration limit after an escape (a warm start near the optimum; a longer run is a failure)
+ESCAPE_ITERATIONS = 300
 
 
 class ConsistentSolverError(RuntimeError, ValueError):
@@ -172,14 +176,19 @@ class _Problem:
     n_links: int
     n_phi: int
 
-    def solve(self, psi0: NDArray, parameters: NDArray, lower: NDArray, upper: NDArray) -> dict[str, Any]:
+    def solve(self, psi0: NDArray, parameters: NDArray, lower: NDArray, upper: NDArray,
+              scale_theta: NDArray, scale_psi: NDArray) -> dict[str, Any]:
+        """One IPOPT solve from ``ψ₀``; variables scaled (``θ = s_θ θ̃``, ``ψ = s_ψ ψ̃``) to order one."""
         n = 10 * self.n_links
         theta0 = np.asarray(self.mapping(psi0)[0]).reshape(-1)
-        solution = self.solver(
-            x0=np.concatenate([theta0, psi0[:n]]), p=parameters, lbg=0, ubg=0,
-            lbx=np.concatenate([np.full(n, -np.inf), lower[n:], lower[:n]]),
-            ubx=np.concatenate([np.full(n, np.inf), upper[n:], upper[:n]]))
-        x = np.asarray(solution["x"]).reshape(-1)
+        scale = np.concatenate([scale_theta, scale_psi])
+        with np.errstate(invalid="ignore"):
+            solution = self.solver(
+                x0=np.concatenate([theta0, psi0[:n]]) / scale, p=np.concatenate([parameters, scale_theta, scale_psi]),
+                lbg=0, ubg=0,
+                lbx=np.concatenate([np.full(n, -np.inf), lower[n:], lower[:n]]) / scale,
+                ubx=np.concatenate([np.full(n, np.inf), upper[n:], upper[:n]]) / scale)
+        x = np.asarray(solution["x"]).reshape(-1) * scale
         stats = self.solver.stats()
         psi = np.concatenate([x[self.n_phi :], x[n : self.n_phi]])
         psi = np.clip(psi, lower, upper)  # IPOPT relaxes bounds by 1e-8: friction of -1e-8 is zero
@@ -191,37 +200,49 @@ class _Problem:
                 "psi": psi}
 
 
+def _links_and_divergence(psi_links: casadi.SX, n: int, prior_inverse: casadi.SX, prior_log_det: casadi.SX):
+    """Each link's standard parameters from its Cholesky coordinates, and ``Σ_k D(J_k, J₀_k)``."""
+    divergence = 0
+    links = []
+    for k in range(n):
+        link = psi_links[10 * k : 10 * (k + 1)]
+        theta_k, J = link_from_psi(link)
+        links.append(theta_k)
+        inverse = casadi.reshape(prior_inverse[16 * k : 16 * (k + 1)], 4, 4)
+        log_det = 8 * casadi.log(link[0]) + 2 * (casadi.log(link[1]) + casadi.log(link[2]) + casadi.log(link[3]))
+        divergence = divergence + casadi.sum1(casadi.sum2(inverse * J)) - log_det + prior_log_det[k] - 4
+    return casadi.vertcat(*links), divergence
+
+
 @functools.lru_cache(maxsize=16)
 def _problem(model: IdentificationModel, max_iter: int = 3000) -> _Problem:
     parametrisation = PhysicalParametrisation.of_model(model)
     n, r, p = model.robot.n_joints, model.n_base, parametrisation.n_phi
-    psi = casadi.SX.sym("psi", p)
-    theta = casadi.SX.sym("theta", p)
     G = casadi.SX.sym("G", r, r)
     target = casadi.SX.sym("theta_hat", r)
     weight = casadi.SX.sym("w")
     prior_inverse = casadi.SX.sym("J0_inv", 16 * n)
     prior_log_det = casadi.SX.sym("log_det_J0", n)
     parameters = casadi.vertcat(casadi.vec(G), target, weight, prior_inverse, prior_log_det)
-    divergence = 0
-    links = []
-    for k in range(n):
-        link = psi[10 * k : 10 * (k + 1)]
-        theta_k, J = link_from_psi(link)
-        links.append(theta_k)
-        inverse = casadi.reshape(prior_inverse[16 * k : 16 * (k + 1)], 4, 4)
-        log_det = 8 * casadi.log(link[0]) + 2 * (casadi.log(link[1]) + casadi.log(link[2]) + casadi.log(link[3]))
-        divergence = divergence + casadi.sum1(casadi.sum2(inverse * J)) - log_det + prior_log_det[k] - 4
+    scale_theta = casadi.SX.sym("scale_theta", p)
+    scale_psi = casadi.SX.sym("scale_psi", 10 * n)
+    # IPOPT's variables, scaled to order one: θ = s_θ θ̃, ψ = s_ψ ψ̃ (per link: m, m·ℓ, m·ℓ²; √m, ℓ)
+    theta_scaled = casadi.SX.sym("theta_scaled", p)
+    psi_scaled = casadi.SX.sym("psi_scaled", 10 * n)
+    theta = scale_theta * theta_scaled
+    links, divergence = _links_and_divergence(scale_psi * psi_scaled, n, prior_inverse, prior_log_det)
     error = casadi.mtimes(casadi.DM(model.base.K), theta) - target
     cost = 0.5 * casadi.dot(error, casadi.mtimes(G, error)) + weight * divergence
     solver = casadi.nlpsol(
         "consistent_least_squares", "ipopt",
-        {"x": casadi.vertcat(theta, psi[: 10 * n]), "p": parameters, "f": cost,
-         "g": theta[: 10 * n] - casadi.vertcat(*links)},
+        {"x": casadi.vertcat(theta_scaled, psi_scaled), "p": casadi.vertcat(parameters, scale_theta, scale_psi),
+         "f": cost, "g": (theta[: 10 * n] - links) / scale_theta[: 10 * n]},
         {"print_time": False, "show_eval_warnings": False, "ipopt.print_level": 0, "ipopt.sb": "yes",
-         "ipopt.tol": 1e-10, "ipopt.acceptable_tol": 1e-7, "ipopt.max_iter": int(max_iter),
+         "ipopt.tol": 1e-8, "ipopt.acceptable_tol": 1e-7, "ipopt.acceptable_iter": 5, "ipopt.max_iter": int(max_iter),
          "ipopt.bound_relax_factor": 0.0},  # the log-det prior needs the Cholesky diagonal > 0 at every trial point
     )
+    psi = casadi.SX.sym("psi", p)
+    _, divergence = _links_and_divergence(psi[: 10 * n], n, prior_inverse, prior_log_det)
     theta_psi = parametrisation.psi_expression(psi)
     mapping = casadi.Function("consistent_theta", [psi], [theta_psi, casadi.jacobian(theta_psi, psi)],
                               ["psi"], ["theta", "dtheta_dpsi"])
@@ -297,13 +318,31 @@ class ConsistentLeastSquares(Estimator):
         compiled = _problem(model, int(self.max_iter))
         lower, upper = parametrisation.psi_bounds()
         fixed_lower, fixed_upper = parametrisation.phi_bounds()  # the user's bounds (fixed in the reduced Hessian)
+        scales = _scales(prior, n, model.n_parameters - 10 * n)
+        escape_solver = _problem(model, min(int(self.max_iter), ESCAPE_ITERATIONS))
         results: list[dict[str, Any]] = []
         starts = self._starts(model, parametrisation, unconstrained.values, prior)
         for count, (name, phi0) in enumerate(starts):
             if count >= self.starts and any(r["status"] in ACCEPTED_STATUSES for r in results):
                 break  # the extra starts are only for when every configured one failed
             psi0 = np.clip(parametrisation.psi_from_phi(phi0), _inside(lower, +1e-9), _inside(upper, -1e-9))
-            results.append({"name": name, **compiled.solve(psi0, parameters(effective), lower, upper)})
+            result = compiled.solve(psi0, parameters(effective), lower, upper, *scales)
+            escapes = 0
+            while result["status"] in ACCEPTED_STATUSES and escapes < MAX_ESCAPES:
+                # a stationary point of the factorised problem need not be the convex problem's optimum
+                # (Burer–Monteiro): certify it, or leave it along a descent direction and solve again
+                escaped = _escape(model, parametrisation, compiled, result["psi"], G, unconstrained.values)
+                if escaped is None:
+                    break
+                escapes += 1
+                again = escape_solver.solve(np.clip(escaped, _inside(lower, +1e-9), _inside(upper, -1e-9)),
+                                            parameters(effective), lower, upper, *scales)
+                again["iterations"] += result["iterations"]
+                if again["status"] not in ACCEPTED_STATUSES or again["cost"] > result["cost"]:
+                    result["iterations"] = again["iterations"]
+                    break
+                result = again
+            results.append({"name": name, "escapes": escapes, **result})
         accepted = [result for result in results if result["status"] in ACCEPTED_STATUSES and np.isfinite(result["cost"])]
         if not accepted:
             raise ConsistentSolverError(
@@ -347,7 +386,7 @@ class ConsistentLeastSquares(Estimator):
             prior_weight=weight, excess_chi2=float(deviation @ G @ deviation),
             solver={"status": best["status"], "iterations": best["iterations"], "best": best["name"],
                     "time_s": time.perf_counter() - started,
-                    "starts": [{key: r[key] for key in ("name", "status", "iterations", "cost")} for r in results]},
+                    "starts": [{key: r[key] for key in ("name", "status", "iterations", "escapes", "cost")} for r in results]},
         )
         return self
 
@@ -414,6 +453,69 @@ class ConsistentLeastSquares(Estimator):
             yield "nominal", nominal
         for index in range(2):
             yield f"fallback{index + 1}", first + generator.normal(0.0, 0.3, parametrisation.n_phi)
+
+
+def _link_gradients(model: IdentificationModel, theta: NDArray, G: NDArray, target: NDArray) -> list[NDArray]:
+    """Per link, the data cost's gradient with respect to its pseudo-inertia ``J_k`` (4x4, symmetric):
+    ``⟨Γ_k, H⟩ = ∇_θk f · θ(H)`` for every symmetric ``H``. The convex problem's optimum has every
+    ``Γ_k ⪰ 0`` (the multiplier of ``J_k ⪰ 0``; with ``⟨Γ_k, J_k⟩ = 0``)."""
+    gradient = model.base.K.T @ (G @ (model.base.K @ theta - target))
+    gradients = []
+    for k in range(model.robot.n_joints):
+        g = gradient[10 * k : 10 * (k + 1)]
+        Gamma = np.zeros((4, 4))
+        for a in range(4):
+            for b in range(a, 4):
+                basis = np.zeros((4, 4))
+                basis[a, b] = basis[b, a] = 1.0
+                value = g @ from_pseudo_inertia(basis)
+                Gamma[a, b] = Gamma[b, a] = value if a == b else 0.5 * value
+        gradients.append(Gamma)
+    return gradients
+
+
+def _escape(model, parametrisation, compiled, psi, G, target) -> NDArray | None:
+    """``None`` when every link's ``Γ_k`` is positive semidefinite (the point is the convex optimum,
+    up to the prior's pull); otherwise ``ψ`` after the exact line search along ``J_k += α v vᵀ``, ``v``
+    the eigenvector of the most negative eigenvalue of ``Γ_k`` (a descent direction the triangular
+    factor could not follow)."""
+    theta = np.asarray(compiled.mapping(psi)[0]).reshape(-1)
+    gradients = _link_gradients(model, theta, G, target)
+    size = max(np.abs(np.linalg.eigvalsh(Gamma)).max() for Gamma in gradients)
+    worst, link, direction = 0.0, None, None
+    for k, Gamma in enumerate(gradients):
+        eigenvalues, vectors = np.linalg.eigh(Gamma)
+        if eigenvalues[0] < worst:
+            worst, link, direction = eigenvalues[0], k, vectors[:, 0]
+    if link is None or worst > -1e-6 * size:
+        return None
+    step = np.zeros_like(theta)
+    step[10 * link : 10 * (link + 1)] = from_pseudo_inertia(np.outer(direction, direction))
+    change = model.base.K @ step
+    curvature = change @ G @ change
+    slope = change @ G @ (model.base.K @ theta - target)
+    if not (curvature > 0 and slope < 0):
+        return None
+    moved = parametrisation.project(theta + (-slope / curvature) * step, floor=1e-6)
+    return parametrisation.psi_from_phi(parametrisation.inverse(moved))
+
+
+def _scales(prior: NDArray[np.float64], n_links: int, n_effects: int) -> tuple[NDArray, NDArray]:
+    """Variable scales from the prior's bodies: per link a mass ``m`` and a length ``ℓ`` (radius of
+    gyration about the frame origin), floored at a fraction of the largest so that a massless
+    nominal link still gets a scale; ``θ``: ``m, mℓ (3), mℓ² (6)``, ``ψ``: ``√m, ℓ (9)``; effects 1."""
+    masses, lengths = np.empty(n_links), np.empty(n_links)
+    for k in range(n_links):
+        link = prior[10 * k : 10 * (k + 1)]
+        masses[k] = link[0]
+        lengths[k] = np.sqrt(max(link[4] + link[6] + link[9], 0.0) / max(link[0], 1e-300))
+    masses = np.maximum(masses, 1e-2 * masses.max(initial=0.0) + 1e-12)
+    lengths = np.clip(lengths, 0.05 * lengths.max(initial=0.0) + 1e-6, None)
+    scale_theta = np.concatenate([
+        np.concatenate([[m], np.full(3, m * l), np.full(6, m * l * l)]) for m, l in zip(masses, lengths)
+    ] + [np.ones(n_effects)])
+    scale_psi = np.concatenate([np.concatenate([[np.sqrt(m)], np.full(9, l)]) for m, l in zip(masses, lengths)])
+    return scale_theta, scale_psi
 
 
 def _inside(bound: NDArray[np.float64], relative: float) -> NDArray[np.float64]:

@@ -73,7 +73,7 @@ def test_closer_to_the_truth_than_least_squares_on_short_noisy_records(puma):
     for seed in range(12):
         problem, _ = simulated_problem(model, theta, 25, 2.0, seed=seed)
         unconstrained = WeightedLeastSquares().fit(problem).estimate_
-        estimate = ConsistentLeastSquares(starts=1).fit(model, problem, unconstrained=unconstrained).estimate_
+        estimate = ConsistentLeastSquares().fit(model, problem, unconstrained=unconstrained).estimate_
         G = np.linalg.inv(unconstrained.cov)
         distance = lambda values: float(np.sqrt((values - truth) @ G @ (values - truth)))  # noqa: E731
         errors.append((distance(unconstrained.values), distance(estimate.values)))
