@@ -15,7 +15,7 @@ and ``θ_b = K θ`` (:attr:`dynamics.base_parameters.BaseParameters.K`), IPOPT m
 over ``φ`` with exact derivatives from CasADi: an ``r x r`` problem whatever the number of samples.
 In practice IPOPT works on the lifted problem ``(θ, ψ)``: ``ψ`` the exponential coordinates of ``φ``
 (the plain Cholesky factor, diagonal ≥ 0 as bounds), each link tied by ``θ_k = θ_k(ψ_k)`` (see
-:class:`_Problem` for why; same optimum, 70–200 iterations where ``φ`` took thousands).
+:class:`estimation.consistent_solver.ConsistentProblem` for why; same optimum, tens to hundreds of iterations where ``φ`` took thousands).
 ``D`` is the entropic (log-det) divergence of each link's pseudo-inertia from a prior one
 (Lee & Park 2018): with ``prior_weight = w > 0`` the prior is the URDF's/DH table's nominal bodies
 (or a user's), a Bayesian prior worth ``w`` in units of ``½χ²``. With ``w = 0`` a pull of weight
@@ -43,25 +43,24 @@ of the nonlinear-effects issue supplies their residual.
 
 from __future__ import annotations
 
-import functools
 import time
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
-import casadi
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from dynamics.models import IdentificationModel
 from dynamics.physical_parameters import (
-    LinkBounds, from_pseudo_inertia, link_from_psi, PhysicalParametrisation, consistency_margin, is_consistent, log_det_divergence, project_link,
+    ConsistencyBoundsError, LinkBounds, PhysicalParametrisation, consistency_margin, is_consistent, project_link,
     pseudo_inertia,
 )
 from dynamics.threads import single_threaded_blas
 from estimation.estimator import Estimator
 from estimation.identification_problem import IdentificationProblem, stack
 from estimation.least_squares import Estimate, WeightedLeastSquares, channel_gram
+from estimation.consistent_solver import compiled_problem, escape, inside, pseudo_inverse, variable_scales
 from estimation.measurements import Measurements
 
 #: IPOPT return statuses accepted as a solution
@@ -154,103 +153,6 @@ def check_linear_effects(model: IdentificationModel) -> None:
             "parameters (fit them first, then fix them, or extend estimation.consistent)")
 
 
-@dataclass(frozen=True, eq=False)
-class _Problem:
-    """The compiled pieces of one model's consistent problem (built once per model, cached).
-
-    ``solver``: IPOPT on ``x = (θ, ψ_links)``: the convex cost ``½(Kθ − θ̂_b)ᵀG(Kθ − θ̂_b)`` in the
-    standard parameters plus the prior, each link tied to its Cholesky coordinates ``ψ_k`` (the
-    exponential coordinates of the log-Cholesky map, diagonal ≥ 0) by 10 equalities
-    ``θ_k = θ_k(ψ_k)``; non-negative effects bounded at zero. Measured on the KUKA (viscous
-    friction, no prior): 130 iterations, against thousands, not converged, for IPOPT on ``φ``
-    directly (the log coordinates put the optimum, a degenerate body on the boundary of the
-    consistent set, at infinity) and hundreds with heavy Hessian regularisation on ``ψ`` alone
-    (the data residual times the map's curvature makes that Hessian indefinite; lifted, the
-    curvature in ``ψ`` is the multipliers', as in Burer–Monteiro factorisations).
-    NLP parameters: ``G`` (r²), ``θ̂_b`` (r), ``w``, per link ``J₀⁻¹`` (16) and ``log det J₀``.
-    """
-
-    solver: casadi.Function
-    mapping: casadi.Function
-    prior_hessian: casadi.Function
-    n_links: int
-    n_phi: int
-
-    def solve(self, psi0: NDArray, parameters: NDArray, lower: NDArray, upper: NDArray,
-              scale_theta: NDArray, scale_psi: NDArray) -> dict[str, Any]:
-        """One IPOPT solve from ``ψ₀``; variables scaled (``θ = s_θ θ̃``, ``ψ = s_ψ ψ̃``) to order one."""
-        n = 10 * self.n_links
-        theta0 = np.asarray(self.mapping(psi0)[0]).reshape(-1)
-        scale = np.concatenate([scale_theta, scale_psi])
-        with np.errstate(invalid="ignore"):
-            solution = self.solver(
-                x0=np.concatenate([theta0, psi0[:n]]) / scale, p=np.concatenate([parameters, scale_theta, scale_psi]),
-                lbg=0, ubg=0,
-                lbx=np.concatenate([np.full(n, -np.inf), lower[n:], lower[:n]]) / scale,
-                ubx=np.concatenate([np.full(n, np.inf), upper[n:], upper[:n]]) / scale)
-        x = np.asarray(solution["x"]).reshape(-1) * scale
-        stats = self.solver.stats()
-        psi = np.concatenate([x[self.n_phi :], x[n : self.n_phi]])
-        psi = np.clip(psi, lower, upper)  # IPOPT relaxes bounds by 1e-8: friction of -1e-8 is zero
-        positive = np.zeros(psi.shape[0], dtype=bool)
-        for k in range(self.n_links):
-            positive[10 * k : 10 * k + 4] = True
-        psi[positive] = np.maximum(psi[positive], np.finfo(float).tiny ** 0.25)  # the Cholesky diagonal stays > 0
-        return {"status": stats["return_status"], "iterations": int(stats["iter_count"]), "cost": float(solution["f"]),
-                "psi": psi}
-
-
-def _links_and_divergence(psi_links: casadi.SX, n: int, prior_inverse: casadi.SX, prior_log_det: casadi.SX):
-    """Each link's standard parameters from its Cholesky coordinates, and ``Σ_k D(J_k, J₀_k)``."""
-    divergence = 0
-    links = []
-    for k in range(n):
-        link = psi_links[10 * k : 10 * (k + 1)]
-        theta_k, J = link_from_psi(link)
-        links.append(theta_k)
-        inverse = casadi.reshape(prior_inverse[16 * k : 16 * (k + 1)], 4, 4)
-        log_det = 8 * casadi.log(link[0]) + 2 * (casadi.log(link[1]) + casadi.log(link[2]) + casadi.log(link[3]))
-        divergence = divergence + casadi.sum1(casadi.sum2(inverse * J)) - log_det + prior_log_det[k] - 4
-    return casadi.vertcat(*links), divergence
-
-
-@functools.lru_cache(maxsize=16)
-def _problem(model: IdentificationModel, max_iter: int = 3000) -> _Problem:
-    parametrisation = PhysicalParametrisation.of_model(model)
-    n, r, p = model.robot.n_joints, model.n_base, parametrisation.n_phi
-    G = casadi.SX.sym("G", r, r)
-    target = casadi.SX.sym("theta_hat", r)
-    weight = casadi.SX.sym("w")
-    prior_inverse = casadi.SX.sym("J0_inv", 16 * n)
-    prior_log_det = casadi.SX.sym("log_det_J0", n)
-    parameters = casadi.vertcat(casadi.vec(G), target, weight, prior_inverse, prior_log_det)
-    scale_theta = casadi.SX.sym("scale_theta", p)
-    scale_psi = casadi.SX.sym("scale_psi", 10 * n)
-    # IPOPT's variables, scaled to order one: θ = s_θ θ̃, ψ = s_ψ ψ̃ (per link: m, m·ℓ, m·ℓ²; √m, ℓ)
-    theta_scaled = casadi.SX.sym("theta_scaled", p)
-    psi_scaled = casadi.SX.sym("psi_scaled", 10 * n)
-    theta = scale_theta * theta_scaled
-    links, divergence = _links_and_divergence(scale_psi * psi_scaled, n, prior_inverse, prior_log_det)
-    error = casadi.mtimes(casadi.DM(model.base.K), theta) - target
-    cost = 0.5 * casadi.dot(error, casadi.mtimes(G, error)) + weight * divergence
-    solver = casadi.nlpsol(
-        "consistent_least_squares", "ipopt",
-        {"x": casadi.vertcat(theta_scaled, psi_scaled), "p": casadi.vertcat(parameters, scale_theta, scale_psi),
-         "f": cost, "g": (theta[: 10 * n] - links) / scale_theta[: 10 * n]},
-        {"print_time": False, "show_eval_warnings": False, "ipopt.print_level": 0, "ipopt.sb": "yes",
-         "ipopt.tol": 1e-8, "ipopt.acceptable_tol": 1e-7, "ipopt.acceptable_iter": 5, "ipopt.max_iter": int(max_iter),
-         "ipopt.bound_relax_factor": 0.0},  # the log-det prior needs the Cholesky diagonal > 0 at every trial point
-    )
-    psi = casadi.SX.sym("psi", p)
-    _, divergence = _links_and_divergence(psi[: 10 * n], n, prior_inverse, prior_log_det)
-    theta_psi = parametrisation.psi_expression(psi)
-    mapping = casadi.Function("consistent_theta", [psi], [theta_psi, casadi.jacobian(theta_psi, psi)],
-                              ["psi"], ["theta", "dtheta_dpsi"])
-    prior_hessian = casadi.Function(
-        "prior_hessian", [psi, parameters], [casadi.hessian(divergence, psi)[0]], ["psi", "p"], ["hessian"])
-    return _Problem(solver, mapping, prior_hessian, n, p)
-
-
 class ConsistentLeastSquares(Estimator):
     """Weighted least squares under the log-Cholesky map, solved with IPOPT (module docstring).
 
@@ -315,27 +217,27 @@ class ConsistentLeastSquares(Estimator):
             return np.concatenate([G.reshape(-1, order="F"), unconstrained.values, [prior_weight], inverses, log_dets])
 
         effective = weight if weight > 0 else float(self.regularisation)
-        compiled = _problem(model, int(self.max_iter))
+        compiled = compiled_problem(model, int(self.max_iter))
         lower, upper = parametrisation.psi_bounds()
         fixed_lower, fixed_upper = parametrisation.phi_bounds()  # the user's bounds (fixed in the reduced Hessian)
-        scales = _scales(prior, n, model.n_parameters - 10 * n)
-        escape_solver = _problem(model, min(int(self.max_iter), ESCAPE_ITERATIONS))
+        scales = variable_scales(prior, n, model.n_parameters - 10 * n)
+        escape_solver = compiled_problem(model, min(int(self.max_iter), ESCAPE_ITERATIONS))
         results: list[dict[str, Any]] = []
         starts = self._starts(model, parametrisation, unconstrained.values, prior)
         for count, (name, phi0) in enumerate(starts):
             if count >= self.starts and any(r["status"] in ACCEPTED_STATUSES for r in results):
                 break  # the extra starts are only for when every configured one failed
-            psi0 = np.clip(parametrisation.psi_from_phi(phi0), _inside(lower, +1e-9), _inside(upper, -1e-9))
+            psi0 = np.clip(parametrisation.psi_from_phi(phi0), inside(lower, +1e-9), inside(upper, -1e-9))
             result = compiled.solve(psi0, parameters(effective), lower, upper, *scales)
             escapes = 0
             while result["status"] in ACCEPTED_STATUSES and escapes < MAX_ESCAPES:
                 # a stationary point of the factorised problem need not be the convex problem's optimum
                 # (Burer–Monteiro): certify it, or leave it along a descent direction and solve again
-                escaped = _escape(model, parametrisation, compiled, result["psi"], G, unconstrained.values)
+                escaped = escape(model, parametrisation, compiled, result["psi"], G, unconstrained.values)
                 if escaped is None:
                     break
                 escapes += 1
-                again = escape_solver.solve(np.clip(escaped, _inside(lower, +1e-9), _inside(upper, -1e-9)),
+                again = escape_solver.solve(np.clip(escaped, inside(lower, +1e-9), inside(upper, -1e-9)),
                                             parameters(effective), lower, upper, *scales)
                 again["iterations"] += result["iterations"]
                 if again["status"] not in ACCEPTED_STATUSES or again["cost"] > result["cost"]:
@@ -368,7 +270,7 @@ class ConsistentLeastSquares(Estimator):
         hessian = J.T @ G @ J
         if weight > 0:
             hessian = hessian + weight * np.asarray(compiled.prior_hessian(psi, parameters(weight)))[np.ix_(free, free)]
-        inverse = _pseudo_inverse(hessian)  # equilibrated inside: ψ mixes scales (a degenerate link's a → 0)
+        inverse = pseudo_inverse(hessian)  # equilibrated inside: ψ mixes scales (a degenerate link's a → 0)
         cov = residual_scale * J @ inverse @ J.T
         theta_std = None
         if weight > 0:
@@ -419,8 +321,6 @@ class ConsistentLeastSquares(Estimator):
             raise ValueError(f"the prior must hold {10 * n} finite link parameters (10 per link), got {given.shape}")
         prior = np.concatenate([project_link(given[10 * k : 10 * (k + 1)], 1e-4) for k in range(n)])
         if weight > 0:
-            from dynamics.physical_parameters import ConsistencyBoundsError
-
             for k, name in enumerate(parametrisation.link_names):
                 bounds = parametrisation.bounds.get(name)
                 if bounds is not None and not bounds.contains(given[10 * k : 10 * (k + 1)]):
@@ -453,88 +353,6 @@ class ConsistentLeastSquares(Estimator):
             yield "nominal", nominal
         for index in range(2):
             yield f"fallback{index + 1}", first + generator.normal(0.0, 0.3, parametrisation.n_phi)
-
-
-def _link_gradients(model: IdentificationModel, theta: NDArray, G: NDArray, target: NDArray) -> list[NDArray]:
-    """Per link, the data cost's gradient with respect to its pseudo-inertia ``J_k`` (4x4, symmetric):
-    ``⟨Γ_k, H⟩ = ∇_θk f · θ(H)`` for every symmetric ``H``. The convex problem's optimum has every
-    ``Γ_k ⪰ 0`` (the multiplier of ``J_k ⪰ 0``; with ``⟨Γ_k, J_k⟩ = 0``)."""
-    gradient = model.base.K.T @ (G @ (model.base.K @ theta - target))
-    gradients = []
-    for k in range(model.robot.n_joints):
-        g = gradient[10 * k : 10 * (k + 1)]
-        Gamma = np.zeros((4, 4))
-        for a in range(4):
-            for b in range(a, 4):
-                basis = np.zeros((4, 4))
-                basis[a, b] = basis[b, a] = 1.0
-                value = g @ from_pseudo_inertia(basis)
-                Gamma[a, b] = Gamma[b, a] = value if a == b else 0.5 * value
-        gradients.append(Gamma)
-    return gradients
-
-
-def _escape(model, parametrisation, compiled, psi, G, target) -> NDArray | None:
-    """``None`` when every link's ``Γ_k`` is positive semidefinite (the point is the convex optimum,
-    up to the prior's pull); otherwise ``ψ`` after the exact line search along ``J_k += α v vᵀ``, ``v``
-    the eigenvector of the most negative eigenvalue of ``Γ_k`` (a descent direction the triangular
-    factor could not follow)."""
-    theta = np.asarray(compiled.mapping(psi)[0]).reshape(-1)
-    gradients = _link_gradients(model, theta, G, target)
-    size = max(np.abs(np.linalg.eigvalsh(Gamma)).max() for Gamma in gradients)
-    worst, link, direction = 0.0, None, None
-    for k, Gamma in enumerate(gradients):
-        eigenvalues, vectors = np.linalg.eigh(Gamma)
-        if eigenvalues[0] < worst:
-            worst, link, direction = eigenvalues[0], k, vectors[:, 0]
-    if link is None or worst > -1e-6 * size:
-        return None
-    step = np.zeros_like(theta)
-    step[10 * link : 10 * (link + 1)] = from_pseudo_inertia(np.outer(direction, direction))
-    change = model.base.K @ step
-    curvature = change @ G @ change
-    slope = change @ G @ (model.base.K @ theta - target)
-    if not (curvature > 0 and slope < 0):
-        return None
-    moved = parametrisation.project(theta + (-slope / curvature) * step, floor=1e-6)
-    return parametrisation.psi_from_phi(parametrisation.inverse(moved))
-
-
-def _scales(prior: NDArray[np.float64], n_links: int, n_effects: int) -> tuple[NDArray, NDArray]:
-    """Variable scales from the prior's bodies: per link a mass ``m`` and a length ``ℓ`` (radius of
-    gyration about the frame origin), floored at a fraction of the largest so that a massless
-    nominal link still gets a scale; ``θ``: ``m, mℓ (3), mℓ² (6)``, ``ψ``: ``√m, ℓ (9)``; effects 1."""
-    masses, lengths = np.empty(n_links), np.empty(n_links)
-    for k in range(n_links):
-        link = prior[10 * k : 10 * (k + 1)]
-        masses[k] = link[0]
-        lengths[k] = np.sqrt(max(link[4] + link[6] + link[9], 0.0) / max(link[0], 1e-300))
-    masses = np.maximum(masses, 1e-2 * masses.max(initial=0.0) + 1e-12)
-    lengths = np.clip(lengths, 0.05 * lengths.max(initial=0.0) + 1e-6, None)
-    scale_theta = np.concatenate([
-        np.concatenate([[m], np.full(3, m * l), np.full(6, m * l * l)]) for m, l in zip(masses, lengths)
-    ] + [np.ones(n_effects)])
-    scale_psi = np.concatenate([np.concatenate([[np.sqrt(m)], np.full(9, l)]) for m, l in zip(masses, lengths)])
-    return scale_theta, scale_psi
-
-
-def _inside(bound: NDArray[np.float64], relative: float) -> NDArray[np.float64]:
-    """``bound`` moved by ``relative (1 + |bound|)`` (infinite bounds unchanged)."""
-    finite = np.isfinite(bound)
-    moved = bound.copy()
-    moved[finite] += relative * (1 + np.abs(bound[finite]))
-    return moved
-
-
-def _pseudo_inverse(matrix: NDArray[np.float64], rcond: float = 1e-12) -> NDArray[np.float64]:
-    """Pseudo-inverse of a symmetric PSD matrix, equilibrated by its diagonal first."""
-    matrix = 0.5 * (matrix + matrix.T)
-    diagonal = np.sqrt(np.clip(np.diag(matrix), 0.0, None))
-    kept = diagonal > 1e-30 * max(diagonal.max(initial=0.0), np.finfo(float).tiny)  # no curvature at all: dropped
-    scale = np.where(kept, 1.0 / np.where(kept, diagonal, 1.0), 0.0)
-    eigenvalues, vectors = np.linalg.eigh(matrix * np.outer(scale, scale))
-    keep = eigenvalues > rcond * max(eigenvalues[-1], 0.0)
-    return scale[:, None] * ((vectors[:, keep] / eigenvalues[keep]) @ vectors[:, keep].T) * scale[None, :]
 
 
 def _active_bounds(parametrisation, psi, theta, unconstrained: Estimate, model: IdentificationModel) -> tuple[str, ...]:
