@@ -218,11 +218,12 @@ def monte_carlo(realisations: int):
                          np.mean(np.abs(estimate.values - truth) < 1.96 * estimate.std)))
         inconsistent += estimate.excess_chi2 > 1e-3
     errors, relative, coverage = np.array(errors), np.array(relative), np.array(coverage)
+    farther = errors[:, 1] > errors[:, 0] * (1 + 1e-6) + 1e-6
     print(f"3. PUMA internal + viscous, 25 random states, 2 N·m noise, {realisations} realisations: least squares "
           f"inconsistent in {inconsistent} ({100 * inconsistent / realisations:.0f} %)")
     print(f"   error in the data's metric |θb − θb*|_G: WLS {errors[:, 0].mean():.3f}, consistent {errors[:, 1].mean():.3f} "
-          f"(mean ratio {np.mean(errors[:, 1] / errors[:, 0]):.3f}, never larger: "
-          f"{bool(np.all(errors[:, 1] <= errors[:, 0] * (1 + 1e-6) + 1e-6))}); median relative error per base parameter: "
+          f"(mean ratio {np.mean(errors[:, 1] / errors[:, 0]):.3f}; larger in {int(np.sum(farther))} realisations, by at "
+          f"most {np.max(errors[:, 1] / errors[:, 0], initial=1.0):.3f}x: not the global optimum there); median relative error per base parameter: "
           f"WLS {100 * relative[:, 0].mean():.1f} %, consistent {100 * relative[:, 1].mean():.1f} %")
     print(f"   coverage of ±1.96 std (nominal 95 %): WLS {100 * coverage[:, 0].mean():.1f} %, consistent (reduced "
           f"Hessian) {100 * coverage[:, 1].mean():.1f} %")

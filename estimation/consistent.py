@@ -108,7 +108,9 @@ class ConsistentEstimate:
     excess_chi2
         ``(θ_b − θ̂_b)ᵀ G (θ_b − θ̂_b)``: what consistency costs in weighted squared residuals.
     solver
-        ``status``, ``iterations``, ``time_s``, ``starts`` (per start: ``name, status, cost``), ``best``.
+        ``status``, ``iterations``, ``time_s``, ``best``, ``certified`` (every link's pseudo-inertia
+        gradient positive semidefinite: the convex problem's optimum, up to the prior's pull), ``starts``
+        (per start: ``name, status, iterations, escapes, certified, cost``).
     """
 
     theta: NDArray[np.float64]
@@ -225,16 +227,19 @@ class ConsistentLeastSquares(Estimator):
         results: list[dict[str, Any]] = []
         starts = self._starts(model, parametrisation, unconstrained.values, prior)
         for count, (name, phi0) in enumerate(starts):
-            if count >= self.starts and any(r["status"] in ACCEPTED_STATUSES for r in results):
-                break  # the extra starts are only for when every configured one failed
+            if count >= self.starts and any(r["certified"] for r in results):
+                break  # the extra starts are only for when no configured one reached a certified optimum
             psi0 = np.clip(parametrisation.psi_from_phi(phi0), inside(lower, +1e-9), inside(upper, -1e-9))
             result = compiled.solve(psi0, parameters(effective), lower, upper, *scales)
-            escapes = 0
-            while result["status"] in ACCEPTED_STATUSES and escapes < MAX_ESCAPES:
+            escapes, certified = 0, False
+            while result["status"] in ACCEPTED_STATUSES and escapes <= MAX_ESCAPES:
                 # a stationary point of the factorised problem need not be the convex problem's optimum
                 # (Burer–Monteiro): certify it, or leave it along a descent direction and solve again
                 escaped = escape(model, parametrisation, compiled, result["psi"], G, unconstrained.values)
                 if escaped is None:
+                    certified = True
+                    break
+                if escapes == MAX_ESCAPES:
                     break
                 escapes += 1
                 again = escape_solver.solve(np.clip(escaped, inside(lower, +1e-9), inside(upper, -1e-9)),
@@ -244,12 +249,12 @@ class ConsistentLeastSquares(Estimator):
                     result["iterations"] = again["iterations"]
                     break
                 result = again
-            results.append({"name": name, "escapes": escapes, **result})
+            results.append({"name": name, "escapes": escapes, "certified": certified, **result})
         accepted = [result for result in results if result["status"] in ACCEPTED_STATUSES and np.isfinite(result["cost"])]
         if not accepted:
             raise ConsistentSolverError(
                 "IPOPT found no consistent estimate: " + "; ".join(f"start {r['name']}: {r['status']}" for r in results))
-        best = min(accepted, key=lambda result: result["cost"])
+        best = min([r for r in accepted if r["certified"]] or accepted, key=lambda result: result["cost"])
         psi = best["psi"]
         theta, dtheta = (np.asarray(value) for value in compiled.mapping(psi))
         theta = theta.reshape(-1)
@@ -288,7 +293,9 @@ class ConsistentLeastSquares(Estimator):
             prior_weight=weight, excess_chi2=float(deviation @ G @ deviation),
             solver={"status": best["status"], "iterations": best["iterations"], "best": best["name"],
                     "time_s": time.perf_counter() - started,
-                    "starts": [{key: r[key] for key in ("name", "status", "iterations", "escapes", "cost")} for r in results]},
+                    "certified": bool(best["certified"]),
+                    "starts": [{key: r[key] for key in ("name", "status", "iterations", "escapes", "certified", "cost")}
+                               for r in results]},
         )
         return self
 
@@ -333,8 +340,8 @@ class ConsistentLeastSquares(Estimator):
 
     def _starts(self, model, parametrisation, values, prior):
         """(name, φ₀): the projection of the unconstrained estimate, the nominal bodies, random
-        perturbations of the projection (``starts`` in all), then up to three fallbacks (nominal and
-        random ones) tried only when every configured start failed."""
+        perturbations of the projection (``starts`` in all), then up to five fallbacks (nominal and
+        random ones) tried only when no configured start reached a certified optimum."""
         K = model.base.K
         reference = np.concatenate([prior, np.zeros(K.shape[1] - prior.shape[0])])
         lifted = reference + np.linalg.lstsq(K, values - K @ reference, rcond=None)[0]
@@ -351,7 +358,7 @@ class ConsistentLeastSquares(Estimator):
             yield f"random{index - 1}", first + generator.normal(0.0, 0.3, parametrisation.n_phi)
         if self.starts < 2:
             yield "nominal", nominal
-        for index in range(2):
+        for index in range(4):
             yield f"fallback{index + 1}", first + generator.normal(0.0, 0.3, parametrisation.n_phi)
 
 

@@ -62,6 +62,7 @@ def test_agrees_with_least_squares_when_that_is_already_consistent(puma, estimat
     # away from the boundary, without a prior, the reduced Hessian gives back the unconstrained covariance
     assert np.allclose(estimate.std, unconstrained.std, rtol=1e-3)
     assert estimate.solver["status"] in ("Solve_Succeeded", "Solved_To_Acceptable_Level")
+    assert estimate.solver["certified"]
 
 
 def test_closer_to_the_truth_than_least_squares_on_short_noisy_records(puma):
