@@ -20,6 +20,10 @@ from dynamics.models import IdentificationModel
 from dynamics.physical_parameters import PhysicalParametrisation, from_pseudo_inertia, link_from_psi
 
 
+#: a descent step gaining less than this (units of ½χ², far below a standard deviation's 0.5) certifies the point
+CERTIFICATE_GAIN = 1e-6
+
+
 @dataclass(frozen=True, eq=False)
 class ConsistentProblem:
     """The compiled pieces of one model's consistent problem (built once per model, cached).
@@ -162,6 +166,9 @@ def escape(model, parametrisation, compiled, psi, G, target) -> NDArray | None:
     slope = change @ G @ (model.base.K @ theta - target)
     if not (curvature > 0 and slope < 0):
         return None
+    error = model.base.K @ theta - target
+    if slope * slope / (2 * curvature) < CERTIFICATE_GAIN + 1e-9 * 0.5 * (error @ G @ error):
+        return None  # the best step along the direction gains nothing measurable (in units of ½χ²)
     moved = parametrisation.project(theta + (-slope / curvature) * step, floor=1e-6)
     return parametrisation.psi_from_phi(parametrisation.inverse(moved))
 
