@@ -24,6 +24,9 @@ from estimation.validation import plot_comparison
 from oed.cli.asbuilt import (add_asbuilt_arguments, finish_document, model_effects, resolve_transmission, rest_message,
                              rest_rows, trivial_predictors)
 from oed.cli.common import OutputFiles, add_robot_arguments, check_figure_path, json_text, robot_from_arguments
+from oed.cli.identify_consistent import (
+    add_consistent_arguments, check_consistent_arguments, consistent_refit, print_consistent,
+)
 
 
 def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -52,6 +55,7 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
                         help="channel-weighted (default) or ordinary least squares")
     add_derivative_arguments(parser)
     add_streaming_arguments(parser)
+    add_consistent_arguments(parser)
     return parser
 
 
@@ -245,6 +249,7 @@ def result_has_shapes(model) -> bool:
 def run(args: argparse.Namespace) -> int:
     check_figure_path(args.plot)
     differentiation(args)  # contradicting derivative options are an error even when the data hold dq, ddq
+    check_consistent_arguments(args)
     robot = robot_from_arguments(args)
     transmission = resolve_transmission(args, robot)
     effects = model_effects(args, robot, transmission)
@@ -260,6 +265,9 @@ def run(args: argparse.Namespace) -> int:
         if result_has_shapes(model):
             raise ValueError("laws with shape parameters (coulomb:tanh, sigmoid…) are fitted by variable projection "
                              "in memory: not with the streamed path (--chunk-size, --scheduler or --workers)")
+        if args.consistent:
+            raise ValueError("--consistent refits in memory: not with the streamed path (--chunk-size, --scheduler or "
+                             "--workers)")
         return run_streaming(args, robot, model)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
@@ -272,11 +280,14 @@ def run(args: argparse.Namespace) -> int:
         result = identify(model, train, validation, weighted=args.method == "wls")
         trivial, notes = trivial_predictors(result, validation)
         rest_record = {"train": rest, "validation": rest_validation}
+        consistent = consistent_refit(args, result, train, validation)  # None without --consistent
     print_warnings("identify", caught)
     for note in notes:
         print(f"oed identify: warning: {note}", file=sys.stderr)
     document = finish_document(result.to_dict(), result, trivial=trivial, warnings=notes, rest=rest_record,
                                transmission=transmission)
+    if consistent is not None:
+        document.update(consistent.to_dict())
     with OutputFiles() as outputs:  # all files or none
         with outputs.open(args.out) as stream:
             stream.write(json_text(document))
@@ -302,5 +313,6 @@ def run(args: argparse.Namespace) -> int:
                     f"{channel} {value:.4g}" for channel, value in comparison.mse_filtered.items()))
     if rest_message("identify", rest_record):
         print(rest_message("identify", rest_record))
+    print_consistent(consistent)
     print(f"wrote {args.out}" + (f" and {args.plot}" if args.plot else ""))
     return 0

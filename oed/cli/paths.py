@@ -14,7 +14,8 @@ from collections.abc import Callable
 from pathlib import Path
 
 #: options that name files a verb reads
-INPUT_OPTIONS: tuple[str, ...] = ("data", "validate", "trajectory", "bounds", "aprbs", "urdf", "transmission")
+INPUT_OPTIONS: tuple[str, ...] = ("data", "validate", "trajectory", "bounds", "aprbs", "urdf", "transmission", "prior",
+                                 "link_bounds")
 #: options that name files a verb writes (or folders, for the options a verb lists in ``folder_options``)
 OUTPUT_OPTIONS: tuple[str, ...] = ("out", "csv", "plot", "figure", "truth", "report")
 

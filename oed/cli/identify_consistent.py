@@ -1,0 +1,60 @@
+"""``oed identify --consistent``: options, the refit and its summary (kept apart from identify.py)."""
+
+from __future__ import annotations
+
+import argparse
+
+import numpy as np
+
+from estimation.consistent_identification import ConsistentResult, identify_consistent, load_link_bounds, load_prior
+
+
+def add_consistent_arguments(parser: argparse.ArgumentParser) -> None:
+    group = parser.add_argument_group("physical consistency (issue 15)")
+    group.add_argument("--consistent", action="store_true",
+                       help="also fit every link as a real rigid body and friction/armature >= 0 (log-Cholesky map, "
+                            "IPOPT); adds links and consistent to the result")
+    group.add_argument("--prior-weight", type=float, default=0.0, metavar="W",
+                       help="with --consistent: weight of the log-det prior towards the nominal bodies (URDF/DH, or "
+                            "--prior), in units of half a chi-square (default 0: none)")
+    group.add_argument("--prior", type=str, help="with --consistent: JSON with links [{name, mass, com, inertia}] "
+                                                 "(e.g. an earlier result) as the prior instead of the robot's")
+    group.add_argument("--link-bounds", type=str,
+                       help='with --consistent: JSON {"links": {NAME or index: {"mass": [min, max], '
+                            '"com_lower": [x, y, z], "com_upper": [x, y, z]}}}')
+
+
+def check_consistent_arguments(args: argparse.Namespace) -> None:
+    """Refuse consistency options without ``--consistent`` and a negative or non-finite weight."""
+    if not args.consistent:
+        given = [flag for flag, value in (("--prior-weight", args.prior_weight != 0.0), ("--prior", args.prior),
+                                          ("--link-bounds", args.link_bounds)) if value]
+        if given:
+            raise ValueError(f"{', '.join(given)} only with --consistent")
+    if not (np.isfinite(args.prior_weight) and args.prior_weight >= 0):
+        raise ValueError(f"--prior-weight must be a finite non-negative number, got {args.prior_weight}")
+
+
+def consistent_refit(args: argparse.Namespace, result, train, validation) -> ConsistentResult | None:
+    if not args.consistent:
+        return None
+    robot = result.model.robot
+    prior = None if args.prior is None else load_prior(args.prior, robot)
+    bounds = None if args.link_bounds is None else load_link_bounds(args.link_bounds, robot)
+    return identify_consistent(result, train, validation, prior_weight=args.prior_weight, prior=prior,
+                               prior_source=args.prior or "robot description", bounds=bounds)
+
+
+def print_consistent(consistent: ConsistentResult | None) -> None:
+    if consistent is None:
+        return
+    estimate = consistent.estimate
+    print(f"consistent (prior weight {estimate.prior_weight:g}, {estimate.solver['status']}, "
+          f"{estimate.solver['time_s']:.2f} s): excess chi2 {estimate.excess_chi2:.4g}; active: "
+          + (", ".join(estimate.active_bounds) or "none"))
+    for name, theta, margin in zip(estimate.link_names, estimate.link_parameters(), estimate.margins):
+        com = theta[1:4] / theta[0]
+        print(f"  {name}: mass {theta[0]:.4g} kg, com [{com[0]:+.4f} {com[1]:+.4f} {com[2]:+.4f}] m, margin {margin:.2g}")
+    for label, comparison in (("train", consistent.train), ("validation", consistent.validation)):
+        if comparison is not None:
+            print(f"consistent {label} MSE: " + "  ".join(f"{c} {v:.4g}" for c, v in comparison.mse.items()))
