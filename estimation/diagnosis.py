@@ -55,13 +55,14 @@ from dynamics.shape_effects import (
 from dynamics.threads import single_threaded_blas
 from estimation.candidate_trials import candidate_label, fit_or_reason, joints_of, weighted_error, wrong_sign
 from estimation.coupling_candidates import coupling_candidates
-from estimation.diagnosis_statistics import FLOOR_ALPHA, ResidualReport, floor_for_validation, residual_report
+from estimation.diagnosis_statistics import ResidualReport, floor_for_validation, residual_report
 from estimation.identification import IdentificationResult, identify
 from estimation.measurements import Measurements
-from estimation.noise_floor import NoiseFloor, above_floor
-from estimation.whiteness import autocorrelation
+from estimation.noise_floor import NoiseFloor
+from estimation.stopping_rules import SearchState, floor_stopping_rule, provisional_stopping_rule
 from estimation.variable_projection import (Block, FixedPart, NoRowsError, ShapeSearchError, States, effect_columns,
                                             effect_rows, residuals, solve_linear)
+from estimation.whiteness import autocorrelation
 
 #: screened candidates whose shapes are searched again in each round after the first
 SCREEN_REFINED = 4
@@ -189,47 +190,6 @@ def residual_statistics(result: IdentificationResult, *, lags: Sequence[int] = (
                 entry[f"autocorrelation_lag{lag}"] = float(correlation[lag])
         statistics[channel] = entry
     return statistics
-
-
-@dataclass(frozen=True)
-class SearchState:
-    """What the stopping rule sees before each round of the search.
-
-    Attributes
-    ----------
-    channels
-        Channel names.
-    train_residuals, validate_residuals
-        ``(N, m)`` residuals of the current model (fitted on training) on each record.
-    train, validate
-        The measurements.
-    added
-        Effects added so far.
-    """
-
-    channels: tuple[str, ...]
-    train_residuals: NDArray[np.float64]
-    validate_residuals: NDArray[np.float64]
-    train: Measurements
-    validate: Measurements
-    added: tuple[str, ...]
-
-
-def provisional_stopping_rule(state: SearchState) -> bool:
-    """The rule without a noise floor: always ``True`` (keep searching); the search then stops when
-    no candidate is significant on training and confirmed on validation."""
-    return True
-
-
-def floor_stopping_rule(floor: NoiseFloor, *, alpha: float = FLOOR_ALPHA) -> Callable[[SearchState], bool]:
-    """The noise floor as the stopping rule: ``True`` (keep searching) while some channel's
-    validation MSE against the channels as recorded is significantly above its floor
-    (:func:`estimation.noise_floor.above_floor`, an F test at ``alpha``)."""
-    def rule(state: SearchState) -> bool:
-        residual = state.validate_residuals  # (N, m)
-        mse = {channel: float(np.mean(residual[:, index] ** 2)) for index, channel in enumerate(state.channels)}
-        return any(above_floor(mse, floor, residual.shape[0], alpha=alpha).values())
-    return rule
 
 
 @single_threaded_blas()

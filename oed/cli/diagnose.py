@@ -160,7 +160,7 @@ def print_floor(diagnosis) -> None:
         print(statistics.floor_note)
         return
     floor = statistics.floor.mse()
-    print(f"  noise floor    " + "  ".join(f"{floor[channel]:9.4g}" for channel in floor)
+    print("  noise floor    " + "  ".join(f"{floor[channel]:9.4g}" for channel in floor)
           + f"   ({statistics.floor.method}; {statistics.floor_note})")
     ratios = statistics.ratios("after")
     print("  after / floor  " + "  ".join(f"{ratios[channel]:9.3g}" for channel in floor))
