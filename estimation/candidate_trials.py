@@ -36,6 +36,10 @@ from estimation.variable_projection import (
 )
 
 
+#: each term of a several-term friction law must exceed this many standard deviations
+SIGNIFICANT_TERM = 3.0
+
+
 @dataclass(frozen=True)
 class Trial:
     """A candidate (one effect, or a friction law with its joint's offset) fitted on training data
@@ -53,6 +57,12 @@ class Trial:
         """The linear coefficients of the ``position``-th block."""
         stop = self.fit.theta.shape[0] - sum(block.n_linear for block in self.blocks[position + 1:])
         return self.fit.theta[stop - self.blocks[position].n_linear: stop]
+
+    def coefficient_std(self, position: int) -> NDArray[np.float64]:
+        """Standard deviations of the ``position``-th block's linear coefficients (white residuals)."""
+        std = self.fit.theta_std
+        stop = std.shape[0] - sum(block.n_linear for block in self.blocks[position + 1:])
+        return std[stop - self.blocks[position].n_linear: stop]
 
     def shapes(self) -> list[NDArray[np.float64]]:
         parts, start = [], 0
@@ -102,6 +112,13 @@ def wrong_sign(trial: Trial) -> str | None:
         if getattr(block.effect, "physical_kind", name) in POSITIVE_EFFECTS:
             if np.any(np.asarray(coefficients) <= 0):
                 return f"{candidate_label(block.effect)} is estimated with a non-physical sign (a friction or inertia below zero)"
+            if coefficients.shape[0] > 1:  # a law with several terms (Stribeck: fc, fs) needs each of them
+                std = trial.coefficient_std(position)
+                weak = [f"{term} = {value:.3g} ± {sigma:.2g}" for term, value, sigma in zip(block.names, coefficients, std)
+                        if value < SIGNIFICANT_TERM * sigma]
+                if weak:
+                    return (f"its term {', '.join(weak)} is not significantly above zero: a law with fewer terms "
+                            "describes the data")
         if name == "spring" and np.any(coefficients <= 0):
             return "a negative stiffness is not a physical spring (it pushes away from its rest position)"
     start = 0

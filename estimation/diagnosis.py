@@ -53,7 +53,8 @@ from dynamics.shape_effects import (
     shape_parameters,
 )
 from dynamics.threads import single_threaded_blas
-from estimation.candidate_trials import candidate_label, fit_or_reason, joints_of, weighted_error, wrong_sign
+from estimation.candidate_trials import (SIGNIFICANT_TERM, candidate_label, fit_or_reason, joints_of, weighted_error,
+                                        wrong_sign)
 from estimation.coupling_candidates import coupling_candidates
 from estimation.diagnosis_statistics import ResidualReport, floor_for_validation, residual_report
 from estimation.identification import IdentificationResult, identify
@@ -65,7 +66,7 @@ from estimation.variable_projection import (Block, FixedPart, NoRowsError, Shape
 from estimation.whiteness import autocorrelation
 
 #: screened candidates whose shapes are searched again in each round after the first
-SCREEN_REFINED = 4
+SCREEN_REFINED = 2
 JOINT_CANDIDATES: tuple[type, ...] = (CoulombFriction, JointOffset, Armature, StribeckFriction, Spring)
 #: candidates whose shape the data give (:mod:`dynamics.shape_effects`)
 SHAPED_CANDIDATES: tuple[type, ...] = (TanhCoulombFriction, ShapedStribeckFriction, SigmoidFriction, PositionRipple)
@@ -385,6 +386,7 @@ def diagnose(
             # the joint refit of the shapes wandered off (to a bound, or worse on held-out data than the
             # shapes as selected): keep the shapes as selected, estimate the rest and the covariance there
             after = identify(current, train, validate, shape_starts=starts, shape_search=False)
+        selected, after = _simplify_laws(selected, after, model, train, validate, starts, weights, min_improvement)
     return Diagnosis(
         effects=tuple(_found(after, effect, p_value, statistic, model) for effect, p_value, statistic in selected),
         rejected=tuple(rejected[index] for index in sorted(rejected)),
@@ -460,6 +462,40 @@ def _offsets_beat_springs(trials, model) -> dict[tuple[int, ...], str]:
         elif offset.rss <= trial.rss:
             reasons[trial.group] = "an offset explains as much (a stiffness that is an offset in disguise)"
     return reasons
+
+
+def _simpler_law(effect: Effect, after: IdentificationResult, model: IdentificationModel) -> Effect | None:
+    """The simpler law a found several-term law reduces to when its extra term is not significant in
+    the final fit (a Stribeck law whose static term ``fs`` is within :data:`SIGNIFICANT_TERM`
+    standard deviations of zero is Coulomb friction), else ``None``."""
+    if not isinstance(effect, ShapedStribeckFriction):
+        return None
+    records = {record["name"]: record for record in after.estimate.records()}
+    terms = [name for name in effect.parameter_names(model.robot) if name.startswith("fs")]
+    if all(name in records and records[name]["value"] < SIGNIFICANT_TERM * records[name]["std"] for name in terms):
+        return CoulombFriction(joints=effect.joints)
+    return None
+
+
+def _simplify_laws(selected, after, model, train, validate, starts, weights, min_improvement):
+    """One backward step after the joint refit: each found law whose extra terms the final fit does not
+    support is replaced by its simpler law (:func:`_simpler_law`); the replacement is kept when the
+    weighted validation error does not grow by more than ``min_improvement``. A law of a shape the
+    data do not ask for is not named."""
+    replacements = {id(effect): _simpler_law(effect, after, model) for effect, _, _ in selected}
+    if not any(replacements.values()):
+        return selected, after
+    simplified = [(replacements[id(effect)] or effect, p_value, statistic) for effect, p_value, statistic in selected]
+    current = build_model(model.robot, model.kind, model.effects + tuple(effect for effect, _, _ in simplified))
+    kept = {name: value for name, value in starts.items()
+            if any(name in {p.name for p in shape_parameters(effect, model.robot)} for effect, _, _ in simplified)}
+    try:
+        candidate = identify(current, train, validate, shape_starts=kept or None)
+    except ShapeSearchError:
+        return selected, after
+    if _weighted_validation(candidate, weights) <= (1.0 + min_improvement) * _weighted_validation(after, weights):
+        return simplified, candidate
+    return selected, after
 
 
 def _found(after: IdentificationResult, effect: Effect, p_value: float, statistic: float,
