@@ -28,6 +28,7 @@ from dynamics.robots import load_robot
 from dynamics.simulator import NoiseModel, Simulator
 from estimation.diagnosis import diagnose
 from estimation.diagnosis_report import markdown_report, plot_residuals
+from estimation.noise_floor import noise_floor
 from estimation.output_files import OutputFiles, json_text
 from estimation.preprocessing import FourierDifferentiation, fill_derivatives
 from estimation.validation import plot_comparison
@@ -87,17 +88,21 @@ def _loop(robot, out: Path, outputs, say: Callable[[str], None]) -> dict:
     # enough that the motion there stays within the Fourier fit's band (20 Hz: tau1 1.9x the noise
     # with the true law, 50 Hz: 2.2x, 10 Hz: 1.26x; measured on this demo's records)
     controller = simulator.default_controller(bandwidth_hz=10.0)
-    data = {}
+    data, recorded = {}, {}
     for index, (label, design) in enumerate(designs.items()):
         result = simulator.run(design.trajectory, controller, periods=3, warmup_periods=1, seed=index + 1)
         result.measurements.write(outputs.stage(out / f"data_{label}.csv"))
+        recorded[label] = result.measurements
         # all periods fitted on their own time stamps: the torques stay as recorded
         differentiation = FourierDifferentiation(frequency_hz=design.trajectory.frequency_hz, harmonics=HARMONICS, average=False)
         data[label] = fill_derivatives(result.measurements, differentiation, held_torques=True)
 
     say("3. identifying the declared model and diagnosing its residual...")
     model = build_model(robot, "internal", "viscous")
-    diagnosis = diagnose(model, data["train"], data["validate"])
+    # the yardstick: each torque's noise variance from the validation record as simulated, without the
+    # model (period to period: three periods of one trajectory)
+    floor = noise_floor(recorded["validate"], model.channels)
+    diagnosis = diagnose(model, data["train"], data["validate"], noise_floor=floor)
     document = diagnosis.to_dict()
     smoothing = {f"vc{joint + 1}": effect.smoothing for effect in simulator.joint_effects if effect.name == "coulomb"
                  for joint in range(robot.n_joints)}
@@ -124,7 +129,10 @@ def _loop(robot, out: Path, outputs, say: Callable[[str], None]) -> dict:
     noise_variance = float(np.max(np.atleast_1d(simulator.noise.tau_std))) ** 2
     say(f"4. validation MSE per channel [N^2 m^2], against the torques as recorded (not period-averaged; "
         f"torque noise variance: {noise_variance:.3g})")
+    floor_mse = floor.mse()
+    say(f"   noise floor estimated without the model ({floor.method}): "
+        + ", ".join(f"{channel} {value:.3g}" for channel, value in floor_mse.items()))
     for channel in before:
         say(f"   {channel}: before {before[channel]:9.4g}   after {after[channel]:9.4g}   "
-            f"after/noise {after[channel] / noise_variance:5.2f}")
+            f"after/noise {after[channel] / noise_variance:5.2f}   after/floor {after[channel] / floor_mse[channel]:5.2f}")
     return document
