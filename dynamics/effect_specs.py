@@ -112,6 +112,7 @@ def effect_spec(effect: Any) -> str:
     joints = getattr(effect, "joints", None)
     if getattr(effect, "motor", False):
         return f"motor_{effect.kind}@" + "+".join(label.removeprefix("m") for label in effect.labels)
+    name = getattr(effect, "spec", effect.name)  # a law with shape parameters: coulomb:tanh, sigmoid…
     if joints is None:
-        return effect.name
-    return f"{effect.name}@" + "+".join(str(joint + 1) for joint in joints)
+        return name
+    return f"{name}@" + "+".join(str(joint + 1) for joint in joints)

@@ -101,6 +101,9 @@ def identify_consistent(
     starts: int = 2,
 ) -> ConsistentResult:
     """Consistent refit of ``result`` (its model, train data and channel weights)."""
+    if getattr(result, "shaped_fit", None) is not None:
+        raise ValueError("the consistent refit works on the linear effects: this result has laws with shape parameters "
+                         "(coulomb:tanh, sigmoid…), fitted by variable projection; declare their plain forms")
     model = result.model
     estimator = ConsistentLeastSquares(prior_weight=prior_weight, prior=prior, bounds=bounds, starts=starts)
     estimate = estimator.fit(model, stack(model, train), unconstrained=result.estimate).estimate_

@@ -135,8 +135,15 @@ class Measurements:
         def take(values):
             return None if values is None else values[indices]
         recorded = self.recorded
-        if recorded is not None:  # the same samples when it is on the same grid, else dropped
-            recorded = recorded.select(indices) if recorded.n_samples == self.n_samples else None
+        if recorded is not None and recorded.n_samples == self.n_samples:  # the same grid: the same samples
+            recorded = recorded.select(indices)
+        elif recorded is not None and recorded.n_samples % self.n_samples == 0:
+            # averaged periods: the recorded channels hold P periods of these samples, one after the other
+            chosen = np.arange(self.n_samples)[indices]
+            periods = recorded.n_samples // self.n_samples
+            recorded = recorded.select(np.concatenate([chosen + k * self.n_samples for k in range(periods)]))
+        else:
+            recorded = None
         return replace(
             self, t=self.t[indices], q=self.q[indices], dq=take(self.dq), ddq=take(self.ddq),
             tau=take(self.tau), wrench=take(self.wrench), recorded=recorded,

@@ -7,7 +7,9 @@
         "effects": "viscous,coulomb@2+5,coulomb[q5+q6]",      # the spec that rebuilds the model
         "transmission": {"matrix": [[...]], ...} | null,      # when motor-side effects need it
         "channels": ["tau1", ...],
-        "names": [...], "expressions": [...], "values": [...], "std": [...]}
+        "names": [...], "expressions": [...], "values": [...], "std": [...],
+        "shape": {"vc1": 0.05, ...}, "shape_std": {...},       # laws with shape parameters (coulomb:tanh…)
+        "smoothing": {"coulomb@2": 0.05}}                     # Coulomb laws smoothed at rest (--rest smooth)
 
 ``names`` are the base parameters, ``expressions`` the standard parameters each groups
 (``Izz2R = Izz2 - a2**2*(m2 + m3)``); ``values`` and ``std`` their estimates and standard
@@ -39,4 +41,10 @@ def model_parameters(result: IdentificationResult, transmission: Any = None) -> 
         "expressions": list(estimate.expressions),
         "values": [float(value) for value in estimate.values],
         "std": [float(value) if np.isfinite(value) else None for value in estimate.std],
+        # the shape parameters of laws such as coulomb:tanh (the columns above are at these values),
+        # and the fixed smoothing of Coulomb laws smoothed for rows at rest (--rest smooth)
+        "shape": {value.name: float(value.value) for value in getattr(result, "shapes", ())},
+        "shape_std": {value.name: float(value.std) for value in getattr(result, "shapes", ())},
+        "smoothing": {effect_spec(effect): float(effect.smoothing) for effect in model.effects
+                      if getattr(effect, "smoothing", None) is not None and not hasattr(effect, "spec")},
     }

@@ -64,6 +64,17 @@ class StreamedIdentificationResult:
     warnings: tuple[str, ...] = ()
     frequency_hz: float | None = None
 
+    @property
+    def filtered(self) -> bool:
+        """Some summed channels were filtered or averaged: their MSEs are not against the recording."""
+        return _filtered(self.files) or _filtered(self.validation_files)
+
+    @staticmethod
+    def _errors(mse: dict[str, float], parts: Sequence[FileSums]) -> dict[str, Any]:
+        """``{mse}``, or ``{mse: null, mse_filtered}`` when the files' channels were filtered (errors are
+        reported against the recording, which the sums of filtered channels do not hold)."""
+        return {"mse": None, "mse_filtered": mse} if _filtered(parts) else {"mse": mse}
+
     def to_dict(self) -> dict[str, Any]:
         """The JSON document of ``oed identify`` (same keys) plus ``streaming``::
 
@@ -85,9 +96,12 @@ class StreamedIdentificationResult:
             "parameters": records,
             "cond": float(estimate.cond),
             "channel_std": dict(zip(estimate.channels, map(float, np.sqrt(estimate.channel_variance)))),
-            "train": {"mse": self.train_mse},
-            "validation": None if self.validation_mse is None else {"mse": self.validation_mse},
+            "train": self._errors(self.train_mse, self.files),
+            "validation": None if self.validation_mse is None else self._errors(self.validation_mse,
+                                                                                 self.validation_files),
             "warnings": list(self.warnings),
+            "cov_method": "classical",  # white residuals assumed: the sums hold no HAC estimate
+            "hac_lags": None,
             "streaming": {
                 "chunk_size": self.chunk_size,
                 "cutoff_hz": self.cutoff_hz,
@@ -96,6 +110,12 @@ class StreamedIdentificationResult:
                 "validation_files": [_file_record(part) for part in self.validation_files],
             },
         }
+
+
+def _filtered(parts: Sequence[FileSums]) -> bool:
+    """Whether the summed channels were low-pass filtered, period-averaged or decimated."""
+    return any(part.metadata.get("margin", 0) or (part.metadata.get("periods_averaged") or 1) > 1
+               or part.metadata.get("decimation", 1) > 1 for part in parts)
 
 
 def _file_record(part: FileSums) -> dict[str, Any]:

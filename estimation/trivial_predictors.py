@@ -28,7 +28,10 @@ class TrivialPredictorWarning(UserWarning):
 
 
 def trivial_mse(model: IdentificationModel, measurements: Measurements) -> dict[str, dict[str, float]]:
-    """``{"zero_mse": {channel: value}, "nominal_mse": {channel: value}}`` on ``measurements``."""
+    """``{"zero_mse": {channel: value}, "nominal_mse": {channel: value}}`` on ``measurements``, against
+    the channels as recorded (``measurements.recorded`` when preprocessing filtered or averaged them),
+    as the identified model's validation MSE is."""
+    measurements = measurements.as_recorded
     measured = measurements.channels(model.channels)
     zero = np.mean(measured**2, axis=0)
     predicted = model.predict(model.nominal_parameters(), measurements.q, measurements.dq, measurements.ddq)

@@ -100,6 +100,8 @@ def test_several_files_one_estimate_serial_threads_and_validation(model, files):
     document = serial.to_dict()
     assert document["n_samples"] == 12_000
     assert [entry["rows"] for entry in document["streaming"]["files"]] == [5000, 4000, 3000]
+    # the training files were low-pass filtered: their errors are not against the recording, and say so
+    assert document["train"]["mse"] is None and set(document["train"]["mse_filtered"]) == set(model.channels)
     # the validation MSE on clean, exact-derivative data sits at the simulated noise floor
     for channel, value in document["validation"]["mse"].items():
         assert 0.85 < value / NOISE[channel] ** 2 < 1.2, (channel, value)

@@ -61,19 +61,23 @@ def derived_outputs(args: argparse.Namespace) -> dict[str, Path]:
             "the report's tracing figure": trace_figure(args.report)}
 
 
-def recorded_floor(paths: list[Path], model, args: argparse.Namespace, transmission=None) -> NoiseFloor | None:
+def recorded_floor(paths: list[Path], model, args: argparse.Namespace, transmission=None,
+                   frequency_hz: float | None = None) -> NoiseFloor | None:
     """The noise floor of the validation record as loaded, before any differentiation, averaging or
-    filtering (period-to-period with ``--frequency`` or the file's frequency, else differences),
-    pooled over its segments; ``None`` with a warning when the record cannot give one."""
-    floors = []
+    filtering (period-to-period at ``frequency_hz`` (given or detected) or the file's frequency, else
+    differences), pooled over the segments that can give one; ``None`` with a warning when none can."""
+    floors, failures = [], []
     for path in paths:
         for segment in read_record_with_transmission(path, model=model, transmission=transmission,
                                                      max_gap=args.max_gap, split=False):
             try:
-                floors.append(noise_floor(segment, model.channels, frequency_hz=args.frequency))
+                floors.append(noise_floor(segment, model.channels, frequency_hz=frequency_hz))
             except NoiseFloorError as error:
-                warnings.warn(f"no noise floor from {path}: {error}", stacklevel=2)
-                return None
+                failures.append(f"{path}: {error}")
+    if failures:
+        warnings.warn("no noise floor from " + "; ".join(failures)
+                      + ("" if floors else " (the floor is then estimated from the prepared validation data, if they "
+                         "can give one)"), stacklevel=2)
     return pooled_floor(floors)
 
 
@@ -97,7 +101,8 @@ def run(args: argparse.Namespace) -> int:
         train, rest_train = rest_rows(train, model, args, "train")
         validate, rest_validate = rest_rows(validate, model, args, "validation")
         candidates = default_candidates(model) + coupling_candidates(model, transmission, train=train)
-        floor = recorded_floor(args.validate, model, args, transmission)
+        frequency = preprocessing.frequency_hz if preprocessing.method == "fourier" else args.frequency
+        floor = recorded_floor(args.validate, model, args, transmission, frequency)
         diagnosis = diagnose(model, train, validate, alpha=args.alpha, candidates=candidates,
                              max_effects=args.max_effects, noise_floor=floor)
         trivial, notes = trivial_predictors(diagnosis.after, validate)

@@ -113,7 +113,7 @@ def run_streaming(args: argparse.Namespace, robot, model) -> int:
         with executor_from_arguments(args) as executor:
             result = identify_files(model, args.data, args.validate or [],
                                     method=args.method, chunk_size=chunk_size, cutoff_hz=args.cutoff,
-                                    frequency_hz=args.frequency, harmonics=args.harmonics,
+                                    frequency_hz=args.frequency, harmonics=5 if args.harmonics is None else args.harmonics,
                                     decimation=args.decimate, held_torques=args.held_torques, executor=executor)
     for message in dict.fromkeys(str(warning.message) for warning in caught):  # once each, in order
         print(f"oed identify: warning: {message}", file=sys.stderr)
@@ -127,9 +127,13 @@ def run_streaming(args: argparse.Namespace, robot, model) -> int:
         print(f"Butterworth cut-off {result.cutoff_hz:.4g} Hz" + ("" if args.cutoff is not None else
               f" (automatic, from the first chunk of {args.data[0]})"))
     _print_estimate(estimate)
-    print("train MSE: " + "  ".join(f"{channel} {value:.4g}" for channel, value in result.train_mse.items()))
-    if result.validation_mse is not None:
-        print("validation MSE: " + "  ".join(f"{channel} {value:.4g}" for channel, value in result.validation_mse.items()))
+    document = result.to_dict()
+    for label in ("train", "validation"):
+        errors = document[label]
+        if errors is not None:
+            against, mse = ("vs recorded", errors["mse"]) if errors["mse"] is not None else \
+                ("vs filtered: not against the recording", errors["mse_filtered"])
+            print(f"{label} MSE ({against}): " + "  ".join(f"{channel} {value:.4g}" for channel, value in mse.items()))
     print(f"wrote {args.out}")
     return 0
 
@@ -255,6 +259,9 @@ def run(args: argparse.Namespace) -> int:
     effects = model_effects(args, robot, transmission)
     model = build_model(robot, args.model, effects)
     check_shaped_effects_kept(effects, model)
+    if args.consistent and result_has_shapes(model):
+        raise ValueError("--consistent refits the linear effects: laws with shape parameters (coulomb:tanh, sigmoid…) "
+                         "are not supported there yet; declare their plain forms (coulomb) for the consistent fit")
     if streaming_requested(args):
         if args.plot is not None:
             raise ValueError("--plot draws every sample: not with the streamed path (--chunk-size, --scheduler or "
@@ -268,6 +275,13 @@ def run(args: argparse.Namespace) -> int:
         if args.consistent:
             raise ValueError("--consistent refits in memory: not with the streamed path (--chunk-size, --scheduler or "
                              "--workers)")
+        unsupported = [option for option, given in (
+            ("--transmission", args.transmission is not None), ("--average-periods", args.average_periods != "auto"),
+            ("--max-gap", args.max_gap != DEFAULT_MAX_GAP)) if given]
+        if unsupported:
+            raise ValueError(f"{', '.join(unsupported)}: not with the streamed path (--chunk-size, --scheduler or "
+                             "--workers), which reads whole files without holes, joint-side columns, and averages "
+                             "periods whenever --frequency is given")
         return run_streaming(args, robot, model)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
