@@ -53,8 +53,8 @@ from dynamics.shape_effects import (
     shape_parameters,
 )
 from dynamics.threads import single_threaded_blas
-from estimation.candidate_trials import (SIGNIFICANT_TERM, candidate_label, fit_or_reason, joints_of, weighted_error,
-                                        wrong_sign)
+from estimation.candidate_trials import candidate_label, fit_or_reason, joints_of, weighted_error, wrong_sign
+from estimation.confirmation import channels_made_worse, simplify_laws, weighted_validation
 from estimation.coupling_candidates import coupling_candidates
 from estimation.diagnosis_statistics import ResidualReport, floor_for_validation, residual_report
 from estimation.identification import IdentificationResult, identify
@@ -338,7 +338,7 @@ def diagnose(
                               f"lowers the validation error by less than {100 * min_improvement:g} %")
                     defer(trial.group[0], text + f"{change} ({validation_error:.4g} -> {error:.4g})")
                 continue
-            worse = _channels_made_worse(trial, validate_residual, residual_v, min_improvement, model)
+            worse = channels_made_worse(trial, validate_residual, residual_v, min_improvement, model)
             if worse:  # a trade between channels (a pair acting on two rows, say) is not a confirmed effect
                 if len(trial.group) == 1:
                     defer(trial.group[0], text + f"raises the validation error of {worse}")
@@ -382,11 +382,11 @@ def diagnose(
         except ShapeSearchError:  # the joint refit ran a shape to where the data do not determine it
             after = None
         if after is None or any(value.at_bound for value in after.shapes) \
-                or _weighted_validation(after, weights) > 1.05 * validation_error:
+                or weighted_validation(after, weights) > 1.05 * validation_error:
             # the joint refit of the shapes wandered off (to a bound, or worse on held-out data than the
             # shapes as selected): keep the shapes as selected, estimate the rest and the covariance there
             after = identify(current, train, validate, shape_starts=starts, shape_search=False)
-        selected, after = _simplify_laws(selected, after, model, train, validate, starts, weights, min_improvement)
+        selected, after = simplify_laws(selected, after, model, train, validate, starts, weights, min_improvement)
     return Diagnosis(
         effects=tuple(_found(after, effect, p_value, statistic, model) for effect, p_value, statistic in selected),
         rejected=tuple(rejected[index] for index in sorted(rejected)),
@@ -395,21 +395,6 @@ def diagnose(
         residuals=residual_statistics(before),
         statistics=residual_report(before, after, train, validate, noise_floor),
     )
-
-
-def _channels_made_worse(trial, current: NDArray[np.float64], candidate: NDArray[np.float64], tolerance: float,
-                         model: IdentificationModel) -> str:
-    """The channels a trial's effects act on whose validation MSE it raises by more than ``tolerance``
-    (relative), as ``"tau2 (1.08 -> 1.57)"``; empty when none. ``current``, ``candidate``: ``(m, N)``
-    validation residuals without and with the trial."""
-    before, after = np.mean(current**2, axis=1), np.mean(candidate**2, axis=1)
-    rows = sorted({row for block in trial.blocks for row in block.rows})
-    return ", ".join(f"{model.channels[row]} ({before[row]:.4g} -> {after[row]:.4g})"
-                     for row in rows if after[row] > (1.0 + tolerance) * before[row])
-
-
-def _weighted_validation(result: IdentificationResult, weights: NDArray[np.float64]) -> float:
-    return float(np.dot(weights, list(result.validation.mse.values())))
 
 
 def _effect_joints(effect: Effect, model: IdentificationModel) -> tuple[int, ...]:
@@ -462,40 +447,6 @@ def _offsets_beat_springs(trials, model) -> dict[tuple[int, ...], str]:
         elif offset.rss <= trial.rss:
             reasons[trial.group] = "an offset explains as much (a stiffness that is an offset in disguise)"
     return reasons
-
-
-def _simpler_law(effect: Effect, after: IdentificationResult, model: IdentificationModel) -> Effect | None:
-    """The simpler law a found several-term law reduces to when its extra term is not significant in
-    the final fit (a Stribeck law whose static term ``fs`` is within :data:`SIGNIFICANT_TERM`
-    standard deviations of zero is Coulomb friction), else ``None``."""
-    if not isinstance(effect, ShapedStribeckFriction):
-        return None
-    records = {record["name"]: record for record in after.estimate.records()}
-    terms = [name for name in effect.parameter_names(model.robot) if name.startswith("fs")]
-    if all(name in records and records[name]["value"] < SIGNIFICANT_TERM * records[name]["std"] for name in terms):
-        return CoulombFriction(joints=effect.joints)
-    return None
-
-
-def _simplify_laws(selected, after, model, train, validate, starts, weights, min_improvement):
-    """One backward step after the joint refit: each found law whose extra terms the final fit does not
-    support is replaced by its simpler law (:func:`_simpler_law`); the replacement is kept when the
-    weighted validation error does not grow by more than ``min_improvement``. A law of a shape the
-    data do not ask for is not named."""
-    replacements = {id(effect): _simpler_law(effect, after, model) for effect, _, _ in selected}
-    if not any(replacements.values()):
-        return selected, after
-    simplified = [(replacements[id(effect)] or effect, p_value, statistic) for effect, p_value, statistic in selected]
-    current = build_model(model.robot, model.kind, model.effects + tuple(effect for effect, _, _ in simplified))
-    kept = {name: value for name, value in starts.items()
-            if any(name in {p.name for p in shape_parameters(effect, model.robot)} for effect, _, _ in simplified)}
-    try:
-        candidate = identify(current, train, validate, shape_starts=kept or None)
-    except ShapeSearchError:
-        return selected, after
-    if _weighted_validation(candidate, weights) <= (1.0 + min_improvement) * _weighted_validation(after, weights):
-        return simplified, candidate
-    return selected, after
 
 
 def _found(after: IdentificationResult, effect: Effect, p_value: float, statistic: float,

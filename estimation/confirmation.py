@@ -1,0 +1,71 @@
+"""How a diagnosis confirms what it adds, and simplifies what it found.
+
+* :func:`channels_made_worse`: a candidate is not confirmed when it raises the validation error of a
+  channel it acts on (a pair acting on two rows must not trade one for the other).
+* :func:`simplify_laws`: after the joint refit, a several-term law whose extra term the final fit does
+  not support is replaced by its simpler law (a Stribeck law without a significant static term is
+  Coulomb friction): a law of a shape the data do not ask for is not named.
+
+Validation errors here are against the channels as recorded (:func:`estimation.diagnosis.diagnose`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+from dynamics.effects import CoulombFriction, Effect
+from dynamics.models import IdentificationModel, build_model
+from dynamics.shape_effects import ShapedStribeckFriction, shape_parameters
+from estimation.candidate_trials import SIGNIFICANT_TERM
+from estimation.identification import IdentificationResult, identify
+from estimation.variable_projection import ShapeSearchError
+
+
+def channels_made_worse(trial, current: NDArray[np.float64], candidate: NDArray[np.float64], tolerance: float,
+                         model: IdentificationModel) -> str:
+    """The channels a trial's effects act on whose validation MSE it raises by more than ``tolerance``
+    (relative), as ``"tau2 (1.08 -> 1.57)"``; empty when none. ``current``, ``candidate``: ``(m, N)``
+    validation residuals without and with the trial."""
+    before, after = np.mean(current**2, axis=1), np.mean(candidate**2, axis=1)
+    rows = sorted({row for block in trial.blocks for row in block.rows})
+    return ", ".join(f"{model.channels[row]} ({before[row]:.4g} -> {after[row]:.4g})"
+                     for row in rows if after[row] > (1.0 + tolerance) * before[row])
+
+
+def weighted_validation(result: IdentificationResult, weights: NDArray[np.float64]) -> float:
+    return float(np.dot(weights, list(result.validation.mse.values())))
+
+
+def _simpler_law(effect: Effect, after: IdentificationResult, model: IdentificationModel) -> Effect | None:
+    """The simpler law a found several-term law reduces to when its extra term is not significant in
+    the final fit (a Stribeck law whose static term ``fs`` is within :data:`SIGNIFICANT_TERM`
+    standard deviations of zero is Coulomb friction), else ``None``."""
+    if not isinstance(effect, ShapedStribeckFriction):
+        return None
+    records = {record["name"]: record for record in after.estimate.records()}
+    terms = [name for name in effect.parameter_names(model.robot) if name.startswith("fs")]
+    if all(name in records and records[name]["value"] < SIGNIFICANT_TERM * records[name]["std"] for name in terms):
+        return CoulombFriction(joints=effect.joints)
+    return None
+
+
+def simplify_laws(selected, after, model, train, validate, starts, weights, min_improvement):
+    """One backward step after the joint refit: each found law whose extra terms the final fit does not
+    support is replaced by its simpler law (:func:`_simpler_law`); the replacement is kept when the
+    weighted validation error does not grow by more than ``min_improvement``. A law of a shape the
+    data do not ask for is not named."""
+    replacements = {id(effect): _simpler_law(effect, after, model) for effect, _, _ in selected}
+    if not any(replacements.values()):
+        return selected, after
+    simplified = [(replacements[id(effect)] or effect, p_value, statistic) for effect, p_value, statistic in selected]
+    current = build_model(model.robot, model.kind, model.effects + tuple(effect for effect, _, _ in simplified))
+    kept = {name: value for name, value in starts.items()
+            if any(name in {p.name for p in shape_parameters(effect, model.robot)} for effect, _, _ in simplified)}
+    try:
+        candidate = identify(current, train, validate, shape_starts=kept or None)
+    except ShapeSearchError:
+        return selected, after
+    if weighted_validation(candidate, weights) <= (1.0 + min_improvement) * weighted_validation(after, weights):
+        return simplified, candidate
+    return selected, after
