@@ -17,7 +17,7 @@ $(STAMP): pyproject.toml
 test: $(STAMP)
 	$(PY) -m pytest -q -n 2
 
-test-slow: $(STAMP)  # exit status 5: no test is marked slow at present
+test-slow: $(STAMP)  # the checks marked slow (coverage Monte Carlo, coupled wrist, clusters of processes…)
 	$(PY) -m pytest -q -m slow || [ $$? -eq 5 ]
 
 demo: $(STAMP)
