@@ -34,8 +34,8 @@ from estimation.identification_problem import IdentificationProblem, stack
 from estimation.measurements import Measurements
 
 __all__ = [
-    "Estimate", "IdentifiabilityError", "IdentificationProblem", "LeastSquares", "NotFittedError",
-    "WeightedLeastSquares", "channel_gram", "channel_variance", "solve", "stack",
+    "Estimate", "IdentifiabilityError", "IdentificationProblem", "LeastSquares", "NotFittedError", "ParameterRecords",
+    "WeightedLeastSquares", "channel_gram", "channel_variance", "freeze_arrays", "solve", "stack",
 ]
 
 #: smallest/largest eigenvalue of the equilibrated ``YᵀWY`` below this: a parameter is not excited
@@ -48,8 +48,28 @@ class IdentifiabilityError(ValueError):
 
 
 
+def freeze_arrays(instance: Any, names: tuple[str, ...]) -> None:
+    """Store the named attributes of a frozen dataclass as read-only float arrays (frozen all the way
+    down: ``estimator.theta_[0] = 0`` must not rewrite an estimate)."""
+    for name in names:
+        array = np.array(getattr(instance, name), dtype=float)
+        array.flags.writeable = False
+        object.__setattr__(instance, name, array)
+
+
+class ParameterRecords:
+    """``records()`` of an estimate with ``names, expressions, values, std, relative_std``."""
+
+    def records(self) -> list[dict[str, Any]]:
+        """One dict per parameter: ``name, expression, value, std, relative_std``."""
+        return [
+            {"name": name, "expression": expression, "value": float(value), "std": float(std), "relative_std": float(relative)}
+            for name, expression, value, std, relative in zip(self.names, self.expressions, self.values, self.std, self.relative_std)
+        ]
+
+
 @dataclass(frozen=True)
-class Estimate:
+class Estimate(ParameterRecords):
     """Identified parameters with their uncertainty and the fit's residuals.
 
     Attributes
@@ -99,18 +119,7 @@ class Estimate:
     hac_lags: int | None = None
 
     def __post_init__(self) -> None:
-        # frozen all the way down: estimator.theta_[0] = 0 must not rewrite the estimate
-        for name in ("values", "cov", "std", "relative_std", "residuals", "channel_variance", "weights"):
-            array = np.array(getattr(self, name), dtype=float)
-            array.flags.writeable = False
-            object.__setattr__(self, name, array)
-
-    def records(self) -> list[dict[str, Any]]:
-        """One dict per parameter: ``name, expression, value, std, relative_std``."""
-        return [
-            {"name": name, "expression": expression, "value": float(value), "std": float(std), "relative_std": float(relative)}
-            for name, expression, value, std, relative in zip(self.names, self.expressions, self.values, self.std, self.relative_std)
-        ]
+        freeze_arrays(self, ("values", "cov", "std", "relative_std", "residuals", "channel_variance", "weights"))
 
     def channel_rms(self) -> dict[str, float]:
         """Root-mean-square residual per channel."""

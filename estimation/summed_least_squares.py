@@ -9,7 +9,7 @@ from the per-channel TSQR factors (see :mod:`estimation.normal_equations` for th
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Literal
+from typing import Literal
 
 import numpy as np
 import scipy.linalg
@@ -18,7 +18,7 @@ from numpy.typing import NDArray
 from dynamics.threads import single_threaded_blas
 from estimation.errors import NotFittedError
 from estimation.estimator import Estimator
-from estimation.least_squares import IDENTIFIABILITY_TOLERANCE, IdentifiabilityError
+from estimation.least_squares import IDENTIFIABILITY_TOLERANCE, IdentifiabilityError, ParameterRecords, freeze_arrays
 from estimation.normal_equations import NormalEquations, stacked_factor
 
 __all__ = ["SummedEstimate", "SummedLeastSquares", "solve_sums"]
@@ -59,7 +59,7 @@ def solve_sums(sums: NormalEquations, weights: NDArray[np.float64]) -> tuple[NDA
 
 
 @dataclass(frozen=True)
-class SummedEstimate:
+class SummedEstimate(ParameterRecords):
     """Identified parameters from sums: :class:`estimation.least_squares.Estimate` without the
     per-sample residuals (``channel_rss`` and ``n_samples`` instead)."""
 
@@ -79,17 +79,7 @@ class SummedEstimate:
     n_iterations: int
 
     def __post_init__(self) -> None:
-        for name in ("values", "cov", "std", "relative_std", "channel_variance", "channel_rss", "weights"):
-            array = np.array(getattr(self, name), dtype=float)
-            array.flags.writeable = False
-            object.__setattr__(self, name, array)
-
-    def records(self) -> list[dict[str, Any]]:
-        """One dict per parameter: ``name, expression, value, std, relative_std``."""
-        return [
-            {"name": name, "expression": expression, "value": float(value), "std": float(std), "relative_std": float(relative)}
-            for name, expression, value, std, relative in zip(self.names, self.expressions, self.values, self.std, self.relative_std)
-        ]
+        freeze_arrays(self, ("values", "cov", "std", "relative_std", "channel_variance", "channel_rss", "weights"))
 
     def channel_rms(self) -> dict[str, float]:
         """Root-mean-square residual per channel."""
