@@ -231,9 +231,7 @@ class LeastSquares(Estimator):
         )
 
     def _fitted(self) -> Estimate:
-        if not hasattr(self, "estimate_"):
-            raise NotFittedError(f"this {type(self).__name__} is not fitted yet: call fit first")
-        return self.estimate_
+        return self.estimate_  # before fit: NotFittedError from Estimator.__getattr__
 
     theta_ = property(lambda self: self._fitted().values, doc="Estimated parameters.")
     cov_ = property(lambda self: self._fitted().cov, doc="Covariance of the estimates.")

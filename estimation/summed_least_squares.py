@@ -16,7 +16,6 @@ import scipy.linalg
 from numpy.typing import NDArray
 
 from dynamics.threads import single_threaded_blas
-from estimation.errors import NotFittedError
 from estimation.estimator import Estimator
 from estimation.least_squares import IDENTIFIABILITY_TOLERANCE, IdentifiabilityError, ParameterRecords, freeze_arrays
 from estimation.normal_equations import NormalEquations, stacked_factor
@@ -151,9 +150,7 @@ class SummedLeastSquares(Estimator):
         return self
 
     def _fitted(self) -> SummedEstimate:
-        if not hasattr(self, "estimate_"):
-            raise NotFittedError(f"this {type(self).__name__} is not fitted yet: call fit first")
-        return self.estimate_
+        return self.estimate_  # before fit: NotFittedError from Estimator.__getattr__
 
     theta_ = property(lambda self: self._fitted().values, doc="Estimated parameters.")
     cov_ = property(lambda self: self._fitted().cov, doc="Covariance of the estimates.")
