@@ -2,8 +2,9 @@
 
 Procedure (forward selection on nested linear models):
 
-1. Identify the declared model by channel-weighted least squares; keep its channel weights
-   ``w_c = 1/σ_c²`` fixed for the comparisons that follow.
+1. Identify the declared model by channel-weighted least squares; its channel weights
+   ``w_c = 1/σ_c²`` serve the tests of a round and are re-estimated from the residuals of each
+   model the search adopts.
 2. For every candidate effect (one column block per joint or plate channel: ``coulomb``,
    ``offset``, ``armature``, ``stribeck``, ``spring``, ``wrench_offset``; the shaped laws
    ``coulomb:tanh``, ``stribeck:velocity``, ``sigmoid``, ``ripple``; or a user's own effect)
@@ -17,7 +18,9 @@ Procedure (forward selection on nested linear models):
 4. The best-ranked candidate is added only if its estimate is physical (friction, armature
    positive; a spring's stiffness positive, and a spring only when it explains more than an
    offset on its joint does), no other Coulomb-like law is on its joint, and it lowers the
-   weighted validation error on the held-out data by at least ``min_improvement``; then the
+   weighted validation error on the held-out data by at least ``min_improvement``, the candidate
+   and the current model both trained and compared at the weights the candidate's own residuals
+   give (:func:`estimation.confirmation.reweighted_comparison`); then the
    search repeats while the stopping rule (the noise floor; :func:`provisional_stopping_rule`)
    allows it. It stops when nothing significant and confirmed remains.
 5. Re-identify the augmented model (all shapes refit jointly) and report the validation MSE per
@@ -54,12 +57,13 @@ from dynamics.shape_effects import (
 )
 from dynamics.threads import single_threaded_blas
 from estimation.candidate_trials import candidate_label, fit_or_reason, joints_of, weighted_error, wrong_sign
-from estimation.confirmation import channels_made_worse, simplify_laws, weighted_validation
+from estimation.confirmation import channels_made_worse, reweighted_comparison, simplify_laws, weighted_validation
 from estimation.coupling_candidates import coupling_candidates
 from estimation.diagnosis_statistics import ResidualReport, floor_for_validation, residual_report
 from estimation.identification import IdentificationResult, identify
 from estimation.measurements import Measurements
 from estimation.noise_floor import NoiseFloor
+from estimation.sign_constraints import PinnedTerm, pin_wrong_signs
 from estimation.stopping_rules import SearchState, floor_stopping_rule, provisional_stopping_rule
 from estimation.variable_projection import (Block, FixedPart, NoRowsError, ShapeSearchError, States, effect_columns,
                                             effect_rows, residuals, solve_linear)
@@ -115,6 +119,7 @@ class Diagnosis:
     after: IdentificationResult
     residuals: dict[str, dict[str, float]] = field(repr=False)
     statistics: ResidualReport | None = field(default=None, repr=False)
+    pinned: tuple[PinnedTerm, ...] = ()
 
     def to_dict(self) -> dict[str, Any]:
         """The JSON document of ``oed diagnose``."""
@@ -133,6 +138,7 @@ class Diagnosis:
                 "after": {"mse": self.after.validation.mse if self.after.validation else None},
             },
             "cov_method": self.after.estimate.cov_method,
+            "pinned": [term.to_dict() for term in self.pinned],
         }
         if self.statistics is not None:  # noise floor, tracing, whiteness (estimation.diagnosis_statistics)
             document.update(self.statistics.to_dict())
@@ -330,25 +336,27 @@ def diagnose(
                 if len(trial.group) == 1:
                     defer(trial.group[0], text + reason)
                 continue
-            error, residual_v = weighted_error(fixed_validate, trial.blocks, states_validate, trial.shapes(),
-                                               trial.fit.theta, weights)
-            if error >= (1.0 - min_improvement) * validation_error:
+            # both models trained and compared at the weights the candidate's residuals give
+            comparison = reweighted_comparison(trial, fixed_train, fixed_validate, states_train, states_validate, weights)
+            error, current_error = comparison.error, comparison.current_error
+            if error >= (1.0 - min_improvement) * current_error:
                 if len(trial.group) == 1:
-                    change = ("raises the validation error" if error > validation_error else
+                    change = ("raises the validation error" if error > current_error else
                               f"lowers the validation error by less than {100 * min_improvement:g} %")
-                    defer(trial.group[0], text + f"{change} ({validation_error:.4g} -> {error:.4g})")
+                    defer(trial.group[0], text + f"{change} ({current_error:.4g} -> {error:.4g})")
                 continue
-            worse = channels_made_worse(trial, validate_residual, residual_v, min_improvement, model)
+            worse = channels_made_worse(trial, comparison.current_residual, comparison.residual, min_improvement, model)
             if worse:  # a trade between channels (a pair acting on two rows, say) is not a confirmed effect
                 if len(trial.group) == 1:
                     defer(trial.group[0], text + f"raises the validation error of {worse}")
                 continue
-            added = (trial, error, residual_v)
+            added = (trial, comparison)
             break
         groups = [group for group in groups if not any(index in rejected for index in group)]
         if added is None:
             break
-        trial, validation_error, validate_residual = added
+        trial, comparison = added
+        weights = comparison.weights
         for block, shape in zip(trial.blocks, trial.shapes()):
             selected.append((block.effect, trial.p_value, trial.f_statistic))
             selected_effects.append(block.effect)
@@ -360,6 +368,8 @@ def diagnose(
         solution = solve_linear(fixed_train, [], states_train, [], weights)
         rss = solution.rss
         train_residual = residuals(fixed_train, [], solution)
+        validation_error, validate_residual = weighted_error(fixed_validate, [], states_validate, [], solution.theta,
+                                                             weights)
         # the other candidates restart from their last optima (LM only); groups sharing an added effect go
         groups = [group for group in groups if not set(group) & set(trial.group)]
     chosen = {id(effect) for effect, _, _ in selected}
@@ -387,6 +397,14 @@ def diagnose(
             # shapes as selected): keep the shapes as selected, estimate the rest and the covariance there
             after = identify(current, train, validate, shape_starts=starts, shape_search=False)
         selected, after = simplify_laws(selected, after, model, train, validate, starts, weights, min_improvement)
+    selected, after, pinned = pin_wrong_signs(selected, after, model, train, validate,
+                                              starts if selected else {value.name: value.value for value in before.shapes})
+    for position, term in enumerate(term for term in pinned if term.found):
+        effect = next(block.effect for block in blocks.values() if term.parameter in block.names
+                      and candidate_label(block.effect) == term.effect)
+        rejected[len(candidates) + position] = RejectedEffect(
+            effect.name, effect_channels(effect, model), "added, but its estimate turned negative in the joint refit "
+            f"({term.parameter} = {term.value:.4g} ± {term.std:.2g}): dropped", term.effect)
     return Diagnosis(
         effects=tuple(_found(after, effect, p_value, statistic, model) for effect, p_value, statistic in selected),
         rejected=tuple(rejected[index] for index in sorted(rejected)),
@@ -394,6 +412,7 @@ def diagnose(
         after=after,
         residuals=residual_statistics(before),
         statistics=residual_report(before, after, train, validate, noise_floor),
+        pinned=pinned,
     )
 
 

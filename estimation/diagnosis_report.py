@@ -64,6 +64,10 @@ def markdown_report(diagnosis: Diagnosis, figure: str | None = None, trace_figur
                 )
     else:
         lines.append("Nothing significant that also lowers the validation error: the declared model is enough.")
+    if document.get("pinned"):
+        lines += ["", "## Terms held at zero (a friction or inertia may not be negative)", ""]
+        lines += [f"- {term['parameter']} ({term['effect']}{', found' if term['found'] else ''}): {term['reason']}"
+                  for term in document["pinned"]]
     lines += ["", "## Validation error per channel (held-out data)", "", "| channel | MSE before | MSE after | ratio |", "|---|---|---|---|"]
     before, after = document["validation"]["before"]["mse"], document["validation"]["after"]["mse"]
     for channel, value in before.items():
