@@ -59,10 +59,13 @@ from dynamics.threads import single_threaded_blas
 from estimation.candidate_trials import candidate_label, fit_or_reason, joints_of, weighted_error, wrong_sign
 from estimation.confirmation import channels_made_worse, reweighted_comparison, simplify_laws, weighted_validation
 from estimation.coupling_candidates import coupling_candidates
+from estimation.delay_candidate import DelayTrial
+from estimation.delay_search import DelaySearch, with_delay
 from estimation.diagnosis_statistics import ResidualReport, floor_for_validation, residual_report
 from estimation.identification import IdentificationResult, identify
 from estimation.measurements import Measurements
 from estimation.noise_floor import NoiseFloor
+from estimation.record_delay import DelayBounds, delayed
 from estimation.sign_constraints import PinnedTerm, pin_wrong_signs
 from estimation.stopping_rules import SearchState, floor_stopping_rule, provisional_stopping_rule
 from estimation.variable_projection import (Block, FixedPart, NoRowsError, ShapeSearchError, States, effect_columns,
@@ -211,6 +214,7 @@ def diagnose(
     max_effects: int = 20,
     stopping_rule: Callable[[SearchState], bool] | None = None,
     noise_floor: NoiseFloor | None = None,
+    delay: DelayBounds | None = DelayBounds(),
 ) -> Diagnosis:
     """Find, by forward selection, the effects ``model`` lacks in ``train``, confirmed on ``validate``.
 
@@ -232,6 +236,9 @@ def diagnose(
     stopping_rule
         ``rule(SearchState) -> bool``: keep searching while it says ``True`` (default:
         :func:`floor_stopping_rule` when a noise floor is had, else :func:`provisional_stopping_rule`).
+    delay
+        Where a delay between torques and motion is searched as a candidate (one for the records,
+        :mod:`estimation.delay_candidate`); ``None``: not tried.
     noise_floor
         Noise floor of the validation record as recorded (:func:`estimation.noise_floor.noise_floor`,
         before preprocessing). ``None``: estimated from the recorded validation channels when they
@@ -255,6 +262,7 @@ def diagnose(
         if not isinstance(candidate, Effect):
             raise TypeError(f"candidate {candidate!r} is not an effect")
     floor, _ = floor_for_validation(validate, model.channels, noise_floor)
+    train_given, validate_given = train, validate
     if stopping_rule is None:
         stopping_rule = provisional_stopping_rule if floor is None else floor_stopping_rule(floor)
     keep_searching = stopping_rule
@@ -286,6 +294,8 @@ def diagnose(
     selected: list[tuple[Effect, float, float]] = []
     selected_effects: list[Effect] = []
     selected_shapes: list[NDArray[np.float64]] = []
+    selected_blocks: list[Block] = []
+    moved = DelaySearch(train, recorded, regressor, delay)  # the delay candidate and, once adopted, the moved records
     previous: dict[tuple[int, ...], Any] = {}
 
     stopped_at_floor = False
@@ -326,9 +336,17 @@ def diagnose(
         groups = [group for group in groups if not any(index in rejected for index in group)]
         trials = _refine_best(trials, blocks, fixed_train, states_train, weights, rss, previous, SCREEN_REFINED)
         springs_beaten = _offsets_beat_springs(trials, model)
+        trials += moved.trials(selected_blocks, selected_shapes, model, weights, rss, fixed_train.n_fixed, trials)
         added = None
         for trial in sorted(trials, key=lambda t: t.bic):
             if trial.p_value >= threshold or len(selected) + len(trial.group) > max_effects:
+                continue
+            if isinstance(trial, DelayTrial):
+                outcome = moved.confirm(trial, selected_blocks, selected_shapes, model, fixed_train, fixed_validate,
+                                        weights, min_improvement)
+                if outcome is not None:
+                    added = (trial, outcome)
+                    break
                 continue
             reason = wrong_sign(trial) or springs_beaten.get(trial.group)
             text = f"significant on training (p = {trial.p_value:.2g}) but "
@@ -356,11 +374,16 @@ def diagnose(
         if added is None:
             break
         trial, comparison = added
+        if isinstance(trial, DelayTrial):  # along the delayed motion from now on
+            comparison, fixed_train, fixed_validate = comparison.comparison, comparison.fixed_train, comparison.fixed_validate
+            train, recorded = moved.adopt(trial)
+            states_train, states_validate = States(train.q, train.dq, train.ddq), States(recorded.q, recorded.dq, recorded.ddq)
         weights = comparison.weights
-        for block, shape in zip(trial.blocks, trial.shapes()):
+        for block, shape in zip(getattr(trial, "blocks", ()), trial.shapes() if hasattr(trial, "shapes") else ()):
             selected.append((block.effect, trial.p_value, trial.f_statistic))
             selected_effects.append(block.effect)
             selected_shapes.append(shape)
+            selected_blocks.append(block)
             fixed_train = fixed_train.extended(block.evaluate(states_train, shape), block.rows)
             fixed_validate = fixed_validate.extended(block.evaluate(states_validate, shape), block.rows)
             if block.effect.name in FRICTION_LAWS:
@@ -372,6 +395,7 @@ def diagnose(
                                                              weights)
         # the other candidates restart from their last optima (LM only); groups sharing an added effect go
         groups = [group for group in groups if not set(group) & set(trial.group)]
+    train = train_given  # the final fit searches the delay again along the records as given
     chosen = {id(effect) for effect, _, _ in selected}
     reason = f"not tested: {max_effects} effects already added" if len(selected) >= max_effects else "not significant"
     if stopped_at_floor:
@@ -381,37 +405,47 @@ def diagnose(
             reject(index, last_reason.get(index, reason) if len(selected) < max_effects else reason)
 
     after = before
-    if selected:
+    if selected or moved.adopted is not None:
         current = build_model(model.robot, model.kind, model.effects + tuple(effect for effect, _, _ in selected))
         starts = {parameter.name: float(value) for effect, shape in zip(selected_effects, selected_shapes)
                   for parameter, value in zip(shape_parameters(effect, model.robot), shape)}
         if before.shaped_fit is not None:
             starts.update({value.name: value.value for value in before.shapes})
         try:
-            after = identify(current, train, validate, shape_starts=starts)
+            after = identify(current, train, validate, shape_starts=starts, delay=moved.final_bounds())
         except ShapeSearchError:  # the joint refit ran a shape to where the data do not determine it
             after = None
+        fitted_delay = after.delay if after is not None and after.delay is not None else moved.adopted_value()
+        if fitted_delay is not None:  # the refits below run along the moved records, the delay kept
+            train, validate = delayed(train, fitted_delay.value), delayed(validate, fitted_delay.value)
         if after is None or any(value.at_bound for value in after.shapes) \
                 or weighted_validation(after, weights) > 1.05 * validation_error:
             # the joint refit of the shapes wandered off (to a bound, or worse on held-out data than the
             # shapes as selected): keep the shapes as selected, estimate the rest and the covariance there
             after = identify(current, train, validate, shape_starts=starts, shape_search=False)
         selected, after = simplify_laws(selected, after, model, train, validate, starts, weights, min_improvement)
+    else:
+        fitted_delay = None
     selected, after, pinned = pin_wrong_signs(selected, after, model, train, validate,
                                               starts if selected else {value.name: value.value for value in before.shapes})
+    after = with_delay(after, fitted_delay)
     for position, term in enumerate(term for term in pinned if term.found):
         effect = next(block.effect for block in blocks.values() if term.parameter in block.names
                       and candidate_label(block.effect) == term.effect)
         rejected[len(candidates) + position] = RejectedEffect(
             effect.name, effect_channels(effect, model), "added, but its estimate turned negative in the joint refit "
             f"({term.parameter} = {term.value:.4g} ± {term.std:.2g}): dropped", term.effect)
+    if moved.not_adopted_reason() is not None:
+        rejected[len(candidates) + len(pinned)] = RejectedEffect("delay", tuple(model.channels), moved.not_adopted_reason(),
+                                                                 "delay")
     return Diagnosis(
-        effects=tuple(_found(after, effect, p_value, statistic, model) for effect, p_value, statistic in selected),
+        effects=tuple(_found(after, effect, p_value, statistic, model) for effect, p_value, statistic in selected)
+        + _found_delay(after, moved, model),
         rejected=tuple(rejected[index] for index in sorted(rejected)),
         before=before,
         after=after,
         residuals=residual_statistics(before),
-        statistics=residual_report(before, after, train, validate, noise_floor),
+        statistics=residual_report(before, after, train_given, validate_given, noise_floor),
         pinned=pinned,
     )
 
@@ -487,3 +521,13 @@ def _found(after: IdentificationResult, effect: Effect, p_value: float, statisti
         shape={name: value.value for name, value in shapes.items()},
         shape_std={name: value.std for name, value in shapes.items()},
     )
+
+
+def _found_delay(after: IdentificationResult, moved: DelaySearch, model: IdentificationModel) -> tuple[FoundEffect, ...]:
+    """The adopted delay as a found effect (no linear coefficients; its value a shape parameter)."""
+    if moved.adopted is None or after.delay is None:
+        return ()
+    trial = moved.adopted
+    return (FoundEffect(name="delay", channels=tuple(model.channels), parameters=(), values=(), std=(),
+                        p_value=trial.p_value, f_statistic=trial.f_statistic, spec="delay",
+                        shape={"delay": after.delay.value}, shape_std={"delay": after.delay.std}),)

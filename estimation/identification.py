@@ -98,9 +98,17 @@ class IdentificationResult:
     #: fit that predicts with them (``None`` for a linear model)
     shapes: tuple[Any, ...] = ()
     shaped_fit: Any = None
+    #: the fitted delay between torques and motion (a shape value named ``delay``, also in
+    #: ``shapes``; :mod:`estimation.record_delay`), or ``None``
+    delay: Any = None
 
     def predict(self, measurements: Measurements) -> np.ndarray:
-        """``(N, m)`` predicted channels along ``measurements`` (at the fitted shapes, if any)."""
+        """``(N, m)`` predicted channels along ``measurements`` (at the fitted shapes, if any, and
+        along the motion moved by the fitted delay, if any)."""
+        if self.delay is not None:
+            from estimation.record_delay import delayed  # noqa: PLC0415
+
+            measurements = delayed(measurements, self.delay.value)
         if self.shaped_fit is not None:
             return self.shaped_fit.predict(measurements)
         return self.model.predict(self.estimate.values, measurements.q, measurements.dq, measurements.ddq)
@@ -134,6 +142,7 @@ class IdentificationResult:
             "hac_lags": self.estimate.hac_lags,
             **({"shape": {value.name: value.value for value in self.shapes},
                 "shape_std": {value.name: value.std for value in self.shapes}} if self.shapes else {}),
+            **({"delay": {"value": self.delay.value, "std": self.delay.std, "unit": "s"}} if self.delay is not None else {}),
         }
 
 
@@ -148,6 +157,7 @@ def identify(
     covariance: CovarianceMethod = "hac",
     shape_starts: dict[str, float] | None = None,
     shape_search: bool = True,
+    delay: Any = None,
 ) -> IdentificationResult:
     """Estimate the base parameters of ``model`` from ``train`` and compare with ``validate``.
 
@@ -174,6 +184,9 @@ def identify(
     shape_search
         ``False``: keep the shapes at ``shape_starts`` (the linear coefficients and the full
         covariance are still estimated).
+    delay
+        :class:`estimation.record_delay.DelayBounds`: estimate a delay between torques and motion
+        too (:mod:`estimation.delay_identification`); a number: the motion moved by that delay, s.
 
     Warns
     -----
@@ -183,6 +196,13 @@ def identify(
     """
     train = concatenate(train)
     validate = None if validate is None else concatenate(validate)
+    if delay is not None:
+        from estimation.delay_identification import identify_delayed  # noqa: PLC0415
+        from estimation.record_delay import DelayBounds, delayed  # noqa: PLC0415
+
+        if isinstance(delay, DelayBounds):
+            return identify_delayed(model, train, validate, bounds=delay, weighted=weighted, covariance=covariance)
+        train, validate = delayed(train, float(delay)), None if validate is None else delayed(validate, float(delay))
     from dynamics.shape_effects import is_shaped  # noqa: PLC0415
 
     if any(is_shaped(effect, model.robot) for effect in model.effects):

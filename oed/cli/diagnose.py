@@ -8,6 +8,7 @@ import warnings
 from pathlib import Path
 
 from dynamics.models import ModelKind, build_model
+from estimation.record_delay import DelayBounds, split_delay
 from estimation.coupling_candidates import coupling_candidates
 from estimation.diagnosis import default_candidates, diagnose
 from estimation.diagnosis_report import markdown_report, plot_residuals, plot_trace
@@ -31,7 +32,8 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     add_robot_arguments(parser)
     parser.add_argument("--model", choices=[kind.value for kind in ModelKind], default="internal")
     parser.add_argument("--friction", default="viscous", help="declared effects, as for `oed identify` (shaped laws "
-                        "such as coulomb:tanh, per-joint coulomb@1-4, motor_coulomb, coulomb[q5+q6]; default: viscous)")
+                        "such as coulomb:tanh, per-joint coulomb@1-4, motor_coulomb, coulomb[q5+q6]; default: viscous); "
+                        "a delay between torques and motion is always a candidate, delay:S bounds it to ±S s")
     add_asbuilt_arguments(parser)
     add_data_arguments(parser, validate_required=True)
     parser.add_argument("--out", type=Path, required=True, help="report JSON")
@@ -92,6 +94,7 @@ def run(args: argparse.Namespace) -> int:
     differentiation(args)  # contradicting derivative options are an error even when the data hold dq, ddq
     robot = robot_from_arguments(args)
     transmission = resolve_transmission(args, robot)
+    args.friction, delay = split_delay(args.friction)  # a candidate in every diagnosis: 'delay:S' sets its bound
     effects = model_effects(args, robot, transmission)
     model = build_model(robot, args.model, effects)
     check_shaped_effects_kept(effects, model)
@@ -104,7 +107,7 @@ def run(args: argparse.Namespace) -> int:
         frequency = preprocessing.frequency_hz if preprocessing.method == "fourier" else args.frequency
         floor = recorded_floor(args.validate, model, args, transmission, frequency)
         diagnosis = diagnose(model, train, validate, alpha=args.alpha, candidates=candidates,
-                             max_effects=args.max_effects, noise_floor=floor)
+                             max_effects=args.max_effects, noise_floor=floor, delay=delay or DelayBounds())
         trivial, notes = trivial_predictors(diagnosis.after, validate)
         notes += worse_after(diagnosis)
     print_warnings("diagnose", caught)

@@ -19,6 +19,7 @@ from estimation.measurements import Measurements
 from estimation.normal_equations import DEFAULT_CHUNK_SIZE
 from estimation.preprocessing import ButterworthDifferentiation, Differentiation, FourierDifferentiation
 from estimation.preprocessing_plan import Preprocessing, check_frequency, choose_preprocessing, prepare
+from estimation.record_delay import split_delay
 from estimation.streamed_identification import identify_files
 from estimation.validation import plot_comparison
 from oed.cli.asbuilt import (add_asbuilt_arguments, finish_document, model_effects, resolve_transmission, rest_message,
@@ -45,7 +46,8 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
              "(default: viscous; 'none'); laws whose shape is estimated too (variable projection): coulomb:tanh "
              "(smoothing velocity), stribeck:velocity, sigmoid (Gaz et al. 2019), ripple (period in position); "
              "NAME[:VARIANT]@JOINTS for some joints (coulomb:tanh@1-4,offset@2+5); motor_viscous, motor_coulomb, "
-             "motor_inertia on the transmission's motors; coulomb[q5+q6] on a joint combination",
+             "motor_inertia on the transmission's motors; coulomb[q5+q6] on a joint combination; delay: a delay "
+             "between torques and motion, one for the records, estimated within ±50 ms (delay:S: within ±S s)",
     )
     add_asbuilt_arguments(parser)
     add_data_arguments(parser, validate_required=False)
@@ -256,9 +258,13 @@ def run(args: argparse.Namespace) -> int:
     check_consistent_arguments(args)
     robot = robot_from_arguments(args)
     transmission = resolve_transmission(args, robot)
+    args.friction, delay = split_delay(args.friction)  # the delay moves the motion: not a column effect
     effects = model_effects(args, robot, transmission)
     model = build_model(robot, args.model, effects)
     check_shaped_effects_kept(effects, model)
+    if delay is not None and (args.consistent or streaming_requested(args)):
+        raise ValueError("a delay between torques and motion is searched in memory by the weighted least squares: "
+                         "not with --consistent or the streamed path (--chunk-size, --scheduler or --workers)")
     if args.consistent and result_has_shapes(model):
         raise ValueError("--consistent refits the linear effects: laws with shape parameters (coulomb:tanh, sigmoid…) "
                          "are not supported there yet; declare their plain forms (coulomb) for the consistent fit")
@@ -291,7 +297,7 @@ def run(args: argparse.Namespace) -> int:
         rest_validation = None
         if validation is not None:
             validation, rest_validation = rest_rows(validation, model, args, "validation")
-        result = identify(model, train, validation, weighted=args.method == "wls")
+        result = identify(model, train, validation, weighted=args.method == "wls", delay=delay)
         trivial, notes = trivial_predictors(result, validation)
         rest_record = {"train": rest, "validation": rest_validation}
         consistent = consistent_refit(args, result, train, validation)  # None without --consistent

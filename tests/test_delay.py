@@ -1,0 +1,130 @@
+"""A delay between recorded torques and the motion they answer (estimation.record_delay,
+estimation.delay_identification, the diagnosis' delay candidate, `--friction …,delay`)."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+
+import numpy as np
+import pytest
+
+from dynamics.models import build_model
+from dynamics.robots import load_robot
+from estimation.diagnosis import diagnose
+from estimation.identification import identify
+from estimation.preprocessing import FourierDifferentiation, fill_derivatives
+from estimation.record_delay import DelayBounds, DelayBoundsError, delayed, split_delay
+from oed.cli import main
+from tests.synthetic import random_fourier, simulate, true_parameters
+
+TRUE_DELAY = 0.007  # s: the torques lag the motion by 7 ms (a value unlike the default bounds)
+NOISE = {"tau1": 0.1, "tau2": 0.1, "tau3": 0.05}
+
+
+@pytest.fixture(scope="module")
+def robot():
+    return load_robot("puma560", joints=3)
+
+
+@pytest.fixture(scope="module")
+def records(robot):
+    """Two records whose torques answer the motion 7 ms earlier: ``τ(t) = Y(motion(t − d)) θ``."""
+    model = build_model(robot, "internal", "viscous")
+    theta = true_parameters(model, seed=1)
+    made = []
+    for seed in (5, 6):
+        trajectory = random_fourier(robot, seed=seed)
+        data = simulate(model, theta, trajectory, rate_hz=250.0, periods=2, noise=NOISE, seed=seed)
+        q, dq, ddq = trajectory.evaluate(data.t + TRUE_DELAY)  # the recorded motion runs d ahead
+        made.append(dataclasses.replace(data, q=q, dq=dq, ddq=ddq))
+    return model, theta, made
+
+
+def test_the_motion_moves_by_the_delay(robot):
+    trajectory = random_fourier(robot, seed=2)
+    t = np.arange(0, 5.0, 1 / 500)
+    q, dq, ddq = trajectory.evaluate(t)
+    from estimation.measurements import Measurements
+
+    data = Measurements(t, q, dq, ddq, np.zeros_like(q))
+    moved = delayed(data, 0.01)
+    q_true, dq_true, _ = trajectory.evaluate(t - 0.01)
+    inside = slice(5, None)  # 10 ms at 500 Hz: the first five samples come from the Taylor series of the first
+    np.testing.assert_allclose(moved.q[inside], q_true[inside], atol=2e-5)
+    np.testing.assert_allclose(moved.dq[inside], dq_true[inside], atol=2e-4)
+    np.testing.assert_allclose(moved.q[:5], q_true[:5], atol=2e-5)
+    np.testing.assert_allclose(moved.dq[:5], dq_true[:5], atol=5e-3)
+    assert moved.tau is data.tau  # the channels stay as recorded
+
+
+def test_identify_recovers_the_delay_and_fits_as_a_model_that_knows_it(records):
+    model, theta, (train, validate) = records
+    result = identify(model, train, validate, delay=DelayBounds())
+    assert abs(result.delay.value - TRUE_DELAY) < 3 * result.delay.std, result.delay
+    reference = identify(model, train, validate, delay=TRUE_DELAY)  # the true delay, known
+    for channel, value in result.validation.mse.items():
+        assert value <= 1.2 * reference.validation.mse[channel]
+        assert value < 1.3 * NOISE[channel] ** 2
+    document = result.to_dict()
+    assert document["shape"]["delay"] == result.delay.value and document["delay"]["unit"] == "s"
+    # without it, the validation error stays far above the noise
+    plain = identify(model, train, validate)
+    assert plain.validation.mse["tau1"] > 2 * result.validation.mse["tau1"]
+
+
+@pytest.mark.parametrize("derivatives", ["given", "positions"])
+def test_the_diagnosis_names_the_delay_and_nothing_else(records, derivatives):
+    model, _, (train, validate) = records
+    if derivatives == "positions":
+        train, validate = (fill_derivatives(dataclasses.replace(data, dq=None, ddq=None),
+                                            FourierDifferentiation(0.2, harmonics=5, average=False))
+                           for data in (train, validate))
+    diagnosis = diagnose(model, train, validate)
+    assert [effect.spec for effect in diagnosis.effects] == ["delay"]
+    found = diagnosis.effects[0]
+    assert abs(found.shape["delay"] - TRUE_DELAY) < max(4 * found.shape_std["delay"], 5e-4)
+    reference = identify(model, train, validate, delay=TRUE_DELAY)
+    tolerance = 1.2 if derivatives == "given" else 1.5
+    for channel, value in diagnosis.after.validation.mse.items():
+        assert value <= tolerance * reference.validation.mse[channel]
+
+
+def test_clean_records_get_no_delay(robot):
+    model = build_model(robot, "internal", "viscous")
+    theta = true_parameters(model, seed=1)
+    train, validate = (simulate(model, theta, random_fourier(robot, seed=seed), rate_hz=250.0, periods=2, noise=NOISE,
+                                seed=seed) for seed in (5, 6))
+    diagnosis = diagnose(model, train, validate)
+    assert diagnosis.effects == ()
+    assert any(rejected.name == "delay" for rejected in diagnosis.rejected)
+
+
+@pytest.mark.parametrize("spec, message", [
+    ("viscous,delay:-1", "positive"), ("viscous,delay:abc", "seconds"), ("viscous,delay@2", "@JOINTS"),
+    ("delay,delay", "twice"),
+])
+def test_bad_delay_specs_are_named_errors(spec, message):
+    with pytest.raises(DelayBoundsError, match=message):
+        split_delay(spec)
+
+
+def test_reversed_bounds_are_an_error():
+    with pytest.raises(DelayBoundsError, match="reversed"):
+        DelayBounds(0.01, -0.01)
+
+
+def test_the_cli_reports_the_delay_and_refuses_a_bad_one(records, tmp_path, capsys):
+    _, _, (train, validate) = records
+    train.write(tmp_path / "train.csv")
+    validate.write(tmp_path / "validate.csv")
+    base = ["identify", "--robot", "puma560", "--joints", "3", "--data", str(tmp_path / "train.csv"),
+            "--validate", str(tmp_path / "validate.csv")]
+    out = tmp_path / "result.json"
+    assert main(base + ["--friction", "viscous,delay", "--out", str(out)]) == 0
+    document = json.loads(out.read_text())
+    assert abs(document["delay"]["value"] - TRUE_DELAY) < 3 * document["delay"]["std"]
+    assert "delay" in document["shape_std"]
+    bad = tmp_path / "bad.json"
+    assert main(base + ["--friction", "viscous,delay:0", "--out", str(bad)]) == 2
+    assert "delay" in capsys.readouterr().err and not bad.exists()
