@@ -68,6 +68,7 @@ from estimation.noise_floor import NoiseFloor
 from estimation.record_delay import DelayBounds, delayed
 from estimation.sign_constraints import PinnedTerm, pin_wrong_signs
 from estimation.stopping_rules import SearchState, floor_stopping_rule, provisional_stopping_rule
+from estimation.traced_refinement import traced_first
 from estimation.variable_projection import (Block, FixedPart, NoRowsError, ShapeSearchError, States, effect_columns,
                                             effect_rows, residuals, solve_linear)
 from estimation.whiteness import autocorrelation
@@ -299,6 +300,7 @@ def diagnose(
     previous: dict[tuple[int, ...], Any] = {}
 
     stopped_at_floor = False
+    previous_round = False  # the first round searches every shape from its grid: no tracing needed
     last_reason: dict[int, str] = {}  # statistical verdicts: the candidate is tried again in later rounds
 
     def reject(index: int, reason: str) -> None:
@@ -334,7 +336,10 @@ def diagnose(
             previous[group] = outcome.fit
             trials.append(outcome)
         groups = [group for group in groups if not any(index in rejected for index in group)]
-        trials = _refine_best(trials, blocks, fixed_train, states_train, weights, rss, previous, SCREEN_REFINED)
+        traced = traced_first(trials, model.channels, model.robot.n_joints, train, recorded, train_residual,
+                              validate_residual) if previous_round else None
+        previous_round = True
+        trials = _refine_best(trials, blocks, fixed_train, states_train, weights, rss, previous, SCREEN_REFINED, traced)
         springs_beaten = _offsets_beat_springs(trials, model)
         trials += moved.trials(selected_blocks, selected_shapes, model, weights, rss, fixed_train.n_fixed, trials)
         added = None
@@ -459,12 +464,14 @@ def _channels(block: Block, model: IdentificationModel) -> tuple[str, ...]:
     return tuple(model.channels[row] for row in block.rows)
 
 
-def _refine_best(trials, blocks, fixed, states, weights, rss, previous, count: int):
-    """The ``count`` best-ranked screened trials with shapes searched again by Levenberg–Marquardt."""
+def _refine_best(trials, blocks, fixed, states, weights, rss, previous, count: int, traced=None):
+    """The ``count`` best-ranked screened trials, and the group ``traced`` (the one the residual
+    tracing ranks first: :mod:`estimation.traced_refinement`), with shapes searched again by
+    Levenberg–Marquardt."""
     ranked = sorted(trials, key=lambda t: t.bic)
     refined = []
     for position, trial in enumerate(ranked):
-        if position < count and trial.fit.shape.size:
+        if (position < count or trial.group == traced) and trial.fit.shape.size:
             outcome = fit_or_reason(trial.group, list(trial.blocks), fixed, states, weights, rss, trial.fit, search=True)
             if not isinstance(outcome, str):
                 previous[trial.group] = outcome.fit
