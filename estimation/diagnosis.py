@@ -58,6 +58,7 @@ from estimation.confirmation import channels_made_worse, simplify_laws, weighted
 from estimation.coupling_candidates import coupling_candidates
 from estimation.diagnosis_statistics import ResidualReport, floor_for_validation, residual_report
 from estimation.identification import IdentificationResult, identify
+from estimation.limit_laws import replace_limit_laws
 from estimation.measurements import Measurements
 from estimation.noise_floor import NoiseFloor
 from estimation.stopping_rules import SearchState, floor_stopping_rule, provisional_stopping_rule
@@ -386,6 +387,9 @@ def diagnose(
             # the joint refit of the shapes wandered off (to a bound, or worse on held-out data than the
             # shapes as selected): keep the shapes as selected, estimate the rest and the covariance there
             after = identify(current, train, validate, shape_starts=starts, shape_search=False)
+            # a tanh smoothing run to its bound is the sign law (estimation.limit_laws)
+            selected, after, starts = replace_limit_laws(selected, after, model, train, validate, starts, weights,
+                                                         min_improvement)
         selected, after = simplify_laws(selected, after, model, train, validate, starts, weights, min_improvement)
     return Diagnosis(
         effects=tuple(_found(after, effect, p_value, statistic, model) for effect, p_value, statistic in selected),

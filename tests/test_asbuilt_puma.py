@@ -70,8 +70,8 @@ def test_diagnosis_finds_the_coupled_wrist_motor_on_its_own():
     assert found["coulomb[q5+q6]"].channels == ("tau5", "tau6")
     true_value = friction.coulomb[5] * matrix[5, 5]
     assert abs(found["coulomb[q5+q6]"].values[0] - true_value) < 0.15 * true_value  # sign law vs tanh, rows at rest
-    # tau6 reaches the floor; tau5 stays at about 2x (measured 0.082 against 0.04): the search also adds a
-    # joint-5 coulomb:tanh whose smoothing (0.21 rad/s) is far from the simulated motor law's (1 rad/s on
-    # the motor, 0.014 on the joint), with the rows below 0.05 rad/s dropped that shape is barely seen
-    assert diagnosis.after.validation.mse["tau6"] < 1.5 * FLOOR
-    assert diagnosis.after.validation.mse["tau5"] < 2.5 * FLOOR
+    # both wrist channels reach the floor. Before estimation.limit_laws tau5 stayed at 2.5x (0.0996 against
+    # 0.04): a joint-5 coulomb:tanh taken before viscous[q5+q6] kept a smoothing (0.28 rad/s) that absorbed
+    # part of that coupled viscous term; the joint refit ran it to its bound (the sign law) and was refused
+    for channel in ("tau5", "tau6"):
+        assert diagnosis.after.validation.mse[channel] < 1.3 * FLOOR, (channel, diagnosis.after.validation.mse)
