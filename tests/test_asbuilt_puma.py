@@ -14,7 +14,6 @@ The simulator applies the motors' friction through the transmission (``τ = Rᵀ
 from __future__ import annotations
 
 import numpy as np
-import pytest
 
 from dynamics.models import build_model
 from dynamics.motor_effects import motor_effects
@@ -59,7 +58,6 @@ def test_declared_transmission_recovers_the_motor_friction():
         assert value < 1.2 * FLOOR, (channel, value)
 
 
-@pytest.mark.slow
 def test_diagnosis_finds_the_coupled_wrist_motor_on_its_own():
     matrix = np.diag(puma560_transmission().ratios)
     matrix[5, 4] = matrix[5, 5]  # the last motor turns with q5 + q6

@@ -64,3 +64,13 @@ def test_each_coulomb_pair_is_also_proposed_smoothed(robot):
     specs = [getattr(effect, "spec", effect.name) for effect in candidates]
     pairs = [spec for spec in specs if spec.startswith("coulomb[")]
     assert len(pairs) == 10 and all(spec.replace("coulomb[", "coulomb:tanh[") in specs for spec in pairs)
+
+
+def test_rest_rows_of_a_smoothed_combination_are_kept(robot):
+    """Its smoothing is given by the rows near the motor's rest: --min-speed must not drop them, or the
+    law the diagnosis found could not be fitted again (estimation.rest_segments.coulomb_combinations)."""
+    from estimation.rest_segments import coulomb_combinations
+
+    sign = combination_from_label("coulomb", "q5+q6", 6)
+    assert coulomb_combinations((sign,)).tolist() == [[0, 0, 0, 0, 1, 1]]
+    assert coulomb_combinations((TanhCombinationCoulomb.from_combination(sign),)) is None
