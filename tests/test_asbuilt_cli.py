@@ -108,14 +108,18 @@ def test_motor_side_angles_fed_as_joint_angles_say_gear_ratio(files, capsys):
     ({"matrix": [[1, 0], [0, 1]]}, "must be 3 x 3"),
     ({"ratios": {"joint7": 100}}, "not a joint of"),
 ])
-def test_bad_transmissions_exit_2_and_write_nothing(files, capsys, document, message):
+@pytest.mark.parametrize("verb", ["identify", "diagnose"])
+def test_bad_transmissions_exit_2_and_write_nothing(files, capsys, document, message, verb):
     folder, *_ = files
     path = folder / "bad_transmission.json"
     path.write_text(json.dumps(document))
-    assert _identify(folder, "--transmission", str(path), out="never.json") == 2
+    out = folder / f"never_{verb}.json"
+    code = main([verb, "--robot", "puma560", "--joints", "3", "--transmission", str(path), "--data",
+                 str(folder / "train.csv"), "--validate", str(folder / "val.csv"), "--out", str(out)])
+    assert code == 2
     error = capsys.readouterr().err
-    assert error.startswith("oed identify: error:") and message in error
-    assert not (folder / "never.json").exists()
+    assert error.startswith(f"oed {verb}: error:") and message in error
+    assert not out.exists()
 
 
 def test_torque_constant_of_the_wrong_sign_for_the_data(files, capsys):
