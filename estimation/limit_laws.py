@@ -13,6 +13,11 @@ its smoothing (0.28 rad/s) absorbed part of that still-missing viscous term. Onc
 as undetermined, and the diagnosis kept the stale 0.28 rad/s: joint 5 ended at 2.5x its noise floor,
 against 1.1x for the same effects with the plain Coulomb law.
 
+Since the Coulomb and viscous laws of a joint combination are tried as one candidate
+(:func:`estimation.coupling_candidates.combination_groups`) the diagnosis no longer takes that stale
+law on this example; the rule stands for any shaped law selected before the effect it stood in for
+(``tests/test_asbuilt_puma.py::test_a_stale_tanh_smoothing_is_replaced_by_the_sign_law``).
+
 :func:`replace_limit_laws` (called when the joint refit fails or stops at a bound) replaces each such
 law, one at a time, by its limit (``coulomb:tanh`` by ``coulomb``), refits the others' shapes, and
 keeps the replacement when the refit succeeds and the weighted validation error, against the

@@ -14,7 +14,10 @@ The simulator applies the motors' friction through the transmission (``τ = Rᵀ
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
+from dynamics.effect_specs import build_effects
+from dynamics.effects import CoulombFriction
 from dynamics.models import build_model
 from dynamics.motor_effects import motor_effects
 from dynamics.robots import load_robot
@@ -25,6 +28,7 @@ from dynamics.simulator import Simulator
 from dynamics.transmission import Transmission, puma560_transmission
 from estimation.diagnosis import diagnose
 from estimation.identification import identify
+from estimation.limit_laws import replace_limit_laws
 from estimation.rest_segments import drop_rest
 from tests.synthetic import random_fourier
 
@@ -58,11 +62,35 @@ def test_declared_transmission_recovers_the_motor_friction():
         assert value < 1.2 * FLOOR, (channel, value)
 
 
-def test_diagnosis_finds_the_coupled_wrist_motor_on_its_own():
+@pytest.fixture(scope="module")
+def q5_q6_wrist():
+    """Records of the PUMA whose last motor turns with ``q5 + q6``, rows slower than 0.05 rad/s dropped."""
     matrix = np.diag(puma560_transmission().ratios)
     matrix[5, 4] = matrix[5, 5]  # the last motor turns with q5 + q6
     robot, friction, (train, validate) = _records(Transmission(matrix))
     train, validate = drop_rest(train, 0.05).measurements, drop_rest(validate, 0.05).measurements
+    return matrix, robot, friction, train, validate
+
+
+def test_a_stale_tanh_smoothing_is_replaced_by_the_sign_law(q5_q6_wrist):
+    """estimation.limit_laws on the case that needed it: a joint-5 coulomb:tanh selected with a wide
+    smoothing (0.28 rad/s, absorbing a viscous[q5+q6] not yet added) kept when its refit runs to the
+    bound; the sign law brings tau5 from about 2.5x to 1.1x its floor."""
+    _, robot, _, train, validate = q5_q6_wrist
+    model = build_model(robot, "internal", "viscous,armature")
+    selected = [(effect, 0.0, 1.0) for effect in
+                build_effects("coulomb[q5+q6],viscous[q5+q6],coulomb@1-4,coulomb:tanh@5", robot)]
+    current = build_model(robot, "internal", model.effects + tuple(effect for effect, _, _ in selected))
+    stale = identify(current, train, validate, shape_starts={"vc5": 0.28}, shape_search=False)
+    assert stale.validation.mse["tau5"] > 2 * FLOOR
+    weights = np.full(6, 1 / FLOOR)
+    found, after, starts = replace_limit_laws(selected, stale, model, train, validate, {"vc5": 0.28}, weights, 0.01)
+    assert found[3][0] == CoulombFriction(joints=(4,)) and "vc5" not in starts
+    assert after.validation.mse["tau5"] < 1.3 * FLOOR, after.validation.mse
+
+
+def test_diagnosis_finds_the_coupled_wrist_motor_on_its_own(q5_q6_wrist):
+    matrix, robot, friction, train, validate = q5_q6_wrist
     diagnosis = diagnose(build_model(robot, "internal", "viscous,armature"), train, validate)
     found = {effect.name: effect for effect in diagnosis.effects}
     assert "coulomb[q5+q6]" in found, list(found)
