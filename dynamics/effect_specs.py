@@ -9,7 +9,8 @@ of :mod:`dynamics.effects`, :func:`build_effects` reads
 * ``motor_viscous``, ``motor_coulomb``, ``motor_inertia`` (``@MOTORS`` picks motors): friction and
   rotor inertia on the motors of a declared transmission (:mod:`dynamics.motor_effects`);
 * ``viscous[q5+q6]``, ``coulomb[q5+q6]``, ``inertia[q4-q5]``: the same laws on a joint
-  combination, as the diagnosis names them.
+  combination, as the diagnosis names them; ``coulomb:tanh[q5+q6]`` the Coulomb law on it with its
+  own smoothing (:mod:`dynamics.combination_shapes`).
 """
 
 from __future__ import annotations
@@ -22,7 +23,7 @@ from typing import Any
 from dynamics.robot import RobotModel
 
 _RANGE = re.compile(r"(\d+)(?:-(\d+))?")
-_COMBINATION = re.compile(r"(viscous|coulomb|inertia)\[(.+)\]", re.IGNORECASE)
+_COMBINATION = re.compile(r"(viscous|coulomb|inertia)(?::(tanh))?\[(.+)\]", re.IGNORECASE)
 MOTOR_KINDS: dict[str, str] = {"motor_viscous": "viscous", "motor_coulomb": "coulomb", "motor_inertia": "inertia"}
 
 
@@ -101,7 +102,15 @@ def build_effects(spec: str | Iterable[Any] | None, robot: RobotModel, transmiss
         elif combination is not None:
             if joints is not None:
                 raise EffectSpecError(f"effect {item!r}: a joint combination names its joints itself; no @JOINTS")
-            effects.append(combination_from_label(combination.group(1).lower(), combination.group(2), robot.n_joints))
+            kind, variant, label = combination.group(1).lower(), combination.group(2), combination.group(3)
+            effect = combination_from_label(kind, label, robot.n_joints)
+            if variant is not None:
+                if kind != "coulomb":
+                    raise EffectSpecError(f"effect {item!r}: only coulomb has the :tanh variant on a joint combination")
+                from dynamics.combination_shapes import TanhCombinationCoulomb
+
+                effect = TanhCombinationCoulomb.from_combination(effect)
+            effects.append(effect)
         else:
             effects.extend(parse_effects([item]))
     return parse_effects(effects)

@@ -189,9 +189,10 @@ class Transmission:
         return document
 
 
-# Corke, Robotics Toolbox mdl_puma560 gear ratios G1..G6 (also in dynamics.simulated_joint_effects)
+# Corke, Robotics Toolbox mdl_puma560 gear ratios G1..G6 (also in dynamics.simulated_joint_effects): checked
+# against the toolbox's source (L(1).G = -62.6111 … L(6).G = 76.686, also its puma560akb.m)
 _PUMA560_GEARS = (-62.6111, 107.815, -53.7063, 76.0364, 71.923, 76.686)
-#: PUMA 560 wrist coupling ratios G45, G46, G56 (dimensionless)
+#: PUMA 560 wrist coupling ratios G45, G46, G56 (dimensionless): NOT verified, see :func:`puma560_transmission`
 PUMA560_WRIST_COUPLING: tuple[float, float, float] = (0.0130, 0.0184, 0.0133)
 
 
@@ -205,15 +206,26 @@ def puma560_transmission(n_joints: int = 6) -> Transmission:
         θ_m6 = G6 (G46 q4 + G56 q5 + q6)
 
     The wrist motors sit in the forearm and drive joints 5 and 6 through shafts concentric with
-    joint 4's, so turning joint 4 turns motors 5 and 6, and turning joint 5 turns motor 6
-    (Armstrong, Khatib & Burdick, "The explicit dynamic model and inertial parameters of the PUMA
-    560 arm", ICRA 1986; the matrix in this form with the coupling ratios ``G45, G46, G56``:
-    P. I. Corke, *Visual Control of Robots*, Research Studies Press 1996, section 2.3, whose
-    Robotics Toolbox ``mdl_puma560`` gives the gear ratios ``G1..G6`` and notes that the coupling
-    is not in its model). The coupling ratios :data:`PUMA560_WRIST_COUPLING` were taken from that
-    text from memory and not re-checked against the printed table in this project: treat them as
-    the right order of magnitude (about one motor turn per joint-4 turn), and declare your own
-    robot's values with a transmission file.
+    joint 4's, so turning joint 4 turns motors 5 and 6, and turning joint 5 turns motor 6: the
+    matrix is lower triangular in the wrist.
+
+    Sources, and what is verified:
+
+    * the gear ratios ``G1..G6`` are those of Corke's Robotics Toolbox (``mdl_puma560``,
+      ``puma560akb``, from Armstrong, Khatib & Burdick, "The explicit dynamic model and inertial
+      parameters of the PUMA 560 arm", ICRA 1986), checked against the toolbox's source; the
+      toolbox does not model the wrist coupling;
+    * the coupling ratios :data:`PUMA560_WRIST_COUPLING` (``G45, G46, G56``) and the form above were
+      written from memory of P. I. Corke, *Visual Control of Robots* (1996), and are **not verified**:
+      a search of public code, documentation and web pages (Armstrong, Khatib & Burdick 1986; Corke
+      & Armstrong-Hélouvry, "A search for consensus among model parameters reported for the PUMA
+      560 robot", ICRA 1994; the toolbox's PUMA models in MATLAB, Python and Scilab; other
+      repositories modelling the PUMA) found no table of them. Treat them as an order of
+      magnitude (about one motor turn in a hundred of the joint's for each coupling), and declare
+      a real robot's values with a transmission file.
+
+    The simulated checks of issue 18 (``tests/test_asbuilt_puma.py``) do not depend on these
+    values being right: they simulate with the transmission they identify.
     """
     g = np.array(_PUMA560_GEARS)
     g45, g46, g56 = PUMA560_WRIST_COUPLING
@@ -221,7 +233,7 @@ def puma560_transmission(n_joints: int = 6) -> Transmission:
     matrix[4, 3] = g45 * g[4]
     matrix[5, 3] = g46 * g[5]
     matrix[5, 4] = g56 * g[5]
-    return Transmission(matrix, source="puma560 (Corke 1996; Armstrong et al. 1986)").truncated(n_joints)
+    return Transmission(matrix, source="puma560 (gears: Corke's toolbox; wrist coupling unverified)").truncated(n_joints)
 
 
 def check_power_signs(transmission: Transmission, dq: ArrayLike, tau: ArrayLike, *, source: str = "data",
@@ -233,6 +245,10 @@ def check_power_signs(transmission: Transmission, dq: ArrayLike, tau: ArrayLike,
     below ``−tolerance`` times the mean absolute power means the torque and the motion of that
     joint disagree in sign: a gear ratio or torque constant of the wrong sign for the data
     (when positions are joint-side, e.g. link encoders, and torques motor-side).
+
+    Limit: on a joint whose torque is mostly gravity (given and taken back over the motion), the
+    dissipated part may be too small to show. In the 3-joint simulated PUMA of
+    ``tests/test_asbuilt_cli.py`` a flipped ratio is named on joint 1 but not on joint 2.
     """
     dq, tau = np.asarray(dq, dtype=float), np.asarray(tau, dtype=float)
     power = tau * dq

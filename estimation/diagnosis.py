@@ -58,11 +58,12 @@ from dynamics.shape_effects import (
 from dynamics.threads import single_threaded_blas
 from estimation.candidate_trials import candidate_label, fit_or_reason, joints_of, weighted_error, wrong_sign
 from estimation.confirmation import channels_made_worse, reweighted_comparison, simplify_laws, weighted_validation
-from estimation.coupling_candidates import coupling_candidates
+from estimation.coupling_candidates import combination_groups, combination_taken, coupling_candidates
 from estimation.delay_candidate import DelayTrial
 from estimation.delay_search import DelaySearch, with_delay
 from estimation.diagnosis_statistics import ResidualReport, floor_for_validation, residual_report
 from estimation.identification import IdentificationResult, identify
+from estimation.limit_laws import replace_limit_laws
 from estimation.measurements import Measurements
 from estimation.noise_floor import NoiseFloor
 from estimation.record_delay import DelayBounds, delayed
@@ -289,7 +290,7 @@ def diagnose(
             blocks[index] = Block(model.kind, model.robot, candidate, model.n_channels)
         except NoRowsError:
             rejected[index] = RejectedEffect(candidate.name, (), "has no rows in this model", candidate_label(candidate))
-    groups = candidate_groups(blocks, model)
+    groups = candidate_groups(blocks, model) + combination_groups({index: block.effect for index, block in blocks.items()})
     friction_joints = {joint for effect in model.effects if effect.name in FRICTION_LAWS
                        for joint in _effect_joints(effect, model)}
     selected: list[tuple[Effect, float, float]] = []
@@ -325,6 +326,10 @@ def diagnose(
             if any(block.effect.name in FRICTION_LAWS and set(joints_of(block, model)) & friction_joints for block in members):
                 if len(group) == 1:
                     reject(group[0], "its joint already has a Coulomb-like friction law")
+                continue
+            if any(combination_taken(block.effect, model.effects + tuple(selected_effects)) for block in members):
+                if len(group) == 1:
+                    reject(group[0], "its joint combination already has a Coulomb law")
                 continue
             # first round: every shape searched from its grid; later rounds: screened at the last optimum
             outcome = fit_or_reason(group, members, fixed_train, states_train, weights, rss, previous.get(group),
@@ -428,6 +433,9 @@ def diagnose(
             # the joint refit of the shapes wandered off (to a bound, or worse on held-out data than the
             # shapes as selected): keep the shapes as selected, estimate the rest and the covariance there
             after = identify(current, train, validate, shape_starts=starts, shape_search=False)
+            # a tanh smoothing run to its bound is the sign law (estimation.limit_laws)
+            selected, after, starts = replace_limit_laws(selected, after, model, train, validate, starts, weights,
+                                                         min_improvement)
         selected, after = simplify_laws(selected, after, model, train, validate, starts, weights, min_improvement)
     else:
         fitted_delay = None

@@ -55,9 +55,15 @@ def check_min_speed(min_speed: float) -> float:
 
 def coulomb_combinations(effects: tuple[Any, ...]) -> NDArray[np.float64] | None:
     """The rows ``r`` (scaled to a largest ``|r|`` of 1) of the Coulomb laws on joint combinations or
-    motors among ``effects`` (:class:`dynamics.motor_effects.CombinationEffect`), ``(k, n)``, or ``None``."""
+    motors among ``effects`` (:class:`dynamics.motor_effects.CombinationEffect`), ``(k, n)``, or ``None``.
+
+    A law whose smoothing is estimated (``coulomb:tanh[q5+q6]``,
+    :class:`dynamics.combination_shapes.TanhCombinationCoulomb`) is left out: its smoothing is
+    given by the rows near the motor's rest, which dropping them would remove (the law the
+    diagnosis found could then not be fitted again with the same ``--min-speed``)."""
     rows = [np.array(row) / np.max(np.abs(row)) for effect in effects
-            if getattr(effect, "kind", None) == "coulomb" for row in getattr(effect, "weights", ())]
+            if getattr(effect, "kind", None) == "coulomb" and not callable(getattr(effect, "shape_parameters", None))
+            for row in getattr(effect, "weights", ())]
     return np.array(rows) if rows else None
 
 

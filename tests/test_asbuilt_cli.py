@@ -108,14 +108,18 @@ def test_motor_side_angles_fed_as_joint_angles_say_gear_ratio(files, capsys):
     ({"matrix": [[1, 0], [0, 1]]}, "must be 3 x 3"),
     ({"ratios": {"joint7": 100}}, "not a joint of"),
 ])
-def test_bad_transmissions_exit_2_and_write_nothing(files, capsys, document, message):
+@pytest.mark.parametrize("verb", ["identify", "diagnose"])
+def test_bad_transmissions_exit_2_and_write_nothing(files, capsys, document, message, verb):
     folder, *_ = files
     path = folder / "bad_transmission.json"
     path.write_text(json.dumps(document))
-    assert _identify(folder, "--transmission", str(path), out="never.json") == 2
+    out = folder / f"never_{verb}.json"
+    code = main([verb, "--robot", "puma560", "--joints", "3", "--transmission", str(path), "--data",
+                 str(folder / "train.csv"), "--validate", str(folder / "val.csv"), "--out", str(out)])
+    assert code == 2
     error = capsys.readouterr().err
-    assert error.startswith("oed identify: error:") and message in error
-    assert not (folder / "never.json").exists()
+    assert error.startswith(f"oed {verb}: error:") and message in error
+    assert not out.exists()
 
 
 def test_torque_constant_of_the_wrong_sign_for_the_data(files, capsys):
@@ -186,3 +190,25 @@ def test_urdf_transmission_and_motor_friction_on_a_differential(tmp_path, capsys
     for name, value in (("fcm1", 0.01), ("fcm2", 0.02), ("fcm3", 0.015)):
         index = parameters["names"].index(name)
         assert abs(parameters["values"][index] - value) < 3 * parameters["std"][index], (name, parameters["values"][index])
+
+
+@pytest.mark.parametrize("verb", ["identify", "diagnose"])
+def test_a_gear_ratio_of_the_wrong_sign_for_the_data_exits_2_and_writes_nothing(files, capsys, verb):
+    folder, _, _, train = files
+    transmission = puma560_transmission(3)
+    frame = pd.read_csv(folder / "train.csv").drop(columns=["tau1", "tau2", "tau3"])
+    torques = transmission.motor_torques(train.tau)  # joint-side encoders, motor torques
+    for j in range(3):
+        frame[f"taum{j + 1}"] = torques[:, j]
+    frame.to_csv(folder / "motor_torques.csv", index=False)
+    document = transmission.to_dict()
+    document["matrix"][0][0] *= -1  # motor 1's ratio of the wrong sign (joint 1: no gravity to hide it)
+    path = folder / "t_wrong_sign.json"
+    path.write_text(json.dumps(document))
+    out = folder / f"never_{verb}.json"
+    code = main([verb, "--robot", "puma560", "--joints", "3", "--transmission", str(path), "--friction", "viscous",
+                 "--data", str(folder / "motor_torques.csv"), "--validate", str(folder / "val.csv"), "--out", str(out)])
+    assert code == 2
+    error = capsys.readouterr().err
+    assert error.startswith(f"oed {verb}: error:") and "wrong sign" in error and "joint 1" in error
+    assert not out.exists()
