@@ -58,7 +58,7 @@ from estimation.streaming_time import Resampler, scan_time
 
 __all__ = [
     "FileSums", "MARGIN_TOLERANCE", "StreamingUnsupportedError", "automatic_cutoff", "file_sums", "filter_margin",
-    "read_chunks",
+    "preprocessed_chunks", "read_chunks",
 ]
 
 #: relative size of the impulse response at which the overlap margin ends
@@ -275,32 +275,23 @@ def _preprocessed(window: Measurements, method: ButterworthDifferentiation | Non
     return decimate(derived, decimation)
 
 
-@single_threaded_blas()  # threaded OpenBLAS takes 30x longer on tall, thin QR (0.7 against 0.024 s, 10 051 x 51)
-def file_sums(path: str | Path, model: IdentificationModel, *, chunk_size: int = DEFAULT_CHUNK_SIZE,
-              cutoff_hz: float | None = None, order: int = 4, decimation: int = 1,
-              held_torques: bool = False) -> FileSums:
-    """Read, preprocess and sum one file chunk by chunk.
+def preprocessed_chunks(path: str | Path, model: IdentificationModel, *, chunk_size: int = DEFAULT_CHUNK_SIZE,
+                        cutoff_hz: float | None = None, order: int = 4, decimation: int = 1,
+                        held_torques: bool = False, record: dict | None = None) -> Iterator[Measurements]:
+    """The preprocessed samples of one file, chunk by chunk (overlapping windows: module docstring).
 
-    Parameters
-    ----------
-    path
-        CSV or Parquet file (``t, q…, [dq…, ddq…], tau…/fx…``).
-    model
-        The identification model.
-    chunk_size
-        Samples a chunk (a multiple of ``decimation`` is used).
-    cutoff_hz, order
-        Butterworth cut-off and order, used when the file lacks ``dq``/``ddq`` (then ``cutoff_hz`` is
-        required: see :func:`automatic_cutoff`). Ignored when the file holds both.
-    decimation, held_torques
-        As :func:`estimation.preprocessing.fill_derivatives`.
+    The arguments are those of :func:`file_sums`. ``record`` (a dict, optional) receives, once the
+    file is read to its end, ``rows`` (samples read), ``columns`` (the column groups) and
+    ``metadata`` (decimation, margin, differentiation…). Each chunk keeps the channels as recorded
+    (``Measurements.recorded``) beside the filtered ones when the filter path runs.
     """
     path = Path(path)
     chunk_size = check_chunk_size(chunk_size, model)
     if int(decimation) != decimation or decimation < 1:
         raise ValueError(f"decimation factor must be a positive integer, got {decimation}")
     chunk_size = -(-chunk_size // decimation) * decimation
-    sums = NormalEquations.empty(model.channels, model.base.names, model.base.expressions)
+    if record is not None:
+        record["chunk_size"] = chunk_size
     chunks = read_chunks(path, model, chunk_size=chunk_size)
     first = next(chunks)
     derive = first.dq is None or first.ddq is None
@@ -348,8 +339,7 @@ def file_sums(path: str | Path, model: IdentificationModel, *, chunk_size: int =
         processed = _preprocessed(window, method, int(decimation), held_torques)
         first_kept = (-(-done // decimation) * decimation - low) // decimation
         last_kept = (-(-stop // decimation) * decimation - low) // decimation
-        kept = processed.select(slice(first_kept, last_kept))
-        sums = accumulate(model, kept, chunk_size=chunk_size, sums=sums)
+        yield processed.select(slice(first_kept, last_kept))
         done = stop
         keep_from = max(done - margin, 0)
         if keep_from > start:
@@ -362,5 +352,34 @@ def file_sums(path: str | Path, model: IdentificationModel, *, chunk_size: int =
         metadata["resampled_from"] = int(first.metadata["resampled_from"])
     if method is not None:
         metadata.update(differentiation="butterworth", cutoff_hz=float(cutoff_hz), filter_order=order)
+    if record is not None:
+        record.update(rows=rows, columns=columns, metadata=metadata)
+
+
+@single_threaded_blas()  # threaded OpenBLAS takes 30x longer on tall, thin QR (0.7 against 0.024 s, 10 051 x 51)
+def file_sums(path: str | Path, model: IdentificationModel, *, chunk_size: int = DEFAULT_CHUNK_SIZE,
+              cutoff_hz: float | None = None, order: int = 4, decimation: int = 1,
+              held_torques: bool = False) -> FileSums:
+    """Read, preprocess and sum one file chunk by chunk.
+
+    Parameters
+    ----------
+    path
+        CSV or Parquet file (``t, q…, [dq…, ddq…], tau…/fx…``).
+    model
+        The identification model.
+    chunk_size
+        Samples a chunk (a multiple of ``decimation`` is used).
+    cutoff_hz, order
+        Butterworth cut-off and order, used when the file lacks ``dq``/``ddq`` (then ``cutoff_hz`` is
+        required: see :func:`automatic_cutoff`). Ignored when the file holds both.
+    decimation, held_torques
+        As :func:`estimation.preprocessing.fill_derivatives`.
+    """
+    sums = NormalEquations.empty(model.channels, model.base.names, model.base.expressions)
+    record: dict = {}
+    for kept in preprocessed_chunks(path, model, chunk_size=chunk_size, cutoff_hz=cutoff_hz, order=order,
+                                    decimation=decimation, held_torques=held_torques, record=record):
+        sums = accumulate(model, kept, chunk_size=record["chunk_size"], sums=sums)
     sums = replace(sums, sources=(str(path),))
-    return FileSums(str(path), sums, rows, columns, metadata)
+    return FileSums(str(path), sums, record["rows"], record["columns"], record["metadata"])
