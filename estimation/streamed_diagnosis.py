@@ -63,7 +63,7 @@ from estimation.diagnosis_sums import ChannelSums, ColumnLayout, EvenSubsample, 
 from estimation.identification import identify, implausible_estimates
 from estimation.loading import MeasurementError
 from estimation.noise_floor import NoiseFloor, NoiseFloorError, compare_with_floor, noise_floor, pooled_floor
-from estimation.streaming import StreamingUnsupportedError, automatic_cutoff, preprocessed_chunks, read_chunks
+from estimation.streaming import automatic_cutoff, preprocessed_chunks, read_chunks
 from estimation.summed_least_squares import SummedEstimate, SummedLeastSquares
 from estimation.summed_selection import select_effects, simpler_laws
 from estimation.variable_projection import Block, FixedPart, NoRowsError, States, solve_linear
@@ -72,7 +72,7 @@ __all__ = ["DEFAULT_SUBSAMPLE", "FLOOR_WINDOW", "StreamedDiagnosis", "diagnose_f
 
 #: samples (about; at most twice) of the evenly spread training subsample the shapes are searched on.
 #: The shape search costs what the in-memory diagnosis's first round costs on that many samples.
-DEFAULT_SUBSAMPLE = 20_000
+DEFAULT_SUBSAMPLE = 10_000
 #: rows of each validation file (as recorded) the noise floor is estimated on
 FLOOR_WINDOW = 100_000
 

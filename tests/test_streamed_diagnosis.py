@@ -1,0 +1,167 @@
+"""The streamed diagnosis (bounded memory) against the in-memory one, through executors, bad input."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from dynamics.effects import CoulombFriction, JointOffset
+from dynamics.models import build_model
+from dynamics.robots import load_robot
+from estimation.diagnosis import diagnose
+from estimation.diagnosis_sums import EvenSubsample
+from estimation.loading import MeasurementError, read_measurements
+from estimation.measurements import Measurements
+from estimation.noise_floor import noise_floor
+from estimation.preprocessing import ButterworthDifferentiation
+from estimation.streamed_diagnosis import diagnose_files
+from oed.cli import main
+from tests.synthetic import random_fourier, simulate, true_parameters
+
+NOISE = 0.2
+CUTOFF = 8.0
+
+
+def relative(a, b) -> float:
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    return float(np.max(np.abs(a - b) / np.maximum(np.abs(b), 1e-300)))
+
+
+@pytest.fixture(scope="module")
+def model():
+    return build_model(load_robot("puma560", joints=3), "internal", "viscous")
+
+
+@pytest.fixture(scope="module")
+def files(model, tmp_path_factory):
+    """A training and a validation record of a 3-joint PUMA with Coulomb friction on joint 2 and a
+    torque offset on joint 1 the declared model lacks: CSV with q, dq, ddq (``full``) and Parquet with
+    noisy q and tau only (``raw``, the filter path); the training record also split in two files."""
+    folder = tmp_path_factory.mktemp("streamed_diagnosis")
+    truth = build_model(model.robot, "internal", ("viscous", CoulombFriction(joints=(1,)), JointOffset(joints=(0,))))
+    theta = true_parameters(truth, seed=0, coulomb=[8.0], offset=[3.0])
+    rng = np.random.default_rng(5)
+    paths: dict[str, list] = {"full": [], "raw": [], "halves": []}
+    for seed, trajectory in ((1, 3), (2, 4)):
+        data = simulate(truth, theta, random_fourier(model.robot, seed=trajectory), noise={c: NOISE for c in truth.channels},
+                        seed=seed, rate_hz=200.0, periods=1)
+        full = folder / f"full{seed}.csv"
+        data.write(full)
+        raw = folder / f"raw{seed}.parquet"
+        Measurements(data.t, data.q + 1e-5 * rng.standard_normal(data.q.shape), tau=data.tau).write(raw)
+        paths["full"].append(full)
+        paths["raw"].append(raw)
+        if seed == 1:
+            for index, rows in enumerate((slice(0, 600), slice(600, None))):
+                half = folder / f"half{index}.csv"
+                data.select(rows).write(half)
+                paths["halves"].append(half)
+    return paths
+
+
+def _compare(streamed, memory, tolerance=1e-8):
+    assert [(e.spec, e.channels) for e in streamed.effects] == [(e.spec, e.channels) for e in memory.effects]
+    assert {e.channels for e in streamed.effects} == {("tau2",), ("tau1",)}
+    for s, m in zip(streamed.effects, memory.effects):
+        assert relative(s.values, m.values) < tolerance
+    assert relative(streamed.after.values, memory.after.estimate.values) < tolerance
+    assert relative(list(streamed.validation_mse["before"].values()), list(memory.before.validation.mse.values())) < 1e-8
+    assert relative(list(streamed.train_mse["before"].values()), list(memory.before.train.mse.values())) < 1e-8
+    assert relative(list(streamed.validation_mse["after"].values()), list(memory.after.validation.mse.values())) < tolerance
+    assert relative(list(streamed.train_mse["after"].values()), list(memory.after.train.mse.values())) < tolerance
+
+
+def test_streamed_diagnosis_equals_the_in_memory_one(model, files):
+    """Measured dq, ddq; chunks of 300 of 1 000 samples; the whole record is the subsample, so the
+    shapes are searched as in memory: same effects, rejections and reasons, estimates and MSEs to 1e-8."""
+    train, validate = (read_measurements(path, model=model) for path in files["full"])
+    floor = noise_floor(validate, model.channels)
+    memory = diagnose(model, train, validate, noise_floor=floor)
+    streamed = diagnose_files(model, files["full"][:1], files["full"][1:], chunk_size=300, noise_floor=floor)
+    _compare(streamed, memory)
+    assert [(e.spec, e.channels) for e in streamed.effects] == [("coulomb", ("tau2",)), ("offset", ("tau1",))]
+    for s, m in zip(streamed.effects, memory.effects):
+        assert s.p_value == pytest.approx(m.p_value, rel=1e-6, abs=1e-300)
+    assert {r.spec + str(r.channels): r.reason for r in streamed.rejected} == \
+        {r.spec + str(r.channels): r.reason for r in memory.rejected}
+    document = streamed.to_dict()
+    assert document["diagnosis_path"] == "streamed" and document["streaming"]["subsample"]["samples"] == 1000
+    assert {"effects", "rejected", "validation", "train", "noise_floor", "floor_comparison"} <= set(document)
+    assert set(document["effects"][0]) >= {"name", "channels", "values", "std", "p_value"}
+    # several files reduce to one set of sums: the same diagnosis from the record split in two
+    split = diagnose_files(model, files["halves"], files["full"][1:], chunk_size=300, noise_floor=floor)
+    assert [(e.spec, e.channels) for e in split.effects] == [(e.spec, e.channels) for e in streamed.effects]
+    assert relative(split.after.values, streamed.after.values) < 1e-6  # subsamples differ by the split: shapes too
+
+
+def test_filter_path_errors_against_the_recording_as_in_memory(model, files):
+    """No dq, ddq in the files: Butterworth derivatives on overlapping windows, errors against the
+    torques as recorded; the in-memory diagnosis of the whole records filtered at once finds the same
+    effects. Here a shaped law (a sigmoid) is found: in memory its shape is refined again in later
+    rounds and refitted jointly at the end, here it stays at its first optimum (module docstring of
+    estimation.summed_selection): the estimates agree to 1e-3, not to rounding."""
+    method = ButterworthDifferentiation(CUTOFF)
+    train, validate = (read_measurements(path, model=model) for path in files["raw"])
+    floor = noise_floor(validate, model.channels)
+    train, validate = method.apply(train), method.apply(validate)
+    memory = diagnose(model, train, validate, noise_floor=floor)
+    streamed = diagnose_files(model, files["raw"][:1], files["raw"][1:], chunk_size=400, cutoff_hz=CUTOFF,
+                              noise_floor=floor)
+    _compare(streamed, memory, tolerance=1e-3)
+
+
+def test_process_pool_gives_the_serial_diagnosis(model, files):
+    from concurrent.futures import ProcessPoolExecutor
+
+    serial = diagnose_files(model, files["halves"], files["full"][1:], chunk_size=300)
+    with ProcessPoolExecutor(2) as executor:
+        pooled = diagnose_files(model, files["halves"], files["full"][1:], chunk_size=300, executor=executor)
+    assert [(e.spec, e.channels) for e in pooled.effects] == [(e.spec, e.channels) for e in serial.effects]
+    assert relative(pooled.after.values, serial.after.values) < 1e-10
+    for which in ("before", "after"):
+        assert pooled.validation_mse[which] == pytest.approx(serial.validation_mse[which], rel=1e-10)
+
+
+def test_even_subsample_is_bounded_and_spread():
+    subsample = EvenSubsample(100)
+    t = np.arange(10_007) * 0.01
+    for start in range(0, t.size, 333):
+        rows = slice(start, start + 333)
+        subsample.add(Measurements(t[rows], np.zeros((t[rows].size, 1))))
+    kept = subsample.measurements()
+    assert 100 <= kept.n_samples <= 200 and subsample.seen == t.size
+    steps = np.diff(kept.t)
+    assert np.allclose(steps, steps[0]) and kept.t[0] == 0.0 and kept.t[-1] > 0.95 * t[-1]
+
+
+def test_bad_files_are_named_and_nothing_is_written(model, files, tmp_path, capsys):
+    other = tmp_path / "other.csv"
+    Measurements(np.arange(500) * 0.005, np.zeros((500, 3)), tau=np.zeros((500, 3))).write(other)  # no dq, ddq
+    with pytest.raises(MeasurementError, match="other.csv"):
+        diagnose_files(model, [files["halves"][0], other], files["full"][1:], chunk_size=300, cutoff_hz=CUTOFF)
+    corrupt = tmp_path / "corrupt.csv"
+    corrupt.write_text("t,q1,q2\n0,1\nnot,a,csv,at,all\n")
+    out = tmp_path / "report.json"
+    base = ["diagnose", "--joints", "3", "--model", "internal", "--validate", str(files["full"][1]), "--out", str(out),
+            "--chunk-size", "300"]
+    for data in ([files["halves"][0], corrupt], [files["halves"][0], other]):
+        arguments = base + [argument for path in data for argument in ("--data", str(path))]
+        assert main(arguments) == 2
+        assert data[1].name in capsys.readouterr().err
+        assert not out.exists()
+    assert main(base + ["--data", str(files["full"][0]), "--report", str(tmp_path / "r.md")]) == 2
+    assert "--report" in capsys.readouterr().err and not out.exists()
+
+
+def test_cli_streamed_diagnosis_writes_the_diagnose_keys(files, tmp_path, capsys):
+    out = tmp_path / "report.json"
+    code = main(["diagnose", "--joints", "3", "--model", "internal", "--data", str(files["full"][0]), "--validate",
+                 str(files["full"][1]), "--out", str(out), "--chunk-size", "400"])
+    assert code == 0
+    document = json.loads(out.read_text())
+    assert document["diagnosis_path"] == "streamed" and document["cov_method"] == "classical"
+    assert [(e["name"], e["channels"]) for e in document["effects"]] == [("coulomb", ["tau2"]), ("offset", ["tau1"])]
+    assert set(document["validation"]["after"]) >= {"mse", "mse_over_floor"}
+    assert "found coulomb on tau2" in capsys.readouterr().out
