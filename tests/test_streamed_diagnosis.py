@@ -165,3 +165,37 @@ def test_cli_streamed_diagnosis_writes_the_diagnose_keys(files, tmp_path, capsys
     assert [(e["name"], e["channels"]) for e in document["effects"]] == [("coulomb", ["tau2"]), ("offset", ["tau1"])]
     assert set(document["validation"]["after"]) >= {"mse", "mse_over_floor"}
     assert "found coulomb on tau2" in capsys.readouterr().out
+
+
+@pytest.mark.slow  # 26 s on the shared 2-core machine (the process pool above runs in the fast suite)
+def test_dask_local_cluster_gives_the_serial_diagnosis(model, files):
+    distributed = pytest.importorskip("dask.distributed", reason="dask is an optional extra: pip install 'robot-oed[cluster]'")
+    serial = diagnose_files(model, files["halves"], files["full"][1:], chunk_size=300)
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False, dashboard_address=None) as cluster, \
+            distributed.Client(cluster) as client:
+        clustered = diagnose_files(model, files["halves"], files["full"][1:], chunk_size=300,
+                                   executor=client.get_executor(pure=False))
+    assert [(e.spec, e.channels) for e in clustered.effects] == [(e.spec, e.channels) for e in serial.effects]
+    assert relative(clustered.after.values, serial.after.values) < 1e-10
+
+
+def test_a_lost_worker_fails_the_diagnosis_naming_the_file(model, files):
+    from concurrent.futures import Future
+    from concurrent.futures.process import BrokenProcessPool
+
+    from estimation.cluster import WorkerLostError
+
+    class Lost:
+        calls = 0
+
+        def submit(self, function, *args):
+            Lost.calls += 1
+            future = Future()
+            if Lost.calls == 2:
+                future.set_exception(BrokenProcessPool("A process in the process pool was terminated abruptly"))
+            else:
+                future.set_result(function(*args))
+            return future
+
+    with pytest.raises(WorkerLostError, match="half1.csv"):
+        diagnose_files(model, files["halves"], files["full"][1:], chunk_size=300, executor=Lost())
