@@ -53,17 +53,17 @@ import numpy as np
 
 from dynamics.effects import Effect
 from dynamics.models import IdentificationModel
-from dynamics.threads import single_threaded_blas
 from estimation.candidate_trials import candidate_label, fit_or_reason
-from estimation.cluster import _model, _result, _stamp, model_payload
+from estimation.cluster import _stamp, model_payload
 from estimation.coupling_candidates import coupling_candidates
 from estimation.diagnosis import FoundEffect, RejectedEffect, default_candidates
 from estimation.diagnosis_statistics import FLOOR_ALPHA
-from estimation.diagnosis_sums import ChannelSums, ColumnLayout, EvenSubsample, chunk_sums, concatenate, normal_equations
+from estimation.diagnosis_sums import ColumnLayout, concatenate, normal_equations
 from estimation.identification import identify, implausible_estimates
 from estimation.loading import MeasurementError
-from estimation.noise_floor import NoiseFloor, NoiseFloorError, compare_with_floor, noise_floor, pooled_floor
-from estimation.streaming import automatic_cutoff, preprocessed_chunks, read_chunks
+from estimation.noise_floor import NoiseFloor, compare_with_floor
+from estimation.streamed_diagnosis_passes import FLOOR_WINDOW, map_files, subsample_task, sums_task, window_floor
+from estimation.streaming import automatic_cutoff, read_chunks
 from estimation.summed_least_squares import SummedEstimate, SummedLeastSquares
 from estimation.summed_selection import select_effects, simpler_laws
 from estimation.variable_projection import Block, FixedPart, NoRowsError, States, solve_linear
@@ -73,8 +73,6 @@ __all__ = ["DEFAULT_SUBSAMPLE", "FLOOR_WINDOW", "StreamedDiagnosis", "diagnose_f
 #: samples (about; at most twice) of the evenly spread training subsample the shapes are searched on.
 #: The shape search costs what the in-memory diagnosis's first round costs on that many samples.
 DEFAULT_SUBSAMPLE = 10_000
-#: rows of each validation file (as recorded) the noise floor is estimated on
-FLOOR_WINDOW = 100_000
 
 NOT_ON_THIS_PATH = (
     "residual tracing, whiteness and residual statistics (need the residuals sample by sample)",
@@ -84,96 +82,6 @@ NOT_ON_THIS_PATH = (
     "a law paired with its offset searched jointly (the pair uses the law's own shape)",
     "user stopping rules (the noise floor is the rule)",
 )
-
-
-# ---------------------------------------------------------------- tasks (one file each)
-
-def _caught(call, *args, **kwargs):
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        value = call(*args, **kwargs)
-    return value, tuple((warning.category, str(warning.message)) for warning in caught)
-
-
-def _subsample(path: str, model: IdentificationModel, options: dict[str, Any], cap: int):
-    record: dict = {}
-    subsample = EvenSubsample(cap)
-    for chunk in preprocessed_chunks(path, model, record=record, **options):
-        subsample.add(chunk)
-    return subsample.measurements(), subsample.seen, record
-
-
-def subsample_task(payload: bytes, path: str, options: dict[str, Any], cap: int, stamp=None):
-    """Picklable: the evenly spread subsample of one file, samples seen, and its reading record."""
-    return _caught(_subsample, path, _model(payload), options, cap)
-
-
-@functools.lru_cache(maxsize=4)
-def _plan(payload: bytes, plan: bytes) -> tuple[ColumnLayout, tuple[Block, ...], tuple[np.ndarray, ...]]:
-    model = _model(payload)
-    effects, shapes = pickle.loads(plan)
-    blocks = tuple(Block(model.kind, model.robot, effect, model.n_channels) for effect in effects)
-    return ColumnLayout.build(model, blocks), blocks, tuple(shapes)
-
-
-@single_threaded_blas()
-def _sums(path: str, model: IdentificationModel, payload: bytes, plan: bytes, options: dict[str, Any]):
-    layout, blocks, shapes = _plan(payload, plan)
-    record: dict = {}
-    sums = ChannelSums.empty(layout)
-    for chunk in preprocessed_chunks(path, model, record=record, **options):
-        try:
-            sums = chunk_sums(model, layout, blocks, shapes, chunk, sums)
-        except ValueError as error:
-            raise MeasurementError(f"{path} (near sample {sums.n_samples}): {error}") from None
-    return sums, record
-
-
-def sums_task(payload: bytes, plan: bytes, path: str, options: dict[str, Any], stamp=None):
-    """Picklable: one file's :class:`ChannelSums` (base and candidate columns at fixed shapes)."""
-    return _caught(_sums, path, _model(payload), payload, plan, options)
-
-
-def _map(executor, task, paths: Sequence[str], *arguments) -> list:
-    """``task(*arguments_before_path, path, ...)`` for each path, in this process or on ``executor``;
-    every file must come back (a lost worker is :class:`~estimation.cluster.WorkerLostError`)."""
-    if executor is None:
-        results = []
-        for path in paths:
-            value, caught = task(*arguments[0](path))
-            for category, message in caught:
-                warnings.warn(message, category, stacklevel=3)
-            results.append(value)
-        return results
-    if not callable(getattr(executor, "submit", None)):
-        raise TypeError(f"executor must be a concurrent.futures.Executor (with submit), got {type(executor).__name__}")
-    futures = [executor.submit(task, *arguments[0](path)) for path in paths]
-    try:
-        return [_result(future, path) for path, future in zip(paths, futures)]
-    finally:
-        for future in futures:
-            future.cancel()
-
-
-# ---------------------------------------------------------------- the noise floor on a window
-
-def window_floor(paths: Sequence[str | Path], model: IdentificationModel, *, window: int = FLOOR_WINDOW,
-                 frequency_hz: float | None = None) -> tuple[NoiseFloor | None, str]:
-    """The noise floor of the first ``window`` rows of each file as recorded (no filtering), pooled
-    over the files; ``None`` and why when none can be had."""
-    floors, failures = [], []
-    for path in paths:
-        first = next(read_chunks(path, model, chunk_size=max(int(window), model.n_base + 1)))
-        try:
-            floors.append(noise_floor(first, model.channels, frequency_hz=frequency_hz))
-        except NoiseFloorError as error:
-            failures.append(f"{path}: {error}")
-    floor = pooled_floor(floors)
-    if floor is None:
-        return None, "no noise floor: " + "; ".join(failures)
-    note = (f"estimated from the first {window} rows of each validation file as recorded "
-            f"({len(floors)} of {len(list(paths))} file(s))")
-    return floor, note + ("; none from " + "; ".join(failures) if failures else "")
 
 
 # ---------------------------------------------------------------- the result
@@ -311,7 +219,7 @@ def diagnose_files(
 
     # ---- pass 1: the subsample (training files)
     cap = -(-int(subsample) // len(paths))
-    parts = _map(executor, subsample_task, paths, lambda path: (payload, path, options, cap, _stamp(path)))
+    parts = map_files(executor, subsample_task, paths, lambda path: (payload, path, options, cap, _stamp(path)))
     records = [record for _, _, record in parts]
     for path, record in zip(paths, records):
         if record["columns"] != records[0]["columns"]:
@@ -343,8 +251,8 @@ def diagnose_files(
     order = sorted(blocks)
     plan = pickle.dumps(([blocks[i].effect for i in order], [shapes[i] for i in order]))
     layout = ColumnLayout.build(model, [blocks[i] for i in order])
-    train_parts = _map(executor, sums_task, paths, lambda path: (payload, plan, path, options, _stamp(path)))
-    validate_parts = _map(executor, sums_task, validate, lambda path: (payload, plan, path, options, _stamp(path)))
+    train_parts = map_files(executor, sums_task, paths, lambda path: (payload, plan, path, options, _stamp(path)))
+    validate_parts = map_files(executor, sums_task, validate, lambda path: (payload, plan, path, options, _stamp(path)))
     for path, (sums, record), count in zip(paths, train_parts, (count for _, count, _ in parts)):
         if sums.n_samples != count:
             raise MeasurementError(f"{path}: {sums.n_samples} samples summed, {count} read in the first pass (did the "
@@ -404,6 +312,9 @@ def diagnose_files(
             shape={p.name: float(v) for p, v in zip(block.parameters, local_shapes[index])}, shape_std={}))
     rejected_all = dict(rejected)
     rejected_all.update({order[slot]: value for slot, value in selection.rejected.items()})
+    normal = train.normal_system(columns, weights)[0]
+    scale = np.sqrt(np.diag(normal))
+    condition = float(np.linalg.cond(normal / np.outer(scale, scale)))
     streaming = {
         "chunk_size": int(chunk_size), "cutoff_hz": cutoff_hz, "decimation": int(decimation),
         "files": [{"path": path, "rows": record["rows"], "samples": sums.n_samples} for path, (sums, record)
@@ -415,6 +326,9 @@ def diagnose_files(
         "floor_window": int(floor_window) if noise_floor is None else None,
         "stopped_at_floor": selection.stopped_at_floor,
         "errors_against": "the channels as recorded, along the derived motion",
+        "accuracy": {"solve": "per-channel Gram sums, equilibrated, Cholesky (as the in-memory loop)",
+                     "equilibrated_normal_cond": condition,
+                     "relative_error_bound": condition * np.finfo(float).eps},
         "not_on_this_path": list(NOT_ON_THIS_PATH),
     }
     return StreamedDiagnosis(
