@@ -165,6 +165,11 @@ def _shape_search(model, blocks, rejected, subsample, weights, friction_joints) 
     return shapes
 
 
+def _file_record(path: str, sums, record: dict) -> dict[str, Any]:
+    return {"path": path, "rows": record["rows"], "samples": sums.n_samples,
+            "trimmed_samples": record["metadata"].get("trimmed_samples", 0)}
+
+
 def diagnose_files(
     model: IdentificationModel,
     paths: Sequence[str | Path],
@@ -214,7 +219,9 @@ def diagnose_files(
         first = next(read_chunks(paths[0], model, chunk_size=chunk_size))
         if first.dq is None or first.ddq is None:
             cutoff_hz = automatic_cutoff(paths[0], model, chunk_size=chunk_size)
-    options = dict(chunk_size=chunk_size, cutoff_hz=cutoff_hz, decimation=decimation, held_torques=held_torques)
+    # the filter's settling trimmed at each record's ends, as the CLI's in-memory preprocessing does
+    options = dict(chunk_size=chunk_size, cutoff_hz=cutoff_hz, decimation=decimation, held_torques=held_torques,
+                   trim=True)
     payload = model_payload(model)
 
     # ---- pass 1: the subsample (training files)
@@ -317,10 +324,8 @@ def diagnose_files(
     condition = float(np.linalg.cond(normal / np.outer(scale, scale)))
     streaming = {
         "chunk_size": int(chunk_size), "cutoff_hz": cutoff_hz, "decimation": int(decimation),
-        "files": [{"path": path, "rows": record["rows"], "samples": sums.n_samples} for path, (sums, record)
-                  in zip(paths, train_parts)],
-        "validation_files": [{"path": path, "rows": record["rows"], "samples": sums.n_samples}
-                             for path, (sums, record) in zip(validate, validate_parts)],
+        "files": [_file_record(path, sums, record) for path, (sums, record) in zip(paths, train_parts)],
+        "validation_files": [_file_record(path, sums, record) for path, (sums, record) in zip(validate, validate_parts)],
         "subsample": {"samples": sample.n_samples, "of": seen, "requested": int(subsample),
                       "used_for": "shape search of shaped laws, coupling-pair tracing"},
         "floor_window": int(floor_window) if noise_floor is None else None,

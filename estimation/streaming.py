@@ -277,10 +277,14 @@ def _preprocessed(window: Measurements, method: ButterworthDifferentiation | Non
 
 def preprocessed_chunks(path: str | Path, model: IdentificationModel, *, chunk_size: int = DEFAULT_CHUNK_SIZE,
                         cutoff_hz: float | None = None, order: int = 4, decimation: int = 1,
-                        held_torques: bool = False, record: dict | None = None) -> Iterator[Measurements]:
+                        held_torques: bool = False, trim: bool = False, record: dict | None = None
+                        ) -> Iterator[Measurements]:
     """The preprocessed samples of one file, chunk by chunk (overlapping windows: module docstring).
 
-    The arguments are those of :func:`file_sums`. ``record`` (a dict, optional) receives, once the
+    The arguments are those of :func:`file_sums`. ``trim``: on the filter path without decimation,
+    the samples where the zero-phase filter settles are dropped at both ends of the record
+    (:meth:`ButterworthDifferentiation.settling_samples`), as the in-memory preprocessing of the CLI
+    does (``ButterworthDifferentiation(trim=True)``). ``record`` (a dict, optional) receives, once the
     file is read to its end, ``rows`` (samples read), ``columns`` (the column groups) and
     ``metadata`` (decimation, margin, differentiation…). Each chunk keeps the channels as recorded
     (``Measurements.recorded``) beside the filtered ones when the filter path runs.
@@ -304,6 +308,7 @@ def preprocessed_chunks(path: str | Path, model: IdentificationModel, *, chunk_s
     rate = 1.0 / float(np.median(np.diff(first.t)))
     margin = filter_margin(rate, cutoff_hz if derive else None, order, int(decimation)) if (derive or decimation > 1) else 0
     columns = tuple(name for name in ("dq", "ddq", "tau", "wrench") if getattr(first, name) is not None)
+    edge = method.settling_samples(rate, cutoff_hz) if trim and method is not None and decimation == 1 else 0
 
     buffer: list[Measurements] = [first]
     start = 0  # global index of buffer[0]
@@ -313,7 +318,7 @@ def preprocessed_chunks(path: str | Path, model: IdentificationModel, *, chunk_s
     cutoff_checked = False
     while True:
         available = start + sum(part.n_samples for part in buffer)
-        while not exhausted and available < done + chunk_size + margin:
+        while not exhausted and available < done + chunk_size + margin + edge:
             try:
                 part = next(chunks)
             except StopIteration:
@@ -339,7 +344,13 @@ def preprocessed_chunks(path: str | Path, model: IdentificationModel, *, chunk_s
         processed = _preprocessed(window, method, int(decimation), held_torques)
         first_kept = (-(-done // decimation) * decimation - low) // decimation
         last_kept = (-(-stop // decimation) * decimation - low) // decimation
-        yield processed.select(slice(first_kept, last_kept))
+        kept = processed.select(slice(first_kept, last_kept))
+        if edge:  # the filter's settling at the record's two ends (the end is known once the file is exhausted)
+            low_kept = max(edge - done, 0)
+            high_kept = kept.n_samples - max(stop - (available - edge), 0) if exhausted else kept.n_samples
+            kept = kept.select(slice(low_kept, max(high_kept, low_kept)))
+        if kept.n_samples:
+            yield kept
         done = stop
         keep_from = max(done - margin, 0)
         if keep_from > start:
@@ -347,7 +358,7 @@ def preprocessed_chunks(path: str | Path, model: IdentificationModel, *, chunk_s
             buffer, start = [raw], keep_from
         else:
             buffer = [raw]
-    metadata = {"decimation": int(decimation), "margin": margin}
+    metadata = {"decimation": int(decimation), "margin": margin, "trimmed_samples": edge}
     if "resampled_from" in first.metadata:
         metadata["resampled_from"] = int(first.metadata["resampled_from"])
     if method is not None:
