@@ -198,3 +198,13 @@ def test_a_lost_worker_fails_the_diagnosis_naming_the_file(model, files):
 
     with pytest.raises(WorkerLostError, match="half1.csv"):
         diagnose_files(model, files["halves"], files["full"][1:], chunk_size=300, executor=Lost())
+
+
+def test_an_in_memory_diagnosis_larger_than_the_machine_is_refused(model, files, monkeypatch, tmp_path, capsys):
+    import dynamics.memory
+
+    monkeypatch.setattr(dynamics.memory, "available_memory", lambda: 1_000_000)  # 1 MB
+    out = tmp_path / "report.json"
+    code = main(["diagnose", "--joints", "3", "--model", "internal", "--data", str(files["full"][0]), "--validate",
+                 str(files["full"][1]), "--out", str(out)])
+    assert code == 2 and "--chunk-size" in capsys.readouterr().err and not out.exists()

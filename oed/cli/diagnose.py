@@ -16,7 +16,7 @@ from estimation.noise_floor import NoiseFloor, NoiseFloorError, noise_floor, poo
 from oed.cli.asbuilt import (add_asbuilt_arguments, finish_document, model_effects, resolve_transmission, rest_message,
                              rest_rows, trivial_predictors, worse_after)
 from oed.cli.common import OutputFiles, add_robot_arguments, json_text, robot_from_arguments
-from oed.cli.diagnose_streaming import add_streamed_diagnosis_arguments, run_streaming
+from oed.cli.diagnose_streaming import add_streamed_diagnosis_arguments, check_in_memory_diagnosis, run_streaming
 from oed.cli.identify import (add_data_arguments, add_derivative_arguments, add_streaming_arguments,
                               check_shaped_effects_kept, differentiation, prepare_data, print_warnings,
                               streaming_requested)
@@ -104,6 +104,7 @@ def run(args: argparse.Namespace) -> int:
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         train, validate, preprocessing = prepare_data(model, args, transmission)
+        check_in_memory_diagnosis(model, train, validate)
         train, rest_train = rest_rows(train, model, args, "train")
         validate, rest_validate = rest_rows(validate, model, args, "validation")
         candidates = default_candidates(model) + coupling_candidates(model, transmission, train=train)
