@@ -146,8 +146,11 @@ def main() -> None:
                                                      args.chunk_size, args.subsample)
         rows.append((length, seconds, cpu, peak))
         subsample = document["streaming"]["subsample"]
+        parts = document["streaming"]["seconds"]
         print(f"  {length:>9} samples: wall {seconds:7.1f} s, CPU {cpu:7.1f} s, peak {peak:7.0f} MB "
               f"(subsample {subsample['samples']}); {summary(document)}", flush=True)
+        print("             wall by part: " + ", ".join(f"{name} {value:.1f} s" for name, value in parts.items()),
+              flush=True)
     if len(rows) > 1:
         (n0, t0, c0, _), (n1, t1, c1, _) = rows[0], rows[-1]
         print(f"  wall ratio {t1 / t0:.2f}, CPU ratio {c1 / c0:.2f} for a length ratio {n1 / n0:.2f}; "

@@ -43,6 +43,7 @@ from __future__ import annotations
 
 import functools
 import pickle
+import time
 import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -225,6 +226,14 @@ def diagnose_files(
     payload = model_payload(model)
 
     # ---- pass 1: the subsample (training files)
+    clock = [time.perf_counter()]
+    seconds: dict[str, float] = {}
+
+    def lap(name: str) -> None:
+        now = time.perf_counter()
+        seconds[name] = round(now - clock[0], 3)
+        clock[0] = now
+
     cap = -(-int(subsample) // len(paths))
     parts = map_files(executor, subsample_task, paths, lambda path: (payload, path, options, cap, _stamp(path)))
     records = [record for _, _, record in parts]
@@ -252,7 +261,9 @@ def diagnose_files(
     declared_friction = {joint for effect in model.effects if effect.name in FRICTION_LAWS
                          for joint in (range(model.robot.n_joints) if getattr(effect, "joints", None) is None
                                        else effect.joints)}
+    lap("subsample_pass")
     shapes = _shape_search(model, blocks, rejected, sample, weights_sample, (FRICTION_LAWS, declared_friction))
+    lap("shape_search")
 
     # ---- pass 2: the sums (training and validation files)
     order = sorted(blocks)
@@ -274,6 +285,7 @@ def diagnose_files(
     local_blocks = {position[i]: blocks[i] for i in order}
     local_shapes = {position[i]: shapes[i] for i in order}
 
+    lap("sums_pass")
     # ---- the noise floor, the declared model, the selection
     if noise_floor is None:
         floor, floor_note = window_floor(validate, model, window=floor_window)
@@ -319,6 +331,7 @@ def diagnose_files(
             shape={p.name: float(v) for p, v in zip(block.parameters, local_shapes[index])}, shape_std={}))
     rejected_all = dict(rejected)
     rejected_all.update({order[slot]: value for slot, value in selection.rejected.items()})
+    lap("selection_and_estimates")
     normal = train.normal_system(columns, weights)[0]
     scale = np.sqrt(np.diag(normal))
     condition = float(np.linalg.cond(normal / np.outer(scale, scale)))
@@ -330,6 +343,7 @@ def diagnose_files(
                       "used_for": "shape search of shaped laws, coupling-pair tracing"},
         "floor_window": int(floor_window) if noise_floor is None else None,
         "stopped_at_floor": selection.stopped_at_floor,
+        "seconds": seconds,
         "errors_against": "the channels as recorded, along the derived motion",
         "accuracy": {"solve": "per-channel Gram sums, equilibrated, Cholesky (as the in-memory loop)",
                      "equilibrated_normal_cond": condition,
