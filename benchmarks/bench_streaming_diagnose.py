@@ -18,8 +18,12 @@ resident memory, wall and CPU time). Targets (issue 16): peak < 1 GB at 1 M samp
 from 100 k to 1 M, 1 M samples diagnosed in < 2 min. ``--in-memory N``: the in-memory path on a
 record of N samples, for comparison (14 KB a sample before this path existed).
 
+``--files K --file-samples N``: K training records of N samples through
+:func:`estimation.streamed_diagnosis.diagnose_files` serially, in a 2-process pool and on a 2-worker dask
+``LocalCluster`` (wall times; the same effects and estimates as serial).
+
 Run: ``python benchmarks/bench_streaming_diagnose.py [--lengths N ...] [--chunk-size C]
-[--subsample S] [--in-memory N ...] [--folder DIR]``; records are kept in ``--folder`` (default a
+[--subsample S] [--in-memory N ...] [--files K --file-samples N] [--folder DIR]``; records are kept in ``--folder`` (default a
 folder under /tmp) and reused.
 """
 
@@ -124,6 +128,46 @@ def summary(document: dict) -> str:
     return f"found {found}; validation MSE {sum(before.values()):.4g} -> {sum(after.values()):.4g} (worst {worst})"
 
 
+def bench_files(folder: Path, count: int, samples: int, chunk_size: int) -> None:
+    """``count`` training records through :func:`estimation.streamed_diagnosis.diagnose_files` serially, in a
+    2-process pool and on a 2-worker dask ``LocalCluster``: wall times and the estimates against serial."""
+    from concurrent.futures import ProcessPoolExecutor
+
+    from estimation.streamed_diagnosis import diagnose_files
+
+    paths = [record(folder, samples, seed=10 + index) for index in range(count)]
+    validate = [record(folder, VALIDATION_SAMPLES, seed=2)]
+    robot = load_robot(urdf=URDF)
+    model = build_model(robot, "internal", "viscous")
+    options = dict(chunk_size=chunk_size, cutoff_hz=CUTOFF)
+    results = {}
+    started = time.perf_counter()
+    result = diagnose_files(model, paths, validate, **options)
+    results["serial"] = (time.perf_counter() - started, result)
+    with ProcessPoolExecutor(2) as executor:
+        started = time.perf_counter()
+        result = diagnose_files(model, paths, validate, executor=executor, **options)
+        results["process pool (2)"] = (time.perf_counter() - started, result)
+    try:
+        from dask.distributed import Client, LocalCluster
+    except ImportError:
+        print("  dask not installed (pip install 'robot-oed[cluster]'): no cluster run")
+    else:
+        with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster, \
+                Client(cluster) as client:
+            started = time.perf_counter()
+            result = diagnose_files(model, paths, validate, executor=client.get_executor(pure=False), **options)
+            results["dask LocalCluster (2 workers)"] = (time.perf_counter() - started, result)
+    reference = results["serial"][1]
+    print(f"{count} training files of {samples} samples, diagnose, filter path, chunks of {chunk_size}:")
+    for label, (seconds, result) in results.items():
+        same = [e.spec + str(e.channels) for e in result.effects] == [e.spec + str(e.channels) for e in reference.effects]
+        difference = np.linalg.norm(result.after.values - reference.after.values) / np.linalg.norm(reference.after.values)
+        print(f"  {label:<32} {seconds:7.1f} s  ({len(result.effects)} effects, same as serial: {same}; "
+              f"estimate vs serial {difference:.1e})", flush=True)
+    print(f"  load average {os.getloadavg()[0]:.1f}")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--lengths", type=int, nargs="*", default=[100_000, 300_000, 1_000_000])
@@ -131,6 +175,8 @@ def main() -> None:
     parser.add_argument("--subsample", type=int, help="streamed path's subsample (default: the CLI's)")
     parser.add_argument("--in-memory", type=int, nargs="*", default=[], help="lengths also diagnosed in memory")
     parser.add_argument("--folder", type=Path)
+    parser.add_argument("--files", type=int, default=0, help="also: this many training files through executors")
+    parser.add_argument("--file-samples", type=int, default=100_000)
     args = parser.parse_args()
     folder = args.folder or Path(tempfile.gettempdir()) / "robot_oed_bench_streaming_diagnose"
     folder.mkdir(parents=True, exist_ok=True)
@@ -162,6 +208,8 @@ def main() -> None:
         print(f"  in memory {length:>9} samples: wall {seconds:7.1f} s, CPU {cpu:7.1f} s, peak {peak:7.0f} MB; "
               f"{summary(document)}", flush=True)
     print(f"  load average {os.getloadavg()[0]:.1f}")
+    if args.files:
+        bench_files(folder, args.files, args.file_samples, args.chunk_size)
 
 
 if __name__ == "__main__":
