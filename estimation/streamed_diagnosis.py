@@ -25,8 +25,10 @@ Passes over the data (each file one task on any ``concurrent.futures.Executor``,
 The forward selection, F tests, BIC, sign checks, spring-versus-offset, confirmation on validation
 and the noise-floor stopping rule then run on the sums (:mod:`estimation.summed_selection`), and
 the declared and augmented models are estimated from them by
-:class:`~estimation.summed_least_squares.SummedLeastSquares` (covariance ``classical``: the sums hold
-no HAC estimate). Every validation and training MSE is against the channels **as recorded** (the
+:class:`~estimation.summed_least_squares.SummedLeastSquares`. A third pass over the training files
+gives the augmented estimate's batch-means covariance (:mod:`estimation.summed_covariance`; residuals
+correlated in time, as on the filter path, make the classical standard deviations far too small;
+the declared model's stay classical). Every validation and training MSE is against the channels **as recorded** (the
 recorded torques, along the derived motion), as the in-memory diagnosis measures them.
 
 The noise floor: the model-free estimators of :mod:`estimation.noise_floor` are not sums (the
@@ -35,8 +37,7 @@ difference estimator takes a median); the floor is computed on a bounded window,
 (:func:`estimation.noise_floor.pooled_floor`), and the report says so.
 
 Not on this path (the report's ``streaming.not_on_this_path``): residual tracing, whiteness and
-per-sample residual statistics (they need the residuals sample by sample), HAC standard deviations,
-the per-round refinement and joint refit of shapes, shape standard deviations, the Fourier path.
+per-sample residual statistics (they need the residuals sample by sample), the per-round refinement and joint refit of shapes, shape standard deviations, the Fourier path.
 """
 
 from __future__ import annotations
@@ -46,7 +47,7 @@ import pickle
 import time
 import warnings
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -63,7 +64,9 @@ from estimation.diagnosis_sums import ColumnLayout, concatenate, normal_equation
 from estimation.identification import identify, implausible_estimates
 from estimation.loading import MeasurementError
 from estimation.noise_floor import NoiseFloor, compare_with_floor
-from estimation.streamed_diagnosis_passes import FLOOR_WINDOW, map_files, subsample_task, sums_task, window_floor
+from estimation.streamed_diagnosis_passes import (FLOOR_WINDOW, map_files, scores_task, subsample_task, sums_task,
+                                                  window_floor)
+from estimation.summed_covariance import sandwich
 from estimation.streaming import automatic_cutoff, read_chunks
 from estimation.summed_least_squares import SummedEstimate, SummedLeastSquares
 from estimation.summed_selection import select_effects, simpler_laws
@@ -77,7 +80,7 @@ DEFAULT_SUBSAMPLE = 10_000
 
 NOT_ON_THIS_PATH = (
     "residual tracing, whiteness and residual statistics (need the residuals sample by sample)",
-    "HAC standard deviations (cov_method classical)",
+    "the declared model's HAC standard deviations (classical there; the augmented model's are batch means)",
     "shapes refined round by round and refitted jointly at the end (fixed at the subsample's optimum)",
     "shape standard deviations",
     "a law paired with its offset searched jointly (the pair uses the law's own shape)",
@@ -127,7 +130,7 @@ class StreamedDiagnosis:
             "train": {which: {"mse": self.train_mse[which]} for which in ("before", "after")},
             "validation": {which: {"mse": self.validation_mse[which], "mse_over_floor": ratios[which]}
                            for which in ("before", "after")},
-            "cov_method": "classical",  # white residuals assumed: the sums hold no HAC estimate
+            "cov_method": "batch_means",  # the sandwich of estimation.summed_covariance (a third pass)
             "noise_floor": floor,
             "floor_comparison": {which: {channel: c.to_dict() for channel, c in values.items()}
                                  for which, values in comparison.items()},
@@ -316,6 +319,19 @@ def diagnose_files(
         if float(weights @ validation.channel_mse(columns_s, after_s.values)) <= (1.0 + min_improvement) * error:
             chosen, columns, after = simpler, columns_s, after_s
 
+    # ---- pass 3: the batch-means covariance of the final estimate (residuals correlated in time)
+    lap("selection_and_estimates")
+    plan_final = pickle.dumps(([local_blocks[i].effect for i in chosen], [local_shapes[i] for i in chosen]))
+    parts_scores = map_files(executor, scores_task, paths, lambda path: (payload, plan_final, path, options,
+                                                                         after.values, after.weights, _stamp(path)))
+    cov, batch = sandwich(parts_scores, train.normal_system(columns, after.weights)[0], after.cov, after.weights)
+    std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        relative_std = np.where(after.values != 0, 100.0 * std / np.abs(after.values), np.inf)
+    classical_std = after.std
+    after = replace(after, cov=cov, std=std, relative_std=relative_std)
+    lap("covariance_pass")
+
     def mse(sums, columns, theta):
         return dict(zip(model.channels, map(float, sums.channel_mse(columns, theta))))
 
@@ -331,7 +347,6 @@ def diagnose_files(
             shape={p.name: float(v) for p, v in zip(block.parameters, local_shapes[index])}, shape_std={}))
     rejected_all = dict(rejected)
     rejected_all.update({order[slot]: value for slot, value in selection.rejected.items()})
-    lap("selection_and_estimates")
     normal = train.normal_system(columns, weights)[0]
     scale = np.sqrt(np.diag(normal))
     condition = float(np.linalg.cond(normal / np.outer(scale, scale)))
@@ -343,6 +358,8 @@ def diagnose_files(
                       "used_for": "shape search of shaped laws, coupling-pair tracing"},
         "floor_window": int(floor_window) if noise_floor is None else None,
         "stopped_at_floor": selection.stopped_at_floor,
+        "covariance": {"method": "batch_means", "batch_length": batch,
+                       "classical_std": dict(zip(after.names[model.n_base:], map(float, classical_std[model.n_base:])))},
         "seconds": seconds,
         "errors_against": "the channels as recorded, along the derived motion",
         "accuracy": {"solve": "per-channel Gram sums, equilibrated, Cholesky (as the in-memory loop)",

@@ -30,9 +30,10 @@ from estimation.diagnosis_sums import ChannelSums, ColumnLayout, EvenSubsample, 
 from estimation.loading import MeasurementError
 from estimation.noise_floor import NoiseFloor, NoiseFloorError, noise_floor, pooled_floor
 from estimation.streaming import preprocessed_chunks, read_chunks
+from estimation.summed_covariance import BatchScores, chunk_scores
 from estimation.variable_projection import Block
 
-__all__ = ["FLOOR_WINDOW", "map_files", "subsample_task", "sums_task", "window_floor"]
+__all__ = ["FLOOR_WINDOW", "map_files", "scores_task", "subsample_task", "sums_task", "window_floor"]
 
 #: rows of each validation file (as recorded) the noise floor is estimated on
 FLOOR_WINDOW = 100_000
@@ -82,6 +83,22 @@ def _sums(path: str, model: IdentificationModel, payload: bytes, plan: bytes, op
 def sums_task(payload: bytes, plan: bytes, path: str, options: dict[str, Any], stamp=None):
     """Picklable: one file's :class:`ChannelSums` (base and candidate columns at fixed shapes)."""
     return _caught(_sums, path, _model(payload), payload, plan, options)
+
+
+@single_threaded_blas()
+def _scores(path: str, model: IdentificationModel, payload: bytes, plan: bytes, options: dict[str, Any],
+            theta: np.ndarray, weights: np.ndarray) -> BatchScores:
+    layout, blocks, shapes = _plan(payload, plan)
+    scores = BatchScores.empty(len(layout.names), layout.n_channels)
+    for chunk in preprocessed_chunks(path, model, **options):
+        scores.add(*chunk_scores(model, layout, blocks, shapes, chunk, theta, weights))
+    return scores.closed()
+
+
+def scores_task(payload: bytes, plan: bytes, path: str, options: dict[str, Any], theta, weights, stamp=None):
+    """Picklable: one file's :class:`~estimation.summed_covariance.BatchScores` at the final estimate
+    (``plan``: the chosen effects and shapes; ``theta`` on the base then their columns)."""
+    return _caught(_scores, path, _model(payload), payload, plan, options, np.asarray(theta), np.asarray(weights))
 
 
 def map_files(executor, task, paths: Sequence[str], *arguments) -> list:

@@ -160,7 +160,7 @@ def test_cli_streamed_diagnosis_writes_the_diagnose_keys(files, tmp_path, capsys
                  str(files["full"][1]), "--out", str(out), "--chunk-size", "400"])
     assert code == 0
     document = json.loads(out.read_text())
-    assert document["diagnosis_path"] == "streamed" and document["cov_method"] == "classical"
+    assert document["diagnosis_path"] == "streamed" and document["cov_method"] == "batch_means"
     assert [(e["name"], e["channels"]) for e in document["effects"]] == [("coulomb", ["tau2"]), ("offset", ["tau1"])]
     assert set(document["validation"]["after"]) >= {"mse", "mse_over_floor"}
     assert "found coulomb on tau2" in capsys.readouterr().out
@@ -208,3 +208,23 @@ def test_an_in_memory_diagnosis_larger_than_the_machine_is_refused(model, files,
     code = main(["diagnose", "--joints", "3", "--model", "internal", "--data", str(files["full"][0]), "--validate",
                  str(files["full"][1]), "--out", str(out)])
     assert code == 2 and "--chunk-size" in capsys.readouterr().err and not out.exists()
+
+
+def test_batch_scores_by_chunks_equal_the_batch_means_of_the_whole_record():
+    from estimation.batch_means import batch_means
+    from estimation.summed_covariance import BATCH_LENGTHS, BatchScores, _lag1
+
+    rng = np.random.default_rng(3)
+    scores = rng.standard_normal((1000, 3))
+    residual = np.cumsum(rng.standard_normal((2, 1000)), axis=1)  # correlated
+    accumulator = BatchScores.empty(3, 2)
+    for start, stop in ((0, 137), (137, 400), (400, 401), (401, 1000)):
+        accumulator.add(scores[start:stop], residual[:, start:stop])
+    closed = accumulator.closed()
+    for k, length in enumerate(BATCH_LENGTHS[:10]):
+        assert np.allclose(closed.meat[k], batch_means(scores, length), rtol=1e-12, atol=1e-12)
+    weights = np.array([1.0, 2.0])
+    centred = residual - residual.mean(axis=1, keepdims=True)
+    variance = np.sum(centred**2, axis=1)
+    lagged = np.sum(centred[:, 1:] * centred[:, :-1], axis=1)
+    assert _lag1([closed], weights)[0] == pytest.approx(np.sum(weights * lagged) / np.sum(weights * variance), rel=1e-10)
