@@ -67,6 +67,7 @@ from estimation.noise_floor import NoiseFloor, compare_with_floor
 from estimation.streamed_diagnosis_passes import (FLOOR_WINDOW, map_files, scores_task, subsample_task, sums_task,
                                                   window_floor)
 from estimation.summed_covariance import sandwich
+from estimation.trivial_predictors import trivial_warnings
 from estimation.streaming import automatic_cutoff, read_chunks
 from estimation.summed_least_squares import SummedEstimate, SummedLeastSquares
 from estimation.summed_selection import select_effects, simpler_laws
@@ -85,6 +86,7 @@ NOT_ON_THIS_PATH = (
     "shape standard deviations",
     "a law paired with its offset searched jointly (the pair uses the law's own shape)",
     "user stopping rules (the noise floor is the rule)",
+    "model_parameters (the physical reading of the estimate)",
 )
 
 
@@ -107,6 +109,7 @@ class StreamedDiagnosis:
     floor_note: str
     streaming: dict[str, Any] = field(repr=False)
     warnings: dict[str, tuple[str, ...]] = field(default_factory=dict)
+    trivial: dict[str, dict[str, float]] = field(default_factory=dict)  # zero_mse, nominal_mse (validation)
 
     def to_dict(self) -> dict[str, Any]:
         comparison, statements, ratios = {}, {}, {"before": None, "after": None}
@@ -128,8 +131,8 @@ class StreamedDiagnosis:
             "residuals": None,  # per-sample statistics: not on the streamed path
             "warnings": {which: list(self.warnings.get(which, ())) for which in ("before", "after")},
             "train": {which: {"mse": self.train_mse[which]} for which in ("before", "after")},
-            "validation": {which: {"mse": self.validation_mse[which], "mse_over_floor": ratios[which]}
-                           for which in ("before", "after")},
+            "validation": {**{which: {"mse": self.validation_mse[which], "mse_over_floor": ratios[which]}
+                              for which in ("before", "after")}, **{key: dict(value) for key, value in self.trivial.items()}},
             "cov_method": "batch_means",  # the sandwich of estimation.summed_covariance (a third pass)
             "noise_floor": floor,
             "floor_comparison": {which: {channel: c.to_dict() for channel, c in values.items()}
@@ -137,6 +140,8 @@ class StreamedDiagnosis:
             "floor_statements": statements,
             "tracing": None,
             "whiteness": None,
+            "rest": None,
+            "transmission": None,
             "diagnosis_path": "streamed",
             "streaming": dict(self.streaming),
         }
@@ -332,6 +337,10 @@ def diagnose_files(
     after = replace(after, cov=cov, std=std, relative_std=relative_std)
     lap("covariance_pass")
 
+    nominal = model.base.K @ model.nominal_parameters()
+    trivial = {"zero_mse": dict(zip(model.channels, map(float, validation.power[:, 1] / validation.n_samples))),
+               "nominal_mse": dict(zip(model.channels, map(float, validation.channel_mse(base, nominal))))}
+
     def mse(sums, columns, theta):
         return dict(zip(model.channels, map(float, sums.channel_mse(columns, theta))))
 
@@ -374,5 +383,8 @@ def diagnose_files(
         validation_mse={"before": mse(validation, base, before.values), "after": mse(validation, columns, after.values)},
         n_train=train.n_samples, n_validation=validation.n_samples, floor=floor, floor_note=floor_note,
         streaming=streaming,
-        warnings={"before": implausible_estimates(model, before), "after": implausible_estimates(model, after)},
+        warnings={"before": implausible_estimates(model, before),
+                  "after": implausible_estimates(model, after) + trivial_warnings(
+                      dict(zip(model.channels, map(float, validation.channel_mse(columns, after.values)))), trivial)},
+        trivial=trivial,
     )

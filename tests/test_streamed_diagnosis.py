@@ -228,3 +228,14 @@ def test_batch_scores_by_chunks_equal_the_batch_means_of_the_whole_record():
     variance = np.sum(centred**2, axis=1)
     lagged = np.sum(centred[:, 1:] * centred[:, :-1], axis=1)
     assert _lag1([closed], weights)[0] == pytest.approx(np.sum(weights * lagged) / np.sum(weights * variance), rel=1e-10)
+
+
+def test_trivial_predictors_from_the_sums_equal_the_in_memory_ones(model, files):
+    from estimation.trivial_predictors import trivial_mse
+
+    validate = read_measurements(files["full"][1], model=model)
+    streamed = diagnose_files(model, files["full"][:1], files["full"][1:], chunk_size=300, candidates=())
+    expected = trivial_mse(model, validate)
+    document = streamed.to_dict()
+    for key in ("zero_mse", "nominal_mse"):
+        assert relative(list(document["validation"][key].values()), list(expected[key].values())) < 1e-10
