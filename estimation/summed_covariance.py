@@ -129,7 +129,8 @@ def sandwich(parts: Sequence[BatchScores], normal: NDArray[np.float64], classica
     rho, n_samples = _lag1(parts, weights)
     alpha = 4 * rho**2 / (1 - rho) ** 4
     length = int(np.clip(round(1.1447 * (alpha * n_samples) ** (1 / 3)), 1, max(1, n_samples // 20)))
-    k = int(np.argmin([abs(np.log(candidate / length)) for candidate in BATCH_LENGTHS]))
+    allowed = [candidate for candidate in BATCH_LENGTHS if candidate <= max(1, n_samples // 20)]  # twenty batches
+    k = int(np.argmin([abs(np.log(candidate / length)) for candidate in allowed]))
     meat = sum(part.meat[k] for part in parts)
     scale = np.sqrt(np.diag(normal))
     inverse = np.linalg.inv(normal / np.outer(scale, scale)) / np.outer(scale, scale)  # equilibrated
