@@ -133,7 +133,6 @@ class Diagnosis:
                 "after": {"mse": self.after.validation.mse if self.after.validation else None},
             },
             "cov_method": self.after.estimate.cov_method,
-            "diagnosis_path": "in-memory",  # "streamed": estimation.streamed_diagnosis
         }
         if self.statistics is not None:  # noise floor, tracing, whiteness (estimation.diagnosis_statistics)
             document.update(self.statistics.to_dict())

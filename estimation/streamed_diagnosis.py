@@ -87,6 +87,9 @@ NOT_ON_THIS_PATH = (
     "a law paired with its offset searched jointly (the pair uses the law's own shape)",
     "user stopping rules (the noise floor is the rule)",
     "model_parameters (the physical reading of the estimate)",
+    "a delay between torques and motion as a candidate (it moves the records; where the in-memory loop has one)",
+    "the in-memory loop's later rules where it has them: combination groups, limit laws, signs pinned in the "
+    "joint refit, traced shape refinement",
 )
 
 
@@ -316,6 +319,7 @@ def diagnose_files(
         return columns, estimate
 
     columns, after = refit(chosen)
+    weights = selection.weights  # the search's last weights (the declared model's unless it reweights)
     error = float(weights @ validation.channel_mse(columns, after.values))
     replacements = simpler_laws(chosen, local_blocks, {r["name"]: r for r in after.records()}, model)
     if replacements:

@@ -8,7 +8,7 @@ candidate's linear and shape parameters, Bonferroni threshold ``alpha / J``), th
 shape-at-bound checks (:func:`~estimation.candidate_trials.wrong_sign`), spring against offset
 (:func:`estimation.diagnosis._offsets_beat_springs`), one Coulomb-like law a joint, confirmation on
 the validation record against its channels **as recorded** (weighted MSE lowered by
-``min_improvement``, and no channel the candidate acts on made worse:
+``min_improvement``, at the weights the in-memory loop compares at: :data:`REWEIGHTED`, and no channel the candidate acts on made worse:
 :func:`estimation.confirmation.channels_made_worse`), the noise floor as the stopping rule
 (:func:`estimation.noise_floor.above_floor` at :data:`~estimation.diagnosis_statistics.FLOOR_ALPHA`,
 as :func:`~estimation.stopping_rules.floor_stopping_rule`).
@@ -44,7 +44,13 @@ from estimation.diagnosis_sums import ChannelSums
 from estimation.noise_floor import NoiseFloor, above_floor
 from estimation.variable_projection import Block, ShapeFit
 
-__all__ = ["Selection", "select_effects", "simpler_laws"]
+try:  # the in-memory loop's confirmation rule is followed: reweighted when estimation.confirmation reweights
+    from estimation.confirmation import REWEIGHTING_PASSES  # type: ignore[attr-defined]
+    REWEIGHTED = True
+except ImportError:  # the loop compares at the declared model's weights
+    REWEIGHTING_PASSES, REWEIGHTED = 0, False
+
+__all__ = ["REWEIGHTED", "Selection", "select_effects", "simpler_laws"]
 
 
 @dataclass(frozen=True)
@@ -56,6 +62,7 @@ class Selection:
     f_statistics: tuple[float, ...]
     rejected: dict[int, RejectedEffect]
     stopped_at_floor: bool
+    weights: NDArray[np.float64]  # the channel weights the search ended with
 
 
 def _columns(sums: ChannelSums, indices: Sequence[int]) -> list[int]:
@@ -84,6 +91,33 @@ def _trial(group, members, sums: ChannelSums, selection, weights, rss, shapes) -
     fit = ShapeFit(shape, theta, np.full((n_total, n_total), np.nan), rss_augmented,
                    tuple(p.name for block in members for p in block.parameters), 0, None)
     return Trial(tuple(group), tuple(members), fit, rss_augmented, float(statistic), p_value, float(bic))
+
+
+def _settled_weights(sums: ChannelSums, columns: Sequence[int], n_parameters: int, weights: NDArray[np.float64]
+                     ) -> NDArray[np.float64]:
+    """``1/σ̂_c²`` from the training residuals on ``columns``, iterated (as
+    ``estimation.confirmation.settled_weights``: ``σ̂_c² = ‖ρ_c‖² / (N − r/m)``)."""
+    m, n = sums.layout.n_channels, sums.n_samples
+    floor = 1e-14 * sums.power[:, 0] / n + np.finfo(float).tiny
+    for _ in range(REWEIGHTING_PASSES):
+        theta, _ = sums.solve(columns, weights)
+        weights = 1.0 / np.maximum(sums.channel_rss(columns, theta, target=0) / (n - n_parameters / m), floor)
+    return weights
+
+
+def _comparison(trial: Trial, train: ChannelSums, validate: ChannelSums, selection: list[int],
+                weights: NDArray[np.float64], validate_mse: NDArray[np.float64], validation_error: float):
+    """``(weights, candidate's error, its MSEs, current error, current MSEs)`` on validation: at the
+    loop's weights, or (:data:`REWEIGHTED`) both models trained and compared at the weights the
+    candidate's training residuals give (``estimation.confirmation.reweighted_comparison``)."""
+    columns = selection + _columns(train, trial.group)
+    if not REWEIGHTED:
+        candidate_mse = validate.channel_mse(columns, trial.fit.theta)
+        return weights, float(weights @ candidate_mse), candidate_mse, validation_error, validate_mse
+    settled = _settled_weights(train, columns, len(selection) + trial.n_parameters, weights)
+    candidate_mse = validate.channel_mse(columns, train.solve(columns, settled)[0])
+    current_mse = validate.channel_mse(selection, train.solve(selection, settled)[0])
+    return settled, float(settled @ candidate_mse), candidate_mse, float(settled @ current_mse), current_mse
 
 
 def select_effects(model: IdentificationModel, blocks: dict[int, Block], shapes: dict[int, NDArray[np.float64]],
@@ -146,28 +180,27 @@ def select_effects(model: IdentificationModel, blocks: dict[int, Block], shapes:
                 if len(trial.group) == 1:
                     last_reason[trial.group[0]] = text + reason
                 continue
-            columns = selection + _columns(train, trial.group)
-            candidate_mse = validate.channel_mse(columns, trial.fit.theta)
-            error = float(weights @ candidate_mse)
-            if error >= (1.0 - min_improvement) * validation_error:
+            settled, error, candidate_mse, current_error, current_mse = _comparison(
+                trial, train, validate, selection, weights, validate_mse, validation_error)
+            if error >= (1.0 - min_improvement) * current_error:
                 if len(trial.group) == 1:
-                    change = ("raises the validation error" if error > validation_error else
+                    change = ("raises the validation error" if error > current_error else
                               f"lowers the validation error by less than {100 * min_improvement:g} %")
-                    last_reason[trial.group[0]] = text + f"{change} ({validation_error:.4g} -> {error:.4g})"
+                    last_reason[trial.group[0]] = text + f"{change} ({current_error:.4g} -> {error:.4g})"
                 continue
             # channels_made_worse compares mean squares per channel: one "sample" whose square is the MSE
-            worse = channels_made_worse(trial, np.sqrt(validate_mse)[:, None], np.sqrt(candidate_mse)[:, None],
+            worse = channels_made_worse(trial, np.sqrt(current_mse)[:, None], np.sqrt(candidate_mse)[:, None],
                                         min_improvement, model)
             if worse:
                 if len(trial.group) == 1:
                     last_reason[trial.group[0]] = text + f"raises the validation error of {worse}"
                 continue
-            added = (trial, error, candidate_mse)
+            added = (trial, settled)
             break
         groups = [group for group in groups if not any(index in rejected for index in group)]
         if added is None:
             break
-        trial, validation_error, validate_mse = added
+        trial, weights = added
         for index, block in zip(trial.group, trial.blocks):
             chosen.append(index)
             p_values.append(trial.p_value)
@@ -176,6 +209,8 @@ def select_effects(model: IdentificationModel, blocks: dict[int, Block], shapes:
                 friction_joints |= set(joints_of(block, model))
         selection = selection + _columns(train, trial.group)
         theta, rss = train.solve(selection, weights)
+        validate_mse = validate.channel_mse(selection, theta)
+        validation_error = float(weights @ validate_mse)
         groups = [group for group in groups if not set(group) & set(trial.group)]
     reason = f"not tested: {max_effects} effects already added" if len(chosen) >= max_effects else "not significant"
     if stopped_at_floor:
@@ -183,7 +218,7 @@ def select_effects(model: IdentificationModel, blocks: dict[int, Block], shapes:
     for index in blocks:
         if index not in rejected and index not in chosen:
             reject(index, last_reason.get(index, reason) if len(chosen) < max_effects else reason)
-    return Selection(tuple(chosen), tuple(p_values), tuple(statistics), rejected, stopped_at_floor)
+    return Selection(tuple(chosen), tuple(p_values), tuple(statistics), rejected, stopped_at_floor, weights)
 
 
 def simpler_laws(chosen: Sequence[int], blocks: dict[int, Block], records: dict[str, dict], model: IdentificationModel

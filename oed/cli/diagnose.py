@@ -121,6 +121,7 @@ def run(args: argparse.Namespace) -> int:
     document = finish_document(diagnosis.to_dict(), diagnosis.after, trivial=trivial, warnings=notes, rest=rest_record,
                                transmission=transmission, warnings_key=("warnings", "after"))
     document["preprocessing"] = preprocessing.to_dict()
+    document["diagnosis_path"] = "in-memory"  # "streamed": --chunk-size (oed.cli.diagnose_streaming)
     document["max_effects"] = args.max_effects
     document["max_effects_reached"] = len(diagnosis.effects) >= args.max_effects
     with OutputFiles() as outputs:  # all files or none
