@@ -58,7 +58,7 @@ from estimation.streaming_time import Resampler, scan_time
 
 __all__ = [
     "FileSums", "MARGIN_TOLERANCE", "StreamingUnsupportedError", "automatic_cutoff", "file_sums", "filter_margin",
-    "read_chunks",
+    "preprocessed_chunks", "read_chunks",
 ]
 
 #: relative size of the impulse response at which the overlap margin ends
@@ -275,32 +275,27 @@ def _preprocessed(window: Measurements, method: ButterworthDifferentiation | Non
     return decimate(derived, decimation)
 
 
-@single_threaded_blas()  # threaded OpenBLAS takes 30x longer on tall, thin QR (0.7 against 0.024 s, 10 051 x 51)
-def file_sums(path: str | Path, model: IdentificationModel, *, chunk_size: int = DEFAULT_CHUNK_SIZE,
-              cutoff_hz: float | None = None, order: int = 4, decimation: int = 1,
-              held_torques: bool = False) -> FileSums:
-    """Read, preprocess and sum one file chunk by chunk.
+def preprocessed_chunks(path: str | Path, model: IdentificationModel, *, chunk_size: int = DEFAULT_CHUNK_SIZE,
+                        cutoff_hz: float | None = None, order: int = 4, decimation: int = 1,
+                        held_torques: bool = False, trim: bool = False, record: dict | None = None
+                        ) -> Iterator[Measurements]:
+    """The preprocessed samples of one file, chunk by chunk (overlapping windows: module docstring).
 
-    Parameters
-    ----------
-    path
-        CSV or Parquet file (``t, q…, [dq…, ddq…], tau…/fx…``).
-    model
-        The identification model.
-    chunk_size
-        Samples a chunk (a multiple of ``decimation`` is used).
-    cutoff_hz, order
-        Butterworth cut-off and order, used when the file lacks ``dq``/``ddq`` (then ``cutoff_hz`` is
-        required: see :func:`automatic_cutoff`). Ignored when the file holds both.
-    decimation, held_torques
-        As :func:`estimation.preprocessing.fill_derivatives`.
+    The arguments are those of :func:`file_sums`. ``trim``: on the filter path without decimation,
+    the samples where the zero-phase filter settles are dropped at both ends of the record
+    (:meth:`ButterworthDifferentiation.settling_samples`), as the in-memory preprocessing of the CLI
+    does (``ButterworthDifferentiation(trim=True)``). ``record`` (a dict, optional) receives, once the
+    file is read to its end, ``rows`` (samples read), ``columns`` (the column groups) and
+    ``metadata`` (decimation, margin, differentiation…). Each chunk keeps the channels as recorded
+    (``Measurements.recorded``) beside the filtered ones when the filter path runs.
     """
     path = Path(path)
     chunk_size = check_chunk_size(chunk_size, model)
     if int(decimation) != decimation or decimation < 1:
         raise ValueError(f"decimation factor must be a positive integer, got {decimation}")
     chunk_size = -(-chunk_size // decimation) * decimation
-    sums = NormalEquations.empty(model.channels, model.base.names, model.base.expressions)
+    if record is not None:
+        record["chunk_size"] = chunk_size
     chunks = read_chunks(path, model, chunk_size=chunk_size)
     first = next(chunks)
     derive = first.dq is None or first.ddq is None
@@ -313,6 +308,7 @@ def file_sums(path: str | Path, model: IdentificationModel, *, chunk_size: int =
     rate = 1.0 / float(np.median(np.diff(first.t)))
     margin = filter_margin(rate, cutoff_hz if derive else None, order, int(decimation)) if (derive or decimation > 1) else 0
     columns = tuple(name for name in ("dq", "ddq", "tau", "wrench") if getattr(first, name) is not None)
+    edge = method.settling_samples(rate, cutoff_hz) if trim and method is not None and decimation == 1 else 0
 
     buffer: list[Measurements] = [first]
     start = 0  # global index of buffer[0]
@@ -322,7 +318,7 @@ def file_sums(path: str | Path, model: IdentificationModel, *, chunk_size: int =
     cutoff_checked = False
     while True:
         available = start + sum(part.n_samples for part in buffer)
-        while not exhausted and available < done + chunk_size + margin:
+        while not exhausted and available < done + chunk_size + margin + edge:
             try:
                 part = next(chunks)
             except StopIteration:
@@ -349,7 +345,12 @@ def file_sums(path: str | Path, model: IdentificationModel, *, chunk_size: int =
         first_kept = (-(-done // decimation) * decimation - low) // decimation
         last_kept = (-(-stop // decimation) * decimation - low) // decimation
         kept = processed.select(slice(first_kept, last_kept))
-        sums = accumulate(model, kept, chunk_size=chunk_size, sums=sums)
+        if edge:  # the filter's settling at the record's two ends (the end is known once the file is exhausted)
+            low_kept = max(edge - done, 0)
+            high_kept = kept.n_samples - max(stop - (available - edge), 0) if exhausted else kept.n_samples
+            kept = kept.select(slice(low_kept, max(high_kept, low_kept)))
+        if kept.n_samples:
+            yield kept
         done = stop
         keep_from = max(done - margin, 0)
         if keep_from > start:
@@ -357,10 +358,39 @@ def file_sums(path: str | Path, model: IdentificationModel, *, chunk_size: int =
             buffer, start = [raw], keep_from
         else:
             buffer = [raw]
-    metadata = {"decimation": int(decimation), "margin": margin}
+    metadata = {"decimation": int(decimation), "margin": margin, "trimmed_samples": edge}
     if "resampled_from" in first.metadata:
         metadata["resampled_from"] = int(first.metadata["resampled_from"])
     if method is not None:
         metadata.update(differentiation="butterworth", cutoff_hz=float(cutoff_hz), filter_order=order)
+    if record is not None:
+        record.update(rows=rows, columns=columns, metadata=metadata)
+
+
+@single_threaded_blas()  # threaded OpenBLAS takes 30x longer on tall, thin QR (0.7 against 0.024 s, 10 051 x 51)
+def file_sums(path: str | Path, model: IdentificationModel, *, chunk_size: int = DEFAULT_CHUNK_SIZE,
+              cutoff_hz: float | None = None, order: int = 4, decimation: int = 1,
+              held_torques: bool = False) -> FileSums:
+    """Read, preprocess and sum one file chunk by chunk.
+
+    Parameters
+    ----------
+    path
+        CSV or Parquet file (``t, q…, [dq…, ddq…], tau…/fx…``).
+    model
+        The identification model.
+    chunk_size
+        Samples a chunk (a multiple of ``decimation`` is used).
+    cutoff_hz, order
+        Butterworth cut-off and order, used when the file lacks ``dq``/``ddq`` (then ``cutoff_hz`` is
+        required: see :func:`automatic_cutoff`). Ignored when the file holds both.
+    decimation, held_torques
+        As :func:`estimation.preprocessing.fill_derivatives`.
+    """
+    sums = NormalEquations.empty(model.channels, model.base.names, model.base.expressions)
+    record: dict = {}
+    for kept in preprocessed_chunks(path, model, chunk_size=chunk_size, cutoff_hz=cutoff_hz, order=order,
+                                    decimation=decimation, held_torques=held_torques, record=record):
+        sums = accumulate(model, kept, chunk_size=record["chunk_size"], sums=sums)
     sums = replace(sums, sources=(str(path),))
-    return FileSums(str(path), sums, rows, columns, metadata)
+    return FileSums(str(path), sums, record["rows"], record["columns"], record["metadata"])

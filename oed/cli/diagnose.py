@@ -17,8 +17,10 @@ from estimation.noise_floor import NoiseFloor, NoiseFloorError, noise_floor, poo
 from oed.cli.asbuilt import (add_asbuilt_arguments, finish_document, model_effects, resolve_transmission, rest_message,
                              rest_rows, trivial_predictors, worse_after)
 from oed.cli.common import OutputFiles, add_robot_arguments, json_text, robot_from_arguments
-from oed.cli.identify import (add_data_arguments, add_derivative_arguments, check_shaped_effects_kept, differentiation,
-                              prepare_data, print_warnings)
+from oed.cli.diagnose_streaming import add_streamed_diagnosis_arguments, check_in_memory_diagnosis, run_streaming
+from oed.cli.identify import (add_data_arguments, add_derivative_arguments, add_streaming_arguments,
+                              check_shaped_effects_kept, differentiation, prepare_data, print_warnings,
+                              streaming_requested)
 
 
 def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -42,6 +44,8 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     parser.add_argument("--max-effects", type=int, default=20, metavar="N",
                         help="add at most N effects (default 20); the output says when the cap stopped the search")
     add_derivative_arguments(parser)
+    add_streaming_arguments(parser)
+    add_streamed_diagnosis_arguments(parser)
     return parser
 
 
@@ -92,6 +96,8 @@ def run(args: argparse.Namespace) -> int:
     if isinstance(args.max_effects, bool) or args.max_effects < 1:
         raise ValueError(f"--max-effects must be a positive integer, got {args.max_effects}")
     differentiation(args)  # contradicting derivative options are an error even when the data hold dq, ddq
+    if streaming_requested(args):  # bounded memory (estimation.streamed_diagnosis)
+        return run_streaming(args)
     robot = robot_from_arguments(args)
     transmission = resolve_transmission(args, robot)
     args.friction, delay = split_delay(args.friction)  # a candidate in every diagnosis: 'delay:S' sets its bound
@@ -101,6 +107,7 @@ def run(args: argparse.Namespace) -> int:
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         train, validate, preprocessing = prepare_data(model, args, transmission)
+        check_in_memory_diagnosis(model, train, validate)
         train, rest_train = rest_rows(train, model, args, "train")
         validate, rest_validate = rest_rows(validate, model, args, "validation")
         candidates = default_candidates(model) + coupling_candidates(model, transmission, train=train)
@@ -117,6 +124,7 @@ def run(args: argparse.Namespace) -> int:
     document = finish_document(diagnosis.to_dict(), diagnosis.after, trivial=trivial, warnings=notes, rest=rest_record,
                                transmission=transmission, warnings_key=("warnings", "after"))
     document["preprocessing"] = preprocessing.to_dict()
+    document["diagnosis_path"] = "in-memory"  # "streamed": --chunk-size (oed.cli.diagnose_streaming)
     document["max_effects"] = args.max_effects
     document["max_effects_reached"] = len(diagnosis.effects) >= args.max_effects
     with OutputFiles() as outputs:  # all files or none
