@@ -96,11 +96,14 @@ def run(args: argparse.Namespace) -> int:
     if isinstance(args.max_effects, bool) or args.max_effects < 1:
         raise ValueError(f"--max-effects must be a positive integer, got {args.max_effects}")
     differentiation(args)  # contradicting derivative options are an error even when the data hold dq, ddq
+    args.friction, delay = split_delay(args.friction)  # a candidate in every diagnosis: 'delay:S' sets its bound
     if streaming_requested(args):  # bounded memory (estimation.streamed_diagnosis)
+        if delay is not None:
+            raise ValueError("the delay between torques and motion is searched in memory: not with the streamed path "
+                             "(--chunk-size, --scheduler or --workers), which does not try it")
         return run_streaming(args)
     robot = robot_from_arguments(args)
     transmission = resolve_transmission(args, robot)
-    args.friction, delay = split_delay(args.friction)  # a candidate in every diagnosis: 'delay:S' sets its bound
     effects = model_effects(args, robot, transmission)
     model = build_model(robot, args.model, effects)
     check_shaped_effects_kept(effects, model)
