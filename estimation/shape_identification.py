@@ -147,6 +147,7 @@ def fit_shaped_model(model: IdentificationModel, train: Measurements, *, weighte
     fixed = FixedPart.from_arrays(np.ascontiguousarray(Y[:, :, kept]), y)
     states = States(train.q, train.dq, train.ddq)
     weights = np.ones(model.n_channels)
+    segments = [(piece.start, piece.stop) for piece in segment_slices(train)]
     fit = None
     first = None
     if starts is not None:
@@ -155,7 +156,7 @@ def fit_shaped_model(model: IdentificationModel, train: Measurements, *, weighte
     for _ in range(rounds if weighted else 1):
         start_points = first if fit is None else fit.shape[None, :]
         fit = fit_shapes(fixed, blocks, states, weights, starts=start_points, max_iter=60 if search else 0,
-                         covariance=covariance)
+                         covariance=covariance, segments=segments)
         shaped = ShapedFit(model, tuple(blocks), tuple(kept), tuple(replaced), fit, weights)
         residual = y - shaped.predict(train)
         variance = np.maximum(channel_variance(residual, model.n_base + len(fit.names)), 1e-14 * np.mean(y**2, axis=0))
@@ -168,7 +169,7 @@ def fit_shaped_model(model: IdentificationModel, train: Measurements, *, weighte
         weights = updated
     if weighted:  # the final fit at the settled weights
         fit = fit_shapes(fixed, blocks, states, weights, starts=fit.shape[None, :], max_iter=60 if search else 0,
-                         covariance=covariance)
+                         covariance=covariance, segments=segments)
     shaped = ShapedFit(model, tuple(blocks), tuple(kept), tuple(replaced), fit, weights)
     residual = y - shaped.predict(train)
     order = list(kept) + list(replaced)
