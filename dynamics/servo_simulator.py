@@ -13,7 +13,7 @@ step slews at the servo's rated speed ``v_max`` (5.2 rad/s, a 0.2 s/60° hobby s
 
 Sensors at the sample time (10 ms): gyro rate ``ω = q̇ + bias + noise`` with a random-walk bias, and an
 accelerometer-derived angle ``q + noise`` (white; the base yaw ``ρ`` stands for the odometry the paper
-uses there). The reported angle ``q`` is the Kalman fusion of both (eqs. 1–8, :mod:`estimation.kalman`).
+uses there). The reported angle ``q`` is the Kalman fusion of both (eqs. 1–8, :mod:`dynamics.kalman`).
 
 Examples
 --------
@@ -34,8 +34,8 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from dynamics.robots.servo_arm import SERVO_ARM_MASSES, SERVO_ARM_RANGES
-from estimation.kalman import kalman_fusion
-from estimation.signal_checks import check_in_ranges, check_uniform_time
+from dynamics.kalman import kalman_fusion
+from dynamics.signal_checks import check_in_ranges, check_uniform_time
 
 
 @dataclass(frozen=True)

@@ -12,7 +12,7 @@ recorded true state to rounding, whatever the step size), the applied torque ``Ï
 base reaction wrench from Pinocchio (free-flyer RNEA at a still root; rigid body only: friction
 is internal) plus the plate effects.
 
-Measured channels (what :class:`estimation.measurements.Measurements` holds):
+Measured channels (what :class:`dynamics.measurements.Measurements` holds):
 
 * ``q``: true positions quantised to the encoder resolution (``round(q / res) Â· res``);
 * ``dq``, ``ddq``: **absent** by default (a real robot measures positions only; preprocessing
@@ -37,7 +37,7 @@ from dynamics.pinocchio_bridge import to_pinocchio
 from dynamics.robot import RobotModel
 from dynamics.sensors import NoiseModel
 from dynamics.simulated_effects import Armature, Viscous, describe, effects_from_names, is_plate_effect
-from estimation.measurements import Measurements
+from dynamics.measurements import Measurements
 
 @dataclass(frozen=True)
 class SimulationResult:

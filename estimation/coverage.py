@@ -8,6 +8,10 @@ parameters), and counts, per parameter, how often the interval covers the truth.
 through a :class:`concurrent.futures.Executor` (threads by default: the work is in BLAS and
 CasADi; a process pool needs picklable callables).
 
+:func:`identification_draw` turns an :func:`estimation.identification.identify` result into a draw:
+the base parameters and, for a model with shaped effects, the shape parameters (smoothing
+velocities…) with their standard deviations.
+
 With ``R`` realisations and a true coverage ``p`` the counted fraction has standard deviation
 ``√(p(1−p)/R)`` (1.5 % at ``p = 0.95``, ``R = 200``).
 """
@@ -88,6 +92,16 @@ class CoverageResult:
     def to_dict(self) -> dict[str, Any]:
         return {"level": self.level, "realisations": self.realisations, "overall": self.overall(),
                 "coverage": self.coverage(), "std_ratio": self.std_ratio(), "bias_sigmas": self.bias_sigmas()}
+
+
+def identification_draw(result: Any) -> EstimateDraw:
+    """The base parameters of an :class:`estimation.identification.IdentificationResult` and its shape
+    parameters (``result.shapes``: smoothing velocities…), with their standard deviations."""
+    estimate = result.estimate
+    names = tuple(estimate.names) + tuple(value.name for value in result.shapes)
+    values = np.concatenate([estimate.values, [value.value for value in result.shapes]])
+    std = np.concatenate([estimate.std, [value.std for value in result.shapes]])
+    return EstimateDraw(names, values, std)
 
 
 def monte_carlo_coverage(

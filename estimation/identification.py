@@ -22,7 +22,7 @@ import numpy as np
 from dynamics.effects import POSITIVE_EFFECTS
 from dynamics.models import IdentificationModel
 from dynamics.threads import single_threaded_blas
-from estimation.covariance import CovarianceMethod
+from estimation.covariance import CovarianceMethod, check_method
 from estimation.least_squares import Estimate, LeastSquares, WeightedLeastSquares, stack
 from estimation.measurements import Measurements
 from estimation.segments import concatenate
@@ -177,7 +177,9 @@ def identify(
     covariance
         Standard deviations: ``"hac"`` (default; Newey–West, they hold when the residuals are
         correlated in time, and equal the classical ones within sampling error when they are white:
-        :mod:`estimation.covariance`) or ``"classical"`` (white residuals assumed).
+        :mod:`estimation.covariance`) or ``"classical"`` (white residuals assumed). With shaped
+        effects ``"hac"`` is the batch-means sandwich (``cov_method="batch_means"``, the shapes'
+        uncertainty included through the full Jacobian) and ``"classical"`` its white-noise form.
     shape_starts
         Start the shape search of shaped effects from these values (by shape-parameter name)
         instead of their declared grid (:mod:`estimation.shape_identification`).
@@ -208,7 +210,7 @@ def identify(
     if any(is_shaped(effect, model.robot) for effect in model.effects):
         if estimator is not None:
             raise TypeError("a model with shaped effects is fitted by variable projection: give weighted=, not estimator=")
-        return _identify_shaped(model, train, validate, weighted, shape_starts, shape_search)
+        return _identify_shaped(model, train, validate, weighted, shape_starts, shape_search, check_method(covariance))
     if estimator is None:
         estimator = WeightedLeastSquares(covariance=covariance) if weighted else LeastSquares(covariance=covariance)
     estimate = estimator.fit(stack(model, train)).estimate_
@@ -221,11 +223,14 @@ def identify(
                                 train.metadata.get("preprocessing"))
 
 
-def _identify_shaped(model, train, validate, weighted, shape_starts=None, shape_search=True) -> IdentificationResult:
-    """Variable projection for shaped effects (:mod:`estimation.shape_identification`)."""
+def _identify_shaped(model, train, validate, weighted, shape_starts=None, shape_search=True,
+                     covariance: CovarianceMethod = "hac") -> IdentificationResult:
+    """Variable projection for shaped effects (:mod:`estimation.shape_identification`); ``covariance``
+    ``"hac"``: the batch-means sandwich, ``"classical"``: white residuals (both from the full Jacobian)."""
     from estimation.shape_identification import fit_shaped_model, shaped_comparison  # noqa: PLC0415
 
-    shaped, estimate = fit_shaped_model(model, train, weighted=weighted, starts=shape_starts, search=shape_search)
+    shaped, estimate = fit_shaped_model(model, train, weighted=weighted, starts=shape_starts, search=shape_search,
+                                        covariance="white" if covariance == "classical" else "hac")
     train_comparison = shaped_comparison(shaped, train, "identification")
     validation = None if validate is None else shaped_comparison(shaped, validate, "validation")
     notes = implausible_estimates(model, estimate)

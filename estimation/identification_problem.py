@@ -15,7 +15,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from dynamics.models import IdentificationModel
 from estimation.measurements import Measurements
-from estimation.segments import concatenate
+from estimation.covariance import segment_bounds
+from estimation.segments import concatenate, segment_slices
 
 
 @dataclass(frozen=True)
@@ -32,6 +33,9 @@ class IdentificationProblem:
         Name of each channel (``tau1``, ``fx``…), as the data columns.
     names, expressions
         Name and grouping of each parameter (column).
+    segments
+        ``(start, stop)`` samples of each segment of a stacked record (:mod:`estimation.segments`;
+        empty: one segment): the HAC covariance runs no lag across a boundary.
     """
 
     Y: NDArray[np.float64]
@@ -39,6 +43,7 @@ class IdentificationProblem:
     channels: tuple[str, ...]
     names: tuple[str, ...]
     expressions: tuple[str, ...] = ()
+    segments: tuple[tuple[int, int], ...] = ()
 
     def __post_init__(self) -> None:
         Y, y = np.asarray(self.Y, dtype=float), np.asarray(self.y, dtype=float)
@@ -63,6 +68,7 @@ class IdentificationProblem:
         object.__setattr__(self, "channels", tuple(self.channels))
         object.__setattr__(self, "names", tuple(self.names))
         object.__setattr__(self, "expressions", tuple(self.expressions) or tuple(self.names))
+        object.__setattr__(self, "segments", tuple(segment_bounds(Y.shape[0], self.segments)) if self.segments else ())
 
     @property
     def n_samples(self) -> int:
@@ -102,7 +108,7 @@ class IdentificationProblem:
             raise ValueError(f"parameter name(s) {sorted(clash)} already in the problem")
         return IdentificationProblem(
             np.concatenate([self.Y, columns], axis=2), self.y, self.channels,
-            self.names + tuple(names), self.expressions + (tuple(expressions) or tuple(names)),
+            self.names + tuple(names), self.expressions + (tuple(expressions) or tuple(names)), self.segments,
         )
 
     def select_channels(self, channels: tuple[str, ...] | list[str]) -> IdentificationProblem:
@@ -126,7 +132,9 @@ def stack(model: IdentificationModel, measurements: Measurements | Sequence[Meas
         raise ValueError(f"the data have {measurements.n_joints} joints, the robot {model.robot.n_joints}")
     measured = measurements.channels(model.channels)
     Y = model.evaluate_base(measurements.q, measurements.dq, measurements.ddq)  # compiled, zero-copy
-    return IdentificationProblem(Y, measured, model.channels, model.base.names, model.base.expressions)
+    segments = segment_slices(measurements)
+    bounds = tuple((piece.start, piece.stop) for piece in segments) if len(segments) > 1 else ()
+    return IdentificationProblem(Y, measured, model.channels, model.base.names, model.base.expressions, bounds)
 
 
 def _check_theta(theta: ArrayLike, count: int) -> NDArray[np.float64]:

@@ -219,7 +219,7 @@ class LeastSquares(Estimator):
     def _store(self, problem, theta, cov, cond, residuals, weights, iterations, unscaled=None) -> None:
         cov_method, lags = check_method(getattr(self, "covariance", "classical")), None
         if cov_method == "hac":
-            cov, lags = hac_covariance(problem.Y, residuals, weights, unscaled)
+            cov, lags = hac_covariance(problem.Y, residuals, weights, unscaled, segments=problem.segments or None)
         std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
         with np.errstate(divide="ignore", invalid="ignore"):
             relative = np.where(theta != 0, 100.0 * std / np.abs(theta), np.inf)

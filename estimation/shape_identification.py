@@ -14,7 +14,7 @@ does (a few rounds, each search starting from the last shapes).
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 
@@ -128,12 +128,16 @@ class ShapedFit:
 
 def fit_shaped_model(model: IdentificationModel, train: Measurements, *, weighted: bool = True,
                      rounds: int = 4, starts: dict[str, float] | None = None,
-                     search: bool = True) -> tuple[ShapedFit, Estimate]:
+                     search: bool = True, covariance: Literal["hac", "white"] = "hac") -> tuple[ShapedFit, Estimate]:
     """Variable-projection fit of a model with shaped effects, and its :class:`Estimate` (base order).
 
     ``starts``: shape values by name to start from (the others at their reference), instead of the grid;
-    without ``search`` the shapes stay there.
+    without ``search`` the shapes stay there. ``covariance``: ``"hac"`` the batch-means sandwich
+    (``cov_method="batch_means"``), ``"white"`` ``σ̂² (J_fᵀWJ_f)⁻¹`` (``cov_method="classical"``), both
+    from the full Jacobian (:func:`estimation.variable_projection.fit_shapes`).
     """
+    if covariance not in ("hac", "white"):
+        raise ValueError(f"covariance must be 'hac' or 'white', got {covariance!r}")
     if train.dq is None or train.ddq is None:
         raise ValueError("the measurements lack dq/ddq: derive them first (estimation.preprocessing.fill_derivatives)")
     blocks, replaced = shaped_blocks(model)
@@ -143,6 +147,7 @@ def fit_shaped_model(model: IdentificationModel, train: Measurements, *, weighte
     fixed = FixedPart.from_arrays(np.ascontiguousarray(Y[:, :, kept]), y)
     states = States(train.q, train.dq, train.ddq)
     weights = np.ones(model.n_channels)
+    segments = [(piece.start, piece.stop) for piece in segment_slices(train)]
     fit = None
     first = None
     if starts is not None:
@@ -150,7 +155,8 @@ def fit_shaped_model(model: IdentificationModel, train: Measurements, *, weighte
                            for parameter in block.parameters]])
     for _ in range(rounds if weighted else 1):
         start_points = first if fit is None else fit.shape[None, :]
-        fit = fit_shapes(fixed, blocks, states, weights, starts=start_points, max_iter=60 if search else 0)
+        fit = fit_shapes(fixed, blocks, states, weights, starts=start_points, max_iter=60 if search else 0,
+                         covariance=covariance, segments=segments)
         shaped = ShapedFit(model, tuple(blocks), tuple(kept), tuple(replaced), fit, weights)
         residual = y - shaped.predict(train)
         variance = np.maximum(channel_variance(residual, model.n_base + len(fit.names)), 1e-14 * np.mean(y**2, axis=0))
@@ -162,7 +168,8 @@ def fit_shaped_model(model: IdentificationModel, train: Measurements, *, weighte
             break
         weights = updated
     if weighted:  # the final fit at the settled weights
-        fit = fit_shapes(fixed, blocks, states, weights, starts=fit.shape[None, :], max_iter=60 if search else 0)
+        fit = fit_shapes(fixed, blocks, states, weights, starts=fit.shape[None, :], max_iter=60 if search else 0,
+                         covariance=covariance, segments=segments)
     shaped = ShapedFit(model, tuple(blocks), tuple(kept), tuple(replaced), fit, weights)
     residual = y - shaped.predict(train)
     order = list(kept) + list(replaced)
@@ -181,7 +188,8 @@ def fit_shaped_model(model: IdentificationModel, train: Measurements, *, weighte
         cond=float(np.sqrt(extremes[1] / max(extremes[0], np.finfo(float).tiny))), residuals=residual,
         channel_variance=channel_variance(residual, model.n_base + len(fit.names)), weights=weights,
         names=model.base.names, expressions=model.base.expressions, channels=model.channels,
-        method="wls" if weighted else "ols", n_iterations=1, cov_method="batch_means",
+        method="wls" if weighted else "ols", n_iterations=1,
+        cov_method="batch_means" if covariance == "hac" else "classical",
     )
     return shaped, estimate
 

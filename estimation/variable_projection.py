@@ -261,6 +261,7 @@ def fit_shapes(
     max_iter: int = 60,
     tol: float = 1e-10,
     covariance: Literal["hac", "white", "none"] = "hac",
+    segments: Sequence[tuple[int, int]] | None = None,
 ) -> ShapeFit:
     """Variable projection: the shapes minimising the projected weighted residual, then ``θ`` and
     the full covariance.
@@ -286,6 +287,9 @@ def fit_shapes(
         consecutive samples (:func:`batch_length`), which holds when the residuals are correlated
         in time (derivative errors near velocity reversals, unmodelled slow effects); ``"white"``:
         ``σ̂² H⁻¹``; ``"none"``: skip it (a screening fit).
+    segments
+        ``(start, stop)`` samples of each segment of a stacked record: the batches restart at each
+        boundary (:mod:`estimation.batch_means`).
 
     Raises
     ------
@@ -357,7 +361,7 @@ def fit_shapes(
         inverse = _inverse(information)
         if covariance == "hac":
             scores = sample_scores(fixed, blocks, solution, weights, residual)
-            meat = batch_means(scores, batch_length(residual, weights))
+            meat = batch_means(scores, batch_length(residual, weights, segments), segments)
             cov = inverse @ meat @ inverse * fixed.A.shape[1] / max(fixed.A.shape[1] - information.shape[0], 1)
             cov = np.maximum(np.diag(cov), sigma2 * np.diag(inverse))  # never below the white-noise value
             cov = _with_diagonal(sigma2 * inverse, cov)

@@ -74,3 +74,23 @@ def test_demo_setting_intervals_cover_90_to_99_percent():
     for group in (rigid, effects):
         assert 0.90 <= np.mean([coverage[name] for name in group]) <= 0.99, coverage
     assert min(coverage.values()) >= 0.85, coverage
+
+
+@pytest.mark.slow
+def test_shaped_demo_intervals_cover_base_coulomb_and_smoothing_velocities_90_to_99_percent():
+    """200 realisations of the demo's identification record with ``viscous,coulomb:tanh,offset`` fitted by
+    ``identify`` (variable projection, batch-means std from the full Jacobian), torque noise and the encoder's
+    quantisation error drawn anew (benchmarks/bench_coverage.py --model shaped --encoder-phase)."""
+    from benchmarks.bench_coverage import groups, shaped_demo_setting, shaped_estimator
+
+    realise, model, truth, differentiation, _ = shaped_demo_setting(encoder_phase=True)
+    assert {"vc1", "vc2", "vc3", "fc1", "fc2", "fc3"} <= set(truth)
+    with ThreadPoolExecutor(max_workers=2) as executor:
+        result = monte_carlo_coverage(realise, shaped_estimator(model, differentiation, "hac"), truth,
+                                      realisations=200, executor=executor)
+    coverage = result.coverage()
+    found = groups(result.names)
+    assert set(found) == {"rigid body", "viscous", "coulomb", "offset", "smoothing"}
+    for group, members in found.items():
+        assert 0.90 <= np.mean([coverage[name] for name in members]) <= 0.99, (group, coverage)
+    assert min(coverage.values()) >= 0.85, coverage
