@@ -30,7 +30,6 @@ Procedure (forward selection on nested linear models):
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Sequence
-from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -46,110 +45,42 @@ from dynamics.effects import (
     StribeckFriction,
     WrenchOffset,
 )
-from dynamics.models import IdentificationModel, ModelKind, build_model
+from dynamics.models import IdentificationModel, ModelKind
 from dynamics.shape_effects import (
     FRICTION_LAWS,
     PositionRipple,
     ShapedStribeckFriction,
     SigmoidFriction,
     TanhCoulombFriction,
-    shape_parameters,
 )
 from dynamics.threads import single_threaded_blas
 from estimation.candidate_trials import candidate_label, fit_or_reason, joints_of, weighted_error, wrong_sign
-from estimation.confirmation import channels_made_worse, reweighted_comparison, simplify_laws, weighted_validation
+from estimation.confirmation import channels_made_worse, reweighted_comparison
 from estimation.coupling_candidates import combination_groups, combination_taken, coupling_candidates
 from estimation.delay_candidate import DelayTrial
-from estimation.delay_search import DelaySearch, with_delay
-from estimation.diagnosis_statistics import ResidualReport, floor_for_validation, residual_report
+from estimation.delay_search import DelaySearch
+from estimation.diagnosis_results import Diagnosis, FoundEffect, RejectedEffect, found_delay, found_effect
+from estimation.diagnosis_statistics import floor_for_validation, residual_report
+from estimation.final_refit import refit_found
 from estimation.identification import IdentificationResult, identify
-from estimation.limit_laws import replace_limit_laws
 from estimation.measurements import Measurements
 from estimation.noise_floor import NoiseFloor
-from estimation.record_delay import DelayBounds, delayed
-from estimation.sign_constraints import PinnedTerm, pin_wrong_signs
+from estimation.record_delay import DelayBounds
 from estimation.stopping_rules import SearchState, floor_stopping_rule, provisional_stopping_rule
+from estimation.selection_rules import candidate_groups, offsets_beat_springs, refine_best
 from estimation.traced_refinement import traced_first
-from estimation.variable_projection import (Block, FixedPart, NoRowsError, ShapeSearchError, States, effect_columns,
+from estimation.variable_projection import (Block, FixedPart, NoRowsError, States, effect_columns,
                                             effect_rows, residuals, solve_linear)
 from estimation.whiteness import autocorrelation
+
+__all__ = ["Diagnosis", "FoundEffect", "RejectedEffect", "candidate_columns", "candidate_groups", "default_candidates",
+           "diagnose", "effect_channels", "provisional_stopping_rule", "residual_statistics"]
 
 #: screened candidates whose shapes are searched again in each round after the first
 SCREEN_REFINED = 2
 JOINT_CANDIDATES: tuple[type, ...] = (CoulombFriction, JointOffset, Armature, StribeckFriction, Spring)
 #: candidates whose shape the data give (:mod:`dynamics.shape_effects`)
 SHAPED_CANDIDATES: tuple[type, ...] = (TanhCoulombFriction, ShapedStribeckFriction, SigmoidFriction, PositionRipple)
-
-
-@dataclass(frozen=True)
-class FoundEffect:
-    """An effect the data asked for, with its estimates in the augmented model."""
-
-    name: str
-    channels: tuple[str, ...]
-    parameters: tuple[str, ...]
-    values: tuple[float, ...]
-    std: tuple[float, ...]
-    p_value: float
-    f_statistic: float
-    spec: str = ""
-    shape: dict[str, float] = field(default_factory=dict)
-    shape_std: dict[str, float] = field(default_factory=dict)
-
-    def to_dict(self) -> dict[str, Any]:
-        return {
-            "name": self.name, "channels": list(self.channels), "parameters": list(self.parameters),
-            "values": list(self.values), "std": list(self.std), "p_value": self.p_value, "f_statistic": self.f_statistic,
-            "spec": self.spec or self.name, "shape": dict(self.shape), "shape_std": dict(self.shape_std),
-        }
-
-
-@dataclass(frozen=True)
-class RejectedEffect:
-    """A candidate that was not added, and why."""
-
-    name: str
-    channels: tuple[str, ...]
-    reason: str
-    spec: str = ""
-
-
-@dataclass(frozen=True)
-class Diagnosis:
-    """Result of :func:`diagnose`."""
-
-    effects: tuple[FoundEffect, ...]
-    rejected: tuple[RejectedEffect, ...]
-    before: IdentificationResult
-    after: IdentificationResult
-    residuals: dict[str, dict[str, float]] = field(repr=False)
-    statistics: ResidualReport | None = field(default=None, repr=False)
-    pinned: tuple[PinnedTerm, ...] = ()
-
-    def to_dict(self) -> dict[str, Any]:
-        """The JSON document of ``oed diagnose``."""
-        document = {
-            "robot": self.before.model.robot.name,
-            "model": self.before.model.kind.value,
-            "declared_effects": [effect.name for effect in self.before.model.effects],
-            "effects": [effect.to_dict() for effect in self.effects],
-            "rejected": [{"name": r.name, "spec": r.spec or r.name, "channels": list(r.channels), "reason": r.reason}
-                         for r in self.rejected],
-            "residuals": self.residuals,
-            "warnings": {"before": list(self.before.warnings), "after": list(self.after.warnings)},
-            "train": {"before": {"mse": self.before.train.mse}, "after": {"mse": self.after.train.mse}},
-            "validation": {
-                "before": {"mse": self.before.validation.mse if self.before.validation else None},
-                "after": {"mse": self.after.validation.mse if self.after.validation else None},
-            },
-            "cov_method": self.after.estimate.cov_method,
-            "pinned": [term.to_dict() for term in self.pinned],
-        }
-        if self.statistics is not None:  # noise floor, tracing, whiteness (estimation.diagnosis_statistics)
-            document.update(self.statistics.to_dict())
-            for which in ("before", "after"):
-                document["validation"][which]["mse_over_floor"] = self.statistics.ratios(which) or None
-        return document
 
 
 def effect_channels(effect: Effect, model: IdentificationModel) -> tuple[str, ...]:
@@ -344,8 +275,8 @@ def diagnose(
         traced = traced_first(trials, model.channels, model.robot.n_joints, train, recorded, train_residual,
                               validate_residual) if previous_round else None
         previous_round = True
-        trials = _refine_best(trials, blocks, fixed_train, states_train, weights, rss, previous, SCREEN_REFINED, traced)
-        springs_beaten = _offsets_beat_springs(trials, model)
+        trials = refine_best(trials, blocks, fixed_train, states_train, weights, rss, previous, SCREEN_REFINED, traced)
+        springs_beaten = offsets_beat_springs(trials, model)
         trials += moved.trials(selected_blocks, selected_shapes, model, weights, rss, fixed_train.n_fixed, trials)
         added = None
         for trial in sorted(trials, key=lambda t: t.bic):
@@ -414,34 +345,8 @@ def diagnose(
         if index not in rejected and id(block.effect) not in chosen:
             reject(index, last_reason.get(index, reason) if len(selected) < max_effects else reason)
 
-    after = before
-    if selected or moved.adopted is not None:
-        current = build_model(model.robot, model.kind, model.effects + tuple(effect for effect, _, _ in selected))
-        starts = {parameter.name: float(value) for effect, shape in zip(selected_effects, selected_shapes)
-                  for parameter, value in zip(shape_parameters(effect, model.robot), shape)}
-        if before.shaped_fit is not None:
-            starts.update({value.name: value.value for value in before.shapes})
-        try:
-            after = identify(current, train, validate, shape_starts=starts, delay=moved.final_bounds())
-        except ShapeSearchError:  # the joint refit ran a shape to where the data do not determine it
-            after = None
-        fitted_delay = after.delay if after is not None and after.delay is not None else moved.adopted_value()
-        if fitted_delay is not None:  # the refits below run along the moved records, the delay kept
-            train, validate = delayed(train, fitted_delay.value), delayed(validate, fitted_delay.value)
-        if after is None or any(value.at_bound for value in after.shapes) \
-                or weighted_validation(after, weights) > 1.05 * validation_error:
-            # the joint refit of the shapes wandered off (to a bound, or worse on held-out data than the
-            # shapes as selected): keep the shapes as selected, estimate the rest and the covariance there
-            after = identify(current, train, validate, shape_starts=starts, shape_search=False)
-            # a tanh smoothing run to its bound is the sign law (estimation.limit_laws)
-            selected, after, starts = replace_limit_laws(selected, after, model, train, validate, starts, weights,
-                                                         min_improvement)
-        selected, after = simplify_laws(selected, after, model, train, validate, starts, weights, min_improvement)
-    else:
-        fitted_delay = None
-    selected, after, pinned = pin_wrong_signs(selected, after, model, train, validate,
-                                              starts if selected else {value.name: value.value for value in before.shapes})
-    after = with_delay(after, fitted_delay)
+    selected, after, pinned = refit_found(model, before, selected, selected_effects, selected_shapes, moved,
+                                          train, validate, weights, validation_error, min_improvement)
     for position, term in enumerate(term for term in pinned if term.found):
         effect = next(block.effect for block in blocks.values() if term.parameter in block.names
                       and candidate_label(block.effect) == term.effect)
@@ -452,8 +357,8 @@ def diagnose(
         rejected[len(candidates) + len(pinned)] = RejectedEffect("delay", tuple(model.channels), moved.not_adopted_reason(),
                                                                  "delay")
     return Diagnosis(
-        effects=tuple(_found(after, effect, p_value, statistic, model) for effect, p_value, statistic in selected)
-        + _found_delay(after, moved, model),
+        effects=tuple(found_effect(after, effect, p_value, statistic, model) for effect, p_value, statistic in selected)
+        + found_delay(after, moved.adopted, model),
         rejected=tuple(rejected[index] for index in sorted(rejected)),
         before=before,
         after=after,
@@ -470,79 +375,3 @@ def _effect_joints(effect: Effect, model: IdentificationModel) -> tuple[int, ...
 
 def _channels(block: Block, model: IdentificationModel) -> tuple[str, ...]:
     return tuple(model.channels[row] for row in block.rows)
-
-
-def _refine_best(trials, blocks, fixed, states, weights, rss, previous, count: int, traced=None):
-    """The ``count`` best-ranked screened trials, and the group ``traced`` (the one the residual
-    tracing ranks first: :mod:`estimation.traced_refinement`), with shapes searched again by
-    Levenberg–Marquardt."""
-    ranked = sorted(trials, key=lambda t: t.bic)
-    refined = []
-    for position, trial in enumerate(ranked):
-        if (position < count or trial.group == traced) and trial.fit.shape.size:
-            outcome = fit_or_reason(trial.group, list(trial.blocks), fixed, states, weights, rss, trial.fit, search=True)
-            if not isinstance(outcome, str):
-                previous[trial.group] = outcome.fit
-                trial = outcome
-        refined.append(trial)
-    return refined
-
-
-def candidate_groups(blocks: dict[int, Block], model: IdentificationModel) -> list[tuple[int, ...]]:
-    """Every candidate alone, and each Coulomb-like friction law together with its joint's offset
-    (an asymmetric friction: a sigmoid law with a shift mimics a symmetric law plus an offset, so
-    the pair must compete with it as one candidate)."""
-    groups = [(index,) for index in blocks]
-    offsets = {joints_of(block, model): index for index, block in blocks.items() if block.effect.name == "offset"}
-    for index, block in blocks.items():
-        joints = joints_of(block, model)
-        if block.effect.name in FRICTION_LAWS and block.effect.name != "sigmoid" and joints in offsets:
-            groups.append((index, offsets[joints]))
-    return groups
-
-
-def _offsets_beat_springs(trials, model) -> dict[tuple[int, ...], str]:
-    """Springs whose joint's offset explains as much: a stiffness that is an offset in disguise
-    (``k·mean(q)`` equal to the offset) is not a spring."""
-    offsets = {joints_of(t.blocks[0], model): t for t in trials if len(t.blocks) == 1 and t.blocks[0].effect.name == "offset"}
-    reasons = {}
-    for trial in trials:
-        if len(trial.blocks) != 1 or trial.blocks[0].effect.name != "spring":
-            continue
-        offset = offsets.get(joints_of(trial.blocks[0], model))
-        if offset is None:
-            reasons[trial.group] = "no offset on its joint to compare it with (a spring must explain more than an offset)"
-        elif offset.rss <= trial.rss:
-            reasons[trial.group] = "an offset explains as much (a stiffness that is an offset in disguise)"
-    return reasons
-
-
-def _found(after: IdentificationResult, effect: Effect, p_value: float, statistic: float,
-           model: IdentificationModel) -> FoundEffect:
-    names = list(after.estimate.names)
-    parameters = tuple(effect.parameter_names(model.robot))
-    indices = [names.index(name) for name in parameters]
-    shape_names = {parameter.name for parameter in shape_parameters(effect, model.robot)}
-    shapes = {value.name: value for value in after.shapes if value.name in shape_names}
-    return FoundEffect(
-        name=effect.name,
-        channels=tuple(model.channels[row] for row in effect_rows(model.kind, model.robot, effect, model.n_channels)),
-        parameters=parameters,
-        values=tuple(float(after.estimate.values[i]) for i in indices),
-        std=tuple(float(after.estimate.std[i]) for i in indices),
-        p_value=p_value,
-        f_statistic=float(statistic),
-        spec=candidate_label(effect),
-        shape={name: value.value for name, value in shapes.items()},
-        shape_std={name: value.std for name, value in shapes.items()},
-    )
-
-
-def _found_delay(after: IdentificationResult, moved: DelaySearch, model: IdentificationModel) -> tuple[FoundEffect, ...]:
-    """The adopted delay as a found effect (no linear coefficients; its value a shape parameter)."""
-    if moved.adopted is None or after.delay is None:
-        return ()
-    trial = moved.adopted
-    return (FoundEffect(name="delay", channels=tuple(model.channels), parameters=(), values=(), std=(),
-                        p_value=trial.p_value, f_statistic=trial.f_statistic, spec="delay",
-                        shape={"delay": after.delay.value}, shape_std={"delay": after.delay.std}),)

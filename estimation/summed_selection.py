@@ -38,7 +38,8 @@ from dynamics.models import IdentificationModel
 from dynamics.shape_effects import FRICTION_LAWS, ShapedStribeckFriction
 from estimation.candidate_trials import SIGNIFICANT_TERM, Trial, candidate_label, joints_of, wrong_sign
 from estimation.confirmation import channels_made_worse
-from estimation.diagnosis import RejectedEffect, _offsets_beat_springs, candidate_groups
+from estimation.diagnosis_results import RejectedEffect
+from estimation.selection_rules import candidate_groups, offsets_beat_springs
 from estimation.diagnosis_statistics import FLOOR_ALPHA
 from estimation.diagnosis_sums import ChannelSums
 from estimation.noise_floor import NoiseFloor, above_floor
@@ -169,7 +170,7 @@ def select_effects(model: IdentificationModel, blocks: dict[int, Block], shapes:
                 continue
             trials.append(outcome)
         groups = [group for group in groups if not any(index in rejected for index in group)]
-        springs_beaten = _offsets_beat_springs(trials, model)
+        springs_beaten = offsets_beat_springs(trials, model)
         added = None
         for trial in sorted(trials, key=lambda t: t.bic):
             if trial.p_value >= threshold or len(chosen) + len(trial.group) > max_effects:
