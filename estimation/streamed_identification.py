@@ -19,8 +19,8 @@ of the sums are far too small. They need the residuals at the final estimate, he
 pass** over the training files (the first reads, the second is the solve's; here: read and prepare
 again, score, :mod:`estimation.streamed_identification_covariance`), through the same executor,
 one task a file, in bounded memory. It costs about what summing cost: measured on the 7-joint KUKA,
-filter path, 1 M samples, serial, chunks of 10 000, the covariance pass took 8.7 s of an 18.9 s run
-(46 %; the sums pass 7.4 s; ``streaming.seconds``, ``benchmarks/bench_streaming.py``).
+filter path, 1 M samples, serial, chunks of 10 000, the covariance pass took 8.3 s of a 17.7 s run
+(47 %; the sums pass 6.3 s; ``streaming.seconds``, ``benchmarks/bench_streaming.py``).
 ``covariance="classical"`` skips it (white residuals assumed).
 """
 

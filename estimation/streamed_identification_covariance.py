@@ -80,10 +80,14 @@ def batch_means_covariance(model: IdentificationModel, files: Sequence[FileSums]
     WorkerLostError
         A worker lost (:func:`estimation.streamed_diagnosis_passes.map_files`).
     """
-    payload = model_payload(model)
     paths = [part.path for part in files]
-    parts = map_files(executor, scores_task, paths,
-                      lambda path: (payload, path, dict(options), theta, weights, _stamp(path)))
+    if executor is None:  # in this process: the model as it is (rebuilding it from its payload costs seconds)
+        def task(payload, path, options, theta, weights, stamp=None):
+            return _caught(file_scores, path, model, options, theta, weights)
+        payload = b""
+    else:
+        task, payload = scores_task, model_payload(model)
+    parts = map_files(executor, task, paths, lambda path: (payload, path, dict(options), theta, weights, _stamp(path)))
     for part, scores in zip(files, parts):
         if scores.n_samples != part.sums.n_samples:
             raise IncompleteSumError(f"{part.path}: {scores.n_samples} samples scored, {part.sums.n_samples} summed "

@@ -12,7 +12,10 @@ import pytest
 from dynamics.models import build_model
 from dynamics.robots import load_robot
 from estimation.batch_means import batch_length, batch_means
+from estimation.cluster import IncompleteSumError
 from estimation.loading import read_measurements
+from estimation.measurements import Measurements
+from estimation.preprocessing import ButterworthDifferentiation, FourierDifferentiation, fill_derivatives
 from estimation.streamed_identification import identify_files
 from oed.cli import main
 from tests.synthetic import random_fourier, simulate, true_parameters
@@ -56,10 +59,11 @@ def files(model, tmp_path_factory):
     return paths
 
 
-def _in_memory_batch_means(model, paths, result):
+def _in_memory_batch_means(model, paths, result, method=None):
     """The batch-means covariance on the stacked records' residuals and scores at the streamed estimate
-    (batches restarting at each file), with the streamed batch length, floored at the classical std."""
-    records = [read_measurements(path, model=model) for path in paths]
+    (each file read and prepared whole by ``method``; batches restarting at each file), with the
+    streamed batch length, floored at the classical std."""
+    records = [fill_derivatives(read_measurements(path, model=model), method) for path in paths]
     theta, weights = result.estimate.values, result.estimate.weights
     scores, residuals, H = [], [], 0.0
     for record in records:
@@ -96,6 +100,43 @@ def test_streamed_batch_means_std_equal_the_in_memory_batch_means(model, files, 
         assert np.all(ratio >= 1.0) and np.median(ratio) < 1.3, ratio
     else:  # slow AR(1) noise: the white-noise std are far too small
         assert np.median(ratio) > 2.0, ratio
+
+
+def test_filter_and_fourier_paths_score_the_samples_they_summed(model, files, tmp_path):
+    """Positions and torques only: the third pass prepares the files again exactly as the sums did
+    (Butterworth on overlapping windows; on the Fourier path the averaged period)."""
+    rng = np.random.default_rng(2)
+    raw = []
+    for index, path in enumerate(files["coloured"]):
+        record = read_measurements(path, model=model)
+        raw.append(tmp_path / f"raw{index}.parquet")
+        Measurements(record.t, record.q + 1e-5 * rng.standard_normal(record.q.shape), tau=record.tau).write(raw[-1])
+    filtered = identify_files(model, raw, chunk_size=250, cutoff_hz=8.0)
+    std = _in_memory_batch_means(model, raw, filtered, ButterworthDifferentiation(8.0))[0]
+    assert np.max(np.abs(filtered.estimate.std - std) / std) < 1e-8
+    assert np.median(filtered.estimate.std / filtered.classical_std) > 2.0
+    whole = tmp_path / "periodic.csv"  # the two periods of 0.2 Hz at 200 Hz in one file
+    record = read_measurements(files["coloured"][0], model=model)
+    second = read_measurements(files["coloured"][1], model=model)
+    Measurements(np.r_[record.t, second.t], np.r_[record.q, second.q], tau=np.r_[record.tau, second.tau]).write(whole)
+    periodic = identify_files(model, [whole], chunk_size=300, frequency_hz=0.2, harmonics=10)
+    assert periodic.train.n_samples == 1000 and periodic.cov_method == "batch_means"
+    std = _in_memory_batch_means(model, [whole], periodic, FourierDifferentiation(0.2, 10))[0]
+    assert np.max(np.abs(periodic.estimate.std - std) / std) < 1e-8
+
+
+def test_a_file_changed_between_the_passes_is_refused(model, files, monkeypatch):
+    import estimation.streamed_identification_covariance as passes
+
+    original = passes.preprocessed_chunks
+
+    def shorter(*args, **kwargs):
+        chunks = list(original(*args, **kwargs))
+        yield from chunks[:-1]
+
+    monkeypatch.setattr(passes, "preprocessed_chunks", shorter)
+    with pytest.raises(IncompleteSumError, match="white0.csv.*scored"):
+        identify_files(model, files["white"], chunk_size=300)
 
 
 def test_process_pool_gives_the_serial_std(model, files):
