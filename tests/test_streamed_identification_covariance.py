@@ -4,7 +4,8 @@ against the batch means computed in memory on the same residuals and scores."""
 from __future__ import annotations
 
 import json
-from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures import Future, ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
 
 import numpy as np
 import pytest
@@ -12,7 +13,7 @@ import pytest
 from dynamics.models import build_model
 from dynamics.robots import load_robot
 from estimation.batch_means import batch_length, batch_means
-from estimation.cluster import IncompleteSumError
+from estimation.cluster import IncompleteSumError, WorkerLostError
 from estimation.loading import read_measurements
 from estimation.measurements import Measurements
 from estimation.preprocessing import ButterworthDifferentiation, FourierDifferentiation, fill_derivatives
@@ -145,6 +146,27 @@ def test_process_pool_gives_the_serial_std(model, files):
         pooled = identify_files(model, files["coloured"], chunk_size=500, executor=executor)
     assert pooled.batch_length == serial.batch_length
     assert np.max(np.abs(pooled.estimate.std - serial.estimate.std) / serial.estimate.std) < 1e-10
+
+
+class _LostInThirdPass:
+    """An executor whose worker dies on the first task of the covariance pass (after two files summed)."""
+
+    def __init__(self):
+        self.calls = 0
+
+    def submit(self, function, *args):
+        self.calls += 1
+        future = Future()
+        if self.calls == 3:
+            future.set_exception(BrokenProcessPool("A process in the process pool was terminated abruptly"))
+        else:
+            future.set_result(function(*args))
+        return future
+
+
+def test_a_worker_lost_in_the_covariance_pass_fails_the_run(model, files):
+    with pytest.raises(WorkerLostError, match="white0.csv"):
+        identify_files(model, files["white"], chunk_size=300, executor=_LostInThirdPass())
 
 
 def test_cli_streamed_identify_reports_batch_means(model, files, tmp_path):
