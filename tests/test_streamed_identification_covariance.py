@@ -4,8 +4,7 @@ against the batch means computed in memory on the same residuals and scores."""
 from __future__ import annotations
 
 import json
-from concurrent.futures import Future, ProcessPoolExecutor
-from concurrent.futures.process import BrokenProcessPool
+from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 import pytest
@@ -148,25 +147,13 @@ def test_process_pool_gives_the_serial_std(model, files):
     assert np.max(np.abs(pooled.estimate.std - serial.estimate.std) / serial.estimate.std) < 1e-10
 
 
-class _LostInThirdPass:
-    """An executor whose worker dies on the first task of the covariance pass (after two files summed)."""
-
-    def __init__(self):
-        self.calls = 0
-
-    def submit(self, function, *args):
-        self.calls += 1
-        future = Future()
-        if self.calls == 3:
-            future.set_exception(BrokenProcessPool("A process in the process pool was terminated abruptly"))
-        else:
-            future.set_result(function(*args))
-        return future
-
-
 def test_a_worker_lost_in_the_covariance_pass_fails_the_run(model, files):
+    from tests.test_streaming import _LostExecutor  # its worker dies on its second task
+
+    executor = _LostExecutor()
+    executor.calls = -1  # two files summed, then the covariance pass's first task is the one lost
     with pytest.raises(WorkerLostError, match="white0.csv"):
-        identify_files(model, files["white"], chunk_size=300, executor=_LostInThirdPass())
+        identify_files(model, files["white"], chunk_size=300, executor=executor)
 
 
 def test_cli_streamed_identify_reports_batch_means(model, files, tmp_path):
