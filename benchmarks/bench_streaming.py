@@ -11,7 +11,10 @@ Two parts:
 
 * ``--lengths 100000 300000 1000000``: ``oed identify --chunk-size C --cutoff 5`` on one record
   of each length in a fresh process under ``/usr/bin/time -v`` (peak resident memory, wall time).
-  Targets: peak < 1 GB, time linear in the length, 1 M samples in < 2 min.
+  Targets: peak < 1 GB, time linear in the length, 1 M samples in < 2 min. The run's ``cov_method``
+  (``batch_means``: the standard deviations from a third pass over the file), the passes' seconds
+  (``streaming.seconds``: sums pass, covariance pass) and the covariance pass's share are printed,
+  with the median ratio of the batch-means to the classical standard deviations.
 * ``--in-memory 100000 300000``: the same without ``--chunk-size`` (the in-memory path), and
   ``--chunk-sizes 1000 … 100000`` on the 300 000-sample record: the trade-off behind the default.
 * ``--files 10 --file-samples 100000``: the ten records through :func:`estimation.cluster.sum_files`
@@ -27,6 +30,7 @@ folder under /tmp) and reused when present.
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import re
 import subprocess
@@ -126,9 +130,24 @@ def bench_lengths(folder: Path, lengths: list[int], chunk_size: int) -> None:
         rows.append((length, seconds, cpu, peak))
         print(f"  {length:>9} samples: wall {seconds:7.1f} s, CPU {cpu:7.1f} s, peak {peak:7.0f} MB, "
               f"{1e6 * seconds / length:6.1f} µs a sample", flush=True)
+        print("            " + covariance_summary(json.loads((folder / f"identify_{length}.json").read_text())), flush=True)
     if len(rows) > 1:
         (n0, t0, c0, _), (n1, t1, c1, _) = rows[0], rows[-1]
         print(f"  wall ratio {t1 / t0:.2f}, CPU ratio {c1 / c0:.2f} for a length ratio {n1 / n0:.2f}")
+
+
+def covariance_summary(document: dict) -> str:
+    """``cov_method``, the passes' seconds and the covariance pass's share, and the std ratio."""
+    seconds = document["streaming"].get("seconds", {})
+    text = f"cov_method {document['cov_method']}"
+    if "covariance_pass" in seconds:
+        share = seconds["covariance_pass"] / sum(seconds.values())
+        classical = document["streaming"]["covariance"]["classical_std"]
+        ratio = np.median([entry["std"] / classical[entry["name"]] for entry in document["parameters"]])
+        text += (f" (batch length {document['streaming']['covariance']['batch_length']}): sums pass "
+                 f"{seconds['sums_pass']:.1f} s, covariance pass {seconds['covariance_pass']:.1f} s "
+                 f"({100 * share:.0f} % of the passes and solve), median std / classical std {ratio:.2f}")
+    return text
 
 
 def bench_in_memory(folder: Path, lengths: list[int]) -> None:

@@ -22,7 +22,7 @@ from estimation.normal_equations import DEFAULT_CHUNK_SIZE, accumulate
 from estimation.preprocessing import FourierDifferentiation, fill_derivatives
 from estimation.streaming import FileSums, read_chunks
 
-__all__ = ["average_periods_streamed", "periodic_file_sums"]
+__all__ = ["average_periods_streamed", "periodic_file_sums", "periodic_prepared"]
 
 _GROUPS = ("q", "dq", "ddq", "tau", "wrench")
 
@@ -79,14 +79,23 @@ def _chained(first, rest):
     yield from rest
 
 
+def periodic_prepared(path: str | Path, model: IdentificationModel, *, frequency_hz: float, harmonics: int = 5,
+                      chunk_size: int = DEFAULT_CHUNK_SIZE, decimation: int = 1, held_torques: bool = False
+                      ) -> tuple[Measurements, Measurements, int]:
+    """One periodic file on the Fourier path: the prepared averaged period (derivatives of the fit),
+    the averaged period as read, and the rows read."""
+    averaged, rows = average_periods_streamed(path, model, frequency_hz, chunk_size=chunk_size)
+    method = FourierDifferentiation(frequency_hz, harmonics, average=False)
+    return fill_derivatives(averaged, method, decimation=decimation, held_torques=held_torques), averaged, rows
+
+
 def periodic_file_sums(path: str | Path, model: IdentificationModel, *, frequency_hz: float, harmonics: int = 5,
                        chunk_size: int = DEFAULT_CHUNK_SIZE, decimation: int = 1, held_torques: bool = False,
                        **ignored) -> FileSums:
     """Sums of one periodic file on the Fourier path: streamed period average, then the in-memory fit
     (``ignored``: the Butterworth options of :func:`estimation.streaming.file_sums`)."""
-    averaged, rows = average_periods_streamed(path, model, frequency_hz, chunk_size=chunk_size)
-    method = FourierDifferentiation(frequency_hz, harmonics, average=False)
-    prepared = fill_derivatives(averaged, method, decimation=decimation, held_torques=held_torques)
+    prepared, averaged, rows = periodic_prepared(path, model, frequency_hz=frequency_hz, harmonics=harmonics,
+                                                 chunk_size=chunk_size, decimation=decimation, held_torques=held_torques)
     sums = accumulate(model, prepared, chunk_size=chunk_size, source=str(path))
     metadata = {"decimation": int(decimation), "margin": 0, "differentiation": "fourier",
                 "frequency_hz": float(frequency_hz), "harmonics": int(harmonics),

@@ -144,6 +144,9 @@ def test_dask_local_cluster_of_processes_and_process_pool(model, files):
         pooled = identify_files(model, files["raw"], chunk_size=2000, cutoff_hz=CUTOFF, executor=executor)
     assert relative(clustered.estimate.values, serial.estimate.values) < 1e-10
     assert relative(pooled.estimate.values, serial.estimate.values) < 1e-10
+    # the batch-means standard deviations (a third pass through the same executor)
+    assert relative(clustered.estimate.std, serial.estimate.std) < 1e-10
+    assert relative(pooled.estimate.std, serial.estimate.std) < 1e-10
 
 
 class _LostExecutor:

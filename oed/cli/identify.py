@@ -128,6 +128,9 @@ def run_streaming(args: argparse.Namespace, robot, model) -> int:
     if result.cutoff_hz is not None:
         print(f"Butterworth cut-off {result.cutoff_hz:.4g} Hz" + ("" if args.cutoff is not None else
               f" (automatic, from the first chunk of {args.data[0]})"))
+    if result.cov_method == "batch_means":
+        print(f"standard deviations: batch means (batches of {result.batch_length} samples; a third pass over the files, "
+              f"{result.seconds['covariance_pass']:.3g} s)")
     _print_estimate(estimate)
     document = result.to_dict()
     for label in ("train", "validation"):
