@@ -38,7 +38,7 @@ class DelayBounds:
 
     lower: float = -0.05
     upper: float = 0.05
-    points: int = 41
+    points: int = 21
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.lower) and math.isfinite(self.upper)):
