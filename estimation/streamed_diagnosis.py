@@ -87,9 +87,9 @@ NOT_ON_THIS_PATH = (
     "a law paired with its offset searched jointly (the pair uses the law's own shape)",
     "user stopping rules (the noise floor is the rule)",
     "model_parameters (the physical reading of the estimate)",
-    "a delay between torques and motion as a candidate (it moves the records; where the in-memory loop has one)",
-    "the in-memory loop's later rules where it has them: combination groups, limit laws, signs pinned in the "
-    "joint refit, traced shape refinement",
+    "a delay between torques and motion as a candidate (it moves the records)",
+    "a pair's Coulomb and viscous laws tried as one candidate, limit laws, negative friction held at zero "
+    "(pinned), the traced shape refinement",
 )
 
 
