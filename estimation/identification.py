@@ -13,7 +13,7 @@ For repeated use (several estimators, extra columns) work with
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from collections.abc import Sequence
 from typing import Any
 
@@ -202,9 +202,16 @@ def identify(
         from estimation.delay_identification import identify_delayed  # noqa: PLC0415
         from estimation.record_delay import DelayBounds, delayed  # noqa: PLC0415
 
+        if estimator is not None:
+            raise TypeError("a delay is searched with the channel-weighted least squares: give weighted=, not estimator=")
         if isinstance(delay, DelayBounds):
             return identify_delayed(model, train, validate, bounds=delay, weighted=weighted, covariance=covariance)
-        train, validate = delayed(train, float(delay)), None if validate is None else delayed(validate, float(delay))
+        from estimation.shape_identification import ShapeValue  # noqa: PLC0415
+
+        value = float(delay)
+        result = identify(model, delayed(train, value), None if validate is None else delayed(validate, value),
+                          weighted=weighted, covariance=covariance, shape_starts=shape_starts, shape_search=shape_search)
+        return replace(result, delay=ShapeValue("delay", "delay", value, 0.0, value, value))  # given, not estimated
     from dynamics.shape_effects import is_shaped  # noqa: PLC0415
 
     if any(is_shaped(effect, model.robot) for effect in model.effects):

@@ -128,3 +128,12 @@ def test_the_cli_reports_the_delay_and_refuses_a_bad_one(records, tmp_path, caps
     bad = tmp_path / "bad.json"
     assert main(base + ["--friction", "viscous,delay:0", "--out", str(bad)]) == 2
     assert "delay" in capsys.readouterr().err and not bad.exists()
+
+
+def test_a_given_delay_is_carried_by_the_result_and_its_predictions(records):
+    model, _, (train, validate) = records
+    result = identify(model, train, validate, delay=TRUE_DELAY)
+    assert result.delay.value == TRUE_DELAY and result.delay.std == 0.0
+    # predictions along the records as given move them by the delay: the validation residual is the noise
+    residual = validate.tau - result.predict(validate)
+    assert np.mean(residual[:, 0] ** 2) < 1.3 * NOISE["tau1"] ** 2
