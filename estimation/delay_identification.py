@@ -24,7 +24,7 @@ from numpy.typing import NDArray
 
 from estimation.batch_means import batch_length, batch_means
 from estimation.measurements import Measurements
-from estimation.record_delay import DELAY, DelayBounds, delayed
+from estimation.record_delay import DELAY, DelayBounds, delayed, shortest_piece
 from estimation.variable_projection import FixedPart, residuals, solve_linear
 
 Columns = Callable[[Measurements], NDArray[np.float64]]
@@ -60,7 +60,7 @@ def fit_delay(columns: Columns, train: Measurements, channels: tuple[str, ...], 
               bounds: DelayBounds = DelayBounds()) -> DelayFit:
     """The delay minimising the projected weighted residual of the columns ``columns(record)``
     (``(N, m, p)``, at fixed shapes) on ``train``, with its standard deviation (module docstring)."""
-    bounds = bounds.within(float(train.t[-1] - train.t[0]))
+    bounds = bounds.within(shortest_piece(train))
     grid = bounds.grid()
     profile = np.array([_rss(columns, train, value, channels, weights) for value in grid])
     if not np.any(np.isfinite(profile)):
@@ -95,7 +95,8 @@ def fit_delay(columns: Columns, train: Measurements, channels: tuple[str, ...], 
 
 
 def identify_delayed(model, train: Measurements, validate: Measurements | None, *, bounds: DelayBounds,
-                     weighted: bool = True, covariance="hac"):
+                     weighted: bool = True, covariance="hac", shape_starts: dict[str, float] | None = None,
+                     shape_search: bool = True):
     """:func:`estimation.identification.identify` with the delay searched too (module docstring).
 
     The model is identified at no delay (its weights and, for shaped effects, its shapes), the delay
@@ -106,7 +107,8 @@ def identify_delayed(model, train: Measurements, validate: Measurements | None, 
     from estimation.identification import identify  # noqa: PLC0415 (identify dispatches here)
     from estimation.shape_identification import ShapeValue  # noqa: PLC0415
 
-    initial = identify(model, train, weighted=weighted, covariance=covariance)
+    initial = identify(model, train, weighted=weighted, covariance=covariance, shape_starts=shape_starts,
+                       shape_search=shape_search)
     estimate = initial.estimate
     weights = estimate.weights if estimate.method == "wls" else 1.0 / estimate.channel_variance
     if initial.shaped_fit is not None:
@@ -117,12 +119,12 @@ def identify_delayed(model, train: Measurements, validate: Measurements | None, 
     fit = fit_delay(columns, train, tuple(model.channels), weights, bounds)
     starts = {value.name: value.value for value in initial.shapes} or None
     result = identify(model, delayed(train, fit.delay), None if validate is None else delayed(validate, fit.delay),
-                      weighted=weighted, covariance=covariance, shape_starts=starts)
+                      weighted=weighted, covariance=covariance, shape_starts=starts, shape_search=shape_search)
     cov = result.estimate.cov + fit.std**2 * np.outer(fit.theta_slope, fit.theta_slope)
     std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     with np.errstate(divide="ignore", invalid="ignore"):
         relative = np.where(result.estimate.values != 0, 100.0 * std / np.abs(result.estimate.values), np.inf)
     estimate = dataclasses.replace(result.estimate, cov=cov, std=std, relative_std=relative)
-    window = bounds.within(float(train.t[-1] - train.t[0]))
+    window = bounds.within(shortest_piece(train))
     value = ShapeValue(DELAY, DELAY, fit.delay, fit.std, window.lower, window.upper)
     return dataclasses.replace(result, estimate=estimate, shapes=tuple(result.shapes) + (value,), delay=value)

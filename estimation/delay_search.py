@@ -27,7 +27,7 @@ from estimation.delay_candidate import (
     try_delay,
 )
 from estimation.measurements import Measurements
-from estimation.record_delay import DELAY, DelayBounds, delayed
+from estimation.record_delay import DELAY, DelayBounds, delayed, shortest_piece
 from estimation.shape_identification import ShapeValue
 from estimation.variable_projection import Block, FixedPart
 
@@ -41,10 +41,11 @@ class DelaySearch:
     def __init__(self, train: Measurements, recorded: Measurements, regressor: Regressor,
                  bounds: DelayBounds | None) -> None:
         self.train, self.recorded, self.regressor, self.bounds = train, recorded, regressor, bounds
-        self.duration = float(train.t[-1] - train.t[0])
+        self.duration = shortest_piece(train)
         self.previous: float | None = None
         self.reason: str | None = None
         self.adopted: DelayTrial | None = None
+        self.tried = False
 
     def _columns(self, blocks: Sequence[Block], shapes: Sequence[NDArray[np.float64]], model) -> Regressor:
         return current_columns(self.regressor, blocks, shapes, model.n_channels)
@@ -53,6 +54,7 @@ class DelaySearch:
         """This round's delay trial (none once adopted, failed, or not asked for)."""
         if self.bounds is None or self.adopted is not None or (self.reason or "").startswith("delay search failed"):
             return []
+        self.tried = True
         columns, channels = self._columns(blocks, shapes, model), tuple(model.channels)
         if self.previous is None:
             trial = try_delay(columns, self.train, channels, weights, rss, n_fixed, self.bounds)
@@ -103,10 +105,13 @@ class DelaySearch:
         window = self.bounds.within(self.duration)
         return ShapeValue(DELAY, DELAY, self.adopted.delay, self.adopted.fit.std, window.lower, window.upper)
 
-    def not_adopted_reason(self) -> str | None:
-        """Why a delay that was tried is not in the model (``None`` when adopted or not tried)."""
+    def not_adopted_reason(self, untested: str) -> str | None:
+        """Why the delay is not in the model (``None`` when adopted or not asked for); ``untested``: what
+        to say when no round tried it."""
         if self.bounds is None or self.adopted is not None:
             return None
+        if not self.tried:
+            return untested
         return self.reason or "not significant"
 
 

@@ -202,7 +202,7 @@ def diagnose(
     before = identify(model, train, validate)
     recorded = validate.as_recorded  # errors against the channels as recorded, along the derived motion
     weights = before.estimate.weights if before.estimate.method == "wls" else 1.0 / before.estimate.channel_variance
-    threshold = alpha / max(len(candidates), 1)
+    threshold = alpha / max(len(candidates) + (delay is not None), 1)  # the delay is a candidate too
     regressor = (lambda data: before.shaped_fit.regressor(data)) if before.shaped_fit is not None else (
         lambda data: model.evaluate_base(data.q, data.dq, data.ddq))
     fixed_train = FixedPart.from_arrays(regressor(train), train.channels(model.channels))
@@ -242,7 +242,7 @@ def diagnose(
     def defer(index: int, reason: str) -> None:
         last_reason[index] = reason
 
-    while groups and len(selected) < max_effects:
+    while groups and len(selected) + (moved.adopted is not None) < max_effects:
         # ---- stopping rule (noise floor): one call, see provisional_stopping_rule ----
         state = SearchState(model.channels, train_residual.T, validate_residual.T, train, recorded,
                             tuple(candidate_label(effect) for effect, _, _ in selected))
@@ -280,7 +280,7 @@ def diagnose(
         trials += moved.trials(selected_blocks, selected_shapes, model, weights, rss, fixed_train.n_fixed, trials)
         added = None
         for trial in sorted(trials, key=lambda t: t.bic):
-            if trial.p_value >= threshold or len(selected) + len(trial.group) > max_effects:
+            if trial.p_value >= threshold or len(selected) + (moved.adopted is not None) + len(trial.group) > max_effects:
                 continue
             if isinstance(trial, DelayTrial):
                 outcome = moved.confirm(trial, selected_blocks, selected_shapes, model, fixed_train, fixed_validate,
@@ -348,14 +348,16 @@ def diagnose(
     selected, after, pinned = refit_found(model, before, selected, selected_effects, selected_shapes, moved,
                                           train, validate, weights, validation_error, min_improvement)
     for position, term in enumerate(term for term in pinned if term.found):
-        effect = next(block.effect for block in blocks.values() if term.parameter in block.names
-                      and candidate_label(block.effect) == term.effect)
+        effect = next((block.effect for block in blocks.values() if term.parameter in block.names
+                       and candidate_label(block.effect) == term.effect), None)  # a law simplified after selection: none
         rejected[len(candidates) + position] = RejectedEffect(
-            effect.name, effect_channels(effect, model), "added, but its estimate turned negative in the joint refit "
+            term.effect if effect is None else effect.name, () if effect is None else effect_channels(effect, model),
+            "added, but its estimate turned negative in the joint refit "
             f"({term.parameter} = {term.value:.4g} ± {term.std:.2g}): dropped", term.effect)
-    if moved.not_adopted_reason() is not None:
-        rejected[len(candidates) + len(pinned)] = RejectedEffect("delay", tuple(model.channels), moved.not_adopted_reason(),
-                                                                 "delay")
+    delay_reason = moved.not_adopted_reason(untested=reason if reason.startswith("not tested") else
+                                            "not tested: the search ended before a round tried it")
+    if delay_reason is not None:
+        rejected[len(candidates) + len(pinned)] = RejectedEffect("delay", tuple(model.channels), delay_reason, "delay")
     return Diagnosis(
         effects=tuple(found_effect(after, effect, p_value, statistic, model) for effect, p_value, statistic in selected)
         + found_delay(after, moved.adopted, model),

@@ -43,11 +43,14 @@ def refit_found(model, before, selected, selected_effects, selected_shapes, move
             after = identify(current, train, validate, shape_starts=starts, delay=moved.final_bounds())
         except ShapeSearchError:  # the joint refit ran a shape to where the data do not determine it
             after = None
-        fitted_delay = after.delay if after is not None and after.delay is not None else moved.adopted_value()
-        if fitted_delay is not None:  # the refits below run along the moved records, the delay kept
+        fallback = after is None or any(value.at_bound for value in after.shapes) \
+            or weighted_validation(after, weights) > 1.05 * validation_error
+        # the refits below run along the records moved by the delay of the fit kept (the selection's when
+        # the joint refit is rejected), the delay carried over
+        fitted_delay = moved.adopted_value() if fallback or after.delay is None else after.delay
+        if fitted_delay is not None:
             train, validate = delayed(train, fitted_delay.value), delayed(validate, fitted_delay.value)
-        if after is None or any(value.at_bound for value in after.shapes) \
-                or weighted_validation(after, weights) > 1.05 * validation_error:
+        if fallback:
             # the joint refit of the shapes wandered off (to a bound, or worse on held-out data than the
             # shapes as selected): keep the shapes as selected, estimate the rest and the covariance there
             after = identify(current, train, validate, shape_starts=starts, shape_search=False)

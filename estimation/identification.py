@@ -205,10 +205,12 @@ def identify(
         if estimator is not None:
             raise TypeError("a delay is searched with the channel-weighted least squares: give weighted=, not estimator=")
         if isinstance(delay, DelayBounds):
-            return identify_delayed(model, train, validate, bounds=delay, weighted=weighted, covariance=covariance)
+            return identify_delayed(model, train, validate, bounds=delay, weighted=weighted, covariance=covariance,
+                                    shape_starts=shape_starts, shape_search=shape_search)
+        from estimation.record_delay import check_delay  # noqa: PLC0415
         from estimation.shape_identification import ShapeValue  # noqa: PLC0415
 
-        value = float(delay)
+        value = check_delay(delay)
         result = identify(model, delayed(train, value), None if validate is None else delayed(validate, value),
                           weighted=weighted, covariance=covariance, shape_starts=shape_starts, shape_search=shape_search)
         return replace(result, delay=ShapeValue("delay", "delay", value, 0.0, value, value))  # given, not estimated

@@ -81,15 +81,56 @@ def _shifted(t: NDArray[np.float64], values: NDArray[np.float64], derivatives: t
     return shifted
 
 
+#: a time step this many times the median step ends a piece of continuous motion (rows dropped there)
+GAP_STEPS = 3.0
+
+
+def motion_pieces(measurements: Measurements) -> list[slice]:
+    """The pieces of continuous motion: the segments of a concatenation, split again wherever the time
+    goes back (a segment boundary the metadata lost when rows were selected) or jumps by more than
+    :data:`GAP_STEPS` median steps (rows at rest dropped). The motion is moved piece by piece."""
+    pieces = []
+    for segment in segment_slices(measurements):
+        t = measurements.t[segment]
+        steps = np.diff(t)
+        if steps.size == 0:
+            pieces.append(segment)
+            continue
+        positive = steps[steps > 0]
+        typical = float(np.median(positive)) if positive.size else 0.0
+        cuts = np.flatnonzero((steps <= 0) | (steps > GAP_STEPS * typical)) + 1
+        edges = [0, *cuts.tolist(), t.shape[0]]
+        pieces += [slice(segment.start + a, segment.start + b) for a, b in zip(edges[:-1], edges[1:])]
+    return pieces
+
+
+def shortest_piece(measurements: Measurements) -> float:
+    """Duration of the shortest piece of continuous motion with more than one sample, s."""
+    durations = [float(measurements.t[piece][-1] - measurements.t[piece][0]) for piece in motion_pieces(measurements)
+                 if piece.stop - piece.start > 1]
+    return min(durations) if durations else 0.0
+
+
+def check_delay(delay: object) -> float:
+    """A given delay as a finite number of seconds, or a named error."""
+    if isinstance(delay, bool) or not isinstance(delay, (int, float, np.integer, np.floating)):
+        raise DelayBoundsError(f"a delay is a number of seconds (or DelayBounds to estimate it), got {delay!r}")
+    if not math.isfinite(float(delay)):
+        raise DelayBoundsError(f"a delay must be finite, got {delay}")
+    return float(delay)
+
+
 def delayed(measurements: Measurements, delay: float) -> Measurements:
-    """The record with its motion (``q, dq, ddq``) moved to ``t − delay``, each segment on its own;
-    the channels (and the recorded ones, :attr:`Measurements.recorded`) untouched."""
+    """The record with its motion (``q, dq, ddq``) moved to ``t − delay``, each piece of continuous
+    motion on its own (:func:`motion_pieces`); the channels (and the recorded ones,
+    :attr:`Measurements.recorded`) untouched."""
+    delay = check_delay(delay)
     if delay == 0.0:
         return measurements
     if measurements.dq is None or measurements.ddq is None:
         raise ValueError("a delay moves q, dq and ddq: derive dq/ddq first (estimation.preprocessing_plan.prepare)")
     q, dq, ddq = (np.array(values, dtype=float) for values in (measurements.q, measurements.dq, measurements.ddq))
-    for where in segment_slices(measurements):
+    for where in motion_pieces(measurements):
         t = measurements.t[where]
         q_part, dq_part, ddq_part = measurements.q[where], measurements.dq[where], measurements.ddq[where]
         q[where] = _shifted(t, q_part, (dq_part, ddq_part), delay)

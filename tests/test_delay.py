@@ -137,3 +137,38 @@ def test_a_given_delay_is_carried_by_the_result_and_its_predictions(records):
     # predictions along the records as given move them by the delay: the validation residual is the noise
     residual = validate.tau - result.predict(validate)
     assert np.mean(residual[:, 0] ** 2) < 1.3 * NOISE["tau1"] ** 2
+
+
+def test_the_motion_moves_piece_by_piece_when_time_restarts_or_rows_were_dropped(robot):
+    """Two files stacked without their segment record (time restarts at 0) and rows at rest dropped
+    from the first: each piece of continuous motion is moved on its own."""
+    from estimation.measurements import Measurements
+
+    t = np.arange(0, 5.0, 1 / 500)
+    parts, exact = [], []
+    for seed in (7, 8):
+        trajectory = random_fourier(robot, seed=seed)
+        q, dq, ddq = trajectory.evaluate(t)
+        keep = np.ones(t.size, dtype=bool)
+        if seed == 7:
+            keep[1000:1100] = False  # 0.2 s dropped
+        parts.append((t[keep], q[keep], dq[keep], ddq[keep]))
+        exact.append(trajectory.evaluate(t[keep] - 0.01)[0])
+    data = Measurements(*(np.concatenate([part[i] for part in parts]) for i in range(4)),
+                        np.zeros((sum(part[0].size for part in parts), 3)))
+    moved = delayed(data, 0.01)
+    np.testing.assert_allclose(moved.q, np.concatenate(exact), atol=5e-5)
+
+
+def test_a_delay_never_tried_is_not_called_not_significant(records):
+    model, _, (train, validate) = records
+    diagnosis = diagnose(model, train, validate, candidates=())
+    reason = next(rejected.reason for rejected in diagnosis.rejected if rejected.name == "delay")
+    assert reason.startswith("not tested")
+
+
+@pytest.mark.parametrize("value", [True, float("nan"), "5 ms"])
+def test_a_given_delay_must_be_a_finite_number(records, value):
+    model, _, (train, _) = records
+    with pytest.raises(DelayBoundsError):
+        identify(model, train, delay=value)
