@@ -24,7 +24,7 @@ from numpy.typing import NDArray
 
 from estimation.batch_means import batch_length, batch_means
 from estimation.measurements import Measurements
-from estimation.record_delay import DELAY, DelayBounds, delayed, shortest_piece
+from estimation.record_delay import DELAY, DelayBounds, delayed, longest_piece
 from estimation.variable_projection import FixedPart, residuals, solve_linear
 
 Columns = Callable[[Measurements], NDArray[np.float64]]
@@ -60,7 +60,7 @@ def fit_delay(columns: Columns, train: Measurements, channels: tuple[str, ...], 
               bounds: DelayBounds = DelayBounds()) -> DelayFit:
     """The delay minimising the projected weighted residual of the columns ``columns(record)``
     (``(N, m, p)``, at fixed shapes) on ``train``, with its standard deviation (module docstring)."""
-    bounds = bounds.within(shortest_piece(train))
+    bounds = bounds.within(longest_piece(train))
     grid = bounds.grid()
     profile = np.array([_rss(columns, train, value, channels, weights) for value in grid])
     if not np.any(np.isfinite(profile)):
@@ -125,6 +125,6 @@ def identify_delayed(model, train: Measurements, validate: Measurements | None, 
     with np.errstate(divide="ignore", invalid="ignore"):
         relative = np.where(result.estimate.values != 0, 100.0 * std / np.abs(result.estimate.values), np.inf)
     estimate = dataclasses.replace(result.estimate, cov=cov, std=std, relative_std=relative)
-    window = bounds.within(shortest_piece(train))
+    window = bounds.within(longest_piece(train))
     value = ShapeValue(DELAY, DELAY, fit.delay, fit.std, window.lower, window.upper)
     return dataclasses.replace(result, estimate=estimate, shapes=tuple(result.shapes) + (value,), delay=value)

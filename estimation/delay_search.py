@@ -27,7 +27,7 @@ from estimation.delay_candidate import (
     try_delay,
 )
 from estimation.measurements import Measurements
-from estimation.record_delay import DELAY, DelayBounds, delayed, shortest_piece
+from estimation.record_delay import DELAY, DelayBounds, delayed, longest_piece
 from estimation.shape_identification import ShapeValue
 from estimation.variable_projection import Block, FixedPart
 
@@ -41,7 +41,7 @@ class DelaySearch:
     def __init__(self, train: Measurements, recorded: Measurements, regressor: Regressor,
                  bounds: DelayBounds | None) -> None:
         self.train, self.recorded, self.regressor, self.bounds = train, recorded, regressor, bounds
-        self.duration = shortest_piece(train)
+        self.duration = longest_piece(train)
         self.previous: float | None = None
         self.reason: str | None = None
         self.adopted: DelayTrial | None = None

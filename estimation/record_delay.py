@@ -33,7 +33,7 @@ class DelayBounds:
     """Where a delay is searched, seconds, and how many grid points start the search.
 
     The default, ±50 ms, covers a drive's or a torque sensor's latency and the lag of a causal
-    filter on the encoders; it is cut to a tenth of the record when the record is short.
+    filter on the encoders; it is cut to a tenth of the longest piece of continuous motion when that is short.
     """
 
     lower: float = -0.05
@@ -104,11 +104,12 @@ def motion_pieces(measurements: Measurements) -> list[slice]:
     return pieces
 
 
-def shortest_piece(measurements: Measurements) -> float:
-    """Duration of the shortest piece of continuous motion with more than one sample, s."""
+def longest_piece(measurements: Measurements) -> float:
+    """Duration of the longest piece of continuous motion, s (the record's length for the delay's
+    bounds: rows at rest dropped leave many short pieces between long ones)."""
     durations = [float(measurements.t[piece][-1] - measurements.t[piece][0]) for piece in motion_pieces(measurements)
                  if piece.stop - piece.start > 1]
-    return min(durations) if durations else 0.0
+    return max(durations) if durations else 0.0
 
 
 def check_delay(delay: object) -> float:

@@ -9,7 +9,9 @@ that respects the sign is that of the least squares with the bound ``θ_i ≥ 0`
 active that is the model without the term. :func:`pin_wrong_signs` is that active-set step: the
 term is removed (a declared effect keeps its other joints; a found effect whose coefficient turned
 negative is dropped from the findings), the model refitted, and repeated until no positive-by-physics
-term is negative. Each pinned term is reported with the estimate it had.
+term is negative. Each pinned term is reported with the estimate it had. A term once held is not
+re-admitted (the full bounded least squares would check its multiplier, Lawson–Hanson): a simpler,
+conservative step; terms still negative after :data:`PASSES` passes are named in the result's warnings.
 """
 
 from __future__ import annotations
@@ -126,4 +128,9 @@ def pin_wrong_signs(selected: list, after: IdentificationResult, declared: Ident
         # the shapes stay where the joint refit put them: removing a term is a small change, and a
         # search from there could run a shape off to a bound for a term that is no longer there
         after = identify(current, train, validate, shape_starts=kept_starts, shape_search=False)
+    left = negative_terms(after)
+    if left:  # said, never silent
+        after = dataclasses.replace(after, warnings=tuple(after.warnings) + (
+            f"after {PASSES} passes holding negative friction or inertia at zero, still negative: "
+            + ", ".join(f"{name} = {value:.4g} ± {std:.2g}" for name, (value, std) in left.items()),))
     return selected, after, tuple(pinned)
