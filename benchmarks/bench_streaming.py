@@ -71,13 +71,17 @@ def trajectory(robot, seed: int) -> FourierTrajectory:
     return FourierTrajectory(frequency, centre, a * scale[:, None], b * scale[:, None])
 
 
-def write_record(path: Path, n_samples: int, seed: int) -> None:
-    """A synthetic record (see the module docstring), written row group by row group."""
+def write_record(path: Path, n_samples: int, seed: int, truth=None) -> None:
+    """A synthetic record (see the module docstring), written row group by row group; ``truth``:
+    ``(robot, model, theta)`` of the torques (default the declared model with viscous friction 0.5)."""
     import pyarrow as pa
     import pyarrow.parquet as pq
 
-    robot, model = robot_and_model()
-    theta = model.nominal_parameters(viscous=0.5)
+    if truth is None:
+        robot, model = robot_and_model()
+        theta = model.nominal_parameters(viscous=0.5)
+    else:
+        robot, model, theta = truth
     motion = trajectory(robot, seed)
     generator = np.random.default_rng(seed + 1000)
     n = robot.n_joints
@@ -94,11 +98,11 @@ def write_record(path: Path, n_samples: int, seed: int) -> None:
     temporary.replace(path)
 
 
-def record(folder: Path, n_samples: int, seed: int) -> Path:
-    path = folder / f"kuka_{n_samples}_{seed}.parquet"
+def record(folder: Path, n_samples: int, seed: int, truth=None, prefix: str = "kuka") -> Path:
+    path = folder / f"{prefix}_{n_samples}_{seed}.parquet"
     if not path.exists():
         started = time.perf_counter()
-        write_record(path, n_samples, seed)
+        write_record(path, n_samples, seed, truth)
         print(f"  wrote {path.name} in {time.perf_counter() - started:.1f} s", flush=True)
     return path
 

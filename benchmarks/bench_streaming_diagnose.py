@@ -49,7 +49,8 @@ from dynamics.models import build_model  # noqa: E402
 from dynamics.robots import load_robot  # noqa: E402
 
 sys.path.insert(0, str(ROOT / "benchmarks"))
-from bench_streaming import ROW_GROUP, URDF, trajectory  # noqa: E402
+from bench_streaming import URDF  # noqa: E402
+from bench_streaming import record as streaming_record  # noqa: E402
 
 RATE = 1000.0
 CUTOFF = 5.0
@@ -66,36 +67,16 @@ def truth_model():
     return robot, build_model(robot, "internal", effects)
 
 
-def write_record(path: Path, n_samples: int, seed: int) -> None:
-    """A synthetic record (module docstring), row group by row group (bounded memory)."""
-    import pyarrow as pa
-    import pyarrow.parquet as pq
-
+def truth():
+    """``(robot, model, theta)`` of the torques: the declared viscous friction and the missing effects."""
     robot, model = truth_model()
-    theta = model.nominal_parameters(viscous=0.5, coulomb=list(COULOMB.values()), offset=list(OFFSET.values()))
-    motion = trajectory(robot, seed)
-    generator = np.random.default_rng(seed + 1000)
-    n = robot.n_joints
-    names = ["t"] + [f"q{i}" for i in range(1, n + 1)] + [f"tau{i}" for i in range(1, n + 1)]
-    temporary = path.with_suffix(".partial")
-    with pq.ParquetWriter(temporary, pa.schema([(name, pa.float64()) for name in names])) as writer:
-        for start in range(0, n_samples, ROW_GROUP):
-            t = np.arange(start, min(start + ROW_GROUP, n_samples)) / RATE
-            q, dq, ddq = motion.evaluate(t)
-            tau = model.predict(theta, q, dq, ddq) + 0.05 * generator.standard_normal((t.size, n))
-            q = q + 1e-5 * generator.standard_normal(q.shape)
-            table = np.column_stack([t, q, tau])
-            writer.write_table(pa.table({name: table[:, i] for i, name in enumerate(names)}))
-    temporary.replace(path)
+    return robot, model, model.nominal_parameters(viscous=0.5, coulomb=list(COULOMB.values()),
+                                                  offset=list(OFFSET.values()))
 
 
 def record(folder: Path, n_samples: int, seed: int) -> Path:
-    path = folder / f"kuka_effects_{n_samples}_{seed}.parquet"
-    if not path.exists():
-        started = time.perf_counter()
-        write_record(path, n_samples, seed)
-        print(f"  wrote {path.name} in {time.perf_counter() - started:.1f} s", flush=True)
-    return path
+    """The record of ``bench_streaming`` (its writer) with this benchmark's torques."""
+    return streaming_record(folder, n_samples, seed, truth(), prefix="kuka_effects")
 
 
 def time_diagnose(train: Path, validate: Path, out: Path, chunk_size: int | None, subsample: int | None
