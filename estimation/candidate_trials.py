@@ -76,6 +76,17 @@ class Trial:
         return sum(block.n_linear + block.n_shape for block in self.blocks)
 
 
+def nested_test(rss: float, rss_augmented: float, count: int, n_rows: int, n_fixed: int) -> tuple[float, float, float]:
+    """``(F, p_value, BIC difference)`` of ``count`` added parameters (module docstring): the current
+    model's weighted RSS ``rss`` with ``n_fixed`` parameters on ``n_rows`` rows, the augmented one's
+    ``rss_augmented``."""
+    dof = n_rows - n_fixed - count
+    statistic = ((rss - rss_augmented) / count) / (rss_augmented / dof) if rss_augmented > 0 else np.inf
+    p_value = float(scipy.stats.f.sf(statistic, count, dof)) if np.isfinite(statistic) else 0.0
+    bic = n_rows * np.log(max(rss_augmented, 1e-300) / rss) + count * np.log(n_rows)
+    return float(statistic), p_value, float(bic)
+
+
 def try_candidate(group: tuple[int, ...], blocks: Sequence[Block], fixed: FixedPart, states: States,
                   weights: NDArray[np.float64], rss: float, *, starts: NDArray[np.float64] | None = None,
                   search: bool = True) -> Trial:
@@ -87,12 +98,8 @@ def try_candidate(group: tuple[int, ...], blocks: Sequence[Block], fixed: FixedP
     fit = fit_shapes(fixed, blocks, states, weights, starts=starts, refine=3 if starts is None else 1,
                      max_iter=60 if search else 0, covariance="none")
     count = sum(block.n_linear + block.n_shape for block in blocks)
-    n_rows = fixed.n_rows
-    dof = n_rows - fixed.n_fixed - count
-    statistic = ((rss - fit.rss) / count) / (fit.rss / dof) if fit.rss > 0 else np.inf
-    p_value = float(scipy.stats.f.sf(statistic, count, dof)) if np.isfinite(statistic) else 0.0
-    bic = n_rows * np.log(max(fit.rss, 1e-300) / rss) + count * np.log(n_rows)
-    return Trial(tuple(group), tuple(blocks), fit, fit.rss, float(statistic), p_value, float(bic))
+    statistic, p_value, bic = nested_test(rss, fit.rss, count, fixed.n_rows, fixed.n_fixed)
+    return Trial(tuple(group), tuple(blocks), fit, fit.rss, statistic, p_value, bic)
 
 
 def weighted_error(fixed: FixedPart, blocks: Sequence[Block], states: States, shapes: Sequence[NDArray[np.float64]],

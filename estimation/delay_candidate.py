@@ -15,10 +15,9 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.stats
 from numpy.typing import NDArray
 
-from estimation.candidate_trials import weighted_error
+from estimation.candidate_trials import nested_test, weighted_error
 from estimation.confirmation import Comparison, settled_weights
 from estimation.delay_identification import DelayFit, fit_delay
 from estimation.measurements import Measurements
@@ -68,12 +67,7 @@ def try_delay(columns: Regressor, train: Measurements, channels: tuple[str, ...]
         fit = fit_delay(columns, train, channels, weights, bounds)
     except (np.linalg.LinAlgError, FloatingPointError, ValueError) as error:
         return f"delay search failed: {error}"
-    n_rows = train.n_samples * len(channels)
-    dof = n_rows - n_fixed - 1
-    statistic = (rss - fit.rss) / (fit.rss / dof) if fit.rss > 0 else np.inf
-    p_value = float(scipy.stats.f.sf(statistic, 1, dof)) if np.isfinite(statistic) else 0.0
-    bic = n_rows * np.log(max(fit.rss, 1e-300) / rss) + np.log(n_rows)
-    return DelayTrial(fit, fit.rss, float(statistic), p_value, float(bic))
+    return DelayTrial(fit, fit.rss, *nested_test(rss, fit.rss, 1, train.n_samples * len(channels), n_fixed))
 
 
 @dataclass(frozen=True)
@@ -122,12 +116,7 @@ def screen_delay(columns: Regressor, train: Measurements, channels: tuple[str, .
         return f"delay search failed: {error}"
     empty = np.zeros(0)
     fit = DelayFit(delay, float("nan"), float(value), float("nan"), empty, empty, empty)
-    n_rows = train.n_samples * len(channels)
-    dof = n_rows - n_fixed - 1
-    statistic = (rss - value) / (value / dof) if value > 0 else np.inf
-    p_value = float(scipy.stats.f.sf(statistic, 1, dof)) if np.isfinite(statistic) else 0.0
-    return DelayTrial(fit, float(value), float(statistic), p_value,
-                      float(n_rows * np.log(max(value, 1e-300) / rss) + np.log(n_rows)))
+    return DelayTrial(fit, float(value), *nested_test(rss, float(value), 1, train.n_samples * len(channels), n_fixed))
 
 
 def around(delay: float, bounds: DelayBounds, duration: float) -> DelayBounds:

@@ -30,13 +30,12 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.stats
 from numpy.typing import NDArray
 
 from dynamics.effects import CoulombFriction, Effect
 from dynamics.models import IdentificationModel
 from dynamics.shape_effects import FRICTION_LAWS, ShapedStribeckFriction
-from estimation.candidate_trials import SIGNIFICANT_TERM, Trial, candidate_label, joints_of, wrong_sign
+from estimation.candidate_trials import SIGNIFICANT_TERM, Trial, candidate_label, joints_of, nested_test, wrong_sign
 from estimation.confirmation import channels_made_worse
 from estimation.diagnosis_results import RejectedEffect
 from estimation.selection_rules import candidate_groups, offsets_beat_springs
@@ -82,11 +81,8 @@ def _trial(group, members, sums: ChannelSums, selection, weights, rss, shapes) -
     except FloatingPointError:
         return "its columns are non-finite"
     count = sum(block.n_linear + block.n_shape for block in members)
-    n_rows = sums.n_samples * sums.layout.n_channels
-    dof = n_rows - len(selection) - count
-    statistic = ((rss - rss_augmented) / count) / (rss_augmented / dof) if rss_augmented > 0 else np.inf
-    p_value = float(scipy.stats.f.sf(statistic, count, dof)) if np.isfinite(statistic) else 0.0
-    bic = n_rows * np.log(max(rss_augmented, 1e-300) / rss) + count * np.log(n_rows)
+    statistic, p_value, bic = nested_test(rss, rss_augmented, count, sums.n_samples * sums.layout.n_channels,
+                                          len(selection))
     shape = np.concatenate([np.asarray(shapes[index], dtype=float) for index in group]) if group else np.zeros(0)
     n_total = theta.shape[0] + shape.shape[0]
     fit = ShapeFit(shape, theta, np.full((n_total, n_total), np.nan), rss_augmented,
