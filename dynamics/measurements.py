@@ -147,7 +147,26 @@ class Measurements:
         return replace(
             self, t=self.t[indices], q=self.q[indices], dq=take(self.dq), ddq=take(self.ddq),
             tau=take(self.tau), wrench=take(self.wrench), recorded=recorded,
+            metadata=self._selected_segments(np.arange(self.n_samples)[indices]),
         )
+
+    def _selected_segments(self, chosen: NDArray[np.int_]) -> dict[str, Any]:
+        """The metadata with the segments of a concatenation (``metadata["segments"]``, ``start``/``stop``
+        rows) renumbered for the samples ``chosen``; dropped when the selection reorders the samples."""
+        bounds = self.metadata.get("segments")
+        if not bounds or bounds[-1]["stop"] != self.n_samples:
+            return self.metadata
+        metadata = dict(self.metadata)
+        if np.any(np.diff(chosen) <= 0):
+            metadata.pop("segments")
+            return metadata
+        renumbered = []
+        for entry in bounds:
+            start, stop = np.searchsorted(chosen, [entry["start"], entry["stop"]])
+            if stop > start:
+                renumbered.append({**entry, "start": int(start), "stop": int(stop)})
+        metadata["segments"] = renumbered
+        return metadata
 
     @property
     def as_recorded(self) -> Measurements:

@@ -172,3 +172,19 @@ def test_a_given_delay_must_be_a_finite_number(records, value):
     model, _, (train, _) = records
     with pytest.raises(DelayBoundsError):
         identify(model, train, delay=value)
+
+
+def test_selecting_rows_keeps_the_segments_of_a_concatenation(records):
+    """Rows dropped (at rest, say) from stacked records: the segment bounds follow, so the motion is
+    moved, and the HAC lags cut, at the true boundaries."""
+    from estimation.segments import concatenate, segment_slices
+
+    _, _, (first, second) = records
+    stacked = concatenate([first, second])
+    keep = np.ones(stacked.n_samples, dtype=bool)
+    keep[100:300] = False
+    keep[first.n_samples + 50:first.n_samples + 60] = False
+    selected = stacked.select(keep)
+    assert [(s.start, s.stop) for s in segment_slices(selected)] == [
+        (0, first.n_samples - 200), (first.n_samples - 200, selected.n_samples)]
+    assert "segments" not in stacked.select(np.arange(stacked.n_samples)[::-1]).metadata  # reordered: none kept
