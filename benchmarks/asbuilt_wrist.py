@@ -25,7 +25,7 @@ diagnosis left tau5 at 2.49x (0.0996) and tau6 at 1.10x, for two reasons measure
    smoothing (0.28 rad/s) that absorbed part of that still missing viscous term. After
    ``viscous[q5+q6]`` was added, the joint refit ran the smoothing to its lower bound (the sign law;
    the rows below 0.05 rad/s are dropped) and was refused as undetermined, so the stale shape was
-   kept. The same effects with the plain law give 1.10x. Fix: :mod:`estimation.limit_laws` (a
+   kept. The same effects with the plain law give 1.10x. Fix: :mod:`estimation.diagnosis.limit_laws` (a
    ``coulomb:tanh`` whose refit runs to the bound is replaced by ``coulomb``): tau5 1.10x.
 2. The candidate's law: ``coulomb[q5+q6]`` is a sign law, the motor's is smooth on the joint side
    below ``1/G6 = 0.013`` rad/s, and 5 % of the kept rows lie there (q5 and q6 turning against each
@@ -33,7 +33,7 @@ diagnosis left tau5 at 2.49x (0.0996) and tau6 at 1.10x, for two reasons measure
    candidate ``coulomb:tanh[q5+q6]`` tried alone was worse: taken first with ``vc = 1.1`` rad/s it
    mimicked the missing viscous term, ``viscous[q5+q6]`` was then refused, tau5/tau6 2.29x/2.20x.
    Tried as one candidate with ``viscous[q5+q6]`` (a motor's friction is both;
-   :func:`estimation.coupling_candidates.combination_groups`): fc 0.551 ± 0.009, vc 0.0126 ± 0.0013
+   :func:`estimation.diagnosis.coupling_candidates.combination_groups`): fc 0.551 ± 0.009, vc 0.0126 ± 0.0013
    (0.0130), fv 0.217 ± 0.005 (0.216), tau5/tau6 1.00x/1.01x.
 """
 
@@ -45,18 +45,18 @@ from pathlib import Path
 
 import numpy as np
 
-from dynamics.effect_specs import build_effects
+from dynamics.effects.specs import build_effects
 from dynamics.models import build_model
 from dynamics.robots import load_robot
-from dynamics.sensors import NoiseModel
-from dynamics.simulated_joint_effects import PUMA560_ROTOR_INERTIA, Armature
-from dynamics.simulated_motor_effects import MotorFriction
-from dynamics.simulator import Simulator
+from dynamics.simulation.sensors import NoiseModel
+from dynamics.simulation.joint_effects import PUMA560_ROTOR_INERTIA, Armature
+from dynamics.simulation.motor_effects import MotorFriction
+from dynamics.simulation.simulator import Simulator
 from dynamics.transmission import Transmission, puma560_transmission
-from estimation.diagnosis import diagnose
-from estimation.identification import identify
-from estimation.rest_segments import coulomb_combinations, drop_rest
-from estimation.trivial_predictors import trivial_mse
+from estimation.diagnosis.search import diagnose
+from estimation.identification.fit import identify
+from estimation.data.rest import coulomb_combinations, drop_rest
+from estimation.identification.trivial_predictors import trivial_mse
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the test suite's trajectories
 from tests.synthetic import random_fourier  # noqa: E402

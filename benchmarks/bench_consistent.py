@@ -40,16 +40,16 @@ from dynamics.base_parameters import random_states
 from dynamics.models import build_model
 from dynamics.physical_parameters import PhysicalParametrisation, project_link, pseudo_inertia
 from dynamics.robots import load_robot
-from estimation.consistent import ConsistentLeastSquares
-from estimation.consistent_identification import identify_consistent
-from estimation.consistent_simulation import (
+from estimation.consistent.least_squares import ConsistentLeastSquares
+from estimation.consistent.identification import identify_consistent
+from estimation.consistent.simulation import (
     consistent_controller, consistent_robot, consistent_simulator, mass_matrix_eigenvalues, measured_reference,
 )
-from estimation.identification import identify
-from estimation.identification_problem import IdentificationProblem
-from estimation.least_squares import WeightedLeastSquares, stack
-from estimation.measurements import Measurements
-from estimation.validation import compare
+from estimation.identification.fit import identify
+from estimation.estimators.identification_problem import IdentificationProblem
+from estimation.estimators.least_squares import WeightedLeastSquares, stack
+from dynamics.measurements import Measurements
+from estimation.identification.validation import compare
 
 DATA = Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "kuka_lwr4"
 NOISE = {"tau1": 0.5, "tau2": 0.5, "tau3": 0.2, "fx": 5.0, "fy": 5.0, "fz": 8.0, "mx": 3.0, "my": 3.0, "mz": 1.0}
@@ -110,7 +110,7 @@ def kuka_runs():
     if not (DATA / "kuka_lwr4.urdf").is_file():
         print(f"    (KUKA data not found in {DATA}: skipped)")
         return None
-    from estimation.kuka_data import load_kuka_run
+    from estimation.datasets.kuka import load_kuka_run
 
     robot = load_robot(urdf=DATA / "kuka_lwr4.urdf")
     runs = [load_kuka_run(DATA / f"kuka_lwr4_HW_measurements_{index}.npz") for index in (1, 2, 3)]
@@ -192,7 +192,7 @@ def sdp(label, model, problem, unconstrained, estimate):
 
 
 def _gram(problem):
-    from estimation.least_squares import channel_gram
+    from estimation.estimators.least_squares import channel_gram
 
     return channel_gram(problem)[0]
 

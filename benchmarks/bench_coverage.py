@@ -20,7 +20,7 @@ recorded torques; the encoder quantisation of ``q`` is deterministic and kept.
 above under a 10 Hz joint PD, the train record (three periods, 15 000 samples, simulation seed 1),
 derivatives from a 250-harmonic Fourier fit over all periods on their own time stamps
 (``average=False``, the torques as recorded), and the model ``viscous,coulomb:tanh,offset`` fitted
-by :func:`estimation.identification.identify` (variable projection: the three smoothing velocities
+by :func:`estimation.identification.fit.identify` (variable projection: the three smoothing velocities
 ``vc1..vc3`` estimated with the linear coefficients; ``--covariance hac``: the batch-means sandwich,
 ``classical``: the white-noise covariance, both from the full Jacobian). Checked: every base
 parameter, Coulomb coefficient and smoothing velocity (true 0.05 rad/s).
@@ -47,17 +47,17 @@ from dataclasses import replace
 
 import numpy as np
 
-from dynamics.effects import CoulombFriction
+from dynamics.effects.linear import CoulombFriction
 from dynamics.models import build_model
 from dynamics.robots import load_robot
-from dynamics.sensors import NoiseModel, encoder_resolution
-from dynamics.simulator import Simulator
-from dynamics.threads import single_threaded_blas
-from estimation.coverage import EstimateDraw, identification_draw, monte_carlo_coverage
-from estimation.identification import identify
-from estimation.fourier_series import design_matrix
-from estimation.least_squares import WeightedLeastSquares, stack
-from estimation.preprocessing import FourierDifferentiation, average_periods, fill_derivatives
+from dynamics.simulation.sensors import NoiseModel, encoder_resolution
+from dynamics.simulation.simulator import Simulator
+from dynamics.runtime.threads import single_threaded_blas
+from estimation.uncertainty.coverage import EstimateDraw, identification_draw, monte_carlo_coverage
+from estimation.identification.fit import identify
+from estimation.preprocessing.fourier_series import design_matrix
+from estimation.estimators.least_squares import WeightedLeastSquares, stack
+from estimation.preprocessing.differentiation import FourierDifferentiation, average_periods, fill_derivatives
 
 TAU_STD = 0.2
 
@@ -165,7 +165,7 @@ class FourierOperator:
     15 000 x 501 least-squares solve (checked against ``fill_derivatives`` on the first record)."""
 
     def __init__(self, t, frequency_hz: float, harmonics: int):
-        elapsed = t - t[0]  # as estimation.fourier_series.fit_series: phases from the record's start
+        elapsed = t - t[0]  # as estimation.preprocessing.fourier_series.fit_series: phases from the record's start
         design = design_matrix(elapsed, frequency_hz, harmonics)
         omega = 2 * np.pi * frequency_hz * np.arange(1, harmonics + 1)
         phase = np.outer(elapsed, omega)
@@ -181,7 +181,7 @@ class FourierOperator:
 
 
 def _later(values):
-    """``estimation.preprocessing.compensate_hold``'s half-sample shift."""
+    """``estimation.preprocessing.differentiation.compensate_hold``'s half-sample shift."""
     following = np.vstack([values[1:], 2 * values[-1:] - values[-2:-1]])
     return (values + following) / 2
 

@@ -9,13 +9,13 @@ Run: ``PYTHONPATH=. python benchmarks/bench_demo_harmonics.py`` (about a minute)
 """
 import warnings; warnings.simplefilter("ignore")
 import numpy as np
-from dynamics.effects import CoulombFriction
+from dynamics.effects.linear import CoulombFriction
 from dynamics.models import build_model
 from dynamics.robots import load_robot
-from dynamics.simulator import NoiseModel, Simulator
-from estimation.identification import identify
-from estimation.noise_floor import noise_floor, prepared_floor
-from estimation.preprocessing import FourierDifferentiation, fill_derivatives
+from dynamics.simulation.simulator import NoiseModel, Simulator
+from estimation.identification.fit import identify
+from estimation.uncertainty.noise_floor import noise_floor, prepared_floor
+from estimation.preprocessing.differentiation import FourierDifferentiation, fill_derivatives
 from oed.design import design_excitation
 robot = load_robot("puma560", joints=3)
 sim = Simulator(robot, "viscous,coulomb,offset", noise=NoiseModel())

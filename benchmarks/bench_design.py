@@ -3,7 +3,7 @@
 The baseline is what a user would otherwise write: ``scipy.optimize.minimize(method="SLSQP")`` with
 finite-difference gradients of the same cost (the same CasADi objective evaluated numerically),
 the same linear bound constraints (also finite-differenced by SciPy), the same starts and the same
-thread budget (one thread, :func:`dynamics.threads.single_threaded`). The issue's targets are
+thread budget (one thread, :func:`dynamics.runtime.threads.single_threaded`). The issue's targets are
 measured against it.
 
 For context, the same SLSQP also runs on the cost written without this toolkit: the base regressor
@@ -27,7 +27,7 @@ import numpy as np
 import scipy.optimize
 
 from dynamics.robots import load_robot
-from dynamics.threads import single_threaded
+from dynamics.runtime.threads import single_threaded
 from oed.bounds import JointBounds
 from oed.design import DesignSettings, ExcitationDesign
 

@@ -1,4 +1,4 @@
-"""Benchmark: the diagnosis (``estimation.diagnosis.diagnose``) with every default candidate, plain
+"""Benchmark: the diagnosis (``estimation.diagnosis.search.diagnose``) with every default candidate, plain
 and shaped (``coulomb:tanh``, ``stribeck:velocity``, ``sigmoid``, ``ripple``).
 
 1. PUMA 560, 3 joints, internal model, two simulated 10 000-sample records (1 kHz, 0.2 Hz Fourier
@@ -22,10 +22,10 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from dynamics.effects import CoulombFriction, JointOffset  # noqa: E402
+from dynamics.effects.linear import CoulombFriction, JointOffset  # noqa: E402
 from dynamics.models import build_model  # noqa: E402
 from dynamics.robots import load_robot  # noqa: E402
-from estimation.diagnosis import diagnose  # noqa: E402
+from estimation.diagnosis.search import diagnose  # noqa: E402
 from tests.synthetic import random_fourier, simulate, true_parameters  # noqa: E402
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "kuka_lwr4"
@@ -65,7 +65,7 @@ def main() -> None:
     if args.skip_kuka or not DATA.is_dir():
         print("KUKA LWR4+: skipped (no ../shared/data/kuka_lwr4)" if not args.skip_kuka else "KUKA: skipped")
         return
-    from estimation.kuka_data import load_kuka_run
+    from estimation.datasets.kuka import load_kuka_run
 
     runs = [load_kuka_run(DATA / f"kuka_lwr4_HW_measurements_{index}.npz") for index in (1, 3)]
     robot = load_robot(urdf=DATA / "kuka_lwr4.urdf")

@@ -11,8 +11,8 @@ import time
 
 import numpy as np
 
-from estimation.arx import ARXEstimator
-from estimation.recursive import ExtendedRecursiveLeastSquares
+from estimation.estimators.arx import ARXEstimator
+from estimation.estimators.recursive import ExtendedRecursiveLeastSquares
 
 
 def _best_of(repeats: int, run) -> float:

@@ -1,7 +1,7 @@
 """Benchmark: identification from 10 000 samples of the PUMA 560 (3 joints) combined model.
 
 Ours: regressor evaluation (the model's CasADi base regressor mapped over the samples) +
-stacking + iterated channel-weighted least squares (:mod:`estimation.least_squares`).
+stacking + iterated channel-weighted least squares (:mod:`estimation.estimators.least_squares`).
 
 Baseline, measured in the same run: a plain numpy/Pinocchio pipeline — a Python loop over the
 samples calling ``pinocchio.computeJointTorqueRegressor`` on the free-flyer model (its first six
@@ -21,8 +21,8 @@ import numpy as np
 
 from dynamics.models import build_model
 from dynamics.robots import load_robot
-from estimation.least_squares import WeightedLeastSquares, channel_variance, stack
-from estimation.measurements import Measurements
+from estimation.estimators.least_squares import WeightedLeastSquares, channel_variance, stack
+from dynamics.measurements import Measurements
 from oed.fourier import FourierTrajectory
 
 from pinocchio_baseline import PinocchioRegressor

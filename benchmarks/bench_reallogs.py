@@ -35,9 +35,9 @@ sys.path.insert(0, str(ROOT))
 
 from dynamics.models import build_model  # noqa: E402
 from dynamics.robots import load_robot  # noqa: E402
-from estimation.record_loading import read_record  # noqa: E402
-from estimation.measurements import Measurements  # noqa: E402
-from estimation.preprocessing_plan import choose_preprocessing, prepare  # noqa: E402
+from estimation.data.records import read_record  # noqa: E402
+from dynamics.measurements import Measurements  # noqa: E402
+from estimation.preprocessing.plan import choose_preprocessing, prepare  # noqa: E402
 from oed.cli import main  # noqa: E402
 from tests.synthetic import random_fourier, true_parameters  # noqa: E402
 

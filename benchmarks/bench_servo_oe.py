@@ -24,9 +24,9 @@ from pathlib import Path
 
 import numpy as np
 
-from dynamics.servo_simulator import PAPER_JOINTS, SensorModel, simulate_servo_arm
-from estimation.servo_oe_arm import fit_servo_arm_output_error
-from estimation.servo_output_error import KalmanFusionSettings
+from dynamics.simulation.servo_simulator import PAPER_JOINTS, SensorModel, simulate_servo_arm
+from estimation.servo.output_error_arm import fit_servo_arm_output_error
+from estimation.servo.output_error import KalmanFusionSettings
 from oed.aprbs import APRBSDesign, design_aprbs
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -11,11 +11,11 @@ import time
 import numpy as np
 import pinocchio as pin
 
-from dynamics.controllers import ComputedTorqueController, computed_torque_gains
+from dynamics.simulation.controllers import ComputedTorqueController, computed_torque_gains
 from dynamics.models import build_model
 from dynamics.pinocchio_bridge import to_pinocchio
 from dynamics.robots import load_robot
-from dynamics.simulator import NoiseModel, Simulator
+from dynamics.simulation.simulator import NoiseModel, Simulator
 from oed.fourier import FourierTrajectory
 
 

@@ -17,7 +17,7 @@ Two parts:
   with the median ratio of the batch-means to the classical standard deviations.
 * ``--in-memory 100000 300000``: the same without ``--chunk-size`` (the in-memory path), and
   ``--chunk-sizes 1000 … 100000`` on the 300 000-sample record: the trade-off behind the default.
-* ``--files 10 --file-samples 100000``: the ten records through :func:`estimation.cluster.sum_files`
+* ``--files 10 --file-samples 100000``: the ten records through :func:`estimation.streaming.cluster.sum_files`
   serially, in a 2-process pool and on a 2-worker dask ``LocalCluster`` (processes): wall times,
   cold (the workers import the toolkit and build the model on their first task) and warm (a second
   pass), and the estimates equal to 1e-10 (relative, norm-wise).
@@ -171,8 +171,8 @@ def bench_chunk_sizes(folder: Path, length: int, sizes: list[int]) -> None:
 
 
 def bench_files(folder: Path, count: int, samples: int, chunk_size: int) -> None:
-    from estimation.cluster import sum_files
-    from estimation.summed_least_squares import SummedLeastSquares
+    from estimation.streaming.cluster import sum_files
+    from estimation.estimators.summed_least_squares import SummedLeastSquares
 
     paths = [record(folder, samples, seed=10 + index) for index in range(count)]
     _, model = robot_and_model()

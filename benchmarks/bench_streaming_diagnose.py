@@ -19,7 +19,7 @@ from 100 k to 1 M, 1 M samples diagnosed in < 2 min. ``--in-memory N``: the in-m
 record of N samples, for comparison (14 KB a sample before this path existed).
 
 ``--files K --file-samples N``: K training records of N samples through
-:func:`estimation.streamed_diagnosis.diagnose_files` serially, in a 2-process pool and on a 2-worker dask
+:func:`estimation.streaming.diagnosis.diagnose_files` serially, in a 2-process pool and on a 2-worker dask
 ``LocalCluster`` (wall times; the same effects and estimates as serial).
 
 Run: ``python benchmarks/bench_streaming_diagnose.py [--lengths N ...] [--chunk-size C]
@@ -44,7 +44,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from dynamics.effects import CoulombFriction, JointOffset  # noqa: E402
+from dynamics.effects.linear import CoulombFriction, JointOffset  # noqa: E402
 from dynamics.models import build_model  # noqa: E402
 from dynamics.robots import load_robot  # noqa: E402
 
@@ -110,11 +110,11 @@ def summary(document: dict) -> str:
 
 
 def bench_files(folder: Path, count: int, samples: int, chunk_size: int) -> None:
-    """``count`` training records through :func:`estimation.streamed_diagnosis.diagnose_files` serially, in a
+    """``count`` training records through :func:`estimation.streaming.diagnosis.diagnose_files` serially, in a
     2-process pool and on a 2-worker dask ``LocalCluster``: wall times and the estimates against serial."""
     from concurrent.futures import ProcessPoolExecutor
 
-    from estimation.streamed_diagnosis import diagnose_files
+    from estimation.streaming.diagnosis import diagnose_files
 
     paths = [record(folder, samples, seed=10 + index) for index in range(count)]
     validate = [record(folder, VALIDATION_SAMPLES, seed=2)]

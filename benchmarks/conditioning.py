@@ -23,8 +23,8 @@ import pandas as pd
 
 from dynamics.models import ModelKind, build_model
 from dynamics.robots import load_robot
-from dynamics.simulator import NoiseModel, Simulator
-from estimation.output_files import save_figure
+from dynamics.simulation.simulator import NoiseModel, Simulator
+from dynamics.runtime.output_files import save_figure
 from oed.bounds import PUMA_BOUNDS
 from oed.design import design_excitation
 from oed.design_plot import plot_trajectory

@@ -24,7 +24,7 @@ import casadi
 import numpy as np
 
 from dynamics.robots import load_robot
-from dynamics.threads import single_threaded
+from dynamics.runtime.threads import single_threaded
 from oed.design import ExcitationDesign
 from oed.design_solver import ipopt_solver
 

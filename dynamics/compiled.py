@@ -38,7 +38,7 @@ import casadi
 import numpy as np
 from numpy.typing import NDArray
 
-from dynamics.threads import sample_thread_limit
+from dynamics.runtime.threads import sample_thread_limit
 
 Backend = Literal["auto", "vm", "compiled"]
 # Portable flags only (no -march=native: the cache may be shared between machines, and it gains
@@ -291,7 +291,7 @@ class SampleEvaluator:
     def _run_loop(self, loop: ctypes._CFuncPtr, arrays: list[NDArray[np.float64]], target: NDArray[np.float64],
                   threads: int) -> None:
         """Run the C loop over the samples, in ``threads`` slices at most (ctypes frees the GIL;
-        :func:`dynamics.threads.single_threaded` lowers the limit to one)."""
+        :func:`dynamics.runtime.threads.single_threaded` lowers the limit to one)."""
         n_samples = target.shape[0]
         n_slices = max(1, min(threads, n_samples // self.min_samples_per_thread))
         bounds = [n_samples * part // n_slices for part in range(n_slices + 1)]

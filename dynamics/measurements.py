@@ -8,7 +8,7 @@ Columns (CSV or Parquet, SI units)::
     fx fy fz mx my mz               reaction wrench on the robot from its base, in the base
                                     frame, moments about the base origin (external model)
 
-Reading with checks (missing columns, NaN, time, degrees…) lives in :mod:`estimation.loading`.
+Reading with checks (missing columns, NaN, time, degrees…) lives in :mod:`estimation.data.loading`.
 """
 
 from __future__ import annotations
@@ -21,8 +21,8 @@ import numpy as np
 import pandas as pd
 from numpy.typing import NDArray
 
-from dynamics.effects import WRENCH_CHANNELS
-from dynamics.output_files import atomic_output
+from dynamics.effects.linear import WRENCH_CHANNELS
+from dynamics.runtime.output_files import atomic_output
 
 
 def joint_columns(prefix: str, n_joints: int) -> list[str]:
@@ -58,7 +58,7 @@ class Measurements:
         After preprocessing (filtered or period-averaged channels): the torques and wrench as
         recorded, on the samples kept, with the derived motion at their instants; ``None`` when
         these measurements are themselves as recorded. Errors are measured against it
-        (:func:`estimation.validation.compare`).
+        (:func:`estimation.identification.validation.compare`).
     """
 
     t: NDArray[np.float64]

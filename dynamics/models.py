@@ -26,11 +26,11 @@ from numpy.typing import ArrayLike, NDArray
 
 from dynamics.base_parameters import BaseParameters, random_states, reduce_to_base
 from dynamics.compiled import SampleEvaluator
-from dynamics.effects import WRENCH_CHANNELS, Effect, parse_effects
+from dynamics.effects.linear import WRENCH_CHANNELS, Effect, parse_effects
 from dynamics.errors import SampleShapeError
 from dynamics.newton_euler import RigidBodyRegressors, rigid_body_regressors
 from dynamics.robot import JointType, RobotModel
-from dynamics.threads import available_cores
+from dynamics.runtime.threads import available_cores
 
 STATE_NAMES: tuple[str, str, str] = ("q", "dq", "ddq")
 # Threads for model.evaluate on large inputs (SampleEvaluator's default work threshold: about
@@ -87,7 +87,7 @@ class IdentificationModel:
         """Column range of the rigid-body block and of each effect.
 
         Keys are the effect names; an effect whose name is shared (``coulomb`` on joint 1 and on
-        joint 3, as :func:`estimation.diagnosis.diagnose` adds them) is keyed with its parameters,
+        joint 3, as :func:`estimation.diagnosis.search.diagnose` adds them) is keyed with its parameters,
         ``coulomb(fc1)``, ``coulomb(fc3)``.
         """
         slices = {"rigid_body": slice(0, 10 * self.robot.n_joints)}
@@ -218,7 +218,7 @@ def build_model(
         ``internal`` (joint torques), ``external`` (base wrench) or ``combined`` (both).
     effects
         Extra columns (default: viscous friction, as in the PUMA paper); see
-        :func:`dynamics.effects.parse_effects`. Effects with no rows in the model (friction in
+        :func:`dynamics.effects.linear.parse_effects`. Effects with no rows in the model (friction in
         the external model, plate offsets in the internal one) are left out.
     reduction_samples
         Random states stacked for the base-parameter reduction (default: enough for 4 rows per

@@ -18,7 +18,7 @@ positive-definite pseudo-inertias. Two of its coordinates are physical: ``m = e^
 centre of mass ``c = t``, so mass ranges and a box on the centre of mass are plain bounds on ``φ``.
 
 Effect parameters that physics makes non-negative (friction, armature;
-:data:`dynamics.effects.POSITIVE_EFFECTS`) are squares, ``θ = z²``; the others (offsets,
+:data:`dynamics.effects.linear.POSITIVE_EFFECTS`) are squares, ``θ = z²``; the others (offsets,
 springs, plate offsets) are free, ``θ = z``. :class:`PhysicalParametrisation` builds the whole
 map ``φ → θ`` of a model as a named ``casadi.Function``.
 
@@ -38,7 +38,7 @@ import casadi
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from dynamics.effects import POSITIVE_EFFECTS
+from dynamics.effects.linear import POSITIVE_EFFECTS
 from dynamics.robot import N_LINK_PARAMETERS
 
 PHI_NAMES: tuple[str, ...] = ("alpha", "d1", "d2", "d3", "s12", "s23", "s13", "t1", "t2", "t3")

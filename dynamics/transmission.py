@@ -189,7 +189,7 @@ class Transmission:
         return document
 
 
-# Corke, Robotics Toolbox mdl_puma560 gear ratios G1..G6 (also in dynamics.simulated_joint_effects): checked
+# Corke, Robotics Toolbox mdl_puma560 gear ratios G1..G6 (also in dynamics.simulation.joint_effects): checked
 # against the toolbox's source (L(1).G = -62.6111 … L(6).G = 76.686, also its puma560akb.m)
 _PUMA560_GEARS = (-62.6111, 107.815, -53.7063, 76.0364, 71.923, 76.686)
 #: PUMA 560 wrist coupling ratios G45, G46, G56 (dimensionless): NOT verified, see :func:`puma560_transmission`

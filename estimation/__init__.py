@@ -1,3 +1,3 @@
-"""Estimators and measured-data handling: data loading and preprocessing, (weighted) least squares,
-ARX/ARMAX, (extended) recursive least squares, Kalman fusion, the servo-arm joint model and its
-metrics, and loaders for the shared real data sets."""
+"""Estimation from measured data, in subpackages by idea (layers from the bottom up): ``data``, ``preprocessing``,
+``uncertainty``, ``estimators``, ``identification``, ``consistent``, ``diagnosis``, ``streaming``; beside them ``servo``
+(the servo-arm paper) and ``datasets`` (loaders of the shared real data sets)."""

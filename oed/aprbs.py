@@ -29,7 +29,7 @@ from typing import Protocol
 import numpy as np
 import scipy.signal
 
-from dynamics.memory import check_allocation
+from dynamics.runtime.memory import check_allocation
 from dynamics.robots.servo_arm import SERVO_ARM_RANGES
 
 

@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import scipy.signal
 
-from estimation.output_files import save_figure
+from dynamics.runtime.output_files import save_figure
 from oed.aprbs import APRBSResult
 
 

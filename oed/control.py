@@ -17,11 +17,11 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from dynamics.controllers import (
+from dynamics.simulation.controllers import (
     ComputedTorqueController, Controller, PDController, computed_torque_gains, pd_gains,
 )
 from dynamics.models import IdentificationModel
-from dynamics.simulator import SimulationResult, Simulator
+from dynamics.simulation.simulator import SimulationResult, Simulator
 
 
 @dataclass(frozen=True)

@@ -25,13 +25,13 @@ import numpy as np
 
 from dynamics.models import build_model
 from dynamics.robots import load_robot
-from dynamics.simulator import NoiseModel, Simulator
-from estimation.diagnosis import diagnose
-from estimation.diagnosis_report import markdown_report, plot_residuals
-from estimation.noise_floor import noise_floor
-from estimation.output_files import OutputFiles, json_text
-from estimation.preprocessing import FourierDifferentiation, fill_derivatives
-from estimation.validation import plot_comparison
+from dynamics.simulation.simulator import NoiseModel, Simulator
+from estimation.diagnosis.search import diagnose
+from estimation.diagnosis.report import markdown_report, plot_residuals
+from estimation.uncertainty.noise_floor import noise_floor
+from dynamics.runtime.output_files import OutputFiles, json_text
+from estimation.preprocessing.differentiation import FourierDifferentiation, fill_derivatives
+from estimation.identification.validation import plot_comparison
 from oed.design import design_excitation
 from oed.design_plot import plot_trajectory
 

@@ -28,11 +28,11 @@ import numpy as np
 import scipy.sparse
 from numpy.typing import NDArray
 
-from dynamics.effects import parse_effects
-from dynamics.memory import check_allocation
+from dynamics.effects.linear import parse_effects
+from dynamics.runtime.memory import check_allocation
 from dynamics.models import ModelKind, build_model
 from dynamics.robot import RobotModel
-from dynamics.threads import single_threaded
+from dynamics.runtime.threads import single_threaded
 from oed.bounds import PUMA_BOUNDS, JointBounds
 from oed.criteria import LogDet, criterion_from_name, information_matrix
 from oed.design_settings import DesignSettings
@@ -280,7 +280,7 @@ class ExcitationDesign:
     def solve(self, x0: NDArray[np.float64], index: int = 0) -> StartResult:
         """One IPOPT start from ``x0``, then the ``rate_hz`` check and refinement rounds.
 
-        Runs on one thread (:func:`dynamics.threads.single_threaded`): the matrices are too small for
+        Runs on one thread (:func:`dynamics.runtime.threads.single_threaded`): the matrices are too small for
         threaded BLAS to gain anything, and starts run side by side in process pools, where extra
         threads only compete for the cores.
         """

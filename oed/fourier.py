@@ -25,8 +25,8 @@ import casadi
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from estimation.fourier_series import evaluate_series
-from estimation.output_files import atomic_output, json_text
+from estimation.preprocessing.fourier_series import evaluate_series
+from dynamics.runtime.output_files import atomic_output, json_text
 
 
 #: most samples :meth:`FourierTrajectory.sample` returns

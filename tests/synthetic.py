@@ -6,7 +6,7 @@ import numpy as np
 
 from dynamics.models import IdentificationModel
 from dynamics.robot import RobotModel
-from estimation.measurements import Measurements
+from dynamics.measurements import Measurements
 from oed.fourier import FourierTrajectory
 
 

@@ -169,7 +169,7 @@ def test_a_whole_robot_transmission_file_with_fewer_joints_kept(files, capsys):
 
 
 def test_urdf_transmission_and_motor_friction_on_a_differential(tmp_path, capsys):
-    from dynamics.motor_effects import motor_effects
+    from dynamics.effects.motor import motor_effects
     from dynamics.transmission_files import transmission_from_urdf
     from tests.test_transmission import DIFFERENTIAL, SIMPLE, _urdf
 

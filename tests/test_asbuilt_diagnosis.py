@@ -7,13 +7,13 @@ import numpy as np
 import pytest
 
 from dynamics.models import build_model
-from dynamics.motor_effects import CombinationEffect
+from dynamics.effects.motor import CombinationEffect
 from dynamics.robots import load_robot
-from estimation.diagnosis import diagnose, provisional_stopping_rule
-from estimation.identification import identify
-from estimation.measurements import Measurements
-from estimation.rest_segments import coulomb_combinations, drop_rest, smooth_coulomb
-from estimation.trivial_predictors import trivial_mse, trivial_warnings
+from estimation.diagnosis.search import diagnose, provisional_stopping_rule
+from estimation.identification.fit import identify
+from dynamics.measurements import Measurements
+from estimation.data.rest import coulomb_combinations, drop_rest, smooth_coulomb
+from estimation.identification.trivial_predictors import trivial_mse, trivial_warnings
 from tests.synthetic import random_fourier, simulate, true_parameters
 
 NOISE = 0.2

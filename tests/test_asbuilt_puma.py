@@ -1,7 +1,7 @@
 """A simulated PUMA 560 with its coupled wrist (6 joints) and motor-side friction.
 
 The simulator applies the motors' friction through the transmission (``τ = Rᵀ τ_m(R q̇)``,
-:mod:`dynamics.simulated_motor_effects`); rotor inertia is simulated as the diagonal of
+:mod:`dynamics.simulation.motor_effects`); rotor inertia is simulated as the diagonal of
 ``Rᵀ J R`` (joint armature). Two checks:
 
 * with the transmission declared (``motor_viscous``, ``motor_coulomb``), identification recovers
@@ -16,20 +16,20 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from dynamics.effect_specs import build_effects
-from dynamics.effects import CoulombFriction
+from dynamics.effects.specs import build_effects
+from dynamics.effects.linear import CoulombFriction
 from dynamics.models import build_model
-from dynamics.motor_effects import motor_effects
+from dynamics.effects.motor import motor_effects
 from dynamics.robots import load_robot
-from dynamics.sensors import NoiseModel
-from dynamics.simulated_joint_effects import PUMA560_ROTOR_INERTIA, Armature
-from dynamics.simulated_motor_effects import MotorFriction
-from dynamics.simulator import Simulator
+from dynamics.simulation.sensors import NoiseModel
+from dynamics.simulation.joint_effects import PUMA560_ROTOR_INERTIA, Armature
+from dynamics.simulation.motor_effects import MotorFriction
+from dynamics.simulation.simulator import Simulator
 from dynamics.transmission import Transmission, puma560_transmission
-from estimation.diagnosis import diagnose
-from estimation.identification import identify
-from estimation.limit_laws import replace_limit_laws
-from estimation.rest_segments import drop_rest
+from estimation.diagnosis.search import diagnose
+from estimation.identification.fit import identify
+from estimation.diagnosis.limit_laws import replace_limit_laws
+from estimation.data.rest import drop_rest
 from tests.synthetic import random_fourier
 
 FLOOR = 0.2**2  # NoiseModel's torque noise
@@ -73,7 +73,7 @@ def q5_q6_wrist():
 
 
 def test_a_stale_tanh_smoothing_is_replaced_by_the_sign_law(q5_q6_wrist):
-    """estimation.limit_laws on the case that needed it: a joint-5 coulomb:tanh selected with a wide
+    """estimation.diagnosis.limit_laws on the case that needed it: a joint-5 coulomb:tanh selected with a wide
     smoothing (0.28 rad/s, absorbing a viscous[q5+q6] not yet added) kept when its refit runs to the
     bound; the sign law brings tau5 from about 2.5x to 1.1x its floor."""
     _, robot, _, train, validate = q5_q6_wrist
@@ -103,7 +103,7 @@ def test_diagnosis_finds_the_coupled_wrist_motor_on_its_own(q5_q6_wrist):
     assert abs(coulomb.values[0] - g6 * friction.coulomb[5]) < 3 * coulomb.std[0], coulomb
     assert abs(viscous.values[0] - g6**2 * friction.viscous[5]) < 3 * viscous.std[0], viscous
     assert abs(coulomb.shape["vc[q5+q6]"] - friction.smoothing[5] / g6) < 3 * coulomb.shape_std["vc[q5+q6]"], coulomb
-    # both wrist channels reach the floor (before: tau5 at 2.5x, see estimation.limit_laws and
-    # estimation.coupling_candidates.combination_groups)
+    # both wrist channels reach the floor (before: tau5 at 2.5x, see estimation.diagnosis.limit_laws and
+    # estimation.diagnosis.coupling_candidates.combination_groups)
     for channel in ("tau5", "tau6"):
         assert diagnosis.after.validation.mse[channel] < 1.2 * FLOOR, (channel, diagnosis.after.validation.mse)

@@ -99,7 +99,7 @@ def test_unknown_model_and_effect():
     ],
 )
 def test_measurements_refuse_mismatched_or_non_numeric_arrays(make, error, message):
-    from estimation.measurements import Measurements
+    from dynamics.measurements import Measurements
 
     t, q = np.arange(50) * 1e-3, np.zeros((50, 3))
     with pytest.raises(error, match=message):
@@ -107,7 +107,7 @@ def test_measurements_refuse_mismatched_or_non_numeric_arrays(make, error, messa
 
 
 def test_measurements_take_lists_and_a_single_joint_as_one_column():
-    from estimation.measurements import Measurements
+    from dynamics.measurements import Measurements
 
     one_axis = Measurements([0.0, 0.1, 0.2], [1.0, 2.0, 3.0], tau=[0.0, 0.0, 1.0])
     assert one_axis.q.shape == (3, 1) and one_axis.tau.shape == (3, 1) and one_axis.n_joints == 1

@@ -6,11 +6,11 @@ import numpy as np
 import pytest
 import scipy.stats
 
-from dynamics.effects import CoulombFriction
+from dynamics.effects.linear import CoulombFriction
 from dynamics.models import build_model
 from dynamics.robots import load_robot
-from estimation.candidate_screening import accumulate_candidates, f_tests, weighted_fit, weighted_mse
-from estimation.diagnosis import candidate_columns, default_candidates
+from estimation.streaming.candidate_screening import accumulate_candidates, f_tests, weighted_fit, weighted_mse
+from estimation.diagnosis.search import candidate_columns, default_candidates
 
 
 def _weighted_fit(Y, y, weights):
@@ -24,7 +24,7 @@ def _weighted_fit(Y, y, weights):
 
 def _weighted_mse(Y, y, theta, weights):
     return float(np.sum(np.mean((y - Y @ theta) ** 2, axis=0) * weights))
-from estimation.least_squares import stack
+from estimation.estimators.least_squares import stack
 from tests.synthetic import random_fourier, simulate, true_parameters
 
 

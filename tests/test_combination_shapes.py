@@ -7,13 +7,13 @@ import casadi
 import numpy as np
 import pytest
 
-from dynamics.combination_shapes import TanhCombinationCoulomb, combination_row
-from dynamics.effect_specs import EffectSpecError, build_effects, effect_spec
+from dynamics.effects.combination_shapes import TanhCombinationCoulomb, combination_row
+from dynamics.effects.specs import EffectSpecError, build_effects, effect_spec
 from dynamics.models import build_model
-from dynamics.motor_effects import combination_from_label
+from dynamics.effects.motor import combination_from_label
 from dynamics.robots import load_robot
-from dynamics.shape_effects import is_shaped
-from estimation.coupling_candidates import combination_groups, combination_taken, coupling_candidates
+from dynamics.effects.shaped import is_shaped
+from estimation.diagnosis.coupling_candidates import combination_groups, combination_taken, coupling_candidates
 
 
 @pytest.fixture(scope="module")
@@ -68,8 +68,8 @@ def test_each_coulomb_pair_is_also_proposed_smoothed(robot):
 
 def test_rest_rows_of_a_smoothed_combination_are_kept(robot):
     """Its smoothing is given by the rows near the motor's rest: --min-speed must not drop them, or the
-    law the diagnosis found could not be fitted again (estimation.rest_segments.coulomb_combinations)."""
-    from estimation.rest_segments import coulomb_combinations
+    law the diagnosis found could not be fitted again (estimation.data.rest.coulomb_combinations)."""
+    from estimation.data.rest import coulomb_combinations
 
     sign = combination_from_label("coulomb", "q5+q6", 6)
     assert coulomb_combinations((sign,)).tolist() == [[0, 0, 0, 0, 1, 1]]

@@ -9,9 +9,9 @@ from dynamics.base_parameters import random_states
 from dynamics.models import build_model
 from dynamics.physical_parameters import ConsistencyBoundsError, LinkBounds, is_consistent, project_link
 from dynamics.robots import load_robot
-from estimation.consistent import ConsistentLeastSquares, ConsistentSolverError
-from estimation.identification_problem import IdentificationProblem
-from estimation.least_squares import LeastSquares, WeightedLeastSquares
+from estimation.consistent.least_squares import ConsistentLeastSquares, ConsistentSolverError
+from estimation.estimators.identification_problem import IdentificationProblem
+from estimation.estimators.least_squares import LeastSquares, WeightedLeastSquares
 
 
 def consistent_truth(model, seed=0):

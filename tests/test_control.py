@@ -10,11 +10,11 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from dynamics.controllers import ComputedTorqueController, RegressorInverseDynamics, computed_torque_gains, pd_gains
+from dynamics.simulation.controllers import ComputedTorqueController, RegressorInverseDynamics, computed_torque_gains, pd_gains
 from dynamics.models import build_model
 from dynamics.pinocchio_bridge import to_pinocchio
 from dynamics.robots import load_robot
-from dynamics.simulator import NoiseModel, Simulator
+from dynamics.simulation.simulator import NoiseModel, Simulator
 from oed.control import compare_controllers, tracking_experiment
 from oed.fourier import FourierTrajectory
 from tests.conftest import random_states
@@ -99,7 +99,7 @@ def test_identified_model_tracks_far_better_than_nominal_model_and_pd(robot, tra
 def test_tracking_result_reports_max_and_rms_error_per_joint(robot, trajectory):
     simulator = Simulator(robot, noise=NoiseModel.none())
     kp, kd = pd_gains(robot)
-    from dynamics.controllers import PDController
+    from dynamics.simulation.controllers import PDController
 
     result = tracking_experiment(simulator, trajectory, PDController(kp, kd), label="PD")
     error = result.q - result.q_desired

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from estimation.covariance import bandwidth, hac_covariance, prewhitened_long_run_covariance
-from estimation.least_squares import IdentificationProblem, LeastSquares, WeightedLeastSquares
+from estimation.uncertainty.covariance import bandwidth, hac_covariance, prewhitened_long_run_covariance
+from estimation.estimators.least_squares import IdentificationProblem, LeastSquares, WeightedLeastSquares
 
 
 def _problem(noise, t):

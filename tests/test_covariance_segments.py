@@ -10,16 +10,16 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from estimation.covariance import (
+from estimation.uncertainty.covariance import (
     bandwidth,
     hac_covariance,
     long_run_covariance,
     prewhitened_long_run_covariance,
     segment_bounds,
 )
-from estimation.least_squares import WeightedLeastSquares, stack
-from estimation.measurements import Measurements
-from estimation.segments import concatenate
+from estimation.estimators.least_squares import WeightedLeastSquares, stack
+from dynamics.measurements import Measurements
+from estimation.data.segments import concatenate
 
 
 def _ramp_scores(generator, n, start, stop):
@@ -110,7 +110,7 @@ def test_stacked_segments_reach_the_estimator(tmp_path):
 
 
 def test_batch_means_of_shaped_fits_restart_at_each_segment():
-    from estimation.batch_means import batch_length, batch_means
+    from estimation.uncertainty.batch_means import batch_length, batch_means
 
     generator = np.random.default_rng(3)
     first, second = _ramp_scores(generator, 310, -1.0, 3.0), _ramp_scores(generator, 190, -3.0, 1.0)

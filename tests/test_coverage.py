@@ -9,11 +9,11 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from dynamics.effects import CoulombFriction
+from dynamics.effects.linear import CoulombFriction
 from dynamics.models import build_model
 from dynamics.robots import load_robot
-from estimation.coverage import EstimateDraw, monte_carlo_coverage
-from estimation.least_squares import WeightedLeastSquares, stack
+from estimation.uncertainty.coverage import EstimateDraw, monte_carlo_coverage
+from estimation.estimators.least_squares import WeightedLeastSquares, stack
 from tests.synthetic import random_fourier, simulate, true_parameters
 
 

@@ -1,5 +1,5 @@
-"""A delay between recorded torques and the motion they answer (estimation.record_delay,
-estimation.delay_identification, the diagnosis' delay candidate, `--friction …,delay`)."""
+"""A delay between recorded torques and the motion they answer (estimation.preprocessing.delay,
+estimation.identification.delayed, the diagnosis' delay candidate, `--friction …,delay`)."""
 
 from __future__ import annotations
 
@@ -11,10 +11,10 @@ import pytest
 
 from dynamics.models import build_model
 from dynamics.robots import load_robot
-from estimation.diagnosis import diagnose
-from estimation.identification import identify
-from estimation.preprocessing import FourierDifferentiation, fill_derivatives
-from estimation.record_delay import DelayBounds, DelayBoundsError, delayed, split_delay
+from estimation.diagnosis.search import diagnose
+from estimation.identification.fit import identify
+from estimation.preprocessing.differentiation import FourierDifferentiation, fill_derivatives
+from estimation.preprocessing.delay import DelayBounds, DelayBoundsError, delayed, split_delay
 from oed.cli import main
 from tests.synthetic import random_fourier, simulate, true_parameters
 
@@ -45,7 +45,7 @@ def test_the_motion_moves_by_the_delay(robot):
     trajectory = random_fourier(robot, seed=2)
     t = np.arange(0, 5.0, 1 / 500)
     q, dq, ddq = trajectory.evaluate(t)
-    from estimation.measurements import Measurements
+    from dynamics.measurements import Measurements
 
     data = Measurements(t, q, dq, ddq, np.zeros_like(q))
     moved = delayed(data, 0.01)
@@ -142,7 +142,7 @@ def test_a_given_delay_is_carried_by_the_result_and_its_predictions(records):
 def test_the_motion_moves_piece_by_piece_when_time_restarts_or_rows_were_dropped(robot):
     """Two files stacked without their segment record (time restarts at 0) and rows at rest dropped
     from the first: each piece of continuous motion is moved on its own."""
-    from estimation.measurements import Measurements
+    from dynamics.measurements import Measurements
 
     t = np.arange(0, 5.0, 1 / 500)
     parts, exact = [], []
@@ -177,7 +177,7 @@ def test_a_given_delay_must_be_a_finite_number(records, value):
 def test_selecting_rows_keeps_the_segments_of_a_concatenation(records):
     """Rows dropped (at rest, say) from stacked records: the segment bounds follow, so the motion is
     moved, and the HAC lags cut, at the true boundaries."""
-    from estimation.segments import concatenate, segment_slices
+    from estimation.data.segments import concatenate, segment_slices
 
     _, _, (first, second) = records
     stacked = concatenate([first, second])

@@ -41,7 +41,7 @@ def test_a_failing_demo_leaves_none_of_its_files(tmp_path, monkeypatch):
     """The trajectories of step 1 used to stay behind when a later step failed (and the folder made for them)."""
     import pytest
 
-    from dynamics.simulator import Simulator
+    from dynamics.simulation.simulator import Simulator
     from oed.demo import run_demo
 
     def broken(*args, **kwargs):

@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from dynamics.effects import CoulombFriction
+from dynamics.effects.linear import CoulombFriction
 from dynamics.models import build_model
 from dynamics.robots import load_robot
-from estimation.diagnosis import diagnose, provisional_stopping_rule
+from estimation.diagnosis.search import diagnose, provisional_stopping_rule
 from tests.synthetic import random_fourier, simulate, true_parameters
 
 NOISE_TAU = 0.2

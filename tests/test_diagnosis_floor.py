@@ -5,13 +5,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from dynamics.effects import CoulombFriction, JointOffset
+from dynamics.effects.linear import CoulombFriction, JointOffset
 from dynamics.models import build_model
 from dynamics.robots import load_robot
-from estimation.diagnosis import diagnose
-from estimation.diagnosis_report import markdown_report
-from estimation.noise_floor import noise_floor
-from estimation.preprocessing import average_periods
+from estimation.diagnosis.search import diagnose
+from estimation.diagnosis.report import markdown_report
+from estimation.uncertainty.noise_floor import noise_floor
+from estimation.preprocessing.differentiation import average_periods
 from tests.synthetic import random_fourier, simulate, true_parameters
 
 NOISE_TAU = 0.2

@@ -7,10 +7,10 @@ import dataclasses
 import numpy as np
 import pytest
 
-from dynamics.effects import JointOffset, Spring, StribeckFriction
+from dynamics.effects.linear import JointOffset, Spring, StribeckFriction
 from dynamics.models import build_model
 from dynamics.robots import load_robot
-from estimation.diagnosis import diagnose, effect_channels
+from estimation.diagnosis.search import diagnose, effect_channels
 from tests.synthetic import random_fourier, simulate, true_parameters
 
 

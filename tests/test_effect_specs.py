@@ -6,10 +6,10 @@ import casadi
 import numpy as np
 import pytest
 
-from dynamics.effect_specs import EffectSpecError, build_effects, effect_spec, parse_joint_list, split_joints
-from dynamics.effects import CoulombFriction, JointOffset, parse_effects
+from dynamics.effects.specs import EffectSpecError, build_effects, effect_spec, parse_joint_list, split_joints
+from dynamics.effects.linear import CoulombFriction, JointOffset, parse_effects
 from dynamics.models import build_model
-from dynamics.motor_effects import CombinationEffect, motor_effects
+from dynamics.effects.motor import CombinationEffect, motor_effects
 from dynamics.robots import load_robot
 from dynamics.transmission import puma560_transmission
 

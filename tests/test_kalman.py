@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from dynamics.servo_simulator import simulate_servo_arm
-from estimation.kalman import compare_fusion, kalman_fusion, kalman_step_function
+from dynamics.simulation.servo_simulator import simulate_servo_arm
+from dynamics.kalman import compare_fusion, kalman_fusion, kalman_step_function
 from oed.aprbs import APRBSDesign, design_aprbs
 
 

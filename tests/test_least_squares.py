@@ -12,8 +12,8 @@ import pytest
 from dynamics.models import build_model
 from dynamics.pinocchio_bridge import to_pinocchio
 from dynamics.robots import load_robot
-from estimation.identification import identify
-from estimation.least_squares import (
+from estimation.identification.fit import identify
+from estimation.estimators.least_squares import (
     IdentifiabilityError,
     IdentificationProblem,
     LeastSquares,

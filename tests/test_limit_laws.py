@@ -1,10 +1,10 @@
-"""A smoothed Coulomb law whose smoothing the data do not determine is the sign law (estimation.limit_laws)."""
+"""A smoothed Coulomb law whose smoothing the data do not determine is the sign law (estimation.diagnosis.limit_laws)."""
 
 from __future__ import annotations
 
-from dynamics.effects import CoulombFriction, ViscousFriction
-from dynamics.shape_effects import ShapedStribeckFriction, TanhCoulombFriction
-from estimation.limit_laws import limit_law
+from dynamics.effects.linear import CoulombFriction, ViscousFriction
+from dynamics.effects.shaped import ShapedStribeckFriction, TanhCoulombFriction
+from estimation.diagnosis.limit_laws import limit_law
 
 
 def test_the_limit_of_a_tanh_coulomb_law_is_the_plain_law_on_the_same_joints():

@@ -10,7 +10,7 @@ import pytest
 
 from dynamics.models import build_model
 from dynamics.robots import load_robot
-from estimation.loading import (
+from estimation.data.loading import (
     AngleUnitError,
     JointCountError,
     MeasurementWarning,
@@ -21,7 +21,7 @@ from estimation.loading import (
     TooFewSamplesError,
     read_measurements,
 )
-from estimation.measurements import Measurements
+from dynamics.measurements import Measurements
 
 
 @pytest.fixture(scope="module")

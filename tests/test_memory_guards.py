@@ -8,7 +8,7 @@ import sys
 import numpy as np
 import pytest
 
-from dynamics.memory import InsufficientMemoryError, available_memory, check_allocation, total_memory
+from dynamics.runtime.memory import InsufficientMemoryError, available_memory, check_allocation, total_memory
 from dynamics.models import build_model
 from dynamics.robots import load_robot
 
@@ -50,26 +50,26 @@ def test_cli_design_constraint_points_refused_quickly(tmp_path):
 
 
 def test_simulator_sample_count_guarded(monkeypatch):
-    import dynamics.memory
-    from dynamics.simulator import Simulator
+    import dynamics.runtime.memory
+    from dynamics.simulation.simulator import Simulator
 
-    monkeypatch.setattr(dynamics.memory, "available_memory", lambda: 10**6)
+    monkeypatch.setattr(dynamics.runtime.memory, "available_memory", lambda: 10**6)
     simulator = Simulator(load_robot("puma560", joints=3))
     with pytest.raises(InsufficientMemoryError, match="10 s at 1000 Hz"):
         simulator.run(lambda t: (np.zeros((len(t), 3)),) * 3, duration=10.0)
 
 
 def test_aprbs_length_guarded(monkeypatch):
-    import dynamics.memory
+    import dynamics.runtime.memory
     from oed.aprbs import APRBSDesign
 
-    monkeypatch.setattr(dynamics.memory, "available_memory", lambda: 10**6)
+    monkeypatch.setattr(dynamics.runtime.memory, "available_memory", lambda: 10**6)
     with pytest.raises(InsufficientMemoryError, match="an APRBS of 600"):
         APRBSDesign(duration=600.0, dt=0.001)
 
 
 def test_streaming_chunk_size_guarded():
-    from estimation.normal_equations import check_chunk_size
+    from estimation.estimators.normal_equations import check_chunk_size
 
     model = build_model(load_robot("puma560", joints=3), "internal", "viscous")
     assert check_chunk_size(10_000, model) == 10_000
@@ -80,7 +80,7 @@ def test_streaming_chunk_size_guarded():
 
 
 def test_cli_identify_in_memory_refused_past_the_memory_with_a_hint(tmp_path, monkeypatch, capsys):
-    import dynamics.memory
+    import dynamics.runtime.memory
     from oed.cli import main
     from tests.synthetic import random_fourier, simulate, true_parameters
 
@@ -90,21 +90,21 @@ def test_cli_identify_in_memory_refused_past_the_memory_with_a_hint(tmp_path, mo
     path = tmp_path / "data.csv"
     data.write(path)
     out = tmp_path / "out.json"
-    monkeypatch.setattr(dynamics.memory, "available_memory", lambda: 10**5)
+    monkeypatch.setattr(dynamics.runtime.memory, "available_memory", lambda: 10**5)
     assert main(["identify", "--joints", "3", "--data", str(path), "--out", str(out)]) == 2
     assert "use --chunk-size" in capsys.readouterr().err and not out.exists()
-    monkeypatch.setattr(dynamics.memory, "available_memory", lambda: 10**9)
+    monkeypatch.setattr(dynamics.runtime.memory, "available_memory", lambda: 10**9)
     assert main(["identify", "--joints", "3", "--data", str(path), "--chunk-size", "500", "--out", str(out)]) == 0
 
 
 def test_a_container_limit_bounds_the_available_memory(tmp_path, monkeypatch):
-    import dynamics.memory
+    import dynamics.runtime.memory
 
     limit, usage = tmp_path / "memory.max", tmp_path / "memory.current"
     limit.write_text("1073741824\n")
     usage.write_text("268435456\n")
-    monkeypatch.setattr(dynamics.memory, "CGROUP_FILES", ((str(limit), str(usage)),))
-    monkeypatch.setattr(dynamics.memory, "_meminfo", lambda key: 16 * 1024**3)
+    monkeypatch.setattr(dynamics.runtime.memory, "CGROUP_FILES", ((str(limit), str(usage)),))
+    monkeypatch.setattr(dynamics.runtime.memory, "_meminfo", lambda key: 16 * 1024**3)
     assert available_memory() == 768 * 1024**2  # the container's room, not the host's 16 GiB
     limit.write_text("max\n")
     assert available_memory() == 16 * 1024**3

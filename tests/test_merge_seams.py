@@ -6,14 +6,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from dynamics.effect_specs import effect_spec
+from dynamics.effects.specs import effect_spec
 from dynamics.models import build_model
 from dynamics.robots import load_robot
-from dynamics.shape_effects import TanhCoulombFriction
-from estimation.consistent_identification import identify_consistent
-from estimation.identification import identify
-from estimation.measurements import Measurements
-from estimation.trivial_predictors import trivial_mse
+from dynamics.effects.shaped import TanhCoulombFriction
+from estimation.consistent.identification import identify_consistent
+from estimation.identification.fit import identify
+from dynamics.measurements import Measurements
+from estimation.identification.trivial_predictors import trivial_mse
 from oed.cli import main
 from tests.synthetic import random_fourier, simulate, true_parameters
 

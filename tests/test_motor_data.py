@@ -1,4 +1,4 @@
-"""The power-sign check of motor-side torques (estimation.motor_data): a gear ratio of the wrong sign
+"""The power-sign check of motor-side torques (estimation.data.motor_side): a gear ratio of the wrong sign
 for the data is named, also when time stamps repeat, are missing, or velocities are recorded."""
 
 from __future__ import annotations
@@ -8,7 +8,7 @@ import pandas as pd
 import pytest
 
 from dynamics.transmission import Transmission, TransmissionSignError
-from estimation.motor_data import joint_side_frame
+from estimation.data.motor_side import joint_side_frame
 
 RATIOS = np.array([50.0, -30.0])
 

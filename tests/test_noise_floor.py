@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from estimation.measurements import Measurements
-from estimation.noise_floor import (
+from dynamics.measurements import Measurements
+from estimation.uncertainty.noise_floor import (
     NoiseFloorError,
     above_floor,
     compare_with_floor,
@@ -14,7 +14,7 @@ from estimation.noise_floor import (
     noise_floor,
     prepared_floor,
 )
-from estimation.preprocessing import ButterworthDifferentiation, average_periods
+from estimation.preprocessing.differentiation import ButterworthDifferentiation, average_periods
 
 RATE = 1000.0
 

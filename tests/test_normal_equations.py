@@ -7,9 +7,9 @@ import pytest
 
 from dynamics.models import build_model
 from dynamics.robots import load_robot
-from estimation.least_squares import IdentifiabilityError, LeastSquares, WeightedLeastSquares, solve, stack
-from estimation.normal_equations import NormalEquations, accumulate, reduce_sums
-from estimation.summed_least_squares import SummedLeastSquares, solve_sums
+from estimation.estimators.least_squares import IdentifiabilityError, LeastSquares, WeightedLeastSquares, solve, stack
+from estimation.estimators.normal_equations import NormalEquations, accumulate, reduce_sums
+from estimation.estimators.summed_least_squares import SummedLeastSquares, solve_sums
 from tests.synthetic import random_fourier, simulate, true_parameters
 
 NOISE = {"tau1": 0.5, "tau2": 0.5, "tau3": 0.2, "fx": 5.0, "fy": 5.0, "fz": 8.0, "mx": 3.0, "my": 3.0, "mz": 1.0}
@@ -88,7 +88,7 @@ def test_sums_add_in_any_grouping_and_gram_is_exact(case):
 
 
 def test_validation_mse_from_sums_equals_compare(case):
-    from estimation.validation import compare
+    from estimation.identification.validation import compare
 
     model, train = case
     theta = WeightedLeastSquares().fit(stack(model, train)).theta_
@@ -103,7 +103,7 @@ def test_select_columns_keeps_the_sub_problem(case):
     sums = accumulate(model, train, chunk_size=500)
     keep = list(range(model.n_base - 3))
     problem = stack(model, train)
-    from estimation.identification_problem import IdentificationProblem
+    from estimation.estimators.identification_problem import IdentificationProblem
 
     sub = IdentificationProblem(problem.Y[:, :, keep], problem.y, problem.channels,
                                 tuple(problem.names[i] for i in keep))

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from dynamics.robots import load_robot
-from estimation.measurements import Measurements
-from estimation.preprocessing import (
+from dynamics.measurements import Measurements
+from estimation.preprocessing.differentiation import (
     ButterworthDifferentiation,
     FourierDifferentiation,
     average_periods,

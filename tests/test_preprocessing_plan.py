@@ -8,18 +8,18 @@ import numpy as np
 import pytest
 
 from dynamics.robots import load_robot
-from estimation.fourier_series import fit_series
-from estimation.measurements import Measurements
-from estimation.periodicity import detect_fundamental, frequency_mismatch
-from estimation.preprocessing import FourierDifferentiation
-from estimation.preprocessing_plan import (
+from estimation.preprocessing.fourier_series import fit_series
+from dynamics.measurements import Measurements
+from estimation.preprocessing.periodicity import detect_fundamental, frequency_mismatch
+from estimation.preprocessing.differentiation import FourierDifferentiation
+from estimation.preprocessing.plan import (
     FrequencyMismatchWarning,
     PreprocessingWarning,
     SegmentTooShortForFilterError,
     choose_preprocessing,
     prepare,
 )
-from estimation.segments import SegmentColumnsError, concatenate, segment_slices
+from estimation.data.segments import SegmentColumnsError, concatenate, segment_slices
 from oed.fourier import FourierTrajectory
 from tests.synthetic import random_fourier
 

@@ -9,11 +9,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from estimation.arx import ARXEstimator, Polynomials
-from estimation.datasets import load_daisy_robot_arm
-from estimation.metrics import r2_adjusted, rmse
-from estimation.order_selection import OrderAtEdgeWarning, select_orders
-from estimation.recursive import ExtendedRecursiveLeastSquares
+from estimation.estimators.arx import ARXEstimator, Polynomials
+from estimation.datasets.shared import load_daisy_robot_arm
+from estimation.estimators.metrics import r2_adjusted, rmse
+from estimation.estimators.order_selection import OrderAtEdgeWarning, select_orders
+from estimation.estimators.recursive import ExtendedRecursiveLeastSquares
 
 DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "daisy_robot_arm"
 pytestmark = pytest.mark.realdata

@@ -8,8 +8,8 @@ import pytest
 
 from dynamics.models import build_model
 from dynamics.robots import load_robot
-from estimation.datasets import emps_measurements
-from estimation.diagnosis import diagnose
+from estimation.datasets.shared import emps_measurements
+from estimation.diagnosis.search import diagnose
 from tests.conftest import shared_data
 
 pytestmark = pytest.mark.realdata

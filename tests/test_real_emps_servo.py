@@ -7,8 +7,8 @@ from pathlib import Path
 
 import pytest
 
-from estimation.datasets import load_emps
-from estimation.emps import fit_emps_second_order, validate_emps
+from estimation.datasets.shared import load_emps
+from estimation.datasets.emps_model import fit_emps_second_order, validate_emps
 
 DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "emps"
 pytestmark = pytest.mark.realdata

@@ -16,9 +16,9 @@ import pytest
 
 from dynamics.models import build_model
 from dynamics.robots import load_robot
-from estimation.identification import ImplausibleEstimateWarning, identify
-from estimation.kuka_data import load_kuka_run
-from estimation.validation import compare
+from estimation.identification.fit import ImplausibleEstimateWarning, identify
+from estimation.datasets.kuka import load_kuka_run
+from estimation.identification.validation import compare
 from tests.conftest import shared_data
 
 pytestmark = pytest.mark.realdata
@@ -74,8 +74,8 @@ def test_diagnosis_trained_on_run_1_cuts_the_error_on_the_faster_run_3(kuka):
     cuts the total validation MSE on run 3 below 6.3 N²m² (issue 13; measured: 17.0 -> 3.5 N²m²), with
     no friction, inertia or stiffness of the wrong sign in the final model (the declared viscous terms
     that came out negative are held at zero: ``diagnosis.pinned``)."""
-    from estimation.sign_constraints import negative_terms
-    from estimation.diagnosis import diagnose
+    from estimation.diagnosis.sign_constraints import negative_terms
+    from estimation.diagnosis.search import diagnose
 
     robot, runs, _ = kuka
     diagnosis = diagnose(build_model(robot, "internal", "viscous"), runs[0], runs[2])

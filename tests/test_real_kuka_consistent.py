@@ -17,13 +17,13 @@ import pytest
 
 from dynamics.models import build_model
 from dynamics.robots import load_robot
-from estimation.consistent_identification import identify_consistent
-from estimation.consistent_simulation import (
+from estimation.consistent.identification import identify_consistent
+from estimation.consistent.simulation import (
     consistent_controller, consistent_robot, consistent_simulator, mass_matrix_eigenvalues, measured_reference,
 )
-from estimation.identification import ImplausibleEstimateWarning, identify
-from estimation.kuka_data import load_kuka_run
-from estimation.validation import compare
+from estimation.identification.fit import ImplausibleEstimateWarning, identify
+from estimation.datasets.kuka import load_kuka_run
+from estimation.identification.validation import compare
 from tests.conftest import shared_data
 
 pytestmark = pytest.mark.realdata

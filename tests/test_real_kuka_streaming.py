@@ -10,12 +10,12 @@ import pytest
 
 from dynamics.models import build_model
 from dynamics.robots import load_robot
-from estimation.identification_problem import IdentificationProblem
-from estimation.kuka_data import load_kuka_run
-from estimation.least_squares import WeightedLeastSquares, stack
-from estimation.loading import read_measurements
-from estimation.streamed_identification import identify_files
-from estimation.validation import compare
+from estimation.estimators.identification_problem import IdentificationProblem
+from estimation.datasets.kuka import load_kuka_run
+from estimation.estimators.least_squares import WeightedLeastSquares, stack
+from estimation.data.loading import read_measurements
+from estimation.streaming.identification import identify_files
+from estimation.identification.validation import compare
 from tests.conftest import shared_data
 
 pytestmark = pytest.mark.realdata

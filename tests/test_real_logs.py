@@ -14,7 +14,7 @@ import pytest
 
 from dynamics.models import build_model
 from dynamics.robots import load_robot
-from dynamics.simulator import Simulator
+from dynamics.simulation.simulator import Simulator
 from oed.cli import main
 from tests.synthetic import random_fourier
 

@@ -15,9 +15,9 @@ import pytest
 from dynamics.errors import RobotDescriptionError
 from dynamics.models import build_model
 from dynamics.robots import load_robot
-from estimation.loading import AbsurdValueError, HoleError, ParquetSupportError, read_measurements
-from estimation.record_loading import read_record
-from estimation.output_files import OutputFiles
+from estimation.data.loading import AbsurdValueError, HoleError, ParquetSupportError, read_measurements
+from estimation.data.records import read_record
+from dynamics.runtime.output_files import OutputFiles
 from oed.cli import main
 from tests.synthetic import random_fourier, simulate, true_parameters
 
@@ -170,7 +170,7 @@ def test_a_killed_identify_leaves_nothing_the_next_run_keeps(files, tmp_path):
     out = tmp_path / "result.json"
     code = f"""
 import os, signal
-from estimation.output_files import OutputFiles
+from dynamics.runtime.output_files import OutputFiles
 outputs = OutputFiles()
 with outputs.open({str(out)!r}) as stream:
     stream.write('{{"partial')

@@ -7,8 +7,8 @@ import warnings
 import numpy as np
 import pytest
 
-from estimation.arx import ARXEstimator
-from estimation.recursive import (
+from estimation.estimators.arx import ARXEstimator
+from estimation.estimators.recursive import (
     CovarianceBlowUpWarning, ExtendedRecursiveLeastSquares, RecursionDivergedError, RecursiveLeastSquares,
 )
 
@@ -102,10 +102,10 @@ def test_erls_covariance_matches_the_spread_over_repeated_experiments():
 
 
 def test_several_channels_are_refused_not_interleaved_and_unfitted_estimators_lack_theta():
-    from estimation.arx import ARXEstimator
-    from estimation.errors import NotFittedError
-    from estimation.metrics import r2_adjusted, rmse
-    from estimation.recursive import ExtendedRecursiveLeastSquares
+    from estimation.estimators.arx import ARXEstimator
+    from estimation.estimators.errors import NotFittedError
+    from estimation.estimators.metrics import r2_adjusted, rmse
+    from estimation.estimators.recursive import ExtendedRecursiveLeastSquares
 
     generator = np.random.default_rng(0)
     with pytest.raises(ValueError, match=r"signal u must be one channel, .* got shape \(1000, 4\)"):
@@ -130,7 +130,7 @@ def test_several_channels_are_refused_not_interleaved_and_unfitted_estimators_la
 def test_erls_standard_deviations_match_the_spread_over_noise_realisations():
     """cov_ is the prediction-error covariance σ²(Σψψᵀ)⁻¹, ψ = φ/C: σ²P of the pseudo-linear
     recursion understated the spread of a1, a2 by ~1.4x."""
-    from estimation.recursive import ExtendedRecursiveLeastSquares
+    from estimation.estimators.recursive import ExtendedRecursiveLeastSquares
 
     estimates, deviations = [], []
     for seed in range(40):
@@ -146,8 +146,8 @@ def test_erls_standard_deviations_match_the_spread_over_noise_realisations():
 
 
 def test_order_selection_and_metrics_name_bad_settings():
-    from estimation.metrics import r2_adjusted
-    from estimation.order_selection import OrderAtEdgeWarning, select_orders
+    from estimation.estimators.metrics import r2_adjusted
+    from estimation.estimators.order_selection import OrderAtEdgeWarning, select_orders
 
     generator = np.random.default_rng(0)
     u = generator.standard_normal(400)
@@ -161,8 +161,8 @@ def test_order_selection_and_metrics_name_bad_settings():
 
 
 def test_estimators_share_the_scikit_learn_contract():
-    from estimation.least_squares import WeightedLeastSquares
-    from estimation.recursive import ExtendedRecursiveLeastSquares, RecursiveLeastSquares
+    from estimation.estimators.least_squares import WeightedLeastSquares
+    from estimation.estimators.recursive import ExtendedRecursiveLeastSquares, RecursiveLeastSquares
 
     assert repr(ARXEstimator(na=3)) == "ARXEstimator(na=3, nb=1, nk=1)"
     assert WeightedLeastSquares().get_params() == {"max_iter": 20, "tol": 1e-6, "variance_floor": 1e-14,
@@ -182,7 +182,7 @@ def test_estimators_share_the_scikit_learn_contract():
 def test_rls_does_not_depend_on_the_units_of_u_and_y():
     """The recursion runs on unit-RMS signals: with y in 1e-4 and u in 1e4 units, P(0) = δI used to
     shrink a1 from -0.5 to -0.2 (about 50 standard deviations off the batch fit)."""
-    from estimation.recursive import RecursiveLeastSquares
+    from estimation.estimators.recursive import RecursiveLeastSquares
 
     generator = np.random.default_rng(0)
     u = generator.standard_normal(5000)
@@ -199,7 +199,7 @@ def test_rls_does_not_depend_on_the_units_of_u_and_y():
 def test_rls_starts_from_measured_samples_and_matches_batch_arx_on_offset_data():
     """Zeros before the record made the first rows outliers when the signals do not start at 0
     (servo-fit --method rls missed batch LS by far on a joint starting at -1.36 rad)."""
-    from estimation.recursive import RecursiveLeastSquares
+    from estimation.estimators.recursive import RecursiveLeastSquares
 
     generator = np.random.default_rng(0)
     u = generator.standard_normal(2000)

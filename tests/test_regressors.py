@@ -134,7 +134,7 @@ def test_dh_conversion_reproduces_the_dh_product_and_corke_zero_pose():
 
 
 def test_stribeck_and_spring_columns_follow_their_definitions():
-    from dynamics.effects import Spring, StribeckFriction
+    from dynamics.effects.linear import Spring, StribeckFriction
 
     robot = load_robot("puma560", joints=3)
     model = build_model(robot, "internal", (StribeckFriction(velocity=0.1, joints=(1,)), Spring(reference=0.3, joints=(0, 2))))
@@ -147,7 +147,7 @@ def test_stribeck_and_spring_columns_follow_their_definitions():
 
 
 def test_effects_sharing_a_name_keep_their_own_columns_and_values():
-    from dynamics.effects import CoulombFriction
+    from dynamics.effects.linear import CoulombFriction
 
     robot = load_robot("puma560", joints=3)
     model = build_model(robot, "internal", ["viscous", CoulombFriction(joints=(0,)), CoulombFriction(joints=(2,))])

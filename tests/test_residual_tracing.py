@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from dynamics.effects import Armature, CoulombFriction, JointOffset, Spring
+from dynamics.effects.linear import Armature, CoulombFriction, JointOffset, Spring
 from dynamics.robots import load_robot
-from estimation.measurements import Measurements
-from estimation.residual_tracing import plot_residual_trace, rank_candidates, residual_statements, trace_residuals
+from dynamics.measurements import Measurements
+from estimation.uncertainty.residual_tracing import plot_residual_trace, rank_candidates, residual_statements, trace_residuals
 from tests.synthetic import random_fourier
 
 

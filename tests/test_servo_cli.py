@@ -76,7 +76,7 @@ def test_servo_fit_rejects_angles_in_degrees(tmp_path, capsys):
 
 
 def test_servo_csv_reader_takes_spreadsheet_headers_and_names_empty_files(tmp_path, capsys):
-    from estimation.servo_data import read_csv
+    from estimation.servo.files import read_csv
 
     path = tmp_path / "u.csv"
     path.write_text('\ufeff"t","u1"\n0,0.1\n0.01,0.2\n0.02,0.3\n', encoding="utf-8")  # BOM and quoted names

@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from estimation.metrics import cost_v, r2_adjusted, rmse
-from estimation.servo import fit_servo_arm
-from estimation.servo_model import discrete_to_gray_box, free_run, gray_box_to_discrete, joint_step_function
+from estimation.estimators.metrics import cost_v, r2_adjusted, rmse
+from estimation.servo.protocol import fit_servo_arm
+from estimation.servo.model import discrete_to_gray_box, free_run, gray_box_to_discrete, joint_step_function
 
 TABLE1 = [  # m, b, k, sigma of the paper's Table 1
     (0.294, 19.1138, 1778.9, 1801.6), (0.239, 2.4919, 114.0636, 106.5490),
@@ -118,7 +118,7 @@ def test_a_diverging_erls_predictor_is_named_not_a_nan_metric():
     (filtered by 1/C) blows up. It used to fail later as 'measured or predicted holds NaN/inf'."""
     import warnings
 
-    from estimation.servo import fit_servo_joint
+    from estimation.servo.protocol import fit_servo_joint
 
     rng = np.random.default_rng(0)
     u = _aprbs_like(6000, 0)
@@ -134,7 +134,7 @@ def test_a_diverging_erls_predictor_is_named_not_a_nan_metric():
 def test_erls_noise_polynomial_outside_the_unit_circle_is_an_error_not_an_infinite_rmse(forgetting):
     """C(z) with a root just outside the unit circle: the one-step metrics used to come out as
     rmse = inf (JSON 'Infinity', exit code 0) or 1e23 — silent garbage in fit.json."""
-    from estimation.servo import fit_servo_joint
+    from estimation.servo.protocol import fit_servo_joint
 
     rng = np.random.default_rng(0)
     u = _aprbs_like(6000, 0)
@@ -148,7 +148,7 @@ def test_erls_noise_polynomial_outside_the_unit_circle_is_an_error_not_an_infini
 def test_an_unstable_a_polynomial_is_an_error_even_when_the_free_run_stays_finite():
     """A(z) with a root at 1.002: over 600 samples the free run grows but stays finite, so its
     metrics used to come out as ordinary (meaningless) numbers with exit code 0."""
-    from estimation.servo import fit_servo_joint
+    from estimation.servo.protocol import fit_servo_joint
 
     rng = np.random.default_rng(3)
     roots = (1.002, 0.5)

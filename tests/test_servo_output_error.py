@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 import scipy.linalg
 
-from dynamics.servo_simulator import PAPER_JOINTS, SensorModel, ServoJoint, simulate_servo_arm
-from estimation.servo_oe_model import zoh_function
-from estimation.servo_output_error import (
+from dynamics.simulation.servo_simulator import PAPER_JOINTS, SensorModel, ServoJoint, simulate_servo_arm
+from estimation.servo.output_error_model import zoh_function
+from estimation.servo.output_error import (
     KalmanFusionSettings,
     OutputErrorDivergedError,
     OutputErrorInputError,
@@ -105,7 +105,7 @@ def test_bad_input_named_errors():
 
 
 def test_all_starts_unstable_is_a_named_error(monkeypatch):
-    import estimation.servo_output_error as oe
+    import estimation.servo.output_error as oe
 
     monkeypatch.setattr(oe, "_starts", lambda erls, dt: [("unstable", np.array([-5.0, 100.0, 100.0]))])
     monkeypatch.setattr(oe, "_extra_starts", lambda theta: [("diverging", np.array([1.0, -50.0, 10.0]))])

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from dynamics.servo_simulator import PAPER_JOINTS, simulate_servo_arm
+from dynamics.simulation.servo_simulator import PAPER_JOINTS, simulate_servo_arm
 
 
 def _step(n: int, start, end) -> np.ndarray:
@@ -48,7 +48,7 @@ def test_non_uniform_time_is_named():
 
 
 def test_end_to_end_linear_regime_recovers_table1_with_zoh_mapping():
-    from estimation.servo import fit_servo_arm
+    from estimation.servo.protocol import fit_servo_arm
     from oed.aprbs import APRBSDesign, design_aprbs
 
     design = design_aprbs(APRBSDesign(duration=60.0), seed=1)

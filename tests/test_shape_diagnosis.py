@@ -10,11 +10,11 @@ import pytest
 
 from dynamics.models import ModelKind, build_model
 from dynamics.robots import load_robot
-from dynamics.shape_effects import PositionRipple, ShapedStribeckFriction, SigmoidFriction, TanhCoulombFriction
-from estimation.diagnosis import diagnose
-from estimation.identification import identify
-from estimation.preprocessing import FourierDifferentiation, fill_derivatives
-from estimation.variable_projection import Block, States
+from dynamics.effects.shaped import PositionRipple, ShapedStribeckFriction, SigmoidFriction, TanhCoulombFriction
+from estimation.diagnosis.search import diagnose
+from estimation.identification.fit import identify
+from estimation.preprocessing.differentiation import FourierDifferentiation, fill_derivatives
+from estimation.estimators.variable_projection import Block, States
 from tests.synthetic import random_fourier, simulate, true_parameters
 
 NOISE = 0.1

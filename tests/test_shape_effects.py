@@ -10,10 +10,10 @@ import casadi
 import numpy as np
 import pytest
 
-from dynamics.effects import CoulombFriction, parse_effects
+from dynamics.effects.linear import CoulombFriction, parse_effects
 from dynamics.models import ModelKind, build_model
 from dynamics.robots import load_robot
-from dynamics.shape_effects import (
+from dynamics.effects.shaped import (
     PositionRipple,
     ShapeBoundsError,
     ShapedPerJointEffect,
@@ -22,8 +22,8 @@ from dynamics.shape_effects import (
     SigmoidFriction,
     TanhCoulombFriction,
 )
-from estimation.identification import identify
-from estimation.variable_projection import Block, NoRowsError, ShapeSearchError, States
+from estimation.identification.fit import identify
+from estimation.estimators.variable_projection import Block, NoRowsError, ShapeSearchError, States
 from tests.synthetic import random_fourier, simulate, true_parameters
 
 
@@ -165,7 +165,7 @@ def test_identify_cli_bad_shaped_input_exits_2_and_writes_nothing(tmp_path, tanh
     assert "has no rows in the external model" in capsys.readouterr().err
     assert not (tmp_path / "result.json").exists()
 
-    import estimation.shape_identification as module
+    import estimation.identification.shaped as module
 
     def failing(*args, **kwargs):
         raise ShapeSearchError("shape search for vc1: the columns are non-finite or singular at every start")

@@ -8,10 +8,10 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from dynamics.effects import CoulombFriction
+from dynamics.effects.linear import CoulombFriction
 from dynamics.models import build_model
 from dynamics.robots import load_robot
-from estimation.identification import identify
+from estimation.identification.fit import identify
 from tests.synthetic import random_fourier, simulate, true_parameters
 
 

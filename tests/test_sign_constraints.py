@@ -1,19 +1,19 @@
 """The final model of a diagnosis respects the physical signs, and candidates are compared at the weights
-their own residuals give (estimation.sign_constraints, estimation.confirmation)."""
+their own residuals give (estimation.diagnosis.sign_constraints, estimation.diagnosis.confirmation)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from dynamics.effects import CoulombFriction, JointOffset
+from dynamics.effects.linear import CoulombFriction, JointOffset
 from dynamics.models import build_model
 from dynamics.robots import load_robot
-from estimation.confirmation import settled_weights
-from estimation.diagnosis import diagnose
-from estimation.identification import ImplausibleEstimateWarning, identify
-from estimation.sign_constraints import negative_terms, pin_wrong_signs
-from estimation.variable_projection import Block, FixedPart, States
+from estimation.diagnosis.confirmation import settled_weights
+from estimation.diagnosis.search import diagnose
+from estimation.identification.fit import ImplausibleEstimateWarning, identify
+from estimation.diagnosis.sign_constraints import negative_terms, pin_wrong_signs
+from estimation.estimators.variable_projection import Block, FixedPart, States
 from tests.synthetic import random_fourier, simulate, true_parameters
 
 

@@ -6,16 +6,16 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from dynamics import effects as model_effects
-from dynamics.controllers import PDController, RegressorInverseDynamics
+from dynamics.effects import linear as model_effects
+from dynamics.simulation.controllers import PDController, RegressorInverseDynamics
 from dynamics.models import build_model
 from dynamics.pinocchio_bridge import to_pinocchio
 from dynamics.robots import load_robot
-from dynamics.simulated_effects import (
+from dynamics.simulation.effects import (
     Armature, Coulomb, Offset, PlateCable, PlateOffset, Spring, Viscous, effects_from_names, puma560_link_friction,
 )
-from dynamics.sensors import encoder_resolution
-from dynamics.simulator import NoiseModel, Simulator, simulate
+from dynamics.simulation.sensors import encoder_resolution
+from dynamics.simulation.simulator import NoiseModel, Simulator, simulate
 from oed.fourier import FourierTrajectory
 
 
@@ -126,7 +126,7 @@ def test_plate_effects_have_their_true_values(robot, trajectory):
 
 
 def test_pd_tracks_and_computed_torque_with_true_parameters_tracks_far_better(robot, trajectory):
-    from dynamics.controllers import ComputedTorqueController, computed_torque_gains
+    from dynamics.simulation.controllers import ComputedTorqueController, computed_torque_gains
 
     simulator = Simulator(robot, "coulomb,armature", noise=NoiseModel.none())
     pd = simulator.run(trajectory, duration=3.0)
@@ -173,8 +173,8 @@ def test_derivatives_are_written_only_when_asked(robot, trajectory):
 
 
 def test_whole_periods_record_the_frequency_for_the_fourier_fit(robot, trajectory):
-    from estimation.identification import identify
-    from estimation.preprocessing import FourierDifferentiation, fill_derivatives
+    from estimation.identification.fit import identify
+    from estimation.preprocessing.differentiation import FourierDifferentiation, fill_derivatives
 
     periodic = simulate(robot, trajectory, periods=1, seed=0)
     assert periodic.metadata["frequency_hz"] == pytest.approx(0.2) and periodic.metadata["harmonics"] == 5
@@ -256,10 +256,10 @@ def test_stiff_friction_on_a_light_joint_gets_more_integration_steps():
 
 
 def test_simulated_effects_keeps_its_public_names_after_the_split():
-    """``dynamics.simulated_effects`` is the catalogue; the effects live in a joint and a plate module."""
-    import dynamics.simulated_effects as catalogue
-    import dynamics.simulated_joint_effects as joint
-    import dynamics.simulated_plate_effects as plate
+    """``dynamics.simulation.effects`` is the catalogue; the effects live in a joint and a plate module."""
+    import dynamics.simulation.effects as catalogue
+    import dynamics.simulation.joint_effects as joint
+    import dynamics.simulation.plate_effects as plate
 
     for name in catalogue.__all__:
         assert hasattr(catalogue, name), name

@@ -7,16 +7,16 @@ import json
 import numpy as np
 import pytest
 
-from dynamics.effects import CoulombFriction, JointOffset
+from dynamics.effects.linear import CoulombFriction, JointOffset
 from dynamics.models import build_model
 from dynamics.robots import load_robot
-from estimation.diagnosis import diagnose
-from estimation.diagnosis_sums import EvenSubsample
-from estimation.loading import MeasurementError, read_measurements
-from estimation.measurements import Measurements
-from estimation.noise_floor import noise_floor
-from estimation.preprocessing import ButterworthDifferentiation
-from estimation.streamed_diagnosis import diagnose_files
+from estimation.diagnosis.search import diagnose
+from estimation.streaming.diagnosis_sums import EvenSubsample
+from estimation.data.loading import MeasurementError, read_measurements
+from dynamics.measurements import Measurements
+from estimation.uncertainty.noise_floor import noise_floor
+from estimation.preprocessing.differentiation import ButterworthDifferentiation
+from estimation.streaming.diagnosis import diagnose_files
 from oed.cli import main
 from tests.synthetic import random_fourier, simulate, true_parameters
 
@@ -98,7 +98,7 @@ def test_filter_path_errors_against_the_recording_as_in_memory(model, files):
     errors against the torques as recorded; the in-memory diagnosis of the whole records filtered at once finds the same
     effects. Here a shaped law (coulomb:tanh) is found: in memory its shape is refined again in later
     rounds and refitted jointly at the end, here it stays at its first optimum (module docstring of
-    estimation.summed_selection): the declared model's errors agree to 1e-8, the augmented model's
+    estimation.streaming.selection): the declared model's errors agree to 1e-8, the augmented model's
     estimates to about 1e-2, not to rounding."""
     method = ButterworthDifferentiation(CUTOFF, trim=True)  # the CLI's: the filter's settling trimmed at the ends
     train, validate = (read_measurements(path, model=model) for path in files["raw"])
@@ -183,7 +183,7 @@ def test_a_lost_worker_fails_the_diagnosis_naming_the_file(model, files):
     from concurrent.futures import Future
     from concurrent.futures.process import BrokenProcessPool
 
-    from estimation.cluster import WorkerLostError
+    from estimation.streaming.cluster import WorkerLostError
 
     class Lost:
         calls = 0
@@ -202,9 +202,9 @@ def test_a_lost_worker_fails_the_diagnosis_naming_the_file(model, files):
 
 
 def test_an_in_memory_diagnosis_larger_than_the_machine_is_refused(model, files, monkeypatch, tmp_path, capsys):
-    import dynamics.memory
+    import dynamics.runtime.memory
 
-    monkeypatch.setattr(dynamics.memory, "available_memory", lambda: 1_000_000)  # 1 MB
+    monkeypatch.setattr(dynamics.runtime.memory, "available_memory", lambda: 1_000_000)  # 1 MB
     out = tmp_path / "report.json"
     code = main(["diagnose", "--joints", "3", "--model", "internal", "--data", str(files["full"][0]), "--validate",
                  str(files["full"][1]), "--out", str(out)])
@@ -212,8 +212,8 @@ def test_an_in_memory_diagnosis_larger_than_the_machine_is_refused(model, files,
 
 
 def test_batch_scores_by_chunks_equal_the_batch_means_of_the_whole_record():
-    from estimation.batch_means import batch_means
-    from estimation.summed_covariance import BATCH_LENGTHS, BatchScores, _lag1
+    from estimation.uncertainty.batch_means import batch_means
+    from estimation.streaming.covariance import BATCH_LENGTHS, BatchScores, _lag1
 
     rng = np.random.default_rng(3)
     scores = rng.standard_normal((1000, 3))
@@ -232,7 +232,7 @@ def test_batch_scores_by_chunks_equal_the_batch_means_of_the_whole_record():
 
 
 def test_trivial_predictors_from_the_sums_equal_the_in_memory_ones(model, files):
-    from estimation.trivial_predictors import trivial_mse
+    from estimation.identification.trivial_predictors import trivial_mse
 
     validate = read_measurements(files["full"][1], model=model)
     streamed = diagnose_files(model, files["full"][:1], files["full"][1:], chunk_size=300, candidates=())

@@ -11,12 +11,12 @@ import pytest
 
 from dynamics.models import build_model
 from dynamics.robots import load_robot
-from estimation.batch_means import batch_length, batch_means
-from estimation.cluster import IncompleteSumError, WorkerLostError
-from estimation.loading import read_measurements
-from estimation.measurements import Measurements
-from estimation.preprocessing import ButterworthDifferentiation, FourierDifferentiation, fill_derivatives
-from estimation.streamed_identification import identify_files
+from estimation.uncertainty.batch_means import batch_length, batch_means
+from estimation.streaming.cluster import IncompleteSumError, WorkerLostError
+from estimation.data.loading import read_measurements
+from dynamics.measurements import Measurements
+from estimation.preprocessing.differentiation import ButterworthDifferentiation, FourierDifferentiation, fill_derivatives
+from estimation.streaming.identification import identify_files
 from oed.cli import main
 from tests.synthetic import random_fourier, simulate, true_parameters
 
@@ -126,7 +126,7 @@ def test_filter_and_fourier_paths_score_the_samples_they_summed(model, files, tm
 
 
 def test_a_file_changed_between_the_passes_is_refused(model, files, monkeypatch):
-    import estimation.streamed_identification_covariance as passes
+    import estimation.streaming.identification_covariance as passes
 
     original = passes.preprocessed_chunks
 

@@ -12,15 +12,15 @@ import pytest
 
 from dynamics.models import build_model
 from dynamics.robots import load_robot
-from estimation.cluster import IncompleteSumError, WorkerLostError, check_parts, sum_files
-from estimation.identification_problem import IdentificationProblem
-from estimation.least_squares import WeightedLeastSquares, stack
-from estimation.loading import MeasurementError, MissingColumnError, TimeBaseError, read_measurements
-from estimation.measurements import Measurements
-from estimation.summed_least_squares import SummedLeastSquares
-from estimation.preprocessing import ButterworthDifferentiation, fill_derivatives
-from estimation.streamed_identification import identify_files
-from estimation.streaming import StreamingUnsupportedError, file_sums, filter_margin
+from estimation.streaming.cluster import IncompleteSumError, WorkerLostError, check_parts, sum_files
+from estimation.estimators.identification_problem import IdentificationProblem
+from estimation.estimators.least_squares import WeightedLeastSquares, stack
+from estimation.data.loading import MeasurementError, MissingColumnError, TimeBaseError, read_measurements
+from dynamics.measurements import Measurements
+from estimation.estimators.summed_least_squares import SummedLeastSquares
+from estimation.preprocessing.differentiation import ButterworthDifferentiation, fill_derivatives
+from estimation.streaming.identification import identify_files
+from estimation.streaming.chunks import StreamingUnsupportedError, file_sums, filter_margin
 from oed.cli import main
 from tests.synthetic import random_fourier, simulate, true_parameters
 
@@ -228,9 +228,9 @@ def test_cli_several_files_with_chunks(model, files, tmp_path):
 
 
 def test_cli_bad_file_of_a_set_exit_2_nothing_written(files, tmp_path, capsys, monkeypatch):
-    import estimation.cluster
+    import estimation.streaming.cluster
 
-    monkeypatch.setattr(estimation.cluster, "CONNECT_TIMEOUT", 2.0)
+    monkeypatch.setattr(estimation.streaming.cluster, "CONNECT_TIMEOUT", 2.0)
     corrupt = tmp_path / "corrupt.csv"
     corrupt.write_text("t,q1,q2\n0,1\nnot,a,csv,at,all\n")
     out = tmp_path / "result.json"
@@ -287,7 +287,7 @@ def test_a_chunk_too_short_for_the_checks_is_refused(model, files):
 @pytest.mark.parametrize("chunk_size, held", [(700, False), (2600, True)])
 def test_fourier_path_averages_periods_chunk_by_chunk(model, files, tmp_path, chunk_size, held):
     """Two periods of 0.2 Hz at 500 Hz and a 700-sample tail, positions and torques only."""
-    from estimation.preprocessing import FourierDifferentiation
+    from estimation.preprocessing.differentiation import FourierDifferentiation
 
     theta = true_parameters(model, seed=2)
     data = simulate(model, theta, random_fourier(model.robot, 3), noise=NOISE, seed=5, rate_hz=500.0, periods=3)
@@ -336,7 +336,7 @@ def test_a_worker_killed_on_a_dask_cluster_fails_the_run(model, files):
 @pytest.mark.parametrize("chunk_size, cutoff", [(700, None), (1200, CUTOFF)])
 def test_jittered_time_is_resampled_onto_the_whole_files_grid(model, files, tmp_path, chunk_size, cutoff):
     """Steps of 1.4–2.6 ms around 2 ms (the KUKA logs jitter so): the in-memory loader resamples."""
-    from estimation.loading import ResampledWarning
+    from estimation.data.loading import ResampledWarning
 
     data = read_measurements(files["full"][0], model=model)
     rng = np.random.default_rng(3)
@@ -354,7 +354,7 @@ def test_jittered_time_is_resampled_onto_the_whole_files_grid(model, files, tmp_
 
 
 def test_warnings_of_a_worker_reach_the_caller(model, files, tmp_path):
-    from estimation.loading import ResampledWarning
+    from estimation.data.loading import ResampledWarning
 
     data = read_measurements(files["full"][0], model=model)
     t = data.t + np.random.default_rng(3).uniform(-0.3, 0.3, data.n_samples) * (data.t[1] - data.t[0])

@@ -11,9 +11,9 @@ import pytest
 from threadpoolctl import threadpool_info
 
 import dynamics.compiled as compiled
-import dynamics.threads as threads
+import dynamics.runtime.threads as threads
 from dynamics.compiled import SampleEvaluator
-from dynamics.threads import available_cores, sample_thread_limit, single_threaded, single_threaded_blas
+from dynamics.runtime.threads import available_cores, sample_thread_limit, single_threaded, single_threaded_blas
 
 
 def _blas_threads() -> list[int]:

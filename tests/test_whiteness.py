@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from estimation.whiteness import autocorrelation, cross_correlation, residual_checks
+from estimation.uncertainty.whiteness import autocorrelation, cross_correlation, residual_checks
 
 
 def _inputs(n, seed=0):
@@ -68,7 +68,7 @@ def test_correlations_stay_within_one():
 def test_residual_statistics_of_diagnose_stay_within_one():
     from types import SimpleNamespace
 
-    from estimation.diagnosis import residual_statistics
+    from estimation.diagnosis.search import residual_statistics
 
     t = np.arange(2000.0)
     residuals = np.column_stack([np.sin(t / 300.0), np.random.default_rng(0).normal(size=2000)])

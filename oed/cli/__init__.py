@@ -20,7 +20,7 @@ import sys
 import traceback
 from collections.abc import Sequence
 
-from dynamics.threads import single_threaded_blas
+from dynamics.runtime.threads import single_threaded_blas
 from oed.cli.paths import check_paths
 
 # verb module names, in the order ``oed --help`` lists them
@@ -59,7 +59,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     try:
         check_paths(args, args.derived_outputs)  # before any work: no output over an input or another output
-        with single_threaded_blas():  # threaded BLAS on tall, thin matrices only loses (dynamics.threads)
+        with single_threaded_blas():  # threaded BLAS on tall, thin matrices only loses (dynamics.runtime.threads)
             return int(args.run(args))
     except (ValueError, TypeError, OSError, KeyError, RuntimeError) as error:
         message = str(error) or error.__class__.__name__

@@ -25,7 +25,7 @@ def register(subparsers) -> argparse.ArgumentParser:
 
 def run(args: argparse.Namespace) -> int:
     check_csv_path(args.out)
-    from estimation.servo_data import write_csv
+    from estimation.servo.files import write_csv
     from oed.aprbs import APRBSDesign, design_aprbs
     from oed.cli.common import OutputFiles, check_figure_path
 

@@ -14,17 +14,17 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from dynamics.effect_specs import build_effects
+from dynamics.effects.specs import build_effects
 from dynamics.robot import RobotModel
 from dynamics.robots import load_robot
-from dynamics.simulated_joint_effects import is_puma560
+from dynamics.simulation.joint_effects import is_puma560
 from dynamics.transmission import CouplingShapeError, Transmission, TransmissionError, UnknownJointError, puma560_transmission
 from dynamics.transmission_files import transmission_from_json, transmission_from_urdf
-from estimation.identification import IdentificationResult
-from estimation.measurements import Measurements
-from estimation.model_parameters import model_parameters
-from estimation.rest_segments import check_min_speed, coulomb_combinations, drop_rest, smooth_coulomb
-from estimation.trivial_predictors import trivial_mse, trivial_warnings
+from estimation.identification.fit import IdentificationResult
+from dynamics.measurements import Measurements
+from estimation.identification.model_parameters import model_parameters
+from estimation.data.rest import check_min_speed, coulomb_combinations, drop_rest, smooth_coulomb
+from estimation.identification.trivial_predictors import trivial_mse, trivial_warnings
 
 
 def add_asbuilt_arguments(parser: argparse.ArgumentParser) -> None:

@@ -7,7 +7,7 @@ from pathlib import Path
 
 from dynamics.robot import RobotModel
 from dynamics.robots import BUILT_IN_ROBOTS, load_robot
-from estimation.output_files import OutputFiles, atomic_output, check_figure_path, json_text
+from dynamics.runtime.output_files import OutputFiles, atomic_output, check_figure_path, json_text
 
 __all__ = [
     "OutputFiles", "add_robot_arguments", "atomic_output", "check_csv_path", "check_figure_path", "check_json_path",

@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from dynamics.models import ModelKind
-from estimation.cluster import SCHEDULER_VARIABLE, connect, scheduler_address
+from estimation.streaming.cluster import SCHEDULER_VARIABLE, connect, scheduler_address
 from oed.bounds import JointBounds
 from oed.cli.common import (
     OutputFiles,
@@ -135,7 +135,7 @@ def run(args: argparse.Namespace) -> int:
             with outputs.open(args.csv) as stream:
                 np.savetxt(stream, table, delimiter=",", header=",".join(header), comments="", fmt="%.10g")
         if args.plot is not None:
-            from estimation.output_files import save_figure
+            from dynamics.runtime.output_files import save_figure
             from oed.design_plot import plot_trajectory
 
             figure = plot_trajectory(trajectory, bounds, rate_hz=settings.rate_hz,

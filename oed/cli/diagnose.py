@@ -8,12 +8,12 @@ import warnings
 from pathlib import Path
 
 from dynamics.models import ModelKind, build_model
-from estimation.record_delay import DelayBounds, split_delay
-from estimation.coupling_candidates import coupling_candidates
-from estimation.diagnosis import default_candidates, diagnose
-from estimation.diagnosis_report import markdown_report, plot_residuals, plot_trace
-from estimation.motor_data import read_record_with_transmission
-from estimation.noise_floor import NoiseFloor, NoiseFloorError, noise_floor, pooled_floor
+from estimation.preprocessing.delay import DelayBounds, split_delay
+from estimation.diagnosis.coupling_candidates import coupling_candidates
+from estimation.diagnosis.search import default_candidates, diagnose
+from estimation.diagnosis.report import markdown_report, plot_residuals, plot_trace
+from estimation.data.motor_side import read_record_with_transmission
+from estimation.uncertainty.noise_floor import NoiseFloor, NoiseFloorError, noise_floor, pooled_floor
 from oed.cli.asbuilt import (add_asbuilt_arguments, finish_document, model_effects, resolve_transmission, rest_message,
                              rest_rows, trivial_predictors, worse_after)
 from oed.cli.common import OutputFiles, add_robot_arguments, json_text, robot_from_arguments
@@ -97,7 +97,7 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError(f"--max-effects must be a positive integer, got {args.max_effects}")
     differentiation(args)  # contradicting derivative options are an error even when the data hold dq, ddq
     args.friction, delay = split_delay(args.friction)  # a candidate in every diagnosis: 'delay:S' sets its bound
-    if streaming_requested(args):  # bounded memory (estimation.streamed_diagnosis)
+    if streaming_requested(args):  # bounded memory (estimation.streaming.diagnosis)
         if delay is not None:
             raise ValueError("the delay between torques and motion is searched in memory: not with the streamed path "
                              "(--chunk-size, --scheduler or --workers), which does not try it")

@@ -1,5 +1,5 @@
 """``oed diagnose --chunk-size/--workers/--scheduler``: the diagnosis in bounded memory
-(:mod:`estimation.streamed_diagnosis`), same report keys as the in-memory ``oed diagnose``."""
+(:mod:`estimation.streaming.diagnosis`), same report keys as the in-memory ``oed diagnose``."""
 
 from __future__ import annotations
 
@@ -8,9 +8,9 @@ import sys
 import warnings
 
 from dynamics.models import build_model
-from estimation.log_cleaning import DEFAULT_MAX_GAP
-from estimation.normal_equations import DEFAULT_CHUNK_SIZE
-from estimation.streamed_diagnosis import DEFAULT_SUBSAMPLE, FLOOR_WINDOW, diagnose_files
+from estimation.data.log_cleaning import DEFAULT_MAX_GAP
+from estimation.estimators.normal_equations import DEFAULT_CHUNK_SIZE
+from estimation.streaming.diagnosis import DEFAULT_SUBSAMPLE, FLOOR_WINDOW, diagnose_files
 from oed.cli.asbuilt import model_effects
 from oed.cli.common import OutputFiles, json_text, robot_from_arguments
 from oed.cli.identify import check_shaped_effects_kept, executor_from_arguments, result_has_shapes
@@ -25,7 +25,7 @@ IN_MEMORY_BYTES = 64
 
 def check_in_memory_diagnosis(model, *records) -> None:
     """Refuse an in-memory diagnosis larger than the machine (the streamed path is not)."""
-    from dynamics.memory import check_allocation
+    from dynamics.runtime.memory import check_allocation
 
     samples = sum(record.n_samples for record in records if record is not None)
     check_allocation(IN_MEMORY_BYTES * samples * model.n_channels * model.n_base,
@@ -34,7 +34,7 @@ def check_in_memory_diagnosis(model, *records) -> None:
 
 def add_streamed_diagnosis_arguments(parser: argparse.ArgumentParser) -> None:
     """``--subsample`` and ``--floor-window`` (``--chunk-size``, ``--workers``, ``--scheduler``: as identify's)."""
-    group = parser.add_argument_group("streamed diagnosis (estimation.streamed_diagnosis)")
+    group = parser.add_argument_group("streamed diagnosis (estimation.streaming.diagnosis)")
     group.add_argument("--subsample", type=int, default=DEFAULT_SUBSAMPLE, metavar="N",
                        help=f"training samples, spread evenly, on which shaped laws' shapes are searched and coupling "
                             f"pairs traced (default {DEFAULT_SUBSAMPLE}; up to twice that are kept)")

@@ -9,19 +9,19 @@ import warnings
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
-from dynamics.memory import check_allocation
+from dynamics.runtime.memory import check_allocation
 from dynamics.models import ModelKind, build_model
-from estimation.cluster import SCHEDULER_VARIABLE, connect, scheduler_address
-from estimation.identification import identify
-from estimation.log_cleaning import DEFAULT_MAX_GAP
-from estimation.motor_data import read_record_with_transmission
-from estimation.measurements import Measurements
-from estimation.normal_equations import DEFAULT_CHUNK_SIZE
-from estimation.preprocessing import ButterworthDifferentiation, Differentiation, FourierDifferentiation
-from estimation.preprocessing_plan import Preprocessing, check_frequency, choose_preprocessing, prepare
-from estimation.record_delay import split_delay
-from estimation.streamed_identification import identify_files
-from estimation.validation import plot_comparison
+from estimation.streaming.cluster import SCHEDULER_VARIABLE, connect, scheduler_address
+from estimation.identification.fit import identify
+from estimation.data.log_cleaning import DEFAULT_MAX_GAP
+from estimation.data.motor_side import read_record_with_transmission
+from dynamics.measurements import Measurements
+from estimation.estimators.normal_equations import DEFAULT_CHUNK_SIZE
+from estimation.preprocessing.differentiation import ButterworthDifferentiation, Differentiation, FourierDifferentiation
+from estimation.preprocessing.plan import Preprocessing, check_frequency, choose_preprocessing, prepare
+from estimation.preprocessing.delay import split_delay
+from estimation.streaming.identification import identify_files
+from estimation.identification.validation import plot_comparison
 from oed.cli.asbuilt import (add_asbuilt_arguments, finish_document, model_effects, resolve_transmission, rest_message,
                              rest_rows, trivial_predictors)
 from oed.cli.common import OutputFiles, add_robot_arguments, check_figure_path, json_text, robot_from_arguments
@@ -76,7 +76,7 @@ def add_data_arguments(parser: argparse.ArgumentParser, *, validate_required: bo
 def add_streaming_arguments(parser: argparse.ArgumentParser) -> None:
     """``--chunk-size``, ``--scheduler``, ``--workers``: the bounded-memory, distributed path."""
     streaming = parser.add_argument_group(
-        "bounded memory and clusters (estimation.streamed_identification)",
+        "bounded memory and clusters (estimation.streaming.identification)",
         "read and sum the files chunk by chunk (peak memory set by the chunk, not the record), in this process, "
         "a process pool or on a dask cluster; any of these options selects this path")
     streaming.add_argument("--chunk-size", type=int, help=f"samples a chunk (default {DEFAULT_CHUNK_SIZE} when "
@@ -238,9 +238,9 @@ def print_warnings(verb: str, caught) -> None:
 def check_shaped_effects_kept(effects, model) -> None:
     """A declared law with shape parameters that has no rows in this model is an error (a plain
     effect without rows is left out, as ``build_model`` does)."""
-    from dynamics.effects import parse_effects
-    from dynamics.shape_effects import is_shaped
-    from estimation.variable_projection import NoRowsError
+    from dynamics.effects.linear import parse_effects
+    from dynamics.effects.shaped import is_shaped
+    from estimation.estimators.variable_projection import NoRowsError
 
     for effect in parse_effects(effects):
         if is_shaped(effect, model.robot) and effect not in model.effects:
@@ -250,7 +250,7 @@ def check_shaped_effects_kept(effects, model) -> None:
 
 def result_has_shapes(model) -> bool:
     """Whether ``model`` holds a law with shape parameters (fitted by variable projection)."""
-    from dynamics.shape_effects import is_shaped
+    from dynamics.effects.shaped import is_shaped
 
     return any(is_shaped(effect, model.robot) for effect in model.effects)
 

@@ -6,7 +6,7 @@ import argparse
 
 import numpy as np
 
-from estimation.consistent_identification import ConsistentResult, identify_consistent, load_link_bounds, load_prior
+from estimation.consistent.identification import ConsistentResult, identify_consistent, load_link_bounds, load_prior
 
 
 def add_consistent_arguments(parser: argparse.ArgumentParser) -> None:

@@ -67,9 +67,9 @@ def _kalman_q(text: str) -> tuple[float, float]:
 def run(args: argparse.Namespace) -> int:
     import numpy as np
 
-    from estimation.loading import DEGREES_THRESHOLD, AngleUnitError
-    from estimation.servo import fit_servo_arm
-    from estimation.servo_data import read_csv, write_text_atomic
+    from estimation.data.loading import DEGREES_THRESHOLD, AngleUnitError
+    from estimation.servo.protocol import fit_servo_arm
+    from estimation.servo.files import read_csv, write_text_atomic
     from oed.cli.common import json_text
 
     table = read_csv(args.data, required=("t", "u1", "q1"), dt=args.dt)
@@ -82,8 +82,8 @@ def run(args: argparse.Namespace) -> int:
         raise AngleUnitError(f"{args.data}: column q{joint + 1} reaches {peak[joint]:.4g}, beyond ±2π rad: the angles "
                              "look like degrees (the format is SI: convert with numpy.deg2rad)")
     if args.method == "oe":
-        from estimation.servo_oe_arm import fit_servo_arm_output_error
-        from estimation.servo_output_error import KalmanFusionSettings
+        from estimation.servo.output_error_arm import fit_servo_arm_output_error
+        from estimation.servo.output_error import KalmanFusionSettings
 
         fusion = None if args.fusion == "none" else KalmanFusionSettings(q=_kalman_q(args.kalman_q), r=_positive(args.kalman_r, "--kalman-r"))
         fit = fit_servo_arm_output_error(

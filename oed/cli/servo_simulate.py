@@ -20,8 +20,8 @@ def register(subparsers) -> argparse.ArgumentParser:
 
 def run(args: argparse.Namespace) -> int:
     check_csv_path(args.out)
-    from dynamics.servo_simulator import PAPER_JOINTS, simulate_servo_arm
-    from estimation.servo_data import read_csv, write_csv
+    from dynamics.simulation.servo_simulator import PAPER_JOINTS, simulate_servo_arm
+    from estimation.servo.files import read_csv, write_csv
 
     table = read_csv(args.aprbs, required=("t", "u1"))
     u = table.stack("u")

@@ -1,6 +1,6 @@
 """``oed simulate``: simulated measurements of a robot tracking an excitation trajectory.
 
-Writes the data format of :mod:`estimation.measurements` (``t, q1..qn, [dq, ddq,] tau1..taun,
+Writes the data format of :mod:`dynamics.measurements` (``t, q1..qn, [dq, ddq,] tau1..taun,
 fx fy fz mx my mz``): quantised positions, noisy applied torques and base wrench. With
 ``--truth FILE`` it also writes a JSON record of the true parameters, effects, noise and seed.
 """
@@ -15,10 +15,10 @@ from typing import Any
 
 import numpy as np
 
-from dynamics.controllers import ComputedTorqueController, computed_torque_gains
+from dynamics.simulation.controllers import ComputedTorqueController, computed_torque_gains
 from dynamics.models import build_model
-from dynamics.simulated_effects import SIMULATED_EFFECTS, Viscous, effects_from_names
-from dynamics.simulator import NoiseModel, Simulator
+from dynamics.simulation.effects import SIMULATED_EFFECTS, Viscous, effects_from_names
+from dynamics.simulation.simulator import NoiseModel, Simulator
 from oed.cli.common import OutputFiles, add_robot_arguments, json_text, robot_from_arguments, seed
 from oed.fourier import FourierTrajectory
 

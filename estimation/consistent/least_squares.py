@@ -1,0 +1,392 @@
+"""Physically consistent least squares: every link a rigid body, friction that dissipates.
+
+The weighted least-squares cost of the base parameters is a quadratic form,
+
+.. math::  ‖W^{½}(y − Y_b θ_b)‖² = χ²(\\hat θ_b) + (θ_b − \\hat θ_b)^T G (θ_b − \\hat θ_b),
+           \\qquad G = Σ_c w_c Y_c^T Y_c ,
+
+with ``θ̂_b`` the unconstrained weighted estimate and ``w_c = 1/σ_c²`` its channel weights
+(:class:`estimation.estimators.least_squares.WeightedLeastSquares`). Writing the standard parameters through
+the log-Cholesky map ``θ = θ(φ)`` (:mod:`dynamics.physical_parameters`, Rucker & Wensing 2022)
+and ``θ_b = K θ`` (:attr:`dynamics.base_parameters.BaseParameters.K`), IPOPT minimises
+
+.. math::  f(φ) = ½ (K θ(φ) − \\hat θ_b)^T G (K θ(φ) − \\hat θ_b) + w Σ_i D(J_i(φ), J_{0,i})
+
+over ``φ`` with exact derivatives from CasADi: an ``r x r`` problem whatever the number of samples.
+In practice IPOPT works on the lifted problem ``(θ, ψ)``: ``ψ`` the exponential coordinates of ``φ``
+(the plain Cholesky factor, diagonal ≥ 0 as bounds), each link tied by ``θ_k = θ_k(ψ_k)`` (see
+:class:`estimation.consistent.solver.ConsistentProblem` for why; same optimum, tens to hundreds of iterations where ``φ`` took thousands).
+``D`` is the entropic (log-det) divergence of each link's pseudo-inertia from a prior one
+(Lee & Park 2018): with ``prior_weight = w > 0`` the prior is the URDF's/DH table's nominal bodies
+(or a user's), a Bayesian prior worth ``w`` in units of ``½χ²``. With ``w = 0`` a pull of weight
+``regularisation`` (default 1e-6) towards the nominal bodies fixes the directions of the standard
+parameters the data do not see (their base parameters move by less than the solver tolerance).
+Non-negative effects (friction, armature) are bounded at zero; active bounds are reported.
+
+Starts: the projection of the unconstrained estimate onto the consistent set (the minimum-norm
+standard parameters reproducing ``θ̂_b`` around the nominal ones, each link's pseudo-inertia with
+its eigenvalues clipped, friction clipped at zero), the nominal bodies, and random perturbations
+of the first (``starts``); the best solution wins.
+
+Uncertainty (``uncertainty_method = "reduced Hessian"``): the Gauss–Newton Hessian of ``f`` in the
+coordinates ``ψ`` that are not at a user bound (mass, centre of mass) plus the prior's exact
+Hessian, ``cov(θ_b) = s J (JᵀGJ + w ∇²D)⁺ Jᵀ`` with ``J = K ∂θ/∂ψ`` and ``s`` the residual scale of
+the unconstrained fit. Coordinates at zero by consistency (a friction, a degenerate body) stay free,
+so their uncertainty is not understated. Without a prior this is the unconstrained covariance; a
+prior shrinks it. Standard deviations of the link parameters themselves are given only with a prior
+(the data alone do not determine them).
+
+Extension point: effects with shape parameters (nonlinear in their parameters) do not fit the
+quadratic form; :func:`check_linear_effects` names them until the variable-projection estimator
+of the nonlinear-effects issue supplies their residual.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from dynamics.models import IdentificationModel
+from dynamics.physical_parameters import (
+    ConsistencyBoundsError, LinkBounds, PhysicalParametrisation, consistency_margin, is_consistent, project_link,
+    pseudo_inertia,
+)
+from dynamics.runtime.threads import single_threaded_blas
+from estimation.estimators.estimator import Estimator
+from estimation.estimators.identification_problem import IdentificationProblem, stack
+from estimation.estimators.least_squares import Estimate, WeightedLeastSquares, channel_gram
+from estimation.consistent.solver import compiled_problem, escape, inside, pseudo_inverse, variable_scales
+from dynamics.measurements import Measurements
+
+#: IPOPT return statuses accepted as a solution
+ACCEPTED_STATUSES = frozenset({"Solve_Succeeded", "Solved_To_Acceptable_Level"})
+UNCERTAINTY_METHOD = "reduced Hessian"
+#: most restarts from a certified non-optimal stationary point (per start)
+MAX_ESCAPES = 5
+#: IPOPT's iteration limit after an escape (a warm start near the optimum; a longer run is a failure)
+ESCAPE_ITERATIONS = 300
+
+
+class ConsistentSolverError(RuntimeError, ValueError):
+    """IPOPT found no consistent estimate from any start."""
+
+
+@dataclass(frozen=True)
+class ConsistentEstimate:
+    """A physically consistent estimate.
+
+    Attributes
+    ----------
+    theta
+        ``(p,)`` standard parameters (``10 n`` link values, then the effects), consistent.
+    phi
+        ``(p,)`` the log-Cholesky coordinates of ``theta``.
+    values, cov, std
+        ``(r,)`` base parameters ``K θ``, their covariance and standard deviations.
+    theta_std
+        ``(p,)`` standard deviations of ``theta`` (with a prior only, else ``None``).
+    uncertainty_method
+        How ``cov`` was computed.
+    names, expressions
+        Base-parameter names and groupings.
+    parameter_names
+        Standard-parameter names.
+    link_names
+        One name per link.
+    margins
+        ``(n,)`` smallest over largest eigenvalue of each link's pseudo-inertia (> 0: a rigid body).
+    active_bounds
+        User bounds met with equality and non-negative parameters at zero (``"fv5 >= 0"``,
+        ``"joint3 mass <= 4"``…).
+    prior_weight
+        ``w`` of the prior (0: none).
+    excess_chi2
+        ``(θ_b − θ̂_b)ᵀ G (θ_b − θ̂_b)``: what consistency costs in weighted squared residuals.
+    solver
+        ``status``, ``iterations``, ``time_s``, ``best``, ``certified`` (every link's pseudo-inertia
+        gradient positive semidefinite: the convex problem's optimum, up to the prior's pull), ``starts``
+        (per start: ``name, status, iterations, escapes, certified, cost``).
+    """
+
+    theta: NDArray[np.float64]
+    phi: NDArray[np.float64]
+    values: NDArray[np.float64]
+    cov: NDArray[np.float64]
+    std: NDArray[np.float64]
+    theta_std: NDArray[np.float64] | None
+    uncertainty_method: str
+    names: tuple[str, ...]
+    expressions: tuple[str, ...]
+    parameter_names: tuple[str, ...]
+    link_names: tuple[str, ...]
+    margins: NDArray[np.float64]
+    active_bounds: tuple[str, ...]
+    prior_weight: float
+    excess_chi2: float
+    solver: dict[str, Any]
+
+    def link_parameters(self) -> NDArray[np.float64]:
+        """``(n, 10)`` standard parameters link by link."""
+        return self.theta[: 10 * len(self.link_names)].reshape(-1, 10)
+
+    def effect_values(self) -> dict[str, float]:
+        """Effect parameters by name (``fv1``, ``fc1``, ``off1``…)."""
+        start = 10 * len(self.link_names)
+        return dict(zip(self.parameter_names[start:], map(float, self.theta[start:])))
+
+    def records(self) -> list[dict[str, Any]]:
+        """One dict per base parameter: ``name, expression, value, std``."""
+        return [{"name": name, "expression": expression, "value": float(value), "std": float(std)}
+                for name, expression, value, std in zip(self.names, self.expressions, self.values, self.std)]
+
+
+def check_linear_effects(model: IdentificationModel) -> None:
+    """Refuse effects with shape parameters (nonlinear in them): the extension point for the
+    variable-projection estimator of nonlinear effects."""
+    nonlinear = [effect.name for effect in model.effects if getattr(effect, "shape_parameter_names", None)]
+    if nonlinear:
+        raise NotImplementedError(
+            f"consistent identification handles effects linear in their parameters; {nonlinear} have shape "
+            "parameters (fit them first, then fix them, or extend estimation.consistent.least_squares)")
+
+
+class ConsistentLeastSquares(Estimator):
+    """Weighted least squares under the log-Cholesky map, solved with IPOPT (module docstring).
+
+    Parameters
+    ----------
+    prior_weight
+        ``w ≥ 0``: strength of the log-det prior towards ``prior`` (units of ``½χ²``; 0: no prior).
+    prior
+        Standard parameters of the links (``10 n``) the prior pulls towards; default the robot
+        description's. Every link must be a rigid body (slightly inconsistent ones are projected).
+    bounds
+        :class:`dynamics.physical_parameters.LinkBounds` by link (joint) name.
+    starts
+        Number of starts: projection, nominal, then random perturbations of the projection.
+    regularisation
+        Weight of the pull towards the prior when ``prior_weight`` is 0.
+    seed
+        Seed of the random starts.
+    max_iter
+        IPOPT's iteration limit per start.
+    """
+
+    def __init__(self, *, prior_weight: float = 0.0, prior: ArrayLike | None = None,
+                 bounds: Mapping[str, LinkBounds] | None = None, starts: int = 2, regularisation: float = 1e-6,
+                 seed: int = 0, max_iter: int = 3000) -> None:
+        self.prior_weight = prior_weight
+        self.prior = prior
+        self.bounds = bounds
+        self.starts = starts
+        self.regularisation = regularisation
+        self.seed = seed
+        self.max_iter = max_iter
+
+    @single_threaded_blas()
+    def fit(self, model: IdentificationModel, data: IdentificationProblem | Measurements, *,
+            unconstrained: Estimate | None = None) -> ConsistentLeastSquares:
+        """Fit ``model`` on ``data`` (a stacked problem or measurements), from ``unconstrained``
+        (a weighted or ordinary estimate of the same problem; fitted here when not given)."""
+        self._forget_fit()
+        started = time.perf_counter()
+        if not isinstance(model, IdentificationModel):
+            raise TypeError(f"model must be an IdentificationModel, got {type(model).__name__}")
+        check_linear_effects(model)
+        weight = self._check_settings()
+        problem = data if isinstance(data, IdentificationProblem) else stack(model, data)
+        if problem.n_parameters != model.n_base:
+            raise ValueError(f"the problem has {problem.n_parameters} parameters, the model {model.n_base} base parameters")
+        if unconstrained is None:
+            unconstrained = WeightedLeastSquares().fit(problem).estimate_
+        gram, _ = channel_gram(problem)
+        G = np.tensordot(unconstrained.weights, gram, axes=1)
+        G = 0.5 * (G + G.T)
+        residual_scale = float(np.trace(unconstrained.cov @ G)) / model.n_base
+        parametrisation = PhysicalParametrisation.of_model(model, self.bounds)
+        prior = self._prior(model, parametrisation, weight)
+        n = model.robot.n_joints
+        J0 = [pseudo_inertia(prior[10 * k : 10 * (k + 1)]) for k in range(n)]
+        inverses = np.concatenate([np.linalg.inv(J).reshape(-1, order="F") for J in J0])
+        log_dets = np.array([np.linalg.slogdet(J)[1] for J in J0])
+
+        def parameters(prior_weight: float) -> NDArray[np.float64]:
+            return np.concatenate([G.reshape(-1, order="F"), unconstrained.values, [prior_weight], inverses, log_dets])
+
+        effective = weight if weight > 0 else float(self.regularisation)
+        compiled = compiled_problem(model, int(self.max_iter))
+        lower, upper = parametrisation.psi_bounds()
+        fixed_lower, fixed_upper = parametrisation.phi_bounds()  # the user's bounds (fixed in the reduced Hessian)
+        scales = variable_scales(prior, n, model.n_parameters - 10 * n)
+        escape_solver = compiled_problem(model, min(int(self.max_iter), ESCAPE_ITERATIONS))
+        results: list[dict[str, Any]] = []
+        starts = self._starts(model, parametrisation, unconstrained.values, prior)
+        for count, (name, phi0) in enumerate(starts):
+            if count >= self.starts and any(r["certified"] for r in results):
+                break  # the extra starts are only for when no configured one reached a certified optimum
+            psi0 = np.clip(parametrisation.psi_from_phi(phi0), inside(lower, +1e-9), inside(upper, -1e-9))
+            result = compiled.solve(psi0, parameters(effective), lower, upper, *scales)
+            escapes, certified = 0, False
+            while result["status"] in ACCEPTED_STATUSES and escapes <= MAX_ESCAPES:
+                # a stationary point of the factorised problem need not be the convex problem's optimum
+                # (Burer–Monteiro): certify it, or leave it along a descent direction and solve again
+                escaped = escape(model, parametrisation, compiled, result["psi"], G, unconstrained.values)
+                if escaped is None:
+                    certified = True
+                    break
+                if escapes == MAX_ESCAPES:
+                    break
+                escapes += 1
+                again = escape_solver.solve(np.clip(escaped, inside(lower, +1e-9), inside(upper, -1e-9)),
+                                            parameters(effective), lower, upper, *scales)
+                again["iterations"] += result["iterations"]
+                if again["status"] not in ACCEPTED_STATUSES or again["cost"] > result["cost"]:
+                    result["iterations"] = again["iterations"]
+                    break
+                result = again
+            results.append({"name": name, "escapes": escapes, "certified": certified, **result})
+        accepted = [result for result in results if result["status"] in ACCEPTED_STATUSES and np.isfinite(result["cost"])]
+        if not accepted:
+            raise ConsistentSolverError(
+                "IPOPT found no consistent estimate: " + "; ".join(f"start {r['name']}: {r['status']}" for r in results))
+        best = min([r for r in accepted if r["certified"]] or accepted, key=lambda result: result["cost"])
+        psi = best["psi"]
+        theta, dtheta = (np.asarray(value) for value in compiled.mapping(psi))
+        theta = theta.reshape(-1)
+        values = model.base.K @ theta
+        # reduced Hessian: coordinates at a user bound are fixed; those at zero by consistency
+        # (friction, a degenerate body) stay free, so their uncertainty is not understated
+        user_bound = np.zeros(psi.shape[0], dtype=bool)
+        for k in range(n):
+            block = slice(10 * k, 10 * (k + 1))
+            for offset in (0, 7, 8, 9):
+                value = psi[block][offset]
+                low, high = lower[block][offset], upper[block][offset]
+                user_bound[10 * k + offset] = bool(
+                    (np.isfinite(fixed_lower[block][offset]) and value <= low + 1e-7 * (1 + abs(low)))
+                    or (np.isfinite(fixed_upper[block][offset]) and value >= high - 1e-7 * (1 + abs(high))))
+        free = ~user_bound
+        J = model.base.K @ dtheta[:, free]
+        hessian = J.T @ G @ J
+        if weight > 0:
+            hessian = hessian + weight * np.asarray(compiled.prior_hessian(psi, parameters(weight)))[np.ix_(free, free)]
+        inverse = pseudo_inverse(hessian)  # equilibrated inside: ψ mixes scales (a degenerate link's a → 0)
+        cov = residual_scale * J @ inverse @ J.T
+        theta_std = None
+        if weight > 0:
+            theta_cov = residual_scale * dtheta[:, free] @ inverse @ dtheta[:, free].T
+            theta_std = np.sqrt(np.clip(np.diag(theta_cov), 0.0, None))
+        phi = parametrisation.phi_from_psi(psi)
+        deviation = values - unconstrained.values
+        self.estimate_ = ConsistentEstimate(
+            theta=theta, phi=phi, values=values, cov=cov, std=np.sqrt(np.clip(np.diag(cov), 0.0, None)),
+            theta_std=theta_std, uncertainty_method=UNCERTAINTY_METHOD, names=model.base.names,
+            expressions=model.base.expressions, parameter_names=model.parameter_names,
+            link_names=tuple(model.robot.joint_names),
+            margins=np.array([consistency_margin(theta[10 * k : 10 * (k + 1)]) for k in range(n)]),
+            active_bounds=_active_bounds(parametrisation, psi, theta, unconstrained, model),
+            prior_weight=weight, excess_chi2=float(deviation @ G @ deviation),
+            solver={"status": best["status"], "iterations": best["iterations"], "best": best["name"],
+                    "time_s": time.perf_counter() - started,
+                    "certified": bool(best["certified"]),
+                    "starts": [{key: r[key] for key in ("name", "status", "iterations", "escapes", "certified", "cost")}
+                               for r in results]},
+        )
+        return self
+
+    theta_ = property(lambda self: self._fitted().theta, doc="Consistent standard parameters (links, then effects).")
+    base_ = property(lambda self: self._fitted().values, doc="Base parameters K θ of the consistent estimate.")
+
+    def _fitted(self) -> ConsistentEstimate:
+        return self.estimate_
+
+    def _check_settings(self) -> float:
+        weight = self.prior_weight
+        if isinstance(weight, bool) or not isinstance(weight, (int, float, np.integer, np.floating)):
+            raise TypeError(f"prior_weight must be a number, got {type(weight).__name__}")
+        if not (np.isfinite(weight) and weight >= 0):
+            raise ValueError(f"prior_weight must be a finite non-negative number, got {weight}")
+        if not (isinstance(self.starts, (int, np.integer)) and not isinstance(self.starts, bool) and 1 <= self.starts <= 1000):
+            raise ValueError(f"starts must be an integer from 1 to 1000, got {self.starts!r}")
+        if isinstance(self.max_iter, bool) or not isinstance(self.max_iter, (int, np.integer)) or self.max_iter < 1:
+            raise ValueError(f"max_iter must be a positive integer, got {self.max_iter!r}")
+        if not (np.isfinite(self.regularisation) and self.regularisation > 0):
+            raise ValueError(f"regularisation must be positive, got {self.regularisation}")
+        return float(weight)
+
+    def _prior(self, model: IdentificationModel, parametrisation: PhysicalParametrisation, weight: float) -> NDArray:
+        """The prior's link parameters, each made strictly consistent; with a prior, each bounded
+        link's prior must meet its bounds (else no body is near both)."""
+        n = model.robot.n_joints
+        given = model.robot.standard_parameters if self.prior is None else np.asarray(self.prior, dtype=float).reshape(-1)
+        if given.shape != (10 * n,) or not np.all(np.isfinite(given)):
+            raise ValueError(f"the prior must hold {10 * n} finite link parameters (10 per link), got {given.shape}")
+        prior = np.concatenate([project_link(given[10 * k : 10 * (k + 1)], 1e-4) for k in range(n)])
+        if weight > 0:
+            for k, name in enumerate(parametrisation.link_names):
+                bounds = parametrisation.bounds.get(name)
+                if bounds is not None and not bounds.contains(given[10 * k : 10 * (k + 1)]):
+                    raise ConsistencyBoundsError(
+                        f"link {name}: the prior's mass {given[10 * k]:.4g} kg or centre of mass "
+                        f"{np.round(given[10 * k + 1 : 10 * k + 4] / max(given[10 * k], 1e-300), 4).tolist()} m lies "
+                        f"outside its bounds (mass {list(bounds.mass)}, box {list(bounds.com_lower)}..{list(bounds.com_upper)}): "
+                        "the prior pulls towards a body the bounds exclude")
+        return prior
+
+    def _starts(self, model, parametrisation, values, prior):
+        """(name, φ₀): the projection of the unconstrained estimate, the nominal bodies, random
+        perturbations of the projection (``starts`` in all), then up to five fallbacks (nominal and
+        random ones) tried only when no configured start reached a certified optimum."""
+        K = model.base.K
+        reference = np.concatenate([prior, np.zeros(K.shape[1] - prior.shape[0])])
+        lifted = reference + np.linalg.lstsq(K, values - K @ reference, rcond=None)[0]
+        scale = np.abs(lifted[10 * model.robot.n_joints :]).max(initial=1.0)
+        projected = parametrisation.project(lifted, floor=1e-6, effect_floor=1e-6 * scale)
+        first = parametrisation.inverse(projected)
+        nominal = parametrisation.inverse(parametrisation.project(
+            np.concatenate([prior, projected[prior.shape[0]:]]), floor=1e-6, effect_floor=1e-6 * scale))
+        generator = np.random.default_rng(self.seed)
+        yield "projection", first
+        if self.starts >= 2:
+            yield "nominal", nominal
+        for index in range(2, self.starts):
+            yield f"random{index - 1}", first + generator.normal(0.0, 0.3, parametrisation.n_phi)
+        if self.starts < 2:
+            yield "nominal", nominal
+        for index in range(4):
+            yield f"fallback{index + 1}", first + generator.normal(0.0, 0.3, parametrisation.n_phi)
+
+
+def _active_bounds(parametrisation, psi, theta, unconstrained: Estimate, model: IdentificationModel) -> tuple[str, ...]:
+    """Bounds met with equality: non-negative effects at zero, degenerate bodies (pseudo-inertia
+    singular: the estimate is on the boundary of the consistent set), the user's mass and
+    centre-of-mass bounds."""
+    active = []
+    start = 10 * parametrisation.n_links
+    reference = max(1.0, float(np.abs(unconstrained.values).max()))
+    for index, kind in enumerate(parametrisation.effect_kinds):
+        if kind == "nonnegative" and theta[start + index] <= 1e-8 * reference:
+            active.append(f"{model.parameter_names[start + index]} >= 0")
+    lower, upper = parametrisation.psi_bounds()
+    user_lower, user_upper = parametrisation.phi_bounds()
+    for k, name in enumerate(parametrisation.link_names):
+        block = slice(10 * k, 10 * (k + 1))
+        if consistency_margin(theta[block]) < 1e-8:
+            active.append(f"{name} pseudo-inertia singular (degenerate body)")
+        for offset, label in ((0, "mass"), (7, "com x"), (8, "com y"), (9, "com z")):
+            value, low, high = psi[block][offset], lower[block][offset], upper[block][offset]
+            shown = (lambda v: float(v * v)) if offset == 0 else float
+            if np.isfinite(user_lower[block][offset]) and value <= low + 1e-6 * (1 + abs(low)):
+                active.append(f"{name} {label} >= {shown(low):.6g}")
+            if np.isfinite(user_upper[block][offset]) and value >= high - 1e-6 * (1 + abs(high)):
+                active.append(f"{name} {label} <= {shown(high):.6g}")
+    return tuple(active)
+
+
+__all__ = ["ConsistentEstimate", "ConsistentLeastSquares", "ConsistentSolverError", "check_linear_effects",
+           "is_consistent"]

@@ -1,0 +1,346 @@
+"""Reading measured data with checks: columns, finiteness, time base, units, sample count.
+
+The file format is that of :mod:`dynamics.measurements` (CSV or Parquet, SI units)::
+
+    t, q1..qn [, dq1..dqn, ddq1..ddqn] [, tau1..taun] [, fx fy fz mx my mz]
+
+:func:`read_measurements` says what is wrong with a file rather than failing later inside a
+regressor: each problem raises a :class:`MeasurementError` subclass (a ``ValueError``) naming the
+column (and row) at fault, or, when the data can be repaired, a :class:`MeasurementWarning`
+subclass saying what was done (irregular sampling is resampled onto a uniform grid).
+"""
+
+from __future__ import annotations
+
+import re
+import warnings
+from collections.abc import Iterable, Sequence
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+from numpy.typing import NDArray
+
+from dynamics.models import IdentificationModel, ModelKind
+from dynamics.robot import JointType
+from estimation.data.log_cleaning import DEFAULT_MAX_GAP, STALL_FACTOR, missing_samples
+from dynamics.measurements import Measurements
+
+#: groups of columns a caller may require besides those the model needs
+COLUMN_GROUPS: tuple[str, ...] = ("q", "dq", "ddq", "tau", "wrench")
+
+#: relative spread of the sampling interval above which the time base counts as irregular
+IRREGULAR_TOLERANCE = 1e-3
+
+#: a median sample time of this (s) or more is not seconds
+MAX_SAMPLE_TIME = 1.0
+#: from this (s) on the time unit is questioned with a warning (10 Hz)
+SLOW_SAMPLE_TIME = 0.1
+#: a step this many times the median, with as many samples missing around it, is a gap in the record
+GAP_FACTOR = 5.0
+#: a revolute joint whose |q| exceeds this (rad) most likely holds degrees (2π plus a margin)
+DEGREES_THRESHOLD = 2 * np.pi + 0.5
+#: read as degrees, a |q| beyond this is more than two turns: motor-side angles rather than degrees
+MOTOR_SIDE_DEGREES = 720.0
+
+
+class MeasurementError(ValueError):
+    """The data cannot be used as they are."""
+
+
+class MissingColumnError(MeasurementError):
+    """A column the chosen model (or the caller) needs is absent."""
+
+
+class NonFiniteError(MeasurementError):
+    """A column holds NaN or inf."""
+
+
+class JointCountError(MeasurementError):
+    """The file holds joint columns beyond the robot's joints (data of another robot, or a wrong ``--joints``)."""
+
+
+class TimeBaseError(MeasurementError):
+    """The time column is not strictly increasing (duplicated or decreasing samples)."""
+
+
+class AngleUnitError(MeasurementError):
+    """Revolute joint angles look like degrees."""
+
+
+class MotorSideAnglesError(AngleUnitError):
+    """Revolute joint angles span more turns than the joint can, even read as degrees: motor-side angles."""
+
+
+def _motor_side(peak: float, limit: float) -> bool:
+    """Whether ``peak`` (|q| at most, rad) is too large for degrees: beyond two turns in degrees
+    (720), or beyond 1.5 times the joint's limit in degrees when the description gives one."""
+    return peak > MOTOR_SIDE_DEGREES or (np.isfinite(limit) and peak > 1.5 * np.degrees(limit))
+
+
+class TooFewSamplesError(MeasurementError):
+    """Fewer equations than base parameters to estimate."""
+
+
+class AbsurdValueError(MeasurementError):
+    """A value no sensor gives in SI units (a corrupt cell, a wrong unit by many orders of magnitude)."""
+
+
+class HoleError(TimeBaseError):
+    """A hole longer than ``max_gap`` where one segment was asked for (split the record)."""
+
+
+class SegmentTooShortError(MeasurementError):
+    """A segment too short for a time series, or for the filter that derives its motion."""
+
+
+class ParquetSupportError(MeasurementError, ImportError):
+    """Reading Parquet needs pyarrow, which is not installed."""
+
+
+class MeasurementWarning(UserWarning):
+    """The data were repaired; the message says how."""
+
+
+class ResampledWarning(MeasurementWarning):
+    """Irregular sampling: the data were interpolated onto a uniform grid."""
+
+
+class RepeatedRowsWarning(MeasurementWarning):
+    """Rows repeating the previous one on every channel (a re-sent packet) were dropped."""
+
+
+class StallWarning(MeasurementWarning):
+    """Short stalls of the logger (samples missing) were bridged by interpolation."""
+
+
+class SplitWarning(MeasurementWarning):
+    """Holes longer than ``max_gap``: the record was split into segments there."""
+
+
+#: a value beyond this in any channel (SI units) is corrupt, not a measurement
+ABSURD_VALUE = 1e9
+
+
+def required_groups(model: IdentificationModel | ModelKind | str | None) -> tuple[str, ...]:
+    """Column groups a model needs: ``tau`` (internal), ``wrench`` (external) or both (combined)."""
+    if model is None:
+        return ()
+    kind = model.kind if isinstance(model, IdentificationModel) else ModelKind(model)
+    return {
+        ModelKind.INTERNAL: ("tau",),
+        ModelKind.EXTERNAL: ("wrench",),
+        ModelKind.COMBINED: ("wrench", "tau"),
+    }[kind]
+
+
+def read_measurements(
+    path: str | Path,
+    *,
+    n_joints: int | None = None,
+    model: IdentificationModel | ModelKind | str | None = None,
+    require: Iterable[str] = ("q",),
+    resample: bool = True,
+    max_gap: float = DEFAULT_MAX_GAP,
+) -> Measurements:
+    """Read a CSV or Parquet file of measurements and check it: one segment.
+
+    Parameters
+    ----------
+    path
+        ``.csv`` or ``.parquet`` file with the columns of :mod:`dynamics.measurements`.
+    n_joints
+        Number of joints; default: the model's robot, else the number of ``q`` columns.
+    model
+        The identification model the data are for (or its kind): its channels must be present
+        (``tau1..taun`` internal, ``fx..mz`` external, both combined), the samples must give more
+        equations than base parameters, and revolute angles are checked for degrees.
+    require
+        Further column groups that must be present, among ``q dq ddq tau wrench``.
+    resample
+        Interpolate irregularly sampled data onto a uniform grid (with a
+        :class:`ResampledWarning`); if false, irregular sampling is an error.
+    max_gap
+        Longest time without samples (s) bridged by interpolation (:class:`StallWarning`); a
+        longer hole is a :class:`HoleError` here (:func:`estimation.data.records.read_record` splits the record there).
+
+    Raises
+    ------
+    MissingColumnError, NonFiniteError, TimeBaseError, AngleUnitError, TooFewSamplesError, JointCountError
+        Each naming the column, row or count at fault (``JointCountError``: columns such as ``q4``
+        beyond the given or the model's number of joints).
+    HoleError, AbsurdValueError, ParquetSupportError
+        A hole in the record, a value no sensor gives, Parquet without pyarrow.
+    """
+    from estimation.data.records import read_record  # it builds on this module's checks
+
+    segments = read_record(path, n_joints=n_joints, model=model, require=require, resample=resample,
+                           max_gap=max_gap, split=False)
+    return segments[0]
+
+
+def measurements_from_frame(
+    frame: pd.DataFrame,
+    *,
+    n_joints: int | None = None,
+    model: IdentificationModel | ModelKind | str | None = None,
+    require: Iterable[str] = ("q",),
+    resample: bool = True,
+    source: str = "data",
+    max_gap: float = DEFAULT_MAX_GAP,
+) -> Measurements:
+    """The checks of :func:`read_measurements` on a ``DataFrame`` already in memory."""
+    from estimation.data.records import segments_from_frame  # it builds on this module's checks
+
+    return segments_from_frame(frame, n_joints=n_joints, model=model, require=require, resample=resample,
+                               source=source, max_gap=max_gap, split=False)[0]
+
+
+def check_sample_count(measurements: Measurements | Sequence[Measurements], model: IdentificationModel) -> None:
+    """At least as many samples (over all segments) as base parameters (each sample gives ``m``
+    equations, but rows of one sample are strongly correlated: the count asked for is the one that
+    makes every base parameter estimable from the joint rows alone)."""
+    segments = [measurements] if isinstance(measurements, Measurements) else list(measurements)
+    count = sum(segment.n_samples for segment in segments)
+    if count <= model.n_base:
+        raise TooFewSamplesError(
+            f"{count} samples for {model.n_base} base parameters of the {model.kind.value} "
+            f"model: need more than {model.n_base} samples (many more for useful estimates)"
+        )
+
+
+_GROUP_MEANING = {
+    "q": "joint positions",
+    "dq": "joint velocities",
+    "ddq": "joint accelerations",
+    "tau": "joint torques (internal model)",
+    "wrench": "base reaction wrench (external model)",
+}
+
+
+def _count_joint_columns(frame: pd.DataFrame, prefix: str) -> int:
+    pattern = re.compile(rf"^{prefix}(\d+)$")
+    indices = sorted(int(match.group(1)) for column in frame.columns if (match := pattern.match(column)))
+    return len(indices) if indices == list(range(1, len(indices) + 1)) else (max(indices) if indices else 0)
+
+
+def _check_no_further_joints(frame: pd.DataFrame, n_joints: int, source: str) -> None:
+    """A column ``q5`` (or ``dq5``, ``tau5``…) in the data of a 4-joint robot: the motion of the joints
+    left out drives the others, so identifying without it would be silently wrong."""
+    pattern = re.compile(r"^(q|dq|ddq|tau)(\d+)$")
+    beyond = [column for column in frame.columns
+              if (match := pattern.match(column)) and int(match.group(2)) > n_joints]
+    if beyond:
+        raise JointCountError(
+            f"{source}: column(s) {', '.join(beyond)} beyond the robot's {n_joints} joint(s): "
+            "the data are for a robot with more joints (check --robot/--urdf/--joints)"
+        )
+
+
+def _require_columns(frame: pd.DataFrame, columns: list[str], meaning: str, source: str) -> None:
+    missing = [column for column in columns if column not in frame.columns]
+    if missing:
+        raise MissingColumnError(f"{source}: missing column(s) {', '.join(missing)} ({meaning})")
+
+
+def _numeric(frame: pd.DataFrame, columns: list[str], source: str) -> NDArray[np.float64]:
+    values = np.empty((len(frame), len(columns)))
+    for index, column in enumerate(columns):
+        numbers = pd.to_numeric(frame[column], errors="coerce").to_numpy(dtype=float)
+        bad = ~np.isfinite(numbers)
+        if bad.any():
+            row = int(np.flatnonzero(bad)[0])
+            raise NonFiniteError(
+                f"{source}: column {column} holds {int(bad.sum())} NaN/inf or non-numeric value(s), "
+                f"first at row {row} ({_shown(frame[column].iloc[row])})"
+            )
+        values[:, index] = numbers
+    return values
+
+
+def _shown(value: object) -> str:
+    """A cell for a message: strings quoted, numbers plain (``nan``, not ``np.float64(nan)``)."""
+    return repr(value) if isinstance(value, str) else str(value)
+
+
+def _check_time(t: NDArray[np.float64], source: str) -> float:
+    if t.shape[0] < 2:
+        raise TooFewSamplesError(f"{source}: {t.shape[0]} sample(s); need a time series")
+    steps = np.diff(t)
+    duplicated = np.flatnonzero(steps == 0)
+    if duplicated.size:
+        row = int(duplicated[0])
+        raise TimeBaseError(f"{source}: column t has {duplicated.size} duplicated time(s), first t={t[row]} at rows {row} and {row + 1}")
+    decreasing = np.flatnonzero(steps < 0)
+    if decreasing.size:
+        row = int(decreasing[0])
+        raise TimeBaseError(f"{source}: column t decreases at row {row + 1} ({t[row]} -> {t[row + 1]}); sort the samples")
+    step = float(np.median(steps))
+    if step >= MAX_SAMPLE_TIME:
+        raise TimeBaseError(f"{source}: column t advances by {step:.4g} a sample: the format wants seconds, "
+                            "and these look like milliseconds or nanoseconds (divide t by 1e3 or 1e9)")
+    if step >= SLOW_SAMPLE_TIME:
+        warnings.warn(f"{source}: column t advances by {step:.4g} s a sample ({1 / step:.3g} Hz), slow for robot "
+                      "dynamics: is t in seconds?", MeasurementWarning, stacklevel=4)
+    long_steps = [int(row) for row in np.flatnonzero(steps > GAP_FACTOR * step)]
+    late = [row for row in long_steps if missing_samples(t, row, step) < 0.5]
+    if late:
+        warnings.warn(
+            f"{source}: column t stalls for {steps[late[0]]:.4g} s after row {late[0]} and the following samples come "
+            f"in a burst ({len(late)} such stall(s)): receive times rather than sampling times? Resampling places "
+            "those samples by their stamps", MeasurementWarning, stacklevel=5)
+    return step
+
+
+def _check_angles(q: NDArray[np.float64], model, source: str) -> None:
+    revolute = [True] * q.shape[1]
+    limits = [np.inf] * q.shape[1]
+    if isinstance(model, IdentificationModel):
+        revolute = [joint.joint_type is JointType.REVOLUTE for joint in model.robot.joints]
+        limits = [max(abs(joint.lower), abs(joint.upper)) for joint in model.robot.joints]
+    for index in range(q.shape[1]):
+        peak = float(np.max(np.abs(q[:, index])))
+        if revolute[index] and peak > DEGREES_THRESHOLD and _motor_side(peak, limits[index]):
+            raise MotorSideAnglesError(
+                f"{source}: column q{index + 1} reaches {peak:.4g} rad and spans {np.ptp(q[:, index]) / (2 * np.pi):.3g} "
+                "turns, more than this joint turns even in degrees: motor-side angles? gear ratio? (divide by the gear "
+                "ratio, or give them as qm1..qmn with the transmission: --transmission FILE)"
+            )
+        if revolute[index] and peak > DEGREES_THRESHOLD:
+            raise AngleUnitError(
+                f"{source}: column q{index + 1} reaches {peak:.4g}, beyond ±2π rad: the angles look like degrees "
+                "(the format is SI: convert with numpy.deg2rad)"
+            )
+
+
+def _uniform(t, arrays, resample: bool, source: str, metadata: dict, *, bridged: bool = False):
+    """Data on a uniform grid: as they are when regular, else interpolated (a warning says so).
+
+    The grid's step is the median step corrected so that a whole number of steps spans the record:
+    float32 or jittered stamps make the median one of a few rounded values (1 kHz at t ≈ 10 s in
+    float32: 0.99976 ms), which would otherwise misstate the rate by up to 0.05 %."""
+    steps = np.diff(t)
+    step = float(np.median(steps))
+    spread = float(np.max(np.abs(steps - step))) / step
+    if spread <= IRREGULAR_TOLERANCE:
+        return t, arrays
+    if not resample:
+        raise TimeBaseError(f"{source}: irregular sampling in column t (step varies by {100 * spread:.3g}% of {step:.4g} s)")
+    intervals = max(int(round((t[-1] - t[0]) / step)), 1)
+    step = (t[-1] - t[0]) / intervals
+    grid = t[0] + step * np.arange(intervals + 1)
+    grid[-1] = min(grid[-1], t[-1])
+    regular = steps[steps <= STALL_FACTOR * float(np.median(steps))]
+    jitter = float(np.max(np.abs(regular - np.median(steps)))) / float(np.median(steps)) if regular.size else 0.0
+    reason = "stalls bridged, and " if bridged else ""
+    if jitter > IRREGULAR_TOLERANCE or not bridged:  # stalls alone: their warning already says what was done
+        warnings.warn(
+            f"{source}: irregular sampling in column t ({reason}step varies by {100 * spread:.3g}% of the median "
+            f"{float(np.median(steps)):.4g} s): resampled by linear interpolation onto {grid.shape[0]} uniform "
+            f"samples of {step:.6g} s", ResampledWarning, stacklevel=4)
+    metadata["resampled_from"] = int(t.shape[0])
+    resampled = {
+        name: None if values is None else np.column_stack([np.interp(grid, t, column) for column in values.T])
+        for name, values in arrays.items()
+    }
+    return grid, resampled

@@ -1,0 +1,222 @@
+"""Reading a log as it comes: one or more segments, with re-sent rows dropped and stalls bridged.
+
+:func:`read_record` reads a CSV or Parquet file with the checks of :mod:`estimation.data.loading`
+(columns, finiteness, time base, units, sample count) plus those of a real logger's record
+(:mod:`estimation.data.log_cleaning`): values no sensor gives, rows re-sent by the logger (dropped,
+counted: :class:`~estimation.data.loading.RepeatedRowsWarning`), stalls up to ``max_gap`` seconds
+(bridged by interpolation: :class:`~estimation.data.loading.StallWarning`) and longer holes (the record
+split into segments there: :class:`~estimation.data.loading.SplitWarning`, or a
+:class:`~estimation.data.loading.HoleError` when one segment is asked for).
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Iterable
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+from numpy.typing import NDArray
+
+from dynamics.effects.linear import WRENCH_CHANNELS
+from dynamics.models import IdentificationModel, ModelKind
+from estimation.data.loading import (
+    ABSURD_VALUE,
+    COLUMN_GROUPS,
+    _GROUP_MEANING,
+    AbsurdValueError,
+    HoleError,
+    MeasurementError,
+    MissingColumnError,
+    ParquetSupportError,
+    RepeatedRowsWarning,
+    SegmentTooShortError,
+    SplitWarning,
+    StallWarning,
+    TimeBaseError,
+    _check_angles,
+    _check_no_further_joints,
+    _check_time,
+    _count_joint_columns,
+    _numeric,
+    _require_columns,
+    _uniform,
+    check_sample_count,
+    required_groups,
+)
+from estimation.data.log_cleaning import DEFAULT_MAX_GAP, describe, find_gaps, repeated_rows, split_rows
+from dynamics.measurements import Measurements, joint_columns
+
+
+def read_record(
+    path: str | Path,
+    *,
+    n_joints: int | None = None,
+    model: IdentificationModel | ModelKind | str | None = None,
+    require: Iterable[str] = ("q",),
+    resample: bool = True,
+    max_gap: float = DEFAULT_MAX_GAP,
+    split: bool = True,
+) -> tuple[Measurements, ...]:
+    """Read a file as one or more segments: :func:`estimation.data.loading.read_measurements`, but a hole longer than
+    ``max_gap`` seconds splits the record (a :class:`SplitWarning`) instead of failing.
+
+    Rows repeating the previous row on every channel are dropped (:class:`RepeatedRowsWarning`,
+    :mod:`estimation.data.log_cleaning`), stalls up to ``max_gap`` bridged (:class:`StallWarning`). Each
+    segment's ``metadata`` holds ``source``, ``segment`` (1-based) and ``repeated_rows_dropped``.
+    """
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if path.is_dir():
+        raise IsADirectoryError(f"data file {path} is a folder")
+    if suffix not in (".csv", ".parquet"):
+        raise MeasurementError(f"unknown data format {path.suffix!r} for {path}: use .csv or .parquet")
+    if not path.is_file():
+        raise FileNotFoundError(f"data file not found: {path}")
+    try:
+        frame = read_parquet_frame(path) if suffix == ".parquet" else pd.read_csv(path)
+    except ParquetSupportError:
+        raise
+    except (ValueError, OSError, pd.errors.ParserError) as error:
+        raise MeasurementError(f"cannot read {path}: {error}") from None
+    return segments_from_frame(frame, n_joints=n_joints, model=model, require=require, resample=resample,
+                               source=str(path), max_gap=max_gap, split=split)
+
+
+def read_parquet_frame(path: Path) -> pd.DataFrame:
+    try:
+        import pyarrow  # noqa: F401  (pandas' Parquet engine)
+    except ImportError:
+        raise ParquetSupportError(
+            f"cannot read {path}: Parquet needs the pyarrow package (pip install pyarrow); or save the data as CSV"
+        ) from None
+    return pd.read_parquet(path)
+
+
+def segments_from_frame(
+    frame: pd.DataFrame,
+    *,
+    n_joints: int | None = None,
+    model: IdentificationModel | ModelKind | str | None = None,
+    require: Iterable[str] = ("q",),
+    resample: bool = True,
+    source: str = "data",
+    max_gap: float = DEFAULT_MAX_GAP,
+    split: bool = True,
+) -> tuple[Measurements, ...]:
+    """The checks of :func:`read_record` on a ``DataFrame`` already in memory."""
+    if isinstance(max_gap, bool) or not isinstance(max_gap, (int, float, np.floating)) or not max_gap > 0 \
+            or not np.isfinite(max_gap):
+        raise ValueError(f"max_gap must be a positive number of seconds, got {max_gap!r}")
+    frame = frame.rename(columns=lambda name: str(name).strip())
+    if isinstance(model, IdentificationModel):
+        robot_joints = model.robot.n_joints
+        if n_joints is not None and n_joints != robot_joints:
+            raise ValueError(f"n_joints={n_joints} but the model's robot has {robot_joints} joints")
+        n_joints = robot_joints
+    if n_joints is None:
+        n_joints = _count_joint_columns(frame, "q")
+        if n_joints == 0:
+            raise MissingColumnError(f"{source}: no joint position columns q1..qn")
+    else:
+        _check_no_further_joints(frame, n_joints, source)
+    groups = set(require) | set(required_groups(model)) | {"q"}
+    unknown = groups - set(COLUMN_GROUPS)
+    if unknown:
+        raise ValueError(f"unknown column groups {sorted(unknown)}; expected some of {COLUMN_GROUPS}")
+
+    _require_columns(frame, ["t"], "the time", source)
+    arrays: dict[str, NDArray[np.float64] | None] = {}
+    for group in ("q", "dq", "ddq", "tau", "wrench"):
+        columns = list(WRENCH_CHANNELS) if group == "wrench" else joint_columns(group, n_joints)
+        present = [column for column in columns if column in frame.columns]
+        if group in groups:
+            _require_columns(frame, columns, _GROUP_MEANING[group], source)
+        elif present and len(present) != len(columns):
+            missing = [column for column in columns if column not in frame.columns]
+            raise MissingColumnError(f"{source}: column(s) {', '.join(missing)} missing (the others of {group} are present)")
+        arrays[group] = _numeric(frame, columns, source) if len(present) == len(columns) else None
+    if pd.api.types.is_datetime64_any_dtype(frame["t"]) or pd.api.types.is_timedelta64_dtype(frame["t"]):
+        raise TimeBaseError(f"{source}: column t holds {frame['t'].dtype} dates or durations; "
+                            "the format wants seconds as numbers (e.g. (t - t[0]).dt.total_seconds())")
+    t = _numeric(frame, ["t"], source)[:, 0]
+    _check_absurd(t, arrays, n_joints, source)
+    t, arrays, dropped = _drop_repeated_rows(t, arrays, source)
+    step = _check_time(t, source)
+    _check_angles(arrays["q"], model, source)
+
+    gaps = find_gaps(t, step)
+    holes = [gap for gap in gaps if gap.duration > max_gap]
+    stalls = [gap for gap in gaps if gap.duration <= max_gap]
+    if holes and not split:
+        gap = holes[0]
+        raise HoleError(
+            f"{source}: column t jumps by {gap.duration:.4g} s between rows {gap.row} and {gap.row + 1} (t = {gap.t:.6g} s), "
+            f"{gap.duration / step:.3g} times the median step {step:.4g} s, and the samples do not catch up: a gap "
+            f"in the record longer than max_gap = {max_gap:g} s, which interpolation would fill with a straight line "
+            f"({len(holes)} such gap(s)); split the record there (several files, or read_record), or raise --max-gap"
+        )
+    if stalls:
+        warnings.warn(
+            f"{source}: the logger stalled {len(stalls)} time(s) for at most {max_gap:g} s (--max-gap), longest at "
+            f"{describe(sorted(stalls, key=lambda gap: -gap.duration))}; bridged by linear interpolation (resampled onto a uniform grid)", StallWarning, stacklevel=3)
+    if holes:
+        warnings.warn(
+            f"{source}: {len(holes)} hole(s) longer than --max-gap {max_gap:g} s at {describe(holes)}: the record is "
+            f"split into {len(holes) + 1} segments there, each preprocessed on its own", SplitWarning, stacklevel=3)
+    segments = []
+    for index, rows in enumerate(split_rows(t.shape[0], holes), start=1):
+        name = source if len(holes) == 0 else f"{source} (segment {index})"
+        piece = {key: None if values is None else values[rows] for key, values in arrays.items()}
+        if t[rows].shape[0] < 3:
+            raise SegmentTooShortError(f"{name}: {t[rows].shape[0]} sample(s) between holes (t = {t[rows][0]:.6g} s): "
+                                       "too few for a time series; cut them from the file")
+        metadata: dict[str, object] = {"source": source, "segment": index, "segments_in_file": len(holes) + 1,
+                                       "repeated_rows_dropped": dropped}
+        segment_t, piece = _uniform(t[rows], piece, resample, name, metadata, bridged=bool(stalls))
+        segments.append(Measurements(segment_t, piece["q"], piece["dq"], piece["ddq"], piece["tau"], piece["wrench"],
+                                     metadata))
+    if isinstance(model, IdentificationModel):
+        check_sample_count(segments, model)
+    return tuple(segments)
+
+
+def _drop_repeated_rows(t, arrays, source: str):
+    """Rows repeating the previous one on every channel: dropped, with one warning counting them."""
+    data = np.hstack([values for values in arrays.values() if values is not None])
+    repeated = repeated_rows(data) & np.concatenate([[False], np.diff(t) >= 0])
+    count = int(repeated.sum())
+    if count == 0:
+        return t, arrays, 0
+    rows = np.flatnonzero(repeated)
+    same_time = int(np.sum(np.diff(t)[rows - 1] == 0))
+    warnings.warn(
+        f"{source}: dropped {count} row(s) that repeat the previous row on every channel (a logger re-sending its "
+        f"last packet; {same_time} with the same time stamp, {count - same_time} with an advanced one), first at "
+        f"row {int(rows[0])} (t = {t[rows[0]]:.6g} s); the samples they stood for are interpolated",
+        RepeatedRowsWarning, stacklevel=4)
+    keep = ~repeated
+    return t[keep], {key: None if values is None else values[keep] for key, values in arrays.items()}, count
+
+
+def _check_absurd(t, arrays, n_joints: int, source: str) -> None:
+    """A value beyond :data:`ABSURD_VALUE` is named as such (before the unit checks misread it)."""
+    if np.any(np.abs(t) > 1e20):
+        row = int(np.flatnonzero(np.abs(t) > 1e20)[0])
+        raise AbsurdValueError(f"{source}: column t holds {t[row]:.4g} at row {row}: not a time stamp in any unit; "
+                               "a corrupt log? Remove or repair those rows")
+    columns = {}
+    for group, values in arrays.items():
+        if values is not None:
+            columns[group] = values
+    for group, values in columns.items():
+        beyond = np.abs(values) > ABSURD_VALUE
+        if beyond.any():
+            row, column = (int(index) for index in np.argwhere(beyond)[0])
+            names = (["t"] if group == "t" else list(WRENCH_CHANNELS) if group == "wrench"
+                     else joint_columns(group, n_joints))
+            raise AbsurdValueError(
+                f"{source}: column {names[column]} holds {values[row, column]:.4g} at row {row} ({int(beyond.sum())} "
+                f"value(s) beyond ±{ABSURD_VALUE:.0e} in {group}): no measurement in SI units is that large; "
+                "a corrupt log? Remove or repair those rows")

@@ -1,0 +1,4 @@
+"""Close the loop on measured data: the search for what a model lacks, its candidates, rules and confirmation, the final refit, the results and their report.
+
+Modules: :mod:`~estimation.diagnosis.candidate_trials`, :mod:`~estimation.diagnosis.confirmation`, :mod:`~estimation.diagnosis.coupling_candidates`, :mod:`~estimation.diagnosis.delay_candidate`, :mod:`~estimation.diagnosis.delay_search`, :mod:`~estimation.diagnosis.final_refit`, :mod:`~estimation.diagnosis.limit_laws`, :mod:`~estimation.diagnosis.report`, :mod:`~estimation.diagnosis.results`, :mod:`~estimation.diagnosis.search`, :mod:`~estimation.diagnosis.selection_rules`, :mod:`~estimation.diagnosis.sign_constraints`, :mod:`~estimation.diagnosis.statistics`, :mod:`~estimation.diagnosis.stopping_rules`, :mod:`~estimation.diagnosis.traced_refinement`.
+"""

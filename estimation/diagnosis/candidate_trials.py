@@ -1,0 +1,174 @@
+"""One step of the diagnosis: fit every candidate effect against the current model, per channel.
+
+A candidate (plain or shaped) is a :class:`~estimation.estimators.variable_projection.Block` appended to the
+current model's columns; its fit is a variable-projection fit (:func:`fit_shapes`, which for a
+plain effect is the linear solve alone) on the per-channel Gram matrices of the current columns,
+so one trial costs ``O(N p k)`` on the candidate's channels and an ``O((p+k)³)`` solve, instead
+of a least-squares solve of the whole stacked ``(N m) x (p+k)`` problem.
+
+Each trial carries the nested-model F test ``F = ((RSS₀ − RSS₁)/q) / (RSS₁/(N m − p₁))`` with
+``q`` the candidate's linear and shape parameters, and the Bayesian information criterion
+``N m log(RSS₁/RSS₀) + q log(N m)`` by which candidates of different sizes are ranked (a law with
+more shape parameters must explain more to win).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.stats
+from numpy.typing import NDArray
+
+from dynamics.effects.linear import POSITIVE_EFFECTS, Effect
+from dynamics.models import IdentificationModel
+from estimation.estimators.variable_projection import (
+    Block,
+    FixedPart,
+    LinearSolution,
+    ShapeFit,
+    ShapeSearchError,
+    States,
+    fit_shapes,
+    residuals,
+    solve_linear,
+)
+
+
+#: each term of a several-term friction law must exceed this many standard deviations
+SIGNIFICANT_TERM = 3.0
+
+
+@dataclass(frozen=True)
+class Trial:
+    """A candidate (one effect, or a friction law with its joint's offset) fitted on training data
+    against the current model."""
+
+    group: tuple[int, ...]
+    blocks: tuple[Block, ...]
+    fit: ShapeFit
+    rss: float
+    f_statistic: float
+    p_value: float
+    bic: float
+
+    def coefficients(self, position: int) -> NDArray[np.float64]:
+        """The linear coefficients of the ``position``-th block."""
+        stop = self.fit.theta.shape[0] - sum(block.n_linear for block in self.blocks[position + 1:])
+        return self.fit.theta[stop - self.blocks[position].n_linear: stop]
+
+    def coefficient_std(self, position: int) -> NDArray[np.float64]:
+        """Standard deviations of the ``position``-th block's linear coefficients (white residuals)."""
+        std = self.fit.theta_std
+        stop = std.shape[0] - sum(block.n_linear for block in self.blocks[position + 1:])
+        return std[stop - self.blocks[position].n_linear: stop]
+
+    def shapes(self) -> list[NDArray[np.float64]]:
+        parts, start = [], 0
+        for block in self.blocks:
+            parts.append(self.fit.shape[start:start + block.n_shape])
+            start += block.n_shape
+        return parts
+
+    @property
+    def n_parameters(self) -> int:
+        return sum(block.n_linear + block.n_shape for block in self.blocks)
+
+
+def nested_test(rss: float, rss_augmented: float, count: int, n_rows: int, n_fixed: int) -> tuple[float, float, float]:
+    """``(F, p_value, BIC difference)`` of ``count`` added parameters (module docstring): the current
+    model's weighted RSS ``rss`` with ``n_fixed`` parameters on ``n_rows`` rows, the augmented one's
+    ``rss_augmented``."""
+    dof = n_rows - n_fixed - count
+    statistic = ((rss - rss_augmented) / count) / (rss_augmented / dof) if rss_augmented > 0 else np.inf
+    p_value = float(scipy.stats.f.sf(statistic, count, dof)) if np.isfinite(statistic) else 0.0
+    bic = n_rows * np.log(max(rss_augmented, 1e-300) / rss) + count * np.log(n_rows)
+    return float(statistic), p_value, float(bic)
+
+
+def try_candidate(group: tuple[int, ...], blocks: Sequence[Block], fixed: FixedPart, states: States,
+                  weights: NDArray[np.float64], rss: float, *, starts: NDArray[np.float64] | None = None,
+                  search: bool = True) -> Trial:
+    """Fit one candidate group; raises :class:`numpy.linalg.LinAlgError` when the current columns
+    absorb plain candidates, :class:`ShapeSearchError` when a shaped search fails. Without
+    ``search`` the shapes stay at ``starts`` (a screening by the linear solve alone)."""
+    if all(block.n_shape == 0 for block in blocks):
+        solve_linear(fixed, blocks, states, [np.zeros(0)] * len(blocks), weights)  # rank check: LinAlgError when absorbed
+    fit = fit_shapes(fixed, blocks, states, weights, starts=starts, refine=3 if starts is None else 1,
+                     max_iter=60 if search else 0, covariance="none")
+    count = sum(block.n_linear + block.n_shape for block in blocks)
+    statistic, p_value, bic = nested_test(rss, fit.rss, count, fixed.n_rows, fixed.n_fixed)
+    return Trial(tuple(group), tuple(blocks), fit, fit.rss, statistic, p_value, bic)
+
+
+def weighted_error(fixed: FixedPart, blocks: Sequence[Block], states: States, shapes: Sequence[NDArray[np.float64]],
+                   theta: NDArray[np.float64], weights: NDArray[np.float64]) -> tuple[float, NDArray[np.float64]]:
+    """Weighted MSE ``Σ_c w_c mean(r_c²)`` of ``θ`` (trained elsewhere) on a record, and ``r (m, N)``."""
+    columns = [block.evaluate(states, shape) for block, shape in zip(blocks, shapes)]
+    residual = residuals(fixed, blocks, LinearSolution(theta, 0.0, np.zeros((0, 0)), columns, None))
+    return float(weights @ np.mean(residual**2, axis=1)), residual
+
+
+def wrong_sign(trial: Trial) -> str | None:
+    """Why a candidate's estimate is not that effect, or ``None``: a friction law or armature
+    estimated negative, a negative stiffness, a shape parameter stopped at its bound."""
+    for position, block in enumerate(trial.blocks):
+        name = block.effect.name
+        coefficients = trial.coefficients(position)
+        if getattr(block.effect, "physical_kind", name) in POSITIVE_EFFECTS:
+            if np.any(np.asarray(coefficients) <= 0):
+                return f"{candidate_label(block.effect)} is estimated with a non-physical sign (a friction or inertia below zero)"
+            if coefficients.shape[0] > 1:  # a law with several terms (Stribeck: fc, fs) needs each of them
+                std = trial.coefficient_std(position)
+                weak = [f"{term} = {value:.3g} ± {sigma:.2g}" for term, value, sigma in zip(block.names, coefficients, std)
+                        if value < SIGNIFICANT_TERM * sigma]
+                if weak:
+                    return (f"its term {', '.join(weak)} is not significantly above zero: a law with fewer terms "
+                            "describes the data")
+        if name == "spring" and np.any(coefficients <= 0):
+            return "a negative stiffness is not a physical spring (it pushes away from its rest position)"
+    start = 0
+    for block in trial.blocks:
+        for parameter in block.parameters:
+            value = trial.fit.shape[start]
+            start += 1
+            span = parameter.upper - parameter.lower
+            if min(value - parameter.lower, parameter.upper - value) <= 1e-4 * span:
+                return (f"its shape parameter {parameter.name} = {value:.4g} stopped at a bound [{parameter.lower:g}, "
+                        f"{parameter.upper:g}]: the data ask for another law")
+    return None
+
+
+def joints_of(block: Block, model: IdentificationModel) -> tuple[int, ...]:
+    """The joints (0-based) whose torque rows a block reaches."""
+    joints = []
+    for row in block.rows:
+        channel = model.channels[row]
+        if channel.startswith("tau"):
+            joints.append(int(channel[3:]) - 1)
+    return tuple(joints)
+
+
+def trial_starts(previous: ShapeFit | None) -> NDArray[np.float64] | None:
+    """Start from the candidate's last optimum once it has one (the grid only on the first round)."""
+    if previous is None or previous.shape.size == 0:
+        return None
+    return previous.shape[None, :]
+
+
+def fit_or_reason(group: tuple[int, ...], blocks: Sequence[Block], fixed: FixedPart, states: States,
+                  weights: NDArray[np.float64], rss: float, previous: ShapeFit | None, *, search: bool = True) -> Trial | str:
+    """A :class:`Trial`, or the reason the candidate cannot be fitted here (``search``: see
+    :func:`try_candidate`; a candidate without a previous fit is always searched)."""
+    try:
+        return try_candidate(group, blocks, fixed, states, weights, rss, starts=trial_starts(previous),
+                             search=search or previous is None)
+    except np.linalg.LinAlgError:
+        return "not identifiable: the base parameters already absorb it"
+    except ShapeSearchError as error:
+        return f"shape search failed: {error}"
+
+
+def candidate_label(effect: Effect) -> str:
+    return getattr(effect, "spec", effect.name)

@@ -1,0 +1,132 @@
+"""The delay between torques and motion as a candidate of the diagnosis (:mod:`estimation.preprocessing.delay`).
+
+A delay is not a column block: it moves the motion every column is evaluated along. In a round of
+the diagnosis it is fitted on the current columns (the base regressor and the effects already
+added, at their shapes; :func:`estimation.identification.delayed.fit_delay`) and competes with the
+column candidates on the same terms: the nested F test with one parameter, BIC, and confirmation on
+the held-out record moved by the same delay (one measurement chain), both models trained and compared
+at the weights the candidate's own residuals give. Once adopted, the search goes on along the
+delayed motion.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from estimation.diagnosis.candidate_trials import nested_test, weighted_error
+from estimation.diagnosis.confirmation import Comparison, settled_weights
+from estimation.identification.delayed import DelayFit, fit_delay
+from dynamics.measurements import Measurements
+from estimation.preprocessing.delay import DELAY, DelayBounds, delayed
+from estimation.estimators.variable_projection import Block, FixedPart, States, solve_linear
+
+Regressor = Callable[[Measurements], NDArray[np.float64]]
+
+
+def current_columns(regressor: Regressor, blocks: Sequence[Block], shapes: Sequence[NDArray[np.float64]],
+                    n_channels: int) -> Regressor:
+    """The current model's columns along a record: the regressor and each added block at its shape."""
+
+    def columns(record: Measurements) -> NDArray[np.float64]:
+        Y = np.asarray(regressor(record))
+        states = States(record.q, record.dq, record.ddq)
+        parts = [Y]
+        for block, shape in zip(blocks, shapes):
+            extra = np.zeros((record.n_samples, n_channels, block.n_linear))
+            extra[:, list(block.rows), :] = block.evaluate(states, shape)
+            parts.append(extra)
+        return np.concatenate(parts, axis=2)
+
+    return columns
+
+
+@dataclass(frozen=True)
+class DelayTrial:
+    """The delay fitted against the current columns, with the statistics the ranking needs."""
+
+    fit: DelayFit
+    rss: float
+    f_statistic: float
+    p_value: float
+    bic: float
+    group: tuple[str, ...] = (DELAY,)
+
+    @property
+    def delay(self) -> float:
+        return self.fit.delay
+
+
+def try_delay(columns: Regressor, train: Measurements, channels: tuple[str, ...], weights: NDArray[np.float64],
+              rss: float, n_fixed: int, bounds: DelayBounds) -> DelayTrial | str:
+    """The delay trial, or why it cannot be fitted here."""
+    try:
+        fit = fit_delay(columns, train, channels, weights, bounds)
+    except (np.linalg.LinAlgError, FloatingPointError, ValueError) as error:
+        return f"delay search failed: {error}"
+    return DelayTrial(fit, fit.rss, *nested_test(rss, fit.rss, 1, train.n_samples * len(channels), n_fixed))
+
+
+@dataclass(frozen=True)
+class DelayComparison:
+    """The delayed model against the current one on held-out data (:class:`Comparison`), and the
+    delayed records' fixed parts, should it be adopted."""
+
+    comparison: Comparison
+    fixed_train: FixedPart
+    fixed_validate: FixedPart
+
+
+def compare_delay(trial: DelayTrial, columns: Regressor, train: Measurements, recorded: Measurements,
+                  channels: tuple[str, ...], fixed_train: FixedPart, fixed_validate: FixedPart,
+                  weights: NDArray[np.float64]) -> DelayComparison:
+    """Both models trained at the weights the delayed model's residuals give; validation errors against
+    the validation channels as recorded, along the validation motion moved by the same delay."""
+    moved_train, moved_validate = delayed(train, trial.delay), delayed(recorded, trial.delay)
+    candidate_train = FixedPart.from_arrays(columns(moved_train), moved_train.channels(list(channels)))
+    candidate_validate = FixedPart.from_arrays(columns(moved_validate), moved_validate.channels(list(channels)))
+    settled = settled_weights(candidate_train, [], None, [], weights)
+    candidate = solve_linear(candidate_train, [], None, [], settled)
+    error, residual = weighted_error(candidate_validate, [], None, [], candidate.theta, settled)
+    current = solve_linear(fixed_train, [], None, [], settled)
+    current_error, current_residual = weighted_error(fixed_validate, [], None, [], current.theta, settled)
+    return DelayComparison(Comparison(settled, error, residual, current_error, current_residual),
+                           candidate_train, candidate_validate)
+
+
+def channels_made_worse(comparison: Comparison, tolerance: float, channels: Sequence[str]) -> str:
+    """Every channel whose validation MSE the delay raises by more than ``tolerance`` (it acts on all)."""
+    before = np.mean(comparison.current_residual**2, axis=1)
+    after = np.mean(comparison.residual**2, axis=1)
+    return ", ".join(f"{channel} ({b:.4g} -> {a:.4g})" for channel, b, a in zip(channels, before, after)
+                     if a > (1.0 + tolerance) * b)
+
+
+def screen_delay(columns: Regressor, train: Measurements, channels: tuple[str, ...], weights: NDArray[np.float64],
+                 rss: float, n_fixed: int, delay: float) -> DelayTrial | str:
+    """The delay trial at its last optimum (one evaluation: a screening, as for the shaped candidates)."""
+    moved = delayed(train, delay)
+    try:
+        fixed = FixedPart.from_arrays(columns(moved), moved.channels(list(channels)))
+        value = solve_linear(fixed, [], None, [], weights).rss
+    except (np.linalg.LinAlgError, FloatingPointError) as error:
+        return f"delay search failed: {error}"
+    empty = np.zeros(0)
+    fit = DelayFit(delay, float("nan"), float(value), float("nan"), empty, empty, empty)
+    return DelayTrial(fit, float(value), *nested_test(rss, float(value), 1, train.n_samples * len(channels), n_fixed))
+
+
+def around(delay: float, bounds: DelayBounds, duration: float) -> DelayBounds:
+    """A local search window: two grid steps either side of ``delay``, within ``bounds``."""
+    window = bounds.within(duration)
+    step = (window.upper - window.lower) / (window.points - 1)
+    lower, upper = max(window.lower, delay - 2 * step), min(window.upper, delay + 2 * step)
+    return DelayBounds(lower, upper, 5)
+
+
+def at_bound(trial: DelayTrial, bounds: DelayBounds, duration: float) -> bool:
+    window = bounds.within(duration)
+    return min(trial.delay - window.lower, window.upper - trial.delay) <= 1e-4 * (window.upper - window.lower)

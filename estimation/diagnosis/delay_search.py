@@ -1,0 +1,122 @@
+"""The delay candidate's state through the rounds of a diagnosis (:mod:`estimation.diagnosis.delay_candidate`).
+
+First round: the delay searched on its whole grid; later rounds: screened at its last optimum (one
+evaluation) and searched again near it only when it ranks among the best candidates, as the shaped
+candidates are (:data:`estimation.diagnosis.search.SCREEN_REFINED`). Once adopted, the training and
+validation motions are moved by it for the rest of the search.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Sequence
+
+import numpy as np
+from numpy.typing import NDArray
+
+from estimation.diagnosis.delay_candidate import (
+    DelayComparison,
+    DelayTrial,
+    Regressor,
+    around,
+    at_bound,
+    channels_made_worse,
+    compare_delay,
+    current_columns,
+    screen_delay,
+    try_delay,
+)
+from dynamics.measurements import Measurements
+from estimation.preprocessing.delay import DELAY, DelayBounds, delayed, longest_piece
+from estimation.identification.shaped import ShapeValue
+from estimation.estimators.variable_projection import Block, FixedPart
+
+#: a screened delay is searched again when fewer than this many candidates rank above it
+REFINED_RANK = 2
+
+
+class DelaySearch:
+    """The delay candidate of one diagnosis: its last optimum, why it was not adopted, or the adopted trial."""
+
+    def __init__(self, train: Measurements, recorded: Measurements, regressor: Regressor,
+                 bounds: DelayBounds | None) -> None:
+        self.train, self.recorded, self.regressor, self.bounds = train, recorded, regressor, bounds
+        self.duration = longest_piece(train)
+        self.previous: float | None = None
+        self.reason: str | None = None
+        self.adopted: DelayTrial | None = None
+        self.tried = False
+
+    def _columns(self, blocks: Sequence[Block], shapes: Sequence[NDArray[np.float64]], model) -> Regressor:
+        return current_columns(self.regressor, blocks, shapes, model.n_channels)
+
+    def trials(self, blocks, shapes, model, weights, rss: float, n_fixed: int, others) -> list[DelayTrial]:
+        """This round's delay trial (none once adopted, failed, or not asked for)."""
+        if self.bounds is None or self.adopted is not None or (self.reason or "").startswith("delay search failed"):
+            return []
+        self.tried = True
+        columns, channels = self._columns(blocks, shapes, model), tuple(model.channels)
+        if self.previous is None:
+            trial = try_delay(columns, self.train, channels, weights, rss, n_fixed, self.bounds)
+        else:
+            trial = screen_delay(columns, self.train, channels, weights, rss, n_fixed, self.previous)
+            if not isinstance(trial, str) and sum(other.bic < trial.bic for other in others) < REFINED_RANK:
+                trial = try_delay(columns, self.train, channels, weights, rss, n_fixed,
+                                  around(self.previous, self.bounds, self.duration))
+        if isinstance(trial, str):
+            self.reason = trial
+            return []
+        self.previous = trial.delay
+        return [trial]
+
+    def confirm(self, trial: DelayTrial, blocks, shapes, model, fixed_train: FixedPart, fixed_validate: FixedPart,
+                weights: NDArray[np.float64], min_improvement: float) -> DelayComparison | None:
+        """The comparison on held-out data when the delay is confirmed, else ``None`` (the reason kept)."""
+        text = f"significant on training (p = {trial.p_value:.2g}) but "
+        if at_bound(trial, self.bounds, self.duration):
+            self.reason = text + f"it stopped at a bound of the search ({trial.delay:.4g} s): the data ask for another effect"
+            return None
+        outcome = compare_delay(trial, self._columns(blocks, shapes, model), self.train, self.recorded,
+                                tuple(model.channels), fixed_train, fixed_validate, weights)
+        comparison = outcome.comparison
+        if comparison.error >= (1.0 - min_improvement) * comparison.current_error:
+            change = ("raises the validation error" if comparison.error > comparison.current_error else
+                      f"lowers the validation error by less than {100 * min_improvement:g} %")
+            self.reason = text + f"{change} ({comparison.current_error:.4g} -> {comparison.error:.4g})"
+            return None
+        worse = channels_made_worse(comparison, min_improvement, model.channels)
+        if worse:
+            self.reason = text + f"raises the validation error of {worse}"
+            return None
+        return outcome
+
+    def adopt(self, trial: DelayTrial) -> tuple[Measurements, Measurements]:
+        """Adopt the delay: the training and validation records along the moved motion."""
+        self.adopted = trial
+        return delayed(self.train, trial.delay), delayed(self.recorded, trial.delay)
+
+    def final_bounds(self) -> DelayBounds | None:
+        """What the final fit searches the delay in (``None``: no delay adopted)."""
+        return None if self.adopted is None else self.bounds
+
+    def adopted_value(self) -> ShapeValue | None:
+        if self.adopted is None:
+            return None
+        window = self.bounds.within(self.duration)
+        return ShapeValue(DELAY, DELAY, self.adopted.delay, self.adopted.fit.std, window.lower, window.upper)
+
+    def not_adopted_reason(self, untested: str) -> str | None:
+        """Why the delay is not in the model (``None`` when adopted or not asked for); ``untested``: what
+        to say when no round tried it."""
+        if self.bounds is None or self.adopted is not None:
+            return None
+        if not self.tried:
+            return untested
+        return self.reason or "not significant"
+
+
+def with_delay(result, value: ShapeValue | None):
+    """``result`` carrying the delay ``value`` (when the fit that made it ran along moved records)."""
+    if value is None or result.delay is not None:
+        return result
+    return dataclasses.replace(result, delay=value, shapes=tuple(result.shapes) + (value,))

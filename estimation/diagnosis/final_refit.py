@@ -1,0 +1,66 @@
+"""The joint refit of what a diagnosis found (:func:`estimation.diagnosis.search.diagnose`, step 5).
+
+The declared model with the found effects (and the adopted delay) is identified again, every shape
+searched jointly from where the forward selection left it. When that refit fails, runs a shape to a
+bound or validates worse than the shapes as selected, the shapes stay as selected (and a smoothed
+Coulomb law whose smoothing ran to its bound becomes the sign law, :mod:`estimation.diagnosis.limit_laws`); then
+a several-term law the fit does not support becomes its simpler law (:func:`simplify_laws`), and a
+friction or inertia term below zero is held at zero (:mod:`estimation.diagnosis.sign_constraints`).
+"""
+
+from __future__ import annotations
+
+from dynamics.models import build_model
+from dynamics.effects.shaped import shape_parameters
+from estimation.diagnosis.confirmation import simplify_laws, weighted_validation
+from estimation.diagnosis.delay_search import with_delay
+from estimation.identification.fit import identify
+from estimation.diagnosis.limit_laws import replace_limit_laws
+from estimation.preprocessing.delay import delayed
+from estimation.diagnosis.sign_constraints import pin_wrong_signs
+from estimation.estimators.variable_projection import ShapeSearchError
+
+
+def refit_found(model, before, selected, selected_effects, selected_shapes, moved, train, validate, weights,
+                validation_error: float, min_improvement: float):
+    """``(selected, after, pinned)``: the findings kept, the refitted model (carrying the delay, if
+    one was adopted) and the terms held at zero.
+
+    ``selected``: ``[(effect, p_value, f_statistic)]``; ``selected_effects``, ``selected_shapes``: the
+    found effects and their shapes as selected; ``moved``: the diagnosis' delay candidate
+    (:class:`estimation.diagnosis.delay_search.DelaySearch`); ``train``, ``validate``: the records as given;
+    ``weights``, ``validation_error``: the last adopted model's channel weights and weighted validation
+    error.
+    """
+    after = before
+    if selected or moved.adopted is not None:
+        current = build_model(model.robot, model.kind, model.effects + tuple(effect for effect, _, _ in selected))
+        starts = {parameter.name: float(value) for effect, shape in zip(selected_effects, selected_shapes)
+                  for parameter, value in zip(shape_parameters(effect, model.robot), shape)}
+        if before.shaped_fit is not None:
+            starts.update({value.name: value.value for value in before.shapes})
+        try:
+            after = identify(current, train, validate, shape_starts=starts, delay=moved.final_bounds())
+        except ShapeSearchError:  # the joint refit ran a shape to where the data do not determine it
+            after = None
+        fallback = after is None or any(value.at_bound for value in after.shapes) \
+            or weighted_validation(after, weights) > 1.05 * validation_error
+        # the refits below run along the records moved by the delay of the fit kept (the selection's when
+        # the joint refit is rejected), the delay carried over
+        fitted_delay = moved.adopted_value() if fallback or after.delay is None else after.delay
+        if fitted_delay is not None:
+            train, validate = delayed(train, fitted_delay.value), delayed(validate, fitted_delay.value)
+        if fallback:
+            # the joint refit of the shapes wandered off (to a bound, or worse on held-out data than the
+            # shapes as selected): keep the shapes as selected, estimate the rest and the covariance there
+            after = identify(current, train, validate, shape_starts=starts, shape_search=False)
+            # a tanh smoothing run to its bound is the sign law (estimation.diagnosis.limit_laws)
+            selected, after, starts = replace_limit_laws(selected, after, model, train, validate, starts, weights,
+                                                         min_improvement)
+        selected, after = simplify_laws(selected, after, model, train, validate, starts, weights, min_improvement)
+    else:
+        fitted_delay = None
+    selected, after, pinned = pin_wrong_signs(selected, after, model, train, validate,
+                                              starts if selected else {value.name: value.value for value in before.shapes})
+    after = with_delay(after, fitted_delay)
+    return selected, after, pinned

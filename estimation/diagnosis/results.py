@@ -1,0 +1,118 @@
+"""What a diagnosis returns (:func:`estimation.diagnosis.search.diagnose`): the effects found, the candidates
+rejected and why, the model before and after, and the JSON document of ``oed diagnose``."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+from dynamics.effects.linear import Effect
+from dynamics.models import IdentificationModel
+from dynamics.effects.shaped import shape_parameters
+from estimation.diagnosis.candidate_trials import candidate_label
+from estimation.diagnosis.statistics import ResidualReport
+from estimation.identification.fit import IdentificationResult
+from estimation.diagnosis.sign_constraints import PinnedTerm
+from estimation.estimators.variable_projection import effect_rows
+
+
+@dataclass(frozen=True)
+class FoundEffect:
+    """An effect the data asked for, with its estimates in the augmented model."""
+
+    name: str
+    channels: tuple[str, ...]
+    parameters: tuple[str, ...]
+    values: tuple[float, ...]
+    std: tuple[float, ...]
+    p_value: float
+    f_statistic: float
+    spec: str = ""
+    shape: dict[str, float] = field(default_factory=dict)
+    shape_std: dict[str, float] = field(default_factory=dict)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "name": self.name, "channels": list(self.channels), "parameters": list(self.parameters),
+            "values": list(self.values), "std": list(self.std), "p_value": self.p_value, "f_statistic": self.f_statistic,
+            "spec": self.spec or self.name, "shape": dict(self.shape), "shape_std": dict(self.shape_std),
+        }
+
+
+@dataclass(frozen=True)
+class RejectedEffect:
+    """A candidate that was not added, and why."""
+
+    name: str
+    channels: tuple[str, ...]
+    reason: str
+    spec: str = ""
+
+
+@dataclass(frozen=True)
+class Diagnosis:
+    """Result of :func:`diagnose`."""
+
+    effects: tuple[FoundEffect, ...]
+    rejected: tuple[RejectedEffect, ...]
+    before: IdentificationResult
+    after: IdentificationResult
+    residuals: dict[str, dict[str, float]] = field(repr=False)
+    statistics: ResidualReport | None = field(default=None, repr=False)
+    pinned: tuple[PinnedTerm, ...] = ()
+
+    def to_dict(self) -> dict[str, Any]:
+        """The JSON document of ``oed diagnose``."""
+        document = {
+            "robot": self.before.model.robot.name,
+            "model": self.before.model.kind.value,
+            "declared_effects": [effect.name for effect in self.before.model.effects],
+            "effects": [effect.to_dict() for effect in self.effects],
+            "rejected": [{"name": r.name, "spec": r.spec or r.name, "channels": list(r.channels), "reason": r.reason}
+                         for r in self.rejected],
+            "residuals": self.residuals,
+            "warnings": {"before": list(self.before.warnings), "after": list(self.after.warnings)},
+            "train": {"before": {"mse": self.before.train.mse}, "after": {"mse": self.after.train.mse}},
+            "validation": {
+                "before": {"mse": self.before.validation.mse if self.before.validation else None},
+                "after": {"mse": self.after.validation.mse if self.after.validation else None},
+            },
+            "cov_method": self.after.estimate.cov_method,
+            "pinned": [term.to_dict() for term in self.pinned],
+        }
+        if self.statistics is not None:  # noise floor, tracing, whiteness (estimation.diagnosis.statistics)
+            document.update(self.statistics.to_dict())
+            for which in ("before", "after"):
+                document["validation"][which]["mse_over_floor"] = self.statistics.ratios(which) or None
+        return document
+
+
+def found_effect(after: IdentificationResult, effect: Effect, p_value: float, statistic: float,
+           model: IdentificationModel) -> FoundEffect:
+    names = list(after.estimate.names)
+    parameters = tuple(effect.parameter_names(model.robot))
+    indices = [names.index(name) for name in parameters]
+    shape_names = {parameter.name for parameter in shape_parameters(effect, model.robot)}
+    shapes = {value.name: value for value in after.shapes if value.name in shape_names}
+    return FoundEffect(
+        name=effect.name,
+        channels=tuple(model.channels[row] for row in effect_rows(model.kind, model.robot, effect, model.n_channels)),
+        parameters=parameters,
+        values=tuple(float(after.estimate.values[i]) for i in indices),
+        std=tuple(float(after.estimate.std[i]) for i in indices),
+        p_value=p_value,
+        f_statistic=float(statistic),
+        spec=candidate_label(effect),
+        shape={name: value.value for name, value in shapes.items()},
+        shape_std={name: value.std for name, value in shapes.items()},
+    )
+
+
+def found_delay(after: IdentificationResult, trial: Any, model: IdentificationModel) -> tuple[FoundEffect, ...]:
+    """The adopted delay (``trial``: :class:`estimation.diagnosis.delay_candidate.DelayTrial`, or ``None``) as a
+    found effect: no linear coefficients, its value a shape parameter."""
+    if trial is None or after.delay is None:
+        return ()
+    return (FoundEffect(name="delay", channels=tuple(model.channels), parameters=(), values=(), std=(),
+                        p_value=trial.p_value, f_statistic=trial.f_statistic, spec="delay",
+                        shape={"delay": after.delay.value}, shape_std={"delay": after.delay.std}),)

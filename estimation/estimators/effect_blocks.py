@@ -1,0 +1,164 @@
+"""An effect's columns in an identification problem: which channels it reaches, its compiled columns
+and their derivatives with respect to its shape parameters, over the samples.
+
+:class:`Block` is what :mod:`estimation.estimators.variable_projection` and the diagnosis
+(:mod:`estimation.diagnosis.candidate_trials`) fit: one named ``casadi.Function`` per effect and model kind
+(columns, and columns stacked with their Jacobian in the shape parameters), built once, cached and
+evaluated over the samples by the compiled sample loop (:class:`dynamics.compiled.SampleEvaluator`).
+"""
+
+from __future__ import annotations
+
+import functools
+import re
+from dataclasses import dataclass
+
+import casadi
+import numpy as np
+from numpy.typing import NDArray
+
+from dynamics.compiled import SampleEvaluator
+from dynamics.effects.linear import Effect
+from dynamics.models import ModelKind
+from dynamics.robot import RobotModel
+from dynamics.effects.shaped import ShapeParameter, shape_parameters, start_grid
+
+
+class ShapeSearchError(ValueError):
+    """The search for an effect's shape parameters failed (non-finite or singular everywhere)."""
+
+
+class NoRowsError(ValueError):
+    """An effect has no rows in the model (friction in the external model, say)."""
+
+
+#: random states at which an effect's rows are looked for: velocities from 1e-3 to 3 (a Stribeck
+#: column underflows to zero at |dq| = 2.3 with a small Stribeck velocity, and tanh(dq/v) is ±1 far out)
+ROW_CHECK_STATES = 16
+
+
+@functools.lru_cache(maxsize=512)
+def effect_block_functions(kind: ModelKind, robot: RobotModel, effect: Effect) -> tuple[SampleEvaluator, SampleEvaluator]:
+    """``(columns, columns_and_jacobian)`` over samples: per sample ``(q, dq, ddq[, shape]) -> vec(Cᵀ)``
+    (``C`` is ``m x k``) and ``-> [vec(Cᵀ); vec(∂vec(Cᵀ)/∂shape)]``, from one named CasADi function each,
+    built once per model kind and effect (compiled when a C compiler is present).
+
+    A plain effect has no ``shape`` input.
+    """
+    n = robot.n_joints
+    q, dq, ddq = (casadi.SX.sym(name, n) for name in ("q", "dq", "ddq"))
+    parameters = shape_parameters(effect, robot)
+    shape = casadi.SX.sym("shape", len(parameters))
+    if parameters:
+        joint, wrench = effect.shaped_columns(robot, q, dq, ddq, shape)
+    else:
+        joint, wrench = effect.columns(robot, q, dq, ddq)
+    count = len(effect.parameter_names(robot))
+    joint_block = joint if joint is not None and kind is not ModelKind.EXTERNAL else casadi.SX.zeros(n, count)
+    wrench_block = wrench if wrench is not None and kind is not ModelKind.INTERNAL else casadi.SX.zeros(6, count)
+    block = {
+        ModelKind.INTERNAL: joint_block,
+        ModelKind.EXTERNAL: wrench_block,
+        ModelKind.COMBINED: casadi.vertcat(wrench_block, joint_block),
+    }[kind]
+    Ct = casadi.densify(casadi.vec(casadi.SX(block).T))
+    label = "".join(character if character.isalnum() else "_" for character in getattr(effect, "spec", effect.name))
+    joints = getattr(effect, "joints", None)
+    label += "" if joints is None else "_j" + "_".join(str(joint) for joint in joints)
+    label = re.sub(r"_+", "_", label).strip("_")  # coulomb[q5+q6]: a CasADi name has no '__'
+    label = label if label[:1].isalpha() else f"effect_{label}"
+    inputs, names_in = [q, dq, ddq], ["q", "dq", "ddq"]
+    if parameters:
+        inputs.append(shape)
+        names_in.append("shape")
+    columns = casadi.Function(f"{label}_{kind.value}_columns", inputs, [Ct], names_in, ["Ct"])
+    jacobian = casadi.densify(casadi.jacobian(Ct, shape)) if parameters else casadi.SX(0, 1)
+    both = casadi.Function(f"{label}_{kind.value}_columns_jacobian", inputs,
+                           [casadi.vertcat(Ct, casadi.vec(jacobian))], names_in, ["Ct_dCt"])
+    return SampleEvaluator(columns), SampleEvaluator(both)
+
+
+def _evaluate(evaluator: SampleEvaluator, q, dq, ddq, shape: NDArray[np.float64] | None) -> NDArray[np.float64]:
+    inputs = [q, dq, ddq]
+    if shape is not None and np.size(shape):
+        inputs.append(np.broadcast_to(np.asarray(shape, dtype=float), (q.shape[0], np.size(shape))))
+    return evaluator(*inputs)
+
+
+def effect_columns(kind: ModelKind, robot: RobotModel, effect: Effect, n_channels: int, states: States,
+                   shape: NDArray[np.float64] | None = None) -> NDArray[np.float64]:
+    """An effect's columns on every channel of a model, ``(N, m, k)``, at ``shape`` (default: the
+    first start of each shape parameter; none for a plain effect)."""
+    if shape is None:
+        shape = np.array([parameter.starts[0] for parameter in shape_parameters(effect, robot)], dtype=float)
+    columns, _ = effect_block_functions(kind, robot, effect)
+    values = _evaluate(columns, states.q, states.dq, states.ddq, shape)
+    return values.reshape(states.n_samples, n_channels, len(effect.parameter_names(robot)))
+
+
+def effect_rows(kind: ModelKind, robot: RobotModel, effect: Effect, n_channels: int) -> tuple[int, ...]:
+    """The channels an effect's columns reach: nonzero at any of :data:`ROW_CHECK_STATES` random
+    states (velocities spread over three decades) and shape values (the declared starts)."""
+    columns, _ = effect_block_functions(kind, robot, effect)
+    generator = np.random.default_rng(0)
+    n = robot.n_joints
+    scales = np.geomspace(1e-3, 3.0, ROW_CHECK_STATES)
+    q = generator.uniform(-np.pi, np.pi, (ROW_CHECK_STATES, n))
+    dq = generator.choice([-1.0, 1.0], (ROW_CHECK_STATES, n)) * scales[:, None] * generator.uniform(0.5, 1.5, (ROW_CHECK_STATES, n))
+    ddq = generator.normal(size=(ROW_CHECK_STATES, n))
+    grid = start_grid(shape_parameters(effect, robot))
+    reached = np.zeros(n_channels, dtype=bool)
+    for point in grid[: max(1, min(len(grid), 4))]:
+        inputs = [q.T, dq.T, ddq.T] + ([point] if point.size else [])
+        values = np.asarray(columns.function.map(ROW_CHECK_STATES)(*inputs))  # the VM: no compilation for 16 states
+        values = values.T.reshape(ROW_CHECK_STATES, n_channels, -1)
+        reached |= np.any(np.nan_to_num(values) != 0, axis=(0, 2))
+    return tuple(int(index) for index in np.flatnonzero(reached))
+
+
+@dataclass(frozen=True)
+class States:
+    """Joint states of one record, ``(N, n)`` each (the inputs of the column functions)."""
+
+    q: NDArray[np.float64]
+    dq: NDArray[np.float64]
+    ddq: NDArray[np.float64]
+
+    @property
+    def n_samples(self) -> int:
+        return self.q.shape[0]
+
+
+class Block:
+    """One effect's columns in a problem: its channels, linear names, shape parameters."""
+
+    def __init__(self, kind: ModelKind, robot: RobotModel, effect: Effect, n_channels: int) -> None:
+        self.effect = effect
+        self.parameters: tuple[ShapeParameter, ...] = shape_parameters(effect, robot)
+        self.names = tuple(effect.parameter_names(robot))
+        self.rows = effect_rows(kind, robot, effect, n_channels)
+        if not self.rows:
+            raise NoRowsError(f"effect {getattr(effect, 'spec', effect.name)!r} has no rows in the {kind.value} model "
+                              "(its columns are zero on every channel)")
+        self.columns_function, self.jacobian_function = effect_block_functions(kind, robot, effect)
+        self.n_channels = n_channels
+
+    @property
+    def n_shape(self) -> int:
+        return len(self.parameters)
+
+    @property
+    def n_linear(self) -> int:
+        return len(self.names)
+
+    def evaluate(self, states: States, shape: NDArray[np.float64], *, jacobian: bool = False):
+        """Columns on the block's rows ``(N, rows, k)`` and, with ``jacobian``, ``(n_s, N, rows, k)``."""
+        n_samples, m, k = states.n_samples, self.n_channels, self.n_linear
+        function = self.jacobian_function if jacobian else self.columns_function
+        values = _evaluate(function, states.q, states.dq, states.ddq, shape)  # (N, m·k [+ m·k·n_s])
+        rows = list(self.rows)
+        columns = values[:, : m * k].reshape(n_samples, m, k)[:, rows, :]
+        if not jacobian:
+            return columns
+        derivative = values[:, m * k:].reshape(n_samples, self.n_shape, m, k)[:, :, rows, :].transpose(1, 0, 2, 3)
+        return columns, derivative

@@ -1,0 +1,252 @@
+"""Least squares from accumulated sums: per-channel Gram matrices and TSQR factors, summable.
+
+Identification needs the regressor only through sums over samples (PUMA paper, eq. 20): per
+channel ``c`` the Gram matrix ``Y_cᵀY_c``, the moment ``Y_cᵀy_c`` and the power ``y_cᵀy_c``. They
+add over chunks of a record and over records, so a record of any length, or many records on a
+cluster, reduce to ``m (r+1)²`` numbers without the ``(N, m, r)`` regressor in memory.
+
+Accuracy. Solving the normal equations squares the condition number; a QR factorisation of the
+stacked regressor does not. :class:`NormalEquations` therefore keeps, beside the Gram sums, the
+triangular factor ``R_c`` of the augmented block ``[Y_c | y_c] = Q_c R_c`` of every channel,
+accumulated as a TSQR: a chunk's rows are stacked under the current factor and re-factored
+(``[R; A_chunk] = Q' R'``), and two partial sums combine by factoring ``[R_a; R_b]``. Then
+``A_cᵀA_c = R_cᵀR_c`` exactly, and for channel weights ``w_c`` the weighted problem's factor is that
+of ``[√w_1 R_1; …; √w_m R_m]`` (``m (r+1)`` rows):
+:func:`estimation.estimators.summed_least_squares.solve_sums` solves it by back
+substitution, as accurately as a QR of the full weighted ``(N m) x r`` regressor. Residual sums of
+squares come from the factors too (``‖y_c − Y_c θ‖² = ‖R_c [θ; −1]‖²``), free of the cancellation
+of ``yᵀy − 2θᵀYᵀy + θᵀYᵀYθ``. The Gram sums are kept for what is naturally a sum (sub-blocks of
+candidate columns for F tests, :mod:`estimation.streaming.candidate_screening`) and as a cross-check.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.linalg
+from numpy.typing import NDArray
+
+from dynamics.runtime.memory import check_allocation
+from dynamics.models import IdentificationModel
+from dynamics.runtime.threads import single_threaded_blas
+from dynamics.measurements import Measurements
+
+__all__ = ["DEFAULT_CHUNK_SIZE", "NormalEquations", "accumulate", "check_chunk_size", "reduce_sums", "stacked_factor"]
+
+#: samples a chunk. The regressor of a chunk is ``chunk x m x r`` floats: 10 000 samples of the
+#: 7-joint KUKA internal model with viscous friction (m = 7, r = 50) is 28 MB, the QR work array
+#: 4 MB, the overlap windows of the filter path a few MB. The fixed cost of a chunk (a compiled
+#: CasADi call, m LAPACK calls on (r+1)² extra rows, the filter margins) is paid once per chunk:
+#: ``benchmarks/bench_streaming.py --chunk-sizes`` measures the trade-off.
+DEFAULT_CHUNK_SIZE = 10_000
+
+
+def _factor_in_place(work: NDArray[np.float64], width: int) -> NDArray[np.float64]:
+    """``R`` (``width x width``) of a Fortran-ordered ``work`` (at least ``width`` rows), overwritten
+    by LAPACK ``dgeqrf`` (no ``Q``, no full-height ``R`` allocated)."""
+    qr, _, _, info = scipy.linalg.lapack.dgeqrf(work, overwrite_a=True)
+    if info != 0:
+        raise ValueError(f"QR factorisation failed (LAPACK info {info})")
+    return np.triu(qr[:width])
+
+
+def stacked_factor(blocks: list[NDArray[np.float64]], width: int) -> NDArray[np.float64]:
+    """Upper-triangular ``(width, width)`` factor ``R`` of the stacked ``blocks`` (zero rows padded)."""
+    rows = sum(block.shape[0] for block in blocks)
+    work = np.zeros((max(rows, width), width), order="F")
+    start = 0
+    for block in blocks:
+        work[start:start + block.shape[0]] = block
+        start += block.shape[0]
+    return _factor_in_place(work, width)
+
+
+@dataclass(frozen=True)
+class NormalEquations:
+    """Sums over samples of a linear problem ``y_c = Y_c θ + ε_c``, per channel ``c``.
+
+    Attributes
+    ----------
+    gram
+        ``(m, k, k)`` ``Y_cᵀY_c``.
+    moment
+        ``(m, k)`` ``Y_cᵀy_c``.
+    power
+        ``(m,)`` ``y_cᵀy_c``.
+    factor
+        ``(m, k+1, k+1)`` upper-triangular ``R_c`` of ``[Y_c | y_c]`` (TSQR; sign arbitrary).
+    n_samples
+        Samples summed.
+    channels, names, expressions
+        Channel names; column names and groupings (base parameters, then any candidate columns).
+    sources
+        What was summed (file names, chunks), for messages and the expected-count check.
+    """
+
+    gram: NDArray[np.float64]
+    moment: NDArray[np.float64]
+    power: NDArray[np.float64]
+    factor: NDArray[np.float64]
+    n_samples: int
+    channels: tuple[str, ...]
+    names: tuple[str, ...]
+    expressions: tuple[str, ...] = ()
+    sources: tuple[str, ...] = ()
+
+    def __post_init__(self) -> None:
+        m, k = len(self.channels), len(self.names)
+        shapes = {"gram": (m, k, k), "moment": (m, k), "power": (m,), "factor": (m, k + 1, k + 1)}
+        for name, shape in shapes.items():
+            array = np.array(getattr(self, name), dtype=float)
+            if array.shape != shape:
+                raise ValueError(f"{name} has shape {array.shape}, expected {shape} for {m} channels and {k} columns")
+            array.flags.writeable = False
+            object.__setattr__(self, name, array)
+        object.__setattr__(self, "expressions", tuple(self.expressions) or tuple(self.names))
+        object.__setattr__(self, "sources", tuple(self.sources))
+        if int(self.n_samples) != self.n_samples or self.n_samples < 0:
+            raise ValueError(f"n_samples must be a non-negative integer, got {self.n_samples}")
+
+    @property
+    def n_channels(self) -> int:
+        return len(self.channels)
+
+    @property
+    def n_columns(self) -> int:
+        return len(self.names)
+
+    @classmethod
+    def empty(cls, channels: tuple[str, ...], names: tuple[str, ...], expressions: tuple[str, ...] = ()) -> NormalEquations:
+        """Zero sums (the neutral element of ``+``)."""
+        m, k = len(channels), len(names)
+        return cls(np.zeros((m, k, k)), np.zeros((m, k)), np.zeros(m), np.zeros((m, k + 1, k + 1)), 0,
+                   tuple(channels), tuple(names), expressions)
+
+    @classmethod
+    def from_arrays(cls, Y: NDArray[np.float64], y: NDArray[np.float64], channels: tuple[str, ...],
+                    names: tuple[str, ...], expressions: tuple[str, ...] = (), source: str = "") -> NormalEquations:
+        """Sums of one block: regressor ``Y (N, m, k)``, measured ``y (N, m)``."""
+        Y, y = np.asarray(Y, dtype=float), np.asarray(y, dtype=float)
+        if Y.ndim != 3 or y.shape != Y.shape[:2] or Y.shape[1:] != (len(channels), len(names)):
+            raise ValueError(f"Y must be (N, {len(channels)}, {len(names)}) and y (N, {len(channels)}); "
+                             f"got Y {Y.shape}, y {y.shape}")
+        by_channel = Y.transpose(1, 2, 0)  # (m, k, N)
+        gram = np.matmul(by_channel, Y.transpose(1, 0, 2))
+        moment = np.matmul(by_channel, y.T[:, :, None])[:, :, 0]
+        power = np.einsum("nm,nm->m", y, y)
+        k = Y.shape[2]
+        factor = np.stack([stacked_factor([np.column_stack([Y[:, c, :], y[:, c]])], k + 1) for c in range(Y.shape[1])])
+        return cls(gram, moment, power, factor, Y.shape[0], tuple(channels), tuple(names), expressions,
+                   (source,) if source else ())
+
+    def _check_compatible(self, other: NormalEquations) -> None:
+        if not isinstance(other, NormalEquations):
+            raise TypeError(f"cannot add {type(other).__name__} to NormalEquations")
+        if other.channels != self.channels or other.names != self.names:
+            raise ValueError(f"sums of different problems: channels {self.channels} / {other.channels}, "
+                             f"columns {self.names} / {other.names}")
+
+    def __add__(self, other: NormalEquations) -> NormalEquations:
+        self._check_compatible(other)
+        width = self.n_columns + 1
+        factor = np.stack([stacked_factor([a, b], width) for a, b in zip(self.factor, other.factor)])
+        return NormalEquations(self.gram + other.gram, self.moment + other.moment, self.power + other.power,
+                               factor, self.n_samples + other.n_samples, self.channels, self.names,
+                               self.expressions, self.sources + other.sources)
+
+    def add_block(self, Y: NDArray[np.float64], y: NDArray[np.float64], source: str = "") -> NormalEquations:
+        """These sums plus a block's, re-factoring each channel's rows under its current factor
+        (one QR of ``(k+1) + N`` rows a channel rather than two)."""
+        Y, y = np.asarray(Y, dtype=float), np.asarray(y, dtype=float)
+        if Y.ndim != 3 or y.shape != Y.shape[:2] or Y.shape[1:] != (self.n_channels, self.n_columns):
+            raise ValueError(f"block Y {Y.shape}, y {y.shape} does not fit {self.n_channels} channels, {self.n_columns} columns")
+        by_channel = Y.transpose(1, 2, 0)
+        width = self.n_columns + 1
+        # one Fortran-ordered work array for every channel: [R_c; Y_c y_c] factored in place
+        # (allocation churn made this 3x slower in dask workers, which return freed memory eagerly)
+        work = np.empty((width + Y.shape[0], width), order="F")
+        factor = np.empty((self.n_channels, width, width))
+        for c in range(self.n_channels):
+            work[:width] = self.factor[c]
+            work[width:, :-1] = Y[:, c, :]
+            work[width:, -1] = y[:, c]
+            factor[c] = _factor_in_place(work, width)
+        return NormalEquations(
+            self.gram + np.matmul(by_channel, Y.transpose(1, 0, 2)),
+            self.moment + np.matmul(by_channel, y.T[:, :, None])[:, :, 0],
+            self.power + np.einsum("nm,nm->m", y, y), factor, self.n_samples + Y.shape[0],
+            self.channels, self.names, self.expressions, self.sources + ((source,) if source else ()),
+        )
+
+    def select(self, columns: Iterable[int]) -> NormalEquations:
+        """The sums of the problem restricted to some columns (the base block, a candidate added…):
+        Gram sub-blocks, and factors re-triangularised from the kept columns of ``R_c``."""
+        index = [int(i) for i in columns]
+        keep = index + [self.n_columns]
+        factor = np.stack([stacked_factor([R[:, keep]], len(keep)) for R in self.factor])
+        return NormalEquations(self.gram[:, index][:, :, index], self.moment[:, index], self.power, factor,
+                               self.n_samples, self.channels, tuple(self.names[i] for i in index),
+                               tuple(self.expressions[i] for i in index), self.sources)
+
+    def channel_rss(self, theta: NDArray[np.float64]) -> NDArray[np.float64]:
+        """``‖y_c − Y_c θ‖²`` per channel, ``(m,)``, from the factors."""
+        augmented = np.append(np.asarray(theta, dtype=float).reshape(-1), -1.0)
+        if augmented.shape[0] != self.n_columns + 1:
+            raise ValueError(f"expected {self.n_columns} parameter values, got {augmented.shape[0] - 1}")
+        return np.sum((self.factor @ augmented) ** 2, axis=1)
+
+    def channel_mse(self, theta: NDArray[np.float64]) -> dict[str, float]:
+        """Mean squared error per channel at ``θ`` (as :func:`estimation.identification.validation.channel_mse`)."""
+        if self.n_samples == 0:
+            raise ValueError("no samples summed")
+        return dict(zip(self.channels, map(float, self.channel_rss(theta) / self.n_samples)))
+
+
+def check_chunk_size(chunk_size: int, model: IdentificationModel, extra_columns: int = 0) -> int:
+    """A positive integer whose chunk fits in memory (regressor, its QR copies, the evaluation's output)."""
+    if isinstance(chunk_size, bool) or int(chunk_size) != chunk_size or chunk_size < 1:
+        raise ValueError(f"chunk size must be a positive integer, got {chunk_size!r}")
+    width = model.n_base + extra_columns + 1
+    check_allocation(8.0 * chunk_size * (3 * model.n_channels * width + 8 * model.robot.n_joints),
+                     f"a chunk of {chunk_size} samples")
+    return int(chunk_size)
+
+
+@single_threaded_blas()
+def accumulate(model: IdentificationModel, measurements: Measurements, *, chunk_size: int = DEFAULT_CHUNK_SIZE,
+               sums: NormalEquations | None = None, source: str = "") -> NormalEquations:
+    """Sums of ``model``'s base-parameter problem on ``measurements`` (with ``dq``, ``ddq``), the
+    regressor evaluated ``chunk_size`` samples at a time, added to ``sums`` if given."""
+    if measurements.dq is None or measurements.ddq is None:
+        raise ValueError("the measurements lack dq/ddq: derive them first (estimation.preprocessing.differentiation.fill_derivatives)")
+    if measurements.n_joints != model.robot.n_joints:
+        raise ValueError(f"the data have {measurements.n_joints} joints, the robot {model.robot.n_joints}")
+    chunk_size = check_chunk_size(chunk_size, model)
+    if sums is None:
+        sums = NormalEquations.empty(model.channels, model.base.names, model.base.expressions)
+    measured = measurements.channels(model.channels)
+    if not np.all(np.isfinite(measured)):
+        raise ValueError(f"{source or 'the data'}: a measured channel holds NaN or inf")
+    buffer = np.empty((min(chunk_size, measurements.n_samples), model.n_channels, model.n_base))
+    for start in range(0, measurements.n_samples, chunk_size):
+        stop = min(start + chunk_size, measurements.n_samples)
+        Y = model.evaluate_base(measurements.q[start:stop], measurements.dq[start:stop], measurements.ddq[start:stop],
+                                out=buffer[: stop - start])
+        if not np.all(np.isfinite(Y)):
+            raise ValueError(f"{source or 'the data'}: the regressor holds NaN or inf near sample {start}: "
+                             "check the measured q, dq, ddq")
+        sums = sums.add_block(Y, measured[start:stop])
+    return NormalEquations(sums.gram, sums.moment, sums.power, sums.factor, sums.n_samples, sums.channels,
+                           sums.names, sums.expressions, sums.sources + ((source,) if source else ()))
+
+
+def reduce_sums(parts: Iterable[NormalEquations]) -> NormalEquations:
+    """The sum of several partial sums (a pairwise tree: each combination re-factors two ``R``)."""
+    parts = list(parts)
+    if not parts:
+        raise ValueError("no sums to reduce")
+    while len(parts) > 1:
+        parts = [parts[i] + parts[i + 1] if i + 1 < len(parts) else parts[i] for i in range(0, len(parts), 2)]
+    return parts[0]

@@ -1,0 +1,149 @@
+"""Validation: predicted against measured channels, mean squared error per channel, figures.
+
+PUMA paper, section IV: identify on one trajectory, predict the torques and reaction wrench of
+another with the estimates, and compare — MSE per channel (Tables VI–VIII) and measured vs
+predicted curves (Figs. 7–9).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from dynamics.models import IdentificationModel
+from dynamics.measurements import Measurements
+from dynamics.runtime.output_files import save_figure
+from estimation.data.segments import segment_slices
+
+
+@dataclass(frozen=True)
+class Comparison:
+    """Measured and predicted channels of one experiment.
+
+    Attributes
+    ----------
+    t
+        ``(N,)`` time, s.
+    measured, predicted
+        ``(N, m)`` values per channel (N, N·m).
+    channels
+        Channel names, as the data columns.
+    label
+        What was compared (``train``, ``validation``, a file name…).
+    filtered
+        When ``measured`` is the recording and the estimation saw filtered or period-averaged
+        channels: the same comparison on those (``mse_filtered``), else ``None``.
+    segments
+        Sample ranges of the segments stacked here (plots break their lines there).
+    """
+
+    t: NDArray[np.float64]
+    measured: NDArray[np.float64]
+    predicted: NDArray[np.float64]
+    channels: tuple[str, ...]
+    label: str = ""
+    filtered: Comparison | None = None
+    segments: tuple[slice, ...] = ()
+
+    @property
+    def residuals(self) -> NDArray[np.float64]:
+        return self.measured - self.predicted
+
+    @property
+    def mse(self) -> dict[str, float]:
+        """Mean squared error per channel (Tables VI–VIII of the PUMA paper)."""
+        return channel_mse(self.measured, self.predicted, self.channels)
+
+    @property
+    def mse_filtered(self) -> dict[str, float] | None:
+        """MSE against the filtered/averaged channels the estimation saw (``None`` when it saw the recording)."""
+        return None if self.filtered is None else self.filtered.mse
+
+    def to_dict(self) -> dict[str, dict[str, float]]:
+        """``{mse}`` (against the recording) and, when there is one, ``{mse_filtered}``."""
+        document = {"mse": self.mse}
+        if self.filtered is not None:
+            document["mse_filtered"] = self.filtered.mse
+        return document
+
+    @property
+    def relative_mse(self) -> dict[str, float]:
+        """MSE divided by the measured channel's mean square (0 perfect, 1 no better than zero)."""
+        power = np.mean(self.measured**2, axis=0)
+        return {channel: value / power[index] if power[index] > 0 else float("inf")
+                for index, (channel, value) in enumerate(self.mse.items())}
+
+
+def channel_mse(measured: ArrayLike, predicted: ArrayLike, channels: Sequence[str]) -> dict[str, float]:
+    """``mean((measured − predicted)²)`` per channel."""
+    measured, predicted = np.asarray(measured, dtype=float), np.asarray(predicted, dtype=float)
+    if measured.shape != predicted.shape or measured.ndim != 2 or measured.shape[1] != len(channels):
+        raise ValueError(f"measured {measured.shape} and predicted {predicted.shape} must be (N, {len(channels)})")
+    return {channel: float(value) for channel, value in zip(channels, np.mean((measured - predicted) ** 2, axis=0))}
+
+
+def compare(model: IdentificationModel, theta: ArrayLike, measurements: Measurements, *, label: str = "") -> Comparison:
+    """Predict ``model``'s channels with parameters ``theta`` (base ``r`` or standard ``p`` values)
+    along the measured (or derived) motion and pair them with the channels **as recorded**
+    (``measurements.recorded`` when preprocessing filtered or averaged them; the comparison with
+    the filtered channels is kept as ``filtered``)."""
+    if measurements.dq is None or measurements.ddq is None:
+        raise ValueError("the measurements lack dq/ddq: derive them first (estimation.preprocessing.differentiation.fill_derivatives)")
+    filtered = _compare_as_is(model, theta, measurements, label)
+    if measurements.recorded is None:
+        return filtered
+    recorded = _compare_as_is(model, theta, measurements.recorded, label)
+    return replace(recorded, filtered=filtered)
+
+
+def _compare_as_is(model: IdentificationModel, theta: ArrayLike, measurements: Measurements, label: str) -> Comparison:
+    predicted = model.predict(theta, measurements.q, measurements.dq, measurements.ddq)
+    return Comparison(measurements.t, measurements.channels(model.channels), predicted, model.channels, label,
+                      segments=tuple(segment_slices(measurements)))
+
+
+def plot_comparison(comparisons: Comparison | Sequence[Comparison], path: str | Path | None = None, *, title: str = ""):
+    """Measured vs predicted per channel, one row of axes per channel (like Figs. 7–9), written
+    atomically to ``path`` when given (format from the suffix: ``.png``, ``.pdf``, ``.svg``).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    from matplotlib.figure import Figure  # no pyplot: no backend switch, no global figure registry
+
+
+    if isinstance(comparisons, Comparison):
+        comparisons = [comparisons]
+    comparisons = list(comparisons)
+    channels = comparisons[0].channels
+    units = {channel: ("N" if channel in ("fx", "fy", "fz") else "N·m") for channel in channels}
+    figure = Figure(figsize=(5.5 * len(comparisons), 1.9 * len(channels)))
+    axes = figure.subplots(len(channels), len(comparisons), sharex="col", squeeze=False)
+    for column, comparison in enumerate(comparisons):
+        mse = comparison.mse
+        for row, channel in enumerate(channels):
+            axis = axes[row, column]
+            measured_label = "measured (as recorded)" if comparison.filtered is not None else "measured"
+            for number, part in enumerate(comparison.segments or (slice(None),)):
+                axis.plot(comparison.t[part], comparison.measured[part, row], color="0.55", linewidth=0.8,
+                          label=measured_label if number == 0 else None)
+                axis.plot(comparison.t[part], comparison.predicted[part, row], color="C3", linewidth=1.0,
+                          label="predicted" if number == 0 else None)
+            axis.set_ylabel(f"{channel} [{units[channel]}]")
+            axis.text(0.99, 0.95, f"MSE vs recorded {mse[channel]:.3g}" if comparison.filtered is not None
+                      else f"MSE {mse[channel]:.3g}", transform=axis.transAxes, ha="right", va="top", fontsize=8)
+        segments = len(comparison.segments)
+        axes[0, column].set_title(comparison.label + (f" ({segments} segments, t of each)" if segments > 1 else ""))
+        axes[-1, column].set_xlabel("t [s]")
+    axes[0, 0].legend(loc="upper left", fontsize=8)
+    if title:
+        figure.suptitle(title)
+    figure.tight_layout()
+    if path is not None:
+        save_figure(figure, path)
+    return figure

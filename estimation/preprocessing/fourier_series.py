@@ -1,0 +1,93 @@
+"""Finite Fourier series of a periodic motion (PUMA paper, eq. 18): evaluation and least-squares fit.
+
+.. math::
+    q_i(t) = q_{0,i} + \\sum_{l=1}^{N} \\frac{a_{i,l}}{ω_f l} \\sin(ω_f l t) - \\frac{b_{i,l}}{ω_f l} \\cos(ω_f l t)
+
+The contract shared by the excitation design (:mod:`oed.fourier`, which builds on it) and the
+differentiation of measured positions (:mod:`estimation.preprocessing.differentiation`). The fit is linear least
+squares on the samples' own time stamps: any fundamental, any sampling (jittered, float32 stamps),
+any record length of at least one period works; no whole number of samples per period is needed.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+
+def evaluate_series(frequency_hz: float, q0: NDArray[np.float64], a: NDArray[np.float64], b: NDArray[np.float64],
+                    t: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """``q, dq, ddq`` of eq. 18 at times ``t``, each ``(len(t), n)``; ``q0 (n,)``, ``a, b (n, N)``."""
+    t = np.asarray(t, dtype=float).reshape(-1)
+    omega = 2 * np.pi * frequency_hz * np.arange(1, a.shape[1] + 1)  # (N,)
+    phase = np.outer(t, omega)  # (T, N)
+    sin, cos = np.sin(phase), np.cos(phase)
+    q = q0 + (sin / omega) @ a.T - (cos / omega) @ b.T
+    dq = cos @ a.T + sin @ b.T
+    ddq = (-sin * omega) @ a.T + (cos * omega) @ b.T
+    return q, dq, ddq
+
+
+def design_matrix(t: ArrayLike, frequency_hz: float, harmonics: int) -> NDArray[np.float64]:
+    """``(T, 2N+1)`` columns ``[1, sin(ω_l t)/ω_l, −cos(ω_l t)/ω_l]``: ``q = D [q0; a; b]`` (eq. 18)."""
+    t = np.asarray(t, dtype=float).reshape(-1)
+    omega = 2 * np.pi * frequency_hz * np.arange(1, harmonics + 1)
+    phase = np.outer(t, omega)
+    return np.hstack([np.ones((t.shape[0], 1)), np.sin(phase) / omega, -np.cos(phase) / omega])
+
+
+@dataclass(frozen=True)
+class FourierSeries:
+    """Coefficients of eq. 18 for ``n`` joints and ``N`` harmonics of ``frequency_hz``.
+
+    Attributes
+    ----------
+    frequency_hz
+        Fundamental, Hz.
+    q0
+        ``(n,)`` offsets.
+    a, b
+        ``(n, N)`` coefficients (velocity amplitudes).
+    """
+
+    frequency_hz: float
+    q0: NDArray[np.float64]
+    a: NDArray[np.float64]
+    b: NDArray[np.float64]
+
+    @property
+    def harmonics(self) -> int:
+        return int(np.shape(self.a)[1])
+
+    def evaluate(self, t: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+        """``q, dq, ddq`` at times ``t`` (eq. 18)."""
+        return evaluate_series(self.frequency_hz, np.asarray(self.q0), np.atleast_2d(self.a), np.atleast_2d(self.b), t)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"frequency_hz": float(self.frequency_hz), "harmonics": self.harmonics,
+                "q0": np.asarray(self.q0).tolist(), "a": np.asarray(self.a).tolist(), "b": np.asarray(self.b).tolist()}
+
+
+def fit_series(t: ArrayLike, q: ArrayLike, frequency_hz: float, harmonics: int) -> tuple[FourierSeries, float]:
+    """Least-squares fit of eq. 18 to positions ``q (T, n)`` sampled at ``t``; returns the series and
+    the residual sum of squares over all joints."""
+    t = np.asarray(t, dtype=float).reshape(-1)
+    q = np.asarray(q, dtype=float).reshape(t.shape[0], -1)
+    if int(harmonics) != harmonics or harmonics < 1:
+        raise ValueError(f"harmonics must be at least 1, got {harmonics}")
+    if t.shape[0] < 2 * harmonics + 1:
+        raise ValueError(f"{t.shape[0]} samples cannot determine {2 * harmonics + 1} Fourier coefficients per joint")
+    design = design_matrix(t - t[0], frequency_hz, harmonics)  # phases from the record's start: well scaled
+    coefficients, *_ = np.linalg.lstsq(design, q, rcond=None)  # (2N+1, n)
+    residual = float(np.sum((q - design @ coefficients) ** 2))
+    # back to absolute time: a phase shift ω_l t0 rotates (a_l, b_l)
+    omega = 2 * np.pi * frequency_hz * np.arange(1, harmonics + 1)
+    sine, cosine = coefficients[1:1 + harmonics].T, coefficients[1 + harmonics:].T  # coefficients at t - t0
+    c, s = np.cos(omega * t[0]), np.sin(omega * t[0])
+    # sin(ω(t−t0)) = sin ωt cos ωt0 − cos ωt sin ωt0 ; −cos(ω(t−t0)) = −cos ωt cos ωt0 − sin ωt sin ωt0
+    a = sine * c - cosine * s
+    b = sine * s + cosine * c
+    return FourierSeries(float(frequency_hz), coefficients[0], a, b), residual

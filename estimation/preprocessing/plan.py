@@ -1,0 +1,254 @@
+"""One preprocessing for a whole identification: chosen once on the training data, stated, reused.
+
+:func:`choose_preprocessing` decides, from the training segments, how ``dq, ddq`` are derived:
+
+* ``measured`` — the data hold ``dq`` and ``ddq``;
+* ``fourier`` — a periodic excitation: ``--frequency`` given (checked against the period the data
+  show: a sub-harmonic or a frequency the data do not repeat at is warned about), or detected
+  (:mod:`estimation.preprocessing.periodicity`) when no cut-off was given; Fourier fit on the time stamps,
+  periods averaged as ``average_periods`` says;
+* ``butterworth`` — otherwise: the cut-off given, or five times the training motion's bandwidth
+  (the widest over the segments), fixed here so that validation is filtered alike; the edges of
+  each segment are trimmed by the filter's settling time.
+
+:func:`prepare` applies it to each segment of a record on its own (never across a boundary),
+with the hold compensation and decimation, and stacks the segments. The plan is written to the
+result documents as ``preprocessing`` (:meth:`Preprocessing.to_dict`).
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
+from typing import Any, Literal
+
+import numpy as np
+
+from dynamics.runtime.threads import single_threaded_blas
+from dynamics.measurements import Measurements
+from estimation.preprocessing.periodicity import detect_fundamental, frequency_mismatch
+from estimation.preprocessing.differentiation import (
+    AverageChoice,
+    ButterworthDifferentiation,
+    FourierDifferentiation,
+    compensate_hold,
+    decimate,
+    motion_bandwidth,
+    sampling_rate,
+)
+from estimation.data.segments import as_segments, check_same_columns, column_set, concatenate
+
+Method = Literal["measured", "fourier", "butterworth"]
+
+#: harmonics of the fit for a given frequency, unless told (the PUMA paper's 5)
+GIVEN_HARMONICS = 5
+#: harmonics of the fit for a detected frequency, unless told: the reference's count is unknown, and a
+#: robot under feedback adds harmonics above it (three times the paper's 5: :func:`fill_derivatives`)
+DETECTED_HARMONICS = 15
+
+
+class PreprocessingWarning(UserWarning):
+    """What the preprocessing decided from the data (a detected fundamental)."""
+
+
+class FrequencyMismatchWarning(UserWarning):
+    """A given excitation frequency disagrees with the period the data show."""
+
+
+class SegmentTooShortForFilterError(ValueError):
+    """A segment shorter than its preprocessing needs (the filter's settling at both edges, one period)."""
+
+
+@dataclass(frozen=True)
+class Preprocessing:
+    """How the motion is derived, decided once.
+
+    Attributes
+    ----------
+    method
+        ``measured``, ``fourier`` or ``butterworth``.
+    frequency_hz, harmonics
+        Fourier fit (``fourier``).
+    frequency_source
+        ``given`` or ``detected`` (``fourier``).
+    average_periods
+        ``auto``, ``yes`` or ``no`` (``fourier``).
+    cutoff_hz, order
+        Butterworth low-pass (``butterworth``).
+    trimmed_s
+        Time cut at each edge of each segment (the filter's settling), s.
+    decimation, held_torques
+        As :func:`estimation.preprocessing.differentiation.fill_derivatives`.
+    """
+
+    method: Method
+    frequency_hz: float | None = None
+    harmonics: int | None = None
+    frequency_source: Literal["given", "detected"] | None = None
+    average_periods: AverageChoice = "auto"
+    cutoff_hz: float | None = None
+    order: int = 4
+    trimmed_s: float = 0.0
+    decimation: int = 1
+    held_torques: bool = False
+
+    def to_dict(self) -> dict[str, Any]:
+        """``{method, frequency_hz, harmonics, frequency_source, average_periods | cutoff_hz, filter_order,
+        trimmed_s, decimation, held_torques}`` (the keys of the method only)."""
+        document: dict[str, Any] = {"method": self.method}
+        if self.method == "fourier":
+            document.update(frequency_hz=self.frequency_hz, harmonics=self.harmonics,
+                            frequency_source=self.frequency_source, average_periods=self.average_periods)
+        elif self.method == "butterworth":
+            document.update(cutoff_hz=self.cutoff_hz, filter_order=self.order)
+        document.update(trimmed_s=self.trimmed_s, decimation=self.decimation, held_torques=self.held_torques)
+        return document
+
+    def describe(self) -> str:
+        """One line for the user."""
+        if self.method == "fourier":
+            text = (f"Fourier fit, {self.frequency_hz:.6g} Hz ({self.frequency_source}), {self.harmonics} harmonics, "
+                    f"period averaging {self.average_periods}")
+        elif self.method == "butterworth":
+            text = (f"Butterworth low-pass, cut-off {self.cutoff_hz:.4g} Hz (order {self.order}, zero phase), "
+                    f"{1e3 * self.trimmed_s:.0f} ms trimmed at each segment edge")
+        else:
+            text = "measured dq, ddq"
+        extras = ([f"decimated by {self.decimation}"] if self.decimation > 1 else []) + \
+            (["held torques"] if self.held_torques else [])
+        return "preprocessing: " + ", ".join([text, *extras]) + " (chosen on the training data, used for validation)"
+
+
+@single_threaded_blas()  # tall thin least squares: threaded BLAS only loses (dynamics.runtime.threads)
+def choose_preprocessing(
+    train: Measurements | Sequence[Measurements],
+    *,
+    frequency_hz: float | None = None,
+    harmonics: int | None = None,
+    cutoff_hz: float | None = None,
+    average_periods: AverageChoice = "auto",
+    decimation: int = 1,
+    held_torques: bool = False,
+    detect: bool = True,
+) -> Preprocessing:
+    """The preprocessing of a record, decided on its training segments (module docstring).
+
+    ``harmonics``: of the Fourier fit; default :data:`GIVEN_HARMONICS` for a given frequency,
+    :data:`DETECTED_HARMONICS` for a detected one (capped below the Nyquist frequency).
+
+    Warns
+    -----
+    PreprocessingWarning
+        When the fundamental was detected (it says which).
+    FrequencyMismatchWarning
+        When ``frequency_hz`` is a sub-harmonic of the period the data show, or they do not repeat at it.
+    """
+    segments = as_segments(train, "train")
+    check_same_columns(segments, "training data")
+    if frequency_hz is not None and cutoff_hz is not None:
+        raise ValueError("give --frequency (Fourier fit of periodic data) or --cutoff (Butterworth filter), not both")
+    if average_periods not in ("auto", "yes", "no"):
+        raise ValueError(f"average_periods must be 'auto', 'yes' or 'no', got {average_periods!r}")
+    if int(decimation) != decimation or decimation < 1:
+        raise ValueError(f"decimation factor must be a positive integer, got {decimation}")
+    common = {"decimation": int(decimation), "held_torques": bool(held_torques)}
+    if all(name in column_set(segments[0]) for name in ("dq", "ddq")):
+        return Preprocessing("measured", **common)
+    longest = max(segments, key=lambda segment: segment.n_samples)
+    if frequency_hz is not None:
+        harmonics = GIVEN_HARMONICS if harmonics is None else harmonics
+        FourierDifferentiation(frequency_hz, harmonics, average_periods)  # checks the numbers
+        check_frequency(segments, frequency_hz)
+        return Preprocessing("fourier", float(frequency_hz), int(harmonics), "given", average_periods, **common)
+    if cutoff_hz is None and detect:
+        found = detect_fundamental(longest.t, longest.q).frequency_hz
+        if found is not None:
+            nyquist_harmonic = int(np.ceil(0.5 * sampling_rate(longest.t) / found)) - 1
+            used = max(1, min(int(DETECTED_HARMONICS if harmonics is None else harmonics), nyquist_harmonic))
+            warnings.warn(
+                f"the positions repeat every {1 / found:.6g} s: periodic excitation of {found:.6g} Hz detected; "
+                f"derivatives from a {used}-harmonic Fourier fit (give --frequency to set it, --cutoff for a filter)",
+                PreprocessingWarning, stacklevel=3)  # past the BLAS decorator
+            return Preprocessing("fourier", found, used, "detected", average_periods, **common)
+    rates = [sampling_rate(segment.t) for segment in segments]
+    rate = min(rates)
+    nyquist = 0.5 * rate
+    if cutoff_hz is None:
+        bandwidth = max(motion_bandwidth(segment.q, sampling_rate(segment.t)) for segment in segments)
+        cutoff = min(5.0 * bandwidth, 0.8 * nyquist)
+    else:
+        cutoff = float(ButterworthDifferentiation(cutoff_hz).cutoff(longest))  # checks it
+    filter_ = ButterworthDifferentiation(cutoff, trim=True)
+    trimmed = filter_.settling_samples(rate, cutoff) / rate
+    return Preprocessing("butterworth", cutoff_hz=cutoff, order=filter_.order, trimmed_s=trimmed, **common)
+
+
+def check_frequency(segments: Sequence[Measurements], frequency_hz: float) -> None:
+    """Warn (:class:`FrequencyMismatchWarning`) when a segment long enough to tell disagrees with ``frequency_hz``."""
+    for segment in segments:
+        message = frequency_mismatch(segment.t, segment.q, frequency_hz)
+        if message is not None:
+            warnings.warn(f"{segment.metadata.get('source', 'data')}: {message}", FrequencyMismatchWarning, stacklevel=4)
+
+
+@single_threaded_blas()
+def prepare(data: Measurements | Sequence[Measurements], preprocessing: Preprocessing, *,
+            role: str = "training data") -> Measurements:
+    """Each segment preprocessed on its own by ``preprocessing``, then stacked.
+
+    The result's ``metadata["preprocessing"]`` is ``preprocessing.to_dict()``; its ``recorded``
+    holds the torques/wrench as recorded (:class:`~dynamics.measurements.Measurements`).
+
+    Raises
+    ------
+    SegmentTooShortForFilterError
+        A segment shorter than the filter needs, or than one period of the Fourier fit.
+    estimation.data.segments.SegmentColumnsError
+        Segments with different column sets.
+    """
+    segments = as_segments(data, role)
+    check_same_columns(segments, role)
+    measured = all(name in column_set(segments[0]) for name in ("dq", "ddq"))
+    if preprocessing.method == "measured" and not measured:
+        raise ValueError(f"{role} lacks the measured dq/ddq the training data hold: give both records the same columns")
+    if measured and preprocessing.method != "measured":  # measured derivatives are used as they are
+        preprocessing = replace(preprocessing, method="measured", held_torques=False)
+    prepared = []
+    for segment in segments:
+        name = _name(segment)
+        derived = _derive(segment, preprocessing, name)
+        if preprocessing.held_torques and preprocessing.method != "measured":
+            derived = compensate_hold(derived)
+        if preprocessing.decimation > 1:
+            try:
+                derived = decimate(derived, preprocessing.decimation)
+            except ValueError as error:
+                raise SegmentTooShortForFilterError(f"{name}: {error}") from None
+        metadata = dict(derived.metadata, preprocessing=preprocessing.to_dict())
+        recorded = derived.recorded
+        prepared.append(replace(derived, metadata=metadata,
+                                recorded=None if recorded is None else replace(recorded, metadata=metadata)))
+    return concatenate(prepared)
+
+
+def _derive(segment: Measurements, preprocessing: Preprocessing, name: str) -> Measurements:
+    if preprocessing.method == "measured":
+        return segment
+    try:
+        if preprocessing.method == "fourier":
+            return FourierDifferentiation(preprocessing.frequency_hz, preprocessing.harmonics,
+                                          preprocessing.average_periods).apply(segment)
+        filter_ = ButterworthDifferentiation(preprocessing.cutoff_hz, preprocessing.order, trim=True)
+        return filter_.apply(segment)
+    except ValueError as error:
+        text = str(error)
+        if "less than one period" in text or "too few for" in text:
+            raise SegmentTooShortForFilterError(f"{name}: {text}") from None
+        raise ValueError(f"{name}: {text}") from None
+
+
+def _name(segment: Measurements) -> str:
+    source = str(segment.metadata.get("source", "data"))
+    return f"{source} (segment {segment.metadata.get('segment')})" if segment.metadata.get("segments_in_file", 1) > 1 \
+        else source

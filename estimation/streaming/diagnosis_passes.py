@@ -1,0 +1,141 @@
+"""The passes of the streamed diagnosis over its files (:mod:`estimation.streaming.diagnosis`), one
+task a file on any ``concurrent.futures.Executor`` (as :func:`estimation.streaming.cluster.sum_files`), and
+the noise floor on a bounded window.
+
+* :func:`subsample_task`: an evenly spread subsample of one file's prepared samples
+  (:class:`~estimation.streaming.diagnosis_sums.EvenSubsample`), the samples seen and the reading record;
+* :func:`sums_task`: one file's :class:`~estimation.streaming.diagnosis_sums.ChannelSums` of the base and
+  candidate columns at fixed shapes;
+* :func:`map_files`: the tasks over the files, each file back once (a lost worker is a
+  :class:`~estimation.streaming.cluster.WorkerLostError` naming the file, never a partial sum), the workers'
+  warnings issued again here;
+* :func:`window_floor`: the model-free noise floor of the first rows of each file as recorded.
+"""
+
+from __future__ import annotations
+
+import functools
+import pickle
+import warnings
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from dynamics.models import IdentificationModel
+from dynamics.runtime.threads import single_threaded_blas
+from estimation.streaming.cluster import _model, _result
+from estimation.streaming.diagnosis_sums import ChannelSums, ColumnLayout, EvenSubsample, chunk_sums
+from estimation.data.loading import MeasurementError
+from estimation.uncertainty.noise_floor import NoiseFloor, NoiseFloorError, noise_floor, pooled_floor
+from estimation.streaming.chunks import preprocessed_chunks, read_chunks
+from estimation.streaming.covariance import BatchScores, chunk_scores
+from estimation.estimators.variable_projection import Block
+
+__all__ = ["FLOOR_WINDOW", "map_files", "scores_task", "subsample_task", "sums_task", "window_floor"]
+
+#: rows of each validation file (as recorded) the noise floor is estimated on
+FLOOR_WINDOW = 100_000
+
+
+def _caught(call, *args, **kwargs):
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        value = call(*args, **kwargs)
+    return value, tuple((warning.category, str(warning.message)) for warning in caught)
+
+
+def _subsample(path: str, model: IdentificationModel, options: dict[str, Any], cap: int):
+    record: dict = {}
+    subsample = EvenSubsample(cap)
+    for chunk in preprocessed_chunks(path, model, record=record, **options):
+        subsample.add(chunk)
+    return subsample.measurements(), subsample.seen, record
+
+
+def subsample_task(payload: bytes, path: str, options: dict[str, Any], cap: int, stamp=None):
+    """Picklable: the evenly spread subsample of one file, samples seen, and its reading record."""
+    return _caught(_subsample, path, _model(payload), options, cap)
+
+
+@functools.lru_cache(maxsize=4)
+def _plan(payload: bytes, plan: bytes) -> tuple[ColumnLayout, tuple[Block, ...], tuple[np.ndarray, ...]]:
+    model = _model(payload)
+    effects, shapes = pickle.loads(plan)
+    blocks = tuple(Block(model.kind, model.robot, effect, model.n_channels) for effect in effects)
+    return ColumnLayout.build(model, blocks), blocks, tuple(shapes)
+
+
+@single_threaded_blas()
+def _sums(path: str, model: IdentificationModel, payload: bytes, plan: bytes, options: dict[str, Any]):
+    layout, blocks, shapes = _plan(payload, plan)
+    record: dict = {}
+    sums = ChannelSums.empty(layout)
+    for chunk in preprocessed_chunks(path, model, record=record, **options):
+        try:
+            sums = chunk_sums(model, layout, blocks, shapes, chunk, sums)
+        except ValueError as error:
+            raise MeasurementError(f"{path} (near sample {sums.n_samples}): {error}") from None
+    return sums, record
+
+
+def sums_task(payload: bytes, plan: bytes, path: str, options: dict[str, Any], stamp=None):
+    """Picklable: one file's :class:`ChannelSums` (base and candidate columns at fixed shapes)."""
+    return _caught(_sums, path, _model(payload), payload, plan, options)
+
+
+@single_threaded_blas()
+def _scores(path: str, model: IdentificationModel, payload: bytes, plan: bytes, options: dict[str, Any],
+            theta: np.ndarray, weights: np.ndarray) -> BatchScores:
+    layout, blocks, shapes = _plan(payload, plan)
+    scores = BatchScores.empty(len(layout.names), layout.n_channels)
+    for chunk in preprocessed_chunks(path, model, **options):
+        scores.add(*chunk_scores(model, layout, blocks, shapes, chunk, theta, weights))
+    return scores.closed()
+
+
+def scores_task(payload: bytes, plan: bytes, path: str, options: dict[str, Any], theta, weights, stamp=None):
+    """Picklable: one file's :class:`~estimation.streaming.covariance.BatchScores` at the final estimate
+    (``plan``: the chosen effects and shapes; ``theta`` on the base then their columns)."""
+    return _caught(_scores, path, _model(payload), payload, plan, options, np.asarray(theta), np.asarray(weights))
+
+
+def map_files(executor, task, paths: Sequence[str], *arguments) -> list:
+    """``task(*arguments_before_path, path, ...)`` for each path, in this process or on ``executor``;
+    every file must come back (a lost worker is :class:`~estimation.streaming.cluster.WorkerLostError`)."""
+    if executor is None:
+        results = []
+        for path in paths:
+            value, caught = task(*arguments[0](path))
+            for category, message in caught:
+                warnings.warn(message, category, stacklevel=3)
+            results.append(value)
+        return results
+    if not callable(getattr(executor, "submit", None)):
+        raise TypeError(f"executor must be a concurrent.futures.Executor (with submit), got {type(executor).__name__}")
+    futures = [executor.submit(task, *arguments[0](path)) for path in paths]
+    try:
+        return [_result(future, path) for path, future in zip(paths, futures)]
+    finally:
+        for future in futures:
+            future.cancel()
+
+
+def window_floor(paths: Sequence[str | Path], model: IdentificationModel, *, window: int = FLOOR_WINDOW,
+                 frequency_hz: float | None = None) -> tuple[NoiseFloor | None, str]:
+    """The noise floor of the first ``window`` rows of each file as recorded (no filtering), pooled
+    over the files; ``None`` and why when none can be had."""
+    floors, failures = [], []
+    for path in paths:
+        first = next(read_chunks(path, model, chunk_size=max(int(window), model.n_base + 1)))
+        try:
+            floors.append(noise_floor(first, model.channels, frequency_hz=frequency_hz))
+        except NoiseFloorError as error:
+            failures.append(f"{path}: {error}")
+    floor = pooled_floor(floors)
+    if floor is None:
+        return None, "no noise floor: " + "; ".join(failures)
+    note = (f"estimated from the first {window} rows of each validation file as recorded "
+            f"({len(floors)} of {len(list(paths))} file(s))")
+    return floor, note + ("; none from " + "; ".join(failures) if failures else "")

@@ -1,0 +1,235 @@
+"""Identification of one estimate from many records in bounded memory (``oed identify --chunk-size``).
+
+::
+
+    result = identify_files(model, ["run1.csv", "run2.parquet"], ["check.csv"], chunk_size=10_000,
+                            cutoff_hz=5.0, executor=client.get_executor())
+    result.to_dict()   # the ``oed identify`` document, plus a ``streaming`` block
+
+The training files reduce to one :class:`~estimation.estimators.normal_equations.NormalEquations`
+(:func:`estimation.streaming.cluster.sum_files`), the estimator solves from it
+(:class:`~estimation.estimators.normal_equations.SummedLeastSquares`, the same iterated channel weighting as
+:class:`~estimation.estimators.least_squares.WeightedLeastSquares`), and the MSEs per channel are sums too:
+``‖y_c − Y_c θ̂‖² / N`` from the training sums and from the validation files' own sums.
+
+The standard deviations (``covariance="hac"``, the default, as the in-memory ``identify``) are the
+batch-means sandwich (``cov_method: "batch_means"``): they hold when the residuals are correlated
+in time (the filter path's derivative errors, an effect the model lacks), where the classical ones
+of the sums are far too small. They need the residuals at the final estimate, hence a **third
+pass** over the training files (the first reads, the second is the solve's; here: read and prepare
+again, score, :mod:`estimation.streaming.identification_covariance`), through the same executor,
+one task a file, in bounded memory. It costs about what summing cost: measured on the 7-joint KUKA,
+filter path, 1 M samples, serial, chunks of 10 000, the covariance pass took 8.3 s of a 17.7 s run
+(47 %; the sums pass 6.3 s; ``streaming.seconds``, ``benchmarks/bench_streaming.py``).
+``covariance="classical"`` skips it (white residuals assumed).
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
+from pathlib import Path
+import time
+from typing import Any, Literal
+
+import numpy as np
+from numpy.typing import NDArray
+
+from dynamics.models import IdentificationModel
+from estimation.streaming.cluster import sum_files
+from estimation.identification.fit import ImplausibleEstimateWarning, implausible_estimates
+from estimation.estimators.normal_equations import NormalEquations
+from estimation.estimators.summed_least_squares import SummedEstimate, SummedLeastSquares
+from estimation.streaming.identification_covariance import batch_means_covariance
+from estimation.streaming.chunks import FileSums, StreamingUnsupportedError, automatic_cutoff
+
+#: the standard deviations: batch means from a third pass (``"hac"``) or white residuals assumed
+StreamedCovariance = Literal["hac", "classical"]
+
+
+@dataclass(frozen=True)
+class StreamedIdentificationResult:
+    """Estimates from sums, with the MSE per channel on the training and validation files.
+
+    Attributes
+    ----------
+    model, estimate
+        The model and its estimate (no per-sample residuals).
+    train, validation
+        Sums of the training files and of the validation files (``None`` without).
+    train_mse, validation_mse
+        Mean squared error per channel.
+    files, validation_files
+        Each file's sums (rows read, samples summed, preprocessing).
+    chunk_size, cutoff_hz, frequency_hz
+        The chunk used, the Butterworth cut-off and the Fourier path's frequency (``None`` when not used).
+    warnings
+        Implausible estimates (:func:`estimation.identification.fit.implausible_estimates`).
+    cov_method, batch_length, classical_std
+        ``"batch_means"`` (the estimate's covariance is the sandwich; the batch length in samples and
+        the white-noise standard deviations beside it) or ``"classical"`` (``None``, ``None``).
+    seconds
+        Wall time of the passes (``sums_pass``, ``covariance_pass``) and the solve.
+    """
+
+    model: IdentificationModel
+    estimate: SummedEstimate
+    train: NormalEquations
+    validation: NormalEquations | None
+    train_mse: dict[str, float]
+    validation_mse: dict[str, float] | None
+    files: tuple[FileSums, ...]
+    validation_files: tuple[FileSums, ...]
+    chunk_size: int
+    cutoff_hz: float | None
+    warnings: tuple[str, ...] = ()
+    frequency_hz: float | None = None
+    cov_method: Literal["batch_means", "classical"] = "classical"
+    batch_length: int | None = None
+    classical_std: NDArray[np.float64] | None = None
+    seconds: dict[str, float] | None = None
+
+    @property
+    def filtered(self) -> bool:
+        """Some summed channels were filtered or averaged: their MSEs are not against the recording."""
+        return _filtered(self.files) or _filtered(self.validation_files)
+
+    @staticmethod
+    def _errors(mse: dict[str, float], parts: Sequence[FileSums]) -> dict[str, Any]:
+        """``{mse}``, or ``{mse: null, mse_filtered}`` when the files' channels were filtered (errors are
+        reported against the recording, which the sums of filtered channels do not hold)."""
+        return {"mse": None, "mse_filtered": mse} if _filtered(parts) else {"mse": mse}
+
+    def to_dict(self) -> dict[str, Any]:
+        """The JSON document of ``oed identify`` (same keys) plus ``streaming``::
+
+            streaming: {chunk_size, cutoff_hz, frequency_hz, files: [{path, rows, samples, decimation, margin,
+                        periods_averaged, resampled_from}], validation_files: [...],
+                        covariance: {method, batch_length, classical_std: {name: std}}, seconds: {...}}
+
+        ``rows``: samples read (on the uniform grid when the file was resampled from
+        ``resampled_from`` rows); ``samples``: samples summed (after averaging or decimation).
+        """
+        estimate = self.estimate
+        records = [{key: (None if isinstance(value, float) and not np.isfinite(value) else value)
+                    for key, value in record.items()} for record in estimate.records()]
+        return {
+            "robot": self.model.robot.name,
+            "model": self.model.kind.value,
+            "effects": [effect.name for effect in self.model.effects],
+            "method": estimate.method,
+            "n_samples": int(self.train.n_samples),
+            "parameters": records,
+            "cond": float(estimate.cond),
+            "channel_std": dict(zip(estimate.channels, map(float, np.sqrt(estimate.channel_variance)))),
+            "train": self._errors(self.train_mse, self.files),
+            "validation": None if self.validation_mse is None else self._errors(self.validation_mse,
+                                                                                 self.validation_files),
+            "warnings": list(self.warnings),
+            "cov_method": self.cov_method,  # batch_means: the sandwich from a third pass over the files
+            "hac_lags": None,
+            "streaming": {
+                "chunk_size": self.chunk_size,
+                "cutoff_hz": self.cutoff_hz,
+                "frequency_hz": self.frequency_hz,
+                "files": [_file_record(part) for part in self.files],
+                "validation_files": [_file_record(part) for part in self.validation_files],
+                "covariance": {
+                    "method": self.cov_method, "batch_length": self.batch_length,
+                    "classical_std": None if self.classical_std is None else dict(
+                        zip(estimate.names, map(float, self.classical_std)))},
+                "seconds": dict(self.seconds or {}),
+            },
+        }
+
+
+def _filtered(parts: Sequence[FileSums]) -> bool:
+    """Whether the summed channels were low-pass filtered, period-averaged or decimated."""
+    return any(part.metadata.get("margin", 0) or (part.metadata.get("periods_averaged") or 1) > 1
+               or part.metadata.get("decimation", 1) > 1 for part in parts)
+
+
+def _file_record(part: FileSums) -> dict[str, Any]:
+    return {"path": part.path, "rows": part.rows, "samples": part.sums.n_samples,
+            "decimation": part.metadata.get("decimation", 1), "margin": part.metadata.get("margin", 0),
+            "periods_averaged": part.metadata.get("periods_averaged"),
+            "resampled_from": part.metadata.get("resampled_from")}
+
+
+def identify_files(
+    model: IdentificationModel,
+    paths: Sequence[str | Path],
+    validate: Sequence[str | Path] = (),
+    *,
+    method: Literal["ols", "wls"] = "wls",
+    chunk_size: int,
+    cutoff_hz: float | None = None,
+    frequency_hz: float | None = None,
+    harmonics: int = 5,
+    decimation: int = 1,
+    held_torques: bool = False,
+    executor: Any = None,
+    covariance: StreamedCovariance = "hac",
+) -> StreamedIdentificationResult:
+    """Identify ``model`` from the training ``paths`` (one estimate) and validate on ``validate``.
+
+    ``frequency_hz``: periodic records without ``dq``/``ddq`` take the Fourier path (periods averaged
+    chunk by chunk, :mod:`estimation.streaming.periods`). Otherwise, without ``dq``/``ddq`` columns
+    and without ``cutoff_hz``, the automatic cut-off of the first
+    chunk of the first file (:func:`estimation.streaming.chunks.automatic_cutoff`) serves every file.
+    ``executor``: see :func:`estimation.streaming.cluster.sum_files`. ``covariance``: ``"hac"`` (default) the
+    batch-means standard deviations from a third pass over the training files (module docstring),
+    ``"classical"`` the white-noise ones of the sums (no third pass).
+    """
+    if covariance not in ("hac", "classical"):
+        raise ValueError(f"covariance must be 'hac' or 'classical', got {covariance!r}")
+    paths = [str(path) for path in paths]
+    if not paths:
+        raise ValueError("no training data files")
+    if frequency_hz is not None and cutoff_hz is not None:
+        raise ValueError("give frequency_hz (Fourier fit of periodic data) or cutoff_hz (Butterworth filter), not both")
+    if cutoff_hz is None and frequency_hz is None:
+        try:
+            cutoff_hz = None if _has_derivatives(paths[0], model, chunk_size) else automatic_cutoff(
+                paths[0], model, chunk_size=chunk_size)
+        except StopIteration:
+            raise StreamingUnsupportedError(f"{paths[0]}: no samples") from None
+    options = dict(chunk_size=chunk_size, cutoff_hz=cutoff_hz, decimation=decimation, held_torques=held_torques)
+    if frequency_hz is not None:
+        options.update(frequency_hz=frequency_hz, harmonics=harmonics)
+    clock = time.perf_counter()
+    train, files = sum_files(model, paths, executor=executor, **options)
+    seconds = {"sums_pass": time.perf_counter() - clock}
+    validation, validation_files = (None, ()) if not validate else sum_files(model, validate, executor=executor, **options)
+    clock = time.perf_counter()
+    estimate = SummedLeastSquares(method=method).fit(train).estimate_
+    seconds["solve"] = time.perf_counter() - clock
+    cov_method, batch, classical_std = "classical", None, None
+    if covariance == "hac":
+        clock = time.perf_counter()
+        cov, batch = batch_means_covariance(model, files, train, options, estimate.values, estimate.weights,
+                                            estimate.cov, executor=executor)
+        seconds["covariance_pass"] = time.perf_counter() - clock
+        std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            relative_std = np.where(estimate.values != 0, 100.0 * std / np.abs(estimate.values), np.inf)
+        cov_method, classical_std = "batch_means", estimate.std
+        estimate = replace(estimate, cov=cov, std=std, relative_std=relative_std)
+    notes = implausible_estimates(model, estimate)  # type: ignore[arg-type]  (records() is all it reads)
+    for note in notes:
+        warnings.warn(note, ImplausibleEstimateWarning, stacklevel=2)
+    return StreamedIdentificationResult(
+        model, estimate, train, validation, train.channel_mse(estimate.values),
+        None if validation is None else validation.channel_mse(estimate.values), files, tuple(validation_files),
+        int(chunk_size), None if all(part.metadata.get("cutoff_hz") is None for part in files) else cutoff_hz, notes,
+        frequency_hz if any(part.metadata.get("differentiation") == "fourier" for part in files) else None,
+        cov_method, batch, classical_std, {key: round(value, 3) for key, value in seconds.items()},
+    )
+
+
+def _has_derivatives(path: str, model: IdentificationModel, chunk_size: int) -> bool:
+    from estimation.streaming.chunks import read_chunks
+
+    first = next(read_chunks(path, model, chunk_size=chunk_size))
+    return first.dq is not None and first.ddq is not None
