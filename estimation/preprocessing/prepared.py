@@ -104,6 +104,12 @@ class PreparationSettings:
     rest: RestHandling = "drop"
     memory: InMemoryBudget | None = None
 
+    def __post_init__(self) -> None:
+        if not (self.max_gap > 0 and self.max_gap < float("inf")):
+            raise ValueError(f"--max-gap must be a positive number of seconds, got {self.max_gap}")
+        if self.rest not in ("drop", "smooth"):
+            raise ValueError(f"rest must be 'drop' or 'smooth', got {self.rest!r}")
+
     def drops_rest(self) -> bool:
         """Whether rows at rest are dropped from the records."""
         return self.min_speed is not None and self.rest == "drop" and self.min_speed != 0
@@ -180,6 +186,20 @@ def prepare_records(model: IdentificationModel, train: Sequence[str | Path], val
     settings
         How to read and prepare them; default :class:`PreparationSettings`.
 
+    Returns
+    -------
+    PreparedRecords
+        The preprocessing chosen, and each record as read and as prepared.
+
+    Raises
+    ------
+    ValueError
+        A file given twice for one record; the errors of reading (:mod:`estimation.data.records`), of
+        preparing (:mod:`estimation.preprocessing.plan`) and of dropping rows at rest
+        (:func:`estimation.data.rest.drop_rest`: nearly every row at rest).
+    dynamics.runtime.memory.InsufficientMemoryError
+        The prepared records exceed ``settings.memory``.
+
     Warns
     -----
     UserWarning
@@ -187,8 +207,6 @@ def prepare_records(model: IdentificationModel, train: Sequence[str | Path], val
         and of :func:`~estimation.preprocessing.plan.choose_preprocessing`.
     """
     settings = PreparationSettings() if settings is None else settings
-    if not (settings.max_gap > 0 and settings.max_gap < float("inf")):
-        raise ValueError(f"--max-gap must be a positive number of seconds, got {settings.max_gap}")
     train_files = read_files(train, model, split=True, max_gap=settings.max_gap, transmission=settings.transmission)
     held_out = {role: read_files(paths, model, split=False, max_gap=settings.max_gap,
                                  transmission=settings.transmission) if paths else None
@@ -204,8 +222,7 @@ def prepare_records(model: IdentificationModel, train: Sequence[str | Path], val
         prepared[role] = None if files is None else _prepared(files, preprocessing, f"{role} data", check=True)
     if settings.memory is not None:
         settings.memory.check(model, [record.measurements for record in prepared.values() if record is not None])
-    labels = {"train": "train", "validation": "validation", "test": "test"}
-    records = {role: None if record is None else _without_rest(record, model, settings, labels[role])
+    records = {role: None if record is None else _without_rest(record, model, settings, role)
                for role, record in prepared.items()}
     return PreparedRecords(preprocessing, records["train"], records["validation"], records["test"])
 

@@ -84,9 +84,8 @@ def run_streaming(args: argparse.Namespace) -> int:
                                  "held_torques": bool(args.held_torques)}
     document["max_effects"] = args.max_effects
     document["max_effects_reached"] = len(result.effects) >= args.max_effects
-    with OutputFiles() as outputs:
-        with outputs.open(args.out) as stream:
-            stream.write(json_text(document))
+    with OutputFiles() as outputs, outputs.open(args.out) as stream:
+        stream.write(json_text(document))
     print_streamed_summary(args, robot, model, result, chunk_size)
     print(f"wrote {args.out}")
     return 0

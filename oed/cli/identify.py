@@ -101,9 +101,8 @@ def run_streaming(args: argparse.Namespace, robot: RobotModel, model: Identifica
                                     frequency_hz=args.frequency, harmonics=5 if args.harmonics is None else args.harmonics,
                                     decimation=args.decimate, held_torques=args.held_torques, executor=executor)
     print_warnings("identify", caught)
-    with OutputFiles() as outputs:
-        with outputs.open(args.out) as stream:
-            stream.write(json_text(result.to_dict()))
+    with OutputFiles() as outputs, outputs.open(args.out) as stream:
+        stream.write(json_text(result.to_dict()))
     estimate = result.estimate
     print(f"{robot.name}: {model.kind.value} model, {model.n_base} base parameters, {result.train.n_samples} samples "
           f"from {len(result.files)} file(s) in chunks of {chunk_size}, {estimate.method.upper()}, cond {estimate.cond:.4g}")
