@@ -15,16 +15,23 @@ import argparse
 from typing import Any
 
 from dynamics.effects.specs import build_effects
+from dynamics.measurements import Measurements
 from dynamics.robot import RobotModel
 from dynamics.robots import load_robot
 from dynamics.simulation.joint_effects import is_puma560
-from dynamics.transmission import CouplingShapeError, Transmission, TransmissionError, UnknownJointError, puma560_transmission
+from dynamics.transmission import (
+    CouplingShapeError,
+    Transmission,
+    TransmissionError,
+    UnknownJointError,
+    puma560_transmission,
+)
 from dynamics.transmission_files import transmission_from_json, transmission_from_urdf
+from estimation.data.rest import check_min_speed, smooth_coulomb
 from estimation.identification.fit import IdentificationResult
-from dynamics.measurements import Measurements
 from estimation.identification.model_parameters import model_parameters
-from estimation.data.rest import check_min_speed, coulomb_combinations, drop_rest, smooth_coulomb
 from estimation.identification.trivial_predictors import trivial_mse, trivial_warnings
+from estimation.preprocessing.prepared import PreparedRecords
 
 
 def add_asbuilt_arguments(parser: argparse.ArgumentParser) -> None:
@@ -75,15 +82,14 @@ def model_effects(args: argparse.Namespace, robot: RobotModel, transmission: Tra
     return effects
 
 
-def rest_rows(measurements: Measurements, model, args: argparse.Namespace, label: str) -> tuple[Measurements, dict | None]:
-    """Drop the rows at rest (``--min-speed`` with ``--rest drop``); the record of what was dropped."""
-    if args.min_speed is None or args.rest != "drop" or args.min_speed == 0:
-        return measurements, None
-    selection = drop_rest(measurements, args.min_speed, combinations=coulomb_combinations(model.effects), source=label)
-    return selection.measurements, selection.to_dict()
+def rest_records(records: PreparedRecords) -> dict[str, dict | None]:
+    """What was dropped as at rest (``--min-speed`` with ``--rest drop``) from the training and validation records."""
+    return {label: None if record is None or record.rest is None else record.rest.to_dict()
+            for label, record in (("train", records.train), ("validation", records.validation))}
 
 
 def rest_message(verb: str, records: dict[str, dict | None]) -> str | None:
+    """How many rows at rest were dropped from each record, or ``None`` when none were."""
     parts = [f"{label} {record['dropped']} of {record['total']}" for label, record in records.items() if record]
     if not parts:
         return None

@@ -1,17 +1,45 @@
-"""Options shared by the verbs: which robot; the output-file helpers, re-exported for the verbs."""
+"""Options shared by the verbs: which robot; the records, their derivatives and the streamed path (``oed identify``
+and ``oed diagnose``); the checks and messages those verbs share; the output-file helpers, re-exported for the verbs."""
 
 from __future__ import annotations
 
 import argparse
+import contextlib
+import sys
+import warnings
+from collections.abc import Iterable, Iterator
+from concurrent.futures import Executor, ProcessPoolExecutor
 from pathlib import Path
+from typing import Any
 
+from dynamics.effects.linear import parse_effects
+from dynamics.effects.shaped import is_shaped
+from dynamics.models import IdentificationModel
 from dynamics.robot import RobotModel
 from dynamics.robots import BUILT_IN_ROBOTS, load_robot
-from dynamics.runtime.output_files import OutputFiles, atomic_output, check_figure_path, json_text
+from dynamics.runtime.output_files import (
+    OutputFiles,
+    atomic_output,
+    check_figure_path,
+    json_text,
+)
+from dynamics.transmission import Transmission
+from estimation.data.log_cleaning import DEFAULT_MAX_GAP
+from estimation.estimators.effect_blocks import NoRowsError
+from estimation.estimators.normal_equations import DEFAULT_CHUNK_SIZE
+from estimation.preprocessing.differentiation import (
+    ButterworthDifferentiation,
+    Differentiation,
+    FourierDifferentiation,
+)
+from estimation.preprocessing.prepared import InMemoryBudget, PreparationSettings
+from estimation.streaming.cluster import SCHEDULER_VARIABLE, connect, scheduler_address
 
 __all__ = [
-    "OutputFiles", "add_robot_arguments", "atomic_output", "check_csv_path", "check_figure_path", "check_json_path",
-    "json_text", "robot_from_arguments", "seed",
+    "OutputFiles", "add_data_arguments", "add_derivative_arguments", "add_robot_arguments", "add_streaming_arguments",
+    "atomic_output", "check_csv_path", "check_figure_path", "check_json_path", "check_shaped_effects_kept",
+    "differentiation", "executor_from_arguments", "json_text", "model_has_shapes", "preparation_settings",
+    "print_warnings", "robot_from_arguments", "seed", "streaming_requested",
 ]
 
 #: suffixes that promise another format than the CSV a verb writes
@@ -54,3 +82,111 @@ def check_json_path(path: str | Path, option: str = "--out") -> None:
 
 def robot_from_arguments(args: argparse.Namespace) -> RobotModel:
     return load_robot(args.robot, urdf=args.urdf, joints=args.joints)
+
+
+def add_data_arguments(parser: argparse.ArgumentParser, *, validate_required: bool) -> None:
+    """``--data`` and ``--validate`` (each repeatable: the segments of one record) and ``--max-gap``."""
+    parser.add_argument("--data", type=Path, required=True, action="append",
+                        help="identification data (.csv or .parquet); repeat for several segments (files), each "
+                             "preprocessed on its own and stacked")
+    parser.add_argument("--validate", type=Path, required=validate_required, action="append",
+                        help="validation data from another trajectory; repeatable like --data")
+    parser.add_argument("--max-gap", type=float, default=DEFAULT_MAX_GAP, metavar="SECONDS",
+                        help=f"longest logger stall bridged by interpolation (default {DEFAULT_MAX_GAP:g} s); a longer "
+                             "hole splits a --data file into segments (and is an error in a --validate file)")
+
+
+def add_derivative_arguments(parser: argparse.ArgumentParser) -> None:
+    """``--frequency/--harmonics`` (Fourier fit) or ``--cutoff`` (Butterworth), and ``--decimate``."""
+    derivatives = parser.add_argument_group("derivatives (only when dq/ddq columns are absent)")
+    derivatives.add_argument("--frequency", type=float, help="periodic excitation: fundamental frequency, Hz, any "
+                             "value (Fourier fit of the positions on their time stamps; checked against the period "
+                             "the data show). Default: detected when the positions repeat, else a filter")
+    derivatives.add_argument("--average-periods", choices=("auto", "yes", "no"), default="auto",
+                             help="average whole periods before the Fourier fit: auto (default) when there are two or "
+                                  "more and a period is a whole number of samples, else fit every sample")
+    derivatives.add_argument("--harmonics", type=int, help="harmonics of the Fourier fit (default: 5, the paper's, with "
+                             "--frequency; 15 for a detected frequency; records of a robot under feedback want about "
+                             "three times the reference's)")
+    derivatives.add_argument("--cutoff", type=float, help="otherwise: Butterworth cut-off, Hz (default: automatic)")
+    derivatives.add_argument("--decimate", type=int, default=1, help="keep one sample in K after low-pass filtering")
+    derivatives.add_argument("--held-torques", action="store_true",
+                             help="joint torques were held over each sample (zero-order hold, as `oed simulate` "
+                                  "and digital current commands): take the derived motion half a sample later")
+
+
+def add_streaming_arguments(parser: argparse.ArgumentParser) -> None:
+    """``--chunk-size``, ``--scheduler``, ``--workers``: the bounded-memory, distributed path."""
+    streaming = parser.add_argument_group(
+        "bounded memory and clusters (estimation.streaming.identification)",
+        "read and sum the files chunk by chunk (peak memory set by the chunk, not the record), in this process, "
+        "a process pool or on a dask cluster; any of these options selects this path")
+    streaming.add_argument("--chunk-size", type=int, help=f"samples a chunk (default {DEFAULT_CHUNK_SIZE} when "
+                           "streaming)")
+    streaming.add_argument("--scheduler", help=f"dask scheduler address (tcp://host:8786) to sum the files on a "
+                           f"cluster (default: ${SCHEDULER_VARIABLE}); needs pip install 'robot-oed[cluster]'")
+    streaming.add_argument("--workers", type=int, default=0, help="sum the files in a local process pool of this size")
+
+
+def streaming_requested(args: argparse.Namespace) -> bool:
+    """Whether ``--chunk-size``, ``--workers`` or a scheduler (``--scheduler``, ``$ROBOT_OED_SCHEDULER``) asks for the
+    streamed path."""
+    return args.chunk_size is not None or args.workers > 0 or scheduler_address(args.scheduler) is not None
+
+
+@contextlib.contextmanager
+def executor_from_arguments(args: argparse.Namespace) -> Iterator[Executor | None]:
+    """A dask executor (``--scheduler`` or ``$ROBOT_OED_SCHEDULER``), a process pool (``--workers``) or ``None``."""
+    if args.workers < 0:
+        raise ValueError(f"--workers must be 0 (in this process) or a pool size, got {args.workers}")
+    address = scheduler_address(args.scheduler)
+    if address is not None and args.workers:
+        raise ValueError("give --scheduler (a dask cluster) or --workers (a local pool), not both")
+    if address is not None:
+        with connect(address) as executor:
+            yield executor
+    elif args.workers:
+        with ProcessPoolExecutor(args.workers) as executor:
+            yield executor
+    else:
+        yield None
+
+
+def differentiation(args: argparse.Namespace) -> Differentiation:
+    """The differentiation the derivative options ask for (contradicting options are an error)."""
+    if args.frequency is not None and args.cutoff is not None:
+        raise ValueError("give --frequency (Fourier fit of periodic data) or --cutoff (Butterworth filter), not both")
+    if args.frequency is not None:
+        return FourierDifferentiation(args.frequency, 5 if args.harmonics is None else args.harmonics,
+                                      args.average_periods)
+    return ButterworthDifferentiation(args.cutoff)
+
+
+def preparation_settings(args: argparse.Namespace, transmission: Transmission | None,
+                         memory: InMemoryBudget | None = None) -> PreparationSettings:
+    """How ``--data`` and ``--validate`` are read and prepared (:func:`estimation.preprocessing.prepared.prepare_records`):
+    ``--max-gap``, the derivative options, ``--min-speed`` and ``--rest``."""
+    return PreparationSettings(max_gap=args.max_gap, transmission=transmission, frequency_hz=args.frequency,
+                               harmonics=args.harmonics, cutoff_hz=args.cutoff, average_periods=args.average_periods,
+                               decimation=args.decimate, held_torques=args.held_torques, min_speed=args.min_speed,
+                               rest=args.rest, memory=memory)
+
+
+def check_shaped_effects_kept(effects: Iterable[Any], model: IdentificationModel) -> None:
+    """A declared law with shape parameters that has no rows in this model is an error (a plain
+    effect without rows is left out, as ``build_model`` does)."""
+    for effect in parse_effects(effects):
+        if is_shaped(effect, model.robot) and effect not in model.effects:
+            raise NoRowsError(f"effect {getattr(effect, 'spec', effect.name)!r} has no rows in the {model.kind.value} model "
+                              "(friction acts on the joint torques: use --model internal or combined)")
+
+
+def model_has_shapes(model: IdentificationModel) -> bool:
+    """Whether ``model`` holds a law with shape parameters (fitted by variable projection)."""
+    return any(is_shaped(effect, model.robot) for effect in model.effects)
+
+
+def print_warnings(verb: str, caught: Iterable[warnings.WarningMessage]) -> None:
+    """Each warning caught once, in order, on stderr."""
+    for message in dict.fromkeys(str(warning.message) for warning in caught):
+        print(f"oed {verb}: warning: {message}", file=sys.stderr)

@@ -4,32 +4,30 @@
 from __future__ import annotations
 
 import argparse
-import sys
 import warnings
 
-from dynamics.models import build_model
+from dynamics.models import IdentificationModel, build_model
+from dynamics.robot import RobotModel
 from estimation.data.log_cleaning import DEFAULT_MAX_GAP
 from estimation.estimators.normal_equations import DEFAULT_CHUNK_SIZE
-from estimation.streaming.diagnosis import DEFAULT_SUBSAMPLE, FLOOR_WINDOW, diagnose_files
+from estimation.streaming.diagnosis import (
+    DEFAULT_SUBSAMPLE,
+    FLOOR_WINDOW,
+    StreamedDiagnosis,
+    diagnose_files,
+)
 from oed.cli.asbuilt import model_effects
-from oed.cli.common import OutputFiles, json_text, robot_from_arguments
-from oed.cli.identify import check_shaped_effects_kept, executor_from_arguments, result_has_shapes
+from oed.cli.common import (
+    OutputFiles,
+    check_shaped_effects_kept,
+    executor_from_arguments,
+    json_text,
+    model_has_shapes,
+    print_warnings,
+    robot_from_arguments,
+)
 
 STREAMED = "the streamed path (--chunk-size, --scheduler or --workers)"
-
-
-#: bytes a sample, channel and base parameter the in-memory diagnosis holds at its peak (measured: 2.8 GB
-#: for 100 000 samples of the 7-joint KUKA, m r = 350, i.e. about 75; a lower bound is used)
-IN_MEMORY_BYTES = 64
-
-
-def check_in_memory_diagnosis(model, *records) -> None:
-    """Refuse an in-memory diagnosis larger than the machine (the streamed path is not)."""
-    from dynamics.runtime.memory import check_allocation
-
-    samples = sum(record.n_samples for record in records if record is not None)
-    check_allocation(IN_MEMORY_BYTES * samples * model.n_channels * model.n_base,
-                     f"diagnosing {samples} samples in memory (use --chunk-size to stream them in bounded memory)")
 
 
 def add_streamed_diagnosis_arguments(parser: argparse.ArgumentParser) -> None:
@@ -55,7 +53,7 @@ def check_streamed_arguments(args: argparse.Namespace, model) -> None:
     if unsupported:
         raise ValueError(f"{', '.join(unsupported)}: not with {STREAMED}, which reads whole files without holes "
                          "on the filter path (or the files' dq, ddq) and writes the JSON report only")
-    if result_has_shapes(model):
+    if model_has_shapes(model):
         raise ValueError(f"declared laws with shape parameters (coulomb:tanh, sigmoid…) are fitted in memory: not with "
                          f"{STREAMED}; declare their plain forms, or let the diagnosis find them")
     for option in ("subsample", "floor_window"):
@@ -65,6 +63,7 @@ def check_streamed_arguments(args: argparse.Namespace, model) -> None:
 
 
 def run_streaming(args: argparse.Namespace) -> int:
+    """Diagnose the files read chunk by chunk (:func:`estimation.streaming.diagnosis.diagnose_files`)."""
     robot = robot_from_arguments(args)
     effects = model_effects(args, robot, None)
     model = build_model(robot, args.model, effects)
@@ -78,17 +77,23 @@ def run_streaming(args: argparse.Namespace) -> int:
                                     decimation=args.decimate, held_torques=args.held_torques, alpha=args.alpha,
                                     max_effects=args.max_effects, subsample=args.subsample,
                                     floor_window=args.floor_window, executor=executor)
-    for message in dict.fromkeys(str(warning.message) for warning in caught):
-        print(f"oed diagnose: warning: {message}", file=sys.stderr)
+    print_warnings("diagnose", caught)
     document = result.to_dict()
     document["preprocessing"] = {"method": "butterworth" if result.streaming["cutoff_hz"] is not None else "measured",
                                  "cutoff_hz": result.streaming["cutoff_hz"], "decimation": args.decimate,
                                  "held_torques": bool(args.held_torques)}
     document["max_effects"] = args.max_effects
     document["max_effects_reached"] = len(result.effects) >= args.max_effects
-    with OutputFiles() as outputs:
-        with outputs.open(args.out) as stream:
-            stream.write(json_text(document))
+    with OutputFiles() as outputs, outputs.open(args.out) as stream:
+        stream.write(json_text(document))
+    print_streamed_summary(args, robot, model, result, chunk_size)
+    print(f"wrote {args.out}")
+    return 0
+
+
+def print_streamed_summary(args: argparse.Namespace, robot: RobotModel, model: IdentificationModel,
+                           result: StreamedDiagnosis, chunk_size: int) -> None:
+    """The records, the effects found, the validation MSE before and after and the noise floor."""
     streaming = result.streaming
     print(f"{robot.name}: {model.kind.value} model, streamed diagnosis of {result.n_train} training samples from "
           f"{len(streaming['files'])} file(s) in chunks of {chunk_size}, {result.n_validation} validation samples; "
@@ -116,5 +121,3 @@ def run_streaming(args: argparse.Namespace) -> int:
         print(result.floor_note)
     if len(result.effects) >= args.max_effects:
         print(f"stopped at --max-effects {args.max_effects}; raise --max-effects to test the rest")
-    print(f"wrote {args.out}")
-    return 0

@@ -1,0 +1,246 @@
+"""The records of an identification, read once and prepared alike: one call from file names to estimator input.
+
+:func:`prepare_records` reads the training files (a hole longer than ``max_gap`` splits a file into
+segments, :func:`estimation.data.records.read_record`), and the validation and test files (a hole is an
+error there), motor-side columns converted by the transmission
+(:func:`estimation.data.motor_side.read_record_with_transmission`). It chooses one preprocessing on the
+training segments (:func:`estimation.preprocessing.plan.choose_preprocessing`), prepares every record
+with it (:func:`estimation.preprocessing.plan.prepare`), optionally refuses records too large for an
+in-memory estimation (:class:`InMemoryBudget`), and drops the rows at rest
+(:func:`estimation.data.rest.drop_rest`, ``--min-speed V --rest drop``).
+
+The records as read stay in the result, file by file (:attr:`PreparedRecord.files`): what a noise floor
+is estimated on (:mod:`estimation.uncertainty.noise_floor`), before any differentiation, averaging or
+filtering, without reading the files again.
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+from dynamics.measurements import Measurements
+from dynamics.models import IdentificationModel
+from dynamics.runtime.memory import check_allocation
+from dynamics.transmission import Transmission
+from estimation.data.log_cleaning import DEFAULT_MAX_GAP
+from estimation.data.motor_side import read_record_with_transmission
+from estimation.data.rest import (
+    RestHandling,
+    RestSelection,
+    coulomb_combinations,
+    drop_rest,
+)
+from estimation.preprocessing.differentiation import AverageChoice
+from estimation.preprocessing.plan import (
+    Preprocessing,
+    check_frequency,
+    choose_preprocessing,
+    prepare,
+)
+
+__all__ = ["InMemoryBudget", "PreparationSettings", "PreparedRecord", "PreparedRecords", "RecordedFile",
+           "prepare_records", "read_files"]
+
+
+@dataclass(frozen=True)
+class InMemoryBudget:
+    """What the in-memory estimation that follows holds at its peak, to refuse records too large for it.
+
+    Attributes
+    ----------
+    bytes_per_value
+        Bytes a sample, channel and base parameter (the stacked regressor and its companions).
+    task
+        What the estimation does, for the message (``"identifying"``).
+    hint
+        What to do instead, for the message (``"use --chunk-size to stream them in bounded memory"``).
+    """
+
+    bytes_per_value: float
+    task: str
+    hint: str = ""
+
+    def check(self, model: IdentificationModel, records: Sequence[Measurements]) -> None:
+        """Raise :class:`dynamics.runtime.memory.InsufficientMemoryError` when ``records`` need more than the
+        machine can give."""
+        samples = sum(record.n_samples for record in records)
+        hint = f" ({self.hint})" if self.hint else ""
+        check_allocation(self.bytes_per_value * samples * model.n_channels * model.n_base,
+                         f"{self.task} {samples} samples in memory{hint}")
+
+
+@dataclass(frozen=True)
+class PreparationSettings:
+    """How the records are read and prepared (the options of ``oed identify`` and ``oed diagnose``).
+
+    Attributes
+    ----------
+    max_gap
+        Longest logger stall bridged by interpolation, s; a longer hole splits a training file into
+        segments and is an error in a validation or test file.
+    transmission
+        Converts motor-side columns (``qm``, ``taum``, ``im``…) to joint-side ones; ``None``: none may appear.
+    frequency_hz, harmonics, cutoff_hz, average_periods, decimation, held_torques
+        As :func:`estimation.preprocessing.plan.choose_preprocessing`.
+    min_speed, rest
+        With ``rest="drop"``, rows where a joint (or a coupled motor) moves slower than ``min_speed`` are
+        dropped from every prepared record; ``"smooth"`` changes the model, not the records.
+    memory
+        Refuse prepared records too large for the estimation that follows (before rows at rest are dropped).
+    """
+
+    max_gap: float = DEFAULT_MAX_GAP
+    transmission: Transmission | None = None
+    frequency_hz: float | None = None
+    harmonics: int | None = None
+    cutoff_hz: float | None = None
+    average_periods: AverageChoice = "auto"
+    decimation: int = 1
+    held_torques: bool = False
+    min_speed: float | None = None
+    rest: RestHandling = "drop"
+    memory: InMemoryBudget | None = None
+
+    def __post_init__(self) -> None:
+        if not (self.max_gap > 0 and self.max_gap < float("inf")):
+            raise ValueError(f"--max-gap must be a positive number of seconds, got {self.max_gap}")
+        if self.rest not in ("drop", "smooth"):
+            raise ValueError(f"rest must be 'drop' or 'smooth', got {self.rest!r}")
+
+    def drops_rest(self) -> bool:
+        """Whether rows at rest are dropped from the records."""
+        return self.min_speed is not None and self.rest == "drop" and self.min_speed != 0
+
+
+@dataclass(frozen=True)
+class RecordedFile:
+    """One file and its segments as read (joint side, before any preprocessing)."""
+
+    path: Path
+    segments: tuple[Measurements, ...]
+
+
+@dataclass(frozen=True)
+class PreparedRecord:
+    """One record (training, validation or test), as read and as prepared.
+
+    Attributes
+    ----------
+    files
+        The files as read, in the order given.
+    measurements
+        The segments prepared and stacked, rows at rest dropped when asked.
+    rest
+        What was dropped as at rest, or ``None`` when nothing was asked.
+    """
+
+    files: tuple[RecordedFile, ...]
+    measurements: Measurements
+    rest: RestSelection | None = None
+
+    @property
+    def segments(self) -> tuple[Measurements, ...]:
+        """Every segment as read, file after file."""
+        return tuple(segment for file in self.files for segment in file.segments)
+
+
+@dataclass(frozen=True)
+class PreparedRecords:
+    """The result of :func:`prepare_records`: the records and the preprocessing chosen on the training data."""
+
+    preprocessing: Preprocessing
+    train: PreparedRecord
+    validation: PreparedRecord | None = None
+    test: PreparedRecord | None = None
+
+
+def read_files(paths: Sequence[str | Path], model: IdentificationModel, *, split: bool,
+               max_gap: float = DEFAULT_MAX_GAP, transmission: Transmission | None = None) -> tuple[RecordedFile, ...]:
+    """The segments of every file (a hole splits a file when ``split``, else it is an error); motor-side
+    columns converted by ``transmission``. A file given twice is an error: each file is one segment."""
+    seen: dict[Path, Path] = {}
+    for path in map(Path, paths):
+        resolved = path.expanduser().resolve()
+        if resolved in seen:
+            raise ValueError(f"{path} given twice (as {seen[resolved]} too): each file is one segment of the record")
+        seen[resolved] = path
+    return tuple(RecordedFile(path, tuple(read_record_with_transmission(path, model=model, transmission=transmission,
+                                                                        max_gap=max_gap, split=split)))
+                 for path in map(Path, paths))
+
+
+def prepare_records(model: IdentificationModel, train: Sequence[str | Path], validation: Sequence[str | Path] = (),
+                    test: Sequence[str | Path] = (), settings: PreparationSettings | None = None) -> PreparedRecords:
+    """Read the training, validation and test files once, choose one preprocessing on the training data,
+    prepare every record with it and drop the rows at rest (module docstring).
+
+    Parameters
+    ----------
+    model
+        The model identified (its channels and joints say which columns are read).
+    train, validation, test
+        Files (``.csv``, ``.parquet``) of each record; ``validation`` and ``test`` may be empty.
+    settings
+        How to read and prepare them; default :class:`PreparationSettings`.
+
+    Returns
+    -------
+    PreparedRecords
+        The preprocessing chosen, and each record as read and as prepared.
+
+    Raises
+    ------
+    ValueError
+        A file given twice for one record; the errors of reading (:mod:`estimation.data.records`), of
+        preparing (:mod:`estimation.preprocessing.plan`) and of dropping rows at rest
+        (:func:`estimation.data.rest.drop_rest`: nearly every row at rest).
+    dynamics.runtime.memory.InsufficientMemoryError
+        The prepared records exceed ``settings.memory``.
+
+    Warns
+    -----
+    UserWarning
+        ``held_torques`` with measured ``dq``, ``ddq`` (nothing to align); and the warnings of reading
+        and of :func:`~estimation.preprocessing.plan.choose_preprocessing`.
+    """
+    settings = PreparationSettings() if settings is None else settings
+    train_files = read_files(train, model, split=True, max_gap=settings.max_gap, transmission=settings.transmission)
+    held_out = {role: read_files(paths, model, split=False, max_gap=settings.max_gap,
+                                 transmission=settings.transmission) if paths else None
+                for role, paths in (("validation", validation), ("test", test))}
+    preprocessing = choose_preprocessing(
+        [segment for file in train_files for segment in file.segments], frequency_hz=settings.frequency_hz,
+        harmonics=settings.harmonics, cutoff_hz=settings.cutoff_hz, average_periods=settings.average_periods,
+        decimation=settings.decimation, held_torques=settings.held_torques)
+    if preprocessing.method == "measured" and settings.held_torques:
+        warnings.warn("held torques: nothing to align, the data hold measured dq and ddq", stacklevel=2)
+    prepared = {"train": _prepared(train_files, preprocessing, "training data", check=False)}
+    for role, files in held_out.items():
+        prepared[role] = None if files is None else _prepared(files, preprocessing, f"{role} data", check=True)
+    if settings.memory is not None:
+        settings.memory.check(model, [record.measurements for record in prepared.values() if record is not None])
+    records = {role: None if record is None else _without_rest(record, model, settings, role)
+               for role, record in prepared.items()}
+    return PreparedRecords(preprocessing, records["train"], records["validation"], records["test"])
+
+
+def _prepared(files: tuple[RecordedFile, ...], preprocessing: Preprocessing, role: str, *,
+              check: bool) -> PreparedRecord:
+    """``files`` prepared by ``preprocessing``; a held-out record's frequency checked against the Fourier fit's."""
+    segments = [segment for file in files for segment in file.segments]
+    if check and preprocessing.method == "fourier":
+        check_frequency(segments, preprocessing.frequency_hz)
+    return PreparedRecord(files, prepare(segments, preprocessing, role=role))
+
+
+def _without_rest(record: PreparedRecord, model: IdentificationModel, settings: PreparationSettings,
+                  label: str) -> PreparedRecord:
+    """``record`` with its rows at rest dropped, when the settings ask for it."""
+    if not settings.drops_rest():
+        return record
+    selection = drop_rest(record.measurements, settings.min_speed, combinations=coulomb_combinations(model.effects),
+                          source=label)
+    return PreparedRecord(record.files, selection.measurements, selection)
