@@ -18,7 +18,8 @@ from estimation.data.motor_side import read_record_with_transmission
 from dynamics.measurements import Measurements
 from estimation.estimators.normal_equations import DEFAULT_CHUNK_SIZE
 from estimation.preprocessing.differentiation import ButterworthDifferentiation, Differentiation, FourierDifferentiation
-from estimation.preprocessing.plan import Preprocessing, check_frequency, choose_preprocessing, prepare
+from estimation.identification.preprocessing_choice import choose_by_evidence
+from estimation.preprocessing.plan import Preprocessing, check_frequency, prepare
 from estimation.preprocessing.delay import split_delay
 from estimation.streaming.identification import identify_files
 from estimation.identification.validation import plot_comparison
@@ -215,9 +216,9 @@ def prepare_data(model, args: argparse.Namespace,
     train = read_segments(args.data, model, args, split=True, transmission=transmission)
     validate = None if not args.validate else read_segments(args.validate, model, args, split=False,
                                                                 transmission=transmission)
-    preprocessing = choose_preprocessing(
-        train, frequency_hz=args.frequency, harmonics=args.harmonics, cutoff_hz=args.cutoff,
-        average_periods=args.average_periods, decimation=args.decimate, held_torques=args.held_torques)
+    preprocessing = choose_by_evidence(
+        model, train, frequency_hz=args.frequency, harmonics=args.harmonics, cutoff_hz=args.cutoff,
+        average_periods=args.average_periods, decimation=args.decimate, held_torques=args.held_torques).chosen
     if preprocessing.method == "measured" and args.held_torques:
         warnings.warn("held torques: nothing to align, the data hold measured dq and ddq", stacklevel=2)
     prepared_train = prepare(train, preprocessing, role="training data")
