@@ -20,6 +20,7 @@ from estimation.estimators.normal_equations import DEFAULT_CHUNK_SIZE
 from estimation.preprocessing.differentiation import ButterworthDifferentiation, Differentiation, FourierDifferentiation
 from estimation.identification.preprocessing_choice import choose_by_evidence
 from estimation.preprocessing.plan import Preprocessing, check_frequency, prepare
+from estimation.data.segments import check_varying_channels
 from estimation.preprocessing.delay import split_delay
 from estimation.streaming.identification import identify_files
 from estimation.identification.validation import plot_comparison
@@ -213,9 +214,13 @@ def prepare_data(model, args: argparse.Namespace,
     """Training and validation records read, one preprocessing chosen on the training data, both prepared."""
     if not (args.max_gap > 0 and args.max_gap < float("inf")):
         raise ValueError(f"--max-gap must be a positive number of seconds, got {args.max_gap}")
+    check_distinct_records(args.data, args.validate or [])
     train = read_segments(args.data, model, args, split=True, transmission=transmission)
+    check_varying_channels(train, model.channels, "training data")
     validate = None if not args.validate else read_segments(args.validate, model, args, split=False,
                                                                 transmission=transmission)
+    if validate is not None:
+        check_varying_channels(validate, model.channels, "validation data")
     preprocessing = choose_by_evidence(
         model, train, frequency_hz=args.frequency, harmonics=args.harmonics, cutoff_hz=args.cutoff,
         average_periods=args.average_periods, decimation=args.decimate, held_torques=args.held_torques).chosen
@@ -228,6 +233,15 @@ def prepare_data(model, args: argparse.Namespace,
             check_frequency(validate, preprocessing.frequency_hz)
         prepared_validate = prepare(validate, preprocessing, role="validation data")
     return prepared_train, prepared_validate, preprocessing
+
+
+def check_distinct_records(data: list[Path], validate: list[Path]) -> None:
+    """A ``--validate`` file that is also a ``--data`` file would validate the model on what trained it."""
+    trained = {path.expanduser().resolve(): path for path in data}
+    for path in validate:
+        if path.expanduser().resolve() in trained:
+            raise ValueError(f"--validate {path} is also a --data file ({trained[path.expanduser().resolve()]}): "
+                             "validation must come from another record (another run or seed)")
 
 
 def print_warnings(verb: str, caught) -> None:
