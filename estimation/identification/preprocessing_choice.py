@@ -11,8 +11,8 @@ otherwise Fourier fits (PUMA paper, eq. 18) at the given or detected fundamental
 zero-phase Butterworth filters over a geometric grid of cut-offs; the rule of
 :func:`estimation.preprocessing.plan.choose_preprocessing` (what the toolkit did before) is always one of them.
 
-Score (:class:`HeldOutScore`): the training record, prepared by the candidate and thinned to at most
-``max_rows`` samples, is cut into ``folds`` contiguous blocks in time. The declared model plus a flexible friction
+Score (:class:`HeldOutScore`): the training record (past :data:`SCORED_SAMPLES` samples, a window of its longest
+segment), prepared by the candidate and thinned to at most ``max_rows`` samples, is cut into ``folds`` contiguous blocks in time. The declared model plus a flexible friction
 on each joint's own torque (an offset, ``dq`` and ``tanh(dq / s)`` at four speeds ``s``) is fitted by least
 squares on the other blocks (each channel scaled by its spread) and predicts the held-out block's channels **as
 recorded** (not period-averaged nor filtered). The score is the geometric mean over the channels of the held-out
@@ -62,6 +62,9 @@ CUTOFF_FRACTIONS = (0.001, 0.002, 0.0035, 0.006, 0.01, 0.017, 0.03, 0.05, 0.085,
 FRICTION_SPEEDS = (0.01, 0.03, 0.1, 0.3)
 #: a candidate predicts clearly better when its score (geometric-mean held-out MSE) is below this fraction
 CLEARLY_BETTER = 0.8
+#: samples of the training record the candidates are prepared on: a long record is scored on a window of its
+#: longest segment (time and memory stay bounded; the choice is the window's)
+SCORED_SAMPLES = 60_000
 
 
 class PreprocessingEvidenceWarning(UserWarning):
@@ -230,7 +233,8 @@ def choose_by_evidence(
     if rule.method == "measured" or all(name in column_set(segments[0]) for name in ("dq", "ddq")):
         return PreprocessingChoice(rule, rule)
     score = HeldOutScore(model, folds=folds, max_rows=max_rows)
-    evidence = tuple(sorted((score(segments, plan) for plan in candidates(segments, rule, given)),
+    scored = scored_window(segments)
+    evidence = tuple(sorted((score(scored, plan) for plan in candidates(segments, rule, given)),
                             key=lambda item: (item.score, item.preprocessing.describe())))
     best = evidence[0].preprocessing
     chosen = best if given is None else given
@@ -253,6 +257,15 @@ def say_what_was_chosen(chosen: Preprocessing, segments: Sequence[Measurements])
         f"the positions repeat every {1 / found:.6g} s: periodic excitation of {found:.6g} Hz detected; derivatives "
         f"from {chosen.describe_method()}, the lowest held-out error of {len(chosen.evidence.candidates)} candidates "
         "(give --frequency or --cutoff to decide)", PreprocessingWarning, stacklevel=3)
+
+
+def scored_window(segments: Sequence[Measurements]) -> tuple[Measurements, ...]:
+    """The segments the candidates are scored on: all of them, or, past :data:`SCORED_SAMPLES` in all, the
+    first :data:`SCORED_SAMPLES` samples of the longest segment."""
+    if sum(segment.n_samples for segment in segments) <= SCORED_SAMPLES:
+        return tuple(segments)
+    longest = max(segments, key=lambda segment: segment.n_samples)
+    return (longest.select(slice(0, min(SCORED_SAMPLES, longest.n_samples))),)
 
 
 def warn_if_clearly_better(chosen: Preprocessing) -> None:
