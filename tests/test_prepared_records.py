@@ -17,7 +17,7 @@ from dynamics.robots import load_robot
 from dynamics.runtime.memory import InsufficientMemoryError
 from estimation.data.records import read_record
 from estimation.preprocessing.plan import choose_preprocessing, prepare
-from estimation.preprocessing.prepared import (
+from estimation.identification.prepared import (
     InMemoryBudget,
     PreparationSettings,
     prepare_records,

@@ -86,9 +86,14 @@ def test_errors_are_measured_against_the_recorded_torques_and_equal_the_noise_va
     # the training torques were averaged over three periods: against those the error is a third
     for channel, mse in clean["train"]["mse_filtered"].items():
         assert mse == pytest.approx(TAU_STD**2 / 3, rel=0.12), channel
-    assert clean["preprocessing"] == {"method": "fourier", "frequency_hz": 0.2, "harmonics": 15,
-                                      "frequency_source": "given", "average_periods": "auto", "trimmed_s": 0.0,
-                                      "decimation": 1, "held_torques": True}
+    plan = {"method": "fourier", "frequency_hz": 0.2, "harmonics": 15, "frequency_source": "given",
+            "average_periods": "auto", "trimmed_s": 0.0, "decimation": 1, "held_torques": True}
+    assert {key: clean["preprocessing"][key] for key in plan} == plan
+    # the options given decide; every candidate was scored beside them on held-out training blocks
+    assert clean["preprocessing"]["selection"] == "given"
+    scored = clean["preprocessing"]["candidates"]
+    assert any(candidate["harmonics"] == 15 for candidate in scored if candidate["method"] == "fourier")
+    assert [candidate["score"] for candidate in scored] == sorted(candidate["score"] for candidate in scored)
 
 
 def test_resent_packets_and_stalls_are_dropped_bridged_and_named(logs, clean, capsys):
@@ -145,10 +150,15 @@ def test_slow_excitation_of_one_and_a_half_periods_is_detected_or_taken_as_given
     code, detected = run(folder, "slow_detected", ["slow.csv"], "--held-torques", validate=())
     error = capsys.readouterr().err
     assert code == 0, error
-    assert "periodic excitation of 0.075 Hz detected; derivatives from a 15-harmonic Fourier fit" in error
-    assert detected["preprocessing"]["frequency_source"] == "detected"
-    assert detected["preprocessing"]["frequency_hz"] == pytest.approx(0.075, rel=1e-5)
-    assert_close_to(detected, given, sigmas=0.1)
+    assert "periodic excitation of 0.075 Hz detected; derivatives from " in error
+    assert "the lowest held-out error of" in error
+    chosen = detected["preprocessing"]
+    assert chosen["selection"] == "held-out"
+    fourier = [candidate for candidate in chosen["candidates"] if candidate["method"] == "fourier"]
+    assert fourier and all(candidate["frequency_source"] == "detected" for candidate in fourier)
+    assert fourier[0]["frequency_hz"] == pytest.approx(0.075, rel=1e-5)
+    values, std = estimates(detected)  # the derivatives the data chose hold the truth as the given ones do
+    assert np.max(np.abs(values - truth) / std) < 3.5
     for channel, mse in detected["train"]["mse"].items():
         assert mse == pytest.approx(TAU_STD**2, rel=0.08), channel
 

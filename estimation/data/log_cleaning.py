@@ -4,11 +4,14 @@
   channel read) all equal those of the row before is a logger re-sending its last packet, whether
   its time stamp repeats or advanced: a real sensor's readings (noise, the next encoder count,
   the torque) never repeat exactly on every channel at once. Such rows are dropped (and counted):
-  the stale copy is not a measurement of its instant; the hole it leaves is bridged like a stall.
+  the stale copy is not a measurement of its instant; the samples it stood for are interpolated. A robot
+  at rest whose channels are quantised repeats its rows too: interpolating between equal rows gives them
+  back, so both cases come out right.
 * **Stalls and holes.** A step of the time column that leaves samples missing (by the local median
   step, so that a logger that stalls and then delivers its backlog in a burst is not one) is a
   stall when it lasts at most ``max_gap`` seconds — bridged by the loader's interpolation onto a
-  uniform grid — and a hole otherwise, where the record is split into segments.
+  uniform grid — and a hole otherwise, where the record is split into segments. Gaps are judged on the time
+  stamps alone (:func:`time_stamps_jump`): the rows dropped as repeated leave none, however many there are.
 
 Pure functions on arrays; :mod:`estimation.data.loading` turns their findings into warnings and errors.
 """
@@ -78,6 +81,15 @@ def find_gaps(t: NDArray[np.float64], step: float) -> list[Gap]:
         if missing >= 0.5:
             gaps.append(Gap(int(row), float(t[row]), float(steps[row]), float(steps[row] / step - 1)))
     return gaps
+
+
+def time_stamps_jump(t_recorded: NDArray[np.float64], start: float, stop: float, step: float) -> bool:
+    """Whether the recorded time stamps ``t_recorded`` (before any row was dropped) leave a step longer than
+    :data:`STALL_FACTOR` median steps ``step`` between the times ``start`` and ``stop``: a gap of the logger,
+    not rows dropped as repeated (a robot at rest)."""
+    first, last = np.searchsorted(t_recorded, [start, stop], side="left")
+    inside = t_recorded[first:min(last + 1, t_recorded.shape[0])]
+    return inside.shape[0] < 2 or bool(np.max(np.diff(inside)) > STALL_FACTOR * step)
 
 
 def split_rows(n_samples: int, holes: list[Gap]) -> list[slice]:

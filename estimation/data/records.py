@@ -45,7 +45,7 @@ from estimation.data.loading import (
     check_sample_count,
     required_groups,
 )
-from estimation.data.log_cleaning import DEFAULT_MAX_GAP, describe, find_gaps, repeated_rows, split_rows
+from estimation.data.log_cleaning import DEFAULT_MAX_GAP, describe, find_gaps, repeated_rows, split_rows, time_stamps_jump
 from dynamics.measurements import Measurements, joint_columns
 
 
@@ -142,11 +142,14 @@ def segments_from_frame(
                             "the format wants seconds as numbers (e.g. (t - t[0]).dt.total_seconds())")
     t = _numeric(frame, ["t"], source)[:, 0]
     _check_absurd(t, arrays, n_joints, source)
+    t_recorded = t
     t, arrays, dropped = _drop_repeated_rows(t, arrays, source)
     step = _check_time(t, source)
     _check_angles(arrays["q"], model, source)
 
-    gaps = find_gaps(t, step)
+    # judged on the time stamps alone: rows dropped as repeated (a robot at rest) leave no gap
+    gaps = [gap for gap in find_gaps(t, step)
+            if not dropped or time_stamps_jump(t_recorded, t[gap.row], t[gap.row + 1], step)]
     holes = [gap for gap in gaps if gap.duration > max_gap]
     stalls = [gap for gap in gaps if gap.duration <= max_gap]
     if holes and not split:
@@ -174,7 +177,7 @@ def segments_from_frame(
                                        "too few for a time series; cut them from the file")
         metadata: dict[str, object] = {"source": source, "segment": index, "segments_in_file": len(holes) + 1,
                                        "repeated_rows_dropped": dropped}
-        segment_t, piece = _uniform(t[rows], piece, resample, name, metadata, bridged=bool(stalls))
+        segment_t, piece = _uniform(t[rows], piece, resample, name, metadata, bridged=bool(stalls) or dropped > 0)
         segments.append(Measurements(segment_t, piece["q"], piece["dq"], piece["ddq"], piece["tau"], piece["wrench"],
                                      metadata))
     if isinstance(model, IdentificationModel):
@@ -193,7 +196,8 @@ def _drop_repeated_rows(t, arrays, source: str):
     same_time = int(np.sum(np.diff(t)[rows - 1] == 0))
     warnings.warn(
         f"{source}: dropped {count} row(s) that repeat the previous row on every channel (a logger re-sending its "
-        f"last packet; {same_time} with the same time stamp, {count - same_time} with an advanced one), first at "
+        f"last packet, or the robot at rest with quantised channels; {same_time} with the same time stamp, "
+        f"{count - same_time} with an advanced one), first at "
         f"row {int(rows[0])} (t = {t[rows[0]]:.6g} s); the samples they stood for are interpolated",
         RepeatedRowsWarning, stacklevel=4)
     keep = ~repeated

@@ -23,6 +23,10 @@ class SegmentColumnsError(ValueError):
     """Segments with different column sets cannot be one record."""
 
 
+class ConstantChannelError(ValueError):
+    """A measured channel that holds one value in every sample of a record: it shows nothing to identify."""
+
+
 def as_segments(data: Measurements | Sequence[Measurements], name: str = "data") -> tuple[Measurements, ...]:
     """``data`` as a non-empty tuple of segments (``TypeError`` for anything else)."""
     segments = (data,) if isinstance(data, Measurements) else tuple(data) if isinstance(data, (list, tuple)) else None
@@ -45,6 +49,20 @@ def check_same_columns(segments: Sequence[Measurements], name: str = "record") -
                 f"{name}: segments with different columns: {_label(first)} has {first.n_joints} joints and "
                 f"{', '.join(column_set(first)) or 'positions only'}, {_label(segment)} {segment.n_joints} joints and "
                 f"{', '.join(column_set(segment)) or 'positions only'}; a record's segments must hold the same columns")
+
+
+def check_varying_channels(segments: Sequence[Measurements], channels: Sequence[str], name: str = "record") -> None:
+    """Every measured channel of ``channels`` (``tau2``, ``fz``…) varies over the record's segments, or
+    :class:`ConstantChannelError` naming the channels that hold one value throughout (zero: a dead sensor or an
+    empty column; another value: a column filled by hand, or a sensor that was off)."""
+    values = np.concatenate([segment.channels(list(channels)) for segment in segments], axis=0)
+    constant = [(channel, float(column[0])) for channel, column in zip(channels, values.T)
+                if column.size and np.all(column == column[0])]
+    if constant:
+        shown = ", ".join(f"{channel} = {value:g}" for channel, value in constant)
+        raise ConstantChannelError(
+            f"{name}: channel(s) {shown} hold one value in every sample (a dead sensor, a column left empty or "
+            "filled by hand?): a constant channel shows nothing to identify; check the data")
 
 
 def concatenate(data: Measurements | Sequence[Measurements]) -> Measurements:

@@ -1,6 +1,8 @@
-"""Identification of a model on one experiment and validation on another: plain, shaped and delayed fits, the model's parameter vector as JSON, trivial predictors.
+"""Identification of a model on one experiment and validation on another: the records read and prepared in one call
+(the derivatives chosen by held-out evidence), plain, shaped and delayed fits, the model's parameter vector as JSON,
+trivial predictors.
 
-Modules: :mod:`~estimation.identification.delayed`, :mod:`~estimation.identification.fit`, :mod:`~estimation.identification.model_parameters`, :mod:`~estimation.identification.shaped`, :mod:`~estimation.identification.trivial_predictors`, :mod:`~estimation.identification.validation`.
+Modules: :mod:`~estimation.identification.delayed`, :mod:`~estimation.identification.fit`, :mod:`~estimation.identification.model_parameters`, :mod:`~estimation.identification.prepared`, :mod:`~estimation.identification.preprocessing_choice`, :mod:`~estimation.identification.shaped`, :mod:`~estimation.identification.trivial_predictors`, :mod:`~estimation.identification.validation`.
 
 ``from estimation.identification import identify`` (the path release 0.1 showed) still works for one release, with a
 DeprecationWarning: import it from :mod:`estimation.identification.fit`.

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import warnings
 from collections.abc import Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from typing import Any, Literal
 
 import numpy as np
@@ -61,6 +61,51 @@ class SegmentTooShortForFilterError(ValueError):
 
 
 @dataclass(frozen=True)
+class CandidateEvidence:
+    """One derivative candidate scored on held-out training data
+    (:mod:`estimation.identification.preprocessing_choice`).
+
+    Attributes
+    ----------
+    preprocessing
+        The candidate.
+    score
+        Geometric mean over the channels of the held-out MSE (``inf`` when the candidate could not run).
+    held_out_mse
+        Per channel, the held-out MSE against the channels as recorded.
+    error
+        Why the candidate could not run, or ``None``.
+    seconds
+        What scoring it cost.
+    """
+
+    preprocessing: Preprocessing
+    score: float
+    held_out_mse: dict[str, float]
+    error: str | None = None
+    seconds: float = 0.0
+
+    def to_dict(self) -> dict[str, Any]:
+        """The candidate's keys (as :meth:`Preprocessing.to_dict`) with ``score``, ``held_out_mse``, ``error``."""
+        document = self.preprocessing.to_dict()
+        document.update(score=self.score if np.isfinite(self.score) else None, held_out_mse=self.held_out_mse,
+                        seconds=round(self.seconds, 3))
+        if self.error is not None:
+            document["error"] = self.error
+        return document
+
+
+@dataclass(frozen=True)
+class Evidence:
+    """How a preprocessing was chosen: ``selection`` is ``held-out`` (the best score) or ``given`` (the user's
+    options decided); ``candidates`` sorted best first, each scored on ``folds`` blocks of the training data."""
+
+    selection: Literal["held-out", "given"]
+    folds: int
+    candidates: tuple[CandidateEvidence, ...]
+
+
+@dataclass(frozen=True)
 class Preprocessing:
     """How the motion is derived, decided once.
 
@@ -80,6 +125,9 @@ class Preprocessing:
         Time cut at each edge of each segment (the filter's settling), s.
     decimation, held_torques
         As :func:`estimation.preprocessing.differentiation.fill_derivatives`.
+    evidence
+        The candidates scored when the choice was made on held-out data (``None`` for a fixed rule); not part
+        of the plan's identity.
     """
 
     method: Method
@@ -92,10 +140,16 @@ class Preprocessing:
     trimmed_s: float = 0.0
     decimation: int = 1
     held_torques: bool = False
+    evidence: Evidence | None = field(default=None, compare=False, repr=False)
+
+    def without_evidence(self) -> Preprocessing:
+        """The plan alone."""
+        return replace(self, evidence=None)
 
     def to_dict(self) -> dict[str, Any]:
         """``{method, frequency_hz, harmonics, frequency_source, average_periods | cutoff_hz, filter_order,
-        trimmed_s, decimation, held_torques}`` (the keys of the method only)."""
+        trimmed_s, decimation, held_torques}`` (the keys of the method only), with ``selection``, ``folds`` and
+        ``candidates`` (best first) when the choice was made on held-out data."""
         document: dict[str, Any] = {"method": self.method}
         if self.method == "fourier":
             document.update(frequency_hz=self.frequency_hz, harmonics=self.harmonics,
@@ -103,7 +157,18 @@ class Preprocessing:
         elif self.method == "butterworth":
             document.update(cutoff_hz=self.cutoff_hz, filter_order=self.order)
         document.update(trimmed_s=self.trimmed_s, decimation=self.decimation, held_torques=self.held_torques)
+        if self.evidence is not None:
+            document.update(selection=self.evidence.selection, folds=self.evidence.folds,
+                            candidates=[candidate.to_dict() for candidate in self.evidence.candidates])
         return document
+
+    def describe_method(self) -> str:
+        """The derivative method in a few words."""
+        if self.method == "fourier":
+            return f"a {self.harmonics}-harmonic Fourier fit at {self.frequency_hz:.6g} Hz"
+        if self.method == "butterworth":
+            return f"a {self.cutoff_hz:.4g} Hz Butterworth filter"
+        return "measured dq, ddq"
 
     def describe(self) -> str:
         """One line for the user."""
@@ -117,7 +182,14 @@ class Preprocessing:
             text = "measured dq, ddq"
         extras = ([f"decimated by {self.decimation}"] if self.decimation > 1 else []) + \
             (["held torques"] if self.held_torques else [])
-        return "preprocessing: " + ", ".join([text, *extras]) + " (chosen on the training data, used for validation)"
+        if self.evidence is not None and self.evidence.selection == "held-out":
+            how = (f"chosen among {len(self.evidence.candidates)} candidates by held-out error on the training data, "
+                   "used for validation")
+        elif self.evidence is not None:
+            how = f"as given; scored beside {len(self.evidence.candidates) - 1} other candidates, used for validation"
+        else:
+            how = "chosen on the training data, used for validation"
+        return "preprocessing: " + ", ".join([text, *extras]) + f" ({how})"
 
 
 @single_threaded_blas()  # tall thin least squares: threaded BLAS only loses (dynamics.runtime.threads)

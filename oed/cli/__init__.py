@@ -8,7 +8,7 @@ Each verb lives in its own module of this package and exposes two functions::
 Verb modules do not import one another. What several verbs share lives in :mod:`oed.cli.common` (robot, data,
 derivative and streaming options, shared checks and messages), :mod:`oed.cli.asbuilt` (the robot as built) and
 :mod:`oed.cli.paths`; reading and preparing the records is one library call
-(:func:`estimation.preprocessing.prepared.prepare_records`).
+(:func:`estimation.identification.prepared.prepare_records`).
 
 Errors a user can cause (bad input files, impossible bounds, unknown robots) are raised as
 ``ValueError``/``TypeError``/``OSError`` subclasses by the library; :func:`main` turns them into

@@ -31,7 +31,7 @@ from estimation.data.rest import check_min_speed, smooth_coulomb
 from estimation.identification.fit import IdentificationResult
 from estimation.identification.model_parameters import model_parameters
 from estimation.identification.trivial_predictors import trivial_mse, trivial_warnings
-from estimation.preprocessing.prepared import PreparedRecords
+from estimation.identification.prepared import PreparedRecords
 
 
 def add_asbuilt_arguments(parser: argparse.ArgumentParser) -> None:

@@ -32,7 +32,7 @@ from estimation.preprocessing.differentiation import (
     Differentiation,
     FourierDifferentiation,
 )
-from estimation.preprocessing.prepared import InMemoryBudget, PreparationSettings
+from estimation.identification.prepared import InMemoryBudget, PreparationSettings
 from estimation.streaming.cluster import SCHEDULER_VARIABLE, connect, scheduler_address
 
 __all__ = [
@@ -164,7 +164,7 @@ def differentiation(args: argparse.Namespace) -> Differentiation:
 
 def preparation_settings(args: argparse.Namespace, transmission: Transmission | None,
                          memory: InMemoryBudget | None = None) -> PreparationSettings:
-    """How ``--data`` and ``--validate`` are read and prepared (:func:`estimation.preprocessing.prepared.prepare_records`):
+    """How ``--data`` and ``--validate`` are read and prepared (:func:`estimation.identification.prepared.prepare_records`):
     ``--max-gap``, the derivative options, ``--min-speed`` and ``--rest``."""
     return PreparationSettings(max_gap=args.max_gap, transmission=transmission, frequency_hz=args.frequency,
                                harmonics=args.harmonics, cutoff_hz=args.cutoff, average_periods=args.average_periods,

@@ -16,7 +16,7 @@ from estimation.diagnosis.results import Diagnosis
 from estimation.diagnosis.search import default_candidates, diagnose
 from estimation.preprocessing.delay import DelayBounds, split_delay
 from estimation.preprocessing.plan import Preprocessing
-from estimation.preprocessing.prepared import (
+from estimation.identification.prepared import (
     InMemoryBudget,
     PreparedRecords,
     RecordedFile,

@@ -17,7 +17,7 @@ from estimation.identification.fit import IdentificationResult, identify
 from estimation.identification.validation import plot_comparison
 from estimation.preprocessing.delay import DelayBounds, split_delay
 from estimation.preprocessing.plan import Preprocessing
-from estimation.preprocessing.prepared import InMemoryBudget, prepare_records
+from estimation.identification.prepared import InMemoryBudget, prepare_records
 from estimation.streaming.identification import identify_files
 from oed.cli.asbuilt import (
     add_asbuilt_arguments,
@@ -180,7 +180,7 @@ def check_streamed_request(args: argparse.Namespace, model: IdentificationModel)
 
 def run_in_memory(args: argparse.Namespace, robot: RobotModel, model: IdentificationModel,
                   transmission: Transmission | None, delay: DelayBounds | None) -> int:
-    """Read and prepare the records (:func:`estimation.preprocessing.prepared.prepare_records`), identify, write, print."""
+    """Read and prepare the records (:func:`estimation.identification.prepared.prepare_records`), identify, write, print."""
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         records = prepare_records(model, args.data, args.validate or (),

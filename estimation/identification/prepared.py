@@ -3,8 +3,10 @@
 :func:`prepare_records` reads the training files (a hole longer than ``max_gap`` splits a file into
 segments, :func:`estimation.data.records.read_record`), and the validation and test files (a hole is an
 error there), motor-side columns converted by the transmission
-(:func:`estimation.data.motor_side.read_record_with_transmission`). It chooses one preprocessing on the
-training segments (:func:`estimation.preprocessing.plan.choose_preprocessing`), prepares every record
+(:func:`estimation.data.motor_side.read_record_with_transmission`). It refuses a validation or test file that
+is a training file, and a channel that holds one value throughout a record. It chooses one preprocessing on the
+training segments, by held-out evidence (:func:`estimation.identification.preprocessing_choice.choose_by_evidence`,
+the default) or by the fixed rule (:func:`estimation.preprocessing.plan.choose_preprocessing`), prepares every record
 with it (:func:`estimation.preprocessing.plan.prepare`), optionally refuses records too large for an
 in-memory estimation (:class:`InMemoryBudget`), and drops the rows at rest
 (:func:`estimation.data.rest.drop_rest`, ``--min-speed V --rest drop``).
@@ -19,6 +21,7 @@ from __future__ import annotations
 import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Literal
 from pathlib import Path
 
 from dynamics.measurements import Measurements
@@ -27,12 +30,14 @@ from dynamics.runtime.memory import check_allocation
 from dynamics.transmission import Transmission
 from estimation.data.log_cleaning import DEFAULT_MAX_GAP
 from estimation.data.motor_side import read_record_with_transmission
+from estimation.data.segments import check_varying_channels
 from estimation.data.rest import (
     RestHandling,
     RestSelection,
     coulomb_combinations,
     drop_rest,
 )
+from estimation.identification.preprocessing_choice import choose_by_evidence
 from estimation.preprocessing.differentiation import AverageChoice
 from estimation.preprocessing.plan import (
     Preprocessing,
@@ -40,6 +45,9 @@ from estimation.preprocessing.plan import (
     choose_preprocessing,
     prepare,
 )
+
+#: how the preprocessing is chosen: by held-out error among candidates, or by the fixed rule
+Selection = Literal["held-out", "rule"]
 
 __all__ = ["InMemoryBudget", "PreparationSettings", "PreparedRecord", "PreparedRecords", "RecordedFile",
            "prepare_records", "read_files"]
@@ -90,6 +98,10 @@ class PreparationSettings:
         dropped from every prepared record; ``"smooth"`` changes the model, not the records.
     memory
         Refuse prepared records too large for the estimation that follows (before rows at rest are dropped).
+    selection
+        ``held-out`` (default): the derivative method chosen among candidates by held-out error
+        (:mod:`estimation.identification.preprocessing_choice`); ``rule``: the fixed rule of
+        :func:`~estimation.preprocessing.plan.choose_preprocessing`.
     """
 
     max_gap: float = DEFAULT_MAX_GAP
@@ -103,8 +115,11 @@ class PreparationSettings:
     min_speed: float | None = None
     rest: RestHandling = "drop"
     memory: InMemoryBudget | None = None
+    selection: Selection = "held-out"
 
     def __post_init__(self) -> None:
+        if self.selection not in ("held-out", "rule"):
+            raise ValueError(f"selection must be 'held-out' or 'rule', got {self.selection!r}")
         if not (self.max_gap > 0 and self.max_gap < float("inf")):
             raise ValueError(f"--max-gap must be a positive number of seconds, got {self.max_gap}")
         if self.rest not in ("drop", "smooth"):
@@ -207,14 +222,16 @@ def prepare_records(model: IdentificationModel, train: Sequence[str | Path], val
         and of :func:`~estimation.preprocessing.plan.choose_preprocessing`.
     """
     settings = PreparationSettings() if settings is None else settings
+    check_distinct_records({"--data": train, "--validate": validation, "--test": test})
     train_files = read_files(train, model, split=True, max_gap=settings.max_gap, transmission=settings.transmission)
     held_out = {role: read_files(paths, model, split=False, max_gap=settings.max_gap,
                                  transmission=settings.transmission) if paths else None
                 for role, paths in (("validation", validation), ("test", test))}
-    preprocessing = choose_preprocessing(
-        [segment for file in train_files for segment in file.segments], frequency_hz=settings.frequency_hz,
-        harmonics=settings.harmonics, cutoff_hz=settings.cutoff_hz, average_periods=settings.average_periods,
-        decimation=settings.decimation, held_torques=settings.held_torques)
+    for role, files in (("training", train_files), *held_out.items()):
+        if files is not None:
+            check_varying_channels([segment for file in files for segment in file.segments], model.channels,
+                                   f"{role} data")
+    preprocessing = choose_plan(model, [segment for file in train_files for segment in file.segments], settings)
     if preprocessing.method == "measured" and settings.held_torques:
         warnings.warn("held torques: nothing to align, the data hold measured dq and ddq", stacklevel=2)
     prepared = {"train": _prepared(train_files, preprocessing, "training data", check=False)}
@@ -225,6 +242,29 @@ def prepare_records(model: IdentificationModel, train: Sequence[str | Path], val
     records = {role: None if record is None else _without_rest(record, model, settings, role)
                for role, record in prepared.items()}
     return PreparedRecords(preprocessing, records["train"], records["validation"], records["test"])
+
+
+def check_distinct_records(records: dict[str, Sequence[str | Path]]) -> None:
+    """No file in two roles: a model validated or tested on what trained it would look better than it is."""
+    seen: dict[Path, tuple[str, Path]] = {}
+    for option, paths in records.items():
+        for path in map(Path, paths):
+            resolved = path.expanduser().resolve()
+            if resolved in seen and seen[resolved][0] != option:
+                first_option, first_path = seen[resolved]
+                raise ValueError(f"{option} {path} is also a {first_option} file ({first_path}): each record must come "
+                                 "from another experiment (another run or seed)")
+            seen.setdefault(resolved, (option, path))
+
+
+def choose_plan(model: IdentificationModel, train: Sequence[Measurements], settings: PreparationSettings) -> Preprocessing:
+    """The preprocessing of the training segments, as ``settings.selection`` says."""
+    options = {"frequency_hz": settings.frequency_hz, "harmonics": settings.harmonics, "cutoff_hz": settings.cutoff_hz,
+               "average_periods": settings.average_periods, "decimation": settings.decimation,
+               "held_torques": settings.held_torques}
+    if settings.selection == "rule":
+        return choose_preprocessing(train, **options)
+    return choose_by_evidence(model, train, **options).chosen
 
 
 def _prepared(files: tuple[RecordedFile, ...], preprocessing: Preprocessing, role: str, *,
