@@ -21,8 +21,10 @@ from __future__ import annotations
 import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Literal
 from pathlib import Path
+from typing import Literal
+
+import numpy as np
 
 from dynamics.measurements import Measurements
 from dynamics.models import IdentificationModel
@@ -227,6 +229,7 @@ def prepare_records(model: IdentificationModel, train: Sequence[str | Path], val
     held_out = {role: read_files(paths, model, split=False, max_gap=settings.max_gap,
                                  transmission=settings.transmission) if paths else None
                 for role, paths in (("validation", validation), ("test", test))}
+    check_no_shared_samples({"training": train_files, **held_out})
     for role, files in (("training", train_files), *held_out.items()):
         if files is not None:
             check_varying_channels([segment for file in files for segment in file.segments], model.channels,
@@ -255,6 +258,31 @@ def check_distinct_records(records: dict[str, Sequence[str | Path]]) -> None:
                 raise ValueError(f"{option} {path} is also a {first_option} file ({first_path}): each record must come "
                                  "from another experiment (another run or seed)")
             seen.setdefault(resolved, (option, path))
+
+
+def check_no_shared_samples(records: dict[str, tuple[RecordedFile, ...] | None], probes: int = 64) -> None:
+    """No record holds samples of another: a test or validation file cut from the training record (most of its
+    rows, probed at ``probes`` instants, with the same time stamp, positions and torques or wrench in the other) is
+    refused, naming the files and the time. A repeated experiment replays the same motion with other noise, and two
+    experiments may start from the same state: neither is one record."""
+    pieces = [(role, file.path, segment) for role, files in records.items() if files
+              for file in files for segment in file.segments]
+    for index, (role, path, segment) in enumerate(pieces):
+        rows = np.unique(np.linspace(0, segment.n_samples - 1, min(probes, segment.n_samples)).astype(int))
+        for other_role, other_path, other in pieces[:index]:
+            if other_role == role:
+                continue
+            at = np.clip(np.searchsorted(other.t, segment.t[rows]), 0, other.n_samples - 1)
+            same = other.t[at] == segment.t[rows]
+            for name in ("q", "tau", "wrench"):  # a repeated experiment has the same motion, not the same noise
+                mine, theirs = getattr(segment, name), getattr(other, name)
+                if mine is not None and theirs is not None:
+                    same &= np.all(theirs[at] == mine[rows], axis=1)
+            if np.mean(same) >= 0.5:
+                first = float(segment.t[rows][same][0])
+                raise ValueError(f"{role} file {path} shares samples with {other_role} file {other_path} (the same "
+                                 f"time stamps and readings, from t = {first:.6g} s): each record must come from "
+                                 "another experiment")
 
 
 def choose_plan(model: IdentificationModel, train: Sequence[Measurements], settings: PreparationSettings) -> Preprocessing:

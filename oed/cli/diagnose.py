@@ -14,6 +14,7 @@ from estimation.diagnosis.coupling_candidates import coupling_candidates
 from estimation.diagnosis.report import markdown_report, plot_residuals, plot_trace
 from estimation.diagnosis.results import Diagnosis
 from estimation.diagnosis.search import default_candidates, diagnose
+from estimation.diagnosis.untouched import UntouchedErrors, untouched_errors
 from estimation.preprocessing.delay import DelayBounds, split_delay
 from estimation.preprocessing.plan import Preprocessing
 from estimation.identification.prepared import (
@@ -74,6 +75,9 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
                         "a delay between torques and motion is always a candidate, delay:S bounds it to ±S s")
     add_asbuilt_arguments(parser)
     add_data_arguments(parser, validate_required=True)
+    parser.add_argument("--test", type=Path, action="append", default=None,
+                        help="test data from a third experiment, never used for a decision: the error before and after "
+                             "on it is the one to quote (test{before,after} in the report); repeatable like --data")
     parser.add_argument("--out", type=Path, required=True, help="report JSON")
     parser.add_argument("--report", type=Path, help="Markdown report (a residual figure is written beside it)")
     parser.add_argument("--alpha", type=float, default=1e-3, help="significance level of the F test (default 1e-3)")
@@ -127,6 +131,9 @@ def run(args: argparse.Namespace) -> int:
     differentiation(args)  # contradicting derivative options are an error even when the data hold dq, ddq
     args.friction, delay = split_delay(args.friction)  # a candidate in every diagnosis: 'delay:S' sets its bound
     if streaming_requested(args):  # bounded memory (estimation.streaming.diagnosis)
+        if args.test:
+            raise ValueError("--test is read in memory: not with the streamed path (--chunk-size, --scheduler or "
+                             "--workers)")
         if delay is not None:
             raise ValueError("the delay between torques and motion is searched in memory: not with the streamed path "
                              "(--chunk-size, --scheduler or --workers), which does not try it")
@@ -138,9 +145,10 @@ def run(args: argparse.Namespace) -> int:
     check_shaped_effects_kept(effects, model)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        records = prepare_records(model, args.data, args.validate,
+        records = prepare_records(model, args.data, args.validate, args.test or (),
                                   settings=preparation_settings(args, transmission, IN_MEMORY))
         diagnosis = diagnose_records(args, model, transmission, records, delay)
+        untouched = test_errors(records, diagnosis, model)
         trivial, notes = trivial_predictors(diagnosis.after, records.validation.measurements)
         notes += worse_after(diagnosis)
     print_warnings("diagnose", caught)
@@ -150,12 +158,14 @@ def run(args: argparse.Namespace) -> int:
     document = finish_document(diagnosis.to_dict(), diagnosis.after, trivial=trivial, warnings=notes, rest=rest,
                                transmission=transmission, warnings_key=("warnings", "after"))
     document["preprocessing"] = records.preprocessing.to_dict()
+    document["test"] = None if untouched is None else untouched.to_dict()
     document["diagnosis_path"] = "in-memory"  # "streamed": --chunk-size (oed.cli.diagnose_streaming)
     document["max_effects"] = args.max_effects
     document["max_effects_reached"] = len(diagnosis.effects) >= args.max_effects
-    write_outputs(args, diagnosis, records, document)
+    write_outputs(args, diagnosis, records, document, untouched)
     print(records.preprocessing.describe())
     print_summary(diagnosis)
+    print_test(untouched)
     if len(diagnosis.effects) >= args.max_effects:
         untested = sum(rejected.reason.startswith("not tested") for rejected in diagnosis.rejected)
         print(f"stopped at --max-effects {args.max_effects}: {untested} candidate(s) not tested; raise --max-effects "
@@ -169,6 +179,11 @@ def run(args: argparse.Namespace) -> int:
 def check_request(args: argparse.Namespace) -> None:
     """Held-out data from another file, and a positive ``--max-effects``."""
     training = {path.expanduser().resolve(): path for path in args.data}
+    for path in args.test or ():
+        if path.expanduser().resolve() in training or path.expanduser().resolve() in {
+                other.expanduser().resolve() for other in args.validate}:
+            raise ValueError(f"--test {path} is also a --data or --validate file: the test record must be a third "
+                             "experiment that no choice used")
     for path in args.validate:
         if path.expanduser().resolve() in training:
             raise ValueError(f"--validate is --data ({path}): diagnose confirms every effect on held-out data "
@@ -189,7 +204,45 @@ def diagnose_records(args: argparse.Namespace, model: IdentificationModel, trans
                     noise_floor=floor, delay=delay or DelayBounds())
 
 
-def write_outputs(args: argparse.Namespace, diagnosis: Diagnosis, records: PreparedRecords, document: dict[str, Any]) -> None:
+def test_errors(records: PreparedRecords, diagnosis: Diagnosis, model: IdentificationModel) -> UntouchedErrors | None:
+    """The errors on the ``--test`` record (:mod:`estimation.diagnosis.untouched`), its floor from the files as read."""
+    if records.test is None:
+        return None
+    preprocessing = records.preprocessing
+    frequency = preprocessing.frequency_hz if preprocessing.method == "fourier" else None
+    return untouched_errors(diagnosis, records.test.measurements, recorded_floor(records.test.files, model, frequency))
+
+
+def print_test(untouched: UntouchedErrors | None) -> None:
+    """The test record's MSE before and after, or a note that the 'after' error was measured on data the choices used."""
+    if untouched is None:
+        print("note: the 'after' error above is on the --validate record, which chose the effects: it is optimistic; "
+              "give --test FILE (a third record) for an error no choice saw")
+        return
+    print("test MSE vs recorded (a record no choice used)")
+    print("  before         " + "  ".join(f"{value:9.4g}" for value in untouched.before.values()))
+    print("  after          " + "  ".join(f"{value:9.4g}" for value in untouched.after.values()))
+    ratios = untouched.over_floor("after")
+    if ratios:
+        print("  after / floor  " + "  ".join(f"{ratios.get(channel, float('nan')):9.3g}" for channel in untouched.after))
+
+
+def markdown_test(untouched: UntouchedErrors | None) -> str:
+    """The report's section on the test record."""
+    if untouched is None:
+        return ("\nThe 'after' error is measured on the validation record, which chose the effects: it is optimistic. "
+                "Give `--test FILE` (a third record) for an error no choice saw.\n")
+    ratios = untouched.over_floor("after") or {}
+    rows = "".join(f"| {channel} | {untouched.before[channel]:.4g} | {value:.4g} | "
+                   f"{ratios[channel]:.3g} |\n" if channel in ratios else
+                   f"| {channel} | {untouched.before[channel]:.4g} | {value:.4g} | n/a |\n"
+                   for channel, value in untouched.after.items())
+    return ("\n## Test record (no choice used it)\n\n| channel | MSE before | MSE after | after / floor |\n"
+            "|---|---|---|---|\n" + rows)
+
+
+def write_outputs(args: argparse.Namespace, diagnosis: Diagnosis, records: PreparedRecords, document: dict[str, Any],
+                  untouched: UntouchedErrors | None = None) -> None:
     """The report JSON and, with ``--report``, the Markdown report and its two figures: all files or none."""
     preprocessing: Preprocessing = records.preprocessing
     with OutputFiles() as outputs:
@@ -202,7 +255,8 @@ def write_outputs(args: argparse.Namespace, diagnosis: Diagnosis, records: Prepa
             plot_trace(diagnosis, records.validation.measurements, outputs.stage_figure(tracing))
             with outputs.open(args.report) as stream:
                 stream.write(markdown_report(diagnosis, figure.name, tracing.name) + f"\n{preprocessing.describe()[0].upper()}"
-                             f"{preprocessing.describe()[1:]}; validation MSEs against the recorded channels.\n")
+                             f"{preprocessing.describe()[1:]}; validation MSEs against the recorded channels.\n"
+                             + markdown_test(untouched))
 
 
 def print_summary(diagnosis: Diagnosis) -> None:

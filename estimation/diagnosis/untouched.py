@@ -1,0 +1,73 @@
+"""The error of a diagnosis on a record no choice saw (``oed diagnose --test FILE``).
+
+A diagnosis uses its data in two roles: the training record fits every candidate, and the validation record
+confirms what is adopted (and the derivative method was chosen on held-out blocks of the training record). The
+validation error after the diagnosis is therefore optimistic: the effects were kept because they lowered it. A
+third record, the *test* record, is never used for a decision; the declared model (``before``) and the diagnosed
+one (``after``) predict it along its own motion (prepared like the others), and each channel's mean squared error
+is taken against the channels **as recorded**, beside that record's own noise floor
+(:mod:`estimation.uncertainty.noise_floor`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from dynamics.measurements import Measurements
+from estimation.diagnosis.results import Diagnosis
+from estimation.identification.fit import IdentificationResult
+from estimation.uncertainty.noise_floor import NoiseFloor
+
+__all__ = ["UntouchedErrors", "untouched_errors", "recorded_mse"]
+
+
+@dataclass(frozen=True)
+class UntouchedErrors:
+    """Per channel, the test record's MSE before and after the diagnosis, and over its noise floor.
+
+    Attributes
+    ----------
+    before, after
+        ``{channel: MSE}`` of the declared and the diagnosed model, against the channels as recorded.
+    floor
+        ``{channel: noise variance}`` of the test record as read, or ``None`` when it gives none.
+    n_samples
+        Samples compared.
+    """
+
+    before: dict[str, float]
+    after: dict[str, float]
+    floor: dict[str, float] | None
+    n_samples: int
+
+    def over_floor(self, which: str) -> dict[str, float] | None:
+        """``{channel: MSE / floor}`` of ``before`` or ``after``, or ``None`` without a floor."""
+        if self.floor is None:
+            return None
+        errors = self.before if which == "before" else self.after
+        return {channel: value / self.floor[channel] for channel, value in errors.items() if self.floor.get(channel)}
+
+    def to_dict(self) -> dict[str, Any]:
+        """``{before: {mse, mse_over_floor}, after: {mse, mse_over_floor}, noise_floor, n_samples}``."""
+        return {
+            "before": {"mse": self.before, "mse_over_floor": self.over_floor("before")},
+            "after": {"mse": self.after, "mse_over_floor": self.over_floor("after")},
+            "noise_floor": self.floor,
+            "n_samples": self.n_samples,
+        }
+
+
+def recorded_mse(result: IdentificationResult, measurements: Measurements) -> dict[str, float]:
+    """``{channel: MSE}`` of ``result`` predicting ``measurements`` (prepared), against the channels as recorded."""
+    recorded = measurements.as_recorded
+    residual = recorded.channels(result.model.channels) - result.predict(recorded)
+    return {channel: float(value) for channel, value in zip(result.model.channels, np.mean(residual**2, axis=0))}
+
+
+def untouched_errors(diagnosis: Diagnosis, test: Measurements, floor: NoiseFloor | None) -> UntouchedErrors:
+    """The declared and the diagnosed model on the prepared test record ``test`` (module docstring)."""
+    return UntouchedErrors(recorded_mse(diagnosis.before, test), recorded_mse(diagnosis.after, test),
+                           None if floor is None else floor.mse(), int(test.as_recorded.n_samples))
