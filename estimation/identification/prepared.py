@@ -41,6 +41,7 @@ from estimation.data.rest import (
 )
 from estimation.identification.preprocessing_choice import choose_by_evidence
 from estimation.preprocessing.differentiation import AverageChoice
+from estimation.uncertainty.noise_floor import NoiseFloor, NoiseFloorError, noise_floor, pooled_floor
 from estimation.preprocessing.plan import (
     Preprocessing,
     check_frequency,
@@ -162,6 +163,24 @@ class PreparedRecord:
     def segments(self) -> tuple[Measurements, ...]:
         """Every segment as read, file after file."""
         return tuple(segment for file in self.files for segment in file.segments)
+
+    def noise_floor(self, channels: Sequence[str], frequency_hz: float | None = None) -> NoiseFloor | None:
+        """The noise floor of the record as read, before any differentiation, averaging or filtering
+        (:func:`estimation.uncertainty.noise_floor.noise_floor`: period-to-period at ``frequency_hz``, given or
+        detected, or the file's frequency, else differences), pooled over the segments that can give one;
+        ``None`` with a warning when none can."""
+        floors, failures = [], []
+        for file in self.files:
+            for segment in file.segments:
+                try:
+                    floors.append(noise_floor(segment, tuple(channels), frequency_hz=frequency_hz))
+                except NoiseFloorError as error:
+                    failures.append(f"{file.path}: {error}")
+        if failures:
+            warnings.warn("no noise floor from " + "; ".join(failures)
+                          + ("" if floors else " (the floor is then estimated from the prepared validation data, if "
+                             "they can give one)"), stacklevel=2)
+        return pooled_floor(floors)
 
 
 @dataclass(frozen=True)

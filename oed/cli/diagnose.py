@@ -20,14 +20,7 @@ from estimation.preprocessing.plan import Preprocessing
 from estimation.identification.prepared import (
     InMemoryBudget,
     PreparedRecords,
-    RecordedFile,
     prepare_records,
-)
-from estimation.uncertainty.noise_floor import (
-    NoiseFloor,
-    NoiseFloorError,
-    noise_floor,
-    pooled_floor,
 )
 from oed.cli.asbuilt import (
     add_asbuilt_arguments,
@@ -107,25 +100,6 @@ def derived_outputs(args: argparse.Namespace) -> dict[str, Path]:
             "the report's tracing figure": trace_figure(args.report)}
 
 
-def recorded_floor(files: tuple[RecordedFile, ...], model: IdentificationModel,
-                   frequency_hz: float | None = None) -> NoiseFloor | None:
-    """The noise floor of the validation record as read, before any differentiation, averaging or
-    filtering (period-to-period at ``frequency_hz`` (given or detected) or the file's frequency, else
-    differences), pooled over the segments that can give one; ``None`` with a warning when none can."""
-    floors, failures = [], []
-    for file in files:
-        for segment in file.segments:
-            try:
-                floors.append(noise_floor(segment, model.channels, frequency_hz=frequency_hz))
-            except NoiseFloorError as error:
-                failures.append(f"{file.path}: {error}")
-    if failures:
-        warnings.warn("no noise floor from " + "; ".join(failures)
-                      + ("" if floors else " (the floor is then estimated from the prepared validation data, if they "
-                         "can give one)"), stacklevel=2)
-    return pooled_floor(floors)
-
-
 def run(args: argparse.Namespace) -> int:
     check_request(args)
     differentiation(args)  # contradicting derivative options are an error even when the data hold dq, ddq
@@ -148,7 +122,7 @@ def run(args: argparse.Namespace) -> int:
         records = prepare_records(model, args.data, args.validate, args.test or (),
                                   settings=preparation_settings(args, transmission, IN_MEMORY))
         diagnosis = diagnose_records(args, model, transmission, records, delay)
-        untouched = test_errors(records, diagnosis, model)
+        untouched = test_errors(records, diagnosis, model, args.frequency)
         trivial, notes = trivial_predictors(diagnosis.after, records.validation.measurements)
         notes += worse_after(diagnosis)
     print_warnings("diagnose", caught)
@@ -199,18 +173,19 @@ def diagnose_records(args: argparse.Namespace, model: IdentificationModel, trans
     candidates = default_candidates(model) + coupling_candidates(model, transmission, train=train)
     preprocessing = records.preprocessing
     frequency = preprocessing.frequency_hz if preprocessing.method == "fourier" else args.frequency
-    floor = recorded_floor(records.validation.files, model, frequency)
+    floor = records.validation.noise_floor(model.channels, frequency)
     return diagnose(model, train, validation, alpha=args.alpha, candidates=candidates, max_effects=args.max_effects,
                     noise_floor=floor, delay=delay or DelayBounds())
 
 
-def test_errors(records: PreparedRecords, diagnosis: Diagnosis, model: IdentificationModel) -> UntouchedErrors | None:
+def test_errors(records: PreparedRecords, diagnosis: Diagnosis, model: IdentificationModel,
+                frequency_hz: float | None) -> UntouchedErrors | None:
     """The errors on the ``--test`` record (:mod:`estimation.diagnosis.untouched`), its floor from the files as read."""
     if records.test is None:
         return None
     preprocessing = records.preprocessing
-    frequency = preprocessing.frequency_hz if preprocessing.method == "fourier" else None
-    return untouched_errors(diagnosis, records.test.measurements, recorded_floor(records.test.files, model, frequency))
+    frequency = preprocessing.frequency_hz if preprocessing.method == "fourier" else frequency_hz
+    return untouched_errors(diagnosis, records.test.measurements, records.test.noise_floor(model.channels, frequency))
 
 
 def print_test(untouched: UntouchedErrors | None) -> None:

@@ -17,7 +17,8 @@ from estimation.identification.fit import IdentificationResult, identify
 from estimation.identification.validation import plot_comparison
 from estimation.preprocessing.delay import DelayBounds, split_delay
 from estimation.preprocessing.plan import Preprocessing
-from estimation.identification.prepared import InMemoryBudget, prepare_records
+from estimation.identification.prepared import InMemoryBudget, PreparedRecords, prepare_records
+from estimation.diagnosis.statistics import ResidualReport, residual_report
 from estimation.streaming.identification import identify_files
 from oed.cli.asbuilt import (
     add_asbuilt_arguments,
@@ -189,6 +190,8 @@ def run_in_memory(args: argparse.Namespace, robot: RobotModel, model: Identifica
         validation = None if records.validation is None else records.validation.measurements
         result = identify(model, train, validation, weighted=args.method == "wls", delay=delay)
         trivial, notes = trivial_predictors(result, validation)
+        floor_report = None if validation is None else floor_check(records, model, result, args.frequency)
+        notes = (*notes, *above_floor_notes(floor_report))
         consistent = consistent_refit(args, result, train, validation)  # None without --consistent
     print_warnings("identify", caught)
     for note in notes:
@@ -198,11 +201,34 @@ def run_in_memory(args: argparse.Namespace, robot: RobotModel, model: Identifica
                                transmission=transmission)
     if consistent is not None:
         document.update(consistent.to_dict())
+    if floor_report is not None and document.get("validation") is not None:
+        document["validation"]["mse_over_floor"] = floor_report.ratios("after") or None
+        document["noise_floor"] = None if floor_report.floor is None else {
+            "mse": floor_report.floor.mse(), "method": floor_report.floor.method, "note": floor_report.floor_note}
     write_outputs(args, robot, model, result, document)
     print_summary(robot, model, result, records.preprocessing, train.n_samples, rest)
     print_consistent(consistent)
     print(f"wrote {args.out}" + (f" and {args.plot}" if args.plot else ""))
     return 0
+
+
+def floor_check(records: PreparedRecords, model: IdentificationModel, result: IdentificationResult,
+                frequency_hz: float | None) -> ResidualReport:
+    """The validation error against the validation record's noise floor (estimated from the file as read, without
+    the model), and what the residual of a channel still above it follows (:mod:`estimation.diagnosis.statistics`)."""
+    preprocessing = records.preprocessing
+    frequency = preprocessing.frequency_hz if preprocessing.method == "fourier" else frequency_hz
+    floor = records.validation.noise_floor(model.channels, frequency)
+    return residual_report(result, result, records.train.measurements, records.validation.measurements, floor)
+
+
+def above_floor_notes(report: ResidualReport | None) -> list[str]:
+    """A warning for each channel whose validation error stays significantly above its floor."""
+    if report is None or report.floor is None:
+        return []
+    above = [channel for channel, comparison in report.comparison.get("after", {}).items() if comparison.above]
+    return [f"{report.statements[channel]}: the model lacks something there; `oed diagnose` searches for it"
+            for channel in above]
 
 
 def write_outputs(args: argparse.Namespace, robot: RobotModel, model: IdentificationModel,
