@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import sys
 
 
 def register(subparsers) -> argparse.ArgumentParser:
@@ -70,6 +71,7 @@ def run(args: argparse.Namespace) -> int:
     from estimation.data.loading import DEGREES_THRESHOLD, AngleUnitError
     from estimation.servo.protocol import fit_servo_arm
     from estimation.servo.files import read_csv, write_text_atomic
+    from estimation.servo.free_run_check import check_free_run
     from oed.cli.common import json_text
 
     table = read_csv(args.data, required=("t", "u1", "q1"), dt=args.dt)
@@ -96,6 +98,17 @@ def run(args: argparse.Namespace) -> int:
             table.t, u, q, masses=_masses(args.mass, u.shape[1]), method=args.method, estimation_fraction=args.estimation_fraction,
             nc=args.nc, forgetting=args.forgetting, dt=table.dt, discretisation=args.discretisation,
         )
-    write_text_atomic(args.out, json_text(fit.to_dict()))
+    document = fit.to_dict()
+    notes = []
+    for key, entry in document["joints"].items():
+        check = check_free_run(int(key), q[int(entry["n_estimation"]):, int(key) - 1], entry["rmse_free_run"],
+                               entry["rmse"])
+        entry["free_run_check"] = check.to_dict()
+        if check.warning() is not None:
+            notes.append(check.warning())
+    document["warnings"] = notes
+    write_text_atomic(args.out, json_text(document))
+    for note in notes:
+        print(f"oed servo-fit: warning: {note}", file=sys.stderr)
     print(fit.table())
     return 0
