@@ -33,6 +33,7 @@ import time
 import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
+from typing import Literal
 
 import numpy as np
 from numpy.typing import NDArray
@@ -163,13 +164,18 @@ class HeldOutScore:
         return np.concatenate(blocks, axis=2) if blocks else np.zeros((measurements.n_samples, len(channels), 0))
 
 
-def candidates(train: Sequence[Measurements], rule: Preprocessing, given: Preprocessing | None) -> tuple[Preprocessing, ...]:
-    """The derivative candidates of a record without measured ``dq, ddq`` (module docstring), each once."""
+Family = Literal["fourier", "butterworth"]
+
+
+def candidates(train: Sequence[Measurements], rule: Preprocessing, given: Preprocessing | None,
+               families: Sequence[Family] = ("fourier", "butterworth")) -> tuple[Preprocessing, ...]:
+    """The derivative candidates of a record without measured ``dq, ddq`` (module docstring), each once, of the
+    ``families`` asked for (the rule's and the given plan are candidates whatever their family)."""
     common = {"decimation": rule.decimation, "held_torques": rule.held_torques}
     longest = max(train, key=lambda segment: segment.n_samples)
     rate = min(sampling_rate(segment.t) for segment in train)
     found: list[Preprocessing] = [rule] + ([given] if given is not None else [])
-    frequency, source = fundamental(longest, rule, given)
+    frequency, source = fundamental(longest, rule, given) if "fourier" in families else (None, None)
     if frequency is not None:
         nyquist_harmonic = int(np.ceil(0.5 * rate / frequency)) - 1
         average = (given or rule).average_periods
@@ -177,7 +183,7 @@ def candidates(train: Sequence[Measurements], rule: Preprocessing, given: Prepro
                   for harmonics in HARMONICS_GRID if harmonics <= nyquist_harmonic]
     bandwidth = max(motion_bandwidth(segment.q, sampling_rate(segment.t)) for segment in train)
     shortest = min(segment.t[-1] - segment.t[0] for segment in train)
-    for fraction in CUTOFF_FRACTIONS:
+    for fraction in CUTOFF_FRACTIONS if "butterworth" in families else ():
         cutoff = float(f"{fraction * rate:.6g}")
         if cutoff < bandwidth or cutoff < 1.0 / shortest or cutoff >= 0.4 * rate:
             continue
@@ -209,11 +215,13 @@ def choose_by_evidence(
     held_torques: bool = False,
     folds: int = 5,
     max_rows: int = 6000,
+    families: Sequence[Family] = ("fourier", "butterworth"),
 ) -> PreprocessingChoice:
     """The preprocessing of ``train`` for ``model``, chosen by held-out error (module docstring).
 
     The options are those of :func:`estimation.preprocessing.plan.choose_preprocessing` (and checked by it); a
-    given ``frequency_hz``, ``harmonics`` or ``cutoff_hz`` decides, scored beside the candidates.
+    given ``frequency_hz``, ``harmonics`` or ``cutoff_hz`` decides, scored beside the candidates. ``families``
+    restricts the candidates (a path that filters only asks for ``("butterworth",)``).
 
     Warns
     -----
@@ -234,7 +242,8 @@ def choose_by_evidence(
         return PreprocessingChoice(rule, rule)
     score = HeldOutScore(model, folds=folds, max_rows=max_rows)
     scored = scored_window(segments)
-    evidence = tuple(sorted((score(scored, plan) for plan in candidates(segments, rule, given)),
+    evidence = tuple(sorted((score(scored, plan) for plan in candidates(segments, rule, given, families)
+                             if plan.method in families or plan in (rule, given)),
                             key=lambda item: (item.score, item.preprocessing.describe())))
     best = evidence[0].preprocessing
     chosen = best if given is None else given

@@ -10,6 +10,7 @@ from dynamics.models import IdentificationModel, build_model
 from dynamics.robot import RobotModel
 from estimation.data.log_cleaning import DEFAULT_MAX_GAP
 from estimation.estimators.normal_equations import DEFAULT_CHUNK_SIZE
+from estimation.streaming.cutoff_choice import choose_streamed_cutoff
 from estimation.streaming.diagnosis import (
     DEFAULT_SUBSAMPLE,
     FLOOR_WINDOW,
@@ -72,8 +73,11 @@ def run_streaming(args: argparse.Namespace) -> int:
     chunk_size = DEFAULT_CHUNK_SIZE if args.chunk_size is None else args.chunk_size
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
+        plan = None if args.cutoff is not None else choose_streamed_cutoff(
+            args.data[0], model, decimation=args.decimate, held_torques=args.held_torques)
+        cutoff = args.cutoff if plan is None else plan.cutoff_hz
         with executor_from_arguments(args) as executor:
-            result = diagnose_files(model, args.data, args.validate, chunk_size=chunk_size, cutoff_hz=args.cutoff,
+            result = diagnose_files(model, args.data, args.validate, chunk_size=chunk_size, cutoff_hz=cutoff,
                                     decimation=args.decimate, held_torques=args.held_torques, alpha=args.alpha,
                                     max_effects=args.max_effects, subsample=args.subsample,
                                     floor_window=args.floor_window, executor=executor)
@@ -82,6 +86,9 @@ def run_streaming(args: argparse.Namespace) -> int:
     document["preprocessing"] = {"method": "butterworth" if result.streaming["cutoff_hz"] is not None else "measured",
                                  "cutoff_hz": result.streaming["cutoff_hz"], "decimation": args.decimate,
                                  "held_torques": bool(args.held_torques)}
+    if plan is not None:  # chosen by held-out error on the first rows of the first file
+        document["preprocessing"].update({key: value for key, value in plan.to_dict().items()
+                                          if key in ("selection", "folds", "candidates")})
     document["max_effects"] = args.max_effects
     document["max_effects_reached"] = len(result.effects) >= args.max_effects
     with OutputFiles() as outputs, outputs.open(args.out) as stream:
@@ -100,7 +107,7 @@ def print_streamed_summary(args: argparse.Namespace, robot: RobotModel, model: I
           f"shapes searched on {streaming['subsample']['samples']} samples")
     if streaming["cutoff_hz"] is not None:
         print(f"Butterworth cut-off {streaming['cutoff_hz']:.4g} Hz" + ("" if args.cutoff is not None else
-              f" (automatic, from the first chunk of {args.data[0]})"))
+              f" (chosen by held-out error on the first rows of {args.data[0]})"))
     if result.effects:
         for effect in result.effects:
             values = ", ".join(f"{n} = {v:.4g} ± {s:.2g}" for n, v, s in zip(effect.parameters, effect.values, effect.std))

@@ -18,7 +18,9 @@ from estimation.identification.validation import plot_comparison
 from estimation.preprocessing.delay import DelayBounds, split_delay
 from estimation.preprocessing.plan import Preprocessing
 from estimation.identification.prepared import InMemoryBudget, PreparedRecords, prepare_records
+from estimation.identification.weighting_choice import choose_weighting
 from estimation.diagnosis.statistics import ResidualReport, residual_report
+from estimation.streaming.cutoff_choice import choose_streamed_cutoff
 from estimation.streaming.identification import identify_files
 from oed.cli.asbuilt import (
     add_asbuilt_arguments,
@@ -83,8 +85,10 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     add_data_arguments(parser, validate_required=False)
     parser.add_argument("--out", type=Path, required=True, help="result JSON file")
     parser.add_argument("--plot", type=Path, help="figure of measured vs predicted channels (.png, .pdf, .svg)")
-    parser.add_argument("--method", choices=("wls", "ols"), default="wls",
-                        help="channel-weighted (default) or ordinary least squares")
+    parser.add_argument("--method", choices=("auto", "wls", "ols"), default="auto",
+                        help="auto (default): channel-weighted least squares unless ordinary least squares predicts "
+                             "held-out blocks of the training data clearly better (method_selection in the JSON); "
+                             "wls: channel-weighted; ols: ordinary")
     add_derivative_arguments(parser)
     add_streaming_arguments(parser)
     add_consistent_arguments(parser)
@@ -96,20 +100,27 @@ def run_streaming(args: argparse.Namespace, robot: RobotModel, model: Identifica
     chunk_size = DEFAULT_CHUNK_SIZE if args.chunk_size is None else args.chunk_size
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
+        plan = None if args.cutoff is not None or args.frequency is not None else choose_streamed_cutoff(
+            args.data[0], model, decimation=args.decimate, held_torques=args.held_torques)
+        cutoff = args.cutoff if plan is None else plan.cutoff_hz
         with executor_from_arguments(args) as executor:
             result = identify_files(model, args.data, args.validate or [],
-                                    method=args.method, chunk_size=chunk_size, cutoff_hz=args.cutoff,
+                                    method="wls" if args.method == "auto" else args.method, chunk_size=chunk_size,
+                                    cutoff_hz=cutoff,
                                     frequency_hz=args.frequency, harmonics=5 if args.harmonics is None else args.harmonics,
                                     decimation=args.decimate, held_torques=args.held_torques, executor=executor)
     print_warnings("identify", caught)
+    document = result.to_dict()
+    if plan is not None:  # chosen by held-out error on the first rows of the first file
+        document["preprocessing"] = plan.to_dict()
     with OutputFiles() as outputs, outputs.open(args.out) as stream:
-        stream.write(json_text(result.to_dict()))
+        stream.write(json_text(document))
     estimate = result.estimate
     print(f"{robot.name}: {model.kind.value} model, {model.n_base} base parameters, {result.train.n_samples} samples "
           f"from {len(result.files)} file(s) in chunks of {chunk_size}, {estimate.method.upper()}, cond {estimate.cond:.4g}")
     if result.cutoff_hz is not None:
         print(f"Butterworth cut-off {result.cutoff_hz:.4g} Hz" + ("" if args.cutoff is not None else
-              f" (automatic, from the first chunk of {args.data[0]})"))
+              f" (chosen by held-out error on the first rows of {args.data[0]})"))
     if result.cov_method == "batch_means":
         print(f"standard deviations: batch means (batches of {result.batch_length} samples; a third pass over the files, "
               f"{result.seconds['covariance_pass']:.3g} s)")
@@ -188,7 +199,10 @@ def run_in_memory(args: argparse.Namespace, robot: RobotModel, model: Identifica
                                   settings=preparation_settings(args, transmission, IN_MEMORY))
         train = records.train.measurements
         validation = None if records.validation is None else records.validation.measurements
-        result = identify(model, train, validation, weighted=args.method == "wls", delay=delay)
+        weighting = choose_weighting(model, train) if args.method == "auto" and delay is None and \
+            not model_has_shapes(model) else None
+        method = args.method if weighting is None else weighting.method
+        result = identify(model, train, validation, weighted=method != "ols", delay=delay)
         trivial, notes = trivial_predictors(result, validation)
         floor_report = None if validation is None else floor_check(records, model, result, args.frequency)
         notes = (*notes, *above_floor_notes(floor_report))
@@ -201,6 +215,8 @@ def run_in_memory(args: argparse.Namespace, robot: RobotModel, model: Identifica
                                transmission=transmission)
     if consistent is not None:
         document.update(consistent.to_dict())
+    if weighting is not None:
+        document["method_selection"] = weighting.to_dict()
     if floor_report is not None and document.get("validation") is not None:
         document["validation"]["mse_over_floor"] = floor_report.ratios("after") or None
         document["noise_floor"] = None if floor_report.floor is None else {
@@ -240,7 +256,7 @@ def write_outputs(args: argparse.Namespace, robot: RobotModel, model: Identifica
         if args.plot is not None:
             comparisons = [result.train] + ([result.validation] if result.validation is not None else [])
             plot_comparison(comparisons, outputs.stage_figure(args.plot),
-                            title=f"{robot.name}: {model.kind.value} model ({args.method})")
+                            title=f"{robot.name}: {model.kind.value} model ({result.estimate.method})")
 
 
 def print_summary(robot: RobotModel, model: IdentificationModel, result: IdentificationResult,
