@@ -240,7 +240,7 @@ def check_shaped_effects_kept(effects, model) -> None:
     effect without rows is left out, as ``build_model`` does)."""
     from dynamics.effects.linear import parse_effects
     from dynamics.effects.shaped import is_shaped
-    from estimation.estimators.variable_projection import NoRowsError
+    from estimation.estimators.effect_blocks import NoRowsError
 
     for effect in parse_effects(effects):
         if is_shaped(effect, model.robot) and effect not in model.effects:
