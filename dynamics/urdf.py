@@ -18,6 +18,7 @@ import warnings
 import xml.etree.ElementTree as ElementTree
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -161,13 +162,26 @@ def robot_from_urdf(path: str | Path, *, gravity: np.ndarray | None = None) -> R
         one-degree-of-freedom revolute or prismatic joint (floating, planar, spherical…), or a
         ``<mimic>`` joint (coupled to another).
     """
-    import pinocchio as pin
-
     path = Path(path)
     if not path.is_file():
         raise RobotDescriptionError(f"URDF file {path} is a folder" if path.is_dir() else f"URDF file not found: {path}")
     root = _check_numbers(path)
     _refuse_mimic_joints(path, root)
+    model = _pinocchio_model(path, root)
+    _check_serial_chain(path, model)
+    return RobotModel(
+        name=model.name or path.stem,
+        joints=tuple(_joint(path, model, joint_id) for joint_id in range(1, model.njoints)),
+        gravity=np.asarray(DEFAULT_GRAVITY if gravity is None else gravity, dtype=float),
+    )
+
+
+def _pinocchio_model(path: Path, root: ElementTree.Element) -> Any:
+    """Pinocchio's model of the file, refused when the parser failed, read no movable joint, lost
+    mass or could not read all of it; what the parser remarked on otherwise is warned about (for
+    the caller of :func:`robot_from_urdf`)."""
+    import pinocchio as pin
+
     with _captured_stderr() as parser_output:
         try:
             model = pin.buildModelFromUrdf(str(path))
@@ -185,7 +199,12 @@ def robot_from_urdf(path: str | Path, *, gravity: np.ndarray | None = None) -> R
     if "Error" in parser_output.text:  # urdfdom drops what it cannot read and goes on: not here
         raise RobotDescriptionError(f"URDF {path}: the parser could not read all of it: {details}")
     if details:  # the parser remarked on something but read it all: say so once, readably
-        warnings.warn(f"URDF {path}: the parser reported: {details}", stacklevel=2)
+        warnings.warn(f"URDF {path}: the parser reported: {details}", stacklevel=3)
+    return model
+
+
+def _check_serial_chain(path: Path, model: Any) -> None:
+    """Refuse a branching chain: every joint of Pinocchio's ``model`` must hang from the one before."""
     for joint_id in range(1, model.njoints):
         parent = model.parents[joint_id]
         if parent != joint_id - 1:
@@ -193,51 +212,49 @@ def robot_from_urdf(path: str | Path, *, gravity: np.ndarray | None = None) -> R
                 f"URDF {path}: joint {model.names[joint_id]!r} hangs from {model.names[parent]!r}, "
                 "not from the previous joint: branching chains are not supported (serial chains only)"
             )
-    joints = []
-    for joint_id in range(1, model.njoints):
-        joint_model = model.joints[joint_id]
-        name = model.names[joint_id]
-        kind = joint_model.shortname()
-        if joint_model.nv != 1:
-            raise RobotDescriptionError(
-                f"URDF {path}: joint {name!r} is a {kind.removeprefix('JointModel')} joint with "
-                f"{joint_model.nv} degrees of freedom (floating, planar and spherical joints are not "
-                "supported: serial chains of revolute and prismatic joints only)"
-            )
-        data = joint_model.createData()
-        joint_model.calc(data, pin.neutral(model)[joint_model.idx_q : joint_model.idx_q + joint_model.nq])
-        subspace = np.asarray(data.S).reshape(6)
-        linear, angular = subspace[:3], subspace[3:]
-        if np.linalg.norm(angular) > 1e-12 and np.linalg.norm(linear) < 1e-12:
-            joint_type, axis = JointType.REVOLUTE, angular
-        elif np.linalg.norm(linear) > 1e-12 and np.linalg.norm(angular) < 1e-12:
-            joint_type, axis = JointType.PRISMATIC, linear
-        else:
-            raise RobotDescriptionError(f"URDF {path}: joint {name!r} ({kind}) is neither revolute nor prismatic")
-        index_q = joint_model.idx_q
-        index_v = joint_model.idx_v
-        lower = float(model.lowerPositionLimit[index_q]) if joint_model.nq == 1 else -np.inf
-        upper = float(model.upperPositionLimit[index_q]) if joint_model.nq == 1 else np.inf
-        if lower >= upper:  # Pinocchio stores unset limits as ±max double, or equal values
-            lower, upper = -np.inf, np.inf
-        velocity = float(model.velocityLimit[index_v])
-        effort = float(model.effortLimit[index_v])
-        joints.append(
-            Joint(
-                name=name,
-                joint_type=joint_type,
-                axis=axis,
-                placement=model.jointPlacements[joint_id].homogeneous,
-                link_transform=np.eye(4),
-                inertial=np.asarray(model.inertias[joint_id].toDynamicParameters()).reshape(-1),
-                lower=lower if np.isfinite(lower) and abs(lower) < 1e30 else -np.inf,
-                upper=upper if np.isfinite(upper) and abs(upper) < 1e30 else np.inf,
-                velocity=velocity if 0 < velocity < 1e30 else np.inf,
-                effort=effort if 0 < effort < 1e30 else np.inf,
-            )
+
+
+def _joint(path: Path, model: Any, joint_id: int) -> Joint:
+    """Joint ``joint_id`` of Pinocchio's ``model``: revolute or prismatic about its motion subspace's
+    axis, with its placement, inertia and limits (unset or absurd limits infinite)."""
+    import pinocchio as pin
+
+    joint_model = model.joints[joint_id]
+    name = model.names[joint_id]
+    kind = joint_model.shortname()
+    if joint_model.nv != 1:
+        raise RobotDescriptionError(
+            f"URDF {path}: joint {name!r} is a {kind.removeprefix('JointModel')} joint with "
+            f"{joint_model.nv} degrees of freedom (floating, planar and spherical joints are not "
+            "supported: serial chains of revolute and prismatic joints only)"
         )
-    return RobotModel(
-        name=model.name or path.stem,
-        joints=tuple(joints),
-        gravity=np.asarray(DEFAULT_GRAVITY if gravity is None else gravity, dtype=float),
+    data = joint_model.createData()
+    joint_model.calc(data, pin.neutral(model)[joint_model.idx_q : joint_model.idx_q + joint_model.nq])
+    subspace = np.asarray(data.S).reshape(6)
+    linear, angular = subspace[:3], subspace[3:]
+    if np.linalg.norm(angular) > 1e-12 and np.linalg.norm(linear) < 1e-12:
+        joint_type, axis = JointType.REVOLUTE, angular
+    elif np.linalg.norm(linear) > 1e-12 and np.linalg.norm(angular) < 1e-12:
+        joint_type, axis = JointType.PRISMATIC, linear
+    else:
+        raise RobotDescriptionError(f"URDF {path}: joint {name!r} ({kind}) is neither revolute nor prismatic")
+    index_q = joint_model.idx_q
+    index_v = joint_model.idx_v
+    lower = float(model.lowerPositionLimit[index_q]) if joint_model.nq == 1 else -np.inf
+    upper = float(model.upperPositionLimit[index_q]) if joint_model.nq == 1 else np.inf
+    if lower >= upper:  # Pinocchio stores unset limits as ±max double, or equal values
+        lower, upper = -np.inf, np.inf
+    velocity = float(model.velocityLimit[index_v])
+    effort = float(model.effortLimit[index_v])
+    return Joint(
+        name=name,
+        joint_type=joint_type,
+        axis=axis,
+        placement=model.jointPlacements[joint_id].homogeneous,
+        link_transform=np.eye(4),
+        inertial=np.asarray(model.inertias[joint_id].toDynamicParameters()).reshape(-1),
+        lower=lower if np.isfinite(lower) and abs(lower) < 1e30 else -np.inf,
+        upper=upper if np.isfinite(upper) and abs(upper) < 1e30 else np.inf,
+        velocity=velocity if 0 < velocity < 1e30 else np.inf,
+        effort=effort if 0 < effort < 1e30 else np.inf,
     )

@@ -121,57 +121,103 @@ def design_excitation(
     InfeasibleBoundsError
         When a bound is too narrow for the optimiser's constraints (named with its joint).
     """
-    if isinstance(starts, bool) or not isinstance(starts, (int, np.integer)) or not 1 <= starts <= MAX_STARTS:
-        raise ValueError(f"starts must be an integer from 1 to {MAX_STARTS}, got {starts!r}")
-    if seed is not None and (isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0):
-        raise TypeError(f"seed must be a non-negative integer or None, got {seed!r}")
-    seed = None if seed is None else int(seed)  # a plain int in the JSON metadata
-    if bounds is not None and not isinstance(bounds, JointBounds):
-        raise TypeError(f"bounds must be JointBounds (e.g. JointBounds.from_dict(...)), got {type(bounds).__name__}")
-    if executor is not None and not callable(getattr(executor, "submit", None)):
-        raise TypeError(f"executor must be a concurrent.futures.Executor (with submit), got {type(executor).__name__}")
+    seed = _checked_arguments(starts, seed, bounds, executor)
     started = time.perf_counter()
     if problem is None:
         problem = ExcitationDesign(robot, model, bounds, criterion, effects, settings or DesignSettings())
     check_room_to_move(problem)
     generator = np.random.default_rng(seed)
     initial = [problem.random_start(generator) for _ in range(starts)]
-    results: list[StartResult] = []
     if executor is None:
-        build_time = problem.build()
-        for index, x0 in enumerate(initial):
-            results.append(problem.solve(x0, index))
-            if progress is not None:
-                progress(results[-1], starts)
+        build_time, results = _solve_in_turn(problem, initial, progress)
     else:
         build_time = float("nan")  # paid once in each worker
-        payload = payload_of(problem)
-        futures = [executor.submit(solve_start, payload, x0, index) for index, x0 in enumerate(initial)]
-        try:
-            for future in as_completed(futures):
-                results.append(future.result())
-                if progress is not None:
-                    progress(results[-1], starts)
-        except BaseException:  # Ctrl-C or a failed start: do not leave the other starts running
-            for future in futures:
-                future.cancel()
-            raise
-        results.sort(key=lambda result: result.index)
+        results = _solve_on(executor, problem, initial, progress)
+    best = _best_start(problem, results)
+    values = problem.evaluate(best.x)
+    metadata = _trajectory_metadata(problem, values, best, results, starts, seed)
+    return DesignResult(
+        trajectory=problem.trajectory(best.x, **metadata),
+        cost=values["cost"],
+        cond=values["cond"],
+        criterion=problem.criterion.name,
+        criterion_value=values["criterion"],
+        starts=tuple(results),
+        best=best.index,
+        build_time_s=build_time,
+        total_time_s=time.perf_counter() - started,
+    )
+
+
+def _checked_arguments(starts: Any, seed: Any, bounds: Any, executor: Any) -> int | None:
+    """Refuse a bad ``starts``, ``seed``, ``bounds`` or ``executor`` of :func:`design_excitation`; the
+    seed as a plain ``int`` (for the JSON metadata) or ``None``."""
+    if isinstance(starts, bool) or not isinstance(starts, (int, np.integer)) or not 1 <= starts <= MAX_STARTS:
+        raise ValueError(f"starts must be an integer from 1 to {MAX_STARTS}, got {starts!r}")
+    if seed is not None and (isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0):
+        raise TypeError(f"seed must be a non-negative integer or None, got {seed!r}")
+    if bounds is not None and not isinstance(bounds, JointBounds):
+        raise TypeError(f"bounds must be JointBounds (e.g. JointBounds.from_dict(...)), got {type(bounds).__name__}")
+    if executor is not None and not callable(getattr(executor, "submit", None)):
+        raise TypeError(f"executor must be a concurrent.futures.Executor (with submit), got {type(executor).__name__}")
+    return None if seed is None else int(seed)
+
+
+def _solve_in_turn(problem: ExcitationDesign, initial: list[np.ndarray],
+                   progress: Callable[[StartResult, int], None] | None) -> tuple[float, list[StartResult]]:
+    """Every start solved here, one after the other: the problem's build time and the results."""
+    results: list[StartResult] = []
+    build_time = problem.build()
+    for index, x0 in enumerate(initial):
+        results.append(problem.solve(x0, index))
+        if progress is not None:
+            progress(results[-1], len(initial))
+    return build_time, results
+
+
+def _solve_on(executor: Any, problem: ExcitationDesign, initial: list[np.ndarray],
+              progress: Callable[[StartResult, int], None] | None) -> list[StartResult]:
+    """Every start submitted to ``executor`` as :func:`solve_start`; the results in start order
+    (``progress`` called as they finish). On an error or Ctrl-C the other starts are cancelled."""
+    results: list[StartResult] = []
+    payload = payload_of(problem)
+    futures = [executor.submit(solve_start, payload, x0, index) for index, x0 in enumerate(initial)]
+    try:
+        for future in as_completed(futures):
+            results.append(future.result())
+            if progress is not None:
+                progress(results[-1], len(initial))
+    except BaseException:  # Ctrl-C or a failed start: do not leave the other starts running
+        for future in futures:
+            future.cancel()
+        raise
+    results.sort(key=lambda result: result.index)
+    return results
+
+
+def _best_start(problem: ExcitationDesign, results: list[StartResult]) -> StartResult:
+    """The successful start of least criterion; :class:`DesignError` when none succeeded, a
+    :class:`ShrunkDesignWarning` (for the caller of :func:`design_excitation`) when it was scaled down."""
     good = [result for result in results if result.success]
     if not good:
         details = "; ".join(
             f"start {r.index}: {r.status}" + ("" if r.feasible else " (bounds not met)") for r in results
         )
-        raise DesignError(f"IPOPT found no acceptable trajectory in {starts} start(s): {details}")
+        raise DesignError(f"IPOPT found no acceptable trajectory in {len(results)} start(s): {details}")
     best = min(good, key=lambda result: result.criterion_value)
     if best.shrunk:
         warnings.warn(
             f"the best start ({best.index}) met the {problem.settings.rate_hz:g} Hz bounds only after its oscillation "
             "was scaled down onto them: the trajectory is weaker than the optimiser's (more constraint_points or "
-            "refinements avoid it)", ShrunkDesignWarning, stacklevel=2)
-    values = problem.evaluate(best.x)
+            "refinements avoid it)", ShrunkDesignWarning, stacklevel=3)
+    return best
+
+
+def _trajectory_metadata(problem: ExcitationDesign, values: dict[str, Any], best: StartResult,
+                         results: list[StartResult], starts: int, seed: int | None) -> dict[str, Any]:
+    """What the designed trajectory carries: ``model, criterion, cost, cond, bounds, solver, robot``."""
     s = problem.settings
-    metadata = {
+    return {
         "model": problem.model.value,
         "criterion": problem.criterion.name,
         "cost": values["cost"],
@@ -193,14 +239,3 @@ def design_excitation(
         },
         "robot": problem.robot.name,
     }
-    return DesignResult(
-        trajectory=problem.trajectory(best.x, **metadata),
-        cost=values["cost"],
-        cond=values["cond"],
-        criterion=problem.criterion.name,
-        criterion_value=values["criterion"],
-        starts=tuple(results),
-        best=best.index,
-        build_time_s=build_time,
-        total_time_s=time.perf_counter() - started,
-    )

@@ -14,7 +14,7 @@ from dynamics.effects.shaped import PositionRipple, ShapedStribeckFriction, Sigm
 from estimation.diagnosis.search import diagnose
 from estimation.identification.fit import identify
 from estimation.preprocessing.differentiation import FourierDifferentiation, fill_derivatives
-from estimation.estimators.variable_projection import Block, States
+from estimation.estimators.effect_blocks import Block, States
 from tests.synthetic import random_fourier, simulate, true_parameters
 
 NOISE = 0.1

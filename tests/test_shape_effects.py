@@ -23,7 +23,7 @@ from dynamics.effects.shaped import (
     TanhCoulombFriction,
 )
 from estimation.identification.fit import identify
-from estimation.estimators.variable_projection import Block, NoRowsError, ShapeSearchError, States
+from estimation.estimators.effect_blocks import Block, NoRowsError, ShapeSearchError, States
 from tests.synthetic import random_fourier, simulate, true_parameters
 
 

@@ -13,7 +13,8 @@ from estimation.diagnosis.confirmation import settled_weights
 from estimation.diagnosis.search import diagnose
 from estimation.identification.fit import ImplausibleEstimateWarning, identify
 from estimation.diagnosis.sign_constraints import negative_terms, pin_wrong_signs
-from estimation.estimators.variable_projection import Block, FixedPart, States
+from estimation.estimators.effect_blocks import Block, States
+from estimation.estimators.separable_least_squares import FixedPart
 from tests.synthetic import random_fourier, simulate, true_parameters
 
 

@@ -31,12 +31,13 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from dynamics.simulation.controllers import Controller, PDController, pd_gains
+from dynamics.simulation.plant import Plant
 from dynamics.effects.linear import WRENCH_CHANNELS
 from dynamics.runtime.memory import check_allocation
 from dynamics.pinocchio_bridge import to_pinocchio
 from dynamics.robot import RobotModel
 from dynamics.simulation.sensors import NoiseModel
-from dynamics.simulation.effects import Armature, Viscous, describe, effects_from_names, is_plate_effect
+from dynamics.simulation.effects import Viscous, describe, effects_from_names, is_plate_effect
 from dynamics.measurements import Measurements
 
 @dataclass(frozen=True)
@@ -222,90 +223,55 @@ class Simulator:
         starts in the periodic steady state; the record's ``t`` starts at 0. The robot starts at
         the reference ``q_d(0), dq_d(0)`` unless ``initial_state`` is given.
         """
-        import pinocchio as pin
-
         robot, n = self.robot, self.robot.n_joints
         evaluate, period = _reference(trajectory, n)
-        whole_periods = duration is None and period is not None
-        if duration is None:
-            if period is None:
-                raise ValueError("give duration for a trajectory without a period")
-            if int(periods) < 1 or int(warmup_periods) < 0:
-                raise ValueError("periods must be at least 1 and warmup_periods non-negative")
-            duration = int(periods) * period
-        if not duration > 0:
-            raise ValueError(f"duration must be positive, got {duration}")
-        warmup = int(warmup_periods) * (period or 0.0)
-        if not np.isfinite(duration * self.rate_hz) or duration * self.rate_hz + warmup * self.rate_hz > MAX_SAMPLES:
-            raise ValueError(f"{duration + warmup:.4g} s at {self.rate_hz:g} Hz is more than {MAX_SAMPLES:.0e} samples: "
-                             "shorten the record or lower the rate")
-        count, skip = int(round(duration * self.rate_hz)), int(round(warmup * self.rate_hz))
-        # t, the reference (q, dq, ddq), the record (q, dq, ddq, tau) and the wrench and frame written from it
-        check_allocation(8.0 * (skip + count) * (1 + 8 * n + 12), f"{duration + warmup:.4g} s at {self.rate_hz:g} Hz")
-        if count < 2:
-            raise ValueError(f"{duration:.4g} s at {self.rate_hz:g} Hz gives {count} sample(s): need at least two")
-        t_all = np.arange(skip + count) / self.rate_hz
+        length = _RecordLength.of(period, periods, duration, warmup_periods, self.rate_hz, n)
+        t_all = np.arange(length.skip + length.count) / self.rate_hz
         q_d, dq_d, ddq_d = (np.asarray(values, dtype=float) for values in evaluate(t_all))
-        if q_d.shape != (skip + count, n):
-            raise ValueError(f"the reference must give ({skip + count}, {n}) arrays, got {q_d.shape}")
+        if q_d.shape != (length.skip + length.count, n):
+            raise ValueError(f"the reference must give ({length.skip + length.count}, {n}) arrays, got {q_d.shape}")
         controller = self.default_controller() if controller is None else controller
         if not isinstance(controller, Controller):
             raise TypeError("controller needs torque(t, q, dq, q_d, dq_d, ddq_d) and describe()")
 
-        model = to_pinocchio(robot, theta=self.theta)
-        model.armature = self._armature()
-        data = model.createData()
-        joint_effects = [effect for effect in self.joint_effects if not isinstance(effect, Armature)]  # armature: in M
-
-        def acceleration(q, dq, tau):
-            for effect in joint_effects:
-                tau = tau - effect.joint_torque(robot, q, dq)
-            return pin.aba(model, data, q, dq, tau).copy()
-
+        plant = Plant(robot, self.theta, self.joint_effects, self.rate_hz)
         q = q_d[0].copy() if initial_state is None else np.asarray(initial_state[0], dtype=float).copy()
         dq = dq_d[0].copy() if initial_state is None else np.asarray(initial_state[1], dtype=float).copy()
-        upper = np.triu(pin.crba(model, data, q))  # CRBA fills the upper triangle
-        inertia = np.linalg.eigvalsh(upper + np.triu(upper, 1).T)
-        if not inertia[0] > 1e-12 * max(inertia[-1], 1e-300):
-            raise ValueError(f"the mass matrix is singular at the start (eigenvalues {inertia[0]:.3g} … {inertia[-1]:.3g}): "
-                             "a joint moves no mass or inertia (a massless link in the description?); "
-                             "the robot cannot be simulated")
-        Q, DQ, DDQ, TAU = (np.empty((skip + count, n)) for _ in range(4))
+        plant.check_mass_matrix(q)
         substeps = self.substeps_needed()
-        h = 1.0 / (self.rate_hz * substeps)
         started = time.perf_counter()
-        for k in range(skip + count):
-            tau = np.asarray(controller.torque(t_all[k], q, dq, q_d[k], dq_d[k], ddq_d[k]), dtype=float).reshape(n)
-            a1 = acceleration(q, dq, tau)
-            Q[k], DQ[k], DDQ[k], TAU[k] = q, dq, a1, tau
-            for step in range(substeps):
-                if step:
-                    a1 = acceleration(q, dq, tau)
-                v2 = dq + 0.5 * h * a1
-                a2 = acceleration(q + 0.5 * h * dq, v2, tau)
-                v3 = dq + 0.5 * h * a2
-                a3 = acceleration(q + 0.5 * h * v2, v3, tau)
-                v4 = dq + h * a3
-                a4 = acceleration(q + h * v3, v4, tau)
-                q = q + h / 6 * (dq + 2 * v2 + 2 * v3 + v4)
-                dq = dq + h / 6 * (a1 + 2 * a2 + 2 * a3 + a4)
-            if not (np.all(np.isfinite(q)) and np.all(np.isfinite(dq)) and np.all(np.abs(dq) < 1e4)):
-                with np.errstate(all="ignore"):
-                    peak = np.max(np.abs(np.nan_to_num(dq_d, nan=np.inf)), axis=0)
-                raise RuntimeError(
-                    f"simulation diverged at t = {t_all[k]:.3f} s (joint velocities {np.array2string(dq, precision=3)}); "
-                    f"lower the controller gains or raise rate_hz/substeps, or check the reference (its peak "
-                    f"velocities {np.array2string(peak, precision=3)} rad/s)"
-                )
+        Q, DQ, DDQ, TAU = plant.track(controller, t_all, (q_d, dq_d, ddq_d), (q, dq), substeps)
         elapsed = time.perf_counter() - started
 
-        keep = slice(skip, skip + count)
-        t = t_all[keep] - t_all[skip]
+        keep = slice(length.skip, length.skip + length.count)
+        t = t_all[keep] - t_all[length.skip]
         Q, DQ, DDQ, TAU = Q[keep], DQ[keep], DDQ[keep], TAU[keep]
         rigid = base_wrench(robot, self.theta, Q, DQ, DDQ)
-        plate = sum((effect.plate_wrench(robot, Q) for effect in self.plate_effects), np.zeros((count, 6)))
+        plate = sum((effect.plate_wrench(robot, Q) for effect in self.plate_effects), np.zeros((length.count, 6)))
         wrench = rigid + plate
+        q_measured, tau_measured, wrench_measured = self._sensed(Q, TAU, wrench, seed)
+        metadata = self._metadata(trajectory, controller, length, periods, warmup_periods, substeps, seed,
+                                  with_derivatives)
+        measurements = Measurements(
+            t=t,
+            q=q_measured,
+            dq=DQ.copy() if with_derivatives else None,
+            ddq=DDQ.copy() if with_derivatives else None,
+            tau=tau_measured,
+            wrench=wrench_measured,
+            metadata=metadata,
+        )
+        q_ref, dq_ref, ddq_ref = q_d[keep], dq_d[keep], ddq_d[keep]
+        return SimulationResult(
+            measurements, t, Q, DQ, DDQ, q_ref, dq_ref, ddq_ref, TAU, wrench, rigid, elapsed, metadata
+        )
 
+    def _sensed(self, Q: NDArray, TAU: NDArray, wrench: NDArray, seed: int | None
+                ) -> tuple[NDArray, NDArray, NDArray]:
+        """What the sensors read of the true ``q``, ``tau`` and wrench: quantised positions, noisy
+        torques and wrench (the torque noise drawn first, then the wrench's, from ``seed``)."""
+        robot = self.robot
+        count, n = TAU.shape
         generator = np.random.default_rng(seed)
         tau_noise = generator.normal(size=(count, n)) * np.broadcast_to(self.noise.tau_std, (n,))
         wrench_noise = generator.normal(size=(count, 6)) * np.broadcast_to(self.noise.wrench_std, (6,))
@@ -319,15 +285,21 @@ class Simulator:
                                  f"{joint + 1} is coarser than its motion (range {spans[joint]:.3g}): its positions "
                                  "would read almost constant")
         q_measured = Q.copy() if resolution is None else np.round(Q / resolution) * resolution
-        metadata = {
+        return q_measured, TAU + tau_noise, wrench + wrench_noise
+
+    def _metadata(self, trajectory: Any, controller: Controller, length: _RecordLength, periods: int,
+                  warmup_periods: int, substeps: int, seed: int | None, with_derivatives: bool) -> dict[str, Any]:
+        """The record's metadata: the robot, the sampling, the controller, effects, noise and truth."""
+        robot = self.robot
+        return {
             "source": "dynamics.simulation.simulator",
             "robot": robot.name,
             "joint_names": robot.joint_names,
             "rate_hz": self.rate_hz,
-            "duration_s": duration,
-            "periods": int(periods) if whole_periods else None,
+            "duration_s": length.duration,
+            "periods": int(periods) if length.whole_periods else None,
             # whole periods of a periodic reference: estimation.preprocessing.differentiation.fill_derivatives fits them
-            "frequency_hz": 1.0 / period if whole_periods else None,
+            "frequency_hz": 1.0 / length.period if length.whole_periods else None,
             "harmonics": getattr(trajectory, "harmonics", None),
             "warmup_periods": int(warmup_periods),
             "integrator": f"rk4, zero-order-hold torque, {substeps} substep(s) per sample",
@@ -339,19 +311,55 @@ class Simulator:
             "true_parameters": self.true_parameters(),
             "wrench_channels": list(WRENCH_CHANNELS),
         }
-        measurements = Measurements(
-            t=t,
-            q=q_measured,
-            dq=DQ.copy() if with_derivatives else None,
-            ddq=DDQ.copy() if with_derivatives else None,
-            tau=TAU + tau_noise,
-            wrench=wrench + wrench_noise,
-            metadata=metadata,
-        )
-        q_ref, dq_ref, ddq_ref = q_d[keep], dq_d[keep], ddq_d[keep]
-        return SimulationResult(
-            measurements, t, Q, DQ, DDQ, q_ref, dq_ref, ddq_ref, TAU, wrench, rigid, elapsed, metadata
-        )
+
+
+
+@dataclass(frozen=True)
+class _RecordLength:
+    """The samples one run simulates: ``skip`` warm-up samples (dropped), then ``count`` recorded.
+
+    Attributes
+    ----------
+    duration
+        Recorded seconds.
+    count, skip
+        Recorded and warm-up samples.
+    period
+        The reference's period (``None``: not periodic).
+    whole_periods
+        Whether the record is whole periods of a periodic reference (no ``duration`` given).
+    """
+
+    duration: float
+    count: int
+    skip: int
+    period: float | None
+    whole_periods: bool
+
+    @classmethod
+    def of(cls, period: float | None, periods: int, duration: float | None, warmup_periods: int, rate_hz: float,
+           n_joints: int) -> _RecordLength:
+        """Checked: ``periods`` periods (or ``duration`` s) after ``warmup_periods`` at ``rate_hz``,
+        within :data:`MAX_SAMPLES` and the memory the arrays of ``n_joints`` joints take."""
+        whole_periods = duration is None and period is not None
+        if duration is None:
+            if period is None:
+                raise ValueError("give duration for a trajectory without a period")
+            if int(periods) < 1 or int(warmup_periods) < 0:
+                raise ValueError("periods must be at least 1 and warmup_periods non-negative")
+            duration = int(periods) * period
+        if not duration > 0:
+            raise ValueError(f"duration must be positive, got {duration}")
+        warmup = int(warmup_periods) * (period or 0.0)
+        if not np.isfinite(duration * rate_hz) or duration * rate_hz + warmup * rate_hz > MAX_SAMPLES:
+            raise ValueError(f"{duration + warmup:.4g} s at {rate_hz:g} Hz is more than {MAX_SAMPLES:.0e} samples: "
+                             "shorten the record or lower the rate")
+        count, skip = int(round(duration * rate_hz)), int(round(warmup * rate_hz))
+        # t, the reference (q, dq, ddq), the record (q, dq, ddq, tau) and the wrench and frame written from it
+        check_allocation(8.0 * (skip + count) * (1 + 8 * n_joints + 12), f"{duration + warmup:.4g} s at {rate_hz:g} Hz")
+        if count < 2:
+            raise ValueError(f"{duration:.4g} s at {rate_hz:g} Hz gives {count} sample(s): need at least two")
+        return cls(duration, count, skip, period, whole_periods)
 
 
 def base_wrench(robot: RobotModel, theta: Sequence[float] | None, q: NDArray, dq: NDArray, ddq: NDArray) -> NDArray:

@@ -34,7 +34,7 @@ Hessian, ``cov(θ_b) = s J (JᵀGJ + w ∇²D)⁺ Jᵀ`` with ``J = K ∂θ/∂�
 the unconstrained fit. Coordinates at zero by consistency (a friction, a degenerate body) stay free,
 so their uncertainty is not understated. Without a prior this is the unconstrained covariance; a
 prior shrinks it. Standard deviations of the link parameters themselves are given only with a prior
-(the data alone do not determine them).
+(the data alone do not determine them). Both, and the bounds met, in :mod:`estimation.consistent.reduced_hessian`.
 
 Extension point: effects with shape parameters (nonlinear in their parameters) do not fit the
 quadratic form; :func:`check_linear_effects` names them until the variable-projection estimator
@@ -60,7 +60,8 @@ from dynamics.runtime.threads import single_threaded_blas
 from estimation.estimators.estimator import Estimator
 from estimation.estimators.identification_problem import IdentificationProblem, stack
 from estimation.estimators.least_squares import Estimate, WeightedLeastSquares, channel_gram
-from estimation.consistent.solver import compiled_problem, escape, inside, pseudo_inverse, variable_scales
+from estimation.consistent.reduced_hessian import active_bounds, at_user_bounds, reduced_hessian_covariance
+from estimation.consistent.solver import compiled_problem, escape, inside, variable_scales
 from dynamics.measurements import Measurements
 
 #: IPOPT return statuses accepted as a solution
@@ -207,96 +208,21 @@ class ConsistentLeastSquares(Estimator):
         gram, _ = channel_gram(problem)
         G = np.tensordot(unconstrained.weights, gram, axes=1)
         G = 0.5 * (G + G.T)
-        residual_scale = float(np.trace(unconstrained.cov @ G)) / model.n_base
         parametrisation = PhysicalParametrisation.of_model(model, self.bounds)
         prior = self._prior(model, parametrisation, weight)
-        n = model.robot.n_joints
-        J0 = [pseudo_inertia(prior[10 * k : 10 * (k + 1)]) for k in range(n)]
-        inverses = np.concatenate([np.linalg.inv(J).reshape(-1, order="F") for J in J0])
-        log_dets = np.array([np.linalg.slogdet(J)[1] for J in J0])
-
-        def parameters(prior_weight: float) -> NDArray[np.float64]:
-            return np.concatenate([G.reshape(-1, order="F"), unconstrained.values, [prior_weight], inverses, log_dets])
-
+        solves = _Solves(model, parametrisation, G, unconstrained.values, prior, int(self.max_iter))
         effective = weight if weight > 0 else float(self.regularisation)
-        compiled = compiled_problem(model, int(self.max_iter))
-        lower, upper = parametrisation.psi_bounds()
-        fixed_lower, fixed_upper = parametrisation.phi_bounds()  # the user's bounds (fixed in the reduced Hessian)
-        scales = variable_scales(prior, n, model.n_parameters - 10 * n)
-        escape_solver = compiled_problem(model, min(int(self.max_iter), ESCAPE_ITERATIONS))
         results: list[dict[str, Any]] = []
-        starts = self._starts(model, parametrisation, unconstrained.values, prior)
-        for count, (name, phi0) in enumerate(starts):
+        for count, (name, phi0) in enumerate(self._starts(model, parametrisation, unconstrained.values, prior)):
             if count >= self.starts and any(r["certified"] for r in results):
                 break  # the extra starts are only for when no configured one reached a certified optimum
-            psi0 = np.clip(parametrisation.psi_from_phi(phi0), inside(lower, +1e-9), inside(upper, -1e-9))
-            result = compiled.solve(psi0, parameters(effective), lower, upper, *scales)
-            escapes, certified = 0, False
-            while result["status"] in ACCEPTED_STATUSES and escapes <= MAX_ESCAPES:
-                # a stationary point of the factorised problem need not be the convex problem's optimum
-                # (Burer–Monteiro): certify it, or leave it along a descent direction and solve again
-                escaped = escape(model, parametrisation, compiled, result["psi"], G, unconstrained.values)
-                if escaped is None:
-                    certified = True
-                    break
-                if escapes == MAX_ESCAPES:
-                    break
-                escapes += 1
-                again = escape_solver.solve(np.clip(escaped, inside(lower, +1e-9), inside(upper, -1e-9)),
-                                            parameters(effective), lower, upper, *scales)
-                again["iterations"] += result["iterations"]
-                if again["status"] not in ACCEPTED_STATUSES or again["cost"] > result["cost"]:
-                    result["iterations"] = again["iterations"]
-                    break
-                result = again
-            results.append({"name": name, "escapes": escapes, "certified": certified, **result})
+            results.append(solves.solve(name, phi0, effective))
         accepted = [result for result in results if result["status"] in ACCEPTED_STATUSES and np.isfinite(result["cost"])]
         if not accepted:
             raise ConsistentSolverError(
                 "IPOPT found no consistent estimate: " + "; ".join(f"start {r['name']}: {r['status']}" for r in results))
         best = min([r for r in accepted if r["certified"]] or accepted, key=lambda result: result["cost"])
-        psi = best["psi"]
-        theta, dtheta = (np.asarray(value) for value in compiled.mapping(psi))
-        theta = theta.reshape(-1)
-        values = model.base.K @ theta
-        # reduced Hessian: coordinates at a user bound are fixed; those at zero by consistency
-        # (friction, a degenerate body) stay free, so their uncertainty is not understated
-        user_bound = np.zeros(psi.shape[0], dtype=bool)
-        for k in range(n):
-            block = slice(10 * k, 10 * (k + 1))
-            for offset in (0, 7, 8, 9):
-                value = psi[block][offset]
-                low, high = lower[block][offset], upper[block][offset]
-                user_bound[10 * k + offset] = bool(
-                    (np.isfinite(fixed_lower[block][offset]) and value <= low + 1e-7 * (1 + abs(low)))
-                    or (np.isfinite(fixed_upper[block][offset]) and value >= high - 1e-7 * (1 + abs(high))))
-        free = ~user_bound
-        J = model.base.K @ dtheta[:, free]
-        hessian = J.T @ G @ J
-        if weight > 0:
-            hessian = hessian + weight * np.asarray(compiled.prior_hessian(psi, parameters(weight)))[np.ix_(free, free)]
-        inverse = pseudo_inverse(hessian)  # equilibrated inside: ψ mixes scales (a degenerate link's a → 0)
-        cov = residual_scale * J @ inverse @ J.T
-        theta_std = None
-        if weight > 0:
-            theta_cov = residual_scale * dtheta[:, free] @ inverse @ dtheta[:, free].T
-            theta_std = np.sqrt(np.clip(np.diag(theta_cov), 0.0, None))
-        phi = parametrisation.phi_from_psi(psi)
-        deviation = values - unconstrained.values
-        self.estimate_ = ConsistentEstimate(
-            theta=theta, phi=phi, values=values, cov=cov, std=np.sqrt(np.clip(np.diag(cov), 0.0, None)),
-            theta_std=theta_std, uncertainty_method=UNCERTAINTY_METHOD, names=model.base.names,
-            expressions=model.base.expressions, parameter_names=model.parameter_names,
-            link_names=tuple(model.robot.joint_names),
-            margins=np.array([consistency_margin(theta[10 * k : 10 * (k + 1)]) for k in range(n)]),
-            active_bounds=_active_bounds(parametrisation, psi, theta, unconstrained, model),
-            prior_weight=weight, excess_chi2=float(deviation @ G @ deviation),
-            solver={"status": best["status"], "iterations": best["iterations"], "best": best["name"],
-                    "time_s": time.perf_counter() - started,
-                    "certified": bool(best["certified"]),
-                    "starts": [{key: r[key] for key in ("name", "status", "iterations", "escapes", "certified", "cost")}
-                               for r in results]},
-        )
+        self.estimate_ = _estimate(solves, best, results, unconstrained, weight, started)
         return self
 
     theta_ = property(lambda self: self._fitted().theta, doc="Consistent standard parameters (links, then effects).")
@@ -362,30 +288,82 @@ class ConsistentLeastSquares(Estimator):
             yield f"fallback{index + 1}", first + generator.normal(0.0, 0.3, parametrisation.n_phi)
 
 
-def _active_bounds(parametrisation, psi, theta, unconstrained: Estimate, model: IdentificationModel) -> tuple[str, ...]:
-    """Bounds met with equality: non-negative effects at zero, degenerate bodies (pseudo-inertia
-    singular: the estimate is on the boundary of the consistent set), the user's mass and
-    centre-of-mass bounds."""
-    active = []
-    start = 10 * parametrisation.n_links
-    reference = max(1.0, float(np.abs(unconstrained.values).max()))
-    for index, kind in enumerate(parametrisation.effect_kinds):
-        if kind == "nonnegative" and theta[start + index] <= 1e-8 * reference:
-            active.append(f"{model.parameter_names[start + index]} >= 0")
-    lower, upper = parametrisation.psi_bounds()
-    user_lower, user_upper = parametrisation.phi_bounds()
-    for k, name in enumerate(parametrisation.link_names):
-        block = slice(10 * k, 10 * (k + 1))
-        if consistency_margin(theta[block]) < 1e-8:
-            active.append(f"{name} pseudo-inertia singular (degenerate body)")
-        for offset, label in ((0, "mass"), (7, "com x"), (8, "com y"), (9, "com z")):
-            value, low, high = psi[block][offset], lower[block][offset], upper[block][offset]
-            shown = (lambda v: float(v * v)) if offset == 0 else float
-            if np.isfinite(user_lower[block][offset]) and value <= low + 1e-6 * (1 + abs(low)):
-                active.append(f"{name} {label} >= {shown(low):.6g}")
-            if np.isfinite(user_upper[block][offset]) and value >= high - 1e-6 * (1 + abs(high)):
-                active.append(f"{name} {label} <= {shown(high):.6g}")
-    return tuple(active)
+class _Solves:
+    """What every start of one fit shares: the quadratic form ``G, θ̂_b``, the prior's terms, IPOPT's
+    bounds and scales, the compiled problem and the shorter one run after an escape."""
+
+    def __init__(self, model: IdentificationModel, parametrisation: PhysicalParametrisation, G: NDArray[np.float64],
+                 target: NDArray[np.float64], prior: NDArray[np.float64], max_iter: int) -> None:
+        n = model.robot.n_joints
+        self.model, self.parametrisation, self.G, self.target = model, parametrisation, G, target
+        J0 = [pseudo_inertia(prior[10 * k : 10 * (k + 1)]) for k in range(n)]
+        self.inverses = np.concatenate([np.linalg.inv(J).reshape(-1, order="F") for J in J0])
+        self.log_dets = np.array([np.linalg.slogdet(J)[1] for J in J0])
+        self.compiled = compiled_problem(model, max_iter)
+        self.lower, self.upper = parametrisation.psi_bounds()
+        self.scales = variable_scales(prior, n, model.n_parameters - 10 * n)
+        self.escape_solver = compiled_problem(model, min(max_iter, ESCAPE_ITERATIONS))
+
+    def parameters(self, prior_weight: float) -> NDArray[np.float64]:
+        """The compiled problem's parameter vector at ``prior_weight``."""
+        return np.concatenate([self.G.reshape(-1, order="F"), self.target, [prior_weight], self.inverses, self.log_dets])
+
+    def solve(self, name: str, phi0: NDArray[np.float64], prior_weight: float) -> dict[str, Any]:
+        """IPOPT from ``phi0``, then certified or escaped along a descent direction and solved again
+        (at most :data:`MAX_ESCAPES` times); the solver's result with ``name, escapes, certified``."""
+        lower, upper = self.lower, self.upper
+        psi0 = np.clip(self.parametrisation.psi_from_phi(phi0), inside(lower, +1e-9), inside(upper, -1e-9))
+        result = self.compiled.solve(psi0, self.parameters(prior_weight), lower, upper, *self.scales)
+        escapes, certified = 0, False
+        while result["status"] in ACCEPTED_STATUSES and escapes <= MAX_ESCAPES:
+            # a stationary point of the factorised problem need not be the convex problem's optimum
+            # (Burer–Monteiro): certify it, or leave it along a descent direction and solve again
+            escaped = escape(self.model, self.parametrisation, self.compiled, result["psi"], self.G, self.target)
+            if escaped is None:
+                certified = True
+                break
+            if escapes == MAX_ESCAPES:
+                break
+            escapes += 1
+            again = self.escape_solver.solve(np.clip(escaped, inside(lower, +1e-9), inside(upper, -1e-9)),
+                                             self.parameters(prior_weight), lower, upper, *self.scales)
+            again["iterations"] += result["iterations"]
+            if again["status"] not in ACCEPTED_STATUSES or again["cost"] > result["cost"]:
+                result["iterations"] = again["iterations"]
+                break
+            result = again
+        return {"name": name, "escapes": escapes, "certified": certified, **result}
+
+
+def _estimate(solves: _Solves, best: dict[str, Any], results: list[dict[str, Any]], unconstrained: Estimate,
+              weight: float, started: float) -> ConsistentEstimate:
+    """The consistent estimate at the best start's solution, with its reduced-Hessian covariance."""
+    model, parametrisation, G = solves.model, solves.parametrisation, solves.G
+    n = model.robot.n_joints
+    psi = best["psi"]
+    theta, dtheta = (np.asarray(value) for value in solves.compiled.mapping(psi))
+    theta = theta.reshape(-1)
+    values = model.base.K @ theta
+    prior_hessian = np.asarray(solves.compiled.prior_hessian(psi, solves.parameters(weight))) if weight > 0 else None
+    residual_scale = float(np.trace(unconstrained.cov @ G)) / model.n_base
+    cov, theta_std = reduced_hessian_covariance(model.base.K, dtheta, G, at_user_bounds(parametrisation, psi),
+                                                residual_scale, weight, prior_hessian)
+    deviation = values - unconstrained.values
+    return ConsistentEstimate(
+        theta=theta, phi=parametrisation.phi_from_psi(psi), values=values, cov=cov,
+        std=np.sqrt(np.clip(np.diag(cov), 0.0, None)),
+        theta_std=theta_std, uncertainty_method=UNCERTAINTY_METHOD, names=model.base.names,
+        expressions=model.base.expressions, parameter_names=model.parameter_names,
+        link_names=tuple(model.robot.joint_names),
+        margins=np.array([consistency_margin(theta[10 * k : 10 * (k + 1)]) for k in range(n)]),
+        active_bounds=active_bounds(parametrisation, psi, theta, unconstrained, model),
+        prior_weight=weight, excess_chi2=float(deviation @ G @ deviation),
+        solver={"status": best["status"], "iterations": best["iterations"], "best": best["name"],
+                "time_s": time.perf_counter() - started,
+                "certified": bool(best["certified"]),
+                "starts": [{key: r[key] for key in ("name", "status", "iterations", "escapes", "certified", "cost")}
+                           for r in results]},
+    )
 
 
 __all__ = ["ConsistentEstimate", "ConsistentLeastSquares", "ConsistentSolverError", "check_linear_effects",

@@ -110,33 +110,14 @@ def segments_from_frame(
             or not np.isfinite(max_gap):
         raise ValueError(f"max_gap must be a positive number of seconds, got {max_gap!r}")
     frame = frame.rename(columns=lambda name: str(name).strip())
-    if isinstance(model, IdentificationModel):
-        robot_joints = model.robot.n_joints
-        if n_joints is not None and n_joints != robot_joints:
-            raise ValueError(f"n_joints={n_joints} but the model's robot has {robot_joints} joints")
-        n_joints = robot_joints
-    if n_joints is None:
-        n_joints = _count_joint_columns(frame, "q")
-        if n_joints == 0:
-            raise MissingColumnError(f"{source}: no joint position columns q1..qn")
-    else:
-        _check_no_further_joints(frame, n_joints, source)
+    n_joints = _joint_count(frame, n_joints, model, source)
     groups = set(require) | set(required_groups(model)) | {"q"}
     unknown = groups - set(COLUMN_GROUPS)
     if unknown:
         raise ValueError(f"unknown column groups {sorted(unknown)}; expected some of {COLUMN_GROUPS}")
 
     _require_columns(frame, ["t"], "the time", source)
-    arrays: dict[str, NDArray[np.float64] | None] = {}
-    for group in ("q", "dq", "ddq", "tau", "wrench"):
-        columns = list(WRENCH_CHANNELS) if group == "wrench" else joint_columns(group, n_joints)
-        present = [column for column in columns if column in frame.columns]
-        if group in groups:
-            _require_columns(frame, columns, _GROUP_MEANING[group], source)
-        elif present and len(present) != len(columns):
-            missing = [column for column in columns if column not in frame.columns]
-            raise MissingColumnError(f"{source}: column(s) {', '.join(missing)} missing (the others of {group} are present)")
-        arrays[group] = _numeric(frame, columns, source) if len(present) == len(columns) else None
+    arrays = _group_arrays(frame, groups, n_joints, source)
     if pd.api.types.is_datetime64_any_dtype(frame["t"]) or pd.api.types.is_timedelta64_dtype(frame["t"]):
         raise TimeBaseError(f"{source}: column t holds {frame['t'].dtype} dates or durations; "
                             "the format wants seconds as numbers (e.g. (t - t[0]).dt.total_seconds())")
@@ -147,27 +128,7 @@ def segments_from_frame(
     step = _check_time(t, source)
     _check_angles(arrays["q"], model, source)
 
-    # judged on the time stamps alone: rows dropped as repeated (a robot at rest) leave no gap
-    gaps = [gap for gap in find_gaps(t, step)
-            if not dropped or time_stamps_jump(t_recorded, t[gap.row], t[gap.row + 1], step)]
-    holes = [gap for gap in gaps if gap.duration > max_gap]
-    stalls = [gap for gap in gaps if gap.duration <= max_gap]
-    if holes and not split:
-        gap = holes[0]
-        raise HoleError(
-            f"{source}: column t jumps by {gap.duration:.4g} s between rows {gap.row} and {gap.row + 1} (t = {gap.t:.6g} s), "
-            f"{gap.duration / step:.3g} times the median step {step:.4g} s, and the samples do not catch up: a gap "
-            f"in the record longer than max_gap = {max_gap:g} s, which interpolation would fill with a straight line "
-            f"({len(holes)} such gap(s)); split the record there (several files, or read_record), or raise --max-gap"
-        )
-    if stalls:
-        warnings.warn(
-            f"{source}: the logger stalled {len(stalls)} time(s) for at most {max_gap:g} s (--max-gap), longest at "
-            f"{describe(sorted(stalls, key=lambda gap: -gap.duration))}; bridged by linear interpolation (resampled onto a uniform grid)", StallWarning, stacklevel=3)
-    if holes:
-        warnings.warn(
-            f"{source}: {len(holes)} hole(s) longer than --max-gap {max_gap:g} s at {describe(holes)}: the record is "
-            f"split into {len(holes) + 1} segments there, each preprocessed on its own", SplitWarning, stacklevel=3)
+    holes, stalls = _holes_and_stalls(t, step, max_gap, split, source, t_recorded if dropped else None)
     segments = []
     for index, rows in enumerate(split_rows(t.shape[0], holes), start=1):
         name = source if len(holes) == 0 else f"{source} (segment {index})"
@@ -185,6 +146,71 @@ def segments_from_frame(
     return tuple(segments)
 
 
+def _joint_count(frame: pd.DataFrame, n_joints: int | None, model: IdentificationModel | ModelKind | str | None,
+                 source: str) -> int:
+    """The joints of the record: the model's robot's, ``n_joints`` (no further ``q`` column then), or
+    counted from the ``q`` columns."""
+    if isinstance(model, IdentificationModel):
+        robot_joints = model.robot.n_joints
+        if n_joints is not None and n_joints != robot_joints:
+            raise ValueError(f"n_joints={n_joints} but the model's robot has {robot_joints} joints")
+        n_joints = robot_joints
+    if n_joints is None:
+        n_joints = _count_joint_columns(frame, "q")
+        if n_joints == 0:
+            raise MissingColumnError(f"{source}: no joint position columns q1..qn")
+    else:
+        _check_no_further_joints(frame, n_joints, source)
+    return n_joints
+
+
+def _group_arrays(frame: pd.DataFrame, groups: set[str], n_joints: int, source: str
+                  ) -> dict[str, NDArray[np.float64] | None]:
+    """The numeric columns of each group (``q, dq, ddq, tau, wrench``), ``None`` for a group absent;
+    the ``groups`` required, and a group present in part, are errors naming the columns."""
+    arrays: dict[str, NDArray[np.float64] | None] = {}
+    for group in ("q", "dq", "ddq", "tau", "wrench"):
+        columns = list(WRENCH_CHANNELS) if group == "wrench" else joint_columns(group, n_joints)
+        present = [column for column in columns if column in frame.columns]
+        if group in groups:
+            _require_columns(frame, columns, _GROUP_MEANING[group], source)
+        elif present and len(present) != len(columns):
+            missing = [column for column in columns if column not in frame.columns]
+            raise MissingColumnError(f"{source}: column(s) {', '.join(missing)} missing (the others of {group} are present)")
+        arrays[group] = _numeric(frame, columns, source) if len(present) == len(columns) else None
+    return arrays
+
+
+def _holes_and_stalls(t: NDArray[np.float64], step: float, max_gap: float, split: bool, source: str,
+                      t_recorded: NDArray[np.float64] | None = None) -> tuple[list, list]:
+    """The gaps in ``t`` longer than ``max_gap`` (holes: the record is split there, or with ``split``
+    false a :class:`HoleError`) and the shorter ones (stalls: bridged); each kind warned about (for
+    the caller of :func:`segments_from_frame`). Gaps are judged on the time stamps alone: with rows dropped
+    as repeated, ``t_recorded`` (the time column before) must jump there too (a robot at rest leaves none)."""
+    gaps = [gap for gap in find_gaps(t, step)
+            if t_recorded is None or time_stamps_jump(t_recorded, t[gap.row], t[gap.row + 1], step)]
+    holes = [gap for gap in gaps if gap.duration > max_gap]
+    stalls = [gap for gap in gaps if gap.duration <= max_gap]
+    if holes and not split:
+        gap = holes[0]
+        raise HoleError(
+            f"{source}: column t jumps by {gap.duration:.4g} s between rows {gap.row} and {gap.row + 1} (t = {gap.t:.6g} s), "
+            f"{gap.duration / step:.3g} times the median step {step:.4g} s, and the samples do not catch up: a gap "
+            f"in the record longer than max_gap = {max_gap:g} s, which interpolation would fill with a straight line "
+            f"({len(holes)} such gap(s)); split the record there (several files, or read_record), or raise --max-gap"
+        )
+    if stalls:
+        warnings.warn(
+            f"{source}: the logger stalled {len(stalls)} time(s) for at most {max_gap:g} s (--max-gap), longest at "
+            f"{describe(sorted(stalls, key=lambda gap: -gap.duration))}; bridged by linear interpolation (resampled "
+            "onto a uniform grid)", StallWarning, stacklevel=4)
+    if holes:
+        warnings.warn(
+            f"{source}: {len(holes)} hole(s) longer than --max-gap {max_gap:g} s at {describe(holes)}: the record is "
+            f"split into {len(holes) + 1} segments there, each preprocessed on its own", SplitWarning, stacklevel=4)
+    return holes, stalls
+
+
 def _drop_repeated_rows(t, arrays, source: str):
     """Rows repeating the previous one on every channel: dropped, with one warning counting them."""
     data = np.hstack([values for values in arrays.values() if values is not None])
@@ -196,8 +222,7 @@ def _drop_repeated_rows(t, arrays, source: str):
     same_time = int(np.sum(np.diff(t)[rows - 1] == 0))
     warnings.warn(
         f"{source}: dropped {count} row(s) that repeat the previous row on every channel (a logger re-sending its "
-        f"last packet, or the robot at rest with quantised channels; {same_time} with the same time stamp, "
-        f"{count - same_time} with an advanced one), first at "
+        f"last packet; {same_time} with the same time stamp, {count - same_time} with an advanced one), first at "
         f"row {int(rows[0])} (t = {t[rows[0]]:.6g} s); the samples they stood for are interpolated",
         RepeatedRowsWarning, stacklevel=4)
     keep = ~repeated

@@ -1,6 +1,6 @@
 """One step of the diagnosis: fit every candidate effect against the current model, per channel.
 
-A candidate (plain or shaped) is a :class:`~estimation.estimators.variable_projection.Block` appended to the
+A candidate (plain or shaped) is a :class:`~estimation.estimators.effect_blocks.Block` appended to the
 current model's columns; its fit is a variable-projection fit (:func:`fit_shapes`, which for a
 plain effect is the linear solve alone) on the per-channel Gram matrices of the current columns,
 so one trial costs ``O(N p k)`` on the candidate's channels and an ``O((p+k)³)`` solve, instead
@@ -23,17 +23,9 @@ from numpy.typing import NDArray
 
 from dynamics.effects.linear import POSITIVE_EFFECTS, Effect
 from dynamics.models import IdentificationModel
-from estimation.estimators.variable_projection import (
-    Block,
-    FixedPart,
-    LinearSolution,
-    ShapeFit,
-    ShapeSearchError,
-    States,
-    fit_shapes,
-    residuals,
-    solve_linear,
-)
+from estimation.estimators.effect_blocks import Block, ShapeSearchError, States
+from estimation.estimators.separable_least_squares import FixedPart, LinearSolution, residuals, solve_linear
+from estimation.estimators.variable_projection import ShapeFit, fit_shapes
 
 
 #: each term of a several-term friction law must exceed this many standard deviations

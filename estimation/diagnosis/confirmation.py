@@ -28,7 +28,8 @@ from dynamics.effects.shaped import ShapedStribeckFriction, shape_parameters
 from estimation.diagnosis.candidate_trials import SIGNIFICANT_TERM, Trial, weighted_error
 from estimation.identification.fit import IdentificationResult, identify
 from estimation.estimators.least_squares import channel_variance
-from estimation.estimators.variable_projection import FixedPart, ShapeSearchError, States, residuals, solve_linear
+from estimation.estimators.effect_blocks import ShapeSearchError, States
+from estimation.estimators.separable_least_squares import FixedPart, residuals, solve_linear
 
 #: reweighting passes of a candidate's linear coefficients (the weighted least squares settles in two)
 REWEIGHTING_PASSES = 2

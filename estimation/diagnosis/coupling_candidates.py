@@ -75,7 +75,7 @@ def combination_taken(effect: Effect, selected: Sequence[Effect]) -> bool:
 
 
 def _columns(model: IdentificationModel, effect: Effect, train: Measurements) -> np.ndarray:
-    from estimation.estimators.variable_projection import States, effect_columns  # the same columns the diagnosis fits
+    from estimation.estimators.effect_blocks import States, effect_columns  # the same columns the diagnosis fits
 
     states = States(train.q, train.dq, train.ddq)
     return effect_columns(model.kind, model.robot, effect, model.n_channels, states).reshape(

@@ -22,7 +22,8 @@ from estimation.diagnosis.confirmation import Comparison, settled_weights
 from estimation.identification.delayed import DelayFit, fit_delay
 from dynamics.measurements import Measurements
 from estimation.preprocessing.delay import DELAY, DelayBounds, delayed
-from estimation.estimators.variable_projection import Block, FixedPart, States, solve_linear
+from estimation.estimators.effect_blocks import Block, States
+from estimation.estimators.separable_least_squares import FixedPart, solve_linear
 
 Regressor = Callable[[Measurements], NDArray[np.float64]]
 

@@ -29,7 +29,8 @@ from estimation.diagnosis.delay_candidate import (
 from dynamics.measurements import Measurements
 from estimation.preprocessing.delay import DELAY, DelayBounds, delayed, longest_piece
 from estimation.identification.shaped import ShapeValue
-from estimation.estimators.variable_projection import Block, FixedPart
+from estimation.estimators.effect_blocks import Block
+from estimation.estimators.separable_least_squares import FixedPart
 
 #: a screened delay is searched again when fewer than this many candidates rank above it
 REFINED_RANK = 2

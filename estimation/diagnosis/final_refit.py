@@ -18,7 +18,7 @@ from estimation.identification.fit import identify
 from estimation.diagnosis.limit_laws import replace_limit_laws
 from estimation.preprocessing.delay import delayed
 from estimation.diagnosis.sign_constraints import pin_wrong_signs
-from estimation.estimators.variable_projection import ShapeSearchError
+from estimation.estimators.effect_blocks import ShapeSearchError
 
 
 def refit_found(model, before, selected, selected_effects, selected_shapes, moved, train, validate, weights,

@@ -36,7 +36,7 @@ from dynamics.effects.shaped import TanhCoulombFriction, shape_parameters
 from estimation.diagnosis.confirmation import weighted_validation
 from estimation.identification.fit import IdentificationResult, identify
 from dynamics.measurements import Measurements
-from estimation.estimators.variable_projection import ShapeSearchError
+from estimation.estimators.effect_blocks import ShapeSearchError
 
 __all__ = ["limit_law", "replace_limit_laws"]
 

@@ -13,7 +13,7 @@ from estimation.diagnosis.candidate_trials import candidate_label
 from estimation.diagnosis.statistics import ResidualReport
 from estimation.identification.fit import IdentificationResult
 from estimation.diagnosis.sign_constraints import PinnedTerm
-from estimation.estimators.variable_projection import effect_rows
+from estimation.estimators.effect_blocks import effect_rows
 
 
 @dataclass(frozen=True)

@@ -69,8 +69,8 @@ from estimation.preprocessing.delay import DelayBounds
 from estimation.diagnosis.stopping_rules import SearchState, floor_stopping_rule, provisional_stopping_rule
 from estimation.diagnosis.selection_rules import candidate_groups, offsets_beat_springs, refine_best
 from estimation.diagnosis.traced_refinement import traced_first
-from estimation.estimators.variable_projection import (Block, FixedPart, NoRowsError, States, effect_columns,
-                                            effect_rows, residuals, solve_linear)
+from estimation.estimators.effect_blocks import Block, NoRowsError, States, effect_columns, effect_rows
+from estimation.estimators.separable_least_squares import FixedPart, residuals, solve_linear
 from estimation.uncertainty.whiteness import autocorrelation
 
 __all__ = ["Diagnosis", "FoundEffect", "RejectedEffect", "candidate_columns", "candidate_groups", "default_candidates",

@@ -6,7 +6,7 @@ from __future__ import annotations
 from dynamics.models import IdentificationModel
 from dynamics.effects.shaped import FRICTION_LAWS
 from estimation.diagnosis.candidate_trials import fit_or_reason, joints_of
-from estimation.estimators.variable_projection import Block
+from estimation.estimators.effect_blocks import Block
 
 
 def refine_best(trials, blocks, fixed, states, weights, rss, previous, count: int, traced=None):

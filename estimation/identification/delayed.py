@@ -25,7 +25,7 @@ from numpy.typing import NDArray
 from estimation.uncertainty.batch_means import batch_length, batch_means
 from dynamics.measurements import Measurements
 from estimation.preprocessing.delay import DELAY, DelayBounds, delayed, longest_piece
-from estimation.estimators.variable_projection import FixedPart, residuals, solve_linear
+from estimation.estimators.separable_least_squares import FixedPart, residuals, solve_linear
 
 Columns = Callable[[Measurements], NDArray[np.float64]]
 

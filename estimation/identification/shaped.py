@@ -24,7 +24,9 @@ from estimation.estimators.least_squares import Estimate, channel_variance
 from dynamics.measurements import Measurements
 from estimation.data.segments import segment_slices
 from estimation.identification.validation import Comparison
-from estimation.estimators.variable_projection import Block, FixedPart, ShapeFit, States, fit_shapes, solve_linear
+from estimation.estimators.effect_blocks import Block, States
+from estimation.estimators.separable_least_squares import FixedPart, solve_linear
+from estimation.estimators.variable_projection import ShapeFit, fit_shapes
 
 
 class ShapeIdentifiabilityError(ValueError):

@@ -54,7 +54,7 @@ from estimation.data.loading import (
 from dynamics.measurements import Measurements, joint_columns
 from estimation.estimators.normal_equations import DEFAULT_CHUNK_SIZE, NormalEquations, accumulate, check_chunk_size
 from estimation.preprocessing.differentiation import ButterworthDifferentiation, compensate_hold, decimate
-from estimation.streaming.time_base import Resampler, scan_time
+from estimation.streaming.time_base import Resampler, TimeScan, scan_time
 
 __all__ = [
     "FileSums", "MARGIN_TOLERANCE", "StreamingUnsupportedError", "automatic_cutoff", "file_sums", "filter_margin",
@@ -139,8 +139,6 @@ def read_chunks(path: str | Path, model: IdentificationModel, *, chunk_size: int
         raise ValueError(f"a chunk of {chunk_size} samples is shorter than the {least} samples each chunk is checked "
                          f"with ({model.n_base} base parameters): give at least {least} (10 000 is a good size)")
     pending: pd.DataFrame | None = None
-    row = 0
-    previous: tuple[float, float] | None = None  # last time and step of the chunk before
     scan = scan_time(_raw_frames(path, chunk_size, only_time=True), path)
     resampler = Resampler(scan) if scan is not None and scan.irregular else None
     if resampler is not None:
@@ -148,57 +146,8 @@ def read_chunks(path: str | Path, model: IdentificationModel, *, chunk_size: int
             f"{path}: irregular sampling in column t (step varies by {100 * scan.spread:.3g}% of the median "
             f"{scan.step:.4g} s): resampled by linear interpolation onto {scan.grid_count} uniform samples",
             ResampledWarning, stacklevel=3)
+    checked = _ChunkChecks(path, model, scan, resampler)
     emitted = 0
-
-    def checked(frame: pd.DataFrame) -> Measurements:
-        nonlocal row, previous
-        source = f"{path} (rows {row + 1}-{row + len(frame)})"
-        if resampler is not None:
-            return resampled(frame, source)
-        measurements = measurements_from_frame(frame, model=model, resample=False, source=source)
-        step = float(np.median(np.diff(measurements.t)))
-        if previous is not None:
-            gap = measurements.t[0] - previous[0]
-            if not abs(gap - previous[1]) <= 1e-3 * previous[1]:
-                raise TimeBaseError(f"{path}: column t goes from {previous[0]:.9g} to {measurements.t[0]:.9g} s at row "
-                                    f"{row + 1}, not one step of {previous[1]:.4g} s: a gap or a jump in the record "
-                                    "(split the record there)")
-        previous = (float(measurements.t[-1]), step)
-        row += len(frame)
-        return measurements
-
-    def resampled(frame: pd.DataFrame, source: str) -> Measurements:
-        """The chunk checked as the loader checks it, then put on the whole file's grid."""
-        nonlocal row, previous
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", ResampledWarning)  # once for the file, above
-            checked_chunk = measurements_from_frame(frame, model=model, resample=True, source=source)
-        frame = frame.rename(columns=lambda name: str(name).strip())
-        t = pd.to_numeric(frame["t"], errors="coerce").to_numpy(dtype=float)
-        if previous is not None:
-            if not t[0] > previous[0]:
-                raise TimeBaseError(f"{path}: column t does not increase at row {row + 1} ({previous[0]:.9g} -> "
-                                    f"{t[0]:.9g}); sort the samples")
-            if t[0] - previous[0] > GAP_FACTOR * scan.step:
-                raise TimeBaseError(f"{path}: column t jumps by {t[0] - previous[0]:.4g} s at row {row + 1}, "
-                                    f"{(t[0] - previous[0]) / scan.step:.3g} times the median step: a gap in the "
-                                    "record; split the record there")
-        groups = [name for name in _GROUPS if getattr(checked_chunk, name) is not None]
-        columns = [column for name in groups for column in _group_columns(name, model.robot.n_joints)]
-        values = np.column_stack([pd.to_numeric(frame[column], errors="coerce").to_numpy(dtype=float)
-                                  for column in columns])
-        grid, interpolated = resampler(t, values)
-        arrays, start = {}, 0
-        for name in groups:
-            width = len(_group_columns(name, model.robot.n_joints))
-            arrays[name] = interpolated[:, start:start + width]
-            start += width
-        previous = (float(t[-1]), scan.step)
-        row += len(frame)
-        metadata = dict(checked_chunk.metadata, resampled_from=scan.rows)
-        return Measurements(grid, arrays["q"], arrays.get("dq"), arrays.get("ddq"), arrays.get("tau"),
-                            arrays.get("wrench"), metadata)
-
     for frame in _raw_frames(path, chunk_size):
         if pending is not None and len(frame) < least:
             pending = pd.concat([pending, frame], ignore_index=True)
@@ -218,6 +167,67 @@ def read_chunks(path: str | Path, model: IdentificationModel, *, chunk_size: int
                             "change while it was read?)")
     if chunk.n_samples:
         yield chunk
+
+
+class _ChunkChecks:
+    """The checks of one file's chunks, in order: each as the loader checks a file, and the time
+    running on from the chunk before; on irregular sampling each put on the whole file's grid."""
+
+    def __init__(self, path: Path, model: IdentificationModel, scan: TimeScan | None,
+                 resampler: Resampler | None) -> None:
+        self.path, self.model, self.scan, self.resampler = path, model, scan, resampler
+        self.row = 0  # rows checked so far
+        self.previous: tuple[float, float] | None = None  # last time and step of the chunk before
+
+    def __call__(self, frame: pd.DataFrame) -> Measurements:
+        """The next chunk, checked."""
+        path, previous = self.path, self.previous
+        source = f"{path} (rows {self.row + 1}-{self.row + len(frame)})"
+        if self.resampler is not None:
+            return self.resampled(frame, source)
+        measurements = measurements_from_frame(frame, model=self.model, resample=False, source=source)
+        step = float(np.median(np.diff(measurements.t)))
+        if previous is not None:
+            gap = measurements.t[0] - previous[0]
+            if not abs(gap - previous[1]) <= 1e-3 * previous[1]:
+                raise TimeBaseError(f"{path}: column t goes from {previous[0]:.9g} to {measurements.t[0]:.9g} s at row "
+                                    f"{self.row + 1}, not one step of {previous[1]:.4g} s: a gap or a jump in the "
+                                    "record (split the record there)")
+        self.previous = (float(measurements.t[-1]), step)
+        self.row += len(frame)
+        return measurements
+
+    def resampled(self, frame: pd.DataFrame, source: str) -> Measurements:
+        """The chunk checked as the loader checks it, then put on the whole file's grid."""
+        path, previous, scan, n_joints = self.path, self.previous, self.scan, self.model.robot.n_joints
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", ResampledWarning)  # once for the file, in read_chunks
+            checked_chunk = measurements_from_frame(frame, model=self.model, resample=True, source=source)
+        frame = frame.rename(columns=lambda name: str(name).strip())
+        t = pd.to_numeric(frame["t"], errors="coerce").to_numpy(dtype=float)
+        if previous is not None:
+            if not t[0] > previous[0]:
+                raise TimeBaseError(f"{path}: column t does not increase at row {self.row + 1} ({previous[0]:.9g} -> "
+                                    f"{t[0]:.9g}); sort the samples")
+            if t[0] - previous[0] > GAP_FACTOR * scan.step:
+                raise TimeBaseError(f"{path}: column t jumps by {t[0] - previous[0]:.4g} s at row {self.row + 1}, "
+                                    f"{(t[0] - previous[0]) / scan.step:.3g} times the median step: a gap in the "
+                                    "record; split the record there")
+        groups = [name for name in _GROUPS if getattr(checked_chunk, name) is not None]
+        columns = [column for name in groups for column in _group_columns(name, n_joints)]
+        values = np.column_stack([pd.to_numeric(frame[column], errors="coerce").to_numpy(dtype=float)
+                                  for column in columns])
+        grid, interpolated = self.resampler(t, values)
+        arrays, start = {}, 0
+        for name in groups:
+            width = len(_group_columns(name, n_joints))
+            arrays[name] = interpolated[:, start:start + width]
+            start += width
+        self.previous = (float(t[-1]), scan.step)
+        self.row += len(frame)
+        metadata = dict(checked_chunk.metadata, resampled_from=scan.rows)
+        return Measurements(grid, arrays["q"], arrays.get("dq"), arrays.get("ddq"), arrays.get("tau"),
+                            arrays.get("wrench"), metadata)
 
 
 def _decay_length(sos: NDArray[np.float64], tolerance: float) -> int:
@@ -297,74 +307,108 @@ def preprocessed_chunks(path: str | Path, model: IdentificationModel, *, chunk_s
     if record is not None:
         record["chunk_size"] = chunk_size
     chunks = read_chunks(path, model, chunk_size=chunk_size)
-    first = next(chunks)
-    derive = first.dq is None or first.ddq is None
-    if derive and cutoff_hz is None:
-        raise StreamingUnsupportedError(f"{path}: without dq/ddq the streamed path needs one Butterworth cut-off for "
-                                        "every chunk: give it (--cutoff), or let the caller pick it once")
-    method = ButterworthDifferentiation(cutoff_hz, order) if derive else None
-    if held_torques and not derive:
-        held_torques = False  # nothing to align (the in-memory path warns)
-    rate = 1.0 / float(np.median(np.diff(first.t)))
-    margin = filter_margin(rate, cutoff_hz if derive else None, order, int(decimation)) if (derive or decimation > 1) else 0
-    columns = tuple(name for name in ("dq", "ddq", "tau", "wrench") if getattr(first, name) is not None)
-    edge = method.settling_samples(rate, cutoff_hz) if trim and method is not None and decimation == 1 else 0
+    first = next(chunks)  # here, so that a warning of read_chunks points at the caller
+    windows = _OverlappingWindows(path, first, chunks, chunk_size, cutoff_hz, order, decimation, held_torques, trim)
+    yield from windows.kept_chunks()
+    if record is not None:
+        record.update(rows=windows.rows, columns=windows.columns, metadata=windows.metadata())
 
-    buffer: list[Measurements] = [first]
-    start = 0  # global index of buffer[0]
-    done = 0  # samples whose sums are taken
-    rows = first.n_samples
-    exhausted = False
-    cutoff_checked = False
-    while True:
-        available = start + sum(part.n_samples for part in buffer)
-        while not exhausted and available < done + chunk_size + margin + edge:
+
+class _OverlappingWindows:
+    """One file preprocessed chunk by chunk in windows reaching ``margin`` samples beyond each chunk
+    (module docstring): the raw samples held (``buffer``, from global index ``start``), and the
+    samples whose preprocessed values are given out (``done``)."""
+
+    def __init__(self, path: Path, first: Measurements, chunks: Iterator[Measurements], chunk_size: int,
+                 cutoff_hz: float | None, order: int, decimation: int, held_torques: bool, trim: bool) -> None:
+        derive = first.dq is None or first.ddq is None
+        if derive and cutoff_hz is None:
+            raise StreamingUnsupportedError(f"{path}: without dq/ddq the streamed path needs one Butterworth cut-off for "
+                                            "every chunk: give it (--cutoff), or let the caller pick it once")
+        method = ButterworthDifferentiation(cutoff_hz, order) if derive else None
+        if held_torques and not derive:
+            held_torques = False  # nothing to align (the in-memory path warns)
+        rate = 1.0 / float(np.median(np.diff(first.t)))
+        self.path, self.chunks, self.chunk_size, self.method = path, chunks, chunk_size, method
+        self.cutoff_hz, self.order, self.decimation, self.held_torques = cutoff_hz, order, decimation, held_torques
+        self.first_metadata = first.metadata
+        self.margin = (filter_margin(rate, cutoff_hz if derive else None, order, int(decimation))
+                       if (derive or decimation > 1) else 0)
+        self.columns = tuple(name for name in ("dq", "ddq", "tau", "wrench") if getattr(first, name) is not None)
+        self.edge = method.settling_samples(rate, cutoff_hz) if trim and method is not None and decimation == 1 else 0
+        self.buffer: list[Measurements] = [first]
+        self.start = 0  # global index of buffer[0]
+        self.done = 0  # samples whose sums are taken
+        self.rows = first.n_samples
+        self.exhausted = False
+        self.cutoff_checked = False
+
+    def kept_chunks(self) -> Iterator[Measurements]:
+        """The preprocessed samples, about ``chunk_size`` at a time (no short tail chunk)."""
+        while True:
+            available = self.read_ahead()
+            if self.done >= available:
+                break
+            stop = min(self.done + self.chunk_size, available)
+            if self.exhausted and available - stop < max(self.margin, 1) and stop < available:
+                stop = available  # no short tail chunk
+            raw = _concatenate(self.buffer)
+            kept = self.kept(raw, stop, available)
+            if kept.n_samples:
+                yield kept
+            self.done = stop
+            keep_from = max(self.done - self.margin, 0)
+            if keep_from > self.start:
+                raw = raw.select(slice(keep_from - self.start, None))
+                self.buffer, self.start = [raw], keep_from
+            else:
+                self.buffer = [raw]
+
+    def read_ahead(self) -> int:
+        """Chunks read until the next chunk and its margins are held (or the file ends); the samples available."""
+        available = self.start + sum(part.n_samples for part in self.buffer)
+        while not self.exhausted and available < self.done + self.chunk_size + self.margin + self.edge:
             try:
-                part = next(chunks)
+                part = next(self.chunks)
             except StopIteration:
-                exhausted = True
+                self.exhausted = True
                 break
             present = tuple(name for name in ("dq", "ddq", "tau", "wrench") if getattr(part, name) is not None)
-            if present != columns:
-                raise MeasurementError(f"{path}: the column groups change within the file ({columns} then {present})")
-            buffer.append(part)
-            rows += part.n_samples
+            if present != self.columns:
+                raise MeasurementError(f"{self.path}: the column groups change within the file ({self.columns} then "
+                                       f"{present})")
+            self.buffer.append(part)
+            self.rows += part.n_samples
             available += part.n_samples
-        if done >= available:
-            break
-        stop = min(done + chunk_size, available)
-        if exhausted and available - stop < max(margin, 1) and stop < available:
-            stop = available  # no short tail chunk
-        raw = _concatenate(buffer)
+        return available
+
+    def kept(self, raw: Measurements, stop: int, available: int) -> Measurements:
+        """Samples ``done`` to ``stop`` preprocessed in their window (the filter's settling at the
+        record's ends dropped with ``trim``)."""
+        done, start, margin, decimation = self.done, self.start, self.margin, self.decimation
         low, high = max(done - margin, start), min(stop + margin, available)
         window = raw.select(slice(low - start, high - start))
-        if method is not None and not cutoff_checked:
-            method.cutoff(window)  # the cut-off against Nyquist once
-            cutoff_checked = True
-        processed = _preprocessed(window, method, int(decimation), held_torques)
+        if self.method is not None and not self.cutoff_checked:
+            self.method.cutoff(window)  # the cut-off against Nyquist once
+            self.cutoff_checked = True
+        processed = _preprocessed(window, self.method, int(decimation), self.held_torques)
         first_kept = (-(-done // decimation) * decimation - low) // decimation
         last_kept = (-(-stop // decimation) * decimation - low) // decimation
         kept = processed.select(slice(first_kept, last_kept))
-        if edge:  # the filter's settling at the record's two ends (the end is known once the file is exhausted)
-            low_kept = max(edge - done, 0)
-            high_kept = kept.n_samples - max(stop - (available - edge), 0) if exhausted else kept.n_samples
+        if self.edge:  # the filter's settling at the record's two ends (the end is known once the file is exhausted)
+            low_kept = max(self.edge - done, 0)
+            high_kept = kept.n_samples - max(stop - (available - self.edge), 0) if self.exhausted else kept.n_samples
             kept = kept.select(slice(low_kept, max(high_kept, low_kept)))
-        if kept.n_samples:
-            yield kept
-        done = stop
-        keep_from = max(done - margin, 0)
-        if keep_from > start:
-            raw = raw.select(slice(keep_from - start, None))
-            buffer, start = [raw], keep_from
-        else:
-            buffer = [raw]
-    metadata = {"decimation": int(decimation), "margin": margin, "trimmed_samples": edge}
-    if "resampled_from" in first.metadata:
-        metadata["resampled_from"] = int(first.metadata["resampled_from"])
-    if method is not None:
-        metadata.update(differentiation="butterworth", cutoff_hz=float(cutoff_hz), filter_order=order)
-    if record is not None:
-        record.update(rows=rows, columns=columns, metadata=metadata)
+        return kept
+
+    def metadata(self) -> dict:
+        """What the preprocessing did: decimation, margin, samples trimmed, the filter."""
+        metadata = {"decimation": int(self.decimation), "margin": self.margin, "trimmed_samples": self.edge}
+        if "resampled_from" in self.first_metadata:
+            metadata["resampled_from"] = int(self.first_metadata["resampled_from"])
+        if self.method is not None:
+            metadata.update(differentiation="butterworth", cutoff_hz=float(self.cutoff_hz), filter_order=self.order)
+        return metadata
 
 
 @single_threaded_blas()  # threaded OpenBLAS takes 30x longer on tall, thin QR (0.7 against 0.024 s, 10 051 x 51)

@@ -24,7 +24,7 @@ from numpy.typing import NDArray
 from dynamics.models import IdentificationModel
 from estimation.streaming.diagnosis_sums import ColumnLayout
 from dynamics.measurements import Measurements
-from estimation.estimators.variable_projection import Block, States
+from estimation.estimators.effect_blocks import Block, States
 
 __all__ = ["BATCH_LENGTHS", "BatchScores", "chunk_scores", "sandwich"]
 

@@ -71,7 +71,8 @@ from estimation.identification.trivial_predictors import trivial_warnings
 from estimation.streaming.chunks import automatic_cutoff, read_chunks
 from estimation.estimators.summed_least_squares import SummedEstimate, SummedLeastSquares
 from estimation.streaming.selection import select_effects, simpler_laws
-from estimation.estimators.variable_projection import Block, FixedPart, NoRowsError, States, solve_linear
+from estimation.estimators.effect_blocks import Block, NoRowsError, States
+from estimation.estimators.separable_least_squares import FixedPart, solve_linear
 
 __all__ = ["DEFAULT_SUBSAMPLE", "FLOOR_WINDOW", "StreamedDiagnosis", "diagnose_files", "window_floor"]
 

@@ -31,7 +31,7 @@ from estimation.data.loading import MeasurementError
 from estimation.uncertainty.noise_floor import NoiseFloor, NoiseFloorError, noise_floor, pooled_floor
 from estimation.streaming.chunks import preprocessed_chunks, read_chunks
 from estimation.streaming.covariance import BatchScores, chunk_scores
-from estimation.estimators.variable_projection import Block
+from estimation.estimators.effect_blocks import Block
 
 __all__ = ["FLOOR_WINDOW", "map_files", "scores_task", "subsample_task", "sums_task", "window_floor"]
 

@@ -1,7 +1,7 @@
 """Per-channel sums of the diagnosis's columns ``[Y_base | C_1 | … | C_J]``, chunk by chunk.
 
 The diagnosis (:func:`estimation.diagnosis.search.diagnose`) compares nested linear models with fixed
-channel weights ``w_c`` through per-channel Gram matrices (:class:`estimation.estimators.variable_projection.FixedPart`):
+channel weights ``w_c`` through per-channel Gram matrices (:class:`estimation.estimators.separable_least_squares.FixedPart`):
 channel ``c`` of the weighted problem on columns ``S`` contributes ``w_c X_c[S]ᵀX_c[S]`` to the
 normal matrix and ``w_c X_c[S]ᵀy_c`` to its right side. A candidate's columns are zero off its
 rows (one joint's torque for a per-joint law), so channel ``c`` needs only the columns that reach
@@ -12,7 +12,7 @@ which every reported error is measured against) and the powers ``yᵀy``. They a
 files and workers; a file of any length costs ``Σ_c (k_c + 2)²`` numbers.
 
 Accuracy: the normal equations are solved as the in-memory loop solves them
-(:func:`estimation.estimators.variable_projection.solve_linear`): equilibrated (unit diagonal), a rank test
+(:func:`estimation.estimators.separable_least_squares.solve_linear`): equilibrated (unit diagonal), a rank test
 on the eigenvalues (``λ_min < 1e-13 λ_max`` is rank-deficient) and a Cholesky solve; the weighted
 RSS is ``wᵀ(yᵀy) − 2θᵀb + θᵀNθ``, the same formula. The sums themselves are exact up to the
 summation's rounding (``≈ √N ε`` relative), so the streamed loop agrees with the in-memory one to
@@ -33,7 +33,8 @@ from numpy.typing import NDArray
 from dynamics.models import IdentificationModel
 from dynamics.measurements import Measurements
 from estimation.estimators.normal_equations import NormalEquations
-from estimation.estimators.variable_projection import Block, States, _solve
+from estimation.estimators.effect_blocks import Block, States
+from estimation.estimators.separable_least_squares import _solve
 
 __all__ = ["ChannelSums", "ColumnLayout", "EvenSubsample", "chunk_sums", "normal_equations"]
 
@@ -116,7 +117,7 @@ class ChannelSums:
 
     def solve(self, selection: Sequence[int], weights: NDArray[np.float64]) -> tuple[NDArray[np.float64], float]:
         """``(θ, weighted RSS)`` on ``selection``, fitted to the prepared channels (as
-        :func:`estimation.estimators.variable_projection.solve_linear`); raises ``LinAlgError`` when rank-deficient."""
+        :func:`estimation.estimators.separable_least_squares.solve_linear`); raises ``LinAlgError`` when rank-deficient."""
         normal, right, power = self.normal_system(selection, weights)
         theta = _solve(normal, right)
         return theta, max(float(power - 2 * theta @ right + theta @ normal @ theta), 0.0)

@@ -42,7 +42,8 @@ from estimation.diagnosis.selection_rules import candidate_groups, offsets_beat_
 from estimation.diagnosis.statistics import FLOOR_ALPHA
 from estimation.streaming.diagnosis_sums import ChannelSums
 from estimation.uncertainty.noise_floor import NoiseFloor, above_floor
-from estimation.estimators.variable_projection import Block, ShapeFit
+from estimation.estimators.effect_blocks import Block
+from estimation.estimators.variable_projection import ShapeFit
 
 try:  # the in-memory loop's confirmation rule is followed: reweighted when estimation.diagnosis.confirmation reweights
     from estimation.diagnosis.confirmation import REWEIGHTING_PASSES  # type: ignore[attr-defined]

@@ -1,0 +1,197 @@
+"""Separable weighted least squares at fixed shapes: the inner problem of variable projection.
+
+The model is ``y ≈ A₀ θ₀ + Σ_b C_b(s_b) θ_b`` per sample and channel: ``A₀`` the fixed columns
+(the base regressor, effects already chosen), ``C_b`` the columns of the blocks appended to it
+(:class:`estimation.estimators.effect_blocks.Block`, shaped effects with shape parameters ``s_b``
+or plain ones). For fixed ``s`` the weighted least squares in ``θ = (θ₀, θ_b…)`` has a closed form
+(:func:`solve_linear`); :mod:`estimation.estimators.variable_projection` searches the shapes.
+
+Everything is per channel: the Gram matrices ``A_cᵀA_c`` of the fixed part are formed once
+(:class:`FixedPart`); a block touches only its own channels (one joint's torque for a per-joint
+law), so an evaluation costs ``O(N p k)`` on those channels plus an ``O((p+k)³)`` solve.
+
+With the derivatives ``∂C/∂s`` the same sums give the information ``J_fᵀ W J_f`` of the full
+Jacobian ``J_f = [A(s), (∂C/∂s) θ̂]`` and the gradient of the projected residual in ``s``
+(Kaufman's Jacobian ``J_j = −P⊥ (∂C/∂s_j) θ̂``, Kaufman, BIT 15, 1975) (:func:`full_information`), and
+the per-sample scores of a sandwich covariance (:func:`sample_scores`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.linalg
+from numpy.typing import NDArray
+
+from estimation.estimators.effect_blocks import Block, States
+
+__all__ = ["FixedPart", "LinearSolution", "full_information", "residuals", "sample_scores", "solve_linear"]
+
+
+@dataclass(frozen=True)
+class FixedPart:
+    """The fixed columns ``A₀`` and measured channels of one record, arranged per channel."""
+
+    A: NDArray[np.float64]  # (m, N, p0)
+    y: NDArray[np.float64]  # (m, N)
+    gram: NDArray[np.float64]  # (m, p0, p0)
+    moment: NDArray[np.float64]  # (m, p0)
+    power: NDArray[np.float64]  # (m,)
+
+    @classmethod
+    def from_arrays(cls, Y: NDArray[np.float64], y: NDArray[np.float64]) -> FixedPart:
+        """From ``Y (N, m, p0)`` and ``y (N, m)``."""
+        A = np.ascontiguousarray(np.transpose(Y, (1, 0, 2)))
+        values = np.ascontiguousarray(y.T)
+        gram = np.matmul(A.transpose(0, 2, 1), A)
+        moment = np.matmul(A.transpose(0, 2, 1), values[:, :, None])[:, :, 0]
+        return cls(A, values, gram, moment, np.sum(values**2, axis=1))
+
+    def extended(self, columns: NDArray[np.float64], rows: Sequence[int]) -> FixedPart:
+        """With extra columns ``(N, rows, k)`` that are zero off ``rows``."""
+        m, n_samples, _ = self.A.shape
+        extra = np.zeros((m, n_samples, columns.shape[2]))
+        extra[list(rows)] = columns.transpose(1, 0, 2)
+        return FixedPart.from_arrays(np.concatenate([self.A, extra], axis=2).transpose(1, 0, 2), self.y.T)
+
+    @property
+    def n_fixed(self) -> int:
+        return self.A.shape[2]
+
+    @property
+    def n_rows(self) -> int:
+        return self.A.shape[0] * self.A.shape[1]
+
+
+@dataclass(frozen=True)
+class LinearSolution:
+    """``θ`` at fixed shapes with what the search and the covariance need."""
+
+    theta: NDArray[np.float64]
+    rss: float  # weighted
+    normal: NDArray[np.float64]
+    columns: list[NDArray[np.float64]]  # per block (N, rows, k)
+    derivatives: list[NDArray[np.float64]] | None  # per block (n_s, N, rows, k)
+
+
+def _layout(blocks: Sequence[Block], n_fixed: int) -> list[slice]:
+    slices, start = [], n_fixed
+    for block in blocks:
+        slices.append(slice(start, start + block.n_linear))
+        start += block.n_linear
+    return slices
+
+
+def solve_linear(fixed: FixedPart, blocks: Sequence[Block], states: States, shapes: Sequence[NDArray[np.float64]],
+                 weights: NDArray[np.float64], *, jacobian: bool = False) -> LinearSolution:
+    """Weighted least squares in ``θ = (θ₀, θ_b…)`` at the given shapes, from per-channel Gram matrices."""
+    p0 = fixed.n_fixed
+    slices = _layout(blocks, p0)
+    p = slices[-1].stop if slices else p0
+    normal = np.zeros((p, p))
+    right = np.zeros(p)
+    normal[:p0, :p0] = np.tensordot(weights, fixed.gram, axes=1)
+    right[:p0] = weights @ fixed.moment
+    columns, derivatives = [], [] if jacobian else None
+    for block, shape in zip(blocks, shapes):
+        if jacobian:
+            values, derivative = block.evaluate(states, shape, jacobian=True)
+            derivatives.append(derivative)
+        else:
+            values = block.evaluate(states, shape)
+        columns.append(values)
+    for index, (block, values, where) in enumerate(zip(blocks, columns, slices)):
+        for position, row in enumerate(block.rows):
+            w, C = weights[row], values[:, position, :]
+            normal[:p0, where] += w * (fixed.A[row].T @ C)
+            normal[where, where] += w * (C.T @ C)
+            right[where] += w * (C.T @ fixed.y[row])
+            for other, other_values, other_where in zip(blocks[index + 1:], columns[index + 1:], slices[index + 1:]):
+                if row in other.rows:
+                    normal[where, other_where] += w * (C.T @ other_values[:, other.rows.index(row), :])
+    normal = np.triu(normal) + np.triu(normal, 1).T
+    theta = _solve(normal, right)
+    rss = float(weights @ fixed.power - 2 * theta @ right + theta @ normal @ theta)
+    return LinearSolution(theta, max(rss, 0.0), normal, columns, derivatives)
+
+
+def _solve(normal: NDArray[np.float64], right: NDArray[np.float64]) -> NDArray[np.float64]:
+    if not (np.all(np.isfinite(normal)) and np.all(np.isfinite(right))):
+        raise FloatingPointError("non-finite columns")
+    scale = np.sqrt(np.diag(normal))
+    if np.any(scale == 0):
+        raise np.linalg.LinAlgError("an all-zero column")
+    equilibrated = normal / np.outer(scale, scale)
+    eigenvalues = np.linalg.eigvalsh(equilibrated)
+    if eigenvalues[0] < 1e-13 * eigenvalues[-1]:
+        raise np.linalg.LinAlgError("rank-deficient columns")
+    factor = scipy.linalg.cho_factor(equilibrated, check_finite=False)
+    return scipy.linalg.cho_solve(factor, right / scale, check_finite=False) / scale
+
+
+def residuals(fixed: FixedPart, blocks: Sequence[Block], solution: LinearSolution,
+              rows: Sequence[int] | None = None) -> NDArray[np.float64]:
+    """``y − A θ`` per channel, ``(m, N)``; with ``rows``, only those channels (the others zero)."""
+    theta = solution.theta
+    p0 = fixed.n_fixed
+    if rows is None:
+        values = fixed.y - np.matmul(fixed.A, theta[:p0])
+    else:
+        values = np.zeros_like(fixed.y)
+        for row in rows:
+            values[row] = fixed.y[row] - fixed.A[row] @ theta[:p0]
+    for block, columns, where in zip(blocks, solution.columns, _layout(blocks, p0)):
+        for position, row in enumerate(block.rows):
+            if rows is None or row in rows:
+                values[row] -= columns[:, position, :] @ theta[where]
+    return values
+
+
+def _shape_directions(fixed: FixedPart, blocks: Sequence[Block], solution: LinearSolution):
+    """``D_j = (∂C/∂s_j) θ̂`` per shape parameter: list of ``(rows, (N, rows))``."""
+    directions = []
+    for block, derivative, where in zip(blocks, solution.derivatives, _layout(blocks, fixed.n_fixed)):
+        values = derivative @ solution.theta[where]  # (n_s, N, rows)
+        for j in range(block.n_shape):
+            directions.append((block.rows, values[j]))
+    return directions
+
+
+def full_information(fixed: FixedPart, blocks: Sequence[Block], solution: LinearSolution,
+                     weights: NDArray[np.float64], residual: NDArray[np.float64]):
+    """``(J_fᵀWJ_f, gradient of f in s)`` for the full Jacobian ``J_f = [A, D]``."""
+    p = solution.normal.shape[0]
+    directions = _shape_directions(fixed, blocks, solution)
+    n_s = len(directions)
+    information = np.zeros((p + n_s, p + n_s))
+    information[:p, :p] = solution.normal
+    gradient = np.zeros(n_s)
+    slices = _layout(blocks, fixed.n_fixed)
+    for j, (rows, D) in enumerate(directions):
+        for position, row in enumerate(rows):
+            w, d = weights[row], D[:, position]
+            information[:fixed.n_fixed, p + j] += w * (fixed.A[row].T @ d)
+            for block, columns, where in zip(blocks, solution.columns, slices):
+                if row in block.rows:
+                    information[where, p + j] += w * (columns[:, block.rows.index(row), :].T @ d)
+            gradient[j] += -2.0 * w * (residual[row] @ d)
+            for i, (other_rows, other) in enumerate(directions[: j + 1]):
+                if row in other_rows:
+                    information[p + i, p + j] += w * (other[:, other_rows.index(row)] @ d)
+    information = np.triu(information) + np.triu(information, 1).T
+    return information, gradient
+
+
+def sample_scores(fixed: FixedPart, blocks: Sequence[Block], solution: LinearSolution, weights: NDArray[np.float64],
+                  residual: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Per sample ``s_t = Σ_c w_c r_{c,t} J_{c,t}``, ``(N, p + n_s)``, ``J = [A, (∂C/∂s) θ̂]``."""
+    weighted = weights[:, None] * residual  # (m, N)
+    columns = [np.einsum("cn,cnp->np", weighted, fixed.A)]
+    for block, values in zip(blocks, solution.columns):
+        columns.append(np.einsum("nr,nrk->nk", weighted[list(block.rows)].T, values))
+    if solution.derivatives is not None:
+        for rows, D in _shape_directions(fixed, blocks, solution):
+            columns.append(np.einsum("nr,nr->n", weighted[list(rows)].T, D)[:, None])
+    return np.concatenate(columns, axis=1)
