@@ -13,7 +13,7 @@ from dynamics.robots import load_robot
 from estimation.estimators.identification_problem import IdentificationProblem
 from estimation.datasets.kuka import load_kuka_run
 from estimation.estimators.least_squares import WeightedLeastSquares, stack
-from estimation.data.loading import read_measurements
+from estimation.data.records import read_measurements
 from estimation.streaming.identification import identify_files
 from estimation.identification.validation import compare
 from tests.conftest import shared_data

@@ -15,8 +15,8 @@ import pytest
 from dynamics.errors import RobotDescriptionError
 from dynamics.models import build_model
 from dynamics.robots import load_robot
-from estimation.data.loading import AbsurdValueError, HoleError, ParquetSupportError, read_measurements
-from estimation.data.records import read_record
+from estimation.data.loading import AbsurdValueError, HoleError, ParquetSupportError
+from estimation.data.records import read_measurements, read_record
 from dynamics.runtime.output_files import OutputFiles
 from oed.cli import main
 from tests.synthetic import random_fourier, simulate, true_parameters

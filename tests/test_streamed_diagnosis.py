@@ -12,7 +12,8 @@ from dynamics.models import build_model
 from dynamics.robots import load_robot
 from estimation.diagnosis.search import diagnose
 from estimation.streaming.diagnosis_sums import EvenSubsample
-from estimation.data.loading import MeasurementError, read_measurements
+from estimation.data.loading import MeasurementError
+from estimation.data.records import read_measurements
 from dynamics.measurements import Measurements
 from estimation.uncertainty.noise_floor import noise_floor
 from estimation.preprocessing.differentiation import ButterworthDifferentiation

@@ -13,7 +13,7 @@ from dynamics.models import build_model
 from dynamics.robots import load_robot
 from estimation.uncertainty.batch_means import batch_length, batch_means
 from estimation.streaming.cluster import IncompleteSumError, WorkerLostError
-from estimation.data.loading import read_measurements
+from estimation.data.records import read_measurements
 from dynamics.measurements import Measurements
 from estimation.preprocessing.differentiation import ButterworthDifferentiation, FourierDifferentiation, fill_derivatives
 from estimation.streaming.identification import identify_files

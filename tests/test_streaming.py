@@ -15,7 +15,8 @@ from dynamics.robots import load_robot
 from estimation.streaming.cluster import IncompleteSumError, WorkerLostError, check_parts, sum_files
 from estimation.estimators.identification_problem import IdentificationProblem
 from estimation.estimators.least_squares import WeightedLeastSquares, stack
-from estimation.data.loading import MeasurementError, MissingColumnError, TimeBaseError, read_measurements
+from estimation.data.loading import MeasurementError, MissingColumnError, TimeBaseError
+from estimation.data.records import read_measurements
 from dynamics.measurements import Measurements
 from estimation.estimators.summed_least_squares import SummedLeastSquares
 from estimation.preprocessing.differentiation import ButterworthDifferentiation, fill_derivatives
