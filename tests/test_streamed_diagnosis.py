@@ -214,7 +214,7 @@ def test_an_in_memory_diagnosis_larger_than_the_machine_is_refused(model, files,
 
 def test_batch_scores_by_chunks_equal_the_batch_means_of_the_whole_record():
     from estimation.uncertainty.batch_means import batch_means
-    from estimation.streaming.covariance import BATCH_LENGTHS, BatchScores, _lag1
+    from estimation.streaming.covariance import BATCH_LENGTHS, BatchScores, lag_one_correlation
 
     rng = np.random.default_rng(3)
     scores = rng.standard_normal((1000, 3))
@@ -229,7 +229,7 @@ def test_batch_scores_by_chunks_equal_the_batch_means_of_the_whole_record():
     centred = residual - residual.mean(axis=1, keepdims=True)
     variance = np.sum(centred**2, axis=1)
     lagged = np.sum(centred[:, 1:] * centred[:, :-1], axis=1)
-    assert _lag1([closed], weights)[0] == pytest.approx(np.sum(weights * lagged) / np.sum(weights * variance), rel=1e-10)
+    assert lag_one_correlation([closed], weights)[0] == pytest.approx(np.sum(weights * lagged) / np.sum(weights * variance), rel=1e-10)
 
 
 def test_trivial_predictors_from_the_sums_equal_the_in_memory_ones(model, files):

@@ -150,7 +150,7 @@ def test_dask_local_cluster_of_processes_and_process_pool(model, files):
     assert relative(pooled.estimate.std, serial.estimate.std) < 1e-10
 
 
-class _LostExecutor:
+class LostExecutor:
     """An executor whose second task's worker dies."""
 
     def __init__(self):
@@ -168,7 +168,7 @@ class _LostExecutor:
 
 def test_a_lost_worker_fails_the_run_naming_the_file(model, files):
     with pytest.raises(WorkerLostError, match="full1.csv was lost"):
-        sum_files(model, files["full"], executor=_LostExecutor(), chunk_size=5000)
+        sum_files(model, files["full"], executor=LostExecutor(), chunk_size=5000)
 
 
 def test_a_partial_sum_is_refused(model, files):
