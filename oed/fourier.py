@@ -216,5 +216,5 @@ def joint_block_names(joint_names: Sequence[str], harmonics: int) -> list[str]:
     return [
         name
         for joint in joint_names
-        for name in [f"{joint}.q0"] + [f"{joint}.a{l}" for l in range(1, harmonics + 1)] + [f"{joint}.b{l}" for l in range(1, harmonics + 1)]
+        for name in [f"{joint}.q0"] + [f"{joint}.a{k}" for k in range(1, harmonics + 1)] + [f"{joint}.b{k}" for k in range(1, harmonics + 1)]
     ]

@@ -24,7 +24,6 @@ def random_fourier(robot: RobotModel, seed: int, *, frequency_hz: float = 0.2, h
     deviation = np.max(np.abs(q - q.mean(axis=0)), axis=0)
     speed = np.max(np.abs(dq), axis=0)
     scale = fill * np.minimum(half_range / deviation, robot.velocity_limit / speed)
-    shifted = trajectory.evaluate(np.zeros(1))[0][0]  # the mean of q is q0; keep it at the centre
     return FourierTrajectory(frequency_hz, centre, a * scale[:, None], b * scale[:, None])
 
 

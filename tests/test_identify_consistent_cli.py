@@ -8,7 +8,6 @@ import numpy as np
 import pytest
 
 from dynamics.models import build_model
-from dynamics.physical_parameters import is_consistent
 from dynamics.robots import load_robot
 from oed.cli import main
 from tests.synthetic import random_fourier, simulate

@@ -127,7 +127,7 @@ def test_fit_accepts_a_model_and_measurements_like_a_stacked_problem(puma):
 
 def test_unfitted_estimator_and_bad_settings_raise_clear_errors():
     with pytest.raises(NotFittedError, match="not fitted"):
-        LeastSquares().theta_
+        _ = LeastSquares().theta_
     problem = IdentificationProblem(np.ones((5, 1, 1)), np.ones((5, 1)), ("tau1",), ("m",))
     with pytest.raises(ValueError, match="max_iter"):
         WeightedLeastSquares(max_iter=0).fit(problem)

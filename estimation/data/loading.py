@@ -15,8 +15,7 @@ from __future__ import annotations
 
 import re
 import warnings
-from collections.abc import Iterable, Sequence
-from pathlib import Path
+from collections.abc import Sequence
 
 import numpy as np
 import pandas as pd
@@ -24,7 +23,7 @@ from numpy.typing import NDArray
 
 from dynamics.models import IdentificationModel, ModelKind
 from dynamics.robot import JointType
-from estimation.data.log_cleaning import DEFAULT_MAX_GAP, STALL_FACTOR, missing_samples
+from estimation.data.log_cleaning import STALL_FACTOR, missing_samples
 from dynamics.measurements import Measurements
 
 #: groups of columns a caller may require besides those the model needs
