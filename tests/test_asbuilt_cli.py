@@ -13,7 +13,9 @@ from dynamics.models import build_model
 from dynamics.robots import load_robot
 from dynamics.transmission import puma560_transmission
 from oed.cli import main
-from tests.synthetic import random_fourier, simulate, true_parameters
+from dynamics.simulation.synthetic import simulate, true_parameters
+
+from oed.fourier import random_fourier
 
 NOISE = {"tau1": 0.3, "tau2": 0.3, "tau3": 0.2}
 

@@ -12,7 +12,10 @@ from dynamics.robots import load_robot
 from estimation.streaming.candidate_screening import accumulate_candidates, f_tests, weighted_fit, weighted_mse
 from estimation.diagnosis.search import candidate_columns, default_candidates
 from estimation.estimators.least_squares import stack
-from tests.synthetic import random_fourier, simulate, true_parameters
+from dynamics.simulation.synthetic import simulate, true_parameters
+
+
+from oed.fourier import random_fourier
 
 
 def _weighted_fit(Y, y, weights):

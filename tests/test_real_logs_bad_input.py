@@ -18,7 +18,9 @@ from estimation.data.loading import AbsurdValueError, HoleError, ParquetSupportE
 from estimation.data.records import read_measurements, read_record
 from dynamics.runtime.output_files import OutputFiles
 from oed.cli import main
-from tests.synthetic import random_fourier, simulate, true_parameters
+from dynamics.simulation.synthetic import simulate, true_parameters
+
+from oed.fourier import random_fourier
 
 NOISE = {"tau1": 0.5, "tau2": 0.5, "tau3": 0.2}
 

@@ -14,7 +14,10 @@ from estimation.diagnosis.search import diagnose
 from estimation.identification.fit import ImplausibleEstimateWarning, identify
 from estimation.diagnosis.sign_constraints import negative_terms, pin_wrong_signs
 from estimation.estimators.variable_projection import Block, FixedPart, States
-from tests.synthetic import random_fourier, simulate, true_parameters
+from dynamics.simulation.synthetic import simulate, true_parameters
+
+
+from oed.fourier import random_fourier
 
 
 @pytest.fixture(scope="module")

@@ -19,7 +19,9 @@ from estimation.uncertainty.noise_floor import noise_floor
 from estimation.preprocessing.differentiation import ButterworthDifferentiation
 from estimation.streaming.diagnosis import diagnose_files
 from oed.cli import main
-from tests.synthetic import random_fourier, simulate, true_parameters
+from dynamics.simulation.synthetic import simulate, true_parameters
+
+from oed.fourier import random_fourier
 
 NOISE = 0.2
 CUTOFF = 8.0

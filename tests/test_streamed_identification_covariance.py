@@ -18,7 +18,9 @@ from dynamics.measurements import Measurements
 from estimation.preprocessing.differentiation import ButterworthDifferentiation, FourierDifferentiation, fill_derivatives
 from estimation.streaming.identification import identify_files
 from oed.cli import main
-from tests.synthetic import random_fourier, simulate, true_parameters
+from dynamics.simulation.synthetic import simulate, true_parameters
+
+from oed.fourier import random_fourier
 
 NOISE = 0.3
 

@@ -25,7 +25,9 @@ from estimation.preprocessing.differentiation import ButterworthDifferentiation,
 from estimation.streaming.identification import identify_files
 from estimation.streaming.chunks import StreamingUnsupportedError, file_sums, filter_margin
 from oed.cli import main
-from tests.synthetic import random_fourier, simulate, true_parameters
+from dynamics.simulation.synthetic import simulate, true_parameters
+
+from oed.fourier import random_fourier
 
 NOISE = {"tau1": 0.5, "tau2": 0.5, "tau3": 0.2}
 CUTOFF = 10.0
