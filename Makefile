@@ -1,5 +1,5 @@
 # Two commands set everything up on a fresh machine:
-#   make test   create .venv, install the project with its test extras, run the tests
+#   make test   create .venv, install the project with its test extras, check the import layers and lint, run the tests
 #   make demo   same set-up, then run the main job
 #   make docs   build the documentation site (mkdocs, into site/) with --strict
 PYTHON ?= python3
@@ -15,7 +15,9 @@ $(STAMP): pyproject.toml
 	$(PY) -m pip install --quiet -e '.[test]'
 	touch $(STAMP)
 
-test: $(STAMP)
+test: $(STAMP)  # the import layers and the lint rules first (seconds), then the tests
+	$(VENV)/bin/lint-imports
+	$(VENV)/bin/ruff check .
 	$(PY) -m pytest -q -n 2
 
 test-slow: $(STAMP)  # the checks marked slow (coverage Monte Carlo, coupled wrist, clusters of processes…)

@@ -40,8 +40,6 @@ diagnosis left tau5 at 2.49x (0.0996) and tau6 at 1.10x, for two reasons measure
 from __future__ import annotations
 
 import argparse
-import sys
-from pathlib import Path
 
 import numpy as np
 
@@ -57,9 +55,7 @@ from estimation.diagnosis.search import diagnose
 from estimation.identification.fit import identify
 from estimation.data.rest import coulomb_combinations, drop_rest
 from estimation.identification.trivial_predictors import trivial_mse
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the test suite's trajectories
-from tests.synthetic import random_fourier  # noqa: E402
+from oed.fourier import random_fourier
 
 
 def main() -> None:

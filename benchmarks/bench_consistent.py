@@ -38,7 +38,7 @@ import numpy as np
 
 from dynamics.base_parameters import random_states
 from dynamics.models import build_model
-from dynamics.physical_parameters import PhysicalParametrisation, project_link, pseudo_inertia
+from dynamics.physical_parameters import PhysicalParametrisation, project_link
 from dynamics.robots import load_robot
 from estimation.consistent.least_squares import ConsistentLeastSquares
 from estimation.consistent.identification import identify_consistent
@@ -129,9 +129,9 @@ def kuka_speed_and_table(kuka):
             "unconstrained WLS": [compare(model, result.estimate.values, run).mse for run in runs[1:]]}
     estimates = {}
     for weight in (0.0, 1.0):
-        cold, _ = timed(lambda: ConsistentLeastSquares(prior_weight=weight).fit(
+        cold, _ = timed(lambda weight=weight: ConsistentLeastSquares(prior_weight=weight).fit(
             model, problem, unconstrained=result.estimate))
-        warm, estimate = timed(lambda: ConsistentLeastSquares(prior_weight=weight).fit(
+        warm, estimate = timed(lambda weight=weight: ConsistentLeastSquares(prior_weight=weight).fit(
             model, problem, unconstrained=result.estimate).estimate_)
         estimates[weight] = estimate
         rows[f"consistent, prior {weight:g}"] = [compare(model, estimate.values, run).mse for run in runs[1:]]
@@ -180,7 +180,7 @@ def sdp(label, model, problem, unconstrained, estimate):
             continue
         program = cp.Problem(objective, constraints)
         try:
-            elapsed, _ = timed(lambda: program.solve(solver=solver))
+            elapsed, _ = timed(lambda program=program, solver=solver: program.solve(solver=solver))
         except cp.error.SolverError as error:
             print(f"2{label}. {solver} failed: {error}")
             continue
@@ -209,7 +209,7 @@ def monte_carlo(realisations: int):
         unconstrained = WeightedLeastSquares().fit(problem).estimate_
         estimate = ConsistentLeastSquares().fit(model, problem, unconstrained=unconstrained).estimate_
         G = np.linalg.inv(unconstrained.cov)
-        norm = lambda values: float(np.sqrt((values - truth) @ G @ (values - truth)))  # noqa: E731
+        norm = lambda values, G=G: float(np.sqrt((values - truth) @ G @ (values - truth)))  # noqa: E731
         errors.append((norm(unconstrained.values), norm(estimate.values)))
         scale = np.abs(truth) + 1e-3
         relative.append((np.median(np.abs(unconstrained.values - truth) / scale),

@@ -71,7 +71,7 @@ def demo_setting(*, design: bool = True, periods: int = 3, harmonics: int = 300)
 
         trajectory = design_excitation(robot, model="internal", starts=2, seed=0).trajectory
     else:
-        from tests.synthetic import random_fourier
+        from oed.fourier import random_fourier
 
         trajectory = random_fourier(robot, seed=3, frequency_hz=0.1)
     clean = simulator.run(trajectory, simulator.default_controller(bandwidth_hz=20.0), periods=periods,

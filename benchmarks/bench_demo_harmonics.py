@@ -7,8 +7,8 @@ standard deviations off (1.7 HAC); 300 harmonics: 1.63 / 1.13 / 0.93, largest er
 
 Run: ``PYTHONPATH=. python benchmarks/bench_demo_harmonics.py`` (about a minute).
 """
-import warnings; warnings.simplefilter("ignore")
-import numpy as np
+import warnings
+
 from dynamics.effects.linear import CoulombFriction
 from dynamics.models import build_model
 from dynamics.robots import load_robot
@@ -17,6 +17,8 @@ from estimation.identification.fit import identify
 from estimation.uncertainty.noise_floor import noise_floor, prepared_floor
 from estimation.preprocessing.differentiation import FourierDifferentiation, fill_derivatives
 from oed.design import design_excitation
+
+warnings.simplefilter("ignore")
 robot = load_robot("puma560", joints=3)
 sim = Simulator(robot, "viscous,coulomb,offset", noise=NoiseModel())
 ctrl = sim.default_controller(bandwidth_hz=20.0)

@@ -15,18 +15,15 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import sys
 import time
 from pathlib import Path
 
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
-from dynamics.effects.linear import CoulombFriction, JointOffset  # noqa: E402
-from dynamics.models import build_model  # noqa: E402
-from dynamics.robots import load_robot  # noqa: E402
-from estimation.diagnosis.search import diagnose  # noqa: E402
-from tests.synthetic import random_fourier, simulate, true_parameters  # noqa: E402
+from dynamics.effects.linear import CoulombFriction, JointOffset
+from dynamics.models import build_model
+from dynamics.robots import load_robot
+from estimation.diagnosis.search import diagnose
+from dynamics.simulation.synthetic import simulate, true_parameters
+from oed.fourier import random_fourier
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "kuka_lwr4"
 

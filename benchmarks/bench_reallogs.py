@@ -30,17 +30,16 @@ from pathlib import Path
 
 import numpy as np
 
+from dynamics.models import build_model
+from dynamics.robots import load_robot
+from estimation.data.records import read_record
+from dynamics.measurements import Measurements
+from estimation.preprocessing.plan import choose_preprocessing, prepare
+from oed.cli import main
+from dynamics.simulation.synthetic import true_parameters
+from oed.fourier import random_fourier
+
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
-
-from dynamics.models import build_model  # noqa: E402
-from dynamics.robots import load_robot  # noqa: E402
-from estimation.data.records import read_record  # noqa: E402
-from dynamics.measurements import Measurements  # noqa: E402
-from estimation.preprocessing.plan import choose_preprocessing, prepare  # noqa: E402
-from oed.cli import main  # noqa: E402
-from tests.synthetic import random_fourier, true_parameters  # noqa: E402
-
 DEFAULT_URDF = ROOT.parent / "shared" / "data" / "kuka_lwr4" / "kuka_lwr4.urdf"
 
 

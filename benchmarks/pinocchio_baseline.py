@@ -22,7 +22,7 @@ def parameter_map(robot) -> NDArray[np.float64]:
     for joint in robot.joints:
         placement = pin.SE3(joint.link_transform)
 
-        def to_joint(parameters):
+        def to_joint(parameters, placement=placement):
             return pin.Inertia.FromDynamicParameters(parameters).se3Action(placement).toDynamicParameters()
 
         base = to_joint(reference)

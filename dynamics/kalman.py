@@ -43,7 +43,7 @@ class FusionResult:
     r: float
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def kalman_step_function() -> casadi.Function:
     """Eqs. 4–8 as ``casadi.Function`` ``kalman_gyro_acc_step``: ``(x, P, omega, y, dt, q, r) -> (x_next, P_next)``.
 

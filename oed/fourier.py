@@ -26,6 +26,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from estimation.preprocessing.fourier_series import evaluate_series
+from dynamics.robot import RobotModel
 from dynamics.runtime.output_files import atomic_output, json_text
 
 
@@ -173,6 +174,41 @@ class FourierTrajectory:
         return cls.from_dict(document)
 
 
+def random_fourier(robot: RobotModel, seed: int, *, frequency_hz: float = 0.2, harmonics: int = 5,
+                   fill: float = 0.8) -> FourierTrajectory:
+    """A random excitation within the robot's bounds: a baseline against the optimised one, and the motion
+    of synthetic experiments (:mod:`dynamics.simulation.synthetic`).
+
+    Coefficients ``a, b`` are standard normal draws (``seed``), ``q0`` the centre of the joint range; the
+    coefficients are then scaled so that the excursion of ``q`` about its mean and the peak ``|dq|`` stay
+    within ``fill`` of half the joint range and of the velocity limit (over one period, 200 samples a period
+    of the highest harmonic).
+
+    Parameters
+    ----------
+    robot
+        The robot (its joint ranges ``lower, upper`` and ``velocity_limit``).
+    seed
+        Seed of the coefficients' draws.
+    frequency_hz, harmonics
+        Fundamental frequency (Hz) and number of harmonics of the series.
+    fill
+        Fraction of the range and of the velocity limit the motion may use.
+    """
+    generator = np.random.default_rng(seed)
+    n = robot.n_joints
+    centre = 0.5 * (robot.lower + robot.upper)
+    half_range = 0.5 * (robot.upper - robot.lower)
+    a = generator.normal(size=(n, harmonics))
+    b = generator.normal(size=(n, harmonics))
+    trajectory = FourierTrajectory(frequency_hz, centre, a, b)
+    _, q, dq, _ = trajectory.sample(200.0 * frequency_hz * harmonics, 1)
+    deviation = np.max(np.abs(q - q.mean(axis=0)), axis=0)
+    speed = np.max(np.abs(dq), axis=0)
+    scale = fill * np.minimum(half_range / deviation, robot.velocity_limit / speed)
+    return FourierTrajectory(frequency_hz, centre, a * scale[:, None], b * scale[:, None])
+
+
 def _numbers(values: ArrayLike, name: str) -> NDArray[np.float64]:
     if any(isinstance(value, (bool, np.bool_, str)) for value in np.ravel(np.asarray(values, dtype=object))):
         raise ValueError(f"Fourier coefficients {name} must be numbers, got {values!r}")
@@ -216,5 +252,5 @@ def joint_block_names(joint_names: Sequence[str], harmonics: int) -> list[str]:
     return [
         name
         for joint in joint_names
-        for name in [f"{joint}.q0"] + [f"{joint}.a{l}" for l in range(1, harmonics + 1)] + [f"{joint}.b{l}" for l in range(1, harmonics + 1)]
+        for name in [f"{joint}.q0"] + [f"{joint}.a{k}" for k in range(1, harmonics + 1)] + [f"{joint}.b{k}" for k in range(1, harmonics + 1)]
     ]

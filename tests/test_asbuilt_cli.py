@@ -13,7 +13,9 @@ from dynamics.models import build_model
 from dynamics.robots import load_robot
 from dynamics.transmission import puma560_transmission
 from oed.cli import main
-from tests.synthetic import random_fourier, simulate, true_parameters
+from dynamics.simulation.synthetic import simulate, true_parameters
+
+from oed.fourier import random_fourier
 
 NOISE = {"tau1": 0.3, "tau2": 0.3, "tau3": 0.2}
 
@@ -171,9 +173,9 @@ def test_a_whole_robot_transmission_file_with_fewer_joints_kept(files, capsys):
 def test_urdf_transmission_and_motor_friction_on_a_differential(tmp_path, capsys):
     from dynamics.effects.motor import motor_effects
     from dynamics.transmission_files import transmission_from_urdf
-    from tests.test_transmission import DIFFERENTIAL, SIMPLE, _urdf
+    from tests.test_transmission import DIFFERENTIAL, SIMPLE, transmission_urdf
 
-    path = _urdf(tmp_path, SIMPLE + DIFFERENTIAL)
+    path = transmission_urdf(tmp_path, SIMPLE + DIFFERENTIAL)
     robot = load_robot(urdf=path)
     transmission = transmission_from_urdf(path, robot)
     truth = build_model(robot, "internal", ("viscous",) + motor_effects(transmission, "coulomb"))

@@ -14,7 +14,9 @@ from estimation.identification.fit import identify
 from dynamics.measurements import Measurements
 from estimation.data.rest import coulomb_combinations, drop_rest, smooth_coulomb
 from estimation.identification.trivial_predictors import trivial_mse, trivial_warnings
-from tests.synthetic import random_fourier, simulate, true_parameters
+from dynamics.simulation.synthetic import simulate, true_parameters
+
+from oed.fourier import random_fourier
 
 NOISE = 0.2
 

@@ -30,7 +30,7 @@ from estimation.diagnosis.search import diagnose
 from estimation.identification.fit import identify
 from estimation.diagnosis.limit_laws import replace_limit_laws
 from estimation.data.rest import drop_rest
-from tests.synthetic import random_fourier
+from oed.fourier import random_fourier
 
 FLOOR = 0.2**2  # NoiseModel's torque noise
 

@@ -155,7 +155,7 @@ def test_urdf_parser_errors_are_one_readable_line(tmp_path, capfd):
 def test_masses_read_are_checked_against_the_file(tmp_path):
     from dynamics.urdf import _check_total_mass
 
-    path = _urdf(tmp_path, '<joint name="j1" type="revolute"><parent link="base"/><child link="a"/><axis xyz="0 0 1"/>'
+    _urdf(tmp_path, '<joint name="j1" type="revolute"><parent link="base"/><child link="a"/><axis xyz="0 0 1"/>'
                            '<limit lower="-1" upper="1" effort="1" velocity="1"/></joint>', ("base", "a"))
     from dynamics.urdf import _check_numbers
 

@@ -11,6 +11,11 @@ from dynamics.models import build_model
 from dynamics.robots import load_robot
 from estimation.streaming.candidate_screening import accumulate_candidates, f_tests, weighted_fit, weighted_mse
 from estimation.diagnosis.search import candidate_columns, default_candidates
+from estimation.estimators.least_squares import stack
+from dynamics.simulation.synthetic import simulate, true_parameters
+
+
+from oed.fourier import random_fourier
 
 
 def _weighted_fit(Y, y, weights):
@@ -24,8 +29,6 @@ def _weighted_fit(Y, y, weights):
 
 def _weighted_mse(Y, y, theta, weights):
     return float(np.sum(np.mean((y - Y @ theta) ** 2, axis=0) * weights))
-from estimation.estimators.least_squares import stack
-from tests.synthetic import random_fourier, simulate, true_parameters
 
 
 def test_f_tests_from_sums_equal_the_in_memory_fits():

@@ -14,7 +14,10 @@ from dynamics.robots import load_robot
 from oed.cli import main
 from oed.cli.common import OutputFiles, atomic_output
 from oed.fourier import FourierTrajectory
-from tests.synthetic import random_fourier, simulate, true_parameters
+from dynamics.simulation.synthetic import simulate, true_parameters
+
+
+from oed.fourier import random_fourier
 
 
 @pytest.fixture

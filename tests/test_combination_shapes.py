@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from dynamics.effects.combination_shapes import TanhCombinationCoulomb, combination_row
-from dynamics.effects.specs import EffectSpecError, build_effects, effect_spec
+from dynamics.effects.joint_lists import EffectSpecError
+from dynamics.effects.specs import build_effects, effect_spec
 from dynamics.models import build_model
 from dynamics.effects.motor import combination_from_label
 from dynamics.robots import load_robot

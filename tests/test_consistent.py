@@ -76,7 +76,7 @@ def test_closer_to_the_truth_than_least_squares_on_short_noisy_records(puma):
         unconstrained = WeightedLeastSquares().fit(problem).estimate_
         estimate = ConsistentLeastSquares().fit(model, problem, unconstrained=unconstrained).estimate_
         G = np.linalg.inv(unconstrained.cov)
-        distance = lambda values: float(np.sqrt((values - truth) @ G @ (values - truth)))  # noqa: E731
+        distance = lambda values, G=G: float(np.sqrt((values - truth) @ G @ (values - truth)))  # noqa: E731
         errors.append((distance(unconstrained.values), distance(estimate.values)))
         inconsistent += estimate.excess_chi2 > 1e-3
         assert all(is_consistent(link) for link in estimate.link_parameters())

@@ -89,7 +89,9 @@ def test_stacked_segments_reach_the_estimator(tmp_path):
     """``stack`` of a concatenation carries its segments; the HAC std do not depend on their order."""
     from dynamics.models import build_model
     from dynamics.robots import load_robot
-    from tests.synthetic import random_fourier, simulate, true_parameters
+    from dynamics.simulation.synthetic import simulate, true_parameters
+
+    from oed.fourier import random_fourier
 
     robot = load_robot("puma560", joints=2)
     model = build_model(robot, "internal", "viscous,offset")

@@ -14,7 +14,10 @@ from dynamics.models import build_model
 from dynamics.robots import load_robot
 from estimation.uncertainty.coverage import EstimateDraw, monte_carlo_coverage
 from estimation.estimators.least_squares import WeightedLeastSquares, stack
-from tests.synthetic import random_fourier, simulate, true_parameters
+from dynamics.simulation.synthetic import simulate, true_parameters
+
+
+from oed.fourier import random_fourier
 
 
 def _coloured(generator, shape, rho):

@@ -16,7 +16,9 @@ from estimation.identification.fit import identify
 from estimation.preprocessing.differentiation import FourierDifferentiation, fill_derivatives
 from estimation.preprocessing.delay import DelayBounds, DelayBoundsError, delayed, split_delay
 from oed.cli import main
-from tests.synthetic import random_fourier, simulate, true_parameters
+from dynamics.simulation.synthetic import simulate, true_parameters
+
+from oed.fourier import random_fourier
 
 TRUE_DELAY = 0.007  # s: the torques lag the motion by 7 ms (a value unlike the default bounds)
 NOISE = {"tau1": 0.1, "tau2": 0.1, "tau3": 0.05}

@@ -9,7 +9,10 @@ import pytest
 from dynamics.models import build_model
 from dynamics.robots import load_robot
 from oed.cli import main
-from tests.synthetic import random_fourier, simulate, true_parameters
+from dynamics.simulation.synthetic import simulate, true_parameters
+
+
+from oed.fourier import random_fourier
 
 
 @pytest.fixture(scope="module")

@@ -2,14 +2,15 @@
 
 from __future__ import annotations
 
-import numpy as np
 import pytest
 
 from dynamics.effects.linear import CoulombFriction
 from dynamics.models import build_model
 from dynamics.robots import load_robot
 from estimation.diagnosis.search import diagnose, provisional_stopping_rule
-from tests.synthetic import random_fourier, simulate, true_parameters
+from dynamics.simulation.synthetic import simulate, true_parameters
+
+from oed.fourier import random_fourier
 
 NOISE_TAU = 0.2
 NOISE_WRENCH = {"fx": 2.0, "fy": 2.0, "fz": 2.0, "mx": 0.5, "my": 0.5, "mz": 0.5}

@@ -12,7 +12,9 @@ from estimation.diagnosis.search import diagnose
 from estimation.diagnosis.report import markdown_report
 from estimation.uncertainty.noise_floor import noise_floor
 from estimation.preprocessing.differentiation import average_periods
-from tests.synthetic import random_fourier, simulate, true_parameters
+from dynamics.simulation.synthetic import simulate, true_parameters
+
+from oed.fourier import random_fourier
 
 NOISE_TAU = 0.2
 

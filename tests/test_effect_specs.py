@@ -6,7 +6,8 @@ import casadi
 import numpy as np
 import pytest
 
-from dynamics.effects.specs import EffectSpecError, build_effects, effect_spec, parse_joint_list, split_joints
+from dynamics.effects.joint_lists import EffectSpecError, parse_joint_list, split_joints
+from dynamics.effects.specs import build_effects, effect_spec
 from dynamics.effects.linear import CoulombFriction, JointOffset, parse_effects
 from dynamics.models import build_model
 from dynamics.effects.motor import CombinationEffect, motor_effects

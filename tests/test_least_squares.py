@@ -21,7 +21,9 @@ from estimation.estimators.least_squares import (
     WeightedLeastSquares,
     stack,
 )
-from tests.synthetic import random_fourier, simulate, true_parameters
+from dynamics.simulation.synthetic import simulate, true_parameters
+
+from oed.fourier import random_fourier
 
 NOISE = {"tau1": 0.5, "tau2": 0.5, "tau3": 0.2, "fx": 5.0, "fy": 5.0, "fz": 8.0, "mx": 3.0, "my": 3.0, "mz": 1.0}
 
@@ -127,7 +129,7 @@ def test_fit_accepts_a_model_and_measurements_like_a_stacked_problem(puma):
 
 def test_unfitted_estimator_and_bad_settings_raise_clear_errors():
     with pytest.raises(NotFittedError, match="not fitted"):
-        LeastSquares().theta_
+        _ = LeastSquares().theta_
     problem = IdentificationProblem(np.ones((5, 1, 1)), np.ones((5, 1)), ("tau1",), ("m",))
     with pytest.raises(ValueError, match="max_iter"):
         WeightedLeastSquares(max_iter=0).fit(problem)

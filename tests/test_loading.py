@@ -19,8 +19,8 @@ from estimation.data.loading import (
     ResampledWarning,
     TimeBaseError,
     TooFewSamplesError,
-    read_measurements,
 )
+from estimation.data.records import read_measurements
 from dynamics.measurements import Measurements
 
 

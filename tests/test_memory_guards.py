@@ -82,7 +82,9 @@ def test_streaming_chunk_size_guarded():
 def test_cli_identify_in_memory_refused_past_the_memory_with_a_hint(tmp_path, monkeypatch, capsys):
     import dynamics.runtime.memory
     from oed.cli import main
-    from tests.synthetic import random_fourier, simulate, true_parameters
+    from dynamics.simulation.synthetic import simulate, true_parameters
+
+    from oed.fourier import random_fourier
 
     model = build_model(load_robot("puma560", joints=3), "internal", "viscous")
     data = simulate(model, true_parameters(model), random_fourier(model.robot, 1), noise={"tau1": 0.1, "tau2": 0.1,

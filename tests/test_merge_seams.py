@@ -15,7 +15,10 @@ from estimation.identification.fit import identify
 from dynamics.measurements import Measurements
 from estimation.identification.trivial_predictors import trivial_mse
 from oed.cli import main
-from tests.synthetic import random_fourier, simulate, true_parameters
+from dynamics.simulation.synthetic import simulate, true_parameters
+
+
+from oed.fourier import random_fourier
 
 
 @pytest.fixture(scope="module")

@@ -10,7 +10,9 @@ from dynamics.robots import load_robot
 from estimation.estimators.least_squares import IdentifiabilityError, LeastSquares, WeightedLeastSquares, solve, stack
 from estimation.estimators.normal_equations import NormalEquations, accumulate, reduce_sums
 from estimation.estimators.summed_least_squares import SummedLeastSquares, solve_sums
-from tests.synthetic import random_fourier, simulate, true_parameters
+from dynamics.simulation.synthetic import simulate, true_parameters
+
+from oed.fourier import random_fourier
 
 NOISE = {"tau1": 0.5, "tau2": 0.5, "tau3": 0.2, "fx": 5.0, "fy": 5.0, "fz": 8.0, "mx": 3.0, "my": 3.0, "mz": 1.0}
 

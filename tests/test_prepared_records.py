@@ -23,7 +23,8 @@ from estimation.identification.prepared import (
     prepare_records,
 )
 from oed.cli import main
-from tests.synthetic import random_fourier, simulate, true_parameters
+from dynamics.simulation.synthetic import simulate, true_parameters
+from oed.fourier import random_fourier
 
 NOISE = {"tau1": 0.3, "tau2": 0.3, "tau3": 0.1}
 

@@ -15,7 +15,7 @@ from estimation.preprocessing.differentiation import (
     decimate,
     fill_derivatives,
 )
-from tests.synthetic import random_fourier
+from oed.fourier import random_fourier
 
 
 @pytest.fixture(scope="module")

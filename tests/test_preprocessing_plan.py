@@ -21,7 +21,7 @@ from estimation.preprocessing.plan import (
 )
 from estimation.data.segments import SegmentColumnsError, concatenate, segment_slices
 from oed.fourier import FourierTrajectory
-from tests.synthetic import random_fourier
+from oed.fourier import random_fourier
 
 
 @pytest.fixture(scope="module")

@@ -13,7 +13,7 @@ from dynamics.robots import load_robot
 from estimation.estimators.identification_problem import IdentificationProblem
 from estimation.datasets.kuka import load_kuka_run
 from estimation.estimators.least_squares import WeightedLeastSquares, stack
-from estimation.data.loading import read_measurements
+from estimation.data.records import read_measurements
 from estimation.streaming.identification import identify_files
 from estimation.identification.validation import compare
 from tests.conftest import shared_data
@@ -46,11 +46,11 @@ def test_two_kuka_runs_streamed_in_chunks_equal_the_in_memory_estimate(tmp_path)
         assert value == pytest.approx(expected[channel], rel=1e-9)
     assert [entry["resampled_from"] for entry in result.to_dict()["streaming"]["files"]] == [5027, 5027]
     # the batch-means standard deviations (a third pass) equal those computed in memory on the same residuals
-    from tests.test_streamed_identification_covariance import _in_memory_batch_means
+    from tests.test_streamed_identification_covariance import in_memory_batch_means
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        std = _in_memory_batch_means(model, paths[:2], result)[0]
+        std = in_memory_batch_means(model, paths[:2], result)[0]
     assert result.to_dict()["cov_method"] == "batch_means"
     assert np.max(np.abs(result.estimate.std - std) / std) < 1e-8
     assert np.median(result.estimate.std / result.classical_std) > 2.0  # the measured residuals are coloured

@@ -16,7 +16,7 @@ from dynamics.models import build_model
 from dynamics.robots import load_robot
 from dynamics.simulation.simulator import Simulator
 from oed.cli import main
-from tests.synthetic import random_fourier
+from oed.fourier import random_fourier
 
 TAU_STD = 0.2  # the simulator's default torque noise, N·m
 FIT = ["--harmonics", "15", "--held-torques"]

@@ -8,18 +8,19 @@ import sys
 from dataclasses import replace
 from pathlib import Path
 
-import numpy as np
 import pandas as pd
 import pytest
 
 from dynamics.errors import RobotDescriptionError
 from dynamics.models import build_model
 from dynamics.robots import load_robot
-from estimation.data.loading import AbsurdValueError, HoleError, ParquetSupportError, read_measurements
-from estimation.data.records import read_record
+from estimation.data.loading import AbsurdValueError, HoleError, ParquetSupportError
+from estimation.data.records import read_measurements, read_record
 from dynamics.runtime.output_files import OutputFiles
 from oed.cli import main
-from tests.synthetic import random_fourier, simulate, true_parameters
+from dynamics.simulation.synthetic import simulate, true_parameters
+
+from oed.fourier import random_fourier
 
 NOISE = {"tau1": 0.5, "tau2": 0.5, "tau3": 0.2}
 

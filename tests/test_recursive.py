@@ -122,7 +122,7 @@ def test_several_channels_are_refused_not_interleaved_and_unfitted_estimators_la
     for estimator in (ARXEstimator(), ExtendedRecursiveLeastSquares(na=2, nb=1, nc=1)):
         assert not hasattr(estimator, "polynomials_")
         with pytest.raises(NotFittedError, match="theta_ is set by fit"):
-            estimator.theta_
+            _ = estimator.theta_
         with pytest.raises(NotFittedError, match="not fitted"):
             estimator.predict(np.zeros(10), np.zeros(10))
 

@@ -9,7 +9,7 @@ from dynamics.effects.linear import Armature, CoulombFriction, JointOffset, Spri
 from dynamics.robots import load_robot
 from dynamics.measurements import Measurements
 from estimation.uncertainty.residual_tracing import plot_residual_trace, rank_candidates, residual_statements, trace_residuals
-from tests.synthetic import random_fourier
+from oed.fourier import random_fourier
 
 
 @pytest.fixture(scope="module")

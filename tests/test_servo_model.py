@@ -58,7 +58,7 @@ def test_estimators_recover_b_k_sigma_from_simulated_eq13(method):
         free_run(gray_box_to_discrete(b=b, k=k, sigma=s, mass=m, dt=DT), u[:, j], (0.0, 0.0)) for j, (m, b, k, s) in enumerate(TABLE1)
     ]) + 1e-6 * rng.standard_normal((n, 4))
     fit = fit_servo_arm(np.arange(n) * DT, u, q, masses=tuple(r[0] for r in TABLE1), method=method, remove_mean=False)
-    for joint, (m, b, k, s) in zip(fit.joints, TABLE1):
+    for joint, (_mass, b, k, s) in zip(fit.joints, TABLE1):
         assert joint.b == pytest.approx(b, rel=0.02)
         assert joint.k == pytest.approx(k, rel=0.02)
         assert joint.sigma == pytest.approx(s, rel=0.02)

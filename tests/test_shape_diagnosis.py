@@ -15,7 +15,8 @@ from estimation.diagnosis.search import diagnose
 from estimation.identification.fit import identify
 from estimation.preprocessing.differentiation import FourierDifferentiation, fill_derivatives
 from estimation.estimators.effect_blocks import Block, States
-from tests.synthetic import random_fourier, simulate, true_parameters
+from dynamics.simulation.synthetic import simulate, true_parameters
+from oed.fourier import random_fourier
 
 NOISE = 0.1
 RATE_HZ = 250.0  # two periods of 5 s: 2500 samples a record

@@ -24,7 +24,8 @@ from dynamics.effects.shaped import (
 )
 from estimation.identification.fit import identify
 from estimation.estimators.effect_blocks import Block, NoRowsError, ShapeSearchError, States
-from tests.synthetic import random_fourier, simulate, true_parameters
+from dynamics.simulation.synthetic import simulate, true_parameters
+from oed.fourier import random_fourier
 
 
 @pytest.fixture(scope="module")

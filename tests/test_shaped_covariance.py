@@ -12,7 +12,10 @@ from dynamics.effects.linear import CoulombFriction
 from dynamics.models import build_model
 from dynamics.robots import load_robot
 from estimation.identification.fit import identify
-from tests.synthetic import random_fourier, simulate, true_parameters
+from dynamics.simulation.synthetic import simulate, true_parameters
+
+
+from oed.fourier import random_fourier
 
 
 @pytest.fixture(scope="module")

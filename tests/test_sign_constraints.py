@@ -15,7 +15,8 @@ from estimation.identification.fit import ImplausibleEstimateWarning, identify
 from estimation.diagnosis.sign_constraints import negative_terms, pin_wrong_signs
 from estimation.estimators.effect_blocks import Block, States
 from estimation.estimators.separable_least_squares import FixedPart
-from tests.synthetic import random_fourier, simulate, true_parameters
+from dynamics.simulation.synthetic import simulate, true_parameters
+from oed.fourier import random_fourier
 
 
 @pytest.fixture(scope="module")

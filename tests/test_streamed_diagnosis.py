@@ -12,13 +12,16 @@ from dynamics.models import build_model
 from dynamics.robots import load_robot
 from estimation.diagnosis.search import diagnose
 from estimation.streaming.diagnosis_sums import EvenSubsample
-from estimation.data.loading import MeasurementError, read_measurements
+from estimation.data.loading import MeasurementError
+from estimation.data.records import read_measurements
 from dynamics.measurements import Measurements
 from estimation.uncertainty.noise_floor import noise_floor
 from estimation.preprocessing.differentiation import ButterworthDifferentiation
 from estimation.streaming.diagnosis import diagnose_files
 from oed.cli import main
-from tests.synthetic import random_fourier, simulate, true_parameters
+from dynamics.simulation.synthetic import simulate, true_parameters
+
+from oed.fourier import random_fourier
 
 NOISE = 0.2
 CUTOFF = 8.0
@@ -213,7 +216,7 @@ def test_an_in_memory_diagnosis_larger_than_the_machine_is_refused(model, files,
 
 def test_batch_scores_by_chunks_equal_the_batch_means_of_the_whole_record():
     from estimation.uncertainty.batch_means import batch_means
-    from estimation.streaming.covariance import BATCH_LENGTHS, BatchScores, _lag1
+    from estimation.streaming.covariance import BATCH_LENGTHS, BatchScores, lag_one_correlation
 
     rng = np.random.default_rng(3)
     scores = rng.standard_normal((1000, 3))
@@ -228,7 +231,7 @@ def test_batch_scores_by_chunks_equal_the_batch_means_of_the_whole_record():
     centred = residual - residual.mean(axis=1, keepdims=True)
     variance = np.sum(centred**2, axis=1)
     lagged = np.sum(centred[:, 1:] * centred[:, :-1], axis=1)
-    assert _lag1([closed], weights)[0] == pytest.approx(np.sum(weights * lagged) / np.sum(weights * variance), rel=1e-10)
+    assert lag_one_correlation([closed], weights)[0] == pytest.approx(np.sum(weights * lagged) / np.sum(weights * variance), rel=1e-10)
 
 
 def test_trivial_predictors_from_the_sums_equal_the_in_memory_ones(model, files):

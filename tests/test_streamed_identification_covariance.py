@@ -13,12 +13,14 @@ from dynamics.models import build_model
 from dynamics.robots import load_robot
 from estimation.uncertainty.batch_means import batch_length, batch_means
 from estimation.streaming.cluster import IncompleteSumError, WorkerLostError
-from estimation.data.loading import read_measurements
+from estimation.data.records import read_measurements
 from dynamics.measurements import Measurements
 from estimation.preprocessing.differentiation import ButterworthDifferentiation, FourierDifferentiation, fill_derivatives
 from estimation.streaming.identification import identify_files
 from oed.cli import main
-from tests.synthetic import random_fourier, simulate, true_parameters
+from dynamics.simulation.synthetic import simulate, true_parameters
+
+from oed.fourier import random_fourier
 
 NOISE = 0.3
 
@@ -59,7 +61,7 @@ def files(model, tmp_path_factory):
     return paths
 
 
-def _in_memory_batch_means(model, paths, result, method=None):
+def in_memory_batch_means(model, paths, result, method=None):
     """The batch-means covariance on the stacked records' residuals and scores at the streamed estimate
     (each file read and prepared whole by ``method``; batches restarting at each file), with the
     streamed batch length, floored at the classical std."""
@@ -86,7 +88,7 @@ def _in_memory_batch_means(model, paths, result, method=None):
 def test_streamed_batch_means_std_equal_the_in_memory_batch_means(model, files, name):
     result = identify_files(model, files[name], chunk_size=300)
     assert result.cov_method == "batch_means" and result.to_dict()["cov_method"] == "batch_means"
-    std, andrews = _in_memory_batch_means(model, files[name], result)
+    std, andrews = in_memory_batch_means(model, files[name], result)
     assert np.max(np.abs(result.estimate.std - std) / std) < 1e-8
     # the power of two nearest to Andrews' length of the whole record, at least twenty batches
     allowed = [2**k for k in range(17) if 2**k <= result.train.n_samples // 20]
@@ -112,7 +114,7 @@ def test_filter_and_fourier_paths_score_the_samples_they_summed(model, files, tm
         raw.append(tmp_path / f"raw{index}.parquet")
         Measurements(record.t, record.q + 1e-5 * rng.standard_normal(record.q.shape), tau=record.tau).write(raw[-1])
     filtered = identify_files(model, raw, chunk_size=250, cutoff_hz=8.0)
-    std = _in_memory_batch_means(model, raw, filtered, ButterworthDifferentiation(8.0))[0]
+    std = in_memory_batch_means(model, raw, filtered, ButterworthDifferentiation(8.0))[0]
     assert np.max(np.abs(filtered.estimate.std - std) / std) < 1e-8
     assert np.median(filtered.estimate.std / filtered.classical_std) > 2.0
     whole = tmp_path / "periodic.csv"  # the two periods of 0.2 Hz at 200 Hz in one file
@@ -121,7 +123,7 @@ def test_filter_and_fourier_paths_score_the_samples_they_summed(model, files, tm
     Measurements(np.r_[record.t, second.t], np.r_[record.q, second.q], tau=np.r_[record.tau, second.tau]).write(whole)
     periodic = identify_files(model, [whole], chunk_size=300, frequency_hz=0.2, harmonics=10)
     assert periodic.train.n_samples == 1000 and periodic.cov_method == "batch_means"
-    std = _in_memory_batch_means(model, [whole], periodic, FourierDifferentiation(0.2, 10))[0]
+    std = in_memory_batch_means(model, [whole], periodic, FourierDifferentiation(0.2, 10))[0]
     assert np.max(np.abs(periodic.estimate.std - std) / std) < 1e-8
 
 
@@ -148,9 +150,9 @@ def test_process_pool_gives_the_serial_std(model, files):
 
 
 def test_a_worker_lost_in_the_covariance_pass_fails_the_run(model, files):
-    from tests.test_streaming import _LostExecutor  # its worker dies on its second task
+    from tests.test_streaming import LostExecutor  # its worker dies on its second task
 
-    executor = _LostExecutor()
+    executor = LostExecutor()
     executor.calls = -1  # two files summed, then the covariance pass's first task is the one lost
     with pytest.raises(WorkerLostError, match="white0.csv"):
         identify_files(model, files["white"], chunk_size=300, executor=executor)

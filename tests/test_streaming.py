@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 from concurrent.futures import Future, ThreadPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import replace
@@ -15,14 +16,18 @@ from dynamics.robots import load_robot
 from estimation.streaming.cluster import IncompleteSumError, WorkerLostError, check_parts, sum_files
 from estimation.estimators.identification_problem import IdentificationProblem
 from estimation.estimators.least_squares import WeightedLeastSquares, stack
-from estimation.data.loading import MeasurementError, MissingColumnError, TimeBaseError, read_measurements
+from estimation.data.loading import (MeasurementError, MissingColumnError, ResampledWarning, StallWarning,
+                                     TimeBaseError)
+from estimation.data.records import read_measurements
 from dynamics.measurements import Measurements
 from estimation.estimators.summed_least_squares import SummedLeastSquares
 from estimation.preprocessing.differentiation import ButterworthDifferentiation, fill_derivatives
 from estimation.streaming.identification import identify_files
 from estimation.streaming.chunks import StreamingUnsupportedError, file_sums, filter_margin
 from oed.cli import main
-from tests.synthetic import random_fourier, simulate, true_parameters
+from dynamics.simulation.synthetic import simulate, true_parameters
+
+from oed.fourier import random_fourier
 
 NOISE = {"tau1": 0.5, "tau2": 0.5, "tau3": 0.2}
 CUTOFF = 10.0
@@ -149,7 +154,7 @@ def test_dask_local_cluster_of_processes_and_process_pool(model, files):
     assert relative(pooled.estimate.std, serial.estimate.std) < 1e-10
 
 
-class _LostExecutor:
+class LostExecutor:
     """An executor whose second task's worker dies."""
 
     def __init__(self):
@@ -167,7 +172,7 @@ class _LostExecutor:
 
 def test_a_lost_worker_fails_the_run_naming_the_file(model, files):
     with pytest.raises(WorkerLostError, match="full1.csv was lost"):
-        sum_files(model, files["full"], executor=_LostExecutor(), chunk_size=5000)
+        sum_files(model, files["full"], executor=LostExecutor(), chunk_size=5000)
 
 
 def test_a_partial_sum_is_refused(model, files):
@@ -200,8 +205,10 @@ def test_a_time_jump_between_chunks_is_refused(model, files, tmp_path):
     shifted = replace(data, t=np.where(np.arange(data.n_samples) >= 2000, data.t + 0.5, data.t))
     path = tmp_path / "jump.csv"
     shifted.write(path)
-    with pytest.raises(TimeBaseError, match="jump.csv: column t jumps by 0.502 s at row 2001"):
-        file_sums(path, model, chunk_size=1000)
+    # the scan of column t sees the jump as irregular sampling first; the chunks then refuse it
+    with pytest.warns(ResampledWarning, match="jump.csv: irregular sampling"):
+        with pytest.raises(TimeBaseError, match="jump.csv: column t jumps by 0.502 s at row 2001"):
+            file_sums(path, model, chunk_size=1000)
 
 
 def test_cli_several_files_with_chunks(model, files, tmp_path):
@@ -335,33 +342,37 @@ def test_a_worker_killed_on_a_dask_cluster_fails_the_run(model, files):
 
 @pytest.mark.parametrize("chunk_size, cutoff", [(700, None), (1200, CUTOFF)])
 def test_jittered_time_is_resampled_onto_the_whole_files_grid(model, files, tmp_path, chunk_size, cutoff):
-    """Steps of 1.4–2.6 ms around 2 ms (the KUKA logs jitter so): the in-memory loader resamples."""
-    from estimation.data.loading import ResampledWarning
-
+    """Stamps jittered by ±30 % of the 2 ms step (the KUKA logs jitter so): the in-memory loader resamples;
+    steps beyond 1.5 times the median (up to 3.2 ms) are bridged as one-sample stalls, file by file and chunk
+    by chunk."""
     data = read_measurements(files["full"][0], model=model)
     rng = np.random.default_rng(3)
     t = data.t + rng.uniform(-0.3, 0.3, data.n_samples) * (data.t[1] - data.t[0])
     jittered = replace(data, t=t) if cutoff is None else Measurements(t, data.q, tau=data.tau)
     path = tmp_path / "jittered.csv"
     jittered.write(path)
-    with pytest.warns(ResampledWarning):
+    with pytest.warns(StallWarning, match="jittered.csv: the logger stalled 24 time"), pytest.warns(ResampledWarning):
         reference = in_memory(model, [path], None if cutoff is None else ButterworthDifferentiation(cutoff))
-    with pytest.warns(ResampledWarning, match="jittered.csv: irregular sampling"):
+    with pytest.warns(StallWarning, match=r"jittered.csv \(rows \d+-\d+\): the logger stalled") as stalls, \
+            pytest.warns(ResampledWarning, match="jittered.csv: irregular sampling"):
         result = identify_files(model, [path], chunk_size=chunk_size, cutoff_hz=cutoff)
+    assert f"(rows 1-{chunk_size}): the logger stalled 3 time(s)" in str(stalls[0].message)
     assert relative(result.estimate.values, reference.values) < 1e-10
     entry = result.to_dict()["streaming"]["files"][0]
     assert entry["resampled_from"] == 5000 and entry["rows"] == entry["samples"] == result.train.n_samples
 
 
 def test_warnings_of_a_worker_reach_the_caller(model, files, tmp_path):
-    from estimation.data.loading import ResampledWarning
-
     data = read_measurements(files["full"][0], model=model)
     t = data.t + np.random.default_rng(3).uniform(-0.3, 0.3, data.n_samples) * (data.t[1] - data.t[0])
     path = tmp_path / "jittered.csv"
     replace(data, t=t).write(path)
-    with ThreadPoolExecutor(1) as executor, pytest.warns(ResampledWarning, match="jittered.csv: irregular sampling"):
+    with ThreadPoolExecutor(1) as executor, \
+            pytest.warns(StallWarning, match=r"jittered.csv \(rows \d+-\d+\): the logger stalled") as stalls, \
+            pytest.warns(ResampledWarning, match="jittered.csv: irregular sampling"):
         sum_files(model, [path], executor=executor, chunk_size=2000)
+    assert [re.search(r"\(rows [\d-]+\)", str(warning.message)).group() for warning in stalls] == [
+        "(rows 1-2000)", "(rows 2001-4000)", "(rows 4001-5000)"]
 
 
 def test_cli_process_pool_and_option_conflicts(model, files, tmp_path, capsys):

@@ -45,14 +45,14 @@ FOUR_BAR = DIFFERENTIAL.replace("DifferentialTransmission", "FourBarLinkageTrans
     '<mechanicalReduction>1</mechanicalReduction></joint>\n  <joint name="j3"><mechanicalReduction>2<')
 
 
-def _urdf(tmp_path, transmissions):
+def transmission_urdf(tmp_path, transmissions):
     path = tmp_path / "wrist.urdf"
     path.write_text(URDF.replace("{transmissions}", transmissions))
     return path
 
 
 def test_urdf_simple_and_differential_transmissions(tmp_path):
-    path = _urdf(tmp_path, SIMPLE + DIFFERENTIAL)
+    path = transmission_urdf(tmp_path, SIMPLE + DIFFERENTIAL)
     robot = load_robot(urdf=path)
     transmission = transmission_from_urdf(path, robot)
     expected = np.array([[-50, 0, 0], [0, 40, 40], [0, 30, -30]], dtype=float)
@@ -65,11 +65,11 @@ def test_urdf_simple_and_differential_transmissions(tmp_path):
 
 
 def test_urdf_four_bar_and_no_transmission(tmp_path):
-    path = _urdf(tmp_path, FOUR_BAR)
+    path = transmission_urdf(tmp_path, FOUR_BAR)
     robot = load_robot(urdf=path)
     matrix = transmission_from_urdf(path, robot).matrix
     np.testing.assert_allclose(matrix[1:, 1:], [[40, 0], [30, 60]])  # θa1 = jr1 ar1 q1, θa2 = (q1 + jr2 q2) ar2
-    assert transmission_from_urdf(_urdf(tmp_path, ""), robot) is None
+    assert transmission_from_urdf(transmission_urdf(tmp_path, ""), robot) is None
 
 
 def test_conversions_conserve_power():
@@ -116,7 +116,7 @@ def test_bad_transmissions_are_named(document, error):
 
 
 def test_urdf_transmission_for_a_joint_the_robot_lacks(tmp_path):
-    path = _urdf(tmp_path, SIMPLE.replace('joint name="j1"', 'joint name="j7"'))
+    path = transmission_urdf(tmp_path, SIMPLE.replace('joint name="j1"', 'joint name="j7"'))
     with pytest.raises(UnknownJointError, match="j7"):
         transmission_from_urdf(path, load_robot(urdf=path))
 

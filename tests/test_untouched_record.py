@@ -15,7 +15,8 @@ from estimation.diagnosis.search import diagnose
 from estimation.diagnosis.untouched import recorded_mse, untouched_errors
 from estimation.uncertainty.noise_floor import noise_floor
 from oed.cli import main
-from tests.synthetic import random_fourier, simulate, true_parameters
+from dynamics.simulation.synthetic import simulate, true_parameters
+from oed.fourier import random_fourier
 
 NOISE_TAU = 0.2
 

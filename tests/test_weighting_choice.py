@@ -14,7 +14,8 @@ from dynamics.robots import load_robot
 from estimation.identification import weighting_choice
 from estimation.identification.weighting_choice import choose_weighting
 from oed.cli import main
-from tests.synthetic import random_fourier, simulate, true_parameters
+from dynamics.simulation.synthetic import simulate, true_parameters
+from oed.fourier import random_fourier
 
 
 @pytest.fixture(scope="module")

@@ -16,7 +16,8 @@ from typing import ClassVar, Protocol, runtime_checkable
 
 import casadi
 
-from dynamics.effects.specs import restricted, split_joints
+from dynamics.effects.joint_lists import restricted, split_joints
+from dynamics.effects.shaped import SHAPED_EFFECTS
 from dynamics.robot import RobotModel
 
 WRENCH_CHANNELS: tuple[str, ...] = ("fx", "fy", "fz", "mx", "my", "mz")
@@ -184,8 +185,6 @@ EFFECTS: dict[str, type] = {
 
 def _effect_type(item: str) -> type:
     """The effect class named ``NAME[:VARIANT]`` (shaped variants: :data:`dynamics.effects.shaped.SHAPED_EFFECTS`)."""
-    from dynamics.effects.shaped import SHAPED_EFFECTS  # noqa: PLC0415  (that module builds on this one's ideas)
-
     key = "wrench_offset" if item.lower() in ("plate_offset", "plate_offsets") else item.lower().replace(" ", "")
     if key.endswith(":sign") and key[: -len(":sign")] == "coulomb":
         key = "coulomb"
@@ -203,7 +202,7 @@ def parse_effects(spec: str | Iterable[str | Effect] | None) -> tuple[Effect, ..
     Names: ``viscous``, ``coulomb``, ``offset``, ``armature``, ``stribeck``, ``spring``,
     ``wrench_offset`` (alias ``plate_offset``); ``none`` or an empty string for rigid-body only.
     ``NAME@JOINTS`` restricts a per-joint effect to 1-based joints (``coulomb@1-4``, ``offset@2+5``;
-    :mod:`dynamics.effects.specs`).
+    :mod:`dynamics.effects.joint_lists`).
     ``NAME:VARIANT`` selects a variant with shape parameters (:mod:`dynamics.effects.shaped`):
     ``coulomb:tanh``, ``stribeck:velocity``, ``sigmoid``, ``ripple`` (``coulomb:sign`` is ``coulomb``).
     """
@@ -217,7 +216,7 @@ def parse_effects(spec: str | Iterable[str | Effect] | None) -> tuple[Effect, ..
     effects: list[Effect] = []
     for item in items:
         if isinstance(item, str):
-            text, joints = split_joints(item)  # NAME[:VARIANT][@JOINTS]: @ first (dynamics.effects.specs)
+            text, joints = split_joints(item)  # NAME[:VARIANT][@JOINTS]: @ first (dynamics.effects.joint_lists)
             item = restricted(_effect_type(text), joints, item)
         if not isinstance(item, Effect):
             raise TypeError(f"{item!r} is not an effect (needs name, parameter_names and columns)")

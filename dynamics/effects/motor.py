@@ -18,6 +18,7 @@ their parameter, so that identification stays least squares)::
 
 from __future__ import annotations
 
+import re
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from typing import Literal
@@ -150,8 +151,6 @@ def combination_from_label(kind: CombinationKind, label: str, n_joints: int, *,
                            smoothing: float | None = None) -> CombinationEffect:
     """The effect named ``kind[label]``, e.g. ``coulomb[q5+q6]`` or ``viscous[q4-0.5*q5]`` (the
     names the diagnosis reports, so that a user can declare what it found)."""
-    import re
-
     row = np.zeros(n_joints)
     text = label.replace(" ", "")
     terms = re.findall(r"([+-]?)(?:(\d+(?:\.\d*)?(?:[eE][+-]?\d+)?)\*)?q(\d+)", text)

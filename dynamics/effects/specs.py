@@ -2,7 +2,7 @@
 
 Grammar (CLI ``--friction``, :func:`dynamics.effects.linear.parse_effects`): comma-separated items, each
 ``NAME[:VARIANT][@JOINTS]``; ``@JOINTS`` restricts a per-joint effect to 1-based joints, ranges
-``a-b`` and lists joined by ``+``: ``viscous,coulomb@1-4,offset@2+5``. ``@`` is split off first,
+``a-b`` and lists joined by ``+`` (:mod:`dynamics.effects.joint_lists`): ``viscous,coulomb@1-4,offset@2+5``. ``@`` is split off first,
 then ``:`` (the variant is the business of the effect's own parser). Besides the per-joint names
 of :mod:`dynamics.effects.linear`, :func:`build_effects` reads
 
@@ -15,71 +15,23 @@ of :mod:`dynamics.effects.linear`, :func:`build_effects` reads
 
 from __future__ import annotations
 
-import dataclasses
 import re
 from collections.abc import Iterable
 from typing import Any
 
+from dynamics.effects.combination_shapes import TanhCombinationCoulomb
+from dynamics.effects.joint_lists import EffectSpecError, check_joints, split_joints
+from dynamics.effects.linear import parse_effects
+from dynamics.effects.motor import combination_from_label, motor_effects
 from dynamics.robot import RobotModel
 
-_RANGE = re.compile(r"(\d+)(?:-(\d+))?")
 _COMBINATION = re.compile(r"(viscous|coulomb|inertia)(?::(tanh))?\[(.+)\]", re.IGNORECASE)
 MOTOR_KINDS: dict[str, str] = {"motor_viscous": "viscous", "motor_coulomb": "coulomb", "motor_inertia": "inertia"}
-
-
-class EffectSpecError(ValueError):
-    """An effect spec that cannot be read (bad ``@JOINTS``, unknown name, a joint the robot lacks)."""
-
-
-def parse_joint_list(text: str) -> tuple[int, ...]:
-    """``"1-4"``, ``"2+5"``, ``"1-3+6"`` → 0-based joint indices, sorted, each once."""
-    joints: set[int] = set()
-    for part in text.split("+"):
-        match = _RANGE.fullmatch(part.strip())
-        if match is None:
-            raise EffectSpecError(f"cannot read joints {text!r}: use 1-based numbers, ranges a-b and '+' "
-                                  "(e.g. @1-4, @2+5, @1-3+6)")
-        first = int(match.group(1))
-        last = int(match.group(2)) if match.group(2) else first
-        if first < 1 or last < first:
-            raise EffectSpecError(f"joints {part!r} in {text!r}: joints count from 1 and a range a-b needs a <= b")
-        joints.update(range(first - 1, last))
-    return tuple(sorted(joints))
-
-
-def split_joints(item: str) -> tuple[str, tuple[int, ...] | None]:
-    """``"coulomb:tanh@1-4"`` → ``("coulomb:tanh", (0, 1, 2, 3))``; no ``@``: ``(item, None)``."""
-    if "@" not in item:
-        return item.strip(), None
-    name, _, joints = item.partition("@")
-    if not name.strip() or not joints.strip():
-        raise EffectSpecError(f"effect {item!r}: write NAME@JOINTS, e.g. coulomb@1-4")
-    if "@" in joints:
-        raise EffectSpecError(f"effect {item!r}: one @ per item")
-    return name.strip(), parse_joint_list(joints)
-
-
-def restricted(effect_type: type, joints: tuple[int, ...] | None, item: str) -> Any:
-    """An instance of ``effect_type`` on ``joints`` (0-based), or a named error if it has no joints."""
-    if joints is None:
-        return effect_type()
-    if "joints" not in {field.name for field in dataclasses.fields(effect_type)}:
-        raise EffectSpecError(f"effect {item!r}: {effect_type.name} acts on no joints, so it takes no @JOINTS")
-    return effect_type(joints=joints)
-
-
-def check_joints(joints: Iterable[int], robot: RobotModel, item: str, what: str = "joint") -> None:
-    for joint in joints:
-        if not 0 <= joint < robot.n_joints:
-            raise EffectSpecError(f"effect {item!r}: {what} {joint + 1} outside 1..{robot.n_joints} ({robot.name})")
 
 
 def build_effects(spec: str | Iterable[Any] | None, robot: RobotModel, transmission: Any = None) -> tuple[Any, ...]:
     """Effects from a spec, with the motor-side and joint-combination names besides those of
     :func:`dynamics.effects.linear.parse_effects` (which reads the rest)."""
-    from dynamics.effects.linear import parse_effects
-    from dynamics.effects.motor import combination_from_label, motor_effects
-
     if spec is None:
         return ()
     items = [item.strip() for item in spec.split(",")] if isinstance(spec, str) else list(spec)
@@ -107,8 +59,6 @@ def build_effects(spec: str | Iterable[Any] | None, robot: RobotModel, transmiss
             if variant is not None:
                 if kind != "coulomb":
                     raise EffectSpecError(f"effect {item!r}: only coulomb has the :tanh variant on a joint combination")
-                from dynamics.effects.combination_shapes import TanhCombinationCoulomb
-
                 effect = TanhCombinationCoulomb.from_combination(effect)
             effects.append(effect)
         else:

@@ -109,7 +109,7 @@ class OutputFiles:
         mode = file_mode()
         target = None
         try:
-            for temporary, target in self._staged:
+            for temporary, target in self._staged:  # noqa: B007 (the target is named if chmod fails)
                 os.chmod(temporary, mode)
             for temporary, target in self._staged:
                 os.replace(temporary, target)

@@ -185,9 +185,11 @@ def variable_scales(prior: NDArray[np.float64], n_links: int, n_effects: int) ->
     masses = np.maximum(masses, 1e-2 * masses.max(initial=0.0) + 1e-12)
     lengths = np.clip(lengths, 0.05 * lengths.max(initial=0.0) + 1e-6, None)
     scale_theta = np.concatenate([
-        np.concatenate([[m], np.full(3, m * l), np.full(6, m * l * l)]) for m, l in zip(masses, lengths)
+        np.concatenate([[m], np.full(3, m * length), np.full(6, m * length * length)])
+        for m, length in zip(masses, lengths)
     ] + [np.ones(n_effects)])
-    scale_psi = np.concatenate([np.concatenate([[np.sqrt(m)], np.full(9, l)]) for m, l in zip(masses, lengths)])
+    scale_psi = np.concatenate([np.concatenate([[np.sqrt(m)], np.full(9, length)])
+                                for m, length in zip(masses, lengths)])
     return scale_theta, scale_psi
 
 

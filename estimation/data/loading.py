@@ -1,10 +1,11 @@
-"""Reading measured data with checks: columns, finiteness, time base, units, sample count.
+"""The checks of measured data as they are read: columns, finiteness, time base, units, sample count.
 
 The file format is that of :mod:`dynamics.measurements` (CSV or Parquet, SI units)::
 
     t, q1..qn [, dq1..dqn, ddq1..ddqn] [, tau1..taun] [, fx fy fz mx my mz]
 
-:func:`read_measurements` says what is wrong with a file rather than failing later inside a
+The readers (:func:`estimation.data.records.read_measurements`, :func:`estimation.data.records.read_record`)
+run these checks and say what is wrong with a file rather than failing later inside a
 regressor: each problem raises a :class:`MeasurementError` subclass (a ``ValueError``) naming the
 column (and row) at fault, or, when the data can be repaired, a :class:`MeasurementWarning`
 subclass saying what was done (irregular sampling is resampled onto a uniform grid).
@@ -14,8 +15,7 @@ from __future__ import annotations
 
 import re
 import warnings
-from collections.abc import Iterable, Sequence
-from pathlib import Path
+from collections.abc import Sequence
 
 import numpy as np
 import pandas as pd
@@ -23,7 +23,7 @@ from numpy.typing import NDArray
 
 from dynamics.models import IdentificationModel, ModelKind
 from dynamics.robot import JointType
-from estimation.data.log_cleaning import DEFAULT_MAX_GAP, STALL_FACTOR, missing_samples
+from estimation.data.log_cleaning import STALL_FACTOR, missing_samples
 from dynamics.measurements import Measurements
 
 #: groups of columns a caller may require besides those the model needs
@@ -134,68 +134,6 @@ def required_groups(model: IdentificationModel | ModelKind | str | None) -> tupl
     }[kind]
 
 
-def read_measurements(
-    path: str | Path,
-    *,
-    n_joints: int | None = None,
-    model: IdentificationModel | ModelKind | str | None = None,
-    require: Iterable[str] = ("q",),
-    resample: bool = True,
-    max_gap: float = DEFAULT_MAX_GAP,
-) -> Measurements:
-    """Read a CSV or Parquet file of measurements and check it: one segment.
-
-    Parameters
-    ----------
-    path
-        ``.csv`` or ``.parquet`` file with the columns of :mod:`dynamics.measurements`.
-    n_joints
-        Number of joints; default: the model's robot, else the number of ``q`` columns.
-    model
-        The identification model the data are for (or its kind): its channels must be present
-        (``tau1..taun`` internal, ``fx..mz`` external, both combined), the samples must give more
-        equations than base parameters, and revolute angles are checked for degrees.
-    require
-        Further column groups that must be present, among ``q dq ddq tau wrench``.
-    resample
-        Interpolate irregularly sampled data onto a uniform grid (with a
-        :class:`ResampledWarning`); if false, irregular sampling is an error.
-    max_gap
-        Longest time without samples (s) bridged by interpolation (:class:`StallWarning`); a
-        longer hole is a :class:`HoleError` here (:func:`estimation.data.records.read_record` splits the record there).
-
-    Raises
-    ------
-    MissingColumnError, NonFiniteError, TimeBaseError, AngleUnitError, TooFewSamplesError, JointCountError
-        Each naming the column, row or count at fault (``JointCountError``: columns such as ``q4``
-        beyond the given or the model's number of joints).
-    HoleError, AbsurdValueError, ParquetSupportError
-        A hole in the record, a value no sensor gives, Parquet without pyarrow.
-    """
-    from estimation.data.records import read_record  # it builds on this module's checks
-
-    segments = read_record(path, n_joints=n_joints, model=model, require=require, resample=resample,
-                           max_gap=max_gap, split=False)
-    return segments[0]
-
-
-def measurements_from_frame(
-    frame: pd.DataFrame,
-    *,
-    n_joints: int | None = None,
-    model: IdentificationModel | ModelKind | str | None = None,
-    require: Iterable[str] = ("q",),
-    resample: bool = True,
-    source: str = "data",
-    max_gap: float = DEFAULT_MAX_GAP,
-) -> Measurements:
-    """The checks of :func:`read_measurements` on a ``DataFrame`` already in memory."""
-    from estimation.data.records import segments_from_frame  # it builds on this module's checks
-
-    return segments_from_frame(frame, n_joints=n_joints, model=model, require=require, resample=resample,
-                               source=source, max_gap=max_gap, split=False)[0]
-
-
 def check_sample_count(measurements: Measurements | Sequence[Measurements], model: IdentificationModel) -> None:
     """At least as many samples (over all segments) as base parameters (each sample gives ``m``
     equations, but rows of one sample are strongly correlated: the count asked for is the one that
@@ -209,7 +147,8 @@ def check_sample_count(measurements: Measurements | Sequence[Measurements], mode
         )
 
 
-_GROUP_MEANING = {
+#: what each column group holds, for the messages that name a missing one
+GROUP_MEANING = {
     "q": "joint positions",
     "dq": "joint velocities",
     "ddq": "joint accelerations",
@@ -218,13 +157,14 @@ _GROUP_MEANING = {
 }
 
 
-def _count_joint_columns(frame: pd.DataFrame, prefix: str) -> int:
+def count_joint_columns(frame: pd.DataFrame, prefix: str) -> int:
+    """The number of joints the columns ``{prefix}1, {prefix}2…`` give (the highest index when one is missing)."""
     pattern = re.compile(rf"^{prefix}(\d+)$")
     indices = sorted(int(match.group(1)) for column in frame.columns if (match := pattern.match(column)))
     return len(indices) if indices == list(range(1, len(indices) + 1)) else (max(indices) if indices else 0)
 
 
-def _check_no_further_joints(frame: pd.DataFrame, n_joints: int, source: str) -> None:
+def check_no_further_joints(frame: pd.DataFrame, n_joints: int, source: str) -> None:
     """A column ``q5`` (or ``dq5``, ``tau5``…) in the data of a 4-joint robot: the motion of the joints
     left out drives the others, so identifying without it would be silently wrong."""
     pattern = re.compile(r"^(q|dq|ddq|tau)(\d+)$")
@@ -237,13 +177,16 @@ def _check_no_further_joints(frame: pd.DataFrame, n_joints: int, source: str) ->
         )
 
 
-def _require_columns(frame: pd.DataFrame, columns: list[str], meaning: str, source: str) -> None:
+def require_columns(frame: pd.DataFrame, columns: list[str], meaning: str, source: str) -> None:
+    """Raise :class:`MissingColumnError` naming the ``columns`` absent from ``frame`` and what they hold."""
     missing = [column for column in columns if column not in frame.columns]
     if missing:
         raise MissingColumnError(f"{source}: missing column(s) {', '.join(missing)} ({meaning})")
 
 
-def _numeric(frame: pd.DataFrame, columns: list[str], source: str) -> NDArray[np.float64]:
+def numeric_columns(frame: pd.DataFrame, columns: list[str], source: str) -> NDArray[np.float64]:
+    """``(N, len(columns))`` floats of ``frame``'s ``columns``; :class:`NonFiniteError` naming the first
+    NaN, inf or non-numeric cell."""
     values = np.empty((len(frame), len(columns)))
     for index, column in enumerate(columns):
         numbers = pd.to_numeric(frame[column], errors="coerce").to_numpy(dtype=float)
@@ -263,7 +206,13 @@ def _shown(value: object) -> str:
     return repr(value) if isinstance(value, str) else str(value)
 
 
-def _check_time(t: NDArray[np.float64], source: str) -> float:
+def check_time(t: NDArray[np.float64], source: str) -> float:
+    """The median sampling step of ``t`` (s), after checking that ``t`` is a time series in seconds.
+
+    Raises :class:`TooFewSamplesError` (fewer than two samples) or :class:`TimeBaseError` (duplicated
+    or decreasing times, steps of a second or more); warns (:class:`MeasurementWarning`) for slow
+    sampling and for stalls followed by a burst (receive times rather than sampling times).
+    """
     if t.shape[0] < 2:
         raise TooFewSamplesError(f"{source}: {t.shape[0]} sample(s); need a time series")
     steps = np.diff(t)
@@ -292,7 +241,10 @@ def _check_time(t: NDArray[np.float64], source: str) -> float:
     return step
 
 
-def _check_angles(q: NDArray[np.float64], model, source: str) -> None:
+def check_angles(q: NDArray[np.float64], model, source: str) -> None:
+    """Raise :class:`AngleUnitError` for revolute angles beyond ±2π (degrees), :class:`MotorSideAnglesError`
+    for more turns than the joint makes even in degrees (``model``'s robot tells the joint types and limits;
+    without one every joint counts as revolute)."""
     revolute = [True] * q.shape[1]
     limits = [np.inf] * q.shape[1]
     if isinstance(model, IdentificationModel):
@@ -313,8 +265,9 @@ def _check_angles(q: NDArray[np.float64], model, source: str) -> None:
             )
 
 
-def _uniform(t, arrays, resample: bool, source: str, metadata: dict, *, bridged: bool = False):
-    """Data on a uniform grid: as they are when regular, else interpolated (a warning says so).
+def uniform_grid(t, arrays, resample: bool, source: str, metadata: dict, *, bridged: bool = False):
+    """Data on a uniform grid: as they are when regular, else interpolated (a :class:`ResampledWarning` says
+    so, ``metadata["resampled_from"]`` keeps the sample count; :class:`TimeBaseError` if not ``resample``).
 
     The grid's step is the median step corrected so that a whole number of steps spans the record:
     float32 or jittered stamps make the median one of a few rounded values (1 kHz at t ≈ 10 s in

@@ -8,7 +8,7 @@ Columns a record may hold instead of (or besides) the joint-side ones of
     im1..imn                                motor currents:          τ = Rᵀ (k_t i)   (torque_constants)
 
 (:mod:`dynamics.transmission`). The converted columns replace ``q``/``dq``/``ddq``/``tau``, then
-the checks of :func:`estimation.data.loading.measurements_from_frame` run as for any record. A joint
+the checks of :func:`estimation.data.records.measurements_from_frame` run as for any record. A joint
 column and its motor column together (``q3`` and ``qm3``) are refused (which one is meant?). When
 torques come from the motor side, :func:`dynamics.transmission.check_power_signs` checks that each
 joint's converted torque does not push against its motion on average (a ratio or torque constant of

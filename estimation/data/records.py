@@ -1,6 +1,7 @@
 """Reading a log as it comes: one or more segments, with re-sent rows dropped and stalls bridged.
 
-:func:`read_record` reads a CSV or Parquet file with the checks of :mod:`estimation.data.loading`
+:func:`read_measurements` reads a file as one segment (a hole in it is an error), :func:`read_record`
+as one or more. :func:`read_record` reads a CSV or Parquet file with the checks of :mod:`estimation.data.loading`
 (columns, finiteness, time base, units, sample count) plus those of a real logger's record
 (:mod:`estimation.data.log_cleaning`): values no sensor gives, rows re-sent by the logger (dropped,
 counted: :class:`~estimation.data.loading.RepeatedRowsWarning`), stalls up to ``max_gap`` seconds
@@ -23,9 +24,9 @@ from dynamics.effects.linear import WRENCH_CHANNELS
 from dynamics.models import IdentificationModel, ModelKind
 from estimation.data.loading import (
     ABSURD_VALUE,
-    COLUMN_GROUPS,
-    _GROUP_MEANING,
     AbsurdValueError,
+    COLUMN_GROUPS,
+    GROUP_MEANING,
     HoleError,
     MeasurementError,
     MissingColumnError,
@@ -35,18 +36,77 @@ from estimation.data.loading import (
     SplitWarning,
     StallWarning,
     TimeBaseError,
-    _check_angles,
-    _check_no_further_joints,
-    _check_time,
-    _count_joint_columns,
-    _numeric,
-    _require_columns,
-    _uniform,
+    check_angles,
+    check_no_further_joints,
     check_sample_count,
+    check_time,
+    count_joint_columns,
+    numeric_columns,
+    require_columns,
     required_groups,
+    uniform_grid,
 )
 from estimation.data.log_cleaning import DEFAULT_MAX_GAP, describe, find_gaps, repeated_rows, split_rows, time_stamps_jump
 from dynamics.measurements import Measurements, joint_columns
+
+
+def read_measurements(
+    path: str | Path,
+    *,
+    n_joints: int | None = None,
+    model: IdentificationModel | ModelKind | str | None = None,
+    require: Iterable[str] = ("q",),
+    resample: bool = True,
+    max_gap: float = DEFAULT_MAX_GAP,
+) -> Measurements:
+    """Read a CSV or Parquet file of measurements and check it: one segment.
+
+    Parameters
+    ----------
+    path
+        ``.csv`` or ``.parquet`` file with the columns of :mod:`dynamics.measurements`.
+    n_joints
+        Number of joints; default: the model's robot, else the number of ``q`` columns.
+    model
+        The identification model the data are for (or its kind): its channels must be present
+        (``tau1..taun`` internal, ``fx..mz`` external, both combined), the samples must give more
+        equations than base parameters, and revolute angles are checked for degrees.
+    require
+        Further column groups that must be present, among ``q dq ddq tau wrench``.
+    resample
+        Interpolate irregularly sampled data onto a uniform grid (with a
+        :class:`~estimation.data.loading.ResampledWarning`); if false, irregular sampling is an error.
+    max_gap
+        Longest time without samples (s) bridged by interpolation
+        (:class:`~estimation.data.loading.StallWarning`); a longer hole is a
+        :class:`~estimation.data.loading.HoleError` here (:func:`read_record` splits the record there).
+
+    Raises
+    ------
+    MissingColumnError, NonFiniteError, TimeBaseError, AngleUnitError, TooFewSamplesError, JointCountError
+        (:mod:`estimation.data.loading`, each a :class:`~estimation.data.loading.MeasurementError`) Each naming the column, row or count at fault (``JointCountError``: columns such as ``q4``
+        beyond the given or the model's number of joints).
+    HoleError, AbsurdValueError, ParquetSupportError
+        A hole in the record, a value no sensor gives, Parquet without pyarrow.
+    """
+    segments = read_record(path, n_joints=n_joints, model=model, require=require, resample=resample,
+                           max_gap=max_gap, split=False)
+    return segments[0]
+
+
+def measurements_from_frame(
+    frame: pd.DataFrame,
+    *,
+    n_joints: int | None = None,
+    model: IdentificationModel | ModelKind | str | None = None,
+    require: Iterable[str] = ("q",),
+    resample: bool = True,
+    source: str = "data",
+    max_gap: float = DEFAULT_MAX_GAP,
+) -> Measurements:
+    """The checks of :func:`read_measurements` on a ``DataFrame`` already in memory."""
+    return segments_from_frame(frame, n_joints=n_joints, model=model, require=require, resample=resample,
+                               source=source, max_gap=max_gap, split=False)[0]
 
 
 def read_record(
@@ -59,7 +119,7 @@ def read_record(
     max_gap: float = DEFAULT_MAX_GAP,
     split: bool = True,
 ) -> tuple[Measurements, ...]:
-    """Read a file as one or more segments: :func:`estimation.data.loading.read_measurements`, but a hole longer than
+    """Read a file as one or more segments: :func:`read_measurements`, but a hole longer than
     ``max_gap`` seconds splits the record (a :class:`SplitWarning`) instead of failing.
 
     Rows repeating the previous row on every channel are dropped (:class:`RepeatedRowsWarning`,
@@ -116,17 +176,17 @@ def segments_from_frame(
     if unknown:
         raise ValueError(f"unknown column groups {sorted(unknown)}; expected some of {COLUMN_GROUPS}")
 
-    _require_columns(frame, ["t"], "the time", source)
+    require_columns(frame, ["t"], "the time", source)
     arrays = _group_arrays(frame, groups, n_joints, source)
     if pd.api.types.is_datetime64_any_dtype(frame["t"]) or pd.api.types.is_timedelta64_dtype(frame["t"]):
         raise TimeBaseError(f"{source}: column t holds {frame['t'].dtype} dates or durations; "
                             "the format wants seconds as numbers (e.g. (t - t[0]).dt.total_seconds())")
-    t = _numeric(frame, ["t"], source)[:, 0]
+    t = numeric_columns(frame, ["t"], source)[:, 0]
     _check_absurd(t, arrays, n_joints, source)
     t_recorded = t
     t, arrays, dropped = _drop_repeated_rows(t, arrays, source)
-    step = _check_time(t, source)
-    _check_angles(arrays["q"], model, source)
+    step = check_time(t, source)
+    check_angles(arrays["q"], model, source)
 
     holes, stalls = _holes_and_stalls(t, step, max_gap, split, source, t_recorded if dropped else None)
     segments = []
@@ -138,7 +198,7 @@ def segments_from_frame(
                                        "too few for a time series; cut them from the file")
         metadata: dict[str, object] = {"source": source, "segment": index, "segments_in_file": len(holes) + 1,
                                        "repeated_rows_dropped": dropped}
-        segment_t, piece = _uniform(t[rows], piece, resample, name, metadata, bridged=bool(stalls) or dropped > 0)
+        segment_t, piece = uniform_grid(t[rows], piece, resample, name, metadata, bridged=bool(stalls) or dropped > 0)
         segments.append(Measurements(segment_t, piece["q"], piece["dq"], piece["ddq"], piece["tau"], piece["wrench"],
                                      metadata))
     if isinstance(model, IdentificationModel):
@@ -156,11 +216,11 @@ def _joint_count(frame: pd.DataFrame, n_joints: int | None, model: Identificatio
             raise ValueError(f"n_joints={n_joints} but the model's robot has {robot_joints} joints")
         n_joints = robot_joints
     if n_joints is None:
-        n_joints = _count_joint_columns(frame, "q")
+        n_joints = count_joint_columns(frame, "q")
         if n_joints == 0:
             raise MissingColumnError(f"{source}: no joint position columns q1..qn")
     else:
-        _check_no_further_joints(frame, n_joints, source)
+        check_no_further_joints(frame, n_joints, source)
     return n_joints
 
 
@@ -173,11 +233,11 @@ def _group_arrays(frame: pd.DataFrame, groups: set[str], n_joints: int, source: 
         columns = list(WRENCH_CHANNELS) if group == "wrench" else joint_columns(group, n_joints)
         present = [column for column in columns if column in frame.columns]
         if group in groups:
-            _require_columns(frame, columns, _GROUP_MEANING[group], source)
+            require_columns(frame, columns, GROUP_MEANING[group], source)
         elif present and len(present) != len(columns):
             missing = [column for column in columns if column not in frame.columns]
             raise MissingColumnError(f"{source}: column(s) {', '.join(missing)} missing (the others of {group} are present)")
-        arrays[group] = _numeric(frame, columns, source) if len(present) == len(columns) else None
+        arrays[group] = numeric_columns(frame, columns, source) if len(present) == len(columns) else None
     return arrays
 
 

@@ -22,6 +22,9 @@ from typing import Literal
 
 import numpy as np
 
+from dynamics.measurements import Measurements
+from estimation.preprocessing.differentiation import ButterworthDifferentiation, fill_derivatives
+
 EMPS_FILES = {"estimation": "DATA_EMPS.mat", "validation": "DATA_EMPS_PULSES.mat"}
 DAISY_FILE = "robot_arm.dat"
 
@@ -138,9 +141,6 @@ def emps_measurements(
     as the benchmark's description recommends; ``trim`` samples at each end (filter transients)
     are dropped, then the record is decimated by ``decimation`` (1 kHz → 100 Hz by default).
     """
-    from dynamics.measurements import Measurements
-    from estimation.preprocessing.differentiation import ButterworthDifferentiation, fill_derivatives
-
     data = load_emps(path_or_dir, which)
     raw = Measurements(t=data.t, q=data.qm[:, None], tau=data.force[:, None], metadata={"source": str(data.source)})
     filled = fill_derivatives(raw, ButterworthDifferentiation(cutoff_hz=cutoff_hz), decimation=1)

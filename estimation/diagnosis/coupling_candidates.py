@@ -37,6 +37,8 @@ from dynamics.models import IdentificationModel, ModelKind
 from dynamics.effects.motor import KINDS, CombinationEffect, motor_effects, pair_combinations
 from dynamics.transmission import Transmission
 from dynamics.measurements import Measurements
+from estimation.estimators.least_squares import stack
+from estimation.estimators.effect_blocks import States, effect_columns  # the same columns the diagnosis fits
 
 #: the per-joint effect a pair of each kind must do better than
 PER_JOINT: dict[str, type] = {"viscous": ViscousFriction, "coulomb": CoulombFriction, "inertia": Armature}
@@ -75,8 +77,6 @@ def combination_taken(effect: Effect, selected: Sequence[Effect]) -> bool:
 
 
 def _columns(model: IdentificationModel, effect: Effect, train: Measurements) -> np.ndarray:
-    from estimation.estimators.effect_blocks import States, effect_columns  # the same columns the diagnosis fits
-
     states = States(train.q, train.dq, train.ddq)
     return effect_columns(model.kind, model.robot, effect, model.n_channels, states).reshape(
         train.n_samples * model.n_channels, -1)
@@ -87,8 +87,6 @@ def traced_pairs(model: IdentificationModel, train: Measurements, pairs: list[Co
     """The ``pairs`` whose column is significant beyond the declared model plus the per-joint
     effects of the same kind on both joints of the pair (channel-weighted F test, one column,
     level ``alpha / len(pairs)``)."""
-    from estimation.estimators.least_squares import stack
-
     if not pairs:
         return []
     problem = stack(model, train)

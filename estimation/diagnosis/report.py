@@ -10,6 +10,7 @@ from matplotlib.figure import Figure  # no pyplot: no backend switch, no global 
 from estimation.diagnosis.search import Diagnosis
 from dynamics.measurements import Measurements
 from dynamics.runtime.output_files import save_figure
+from estimation.uncertainty.residual_tracing import plot_residual_trace
 
 
 def plot_residuals(diagnosis: Diagnosis, train: Measurements, path: str | Path | None = None) -> Figure:
@@ -132,8 +133,6 @@ def plot_trace(diagnosis: Diagnosis, validate: Measurements, path: str | Path | 
     statistics)."""
     if diagnosis.statistics is None:
         return None
-    from estimation.uncertainty.residual_tracing import plot_residual_trace
-
     channels = diagnosis.after.estimate.channels
     return plot_residual_trace(diagnosis.statistics.tracing["after"], diagnosis.after.validation.residuals, validate,
                                channels, path, title="Residual after the diagnosis (validation) against its "

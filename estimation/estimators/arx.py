@@ -74,7 +74,7 @@ class Polynomials:
     c: np.ndarray
 
     @classmethod
-    def from_theta(cls, theta: ArrayLike, na: int, nb: int, nk: int, nc: int = 0) -> "Polynomials":
+    def from_theta(cls, theta: ArrayLike, na: int, nb: int, nk: int, nc: int = 0) -> Polynomials:
         theta = np.asarray(theta, dtype=float).reshape(-1)
         if theta.size != na + nb + nc:
             raise ValueError(f"theta has {theta.size} entries, orders need na+nb+nc = {na + nb + nc}")
@@ -109,7 +109,7 @@ class ARXEstimator(Estimator):
         self.nb = nb
         self.nk = nk
 
-    def fit(self, u: ArrayLike, y: ArrayLike) -> "ARXEstimator":
+    def fit(self, u: ArrayLike, y: ArrayLike) -> ARXEstimator:
         """Least-squares estimate ``θ̂ = argmin V`` (eq. 19); sets ``theta_``, ``cov_``, ``noise_variance_``, ``residuals_``."""
         self._forget_fit()
         check_orders(self.na, self.nb, self.nk)

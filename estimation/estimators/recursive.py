@@ -75,7 +75,7 @@ def _head(v: casadi.SX, n: int) -> casadi.SX:
     return v[:n] if n > 0 else casadi.SX(0, 1)
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def erls_step_function(na: int, nb: int, nk: int, nc: int, forgetting: float) -> casadi.Function:
     """One ERLS step (eqs. 23–25) as ``casadi.Function`` ``erls_step``: ``(x, d) -> (x_next, e)``.
 
@@ -105,7 +105,7 @@ def erls_step_function(na: int, nb: int, nk: int, nc: int, forgetting: float) ->
     return casadi.Function("erls_step", [x, d], [x_next, w * e], ["x", "d"], ["x_next", "e"])
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def erls_block_function(na: int, nb: int, nk: int, nc: int, forgetting: float, backend: Backend) -> casadi.Function:
     """``CHUNK × CHUNKS_PER_BLOCK`` ERLS steps; outputs the state at each chunk end and every ``e(n)``."""
     step = erls_step_function(na, nb, nk, nc, forgetting)
@@ -205,7 +205,7 @@ class RecursiveLeastSquares(Estimator):
         if self.keep_history and self.backend != "numpy":
             raise ValueError("keep_history=True needs backend='numpy' (the compiled recursion keeps no per-sample history)")
 
-    def fit(self, u: ArrayLike, y: ArrayLike) -> "RecursiveLeastSquares":
+    def fit(self, u: ArrayLike, y: ArrayLike) -> RecursiveLeastSquares:
         """Run the recursion over the record; sets ``theta_``, ``P_``, ``cov_``, ``noise_variance_``,
         ``prediction_errors_`` (a-priori ``e(n)``) and ``trace_`` (``trace P`` at each chunk end).
 

@@ -27,7 +27,7 @@ from numpy.typing import NDArray
 
 from estimation.estimators.effect_blocks import Block, States
 
-__all__ = ["FixedPart", "LinearSolution", "full_information", "residuals", "sample_scores", "solve_linear"]
+__all__ = ["FixedPart", "LinearSolution", "full_information", "residuals", "sample_scores", "solve_linear", "solve_normal"]
 
 
 @dataclass(frozen=True)
@@ -112,12 +112,17 @@ def solve_linear(fixed: FixedPart, blocks: Sequence[Block], states: States, shap
                 if row in other.rows:
                     normal[where, other_where] += w * (C.T @ other_values[:, other.rows.index(row), :])
     normal = np.triu(normal) + np.triu(normal, 1).T
-    theta = _solve(normal, right)
+    theta = solve_normal(normal, right)
     rss = float(weights @ fixed.power - 2 * theta @ right + theta @ normal @ theta)
     return LinearSolution(theta, max(rss, 0.0), normal, columns, derivatives)
 
 
-def _solve(normal: NDArray[np.float64], right: NDArray[np.float64]) -> NDArray[np.float64]:
+def solve_normal(normal: NDArray[np.float64], right: NDArray[np.float64]) -> NDArray[np.float64]:
+    """``θ`` of the normal equations ``normal θ = right`` by Cholesky after equilibration (unit diagonal).
+
+    Raises ``FloatingPointError`` for non-finite entries and ``LinAlgError`` for an all-zero column or
+    rank-deficient columns (smallest eigenvalue of the equilibrated matrix below 1e-13 of the largest).
+    """
     if not (np.all(np.isfinite(normal)) and np.all(np.isfinite(right))):
         raise FloatingPointError("non-finite columns")
     scale = np.sqrt(np.diag(normal))

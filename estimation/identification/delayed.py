@@ -17,6 +17,7 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import scipy.optimize
@@ -26,6 +27,7 @@ from estimation.uncertainty.batch_means import batch_length, batch_means
 from dynamics.measurements import Measurements
 from estimation.preprocessing.delay import DELAY, DelayBounds, delayed, longest_piece
 from estimation.estimators.separable_least_squares import FixedPart, residuals, solve_linear
+from estimation.identification.shaped import ShapeValue
 
 Columns = Callable[[Measurements], NDArray[np.float64]]
 
@@ -94,19 +96,17 @@ def fit_delay(columns: Columns, train: Measurements, channels: tuple[str, ...], 
                     theta_slope, grid, profile)
 
 
-def identify_delayed(model, train: Measurements, validate: Measurements | None, *, bounds: DelayBounds,
-                     weighted: bool = True, covariance="hac", shape_starts: dict[str, float] | None = None,
-                     shape_search: bool = True):
-    """:func:`estimation.identification.fit.identify` with the delay searched too (module docstring).
+def identify_delayed(model, train: Measurements, validate: Measurements | None, *, identify: Callable[..., Any],
+                     bounds: DelayBounds, weighted: bool = True, covariance="hac",
+                     shape_starts: dict[str, float] | None = None, shape_search: bool = True):
+    """``identify`` (:func:`estimation.identification.fit.identify`, which dispatches here and passes
+    itself) with the delay searched too (module docstring).
 
     The model is identified at no delay (its weights and, for shaped effects, its shapes), the delay
     fitted on those columns, and the model identified again along the delayed motion (shapes searched
     again from where they were). The validation record is compared along its motion moved by the same
     delay (one measurement chain), against its torques as recorded.
     """
-    from estimation.identification.fit import identify  # noqa: PLC0415 (identify dispatches here)
-    from estimation.identification.shaped import ShapeValue  # noqa: PLC0415
-
     initial = identify(model, train, weighted=weighted, covariance=covariance, shape_starts=shape_starts,
                        shape_search=shape_search)
     estimate = initial.estimate

@@ -20,13 +20,17 @@ from typing import Any
 import numpy as np
 
 from dynamics.effects.linear import POSITIVE_EFFECTS
+from dynamics.effects.shaped import is_shaped
 from dynamics.models import IdentificationModel
 from dynamics.runtime.threads import single_threaded_blas
 from estimation.uncertainty.covariance import CovarianceMethod, check_method
 from estimation.estimators.least_squares import Estimate, LeastSquares, WeightedLeastSquares, stack
 from dynamics.measurements import Measurements
 from estimation.data.segments import concatenate
+from estimation.identification.delayed import identify_delayed
+from estimation.identification.shaped import ShapeValue, fit_shaped_model, shaped_comparison
 from estimation.identification.validation import Comparison, compare
+from estimation.preprocessing.delay import DelayBounds, check_delay, delayed
 
 
 #: an estimate this many standard deviations on the wrong side of zero is flagged
@@ -106,8 +110,6 @@ class IdentificationResult:
         """``(N, m)`` predicted channels along ``measurements`` (at the fitted shapes, if any, and
         along the motion moved by the fitted delay, if any)."""
         if self.delay is not None:
-            from estimation.preprocessing.delay import delayed  # noqa: PLC0415
-
             measurements = delayed(measurements, self.delay.value)
         if self.shaped_fit is not None:
             return self.shaped_fit.predict(measurements)
@@ -199,23 +201,15 @@ def identify(
     train = concatenate(train)
     validate = None if validate is None else concatenate(validate)
     if delay is not None:
-        from estimation.identification.delayed import identify_delayed  # noqa: PLC0415
-        from estimation.preprocessing.delay import DelayBounds, delayed  # noqa: PLC0415
-
         if estimator is not None:
             raise TypeError("a delay is searched with the channel-weighted least squares: give weighted=, not estimator=")
         if isinstance(delay, DelayBounds):
-            return identify_delayed(model, train, validate, bounds=delay, weighted=weighted, covariance=covariance,
-                                    shape_starts=shape_starts, shape_search=shape_search)
-        from estimation.preprocessing.delay import check_delay  # noqa: PLC0415
-        from estimation.identification.shaped import ShapeValue  # noqa: PLC0415
-
+            return identify_delayed(model, train, validate, identify=identify, bounds=delay, weighted=weighted,
+                                    covariance=covariance, shape_starts=shape_starts, shape_search=shape_search)
         value = check_delay(delay)
         result = identify(model, delayed(train, value), None if validate is None else delayed(validate, value),
                           weighted=weighted, covariance=covariance, shape_starts=shape_starts, shape_search=shape_search)
         return replace(result, delay=ShapeValue("delay", "delay", value, 0.0, value, value))  # given, not estimated
-    from dynamics.effects.shaped import is_shaped  # noqa: PLC0415
-
     if any(is_shaped(effect, model.robot) for effect in model.effects):
         if estimator is not None:
             raise TypeError("a model with shaped effects is fitted by variable projection: give weighted=, not estimator=")
@@ -236,8 +230,6 @@ def _identify_shaped(model, train, validate, weighted, shape_starts=None, shape_
                      covariance: CovarianceMethod = "hac") -> IdentificationResult:
     """Variable projection for shaped effects (:mod:`estimation.identification.shaped`); ``covariance``
     ``"hac"``: the batch-means sandwich, ``"classical"``: white residuals (both from the full Jacobian)."""
-    from estimation.identification.shaped import fit_shaped_model, shaped_comparison  # noqa: PLC0415
-
     shaped, estimate = fit_shaped_model(model, train, weighted=weighted, starts=shape_starts, search=shape_search,
                                         covariance="white" if covariance == "classical" else "hac")
     train_comparison = shaped_comparison(shaped, train, "identification")

@@ -55,7 +55,7 @@ def sampling_rate(t: NDArray[np.float64]) -> float:
         raise ValueError("need at least two samples to know the sampling rate")
     step = float(np.median(steps))
     if np.max(np.abs(steps - step)) > 1e-3 * step:
-        raise ValueError("irregular sampling: resample first (estimation.data.loading.read_measurements does)")
+        raise ValueError("irregular sampling: resample first (estimation.data.records.read_measurements does)")
     return 1.0 / step
 
 

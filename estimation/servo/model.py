@@ -74,7 +74,7 @@ class GrayBoxParameters:
     mass: float
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def joint_step_function() -> casadi.Function:
     """Eq. 13 with eq. 14's input delay as a named ``casadi.Function`` ``servo_joint_step``.
 
@@ -90,7 +90,7 @@ def joint_step_function() -> casadi.Function:
     )
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def gray_box_to_discrete_function() -> casadi.Function:
     """``servo_gray_box_to_discrete``: ``(b, k, sigma, mass, dt) -> (a1, a2, K)`` of eq. 14 (derived from eq. 13)."""
     b, k, sigma, mass, dt = (casadi.SX.sym(name) for name in ("b", "k", "sigma", "mass", "dt"))
@@ -102,7 +102,7 @@ def gray_box_to_discrete_function() -> casadi.Function:
     )
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def free_run_step_function() -> casadi.Function:
     """``servo_free_run_step``: state ``x = [q(n−1), q(n−2)]``, input ``u(n−1)``, coefficients ``c = [a1, a2, K]``.
 

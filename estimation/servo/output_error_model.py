@@ -70,7 +70,7 @@ def _held_input_exponential(theta: casadi.SX, t: casadi.SX) -> tuple[casadi.SX, 
     return phi, gamma
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def zoh_function() -> casadi.Function:
     """``servo_zoh``: ``(theta = [b/m, k/m, σ/m], fraction f, dt) -> (phi 2×2, gamma 2×2 = [Γ0, Γ1])``.
 
@@ -86,7 +86,7 @@ def zoh_function() -> casadi.Function:
     return casadi.Function("servo_zoh", [theta, fraction, dt], [phi, gamma], ["theta", "fraction", "dt"], ["phi", "gamma"])
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def sampled_step_function() -> casadi.Function:
     """``servo_sampled_step``: ``x(n+1) = Φ x(n) + Γ [u(n − l), u(n − l − 1)]ᵀ``, output ``x(n)``."""
     x = casadi.SX.sym("x", 2)
@@ -185,7 +185,7 @@ def _rows(matrix: casadi.MX) -> casadi.MX:
     return casadi.reshape(matrix, 1, -1)
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def sensitivity_step_function() -> casadi.Function:
     """``servo_sensitivity_step``: one sample of the free run with its forward sensitivities, through the fusion.
 
@@ -222,7 +222,7 @@ def sensitivity_step_function() -> casadi.Function:
                            ["s_next", "out"])
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def sensitivity_chunk_function() -> casadi.Function:
     """``servo_sensitivity_chunk``: :func:`sensitivity_step_function` over ``CHUNK`` samples (``mapaccum``),
     returning the last state and every output; compiled to C once (``dynamics.compiled``, disk cache), so a
@@ -241,7 +241,7 @@ def sensitivity_chunk_function() -> casadi.Function:
     return compile_function(chunk.expand())
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def zoh_sensitivity_function() -> casadi.Function:
     """``servo_zoh_sensitivity``: ``(w4 = [θ/scale (3), f], scale (3), dt) -> (phi, gamma, d_phi, d_gamma)``,
     ``d_phi = [∂Φ/∂w_0, …, ∂Φ/∂w_3]`` (2 × 8), likewise ``d_gamma``."""

@@ -30,6 +30,7 @@ from dynamics.effects.linear import Effect
 from dynamics.models import IdentificationModel
 from dynamics.runtime.threads import single_threaded_blas
 from dynamics.measurements import Measurements
+from estimation.diagnosis.search import candidate_columns  # the diagnosis's own columns
 from estimation.estimators.normal_equations import DEFAULT_CHUNK_SIZE, NormalEquations, check_chunk_size, stacked_factor
 
 __all__ = ["CandidateSums", "CandidateTest", "accumulate_candidates", "f_tests", "weighted_fit", "weighted_mse"]
@@ -62,8 +63,6 @@ class CandidateTest:
 def accumulate_candidates(model: IdentificationModel, measurements: Measurements, candidates: Sequence[Effect], *,
                           chunk_size: int = DEFAULT_CHUNK_SIZE) -> CandidateSums:
     """One pass over ``measurements``: the sums of the base regressor with every candidate's columns."""
-    from estimation.diagnosis.search import candidate_columns  # the diagnosis's own columns
-
     if measurements.dq is None or measurements.ddq is None:
         raise ValueError("the measurements lack dq/ddq: derive them first (estimation.preprocessing.differentiation.fill_derivatives)")
     counts = [len(candidate.parameter_names(model.robot)) for candidate in candidates]

@@ -2,7 +2,7 @@
 
 A CSV file is read ``chunk_size`` rows at a time (``pandas.read_csv(chunksize=…)``), a Parquet
 file batch by batch (``pyarrow`` row groups). Each chunk passes the checks of
-:func:`estimation.data.loading.measurements_from_frame` (columns, finiteness, time, units), and the
+:func:`estimation.data.records.measurements_from_frame` (columns, finiteness, time, units), and the
 time base must run on across chunk boundaries. Peak memory depends on the chunk, the margin and
 the parameter count, not on the record's length.
 
@@ -49,8 +49,8 @@ from estimation.data.loading import (
     ResampledWarning,
     TimeBaseError,
     TooFewSamplesError,
-    measurements_from_frame,
 )
+from estimation.data.records import measurements_from_frame
 from dynamics.measurements import Measurements, joint_columns
 from estimation.estimators.normal_equations import DEFAULT_CHUNK_SIZE, NormalEquations, accumulate, check_chunk_size
 from estimation.preprocessing.differentiation import ButterworthDifferentiation, compensate_hold, decimate
@@ -131,7 +131,7 @@ def read_chunks(path: str | Path, model: IdentificationModel, *, chunk_size: int
                 ) -> Iterator[Measurements]:
     """The checked measurements of ``path``, ``chunk_size`` rows at a time (a short last chunk is
     joined to the one before, so that each has more samples than base parameters). Raises the
-    errors of :func:`estimation.data.loading.read_measurements`, naming the file and rows, and a
+    errors of :func:`estimation.data.records.read_measurements`, naming the file and rows, and a
     :class:`~estimation.data.loading.TimeBaseError` when the time does not run on across chunks."""
     path = Path(path)
     least = model.n_base + 1

@@ -35,8 +35,9 @@ from estimation.streaming.chunks import FileSums, file_sums, read_chunks
 from estimation.streaming.periods import periodic_file_sums
 
 __all__ = [
-    "SCHEDULER_VARIABLE", "ClusterUnavailableError", "IncompleteSumError", "WorkerLostError", "connect",
-    "file_task", "model_payload", "scheduler_address", "sum_files",
+    "SCHEDULER_VARIABLE", "ClusterUnavailableError", "IncompleteSumError", "WorkerLostError", "caught_warnings",
+    "connect", "file_stamp", "file_task", "model_from_payload", "model_payload", "scheduler_address", "sum_files",
+    "task_result",
 ]
 
 #: environment variable holding a dask scheduler's address (``tcp://host:8786``)
@@ -63,7 +64,8 @@ def model_payload(model: IdentificationModel) -> bytes:
 
 
 @functools.lru_cache(maxsize=8)
-def _model(payload: bytes) -> IdentificationModel:
+def model_from_payload(payload: bytes) -> IdentificationModel:
+    """The model :func:`model_payload` describes, built once per process for each payload (cached)."""
     robot, kind, effects = pickle.loads(payload)
     return build_model(robot, kind, effects)
 
@@ -75,10 +77,16 @@ def file_task(payload: bytes, path: str, options: dict[str, Any], stamp: tuple[i
     file's modification time and size) is not used here: it changes the task's identity when the
     file changes, so that an executor caching results by their arguments (dask's ``pure=True``)
     never returns the sums of an older version."""
+    return caught_warnings(sums_of_file, path, model_from_payload(payload), **options)
+
+
+def caught_warnings(call: Any, *args: Any, **kwargs: Any) -> tuple[Any, tuple[tuple[type, str], ...]]:
+    """``call(*args, **kwargs)`` in a worker, and the warnings it gave as ``(category, message)`` pairs
+    (picklable), for :func:`task_result` to issue again in the driver."""
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        part = sums_of_file(path, _model(payload), **options)
-    return part, tuple((warning.category, str(warning.message)) for warning in caught)
+        value = call(*args, **kwargs)
+    return value, tuple((warning.category, str(warning.message)) for warning in caught)
 
 
 def sums_of_file(path: str | Path, model: IdentificationModel, *, frequency_hz: float | None = None,
@@ -133,18 +141,20 @@ def sum_files(
         if not callable(getattr(executor, "submit", None)):
             raise TypeError(f"executor must be a concurrent.futures.Executor (with submit), got {type(executor).__name__}")
         payload = model_payload(model)
-        futures = [executor.submit(file_task, payload, path, dict(options), _stamp(path)) for path in paths]
+        futures = [executor.submit(file_task, payload, path, dict(options), file_stamp(path)) for path in paths]
         parts = []
         try:
             for path, future in zip(paths, futures):
-                parts.append(_result(future, path))
+                parts.append(task_result(future, path))
         finally:
             for future in futures:
                 future.cancel()
     return check_parts(model, paths, parts), tuple(parts)
 
 
-def _stamp(path: str) -> tuple[int, int] | None:
+def file_stamp(path: str) -> tuple[int, int] | None:
+    """The file's modification time (ns) and size, the ``stamp`` of a task (:func:`file_task`), or ``None``
+    when it cannot be read (the reader then names the file)."""
     try:
         status = os.stat(path)
     except OSError:
@@ -152,7 +162,9 @@ def _stamp(path: str) -> tuple[int, int] | None:
     return (status.st_mtime_ns, status.st_size)
 
 
-def _result(future, path: str) -> FileSums:
+def task_result(future: Any, path: str) -> Any:
+    """The value of a task's ``future`` (a :func:`caught_warnings` pair), its worker's warnings issued again
+    here; a lost worker is a :class:`WorkerLostError` naming ``path``, other errors pass through."""
     try:
         part, caught = future.result()
         for category, message in caught:  # a worker's warnings, issued here

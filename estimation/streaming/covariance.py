@@ -26,7 +26,7 @@ from estimation.streaming.diagnosis_sums import ColumnLayout
 from dynamics.measurements import Measurements
 from estimation.estimators.effect_blocks import Block, States
 
-__all__ = ["BATCH_LENGTHS", "BatchScores", "chunk_scores", "sandwich"]
+__all__ = ["BATCH_LENGTHS", "BatchScores", "chunk_scores", "lag_one_correlation", "sandwich"]
 
 #: batch lengths at which the meat is accumulated (1 to 65 536 samples)
 BATCH_LENGTHS: tuple[int, ...] = tuple(2**k for k in range(17))
@@ -106,7 +106,7 @@ class BatchScores:
                            self.first, self.last)
 
 
-def _lag1(parts: Sequence[BatchScores], weights: NDArray[np.float64]) -> tuple[float, int]:
+def lag_one_correlation(parts: Sequence[BatchScores], weights: NDArray[np.float64]) -> tuple[float, int]:
     """The weighted mean lag-1 autocorrelation of the centred residuals (as
     :func:`estimation.uncertainty.batch_means.batch_length`, each file's mean removed) and the sample count."""
     variance = np.zeros_like(weights)
@@ -126,7 +126,7 @@ def sandwich(parts: Sequence[BatchScores], normal: NDArray[np.float64], classica
              weights: NDArray[np.float64]) -> tuple[NDArray[np.float64], int]:
     """The batch-means covariance (never below ``classical`` on the diagonal, its correlations kept
     at the sandwich's diagonal, as :func:`estimation.estimators.variable_projection.fit_shapes`) and the batch length used."""
-    rho, n_samples = _lag1(parts, weights)
+    rho, n_samples = lag_one_correlation(parts, weights)
     alpha = 4 * rho**2 / (1 - rho) ** 4
     length = int(np.clip(round(1.1447 * (alpha * n_samples) ** (1 / 3)), 1, max(1, n_samples // 20)))
     allowed = [candidate for candidate in BATCH_LENGTHS if candidate <= max(1, n_samples // 20)]  # twenty batches

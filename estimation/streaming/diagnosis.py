@@ -56,7 +56,7 @@ import numpy as np
 from dynamics.effects.linear import Effect
 from dynamics.models import IdentificationModel
 from estimation.diagnosis.candidate_trials import candidate_label, fit_or_reason
-from estimation.streaming.cluster import _stamp, model_payload
+from estimation.streaming.cluster import file_stamp, model_payload
 from estimation.diagnosis.coupling_candidates import coupling_candidates
 from estimation.diagnosis.search import FoundEffect, RejectedEffect, default_candidates
 from estimation.diagnosis.statistics import FLOOR_ALPHA
@@ -247,7 +247,7 @@ def diagnose_files(
         clock[0] = now
 
     cap = -(-int(subsample) // len(paths))
-    parts = map_files(executor, subsample_task, paths, lambda path: (payload, path, options, cap, _stamp(path)))
+    parts = map_files(executor, subsample_task, paths, lambda path: (payload, path, options, cap, file_stamp(path)))
     records = [record for _, _, record in parts]
     for path, record in zip(paths, records):
         if record["columns"] != records[0]["columns"]:
@@ -281,8 +281,8 @@ def diagnose_files(
     order = sorted(blocks)
     plan = pickle.dumps(([blocks[i].effect for i in order], [shapes[i] for i in order]))
     layout = ColumnLayout.build(model, [blocks[i] for i in order])
-    train_parts = map_files(executor, sums_task, paths, lambda path: (payload, plan, path, options, _stamp(path)))
-    validate_parts = map_files(executor, sums_task, validate, lambda path: (payload, plan, path, options, _stamp(path)))
+    train_parts = map_files(executor, sums_task, paths, lambda path: (payload, plan, path, options, file_stamp(path)))
+    validate_parts = map_files(executor, sums_task, validate, lambda path: (payload, plan, path, options, file_stamp(path)))
     for path, (sums, record), count in zip(paths, train_parts, (count for _, count, _ in parts)):
         if sums.n_samples != count:
             raise MeasurementError(f"{path}: {sums.n_samples} samples summed, {count} read in the first pass (did the "
@@ -333,7 +333,7 @@ def diagnose_files(
     lap("selection_and_estimates")
     plan_final = pickle.dumps(([local_blocks[i].effect for i in chosen], [local_shapes[i] for i in chosen]))
     parts_scores = map_files(executor, scores_task, paths, lambda path: (payload, plan_final, path, options,
-                                                                         after.values, after.weights, _stamp(path)))
+                                                                         after.values, after.weights, file_stamp(path)))
     cov, batch = sandwich(parts_scores, train.normal_system(columns, after.weights)[0], after.cov, after.weights)
     std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     with np.errstate(divide="ignore", invalid="ignore"):

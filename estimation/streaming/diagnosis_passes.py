@@ -25,7 +25,7 @@ import numpy as np
 
 from dynamics.models import IdentificationModel
 from dynamics.runtime.threads import single_threaded_blas
-from estimation.streaming.cluster import _model, _result
+from estimation.streaming.cluster import caught_warnings, model_from_payload, task_result
 from estimation.streaming.diagnosis_sums import ChannelSums, ColumnLayout, EvenSubsample, chunk_sums
 from estimation.data.loading import MeasurementError
 from estimation.uncertainty.noise_floor import NoiseFloor, NoiseFloorError, noise_floor, pooled_floor
@@ -39,13 +39,6 @@ __all__ = ["FLOOR_WINDOW", "map_files", "scores_task", "subsample_task", "sums_t
 FLOOR_WINDOW = 100_000
 
 
-def _caught(call, *args, **kwargs):
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        value = call(*args, **kwargs)
-    return value, tuple((warning.category, str(warning.message)) for warning in caught)
-
-
 def _subsample(path: str, model: IdentificationModel, options: dict[str, Any], cap: int):
     record: dict = {}
     subsample = EvenSubsample(cap)
@@ -56,12 +49,12 @@ def _subsample(path: str, model: IdentificationModel, options: dict[str, Any], c
 
 def subsample_task(payload: bytes, path: str, options: dict[str, Any], cap: int, stamp=None):
     """Picklable: the evenly spread subsample of one file, samples seen, and its reading record."""
-    return _caught(_subsample, path, _model(payload), options, cap)
+    return caught_warnings(_subsample, path, model_from_payload(payload), options, cap)
 
 
 @functools.lru_cache(maxsize=4)
 def _plan(payload: bytes, plan: bytes) -> tuple[ColumnLayout, tuple[Block, ...], tuple[np.ndarray, ...]]:
-    model = _model(payload)
+    model = model_from_payload(payload)
     effects, shapes = pickle.loads(plan)
     blocks = tuple(Block(model.kind, model.robot, effect, model.n_channels) for effect in effects)
     return ColumnLayout.build(model, blocks), blocks, tuple(shapes)
@@ -82,7 +75,7 @@ def _sums(path: str, model: IdentificationModel, payload: bytes, plan: bytes, op
 
 def sums_task(payload: bytes, plan: bytes, path: str, options: dict[str, Any], stamp=None):
     """Picklable: one file's :class:`ChannelSums` (base and candidate columns at fixed shapes)."""
-    return _caught(_sums, path, _model(payload), payload, plan, options)
+    return caught_warnings(_sums, path, model_from_payload(payload), payload, plan, options)
 
 
 @single_threaded_blas()
@@ -98,7 +91,7 @@ def _scores(path: str, model: IdentificationModel, payload: bytes, plan: bytes, 
 def scores_task(payload: bytes, plan: bytes, path: str, options: dict[str, Any], theta, weights, stamp=None):
     """Picklable: one file's :class:`~estimation.streaming.covariance.BatchScores` at the final estimate
     (``plan``: the chosen effects and shapes; ``theta`` on the base then their columns)."""
-    return _caught(_scores, path, _model(payload), payload, plan, options, np.asarray(theta), np.asarray(weights))
+    return caught_warnings(_scores, path, model_from_payload(payload), payload, plan, options, np.asarray(theta), np.asarray(weights))
 
 
 def map_files(executor, task, paths: Sequence[str], *arguments) -> list:
@@ -116,7 +109,7 @@ def map_files(executor, task, paths: Sequence[str], *arguments) -> list:
         raise TypeError(f"executor must be a concurrent.futures.Executor (with submit), got {type(executor).__name__}")
     futures = [executor.submit(task, *arguments[0](path)) for path in paths]
     try:
-        return [_result(future, path) for path, future in zip(paths, futures)]
+        return [task_result(future, path) for path, future in zip(paths, futures)]
     finally:
         for future in futures:
             future.cancel()

@@ -34,7 +34,7 @@ from dynamics.models import IdentificationModel
 from dynamics.measurements import Measurements
 from estimation.estimators.normal_equations import NormalEquations
 from estimation.estimators.effect_blocks import Block, States
-from estimation.estimators.separable_least_squares import _solve
+from estimation.estimators.separable_least_squares import solve_normal
 
 __all__ = ["ChannelSums", "ColumnLayout", "EvenSubsample", "chunk_sums", "normal_equations"]
 
@@ -119,7 +119,7 @@ class ChannelSums:
         """``(θ, weighted RSS)`` on ``selection``, fitted to the prepared channels (as
         :func:`estimation.estimators.separable_least_squares.solve_linear`); raises ``LinAlgError`` when rank-deficient."""
         normal, right, power = self.normal_system(selection, weights)
-        theta = _solve(normal, right)
+        theta = solve_normal(normal, right)
         return theta, max(float(power - 2 * theta @ right + theta @ normal @ theta), 0.0)
 
     def channel_rss(self, selection: Sequence[int], theta: NDArray[np.float64], target: int = 1) -> NDArray[np.float64]:

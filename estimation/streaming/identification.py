@@ -42,7 +42,7 @@ from estimation.identification.fit import ImplausibleEstimateWarning, implausibl
 from estimation.estimators.normal_equations import NormalEquations
 from estimation.estimators.summed_least_squares import SummedEstimate, SummedLeastSquares
 from estimation.streaming.identification_covariance import batch_means_covariance
-from estimation.streaming.chunks import FileSums, StreamingUnsupportedError, automatic_cutoff
+from estimation.streaming.chunks import FileSums, StreamingUnsupportedError, automatic_cutoff, read_chunks
 
 #: the standard deviations: batch means from a third pass (``"hac"``) or white residuals assumed
 StreamedCovariance = Literal["hac", "classical"]
@@ -229,7 +229,5 @@ def identify_files(
 
 
 def _has_derivatives(path: str, model: IdentificationModel, chunk_size: int) -> bool:
-    from estimation.streaming.chunks import read_chunks
-
     first = next(read_chunks(path, model, chunk_size=chunk_size))
     return first.dq is not None and first.ddq is not None

@@ -22,11 +22,11 @@ from numpy.typing import NDArray
 
 from dynamics.models import IdentificationModel
 from dynamics.runtime.threads import single_threaded_blas
-from estimation.streaming.cluster import IncompleteSumError, _model, _stamp, model_payload
+from estimation.streaming.cluster import IncompleteSumError, caught_warnings, file_stamp, model_from_payload, model_payload
 from estimation.streaming.diagnosis_sums import ColumnLayout
 from dynamics.measurements import Measurements
 from estimation.estimators.normal_equations import DEFAULT_CHUNK_SIZE, NormalEquations
-from estimation.streaming.diagnosis_passes import _caught, map_files
+from estimation.streaming.diagnosis_passes import map_files
 from estimation.streaming.chunks import FileSums, preprocessed_chunks, read_chunks
 from estimation.streaming.periods import periodic_prepared
 from estimation.streaming.covariance import BatchScores, chunk_scores, sandwich
@@ -62,7 +62,7 @@ def file_scores(path: str, model: IdentificationModel, options: dict[str, Any], 
 
 def scores_task(payload: bytes, path: str, options: dict[str, Any], theta, weights, stamp=None):
     """Picklable: :func:`file_scores` on a worker (model rebuilt once a process), and its warnings."""
-    return _caught(file_scores, path, _model(payload), options, np.asarray(theta), np.asarray(weights))
+    return caught_warnings(file_scores, path, model_from_payload(payload), options, np.asarray(theta), np.asarray(weights))
 
 
 def batch_means_covariance(model: IdentificationModel, files: Sequence[FileSums], train: NormalEquations,
@@ -83,11 +83,11 @@ def batch_means_covariance(model: IdentificationModel, files: Sequence[FileSums]
     paths = [part.path for part in files]
     if executor is None:  # in this process: the model as it is (rebuilding it from its payload costs seconds)
         def task(payload, path, options, theta, weights, stamp=None):
-            return _caught(file_scores, path, model, options, theta, weights)
+            return caught_warnings(file_scores, path, model, options, theta, weights)
         payload = b""
     else:
         task, payload = scores_task, model_payload(model)
-    parts = map_files(executor, task, paths, lambda path: (payload, path, dict(options), theta, weights, _stamp(path)))
+    parts = map_files(executor, task, paths, lambda path: (payload, path, dict(options), theta, weights, file_stamp(path)))
     for part, scores in zip(files, parts):
         if scores.n_samples != part.sums.n_samples:
             raise IncompleteSumError(f"{part.path}: {scores.n_samples} samples scored, {part.sums.n_samples} summed "

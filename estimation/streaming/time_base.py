@@ -1,6 +1,6 @@
 """The time base of a streamed file: one scan of column ``t``, then resampling chunk by chunk.
 
-The in-memory loader (:func:`estimation.data.loading.read_measurements`) resamples an irregular time
+The in-memory loader (:func:`estimation.data.records.read_measurements`) resamples an irregular time
 base (jitter, as in the KUKA logs: steps of 3.4–6.5 ms around 5 ms) by linear interpolation onto
 ``t_0 + k·h``, ``h`` the median step of the whole record. A streamed file gets the same grid:
 :func:`scan_time` reads column ``t`` alone first (8 bytes a sample: the exact median needs every
@@ -19,7 +19,7 @@ import pandas as pd
 from numpy.typing import NDArray
 
 from dynamics.runtime.memory import check_allocation
-from estimation.data.loading import IRREGULAR_TOLERANCE, _check_time
+from estimation.data.loading import IRREGULAR_TOLERANCE, check_time
 
 __all__ = ["Resampler", "TimeScan", "scan_time"]
 
@@ -41,7 +41,7 @@ class TimeScan:
 
     @property
     def grid_count(self) -> int:
-        """Samples of the uniform grid (as :func:`estimation.data.loading.read_measurements` makes it)."""
+        """Samples of the uniform grid (as :func:`estimation.data.records.read_measurements` makes it)."""
         return int(np.floor((self.t_last - self.t0) / self.step + 1e-9)) + 1
 
 
@@ -65,7 +65,7 @@ def scan_time(frames, path: str | Path) -> TimeScan | None:
     t = np.concatenate(parts)
     if t.shape[0] < 2 or not np.all(np.isfinite(t)):
         return None
-    _check_time(t, str(path))  # the loader's checks on the whole record: duplicates, order, unit, gaps
+    check_time(t, str(path))  # the loader's checks on the whole record: duplicates, order, unit, gaps
     steps = np.diff(t)
     step = float(np.median(steps))
     spread = float(np.max(np.abs(steps - step))) / step

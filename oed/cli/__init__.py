@@ -24,7 +24,9 @@ import os
 import sys
 import traceback
 from collections.abc import Sequence
+from importlib import metadata
 
+import oed
 from dynamics.runtime.threads import single_threaded_blas
 from oed.cli.paths import check_paths
 
@@ -39,12 +41,26 @@ EXIT_INTERRUPTED = 130
 TRACEBACK_VARIABLE = "OED_TRACEBACK"
 
 
+#: the distribution whose version ``oed --version`` prints
+DISTRIBUTION = "robot-oed"
+
+
+def package_version() -> str:
+    """The installed distribution's version, else :data:`oed.__version__` (the source tree run uninstalled);
+    both come from ``oed.__version__`` (pyproject.toml reads it at install time)."""
+    try:
+        return metadata.version(DISTRIBUTION)
+    except metadata.PackageNotFoundError:
+        return oed.__version__
+
+
 def build_parser() -> argparse.ArgumentParser:
     """Return the top-level parser with every verb registered."""
     parser = argparse.ArgumentParser(
         prog="oed",
         description="Optimal experiment design and dynamic-parameter identification of robot manipulators.",
     )
+    parser.add_argument("--version", action="version", version=f"%(prog)s {package_version()}")
     subparsers = parser.add_subparsers(dest="verb", metavar="VERB")
     subparsers.required = True
     for name in VERB_MODULES:
