@@ -42,9 +42,7 @@ per-sample residual statistics (they need the residuals sample by sample), the p
 
 from __future__ import annotations
 
-import pickle
 import time
-import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -53,25 +51,21 @@ from typing import Any
 import numpy as np
 
 from dynamics.effects.linear import Effect
-from dynamics.effects.shaped import FRICTION_LAWS
-from dynamics.measurements import Measurements
 from dynamics.models import IdentificationModel
-from estimation.diagnosis.candidate_trials import candidate_label, fit_or_reason
-from estimation.diagnosis.coupling_candidates import coupling_candidates
-from estimation.diagnosis.forward_selection import (DiagnosisSearch, SearchOutcome, SearchSettings, candidate_blocks,
-                                                    declared_friction_joints)
-from estimation.diagnosis.search import FoundEffect, RejectedEffect, default_candidates
+from estimation.diagnosis.candidate_trials import candidate_label
+from estimation.diagnosis.forward_selection import DiagnosisSearch, SearchOutcome, SearchSettings
+from estimation.diagnosis.search import FoundEffect, RejectedEffect
 from estimation.diagnosis.statistics import FLOOR_ALPHA
 from estimation.estimators.summed_least_squares import SummedEstimate, SummedLeastSquares
-from estimation.estimators.variable_projection import Block, FixedPart, States, solve_linear
-from estimation.identification.fit import identify, implausible_estimates
+from estimation.identification.fit import implausible_estimates
 from estimation.identification.trivial_predictors import trivial_warnings
 from estimation.streaming.chunks import automatic_cutoff, read_chunks
 from estimation.streaming.cluster import model_payload
 from estimation.streaming.covariance import sandwich
 from estimation.streaming.diagnosis_passes import (FLOOR_WINDOW, SubsamplePass, SumsPass, scores_pass, subsample_pass,
                                                   sums_pass, window_floor)
-from estimation.streaming.diagnosis_sums import ChannelSums, ColumnLayout, normal_equations
+from estimation.streaming.diagnosis_candidates import StreamedCandidates, streamed_candidates
+from estimation.streaming.diagnosis_sums import ChannelSums, normal_equations
 from estimation.streaming.selection import SummedFits, simpler_laws
 from estimation.uncertainty.noise_floor import NoiseFloor, compare_with_floor
 
@@ -216,79 +210,12 @@ def _checked_settings(model: IdentificationModel, paths: list[str], validate: li
     return settings
 
 
-def _shape_search(model: IdentificationModel, blocks: dict[int, Block], subsample: Measurements,
-                  weights: np.ndarray) -> tuple[dict[int, np.ndarray], dict[int, RejectedEffect]]:
-    """Each shaped law's shape on the subsample against the declared model (the in-memory first
-    round), and the laws whose search failed."""
-    fixed = FixedPart.from_arrays(model.evaluate_base(subsample.q, subsample.dq, subsample.ddq),
-                                  subsample.channels(model.channels))
-    states = States(subsample.q, subsample.dq, subsample.ddq)
-    rss = solve_linear(fixed, [], states, [], weights).rss
-    declared = declared_friction_joints(model)
-    shapes, failed = {}, {}
-    for index, block in blocks.items():
-        if block.n_shape == 0:
-            shapes[index] = np.zeros(0)
-            continue
-        joints = {int(model.channels[row][3:]) - 1 for row in block.rows if model.channels[row].startswith("tau")}
-        if block.effect.name in FRICTION_LAWS and joints & declared:
-            shapes[index] = np.array([p.starts[0] for p in block.parameters], dtype=float)  # rejected in the loop
-            continue
-        outcome = fit_or_reason((index,), [block], fixed, states, weights, rss, None, search=False)
-        if isinstance(outcome, str):
-            failed[index] = RejectedEffect(block.effect.name, tuple(model.channels[r] for r in block.rows),
-                                           outcome + " (on the subsample)", candidate_label(block.effect))
-        else:
-            shapes[index] = outcome.fit.shape
-    return shapes, failed
-
-
 def _file_record(path: str, sums, record: dict) -> dict[str, Any]:
     return {"path": path, "rows": record["rows"], "samples": sums.n_samples,
             "trimmed_samples": record["metadata"].get("trimmed_samples", 0)}
 
 
-@dataclass(frozen=True)
-class _Candidates:
-    """The candidates with columns in the sums, their fixed shapes and where their columns are."""
-
-    blocks: dict[int, Block]
-    shapes: dict[int, np.ndarray]
-    rejected: dict[int, RejectedEffect]
-    n_candidates: int
-    layout: ColumnLayout
-    plan: bytes  # the pickled effects and shapes the workers evaluate
-
-    @property
-    def columns(self) -> dict[int, tuple[int, ...]]:
-        return {index: self.layout.blocks[slot] for slot, index in enumerate(self.blocks)}
-
-    def final_plan(self, chosen: list[int]) -> bytes:
-        return pickle.dumps(([self.blocks[i].effect for i in chosen], [self.shapes[i] for i in chosen]))
-
-
-def _candidates(model: IdentificationModel, candidates: Sequence[Effect] | None, first: SubsamplePass,
-                clock: Stopwatch) -> _Candidates:
-    """Step 1: the candidates (default: :func:`default_candidates` and the pairs traced on the
-    subsample) and their shapes searched on the subsample."""
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # the subsample's own fit: its warnings are not the record's
-        reference = identify(model, first.sample).estimate
-    weights = reference.weights if reference.method == "wls" else 1.0 / reference.channel_variance
-    candidates = tuple(default_candidates(model) + coupling_candidates(model, train=first.sample)
-                       if candidates is None else candidates)
-    blocks, rejected = candidate_blocks(model, candidates)
-    clock.lap("subsample_pass")
-    shapes, failed = _shape_search(model, blocks, first.sample, weights)
-    clock.lap("shape_search")
-    blocks = {index: block for index, block in blocks.items() if index not in failed}
-    order = sorted(blocks)
-    plan = pickle.dumps(([blocks[i].effect for i in order], [shapes[i] for i in order]))
-    return _Candidates({i: blocks[i] for i in order}, shapes, {**rejected, **failed}, len(candidates),
-                       ColumnLayout.build(model, [blocks[i] for i in order]), plan)
-
-
-def _refit(model: IdentificationModel, train: ChannelSums, found: _Candidates, indices: Sequence[int]
+def _refit(model: IdentificationModel, train: ChannelSums, found: StreamedCandidates, indices: Sequence[int]
            ) -> tuple[list[int], SummedEstimate]:
     """The declared model with the candidates ``indices``, estimated from the training sums."""
     columns = list(range(model.n_base)) + [column for index in indices for column in found.columns[index]]
@@ -297,7 +224,7 @@ def _refit(model: IdentificationModel, train: ChannelSums, found: _Candidates, i
     return columns, SummedLeastSquares(method="wls").fit(normal_equations(train, columns, names, expressions)).estimate_
 
 
-def _final_estimate(model: IdentificationModel, sums: SumsPass, found: _Candidates, outcome: SearchOutcome,
+def _final_estimate(model: IdentificationModel, sums: SumsPass, found: StreamedCandidates, outcome: SearchOutcome,
                     min_improvement: float) -> tuple[list[int], list[int], SummedEstimate]:
     """``(chosen, columns, after)``: the augmented model refitted on all samples at the shapes as
     selected; a found Stribeck law the fit does not support becomes Coulomb friction when the
@@ -316,55 +243,19 @@ def _final_estimate(model: IdentificationModel, sums: SumsPass, found: _Candidat
 
 
 def _batch_means(model: IdentificationModel, after: SummedEstimate, parts_scores, normal: np.ndarray
-                 ) -> tuple[SummedEstimate, int, dict[str, float]]:
-    """The augmented estimate with its batch-means covariance (residuals correlated in time), the
-    batch length and the classical standard deviations of the effects' parameters."""
+                 ) -> tuple[SummedEstimate, dict[str, Any]]:
+    """The augmented estimate with its batch-means covariance (residuals correlated in time), and the
+    report's ``covariance`` entry (the batch length, the classical standard deviations of the effects)."""
     cov, batch = sandwich(parts_scores, normal, after.cov, after.weights)
     std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     with np.errstate(divide="ignore", invalid="ignore"):
         relative_std = np.where(after.values != 0, 100.0 * std / np.abs(after.values), np.inf)
     classical = dict(zip(after.names[model.n_base:], map(float, after.std[model.n_base:])))
-    return replace(after, cov=cov, std=std, relative_std=relative_std), batch, classical
+    covariance = {"method": "batch_means", "batch_length": batch, "classical_std": classical}
+    return replace(after, cov=cov, std=std, relative_std=relative_std), covariance
 
 
-def _found_effects(model: IdentificationModel, found: _Candidates, chosen: Sequence[int], outcome: SearchOutcome,
-                   after: SummedEstimate) -> tuple[FoundEffect, ...]:
-    records = {r["name"]: r for r in after.records()}
-    effects = []
-    for index, item in zip(chosen, outcome.adopted):
-        block = found.blocks[index]
-        effects.append(FoundEffect(
-            name=block.effect.name, channels=tuple(model.channels[r] for r in block.rows), parameters=block.names,
-            values=tuple(records[name]["value"] for name in block.names),
-            std=tuple(records[name]["std"] for name in block.names), p_value=item.p_value,
-            f_statistic=float(item.f_statistic), spec=candidate_label(block.effect),
-            shape={p.name: float(v) for p, v in zip(block.parameters, found.shapes[index])}, shape_std={}))
-    return tuple(effects)
-
-
-def _streaming_record(paths: list[str], validate: list[str], settings: StreamedSettings, first: SubsamplePass,
-                      sums: SumsPass, stopped_at_floor: bool, batch: int, classical: dict[str, float],
-                      seconds: dict[str, float], condition: float) -> dict[str, Any]:
-    """The report's ``streaming`` entry: how the files were read, summed and estimated."""
-    return {
-        "chunk_size": int(settings.chunk_size), "cutoff_hz": settings.cutoff_hz, "decimation": int(settings.decimation),
-        "files": [_file_record(path, part, record) for path, (part, record) in zip(paths, sums.train_parts)],
-        "validation_files": [_file_record(path, part, record) for path, (part, record) in zip(validate, sums.validate_parts)],
-        "subsample": {"samples": first.sample.n_samples, "of": first.seen, "requested": int(settings.subsample),
-                      "used_for": "shape search of shaped laws, coupling-pair tracing"},
-        "floor_window": int(settings.floor_window) if settings.noise_floor is None else None,
-        "stopped_at_floor": stopped_at_floor,
-        "covariance": {"method": "batch_means", "batch_length": batch, "classical_std": classical},
-        "seconds": seconds,
-        "errors_against": "the channels as recorded, along the derived motion",
-        "accuracy": {"solve": "per-channel Gram sums, equilibrated, Cholesky (as the in-memory loop)",
-                     "equilibrated_normal_cond": condition,
-                     "relative_error_bound": condition * np.finfo(float).eps},
-        "not_on_this_path": list(NOT_ON_THIS_PATH),
-    }
-
-
-def _search(model: IdentificationModel, sums: SumsPass, found: _Candidates, settings: StreamedSettings,
+def _search(model: IdentificationModel, sums: SumsPass, found: StreamedCandidates, settings: StreamedSettings,
             floor: NoiseFloor | None) -> tuple[SummedEstimate, SearchOutcome]:
     """The declared model estimated from the sums, and the forward selection from its weights."""
     base = list(range(model.n_base))
@@ -375,6 +266,22 @@ def _search(model: IdentificationModel, sums: SumsPass, found: _Candidates, sett
     search_settings = SearchSettings(settings.alpha, settings.min_improvement, settings.max_effects, found.n_candidates,
                                      combinations=False)
     return before, DiagnosisSearch(model, found.blocks, found.rejected, fits, weights, search_settings).run()
+
+
+@dataclass(frozen=True)
+class _Run:
+    """One streamed diagnosis: its files and settings, passes, candidates and search, and the
+    candidates its final estimate holds (``chosen``) with their columns in the sums."""
+
+    paths: list[str]
+    validate: list[str]
+    settings: StreamedSettings
+    first: SubsamplePass
+    sums: SumsPass
+    found: StreamedCandidates
+    outcome: SearchOutcome
+    chosen: list[int]
+    columns: list[int]
 
 
 def diagnose_files(
@@ -409,7 +316,7 @@ def diagnose_files(
         floor_window))
     options, payload, clock = settings.reading(), model_payload(model), Stopwatch()
     first = subsample_pass(executor, payload, paths, options, settings.subsample)  # pass 1 (training files)
-    found = _candidates(model, candidates, first, clock)
+    found = streamed_candidates(model, candidates, first.sample, clock.lap)
     sums = sums_pass(executor, payload, found.plan, paths, validate, options, first)  # pass 2 (all files)
     clock.lap("sums_pass")
     if noise_floor is None:
@@ -421,34 +328,69 @@ def diagnose_files(
     clock.lap("selection_and_estimates")
     # pass 3 (training files): the batch-means covariance of the final estimate
     parts_scores = scores_pass(executor, payload, found.final_plan(chosen), paths, options, after.values, after.weights)
-    after, batch, classical = _batch_means(model, after, parts_scores,
-                                           sums.train.normal_system(columns, after.weights)[0])
+    after, covariance = _batch_means(model, after, parts_scores, sums.train.normal_system(columns, after.weights)[0])
     clock.lap("covariance_pass")
-    return _result(model, paths, validate, settings, first, sums, found, chosen, columns, before, after, outcome,
-                   floor, floor_note, batch, classical, clock.seconds)
+    run = _Run(paths, validate, settings, first, sums, found, outcome, chosen, columns)
+    return _result(model, run, before, after, floor, floor_note, _streaming_record(run, covariance, clock.seconds))
 
 
-def _result(model, paths, validate, settings, first, sums, found, chosen, columns, before, after, outcome, floor,
-            floor_note, batch, classical, seconds) -> StreamedDiagnosis:
+def _found_effects(model: IdentificationModel, run: _Run, after: SummedEstimate) -> tuple[FoundEffect, ...]:
+    records = {r["name"]: r for r in after.records()}
+    effects = []
+    for index, item in zip(run.chosen, run.outcome.adopted):
+        block = run.found.blocks[index]
+        effects.append(FoundEffect(
+            name=block.effect.name, channels=tuple(model.channels[r] for r in block.rows), parameters=block.names,
+            values=tuple(records[name]["value"] for name in block.names),
+            std=tuple(records[name]["std"] for name in block.names), p_value=item.p_value,
+            f_statistic=float(item.f_statistic), spec=candidate_label(block.effect),
+            shape={p.name: float(v) for p, v in zip(block.parameters, run.found.shapes[index])}, shape_std={}))
+    return tuple(effects)
+
+
+def _streaming_record(run: _Run, covariance: dict[str, Any], seconds: dict[str, float]) -> dict[str, Any]:
+    """The report's ``streaming`` entry: how the files were read, summed and estimated."""
+    settings, sums = run.settings, run.sums
+    normal = sums.train.normal_system(run.columns, run.outcome.weights)[0]
+    scale = np.sqrt(np.diag(normal))
+    condition = float(np.linalg.cond(normal / np.outer(scale, scale)))
+    return {
+        "chunk_size": int(settings.chunk_size), "cutoff_hz": settings.cutoff_hz, "decimation": int(settings.decimation),
+        "files": [_file_record(path, part, record) for path, (part, record) in zip(run.paths, sums.train_parts)],
+        "validation_files": [_file_record(path, part, record)
+                             for path, (part, record) in zip(run.validate, sums.validate_parts)],
+        "subsample": {"samples": run.first.sample.n_samples, "of": run.first.seen, "requested": int(settings.subsample),
+                      "used_for": "shape search of shaped laws, coupling-pair tracing"},
+        "floor_window": int(settings.floor_window) if settings.noise_floor is None else None,
+        "stopped_at_floor": run.outcome.stopped_at_floor,
+        "covariance": covariance,
+        "seconds": seconds,
+        "errors_against": "the channels as recorded, along the derived motion",
+        "accuracy": {"solve": "per-channel Gram sums, equilibrated, Cholesky (as the in-memory loop)",
+                     "equilibrated_normal_cond": condition,
+                     "relative_error_bound": condition * np.finfo(float).eps},
+        "not_on_this_path": list(NOT_ON_THIS_PATH),
+    }
+
+
+def _result(model: IdentificationModel, run: _Run, before: SummedEstimate, after: SummedEstimate,
+            floor: NoiseFloor | None, floor_note: str, streaming: dict[str, Any]) -> StreamedDiagnosis:
     """The result: errors before and after against the recording, the trivial predictors, warnings."""
-    train, validation, base = sums.train, sums.validation, list(range(model.n_base))
+    train, validation, base = run.sums.train, run.sums.validation, list(range(model.n_base))
     nominal = model.base.K @ model.nominal_parameters()
     trivial = {"zero_mse": dict(zip(model.channels, map(float, validation.power[:, 1] / validation.n_samples))),
                "nominal_mse": dict(zip(model.channels, map(float, validation.channel_mse(base, nominal))))}
-    normal = train.normal_system(columns, outcome.weights)[0]
-    scale = np.sqrt(np.diag(normal))
-    condition = float(np.linalg.cond(normal / np.outer(scale, scale)))
     mse = {(name, which): dict(zip(model.channels, map(float, part.channel_mse(selection, theta))))
            for name, part in (("train", train), ("validation", validation))
-           for which, selection, theta in (("before", base, before.values), ("after", columns, after.values))}
+           for which, selection, theta in (("before", base, before.values), ("after", run.columns, after.values))}
+    rejected = run.outcome.rejected
     return StreamedDiagnosis(
-        model=model, effects=_found_effects(model, found, chosen, outcome, after),
-        rejected=tuple(outcome.rejected[i] for i in sorted(outcome.rejected)), before=before, after=after,
+        model=model, effects=_found_effects(model, run, after), rejected=tuple(rejected[i] for i in sorted(rejected)),
+        before=before, after=after,
         train_mse={which: mse["train", which] for which in ("before", "after")},
         validation_mse={which: mse["validation", which] for which in ("before", "after")},
         n_train=train.n_samples, n_validation=validation.n_samples, floor=floor, floor_note=floor_note,
-        streaming=_streaming_record(paths, validate, settings, first, sums, outcome.stopped_at_floor, batch, classical,
-                                    seconds, condition),
+        streaming=streaming,
         warnings={"before": implausible_estimates(model, before),
                   "after": implausible_estimates(model, after) + trivial_warnings(mse["validation", "after"], trivial)},
         trivial=trivial,
