@@ -23,8 +23,12 @@ Procedure (forward selection on nested linear models):
    give (:func:`estimation.diagnosis.confirmation.reweighted_comparison`); then the
    search repeats while the stopping rule (the noise floor; :func:`provisional_stopping_rule`)
    allows it. It stops when nothing significant and confirmed remains.
-5. Re-identify the augmented model (all shapes refit jointly) and report the validation MSE per
-   channel before and after.
+5. Re-identify the augmented model (all shapes refit jointly, :mod:`estimation.diagnosis.final_refit`)
+   and report the validation MSE per channel before and after.
+
+Steps 2–4 are one object, :class:`estimation.diagnosis.forward_selection.DiagnosisSearch`, its fits on
+the records in memory (:class:`estimation.diagnosis.record_fits.RecordFits`); the streamed diagnosis
+(:func:`estimation.streaming.diagnosis.diagnose_files`) runs the same search on summed normal equations.
 """
 
 from __future__ import annotations
@@ -210,10 +214,8 @@ def _diagnosis(model: IdentificationModel, before: IdentificationResult, outcome
                noise_floor: NoiseFloor | None, n_candidates: int, min_improvement: float) -> Diagnosis:
     """Step 5: the joint refit of what the search adopted (the delay searched again along the records
     as given), the terms it pinned and the delay not adopted reported with the rejected candidates."""
-    found = [(item.effect, item.p_value, item.f_statistic) for item in outcome.adopted]
-    selected, after, pinned = refit_found(model, before, found, [item.effect for item in outcome.adopted],
-                                          [item.shape for item in outcome.adopted], moved, train, validate,
-                                          outcome.weights, outcome.current.validation_error, min_improvement)
+    selected, after, pinned = refit_found(model, before, outcome.adopted, moved, train, validate, outcome.weights,
+                                          outcome.current.validation_error, min_improvement)
     rejected = dict(outcome.rejected)
     for position, term in enumerate(term for term in pinned if term.found):
         effect = next((block.effect for block in blocks.values() if term.parameter in block.names

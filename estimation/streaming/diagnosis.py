@@ -22,8 +22,10 @@ Passes over the data (each file one task on any ``concurrent.futures.Executor``,
    every candidate's columns (at the fixed shapes), their moments with the prepared channels and
    with the channels as recorded, and the powers (:mod:`estimation.streaming.diagnosis_sums`).
 
-The forward selection, F tests, BIC, sign checks, spring-versus-offset, confirmation on validation
-and the noise-floor stopping rule then run on the sums (:mod:`estimation.streaming.selection`), and
+The forward selection is then the in-memory diagnosis's own search
+(:class:`~estimation.diagnosis.forward_selection.DiagnosisSearch`: F tests, BIC, sign checks,
+spring-versus-offset, confirmation on validation) with its fits taken from the sums
+(:class:`~estimation.streaming.selection.SummedFits`, the noise floor as the stopping rule), and
 the declared and augmented models are estimated from them by
 :class:`~estimation.estimators.summed_least_squares.SummedLeastSquares`. A third pass over the training files
 gives the augmented estimate's batch-means covariance (:mod:`estimation.streaming.covariance`; residuals
