@@ -188,13 +188,13 @@ class DiagnosisSearch:
             if not self.fits.keep_searching(self.current, tuple(candidate_label(a.effect) for a in self.adopted)):
                 self.stopped_at_floor = True
                 break
-            added = self.round()
+            added = self.one_round()
             if added is None:
                 break
             self.adopt(*added)
         return self.outcome()
 
-    def round(self) -> tuple[Trial | DelayTrial, Any] | None:
+    def one_round(self) -> tuple[Trial | DelayTrial, Any] | None:
         """One round: every group fitted, the best-ranked confirmed one (with its comparison), or ``None``."""
         trials = self.fit_candidates()
         self.drop_rejected()
