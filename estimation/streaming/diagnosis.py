@@ -168,8 +168,8 @@ class StreamedSettings:
     def reading(self) -> dict[str, Any]:
         """How each file is read and prepared (:func:`estimation.streaming.chunks.preprocessed_chunks`): the
         filter's settling trimmed at each record's ends, as the CLI's in-memory preprocessing does."""
-        return dict(chunk_size=self.chunk_size, cutoff_hz=self.cutoff_hz, decimation=self.decimation,
-                    held_torques=self.held_torques, trim=True)
+        return {"chunk_size": self.chunk_size, "cutoff_hz": self.cutoff_hz, "decimation": self.decimation,
+                "held_torques": self.held_torques, "trim": True}
 
 
 class Stopwatch:

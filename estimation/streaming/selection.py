@@ -175,7 +175,8 @@ def simpler_laws(chosen: Sequence[int], blocks: dict[int, Block], records: dict[
         if not isinstance(effect, ShapedStribeckFriction) or effect.joints is None:
             continue
         terms = [name for name in effect.parameter_names(model.robot) if name.startswith("fs")]
-        if all(name in records and records[name]["value"] < SIGNIFICANT_TERM * records[name]["std"] for name in terms):
-            if tuple(effect.joints) in coulomb:
-                replacements[index] = coulomb[tuple(effect.joints)]
+        unsupported = all(name in records and records[name]["value"] < SIGNIFICANT_TERM * records[name]["std"]
+                          for name in terms)
+        if unsupported and tuple(effect.joints) in coulomb:
+            replacements[index] = coulomb[tuple(effect.joints)]
     return replacements
