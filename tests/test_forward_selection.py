@@ -93,3 +93,17 @@ def test_a_second_coulomb_law_on_a_joint_is_refused(model):
     outcome = DiagnosisSearch(declared, blocks, rejected, PrescribedFits({(0,): 1e-12}, {}), np.ones(3), settings).run()
     assert outcome.adopted == ()
     assert outcome.rejected[0].reason == "its joint already has a Coulomb-like friction law"
+
+
+@pytest.mark.parametrize("same_effect_adopted", [True, False])
+def test_a_candidate_given_twice_is_reported_by_each_paths_rule(model, same_effect_adopted):
+    # the in-memory diagnosis counts the second copy of an adopted effect as adopted; the streamed one
+    # reports it with the candidates the search did not test
+    coulomb = CoulombFriction(joints=(0,))
+    blocks, rejected = candidate_blocks(model, (coulomb, coulomb))
+    settings = SearchSettings(alpha=1e-3, min_improvement=0.01, max_effects=1, n_tests=2,
+                              same_effect_adopted=same_effect_adopted)
+    fits = PrescribedFits({(0,): 1e-12, (1,): 1e-11}, {})
+    outcome = DiagnosisSearch(model, blocks, rejected, fits, np.ones(3), settings).run()
+    assert [item.index for item in outcome.adopted] == [0]
+    assert sorted(outcome.rejected) == ([] if same_effect_adopted else [1])

@@ -95,15 +95,18 @@ class Fits(Protocol):
 @dataclass(frozen=True)
 class SearchSettings:
     """The search's settings: F-test level ``alpha`` over ``n_tests`` candidates (Bonferroni), the
-    smallest relative improvement of the weighted validation error, the cap on effects, and whether
+    smallest relative improvement of the weighted validation error, the cap on effects, whether
     Coulomb and viscous laws on one joint combination compete as one candidate (one Coulomb law a
-    combination)."""
+    combination), and whether a candidate whose effect (the same object) was adopted under another
+    index counts as adopted at the end (the in-memory diagnosis's rule; the streamed one's counts
+    indices alone: such a candidate is reported with the untested ones)."""
 
     alpha: float
     min_improvement: float
     max_effects: int
     n_tests: int
     combinations: bool = True
+    same_effect_adopted: bool = False
 
     @property
     def threshold(self) -> float:
@@ -310,6 +313,9 @@ class DiagnosisSearch:
         if self.stopped_at_floor:
             untested = STOPPED_AT_FLOOR
         adopted = {item.index for item in self.adopted}
+        if self.settings.same_effect_adopted:
+            effects = {id(item.effect) for item in self.adopted}
+            adopted |= {index for index, block in self.blocks.items() if id(block.effect) in effects}
         for index in self.blocks:
             if index not in self.rejected and index not in adopted:
                 self.reject(index, untested if full else self.deferred.get(index, untested))

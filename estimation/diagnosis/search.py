@@ -183,7 +183,8 @@ def diagnose(
     # errors against the channels as recorded, along the derived motion
     fits = RecordFits(model, declared_regressor(model, before), train, validate.as_recorded, delay, stopping_rule)
     blocks, rejected = candidate_blocks(model, candidates)
-    settings = SearchSettings(alpha, min_improvement, max_effects, len(candidates) + (delay is not None))  # the delay too
+    settings = SearchSettings(alpha, min_improvement, max_effects, len(candidates) + (delay is not None),  # the delay too
+                              same_effect_adopted=True)
     outcome = DiagnosisSearch(model, blocks, rejected, fits, weights, settings).run()
     return _diagnosis(model, before, outcome, blocks, fits.delay, train, validate, noise_floor, len(candidates),
                       min_improvement)
