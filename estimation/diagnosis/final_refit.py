@@ -10,10 +10,13 @@ friction or inertia term below zero is held at zero (:mod:`estimation.diagnosis.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 from dynamics.models import build_model
 from dynamics.effects.shaped import shape_parameters
 from estimation.diagnosis.confirmation import simplify_laws, weighted_validation
 from estimation.diagnosis.delay_search import with_delay
+from estimation.diagnosis.forward_selection import AdoptedEffect
 from estimation.identification.fit import identify
 from estimation.diagnosis.limit_laws import replace_limit_laws
 from estimation.preprocessing.delay import delayed
@@ -21,22 +24,22 @@ from estimation.diagnosis.sign_constraints import pin_wrong_signs
 from estimation.estimators.effect_blocks import ShapeSearchError
 
 
-def refit_found(model, before, selected, selected_effects, selected_shapes, moved, train, validate, weights,
+def refit_found(model, before, adopted: Sequence[AdoptedEffect], moved, train, validate, weights,
                 validation_error: float, min_improvement: float):
-    """``(selected, after, pinned)``: the findings kept, the refitted model (carrying the delay, if
-    one was adopted) and the terms held at zero.
+    """``(selected, after, pinned)``: the findings kept as ``[(effect, p_value, f_statistic)]``, the
+    refitted model (carrying the delay, if one was adopted) and the terms held at zero.
 
-    ``selected``: ``[(effect, p_value, f_statistic)]``; ``selected_effects``, ``selected_shapes``: the
-    found effects and their shapes as selected; ``moved``: the diagnosis' delay candidate
-    (:class:`estimation.diagnosis.delay_search.DelaySearch`); ``train``, ``validate``: the records as given;
-    ``weights``, ``validation_error``: the last adopted model's channel weights and weighted validation
-    error.
+    ``adopted``: the effects the search adopted, at their shapes as selected; ``moved``: the
+    diagnosis' delay candidate (:class:`estimation.diagnosis.delay_search.DelaySearch`); ``train``,
+    ``validate``: the records as given; ``weights``, ``validation_error``: the last adopted model's
+    channel weights and weighted validation error.
     """
     after = before
+    selected = [(item.effect, item.p_value, item.f_statistic) for item in adopted]
     if selected or moved.adopted is not None:
         current = build_model(model.robot, model.kind, model.effects + tuple(effect for effect, _, _ in selected))
-        starts = {parameter.name: float(value) for effect, shape in zip(selected_effects, selected_shapes)
-                  for parameter, value in zip(shape_parameters(effect, model.robot), shape)}
+        starts = {parameter.name: float(value) for item in adopted
+                  for parameter, value in zip(shape_parameters(item.effect, model.robot), item.shape)}
         if before.shaped_fit is not None:
             starts.update({value.name: value.value for value in before.shapes})
         try:

@@ -8,8 +8,11 @@ from dynamics.effects.shaped import FRICTION_LAWS
 from estimation.diagnosis.candidate_trials import fit_or_reason, joints_of
 from estimation.estimators.effect_blocks import Block
 
+#: screened candidates whose shapes are searched again in each round after the first
+SCREEN_REFINED = 2
 
-def refine_best(trials, blocks, fixed, states, weights, rss, previous, count: int, traced=None):
+
+def refine_best(trials, fixed, states, weights, rss, previous, count: int, traced=None):
     """The ``count`` best-ranked screened trials, and the group ``traced`` (the one the residual
     tracing ranks first: :mod:`estimation.diagnosis.traced_refinement`), with shapes searched again by
     Levenberg–Marquardt."""

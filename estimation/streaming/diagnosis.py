@@ -22,8 +22,10 @@ Passes over the data (each file one task on any ``concurrent.futures.Executor``,
    every candidate's columns (at the fixed shapes), their moments with the prepared channels and
    with the channels as recorded, and the powers (:mod:`estimation.streaming.diagnosis_sums`).
 
-The forward selection, F tests, BIC, sign checks, spring-versus-offset, confirmation on validation
-and the noise-floor stopping rule then run on the sums (:mod:`estimation.streaming.selection`), and
+The forward selection is then the in-memory diagnosis's own search
+(:class:`~estimation.diagnosis.forward_selection.DiagnosisSearch`: F tests, BIC, sign checks,
+spring-versus-offset, confirmation on validation) with its fits taken from the sums
+(:class:`~estimation.streaming.selection.SummedFits`, the noise floor as the stopping rule), and
 the declared and augmented models are estimated from them by
 :class:`~estimation.estimators.summed_least_squares.SummedLeastSquares`. A third pass over the training files
 gives the augmented estimate's batch-means covariance (:mod:`estimation.streaming.covariance`; residuals
@@ -42,10 +44,7 @@ per-sample residual statistics (they need the residuals sample by sample), the p
 
 from __future__ import annotations
 
-import functools
-import pickle
 import time
-import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -55,24 +54,22 @@ import numpy as np
 
 from dynamics.effects.linear import Effect
 from dynamics.models import IdentificationModel
-from estimation.diagnosis.candidate_trials import candidate_label, fit_or_reason
-from estimation.streaming.cluster import file_stamp, model_payload
-from estimation.diagnosis.coupling_candidates import coupling_candidates
-from estimation.diagnosis.search import FoundEffect, RejectedEffect, default_candidates
+from estimation.diagnosis.candidate_trials import candidate_label
+from estimation.diagnosis.forward_selection import DiagnosisSearch, SearchOutcome, SearchSettings
+from estimation.diagnosis.search import FoundEffect, RejectedEffect
 from estimation.diagnosis.statistics import FLOOR_ALPHA
-from estimation.streaming.diagnosis_sums import ColumnLayout, concatenate, normal_equations
-from estimation.identification.fit import identify, implausible_estimates
-from estimation.data.loading import MeasurementError
-from estimation.uncertainty.noise_floor import NoiseFloor, compare_with_floor
-from estimation.streaming.diagnosis_passes import (FLOOR_WINDOW, map_files, scores_task, subsample_task, sums_task,
-                                                  window_floor)
-from estimation.streaming.covariance import sandwich
+from estimation.estimators.summed_least_squares import SummedEstimate, SummedLeastSquares
+from estimation.identification.fit import implausible_estimates
 from estimation.identification.trivial_predictors import trivial_warnings
 from estimation.streaming.chunks import automatic_cutoff, read_chunks
-from estimation.estimators.summed_least_squares import SummedEstimate, SummedLeastSquares
-from estimation.streaming.selection import select_effects, simpler_laws
-from estimation.estimators.effect_blocks import Block, NoRowsError, States
-from estimation.estimators.separable_least_squares import FixedPart, solve_linear
+from estimation.streaming.cluster import model_payload
+from estimation.streaming.covariance import sandwich
+from estimation.streaming.diagnosis_passes import (FLOOR_WINDOW, SubsamplePass, SumsPass, scores_pass, subsample_pass,
+                                                  sums_pass, window_floor)
+from estimation.streaming.diagnosis_candidates import StreamedCandidates, streamed_candidates
+from estimation.streaming.diagnosis_sums import ChannelSums, normal_equations
+from estimation.streaming.selection import SummedFits, simpler_laws
+from estimation.uncertainty.noise_floor import NoiseFloor, compare_with_floor
 
 __all__ = ["DEFAULT_SUBSAMPLE", "FLOOR_WINDOW", "StreamedDiagnosis", "diagnose_files", "window_floor"]
 
@@ -153,34 +150,140 @@ class StreamedDiagnosis:
 
 # ---------------------------------------------------------------- the diagnosis
 
-def _shape_search(model, blocks, rejected, subsample, weights, friction_joints) -> dict[int, np.ndarray]:
-    """Each shaped law's shape on the subsample against the declared model (the in-memory first round)."""
-    fixed = FixedPart.from_arrays(model.evaluate_base(subsample.q, subsample.dq, subsample.ddq),
-                                  subsample.channels(model.channels))
-    states = States(subsample.q, subsample.dq, subsample.ddq)
-    rss = solve_linear(fixed, [], states, [], weights).rss
-    shapes = {}
-    for index, block in list(blocks.items()):
-        if block.n_shape == 0:
-            shapes[index] = np.zeros(0)
-            continue
-        joints = {int(model.channels[row][3:]) - 1 for row in block.rows if model.channels[row].startswith("tau")}
-        if block.effect.name in friction_joints[0] and joints & friction_joints[1]:
-            shapes[index] = np.array([p.starts[0] for p in block.parameters], dtype=float)  # rejected in the loop
-            continue
-        outcome = fit_or_reason((index,), [block], fixed, states, weights, rss, None, search=False)
-        if isinstance(outcome, str):
-            rejected[index] = RejectedEffect(block.effect.name, tuple(model.channels[r] for r in block.rows),
-                                             outcome + " (on the subsample)", candidate_label(block.effect))
-            del blocks[index]
-        else:
-            shapes[index] = outcome.fit.shape
-    return shapes
+@dataclass(frozen=True)
+class StreamedSettings:
+    """The settings of :func:`diagnose_files` (its keyword arguments but ``candidates`` and ``executor``)."""
+
+    chunk_size: int
+    cutoff_hz: float | None
+    decimation: int
+    held_torques: bool
+    alpha: float
+    min_improvement: float
+    max_effects: int
+    noise_floor: NoiseFloor | None
+    subsample: int
+    floor_window: int
+
+    def reading(self) -> dict[str, Any]:
+        """How each file is read and prepared (:func:`estimation.streaming.chunks.preprocessed_chunks`): the
+        filter's settling trimmed at each record's ends, as the CLI's in-memory preprocessing does."""
+        return {"chunk_size": self.chunk_size, "cutoff_hz": self.cutoff_hz, "decimation": self.decimation,
+                "held_torques": self.held_torques, "trim": True}
+
+
+class Stopwatch:
+    """Seconds spent in each stage of a diagnosis (the report's ``streaming.seconds``)."""
+
+    def __init__(self) -> None:
+        self.seconds: dict[str, float] = {}
+        self.last = time.perf_counter()
+
+    def lap(self, name: str) -> None:
+        now = time.perf_counter()
+        self.seconds[name] = round(now - self.last, 3)
+        self.last = now
+
+
+def _checked_settings(model: IdentificationModel, paths: list[str], validate: list[str],
+                      settings: StreamedSettings) -> StreamedSettings:
+    """The settings checked, the Butterworth cut-off chosen when the files hold positions alone."""
+    if not paths:
+        raise ValueError("no training data files")
+    if not validate:
+        raise ValueError("diagnose confirms every effect on held-out data: give validation files")
+    for name, group in (("training", paths), ("validation", validate)):
+        if len(set(group)) != len(group):
+            raise ValueError(f"a {name} file is given twice: {sorted({p for p in group if group.count(p) > 1})}")
+    if set(paths) & set(validate):
+        raise ValueError(f"a validation file is a training file ({sorted(set(paths) & set(validate))}): diagnose confirms "
+                         "every effect on held-out data from another experiment")
+    if not 0 < settings.alpha < 1:
+        raise ValueError(f"alpha must lie in (0, 1), got {settings.alpha}")
+    if not 0 <= settings.min_improvement < 1:
+        raise ValueError(f"min_improvement must lie in [0, 1), got {settings.min_improvement}")
+    subsample = settings.subsample
+    if isinstance(subsample, bool) or int(subsample) != subsample or subsample < model.n_base + 1:
+        raise ValueError(f"subsample must be an integer above the {model.n_base} base parameters, got {subsample!r}")
+    if settings.cutoff_hz is None:
+        first = next(read_chunks(paths[0], model, chunk_size=settings.chunk_size))
+        if first.dq is None or first.ddq is None:
+            return replace(settings, cutoff_hz=automatic_cutoff(paths[0], model, chunk_size=settings.chunk_size))
+    return settings
 
 
 def _file_record(path: str, sums, record: dict) -> dict[str, Any]:
     return {"path": path, "rows": record["rows"], "samples": sums.n_samples,
             "trimmed_samples": record["metadata"].get("trimmed_samples", 0)}
+
+
+def _refit(model: IdentificationModel, train: ChannelSums, found: StreamedCandidates, indices: Sequence[int]
+           ) -> tuple[list[int], SummedEstimate]:
+    """The declared model with the candidates ``indices``, estimated from the training sums."""
+    columns = list(range(model.n_base)) + [column for index in indices for column in found.columns[index]]
+    names = list(model.base.names) + [name for index in indices for name in found.blocks[index].names]
+    expressions = list(model.base.expressions) + names[model.n_base:]
+    return columns, SummedLeastSquares(method="wls").fit(normal_equations(train, columns, names, expressions)).estimate_
+
+
+def _final_estimate(model: IdentificationModel, sums: SumsPass, found: StreamedCandidates, outcome: SearchOutcome,
+                    min_improvement: float) -> tuple[list[int], list[int], SummedEstimate]:
+    """``(chosen, columns, after)``: the augmented model refitted on all samples at the shapes as
+    selected; a found Stribeck law the fit does not support becomes Coulomb friction when the
+    weighted validation error does not grow by more than ``min_improvement`` (:func:`simpler_laws`)."""
+    chosen = [item.index for item in outcome.adopted]
+    columns, after = _refit(model, sums.train, found, chosen)
+    weights = outcome.weights  # the search's last weights (the declared model's unless it reweights)
+    error = float(weights @ sums.validation.channel_mse(columns, after.values))
+    replacements = simpler_laws(chosen, found.blocks, {r["name"]: r for r in after.records()}, model)
+    if replacements:
+        simpler = [replacements.get(index, index) for index in chosen]
+        columns_s, after_s = _refit(model, sums.train, found, simpler)
+        if float(weights @ sums.validation.channel_mse(columns_s, after_s.values)) <= (1.0 + min_improvement) * error:
+            chosen, columns, after = simpler, columns_s, after_s
+    return chosen, columns, after
+
+
+def _batch_means(model: IdentificationModel, after: SummedEstimate, parts_scores, normal: np.ndarray
+                 ) -> tuple[SummedEstimate, dict[str, Any]]:
+    """The augmented estimate with its batch-means covariance (residuals correlated in time), and the
+    report's ``covariance`` entry (the batch length, the classical standard deviations of the effects)."""
+    cov, batch = sandwich(parts_scores, normal, after.cov, after.weights)
+    std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        relative_std = np.where(after.values != 0, 100.0 * std / np.abs(after.values), np.inf)
+    classical = dict(zip(after.names[model.n_base:], map(float, after.std[model.n_base:])))
+    covariance = {"method": "batch_means", "batch_length": batch, "classical_std": classical}
+    return replace(after, cov=cov, std=std, relative_std=relative_std), covariance
+
+
+def _search(model: IdentificationModel, sums: SumsPass, found: StreamedCandidates, settings: StreamedSettings,
+            floor: NoiseFloor | None) -> tuple[SummedEstimate, SearchOutcome]:
+    """The declared model estimated from the sums, and the forward selection from its weights."""
+    base = list(range(model.n_base))
+    estimator = SummedLeastSquares(method="wls")
+    before = estimator.fit(normal_equations(sums.train, base, model.base.names, model.base.expressions)).estimate_
+    weights = before.weights if before.method == "wls" else 1.0 / before.channel_variance
+    fits = SummedFits(model, sums.train, sums.validation, found.columns, found.shapes, floor)
+    search_settings = SearchSettings(settings.alpha, settings.min_improvement, settings.max_effects, found.n_candidates,
+                                     combinations=False)
+    return before, DiagnosisSearch(model, found.blocks, found.rejected, fits, weights, search_settings).run()
+
+
+@dataclass(frozen=True)
+class _Run:
+    """One streamed diagnosis: its files and settings, passes, candidates and search, and the
+    candidates its final estimate holds (``chosen``) with their columns in the sums."""
+
+    paths: list[str]
+    validate: list[str]
+    settings: StreamedSettings
+    first: SubsamplePass
+    sums: SumsPass
+    found: StreamedCandidates
+    outcome: SearchOutcome
+    chosen: list[int]
+    columns: list[int]
 
 
 def diagnose_files(
@@ -209,171 +312,60 @@ def diagnose_files(
     module docstring. ``noise_floor``: the floor of the validation record as recorded (default: on
     the window).
     """
-    from dynamics.effects.shaped import FRICTION_LAWS
-
     paths, validate = [str(path) for path in paths], [str(path) for path in validate]
-    if not paths:
-        raise ValueError("no training data files")
-    if not validate:
-        raise ValueError("diagnose confirms every effect on held-out data: give validation files")
-    for name, group in (("training", paths), ("validation", validate)):
-        if len(set(group)) != len(group):
-            raise ValueError(f"a {name} file is given twice: {sorted({p for p in group if group.count(p) > 1})}")
-    if set(paths) & set(validate):
-        raise ValueError(f"a validation file is a training file ({sorted(set(paths) & set(validate))}): diagnose confirms "
-                         "every effect on held-out data from another experiment")
-    if not 0 < alpha < 1:
-        raise ValueError(f"alpha must lie in (0, 1), got {alpha}")
-    if not 0 <= min_improvement < 1:
-        raise ValueError(f"min_improvement must lie in [0, 1), got {min_improvement}")
-    if isinstance(subsample, bool) or int(subsample) != subsample or subsample < model.n_base + 1:
-        raise ValueError(f"subsample must be an integer above the {model.n_base} base parameters, got {subsample!r}")
-    if cutoff_hz is None:
-        first = next(read_chunks(paths[0], model, chunk_size=chunk_size))
-        if first.dq is None or first.ddq is None:
-            cutoff_hz = automatic_cutoff(paths[0], model, chunk_size=chunk_size)
-    # the filter's settling trimmed at each record's ends, as the CLI's in-memory preprocessing does
-    options = dict(chunk_size=chunk_size, cutoff_hz=cutoff_hz, decimation=decimation, held_torques=held_torques,
-                   trim=True)
-    payload = model_payload(model)
-
-    # ---- pass 1: the subsample (training files)
-    clock = [time.perf_counter()]
-    seconds: dict[str, float] = {}
-
-    def lap(name: str) -> None:
-        now = time.perf_counter()
-        seconds[name] = round(now - clock[0], 3)
-        clock[0] = now
-
-    cap = -(-int(subsample) // len(paths))
-    parts = map_files(executor, subsample_task, paths, lambda path: (payload, path, options, cap, file_stamp(path)))
-    records = [record for _, _, record in parts]
-    for path, record in zip(paths, records):
-        if record["columns"] != records[0]["columns"]:
-            raise MeasurementError(f"{path} holds the column groups {record['columns']}, {paths[0]} "
-                                   f"{records[0]['columns']}: the files of one set must have the same columns")
-    sample = concatenate([part for part, _, _ in parts])
-    seen = sum(count for _, count, _ in parts)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # the subsample's own fit: its warnings are not the record's
-        reference = identify(model, sample).estimate
-    weights_sample = reference.weights if reference.method == "wls" else 1.0 / reference.channel_variance
-    candidates = tuple(default_candidates(model) + coupling_candidates(model, train=sample)
-                       if candidates is None else candidates)
-    rejected: dict[int, RejectedEffect] = {}
-    blocks: dict[int, Block] = {}
-    for index, candidate in enumerate(candidates):
-        if not isinstance(candidate, Effect):
-            raise TypeError(f"candidate {candidate!r} is not an effect")
-        try:
-            blocks[index] = Block(model.kind, model.robot, candidate, model.n_channels)
-        except NoRowsError:
-            rejected[index] = RejectedEffect(candidate.name, (), "has no rows in this model", candidate_label(candidate))
-    declared_friction = {joint for effect in model.effects if effect.name in FRICTION_LAWS
-                         for joint in (range(model.robot.n_joints) if getattr(effect, "joints", None) is None
-                                       else effect.joints)}
-    lap("subsample_pass")
-    shapes = _shape_search(model, blocks, rejected, sample, weights_sample, (FRICTION_LAWS, declared_friction))
-    lap("shape_search")
-
-    # ---- pass 2: the sums (training and validation files)
-    order = sorted(blocks)
-    plan = pickle.dumps(([blocks[i].effect for i in order], [shapes[i] for i in order]))
-    layout = ColumnLayout.build(model, [blocks[i] for i in order])
-    train_parts = map_files(executor, sums_task, paths, lambda path: (payload, plan, path, options, file_stamp(path)))
-    validate_parts = map_files(executor, sums_task, validate, lambda path: (payload, plan, path, options, file_stamp(path)))
-    for path, (sums, record), count in zip(paths, train_parts, (count for _, count, _ in parts)):
-        if sums.n_samples != count:
-            raise MeasurementError(f"{path}: {sums.n_samples} samples summed, {count} read in the first pass (did the "
-                                   "file change while it was read?)")
-    for path, (_, record) in zip(validate, validate_parts):
-        if record["columns"] != records[0]["columns"]:
-            raise MeasurementError(f"{path} holds the column groups {record['columns']}, {paths[0]} "
-                                   f"{records[0]['columns']}: the files of one set must have the same columns")
-    train = functools.reduce(lambda a, b: a + b, [sums for sums, _ in train_parts])
-    validation = functools.reduce(lambda a, b: a + b, [sums for sums, _ in validate_parts])
-    position = {index: slot for slot, index in enumerate(order)}  # candidate index -> layout block
-    local_blocks = {position[i]: blocks[i] for i in order}
-    local_shapes = {position[i]: shapes[i] for i in order}
-
-    lap("sums_pass")
-    # ---- the noise floor, the declared model, the selection
+    settings = _checked_settings(model, paths, validate, StreamedSettings(
+        chunk_size, cutoff_hz, decimation, held_torques, alpha, min_improvement, max_effects, noise_floor, subsample,
+        floor_window))
+    options, payload, clock = settings.reading(), model_payload(model), Stopwatch()
+    first = subsample_pass(executor, payload, paths, options, settings.subsample)  # pass 1 (training files)
+    found = streamed_candidates(model, candidates, first.sample, clock.lap)
+    sums = sums_pass(executor, payload, found.plan, paths, validate, options, first)  # pass 2 (all files)
+    clock.lap("sums_pass")
     if noise_floor is None:
         floor, floor_note = window_floor(validate, model, window=floor_window)
     else:
         floor, floor_note = noise_floor, f"given ({noise_floor.method})"
-    base = list(range(model.n_base))
-    estimator = SummedLeastSquares(method="wls")
-    before = estimator.fit(normal_equations(train, base, model.base.names, model.base.expressions)).estimate_
-    weights = before.weights if before.method == "wls" else 1.0 / before.channel_variance
-    selection = select_effects(model, local_blocks, local_shapes, {}, train, validation, weights, alpha=alpha,
-                               min_improvement=min_improvement, max_effects=max_effects, floor=floor,
-                               n_candidates=len(candidates))
-    chosen = list(selection.chosen)
+    before, outcome = _search(model, sums, found, settings, floor)
+    chosen, columns, after = _final_estimate(model, sums, found, outcome, min_improvement)
+    clock.lap("selection_and_estimates")
+    # pass 3 (training files): the batch-means covariance of the final estimate
+    parts_scores = scores_pass(executor, payload, found.final_plan(chosen), paths, options, after.values, after.weights)
+    after, covariance = _batch_means(model, after, parts_scores, sums.train.normal_system(columns, after.weights)[0])
+    clock.lap("covariance_pass")
+    run = _Run(paths, validate, settings, first, sums, found, outcome, chosen, columns)
+    return _result(model, run, before, after, floor, floor_note, _streaming_record(run, covariance, clock.seconds))
 
-    def refit(indices):
-        columns = base + [column for index in indices for column in layout.blocks[index]]
-        names = list(model.base.names) + [name for index in indices for name in local_blocks[index].names]
-        expressions = list(model.base.expressions) + names[model.n_base:]
-        estimate = SummedLeastSquares(method="wls").fit(normal_equations(train, columns, names, expressions)).estimate_
-        return columns, estimate
 
-    columns, after = refit(chosen)
-    weights = selection.weights  # the search's last weights (the declared model's unless it reweights)
-    error = float(weights @ validation.channel_mse(columns, after.values))
-    replacements = simpler_laws(chosen, local_blocks, {r["name"]: r for r in after.records()}, model)
-    if replacements:
-        simpler = [replacements.get(index, index) for index in chosen]
-        columns_s, after_s = refit(simpler)
-        if float(weights @ validation.channel_mse(columns_s, after_s.values)) <= (1.0 + min_improvement) * error:
-            chosen, columns, after = simpler, columns_s, after_s
-
-    # ---- pass 3: the batch-means covariance of the final estimate (residuals correlated in time)
-    lap("selection_and_estimates")
-    plan_final = pickle.dumps(([local_blocks[i].effect for i in chosen], [local_shapes[i] for i in chosen]))
-    parts_scores = map_files(executor, scores_task, paths, lambda path: (payload, plan_final, path, options,
-                                                                         after.values, after.weights, file_stamp(path)))
-    cov, batch = sandwich(parts_scores, train.normal_system(columns, after.weights)[0], after.cov, after.weights)
-    std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        relative_std = np.where(after.values != 0, 100.0 * std / np.abs(after.values), np.inf)
-    classical_std = after.std
-    after = replace(after, cov=cov, std=std, relative_std=relative_std)
-    lap("covariance_pass")
-
-    nominal = model.base.K @ model.nominal_parameters()
-    trivial = {"zero_mse": dict(zip(model.channels, map(float, validation.power[:, 1] / validation.n_samples))),
-               "nominal_mse": dict(zip(model.channels, map(float, validation.channel_mse(base, nominal))))}
-
-    def mse(sums, columns, theta):
-        return dict(zip(model.channels, map(float, sums.channel_mse(columns, theta))))
-
-    found = []
+def _found_effects(model: IdentificationModel, run: _Run, after: SummedEstimate) -> tuple[FoundEffect, ...]:
     records = {r["name"]: r for r in after.records()}
-    for index, p_value, statistic in zip(chosen, selection.p_values, selection.f_statistics):
-        block = local_blocks[index]
-        found.append(FoundEffect(
+    effects = []
+    for index, item in zip(run.chosen, run.outcome.adopted):
+        block = run.found.blocks[index]
+        effects.append(FoundEffect(
             name=block.effect.name, channels=tuple(model.channels[r] for r in block.rows), parameters=block.names,
             values=tuple(records[name]["value"] for name in block.names),
-            std=tuple(records[name]["std"] for name in block.names), p_value=p_value, f_statistic=float(statistic),
-            spec=candidate_label(block.effect),
-            shape={p.name: float(v) for p, v in zip(block.parameters, local_shapes[index])}, shape_std={}))
-    rejected_all = dict(rejected)
-    rejected_all.update({order[slot]: value for slot, value in selection.rejected.items()})
-    normal = train.normal_system(columns, weights)[0]
+            std=tuple(records[name]["std"] for name in block.names), p_value=item.p_value,
+            f_statistic=float(item.f_statistic), spec=candidate_label(block.effect),
+            shape={p.name: float(v) for p, v in zip(block.parameters, run.found.shapes[index])}, shape_std={}))
+    return tuple(effects)
+
+
+def _streaming_record(run: _Run, covariance: dict[str, Any], seconds: dict[str, float]) -> dict[str, Any]:
+    """The report's ``streaming`` entry: how the files were read, summed and estimated."""
+    settings, sums = run.settings, run.sums
+    normal = sums.train.normal_system(run.columns, run.outcome.weights)[0]
     scale = np.sqrt(np.diag(normal))
     condition = float(np.linalg.cond(normal / np.outer(scale, scale)))
-    streaming = {
-        "chunk_size": int(chunk_size), "cutoff_hz": cutoff_hz, "decimation": int(decimation),
-        "files": [_file_record(path, sums, record) for path, (sums, record) in zip(paths, train_parts)],
-        "validation_files": [_file_record(path, sums, record) for path, (sums, record) in zip(validate, validate_parts)],
-        "subsample": {"samples": sample.n_samples, "of": seen, "requested": int(subsample),
+    return {
+        "chunk_size": int(settings.chunk_size), "cutoff_hz": settings.cutoff_hz, "decimation": int(settings.decimation),
+        "files": [_file_record(path, part, record) for path, (part, record) in zip(run.paths, sums.train_parts)],
+        "validation_files": [_file_record(path, part, record)
+                             for path, (part, record) in zip(run.validate, sums.validate_parts)],
+        "subsample": {"samples": run.first.sample.n_samples, "of": run.first.seen, "requested": int(settings.subsample),
                       "used_for": "shape search of shaped laws, coupling-pair tracing"},
-        "floor_window": int(floor_window) if noise_floor is None else None,
-        "stopped_at_floor": selection.stopped_at_floor,
-        "covariance": {"method": "batch_means", "batch_length": batch,
-                       "classical_std": dict(zip(after.names[model.n_base:], map(float, classical_std[model.n_base:])))},
+        "floor_window": int(settings.floor_window) if settings.noise_floor is None else None,
+        "stopped_at_floor": run.outcome.stopped_at_floor,
+        "covariance": covariance,
         "seconds": seconds,
         "errors_against": "the channels as recorded, along the derived motion",
         "accuracy": {"solve": "per-channel Gram sums, equilibrated, Cholesky (as the in-memory loop)",
@@ -381,15 +373,27 @@ def diagnose_files(
                      "relative_error_bound": condition * np.finfo(float).eps},
         "not_on_this_path": list(NOT_ON_THIS_PATH),
     }
+
+
+def _result(model: IdentificationModel, run: _Run, before: SummedEstimate, after: SummedEstimate,
+            floor: NoiseFloor | None, floor_note: str, streaming: dict[str, Any]) -> StreamedDiagnosis:
+    """The result: errors before and after against the recording, the trivial predictors, warnings."""
+    train, validation, base = run.sums.train, run.sums.validation, list(range(model.n_base))
+    nominal = model.base.K @ model.nominal_parameters()
+    trivial = {"zero_mse": dict(zip(model.channels, map(float, validation.power[:, 1] / validation.n_samples))),
+               "nominal_mse": dict(zip(model.channels, map(float, validation.channel_mse(base, nominal))))}
+    mse = {(name, which): dict(zip(model.channels, map(float, part.channel_mse(selection, theta))))
+           for name, part in (("train", train), ("validation", validation))
+           for which, selection, theta in (("before", base, before.values), ("after", run.columns, after.values))}
+    rejected = run.outcome.rejected
     return StreamedDiagnosis(
-        model=model, effects=tuple(found), rejected=tuple(rejected_all[i] for i in sorted(rejected_all)),
+        model=model, effects=_found_effects(model, run, after), rejected=tuple(rejected[i] for i in sorted(rejected)),
         before=before, after=after,
-        train_mse={"before": mse(train, base, before.values), "after": mse(train, columns, after.values)},
-        validation_mse={"before": mse(validation, base, before.values), "after": mse(validation, columns, after.values)},
+        train_mse={which: mse["train", which] for which in ("before", "after")},
+        validation_mse={which: mse["validation", which] for which in ("before", "after")},
         n_train=train.n_samples, n_validation=validation.n_samples, floor=floor, floor_note=floor_note,
         streaming=streaming,
         warnings={"before": implausible_estimates(model, before),
-                  "after": implausible_estimates(model, after) + trivial_warnings(
-                      dict(zip(model.channels, map(float, validation.channel_mse(columns, after.values)))), trivial)},
+                  "after": implausible_estimates(model, after) + trivial_warnings(mse["validation", "after"], trivial)},
         trivial=trivial,
     )

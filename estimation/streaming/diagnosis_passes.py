@@ -2,6 +2,9 @@
 task a file on any ``concurrent.futures.Executor`` (as :func:`estimation.streaming.cluster.sum_files`), and
 the noise floor on a bounded window.
 
+* :func:`subsample_pass`, :func:`sums_pass`, :func:`scores_pass`: the three passes over the files,
+  with their checks (the files of one set hold the same columns, the second pass reads the samples
+  the first did);
 * :func:`subsample_task`: an evenly spread subsample of one file's prepared samples
   (:class:`~estimation.streaming.diagnosis_sums.EvenSubsample`), the samples seen and the reading record;
 * :func:`sums_task`: one file's :class:`~estimation.streaming.diagnosis_sums.ChannelSums` of the base and
@@ -18,22 +21,25 @@ import functools
 import pickle
 import warnings
 from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from dynamics.measurements import Measurements
 from dynamics.models import IdentificationModel
 from dynamics.runtime.threads import single_threaded_blas
-from estimation.streaming.cluster import caught_warnings, model_from_payload, task_result
-from estimation.streaming.diagnosis_sums import ChannelSums, ColumnLayout, EvenSubsample, chunk_sums
+from estimation.streaming.cluster import caught_warnings, file_stamp, model_from_payload, task_result
+from estimation.streaming.diagnosis_sums import ChannelSums, ColumnLayout, EvenSubsample, chunk_sums, concatenate
 from estimation.data.loading import MeasurementError
 from estimation.uncertainty.noise_floor import NoiseFloor, NoiseFloorError, noise_floor, pooled_floor
 from estimation.streaming.chunks import preprocessed_chunks, read_chunks
 from estimation.streaming.covariance import BatchScores, chunk_scores
 from estimation.estimators.effect_blocks import Block
 
-__all__ = ["FLOOR_WINDOW", "map_files", "scores_task", "subsample_task", "sums_task", "window_floor"]
+__all__ = ["FLOOR_WINDOW", "SubsamplePass", "SumsPass", "map_files", "scores_pass", "scores_task", "subsample_pass",
+           "subsample_task", "sums_pass", "sums_task", "window_floor"]
 
 #: rows of each validation file (as recorded) the noise floor is estimated on
 FLOOR_WINDOW = 100_000
@@ -113,6 +119,69 @@ def map_files(executor, task, paths: Sequence[str], *arguments) -> list:
     finally:
         for future in futures:
             future.cancel()
+
+
+@dataclass(frozen=True)
+class SubsamplePass:
+    """The first pass: the evenly spread training subsample, the samples read in each file and each
+    file's reading record."""
+
+    sample: Measurements
+    counts: tuple[int, ...]
+    records: tuple[dict, ...]
+
+    @property
+    def seen(self) -> int:
+        return sum(self.counts)
+
+
+@dataclass(frozen=True)
+class SumsPass:
+    """The second pass: the training and validation sums, and each file's ``(sums, reading record)``."""
+
+    train: ChannelSums
+    validation: ChannelSums
+    train_parts: tuple[tuple[ChannelSums, dict], ...]
+    validate_parts: tuple[tuple[ChannelSums, dict], ...]
+
+
+def _same_columns(paths: Sequence[str], records: Sequence[dict], reference: str, expected: dict) -> None:
+    for path, record in zip(paths, records):
+        if record["columns"] != expected["columns"]:
+            raise MeasurementError(f"{path} holds the column groups {record['columns']}, {reference} "
+                                   f"{expected['columns']}: the files of one set must have the same columns")
+
+
+def subsample_pass(executor, payload: bytes, paths: Sequence[str], options: dict[str, Any],
+                   subsample: int) -> SubsamplePass:
+    """About ``subsample`` training samples spread evenly over the files (:func:`subsample_task`)."""
+    cap = -(-int(subsample) // len(paths))
+    parts = map_files(executor, subsample_task, paths, lambda path: (payload, path, options, cap, file_stamp(path)))
+    records = tuple(record for _, _, record in parts)
+    _same_columns(paths, records, paths[0], records[0])
+    return SubsamplePass(concatenate([part for part, _, _ in parts]), tuple(count for _, count, _ in parts), records)
+
+
+def sums_pass(executor, payload: bytes, plan: bytes, paths: Sequence[str], validate: Sequence[str],
+              options: dict[str, Any], first: SubsamplePass) -> SumsPass:
+    """The sums of every training and validation file (:func:`sums_task`), checked against the first pass."""
+    train_parts = map_files(executor, sums_task, paths, lambda path: (payload, plan, path, options, file_stamp(path)))
+    validate_parts = map_files(executor, sums_task, validate, lambda path: (payload, plan, path, options, file_stamp(path)))
+    for path, (sums, _), count in zip(paths, train_parts, first.counts):
+        if sums.n_samples != count:
+            raise MeasurementError(f"{path}: {sums.n_samples} samples summed, {count} read in the first pass (did the "
+                                   "file change while it was read?)")
+    _same_columns(validate, [record for _, record in validate_parts], paths[0], first.records[0])
+    return SumsPass(functools.reduce(lambda a, b: a + b, [sums for sums, _ in train_parts]),
+                    functools.reduce(lambda a, b: a + b, [sums for sums, _ in validate_parts]),
+                    tuple(train_parts), tuple(validate_parts))
+
+
+def scores_pass(executor, payload: bytes, plan: bytes, paths: Sequence[str], options: dict[str, Any],
+                theta: np.ndarray, weights: np.ndarray) -> list[BatchScores]:
+    """Each training file's batch scores at the final estimate (:func:`scores_task`)."""
+    return map_files(executor, scores_task, paths, lambda path: (payload, plan, path, options, theta, weights,
+                                                                 file_stamp(path)))
 
 
 def window_floor(paths: Sequence[str | Path], model: IdentificationModel, *, window: int = FLOOR_WINDOW,
