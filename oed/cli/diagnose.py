@@ -17,6 +17,7 @@ from estimation.uncertainty.noise_floor import NoiseFloor, NoiseFloorError, nois
 from oed.cli.asbuilt import (add_asbuilt_arguments, finish_document, model_effects, resolve_transmission, rest_message,
                              rest_rows, trivial_predictors, worse_after)
 from oed.cli.common import OutputFiles, add_robot_arguments, json_text, robot_from_arguments
+from oed.cli.model_files import add_model_file
 from oed.cli.diagnose_streaming import add_streamed_diagnosis_arguments, check_in_memory_diagnosis, run_streaming
 from oed.cli.identify import (add_data_arguments, add_derivative_arguments, add_streaming_arguments,
                               check_shaped_effects_kept, differentiation, prepare_data, print_warnings,
@@ -130,6 +131,7 @@ def run(args: argparse.Namespace) -> int:
     document["diagnosis_path"] = "in-memory"  # "streamed": --chunk-size (oed.cli.diagnose_streaming)
     document["max_effects"] = args.max_effects
     document["max_effects_reached"] = len(diagnosis.effects) >= args.max_effects
+    add_model_file(document, diagnosis.after, args, preprocessing, transmission, verb="diagnose")
     with OutputFiles() as outputs:  # all files or none
         with outputs.open(args.out) as stream:
             stream.write(json_text(document))

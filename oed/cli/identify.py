@@ -25,6 +25,7 @@ from estimation.identification.validation import plot_comparison
 from oed.cli.asbuilt import (add_asbuilt_arguments, finish_document, model_effects, resolve_transmission, rest_message,
                              rest_rows, trivial_predictors)
 from oed.cli.common import OutputFiles, add_robot_arguments, check_figure_path, json_text, robot_from_arguments
+from oed.cli.model_files import add_model_file
 from oed.cli.identify_consistent import (
     add_consistent_arguments, check_consistent_arguments, consistent_refit, print_consistent,
 )
@@ -311,6 +312,7 @@ def run(args: argparse.Namespace) -> int:
                                transmission=transmission)
     if consistent is not None:
         document.update(consistent.to_dict())
+    add_model_file(document, result, args, preprocessing, transmission, verb="identify", consistent=consistent)
     with OutputFiles() as outputs:  # all files or none
         with outputs.open(args.out) as stream:
             stream.write(json_text(document))

@@ -1,0 +1,37 @@
+"""The keys ``model_file`` and ``plausibility`` of ``result.json`` and ``report.json`` (one call from each verb)."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from typing import Any
+
+from estimation.identification.fit import IdentificationResult
+from estimation.identification.model_file import RobotSource, model_file_document
+from estimation.identification.plausibility import assess_plausibility
+
+
+def add_model_file(document: dict[str, Any], result: IdentificationResult, args: argparse.Namespace, preprocessing: Any,
+                   transmission: Any, *, verb: str, consistent: Any = None) -> None:
+    """Put ``model_file`` (what ``oed predict`` and ``oed export`` read) and ``plausibility`` into
+    ``document``, in place; print the plausibility warnings on stderr.
+
+    ``preprocessing``: the :class:`estimation.preprocessing.plan.Preprocessing` chosen on the training data;
+    ``consistent``: the :class:`estimation.consistent.identification.ConsistentResult` of ``--consistent``, or ``None``.
+    """
+    robot = RobotSource.from_description(result.model.robot, builtin=None if args.urdf is not None else args.robot,
+                                         urdf=args.urdf, joints=args.joints)
+    rest = None if args.min_speed is None or args.min_speed == 0 else {"min_speed": args.min_speed, "rest": args.rest}
+    links = effects = None
+    if consistent is not None:
+        links, effects = consistent.estimate.link_parameters(), consistent.estimate.effect_values()
+    document["model_file"] = model_file_document(result, robot=robot, preprocessing=preprocessing.to_dict(),
+                                                 transmission=transmission, rest=rest, max_gap=args.max_gap,
+                                                 consistent_links=links, consistent_effects=effects)
+    validation = document.get("validation") or {}
+    plausibility = assess_plausibility(result.model, result.estimate.records(),
+                                       validation_mse=None if result.validation is None else result.validation.mse,
+                                       nominal_mse=validation.get("nominal_mse"), zero_mse=validation.get("zero_mse"))
+    document["plausibility"] = plausibility.to_dict()
+    for message in plausibility.messages():
+        print(f"oed {verb}: warning: {message}", file=sys.stderr)
