@@ -12,7 +12,7 @@ The prediction is ``ŷ = Y_b(q, q̇, q̈; s) θ`` (PUMA paper, eq. 13, with the 
 fitted delay (:mod:`estimation.preprocessing.delay`). Its 95 % prediction interval per sample and
 channel is ``ŷ ± z √(y_bᵀ Σ_θ y_b + σ_c²)``: the parameters' covariance ``Σ_θ`` (the linear
 coefficients'; for shaped effects it includes the shapes' uncertainty through the full Jacobian)
-plus the channel's residual variance ``σ_c²`` from the fit.
+plus the channel's residual variance ``σ_c²`` on the training record, against its channels as recorded.
 """
 
 from __future__ import annotations
@@ -204,7 +204,7 @@ class IdentifiedModel:
         """``(N, m)`` half-widths ``z √(y_bᵀ Σ_θ y_b + σ_c²)`` of the prediction band (module docstring)."""
         Y = self.regressor(q, dq, ddq)
         variance = np.einsum("nmr,rs,nms->nm", Y, self.cov, Y, optimize=True)
-        return z * np.sqrt(np.clip(variance, 0.0, None) + self.file.channel_variance[None, :])
+        return z * np.sqrt(np.clip(variance, 0.0, None) + self.file.band_variance[None, :])
 
     def predict_record(self, measurements: Measurements) -> Prediction:
         """The prediction along a prepared record (``q, dq, ddq`` present), its motion moved by the fitted

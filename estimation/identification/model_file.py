@@ -16,6 +16,7 @@
         "base": {"names": […], "expressions": […]},
         "theta": […], "cov": [[…]],                           # base parameters and their covariance
         "channel_variance": {"tau1": …}, "weights": {"tau1": …}, "method": "wls",
+        "recorded_variance": {"tau1": …},                    # training MSE against the channels as recorded
         "preprocessing": {method, frequency_hz | cutoff_hz, …},
         "rest": {"min_speed": 0.05, "rest": "drop"} | null, "max_gap": 0.05,
         "reported": {"validation_mse": {channel: value} | null},
@@ -147,6 +148,14 @@ class ModelFile:
     effect_values: tuple[Mapping[str, Any], ...] = ()
     consistent_links: NDArray[np.float64] | None = None
     consistent_effects: Mapping[str, float] | None = None
+    recorded_variance: NDArray[np.float64] | None = None
+
+    @property
+    def band_variance(self) -> NDArray[np.float64]:
+        """The channels' noise variance of the prediction band: the training MSE against the channels
+        as recorded (the fit's residual variance is against filtered or averaged ones when the
+        preprocessing made them)."""
+        return self.channel_variance if self.recorded_variance is None else self.recorded_variance
 
     def to_dict(self) -> dict[str, Any]:
         """The ``model_file`` document (module docstring)."""
@@ -163,6 +172,8 @@ class ModelFile:
             "theta": self.theta.tolist(), "cov": self.cov.tolist(),
             "channel_variance": dict(zip(channels, self.channel_variance.tolist())),
             "weights": dict(zip(channels, self.weights.tolist())), "method": self.method,
+            "recorded_variance": None if self.recorded_variance is None
+            else dict(zip(channels, self.recorded_variance.tolist())),
             "preprocessing": None if self.preprocessing is None else dict(self.preprocessing),
             "rest": None if self.rest is None else dict(self.rest), "max_gap": self.max_gap,
             "reported": {"validation_mse": None if self.reported_validation_mse is None
@@ -201,6 +212,8 @@ class ModelFile:
                 effect_values=tuple(document.get("effect_values") or ()),
                 consistent_links=None if consistent is None else np.asarray(consistent["links"], dtype=float),
                 consistent_effects=None if consistent is None else dict(consistent.get("effects") or {}),
+                recorded_variance=None if document.get("recorded_variance") is None
+                else np.array([document["recorded_variance"][c] for c in channels], dtype=float),
             )
         except (KeyError, TypeError) as error:
             raise ModelFileError(f"the model file lacks or garbles {error}") from None
@@ -259,6 +272,7 @@ def model_file_document(result: IdentificationResult, *, robot: RobotSource, pre
         effect_values=_effect_values(result),
         consistent_links=None if consistent_links is None else np.asarray(consistent_links, dtype=float).reshape(-1, 10),
         consistent_effects=None if consistent_effects is None else dict(consistent_effects),
+        recorded_variance=np.array([result.train.mse[channel] for channel in model.channels]),
     )
     return document.to_dict()
 
