@@ -22,7 +22,7 @@ import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -46,6 +46,7 @@ from estimation.uncertainty.noise_floor import NoiseFloorError, noise_floor, poo
 
 __all__ = ["Evaluation", "IdentifiedModel", "Prediction", "Z_95", "preprocessing_from_dict"]
 
+Estimate = Literal["unconstrained", "consistent"]
 #: the two-sided 95 % quantile of the normal distribution
 Z_95 = 1.959963984540054
 
@@ -129,9 +130,15 @@ class Evaluation:
 class IdentifiedModel:
     """An identified model rebuilt from its :class:`~estimation.identification.model_file.ModelFile`."""
 
-    def __init__(self, model_file: ModelFile) -> None:
+    def __init__(self, model_file: ModelFile, *, estimate: Estimate = "unconstrained") -> None:
         if not isinstance(model_file, ModelFile):
             raise TypeError(f"model_file must be a ModelFile, got {type(model_file).__name__}")
+        if estimate not in ("unconstrained", "consistent"):
+            raise ValueError(f"estimate must be 'unconstrained' or 'consistent', got {estimate!r}")
+        if estimate == "consistent" and model_file.consistent_theta is None:
+            raise ModelFileError("the model file holds no physically consistent estimate: identify with "
+                                 "`oed identify --consistent`")
+        self.estimate = estimate
         self.file = model_file
         self.robot = model_file.robot.load()
         if list(self.robot.joint_names) != list(model_file.joint_names):
@@ -145,8 +152,9 @@ class IdentifiedModel:
         if tuple(self.model.base.names) != tuple(model_file.names):
             raise ModelFileError("the model rebuilt from the file has other base parameters than it was identified "
                                  f"with ({list(self.model.base.names)[:5]}… against {list(model_file.names)[:5]}…)")
-        self.theta = np.asarray(model_file.theta, dtype=float)
-        self.cov = np.asarray(model_file.cov, dtype=float)
+        consistent = estimate == "consistent"
+        self.theta = np.asarray(model_file.consistent_theta if consistent else model_file.theta, dtype=float)
+        self.cov = np.asarray(model_file.consistent_cov if consistent else model_file.cov, dtype=float)
         self._blocks, self._replaced = shaped_blocks(self.model) if self._shaped else ([], [])
         missing = [parameter.name for block in self._blocks for parameter in block.parameters
                    if parameter.name not in model_file.shape]
@@ -154,9 +162,17 @@ class IdentifiedModel:
             raise ModelFileError(f"the model file lacks the fitted shape parameters {missing}")
 
     @classmethod
-    def load(cls, path: str | Path) -> IdentifiedModel:
-        """The model of a ``result.json`` (``oed identify``) or ``report.json`` (``oed diagnose``)."""
-        return cls(read_model_file(path))
+    def load(cls, path: str | Path, *, estimate: Estimate = "unconstrained") -> IdentifiedModel:
+        """The model of a ``result.json`` (``oed identify``) or ``report.json`` (``oed diagnose``);
+        ``estimate="consistent"``: its physically consistent estimate (``oed identify --consistent``)."""
+        return cls(read_model_file(path), estimate=estimate)
+
+    @property
+    def reported_validation_mse(self) -> dict[str, float] | None:
+        """The validation MSE the identification reported for this estimate."""
+        reported = self.file.consistent_validation_mse if self.estimate == "consistent" \
+            else self.file.reported_validation_mse
+        return None if reported is None else dict(reported)
 
     @property
     def _shaped(self) -> bool:
@@ -265,4 +281,4 @@ class IdentifiedModel:
         trivial = trivial_mse(self.model, prepared)
         return Evaluation(self.predict_record(prepared), trivial["zero_mse"], trivial["nominal_mse"],
                           self.floor(segments),
-                          None if self.file.reported_validation_mse is None else dict(self.file.reported_validation_mse))
+                          self.reported_validation_mse)

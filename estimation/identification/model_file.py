@@ -20,7 +20,9 @@
         "preprocessing": {method, frequency_hz | cutoff_hz, …},
         "rest": {"min_speed": 0.05, "rest": "drop"} | null, "max_gap": 0.05,
         "reported": {"validation_mse": {channel: value} | null},
-        "consistent": {"links": [[m, mx, …, Izz], …], "effects": {"fv1": …}} | null}
+        "consistent": {"links": [[m, mx, …, Izz], …], "effects": {"fv1": …},   # oed identify --consistent
+                       "theta": […], "cov": [[…]],                          # its base parameters
+                       "validation_mse": {channel: value} | null} | null}
 
 The model's prediction along a motion is ``Y_b(q, q̇, q̈; s) θ`` with the shaped columns at the
 fitted shapes ``s`` (:mod:`estimation.identification.shaped`), along the motion moved by the delay
@@ -149,6 +151,9 @@ class ModelFile:
     consistent_links: NDArray[np.float64] | None = None
     consistent_effects: Mapping[str, float] | None = None
     recorded_variance: NDArray[np.float64] | None = None
+    consistent_theta: NDArray[np.float64] | None = None
+    consistent_cov: NDArray[np.float64] | None = None
+    consistent_validation_mse: Mapping[str, float] | None = None
 
     @property
     def band_variance(self) -> NDArray[np.float64]:
@@ -179,7 +184,11 @@ class ModelFile:
             "reported": {"validation_mse": None if self.reported_validation_mse is None
                          else dict(self.reported_validation_mse)},
             "consistent": None if self.consistent_links is None else {
-                "links": self.consistent_links.tolist(), "effects": dict(self.consistent_effects or {})},
+                "links": self.consistent_links.tolist(), "effects": dict(self.consistent_effects or {}),
+                "theta": None if self.consistent_theta is None else self.consistent_theta.tolist(),
+                "cov": None if self.consistent_cov is None else self.consistent_cov.tolist(),
+                "validation_mse": None if self.consistent_validation_mse is None
+                else dict(self.consistent_validation_mse)},
         }
 
     @classmethod
@@ -212,6 +221,11 @@ class ModelFile:
                 effect_values=tuple(document.get("effect_values") or ()),
                 consistent_links=None if consistent is None else np.asarray(consistent["links"], dtype=float),
                 consistent_effects=None if consistent is None else dict(consistent.get("effects") or {}),
+                consistent_theta=None if consistent is None or consistent.get("theta") is None
+                else np.asarray(consistent["theta"], dtype=float),
+                consistent_cov=None if consistent is None or consistent.get("cov") is None
+                else np.asarray(consistent["cov"], dtype=float).reshape(len(consistent["theta"]), -1),
+                consistent_validation_mse=None if consistent is None else consistent.get("validation_mse"),
                 recorded_variance=None if document.get("recorded_variance") is None
                 else np.array([document["recorded_variance"][c] for c in channels], dtype=float),
             )
@@ -240,13 +254,14 @@ def _effect_values(result: IdentificationResult) -> tuple[dict[str, Any], ...]:
 
 def model_file_document(result: IdentificationResult, *, robot: RobotSource, preprocessing: Mapping[str, Any] | None,
                         transmission: Any = None, rest: Mapping[str, Any] | None = None, max_gap: float | None = None,
-                        consistent_links: NDArray[np.float64] | None = None,
-                        consistent_effects: Mapping[str, float] | None = None) -> dict[str, Any]:
+                        consistent: Any = None, consistent_validation_mse: Mapping[str, float] | None = None
+                        ) -> dict[str, Any]:
     """The ``model_file`` document of ``result`` (module docstring).
 
     ``transmission``: a :class:`dynamics.transmission.Transmission` or ``None``; ``rest``: ``{min_speed,
-    rest}`` when rows at rest were dropped or Coulomb laws smoothed; ``consistent_links``: ``(n, 10)``
-    standard parameters of a physically consistent refit, with its effect values.
+    rest}`` when rows at rest were dropped or Coulomb laws smoothed; ``consistent``: the
+    :class:`estimation.consistent.least_squares.ConsistentEstimate` of a physically consistent refit, or
+    ``None``, with its validation MSE.
     """
     model, estimate = result.model, result.estimate
     shapes = [value for value in result.shapes if value.name != DELAY_NAME]
@@ -270,8 +285,11 @@ def model_file_document(result: IdentificationResult, *, robot: RobotSource, pre
         rest=None if rest is None else dict(rest), max_gap=max_gap,
         reported_validation_mse=None if result.validation is None else dict(result.validation.mse),
         effect_values=_effect_values(result),
-        consistent_links=None if consistent_links is None else np.asarray(consistent_links, dtype=float).reshape(-1, 10),
-        consistent_effects=None if consistent_effects is None else dict(consistent_effects),
+        consistent_links=None if consistent is None else np.asarray(consistent.link_parameters(), dtype=float),
+        consistent_effects=None if consistent is None else dict(consistent.effect_values()),
+        consistent_theta=None if consistent is None else np.asarray(consistent.values, dtype=float),
+        consistent_cov=None if consistent is None else np.asarray(consistent.cov, dtype=float),
+        consistent_validation_mse=None if consistent_validation_mse is None else dict(consistent_validation_mse),
         recorded_variance=np.array([result.train.mse[channel] for channel in model.channels]),
     )
     return document.to_dict()

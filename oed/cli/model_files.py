@@ -22,12 +22,11 @@ def add_model_file(document: dict[str, Any], result: IdentificationResult, args:
     robot = RobotSource.from_description(result.model.robot, builtin=None if args.urdf is not None else args.robot,
                                          urdf=args.urdf, joints=args.joints)
     rest = None if args.min_speed is None or args.min_speed == 0 else {"min_speed": args.min_speed, "rest": args.rest}
-    links = effects = None
-    if consistent is not None:
-        links, effects = consistent.estimate.link_parameters(), consistent.estimate.effect_values()
     document["model_file"] = model_file_document(result, robot=robot, preprocessing=preprocessing.to_dict(),
                                                  transmission=transmission, rest=rest, max_gap=args.max_gap,
-                                                 consistent_links=links, consistent_effects=effects)
+                                                 consistent=None if consistent is None else consistent.estimate,
+                                                 consistent_validation_mse=None if consistent is None
+                                                 or consistent.validation is None else consistent.validation.mse)
     validation = document.get("validation") or {}
     plausibility = assess_plausibility(result.model, result.estimate.records(),
                                        validation_mse=None if result.validation is None else result.validation.mse,
