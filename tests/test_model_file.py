@@ -132,3 +132,21 @@ def test_a_diagonal_inertia_far_below_zero_is_implausible():
     assert not check.plausible and check.worse_than_nominal
     assert [term["name"] for term in check.negative_terms] == [model.base.names[index]]
     assert all("--consistent" in message for message in check.messages())
+
+
+def test_a_fit_worse_than_the_nominal_model_says_so(tmp_path, capsys):
+    """Identified on a record that hardly moves, the model predicts another worse than the description."""
+    robot = load_robot("puma560", joints=3)
+    model = build_model(robot, "internal", "viscous")
+    poor = simulate(model, true_parameters(model, seed=1), random_fourier(robot, seed=5, fill=0.02, harmonics=1),
+                    rate_hz=100.0, periods=1, noise={"tau1": 2.0, "tau2": 2.0, "tau3": 2.0}, seed=5)
+    poor.write(tmp_path / "poor.csv")
+    validate = tmp_path / "validate.csv"
+    simulate(model, true_parameters(model, seed=1), random_fourier(robot, seed=6), rate_hz=100.0, noise=NOISE,
+             seed=6).write(validate)
+    result = tmp_path / "result.json"
+    assert main(["identify", "--joints", "3", "--data", str(tmp_path / "poor.csv"), "--validate", str(validate),
+                 "--out", str(result)]) == 0
+    plausibility = json.loads(result.read_text())["plausibility"]
+    assert plausibility["worse_than_nominal"] and not plausibility["plausible"]
+    assert "worse than the nominal description" in capsys.readouterr().err
