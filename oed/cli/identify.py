@@ -26,6 +26,7 @@ from oed.cli.asbuilt import (add_asbuilt_arguments, finish_document, model_effec
                              rest_rows, trivial_predictors)
 from oed.cli.common import OutputFiles, add_robot_arguments, check_figure_path, json_text, robot_from_arguments
 from oed.cli.model_files import add_model_file
+from oed.cli.options import check_hertz
 from oed.cli.identify_consistent import (
     add_consistent_arguments, check_consistent_arguments, consistent_refit, print_consistent,
 )
@@ -183,6 +184,7 @@ def add_derivative_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def differentiation(args: argparse.Namespace) -> Differentiation:
+    check_hertz(args, "frequency", "cutoff")
     if args.frequency is not None and args.cutoff is not None:
         raise ValueError("give --frequency (Fourier fit of periodic data) or --cutoff (Butterworth filter), not both")
     if args.frequency is not None:
