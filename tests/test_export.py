@@ -89,7 +89,7 @@ def test_the_exported_urdf_and_friction_reproduce_oed_predict_through_pinocchio(
 
 
 def test_an_unconstrained_fit_is_not_exported(consistent_result, tmp_path, capsys):
-    folder, _, validate = consistent_result
+    _, _, validate = consistent_result
     result = tmp_path / "plain.json"
     assert main(["identify", "--joints", "3", "--data", str(validate), "--friction", "viscous", "--out", str(result)]) == 0
     urdf = tmp_path / "out.urdf"

@@ -76,6 +76,7 @@ def test_predict_reproduces_the_diagnosis_after_mse(records):
                  "--friction", "viscous", "--out", str(report)]) == 0
     document = json.loads(report.read_text())
     assert any(effect["shape"] for effect in document["effects"])  # a shaped law was found
+    assert document["model_file"]["delay"] is not None and document["model_file"]["shape"]
     assert main(["predict", "--model", str(report), "--data", str(validate), "--metrics", str(metrics)]) == 0
     measured = json.loads(metrics.read_text())
     assert _relative(measured["mse"], document["validation"]["after"]["mse"]) < 1e-6

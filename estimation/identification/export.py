@@ -25,7 +25,7 @@ from dynamics.physical_parameters import consistency_margin
 from dynamics.urdf_export import robot_urdf, urdf_with_inertials
 from estimation.identification.identified_model import IdentifiedModel
 
-__all__ = ["DEGENERATE_MARGIN", "ExportError", "LAWS", "degenerate_links", "exported_urdf", "friction_document"]
+__all__ = ["DEGENERATE_MARGIN", "LAWS", "ExportError", "degenerate_links", "exported_urdf", "friction_document"]
 
 #: a body whose pseudo-inertia's smallest over largest eigenvalue is below this is degenerate (a point, a
 #: rod or a plate): the data did not determine it, the bounds of consistency did

@@ -44,7 +44,7 @@ from estimation.preprocessing.delay import delayed
 from estimation.preprocessing.plan import Preprocessing, check_frequency, prepare
 from estimation.uncertainty.noise_floor import NoiseFloorError, noise_floor, pooled_floor
 
-__all__ = ["Evaluation", "IdentifiedModel", "Prediction", "Z_95", "preprocessing_from_dict"]
+__all__ = ["Z_95", "Evaluation", "IdentifiedModel", "Prediction", "preprocessing_from_dict"]
 
 Estimate = Literal["unconstrained", "consistent"]
 #: the two-sided 95 % quantile of the normal distribution

@@ -23,7 +23,7 @@ from dynamics.effects.linear import POSITIVE_EFFECTS
 from dynamics.models import IdentificationModel
 from dynamics.robot import LINK_PARAMETER_NAMES, N_LINK_PARAMETERS
 
-__all__ = ["Plausibility", "SIGMAS", "assess_plausibility", "positive_base_parameters"]
+__all__ = ["SIGMAS", "Plausibility", "assess_plausibility", "positive_base_parameters"]
 
 #: standard deviations below zero that make a positive-by-physics base parameter implausible
 SIGMAS = 3.0
