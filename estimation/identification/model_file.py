@@ -313,7 +313,8 @@ def read_model_file(path: str | Path) -> ModelFile:
         document = document["model_file"]
     elif document.get("format") != FORMAT:
         raise ModelFileError(f"{path} holds no model: it has no key 'model_file' (written by `oed identify` and "
-                             "`oed diagnose` from this release on; run them again)")
+                             "`oed diagnose` in memory from this release on, not yet by the streamed path; run them "
+                             "again)")
     try:
         return ModelFile.from_dict(document)
     except RobotDescriptionError as error:

@@ -10,6 +10,7 @@ from pathlib import Path
 import pandas as pd
 
 from estimation.identification.identified_model import IdentifiedModel
+from estimation.identification.trivial_predictors import trivial_warnings
 from oed.cli.common import OutputFiles, check_csv_path, check_json_path, json_text
 
 
@@ -57,9 +58,11 @@ def run(args: argparse.Namespace) -> int:
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         evaluation = model.evaluate(args.data)
-    for message in dict.fromkeys(str(warning.message) for warning in caught):
-        print(f"oed predict: warning: {message}", file=sys.stderr)
     prediction = evaluation.prediction
+    notes = trivial_warnings(prediction.mse, {"zero_mse": evaluation.zero_mse, "nominal_mse": evaluation.nominal_mse},
+                             label="model")
+    for message in dict.fromkeys([str(warning.message) for warning in caught] + list(notes)):
+        print(f"oed predict: warning: {message}", file=sys.stderr)
     with OutputFiles() as outputs:  # all files or none
         if args.out is not None:
             with outputs.open(args.out) as stream:
