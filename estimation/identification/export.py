@@ -21,15 +21,11 @@ from typing import Any
 import numpy as np
 
 from dynamics.effects.specs import effect_spec
-from dynamics.physical_parameters import consistency_margin
 from dynamics.urdf_export import robot_urdf, urdf_with_inertials
 from estimation.identification.identified_model import IdentifiedModel
+from estimation.identification.plausibility import link_findings
 
-__all__ = ["DEGENERATE_MARGIN", "LAWS", "ExportError", "degenerate_links", "exported_urdf", "friction_document"]
-
-#: a body whose pseudo-inertia's smallest over largest eigenvalue is below this is degenerate (a point, a
-#: rod or a plate): the data did not determine it, the bounds of consistency did
-DEGENERATE_MARGIN = 1e-9
+__all__ = ["LAWS", "ExportError", "exported_urdf", "friction_document", "implausible_links"]
 
 #: the per-joint laws friction.json names, as formulas of the joint's motion
 LAWS = {
@@ -53,17 +49,11 @@ def _check_consistent(model: IdentifiedModel) -> None:
                           "body; identify with `oed identify --consistent` and export that result")
 
 
-def degenerate_links(model: IdentifiedModel) -> tuple[str, ...]:
-    """One message per exported body that is degenerate (:data:`DEGENERATE_MARGIN`)."""
+def implausible_links(model: IdentifiedModel) -> tuple[str, ...]:
+    """One message per exported body that is degenerate or far from the description
+    (:func:`estimation.identification.plausibility.link_findings`)."""
     _check_consistent(model)
-    messages = []
-    for name, link in zip(model.robot.joint_names, model.file.consistent_links):
-        margin = consistency_margin(link)
-        if margin < DEGENERATE_MARGIN:
-            messages.append(f"link of {name}: mass {link[0]:.4g} kg, consistency margin {margin:.2g}: a degenerate "
-                            "body, set by the bounds of consistency rather than by the data (a richer excitation, "
-                            "a prior (--prior-weight) or link bounds (--link-bounds) determine it)")
-    return tuple(messages)
+    return link_findings(model.robot, model.file.consistent_links)
 
 
 def exported_urdf(model: IdentifiedModel) -> str:

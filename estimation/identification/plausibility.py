@@ -8,7 +8,10 @@
   effect terms (armature, friction) only, can never be below zero for real bodies; an estimate
   more than :data:`SIGMAS` standard deviations below zero is implausible.
 
-Both are what a physically consistent fit (``oed identify --consistent``) rules out or exposes.
+Both are what a physically consistent fit (``oed identify --consistent``) rules out or exposes. Consistent
+is not yet plausible: :func:`link_findings` names the bodies of a consistent fit that the data did not
+determine (a degenerate pseudo-inertia: the bounds of consistency set it) or that lie far from the
+description (a mass :data:`MASS_FACTOR` times the nominal one or more, or as much below it).
 """
 
 from __future__ import annotations
@@ -21,14 +24,20 @@ import numpy as np
 
 from dynamics.effects.linear import POSITIVE_EFFECTS
 from dynamics.models import IdentificationModel
-from dynamics.robot import LINK_PARAMETER_NAMES, N_LINK_PARAMETERS
+from dynamics.physical_parameters import consistency_margin
+from dynamics.robot import LINK_PARAMETER_NAMES, N_LINK_PARAMETERS, RobotModel
 
-__all__ = ["SIGMAS", "Plausibility", "assess_plausibility", "positive_base_parameters"]
+__all__ = ["DEGENERATE_MARGIN", "MASS_FACTOR", "SIGMAS", "Plausibility", "assess_plausibility", "link_findings", "positive_base_parameters"]
 
 #: standard deviations below zero that make a positive-by-physics base parameter implausible
 SIGMAS = 3.0
 #: the link parameters that are never negative (mass, and the diagonal inertias about the frame origin)
 NON_NEGATIVE_LINK_PARAMETERS = ("m", "Ixx", "Iyy", "Izz")
+#: a body whose pseudo-inertia's smallest over largest eigenvalue is below this is degenerate (a point, a
+#: rod or a plate): the data did not determine it, the bounds of consistency did
+DEGENERATE_MARGIN = 1e-9
+#: a consistent body this many times heavier or lighter than the description's is named
+MASS_FACTOR = 10.0
 ADVICE = "a physically consistent fit (`oed identify --consistent`) keeps every link a real rigid body"
 
 
@@ -108,3 +117,21 @@ def assess_plausibility(model: IdentificationModel, records: list[dict[str, Any]
         worse_channels = tuple(c for c in channels if validation_mse[c] > nominal_mse[c])
     worse = relative is not None and nominal is not None and relative > nominal
     return Plausibility(worse, worse_channels, relative, nominal, tuple(negative))
+
+
+def link_findings(robot: RobotModel, links: np.ndarray) -> tuple[str, ...]:
+    """One message per body of a consistent fit (``links``: ``(n, 10)`` standard parameters) that is
+    degenerate or whose mass is :data:`MASS_FACTOR` times the description's or more, or as much below."""
+    messages = []
+    for joint, link in zip(robot.joints, np.asarray(links, dtype=float).reshape(-1, N_LINK_PARAMETERS)):
+        margin = consistency_margin(link)
+        nominal = float(joint.inertial[0])
+        if margin < DEGENERATE_MARGIN:
+            messages.append(f"link of {joint.name}: mass {link[0]:.4g} kg, consistency margin {margin:.2g}: a "
+                            "degenerate body, set by the bounds of consistency rather than by the data (a richer "
+                            "excitation, a prior (--prior-weight) or link bounds (--link-bounds) determine it)")
+        elif nominal > 0 and not nominal / MASS_FACTOR <= link[0] <= MASS_FACTOR * nominal:
+            messages.append(f"link of {joint.name}: mass {link[0]:.4g} kg against {nominal:.4g} kg in the description: "
+                            "the data hardly determine it (a prior (--prior-weight) or link bounds (--link-bounds) "
+                            "keep it near the description)")
+    return tuple(messages)

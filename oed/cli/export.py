@@ -6,7 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from estimation.identification.export import degenerate_links, exported_urdf, friction_document
+from estimation.identification.export import exported_urdf, friction_document, implausible_links
 from estimation.identification.identified_model import IdentifiedModel
 from oed.cli.common import OutputFiles, check_json_path, json_text
 
@@ -52,7 +52,7 @@ def run(args: argparse.Namespace) -> int:
         if friction is not None:
             with outputs.open(args.friction_out) as stream:
                 stream.write(json_text(friction))
-    for message in degenerate_links(model):
+    for message in implausible_links(model):
         print(f"oed export: warning: {message}", file=sys.stderr)
     masses = ", ".join(f"{link[0]:.4g}" for link in model.file.consistent_links)
     print(f"{model.robot.name}: {model.robot.n_joints} bodies of the consistent estimate (masses {masses} kg)")

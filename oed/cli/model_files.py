@@ -8,7 +8,7 @@ from typing import Any
 
 from estimation.identification.fit import IdentificationResult
 from estimation.identification.model_file import RobotSource, model_file_document
-from estimation.identification.plausibility import assess_plausibility
+from estimation.identification.plausibility import assess_plausibility, link_findings
 
 
 def add_model_file(document: dict[str, Any], result: IdentificationResult, args: argparse.Namespace, preprocessing: Any,
@@ -32,5 +32,7 @@ def add_model_file(document: dict[str, Any], result: IdentificationResult, args:
                                        validation_mse=None if result.validation is None else result.validation.mse,
                                        nominal_mse=validation.get("nominal_mse"), zero_mse=validation.get("zero_mse"))
     document["plausibility"] = plausibility.to_dict()
-    for message in plausibility.messages():
+    links = () if consistent is None else link_findings(result.model.robot, consistent.estimate.link_parameters())
+    document["plausibility"]["consistent_links"] = list(links)
+    for message in plausibility.messages() + links:
         print(f"oed {verb}: warning: {message}", file=sys.stderr)
