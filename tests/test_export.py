@@ -14,6 +14,7 @@ from dynamics.models import build_model
 from dynamics.pinocchio_bridge import to_pinocchio
 from dynamics.robots import load_robot
 from dynamics.urdf_export import robot_urdf, urdf_with_inertials
+from estimation.identification.plausibility import link_findings
 from oed.cli import main
 from tests.synthetic import random_fourier, simulate, true_parameters
 
@@ -96,3 +97,32 @@ def test_an_unconstrained_fit_is_not_exported(consistent_result, tmp_path, capsy
     assert main(["export", "--model", str(result), "--urdf", str(urdf)]) == 2
     error = capsys.readouterr().err
     assert "base parameters only" in error and "--consistent" in error and not urdf.exists()
+
+
+def test_prior_weight_auto_takes_the_largest_weight_the_held_out_record_allows(consistent_result, tmp_path, capsys):
+    folder, _, validate = consistent_result
+    train = folder / "record5.csv"
+    base = ["identify", "--joints", "3", "--data", str(train), "--friction", "viscous,coulomb,offset", "--consistent",
+            "--prior-weight", "auto"]
+    out = tmp_path / "auto.json"
+    assert main([*base, "--validate", str(validate), "--out", str(out)]) == 0
+    consistent = json.loads(out.read_text())["consistent"]
+    search = consistent["prior_weight_search"]
+    errors = {entry["prior_weight"]: entry["weighted_validation_error"] for entry in search}
+    assert consistent["prior_weight"] in errors and len(errors) == 5
+    best = min(errors.values())
+    assert errors[consistent["prior_weight"]] <= 1.01 * best
+    assert all(error > 1.01 * best for weight, error in errors.items() if weight > consistent["prior_weight"])
+    assert main([*base, "--out", str(tmp_path / "none.json")]) == 2
+    assert "--prior-weight auto chooses the weight by the validation error: give --validate" in capsys.readouterr().err
+
+
+def test_a_consistent_body_far_from_the_description_is_named():
+    robot = load_robot("puma560", joints=3)
+    links = robot.standard_parameters.reshape(-1, 10).copy()
+    links[1] *= 50.0  # link 2: fifty times the description's mass (and inertia): a rigid body still
+    links[2] = 0.0  # link 3: nothing at all, a degenerate body
+    messages = {message.split(":")[0]: message for message in link_findings(robot, links)}
+    assert "against" in messages["link of joint2"] and "degenerate" in messages["link of joint3"]
+    # link 2 as the description has it is named for nothing
+    assert "link of joint2" not in {m.split(":")[0] for m in link_findings(robot, robot.standard_parameters)}
