@@ -184,16 +184,25 @@ class Measurements:
             data.update(zip(WRENCH_CHANNELS, self.wrench.T))
         return pd.DataFrame(data)
 
-    def write(self, path: str | Path) -> None:
-        """Write CSV (``.csv``) or Parquet (``.parquet``), atomically."""
+    def write(self, path: str | Path, *, staged: bool = True) -> None:
+        """Write CSV (``.csv``) or Parquet (``.parquet``), atomically (staged beside ``path`` and renamed).
+
+        ``staged=False``: write ``path`` directly, for a path that is already a staged file
+        (:meth:`dynamics.runtime.output_files.OutputFiles.stage`): staging it again would leave a nested
+        temporary file behind a run killed in between.
+        """
 
         path = Path(path)
-        frame = self.to_frame()
-        if path.suffix.lower() == ".parquet":
-            with atomic_output(path, "wb") as stream:
-                frame.to_parquet(stream, index=False)
-        elif path.suffix.lower() == ".csv":
-            with atomic_output(path) as stream:
-                frame.to_csv(stream, index=False, float_format="%.10g")
-        else:
+        suffix = path.suffix.lower()
+        if suffix not in (".parquet", ".csv"):
             raise ValueError(f"unknown data format {path.suffix!r} for {path}: use .csv or .parquet")
+        mode = "wb" if suffix == ".parquet" else "w"
+        with (atomic_output(path, mode) if staged else open(path, mode)) as stream:
+            self._write_frame(stream, suffix)
+
+    def _write_frame(self, stream: Any, suffix: str) -> None:
+        frame = self.to_frame()
+        if suffix == ".parquet":
+            frame.to_parquet(stream, index=False)
+        else:
+            frame.to_csv(stream, index=False, float_format="%.10g")

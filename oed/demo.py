@@ -91,7 +91,7 @@ def _loop(robot, out: Path, outputs, say: Callable[[str], None]) -> dict:
     data, recorded = {}, {}
     for index, (label, design) in enumerate(designs.items()):
         result = simulator.run(design.trajectory, controller, periods=3, warmup_periods=1, seed=index + 1)
-        result.measurements.write(outputs.stage(out / f"data_{label}.csv"))
+        result.measurements.write(outputs.stage(out / f"data_{label}.csv"), staged=False)
         recorded[label] = result.measurements
         # all periods fitted on their own time stamps: the torques stay as recorded
         differentiation = FourierDifferentiation(frequency_hz=design.trajectory.frequency_hz, harmonics=HARMONICS, average=False)

@@ -53,6 +53,8 @@ class ConsistentResult:
     train: Comparison
     validation: Comparison | None
     prior_source: str
+    #: the weights tried by ``--prior-weight auto`` and their channel-weighted validation errors (else empty)
+    prior_weight_search: tuple[dict[str, float], ...] = ()
 
     def to_dict(self) -> dict[str, Any]:
         """The keys ``links`` and ``consistent`` of ``result.json`` (module docstring)."""
@@ -69,6 +71,8 @@ class ConsistentResult:
                 "uncertainty_method": estimate.uncertainty_method,
                 "prior_weight": estimate.prior_weight,
                 "prior": self.prior_source if estimate.prior_weight > 0 else None,
+                **({"prior_weight_search": [dict(entry) for entry in self.prior_weight_search]}
+                   if self.prior_weight_search else {}),
                 "parameters": estimate.records(),
                 "effects": estimate.effect_values(),
                 "active_bounds": list(estimate.active_bounds),

@@ -181,7 +181,23 @@ def require_columns(frame: pd.DataFrame, columns: list[str], meaning: str, sourc
     """Raise :class:`MissingColumnError` naming the ``columns`` absent from ``frame`` and what they hold."""
     missing = [column for column in columns if column not in frame.columns]
     if missing:
+        delimiter = other_delimiter(str(frame.columns[0])) if len(frame.columns) == 1 else None
+        if delimiter is not None:
+            raise MissingColumnError(
+                f"{source}: the columns are separated by {delimiter!r}, not by commas (one column "
+                f"{str(frame.columns[0])[:60]!r} was read): write the file comma-separated (a CSV file)")
         raise MissingColumnError(f"{source}: missing column(s) {', '.join(missing)} ({meaning})")
+
+
+#: delimiters of files written as "CSV" by spreadsheets and loggers of other locales
+OTHER_DELIMITERS = (";", "\t", "|")
+
+
+def other_delimiter(header: str) -> str | None:
+    """The delimiter of a header line that holds no comma but another delimiter, or ``None``."""
+    if "," in header:
+        return None
+    return next((delimiter for delimiter in OTHER_DELIMITERS if delimiter in header), None)
 
 
 def numeric_columns(frame: pd.DataFrame, columns: list[str], source: str) -> NDArray[np.float64]:

@@ -43,6 +43,7 @@ from estimation.data.loading import (
     count_joint_columns,
     numeric_columns,
     require_columns,
+    other_delimiter,
     required_groups,
     uniform_grid,
 )
@@ -139,9 +140,23 @@ def read_record(
     except ParquetSupportError:
         raise
     except (ValueError, OSError, pd.errors.ParserError) as error:
-        raise MeasurementError(f"cannot read {path}: {error}") from None
+        raise MeasurementError(f"cannot read {path}: {str(error).strip()}{_delimiter_note(path)}") from None
     return segments_from_frame(frame, n_joints=n_joints, model=model, require=require, resample=resample,
                                source=str(path), max_gap=max_gap, split=split)
+
+
+def _delimiter_note(path: Path) -> str:
+    """``" (…separated by ';'…)"`` when the file's header is not separated by commas, else ``""``."""
+    try:
+        with open(path, errors="replace") as stream:
+            header = stream.readline()
+    except OSError:
+        return ""
+    delimiter = other_delimiter(header)
+    if delimiter is None:
+        return ""
+    return (f" (its columns are separated by {delimiter!r}, not by commas: write the file comma-separated, "
+            "with '.' as the decimal mark)")
 
 
 def read_parquet_frame(path: Path) -> pd.DataFrame:

@@ -31,7 +31,8 @@ from dynamics.runtime.threads import single_threaded_blas
 from oed.cli.paths import check_paths
 
 # verb module names, in the order ``oed --help`` lists them
-VERB_MODULES: tuple[str, ...] = ("model", "design", "simulate", "identify", "aprbs", "servo_simulate", "servo_fit", "diagnose", "demo")
+VERB_MODULES: tuple[str, ...] = ("model", "design", "simulate", "identify", "aprbs", "servo_simulate", "servo_fit", "diagnose",
+                                 "predict", "export", "demo")
 
 EXIT_USER_ERROR = 2
 EXIT_INTERNAL_ERROR = 1

@@ -34,6 +34,7 @@ from estimation.preprocessing.differentiation import (
 )
 from estimation.identification.prepared import InMemoryBudget, PreparationSettings
 from estimation.streaming.cluster import SCHEDULER_VARIABLE, connect, scheduler_address
+from oed.cli.options import check_hertz
 
 __all__ = [
     "OutputFiles", "add_data_arguments", "add_derivative_arguments", "add_robot_arguments", "add_streaming_arguments",
@@ -154,6 +155,7 @@ def executor_from_arguments(args: argparse.Namespace) -> Iterator[Executor | Non
 
 def differentiation(args: argparse.Namespace) -> Differentiation:
     """The differentiation the derivative options ask for (contradicting options are an error)."""
+    check_hertz(args, "frequency", "cutoff")
     if args.frequency is not None and args.cutoff is not None:
         raise ValueError("give --frequency (Fourier fit of periodic data) or --cutoff (Butterworth filter), not both")
     if args.frequency is not None:

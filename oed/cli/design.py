@@ -23,6 +23,7 @@ from oed.cli.common import (
     robot_from_arguments,
     seed,
 )
+from oed.cli.options import check_hertz
 from oed.criteria import CRITERIA
 from oed.design import DesignSettings, ShrunkDesignWarning, default_bounds, design_excitation
 
@@ -87,6 +88,7 @@ def trajectory_table(trajectory, rate_hz: float = 1000.0) -> tuple[list[str], np
 
 
 def run(args: argparse.Namespace) -> int:
+    check_hertz(args, "frequency")
     check_figure_path(args.plot)
     check_json_path(args.out)
     if args.csv is not None:

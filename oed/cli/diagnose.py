@@ -47,6 +47,7 @@ from oed.cli.common import (
     streaming_requested,
 )
 from oed.cli.diagnose_streaming import add_streamed_diagnosis_arguments, run_streaming
+from oed.cli.model_files import add_model_file
 
 #: what the in-memory diagnosis holds at its peak: bytes a sample, channel and base parameter (measured: 2.8 GB
 #: for 100 000 samples of the 7-joint KUKA, m r = 350, i.e. about 75; a lower bound is used)
@@ -133,6 +134,7 @@ def run(args: argparse.Namespace) -> int:
                                transmission=transmission, warnings_key=("warnings", "after"))
     document["preprocessing"] = records.preprocessing.to_dict()
     document["test"] = None if untouched is None else untouched.to_dict()
+    add_model_file(document, diagnosis.after, args, records.preprocessing, transmission, verb="diagnose")
     document["diagnosis_path"] = "in-memory"  # "streamed": --chunk-size (oed.cli.diagnose_streaming)
     document["max_effects"] = args.max_effects
     document["max_effects_reached"] = len(diagnosis.effects) >= args.max_effects

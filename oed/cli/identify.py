@@ -22,6 +22,7 @@ from estimation.identification.weighting_choice import choose_weighting
 from estimation.diagnosis.statistics import ResidualReport, residual_report
 from estimation.streaming.cutoff_choice import choose_streamed_cutoff
 from estimation.streaming.identification import identify_files
+from oed.cli.model_files import add_model_file
 from oed.cli.asbuilt import (
     add_asbuilt_arguments,
     finish_document,
@@ -217,6 +218,7 @@ def run_in_memory(args: argparse.Namespace, robot: RobotModel, model: Identifica
         document.update(consistent.to_dict())
     if weighting is not None:
         document["method_selection"] = weighting.to_dict()
+    add_model_file(document, result, args, records.preprocessing, transmission, verb="identify", consistent=consistent)
     if floor_report is not None and document.get("validation") is not None:
         document["validation"]["mse_over_floor"] = floor_report.ratios("after") or None
         document["noise_floor"] = None if floor_report.floor is None else {

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 
 import numpy as np
 
@@ -14,14 +15,32 @@ def add_consistent_arguments(parser: argparse.ArgumentParser) -> None:
     group.add_argument("--consistent", action="store_true",
                        help="also fit every link as a real rigid body and friction/armature >= 0 (log-Cholesky map, "
                             "IPOPT); adds links and consistent to the result")
-    group.add_argument("--prior-weight", type=float, default=0.0, metavar="W",
+    group.add_argument("--prior-weight", type=prior_weight, default=0.0, metavar="W",
                        help="with --consistent: weight of the log-det prior towards the nominal bodies (URDF/DH, or "
-                            "--prior), in units of half a chi-square (default 0: none)")
+                            "--prior), in units of half a chi-square (default 0: none); 'auto': the largest of "
+                            f"{', '.join(map(str, PRIOR_WEIGHT_GRID))} whose validation error is within "
+                            f"{100 * PRIOR_WEIGHT_TOLERANCE:g} % of the best (needs --validate)")
     group.add_argument("--prior", type=str, help="with --consistent: JSON with links [{name, mass, com, inertia}] "
                                                  "(e.g. an earlier result) as the prior instead of the robot's")
     group.add_argument("--link-bounds", type=str,
                        help='with --consistent: JSON {"links": {NAME or index: {"mass": [min, max], '
                             '"com_lower": [x, y, z], "com_upper": [x, y, z]}}}')
+
+
+#: the prior weights ``--prior-weight auto`` tries
+PRIOR_WEIGHT_GRID = (0.0, 0.1, 1.0, 10.0, 100.0)
+#: ``--prior-weight auto`` takes the largest weight whose validation error is within this fraction of the best
+PRIOR_WEIGHT_TOLERANCE = 0.01
+
+
+def prior_weight(text: str) -> float | str:
+    """``--prior-weight`` values: ``auto`` or a number (checked by :func:`check_consistent_arguments`)."""
+    if text.strip().lower() == "auto":
+        return "auto"
+    try:
+        return float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a number or 'auto', got {text!r}") from None
 
 
 def check_consistent_arguments(args: argparse.Namespace) -> None:
@@ -31,6 +50,10 @@ def check_consistent_arguments(args: argparse.Namespace) -> None:
                                           ("--link-bounds", args.link_bounds)) if value]
         if given:
             raise ValueError(f"{', '.join(given)} only with --consistent")
+    if args.prior_weight == "auto":
+        if not getattr(args, "validate", None):
+            raise ValueError("--prior-weight auto chooses the weight by the validation error: give --validate")
+        return
     if not (np.isfinite(args.prior_weight) and args.prior_weight >= 0):
         raise ValueError(f"--prior-weight must be a finite non-negative number, got {args.prior_weight}")
 
@@ -41,8 +64,32 @@ def consistent_refit(args: argparse.Namespace, result, train, validation) -> Con
     robot = result.model.robot
     prior = None if args.prior is None else load_prior(args.prior, robot)
     bounds = None if args.link_bounds is None else load_link_bounds(args.link_bounds, robot)
-    return identify_consistent(result, train, validation, prior_weight=args.prior_weight, prior=prior,
-                               prior_source=args.prior or "robot description", bounds=bounds)
+
+    def refit(weight: float) -> ConsistentResult:
+        return identify_consistent(result, train, validation, prior_weight=weight, prior=prior,
+                                   prior_source=args.prior or "robot description", bounds=bounds)
+
+    if args.prior_weight != "auto":
+        return refit(args.prior_weight)
+    return choose_prior_weight(refit, result)
+
+
+def choose_prior_weight(refit, result) -> ConsistentResult:
+    """The consistent fit of the largest weight of :data:`PRIOR_WEIGHT_GRID` whose channel-weighted validation
+    error is within :data:`PRIOR_WEIGHT_TOLERANCE` of the best: where the data do not determine a body, the
+    prior (the description's by default) does, as far as the held-out record allows. The search is kept in
+    the result (``prior_weight_search``)."""
+    weights = result.estimate.weights if result.estimate.method == "wls" else 1.0 / result.estimate.channel_variance
+    fits, errors = [], []
+    for weight in PRIOR_WEIGHT_GRID:
+        fit = refit(weight)
+        fits.append(fit)
+        errors.append(float(sum(w * fit.validation.mse[c] for w, c in zip(weights, result.model.channels))))
+    best = min(errors)
+    chosen = max(index for index, error in enumerate(errors) if error <= (1 + PRIOR_WEIGHT_TOLERANCE) * best)
+    search = tuple({"prior_weight": weight, "weighted_validation_error": error}
+                   for weight, error in zip(PRIOR_WEIGHT_GRID, errors))
+    return dataclasses.replace(fits[chosen], prior_weight_search=search)
 
 
 def print_consistent(consistent: ConsistentResult | None) -> None:

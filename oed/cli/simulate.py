@@ -132,7 +132,7 @@ def run(args: argparse.Namespace) -> int:
     )
     metadata = dict(result.metadata, trajectory=str(args.trajectory), data=str(args.out))
     with OutputFiles() as outputs:  # the data and the truth file, or neither
-        result.measurements.write(outputs.stage(args.out))
+        result.measurements.write(outputs.stage(args.out), staged=False)
         if args.truth is not None:
             with outputs.open(args.truth) as stream:
                 stream.write(json_text(metadata))

@@ -1,0 +1,323 @@
+"""The identified model as a file: everything needed to predict with it on another record.
+
+``result.json`` (``oed identify``) and ``report.json`` (``oed diagnose``) carry the key ``model_file``::
+
+    "model_file": {
+        "format": "robot-oed identified model", "version": 1,
+        "robot": {"name": "puma560[3]", "builtin": "puma560", "joints": 3,
+                  "urdf": {"path": "/abs/arm.urdf", "sha256": "…", "text": "<robot …>" | null} | null},
+        "model": "internal", "channels": ["tau1", …], "joint_names": ["joint1", …],
+        "effects": "viscous,coulomb:tanh",                   # the spec that rebuilds the model's columns
+        "effect_values": [{"spec": "coulomb:tanh", "coefficients": {"fc1": 0.4, …}, "shape": {"vc1": 0.05}}],
+        "shape": {"vc1": 0.05, …}, "shape_std": {…},        # fitted shape parameters (the delay apart)
+        "smoothing": {"coulomb@2": 0.05},                    # Coulomb laws smoothed at rest (--rest smooth)
+        "delay": {"value": 0.007, "std": 0.0002} | null,     # s; the motion moved to t − delay
+        "transmission": {"matrix": …, "motors": …} | null,
+        "base": {"names": […], "expressions": […]},
+        "theta": […], "cov": [[…]],                           # base parameters and their covariance
+        "channel_variance": {"tau1": …}, "weights": {"tau1": …}, "method": "wls",
+        "recorded_variance": {"tau1": …},                    # training MSE against the channels as recorded
+        "preprocessing": {method, frequency_hz | cutoff_hz, …},
+        "rest": {"min_speed": 0.05, "rest": "drop"} | null, "max_gap": 0.05,
+        "reported": {"validation_mse": {channel: value} | null},
+        "consistent": {"links": [[m, mx, …, Izz], …], "effects": {"fv1": …},   # oed identify --consistent
+                       "theta": […], "cov": [[…]],                          # its base parameters
+                       "validation_mse": {channel: value} | null} | null}
+
+The model's prediction along a motion is ``Y_b(q, q̇, q̈; s) θ`` with the shaped columns at the
+fitted shapes ``s`` (:mod:`estimation.identification.shaped`), along the motion moved by the delay
+(:mod:`estimation.preprocessing.delay`). :class:`ModelFile` is the parsed document;
+:class:`estimation.identification.identified_model.IdentifiedModel` predicts with it.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import tempfile
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from dynamics.effects.shaped import shape_parameters
+from dynamics.effects.specs import effect_spec
+from dynamics.errors import RobotDescriptionError
+from dynamics.robot import RobotModel
+from dynamics.robots import load_robot
+from estimation.identification.fit import IdentificationResult
+
+__all__ = ["FORMAT", "MAX_EMBEDDED_URDF_BYTES", "ModelFile", "ModelFileError", "RobotSource", "model_file_document",
+           "read_model_file"]
+
+FORMAT = "robot-oed identified model"
+VERSION = 1
+#: a URDF up to this size is embedded in the model file (a larger one by path and content hash only)
+MAX_EMBEDDED_URDF_BYTES = 1_000_000
+#: the name of the delay among a result's shape values
+DELAY_NAME = "delay"
+
+
+class ModelFileError(ValueError):
+    """A file that is not a model file, or one whose robot cannot be found again."""
+
+
+@dataclass(frozen=True)
+class RobotSource:
+    """Where the robot came from: a built-in name, or a URDF (path, content hash and, if small, text)."""
+
+    name: str
+    builtin: str | None = None
+    joints: int | None = None
+    urdf_path: str | None = None
+    urdf_sha256: str | None = None
+    urdf_text: str | None = None
+
+    @classmethod
+    def from_description(cls, robot: RobotModel, *, builtin: str | None, urdf: str | Path | None,
+                         joints: int | None) -> RobotSource:
+        """The source of ``robot``, read from ``builtin`` (a name of :data:`dynamics.robots.BUILT_IN_ROBOTS`) or ``urdf``."""
+        if urdf is None:
+            return cls(robot.name, builtin, joints)
+        path = Path(urdf).expanduser().resolve()
+        data = path.read_bytes()
+        text = data.decode("utf-8", errors="replace") if len(data) <= MAX_EMBEDDED_URDF_BYTES else None
+        return cls(robot.name, None, joints, str(path), hashlib.sha256(data).hexdigest(), text)
+
+    def load(self) -> RobotModel:
+        """The robot again: the embedded URDF text, else the file at ``urdf_path`` if its hash matches,
+        else the built-in robot."""
+        if self.urdf_sha256 is None:
+            if self.builtin is None:
+                raise ModelFileError(f"the model file names robot {self.name!r} without a built-in name or a URDF")
+            return load_robot(self.builtin, joints=self.joints)
+        if self.urdf_text is not None:
+            with tempfile.TemporaryDirectory() as folder:
+                path = Path(folder) / "robot.urdf"
+                path.write_text(self.urdf_text)
+                return load_robot(urdf=path, joints=self.joints)
+        path = Path(self.urdf_path or "")
+        if not path.is_file():
+            raise ModelFileError(f"the model's URDF {self.urdf_path} is not there any more (and was too large to "
+                                 "embed): put it back at that path")
+        digest = hashlib.sha256(path.read_bytes()).hexdigest()
+        if digest != self.urdf_sha256:
+            raise ModelFileError(f"the URDF {path} changed since the identification (sha256 {digest[:12]}…, the model "
+                                 f"file says {self.urdf_sha256[:12]}…): the model's base parameters belong to the old one")
+        return load_robot(urdf=path, joints=self.joints)
+
+    def to_dict(self) -> dict[str, Any]:
+        urdf = None if self.urdf_sha256 is None else {"path": self.urdf_path, "sha256": self.urdf_sha256,
+                                                       "text": self.urdf_text}
+        return {"name": self.name, "builtin": self.builtin, "joints": self.joints, "urdf": urdf}
+
+    @classmethod
+    def from_dict(cls, document: Mapping[str, Any]) -> RobotSource:
+        urdf = document.get("urdf") or {}
+        return cls(str(document["name"]), document.get("builtin"), document.get("joints"), urdf.get("path"),
+                   urdf.get("sha256"), urdf.get("text"))
+
+
+@dataclass(frozen=True)
+class ModelFile:
+    """The parsed ``model_file`` document (module docstring)."""
+
+    robot: RobotSource
+    model: str
+    channels: tuple[str, ...]
+    joint_names: tuple[str, ...]
+    effects: str
+    names: tuple[str, ...]
+    expressions: tuple[str, ...]
+    theta: NDArray[np.float64]
+    cov: NDArray[np.float64]
+    channel_variance: NDArray[np.float64]
+    weights: NDArray[np.float64]
+    method: str
+    shape: Mapping[str, float] = field(default_factory=dict)
+    shape_std: Mapping[str, float] = field(default_factory=dict)
+    smoothing: Mapping[str, float] = field(default_factory=dict)
+    delay: float | None = None
+    delay_std: float | None = None
+    transmission: Mapping[str, Any] | None = None
+    preprocessing: Mapping[str, Any] | None = None
+    rest: Mapping[str, Any] | None = None
+    max_gap: float | None = None
+    reported_validation_mse: Mapping[str, float] | None = None
+    effect_values: tuple[Mapping[str, Any], ...] = ()
+    consistent_links: NDArray[np.float64] | None = None
+    consistent_effects: Mapping[str, float] | None = None
+    recorded_variance: NDArray[np.float64] | None = None
+    consistent_theta: NDArray[np.float64] | None = None
+    consistent_cov: NDArray[np.float64] | None = None
+    consistent_validation_mse: Mapping[str, float] | None = None
+
+    @property
+    def band_variance(self) -> NDArray[np.float64]:
+        """The channels' noise variance of the prediction band: the training MSE against the channels
+        as recorded (the fit's residual variance is against filtered or averaged ones when the
+        preprocessing made them)."""
+        return self.channel_variance if self.recorded_variance is None else self.recorded_variance
+
+    def to_dict(self) -> dict[str, Any]:
+        """The ``model_file`` document (module docstring)."""
+        channels = list(self.channels)
+        return {
+            "format": FORMAT, "version": VERSION,
+            "robot": self.robot.to_dict(), "model": self.model, "channels": channels,
+            "joint_names": list(self.joint_names), "effects": self.effects,
+            "effect_values": [dict(entry) for entry in self.effect_values],
+            "shape": dict(self.shape), "shape_std": dict(self.shape_std), "smoothing": dict(self.smoothing),
+            "delay": None if self.delay is None else {"value": self.delay, "std": self.delay_std, "unit": "s"},
+            "transmission": None if self.transmission is None else dict(self.transmission),
+            "base": {"names": list(self.names), "expressions": list(self.expressions)},
+            "theta": self.theta.tolist(), "cov": self.cov.tolist(),
+            "channel_variance": dict(zip(channels, self.channel_variance.tolist())),
+            "weights": dict(zip(channels, self.weights.tolist())), "method": self.method,
+            "recorded_variance": None if self.recorded_variance is None
+            else dict(zip(channels, self.recorded_variance.tolist())),
+            "preprocessing": None if self.preprocessing is None else dict(self.preprocessing),
+            "rest": None if self.rest is None else dict(self.rest), "max_gap": self.max_gap,
+            "reported": {"validation_mse": None if self.reported_validation_mse is None
+                         else dict(self.reported_validation_mse)},
+            "consistent": None if self.consistent_links is None else {
+                "links": self.consistent_links.tolist(), "effects": dict(self.consistent_effects or {}),
+                "theta": None if self.consistent_theta is None else self.consistent_theta.tolist(),
+                "cov": None if self.consistent_cov is None else self.consistent_cov.tolist(),
+                "validation_mse": None if self.consistent_validation_mse is None
+                else dict(self.consistent_validation_mse)},
+        }
+
+    @classmethod
+    def from_dict(cls, document: Mapping[str, Any]) -> ModelFile:
+        """Parse a ``model_file`` document; :class:`ModelFileError` names what is missing."""
+        if document.get("format") != FORMAT:
+            raise ModelFileError(f"not a model file (format {document.get('format')!r}, expected {FORMAT!r})")
+        if int(document.get("version", 0)) > VERSION:
+            raise ModelFileError(f"model file version {document['version']} is newer than this program reads ({VERSION})")
+        try:
+            channels = tuple(document["channels"])
+            delay = document.get("delay")
+            consistent = document.get("consistent")
+            return cls(
+                robot=RobotSource.from_dict(document["robot"]), model=str(document["model"]), channels=channels,
+                joint_names=tuple(document["joint_names"]), effects=str(document["effects"]),
+                names=tuple(document["base"]["names"]), expressions=tuple(document["base"]["expressions"]),
+                theta=np.asarray(document["theta"], dtype=float),
+                cov=np.asarray(document["cov"], dtype=float).reshape(len(document["theta"]), -1),
+                channel_variance=np.array([document["channel_variance"][c] for c in channels], dtype=float),
+                weights=np.array([document["weights"][c] for c in channels], dtype=float),
+                method=str(document.get("method", "wls")),
+                shape=dict(document.get("shape") or {}), shape_std=dict(document.get("shape_std") or {}),
+                smoothing=dict(document.get("smoothing") or {}),
+                delay=None if delay is None else float(delay["value"]),
+                delay_std=None if delay is None or delay.get("std") is None else float(delay["std"]),
+                transmission=document.get("transmission"), preprocessing=document.get("preprocessing"),
+                rest=document.get("rest"), max_gap=document.get("max_gap"),
+                reported_validation_mse=(document.get("reported") or {}).get("validation_mse"),
+                effect_values=tuple(document.get("effect_values") or ()),
+                consistent_links=None if consistent is None else np.asarray(consistent["links"], dtype=float),
+                consistent_effects=None if consistent is None else dict(consistent.get("effects") or {}),
+                consistent_theta=None if consistent is None or consistent.get("theta") is None
+                else np.asarray(consistent["theta"], dtype=float),
+                consistent_cov=None if consistent is None or consistent.get("cov") is None
+                else np.asarray(consistent["cov"], dtype=float).reshape(len(consistent["theta"]), -1),
+                consistent_validation_mse=None if consistent is None else consistent.get("validation_mse"),
+                recorded_variance=None if document.get("recorded_variance") is None
+                else np.array([document["recorded_variance"][c] for c in channels], dtype=float),
+            )
+        except (KeyError, TypeError) as error:
+            raise ModelFileError(f"the model file lacks or garbles {error}") from None
+
+
+def _effect_values(result: IdentificationResult) -> tuple[dict[str, Any], ...]:
+    """Each effect's spec, its coefficients that are base parameters of their own, and its shape."""
+    model, estimate = result.model, result.estimate
+    values = dict(zip(estimate.names, map(float, estimate.values)))
+    expressions = dict(zip(estimate.names, estimate.expressions))
+    shapes = {value.name: float(value.value) for value in result.shapes if value.name != DELAY_NAME}
+    entries = []
+    for effect in model.effects:
+        names = list(effect.parameter_names(model.robot))
+        shape_names = [parameter.name for parameter in shape_parameters(effect, model.robot)]
+        entries.append({
+            "spec": effect_spec(effect),
+            "coefficients": {name: values[name] for name in names
+                             if name in values and expressions[name].strip() == name},
+            "shape": {name: shapes[name] for name in shape_names if name in shapes},
+        })
+    return tuple(entries)
+
+
+def model_file_document(result: IdentificationResult, *, robot: RobotSource, preprocessing: Mapping[str, Any] | None,
+                        transmission: Any = None, rest: Mapping[str, Any] | None = None, max_gap: float | None = None,
+                        consistent: Any = None, consistent_validation_mse: Mapping[str, float] | None = None
+                        ) -> dict[str, Any]:
+    """The ``model_file`` document of ``result`` (module docstring).
+
+    ``transmission``: a :class:`dynamics.transmission.Transmission` or ``None``; ``rest``: ``{min_speed,
+    rest}`` when rows at rest were dropped or Coulomb laws smoothed; ``consistent``: the
+    :class:`estimation.consistent.least_squares.ConsistentEstimate` of a physically consistent refit, or
+    ``None``, with its validation MSE.
+    """
+    model, estimate = result.model, result.estimate
+    shapes = [value for value in result.shapes if value.name != DELAY_NAME]
+    smoothing = {effect_spec(effect): float(effect.smoothing) for effect in model.effects
+                 if getattr(effect, "smoothing", None) is not None and not hasattr(effect, "spec")}
+    weights = estimate.weights if estimate.weights is not None else np.ones(model.n_channels)
+    document = ModelFile(
+        robot=robot, model=model.kind.value, channels=tuple(model.channels), joint_names=tuple(model.robot.joint_names),
+        effects=",".join(effect_spec(effect) for effect in model.effects) or "none",
+        names=tuple(estimate.names), expressions=tuple(estimate.expressions),
+        theta=np.asarray(estimate.values, dtype=float), cov=np.asarray(estimate.cov, dtype=float),
+        channel_variance=np.asarray(estimate.channel_variance, dtype=float),
+        weights=np.broadcast_to(np.asarray(weights, dtype=float), (model.n_channels,)).copy(),
+        method=estimate.method,
+        shape={value.name: float(value.value) for value in shapes},
+        shape_std={value.name: float(value.std) for value in shapes}, smoothing=smoothing,
+        delay=None if result.delay is None else float(result.delay.value),
+        delay_std=None if result.delay is None else float(result.delay.std),
+        transmission=None if transmission is None else transmission.to_dict(),
+        preprocessing=None if preprocessing is None else dict(preprocessing),
+        rest=None if rest is None else dict(rest), max_gap=max_gap,
+        reported_validation_mse=None if result.validation is None else dict(result.validation.mse),
+        effect_values=_effect_values(result),
+        consistent_links=None if consistent is None else np.asarray(consistent.link_parameters(), dtype=float),
+        consistent_effects=None if consistent is None else dict(consistent.effect_values()),
+        consistent_theta=None if consistent is None else np.asarray(consistent.values, dtype=float),
+        consistent_cov=None if consistent is None else np.asarray(consistent.cov, dtype=float),
+        consistent_validation_mse=None if consistent_validation_mse is None else dict(consistent_validation_mse),
+        recorded_variance=np.array([result.train.mse[channel] for channel in model.channels]),
+    )
+    return document.to_dict()
+
+
+def read_model_file(path: str | Path) -> ModelFile:
+    """The model file in ``path``: a ``result.json``/``report.json`` (its key ``model_file``) or the
+    ``model_file`` document itself."""
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"model file not found: {path}")
+    try:
+        document = json.loads(path.read_text())
+    except (json.JSONDecodeError, UnicodeDecodeError) as error:
+        raise ModelFileError(f"{path} is not JSON: {error}") from None
+    if not isinstance(document, dict):
+        raise ModelFileError(f"{path} holds no JSON object")
+    if "model_file" in document:
+        if document["model_file"] is None:
+            raise ModelFileError(f"{path} holds no model (the streamed path does not write one yet)")
+        document = document["model_file"]
+    elif document.get("format") != FORMAT:
+        raise ModelFileError(f"{path} holds no model: it has no key 'model_file' (written by `oed identify` and "
+                             "`oed diagnose` in memory from this release on, not yet by the streamed path; run them "
+                             "again)")
+    try:
+        return ModelFile.from_dict(document)
+    except RobotDescriptionError as error:
+        raise ModelFileError(f"{path}: {error}") from None
+    except ModelFileError as error:
+        raise ModelFileError(f"{path}: {error}") from None

@@ -1,0 +1,60 @@
+"""``oed export``: a physically consistent identified model as a URDF (and friction.json) for other tools."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from estimation.identification.export import exported_urdf, friction_document, implausible_links
+from estimation.identification.identified_model import IdentifiedModel
+from oed.cli.common import OutputFiles, check_json_path, json_text
+
+
+def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
+    parser = subparsers.add_parser(
+        "export",
+        help="write a consistent identified model as a URDF (and its friction as JSON)",
+        description="From a result.json of `oed identify --consistent`: the robot's URDF with every moving link's "
+        "<inertial> replaced by the identified mass, centre of mass and inertia (the same joint and link names; a "
+        "built-in robot is written from its description), and the joints' friction, offsets and armature as JSON.",
+    )
+    parser.add_argument("--model", type=Path, required=True, help="result.json of oed identify --consistent")
+    parser.add_argument("--urdf", dest="urdf_out", type=Path, required=True, metavar="URDF", help="URDF file to write")
+    parser.add_argument("--friction", dest="friction_out", type=Path, metavar="JSON",
+                        help="friction.json to write: per joint viscous, coulomb, offset, armature…, other effects")
+    return parser
+
+
+def derived_outputs(args: argparse.Namespace) -> dict[str, Path]:
+    """``--urdf`` and ``--friction``: outputs here (checked against each other by :func:`oed.cli.paths.check_paths`)."""
+    outputs = {"--urdf": args.urdf_out}
+    if args.friction_out is not None:
+        outputs["--friction"] = args.friction_out
+    return outputs
+
+
+def run(args: argparse.Namespace) -> int:
+    model_path = args.model.expanduser().resolve()
+    for option, path in (("--urdf", args.urdf_out), ("--friction", args.friction_out)):
+        if path is not None and path.expanduser().resolve() == model_path:
+            raise ValueError(f"{option} {path} is the model file (--model): it would be overwritten; write elsewhere")
+    if args.urdf_out.suffix.lower() != ".urdf":
+        raise ValueError(f"--urdf {args.urdf_out}: give a .urdf file name")
+    if args.friction_out is not None:
+        check_json_path(args.friction_out, "--friction")
+    model = IdentifiedModel.load(args.model)  # exported_urdf refuses a model without a consistent estimate
+    text = exported_urdf(model)
+    friction = friction_document(model) if args.friction_out is not None else None
+    with OutputFiles() as outputs:  # all files or none
+        with outputs.open(args.urdf_out) as stream:
+            stream.write(text)
+        if friction is not None:
+            with outputs.open(args.friction_out) as stream:
+                stream.write(json_text(friction))
+    for message in implausible_links(model):
+        print(f"oed export: warning: {message}", file=sys.stderr)
+    masses = ", ".join(f"{link[0]:.4g}" for link in model.file.consistent_links)
+    print(f"{model.robot.name}: {model.robot.n_joints} bodies of the consistent estimate (masses {masses} kg)")
+    print("wrote " + " and ".join(str(path) for path in (args.urdf_out, args.friction_out) if path is not None))
+    return 0

@@ -1,0 +1,38 @@
+"""The keys ``model_file`` and ``plausibility`` of ``result.json`` and ``report.json`` (one call from each verb)."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from typing import Any
+
+from estimation.identification.fit import IdentificationResult
+from estimation.identification.model_file import RobotSource, model_file_document
+from estimation.identification.plausibility import assess_plausibility, link_findings
+
+
+def add_model_file(document: dict[str, Any], result: IdentificationResult, args: argparse.Namespace, preprocessing: Any,
+                   transmission: Any, *, verb: str, consistent: Any = None) -> None:
+    """Put ``model_file`` (what ``oed predict`` and ``oed export`` read) and ``plausibility`` into
+    ``document``, in place; print the plausibility warnings on stderr.
+
+    ``preprocessing``: the :class:`estimation.preprocessing.plan.Preprocessing` chosen on the training data;
+    ``consistent``: the :class:`estimation.consistent.identification.ConsistentResult` of ``--consistent``, or ``None``.
+    """
+    robot = RobotSource.from_description(result.model.robot, builtin=None if args.urdf is not None else args.robot,
+                                         urdf=args.urdf, joints=args.joints)
+    rest = None if args.min_speed is None or args.min_speed == 0 else {"min_speed": args.min_speed, "rest": args.rest}
+    document["model_file"] = model_file_document(result, robot=robot, preprocessing=preprocessing.to_dict(),
+                                                 transmission=transmission, rest=rest, max_gap=args.max_gap,
+                                                 consistent=None if consistent is None else consistent.estimate,
+                                                 consistent_validation_mse=None if consistent is None
+                                                 or consistent.validation is None else consistent.validation.mse)
+    validation = document.get("validation") or {}
+    plausibility = assess_plausibility(result.model, result.estimate.records(),
+                                       validation_mse=None if result.validation is None else result.validation.mse,
+                                       nominal_mse=validation.get("nominal_mse"), zero_mse=validation.get("zero_mse"))
+    document["plausibility"] = plausibility.to_dict()
+    links = () if consistent is None else link_findings(result.model.robot, consistent.estimate.link_parameters())
+    document["plausibility"]["consistent_links"] = list(links)
+    for message in plausibility.messages() + links:
+        print(f"oed {verb}: warning: {message}", file=sys.stderr)
