@@ -21,7 +21,12 @@ from typing import Any, Literal
 
 from dynamics.effects.linear import Armature, CoulombFriction, JointOffset, Spring
 from dynamics.effects.motor import CombinationEffect
-from dynamics.effects.shaped import PositionRipple, ShapedStribeckFriction, SigmoidFriction, TanhCoulombFriction
+from dynamics.effects.shaped import (
+    PositionRipple,
+    ShapedStribeckFriction,
+    SigmoidFriction,
+    TanhCoulombFriction,
+)
 
 NOISE = 0.1  # N·m on every torque channel
 SIGMAS = 4.0  # an estimate further than this many standard deviations from the truth is wrong
