@@ -151,7 +151,7 @@ def test_slow_excitation_of_one_and_a_half_periods_is_detected_or_taken_as_given
     error = capsys.readouterr().err
     assert code == 0, error
     assert "periodic excitation of 0.075 Hz detected; derivatives from " in error
-    assert "the lowest held-out error of" in error
+    assert "chosen by held-out error among" in error
     chosen = detected["preprocessing"]
     assert chosen["selection"] == "held-out"
     fourier = [candidate for candidate in chosen["candidates"] if candidate["method"] == "fourier"]

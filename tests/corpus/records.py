@@ -10,6 +10,7 @@ made as a user gets them: the preprocessing chosen by held-out evidence on the t
 from __future__ import annotations
 
 import dataclasses
+import warnings
 from collections.abc import Iterable
 from dataclasses import dataclass
 from functools import lru_cache
@@ -21,10 +22,10 @@ from dynamics.models import IdentificationModel, ModelKind, build_model
 from dynamics.robots import load_robot
 from estimation.diagnosis.results import Diagnosis
 from estimation.diagnosis.search import diagnose
-from estimation.estimators.variable_projection import Block, States
+from estimation.estimators.effect_blocks import Block, States
 from estimation.identification.fit import identify
 from estimation.identification.preprocessing_choice import choose_by_evidence
-from estimation.preprocessing.plan import prepare
+from estimation.preprocessing.plan import PreprocessingWarning, prepare
 from tests.corpus.cases import NOISE, Case
 from dynamics.simulation.synthetic import simulate, true_parameters
 from oed.fourier import random_fourier
@@ -72,7 +73,9 @@ def records(case: Case) -> tuple[Measurements, Measurements]:
     """Training and validation records, with derivatives (measured, or chosen by evidence on training)."""
     train, validate = (simulated(case, seed) for seed in case.seeds)
     if case.derivatives == "positions":
-        choice = choose_by_evidence(declared_model(), train)
+        with warnings.catch_warnings():  # the detected fundamental is said to a user, not to the corpus
+            warnings.simplefilter("ignore", PreprocessingWarning)
+            choice = choose_by_evidence(declared_model(), train)
         train, validate = (prepare(data, choice.chosen) for data in (train, validate))
     return train, validate
 
