@@ -22,8 +22,9 @@ PUMA record, 5 harmonics won, because blurred derivatives imitate part of the mi
 250 harmonics won (held-out MSE 0.108, 0.043, 0.041 N²m² against a noise variance of 0.04).
 
 Choice: among the candidates whose score is within :data:`EQUIVALENT` of the lowest (they predict held-out data
-equally well), a Fourier fit if there is one, with the fewest harmonics (the simplest description of a periodic
-motion that predicts as well), else the filter with the highest cut-off (the least distortion of the motion);
+equally well), the best-scored Fourier fit if there is one (fewer harmonics on a tie to four digits: the
+simplest description of a periodic motion that predicts as well), else the filter with the highest cut-off (the
+least distortion of the motion);
 ties by the candidate's description, so the order of the grid does not matter. The flexible friction can take up
 what a blurred motion does to a law with a jump at zero speed, so a strongly smoothing candidate may score as
 well as the others and still leave a sign or Stribeck law out of reach of the diagnosis: on a simulated PUMA
@@ -269,9 +270,10 @@ def preferred(evidence: Sequence[CandidateEvidence]) -> Preprocessing:
     """The candidate chosen among those that predict as well as the best (module docstring: the tie rule)."""
     lowest = min(item.score for item in evidence)
     equivalent = [item.preprocessing for item in evidence if item.score <= (1 + EQUIVALENT) * lowest]
-    fourier = [plan for plan in equivalent if plan.method == "fourier"]
+    fourier = [item for item in evidence if item.preprocessing in equivalent and item.preprocessing.method == "fourier"]
     if fourier:
-        return min(fourier, key=lambda plan: (plan.harmonics, plan.describe()))
+        return min(fourier, key=lambda item: (round(item.score / lowest, 4), item.preprocessing.harmonics,
+                                              item.preprocessing.describe())).preprocessing
     filters = [plan for plan in equivalent if plan.method == "butterworth"]
     if filters:
         return max(filters, key=lambda plan: (plan.cutoff_hz, plan.describe()))
