@@ -33,7 +33,7 @@ diagnosis left tau5 at 2.49x (0.0996) and tau6 at 1.10x, for two reasons measure
    candidate ``coulomb:tanh[q5+q6]`` tried alone was worse: taken first with ``vc = 1.1`` rad/s it
    mimicked the missing viscous term, ``viscous[q5+q6]`` was then refused, tau5/tau6 2.29x/2.20x.
    Tried as one candidate with ``viscous[q5+q6]`` (a motor's friction is both;
-   :func:`estimation.diagnosis.coupling_candidates.combination_groups`): fc 0.551 ± 0.009, vc 0.0126 ± 0.0013
+   :func:`estimation.diagnosis.candidates.coupling.combination_groups`): fc 0.551 ± 0.009, vc 0.0126 ± 0.0013
    (0.0130), fv 0.217 ± 0.005 (0.216), tau5/tau6 1.00x/1.01x.
 """
 

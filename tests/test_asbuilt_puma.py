@@ -104,6 +104,6 @@ def test_diagnosis_finds_the_coupled_wrist_motor_on_its_own(q5_q6_wrist):
     assert abs(viscous.values[0] - g6**2 * friction.viscous[5]) < 3 * viscous.std[0], viscous
     assert abs(coulomb.shape["vc[q5+q6]"] - friction.smoothing[5] / g6) < 3 * coulomb.shape_std["vc[q5+q6]"], coulomb
     # both wrist channels reach the floor (before: tau5 at 2.5x, see estimation.diagnosis.limit_laws and
-    # estimation.diagnosis.coupling_candidates.combination_groups)
+    # estimation.diagnosis.candidates.coupling.combination_groups)
     for channel in ("tau5", "tau6"):
         assert diagnosis.after.validation.mse[channel] < 1.2 * FLOOR, (channel, diagnosis.after.validation.mse)

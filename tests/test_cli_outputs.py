@@ -12,7 +12,7 @@ import pytest
 from dynamics.models import build_model
 from dynamics.robots import load_robot
 from oed.cli import main
-from oed.cli.common import OutputFiles, atomic_output
+from oed.cli.shared.common import OutputFiles, atomic_output
 from oed.fourier import FourierTrajectory
 from dynamics.simulation.synthetic import simulate, true_parameters
 
@@ -142,7 +142,7 @@ def test_an_input_path_that_is_a_folder_is_called_one(tmp_path, capsys, argument
 def test_json_documents_are_strict_json_with_null_for_non_finite_numbers():
     import json
 
-    from oed.cli.common import json_text
+    from oed.cli.shared.common import json_text
 
     text = json_text({"a": float("nan"), "b": [1.0, float("inf"), {"c": -float("inf")}], "d": (2, "x")})
     assert "NaN" not in text and "Infinity" not in text
@@ -211,7 +211,7 @@ def test_an_output_never_replaces_an_input_or_another_output(internal_data, caps
 def test_long_json_text_is_not_taken_for_a_file_name(tmp_path):
     import argparse
 
-    from oed.cli.paths import check_paths
+    from oed.cli.shared.paths import check_paths
 
     text = "{" + " " * 300 + '"viscous": 1.0}'  # longer than a file name may be
     check_paths(argparse.Namespace(effect_values=text, truth=tmp_path / "truth.json", out=tmp_path / "s.csv"))

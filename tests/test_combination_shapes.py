@@ -14,7 +14,7 @@ from dynamics.models import build_model
 from dynamics.effects.motor import combination_from_label
 from dynamics.robots import load_robot
 from dynamics.effects.shaped import is_shaped
-from estimation.diagnosis.coupling_candidates import combination_groups, combination_taken, coupling_candidates
+from estimation.diagnosis.candidates.coupling import combination_groups, combination_taken, coupling_candidates
 
 
 @pytest.fixture(scope="module")

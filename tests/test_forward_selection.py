@@ -11,7 +11,7 @@ import pytest
 from dynamics.effects.linear import CoulombFriction, JointOffset
 from dynamics.models import build_model
 from dynamics.robots import load_robot
-from estimation.diagnosis.candidate_trials import Trial
+from estimation.diagnosis.candidates.trials import Trial
 from estimation.diagnosis.confirmation import Comparison
 from estimation.diagnosis.forward_selection import DiagnosisSearch, SearchSettings, candidate_blocks
 from estimation.estimators.variable_projection import ShapeFit

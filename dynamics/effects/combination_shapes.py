@@ -13,8 +13,8 @@ against 0.554 true (4.6 standard deviations low), the smoothed law's 0.552 ± 0.
 (``tests/test_asbuilt_puma.py``).
 
 The diagnosis proposes it beside the sign law for each traced pair
-(:func:`estimation.diagnosis.coupling_candidates.coupling_candidates`); at most one Coulomb law per
-combination is added (:func:`estimation.diagnosis.coupling_candidates.combination_taken`).
+(:func:`estimation.diagnosis.candidates.coupling.coupling_candidates`); at most one Coulomb law per
+combination is added (:func:`estimation.diagnosis.candidates.coupling.combination_taken`).
 """
 
 from __future__ import annotations

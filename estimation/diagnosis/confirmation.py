@@ -25,7 +25,7 @@ from dataclasses import dataclass
 from dynamics.effects.linear import CoulombFriction, Effect
 from dynamics.models import IdentificationModel, build_model
 from dynamics.effects.shaped import ShapedStribeckFriction, shape_parameters
-from estimation.diagnosis.candidate_trials import SIGNIFICANT_TERM, Trial, weighted_error
+from estimation.diagnosis.candidates.trials import SIGNIFICANT_TERM, Trial, weighted_error
 from estimation.identification.fit import IdentificationResult, identify
 from estimation.estimators.least_squares import channel_variance
 from estimation.estimators.effect_blocks import ShapeSearchError, States

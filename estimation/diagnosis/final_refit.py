@@ -15,7 +15,7 @@ from collections.abc import Sequence
 from dynamics.models import build_model
 from dynamics.effects.shaped import shape_parameters
 from estimation.diagnosis.confirmation import simplify_laws, weighted_validation
-from estimation.diagnosis.delay_search import with_delay
+from estimation.diagnosis.candidates.delay_search import with_delay
 from estimation.diagnosis.forward_selection import AdoptedEffect
 from estimation.identification.fit import identify
 from estimation.diagnosis.limit_laws import replace_limit_laws
@@ -30,7 +30,7 @@ def refit_found(model, before, adopted: Sequence[AdoptedEffect], moved, train, v
     refitted model (carrying the delay, if one was adopted) and the terms held at zero.
 
     ``adopted``: the effects the search adopted, at their shapes as selected; ``moved``: the
-    diagnosis' delay candidate (:class:`estimation.diagnosis.delay_search.DelaySearch`); ``train``,
+    diagnosis' delay candidate (:class:`estimation.diagnosis.candidates.delay_search.DelaySearch`); ``train``,
     ``validate``: the records as given; ``weights``, ``validation_error``: the last adopted model's
     channel weights and weighted validation error.
     """

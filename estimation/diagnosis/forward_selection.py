@@ -26,10 +26,10 @@ from numpy.typing import NDArray
 from dynamics.effects.linear import Effect
 from dynamics.effects.shaped import FRICTION_LAWS
 from dynamics.models import IdentificationModel
-from estimation.diagnosis.candidate_trials import Trial, candidate_label, joints_of, wrong_sign
+from estimation.diagnosis.candidates.trials import Trial, candidate_label, joints_of, wrong_sign
 from estimation.diagnosis.confirmation import Comparison, channels_made_worse
-from estimation.diagnosis.coupling_candidates import combination_groups, combination_taken
-from estimation.diagnosis.delay_candidate import DelayTrial
+from estimation.diagnosis.candidates.coupling import combination_groups, combination_taken
+from estimation.diagnosis.candidates.delay import DelayTrial
 from estimation.diagnosis.results import RejectedEffect
 from estimation.diagnosis.selection_rules import candidate_groups, offsets_beat_springs
 from estimation.estimators.effect_blocks import Block, NoRowsError

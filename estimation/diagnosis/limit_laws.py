@@ -14,7 +14,7 @@ as undetermined, and the diagnosis kept the stale 0.28 rad/s: joint 5 ended at 2
 against 1.1x for the same effects with the plain Coulomb law.
 
 Since the Coulomb and viscous laws of a joint combination are tried as one candidate
-(:func:`estimation.diagnosis.coupling_candidates.combination_groups`) the diagnosis no longer takes that stale
+(:func:`estimation.diagnosis.candidates.coupling.combination_groups`) the diagnosis no longer takes that stale
 law on this example; the rule stands for any shaped law selected before the effect it stood in for
 (``tests/test_asbuilt_puma.py::test_a_stale_tanh_smoothing_is_replaced_by_the_sign_law``).
 

@@ -2,11 +2,11 @@
 
 The current model's columns on each record are a :class:`~estimation.estimators.variable_projection.FixedPart`
 (per-channel Gram matrices), extended by each adopted block at its shape. A candidate is fitted
-against them by :func:`estimation.diagnosis.candidate_trials.fit_or_reason` (the linear solve, or
+against them by :func:`estimation.diagnosis.candidates.trials.fit_or_reason` (the linear solve, or
 variable projection for a shaped law): in the first round every shape is searched from its grid,
 later rounds screen it at its last optimum and search again only the :data:`SCREEN_REFINED` best and
 the one the residual tracing ranks first (:mod:`estimation.diagnosis.traced_refinement`). The delay
-between torques and motion is a candidate here too (:class:`estimation.diagnosis.delay_search.DelaySearch`):
+between torques and motion is a candidate here too (:class:`estimation.diagnosis.candidates.delay_search.DelaySearch`):
 once adopted, the records move by it.
 """
 
@@ -21,10 +21,10 @@ from numpy.typing import NDArray
 
 from dynamics.measurements import Measurements
 from dynamics.models import IdentificationModel
-from estimation.diagnosis.candidate_trials import Trial, fit_or_reason, weighted_error
+from estimation.diagnosis.candidates.trials import Trial, fit_or_reason, weighted_error
 from estimation.diagnosis.confirmation import Comparison, reweighted_comparison
-from estimation.diagnosis.delay_candidate import DelayComparison, DelayTrial, Regressor
-from estimation.diagnosis.delay_search import DelaySearch
+from estimation.diagnosis.candidates.delay import DelayComparison, DelayTrial, Regressor
+from estimation.diagnosis.candidates.delay_search import DelaySearch
 from estimation.diagnosis.forward_selection import AdoptedEffect
 from estimation.diagnosis.selection_rules import SCREEN_REFINED, refine_best
 from estimation.diagnosis.stopping_rules import SearchState

@@ -9,7 +9,7 @@ from typing import Any
 from dynamics.effects.linear import Effect
 from dynamics.models import IdentificationModel
 from dynamics.effects.shaped import shape_parameters
-from estimation.diagnosis.candidate_trials import candidate_label
+from estimation.diagnosis.candidates.trials import candidate_label
 from estimation.diagnosis.statistics import ResidualReport
 from estimation.identification.fit import IdentificationResult
 from estimation.diagnosis.sign_constraints import PinnedTerm
@@ -109,7 +109,7 @@ def found_effect(after: IdentificationResult, effect: Effect, p_value: float, st
 
 
 def found_delay(after: IdentificationResult, trial: Any, model: IdentificationModel) -> tuple[FoundEffect, ...]:
-    """The adopted delay (``trial``: :class:`estimation.diagnosis.delay_candidate.DelayTrial`, or ``None``) as a
+    """The adopted delay (``trial``: :class:`estimation.diagnosis.candidates.delay.DelayTrial`, or ``None``) as a
     found effect: no linear coefficients, its value a shape parameter."""
     if trial is None or after.delay is None:
         return ()

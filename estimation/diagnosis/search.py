@@ -9,7 +9,7 @@ Procedure (forward selection on nested linear models):
    ``offset``, ``armature``, ``stribeck``, ``spring``, ``wrench_offset``; the shaped laws
    ``coulomb:tanh``, ``stribeck:velocity``, ``sigmoid``, ``ripple``; or a user's own effect)
    find its rows at several random states, then fit it against the current columns
-   (:mod:`estimation.diagnosis.candidate_trials`): plain ones by the linear solve on per-channel Gram
+   (:mod:`estimation.diagnosis.candidates.trials`): plain ones by the linear solve on per-channel Gram
    matrices, shaped ones by variable projection (:mod:`estimation.estimators.variable_projection`). A
    candidate the current columns absorb (rank-deficient) is reported as such, never added.
 3. Test the nested models with the F statistic ``F = ((RSS₀ − RSS₁)/q) / (RSS₁/(N m − p₁))`` on
@@ -52,9 +52,9 @@ from dynamics.effects.shaped import PositionRipple, ShapedStribeckFriction, Sigm
 from dynamics.measurements import Measurements
 from dynamics.models import IdentificationModel, ModelKind
 from dynamics.runtime.threads import single_threaded_blas
-from estimation.diagnosis.candidate_trials import candidate_label
-from estimation.diagnosis.coupling_candidates import coupling_candidates
-from estimation.diagnosis.delay_search import DelaySearch
+from estimation.diagnosis.candidates.trials import candidate_label
+from estimation.diagnosis.candidates.coupling import coupling_candidates
+from estimation.diagnosis.candidates.delay_search import DelaySearch
 from estimation.diagnosis.final_refit import refit_found
 from estimation.diagnosis.forward_selection import DiagnosisSearch, SearchOutcome, SearchSettings, candidate_blocks
 from estimation.diagnosis.record_fits import RecordFits, declared_regressor
@@ -152,7 +152,7 @@ def diagnose(
         Measurements with ``q, dq, ddq`` and the model's channels, from different experiments.
     candidates
         Effects to try, plain or shaped (default: :func:`default_candidates` and the joint pairs the
-        residual traces, :func:`estimation.diagnosis.coupling_candidates.coupling_candidates`).
+        residual traces, :func:`estimation.diagnosis.candidates.coupling.coupling_candidates`).
     alpha
         Family-wise significance level of the F test (Bonferroni over the candidates).
     min_improvement
@@ -164,7 +164,7 @@ def diagnose(
         :func:`floor_stopping_rule` when a noise floor is had, else :func:`provisional_stopping_rule`).
     delay
         Where a delay between torques and motion is searched as a candidate (one for the records,
-        :mod:`estimation.diagnosis.delay_candidate`); ``None``: not tried.
+        :mod:`estimation.diagnosis.candidates.delay`); ``None``: not tried.
     noise_floor
         Noise floor of the validation record as recorded (:func:`estimation.uncertainty.noise_floor.noise_floor`,
         before preprocessing). ``None``: estimated from the recorded validation channels when they

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from dynamics.models import IdentificationModel
 from dynamics.effects.shaped import FRICTION_LAWS
-from estimation.diagnosis.candidate_trials import fit_or_reason, joints_of
+from estimation.diagnosis.candidates.trials import fit_or_reason, joints_of
 from estimation.estimators.effect_blocks import Block
 
 #: screened candidates whose shapes are searched again in each round after the first

@@ -2,7 +2,7 @@
 and their derivatives with respect to its shape parameters, over the samples.
 
 :class:`Block` is what :mod:`estimation.estimators.variable_projection` and the diagnosis
-(:mod:`estimation.diagnosis.candidate_trials`) fit: one named ``casadi.Function`` per effect and model kind
+(:mod:`estimation.diagnosis.candidates.trials`) fit: one named ``casadi.Function`` per effect and model kind
 (columns, and columns stacked with their Jacobian in the shape parameters), built once, cached and
 evaluated over the samples by the compiled sample loop (:class:`dynamics.compiled.SampleEvaluator`).
 """

@@ -14,9 +14,9 @@ Passes over the data (each file one task on any ``concurrent.futures.Executor``,
    samples of the prepared training data (:class:`~estimation.streaming.diagnosis_sums.EvenSubsample`, split
    over the files). Shaped laws (``coulomb:tanh``, ``stribeck:velocity``, ``sigmoid``, ``ripple``)
    cannot be summed at an unknown shape: their shape parameters are searched on this subsample, by
-   the in-memory diagnosis's own variable projection (:func:`estimation.diagnosis.candidate_trials.fit_or_reason`
+   the in-memory diagnosis's own variable projection (:func:`estimation.diagnosis.candidates.trials.fit_or_reason`
    against the declared model, channel weights of the subsample's identification), then fixed. The
-   coupling pairs are traced on it too (:func:`estimation.diagnosis.coupling_candidates.coupling_candidates`).
+   coupling pairs are traced on it too (:func:`estimation.diagnosis.candidates.coupling.coupling_candidates`).
    A record no longer than the subsample is taken whole: the search is then the in-memory one.
 2. **Sums** (training and validation files): per channel the Gram matrix of the base regressor and
    every candidate's columns (at the fixed shapes), their moments with the prepared channels and
@@ -54,7 +54,7 @@ import numpy as np
 
 from dynamics.effects.linear import Effect
 from dynamics.models import IdentificationModel
-from estimation.diagnosis.candidate_trials import candidate_label
+from estimation.diagnosis.candidates.trials import candidate_label
 from estimation.diagnosis.forward_selection import DiagnosisSearch, SearchOutcome, SearchSettings
 from estimation.diagnosis.search import FoundEffect, RejectedEffect
 from estimation.diagnosis.statistics import FLOOR_ALPHA

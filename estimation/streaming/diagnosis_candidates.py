@@ -4,7 +4,7 @@ blocks, their shapes and where their columns sit in the sums.
 Shaped laws (``coulomb:tanh``, ``stribeck:velocity``, ``sigmoid``, ``ripple``) cannot be summed at an
 unknown shape: :func:`shape_search` searches each one's shape parameters on the training subsample,
 against the declared model (the in-memory diagnosis's first round,
-:func:`estimation.diagnosis.candidate_trials.fit_or_reason`, at the channel weights of the subsample's
+:func:`estimation.diagnosis.candidates.trials.fit_or_reason`, at the channel weights of the subsample's
 identification); the sums are then taken at those shapes (:class:`StreamedCandidates`).
 """
 
@@ -21,8 +21,8 @@ from dynamics.effects.linear import Effect
 from dynamics.effects.shaped import FRICTION_LAWS
 from dynamics.measurements import Measurements
 from dynamics.models import IdentificationModel
-from estimation.diagnosis.candidate_trials import candidate_label, fit_or_reason
-from estimation.diagnosis.coupling_candidates import coupling_candidates
+from estimation.diagnosis.candidates.trials import candidate_label, fit_or_reason
+from estimation.diagnosis.candidates.coupling import coupling_candidates
 from estimation.diagnosis.forward_selection import candidate_blocks, declared_friction_joints
 from estimation.diagnosis.results import RejectedEffect
 from estimation.diagnosis.search import default_candidates

@@ -5,7 +5,7 @@ diagnosis: the forward selection itself, its rules and their wording, are those 
 diagnosis (:class:`estimation.diagnosis.forward_selection.DiagnosisSearch`, the same object); only the
 fits differ. A candidate's trial is the weighted least-squares solve on the summed per-channel Gram
 matrices of the current columns and its own, with the nested F test and BIC of
-:mod:`estimation.diagnosis.candidate_trials` (``F = ((RSS₀ − RSS₁)/q) / (RSS₁/(N m − p₁))``, ``q`` the
+:mod:`estimation.diagnosis.candidates.trials` (``F = ((RSS₀ − RSS₁)/q) / (RSS₁/(N m − p₁))``, ``q`` the
 candidate's linear and shape parameters); the confirmation compares both models on the validation
 sums against the channels **as recorded**, trained at the weights the candidate's training residuals
 give (:func:`estimation.diagnosis.confirmation.reweighted_comparison`'s rule, :data:`REWEIGHTING_PASSES`);
@@ -35,9 +35,9 @@ from numpy.typing import NDArray
 from dynamics.effects.linear import CoulombFriction, Effect
 from dynamics.effects.shaped import ShapedStribeckFriction
 from dynamics.models import IdentificationModel
-from estimation.diagnosis.candidate_trials import SIGNIFICANT_TERM, Trial, nested_test
+from estimation.diagnosis.candidates.trials import SIGNIFICANT_TERM, Trial, nested_test
 from estimation.diagnosis.confirmation import REWEIGHTING_PASSES, Comparison
-from estimation.diagnosis.delay_candidate import DelayTrial
+from estimation.diagnosis.candidates.delay import DelayTrial
 from estimation.diagnosis.forward_selection import AdoptedEffect
 from estimation.diagnosis.statistics import FLOOR_ALPHA
 from estimation.estimators.effect_blocks import Block

@@ -5,9 +5,9 @@ Each verb lives in its own module of this package and exposes two functions::
     register(subparsers) -> argparse.ArgumentParser   # adds the verb and its options
     run(args: argparse.Namespace) -> int               # does the work, returns the exit code
 
-Verb modules do not import one another. What several verbs share lives in :mod:`oed.cli.common` (robot, data,
-derivative and streaming options, shared checks and messages), :mod:`oed.cli.asbuilt` (the robot as built) and
-:mod:`oed.cli.paths`; reading and preparing the records is one library call
+Verb modules do not import one another. What several verbs share lives in :mod:`oed.cli.shared.common` (robot, data,
+derivative and streaming options, shared checks and messages), :mod:`oed.cli.shared.asbuilt` (the robot as built) and
+:mod:`oed.cli.shared.paths`; reading and preparing the records is one library call
 (:func:`estimation.identification.prepared.prepare_records`).
 
 Errors a user can cause (bad input files, impossible bounds, unknown robots) are raised as
@@ -28,7 +28,7 @@ from importlib import metadata
 
 import oed
 from dynamics.runtime.threads import single_threaded_blas
-from oed.cli.paths import check_paths
+from oed.cli.shared.paths import check_paths
 
 # verb module names, in the order ``oed --help`` lists them
 VERB_MODULES: tuple[str, ...] = ("model", "design", "simulate", "identify", "aprbs", "servo_simulate", "servo_fit", "diagnose",

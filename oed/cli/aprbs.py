@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 
 from dynamics.robots.servo_arm import SERVO_ARM_RANGES
-from oed.cli.common import check_csv_path, seed
+from oed.cli.shared.common import check_csv_path, seed
 
 
 def register(subparsers) -> argparse.ArgumentParser:
@@ -27,7 +27,7 @@ def run(args: argparse.Namespace) -> int:
     check_csv_path(args.out)
     from estimation.servo.files import write_csv
     from oed.aprbs import APRBSDesign, design_aprbs
-    from oed.cli.common import OutputFiles, check_figure_path
+    from oed.cli.shared.common import OutputFiles, check_figure_path
 
     check_figure_path(args.figure)
 

@@ -13,7 +13,7 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
         help="the whole loop on the built-in PUMA 560: design, simulate, identify, diagnose, re-identify",
     )
     parser.add_argument("--out", default="out/demo", help="folder for the report and figures (default: out/demo)")
-    parser.set_defaults(folder_options=("out",))  # --out names a folder (oed.cli.paths)
+    parser.set_defaults(folder_options=("out",))  # --out names a folder (oed.cli.shared.paths)
     return parser
 
 

@@ -13,7 +13,7 @@ import numpy as np
 from dynamics.models import ModelKind
 from estimation.streaming.cluster import SCHEDULER_VARIABLE, connect, scheduler_address
 from oed.bounds import JointBounds
-from oed.cli.common import (
+from oed.cli.shared.common import (
     OutputFiles,
     add_robot_arguments,
     check_csv_path,
@@ -23,7 +23,7 @@ from oed.cli.common import (
     robot_from_arguments,
     seed,
 )
-from oed.cli.options import check_hertz
+from oed.cli.shared.options import check_hertz
 from oed.criteria import CRITERIA
 from oed.design import DesignSettings, ShrunkDesignWarning, default_bounds, design_excitation
 

@@ -10,7 +10,7 @@ from typing import Any
 
 from dynamics.models import IdentificationModel, ModelKind, build_model
 from dynamics.transmission import Transmission
-from estimation.diagnosis.coupling_candidates import coupling_candidates
+from estimation.diagnosis.candidates.coupling import coupling_candidates
 from estimation.diagnosis.report import markdown_report, plot_residuals, plot_trace
 from estimation.diagnosis.results import Diagnosis
 from estimation.diagnosis.search import default_candidates, diagnose
@@ -22,7 +22,7 @@ from estimation.identification.prepared import (
     PreparedRecords,
     prepare_records,
 )
-from oed.cli.asbuilt import (
+from oed.cli.shared.asbuilt import (
     add_asbuilt_arguments,
     finish_document,
     model_effects,
@@ -32,7 +32,7 @@ from oed.cli.asbuilt import (
     trivial_predictors,
     worse_after,
 )
-from oed.cli.common import (
+from oed.cli.shared.common import (
     OutputFiles,
     add_data_arguments,
     add_derivative_arguments,
@@ -47,7 +47,7 @@ from oed.cli.common import (
     streaming_requested,
 )
 from oed.cli.diagnose_streaming import add_streamed_diagnosis_arguments, run_streaming
-from oed.cli.model_files import add_model_file
+from oed.cli.shared.model_files import add_model_file
 
 #: what the in-memory diagnosis holds at its peak: bytes a sample, channel and base parameter (measured: 2.8 GB
 #: for 100 000 samples of the 7-joint KUKA, m r = 350, i.e. about 75; a lower bound is used)
@@ -94,7 +94,7 @@ def trace_figure(report: Path) -> Path:
 
 
 def derived_outputs(args: argparse.Namespace) -> dict[str, Path]:
-    """Files written besides the named outputs (checked against them by :func:`oed.cli.paths.check_paths`)."""
+    """Files written besides the named outputs (checked against them by :func:`oed.cli.shared.paths.check_paths`)."""
     if args.report is None:
         return {}
     return {"the report's residual figure": residual_figure(args.report),

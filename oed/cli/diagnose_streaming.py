@@ -17,8 +17,8 @@ from estimation.streaming.diagnosis import (
     StreamedDiagnosis,
     diagnose_files,
 )
-from oed.cli.asbuilt import model_effects
-from oed.cli.common import (
+from oed.cli.shared.asbuilt import model_effects
+from oed.cli.shared.common import (
     OutputFiles,
     check_shaped_effects_kept,
     executor_from_arguments,

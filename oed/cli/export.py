@@ -8,7 +8,7 @@ from pathlib import Path
 
 from estimation.identification.export import exported_urdf, friction_document, implausible_links
 from estimation.identification.identified_model import IdentifiedModel
-from oed.cli.common import OutputFiles, check_json_path, json_text
+from oed.cli.shared.common import OutputFiles, check_json_path, json_text
 
 
 def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -27,7 +27,7 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
 
 
 def derived_outputs(args: argparse.Namespace) -> dict[str, Path]:
-    """``--urdf`` and ``--friction``: outputs here (checked against each other by :func:`oed.cli.paths.check_paths`)."""
+    """``--urdf`` and ``--friction``: outputs here (checked against each other by :func:`oed.cli.shared.paths.check_paths`)."""
     outputs = {"--urdf": args.urdf_out}
     if args.friction_out is not None:
         outputs["--friction"] = args.friction_out

@@ -22,8 +22,8 @@ from estimation.identification.weighting_choice import choose_weighting
 from estimation.diagnosis.statistics import ResidualReport, residual_report
 from estimation.streaming.cutoff_choice import choose_streamed_cutoff
 from estimation.streaming.identification import identify_files
-from oed.cli.model_files import add_model_file
-from oed.cli.asbuilt import (
+from oed.cli.shared.model_files import add_model_file
+from oed.cli.shared.asbuilt import (
     add_asbuilt_arguments,
     finish_document,
     model_effects,
@@ -32,7 +32,7 @@ from oed.cli.asbuilt import (
     rest_records,
     trivial_predictors,
 )
-from oed.cli.common import (
+from oed.cli.shared.common import (
     OutputFiles,
     add_data_arguments,
     add_derivative_arguments,

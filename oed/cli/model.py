@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 
 from dynamics.models import ModelKind, build_model
-from oed.cli.common import add_robot_arguments, json_text, robot_from_arguments
+from oed.cli.shared.common import add_robot_arguments, json_text, robot_from_arguments
 
 
 def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:

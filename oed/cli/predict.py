@@ -11,7 +11,7 @@ import pandas as pd
 
 from estimation.identification.identified_model import IdentifiedModel
 from estimation.identification.trivial_predictors import trivial_warnings
-from oed.cli.common import OutputFiles, check_csv_path, check_json_path, json_text
+from oed.cli.shared.common import OutputFiles, check_csv_path, check_json_path, json_text
 
 
 def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -36,7 +36,7 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
 
 
 def derived_outputs(args: argparse.Namespace) -> dict[str, Path]:
-    """``--metrics``, checked with ``--out`` against the inputs (:func:`oed.cli.paths.check_paths`)."""
+    """``--metrics``, checked with ``--out`` against the inputs (:func:`oed.cli.shared.paths.check_paths`)."""
     return {} if args.metrics is None else {"--metrics": args.metrics}
 
 

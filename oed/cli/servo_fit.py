@@ -72,7 +72,7 @@ def run(args: argparse.Namespace) -> int:
     from estimation.servo.protocol import fit_servo_arm
     from estimation.servo.files import read_csv, write_text_atomic
     from estimation.servo.free_run_check import check_free_run
-    from oed.cli.common import json_text
+    from oed.cli.shared.common import json_text
 
     table = read_csv(args.data, required=("t", "u1", "q1"), dt=args.dt)
     u, q = table.stack("u"), table.stack("q")

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from oed.cli.common import check_csv_path, seed
+from oed.cli.shared.common import check_csv_path, seed
 
 
 def register(subparsers) -> argparse.ArgumentParser:

@@ -19,7 +19,7 @@ from dynamics.simulation.controllers import ComputedTorqueController, computed_t
 from dynamics.models import build_model
 from dynamics.simulation.effects import SIMULATED_EFFECTS, Viscous, effects_from_names
 from dynamics.simulation.simulator import NoiseModel, Simulator
-from oed.cli.common import OutputFiles, add_robot_arguments, json_text, robot_from_arguments, seed
+from oed.cli.shared.common import OutputFiles, add_robot_arguments, json_text, robot_from_arguments, seed
 from oed.fourier import FourierTrajectory
 
 CONTROLLERS = ("pd", "computed-torque")

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from estimation.diagnosis.coupling_candidates import coupling_candidates
+from estimation.diagnosis.candidates.coupling import coupling_candidates
 from estimation.diagnosis.search import default_candidates, diagnose
 from tests.corpus.cases import CASES
 from tests.corpus.records import declared_model, named_pairs, records

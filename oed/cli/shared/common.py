@@ -34,7 +34,7 @@ from estimation.preprocessing.differentiation import (
 )
 from estimation.identification.prepared import InMemoryBudget, PreparationSettings
 from estimation.streaming.cluster import SCHEDULER_VARIABLE, connect, scheduler_address
-from oed.cli.options import check_hertz
+from oed.cli.shared.options import check_hertz
 
 __all__ = [
     "OutputFiles", "add_data_arguments", "add_derivative_arguments", "add_robot_arguments", "add_streaming_arguments",

@@ -1,4 +1,4 @@
-"""The delay candidate's state through the rounds of a diagnosis (:mod:`estimation.diagnosis.delay_candidate`).
+"""The delay candidate's state through the rounds of a diagnosis (:mod:`estimation.diagnosis.candidates.delay`).
 
 First round: the delay searched on its whole grid; later rounds: screened at its last optimum (one
 evaluation) and searched again near it only when it ranks among the best candidates, as the shaped
@@ -14,7 +14,7 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import NDArray
 
-from estimation.diagnosis.delay_candidate import (
+from estimation.diagnosis.candidates.delay import (
     DelayComparison,
     DelayTrial,
     Regressor,

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from estimation.diagnosis.candidate_trials import nested_test, weighted_error
+from estimation.diagnosis.candidates.trials import nested_test, weighted_error
 from estimation.diagnosis.confirmation import Comparison, settled_weights
 from estimation.identification.delayed import DelayFit, fit_delay
 from dynamics.measurements import Measurements
