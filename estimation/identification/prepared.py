@@ -114,7 +114,7 @@ class PreparationSettings:
     cutoff_hz: float | None = None
     average_periods: AverageChoice = "auto"
     decimation: int = 1
-    held_torques: bool = False
+    held_torques: bool | None = False
     min_speed: float | None = None
     rest: RestHandling = "drop"
     memory: InMemoryBudget | None = None
@@ -310,7 +310,7 @@ def choose_plan(model: IdentificationModel, train: Sequence[Measurements], setti
                "average_periods": settings.average_periods, "decimation": settings.decimation,
                "held_torques": settings.held_torques}
     if settings.selection == "rule":
-        return choose_preprocessing(train, **options)
+        return choose_preprocessing(train, **{**options, "held_torques": bool(settings.held_torques)})
     return choose_by_evidence(model, train, **options).chosen
 
 

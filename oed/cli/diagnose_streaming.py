@@ -74,11 +74,11 @@ def run_streaming(args: argparse.Namespace) -> int:
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         plan = None if args.cutoff is not None else choose_streamed_cutoff(
-            args.data[0], model, decimation=args.decimate, held_torques=args.held_torques)
+            args.data[0], model, decimation=args.decimate, held_torques=bool(args.held_torques))
         cutoff = args.cutoff if plan is None else plan.cutoff_hz
         with executor_from_arguments(args) as executor:
             result = diagnose_files(model, args.data, args.validate, chunk_size=chunk_size, cutoff_hz=cutoff,
-                                    decimation=args.decimate, held_torques=args.held_torques, alpha=args.alpha,
+                                    decimation=args.decimate, held_torques=bool(args.held_torques), alpha=args.alpha,
                                     max_effects=args.max_effects, subsample=args.subsample,
                                     floor_window=args.floor_window, executor=executor)
     print_warnings("diagnose", caught)

@@ -102,14 +102,14 @@ def run_streaming(args: argparse.Namespace, robot: RobotModel, model: Identifica
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         plan = None if args.cutoff is not None or args.frequency is not None else choose_streamed_cutoff(
-            args.data[0], model, decimation=args.decimate, held_torques=args.held_torques)
+            args.data[0], model, decimation=args.decimate, held_torques=bool(args.held_torques))
         cutoff = args.cutoff if plan is None else plan.cutoff_hz
         with executor_from_arguments(args) as executor:
             result = identify_files(model, args.data, args.validate or [],
                                     method="wls" if args.method == "auto" else args.method, chunk_size=chunk_size,
                                     cutoff_hz=cutoff,
                                     frequency_hz=args.frequency, harmonics=5 if args.harmonics is None else args.harmonics,
-                                    decimation=args.decimate, held_torques=args.held_torques, executor=executor)
+                                    decimation=args.decimate, held_torques=bool(args.held_torques), executor=executor)
     print_warnings("identify", caught)
     document = result.to_dict()
     if plan is not None:  # chosen by held-out error on the first rows of the first file

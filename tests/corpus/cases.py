@@ -162,18 +162,15 @@ COULOMB_LIKE = "coulomb|coulomb:tanh"
 README_LOOP = LoopCase(
     "README loop",
     named(*((family, f"tau{joint}") for joint in (1, 2, 3) for family in (COULOMB_LIKE, "offset"))),
-    xfail="measured: named coulomb:tanh and offset on every joint (no ripple, no spring); after/floor "
-          "1.73/1.04/0.99 (derivatives: a 250-harmonic Fourier fit chosen by held-out evidence; 109/13.8/1.9 with the "
-          "fixed rule before); vc1 and fc1 several sd from the truth",
 )
 EMPS_LOOP = LoopCase(
     "EMPS, no flags",
     named((COULOMB_LIKE, "tau1"), ("offset", "tau1")),
     floor_tolerance=None,
     after_over_before=0.3,
-    xfail="measured: named coulomb and offset on tau1; validation MSE 423.5 -> 332.4 (after/before 0.785), at its "
-          "noise floor (1.00x: no model can go lower on this split), derivatives from a 400-harmonic Fourier fit at a "
-          "detected 0.160 Hz chosen by held-out evidence",
+    xfail="measured: named coulomb and offset on tau1; validation MSE 418.7 -> 329.2 (after/before 0.786), at its "
+          "noise floor (0.99x: no model can go lower on this split), derivatives from a 400-harmonic Fourier fit at a "
+          "detected 0.160 Hz with held torques, chosen by held-out evidence",
 )
 
 

@@ -111,9 +111,10 @@ def add_derivative_arguments(parser: argparse.ArgumentParser) -> None:
                              "three times the reference's)")
     derivatives.add_argument("--cutoff", type=float, help="otherwise: Butterworth cut-off, Hz (default: automatic)")
     derivatives.add_argument("--decimate", type=int, default=1, help="keep one sample in K after low-pass filtering")
-    derivatives.add_argument("--held-torques", action="store_true",
+    derivatives.add_argument("--held-torques", action=argparse.BooleanOptionalAction, default=None,
                              help="joint torques were held over each sample (zero-order hold, as `oed simulate` "
-                                  "and digital current commands): take the derived motion half a sample later")
+                                  "and digital current commands): take the derived motion half a sample later; "
+                                  "--no-held-torques: they were not; default: chosen by held-out error")
 
 
 def add_streaming_arguments(parser: argparse.ArgumentParser) -> None:
