@@ -93,6 +93,6 @@ def test_a_test_record_that_is_not_a_third_experiment_is_refused(records, tmp_pa
                  "--frequency", "0.2", "--out", str(out), *extra])
     error = capsys.readouterr().err
     assert code == 2
-    assert {"validate": "is also a --data or --validate file", "train": "is also a --data or --validate file",
+    assert {"validate": "is also a --validate file", "train": "is also a --data file",
             "cut": "shares samples with training file", "streamed": "--test is read in memory"}[case] in error
     assert not out.exists()

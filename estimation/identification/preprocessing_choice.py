@@ -39,7 +39,7 @@ from __future__ import annotations
 
 import time
 import warnings
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, replace
 from typing import Literal
 
@@ -130,29 +130,23 @@ class HeldOutScore:
         except (SegmentTooShortForFilterError, ValueError) as error:
             return CandidateEvidence(preprocessing.without_evidence(), float("inf"), {}, str(error),
                                      time.perf_counter() - started)
-        step = max(1, int(np.ceil(recorded.n_samples / self.max_rows)))
-        thinned = recorded.select(np.arange(0, recorded.n_samples, step))
-        problem = stack(self.model, thinned)
-        Y = np.concatenate([problem.Y, self.friction_columns(thinned, problem.channels)], axis=2)
+        kept = thinned(recorded, self.max_rows)
+        problem = stack(self.model, kept)
+        Y = np.concatenate([problem.Y, self.friction_columns(kept, problem.channels)], axis=2)
         mse = self.held_out_mse(Y, problem.y)
-        score = float(np.exp(np.mean(np.log(np.maximum(mse, np.finfo(float).tiny)))))
-        return CandidateEvidence(preprocessing.without_evidence(), score, dict(zip(problem.channels, map(float, mse))),
-                                 None, time.perf_counter() - started)
+        return CandidateEvidence(preprocessing.without_evidence(), geometric_mean(mse),
+                                 dict(zip(problem.channels, map(float, mse))), None, time.perf_counter() - started)
 
     def held_out_mse(self, Y: NDArray[np.float64], y: NDArray[np.float64]) -> NDArray[np.float64]:
         """Per channel, the mean squared error of each block predicted from the others."""
-        n_samples = y.shape[0]
         scale = np.std(y, axis=0)
         scale[scale == 0] = 1.0
-        edges = np.linspace(0, n_samples, self.folds + 1).astype(int)
         squared = np.zeros(y.shape[1])
-        for start, stop in zip(edges[:-1], edges[1:]):
-            kept = np.ones(n_samples, dtype=bool)
-            kept[start:stop] = False
+        for held, kept in blocked_folds(y.shape[0], self.folds):
             A = (Y[kept] / scale[None, :, None]).reshape(-1, Y.shape[2])
             theta = np.linalg.lstsq(A, (y[kept] / scale).reshape(-1), rcond=None)[0]
-            squared += np.sum((y[start:stop] - Y[start:stop] @ theta) ** 2, axis=0)
-        return squared / n_samples
+            squared += np.sum((y[held] - Y[held] @ theta) ** 2, axis=0)
+        return squared / y.shape[0]
 
     @staticmethod
     def friction_columns(measurements: Measurements, channels: Sequence[str]) -> NDArray[np.float64]:
@@ -175,6 +169,26 @@ class HeldOutScore:
 
 
 Family = Literal["fourier", "butterworth"]
+
+
+def thinned(measurements: Measurements, max_rows: int) -> Measurements:
+    """``measurements`` evenly thinned to at most ``max_rows`` samples (every k-th)."""
+    step = max(1, int(np.ceil(measurements.n_samples / max_rows)))
+    return measurements.select(np.arange(0, measurements.n_samples, step))
+
+
+def blocked_folds(n_samples: int, folds: int) -> Iterator[tuple[slice, NDArray[np.bool_]]]:
+    """Each of ``folds`` contiguous blocks of ``n_samples`` in turn: the block held out, and a mask of the rest."""
+    edges = np.linspace(0, n_samples, folds + 1).astype(int)
+    for start, stop in zip(edges[:-1], edges[1:]):
+        kept = np.ones(n_samples, dtype=bool)
+        kept[start:stop] = False
+        yield slice(start, stop), kept
+
+
+def geometric_mean(mse: NDArray[np.float64]) -> float:
+    """The geometric mean of per-channel errors: no channel's unit dominates it."""
+    return float(np.exp(np.mean(np.log(np.maximum(mse, np.finfo(float).tiny)))))
 
 
 def candidates(train: Sequence[Measurements], rule: Preprocessing, given: Preprocessing | None,

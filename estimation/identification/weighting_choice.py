@@ -24,7 +24,7 @@ from dynamics.models import IdentificationModel
 from dynamics.runtime.threads import single_threaded_blas
 from estimation.estimators.identification_problem import IdentificationProblem, stack
 from estimation.estimators.least_squares import LeastSquares, WeightedLeastSquares
-from estimation.identification.preprocessing_choice import CLEARLY_BETTER
+from estimation.identification.preprocessing_choice import CLEARLY_BETTER, blocked_folds, geometric_mean, thinned
 
 __all__ = ["WeightingChoice", "choose_weighting"]
 
@@ -65,12 +65,10 @@ def choose_weighting(model: IdentificationModel, train: Measurements, *, folds: 
     """Channel-weighted or ordinary least squares for ``model`` on the prepared ``train`` (module docstring)."""
     if int(folds) != folds or folds < 2:
         raise ValueError(f"folds must be an integer of at least 2, got {folds}")
-    recorded = train.as_recorded
-    step = max(1, int(np.ceil(recorded.n_samples / max_rows)))
-    problem = stack(model, recorded.select(np.arange(0, recorded.n_samples, step)))
+    problem = stack(model, thinned(train.as_recorded, max_rows))
     errors = {name: held_out_mse(problem, estimator, folds)
               for name, estimator in (("wls", WeightedLeastSquares), ("ols", LeastSquares))}
-    scores = {name: float(np.exp(np.mean(np.log(np.maximum(mse, np.finfo(float).tiny))))) for name, mse in errors.items()}
+    scores = {name: geometric_mean(mse) for name, mse in errors.items()}
     method: Weighting = "ols" if scores["ols"] < CLEARLY_BETTER * scores["wls"] else "wls"
     return WeightingChoice(method, scores, {name: dict(zip(problem.channels, map(float, mse)))
                                             for name, mse in errors.items()}, int(folds))
@@ -78,13 +76,10 @@ def choose_weighting(model: IdentificationModel, train: Measurements, *, folds: 
 
 def held_out_mse(problem: IdentificationProblem, estimator: type[LeastSquares], folds: int) -> NDArray[np.float64]:
     """Per channel, the MSE of each contiguous block predicted by ``estimator`` fitted on the others."""
-    edges = np.linspace(0, problem.n_samples, folds + 1).astype(int)
     squared = np.zeros(problem.n_channels)
-    for start, stop in zip(edges[:-1], edges[1:]):
-        kept = np.ones(problem.n_samples, dtype=bool)
-        kept[start:stop] = False
+    for held, kept in blocked_folds(problem.n_samples, folds):
         part = IdentificationProblem(problem.Y[kept], problem.y[kept], problem.channels, problem.names,
                                      problem.expressions)
         theta = estimator().fit(part).theta_
-        squared += np.sum((problem.y[start:stop] - problem.Y[start:stop] @ theta) ** 2, axis=0)
+        squared += np.sum((problem.y[held] - problem.Y[held] @ theta) ** 2, axis=0)
     return squared / problem.n_samples

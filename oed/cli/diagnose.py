@@ -155,11 +155,6 @@ def run(args: argparse.Namespace) -> int:
 def check_request(args: argparse.Namespace) -> None:
     """Held-out data from another file, and a positive ``--max-effects``."""
     training = {path.expanduser().resolve(): path for path in args.data}
-    for path in args.test or ():
-        if path.expanduser().resolve() in training or path.expanduser().resolve() in {
-                other.expanduser().resolve() for other in args.validate}:
-            raise ValueError(f"--test {path} is also a --data or --validate file: the test record must be a third "
-                             "experiment that no choice used")
     for path in args.validate:
         if path.expanduser().resolve() in training:
             raise ValueError(f"--validate is --data ({path}): diagnose confirms every effect on held-out data "
