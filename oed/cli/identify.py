@@ -18,6 +18,7 @@ from estimation.identification.validation import plot_comparison
 from estimation.preprocessing.delay import DelayBounds, split_delay
 from estimation.preprocessing.plan import Preprocessing
 from estimation.identification.prepared import InMemoryBudget, PreparedRecords, prepare_records
+from estimation.identification.repeated_motion import repeated_motion_note
 from estimation.identification.weighting_choice import choose_weighting
 from estimation.diagnosis.statistics import ResidualReport, residual_report
 from estimation.streaming.cutoff_choice import choose_streamed_cutoff
@@ -232,6 +233,8 @@ def run_in_memory(args: argparse.Namespace, robot: RobotModel, model: Identifica
         trivial, notes = trivial_predictors(result, validation)
         floor_report = None if validation is None else floor_check(records, model, result, args.frequency)
         notes = (*notes, *above_floor_notes(floor_report))
+        repeat = None if validation is None else repeated_motion_note(train, validation)
+        notes = notes if repeat is None else (*notes, repeat)
         consistent = consistent_refit(args, result, train, validation)  # None without --consistent
     print_warnings("identify", caught)
     for note in notes:
