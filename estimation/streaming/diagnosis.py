@@ -115,7 +115,7 @@ class StreamedDiagnosis:
     found_effects: tuple[Effect, ...] = ()
 
     def final_model(self) -> IdentificationModel:
-        """The declared model with the effects found: ``after`` holds its base parameters (:func:`final_estimate`)."""
+        """The declared model with the effects found: ``after`` holds its base parameters (in the order of its columns)."""
         return build_model(self.model.robot, self.model.kind, tuple(self.model.effects) + tuple(self.found_effects))
 
     def final_shape(self) -> dict[str, float]:
