@@ -127,3 +127,37 @@ def test_a_consistent_body_far_from_the_description_is_named():
     assert "against" in messages["link of joint2"] and "degenerate" in messages["link of joint3"]
     # link 2 as the description has it is named for nothing
     assert "link of joint2" not in {m.split(":")[0] for m in link_findings(robot, robot.standard_parameters)}
+
+
+@pytest.mark.parametrize("change", ["heavy", "far"])
+def test_an_implausible_body_is_refused_unless_allowed(consistent_result, tmp_path, capsys, change):
+    _, result, _ = consistent_result
+    document = json.loads(result.read_text())
+    links = np.asarray(document["model_file"]["consistent"]["links"])
+    if change == "heavy":  # link 2 fifty times heavier (inertias alike): a rigid body still
+        links[1] *= 50.0
+    else:  # link 3's centre of mass 3 m out on a 0.4 m link (the first moments moved, the mass kept)
+        links[2, 1:4] = links[2, 0] * np.array([3.0, 0.0, 0.0])
+        links[2, 4:] = 0.0
+        links[2, [4, 6, 9]] = 0.1 + links[2, 0] * np.array([0.0, 9.0, 9.0])  # about the origin (parallel axes): real
+    document["model_file"]["consistent"]["links"] = links.tolist()
+    changed = tmp_path / "changed.json"
+    changed.write_text(json.dumps(document))
+    urdf = tmp_path / "out.urdf"
+    assert main(["export", "--model", str(changed), "--urdf", str(urdf)]) == 2
+    error = capsys.readouterr().err
+    expected = "against" if change == "heavy" else "centre of mass"
+    assert "not plausible" in error and expected in error and "--allow-implausible" in error and not urdf.exists()
+    assert main(["export", "--model", str(changed), "--urdf", str(urdf), "--allow-implausible"]) == 0
+    assert urdf.exists() and "exported as asked (--allow-implausible)" in capsys.readouterr().err
+
+
+def test_a_centre_of_mass_beyond_the_link_is_named():
+    robot = load_robot("puma560", joints=6)
+    links = robot.standard_parameters.reshape(-1, 10).copy()
+    mass, com = links[5, 0], np.array([0.0, 0.0, 3.6])  # the wrist link's centre of mass 3.6 m out, a real body
+    about_origin = 0.01 * np.eye(3) + mass * (com @ com * np.eye(3) - np.outer(com, com))
+    links[5, 1:4] = mass * com
+    links[5, 4:] = about_origin[[0, 0, 1, 0, 1, 2], [0, 1, 1, 2, 2, 2]]
+    messages = [message for message in link_findings(robot, links) if "centre of mass" in message]
+    assert len(messages) == 1 and messages[0].startswith("link of joint6")

@@ -8,12 +8,17 @@ consistency per channel. Its :meth:`ConsistentResult.to_dict` adds these keys to
     links: [{name, mass, com, inertia, inertia_com, consistency_margin, std}]   # std: with a prior only
     consistent: {method, uncertainty_method, prior_weight, prior, parameters: [{name, expression, value, std}],
                  effects: {fv1: ..}, active_bounds: [text], excess_chi2, solver: {...},
+                 prior_weight_choice: text, prior_weight_search: [{prior_weight, weighted_validation_error}],
+                 undetermined: {threshold_relative_std, n_directions, n_undetermined, n_structural,
+                                links: {NAME: [parameter]}, directions: [{relative_std, structural, parameters}]},
                  train: {mse}, validation: {mse} | null,
                  price: {train: {channel: mse ratio}, validation: {channel: mse ratio} | null}}
 
 ``inertia`` is about the link-frame origin (the standard parameters), ``inertia_com`` about the
 centre of mass; ``price`` divides each channel's MSE of the consistent estimate by that of the
-unconstrained one (1.0: consistency costs nothing there).
+unconstrained one (1.0: consistency costs nothing there); ``undetermined`` names the links and
+directions of the bodies the data did not determine, where the prior sets the estimate
+(:mod:`estimation.consistent.determination`).
 
 Files: a prior (``--prior``) is a JSON document with ``links: [{name, mass, com, inertia}]`` (the
 ``links`` of an earlier result, say) for the same links; bounds (``--link-bounds``) are
@@ -33,6 +38,7 @@ from numpy.typing import NDArray
 
 from dynamics.physical_parameters import LinkBounds, link_summary
 from dynamics.robot import RobotModel
+from estimation.consistent.determination import Determination, determination
 from estimation.consistent.least_squares import ConsistentEstimate, ConsistentLeastSquares
 from estimation.identification.fit import IdentificationResult
 from estimation.estimators.identification_problem import stack
@@ -55,6 +61,10 @@ class ConsistentResult:
     prior_source: str
     #: the weights tried by ``--prior-weight auto`` and their channel-weighted validation errors (else empty)
     prior_weight_search: tuple[dict[str, float], ...] = ()
+    #: the links and directions of the bodies the data did not determine (``None``: not assessed)
+    determination: Determination | None = None
+    #: how the prior's weight was chosen: ``given``, ``held-out`` (``--prior-weight auto``) or ``default``
+    prior_weight_choice: str = "given"
 
     def to_dict(self) -> dict[str, Any]:
         """The keys ``links`` and ``consistent`` of ``result.json`` (module docstring)."""
@@ -71,8 +81,10 @@ class ConsistentResult:
                 "uncertainty_method": estimate.uncertainty_method,
                 "prior_weight": estimate.prior_weight,
                 "prior": self.prior_source if estimate.prior_weight > 0 else None,
+                "prior_weight_choice": self.prior_weight_choice,
                 **({"prior_weight_search": [dict(entry) for entry in self.prior_weight_search]}
                    if self.prior_weight_search else {}),
+                "undetermined": None if self.determination is None else self.determination.to_dict(),
                 "parameters": estimate.records(),
                 "effects": estimate.effect_values(),
                 "active_bounds": list(estimate.active_bounds),
@@ -104,7 +116,9 @@ def identify_consistent(
     bounds: Mapping[str, LinkBounds] | None = None,
     starts: int = 2,
 ) -> ConsistentResult:
-    """Consistent refit of ``result`` (its model, train data and channel weights)."""
+    """Consistent refit of ``result`` (its model, train data and channel weights), with what its data did
+    not determine of the bodies (:func:`estimation.consistent.determination.determination`, in units of the
+    prior's bodies: ``prior``, else the robot description's)."""
     if getattr(result, "shaped_fit", None) is not None:
         raise ValueError("the consistent refit works on the linear effects: this result has laws with shape parameters "
                          "(coulomb:tanh, sigmoid…), fitted by variable projection; declare their plain forms")
@@ -113,7 +127,9 @@ def identify_consistent(
     estimate = estimator.fit(model, stack(model, train), unconstrained=result.estimate).estimate_
     train_comparison = compare(model, estimate.values, train, label="identification (consistent)")
     validation = None if validate is None else compare(model, estimate.values, validate, label="validation (consistent)")
-    return ConsistentResult(estimate, result, train_comparison, validation, prior_source)
+    nominal = model.robot.standard_parameters if prior is None else np.asarray(prior, dtype=float).reshape(-1)
+    return ConsistentResult(estimate, result, train_comparison, validation, prior_source,
+                            determination=determination(model, result.estimate.cov, nominal))
 
 
 def _ratio(numerator: dict[str, float], denominator: dict[str, float]) -> dict[str, float | None]:

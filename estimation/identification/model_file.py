@@ -26,7 +26,8 @@
 
 The model's prediction along a motion is ``Y_b(q, q̇, q̈; s) θ`` with the shaped columns at the
 fitted shapes ``s`` (:mod:`estimation.identification.shaped`), along the motion moved by the delay
-(:mod:`estimation.preprocessing.delay`). :class:`ModelFile` is the parsed document;
+(:mod:`estimation.preprocessing.delay`). :class:`ModelFile` is the parsed document (:func:`model_file_document` writes it for an in-memory fit,
+:func:`summed_model_file_document` for one from sums, the streamed path);
 :class:`estimation.identification.identified_model.IdentifiedModel` predicts with it.
 """
 
@@ -35,13 +36,13 @@ from __future__ import annotations
 import hashlib
 import json
 import tempfile
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from dynamics.effects.shaped import shape_parameters
 from dynamics.effects.specs import effect_spec
@@ -50,8 +51,8 @@ from dynamics.robot import RobotModel
 from dynamics.robots import load_robot
 from estimation.identification.fit import IdentificationResult
 
-__all__ = ["FORMAT", "MAX_EMBEDDED_URDF_BYTES", "ModelFile", "ModelFileError", "RobotSource", "model_file_document",
-           "read_model_file"]
+__all__ = ["FORMAT", "MAX_EMBEDDED_URDF_BYTES", "ModelFile", "ModelFileError", "RobotSource", "effect_entries",
+           "model_file_document", "read_model_file", "summed_model_file_document"]
 
 FORMAT = "robot-oed identified model"
 VERSION = 1
@@ -235,21 +236,62 @@ class ModelFile:
 
 def _effect_values(result: IdentificationResult) -> tuple[dict[str, Any], ...]:
     """Each effect's spec, its coefficients that are base parameters of their own, and its shape."""
-    model, estimate = result.model, result.estimate
-    values = dict(zip(estimate.names, map(float, estimate.values)))
-    expressions = dict(zip(estimate.names, estimate.expressions))
     shapes = {value.name: float(value.value) for value in result.shapes if value.name != DELAY_NAME}
+    estimate = result.estimate
+    return effect_entries(result.model, estimate.names, estimate.expressions, estimate.values, shapes)
+
+
+def effect_entries(model: Any, names: Sequence[str], expressions: Sequence[str], values: ArrayLike,
+                   shapes: Mapping[str, float]) -> tuple[dict[str, Any], ...]:
+    """The ``effect_values`` entries of a fit of ``model``: base parameters ``names`` (their
+    ``expressions`` and ``values``) and fitted ``shapes`` by name."""
+    values = dict(zip(names, map(float, np.asarray(values, dtype=float))))
+    expressions = dict(zip(names, expressions))
     entries = []
     for effect in model.effects:
-        names = list(effect.parameter_names(model.robot))
+        parameter_names = list(effect.parameter_names(model.robot))
         shape_names = [parameter.name for parameter in shape_parameters(effect, model.robot)]
         entries.append({
             "spec": effect_spec(effect),
-            "coefficients": {name: values[name] for name in names
+            "coefficients": {name: values[name] for name in parameter_names
                              if name in values and expressions[name].strip() == name},
-            "shape": {name: shapes[name] for name in shape_names if name in shapes},
+            "shape": {name: float(shapes[name]) for name in shape_names if name in shapes},
         })
     return tuple(entries)
+
+
+def summed_model_file_document(model: Any, estimate: Any, *, robot: RobotSource, preprocessing: Mapping[str, Any],
+                               shape: Mapping[str, float] | None = None,
+                               recorded_mse: Mapping[str, float] | None = None,
+                               validation_mse: Mapping[str, float] | None = None) -> dict[str, Any]:
+    """The ``model_file`` document of an estimate from sums (the streamed path,
+    :class:`estimation.estimators.summed_least_squares.SummedEstimate`) of ``model``.
+
+    ``shape``: the fixed shapes of its shaped laws; ``recorded_mse``: the training MSE against the channels
+    as recorded (the prediction band's noise; ``None``: the fit's residual variance serves);
+    ``validation_mse``: the validation MSE against the channels as recorded, as ``oed predict`` measures it.
+    """
+    names = tuple(model.base.names)
+    if sorted(estimate.names) != sorted(names):
+        raise ModelFileError("the estimate's parameters are not the base parameters of the model rebuilt from its "
+                             f"effects ({list(estimate.names)[:5]}… against {list(names)[:5]}…)")
+    order = [list(estimate.names).index(name) for name in names]  # the model's order
+    theta = np.asarray(estimate.values, dtype=float)[order]
+    channels = tuple(model.channels)
+    shape = {} if shape is None else {name: float(value) for name, value in shape.items()}
+    document = ModelFile(
+        robot=robot, model=model.kind.value, channels=channels, joint_names=tuple(model.robot.joint_names),
+        effects=",".join(effect_spec(effect) for effect in model.effects) or "none",
+        names=names, expressions=tuple(model.base.expressions),
+        theta=theta, cov=np.asarray(estimate.cov, dtype=float)[np.ix_(order, order)],
+        channel_variance=np.asarray(estimate.channel_variance, dtype=float),
+        weights=np.broadcast_to(np.asarray(estimate.weights, dtype=float), (len(channels),)).copy(),
+        method=estimate.method, shape=shape, preprocessing=dict(preprocessing),
+        reported_validation_mse=None if validation_mse is None else dict(validation_mse),
+        effect_values=effect_entries(model, names, model.base.expressions, theta, shape),
+        recorded_variance=None if recorded_mse is None else np.array([recorded_mse[c] for c in channels], dtype=float),
+    )
+    return document.to_dict()
 
 
 def model_file_document(result: IdentificationResult, *, robot: RobotSource, preprocessing: Mapping[str, Any] | None,
@@ -309,12 +351,11 @@ def read_model_file(path: str | Path) -> ModelFile:
         raise ModelFileError(f"{path} holds no JSON object")
     if "model_file" in document:
         if document["model_file"] is None:
-            raise ModelFileError(f"{path} holds no model (the streamed path does not write one yet)")
+            raise ModelFileError(f"{path} holds no model")
         document = document["model_file"]
     elif document.get("format") != FORMAT:
         raise ModelFileError(f"{path} holds no model: it has no key 'model_file' (written by `oed identify` and "
-                             "`oed diagnose` in memory from this release on, not yet by the streamed path; run them "
-                             "again)")
+                             "`oed diagnose` from this release on; run them again)")
     try:
         return ModelFile.from_dict(document)
     except RobotDescriptionError as error:

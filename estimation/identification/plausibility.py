@@ -11,7 +11,9 @@
 Both are what a physically consistent fit (``oed identify --consistent``) rules out or exposes. Consistent
 is not yet plausible: :func:`link_findings` names the bodies of a consistent fit that the data did not
 determine (a degenerate pseudo-inertia: the bounds of consistency set it) or that lie far from the
-description (a mass :data:`MASS_FACTOR` times the nominal one or more, or as much below it).
+description (a mass :data:`MASS_FACTOR` times the nominal one or more, or as much below it), or whose
+centre of mass lies beyond :data:`COM_REACH_FACTOR` times the link's reach (:func:`link_reach`) from its
+frame's origin.
 """
 
 from __future__ import annotations
@@ -27,7 +29,8 @@ from dynamics.models import IdentificationModel
 from dynamics.physical_parameters import consistency_margin
 from dynamics.robot import LINK_PARAMETER_NAMES, N_LINK_PARAMETERS, RobotModel
 
-__all__ = ["DEGENERATE_MARGIN", "MASS_FACTOR", "SIGMAS", "Plausibility", "assess_plausibility", "link_findings", "positive_base_parameters"]
+__all__ = ["COM_REACH_FACTOR", "DEGENERATE_MARGIN", "MASS_FACTOR", "SIGMAS", "Plausibility", "assess_plausibility",
+           "link_findings", "link_reach", "positive_base_parameters"]
 
 #: standard deviations below zero that make a positive-by-physics base parameter implausible
 SIGMAS = 3.0
@@ -38,6 +41,9 @@ NON_NEGATIVE_LINK_PARAMETERS = ("m", "Ixx", "Iyy", "Izz")
 DEGENERATE_MARGIN = 1e-9
 #: a consistent body this many times heavier or lighter than the description's is named
 MASS_FACTOR = 10.0
+#: a consistent body whose centre of mass lies farther than this many times its link's reach from the link
+#: frame's origin is named
+COM_REACH_FACTOR = 2.0
 ADVICE = "a physically consistent fit (`oed identify --consistent`) keeps every link a real rigid body"
 
 
@@ -119,19 +125,46 @@ def assess_plausibility(model: IdentificationModel, records: list[dict[str, Any]
     return Plausibility(worse, worse_channels, relative, nominal, tuple(negative))
 
 
+def link_reach(robot: RobotModel) -> np.ndarray:
+    """``(n,)`` each link's reach, m: the farthest from its frame's origin of its own joint's origin, the next
+    joint's origin and its nominal centre of mass, and at least a tenth of the chain's span (the summed
+    distances from joint to joint; 1 m for a chain of coincident joints)."""
+    own, span = [], 0.0
+    for k, joint in enumerate(robot.joints):
+        rotation, offset = joint.link_transform[:3, :3], joint.link_transform[:3, 3]
+        start = -rotation.T @ offset  # the joint's origin in the link frame
+        end = robot.joints[k + 1].placement[:3, 3] if k + 1 < robot.n_joints else start
+        mass = joint.inertial[0]
+        com = joint.inertial[1:4] / mass if mass > 0 else np.zeros(3)
+        own.append(max(float(np.linalg.norm(start)), float(np.linalg.norm(end)), float(np.linalg.norm(com))))
+        span += float(np.linalg.norm(end - start))
+    floor = 0.1 * span if span > 0 else 1.0
+    return np.maximum(np.array(own), floor)
+
+
 def link_findings(robot: RobotModel, links: np.ndarray) -> tuple[str, ...]:
     """One message per body of a consistent fit (``links``: ``(n, 10)`` standard parameters) that is
-    degenerate or whose mass is :data:`MASS_FACTOR` times the description's or more, or as much below."""
+    degenerate, whose mass is :data:`MASS_FACTOR` times the description's or more, or as much below, or
+    whose centre of mass lies beyond :data:`COM_REACH_FACTOR` times the link's reach (:func:`link_reach`)."""
     messages = []
-    for joint, link in zip(robot.joints, np.asarray(links, dtype=float).reshape(-1, N_LINK_PARAMETERS)):
+    reach = link_reach(robot)
+    for joint, link, limit in zip(robot.joints, np.asarray(links, dtype=float).reshape(-1, N_LINK_PARAMETERS),
+                                  COM_REACH_FACTOR * reach):
         margin = consistency_margin(link)
         nominal = float(joint.inertial[0])
         if margin < DEGENERATE_MARGIN:
             messages.append(f"link of {joint.name}: mass {link[0]:.4g} kg, consistency margin {margin:.2g}: a "
                             "degenerate body, set by the bounds of consistency rather than by the data (a richer "
                             "excitation, a prior (--prior-weight) or link bounds (--link-bounds) determine it)")
-        elif nominal > 0 and not nominal / MASS_FACTOR <= link[0] <= MASS_FACTOR * nominal:
+            continue
+        if nominal > 0 and not nominal / MASS_FACTOR <= link[0] <= MASS_FACTOR * nominal:
             messages.append(f"link of {joint.name}: mass {link[0]:.4g} kg against {nominal:.4g} kg in the description: "
                             "the data hardly determine it (a prior (--prior-weight) or link bounds (--link-bounds) "
                             "keep it near the description)")
+        distance = float(np.linalg.norm(link[1:4] / link[0])) if link[0] > 0 else 0.0
+        if distance > limit:
+            messages.append(f"link of {joint.name}: centre of mass {distance:.3g} m from the link frame's origin, "
+                            f"beyond {COM_REACH_FACTOR:g} x the link's reach ({limit / COM_REACH_FACTOR:.3g} m): the "
+                            "data hardly determine it (a prior (--prior-weight) or link bounds (--link-bounds) keep it "
+                            "on the link)")
     return tuple(messages)

@@ -53,7 +53,7 @@ from typing import Any
 import numpy as np
 
 from dynamics.effects.linear import Effect
-from dynamics.models import IdentificationModel
+from dynamics.models import IdentificationModel, build_model
 from estimation.diagnosis.candidates.trials import candidate_label
 from estimation.diagnosis.forward_selection import DiagnosisSearch, SearchOutcome, SearchSettings
 from estimation.diagnosis.search import FoundEffect, RejectedEffect
@@ -111,6 +111,16 @@ class StreamedDiagnosis:
     streaming: dict[str, Any] = field(repr=False)
     warnings: dict[str, tuple[str, ...]] = field(default_factory=dict)
     trivial: dict[str, dict[str, float]] = field(default_factory=dict)  # zero_mse, nominal_mse (validation)
+    #: the effect objects of ``effects``, in the order of ``after``'s columns (shaped laws at ``effects[i].shape``)
+    found_effects: tuple[Effect, ...] = ()
+
+    def final_model(self) -> IdentificationModel:
+        """The declared model with the effects found: ``after`` holds its base parameters (in the order of its columns)."""
+        return build_model(self.model.robot, self.model.kind, tuple(self.model.effects) + tuple(self.found_effects))
+
+    def final_shape(self) -> dict[str, float]:
+        """The fixed shapes of the shaped laws found, by parameter name."""
+        return {name: float(value) for effect in self.effects for name, value in effect.shape.items()}
 
     def to_dict(self) -> dict[str, Any]:
         comparison, statements, ratios = {}, {}, {"before": None, "after": None}
@@ -395,5 +405,5 @@ def _result(model: IdentificationModel, run: _Run, before: SummedEstimate, after
         streaming=streaming,
         warnings={"before": implausible_estimates(model, before),
                   "after": implausible_estimates(model, after) + trivial_warnings(mse["validation", "after"], trivial)},
-        trivial=trivial,
+        trivial=trivial, found_effects=tuple(run.found.blocks[index].effect for index in run.chosen),
     )

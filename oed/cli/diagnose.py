@@ -47,6 +47,7 @@ from oed.cli.shared.common import (
     streaming_requested,
 )
 from oed.cli.diagnose_streaming import add_streamed_diagnosis_arguments, run_streaming
+from estimation.identification.repeated_motion import repeated_motion_note
 from oed.cli.shared.model_files import add_model_file
 
 #: what the in-memory diagnosis holds at its peak: bytes a sample, channel and base parameter (measured: 2.8 GB
@@ -126,6 +127,8 @@ def run(args: argparse.Namespace) -> int:
         untouched = test_errors(records, diagnosis, model, args.frequency)
         trivial, notes = trivial_predictors(diagnosis.after, records.validation.measurements)
         notes += worse_after(diagnosis)
+        repeat = repeated_motion_note(records.train.measurements, records.validation.measurements)
+        notes += () if repeat is None else (repeat,)
     print_warnings("diagnose", caught)
     for note in notes:
         print(f"oed diagnose: warning: {note}", file=sys.stderr)

@@ -1,5 +1,6 @@
 """``oed diagnose --chunk-size/--workers/--scheduler``: the diagnosis in bounded memory
-(:mod:`estimation.streaming.diagnosis`), same report keys as the in-memory ``oed diagnose``."""
+(:mod:`estimation.streaming.diagnosis`), same report keys as the in-memory ``oed diagnose``, the model file
+(``model_file``) that ``oed predict`` reads among them."""
 
 from __future__ import annotations
 
@@ -11,6 +12,7 @@ from dynamics.robot import RobotModel
 from estimation.data.log_cleaning import DEFAULT_MAX_GAP
 from estimation.estimators.normal_equations import DEFAULT_CHUNK_SIZE
 from estimation.streaming.cutoff_choice import choose_streamed_cutoff
+from estimation.streaming.recorded_errors import streamed_plan
 from estimation.streaming.diagnosis import (
     DEFAULT_SUBSAMPLE,
     FLOOR_WINDOW,
@@ -18,6 +20,7 @@ from estimation.streaming.diagnosis import (
     diagnose_files,
 )
 from oed.cli.shared.asbuilt import model_effects
+from oed.cli.shared.model_files import add_summed_model_file
 from oed.cli.shared.common import (
     OutputFiles,
     check_shaped_effects_kept,
@@ -91,6 +94,13 @@ def run_streaming(args: argparse.Namespace) -> int:
                                           if key in ("selection", "folds", "candidates")})
     document["max_effects"] = args.max_effects
     document["max_effects_reached"] = len(result.effects) >= args.max_effects
+    # the model file: the final model's estimate from the sums; its validation error is against the channels as
+    # recorded, on the samples the in-memory preprocessing keeps, which is what `oed predict` measures
+    plan = streamed_plan(args.data[0], model, cutoff_hz=result.streaming["cutoff_hz"], decimation=args.decimate,
+                         held_torques=bool(args.held_torques), chunk_size=chunk_size)
+    add_summed_model_file(document, result.final_model(), result.after, args, plan,
+                          verb="diagnose", shape=result.final_shape(), recorded_mse=result.train_mse["after"],
+                          validation_mse=result.validation_mse["after"])
     with OutputFiles() as outputs, outputs.open(args.out) as stream:
         stream.write(json_text(document))
     print_streamed_summary(args, robot, model, result, chunk_size)

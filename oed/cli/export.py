@@ -17,12 +17,17 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
         help="write a consistent identified model as a URDF (and its friction as JSON)",
         description="From a result.json of `oed identify --consistent`: the robot's URDF with every moving link's "
         "<inertial> replaced by the identified mass, centre of mass and inertia (the same joint and link names; a "
-        "built-in robot is written from its description), and the joints' friction, offsets and armature as JSON.",
+        "built-in robot is written from its description), and the joints' friction, offsets and armature as JSON. "
+        "A body that is not plausible (degenerate, a mass ten times the description's or a tenth of it, a centre of "
+        "mass beyond twice the link's reach) is refused unless --allow-implausible.",
     )
     parser.add_argument("--model", type=Path, required=True, help="result.json of oed identify --consistent")
     parser.add_argument("--urdf", dest="urdf_out", type=Path, required=True, metavar="URDF", help="URDF file to write")
     parser.add_argument("--friction", dest="friction_out", type=Path, metavar="JSON",
                         help="friction.json to write: per joint viscous, coulomb, offset, armature…, other effects")
+    parser.add_argument("--allow-implausible", action="store_true",
+                        help="write the files even when a body is not plausible (each named on stderr); without it "
+                             "such a model is refused (exit 2, nothing written)")
     return parser
 
 
@@ -45,6 +50,12 @@ def run(args: argparse.Namespace) -> int:
         check_json_path(args.friction_out, "--friction")
     model = IdentifiedModel.load(args.model)  # exported_urdf refuses a model without a consistent estimate
     text = exported_urdf(model)
+    findings = implausible_links(model)
+    if findings and not args.allow_implausible:
+        raise ValueError("not exported: the consistent estimate holds bodies that are not plausible:\n  "
+                         + "\n  ".join(findings) + "\nidentify again with a prior (--prior-weight, the default with "
+                         "--validate chooses it) or link bounds (--link-bounds), or export them anyway with "
+                         "--allow-implausible")
     friction = friction_document(model) if args.friction_out is not None else None
     with OutputFiles() as outputs:  # all files or none
         with outputs.open(args.urdf_out) as stream:
@@ -52,8 +63,8 @@ def run(args: argparse.Namespace) -> int:
         if friction is not None:
             with outputs.open(args.friction_out) as stream:
                 stream.write(json_text(friction))
-    for message in implausible_links(model):
-        print(f"oed export: warning: {message}", file=sys.stderr)
+    for message in findings:
+        print(f"oed export: warning: exported as asked (--allow-implausible), not plausible: {message}", file=sys.stderr)
     masses = ", ".join(f"{link[0]:.4g}" for link in model.file.consistent_links)
     print(f"{model.robot.name}: {model.robot.n_joints} bodies of the consistent estimate (masses {masses} kg)")
     print("wrote " + " and ".join(str(path) for path in (args.urdf_out, args.friction_out) if path is not None))

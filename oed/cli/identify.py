@@ -18,11 +18,13 @@ from estimation.identification.validation import plot_comparison
 from estimation.preprocessing.delay import DelayBounds, split_delay
 from estimation.preprocessing.plan import Preprocessing
 from estimation.identification.prepared import InMemoryBudget, PreparedRecords, prepare_records
+from estimation.identification.repeated_motion import repeated_motion_note
 from estimation.identification.weighting_choice import choose_weighting
 from estimation.diagnosis.statistics import ResidualReport, residual_report
 from estimation.streaming.cutoff_choice import choose_streamed_cutoff
 from estimation.streaming.identification import identify_files
-from oed.cli.shared.model_files import add_model_file
+from estimation.streaming.recorded_errors import recorded_mse, streamed_plan
+from oed.cli.shared.model_files import add_model_file, add_summed_model_file
 from oed.cli.shared.asbuilt import (
     add_asbuilt_arguments,
     finish_document,
@@ -114,6 +116,7 @@ def run_streaming(args: argparse.Namespace, robot: RobotModel, model: Identifica
     document = result.to_dict()
     if plan is not None:  # chosen by held-out error on the first rows of the first file
         document["preprocessing"] = plan.to_dict()
+    add_streamed_model_file(document, args, result, chunk_size)
     with OutputFiles() as outputs, outputs.open(args.out) as stream:
         stream.write(json_text(document))
     estimate = result.estimate
@@ -126,7 +129,6 @@ def run_streaming(args: argparse.Namespace, robot: RobotModel, model: Identifica
         print(f"standard deviations: batch means (batches of {result.batch_length} samples; a third pass over the files, "
               f"{result.seconds['covariance_pass']:.3g} s)")
     print_estimate(estimate)
-    document = result.to_dict()
     for label in ("train", "validation"):
         errors = document[label]
         if errors is not None:
@@ -135,6 +137,30 @@ def run_streaming(args: argparse.Namespace, robot: RobotModel, model: Identifica
             print(f"{label} MSE ({against}): " + "  ".join(f"{channel} {value:.4g}" for channel, value in mse.items()))
     print(f"wrote {args.out}")
     return 0
+
+
+def add_streamed_model_file(document: dict[str, Any], args: argparse.Namespace, result: Any, chunk_size: int) -> None:
+    """The model file of the streamed identification. Its validation error is the one ``oed predict`` measures:
+    against the channels as recorded, on the samples the in-memory preprocessing keeps; on the filter path (where
+    the sums hold filtered channels) from one more pass over the validation files
+    (:func:`estimation.streaming.recorded_errors.recorded_mse`); on the Fourier path none is reported."""
+    if result.frequency_hz is not None:
+        plan = {"method": "fourier", "frequency_hz": result.frequency_hz, "harmonics": 5 if args.harmonics is None
+                else args.harmonics, "frequency_source": "given", "average_periods": "auto",
+                "decimation": args.decimate, "held_torques": bool(args.held_torques)}
+    else:
+        plan = streamed_plan(args.data[0], result.model, cutoff_hz=result.cutoff_hz, decimation=args.decimate,
+                             held_torques=bool(args.held_torques), chunk_size=chunk_size)
+    validation = None if document["validation"] is None else document["validation"]["mse"]
+    if result.frequency_hz is not None:
+        validation = None
+    elif document["validation"] is not None and validation is None:  # the sums hold filtered channels
+        validation = recorded_mse(result.model, result.estimate.values, args.validate, chunk_size=chunk_size,
+                                  cutoff_hz=result.cutoff_hz, decimation=args.decimate,
+                                  held_torques=bool(args.held_torques))
+        document["validation"]["mse"] = validation
+    add_summed_model_file(document, result.model, result.estimate, args, plan, verb="identify",
+                          recorded_mse=document["train"]["mse"], validation_mse=validation)
 
 
 def print_estimate(estimate: Any) -> None:
@@ -207,6 +233,8 @@ def run_in_memory(args: argparse.Namespace, robot: RobotModel, model: Identifica
         trivial, notes = trivial_predictors(result, validation)
         floor_report = None if validation is None else floor_check(records, model, result, args.frequency)
         notes = (*notes, *above_floor_notes(floor_report))
+        repeat = None if validation is None else repeated_motion_note(train, validation)
+        notes = notes if repeat is None else (*notes, repeat)
         consistent = consistent_refit(args, result, train, validation)  # None without --consistent
     print_warnings("identify", caught)
     for note in notes:

@@ -7,8 +7,14 @@ import sys
 from typing import Any
 
 from estimation.identification.fit import IdentificationResult
-from estimation.identification.model_file import RobotSource, model_file_document
+from estimation.identification.model_file import RobotSource, model_file_document, summed_model_file_document
 from estimation.identification.plausibility import assess_plausibility, link_findings
+
+
+def robot_source(robot: Any, args: argparse.Namespace) -> RobotSource:
+    """Where the robot of ``args`` came from (``--robot``, ``--urdf``, ``--joints``)."""
+    return RobotSource.from_description(robot, builtin=None if args.urdf is not None else args.robot, urdf=args.urdf,
+                                        joints=args.joints)
 
 
 def add_model_file(document: dict[str, Any], result: IdentificationResult, args: argparse.Namespace, preprocessing: Any,
@@ -19,8 +25,7 @@ def add_model_file(document: dict[str, Any], result: IdentificationResult, args:
     ``preprocessing``: the :class:`estimation.preprocessing.plan.Preprocessing` chosen on the training data;
     ``consistent``: the :class:`estimation.consistent.identification.ConsistentResult` of ``--consistent``, or ``None``.
     """
-    robot = RobotSource.from_description(result.model.robot, builtin=None if args.urdf is not None else args.robot,
-                                         urdf=args.urdf, joints=args.joints)
+    robot = robot_source(result.model.robot, args)
     rest = None if args.min_speed is None or args.min_speed == 0 else {"min_speed": args.min_speed, "rest": args.rest}
     document["model_file"] = model_file_document(result, robot=robot, preprocessing=preprocessing.to_dict(),
                                                  transmission=transmission, rest=rest, max_gap=args.max_gap,
@@ -35,4 +40,21 @@ def add_model_file(document: dict[str, Any], result: IdentificationResult, args:
     links = () if consistent is None else link_findings(result.model.robot, consistent.estimate.link_parameters())
     document["plausibility"]["consistent_links"] = list(links)
     for message in plausibility.messages() + links:
+        print(f"oed {verb}: warning: {message}", file=sys.stderr)
+
+
+def add_summed_model_file(document: dict[str, Any], model: Any, estimate: Any, args: argparse.Namespace,
+                          preprocessing: dict[str, Any], *, verb: str, shape: dict[str, float] | None = None,
+                          recorded_mse: dict[str, float] | None = None,
+                          validation_mse: dict[str, float] | None = None) -> None:
+    """``model_file`` and ``plausibility`` of the streamed path, in place (its estimate from sums,
+    :func:`estimation.identification.model_file.summed_model_file_document`); warnings on stderr."""
+    document["model_file"] = summed_model_file_document(model, estimate, robot=robot_source(model.robot, args),
+                                                        preprocessing=preprocessing, shape=shape,
+                                                        recorded_mse=recorded_mse, validation_mse=validation_mse)
+    validation = document.get("validation") or {}
+    plausibility = assess_plausibility(model, estimate.records(), validation_mse=validation_mse,
+                                       nominal_mse=validation.get("nominal_mse"), zero_mse=validation.get("zero_mse"))
+    document["plausibility"] = {**plausibility.to_dict(), "consistent_links": []}
+    for message in plausibility.messages():
         print(f"oed {verb}: warning: {message}", file=sys.stderr)

@@ -1,0 +1,71 @@
+"""Real data: the KUKA LWR4+ runs of FloBaRoID (../shared/data/kuka_lwr4). The model `oed diagnose` chooses from
+the first two records, used on the third, against a plain least-squares fit of rigid body, viscous and Coulomb
+friction and offsets from the same records.
+
+Run 2 repeats run 1's trajectory (positions within 0.4 % of their spread, sample by sample); run 3 moves twice
+as fast. The held-out confirmation on run 2 therefore cannot reject an effect fitted to run 1's own motion:
+`oed diagnose` and `oed identify` say so, and the diagnosis's model misses the target on run 3 (figures in
+``benchmarks/README.md``), kept here as a strict xfail with the measured figures.
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from estimation.datasets.kuka import load_kuka_run
+from estimation.identification.repeated_motion import REPEAT_FRACTION, repeated_motion
+from oed.cli import main
+from tests.conftest import shared_data
+
+pytestmark = pytest.mark.realdata
+
+
+@pytest.fixture(scope="module")
+def runs():
+    folder = shared_data("kuka_lwr4")
+    return folder, [load_kuka_run(folder / f"kuka_lwr4_HW_measurements_{index}.npz") for index in (1, 2, 3)]
+
+
+def test_run_2_repeats_run_1_and_run_3_does_not(runs):
+    _, (first, second, third) = runs
+    assert repeated_motion(first, second) < 0.01
+    assert repeated_motion(first, third) > 10 * REPEAT_FRACTION
+
+
+def _parquet(run, path):
+    table = {"t": run.t}
+    for name, values in (("q", run.q), ("dq", run.dq), ("ddq", run.ddq), ("tau", run.tau)):
+        table.update({f"{name}{j + 1}": values[:, j] for j in range(values.shape[1])})
+    pd.DataFrame(table).to_parquet(path)
+    return str(path)
+
+
+def _run3_mse(model, record, folder):
+    metrics = folder / "metrics.json"
+    assert main(["predict", "--model", str(model), "--data", record, "--metrics", str(metrics)]) == 0
+    return np.array(list(json.loads(metrics.read_text())["mse"].values()))
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason="measured: diagnosis (run 1, validated on run 2) on run 3, MSE per joint 2.92 "
+                   "1.84 1.10 1.64 1.19 0.615 0.070, total 9.37 N²m²; plain ordinary least squares 1.34 1.92 0.775 1.99 "
+                   "0.984 0.590 0.391, total 7.99: the coupled viscous[q1+q2] the repeat run confirmed costs joint 1 "
+                   "(without it 1.21 and 6.95 in total), and joint 3 at twice the training speed is predicted worse "
+                   "than the friction-free description by every fit")
+def test_the_diagnosed_model_predicts_the_third_record_as_well_as_plain_least_squares(runs, tmp_path, capsys):
+    folder, records = runs
+    paths = [_parquet(run, tmp_path / f"run{index}.parquet") for index, run in enumerate(records, start=1)]
+    urdf = str(folder / "kuka_lwr4.urdf")
+    report, plain = tmp_path / "report.json", tmp_path / "plain.json"
+    assert main(["diagnose", "--urdf", urdf, "--data", paths[0], "--validate", paths[1], "--out", str(report)]) == 0
+    assert "repeats the training motion" in capsys.readouterr().err
+    assert main(["identify", "--urdf", urdf, "--data", paths[0], "--validate", paths[1], "--friction",
+                 "viscous,coulomb,offset", "--method", "ols", "--out", str(plain)]) == 0
+    diagnosed, least_squares = _run3_mse(report, paths[2], tmp_path), _run3_mse(plain, paths[2], tmp_path)
+    print(f"\nrun 3 MSE per joint, diagnosis: {np.round(diagnosed, 3)} (total {diagnosed.sum():.3f}); "
+          f"plain least squares: {np.round(least_squares, 3)} (total {least_squares.sum():.3f})")
+    assert diagnosed.sum() <= least_squares.sum() and np.all(diagnosed <= least_squares)
