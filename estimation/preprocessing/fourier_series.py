@@ -24,11 +24,13 @@ def evaluate_series(frequency_hz: float, q0: NDArray[np.float64], a: NDArray[np.
     t = np.asarray(t, dtype=float).reshape(-1)
     omega = 2 * np.pi * frequency_hz * np.arange(1, a.shape[1] + 1)  # (N,)
     phase = np.outer(t, omega)  # (T, N)
-    sin, cos = np.sin(phase), np.cos(phase)
-    q = q0 + (sin / omega) @ a.T - (cos / omega) @ b.T
-    dq = cos @ a.T + sin @ b.T
-    ddq = (-sin * omega) @ a.T + (cos * omega) @ b.T
-    return q, dq, ddq
+    sin = np.sin(phase)
+    cos = np.cos(phase, out=phase)
+    n = a.shape[0]
+    # the harmonics' factors on the coefficients, not on the (T, N) basis: two products, no (T, N) temporaries
+    motion = sin @ np.concatenate([(a / omega).T, b.T, -(a * omega).T], axis=1)
+    motion += cos @ np.concatenate([-(b / omega).T, a.T, (b * omega).T], axis=1)  # (T, 3n): q - q0, dq, ddq
+    return q0 + motion[:, :n], np.ascontiguousarray(motion[:, n:2 * n]), np.ascontiguousarray(motion[:, 2 * n:])
 
 
 def design_matrix(t: ArrayLike, frequency_hz: float, harmonics: int) -> NDArray[np.float64]:
@@ -36,7 +38,11 @@ def design_matrix(t: ArrayLike, frequency_hz: float, harmonics: int) -> NDArray[
     t = np.asarray(t, dtype=float).reshape(-1)
     omega = 2 * np.pi * frequency_hz * np.arange(1, harmonics + 1)
     phase = np.outer(t, omega)
-    return np.hstack([np.ones((t.shape[0], 1)), np.sin(phase) / omega, -np.cos(phase) / omega])
+    design = np.empty((t.shape[0], 2 * harmonics + 1))  # filled in place: no (T, N) temporaries
+    design[:, 0] = 1.0
+    np.divide(np.sin(phase), omega, out=design[:, 1:harmonics + 1])
+    np.divide(np.cos(phase, out=phase), -omega, out=design[:, harmonics + 1:])
+    return design
 
 
 @dataclass(frozen=True)
