@@ -150,7 +150,8 @@ class HeldOutScore:
         scale[scale == 0] = 1.0
         squared = np.zeros(y.shape[1])
         blocks = [held for held, _ in blocked_folds(y.shape[0], self.folds)]
-        factors = [block_factor(Y[held] / scale[None, :, None], y[held] / scale) for held in blocks]
+        support = np.any(Y != 0, axis=0)  # (m, p): the columns each channel has
+        factors = [block_factor(Y[held] / scale[None, :, None], y[held] / scale, support) for held in blocks]
         p = Y.shape[2]
         for index, held in enumerate(blocks):
             kept = np.concatenate(factors[:index] + factors[index + 1:], axis=0)
@@ -197,11 +198,20 @@ def blocked_folds(n_samples: int, folds: int) -> Iterator[tuple[slice, NDArray[n
         yield slice(start, stop), kept
 
 
-def block_factor(Y: NDArray[np.float64], y: NDArray[np.float64]) -> NDArray[np.float64]:
-    """The triangular factor ``[R, Qᵀy]`` of the rows ``[Y, y]`` (samples × channels stacked), at most ``p + 1`` rows:
-    least squares on several blocks' factors stacked is least squares on their rows."""
-    stacked = np.concatenate([Y.reshape(-1, Y.shape[2]), y.reshape(-1, 1)], axis=1)
-    return np.linalg.qr(stacked, mode="r")
+def block_factor(Y: NDArray[np.float64], y: NDArray[np.float64], support: NDArray[np.bool_]) -> NDArray[np.float64]:
+    """Triangular factors ``[R, Qᵀy]`` of the rows ``[Y, y]`` of a block ``Y (N, m, p)``, ``y (N, m)``, one per
+    channel on the columns it has (``support (m, p)``, zero elsewhere), stacked: least squares on several blocks'
+    factors stacked is least squares on their rows. A channel reaches few of the columns (a distal joint's torque,
+    its own friction): its factor costs a fraction of the whole block's."""
+    n_columns = Y.shape[2]
+    factors = []
+    for channel, columns in enumerate(support):
+        where = np.append(np.flatnonzero(columns), n_columns)
+        triangular = np.linalg.qr(np.concatenate([Y[:, channel, columns], y[:, channel, None]], axis=1), mode="r")
+        factor = np.zeros((triangular.shape[0], n_columns + 1))
+        factor[:, where] = triangular
+        factors.append(factor)
+    return np.concatenate(factors, axis=0)
 
 
 def geometric_mean(mse: NDArray[np.float64]) -> float:

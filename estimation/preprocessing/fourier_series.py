@@ -26,11 +26,11 @@ def evaluate_series(frequency_hz: float, q0: NDArray[np.float64], a: NDArray[np.
     phase = np.outer(t, omega)  # (T, N)
     sin = np.sin(phase)
     cos = np.cos(phase, out=phase)
-    n = a.shape[0]
-    # the harmonics' factors on the coefficients, not on the (T, N) basis: two products, no (T, N) temporaries
-    motion = sin @ np.concatenate([(a / omega).T, b.T, -(a * omega).T], axis=1)
-    motion += cos @ np.concatenate([-(b / omega).T, a.T, (b * omega).T], axis=1)  # (T, 3n): q - q0, dq, ddq
-    return q0 + motion[:, :n], np.ascontiguousarray(motion[:, n:2 * n]), np.ascontiguousarray(motion[:, 2 * n:])
+    scaled = sin / omega  # one buffer for the four scaled bases, each used once
+    q = q0 + scaled @ a.T - np.divide(cos, omega, out=scaled) @ b.T
+    dq = cos @ a.T + sin @ b.T
+    ddq = np.multiply(sin, -omega, out=scaled) @ a.T + np.multiply(cos, omega, out=scaled) @ b.T
+    return q, dq, ddq
 
 
 def design_matrix(t: ArrayLike, frequency_hz: float, harmonics: int) -> NDArray[np.float64]:
