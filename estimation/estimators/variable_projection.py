@@ -136,10 +136,12 @@ def fit_shapes(
     """
     search = _ShapeSearch(fixed, blocks, states, weights)
     s, iterations = search.best(search.candidates(starts, refine), max_iter, tol)
-    solution, residual, information = search.at_optimum(s)
-    if covariance == "none":
-        return ShapeFit(np.asarray(s, dtype=float), solution.theta, np.full(information.shape, np.nan), solution.rss,
+    if covariance == "none":  # a screening fit: neither the residual nor the information is needed
+        solution = search.solution_at(s)
+        size = solution.normal.shape[0] + len(search.parameters)
+        return ShapeFit(np.asarray(s, dtype=float), solution.theta, np.full((size, size), np.nan), solution.rss,
                         search.names, iterations, solution)
+    solution, residual, information = search.at_optimum(s)
     cov = _covariance(search, s, solution, residual, information, covariance, segments)
     return ShapeFit(np.asarray(s, dtype=float), solution.theta, cov, solution.rss, search.names, iterations, solution)
 
@@ -258,15 +260,20 @@ class _ShapeSearch:
             raise ShapeSearchError(f"shape search for {', '.join(self.names)} ended non-finite from every start")
         return best[1], best[2]
 
-    def at_optimum(self, s: NDArray[np.float64]) -> tuple[LinearSolution, NDArray[np.float64], NDArray[np.float64]]:
-        """The linear solution (with the shape derivatives), residual and information at ``s``."""
+    def solution_at(self, s: NDArray[np.float64]) -> LinearSolution:
+        """The linear solution at the optimum ``s``, with the shape derivatives."""
         try:
             with np.errstate(all="ignore"):
-                solution = self.solve(s, jacobian=bool(self.parameters))
-                residual = residuals(self.fixed, self.blocks, solution)
+                return self.solve(s, jacobian=bool(self.parameters))
         except (np.linalg.LinAlgError, FloatingPointError) as error:
             raise ShapeSearchError(f"shape search for {', '.join(self.names) or 'the linear columns'}: {error} at the "
                                    "optimum") from None
+
+    def at_optimum(self, s: NDArray[np.float64]) -> tuple[LinearSolution, NDArray[np.float64], NDArray[np.float64]]:
+        """The linear solution (with the shape derivatives), residual and information at ``s``."""
+        solution = self.solution_at(s)
+        with np.errstate(all="ignore"):
+            residual = residuals(self.fixed, self.blocks, solution)
         if self.parameters:
             information, _ = full_information(self.fixed, self.blocks, solution, self.weights, residual)
         else:
