@@ -63,3 +63,30 @@ def test_settings_are_checked():
         HeldOutScore(model=None, folds=1)
     with pytest.raises(ValueError, match="max_rows"):
         HeldOutScore(model=None, max_rows=3)
+
+
+def kept_rows_fit(Y: np.ndarray, y: np.ndarray, folds: int) -> np.ndarray:
+    """The held-out MSE by a least-squares solve of all kept rows per fold (the score's definition)."""
+    scale = np.std(y, axis=0)
+    squared = np.zeros(y.shape[1])
+    edges = np.linspace(0, y.shape[0], folds + 1).astype(int)
+    for start, stop in zip(edges[:-1], edges[1:]):
+        kept = np.r_[0:start, stop:y.shape[0]]
+        A = (Y[kept] / scale[None, :, None]).reshape(-1, Y.shape[2])
+        theta = np.linalg.lstsq(A, (y[kept] / scale).reshape(-1), rcond=None)[0]
+        squared += np.sum((y[start:stop] - Y[start:stop] @ theta) ** 2, axis=0)
+    return squared / y.shape[0]
+
+
+def test_the_held_out_score_from_block_factors_is_the_least_squares_fit_of_the_kept_rows():
+    generator = np.random.default_rng(3)
+    n_samples, channels = 600, 3
+    Y = generator.normal(size=(n_samples, channels, 9))
+    Y[:, 2, :4] = 0.0  # a channel that reaches few columns
+    Y[:, 0, 8] = 0.0
+    Y[:, :, 7] = 2.5 * Y[:, :, 6]  # rank deficient, as a viscous column beside the flexible friction's dq
+    y = Y @ generator.normal(size=9) + generator.normal(0.0, [0.1, 1.0, 10.0], (n_samples, channels))
+    expected = kept_rows_fit(Y, y, folds=5)
+    found = HeldOutScore(model=None, folds=5).held_out_mse(Y, y)
+    np.testing.assert_allclose(found, expected, rtol=1e-10)
+    assert np.all(found > 0)

@@ -6,12 +6,13 @@ import warnings
 
 import numpy as np
 import pytest
+import scipy.signal
 
 from dynamics.robots import load_robot
-from estimation.preprocessing.fourier_series import fit_series
+from estimation.preprocessing.fourier_series import evaluate_series, fit_series
 from dynamics.measurements import Measurements
 from estimation.preprocessing.periodicity import detect_fundamental, frequency_mismatch
-from estimation.preprocessing.differentiation import FourierDifferentiation
+from estimation.preprocessing.differentiation import ButterworthDifferentiation, FourierDifferentiation
 from estimation.preprocessing.plan import (
     FrequencyMismatchWarning,
     PreprocessingWarning,
@@ -111,3 +112,30 @@ def test_segments_must_hold_the_same_columns(trajectory):
         concatenate([first, second])
     with pytest.raises(SegmentColumnsError):
         choose_preprocessing([first, second])
+
+
+def test_the_fourier_series_motion_is_eq_18_harmonic_by_harmonic():
+    generator = np.random.default_rng(5)
+    t = np.sort(generator.uniform(0.0, 7.0, 300))
+    q0, a, b = generator.normal(size=2), generator.normal(size=(2, 6)), generator.normal(size=(2, 6))
+    q, dq, ddq = evaluate_series(0.3, q0, a, b, t)
+    expected = [np.tile(q0, (t.size, 1)), np.zeros((t.size, 2)), np.zeros((t.size, 2))]
+    for harmonic in range(1, 7):
+        omega = 2 * np.pi * 0.3 * harmonic
+        sine, cosine = np.sin(omega * t)[:, None], np.cos(omega * t)[:, None]
+        alpha, beta = a[:, harmonic - 1], b[:, harmonic - 1]
+        expected[0] += (alpha * sine - beta * cosine) / omega
+        expected[1] += alpha * cosine + beta * sine
+        expected[2] += omega * (-alpha * sine + beta * cosine)
+    for found, wanted in zip((q, dq, ddq), expected):
+        np.testing.assert_allclose(found, wanted, rtol=1e-12, atol=1e-12)
+
+
+@pytest.mark.parametrize(("rate", "cutoff", "order"), [(1000.0, 1.0, 4), (1000.0, 17.0, 4), (250.0, 3.5, 2), (200.0, 60.0, 6)])
+def test_a_filter_settles_where_its_impulse_response_autocorrelation_falls_below_one_percent(rate, cutoff, order):
+    sos = scipy.signal.butter(order, cutoff, btype="low", fs=rate, output="sos")
+    length = int(np.ceil(40 * rate / cutoff)) + 1
+    forward = scipy.signal.sosfilt(sos, np.eye(1, length)[0])
+    response = np.abs(np.correlate(forward, forward, mode="full")[length - 1:])  # the direct sum
+    expected = int(np.flatnonzero(response > 1e-2 * response.max())[-1]) + 1
+    assert ButterworthDifferentiation(order=order).settling_samples(rate, cutoff) == expected

@@ -24,6 +24,8 @@ from dynamics.effects.shaped import (
 )
 from estimation.identification.fit import identify
 from estimation.estimators.effect_blocks import Block, NoRowsError, ShapeSearchError, States
+from estimation.estimators.separable_least_squares import FixedPart
+from estimation.estimators.variable_projection import fit_shapes
 from dynamics.simulation.synthetic import simulate, true_parameters
 from oed.fourier import random_fourier
 
@@ -175,3 +177,23 @@ def test_identify_cli_bad_shaped_input_exits_2_and_writes_nothing(tmp_path, tanh
     assert _cli(tmp_path, tanh_records, "--friction", "viscous,coulomb:tanh") == 2
     assert "oed identify: error: shape search for vc1" in capsys.readouterr().err
     assert not (tmp_path / "result.json").exists()
+
+
+def test_a_screening_fit_stops_where_the_full_fit_does_and_extended_columns_keep_their_gram(robot, tanh_records):
+    train, _ = tanh_records
+    model = build_model(robot, "internal", "viscous")
+    fixed = FixedPart.from_arrays(model.evaluate_base(train.q, train.dq, train.ddq), train.channels(model.channels))
+    block = Block(ModelKind.INTERNAL, robot, parse_effects("coulomb:tanh")[0], len(model.channels))
+    states, weights = States(train.q, train.dq, train.ddq), np.ones(len(model.channels))
+    screening = fit_shapes(fixed, [block], states, weights, covariance="none")
+    full = fit_shapes(fixed, [block], states, weights, covariance="white")
+    assert np.array_equal(screening.shape, full.shape) and np.array_equal(screening.theta, full.theta)
+    assert screening.rss == full.rss and screening.cov.shape == full.cov.shape and np.all(np.isnan(screening.cov))
+    columns = block.evaluate(states, screening.shape)
+    extended = fixed.extended(columns, block.rows)
+    Y = np.zeros((train.n_samples, len(model.channels), block.n_linear))
+    Y[:, list(block.rows), :] = columns
+    direct = FixedPart.from_arrays(np.concatenate([model.evaluate_base(train.q, train.dq, train.ddq), Y], axis=2),
+                                   train.channels(model.channels))
+    for name in ("A", "y", "gram", "moment", "power"):
+        assert np.array_equal(getattr(extended, name), getattr(direct, name)), name

@@ -3,19 +3,24 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-from matplotlib.figure import Figure  # no pyplot: no backend switch, no global figure registry
 
 from estimation.diagnosis.search import Diagnosis
 from dynamics.measurements import Measurements
 from dynamics.runtime.output_files import save_figure
 from estimation.uncertainty.residual_tracing import plot_residual_trace
 
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+
 
 def plot_residuals(diagnosis: Diagnosis, train: Measurements, path: str | Path | None = None) -> Figure:
     """Training residuals of the declared model against q, dq, ddq of their joint, and time; saved to
     ``path`` when given."""
+    from matplotlib.figure import Figure  # no pyplot; here, not at the top: a run without figures skips matplotlib
+
     estimate = diagnosis.before.estimate
     channels = estimate.channels
     figure = Figure(figsize=(14, 2.2 * len(channels)))

@@ -43,18 +43,22 @@ class FixedPart:
     @classmethod
     def from_arrays(cls, Y: NDArray[np.float64], y: NDArray[np.float64]) -> FixedPart:
         """From ``Y (N, m, p0)`` and ``y (N, m)``."""
-        A = np.ascontiguousarray(np.transpose(Y, (1, 0, 2)))
-        values = np.ascontiguousarray(y.T)
+        return cls.per_channel(np.ascontiguousarray(np.transpose(Y, (1, 0, 2))), np.ascontiguousarray(y.T))
+
+    @classmethod
+    def per_channel(cls, A: NDArray[np.float64], values: NDArray[np.float64]) -> FixedPart:
+        """From the per-channel layout ``A (m, N, p0)`` and ``values (m, N)``, both C-contiguous."""
         gram = np.matmul(A.transpose(0, 2, 1), A)
         moment = np.matmul(A.transpose(0, 2, 1), values[:, :, None])[:, :, 0]
         return cls(A, values, gram, moment, np.sum(values**2, axis=1))
 
     def extended(self, columns: NDArray[np.float64], rows: Sequence[int]) -> FixedPart:
-        """With extra columns ``(N, rows, k)`` that are zero off ``rows``."""
+        """With extra columns ``(N, rows, k)`` that are zero off ``rows`` (built in the per-channel layout: no
+        copy of the record's columns through the sample-major one)."""
         m, n_samples, _ = self.A.shape
         extra = np.zeros((m, n_samples, columns.shape[2]))
         extra[list(rows)] = columns.transpose(1, 0, 2)
-        return FixedPart.from_arrays(np.concatenate([self.A, extra], axis=2).transpose(1, 0, 2), self.y.T)
+        return FixedPart.per_channel(np.concatenate([self.A, extra], axis=2), self.y)
 
     @property
     def n_fixed(self) -> int:

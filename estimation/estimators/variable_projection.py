@@ -22,7 +22,7 @@ deviations of the linear coefficients include the uncertainty of the shapes.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Literal
 
 import numpy as np
@@ -42,6 +42,9 @@ from estimation.estimators.separable_least_squares import (
 from estimation.uncertainty.batch_means import batch_length, batch_means
 
 __all__ = ["ShapeFit", "fit_shapes"]
+
+#: the latest linear solves a shape search keeps, beside the lowest (:meth:`_ShapeSearch.remember`)
+KEPT_SOLVES = 4
 
 
 @dataclass(frozen=True)
@@ -133,10 +136,12 @@ def fit_shapes(
     """
     search = _ShapeSearch(fixed, blocks, states, weights)
     s, iterations = search.best(search.candidates(starts, refine), max_iter, tol)
-    solution, residual, information = search.at_optimum(s)
-    if covariance == "none":
-        return ShapeFit(np.asarray(s, dtype=float), solution.theta, np.full(information.shape, np.nan), solution.rss,
+    if covariance == "none":  # a screening fit: neither the residual nor the information is needed
+        solution = search.solution_at(s)
+        size = solution.normal.shape[0] + len(search.parameters)
+        return ShapeFit(np.asarray(s, dtype=float), solution.theta, np.full((size, size), np.nan), solution.rss,
                         search.names, iterations, solution)
+    solution, residual, information = search.at_optimum(s)
     cov = _covariance(search, s, solution, residual, information, covariance, segments)
     return ShapeFit(np.asarray(s, dtype=float), solution.theta, cov, solution.rss, search.names, iterations, solution)
 
@@ -178,6 +183,8 @@ class _ShapeSearch:
         self.u_lower = self.to_u(np.array([parameter.lower for parameter in self.parameters]))
         self.u_upper = self.to_u(np.array([parameter.upper for parameter in self.parameters]))
         self.touched = sorted({row for block in blocks for row in block.rows})
+        self.solved: dict[bytes, LinearSolution] = {}  # by the shapes' bytes (:meth:`remember`)
+        self.lowest: bytes | None = None
 
     def to_u(self, s: NDArray[np.float64]) -> NDArray[np.float64]:
         return np.where(self.logs, np.log(np.where(self.logs, s, 1.0)), s)
@@ -194,7 +201,30 @@ class _ShapeSearch:
         return parts
 
     def solve(self, s: NDArray[np.float64], *, jacobian: bool = False) -> LinearSolution:
-        return solve_linear(self.fixed, self.blocks, self.states, self.split(s), self.weights, jacobian=jacobian)
+        """The linear solve at ``s``; the search asks for the same ``s`` again (a step accepted by its cost is the
+        next iteration's point, its end the optimum's), so the last solves are kept and one known without
+        the derivatives gets only those evaluated (the normal equations are not assembled twice)."""
+        key = np.asarray(s, dtype=float).tobytes()
+        known = self.solved.get(key)
+        if known is not None and (known.derivatives is not None or not jacobian):
+            return known
+        if known is not None:
+            derivatives = [block.evaluate(self.states, shape, jacobian=True)[1]
+                           for block, shape in zip(self.blocks, self.split(s))]
+            known = replace(known, derivatives=derivatives)
+        else:
+            known = solve_linear(self.fixed, self.blocks, self.states, self.split(s), self.weights, jacobian=jacobian)
+        self.remember(key, known)
+        return known
+
+    def remember(self, key: bytes, solution: LinearSolution) -> None:
+        """Keep ``solution``: the :data:`KEPT_SOLVES` latest and the lowest RSS seen (the optimum, once found)."""
+        self.solved.pop(key, None)
+        self.solved[key] = solution
+        if self.lowest is None or solution.rss < self.solved[self.lowest].rss:
+            self.lowest = key
+        for old in [item for item in self.solved if item != self.lowest][:-KEPT_SOLVES]:
+            del self.solved[old]
 
     def cost(self, s: NDArray[np.float64]) -> float:
         """``f(s)``, or ``inf`` where the columns are non-finite or singular."""
@@ -230,15 +260,20 @@ class _ShapeSearch:
             raise ShapeSearchError(f"shape search for {', '.join(self.names)} ended non-finite from every start")
         return best[1], best[2]
 
-    def at_optimum(self, s: NDArray[np.float64]) -> tuple[LinearSolution, NDArray[np.float64], NDArray[np.float64]]:
-        """The linear solution (with the shape derivatives), residual and information at ``s``."""
+    def solution_at(self, s: NDArray[np.float64]) -> LinearSolution:
+        """The linear solution at the optimum ``s``, with the shape derivatives."""
         try:
             with np.errstate(all="ignore"):
-                solution = self.solve(s, jacobian=bool(self.parameters))
-                residual = residuals(self.fixed, self.blocks, solution)
+                return self.solve(s, jacobian=bool(self.parameters))
         except (np.linalg.LinAlgError, FloatingPointError) as error:
             raise ShapeSearchError(f"shape search for {', '.join(self.names) or 'the linear columns'}: {error} at the "
                                    "optimum") from None
+
+    def at_optimum(self, s: NDArray[np.float64]) -> tuple[LinearSolution, NDArray[np.float64], NDArray[np.float64]]:
+        """The linear solution (with the shape derivatives), residual and information at ``s``."""
+        solution = self.solution_at(s)
+        with np.errstate(all="ignore"):
+            residual = residuals(self.fixed, self.blocks, solution)
         if self.parameters:
             information, _ = full_information(self.fixed, self.blocks, solution, self.weights, residual)
         else:

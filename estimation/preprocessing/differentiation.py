@@ -225,7 +225,8 @@ class ButterworthDifferentiation:
         impulse = np.zeros(length)
         impulse[0] = 1.0
         forward = scipy.signal.sosfilt(sos, impulse)
-        response = np.abs(np.correlate(forward, forward, mode="full")[length - 1:])  # centred at lag 0
+        # centred at lag 0; by FFT: the direct sum is O(length²), 1.2 s at a 1 Hz cut-off and 1 kHz
+        response = np.abs(scipy.signal.correlate(forward, forward, mode="full", method="fft")[length - 1:])
         return int(np.flatnonzero(response > SETTLING_FRACTION * response.max())[-1]) + 1
 
     def apply(self, measurements: Measurements) -> Measurements:

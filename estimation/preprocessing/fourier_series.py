@@ -24,10 +24,12 @@ def evaluate_series(frequency_hz: float, q0: NDArray[np.float64], a: NDArray[np.
     t = np.asarray(t, dtype=float).reshape(-1)
     omega = 2 * np.pi * frequency_hz * np.arange(1, a.shape[1] + 1)  # (N,)
     phase = np.outer(t, omega)  # (T, N)
-    sin, cos = np.sin(phase), np.cos(phase)
-    q = q0 + (sin / omega) @ a.T - (cos / omega) @ b.T
+    sin = np.sin(phase)
+    cos = np.cos(phase, out=phase)
+    scaled = sin / omega  # one buffer for the four scaled bases, each used once
+    q = q0 + scaled @ a.T - np.divide(cos, omega, out=scaled) @ b.T
     dq = cos @ a.T + sin @ b.T
-    ddq = (-sin * omega) @ a.T + (cos * omega) @ b.T
+    ddq = np.multiply(sin, -omega, out=scaled) @ a.T + np.multiply(cos, omega, out=scaled) @ b.T
     return q, dq, ddq
 
 
@@ -36,7 +38,11 @@ def design_matrix(t: ArrayLike, frequency_hz: float, harmonics: int) -> NDArray[
     t = np.asarray(t, dtype=float).reshape(-1)
     omega = 2 * np.pi * frequency_hz * np.arange(1, harmonics + 1)
     phase = np.outer(t, omega)
-    return np.hstack([np.ones((t.shape[0], 1)), np.sin(phase) / omega, -np.cos(phase) / omega])
+    design = np.empty((t.shape[0], 2 * harmonics + 1))  # filled in place: no (T, N) temporaries
+    design[:, 0] = 1.0
+    np.divide(np.sin(phase), omega, out=design[:, 1:harmonics + 1])
+    np.divide(np.cos(phase, out=phase), -omega, out=design[:, harmonics + 1:])
+    return design
 
 
 @dataclass(frozen=True)

@@ -23,14 +23,16 @@ from __future__ import annotations
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from matplotlib.figure import Figure  # no pyplot: no backend switch, no global figure registry
 from numpy.typing import NDArray
 
 from dynamics.measurements import Measurements
 from dynamics.runtime.output_files import save_figure
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 DEFAULT_BINS = 20
 #: a validation share above this is a dependence worth naming
@@ -228,6 +230,8 @@ def plot_residual_trace(trace: ResidualTrace, residuals: NDArray[np.float64], me
                         title: str = "Residual against its strongest variables") -> Figure:
     """Each channel's residual against its ``count`` strongest variables, with the binned means;
     saved to ``path`` when given."""
+    from matplotlib.figure import Figure  # no pyplot; here, not at the top: a run without figures skips matplotlib
+
     residuals = np.asarray(residuals, dtype=float).reshape(measurements.n_samples, -1)
     variables = state_variables(measurements)
     figure = Figure(figsize=(4.2 * count, 2.4 * len(channels)))
