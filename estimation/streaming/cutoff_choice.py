@@ -51,21 +51,16 @@ def streamed_window(paths: Sequence[str | Path], model: IdentificationModel,
     if not paths:
         raise ValueError("no training data files")
     rows = [count_rows(path) for path in paths] if rows is None else list(rows)
-    if sum(rows) <= SCORED_SAMPLES:
+    if sum(rows) <= SCORED_SAMPLES:  # every file read whole
         segments = tuple(first_rows(path, model, count) for path, count in zip(paths, rows))
-    else:
-        longest = int(np.argmax(rows))  # the first of the longest, as max() picks it in memory
-        segments = (first_rows(paths[longest], model, SCORED_SAMPLES),)
-    shortest = min(_duration_of_file(path, model, count, segments, paths) for path, count in zip(paths, rows))
-    return ChoiceWindow(segments, shortest)
+        return ChoiceWindow(segments, min(float(segment.t[-1] - segment.t[0]) for segment in segments))
+    longest = int(np.argmax(rows))  # the first of the longest, as max() picks it in memory
+    segments = (first_rows(paths[longest], model, SCORED_SAMPLES),)
+    return ChoiceWindow(segments, min(_duration(path, model, count) for path, count in zip(paths, rows)))
 
 
-def _duration_of_file(path: str | Path, model: IdentificationModel, rows: int, segments: Sequence[Measurements],
-                      paths: Sequence[str | Path]) -> float:
+def _duration(path: str | Path, model: IdentificationModel, rows: int) -> float:
     """A file's duration from its row count and its sampling step (read from its first rows)."""
-    if len(segments) == len(paths):  # every file read whole
-        segment = segments[list(paths).index(path)]
-        return float(segment.t[-1] - segment.t[0])
     head = first_rows(path, model, min(rows, 1000))
     return float(np.median(np.diff(head.t))) * (rows - 1)
 
