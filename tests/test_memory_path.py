@@ -171,3 +171,22 @@ def test_a_bad_memory_budget_is_refused_by_name(tmp_path, records, capsys):
     code = main(["diagnose", "--joints", "3", "--data", str(records[0]), "--validate", str(records[1]),
                  "--out", str(tmp_path / "r.json"), "--memory-budget", "lots"])
     assert code == 2 and "cannot read the memory size 'lots'" in capsys.readouterr().err
+
+
+def test_identify_chooses_alike_in_memory_and_streamed(tmp_path, records):
+    """The same derivatives and channel weighting, and the same estimate, in memory and streamed."""
+    documents = {}
+    for name, options in (("memory", ()), ("streamed", ("--chunk-size", "250"))):
+        out = tmp_path / f"{name}.json"
+        assert main(["identify", "--joints", "3", "--model", "internal", "--friction", "viscous,coulomb,offset",
+                     "--data", str(records[0]), "--validate", str(records[1]), "--out", str(out), *options]) == 0
+        documents[name] = json.loads(out.read_text())
+    memory, streamed = documents["memory"], documents["streamed"]
+    plan = {key: value for key, value in memory["preprocessing"].items() if key != "candidates"}
+    assert {key: streamed["preprocessing"][key] for key in plan} == plan
+    assert streamed["method_selection"]["chosen"] == memory["method_selection"]["chosen"]
+    assert streamed["method_selection"]["candidates"] == memory["method_selection"]["candidates"]
+    values = {name: np.array([record["value"] for record in document["parameters"]])
+              for name, document in documents.items()}
+    assert values["memory"].size > 18 and memory["preprocessing"]["method"] == "fourier"
+    np.testing.assert_allclose(values["streamed"], values["memory"], rtol=1e-6, atol=1e-9 * np.max(np.abs(values["memory"])))

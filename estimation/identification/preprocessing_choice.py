@@ -245,15 +245,19 @@ class ChoiceWindow:
         the longest (:func:`scored_window`).
     shortest_s
         Duration of the record's shortest segment, s: no filter candidate needs longer to settle.
+    whole
+        Whether the window is the whole record.
     """
 
     segments: tuple[Measurements, ...]
     shortest_s: float
+    whole: bool = True
 
     @classmethod
     def of(cls, segments: Sequence[Measurements]) -> ChoiceWindow:
         """The window of a record held in memory."""
-        return cls(scored_window(segments), min(duration(segment) for segment in segments))
+        return cls(scored_window(segments), min(duration(segment) for segment in segments),
+                   sum(segment.n_samples for segment in segments) <= SCORED_SAMPLES)
 
 
 def duration(segment: Measurements) -> float:

@@ -56,7 +56,7 @@ def streamed_window(paths: Sequence[str | Path], model: IdentificationModel,
         return ChoiceWindow(segments, min(float(segment.t[-1] - segment.t[0]) for segment in segments))
     longest = int(np.argmax(rows))  # the first of the longest, as max() picks it in memory
     segments = (first_rows(paths[longest], model, SCORED_SAMPLES),)
-    return ChoiceWindow(segments, min(_duration(path, model, count) for path, count in zip(paths, rows)))
+    return ChoiceWindow(segments, min(_duration(path, model, count) for path, count in zip(paths, rows)), whole=False)
 
 
 def _duration(path: str | Path, model: IdentificationModel, rows: int) -> float:

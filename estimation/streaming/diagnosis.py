@@ -63,13 +63,14 @@ from estimation.estimators.summed_least_squares import SummedEstimate, SummedLea
 from estimation.identification.fit import implausible_estimates
 from estimation.identification.trivial_predictors import trivial_warnings
 from estimation.preprocessing.plan import Preprocessing
-from estimation.streaming.chunks import StreamingUnsupportedError, automatic_cutoff, read_chunks
+from estimation.streaming.chunks import automatic_cutoff, read_chunks
 from estimation.streaming.cluster import model_payload
 from estimation.streaming.covariance import sandwich
 from estimation.streaming.diagnosis_passes import (FLOOR_WINDOW, SubsamplePass, SumsPass, scores_pass, subsample_pass,
                                                   sums_pass, window_floor)
 from estimation.streaming.diagnosis_candidates import StreamedCandidates, streamed_candidates
 from estimation.streaming.diagnosis_sums import ChannelSums, normal_equations
+from estimation.streaming.periods import plan_options
 from estimation.streaming.selection import SummedFits, simpler_laws
 from estimation.uncertainty.noise_floor import NoiseFloor, compare_with_floor
 
@@ -220,19 +221,6 @@ def _checked_settings(model: IdentificationModel, paths: list[str], validate: li
     return settings
 
 
-def with_plan(settings: StreamedSettings, plan: Preprocessing) -> StreamedSettings:
-    """``settings`` reading the files as ``plan`` says (a filter, a Fourier fit of averaged periods, measured)."""
-    common = {"decimation": plan.decimation, "held_torques": plan.held_torques}
-    if plan.method == "butterworth":
-        return replace(settings, cutoff_hz=plan.cutoff_hz, order=plan.order, frequency_hz=None, **common)
-    if plan.method == "fourier":
-        if plan.average_periods == "no":
-            raise StreamingUnsupportedError("a Fourier fit of every sample (--average-periods no) is made in memory: "
-                                            "not on the streamed path, which averages whole periods")
-        return replace(settings, cutoff_hz=None, frequency_hz=plan.frequency_hz, harmonics=plan.harmonics, **common)
-    return replace(settings, cutoff_hz=None, frequency_hz=None, **common)
-
-
 def _file_record(path: str, sums, record: dict) -> dict[str, Any]:
     return {"path": path, "rows": record["rows"], "samples": sums.n_samples,
             "trimmed_samples": record["metadata"].get("trimmed_samples", 0)}
@@ -341,7 +329,7 @@ def diagnose_files(
     settings = StreamedSettings(chunk_size, cutoff_hz, decimation, held_torques, alpha, min_improvement, max_effects,
                                 noise_floor, subsample, floor_window)
     settings = _checked_settings(model, paths, validate, settings if preprocessing is None else
-                                 with_plan(settings, preprocessing))
+                                 replace(settings, **plan_options(preprocessing)))
     options, payload, clock = settings.reading(), model_payload(model), Stopwatch()
     with step(f"first pass over {len(paths)} training file(s) (subsample)"):
         first = subsample_pass(executor, payload, paths, options, settings.subsample)  # pass 1 (training files)

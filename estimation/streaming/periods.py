@@ -28,9 +28,11 @@ from dynamics.models import IdentificationModel
 from dynamics.measurements import Measurements
 from estimation.estimators.normal_equations import DEFAULT_CHUNK_SIZE, accumulate
 from estimation.preprocessing.differentiation import FourierDifferentiation, fill_derivatives, fit_fourier
+from estimation.preprocessing.plan import Preprocessing
 from estimation.streaming.chunks import FileSums, StreamingUnsupportedError, preprocessed_chunks, read_chunks
 
-__all__ = ["average_periods_streamed", "periodic_chunks", "periodic_file_sums", "periodic_prepared", "plan_chunks"]
+__all__ = ["average_periods_streamed", "periodic_chunks", "periodic_file_sums", "periodic_prepared", "plan_chunks",
+           "plan_options"]
 
 _GROUPS = ("q", "dq", "ddq", "tau", "wrench")
 
@@ -169,3 +171,25 @@ def plan_chunks(path: str | Path, model: IdentificationModel, *, frequency_hz: f
                                        record=record)
             return
     yield from preprocessed_chunks(path, model, record=record, **options)
+
+
+def plan_options(plan: Preprocessing) -> dict[str, Any]:
+    """The reading options of :func:`plan_chunks` that apply ``plan`` (a filter, a Fourier fit of averaged periods,
+    measured derivatives): ``cutoff_hz``, ``order``, ``frequency_hz``, ``harmonics``, ``decimation``,
+    ``held_torques``.
+
+    Raises
+    ------
+    StreamingUnsupportedError
+        A Fourier fit of every sample (``average_periods="no"``): made in memory.
+    """
+    options: dict[str, Any] = {"cutoff_hz": None, "order": plan.order, "frequency_hz": None, "harmonics": 5,
+                               "decimation": plan.decimation, "held_torques": plan.held_torques}
+    if plan.method == "butterworth":
+        options["cutoff_hz"] = plan.cutoff_hz
+    elif plan.method == "fourier":
+        if plan.average_periods == "no":
+            raise StreamingUnsupportedError("a Fourier fit of every sample (--average-periods no) is made in memory: "
+                                            "not on the streamed path, which averages whole periods")
+        options.update(frequency_hz=plan.frequency_hz, harmonics=plan.harmonics)
+    return options

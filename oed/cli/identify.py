@@ -20,9 +20,12 @@ from estimation.identification.validation import plot_comparison
 from estimation.preprocessing.delay import DelayBounds, split_delay
 from estimation.preprocessing.plan import Preprocessing
 from estimation.identification.prepared import InMemoryBudget, PreparedRecords, prepare_records
-from estimation.identification.weighting_choice import choose_weighting
+from estimation.identification.preprocessing_choice import ChoiceWindow
+from estimation.identification.weighting_choice import choose_weighting, weighting_samples
 from estimation.diagnosis.statistics import ResidualReport, residual_report
+from estimation.streaming.cutoff_choice import streamed_window
 from estimation.streaming.identification import identify_files
+from estimation.streaming.periods import plan_options
 from oed.cli.shared.memory_path import decide_path, streamed_choice
 from oed.cli.shared.model_files import add_model_file
 from oed.cli.shared.asbuilt import (
@@ -107,17 +110,20 @@ def run_streaming(args: argparse.Namespace, robot: RobotModel, model: Identifica
         warnings.simplefilter("always")
         if plan is None:
             plan = streamed_choice(args, model).chosen
-        fourier = plan.method == "fourier"
+        options = plan_options(plan)
+        weighting = choose_weighting(model, weighting_samples(streamed_window(args.data, model), plan)) \
+            if args.method == "auto" else None  # on the samples the in-memory path chooses it on
         with executor_from_arguments(args) as executor:
             result = identify_files(model, args.data, args.validate or [],
-                                    method="wls" if args.method == "auto" else args.method, chunk_size=chunk_size,
-                                    cutoff_hz=plan.cutoff_hz if plan.method == "butterworth" else None,
-                                    frequency_hz=plan.frequency_hz if fourier else None,
-                                    harmonics=plan.harmonics if fourier else 5, decimation=plan.decimation,
-                                    held_torques=plan.held_torques, executor=executor)
+                                    method=args.method if weighting is None else weighting.method, chunk_size=chunk_size,
+                                    cutoff_hz=options["cutoff_hz"], frequency_hz=options["frequency_hz"],
+                                    harmonics=options["harmonics"], decimation=options["decimation"],
+                                    held_torques=options["held_torques"], executor=executor)
     print_warnings("identify", caught)
     document = result.to_dict()
     document["preprocessing"] = plan.to_dict()
+    if weighting is not None:
+        document["method_selection"] = weighting.to_dict()
     with OutputFiles() as outputs, outputs.open(args.out) as stream:
         stream.write(json_text(document))
     estimate = result.estimate
@@ -220,8 +226,9 @@ def run_in_memory(args: argparse.Namespace, robot: RobotModel, model: Identifica
                                   settings=replace(preparation_settings(args, transmission, IN_MEMORY), plan=plan))
         train = records.train.measurements
         validation = None if records.validation is None else records.validation.measurements
-        weighting = choose_weighting(model, train) if args.method == "auto" and delay is None and \
-            not model_has_shapes(model) else None
+        weighting = choose_weighting(model, weighting_samples(ChoiceWindow.of(records.train.segments),
+                                                              records.preprocessing, train)) \
+            if args.method == "auto" and delay is None and not model_has_shapes(model) else None
         method = args.method if weighting is None else weighting.method
         result = identify(model, train, validation, weighted=method != "ols", delay=delay)
         trivial, notes = trivial_predictors(result, validation)
