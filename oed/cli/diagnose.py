@@ -10,7 +10,7 @@ from pathlib import Path
 from typing import Any
 
 from dynamics.models import IdentificationModel, ModelKind, build_model
-from dynamics.runtime.progress import show_progress
+from dynamics.runtime.progress import show_progress, step
 from dynamics.transmission import Transmission
 from estimation.diagnosis.candidates.coupling import coupling_candidates
 from estimation.diagnosis.report import markdown_report, plot_residuals, plot_trace
@@ -149,9 +149,11 @@ def run_in_memory(args: argparse.Namespace, model: IdentificationModel, transmis
     """Read and prepare the records (``plan``: the derivatives chosen before reading), diagnose, write, print."""
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        records = prepare_records(model, args.data, args.validate, args.test or (),
-                                  settings=replace(preparation_settings(args, transmission, IN_MEMORY), plan=plan))
-        diagnosis = diagnose_records(args, model, transmission, records, delay)
+        with step(f"read and prepared {len(args.data) + len(args.validate) + len(args.test or ())} file(s)"):
+            records = prepare_records(model, args.data, args.validate, args.test or (),
+                                      settings=replace(preparation_settings(args, transmission, IN_MEMORY), plan=plan))
+        with step("diagnosis in memory"):
+            diagnosis = diagnose_records(args, model, transmission, records, delay)
         untouched = test_errors(records, diagnosis, model, args.frequency)
         trivial, notes = trivial_predictors(diagnosis.after, records.validation.measurements)
         notes += worse_after(diagnosis)

@@ -11,7 +11,7 @@ from typing import Any
 
 from dynamics.models import IdentificationModel, ModelKind, build_model
 from dynamics.robot import RobotModel
-from dynamics.runtime.progress import show_progress
+from dynamics.runtime.progress import show_progress, step
 from dynamics.transmission import Transmission
 from estimation.data.log_cleaning import DEFAULT_MAX_GAP
 from estimation.estimators.normal_equations import DEFAULT_CHUNK_SIZE
@@ -222,8 +222,9 @@ def run_in_memory(args: argparse.Namespace, robot: RobotModel, model: Identifica
     derivatives chosen before reading), identify, write, print."""
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        records = prepare_records(model, args.data, args.validate or (),
-                                  settings=replace(preparation_settings(args, transmission, IN_MEMORY), plan=plan))
+        with step(f"read and prepared {len(args.data) + len(args.validate or ())} file(s)"):
+            records = prepare_records(model, args.data, args.validate or (),
+                                      settings=replace(preparation_settings(args, transmission, IN_MEMORY), plan=plan))
         train = records.train.measurements
         validation = None if records.validation is None else records.validation.measurements
         weighting = choose_weighting(model, weighting_samples(ChoiceWindow.of(records.train.segments),
