@@ -90,8 +90,11 @@ def decide_path(args: argparse.Namespace, model: IdentificationModel, *, verb: s
     budget = budget_of(args)  # a bad --memory-budget is an error whichever the path
     if streaming_requested(args):
         return PathDecision(True)
-    train = [count_rows(path) for path in args.data]
-    held_out = [count_rows(path) for path in [*(args.validate or ()), *(getattr(args, "test", None) or ())]]
+    try:
+        train = [count_rows(path) for path in args.data]
+        held_out = [count_rows(path) for path in [*(args.validate or ()), *(getattr(args, "test", None) or ())]]
+    except (OSError, ValueError, ImportError):  # a file missing, a folder, no pyarrow, a corrupt footer: the reader says so
+        return PathDecision(False)
     need = estimate_in_memory(train + held_out, model, bytes_per_value=bytes_per_value, budget=budget)
     if not need.stream:
         return PathDecision(False, None, need)
