@@ -18,12 +18,17 @@ resident memory, wall and CPU time). Targets (issue 16): peak < 1 GB at 1 M samp
 from 100 k to 1 M, 1 M samples diagnosed in < 2 min. ``--in-memory N``: the in-memory path on a
 record of N samples, for comparison (14 KB a sample before this path existed).
 
+``--no-flag N ...``: ``oed diagnose`` with no flag at all (the path decided by the memory budget, the
+derivatives chosen by held-out error) on N training samples, against ``--chunk-size C`` with the derivatives
+chosen too. Targets: at 1 M samples, peak <= 1 GB, wall <= 60 s, the same effects and within 10 % of the streamed
+answer.
+
 ``--files K --file-samples N``: K training records of N samples through
 :func:`estimation.streaming.diagnosis.diagnose_files` serially, in a 2-process pool and on a 2-worker dask
 ``LocalCluster`` (wall times; the same effects and estimates as serial).
 
 Run: ``python benchmarks/bench_streaming_diagnose.py [--lengths N ...] [--chunk-size C]
-[--subsample S] [--in-memory N ...] [--files K --file-samples N] [--folder DIR]``; records are kept in ``--folder`` (default a
+[--subsample S] [--in-memory N ...] [--no-flag N ...] [--files K --file-samples N] [--folder DIR]``; records are kept in ``--folder`` (default a
 folder under /tmp) and reused.
 """
 
@@ -79,13 +84,14 @@ def record(folder: Path, n_samples: int, seed: int) -> Path:
     return streaming_record(folder, n_samples, seed, truth(), prefix="kuka_effects")
 
 
-def time_diagnose(train: Path, validate: Path, out: Path, chunk_size: int | None, subsample: int | None
-                  ) -> tuple[float, float, float, dict]:
+def time_diagnose(train: Path, validate: Path, out: Path, chunk_size: int | None, subsample: int | None,
+                  cutoff: float | None = CUTOFF, extra: tuple[str, ...] = ()) -> tuple[float, float, float, dict]:
     """Wall time (s), CPU time (s), peak resident memory (MB) and the report of ``oed diagnose``
-    in a fresh process; without ``chunk_size`` the in-memory path."""
+    in a fresh process; without ``chunk_size`` the path is the CLI's choice (in memory unless the record
+    passes the memory budget); without ``cutoff`` the derivatives are chosen by held-out error."""
     command = ["/usr/bin/time", "-v", sys.executable, "-m", "oed", "diagnose", "--urdf", str(URDF), "--model",
                "internal", "--friction", "viscous", "--data", str(train), "--validate", str(validate),
-               "--cutoff", str(CUTOFF), "--out", str(out)]
+               "--out", str(out), *(("--cutoff", str(cutoff)) if cutoff is not None else ()), *extra]
     if chunk_size is not None:
         command += ["--chunk-size", str(chunk_size)]
         if subsample is not None:
@@ -149,23 +155,73 @@ def bench_files(folder: Path, count: int, samples: int, chunk_size: int) -> None
     print(f"  load average {os.getloadavg()[0]:.1f}")
 
 
+def agreement(document: dict, reference: dict) -> tuple[bool, float, float]:
+    """Whether two reports found the same effects (name and channels, in any order), the largest relative
+    difference of their effects' values (relative to the largest value of each effect), and of the validation
+    MSE after, per channel."""
+    def effects(report):
+        return {(effect["spec"], tuple(effect["channels"])): np.asarray(effect["values"]) for effect in report["effects"]}
+
+    found, expected = effects(document), effects(reference)
+    same = set(found) == set(expected)
+    values = max((float(np.max(np.abs(found[key] - expected[key])) / max(np.max(np.abs(expected[key])), 1e-12))
+                  for key in set(found) & set(expected)), default=float("nan"))
+    after, after_ref = document["validation"]["after"]["mse"], reference["validation"]["after"]["mse"]
+    mse = max(abs(after[channel] - after_ref[channel]) / after_ref[channel] for channel in after_ref)
+    return same, values, mse
+
+
+def bench_no_flag(folder: Path, length: int, chunk_size: int) -> None:
+    """``oed diagnose`` with no flag (no --chunk-size, no derivative option) on ``length`` training samples against
+    the streamed run (--chunk-size, derivatives chosen too): targets peak <= 1 GB, wall <= 60 s, the same effects
+    and within 10 % of the streamed answer."""
+    train, validate = record(folder, length, seed=1), record(folder, VALIDATION_SAMPLES, seed=2)
+    runs = {}
+    for label, chunk in (("no flag", None), (f"--chunk-size {chunk_size}", chunk_size)):
+        out = folder / f"diagnose_noflag_{length}_{chunk or 0}.json"
+        started_load = os.getloadavg()[0]
+        seconds, cpu, peak, document = time_diagnose(train, validate, out, chunk, None, cutoff=None)
+        runs[label] = document
+        print(f"  {label:<20} {length:>9} samples: wall {seconds:7.1f} s, CPU {cpu:7.1f} s, peak {peak:7.0f} MB "
+              f"(load average {started_load:.1f} -> {os.getloadavg()[0]:.1f}); path {document['diagnosis_path']}, "
+              f"{document['preprocessing']['method']} {document['preprocessing'].get('cutoff_hz') or ''}; "
+              f"{summary(document)}", flush=True)
+        if document.get("streaming"):
+            print("             wall by part: " + ", ".join(f"{name} {value:.1f} s" for name, value in
+                                                            document["streaming"]["seconds"].items()), flush=True)
+    same, values, mse = agreement(runs["no flag"], runs[f"--chunk-size {chunk_size}"])
+    print(f"  no flag against --chunk-size: same effects {same}, effects' values within {100 * values:.2g} %, "
+          f"validation MSE after within {100 * mse:.2g} %")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--lengths", type=int, nargs="*", default=[100_000, 300_000, 1_000_000])
+    parser.add_argument("--lengths", type=int, nargs="*",
+                        help="training lengths streamed with --cutoff (default 100000 300000 1000000, none with --no-flag)")
     parser.add_argument("--chunk-size", type=int, default=10_000)
     parser.add_argument("--subsample", type=int, help="streamed path's subsample (default: the CLI's)")
     parser.add_argument("--in-memory", type=int, nargs="*", default=[], help="lengths also diagnosed in memory")
     parser.add_argument("--folder", type=Path)
     parser.add_argument("--files", type=int, default=0, help="also: this many training files through executors")
     parser.add_argument("--file-samples", type=int, default=100_000)
+    parser.add_argument("--no-flag", type=int, nargs="*", default=[],
+                        help="lengths diagnosed with no flag (the CLI decides the path and the derivatives) and "
+                             "with --chunk-size (derivatives chosen too): the answers compared")
     args = parser.parse_args()
     folder = args.folder or Path(tempfile.gettempdir()) / "robot_oed_bench_streaming_diagnose"
     folder.mkdir(parents=True, exist_ok=True)
     print(f"records in {folder}; {os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f}", flush=True)
+    if args.no_flag:
+        print("diagnose with no flag against --chunk-size (KUKA, 7 joints, declared viscous):")
+        for length in args.no_flag:
+            bench_no_flag(folder, length, args.chunk_size)
+    if args.lengths is None:
+        args.lengths = [] if args.no_flag else [100_000, 300_000, 1_000_000]
     validate = record(folder, VALIDATION_SAMPLES, seed=2)
-    print(f"diagnose, filter path, chunks of {args.chunk_size} (KUKA, 7 joints, declared viscous; truth adds Coulomb "
-          f"on every joint, an offset on joint {[j + 1 for j in OFFSET]}); validation "
-          f"{VALIDATION_SAMPLES} samples:")
+    if args.lengths:
+        print(f"diagnose, filter path, chunks of {args.chunk_size} (KUKA, 7 joints, declared viscous; truth adds "
+              f"Coulomb on every joint, an offset on joint {[j + 1 for j in OFFSET]}); validation "
+              f"{VALIDATION_SAMPLES} samples:")
     rows = []
     for length in args.lengths:
         train = record(folder, length, seed=1)
@@ -185,7 +241,7 @@ def main() -> None:
     for length in args.in_memory:
         train = record(folder, length, seed=1)
         seconds, cpu, peak, document = time_diagnose(train, validate, folder / f"diagnose_memory_{length}.json",
-                                                     None, None)
+                                                     None, None, extra=("--memory-budget", "1TB"))  # in memory
         print(f"  in memory {length:>9} samples: wall {seconds:7.1f} s, CPU {cpu:7.1f} s, peak {peak:7.0f} MB; "
               f"{summary(document)}", flush=True)
     print(f"  load average {os.getloadavg()[0]:.1f}")

@@ -105,6 +105,10 @@ class PreparationSettings:
         ``held-out`` (default): the derivative method chosen among candidates by held-out error
         (:mod:`estimation.identification.preprocessing_choice`); ``rule``: the fixed rule of
         :func:`~estimation.preprocessing.plan.choose_preprocessing`.
+    plan
+        A preprocessing chosen beforehand on the same training data (by held-out error on their
+        :class:`~estimation.identification.preprocessing_choice.ChoiceWindow`, read before the records were):
+        used as it is, nothing is chosen again.
     """
 
     max_gap: float = DEFAULT_MAX_GAP
@@ -119,6 +123,7 @@ class PreparationSettings:
     rest: RestHandling = "drop"
     memory: InMemoryBudget | None = None
     selection: Selection = "held-out"
+    plan: Preprocessing | None = None
 
     def __post_init__(self) -> None:
         if self.selection not in ("held-out", "rule"):
@@ -305,7 +310,9 @@ def check_no_shared_samples(records: dict[str, tuple[RecordedFile, ...] | None],
 
 
 def choose_plan(model: IdentificationModel, train: Sequence[Measurements], settings: PreparationSettings) -> Preprocessing:
-    """The preprocessing of the training segments, as ``settings.selection`` says."""
+    """The preprocessing of the training segments: ``settings.plan``, else chosen as ``settings.selection`` says."""
+    if settings.plan is not None:
+        return settings.plan
     options = {"frequency_hz": settings.frequency_hz, "harmonics": settings.harmonics, "cutoff_hz": settings.cutoff_hz,
                "average_periods": settings.average_periods, "decimation": settings.decimation,
                "held_torques": settings.held_torques}

@@ -33,6 +33,12 @@ joint 3 at 200 times its floor. When
 the user gave ``--frequency``/``--harmonics`` or ``--cutoff``, that candidate decides, is scored beside the
 others, and a :class:`PreprocessingEvidenceWarning` says when another candidate predicts the held-out blocks
 clearly better (:data:`CLEARLY_BETTER`).
+
+Window: the whole choice (the fundamental detected, the rule, the candidates and their scores) is made on the
+record's :class:`ChoiceWindow`, the scored window and the duration of its shortest segment, so that the same
+files read chunk by chunk (:func:`estimation.streaming.cutoff_choice.choose_streamed_preprocessing`) get the same
+choice: on a record of a million samples of a 7-joint arm, the record held in memory and the file streamed gave
+the same 21 candidates with identical scores.
 """
 
 from __future__ import annotations
@@ -48,6 +54,8 @@ from numpy.typing import NDArray
 
 from dynamics.measurements import Measurements
 from dynamics.models import IdentificationModel
+from dynamics.runtime.progress import SECONDS as PROGRESS_SECONDS
+from dynamics.runtime.progress import report
 from dynamics.runtime.threads import single_threaded_blas
 from estimation.data.segments import as_segments, column_set
 from estimation.estimators.identification_problem import stack
@@ -220,9 +228,11 @@ def geometric_mean(mse: NDArray[np.float64]) -> float:
 
 
 def candidates(train: Sequence[Measurements], rule: Preprocessing, given: Preprocessing | None,
-               families: Sequence[Family] = ("fourier", "butterworth")) -> tuple[Preprocessing, ...]:
+               families: Sequence[Family] = ("fourier", "butterworth"), *,
+               shortest_s: float | None = None) -> tuple[Preprocessing, ...]:
     """The derivative candidates of a record without measured ``dq, ddq`` (module docstring), each once, of the
-    ``families`` asked for (the rule's and the given plan are candidates whatever their family)."""
+    ``families`` asked for (the rule's and the given plan are candidates whatever their family); no filter
+    whose settling needs more than ``shortest_s`` (default: the shortest of ``train``)."""
     common = {"decimation": rule.decimation, "held_torques": rule.held_torques}
     longest = max(train, key=lambda segment: segment.n_samples)
     rate = min(sampling_rate(segment.t) for segment in train)
@@ -234,7 +244,7 @@ def candidates(train: Sequence[Measurements], rule: Preprocessing, given: Prepro
         found += [Preprocessing("fourier", frequency, harmonics, source, average, **common)
                   for harmonics in HARMONICS_GRID if harmonics <= nyquist_harmonic]
     bandwidth = max(motion_bandwidth(segment.q, sampling_rate(segment.t)) for segment in train)
-    shortest = min(segment.t[-1] - segment.t[0] for segment in train)
+    shortest = min(duration(segment) for segment in train) if shortest_s is None else shortest_s
     for fraction in CUTOFF_FRACTIONS if "butterworth" in families else ():
         cutoff = float(f"{fraction * rate:.6g}")
         if cutoff < bandwidth or cutoff < 1.0 / shortest or cutoff >= 0.4 * rate:
@@ -254,10 +264,45 @@ def fundamental(longest: Measurements, rule: Preprocessing, given: Preprocessing
     return detect_fundamental(longest.t, longest.q).frequency_hz, "detected"
 
 
+@dataclass(frozen=True)
+class ChoiceWindow:
+    """What the choice sees of a training record: the scored window, and the record's shortest segment.
+
+    The choice is made on :attr:`segments` alone (the fundamental detected, the rule's cut-off, every candidate
+    scored), so that a record read in memory and the same files read chunk by chunk
+    (:func:`estimation.streaming.cutoff_choice.streamed_window`) get the same choice.
+
+    Attributes
+    ----------
+    segments
+        All the segments, or, past :data:`SCORED_SAMPLES` samples in all, the first :data:`SCORED_SAMPLES` of
+        the longest (:func:`scored_window`).
+    shortest_s
+        Duration of the record's shortest segment, s: no filter candidate needs longer to settle.
+    whole
+        Whether the window is the whole record.
+    """
+
+    segments: tuple[Measurements, ...]
+    shortest_s: float
+    whole: bool = True
+
+    @classmethod
+    def of(cls, segments: Sequence[Measurements]) -> ChoiceWindow:
+        """The window of a record held in memory."""
+        return cls(scored_window(segments), min(duration(segment) for segment in segments),
+                   sum(segment.n_samples for segment in segments) <= SCORED_SAMPLES)
+
+
+def duration(segment: Measurements) -> float:
+    """Time from a segment's first sample to its last, s."""
+    return float(segment.t[-1] - segment.t[0])
+
+
 @single_threaded_blas()  # tall thin least squares: threaded BLAS only loses (dynamics.runtime.threads)
 def choose_by_evidence(
     model: IdentificationModel,
-    train: Measurements | Sequence[Measurements],
+    train: Measurements | Sequence[Measurements] | ChoiceWindow,
     *,
     frequency_hz: float | None = None,
     harmonics: int | None = None,
@@ -273,15 +318,17 @@ def choose_by_evidence(
 
     The options are those of :func:`estimation.preprocessing.plan.choose_preprocessing` (and checked by it); a
     given ``frequency_hz``, ``harmonics`` or ``cutoff_hz`` decides, scored beside the candidates. ``families``
-    restricts the candidates (a path that filters only asks for ``("butterworth",)``). ``held_torques=None``:
-    whether the torques were held over each sample is chosen too (:func:`with_held_torques`).
+    restricts the candidates. ``held_torques=None``: whether the torques were held over each sample is chosen
+    too (:func:`with_held_torques`). Everything is decided on the record's :class:`ChoiceWindow` (a window
+    already made may be given: a streamed record's).
 
     Warns
     -----
     PreprocessingEvidenceWarning
         When the user's preprocessing predicts the held-out blocks clearly worse than the best candidate.
     """
-    segments = as_segments(train, "train")
+    window = train if isinstance(train, ChoiceWindow) else ChoiceWindow.of(as_segments(train, "train"))
+    segments = window.segments
     choose_hold, held_torques = held_torques is None, bool(held_torques)
     user_given = frequency_hz is not None or harmonics is not None or cutoff_hz is not None
     with warnings.catch_warnings():
@@ -295,17 +342,21 @@ def choose_by_evidence(
     if rule.method == "measured" or all(name in column_set(segments[0]) for name in ("dq", "ddq")):
         return PreprocessingChoice(rule, rule)
     score = HeldOutScore(model, folds=folds, max_rows=max_rows)
-    scored = scored_window(segments)
-    evidence = tuple(sorted((score(scored, plan) for plan in candidates(segments, rule, given, families)
-                             if plan.method in families or plan in (rule, given)),
+    plans = [plan for plan in candidates(segments, rule, given, families, shortest_s=window.shortest_s)
+             if plan.method in families or plan in (rule, given)]
+    started = time.perf_counter()
+    evidence = tuple(sorted((score(segments, plan) for plan in plans),
                             key=lambda item: (item.score, item.preprocessing.describe())))
     best = preferred(evidence)
     chosen = best if given is None else given
     if choose_hold:
-        chosen, evidence = with_held_torques(chosen, evidence, score, scored)
+        chosen, evidence = with_held_torques(chosen, evidence, score, segments)
         best = chosen if given is None else best
     selection = "given" if given is not None else "held-out"
     attached = replace(chosen, evidence=Evidence(selection, folds, evidence))
+    if time.perf_counter() - started >= PROGRESS_SECONDS:
+        report("derivatives: %s chosen among %d candidates scored on %d samples (%.1f s)", attached.describe_method(),
+               len(evidence), sum(segment.n_samples for segment in segments), time.perf_counter() - started)
     if given is not None:
         warn_if_clearly_better(attached)
     else:

@@ -9,6 +9,10 @@ the data answer: both are fitted on ``folds - 1`` contiguous blocks of the train
 (the channels as recorded), as :class:`estimation.identification.preprocessing_choice.HeldOutScore` does for the
 derivatives, and scored by the geometric mean over channels of the held-out MSE. The weighted fit stays unless
 ordinary least squares is clearly better (:data:`~estimation.identification.preprocessing_choice.CLEARLY_BETTER`).
+
+A record longer than :data:`~estimation.identification.preprocessing_choice.SCORED_SAMPLES` samples is scored on the
+window its derivatives were chosen on, prepared by the plan chosen (:func:`weighting_samples`): the samples a
+streamed identification reads too, so that both paths choose alike.
 """
 
 from __future__ import annotations
@@ -24,9 +28,16 @@ from dynamics.models import IdentificationModel
 from dynamics.runtime.threads import single_threaded_blas
 from estimation.estimators.identification_problem import IdentificationProblem, stack
 from estimation.estimators.least_squares import LeastSquares, WeightedLeastSquares
-from estimation.identification.preprocessing_choice import CLEARLY_BETTER, blocked_folds, geometric_mean, thinned
+from estimation.identification.preprocessing_choice import (
+    CLEARLY_BETTER,
+    ChoiceWindow,
+    blocked_folds,
+    geometric_mean,
+    thinned,
+)
+from estimation.preprocessing.plan import Preprocessing, prepare
 
-__all__ = ["WeightingChoice", "choose_weighting"]
+__all__ = ["WeightingChoice", "choose_weighting", "weighting_samples"]
 
 Weighting = Literal["wls", "ols"]
 
@@ -83,3 +94,11 @@ def held_out_mse(problem: IdentificationProblem, estimator: type[LeastSquares], 
         theta = estimator().fit(part).theta_
         squared += np.sum((problem.y[held] - problem.Y[held] @ theta) ** 2, axis=0)
     return squared / problem.n_samples
+
+
+def weighting_samples(window: ChoiceWindow, plan: Preprocessing, prepared: Measurements | None = None) -> Measurements:
+    """The samples the weighting is chosen on: ``prepared`` (the whole training record, as prepared) when given
+    and the window is the whole record, else the window prepared by ``plan`` (module docstring)."""
+    if prepared is not None and window.whole:
+        return prepared
+    return prepare(window.segments, plan, role="training data")

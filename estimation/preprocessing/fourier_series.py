@@ -18,18 +18,27 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 
+#: elements of the ``(T, N)`` phase array evaluated at once: 60 000 samples of 400 harmonics took 1.2 GB whole
+EVALUATION_BLOCK = 1 << 20
+
+
 def evaluate_series(frequency_hz: float, q0: NDArray[np.float64], a: NDArray[np.float64], b: NDArray[np.float64],
                     t: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
-    """``q, dq, ddq`` of eq. 18 at times ``t``, each ``(len(t), n)``; ``q0 (n,)``, ``a, b (n, N)``."""
+    """``q, dq, ddq`` of eq. 18 at times ``t``, each ``(len(t), n)``; ``q0 (n,)``, ``a, b (n, N)``; in blocks of
+    samples (:data:`EVALUATION_BLOCK`), so that memory stays bounded whatever the record's length."""
     t = np.asarray(t, dtype=float).reshape(-1)
     omega = 2 * np.pi * frequency_hz * np.arange(1, a.shape[1] + 1)  # (N,)
-    phase = np.outer(t, omega)  # (T, N)
-    sin = np.sin(phase)
-    cos = np.cos(phase, out=phase)
-    scaled = sin / omega  # one buffer for the four scaled bases, each used once
-    q = q0 + scaled @ a.T - np.divide(cos, omega, out=scaled) @ b.T
-    dq = cos @ a.T + sin @ b.T
-    ddq = np.multiply(sin, -omega, out=scaled) @ a.T + np.multiply(cos, omega, out=scaled) @ b.T
+    q, dq, ddq = (np.empty((t.shape[0], a.shape[0])) for _ in range(3))
+    rows = max(1, EVALUATION_BLOCK // max(a.shape[1], 1))
+    for start in range(0, t.shape[0], rows):
+        block = slice(start, start + rows)
+        phase = np.outer(t[block], omega)  # (rows, N)
+        sin = np.sin(phase)
+        cos = np.cos(phase, out=phase)
+        scaled = sin / omega  # one buffer for the four scaled bases, each used once
+        q[block] = q0 + scaled @ a.T - np.divide(cos, omega, out=scaled) @ b.T
+        dq[block] = cos @ a.T + sin @ b.T
+        ddq[block] = np.multiply(sin, -omega, out=scaled) @ a.T + np.multiply(cos, omega, out=scaled) @ b.T
     return q, dq, ddq
 
 

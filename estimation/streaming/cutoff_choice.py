@@ -1,32 +1,87 @@
-"""The filter cut-off of a streamed record, chosen by held-out evidence on a window of it.
+"""The derivatives of a streamed record, chosen as the in-memory path chooses them, on the same window.
 
-The streamed identification and diagnosis derive ``dq, ddq`` with one zero-phase Butterworth filter for every chunk
-and file. Its cut-off was the bandwidth rule (:func:`estimation.streaming.chunks.automatic_cutoff`: five times the
-first chunk's motion bandwidth); here it is chosen as the in-memory path chooses its derivatives
-(:func:`estimation.identification.preprocessing_choice.choose_by_evidence`, the filter candidates only: the
-streamed path filters), on the first :data:`~estimation.identification.preprocessing_choice.SCORED_SAMPLES` rows
-of the first training file, which is also the window the in-memory path scores a long record on. Memory stays
-bounded by that window.
+The in-memory path chooses how ``dq, ddq`` are made by held-out evidence
+(:func:`estimation.identification.preprocessing_choice.choose_by_evidence`) on a
+:class:`~estimation.identification.preprocessing_choice.ChoiceWindow`: the whole record up to
+:data:`~estimation.identification.preprocessing_choice.SCORED_SAMPLES` samples, else the first
+:data:`~estimation.identification.preprocessing_choice.SCORED_SAMPLES` samples of its longest segment.
+:func:`streamed_window` reads that same window from the files (their rows counted without parsing,
+:func:`estimation.streaming.memory_budget.count_rows`; the longest file read up to the window), and
+:func:`choose_streamed_preprocessing` hands it to the same function, every candidate family included: one code
+path for the choice, whichever way the sums are then computed. Memory stays bounded by the window.
+
+:func:`choose_streamed_cutoff` is the filter-only choice on the first rows of one file (what the streamed path
+did before; kept for scripts).
 """
 
 from __future__ import annotations
 
 import warnings
+from collections.abc import Sequence
 from pathlib import Path
 
+import numpy as np
+
+from dynamics.measurements import Measurements
 from dynamics.models import IdentificationModel
-from estimation.identification.preprocessing_choice import SCORED_SAMPLES, choose_by_evidence
+from estimation.identification.preprocessing_choice import (
+    SCORED_SAMPLES,
+    ChoiceWindow,
+    PreprocessingChoice,
+    choose_by_evidence,
+)
 from estimation.preprocessing.plan import Preprocessing, PreprocessingWarning
 from estimation.streaming.chunks import read_chunks
+from estimation.streaming.memory_budget import count_rows
 
-__all__ = ["choose_streamed_cutoff"]
+__all__ = ["choose_streamed_cutoff", "choose_streamed_preprocessing", "first_rows", "streamed_window"]
+
+
+def first_rows(path: str | Path, model: IdentificationModel, rows: int) -> Measurements:
+    """The first ``rows`` samples of ``path`` (all of them when it holds fewer), read and checked as the
+    streamed path reads every chunk."""
+    first = next(read_chunks(path, model, chunk_size=max(int(rows), model.n_base + 1)))
+    return first if first.n_samples <= rows else first.select(slice(0, int(rows)))
+
+
+def streamed_window(paths: Sequence[str | Path], model: IdentificationModel,
+                    rows: Sequence[int] | None = None) -> ChoiceWindow:
+    """The :class:`ChoiceWindow` of the record made of the files ``paths`` (module docstring); ``rows``: their
+    row counts when already known."""
+    if not paths:
+        raise ValueError("no training data files")
+    rows = [count_rows(path) for path in paths] if rows is None else list(rows)
+    if sum(rows) <= SCORED_SAMPLES:  # every file read whole
+        segments = tuple(first_rows(path, model, count) for path, count in zip(paths, rows))
+        return ChoiceWindow(segments, min(float(segment.t[-1] - segment.t[0]) for segment in segments))
+    longest = int(np.argmax(rows))  # the first of the longest, as max() picks it in memory
+    segments = (first_rows(paths[longest], model, SCORED_SAMPLES),)
+    return ChoiceWindow(segments, min(_duration(path, model, count) for path, count in zip(paths, rows)), whole=False)
+
+
+def _duration(path: str | Path, model: IdentificationModel, rows: int) -> float:
+    """A file's duration from its row count and its sampling step (read from its first rows)."""
+    head = first_rows(path, model, min(rows, 1000))
+    return float(np.median(np.diff(head.t))) * (rows - 1)
+
+
+def choose_streamed_preprocessing(paths: Sequence[str | Path], model: IdentificationModel, *,
+                                  frequency_hz: float | None = None, harmonics: int | None = None,
+                                  cutoff_hz: float | None = None, average_periods: str = "auto", decimation: int = 1,
+                                  held_torques: bool | None = False, rows: Sequence[int] | None = None
+                                  ) -> PreprocessingChoice:
+    """The preprocessing of the training files ``paths``, chosen as in memory (module docstring); the options
+    are those of :func:`~estimation.identification.preprocessing_choice.choose_by_evidence`."""
+    return choose_by_evidence(model, streamed_window(paths, model, rows), frequency_hz=frequency_hz,
+                              harmonics=harmonics, cutoff_hz=cutoff_hz, average_periods=average_periods,
+                              decimation=decimation, held_torques=held_torques)
 
 
 def choose_streamed_cutoff(path: str | Path, model: IdentificationModel, *, decimation: int = 1,
                            held_torques: bool = False) -> Preprocessing | None:
-    """The Butterworth plan chosen on the first rows of ``path`` (module docstring), with its evidence; ``None``
+    """The Butterworth plan chosen on the first rows of ``path`` (filters only), with its evidence; ``None``
     when the file holds measured ``dq, ddq`` (nothing to choose)."""
-    first = next(read_chunks(path, model, chunk_size=SCORED_SAMPLES))
+    first = first_rows(path, model, SCORED_SAMPLES)
     if first.dq is not None and first.ddq is not None:
         return None
     with warnings.catch_warnings():

@@ -39,7 +39,7 @@ difference estimator takes a median); the floor is computed on a bounded window,
 (:func:`estimation.uncertainty.noise_floor.pooled_floor`), and the report says so.
 
 Not on this path (the report's ``streaming.not_on_this_path``): residual tracing, whiteness and
-per-sample residual statistics (they need the residuals sample by sample), the per-round refinement and joint refit of shapes, shape standard deviations, the Fourier path.
+per-sample residual statistics (they need the residuals sample by sample), the per-round refinement and joint refit of shapes, shape standard deviations, a Fourier fit of every sample (periods are averaged: :func:`estimation.streaming.periods.plan_chunks`).
 """
 
 from __future__ import annotations
@@ -53,6 +53,7 @@ from typing import Any
 import numpy as np
 
 from dynamics.effects.linear import Effect
+from dynamics.runtime.progress import step
 from dynamics.models import IdentificationModel, build_model
 from estimation.diagnosis.candidates.trials import candidate_label
 from estimation.diagnosis.forward_selection import DiagnosisSearch, SearchOutcome, SearchSettings
@@ -61,6 +62,7 @@ from estimation.diagnosis.statistics import FLOOR_ALPHA
 from estimation.estimators.summed_least_squares import SummedEstimate, SummedLeastSquares
 from estimation.identification.fit import implausible_estimates
 from estimation.identification.trivial_predictors import trivial_warnings
+from estimation.preprocessing.plan import Preprocessing
 from estimation.streaming.chunks import automatic_cutoff, read_chunks
 from estimation.streaming.cluster import model_payload
 from estimation.streaming.covariance import sandwich
@@ -68,6 +70,7 @@ from estimation.streaming.diagnosis_passes import (FLOOR_WINDOW, SubsamplePass, 
                                                   sums_pass, window_floor)
 from estimation.streaming.diagnosis_candidates import StreamedCandidates, streamed_candidates
 from estimation.streaming.diagnosis_sums import ChannelSums, normal_equations
+from estimation.streaming.periods import plan_options
 from estimation.streaming.selection import SummedFits, simpler_laws
 from estimation.uncertainty.noise_floor import NoiseFloor, compare_with_floor
 
@@ -174,12 +177,18 @@ class StreamedSettings:
     noise_floor: NoiseFloor | None
     subsample: int
     floor_window: int
+    frequency_hz: float | None = None
+    harmonics: int = 5
+    order: int = 4
 
     def reading(self) -> dict[str, Any]:
-        """How each file is read and prepared (:func:`estimation.streaming.chunks.preprocessed_chunks`): the
-        filter's settling trimmed at each record's ends, as the CLI's in-memory preprocessing does."""
-        return {"chunk_size": self.chunk_size, "cutoff_hz": self.cutoff_hz, "decimation": self.decimation,
-                "held_torques": self.held_torques, "trim": True}
+        """How each file is read and prepared (:func:`estimation.streaming.periods.plan_chunks`): the filter's
+        settling trimmed at each record's ends, as the CLI's in-memory preprocessing does; or the Fourier path."""
+        options = {"chunk_size": self.chunk_size, "cutoff_hz": self.cutoff_hz, "decimation": self.decimation,
+                   "held_torques": self.held_torques, "trim": True, "order": self.order}
+        if self.frequency_hz is not None:
+            options.update(frequency_hz=self.frequency_hz, harmonics=self.harmonics)
+        return options
 
 
 class Stopwatch:
@@ -215,7 +224,7 @@ def _checked_settings(model: IdentificationModel, paths: list[str], validate: li
     subsample = settings.subsample
     if isinstance(subsample, bool) or int(subsample) != subsample or subsample < model.n_base + 1:
         raise ValueError(f"subsample must be an integer above the {model.n_base} base parameters, got {subsample!r}")
-    if settings.cutoff_hz is None:
+    if settings.cutoff_hz is None and settings.frequency_hz is None:
         first = next(read_chunks(paths[0], model, chunk_size=settings.chunk_size))
         if first.dq is None or first.ddq is None:
             return replace(settings, cutoff_hz=automatic_cutoff(paths[0], model, chunk_size=settings.chunk_size))
@@ -313,6 +322,7 @@ def diagnose_files(
     subsample: int = DEFAULT_SUBSAMPLE,
     floor_window: int = FLOOR_WINDOW,
     executor: Any = None,
+    preprocessing: Preprocessing | None = None,
 ) -> StreamedDiagnosis:
     """Diagnose ``model`` on the training ``paths``, confirmed on the ``validate`` files, in bounded memory.
 
@@ -320,26 +330,35 @@ def diagnose_files(
     ``decimation``, ``held_torques`` and ``executor`` those of
     :func:`estimation.streaming.identification.identify_files`; ``subsample`` and ``floor_window``:
     module docstring. ``noise_floor``: the floor of the validation record as recorded (default: on
-    the window).
+    the window). ``preprocessing``: a plan chosen beforehand (as the in-memory path chooses it,
+    :func:`estimation.streaming.cutoff_choice.choose_streamed_preprocessing`) sets the derivatives instead of
+    ``cutoff_hz``, ``decimation`` and ``held_torques``: a filter, or a Fourier fit of averaged periods
+    (:func:`estimation.streaming.periods.plan_chunks`).
     """
     paths, validate = [str(path) for path in paths], [str(path) for path in validate]
-    settings = _checked_settings(model, paths, validate, StreamedSettings(
-        chunk_size, cutoff_hz, decimation, held_torques, alpha, min_improvement, max_effects, noise_floor, subsample,
-        floor_window))
+    settings = StreamedSettings(chunk_size, cutoff_hz, decimation, held_torques, alpha, min_improvement, max_effects,
+                                noise_floor, subsample, floor_window)
+    settings = _checked_settings(model, paths, validate, settings if preprocessing is None else
+                                 replace(settings, **plan_options(preprocessing)))
     options, payload, clock = settings.reading(), model_payload(model), Stopwatch()
-    first = subsample_pass(executor, payload, paths, options, settings.subsample)  # pass 1 (training files)
-    found = streamed_candidates(model, candidates, first.sample, clock.lap)
-    sums = sums_pass(executor, payload, found.plan, paths, validate, options, first)  # pass 2 (all files)
+    with step(f"first pass over {len(paths)} training file(s) (subsample)"):
+        first = subsample_pass(executor, payload, paths, options, settings.subsample)  # pass 1 (training files)
+    with step(f"shape search and coupling tracing on {first.sample.n_samples} samples"):
+        found = streamed_candidates(model, candidates, first.sample, clock.lap)
+    with step(f"second pass over {len(paths) + len(validate)} file(s) (sums of {len(found.blocks)} candidates)"):
+        sums = sums_pass(executor, payload, found.plan, paths, validate, options, first)  # pass 2 (all files)
     clock.lap("sums_pass")
     if noise_floor is None:
-        floor, floor_note = window_floor(validate, model, window=floor_window)
+        floor, floor_note = window_floor(validate, model, window=floor_window, frequency_hz=settings.frequency_hz)
     else:
         floor, floor_note = noise_floor, f"given ({noise_floor.method})"
-    before, outcome = _search(model, sums, found, settings, floor)
-    chosen, columns, after = _final_estimate(model, sums, found, outcome, min_improvement)
+    with step("forward selection from the sums"):
+        before, outcome = _search(model, sums, found, settings, floor)
+        chosen, columns, after = _final_estimate(model, sums, found, outcome, min_improvement)
     clock.lap("selection_and_estimates")
-    # pass 3 (training files): the batch-means covariance of the final estimate
-    parts_scores = scores_pass(executor, payload, found.final_plan(chosen), paths, options, after.values, after.weights)
+    with step(f"third pass over {len(paths)} training file(s) (covariance)"):  # the batch-means covariance
+        parts_scores = scores_pass(executor, payload, found.final_plan(chosen), paths, options, after.values,
+                                   after.weights)
     after, covariance = _batch_means(model, after, parts_scores, sums.train.normal_system(columns, after.weights)[0])
     clock.lap("covariance_pass")
     run = _Run(paths, validate, settings, first, sums, found, outcome, chosen, columns)
@@ -368,6 +387,7 @@ def _streaming_record(run: _Run, covariance: dict[str, Any], seconds: dict[str, 
     condition = float(np.linalg.cond(normal / np.outer(scale, scale)))
     return {
         "chunk_size": int(settings.chunk_size), "cutoff_hz": settings.cutoff_hz, "decimation": int(settings.decimation),
+        "frequency_hz": settings.frequency_hz, "harmonics": settings.harmonics if settings.frequency_hz else None,
         "files": [_file_record(path, part, record) for path, (part, record) in zip(run.paths, sums.train_parts)],
         "validation_files": [_file_record(path, part, record)
                              for path, (part, record) in zip(run.validate, sums.validate_parts)],

@@ -34,7 +34,8 @@ from estimation.streaming.cluster import caught_warnings, file_stamp, model_from
 from estimation.streaming.diagnosis_sums import ChannelSums, ColumnLayout, EvenSubsample, chunk_sums, concatenate
 from estimation.data.loading import MeasurementError
 from estimation.uncertainty.noise_floor import NoiseFloor, NoiseFloorError, noise_floor, pooled_floor
-from estimation.streaming.chunks import preprocessed_chunks, read_chunks
+from estimation.streaming.chunks import read_chunks
+from estimation.streaming.periods import plan_chunks
 from estimation.streaming.covariance import BatchScores, chunk_scores
 from estimation.estimators.effect_blocks import Block
 
@@ -48,7 +49,7 @@ FLOOR_WINDOW = 100_000
 def _subsample(path: str, model: IdentificationModel, options: dict[str, Any], cap: int):
     record: dict = {}
     subsample = EvenSubsample(cap)
-    for chunk in preprocessed_chunks(path, model, record=record, **options):
+    for chunk in plan_chunks(path, model, record=record, **options):
         subsample.add(chunk)
     return subsample.measurements(), subsample.seen, record
 
@@ -71,7 +72,7 @@ def _sums(path: str, model: IdentificationModel, payload: bytes, plan: bytes, op
     layout, blocks, shapes = _plan(payload, plan)
     record: dict = {}
     sums = ChannelSums.empty(layout)
-    for chunk in preprocessed_chunks(path, model, record=record, **options):
+    for chunk in plan_chunks(path, model, record=record, **options):
         try:
             sums = chunk_sums(model, layout, blocks, shapes, chunk, sums)
         except ValueError as error:
@@ -89,7 +90,7 @@ def _scores(path: str, model: IdentificationModel, payload: bytes, plan: bytes, 
             theta: np.ndarray, weights: np.ndarray) -> BatchScores:
     layout, blocks, shapes = _plan(payload, plan)
     scores = BatchScores.empty(len(layout.names), layout.n_channels)
-    for chunk in preprocessed_chunks(path, model, **options):
+    for chunk in plan_chunks(path, model, **options):
         scores.add(*chunk_scores(model, layout, blocks, shapes, chunk, theta, weights))
     return scores.closed()
 
@@ -166,7 +167,8 @@ def sums_pass(executor, payload: bytes, plan: bytes, paths: Sequence[str], valid
               options: dict[str, Any], first: SubsamplePass) -> SumsPass:
     """The sums of every training and validation file (:func:`sums_task`), checked against the first pass."""
     train_parts = map_files(executor, sums_task, paths, lambda path: (payload, plan, path, options, file_stamp(path)))
-    validate_parts = map_files(executor, sums_task, validate, lambda path: (payload, plan, path, options, file_stamp(path)))
+    recorded = dict(options, as_recorded=True)  # the Fourier path validates on every sample (estimation.streaming.periods)
+    validate_parts = map_files(executor, sums_task, validate, lambda path: (payload, plan, path, recorded, file_stamp(path)))
     for path, (sums, _), count in zip(paths, train_parts, first.counts):
         if sums.n_samples != count:
             raise MeasurementError(f"{path}: {sums.n_samples} samples summed, {count} read in the first pass (did the "

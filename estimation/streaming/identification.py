@@ -37,6 +37,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from dynamics.models import IdentificationModel
+from dynamics.runtime.progress import step
 from estimation.streaming.cluster import sum_files
 from estimation.identification.fit import ImplausibleEstimateWarning, implausible_estimates
 from estimation.estimators.normal_equations import NormalEquations
@@ -199,17 +200,21 @@ def identify_files(
     if frequency_hz is not None:
         options.update(frequency_hz=frequency_hz, harmonics=harmonics)
     clock = time.perf_counter()
-    train, files = sum_files(model, paths, executor=executor, **options)
+    with step(f"sums pass over {len(paths)} training file(s)"):
+        train, files = sum_files(model, paths, executor=executor, **options)
     seconds = {"sums_pass": time.perf_counter() - clock}
-    validation, validation_files = (None, ()) if not validate else sum_files(model, validate, executor=executor, **options)
+    with step(f"sums pass over {len(validate)} validation file(s)"):
+        validation, validation_files = (None, ()) if not validate else sum_files(model, validate, executor=executor,
+                                                                                 **options)
     clock = time.perf_counter()
     estimate = SummedLeastSquares(method=method).fit(train).estimate_
     seconds["solve"] = time.perf_counter() - clock
     cov_method, batch, classical_std = "classical", None, None
     if covariance == "hac":
         clock = time.perf_counter()
-        cov, batch = batch_means_covariance(model, files, train, options, estimate.values, estimate.weights,
-                                            estimate.cov, executor=executor)
+        with step(f"covariance pass over {len(paths)} training file(s)"):
+            cov, batch = batch_means_covariance(model, files, train, options, estimate.values, estimate.weights,
+                                                estimate.cov, executor=executor)
         seconds["covariance_pass"] = time.perf_counter() - clock
         std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
         with np.errstate(divide="ignore", invalid="ignore"):

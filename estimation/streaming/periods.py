@@ -7,11 +7,19 @@ positions. The average is a sum: :func:`average_periods_streamed` adds each chun
 columns`` memory. The fit and the analytic derivatives then run on that one averaged period
 exactly as in memory (:func:`estimation.preprocessing.differentiation.fill_derivatives`), and its sums are those
 of the file: two passes in one (average, then fit and evaluate on ``P`` samples).
+
+The streamed diagnosis reads a file on this path as the in-memory one holds it (:func:`plan_chunks`): a training
+file is its averaged period (the samples the in-memory estimation fits), a validation file every sample of its
+whole periods with the fit's motion at their instants and the channels as recorded (the samples the in-memory
+diagnosis validates on), read in a second pass.
 """
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -19,10 +27,12 @@ from dynamics.runtime.memory import check_allocation
 from dynamics.models import IdentificationModel
 from dynamics.measurements import Measurements
 from estimation.estimators.normal_equations import DEFAULT_CHUNK_SIZE, accumulate
-from estimation.preprocessing.differentiation import FourierDifferentiation, fill_derivatives
-from estimation.streaming.chunks import FileSums, read_chunks
+from estimation.preprocessing.differentiation import FourierDifferentiation, fill_derivatives, fit_fourier
+from estimation.preprocessing.plan import Preprocessing
+from estimation.streaming.chunks import FileSums, StreamingUnsupportedError, preprocessed_chunks, read_chunks
 
-__all__ = ["average_periods_streamed", "periodic_file_sums", "periodic_prepared"]
+__all__ = ["average_periods_streamed", "periodic_chunks", "periodic_file_sums", "periodic_prepared", "plan_chunks",
+           "plan_options"]
 
 _GROUPS = ("q", "dq", "ddq", "tau", "wrench")
 
@@ -104,3 +114,82 @@ def periodic_file_sums(path: str | Path, model: IdentificationModel, *, frequenc
         metadata["resampled_from"] = int(averaged.metadata["resampled_from"])
     columns = tuple(name for name in ("dq", "ddq", "tau", "wrench") if getattr(averaged, name) is not None)
     return FileSums(str(path), sums, rows, columns, metadata)
+
+
+def periodic_chunks(path: str | Path, model: IdentificationModel, *, frequency_hz: float, harmonics: int = 5,
+                    chunk_size: int = DEFAULT_CHUNK_SIZE, decimation: int = 1, held_torques: bool = False,
+                    as_recorded: bool = False, record: dict | None = None) -> Iterator[Measurements]:
+    """One periodic file on the Fourier path, chunk by chunk (module docstring): its averaged period prepared,
+    or, ``as_recorded``, the rows of its whole periods with the fit's motion at their instants (held torques:
+    the motion half a sample later, from the fit itself). ``record`` receives ``rows``, ``columns`` and
+    ``metadata`` as :func:`estimation.streaming.chunks.preprocessed_chunks` gives them."""
+    if decimation != 1:
+        raise StreamingUnsupportedError(f"{path}: decimation with a Fourier fit is done in memory (leave out "
+                                        "--decimate, or the streamed path)")
+    prepared, averaged, rows = periodic_prepared(path, model, frequency_hz=frequency_hz, harmonics=harmonics,
+                                                 chunk_size=chunk_size, held_torques=held_torques)
+    periods = int(averaged.metadata["periods_averaged"])
+    if record is not None:
+        record.update(rows=rows, chunk_size=chunk_size,
+                      columns=tuple(name for name in ("dq", "ddq", "tau", "wrench") if getattr(averaged, name) is not None),
+                      metadata={"decimation": 1, "margin": 0, "trimmed_samples": 0, "differentiation": "fourier",
+                                "frequency_hz": float(frequency_hz), "harmonics": int(harmonics),
+                                "periods_averaged": periods})
+    if not as_recorded:
+        prepared = replace(prepared, recorded=None)
+        for start in range(0, prepared.n_samples, chunk_size):
+            yield prepared.select(slice(start, start + chunk_size))
+        return
+    fit = fit_fourier(averaged.t, averaged.q, frequency_hz, harmonics)
+    kept, done = periods * averaged.n_samples, 0
+    for chunk in read_chunks(path, model, chunk_size=chunk_size):
+        chunk = chunk.select(slice(0, max(min(chunk.n_samples, kept - done), 0)))
+        done += chunk.n_samples
+        if not chunk.n_samples:
+            continue
+        q, dq, ddq = fit.evaluate(chunk.t)
+        if held_torques:  # the fit half a sample later (compensate_hold, with the fit's own next sample)
+            step = float(averaged.t[1] - averaged.t[0])
+            later = fit.evaluate(chunk.t + step)
+            q, dq, ddq = ((now + next_) / 2 for now, next_ in zip((q, dq, ddq), later))
+        yield replace(chunk, q=q, dq=dq, ddq=ddq, recorded=None)
+
+
+def plan_chunks(path: str | Path, model: IdentificationModel, *, frequency_hz: float | None = None,
+                harmonics: int = 5, as_recorded: bool = False, record: dict | None = None,
+                **options: Any) -> Iterator[Measurements]:
+    """One file's prepared chunks: on the Fourier path (:func:`periodic_chunks`) when ``frequency_hz`` is given
+    and the file lacks ``dq``/``ddq``, else :func:`estimation.streaming.chunks.preprocessed_chunks` (``options``:
+    its keyword arguments)."""
+    if frequency_hz is not None:
+        chunk_size = options.get("chunk_size", DEFAULT_CHUNK_SIZE)
+        first = next(read_chunks(path, model, chunk_size=chunk_size))
+        if first.dq is None or first.ddq is None:
+            yield from periodic_chunks(path, model, frequency_hz=frequency_hz, harmonics=harmonics,
+                                       chunk_size=chunk_size, decimation=options.get("decimation", 1),
+                                       held_torques=options.get("held_torques", False), as_recorded=as_recorded,
+                                       record=record)
+            return
+    yield from preprocessed_chunks(path, model, record=record, **options)
+
+
+def plan_options(plan: Preprocessing) -> dict[str, Any]:
+    """The reading options of :func:`plan_chunks` that apply ``plan`` (a filter, a Fourier fit of averaged periods,
+    measured derivatives): ``cutoff_hz``, ``order``, ``frequency_hz``, ``harmonics``, ``decimation``,
+    ``held_torques``.
+
+    Raises
+    ------
+    StreamingUnsupportedError
+        A Fourier fit of every sample (``average_periods="no"``): made in memory.
+    """
+    options: dict[str, Any] = {"cutoff_hz": None, "order": plan.order, "frequency_hz": None, "harmonics": 5,
+                               "decimation": plan.decimation, "held_torques": plan.held_torques}
+    if plan.method == "butterworth":
+        options["cutoff_hz"] = plan.cutoff_hz
+    elif plan.method == "fourier":
+        if plan.average_periods == "no":
+            raise StreamingUnsupportedError("a Fourier fit of every sample (--average-periods no) is made in memory: "
+                                            "not on the streamed path, which averages whole periods")
+        options.update(frequency_hz=plan.frequency_hz, harmonics=plan.harmonics)
+    return options

@@ -5,10 +5,12 @@ from __future__ import annotations
 import argparse
 import sys
 import warnings
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
 from dynamics.models import IdentificationModel, ModelKind, build_model
+from dynamics.runtime.progress import show_progress, step
 from dynamics.transmission import Transmission
 from estimation.diagnosis.candidates.coupling import coupling_candidates
 from estimation.diagnosis.report import markdown_report, plot_residuals, plot_trace
@@ -46,8 +48,9 @@ from oed.cli.shared.common import (
     robot_from_arguments,
     streaming_requested,
 )
-from oed.cli.diagnose_streaming import add_streamed_diagnosis_arguments, run_streaming
+from oed.cli.diagnose_streaming import add_streamed_diagnosis_arguments, check_streamed_arguments, run_streaming
 from estimation.identification.repeated_motion import repeated_motion_note
+from oed.cli.shared.memory_path import decide_path
 from oed.cli.shared.model_files import add_model_file
 
 #: what the in-memory diagnosis holds at its peak: bytes a sample, channel and base parameter (measured: 2.8 GB
@@ -106,24 +109,52 @@ def run(args: argparse.Namespace) -> int:
     check_request(args)
     differentiation(args)  # contradicting derivative options are an error even when the data hold dq, ddq
     args.friction, delay = split_delay(args.friction)  # a candidate in every diagnosis: 'delay:S' sets its bound
-    if streaming_requested(args):  # bounded memory (estimation.streaming.diagnosis)
-        if args.test:
-            raise ValueError("--test is read in memory: not with the streamed path (--chunk-size, --scheduler or "
-                             "--workers)")
-        if delay is not None:
-            raise ValueError("the delay between torques and motion is searched in memory: not with the streamed path "
-                             "(--chunk-size, --scheduler or --workers), which does not try it")
-        return run_streaming(args)
-    robot = robot_from_arguments(args)
-    transmission = resolve_transmission(args, robot)
-    effects = model_effects(args, robot, transmission)
-    model = build_model(robot, args.model, effects)
-    check_shaped_effects_kept(effects, model)
+    with show_progress("oed diagnose", quiet=args.quiet):
+        if streaming_requested(args):  # bounded memory (estimation.streaming.diagnosis)
+            check_streamed_request(args, delay)
+            return run_streaming(args)
+        robot = robot_from_arguments(args)
+        transmission = resolve_transmission(args, robot)
+        effects = model_effects(args, robot, transmission)
+        model = build_model(robot, args.model, effects)
+        check_shaped_effects_kept(effects, model)
+        decision = decide_path(args, model, verb="diagnose", task="diagnosing", bytes_per_value=IN_MEMORY.bytes_per_value,
+                               in_memory_only=lambda: in_memory_only(args, model, delay))
+        if decision.stream:
+            return run_streaming(args, decision.plan)
+        return run_in_memory(args, model, transmission, delay, decision.plan)
+
+
+def check_streamed_request(args: argparse.Namespace, delay: DelayBounds | None) -> None:
+    """``--test`` and a delay are in-memory only: an error when the streamed path was asked for."""
+    if args.test:
+        raise ValueError("--test is read in memory: not with the streamed path (--chunk-size, --scheduler or "
+                         "--workers)")
+    if delay is not None:
+        raise ValueError("the delay between torques and motion is searched in memory: not with the streamed path "
+                         "(--chunk-size, --scheduler or --workers), which does not try it")
+
+
+def in_memory_only(args: argparse.Namespace, model: IdentificationModel, delay: DelayBounds | None) -> str | None:
+    """The options given that the streamed diagnosis lacks, in a few words, or ``None``."""
+    try:
+        check_streamed_request(args, delay)
+        check_streamed_arguments(args, model)
+    except ValueError as error:
+        return str(error).split(":")[0] + " (not on the streamed path)"
+    return None
+
+
+def run_in_memory(args: argparse.Namespace, model: IdentificationModel, transmission: Transmission | None,
+                  delay: DelayBounds | None, plan: Preprocessing | None) -> int:
+    """Read and prepare the records (``plan``: the derivatives chosen before reading), diagnose, write, print."""
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        records = prepare_records(model, args.data, args.validate, args.test or (),
-                                  settings=preparation_settings(args, transmission, IN_MEMORY))
-        diagnosis = diagnose_records(args, model, transmission, records, delay)
+        with step(f"read and prepared {len(args.data) + len(args.validate) + len(args.test or ())} file(s)"):
+            records = prepare_records(model, args.data, args.validate, args.test or (),
+                                      settings=replace(preparation_settings(args, transmission, IN_MEMORY), plan=plan))
+        with step("diagnosis in memory"):
+            diagnosis = diagnose_records(args, model, transmission, records, delay)
         untouched = test_errors(records, diagnosis, model, args.frequency)
         trivial, notes = trivial_predictors(diagnosis.after, records.validation.measurements)
         notes += worse_after(diagnosis)

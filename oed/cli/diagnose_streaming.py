@@ -11,7 +11,7 @@ from dynamics.models import IdentificationModel, build_model
 from dynamics.robot import RobotModel
 from estimation.data.log_cleaning import DEFAULT_MAX_GAP
 from estimation.estimators.normal_equations import DEFAULT_CHUNK_SIZE
-from estimation.streaming.cutoff_choice import choose_streamed_cutoff
+from estimation.preprocessing.plan import Preprocessing
 from estimation.streaming.recorded_errors import streamed_plan
 from estimation.streaming.diagnosis import (
     DEFAULT_SUBSAMPLE,
@@ -20,6 +20,7 @@ from estimation.streaming.diagnosis import (
     diagnose_files,
 )
 from oed.cli.shared.asbuilt import model_effects
+from oed.cli.shared.memory_path import streamed_choice
 from oed.cli.shared.model_files import add_summed_model_file
 from oed.cli.shared.common import (
     OutputFiles,
@@ -48,15 +49,14 @@ def check_streamed_arguments(args: argparse.Namespace, model) -> None:
     """Options the streamed diagnosis does not have: an error naming them, before anything is read."""
     unsupported = [option for option, given in (
         ("--report", args.report is not None),
-        ("--frequency", args.frequency is not None),
-        ("--harmonics", args.harmonics is not None),
         ("--transmission", args.transmission is not None),
         ("--min-speed", args.min_speed is not None),
-        ("--average-periods", args.average_periods != "auto"),
+        ("--average-periods no", args.average_periods == "no"),
         ("--max-gap", args.max_gap != DEFAULT_MAX_GAP)) if given]
     if unsupported:
         raise ValueError(f"{', '.join(unsupported)}: not with {STREAMED}, which reads whole files without holes "
-                         "on the filter path (or the files' dq, ddq) and writes the JSON report only")
+                         "on the filter path, the files' dq, ddq or a Fourier fit of averaged periods, and writes the "
+                         "JSON report only")
     if model_has_shapes(model):
         raise ValueError(f"declared laws with shape parameters (coulomb:tanh, sigmoid…) are fitted in memory: not with "
                          f"{STREAMED}; declare their plain forms, or let the diagnosis find them")
@@ -66,8 +66,9 @@ def check_streamed_arguments(args: argparse.Namespace, model) -> None:
             raise ValueError(f"--{option.replace('_', '-')} must be a positive integer, got {value}")
 
 
-def run_streaming(args: argparse.Namespace) -> int:
-    """Diagnose the files read chunk by chunk (:func:`estimation.streaming.diagnosis.diagnose_files`)."""
+def run_streaming(args: argparse.Namespace, plan: Preprocessing | None = None) -> int:
+    """Diagnose the files read chunk by chunk (:func:`estimation.streaming.diagnosis.diagnose_files`), their
+    derivatives chosen as in memory (``plan``: already chosen)."""
     robot = robot_from_arguments(args)
     effects = model_effects(args, robot, None)
     model = build_model(robot, args.model, effects)
@@ -76,33 +77,32 @@ def run_streaming(args: argparse.Namespace) -> int:
     chunk_size = DEFAULT_CHUNK_SIZE if args.chunk_size is None else args.chunk_size
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        plan = None if args.cutoff is not None else choose_streamed_cutoff(
-            args.data[0], model, decimation=args.decimate, held_torques=bool(args.held_torques))
-        cutoff = args.cutoff if plan is None else plan.cutoff_hz
+        if plan is None:
+            plan = streamed_choice(args, model).chosen
         with executor_from_arguments(args) as executor:
-            result = diagnose_files(model, args.data, args.validate, chunk_size=chunk_size, cutoff_hz=cutoff,
-                                    decimation=args.decimate, held_torques=bool(args.held_torques), alpha=args.alpha,
+            result = diagnose_files(model, args.data, args.validate, chunk_size=chunk_size, alpha=args.alpha,
                                     max_effects=args.max_effects, subsample=args.subsample,
-                                    floor_window=args.floor_window, executor=executor)
+                                    floor_window=args.floor_window, executor=executor, preprocessing=plan)
     print_warnings("diagnose", caught)
     document = result.to_dict()
-    document["preprocessing"] = {"method": "butterworth" if result.streaming["cutoff_hz"] is not None else "measured",
-                                 "cutoff_hz": result.streaming["cutoff_hz"], "decimation": args.decimate,
-                                 "held_torques": bool(args.held_torques)}
-    if plan is not None:  # chosen by held-out error on the first rows of the first file
-        document["preprocessing"].update({key: value for key, value in plan.to_dict().items()
-                                          if key in ("selection", "folds", "candidates")})
+    document["preprocessing"] = {"cutoff_hz": result.streaming["cutoff_hz"], **plan.to_dict()}
     document["max_effects"] = args.max_effects
     document["max_effects_reached"] = len(result.effects) >= args.max_effects
-    # the model file: the final model's estimate from the sums; its validation error is against the channels as
-    # recorded, on the samples the in-memory preprocessing keeps, which is what `oed predict` measures
-    plan = streamed_plan(args.data[0], model, cutoff_hz=result.streaming["cutoff_hz"], decimation=args.decimate,
-                         held_torques=bool(args.held_torques), chunk_size=chunk_size)
-    add_summed_model_file(document, result.final_model(), result.after, args, plan,
+    # the model file: the final model's estimate from the sums; on the filter path (and with measured derivatives)
+    # its validation error is against the channels as recorded, on the samples the in-memory preprocessing keeps,
+    # which is what `oed predict` measures; a Fourier fit of averaged periods is not what `oed predict` repeats
+    if plan.method == "fourier":
+        model_plan, validation_mse = plan.to_dict(), None
+    else:
+        model_plan = streamed_plan(args.data[0], model, cutoff_hz=result.streaming["cutoff_hz"],
+                                   decimation=plan.decimation, held_torques=plan.held_torques, chunk_size=chunk_size)
+        validation_mse = result.validation_mse["after"]
+    add_summed_model_file(document, result.final_model(), result.after, args, model_plan,
                           verb="diagnose", shape=result.final_shape(), recorded_mse=result.train_mse["after"],
-                          validation_mse=result.validation_mse["after"])
+                          validation_mse=validation_mse)
     with OutputFiles() as outputs, outputs.open(args.out) as stream:
         stream.write(json_text(document))
+    print(plan.describe())
     print_streamed_summary(args, robot, model, result, chunk_size)
     print(f"wrote {args.out}")
     return 0
@@ -115,9 +115,6 @@ def print_streamed_summary(args: argparse.Namespace, robot: RobotModel, model: I
     print(f"{robot.name}: {model.kind.value} model, streamed diagnosis of {result.n_train} training samples from "
           f"{len(streaming['files'])} file(s) in chunks of {chunk_size}, {result.n_validation} validation samples; "
           f"shapes searched on {streaming['subsample']['samples']} samples")
-    if streaming["cutoff_hz"] is not None:
-        print(f"Butterworth cut-off {streaming['cutoff_hz']:.4g} Hz" + ("" if args.cutoff is not None else
-              f" (chosen by held-out error on the first rows of {args.data[0]})"))
     if result.effects:
         for effect in result.effects:
             values = ", ".join(f"{n} = {v:.4g} ± {s:.2g}" for n, v, s in zip(effect.parameters, effect.values, effect.std))

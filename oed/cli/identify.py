@@ -5,11 +5,13 @@ from __future__ import annotations
 import argparse
 import sys
 import warnings
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
 from dynamics.models import IdentificationModel, ModelKind, build_model
 from dynamics.robot import RobotModel
+from dynamics.runtime.progress import show_progress, step
 from dynamics.transmission import Transmission
 from estimation.data.log_cleaning import DEFAULT_MAX_GAP
 from estimation.estimators.normal_equations import DEFAULT_CHUNK_SIZE
@@ -18,12 +20,15 @@ from estimation.identification.validation import plot_comparison
 from estimation.preprocessing.delay import DelayBounds, split_delay
 from estimation.preprocessing.plan import Preprocessing
 from estimation.identification.prepared import InMemoryBudget, PreparedRecords, prepare_records
+from estimation.identification.preprocessing_choice import ChoiceWindow
 from estimation.identification.repeated_motion import repeated_motion_note
-from estimation.identification.weighting_choice import choose_weighting
+from estimation.identification.weighting_choice import choose_weighting, weighting_samples
 from estimation.diagnosis.statistics import ResidualReport, residual_report
-from estimation.streaming.cutoff_choice import choose_streamed_cutoff
+from estimation.streaming.cutoff_choice import streamed_window
 from estimation.streaming.identification import identify_files
+from estimation.streaming.periods import plan_options
 from estimation.streaming.recorded_errors import recorded_mse, streamed_plan
+from oed.cli.shared.memory_path import decide_path, streamed_choice
 from oed.cli.shared.model_files import add_model_file, add_summed_model_file
 from oed.cli.shared.asbuilt import (
     add_asbuilt_arguments,
@@ -98,33 +103,36 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     return parser
 
 
-def run_streaming(args: argparse.Namespace, robot: RobotModel, model: IdentificationModel) -> int:
-    """Identify from the files read chunk by chunk (:func:`estimation.streaming.identification.identify_files`)."""
+def run_streaming(args: argparse.Namespace, robot: RobotModel, model: IdentificationModel,
+                  plan: Preprocessing | None = None) -> int:
+    """Identify from the files read chunk by chunk (:func:`estimation.streaming.identification.identify_files`), their
+    derivatives chosen as in memory (``plan``: already chosen)."""
     chunk_size = DEFAULT_CHUNK_SIZE if args.chunk_size is None else args.chunk_size
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        plan = None if args.cutoff is not None or args.frequency is not None else choose_streamed_cutoff(
-            args.data[0], model, decimation=args.decimate, held_torques=bool(args.held_torques))
-        cutoff = args.cutoff if plan is None else plan.cutoff_hz
+        if plan is None:
+            plan = streamed_choice(args, model).chosen
+        options = plan_options(plan)
+        weighting = choose_weighting(model, weighting_samples(streamed_window(args.data, model), plan)) \
+            if args.method == "auto" else None  # on the samples the in-memory path chooses it on
         with executor_from_arguments(args) as executor:
             result = identify_files(model, args.data, args.validate or [],
-                                    method="wls" if args.method == "auto" else args.method, chunk_size=chunk_size,
-                                    cutoff_hz=cutoff,
-                                    frequency_hz=args.frequency, harmonics=5 if args.harmonics is None else args.harmonics,
-                                    decimation=args.decimate, held_torques=bool(args.held_torques), executor=executor)
+                                    method=args.method if weighting is None else weighting.method, chunk_size=chunk_size,
+                                    cutoff_hz=options["cutoff_hz"], frequency_hz=options["frequency_hz"],
+                                    harmonics=options["harmonics"], decimation=options["decimation"],
+                                    held_torques=options["held_torques"], executor=executor)
     print_warnings("identify", caught)
     document = result.to_dict()
-    if plan is not None:  # chosen by held-out error on the first rows of the first file
-        document["preprocessing"] = plan.to_dict()
+    document["preprocessing"] = plan.to_dict()
+    if weighting is not None:
+        document["method_selection"] = weighting.to_dict()
     add_streamed_model_file(document, args, result, chunk_size)
     with OutputFiles() as outputs, outputs.open(args.out) as stream:
         stream.write(json_text(document))
     estimate = result.estimate
+    print(plan.describe())
     print(f"{robot.name}: {model.kind.value} model, {model.n_base} base parameters, {result.train.n_samples} samples "
           f"from {len(result.files)} file(s) in chunks of {chunk_size}, {estimate.method.upper()}, cond {estimate.cond:.4g}")
-    if result.cutoff_hz is not None:
-        print(f"Butterworth cut-off {result.cutoff_hz:.4g} Hz" + ("" if args.cutoff is not None else
-              f" (chosen by held-out error on the first rows of {args.data[0]})"))
     if result.cov_method == "batch_means":
         print(f"standard deviations: batch means (batches of {result.batch_length} samples; a third pass over the files, "
               f"{result.seconds['covariance_pass']:.3g} s)")
@@ -182,10 +190,27 @@ def run(args: argparse.Namespace) -> int:
     model = build_model(robot, args.model, effects)
     check_shaped_effects_kept(effects, model)
     check_model_request(args, model, delay)
-    if streaming_requested(args):
+    with show_progress("oed identify", quiet=args.quiet):
+        if streaming_requested(args):
+            check_streamed_request(args, model)
+            return run_streaming(args, robot, model)
+        decision = decide_path(args, model, verb="identify", task="identifying",
+                               bytes_per_value=IN_MEMORY.bytes_per_value,
+                               in_memory_only=lambda: in_memory_only(args, model, delay))
+        if decision.stream:
+            return run_streaming(args, robot, model, decision.plan)
+        return run_in_memory(args, robot, model, transmission, delay, decision.plan)
+
+
+def in_memory_only(args: argparse.Namespace, model: IdentificationModel, delay: DelayBounds | None) -> str | None:
+    """The options given that the streamed identification lacks, in a few words, or ``None``."""
+    if delay is not None:
+        return "a delay is searched in memory"
+    try:
         check_streamed_request(args, model)
-        return run_streaming(args, robot, model)
-    return run_in_memory(args, robot, model, transmission, delay)
+    except ValueError as error:
+        return str(error).split(":")[0] + " (not on the streamed path)"
+    return None
 
 
 def check_model_request(args: argparse.Namespace, model: IdentificationModel, delay: DelayBounds | None) -> None:
@@ -218,16 +243,19 @@ def check_streamed_request(args: argparse.Namespace, model: IdentificationModel)
 
 
 def run_in_memory(args: argparse.Namespace, robot: RobotModel, model: IdentificationModel,
-                  transmission: Transmission | None, delay: DelayBounds | None) -> int:
-    """Read and prepare the records (:func:`estimation.identification.prepared.prepare_records`), identify, write, print."""
+                  transmission: Transmission | None, delay: DelayBounds | None, plan: Preprocessing | None = None) -> int:
+    """Read and prepare the records (:func:`estimation.identification.prepared.prepare_records`; ``plan``: the
+    derivatives chosen before reading), identify, write, print."""
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        records = prepare_records(model, args.data, args.validate or (),
-                                  settings=preparation_settings(args, transmission, IN_MEMORY))
+        with step(f"read and prepared {len(args.data) + len(args.validate or ())} file(s)"):
+            records = prepare_records(model, args.data, args.validate or (),
+                                      settings=replace(preparation_settings(args, transmission, IN_MEMORY), plan=plan))
         train = records.train.measurements
         validation = None if records.validation is None else records.validation.measurements
-        weighting = choose_weighting(model, train) if args.method == "auto" and delay is None and \
-            not model_has_shapes(model) else None
+        weighting = choose_weighting(model, weighting_samples(ChoiceWindow.of(records.train.segments),
+                                                              records.preprocessing, train)) \
+            if args.method == "auto" and delay is None and not model_has_shapes(model) else None
         method = args.method if weighting is None else weighting.method
         result = identify(model, train, validation, weighted=method != "ols", delay=delay)
         trivial, notes = trivial_predictors(result, validation)

@@ -128,6 +128,11 @@ def add_streaming_arguments(parser: argparse.ArgumentParser) -> None:
     streaming.add_argument("--scheduler", help=f"dask scheduler address (tcp://host:8786) to sum the files on a "
                            f"cluster (default: ${SCHEDULER_VARIABLE}); needs pip install 'robot-oed[cluster]'")
     streaming.add_argument("--workers", type=int, default=0, help="sum the files in a local process pool of this size")
+    streaming.add_argument("--memory-budget", metavar="SIZE",
+                           help="memory the in-memory path may take (2GB, 500MB, 1.5GiB or bytes; default a quarter of "
+                                "the memory available): past it, estimated from the files' rows before reading them, "
+                                "the files are streamed (the same choices; one line on stderr says so)")
+    streaming.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
 
 
 def streaming_requested(args: argparse.Namespace) -> bool:

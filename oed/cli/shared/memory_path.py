@@ -1,0 +1,125 @@
+"""In memory or streamed: the path of ``oed identify`` and ``oed diagnose``, decided before the records are read.
+
+``--chunk-size``, ``--workers`` or a scheduler ask for the streamed path. Otherwise the files' rows are counted
+and what the in-memory path would need is compared with ``--memory-budget`` (default a quarter of the memory
+available; :mod:`estimation.streaming.memory_budget`). Past it, and when every option given is one the streamed
+path has, the derivatives are chosen on the same window as in memory
+(:func:`estimation.streaming.cutoff_choice.choose_streamed_preprocessing`) and the files are streamed; a Fourier
+fit of averaged periods shrinks the training record to one period, which may bring it back within the budget.
+The decision is said in one line on stderr.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import warnings
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+from dynamics.models import IdentificationModel
+from estimation.identification.preprocessing_choice import SCORED_SAMPLES, PreprocessingChoice
+from estimation.preprocessing.differentiation import whole_periods
+from estimation.preprocessing.plan import Preprocessing
+from estimation.streaming.cutoff_choice import choose_streamed_preprocessing, first_rows
+from estimation.streaming.memory_budget import (
+    InMemoryNeed,
+    count_rows,
+    default_budget,
+    estimate_in_memory,
+    parse_memory_size,
+)
+from oed.cli.shared.common import print_warnings, streaming_requested
+
+__all__ = ["PathDecision", "decide_path", "streamed_choice"]
+
+
+@dataclass(frozen=True)
+class PathDecision:
+    """The path a run takes.
+
+    Attributes
+    ----------
+    stream
+        Whether the files are streamed.
+    plan
+        The derivatives chosen before reading (``None``: the in-memory path chooses them as it reads).
+    need
+        The in-memory estimate against the budget (``None`` when streaming was asked for).
+    """
+
+    stream: bool
+    plan: Preprocessing | None = None
+    need: InMemoryNeed | None = None
+
+
+def budget_of(args: argparse.Namespace) -> int:
+    """``--memory-budget`` in bytes, else the default share of the available memory."""
+    return default_budget() if args.memory_budget is None else parse_memory_size(args.memory_budget)
+
+
+def streamed_choice(args: argparse.Namespace, model: IdentificationModel,
+                    rows: Sequence[int] | None = None) -> PreprocessingChoice:
+    """The derivatives of ``--data``, chosen as in memory (the same window, candidates and rule), with the
+    derivative options given."""
+    return choose_streamed_preprocessing(args.data, model, frequency_hz=args.frequency, harmonics=args.harmonics,
+                                         cutoff_hz=args.cutoff, average_periods=args.average_periods,
+                                         decimation=args.decimate, held_torques=args.held_torques, rows=rows)
+
+
+def averaged_rows(plan: Preprocessing, args: argparse.Namespace, model: IdentificationModel,
+                  rows: Sequence[int]) -> list[int] | None:
+    """Samples each training file keeps when ``plan`` averages its periods (one period each), else ``None``."""
+    if plan.method != "fourier" or plan.average_periods == "no":
+        return None
+    head = first_rows(args.data[0], model, min(rows[0], SCORED_SAMPLES))
+    found = whole_periods(head, plan.frequency_hz)
+    if found is None:
+        return None
+    per_period = found[1]
+    if any(count < 2 * per_period for count in rows):
+        return None  # fewer than two periods: fitted sample by sample in memory
+    return [per_period] * len(rows)
+
+
+def decide_path(args: argparse.Namespace, model: IdentificationModel, *, verb: str, task: str,
+                bytes_per_value: float, in_memory_only: Callable[[], str | None]) -> PathDecision:
+    """The path of this run (module docstring); ``in_memory_only`` names an option given that the streamed path
+    lacks (``None`` when there is none). Says the decision in one line on stderr when it streams or when
+    the budget is passed."""
+    budget = budget_of(args)  # a bad --memory-budget is an error whichever the path
+    if streaming_requested(args):
+        return PathDecision(True)
+    try:
+        train = [count_rows(path) for path in args.data]
+        held_out = [count_rows(path) for path in [*(args.validate or ()), *(getattr(args, "test", None) or ())]]
+    except (OSError, ValueError, ImportError):  # a file missing, a folder, no pyarrow, a corrupt footer: the reader says so
+        return PathDecision(False)
+    need = estimate_in_memory(train + held_out, model, bytes_per_value=bytes_per_value, budget=budget)
+    if not need.stream:
+        return PathDecision(False, None, need)
+    reason = in_memory_only()
+    if reason is not None:
+        say(verb, f"{need.describe(task)}, but {reason}: in memory")
+        return PathDecision(False, None, need)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        plan = streamed_choice(args, model, train).chosen
+    print_warnings(verb, caught)
+    kept = averaged_rows(plan, args, model, train)
+    if kept is not None:
+        need = estimate_in_memory(train + held_out, model, bytes_per_value=bytes_per_value, budget=budget,
+                                  reduced_rows=kept + held_out)
+        if not need.stream:
+            say(verb, f"{need.describe(task)} ({plan.describe_method()} of averaged periods)")
+            return PathDecision(False, plan, need)
+    if plan.method == "fourier" and kept is None:
+        say(verb, f"{need.describe(task)}, but {plan.describe_method()} of every sample is made in memory: in memory")
+        return PathDecision(False, plan, need)
+    say(verb, need.describe(task) + " (--memory-budget to change it, --chunk-size to set the chunks)")
+    return PathDecision(True, plan, need)
+
+
+def say(verb: str, line: str) -> None:
+    """One line on stderr."""
+    print(f"oed {verb}: {line}", file=sys.stderr)

@@ -1,0 +1,192 @@
+"""In memory or streamed, decided by memory: the estimate before reading, and the same choices either way."""
+
+from __future__ import annotations
+
+import json
+import warnings
+
+import numpy as np
+import pytest
+
+from dynamics.effects.linear import CoulombFriction, JointOffset
+from dynamics.measurements import Measurements
+from dynamics.models import build_model
+from dynamics.robots import load_robot
+from dynamics.runtime import progress
+from dynamics.simulation.synthetic import simulate, true_parameters
+from estimation.identification import preprocessing_choice
+from estimation.identification.prepared import read_files
+from estimation.identification.preprocessing_choice import ChoiceWindow, choose_by_evidence
+from estimation.streaming import cutoff_choice
+from estimation.streaming.cutoff_choice import choose_streamed_preprocessing, streamed_window
+from estimation.streaming.memory_budget import (
+    MemorySizeError,
+    count_rows,
+    estimate_in_memory,
+    format_size,
+    parse_memory_size,
+)
+from oed.cli import main
+from oed.fourier import random_fourier
+
+NOISE = 0.2
+
+
+@pytest.mark.parametrize(("text", "expected"), [
+    ("2GB", 2 * 10**9), ("500MB", 500 * 10**6), ("1.5GiB", int(1.5 * 2**30)), ("2G", 2 * 2**30),
+    ("123456", 123456), (" 64 kb ", 64_000), (4096, 4096)])
+def test_memory_sizes_are_read_in_decimal_and_binary_units(text, expected):
+    assert parse_memory_size(text) == expected
+
+
+@pytest.mark.parametrize("text", ["", "GB", "2 parsecs", "-1GB", "0", "nan", True])
+def test_unreadable_memory_sizes_are_refused_with_the_value(text):
+    with pytest.raises(MemorySizeError, match="memory size"):
+        parse_memory_size(text)
+
+
+def test_rows_are_counted_without_parsing(tmp_path):
+    """CSV with and without a line break after the last row, Parquet from its footer: as many rows as pandas reads."""
+    data = Measurements(np.arange(1234) / 100.0, np.zeros((1234, 2)), tau=np.ones((1234, 2)))
+    data.write(tmp_path / "a.csv")
+    data.write(tmp_path / "a.parquet")
+    text = (tmp_path / "a.csv").read_text()
+    (tmp_path / "b.csv").write_text(text.rstrip("\n"))
+    assert [count_rows(tmp_path / name, block=1000) for name in ("a.csv", "b.csv", "a.parquet")] == [1234] * 3
+    with pytest.raises(ValueError, match="unknown data format"):
+        count_rows(tmp_path / "a.txt")
+    with pytest.raises(FileNotFoundError):
+        count_rows(tmp_path / "missing.csv")
+
+
+def test_the_estimate_grows_with_rows_and_shrinks_with_period_averaging():
+    model = build_model(load_robot("puma560", joints=3), "internal", "viscous")
+    small = estimate_in_memory([1000], model, bytes_per_value=64, budget=10**9)
+    large = estimate_in_memory([10**7], model, bytes_per_value=64, budget=10**9)
+    averaged = estimate_in_memory([10**7], model, bytes_per_value=64, budget=10**9, reduced_rows=[1000])
+    assert not small.stream and large.stream and averaged.n_bytes < large.n_bytes / 5
+    assert large.n_bytes > 64 * 10**7 * model.n_channels * model.n_base
+    assert "over the budget of 1 GB: streaming" in large.describe("diagnosing")
+    assert format_size(2.5e9) == "2.5 GB"
+    with pytest.raises(ValueError, match="reduced_rows"):
+        estimate_in_memory([1, 2], model, bytes_per_value=64, budget=1, reduced_rows=[1])
+
+
+@pytest.fixture(scope="module")
+def model():
+    return build_model(load_robot("puma560", joints=3), "internal", "viscous")
+
+
+@pytest.fixture(scope="module")
+def records(model, tmp_path_factory):
+    """Training and validation records of a 3-joint PUMA, positions and torques only, three periods each at
+    200 Hz; Coulomb friction on joint 2 and an offset on joint 1 the declared model lacks."""
+    folder = tmp_path_factory.mktemp("memory_path")
+    truth = build_model(model.robot, "internal", ("viscous", CoulombFriction(joints=(1,)), JointOffset(joints=(0,))))
+    theta = true_parameters(truth, seed=0, coulomb=[8.0], offset=[3.0])
+    rng = np.random.default_rng(5)
+    paths = []
+    for seed, trajectory in ((1, 3), (2, 4)):
+        data = simulate(truth, theta, random_fourier(model.robot, seed=trajectory), noise={c: NOISE for c in truth.channels},
+                        seed=seed, rate_hz=200.0, periods=3)
+        path = folder / f"raw{seed}.parquet"
+        Measurements(data.t, data.q + 1e-4 * rng.standard_normal(data.q.shape), tau=data.tau).write(path)
+        paths.append(path)
+    return paths
+
+
+@pytest.mark.parametrize("scored", [None, 1000])
+def test_the_streamed_window_is_the_in_memory_one(model, records, monkeypatch, scored):
+    """Whole records, and a record longer than the scored window: the same samples, the same choice and scores."""
+    if scored is not None:
+        monkeypatch.setattr(preprocessing_choice, "SCORED_SAMPLES", scored)
+        monkeypatch.setattr(cutoff_choice, "SCORED_SAMPLES", scored)
+    segments = [segment for file in read_files(records[:1], model, split=True) for segment in file.segments]
+    memory, streamed = ChoiceWindow.of(segments), streamed_window(records[:1], model)
+    assert [s.n_samples for s in streamed.segments] == [s.n_samples for s in memory.segments]
+    for a, b in zip(streamed.segments, memory.segments):
+        np.testing.assert_array_equal(a.q, b.q)
+        np.testing.assert_array_equal(a.tau, b.tau)
+    assert streamed.shortest_s == pytest.approx(memory.shortest_s, rel=1e-9)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)  # the fundamental found, said by both
+        in_memory = choose_by_evidence(model, segments, held_torques=None).chosen
+        from_files = choose_streamed_preprocessing(records[:1], model, held_torques=None).chosen
+    assert from_files == in_memory
+    assert [(c.preprocessing, c.score) for c in from_files.evidence.candidates] == \
+        [(c.preprocessing, c.score) for c in in_memory.evidence.candidates]
+
+
+def _diagnose(tmp_path, records, name, *options):
+    out = tmp_path / f"{name}.json"
+    code = main(["diagnose", "--joints", "3", "--model", "internal", "--friction", "viscous", "--data", str(records[0]),
+                 "--validate", str(records[1]), "--out", str(out), *options])
+    assert code == 0
+    return json.loads(out.read_text())
+
+
+def _effects(document):
+    return [(effect["spec"], tuple(effect["channels"])) for effect in document["effects"]]
+
+
+@pytest.mark.parametrize("derivatives", [(), ("--cutoff", "6")])
+def test_in_memory_and_streamed_make_the_same_choices(tmp_path, records, capsys, derivatives):
+    """No derivative option (a periodic record: the choice may be a Fourier fit of averaged periods) and a
+    given filter: the in-memory and the streamed diagnosis (forced by --chunk-size, and chosen by a tiny
+    --memory-budget) choose the same derivatives and effects, and agree on the estimates."""
+    memory = _diagnose(tmp_path, records, "memory", *derivatives)
+    forced = _diagnose(tmp_path, records, "forced", "--chunk-size", "250", *derivatives)
+    capsys.readouterr()
+    budget = _diagnose(tmp_path, records, "budget", "--memory-budget", "1000", *derivatives)
+    error = capsys.readouterr().err
+    assert "over the budget of 1 kB: streaming" in error
+    assert memory["diagnosis_path"] == "in-memory" and forced["diagnosis_path"] == budget["diagnosis_path"] == "streamed"
+    assert memory["preprocessing"]["method"] == ("butterworth" if derivatives else "fourier")  # both paths exercised
+    plan = {key: value for key, value in memory["preprocessing"].items() if key not in ("candidates", "trimmed_s")}
+    for streamed in (forced, budget):
+        assert {key: streamed["preprocessing"][key] for key in plan} == plan
+        assert [c["score"] for c in streamed["preprocessing"]["candidates"]] == \
+            [c["score"] for c in memory["preprocessing"]["candidates"]]
+        assert _effects(streamed) == _effects(memory)
+        assert ("offset", ("tau1",)) in _effects(memory)
+        for s, m in zip(streamed["effects"], memory["effects"]):
+            np.testing.assert_allclose(s["values"], m["values"], rtol=0.05, atol=0.05 * np.max(np.abs(m["values"])))
+        for which in ("before", "after"):
+            np.testing.assert_allclose(list(streamed["validation"][which]["mse"].values()),
+                                       list(memory["validation"][which]["mse"].values()), rtol=0.05)
+
+
+def test_progress_lines_go_to_stderr_unless_quiet(capsys):
+    with progress.show_progress("oed test"):
+        with progress.step("a pass", seconds=0.0):
+            pass
+    assert capsys.readouterr().err.startswith("oed test: a pass: ")
+    with progress.show_progress("oed test", quiet=True):
+        with progress.step("a pass", seconds=0.0):
+            pass
+    assert capsys.readouterr().err == ""
+
+
+def test_a_bad_memory_budget_is_refused_by_name(tmp_path, records, capsys):
+    code = main(["diagnose", "--joints", "3", "--data", str(records[0]), "--validate", str(records[1]),
+                 "--out", str(tmp_path / "r.json"), "--memory-budget", "lots"])
+    assert code == 2 and "cannot read the memory size 'lots'" in capsys.readouterr().err
+
+
+def test_identify_chooses_alike_in_memory_and_streamed(tmp_path, records):
+    """The same derivatives and channel weighting, and the same estimate, in memory and streamed."""
+    documents = {}
+    for name, options in (("memory", ()), ("streamed", ("--chunk-size", "250"))):
+        out = tmp_path / f"{name}.json"
+        assert main(["identify", "--joints", "3", "--model", "internal", "--friction", "viscous,coulomb,offset",
+                     "--data", str(records[0]), "--validate", str(records[1]), "--out", str(out), *options]) == 0
+        documents[name] = json.loads(out.read_text())
+    memory, streamed = documents["memory"], documents["streamed"]
+    plan = {key: value for key, value in memory["preprocessing"].items() if key != "candidates"}
+    assert {key: streamed["preprocessing"][key] for key in plan} == plan
+    assert streamed["method_selection"]["chosen"] == memory["method_selection"]["chosen"]
+    assert streamed["method_selection"]["candidates"] == memory["method_selection"]["candidates"]
+    values = {name: np.array([record["value"] for record in document["parameters"]])
+              for name, document in documents.items()}
+    assert values["memory"].size > 18 and memory["preprocessing"]["method"] == "fourier"
+    np.testing.assert_allclose(values["streamed"], values["memory"], rtol=1e-6, atol=1e-9 * np.max(np.abs(values["memory"])))
