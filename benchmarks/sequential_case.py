@@ -67,10 +67,13 @@ class StribeckCase:
         tau[:, list(block.rows)] += columns @ np.array([self.fc, self.fs])
         return replace(data, tau=tau)
 
-    def identified(self, records: Sequence[Measurements], friction: str | None = None) -> IdentifiedModel:
-        """The model identified on ``records`` (stacked), as a model file would rebuild it."""
+    def model_document(self, records: Sequence[Measurements], friction: str | None = None) -> dict:
+        """The ``model_file`` document of the model identified on ``records`` (white-noise covariance)."""
         model = build_model(self.robot, "internal", friction or self.friction)
         result = identify(model, list(records), covariance="classical")
-        document = model_file_document(result, robot=RobotSource("puma560[3]", "puma560", 3),
-                                       preprocessing=Preprocessing("measured").to_dict())
-        return IdentifiedModel(ModelFile.from_dict(document))
+        return model_file_document(result, robot=RobotSource("puma560[3]", "puma560", 3),
+                                   preprocessing=Preprocessing("measured").to_dict())
+
+    def identified(self, records: Sequence[Measurements], friction: str | None = None) -> IdentifiedModel:
+        """The model identified on ``records`` (each a segment), as its model file rebuilds it."""
+        return IdentifiedModel(ModelFile.from_dict(self.model_document(records, friction)))
