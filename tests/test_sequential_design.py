@@ -9,6 +9,8 @@ import casadi
 import numpy as np
 import pytest
 
+from benchmarks.bench_sequential_design import FOCUS, estimates
+from benchmarks.kuka_sequential import URDF, kuka_design
 from benchmarks.sequential_case import StribeckCase
 from estimation.identification.identified_model import IdentifiedModel
 from estimation.identification.model_file import ModelFile
@@ -162,3 +164,34 @@ def test_same_rivals_are_refused(first):
     model = IdentifiedModel(ModelFile.from_dict(first[1]))
     with pytest.raises(SequentialDesignError, match="same model"):
         check_rivals(model, model)
+
+
+def test_sequential_design_on_the_kuka_lwr4_urdf():
+    """Any URDF robot: the 7-joint KUKA LWR4+ (skipped when its URDF is absent)."""
+    if not URDF.exists():
+        pytest.skip(f"the KUKA LWR4+ URDF is not available: {URDF} is absent")
+    settings = DesignSettings(cost_samples=40, constraint_points=30, max_iter=5, jit=False)
+    result = kuka_design(starts=1, settings=settings)
+    assert result.design.trajectory.n_joints == 7
+    predicted = result.predicted
+    assert np.all(predicted.after_designed <= predicted.now * (1 + 1e-9))
+    assert len(predicted.names) == result.prior.information.shape[0] > 40
+
+
+@pytest.mark.slow
+def test_designed_experiment_shrinks_the_stribeck_sds_as_predicted():
+    """A small Monte Carlo of benchmarks/bench_sequential_design.py (12 noise realisations)."""
+    record = CASE.record(CASE.first_trajectory(), seed=1)
+    result = design_next(CASE.identified([record]), record, bounds=PUMA_BOUNDS, focus="stribeck", starts=4, seed=0)
+    index = [result.predicted.names.index(name) for name in FOCUS]
+    truth = np.array([CASE.fc, CASE.fs, CASE.vs])
+    realised = {}
+    for key, trajectory in (("after_repeat", CASE.first_trajectory()), ("after_designed", result.design.trajectory)):
+        values = [estimates(CASE, [CASE.record(CASE.first_trajectory(), seed=1000 + i),
+                                   CASE.record(trajectory, seed=2000 + i)]) for i in range(12)]
+        realised[key] = np.std(values, axis=0, ddof=1)
+        ratio = realised[key] / getattr(result.predicted, key)[index]
+        assert np.all((ratio > 0.5) & (ratio < 1.6)), (key, ratio)
+    worst = result.predicted.worst_relative(FOCUS)
+    assert worst["now"] / worst["after_designed"] >= 2 * worst["now"] / worst["after_repeat"], worst
+    assert np.max(realised["after_designed"] / truth) < 0.7 * np.max(realised["after_repeat"] / truth)
