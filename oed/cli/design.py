@@ -23,10 +23,11 @@ from oed.cli.shared.common import (
     seed,
 )
 from oed.cli.shared.options import check_hertz
-from oed.cli.design_sequential import SEQUENTIAL_MAX_ITER, add_sequential_arguments, run_sequential, sequential_requested
+from oed.cli.design_sequential import add_sequential_arguments, run_sequential, sequential_requested
 from oed.criteria import CRITERIA
 from oed.cli.shared.design_bounds import bounds_from_arguments
 from oed.design import DesignSettings, ShrunkDesignWarning, design_excitation
+from oed.sequential.problem import SEQUENTIAL_MAX_ITER
 
 
 def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:

@@ -24,9 +24,8 @@ from oed.sequential.figure import plot_next_experiment
 from oed.sequential.jacobian import SequentialDesignError
 from oed.sequential.next_experiment import check_bounds, design_next
 from oed.sequential.prior import read_records
+from oed.sequential.problem import SEQUENTIAL_MAX_ITER
 
-#: IPOPT iterations a start of a sequential design (the information's sign(dq) terms make it stall, not converge)
-SEQUENTIAL_MAX_ITER = 150
 #: options of a plain design that a model file fixes
 FIXED_BY_MODEL = ("model", "criterion", "friction")
 

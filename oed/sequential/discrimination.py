@@ -38,7 +38,7 @@ from oed.fourier import unpack
 from oed.sequential.jacobian import ModelJacobian, SequentialDesignError, model_jacobian
 from oed.sequential.next_experiment import check_bounds
 from oed.sequential.prior import PriorInformation, prior_information
-from oed.sequential.problem import ACCEPTED_STATUSES
+from oed.sequential.problem import ACCEPTED_STATUSES, SEQUENTIAL_MAX_ITER
 
 __all__ = ["DiscriminatingDesign", "Discrimination", "check_rivals", "design_discriminating", "separation"]
 
@@ -205,7 +205,7 @@ def design_discriminating(model: IdentifiedModel, rival: IdentifiedModel, record
     prior = rivalries[0].prior
     duration = prior.duration_s if duration_s is None else float(duration_s)
     problem = DiscriminatingDesign(model.robot, model.model.kind, bounds, "logdet", model.model.effects,
-                                   settings or DesignSettings(), rivalries=rivalries, duration_s=duration)
+                                   settings or DesignSettings(max_iter=SEQUENTIAL_MAX_ITER), rivalries=rivalries, duration_s=duration)
     result = design_excitation(model.robot, starts=starts, seed=seed, progress=progress, problem=problem)
     best = next(start for start in result.starts if start.index == result.best)
     designed = problem.separations(best.x)

@@ -30,7 +30,7 @@ from oed.design_problem import StartResult
 from oed.sequential.criteria import focus_names, posterior_criterion
 from oed.sequential.jacobian import ModelJacobian, SequentialDesignError, model_jacobian
 from oed.sequential.prior import PriorInformation, posterior_covariance, prior_information
-from oed.sequential.problem import SequentialDesign
+from oed.sequential.problem import SEQUENTIAL_MAX_ITER, SequentialDesign
 
 __all__ = ["NextExperiment", "PredictedStd", "check_bounds", "design_next", "predicted_std"]
 
@@ -141,7 +141,7 @@ def design_next(model: IdentifiedModel, records: Measurements, *, bounds: JointB
     chosen = focus_names(jacobian, focus)
     duration = prior.duration_s if duration_s is None else float(duration_s)
     problem = SequentialDesign(model.robot, model.model.kind, bounds, posterior_criterion(jacobian, chosen),
-                               model.model.effects, settings or DesignSettings(), jacobian=jacobian, prior=prior,
+                               model.model.effects, settings or DesignSettings(max_iter=SEQUENTIAL_MAX_ITER), jacobian=jacobian, prior=prior,
                                duration_s=duration)
     result = design_excitation(model.robot, starts=starts, seed=seed, progress=progress, problem=problem)
     best = next(start for start in result.starts if start.index == result.best)

@@ -31,7 +31,10 @@ from oed.sequential.criteria import scaled, symbolic_scaled
 from oed.sequential.jacobian import ModelJacobian, SequentialDesignError
 from oed.sequential.prior import PriorInformation
 
-__all__ = ["ACCEPTED_STATUSES", "SequentialDesign"]
+__all__ = ["ACCEPTED_STATUSES", "SEQUENTIAL_MAX_ITER", "SequentialDesign"]
+
+#: IPOPT iterations a start of a sequential design (the information's sign(dq) terms make it stall, not converge)
+SEQUENTIAL_MAX_ITER = 150
 
 #: IPOPT statuses whose trajectory (within the bounds) is kept: the information sums a Coulomb or Stribeck
 #: law's sign(dq) over samples, so the objective jumps where a sample's velocity changes sign and IPOPT can
