@@ -4,12 +4,13 @@ identification's covariance, Ds against the marginal covariance, the CLI's outpu
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 
 import casadi
 import numpy as np
 import pytest
 
-from benchmarks.bench_sequential_design import FOCUS, estimates
+from benchmarks.bench_sequential_design import FOCUS, bic, estimates
 from benchmarks.kuka_sequential import URDF, kuka_design
 from benchmarks.sequential_case import StribeckCase
 from estimation.identification.identified_model import IdentifiedModel
@@ -19,7 +20,7 @@ from oed.cli import main
 from oed.criteria import LogDet
 from oed.design import DesignSettings
 from oed.sequential.criteria import FocusedLogDet, focus_names, posterior_criterion
-from oed.sequential.discrimination import check_rivals
+from oed.sequential.discrimination import check_rivals, design_discriminating
 from oed.sequential.jacobian import SequentialDesignError, model_jacobian
 from oed.sequential.next_experiment import design_next
 from oed.sequential.prior import prior_information
@@ -195,3 +196,20 @@ def test_designed_experiment_shrinks_the_stribeck_sds_as_predicted():
     worst = result.predicted.worst_relative(FOCUS)
     assert worst["now"] / worst["after_designed"] >= 2 * worst["now"] / worst["after_repeat"], worst
     assert np.max(realised["after_designed"] / truth) < 0.7 * np.max(realised["after_repeat"] / truth)
+
+
+@pytest.mark.slow
+def test_discriminating_experiment_tells_the_true_law_apart():
+    """A small Monte Carlo of benchmarks/bench_sequential_design.py --part discrimination (10 realisations)."""
+    case = replace(CASE, fs=0.3)
+    rival = "viscous,coulomb:tanh@2"
+    record = case.record(case.first_trajectory(), seed=1)
+    result = design_discriminating(case.identified([record]), case.identified([record], rival), record,
+                                   bounds=PUMA_BOUNDS, starts=2, seed=0)
+    assert result.separation["if_from_true"] > 10 * result.separation_after_repeat["if_from_true"]
+    told = []
+    for i in range(10):
+        first = case.record(case.first_trajectory(), seed=1000 + i)
+        second = case.record(result.design.trajectory, seed=2000 + i)
+        told.append(bic(case, [first, second], rival) - bic(case, [first, second], case.friction) > 10)
+    assert np.mean(told) >= 0.9, told
