@@ -128,6 +128,7 @@ def test_cli_discriminates_two_rival_models(files):
     assert code == 0
     discrimination = json.loads(out.read_text())["discrimination"]
     assert discrimination["rival"] == "viscous,coulomb:tanh@2"
+    assert json.loads(out.read_text())["criterion"] == "t-optimal"
     for key in ("separation", "separation_after_repeat", "expected_delta_bic"):
         assert set(discrimination[key]) == {"if_from_true", "if_rival_true"}
     assert all(value > 0 for value in discrimination["separation"].values())

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
-from typing import Any
+from typing import Any, ClassVar
 
 import casadi
 import numpy as np
@@ -31,6 +31,7 @@ from numpy.typing import NDArray
 from dynamics.measurements import Measurements
 from estimation.identification.identified_model import IdentifiedModel
 from oed.bounds import JointBounds
+from oed.criteria import Criterion
 from oed.design import DesignResult, DesignSettings, design_excitation
 from oed.design_problem import ExcitationDesign, StartResult
 from oed.design_solver import jit_options
@@ -40,7 +41,7 @@ from oed.sequential.next_experiment import check_bounds
 from oed.sequential.prior import PriorInformation, prior_information
 from oed.sequential.problem import ACCEPTED_STATUSES, SEQUENTIAL_MAX_ITER
 
-__all__ = ["DiscriminatingDesign", "Discrimination", "check_rivals", "design_discriminating", "separation"]
+__all__ = ["DiscriminatingDesign", "Discrimination", "TOptimality", "check_rivals", "design_discriminating", "separation"]
 
 
 def check_rivals(model: IdentifiedModel, rival: IdentifiedModel) -> None:
@@ -104,6 +105,20 @@ def _rivalry(truth: IdentifiedModel, rival: IdentifiedModel, noise_std: NDArray,
     rival_jacobian = model_jacobian(rival, noise_std)
     return _Rivalry(_pair_sums(truth_jacobian, rival_jacobian), prior_information(rival_jacobian, records),
                     rival_jacobian.n_parameters)
+
+
+@dataclass(frozen=True)
+class TOptimality(Criterion):
+    """The name of the discriminating criterion in the design file: it acts on two models' predictions
+    (:class:`DiscriminatingDesign`), not on one information matrix."""
+
+    name: ClassVar[str] = "t-optimal"
+
+    def expression(self, M):
+        raise TypeError("T-optimality compares two models' predictions: see DiscriminatingDesign.cost_function")
+
+    def value(self, M) -> float:
+        raise TypeError("T-optimality compares two models' predictions: see DiscriminatingDesign.separations")
 
 
 @dataclass(frozen=True, eq=False)
@@ -204,7 +219,7 @@ def design_discriminating(model: IdentifiedModel, rival: IdentifiedModel, record
     rivalries = (_rivalry(model, rival, noise_std, records), _rivalry(rival, model, noise_std, records))
     prior = rivalries[0].prior
     duration = prior.duration_s if duration_s is None else float(duration_s)
-    problem = DiscriminatingDesign(model.robot, model.model.kind, bounds, "logdet", model.model.effects,
+    problem = DiscriminatingDesign(model.robot, model.model.kind, bounds, TOptimality(), model.model.effects,
                                    settings or DesignSettings(max_iter=SEQUENTIAL_MAX_ITER), rivalries=rivalries, duration_s=duration)
     result = design_excitation(model.robot, starts=starts, seed=seed, progress=progress, problem=problem)
     best = next(start for start in result.starts if start.index == result.best)
