@@ -36,6 +36,9 @@ class FocusedLogDet(Criterion):
         Positions of the focus parameters (the others are the nuisance ``o``).
     n_parameters
         ``p``.
+    weight
+        ``w ∈ [0, 1]``: minimise ``Ds + w D`` (``D = −log det M``), a compromise that keeps some weight on the
+        whole model when the focus group alone would let the other parameters' information collapse.
     """
 
     focus: tuple[int, ...]
