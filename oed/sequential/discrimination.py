@@ -41,7 +41,7 @@ from oed.sequential.next_experiment import check_bounds
 from oed.sequential.prior import PriorInformation, prior_information
 from oed.sequential.problem import ACCEPTED_STATUSES, SEQUENTIAL_MAX_ITER
 
-__all__ = ["DiscriminatingDesign", "Discrimination", "TOptimality", "check_rivals", "design_discriminating", "separation"]
+__all__ = ["DiscriminatingDesign", "Discrimination", "Rivalry", "TOptimality", "rivalry_of", "check_rivals", "design_discriminating", "separation"]
 
 
 def check_rivals(model: IdentifiedModel, rival: IdentifiedModel) -> None:
@@ -84,8 +84,9 @@ def _separation(sums: Any, n_samples: float, prior: Any, p: int, scale: NDArray[
 
 
 @dataclass(frozen=True)
-class _Rivalry:
-    """One direction of the comparison: the truth's and the rival's Jacobians and the rival's prior."""
+class Rivalry:
+    """One direction of the comparison: the per-sample separation terms of a supposed truth and its rival
+    (:func:`rivalry_of`), and the rival's information from the records."""
 
     terms: casadi.Function
     prior: PriorInformation
@@ -100,10 +101,11 @@ class _Rivalry:
         return _separation(mean, n_samples, self.prior.information, self.n_parameters, self.scale)
 
 
-def _rivalry(truth: IdentifiedModel, rival: IdentifiedModel, noise_std: NDArray, records: Measurements) -> _Rivalry:
+def rivalry_of(truth: IdentifiedModel, rival: IdentifiedModel, noise_std: NDArray, records: Measurements) -> Rivalry:
+    """The :class:`Rivalry` of ``rival`` approximating ``truth``, both weighted by ``noise_std``."""
     truth_jacobian = model_jacobian(truth, noise_std)
     rival_jacobian = model_jacobian(rival, noise_std)
-    return _Rivalry(_pair_sums(truth_jacobian, rival_jacobian), prior_information(rival_jacobian, records),
+    return Rivalry(_pair_sums(truth_jacobian, rival_jacobian), prior_information(rival_jacobian, records),
                     rival_jacobian.n_parameters)
 
 
@@ -125,8 +127,15 @@ class TOptimality(Criterion):
 class DiscriminatingDesign(ExcitationDesign):
     """The excitation design maximising ``log Δ_AB + log Δ_BA`` (module docstring); ``criterion`` is unused."""
 
-    rivalries: tuple[_Rivalry, ...] = ()
+    rivalries: tuple[Rivalry, ...] = ()
     duration_s: float = 0.0
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if not self.rivalries or not all(isinstance(rivalry, Rivalry) for rivalry in self.rivalries):
+            raise TypeError("rivalries must be Rivalry objects (rivalry_of), one for each model supposed true")
+        if not (np.isfinite(self.duration_s) and self.duration_s > 0):
+            raise SequentialDesignError(f"the new experiment's duration must be positive, got {self.duration_s} s")
 
     @property
     def new_samples(self) -> float:
@@ -216,7 +225,7 @@ def design_discriminating(model: IdentifiedModel, rival: IdentifiedModel, record
     check_rivals(model, rival)
     check_bounds(bounds, model)
     noise_std = np.sqrt(np.asarray(model.file.channel_variance, dtype=float))
-    rivalries = (_rivalry(model, rival, noise_std, records), _rivalry(rival, model, noise_std, records))
+    rivalries = (rivalry_of(model, rival, noise_std, records), rivalry_of(rival, model, noise_std, records))
     prior = rivalries[0].prior
     duration = prior.duration_s if duration_s is None else float(duration_s)
     problem = DiscriminatingDesign(model.robot, model.model.kind, bounds, TOptimality(), model.model.effects,
