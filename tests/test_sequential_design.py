@@ -124,7 +124,7 @@ def test_cli_writes_next_json_with_predicted_std_and_figure(files):
 def test_cli_discriminates_two_rival_models(files):
     out = files / "discriminate.json"
     code = main(["design", "--from", str(files / "result.json"), "--rival", str(files / "rival.json"), "--discriminate",
-                 "--data", str(files / "e1.csv"), "--out", str(out), *QUICK])
+                 "--data", str(files / "e1.csv"), "--frequency", "1", "--out", str(out), *QUICK])
     assert code == 0
     discrimination = json.loads(out.read_text())["discrimination"]
     assert discrimination["rival"] == "viscous,coulomb:tanh@2"
@@ -206,7 +206,7 @@ def test_discriminating_experiment_tells_the_true_law_apart():
     rival = "viscous,coulomb:tanh@2"
     record = case.record(case.first_trajectory(), seed=1)
     result = design_discriminating(case.identified([record]), case.identified([record], rival), record,
-                                   bounds=PUMA_BOUNDS, starts=2, seed=0)
+                                   bounds=PUMA_BOUNDS, starts=8, seed=0)
     assert result.separation["if_from_true"] > 10 * result.separation_after_repeat["if_from_true"]
     told = []
     for i in range(10):
