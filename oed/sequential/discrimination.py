@@ -41,22 +41,7 @@ from oed.sequential.next_experiment import check_bounds
 from oed.sequential.prior import PriorInformation, prior_information
 from oed.sequential.problem import ACCEPTED_STATUSES, SEQUENTIAL_MAX_ITER
 
-__all__ = ["DISCRIMINATION_SAMPLE_TIME_S", "DiscriminatingDesign", "Discrimination", "Rivalry", "TOptimality",
-           "discrimination_settings", "rivalry_of", "check_rivals", "design_discriminating", "separation"]
-
-
-#: the cost samples of a discriminating design are at most this far apart, s: two friction laws differ in the few
-#: milliseconds around a velocity reversal, which 250 samples a period alias (measured on the Stribeck/tanh case:
-#: the 250-sample objective promised a 60 times larger separation than the 1 kHz grid gave; 2 ms: within 0.1 %)
-DISCRIMINATION_SAMPLE_TIME_S = 0.002
-
-
-def discrimination_settings(settings: DesignSettings | None = None) -> DesignSettings:
-    """``settings`` (default: 150 IPOPT iterations a start) with at least a cost sample every
-    :data:`DISCRIMINATION_SAMPLE_TIME_S` over the period."""
-    settings = settings or DesignSettings(max_iter=SEQUENTIAL_MAX_ITER)
-    needed = int(np.ceil(1.0 / settings.frequency_hz / DISCRIMINATION_SAMPLE_TIME_S))
-    return settings if settings.cost_samples >= needed else replace(settings, cost_samples=needed)
+__all__ = ["DiscriminatingDesign", "Discrimination", "Rivalry", "TOptimality", "rivalry_of", "check_rivals", "design_discriminating", "separation"]
 
 
 def check_rivals(model: IdentifiedModel, rival: IdentifiedModel) -> None:
@@ -244,7 +229,7 @@ def design_discriminating(model: IdentifiedModel, rival: IdentifiedModel, record
     prior = rivalries[0].prior
     duration = prior.duration_s if duration_s is None else float(duration_s)
     problem = DiscriminatingDesign(model.robot, model.model.kind, bounds, TOptimality(), model.model.effects,
-                                   discrimination_settings(settings), rivalries=rivalries, duration_s=duration)
+                                   settings or DesignSettings(max_iter=SEQUENTIAL_MAX_ITER), rivalries=rivalries, duration_s=duration)
     result = design_excitation(model.robot, starts=starts, seed=seed, progress=progress, problem=problem)
     best = next(start for start in result.starts if start.index == result.best)
     designed = problem.separations(best.x)
