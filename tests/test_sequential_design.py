@@ -202,7 +202,7 @@ def test_designed_experiment_shrinks_the_stribeck_sds_as_predicted():
 @pytest.mark.slow
 def test_discriminating_experiment_tells_the_true_law_apart():
     """A small Monte Carlo of benchmarks/bench_sequential_design.py --part discrimination (10 realisations)."""
-    case = replace(CASE, fs=0.3)
+    case = replace(CASE, fs=0.4)
     rival = "viscous,coulomb:tanh@2"
     record = case.record(case.first_trajectory(), seed=1)
     result = design_discriminating(case.identified([record]), case.identified([record], rival), record,
