@@ -12,7 +12,6 @@ import numpy as np
 
 from dynamics.models import ModelKind
 from estimation.streaming.cluster import SCHEDULER_VARIABLE, connect, scheduler_address
-from oed.bounds import JointBounds
 from oed.cli.shared.common import (
     OutputFiles,
     add_robot_arguments,
@@ -24,8 +23,11 @@ from oed.cli.shared.common import (
     seed,
 )
 from oed.cli.shared.options import check_hertz
+from oed.cli.design_sequential import add_sequential_arguments, run_sequential, sequential_requested
 from oed.criteria import CRITERIA
-from oed.design import DesignSettings, ShrunkDesignWarning, default_bounds, design_excitation
+from oed.cli.shared.design_bounds import bounds_from_arguments
+from oed.design import DesignSettings, ShrunkDesignWarning, design_excitation
+from oed.sequential.problem import SEQUENTIAL_MAX_ITER
 
 
 def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -36,9 +38,9 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
         "criterion under position, velocity and acceleration bounds (eq. 19) with IPOPT, multi-start.",
     )
     add_robot_arguments(parser)
-    parser.add_argument("--model", choices=[k.value for k in ModelKind], default="combined")
-    parser.add_argument("--criterion", choices=sorted(CRITERIA), default="logdet")
-    parser.add_argument("--friction", default="viscous", help="effects columns (as in `oed model`)")
+    parser.add_argument("--model", choices=[k.value for k in ModelKind], default=None, help="default: combined")
+    parser.add_argument("--criterion", choices=sorted(CRITERIA), default=None, help="default: logdet")
+    parser.add_argument("--friction", default=None, help="effects columns (as in `oed model`; default: viscous)")
     parser.add_argument("--bounds", type=Path, help="JSON bounds file {q_min?, q_max, dq_max, ddq_max}")
     parser.add_argument("--ddq-max", type=float, nargs="+", help="acceleration bounds when the bounds come from the URDF")
     parser.add_argument("--starts", type=int, default=4)
@@ -50,33 +52,16 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     parser.add_argument("--harmonics", type=int, default=5)
     parser.add_argument("--samples", type=int, default=250, help="cost samples per period during optimisation")
     parser.add_argument("--constraint-points", type=int, default=60)
-    parser.add_argument("--max-iter", type=int, default=500)
+    parser.add_argument("--max-iter", type=int, default=None,
+                        help=f"IPOPT iterations a start (default: 500; with --from {SEQUENTIAL_MAX_ITER})")
     parser.add_argument("--out", type=Path, required=True, help="trajectory JSON")
     parser.add_argument("--csv", type=Path, help="sampled trajectory t, q1..qn, dq1..dqn, ddq1..ddqn (1 kHz)")
     parser.add_argument("--plot", type=Path, help="figure of q, dq, ddq with the bounds")
+    add_sequential_arguments(parser)
     verbosity = parser.add_mutually_exclusive_group()
     verbosity.add_argument("--quiet", action="store_true", help="no progress output")
     verbosity.add_argument("--verbose", action="store_true", help="IPOPT iteration log")
     return parser
-
-
-def bounds_from_arguments(args: argparse.Namespace, robot) -> JointBounds:
-    if args.bounds is not None:
-        if args.ddq_max is not None:
-            raise ValueError("--ddq-max completes the URDF's limits; with --bounds give ddq_max in the file")
-        bounds = JointBounds.load(args.bounds)
-    elif args.ddq_max is not None:
-        bounds = JointBounds.from_robot(robot, ddq_max=args.ddq_max)
-    else:
-        try:
-            bounds = default_bounds(robot)
-        except ValueError:
-            raise ValueError(
-                f"no default bounds for {robot.name} ({robot.n_joints} joints; eq. 19's are for the 3-joint PUMA): "
-                "give --bounds FILE (q_max, dq_max, ddq_max) or --ddq-max to use the URDF's position and velocity limits"
-            ) from None
-    bounds.check_joint_count(robot.n_joints)
-    return bounds
 
 
 def trajectory_table(trajectory, rate_hz: float = 1000.0) -> tuple[list[str], np.ndarray]:
@@ -88,6 +73,12 @@ def trajectory_table(trajectory, rate_hz: float = 1000.0) -> tuple[list[str], np
 
 
 def run(args: argparse.Namespace) -> int:
+    if sequential_requested(args):
+        return run_sequential(args)
+    args.model = args.model or "combined"
+    args.criterion = args.criterion or "logdet"
+    args.friction = args.friction or "viscous"
+    args.max_iter = 500 if args.max_iter is None else args.max_iter
     check_hertz(args, "frequency")
     check_figure_path(args.plot)
     check_json_path(args.out)

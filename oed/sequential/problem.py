@@ -1,0 +1,154 @@
+"""The next experiment's design problem: the excitation design with a prior and a parameter focus.
+
+:class:`SequentialDesign` is :class:`oed.design_problem.ExcitationDesign` (same Fourier parametrisation,
+bounds, constraint refinement, IPOPT settings and multi-start) with another objective: the information
+``P`` of the experiments already run (:mod:`oed.sequential.prior`) plus the new trajectory's,
+``n · (1/N) Σ_k J_kᵀ J_k`` over ``N`` cost samples of one period (``n``: the samples the new experiment of
+``duration_s`` records), scaled by ``D = diag(P)^{-1/2}`` (a constant shift of every log-determinant that keeps
+the Cholesky factors well conditioned), under a D- or Ds-criterion (:mod:`oed.sequential.criteria`):
+
+    J(x) = criterion(D (P/n + (1/N) Σ_k J_kᵀ J_k) D)
+
+with ``J_k`` the model's noise-weighted Jacobian in all its parameters, shapes included
+(:mod:`oed.sequential.jacobian`), differentiated exactly by CasADi through the sampled sum.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from typing import Any
+
+import casadi
+import numpy as np
+from numpy.typing import NDArray
+
+from dynamics.runtime.memory import check_allocation
+from oed.criteria import LogDet
+from oed.design_problem import SUCCESS_STATUSES, ExcitationDesign, StartResult
+from oed.design_solver import jit_options, sampled_information
+from oed.fourier import unpack
+from oed.sequential.criteria import scaled, symbolic_scaled
+from oed.sequential.jacobian import ModelJacobian, SequentialDesignError
+from oed.sequential.prior import PriorInformation
+
+__all__ = ["ACCEPTED_STATUSES", "SEQUENTIAL_MAX_ITER", "STACKED_ABOVE", "SequentialDesign"]
+
+#: more parameters than this: the information sum as one product of the stacked Jacobians (see cost_function)
+STACKED_ABOVE = 30
+#: IPOPT iterations a start of a sequential design (the information's sign(dq) terms make it stall, not converge)
+SEQUENTIAL_MAX_ITER = 150
+
+#: IPOPT statuses whose trajectory (within the bounds) is kept: the information sums a Coulomb or Stribeck
+#: law's sign(dq) over samples, so the objective jumps where a sample's velocity changes sign and IPOPT can
+#: stall short of a KKT point (at the iteration limit or in a failed step) at a trajectory still much better
+#: than its start
+ACCEPTED_STATUSES = SUCCESS_STATUSES | {"Maximum_Iterations_Exceeded", "Error_In_Step_Computation",
+                                        "Search_Direction_Becomes_Too_Small", "Restoration_Failed"}
+
+
+@dataclass(frozen=True, eq=False)
+class SequentialDesign(ExcitationDesign):
+    """The excitation design of the next experiment (module docstring).
+
+    Parameters
+    ----------
+    robot, model, bounds, criterion, effects, settings
+        As :class:`ExcitationDesign`; ``criterion`` acts on the posterior information of the model's
+        parameters (``LogDet`` or :class:`oed.sequential.criteria.FocusedLogDet`).
+    jacobian
+        The identified model's noise-weighted Jacobian.
+    prior
+        The information of the experiments already run.
+    duration_s
+        Length of the new experiment, s (whole periods of the trajectory or not).
+    """
+
+    jacobian: ModelJacobian | None = None
+    prior: PriorInformation | None = None
+    duration_s: float = 0.0
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if not isinstance(self.jacobian, ModelJacobian):
+            raise TypeError("jacobian must be a ModelJacobian (oed.sequential.jacobian.model_jacobian)")
+        if not isinstance(self.prior, PriorInformation):
+            raise TypeError("prior must be a PriorInformation (oed.sequential.prior.prior_information)")
+        if self.prior.information.shape != (self.jacobian.n_parameters,) * 2:
+            raise SequentialDesignError(f"the prior holds {self.prior.information.shape[0]} parameters, the model "
+                                        f"{self.jacobian.n_parameters}")
+        if not (np.isfinite(self.duration_s) and self.duration_s > 0):
+            raise SequentialDesignError(f"the new experiment's duration must be positive, got {self.duration_s} s")
+        if self.jacobian.function.size1_in(0) != self.n_joints:
+            raise SequentialDesignError(f"the model has {self.jacobian.function.size1_in(0)} joints, the robot "
+                                        f"{self.n_joints}")
+
+    @property
+    def new_samples(self) -> float:
+        """Samples the new experiment records."""
+        return self.prior.samples_in(self.duration_s)
+
+    @property
+    def scale(self) -> NDArray[np.float64]:
+        """``diag(D) = diag(P)^{-1/2}``."""
+        return 1.0 / np.sqrt(np.diag(self.prior.information))
+
+    def cost_function(self) -> casadi.Function:
+        """``design_objective(x) -> J`` (module docstring), cached.
+
+        Up to :data:`STACKED_ABOVE` parameters the sum is the compiled per-sample ``JᵀJ`` of the plain design
+        (:func:`oed.design_solver.sampled_information`); above, the per-sample function is ``Jᵀ`` alone, mapped
+        over the cost samples into one ``p x (m N)`` matrix ``S``, and ``Σ_k J_kᵀ J_k = S Sᵀ`` is one product.
+        Measured: for the 7-joint KUKA (``p = 50``) the stacked form compiles in 6 s against 64 s at about the
+        same gradient time (55–60 ms); for the PUMA (``p = 21``) the per-sample form's gradient takes 0.6 ms
+        against 5.8 ms.
+        """
+        if "cost" not in self._cache:
+            n, H, N = self.n_joints, self.settings.harmonics, self.settings.cost_samples
+            m, p = self.jacobian.function.size1_out(0), self.jacobian.n_parameters
+            check_allocation(8.0 * N * (3 * (2 * H + 1) + 3 * n + 4 * m * p), f"cost_samples = {N}")
+            t = np.arange(N) / N / self.settings.frequency_hz
+            x = casadi.MX.sym("x", self.n_variables)
+            q0, a, b = unpack(x, n, H)
+            block = casadi.horzcat(q0, a, b)
+            states = [casadi.mtimes(block, casadi.DM(matrix)) for matrix in self._state_matrices(t)]
+            own = self._sampled_information(states) / N
+            prior = casadi.DM(self.prior.information / self.new_samples)
+            objective = self.criterion.expression(symbolic_scaled(prior + own, self.scale))
+            self._cache["cost"] = casadi.Function("sequential_objective", [x], [objective], ["x"], ["J"])
+        return self._cache["cost"]
+
+    def _sampled_information(self, states: list[casadi.MX]) -> casadi.MX:
+        """``Σ_k J_kᵀ J_k`` over the cost samples, per sample or as one product (see :meth:`cost_function`)."""
+        if self.jacobian.n_parameters <= STACKED_ABOVE:
+            return sampled_information(self.jacobian.function, states, self.settings.jit)
+        n = self.n_joints
+        q, dq, ddq = (casadi.SX.sym(name, n) for name in ("q", "dq", "ddq"))
+        transposed = casadi.Function("sample_jacobian_t", [q, dq, ddq], [self.jacobian.function(q, dq, ddq).T],
+                                     ["q", "dq", "ddq"], ["Jt"], jit_options() if self.settings.jit else {})
+        stacked = transposed.map(self.settings.cost_samples, "serial")(*states)  # (p, m N)
+        return casadi.mtimes(stacked, stacked.T)
+
+    def solve(self, x0: NDArray[np.float64], index: int = 0) -> StartResult:
+        """One start as :meth:`ExcitationDesign.solve`; a start that ends within the bounds after the
+        iteration limit or a failed step counts as a success (see :data:`ACCEPTED_STATUSES`)."""
+        result = super().solve(x0, index)
+        return replace(result, success=result.feasible and result.status in ACCEPTED_STATUSES)
+
+    def information(self, q, dq, ddq) -> NDArray[np.float64]:
+        """``Σ_k J_kᵀ J_k`` of the model's parameters at the given samples (the new experiment's own)."""
+        return self.jacobian.information(q, dq, ddq)
+
+    def designed_information(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
+        """The information the new experiment adds: ``n`` times its per-sample mean over one period at ``rate_hz``."""
+        _, q, dq, ddq = self.sample(x)
+        return self.information(q, dq, ddq) * (self.new_samples / q.shape[0])
+
+    def evaluate(self, x: NDArray[np.float64]) -> dict[str, Any]:
+        """``cost`` (−log det of the scaled posterior information), its ``cond`` and the criterion there,
+        over one period at ``rate_hz``."""
+        posterior = scaled(self.prior.information + self.designed_information(x), self.scale)
+        eigenvalues = np.linalg.eigvalsh((posterior + posterior.T) / 2)
+        cond = float(np.sqrt(eigenvalues[-1] / eigenvalues[0])) if eigenvalues[0] > 0 else float("inf")
+        return {"cost": LogDet().value(posterior), "cond": cond, "criterion": self.criterion.value(posterior)}
+
+
