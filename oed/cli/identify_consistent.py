@@ -19,7 +19,7 @@ def add_consistent_arguments(parser: argparse.ArgumentParser) -> None:
                        help="with --consistent: weight of the log-det prior towards the nominal bodies (URDF/DH, or "
                             "--prior), in units of half a chi-square (0: none); 'auto': the largest of "
                             f"{', '.join(map(str, PRIOR_WEIGHT_GRID))} whose validation error is within "
-                            f"{100 * PRIOR_WEIGHT_TOLERANCE:g} % of the best (needs --validate). Default: auto with "
+                            f"{100 * PRIOR_WEIGHT_TOLERANCE:g} %% of the best (needs --validate). Default: auto with "
                             f"--validate, else {DEFAULT_PRIOR_WEIGHT:g} (the prior sets only what the data do not)")
     group.add_argument("--prior", type=str, help="with --consistent: JSON with links [{name, mass, com, inertia}] "
                                                  "(e.g. an earlier result) as the prior instead of the robot's")
