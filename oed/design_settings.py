@@ -33,6 +33,15 @@ class DesignSettings:
         IPOPT settings (L-BFGS Hessian approximation; IPOPT stops early once ``acceptable_tol`` holds
         on ``acceptable_iter`` consecutive iterations). The defaults end a PUMA start about 15 %
         sooner than ``tol=1e-6`` at a cost within 0.02 of it (8 starts, combined and internal model).
+    sqp_after
+        IPOPT iterations after which an SQP method (:func:`oed.design_solver.sqp_solver`: dense
+        damped BFGS, one small QP an iteration) takes over the start from IPOPT's point and also
+        runs the refinement rounds; ``None``: IPOPT alone, to convergence. IPOPT's barrier keeps the
+        early iterates away from the bounds, which leads to better optima than an active-set method
+        from the same start; its last iterations, each a sparse factorisation of the KKT system with
+        all constraint rows and a curvature update that is mostly skipped, are the slow part. With
+        the default the PUMA designs of 8 starts take about half the time, at an equal or better best
+        criterion (``benchmarks/README.md``). A start that IPOPT finishes sooner is not handed over.
     refinements
         Rounds of "add the violated points and re-solve".
     jit
@@ -56,6 +65,7 @@ class DesignSettings:
     acceptable_tol: float = 1e-3
     acceptable_iter: int = 2
     lbfgs_memory: int = 20
+    sqp_after: int | None = 20
     refinements: int = 3
     jit: bool = field(default_factory=lambda: find_compiler() is not None)
     verbose: bool = False
@@ -78,6 +88,9 @@ class DesignSettings:
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
                 raise ValueError(f"{name} must be a positive integer, got {value!r}")
+        if self.sqp_after is not None and (isinstance(self.sqp_after, bool) or not isinstance(self.sqp_after, (int, np.integer))
+                                           or self.sqp_after < 0):
+            raise ValueError(f"sqp_after must be a non-negative integer or None, got {self.sqp_after!r}")
         if isinstance(self.refinements, bool) or not isinstance(self.refinements, (int, np.integer)) or self.refinements < 0:
             raise ValueError(f"refinements must be a non-negative integer, got {self.refinements!r}")
         for name in ("tol", "acceptable_tol"):
