@@ -16,6 +16,8 @@
 from __future__ import annotations
 
 import contextlib
+import ctypes
+import io
 import os
 import sys
 import tempfile
@@ -171,17 +173,31 @@ def sqp_solver(objective: casadi.Function, A: scipy.sparse.spmatrix, *, tol: flo
 
 @contextlib.contextmanager
 def stdout_silenced() -> Iterator[None]:
-    """The process's standard output (file descriptor 1, where C libraries print) sent to the null
-    device for the ``with`` block; Python's ``sys.stdout`` is flushed first so that nothing is lost."""
+    """Standard output discarded for the ``with`` block: ``sys.stdout`` (where CasADi's Python module
+    sends what its plugins print) and file descriptor 1 (where C code prints directly). Python's and
+    C's buffers are flushed at both ends, so that nothing printed before is lost and nothing printed
+    inside comes out later."""
     sys.stdout.flush()
+    _flush_c_streams()
     saved = os.dup(1)
     try:
-        with open(os.devnull, "w") as null:
+        with open(os.devnull, "w") as null, contextlib.redirect_stdout(io.StringIO()):
             os.dup2(null.fileno(), 1)
-            yield
+            try:
+                yield
+            finally:
+                _flush_c_streams()
     finally:
         os.dup2(saved, 1)
         os.close(saved)
+
+
+def _flush_c_streams() -> None:
+    """``fflush(NULL)``: the C library's output buffers written out (nothing where it cannot be reached)."""
+    try:
+        ctypes.CDLL(None).fflush(None)
+    except (OSError, TypeError, AttributeError):  # no C library handle by that name (Windows)
+        pass
 
 
 def violation_peaks(excess: dict[str, NDArray[np.float64]], tolerance: float = 1e-9) -> set[int]:

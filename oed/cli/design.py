@@ -51,6 +51,9 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     parser.add_argument("--samples", type=int, default=250, help="cost samples per period during optimisation")
     parser.add_argument("--constraint-points", type=int, default=60)
     parser.add_argument("--max-iter", type=int, default=500)
+    parser.add_argument("--sqp-after", type=sqp_after, default=DesignSettings.sqp_after, metavar="N|none",
+                        help=f"IPOPT iterations before an SQP method finishes each start (default "
+                        f"{DesignSettings.sqp_after}; none: IPOPT alone)")
     parser.add_argument("--out", type=Path, required=True, help="trajectory JSON")
     parser.add_argument("--csv", type=Path, help="sampled trajectory t, q1..qn, dq1..dqn, ddq1..ddqn (1 kHz)")
     parser.add_argument("--plot", type=Path, help="figure of q, dq, ddq with the bounds")
@@ -58,6 +61,19 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     verbosity.add_argument("--quiet", action="store_true", help="no progress output")
     verbosity.add_argument("--verbose", action="store_true", help="IPOPT iteration log")
     return parser
+
+
+def sqp_after(text: str) -> int | None:
+    """``--sqp-after``: a non-negative integer or ``none`` (argparse type)."""
+    if text.strip().lower() == "none":
+        return None
+    try:
+        value = int(text)
+    except ValueError:
+        value = -1
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected a non-negative integer or none, got {text!r}")
+    return value
 
 
 def bounds_from_arguments(args: argparse.Namespace, robot) -> JointBounds:
@@ -98,6 +114,7 @@ def run(args: argparse.Namespace) -> int:
     settings = DesignSettings(
         frequency_hz=args.frequency, harmonics=args.harmonics, cost_samples=args.samples,
         constraint_points=args.constraint_points, max_iter=args.max_iter, verbose=args.verbose,
+        sqp_after=args.sqp_after,
     )
     if args.starts < 1:
         raise ValueError(f"--starts must be at least 1, got {args.starts}")
