@@ -36,7 +36,7 @@ from dynamics.runtime.threads import single_threaded
 from oed.bounds import PUMA_BOUNDS, JointBounds
 from oed.criteria import LogDet, criterion_from_name, information_matrix
 from oed.design_settings import DesignSettings
-from oed.design_solver import ipopt_solver, sampled_information, sqp_solver, violation_peaks
+from oed.design_solver import SQP_OBJECTIVE_SCALE, ipopt_solver, sampled_information, sqp_solver, violation_peaks
 from oed.fourier import FourierTrajectory, basis, unpack
 from oed.interrupt import interrupt_flag
 
@@ -337,7 +337,11 @@ class ExcitationDesign:
             if not (stats.get("return_status") == "Maximum_Iterations_Exceeded" and used == self.settings.sqp_after):
                 return solution, stats  # IPOPT finished (or was stopped by an IPOPT option): nothing to hand over
             x = np.asarray(solution["x"]).reshape(-1)
-        solution, stats = _run(self._sqp(extra), x, multipliers, interrupted)
+        # the SQP method minimises SQP_OBJECTIVE_SCALE x the objective: its multipliers scale with it
+        scaled = {name: SQP_OBJECTIVE_SCALE * np.asarray(value) for name, value in multipliers.items()}
+        solution, stats = _run(self._sqp(extra), x, scaled, interrupted)
+        solution = {name: solution[name] if name == "x" else solution[name] / SQP_OBJECTIVE_SCALE
+                    for name in ("x", "f", "lam_x", "lam_g")}
         used += int(stats.get("iter_count", 0))
         if stats.get("return_status") not in SUCCESS_STATUSES:
             solution, stats = _run(self._solver(extra, warm=True), np.asarray(solution["x"]).reshape(-1),
