@@ -36,12 +36,16 @@ class DesignSettings:
     sqp_after
         IPOPT iterations after which an SQP method (:func:`oed.design_solver.sqp_solver`: dense
         damped BFGS, one small QP an iteration) takes over the start from IPOPT's point and also
-        runs the refinement rounds; ``None``: IPOPT alone, to convergence. IPOPT's barrier keeps the
-        early iterates away from the bounds, which leads to better optima than an active-set method
-        from the same start; its last iterations, each a sparse factorisation of the KKT system with
-        all constraint rows and a curvature update that is mostly skipped, are the slow part. With
-        the default the PUMA designs of 8 starts take about half the time, at an equal or better best
-        criterion (``benchmarks/README.md``). A start that IPOPT finishes sooner is not handed over.
+        runs the refinement rounds; ``None``: IPOPT alone, to convergence (the former behaviour).
+        IPOPT's barrier keeps the early iterates off the bounds, which leads to better optima than
+        an active-set method from the same start; its late iterations, each a sparse factorisation of
+        the KKT system with every constraint row and a curvature update that is mostly skipped, are
+        the slow part. On the PUMA (8 seeds of 8 starts, combined and internal model) the starts take
+        about a third less time, the best of 8 starts within 0.01 of IPOPT alone or better and the
+        single starts equal on average (``benchmarks/README.md``). A start that IPOPT finishes within
+        ``sqp_after`` iterations is not handed over, nor are starts of a criterion that is not smooth
+        (``cond``, ``mineig``: their kinks defeat the BFGS model), nor any when ``max_iter`` is at most
+        ``sqp_after``.
     refinements
         Rounds of "add the violated points and re-solve".
     jit
@@ -49,7 +53,7 @@ class DesignSettings:
         (about 3x faster objective gradients for a one-time build of about 1 s); default: when a
         compiler (``cc``/``gcc``) is on the ``PATH``.
     verbose
-        Print IPOPT's iteration log.
+        Print IPOPT's (and the SQP method's) iteration log.
     ipopt_options
         Further IPOPT options as ``(name, value)`` pairs, over the above (e.g.
         ``(("mu_strategy", "monotone"),)``; ``benchmarks/bench_design.py --ipopt NAME=VALUE``).
