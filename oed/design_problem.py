@@ -258,9 +258,10 @@ class ExcitationDesign:
         """Unscaled ``Y_bᵀY_b`` of the model at the given samples."""
         return information_matrix(self.identification_model.evaluate_base(q, dq, ddq))
 
-    def evaluate(self, x: NDArray[np.float64]) -> dict[str, float]:
-        """``cost`` (−log det), ``cond`` and the criterion over one period at ``rate_hz``."""
-        _, q, dq, ddq = self.sample(x)
+    def evaluate(self, x: NDArray[np.float64], samples: tuple[NDArray[np.float64], ...] | None = None) -> dict[str, float]:
+        """``cost`` (−log det), ``cond`` and the criterion over one period at ``rate_hz``; ``samples``:
+        ``(q, dq, ddq)`` of ``x`` at ``rate_hz`` when already computed."""
+        q, dq, ddq = self.sample(x)[1:] if samples is None else samples
         M = self.information(q, dq, ddq)
         eigenvalues = np.linalg.eigvalsh((M + M.T) / 2)
         cond = float(np.sqrt(eigenvalues[-1] / eigenvalues[0])) if eigenvalues[0] > 0 else float("inf")
@@ -355,6 +356,7 @@ class ExcitationDesign:
         extra: tuple[int, ...] = ()
         x, iterations, status, objective, rounds = x0, 0, "Not_Started", float("nan"), 0
         multipliers: dict[str, Any] = {}
+        sampled: tuple[NDArray[np.float64], ...] | None = None  # q, dq, ddq of x at rate_hz
         for rounds in range(s.refinements + 1):
             solution, stats = self._round(extra, x, multipliers, interrupted)
             x = np.asarray(solution["x"]).reshape(-1)
@@ -363,8 +365,8 @@ class ExcitationDesign:
             objective = float(solution["f"])
             if status not in SUCCESS_STATUSES:
                 break
-            _, q, dq, ddq = self.sample(x)
-            peaks = violation_peaks(self.bounds.excess(q, dq, ddq))
+            sampled = self.sample(x)[1:]
+            peaks = violation_peaks(self.bounds.excess(*sampled))
             if s.verbose:
                 print(f"  round {rounds}: {stats.get('iter_count')} iterations, {len(peaks)} points over a bound at {s.rate_hz:g} Hz")
             if not peaks:
@@ -373,13 +375,15 @@ class ExcitationDesign:
             multipliers = {"lam_x0": solution["lam_x"],
                            "lam_g0": self._extend_multipliers(np.asarray(solution["lam_g"]).reshape(-1), extra, new_extra)}
             extra = new_extra
-        _, q, dq, ddq = self.sample(x)
-        shrunk = bool(self.bounds.violations(q, dq, ddq))
+            sampled = None  # the next round moves x
+        if sampled is None:
+            sampled = self.sample(x)[1:]
+        shrunk = bool(self.bounds.violations(*sampled))
         if shrunk:
             x = self.shrink_to_bounds(x)
-            _, q, dq, ddq = self.sample(x)
-        feasible = not self.bounds.violations(q, dq, ddq)
-        values = self.evaluate(x)
+            sampled = self.sample(x)[1:]
+        feasible = not self.bounds.violations(*sampled)
+        values = self.evaluate(x, sampled)
         return StartResult(
             index=index, status=status, success=status in SUCCESS_STATUSES and feasible, iterations=iterations,
             time_s=time.perf_counter() - started, cost=values["cost"], criterion_value=values["criterion"],
