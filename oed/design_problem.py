@@ -9,7 +9,8 @@ constant matrices. Hence
 - the criterion is ``J(M(x))`` with ``M = (1/N) Σ_k Y_b(q_k, dq_k, ddq_k)ᵀ Y_b(·)`` over ``N``
   cost samples, built once as a CasADi graph (a compiled per-sample ``Y_bᵀY_b`` summed by a
   mapped reduction, :mod:`oed.design_solver`, then the criterion), differentiated exactly by
-  reverse AD; IPOPT approximates the Hessian by L-BFGS.
+  reverse AD; IPOPT approximates the Hessian by L-BFGS and, after ``DesignSettings.sqp_after``
+  iterations, hands the start to an SQP method (dense damped BFGS, one small QP an iteration).
 
 After each solve the trajectory is checked on the full 1 kHz grid; the samples where a bound is
 exceeded are added as constraint points and the problem is re-solved from the previous solution
@@ -36,7 +37,14 @@ from dynamics.runtime.threads import single_threaded
 from oed.bounds import PUMA_BOUNDS, JointBounds
 from oed.criteria import LogDet, criterion_from_name, information_matrix
 from oed.design_settings import DesignSettings
-from oed.design_solver import SQP_OBJECTIVE_SCALE, ipopt_solver, sampled_information, sqp_solver, violation_peaks
+from oed.design_solver import (
+    SQP_OBJECTIVE_SCALE,
+    call_solver,
+    ipopt_solver,
+    sampled_information,
+    sqp_solver,
+    violation_peaks,
+)
 from oed.fourier import FourierTrajectory, basis, unpack
 from oed.interrupt import interrupt_flag
 
@@ -239,8 +247,6 @@ class ExcitationDesign:
         """Build the objective and the first solver; returns the seconds it took (0 once built)."""
         start = time.perf_counter()
         self._solver((), handover=self.hands_over)
-        if self.hands_over:
-            self._sqp(())
         return time.perf_counter() - start
 
     # ---------------------------------------------------------------- evaluation
@@ -330,22 +336,22 @@ class ExcitationDesign:
         (the refinement rounds: the SQP method alone); should it stop short of its tolerance, IPOPT,
         warm-started at its point and multipliers, finishes the round."""
         if not self.hands_over:
-            return _run(self._solver(extra), x, multipliers, interrupted)
+            return call_solver(self._solver(extra), x, multipliers, interrupted)
         used = 0
         if not extra:
-            solution, stats = _run(self._solver((), handover=True), x, {}, interrupted)
+            solution, stats = call_solver(self._solver((), handover=True), x, {}, interrupted)
             used = int(stats.get("iter_count", 0))
             if not (stats.get("return_status") == "Maximum_Iterations_Exceeded" and used == self.settings.sqp_after):
                 return solution, stats  # IPOPT finished (or was stopped by an IPOPT option): nothing to hand over
             x = np.asarray(solution["x"]).reshape(-1)
         # the SQP method minimises SQP_OBJECTIVE_SCALE x the objective: its multipliers scale with it
         scaled = {name: SQP_OBJECTIVE_SCALE * np.asarray(value) for name, value in multipliers.items()}
-        solution, stats = _run(self._sqp(extra), x, scaled, interrupted)
+        solution, stats = call_solver(self._sqp(extra), x, scaled, interrupted)
         solution = {name: solution[name] if name == "x" else solution[name] / SQP_OBJECTIVE_SCALE
                     for name in ("x", "f", "lam_x", "lam_g")}
         used += int(stats.get("iter_count", 0))
         if stats.get("return_status") not in SUCCESS_STATUSES:
-            solution, stats = _run(self._solver(extra, warm=True), np.asarray(solution["x"]).reshape(-1),
+            solution, stats = call_solver(self._solver(extra, warm=True), np.asarray(solution["x"]).reshape(-1),
                                    {"lam_x0": solution["lam_x"], "lam_g0": solution["lam_g"]}, interrupted)
             used += int(stats.get("iter_count", 0))
         return solution, {**stats, "iter_count": used}
@@ -389,17 +395,6 @@ class ExcitationDesign:
             time_s=time.perf_counter() - started, cost=values["cost"], criterion_value=values["criterion"],
             objective=objective, feasible=feasible, refinements=rounds, x=x, x0=x0, shrunk=shrunk,
         )
-
-
-def _run(entry: tuple[casadi.Function, NDArray, NDArray], x0: NDArray[np.float64], multipliers: dict[str, Any],
-         interrupted: Callable[[], bool]) -> tuple[dict, dict]:
-    """One call of a solver with its constraint bounds ``(solver, lbg, ubg)`` from ``x0``: the solution
-    and the statistics (Ctrl-C raised, not returned)."""
-    solver, lower, upper = entry
-    solution = solver(x0=x0, lbg=lower, ubg=upper, **multipliers)
-    if interrupted():  # CasADi turns Ctrl-C into an IPOPT status; it ends the design, not one start
-        raise KeyboardInterrupt("interrupted during an IPOPT solve")
-    return solution, solver.stats()
 
 
 def default_bounds(robot: RobotModel) -> JointBounds:

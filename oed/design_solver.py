@@ -21,7 +21,7 @@ import io
 import os
 import sys
 import tempfile
-from collections.abc import Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -209,6 +209,24 @@ def _flush_c_streams() -> None:
         ctypes.CDLL(None).fflush(None)
     except (OSError, TypeError, AttributeError):  # no C library handle by that name (Windows)
         pass
+
+
+def call_solver(entry: tuple[casadi.Function, NDArray, NDArray], x0: NDArray[np.float64], multipliers: dict[str, Any],
+                interrupted: Callable[[], bool]) -> tuple[dict, dict]:
+    """One call of a solver with its constraint bounds ``(solver, lbg, ubg)`` from ``x0`` (and the
+    multipliers ``lam_x0``, ``lam_g0`` given): the solution and the solver's statistics.
+
+    Raises
+    ------
+    KeyboardInterrupt
+        When ``interrupted()`` says Ctrl-C came during the call (CasADi turns it into a solver status;
+        it ends the design, not one start).
+    """
+    solver, lower, upper = entry
+    solution = solver(x0=x0, lbg=lower, ubg=upper, **multipliers)
+    if interrupted():
+        raise KeyboardInterrupt("interrupted during an IPOPT solve")
+    return solution, solver.stats()
 
 
 def violation_peaks(excess: dict[str, NDArray[np.float64]], tolerance: float = 1e-9) -> set[int]:
