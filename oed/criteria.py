@@ -38,6 +38,9 @@ def _symmetric(M: ArrayLike) -> NDArray[np.float64]:
 
 class _Criterion:
     name: ClassVar[str]
+    #: differentiable wherever it is finite (quasi-Newton models hold); the eigenvalue criteria have
+    #: kinks where the extreme eigenvalues cross
+    smooth: ClassVar[bool] = False
 
     def expression(self, M: casadi.SX | casadi.MX) -> casadi.SX | casadi.MX:  # pragma: no cover - interface
         raise NotImplementedError
@@ -74,6 +77,7 @@ class LogDet(_Criterion):
 
     regularization: float = 0.0
     name: ClassVar[str] = "logdet"
+    smooth: ClassVar[bool] = True
 
     def __post_init__(self) -> None:
         if not (np.isfinite(self.regularization) and self.regularization >= 0):

@@ -226,6 +226,7 @@ def _trajectory_metadata(problem: ExcitationDesign, values: dict[str, Any], best
         "bounds": problem.bounds.to_dict(),
         "solver": {
             "name": "ipopt",
+            "sqp_after": s.sqp_after if problem.hands_over else None,
             "status": best.status,
             "iterations": best.iterations,
             "starts": starts,

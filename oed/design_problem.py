@@ -9,7 +9,8 @@ constant matrices. Hence
 - the criterion is ``J(M(x))`` with ``M = (1/N) Σ_k Y_b(q_k, dq_k, ddq_k)ᵀ Y_b(·)`` over ``N``
   cost samples, built once as a CasADi graph (a compiled per-sample ``Y_bᵀY_b`` summed by a
   mapped reduction, :mod:`oed.design_solver`, then the criterion), differentiated exactly by
-  reverse AD; IPOPT approximates the Hessian by L-BFGS.
+  reverse AD; IPOPT approximates the Hessian by L-BFGS and, after ``DesignSettings.sqp_after``
+  iterations, hands the start to an SQP method (dense damped BFGS, one small QP an iteration).
 
 After each solve the trajectory is checked on the full 1 kHz grid; the samples where a bound is
 exceeded are added as constraint points and the problem is re-solved from the previous solution
@@ -36,7 +37,14 @@ from dynamics.runtime.threads import single_threaded
 from oed.bounds import PUMA_BOUNDS, JointBounds
 from oed.criteria import LogDet, criterion_from_name, information_matrix
 from oed.design_settings import DesignSettings
-from oed.design_solver import ipopt_solver, sampled_information, violation_peaks
+from oed.design_solver import (
+    SQP_OBJECTIVE_SCALE,
+    call_solver,
+    ipopt_solver,
+    sampled_information,
+    sqp_solver,
+    violation_peaks,
+)
 from oed.fourier import FourierTrajectory, basis, unpack
 from oed.interrupt import interrupt_flag
 
@@ -186,17 +194,45 @@ class ExcitationDesign:
         grid = np.arange(s.constraint_points) * s.period_samples // s.constraint_points  # on the rate_hz grid
         return np.union1d(grid, np.asarray(extra, dtype=int)) / s.rate_hz
 
-    def _solver(self, extra: tuple[int, ...]) -> tuple[casadi.Function, NDArray, NDArray]:
-        key = ("solver", extra)
+    def _solver(self, extra: tuple[int, ...], handover: bool = False,
+                warm: bool | None = None) -> tuple[casadi.Function, NDArray, NDArray]:
+        """IPOPT on the constraint points plus ``extra``; ``handover``: stopped after
+        ``settings.sqp_after`` iterations for the SQP method to finish; ``warm``: started from a given
+        primal-dual point (default: for the refinement rounds, ``extra`` not empty)."""
+        warm = bool(extra) if warm is None else warm
+        key = ("solver", extra, handover, warm)
         if key not in self._cache:
             s = self.settings
-            A, lower, upper = self.constraint_matrix(self.constraint_times(extra))
+            A, lower, upper = self._rows(extra)
+            max_iter = min(s.max_iter, s.sqp_after) if handover and s.sqp_after is not None else s.max_iter
             solver = ipopt_solver(self.cost_function(), A, tol=s.tol, acceptable_tol=s.acceptable_tol,
-                                  acceptable_iter=s.acceptable_iter, max_iter=s.max_iter,
-                                  lbfgs_memory=s.lbfgs_memory, verbose=s.verbose, warm=bool(extra),
+                                  acceptable_iter=s.acceptable_iter, max_iter=max_iter,
+                                  lbfgs_memory=s.lbfgs_memory, verbose=s.verbose, warm=warm,
                                   ipopt_options=dict(s.ipopt_options))
             self._cache[key] = (solver, lower, upper)
         return self._cache[key]
+
+    def _rows(self, extra: tuple[int, ...]) -> tuple[scipy.sparse.csr_matrix, NDArray, NDArray]:
+        """:meth:`constraint_matrix` at the constraint points plus ``extra`` (cached)."""
+        key = ("rows", extra)
+        if key not in self._cache:
+            self._cache[key] = self.constraint_matrix(self.constraint_times(extra))
+        return self._cache[key]
+
+    def _sqp(self, extra: tuple[int, ...]) -> tuple[casadi.Function, NDArray, NDArray]:
+        """A new SQP method on the constraint points plus ``extra`` (:func:`oed.design_solver.sqp_solver`),
+        built for each start: CasADi's qpOASES hot-starts every QP from the previous one, so a solver
+        kept across starts would make a start's result depend on the starts before it."""
+        A, lower, upper = self._rows(extra)
+        s = self.settings
+        return sqp_solver(self.cost_function(), A, tol=s.tol, max_iter=s.max_iter, verbose=s.verbose), lower, upper
+
+    @property
+    def hands_over(self) -> bool:
+        """Whether IPOPT hands each start over to the SQP method: ``settings.sqp_after`` below
+        ``max_iter`` and a smooth criterion (the kinks of ``cond`` and ``mineig`` defeat its BFGS model)."""
+        s = self.settings
+        return s.sqp_after is not None and s.sqp_after < s.max_iter and self.criterion.smooth
 
     def _extend_multipliers(self, lam_g: NDArray, old: tuple[int, ...], new: tuple[int, ...]) -> NDArray:
         """Constraint multipliers of the old constraint set placed on the rows of the new one (0 elsewhere)."""
@@ -210,7 +246,7 @@ class ExcitationDesign:
     def build(self) -> float:
         """Build the objective and the first solver; returns the seconds it took (0 once built)."""
         start = time.perf_counter()
-        self._solver(())
+        self._solver((), handover=self.hands_over)
         return time.perf_counter() - start
 
     # ---------------------------------------------------------------- evaluation
@@ -228,9 +264,10 @@ class ExcitationDesign:
         """Unscaled ``Y_bᵀY_b`` of the model at the given samples."""
         return information_matrix(self.identification_model.evaluate_base(q, dq, ddq))
 
-    def evaluate(self, x: NDArray[np.float64]) -> dict[str, float]:
-        """``cost`` (−log det), ``cond`` and the criterion over one period at ``rate_hz``."""
-        _, q, dq, ddq = self.sample(x)
+    def evaluate(self, x: NDArray[np.float64], samples: tuple[NDArray[np.float64], ...] | None = None) -> dict[str, float]:
+        """``cost`` (−log det), ``cond`` and the criterion over one period at ``rate_hz``; ``samples``:
+        ``(q, dq, ddq)`` of ``x`` at ``rate_hz`` when already computed."""
+        q, dq, ddq = self.sample(x)[1:] if samples is None else samples
         M = self.information(q, dq, ddq)
         eigenvalues = np.linalg.eigvalsh((M + M.T) / 2)
         cond = float(np.sqrt(eigenvalues[-1] / eigenvalues[0])) if eigenvalues[0] > 0 else float("inf")
@@ -291,26 +328,51 @@ class ExcitationDesign:
             result = self._solve(x0, index, interrupted)
         return result
 
+    def _round(self, extra: tuple[int, ...], x: NDArray[np.float64], multipliers: dict[str, Any],
+               interrupted: Callable[[], bool]) -> tuple[dict, dict]:
+        """One solve on the constraint points plus ``extra`` from ``x``: the solution and the statistics
+        (the iterations of every solver that ran). Without a hand-over: IPOPT. With one: IPOPT for
+        ``settings.sqp_after`` iterations in the first round, then the SQP method from IPOPT's point
+        (the refinement rounds: the SQP method alone); should it stop short of its tolerance, IPOPT,
+        warm-started at its point and multipliers, finishes the round."""
+        if not self.hands_over:
+            return call_solver(self._solver(extra), x, multipliers, interrupted)
+        used = 0
+        if not extra:
+            solution, stats = call_solver(self._solver((), handover=True), x, {}, interrupted)
+            used = int(stats.get("iter_count", 0))
+            if not (stats.get("return_status") == "Maximum_Iterations_Exceeded" and used == self.settings.sqp_after):
+                return solution, stats  # IPOPT finished (or was stopped by an IPOPT option): nothing to hand over
+            x = np.asarray(solution["x"]).reshape(-1)
+        # the SQP method minimises SQP_OBJECTIVE_SCALE x the objective: its multipliers scale with it
+        scaled = {name: SQP_OBJECTIVE_SCALE * np.asarray(value) for name, value in multipliers.items()}
+        solution, stats = call_solver(self._sqp(extra), x, scaled, interrupted)
+        solution = {name: solution[name] if name == "x" else solution[name] / SQP_OBJECTIVE_SCALE
+                    for name in ("x", "f", "lam_x", "lam_g")}
+        used += int(stats.get("iter_count", 0))
+        if stats.get("return_status") not in SUCCESS_STATUSES:
+            solution, stats = call_solver(self._solver(extra, warm=True), np.asarray(solution["x"]).reshape(-1),
+                                   {"lam_x0": solution["lam_x"], "lam_g0": solution["lam_g"]}, interrupted)
+            used += int(stats.get("iter_count", 0))
+        return solution, {**stats, "iter_count": used}
+
     def _solve(self, x0: NDArray[np.float64], index: int, interrupted: Callable[[], bool] = lambda: False) -> StartResult:
         s = self.settings
         started = time.perf_counter()
         extra: tuple[int, ...] = ()
         x, iterations, status, objective, rounds = x0, 0, "Not_Started", float("nan"), 0
         multipliers: dict[str, Any] = {}
+        sampled: tuple[NDArray[np.float64], ...] | None = None  # q, dq, ddq of x at rate_hz
         for rounds in range(s.refinements + 1):
-            solver, lower, upper = self._solver(extra)
-            solution = solver(x0=x, lbg=lower, ubg=upper, **multipliers)
-            stats = solver.stats()
-            if interrupted():  # CasADi turns Ctrl-C into an IPOPT status; it ends the design, not one start
-                raise KeyboardInterrupt("interrupted during an IPOPT solve")
+            solution, stats = self._round(extra, x, multipliers, interrupted)
             x = np.asarray(solution["x"]).reshape(-1)
             iterations += int(stats.get("iter_count", 0))
             status = str(stats.get("return_status", "unknown"))
             objective = float(solution["f"])
             if status not in SUCCESS_STATUSES:
                 break
-            _, q, dq, ddq = self.sample(x)
-            peaks = violation_peaks(self.bounds.excess(q, dq, ddq))
+            sampled = self.sample(x)[1:]
+            peaks = violation_peaks(self.bounds.excess(*sampled))
             if s.verbose:
                 print(f"  round {rounds}: {stats.get('iter_count')} iterations, {len(peaks)} points over a bound at {s.rate_hz:g} Hz")
             if not peaks:
@@ -319,13 +381,15 @@ class ExcitationDesign:
             multipliers = {"lam_x0": solution["lam_x"],
                            "lam_g0": self._extend_multipliers(np.asarray(solution["lam_g"]).reshape(-1), extra, new_extra)}
             extra = new_extra
-        _, q, dq, ddq = self.sample(x)
-        shrunk = bool(self.bounds.violations(q, dq, ddq))
+            sampled = None  # the next round moves x
+        if sampled is None:
+            sampled = self.sample(x)[1:]
+        shrunk = bool(self.bounds.violations(*sampled))
         if shrunk:
             x = self.shrink_to_bounds(x)
-            _, q, dq, ddq = self.sample(x)
-        feasible = not self.bounds.violations(q, dq, ddq)
-        values = self.evaluate(x)
+            sampled = self.sample(x)[1:]
+        feasible = not self.bounds.violations(*sampled)
+        values = self.evaluate(x, sampled)
         return StartResult(
             index=index, status=status, success=status in SUCCESS_STATUSES and feasible, iterations=iterations,
             time_s=time.perf_counter() - started, cost=values["cost"], criterion_value=values["criterion"],

@@ -22,7 +22,7 @@ from oed.cli.shared.common import (
     robot_from_arguments,
     seed,
 )
-from oed.cli.shared.options import check_hertz
+from oed.cli.shared.options import check_hertz, handover, sqp_after
 from oed.cli.design_sequential import add_sequential_arguments, run_sequential, sequential_requested
 from oed.criteria import CRITERIA
 from oed.cli.shared.design_bounds import bounds_from_arguments
@@ -54,6 +54,9 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     parser.add_argument("--constraint-points", type=int, default=60)
     parser.add_argument("--max-iter", type=int, default=None,
                         help=f"IPOPT iterations a start (default: 500; with --from {SEQUENTIAL_MAX_ITER})")
+    parser.add_argument("--sqp-after", type=sqp_after, default=None, metavar="N|none",
+                        help=f"IPOPT iterations before an SQP method finishes each start (default "
+                        f"{DesignSettings.sqp_after}; with --from: none; none: IPOPT alone)")
     parser.add_argument("--out", type=Path, required=True, help="trajectory JSON")
     parser.add_argument("--csv", type=Path, help="sampled trajectory t, q1..qn, dq1..dqn, ddq1..ddqn (1 kHz)")
     parser.add_argument("--plot", type=Path, help="figure of q, dq, ddq with the bounds")
@@ -89,6 +92,7 @@ def run(args: argparse.Namespace) -> int:
     settings = DesignSettings(
         frequency_hz=args.frequency, harmonics=args.harmonics, cost_samples=args.samples,
         constraint_points=args.constraint_points, max_iter=args.max_iter, verbose=args.verbose,
+        sqp_after=handover(args, DesignSettings.sqp_after),
     )
     if args.starts < 1:
         raise ValueError(f"--starts must be at least 1, got {args.starts}")

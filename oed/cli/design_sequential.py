@@ -17,7 +17,7 @@ from dynamics.runtime.output_files import save_figure
 from estimation.identification.identified_model import IdentifiedModel
 from oed.cli.shared.common import OutputFiles, check_figure_path, check_json_path, json_text, robot_from_arguments
 from oed.cli.shared.design_bounds import bounds_from_arguments
-from oed.cli.shared.options import check_hertz
+from oed.cli.shared.options import check_hertz, handover
 from oed.design import DesignSettings, ShrunkDesignWarning
 from oed.sequential.discrimination import design_discriminating
 from oed.sequential.figure import plot_next_experiment
@@ -95,7 +95,8 @@ def run_sequential(args: argparse.Namespace) -> int:
     records = read_records(model, args.data)
     settings = DesignSettings(frequency_hz=args.frequency, harmonics=args.harmonics, cost_samples=args.samples,
                               constraint_points=args.constraint_points, verbose=args.verbose,
-                              max_iter=SEQUENTIAL_MAX_ITER if args.max_iter is None else args.max_iter)
+                              max_iter=SEQUENTIAL_MAX_ITER if args.max_iter is None else args.max_iter,
+                              sqp_after=handover(args, None))  # IPOPT alone unless asked: sign(dq) makes it jump
     duration = None if args.periods is None else args.periods / args.frequency
 
     def progress(start, total) -> None:

@@ -163,13 +163,17 @@ class DiscriminatingDesign(ExcitationDesign):
             self._cache["cost"] = casadi.Function("discrimination_objective", [x], [objective], ["x"], ["J"])
         return self._cache["cost"]
 
-    def separations(self, x: NDArray[np.float64]) -> tuple[float, ...]:
-        """``(Δ_AB, Δ_BA)`` of the trajectory ``x`` over one period at ``rate_hz``, for the new experiment's samples."""
-        _, q, dq, ddq = self.sample(x)
+    def separations(self, x: NDArray[np.float64], samples: tuple[NDArray[np.float64], ...] | None = None
+                    ) -> tuple[float, ...]:
+        """``(Δ_AB, Δ_BA)`` of the trajectory ``x`` over one period at ``rate_hz``, for the new experiment's samples
+        (``samples``: ``(q, dq, ddq)`` of ``x`` at ``rate_hz`` when already computed)."""
+        q, dq, ddq = self.sample(x)[1:] if samples is None else samples
         return tuple(rivalry.separation(q, dq, ddq, self.new_samples) for rivalry in self.rivalries)
 
-    def evaluate(self, x: NDArray[np.float64]) -> dict[str, Any]:
-        values = self.separations(x)
+    def evaluate(self, x: NDArray[np.float64], samples: tuple[NDArray[np.float64], ...] | None = None
+                 ) -> dict[str, Any]:
+        """``cost`` and ``criterion``: −Σ log of the separations (:meth:`separations`); ``cond`` is not defined."""
+        values = self.separations(x, samples)
         criterion = -float(sum(np.log(max(value, 1e-12)) for value in values))
         return {"cost": criterion, "cond": float("nan"), "criterion": criterion}
 
@@ -229,7 +233,7 @@ def design_discriminating(model: IdentifiedModel, rival: IdentifiedModel, record
     prior = rivalries[0].prior
     duration = prior.duration_s if duration_s is None else float(duration_s)
     problem = DiscriminatingDesign(model.robot, model.model.kind, bounds, TOptimality(), model.model.effects,
-                                   settings or DesignSettings(max_iter=SEQUENTIAL_MAX_ITER), rivalries=rivalries, duration_s=duration)
+                                   settings or DesignSettings(max_iter=SEQUENTIAL_MAX_ITER, sqp_after=None), rivalries=rivalries, duration_s=duration)
     result = design_excitation(model.robot, starts=starts, seed=seed, progress=progress, problem=problem)
     best = next(start for start in result.starts if start.index == result.best)
     designed = problem.separations(best.x)

@@ -141,7 +141,7 @@ def design_next(model: IdentifiedModel, records: Measurements, *, bounds: JointB
     chosen = focus_names(jacobian, focus)
     duration = prior.duration_s if duration_s is None else float(duration_s)
     problem = SequentialDesign(model.robot, model.model.kind, bounds, posterior_criterion(jacobian, chosen),
-                               model.model.effects, settings or DesignSettings(max_iter=SEQUENTIAL_MAX_ITER), jacobian=jacobian, prior=prior,
+                               model.model.effects, settings or DesignSettings(max_iter=SEQUENTIAL_MAX_ITER, sqp_after=None), jacobian=jacobian, prior=prior,
                                duration_s=duration)
     result = design_excitation(model.robot, starts=starts, seed=seed, progress=progress, problem=problem)
     best = next(start for start in result.starts if start.index == result.best)

@@ -138,15 +138,18 @@ class SequentialDesign(ExcitationDesign):
         """``Σ_k J_kᵀ J_k`` of the model's parameters at the given samples (the new experiment's own)."""
         return self.jacobian.information(q, dq, ddq)
 
-    def designed_information(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
-        """The information the new experiment adds: ``n`` times its per-sample mean over one period at ``rate_hz``."""
-        _, q, dq, ddq = self.sample(x)
+    def designed_information(self, x: NDArray[np.float64],
+                             samples: tuple[NDArray[np.float64], ...] | None = None) -> NDArray[np.float64]:
+        """The information the new experiment adds: ``n`` times its per-sample mean over one period at ``rate_hz``;
+        ``samples``: ``(q, dq, ddq)`` of ``x`` at ``rate_hz`` when already computed."""
+        q, dq, ddq = self.sample(x)[1:] if samples is None else samples
         return self.information(q, dq, ddq) * (self.new_samples / q.shape[0])
 
-    def evaluate(self, x: NDArray[np.float64]) -> dict[str, Any]:
+    def evaluate(self, x: NDArray[np.float64], samples: tuple[NDArray[np.float64], ...] | None = None
+                 ) -> dict[str, Any]:
         """``cost`` (−log det of the scaled posterior information), its ``cond`` and the criterion there,
-        over one period at ``rate_hz``."""
-        posterior = scaled(self.prior.information + self.designed_information(x), self.scale)
+        over one period at ``rate_hz`` (``samples`` as in :meth:`designed_information`)."""
+        posterior = scaled(self.prior.information + self.designed_information(x, samples), self.scale)
         eigenvalues = np.linalg.eigvalsh((posterior + posterior.T) / 2)
         cond = float(np.sqrt(eigenvalues[-1] / eigenvalues[0])) if eigenvalues[0] > 0 else float("inf")
         return {"cost": LogDet().value(posterior), "cond": cond, "criterion": self.criterion.value(posterior)}
