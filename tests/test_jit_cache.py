@@ -13,7 +13,7 @@ import pytest
 
 import oed.design_solver
 from dynamics.compiled import find_compiler
-from dynamics.jit_cache import cached_jit, derivative_source, jit_directory, library_path
+from dynamics.jit_cache import cached_jit, jit_directory, library_path
 from dynamics.robots import load_robot
 from oed.design import DesignSettings, ExcitationDesign, design_excitation
 
@@ -98,7 +98,7 @@ def test_failures_return_none(private_cache, tmp_path, monkeypatch):
 def test_a_damaged_library_is_not_loaded(private_cache):
     # (never overwrite a library this process has loaded: it is mapped into memory, hence os.replace)
     function = toy_function("damaged_information")
-    library = library_path(function.name(), derivative_source(function), find_compiler(), jit_directory())
+    library = library_path(function, find_compiler(), jit_directory())
     library.parent.mkdir(parents=True)
     library.write_bytes(b"not a shared library")
     assert cached_jit(function) is None
