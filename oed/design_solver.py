@@ -3,7 +3,8 @@
 - :func:`sampled_information` sums ``Y_b(q_k, dq_k, ddq_k)ᵀ Y_b(·)`` over the cost samples inside one
   compiled, mapped per-sample function that returns only the upper triangle (the symmetric half).
   The sum is a ``map`` reduction, so neither the stacked ``(rows·N) x r`` regressor nor a large
-  matrix product ever appears in the MX graph; its reverse derivative is compiled as well.
+  matrix product ever appears in the MX graph; its derivatives are compiled as well (once, into an
+  on-disk cache that later processes reuse: :mod:`dynamics.jit_cache`).
 - :func:`violation_peaks` picks the samples to add as constraint points after a ``rate_hz`` check.
 - :func:`ipopt_solver` wraps ``casadi.nlpsol("ipopt")`` for an objective with *linear* constraints
   ``lb ≤ A x ≤ ub`` (constant Jacobian), L-BFGS Hessian and the convergence settings of
@@ -31,6 +32,7 @@ import scipy.sparse
 from numpy.typing import NDArray
 
 from dynamics.compiled import find_compiler
+from dynamics.jit_cache import cached_jit
 
 #: re-solves after adding constraint points start from the previous primal-dual point
 WARM_START = {"warm_start_init_point": "yes", "warm_start_bound_push": 1e-9, "warm_start_mult_bound_push": 1e-9,
@@ -71,14 +73,19 @@ def sampled_information(base_regressor: casadi.Function, states: list[casadi.MX]
     states
         ``q, dq, ddq`` as ``n x N`` MX matrices (one column per cost sample).
     jit
-        Compile the per-sample function (and its derivatives) with the system C compiler.
+        Compile the per-sample function and its forward/reverse derivatives with the system C
+        compiler, once into the on-disk cache of :func:`dynamics.jit_cache.cached_jit` (later
+        builds, in any process, load the library); if that fails, with CasADi's JIT.
     """
     n, samples = states[0].shape
     q, dq, ddq = (casadi.SX.sym(name, n) for name in ("q", "dq", "ddq"))
     Y = base_regressor(q, dq, ddq)
     upper = casadi.triu(casadi.mtimes(Y.T, Y))  # only the symmetric half is computed
-    per_sample = casadi.Function("sample_information", [q, dq, ddq], [upper], ["q", "dq", "ddq"], ["M_upper"],
-                                 jit_options() if jit else {})
+    per_sample = casadi.Function("sample_information", [q, dq, ddq], [upper], ["q", "dq", "ddq"], ["M_upper"])
+    if jit:
+        cached = cached_jit(per_sample)
+        per_sample = cached.function if cached is not None else casadi.Function(
+            "sample_information", [q, dq, ddq], [upper], ["q", "dq", "ddq"], ["M_upper"], jit_options())
     summed = per_sample.map("information_sum", "serial", samples, [], [0])(*states)
     return summed + casadi.triu(summed, False).T
 
