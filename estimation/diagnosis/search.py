@@ -55,13 +55,13 @@ from dynamics.runtime.threads import single_threaded_blas
 from estimation.diagnosis.candidates.trials import candidate_label
 from estimation.diagnosis.candidates.coupling import coupling_candidates
 from estimation.diagnosis.candidates.delay_search import DelaySearch
-from estimation.diagnosis.final_refit import refit_found
+from estimation.diagnosis.final_refit import refit_significant
 from estimation.diagnosis.forward_selection import DiagnosisSearch, SearchOutcome, SearchSettings, candidate_blocks
 from estimation.diagnosis.record_fits import RecordFits, declared_regressor
 from estimation.diagnosis.results import Diagnosis, FoundEffect, RejectedEffect, found_delay, found_effect
 from estimation.diagnosis.selection_rules import candidate_groups
 from estimation.diagnosis.statistics import floor_for_validation, residual_report
-from estimation.diagnosis.stopping_rules import SearchState, floor_stopping_rule, provisional_stopping_rule
+from estimation.diagnosis.stopping_rules import SearchState, provisional_stopping_rule
 from estimation.estimators.effect_blocks import Block, States, effect_columns, effect_rows
 from estimation.identification.fit import IdentificationResult, identify
 from estimation.preprocessing.delay import DelayBounds
@@ -160,8 +160,10 @@ def diagnose(
     max_effects
         Most effects added.
     stopping_rule
-        ``rule(SearchState) -> bool``: keep searching while it says ``True`` (default:
-        :func:`floor_stopping_rule` when a noise floor is had, else :func:`provisional_stopping_rule`).
+        ``rule(SearchState) -> bool``: keep searching while it says ``True`` (default
+        :func:`provisional_stopping_rule`: until no move is significant and confirmed;
+        :func:`estimation.diagnosis.stopping_rules.floor_stopping_rule` stops once no channel is
+        significantly above its noise floor, sooner but blind to an effect smaller than that test sees).
     delay
         Where a delay between torques and motion is searched as a candidate (one for the records,
         :mod:`estimation.diagnosis.candidates.delay`); ``None``: not tried.
@@ -175,19 +177,20 @@ def diagnose(
     them), along the derived motion.
     """
     candidates = _checked_candidates(model, train, validate, candidates, alpha, min_improvement)
-    floor, _ = floor_for_validation(validate, model.channels, noise_floor)
+    floor_for_validation(validate, model.channels, noise_floor)  # a floor of the wrong kind refused before the search
     if stopping_rule is None:
-        stopping_rule = provisional_stopping_rule if floor is None else floor_stopping_rule(floor)
+        stopping_rule = provisional_stopping_rule
     before = identify(model, train, validate)
     weights = before.estimate.weights if before.estimate.method == "wls" else 1.0 / before.estimate.channel_variance
     # errors against the channels as recorded, along the derived motion
-    fits = RecordFits(model, declared_regressor(model, before), train, validate.as_recorded, delay, stopping_rule)
+    fits = RecordFits(model, declared_regressor(model, before), train, validate.as_recorded, delay, stopping_rule,
+                      shaped=before.shaped_fit is not None)
     blocks, rejected = candidate_blocks(model, candidates)
     settings = SearchSettings(alpha, min_improvement, max_effects, len(candidates) + (delay is not None),  # the delay too
                               same_effect_adopted=True)
     outcome = DiagnosisSearch(model, blocks, rejected, fits, weights, settings).run()
     return _diagnosis(model, before, outcome, blocks, fits.delay, train, validate, noise_floor, len(candidates),
-                      min_improvement)
+                      settings)
 
 
 def _checked_candidates(model: IdentificationModel, train: Measurements, validate: Measurements,
@@ -212,12 +215,17 @@ def _checked_candidates(model: IdentificationModel, train: Measurements, validat
 
 def _diagnosis(model: IdentificationModel, before: IdentificationResult, outcome: SearchOutcome,
                blocks: dict[int, Block], moved: DelaySearch, train: Measurements, validate: Measurements,
-               noise_floor: NoiseFloor | None, n_candidates: int, min_improvement: float) -> Diagnosis:
+               noise_floor: NoiseFloor | None, n_candidates: int, settings: SearchSettings) -> Diagnosis:
     """Step 5: the joint refit of what the search adopted (the delay searched again along the records
-    as given), the terms it pinned and the delay not adopted reported with the rejected candidates."""
-    selected, after, pinned = refit_found(model, before, outcome.adopted, moved, train, validate, outcome.weights,
-                                          outcome.current.validation_error, min_improvement)
+    as given), findings within their noise there dropped; the terms it pinned, the findings dropped and
+    the delay not adopted reported with the rejected candidates."""
+    selected, after, pinned, dropped = refit_significant(model, before, outcome.adopted, moved, train, validate,
+                                                         outcome.weights, outcome.current.validation_error,
+                                                         settings.min_improvement, settings.threshold)
     rejected = dict(outcome.rejected)
+    for item, reason in dropped:
+        rejected[item.index] = RejectedEffect(item.effect.name, effect_channels(item.effect, model), reason,
+                                              candidate_label(item.effect))
     for position, term in enumerate(term for term in pinned if term.found):
         effect = next((block.effect for block in blocks.values() if term.parameter in block.names
                        and candidate_label(block.effect) == term.effect), None)  # a law simplified after selection: none

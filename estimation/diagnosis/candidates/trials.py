@@ -35,7 +35,8 @@ SIGNIFICANT_TERM = 3.0
 @dataclass(frozen=True)
 class Trial:
     """A candidate (one effect, or a friction law with its joint's offset) fitted on training data
-    against the current model."""
+    against the current model, or against the current model without the adopted effects ``without``
+    (candidate indices: the laws it would replace)."""
 
     group: tuple[int, ...]
     blocks: tuple[Block, ...]
@@ -44,6 +45,7 @@ class Trial:
     f_statistic: float
     p_value: float
     bic: float
+    without: tuple[int, ...] = ()
 
     def coefficients(self, position: int) -> NDArray[np.float64]:
         """The linear coefficients of the ``position``-th block."""
@@ -102,9 +104,12 @@ def weighted_error(fixed: FixedPart, blocks: Sequence[Block], states: States, sh
     return float(weights @ np.mean(residual**2, axis=1)), residual
 
 
-def wrong_sign(trial: Trial) -> str | None:
+def wrong_sign(trial: Trial, std: NDArray[np.float64] | None = None) -> str | None:
     """Why a candidate's estimate is not that effect, or ``None``: a friction law or armature
-    estimated negative, a negative stiffness, a shape parameter stopped at its bound."""
+    estimated negative, a negative stiffness, a term of a several-term law within :data:`SIGNIFICANT_TERM`
+    standard deviations of zero (``std``: the standard deviations of the trial's linear coefficients,
+    block by block; default the fit's own), a shape parameter stopped at its bound."""
+    stops = np.cumsum([block.n_linear for block in trial.blocks])
     for position, block in enumerate(trial.blocks):
         name = block.effect.name
         coefficients = trial.coefficients(position)
@@ -112,8 +117,9 @@ def wrong_sign(trial: Trial) -> str | None:
             if np.any(np.asarray(coefficients) <= 0):
                 return f"{candidate_label(block.effect)} is estimated with a non-physical sign (a friction or inertia below zero)"
             if coefficients.shape[0] > 1:  # a law with several terms (Stribeck: fc, fs) needs each of them
-                std = trial.coefficient_std(position)
-                weak = [f"{term} = {value:.3g} ± {sigma:.2g}" for term, value, sigma in zip(block.names, coefficients, std)
+                term_std = (trial.coefficient_std(position) if std is None
+                            else std[stops[position] - block.n_linear: stops[position]])
+                weak = [f"{term} = {value:.3g} ± {sigma:.2g}" for term, value, sigma in zip(block.names, coefficients, term_std)
                         if value < SIGNIFICANT_TERM * sigma]
                 if weak:
                     return (f"its term {', '.join(weak)} is not significantly above zero: a law with fewer terms "
