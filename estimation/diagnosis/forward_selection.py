@@ -47,7 +47,8 @@ from estimation.diagnosis.candidates.coupling import combination_groups
 from estimation.diagnosis.candidates.delay import DelayTrial
 from estimation.diagnosis.results import RejectedEffect
 from estimation.diagnosis.robust_test import WaldTest
-from estimation.diagnosis.search_moves import declared_conflict, move_bic, removable, replaced_by, tie_key
+from estimation.diagnosis.search_moves import (declared_conflict, move_bic, removable, replaced_by, replaced_in_place,
+                                               tie_key)
 from estimation.diagnosis.selection_rules import candidate_groups, offsets_beat_springs
 from estimation.estimators.effect_blocks import Block, NoRowsError
 
@@ -293,6 +294,22 @@ class DiagnosisSearch:
                     self.verdicts[group[0]] = reason
                 continue
             trials.append(reason)
+        return trials + self.refreshed(reduced)
+
+    def refreshed(self, reduced: dict[tuple[int, ...], float]) -> list[Trial]:
+        """Each adopted shaped law fitted again in its own place (the current model without it): the
+        shape it was adopted at was fitted against the model of that moment, and a law that would replace
+        it must do better than it refitted, not than it stale."""
+        trials = []
+        for item in self.adopted:
+            if not item.block.n_shape:
+                continue
+            without = (item.index,)
+            if without not in reduced:
+                reduced[without] = self.fits.fit_current(self.weights, without).rss
+            outcome = self.fits.trial(without, [item.block], self.weights, reduced[without], without)
+            if not isinstance(outcome, str):
+                trials.append(outcome)
         return trials
 
     def after_key(self, group: tuple[int, ...], without: tuple[int, ...]) -> tuple[frozenset[int], bool]:
@@ -365,12 +382,12 @@ class DiagnosisSearch:
             comparison, wald = outcome
             label = " + ".join(candidate_label(block.effect) for block in trial.blocks)
             for item in self.adopted:
-                if item.index in trial.without:
+                if item.index in trial.without and item.index not in trial.group:
                     self.verdicts[item.index] = f"replaced by {label} (validation {comparison.current_error:.4g} -> " \
                                                 f"{comparison.error:.4g})"
-            self.adopted = [item for item in self.adopted if item.index not in trial.without] + [
-                AdoptedEffect(index, block, shape, wald.p_value, wald.f_statistic)
-                for index, block, shape in zip(trial.group, trial.blocks, trial.shapes())]
+            added = [AdoptedEffect(index, block, shape, wald.p_value, wald.f_statistic)
+                     for index, block, shape in zip(trial.group, trial.blocks, trial.shapes())]
+            self.adopted = replaced_in_place(self.adopted, trial.without, added)
             self.weights = comparison.weights
             if trial.without:
                 self.failed.clear()  # columns left the model: what they absorbed may be identifiable again

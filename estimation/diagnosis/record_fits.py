@@ -1,13 +1,16 @@
 """The in-memory diagnosis's fits (:class:`estimation.diagnosis.forward_selection.Fits` on the records).
 
 The current model's columns on each record are a :class:`~estimation.estimators.variable_projection.FixedPart`
-(per-channel Gram matrices), extended by each adopted block at its shape. A candidate is fitted
-against them by :func:`estimation.diagnosis.candidates.trials.fit_or_reason` (the linear solve, or
+(per-channel Gram matrices): the declared model's columns and each adopted block at its shape; the
+model without an adopted effect (a replacement's or a removal's) is built the same way. A candidate is
+fitted against them by :func:`estimation.diagnosis.candidates.trials.fit_or_reason` (the linear solve, or
 variable projection for a shaped law): in the first round every shape is searched from its grid,
 later rounds screen it at its last optimum and search again only the :data:`SCREEN_REFINED` best and
 the one the residual tracing ranks first (:mod:`estimation.diagnosis.traced_refinement`). The delay
 between torques and motion is a candidate here too (:class:`estimation.diagnosis.candidates.delay_search.DelaySearch`):
-once adopted, the records move by it.
+once adopted, the records move by it. The Wald tests of the search are from the HAC covariance of the
+declared columns plus the blocks at their shapes, shape directions included
+(:func:`estimation.diagnosis.robust_test.fit_covariance`).
 """
 
 from __future__ import annotations

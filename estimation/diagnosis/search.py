@@ -1,6 +1,6 @@
 """Close the loop on measured data: find what an identified model lacks, add it, report before/after.
 
-Procedure (forward selection on nested linear models):
+Procedure (a search over nested linear models: additions, replacements, removals):
 
 1. Identify the declared model by channel-weighted least squares; its channel weights
    ``w_c = 1/σ_c²`` serve the tests of a round and are re-estimated from the residuals of each
@@ -12,19 +12,25 @@ Procedure (forward selection on nested linear models):
    (:mod:`estimation.diagnosis.candidates.trials`): plain ones by the linear solve on per-channel Gram
    matrices, shaped ones by variable projection (:mod:`estimation.estimators.variable_projection`). A
    candidate the current columns absorb (rank-deficient) is reported as such, never added.
-3. Test the nested models with the F statistic ``F = ((RSS₀ − RSS₁)/q) / (RSS₁/(N m − p₁))`` on
+3. Screen each candidate by the F statistic ``F = ((RSS₀ − RSS₁)/q) / (RSS₁/(N m − p₁))`` on
    weighted residual sums of squares (``q`` linear plus shape parameters); the threshold is
-   ``alpha`` divided by the number of candidates (Bonferroni). Rank the significant ones by BIC.
-4. The best-ranked candidate is added only if its estimate is physical (friction, armature
-   positive; a spring's stiffness positive, and a spring only when it explains more than an
-   offset on its joint does), no other Coulomb-like law is on its joint, and it lowers the
-   weighted validation error on the held-out data by at least ``min_improvement``, the candidate
-   and the current model both trained and compared at the weights the candidate's own residuals
-   give (:func:`estimation.diagnosis.confirmation.reweighted_comparison`); then the
-   search repeats while the stopping rule (the noise floor; :func:`provisional_stopping_rule`)
-   allows it. It stops when nothing significant and confirmed remains.
-5. Re-identify the augmented model (all shapes refit jointly, :mod:`estimation.diagnosis.final_refit`)
-   and report the validation MSE per channel before and after.
+   ``alpha`` divided by the number of candidates (Bonferroni). Rank the moves by their BIC against
+   the current model, ties by what they add (never by the order of the candidate list).
+4. The best-ranked move is taken only if the Wald test of its coefficients from the HAC covariance
+   is significant at the same threshold (:mod:`estimation.diagnosis.robust_test`), its estimate is
+   physical (friction, armature positive, each term of a several-term law significant; a spring's
+   stiffness positive, and a spring alone only when it explains more than an offset on its joint
+   does), and it lowers the weighted validation error on the held-out data by at least
+   ``min_improvement``, the move's model and the current model both trained and compared at the
+   weights the move's own residuals give (:func:`estimation.diagnosis.confirmation.reweighted_comparison`).
+   A move adds a candidate, or replaces the Coulomb-like law the search adopted on a joint by another
+   (a law on a joint whose law was declared is refused); before each round an adopted effect is
+   removed when its coefficients are within their noise in the current model or the model validates
+   no worse without it (:mod:`estimation.diagnosis.search_moves`). The search repeats until no move
+   is confirmed (or a user's stopping rule, :func:`provisional_stopping_rule` by default, ends it).
+5. Re-identify the augmented model (all shapes refit jointly, :mod:`estimation.diagnosis.final_refit`),
+   each finding's p-value the Wald test from the covariance its standard deviations come from (a
+   finding not significant there dropped), and report the validation MSE per channel before and after.
 
 Steps 2–4 are one object, :class:`estimation.diagnosis.forward_selection.DiagnosisSearch`, its fits on
 the records in memory (:class:`estimation.diagnosis.record_fits.RecordFits`); the streamed diagnosis
@@ -142,7 +148,7 @@ def diagnose(
     noise_floor: NoiseFloor | None = None,
     delay: DelayBounds | None = DelayBounds(),
 ) -> Diagnosis:
-    """Find, by forward selection, the effects ``model`` lacks in ``train``, confirmed on ``validate``.
+    """Find, by a search over models, the effects ``model`` lacks in ``train``, confirmed on ``validate``.
 
     Parameters
     ----------
@@ -154,7 +160,8 @@ def diagnose(
         Effects to try, plain or shaped (default: :func:`default_candidates` and the joint pairs the
         residual traces, :func:`estimation.diagnosis.candidates.coupling.coupling_candidates`).
     alpha
-        Family-wise significance level of the F test (Bonferroni over the candidates).
+        Family-wise significance level of the tests (Bonferroni over the candidates): the F screen
+        and the Wald test from the HAC covariance.
     min_improvement
         Smallest relative decrease of the weighted validation MSE for an effect to be added.
     max_effects

@@ -28,7 +28,7 @@ from estimation.diagnosis.confirmation import Comparison
 from estimation.diagnosis.robust_test import WaldTest
 from estimation.estimators.effect_blocks import Block
 
-__all__ = ["declared_conflict", "move_bic", "removable", "replaced_by", "tie_key"]
+__all__ = ["declared_conflict", "move_bic", "removable", "replaced_by", "replaced_in_place", "tie_key"]
 
 
 def tie_key(blocks: Iterable[Block]) -> tuple[str, ...]:
@@ -63,6 +63,21 @@ def replaced_by(members: Sequence[Block], adopted: Sequence, model: Identificati
         elif combinations and any(combination_taken(block.effect, (item.effect,)) for block in members):
             replaced.append(item.index)
     return tuple(replaced)
+
+
+def replaced_in_place(adopted: Sequence, without: tuple[int, ...], added: Sequence) -> list:
+    """The adopted effects after a move: the first one replaced (by candidate index ``without``) gives its
+    place to the added ones (the order of the findings stays the order of adoption), the other replaced
+    ones leave; without a replaced one the added ones come last."""
+    kept, placed = [], False
+    for item in adopted:
+        if item.index in without:
+            if not placed:
+                kept.extend(added)
+                placed = True
+            continue
+        kept.append(item)
+    return kept if placed else kept + list(added)
 
 
 def move_bic(rss: float, current_rss: float, added: int, removed: int, n_rows: int) -> float:

@@ -1,4 +1,4 @@
-"""Rules of the forward selection shared by the in-memory and the streamed diagnosis: which candidates
+"""Rules of the search shared by the in-memory and the streamed diagnosis: which candidates
 compete together, which screened shapes are searched again, and when a spring is an offset in disguise."""
 
 from __future__ import annotations

@@ -22,7 +22,7 @@ Passes over the data (each file one task on any ``concurrent.futures.Executor``,
    every candidate's columns (at the fixed shapes), their moments with the prepared channels and
    with the channels as recorded, and the powers (:mod:`estimation.streaming.diagnosis_sums`).
 
-The forward selection is then the in-memory diagnosis's own search
+The search is then the in-memory diagnosis's own search
 (:class:`~estimation.diagnosis.forward_selection.DiagnosisSearch`: F tests, BIC, sign checks,
 spring-versus-offset, confirmation on validation) with its fits taken from the sums
 (:class:`~estimation.streaming.selection.SummedFits`, the noise floor as the stopping rule), and

@@ -1,7 +1,7 @@
 """The streamed diagnosis's fits from accumulated sums (:mod:`estimation.streaming.diagnosis_sums`).
 
 :class:`SummedFits` is the :class:`estimation.diagnosis.forward_selection.Fits` of the streamed
-diagnosis: the forward selection itself, its rules and their wording, are those of the in-memory
+diagnosis: the search itself, its rules and their wording, are those of the in-memory
 diagnosis (:class:`estimation.diagnosis.forward_selection.DiagnosisSearch`, the same object); only the
 fits differ. A candidate's trial is the weighted least-squares solve on the summed per-channel Gram
 matrices of the current columns (without the laws it replaces) and its own, with the nested F test and
