@@ -219,6 +219,7 @@ class DiagnosisSearch:
         self.weights = weights
         self.current = fits.fit_current(weights)
         self.visited = {self.key(())}
+        self.baselines: dict[tuple[int, ...], Trial] = {}  # this round's adopted laws refitted in their places
         self.rounds = 0
         self.stopped_at_floor = False
 
@@ -297,9 +298,9 @@ class DiagnosisSearch:
         return trials + self.refreshed(reduced)
 
     def refreshed(self, reduced: dict[tuple[int, ...], float]) -> list[Trial]:
-        """Each adopted shaped law fitted again in its own place (the current model without it): the
-        shape it was adopted at was fitted against the model of that moment, and a law that would replace
-        it must do better than it refitted, not than it stale."""
+        """Each adopted shaped law fitted again in its own place (the current model without it), the
+        baseline of the laws that would replace it: its shape was fitted against the model of the moment
+        it was adopted, and a replacement must do better than it refitted, not than it stale."""
         trials = []
         for item in self.adopted:
             if not item.block.n_shape:
@@ -325,9 +326,13 @@ class DiagnosisSearch:
 
     def choose(self, trials: list[Trial | DelayTrial], springs_beaten: dict[tuple[int, ...], str]
                ) -> tuple[Trial | DelayTrial, Any] | None:
-        """The best-ranked significant trial confirmed on validation, with its comparison."""
+        """The best-ranked significant trial confirmed on validation, with its comparison (a replacement
+        also against the law it replaces refitted in its place: :meth:`refreshed`)."""
+        self.baselines = {trial.group: trial for trial in trials
+                          if not isinstance(trial, DelayTrial) and trial.without and trial.group == trial.without}
         for trial in sorted(trials, key=self.rank):
-            if trial.p_value >= self.settings.threshold:
+            if trial.p_value >= self.settings.threshold or (not isinstance(trial, DelayTrial)
+                                                            and trial.group in self.baselines):
                 continue
             if isinstance(trial, DelayTrial):
                 if self.n_effects + 1 > self.settings.max_effects:
@@ -363,12 +368,30 @@ class DiagnosisSearch:
             change = ("raises the validation error" if error > current_error else
                       f"lowers the validation error by less than {100 * min_improvement:g} %")
             return text + f"{change} ({current_error:.4g} -> {error:.4g})"
+        beaten = self.beaten_by_baseline(trial, error / current_error)
+        if beaten:
+            return text + beaten
         # a trade between channels (a pair acting on two rows, say) is not a confirmed effect
         worse = channels_made_worse(trial, comparison.current_residual, comparison.residual, min_improvement,
                                     self.model, self.replaced_blocks(trial))
         if worse:
             return text + f"raises the validation error of {worse}"
         return comparison, tested.wald
+
+    def beaten_by_baseline(self, trial: Trial, ratio: float) -> str | None:
+        """Why a replacement is not confirmed against the law it replaces refitted in its place (its
+        validation error over the current model's must be ``min_improvement`` lower than the refitted
+        law's), or ``None``."""
+        for index in trial.without:
+            baseline = self.baselines.get((index,))
+            if baseline is None:
+                continue
+            comparison = self.fits.compare(baseline, self.weights)
+            reference = comparison.error / comparison.current_error
+            if ratio >= (1.0 - self.settings.min_improvement) * reference:
+                return (f"validates no better than the law it would replace refitted in its place (validation over "
+                        f"the current model's {ratio:.4g} against {reference:.4g})")
+        return None
 
     def replaced_blocks(self, trial: Trial) -> tuple[Block, ...]:
         return tuple(item.block for item in self.adopted if item.index in trial.without)
