@@ -13,7 +13,8 @@ from dynamics.models import build_model
 from dynamics.robots import load_robot
 from estimation.diagnosis.candidates.trials import Trial
 from estimation.diagnosis.confirmation import Comparison
-from estimation.diagnosis.forward_selection import DiagnosisSearch, SearchSettings, TrialTest, candidate_blocks
+from estimation.diagnosis.forward_selection import DiagnosisSearch, SearchSettings, candidate_blocks
+from estimation.diagnosis.search_fits import TrialTest
 from estimation.diagnosis.robust_test import WaldTest
 from estimation.estimators.variable_projection import ShapeFit
 

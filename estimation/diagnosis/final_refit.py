@@ -22,7 +22,7 @@ from dynamics.effects.shaped import shape_parameters
 from estimation.diagnosis.confirmation import simplify_laws, weighted_validation
 from estimation.diagnosis.candidates.delay_search import with_delay
 from estimation.diagnosis.candidates.trials import candidate_label
-from estimation.diagnosis.forward_selection import AdoptedEffect
+from estimation.diagnosis.search_fits import AdoptedEffect
 from estimation.diagnosis.robust_test import WaldTest, estimate_test
 from estimation.identification.fit import identify
 from estimation.diagnosis.limit_laws import replace_limit_laws

@@ -23,6 +23,8 @@ model of the moment and is reconsidered after each move (a law refused beside an
 without an offset, a candidate the current columns absorbed). The fits themselves come from a
 :class:`Fits` strategy:
 
+(:class:`estimation.diagnosis.search_fits.Fits`):
+
 * :class:`estimation.diagnosis.record_fits.RecordFits`: the records in memory (per-channel Gram
   matrices of the current columns, variable projection of shaped laws, the delay candidate);
 * :class:`estimation.streaming.selection.SummedFits`: summed normal equations of files read in
@@ -33,7 +35,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any, Protocol
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -47,89 +49,15 @@ from estimation.diagnosis.candidates.coupling import combination_groups
 from estimation.diagnosis.candidates.delay import DelayTrial
 from estimation.diagnosis.results import RejectedEffect
 from estimation.diagnosis.robust_test import WaldTest
+from estimation.diagnosis.search_fits import AdoptedEffect, CurrentFit, Fits
 from estimation.diagnosis.search_moves import (declared_conflict, move_bic, removable, replaced_by, replaced_in_place,
                                                tie_key)
 from estimation.diagnosis.selection_rules import candidate_groups, offsets_beat_springs
 from estimation.estimators.effect_blocks import Block, NoRowsError
 
-__all__ = ["AdoptedEffect", "CurrentFit", "DiagnosisSearch", "Fits", "SearchOutcome", "SearchSettings", "TrialTest",
-           "candidate_blocks"]
+__all__ = ["DiagnosisSearch", "SearchOutcome", "SearchSettings", "candidate_blocks"]
 
 STOPPED_AT_FLOOR = "not tested: the stopping rule ended the search (no channel significantly above its noise floor)"
-
-
-@dataclass(frozen=True)
-class AdoptedEffect:
-    """One effect of the current model: candidate ``index``, its column block at ``shape``, and the
-    Wald test of the move that adopted it (p-value, ``W / k``)."""
-
-    index: int
-    block: Block
-    shape: NDArray[np.float64]
-    p_value: float
-    f_statistic: float
-
-    @property
-    def effect(self) -> Effect:
-        return self.block.effect
-
-
-class CurrentFit(Protocol):
-    """The current model fitted on training: its weighted RSS and weighted validation MSE."""
-
-    rss: float
-    validation_error: float
-
-
-@dataclass(frozen=True)
-class TrialTest:
-    """The Wald test of a trial's block from the HAC covariance of its fit
-    (:mod:`estimation.diagnosis.robust_test`), and the standard deviations of the block's linear
-    coefficients from that covariance."""
-
-    wald: WaldTest
-    std: NDArray[np.float64]
-
-
-class Fits(Protocol):
-    """How a search fits column blocks: from the records in memory or from summed normal equations.
-
-    ``without``: candidate indices of adopted effects left out of the current model (a replacement's
-    or a removal's model)."""
-
-    @property
-    def n_rows(self) -> int: ...
-
-    def fit_current(self, weights: NDArray[np.float64], without: tuple[int, ...] = ()) -> CurrentFit: ...
-
-    def keep_searching(self, current: CurrentFit, added: tuple[str, ...]) -> bool: ...
-
-    def trial(self, group: tuple[int, ...], members: Sequence[Block], weights: NDArray[np.float64],
-              rss: float, without: tuple[int, ...] = ()) -> Trial | str: ...
-
-    def refine(self, trials: list[Trial], current: CurrentFit, weights: NDArray[np.float64],
-               first_round: bool) -> list[Trial]: ...
-
-    def test(self, trial: Trial, weights: NDArray[np.float64]) -> TrialTest: ...
-
-    def current_tests(self, weights: NDArray[np.float64]) -> dict[int, WaldTest]: ...
-
-    def compare(self, trial: Trial, weights: NDArray[np.float64]) -> Comparison: ...
-
-    def removal(self, without: tuple[int, ...], weights: NDArray[np.float64]) -> Comparison: ...
-
-    def set_model(self, adopted: Sequence[AdoptedEffect]) -> None: ...
-
-    @property
-    def delay_adopted(self) -> bool: ...
-
-    def delay_trials(self, adopted: Sequence[AdoptedEffect], weights: NDArray[np.float64], rss: float,
-                     others: Sequence[Trial]) -> list[DelayTrial]: ...
-
-    def confirm_delay(self, trial: DelayTrial, adopted: Sequence[AdoptedEffect], weights: NDArray[np.float64],
-                      min_improvement: float) -> Any: ...
-
-    def adopt_delay(self, trial: DelayTrial, outcome: Any) -> Comparison: ...
 
 
 @dataclass(frozen=True)

@@ -1,4 +1,4 @@
-"""The in-memory diagnosis's fits (:class:`estimation.diagnosis.forward_selection.Fits` on the records).
+"""The in-memory diagnosis's fits (:class:`estimation.diagnosis.search_fits.Fits` on the records).
 
 The current model's columns on each record are a :class:`~estimation.estimators.variable_projection.FixedPart`
 (per-channel Gram matrices): the declared model's columns and each adopted block at its shape; the
@@ -29,7 +29,7 @@ from estimation.diagnosis.candidates.trials import Trial, fit_or_reason, weighte
 from estimation.diagnosis.confirmation import Comparison, removal_comparison, reweighted_comparison
 from estimation.diagnosis.candidates.delay import DelayComparison, DelayTrial, Regressor
 from estimation.diagnosis.candidates.delay_search import DelaySearch
-from estimation.diagnosis.forward_selection import AdoptedEffect, TrialTest
+from estimation.diagnosis.search_fits import AdoptedEffect, TrialTest
 from estimation.diagnosis.robust_test import WaldTest, fit_covariance, wald_test
 from estimation.diagnosis.selection_rules import SCREEN_REFINED, refine_best
 from estimation.diagnosis.stopping_rules import SearchState

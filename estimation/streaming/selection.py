@@ -1,6 +1,6 @@
 """The streamed diagnosis's fits from accumulated sums (:mod:`estimation.streaming.diagnosis_sums`).
 
-:class:`SummedFits` is the :class:`estimation.diagnosis.forward_selection.Fits` of the streamed
+:class:`SummedFits` is the :class:`estimation.diagnosis.search_fits.Fits` of the streamed
 diagnosis: the search itself, its rules and their wording, are those of the in-memory
 diagnosis (:class:`estimation.diagnosis.forward_selection.DiagnosisSearch`, the same object); only the
 fits differ. A candidate's trial is the weighted least-squares solve on the summed per-channel Gram
@@ -41,7 +41,7 @@ from dynamics.models import IdentificationModel
 from estimation.diagnosis.candidates.trials import SIGNIFICANT_TERM, Trial, nested_test
 from estimation.diagnosis.confirmation import REWEIGHTING_PASSES, Comparison
 from estimation.diagnosis.candidates.delay import DelayTrial
-from estimation.diagnosis.forward_selection import AdoptedEffect, TrialTest
+from estimation.diagnosis.search_fits import AdoptedEffect, TrialTest
 from estimation.diagnosis.robust_test import WaldTest, wald_test
 from estimation.diagnosis.statistics import FLOOR_ALPHA
 from estimation.estimators.effect_blocks import Block
