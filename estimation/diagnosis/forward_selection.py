@@ -280,13 +280,10 @@ class DiagnosisSearch:
     def confirm(self, trial: Trial, springs_beaten: dict[tuple[int, ...], str]
                 ) -> tuple[Comparison, WaldTest] | str:
         """The comparison on validation (both models trained at the weights the candidate's residuals
-        give) and the robust test when the trial is significant by it, physical and confirmed, else why not."""
-        tested = self.fits.test(trial, self.weights)
+        give) and the robust test when the trial is physical, confirmed and significant by that test, else
+        why not (the robust test, the costliest, last)."""
         text = f"significant on training (p = {trial.p_value:.2g}) but "
-        if tested.wald.p_value >= self.settings.threshold:
-            return (f"not significant: its coefficients are within their noise (Wald p = {tested.wald.p_value:.2g} "
-                    f"from the HAC covariance; the F test of white residuals gave p = {trial.p_value:.2g})")
-        reason = wrong_sign(trial, tested.std) or springs_beaten.get(trial.group)
+        reason = wrong_sign(trial) or springs_beaten.get(trial.group)
         if reason is not None:
             return text + reason
         comparison = self.fits.compare(trial, self.weights)
@@ -304,6 +301,13 @@ class DiagnosisSearch:
                                     self.model, self.replaced_blocks(trial))
         if worse:
             return text + f"raises the validation error of {worse}"
+        tested = self.fits.test(trial, self.weights)
+        if tested.wald.p_value >= self.settings.threshold:
+            return (f"not significant: its coefficients are within their noise (Wald p = {tested.wald.p_value:.2g} "
+                    f"from the HAC covariance; the F test of white residuals gave p = {trial.p_value:.2g})")
+        reason = wrong_sign(trial, tested.std)  # each term of a several-term law, against its HAC standard deviation
+        if reason is not None:
+            return text + reason
         return comparison, tested.wald
 
     def beaten_by_baseline(self, trial: Trial, ratio: float) -> str | None:

@@ -65,6 +65,12 @@ def declared_regressor(model: IdentificationModel, before: IdentificationResult)
     return functools.partial(_base_regressor, model)
 
 
+def _kept(fixed: FixedPart, columns: Sequence[int]) -> FixedPart:
+    """``fixed`` with only ``columns`` (their Gram matrices and moments taken, not formed again)."""
+    return FixedPart(fixed.A[:, :, columns], fixed.y, fixed.gram[:, columns][:, :, columns], fixed.moment[:, columns],
+                     fixed.power)
+
+
 class RecordFits:
     """Fits of column blocks on the training record and errors on the validation record (as recorded).
 
@@ -108,12 +114,15 @@ class RecordFits:
         return self.fixed_train.n_rows
 
     def _columns(self, without: tuple[int, ...] = ()) -> tuple[FixedPart, FixedPart]:
-        """The (training, validation) columns of the current model without the adopted ``without``."""
+        """The (training, validation) columns of the current model without the adopted ``without`` (the
+        current model's columns, their Gram matrices and moments with those of ``without`` left out)."""
         if without not in self.reduced:
-            kept = [item for item in self.adopted if item.index not in without]
-            self.reduced[without] = tuple(self._fixed(base, states, kept) for base, states in
-                                          ((self.base_train, self.states_train),
-                                           (self.base_validate, self.states_validate)))
+            keep, start = list(range(self.base_train[0].shape[2])), self.base_train[0].shape[2]
+            for item in self.adopted:
+                if item.index not in without:
+                    keep.extend(range(start, start + item.block.n_linear))
+                start += item.block.n_linear
+            self.reduced[without] = tuple(_kept(fixed, keep) for fixed in self.reduced[()])
         return self.reduced[without]
 
     def _fixed(self, base, states: States, adopted: Sequence[AdoptedEffect]) -> FixedPart:
@@ -128,8 +137,9 @@ class RecordFits:
     def set_model(self, adopted: Sequence[AdoptedEffect]) -> None:
         """The current model: the declared columns and the adopted blocks at their shapes."""
         self.adopted = tuple(adopted)
-        self.reduced: dict[tuple[int, ...], tuple[FixedPart, FixedPart]] = {}
-        self.fixed_train, self.fixed_validate = self._columns()
+        self.fixed_train, self.fixed_validate = (self._fixed(self.base_train, self.states_train, self.adopted),
+                                                 self._fixed(self.base_validate, self.states_validate, self.adopted))
+        self.reduced: dict[tuple[int, ...], tuple[FixedPart, FixedPart]] = {(): (self.fixed_train, self.fixed_validate)}
 
     def fit_current(self, weights: NDArray[np.float64], without: tuple[int, ...] = ()) -> RecordFit:
         fixed_train, fixed_validate = self._columns(without)
