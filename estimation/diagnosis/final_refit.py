@@ -15,6 +15,7 @@ dropped and the rest refitted, until every finding is significant).
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Sequence
 
 from dynamics.models import build_model
@@ -24,7 +25,7 @@ from estimation.diagnosis.candidates.delay_search import with_delay
 from estimation.diagnosis.candidates.trials import candidate_label
 from estimation.diagnosis.search_fits import AdoptedEffect
 from estimation.diagnosis.robust_test import WaldTest, estimate_test
-from estimation.identification.fit import identify
+from estimation.identification.fit import ImplausibleEstimateWarning, identify
 from estimation.diagnosis.limit_laws import replace_limit_laws
 from estimation.preprocessing.delay import delayed
 from estimation.diagnosis.sign_constraints import pin_wrong_signs
@@ -88,8 +89,10 @@ def refit_significant(model, before, adopted: Sequence[AdoptedEffect], moved, tr
     effect, reason)]``."""
     adopted, dropped = list(adopted), []
     while True:
-        selected, after, pinned = refit_found(model, before, adopted, moved, train, validate, weights,
-                                              validation_error, min_improvement)
+        with warnings.catch_warnings():  # the refits before the signs are held pass through negative friction;
+            warnings.simplefilter("ignore", ImplausibleEstimateWarning)  # what remains is in after.warnings
+            selected, after, pinned = refit_found(model, before, adopted, moved, train, validate, weights,
+                                                  validation_error, min_improvement)
         tested = _tested(selected, after, model)
         weak = sorted(((test.statistic, candidate_label(effect), effect, test) for effect, test in tested
                        if test.p_value >= threshold), key=lambda entry: entry[:2])

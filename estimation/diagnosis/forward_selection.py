@@ -6,8 +6,8 @@ sign law, ``coulomb:tanh``, ``stribeck:velocity``, ``sigmoid``) plus offset, spr
 and the delay. :class:`DiagnosisSearch` moves between such models (steps 2–4 of
 :mod:`estimation.diagnosis.search`):
 
-* **remove** an adopted effect whose coefficients are within their noise in the current model, or
-  without which the model validates no worse (:func:`estimation.diagnosis.search_moves.removable`);
+* **remove** an adopted effect whose coefficients are within their noise in the current model
+  (:func:`estimation.diagnosis.search_moves.removable`);
 * **add** a candidate group, or **replace** an adopted law by another on its joint
   (:func:`estimation.diagnosis.search_moves.replaced_by`): each group is fitted against the current model
   (without the law it replaces), screened by the nested F test at a Bonferroni threshold, ranked by its
@@ -18,8 +18,9 @@ and the delay. :class:`DiagnosisSearch` moves between such models (steps 2–4 o
   offset in disguise) and it lowers the weighted validation error of the current model by
   ``min_improvement`` without making a channel it acts on worse;
 
-until no move improves the model; a model once left is never returned to. Every verdict is against the
-model of the moment and is reconsidered after each move (a law refused beside another, a spring
+until no move improves the model; a model once left is never returned to, nor a candidate that left the
+model (so that the search ends: at most two moves a candidate). Every verdict is against the model of the
+moment and is reconsidered after each move (a law refused beside another, a spring
 without an offset, a candidate the current columns absorbed). The fits themselves come from a
 :class:`Fits` strategy:
 
@@ -148,6 +149,7 @@ class DiagnosisSearch:
         self.current = fits.fit_current(weights)
         self.visited = {self.key(())}
         self.baselines: dict[tuple[int, ...], Trial] = {}  # this round's adopted laws refitted in their places
+        self.departed: set[int] = set()  # candidates removed or replaced
         self.rounds = 0
         self.stopped_at_floor = False
 
@@ -201,8 +203,8 @@ class DiagnosisSearch:
         would replace (a lone candidate that cannot be gets the reason as its verdict)."""
         trials, reduced = [], {}
         for group in self.groups:
-            if any(index in self.rejected for index in group) or self.in_model(group):
-                continue
+            if any(index in self.rejected or index in self.departed for index in group) or self.in_model(group):
+                continue  # a candidate that left the model does not return: the search ends
             members = [self.blocks[index] for index in group]
             reason = declared_conflict(members, self.model, self.friction_joints, self.settings.combinations)
             without = replaced_by(members, self.adopted, self.model, self.settings.combinations)
@@ -336,6 +338,7 @@ class DiagnosisSearch:
         else:
             comparison, wald = outcome
             label = " + ".join(candidate_label(block.effect) for block in trial.blocks)
+            self.departed |= set(trial.without)
             for item in self.adopted:
                 if item.index in trial.without and item.index not in trial.group:
                     self.verdicts[item.index] = f"replaced by {label} (validation {comparison.current_error:.4g} -> " \
@@ -354,25 +357,26 @@ class DiagnosisSearch:
         self.visited.add(self.key(item.index for item in self.adopted))
 
     def remove_one(self) -> bool:
-        """Remove the weakest adopted effect that :func:`removable` lets go (the lowest Wald statistic
-        first), if any; ``True`` when one was."""
+        """Remove the weakest adopted effect that :func:`removable` lets go (the highest Wald p-value
+        first), if any, the weights re-estimated from the model without it; ``True`` when one was."""
         if not self.adopted:
             return False
         tests = self.fits.current_tests(self.weights)
-        weakest = sorted(self.adopted, key=lambda item: (tests[item.index].statistic, tie_key((item.block,))))
+        weakest = sorted(self.adopted, key=lambda item: (-tests[item.index].p_value, tests[item.index].statistic,
+                                                          tie_key((item.block,))))
         for item in weakest:
-            remaining = {other.index for other in self.adopted} - {item.index}
-            if self.key(remaining) in self.visited:
+            reason = removable(tests[item.index], self.settings.threshold)
+            if reason is None:
+                break  # the weakest is significant: so are the others
+            if self.key({other.index for other in self.adopted} - {item.index}) in self.visited:
                 continue
-            comparison = self.fits.removal((item.index,), self.weights)
-            reason = removable(tests[item.index], comparison, self.settings.threshold)
-            if reason is not None:
-                self.verdicts[item.index] = reason
-                self.adopted = [other for other in self.adopted if other.index != item.index]
-                self.weights = comparison.weights
-                self.failed.clear()
-                self.moved()
-                return True
+            self.weights = self.fits.removal((item.index,), self.weights).weights
+            self.verdicts[item.index] = reason
+            self.departed.add(item.index)
+            self.adopted = [other for other in self.adopted if other.index != item.index]
+            self.failed.clear()
+            self.moved()
+            return True
         return False
 
     def reject(self, index: int, reason: str) -> None:

@@ -10,8 +10,8 @@ against the current model without the law it replaces, its block tested in that 
 current model.
 
 An adopted effect is removed (:func:`removable`) when, in the current model, its coefficients are
-within their noise (the Wald test of :mod:`estimation.diagnosis.robust_test` not significant) or the
-model without it validates no worse: what later adoptions made redundant does not stay.
+within their noise (the Wald test of :mod:`estimation.diagnosis.robust_test` not significant): what later
+adoptions made redundant does not stay.
 """
 
 from __future__ import annotations
@@ -24,7 +24,6 @@ from dynamics.effects.shaped import FRICTION_LAWS
 from dynamics.models import IdentificationModel
 from estimation.diagnosis.candidates.coupling import combination_taken
 from estimation.diagnosis.candidates.trials import joints_of
-from estimation.diagnosis.confirmation import Comparison
 from estimation.diagnosis.robust_test import WaldTest
 from estimation.estimators.effect_blocks import Block
 
@@ -86,13 +85,14 @@ def move_bic(rss: float, current_rss: float, added: int, removed: int, n_rows: i
     return float(n_rows * np.log(max(rss, 1e-300) / max(current_rss, 1e-300)) + (added - removed) * np.log(n_rows))
 
 
-def removable(test: WaldTest, comparison: Comparison, threshold: float) -> str | None:
+def removable(test: WaldTest, threshold: float) -> str | None:
     """Why an adopted effect leaves the current model, or ``None``: its coefficients within their noise
-    (Wald test at ``threshold``), or the model without it validating no worse."""
+    there (the Wald test of its HAC covariance not significant at ``threshold``).
+
+    Only the statistic that adopted it: a held-out comparison judged at the weights of the model without
+    the effect (not those of the model that adopted it) let effects leave and come back in turn on the
+    KUKA LWR4+ records."""
     if test.p_value >= threshold:
         return (f"removed: in the current model its coefficients are within their noise (Wald p = "
                 f"{test.p_value:.2g} from the HAC covariance)")
-    if comparison.error <= comparison.current_error:
-        return (f"removed: the current model validates no worse without it ({comparison.current_error:.4g} -> "
-                f"{comparison.error:.4g})")
     return None
