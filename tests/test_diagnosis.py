@@ -8,6 +8,8 @@ from dynamics.effects.linear import CoulombFriction
 from dynamics.models import build_model
 from dynamics.robots import load_robot
 from estimation.diagnosis.search import diagnose, provisional_stopping_rule
+from estimation.diagnosis.statistics import floor_for_validation
+from estimation.diagnosis.stopping_rules import floor_stopping_rule
 from dynamics.simulation.synthetic import simulate, true_parameters
 
 from oed.fourier import random_fourier
@@ -69,10 +71,12 @@ def test_clean_data_gets_nothing_added(robot):
     assert diagnosis.to_dict()["effects"] == []
 
 
-def test_clean_data_at_the_floor_is_not_searched(robot):
+def test_clean_data_at_the_floor_are_not_searched_under_the_floor_rule(robot):
+    # the search runs until no move is confirmed; the floor rule, when asked for, ends it at the floor
     truth = build_model(robot, "internal", "viscous")
     train, validate = _experiments(truth, true_parameters(truth, seed=6))
-    diagnosis = diagnose(truth, train, validate)
+    floor, _ = floor_for_validation(validate, truth.channels)
+    diagnosis = diagnose(truth, train, validate, stopping_rule=floor_stopping_rule(floor))
     assert diagnosis.statistics.floor is not None
     assert diagnosis.effects == ()
     assert all("noise floor" in rejected.reason for rejected in diagnosis.rejected if rejected.reason.startswith("not tested"))
@@ -83,8 +87,8 @@ def test_absorbed_candidates_are_reported_not_added(robot):
     declared = build_model(robot, "internal", "viscous")
     truth = build_model(robot, "internal", "viscous")
     train, validate = _experiments(truth, true_parameters(truth, seed=6))
-    # clean data sit at their noise floor, where the floor rule ends the search before any candidate is
-    # fitted (test_clean_data_at_the_floor_is_not_searched); without it every candidate is tried
+    # clean data sit at their noise floor, where the floor rule would end the search before any candidate
+    # is fitted (test_clean_data_at_the_floor_are_not_searched_under_the_floor_rule); without it every one is tried
     diagnosis = diagnose(declared, train, validate, stopping_rule=provisional_stopping_rule)
     reasons = {(r.name, r.channels): r.reason for r in diagnosis.rejected}
     # joint 1's axis is vertical and joint 2's armature merges with Izz2R: the base parameters absorb them

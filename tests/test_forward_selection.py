@@ -8,12 +8,14 @@ from dataclasses import dataclass
 import numpy as np
 import pytest
 
-from dynamics.effects.linear import CoulombFriction, JointOffset
+from dynamics.effects.linear import CoulombFriction, JointOffset, StribeckFriction
 from dynamics.models import build_model
 from dynamics.robots import load_robot
 from estimation.diagnosis.candidates.trials import Trial
 from estimation.diagnosis.confirmation import Comparison
 from estimation.diagnosis.forward_selection import DiagnosisSearch, SearchSettings, candidate_blocks
+from estimation.diagnosis.search_fits import TrialTest
+from estimation.diagnosis.robust_test import WaldTest
 from estimation.estimators.variable_projection import ShapeFit
 
 
@@ -24,33 +26,50 @@ class Fit:
 
 
 class PrescribedFits:
-    """Fits whose p-values and validation errors are given per candidate group (the ``Fits`` protocol)."""
+    """Fits whose p-values and validation errors are given per candidate group (the ``Fits`` protocol);
+    ``current_p``: each adopted effect's p-value in the current model once it holds more than one."""
 
-    def __init__(self, p_values: dict, errors: dict) -> None:
-        self.p_values, self.errors, self.extended = p_values, errors, []
+    def __init__(self, p_values: dict, errors: dict, current_p: dict | None = None) -> None:
+        self.p_values, self.errors, self.current_p = p_values, errors, current_p or {}
+        self.extended, self.model = [], ()
         self.delay_adopted = False
+        self.n_rows = 1000
 
-    def fit_current(self, weights):
-        return Fit(10.0 - len(self.extended), 1.0)
+    def fit_current(self, weights, without=()):
+        return Fit(10.0 - len(self.model) + len(without), 1.0)
 
     def keep_searching(self, current, added):
         return True
 
-    def trial(self, group, members, weights, rss):
+    def trial(self, group, members, weights, rss, without=()):
         theta = np.ones(sum(block.n_linear for block in members))
         fit = ShapeFit(np.zeros(0), theta, np.full((theta.size, theta.size), np.nan), rss / 2, (), 0, None)
         p_value = self.p_values.get(group, 1.0)
-        return Trial(group, tuple(members), fit, rss / 2, 100.0, p_value, np.log(p_value + 1e-300))
+        rss = rss * (1.0 + np.log10(p_value) / 100)  # the more significant, the better ranked
+        return Trial(group, tuple(members), fit, rss, 100.0, p_value, np.log(p_value + 1e-300), without)
 
     def refine(self, trials, current, weights, first_round):
         return trials
+
+    def test(self, trial, weights):
+        p_value = self.p_values.get(trial.group, 1.0)
+        return TrialTest(WaldTest(100.0, p_value, 1), np.zeros(trial.fit.theta.size))
+
+    def current_tests(self, weights):
+        return {index: WaldTest(100.0, self.current_p.get(index, 1e-12) if len(self.model) > 1 else 1e-12, 1)
+                for index in self.model}
 
     def compare(self, trial, weights):
         residual = np.full((3, 1), 1.0)
         return Comparison(weights, self.errors.get(trial.group, 0.5), residual, 1.0, residual)
 
-    def extend(self, adopted):
-        self.extended += [item.index for item in adopted]
+    def removal(self, without, weights):
+        residual = np.full((3, 1), 1.0)
+        return Comparison(weights, 2.0, residual, 1.0, residual)
+
+    def set_model(self, adopted):
+        self.model = tuple(item.index for item in adopted)
+        self.extended += [index for index in self.model if index not in self.extended]
 
     def delay_trials(self, adopted, weights, rss, others):
         return []
@@ -107,3 +126,40 @@ def test_a_candidate_given_twice_is_reported_by_each_paths_rule(model, same_effe
     outcome = DiagnosisSearch(model, blocks, rejected, fits, np.ones(3), settings).run()
     assert [item.index for item in outcome.adopted] == [0]
     assert sorted(outcome.rejected) == ([] if same_effect_adopted else [1])
+
+
+def test_an_adopted_law_is_replaced_by_a_better_one_on_its_joint(model):
+    # the sign law is adopted first; the Stribeck law on its joint then replaces it (it validates better)
+    blocks, rejected = candidate_blocks(model, (CoulombFriction(joints=(0,)), StribeckFriction(joints=(0,))))
+    settings = SearchSettings(alpha=1e-3, min_improvement=0.01, max_effects=20, n_tests=2)
+    fits = PrescribedFits({(0,): 1e-12, (1,): 1e-10}, {(0,): 0.5, (1,): 0.5})
+    outcome = DiagnosisSearch(model, blocks, rejected, fits, np.ones(3), settings).run()
+    assert [item.effect.name for item in outcome.adopted] == ["stribeck"]
+    assert outcome.rejected[0].reason.startswith("replaced by stribeck")
+
+
+def test_an_effect_a_later_one_made_redundant_is_removed(model):
+    # the offset is adopted first, the Coulomb law next; beside it the offset is within its noise: removed
+    candidates = (CoulombFriction(joints=(0,)), JointOffset(joints=(0,)), CoulombFriction(joints=(1,)))
+    blocks, rejected = candidate_blocks(model, candidates)
+    settings = SearchSettings(alpha=1e-3, min_improvement=0.01, max_effects=20, n_tests=3)
+    fits = PrescribedFits({(1,): 1e-12, (0,): 1e-10}, {}, current_p={1: 0.5})
+    outcome = DiagnosisSearch(model, blocks, rejected, fits, np.ones(3), settings).run()
+    assert [item.index for item in outcome.adopted] == [0]
+    assert outcome.rejected[1].reason.startswith("removed: in the current model its coefficients are within their "
+                                                 "noise (Wald p = 0.5")
+    assert fits.extended == [1, 0]
+
+
+def test_a_move_is_not_taken_on_the_white_f_test_alone(model):
+    # significant by the F test of white residuals, not by the Wald test of its HAC covariance: not adopted
+    blocks, rejected = candidate_blocks(model, (CoulombFriction(joints=(0,)),))
+    settings = SearchSettings(alpha=1e-3, min_improvement=0.01, max_effects=20, n_tests=1)
+
+    class Robust(PrescribedFits):
+        def test(self, trial, weights):
+            return TrialTest(WaldTest(1.0, 0.3, 1), np.zeros(1))
+
+    outcome = DiagnosisSearch(model, blocks, rejected, Robust({(0,): 1e-12}, {}), np.ones(3), settings).run()
+    assert outcome.adopted == ()
+    assert outcome.rejected[0].reason.startswith("not significant: its coefficients are within their noise (Wald p = 0.3")

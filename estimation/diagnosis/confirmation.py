@@ -20,6 +20,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 from dynamics.effects.linear import CoulombFriction, Effect
@@ -28,7 +29,7 @@ from dynamics.effects.shaped import ShapedStribeckFriction, shape_parameters
 from estimation.diagnosis.candidates.trials import SIGNIFICANT_TERM, Trial, weighted_error
 from estimation.identification.fit import IdentificationResult, identify
 from estimation.estimators.least_squares import channel_variance
-from estimation.estimators.effect_blocks import ShapeSearchError, States
+from estimation.estimators.effect_blocks import Block, ShapeSearchError, States
 from estimation.estimators.separable_least_squares import FixedPart, residuals, solve_linear
 
 #: reweighting passes of a candidate's linear coefficients (the weighted least squares settles in two)
@@ -60,25 +61,45 @@ def settled_weights(fixed: FixedPart, blocks, states: States, shapes, weights: N
 
 
 def reweighted_comparison(trial: Trial, fixed_train: FixedPart, fixed_validate: FixedPart, states_train: States,
-                          states_validate: States, weights: NDArray[np.float64]) -> Comparison:
+                          states_validate: States, weights: NDArray[np.float64],
+                          current: tuple[FixedPart, FixedPart] | None = None) -> Comparison:
     """The candidate and the current model, both trained at the weights the candidate's training
-    residuals give (:func:`settled_weights`), and their weighted validation errors at those weights."""
+    residuals give (:func:`settled_weights`), and their weighted validation errors at those weights.
+    ``fixed_train``, ``fixed_validate``: the columns the candidate joins; ``current``: the current
+    model's (training, validation) columns when they differ (a replacement: the candidate joins the
+    current model without the law it replaces)."""
     shapes = trial.shapes()
     settled = settled_weights(fixed_train, trial.blocks, states_train, shapes, weights)
     candidate = solve_linear(fixed_train, trial.blocks, states_train, shapes, settled)
     error, residual = weighted_error(fixed_validate, trial.blocks, states_validate, shapes, candidate.theta, settled)
-    current = solve_linear(fixed_train, [], states_train, [], settled)
-    current_error, current_residual = weighted_error(fixed_validate, [], states_validate, [], current.theta, settled)
+    current_train, current_validate = (fixed_train, fixed_validate) if current is None else current
+    return _against_current(settled, error, residual, current_train, current_validate)
+
+
+def _against_current(settled: NDArray[np.float64], error: float, residual: NDArray[np.float64],
+                     current_train: FixedPart, current_validate: FixedPart) -> Comparison:
+    current = solve_linear(current_train, [], None, [], settled)
+    current_error, current_residual = weighted_error(current_validate, [], None, [], current.theta, settled)
     return Comparison(settled, error, residual, current_error, current_residual)
 
 
+def removal_comparison(reduced_train: FixedPart, reduced_validate: FixedPart, current_train: FixedPart,
+                       current_validate: FixedPart, weights: NDArray[np.float64]) -> Comparison:
+    """The current model without an adopted effect (``reduced``) against the current model, both trained
+    at the weights the reduced model's training residuals give, as :func:`reweighted_comparison`."""
+    settled = settled_weights(reduced_train, [], None, [], weights)
+    reduced = solve_linear(reduced_train, [], None, [], settled)
+    error, residual = weighted_error(reduced_validate, [], None, [], reduced.theta, settled)
+    return _against_current(settled, error, residual, current_train, current_validate)
+
+
 def channels_made_worse(trial, current: NDArray[np.float64], candidate: NDArray[np.float64], tolerance: float,
-                         model: IdentificationModel) -> str:
-    """The channels a trial's effects act on whose validation MSE it raises by more than ``tolerance``
-    (relative), as ``"tau2 (1.08 -> 1.57)"``; empty when none. ``current``, ``candidate``: ``(m, N)``
-    validation residuals without and with the trial."""
+                         model: IdentificationModel, replaced: Sequence[Block] = ()) -> str:
+    """The channels a trial's effects (and those it replaces) act on whose validation MSE it raises by
+    more than ``tolerance`` (relative), as ``"tau2 (1.08 -> 1.57)"``; empty when none. ``current``,
+    ``candidate``: ``(m, N)`` validation residuals without and with the trial."""
     before, after = np.mean(current**2, axis=1), np.mean(candidate**2, axis=1)
-    rows = sorted({row for block in trial.blocks for row in block.rows})
+    rows = sorted({row for block in tuple(trial.blocks) + tuple(replaced) for row in block.rows})
     return ", ".join(f"{model.channels[row]} ({before[row]:.4g} -> {after[row]:.4g})"
                      for row in rows if after[row] > (1.0 + tolerance) * before[row])
 

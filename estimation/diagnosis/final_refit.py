@@ -6,18 +6,26 @@ bound or validates worse than the shapes as selected, the shapes stay as selecte
 Coulomb law whose smoothing ran to its bound becomes the sign law, :mod:`estimation.diagnosis.limit_laws`); then
 a several-term law the fit does not support becomes its simpler law (:func:`simplify_laws`), and a
 friction or inertia term below zero is held at zero (:mod:`estimation.diagnosis.sign_constraints`).
+
+The p-value of each finding is the Wald test of its coefficients from the covariance the refit reports
+its standard deviations with (:func:`estimation.diagnosis.robust_test.estimate_test`); a finding whose
+coefficients are within their noise there is not named (:func:`refit_significant`: the weakest is
+dropped and the rest refitted, until every finding is significant).
 """
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Sequence
 
 from dynamics.models import build_model
 from dynamics.effects.shaped import shape_parameters
 from estimation.diagnosis.confirmation import simplify_laws, weighted_validation
 from estimation.diagnosis.candidates.delay_search import with_delay
-from estimation.diagnosis.forward_selection import AdoptedEffect
-from estimation.identification.fit import identify
+from estimation.diagnosis.candidates.trials import candidate_label
+from estimation.diagnosis.search_fits import AdoptedEffect
+from estimation.diagnosis.robust_test import WaldTest, estimate_test
+from estimation.identification.fit import ImplausibleEstimateWarning, identify
 from estimation.diagnosis.limit_laws import replace_limit_laws
 from estimation.preprocessing.delay import delayed
 from estimation.diagnosis.sign_constraints import pin_wrong_signs
@@ -67,3 +75,37 @@ def refit_found(model, before, adopted: Sequence[AdoptedEffect], moved, train, v
                                               starts if selected else {value.name: value.value for value in before.shapes})
     after = with_delay(after, fitted_delay)
     return selected, after, pinned
+
+
+def _tested(selected, after, model) -> list[tuple[object, WaldTest]]:
+    return [(effect, estimate_test(after.estimate, effect.parameter_names(model.robot))) for effect, _, _ in selected]
+
+
+def refit_significant(model, before, adopted: Sequence[AdoptedEffect], moved, train, validate, weights,
+                      validation_error: float, min_improvement: float, threshold: float):
+    """``(selected, after, pinned, dropped)``: :func:`refit_found`, each finding's p-value and ``W / k``
+    the Wald test from the refit's covariance; while a finding's p-value is not below ``threshold`` the
+    weakest (lowest ``W``) is dropped from ``adopted`` and the rest refitted. ``dropped``: ``[(adopted
+    effect, reason)]``."""
+    adopted, dropped = list(adopted), []
+    while True:
+        with warnings.catch_warnings():  # the refits before the signs are held pass through negative friction;
+            warnings.simplefilter("ignore", ImplausibleEstimateWarning)  # what remains is in after.warnings
+            selected, after, pinned = refit_found(model, before, adopted, moved, train, validate, weights,
+                                                  validation_error, min_improvement)
+        tested = _tested(selected, after, model)
+        weak = sorted(((test.statistic, candidate_label(effect), effect, test) for effect, test in tested
+                       if test.p_value >= threshold), key=lambda entry: entry[:2])
+        if weak:
+            _, _, effect, test = weak[0]
+            names = set(effect.parameter_names(model.robot))
+            item = next((item for item in adopted if names & set(item.block.names)), None)
+            if item is not None:
+                records = {record["name"]: record for record in after.estimate.records()}
+                values = ", ".join(f"{name} = {records[name]['value']:.4g} ± {records[name]['std']:.2g}"
+                                   for name in effect.parameter_names(model.robot) if name in records)
+                dropped.append((item, f"added, but in the final fit its coefficients are within their noise "
+                                      f"({values}; Wald p = {test.p_value:.2g}): dropped"))
+                adopted.remove(item)
+                continue
+        return [(effect, test.p_value, test.f_statistic) for effect, test in tested], after, pinned, dropped

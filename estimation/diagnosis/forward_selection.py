@@ -1,12 +1,30 @@
-"""The diagnosis's forward selection as one object: the current model, its fit, the candidates and
-why each was set aside, round by round.
+"""The diagnosis's search as one object: the current model, its fit, the candidates and the last verdict
+on each, move by move.
 
-:class:`DiagnosisSearch` holds the rules (steps 2–4 of :mod:`estimation.diagnosis.search`): each round
-fits every candidate group against the current model, tests the nested models (F test at a
-Bonferroni threshold, ranking by BIC), refuses what is not physical (:func:`wrong_sign`, a spring
-that is an offset in disguise, a second Coulomb-like law on a joint) and adopts the best-ranked
-candidate confirmed on the validation record (its weighted error lowered by ``min_improvement`` and
-no channel it acts on made worse). The fits themselves come from a :class:`Fits` strategy:
+The model is a choice, per joint (and joint combination), among the friction law families (none, the
+sign law, ``coulomb:tanh``, ``stribeck:velocity``, ``sigmoid``) plus offset, spring, armature, ripple
+and the delay. :class:`DiagnosisSearch` moves between such models (steps 2–4 of
+:mod:`estimation.diagnosis.search`):
+
+* **remove** an adopted effect whose coefficients are within their noise in the current model
+  (:func:`estimation.diagnosis.search_moves.removable`);
+* **add** a candidate group, or **replace** an adopted law by another on its joint
+  (:func:`estimation.diagnosis.search_moves.replaced_by`): each group is fitted against the current model
+  (without the law it replaces), screened by the nested F test at a Bonferroni threshold, ranked by its
+  BIC against the current model (ties by what it adds, never by the order of the candidate list), and
+  adopted when the Wald test of its block from the HAC covariance is significant at the same
+  threshold (:mod:`estimation.diagnosis.robust_test`: the statistic the reported p-values and
+  standard deviations come from), its estimate is physical (:func:`wrong_sign`, a spring that is no
+  offset in disguise) and it lowers the weighted validation error of the current model by
+  ``min_improvement`` without making a channel it acts on worse;
+
+until no move improves the model; a model once left is never returned to, nor a candidate that left the
+model (so that the search ends: at most two moves a candidate). Every verdict is against the model of the
+moment and is reconsidered after each move (a law refused beside another, a spring
+without an offset, a candidate the current columns absorbed). The fits themselves come from a
+:class:`Fits` strategy:
+
+(:class:`estimation.diagnosis.search_fits.Fits`):
 
 * :class:`estimation.diagnosis.record_fits.RecordFits`: the records in memory (per-channel Gram
   matrices of the current columns, variable projection of shaped laws, the delay candidate);
@@ -16,9 +34,9 @@ no channel it acts on made worse). The fits themselves come from a :class:`Fits`
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any, Protocol
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -28,68 +46,19 @@ from dynamics.effects.shaped import FRICTION_LAWS
 from dynamics.models import IdentificationModel
 from estimation.diagnosis.candidates.trials import Trial, candidate_label, joints_of, wrong_sign
 from estimation.diagnosis.confirmation import Comparison, channels_made_worse
-from estimation.diagnosis.candidates.coupling import combination_groups, combination_taken
+from estimation.diagnosis.candidates.coupling import combination_groups
 from estimation.diagnosis.candidates.delay import DelayTrial
 from estimation.diagnosis.results import RejectedEffect
+from estimation.diagnosis.robust_test import WaldTest
+from estimation.diagnosis.search_fits import AdoptedEffect, CurrentFit, Fits
+from estimation.diagnosis.search_moves import (declared_conflict, move_bic, removable, replaced_by, replaced_in_place,
+                                               tie_key)
 from estimation.diagnosis.selection_rules import candidate_groups, offsets_beat_springs
 from estimation.estimators.effect_blocks import Block, NoRowsError
 
-__all__ = ["AdoptedEffect", "CurrentFit", "DiagnosisSearch", "Fits", "SearchOutcome", "SearchSettings",
-           "candidate_blocks"]
+__all__ = ["DiagnosisSearch", "SearchOutcome", "SearchSettings", "candidate_blocks"]
 
 STOPPED_AT_FLOOR = "not tested: the stopping rule ended the search (no channel significantly above its noise floor)"
-
-
-@dataclass(frozen=True)
-class AdoptedEffect:
-    """One effect of the current model: candidate ``index``, its column block at ``shape``, and the
-    test statistics of the round that adopted it."""
-
-    index: int
-    block: Block
-    shape: NDArray[np.float64]
-    p_value: float
-    f_statistic: float
-
-    @property
-    def effect(self) -> Effect:
-        return self.block.effect
-
-
-class CurrentFit(Protocol):
-    """The current model fitted on training: its weighted RSS and weighted validation MSE."""
-
-    rss: float
-    validation_error: float
-
-
-class Fits(Protocol):
-    """How a search fits column blocks: from the records in memory or from summed normal equations."""
-
-    def fit_current(self, weights: NDArray[np.float64]) -> CurrentFit: ...
-
-    def keep_searching(self, current: CurrentFit, added: tuple[str, ...]) -> bool: ...
-
-    def trial(self, group: tuple[int, ...], members: Sequence[Block], weights: NDArray[np.float64],
-              rss: float) -> Trial | str: ...
-
-    def refine(self, trials: list[Trial], current: CurrentFit, weights: NDArray[np.float64],
-               first_round: bool) -> list[Trial]: ...
-
-    def compare(self, trial: Trial, weights: NDArray[np.float64]) -> Comparison: ...
-
-    def extend(self, adopted: Sequence[AdoptedEffect]) -> None: ...
-
-    @property
-    def delay_adopted(self) -> bool: ...
-
-    def delay_trials(self, adopted: Sequence[AdoptedEffect], weights: NDArray[np.float64], rss: float,
-                     others: Sequence[Trial]) -> list[DelayTrial]: ...
-
-    def confirm_delay(self, trial: DelayTrial, adopted: Sequence[AdoptedEffect], weights: NDArray[np.float64],
-                      min_improvement: float) -> Any: ...
-
-    def adopt_delay(self, trial: DelayTrial, outcome: Any) -> Comparison: ...
 
 
 @dataclass(frozen=True)
@@ -149,7 +118,7 @@ def declared_friction_joints(model: IdentificationModel) -> set[int]:
 
 
 class DiagnosisSearch:
-    """Forward selection of candidate effects (module docstring).
+    """The search over models of candidate effects (module docstring).
 
     Parameters
     ----------
@@ -160,7 +129,7 @@ class DiagnosisSearch:
     fits
         How column blocks are fitted (:class:`Fits`).
     weights
-        The declared model's channel weights ``w_c = 1/σ_c²``; re-estimated with each adoption.
+        The declared model's channel weights ``w_c = 1/σ_c²``; re-estimated with each move.
     settings
         :class:`SearchSettings`.
     """
@@ -168,8 +137,9 @@ class DiagnosisSearch:
     def __init__(self, model: IdentificationModel, blocks: dict[int, Block], rejected: Mapping[int, RejectedEffect],
                  fits: Fits, weights: NDArray[np.float64], settings: SearchSettings) -> None:
         self.model, self.blocks, self.fits, self.settings = model, blocks, fits, settings
-        self.rejected: dict[int, RejectedEffect] = dict(rejected)
-        self.deferred: dict[int, str] = {}  # statistical verdicts: tried again in later rounds
+        self.rejected: dict[int, RejectedEffect] = dict(rejected)  # no rows: never tried
+        self.verdicts: dict[int, str] = {}  # each candidate's last verdict against the model of the moment
+        self.failed: dict[tuple[int, ...], str] = {}  # groups the current columns absorb (until a removal)
         self.groups = candidate_groups(blocks, model)
         if settings.combinations:
             self.groups += combination_groups({index: block.effect for index, block in blocks.items()})
@@ -177,17 +147,27 @@ class DiagnosisSearch:
         self.adopted: list[AdoptedEffect] = []
         self.weights = weights
         self.current = fits.fit_current(weights)
+        self.visited = {self.key(())}
+        self.baselines: dict[tuple[int, ...], Trial] = {}  # this round's adopted laws refitted in their places
+        self.departed: set[int] = set()  # candidates removed or replaced
         self.rounds = 0
         self.stopped_at_floor = False
 
     @property
     def n_effects(self) -> int:
-        """Effects adopted so far (the delay counts as one)."""
+        """Effects in the current model (the delay counts as one)."""
         return len(self.adopted) + self.fits.delay_adopted
 
+    def key(self, indices: Iterable[int], delay: bool | None = None) -> tuple[frozenset[int], bool]:
+        """A model of the search: its candidate indices and whether the records move by the delay."""
+        return frozenset(indices), self.fits.delay_adopted if delay is None else delay
+
     def run(self) -> SearchOutcome:
-        """Rounds until the stopping rule, the cap, or no confirmed candidate ends the search."""
-        while self.groups and self.n_effects < self.settings.max_effects:
+        """Moves until none improves the model: removals first, then, while the stopping rule allows,
+        the best-ranked confirmed addition or replacement."""
+        for _ in range(4 * (self.settings.max_effects + len(self.groups)) + 4 if self.groups else 0):  # models never repeat
+            if self.remove_one():
+                continue
             if not self.fits.keep_searching(self.current, tuple(candidate_label(a.effect) for a in self.adopted)):
                 self.stopped_at_floor = True
                 break
@@ -200,51 +180,93 @@ class DiagnosisSearch:
     def one_round(self) -> tuple[Trial | DelayTrial, Any] | None:
         """One round: every group fitted, the best-ranked confirmed one (with its comparison), or ``None``."""
         trials = self.fit_candidates()
-        self.drop_rejected()
         trials = self.fits.refine(trials, self.current, self.weights, self.rounds == 0)
         self.rounds += 1
-        springs_beaten = offsets_beat_springs(trials, self.model)
-        trials = trials + self.fits.delay_trials(self.adopted, self.weights, self.current.rss, trials)
-        added = self.choose(trials, springs_beaten)
-        self.drop_rejected()
-        return added
+        springs_beaten = offsets_beat_springs(trials, self.model, self.offset_joints())
+        delay_trials = self.fits.delay_trials(self.adopted, self.weights, self.current.rss, trials)
+        return self.choose(trials + delay_trials, springs_beaten)
+
+    def offset_joints(self) -> set[tuple[int, ...]]:
+        """The joints whose offset the current model holds (declared or adopted)."""
+        offsets = [effect for effect in self.model.effects if effect.name == "offset"]
+        joints = {(joint,) for effect in offsets
+                  for joint in (range(self.model.robot.n_joints) if effect.joints is None else effect.joints)}
+        return joints | {joints_of(item.block, self.model) for item in self.adopted if item.effect.name == "offset"}
+
+    def in_model(self, group: tuple[int, ...]) -> bool:
+        adopted = {item.index for item in self.adopted}
+        effects = {id(item.effect) for item in self.adopted}
+        return any(index in adopted or id(self.blocks[index].effect) in effects for index in group)
 
     def fit_candidates(self) -> list[Trial]:
-        """Each group not set aside, fitted against the current model (a lone candidate that cannot
-        be is set aside with the reason)."""
-        trials = []
+        """Each group not in the model fitted against it, or against it without the laws the group
+        would replace (a lone candidate that cannot be gets the reason as its verdict)."""
+        trials, reduced = [], {}
         for group in self.groups:
-            if any(index in self.rejected for index in group):
-                continue
+            if any(index in self.rejected or index in self.departed for index in group) or self.in_model(group):
+                continue  # a candidate that left the model does not return: the search ends
             members = [self.blocks[index] for index in group]
-            outcome = self.excluded(members) or self.fits.trial(group, members, self.weights, self.current.rss)
-            if isinstance(outcome, str):
+            reason = declared_conflict(members, self.model, self.friction_joints, self.settings.combinations)
+            without = replaced_by(members, self.adopted, self.model, self.settings.combinations)
+            if reason is None and self.n_effects + len(group) - len(without) > self.settings.max_effects:
+                reason = f"not tested: {self.settings.max_effects} effects already added"
+            if reason is None and self.after_key(group, without) in self.visited:
+                continue  # a model already left: its verdict stands
+            if reason is None:
+                reason = self.failed.get(group)
+            if reason is None:
+                if without not in reduced:
+                    reduced[without] = self.fits.fit_current(self.weights, without).rss if without else self.current.rss
+                reason = self.fits.trial(group, members, self.weights, reduced[without], without)
+            if isinstance(reason, str):
+                if reason.startswith("not identifiable"):
+                    self.failed[group] = reason
                 if len(group) == 1:
-                    self.reject(group[0], outcome)
+                    self.verdicts[group[0]] = reason
                 continue
-            trials.append(outcome)
+            trials.append(reason)
+        return trials + self.refreshed(reduced)
+
+    def refreshed(self, reduced: dict[tuple[int, ...], float]) -> list[Trial]:
+        """Each adopted shaped law fitted again in its own place (the current model without it), the
+        baseline of the laws that would replace it: its shape was fitted against the model of the moment
+        it was adopted, and a replacement must do better than it refitted, not than it stale."""
+        trials = []
+        for item in self.adopted:
+            if not item.block.n_shape:
+                continue
+            without = (item.index,)
+            if without not in reduced:
+                reduced[without] = self.fits.fit_current(self.weights, without).rss
+            outcome = self.fits.trial(without, [item.block], self.weights, reduced[without], without)
+            if not isinstance(outcome, str):
+                trials.append(outcome)
         return trials
 
-    def excluded(self, members: Sequence[Block]) -> str | None:
-        """Why the group may not join the current model (a second Coulomb-like law on a joint or a
-        joint combination), or ``None``."""
-        if any(block.effect.name in FRICTION_LAWS and set(joints_of(block, self.model)) & self.friction_joints
-               for block in members):
-            return "its joint already has a Coulomb-like friction law"
-        if self.settings.combinations:
-            effects = self.model.effects + tuple(a.effect for a in self.adopted)
-            if any(combination_taken(block.effect, effects) for block in members):
-                return "its joint combination already has a Coulomb law"
-        return None
+    def after_key(self, group: tuple[int, ...], without: tuple[int, ...]) -> tuple[frozenset[int], bool]:
+        return self.key(({item.index for item in self.adopted} - set(without)) | set(group))
+
+    def rank(self, trial: Trial | DelayTrial) -> tuple[float, tuple[str, ...]]:
+        """Moves by their BIC against the current model, ties by what they add (never by list order)."""
+        if isinstance(trial, DelayTrial):
+            return trial.bic, ("delay",)
+        removed = sum(item.block.n_linear + item.block.n_shape for item in self.adopted if item.index in trial.without)
+        return (move_bic(trial.rss, self.current.rss, trial.n_parameters, removed, self.fits.n_rows),
+                tie_key(trial.blocks))
 
     def choose(self, trials: list[Trial | DelayTrial], springs_beaten: dict[tuple[int, ...], str]
                ) -> tuple[Trial | DelayTrial, Any] | None:
-        """The best-ranked significant trial confirmed on validation, with its comparison."""
-        for trial in sorted(trials, key=lambda t: t.bic):
-            if (trial.p_value >= self.settings.threshold
-                    or self.n_effects + len(trial.group) > self.settings.max_effects):
+        """The best-ranked significant trial confirmed on validation, with its comparison (a replacement
+        also against the law it replaces refitted in its place: :meth:`refreshed`)."""
+        self.baselines = {trial.group: trial for trial in trials
+                          if not isinstance(trial, DelayTrial) and trial.without and trial.group == trial.without}
+        for trial in sorted(trials, key=self.rank):
+            if trial.p_value >= self.settings.threshold or (not isinstance(trial, DelayTrial)
+                                                            and trial.group in self.baselines):
                 continue
             if isinstance(trial, DelayTrial):
+                if self.n_effects + 1 > self.settings.max_effects:
+                    continue
                 outcome = self.fits.confirm_delay(trial, self.adopted, self.weights, self.settings.min_improvement)
                 if outcome is not None:
                     return trial, outcome
@@ -252,14 +274,16 @@ class DiagnosisSearch:
             verdict = self.confirm(trial, springs_beaten)
             if isinstance(verdict, str):
                 if len(trial.group) == 1:
-                    self.deferred[trial.group[0]] = verdict
+                    self.verdicts[trial.group[0]] = verdict
                 continue
             return trial, verdict
         return None
 
-    def confirm(self, trial: Trial, springs_beaten: dict[tuple[int, ...], str]) -> Comparison | str:
+    def confirm(self, trial: Trial, springs_beaten: dict[tuple[int, ...], str]
+                ) -> tuple[Comparison, WaldTest] | str:
         """The comparison on validation (both models trained at the weights the candidate's residuals
-        give) when the trial is physical and confirmed, else why not."""
+        give) and the robust test when the trial is physical, confirmed and significant by that test, else
+        why not (the robust test, the costliest, last)."""
         text = f"significant on training (p = {trial.p_value:.2g}) but "
         reason = wrong_sign(trial) or springs_beaten.get(trial.group)
         if reason is not None:
@@ -271,34 +295,89 @@ class DiagnosisSearch:
             change = ("raises the validation error" if error > current_error else
                       f"lowers the validation error by less than {100 * min_improvement:g} %")
             return text + f"{change} ({current_error:.4g} -> {error:.4g})"
+        beaten = self.beaten_by_baseline(trial, error / current_error)
+        if beaten:
+            return text + beaten
         # a trade between channels (a pair acting on two rows, say) is not a confirmed effect
         worse = channels_made_worse(trial, comparison.current_residual, comparison.residual, min_improvement,
-                                    self.model)
+                                    self.model, self.replaced_blocks(trial))
         if worse:
             return text + f"raises the validation error of {worse}"
-        return comparison
+        tested = self.fits.test(trial, self.weights)
+        if tested.wald.p_value >= self.settings.threshold:
+            return (f"not significant: its coefficients are within their noise (Wald p = {tested.wald.p_value:.2g} "
+                    f"from the HAC covariance; the F test of white residuals gave p = {trial.p_value:.2g})")
+        reason = wrong_sign(trial, tested.std)  # each term of a several-term law, against its HAC standard deviation
+        if reason is not None:
+            return text + reason
+        return comparison, tested.wald
+
+    def beaten_by_baseline(self, trial: Trial, ratio: float) -> str | None:
+        """Why a replacement is not confirmed against the law it replaces refitted in its place (its
+        validation error over the current model's must be ``min_improvement`` lower than the refitted
+        law's), or ``None``."""
+        for index in trial.without:
+            baseline = self.baselines.get((index,))
+            if baseline is None:
+                continue
+            comparison = self.fits.compare(baseline, self.weights)
+            reference = comparison.error / comparison.current_error
+            if ratio >= (1.0 - self.settings.min_improvement) * reference:
+                return (f"validates no better than the law it would replace refitted in its place (validation over "
+                        f"the current model's {ratio:.4g} against {reference:.4g})")
+        return None
+
+    def replaced_blocks(self, trial: Trial) -> tuple[Block, ...]:
+        return tuple(item.block for item in self.adopted if item.index in trial.without)
 
     def adopt(self, trial: Trial | DelayTrial, outcome: Any) -> None:
-        """Add the trial to the current model, refit it at the weights of the comparison, and retire
-        the groups sharing a candidate with it."""
+        """Move to the trial's model (its effects added, those it replaces removed) and refit it at the
+        weights of the comparison."""
         if isinstance(trial, DelayTrial):  # along the delayed motion from now on
-            comparison, added = self.fits.adopt_delay(trial, outcome), []
+            self.weights = self.fits.adopt_delay(trial, outcome).weights
         else:
-            comparison = outcome
-            added = [AdoptedEffect(index, block, shape, trial.p_value, trial.f_statistic)
+            comparison, wald = outcome
+            label = " + ".join(candidate_label(block.effect) for block in trial.blocks)
+            self.departed |= set(trial.without)
+            for item in self.adopted:
+                if item.index in trial.without and item.index not in trial.group:
+                    self.verdicts[item.index] = f"replaced by {label} (validation {comparison.current_error:.4g} -> " \
+                                                f"{comparison.error:.4g})"
+            added = [AdoptedEffect(index, block, shape, wald.p_value, wald.f_statistic)
                      for index, block, shape in zip(trial.group, trial.blocks, trial.shapes())]
-        self.weights = comparison.weights
-        self.adopted += added
-        for item in added:
-            if item.effect.name in FRICTION_LAWS:
-                self.friction_joints |= set(joints_of(item.block, self.model))
-        self.fits.extend(added)
-        self.current = self.fits.fit_current(self.weights)
-        # the other candidates restart from their last optima; groups sharing an added effect go
-        self.groups = [group for group in self.groups if not set(group) & set(trial.group)]
+            self.adopted = replaced_in_place(self.adopted, trial.without, added)
+            self.weights = comparison.weights
+            if trial.without:
+                self.failed.clear()  # columns left the model: what they absorbed may be identifiable again
+        self.moved()
 
-    def drop_rejected(self) -> None:
-        self.groups = [group for group in self.groups if not any(index in self.rejected for index in group)]
+    def moved(self) -> None:
+        self.fits.set_model(self.adopted)
+        self.current = self.fits.fit_current(self.weights)
+        self.visited.add(self.key(item.index for item in self.adopted))
+
+    def remove_one(self) -> bool:
+        """Remove the weakest adopted effect that :func:`removable` lets go (the highest Wald p-value
+        first), if any, the weights re-estimated from the model without it; ``True`` when one was."""
+        if not self.adopted:
+            return False
+        tests = self.fits.current_tests(self.weights)
+        weakest = sorted(self.adopted, key=lambda item: (-tests[item.index].p_value, tests[item.index].statistic,
+                                                          tie_key((item.block,))))
+        for item in weakest:
+            reason = removable(tests[item.index], self.settings.threshold)
+            if reason is None:
+                break  # the weakest is significant: so are the others
+            if self.key({other.index for other in self.adopted} - {item.index}) in self.visited:
+                continue
+            self.weights = self.fits.removal((item.index,), self.weights).weights
+            self.verdicts[item.index] = reason
+            self.departed.add(item.index)
+            self.adopted = [other for other in self.adopted if other.index != item.index]
+            self.failed.clear()
+            self.moved()
+            return True
+        return False
 
     def reject(self, index: int, reason: str) -> None:
         block = self.blocks[index]
@@ -306,9 +385,9 @@ class DiagnosisSearch:
                                               reason, candidate_label(block.effect))
 
     def outcome(self) -> SearchOutcome:
-        """Every candidate neither adopted nor set aside gets its last verdict, or why it was not tested."""
+        """Every candidate not in the final model gets its last verdict, or why it was not tested."""
         max_effects = self.settings.max_effects
-        full = len(self.adopted) >= max_effects
+        full = self.n_effects >= max_effects
         untested = f"not tested: {max_effects} effects already added" if full else "not significant"
         if self.stopped_at_floor:
             untested = STOPPED_AT_FLOOR
@@ -318,6 +397,7 @@ class DiagnosisSearch:
             adopted |= {index for index, block in self.blocks.items() if id(block.effect) in effects}
         for index in self.blocks:
             if index not in self.rejected and index not in adopted:
-                self.reject(index, untested if full else self.deferred.get(index, untested))
+                self.reject(index, untested if full and index not in self.verdicts else
+                            self.verdicts.get(index, untested))
         return SearchOutcome(tuple(self.adopted), dict(self.rejected), self.stopped_at_floor, self.weights,
                              self.current, untested)

@@ -1,17 +1,21 @@
-"""The in-memory diagnosis's fits (:class:`estimation.diagnosis.forward_selection.Fits` on the records).
+"""The in-memory diagnosis's fits (:class:`estimation.diagnosis.search_fits.Fits` on the records).
 
 The current model's columns on each record are a :class:`~estimation.estimators.variable_projection.FixedPart`
-(per-channel Gram matrices), extended by each adopted block at its shape. A candidate is fitted
-against them by :func:`estimation.diagnosis.candidates.trials.fit_or_reason` (the linear solve, or
+(per-channel Gram matrices): the declared model's columns and each adopted block at its shape; the
+model without an adopted effect (a replacement's or a removal's) is built the same way. A candidate is
+fitted against them by :func:`estimation.diagnosis.candidates.trials.fit_or_reason` (the linear solve, or
 variable projection for a shaped law): in the first round every shape is searched from its grid,
 later rounds screen it at its last optimum and search again only the :data:`SCREEN_REFINED` best and
 the one the residual tracing ranks first (:mod:`estimation.diagnosis.traced_refinement`). The delay
 between torques and motion is a candidate here too (:class:`estimation.diagnosis.candidates.delay_search.DelaySearch`):
-once adopted, the records move by it.
+once adopted, the records move by it. The Wald tests of the search are from the HAC covariance of the
+declared columns plus the blocks at their shapes, shape directions included
+(:func:`estimation.diagnosis.robust_test.fit_covariance`).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -22,10 +26,11 @@ from numpy.typing import NDArray
 from dynamics.measurements import Measurements
 from dynamics.models import IdentificationModel
 from estimation.diagnosis.candidates.trials import Trial, fit_or_reason, weighted_error
-from estimation.diagnosis.confirmation import Comparison, reweighted_comparison
+from estimation.diagnosis.confirmation import Comparison, removal_comparison, reweighted_comparison
 from estimation.diagnosis.candidates.delay import DelayComparison, DelayTrial, Regressor
 from estimation.diagnosis.candidates.delay_search import DelaySearch
-from estimation.diagnosis.forward_selection import AdoptedEffect
+from estimation.diagnosis.search_fits import AdoptedEffect, TrialTest
+from estimation.diagnosis.robust_test import WaldTest, fit_covariance, wald_test
 from estimation.diagnosis.selection_rules import SCREEN_REFINED, refine_best
 from estimation.diagnosis.stopping_rules import SearchState
 from estimation.diagnosis.traced_refinement import traced_first
@@ -60,6 +65,12 @@ def declared_regressor(model: IdentificationModel, before: IdentificationResult)
     return functools.partial(_base_regressor, model)
 
 
+def _kept(fixed: FixedPart, columns: Sequence[int]) -> FixedPart:
+    """``fixed`` with only ``columns`` (their Gram matrices and moments taken, not formed again)."""
+    return FixedPart(fixed.A[:, :, columns], fixed.y, fixed.gram[:, columns][:, :, columns], fixed.moment[:, columns],
+                     fixed.power)
+
+
 class RecordFits:
     """Fits of column blocks on the training record and errors on the validation record (as recorded).
 
@@ -75,40 +86,82 @@ class RecordFits:
         Where the delay candidate is searched (``None``: not tried).
     stopping_rule
         ``rule(SearchState) -> bool``: keep searching while ``True``.
+    shaped
+        Whether the declared model has shaped laws (the final fit's covariance is then the batch-means
+        sandwich: :mod:`estimation.diagnosis.robust_test`).
     """
 
     def __init__(self, model: IdentificationModel, regressor: Regressor, train: Measurements, recorded: Measurements,
-                 delay: DelayBounds | None, stopping_rule: Callable[[SearchState], bool]) -> None:
-        self.model, self.stopping_rule = model, stopping_rule
-        self.fixed_train = FixedPart.from_arrays(regressor(train), train.channels(model.channels))
-        self.fixed_validate = FixedPart.from_arrays(regressor(recorded), recorded.channels(model.channels))
+                 delay: DelayBounds | None, stopping_rule: Callable[[SearchState], bool], shaped: bool = False) -> None:
+        self.model, self.stopping_rule, self.regressor, self.shaped = model, stopping_rule, regressor, shaped
+        self.adopted: tuple[AdoptedEffect, ...] = ()
         self._move(train, recorded)
         self.delay = DelaySearch(train, recorded, regressor, delay)  # the delay and, once adopted, the moved records
         self.previous: dict[tuple[int, ...], ShapeFit] = {}  # each group's last optimum
 
     def _move(self, train: Measurements, recorded: Measurements) -> None:
+        """The records (moved by an adopted delay) and the declared model's columns along them."""
         self.train, self.recorded = train, recorded
         self.states_train = States(train.q, train.dq, train.ddq)
         self.states_validate = States(recorded.q, recorded.dq, recorded.ddq)
+        self.base_train = (self.regressor(train), train.channels(self.model.channels))
+        self.base_validate = (self.regressor(recorded), recorded.channels(self.model.channels))
+        self.declared: FixedPart | None = None  # the declared columns alone, once needed
+        self.set_model(self.adopted)
 
-    def fit_current(self, weights: NDArray[np.float64]) -> RecordFit:
-        solution = solve_linear(self.fixed_train, [], self.states_train, [], weights)
-        validation_error, validate_residual = weighted_error(self.fixed_validate, [], self.states_validate, [],
+    @property
+    def n_rows(self) -> int:
+        return self.fixed_train.n_rows
+
+    def _columns(self, without: tuple[int, ...] = ()) -> tuple[FixedPart, FixedPart]:
+        """The (training, validation) columns of the current model without the adopted ``without`` (the
+        current model's columns, their Gram matrices and moments with those of ``without`` left out)."""
+        if without not in self.reduced:
+            keep, start = list(range(self.base_train[0].shape[2])), self.base_train[0].shape[2]
+            for item in self.adopted:
+                if item.index not in without:
+                    keep.extend(range(start, start + item.block.n_linear))
+                start += item.block.n_linear
+            self.reduced[without] = tuple(_kept(fixed, keep) for fixed in self.reduced[()])
+        return self.reduced[without]
+
+    def _fixed(self, base, states: States, adopted: Sequence[AdoptedEffect]) -> FixedPart:
+        Y, y = base
+        parts = [Y]
+        for item in adopted:
+            extra = np.zeros((Y.shape[0], Y.shape[1], item.block.n_linear))
+            extra[:, list(item.block.rows), :] = item.block.evaluate(states, item.shape)
+            parts.append(extra)
+        return FixedPart.from_arrays(np.concatenate(parts, axis=2), y)
+
+    def set_model(self, adopted: Sequence[AdoptedEffect]) -> None:
+        """The current model: the declared columns and the adopted blocks at their shapes."""
+        self.adopted = tuple(adopted)
+        self.fixed_train, self.fixed_validate = (self._fixed(self.base_train, self.states_train, self.adopted),
+                                                 self._fixed(self.base_validate, self.states_validate, self.adopted))
+        self.reduced: dict[tuple[int, ...], tuple[FixedPart, FixedPart]] = {(): (self.fixed_train, self.fixed_validate)}
+
+    def fit_current(self, weights: NDArray[np.float64], without: tuple[int, ...] = ()) -> RecordFit:
+        fixed_train, fixed_validate = self._columns(without)
+        solution = solve_linear(fixed_train, [], self.states_train, [], weights)
+        validation_error, validate_residual = weighted_error(fixed_validate, [], self.states_validate, [],
                                                              solution.theta, weights)
-        return RecordFit(solution.rss, validation_error, residuals(self.fixed_train, [], solution), validate_residual)
+        return RecordFit(solution.rss, validation_error, residuals(fixed_train, [], solution), validate_residual)
 
     def keep_searching(self, current: RecordFit, added: tuple[str, ...]) -> bool:
         return self.stopping_rule(SearchState(self.model.channels, current.train_residual.T,
                                               current.validate_residual.T, self.train, self.recorded, added))
 
     def trial(self, group: tuple[int, ...], members: Sequence[Block], weights: NDArray[np.float64],
-              rss: float) -> Trial | str:
-        """The group fitted against the current columns (a shape screened at its last optimum once it has one)."""
-        outcome = fit_or_reason(group, members, self.fixed_train, self.states_train, weights, rss,
+              rss: float, without: tuple[int, ...] = ()) -> Trial | str:
+        """The group fitted against the current columns (without the adopted ``without``; a shape
+        screened at its last optimum once it has one)."""
+        outcome = fit_or_reason(group, members, self._columns(without)[0], self.states_train, weights, rss,
                                 self.previous.get(group), search=False)
-        if not isinstance(outcome, str):
-            self.previous[group] = outcome.fit
-        return outcome
+        if isinstance(outcome, str):
+            return outcome
+        self.previous[group] = outcome.fit
+        return dataclasses.replace(outcome, without=without)
 
     def refine(self, trials: list[Trial], current: RecordFit, weights: NDArray[np.float64],
                first_round: bool) -> list[Trial]:
@@ -117,19 +170,52 @@ class RecordFits:
         traced = None if first_round else traced_first(
             trials, self.model.channels, self.model.robot.n_joints, self.train, self.recorded, current.train_residual,
             current.validate_residual)
-        return refine_best(trials, self.fixed_train, self.states_train, weights, current.rss, self.previous,
-                           SCREEN_REFINED, traced)
+        rss = {(): current.rss}
+
+        def reference(trial: Trial) -> float:
+            if trial.without not in rss:
+                rss[trial.without] = self.fit_current(weights, trial.without).rss
+            return rss[trial.without]
+
+        return refine_best(trials, lambda trial: self._columns(trial.without)[0], self.states_train, weights,
+                           reference, self.previous, SCREEN_REFINED, traced)
+
+    def _robust(self, blocks: Sequence[Block], shapes: Sequence[NDArray[np.float64]], weights: NDArray[np.float64]
+                ) -> tuple[NDArray[np.float64], NDArray[np.float64], int]:
+        """``(θ, cov θ, n_declared)`` of the declared columns plus ``blocks`` at ``shapes``, the HAC
+        covariance of the final fit (the shape directions of every shaped block included)."""
+        if self.declared is None:
+            self.declared = self._fixed(self.base_train, self.states_train, [])
+        shaped = self.shaped or any(block.n_shape for block in blocks)
+        theta, cov = fit_covariance(self.declared, blocks, self.states_train, shapes, weights, shaped=shaped)
+        return theta, cov, self.declared.n_fixed
+
+    def test(self, trial: Trial, weights: NDArray[np.float64]) -> TrialTest:
+        """The Wald test of the trial's block from the HAC covariance of its model's fit."""
+        kept = [item for item in self.adopted if item.index not in trial.without]
+        theta, cov, _ = self._robust([item.block for item in kept] + list(trial.blocks),
+                                     [item.shape for item in kept] + trial.shapes(), weights)
+        block = slice(theta.shape[0] - sum(block.n_linear for block in trial.blocks), theta.shape[0])
+        return TrialTest(wald_test(theta[block], cov[block, block]), np.sqrt(np.clip(np.diag(cov)[block], 0.0, None)))
+
+    def current_tests(self, weights: NDArray[np.float64]) -> dict[int, WaldTest]:
+        """Each adopted effect's Wald test in the current model (HAC covariance)."""
+        theta, cov, start = self._robust([item.block for item in self.adopted], [item.shape for item in self.adopted],
+                                         weights)
+        tests = {}
+        for item in self.adopted:
+            block = slice(start, start + item.block.n_linear)
+            tests[item.index] = wald_test(theta[block], cov[block, block])
+            start = block.stop
+        return tests
 
     def compare(self, trial: Trial, weights: NDArray[np.float64]) -> Comparison:
-        return reweighted_comparison(trial, self.fixed_train, self.fixed_validate, self.states_train,
-                                     self.states_validate, weights)
+        fixed_train, fixed_validate = self._columns(trial.without)
+        return reweighted_comparison(trial, fixed_train, fixed_validate, self.states_train, self.states_validate,
+                                     weights, current=(self.fixed_train, self.fixed_validate))
 
-    def extend(self, adopted: Sequence[AdoptedEffect]) -> None:
-        for item in adopted:
-            self.fixed_train = self.fixed_train.extended(item.block.evaluate(self.states_train, item.shape),
-                                                         item.block.rows)
-            self.fixed_validate = self.fixed_validate.extended(item.block.evaluate(self.states_validate, item.shape),
-                                                               item.block.rows)
+    def removal(self, without: tuple[int, ...], weights: NDArray[np.float64]) -> Comparison:
+        return removal_comparison(*self._columns(without), self.fixed_train, self.fixed_validate, weights)
 
     @property
     def delay_adopted(self) -> bool:
@@ -147,6 +233,5 @@ class RecordFits:
 
     def adopt_delay(self, trial: DelayTrial, outcome: DelayComparison) -> Comparison:
         """The records moved by the adopted delay, and its comparison."""
-        self.fixed_train, self.fixed_validate = outcome.fixed_train, outcome.fixed_validate
         self._move(*self.delay.adopt(trial))
         return outcome.comparison

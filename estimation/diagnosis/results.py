@@ -6,10 +6,13 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
+import numpy as np
+
 from dynamics.effects.linear import Effect
 from dynamics.models import IdentificationModel
 from dynamics.effects.shaped import shape_parameters
 from estimation.diagnosis.candidates.trials import candidate_label
+from estimation.diagnosis.robust_test import wald_test
 from estimation.diagnosis.statistics import ResidualReport
 from estimation.identification.fit import IdentificationResult
 from estimation.diagnosis.sign_constraints import PinnedTerm
@@ -113,6 +116,7 @@ def found_delay(after: IdentificationResult, trial: Any, model: IdentificationMo
     found effect: no linear coefficients, its value a shape parameter."""
     if trial is None or after.delay is None:
         return ()
+    test = wald_test(np.array([after.delay.value]), np.array([[after.delay.std**2]]))  # as the other findings
     return (FoundEffect(name="delay", channels=tuple(model.channels), parameters=(), values=(), std=(),
-                        p_value=trial.p_value, f_statistic=trial.f_statistic, spec="delay",
+                        p_value=test.p_value, f_statistic=test.f_statistic, spec="delay",
                         shape={"delay": after.delay.value}, shape_std={"delay": after.delay.std}),)

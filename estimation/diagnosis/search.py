@@ -1,6 +1,6 @@
 """Close the loop on measured data: find what an identified model lacks, add it, report before/after.
 
-Procedure (forward selection on nested linear models):
+Procedure (a search over nested linear models: additions, replacements, removals):
 
 1. Identify the declared model by channel-weighted least squares; its channel weights
    ``w_c = 1/σ_c²`` serve the tests of a round and are re-estimated from the residuals of each
@@ -12,19 +12,25 @@ Procedure (forward selection on nested linear models):
    (:mod:`estimation.diagnosis.candidates.trials`): plain ones by the linear solve on per-channel Gram
    matrices, shaped ones by variable projection (:mod:`estimation.estimators.variable_projection`). A
    candidate the current columns absorb (rank-deficient) is reported as such, never added.
-3. Test the nested models with the F statistic ``F = ((RSS₀ − RSS₁)/q) / (RSS₁/(N m − p₁))`` on
+3. Screen each candidate by the F statistic ``F = ((RSS₀ − RSS₁)/q) / (RSS₁/(N m − p₁))`` on
    weighted residual sums of squares (``q`` linear plus shape parameters); the threshold is
-   ``alpha`` divided by the number of candidates (Bonferroni). Rank the significant ones by BIC.
-4. The best-ranked candidate is added only if its estimate is physical (friction, armature
-   positive; a spring's stiffness positive, and a spring only when it explains more than an
-   offset on its joint does), no other Coulomb-like law is on its joint, and it lowers the
-   weighted validation error on the held-out data by at least ``min_improvement``, the candidate
-   and the current model both trained and compared at the weights the candidate's own residuals
-   give (:func:`estimation.diagnosis.confirmation.reweighted_comparison`); then the
-   search repeats while the stopping rule (the noise floor; :func:`provisional_stopping_rule`)
-   allows it. It stops when nothing significant and confirmed remains.
-5. Re-identify the augmented model (all shapes refit jointly, :mod:`estimation.diagnosis.final_refit`)
-   and report the validation MSE per channel before and after.
+   ``alpha`` divided by the number of candidates (Bonferroni). Rank the moves by their BIC against
+   the current model, ties by what they add (never by the order of the candidate list).
+4. The best-ranked move is taken only if the Wald test of its coefficients from the HAC covariance
+   is significant at the same threshold (:mod:`estimation.diagnosis.robust_test`), its estimate is
+   physical (friction, armature positive, each term of a several-term law significant; a spring's
+   stiffness positive, and a spring alone only when it explains more than an offset on its joint
+   does), and it lowers the weighted validation error on the held-out data by at least
+   ``min_improvement``, the move's model and the current model both trained and compared at the
+   weights the move's own residuals give (:func:`estimation.diagnosis.confirmation.reweighted_comparison`).
+   A move adds a candidate, or replaces the Coulomb-like law the search adopted on a joint by another
+   (a law on a joint whose law was declared is refused); before each round an adopted effect is
+   removed when its coefficients are within their noise in the current model
+   (:mod:`estimation.diagnosis.search_moves`); a candidate that left the model does not return. The search repeats until no move
+   is confirmed (or a user's stopping rule, :func:`provisional_stopping_rule` by default, ends it).
+5. Re-identify the augmented model (all shapes refit jointly, :mod:`estimation.diagnosis.final_refit`),
+   each finding's p-value the Wald test from the covariance its standard deviations come from (a
+   finding not significant there dropped), and report the validation MSE per channel before and after.
 
 Steps 2–4 are one object, :class:`estimation.diagnosis.forward_selection.DiagnosisSearch`, its fits on
 the records in memory (:class:`estimation.diagnosis.record_fits.RecordFits`); the streamed diagnosis
@@ -55,13 +61,13 @@ from dynamics.runtime.threads import single_threaded_blas
 from estimation.diagnosis.candidates.trials import candidate_label
 from estimation.diagnosis.candidates.coupling import coupling_candidates
 from estimation.diagnosis.candidates.delay_search import DelaySearch
-from estimation.diagnosis.final_refit import refit_found
+from estimation.diagnosis.final_refit import refit_significant
 from estimation.diagnosis.forward_selection import DiagnosisSearch, SearchOutcome, SearchSettings, candidate_blocks
 from estimation.diagnosis.record_fits import RecordFits, declared_regressor
 from estimation.diagnosis.results import Diagnosis, FoundEffect, RejectedEffect, found_delay, found_effect
 from estimation.diagnosis.selection_rules import candidate_groups
 from estimation.diagnosis.statistics import floor_for_validation, residual_report
-from estimation.diagnosis.stopping_rules import SearchState, floor_stopping_rule, provisional_stopping_rule
+from estimation.diagnosis.stopping_rules import SearchState, provisional_stopping_rule
 from estimation.estimators.effect_blocks import Block, States, effect_columns, effect_rows
 from estimation.identification.fit import IdentificationResult, identify
 from estimation.preprocessing.delay import DelayBounds
@@ -142,7 +148,7 @@ def diagnose(
     noise_floor: NoiseFloor | None = None,
     delay: DelayBounds | None = DelayBounds(),
 ) -> Diagnosis:
-    """Find, by forward selection, the effects ``model`` lacks in ``train``, confirmed on ``validate``.
+    """Find, by a search over models, the effects ``model`` lacks in ``train``, confirmed on ``validate``.
 
     Parameters
     ----------
@@ -154,14 +160,17 @@ def diagnose(
         Effects to try, plain or shaped (default: :func:`default_candidates` and the joint pairs the
         residual traces, :func:`estimation.diagnosis.candidates.coupling.coupling_candidates`).
     alpha
-        Family-wise significance level of the F test (Bonferroni over the candidates).
+        Family-wise significance level of the tests (Bonferroni over the candidates): the F screen
+        and the Wald test from the HAC covariance.
     min_improvement
         Smallest relative decrease of the weighted validation MSE for an effect to be added.
     max_effects
         Most effects added.
     stopping_rule
-        ``rule(SearchState) -> bool``: keep searching while it says ``True`` (default:
-        :func:`floor_stopping_rule` when a noise floor is had, else :func:`provisional_stopping_rule`).
+        ``rule(SearchState) -> bool``: keep searching while it says ``True`` (default
+        :func:`provisional_stopping_rule`: until no move is significant and confirmed;
+        :func:`estimation.diagnosis.stopping_rules.floor_stopping_rule` stops once no channel is
+        significantly above its noise floor, sooner but blind to an effect smaller than that test sees).
     delay
         Where a delay between torques and motion is searched as a candidate (one for the records,
         :mod:`estimation.diagnosis.candidates.delay`); ``None``: not tried.
@@ -175,19 +184,20 @@ def diagnose(
     them), along the derived motion.
     """
     candidates = _checked_candidates(model, train, validate, candidates, alpha, min_improvement)
-    floor, _ = floor_for_validation(validate, model.channels, noise_floor)
+    floor_for_validation(validate, model.channels, noise_floor)  # a floor of the wrong kind refused before the search
     if stopping_rule is None:
-        stopping_rule = provisional_stopping_rule if floor is None else floor_stopping_rule(floor)
+        stopping_rule = provisional_stopping_rule
     before = identify(model, train, validate)
     weights = before.estimate.weights if before.estimate.method == "wls" else 1.0 / before.estimate.channel_variance
     # errors against the channels as recorded, along the derived motion
-    fits = RecordFits(model, declared_regressor(model, before), train, validate.as_recorded, delay, stopping_rule)
+    fits = RecordFits(model, declared_regressor(model, before), train, validate.as_recorded, delay, stopping_rule,
+                      shaped=before.shaped_fit is not None)
     blocks, rejected = candidate_blocks(model, candidates)
     settings = SearchSettings(alpha, min_improvement, max_effects, len(candidates) + (delay is not None),  # the delay too
                               same_effect_adopted=True)
     outcome = DiagnosisSearch(model, blocks, rejected, fits, weights, settings).run()
     return _diagnosis(model, before, outcome, blocks, fits.delay, train, validate, noise_floor, len(candidates),
-                      min_improvement)
+                      settings)
 
 
 def _checked_candidates(model: IdentificationModel, train: Measurements, validate: Measurements,
@@ -212,12 +222,17 @@ def _checked_candidates(model: IdentificationModel, train: Measurements, validat
 
 def _diagnosis(model: IdentificationModel, before: IdentificationResult, outcome: SearchOutcome,
                blocks: dict[int, Block], moved: DelaySearch, train: Measurements, validate: Measurements,
-               noise_floor: NoiseFloor | None, n_candidates: int, min_improvement: float) -> Diagnosis:
+               noise_floor: NoiseFloor | None, n_candidates: int, settings: SearchSettings) -> Diagnosis:
     """Step 5: the joint refit of what the search adopted (the delay searched again along the records
-    as given), the terms it pinned and the delay not adopted reported with the rejected candidates."""
-    selected, after, pinned = refit_found(model, before, outcome.adopted, moved, train, validate, outcome.weights,
-                                          outcome.current.validation_error, min_improvement)
+    as given), findings within their noise there dropped; the terms it pinned, the findings dropped and
+    the delay not adopted reported with the rejected candidates."""
+    selected, after, pinned, dropped = refit_significant(model, before, outcome.adopted, moved, train, validate,
+                                                         outcome.weights, outcome.current.validation_error,
+                                                         settings.min_improvement, settings.threshold)
     rejected = dict(outcome.rejected)
+    for item, reason in dropped:
+        rejected[item.index] = RejectedEffect(item.effect.name, effect_channels(item.effect, model), reason,
+                                              candidate_label(item.effect))
     for position, term in enumerate(term for term in pinned if term.found):
         effect = next((block.effect for block in blocks.values() if term.parameter in block.names
                        and candidate_label(block.effect) == term.effect), None)  # a law simplified after selection: none

@@ -22,7 +22,7 @@ Passes over the data (each file one task on any ``concurrent.futures.Executor``,
    every candidate's columns (at the fixed shapes), their moments with the prepared channels and
    with the channels as recorded, and the powers (:mod:`estimation.streaming.diagnosis_sums`).
 
-The forward selection is then the in-memory diagnosis's own search
+The search is then the in-memory diagnosis's own search
 (:class:`~estimation.diagnosis.forward_selection.DiagnosisSearch`: F tests, BIC, sign checks,
 spring-versus-offset, confirmation on validation) with its fits taken from the sums
 (:class:`~estimation.streaming.selection.SummedFits`, the noise floor as the stopping rule), and
@@ -57,6 +57,7 @@ from dynamics.runtime.progress import step
 from dynamics.models import IdentificationModel, build_model
 from estimation.diagnosis.candidates.trials import candidate_label
 from estimation.diagnosis.forward_selection import DiagnosisSearch, SearchOutcome, SearchSettings
+from estimation.diagnosis.robust_test import estimate_test
 from estimation.diagnosis.search import FoundEffect, RejectedEffect
 from estimation.diagnosis.statistics import FLOOR_ALPHA
 from estimation.estimators.summed_least_squares import SummedEstimate, SummedLeastSquares
@@ -89,6 +90,8 @@ NOT_ON_THIS_PATH = (
     "user stopping rules (the noise floor is the rule)",
     "model_parameters (the physical reading of the estimate)",
     "a delay between torques and motion as a candidate (it moves the records)",
+    "the search's Wald tests from a HAC covariance (classical on the sums; the reported p-values are the final "
+    "estimate's batch-means ones, and a finding within its noise there is not dropped)",
     "a pair's Coulomb and viscous laws tried as one candidate, limit laws, negative friction held at zero "
     "(pinned), the traced shape refinement",
 )
@@ -368,13 +371,14 @@ def diagnose_files(
 def _found_effects(model: IdentificationModel, run: _Run, after: SummedEstimate) -> tuple[FoundEffect, ...]:
     records = {r["name"]: r for r in after.records()}
     effects = []
-    for index, item in zip(run.chosen, run.outcome.adopted):
+    for index in run.chosen:
         block = run.found.blocks[index]
+        test = estimate_test(after, block.names)  # the p-value of the reported (batch-means) covariance
         effects.append(FoundEffect(
             name=block.effect.name, channels=tuple(model.channels[r] for r in block.rows), parameters=block.names,
             values=tuple(records[name]["value"] for name in block.names),
-            std=tuple(records[name]["std"] for name in block.names), p_value=item.p_value,
-            f_statistic=float(item.f_statistic), spec=candidate_label(block.effect),
+            std=tuple(records[name]["std"] for name in block.names), p_value=test.p_value,
+            f_statistic=test.f_statistic, spec=candidate_label(block.effect),
             shape={p.name: float(v) for p, v in zip(block.parameters, run.found.shapes[index])}, shape_std={}))
     return tuple(effects)
 

@@ -1,17 +1,18 @@
 """The streamed diagnosis's fits from accumulated sums (:mod:`estimation.streaming.diagnosis_sums`).
 
-:class:`SummedFits` is the :class:`estimation.diagnosis.forward_selection.Fits` of the streamed
-diagnosis: the forward selection itself, its rules and their wording, are those of the in-memory
+:class:`SummedFits` is the :class:`estimation.diagnosis.search_fits.Fits` of the streamed
+diagnosis: the search itself, its rules and their wording, are those of the in-memory
 diagnosis (:class:`estimation.diagnosis.forward_selection.DiagnosisSearch`, the same object); only the
 fits differ. A candidate's trial is the weighted least-squares solve on the summed per-channel Gram
-matrices of the current columns and its own, with the nested F test and BIC of
-:mod:`estimation.diagnosis.candidates.trials` (``F = ((RSS₀ − RSS₁)/q) / (RSS₁/(N m − p₁))``, ``q`` the
-candidate's linear and shape parameters); the confirmation compares both models on the validation
+matrices of the current columns (without the laws it replaces) and its own, with the nested F test and
+BIC of :mod:`estimation.diagnosis.candidates.trials` (``F = ((RSS₀ − RSS₁)/q) / (RSS₁/(N m − p₁))``, ``q``
+the candidate's linear and shape parameters); the confirmation compares both models on the validation
 sums against the channels **as recorded**, trained at the weights the candidate's training residuals
 give (:func:`estimation.diagnosis.confirmation.reweighted_comparison`'s rule, :data:`REWEIGHTING_PASSES`);
-the stopping rule is the noise floor (:func:`estimation.uncertainty.noise_floor.above_floor` at
-:data:`~estimation.diagnosis.statistics.FLOOR_ALPHA`, as
-:func:`~estimation.diagnosis.stopping_rules.floor_stopping_rule`) or none.
+a removal compares the model without an effect the same way. The search runs until no move is
+significant and confirmed (``stop_at_floor``: the noise floor as the stopping rule,
+:func:`estimation.uncertainty.noise_floor.above_floor` at :data:`~estimation.diagnosis.statistics.FLOOR_ALPHA`,
+as :func:`~estimation.diagnosis.stopping_rules.floor_stopping_rule`).
 
 What this path does differently (said in the report's ``streaming.not_on_this_path``):
 
@@ -21,6 +22,8 @@ What this path does differently (said in the report's ``streaming.not_on_this_pa
   its offset jointly (here the pair uses the law's own shape);
 * no delay candidate, and a joint combination's Coulomb and viscous laws are not one candidate
   (:attr:`SearchSettings.combinations <estimation.diagnosis.forward_selection.SearchSettings>` off);
+* the Wald tests of the search use the classical covariance of the summed fit (the sums hold no
+  per-sample residuals); the reported p-values are those of the final estimate's batch-means covariance;
 * the stopping rule is the noise floor or none (a user's ``rule(SearchState)`` needs per-sample residuals).
 """
 
@@ -38,7 +41,8 @@ from dynamics.models import IdentificationModel
 from estimation.diagnosis.candidates.trials import SIGNIFICANT_TERM, Trial, nested_test
 from estimation.diagnosis.confirmation import REWEIGHTING_PASSES, Comparison
 from estimation.diagnosis.candidates.delay import DelayTrial
-from estimation.diagnosis.forward_selection import AdoptedEffect
+from estimation.diagnosis.search_fits import AdoptedEffect, TrialTest
+from estimation.diagnosis.robust_test import WaldTest, wald_test
 from estimation.diagnosis.statistics import FLOOR_ALPHA
 from estimation.estimators.effect_blocks import Block
 from estimation.estimators.variable_projection import ShapeFit
@@ -72,34 +76,52 @@ class SummedFits:
     shapes
         Each candidate's fixed shape, by candidate index.
     floor
-        The validation record's noise floor, the stopping rule (``None``: none).
+        The validation record's noise floor (``None``: none).
+    stop_at_floor
+        Whether the floor is the stopping rule (:func:`~estimation.diagnosis.stopping_rules.floor_stopping_rule`);
+        by default the search runs until no move is significant and confirmed, as in memory.
     """
 
     def __init__(self, model: IdentificationModel, train: ChannelSums, validate: ChannelSums,
                  columns: Mapping[int, Sequence[int]], shapes: Mapping[int, NDArray[np.float64]],
-                 floor: NoiseFloor | None) -> None:
+                 floor: NoiseFloor | None, stop_at_floor: bool = False) -> None:
         self.model, self.train, self.validate, self.floor = model, train, validate, floor
+        self.stop_at_floor = stop_at_floor
         self.columns, self.shapes = columns, shapes
+        self.adopted: tuple[int, ...] = ()
         self.selection = list(range(train.layout.n_base))  # the current model's columns
+
+    @property
+    def n_rows(self) -> int:
+        return self.train.n_samples * self.train.layout.n_channels
 
     def _columns(self, indices: Sequence[int]) -> list[int]:
         return [column for index in indices for column in self.columns[index]]
 
-    def fit_current(self, weights: NDArray[np.float64]) -> SummedFit:
-        theta, rss = self.train.solve(self.selection, weights)
-        validate_mse = self.validate.channel_mse(self.selection, theta)
+    def _selection(self, without: tuple[int, ...] = ()) -> list[int]:
+        """The current model's columns without the adopted ``without``."""
+        return list(range(self.train.layout.n_base)) + self._columns([i for i in self.adopted if i not in without])
+
+    def fit_current(self, weights: NDArray[np.float64], without: tuple[int, ...] = ()) -> SummedFit:
+        selection = self._selection(without)
+        theta, rss = self.train.solve(selection, weights)
+        validate_mse = self.validate.channel_mse(selection, theta)
         return SummedFit(rss, float(weights @ validate_mse), validate_mse)
 
     def keep_searching(self, current: SummedFit, added: tuple[str, ...]) -> bool:
-        if self.floor is None:
+        """``stop_at_floor``: while some channel's validation MSE is significantly above the floor; else
+        always (the in-memory default: until no move is significant and confirmed)."""
+        if self.floor is None or not self.stop_at_floor:
             return True
         mse = dict(zip(self.model.channels, current.validate_mse))
         return any(above_floor(mse, self.floor, self.validate.n_samples, alpha=FLOOR_ALPHA).values())
 
     def trial(self, group: tuple[int, ...], members: Sequence[Block], weights: NDArray[np.float64],
-              rss: float) -> Trial | str:
-        """A :class:`Trial` of ``group`` added to the current columns (the in-memory trial's statistics), or why not."""
-        columns = list(self.selection) + self._columns(group)
+              rss: float, without: tuple[int, ...] = ()) -> Trial | str:
+        """A :class:`Trial` of ``group`` added to the current columns (without the adopted ``without``;
+        the in-memory trial's statistics), or why not."""
+        selection = self._selection(without)
+        columns = selection + self._columns(group)
         try:
             theta, rss_augmented = self.train.solve(columns, weights)
         except np.linalg.LinAlgError:
@@ -109,18 +131,44 @@ class SummedFits:
         except FloatingPointError:
             return "its columns are non-finite"
         count = sum(block.n_linear + block.n_shape for block in members)
-        statistic, p_value, bic = nested_test(rss, rss_augmented, count, self.train.n_samples * self.train.layout.n_channels,
-                                              len(self.selection))
+        statistic, p_value, bic = nested_test(rss, rss_augmented, count, self.n_rows, len(selection))
         shape = (np.concatenate([np.asarray(self.shapes[index], dtype=float) for index in group]) if group
                  else np.zeros(0))
         n_total = theta.shape[0] + shape.shape[0]
         fit = ShapeFit(shape, theta, np.full((n_total, n_total), np.nan), rss_augmented,
                        tuple(p.name for block in members for p in block.parameters), 0, None)
-        return Trial(tuple(group), tuple(members), fit, rss_augmented, float(statistic), p_value, float(bic))
+        return Trial(tuple(group), tuple(members), fit, rss_augmented, float(statistic), p_value, float(bic),
+                     tuple(without))
 
     def refine(self, trials: list[Trial], current: SummedFit, weights: NDArray[np.float64],
                first_round: bool) -> list[Trial]:
         return trials  # the shapes are fixed
+
+    def _classical(self, columns: list[int], weights: NDArray[np.float64]) -> tuple[NDArray[np.float64],
+                                                                                   NDArray[np.float64]]:
+        """``(θ, σ̂² (XᵀWX)⁻¹)``: the sums hold no per-sample residuals, so no HAC covariance here (the
+        final estimate's is the batch-means sandwich of a further pass)."""
+        normal = self.train.normal_system(columns, weights)[0]
+        theta, rss = self.train.solve(columns, weights)
+        sigma2 = rss / max(self.n_rows - len(columns), 1)
+        scale = np.sqrt(np.diag(normal))
+        return theta, sigma2 * np.linalg.pinv(normal / np.outer(scale, scale), hermitian=True) / np.outer(scale, scale)
+
+    def test(self, trial: Trial, weights: NDArray[np.float64]) -> TrialTest:
+        """The Wald test of the trial's block from the classical covariance of the summed fit."""
+        selection = self._selection(trial.without)
+        theta, cov = self._classical(selection + self._columns(trial.group), weights)
+        block = slice(len(selection), theta.shape[0])
+        return TrialTest(wald_test(theta[block], cov[block, block]), np.sqrt(np.clip(np.diag(cov)[block], 0.0, None)))
+
+    def current_tests(self, weights: NDArray[np.float64]) -> dict[int, WaldTest]:
+        theta, cov = self._classical(self.selection, weights)
+        tests, start = {}, self.train.layout.n_base
+        for index in self.adopted:
+            block = slice(start, start + len(self.columns[index]))
+            tests[index] = wald_test(theta[block], cov[block, block])
+            start = block.stop
+        return tests
 
     def _settled_weights(self, columns: Sequence[int], n_parameters: int, weights: NDArray[np.float64]
                          ) -> NDArray[np.float64]:
@@ -133,19 +181,29 @@ class SummedFits:
             weights = 1.0 / np.maximum(self.train.channel_rss(columns, theta, target=0) / (n - n_parameters / m), floor)
         return weights
 
-    def compare(self, trial: Trial, weights: NDArray[np.float64]) -> Comparison:
-        """Both models trained at the weights the candidate's training residuals give, compared on
-        validation; the "residuals" are the per-channel root MSEs, ``(m, 1)`` (one "sample" whose
-        square is the MSE, which is all :func:`~estimation.diagnosis.confirmation.channels_made_worse` needs)."""
-        columns = self.selection + self._columns(trial.group)
-        settled = self._settled_weights(columns, len(self.selection) + trial.n_parameters, weights)
+    def _comparison(self, columns: list[int], n_parameters: int, weights: NDArray[np.float64]) -> Comparison:
+        """The model on ``columns`` against the current one, both trained at the weights the former's
+        training residuals give, compared on validation; the "residuals" are the per-channel root MSEs,
+        ``(m, 1)`` (one "sample" whose square is the MSE, which is all
+        :func:`~estimation.diagnosis.confirmation.channels_made_worse` needs)."""
+        settled = self._settled_weights(columns, n_parameters, weights)
         candidate_mse = self.validate.channel_mse(columns, self.train.solve(columns, settled)[0])
         current_mse = self.validate.channel_mse(self.selection, self.train.solve(self.selection, settled)[0])
         return Comparison(settled, float(settled @ candidate_mse), np.sqrt(candidate_mse)[:, None],
                           float(settled @ current_mse), np.sqrt(current_mse)[:, None])
 
-    def extend(self, adopted: Sequence[AdoptedEffect]) -> None:
-        self.selection = self.selection + self._columns([item.index for item in adopted])
+    def compare(self, trial: Trial, weights: NDArray[np.float64]) -> Comparison:
+        """The trial's model (the current one without what it replaces, with its group) against the current one."""
+        selection = self._selection(trial.without)
+        return self._comparison(selection + self._columns(trial.group), len(selection) + trial.n_parameters, weights)
+
+    def removal(self, without: tuple[int, ...], weights: NDArray[np.float64]) -> Comparison:
+        columns = self._selection(without)
+        return self._comparison(columns, len(columns), weights)
+
+    def set_model(self, adopted: Sequence[AdoptedEffect]) -> None:
+        self.adopted = tuple(item.index for item in adopted)
+        self.selection = self._selection()
 
     @property
     def delay_adopted(self) -> bool:

@@ -35,7 +35,8 @@ SIGNIFICANT_TERM = 3.0
 @dataclass(frozen=True)
 class Trial:
     """A candidate (one effect, or a friction law with its joint's offset) fitted on training data
-    against the current model."""
+    against the current model, or against the current model without the adopted effects ``without``
+    (candidate indices: the laws it would replace)."""
 
     group: tuple[int, ...]
     blocks: tuple[Block, ...]
@@ -44,6 +45,7 @@ class Trial:
     f_statistic: float
     p_value: float
     bic: float
+    without: tuple[int, ...] = ()
 
     def coefficients(self, position: int) -> NDArray[np.float64]:
         """The linear coefficients of the ``position``-th block."""
@@ -85,13 +87,43 @@ def try_candidate(group: tuple[int, ...], blocks: Sequence[Block], fixed: FixedP
     """Fit one candidate group; raises :class:`numpy.linalg.LinAlgError` when the current columns
     absorb plain candidates, :class:`ShapeSearchError` when a shaped search fails. Without
     ``search`` the shapes stay at ``starts`` (a screening by the linear solve alone)."""
-    if all(block.n_shape == 0 for block in blocks):
-        solve_linear(fixed, blocks, states, [np.zeros(0)] * len(blocks), weights)  # rank check: LinAlgError when absorbed
-    fit = fit_shapes(fixed, blocks, states, weights, starts=starts, refine=3 if starts is None else 1,
-                     max_iter=60 if search else 0, covariance="none")
+    if all(block.n_shape == 0 for block in blocks):  # the linear solve is the fit (LinAlgError when absorbed)
+        fit = _fitted(blocks, solve_linear(fixed, blocks, states, [np.zeros(0)] * len(blocks), weights), np.zeros(0))
+    else:
+        fit = None if search or starts is None else _screened(blocks, fixed, states, weights, starts[0])
+    if fit is None:
+        fit = fit_shapes(fixed, blocks, states, weights, starts=starts, refine=3 if starts is None else 1,
+                         max_iter=60 if search else 0, covariance="none")
     count = sum(block.n_linear + block.n_shape for block in blocks)
     statistic, p_value, bic = nested_test(rss, fit.rss, count, fixed.n_rows, fixed.n_fixed)
     return Trial(tuple(group), tuple(blocks), fit, fit.rss, statistic, p_value, bic)
+
+
+def _screened(blocks: Sequence[Block], fixed: FixedPart, states: States, weights: NDArray[np.float64],
+              shape: NDArray[np.float64]) -> ShapeFit | None:
+    """The screening fit at ``shape`` by the linear solve alone (what :func:`fit_shapes` gives without
+    iterations), or ``None`` where the columns are singular or non-finite there (the full search then
+    says why)."""
+    parts, start = [], 0
+    for block in blocks:
+        parts.append(np.asarray(shape[start:start + block.n_shape], dtype=float))
+        start += block.n_shape
+    try:
+        with np.errstate(all="ignore"):
+            solution = solve_linear(fixed, blocks, states, parts, weights)
+    except (np.linalg.LinAlgError, FloatingPointError, ValueError):
+        return None
+    if not (np.isfinite(solution.rss) and np.all(np.isfinite(solution.theta))):
+        return None
+    return _fitted(blocks, solution, shape)
+
+
+def _fitted(blocks: Sequence[Block], solution: LinearSolution, shape: NDArray[np.float64]) -> ShapeFit:
+    """A screening :class:`ShapeFit` (no covariance) from the linear solution at ``shape``."""
+    n_total = solution.theta.shape[0] + shape.shape[0]
+    names = tuple(parameter.name for block in blocks for parameter in block.parameters)
+    return ShapeFit(np.asarray(shape, dtype=float), solution.theta, np.full((n_total, n_total), np.nan), solution.rss,
+                    names, 0, solution)
 
 
 def weighted_error(fixed: FixedPart, blocks: Sequence[Block], states: States, shapes: Sequence[NDArray[np.float64]],
@@ -102,9 +134,12 @@ def weighted_error(fixed: FixedPart, blocks: Sequence[Block], states: States, sh
     return float(weights @ np.mean(residual**2, axis=1)), residual
 
 
-def wrong_sign(trial: Trial) -> str | None:
+def wrong_sign(trial: Trial, std: NDArray[np.float64] | None = None) -> str | None:
     """Why a candidate's estimate is not that effect, or ``None``: a friction law or armature
-    estimated negative, a negative stiffness, a shape parameter stopped at its bound."""
+    estimated negative, a negative stiffness, a term of a several-term law within :data:`SIGNIFICANT_TERM`
+    standard deviations of zero (``std``: the standard deviations of the trial's linear coefficients,
+    block by block; default the fit's own), a shape parameter stopped at its bound."""
+    stops = np.cumsum([block.n_linear for block in trial.blocks])
     for position, block in enumerate(trial.blocks):
         name = block.effect.name
         coefficients = trial.coefficients(position)
@@ -112,8 +147,9 @@ def wrong_sign(trial: Trial) -> str | None:
             if np.any(np.asarray(coefficients) <= 0):
                 return f"{candidate_label(block.effect)} is estimated with a non-physical sign (a friction or inertia below zero)"
             if coefficients.shape[0] > 1:  # a law with several terms (Stribeck: fc, fs) needs each of them
-                std = trial.coefficient_std(position)
-                weak = [f"{term} = {value:.3g} ± {sigma:.2g}" for term, value, sigma in zip(block.names, coefficients, std)
+                term_std = (trial.coefficient_std(position) if std is None
+                            else std[stops[position] - block.n_linear: stops[position]])
+                weak = [f"{term} = {value:.3g} ± {sigma:.2g}" for term, value, sigma in zip(block.names, coefficients, term_std)
                         if value < SIGNIFICANT_TERM * sigma]
                 if weak:
                     return (f"its term {', '.join(weak)} is not significantly above zero: a law with fewer terms "
