@@ -4,8 +4,8 @@ friction and offsets from the same records.
 
 Run 2 repeats run 1's trajectory (positions within 0.4 % of their spread, sample by sample); run 3 moves twice
 as fast. The held-out confirmation on run 2 therefore cannot reject an effect fitted to run 1's own motion:
-`oed diagnose` and `oed identify` say so, and the diagnosis's model misses the target on run 3 (figures in
-``benchmarks/README.md``), kept here as a strict xfail with the measured figures.
+`oed diagnose` and `oed identify` say so. The diagnosis's model predicts run 3 better in total than plain least
+squares, not on every joint (a strict xfail with the measured figures).
 """
 
 from __future__ import annotations
@@ -50,22 +50,35 @@ def _run3_mse(model, record, folder):
     return np.array(list(json.loads(metrics.read_text())["mse"].values()))
 
 
-@pytest.mark.slow
-@pytest.mark.xfail(strict=True, reason="measured: diagnosis (run 1, validated on run 2) on run 3, MSE per joint 2.92 "
-                   "1.84 1.10 1.64 1.19 0.615 0.070, total 9.37 N²m²; plain ordinary least squares 1.34 1.92 0.775 1.99 "
-                   "0.984 0.590 0.391, total 7.99: the coupled viscous[q1+q2] the repeat run confirmed costs joint 1 "
-                   "(without it 1.21 and 6.95 in total), and joint 3 at twice the training speed is predicted worse "
-                   "than the friction-free description by every fit")
-def test_the_diagnosed_model_predicts_the_third_record_as_well_as_plain_least_squares(runs, tmp_path, capsys):
+@pytest.fixture(scope="module")
+def third_record_errors(runs, tmp_path_factory):
+    """Run 3's MSE per joint: the diagnosis's model (run 1, validated on run 2) and plain least squares."""
     folder, records = runs
+    tmp_path = tmp_path_factory.mktemp("third_record")
     paths = [_parquet(run, tmp_path / f"run{index}.parquet") for index, run in enumerate(records, start=1)]
     urdf = str(folder / "kuka_lwr4.urdf")
     report, plain = tmp_path / "report.json", tmp_path / "plain.json"
     assert main(["diagnose", "--urdf", urdf, "--data", paths[0], "--validate", paths[1], "--out", str(report)]) == 0
-    assert "repeats the training motion" in capsys.readouterr().err
     assert main(["identify", "--urdf", urdf, "--data", paths[0], "--validate", paths[1], "--friction",
                  "viscous,coulomb,offset", "--method", "ols", "--out", str(plain)]) == 0
     diagnosed, least_squares = _run3_mse(report, paths[2], tmp_path), _run3_mse(plain, paths[2], tmp_path)
     print(f"\nrun 3 MSE per joint, diagnosis: {np.round(diagnosed, 3)} (total {diagnosed.sum():.3f}); "
           f"plain least squares: {np.round(least_squares, 3)} (total {least_squares.sum():.3f})")
-    assert diagnosed.sum() <= least_squares.sum() and np.all(diagnosed <= least_squares)
+    return diagnosed, least_squares
+
+
+@pytest.mark.slow
+def test_the_diagnosed_model_predicts_the_third_record_as_well_as_plain_least_squares(third_record_errors):
+    # measured: diagnosis 7.20 N²m² in total against 7.99 (the search's Wald test keeps 9 effects, not 18)
+    diagnosed, least_squares = third_record_errors
+    assert diagnosed.sum() <= least_squares.sum()
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason="measured: run 3 MSE per joint, diagnosis 1.468 1.525 0.541 1.725 1.272 0.494 "
+                   "0.174 (total 7.20 N²m²), plain ordinary least squares 1.341 1.918 0.775 1.990 0.984 0.590 0.391 "
+                   "(total 7.99): better in total and on 5 of 7 joints, worse on joints 1 and 5; run 2 repeats run 1's "
+                   "motion, so no held-out check here sees run 3's twice faster motion")
+def test_the_diagnosed_model_is_as_good_on_every_joint_of_the_third_record(third_record_errors):
+    diagnosed, least_squares = third_record_errors
+    assert np.all(diagnosed <= least_squares)
