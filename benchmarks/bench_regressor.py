@@ -24,7 +24,7 @@ import time
 import numpy as np
 import pinocchio as pin
 
-from dynamics.compiled import SampleEvaluator, cache_directory, compile_function
+from dynamics.codegen.compiled import SampleEvaluator, cache_directory, compile_function
 from dynamics.models import build_model
 from dynamics.pinocchio_bridge import to_pinocchio
 from dynamics.robots import load_robot

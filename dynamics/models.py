@@ -25,7 +25,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from dynamics.base_parameters import BaseParameters, random_states, reduce_to_base
-from dynamics.compiled import SampleEvaluator
+from dynamics.codegen.compiled import SampleEvaluator
 from dynamics.effects.linear import WRENCH_CHANNELS, Effect, parse_effects
 from dynamics.errors import SampleShapeError
 from dynamics.newton_euler import RigidBodyRegressors, rigid_body_regressors

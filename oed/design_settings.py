@@ -7,7 +7,7 @@ from typing import Any
 
 import numpy as np
 
-from dynamics.compiled import find_compiler
+from dynamics.codegen.compiled import find_compiler
 
 #: longest period checked sample by sample at rate_hz (about 3 h at 1 kHz)
 MAX_PERIOD_SAMPLES = 10_000_000

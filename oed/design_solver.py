@@ -4,7 +4,7 @@
   compiled, mapped per-sample function that returns only the upper triangle (the symmetric half).
   The sum is a ``map`` reduction, so neither the stacked ``(rows·N) x r`` regressor nor a large
   matrix product ever appears in the MX graph; its derivatives are compiled as well (once, into an
-  on-disk cache that later processes reuse: :mod:`dynamics.jit_cache`).
+  on-disk cache that later processes reuse: :mod:`dynamics.codegen.jit_cache`).
 - :func:`violation_peaks` picks the samples to add as constraint points after a ``rate_hz`` check.
 - :func:`ipopt_solver` wraps ``casadi.nlpsol("ipopt")`` for an objective with *linear* constraints
   ``lb ≤ A x ≤ ub`` (constant Jacobian), L-BFGS Hessian and the convergence settings of
@@ -31,8 +31,8 @@ import numpy as np
 import scipy.sparse
 from numpy.typing import NDArray
 
-from dynamics.compiled import find_compiler
-from dynamics.jit_cache import cached_jit
+from dynamics.codegen.compiled import find_compiler
+from dynamics.codegen.jit_cache import cached_jit
 
 #: re-solves after adding constraint points start from the previous primal-dual point
 WARM_START = {"warm_start_init_point": "yes", "warm_start_bound_push": 1e-9, "warm_start_mult_bound_push": 1e-9,
@@ -49,7 +49,7 @@ SQP_OBJECTIVE_SCALE = 0.1
 
 def jit_options() -> dict[str, Any]:
     """CasADi options compiling a function and its forward/reverse derivatives with the C compiler
-    of :func:`dynamics.compiled.find_compiler` (``$CC``, ``cc``, ``gcc`` or ``clang``)."""
+    of :func:`dynamics.codegen.compiled.find_compiler` (``$CC``, ``cc``, ``gcc`` or ``clang``)."""
     compiler = find_compiler()
     if compiler is None:
         raise RuntimeError("jit=True needs a C compiler ($CC, cc, gcc or clang) on the PATH; use jit=False")
@@ -74,7 +74,7 @@ def sampled_information(base_regressor: casadi.Function, states: list[casadi.MX]
         ``q, dq, ddq`` as ``n x N`` MX matrices (one column per cost sample).
     jit
         Compile the per-sample function and its forward/reverse derivatives with the system C
-        compiler, once into the on-disk cache of :func:`dynamics.jit_cache.cached_jit` (later
+        compiler, once into the on-disk cache of :func:`dynamics.codegen.jit_cache.cached_jit` (later
         builds, in any process, load the library); if that fails, with CasADi's JIT.
     """
     n, samples = states[0].shape

@@ -9,8 +9,8 @@ import casadi
 import numpy as np
 import pytest
 
-import dynamics.compiled as compiled
-from dynamics.compiled import SampleEvaluator
+import dynamics.codegen.compiled as compiled
+from dynamics.codegen.compiled import SampleEvaluator
 from dynamics.models import build_model
 from dynamics.robots import load_robot
 from tests.conftest import random_states

@@ -9,7 +9,7 @@ from dynamics.models import build_model
 from dynamics.robots import load_robot
 from estimation.diagnosis.search import diagnose, provisional_stopping_rule
 from estimation.diagnosis.statistics import floor_for_validation
-from estimation.diagnosis.stopping_rules import floor_stopping_rule
+from estimation.diagnosis.rules.stopping_rules import floor_stopping_rule
 from dynamics.simulation.synthetic import simulate, true_parameters
 
 from oed.fourier import random_fourier

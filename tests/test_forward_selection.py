@@ -15,7 +15,7 @@ from estimation.diagnosis.candidates.trials import Trial
 from estimation.diagnosis.confirmation import Comparison
 from estimation.diagnosis.forward_selection import DiagnosisSearch, SearchSettings, candidate_blocks
 from estimation.diagnosis.search_fits import TrialTest
-from estimation.diagnosis.robust_test import WaldTest
+from estimation.diagnosis.rules.robust_test import WaldTest
 from estimation.estimators.variable_projection import ShapeFit
 
 

@@ -1,4 +1,4 @@
-"""The on-disk cache of compiled functions with derivatives (dynamics.jit_cache) and its use by the design."""
+"""The on-disk cache of compiled functions with derivatives (dynamics.codegen.jit_cache) and its use by the design."""
 
 from __future__ import annotations
 
@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 import oed.design_solver
-from dynamics.compiled import find_compiler
-from dynamics.jit_cache import cached_jit, jit_directory, library_path
+from dynamics.codegen.compiled import find_compiler
+from dynamics.codegen.jit_cache import cached_jit, jit_directory, library_path
 from dynamics.robots import load_robot
 from oed.design import DesignSettings, ExcitationDesign, design_excitation
 
@@ -65,7 +65,7 @@ def test_a_second_build_hits_the_cache_in_this_and_another_process(private_cache
     second = cached_jit(toy_function())
     assert first is not None and second is not None
     assert (first.hit, second.hit) == (False, True) and first.library == second.library
-    script = ("from tests.test_jit_cache import toy_function; from dynamics.jit_cache import cached_jit;"
+    script = ("from tests.test_jit_cache import toy_function; from dynamics.codegen.jit_cache import cached_jit;"
               "c = cached_jit(toy_function()); print(c.hit, c.library)")
     root = Path(__file__).resolve().parents[1]
     environment = {**os.environ, "ROBOT_OED_CACHE": str(private_cache),
@@ -90,7 +90,7 @@ def test_failures_return_none(private_cache, tmp_path, monkeypatch):
     assert cached_jit(toy_function(), blocker / "jit") is None  # the cache cannot be created
     monkeypatch.setenv("CC", "false")  # a "compiler" that always fails
     assert cached_jit(toy_function()) is None
-    monkeypatch.setattr("dynamics.jit_cache.find_compiler", lambda: None)
+    monkeypatch.setattr("dynamics.codegen.jit_cache.find_compiler", lambda: None)
     assert cached_jit(toy_function()) is None
 
 

@@ -19,7 +19,7 @@ from estimation.identification.prepared import read_files
 from estimation.identification.preprocessing_choice import ChoiceWindow, choose_by_evidence
 from estimation.streaming import cutoff_choice
 from estimation.streaming.cutoff_choice import choose_streamed_preprocessing, streamed_window
-from estimation.streaming.memory_budget import (
+from estimation.data.memory_budget import (
     MemorySizeError,
     count_rows,
     estimate_in_memory,

@@ -1,4 +1,4 @@
-"""The Wald test of the diagnosis (estimation.diagnosis.robust_test): its statistic against the definition, its
+"""The Wald test of the diagnosis (estimation.diagnosis.rules.robust_test): its statistic against the definition, its
 covariance against the classical one on white residuals, and its verdict on residuals correlated in time, where
 the F test of white residuals finds an effect in the noise."""
 
@@ -8,7 +8,7 @@ import numpy as np
 import scipy.stats
 
 from estimation.diagnosis.candidates.trials import nested_test
-from estimation.diagnosis.robust_test import fit_covariance, wald_test
+from estimation.diagnosis.rules.robust_test import fit_covariance, wald_test
 from estimation.estimators.separable_least_squares import FixedPart, solve_linear
 
 N = 4000

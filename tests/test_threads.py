@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 from threadpoolctl import threadpool_info
 
-import dynamics.compiled as compiled
+import dynamics.codegen.compiled as compiled
 import dynamics.runtime.threads as threads
-from dynamics.compiled import SampleEvaluator
+from dynamics.codegen.compiled import SampleEvaluator
 from dynamics.runtime.threads import available_cores, sample_thread_limit, single_threaded, single_threaded_blas
 
 

@@ -2,7 +2,7 @@
 
 A unit of work that runs beside others in separate processes (a design start in a process pool or
 on a ``dask`` worker, a pytest-xdist worker) must stay on one thread. Otherwise every process adds
-OpenBLAS's threads, which spin while idle, and the two slices of :class:`dynamics.compiled.
+OpenBLAS's threads, which spin while idle, and the two slices of :class:`dynamics.codegen.compiled.
 SampleEvaluator`'s loop, and the machine runs several runnable threads a core: on this 2-core
 machine ``design_excitation(starts=8)`` through a 2-process pool took 4.5 s against 0.62 s with one
 thread a process (``OPENBLAS_NUM_THREADS=1``), 1.7 s in turn. Within one process the spinning BLAS

@@ -8,7 +8,7 @@ a several-term law the fit does not support becomes its simpler law (:func:`simp
 friction or inertia term below zero is held at zero (:mod:`estimation.diagnosis.sign_constraints`).
 
 The p-value of each finding is the Wald test of its coefficients from the covariance the refit reports
-its standard deviations with (:func:`estimation.diagnosis.robust_test.estimate_test`); a finding whose
+its standard deviations with (:func:`estimation.diagnosis.rules.robust_test.estimate_test`); a finding whose
 coefficients are within their noise there is not named (:func:`refit_significant`: the weakest is
 dropped and the rest refitted, until every finding is significant).
 """
@@ -24,7 +24,7 @@ from estimation.diagnosis.confirmation import simplify_laws, weighted_validation
 from estimation.diagnosis.candidates.delay_search import with_delay
 from estimation.diagnosis.candidates.trials import candidate_label
 from estimation.diagnosis.search_fits import AdoptedEffect
-from estimation.diagnosis.robust_test import WaldTest, estimate_test
+from estimation.diagnosis.rules.robust_test import WaldTest, estimate_test
 from estimation.identification.fit import ImplausibleEstimateWarning, identify
 from estimation.diagnosis.limit_laws import replace_limit_laws
 from estimation.preprocessing.delay import delayed

@@ -13,7 +13,7 @@ and the delay. :class:`DiagnosisSearch` moves between such models (steps 2–4 o
   (without the law it replaces), screened by the nested F test at a Bonferroni threshold, ranked by its
   BIC against the current model (ties by what it adds, never by the order of the candidate list), and
   adopted when the Wald test of its block from the HAC covariance is significant at the same
-  threshold (:mod:`estimation.diagnosis.robust_test`: the statistic the reported p-values and
+  threshold (:mod:`estimation.diagnosis.rules.robust_test`: the statistic the reported p-values and
   standard deviations come from), its estimate is physical (:func:`wrong_sign`, a spring that is no
   offset in disguise) and it lowers the weighted validation error of the current model by
   ``min_improvement`` without making a channel it acts on worse;
@@ -49,11 +49,11 @@ from estimation.diagnosis.confirmation import Comparison, channels_made_worse
 from estimation.diagnosis.candidates.coupling import combination_groups
 from estimation.diagnosis.candidates.delay import DelayTrial
 from estimation.diagnosis.results import RejectedEffect
-from estimation.diagnosis.robust_test import WaldTest
+from estimation.diagnosis.rules.robust_test import WaldTest
 from estimation.diagnosis.search_fits import AdoptedEffect, CurrentFit, Fits
 from estimation.diagnosis.search_moves import (declared_conflict, move_bic, removable, replaced_by, replaced_in_place,
                                                tie_key)
-from estimation.diagnosis.selection_rules import candidate_groups, offsets_beat_springs
+from estimation.diagnosis.rules.selection_rules import candidate_groups, offsets_beat_springs
 from estimation.estimators.effect_blocks import Block, NoRowsError
 
 __all__ = ["DiagnosisSearch", "SearchOutcome", "SearchSettings", "candidate_blocks"]

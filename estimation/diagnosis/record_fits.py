@@ -10,7 +10,7 @@ the one the residual tracing ranks first (:mod:`estimation.diagnosis.traced_refi
 between torques and motion is a candidate here too (:class:`estimation.diagnosis.candidates.delay_search.DelaySearch`):
 once adopted, the records move by it. The Wald tests of the search are from the HAC covariance of the
 declared columns plus the blocks at their shapes, shape directions included
-(:func:`estimation.diagnosis.robust_test.fit_covariance`).
+(:func:`estimation.diagnosis.rules.robust_test.fit_covariance`).
 """
 
 from __future__ import annotations
@@ -30,9 +30,9 @@ from estimation.diagnosis.confirmation import Comparison, removal_comparison, re
 from estimation.diagnosis.candidates.delay import DelayComparison, DelayTrial, Regressor
 from estimation.diagnosis.candidates.delay_search import DelaySearch
 from estimation.diagnosis.search_fits import AdoptedEffect, TrialTest
-from estimation.diagnosis.robust_test import WaldTest, fit_covariance, wald_test
-from estimation.diagnosis.selection_rules import SCREEN_REFINED, refine_best
-from estimation.diagnosis.stopping_rules import SearchState
+from estimation.diagnosis.rules.robust_test import WaldTest, fit_covariance, wald_test
+from estimation.diagnosis.rules.selection_rules import SCREEN_REFINED, refine_best
+from estimation.diagnosis.rules.stopping_rules import SearchState
 from estimation.diagnosis.traced_refinement import traced_first
 from estimation.estimators.effect_blocks import Block, States
 from estimation.estimators.separable_least_squares import FixedPart, residuals, solve_linear
@@ -88,7 +88,7 @@ class RecordFits:
         ``rule(SearchState) -> bool``: keep searching while ``True``.
     shaped
         Whether the declared model has shaped laws (the final fit's covariance is then the batch-means
-        sandwich: :mod:`estimation.diagnosis.robust_test`).
+        sandwich: :mod:`estimation.diagnosis.rules.robust_test`).
     """
 
     def __init__(self, model: IdentificationModel, regressor: Regressor, train: Measurements, recorded: Measurements,

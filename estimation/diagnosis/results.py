@@ -12,7 +12,7 @@ from dynamics.effects.linear import Effect
 from dynamics.models import IdentificationModel
 from dynamics.effects.shaped import shape_parameters
 from estimation.diagnosis.candidates.trials import candidate_label
-from estimation.diagnosis.robust_test import wald_test
+from estimation.diagnosis.rules.robust_test import wald_test
 from estimation.diagnosis.statistics import ResidualReport
 from estimation.identification.fit import IdentificationResult
 from estimation.diagnosis.sign_constraints import PinnedTerm

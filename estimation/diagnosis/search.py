@@ -17,7 +17,7 @@ Procedure (a search over nested linear models: additions, replacements, removals
    ``alpha`` divided by the number of candidates (Bonferroni). Rank the moves by their BIC against
    the current model, ties by what they add (never by the order of the candidate list).
 4. The best-ranked move is taken only if the Wald test of its coefficients from the HAC covariance
-   is significant at the same threshold (:mod:`estimation.diagnosis.robust_test`), its estimate is
+   is significant at the same threshold (:mod:`estimation.diagnosis.rules.robust_test`), its estimate is
    physical (friction, armature positive, each term of a several-term law significant; a spring's
    stiffness positive, and a spring alone only when it explains more than an offset on its joint
    does), and it lowers the weighted validation error on the held-out data by at least
@@ -65,9 +65,9 @@ from estimation.diagnosis.final_refit import refit_significant
 from estimation.diagnosis.forward_selection import DiagnosisSearch, SearchOutcome, SearchSettings, candidate_blocks
 from estimation.diagnosis.record_fits import RecordFits, declared_regressor
 from estimation.diagnosis.results import Diagnosis, FoundEffect, RejectedEffect, found_delay, found_effect
-from estimation.diagnosis.selection_rules import candidate_groups
+from estimation.diagnosis.rules.selection_rules import candidate_groups
 from estimation.diagnosis.statistics import floor_for_validation, residual_report
-from estimation.diagnosis.stopping_rules import SearchState, provisional_stopping_rule
+from estimation.diagnosis.rules.stopping_rules import SearchState, provisional_stopping_rule
 from estimation.estimators.effect_blocks import Block, States, effect_columns, effect_rows
 from estimation.identification.fit import IdentificationResult, identify
 from estimation.preprocessing.delay import DelayBounds
@@ -169,7 +169,7 @@ def diagnose(
     stopping_rule
         ``rule(SearchState) -> bool``: keep searching while it says ``True`` (default
         :func:`provisional_stopping_rule`: until no move is significant and confirmed;
-        :func:`estimation.diagnosis.stopping_rules.floor_stopping_rule` stops once no channel is
+        :func:`estimation.diagnosis.rules.stopping_rules.floor_stopping_rule` stops once no channel is
         significantly above its noise floor, sooner but blind to an effect smaller than that test sees).
     delay
         Where a delay between torques and motion is searched as a candidate (one for the records,

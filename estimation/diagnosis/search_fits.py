@@ -16,7 +16,7 @@ from dynamics.effects.linear import Effect
 from estimation.diagnosis.candidates.delay import DelayTrial
 from estimation.diagnosis.candidates.trials import Trial
 from estimation.diagnosis.confirmation import Comparison
-from estimation.diagnosis.robust_test import WaldTest
+from estimation.diagnosis.rules.robust_test import WaldTest
 from estimation.estimators.effect_blocks import Block
 
 __all__ = ["AdoptedEffect", "CurrentFit", "Fits", "TrialTest"]
@@ -48,7 +48,7 @@ class CurrentFit(Protocol):
 @dataclass(frozen=True)
 class TrialTest:
     """The Wald test of a trial's block from the HAC covariance of its fit
-    (:mod:`estimation.diagnosis.robust_test`), and the standard deviations of the block's linear
+    (:mod:`estimation.diagnosis.rules.robust_test`), and the standard deviations of the block's linear
     coefficients from that covariance."""
 
     wald: WaldTest

@@ -10,7 +10,7 @@ against the current model without the law it replaces, its block tested in that 
 current model.
 
 An adopted effect is removed (:func:`removable`) when, in the current model, its coefficients are
-within their noise (the Wald test of :mod:`estimation.diagnosis.robust_test` not significant): what later
+within their noise (the Wald test of :mod:`estimation.diagnosis.rules.robust_test` not significant): what later
 adoptions made redundant does not stay.
 """
 
@@ -24,7 +24,7 @@ from dynamics.effects.shaped import FRICTION_LAWS
 from dynamics.models import IdentificationModel
 from estimation.diagnosis.candidates.coupling import combination_taken
 from estimation.diagnosis.candidates.trials import joints_of
-from estimation.diagnosis.robust_test import WaldTest
+from estimation.diagnosis.rules.robust_test import WaldTest
 from estimation.estimators.effect_blocks import Block
 
 __all__ = ["declared_conflict", "move_bic", "removable", "replaced_by", "replaced_in_place", "tie_key"]

@@ -2,7 +2,7 @@
 
 After the first round a diagnosis screens every shaped candidate at its last optimum (one linear
 solve) and searches the shapes again only for the best few by BIC
-(:data:`estimation.diagnosis.selection_rules.SCREEN_REFINED`). A law whose last optimum is far from where the
+(:data:`estimation.diagnosis.rules.selection_rules.SCREEN_REFINED`). A law whose last optimum is far from where the
 current residual wants it can rank low at that stale shape although its variable is what the residual
 follows. The tracing (:mod:`estimation.uncertainty.residual_tracing`: binned conditional means fitted on the
 training residual, their share confirmed on the validation residual) names that variable; the

@@ -4,7 +4,7 @@ and their derivatives with respect to its shape parameters, over the samples.
 :class:`Block` is what :mod:`estimation.estimators.variable_projection` and the diagnosis
 (:mod:`estimation.diagnosis.candidates.trials`) fit: one named ``casadi.Function`` per effect and model kind
 (columns, and columns stacked with their Jacobian in the shape parameters), built once, cached and
-evaluated over the samples by the compiled sample loop (:class:`dynamics.compiled.SampleEvaluator`).
+evaluated over the samples by the compiled sample loop (:class:`dynamics.codegen.compiled.SampleEvaluator`).
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ import casadi
 import numpy as np
 from numpy.typing import NDArray
 
-from dynamics.compiled import SampleEvaluator
+from dynamics.codegen.compiled import SampleEvaluator
 from dynamics.effects.linear import Effect
 from dynamics.models import ModelKind
 from dynamics.robot import RobotModel

@@ -44,7 +44,7 @@ from estimation.estimators.arx import Polynomials, as_signal_pair, check_orders
 from estimation.estimators.errors import NotFittedError
 from dynamics.signal_checks import check_informative, rank_deficiency_message
 from estimation.estimators.estimator import Estimator
-from dynamics.compiled import compile_function
+from dynamics.codegen.compiled import compile_function
 
 Backend = Literal["compiled", "numpy", "vm"]
 CHUNK = 256  # samples per inner mapaccum; the state is returned once per chunk

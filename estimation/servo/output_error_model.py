@@ -31,7 +31,7 @@ import functools
 import casadi
 import numpy as np
 
-from dynamics.compiled import compile_function
+from dynamics.codegen.compiled import compile_function
 
 _SQUARINGS = 12
 _TAYLOR_TERMS = 12
@@ -225,7 +225,7 @@ def sensitivity_step_function() -> casadi.Function:
 @functools.cache
 def sensitivity_chunk_function() -> casadi.Function:
     """``servo_sensitivity_chunk``: :func:`sensitivity_step_function` over ``CHUNK`` samples (``mapaccum``),
-    returning the last state and every output; compiled to C once (``dynamics.compiled``, disk cache), so a
+    returning the last state and every output; compiled to C once (``dynamics.codegen.compiled``, disk cache), so a
     record of any length runs as ``mapaccum`` over chunks without a per-sample virtual-machine call."""
     step = sensitivity_step_function()
     inner = step.mapaccum("servo_sensitivity_chunk_steps", CHUNK, ["s"], ["s_next"])

@@ -6,7 +6,7 @@ The in-memory path chooses how ``dq, ddq`` are made by held-out evidence
 :data:`~estimation.identification.preprocessing_choice.SCORED_SAMPLES` samples, else the first
 :data:`~estimation.identification.preprocessing_choice.SCORED_SAMPLES` samples of its longest segment.
 :func:`streamed_window` reads that same window from the files (their rows counted without parsing,
-:func:`estimation.streaming.memory_budget.count_rows`; the longest file read up to the window), and
+:func:`estimation.data.memory_budget.count_rows`; the longest file read up to the window), and
 :func:`choose_streamed_preprocessing` hands it to the same function, every candidate family included: one code
 path for the choice, whichever way the sums are then computed. Memory stays bounded by the window.
 
@@ -32,7 +32,7 @@ from estimation.identification.preprocessing_choice import (
 )
 from estimation.preprocessing.plan import Preprocessing, PreprocessingWarning
 from estimation.streaming.chunks import read_chunks
-from estimation.streaming.memory_budget import count_rows
+from estimation.data.memory_budget import count_rows
 
 __all__ = ["choose_streamed_cutoff", "choose_streamed_preprocessing", "first_rows", "streamed_window"]
 

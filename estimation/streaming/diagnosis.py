@@ -57,7 +57,7 @@ from dynamics.runtime.progress import step
 from dynamics.models import IdentificationModel, build_model
 from estimation.diagnosis.candidates.trials import candidate_label
 from estimation.diagnosis.forward_selection import DiagnosisSearch, SearchOutcome, SearchSettings
-from estimation.diagnosis.robust_test import estimate_test
+from estimation.diagnosis.rules.robust_test import estimate_test
 from estimation.diagnosis.search import FoundEffect, RejectedEffect
 from estimation.diagnosis.statistics import FLOOR_ALPHA
 from estimation.estimators.summed_least_squares import SummedEstimate, SummedLeastSquares

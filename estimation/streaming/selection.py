@@ -12,7 +12,7 @@ give (:func:`estimation.diagnosis.confirmation.reweighted_comparison`'s rule, :d
 a removal compares the model without an effect the same way. The search runs until no move is
 significant and confirmed (``stop_at_floor``: the noise floor as the stopping rule,
 :func:`estimation.uncertainty.noise_floor.above_floor` at :data:`~estimation.diagnosis.statistics.FLOOR_ALPHA`,
-as :func:`~estimation.diagnosis.stopping_rules.floor_stopping_rule`).
+as :func:`~estimation.diagnosis.rules.stopping_rules.floor_stopping_rule`).
 
 What this path does differently (said in the report's ``streaming.not_on_this_path``):
 
@@ -42,7 +42,7 @@ from estimation.diagnosis.candidates.trials import SIGNIFICANT_TERM, Trial, nest
 from estimation.diagnosis.confirmation import REWEIGHTING_PASSES, Comparison
 from estimation.diagnosis.candidates.delay import DelayTrial
 from estimation.diagnosis.search_fits import AdoptedEffect, TrialTest
-from estimation.diagnosis.robust_test import WaldTest, wald_test
+from estimation.diagnosis.rules.robust_test import WaldTest, wald_test
 from estimation.diagnosis.statistics import FLOOR_ALPHA
 from estimation.estimators.effect_blocks import Block
 from estimation.estimators.variable_projection import ShapeFit
@@ -78,7 +78,7 @@ class SummedFits:
     floor
         The validation record's noise floor (``None``: none).
     stop_at_floor
-        Whether the floor is the stopping rule (:func:`~estimation.diagnosis.stopping_rules.floor_stopping_rule`);
+        Whether the floor is the stopping rule (:func:`~estimation.diagnosis.rules.stopping_rules.floor_stopping_rule`);
         by default the search runs until no move is significant and confirmed, as in memory.
     """
 

@@ -2,7 +2,7 @@
 
 First round: the delay searched on its whole grid; later rounds: screened at its last optimum (one
 evaluation) and searched again near it only when it ranks among the best candidates, as the shaped
-candidates are (:data:`estimation.diagnosis.selection_rules.SCREEN_REFINED`). Once adopted, the training and
+candidates are (:data:`estimation.diagnosis.rules.selection_rules.SCREEN_REFINED`). Once adopted, the training and
 validation motions are moved by it for the rest of the search.
 """
 

@@ -2,7 +2,7 @@
 
 ``--chunk-size``, ``--workers`` or a scheduler ask for the streamed path. Otherwise the files' rows are counted
 and what the in-memory path would need is compared with ``--memory-budget`` (default a quarter of the memory
-available; :mod:`estimation.streaming.memory_budget`). Past it, and when every option given is one the streamed
+available; :mod:`estimation.data.memory_budget`). Past it, and when every option given is one the streamed
 path has, the derivatives are chosen on the same window as in memory
 (:func:`estimation.streaming.cutoff_choice.choose_streamed_preprocessing`) and the files are streamed; a Fourier
 fit of averaged periods shrinks the training record to one period, which may bring it back within the budget.
@@ -22,7 +22,7 @@ from estimation.identification.preprocessing_choice import SCORED_SAMPLES, Prepr
 from estimation.preprocessing.differentiation import whole_periods
 from estimation.preprocessing.plan import Preprocessing
 from estimation.streaming.cutoff_choice import choose_streamed_preprocessing, first_rows
-from estimation.streaming.memory_budget import (
+from estimation.data.memory_budget import (
     InMemoryNeed,
     count_rows,
     default_budget,

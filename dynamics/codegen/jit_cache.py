@@ -29,7 +29,7 @@ from pathlib import Path
 
 import casadi
 
-from dynamics.compiled import cache_directory, find_compiler
+from dynamics.codegen.compiled import cache_directory, find_compiler
 
 #: the flags of the design's CasADi JIT (``-O1``): the same code, hence the same numbers
 JIT_FLAGS: tuple[str, ...] = ("-O1", "-fPIC", "-shared")
@@ -57,7 +57,7 @@ class CachedFunction:
 
 
 def jit_directory() -> Path:
-    """Where :func:`cached_jit` keeps its libraries: ``<cache>/jit`` (see ``dynamics.compiled``)."""
+    """Where :func:`cached_jit` keeps its libraries: ``<cache>/jit`` (see ``dynamics.codegen.compiled``)."""
     return cache_directory() / "jit"
 
 
