@@ -210,8 +210,8 @@ class RivalFit:
     result: Any
 
 
-#: ``fit(model, blocks, shape starts)``: the rival model (the declared one with the candidate ``blocks``) fitted
-RivalFitter = Callable[[IdentificationModel, tuple[Block, ...], dict[str, float]], RivalFit]
+#: ``fit(model, indices, shape starts)``: the rival model (the declared one with the candidates ``indices``) fitted
+RivalFitter = Callable[[IdentificationModel, tuple[int, ...], dict[str, float]], RivalFit]
 
 
 def rival_effects(model: IdentificationModel, blocks: Sequence[Block], fit: RivalFit) -> tuple[FoundEffect, ...]:
@@ -266,7 +266,7 @@ def fit_runner_up(declared: IdentificationModel, outcome: RunnerUpOutcome, block
                             tuple(declared.effects) + tuple(block.effect for block in rival_blocks))
         if model_spec(model) == chosen_spec:
             continue
-        rival = fit(model, rival_blocks, _shape_starts(declared, rival_blocks, indices, shapes))
+        rival = fit(model, indices, _shape_starts(declared, rival_blocks, indices, shapes))
         p = n_parameters(model, rival.estimate)
         gap = bic_gap(channel_rss(rival.estimate), channel_rss(chosen_estimate), chosen_estimate.channel_variance,
                       _rows_count(chosen_estimate), p, n_parameters(chosen, chosen_estimate))
@@ -284,7 +284,7 @@ def model_spec(model: IdentificationModel) -> str:
 def in_memory_fitter(train, validate, after: IdentificationResult) -> RivalFitter:
     """The in-memory diagnosis's :data:`RivalFitter`: :func:`estimation.identification.fit.identify` along the
     records moved by the chosen model's delay (``after.delay``), every shape refitted from the search's."""
-    def fit(model: IdentificationModel, blocks: tuple[Block, ...], starts: dict[str, float]) -> RivalFit:
+    def fit(model: IdentificationModel, indices: tuple[int, ...], starts: dict[str, float]) -> RivalFit:
         moved_train, moved_validate = train, validate
         if after.delay is not None:
             moved_train, moved_validate = delayed(train, after.delay.value), delayed(validate, after.delay.value)
