@@ -13,7 +13,10 @@ from benchmarks.sequential_case import StribeckCase
 from dynamics.models import build_model
 from dynamics.robots import load_robot
 from dynamics.simulation.synthetic import simulate, true_parameters
-from estimation.diagnosis.runner_up import NOTHING_TRIED, Alternative, LastMove, bic_gap
+from dynamics.effects.linear import CoulombFriction, JointOffset
+from estimation.diagnosis.runner_up import (NOTHING_TRIED, Alternative, LastMove, RunnerUpOutcome, bic_gap,
+                                            fit_runner_up, in_memory_fitter)
+from estimation.estimators.effect_blocks import Block, ShapeSearchError
 from estimation.diagnosis.search import diagnose
 from estimation.identification.fit import identify
 from estimation.identification.identified_model import IdentifiedModel
@@ -207,3 +210,29 @@ def test_no_runner_up_error_is_a_sequential_design_error(tmp_path):
     path.write_text(json.dumps({"model_file": CASE.model_document([record])}))
     with pytest.raises(NoRunnerUpError, match="--rival FILE"):
         runner_up_file(path)
+
+
+def test_a_rival_that_cannot_be_fitted_is_passed_over_for_the_next():
+    record = CASE.record(CASE.first_trajectory(), seed=1)
+    validation = CASE.record(random_fourier(CASE.robot, seed=4), seed=2)
+    declared = build_model(CASE.robot, "internal", "viscous")
+    blocks = {index: Block(declared.kind, declared.robot, effect, declared.n_channels)
+              for index, effect in enumerate((CoulombFriction(joints=(1,)), JointOffset(joints=(1,))))}
+    last = LastMove(1, None, (Alternative((0,), (), {}, -50.0), Alternative((1,), (), {}, -5.0)))
+    outcome = RunnerUpOutcome((), {}, False, np.ones(3), None, "", last_move=last)
+    chosen = identify(declared, record, validation)
+    fitter, tried = in_memory_fitter(record, validation, chosen), []
+
+    def failing_first(model, indices, starts):
+        tried.append(indices)
+        if len(tried) == 1:
+            raise ShapeSearchError("not determined")
+        return fitter(model, indices, starts)
+
+    runner_up, reason = fit_runner_up(declared, outcome, blocks, declared, chosen.estimate, failing_first)
+    assert tried == [(0,), (1,)] and reason is None
+    assert runner_up.spec == "viscous,offset@2" and runner_up.instead == "with offset on tau2"
+    assert runner_up.selection_bic_gap == pytest.approx(-5.0)
+    always = fit_runner_up(declared, outcome, blocks, declared, chosen.estimate,
+                           lambda *_: (_ for _ in ()).throw(ShapeSearchError("not determined")))
+    assert always[0] is None and always[1].startswith("no rival could be fitted (viscous,coulomb@2: not determined")

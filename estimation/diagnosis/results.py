@@ -63,7 +63,8 @@ class RunnerUp:
     ``selection_bic_gap``: the same gap as the search ranked the two moves in round ``round``;
     ``model`` and ``fit``: the model and its estimate (an
     :class:`~estimation.identification.fit.IdentificationResult` in memory, a
-    :class:`~estimation.estimators.summed_least_squares.SummedEstimate` from sums), for its model file."""
+    :class:`~estimation.estimators.summed_least_squares.SummedEstimate` from sums), for its model file;
+    ``warnings``: its physically implausible estimates (not issued as warnings: the chosen model is the answer)."""
 
     spec: str
     instead: str
@@ -76,6 +77,7 @@ class RunnerUp:
     validation_mse: dict[str, float] | None
     model: IdentificationModel = field(repr=False)
     fit: Any = field(repr=False)
+    warnings: tuple[str, ...] = ()
 
     def to_dict(self) -> dict[str, Any]:
         """The ``runner_up`` entry of ``report.json`` (its ``model_file`` is added by the verb that knows the robot's source)."""
@@ -83,7 +85,8 @@ class RunnerUp:
                 "n_parameters": self.n_parameters, "bic_gap": self.bic_gap,
                 "selection_bic_gap": self.selection_bic_gap, "round": self.round,
                 "train": {"mse": dict(self.train_mse)},
-                "validation": {"mse": None if self.validation_mse is None else dict(self.validation_mse)}}
+                "validation": {"mse": None if self.validation_mse is None else dict(self.validation_mse)},
+                "warnings": list(self.warnings)}
 
     def summary(self) -> str:
         """One line for the printed summary."""

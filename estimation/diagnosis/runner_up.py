@@ -42,6 +42,8 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, fields, replace
 from typing import Any
 
+import warnings
+
 import numpy as np
 from numpy.typing import NDArray
 
@@ -55,13 +57,15 @@ from estimation.diagnosis.forward_selection import DiagnosisSearch, SearchOutcom
 from estimation.diagnosis.results import FoundEffect, RunnerUp
 from estimation.diagnosis.rules.robust_test import estimate_test
 from estimation.estimators.effect_blocks import Block, ShapeSearchError
-from estimation.identification.fit import IdentificationResult, identify
+from estimation.identification.fit import IdentificationResult, ImplausibleEstimateWarning, identify
 from estimation.preprocessing.delay import delayed
 
 __all__ = ["Alternative", "LastMove", "RivalFit", "RivalFitter", "RunnerUpOutcome", "RunnerUpSearch", "bic_gap",
            "fit_runner_up", "in_memory_fitter", "model_spec", "no_runner_up_reason", "rival_effects", "rivals",
            "with_runner_up"]
 
+#: rivals tried, best-ranked first, whose fit fails (shapes the data do not determine) before giving up
+MAX_FAILED_FITS = 3
 #: why there is no runner-up when the search fitted no move
 NOTHING_TRIED = "no move was fitted (no candidates, the cap on effects, or the stopping rule before a first round)"
 
@@ -199,8 +203,8 @@ def bic_gap(rival_rss: NDArray[np.float64], chosen_rss: NDArray[np.float64], var
 class RivalFit:
     """A rival model's fit: its ``estimate`` (``names, values, cov, channel_variance, records()`` and the
     residuals or their sums), its MSE per channel on training and validation against the channels as
-    recorded, its fitted ``shapes`` (and their ``shape_std`` when estimated), and the ``result`` its model
-    file is written from."""
+    recorded, its fitted ``shapes`` (and their ``shape_std`` when estimated), the ``result`` its model
+    file is written from, and its physically implausible estimates (``warnings``)."""
 
     estimate: Any
     train_mse: dict[str, float]
@@ -208,6 +212,7 @@ class RivalFit:
     shapes: Mapping[str, float]
     shape_std: Mapping[str, float]
     result: Any
+    warnings: tuple[str, ...] = ()
 
 
 #: ``fit(model, indices, shape starts)``: the rival model (the declared one with the candidates ``indices``) fitted
@@ -259,20 +264,29 @@ def fit_runner_up(declared: IdentificationModel, outcome: RunnerUpOutcome, block
     if reason is not None:
         return None, reason
     final = tuple(blocks[item.index] for item in outcome.adopted)
-    chosen_spec = model_spec(chosen)
+    chosen_spec, failures = model_spec(chosen), []
     for indices, shapes, alternative in rivals(outcome):
         rival_blocks = tuple(blocks[index] for index in indices)
         model = build_model(declared.robot, declared.kind,
                             tuple(declared.effects) + tuple(block.effect for block in rival_blocks))
         if model_spec(model) == chosen_spec:
             continue
-        rival = fit(model, indices, _shape_starts(declared, rival_blocks, indices, shapes))
+        if len(failures) == MAX_FAILED_FITS:
+            return None, f"the {MAX_FAILED_FITS} best-ranked rivals could not be fitted ({'; '.join(failures)})"
+        try:
+            rival = fit(model, indices, _shape_starts(declared, rival_blocks, indices, shapes))
+        except (ShapeSearchError, np.linalg.LinAlgError) as error:  # the data do not determine this rival: the next
+            failures.append(f"{model_spec(model)}: {error}")
+            continue
         p = n_parameters(model, rival.estimate)
         gap = bic_gap(channel_rss(rival.estimate), channel_rss(chosen_estimate), chosen_estimate.channel_variance,
                       _rows_count(chosen_estimate), p, n_parameters(chosen, chosen_estimate))
         return RunnerUp(model_spec(model), instead(rival_blocks, final, declared),
                         rival_effects(model, rival_blocks, rival), p, gap, outcome.last_move.gap(alternative),
-                        outcome.last_move.round, rival.train_mse, rival.validation_mse, model, rival.result), None
+                        outcome.last_move.round, rival.train_mse, rival.validation_mse, model, rival.result,
+                        rival.warnings), None
+    if failures:
+        return None, f"no rival could be fitted ({'; '.join(failures)})"
     return None, "every rival the search fitted at its last adopted move comes out as the chosen model"
 
 
@@ -288,16 +302,18 @@ def in_memory_fitter(train, validate, after: IdentificationResult) -> RivalFitte
         moved_train, moved_validate = train, validate
         if after.delay is not None:
             moved_train, moved_validate = delayed(train, after.delay.value), delayed(validate, after.delay.value)
-        try:
-            result = identify(model, moved_train, moved_validate, shape_starts=starts or None)
-        except ShapeSearchError:  # the shapes ran to where the data do not determine them: keep the search's
-            result = identify(model, moved_train, moved_validate, shape_starts=starts or None, shape_search=False)
-        result = with_delay(result, after.delay)
+        with warnings.catch_warnings():  # a rival's implausible estimates are its own: in its ``warnings``
+            warnings.simplefilter("ignore", ImplausibleEstimateWarning)
+            try:
+                result = identify(model, moved_train, moved_validate, shape_starts=starts or None)
+            except ShapeSearchError:  # the shapes ran to where the data do not determine them: keep the search's
+                result = identify(model, moved_train, moved_validate, shape_starts=starts or None, shape_search=False)
+        result = with_delay(result, after.delay)  # ShapeSearchError again: not a rival (fit_runner_up)
         shapes = [value for value in result.shapes if value is not result.delay]
         return RivalFit(result.estimate, dict(result.train.mse),
                         None if result.validation is None else dict(result.validation.mse),
                         {value.name: float(value.value) for value in shapes},
-                        {value.name: float(value.std) for value in shapes}, result)
+                        {value.name: float(value.std) for value in shapes}, result, tuple(result.warnings))
     return fit
 
 

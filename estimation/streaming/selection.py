@@ -50,6 +50,7 @@ from estimation.diagnosis.statistics import FLOOR_ALPHA
 from estimation.estimators.effect_blocks import Block
 from estimation.estimators.variable_projection import ShapeFit
 from estimation.estimators.summed_least_squares import SummedLeastSquares
+from estimation.identification.fit import implausible_estimates
 from estimation.streaming.diagnosis_sums import ChannelSums, normal_equations
 from estimation.uncertainty.noise_floor import NoiseFloor, above_floor
 
@@ -260,7 +261,7 @@ def summed_rival_fitter(model: IdentificationModel, train: ChannelSums, validati
                  for parameter, value in zip(blocks[index].parameters, shapes[index])}
         return RivalFit(estimate, dict(zip(model.channels, map(float, train.channel_mse(selection, estimate.values)))),
                         dict(zip(model.channels, map(float, validation.channel_mse(selection, estimate.values)))),
-                        fixed, {}, estimate)
+                        fixed, {}, estimate, tuple(implausible_estimates(rival, estimate)))
     return fit
 
 
