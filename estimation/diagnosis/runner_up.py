@@ -38,11 +38,10 @@ model by that much.
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, fields, replace
 from typing import Any
-
-import warnings
 
 import numpy as np
 from numpy.typing import NDArray
@@ -123,6 +122,8 @@ class RunnerUpSearch(DiagnosisSearch):
     last_move: LastMove | None = None
 
     def choose(self, trials, springs_beaten):
+        """The search's choice, unchanged; when it adopts an effect (or adopted nothing yet), the round's
+        other moves kept, best-ranked first (with "no move" when it adopts one)."""
         chosen = super().choose(trials, springs_beaten)
         if chosen is None and self.last_move is not None:
             return chosen
@@ -143,6 +144,7 @@ class RunnerUpSearch(DiagnosisSearch):
         return chosen
 
     def run(self) -> RunnerUpOutcome:
+        """The search's outcome, with its :class:`LastMove`."""
         outcome = super().run()
         return RunnerUpOutcome(**{item.name: getattr(outcome, item.name) for item in fields(SearchOutcome)},
                                last_move=self.last_move)
