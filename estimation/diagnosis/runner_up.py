@@ -33,7 +33,8 @@ chosen model only). Its ``bic_gap`` is ``BIC_runner-up − BIC_chosen = Σ_c (RS
 (p' − p) ln(N m)`` on training, ``σ_c²`` the chosen model's channel variances, ``p`` the linear and
 shape parameters, ``N m`` the channel samples: the χ² form the discriminating design's
 ``expected_delta_bic`` uses (:mod:`oed.sequential.discrimination`). Positive: the data prefer the chosen
-model by that much.
+model by that much. It can come out negative, the search having ranked the moves before the joint refit of the
+shapes: the two models are then within the noise of each other, which is what a discriminating experiment is for.
 """
 
 from __future__ import annotations
