@@ -168,6 +168,8 @@ def test_bad_discriminating_input_is_named_and_nothing_is_written(folder, report
                               "--data", data], "give --discriminate too")
     _refused(folder, capsys, ["--from", str(folder / "report.json"), "--discriminate", "--focus", "vs2", "--data", data],
              "not with --discriminate")
+    _refused(folder, capsys, ["--from", str(folder / "report.json"), "--focus", "sigmoid", "--data", data],
+             "'sigmoid' is neither a parameter of the model nor one of its effects")
     bounds = folder / "bounds.json"
     bounds.write_text(json.dumps({"q_max": [1, 1, 1], "dq_max": [1, 1, 1], "ddq_max": [1, 1, 1],
                                   "joint_names": ["a", "b", "c"]}))
