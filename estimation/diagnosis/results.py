@@ -53,6 +53,48 @@ class RejectedEffect:
 
 
 @dataclass(frozen=True)
+class RunnerUp:
+    """The best rival model the diagnosis did not choose, fitted as the chosen one was
+    (:mod:`estimation.diagnosis.runner_up`).
+
+    ``spec``: its effects as a model file names them; ``instead``: what it has in place of the chosen
+    model's effects; ``effects``: its effects beyond the declared ones, with their estimates;
+    ``bic_gap``: its BIC minus the chosen model's on training (positive: the chosen is preferred);
+    ``selection_bic_gap``: the same gap as the search ranked the two moves in round ``round``;
+    ``model`` and ``fit``: the model and its estimate (an
+    :class:`~estimation.identification.fit.IdentificationResult` in memory, a
+    :class:`~estimation.estimators.summed_least_squares.SummedEstimate` from sums), for its model file;
+    ``warnings``: its physically implausible estimates (not issued as warnings: the chosen model is the answer)."""
+
+    spec: str
+    instead: str
+    effects: tuple[FoundEffect, ...]
+    n_parameters: int
+    bic_gap: float
+    selection_bic_gap: float
+    round: int
+    train_mse: dict[str, float]
+    validation_mse: dict[str, float] | None
+    model: IdentificationModel = field(repr=False)
+    fit: Any = field(repr=False)
+    warnings: tuple[str, ...] = ()
+
+    def to_dict(self) -> dict[str, Any]:
+        """The ``runner_up`` entry of ``report.json`` (its ``model_file`` is added by the verb that knows the robot's source)."""
+        return {"spec": self.spec, "instead": self.instead, "effects": [effect.to_dict() for effect in self.effects],
+                "n_parameters": self.n_parameters, "bic_gap": self.bic_gap,
+                "selection_bic_gap": self.selection_bic_gap, "round": self.round,
+                "train": {"mse": dict(self.train_mse)},
+                "validation": {"mse": None if self.validation_mse is None else dict(self.validation_mse)},
+                "warnings": list(self.warnings)}
+
+    def summary(self) -> str:
+        """One line for the printed summary."""
+        return (f"runner-up: {self.instead} (BIC {self.bic_gap:+.3g} against the chosen model; kept in the report "
+                "for `oed design --discriminate`)")
+
+
+@dataclass(frozen=True)
 class Diagnosis:
     """Result of :func:`diagnose`."""
 
@@ -63,6 +105,9 @@ class Diagnosis:
     residuals: dict[str, dict[str, float]] = field(repr=False)
     statistics: ResidualReport | None = field(default=None, repr=False)
     pinned: tuple[PinnedTerm, ...] = ()
+    #: the best rival model not chosen (:mod:`estimation.diagnosis.runner_up`), or ``None`` and why
+    runner_up: RunnerUp | None = field(default=None, repr=False)
+    runner_up_reason: str | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """The JSON document of ``oed diagnose``."""
@@ -82,12 +127,19 @@ class Diagnosis:
             },
             "cov_method": self.after.estimate.cov_method,
             "pinned": [term.to_dict() for term in self.pinned],
+            "runner_up": None if self.runner_up is None else self.runner_up.to_dict(),
+            "runner_up_reason": self.runner_up_reason,
         }
         if self.statistics is not None:  # noise floor, tracing, whiteness (estimation.diagnosis.statistics)
             document.update(self.statistics.to_dict())
             for which in ("before", "after"):
                 document["validation"][which]["mse_over_floor"] = self.statistics.ratios(which) or None
         return document
+
+
+def runner_up_line(runner_up: RunnerUp | None, reason: str | None) -> str:
+    """The summary's line on the runner-up, or on why there is none."""
+    return runner_up.summary() if runner_up is not None else f"runner-up: none ({reason})"
 
 
 def found_effect(after: IdentificationResult, effect: Effect, p_value: float, statistic: float,

@@ -31,6 +31,8 @@ Procedure (a search over nested linear models: additions, replacements, removals
 5. Re-identify the augmented model (all shapes refit jointly, :mod:`estimation.diagnosis.final_refit`),
    each finding's p-value the Wald test from the covariance its standard deviations come from (a
    finding not significant there dropped), and report the validation MSE per channel before and after.
+6. Keep the runner-up: the best-ranked rival of the last adopted move (another law on the joint, or the
+   model without the effect), fitted as the chosen model was (:mod:`estimation.diagnosis.runner_up`).
 
 Steps 2–4 are one object, :class:`estimation.diagnosis.forward_selection.DiagnosisSearch`, its fits on
 the records in memory (:class:`estimation.diagnosis.record_fits.RecordFits`); the streamed diagnosis
@@ -62,10 +64,11 @@ from estimation.diagnosis.candidates.trials import candidate_label
 from estimation.diagnosis.candidates.coupling import coupling_candidates
 from estimation.diagnosis.candidates.delay_search import DelaySearch
 from estimation.diagnosis.final_refit import refit_significant
-from estimation.diagnosis.forward_selection import DiagnosisSearch, SearchOutcome, SearchSettings, candidate_blocks
+from estimation.diagnosis.forward_selection import SearchOutcome, SearchSettings, candidate_blocks
 from estimation.diagnosis.record_fits import RecordFits, declared_regressor
 from estimation.diagnosis.results import Diagnosis, FoundEffect, RejectedEffect, found_delay, found_effect
 from estimation.diagnosis.rules.selection_rules import candidate_groups
+from estimation.diagnosis.runner_up import RunnerUpSearch, with_runner_up
 from estimation.diagnosis.statistics import floor_for_validation, residual_report
 from estimation.diagnosis.rules.stopping_rules import SearchState, provisional_stopping_rule
 from estimation.estimators.effect_blocks import Block, States, effect_columns, effect_rows
@@ -195,9 +198,10 @@ def diagnose(
     blocks, rejected = candidate_blocks(model, candidates)
     settings = SearchSettings(alpha, min_improvement, max_effects, len(candidates) + (delay is not None),  # the delay too
                               same_effect_adopted=True)
-    outcome = DiagnosisSearch(model, blocks, rejected, fits, weights, settings).run()
-    return _diagnosis(model, before, outcome, blocks, fits.delay, train, validate, noise_floor, len(candidates),
-                      settings)
+    outcome = RunnerUpSearch(model, blocks, rejected, fits, weights, settings).run()
+    diagnosis = _diagnosis(model, before, outcome, blocks, fits.delay, train, validate, noise_floor, len(candidates),
+                           settings)
+    return with_runner_up(diagnosis, outcome, blocks, train, validate)  # the best rival not chosen, fitted
 
 
 def _checked_candidates(model: IdentificationModel, train: Measurements, validate: Measurements,

@@ -56,7 +56,8 @@ from dynamics.effects.linear import Effect
 from dynamics.runtime.progress import step
 from dynamics.models import IdentificationModel, build_model
 from estimation.diagnosis.candidates.trials import candidate_label
-from estimation.diagnosis.forward_selection import DiagnosisSearch, SearchOutcome, SearchSettings
+from estimation.diagnosis.forward_selection import SearchOutcome, SearchSettings
+from estimation.diagnosis.runner_up import RunnerUpSearch
 from estimation.diagnosis.rules.robust_test import estimate_test
 from estimation.diagnosis.search import FoundEffect, RejectedEffect
 from estimation.diagnosis.statistics import FLOOR_ALPHA
@@ -72,7 +73,7 @@ from estimation.streaming.diagnosis_passes import (FLOOR_WINDOW, SubsamplePass, 
 from estimation.streaming.diagnosis_candidates import StreamedCandidates, streamed_candidates
 from estimation.streaming.diagnosis_sums import ChannelSums, normal_equations
 from estimation.streaming.periods import plan_options
-from estimation.streaming.selection import SummedFits, simpler_laws
+from estimation.streaming.selection import SummedFits, simpler_laws, summed_runner_up
 from estimation.uncertainty.noise_floor import NoiseFloor, compare_with_floor
 
 __all__ = ["DEFAULT_SUBSAMPLE", "FLOOR_WINDOW", "StreamedDiagnosis", "diagnose_files", "window_floor"]
@@ -119,6 +120,8 @@ class StreamedDiagnosis:
     trivial: dict[str, dict[str, float]] = field(default_factory=dict)  # zero_mse, nominal_mse (validation)
     #: the effect objects of ``effects``, in the order of ``after``'s columns (shaped laws at ``effects[i].shape``)
     found_effects: tuple[Effect, ...] = ()
+    runner_up: Any = field(default=None, repr=False)  # estimation.diagnosis.runner_up, from the sums
+    runner_up_reason: str | None = None
 
     def final_model(self) -> IdentificationModel:
         """The declared model with the effects found: ``after`` holds its base parameters (in the order of its columns)."""
@@ -161,6 +164,8 @@ class StreamedDiagnosis:
             "transmission": None,
             "diagnosis_path": "streamed",
             "streaming": dict(self.streaming),
+            "runner_up": None if self.runner_up is None else self.runner_up.to_dict(),
+            "runner_up_reason": self.runner_up_reason,
         }
 
 
@@ -289,7 +294,7 @@ def _search(model: IdentificationModel, sums: SumsPass, found: StreamedCandidate
     fits = SummedFits(model, sums.train, sums.validation, found.columns, found.shapes, floor)
     search_settings = SearchSettings(settings.alpha, settings.min_improvement, settings.max_effects, found.n_candidates,
                                      combinations=False)
-    return before, DiagnosisSearch(model, found.blocks, found.rejected, fits, weights, search_settings).run()
+    return before, RunnerUpSearch(model, found.blocks, found.rejected, fits, weights, search_settings).run()
 
 
 @dataclass(frozen=True)
@@ -358,6 +363,7 @@ def diagnose_files(
     with step("forward selection from the sums"):
         before, outcome = _search(model, sums, found, settings, floor)
         chosen, columns, after = _final_estimate(model, sums, found, outcome, min_improvement)
+        runner_up = summed_runner_up(model, sums.train, sums.validation, found, outcome, chosen, after)
     clock.lap("selection_and_estimates")
     with step(f"third pass over {len(paths)} training file(s) (covariance)"):  # the batch-means covariance
         parts_scores = scores_pass(executor, payload, found.final_plan(chosen), paths, options, after.values,
@@ -365,7 +371,8 @@ def diagnose_files(
     after, covariance = _batch_means(model, after, parts_scores, sums.train.normal_system(columns, after.weights)[0])
     clock.lap("covariance_pass")
     run = _Run(paths, validate, settings, first, sums, found, outcome, chosen, columns)
-    return _result(model, run, before, after, floor, floor_note, _streaming_record(run, covariance, clock.seconds))
+    result = _result(model, run, before, after, floor, floor_note, _streaming_record(run, covariance, clock.seconds))
+    return replace(result, runner_up=runner_up[0], runner_up_reason=runner_up[1])
 
 
 def _found_effects(model: IdentificationModel, run: _Run, after: SummedEstimate) -> tuple[FoundEffect, ...]:

@@ -31,25 +31,30 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from dynamics.effects.linear import CoulombFriction, Effect
 from dynamics.effects.shaped import ShapedStribeckFriction
-from dynamics.models import IdentificationModel
+from dynamics.models import IdentificationModel, build_model
 from estimation.diagnosis.candidates.trials import SIGNIFICANT_TERM, Trial, nested_test
 from estimation.diagnosis.confirmation import REWEIGHTING_PASSES, Comparison
 from estimation.diagnosis.candidates.delay import DelayTrial
 from estimation.diagnosis.search_fits import AdoptedEffect, TrialTest
 from estimation.diagnosis.rules.robust_test import WaldTest, wald_test
+from estimation.diagnosis.results import RunnerUp
+from estimation.diagnosis.runner_up import RivalFit, RivalFitter, RunnerUpOutcome, fit_runner_up
 from estimation.diagnosis.statistics import FLOOR_ALPHA
 from estimation.estimators.effect_blocks import Block
 from estimation.estimators.variable_projection import ShapeFit
-from estimation.streaming.diagnosis_sums import ChannelSums
+from estimation.estimators.summed_least_squares import SummedLeastSquares
+from estimation.identification.fit import implausible_estimates
+from estimation.streaming.diagnosis_sums import ChannelSums, normal_equations
 from estimation.uncertainty.noise_floor import NoiseFloor, above_floor
 
-__all__ = ["SummedFit", "SummedFits", "simpler_laws"]
+__all__ = ["SummedFit", "SummedFits", "simpler_laws", "summed_rival_fitter", "summed_runner_up"]
 
 
 @dataclass(frozen=True)
@@ -239,3 +244,32 @@ def simpler_laws(chosen: Sequence[int], blocks: dict[int, Block], records: dict[
         if unsupported and tuple(effect.joints) in coulomb:
             replacements[index] = coulomb[tuple(effect.joints)]
     return replacements
+
+
+def summed_rival_fitter(model: IdentificationModel, train: ChannelSums, validation: ChannelSums,
+                        blocks: Mapping[int, Block], columns: Mapping[int, Sequence[int]],
+                        shapes: Mapping[int, NDArray[np.float64]]) -> RivalFitter:
+    """The streamed diagnosis's fit of its runner-up (:mod:`estimation.diagnosis.runner_up`): the declared model's
+    columns and the candidates' (``columns`` by index, at their fixed ``shapes``) solved from the training sums,
+    its MSE per channel from the sums against the channels as recorded (classical covariance)."""
+    def fit(rival: IdentificationModel, indices: tuple[int, ...], starts: dict[str, float]) -> RivalFit:
+        selection = list(range(model.n_base)) + [column for index in indices for column in columns[index]]
+        names = list(model.base.names) + [name for index in indices for name in blocks[index].names]
+        expressions = list(model.base.expressions) + names[model.n_base:]
+        estimate = SummedLeastSquares(method="wls").fit(normal_equations(train, selection, names, expressions)).estimate_
+        fixed = {parameter.name: float(value) for index in indices
+                 for parameter, value in zip(blocks[index].parameters, shapes[index])}
+        return RivalFit(estimate, dict(zip(model.channels, map(float, train.channel_mse(selection, estimate.values)))),
+                        dict(zip(model.channels, map(float, validation.channel_mse(selection, estimate.values)))),
+                        fixed, {}, estimate, tuple(implausible_estimates(rival, estimate)))
+    return fit
+
+
+def summed_runner_up(model: IdentificationModel, train: ChannelSums, validation: ChannelSums, found: Any,
+                     outcome: RunnerUpOutcome, chosen: Sequence[int], after: Any) -> tuple[RunnerUp | None, str | None]:
+    """The streamed diagnosis's runner-up, or why it has none (:func:`estimation.diagnosis.runner_up.fit_runner_up`):
+    ``found`` the candidates with columns in the sums (their ``blocks``, ``columns``, fixed ``shapes``),
+    ``chosen`` the candidates of the final estimate ``after``."""
+    final = build_model(model.robot, model.kind, tuple(model.effects) + tuple(found.blocks[i].effect for i in chosen))
+    fitter = summed_rival_fitter(model, train, validation, found.blocks, found.columns, found.shapes)
+    return fit_runner_up(model, outcome, found.blocks, final, after, fitter)

@@ -2,8 +2,9 @@
 
 With ``--from`` (a result.json or report.json) and the records already run (``--data``), ``oed design`` maximises
 the posterior information of the model's parameters (D-optimality, or Ds with ``--focus``;
-:mod:`oed.sequential`); with ``--discriminate --rival FILE`` it maximises how far the two models' predictions
-separate (:mod:`oed.sequential.discrimination`). The trajectory's options are those of ``oed design``.
+:mod:`oed.sequential`); with ``--discriminate`` it maximises how far the predictions of the model and a rival
+separate (:mod:`oed.sequential.discrimination`): the runner-up the ``--from`` report kept, or ``--rival FILE``
+(:mod:`oed.sequential.rivals`). The trajectory's options are those of ``oed design``.
 """
 
 from __future__ import annotations
@@ -24,6 +25,7 @@ from oed.sequential.figure import plot_next_experiment
 from oed.sequential.jacobian import SequentialDesignError
 from oed.sequential.next_experiment import check_bounds, design_next
 from oed.sequential.prior import read_records
+from oed.sequential.rivals import load_rival
 from oed.sequential.problem import SEQUENTIAL_MAX_ITER
 
 #: options of a plain design that a model file fixes
@@ -41,8 +43,10 @@ def add_sequential_arguments(parser: argparse.ArgumentParser) -> None:
     group.add_argument("--periods", type=float, help="length of the new experiment in periods (default: as long as "
                                                      "the records)")
     group.add_argument("--discriminate", action="store_true",
-                       help="design the experiment that best tells the model apart from --rival (T-optimality)")
-    group.add_argument("--rival", type=Path, help="the rival model (result.json or report.json) for --discriminate")
+                       help="design the experiment that best tells the model apart from its rival (T-optimality): "
+                            "the runner-up the --from report.json of `oed diagnose` kept, or --rival FILE")
+    group.add_argument("--rival", type=Path, help="the rival model (result.json or report.json) for --discriminate, "
+                                                  "instead of the --from report's runner-up")
 
 
 def sequential_requested(args: argparse.Namespace) -> bool:
@@ -72,8 +76,8 @@ def _check_options(args: argparse.Namespace, model: IdentifiedModel) -> None:
                                         f"the model's ({model.robot.name}, joints {', '.join(model.file.joint_names)})")
     if not args.data:
         raise SequentialDesignError("give the records of the experiments already run with --data FILE")
-    if args.discriminate != (args.rival is not None):
-        raise SequentialDesignError("--discriminate needs the rival model (--rival FILE), and --rival needs --discriminate")
+    if args.rival is not None and not args.discriminate:
+        raise SequentialDesignError("--rival names the rival of a discriminating design: give --discriminate too")
     if args.discriminate and args.focus is not None:
         raise SequentialDesignError("--focus chooses parameters to determine: not with --discriminate")
     if args.periods is not None and not args.periods > 0:
@@ -91,7 +95,7 @@ def run_sequential(args: argparse.Namespace) -> int:
     _check_options(args, model)
     bounds = bounds_from_arguments(args, model.robot)
     check_bounds(bounds, model)
-    rival = None if args.rival is None else IdentifiedModel.load(args.rival)
+    rival = load_rival(model, args.from_model, args.rival) if args.discriminate else None  # checked against model
     records = read_records(model, args.data)
     settings = DesignSettings(frequency_hz=args.frequency, harmonics=args.harmonics, cost_samples=args.samples,
                               constraint_points=args.constraint_points, verbose=args.verbose,
@@ -112,12 +116,15 @@ def run_sequential(args: argparse.Namespace) -> int:
         if rival is None:
             result = design_next(model, records, focus=args.focus, **options)
         else:
-            result = design_discriminating(model, rival, records, **options)
+            result = design_discriminating(model, rival.model, records, **options)
     for warning in caught:
         print(f"oed design: warning: {warning.message}", file=sys.stderr)
     with OutputFiles() as outputs:  # all files or none
         with outputs.open(args.out) as stream:
-            stream.write(json_text(result.to_dict()))
+            document = result.to_dict()
+            if rival is not None:
+                document["discrimination"]["rival_source"] = rival.to_dict()
+            stream.write(json_text(document))
         if args.plot is not None:
             figure = plot_next_experiment(records, result.design.trajectory, rate_hz=settings.rate_hz,
                                           title=f"{model.robot.name}: the records so far and the designed experiment")

@@ -14,7 +14,7 @@ from dynamics.runtime.progress import show_progress, step
 from dynamics.transmission import Transmission
 from estimation.diagnosis.candidates.coupling import coupling_candidates
 from estimation.diagnosis.report import markdown_report, plot_residuals, plot_trace
-from estimation.diagnosis.results import Diagnosis
+from estimation.diagnosis.results import Diagnosis, runner_up_line
 from estimation.diagnosis.search import default_candidates, diagnose
 from estimation.diagnosis.untouched import UntouchedErrors, untouched_errors
 from estimation.preprocessing.delay import DelayBounds, split_delay
@@ -51,7 +51,7 @@ from oed.cli.shared.common import (
 from oed.cli.diagnose_streaming import add_streamed_diagnosis_arguments, check_streamed_arguments, run_streaming
 from estimation.identification.repeated_motion import repeated_motion_note
 from oed.cli.shared.memory_path import decide_path
-from oed.cli.shared.model_files import add_model_file
+from oed.cli.shared.model_files import add_model_file, add_runner_up_model_file
 
 #: what the in-memory diagnosis holds at its peak: bytes a sample, channel and base parameter (measured: 2.8 GB
 #: for 100 000 samples of the 7-joint KUKA, m r = 350, i.e. about 75; a lower bound is used)
@@ -169,6 +169,7 @@ def run_in_memory(args: argparse.Namespace, model: IdentificationModel, transmis
     document["preprocessing"] = records.preprocessing.to_dict()
     document["test"] = None if untouched is None else untouched.to_dict()
     add_model_file(document, diagnosis.after, args, records.preprocessing, transmission, verb="diagnose")
+    add_runner_up_model_file(document, diagnosis.runner_up, args, records.preprocessing, transmission)
     document["diagnosis_path"] = "in-memory"  # "streamed": --chunk-size (oed.cli.diagnose_streaming)
     document["max_effects"] = args.max_effects
     document["max_effects_reached"] = len(diagnosis.effects) >= args.max_effects
@@ -274,6 +275,7 @@ def print_summary(diagnosis: Diagnosis) -> None:
             print(f"found {effect.spec or effect.name} on {', '.join(effect.channels)}: {values} (p = {effect.p_value:.2g})")
     else:
         print("found nothing: the declared model explains the data")
+    print(runner_up_line(diagnosis.runner_up, diagnosis.runner_up_reason))
     before, after = diagnosis.before.validation.mse, diagnosis.after.validation.mse
     print("validation MSE vs recorded")
     print("                 " + "  ".join(f"{channel:>9s}" for channel in before))

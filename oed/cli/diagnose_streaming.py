@@ -10,6 +10,7 @@ import warnings
 from dynamics.models import IdentificationModel, build_model
 from dynamics.robot import RobotModel
 from estimation.data.log_cleaning import DEFAULT_MAX_GAP
+from estimation.diagnosis.results import runner_up_line
 from estimation.estimators.normal_equations import DEFAULT_CHUNK_SIZE
 from estimation.preprocessing.plan import Preprocessing
 from estimation.streaming.recorded_errors import streamed_plan
@@ -21,7 +22,7 @@ from estimation.streaming.diagnosis import (
 )
 from oed.cli.shared.asbuilt import model_effects
 from oed.cli.shared.memory_path import streamed_choice
-from oed.cli.shared.model_files import add_summed_model_file
+from oed.cli.shared.model_files import add_summed_model_file, add_summed_runner_up_model_file
 from oed.cli.shared.common import (
     OutputFiles,
     check_shaped_effects_kept,
@@ -100,6 +101,9 @@ def run_streaming(args: argparse.Namespace, plan: Preprocessing | None = None) -
     add_summed_model_file(document, result.final_model(), result.after, args, model_plan,
                           verb="diagnose", shape=result.final_shape(), recorded_mse=result.train_mse["after"],
                           validation_mse=validation_mse)
+    runner_up = result.runner_up
+    add_summed_runner_up_model_file(document, runner_up, args, model_plan, None if validation_mse is None or
+                                    runner_up is None else runner_up.validation_mse)
     with OutputFiles() as outputs, outputs.open(args.out) as stream:
         stream.write(json_text(document))
     print(plan.describe())
@@ -122,6 +126,7 @@ def print_streamed_summary(args: argparse.Namespace, robot: RobotModel, model: I
             print(f"found {effect.spec or effect.name} on {', '.join(effect.channels)}: {values} (p = {effect.p_value:.2g})")
     else:
         print("found nothing: the declared model explains the data")
+    print(runner_up_line(result.runner_up, result.runner_up_reason))
     before, after = result.validation_mse["before"], result.validation_mse["after"]
     print("validation MSE vs recorded")
     print("                 " + "  ".join(f"{channel:>9s}" for channel in before))

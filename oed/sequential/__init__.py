@@ -6,5 +6,6 @@
 - :mod:`oed.sequential.problem`: the excitation design problem with that prior and criterion;
 - :mod:`oed.sequential.next_experiment`: one call, with the predicted standard deviations;
 - :mod:`oed.sequential.discrimination`: the experiment that best tells two rival models apart;
+- :mod:`oed.sequential.rivals`: the rival, from a model file or the runner-up a diagnosis kept;
 - :mod:`oed.sequential.figure`: the new trajectory beside the old ones, at low speed.
 """

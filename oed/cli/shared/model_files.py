@@ -17,6 +17,22 @@ def robot_source(robot: Any, args: argparse.Namespace) -> RobotSource:
                                         joints=args.joints)
 
 
+def rest_document(args: argparse.Namespace) -> dict[str, Any] | None:
+    """The model file's ``rest``: ``{min_speed, rest}`` when rows at rest were dropped or Coulomb laws smoothed."""
+    return None if args.min_speed is None or args.min_speed == 0 else {"min_speed": args.min_speed, "rest": args.rest}
+
+
+def add_runner_up_model_file(document: dict[str, Any], runner_up: Any, args: argparse.Namespace, preprocessing: Any,
+                             transmission: Any) -> None:
+    """Put the runner-up's ``model_file`` (:mod:`estimation.diagnosis.runner_up`; the format of the chosen model's,
+    what ``oed design --discriminate`` reads) into ``document["runner_up"]``, in place; nothing without one."""
+    if runner_up is None or document.get("runner_up") is None:
+        return
+    document["runner_up"]["model_file"] = model_file_document(
+        runner_up.fit, robot=robot_source(runner_up.model.robot, args), preprocessing=preprocessing.to_dict(),
+        transmission=transmission, rest=rest_document(args), max_gap=args.max_gap)
+
+
 def add_model_file(document: dict[str, Any], result: IdentificationResult, args: argparse.Namespace, preprocessing: Any,
                    transmission: Any, *, verb: str, consistent: Any = None) -> None:
     """Put ``model_file`` (what ``oed predict`` and ``oed export`` read) and ``plausibility`` into
@@ -26,7 +42,7 @@ def add_model_file(document: dict[str, Any], result: IdentificationResult, args:
     ``consistent``: the :class:`estimation.consistent.identification.ConsistentResult` of ``--consistent``, or ``None``.
     """
     robot = robot_source(result.model.robot, args)
-    rest = None if args.min_speed is None or args.min_speed == 0 else {"min_speed": args.min_speed, "rest": args.rest}
+    rest = rest_document(args)
     document["model_file"] = model_file_document(result, robot=robot, preprocessing=preprocessing.to_dict(),
                                                  transmission=transmission, rest=rest, max_gap=args.max_gap,
                                                  consistent=None if consistent is None else consistent.estimate,
@@ -41,6 +57,18 @@ def add_model_file(document: dict[str, Any], result: IdentificationResult, args:
     document["plausibility"]["consistent_links"] = list(links)
     for message in plausibility.messages() + links:
         print(f"oed {verb}: warning: {message}", file=sys.stderr)
+
+
+def add_summed_runner_up_model_file(document: dict[str, Any], runner_up: Any, args: argparse.Namespace,
+                                   preprocessing: dict[str, Any], validation_mse: dict[str, float] | None) -> None:
+    """The streamed path's :func:`add_runner_up_model_file`: the runner-up's estimate from the sums at its fixed
+    shapes (``validation_mse``: its validation MSE as ``oed predict`` measures it, or ``None``)."""
+    if runner_up is None or document.get("runner_up") is None:
+        return
+    shape = {name: value for effect in runner_up.effects for name, value in effect.shape.items()}
+    document["runner_up"]["model_file"] = summed_model_file_document(
+        runner_up.model, runner_up.fit, robot=robot_source(runner_up.model.robot, args), preprocessing=preprocessing,
+        shape=shape, recorded_mse=runner_up.train_mse, validation_mse=validation_mse)
 
 
 def add_summed_model_file(document: dict[str, Any], model: Any, estimate: Any, args: argparse.Namespace,
