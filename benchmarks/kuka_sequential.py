@@ -43,8 +43,9 @@ def kuka_case(urdf: Path = URDF):
 def kuka_design(starts: int = 8, max_iter: int = 150, settings: DesignSettings | None = None) -> NextExperiment:
     model, record = kuka_case()
     bounds = JointBounds.from_robot(model.robot, ddq_max=[5.0] * model.robot.n_joints, scale=0.9)
+    # IPOPT alone, as `oed design --from` runs it (sqp_after=None: the sampled objective jumps with sign(dq))
     return design_next(model, record, bounds=bounds, starts=starts, seed=0,
-                       settings=settings or DesignSettings(max_iter=max_iter))
+                       settings=settings or DesignSettings(max_iter=max_iter, sqp_after=None))
 
 
 def main() -> None:

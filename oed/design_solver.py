@@ -133,13 +133,20 @@ def ipopt_solver(objective: casadi.Function, A: scipy.sparse.spmatrix, *, tol: f
 
 
 def linear_problem(objective: casadi.Function, A: scipy.sparse.spmatrix) -> dict[str, casadi.MX]:
-    """``{x, f, g}`` of ``min objective(x)`` s.t. ``lbg ≤ A x ≤ ubg`` with ``A`` a sparse CasADi constant."""
+    """``{x, f, g}`` of ``min objective(x)`` s.t. ``lbg ≤ A x ≤ ubg`` with ``A`` a sparse CasADi constant.
+
+    The objective's graph is inlined, not called as a function: the solvers' gradient functions (which
+    return the objective with its gradient) then reuse the forward pass (the sampled information
+    matrix) for the reverse sweep instead of evaluating it a second time inside the objective's reverse
+    derivative (PUMA combined model: objective and gradient 0.49 ms against 0.67 ms, the same values).
+    """
     csc = scipy.sparse.csc_matrix(A)
     csc.sort_indices()
     pattern = casadi.Sparsity(csc.shape[0], csc.shape[1], csc.indptr.tolist(), csc.indices.tolist())
     A_dm = casadi.DM(pattern, np.asarray(csc.data, dtype=float))  # CasADi stores column-compressed, like CSC
     x = casadi.MX.sym("x", csc.shape[1])
-    return {"x": x, "f": objective(x), "g": casadi.mtimes(A_dm, x)}
+    (f,) = objective.call([x], True, False)  # always inline
+    return {"x": x, "f": f, "g": casadi.mtimes(A_dm, x)}
 
 
 def sqp_solver(objective: casadi.Function, A: scipy.sparse.spmatrix, *, tol: float, max_iter: int,

@@ -55,8 +55,19 @@ def package_version() -> str:
         return oed.__version__
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """Return the top-level parser with every verb registered."""
+def verbs_to_register(argv: Sequence[str]) -> tuple[str, ...]:
+    """The verb module of the verb the command line starts with (``servo-fit`` -> ``servo_fit``), alone: a run
+    imports its own verb's libraries only (``oed design`` neither pandas nor scipy.signal). Every verb for
+    anything else (``--help``, ``--version``, no verb, a misspelt one), so that argparse lists them all."""
+    if argv:
+        module = argv[0].replace("-", "_")
+        if module in VERB_MODULES and argv[0] == module.replace("_", "-"):
+            return (module,)
+    return VERB_MODULES
+
+
+def build_parser(verbs: Sequence[str] = VERB_MODULES) -> argparse.ArgumentParser:
+    """Return the top-level parser with ``verbs`` (default: every verb) registered."""
     parser = argparse.ArgumentParser(
         prog="oed",
         description="Optimal experiment design and dynamic-parameter identification of robot manipulators.",
@@ -64,7 +75,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"%(prog)s {package_version()}")
     subparsers = parser.add_subparsers(dest="verb", metavar="VERB")
     subparsers.required = True
-    for name in VERB_MODULES:
+    for name in verbs:
         module = importlib.import_module(f"oed.cli.{name}")
         verb_parser = module.register(subparsers)
         verb_parser.set_defaults(run=module.run, derived_outputs=getattr(module, "derived_outputs", None))
@@ -73,8 +84,9 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``oed`` console script."""
+    argv = sys.argv[1:] if argv is None else list(argv)
     try:
-        parser = build_parser()  # imports every verb (numpy, CasADi, Pinocchio): the first seconds of a run
+        parser = build_parser(verbs_to_register(argv))  # imports the verb (numpy, CasADi…): the first second of a run
     except KeyboardInterrupt:
         print("oed: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
