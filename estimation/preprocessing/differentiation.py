@@ -94,8 +94,9 @@ def average_periods(measurements: Measurements, frequency_hz: float) -> Measurem
 
 def fit_fourier(t: NDArray[np.float64], q: NDArray[np.float64], frequency_hz: float, harmonics: int) -> FourierSeries:
     """Least-squares fit of the finite Fourier series of eq. 18 (PUMA paper) to positions ``q (T, n)``
-    on their time stamps ``t`` (:func:`estimation.preprocessing.fourier_series.fit_series`)."""
-    return fit_series(t, q, frequency_hz, harmonics)[0]
+    on their time stamps ``t`` (:func:`estimation.preprocessing.fourier_series.fit_series`, by its normal
+    equations: a derivative candidate is fitted many times a run)."""
+    return fit_series(t, q, frequency_hz, harmonics, solver="normal")[0]
 
 
 def whole_periods(measurements: Measurements, frequency_hz: float) -> tuple[int, int] | None:
