@@ -159,7 +159,7 @@ def _covariance(search: _ShapeSearch, s: NDArray[np.float64], solution: LinearSo
         if covariance == "hac":
             scores = sample_scores(fixed, search.blocks, solution, search.weights, residual)
             meat = batch_means(scores, batch_length(residual, search.weights, segments), segments)
-            cov = inverse @ meat @ inverse * fixed.A.shape[1] / max(fixed.A.shape[1] - information.shape[0], 1)
+            cov = inverse @ meat @ inverse * fixed.n_samples / max(fixed.n_samples - information.shape[0], 1)
             cov = np.maximum(np.diag(cov), sigma2 * np.diag(inverse))  # never below the white-noise value
             cov = _with_diagonal(sigma2 * inverse, cov)
         else:
