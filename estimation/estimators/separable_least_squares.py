@@ -28,6 +28,7 @@ import numpy as np
 import scipy.linalg
 from numpy.typing import NDArray
 
+from estimation.estimators.bordered_normal import RANK_THRESHOLD, BorderedFactor, FixedFactor, solve_bordered
 from estimation.estimators.effect_blocks import Block, States
 
 __all__ = ["FixedPart", "LinearSolution", "full_information", "residuals", "sample_scores", "solve_linear", "solve_normal"]
@@ -57,13 +58,15 @@ class FixedPart:
 
     @classmethod
     def per_channel(cls, A: NDArray[np.float64], values: NDArray[np.float64]) -> FixedPart:
-        """From the per-channel layout ``A (m, N, p0)`` and ``values (m, N)`` (C-contiguous)."""
+        """From the per-channel layout ``A (m, N, p0)`` (any strides: a view of ``(N, m, p0)`` is read in
+        place) and ``values (m, N)`` (C-contiguous)."""
         m, _, p0 = A.shape
         own, where = [], []
         gram, moment = np.zeros((m, p0, p0)), np.zeros((m, p0))
+        support = np.any(A != 0, axis=1)  # (m, p0)
         for channel in range(m):
-            columns = np.flatnonzero(np.any(A[channel] != 0, axis=0))
-            stored = np.ascontiguousarray(A[channel][:, columns])
+            columns = np.flatnonzero(support[channel])
+            stored = np.compress(support[channel], A[channel], axis=1)  # a C-contiguous copy
             gram[channel][np.ix_(columns, columns)] = stored.T @ stored
             moment[channel, columns] = stored.T @ values[channel]
             own.append(stored)
@@ -146,6 +149,17 @@ class LinearSolution:
     normal: NDArray[np.float64]
     columns: list[NDArray[np.float64]]  # per block (N, rows, k)
     derivatives: list[NDArray[np.float64]] | None  # per block (n_s, N, rows, k)
+    factor: BorderedFactor | None = None  # ``normal`` factored by blocks, when it was solved so
+
+    def solve(self, right: NDArray[np.float64]) -> NDArray[np.float64]:
+        """``normal⁻¹ right`` for ``right (p,)`` or ``(p, r)`` (by blocks when solved so, else by the Cholesky
+        factor of the equilibrated matrix)."""
+        if self.factor is not None:
+            return self.factor.solve(right)
+        scale = np.sqrt(np.diag(self.normal))
+        scale_right = scale if right.ndim == 1 else scale[:, None]
+        factor = scipy.linalg.cho_factor(self.normal / np.outer(scale, scale), check_finite=False)
+        return scipy.linalg.cho_solve(factor, right / scale_right, check_finite=False) / scale_right
 
 
 def _layout(blocks: Sequence[Block], n_fixed: int) -> list[slice]:
@@ -157,8 +171,11 @@ def _layout(blocks: Sequence[Block], n_fixed: int) -> list[slice]:
 
 
 def solve_linear(fixed: FixedPart, blocks: Sequence[Block], states: States, shapes: Sequence[NDArray[np.float64]],
-                 weights: NDArray[np.float64], *, jacobian: bool = False) -> LinearSolution:
-    """Weighted least squares in ``θ = (θ₀, θ_b…)`` at the given shapes, from per-channel Gram matrices."""
+                 weights: NDArray[np.float64], *, jacobian: bool = False,
+                 factored: FixedFactor | None = None) -> LinearSolution:
+    """Weighted least squares in ``θ = (θ₀, θ_b…)`` at the given shapes, from per-channel Gram matrices;
+    ``factored``: the fixed block's factor at these ``weights`` (:class:`FixedFactor`), the blocks then
+    eliminated by their Schur complement (:func:`solve_bordered`)."""
     p0 = fixed.n_fixed
     slices = _layout(blocks, p0)
     p = slices[-1].stop if slices else p0
@@ -184,9 +201,10 @@ def solve_linear(fixed: FixedPart, blocks: Sequence[Block], states: States, shap
                 if row in other.rows:
                     normal[where, other_where] += w * (C.T @ other_values[:, other.rows.index(row), :])
     normal = np.triu(normal) + np.triu(normal, 1).T
-    theta = solve_normal(normal, right)
+    solved = None if factored is None else solve_bordered(normal, right, factored)
+    theta, factor = (solve_normal(normal, right), None) if solved is None else solved
     rss = float(weights @ fixed.power - 2 * theta @ right + theta @ normal @ theta)
-    return LinearSolution(theta, max(rss, 0.0), normal, columns, derivatives)
+    return LinearSolution(theta, max(rss, 0.0), normal, columns, derivatives, factor)
 
 
 def solve_normal(normal: NDArray[np.float64], right: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -202,7 +220,7 @@ def solve_normal(normal: NDArray[np.float64], right: NDArray[np.float64]) -> NDA
         raise np.linalg.LinAlgError("an all-zero column")
     equilibrated = normal / np.outer(scale, scale)
     eigenvalues = np.linalg.eigvalsh(equilibrated)
-    if eigenvalues[0] < 1e-13 * eigenvalues[-1]:
+    if eigenvalues[0] < RANK_THRESHOLD * eigenvalues[-1]:
         raise np.linalg.LinAlgError("rank-deficient columns")
     factor = scipy.linalg.cho_factor(equilibrated, check_finite=False)
     return scipy.linalg.cho_solve(factor, right / scale, check_finite=False) / scale
