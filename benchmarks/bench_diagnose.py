@@ -11,11 +11,15 @@ and shaped (``coulomb:tanh``, ``stribeck:velocity``, ``sigmoid``, ``ripple``).
    friction and offsets the declared viscous model lacks; positions and torques only). Target ≤ 10 s. The
    baseline, timed in the same run: one least-squares fit of the declared model's stacked regressor on the
    training record (``numpy.linalg.lstsq``, 98 000 rows): the ratio says how many such fits the whole
-   diagnosis costs, whatever the machine's speed (``--skip-end-to-end`` leaves it out).
+   diagnosis costs, whatever the machine's speed (``--skip-end-to-end`` leaves it out). With ``--excitation
+   TRAJECTORY.json`` (a designed excitation, as ``benchmarks/README.md`` ran it: "Where the time of `oed diagnose`
+   goes"), the records are simulated from it, three seeds (training, validation, test), in two cases: the URDF's
+   own friction (the declared model is at its noise floor: one round of candidates, nothing added) and Coulomb
+   friction and offsets of 0.1–3 N·m (14 effects to find); each is timed end to end against the same fit.
 
 Parts 1 and 2 time ``diagnose`` alone (the records are made or loaded before), one run, with the
 compiled column functions already in the cache (``~/.cache/robot-oed``; a first run compiles them
-once, a few seconds more). Run: ``python benchmarks/bench_diagnose.py [--skip-kuka] [--skip-end-to-end]``.
+once, a few seconds more). Run: ``python benchmarks/bench_diagnose.py [--skip-kuka] [--skip-end-to-end] [--excitation TRAJECTORY.json]``.
 """
 
 from __future__ import annotations
@@ -83,17 +87,24 @@ def oed_command(*arguments: str) -> tuple[float, float]:
     return wall, (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
 
 
-def seven_joint_log(folder: Path) -> tuple[Path, Path]:
-    """Training and validation records of the KUKA LWR4+ simulated by ``oed simulate`` (part 3)."""
-    robot = load_robot(urdf=DATA / "kuka_lwr4.urdf")
-    trajectory = folder / "excitation.json"
-    random_fourier(robot, seed=1, frequency_hz=1 / 7, harmonics=5).save(trajectory)
-    values = '{"coulomb": [3.0, 3.0, 2.0, 2.0, 1.0, 0.5, 0.5], "offset": [0.5, -0.5, 0.3, -0.3, 0.2, 0.1, -0.1]}'
-    paths = folder / "train.csv", folder / "validate.csv"
+#: the Coulomb friction and offsets the declared viscous model lacks (part 3, "effects")
+EFFECT_VALUES = '{"coulomb": [3.0, 3.0, 2.0, 2.0, 1.0, 0.5, 0.5], "offset": [0.5, -0.5, 0.3, -0.3, 0.2, 0.1, -0.1]}'
+
+
+def seven_joint_log(folder: Path, trajectory: Path | None = None, values: str | None = EFFECT_VALUES,
+                    records: tuple[str, ...] = ("train", "validate")) -> tuple[Path, ...]:
+    """Records of the KUKA LWR4+ simulated by ``oed simulate`` (part 3), seeds 1, 2, …: from ``trajectory``
+    (default a random 5-harmonic excitation at 1/7 Hz), with Coulomb friction and offsets of ``values`` (``None``:
+    the URDF's own)."""
+    if trajectory is None:
+        robot = load_robot(urdf=DATA / "kuka_lwr4.urdf")
+        trajectory = folder / "excitation.json"
+        random_fourier(robot, seed=1, frequency_hz=1 / 7, harmonics=5).save(trajectory)
+    paths = tuple(folder / f"{name}.csv" for name in records)
     for seed, path in enumerate(paths, start=1):
         oed_command("simulate", "--urdf", str(DATA / "kuka_lwr4.urdf"), "--trajectory", str(trajectory),
-                    "--effects", "coulomb,offset", "--effect-values", values, "--bandwidth", "10", "--periods", "2",
-                    "--warmup-periods", "1", "--seed", str(seed), "--out", str(path))
+                    "--effects", "coulomb,offset", *(("--effect-values", values) if values else ()), "--bandwidth",
+                    "10", "--periods", "2", "--warmup-periods", "1", "--seed", str(seed), "--out", str(path))
     return paths
 
 
@@ -114,25 +125,35 @@ def one_fit_seconds(train_path: Path, repeats: int = 5) -> float:
     return min(times)
 
 
-def end_to_end(target_s: float = 10.0) -> None:
-    """Part 3: ``oed diagnose`` on a simulated 7-joint 14 000-sample log, against one least-squares fit."""
-    with tempfile.TemporaryDirectory() as folder:
-        train, validate = seven_joint_log(Path(folder))
-        fit = one_fit_seconds(train)
-        arguments = ("diagnose", "--urdf", str(DATA / "kuka_lwr4.urdf"), "--data", str(train), "--validate",
-                     str(validate), "--out", str(Path(folder) / "report.json"))
-        wall, cpu = oed_command(*arguments)
-        print(f"KUKA LWR4+ simulated, 7 joints, 14 000 + 14 000 samples: `oed diagnose` end to end {wall:.1f} s "
-              f"(target <= {target_s:g} s; CPU {cpu:.1f} s), {wall / fit:.0f} least-squares fits of the record")
+def end_to_end(target_s: float = 10.0, excitation: Path | None = None) -> None:
+    """Part 3: ``oed diagnose`` on a simulated 7-joint 14 000-sample log, against one least-squares fit (with a
+    designed ``excitation``: the two cases of ``benchmarks/README.md``, training, validation and test records)."""
+    cases = {"random excitation, effects": EFFECT_VALUES} if excitation is None else \
+        {"at its floor": None, "14 effects": EFFECT_VALUES}
+    for label, values in cases.items():
+        with tempfile.TemporaryDirectory() as folder:
+            records = ("train", "validate") if excitation is None else ("train", "validate", "test")
+            paths = seven_joint_log(Path(folder), excitation, values, records)
+            fit = one_fit_seconds(paths[0])
+            arguments = ["diagnose", "--urdf", str(DATA / "kuka_lwr4.urdf"), "--data", str(paths[0]), "--validate",
+                         str(paths[1]), "--out", str(Path(folder) / "report.json")]
+            if len(paths) > 2:
+                arguments += ["--test", str(paths[2])]
+            wall, cpu = oed_command(*arguments)
+            print(f"KUKA LWR4+ simulated, 7 joints, 14 000-sample records, {label}: `oed diagnose` end to end "
+                  f"{wall:.1f} s (target <= {target_s:g} s; CPU {cpu:.1f} s), {wall / fit:.0f} least-squares fits "
+                  "of the record")
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--skip-kuka", action="store_true")
     parser.add_argument("--skip-end-to-end", action="store_true")
+    parser.add_argument("--excitation", type=Path, default=None,
+                        help="a designed trajectory JSON for part 3 (default: a random 5-harmonic excitation)")
     args = parser.parse_args()
     if not args.skip_end_to_end and DATA.is_dir():
-        end_to_end()
+        end_to_end(excitation=args.excitation)
     model, (train, validate) = puma_records()
     diagnose(model, train, validate)  # warm-up: compiled column functions into the cache
     run("PUMA 560, 3 joints", model, train, validate, 10.0)

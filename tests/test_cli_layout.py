@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import ast
+import os
+import subprocess
+import sys
 from pathlib import Path
 
 import oed.cli
@@ -27,3 +30,12 @@ def test_no_cli_module_imports_a_verb():
     offenders = {path.stem: sorted(imported_cli_modules(path) & set(VERB_MODULES))
                  for path in sorted(CLI.glob("*.py"))}
     assert {module: verbs for module, verbs in offenders.items() if verbs} == {}
+
+
+def test_a_run_imports_its_own_verb_alone():
+    # a fresh interpreter: the parser of one verb lists the others without importing their modules
+    code = ("import sys, oed.cli; oed.cli.build_parser(('model',)); "
+            "print(sorted(name for name in oed.cli.VERB_MODULES if 'oed.cli.' + name in sys.modules))")
+    environment = dict(os.environ, PYTHONPATH=os.pathsep.join([str(CLI.parents[1]), os.environ.get("PYTHONPATH", "")]))
+    output = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, env=environment)
+    assert output.stdout.strip() == "['model']"

@@ -14,7 +14,9 @@ from estimation.preprocessing.differentiation import (
     compensate_hold,
     decimate,
     fill_derivatives,
+    repeats_exactly,
 )
+from estimation.preprocessing.fourier_series import FourierSeries
 from oed.fourier import random_fourier
 
 
@@ -99,3 +101,17 @@ def test_compensate_hold_moves_the_derived_motion_half_a_sample_later(trajectory
         compensate_hold(Measurements(t, q, tau=np.ones_like(q)))
     with pytest.warns(UserWarning, match="nothing to align"):
         fill_derivatives(Measurements(t, q, dq, ddq, tau=np.ones_like(q)), held_torques=True)
+
+
+def test_the_motion_of_averaged_periods_is_repeated_only_where_the_time_stamps_repeat():
+    frequency, rate = 0.25, 200.0
+    t = np.arange(3 * 800) / rate
+    q = np.column_stack([np.sin(2 * np.pi * frequency * t), np.cos(4 * np.pi * frequency * t)])
+    q += np.random.default_rng(0).normal(0.0, 1e-4, q.shape)
+    data = Measurements(t=t, q=q, tau=np.zeros_like(q))
+    assert repeats_exactly(t, 3, frequency) and not repeats_exactly(t + 1e-7 * t**2, 3, frequency)
+    derived = FourierDifferentiation(frequency, 10, average="yes").apply(data)
+    fit = derived.metadata["fourier_fit"]
+    direct = FourierSeries(fit["frequency_hz"], np.array(fit["q0"]), np.array(fit["a"]), np.array(fit["b"])).evaluate(t)
+    for repeated, evaluated in zip((derived.recorded.q, derived.recorded.dq, derived.recorded.ddq), direct):
+        np.testing.assert_allclose(repeated, evaluated, rtol=0, atol=1e-12 * np.max(np.abs(evaluated)))

@@ -65,12 +65,6 @@ def declared_regressor(model: IdentificationModel, before: IdentificationResult)
     return functools.partial(_base_regressor, model)
 
 
-def _kept(fixed: FixedPart, columns: Sequence[int]) -> FixedPart:
-    """``fixed`` with only ``columns`` (their Gram matrices and moments taken, not formed again)."""
-    return FixedPart(fixed.A[:, :, columns], fixed.y, fixed.gram[:, columns][:, :, columns], fixed.moment[:, columns],
-                     fixed.power)
-
-
 class RecordFits:
     """Fits of column blocks on the training record and errors on the validation record (as recorded).
 
@@ -104,9 +98,8 @@ class RecordFits:
         self.train, self.recorded = train, recorded
         self.states_train = States(train.q, train.dq, train.ddq)
         self.states_validate = States(recorded.q, recorded.dq, recorded.ddq)
-        self.base_train = (self.regressor(train), train.channels(self.model.channels))
-        self.base_validate = (self.regressor(recorded), recorded.channels(self.model.channels))
-        self.declared: FixedPart | None = None  # the declared columns alone, once needed
+        self.declared = FixedPart.from_arrays(self.regressor(train), train.channels(self.model.channels))
+        self.declared_validate = FixedPart.from_arrays(self.regressor(recorded), recorded.channels(self.model.channels))
         self.set_model(self.adopted)
 
     @property
@@ -117,28 +110,27 @@ class RecordFits:
         """The (training, validation) columns of the current model without the adopted ``without`` (the
         current model's columns, their Gram matrices and moments with those of ``without`` left out)."""
         if without not in self.reduced:
-            keep, start = list(range(self.base_train[0].shape[2])), self.base_train[0].shape[2]
+            keep, start = list(range(self.declared.n_fixed)), self.declared.n_fixed
             for item in self.adopted:
                 if item.index not in without:
                     keep.extend(range(start, start + item.block.n_linear))
                 start += item.block.n_linear
-            self.reduced[without] = tuple(_kept(fixed, keep) for fixed in self.reduced[()])
+            self.reduced[without] = tuple(fixed.kept(keep) for fixed in self.reduced[()])
         return self.reduced[without]
 
-    def _fixed(self, base, states: States, adopted: Sequence[AdoptedEffect]) -> FixedPart:
-        Y, y = base
-        parts = [Y]
+    @staticmethod
+    def _fixed(declared: FixedPart, states: States, adopted: Sequence[AdoptedEffect]) -> FixedPart:
+        """The declared columns extended by each adopted block at its shape (its channels' products alone)."""
+        fixed = declared
         for item in adopted:
-            extra = np.zeros((Y.shape[0], Y.shape[1], item.block.n_linear))
-            extra[:, list(item.block.rows), :] = item.block.evaluate(states, item.shape)
-            parts.append(extra)
-        return FixedPart.from_arrays(np.concatenate(parts, axis=2), y)
+            fixed = fixed.extended(item.block.evaluate(states, item.shape), item.block.rows)
+        return fixed
 
     def set_model(self, adopted: Sequence[AdoptedEffect]) -> None:
         """The current model: the declared columns and the adopted blocks at their shapes."""
         self.adopted = tuple(adopted)
-        self.fixed_train, self.fixed_validate = (self._fixed(self.base_train, self.states_train, self.adopted),
-                                                 self._fixed(self.base_validate, self.states_validate, self.adopted))
+        self.fixed_train, self.fixed_validate = (self._fixed(self.declared, self.states_train, self.adopted),
+                                                 self._fixed(self.declared_validate, self.states_validate, self.adopted))
         self.reduced: dict[tuple[int, ...], tuple[FixedPart, FixedPart]] = {(): (self.fixed_train, self.fixed_validate)}
 
     def fit_current(self, weights: NDArray[np.float64], without: tuple[int, ...] = ()) -> RecordFit:
@@ -184,8 +176,6 @@ class RecordFits:
                 ) -> tuple[NDArray[np.float64], NDArray[np.float64], int]:
         """``(θ, cov θ, n_declared)`` of the declared columns plus ``blocks`` at ``shapes``, the HAC
         covariance of the final fit (the shape directions of every shaped block included)."""
-        if self.declared is None:
-            self.declared = self._fixed(self.base_train, self.states_train, [])
         shaped = self.shaped or any(block.n_shape for block in blocks)
         theta, cov = fit_covariance(self.declared, blocks, self.states_train, shapes, weights, shaped=shaped)
         return theta, cov, self.declared.n_fixed

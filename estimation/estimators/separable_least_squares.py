@@ -8,7 +8,9 @@ or plain ones). For fixed ``s`` the weighted least squares in ``θ = (θ₀, θ_
 
 Everything is per channel: the Gram matrices ``A_cᵀA_c`` of the fixed part are formed once
 (:class:`FixedPart`); a block touches only its own channels (one joint's torque for a per-joint
-law), so an evaluation costs ``O(N p k)`` on those channels plus an ``O((p+k)³)`` solve.
+law), so an evaluation costs ``O(N p_c k)`` on those channels plus an ``O((p+k)³)`` solve, ``p_c`` the
+columns channel ``c`` has (a distal joint's torque reaches few of the base parameters: 8 of 50 for the
+last joint of a 7-joint arm, 28 on average), which are stored alone.
 
 With the derivatives ``∂C/∂s`` the same sums give the information ``J_fᵀ W J_f`` of the full
 Jacobian ``J_f = [A(s), (∂C/∂s) θ̂]`` and the gradient of the projected residual in ``s``
@@ -18,6 +20,7 @@ the per-sample scores of a sandwich covariance (:func:`sample_scores`).
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -25,6 +28,7 @@ import numpy as np
 import scipy.linalg
 from numpy.typing import NDArray
 
+from estimation.estimators.bordered_normal import RANK_THRESHOLD, BorderedFactor, FixedFactor, solve_bordered
 from estimation.estimators.effect_blocks import Block, States
 
 __all__ = ["FixedPart", "LinearSolution", "full_information", "residuals", "sample_scores", "solve_linear", "solve_normal"]
@@ -32,9 +36,16 @@ __all__ = ["FixedPart", "LinearSolution", "full_information", "residuals", "samp
 
 @dataclass(frozen=True)
 class FixedPart:
-    """The fixed columns ``A₀`` and measured channels of one record, arranged per channel."""
+    """The fixed columns ``A₀ (m, N, p0)`` and measured channels of one record, arranged per channel.
 
-    A: NDArray[np.float64]  # (m, N, p0)
+    Each channel stores only the columns that are not zero on it: ``own[c] (N, q_c)``, contiguous, and
+    ``where[c] (q_c,)`` their places among the ``p0`` columns, ``−1`` for a stored column that is not one of
+    this part's (a part that leaves columns out shares its parent's arrays: :meth:`kept`). The products with
+    ``A_c`` (:meth:`cross`, :meth:`predict`) read those alone; :attr:`A` is the dense array, made when asked.
+    """
+
+    own: tuple[NDArray[np.float64], ...]  # per channel (N, q_c)
+    where: tuple[NDArray[np.intp], ...]  # per channel (q_c,)
     y: NDArray[np.float64]  # (m, N)
     gram: NDArray[np.float64]  # (m, p0, p0)
     moment: NDArray[np.float64]  # (m, p0)
@@ -43,30 +54,90 @@ class FixedPart:
     @classmethod
     def from_arrays(cls, Y: NDArray[np.float64], y: NDArray[np.float64]) -> FixedPart:
         """From ``Y (N, m, p0)`` and ``y (N, m)``."""
-        return cls.per_channel(np.ascontiguousarray(np.transpose(Y, (1, 0, 2))), np.ascontiguousarray(y.T))
+        return cls.per_channel(np.transpose(Y, (1, 0, 2)), np.ascontiguousarray(y.T))
 
     @classmethod
     def per_channel(cls, A: NDArray[np.float64], values: NDArray[np.float64]) -> FixedPart:
-        """From the per-channel layout ``A (m, N, p0)`` and ``values (m, N)``, both C-contiguous."""
-        gram = np.matmul(A.transpose(0, 2, 1), A)
-        moment = np.matmul(A.transpose(0, 2, 1), values[:, :, None])[:, :, 0]
-        return cls(A, values, gram, moment, np.sum(values**2, axis=1))
+        """From the per-channel layout ``A (m, N, p0)`` (any strides: a view of ``(N, m, p0)`` is read in
+        place) and ``values (m, N)`` (C-contiguous)."""
+        m, _, p0 = A.shape
+        own, where = [], []
+        gram, moment = np.zeros((m, p0, p0)), np.zeros((m, p0))
+        support = np.any(A != 0, axis=1)  # (m, p0)
+        for channel in range(m):
+            columns = np.flatnonzero(support[channel])
+            stored = np.compress(support[channel], A[channel], axis=1)  # a C-contiguous copy
+            gram[channel][np.ix_(columns, columns)] = stored.T @ stored
+            moment[channel, columns] = stored.T @ values[channel]
+            own.append(stored)
+            where.append(columns)
+        return cls(tuple(own), tuple(where), values, gram, moment, np.sum(values**2, axis=1))
+
+    def cross(self, channel: int, columns: NDArray[np.float64]) -> NDArray[np.float64]:
+        """``A_cᵀ C``, ``(p0, k)``, of columns ``C (N, k)`` on ``channel``."""
+        products = self.own[channel].T @ columns
+        where = self.where[channel]
+        result = np.zeros((self.n_fixed, columns.shape[1]))
+        kept = where >= 0
+        result[where[kept]] = products[kept]
+        return result
+
+    def predict(self, theta: NDArray[np.float64], channel: int | None = None) -> NDArray[np.float64]:
+        """``A_c θ`` on ``channel`` ``(N,)``, or on every channel ``(m, N)``."""
+        padded = np.append(theta, 0.0)  # where = −1 reads the appended zero
+        if channel is not None:
+            return self.own[channel] @ padded[self.where[channel]]
+        return np.stack([own @ padded[where] for own, where in zip(self.own, self.where)])
+
+    def moments(self, values: NDArray[np.float64]) -> NDArray[np.float64]:
+        """``A_cᵀ v_c`` of other values ``(m, N)`` on each channel, ``(m, p0)``."""
+        return np.stack([self.cross(channel, values[channel][:, None])[:, 0] for channel in range(len(self.own))])
+
+    def kept(self, columns: Sequence[int]) -> FixedPart:
+        """This part with only ``columns`` (in that order): the Gram matrices and moments taken, the stored
+        columns shared."""
+        place = np.full(self.n_fixed + 1, -1, dtype=np.intp)  # place[-1]: a stored column already left out
+        place[list(columns)] = np.arange(len(columns))
+        index = np.asarray(columns, dtype=np.intp)
+        return FixedPart(self.own, tuple(place[where] for where in self.where), self.y,
+                         self.gram[:, index][:, :, index], self.moment[:, index], self.power)
 
     def extended(self, columns: NDArray[np.float64], rows: Sequence[int]) -> FixedPart:
-        """With extra columns ``(N, rows, k)`` that are zero off ``rows`` (built in the per-channel layout: no
-        copy of the record's columns through the sample-major one)."""
-        m, n_samples, _ = self.A.shape
-        extra = np.zeros((m, n_samples, columns.shape[2]))
-        extra[list(rows)] = columns.transpose(1, 0, 2)
-        return FixedPart.per_channel(np.concatenate([self.A, extra], axis=2), self.y)
+        """With extra columns ``(N, rows, k)`` that are zero off ``rows``: only those channels' products are
+        formed (``O(N p_c k)`` each), the others keep their arrays."""
+        m, p0, k = len(self.own), self.n_fixed, columns.shape[2]
+        gram, moment = np.zeros((m, p0 + k, p0 + k)), np.zeros((m, p0 + k))
+        gram[:, :p0, :p0], moment[:, :p0] = self.gram, self.moment
+        own, where = list(self.own), list(self.where)
+        for position, row in enumerate(rows):
+            C = np.ascontiguousarray(columns[:, position, :])
+            cross = self.cross(row, C)
+            gram[row, :p0, p0:], gram[row, p0:, :p0], gram[row, p0:, p0:] = cross, cross.T, C.T @ C
+            moment[row, p0:] = C.T @ self.y[row]
+            own[row] = np.concatenate([self.own[row], C], axis=1)
+            where[row] = np.concatenate([self.where[row], np.arange(p0, p0 + k)])
+        return FixedPart(tuple(own), tuple(where), self.y, gram, moment, self.power)
+
+    @functools.cached_property
+    def A(self) -> NDArray[np.float64]:  # noqa: N802 (the columns' name in the equations)
+        """The dense columns ``(m, N, p0)``."""
+        dense = np.zeros((len(self.own), self.n_samples, self.n_fixed))
+        for channel, (own, where) in enumerate(zip(self.own, self.where)):
+            kept = where >= 0
+            dense[channel][:, where[kept]] = own[:, kept]
+        return dense
 
     @property
     def n_fixed(self) -> int:
-        return self.A.shape[2]
+        return self.gram.shape[1]
+
+    @property
+    def n_samples(self) -> int:
+        return self.y.shape[1]
 
     @property
     def n_rows(self) -> int:
-        return self.A.shape[0] * self.A.shape[1]
+        return self.y.shape[0] * self.y.shape[1]
 
 
 @dataclass(frozen=True)
@@ -78,6 +149,17 @@ class LinearSolution:
     normal: NDArray[np.float64]
     columns: list[NDArray[np.float64]]  # per block (N, rows, k)
     derivatives: list[NDArray[np.float64]] | None  # per block (n_s, N, rows, k)
+    factor: BorderedFactor | None = None  # ``normal`` factored by blocks, when it was solved so
+
+    def solve(self, right: NDArray[np.float64]) -> NDArray[np.float64]:
+        """``normal⁻¹ right`` for ``right (p,)`` or ``(p, r)`` (by blocks when solved so, else by the Cholesky
+        factor of the equilibrated matrix)."""
+        if self.factor is not None:
+            return self.factor.solve(right)
+        scale = np.sqrt(np.diag(self.normal))
+        scale_right = scale if right.ndim == 1 else scale[:, None]
+        factor = scipy.linalg.cho_factor(self.normal / np.outer(scale, scale), check_finite=False)
+        return scipy.linalg.cho_solve(factor, right / scale_right, check_finite=False) / scale_right
 
 
 def _layout(blocks: Sequence[Block], n_fixed: int) -> list[slice]:
@@ -89,8 +171,11 @@ def _layout(blocks: Sequence[Block], n_fixed: int) -> list[slice]:
 
 
 def solve_linear(fixed: FixedPart, blocks: Sequence[Block], states: States, shapes: Sequence[NDArray[np.float64]],
-                 weights: NDArray[np.float64], *, jacobian: bool = False) -> LinearSolution:
-    """Weighted least squares in ``θ = (θ₀, θ_b…)`` at the given shapes, from per-channel Gram matrices."""
+                 weights: NDArray[np.float64], *, jacobian: bool = False,
+                 factored: FixedFactor | None = None) -> LinearSolution:
+    """Weighted least squares in ``θ = (θ₀, θ_b…)`` at the given shapes, from per-channel Gram matrices;
+    ``factored``: the fixed block's factor at these ``weights`` (:class:`FixedFactor`), the blocks then
+    eliminated by their Schur complement (:func:`solve_bordered`)."""
     p0 = fixed.n_fixed
     slices = _layout(blocks, p0)
     p = slices[-1].stop if slices else p0
@@ -109,16 +194,17 @@ def solve_linear(fixed: FixedPart, blocks: Sequence[Block], states: States, shap
     for index, (block, values, where) in enumerate(zip(blocks, columns, slices)):
         for position, row in enumerate(block.rows):
             w, C = weights[row], values[:, position, :]
-            normal[:p0, where] += w * (fixed.A[row].T @ C)
+            normal[:p0, where] += w * fixed.cross(row, C)
             normal[where, where] += w * (C.T @ C)
             right[where] += w * (C.T @ fixed.y[row])
             for other, other_values, other_where in zip(blocks[index + 1:], columns[index + 1:], slices[index + 1:]):
                 if row in other.rows:
                     normal[where, other_where] += w * (C.T @ other_values[:, other.rows.index(row), :])
     normal = np.triu(normal) + np.triu(normal, 1).T
-    theta = solve_normal(normal, right)
+    solved = None if factored is None else solve_bordered(normal, right, factored)
+    theta, factor = (solve_normal(normal, right), None) if solved is None else solved
     rss = float(weights @ fixed.power - 2 * theta @ right + theta @ normal @ theta)
-    return LinearSolution(theta, max(rss, 0.0), normal, columns, derivatives)
+    return LinearSolution(theta, max(rss, 0.0), normal, columns, derivatives, factor)
 
 
 def solve_normal(normal: NDArray[np.float64], right: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -134,7 +220,7 @@ def solve_normal(normal: NDArray[np.float64], right: NDArray[np.float64]) -> NDA
         raise np.linalg.LinAlgError("an all-zero column")
     equilibrated = normal / np.outer(scale, scale)
     eigenvalues = np.linalg.eigvalsh(equilibrated)
-    if eigenvalues[0] < 1e-13 * eigenvalues[-1]:
+    if eigenvalues[0] < RANK_THRESHOLD * eigenvalues[-1]:
         raise np.linalg.LinAlgError("rank-deficient columns")
     factor = scipy.linalg.cho_factor(equilibrated, check_finite=False)
     return scipy.linalg.cho_solve(factor, right / scale, check_finite=False) / scale
@@ -146,11 +232,11 @@ def residuals(fixed: FixedPart, blocks: Sequence[Block], solution: LinearSolutio
     theta = solution.theta
     p0 = fixed.n_fixed
     if rows is None:
-        values = fixed.y - np.matmul(fixed.A, theta[:p0])
+        values = fixed.y - fixed.predict(theta[:p0])
     else:
         values = np.zeros_like(fixed.y)
         for row in rows:
-            values[row] = fixed.y[row] - fixed.A[row] @ theta[:p0]
+            values[row] = fixed.y[row] - fixed.predict(theta[:p0], row)
     for block, columns, where in zip(blocks, solution.columns, _layout(blocks, p0)):
         for position, row in enumerate(block.rows):
             if rows is None or row in rows:
@@ -181,7 +267,7 @@ def full_information(fixed: FixedPart, blocks: Sequence[Block], solution: Linear
     for j, (rows, D) in enumerate(directions):
         for position, row in enumerate(rows):
             w, d = weights[row], D[:, position]
-            information[:fixed.n_fixed, p + j] += w * (fixed.A[row].T @ d)
+            information[:fixed.n_fixed, p + j] += w * fixed.cross(row, d[:, None])[:, 0]
             for block, columns, where in zip(blocks, solution.columns, slices):
                 if row in block.rows:
                     information[where, p + j] += w * (columns[:, block.rows.index(row), :].T @ d)
@@ -197,7 +283,11 @@ def sample_scores(fixed: FixedPart, blocks: Sequence[Block], solution: LinearSol
                   residual: NDArray[np.float64]) -> NDArray[np.float64]:
     """Per sample ``s_t = Σ_c w_c r_{c,t} J_{c,t}``, ``(N, p + n_s)``, ``J = [A, (∂C/∂s) θ̂]``."""
     weighted = weights[:, None] * residual  # (m, N)
-    columns = [np.einsum("cn,cnp->np", weighted, fixed.A)]
+    declared = np.zeros((fixed.n_samples, fixed.n_fixed))
+    for channel, (own, where) in enumerate(zip(fixed.own, fixed.where)):
+        kept = where >= 0
+        declared[:, where[kept]] += weighted[channel][:, None] * own[:, kept]
+    columns = [declared]
     for block, values in zip(blocks, solution.columns):
         columns.append(np.einsum("nr,nrk->nk", weighted[list(block.rows)].T, values))
     if solution.derivatives is not None:

@@ -26,10 +26,10 @@ from dataclasses import dataclass, replace
 from typing import Literal
 
 import numpy as np
-import scipy.linalg
 from numpy.typing import NDArray
 
 from dynamics.effects.shaped import start_grid
+from estimation.estimators.bordered_normal import FixedFactor
 from estimation.estimators.effect_blocks import Block, ShapeSearchError, States
 from estimation.estimators.separable_least_squares import (
     FixedPart,
@@ -100,6 +100,7 @@ def fit_shapes(
     tol: float = 1e-10,
     covariance: Literal["hac", "white", "none"] = "hac",
     segments: Sequence[tuple[int, int]] | None = None,
+    factored: FixedFactor | None = None,
 ) -> ShapeFit:
     """Variable projection: the shapes minimising the projected weighted residual, then ``θ`` and
     the full covariance.
@@ -128,13 +129,16 @@ def fit_shapes(
     segments
         ``(start, stop)`` samples of each segment of a stacked record: the batches restart at each
         boundary (:mod:`estimation.uncertainty.batch_means`).
+    factored
+        The fixed block's factor at ``weights`` (:class:`~estimation.estimators.bordered_normal.FixedFactor`),
+        shared by the fits of a round; default: factored here, once for every linear solve of the search.
 
     Raises
     ------
     ShapeSearchError
         When the columns are non-finite or singular at every start, or the search ends non-finite.
     """
-    search = _ShapeSearch(fixed, blocks, states, weights)
+    search = _ShapeSearch(fixed, blocks, states, weights, factored)
     s, iterations = search.best(search.candidates(starts, refine), max_iter, tol)
     if covariance == "none":  # a screening fit: neither the residual nor the information is needed
         solution = search.solution_at(s)
@@ -159,7 +163,7 @@ def _covariance(search: _ShapeSearch, s: NDArray[np.float64], solution: LinearSo
         if covariance == "hac":
             scores = sample_scores(fixed, search.blocks, solution, search.weights, residual)
             meat = batch_means(scores, batch_length(residual, search.weights, segments), segments)
-            cov = inverse @ meat @ inverse * fixed.A.shape[1] / max(fixed.A.shape[1] - information.shape[0], 1)
+            cov = inverse @ meat @ inverse * fixed.n_samples / max(fixed.n_samples - information.shape[0], 1)
             cov = np.maximum(np.diag(cov), sigma2 * np.diag(inverse))  # never below the white-noise value
             cov = _with_diagonal(sigma2 * inverse, cov)
         else:
@@ -175,8 +179,10 @@ class _ShapeSearch:
     """The projected residual ``f(s)`` of one problem and its bounded Levenberg–Marquardt search in
     ``u`` (``log s`` for log-scale parameters, ``s`` otherwise)."""
 
-    def __init__(self, fixed: FixedPart, blocks: Sequence[Block], states: States, weights: NDArray[np.float64]) -> None:
+    def __init__(self, fixed: FixedPart, blocks: Sequence[Block], states: States, weights: NDArray[np.float64],
+                 factored: FixedFactor | None = None) -> None:
         self.fixed, self.blocks, self.states, self.weights = fixed, blocks, states, weights
+        self.factored = FixedFactor.of(fixed.gram, weights) if factored is None else factored
         self.parameters = [parameter for block in blocks for parameter in block.parameters]
         self.names = tuple(parameter.name for parameter in self.parameters)
         self.logs = np.array([parameter.log_scale for parameter in self.parameters], dtype=bool)
@@ -213,7 +219,8 @@ class _ShapeSearch:
                            for block, shape in zip(self.blocks, self.split(s))]
             known = replace(known, derivatives=derivatives)
         else:
-            known = solve_linear(self.fixed, self.blocks, self.states, self.split(s), self.weights, jacobian=jacobian)
+            known = solve_linear(self.fixed, self.blocks, self.states, self.split(s), self.weights, jacobian=jacobian,
+                                 factored=self.factored)
         self.remember(key, known)
         return known
 
@@ -303,7 +310,7 @@ class _ShapeSearch:
             p = solution.normal.shape[0]
             # Gauss–Newton matrix of the projected problem: the Schur complement of the full one (Kaufman)
             cross = information[:p, p:]
-            hessian = 2.0 * (information[p:, p:] - cross.T @ _solve_many(solution.normal, cross))
+            hessian = 2.0 * (information[p:, p:] - cross.T @ solution.solve(cross))
             chain = np.where(self.logs, s, 1.0)  # ds/du: s on a log scale, 1 otherwise
             gradient_u = gradient * chain
             hessian_u = hessian * np.outer(chain, chain)
@@ -389,8 +396,3 @@ def _distinct(order: NDArray[np.int64], grid: NDArray[np.float64], count: int) -
             break
     return chosen
 
-
-def _solve_many(normal: NDArray[np.float64], right: NDArray[np.float64]) -> NDArray[np.float64]:
-    scale = np.sqrt(np.diag(normal))
-    factor = scipy.linalg.cho_factor(normal / np.outer(scale, scale), check_finite=False)
-    return scipy.linalg.cho_solve(factor, right / scale[:, None], check_finite=False) / scale[:, None]

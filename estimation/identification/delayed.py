@@ -80,10 +80,10 @@ def fit_delay(columns: Columns, train: Measurements, channels: tuple[str, ...], 
     h = max(0.5 * float(np.median(np.diff(train.t))), 1e-6)
     plus, minus = _fixed(columns, train, delay + h, channels), _fixed(columns, train, delay - h, channels)
     # D: the prediction's derivative in d at fixed θ; D̃: D off the columns (the Schur complement)
-    D = (np.matmul(plus.A, solution.theta) - np.matmul(minus.A, solution.theta)) / (2 * h)  # (m, N)
-    projected_solution = solve_linear(dataclasses.replace(fixed, y=D, moment=np.einsum("cnp,cn->cp", fixed.A, D),
+    D = (plus.predict(solution.theta) - minus.predict(solution.theta)) / (2 * h)  # (m, N)
+    projected_solution = solve_linear(dataclasses.replace(fixed, y=D, moment=fixed.moments(D),
                                                           power=np.sum(D**2, axis=1)), [], None, [], weights)
-    D_tilde = D - np.matmul(fixed.A, projected_solution.theta)
+    D_tilde = D - fixed.predict(projected_solution.theta)
     information = float(np.sum(weights[:, None] * D_tilde**2))
     n_rows = fixed.n_rows
     sigma2 = solution.rss / max(n_rows - fixed.n_fixed - 1, 1)

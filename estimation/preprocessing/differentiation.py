@@ -94,8 +94,9 @@ def average_periods(measurements: Measurements, frequency_hz: float) -> Measurem
 
 def fit_fourier(t: NDArray[np.float64], q: NDArray[np.float64], frequency_hz: float, harmonics: int) -> FourierSeries:
     """Least-squares fit of the finite Fourier series of eq. 18 (PUMA paper) to positions ``q (T, n)``
-    on their time stamps ``t`` (:func:`estimation.preprocessing.fourier_series.fit_series`)."""
-    return fit_series(t, q, frequency_hz, harmonics)[0]
+    on their time stamps ``t`` (:func:`estimation.preprocessing.fourier_series.fit_series`, by its normal
+    equations: a derivative candidate is fitted many times a run)."""
+    return fit_series(t, q, frequency_hz, harmonics, solver="normal")[0]
 
 
 def whole_periods(measurements: Measurements, frequency_hz: float) -> tuple[int, int] | None:
@@ -106,6 +107,16 @@ def whole_periods(measurements: Measurements, frequency_hz: float) -> tuple[int,
     if samples < 1 or abs(per_period - samples) > 1e-6 * per_period:
         return None
     return measurements.n_samples // samples, samples
+
+
+def repeats_exactly(t: NDArray[np.float64], periods: int, frequency_hz: float) -> bool:
+    """Whether the time stamps ``t`` of ``periods`` whole periods are those of the first period shifted by whole
+    periods ``j / f``, to ``1e-12`` of the record's last time (the rounding of the phases ``ω_l t`` themselves):
+    a Fourier series' motion there is that of the first period, repeated."""
+    samples = t.shape[0] // periods
+    shifts = t.reshape(periods, samples) - t[:samples]
+    tolerance = 1e-12 * (float(np.max(np.abs(t))) + 1.0 / frequency_hz)
+    return bool(np.max(np.abs(shifts - np.arange(periods)[:, None] / frequency_hz)) <= tolerance)
 
 
 @dataclass(frozen=True)
@@ -173,7 +184,11 @@ class FourierDifferentiation:
             metadata["periods_averaged"] = 0
         recorded = None
         if averaged:  # the recorded channels of every period kept, the fit's motion at their instants
-            q_kept, dq_kept, ddq_kept = fit.evaluate(kept.t)
+            periods = measurements.metadata["periods_averaged"]
+            if repeats_exactly(kept.t, periods, self.frequency_hz):  # the averaged period's motion, repeated
+                q_kept, dq_kept, ddq_kept = (np.tile(values, (periods, 1)) for values in (q, dq, ddq))
+            else:
+                q_kept, dq_kept, ddq_kept = fit.evaluate(kept.t)
             recorded = replace(kept, q=q_kept, dq=dq_kept, ddq=ddq_kept, metadata=dict(metadata), recorded=None)
         return replace(measurements, q=q, dq=dq, ddq=ddq, metadata=metadata, recorded=recorded)
 

@@ -5,7 +5,9 @@ Each verb lives in its own module of this package and exposes two functions::
     register(subparsers) -> argparse.ArgumentParser   # adds the verb and its options
     run(args: argparse.Namespace) -> int               # does the work, returns the exit code
 
-Verb modules do not import one another. What several verbs share lives in :mod:`oed.cli.shared.common` (robot, data,
+Verb modules do not import one another. The table of verbs (:mod:`oed.cli.shared.verbs`: name, module, summary) is
+what the top-level parser lists; a run imports the module of its own verb alone (each verb's imports are most of a
+short run's first second). What several verbs share lives in :mod:`oed.cli.shared.common` (robot, data,
 derivative and streaming options, shared checks and messages), :mod:`oed.cli.shared.asbuilt` (the robot as built) and
 :mod:`oed.cli.shared.paths`; reading and preparing the records is one library call
 (:func:`estimation.identification.prepared.prepare_records`).
@@ -23,16 +25,16 @@ import importlib
 import os
 import sys
 import traceback
-from collections.abc import Sequence
+from collections.abc import Collection, Sequence
 from importlib import metadata
 
 import oed
 from dynamics.runtime.threads import single_threaded_blas
 from oed.cli.shared.paths import check_paths
+from oed.cli.shared.verbs import VERBS
 
 # verb module names, in the order ``oed --help`` lists them
-VERB_MODULES: tuple[str, ...] = ("model", "design", "simulate", "identify", "aprbs", "servo_simulate", "servo_fit", "diagnose",
-                                 "predict", "export", "demo")
+VERB_MODULES: tuple[str, ...] = tuple(verb.module for verb in VERBS)
 
 EXIT_USER_ERROR = 2
 EXIT_INTERNAL_ERROR = 1
@@ -55,19 +57,9 @@ def package_version() -> str:
         return oed.__version__
 
 
-def verbs_to_register(argv: Sequence[str]) -> tuple[str, ...]:
-    """The verb module of the verb the command line starts with (``servo-fit`` -> ``servo_fit``), alone: a run
-    imports its own verb's libraries only (``oed design`` neither pandas nor scipy.signal). Every verb for
-    anything else (``--help``, ``--version``, no verb, a misspelt one), so that argparse lists them all."""
-    if argv:
-        module = argv[0].replace("-", "_")
-        if module in VERB_MODULES and argv[0] == module.replace("_", "-"):
-            return (module,)
-    return VERB_MODULES
-
-
-def build_parser(verbs: Sequence[str] = VERB_MODULES) -> argparse.ArgumentParser:
-    """Return the top-level parser with ``verbs`` (default: every verb) registered."""
+def build_parser(verbs: Collection[str] | None = None) -> argparse.ArgumentParser:
+    """Return the top-level parser with the verbs named in ``verbs`` registered (their modules imported; default:
+    every verb), the others listed by their summary alone."""
     parser = argparse.ArgumentParser(
         prog="oed",
         description="Optimal experiment design and dynamic-parameter identification of robot manipulators.",
@@ -75,18 +67,27 @@ def build_parser(verbs: Sequence[str] = VERB_MODULES) -> argparse.ArgumentParser
     parser.add_argument("--version", action="version", version=f"%(prog)s {package_version()}")
     subparsers = parser.add_subparsers(dest="verb", metavar="VERB")
     subparsers.required = True
-    for name in verbs:
-        module = importlib.import_module(f"oed.cli.{name}")
+    for verb in VERBS:
+        if verbs is not None and verb.name not in verbs:
+            subparsers.add_parser(verb.name, help=verb.summary)  # listed; never run (main registers the verb run)
+            continue
+        module = importlib.import_module(f"oed.cli.{verb.module}")
         verb_parser = module.register(subparsers)
         verb_parser.set_defaults(run=module.run, derived_outputs=getattr(module, "derived_outputs", None))
     return parser
 
 
+def requested_verb(argv: Sequence[str]) -> str | None:
+    """The verb of a command line: its first word that is not an option (the top-level options take no value)."""
+    return next((word for word in argv if not word.startswith("-")), None)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``oed`` console script."""
     argv = sys.argv[1:] if argv is None else list(argv)
+    verb = requested_verb(argv)
     try:
-        parser = build_parser(verbs_to_register(argv))  # imports the verb (numpy, CasADi…): the first second of a run
+        parser = build_parser(() if verb is None else (verb,))  # imports that verb's module alone
     except KeyboardInterrupt:
         print("oed: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED

@@ -6,10 +6,11 @@ import argparse
 
 from dynamics.robots.servo_arm import SERVO_ARM_RANGES
 from oed.cli.shared.common import check_csv_path, seed
+from oed.cli.shared.verbs import verb_summary
 
 
 def register(subparsers) -> argparse.ArgumentParser:
-    parser = subparsers.add_parser("aprbs", help="design an APRBS excitation for the servo arm (CSV t,u1..uJ in rad)")
+    parser = subparsers.add_parser("aprbs", help=verb_summary("aprbs"))
     parser.add_argument("--joints", type=int, default=4, help="number of joints (1-4, the paper's ranges)")
     parser.add_argument("--duration", type=float, default=60.0, help="signal length [s]")
     parser.add_argument("--dt", type=float, default=0.01, help="sample time [s]")

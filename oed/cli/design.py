@@ -28,12 +28,13 @@ from oed.criteria import CRITERIA
 from oed.cli.shared.design_bounds import bounds_from_arguments
 from oed.design import DesignSettings, ShrunkDesignWarning, design_excitation
 from oed.sequential.problem import SEQUENTIAL_MAX_ITER
+from oed.cli.shared.verbs import verb_summary
 
 
 def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     parser = subparsers.add_parser(
         "design",
-        help="optimise a periodic Fourier excitation trajectory",
+        help=verb_summary("design"),
         description="Optimise a finite-Fourier-series excitation (eq. 18) for -log det(Y_b'Y_b) or another "
         "criterion under position, velocity and acceleration bounds (eq. 19) with IPOPT, multi-start.",
     )

@@ -52,6 +52,7 @@ from oed.cli.diagnose_streaming import add_streamed_diagnosis_arguments, check_s
 from estimation.identification.repeated_motion import repeated_motion_note
 from oed.cli.shared.memory_path import decide_path
 from oed.cli.shared.model_files import add_model_file, add_runner_up_model_file
+from oed.cli.shared.verbs import verb_summary
 
 #: what the in-memory diagnosis holds at its peak: bytes a sample, channel and base parameter (measured: 2.8 GB
 #: for 100 000 samples of the 7-joint KUKA, m r = 350, i.e. about 75; a lower bound is used)
@@ -61,7 +62,7 @@ IN_MEMORY = InMemoryBudget(64, "diagnosing", "use --chunk-size to stream them in
 def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     parser = subparsers.add_parser(
         "diagnose",
-        help="find the effects a model lacks in measured data and report the error before and after",
+        help=verb_summary("diagnose"),
         description="Identify the declared model, test candidate effects (Coulomb, offsets, armature, Stribeck, "
         "springs, plate offsets) by forward selection on the training data, keep only those that lower the "
         "validation error, and report the validation MSE per channel before and after.",

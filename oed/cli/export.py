@@ -9,12 +9,13 @@ from pathlib import Path
 from estimation.identification.export import exported_urdf, friction_document, implausible_links
 from estimation.identification.identified_model import IdentifiedModel
 from oed.cli.shared.common import OutputFiles, check_json_path, json_text
+from oed.cli.shared.verbs import verb_summary
 
 
 def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     parser = subparsers.add_parser(
         "export",
-        help="write a consistent identified model as a URDF (and its friction as JSON)",
+        help=verb_summary("export"),
         description="From a result.json of `oed identify --consistent`: the robot's URDF with every moving link's "
         "<inertial> replaced by the identified mass, centre of mass and inertia (the same joint and link names; a "
         "built-in robot is written from its description), and the joints' friction, offsets and armature as JSON. "

@@ -62,6 +62,7 @@ from oed.cli.identify_consistent import (
     consistent_refit,
     print_consistent,
 )
+from oed.cli.shared.verbs import verb_summary
 
 STREAMED = "the streamed path (--chunk-size, --scheduler or --workers)"
 
@@ -73,7 +74,7 @@ IN_MEMORY = InMemoryBudget(2 * 8, "identifying", "use --chunk-size to stream the
 def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     parser = subparsers.add_parser(
         "identify",
-        help="estimate base parameters from measured motion and torques/wrench",
+        help=verb_summary("identify"),
         description="Least-squares identification of the base parameters of the internal, external or combined "
         "model (PUMA paper, section IV) from a CSV/Parquet file (columns t, q1..qn [, dq.., ddq..], tau1..taun, "
         "fx fy fz mx my mz), with validation on another experiment.",

@@ -6,12 +6,13 @@ import argparse
 
 from dynamics.models import ModelKind, build_model
 from oed.cli.shared.common import add_robot_arguments, json_text, robot_from_arguments
+from oed.cli.shared.verbs import verb_summary
 
 
 def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     parser = subparsers.add_parser(
         "model",
-        help="print the base parameters of the three identification models",
+        help=verb_summary("model"),
         description="Print the base (minimal) parameters of the internal, external and combined models "
         "as groupings of the standard parameters (PUMA paper, Tables III-V).",
     )

@@ -12,12 +12,13 @@ import pandas as pd
 from estimation.identification.identified_model import IdentifiedModel
 from estimation.identification.trivial_predictors import trivial_warnings
 from oed.cli.shared.common import OutputFiles, check_csv_path, check_json_path, json_text
+from oed.cli.shared.verbs import verb_summary
 
 
 def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     parser = subparsers.add_parser(
         "predict",
-        help="predict the torques/wrench of a record with an identified model, and its errors",
+        help=verb_summary("predict"),
         description="Load the model of a result.json (oed identify) or report.json (oed diagnose), derive the "
         "motion of the record as the model's preprocessing says, predict its channels with 95 %% prediction bands "
         "and compare them with the channels as recorded (MSE per channel, beside a zero prediction and the "

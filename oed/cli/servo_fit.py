@@ -4,10 +4,11 @@ from __future__ import annotations
 
 import argparse
 import sys
+from oed.cli.shared.verbs import verb_summary
 
 
 def register(subparsers) -> argparse.ArgumentParser:
-    parser = subparsers.add_parser("servo-fit", help="fit second-order joint models to t,u1..uJ,q1..qJ data (JSON out)")
+    parser = subparsers.add_parser("servo-fit", help=verb_summary("servo-fit"))
     parser.add_argument("--data", required=True, help="CSV with columns t, u1..uJ, q1..qJ [s, rad]")
     parser.add_argument("--dt", type=float, default=None, help="sample time [s]; the time column must match it")
     parser.add_argument("--mass", default=None, help="comma-separated joint masses [kg] (default: the paper's 0.294,0.239,0.144,0.072 for 4 joints)")

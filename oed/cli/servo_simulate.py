@@ -5,10 +5,11 @@ from __future__ import annotations
 import argparse
 
 from oed.cli.shared.common import check_csv_path, seed
+from oed.cli.shared.verbs import verb_summary
 
 
 def register(subparsers) -> argparse.ArgumentParser:
-    parser = subparsers.add_parser("servo-simulate", help="simulate the servo arm (Kalman-fused angles) from an APRBS CSV")
+    parser = subparsers.add_parser("servo-simulate", help=verb_summary("servo-simulate"))
     parser.add_argument("--aprbs", required=True, help="input CSV with columns t, u1..u4 [rad]")
     parser.add_argument("--out", required=True, help="output CSV: t, u1..u4, q1..q4 (+ raw columns with --raw)")
     parser.add_argument("--raw", action="store_true", help="also write gyro1..4, acc_angle1..4 and q_true1..4")

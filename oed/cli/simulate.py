@@ -21,6 +21,7 @@ from dynamics.simulation.effects import SIMULATED_EFFECTS, Viscous, effects_from
 from dynamics.simulation.simulator import NoiseModel, Simulator
 from oed.cli.shared.common import OutputFiles, add_robot_arguments, json_text, robot_from_arguments, seed
 from oed.fourier import FourierTrajectory
+from oed.cli.shared.verbs import verb_summary
 
 CONTROLLERS = ("pd", "computed-torque")
 DATA_SUFFIXES = (".csv", ".parquet")
@@ -29,7 +30,7 @@ DATA_SUFFIXES = (".csv", ".parquet")
 def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     parser = subparsers.add_parser(
         "simulate",
-        help="simulate a robot tracking a trajectory and write measurements",
+        help=verb_summary("simulate"),
         description="Simulate the robot (Pinocchio forward dynamics, RK4 at the sampling rate with the torque "
         "held over each sample) under PD or computed-torque control tracking a Fourier trajectory; write "
         "quantised positions, noisy joint torques and base wrench in the measurement format.",

@@ -100,7 +100,7 @@ def fit_covariance(fixed: FixedPart, blocks: Sequence[Block], states: States | N
     n_parameters = information.shape[0]
     if shaped:
         meat = batch_means(scores, batch_length(residual, weights))
-        cov = inverse @ meat @ inverse * fixed.A.shape[1] / max(fixed.A.shape[1] - n_parameters, 1)
+        cov = inverse @ meat @ inverse * fixed.n_samples / max(fixed.n_samples - n_parameters, 1)
         sigma2 = solution.rss / max(fixed.n_rows - n_parameters, 1)
         diagonal = np.maximum(np.diag(cov), sigma2 * np.diag(inverse))  # never below the white-noise value
         white = sigma2 * inverse
