@@ -19,11 +19,13 @@ from oed.bounds import PUMA_BOUNDS
 from oed.cli import main
 from oed.criteria import LogDet
 from oed.design import DesignSettings
-from oed.sequential.criteria import FocusedLogDet, focus_names, posterior_criterion
+from oed.sequential.criteria import FocusedLogDet, WorstRelativeVariance, focus_names, posterior_criterion
 from oed.sequential.discrimination import check_rivals, design_discriminating
 from oed.sequential.jacobian import SequentialDesignError, model_jacobian
 from oed.sequential.next_experiment import design_next
 from oed.sequential.prior import prior_information
+from oed.sequential.problem import SequentialDesign
+from oed.sequential.starts import screened_start, slowed_start
 
 CASE = StribeckCase()
 QUICK = ["--starts", "1", "--max-iter", "15", "--samples", "60", "--constraint-points", "30", "--quiet"]
@@ -85,6 +87,72 @@ def test_ds_criterion_is_the_log_determinant_of_the_marginal_covariance():
     assert float(function(M)) == pytest.approx(criterion.value(M), rel=1e-10)
 
 
+def test_worst_relative_criterion_is_a_smooth_maximum_of_the_weighted_variances():
+    generator = np.random.default_rng(1)
+    A = generator.normal(size=(40, 6))
+    M = A.T @ A
+    focus, weights = (4, 1, 2), (2.0, 0.5, 3.0)
+    variances = np.diag(np.linalg.inv(M))[list(focus)] * weights
+    for sharpness in (1.0, 8.0, 200.0):
+        criterion = WorstRelativeVariance(focus, 6, weights, sharpness)
+        assert criterion.value(M) == pytest.approx(np.log(np.sum(variances ** sharpness)) / sharpness, rel=1e-10)
+        assert np.log(variances.max()) <= criterion.value(M) <= np.log(variances.max()) + np.log(3) / sharpness
+    symbol = casadi.MX.sym("M", 6, 6)
+    expression = criterion.expression(symbol)
+    function = casadi.Function("worst", [symbol], [expression, casadi.gradient(expression, symbol)])
+    value, gradient = function(M)
+    assert float(value) == pytest.approx(criterion.value(M), rel=1e-10)
+    step = np.zeros((6, 6))
+    step[1, 2] = step[2, 1] = 1e-6
+    finite = (criterion.value(M + step) - criterion.value(M - step)) / 2e-6
+    assert float(gradient[1, 2] + gradient[2, 1]) == pytest.approx(finite, rel=1e-5)
+    with pytest.raises(ValueError, match="weights"):
+        WorstRelativeVariance(focus, 6, (1.0, -1.0, 1.0))
+
+
+def test_worst_relative_criterion_gives_the_focus_groups_relative_variances(first):
+    record, document = first
+    model = IdentifiedModel(ModelFile.from_dict(document))
+    jacobian = model_jacobian(model)
+    prior = prior_information(jacobian, record)
+    names = ("fc2", "fs2", "vs2")
+    criterion = posterior_criterion(jacobian, names, "worst-relative", prior=prior)
+    index = list(jacobian.indices(names))
+    relative = np.sqrt(np.diag(prior.covariance())[index]) / np.abs(jacobian.estimate[index])
+    scale = 1.0 / np.sqrt(np.diag(prior.information))
+    posterior = prior.information * scale[:, None] * scale[None, :]
+    assert np.exp(criterion.value(posterior) / 2) == pytest.approx(relative.max(), rel=0.04)
+    assert isinstance(posterior_criterion(jacobian, names, "d"), LogDet)
+    assert isinstance(posterior_criterion(jacobian, names, "ds"), FocusedLogDet)
+    with pytest.raises(SequentialDesignError, match="unknown sequential criterion"):
+        posterior_criterion(jacobian, names, "a")
+
+
+def test_screened_start_is_the_best_of_its_slowed_candidates_within_the_bounds(first):
+    record, document = first
+    model = IdentifiedModel(ModelFile.from_dict(document))
+    jacobian = model_jacobian(model)
+    prior = prior_information(jacobian, record)
+    problem = SequentialDesign(model.robot, model.model.kind, PUMA_BOUNDS, LogDet(), model.model.effects,
+                               DesignSettings(cost_samples=60, jit=False), jacobian=jacobian, prior=prior,
+                               duration_s=10.0)
+    objective = problem.cost_function()
+    candidates = [slowed_start(problem, np.random.default_rng(5)) for _ in range(1)]
+    generator = np.random.default_rng(5)
+    pool = [slowed_start(problem, generator) for _ in range(6)]
+    chosen = screened_start(problem, np.random.default_rng(5), 6)
+    assert np.array_equal(chosen, pool[int(np.argmin([float(objective(x)) for x in pool]))])
+    assert np.array_equal(candidates[0], pool[0])
+    for x in pool:
+        _, q, dq, ddq = problem.sample(x)
+        assert np.all(np.abs(dq) <= PUMA_BOUNDS.dq_max * (1 + 1e-9))
+        assert np.all((q >= PUMA_BOUNDS.q_min - 1e-9) & (q <= PUMA_BOUNDS.q_max + 1e-9))
+    speeds = np.array([np.abs(problem.sample(x)[2]).max(axis=0) / PUMA_BOUNDS.dq_max for x in pool])
+    assert speeds.min() < 0.2  # some joint slowed well below the plain starts' 30 % of its bound
+    with pytest.raises(ValueError, match="candidates"):
+        screened_start(problem, generator, 0)
+
+
 def test_focus_names_accepts_parameters_effect_names_and_specs(first):
     model = IdentifiedModel(ModelFile.from_dict(first[1]))
     jacobian = model_jacobian(model)
@@ -114,11 +182,14 @@ def test_cli_writes_next_json_with_predicted_std_and_figure(files):
     document = json.loads(out.read_text())
     for key in ("frequency_hz", "harmonics", "q0", "a", "b", "joint_names", "criterion", "bounds", "solver"):
         assert key in document
-    assert document["criterion"] == "ds-logdet" and document["sequential"]["focus"] == ["vs2"]
+    assert document["criterion"] == "worst-relative" and document["sequential"]["focus"] == ["vs2"]
     assert document["sequential"]["duration_s"] == pytest.approx(20.0)
     vs2 = document["predicted_std"]["vs2"]
     assert vs2["after_designed"] < vs2["now"] and vs2["after_repeat"] == pytest.approx(vs2["now"] / np.sqrt(3))
     assert png.stat().st_size > 1000
+    code = main(["design", "--from", str(files / "result.json"), "--data", str(files / "e1.csv"), "--focus", "stribeck",
+                 "--criterion", "ds", "--out", str(out), *QUICK])
+    assert code == 0 and json.loads(out.read_text())["criterion"] == "ds-logdet"
 
 
 def test_cli_discriminates_two_rival_models(files):
@@ -151,6 +222,8 @@ def test_bad_input_is_named_and_nothing_is_written(files, capsys, tmp_path):
     _bad_input(files, capsys, ["--from", model, "--data", data, "--friction", "coulomb"], "fixes the model")
     _bad_input(files, capsys, ["--from", model, "--data", data, "--rival", model, "--discriminate"], "same model")
     _bad_input(files, capsys, ["--from", model], "--data")
+    _bad_input(files, capsys, ["--from", model, "--data", data, "--criterion", "cond"], "a plain design's")
+    _bad_input(files, capsys, ["--criterion", "worst-relative"], "--from")
     _bad_input(files, capsys, ["--data", data], "--from")
     bounds = files / "bounds.json"
     bounds.write_text(json.dumps({"q_max": [1, 1], "dq_max": [1, 1], "ddq_max": [1, 1]}))

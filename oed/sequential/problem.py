@@ -30,6 +30,7 @@ from oed.fourier import unpack
 from oed.sequential.criteria import scaled, symbolic_scaled
 from oed.sequential.jacobian import ModelJacobian, SequentialDesignError
 from oed.sequential.prior import PriorInformation
+from oed.sequential.starts import SCREENED_CANDIDATES, screened_start
 
 __all__ = ["ACCEPTED_STATUSES", "SEQUENTIAL_MAX_ITER", "STACKED_ABOVE", "SequentialDesign"]
 
@@ -61,11 +62,15 @@ class SequentialDesign(ExcitationDesign):
         The information of the experiments already run.
     duration_s
         Length of the new experiment, s (whole periods of the trajectory or not).
+    screening
+        Candidates each start is chosen among (:func:`oed.sequential.starts.screened_start`; 1: the plain
+        random start).
     """
 
     jacobian: ModelJacobian | None = None
     prior: PriorInformation | None = None
     duration_s: float = 0.0
+    screening: int = SCREENED_CANDIDATES
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -127,6 +132,10 @@ class SequentialDesign(ExcitationDesign):
                                      ["q", "dq", "ddq"], ["Jt"], jit_options() if self.settings.jit else {})
         stacked = transposed.map(self.settings.cost_samples, "serial")(*states)  # (p, m N)
         return casadi.mtimes(stacked, stacked.T)
+
+    def random_start(self, generator: np.random.Generator) -> NDArray[np.float64]:
+        """A screened start (:func:`oed.sequential.starts.screened_start`, :attr:`screening` candidates)."""
+        return screened_start(self, generator, self.screening)
 
     def solve(self, x0: NDArray[np.float64], index: int = 0) -> StartResult:
         """One start as :meth:`ExcitationDesign.solve`; a start that ends within the bounds after the
