@@ -10,7 +10,7 @@ import casadi
 import numpy as np
 import pytest
 
-from benchmarks.bench_sequential_design import FOCUS, bic, estimates
+from benchmarks.bench_sequential_design import bic, focus_monte_carlo
 from benchmarks.kuka_sequential import URDF, kuka_design
 from benchmarks.sequential_case import StribeckCase
 from estimation.identification.identified_model import IdentifiedModel
@@ -254,28 +254,24 @@ def test_sequential_design_on_the_kuka_lwr4_urdf():
 
 
 @pytest.mark.slow
-def test_designed_experiment_shrinks_the_stribeck_sds_as_predicted():
-    """A small Monte Carlo of benchmarks/bench_sequential_design.py (12 noise realisations)."""
-    record = CASE.record(CASE.first_trajectory(), seed=1)
-    result = design_next(CASE.identified([record]), record, bounds=PUMA_BOUNDS, focus="stribeck", starts=4, seed=0)
-    index = [result.predicted.names.index(name) for name in FOCUS]
-    truth = np.array([CASE.fc, CASE.fs, CASE.vs])
-    realised = {}
-    for key, trajectory in (("after_repeat", CASE.first_trajectory()), ("after_designed", result.design.trajectory)):
-        values = [estimates(CASE, [CASE.record(CASE.first_trajectory(), seed=1000 + i),
-                                   CASE.record(trajectory, seed=2000 + i)]) for i in range(12)]
-        realised[key] = np.std(values, axis=0, ddof=1)
-        ratio = realised[key] / getattr(result.predicted, key)[index]
-        assert np.all((ratio > 0.5) & (ratio < 1.6)), (key, ratio)
-    worst = result.predicted.worst_relative(FOCUS)
+def test_designed_experiment_shrinks_the_worst_relative_sd_twice_as_much_as_repeating():
+    """The Monte Carlo of benchmarks/bench_sequential_design.py --part focus (200 noise realisations: over 50 the
+    realised ratio of shrinks scatters by about ±0.3 around its mean, 2.15; over 200 by about ±0.11)."""
+    run = focus_monte_carlo(CASE, 200)
+    assert run.next_experiment.design.criterion == "worst-relative"
+    for key, realised in run.realised.items():  # realised standard deviations within 25 % of the predicted ones
+        ratio = realised / run.predicted[key]
+        assert np.all((ratio > 0.75) & (ratio < 1.25)), (key, ratio)
+    worst = run.worst()
     assert worst["now"] / worst["after_designed"] >= 2 * worst["now"] / worst["after_repeat"], worst
-    assert np.max(realised["after_designed"] / truth) < 0.7 * np.max(realised["after_repeat"] / truth)
+    assert run.shrink_ratio("predicted") >= 2
 
 
 @pytest.mark.slow
-def test_discriminating_experiment_tells_the_true_law_apart():
+@pytest.mark.parametrize("fs", [0.3, 0.4])
+def test_discriminating_experiment_tells_the_true_law_apart(fs):
     """A small Monte Carlo of benchmarks/bench_sequential_design.py --part discrimination (10 realisations)."""
-    case = replace(CASE, fs=0.4)
+    case = replace(CASE, fs=fs)
     rival = "viscous,coulomb:tanh@2"
     record = case.record(case.first_trajectory(), seed=1)
     result = design_discriminating(case.identified([record]), case.identified([record], rival), record,

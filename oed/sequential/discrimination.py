@@ -40,7 +40,7 @@ from oed.sequential.jacobian import ModelJacobian, SequentialDesignError, model_
 from oed.sequential.next_experiment import check_bounds
 from oed.sequential.prior import PriorInformation, prior_information
 from oed.sequential.problem import ACCEPTED_STATUSES, SEQUENTIAL_MAX_ITER
-from oed.sequential.starts import SCREENED_CANDIDATES, screened_start
+from oed.sequential.starts import DISCRIMINATION_SHARE, SCREENED_CANDIDATES, screened_start
 
 __all__ = ["DiscriminatingDesign", "Discrimination", "Rivalry", "TOptimality", "rivalry_of", "check_rivals", "design_discriminating", "separation"]
 
@@ -127,7 +127,7 @@ class TOptimality(Criterion):
 @dataclass(frozen=True, eq=False)
 class DiscriminatingDesign(ExcitationDesign):
     """The excitation design maximising ``log Δ_AB + log Δ_BA`` (module docstring); ``criterion`` is unused;
-    each start is chosen among ``screening`` candidates (:func:`oed.sequential.starts.screened_start`)."""
+    half of the starts are chosen among ``screening`` candidates (:func:`oed.sequential.starts.screened_start`)."""
 
     rivalries: tuple[Rivalry, ...] = ()
     duration_s: float = 0.0
@@ -181,8 +181,9 @@ class DiscriminatingDesign(ExcitationDesign):
         return {"cost": criterion, "cond": float("nan"), "criterion": criterion}
 
     def random_start(self, generator: np.random.Generator) -> NDArray[np.float64]:
-        """A screened start (:func:`oed.sequential.starts.screened_start`, ``screening`` candidates)."""
-        return screened_start(self, generator, self.screening)
+        """A screened start (:func:`oed.sequential.starts.screened_start`, ``screening`` candidates) for half of
+        the starts (:data:`oed.sequential.starts.DISCRIMINATION_SHARE`), a plain one for the others."""
+        return screened_start(self, generator, self.screening, DISCRIMINATION_SHARE)
 
     def solve(self, x0: NDArray[np.float64], index: int = 0) -> StartResult:
         """As :meth:`oed.sequential.problem.SequentialDesign.solve` (the same statuses accepted)."""

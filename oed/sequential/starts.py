@@ -9,7 +9,11 @@ on the discriminating design of a weak Stribeck bump: every one of 8 plain start
 predicted separation below 8). A screened start draws ``candidates`` random starts, slows each joint down with
 probability :data:`SLOW_SHARE` by a factor log-uniform in ``[SLOWEST, 1]`` (its oscillation about ``q0`` scaled,
 then shrunk into the bounds), and keeps the candidate whose objective (the problem's ``cost_function``, on the
-cost samples the solver sees) is lowest: a cheap global look before the local solver.
+cost samples the solver sees) is lowest: a cheap global look before the local solver. The discriminating design screens half of its starts only
+(``share = 0.5``, :data:`DISCRIMINATION_SHARE`): its objective, sampled on the cost grid, can alias the milliseconds
+around a reversal where two laws differ, and the screen then prefers slowed candidates by a promise the solver does
+not keep; measured, the plain starts found the strongest design for one case (``fs = 0.4``) and the screened ones
+for another (``fs = 0.3``), where every plain start failed.
 """
 
 from __future__ import annotations
@@ -19,7 +23,7 @@ from numpy.typing import NDArray
 
 from oed.design_problem import ExcitationDesign
 
-__all__ = ["SCREENED_CANDIDATES", "SLOWEST", "SLOW_SHARE", "screened_start", "slowed_start"]
+__all__ = ["DISCRIMINATION_SHARE", "SCREENED_CANDIDATES", "SLOWEST", "SLOW_SHARE", "screened_start", "slowed_start"]
 
 #: candidates a screened start chooses among
 SCREENED_CANDIDATES = 16
@@ -27,6 +31,8 @@ SCREENED_CANDIDATES = 16
 SLOW_SHARE = 0.5
 #: the smallest factor a slowed joint's oscillation is scaled by
 SLOWEST = 0.02
+#: share of the discriminating design's starts that are screened (module docstring)
+DISCRIMINATION_SHARE = 0.5
 
 
 def slowed_start(problem: ExcitationDesign, generator: np.random.Generator) -> NDArray[np.float64]:
@@ -42,12 +48,14 @@ def slowed_start(problem: ExcitationDesign, generator: np.random.Generator) -> N
 
 
 def screened_start(problem: ExcitationDesign, generator: np.random.Generator,
-                   candidates: int = SCREENED_CANDIDATES) -> NDArray[np.float64]:
-    """The best of ``candidates`` :func:`slowed_start` draws by the problem's objective (lowest);
-    ``candidates = 1``: the plain random start."""
+                   candidates: int = SCREENED_CANDIDATES, share: float = 1.0) -> NDArray[np.float64]:
+    """The best of ``candidates`` :func:`slowed_start` draws by the problem's objective (lowest), with probability
+    ``share`` (else, and with ``candidates = 1``, the plain random start)."""
     if isinstance(candidates, bool) or not isinstance(candidates, (int, np.integer)) or candidates < 1:
         raise ValueError(f"candidates must be a positive integer, got {candidates!r}")
-    if candidates == 1:
+    if not (np.isfinite(share) and 0 <= share <= 1):
+        raise ValueError(f"share must be in [0, 1], got {share}")
+    if candidates == 1 or (share < 1 and generator.uniform() >= share):
         return ExcitationDesign.random_start(problem, generator)
     pool = [slowed_start(problem, generator) for _ in range(candidates)]
     objective = problem.cost_function()
