@@ -1,8 +1,9 @@
 """``oed design --from FILE --data FILE``: the next experiment, from what an identified model left uncertain.
 
 With ``--from`` (a result.json or report.json) and the records already run (``--data``), ``oed design`` maximises
-the posterior information of the model's parameters (D-optimality, or with ``--focus`` a smooth maximum of the
-focus group's relative variances or, ``--criterion ds``, Ds-optimality; :mod:`oed.sequential`); with ``--discriminate --rival FILE`` it maximises how far the two models' predictions
+the posterior information of the model's parameters (D-optimality; with ``--focus``, by default, it minimises a
+smooth maximum of the focus group's relative variances, or with ``--criterion ds`` their marginal log det;
+:mod:`oed.sequential`); with ``--discriminate --rival FILE`` it maximises how far the two models' predictions
 separate (:mod:`oed.sequential.discrimination`). The trajectory's options are those of ``oed design``.
 """
 

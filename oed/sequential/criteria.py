@@ -1,4 +1,4 @@
-"""D- and Ds-optimality on the information of a sequence of experiments.
+"""D-, Ds- and worst-relative optimality on the information of a sequence of experiments.
 
 With ``M`` the information of every parameter (prior plus the new experiment's), D-optimality
 minimises ``−log det M``: the volume of the joint confidence ellipsoid. When a user cares about a group

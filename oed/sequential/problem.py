@@ -5,7 +5,7 @@ bounds, constraint refinement, IPOPT settings and multi-start) with another obje
 ``P`` of the experiments already run (:mod:`oed.sequential.prior`) plus the new trajectory's,
 ``n · (1/N) Σ_k J_kᵀ J_k`` over ``N`` cost samples of one period (``n``: the samples the new experiment of
 ``duration_s`` records), scaled by ``D = diag(P)^{-1/2}`` (a constant shift of every log-determinant that keeps
-the Cholesky factors well conditioned), under a D- or Ds-criterion (:mod:`oed.sequential.criteria`):
+the Cholesky factors well conditioned), under a D-, Ds- or worst-relative criterion (:mod:`oed.sequential.criteria`):
 
     J(x) = criterion(D (P/n + (1/N) Σ_k J_kᵀ J_k) D)
 
@@ -55,7 +55,8 @@ class SequentialDesign(ExcitationDesign):
     ----------
     robot, model, bounds, criterion, effects, settings
         As :class:`ExcitationDesign`; ``criterion`` acts on the posterior information of the model's
-        parameters (``LogDet`` or :class:`oed.sequential.criteria.FocusedLogDet`).
+        parameters (``LogDet``, :class:`oed.sequential.criteria.FocusedLogDet` or
+        :class:`oed.sequential.criteria.WorstRelativeVariance`).
     jacobian
         The identified model's noise-weighted Jacobian.
     prior
