@@ -10,7 +10,7 @@ import casadi
 import numpy as np
 import pytest
 
-from benchmarks.bench_sequential_design import FOCUS, bic, estimates
+from benchmarks.bench_sequential_design import bic, focus_monte_carlo
 from benchmarks.kuka_sequential import URDF, kuka_design
 from benchmarks.sequential_case import StribeckCase
 from estimation.identification.identified_model import IdentifiedModel
@@ -19,11 +19,13 @@ from oed.bounds import PUMA_BOUNDS
 from oed.cli import main
 from oed.criteria import LogDet
 from oed.design import DesignSettings
-from oed.sequential.criteria import FocusedLogDet, focus_names, posterior_criterion
+from oed.sequential.criteria import FocusedLogDet, WorstRelativeVariance, focus_names, posterior_criterion
 from oed.sequential.discrimination import check_rivals, design_discriminating
 from oed.sequential.jacobian import SequentialDesignError, model_jacobian
 from oed.sequential.next_experiment import design_next
 from oed.sequential.prior import prior_information
+from oed.sequential.problem import SequentialDesign
+from oed.sequential.starts import screened_start, slowed_start
 
 CASE = StribeckCase()
 QUICK = ["--starts", "1", "--max-iter", "15", "--samples", "60", "--constraint-points", "30", "--quiet"]
@@ -85,6 +87,70 @@ def test_ds_criterion_is_the_log_determinant_of_the_marginal_covariance():
     assert float(function(M)) == pytest.approx(criterion.value(M), rel=1e-10)
 
 
+def test_worst_relative_criterion_is_a_smooth_maximum_of_the_weighted_variances():
+    generator = np.random.default_rng(1)
+    A = generator.normal(size=(40, 6))
+    M = A.T @ A
+    focus, weights = (4, 1, 2), (2.0, 0.5, 3.0)
+    variances = np.diag(np.linalg.inv(M))[list(focus)] * weights
+    for sharpness in (1.0, 8.0, 200.0):
+        criterion = WorstRelativeVariance(focus, 6, weights, sharpness)
+        assert criterion.value(M) == pytest.approx(np.log(np.sum(variances ** sharpness)) / sharpness, rel=1e-10)
+        assert np.log(variances.max()) <= criterion.value(M) <= np.log(variances.max()) + np.log(3) / sharpness
+    symbol = casadi.MX.sym("M", 6, 6)
+    expression = criterion.expression(symbol)
+    function = casadi.Function("worst", [symbol], [expression, casadi.gradient(expression, symbol)])
+    value, gradient = function(M)
+    assert float(value) == pytest.approx(criterion.value(M), rel=1e-10)
+    step = np.zeros((6, 6))
+    step[1, 2] = step[2, 1] = 1e-6
+    finite = (criterion.value(M + step) - criterion.value(M - step)) / 2e-6
+    assert float(gradient[1, 2] + gradient[2, 1]) == pytest.approx(finite, rel=1e-5)
+    with pytest.raises(ValueError, match="weights"):
+        WorstRelativeVariance(focus, 6, (1.0, -1.0, 1.0))
+
+
+def test_worst_relative_criterion_gives_the_focus_groups_relative_variances(first):
+    record, document = first
+    model = IdentifiedModel(ModelFile.from_dict(document))
+    jacobian = model_jacobian(model)
+    prior = prior_information(jacobian, record)
+    names = ("fc2", "fs2", "vs2")
+    criterion = posterior_criterion(jacobian, names, "worst-relative", prior=prior)
+    index = list(jacobian.indices(names))
+    relative = np.sqrt(np.diag(prior.covariance())[index]) / np.abs(jacobian.estimate[index])
+    scale = 1.0 / np.sqrt(np.diag(prior.information))
+    posterior = prior.information * scale[:, None] * scale[None, :]
+    assert np.exp(criterion.value(posterior) / 2) == pytest.approx(relative.max(), rel=0.04)
+    assert isinstance(posterior_criterion(jacobian, names, "d"), LogDet)
+    assert isinstance(posterior_criterion(jacobian, names, "ds"), FocusedLogDet)
+    with pytest.raises(SequentialDesignError, match="unknown sequential criterion"):
+        posterior_criterion(jacobian, names, "a")
+
+
+def test_screened_start_is_the_best_of_its_slowed_candidates_within_the_bounds(first):
+    record, document = first
+    model = IdentifiedModel(ModelFile.from_dict(document))
+    jacobian = model_jacobian(model)
+    prior = prior_information(jacobian, record)
+    problem = SequentialDesign(model.robot, model.model.kind, PUMA_BOUNDS, LogDet(), model.model.effects,
+                               DesignSettings(cost_samples=60, jit=False), jacobian=jacobian, prior=prior,
+                               duration_s=10.0)
+    objective = problem.cost_function()
+    generator = np.random.default_rng(5)
+    pool = [slowed_start(problem, generator) for _ in range(6)]
+    chosen = screened_start(problem, np.random.default_rng(5), 6)
+    assert np.array_equal(chosen, pool[int(np.argmin([float(objective(x)) for x in pool]))])
+    for x in pool:
+        _, q, dq, ddq = problem.sample(x)
+        assert np.all(np.abs(dq) <= PUMA_BOUNDS.dq_max * (1 + 1e-9))
+        assert np.all((q >= PUMA_BOUNDS.q_min - 1e-9) & (q <= PUMA_BOUNDS.q_max + 1e-9))
+    speeds = np.array([np.abs(problem.sample(x)[2]).max(axis=0) / PUMA_BOUNDS.dq_max for x in pool])
+    assert speeds.min() < 0.2  # some joint slowed well below the plain starts' 30 % of its bound
+    with pytest.raises(ValueError, match="candidates"):
+        screened_start(problem, generator, 0)
+
+
 def test_focus_names_accepts_parameters_effect_names_and_specs(first):
     model = IdentifiedModel(ModelFile.from_dict(first[1]))
     jacobian = model_jacobian(model)
@@ -114,11 +180,14 @@ def test_cli_writes_next_json_with_predicted_std_and_figure(files):
     document = json.loads(out.read_text())
     for key in ("frequency_hz", "harmonics", "q0", "a", "b", "joint_names", "criterion", "bounds", "solver"):
         assert key in document
-    assert document["criterion"] == "ds-logdet" and document["sequential"]["focus"] == ["vs2"]
+    assert document["criterion"] == "worst-relative" and document["sequential"]["focus"] == ["vs2"]
     assert document["sequential"]["duration_s"] == pytest.approx(20.0)
     vs2 = document["predicted_std"]["vs2"]
     assert vs2["after_designed"] < vs2["now"] and vs2["after_repeat"] == pytest.approx(vs2["now"] / np.sqrt(3))
     assert png.stat().st_size > 1000
+    code = main(["design", "--from", str(files / "result.json"), "--data", str(files / "e1.csv"), "--focus", "stribeck",
+                 "--criterion", "ds", "--out", str(out), *QUICK])
+    assert code == 0 and json.loads(out.read_text())["criterion"] == "ds-logdet"
 
 
 def test_cli_discriminates_two_rival_models(files):
@@ -151,6 +220,8 @@ def test_bad_input_is_named_and_nothing_is_written(files, capsys, tmp_path):
     _bad_input(files, capsys, ["--from", model, "--data", data, "--friction", "coulomb"], "fixes the model")
     _bad_input(files, capsys, ["--from", model, "--data", data, "--rival", model, "--discriminate"], "same model")
     _bad_input(files, capsys, ["--from", model], "--data")
+    _bad_input(files, capsys, ["--from", model, "--data", data, "--criterion", "cond"], "a plain design's")
+    _bad_input(files, capsys, ["--criterion", "worst-relative"], "--from")
     _bad_input(files, capsys, ["--data", data], "--from")
     bounds = files / "bounds.json"
     bounds.write_text(json.dumps({"q_max": [1, 1], "dq_max": [1, 1], "ddq_max": [1, 1]}))
@@ -181,28 +252,24 @@ def test_sequential_design_on_the_kuka_lwr4_urdf():
 
 
 @pytest.mark.slow
-def test_designed_experiment_shrinks_the_stribeck_sds_as_predicted():
-    """A small Monte Carlo of benchmarks/bench_sequential_design.py (12 noise realisations)."""
-    record = CASE.record(CASE.first_trajectory(), seed=1)
-    result = design_next(CASE.identified([record]), record, bounds=PUMA_BOUNDS, focus="stribeck", starts=4, seed=0)
-    index = [result.predicted.names.index(name) for name in FOCUS]
-    truth = np.array([CASE.fc, CASE.fs, CASE.vs])
-    realised = {}
-    for key, trajectory in (("after_repeat", CASE.first_trajectory()), ("after_designed", result.design.trajectory)):
-        values = [estimates(CASE, [CASE.record(CASE.first_trajectory(), seed=1000 + i),
-                                   CASE.record(trajectory, seed=2000 + i)]) for i in range(12)]
-        realised[key] = np.std(values, axis=0, ddof=1)
-        ratio = realised[key] / getattr(result.predicted, key)[index]
-        assert np.all((ratio > 0.5) & (ratio < 1.6)), (key, ratio)
-    worst = result.predicted.worst_relative(FOCUS)
+def test_designed_experiment_shrinks_the_worst_relative_sd_twice_as_much_as_repeating():
+    """The Monte Carlo of benchmarks/bench_sequential_design.py --part focus (200 noise realisations: over 50 the
+    realised ratio of shrinks scatters by about ±0.3 around its mean, 2.15; over 200 by about ±0.11)."""
+    run = focus_monte_carlo(CASE, 200)
+    assert run.next_experiment.design.criterion == "worst-relative"
+    for key, realised in run.realised.items():  # realised standard deviations within 25 % of the predicted ones
+        ratio = realised / run.predicted[key]
+        assert np.all((ratio > 0.75) & (ratio < 1.25)), (key, ratio)
+    worst = run.worst()
     assert worst["now"] / worst["after_designed"] >= 2 * worst["now"] / worst["after_repeat"], worst
-    assert np.max(realised["after_designed"] / truth) < 0.7 * np.max(realised["after_repeat"] / truth)
+    assert run.shrink_ratio("predicted") >= 2
 
 
 @pytest.mark.slow
-def test_discriminating_experiment_tells_the_true_law_apart():
+@pytest.mark.parametrize("fs", [0.3, 0.4])
+def test_discriminating_experiment_tells_the_true_law_apart(fs):
     """A small Monte Carlo of benchmarks/bench_sequential_design.py --part discrimination (10 realisations)."""
-    case = replace(CASE, fs=0.4)
+    case = replace(CASE, fs=fs)
     rival = "viscous,coulomb:tanh@2"
     record = case.record(case.first_trajectory(), seed=1)
     result = design_discriminating(case.identified([record]), case.identified([record], rival), record,

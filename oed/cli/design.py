@@ -27,6 +27,7 @@ from oed.cli.design_sequential import add_sequential_arguments, run_sequential, 
 from oed.criteria import CRITERIA
 from oed.cli.shared.design_bounds import bounds_from_arguments
 from oed.design import DesignSettings, ShrunkDesignWarning, design_excitation
+from oed.sequential.criteria import SEQUENTIAL_CRITERIA
 from oed.sequential.problem import SEQUENTIAL_MAX_ITER
 from oed.cli.shared.verbs import verb_summary
 
@@ -40,7 +41,9 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     )
     add_robot_arguments(parser)
     parser.add_argument("--model", choices=[k.value for k in ModelKind], default=None, help="default: combined")
-    parser.add_argument("--criterion", choices=sorted(CRITERIA), default=None, help="default: logdet")
+    parser.add_argument("--criterion", choices=[*sorted(CRITERIA), *SEQUENTIAL_CRITERIA], default=None,
+                        help="default: logdet; with --from: d (every parameter), ds (the --focus group's log det) "
+                        "or worst-relative (the --focus group's largest relative variance; the default with --focus)")
     parser.add_argument("--friction", default=None, help="effects columns (as in `oed model`; default: viscous)")
     parser.add_argument("--bounds", type=Path, help="JSON bounds file {q_min?, q_max, dq_max, ddq_max}")
     parser.add_argument("--ddq-max", type=float, nargs="+", help="acceleration bounds when the bounds come from the URDF")

@@ -1,7 +1,8 @@
 """``oed design --from FILE --data FILE``: the next experiment, from what an identified model left uncertain.
 
 With ``--from`` (a result.json or report.json) and the records already run (``--data``), ``oed design`` maximises
-the posterior information of the model's parameters (D-optimality, or Ds with ``--focus``;
+the posterior information of the model's parameters (D-optimality; with ``--focus``, by default, it minimises a
+smooth maximum of the focus group's relative variances, or with ``--criterion ds`` their marginal log det;
 :mod:`oed.sequential`); with ``--discriminate`` it maximises how far the predictions of the model and a rival
 separate (:mod:`oed.sequential.discrimination`): the runner-up the ``--from`` report kept, or ``--rival FILE``
 (:mod:`oed.sequential.rivals`). The trajectory's options are those of ``oed design``.
@@ -20,6 +21,7 @@ from oed.cli.shared.common import OutputFiles, check_figure_path, check_json_pat
 from oed.cli.shared.design_bounds import bounds_from_arguments
 from oed.cli.shared.options import check_hertz, handover
 from oed.design import DesignSettings, ShrunkDesignWarning
+from oed.sequential.criteria import SEQUENTIAL_CRITERIA
 from oed.sequential.discrimination import design_discriminating
 from oed.sequential.figure import plot_next_experiment
 from oed.sequential.jacobian import SequentialDesignError
@@ -29,7 +31,7 @@ from oed.sequential.rivals import load_rival
 from oed.sequential.problem import SEQUENTIAL_MAX_ITER
 
 #: options of a plain design that a model file fixes
-FIXED_BY_MODEL = ("model", "criterion", "friction")
+FIXED_BY_MODEL = ("model", "friction")
 
 
 def add_sequential_arguments(parser: argparse.ArgumentParser) -> None:
@@ -38,8 +40,9 @@ def add_sequential_arguments(parser: argparse.ArgumentParser) -> None:
                        help="design the next experiment for the model of this result.json or report.json")
     group.add_argument("--data", type=Path, action="append", default=None,
                        help="a record of the experiments already run (repeatable): their information is the prior")
-    group.add_argument("--focus", help="parameters (fs2,vs2) or effects (stribeck) the design is for (Ds-optimality); "
-                                       "default: every parameter (D-optimality)")
+    group.add_argument("--focus", help="parameters (fs2,vs2) or effects (stribeck) the design is for (by default it "
+                                       "minimises their largest relative variance, see --criterion); default: every "
+                                       "parameter (D-optimality)")
     group.add_argument("--periods", type=float, help="length of the new experiment in periods (default: as long as "
                                                      "the records)")
     group.add_argument("--discriminate", action="store_true",
@@ -54,6 +57,8 @@ def sequential_requested(args: argparse.Namespace) -> bool:
     if args.from_model is None:
         given = [option for option, value in (("--data", args.data), ("--focus", args.focus), ("--periods", args.periods),
                                               ("--rival", args.rival)) if value is not None]
+        if args.criterion in SEQUENTIAL_CRITERIA:
+            given.append(f"--criterion {args.criterion}")
         if args.discriminate:
             given.append("--discriminate")
         if given:
@@ -80,6 +85,11 @@ def _check_options(args: argparse.Namespace, model: IdentifiedModel) -> None:
         raise SequentialDesignError("--rival names the rival of a discriminating design: give --discriminate too")
     if args.discriminate and args.focus is not None:
         raise SequentialDesignError("--focus chooses parameters to determine: not with --discriminate")
+    if args.discriminate and args.criterion is not None:
+        raise SequentialDesignError("--criterion: --discriminate has its own criterion (T-optimality); drop the option")
+    if args.criterion is not None and args.criterion not in SEQUENTIAL_CRITERIA:
+        raise SequentialDesignError(f"--criterion {args.criterion} is a plain design's; with --from choose "
+                                    f"{', '.join(SEQUENTIAL_CRITERIA)}")
     if args.periods is not None and not args.periods > 0:
         raise SequentialDesignError(f"--periods must be positive, got {args.periods}")
 
@@ -114,7 +124,7 @@ def run_sequential(args: argparse.Namespace) -> int:
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", ShrunkDesignWarning)
         if rival is None:
-            result = design_next(model, records, focus=args.focus, **options)
+            result = design_next(model, records, focus=args.focus, criterion=args.criterion, **options)
         else:
             result = design_discriminating(model, rival.model, records, **options)
     for warning in caught:

@@ -1,7 +1,7 @@
 """The experiment that best tells two rival models apart: T-optimality with the records already run.
 
-Two identified models ``A`` (``--from``) and ``B`` (``--rival``) fit the records almost equally well. If ``A``
-is true, a new experiment separates them by the noise-weighted distance between ``A``'s prediction and the best
+Two identified models ``A`` (``--from``) and ``B`` (``--rival``, or the runner-up ``--from``'s report kept) fit
+the records almost equally well. If ``A`` is true, a new experiment separates them by the noise-weighted distance between ``A``'s prediction and the best
 approximation ``B`` can make of it (Atkinson and Fedorov, "The design of experiments for discriminating between
 two rival models", *Biometrika* 62(1), 1975): ``B`` refits its parameters to all the data. Linearised at ``B``'s
 estimate, with ``d_k = (ŷ_A − ŷ_B)(x_k)/σ`` and ``J_k`` ``B``'s weighted Jacobian over the new experiment's ``n``
@@ -40,6 +40,7 @@ from oed.sequential.jacobian import ModelJacobian, SequentialDesignError, model_
 from oed.sequential.next_experiment import check_bounds
 from oed.sequential.prior import PriorInformation, prior_information
 from oed.sequential.problem import ACCEPTED_STATUSES, SEQUENTIAL_MAX_ITER
+from oed.sequential.starts import DISCRIMINATION_SHARE, SCREENED_CANDIDATES, screened_start
 
 __all__ = ["DiscriminatingDesign", "Discrimination", "Rivalry", "TOptimality", "rivalry_of", "check_rivals", "design_discriminating", "separation"]
 
@@ -125,10 +126,12 @@ class TOptimality(Criterion):
 
 @dataclass(frozen=True, eq=False)
 class DiscriminatingDesign(ExcitationDesign):
-    """The excitation design maximising ``log Δ_AB + log Δ_BA`` (module docstring); ``criterion`` is unused."""
+    """The excitation design maximising ``log Δ_AB + log Δ_BA`` (module docstring); ``criterion`` is unused;
+    half of the starts are chosen among ``screening`` candidates (:func:`oed.sequential.starts.screened_start`)."""
 
     rivalries: tuple[Rivalry, ...] = ()
     duration_s: float = 0.0
+    screening: int = SCREENED_CANDIDATES
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -177,6 +180,11 @@ class DiscriminatingDesign(ExcitationDesign):
         criterion = -float(sum(np.log(max(value, 1e-12)) for value in values))
         return {"cost": criterion, "cond": float("nan"), "criterion": criterion}
 
+    def random_start(self, generator: np.random.Generator) -> NDArray[np.float64]:
+        """A screened start (:func:`oed.sequential.starts.screened_start`, ``screening`` candidates) for half of
+        the starts (:data:`oed.sequential.starts.DISCRIMINATION_SHARE`), a plain one for the others."""
+        return screened_start(self, generator, self.screening, DISCRIMINATION_SHARE)
+
     def solve(self, x0: NDArray[np.float64], index: int = 0) -> StartResult:
         """As :meth:`oed.sequential.problem.SequentialDesign.solve` (the same statuses accepted)."""
         result = super().solve(x0, index)
@@ -210,7 +218,7 @@ class Discrimination:
     def summary(self) -> str:
         return (f"discriminating {self.models[0]} from {self.models[1]}: expected separation (chi-square) "
                 f"{self.separation['if_from_true']:.3g} if --from is true, {self.separation['if_rival_true']:.3g} if "
-                f"--rival is (repeating the records: {self.separation_after_repeat['if_from_true']:.3g}, "
+                f"the rival is (repeating the records: {self.separation_after_repeat['if_from_true']:.3g}, "
                 f"{self.separation_after_repeat['if_rival_true']:.3g}); expected BIC difference "
                 f"{self.delta_bic['if_from_true']:.3g}, {self.delta_bic['if_rival_true']:.3g}")
 

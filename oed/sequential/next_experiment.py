@@ -27,7 +27,7 @@ from estimation.identification.identified_model import IdentifiedModel
 from oed.bounds import JointBounds
 from oed.design import DesignResult, DesignSettings, design_excitation
 from oed.design_problem import StartResult
-from oed.sequential.criteria import focus_names, posterior_criterion
+from oed.sequential.criteria import SequentialCriterionName, focus_names, posterior_criterion
 from oed.sequential.jacobian import ModelJacobian, SequentialDesignError, model_jacobian
 from oed.sequential.prior import PriorInformation, posterior_covariance, prior_information
 from oed.sequential.problem import SEQUENTIAL_MAX_ITER, SequentialDesign
@@ -118,9 +118,10 @@ def check_bounds(bounds: JointBounds, model: IdentifiedModel) -> None:
 
 def design_next(model: IdentifiedModel, records: Measurements, *, bounds: JointBounds,
                 settings: DesignSettings | None = None, focus: str | Sequence[str] | None = None,
-                duration_s: float | None = None, starts: int = 8, seed: int | None = 0,
+                criterion: SequentialCriterionName | None = None, duration_s: float | None = None,
+                starts: int = 8, seed: int | None = 0,
                 progress: Callable[[StartResult, int], None] | None = None) -> NextExperiment:
-    """The D- (or, with ``focus``, Ds-) optimal next experiment after ``records`` (module docstring).
+    """The next experiment after ``records`` that best determines the ``focus`` parameters (module docstring).
 
     Parameters
     ----------
@@ -132,6 +133,11 @@ def design_next(model: IdentifiedModel, records: Measurements, *, bounds: JointB
         As :func:`oed.design.design_excitation`.
     focus
         Parameter or effect names (:func:`oed.sequential.criteria.focus_names`); ``None``: every parameter.
+    criterion
+        ``"d"`` (D-optimality on every parameter), ``"ds"`` (Ds: the focus group's marginal log det) or
+        ``"worst-relative"`` (a smooth maximum of the focus group's relative variances,
+        :class:`oed.sequential.criteria.WorstRelativeVariance`); default: ``"worst-relative"`` with a ``focus``,
+        ``"d"`` without.
     duration_s
         Length of the new experiment, s (default: that of the records).
     """
@@ -139,10 +145,11 @@ def design_next(model: IdentifiedModel, records: Measurements, *, bounds: JointB
     jacobian = model_jacobian(model)
     prior = prior_information(jacobian, records)
     chosen = focus_names(jacobian, focus)
+    kind = criterion or ("d" if focus is None else "worst-relative")
     duration = prior.duration_s if duration_s is None else float(duration_s)
-    problem = SequentialDesign(model.robot, model.model.kind, bounds, posterior_criterion(jacobian, chosen),
-                               model.model.effects, settings or DesignSettings(max_iter=SEQUENTIAL_MAX_ITER, sqp_after=None), jacobian=jacobian, prior=prior,
-                               duration_s=duration)
+    settings = settings or DesignSettings(max_iter=SEQUENTIAL_MAX_ITER, sqp_after=None)
+    problem = SequentialDesign(model.robot, model.model.kind, bounds, posterior_criterion(jacobian, chosen, kind, prior=prior),
+                               model.model.effects, settings, jacobian=jacobian, prior=prior, duration_s=duration)
     result = design_excitation(model.robot, starts=starts, seed=seed, progress=progress, problem=problem)
     best = next(start for start in result.starts if start.index == result.best)
     designed = problem.designed_information(best.x)

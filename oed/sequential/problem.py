@@ -5,7 +5,7 @@ bounds, constraint refinement, IPOPT settings and multi-start) with another obje
 ``P`` of the experiments already run (:mod:`oed.sequential.prior`) plus the new trajectory's,
 ``n · (1/N) Σ_k J_kᵀ J_k`` over ``N`` cost samples of one period (``n``: the samples the new experiment of
 ``duration_s`` records), scaled by ``D = diag(P)^{-1/2}`` (a constant shift of every log-determinant that keeps
-the Cholesky factors well conditioned), under a D- or Ds-criterion (:mod:`oed.sequential.criteria`):
+the Cholesky factors well conditioned), under a D-, Ds- or worst-relative criterion (:mod:`oed.sequential.criteria`):
 
     J(x) = criterion(D (P/n + (1/N) Σ_k J_kᵀ J_k) D)
 
@@ -30,6 +30,7 @@ from oed.fourier import unpack
 from oed.sequential.criteria import scaled, symbolic_scaled
 from oed.sequential.jacobian import ModelJacobian, SequentialDesignError
 from oed.sequential.prior import PriorInformation
+from oed.sequential.starts import SCREENED_CANDIDATES, screened_start
 
 __all__ = ["ACCEPTED_STATUSES", "SEQUENTIAL_MAX_ITER", "STACKED_ABOVE", "SequentialDesign"]
 
@@ -54,18 +55,23 @@ class SequentialDesign(ExcitationDesign):
     ----------
     robot, model, bounds, criterion, effects, settings
         As :class:`ExcitationDesign`; ``criterion`` acts on the posterior information of the model's
-        parameters (``LogDet`` or :class:`oed.sequential.criteria.FocusedLogDet`).
+        parameters (``LogDet``, :class:`oed.sequential.criteria.FocusedLogDet` or
+        :class:`oed.sequential.criteria.WorstRelativeVariance`).
     jacobian
         The identified model's noise-weighted Jacobian.
     prior
         The information of the experiments already run.
     duration_s
         Length of the new experiment, s (whole periods of the trajectory or not).
+    screening
+        Candidates each start is chosen among (:func:`oed.sequential.starts.screened_start`; 1: the plain
+        random start).
     """
 
     jacobian: ModelJacobian | None = None
     prior: PriorInformation | None = None
     duration_s: float = 0.0
+    screening: int = SCREENED_CANDIDATES
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -127,6 +133,10 @@ class SequentialDesign(ExcitationDesign):
                                      ["q", "dq", "ddq"], ["Jt"], jit_options() if self.settings.jit else {})
         stacked = transposed.map(self.settings.cost_samples, "serial")(*states)  # (p, m N)
         return casadi.mtimes(stacked, stacked.T)
+
+    def random_start(self, generator: np.random.Generator) -> NDArray[np.float64]:
+        """A screened start (:func:`oed.sequential.starts.screened_start`, :attr:`screening` candidates)."""
+        return screened_start(self, generator, self.screening)
 
     def solve(self, x0: NDArray[np.float64], index: int = 0) -> StartResult:
         """One start as :meth:`ExcitationDesign.solve`; a start that ends within the bounds after the
