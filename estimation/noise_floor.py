@@ -6,7 +6,8 @@ Kept for one release so that code written against that README keeps working; imp
 
 import warnings
 
-from estimation.uncertainty.noise_floor import above_floor, noise_floor
+from estimation.uncertainty.noise_floor import noise_floor
+from estimation.uncertainty.floor_comparison import above_floor
 
 __all__ = ['above_floor', 'noise_floor']
 

@@ -6,14 +6,8 @@ import numpy as np
 import pytest
 
 from dynamics.measurements import Measurements
-from estimation.uncertainty.noise_floor import (
-    NoiseFloorError,
-    above_floor,
-    compare_with_floor,
-    difference_variance,
-    noise_floor,
-    prepared_floor,
-)
+from estimation.uncertainty.noise_floor import NoiseFloorError, difference_variance, noise_floor, prepared_floor
+from estimation.uncertainty.floor_comparison import above_floor, compare_with_floor
 from estimation.preprocessing.differentiation import ButterworthDifferentiation, average_periods
 
 RATE = 1000.0

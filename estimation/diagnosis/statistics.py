@@ -28,15 +28,8 @@ from typing import Any
 
 from estimation.identification.fit import IdentificationResult
 from dynamics.measurements import Measurements
-from estimation.uncertainty.noise_floor import (
-    FloorComparison,
-    NoiseFloor,
-    NoiseFloorError,
-    compare_with_floor,
-    difference_variance,
-    noise_floor,
-    prepared_floor,
-)
+from estimation.uncertainty.noise_floor import NoiseFloor, NoiseFloorError, difference_variance, noise_floor, prepared_floor
+from estimation.uncertainty.floor_comparison import FloorComparison, compare_with_floor
 from estimation.uncertainty.residual_tracing import DEFAULT_BINS, ResidualTrace, residual_statements, trace_residuals
 from estimation.uncertainty.whiteness import ResidualChecks, residual_checks
 
@@ -96,7 +89,7 @@ def floor_for_validation(validate: Measurements, channels: tuple[str, ...],
 
     ``floor`` (of the record as recorded) is carried through the preprocessing ``validate``
     records; without it, :func:`validation_floor`. What the diagnosis loop's stopping rule
-    (:func:`estimation.uncertainty.noise_floor.above_floor`) should be given.
+    (:func:`estimation.uncertainty.floor_comparison.above_floor`) should be given.
     """
     if floor is None and validate.recorded is not None:
         try:

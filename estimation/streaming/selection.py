@@ -11,7 +11,7 @@ sums against the channels **as recorded**, trained at the weights the candidate'
 give (:func:`estimation.diagnosis.confirmation.reweighted_comparison`'s rule, :data:`REWEIGHTING_PASSES`);
 a removal compares the model without an effect the same way. The search runs until no move is
 significant and confirmed (``stop_at_floor``: the noise floor as the stopping rule,
-:func:`estimation.uncertainty.noise_floor.above_floor` at :data:`~estimation.diagnosis.statistics.FLOOR_ALPHA`,
+:func:`estimation.uncertainty.floor_comparison.above_floor` at :data:`~estimation.diagnosis.statistics.FLOOR_ALPHA`,
 as :func:`~estimation.diagnosis.rules.stopping_rules.floor_stopping_rule`).
 
 What this path does differently (said in the report's ``streaming.not_on_this_path``):
@@ -52,7 +52,8 @@ from estimation.estimators.variable_projection import ShapeFit
 from estimation.estimators.summed_least_squares import SummedLeastSquares
 from estimation.identification.fit import implausible_estimates
 from estimation.streaming.diagnosis_sums import ChannelSums, normal_equations
-from estimation.uncertainty.noise_floor import NoiseFloor, above_floor
+from estimation.uncertainty.noise_floor import NoiseFloor
+from estimation.uncertainty.floor_comparison import above_floor
 
 __all__ = ["SummedFit", "SummedFits", "simpler_laws", "summed_rival_fitter", "summed_runner_up"]
 

@@ -14,12 +14,9 @@ from estimation.diagnosis.results import runner_up_line
 from estimation.estimators.normal_equations import DEFAULT_CHUNK_SIZE
 from estimation.preprocessing.plan import Preprocessing
 from estimation.streaming.recorded_errors import streamed_plan
-from estimation.streaming.diagnosis import (
-    DEFAULT_SUBSAMPLE,
-    FLOOR_WINDOW,
-    StreamedDiagnosis,
-    diagnose_files,
-)
+from estimation.streaming.diagnosis import DEFAULT_SUBSAMPLE, diagnose_files
+from estimation.streaming.diagnosis_passes import FLOOR_WINDOW
+from estimation.streaming.diagnosis_result import StreamedDiagnosis
 from oed.cli.shared.asbuilt import model_effects
 from oed.cli.shared.memory_path import streamed_choice
 from oed.cli.shared.model_files import add_summed_model_file, add_summed_runner_up_model_file

@@ -19,7 +19,8 @@ from numpy.typing import NDArray
 
 from estimation.diagnosis.statistics import FLOOR_ALPHA
 from dynamics.measurements import Measurements
-from estimation.uncertainty.noise_floor import NoiseFloor, above_floor
+from estimation.uncertainty.noise_floor import NoiseFloor
+from estimation.uncertainty.floor_comparison import above_floor
 
 
 @dataclass(frozen=True)
@@ -55,7 +56,7 @@ def provisional_stopping_rule(state: SearchState) -> bool:
 def floor_stopping_rule(floor: NoiseFloor, *, alpha: float = FLOOR_ALPHA) -> Callable[[SearchState], bool]:
     """The noise floor as the stopping rule: ``True`` (keep searching) while some channel's
     validation MSE against the channels as recorded is significantly above its floor
-    (:func:`estimation.uncertainty.noise_floor.above_floor`, an F test at ``alpha``)."""
+    (:func:`estimation.uncertainty.floor_comparison.above_floor`, an F test at ``alpha``)."""
     def rule(state: SearchState) -> bool:
         residual = state.validate_residuals  # (N, m)
         mse = {channel: float(np.mean(residual[:, index] ** 2)) for index, channel in enumerate(state.channels)}
