@@ -170,8 +170,7 @@ class RecordFits:
         tasks = [functools.partial(fit_or_reason, request.group, request.members, self._columns(request.without)[0],
                                    self.states_train, weights, request.rss, self.previous.get(request.group),
                                    search=False) for request in requests]
-        workers = worker_count(self.jobs, len(tasks), min_tasks=MIN_PARALLEL_FITS)
-        outcomes = run_tasks(tasks, workers, shared=[block for request in requests for block in request.members])
+        outcomes = self.run_fits(tasks, [block for request in requests for block in request.members], MIN_PARALLEL_FITS)
         results: list[Trial | str] = []
         for request, outcome in zip(requests, outcomes):
             if not isinstance(outcome, str):
@@ -179,6 +178,12 @@ class RecordFits:
                 outcome = dataclasses.replace(outcome, without=request.without)
             results.append(outcome)
         return results
+
+    def run_fits(self, tasks: Sequence[Callable[[], Trial | str]], blocks: Sequence[Block],
+                 min_tasks: int = 2) -> list[Trial | str]:
+        """Candidate fits side by side in ``jobs`` processes when there are at least ``min_tasks`` of them,
+        the candidates' ``blocks`` shared (:func:`dynamics.runtime.processes.run_tasks`), results in order."""
+        return run_tasks(tasks, worker_count(self.jobs, len(tasks), min_tasks=min_tasks), shared=blocks)
 
     def refine(self, trials: list[Trial], current: RecordFit, weights: NDArray[np.float64],
                first_round: bool) -> list[Trial]:
@@ -195,7 +200,8 @@ class RecordFits:
             return rss[trial.without]
 
         return refine_best(trials, lambda trial: self._columns(trial.without)[0], self.states_train, weights,
-                           reference, self.previous, SCREEN_REFINED, traced)
+                           reference, self.previous, SCREEN_REFINED, traced,
+                           run=lambda tasks: self.run_fits(tasks, [block for trial in trials for block in trial.blocks]))
 
     def _robust(self, blocks: Sequence[Block], shapes: Sequence[NDArray[np.float64]], weights: NDArray[np.float64]
                 ) -> tuple[NDArray[np.float64], NDArray[np.float64], int]:
