@@ -197,8 +197,11 @@ def _reap(children: dict[int, int], *, kill: bool) -> None:
         if fd >= 0:
             os.close(fd)
         del children[pid]
-        if not kill and os.waitstatus_to_exitcode(status) != 0:
-            raise TaskError(f"a worker process ended with status {os.waitstatus_to_exitcode(status)}")
+        code = os.waitstatus_to_exitcode(status)
+        if not kill and code == -signal.SIGINT:
+            raise KeyboardInterrupt  # Ctrl-C reached the worker first
+        if not kill and code != 0:
+            raise TaskError(f"a worker process ended with status {code}")
 
 
 def _in_order(outcomes: list[_Outcome], n_tasks: int) -> list[Any]:
