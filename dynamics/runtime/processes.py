@@ -4,7 +4,8 @@ A round of a search fits many candidates, each independent of the others; in one
 holds the GIL, so a second core helps only from a second process. :func:`run_tasks` forks
 ``workers - 1`` children (the parent is the last worker): each child starts with the parent's memory,
 copy-on-write, so the records and the current model's columns are shared, not pickled. The workers take
-tasks from a shared counter in task order; a child sends each result back pickled, and the parent
+tasks from a shared counter in task order, each on one thread (:func:`dynamics.runtime.threads.single_threaded`:
+the workers already fill the cores); a child sends each result back pickled, and the parent
 returns them in task order, so a result never depends on which worker computed it or when. Objects given
 as ``shared`` (existing before the fork: column blocks, say) travel by reference: a result that holds
 one gets the parent's object back, not a copy.
@@ -32,7 +33,7 @@ from dataclasses import dataclass
 from multiprocessing import get_all_start_methods, get_context
 from typing import Any, TypeVar
 
-from dynamics.runtime.threads import available_cores
+from dynamics.runtime.threads import available_cores, single_threaded
 
 __all__ = ["MAX_WORKERS", "TaskError", "run_tasks", "worker_count"]
 
@@ -93,7 +94,7 @@ class _Sharing:
 
 
 def _run_one(index: int, task: Callable[[], Any]) -> _Outcome:
-    with warnings.catch_warnings(record=True) as caught:
+    with warnings.catch_warnings(record=True) as caught, single_threaded():  # one thread a worker: no oversubscription
         try:
             value = task()
         except Exception as error:  # sent back and raised again in the parent
