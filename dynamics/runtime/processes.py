@@ -26,6 +26,7 @@ import os
 import pickle
 import select
 import signal
+import threading
 import traceback
 import warnings
 from collections.abc import Callable, Iterable, Sequence
@@ -148,6 +149,8 @@ def run_tasks(tasks: Sequence[Callable[[], T]], workers: int, *, shared: Iterabl
     counter = get_context("fork").Value("q", 0)
     children: dict[int, int] = {}  # pid -> read end
     received: dict[int, bytearray] = {}
+    ends: list[int] = []
+    reader: threading.Thread | None = None
     try:
         for _ in range(min(workers, len(tasks)) - 1):
             read_end, write_end = os.pipe()
@@ -157,46 +160,54 @@ def run_tasks(tasks: Sequence[Callable[[], T]], workers: int, *, shared: Iterabl
                 _child(tasks, counter, sharing, write_end)
             os.close(write_end)
             children[pid], received[pid] = read_end, bytearray()
+            ends.append(read_end)
+        # the children's results read as they come (a child waits on a full pipe), the GIL free while waiting
+        reader = threading.Thread(target=_read_all, args=(dict(children), received), daemon=True)
+        reader.start()
         own: list[_Outcome] = []
         while (index := _next_index(counter)) < len(tasks):
             own.append(_run_one(index, tasks[index]))
-            _drain(children, received, timeout=0.0)
-        while any(fd >= 0 for fd in children.values()):
-            _drain(children, received, timeout=None)
+        reader.join()
         outcomes = own + [item for pid in received for item in sharing.loads_all(bytes(received[pid]))]
         _reap(children, kill=False)
     finally:
-        _reap(children, kill=True)
+        _reap(children, kill=True)  # their pipes reach their end: a reader still waiting returns
+        if reader is not None:
+            reader.join()
+        for fd in ends:
+            os.close(fd)
     return _in_order(outcomes, len(tasks))
 
 
-def _drain(children: dict[int, int], received: dict[int, bytearray], timeout: float | None) -> None:
-    """Read what the children have written so far (a child blocks on a full pipe otherwise)."""
-    open_ends = [fd for fd in children.values() if fd >= 0]
-    if not open_ends:
-        return
-    ready, _, _ = select.select(open_ends, [], [], timeout)
-    for pid, fd in list(children.items()):
-        if fd in ready:
-            chunk = os.read(fd, 1 << 20)
-            if chunk:
-                received[pid] += chunk
-            else:
-                os.close(fd)
-                children[pid] = -1
+def _read_all(ends: dict[int, int], received: dict[int, bytearray]) -> None:
+    """Read every child's pipe until each is closed."""
+    open_ends = dict(ends)
+    while open_ends:
+        try:
+            ready, _, _ = select.select(list(open_ends.values()), [], [])
+        except (OSError, ValueError):  # a pipe closed by the parent after an error
+            return
+        for pid, fd in list(open_ends.items()):
+            if fd in ready:
+                try:
+                    chunk = os.read(fd, 1 << 20)
+                except OSError:
+                    chunk = b""
+                if chunk:
+                    received[pid] += chunk
+                else:
+                    del open_ends[pid]
 
 
 def _reap(children: dict[int, int], *, kill: bool) -> None:
-    """Wait for every child (killed first when ``kill``), close their pipes and forget them."""
-    for pid, fd in list(children.items()):
+    """Wait for every child (killed first when ``kill``) and forget it (its pipe stays open)."""
+    for pid in list(children):
         if kill:
             try:
                 os.kill(pid, signal.SIGKILL)
             except ProcessLookupError:
                 pass
         _, status = os.waitpid(pid, 0)
-        if fd >= 0:
-            os.close(fd)
         del children[pid]
         code = os.waitstatus_to_exitcode(status)
         if not kill and code == -signal.SIGINT:

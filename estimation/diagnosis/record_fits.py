@@ -41,10 +41,11 @@ from estimation.estimators.variable_projection import ShapeFit
 from estimation.identification.fit import IdentificationResult
 from estimation.preprocessing.delay import DelayBounds
 
-__all__ = ["MIN_PARALLEL_FITS", "RecordFit", "RecordFits", "declared_regressor"]
+__all__ = ["MIN_PARALLEL_SEARCHES", "RecordFit", "RecordFits", "declared_regressor"]
 
-#: fewest candidate fits worth a process pool (forking and sending results back cost ~10 ms a worker)
-MIN_PARALLEL_FITS = 8
+#: fewest shape searches from their grids (tens of ms each) in a round for its fits to run in a process pool; a
+#: round of screens at the last optimum (~1 ms a fit) runs in turn: the fork and its copied pages cost more
+MIN_PARALLEL_SEARCHES = 4
 
 
 @dataclass(frozen=True)
@@ -165,12 +166,16 @@ class RecordFits:
         return dataclasses.replace(outcome, without=without)
 
     def trials(self, requests: Sequence[TrialRequest], weights: NDArray[np.float64]) -> list[Trial | str]:
-        """:meth:`trial` of each request, side by side in ``jobs`` processes when there are enough
-        (:func:`dynamics.runtime.processes.run_tasks`: the same results, in order)."""
+        """:meth:`trial` of each request, side by side in ``jobs`` processes when the round searches at least
+        :data:`MIN_PARALLEL_SEARCHES` shapes from their grids (:func:`dynamics.runtime.processes.run_tasks`: the same
+        results, in order)."""
         tasks = [functools.partial(fit_or_reason, request.group, request.members, self._columns(request.without)[0],
                                    self.states_train, weights, request.rss, self.previous.get(request.group),
                                    search=False) for request in requests]
-        outcomes = self.run_fits(tasks, [block for request in requests for block in request.members], MIN_PARALLEL_FITS)
+        searches = sum(self.previous.get(request.group) is None and any(block.n_shape for block in request.members)
+                       for request in requests)  # a shape searched from its grid: the costly fits
+        workers = worker_count(self.jobs, len(tasks)) if searches >= MIN_PARALLEL_SEARCHES else 1
+        outcomes = run_tasks(tasks, workers, shared=[block for request in requests for block in request.members])
         results: list[Trial | str] = []
         for request, outcome in zip(requests, outcomes):
             if not isinstance(outcome, str):
@@ -178,12 +183,6 @@ class RecordFits:
                 outcome = dataclasses.replace(outcome, without=request.without)
             results.append(outcome)
         return results
-
-    def run_fits(self, tasks: Sequence[Callable[[], Trial | str]], blocks: Sequence[Block],
-                 min_tasks: int = 2) -> list[Trial | str]:
-        """Candidate fits side by side in ``jobs`` processes when there are at least ``min_tasks`` of them,
-        the candidates' ``blocks`` shared (:func:`dynamics.runtime.processes.run_tasks`), results in order."""
-        return run_tasks(tasks, worker_count(self.jobs, len(tasks), min_tasks=min_tasks), shared=blocks)
 
     def refine(self, trials: list[Trial], current: RecordFit, weights: NDArray[np.float64],
                first_round: bool) -> list[Trial]:
@@ -200,8 +199,7 @@ class RecordFits:
             return rss[trial.without]
 
         return refine_best(trials, lambda trial: self._columns(trial.without)[0], self.states_train, weights,
-                           reference, self.previous, SCREEN_REFINED, traced,
-                           run=lambda tasks: self.run_fits(tasks, [block for trial in trials for block in trial.blocks]))
+                           reference, self.previous, SCREEN_REFINED, traced)
 
     def _robust(self, blocks: Sequence[Block], shapes: Sequence[NDArray[np.float64]], weights: NDArray[np.float64]
                 ) -> tuple[NDArray[np.float64], NDArray[np.float64], int]:

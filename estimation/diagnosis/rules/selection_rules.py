@@ -4,7 +4,6 @@ compete together, which screened shapes are searched again, and when a spring is
 from __future__ import annotations
 
 import dataclasses
-import functools
 
 from dynamics.models import IdentificationModel
 from dynamics.effects.shaped import FRICTION_LAWS
@@ -15,24 +14,21 @@ from estimation.estimators.effect_blocks import Block
 SCREEN_REFINED = 2
 
 
-def refine_best(trials, fixed, states, weights, rss, previous, count: int, traced=None, run=None):
+def refine_best(trials, fixed, states, weights, rss, previous, count: int, traced=None):
     """The ``count`` best-ranked screened trials (by BIC, ties by what they add), and the group ``traced``
     (the one the residual tracing ranks first: :mod:`estimation.diagnosis.traced_refinement`), with
     shapes searched again by Levenberg–Marquardt. ``fixed(trial)``, ``rss(trial)``: the columns and
-    weighted RSS of the model the trial joins (the current one, or without the laws it replaces).
-    ``run(tasks)``: the searches' results in order (default: one after the other; they are independent)."""
+    weighted RSS of the model the trial joins (the current one, or without the laws it replaces)."""
     ranked = sorted(trials, key=lambda t: (t.bic, tuple(sorted(",".join(block.names) for block in t.blocks))))
-    chosen = [position for position, trial in enumerate(ranked)
-              if (position < count or trial.group == traced) and trial.fit.shape.size]
-    tasks = [functools.partial(fit_or_reason, ranked[position].group, list(ranked[position].blocks),
-                               fixed(ranked[position]), states, weights, rss(ranked[position]), ranked[position].fit,
-                               search=True) for position in chosen]
-    outcomes = [task() for task in tasks] if run is None else run(tasks)
-    refined = list(ranked)
-    for position, outcome in zip(chosen, outcomes):
-        if not isinstance(outcome, str):
-            previous[ranked[position].group] = outcome.fit
-            refined[position] = dataclasses.replace(outcome, without=ranked[position].without)
+    refined = []
+    for position, trial in enumerate(ranked):
+        if (position < count or trial.group == traced) and trial.fit.shape.size:
+            outcome = fit_or_reason(trial.group, list(trial.blocks), fixed(trial), states, weights, rss(trial),
+                                    trial.fit, search=True)
+            if not isinstance(outcome, str):
+                previous[trial.group] = outcome.fit
+                trial = dataclasses.replace(outcome, without=trial.without)
+        refined.append(trial)
     return refined
 
 
