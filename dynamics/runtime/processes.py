@@ -168,8 +168,8 @@ def run_tasks(tasks: Sequence[Callable[[], T]], workers: int, *, shared: Iterabl
         while (index := _next_index(counter)) < len(tasks):
             own.append(_run_one(index, tasks[index]))
         reader.join()
+        _reap(children, kill=False)  # a child ended by Ctrl-C or a failure: raised before its truncated results are read
         outcomes = own + [item for pid in received for item in sharing.loads_all(bytes(received[pid]))]
-        _reap(children, kill=False)
     finally:
         _reap(children, kill=True)  # their pipes reach their end: a reader still waiting returns
         if reader is not None:
