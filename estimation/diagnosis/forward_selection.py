@@ -50,7 +50,7 @@ from estimation.diagnosis.candidates.coupling import combination_groups
 from estimation.diagnosis.candidates.delay import DelayTrial
 from estimation.diagnosis.results import RejectedEffect
 from estimation.diagnosis.rules.robust_test import WaldTest
-from estimation.diagnosis.search_fits import AdoptedEffect, CurrentFit, Fits
+from estimation.diagnosis.search_fits import AdoptedEffect, CurrentFit, Fits, TrialRequest
 from estimation.diagnosis.search_moves import (declared_conflict, move_bic, removable, replaced_by, replaced_in_place,
                                                tie_key)
 from estimation.diagnosis.rules.selection_rules import candidate_groups, offsets_beat_springs
@@ -200,8 +200,10 @@ class DiagnosisSearch:
 
     def fit_candidates(self) -> list[Trial]:
         """Each group not in the model fitted against it, or against it without the laws the group
-        would replace (a lone candidate that cannot be gets the reason as its verdict)."""
-        trials, reduced = [], {}
+        would replace (a lone candidate that cannot be gets the reason as its verdict). The fits are
+        independent of each other (:meth:`Fits.trials` may run them side by side)."""
+        requests: list[TrialRequest] = []
+        reduced: dict[tuple[int, ...], float] = {}
         for group in self.groups:
             if any(index in self.rejected or index in self.departed for index in group) or self.in_model(group):
                 continue  # a candidate that left the model does not return: the search ends
@@ -217,14 +219,20 @@ class DiagnosisSearch:
             if reason is None:
                 if without not in reduced:
                     reduced[without] = self.fits.fit_current(self.weights, without).rss if without else self.current.rss
-                reason = self.fits.trial(group, members, self.weights, reduced[without], without)
-            if isinstance(reason, str):
-                if reason.startswith("not identifiable"):
-                    self.failed[group] = reason
-                if len(group) == 1:
-                    self.verdicts[group[0]] = reason
+                requests.append(TrialRequest(group, tuple(members), reduced[without], without))
+            else:
+                requests.append(TrialRequest(group, tuple(members), np.nan, without, reason))
+        fitted = iter(self.fits.trials([request for request in requests if request.reason is None], self.weights))
+        trials = []
+        for request in requests:
+            outcome = next(fitted) if request.reason is None else request.reason
+            if isinstance(outcome, str):
+                if outcome.startswith("not identifiable"):
+                    self.failed[request.group] = outcome
+                if len(request.group) == 1:
+                    self.verdicts[request.group[0]] = outcome
                 continue
-            trials.append(reason)
+            trials.append(outcome)
         return trials + self.refreshed(reduced)
 
     def refreshed(self, reduced: dict[tuple[int, ...], float]) -> list[Trial]:

@@ -25,11 +25,12 @@ from numpy.typing import NDArray
 
 from dynamics.measurements import Measurements
 from dynamics.models import IdentificationModel
+from dynamics.runtime.processes import run_tasks, worker_count
 from estimation.diagnosis.candidates.trials import Trial, fit_or_reason, weighted_error
 from estimation.diagnosis.confirmation import Comparison, removal_comparison, reweighted_comparison
 from estimation.diagnosis.candidates.delay import DelayComparison, DelayTrial, Regressor
 from estimation.diagnosis.candidates.delay_search import DelaySearch
-from estimation.diagnosis.search_fits import AdoptedEffect, TrialTest
+from estimation.diagnosis.search_fits import AdoptedEffect, TrialRequest, TrialTest
 from estimation.diagnosis.rules.robust_test import WaldTest, fit_covariance, wald_test
 from estimation.diagnosis.rules.selection_rules import SCREEN_REFINED, refine_best
 from estimation.diagnosis.rules.stopping_rules import SearchState
@@ -40,7 +41,11 @@ from estimation.estimators.variable_projection import ShapeFit
 from estimation.identification.fit import IdentificationResult
 from estimation.preprocessing.delay import DelayBounds
 
-__all__ = ["RecordFit", "RecordFits", "declared_regressor"]
+__all__ = ["MIN_PARALLEL_SEARCHES", "RecordFit", "RecordFits", "declared_regressor"]
+
+#: fewest shape searches from their grids (tens of ms each) in a round for its fits to run in a process pool; a
+#: round of screens at the last optimum (~1 ms a fit) runs in turn: the fork and its copied pages cost more
+MIN_PARALLEL_SEARCHES = 4
 
 
 @dataclass(frozen=True)
@@ -83,11 +88,16 @@ class RecordFits:
     shaped
         Whether the declared model has shaped laws (the final fit's covariance is then the batch-means
         sandwich: :mod:`estimation.diagnosis.rules.robust_test`).
+    jobs
+        Processes that fit a round's candidates side by side (``None``: the available cores;
+        :func:`dynamics.runtime.processes.worker_count`).
     """
 
     def __init__(self, model: IdentificationModel, regressor: Regressor, train: Measurements, recorded: Measurements,
-                 delay: DelayBounds | None, stopping_rule: Callable[[SearchState], bool], shaped: bool = False) -> None:
+                 delay: DelayBounds | None, stopping_rule: Callable[[SearchState], bool], shaped: bool = False,
+                 jobs: int | None = 1) -> None:
         self.model, self.stopping_rule, self.regressor, self.shaped = model, stopping_rule, regressor, shaped
+        self.jobs = jobs
         self.adopted: tuple[AdoptedEffect, ...] = ()
         self._move(train, recorded)
         self.delay = DelaySearch(train, recorded, regressor, delay)  # the delay and, once adopted, the moved records
@@ -154,6 +164,25 @@ class RecordFits:
             return outcome
         self.previous[group] = outcome.fit
         return dataclasses.replace(outcome, without=without)
+
+    def trials(self, requests: Sequence[TrialRequest], weights: NDArray[np.float64]) -> list[Trial | str]:
+        """:meth:`trial` of each request, side by side in ``jobs`` processes when the round searches at least
+        :data:`MIN_PARALLEL_SEARCHES` shapes from their grids (:func:`dynamics.runtime.processes.run_tasks`: the same
+        results, in order)."""
+        tasks = [functools.partial(fit_or_reason, request.group, request.members, self._columns(request.without)[0],
+                                   self.states_train, weights, request.rss, self.previous.get(request.group),
+                                   search=False) for request in requests]
+        searches = sum(self.previous.get(request.group) is None and any(block.n_shape for block in request.members)
+                       for request in requests)  # a shape searched from its grid: the costly fits
+        workers = worker_count(self.jobs, len(tasks)) if searches >= MIN_PARALLEL_SEARCHES else 1
+        outcomes = run_tasks(tasks, workers, shared=[block for request in requests for block in request.members])
+        results: list[Trial | str] = []
+        for request, outcome in zip(requests, outcomes):
+            if not isinstance(outcome, str):
+                self.previous[request.group] = outcome.fit
+                outcome = dataclasses.replace(outcome, without=request.without)
+            results.append(outcome)
+        return results
 
     def refine(self, trials: list[Trial], current: RecordFit, weights: NDArray[np.float64],
                first_round: bool) -> list[Trial]:

@@ -59,6 +59,7 @@ from dynamics.effects.linear import (
 from dynamics.effects.shaped import PositionRipple, ShapedStribeckFriction, SigmoidFriction, TanhCoulombFriction
 from dynamics.measurements import Measurements
 from dynamics.models import IdentificationModel, ModelKind
+from dynamics.runtime.processes import worker_count
 from dynamics.runtime.threads import single_threaded_blas
 from estimation.diagnosis.candidates.trials import candidate_label
 from estimation.diagnosis.candidates.coupling import coupling_candidates
@@ -150,6 +151,7 @@ def diagnose(
     stopping_rule: Callable[[SearchState], bool] | None = None,
     noise_floor: NoiseFloor | None = None,
     delay: DelayBounds | None = DelayBounds(),
+    jobs: int | None = None,
 ) -> Diagnosis:
     """Find, by a search over models, the effects ``model`` lacks in ``train``, confirmed on ``validate``.
 
@@ -181,6 +183,10 @@ def diagnose(
         Noise floor of the validation record as recorded (:func:`estimation.uncertainty.noise_floor.noise_floor`,
         before preprocessing). ``None``: estimated from the recorded validation channels when they
         can give one (:mod:`estimation.diagnosis.statistics`), the method said in the report.
+    jobs
+        Processes that fit a round's candidates side by side, each a fork sharing the records
+        (:mod:`dynamics.runtime.processes`); ``None``: the cores this process may use, at most 4;
+        1: in turn. The diagnosis is the same bit for bit whatever the number.
 
     The validation errors that confirm a candidate, and those reported, are measured against the
     validation channels as recorded (``validate.recorded`` when preprocessing filtered or averaged
@@ -188,13 +194,14 @@ def diagnose(
     """
     candidates = _checked_candidates(model, train, validate, candidates, alpha, min_improvement)
     floor_for_validation(validate, model.channels, noise_floor)  # a floor of the wrong kind refused before the search
+    worker_count(jobs, 0)  # so is a wrong number of processes
     if stopping_rule is None:
         stopping_rule = provisional_stopping_rule
     before = identify(model, train, validate)
     weights = before.estimate.weights if before.estimate.method == "wls" else 1.0 / before.estimate.channel_variance
     # errors against the channels as recorded, along the derived motion
     fits = RecordFits(model, declared_regressor(model, before), train, validate.as_recorded, delay, stopping_rule,
-                      shaped=before.shaped_fit is not None)
+                      shaped=before.shaped_fit is not None, jobs=jobs)
     blocks, rejected = candidate_blocks(model, candidates)
     settings = SearchSettings(alpha, min_improvement, max_effects, len(candidates) + (delay is not None),  # the delay too
                               same_effect_adopted=True)

@@ -19,7 +19,7 @@ from estimation.diagnosis.confirmation import Comparison
 from estimation.diagnosis.rules.robust_test import WaldTest
 from estimation.estimators.effect_blocks import Block
 
-__all__ = ["AdoptedEffect", "CurrentFit", "Fits", "TrialTest"]
+__all__ = ["AdoptedEffect", "CurrentFit", "Fits", "TrialRequest", "TrialTest"]
 
 
 @dataclass(frozen=True)
@@ -36,6 +36,18 @@ class AdoptedEffect:
     @property
     def effect(self) -> Effect:
         return self.block.effect
+
+
+@dataclass(frozen=True)
+class TrialRequest:
+    """A group to fit against the current model without the adopted ``without``, whose weighted RSS is
+    ``rss``; or, when ``reason`` is given, why it is not fitted."""
+
+    group: tuple[int, ...]
+    members: tuple[Block, ...]
+    rss: float
+    without: tuple[int, ...] = ()
+    reason: str | None = None
 
 
 class CurrentFit(Protocol):
@@ -70,6 +82,8 @@ class Fits(Protocol):
 
     def trial(self, group: tuple[int, ...], members: Sequence[Block], weights: NDArray[np.float64],
               rss: float, without: tuple[int, ...] = ()) -> Trial | str: ...
+
+    def trials(self, requests: Sequence[TrialRequest], weights: NDArray[np.float64]) -> list[Trial | str]: ...
 
     def refine(self, trials: list[Trial], current: CurrentFit, weights: NDArray[np.float64],
                first_round: bool) -> list[Trial]: ...

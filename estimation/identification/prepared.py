@@ -109,6 +109,9 @@ class PreparationSettings:
         A preprocessing chosen beforehand on the same training data (by held-out error on their
         :class:`~estimation.identification.preprocessing_choice.ChoiceWindow`, read before the records were):
         used as it is, nothing is chosen again.
+    jobs
+        Processes that score the derivative candidates side by side (``None``: the cores available, at
+        most 4; :func:`~estimation.identification.preprocessing_choice.choose_by_evidence`).
     """
 
     max_gap: float = DEFAULT_MAX_GAP
@@ -124,6 +127,7 @@ class PreparationSettings:
     memory: InMemoryBudget | None = None
     selection: Selection = "held-out"
     plan: Preprocessing | None = None
+    jobs: int | None = None
 
     def __post_init__(self) -> None:
         if self.selection not in ("held-out", "rule"):
@@ -318,7 +322,7 @@ def choose_plan(model: IdentificationModel, train: Sequence[Measurements], setti
                "held_torques": settings.held_torques}
     if settings.selection == "rule":
         return choose_preprocessing(train, **{**options, "held_torques": bool(settings.held_torques)})
-    return choose_by_evidence(model, train, **options).chosen
+    return choose_by_evidence(model, train, **options, jobs=settings.jobs).chosen
 
 
 def _prepared(files: tuple[RecordedFile, ...], preprocessing: Preprocessing, role: str, *,

@@ -43,6 +43,7 @@ the same 21 candidates with identical scores.
 
 from __future__ import annotations
 
+import functools
 import time
 import warnings
 from collections.abc import Iterator, Sequence
@@ -54,6 +55,7 @@ from numpy.typing import NDArray
 
 from dynamics.measurements import Measurements
 from dynamics.models import IdentificationModel
+from dynamics.runtime.processes import run_tasks, worker_count
 from dynamics.runtime.progress import SECONDS as PROGRESS_SECONDS
 from dynamics.runtime.progress import report
 from dynamics.runtime.threads import single_threaded_blas
@@ -84,6 +86,8 @@ EQUIVALENT = 0.05
 #: samples of the training record the candidates are prepared on: a long record is scored on a window of its
 #: longest segment (time and memory stay bounded; the choice is the window's)
 SCORED_SAMPLES = 60_000
+#: fewest candidates worth scoring in a process pool
+MIN_PARALLEL_SCORES = 8
 
 
 class PreprocessingEvidenceWarning(UserWarning):
@@ -313,12 +317,15 @@ def choose_by_evidence(
     folds: int = 5,
     max_rows: int = 6000,
     families: Sequence[Family] = ("fourier", "butterworth"),
+    jobs: int | None = None,
 ) -> PreprocessingChoice:
     """The preprocessing of ``train`` for ``model``, chosen by held-out error (module docstring).
 
     The options are those of :func:`estimation.preprocessing.plan.choose_preprocessing` (and checked by it); a
     given ``frequency_hz``, ``harmonics`` or ``cutoff_hz`` decides, scored beside the candidates. ``families``
-    restricts the candidates. ``held_torques=None``: whether the torques were held over each sample is chosen
+    restricts the candidates. ``jobs``: processes that score the candidates side by side (``None``: the cores this
+    process may use, at most 4; the same choice and scores whatever the number:
+    :mod:`dynamics.runtime.processes`). ``held_torques=None``: whether the torques were held over each sample is chosen
     too (:func:`with_held_torques`). Everything is decided on the record's :class:`ChoiceWindow` (a window
     already made may be given: a streamed record's).
 
@@ -345,8 +352,9 @@ def choose_by_evidence(
     plans = [plan for plan in candidates(segments, rule, given, families, shortest_s=window.shortest_s)
              if plan.method in families or plan in (rule, given)]
     started = time.perf_counter()
-    evidence = tuple(sorted((score(segments, plan) for plan in plans),
-                            key=lambda item: (item.score, item.preprocessing.describe())))
+    scored = run_tasks([functools.partial(score, segments, plan) for plan in plans],
+                       worker_count(jobs, len(plans), min_tasks=MIN_PARALLEL_SCORES))
+    evidence = tuple(sorted(scored, key=lambda item: (item.score, item.preprocessing.describe())))
     best = preferred(evidence)
     chosen = best if given is None else given
     if choose_hold:

@@ -42,7 +42,7 @@ from dynamics.models import IdentificationModel, build_model
 from estimation.diagnosis.candidates.trials import SIGNIFICANT_TERM, Trial, nested_test
 from estimation.diagnosis.confirmation import REWEIGHTING_PASSES, Comparison
 from estimation.diagnosis.candidates.delay import DelayTrial
-from estimation.diagnosis.search_fits import AdoptedEffect, TrialTest
+from estimation.diagnosis.search_fits import AdoptedEffect, TrialRequest, TrialTest
 from estimation.diagnosis.rules.robust_test import WaldTest, wald_test
 from estimation.diagnosis.results import RunnerUp
 from estimation.diagnosis.runner_up import RivalFit, RivalFitter, RunnerUpOutcome, fit_runner_up
@@ -145,6 +145,11 @@ class SummedFits:
                        tuple(p.name for block in members for p in block.parameters), 0, None)
         return Trial(tuple(group), tuple(members), fit, rss_augmented, float(statistic), p_value, float(bic),
                      tuple(without))
+
+    def trials(self, requests: Sequence[TrialRequest], weights: NDArray[np.float64]) -> list[Trial | str]:
+        """:meth:`trial` of each request in turn (each a solve of summed normal equations: cheap)."""
+        return [self.trial(request.group, request.members, weights, request.rss, request.without)
+                for request in requests]
 
     def refine(self, trials: list[Trial], current: SummedFit, weights: NDArray[np.float64],
                first_round: bool) -> list[Trial]:

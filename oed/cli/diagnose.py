@@ -38,6 +38,7 @@ from oed.cli.shared.common import (
     OutputFiles,
     add_data_arguments,
     add_derivative_arguments,
+    add_jobs_argument,
     add_robot_arguments,
     add_streaming_arguments,
     check_shaped_effects_kept,
@@ -83,6 +84,7 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     parser.add_argument("--max-effects", type=int, default=20, metavar="N",
                         help="add at most N effects (default 20); the output says when the cap stopped the search")
     add_derivative_arguments(parser)
+    add_jobs_argument(parser, "the derivative candidates' scores and each round's candidate fits")
     add_streaming_arguments(parser)
     add_streamed_diagnosis_arguments(parser)
     return parser
@@ -208,7 +210,7 @@ def diagnose_records(args: argparse.Namespace, model: IdentificationModel, trans
     frequency = preprocessing.frequency_hz if preprocessing.method == "fourier" else args.frequency
     floor = records.validation.noise_floor(model.channels, frequency)
     return diagnose(model, train, validation, alpha=args.alpha, candidates=candidates, max_effects=args.max_effects,
-                    noise_floor=floor, delay=delay or DelayBounds())
+                    noise_floor=floor, delay=delay or DelayBounds(), jobs=args.jobs)
 
 
 def test_errors(records: PreparedRecords, diagnosis: Diagnosis, model: IdentificationModel,

@@ -43,6 +43,7 @@ from oed.cli.shared.common import (
     OutputFiles,
     add_data_arguments,
     add_derivative_arguments,
+    add_jobs_argument,
     add_robot_arguments,
     add_streaming_arguments,
     check_figure_path,
@@ -99,6 +100,7 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
                              "held-out blocks of the training data clearly better (method_selection in the JSON); "
                              "wls: channel-weighted; ols: ordinary")
     add_derivative_arguments(parser)
+    add_jobs_argument(parser, "the derivative candidates' scores")
     add_streaming_arguments(parser)
     add_consistent_arguments(parser)
     return parser

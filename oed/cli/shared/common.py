@@ -37,7 +37,7 @@ from estimation.streaming.cluster import SCHEDULER_VARIABLE, connect, scheduler_
 from oed.cli.shared.options import check_hertz
 
 __all__ = [
-    "OutputFiles", "add_data_arguments", "add_derivative_arguments", "add_robot_arguments", "add_streaming_arguments",
+    "OutputFiles", "add_data_arguments", "add_derivative_arguments", "add_jobs_argument", "add_robot_arguments", "add_streaming_arguments",
     "atomic_output", "check_csv_path", "check_figure_path", "check_json_path", "check_shaped_effects_kept",
     "differentiation", "executor_from_arguments", "json_text", "model_has_shapes", "preparation_settings",
     "print_warnings", "robot_from_arguments", "seed", "streaming_requested",
@@ -95,6 +95,26 @@ def add_data_arguments(parser: argparse.ArgumentParser, *, validate_required: bo
     parser.add_argument("--max-gap", type=float, default=DEFAULT_MAX_GAP, metavar="SECONDS",
                         help=f"longest logger stall bridged by interpolation (default {DEFAULT_MAX_GAP:g} s); a longer "
                              "hole splits a --data file into segments (and is an error in a --validate file)")
+
+
+def jobs_count(text: str) -> int | None:
+    """``--jobs``: ``auto`` (``None``: the cores available, at most 4) or a positive number of processes."""
+    if text == "auto":
+        return None
+    try:
+        jobs = int(text)
+    except ValueError:
+        jobs = 0
+    if jobs < 1:
+        raise argparse.ArgumentTypeError(f"must be 'auto' or a positive number of processes, got {text!r}")
+    return jobs
+
+
+def add_jobs_argument(parser: argparse.ArgumentParser, work: str) -> None:
+    """``--jobs N``: processes that run ``work`` side by side (forks of this one; the results are the same)."""
+    parser.add_argument("--jobs", type=jobs_count, default=None, metavar="N",
+                        help=f"processes that run {work} side by side (default auto: the cores available, at most "
+                             "4; 1: in turn); the results are the same whatever N")
 
 
 def add_derivative_arguments(parser: argparse.ArgumentParser) -> None:
@@ -177,7 +197,7 @@ def preparation_settings(args: argparse.Namespace, transmission: Transmission | 
     return PreparationSettings(max_gap=args.max_gap, transmission=transmission, frequency_hz=args.frequency,
                                harmonics=args.harmonics, cutoff_hz=args.cutoff, average_periods=args.average_periods,
                                decimation=args.decimate, held_torques=args.held_torques, min_speed=args.min_speed,
-                               rest=args.rest, memory=memory)
+                               rest=args.rest, memory=memory, jobs=args.jobs)
 
 
 def check_shaped_effects_kept(effects: Iterable[Any], model: IdentificationModel) -> None:

@@ -1,0 +1,234 @@
+"""Independent tasks in forked worker processes, their results in task order.
+
+A round of a search fits many candidates, each independent of the others; in one process their Python
+holds the GIL, so a second core helps only from a second process. :func:`run_tasks` forks
+``workers - 1`` children (the parent is the last worker): each child starts with the parent's memory,
+copy-on-write, so the records and the current model's columns are shared, not pickled. The workers take
+tasks from a shared counter in task order, each on one thread (:func:`dynamics.runtime.threads.single_threaded`:
+the workers already fill the cores); a child sends each result back pickled, and the parent
+returns them in task order, so a result never depends on which worker computed it or when. Objects given
+as ``shared`` (existing before the fork: column blocks, say) travel by reference: a result that holds
+one gets the parent's object back, not a copy.
+
+A task's exception is raised again in the parent (the first in task order); a child's warnings are
+issued again in the parent. On any exception in the parent (Ctrl-C included) the children are killed and
+reaped before it propagates: none is left behind.
+
+:func:`worker_count` decides the pool's size: the cores this process may run on (its CPU affinity),
+at most :data:`MAX_WORKERS`, one (in turn, no fork) where ``fork`` is unavailable or there are fewer
+than ``min_tasks`` tasks.
+"""
+
+from __future__ import annotations
+
+import io
+import os
+import pickle
+import select
+import signal
+import threading
+import traceback
+import warnings
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass
+from multiprocessing import get_all_start_methods, get_context
+from typing import Any, TypeVar
+
+from dynamics.runtime.threads import available_cores, single_threaded
+
+__all__ = ["MAX_WORKERS", "TaskError", "run_tasks", "worker_count"]
+
+T = TypeVar("T")
+
+#: the most workers :func:`worker_count` gives by default
+MAX_WORKERS = 4
+
+
+class TaskError(RuntimeError):
+    """A task failed in a child process with an exception that could not be sent back as it was."""
+
+
+def worker_count(jobs: int | None, n_tasks: int, *, min_tasks: int = 2) -> int:
+    """How many workers run ``n_tasks`` tasks: ``jobs`` (``None``: the available cores, at most
+    :data:`MAX_WORKERS`), never more than the tasks, and 1 when ``fork`` is unavailable or there are
+    fewer than ``min_tasks`` tasks."""
+    if jobs is not None and (isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1):
+        raise ValueError(f"jobs must be a positive integer or None (the available cores), got {jobs!r}")
+    if "fork" not in get_all_start_methods() or n_tasks < max(min_tasks, 2):
+        return 1
+    wanted = min(available_cores(), MAX_WORKERS) if jobs is None else jobs
+    return max(1, min(wanted, n_tasks))
+
+
+@dataclass(frozen=True)
+class _Outcome:
+    """One task's result, or its exception (or, when that cannot be pickled, its traceback)."""
+
+    index: int
+    value: Any = None
+    error: BaseException | None = None
+    error_text: str | None = None
+    warnings: tuple[tuple[str, type[Warning], str, int], ...] = ()
+
+
+class _Sharing:
+    """Pickling with the ``shared`` objects replaced by their position (both sides hold them: a fork)."""
+
+    def __init__(self, shared: Iterable[object]) -> None:
+        self.objects = list(shared)
+        self.positions = {id(item): position for position, item in enumerate(self.objects)}
+
+    def dumps(self, value: object) -> bytes:
+        buffer = io.BytesIO()
+        pickler = pickle.Pickler(buffer, protocol=pickle.HIGHEST_PROTOCOL)
+        pickler.persistent_id = lambda item: self.positions.get(id(item))  # type: ignore[method-assign]
+        pickler.dump(value)
+        return buffer.getvalue()
+
+    def loads_all(self, data: bytes) -> list[_Outcome]:
+        buffer, outcomes = io.BytesIO(data), []
+        while buffer.tell() < len(data):
+            unpickler = pickle.Unpickler(buffer)
+            unpickler.persistent_load = self.objects.__getitem__  # type: ignore[assignment]
+            outcomes.append(unpickler.load())
+        return outcomes
+
+
+def _run_one(index: int, task: Callable[[], Any]) -> _Outcome:
+    with warnings.catch_warnings(record=True) as caught, single_threaded():  # one thread a worker: no oversubscription
+        try:
+            value = task()
+        except Exception as error:  # sent back and raised again in the parent
+            return _Outcome(index, error=error, error_text=traceback.format_exc())
+    issued = tuple((str(item.message), item.category, item.filename, item.lineno) for item in caught)
+    return _Outcome(index, value, warnings=issued)
+
+
+def _next_index(counter: Any) -> int:
+    with counter.get_lock():
+        index = counter.value
+        counter.value += 1
+    return index
+
+
+def _child(tasks: Sequence[Callable[[], Any]], counter: Any, sharing: _Sharing, write_end: int) -> None:
+    """A child's loop: tasks from the counter until none is left, each outcome written to the pipe."""
+    status = 1
+    try:
+        signal.signal(signal.SIGINT, signal.SIG_DFL)  # Ctrl-C ends a child at once; the parent reaps it
+        with os.fdopen(write_end, "wb") as pipe:
+            while (index := _next_index(counter)) < len(tasks):
+                outcome = _run_one(index, tasks[index])
+                try:
+                    data = sharing.dumps(outcome)
+                except Exception:  # an exception object that does not pickle: its traceback instead
+                    data = sharing.dumps(_Outcome(index, error_text=outcome.error_text or traceback.format_exc()))
+                pipe.write(data)
+                pipe.flush()
+        status = 0
+    finally:
+        os._exit(status)  # never the parent's cleanup (atexit, buffered output) in a child
+
+
+def run_tasks(tasks: Sequence[Callable[[], T]], workers: int, *, shared: Iterable[object] = ()) -> list[T]:
+    """``[task() for task in tasks]``, on ``workers`` processes (module docstring); in turn when
+    ``workers`` is 1.
+
+    Parameters
+    ----------
+    tasks
+        Callables without arguments; their results must pickle (apart from ``shared`` objects).
+    workers
+        Processes, the parent included (:func:`worker_count`).
+    shared
+        Objects that exist before the call and may appear in results: returned as the parent's own.
+    """
+    if workers <= 1 or len(tasks) < 2:
+        return [task() for task in tasks]
+    sharing = _Sharing(shared)
+    counter = get_context("fork").Value("q", 0)
+    children: dict[int, int] = {}  # pid -> read end
+    received: dict[int, bytearray] = {}
+    ends: list[int] = []
+    reader: threading.Thread | None = None
+    try:
+        for _ in range(min(workers, len(tasks)) - 1):
+            read_end, write_end = os.pipe()
+            pid = os.fork()
+            if pid == 0:
+                os.close(read_end)
+                _child(tasks, counter, sharing, write_end)
+            os.close(write_end)
+            children[pid], received[pid] = read_end, bytearray()
+            ends.append(read_end)
+        # the children's results read as they come (a child waits on a full pipe), the GIL free while waiting
+        reader = threading.Thread(target=_read_all, args=(dict(children), received), daemon=True)
+        reader.start()
+        own: list[_Outcome] = []
+        while (index := _next_index(counter)) < len(tasks):
+            own.append(_run_one(index, tasks[index]))
+        reader.join()
+        _reap(children, kill=False)  # a child ended by Ctrl-C or a failure: raised before its truncated results are read
+        outcomes = own + [item for pid in received for item in sharing.loads_all(bytes(received[pid]))]
+    finally:
+        _reap(children, kill=True)  # their pipes reach their end: a reader still waiting returns
+        if reader is not None:
+            reader.join()
+        for fd in ends:
+            os.close(fd)
+    return _in_order(outcomes, len(tasks))
+
+
+def _read_all(ends: dict[int, int], received: dict[int, bytearray]) -> None:
+    """Read every child's pipe until each is closed."""
+    open_ends = dict(ends)
+    while open_ends:
+        try:
+            ready, _, _ = select.select(list(open_ends.values()), [], [])
+        except (OSError, ValueError):  # a pipe closed by the parent after an error
+            return
+        for pid, fd in list(open_ends.items()):
+            if fd in ready:
+                try:
+                    chunk = os.read(fd, 1 << 20)
+                except OSError:
+                    chunk = b""
+                if chunk:
+                    received[pid] += chunk
+                else:
+                    del open_ends[pid]
+
+
+def _reap(children: dict[int, int], *, kill: bool) -> None:
+    """Wait for every child (killed first when ``kill``) and forget it (its pipe stays open)."""
+    for pid in list(children):
+        if kill:
+            try:
+                os.kill(pid, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
+        _, status = os.waitpid(pid, 0)
+        del children[pid]
+        code = os.waitstatus_to_exitcode(status)
+        if not kill and code == -signal.SIGINT:
+            raise KeyboardInterrupt  # Ctrl-C reached the worker first
+        if not kill and code != 0:
+            raise TaskError(f"a worker process ended with status {code}")
+
+
+def _in_order(outcomes: list[_Outcome], n_tasks: int) -> list[Any]:
+    """The results in task order, each task's warnings issued again; the first failed task's exception raised."""
+    by_index = {outcome.index: outcome for outcome in outcomes}
+    if sorted(by_index) != list(range(n_tasks)):
+        raise TaskError(f"the workers returned {len(by_index)} of {n_tasks} results")
+    results = []
+    for index in range(n_tasks):
+        outcome = by_index[index]
+        for message, category, filename, lineno in outcome.warnings:
+            warnings.warn_explicit(message, category, filename, lineno)
+        if outcome.error is not None:
+            raise outcome.error
+        if outcome.error_text is not None:
+            raise TaskError(f"task {index} failed in a worker process:\n{outcome.error_text}")
+        results.append(outcome.value)
+    return results

@@ -1,0 +1,83 @@
+"""The diagnosis in several processes is the diagnosis in one: the same report, number for number."""
+
+from __future__ import annotations
+
+import json
+import os
+import warnings
+
+import pytest
+
+from dynamics.runtime.processes import TaskError, run_tasks, worker_count
+from estimation.diagnosis import record_fits
+from estimation.diagnosis.search import diagnose
+from tests.corpus.cases import CASES
+from tests.corpus.records import declared_model, records
+
+
+def report(diagnosis) -> str:
+    return json.dumps(diagnosis.to_dict(), sort_keys=True, default=repr)
+
+
+@pytest.mark.parametrize("name", ["coulomb + offset"])
+def test_two_processes_give_the_report_of_one(name, monkeypatch):
+    (case,) = [case for case in CASES if case.name == name]
+    model = declared_model()
+    train, validate = records(case)
+    serial = diagnose(model, train, validate, jobs=1)
+    pools = []
+
+    def counted(tasks, workers, **options):
+        pools.append(workers)
+        return run_tasks(tasks, workers, **options)
+
+    monkeypatch.setattr(record_fits, "run_tasks", counted)
+    pooled = diagnose(model, train, validate, jobs=2)
+    assert serial.effects, "the case must find something for the comparison to mean anything"
+    assert 2 in pools, pools
+    assert report(pooled) == report(serial)
+
+
+def _square(value: int) -> int:
+    return value * value
+
+
+def _fails(value: int) -> int:
+    if value == 3:
+        raise ValueError(f"task {value} fails")
+    return value
+
+
+def _warns(value: int) -> int:
+    warnings.warn(f"warning from task {value}", UserWarning, stacklevel=1)
+    return value
+
+
+def test_results_come_back_in_task_order_and_shared_objects_by_reference():
+    shared = object()
+    tasks = [lambda value=value: (_square(value), shared) for value in range(20)]
+    results = run_tasks(tasks, 2, shared=[shared])
+    assert [value for value, _ in results] == [value * value for value in range(20)]
+    assert all(item is shared for _, item in results)
+
+
+def test_a_task_exception_is_raised_in_the_parent_and_no_child_is_left():
+    with pytest.raises(ValueError, match="task 3 fails"):
+        run_tasks([lambda value=value: _fails(value) for value in range(8)], 2)
+    with pytest.raises(ChildProcessError):
+        os.waitpid(-1, os.WNOHANG)  # no child of this process remains
+
+
+def test_a_child_warning_is_issued_in_the_parent():
+    with pytest.warns(UserWarning) as caught:
+        run_tasks([lambda value=value: _warns(value) for value in range(6)], 2)
+    assert sorted(str(item.message) for item in caught) == [f"warning from task {value}" for value in range(6)]
+
+
+def test_worker_count_is_serial_for_few_tasks_and_refuses_a_bad_number():
+    assert worker_count(4, 3, min_tasks=8) == 1
+    assert worker_count(2, 10) == 2
+    assert worker_count(1, 10) == 1
+    with pytest.raises(ValueError, match="jobs"):
+        worker_count(0, 10)
+    assert TaskError.__mro__[1] is RuntimeError
