@@ -128,7 +128,7 @@ def test_filter_and_fourier_paths_score_the_samples_they_summed(model, files, tm
 
 
 def test_a_file_changed_between_the_passes_is_refused(model, files, monkeypatch):
-    import estimation.streaming.identification_covariance as passes
+    import estimation.streaming.identification as passes
 
     original = passes.preprocessed_chunks
 
