@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from dynamics.measurements import Measurements
-from estimation.uncertainty.noise_floor import NoiseFloorError, difference_variance, noise_floor, prepared_floor
+from estimation.uncertainty.noise_floor import (BlockFourierSums, NoiseFloorError, UniformFourierSums, difference_variance,
+                                                fourier_residual_variance, noise_floor, prepared_floor)
 from estimation.uncertainty.floor_comparison import above_floor, compare_with_floor
 from estimation.preprocessing.differentiation import ButterworthDifferentiation, average_periods
 
@@ -53,6 +54,39 @@ def test_fractional_period_uses_a_fourier_fit_with_the_right_dof():
     assert abs(np.mean(estimates) - 1.0) < 4 * np.sqrt(2 / floor.dof / estimates.size)  # unbiased
     # the spread is that of chi2_dof / dof: the dof are right (80 draws: ±25 %)
     assert 0.75 < np.std(estimates) / np.sqrt(2 / floor.dof) < 1.25
+
+
+def _explicit_fourier_variance(t, values, frequency_hz, harmonics):
+    """The Fourier floor from its whole design and the SVD: what the sums must reproduce."""
+    phase = np.outer(t - t.mean(), 2 * np.pi * frequency_hz * np.arange(1, harmonics + 1))
+    design = np.hstack([np.ones((t.shape[0], 1)), np.sin(phase), np.cos(phase)])
+    residual = values - design @ np.linalg.lstsq(design, values, rcond=None)[0]
+    return np.sum(residual**2, axis=0) / (t.shape[0] - 2 * harmonics - 1)
+
+
+@pytest.mark.parametrize("jitter", [0.0, 1e-6], ids=["regular grid (chirp z)", "jittered stamps (blocks)"])
+@pytest.mark.parametrize("harmonics", [40, 450])
+def test_fourier_floor_sums_give_the_explicit_least_squares_fit(jitter, harmonics):
+    frequency = 1 / 0.9993  # 999.3 samples a period: not a whole number
+    t = np.arange(4100) / RATE + np.random.default_rng(7).normal(size=4100) * jitter
+    values = _periodic_signal(t, frequency, harmonics=30) + np.random.default_rng(8).normal(size=(4100, 2)) * 0.2
+    variance, dof, used = fourier_residual_variance(t, values, frequency, harmonics=harmonics)
+    assert used == harmonics and dof == 4100 - 2 * harmonics - 1
+    np.testing.assert_allclose(variance, _explicit_fourier_variance(t, values, frequency, harmonics), rtol=1e-9)
+    assert (UniformFourierSums.of(t, frequency, harmonics) is None) == (jitter > 0)
+
+
+def test_uniform_fourier_sums_are_the_block_sums():
+    frequency, harmonics = 1 / 0.9993, 300
+    t = 2.5 + np.arange(3000) / RATE
+    values = np.random.default_rng(9).normal(size=(3000, 3))
+    uniform = UniformFourierSums.of(t, frequency, harmonics)
+    blocks = BlockFourierSums(t, frequency, harmonics)
+    for got, expected in zip(uniform.normal_equations(values), blocks.normal_equations(values)):
+        np.testing.assert_allclose(got, expected, rtol=0, atol=1e-9 * np.max(np.abs(expected)))
+    coefficients = np.random.default_rng(10).normal(size=(2 * harmonics + 1, 3))
+    expected = blocks.fitted(coefficients)
+    np.testing.assert_allclose(uniform.fitted(coefficients), expected, rtol=0, atol=1e-9 * np.max(np.abs(expected)))
 
 
 def test_difference_estimator_is_unbiased_on_a_smooth_signal_with_friction_jumps():

@@ -126,10 +126,15 @@ def fit_series(t: ArrayLike, q: ArrayLike, frequency_hz: float, harmonics: int, 
 
 
 def normal_solution(design: NDArray[np.float64], values: NDArray[np.float64]) -> NDArray[np.float64] | None:
-    """The least-squares coefficients of ``values ≈ design · x`` from the normal equations equilibrated to a unit
-    diagonal (Cholesky), or ``None`` when their reciprocal condition number (LAPACK ``dpocon``, 1-norm) is below
-    :data:`NORMAL_RCOND` or the factorisation fails."""
-    gram = design.T @ design
+    """The least-squares coefficients of ``values ≈ design · x`` from the normal equations (:func:`gram_solution`),
+    or ``None`` when they are not well conditioned."""
+    return gram_solution(design.T @ design, design.T @ values)
+
+
+def gram_solution(gram: NDArray[np.float64], right: NDArray[np.float64]) -> NDArray[np.float64] | None:
+    """The solution of the normal equations ``gram · x = right`` equilibrated to a unit diagonal (Cholesky), or
+    ``None`` when their reciprocal condition number (LAPACK ``dpocon``, 1-norm) is below :data:`NORMAL_RCOND` or
+    the factorisation fails (the caller then takes the SVD)."""
     scale = np.sqrt(np.diag(gram))
     if not np.all(np.isfinite(scale)) or np.any(scale == 0):
         return None
@@ -140,5 +145,5 @@ def normal_solution(design: NDArray[np.float64], values: NDArray[np.float64]) ->
     rcond, info = scipy.linalg.lapack.dpocon(factor, np.max(np.sum(np.abs(equilibrated), axis=0)))  # upper factor
     if info != 0 or not rcond >= NORMAL_RCOND:
         return None
-    right = (design.T @ values) / scale[:, None]
+    right = np.asarray(right, dtype=float).reshape(gram.shape[0], -1) / scale[:, None]
     return scipy.linalg.cho_solve((factor, False), right, check_finite=False) / scale[:, None]

@@ -118,9 +118,14 @@ def _edges(values: NDArray[np.float64], bins: int, variable: str) -> NDArray[np.
 def _binned_means(x: NDArray[np.float64], residual: NDArray[np.float64], edges: NDArray[np.float64]):
     index = np.searchsorted(edges, x, side="right")
     counts = np.bincount(index, minlength=edges.shape[0] + 1)
-    sums = np.bincount(index, weights=residual, minlength=edges.shape[0] + 1)
-    means = np.where(counts > 0, sums / np.maximum(counts, 1), 0.0)
-    return means, counts
+    return _bin_means(index, residual, edges.shape[0] + 1), counts
+
+
+def _bin_means(index: NDArray[np.intp], residual: NDArray[np.float64], n_bins: int) -> NDArray[np.float64]:
+    """The mean of ``residual`` in each of ``n_bins`` bins (0 in an empty bin); ``index``: each sample's bin."""
+    counts = np.bincount(index, minlength=n_bins)
+    sums = np.bincount(index, weights=residual, minlength=n_bins)
+    return np.where(counts > 0, sums / np.maximum(counts, 1), 0.0)
 
 
 def _share(residual: NDArray[np.float64], fitted: NDArray[np.float64]) -> float:
@@ -164,16 +169,20 @@ def trace_residuals(
     if train.n_samples < 5 * bins:
         raise ValueError(f"{train.n_samples} training samples are too few for {bins} bins")
     x_train, x_validate = state_variables(train), state_variables(validate)
+    # the bins of a variable are the same for every channel: their edges and each sample's bin found once
+    binned = {}
+    for variable, values in x_train.items():
+        edges = _edges(values, int(bins), variable)
+        binned[variable] = (edges, np.searchsorted(edges, values, side="right"),
+                            np.searchsorted(edges, x_validate[variable], side="right"))
     rows = []
     for column, channel in enumerate(channels):
         residual, check = train_residuals[:, column], validation_residuals[:, column]
         channel_rows = []
-        for variable, values in x_train.items():
-            edges = _edges(values, int(bins), variable)
-            means, _ = _binned_means(values, residual, edges)
-            fitted_train = means[np.searchsorted(edges, values, side="right")]
-            fitted_validation = means[np.searchsorted(edges, x_validate[variable], side="right")]
-            channel_rows.append(TraceRow(channel, variable, _share(residual, fitted_train), _share(check, fitted_validation)))
+        for variable, (edges, index_train, index_validate) in binned.items():
+            means = _bin_means(index_train, residual, edges.shape[0] + 1)
+            channel_rows.append(TraceRow(channel, variable, _share(residual, means[index_train]),
+                                         _share(check, means[index_validate])))
         rows += sorted(channel_rows, key=lambda row: -row.validation_share)
     return ResidualTrace(tuple(rows), int(bins))
 
