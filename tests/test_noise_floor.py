@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from dynamics.measurements import Measurements
-from estimation.uncertainty.noise_floor import (BlockFourierSums, NoiseFloorError, UniformFourierSums, difference_variance,
-                                                fourier_residual_variance, noise_floor, prepared_floor)
+from estimation.uncertainty.noise_floor import (NoiseFloorError, difference_variance, fourier_residual_variance, noise_floor,
+                                                prepared_floor)
 from estimation.uncertainty.floor_comparison import above_floor, compare_with_floor
 from estimation.preprocessing.differentiation import ButterworthDifferentiation, average_periods
 
@@ -73,20 +73,6 @@ def test_fourier_floor_sums_give_the_explicit_least_squares_fit(jitter, harmonic
     variance, dof, used = fourier_residual_variance(t, values, frequency, harmonics=harmonics)
     assert used == harmonics and dof == 4100 - 2 * harmonics - 1
     np.testing.assert_allclose(variance, _explicit_fourier_variance(t, values, frequency, harmonics), rtol=1e-9)
-    assert (UniformFourierSums.of(t, frequency, harmonics) is None) == (jitter > 0)
-
-
-def test_uniform_fourier_sums_are_the_block_sums():
-    frequency, harmonics = 1 / 0.9993, 300
-    t = 2.5 + np.arange(3000) / RATE
-    values = np.random.default_rng(9).normal(size=(3000, 3))
-    uniform = UniformFourierSums.of(t, frequency, harmonics)
-    blocks = BlockFourierSums(t, frequency, harmonics)
-    for got, expected in zip(uniform.normal_equations(values), blocks.normal_equations(values)):
-        np.testing.assert_allclose(got, expected, rtol=0, atol=1e-9 * np.max(np.abs(expected)))
-    coefficients = np.random.default_rng(10).normal(size=(2 * harmonics + 1, 3))
-    expected = blocks.fitted(coefficients)
-    np.testing.assert_allclose(uniform.fitted(coefficients), expected, rtol=0, atol=1e-9 * np.max(np.abs(expected)))
 
 
 def test_difference_estimator_is_unbiased_on_a_smooth_signal_with_friction_jumps():

@@ -9,7 +9,9 @@ squares on the samples' own time stamps: any fundamental, any sampling (jittered
 any record length of at least one period works; no whole number of samples per period is needed.
 The derivatives of measured positions are fitted many times a run (every harmonic count the preprocessing choice
 scores, then each record): there the fit solves the equilibrated normal equations (``solver="normal"``), to
-rounding what the SVD gives; the frequency search and the excitation design keep the SVD.
+rounding what the SVD gives; on a regular grid of time stamps their sums, and the evaluation of a long series, are
+chirp z-transforms (:mod:`estimation.preprocessing.fourier_sums`), never the design; the frequency search and the
+excitation design keep the SVD.
 """
 
 from __future__ import annotations
@@ -21,6 +23,8 @@ import numpy as np
 import scipy.linalg
 from numpy.typing import ArrayLike, NDArray
 
+from estimation.preprocessing.fourier_sums import UniformFourierSums
+
 
 #: elements of the ``(T, N)`` phase array evaluated at once: 60 000 samples of 400 harmonics took 1.2 GB whole
 EVALUATION_BLOCK = 1 << 20
@@ -28,15 +32,31 @@ EVALUATION_BLOCK = 1 << 20
 #: is above this (a coefficient error of order ``eps/rcond``, below 1e-10 relative); the SVD otherwise
 NORMAL_RCOND = 1e-6
 
+#: samples times harmonics from which a series on a regular grid is evaluated by chirp z-transforms
+UNIFORM_EVALUATION = 1 << 16
+
 Solver = Literal["svd", "normal"]
 
 
 def evaluate_series(frequency_hz: float, q0: NDArray[np.float64], a: NDArray[np.float64], b: NDArray[np.float64],
                     t: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
-    """``q, dq, ddq`` of eq. 18 at times ``t``, each ``(len(t), n)``; ``q0 (n,)``, ``a, b (n, N)``; in blocks of
-    samples (:data:`EVALUATION_BLOCK`), so that memory stays bounded whatever the record's length."""
+    """``q, dq, ddq`` of eq. 18 at times ``t``, each ``(len(t), n)``; ``q0 (n,)``, ``a, b (n, N)``: on a regular
+    grid of at least :data:`UNIFORM_EVALUATION` samples times harmonics by chirp z-transforms
+    (:class:`~estimation.preprocessing.fourier_sums.UniformFourierSums`), else in blocks of samples
+    (:data:`EVALUATION_BLOCK`), so that memory stays bounded whatever the record's length."""
     t = np.asarray(t, dtype=float).reshape(-1)
     omega = 2 * np.pi * frequency_hz * np.arange(1, a.shape[1] + 1)  # (N,)
+    sums = UniformFourierSums.of(t, frequency_hz, a.shape[1], origin=0.0) \
+        if t.shape[0] * a.shape[1] >= UNIFORM_EVALUATION else None
+    if sums is not None:  # the three series at once, in the basis [1, sin ω_l t, cos ω_l t]
+        n = a.shape[0]
+        coefficients = np.zeros((2 * a.shape[1] + 1, 3 * n))
+        coefficients[0, :n] = q0
+        coefficients[1:, :n] = np.vstack([(a / omega).T, (-b / omega).T])
+        coefficients[1:, n:2 * n] = np.vstack([b.T, a.T])
+        coefficients[1:, 2 * n:] = np.vstack([(-a * omega).T, (b * omega).T])
+        values = sums.fitted(coefficients)
+        return values[:, :n], values[:, n:2 * n], values[:, 2 * n:]
     q, dq, ddq = (np.empty((t.shape[0], a.shape[0])) for _ in range(3))
     rows = max(1, EVALUATION_BLOCK // max(a.shape[1], 1))
     for start in range(0, t.shape[0], rows):
@@ -110,19 +130,41 @@ def fit_series(t: ArrayLike, q: ArrayLike, frequency_hz: float, harmonics: int, 
         raise ValueError(f"harmonics must be at least 1, got {harmonics}")
     if t.shape[0] < 2 * harmonics + 1:
         raise ValueError(f"{t.shape[0]} samples cannot determine {2 * harmonics + 1} Fourier coefficients per joint")
-    design = design_matrix(t - t[0], frequency_hz, harmonics)  # phases from the record's start: well scaled
-    coefficients = normal_solution(design, q) if solver == "normal" else None
-    if coefficients is None:
-        coefficients = np.linalg.lstsq(design, q, rcond=None)[0]  # (2N+1, n)
-    residual = float(np.sum((q - design @ coefficients) ** 2))
-    # back to absolute time: a phase shift ω_l t0 rotates (a_l, b_l)
     omega = 2 * np.pi * frequency_hz * np.arange(1, harmonics + 1)
+    fitted = uniform_fit(t, q, frequency_hz, harmonics) if solver == "normal" else None
+    if fitted is None:
+        design = design_matrix(t - t[0], frequency_hz, harmonics)  # phases from the record's start: well scaled
+        coefficients = normal_solution(design, q) if solver == "normal" else None
+        if coefficients is None:
+            coefficients = np.linalg.lstsq(design, q, rcond=None)[0]  # (2N+1, n)
+        residual = float(np.sum((q - design @ coefficients) ** 2))
+    else:
+        coefficients, residual = fitted
+    # back to absolute time: a phase shift ω_l t0 rotates (a_l, b_l)
     sine, cosine = coefficients[1:1 + harmonics].T, coefficients[1 + harmonics:].T  # coefficients at t - t0
     c, s = np.cos(omega * t[0]), np.sin(omega * t[0])
     # sin(ω(t−t0)) = sin ωt cos ωt0 − cos ωt sin ωt0 ; −cos(ω(t−t0)) = −cos ωt cos ωt0 − sin ωt sin ωt0
     a = sine * c - cosine * s
     b = sine * s + cosine * c
     return FourierSeries(float(frequency_hz), coefficients[0], a, b), residual
+
+
+def uniform_fit(t: NDArray[np.float64], q: NDArray[np.float64], frequency_hz: float,
+                harmonics: int) -> tuple[NDArray[np.float64], float] | None:
+    """The coefficients of :func:`design_matrix` ``(t − t0)`` fitted to ``q`` from the normal equations and the
+    residual sum of squares, each sum a chirp z-transform (:class:`~estimation.preprocessing.fourier_sums.
+    UniformFourierSums`): ``None`` when the time stamps are not on a regular grid or the equations are not well
+    conditioned (:func:`gram_solution`)."""
+    sums = UniformFourierSums.of(t, frequency_hz, harmonics, origin=float(t[0]))
+    if sums is None:
+        return None
+    omega = 2 * np.pi * frequency_hz * np.arange(1, harmonics + 1)
+    scale = np.concatenate([[1.0], 1.0 / omega, -1.0 / omega])  # the design's columns are the plain basis scaled
+    normal, moment = sums.normal_equations(q)
+    coefficients = gram_solution(normal * np.outer(scale, scale), moment * scale[:, None])
+    if coefficients is None:
+        return None
+    return coefficients, float(np.sum((q - sums.fitted(coefficients * scale[:, None])) ** 2))
 
 
 def normal_solution(design: NDArray[np.float64], values: NDArray[np.float64]) -> NDArray[np.float64] | None:

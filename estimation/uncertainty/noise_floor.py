@@ -48,6 +48,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from dynamics.measurements import Measurements
 from estimation.preprocessing.fourier_series import gram_solution
+from estimation.preprocessing.fourier_sums import fourier_sums
 
 #: most harmonics of the Fourier fit used when the period is not a whole number of samples
 MAX_HARMONICS = 1000
@@ -145,8 +146,8 @@ def fourier_residual_variance(t: ArrayLike, values: ArrayLike, frequency_hz: flo
     below the Nyquist frequency, at most :data:`MAX_HARMONICS`.
 
     The normal equations are those of the design ``[1, sin kθ, cos kθ]`` (``θ = 2π f (t − t̄)``), never formed
-    whole: on a regular grid (:class:`UniformFourierSums`) every sum is a chirp z-transform, ``O(N log N)``;
-    otherwise they are summed over blocks of rows, ``O(N H²)``. They are solved by Cholesky when well
+    whole (:func:`~estimation.preprocessing.fourier_sums.fourier_sums`): on a regular grid every sum is a chirp
+    z-transform, ``O(N log N)``; otherwise they are summed over blocks of rows, ``O(N H²)``. They are solved by Cholesky when well
     conditioned, by the SVD otherwise (:func:`~estimation.preprocessing.fourier_series.gram_solution`)."""
     t = np.asarray(t, dtype=float)
     values = _as_2d(values)
@@ -158,95 +159,13 @@ def fourier_residual_variance(t: ArrayLike, values: ArrayLike, frequency_hz: flo
         raise NoiseFloorError(f"{t.shape[0]} samples leave no degrees of freedom for {H} harmonics")
     scale = np.sqrt(np.mean(values**2, axis=0)) + np.finfo(float).tiny
     scaled = values / scale
-    sums = UniformFourierSums.of(t, frequency_hz, H) or BlockFourierSums(t, frequency_hz, H)
+    sums = fourier_sums(t, frequency_hz, H, origin=float(t.mean()))
     normal, moment = sums.normal_equations(scaled)
     coefficients = gram_solution(normal, moment)
     if coefficients is None:
         coefficients = np.linalg.lstsq(normal, moment, rcond=None)[0]
     rss = np.sum((scaled - sums.fitted(coefficients)) ** 2, axis=0)
     return rss / dof * scale**2, float(dof), H
-
-
-@dataclass(frozen=True)
-class BlockFourierSums:
-    """The Fourier fit's sums over blocks of rows of its design (any time stamps)."""
-
-    t: NDArray[np.float64]
-    frequency_hz: float
-    harmonics: int
-
-    def design(self, rows: slice) -> NDArray[np.float64]:
-        omega = 2 * np.pi * self.frequency_hz * np.arange(1, self.harmonics + 1)
-        phase = np.outer(self.t[rows] - self.t.mean(), omega)
-        return np.hstack([np.ones((phase.shape[0], 1)), np.sin(phase), np.cos(phase)])
-
-    def blocks(self) -> list[slice]:
-        return [slice(start, start + 4096) for start in range(0, self.t.shape[0], 4096)]
-
-    def normal_equations(self, values: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        k = 2 * self.harmonics + 1
-        normal, moment = np.zeros((k, k)), np.zeros((k, values.shape[1]))
-        for rows in self.blocks():
-            A = self.design(rows)
-            normal += A.T @ A
-            moment += A.T @ values[rows]
-        return normal, moment
-
-    def fitted(self, coefficients: NDArray[np.float64]) -> NDArray[np.float64]:
-        return np.vstack([self.design(rows) @ coefficients for rows in self.blocks()])
-
-
-@dataclass(frozen=True)
-class UniformFourierSums:
-    """The Fourier fit's sums on a regular grid ``θ_n = θ_0 + n φ``, each a chirp z-transform.
-
-    With the power sums ``p_d = Σ_n e^{i d θ_n}`` (``d = 0 … 2H``) the normal matrix is, for ``j, k ≥ 1``,
-    ``Σ cos jθ cos kθ = ½ Re(p_{|j−k|} + p_{j+k})``, ``Σ sin jθ sin kθ = ½ Re(p_{|j−k|} − p_{j+k})``,
-    ``Σ sin jθ cos kθ = ½ (Im p_{j+k} + Im p_{j−k})`` (``p_{−d} = conj p_d``), and ``Σ cos kθ = Re p_k``,
-    ``Σ sin kθ = Im p_k``; the moments are ``Σ_n y_n e^{−ikθ_n}``, the fitted values ``Re Σ_k x_k e^{ikθ_n}``.
-    """
-
-    theta0: float
-    phi: float
-    n_samples: int
-    harmonics: int
-
-    @classmethod
-    def of(cls, t: NDArray[np.float64], frequency_hz: float, harmonics: int) -> UniformFourierSums | None:
-        """The sums of time stamps ``t`` when they lie on a regular grid (to 1e-9 of a step), else ``None``."""
-        step = (t[-1] - t[0]) / (t.shape[0] - 1)
-        if not step > 0 or np.max(np.abs(t - (t[0] + step * np.arange(t.shape[0])))) > 1e-9 * step:
-            return None
-        omega = 2 * np.pi * frequency_hz
-        return cls(omega * (t[0] - t.mean()), omega * step, t.shape[0], harmonics)
-
-    def normal_equations(self, values: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        H = self.harmonics
-        d = np.arange(2 * H + 1)
-        power = np.exp(1j * d * self.theta0) * scipy.signal.czt(np.ones(self.n_samples), 2 * H + 1,
-                                                                 np.exp(1j * self.phi), 1.0)
-        k = np.arange(1, H + 1)
-        difference, total = np.abs(k[:, None] - k[None, :]), k[:, None] + k[None, :]
-        sign = np.sign(k[:, None] - k[None, :])
-        normal = np.empty((2 * H + 1, 2 * H + 1))
-        normal[0, 0] = self.n_samples
-        normal[0, 1:H + 1] = normal[1:H + 1, 0] = power[k].imag
-        normal[0, H + 1:] = normal[H + 1:, 0] = power[k].real
-        normal[1:H + 1, 1:H + 1] = 0.5 * (power[difference].real - power[total].real)
-        normal[H + 1:, H + 1:] = 0.5 * (power[difference].real + power[total].real)
-        normal[1:H + 1, H + 1:] = 0.5 * (power[total].imag + sign * power[difference].imag)  # sin j, cos k
-        normal[H + 1:, 1:H + 1] = normal[1:H + 1, H + 1:].T
-        transform = np.exp(-1j * np.arange(H + 1) * self.theta0)[:, None] * scipy.signal.czt(
-            values, H + 1, np.exp(-1j * self.phi), 1.0, axis=0)
-        moment = np.vstack([transform[:1].real, -transform[1:].imag, transform[1:].real])
-        return normal, moment
-
-    def fitted(self, coefficients: NDArray[np.float64]) -> NDArray[np.float64]:
-        H = self.harmonics
-        series = np.zeros((H + 1, coefficients.shape[1]), dtype=complex)
-        series[1:] = (coefficients[H + 1:] - 1j * coefficients[1:H + 1]) * np.exp(1j * np.arange(1, H + 1)
-                                                                                 * self.theta0)[:, None]
-        return coefficients[0] + scipy.signal.czt(series, self.n_samples, np.exp(1j * self.phi), 1.0, axis=0).real
 
 
 def difference_variance(values: ArrayLike, *, order: int = DIFFERENCE_ORDER,
