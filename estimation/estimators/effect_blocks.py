@@ -124,6 +124,12 @@ class States:
     dq: NDArray[np.float64]
     ddq: NDArray[np.float64]
 
+    def __post_init__(self) -> None:
+        # the column functions read C-contiguous float64 arrays: copied once here, not at each of the thousands
+        # of evaluations a diagnosis makes (a record's columns arrive as strided views)
+        for name in ("q", "dq", "ddq"):
+            object.__setattr__(self, name, np.ascontiguousarray(getattr(self, name), dtype=float))
+
     @property
     def n_samples(self) -> int:
         return self.q.shape[0]
