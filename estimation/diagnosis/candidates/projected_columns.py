@@ -118,7 +118,10 @@ class ProjectedColumns:
             moment[touching] += weights[channel] * (values.T @ residual[channel])
         eliminated = whitener.apply(border)
         gram = own - eliminated.T @ eliminated
-        rss = float(weights @ np.sum(residual**2, axis=1))
+        # the residual's rounding along the model (YᵀW r ≠ 0), taken off the products as a projection would
+        left = whitener.apply(weights @ fixed.moments(residual))
+        moment = moment - eliminated.T @ left
+        rss = float(weights @ np.sum(residual**2, axis=1)) - float(left @ left)
         return cls((gram + gram.T) / 2, np.diag(own).copy(), moment, rss, fixed.n_rows, fixed.n_fixed)
 
     def beyond(self, index: int) -> bool:
