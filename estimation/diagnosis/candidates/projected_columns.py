@@ -107,7 +107,7 @@ class ProjectedColumns:
         residual, whitener = weighted_fit(fixed, weights)
         k = len(columns)
         own, border, moment = np.zeros((k, k)), np.zeros((fixed.n_fixed, k)), np.zeros(k)
-        support = np.array([np.any(column != 0, axis=0) for column in columns]).reshape(k, -1)  # (k, m)
+        support = np.array([np.any(column, axis=0) for column in columns]).reshape(k, -1)  # (k, m)
         for channel in range(len(fixed.own)):
             touching = list(np.flatnonzero(support[:, channel]))
             if not touching:
