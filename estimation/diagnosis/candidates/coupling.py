@@ -133,7 +133,11 @@ def pair_tests(model: IdentificationModel, train: Measurements,
     extras = {pair: per_joint_extra(model, pair) for pair in pairs}
     effects = list(dict.fromkeys([effect for pair in pairs for effect in extras[pair]] + list(pairs)))
     states = States(train.q, train.dq, train.ddq)
-    columns = [effect_columns(model.kind, model.robot, effect, model.n_channels, states)[:, :, 0] for effect in effects]
+    blocks = [effect_columns(model.kind, model.robot, effect, model.n_channels, states) for effect in effects]
+    if any(block.shape[2] != 1 for block in blocks):
+        raise ValueError("the pairs (one combination each) and per-joint effects must have one column each; "
+                         f"these have more: {[effect.name for effect, block in zip(effects, blocks) if block.shape[2] != 1]}")
+    columns = [block[:, :, 0] for block in blocks]
     projected = ProjectedColumns.of(fixed, root, columns)
     place = {effect: index for index, effect in enumerate(effects)}
     return tuple(PairTest(pair, projected.f_statistic([place[effect] for effect in extras[pair]], place[pair]),

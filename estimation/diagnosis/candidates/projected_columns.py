@@ -35,14 +35,14 @@ from numpy.typing import NDArray
 from estimation.estimators.bordered_normal import RANK_THRESHOLD
 from estimation.estimators.separable_least_squares import FixedPart
 
-__all__ = ["ABSORBED", "ProjectedColumns", "weighted_fit"]
+__all__ = ["ABSORBED", "ProjectedColumns", "Whitener", "weighted_fit"]
 
 #: a column whose squared norm beyond the declared model is below this fraction of its own squared norm
 #: (both weighted) is absorbed by the model: the projected Gram matrix cannot tell such a column from zero
 ABSORBED = 1e-9
 
 
-class _Whitener:
+class Whitener:
     """``T`` with ``Tᵀ T = (YᵀWY)⁺`` from the equilibrated normal matrix's eigen-decomposition (directions below
     :data:`RANK_THRESHOLD` of the largest eigenvalue left out, as the identification's rank test)."""
 
@@ -62,11 +62,11 @@ class _Whitener:
         return self.matrix.T @ (self.matrix @ right)
 
 
-def weighted_fit(fixed: FixedPart, weights: NDArray[np.float64]) -> tuple[NDArray[np.float64], _Whitener]:
+def weighted_fit(fixed: FixedPart, weights: NDArray[np.float64]) -> tuple[NDArray[np.float64], Whitener]:
     """The residual ``y − Y θ̂`` ``(m, N)`` of the least squares of ``fixed`` at channel weights ``(m,)``
     (``W = diag(weights)``, ``θ̂ = (YᵀWY)⁻¹ YᵀW y``; one refinement step on the exact residual), and the
     whitener of ``YᵀWY``."""
-    whitener = _Whitener(np.tensordot(weights, fixed.gram, axes=1))
+    whitener = Whitener(np.tensordot(weights, fixed.gram, axes=1))
     theta = whitener.solve(weights @ fixed.moment)
     residual = fixed.y - fixed.predict(theta)
     theta = theta + whitener.solve(weights @ fixed.moments(residual))
@@ -103,6 +103,10 @@ class ProjectedColumns:
            columns: Sequence[NDArray[np.float64]]) -> ProjectedColumns:
         """From the declared model ``fixed``, the channel weights' square roots ``root (m,)`` and candidate
         columns ``(N, m)`` each (zero off the channels they touch)."""
+        shape = (fixed.n_samples, len(fixed.own))
+        if any(np.shape(column) != shape for column in columns):
+            raise ValueError(f"candidate columns must be {shape} (samples, channels) each, got "
+                             f"{sorted({np.shape(column) for column in columns})}")
         weights = root**2
         residual, whitener = weighted_fit(fixed, weights)
         k = len(columns)
