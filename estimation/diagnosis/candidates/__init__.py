@@ -2,5 +2,6 @@
 combinations (coupled joints, motors), and the delay between torques and motion as a candidate.
 
 Modules: :mod:`~estimation.diagnosis.candidates.coupling`, :mod:`~estimation.diagnosis.candidates.delay`,
-:mod:`~estimation.diagnosis.candidates.delay_search`, :mod:`~estimation.diagnosis.candidates.trials`.
+:mod:`~estimation.diagnosis.candidates.delay_search`, :mod:`~estimation.diagnosis.candidates.projected_columns`,
+:mod:`~estimation.diagnosis.candidates.trials`.
 """
