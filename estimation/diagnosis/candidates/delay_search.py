@@ -1,8 +1,8 @@
 """The delay candidate's state through the rounds of a diagnosis (:mod:`estimation.diagnosis.candidates.delay`).
 
-First round: the delay searched on its whole grid (a search that depends on no other candidate's fit: it
-may run ahead, beside the round's other fits, :meth:`DelaySearch.grid_task`); later rounds: screened at its last optimum (one
-evaluation) and searched again near it only when it ranks among the best candidates, as the shaped
+First round: the delay searched on its whole grid, a search that depends on no other candidate's fit (it may
+run ahead, beside the round's other fits: :meth:`DelaySearch.grid_task`); later rounds: screened at its last
+optimum (one evaluation) and searched again near it only when it ranks among the best candidates, as the shaped
 candidates are (:data:`estimation.diagnosis.rules.selection_rules.SCREEN_REFINED`). Once adopted, the training and
 validation motions are moved by it for the rest of the search.
 """
@@ -32,6 +32,7 @@ from estimation.diagnosis.candidates.delay import (
     try_delay,
 )
 from dynamics.measurements import Measurements
+from dynamics.models import IdentificationModel
 from estimation.preprocessing.delay import DELAY, DelayBounds, delayed, longest_piece
 from estimation.identification.delayed import DelayFit
 from estimation.identification.shaped import ShapeValue
@@ -80,7 +81,7 @@ class DelaySearch:
         return (self.bounds is not None and self.adopted is None
                 and not (self.reason or "").startswith("delay search failed"))
 
-    def grid_task(self, blocks: Sequence[Block], shapes: Sequence[NDArray[np.float64]], model,
+    def grid_task(self, blocks: Sequence[Block], shapes: Sequence[NDArray[np.float64]], model: IdentificationModel,
                   weights: NDArray[np.float64]) -> Callable[[], DelayFit | str] | None:
         """The search on the whole grid that this round's :meth:`trials` begins with, as a task to run ahead
         (it depends on no other candidate's fit; its outcome goes to :meth:`keep_ahead`), or ``None`` when
