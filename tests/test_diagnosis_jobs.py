@@ -6,11 +6,16 @@ import json
 import os
 import warnings
 
+import numpy as np
 import pytest
 
 from dynamics.runtime.processes import TaskError, run_tasks, worker_count
 from estimation.diagnosis import record_fits
+from estimation.diagnosis.candidates import delay_search
+from estimation.diagnosis.candidates.delay import search_delay
+from estimation.diagnosis.candidates.delay_search import DelaySearch
 from estimation.diagnosis.search import diagnose
+from estimation.preprocessing.delay import DelayBounds
 from tests.corpus.cases import CASES
 from tests.corpus.records import declared_model, records
 
@@ -19,23 +24,66 @@ def report(diagnosis) -> str:
     return json.dumps(diagnosis.to_dict(), sort_keys=True, default=repr)
 
 
-@pytest.mark.parametrize("name", ["coulomb + offset"])
+@pytest.mark.parametrize("name", ["coulomb + offset", "delay"])
 def test_two_processes_give_the_report_of_one(name, monkeypatch):
     (case,) = [case for case in CASES if case.name == name]
     model = declared_model()
     train, validate = records(case)
     serial = diagnose(model, train, validate, jobs=1)
-    pools = []
+    pools, inside, searched_outside = [], [], []
 
     def counted(tasks, workers, **options):
-        pools.append(workers)
-        return run_tasks(tasks, workers, **options)
+        pools.append((workers, getattr(tasks[0], "func", None)))
+        inside.append(True)
+        try:
+            return run_tasks(tasks, workers, **options)
+        finally:
+            inside.pop()
+
+    def searched(*args, **kwargs):
+        if not inside:
+            searched_outside.append(args)
+        return search_delay(*args, **kwargs)
 
     monkeypatch.setattr(record_fits, "run_tasks", counted)
+    monkeypatch.setattr(delay_search, "search_delay", searched)
     pooled = diagnose(model, train, validate, jobs=2)
     assert serial.effects, "the case must find something for the comparison to mean anything"
-    assert 2 in pools, pools
+    # the first round's delay search on its whole grid: the first task of the round's pool, beside the candidates,
+    # and the round's delay trial takes its outcome (no search on the whole grid outside a pool)
+    assert pools[0] == (2, searched), pools
+    assert [first for _, first in pools].count(searched) == 1, pools
+    assert not searched_outside
     assert report(pooled) == report(serial)
+    if name == "delay":
+        assert "delay" in [effect.name for effect in serial.effects], "the case must adopt the delay"
+
+
+def test_a_delay_searched_ahead_serves_only_the_model_and_weights_it_was_searched_at():
+    (case,) = [case for case in CASES if case.name == "delay"]
+    model = declared_model()
+    train, validate = records(case)
+    weights = np.ones(model.n_channels)
+
+    def search() -> DelaySearch:
+        return DelaySearch(train, validate, lambda record: model.evaluate_base(record.q, record.dq, record.ddq),
+                           DelayBounds())
+
+    ahead = search()
+    task = ahead.grid_task([], [], model, weights)
+    ahead.keep_ahead(task(), [], [], weights)
+    (trial,) = ahead.trials([], [], model, weights, 1e3, 10, [])
+    (again,) = search().trials([], [], model, weights, 1e3, 10, [])
+    assert (trial.delay, trial.p_value, trial.bic) == (again.delay, again.p_value, again.bic)
+    assert np.array_equal(trial.fit.profile, again.fit.profile)
+    assert ahead.ahead is None and ahead.grid_task([], [], model, weights) is None  # taken; the next rounds screen
+    stale = search()
+    stale.keep_ahead("delay search failed: kept", [], [], weights)
+    assert stale.trials([], [], model, weights.copy(), 1e3, 10, []) != []  # other weights: searched again
+    kept = search()
+    kept.keep_ahead("delay search failed: kept", [], [], weights)
+    assert kept.trials([], [], model, weights, 1e3, 10, []) == [] and kept.reason == "delay search failed: kept"
+    assert kept.tried and kept.previous is None and not kept.searching()
 
 
 def _square(value: int) -> int:

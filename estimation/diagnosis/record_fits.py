@@ -166,23 +166,38 @@ class RecordFits:
         return dataclasses.replace(outcome, without=without)
 
     def trials(self, requests: Sequence[TrialRequest], weights: NDArray[np.float64]) -> list[Trial | str]:
-        """:meth:`trial` of each request, side by side in ``jobs`` processes when the round searches at least
-        :data:`MIN_PARALLEL_SEARCHES` shapes from their grids (:func:`dynamics.runtime.processes.run_tasks`: the same
-        results, in order)."""
-        tasks = [functools.partial(fit_or_reason, request.group, request.members, self._columns(request.without)[0],
-                                   self.states_train, weights, request.rss, self.previous.get(request.group),
-                                   search=False) for request in requests]
-        searches = sum(self.previous.get(request.group) is None and any(block.n_shape for block in request.members)
-                       for request in requests)  # a shape searched from its grid: the costly fits
+        """:meth:`trial` of each request, side by side in ``jobs`` processes when the round has at least
+        :data:`MIN_PARALLEL_SEARCHES` costly fits (:func:`dynamics.runtime.processes.run_tasks`: the same results,
+        in order). The costly fits: the shapes searched from their grids and, in the first round, the delay's
+        search on its whole grid (the longest: the first task), which depends on no candidate's fit and is
+        kept for :meth:`delay_trials` (:meth:`estimation.diagnosis.candidates.delay_search.DelaySearch.grid_task`)."""
+        blocks, shapes = [item.block for item in self.adopted], [item.shape for item in self.adopted]
+        delay_task = self.delay.grid_task(blocks, shapes, self.model, weights)
+        ahead = [] if delay_task is None else [delay_task]
+        tasks = ahead + [self._trial_task(request, weights) for request in requests]
+        searches = len(ahead) + sum(self._searches(request) for request in requests)
         workers = worker_count(self.jobs, len(tasks)) if searches >= MIN_PARALLEL_SEARCHES else 1
         outcomes = run_tasks(tasks, workers, shared=[block for request in requests for block in request.members])
-        results: list[Trial | str] = []
-        for request, outcome in zip(requests, outcomes):
-            if not isinstance(outcome, str):
-                self.previous[request.group] = outcome.fit
-                outcome = dataclasses.replace(outcome, without=request.without)
-            results.append(outcome)
-        return results
+        if delay_task is not None:
+            self.delay.keep_ahead(outcomes[0], blocks, shapes, weights)
+        return [self._kept(request, outcome) for request, outcome in zip(requests, outcomes[len(ahead):])]
+
+    def _trial_task(self, request: TrialRequest, weights: NDArray[np.float64]) -> Callable[[], Trial | str]:
+        """The request's fit against the current columns, as a task (:meth:`trial`'s, run anywhere)."""
+        return functools.partial(fit_or_reason, request.group, request.members, self._columns(request.without)[0],
+                                 self.states_train, weights, request.rss, self.previous.get(request.group),
+                                 search=False)
+
+    def _searches(self, request: TrialRequest) -> bool:
+        """Whether the request searches a shape from its grid (no last optimum yet): a costly fit."""
+        return self.previous.get(request.group) is None and any(block.n_shape for block in request.members)
+
+    def _kept(self, request: TrialRequest, outcome: Trial | str) -> Trial | str:
+        """A task's outcome as :meth:`trial` gives it: the shape kept as the group's last optimum."""
+        if isinstance(outcome, str):
+            return outcome
+        self.previous[request.group] = outcome.fit
+        return dataclasses.replace(outcome, without=request.without)
 
     def refine(self, trials: list[Trial], current: RecordFit, weights: NDArray[np.float64],
                first_round: bool) -> list[Trial]:

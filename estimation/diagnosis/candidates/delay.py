@@ -61,14 +61,29 @@ class DelayTrial:
         return self.fit.delay
 
 
-def try_delay(columns: Regressor, train: Measurements, channels: tuple[str, ...], weights: NDArray[np.float64],
-              rss: float, n_fixed: int, bounds: DelayBounds) -> DelayTrial | str:
-    """The delay trial, or why it cannot be fitted here."""
+def search_delay(columns: Regressor, train: Measurements, channels: tuple[str, ...], weights: NDArray[np.float64],
+                 bounds: DelayBounds) -> DelayFit | str:
+    """The delay fitted in ``bounds`` against the current columns (:func:`estimation.identification.delayed.fit_delay`),
+    or why it cannot be fitted here."""
     try:
-        fit = fit_delay(columns, train, channels, weights, bounds)
+        return fit_delay(columns, train, channels, weights, bounds)
     except (np.linalg.LinAlgError, FloatingPointError, ValueError) as error:
         return f"delay search failed: {error}"
+
+
+def delay_trial(fit: DelayFit | str, train: Measurements, channels: tuple[str, ...], rss: float,
+                n_fixed: int) -> DelayTrial | str:
+    """The trial of a searched delay: its nested F test and BIC against the current model's weighted RSS
+    ``rss`` with ``n_fixed`` columns (the reason passed on when the search failed)."""
+    if isinstance(fit, str):
+        return fit
     return DelayTrial(fit, fit.rss, *nested_test(rss, fit.rss, 1, train.n_samples * len(channels), n_fixed))
+
+
+def try_delay(columns: Regressor, train: Measurements, channels: tuple[str, ...], weights: NDArray[np.float64],
+              rss: float, n_fixed: int, bounds: DelayBounds) -> DelayTrial | str:
+    """The delay trial searched in ``bounds``, or why it cannot be fitted here."""
+    return delay_trial(search_delay(columns, train, channels, weights, bounds), train, channels, rss, n_fixed)
 
 
 @dataclass(frozen=True)

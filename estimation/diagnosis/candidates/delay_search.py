@@ -1,7 +1,8 @@
 """The delay candidate's state through the rounds of a diagnosis (:mod:`estimation.diagnosis.candidates.delay`).
 
-First round: the delay searched on its whole grid; later rounds: screened at its last optimum (one
-evaluation) and searched again near it only when it ranks among the best candidates, as the shaped
+First round: the delay searched on its whole grid, a search that depends on no other candidate's fit (it may
+run ahead, beside the round's other fits: :meth:`DelaySearch.grid_task`); later rounds: screened at its last
+optimum (one evaluation) and searched again near it only when it ranks among the best candidates, as the shaped
 candidates are (:data:`estimation.diagnosis.rules.selection_rules.SCREEN_REFINED`). Once adopted, the training and
 validation motions are moved by it for the rest of the search.
 """
@@ -9,7 +10,9 @@ validation motions are moved by it for the rest of the search.
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Sequence
+import functools
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
@@ -23,17 +26,38 @@ from estimation.diagnosis.candidates.delay import (
     channels_made_worse,
     compare_delay,
     current_columns,
+    delay_trial,
     screen_delay,
+    search_delay,
     try_delay,
 )
 from dynamics.measurements import Measurements
+from dynamics.models import IdentificationModel
 from estimation.preprocessing.delay import DELAY, DelayBounds, delayed, longest_piece
+from estimation.identification.delayed import DelayFit
 from estimation.identification.shaped import ShapeValue
 from estimation.estimators.effect_blocks import Block
 from estimation.estimators.separable_least_squares import FixedPart
 
 #: a screened delay is searched again when fewer than this many candidates rank above it
 REFINED_RANK = 2
+
+
+@dataclass(frozen=True)
+class SearchedAhead:
+    """The first round's search on the whole grid, run ahead (:meth:`DelaySearch.grid_task`): its outcome
+    and the current model's blocks, shapes and weights it was searched at."""
+
+    blocks: tuple[Block, ...]
+    shapes: tuple[NDArray[np.float64], ...]
+    weights: NDArray[np.float64]
+    outcome: DelayFit | str
+
+    def searched_at(self, blocks: Sequence[Block], shapes: Sequence[NDArray[np.float64]],
+                    weights: NDArray[np.float64]) -> bool:
+        """Whether it was searched at these very objects (the round's current model and weights)."""
+        given, kept = (*blocks, *shapes, weights), (*self.blocks, *self.shapes, self.weights)
+        return len(given) == len(kept) and all(first is second for first, second in zip(given, kept))
 
 
 class DelaySearch:
@@ -47,18 +71,48 @@ class DelaySearch:
         self.reason: str | None = None
         self.adopted: DelayTrial | None = None
         self.tried = False
+        self.ahead: SearchedAhead | None = None  # the grid search run ahead, until the next round's trial takes it
 
     def _columns(self, blocks: Sequence[Block], shapes: Sequence[NDArray[np.float64]], model) -> Regressor:
         return current_columns(self.regressor, blocks, shapes, model.n_channels)
 
+    def searching(self) -> bool:
+        """Whether a round tries the delay: asked for, not adopted, and its search never failed."""
+        return (self.bounds is not None and self.adopted is None
+                and not (self.reason or "").startswith("delay search failed"))
+
+    def grid_task(self, blocks: Sequence[Block], shapes: Sequence[NDArray[np.float64]], model: IdentificationModel,
+                  weights: NDArray[np.float64]) -> Callable[[], DelayFit | str] | None:
+        """The search on the whole grid that this round's :meth:`trials` begins with, as a task to run ahead
+        (it depends on no other candidate's fit; its outcome goes to :meth:`keep_ahead`), or ``None`` when
+        this round's trial is no such search."""
+        if not self.searching() or self.previous is not None:
+            return None
+        return functools.partial(search_delay, self._columns(blocks, shapes, model), self.train, tuple(model.channels),
+                                 weights, self.bounds)
+
+    def keep_ahead(self, outcome: DelayFit | str, blocks: Sequence[Block], shapes: Sequence[NDArray[np.float64]],
+                   weights: NDArray[np.float64]) -> None:
+        """Keep a :meth:`grid_task`'s outcome for this round's :meth:`trials` (at the same model and weights)."""
+        self.ahead = SearchedAhead(tuple(blocks), tuple(shapes), weights, outcome)
+
+    def _grid_search(self, blocks: Sequence[Block], shapes: Sequence[NDArray[np.float64]], columns: Regressor,
+                     channels: tuple[str, ...], weights: NDArray[np.float64]) -> DelayFit | str:
+        """The search on the whole grid: as run ahead at this model and these weights, else now."""
+        ahead, self.ahead = self.ahead, None
+        if ahead is not None and ahead.searched_at(blocks, shapes, weights):
+            return ahead.outcome
+        return search_delay(columns, self.train, channels, weights, self.bounds)
+
     def trials(self, blocks, shapes, model, weights, rss: float, n_fixed: int, others) -> list[DelayTrial]:
         """This round's delay trial (none once adopted, failed, or not asked for)."""
-        if self.bounds is None or self.adopted is not None or (self.reason or "").startswith("delay search failed"):
+        if not self.searching():
             return []
         self.tried = True
         columns, channels = self._columns(blocks, shapes, model), tuple(model.channels)
         if self.previous is None:
-            trial = try_delay(columns, self.train, channels, weights, rss, n_fixed, self.bounds)
+            trial = delay_trial(self._grid_search(blocks, shapes, columns, channels, weights), self.train, channels,
+                                rss, n_fixed)
         else:
             trial = screen_delay(columns, self.train, channels, weights, rss, n_fixed, self.previous)
             if not isinstance(trial, str) and sum(other.bic < trial.bic for other in others) < REFINED_RANK:
