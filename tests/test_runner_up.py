@@ -14,7 +14,7 @@ from dynamics.models import build_model
 from dynamics.robots import load_robot
 from dynamics.simulation.synthetic import simulate, true_parameters
 from dynamics.effects.linear import CoulombFriction, JointOffset
-from estimation.diagnosis.runner_up import (NOTHING_TRIED, Alternative, LastMove, RunnerUpOutcome, bic_gap,
+from estimation.diagnosis.runner_up import (NOTHING_TRIED, Alternative, LastMove, RivalAhead, RunnerUpOutcome, bic_gap,
                                             fit_runner_up, in_memory_fitter)
 from estimation.estimators.effect_blocks import Block, ShapeSearchError
 from estimation.diagnosis.search import diagnose
@@ -223,7 +223,7 @@ def test_a_rival_that_cannot_be_fitted_is_passed_over_for_the_next():
     last = LastMove(1, None, (Alternative((0,), (), {}, -50.0), Alternative((1,), (), {}, -5.0)))
     outcome = RunnerUpOutcome((), {}, False, np.ones(3), None, "", last_move=last)
     chosen = identify(declared, record, validation)
-    fitter, tried = in_memory_fitter(record, validation, chosen), []
+    fitter, tried = in_memory_fitter(record, validation, chosen.delay), []
 
     def failing_first(model, indices, starts):
         tried.append(indices)
@@ -238,3 +238,37 @@ def test_a_rival_that_cannot_be_fitted_is_passed_over_for_the_next():
     always = fit_runner_up(declared, outcome, blocks, declared, chosen.estimate,
                            lambda *_: (_ for _ in ()).throw(ShapeSearchError("not determined")))
     assert always[0] is None and always[1].startswith("no rival could be fitted (viscous,coulomb@2: not determined")
+
+
+def test_a_rival_fitted_ahead_serves_its_own_model_only():
+    record = CASE.record(CASE.first_trajectory(), seed=1)
+    validation = CASE.record(random_fourier(CASE.robot, seed=4), seed=2)
+    declared = build_model(CASE.robot, "internal", "viscous")
+    blocks = {index: Block(declared.kind, declared.robot, effect, declared.n_channels)
+              for index, effect in enumerate((CoulombFriction(joints=(1,)), JointOffset(joints=(1,))))}
+    last = LastMove(1, None, (Alternative((0,), (), {}, -50.0), Alternative((1,), (), {}, -5.0)))
+    outcome = RunnerUpOutcome((), {}, False, np.ones(3), None, "", last_move=last)
+    chosen = identify(declared, record, validation)
+    fitter, asked = in_memory_fitter(record, validation, None), []
+
+    def counted(model, indices, starts):
+        asked.append(indices)
+        return fitter(model, indices, starts)
+
+    ahead = RivalAhead.planned(declared, outcome, blocks, declared)
+    assert ahead.indices == (0,) and ahead.fit is None  # the best-ranked rival that is not the adopted model
+    ahead = ahead.fitted(fitter)
+    served = fit_runner_up(declared, outcome, blocks, declared, chosen.estimate, ahead.serving(counted))
+    fresh = fit_runner_up(declared, outcome, blocks, declared, chosen.estimate, fitter)
+    assert asked == [] and served[0].spec == fresh[0].spec == "viscous,coulomb@2"
+    assert served[0].bic_gap == fresh[0].bic_gap and served[0].train_mse == fresh[0].train_mse
+    # the joint refit chose the rival fitted ahead (a law simplified): the next rival is fitted in turn
+    coulomb = build_model(CASE.robot, "internal", ("viscous", CoulombFriction(joints=(1,))))
+    other = fit_runner_up(declared, outcome, blocks, coulomb, chosen.estimate, ahead.serving(counted))
+    assert asked == [(1,)] and other[0].spec == "viscous,offset@2"
+    # a fit that failed ahead is fitted again in turn, where its failure is told
+    failed = RivalAhead.planned(declared, outcome, blocks, declared).fitted(
+        lambda *_: (_ for _ in ()).throw(ShapeSearchError("not determined")))
+    assert failed.fit is None
+    fit_runner_up(declared, outcome, blocks, declared, chosen.estimate, failed.serving(counted))
+    assert asked == [(1,), (0,)]

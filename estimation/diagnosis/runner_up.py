@@ -40,7 +40,7 @@ shapes: the two models are then within the noise of each other, which is what a 
 from __future__ import annotations
 
 import warnings
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, fields, replace
 from typing import Any
 
@@ -57,11 +57,13 @@ from estimation.diagnosis.forward_selection import DiagnosisSearch, SearchOutcom
 from estimation.diagnosis.results import FoundEffect, RunnerUp
 from estimation.diagnosis.rules.robust_test import estimate_test
 from estimation.estimators.effect_blocks import Block, ShapeSearchError
-from estimation.identification.fit import IdentificationResult, ImplausibleEstimateWarning, identify
+from estimation.identification.fit import ImplausibleEstimateWarning, identify
+from estimation.identification.shaped import ShapeValue
 from estimation.preprocessing.delay import delayed
 
-__all__ = ["Alternative", "LastMove", "RivalFit", "RivalFitter", "RunnerUpOutcome", "RunnerUpSearch", "bic_gap",
-           "fit_runner_up", "in_memory_fitter", "model_spec", "no_runner_up_reason", "rival_effects", "rivals",
+__all__ = ["Alternative", "LastMove", "RivalFit", "RivalFitter", "RivalAhead", "RunnerUpOutcome", "RunnerUpSearch", "bic_gap",
+           "fit_runner_up", "in_memory_fitter", "model_spec", "no_runner_up_reason", "rival_effects", "rival_models",
+           "rivals",
            "with_runner_up"]
 
 #: rivals tried, best-ranked first, whose fit fails (shapes the data do not determine) before giving up
@@ -258,6 +260,56 @@ def _rows_count(estimate: Any) -> int:
     return int(np.asarray(estimate.residuals).size)
 
 
+def rival_models(declared: IdentificationModel, outcome: RunnerUpOutcome, blocks: Mapping[int, Block]
+                 ) -> Iterator[tuple[tuple[int, ...], tuple[Block, ...], IdentificationModel, dict[str, float],
+                                     Alternative]]:
+    """Each rival best-ranked first (:func:`rivals`): its candidate indices and blocks, its model, the starts of its
+    shapes, and the move that makes it."""
+    for indices, shapes, alternative in rivals(outcome):
+        rival_blocks = tuple(blocks[index] for index in indices)
+        model = build_model(declared.robot, declared.kind,
+                            tuple(declared.effects) + tuple(block.effect for block in rival_blocks))
+        yield indices, rival_blocks, model, _shape_starts(declared, rival_blocks, indices, shapes), alternative
+
+
+@dataclass(frozen=True)
+class RivalAhead:
+    """A rival to fit before the chosen model is known, beside the joint refit that decides it (the first rival
+    that is not the model the search adopted), and, once fitted, its fit (``None`` when the fit failed: it is then
+    fitted again in turn, where its failure is told)."""
+
+    model: IdentificationModel
+    indices: tuple[int, ...]
+    starts: dict[str, float]
+    fit: RivalFit | None = None
+
+    @classmethod
+    def planned(cls, declared: IdentificationModel, outcome: RunnerUpOutcome, blocks: Mapping[int, Block],
+                adopted: IdentificationModel) -> RivalAhead | None:
+        """The first rival whose model is not ``adopted`` (the chosen model unless the joint refit drops or
+        simplifies a finding), or ``None``."""
+        if no_runner_up_reason(outcome) is not None:
+            return None
+        return next((cls(model, indices, starts) for indices, _, model, starts, _ in
+                     rival_models(declared, outcome, blocks) if model_spec(model) != model_spec(adopted)), None)
+
+    def fitted(self, fit: RivalFitter) -> RivalAhead:
+        """This rival with its fit by ``fit`` (a task: it may run in another process)."""
+        try:
+            return replace(self, fit=fit(self.model, self.indices, self.starts))
+        except (ShapeSearchError, np.linalg.LinAlgError):
+            return self
+
+    def serving(self, fit: RivalFitter) -> RivalFitter:
+        """``fit``, but this rival's fit when it is asked for (the same model, indices and starts)."""
+        def fitted(model: IdentificationModel, indices: tuple[int, ...], starts: dict[str, float]) -> RivalFit:
+            if self.fit is not None and model_spec(model) == model_spec(self.model) and indices == self.indices \
+                    and starts == self.starts:
+                return self.fit
+            return fit(model, indices, starts)
+        return fitted
+
+
 def fit_runner_up(declared: IdentificationModel, outcome: RunnerUpOutcome, blocks: Mapping[int, Block],
                   chosen: IdentificationModel, chosen_estimate: Any, fit: RivalFitter
                   ) -> tuple[RunnerUp | None, str | None]:
@@ -268,16 +320,13 @@ def fit_runner_up(declared: IdentificationModel, outcome: RunnerUpOutcome, block
         return None, reason
     final = tuple(blocks[item.index] for item in outcome.adopted)
     chosen_spec, failures = model_spec(chosen), []
-    for indices, shapes, alternative in rivals(outcome):
-        rival_blocks = tuple(blocks[index] for index in indices)
-        model = build_model(declared.robot, declared.kind,
-                            tuple(declared.effects) + tuple(block.effect for block in rival_blocks))
+    for indices, rival_blocks, model, starts, alternative in rival_models(declared, outcome, blocks):
         if model_spec(model) == chosen_spec:
             continue
         if len(failures) == MAX_FAILED_FITS:
             return None, f"the {MAX_FAILED_FITS} best-ranked rivals could not be fitted ({'; '.join(failures)})"
         try:
-            rival = fit(model, indices, _shape_starts(declared, rival_blocks, indices, shapes))
+            rival = fit(model, indices, starts)
         except (ShapeSearchError, np.linalg.LinAlgError) as error:  # the data do not determine this rival: the next
             failures.append(f"{model_spec(model)}: {error}")
             continue
@@ -298,20 +347,20 @@ def model_spec(model: IdentificationModel) -> str:
     return ",".join(effect_spec(effect) for effect in model.effects) or "none"
 
 
-def in_memory_fitter(train, validate, after: IdentificationResult) -> RivalFitter:
+def in_memory_fitter(train, validate, delay: ShapeValue | None) -> RivalFitter:
     """The in-memory diagnosis's :data:`RivalFitter`: :func:`estimation.identification.fit.identify` along the
-    records moved by the chosen model's delay (``after.delay``), every shape refitted from the search's."""
+    records moved by the chosen model's ``delay`` (``None``: none), every shape refitted from the search's."""
     def fit(model: IdentificationModel, indices: tuple[int, ...], starts: dict[str, float]) -> RivalFit:
         moved_train, moved_validate = train, validate
-        if after.delay is not None:
-            moved_train, moved_validate = delayed(train, after.delay.value), delayed(validate, after.delay.value)
+        if delay is not None:
+            moved_train, moved_validate = delayed(train, delay.value), delayed(validate, delay.value)
         with warnings.catch_warnings():  # a rival's implausible estimates are its own: in its ``warnings``
             warnings.simplefilter("ignore", ImplausibleEstimateWarning)
             try:
                 result = identify(model, moved_train, moved_validate, shape_starts=starts or None)
             except ShapeSearchError:  # the shapes ran to where the data do not determine them: keep the search's
                 result = identify(model, moved_train, moved_validate, shape_starts=starts or None, shape_search=False)
-        result = with_delay(result, after.delay)  # ShapeSearchError again: not a rival (fit_runner_up)
+        result = with_delay(result, delay)  # ShapeSearchError again: not a rival (fit_runner_up)
         shapes = [value for value in result.shapes if value is not result.delay]
         return RivalFit(result.estimate, dict(result.train.mse),
                         None if result.validation is None else dict(result.validation.mse),
@@ -320,9 +369,13 @@ def in_memory_fitter(train, validate, after: IdentificationResult) -> RivalFitte
     return fit
 
 
-def with_runner_up(diagnosis: Any, outcome: RunnerUpOutcome, blocks: Mapping[int, Block], train, validate) -> Any:
-    """The in-memory :class:`~estimation.diagnosis.results.Diagnosis` with its runner-up (or why it has none)."""
+def with_runner_up(diagnosis: Any, outcome: RunnerUpOutcome, blocks: Mapping[int, Block], train, validate,
+                   ahead: RivalAhead | None = None) -> Any:
+    """The in-memory :class:`~estimation.diagnosis.results.Diagnosis` with its runner-up (or why it has none);
+    ``ahead``: a rival already fitted along the records as given (:class:`RivalAhead`), used when asked for."""
     after = diagnosis.after
-    runner_up, reason = fit_runner_up(diagnosis.before.model, outcome, blocks, after.model, after.estimate,
-                                      in_memory_fitter(train, validate, after))
+    fit = in_memory_fitter(train, validate, after.delay)
+    if ahead is not None and after.delay is None:
+        fit = ahead.serving(fit)
+    runner_up, reason = fit_runner_up(diagnosis.before.model, outcome, blocks, after.model, after.estimate, fit)
     return replace(diagnosis, runner_up=runner_up, runner_up_reason=reason)

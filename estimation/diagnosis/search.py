@@ -41,6 +41,7 @@ the records in memory (:class:`estimation.diagnosis.record_fits.RecordFits`); th
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable, Iterable, Sequence
 
 import numpy as np
@@ -58,8 +59,8 @@ from dynamics.effects.linear import (
 )
 from dynamics.effects.shaped import PositionRipple, ShapedStribeckFriction, SigmoidFriction, TanhCoulombFriction
 from dynamics.measurements import Measurements
-from dynamics.models import IdentificationModel, ModelKind
-from dynamics.runtime.processes import worker_count
+from dynamics.models import IdentificationModel, ModelKind, build_model
+from dynamics.runtime.processes import run_tasks, worker_count
 from dynamics.runtime.threads import single_threaded_blas
 from estimation.diagnosis.candidates.trials import candidate_label
 from estimation.diagnosis.candidates.coupling import coupling_candidates
@@ -69,7 +70,7 @@ from estimation.diagnosis.forward_selection import SearchOutcome, SearchSettings
 from estimation.diagnosis.record_fits import RecordFits, declared_regressor
 from estimation.diagnosis.results import Diagnosis, FoundEffect, RejectedEffect, found_delay, found_effect
 from estimation.diagnosis.rules.selection_rules import candidate_groups
-from estimation.diagnosis.runner_up import RunnerUpSearch, with_runner_up
+from estimation.diagnosis.runner_up import RivalAhead, RunnerUpSearch, in_memory_fitter, with_runner_up
 from estimation.diagnosis.statistics import floor_for_validation, residual_report
 from estimation.diagnosis.rules.stopping_rules import SearchState, provisional_stopping_rule
 from estimation.estimators.effect_blocks import Block, States, effect_columns, effect_rows
@@ -185,7 +186,8 @@ def diagnose(
         can give one (:mod:`estimation.diagnosis.statistics`), the method said in the report.
     jobs
         Processes that fit a round's candidates side by side, each a fork sharing the records
-        (:mod:`dynamics.runtime.processes`); ``None``: the cores this process may use, at most 4;
+        (:mod:`dynamics.runtime.processes`), and, when no delay is adopted, the best rival beside the joint refit
+        (:class:`~estimation.diagnosis.runner_up.RivalAhead`); ``None``: the cores this process may use, at most 4;
         1: in turn. The diagnosis is the same bit for bit whatever the number.
 
     The validation errors that confirm a candidate, and those reported, are measured against the
@@ -206,9 +208,17 @@ def diagnose(
     settings = SearchSettings(alpha, min_improvement, max_effects, len(candidates) + (delay is not None),  # the delay too
                               same_effect_adopted=True)
     outcome = RunnerUpSearch(model, blocks, rejected, fits, weights, settings).run()
-    diagnosis = _diagnosis(model, before, outcome, blocks, fits.delay, train, validate, noise_floor, len(candidates),
-                           settings)
-    return with_runner_up(diagnosis, outcome, blocks, train, validate)  # the best rival not chosen, fitted
+    final = functools.partial(_diagnosis, model, before, outcome, blocks, fits.delay, train, validate, noise_floor,
+                              len(candidates), settings)
+    ahead = None if fits.delay.adopted is not None else RivalAhead.planned(
+        model, outcome, blocks, build_model(model.robot, model.kind, model.effects + tuple(
+            item.effect for item in outcome.adopted)))
+    if ahead is None:
+        return with_runner_up(final(), outcome, blocks, train, validate)  # the best rival not chosen, fitted
+    # with no delay to move the records, the best rival's fit does not wait for the joint refit: side by side
+    diagnosis, ahead = run_tasks([final, functools.partial(ahead.fitted, in_memory_fitter(train, validate, None))],
+                                 worker_count(jobs, 2), shared=[model, model.robot, ahead.model, *blocks.values()])
+    return with_runner_up(diagnosis, outcome, blocks, train, validate, ahead)
 
 
 def _checked_candidates(model: IdentificationModel, train: Measurements, validate: Measurements,
