@@ -214,7 +214,9 @@ def test_no_runner_up_error_is_a_sequential_design_error(tmp_path):
         runner_up_file(path)
 
 
-def test_a_rival_that_cannot_be_fitted_is_passed_over_for_the_next():
+def two_rivals():
+    """Records, the declared model, two candidate blocks (Coulomb and offset on joint 2), a search outcome whose
+    last round ranked them in that order, and the declared model's fit."""
     record = CASE.record(CASE.first_trajectory(), seed=1)
     validation = CASE.record(random_fourier(CASE.robot, seed=4), seed=2)
     declared = build_model(CASE.robot, "internal", "viscous")
@@ -222,7 +224,11 @@ def test_a_rival_that_cannot_be_fitted_is_passed_over_for_the_next():
               for index, effect in enumerate((CoulombFriction(joints=(1,)), JointOffset(joints=(1,))))}
     last = LastMove(1, None, (Alternative((0,), (), {}, -50.0), Alternative((1,), (), {}, -5.0)))
     outcome = RunnerUpOutcome((), {}, False, np.ones(3), None, "", last_move=last)
-    chosen = identify(declared, record, validation)
+    return record, validation, declared, blocks, outcome, identify(declared, record, validation)
+
+
+def test_a_rival_that_cannot_be_fitted_is_passed_over_for_the_next():
+    record, validation, declared, blocks, outcome, chosen = two_rivals()
     fitter, tried = in_memory_fitter(record, validation, chosen.delay), []
 
     def failing_first(model, indices, starts):
@@ -241,14 +247,7 @@ def test_a_rival_that_cannot_be_fitted_is_passed_over_for_the_next():
 
 
 def test_a_rival_fitted_ahead_serves_its_own_model_only():
-    record = CASE.record(CASE.first_trajectory(), seed=1)
-    validation = CASE.record(random_fourier(CASE.robot, seed=4), seed=2)
-    declared = build_model(CASE.robot, "internal", "viscous")
-    blocks = {index: Block(declared.kind, declared.robot, effect, declared.n_channels)
-              for index, effect in enumerate((CoulombFriction(joints=(1,)), JointOffset(joints=(1,))))}
-    last = LastMove(1, None, (Alternative((0,), (), {}, -50.0), Alternative((1,), (), {}, -5.0)))
-    outcome = RunnerUpOutcome((), {}, False, np.ones(3), None, "", last_move=last)
-    chosen = identify(declared, record, validation)
+    record, validation, declared, blocks, outcome, chosen = two_rivals()
     fitter, asked = in_memory_fitter(record, validation, None), []
 
     def counted(model, indices, starts):
