@@ -200,3 +200,12 @@ def test_a_screening_fit_stops_where_the_full_fit_does_and_extended_columns_keep
     for name in ("gram", "moment"):  # the old block kept, the new one formed on its channels alone: to rounding
         difference = np.abs(getattr(extended, name) - getattr(direct, name))
         assert np.max(difference) <= 1e-13 * np.max(np.abs(getattr(direct, name))), name
+
+
+def test_states_are_contiguous_copies_and_refuse_a_missing_derivative():
+    q = np.asfortranarray(np.arange(12.0).reshape(4, 3))
+    states = States(q, q[:, ::-1], q * 2)
+    assert all(array.flags.c_contiguous for array in (states.q, states.dq, states.ddq))
+    np.testing.assert_array_equal(states.dq, q[:, ::-1])
+    with pytest.raises(ValueError, match="the states need ddq"):
+        States(q, q, None)

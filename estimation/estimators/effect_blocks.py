@@ -128,6 +128,9 @@ class States:
         # the column functions read C-contiguous float64 arrays: copied once here, not at each of the thousands
         # of evaluations a diagnosis makes (a record's columns arrive as strided views)
         for name in ("q", "dq", "ddq"):
+            if getattr(self, name) is None:  # a record not yet derived: no silent array of NaN
+                raise ValueError(f"the states need {name}: derive the record's velocities and accelerations first "
+                                 "(estimation.preprocessing.differentiation.fill_derivatives)")
             object.__setattr__(self, name, np.ascontiguousarray(getattr(self, name), dtype=float))
 
     @property
