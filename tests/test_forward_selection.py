@@ -43,7 +43,7 @@ class PrescribedFits:
 
     def trial(self, group, members, weights, rss, without=()):
         theta = np.ones(sum(block.n_linear for block in members))
-        fit = ShapeFit(np.zeros(0), theta, np.full((theta.size, theta.size), np.nan), rss / 2, (), 0, None)
+        fit = ShapeFit(np.zeros(0), theta, np.full((theta.size, theta.size), np.nan), rss / 2, (), 0)
         p_value = self.p_values.get(group, 1.0)
         rss = rss * (1.0 + np.log10(p_value) / 100)  # the more significant, the better ranked
         return Trial(group, tuple(members), fit, rss, 100.0, p_value, np.log(p_value + 1e-300), without)

@@ -73,7 +73,6 @@ class ShapeFit:
     rss: float
     names: tuple[str, ...]
     iterations: int
-    solution: LinearSolution
 
     @property
     def n_linear(self) -> int:
@@ -144,10 +143,10 @@ def fit_shapes(
         solution = search.solution_at(s)
         size = solution.normal.shape[0] + len(search.parameters)
         return ShapeFit(np.asarray(s, dtype=float), solution.theta, np.full((size, size), np.nan), solution.rss,
-                        search.names, iterations, solution)
+                        search.names, iterations)
     solution, residual, information = search.at_optimum(s)
     cov = _covariance(search, s, solution, residual, information, covariance, segments)
-    return ShapeFit(np.asarray(s, dtype=float), solution.theta, cov, solution.rss, search.names, iterations, solution)
+    return ShapeFit(np.asarray(s, dtype=float), solution.theta, cov, solution.rss, search.names, iterations)
 
 
 def _covariance(search: _ShapeSearch, s: NDArray[np.float64], solution: LinearSolution, residual: NDArray[np.float64],

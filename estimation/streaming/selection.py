@@ -142,7 +142,7 @@ class SummedFits:
                  else np.zeros(0))
         n_total = theta.shape[0] + shape.shape[0]
         fit = ShapeFit(shape, theta, np.full((n_total, n_total), np.nan), rss_augmented,
-                       tuple(p.name for block in members for p in block.parameters), 0, None)
+                       tuple(p.name for block in members for p in block.parameters), 0)
         return Trial(tuple(group), tuple(members), fit, rss_augmented, float(statistic), p_value, float(bic),
                      tuple(without))
 

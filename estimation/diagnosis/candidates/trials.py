@@ -123,7 +123,7 @@ def _fitted(blocks: Sequence[Block], solution: LinearSolution, shape: NDArray[np
     n_total = solution.theta.shape[0] + shape.shape[0]
     names = tuple(parameter.name for block in blocks for parameter in block.parameters)
     return ShapeFit(np.asarray(shape, dtype=float), solution.theta, np.full((n_total, n_total), np.nan), solution.rss,
-                    names, 0, solution)
+                    names, 0)
 
 
 def weighted_error(fixed: FixedPart, blocks: Sequence[Block], states: States, shapes: Sequence[NDArray[np.float64]],
