@@ -29,6 +29,7 @@ from collections.abc import Collection, Sequence
 from importlib import metadata
 
 import oed
+from dynamics.runtime.allocator import keep_freed_memory
 from dynamics.runtime.threads import single_threaded_blas
 from oed.cli.shared.paths import check_paths
 from oed.cli.shared.verbs import VERBS
@@ -92,6 +93,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         print("oed: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
     args = parser.parse_args(argv)
+    keep_freed_memory()  # a run's arrays come and go by the thousand: their pages kept, not faulted in again
     try:
         check_paths(args, args.derived_outputs)  # before any work: no output over an input or another output
         with single_threaded_blas():  # threaded BLAS on tall, thin matrices only loses (dynamics.runtime.threads)
