@@ -59,7 +59,7 @@ def test_two_processes_give_the_report_of_one(name, monkeypatch):
         assert "delay" in [effect.name for effect in serial.effects], "the case must adopt the delay"
 
 
-def test_a_delay_searched_ahead_serves_only_the_model_and_weights_it_was_searched_at():
+def test_a_delay_step_run_ahead_serves_only_the_model_weights_and_start_it_was_run_at():
     (case,) = [case for case in CASES if case.name == "delay"]
     model = declared_model()
     train, validate = records(case)
@@ -70,18 +70,26 @@ def test_a_delay_searched_ahead_serves_only_the_model_and_weights_it_was_searche
                            DelayBounds())
 
     ahead = search()
-    task = ahead.grid_task([], [], model, weights)
-    ahead.keep_ahead(task(), [], [], weights)
+    task = ahead.ahead_task([], [], model, weights, 1e3, 10)
+    ahead.keep_ahead(task(), [], [], weights, 1e3, 10)
     (trial,) = ahead.trials([], [], model, weights, 1e3, 10, [])
     (again,) = search().trials([], [], model, weights, 1e3, 10, [])
     assert (trial.delay, trial.p_value, trial.bic) == (again.delay, again.p_value, again.bic)
     assert np.array_equal(trial.fit.profile, again.fit.profile)
-    assert ahead.ahead is None and ahead.grid_task([], [], model, weights) is None  # taken; the next rounds screen
+    assert ahead.ahead is None  # taken
+    # the next round's first step is the screen at the last optimum, run ahead the same way
+    screen = ahead.ahead_task([], [], model, weights, 2e3, 10)
+    assert screen.func is delay_search.screen_delay and screen.args[-1] == trial.delay
+    ahead.keep_ahead("screened ahead", [], [], weights, 2e3, 10)
+    assert ahead.trials([], [], model, weights, 2e3, 10, []) == [] and ahead.reason == "screened ahead"
     stale = search()
-    stale.keep_ahead("delay search failed: kept", [], [], weights)
+    stale.keep_ahead("delay search failed: kept", [], [], weights, 1e3, 10)
     assert stale.trials([], [], model, weights.copy(), 1e3, 10, []) != []  # other weights: searched again
+    moved = search()
+    moved.keep_ahead("delay search failed: kept", [], [], weights, 1e3, 10)
+    assert moved.trials([], [], model, weights, 1.5e3, 10, []) != []  # another current RSS: searched again
     kept = search()
-    kept.keep_ahead("delay search failed: kept", [], [], weights)
+    kept.keep_ahead("delay search failed: kept", [], [], weights, 1e3, 10)
     assert kept.trials([], [], model, weights, 1e3, 10, []) == [] and kept.reason == "delay search failed: kept"
     assert kept.tried and kept.previous is None and not kept.searching()
 

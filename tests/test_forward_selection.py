@@ -48,7 +48,7 @@ class PrescribedFits:
         rss = rss * (1.0 + np.log10(p_value) / 100)  # the more significant, the better ranked
         return Trial(group, tuple(members), fit, rss, 100.0, p_value, np.log(p_value + 1e-300), without)
 
-    def trials(self, requests, weights):
+    def trials(self, requests, weights, current):
         return [self.trial(request.group, request.members, weights, request.rss, request.without)
                 for request in requests]
 

@@ -222,7 +222,8 @@ class DiagnosisSearch:
                 requests.append(TrialRequest(group, tuple(members), reduced[without], without))
             else:
                 requests.append(TrialRequest(group, tuple(members), np.nan, without, reason))
-        fitted = iter(self.fits.trials([request for request in requests if request.reason is None], self.weights))
+        fitted = iter(self.fits.trials([request for request in requests if request.reason is None], self.weights,
+                                       self.current))
         trials = []
         for request in requests:
             outcome = next(fitted) if request.reason is None else request.reason

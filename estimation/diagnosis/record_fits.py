@@ -19,6 +19,7 @@ import dataclasses
 import functools
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -34,12 +35,13 @@ from estimation.diagnosis.search_fits import AdoptedEffect, TrialRequest, TrialT
 from estimation.diagnosis.rules.robust_test import WaldTest, fit_covariance, wald_test
 from estimation.diagnosis.rules.selection_rules import SCREEN_REFINED, refine_best
 from estimation.diagnosis.rules.stopping_rules import SearchState
-from estimation.diagnosis.traced_refinement import traced_first
+from estimation.diagnosis.traced_refinement import current_trace, traced_first
 from estimation.estimators.effect_blocks import Block, States
 from estimation.estimators.separable_least_squares import FixedPart, residuals, solve_linear
 from estimation.estimators.variable_projection import ShapeFit
 from estimation.identification.fit import IdentificationResult
 from estimation.preprocessing.delay import DelayBounds
+from estimation.uncertainty.residual_tracing import ResidualTrace
 
 __all__ = ["MIN_PARALLEL_SEARCHES", "RecordFit", "RecordFits", "declared_regressor"]
 
@@ -102,6 +104,7 @@ class RecordFits:
         self._move(train, recorded)
         self.delay = DelaySearch(train, recorded, regressor, delay)  # the delay and, once adopted, the moved records
         self.previous: dict[tuple[int, ...], ShapeFit] = {}  # each group's last optimum
+        self.traced_ahead: tuple[RecordFit, ResidualTrace | None] | None = None  # the round's tracing run ahead
 
     def _move(self, train: Measurements, recorded: Measurements) -> None:
         """The records (moved by an adopted delay) and the declared model's columns along them."""
@@ -165,22 +168,50 @@ class RecordFits:
         self.previous[group] = outcome.fit
         return dataclasses.replace(outcome, without=without)
 
-    def trials(self, requests: Sequence[TrialRequest], weights: NDArray[np.float64]) -> list[Trial | str]:
-        """:meth:`trial` of each request, side by side in ``jobs`` processes when the round has at least
-        :data:`MIN_PARALLEL_SEARCHES` costly fits (:func:`dynamics.runtime.processes.run_tasks`: the same results,
-        in order). The costly fits: the shapes searched from their grids and, in the first round, the delay's
-        search on its whole grid (the longest: the first task), which depends on no candidate's fit and is
-        kept for :meth:`delay_trials` (:meth:`estimation.diagnosis.candidates.delay_search.DelaySearch.grid_task`)."""
-        blocks, shapes = [item.block for item in self.adopted], [item.shape for item in self.adopted]
-        delay_task = self.delay.grid_task(blocks, shapes, self.model, weights)
-        ahead = [] if delay_task is None else [delay_task]
-        tasks = ahead + [self._trial_task(request, weights) for request in requests]
-        searches = len(ahead) + sum(self._searches(request) for request in requests)
-        workers = worker_count(self.jobs, len(tasks)) if searches >= MIN_PARALLEL_SEARCHES else 1
+    def trials(self, requests: Sequence[TrialRequest], weights: NDArray[np.float64], current: RecordFit
+               ) -> list[Trial | str]:
+        """:meth:`trial` of each request, with the round's work that depends on no candidate's fit run ahead
+        beside them (:meth:`_ahead`), side by side in ``jobs`` processes when the round has costly work
+        (:func:`dynamics.runtime.processes.run_tasks`: the same results, in order): at least
+        :data:`MIN_PARALLEL_SEARCHES` shapes searched from their grids, or work run ahead."""
+        ahead = self._ahead(requests, weights, current)
+        tasks = [task for task, _ in ahead] + [self._trial_task(request, weights) for request in requests]
+        searches = sum(self._searches(request) for request in requests)
+        workers = worker_count(self.jobs, len(tasks)) if ahead or searches >= MIN_PARALLEL_SEARCHES else 1
         outcomes = run_tasks(tasks, workers, shared=[block for request in requests for block in request.members])
-        if delay_task is not None:
-            self.delay.keep_ahead(outcomes[0], blocks, shapes, weights)
+        for (_, keep), outcome in zip(ahead, outcomes):
+            keep(outcome)
         return [self._kept(request, outcome) for request, outcome in zip(requests, outcomes[len(ahead):])]
+
+    def _ahead(self, requests: Sequence[TrialRequest], weights: NDArray[np.float64], current: RecordFit
+               ) -> list[tuple[Callable[[], Any], Callable[[Any], None]]]:
+        """The round's work that depends on no candidate's fit, longest first, each task with where its outcome
+        goes: the delay's first step (the search on its whole grid, or the screen at its last optimum:
+        :meth:`~estimation.diagnosis.candidates.delay_search.DelaySearch.ahead_task`), and the tracing of the current
+        residuals once shapes are screened (what :meth:`refine` ranks by)."""
+        blocks, shapes = [item.block for item in self.adopted], [item.shape for item in self.adopted]
+        ahead: list[tuple[Callable[[], Any], Callable[[Any], None]]] = []
+        delay_task = self.delay.ahead_task(blocks, shapes, self.model, weights, current.rss, self.fixed_train.n_fixed)
+        if delay_task is not None:
+            ahead.append((delay_task, functools.partial(self.delay.keep_ahead, blocks=blocks, shapes=shapes,
+                                                        weights=weights, rss=current.rss,
+                                                        n_fixed=self.fixed_train.n_fixed)))
+        if any(not self._searches(request) and any(block.n_shape for block in request.members) for request in requests):
+            ahead.append((functools.partial(current_trace, self.model.channels, self.train, self.recorded,
+                                            current.train_residual, current.validate_residual),
+                          functools.partial(self._keep_trace, current)))
+        return ahead
+
+    def _keep_trace(self, current: RecordFit, trace: ResidualTrace | None) -> None:
+        self.traced_ahead = (current, trace)
+
+    def _trace(self, current: RecordFit) -> ResidualTrace | None:
+        """The tracing of the current residuals: as run ahead for this very fit, else now."""
+        kept, self.traced_ahead = self.traced_ahead, None
+        if kept is not None and kept[0] is current:
+            return kept[1]
+        return current_trace(self.model.channels, self.train, self.recorded, current.train_residual,
+                             current.validate_residual)
 
     def _trial_task(self, request: TrialRequest, weights: NDArray[np.float64]) -> Callable[[], Trial | str]:
         """The request's fit against the current columns, as a task (:meth:`trial`'s, run anywhere)."""
@@ -203,9 +234,8 @@ class RecordFits:
                first_round: bool) -> list[Trial]:
         """The best screened shapes, and the one the residual tracing ranks first, searched again
         (the first round searched every shape from its grid: no tracing needed)."""
-        traced = None if first_round else traced_first(
-            trials, self.model.channels, self.model.robot.n_joints, self.train, self.recorded, current.train_residual,
-            current.validate_residual)
+        shaped = any(trial.fit.shape.size for trial in trials)
+        traced = traced_first(trials, self._trace(current), self.model.robot.n_joints) if shaped and not first_round else None
         rss = {(): current.rss}
 
         def reference(trial: Trial) -> float:

@@ -19,21 +19,30 @@ import numpy as np
 from numpy.typing import NDArray
 
 from dynamics.measurements import Measurements
-from estimation.uncertainty.residual_tracing import DEFAULT_BINS, MIN_SHARE, rank_candidates, trace_residuals
+from estimation.uncertainty.residual_tracing import (
+    DEFAULT_BINS,
+    MIN_SHARE,
+    ResidualTrace,
+    rank_candidates,
+    trace_residuals,
+)
 
 
-def traced_first(trials: Sequence, channels: Sequence[str], n_joints: int, train: Measurements,
-                 validate: Measurements, train_residual: NDArray[np.float64],
-                 validate_residual: NDArray[np.float64]) -> tuple[int, ...] | None:
-    """The group of the shaped trial the tracing ranks first (``None``: none explains
-    :data:`MIN_SHARE` of its channel's validation residual, or the records are too short to trace).
-
-    ``train_residual``, ``validate_residual``: the current model's ``(m, N)`` residuals.
-    """
-    shaped = [trial for trial in trials if trial.fit.shape.size]
-    if not shaped or train.n_samples < 5 * DEFAULT_BINS or validate.n_samples < DEFAULT_BINS:
+def current_trace(channels: Sequence[str], train: Measurements, validate: Measurements,
+                  train_residual: NDArray[np.float64], validate_residual: NDArray[np.float64]) -> ResidualTrace | None:
+    """The tracing of the current model's ``(m, N)`` residuals on both records (``None``: the records are too
+    short to trace). It depends on no candidate's fit: a round may run it beside them."""
+    if train.n_samples < 5 * DEFAULT_BINS or validate.n_samples < DEFAULT_BINS:
         return None
-    trace = trace_residuals(train_residual.T, train, validate_residual.T, validate, list(channels))
+    return trace_residuals(train_residual.T, train, validate_residual.T, validate, list(channels))
+
+
+def traced_first(trials: Sequence, trace: ResidualTrace | None, n_joints: int) -> tuple[int, ...] | None:
+    """The group of the shaped trial the tracing of the current residuals (:func:`current_trace`) ranks first
+    (``None``: none explains :data:`MIN_SHARE` of its channel's validation residual, or there was no tracing)."""
+    shaped = [trial for trial in trials if trial.fit.shape.size]
+    if not shaped or trace is None:
+        return None
     ranked = rank_candidates(trace, [trial.blocks[0].effect for trial in shaped], n_joints)
     effect, share, _ = ranked[0]
     if share < MIN_SHARE:

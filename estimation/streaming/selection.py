@@ -146,7 +146,8 @@ class SummedFits:
         return Trial(tuple(group), tuple(members), fit, rss_augmented, float(statistic), p_value, float(bic),
                      tuple(without))
 
-    def trials(self, requests: Sequence[TrialRequest], weights: NDArray[np.float64]) -> list[Trial | str]:
+    def trials(self, requests: Sequence[TrialRequest], weights: NDArray[np.float64], current: SummedFit
+               ) -> list[Trial | str]:
         """:meth:`trial` of each request in turn (each a solve of summed normal equations: cheap)."""
         return [self.trial(request.group, request.members, weights, request.rss, request.without)
                 for request in requests]

@@ -1,9 +1,9 @@
 """The delay candidate's state through the rounds of a diagnosis (:mod:`estimation.diagnosis.candidates.delay`).
 
-First round: the delay searched on its whole grid, a search that depends on no other candidate's fit (it may
-run ahead, beside the round's other fits: :meth:`DelaySearch.grid_task`); later rounds: screened at its last
-optimum (one evaluation) and searched again near it only when it ranks among the best candidates, as the shaped
-candidates are (:data:`estimation.diagnosis.rules.selection_rules.SCREEN_REFINED`). Once adopted, the training and
+First round: the delay searched on its whole grid; later rounds: screened at its last optimum (one evaluation)
+and searched again near it only when it ranks among the best candidates, as the shaped candidates are
+(:data:`estimation.diagnosis.rules.selection_rules.SCREEN_REFINED`). The search on the grid and the screen depend on
+no other candidate's fit: they may run ahead, beside the round's other fits (:meth:`DelaySearch.ahead_task`). Once adopted, the training and
 validation motions are moved by it for the rest of the search.
 """
 
@@ -45,19 +45,22 @@ REFINED_RANK = 2
 
 @dataclass(frozen=True)
 class SearchedAhead:
-    """The first round's search on the whole grid, run ahead (:meth:`DelaySearch.grid_task`): its outcome
-    and the current model's blocks, shapes and weights it was searched at."""
+    """A round's first delay step run ahead (:meth:`DelaySearch.ahead_task`), the search on the whole grid or the
+    screen at the last optimum: its outcome, the current model's blocks, shapes and weights it was run at, and
+    the last optimum, RSS and column count it started from."""
 
     blocks: tuple[Block, ...]
     shapes: tuple[NDArray[np.float64], ...]
     weights: NDArray[np.float64]
-    outcome: DelayFit | str
+    start: tuple[float | None, float, int]  # (last optimum, current RSS, current columns)
+    outcome: DelayFit | DelayTrial | str
 
     def searched_at(self, blocks: Sequence[Block], shapes: Sequence[NDArray[np.float64]],
-                    weights: NDArray[np.float64]) -> bool:
-        """Whether it was searched at these very objects (the round's current model and weights)."""
+                    weights: NDArray[np.float64], start: tuple[float | None, float, int]) -> bool:
+        """Whether it was run at these very objects (the round's current model and weights) from this start."""
         given, kept = (*blocks, *shapes, weights), (*self.blocks, *self.shapes, self.weights)
-        return len(given) == len(kept) and all(first is second for first, second in zip(given, kept))
+        return (len(given) == len(kept) and all(first is second for first, second in zip(given, kept))
+                and start == self.start)
 
 
 class DelaySearch:
@@ -71,7 +74,7 @@ class DelaySearch:
         self.reason: str | None = None
         self.adopted: DelayTrial | None = None
         self.tried = False
-        self.ahead: SearchedAhead | None = None  # the grid search run ahead, until the next round's trial takes it
+        self.ahead: SearchedAhead | None = None  # the round's first step run ahead, until the round's trial takes it
 
     def _columns(self, blocks: Sequence[Block], shapes: Sequence[NDArray[np.float64]], model) -> Regressor:
         return current_columns(self.regressor, blocks, shapes, model.n_channels)
@@ -81,40 +84,42 @@ class DelaySearch:
         return (self.bounds is not None and self.adopted is None
                 and not (self.reason or "").startswith("delay search failed"))
 
-    def grid_task(self, blocks: Sequence[Block], shapes: Sequence[NDArray[np.float64]], model: IdentificationModel,
-                  weights: NDArray[np.float64]) -> Callable[[], DelayFit | str] | None:
-        """The search on the whole grid that this round's :meth:`trials` begins with, as a task to run ahead
-        (it depends on no other candidate's fit; its outcome goes to :meth:`keep_ahead`), or ``None`` when
-        this round's trial is no such search."""
-        if not self.searching() or self.previous is not None:
+    def ahead_task(self, blocks: Sequence[Block], shapes: Sequence[NDArray[np.float64]], model: IdentificationModel,
+                   weights: NDArray[np.float64], rss: float, n_fixed: int) -> Callable[[], DelayFit | DelayTrial | str] | None:
+        """The first step of this round's :meth:`trials` as a task to run ahead (it depends on no other candidate's
+        fit; its outcome goes to :meth:`keep_ahead`); ``None`` when this round tries no delay."""
+        if not self.searching():
             return None
-        return functools.partial(search_delay, self._columns(blocks, shapes, model), self.train, tuple(model.channels),
-                                 weights, self.bounds)
+        return self._first_step(self._columns(blocks, shapes, model), tuple(model.channels), weights, rss, n_fixed)
 
-    def keep_ahead(self, outcome: DelayFit | str, blocks: Sequence[Block], shapes: Sequence[NDArray[np.float64]],
-                   weights: NDArray[np.float64]) -> None:
-        """Keep a :meth:`grid_task`'s outcome for this round's :meth:`trials` (at the same model and weights)."""
-        self.ahead = SearchedAhead(tuple(blocks), tuple(shapes), weights, outcome)
+    def keep_ahead(self, outcome: DelayFit | DelayTrial | str, blocks: Sequence[Block],
+                   shapes: Sequence[NDArray[np.float64]], weights: NDArray[np.float64], rss: float, n_fixed: int) -> None:
+        """Keep an :meth:`ahead_task`'s outcome for this round's :meth:`trials` (at the same model, weights and start)."""
+        self.ahead = SearchedAhead(tuple(blocks), tuple(shapes), weights, (self.previous, rss, n_fixed), outcome)
 
-    def _grid_search(self, blocks: Sequence[Block], shapes: Sequence[NDArray[np.float64]], columns: Regressor,
-                     channels: tuple[str, ...], weights: NDArray[np.float64]) -> DelayFit | str:
-        """The search on the whole grid: as run ahead at this model and these weights, else now."""
-        ahead, self.ahead = self.ahead, None
-        if ahead is not None and ahead.searched_at(blocks, shapes, weights):
-            return ahead.outcome
-        return search_delay(columns, self.train, channels, weights, self.bounds)
+    def _first_step(self, columns: Regressor, channels: tuple[str, ...], weights: NDArray[np.float64], rss: float,
+                    n_fixed: int) -> Callable[[], DelayFit | DelayTrial | str]:
+        """A round's first step as a task: the search on the whole grid (first round), else the screen at the
+        last optimum."""
+        if self.previous is None:
+            return functools.partial(search_delay, columns, self.train, channels, weights, self.bounds)
+        return functools.partial(screen_delay, columns, self.train, channels, weights, rss, n_fixed, self.previous)
 
     def trials(self, blocks, shapes, model, weights, rss: float, n_fixed: int, others) -> list[DelayTrial]:
-        """This round's delay trial (none once adopted, failed, or not asked for)."""
+        """This round's delay trial (none once adopted, failed, or not asked for): its first step as run ahead at this
+        model, these weights and this start, else now."""
         if not self.searching():
             return []
         self.tried = True
         columns, channels = self._columns(blocks, shapes, model), tuple(model.channels)
+        ahead, self.ahead = self.ahead, None
+        outcome = (ahead.outcome if ahead is not None and ahead.searched_at(blocks, shapes, weights,
+                                                                            (self.previous, rss, n_fixed))
+                   else self._first_step(columns, channels, weights, rss, n_fixed)())
         if self.previous is None:
-            trial = delay_trial(self._grid_search(blocks, shapes, columns, channels, weights), self.train, channels,
-                                rss, n_fixed)
+            trial = delay_trial(outcome, self.train, channels, rss, n_fixed)
         else:
-            trial = screen_delay(columns, self.train, channels, weights, rss, n_fixed, self.previous)
+            trial = outcome
             if not isinstance(trial, str) and sum(other.bic < trial.bic for other in others) < REFINED_RANK:
                 trial = try_delay(columns, self.train, channels, weights, rss, n_fixed,
                                   around(self.previous, self.bounds, self.duration))
