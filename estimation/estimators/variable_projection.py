@@ -12,7 +12,7 @@ Levenberg–Marquardt on ``f`` with Kaufman's Jacobian ``J_j = −P⊥ (∂C/∂
 CasADi graphs (one named ``casadi.Function`` per effect, built once, cached, mapped over the
 samples). Bounds are kept by projection; positive scales (velocities) are searched on ``log s``.
 The search starts from every point of the declared grid (:func:`dynamics.effects.shaped.start_grid`),
-evaluated by the linear solve alone, and refines the best few.
+evaluated by the linear solve alone, and refines the best few valley floors (one start a valley).
 
 At the optimum the covariance of ``(θ, s)`` is ``σ̂² (J_fᵀ W J_f)⁻¹`` with the Jacobian of the
 *full* problem ``J_f = [A(s), (∂C/∂s) θ̂]`` and ``σ̂² = f / (N m − p − n_s)``: the standard
@@ -41,7 +41,7 @@ from estimation.estimators.separable_least_squares import (
 )
 from estimation.uncertainty.batch_means import batch_length, batch_means
 
-__all__ = ["ShapeFit", "fit_shapes"]
+__all__ = ["ShapeFit", "fit_shapes", "valley_floors"]
 
 #: the latest linear solves a shape search keeps, beside the lowest (:meth:`_ShapeSearch.remember`)
 KEPT_SOLVES = 4
@@ -117,7 +117,8 @@ def fit_shapes(
     starts
         Starting points ``(S, n_s)``; default the blocks' declared grid.
     refine
-        The best this many grid points (by the linear solve alone) are refined.
+        The best this many valley floors of the grid (by the linear solve alone: :func:`valley_floors`) are
+        refined.
     max_iter, tol
         Levenberg–Marquardt iterations and relative decrease of ``f`` that stops it.
     covariance
@@ -241,8 +242,8 @@ class _ShapeSearch:
             return np.inf
 
     def candidates(self, starts: NDArray[np.float64] | None, refine: int) -> list[NDArray[np.float64]]:
-        """The starts refined: the best ``refine`` distinct points of ``starts`` (default the blocks'
-        grid) by the linear solve alone."""
+        """The starts refined: the best ``refine`` valley floors of ``starts`` (default the blocks' grid) by the linear
+        solve alone (:func:`valley_floors`)."""
         if not self.parameters:
             return [np.zeros(0)]
         grid = _product_grid(self.blocks) if starts is None else np.atleast_2d(np.asarray(starts, dtype=float))
@@ -252,8 +253,7 @@ class _ShapeSearch:
             raise ShapeSearchError(
                 f"shape search for {', '.join(self.names)}: the columns are non-finite or singular at every start "
                 f"({len(grid)} tried): check the effect's law and its bounds")
-        order = finite[np.argsort(costs[finite])]
-        return [grid[index] for index in _distinct(order, grid, refine)]
+        return [grid[index] for index in valley_floors(grid, costs, refine)]
 
     def best(self, candidates: list[NDArray[np.float64]], max_iter: int, tol: float) -> tuple[NDArray[np.float64], int]:
         """The lowest finite ``f`` reached from the candidates, and its iterations."""
@@ -383,15 +383,19 @@ def _product_grid(blocks: Sequence[Block]) -> NDArray[np.float64]:
     return np.unique(np.array(points), axis=0)
 
 
-def _distinct(order: NDArray[np.int64], grid: NDArray[np.float64], count: int) -> list[int]:
-    """The first ``count`` of ``order`` that are not neighbours of one already chosen (one start
-    per valley)."""
-    chosen: list[int] = []
-    for index in order:
-        if all(np.max(np.abs(np.log(np.abs(grid[index]) + 1e-9) - np.log(np.abs(grid[other]) + 1e-9))) > 1e-6
-               for other in chosen):
-            chosen.append(int(index))
-        if len(chosen) == count:
-            break
-    return chosen
+def valley_floors(grid: NDArray[np.float64], costs: NDArray[np.float64], count: int) -> list[int]:
+    """The ``count`` lowest points of ``grid`` that are lower than each of their neighbours: one start a valley
+    of the cost over the grid (Levenberg–Marquardt from two neighbouring points descends into the same optimum).
 
+    Neighbours: every coordinate the same grid value or the next one up or down (each parameter's values ranked);
+    points with a non-finite cost are neither starts nor neighbours. Of equal costs the earlier point of the grid
+    is the lower."""
+    finite = np.flatnonzero(np.isfinite(costs))
+    ranks = np.stack([np.unique(column, return_inverse=True)[1] for column in grid.T], axis=1)[finite]
+    floors = []
+    for position, index in enumerate(finite):
+        near = finite[np.all(np.abs(ranks - ranks[position]) <= 1, axis=1)]
+        if all((costs[index], index) <= (costs[other], other) for other in near):
+            floors.append(int(index))
+    floors.sort(key=lambda index: (costs[index], index))
+    return floors[:count]
