@@ -97,14 +97,16 @@ class ShapedFit:
         theta[list(self.replaced)] = self.fit.theta[len(self.kept):]
         return theta
 
-    def predict(self, measurements: Measurements) -> np.ndarray:
-        """``(N, m)`` predicted channels at the fitted shapes."""
-        Y = self.regressor(measurements)
+    def predict(self, measurements: Measurements, base: np.ndarray | None = None) -> np.ndarray:
+        """``(N, m)`` predicted channels at the fitted shapes (``base``: see :meth:`regressor`)."""
+        Y = self.regressor(measurements, base)
         return Y @ self.theta_base()
 
-    def regressor(self, measurements: Measurements) -> np.ndarray:
-        """The base regressor ``(N, m, r)`` with the shaped columns at the fitted shapes."""
-        Y = np.array(self.model.evaluate_base(measurements.q, measurements.dq, measurements.ddq))
+    def regressor(self, measurements: Measurements, base: np.ndarray | None = None) -> np.ndarray:
+        """The base regressor ``(N, m, r)`` with the shaped columns at the fitted shapes; ``base``: the model's base
+        regressor along ``measurements`` when the caller has it (copied, not evaluated again)."""
+        Y = np.array(self.model.evaluate_base(measurements.q, measurements.dq, measurements.ddq) if base is None
+                     else base)
         states = States(measurements.q, measurements.dq, measurements.ddq)
         start, position = 0, 0
         for block in self.blocks:
@@ -160,7 +162,7 @@ def fit_shaped_model(model: IdentificationModel, train: Measurements, *, weighte
         fit = fit_shapes(fixed, blocks, states, weights, starts=start_points, max_iter=60 if search else 0,
                          covariance=covariance, segments=segments)
         shaped = ShapedFit(model, tuple(blocks), tuple(kept), tuple(replaced), fit, weights)
-        residual = y - shaped.predict(train)
+        residual = y - shaped.predict(train, Y)
         variance = np.maximum(channel_variance(residual, model.n_base + len(fit.names)), 1e-14 * np.mean(y**2, axis=0))
         if not weighted:
             break
@@ -173,7 +175,7 @@ def fit_shaped_model(model: IdentificationModel, train: Measurements, *, weighte
         fit = fit_shapes(fixed, blocks, states, weights, starts=fit.shape[None, :], max_iter=60 if search else 0,
                          covariance=covariance, segments=segments)
     shaped = ShapedFit(model, tuple(blocks), tuple(kept), tuple(replaced), fit, weights)
-    residual = y - shaped.predict(train)
+    residual = y - shaped.predict(train, Y)
     order = list(kept) + list(replaced)
     n_linear = len(order)
     cov = np.empty((model.n_base, model.n_base))

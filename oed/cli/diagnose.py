@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import functools
 import sys
 import warnings
 from dataclasses import replace
@@ -10,6 +11,7 @@ from pathlib import Path
 from typing import Any
 
 from dynamics.models import IdentificationModel, ModelKind, build_model
+from dynamics.runtime.processes import run_tasks, worker_count
 from dynamics.runtime.progress import show_progress, step
 from dynamics.transmission import Transmission
 from estimation.diagnosis.candidates.coupling import coupling_candidates
@@ -19,6 +21,7 @@ from estimation.diagnosis.search import default_candidates, diagnose
 from estimation.diagnosis.untouched import UntouchedErrors, untouched_errors
 from estimation.preprocessing.delay import DelayBounds, split_delay
 from estimation.preprocessing.plan import Preprocessing
+from estimation.uncertainty.noise_floor import NoiseFloor
 from estimation.identification.prepared import (
     InMemoryBudget,
     PreparedRecords,
@@ -156,9 +159,10 @@ def run_in_memory(args: argparse.Namespace, model: IdentificationModel, transmis
         with step(f"read and prepared {len(args.data) + len(args.validate) + len(args.test or ())} file(s)"):
             records = prepare_records(model, args.data, args.validate, args.test or (),
                                       settings=replace(preparation_settings(args, transmission, IN_MEMORY), plan=plan))
+        validation_floor, test_floor = record_floors(records, model, args.frequency, args.jobs)
         with step("diagnosis in memory"):
-            diagnosis = diagnose_records(args, model, transmission, records, delay)
-        untouched = test_errors(records, diagnosis, model, args.frequency)
+            diagnosis = diagnose_records(args, model, transmission, records, delay, validation_floor)
+        untouched = test_errors(records, diagnosis, test_floor)
         trivial, notes = trivial_predictors(diagnosis.after, records.validation.measurements)
         notes += worse_after(diagnosis)
         repeat = repeated_motion_note(records.train.measurements, records.validation.measurements)
@@ -201,26 +205,34 @@ def check_request(args: argparse.Namespace) -> None:
         raise ValueError(f"--max-effects must be a positive integer, got {args.max_effects}")
 
 
+def record_floors(records: PreparedRecords, model: IdentificationModel, frequency_hz: float | None,
+                  jobs: int | None) -> tuple[NoiseFloor | None, NoiseFloor | None]:
+    """The noise floors of the validation and the ``--test`` record (``None`` without one) from the files as read, at
+    the frequency of a Fourier preprocessing, else ``frequency_hz``; side by side in ``jobs`` processes (each floor
+    a fit of its own: :mod:`dynamics.runtime.processes`, the same floors in any number)."""
+    preprocessing = records.preprocessing
+    frequency = preprocessing.frequency_hz if preprocessing.method == "fourier" else frequency_hz
+    tasks = [functools.partial(record.noise_floor, model.channels, frequency)
+             for record in (records.validation, records.test) if record is not None]
+    floors = run_tasks(tasks, worker_count(jobs, len(tasks)))
+    return floors[0], floors[1] if records.test is not None else None
+
+
 def diagnose_records(args: argparse.Namespace, model: IdentificationModel, transmission: Transmission | None,
-                     records: PreparedRecords, delay: DelayBounds | None) -> Diagnosis:
-    """The diagnosis of the prepared records, its noise floor read from the validation record as recorded."""
+                     records: PreparedRecords, delay: DelayBounds | None, floor: NoiseFloor | None) -> Diagnosis:
+    """The diagnosis of the prepared records; ``floor``: the validation record's as recorded (:func:`record_floors`)."""
     train, validation = records.train.measurements, records.validation.measurements
     candidates = default_candidates(model) + coupling_candidates(model, transmission, train=train)
-    preprocessing = records.preprocessing
-    frequency = preprocessing.frequency_hz if preprocessing.method == "fourier" else args.frequency
-    floor = records.validation.noise_floor(model.channels, frequency)
     return diagnose(model, train, validation, alpha=args.alpha, candidates=candidates, max_effects=args.max_effects,
                     noise_floor=floor, delay=delay or DelayBounds(), jobs=args.jobs)
 
 
-def test_errors(records: PreparedRecords, diagnosis: Diagnosis, model: IdentificationModel,
-                frequency_hz: float | None) -> UntouchedErrors | None:
-    """The errors on the ``--test`` record (:mod:`estimation.diagnosis.untouched`), its floor from the files as read."""
+def test_errors(records: PreparedRecords, diagnosis: Diagnosis, floor: NoiseFloor | None) -> UntouchedErrors | None:
+    """The errors on the ``--test`` record (:mod:`estimation.diagnosis.untouched`); ``floor``: its floor from the files
+    as read (:func:`record_floors`)."""
     if records.test is None:
         return None
-    preprocessing = records.preprocessing
-    frequency = preprocessing.frequency_hz if preprocessing.method == "fourier" else frequency_hz
-    return untouched_errors(diagnosis, records.test.measurements, records.test.noise_floor(model.channels, frequency))
+    return untouched_errors(diagnosis, records.test.measurements, floor)
 
 
 def print_test(untouched: UntouchedErrors | None) -> None:
