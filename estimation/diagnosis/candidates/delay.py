@@ -34,6 +34,8 @@ def current_columns(regressor: Regressor, blocks: Sequence[Block], shapes: Seque
 
     def columns(record: Measurements) -> NDArray[np.float64]:
         Y = np.asarray(regressor(record))
+        if not blocks:  # the declared columns alone: no copy of them
+            return Y
         states = States(record.q, record.dq, record.ddq)
         parts = [Y]
         for block, shape in zip(blocks, shapes):
