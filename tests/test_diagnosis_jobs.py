@@ -79,7 +79,7 @@ def test_a_delay_step_run_ahead_serves_only_the_model_weights_and_start_it_was_r
     assert ahead.ahead is None  # taken
     # the next round's first step is the screen at the last optimum, run ahead the same way
     screen = ahead.ahead_task([], [], model, weights, 2e3, 10)
-    assert screen.func is delay_search.screen_delay and screen.args[-1] == trial.delay
+    assert screen.func is delay_search.screen_delay and screen.args[0].delay == trial.delay
     ahead.keep_ahead("screened ahead", [], [], weights, 2e3, 10)
     assert ahead.trials([], [], model, weights, 2e3, 10, []) == [] and ahead.reason == "screened ahead"
     stale = search()

@@ -134,10 +134,7 @@ class RecordFits:
     @staticmethod
     def _fixed(declared: FixedPart, states: States, adopted: Sequence[AdoptedEffect]) -> FixedPart:
         """The declared columns extended by each adopted block at its shape (its channels' products alone)."""
-        fixed = declared
-        for item in adopted:
-            fixed = fixed.extended(item.block.evaluate(states, item.shape), item.block.rows)
-        return fixed
+        return declared.with_blocks([item.block for item in adopted], states, [item.shape for item in adopted])
 
     def set_model(self, adopted: Sequence[AdoptedEffect]) -> None:
         """The current model: the declared columns and the adopted blocks at their shapes."""

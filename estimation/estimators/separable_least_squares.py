@@ -118,6 +118,14 @@ class FixedPart:
             where[row] = np.concatenate([self.where[row], np.arange(p0, p0 + k)])
         return FixedPart(tuple(own), tuple(where), self.y, gram, moment, self.power)
 
+    def with_blocks(self, blocks: Sequence[Block], states: States, shapes: Sequence[NDArray[np.float64]]) -> FixedPart:
+        """This part extended by each block's columns at its shape along ``states``, block after block
+        (:meth:`extended`: only the blocks' channels' products formed)."""
+        fixed = self
+        for block, shape in zip(blocks, shapes):
+            fixed = fixed.extended(block.evaluate(states, shape), block.rows)
+        return fixed
+
     @functools.cached_property
     def A(self) -> NDArray[np.float64]:  # noqa: N802 (the columns' name in the equations)
         """The dense columns ``(m, N, p0)``."""

@@ -123,18 +123,40 @@ def channels_made_worse(comparison: Comparison, tolerance: float, channels: Sequ
                      if a > (1.0 + tolerance) * b)
 
 
-def screen_delay(columns: Regressor, train: Measurements, channels: tuple[str, ...], weights: NDArray[np.float64],
-                 rss: float, n_fixed: int, delay: float) -> DelayTrial | str:
-    """The delay trial at its last optimum (one evaluation: a screening, as for the shaped candidates)."""
-    moved = delayed(train, delay)
+@dataclass(frozen=True)
+class MovedColumns:
+    """The declared columns along the training motion moved by one delay, and the moved states: what the screens
+    of that delay share while it stays the last optimum (only the adopted blocks are evaluated again)."""
+
+    delay: float
+    states: States
+    declared: FixedPart
+
+    @classmethod
+    def along(cls, regressor: Regressor, train: Measurements, channels: tuple[str, ...], delay: float
+              ) -> MovedColumns | str:
+        """The columns along the motion moved by ``delay``, or why they cannot be had."""
+        moved = delayed(train, delay)
+        try:
+            declared = FixedPart.from_arrays(np.asarray(regressor(moved)), moved.channels(list(channels)))
+        except (np.linalg.LinAlgError, FloatingPointError) as error:
+            return f"delay search failed: {error}"
+        return cls(delay, States(moved.q, moved.dq, moved.ddq), declared)
+
+
+def screen_delay(moved: MovedColumns | str, blocks: Sequence[Block], shapes: Sequence[NDArray[np.float64]],
+                 weights: NDArray[np.float64], rss: float, n_rows: int, n_fixed: int) -> DelayTrial | str:
+    """The delay trial at its last optimum (one evaluation: a screening, as for the shaped candidates): the adopted
+    ``blocks`` at their ``shapes`` evaluated along the moved motion beside the declared columns kept for it."""
+    if isinstance(moved, str):
+        return moved
     try:
-        fixed = FixedPart.from_arrays(columns(moved), moved.channels(list(channels)))
-        value = solve_linear(fixed, [], None, [], weights).rss
+        value = solve_linear(moved.declared.with_blocks(blocks, moved.states, shapes), [], None, [], weights).rss
     except (np.linalg.LinAlgError, FloatingPointError) as error:
         return f"delay search failed: {error}"
     empty = np.zeros(0)
-    fit = DelayFit(delay, float("nan"), float(value), float("nan"), empty, empty, empty)
-    return DelayTrial(fit, float(value), *nested_test(rss, float(value), 1, train.n_samples * len(channels), n_fixed))
+    fit = DelayFit(moved.delay, float("nan"), float(value), float("nan"), empty, empty, empty)
+    return DelayTrial(fit, float(value), *nested_test(rss, float(value), 1, n_rows, n_fixed))
 
 
 def around(delay: float, bounds: DelayBounds, duration: float) -> DelayBounds:

@@ -20,6 +20,7 @@ from numpy.typing import NDArray
 from estimation.diagnosis.candidates.delay import (
     DelayComparison,
     DelayTrial,
+    MovedColumns,
     Regressor,
     around,
     at_bound,
@@ -75,6 +76,7 @@ class DelaySearch:
         self.adopted: DelayTrial | None = None
         self.tried = False
         self.ahead: SearchedAhead | None = None  # the round's first step run ahead, until the round's trial takes it
+        self.moved: MovedColumns | str | None = None  # the declared columns along the last optimum's moved motion
 
     def _columns(self, blocks: Sequence[Block], shapes: Sequence[NDArray[np.float64]], model) -> Regressor:
         return current_columns(self.regressor, blocks, shapes, model.n_channels)
@@ -90,20 +92,25 @@ class DelaySearch:
         fit; its outcome goes to :meth:`keep_ahead`); ``None`` when this round tries no delay."""
         if not self.searching():
             return None
-        return self._first_step(self._columns(blocks, shapes, model), tuple(model.channels), weights, rss, n_fixed)
+        return self._first_step(blocks, shapes, model, weights, rss, n_fixed)
 
     def keep_ahead(self, outcome: DelayFit | DelayTrial | str, blocks: Sequence[Block],
                    shapes: Sequence[NDArray[np.float64]], weights: NDArray[np.float64], rss: float, n_fixed: int) -> None:
         """Keep an :meth:`ahead_task`'s outcome for this round's :meth:`trials` (at the same model, weights and start)."""
         self.ahead = SearchedAhead(tuple(blocks), tuple(shapes), weights, (self.previous, rss, n_fixed), outcome)
 
-    def _first_step(self, columns: Regressor, channels: tuple[str, ...], weights: NDArray[np.float64], rss: float,
-                    n_fixed: int) -> Callable[[], DelayFit | DelayTrial | str]:
+    def _first_step(self, blocks: Sequence[Block], shapes: Sequence[NDArray[np.float64]], model: IdentificationModel,
+                    weights: NDArray[np.float64], rss: float, n_fixed: int) -> Callable[[], DelayFit | DelayTrial | str]:
         """A round's first step as a task: the search on the whole grid (first round), else the screen at the
-        last optimum."""
+        last optimum (from the declared columns along its moved motion, made once for that delay)."""
+        channels = tuple(model.channels)
         if self.previous is None:
-            return functools.partial(search_delay, columns, self.train, channels, weights, self.bounds)
-        return functools.partial(screen_delay, columns, self.train, channels, weights, rss, n_fixed, self.previous)
+            return functools.partial(search_delay, self._columns(blocks, shapes, model), self.train, channels,
+                                     weights, self.bounds)
+        if not isinstance(self.moved, MovedColumns) or self.moved.delay != self.previous:
+            self.moved = MovedColumns.along(self.regressor, self.train, channels, self.previous)
+        return functools.partial(screen_delay, self.moved, tuple(blocks), tuple(shapes), weights, rss,
+                                 self.train.n_samples * len(channels), n_fixed)
 
     def trials(self, blocks, shapes, model, weights, rss: float, n_fixed: int, others) -> list[DelayTrial]:
         """This round's delay trial (none once adopted, failed, or not asked for): its first step as run ahead at this
@@ -115,7 +122,7 @@ class DelaySearch:
         ahead, self.ahead = self.ahead, None
         outcome = (ahead.outcome if ahead is not None and ahead.searched_at(blocks, shapes, weights,
                                                                             (self.previous, rss, n_fixed))
-                   else self._first_step(columns, channels, weights, rss, n_fixed)())
+                   else self._first_step(blocks, shapes, model, weights, rss, n_fixed)())
         if self.previous is None:
             trial = delay_trial(outcome, self.train, channels, rss, n_fixed)
         else:
@@ -152,7 +159,7 @@ class DelaySearch:
 
     def adopt(self, trial: DelayTrial) -> tuple[Measurements, Measurements]:
         """Adopt the delay: the training and validation records along the moved motion."""
-        self.adopted = trial
+        self.adopted, self.moved = trial, None  # the search goes on along the moved records: no screens left
         return delayed(self.train, trial.delay), delayed(self.recorded, trial.delay)
 
     def final_bounds(self) -> DelayBounds | None:
