@@ -58,3 +58,13 @@ def test_a_slow_regressor_in_correlated_noise_is_not_significant_though_the_f_te
         f_significant += p_value < 1e-3
         wald_significant += wald_test(theta[2:], cov[2:, 2:]).p_value < 1e-3
     assert f_significant >= 6 and wald_significant <= 1, (f_significant, wald_significant)
+
+
+def test_the_nested_f_test_is_the_f_distributions_survival_function():
+    generator = np.random.default_rng(3)
+    for _ in range(200):
+        rss = float(generator.uniform(1.0, 2.0))
+        augmented, count, n_rows = rss * float(generator.uniform(0.5, 1.0)), int(generator.integers(1, 6)), 98_000
+        statistic, p_value, _ = nested_test(rss, augmented, count, n_rows, 60)
+        assert statistic == ((rss - augmented) / count) / (augmented / (n_rows - 60 - count))
+        assert p_value == scipy.stats.f.sf(statistic, count, n_rows - 60 - count)  # the same number, not close to it

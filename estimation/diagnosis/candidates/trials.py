@@ -18,7 +18,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.stats
+import scipy.special
 from numpy.typing import NDArray
 
 from dynamics.effects.linear import POSITIVE_EFFECTS, Effect
@@ -76,7 +76,9 @@ def nested_test(rss: float, rss_augmented: float, count: int, n_rows: int, n_fix
     ``rss_augmented``."""
     dof = n_rows - n_fixed - count
     statistic = ((rss - rss_augmented) / count) / (rss_augmented / dof) if rss_augmented > 0 else np.inf
-    p_value = float(scipy.stats.f.sf(statistic, count, dof)) if np.isfinite(statistic) else 0.0
+    # the F distribution's survival function (scipy.special.fdtrc is what scipy.stats.f.sf evaluates, without its
+    # argument handling: 30x less time in a screen of ~1 ms)
+    p_value = float(scipy.special.fdtrc(count, dof, statistic)) if np.isfinite(statistic) else 0.0
     bic = n_rows * np.log(max(rss_augmented, 1e-300) / rss) + count * np.log(n_rows)
     return float(statistic), p_value, float(bic)
 
