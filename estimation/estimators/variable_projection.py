@@ -31,6 +31,7 @@ from numpy.typing import NDArray
 from dynamics.effects.shaped import start_grid
 from estimation.estimators.bordered_normal import FixedFactor
 from estimation.estimators.effect_blocks import Block, ShapeSearchError, States
+from estimation.estimators.grid_costs import grid_costs
 from estimation.estimators.separable_least_squares import (
     FixedPart,
     LinearSolution,
@@ -247,13 +248,24 @@ class _ShapeSearch:
         if not self.parameters:
             return [np.zeros(0)]
         grid = _product_grid(self.blocks) if starts is None else np.atleast_2d(np.asarray(starts, dtype=float))
-        costs = np.array([self.cost(point) for point in grid])
+        costs = self.grid_costs(grid)
         finite = np.flatnonzero(np.isfinite(costs))
         if finite.size == 0:
             raise ShapeSearchError(
                 f"shape search for {', '.join(self.names)}: the columns are non-finite or singular at every start "
                 f"({len(grid)} tried): check the effect's law and its bounds")
         return [grid[index] for index in valley_floors(grid, costs, refine)]
+
+    def grid_costs(self, grid: NDArray[np.float64]) -> NDArray[np.float64]:
+        """``f`` at every grid point: one block's points batched (:func:`estimation.estimators.grid_costs.grid_costs`,
+        equal to the linear solve's to rounding: they only choose the starts), the rest, and any point the batch
+        leaves to it, by the linear solve."""
+        costs = np.full(grid.shape[0], np.nan)
+        if len(self.blocks) == 1 and grid.shape[0] > 1 and self.factored is not None:
+            costs = grid_costs(self.fixed, self.blocks[0], self.states, grid, self.weights, self.factored)
+        for index in np.flatnonzero(np.isnan(costs)):
+            costs[index] = self.cost(grid[index])
+        return costs
 
     def best(self, candidates: list[NDArray[np.float64]], max_iter: int, tol: float) -> tuple[NDArray[np.float64], int]:
         """The lowest finite ``f`` reached from the candidates, and its iterations."""
