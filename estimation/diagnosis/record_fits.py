@@ -41,7 +41,6 @@ from estimation.estimators.separable_least_squares import FixedPart, residuals, 
 from estimation.estimators.variable_projection import ShapeFit
 from estimation.identification.fit import IdentificationResult
 from estimation.preprocessing.delay import DelayBounds
-from estimation.uncertainty.residual_tracing import ResidualTrace
 
 __all__ = ["MIN_PARALLEL_SEARCHES", "RecordFit", "RecordFits", "declared_regressor"]
 
@@ -104,7 +103,6 @@ class RecordFits:
         self._move(train, recorded)
         self.delay = DelaySearch(train, recorded, regressor, delay)  # the delay and, once adopted, the moved records
         self.previous: dict[tuple[int, ...], ShapeFit] = {}  # each group's last optimum
-        self.traced_ahead: tuple[RecordFit, ResidualTrace | None] | None = None  # the round's tracing run ahead
 
     def _move(self, train: Measurements, recorded: Measurements) -> None:
         """The records (moved by an adopted delay) and the declared model's columns along them."""
@@ -168,24 +166,24 @@ class RecordFits:
     def trials(self, requests: Sequence[TrialRequest], weights: NDArray[np.float64], current: RecordFit
                ) -> list[Trial | str]:
         """:meth:`trial` of each request, with the round's work that depends on no candidate's fit run ahead
-        beside them (:meth:`_ahead`), side by side in ``jobs`` processes when the round has costly work
-        (:func:`dynamics.runtime.processes.run_tasks`: the same results, in order): at least
-        :data:`MIN_PARALLEL_SEARCHES` shapes searched from their grids, or work run ahead."""
-        ahead = self._ahead(requests, weights, current)
+        beside them (:meth:`_ahead`), side by side in ``jobs`` processes when the round has at least
+        :data:`MIN_PARALLEL_SEARCHES` costly fits (:func:`dynamics.runtime.processes.run_tasks`: the same results, in
+        order): the shapes searched from their grids and the delay's search on its whole grid (a later round's
+        screens, ~1 ms each, run in turn: a fork's copied pages cost more than the second core gives back)."""
+        ahead = self._ahead(weights, current)
         tasks = [task for task, _ in ahead] + [self._trial_task(request, weights) for request in requests]
-        searches = sum(self._searches(request) for request in requests)
-        workers = worker_count(self.jobs, len(tasks)) if ahead or searches >= MIN_PARALLEL_SEARCHES else 1
+        searches = sum(self._searches(request) for request in requests) + self.delay.searching_grid()
+        workers = worker_count(self.jobs, len(tasks)) if searches >= MIN_PARALLEL_SEARCHES else 1
         outcomes = run_tasks(tasks, workers, shared=[block for request in requests for block in request.members])
         for (_, keep), outcome in zip(ahead, outcomes):
             keep(outcome)
         return [self._kept(request, outcome) for request, outcome in zip(requests, outcomes[len(ahead):])]
 
-    def _ahead(self, requests: Sequence[TrialRequest], weights: NDArray[np.float64], current: RecordFit
+    def _ahead(self, weights: NDArray[np.float64], current: RecordFit
                ) -> list[tuple[Callable[[], Any], Callable[[Any], None]]]:
-        """The round's work that depends on no candidate's fit, longest first, each task with where its outcome
-        goes: the delay's first step (the search on its whole grid, or the screen at its last optimum:
-        :meth:`~estimation.diagnosis.candidates.delay_search.DelaySearch.ahead_task`), and the tracing of the current
-        residuals once shapes are screened (what :meth:`refine` ranks by)."""
+        """The round's work that depends on no candidate's fit, each task with where its outcome goes: the delay's
+        first step (the search on its whole grid, or the screen at its last optimum:
+        :meth:`~estimation.diagnosis.candidates.delay_search.DelaySearch.ahead_task`)."""
         blocks, shapes = [item.block for item in self.adopted], [item.shape for item in self.adopted]
         ahead: list[tuple[Callable[[], Any], Callable[[Any], None]]] = []
         delay_task = self.delay.ahead_task(blocks, shapes, self.model, weights, current.rss, self.fixed_train.n_fixed)
@@ -193,22 +191,7 @@ class RecordFits:
             ahead.append((delay_task, functools.partial(self.delay.keep_ahead, blocks=blocks, shapes=shapes,
                                                         weights=weights, rss=current.rss,
                                                         n_fixed=self.fixed_train.n_fixed)))
-        if any(not self._searches(request) and any(block.n_shape for block in request.members) for request in requests):
-            ahead.append((functools.partial(current_trace, self.model.channels, self.train, self.recorded,
-                                            current.train_residual, current.validate_residual),
-                          functools.partial(self._keep_trace, current)))
         return ahead
-
-    def _keep_trace(self, current: RecordFit, trace: ResidualTrace | None) -> None:
-        self.traced_ahead = (current, trace)
-
-    def _trace(self, current: RecordFit) -> ResidualTrace | None:
-        """The tracing of the current residuals: as run ahead for this very fit, else now."""
-        kept, self.traced_ahead = self.traced_ahead, None
-        if kept is not None and kept[0] is current:
-            return kept[1]
-        return current_trace(self.model.channels, self.train, self.recorded, current.train_residual,
-                             current.validate_residual)
 
     def _trial_task(self, request: TrialRequest, weights: NDArray[np.float64]) -> Callable[[], Trial | str]:
         """The request's fit against the current columns, as a task (:meth:`trial`'s, run anywhere)."""
@@ -232,7 +215,9 @@ class RecordFits:
         """The best screened shapes, and the one the residual tracing ranks first, searched again
         (the first round searched every shape from its grid: no tracing needed)."""
         shaped = any(trial.fit.shape.size for trial in trials)
-        traced = traced_first(trials, self._trace(current), self.model.robot.n_joints) if shaped and not first_round else None
+        traced = None if first_round or not shaped else traced_first(
+            trials, current_trace(self.model.channels, self.train, self.recorded, current.train_residual,
+                                  current.validate_residual), self.model.robot.n_joints)
         rss = {(): current.rss}
 
         def reference(trial: Trial) -> float:

@@ -31,7 +31,7 @@ from estimation.uncertainty.residual_tracing import (
 def current_trace(channels: Sequence[str], train: Measurements, validate: Measurements,
                   train_residual: NDArray[np.float64], validate_residual: NDArray[np.float64]) -> ResidualTrace | None:
     """The tracing of the current model's ``(m, N)`` residuals on both records (``None``: the records are too
-    short to trace). It depends on no candidate's fit: a round may run it beside them."""
+    short to trace)."""
     if train.n_samples < 5 * DEFAULT_BINS or validate.n_samples < DEFAULT_BINS:
         return None
     return trace_residuals(train_residual.T, train, validate_residual.T, validate, list(channels))

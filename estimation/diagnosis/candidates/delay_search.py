@@ -86,6 +86,10 @@ class DelaySearch:
         return (self.bounds is not None and self.adopted is None
                 and not (self.reason or "").startswith("delay search failed"))
 
+    def searching_grid(self) -> bool:
+        """Whether this round's first step is the search on the whole grid (the first round's: costly)."""
+        return self.searching() and self.previous is None
+
     def ahead_task(self, blocks: Sequence[Block], shapes: Sequence[NDArray[np.float64]], model: IdentificationModel,
                    weights: NDArray[np.float64], rss: float, n_fixed: int) -> Callable[[], DelayFit | DelayTrial | str] | None:
         """The first step of this round's :meth:`trials` as a task to run ahead (it depends on no other candidate's
