@@ -121,19 +121,27 @@ def _binned_means(x: NDArray[np.float64], residual: NDArray[np.float64], edges: 
     return _bin_means(index, residual, edges.shape[0] + 1), counts
 
 
-def _bin_means(index: NDArray[np.intp], residual: NDArray[np.float64], n_bins: int) -> NDArray[np.float64]:
-    """The mean of ``residual`` in each of ``n_bins`` bins (0 in an empty bin); ``index``: each sample's bin."""
-    counts = np.bincount(index, minlength=n_bins)
+def _bin_means(index: NDArray[np.intp], residual: NDArray[np.float64], n_bins: int,
+               counts: NDArray[np.intp] | None = None) -> NDArray[np.float64]:
+    """The mean of ``residual`` in each of ``n_bins`` bins (0 in an empty bin); ``index``: each sample's bin,
+    ``counts``: the samples in each (counted here when not given)."""
+    counts = np.bincount(index, minlength=n_bins) if counts is None else counts
     sums = np.bincount(index, weights=residual, minlength=n_bins)
     return np.where(counts > 0, sums / np.maximum(counts, 1), 0.0)
 
 
-def _share(residual: NDArray[np.float64], fitted: NDArray[np.float64]) -> float:
+def _centred(residual: NDArray[np.float64]) -> tuple[NDArray[np.float64], float]:
+    """The residual about its mean and its sum of squares there (what every variable's share divides by)."""
     centred = residual - residual.mean()
-    total = float(centred @ centred)
+    return centred, float(centred @ centred)
+
+
+def _share(centred: tuple[NDArray[np.float64], float], fitted: NDArray[np.float64]) -> float:
+    """The share of a residual (:func:`_centred`) that the binned means ``fitted`` explain."""
+    values, total = centred
     if total == 0:
         return 0.0
-    explained = centred - (fitted - fitted.mean())
+    explained = values - (fitted - fitted.mean())
     return float(1.0 - (explained @ explained) / total)
 
 
@@ -169,20 +177,22 @@ def trace_residuals(
     if train.n_samples < 5 * bins:
         raise ValueError(f"{train.n_samples} training samples are too few for {bins} bins")
     x_train, x_validate = state_variables(train), state_variables(validate)
-    # the bins of a variable are the same for every channel: their edges and each sample's bin found once
+    # the bins of a variable are the same for every channel: their edges, each sample's bin and the counts found once
     binned = {}
     for variable, values in x_train.items():
         edges = _edges(values, int(bins), variable)
-        binned[variable] = (edges, np.searchsorted(edges, values, side="right"),
-                            np.searchsorted(edges, x_validate[variable], side="right"))
+        index_train = np.searchsorted(edges, values, side="right")
+        binned[variable] = (index_train, np.searchsorted(edges, x_validate[variable], side="right"),
+                            np.bincount(index_train, minlength=edges.shape[0] + 1))
     rows = []
     for column, channel in enumerate(channels):
-        residual, check = train_residuals[:, column], validation_residuals[:, column]
+        residual = train_residuals[:, column]
+        train_centred, check_centred = _centred(residual), _centred(validation_residuals[:, column])
         channel_rows = []
-        for variable, (edges, index_train, index_validate) in binned.items():
-            means = _bin_means(index_train, residual, edges.shape[0] + 1)
-            channel_rows.append(TraceRow(channel, variable, _share(residual, means[index_train]),
-                                         _share(check, means[index_validate])))
+        for variable, (index_train, index_validate, counts) in binned.items():
+            means = _bin_means(index_train, residual, counts.shape[0], counts)
+            channel_rows.append(TraceRow(channel, variable, _share(train_centred, means[index_train]),
+                                         _share(check_centred, means[index_validate])))
         rows += sorted(channel_rows, key=lambda row: -row.validation_share)
     return ResidualTrace(tuple(rows), int(bins))
 
