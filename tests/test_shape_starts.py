@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from estimation.estimators.variable_projection import valley_floors
+from estimation.estimators.shape_starts import valley_floors
 
 
 def test_one_start_a_valley_lowest_first():

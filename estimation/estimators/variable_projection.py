@@ -28,10 +28,10 @@ from typing import Literal
 import numpy as np
 from numpy.typing import NDArray
 
-from dynamics.effects.shaped import start_grid
 from estimation.estimators.bordered_normal import FixedFactor
 from estimation.estimators.effect_blocks import Block, ShapeSearchError, States
 from estimation.estimators.grid_costs import grid_costs
+from estimation.estimators.shape_starts import product_grid, valley_floors
 from estimation.estimators.separable_least_squares import (
     FixedPart,
     LinearSolution,
@@ -42,7 +42,7 @@ from estimation.estimators.separable_least_squares import (
 )
 from estimation.uncertainty.batch_means import batch_length, batch_means
 
-__all__ = ["ShapeFit", "fit_shapes", "valley_floors"]
+__all__ = ["ShapeFit", "fit_shapes"]
 
 #: the latest linear solves a shape search keeps, beside the lowest (:meth:`_ShapeSearch.remember`)
 KEPT_SOLVES = 4
@@ -118,8 +118,8 @@ def fit_shapes(
     starts
         Starting points ``(S, n_s)``; default the blocks' declared grid.
     refine
-        The best this many valley floors of the grid (by the linear solve alone: :func:`valley_floors`) are
-        refined.
+        The best this many valley floors of the grid (by the linear solve alone:
+        :func:`estimation.estimators.shape_starts.valley_floors`) are refined.
     max_iter, tol
         Levenberg–Marquardt iterations and relative decrease of ``f`` that stops it.
     covariance
@@ -244,10 +244,10 @@ class _ShapeSearch:
 
     def candidates(self, starts: NDArray[np.float64] | None, refine: int) -> list[NDArray[np.float64]]:
         """The starts refined: the best ``refine`` valley floors of ``starts`` (default the blocks' grid) by the linear
-        solve alone (:func:`valley_floors`)."""
+        solve alone (:func:`estimation.estimators.shape_starts.valley_floors`)."""
         if not self.parameters:
             return [np.zeros(0)]
-        grid = _product_grid(self.blocks) if starts is None else np.atleast_2d(np.asarray(starts, dtype=float))
+        grid = product_grid(self.blocks) if starts is None else np.atleast_2d(np.asarray(starts, dtype=float))
         costs = self.grid_costs(grid)
         finite = np.flatnonzero(np.isfinite(costs))
         if finite.size == 0:
@@ -368,46 +368,3 @@ def _inverse(matrix: NDArray[np.float64]) -> NDArray[np.float64]:
     if eigenvalues[0] < 1e-14 * eigenvalues[-1]:
         raise np.linalg.LinAlgError("singular")
     return (vectors / eigenvalues) @ vectors.T / np.outer(scale, scale)
-
-
-def _product_grid(blocks: Sequence[Block]) -> NDArray[np.float64]:
-    """The declared grids of the blocks: one block's grid at a time, the others at their reference
-    (the blocks are coupled through the shared linear part only), plus all at their grid's i-th point."""
-    parameters = [parameter for block in blocks for parameter in block.parameters]
-    reference = np.array([parameter.reference for parameter in parameters])
-    grids = [start_grid(block.parameters) for block in blocks]
-    if len(blocks) == 1:
-        return grids[0]
-    points = []
-    longest = max(len(grid) for grid in grids)
-    for i in range(longest):  # the same start index on every block (a law on every joint)
-        point, start = [], 0
-        for grid in grids:
-            point.append(grid[min(i, len(grid) - 1)])
-        points.append(np.concatenate(point))
-    start = 0
-    for block, grid in zip(blocks, grids):
-        for row in grid:
-            point = reference.copy()
-            point[start:start + block.n_shape] = row
-            points.append(point)
-        start += block.n_shape
-    return np.unique(np.array(points), axis=0)
-
-
-def valley_floors(grid: NDArray[np.float64], costs: NDArray[np.float64], count: int) -> list[int]:
-    """The ``count`` lowest points of ``grid`` that are lower than each of their neighbours: one start a valley
-    of the cost over the grid (Levenberg–Marquardt from two neighbouring points descends into the same optimum).
-
-    Neighbours: every coordinate the same grid value or the next one up or down (each parameter's values ranked);
-    points with a non-finite cost are neither starts nor neighbours. Of equal costs the earlier point of the grid
-    is the lower."""
-    finite = np.flatnonzero(np.isfinite(costs))
-    ranks = np.stack([np.unique(column, return_inverse=True)[1] for column in grid.T], axis=1)[finite]
-    floors = []
-    for position, index in enumerate(finite):
-        near = finite[np.all(np.abs(ranks - ranks[position]) <= 1, axis=1)]
-        if all((costs[index], index) <= (costs[other], other) for other in near):
-            floors.append(int(index))
-    floors.sort(key=lambda index: (costs[index], index))
-    return floors[:count]
