@@ -19,7 +19,6 @@ import dataclasses
 import functools
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -165,33 +164,23 @@ class RecordFits:
 
     def trials(self, requests: Sequence[TrialRequest], weights: NDArray[np.float64], current: RecordFit
                ) -> list[Trial | str]:
-        """:meth:`trial` of each request, with the round's work that depends on no candidate's fit run ahead
-        beside them (:meth:`_ahead`), side by side in ``jobs`` processes when the round has at least
-        :data:`MIN_PARALLEL_SEARCHES` costly fits (:func:`dynamics.runtime.processes.run_tasks`: the same results, in
-        order): the shapes searched from their grids and the delay's search on its whole grid (a later round's
-        screens, ~1 ms each, run in turn: a fork's copied pages cost more than the second core gives back)."""
-        ahead = self._ahead(weights, current)
-        tasks = [task for task, _ in ahead] + [self._trial_task(request, weights) for request in requests]
+        """:meth:`trial` of each request, the round's first delay step before them
+        (:meth:`~estimation.diagnosis.candidates.delay_search.DelaySearch.ahead_task`: it depends on no candidate's
+        fit), side by side in ``jobs`` processes when the round has at least :data:`MIN_PARALLEL_SEARCHES` costly fits
+        (:func:`dynamics.runtime.processes.run_tasks`: the same results, in order): the shapes searched from their
+        grids and the delay's search on its whole grid, the longest (a later round's screens, ~1 ms each, run in
+        turn: a fork's copied pages cost more than the second core gives back)."""
+        blocks, shapes = [item.block for item in self.adopted], [item.shape for item in self.adopted]
+        start = (current.rss, self.fixed_train.n_fixed)
+        delay_task = self.delay.ahead_task(blocks, shapes, self.model, weights, *start)
+        ahead = [] if delay_task is None else [delay_task]
+        tasks = ahead + [self._trial_task(request, weights) for request in requests]
         searches = sum(self._searches(request) for request in requests) + self.delay.searching_grid()
         workers = worker_count(self.jobs, len(tasks)) if searches >= MIN_PARALLEL_SEARCHES else 1
         outcomes = run_tasks(tasks, workers, shared=[block for request in requests for block in request.members])
-        for (_, keep), outcome in zip(ahead, outcomes):
-            keep(outcome)
-        return [self._kept(request, outcome) for request, outcome in zip(requests, outcomes[len(ahead):])]
-
-    def _ahead(self, weights: NDArray[np.float64], current: RecordFit
-               ) -> list[tuple[Callable[[], Any], Callable[[Any], None]]]:
-        """The round's work that depends on no candidate's fit, each task with where its outcome goes: the delay's
-        first step (the search on its whole grid, or the screen at its last optimum:
-        :meth:`~estimation.diagnosis.candidates.delay_search.DelaySearch.ahead_task`)."""
-        blocks, shapes = [item.block for item in self.adopted], [item.shape for item in self.adopted]
-        ahead: list[tuple[Callable[[], Any], Callable[[Any], None]]] = []
-        delay_task = self.delay.ahead_task(blocks, shapes, self.model, weights, current.rss, self.fixed_train.n_fixed)
         if delay_task is not None:
-            ahead.append((delay_task, functools.partial(self.delay.keep_ahead, blocks=blocks, shapes=shapes,
-                                                        weights=weights, rss=current.rss,
-                                                        n_fixed=self.fixed_train.n_fixed)))
-        return ahead
+            self.delay.keep_ahead(outcomes[0], blocks, shapes, weights, *start)
+        return [self._kept(request, outcome) for request, outcome in zip(requests, outcomes[len(ahead):])]
 
     def _trial_task(self, request: TrialRequest, weights: NDArray[np.float64]) -> Callable[[], Trial | str]:
         """The request's fit against the current columns, as a task (:meth:`trial`'s, run anywhere)."""

@@ -3,8 +3,8 @@
 First round: the delay searched on its whole grid; later rounds: screened at its last optimum (one evaluation)
 and searched again near it only when it ranks among the best candidates, as the shaped candidates are
 (:data:`estimation.diagnosis.rules.selection_rules.SCREEN_REFINED`). The search on the grid and the screen depend on
-no other candidate's fit: they may run ahead, beside the round's other fits (:meth:`DelaySearch.ahead_task`). Once adopted, the training and
-validation motions are moved by it for the rest of the search.
+no other candidate's fit: they may run ahead, beside the round's other fits (:meth:`DelaySearch.ahead_task`). Once
+adopted, the training and validation motions are moved by it for the rest of the search.
 """
 
 from __future__ import annotations
