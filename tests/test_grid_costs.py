@@ -1,4 +1,4 @@
-"""A shape grid's costs at once (estimation.estimators.grid_costs) against the linear solve at each point."""
+"""A shape grid's costs at once (estimation.estimators.shape_starts.grid_costs) against the linear solve at each point."""
 
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ from dynamics.effects.shaped import start_grid
 from dynamics.simulation.synthetic import simulate, true_parameters
 from estimation.estimators.bordered_normal import FixedFactor
 from estimation.estimators.effect_blocks import Block, States
-from estimation.estimators.grid_costs import BATCH, grid_costs
+from estimation.estimators.shape_starts import BATCH, grid_costs
 from estimation.estimators.separable_least_squares import FixedPart, solve_linear
 from oed.fourier import random_fourier
 

@@ -1,9 +1,23 @@
-"""Where a shape search starts: the blocks' declared grid, and one start a valley of the cost over it.
+"""Where a shape search starts: the blocks' declared grid, its costs, and one start a valley of them.
 
-:func:`estimation.estimators.variable_projection.fit_shapes` evaluates the projected residual at every point of the
-grid (:func:`product_grid`, or the starts given) by the linear solve alone and refines the lowest valley floors
-(:func:`valley_floors`): Levenberg–Marquardt from two neighbouring grid points descends into the same optimum, so a
-second start is spent only in another valley.
+:func:`estimation.estimators.variable_projection.fit_shapes` evaluates the projected residual ``f(s)`` (the
+weighted RSS of the linear solve at the shapes ``s``) at every point of the grid (:func:`product_grid`, or the
+starts given) and refines the lowest valley floors (:func:`valley_floors`): Levenberg–Marquardt from two
+neighbouring grid points descends into the same optimum, so a second start is spent only in another valley.
+
+For one block appended to the fixed columns the grid points differ only in the block's columns ``C(s_g)``:
+:func:`grid_costs` forms the products ``A_cᵀ C(s_g)`` of a batch of points as one matrix product on each of the
+block's channels (the fixed columns read once, not once a point), and each point's RSS from the Schur complement of
+its border (Golub & Van Loan, *Matrix Computations*, 4th ed., §3.2.10), the fixed block factored once
+(:class:`~estimation.estimators.bordered_normal.FixedFactor`). In the equilibrated variables of
+:mod:`estimation.estimators.bordered_normal`,
+
+    ``f(s) = P − b₀ᵀ z₀ − vᵀ S⁻¹ v``,  ``z₀ = E₀₀⁻¹ b₀``,  ``S = E₁₁ − E₁₀ E₀₀⁻¹ E₀₁``,  ``v = b₁ − E₁₀ z₀``,
+
+with ``P = Σ_c w_c ‖y_c‖²`` and ``b`` the equilibrated right-hand side. A point whose columns are not finite, whose
+``S`` is not positive definite, or whose rank the bound of :mod:`~estimation.estimators.bordered_normal` does not
+decide is returned as NaN: the caller solves it alone (the same verdict as every other solve). The values equal
+the linear solve's to rounding; they choose the starts only, and the search solves again at each start.
 """
 
 from __future__ import annotations
@@ -14,9 +28,11 @@ import numpy as np
 from numpy.typing import NDArray
 
 from dynamics.effects.shaped import start_grid
-from estimation.estimators.effect_blocks import Block
+from estimation.estimators.bordered_normal import MARGIN, RANK_THRESHOLD, FixedFactor
+from estimation.estimators.effect_blocks import Block, States
+from estimation.estimators.separable_least_squares import FixedPart
 
-__all__ = ["product_grid", "valley_floors"]
+__all__ = ["BATCH", "grid_costs", "product_grid", "valley_floors"]
 
 
 def product_grid(blocks: Sequence[Block]) -> NDArray[np.float64]:
@@ -30,10 +46,7 @@ def product_grid(blocks: Sequence[Block]) -> NDArray[np.float64]:
     points = []
     longest = max(len(grid) for grid in grids)
     for i in range(longest):  # the same start index on every block (a law on every joint)
-        point, start = [], 0
-        for grid in grids:
-            point.append(grid[min(i, len(grid) - 1)])
-        points.append(np.concatenate(point))
+        points.append(np.concatenate([grid[min(i, len(grid) - 1)] for grid in grids]))
     start = 0
     for block, grid in zip(blocks, grids):
         for row in grid:
@@ -60,3 +73,76 @@ def valley_floors(grid: NDArray[np.float64], costs: NDArray[np.float64], count: 
             floors.append(int(index))
     floors.sort(key=lambda index: (costs[index], index))
     return floors[:count]
+
+
+#: grid points whose columns are held at once (14 000 samples, two columns: 7 MB)
+BATCH = 32
+
+
+def grid_costs(fixed: FixedPart, block: Block, states: States, grid: NDArray[np.float64],
+               weights: NDArray[np.float64], factored: FixedFactor) -> NDArray[np.float64]:
+    """``f`` at each point of ``grid (G, n_s)`` for ``block`` appended to ``fixed`` at channel ``weights``; NaN where
+    the point must be solved alone (module docstring)."""
+    right = weights @ fixed.moment
+    start = right / factored.scale
+    solved = factored.solve(start)
+    rest = float(weights @ fixed.power - start @ solved)
+    costs = np.full(grid.shape[0], np.nan)
+    with np.errstate(all="ignore"):
+        for first in range(0, grid.shape[0], BATCH):
+            points = grid[first:first + BATCH]
+            costs[first:first + points.shape[0]] = _batch(fixed, block, states, points, weights, factored, solved, rest)
+    return costs
+
+
+def _batch(fixed: FixedPart, block: Block, states: States, points: NDArray[np.float64], weights: NDArray[np.float64],
+           factored: FixedFactor, solved: NDArray[np.float64], rest: float) -> NDArray[np.float64]:
+    """The costs of one batch of points (NaN: to be solved alone)."""
+    n_points, k, p0, n_rows = points.shape[0], block.n_linear, fixed.n_fixed, len(block.rows)
+    columns = np.empty((n_rows, n_points, k, states.n_samples))  # each channel's columns, a point's after another's
+    finite = np.ones(n_points, dtype=bool)
+    for point, shape in enumerate(points):
+        values = block.evaluate(states, shape)  # (N, rows, k)
+        finite[point] = np.all(np.isfinite(values))
+        columns[:, point] = np.transpose(values, (1, 2, 0)) if finite[point] else 0.0
+    border = np.zeros((p0, n_points * k))
+    corner = np.zeros((n_points, k, k))
+    right = np.zeros((n_points, k))
+    for position, row in enumerate(block.rows):
+        C = columns[position]  # (G, k, N)
+        flat = C.reshape(n_points * k, states.n_samples)
+        border += weights[row] * fixed.cross(row, flat.T)
+        corner += weights[row] * np.matmul(C, np.transpose(C, (0, 2, 1)))
+        right += weights[row] * (flat @ fixed.y[row]).reshape(n_points, k)
+    scale = np.sqrt(np.einsum("gkk->gk", corner))  # (G, k)
+    usable = finite & np.all(scale > 0, axis=1)
+    scale[~usable] = 1.0
+    border = border.reshape(p0, n_points, k) / (factored.scale[:, None, None] * scale[None])
+    corner = corner / (scale[:, :, None] * scale[:, None, :])
+    eliminated = factored.solve(border.reshape(p0, n_points * k)).reshape(p0, n_points, k)
+    complement = corner - np.einsum("pgk,pgl->gkl", border, eliminated)
+    complement = (complement + np.transpose(complement, (0, 2, 1))) / 2
+    v = right / scale - np.einsum("pgk,p->gk", border, solved)
+    costs = np.full(n_points, np.nan)
+    for point in np.flatnonzero(usable):
+        costs[point] = _point_cost(complement[point], eliminated[:, point], border[:, point], corner[point], v[point],
+                                   factored, rest)
+    return costs
+
+
+def _point_cost(complement: NDArray[np.float64], eliminated: NDArray[np.float64], border: NDArray[np.float64],
+                corner: NDArray[np.float64], v: NDArray[np.float64], factored: FixedFactor, rest: float) -> float:
+    """One point's RSS from its Schur complement, or NaN where the linear solve alone decides."""
+    try:
+        lower = np.linalg.cholesky(complement)
+    except np.linalg.LinAlgError:
+        return np.nan  # not positive definite: the whole matrix's eigenvalues decide
+    inverse = np.linalg.inv(lower)
+    complement_inverse = inverse.T @ inverse
+    k = complement.shape[0]
+    trace_inverse = factored.trace_inverse + float(np.trace(complement_inverse @ (np.eye(k) + eliminated.T @ eliminated)))
+    frobenius = np.sqrt(factored.frobenius2 + 2 * np.sum(border**2) + np.sum(corner**2))
+    if not trace_inverse * frobenius * RANK_THRESHOLD * MARGIN <= 1.0:
+        return np.nan  # the bound does not decide the rank
+    value = rest - float(v @ complement_inverse @ v)
+    return max(value, 0.0) if np.isfinite(value) else np.nan

@@ -30,8 +30,7 @@ from numpy.typing import NDArray
 
 from estimation.estimators.bordered_normal import FixedFactor
 from estimation.estimators.effect_blocks import Block, ShapeSearchError, States
-from estimation.estimators.grid_costs import grid_costs
-from estimation.estimators.shape_starts import product_grid, valley_floors
+from estimation.estimators.shape_starts import grid_costs, product_grid, valley_floors
 from estimation.estimators.separable_least_squares import (
     FixedPart,
     LinearSolution,
@@ -257,7 +256,7 @@ class _ShapeSearch:
         return [grid[index] for index in valley_floors(grid, costs, refine)]
 
     def grid_costs(self, grid: NDArray[np.float64]) -> NDArray[np.float64]:
-        """``f`` at every grid point: one block's points batched (:func:`estimation.estimators.grid_costs.grid_costs`,
+        """``f`` at every grid point: one block's points batched (:func:`estimation.estimators.shape_starts.grid_costs`,
         equal to the linear solve's to rounding: they only choose the starts), the rest, and any point the batch
         leaves to it, by the linear solve."""
         costs = np.full(grid.shape[0], np.nan)
