@@ -67,7 +67,7 @@ def demo_setting(*, design: bool = True, periods: int = 3, harmonics: int = 300)
     robot = load_robot("puma560", joints=3)
     simulator = Simulator(robot, "viscous,coulomb,offset", noise=replace(NoiseModel(), tau_std=0.0))
     if design:
-        from oed.design import design_excitation
+        from oed.excitation import design_excitation
 
         trajectory = design_excitation(robot, model="internal", starts=2, seed=0).trajectory
     else:
@@ -127,7 +127,7 @@ def shaped_demo_setting(*, periods: int = 3, harmonics: int = DEMO_HARMONICS, en
     ``encoder_phase`` the quantisation error too: :func:`noisy_encoder`)."""
     robot = load_robot("puma560", joints=3)
     simulator = Simulator(robot, "viscous,coulomb,offset", noise=replace(NoiseModel(), tau_std=0.0))
-    from oed.design import design_excitation
+    from oed.excitation import design_excitation
 
     trajectory = design_excitation(robot, model="internal", starts=2, seed=0).trajectory
     run = simulator.run(trajectory, simulator.default_controller(bandwidth_hz=DEMO_BANDWIDTH_HZ), periods=periods,

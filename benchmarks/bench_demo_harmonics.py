@@ -16,7 +16,7 @@ from dynamics.simulation.simulator import NoiseModel, Simulator
 from estimation.identification.fit import identify
 from estimation.uncertainty.noise_floor import noise_floor, prepared_floor
 from estimation.preprocessing.differentiation import FourierDifferentiation, fill_derivatives
-from oed.design import design_excitation
+from oed.excitation import design_excitation
 
 warnings.simplefilter("ignore")
 robot = load_robot("puma560", joints=3)

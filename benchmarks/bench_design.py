@@ -13,7 +13,7 @@ saves a user end to end, not the optimiser alone. All ratios are measured in thi
 
 The design's default solver runs IPOPT for ``DesignSettings.sqp_after`` iterations and an SQP method
 from there; the same starts are also solved by IPOPT alone (``sqp_after=None``, the former default) in
-the same run, and the whole design (:func:`oed.design.design_excitation` with these starts, its build
+the same run, and the whole design (:func:`oed.excitation.design_excitation` with these starts, its build
 included) is timed end to end. For context, ``oed design`` with the same starts also runs in a new process
 (imports, model build, compile cache, starts and the JSON file), with the compile cache as it is and with an
 empty one (the first design on a machine).
@@ -41,7 +41,7 @@ import scipy.optimize
 from dynamics.robots import load_robot
 from dynamics.runtime.threads import single_threaded
 from oed.bounds import JointBounds
-from oed.design import DesignSettings, ExcitationDesign, design_excitation
+from oed.excitation import DesignSettings, ExcitationDesign, design_excitation
 
 from pinocchio_baseline import PinocchioRegressor
 

@@ -27,7 +27,7 @@ import numpy as np
 from dynamics.simulation.servo_simulator import PAPER_JOINTS, SensorModel, simulate_servo_arm
 from estimation.servo.output_error_arm import fit_servo_arm_output_error
 from estimation.servo.output_error import KalmanFusionSettings
-from oed.aprbs import APRBSDesign, design_aprbs
+from oed.aprbs_signal import APRBSDesign, design_aprbs
 
 ROOT = Path(__file__).resolve().parents[1]
 

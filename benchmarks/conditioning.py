@@ -26,7 +26,7 @@ from dynamics.robots import load_robot
 from dynamics.simulation.simulator import NoiseModel, Simulator
 from dynamics.runtime.output_files import save_figure
 from oed.bounds import PUMA_BOUNDS
-from oed.design import design_excitation
+from oed.excitation import design_excitation
 from oed.design_plot import plot_trajectory
 
 

@@ -25,7 +25,7 @@ import numpy as np
 
 from dynamics.robots import load_robot
 from dynamics.runtime.threads import single_threaded
-from oed.design import ExcitationDesign
+from oed.excitation import ExcitationDesign
 from oed.design_solver import ipopt_solver
 
 

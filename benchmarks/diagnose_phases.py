@@ -5,14 +5,17 @@ Run it as the command itself, from the repository root::
     PYTHONPATH=. python benchmarks/diagnose_phases.py diagnose --urdf kuka_lwr4.urdf --data train.csv \\
         --validate validate.csv --test test.csv --out report.json
 
-The phases (imports of the CLI and its verbs, the derivatives chosen by held-out error, the records prepared
-with them, the candidate search, the rest of the diagnosis, the test record's errors, the outputs) are timed
-by wrapping the library functions that make them; each is printed with its share of the total, so that runs on
+The options are parsed by the command line's parser and handed to the library call
+(:func:`oed.workflows.diagnose.diagnose`, what ``oed diagnose`` runs). The phases (imports of the parser and the
+library, the derivatives chosen by held-out error, the records prepared with them, the candidate search, the
+rest of the diagnosis, the test record's errors, the outputs) are timed by wrapping the library functions that
+make them; each is printed with its share of the total, so that runs on
 machines of other speeds compare (``benchmarks/README.md``, "Where the time of `oed diagnose` goes").
 """
 
 from __future__ import annotations
 
+import dataclasses
 import sys
 import time
 from collections.abc import Callable
@@ -22,7 +25,7 @@ START = (time.perf_counter(), time.process_time())
 import estimation.diagnosis.forward_selection as forward  # noqa: E402
 import estimation.identification.prepared as prepared  # noqa: E402
 import oed.cli as cli  # noqa: E402
-import oed.cli.diagnose as verb  # noqa: E402
+import oed.workflows.diagnose as verb  # noqa: E402
 
 PARSER = cli.build_parser(("diagnose",))
 IMPORTED = (time.perf_counter() - START[0], time.process_time() - START[1])
@@ -49,12 +52,16 @@ def main(argv: list[str]) -> int:
     timed(prepared, "choose_plan", "  derivatives chosen by held-out error")
     timed(verb, "prepare_records", "reading and preparation")
     timed(forward.DiagnosisSearch, "run", "  the candidate search (rounds)")
-    timed(verb, "diagnose", "diagnosis (search, statistics, tracing)")
+    timed(verb, "diagnose_model", "diagnosis (search, statistics, tracing)")
     timed(verb, "test_errors", "test record's errors")
-    timed(verb, "write_outputs", "outputs (report.json, --report)")
-    code = cli.main(argv)
+    timed(verb.DiagnoseRun, "write", "outputs (report.json, --report)")
+    args = PARSER.parse_args(argv)
+    options = {name: value for name, value in vars(args).items()
+               if name in {field.name for field in dataclasses.fields(verb.DiagnoseOptions)}}
+    verb.diagnose(**options, report=args.report is not None).write(args.out, report=args.report)
+    code = 0
     total = (time.perf_counter() - START[0], time.process_time() - START[1])
-    rows = [("imports (the CLI and the diagnose verb)", *IMPORTED)]
+    rows = [("imports (the parser and oed.workflows.diagnose)", *IMPORTED)]
     rows += [(label, wall, cpu) for label, (wall, cpu) in SPENT.items()]
     print(f"{'phase':48s} {'wall s':>8s} {'CPU s':>8s} {'CPU share':>9s}", file=sys.stderr)
     for label, wall, cpu in rows + [("total (in process)", *total)]:

@@ -19,7 +19,7 @@ from estimation.identification.identified_model import IdentifiedModel
 from estimation.identification.model_file import ModelFile, RobotSource, model_file_document
 from estimation.preprocessing.plan import Preprocessing
 from oed.bounds import JointBounds
-from oed.design import DesignSettings
+from oed.excitation import DesignSettings
 from oed.fourier import random_fourier
 from oed.sequential.next_experiment import NextExperiment, design_next
 

@@ -8,7 +8,7 @@ import numpy as np
 import scipy.signal
 
 from dynamics.runtime.output_files import save_figure
-from oed.aprbs import APRBSResult
+from oed.aprbs_signal import APRBSResult
 
 
 def plot_aprbs(result: APRBSResult, path: str | Path | None = None):

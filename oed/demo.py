@@ -32,7 +32,7 @@ from estimation.uncertainty.noise_floor import noise_floor
 from dynamics.runtime.output_files import OutputFiles, json_text
 from estimation.preprocessing.differentiation import FourierDifferentiation, fill_derivatives
 from estimation.identification.validation import plot_comparison
-from oed.design import design_excitation
+from oed.excitation import design_excitation
 from oed.design_plot import plot_trajectory
 
 UNDECLARED_EFFECTS = "viscous,coulomb,offset"

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from dynamics.robots.servo_arm import SERVO_ARM_RANGES
-from oed.aprbs import (
+from oed.aprbs_signal import (
     AmplitudeCoverage, APRBSDesign, SpectralContent, WeightedSum, design_aprbs, hold_min_from_time_constant, random_aprbs,
 )
 

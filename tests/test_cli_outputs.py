@@ -12,7 +12,7 @@ import pytest
 from dynamics.models import build_model
 from dynamics.robots import load_robot
 from oed.cli import main
-from oed.cli.shared.common import OutputFiles, atomic_output
+from dynamics.runtime.output_files import OutputFiles, atomic_output
 from oed.fourier import FourierTrajectory
 from dynamics.simulation.synthetic import simulate, true_parameters
 
@@ -142,7 +142,7 @@ def test_an_input_path_that_is_a_folder_is_called_one(tmp_path, capsys, argument
 def test_json_documents_are_strict_json_with_null_for_non_finite_numbers():
     import json
 
-    from oed.cli.shared.common import json_text
+    from dynamics.runtime.output_files import json_text
 
     text = json_text({"a": float("nan"), "b": [1.0, float("inf"), {"c": -float("inf")}], "d": (2, "x")})
     assert "NaN" not in text and "Infinity" not in text

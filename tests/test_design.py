@@ -10,7 +10,7 @@ import pytest
 
 from dynamics.robots import load_robot
 from oed.bounds import PUMA_BOUNDS
-from oed.design import DesignSettings, ExcitationDesign, design_excitation
+from oed.excitation import DesignSettings, ExcitationDesign, design_excitation
 from oed.fourier import FourierTrajectory
 
 
@@ -159,7 +159,7 @@ def test_ctrl_c_during_a_solve_ends_the_design_instead_of_one_start():
 def test_a_trajectory_scaled_onto_the_bounds_is_reported_not_passed_off_as_optimal():
     """With no margin on a coarse grid and no refinement rounds the 1 kHz check fails and the
     oscillation is scaled down: the start says so and the design warns."""
-    from oed.design import ShrunkDesignWarning
+    from oed.excitation import ShrunkDesignWarning
 
     class NoMargin(ExcitationDesign):
         grid_factor = property(lambda self: 1.0)

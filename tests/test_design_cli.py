@@ -11,7 +11,7 @@ import pytest
 from dynamics.robots import load_robot
 from oed.bounds import InfeasibleBoundsError, JointBounds
 from oed.cli import main
-from oed.design import DesignError, DesignSettings, design_excitation
+from oed.excitation import DesignError, DesignSettings, design_excitation
 
 
 def test_cli_writes_json_csv_and_figure(tmp_path):
@@ -138,7 +138,7 @@ def test_settings_that_cannot_work_are_refused_up_front(settings, message):
 
 
 def test_an_aprbs_too_long_to_hold_is_refused():
-    from oed.aprbs import APRBSDesign
+    from oed.aprbs_signal import APRBSDesign
 
     with pytest.raises(ValueError, match="1e.09 samples, more than 1e.07"):
         APRBSDesign(duration=1e7, dt=0.01)

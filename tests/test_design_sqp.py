@@ -10,7 +10,7 @@ import pytest
 
 from dynamics.robots import load_robot
 from oed.cli import main
-from oed.design import DesignSettings, ExcitationDesign, design_excitation
+from oed.excitation import DesignSettings, ExcitationDesign, design_excitation
 from oed.design_solver import sqp_solver
 
 

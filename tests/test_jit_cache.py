@@ -15,7 +15,7 @@ import oed.design_solver
 from dynamics.codegen.compiled import find_compiler
 from dynamics.codegen.jit_cache import cached_jit, jit_directory, library_path
 from dynamics.robots import load_robot
-from oed.design import DesignSettings, ExcitationDesign, design_excitation
+from oed.excitation import DesignSettings, ExcitationDesign, design_excitation
 
 needs_compiler = pytest.mark.skipif(find_compiler() is None, reason="no C compiler")
 

@@ -7,7 +7,7 @@ import pytest
 
 from dynamics.simulation.servo_simulator import simulate_servo_arm
 from dynamics.kalman import compare_fusion, kalman_fusion, kalman_step_function
-from oed.aprbs import APRBSDesign, design_aprbs
+from oed.aprbs_signal import APRBSDesign, design_aprbs
 
 
 def test_fusion_beats_accelerometer_and_integrated_gyro():

@@ -27,7 +27,7 @@ def test_check_allocation_refuses_beyond_the_limit_and_names_the_request():
 
 
 def test_design_constraint_points_capped_at_a_period_and_cost_samples_guarded():
-    from oed.design import DesignSettings
+    from oed.excitation import DesignSettings
     from oed.design_problem import ExcitationDesign
     from oed.bounds import PUMA_BOUNDS
 
@@ -61,7 +61,7 @@ def test_simulator_sample_count_guarded(monkeypatch):
 
 def test_aprbs_length_guarded(monkeypatch):
     import dynamics.runtime.memory
-    from oed.aprbs import APRBSDesign
+    from oed.aprbs_signal import APRBSDesign
 
     monkeypatch.setattr(dynamics.runtime.memory, "available_memory", lambda: 10**6)
     with pytest.raises(InsufficientMemoryError, match="an APRBS of 600"):

@@ -18,7 +18,7 @@ from estimation.identification.model_file import ModelFile
 from oed.bounds import PUMA_BOUNDS
 from oed.cli import main
 from oed.criteria import LogDet
-from oed.design import DesignSettings
+from oed.excitation import DesignSettings
 from oed.sequential.criteria import FocusedLogDet, WorstRelativeVariance, focus_names, posterior_criterion
 from oed.sequential.discrimination import check_rivals, design_discriminating
 from oed.sequential.jacobian import SequentialDesignError, model_jacobian

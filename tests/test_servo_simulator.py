@@ -49,7 +49,7 @@ def test_non_uniform_time_is_named():
 
 def test_end_to_end_linear_regime_recovers_table1_with_zoh_mapping():
     from estimation.servo.protocol import fit_servo_arm
-    from oed.aprbs import APRBSDesign, design_aprbs
+    from oed.aprbs_signal import APRBSDesign, design_aprbs
 
     design = design_aprbs(APRBSDesign(duration=60.0), seed=1)
     record = simulate_servo_arm(design.t, design.u, max_speed=1e3, gravity=False, seed=2)  # no saturation: linear

@@ -5,12 +5,18 @@ Each verb lives in its own module of this package and exposes two functions::
     register(subparsers) -> argparse.ArgumentParser   # adds the verb and its options
     run(args: argparse.Namespace) -> int               # does the work, returns the exit code
 
+A verb's ``run`` parses nothing more than argparse did: it hands the options to the verb's library function
+(:mod:`oed.workflows`: ``oed identify`` calls :func:`oed.workflows.identify.identify`, the ``oed.identify`` of
+notebooks) with the same names, writes what the returned run holds (``write``) and prints its ``summary()``
+and ``warnings``; the work, and every decision of it, is the library's. A new option is registered in the
+verb's ``register`` and becomes a field of the verb's options (``IdentifyOptions``…, or a keyword of the
+function) of the same name: :func:`oed.cli.shared.common.verb_keywords` passes it on.
+
 Verb modules do not import one another. The table of verbs (:mod:`oed.cli.shared.verbs`: name, module, summary) is
 what the top-level parser lists; a run imports the module of its own verb alone (each verb's imports are most of a
 short run's first second). What several verbs share lives in :mod:`oed.cli.shared.common` (robot, data,
-derivative and streaming options, shared checks and messages), :mod:`oed.cli.shared.asbuilt` (the robot as built) and
-:mod:`oed.cli.shared.paths`; reading and preparing the records is one library call
-(:func:`estimation.identification.prepared.prepare_records`).
+derivative and streaming options; options to keywords; printing), :mod:`oed.cli.shared.asbuilt` (the options of
+the robot as built) and :mod:`oed.cli.shared.paths` (no output over an input).
 
 Errors a user can cause (bad input files, impossible bounds, unknown robots) are raised as
 ``ValueError``/``TypeError``/``OSError`` subclasses by the library; :func:`main` turns them into

@@ -1,12 +1,14 @@
-"""``oed aprbs``: design an APRBS for the servo arm and write ``t, u1..uJ`` [rad] to CSV."""
+"""``oed aprbs``: design an APRBS for the servo arm and write ``t, u1..uJ`` [rad] to CSV
+(the work: :func:`oed.workflows.aprbs.aprbs`)."""
 
 from __future__ import annotations
 
 import argparse
 
-from dynamics.robots.servo_arm import SERVO_ARM_RANGES
-from oed.cli.shared.common import check_csv_path, seed
+from dynamics.runtime.output_files import check_figure_path
+from oed.cli.shared.common import seed
 from oed.cli.shared.verbs import verb_summary
+from oed.workflows.options import check_csv_path
 
 
 def register(subparsers) -> argparse.ArgumentParser:
@@ -26,25 +28,11 @@ def register(subparsers) -> argparse.ArgumentParser:
 
 def run(args: argparse.Namespace) -> int:
     check_csv_path(args.out)
-    from estimation.servo.files import write_csv
-    from oed.aprbs import APRBSDesign, design_aprbs
-    from oed.cli.shared.common import OutputFiles, check_figure_path
-
     check_figure_path(args.figure)
+    from oed.workflows.aprbs import aprbs
 
-    if not 1 <= args.joints <= len(SERVO_ARM_RANGES):
-        raise ValueError(f"--joints must be between 1 and {len(SERVO_ARM_RANGES)}, got {args.joints}")
-    design = APRBSDesign(
-        ranges=SERVO_ARM_RANGES[: args.joints], duration=args.duration, dt=args.dt, hold_min=args.hold_min,
-        hold_max=args.hold_max, n_levels=args.levels,
-    )
-    result = design_aprbs(design, candidates=args.candidates, seed=args.seed)
-    with OutputFiles() as outputs:  # the CSV and the figure, or neither
-        write_csv(outputs.stage(args.out), {"t": result.t, **{f"u{j + 1}": result.u[:, j] for j in range(args.joints)}})
-        if args.figure:
-            from oed.aprbs_figures import plot_aprbs
-
-            plot_aprbs(result, outputs.stage_figure(args.figure))
-    print(f"wrote {args.out}: {result.t.size} samples x {args.joints} joints, criterion {result.score:.4f} "
-          f"(best of {len(result.candidate_scores)}, worst {min(result.candidate_scores):.4f})")
+    result = aprbs(joints=args.joints, duration=args.duration, dt=args.dt, hold_min=args.hold_min,
+                   hold_max=args.hold_max, levels=args.levels, candidates=args.candidates, seed=args.seed)
+    result.write(args.out, figure=args.figure)
+    print(f"wrote {args.out}: {result.summary()[0]}")
     return 0

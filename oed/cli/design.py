@@ -1,35 +1,24 @@
-"""``oed design``: optimal Fourier excitation trajectory (PUMA paper, section IV.A)."""
+"""``oed design``: optimal Fourier excitation trajectory (PUMA paper, section IV.A), or with ``--from`` the next
+experiment for an identified model (the work: :func:`oed.workflows.design.design`)."""
 
 from __future__ import annotations
 
 import argparse
 import sys
-import warnings
-from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
-import numpy as np
-
 from dynamics.models import ModelKind
-from estimation.streaming.cluster import SCHEDULER_VARIABLE, connect, scheduler_address
-from oed.cli.shared.common import (
-    OutputFiles,
-    add_robot_arguments,
-    check_csv_path,
-    check_figure_path,
-    check_json_path,
-    json_text,
-    robot_from_arguments,
-    seed,
-)
-from oed.cli.shared.options import check_hertz, handover, sqp_after
-from oed.cli.design_sequential import add_sequential_arguments, run_sequential, sequential_requested
+from dynamics.runtime.output_files import check_figure_path
+from estimation.streaming.cluster import SCHEDULER_VARIABLE
+from oed.cli.shared.common import add_robot_arguments, print_lines, print_warnings, seed, verb_keywords
+from oed.cli.shared.options import sqp_after
+from oed.cli.shared.verbs import verb_summary
 from oed.criteria import CRITERIA
-from oed.cli.shared.design_bounds import bounds_from_arguments
-from oed.design import DesignSettings, ShrunkDesignWarning, design_excitation
+from oed.excitation import DesignSettings
 from oed.sequential.criteria import SEQUENTIAL_CRITERIA
 from oed.sequential.problem import SEQUENTIAL_MAX_ITER
-from oed.cli.shared.verbs import verb_summary
+from oed.workflows.design import DesignOptions, design
+from oed.workflows.options import check_csv_path, check_json_path
 
 
 def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -71,79 +60,41 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     return parser
 
 
-def trajectory_table(trajectory, rate_hz: float = 1000.0) -> tuple[list[str], np.ndarray]:
-    """Columns ``t, q1..qn, dq1..dqn, ddq1..ddqn`` and the samples of one period."""
-    t, q, dq, ddq = trajectory.sample(rate_hz)
-    n = trajectory.n_joints
-    header = ["t"] + [f"{state}{i}" for state in ("q", "dq", "ddq") for i in range(1, n + 1)]
-    return header, np.column_stack([t, q, dq, ddq])
+def add_sequential_arguments(parser: argparse.ArgumentParser) -> None:
+    group = parser.add_argument_group("the next experiment (sequential design)")
+    group.add_argument("--from", dest="from_model", type=Path,
+                       help="design the next experiment for the model of this result.json or report.json")
+    group.add_argument("--data", type=Path, action="append", default=None,
+                       help="a record of the experiments already run (repeatable): their information is the prior")
+    group.add_argument("--focus", help="parameters (fs2,vs2) or effects (stribeck) the design is for (by default it "
+                                       "minimises their largest relative variance, see --criterion); default: every "
+                                       "parameter (D-optimality)")
+    group.add_argument("--periods", type=float, help="length of the new experiment in periods (default: as long as "
+                                                     "the records)")
+    group.add_argument("--discriminate", action="store_true",
+                       help="design the experiment that best tells the model apart from its rival (T-optimality): "
+                            "the runner-up the --from report.json of `oed diagnose` kept, or --rival FILE")
+    group.add_argument("--rival", type=Path, help="the rival model (result.json or report.json) for --discriminate, "
+                                                  "instead of the --from report's runner-up")
 
 
 def run(args: argparse.Namespace) -> int:
-    if sequential_requested(args):
-        return run_sequential(args)
-    args.model = args.model or "combined"
-    args.criterion = args.criterion or "logdet"
-    args.friction = args.friction or "viscous"
-    args.max_iter = 500 if args.max_iter is None else args.max_iter
-    check_hertz(args, "frequency")
     check_figure_path(args.plot)
     check_json_path(args.out)
-    if args.csv is not None:
+    if args.csv is not None and args.from_model is None:
         check_csv_path(args.csv, "--csv")
-    robot = robot_from_arguments(args)
-    bounds = bounds_from_arguments(args, robot)
-    settings = DesignSettings(
-        frequency_hz=args.frequency, harmonics=args.harmonics, cost_samples=args.samples,
-        constraint_points=args.constraint_points, max_iter=args.max_iter, verbose=args.verbose,
-        sqp_after=handover(args, DesignSettings.sqp_after),
-    )
-    if args.starts < 1:
-        raise ValueError(f"--starts must be at least 1, got {args.starts}")
-    if args.workers < 0:
-        raise ValueError(f"--workers must be 0 (run the starts in turn) or a pool size, got {args.workers}")
-
-    def progress(start, total) -> None:
-        if not args.quiet:
-            print(f"start {start.index + 1}/{total}: {start.status}, {start.iterations} iterations, "
-                  f"{start.time_s:.2f} s, cost {start.cost:.4f}" + ("" if start.feasible else " (bounds not met)"),
-                  file=sys.stderr, flush=True)
-
-    options = dict(model=args.model, bounds=bounds, criterion=args.criterion, effects=args.friction,
-                   starts=args.starts, seed=args.seed, settings=settings, progress=progress)
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always", ShrunkDesignWarning)
-        address = scheduler_address(args.scheduler)
-        if address is not None and args.workers > 0:
-            raise ValueError("give --scheduler (a dask cluster) or --workers (a local pool), not both")
-        if address is not None:
-            with connect(address) as executor:
-                result = design_excitation(robot, executor=executor, **options)
-        elif args.workers > 0:
-            with ProcessPoolExecutor(args.workers) as executor:
-                result = design_excitation(robot, executor=executor, **options)
-        else:
-            result = design_excitation(robot, **options)
-    for warning in caught:
-        print(f"oed design: warning: {warning.message}", file=sys.stderr)
-    trajectory = result.trajectory
-    # the files are staged and renamed into place together: a failure leaves none of them
-    with OutputFiles() as outputs:
-        with outputs.open(args.out) as stream:
-            stream.write(json_text(trajectory.to_dict()))
-        if args.csv is not None:
-            header, table = trajectory_table(trajectory, settings.rate_hz)
-            with outputs.open(args.csv) as stream:
-                np.savetxt(stream, table, delimiter=",", header=",".join(header), comments="", fmt="%.10g")
-        if args.plot is not None:
-            from dynamics.runtime.output_files import save_figure
-            from oed.design_plot import plot_trajectory
-
-            figure = plot_trajectory(trajectory, bounds, rate_hz=settings.rate_hz,
-                                     title=f"{robot.name}, {args.model} model, cost {result.cost:.2f}")
-            save_figure(figure, outputs.stage_figure(args.plot))
+    result = design(say=None if args.quiet else stderr_say_plain(),
+                    **verb_keywords(args, DesignOptions, csv=args.csv is not None))
+    print_warnings("design", result.warnings)
+    result.write(args.out, csv=args.csv, plot=args.plot)
     if not args.quiet:
-        print(f"{robot.name}, {args.model} model, {args.criterion}: best start {result.best + 1}/{len(result.starts)}, "
-              f"cost -log det(Y'Y) = {result.cost:.4f}, cond = {result.cond:.2f}, "
-              f"{result.total_time_s:.2f} s -> {args.out}", file=sys.stderr)
+        lines = result.summary()
+        print_lines([*lines[:-1], f"{lines[-1]} -> {args.out}"], file=sys.stderr)
     return 0
+
+
+def stderr_say_plain():
+    """Each start's line on stderr as it ends, flushed."""
+    def say(line: str) -> None:
+        print(line, file=sys.stderr, flush=True)
+    return say

@@ -1,15 +1,15 @@
-"""``oed export``: a physically consistent identified model as a URDF (and friction.json) for other tools."""
+"""``oed export``: a physically consistent identified model as a URDF (and friction.json) for other tools
+(the work: :func:`oed.workflows.export.export`)."""
 
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 
-from estimation.identification.export import exported_urdf, friction_document, implausible_links
-from estimation.identification.identified_model import IdentifiedModel
-from oed.cli.shared.common import OutputFiles, check_json_path, json_text
+from oed.cli.shared.common import print_lines, print_warnings
 from oed.cli.shared.verbs import verb_summary
+from oed.workflows.export import export
+from oed.workflows.options import check_json_path
 
 
 def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -49,24 +49,9 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError(f"--urdf {args.urdf_out}: give a .urdf file name")
     if args.friction_out is not None:
         check_json_path(args.friction_out, "--friction")
-    model = IdentifiedModel.load(args.model)  # exported_urdf refuses a model without a consistent estimate
-    text = exported_urdf(model)
-    findings = implausible_links(model)
-    if findings and not args.allow_implausible:
-        raise ValueError("not exported: the consistent estimate holds bodies that are not plausible:\n  "
-                         + "\n  ".join(findings) + "\nidentify again with a prior (--prior-weight, the default with "
-                         "--validate chooses it) or link bounds (--link-bounds), or export them anyway with "
-                         "--allow-implausible")
-    friction = friction_document(model) if args.friction_out is not None else None
-    with OutputFiles() as outputs:  # all files or none
-        with outputs.open(args.urdf_out) as stream:
-            stream.write(text)
-        if friction is not None:
-            with outputs.open(args.friction_out) as stream:
-                stream.write(json_text(friction))
-    for message in findings:
-        print(f"oed export: warning: exported as asked (--allow-implausible), not plausible: {message}", file=sys.stderr)
-    masses = ", ".join(f"{link[0]:.4g}" for link in model.file.consistent_links)
-    print(f"{model.robot.name}: {model.robot.n_joints} bodies of the consistent estimate (masses {masses} kg)")
+    result = export(model=args.model, allow_implausible=args.allow_implausible)
+    result.write(args.urdf_out, friction=args.friction_out)
+    print_warnings("export", result.warnings)
+    print_lines(result.summary())
     print("wrote " + " and ".join(str(path) for path in (args.urdf_out, args.friction_out) if path is not None))
     return 0

@@ -1,12 +1,14 @@
-"""``oed model``: the base parameters of the internal, external and combined models of a robot."""
+"""``oed model``: the base parameters of the internal, external and combined models of a robot
+(the work: :func:`oed.workflows.model.model`)."""
 
 from __future__ import annotations
 
 import argparse
 
-from dynamics.models import ModelKind, build_model
-from oed.cli.shared.common import add_robot_arguments, json_text, robot_from_arguments
+from dynamics.runtime.output_files import json_text
+from oed.cli.shared.common import add_robot_arguments, print_lines
 from oed.cli.shared.verbs import verb_summary
+from oed.workflows.model import model
 
 
 def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -27,33 +29,10 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     return parser
 
 
-def summary(robot, effects: str) -> dict[str, dict]:
-    """The ``--json`` document: per model ``n_base`` and ``parameters`` ``[{name, expression}]``."""
-    document = {}
-    for kind in ModelKind:
-        model = build_model(robot, kind, effects)
-        document[kind.value] = {
-            "n_base": model.n_base,
-            "channels": list(model.channels),
-            "parameters": [
-                {"name": name, "expression": expression}
-                for name, expression in zip(model.base.names, model.base.expressions)
-            ],
-            "unidentifiable": list(model.base.unidentifiable),
-        }
-    return document
-
-
 def run(args: argparse.Namespace) -> int:
-    robot = robot_from_arguments(args)
-    document = summary(robot, args.friction)
+    result = model(friction=args.friction, robot=args.robot, urdf=args.urdf, joints=args.joints)
     if args.json:
-        print(json_text(document), end="")
+        print(json_text(result.to_dict()), end="")
         return 0
-    print(f"{robot.name}: {robot.n_joints} joints ({', '.join(robot.joint_names)}), effects: {args.friction}")
-    for kind, entry in document.items():
-        print(f"\n{kind} model: {entry['n_base']} base parameters (rows: {' '.join(entry['channels'])})")
-        width = max(len(parameter["name"]) for parameter in entry["parameters"])
-        for index, parameter in enumerate(entry["parameters"], start=1):
-            print(f"  {index:3d}  {parameter['name']:<{width}}  = {parameter['expression']}")
+    print_lines(result.summary())
     return 0

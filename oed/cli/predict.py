@@ -1,18 +1,15 @@
-"""``oed predict``: an identified model (result.json or report.json) applied to another record."""
+"""``oed predict``: an identified model (result.json or report.json) applied to another record
+(the work: :func:`oed.workflows.predict.predict`)."""
 
 from __future__ import annotations
 
 import argparse
-import sys
-import warnings
 from pathlib import Path
 
-import pandas as pd
-
-from estimation.identification.identified_model import IdentifiedModel
-from estimation.identification.trivial_predictors import trivial_warnings
-from oed.cli.shared.common import OutputFiles, check_csv_path, check_json_path, json_text
+from oed.cli.shared.common import print_lines, print_warnings
 from oed.cli.shared.verbs import verb_summary
+from oed.workflows.options import check_csv_path, check_json_path
+from oed.workflows.predict import predict
 
 
 def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -55,38 +52,11 @@ def run(args: argparse.Namespace) -> int:
         check_csv_path(args.out)
     if args.metrics is not None:
         check_json_path(args.metrics, "--metrics")
-    model = IdentifiedModel.load(args.model, estimate="consistent" if args.consistent else "unconstrained")
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        evaluation = model.evaluate(args.data)
-    prediction = evaluation.prediction
-    notes = trivial_warnings(prediction.mse, {"zero_mse": evaluation.zero_mse, "nominal_mse": evaluation.nominal_mse},
-                             label="model")
-    for message in dict.fromkeys([str(warning.message) for warning in caught] + list(notes)):
-        print(f"oed predict: warning: {message}", file=sys.stderr)
-    with OutputFiles() as outputs:  # all files or none
-        if args.out is not None:
-            with outputs.open(args.out) as stream:
-                pd.DataFrame(prediction.columns()).to_csv(stream, index=False)
-        if args.metrics is not None:
-            with outputs.open(args.metrics) as stream:
-                stream.write(json_text(evaluation.to_dict()))
-    print(f"{model.robot.name}: {model.file.model} model ({model.file.effects}" + (", consistent" if args.consistent else "")
-          + (f", delay {1e3 * model.file.delay:.3g} ms" if model.file.delay is not None else "")
-          + f"), {prediction.t.shape[0]} samples; {model.preprocessing.describe().removeprefix('preprocessing: ')}")
-    print_table(evaluation)
+    result = predict(model=args.model, data=args.data, consistent=args.consistent)
+    print_warnings("predict", result.warnings)
+    result.write(out=args.out, metrics=args.metrics)
+    print_lines(result.summary())
     written = [str(path) for path in (args.out, args.metrics) if path is not None]
     if written:
         print("wrote " + " and ".join(written))
     return 0
-
-
-def print_table(evaluation) -> None:
-    """MSE per channel against the record as recorded, beside the yardsticks."""
-    mse = evaluation.prediction.mse
-    rows = [("model", mse), ("zero", evaluation.zero_mse), ("nominal", evaluation.nominal_mse)]
-    if evaluation.floor_mse is not None:
-        rows.append(("noise floor", evaluation.floor_mse))
-    print("MSE vs recorded   " + "  ".join(f"{channel:>10s}" for channel in mse))
-    for label, values in rows:
-        print(f"  {label:<16s}" + "  ".join(f"{values[channel]:10.4g}" for channel in mse))

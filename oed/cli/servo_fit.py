@@ -1,9 +1,11 @@
-"""``oed servo-fit``: identify the servo arm's joints (eq. 14, gray-box b, k, σ) and write the metrics as JSON."""
+"""``oed servo-fit``: identify the servo arm's joints (eq. 14, gray-box b, k, σ) and write the metrics as JSON
+(the work: :func:`oed.workflows.servo_fit.servo_fit`)."""
 
 from __future__ import annotations
 
 import argparse
-import sys
+
+from oed.cli.shared.common import print_lines, print_warnings
 from oed.cli.shared.verbs import verb_summary
 
 
@@ -34,82 +36,14 @@ def register(subparsers) -> argparse.ArgumentParser:
     return parser
 
 
-def _masses(text: str | None, n_joints: int) -> tuple[float, ...] | None:
-    from dynamics.robots.servo_arm import SERVO_ARM_MASSES
-
-    if text is None:
-        return SERVO_ARM_MASSES if n_joints == len(SERVO_ARM_MASSES) else None
-    try:
-        masses = tuple(float(v) for v in text.split(","))
-    except ValueError:
-        raise ValueError(f"--mass must be comma-separated numbers, got {text!r}") from None
-    if len(masses) != n_joints:
-        raise ValueError(f"--mass gives {len(masses)} masses for {n_joints} joints")
-    if any(not (m > 0 and m < float("inf")) for m in masses):
-        raise ValueError(f"--mass values must be positive, got {text!r}")
-    return masses
-
-
-def _positive(value: float, option: str) -> float:
-    if not (value > 0 and value < float("inf")):
-        raise ValueError(f"{option} must be positive and finite, got {value!r}")
-    return value
-
-
-def _kalman_q(text: str) -> tuple[float, float]:
-    try:
-        values = tuple(float(v) for v in text.split(","))
-    except ValueError:
-        raise ValueError(f"--kalman-q must be two comma-separated numbers, got {text!r}") from None
-    if len(values) != 2 or not all(0 <= v < float("inf") for v in values):
-        raise ValueError(f"--kalman-q must be two non-negative numbers (angle, bias), got {text!r}")
-    return values  # type: ignore[return-value]
-
-
 def run(args: argparse.Namespace) -> int:
-    import numpy as np
+    from oed.workflows.servo_fit import servo_fit
 
-    from estimation.data.loading import DEGREES_THRESHOLD, AngleUnitError
-    from estimation.servo.protocol import fit_servo_arm
-    from estimation.servo.files import read_csv, write_text_atomic
-    from estimation.servo.free_run_check import check_free_run
-    from oed.cli.shared.common import json_text
-
-    table = read_csv(args.data, required=("t", "u1", "q1"), dt=args.dt)
-    u, q = table.stack("u"), table.stack("q")
-    if u.shape != q.shape:
-        raise ValueError(f"{args.data}: {u.shape[1]} input columns u* but {q.shape[1]} angle columns q*")
-    peak = np.abs(q).max(axis=0)
-    if np.any(peak > DEGREES_THRESHOLD):
-        joint = int(np.argmax(peak > DEGREES_THRESHOLD))
-        raise AngleUnitError(f"{args.data}: column q{joint + 1} reaches {peak[joint]:.4g}, beyond ±2π rad: the angles "
-                             "look like degrees (the format is SI: convert with numpy.deg2rad)")
-    if args.method == "oe":
-        from estimation.servo.output_error_arm import fit_servo_arm_output_error
-        from estimation.servo.output_error import KalmanFusionSettings
-
-        fusion = None if args.fusion == "none" else KalmanFusionSettings(q=_kalman_q(args.kalman_q), r=_positive(args.kalman_r, "--kalman-r"))
-        fit = fit_servo_arm_output_error(
-            table.t, u, q, masses=_masses(args.mass, u.shape[1]), estimation_fraction=args.estimation_fraction,
-            delay=args.delay, max_delay=args.max_delay, nc=args.nc, forgetting=args.forgetting, dt=table.dt,
-            discretisation=args.discretisation, fusion=fusion,
-        )
-    else:
-        fit = fit_servo_arm(
-            table.t, u, q, masses=_masses(args.mass, u.shape[1]), method=args.method, estimation_fraction=args.estimation_fraction,
-            nc=args.nc, forgetting=args.forgetting, dt=table.dt, discretisation=args.discretisation,
-        )
-    document = fit.to_dict()
-    notes = []
-    for key, entry in document["joints"].items():
-        check = check_free_run(int(key), q[int(entry["n_estimation"]):, int(key) - 1], entry["rmse_free_run"],
-                               entry["rmse"])
-        entry["free_run_check"] = check.to_dict()
-        if check.warning() is not None:
-            notes.append(check.warning())
-    document["warnings"] = notes
-    write_text_atomic(args.out, json_text(document))
-    for note in notes:
-        print(f"oed servo-fit: warning: {note}", file=sys.stderr)
-    print(fit.table())
+    result = servo_fit(data=args.data, dt=args.dt, mass=args.mass, method=args.method, delay=args.delay,
+                       max_delay=args.max_delay, fusion=args.fusion, kalman_q=args.kalman_q, kalman_r=args.kalman_r,
+                       nc=args.nc, forgetting=args.forgetting, estimation_fraction=args.estimation_fraction,
+                       discretisation=args.discretisation)
+    result.write(args.out)
+    print_warnings("servo-fit", result.warnings)
+    print_lines(result.summary())
     return 0

@@ -1,11 +1,13 @@
-"""``oed servo-simulate``: drive the simulated servo arm with an APRBS CSV; write ``t, u1..uJ, q1..qJ``."""
+"""``oed servo-simulate``: drive the simulated servo arm with an APRBS CSV; write ``t, u1..uJ, q1..qJ``
+(the work: :func:`oed.workflows.servo_simulate.servo_simulate`)."""
 
 from __future__ import annotations
 
 import argparse
 
-from oed.cli.shared.common import check_csv_path, seed
+from oed.cli.shared.common import seed
 from oed.cli.shared.verbs import verb_summary
+from oed.workflows.options import check_csv_path
 
 
 def register(subparsers) -> argparse.ArgumentParser:
@@ -21,19 +23,10 @@ def register(subparsers) -> argparse.ArgumentParser:
 
 def run(args: argparse.Namespace) -> int:
     check_csv_path(args.out)
-    from dynamics.simulation.servo_simulator import PAPER_JOINTS, simulate_servo_arm
-    from estimation.servo.files import read_csv, write_csv
+    from oed.workflows.servo_simulate import servo_simulate
 
-    table = read_csv(args.aprbs, required=("t", "u1"))
-    u = table.stack("u")
-    if u.shape[1] != len(PAPER_JOINTS):
-        raise ValueError(f"{args.aprbs}: the servo arm has {len(PAPER_JOINTS)} joints, found columns u1..u{u.shape[1]}")
-    record = simulate_servo_arm(table.t, u, gravity=not args.no_gravity, max_speed=args.max_speed, seed=args.seed)
-    n = u.shape[1]
-    columns = {"t": record.t, **{f"u{j + 1}": record.u[:, j] for j in range(n)}, **{f"q{j + 1}": record.q[:, j] for j in range(n)}}
-    if args.raw:
-        for name, values in (("gyro", record.gyro), ("acc_angle", record.acc_angle), ("q_true", record.q_true)):
-            columns.update({f"{name}{j + 1}": values[:, j] for j in range(n)})
-    write_csv(args.out, columns)
-    print(f"wrote {args.out}: {record.t.size} samples, columns {', '.join(columns)}")
+    result = servo_simulate(aprbs=args.aprbs, raw=args.raw, no_gravity=args.no_gravity, max_speed=args.max_speed,
+                            seed=args.seed)
+    result.write(args.out)
+    print(f"wrote {args.out}: {result.summary()[0]}")
     return 0

@@ -32,7 +32,7 @@ from dynamics.measurements import Measurements
 from estimation.identification.identified_model import IdentifiedModel
 from oed.bounds import JointBounds
 from oed.criteria import Criterion
-from oed.design import DesignResult, DesignSettings, design_excitation
+from oed.excitation import DesignResult, DesignSettings, design_excitation
 from oed.design_problem import ExcitationDesign, StartResult
 from oed.design_solver import jit_options
 from oed.fourier import unpack

@@ -25,7 +25,7 @@ from numpy.typing import NDArray
 from dynamics.measurements import Measurements
 from estimation.identification.identified_model import IdentifiedModel
 from oed.bounds import JointBounds
-from oed.design import DesignResult, DesignSettings, design_excitation
+from oed.excitation import DesignResult, DesignSettings, design_excitation
 from oed.design_problem import StartResult
 from oed.sequential.criteria import SequentialCriterionName, focus_names, posterior_criterion
 from oed.sequential.jacobian import ModelJacobian, SequentialDesignError, model_jacobian
@@ -130,7 +130,7 @@ def design_next(model: IdentifiedModel, records: Measurements, *, bounds: JointB
     records
         The experiments already run, prepared (:func:`oed.sequential.prior.read_records`).
     bounds, settings, starts, seed, progress
-        As :func:`oed.design.design_excitation`.
+        As :func:`oed.excitation.design_excitation`.
     focus
         Parameter or effect names (:func:`oed.sequential.criteria.focus_names`); ``None``: every parameter.
     criterion

@@ -1,7 +1,5 @@
-"""The robot as built, for ``oed identify`` and ``oed diagnose``: transmission, motor-side data,
-per-joint and motor-side effects, rest segments, trivial predictors, the model's parameter vector.
-
-Options (both verbs)::
+"""The options of the robot as built, for ``oed identify`` and ``oed diagnose`` (what they do:
+:mod:`oed.workflows.asbuilt`)::
 
     --transmission FILE     JSON transmission (dynamics.transmission.transmission_from_json); default:
                             the URDF's <transmission> elements, or the built-in robot's (PUMA 560)
@@ -12,26 +10,6 @@ Options (both verbs)::
 from __future__ import annotations
 
 import argparse
-from typing import Any
-
-from dynamics.effects.specs import build_effects
-from dynamics.measurements import Measurements
-from dynamics.robot import RobotModel
-from dynamics.robots import load_robot
-from dynamics.simulation.joint_effects import is_puma560
-from dynamics.transmission import (
-    CouplingShapeError,
-    Transmission,
-    TransmissionError,
-    UnknownJointError,
-    puma560_transmission,
-)
-from dynamics.transmission_files import transmission_from_json, transmission_from_urdf
-from estimation.data.rest import check_min_speed, smooth_coulomb
-from estimation.identification.fit import IdentificationResult
-from estimation.identification.model_parameters import model_parameters
-from estimation.identification.trivial_predictors import trivial_mse, trivial_warnings
-from estimation.identification.prepared import PreparedRecords
 
 
 def add_asbuilt_arguments(parser: argparse.ArgumentParser) -> None:
@@ -42,92 +20,3 @@ def add_asbuilt_arguments(parser: argparse.ArgumentParser) -> None:
                        "this (rad/s or m/s) are at rest: dropped, or the Coulomb law smoothed (--rest)")
     group.add_argument("--rest", choices=("drop", "smooth"), default="drop",
                        help="with --min-speed: drop the rows at rest (default) or smooth Coulomb to tanh(v / V)")
-
-
-def resolve_transmission(args: argparse.Namespace, robot: RobotModel) -> Transmission | None:
-    """``--transmission FILE``, else the URDF's, else the built-in robot's, else ``None``.
-
-    With ``--joints N`` the transmission is read for the whole robot, then cut to its first ``N``
-    motors (refused when one of them turns with a joint left out).
-    """
-    full = robot
-    if getattr(args, "joints", None) is not None and (getattr(args, "transmission", None) or args.urdf is not None):
-        full = load_robot(args.robot, urdf=args.urdf)
-    if getattr(args, "transmission", None):
-        try:  # a file for the joints kept, or for the whole robot
-            transmission = transmission_from_json(args.transmission, robot)
-        except (CouplingShapeError, UnknownJointError) as error:
-            if full is robot:
-                raise
-            try:
-                transmission = transmission_from_json(args.transmission, full)
-            except TransmissionError:
-                raise error from None
-    elif getattr(args, "urdf", None) is not None:
-        transmission = transmission_from_urdf(args.urdf, full)
-    elif is_puma560(robot):
-        transmission = puma560_transmission(robot.n_joints)
-    else:
-        transmission = None
-    return None if transmission is None else transmission.truncated(robot.n_joints).check(robot)
-
-
-def model_effects(args: argparse.Namespace, robot: RobotModel, transmission: Transmission | None) -> tuple[Any, ...]:
-    """``--friction`` with per-joint, motor-side and combination items; smoothed with ``--rest smooth``."""
-    effects = build_effects(args.friction, robot, transmission)
-    if args.min_speed is not None:
-        check_min_speed(args.min_speed)
-        if args.rest == "smooth":
-            effects = smooth_coulomb(effects, args.min_speed)
-    return effects
-
-
-def rest_records(records: PreparedRecords) -> dict[str, dict | None]:
-    """What was dropped as at rest (``--min-speed`` with ``--rest drop``) from the training and validation records."""
-    return {label: None if record is None or record.rest is None else record.rest.to_dict()
-            for label, record in (("train", records.train), ("validation", records.validation))}
-
-
-def rest_message(verb: str, records: dict[str, dict | None]) -> str | None:
-    """How many rows at rest were dropped from each record, or ``None`` when none were."""
-    parts = [f"{label} {record['dropped']} of {record['total']}" for label, record in records.items() if record]
-    if not parts:
-        return None
-    speed = next(record["min_speed"] for record in records.values() if record)
-    return f"rows at rest (slower than {speed:g}) dropped: " + ", ".join(parts)
-
-
-def trivial_predictors(result: IdentificationResult, validate: Measurements | None) -> tuple[dict | None, tuple[str, ...]]:
-    """Per-channel zero and nominal validation MSE of ``result``'s model, and the warnings."""
-    if validate is None or result.validation is None:
-        return None, ()
-    trivial = trivial_mse(result.model, validate)
-    return trivial, trivial_warnings(result.validation.mse, trivial)
-
-
-def finish_document(document: dict[str, Any], result: IdentificationResult, *, trivial: dict | None,
-                    warnings: tuple[str, ...], rest: dict[str, dict | None], transmission: Transmission | None,
-                    warnings_key: tuple[str, ...] = ("warnings",)) -> dict[str, Any]:
-    """Add the new keys: ``validation.zero_mse``, ``validation.nominal_mse``, ``model_parameters``,
-    ``rest``, ``transmission``; append the trivial-predictor warnings."""
-    validation = document.get("validation")
-    if trivial is not None and isinstance(validation, dict):
-        validation.update({key: dict(value) for key, value in trivial.items()})
-    document["model_parameters"] = model_parameters(result, transmission)
-    document["rest"] = {label: record for label, record in rest.items() if record} or None
-    document["transmission"] = None if transmission is None else {**transmission.to_dict(), "source": transmission.source}
-    target = document
-    for key in warnings_key[:-1]:
-        target = target[key]
-    target[warnings_key[-1]] = list(target.get(warnings_key[-1], [])) + list(warnings)
-    return document
-
-
-def worse_after(diagnosis: Any) -> tuple[str, ...]:
-    """Channels whose validation MSE the diagnosis raised by more than 1 % (an added effect that
-    helps the total but harms one channel)."""
-    before = diagnosis.before.validation.mse if diagnosis.before.validation else {}
-    after = diagnosis.after.validation.mse if diagnosis.after.validation else {}
-    return tuple(f"{channel}: the diagnosis raised its validation MSE from {before[channel]:.4g} to {after[channel]:.4g} "
-                 f"({100 * (after[channel] / before[channel] - 1):.0f} % worse)"
-                 for channel in before if channel in after and before[channel] > 0 and after[channel] > 1.01 * before[channel])

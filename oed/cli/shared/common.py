@@ -1,50 +1,25 @@
 """Options shared by the verbs: which robot; the records, their derivatives and the streamed path (``oed identify``
-and ``oed diagnose``); the checks and messages those verbs share; the output-file helpers, re-exported for the verbs."""
+and ``oed diagnose``); and how a verb hands its options to its library function (:func:`verb_keywords`) and prints
+what it returns (:func:`print_warnings`, :func:`stderr_say`)."""
 
 from __future__ import annotations
 
 import argparse
-import contextlib
+import dataclasses
 import sys
-import warnings
-from collections.abc import Iterable, Iterator
-from concurrent.futures import Executor, ProcessPoolExecutor
+from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import Any
 
-from dynamics.effects.linear import parse_effects
-from dynamics.effects.shaped import is_shaped
-from dynamics.models import IdentificationModel
-from dynamics.robot import RobotModel
-from dynamics.robots import BUILT_IN_ROBOTS, load_robot
-from dynamics.runtime.output_files import (
-    OutputFiles,
-    atomic_output,
-    check_figure_path,
-    json_text,
-)
-from dynamics.transmission import Transmission
+from dynamics.robots import BUILT_IN_ROBOTS
 from estimation.data.log_cleaning import DEFAULT_MAX_GAP
-from estimation.estimators.effect_blocks import NoRowsError
 from estimation.estimators.normal_equations import DEFAULT_CHUNK_SIZE
-from estimation.preprocessing.differentiation import (
-    ButterworthDifferentiation,
-    Differentiation,
-    FourierDifferentiation,
-)
-from estimation.identification.prepared import InMemoryBudget, PreparationSettings
-from estimation.streaming.cluster import SCHEDULER_VARIABLE, connect, scheduler_address
-from oed.cli.shared.options import check_hertz
+from estimation.streaming.cluster import SCHEDULER_VARIABLE
 
 __all__ = [
-    "OutputFiles", "add_data_arguments", "add_derivative_arguments", "add_jobs_argument", "add_robot_arguments", "add_streaming_arguments",
-    "atomic_output", "check_csv_path", "check_figure_path", "check_json_path", "check_shaped_effects_kept",
-    "differentiation", "executor_from_arguments", "json_text", "model_has_shapes", "preparation_settings",
-    "print_warnings", "robot_from_arguments", "seed", "streaming_requested",
+    "add_data_arguments", "add_derivative_arguments", "add_jobs_argument", "add_robot_arguments",
+    "add_streaming_arguments", "print_lines", "print_warnings", "seed", "stderr_say", "verb_keywords",
 ]
-
-#: suffixes that promise another format than the CSV a verb writes
-NOT_CSV_SUFFIXES = frozenset({".json", ".parquet", ".png", ".pdf", ".svg", ".npz", ".npy", ".mat", ".xlsx", ".md"})
 
 
 def add_robot_arguments(parser: argparse.ArgumentParser, *, default: str | None = "puma560") -> None:
@@ -66,23 +41,6 @@ def seed(text: str) -> int:
     if value < 0:
         raise argparse.ArgumentTypeError(f"must be a non-negative integer, got {value}")
     return value
-
-
-def check_csv_path(path: str | Path, option: str = "--out") -> None:
-    """Refuse, before any work, a CSV output named like another format (``--out u.json``)."""
-    if Path(path).suffix.lower() in NOT_CSV_SUFFIXES:
-        raise ValueError(f"{option} {path}: this verb writes CSV; give a .csv file name")
-
-
-def check_json_path(path: str | Path, option: str = "--out") -> None:
-    """Refuse, before any work, a JSON output named like another format (``--out t.csv``)."""
-    suffix = Path(path).suffix.lower()
-    if suffix in NOT_CSV_SUFFIXES - {".json"} or suffix == ".csv":
-        raise ValueError(f"{option} {path}: this writes JSON; give a .json file name")
-
-
-def robot_from_arguments(args: argparse.Namespace) -> RobotModel:
-    return load_robot(args.robot, urdf=args.urdf, joints=args.joints)
 
 
 def add_data_arguments(parser: argparse.ArgumentParser, *, validate_required: bool) -> None:
@@ -155,66 +113,29 @@ def add_streaming_arguments(parser: argparse.ArgumentParser) -> None:
     streaming.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
 
 
-def streaming_requested(args: argparse.Namespace) -> bool:
-    """Whether ``--chunk-size``, ``--workers`` or a scheduler (``--scheduler``, ``$ROBOT_OED_SCHEDULER``) asks for the
-    streamed path."""
-    return args.chunk_size is not None or args.workers > 0 or scheduler_address(args.scheduler) is not None
+def verb_keywords(args: argparse.Namespace, options: type, **overrides: Any) -> dict[str, Any]:
+    """The keywords of a verb's library function: the parsed options whose names are fields of the dataclass
+    ``options`` (:class:`oed.workflows.options.RecordOptions` and its kin), with ``overrides``."""
+    names = {field.name for field in dataclasses.fields(options)}
+    keywords = {name: value for name, value in vars(args).items() if name in names}
+    keywords.update(overrides)
+    return keywords
 
 
-@contextlib.contextmanager
-def executor_from_arguments(args: argparse.Namespace) -> Iterator[Executor | None]:
-    """A dask executor (``--scheduler`` or ``$ROBOT_OED_SCHEDULER``), a process pool (``--workers``) or ``None``."""
-    if args.workers < 0:
-        raise ValueError(f"--workers must be 0 (in this process) or a pool size, got {args.workers}")
-    address = scheduler_address(args.scheduler)
-    if address is not None and args.workers:
-        raise ValueError("give --scheduler (a dask cluster) or --workers (a local pool), not both")
-    if address is not None:
-        with connect(address) as executor:
-            yield executor
-    elif args.workers:
-        with ProcessPoolExecutor(args.workers) as executor:
-            yield executor
-    else:
-        yield None
+def stderr_say(verb: str) -> Callable[[str], None]:
+    """A ``say`` for a library call: each line on stderr as ``oed VERB: line``."""
+    def say(line: str) -> None:
+        print(f"oed {verb}: {line}", file=sys.stderr)
+    return say
 
 
-def differentiation(args: argparse.Namespace) -> Differentiation:
-    """The differentiation the derivative options ask for (contradicting options are an error)."""
-    check_hertz(args, "frequency", "cutoff")
-    if args.frequency is not None and args.cutoff is not None:
-        raise ValueError("give --frequency (Fourier fit of periodic data) or --cutoff (Butterworth filter), not both")
-    if args.frequency is not None:
-        return FourierDifferentiation(args.frequency, 5 if args.harmonics is None else args.harmonics,
-                                      args.average_periods)
-    return ButterworthDifferentiation(args.cutoff)
-
-
-def preparation_settings(args: argparse.Namespace, transmission: Transmission | None,
-                         memory: InMemoryBudget | None = None) -> PreparationSettings:
-    """How ``--data`` and ``--validate`` are read and prepared (:func:`estimation.identification.prepared.prepare_records`):
-    ``--max-gap``, the derivative options, ``--min-speed`` and ``--rest``."""
-    return PreparationSettings(max_gap=args.max_gap, transmission=transmission, frequency_hz=args.frequency,
-                               harmonics=args.harmonics, cutoff_hz=args.cutoff, average_periods=args.average_periods,
-                               decimation=args.decimate, held_torques=args.held_torques, min_speed=args.min_speed,
-                               rest=args.rest, memory=memory, jobs=args.jobs)
-
-
-def check_shaped_effects_kept(effects: Iterable[Any], model: IdentificationModel) -> None:
-    """A declared law with shape parameters that has no rows in this model is an error (a plain
-    effect without rows is left out, as ``build_model`` does)."""
-    for effect in parse_effects(effects):
-        if is_shaped(effect, model.robot) and effect not in model.effects:
-            raise NoRowsError(f"effect {getattr(effect, 'spec', effect.name)!r} has no rows in the {model.kind.value} model "
-                              "(friction acts on the joint torques: use --model internal or combined)")
-
-
-def model_has_shapes(model: IdentificationModel) -> bool:
-    """Whether ``model`` holds a law with shape parameters (fitted by variable projection)."""
-    return any(is_shaped(effect, model.robot) for effect in model.effects)
-
-
-def print_warnings(verb: str, caught: Iterable[warnings.WarningMessage]) -> None:
-    """Each warning caught once, in order, on stderr."""
-    for message in dict.fromkeys(str(warning.message) for warning in caught):
+def print_warnings(verb: str, messages: Iterable[str]) -> None:
+    """Each warning on stderr as ``oed VERB: warning: message``."""
+    for message in messages:
         print(f"oed {verb}: warning: {message}", file=sys.stderr)
+
+
+def print_lines(lines: Iterable[str], *, file: Any = None) -> None:
+    """The lines of a run's ``summary()``."""
+    for line in lines:
+        print(line, file=file)

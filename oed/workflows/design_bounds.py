@@ -1,14 +1,14 @@
-"""The motion bounds of ``oed design`` from its options (``--bounds``, ``--ddq-max`` or the PUMA's eq. 19)."""
+"""The motion bounds of ``oed design`` from its options (``bounds``, ``ddq_max`` or the PUMA's eq. 19)."""
 
 from __future__ import annotations
 
-import argparse
+from typing import Any
 
 from oed.bounds import JointBounds
-from oed.design import default_bounds
+from oed.excitation import default_bounds
 
 
-def bounds_from_arguments(args: argparse.Namespace, robot) -> JointBounds:
+def bounds_of(args: Any, robot: Any) -> JointBounds:
     """`--bounds FILE`, else the URDF's limits with `--ddq-max`, else eq. 19 for the PUMA; checked against the robot."""
     if args.bounds is not None:
         if args.ddq_max is not None:

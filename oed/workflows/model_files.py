@@ -2,27 +2,26 @@
 
 from __future__ import annotations
 
-import argparse
-import sys
 from typing import Any
 
 from estimation.identification.fit import IdentificationResult
 from estimation.identification.model_file import RobotSource, model_file_document, summed_model_file_document
 from estimation.identification.plausibility import assess_plausibility, link_findings
+from oed.workflows.options import RecordOptions
 
 
-def robot_source(robot: Any, args: argparse.Namespace) -> RobotSource:
+def robot_source(robot: Any, args: RecordOptions) -> RobotSource:
     """Where the robot of ``args`` came from (``--robot``, ``--urdf``, ``--joints``)."""
     return RobotSource.from_description(robot, builtin=None if args.urdf is not None else args.robot, urdf=args.urdf,
                                         joints=args.joints)
 
 
-def rest_document(args: argparse.Namespace) -> dict[str, Any] | None:
+def rest_document(args: RecordOptions) -> dict[str, Any] | None:
     """The model file's ``rest``: ``{min_speed, rest}`` when rows at rest were dropped or Coulomb laws smoothed."""
     return None if args.min_speed is None or args.min_speed == 0 else {"min_speed": args.min_speed, "rest": args.rest}
 
 
-def add_runner_up_model_file(document: dict[str, Any], runner_up: Any, args: argparse.Namespace, preprocessing: Any,
+def add_runner_up_model_file(document: dict[str, Any], runner_up: Any, args: RecordOptions, preprocessing: Any,
                              transmission: Any) -> None:
     """Put the runner-up's ``model_file`` (:mod:`estimation.diagnosis.runner_up`; the format of the chosen model's,
     what ``oed design --discriminate`` reads) into ``document["runner_up"]``, in place; nothing without one."""
@@ -33,10 +32,10 @@ def add_runner_up_model_file(document: dict[str, Any], runner_up: Any, args: arg
         transmission=transmission, rest=rest_document(args), max_gap=args.max_gap)
 
 
-def add_model_file(document: dict[str, Any], result: IdentificationResult, args: argparse.Namespace, preprocessing: Any,
-                   transmission: Any, *, verb: str, consistent: Any = None) -> None:
+def add_model_file(document: dict[str, Any], result: IdentificationResult, args: RecordOptions, preprocessing: Any,
+                   transmission: Any, *, consistent: Any = None) -> tuple[str, ...]:
     """Put ``model_file`` (what ``oed predict`` and ``oed export`` read) and ``plausibility`` into
-    ``document``, in place; print the plausibility warnings on stderr.
+    ``document``, in place; return the plausibility warnings.
 
     ``preprocessing``: the :class:`estimation.preprocessing.plan.Preprocessing` chosen on the training data;
     ``consistent``: the :class:`estimation.consistent.identification.ConsistentResult` of ``--consistent``, or ``None``.
@@ -55,11 +54,10 @@ def add_model_file(document: dict[str, Any], result: IdentificationResult, args:
     document["plausibility"] = plausibility.to_dict()
     links = () if consistent is None else link_findings(result.model.robot, consistent.estimate.link_parameters())
     document["plausibility"]["consistent_links"] = list(links)
-    for message in plausibility.messages() + links:
-        print(f"oed {verb}: warning: {message}", file=sys.stderr)
+    return tuple(plausibility.messages()) + tuple(links)
 
 
-def add_summed_runner_up_model_file(document: dict[str, Any], runner_up: Any, args: argparse.Namespace,
+def add_summed_runner_up_model_file(document: dict[str, Any], runner_up: Any, args: RecordOptions,
                                    preprocessing: dict[str, Any], validation_mse: dict[str, float] | None) -> None:
     """The streamed path's :func:`add_runner_up_model_file`: the runner-up's estimate from the sums at its fixed
     shapes (``validation_mse``: its validation MSE as ``oed predict`` measures it, or ``None``)."""
@@ -71,12 +69,12 @@ def add_summed_runner_up_model_file(document: dict[str, Any], runner_up: Any, ar
         shape=shape, recorded_mse=runner_up.train_mse, validation_mse=validation_mse)
 
 
-def add_summed_model_file(document: dict[str, Any], model: Any, estimate: Any, args: argparse.Namespace,
-                          preprocessing: dict[str, Any], *, verb: str, shape: dict[str, float] | None = None,
+def add_summed_model_file(document: dict[str, Any], model: Any, estimate: Any, args: RecordOptions,
+                          preprocessing: dict[str, Any], *, shape: dict[str, float] | None = None,
                           recorded_mse: dict[str, float] | None = None,
-                          validation_mse: dict[str, float] | None = None) -> None:
+                          validation_mse: dict[str, float] | None = None) -> tuple[str, ...]:
     """``model_file`` and ``plausibility`` of the streamed path, in place (its estimate from sums,
-    :func:`estimation.identification.model_file.summed_model_file_document`); warnings on stderr."""
+    :func:`estimation.identification.model_file.summed_model_file_document`); return the plausibility warnings."""
     document["model_file"] = summed_model_file_document(model, estimate, robot=robot_source(model.robot, args),
                                                         preprocessing=preprocessing, shape=shape,
                                                         recorded_mse=recorded_mse, validation_mse=validation_mse)
@@ -84,5 +82,4 @@ def add_summed_model_file(document: dict[str, Any], model: Any, estimate: Any, a
     plausibility = assess_plausibility(model, estimate.records(), validation_mse=validation_mse,
                                        nominal_mse=validation.get("nominal_mse"), zero_mse=validation.get("zero_mse"))
     document["plausibility"] = {**plausibility.to_dict(), "consistent_links": []}
-    for message in plausibility.messages():
-        print(f"oed {verb}: warning: {message}", file=sys.stderr)
+    return tuple(plausibility.messages())

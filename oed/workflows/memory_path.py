@@ -6,13 +6,11 @@ available; :mod:`estimation.data.memory_budget`). Past it, and when every option
 path has, the derivatives are chosen on the same window as in memory
 (:func:`estimation.streaming.cutoff_choice.choose_streamed_preprocessing`) and the files are streamed; a Fourier
 fit of averaged periods shrinks the training record to one period, which may bring it back within the budget.
-The decision is said in one line on stderr.
+The decision is said in one line (``say``; on stderr from the command line).
 """
 
 from __future__ import annotations
 
-import argparse
-import sys
 import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -29,7 +27,7 @@ from estimation.data.memory_budget import (
     estimate_in_memory,
     parse_memory_size,
 )
-from oed.cli.shared.common import print_warnings, streaming_requested
+from oed.workflows.options import RecordOptions, caught_messages, streaming_requested
 
 __all__ = ["PathDecision", "decide_path", "streamed_choice"]
 
@@ -53,12 +51,12 @@ class PathDecision:
     need: InMemoryNeed | None = None
 
 
-def budget_of(args: argparse.Namespace) -> int:
+def budget_of(args: RecordOptions) -> int:
     """``--memory-budget`` in bytes, else the default share of the available memory."""
     return default_budget() if args.memory_budget is None else parse_memory_size(args.memory_budget)
 
 
-def streamed_choice(args: argparse.Namespace, model: IdentificationModel,
+def streamed_choice(args: RecordOptions, model: IdentificationModel,
                     rows: Sequence[int] | None = None) -> PreprocessingChoice:
     """The derivatives of ``--data``, chosen as in memory (the same window, candidates and rule), with the
     derivative options given."""
@@ -67,7 +65,7 @@ def streamed_choice(args: argparse.Namespace, model: IdentificationModel,
                                          decimation=args.decimate, held_torques=args.held_torques, rows=rows)
 
 
-def averaged_rows(plan: Preprocessing, args: argparse.Namespace, model: IdentificationModel,
+def averaged_rows(plan: Preprocessing, args: RecordOptions, model: IdentificationModel,
                   rows: Sequence[int]) -> list[int] | None:
     """Samples each training file keeps when ``plan`` averages its periods (one period each), else ``None``."""
     if plan.method != "fourier" or plan.average_periods == "no":
@@ -82,11 +80,11 @@ def averaged_rows(plan: Preprocessing, args: argparse.Namespace, model: Identifi
     return [per_period] * len(rows)
 
 
-def decide_path(args: argparse.Namespace, model: IdentificationModel, *, verb: str, task: str,
-                bytes_per_value: float, in_memory_only: Callable[[], str | None]) -> PathDecision:
+def decide_path(args: RecordOptions, model: IdentificationModel, *, task: str, bytes_per_value: float,
+                in_memory_only: Callable[[], str | None], say: Callable[[str], None]) -> PathDecision:
     """The path of this run (module docstring); ``in_memory_only`` names an option given that the streamed path
-    lacks (``None`` when there is none). Says the decision in one line on stderr when it streams or when
-    the budget is passed."""
+    lacks (``None`` when there is none). Says the decision in one line (``say``) when it streams or when the
+    budget is passed, and the warnings of choosing the derivatives before reading (``warning: ...``)."""
     budget = budget_of(args)  # a bad --memory-budget is an error whichever the path
     if streaming_requested(args):
         return PathDecision(True)
@@ -100,26 +98,23 @@ def decide_path(args: argparse.Namespace, model: IdentificationModel, *, verb: s
         return PathDecision(False, None, need)
     reason = in_memory_only()
     if reason is not None:
-        say(verb, f"{need.describe(task)}, but {reason}: in memory")
+        say(f"{need.describe(task)}, but {reason}: in memory")
         return PathDecision(False, None, need)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         plan = streamed_choice(args, model, train).chosen
-    print_warnings(verb, caught)
+    for message in caught_messages(caught):
+        say(f"warning: {message}")
     kept = averaged_rows(plan, args, model, train)
     if kept is not None:
         need = estimate_in_memory(train + held_out, model, bytes_per_value=bytes_per_value, budget=budget,
                                   reduced_rows=kept + held_out)
         if not need.stream:
-            say(verb, f"{need.describe(task)} ({plan.describe_method()} of averaged periods)")
+            say(f"{need.describe(task)} ({plan.describe_method()} of averaged periods)")
             return PathDecision(False, plan, need)
     if plan.method == "fourier" and kept is None:
-        say(verb, f"{need.describe(task)}, but {plan.describe_method()} of every sample is made in memory: in memory")
+        say(f"{need.describe(task)}, but {plan.describe_method()} of every sample is made in memory: in memory")
         return PathDecision(False, plan, need)
-    say(verb, need.describe(task) + " (--memory-budget to change it, --chunk-size to set the chunks)")
+    say(need.describe(task) + " (--memory-budget to change it, --chunk-size to set the chunks)")
     return PathDecision(True, plan, need)
 
-
-def say(verb: str, line: str) -> None:
-    """One line on stderr."""
-    print(f"oed {verb}: {line}", file=sys.stderr)

@@ -14,7 +14,7 @@ Criteria are small objects with one method, ``score(signal) -> float`` (larger i
 
 Examples
 --------
->>> from oed.aprbs import APRBSDesign, design_aprbs
+>>> from oed.aprbs_signal import APRBSDesign, design_aprbs
 >>> design = APRBSDesign(ranges=((-1.26, 1.20), (0.562, 1.972)), duration=20.0, dt=0.01, hold_min=0.2)
 >>> result = design_aprbs(design, candidates=8, seed=3)
 >>> result.u.shape, bool(result.score >= max(result.candidate_scores) - 1e-12)

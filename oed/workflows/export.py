@@ -1,0 +1,70 @@
+"""``oed export`` as a library call: a physically consistent identified model as a URDF (and its friction as JSON)
+for other tools.
+
+:func:`export` returns an :class:`ExportRun`: ``write(urdf, friction=...)`` writes the URDF and the friction JSON
+(``to_dict()``), ``summary()`` the lines ``oed export`` prints. A body that is not plausible is refused unless
+``allow_implausible``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from dynamics.runtime.output_files import OutputFiles, json_text
+from estimation.identification.export import exported_urdf, friction_document, implausible_links
+from estimation.identification.identified_model import IdentifiedModel
+
+__all__ = ["ExportRun", "export"]
+
+
+@dataclass(frozen=True)
+class ExportRun:
+    """What ``oed export`` computed: the URDF text, the model it came from and the bodies found implausible."""
+
+    urdf: str = field(repr=False)
+    model: Any = field(repr=False)
+    findings: tuple[str, ...]
+    lines: tuple[str, ...]
+
+    @property
+    def warnings(self) -> tuple[str, ...]:
+        """The warnings ``oed export`` prints: each implausible body exported as asked."""
+        return tuple(f"exported as asked (--allow-implausible), not plausible: {message}" for message in self.findings)
+
+    def to_dict(self) -> dict[str, Any]:
+        """The friction JSON (``--friction``): per joint viscous, coulomb, offset, armature…, other effects."""
+        return friction_document(self.model)
+
+    def summary(self) -> list[str]:
+        """The bodies exported (their masses)."""
+        return list(self.lines)
+
+    def write(self, urdf: str | Path, *, friction: str | Path | None = None) -> None:
+        """The URDF at ``urdf`` and, with ``friction``, the friction JSON: all or none."""
+        document = self.to_dict() if friction is not None else None
+        with OutputFiles() as outputs:  # all files or none
+            with outputs.open(urdf) as stream:
+                stream.write(self.urdf)
+            if document is not None:
+                with outputs.open(friction) as stream:
+                    stream.write(json_text(document))
+
+
+def export(*, model: str | Path, allow_implausible: bool = False) -> ExportRun:
+    """``oed export``: the consistent estimate of ``model`` (a result.json of ``oed identify --consistent``) as the
+    robot's URDF with every moving link's <inertial> replaced. Raises ``ValueError`` when a body is not plausible
+    (degenerate, a mass ten times the description's or a tenth of it, a centre of mass beyond twice the link's
+    reach), unless ``allow_implausible``."""
+    identified = IdentifiedModel.load(Path(model))  # exported_urdf refuses a model without a consistent estimate
+    text = exported_urdf(identified)
+    findings = implausible_links(identified)
+    if findings and not allow_implausible:
+        raise ValueError("not exported: the consistent estimate holds bodies that are not plausible:\n  "
+                         + "\n  ".join(findings) + "\nidentify again with a prior (--prior-weight, the default with "
+                         "--validate chooses it) or link bounds (--link-bounds), or export them anyway with "
+                         "--allow-implausible")
+    masses = ", ".join(f"{link[0]:.4g}" for link in identified.file.consistent_links)
+    line = f"{identified.robot.name}: {identified.robot.n_joints} bodies of the consistent estimate (masses {masses} kg)"
+    return ExportRun(text, identified, tuple(findings), (line,))

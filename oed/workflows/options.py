@@ -1,0 +1,212 @@
+"""The options the ``oed`` verbs share, as frozen dataclasses whose field names are the command line's option
+names (``--min-speed`` -> ``min_speed``), and the settings derived from them: the robot, the derivatives, the
+preparation of the records, the streamed path and its executor.
+
+A verb function (``oed.identify(**options)``) builds its option set from its keywords (an unknown keyword is a
+``TypeError``); paths may be given as strings, repeated options (``--data a --data b``) as lists.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import math
+import warnings
+from collections.abc import Iterable, Iterator
+from concurrent.futures import Executor, ProcessPoolExecutor
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from dynamics.effects.linear import parse_effects
+from dynamics.effects.shaped import is_shaped
+from dynamics.models import IdentificationModel, ModelKind
+from dynamics.robot import RobotModel
+from dynamics.robots import load_robot
+from dynamics.transmission import Transmission
+from estimation.data.log_cleaning import DEFAULT_MAX_GAP
+from estimation.estimators.effect_blocks import NoRowsError
+from estimation.identification.prepared import InMemoryBudget, PreparationSettings
+from estimation.preprocessing.differentiation import (
+    ButterworthDifferentiation,
+    Differentiation,
+    FourierDifferentiation,
+)
+from estimation.streaming.cluster import connect, scheduler_address
+
+__all__ = [
+    "NOT_CSV_SUFFIXES", "RecordOptions", "RobotOptions", "caught_messages", "check_choice", "check_csv_path",
+    "check_hertz", "check_json_path", "check_shaped_effects_kept", "differentiation", "executor_for",
+    "model_has_shapes", "paths", "preparation_settings", "robot_of", "streaming_requested",
+]
+
+#: suffixes that promise another format than the CSV a verb writes
+NOT_CSV_SUFFIXES = frozenset({".json", ".parquet", ".png", ".pdf", ".svg", ".npz", ".npy", ".mat", ".xlsx", ".md"})
+
+
+def paths(value: Any) -> tuple[Path, ...]:
+    """A repeatable path option as a tuple of paths: ``None`` -> ``()``, one path -> a 1-tuple."""
+    if value is None:
+        return ()
+    if isinstance(value, (str, Path)):
+        return (Path(value),)
+    return tuple(Path(item) for item in value)
+
+
+def optional_path(value: Any) -> Path | None:
+    """A path option: ``None`` or a :class:`~pathlib.Path`."""
+    return None if value is None else Path(value)
+
+
+def check_choice(option: str, value: Any, choices: Iterable[Any]) -> None:
+    """Refuse ``value`` outside ``choices``, naming the option as typed (``--rest``)."""
+    choices = tuple(choices)
+    if value not in choices:
+        raise ValueError(f"--{option.replace('_', '-')} must be one of {', '.join(map(str, choices))}, got {value!r}")
+
+
+def check_hertz(options: Any, *names: str) -> None:
+    """Refuse a ``names`` value (``"frequency"``, ``"cutoff"``) that is given and not a positive, finite number of
+    hertz, naming the option as typed (``--frequency``)."""
+    for name in names:
+        value = getattr(options, name, None)
+        if value is not None and not (math.isfinite(value) and value > 0):
+            raise ValueError(f"--{name.replace('_', '-')} must be a positive, finite number of hertz, got {value:g}")
+
+
+def check_csv_path(path: str | Path, option: str = "--out") -> None:
+    """Refuse, before any work, a CSV output named like another format (``--out u.json``)."""
+    if Path(path).suffix.lower() in NOT_CSV_SUFFIXES:
+        raise ValueError(f"{option} {path}: this verb writes CSV; give a .csv file name")
+
+
+def check_json_path(path: str | Path, option: str = "--out") -> None:
+    """Refuse, before any work, a JSON output named like another format (``--out t.csv``)."""
+    suffix = Path(path).suffix.lower()
+    if suffix in NOT_CSV_SUFFIXES - {".json"} or suffix == ".csv":
+        raise ValueError(f"{option} {path}: this writes JSON; give a .json file name")
+
+
+@dataclass(frozen=True, kw_only=True)
+class RobotOptions:
+    """``--robot NAME``, ``--urdf FILE`` (which wins) and ``--joints N``."""
+
+    robot: str | None = "puma560"
+    urdf: Path | None = None
+    joints: int | None = None
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "urdf", optional_path(self.urdf))
+
+
+def robot_of(options: RobotOptions) -> RobotModel:
+    """The robot the options name."""
+    return load_robot(options.robot, urdf=options.urdf, joints=options.joints)
+
+
+@dataclass(frozen=True, kw_only=True)
+class RecordOptions(RobotOptions):
+    """What ``oed identify`` and ``oed diagnose`` share: the model, the robot as built, the records and their
+    derivatives, the processes and the streamed path (the options of the same names)."""
+
+    model: str = "internal"
+    friction: str = "viscous"
+    transmission: str | None = None
+    min_speed: float | None = None
+    rest: str = "drop"
+    data: tuple[Path, ...] = ()
+    validate: tuple[Path, ...] = ()
+    max_gap: float = DEFAULT_MAX_GAP
+    frequency: float | None = None
+    average_periods: str = "auto"
+    harmonics: int | None = None
+    cutoff: float | None = None
+    decimate: int = 1
+    held_torques: bool | None = None
+    jobs: int | None = None
+    chunk_size: int | None = None
+    scheduler: str | None = None
+    workers: int = 0
+    memory_budget: str | None = None
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        object.__setattr__(self, "data", paths(self.data))
+        object.__setattr__(self, "validate", paths(self.validate))
+        if not self.data:
+            raise ValueError("give the training record: data=... (--data FILE)")
+        check_choice("model", self.model, [kind.value for kind in ModelKind])
+        check_choice("rest", self.rest, ("drop", "smooth"))
+        check_choice("average_periods", self.average_periods, ("auto", "yes", "no"))
+        if self.transmission is not None:
+            object.__setattr__(self, "transmission", str(self.transmission))
+
+    def replace(self, **changes: Any) -> RecordOptions:
+        """A copy with ``changes``."""
+        return dataclasses.replace(self, **changes)
+
+
+def streaming_requested(options: RecordOptions) -> bool:
+    """Whether ``chunk_size``, ``workers`` or a scheduler (``scheduler``, ``$ROBOT_OED_SCHEDULER``) asks for the
+    streamed path."""
+    return options.chunk_size is not None or options.workers > 0 or scheduler_address(options.scheduler) is not None
+
+
+@contextlib.contextmanager
+def executor_for(options: RecordOptions) -> Iterator[Executor | None]:
+    """A dask executor (``scheduler`` or ``$ROBOT_OED_SCHEDULER``), a process pool (``workers``) or ``None``."""
+    if options.workers < 0:
+        raise ValueError(f"--workers must be 0 (in this process) or a pool size, got {options.workers}")
+    address = scheduler_address(options.scheduler)
+    if address is not None and options.workers:
+        raise ValueError("give --scheduler (a dask cluster) or --workers (a local pool), not both")
+    if address is not None:
+        with connect(address) as executor:
+            yield executor
+    elif options.workers:
+        with ProcessPoolExecutor(options.workers) as executor:
+            yield executor
+    else:
+        yield None
+
+
+def differentiation(options: RecordOptions) -> Differentiation:
+    """The differentiation the derivative options ask for (contradicting options are an error)."""
+    check_hertz(options, "frequency", "cutoff")
+    if options.frequency is not None and options.cutoff is not None:
+        raise ValueError("give --frequency (Fourier fit of periodic data) or --cutoff (Butterworth filter), not both")
+    if options.frequency is not None:
+        return FourierDifferentiation(options.frequency, 5 if options.harmonics is None else options.harmonics,
+                                      options.average_periods)
+    return ButterworthDifferentiation(options.cutoff)
+
+
+def preparation_settings(options: RecordOptions, transmission: Transmission | None,
+                         memory: InMemoryBudget | None = None) -> PreparationSettings:
+    """How ``data`` and ``validate`` are read and prepared
+    (:func:`estimation.identification.prepared.prepare_records`): ``max_gap``, the derivative options,
+    ``min_speed`` and ``rest``."""
+    return PreparationSettings(max_gap=options.max_gap, transmission=transmission, frequency_hz=options.frequency,
+                               harmonics=options.harmonics, cutoff_hz=options.cutoff,
+                               average_periods=options.average_periods, decimation=options.decimate,
+                               held_torques=options.held_torques, min_speed=options.min_speed, rest=options.rest,
+                               memory=memory, jobs=options.jobs)
+
+
+def check_shaped_effects_kept(effects: Iterable[Any], model: IdentificationModel) -> None:
+    """A declared law with shape parameters that has no rows in this model is an error (a plain
+    effect without rows is left out, as ``build_model`` does)."""
+    for effect in parse_effects(effects):
+        if is_shaped(effect, model.robot) and effect not in model.effects:
+            raise NoRowsError(f"effect {getattr(effect, 'spec', effect.name)!r} has no rows in the {model.kind.value} model "
+                              "(friction acts on the joint torques: use --model internal or combined)")
+
+
+def model_has_shapes(model: IdentificationModel) -> bool:
+    """Whether ``model`` holds a law with shape parameters (fitted by variable projection)."""
+    return any(is_shaped(effect, model.robot) for effect in model.effects)
+
+
+def caught_messages(caught: Iterable[warnings.WarningMessage]) -> list[str]:
+    """The messages of the warnings caught, each once, in order."""
+    return list(dict.fromkeys(str(warning.message) for warning in caught))

@@ -1,0 +1,85 @@
+"""``oed predict`` as a library call: an identified model (result.json or report.json) applied to another record.
+
+:func:`predict` returns a :class:`PredictRun`: ``to_dict()`` is the metrics JSON (``--metrics``), ``write(out=...,
+metrics=...)`` writes the predictions CSV and the metrics, ``summary()`` the lines ``oed predict`` prints.
+"""
+
+from __future__ import annotations
+
+import copy
+import warnings
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+
+from dynamics.runtime.output_files import OutputFiles, json_text
+from estimation.identification.identified_model import IdentifiedModel
+from estimation.identification.trivial_predictors import trivial_warnings
+from oed.workflows.options import paths
+
+__all__ = ["PredictRun", "predict"]
+
+
+@dataclass(frozen=True)
+class PredictRun:
+    """What ``oed predict`` computed: the evaluation
+    (:meth:`estimation.identification.identified_model.IdentifiedModel.evaluate`), the lines it prints and the
+    warnings."""
+
+    evaluation: Any = field(repr=False)
+    lines: tuple[str, ...]
+    warnings: tuple[str, ...]
+
+    def to_dict(self) -> dict[str, Any]:
+        """The metrics JSON (``--metrics``)."""
+        return copy.deepcopy(self.evaluation.to_dict())
+
+    def summary(self) -> list[str]:
+        """The model, the record and the MSE per channel beside the yardsticks."""
+        return list(self.lines)
+
+    def columns(self) -> dict[str, Any]:
+        """The predictions CSV's columns: t, each channel, and its _lo/_hi 95 % band."""
+        return self.evaluation.prediction.columns()
+
+    def write(self, *, out: str | Path | None = None, metrics: str | Path | None = None) -> None:
+        """The predictions CSV at ``out`` and the metrics JSON at ``metrics`` (either may be left out): all or none."""
+        with OutputFiles() as outputs:  # all files or none
+            if out is not None:
+                with outputs.open(out) as stream:
+                    pd.DataFrame(self.columns()).to_csv(stream, index=False)
+            if metrics is not None:
+                with outputs.open(metrics) as stream:
+                    stream.write(json_text(self.evaluation.to_dict()))
+
+
+def predict(*, model: str | Path, data: Any, consistent: bool = False) -> PredictRun:
+    """``oed predict``: the model of ``model`` (a result.json or report.json) on the record ``data`` (a path or
+    the list of its segments); ``consistent``: the physically consistent estimate (what ``oed export`` writes)."""
+    identified = IdentifiedModel.load(Path(model), estimate="consistent" if consistent else "unconstrained")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        evaluation = identified.evaluate(list(paths(data)))
+    prediction = evaluation.prediction
+    notes = trivial_warnings(prediction.mse, {"zero_mse": evaluation.zero_mse, "nominal_mse": evaluation.nominal_mse},
+                             label="model")
+    messages = tuple(dict.fromkeys([str(warning.message) for warning in caught] + list(notes)))
+    lines = [f"{identified.robot.name}: {identified.file.model} model ({identified.file.effects}"
+             + (", consistent" if consistent else "")
+             + (f", delay {1e3 * identified.file.delay:.3g} ms" if identified.file.delay is not None else "")
+             + f"), {prediction.t.shape[0]} samples; "
+             f"{identified.preprocessing.describe().removeprefix('preprocessing: ')}",
+             *table_lines(evaluation)]
+    return PredictRun(evaluation, tuple(lines), messages)
+
+
+def table_lines(evaluation: Any) -> list[str]:
+    """MSE per channel against the record as recorded, beside the yardsticks."""
+    mse = evaluation.prediction.mse
+    rows = [("model", mse), ("zero", evaluation.zero_mse), ("nominal", evaluation.nominal_mse)]
+    if evaluation.floor_mse is not None:
+        rows.append(("noise floor", evaluation.floor_mse))
+    return ["MSE vs recorded   " + "  ".join(f"{channel:>10s}" for channel in mse),
+            *(f"  {label:<16s}" + "  ".join(f"{values[channel]:10.4g}" for channel in mse) for label, values in rows)]
