@@ -41,9 +41,10 @@ def test_cli_errors_name_the_problem_and_leave_no_output(tmp_path, capsys):
     bad.write_text("t,u1,u2,u3,u4\n0,0,1,1.5,1\n0.01,0,1,1.5,5.0\n0.02,0,1,1.5,1\n")
     assert main(["servo-simulate", "--aprbs", str(bad), "--out", str(out)]) == 2
     assert "column u4 = 5 rad at row 1 is above the upper joint-4 bound 4.5" in capsys.readouterr().err
-    assert main(["servo-fit", "--data", str(tmp_path / "missing.csv"), "--out", str(out)]) == 2
+    fit = tmp_path / "fit.json"
+    assert main(["servo-fit", "--data", str(tmp_path / "missing.csv"), "--out", str(fit)]) == 2
     assert "not found" in capsys.readouterr().err
-    assert not out.exists() and not list(tmp_path.glob(".*"))  # nor a staged temporary file
+    assert not out.exists() and not fit.exists() and not list(tmp_path.glob(".*"))  # nor a staged temporary file
 
 
 def test_servo_fit_checks_dt_against_the_time_column(tmp_path, capsys):

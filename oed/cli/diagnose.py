@@ -22,6 +22,7 @@ from oed.cli.shared.common import (
 )
 from oed.cli.shared.verbs import verb_summary
 from oed.workflows.diagnose import DiagnoseOptions, diagnose, residual_figure, trace_figure
+from oed.workflows.options import check_json_path, check_markdown_path
 from estimation.streaming.diagnosis import DEFAULT_SUBSAMPLE
 from estimation.streaming.diagnosis_passes import FLOOR_WINDOW
 
@@ -75,6 +76,8 @@ def derived_outputs(args: argparse.Namespace) -> dict[str, Path]:
 
 
 def run(args: argparse.Namespace) -> int:
+    check_json_path(args.out)
+    check_markdown_path(args.report)
     with show_progress("oed diagnose", quiet=args.quiet):
         result = diagnose(say=stderr_say("diagnose"),
                           **verb_keywords(args, DiagnoseOptions, report=args.report is not None))

@@ -24,6 +24,7 @@ from oed.cli.shared.common import (
 )
 from oed.cli.shared.verbs import verb_summary
 from oed.workflows.identify import IdentifyOptions, identify
+from oed.workflows.options import check_json_path
 
 
 def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -61,6 +62,7 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
 
 
 def run(args: argparse.Namespace) -> int:
+    check_json_path(args.out)
     check_figure_path(args.plot)
     with show_progress("oed identify", quiet=args.quiet):
         result = identify(say=stderr_say("identify"),

@@ -7,6 +7,7 @@ import argparse
 
 from oed.cli.shared.common import print_lines, print_warnings
 from oed.cli.shared.verbs import verb_summary
+from oed.workflows.options import check_json_path
 
 
 def register(subparsers) -> argparse.ArgumentParser:
@@ -37,6 +38,7 @@ def register(subparsers) -> argparse.ArgumentParser:
 
 
 def run(args: argparse.Namespace) -> int:
+    check_json_path(args.out)
     from oed.workflows.servo_fit import servo_fit
 
     result = servo_fit(data=args.data, dt=args.dt, mass=args.mass, method=args.method, delay=args.delay,

@@ -60,6 +60,8 @@ from oed.workflows.model_files import (
 from oed.workflows.options import (
     RecordOptions,
     caught_messages,
+    check_json_path,
+    check_markdown_path,
     check_shaped_effects_kept,
     differentiation,
     executor_for,
@@ -164,6 +166,8 @@ class DiagnoseRun:
     def write(self, out: str | Path, *, report: str | Path | None = None) -> None:
         """The report JSON at ``out`` and, with ``report``, the Markdown report and its two figures beside it
         (:func:`residual_figure`, :func:`trace_figure`): all files or none."""
+        check_json_path(out)
+        check_markdown_path(report)
         if report is not None:
             self._check_in_memory()
         with OutputFiles() as outputs:

@@ -17,7 +17,7 @@ from typing import Any
 
 from dynamics.models import IdentificationModel, build_model
 from dynamics.robot import RobotModel
-from dynamics.runtime.output_files import OutputFiles, json_text
+from dynamics.runtime.output_files import OutputFiles, check_figure_path, json_text
 from dynamics.runtime.progress import step
 from dynamics.transmission import Transmission
 from estimation.data.log_cleaning import DEFAULT_MAX_GAP
@@ -51,6 +51,7 @@ from oed.workflows.options import (
     RecordOptions,
     caught_messages,
     check_choice,
+    check_json_path,
     check_shaped_effects_kept,
     differentiation,
     executor_for,
@@ -132,6 +133,8 @@ class IdentifyRun:
 
     def write(self, out: str | Path, *, plot: str | Path | None = None) -> None:
         """The result JSON at ``out`` and, with ``plot``, the figure: all files or none."""
+        check_json_path(out)
+        check_figure_path(plot)
         if plot is not None and self.streamed:
             raise ValueError(f"--plot draws every sample: not with {STREAMED}")
         with OutputFiles() as outputs:

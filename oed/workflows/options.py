@@ -36,7 +36,7 @@ from estimation.streaming.cluster import connect, scheduler_address
 
 __all__ = [
     "NOT_CSV_SUFFIXES", "RecordOptions", "RobotOptions", "caught_messages", "check_choice", "check_csv_path",
-    "check_hertz", "check_json_path", "check_shaped_effects_kept", "differentiation", "executor_for",
+    "check_hertz", "check_json_path", "check_markdown_path", "check_shaped_effects_kept", "differentiation", "executor_for",
     "model_has_shapes", "paths", "preparation_settings", "robot_of", "streaming_requested",
 ]
 
@@ -85,6 +85,16 @@ def check_json_path(path: str | Path, option: str = "--out") -> None:
     suffix = Path(path).suffix.lower()
     if suffix in NOT_CSV_SUFFIXES - {".json"} or suffix == ".csv":
         raise ValueError(f"{option} {path}: this writes JSON; give a .json file name")
+
+
+#: suffixes of a Markdown report
+MARKDOWN_SUFFIXES = frozenset({".md", ".markdown"})
+
+
+def check_markdown_path(path: str | Path | None, option: str = "--report") -> None:
+    """Refuse, before any work, a Markdown output named like another format (``--report r.html``)."""
+    if path is not None and Path(path).suffix.lower() not in MARKDOWN_SUFFIXES:
+        raise ValueError(f"{option} {path}: this writes Markdown; give a .md file name")
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 
 from dynamics.runtime.output_files import json_text
+from oed.workflows.options import check_json_path
 
 __all__ = ["ServoFitRun", "servo_fit"]
 
@@ -70,6 +71,7 @@ class ServoFitRun:
         """The metrics JSON at ``out``."""
         from estimation.servo.files import write_text_atomic
 
+        check_json_path(out)
         write_text_atomic(out, json_text(self.document))
 
 

@@ -1,15 +1,19 @@
-"""One check for every verb: no output file may be an input file or another output file.
+"""One check for every verb: no output file may be an input file or another output file, and each output's folder
+must be one this process can write in.
 
 Run by :func:`oed.cli.main` before the verb's work, from the option names the verbs share (a verb
 adds the files it derives from its options through ``derived_outputs``). Without it, ``--out`` equal
 to ``--data`` would replace the measurements by the result, and ``--csv`` equal to ``--out`` would
-keep only one of the two files, both with exit code 0.
+keep only one of the two files, both with exit code 0; and an output in a folder that cannot be written would be
+refused only after the whole run.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
+import tempfile
 from collections.abc import Callable
 from pathlib import Path
 
@@ -47,10 +51,29 @@ def _named_paths(args: argparse.Namespace) -> dict[str, tuple[str, Path]]:
     return named
 
 
+def check_writable(label: str, path: Path, *, folder: bool = False) -> None:
+    """Raise ``OSError`` naming ``label`` when the output ``path`` (a ``folder`` itself, else a file) cannot be
+    written: the nearest folder of it that exists is not a folder, or no file can be created in it (a probe file,
+    removed at once: permissions, a read-only file system)."""
+    target = path.expanduser().absolute()
+    existing = target if folder else target.parent
+    while not existing.exists() and existing != existing.parent:
+        existing = existing.parent
+    if not existing.is_dir():
+        raise NotADirectoryError(f"{label} {path}: {existing} is not a folder")
+    try:
+        handle, probe = tempfile.mkstemp(prefix=".oed-probe-", dir=existing)
+    except OSError as error:
+        raise PermissionError(f"{label} {path}: cannot write in {existing} ({error.strerror})") from None
+    os.close(handle)
+    with contextlib.suppress(OSError):
+        os.unlink(probe)
+
+
 def check_paths(args: argparse.Namespace,
                 derived_outputs: Callable[[argparse.Namespace], dict[str, Path]] | None = None) -> None:
     """Raise ``ValueError`` when a path option is empty, an output is a folder or also an input, or
-    two outputs coincide."""
+    two outputs coincide; ``OSError`` when an output cannot be written (:func:`check_writable`)."""
     named = _named_paths(args)
     if derived_outputs is not None:
         for label, path in derived_outputs(args).items():
@@ -67,3 +90,7 @@ def check_paths(args: argparse.Namespace,
                 raise ValueError(f"{first} and {label} are the same file ({path}): each output needs its own path")
             continue  # the same file read twice (e.g. --data and --validate) is the verb's business
         seen[key] = label
+    folders = tuple(getattr(args, "folder_options", ()))
+    for label, (role, path) in named.items():
+        if role == "output":
+            check_writable(label, path, folder=label.split(" ")[0].removeprefix("--").replace("-", "_") in folders)
