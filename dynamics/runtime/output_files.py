@@ -52,7 +52,10 @@ class OutputFiles:
 
     A run killed before it could clean up (SIGKILL, power loss) leaves its staged files behind;
     they are named ``.<target>.oed-<pid>-<random><suffix>`` and the next run staging the same
-    target removes those whose process is gone (:func:`remove_stale_temporaries`).
+    target removes those whose process is gone (:func:`remove_stale_temporaries`). A file staged by this
+    process is never staged again: a writer that stages its own output (:func:`save_figure`,
+    :func:`atomic_output`) handed a staged path writes it directly (:func:`is_staged`), so that a run killed
+    mid-write leaves one staged file, which the next run removes.
 
     The renames at the end are one after another: should the k-th fail (after staging succeeded in
     the same folder, which checks the usual causes), the earlier targets are already replaced.
@@ -80,6 +83,8 @@ class OutputFiles:
         (matplotlib) see the one meant (:meth:`stage_figure`).
         """
         path = Path(path)
+        if is_staged(path):  # already staged by this process (an outer OutputFiles): written in place, renamed by it
+            return path
         if any(path.resolve() == target.resolve() for _, target in self._staged):
             raise ValueError(f"{path} is written twice in one run: each output needs its own path")
         folder = self._output_folder(path)
@@ -154,6 +159,12 @@ def _temporary_prefix(name: str) -> str:
     return f".{name}.oed-"
 
 
+def is_staged(path: str | Path) -> bool:
+    """Whether ``path`` is a file staged by this process (``.<target>.oed-<this pid>-<random><suffix>``)."""
+    name = Path(path).name
+    return name.startswith(".") and f".oed-{os.getpid()}-" in name
+
+
 def _process_alive(pid: int) -> bool:
     try:
         os.kill(pid, 0)
@@ -165,7 +176,8 @@ def _process_alive(pid: int) -> bool:
 
 
 def remove_stale_temporaries(folder: Path, name: str, suffix: str) -> list[Path]:
-    """Remove the staged files of ``name`` left in ``folder`` by runs whose process is gone; return them."""
+    """Remove the staged files of ``name`` left in ``folder`` by runs whose process is gone; return them (those
+    staged twice by earlier versions, ``..<target>.oed-<pid>-<random><suffix>.oed-…``, too)."""
     prefix = _temporary_prefix(name)
     removed = []
     try:
@@ -173,9 +185,10 @@ def remove_stale_temporaries(folder: Path, name: str, suffix: str) -> list[Path]
     except OSError:
         return removed
     for entry in entries:
-        if not (entry.name.startswith(prefix) and entry.name.endswith(suffix)):
+        nested = entry.name.startswith("." + prefix)  # a staged file of a staged file
+        if not ((entry.name.startswith(prefix) or nested) and entry.name.endswith(suffix)):
             continue
-        pid_text = entry.name[len(prefix):].split("-", 1)[0]
+        pid_text = entry.name[len(prefix) + nested:].split("-", 1)[0]
         if not pid_text.isdigit() or int(pid_text) == os.getpid() or _process_alive(int(pid_text)):
             continue
         with contextlib.suppress(OSError):
