@@ -58,7 +58,8 @@ def main(argv: list[str]) -> int:
     args = PARSER.parse_args(argv)
     options = {name: value for name, value in vars(args).items()
                if name in {field.name for field in dataclasses.fields(verb.DiagnoseOptions)}}
-    verb.diagnose(**options, report=args.report is not None).write(args.out, report=args.report)
+    options["report"] = args.report is not None
+    verb.diagnose(**options).write(args.out, report=args.report)
     code = 0
     total = (time.perf_counter() - START[0], time.process_time() - START[1])
     rows = [("imports (the parser and oed.workflows.diagnose)", *IMPORTED)]
