@@ -54,9 +54,10 @@ def _named_paths(args: argparse.Namespace) -> dict[str, tuple[str, Path]]:
 def check_writable(label: str, path: Path, *, folder: bool = False) -> None:
     """Raise ``OSError`` naming ``label`` when the output ``path`` (a ``folder`` itself, else a file) cannot be
     written: the nearest folder of it that exists is not a folder, or no file can be created in it (a probe file,
-    removed at once: permissions, a read-only file system)."""
+    removed at once: permissions, a read-only file system). A ``folder`` output that is a file is left to the verb,
+    whose message says what it writes there."""
     target = path.expanduser().absolute()
-    existing = target if folder else target.parent
+    existing = target if folder and target.is_dir() else target.parent
     while not existing.exists() and existing != existing.parent:
         existing = existing.parent
     if not existing.is_dir():
