@@ -55,6 +55,38 @@ def add_robot_arguments(parser: argparse.ArgumentParser, *, default: str | None 
     )
     group.add_argument("--urdf", type=Path, help="URDF file of a serial chain (stands in for --robot)")
     group.add_argument("--joints", type=int, help="keep only the first N joints (the PUMA paper uses 3)")
+    add_joint_selection_arguments(group)
+
+
+def add_joint_selection_arguments(group: Any) -> None:
+    """``--joint-names a,b,c`` and ``--locked-at name=value,...`` (the logged joints of any URDF)."""
+    group.add_argument("--joint-names", type=joint_name_list, metavar="A,B,C",
+                       help="with --urdf: the logged joints, base to tip (columns q1..qN and tau1..tauN follow this "
+                            "order); every other joint of the URDF is locked")
+    group.add_argument("--locked-at", type=locked_positions, default=None, metavar="NAME=VALUE,...",
+                       help="with --joint-names: positions of locked joints, rad or m (default 0)")
+
+
+def joint_name_list(text: str) -> tuple[str, ...]:
+    """``--joint-names`` values: comma-separated names, checked by argparse."""
+    names = tuple(name.strip() for name in text.split(","))
+    if not all(names):
+        raise argparse.ArgumentTypeError(f"expected comma-separated joint names, got {text!r}")
+    return names
+
+
+def locked_positions(text: str) -> dict[str, float]:
+    """``--locked-at`` values: ``name=value`` pairs separated by commas, checked by argparse."""
+    positions: dict[str, float] = {}
+    for item in filter(None, (part.strip() for part in text.split(","))):
+        name, _, value = item.partition("=")
+        try:
+            positions[name.strip()] = float(value)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected NAME=VALUE pairs, got {item!r}") from None
+        if not name.strip():
+            raise argparse.ArgumentTypeError(f"expected NAME=VALUE pairs, got {item!r}")
+    return positions
 
 
 def seed(text: str) -> int:
@@ -82,7 +114,8 @@ def check_json_path(path: str | Path, option: str = "--out") -> None:
 
 
 def robot_from_arguments(args: argparse.Namespace) -> RobotModel:
-    return load_robot(args.robot, urdf=args.urdf, joints=args.joints)
+    return load_robot(args.robot, urdf=args.urdf, joints=args.joints, joint_names=getattr(args, "joint_names", None),
+                      locked_at=getattr(args, "locked_at", None))
 
 
 def add_data_arguments(parser: argparse.ArgumentParser, *, validate_required: bool) -> None:

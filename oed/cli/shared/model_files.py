@@ -14,7 +14,8 @@ from estimation.identification.plausibility import assess_plausibility, link_fin
 def robot_source(robot: Any, args: argparse.Namespace) -> RobotSource:
     """Where the robot of ``args`` came from (``--robot``, ``--urdf``, ``--joints``)."""
     return RobotSource.from_description(robot, builtin=None if args.urdf is not None else args.robot, urdf=args.urdf,
-                                        joints=args.joints)
+                                        joints=args.joints, joint_names=getattr(args, "joint_names", None),
+                                        locked_at=getattr(args, "locked_at", None))
 
 
 def rest_document(args: argparse.Namespace) -> dict[str, Any] | None:
