@@ -93,6 +93,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         print("oed: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
     args = parser.parse_args(argv)
+    if hasattr(args, "topic"):  # --data, --validate, --test as log sources that carry --topic and --columns
+        importlib.import_module("oed.cli.shared.common").bind_log_options(args)
     keep_freed_memory()  # a run's arrays come and go by the thousand: their pages kept, not faulted in again
     try:
         check_paths(args, args.derived_outputs)  # before any work: no output over an input or another output

@@ -11,7 +11,7 @@ import pandas as pd
 
 from estimation.identification.identified_model import IdentifiedModel
 from estimation.identification.trivial_predictors import trivial_warnings
-from oed.cli.shared.common import OutputFiles, check_csv_path, check_json_path, json_text
+from oed.cli.shared.common import OutputFiles, add_log_arguments, check_csv_path, check_json_path, json_text
 from oed.cli.shared.verbs import verb_summary
 
 
@@ -26,7 +26,9 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     )
     parser.add_argument("--model", type=Path, required=True, help="result.json or report.json holding a model_file")
     parser.add_argument("--data", type=Path, required=True, action="append",
-                        help="the record (.csv or .parquet); repeat for several segments of one record")
+                        help="the record (.csv or .parquet, a ROS bag, .npz or .mat); repeat for several segments "
+                             "of one record")
+    add_log_arguments(parser)
     parser.add_argument("--consistent", action="store_true",
                         help="predict with the physically consistent estimate (oed identify --consistent) rather than "
                              "the unconstrained one; what `oed export` writes")

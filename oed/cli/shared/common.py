@@ -25,6 +25,7 @@ from dynamics.runtime.output_files import (
 )
 from dynamics.transmission import Transmission
 from estimation.data.log_cleaning import DEFAULT_MAX_GAP
+from estimation.data.log_formats import DEFAULT_TOPIC, LogSource, is_log_file, parse_column_map
 from estimation.estimators.effect_blocks import NoRowsError
 from estimation.estimators.normal_equations import DEFAULT_CHUNK_SIZE
 from estimation.preprocessing.differentiation import (
@@ -37,7 +38,7 @@ from estimation.streaming.cluster import SCHEDULER_VARIABLE, connect, scheduler_
 from oed.cli.shared.options import check_hertz
 
 __all__ = [
-    "OutputFiles", "add_data_arguments", "add_derivative_arguments", "add_jobs_argument", "add_robot_arguments", "add_streaming_arguments",
+    "OutputFiles", "add_data_arguments", "add_log_arguments", "bind_log_options", "add_derivative_arguments", "add_jobs_argument", "add_robot_arguments", "add_streaming_arguments",
     "atomic_output", "check_csv_path", "check_figure_path", "check_json_path", "check_shaped_effects_kept",
     "differentiation", "executor_from_arguments", "json_text", "model_has_shapes", "preparation_settings",
     "print_warnings", "robot_from_arguments", "seed", "streaming_requested",
@@ -118,16 +119,52 @@ def robot_from_arguments(args: argparse.Namespace) -> RobotModel:
                       locked_at=getattr(args, "locked_at", None))
 
 
+def add_log_arguments(parser: argparse.ArgumentParser) -> None:
+    """``--topic`` and ``--columns``: how to read ROS bags, ``.npz`` and ``.mat`` files (bound to the data paths
+    by :func:`bind_log_options`)."""
+    group = parser.add_argument_group("logs (ROS bags, .npz, .mat, other column names)")
+    group.add_argument("--topic", default=DEFAULT_TOPIC,
+                       help=f"topic of the sensor_msgs/JointState messages in a ROS bag (default {DEFAULT_TOPIC}); "
+                            "joints matched by name to --joint-names or the URDF's joints")
+    group.add_argument("--columns", type=column_map, default=None, metavar="COLUMN=NAME,...",
+                       help="column map, e.g. t=times,q=positions,dq=velocities,tau=torques (an .npz's or .mat's "
+                            "arrays, a table's columns; a factor scales: tau=35.15*vir)")
+
+
+def column_map(text: str) -> dict[str, str]:
+    """``--columns`` values, checked by argparse."""
+    try:
+        return parse_column_map(text)
+    except ValueError as error:
+        raise argparse.ArgumentTypeError(str(error)) from None
+
+
+def bind_log_options(args: argparse.Namespace) -> None:
+    """Each ``--data``, ``--validate`` and ``--test`` path that is a log file (a bag, ``.npz``, ``.mat``; any with
+    ``--columns``) as a :class:`estimation.data.log_formats.LogSource` carrying ``--topic`` and ``--columns``."""
+    if not hasattr(args, "topic"):
+        return
+    columns = getattr(args, "columns", None) or {}
+    for option in ("data", "validate", "test"):
+        paths = getattr(args, option, None)
+        if paths:
+            setattr(args, option, [LogSource(path, topic=args.topic, columns=columns)
+                                   if columns or is_log_file(path) else path for path in paths])
+
+
 def add_data_arguments(parser: argparse.ArgumentParser, *, validate_required: bool) -> None:
-    """``--data`` and ``--validate`` (each repeatable: the segments of one record) and ``--max-gap``."""
+    """``--data`` and ``--validate`` (each repeatable: the segments of one record), ``--max-gap``, and the options
+    of :func:`add_log_arguments`."""
     parser.add_argument("--data", type=Path, required=True, action="append",
-                        help="identification data (.csv or .parquet); repeat for several segments (files), each "
+                        help="identification data (.csv or .parquet; a ROS bag: .mcap, .db3, .bag or a rosbag2 "
+                             "folder; .npz or .mat with --columns); repeat for several segments (files), each "
                              "preprocessed on its own and stacked")
     parser.add_argument("--validate", type=Path, required=validate_required, action="append",
                         help="validation data from another trajectory; repeatable like --data")
     parser.add_argument("--max-gap", type=float, default=DEFAULT_MAX_GAP, metavar="SECONDS",
                         help=f"longest logger stall bridged by interpolation (default {DEFAULT_MAX_GAP:g} s); a longer "
                              "hole splits a --data file into segments (and is an error in a --validate file)")
+    add_log_arguments(parser)
 
 
 def jobs_count(text: str) -> int | None:
