@@ -161,3 +161,31 @@ def test_a_centre_of_mass_beyond_the_link_is_named():
     links[5, 4:] = about_origin[[0, 0, 1, 0, 1, 2], [0, 1, 1, 2, 2, 2]]
     messages = [message for message in link_findings(robot, links) if "centre of mass" in message]
     assert len(messages) == 1 and messages[0].startswith("link of joint6")
+
+
+def test_exported_urdf_and_friction_json_simulate_again(consistent_result, tmp_path, capsys):
+    """The round trip: `oed export` then `oed simulate --urdf out.urdf --effect-values friction.json`, the exported
+    friction simulated with the values exported."""
+    from oed.fourier import FourierTrajectory
+
+    _, result, _ = consistent_result
+    urdf, friction_path = tmp_path / "out.urdf", tmp_path / "friction.json"
+    assert main(["export", "--model", str(result), "--urdf", str(urdf), "--friction", str(friction_path)]) == 0
+    trajectory = tmp_path / "trajectory.json"
+    generator = np.random.default_rng(4)
+    FourierTrajectory(0.5, np.zeros(3), generator.uniform(-0.1, 0.1, (3, 3)),
+                      generator.uniform(-0.1, 0.1, (3, 3))).save(trajectory)
+    data, truth = tmp_path / "again.csv", tmp_path / "truth.json"
+    capsys.readouterr()
+    assert main(["simulate", "--urdf", str(urdf), "--effect-values", str(friction_path), "--trajectory",
+                 str(trajectory), "--rate", "200", "--out", str(data), "--truth", str(truth)]) == 0
+    captured = capsys.readouterr()
+    assert "a sign law, simulated as fc · tanh(dq / 0.05)" in captured.err  # said, not silent
+    friction = json.loads(friction_path.read_text())
+    simulated = json.loads(truth.read_text())
+    parameters = {name: value for effect in simulated["effects"] for name, value in effect["parameters"].items()}
+    for j, name in enumerate(["joint1", "joint2", "joint3"], start=1):
+        terms = friction["joints"][name]
+        assert parameters[f"fv{j}"] == terms["viscous"] and parameters[f"fc{j}"] == terms["coulomb"]
+        assert parameters[f"off{j}"] == terms["offset"] and parameters[f"Ia{j}"] == terms["armature"]
+    assert len(pd.read_csv(data)) == 400

@@ -17,7 +17,8 @@ import numpy as np
 
 from dynamics.simulation.controllers import ComputedTorqueController, computed_torque_gains
 from dynamics.models import build_model
-from dynamics.simulation.effects import SIMULATED_EFFECTS, Viscous, effects_from_names
+from dynamics.simulation.effects import (SIMULATED_EFFECTS, Viscous, effects_from_friction, effects_from_names,
+                                        is_friction_document)
 from dynamics.simulation.simulator import NoiseModel, Simulator
 from oed.cli.shared.common import OutputFiles, add_robot_arguments, json_text, robot_from_arguments, seed
 from oed.fourier import FourierTrajectory
@@ -123,7 +124,13 @@ def run(args: argparse.Namespace) -> int:
     if designed_for and designed_for != robot.name:
         print(f"oed simulate: warning: {args.trajectory} was designed for {designed_for}, and is played on "
               f"{robot.name}: its bounds were not checked for this robot", file=sys.stderr)
-    effects = effects_from_names(args.effects, robot, _effect_values(args.effect_values))
+    values = _effect_values(args.effect_values)
+    if is_friction_document(values):  # the friction.json of `oed export`
+        effects, notes = effects_from_friction(values, robot, args.effects)
+        for note in notes:
+            print(f"oed simulate: warning: {note}", file=sys.stderr)
+    else:
+        effects = effects_from_names(args.effects, robot, values)
     noise = NoiseModel(args.noise_tau, tuple(args.noise_wrench), _resolution(args.q_resolution))
     simulator = Simulator(robot, effects, noise=noise, rate_hz=args.rate)
     controller = _controller(args.controller, simulator, args.bandwidth)
