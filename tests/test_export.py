@@ -189,3 +189,42 @@ def test_exported_urdf_and_friction_json_simulate_again(consistent_result, tmp_p
         assert parameters[f"fv{j}"] == terms["viscous"] and parameters[f"fc{j}"] == terms["coulomb"]
         assert parameters[f"off{j}"] == terms["offset"] and parameters[f"Ia{j}"] == terms["armature"]
     assert len(pd.read_csv(data)) == 400
+
+
+def test_the_exported_mjcf_reproduces_oed_predict_through_mujoco_inverse_dynamics(consistent_result, tmp_path,
+                                                                                   capsys):
+    """MuJoCo loads the MJCF; with friction loss (and limits) disabled, mj_inverse on the validation record is
+    `oed predict --consistent` less its Coulomb term and its offset (which MuJoCo cannot express, and which the
+    file and the verb's output list); frictionloss, damping and armature are the exported coefficients."""
+    mujoco = pytest.importorskip("mujoco", reason="the mujoco extra is not installed: pip install 'robot-oed[mujoco]'")
+    folder, result, validate = consistent_result
+    mjcf, friction_path, predictions = tmp_path / "robot.xml", tmp_path / "friction.json", tmp_path / "p.csv"
+    capsys.readouterr()
+    assert main(["export", "--model", str(result), "--mjcf", str(mjcf), "--friction", str(friction_path)]) == 0
+    output = capsys.readouterr().out
+    text = mjcf.read_text()
+    for name in ("joint1", "joint2", "joint3"):
+        assert f"joint {name}: offset" in output and f"joint {name}: offset" in text  # listed, not dropped
+    assert main(["predict", "--consistent", "--model", str(result), "--data", str(validate), "--out",
+                 str(predictions)]) == 0
+    friction = json.loads(friction_path.read_text())
+    terms = [friction["joints"][name] for name in ("joint1", "joint2", "joint3")]
+    model = mujoco.MjModel.from_xml_path(str(mjcf))
+    np.testing.assert_array_equal(model.dof_frictionloss, [entry["coulomb"] for entry in terms])
+    np.testing.assert_array_equal(model.dof_damping, [entry["viscous"] for entry in terms])
+    np.testing.assert_array_equal(model.dof_armature, [entry["armature"] for entry in terms])
+    model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_FRICTIONLOSS | mujoco.mjtDisableBit.mjDSBL_LIMIT
+    data = mujoco.MjData(model)
+    record = pd.read_csv(validate)
+    q, dq, ddq = (record[[f"{prefix}{j}" for j in (1, 2, 3)]].to_numpy() for prefix in ("q", "dq", "ddq"))
+    inverse = []
+    for qi, dqi, ddqi in zip(q, dq, ddq):
+        data.qpos[:], data.qvel[:], data.qacc[:] = qi, dqi, ddqi
+        mujoco.mj_inverse(model, data)
+        inverse.append(data.qfrc_inverse.copy())
+    predicted = pd.read_csv(predictions)[["tau1", "tau2", "tau3"]].to_numpy()
+    expected = predicted - np.array([entry["coulomb"] for entry in terms]) * np.sign(dq) \
+        - np.array([entry["offset"] for entry in terms])
+    np.testing.assert_allclose(np.array(inverse), expected, rtol=0, atol=1e-6 * np.abs(expected).max())
+    # numbers at full precision: the file reads back the doubles exported
+    assert repr(terms[0]["coulomb"]) in text
