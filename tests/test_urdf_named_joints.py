@@ -211,3 +211,18 @@ def test_cli_identify_with_named_joints_equals_the_hand_reduced_urdf_and_predict
     np.testing.assert_allclose(values["tree"], values["serial"], rtol=1e-6, atol=1e-9 * np.abs(values["serial"]).max())
     assert main(["predict", "--model", str(tmp_path / "tree.json"), "--data", str(data),
                  "--metrics", str(tmp_path / "metrics.json")]) == 0
+
+
+def test_exported_urdf_of_named_joints_reads_back_the_identified_bodies(urdf_files, tmp_path):
+    """`oed export` of a model of named joints: the locked joints' bodies are in the identified ones, so their
+    links are emptied and the file read again with the same names gives the identified bodies."""
+    from dynamics.urdf_export import urdf_with_inertials
+
+    tree, _ = urdf_files
+    robot = load_robot(urdf=tree, joint_names=NAMED, locked_at=LOCKED)
+    links = robot.standard_parameters.reshape(-1, 10) * np.random.default_rng(1).uniform(0.8, 1.2, (len(NAMED), 10))
+    exported = tmp_path / "exported.urdf"
+    exported.write_text(urdf_with_inertials(tree.read_text(), robot, links, merge_locked=True))
+    for locks in (LOCKED, {}):  # the locked links are empty: where they stand changes nothing
+        again = load_robot(urdf=exported, joint_names=NAMED, locked_at=locks)
+        np.testing.assert_allclose(again.standard_parameters.reshape(-1, 10), links, rtol=1e-12, atol=1e-12)

@@ -71,11 +71,12 @@ def exported_urdf(model: IdentifiedModel) -> str:
     _check_consistent(model)
     links = model.file.consistent_links
     source = model.file.robot
+    merged = source.joint_names is not None  # the locked joints' bodies are in the named joints' ones
     if source.urdf_text is not None:
-        return urdf_with_inertials(source.urdf_text, model.robot, links)
+        return urdf_with_inertials(source.urdf_text, model.robot, links, merge_locked=merged)
     if source.urdf_path is not None:
         with open(source.urdf_path) as stream:  # the hash was checked when the model was loaded
-            return urdf_with_inertials(stream.read(), model.robot, links)
+            return urdf_with_inertials(stream.read(), model.robot, links, merge_locked=merged)
     return robot_urdf(model.robot, links)
 
 
