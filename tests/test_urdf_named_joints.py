@@ -51,9 +51,11 @@ def _common_links() -> list[str]:
 
 
 def tree_urdf() -> str:
-    """A mobile manipulator: wheels and a head beside the arm, a gripper with a mimic finger at its tip,
-    transmissions for a named and a locked joint."""
+    """A mobile manipulator on a floating base: wheels and a head beside the arm, a gripper with a mimic finger at
+    its tip, transmissions for a named and a locked joint."""
     parts = _common_links() + [
+        '<link name="world"/>',  # a floating base, held fixed
+        '<joint name="world_joint" type="floating"><parent link="world"/><child link="base_footprint"/></joint>',
         _joint("wheel_left_joint", "continuous", "base", "wheel_left", "0 0.2 -0.05", "1.5707963 0 0", "0 0 1"),
         _joint("wheel_right_joint", "continuous", "base", "wheel_right", "0 -0.2 -0.05", "1.5707963 0 0", "0 0 1"),
         _joint("head_pan", "revolute", "torso", "head", "0 0 0.5", f"0 0 {HEAD_YAW}", "0 0 1"),
@@ -77,6 +79,8 @@ def hand_reduced_urdf() -> str:
     left = LOCKED["gripper_left"]
     right = MIMIC_MULTIPLIER * left + MIMIC_OFFSET
     parts = _common_links() + [
+        '<link name="world"/>',
+        '<joint name="world_joint" type="fixed"><parent link="world"/><child link="base_footprint"/></joint>',
         _joint("wheel_left_joint", "fixed", "base", "wheel_left", "0 0.2 -0.05", "1.5707963 0 0"),
         _joint("wheel_right_joint", "fixed", "base", "wheel_right", "0 -0.2 -0.05", "1.5707963 0 0"),
         _joint("head_pan", "fixed", "torso", "head", "0 0 0.5", f"0 0 {HEAD_YAW + LOCKED['head_pan']}"),
