@@ -210,3 +210,11 @@ def test_real_npz_and_mat_files_read_with_a_column_map():
     model = build_model(load_robot("emps"), "internal", "viscous")
     segment = read_record(LogSource(emps, columns={"t": "t", "q": "qm", "tau": "35.15*vir"}), model=model)[0]
     np.testing.assert_allclose(segment.tau[:, 0], 35.15 * loadmat(emps)["vir"].ravel(), rtol=1e-15)
+
+
+def test_the_streamed_path_refuses_a_bag_by_name(records, tmp_path, capsys):
+    bag = tmp_path / "bag"
+    write_ros2_bag(pd.read_csv(records / "train.csv"), bag)
+    assert main(["identify", "--urdf", str(URDF), "--data", str(bag), "--validate", str(records / "validate.csv"),
+                 "--chunk-size", "500", "--out", str(tmp_path / "r.json")]) == 2
+    assert "the streamed path (chunks, workers, a cluster) reads .csv and .parquet" in capsys.readouterr().err
