@@ -33,7 +33,7 @@ import pandas as pd
 from dynamics.effects.linear import WRENCH_CHANNELS
 from estimation.data.loading import MeasurementError, MeasurementWarning, MissingColumnError
 
-__all__ = ["BAG_SUFFIXES", "DEFAULT_TOPIC", "LogSource", "RosSupportError", "UnknownTopicError",
+__all__ = ["BAG_SUFFIXES", "DEFAULT_TOPIC", "DroppedStampsWarning", "LogSource", "RosSupportError", "UnknownTopicError",
            "apply_column_map", "is_log_file", "parse_column_map", "read_log_frame"]
 
 #: the topic of ``sensor_msgs/JointState`` read by default
