@@ -129,19 +129,33 @@ def transmission_from_urdf(path: str | Path, robot: RobotModel) -> Transmission 
     ``DifferentialTransmission`` and ``FourBarLinkageTransmission`` (two joints, two actuators,
     actuator reductions ``ar`` and joint reductions ``jr``, see the module docstring).
 
+    The transmissions of joints of the file that ``robot`` leaves out (locked: a robot of the named
+    joints, :func:`dynamics.urdf.robot_from_urdf`) are ignored; those of its joints are kept.
+
     Raises
     ------
     UnknownJointError
-        A transmission names a joint the robot lacks.
+        A transmission names a joint the robot lacks (and the file's movable joints do not hold).
     TransmissionError
-        An unsupported kind, or a joint driven by two transmissions.
+        An unsupported kind, a joint driven by two transmissions, or one coupling a joint of the
+        robot with a locked one.
     """
     path = Path(path)
     try:
         root = ElementTree.parse(path).getroot()
     except (ElementTree.ParseError, OSError) as error:
         raise TransmissionError(f"cannot read the transmissions of {path}: {error}") from None
-    elements = root.findall("transmission")
+    locked = {joint.get("name") for joint in root.iter("joint")
+              if joint.get("type") not in (None, "fixed") and joint.get("name") not in robot.joint_names}
+    elements = []
+    for element in root.findall("transmission"):
+        joint_names = [joint.get("name", "") for joint in element.findall("joint")]
+        if joint_names and all(name in locked for name in joint_names):
+            continue  # a locked joint's
+        if any(name in locked for name in joint_names):
+            raise TransmissionError(f"URDF {path}: transmission {element.get('name', '?')!r} couples joints of the "
+                                    f"robot with locked joints ({', '.join(joint_names)}): name them all or none")
+        elements.append(element)
     if not elements:
         return None
     n = robot.n_joints

@@ -1,9 +1,13 @@
 """Robots from a URDF file, parsed with Pinocchio.
 
-Only serial chains of one-degree-of-freedom revolute (including ``continuous``) and prismatic
-joints are accepted; fixed joints are merged by Pinocchio. The inertia of the root link is
-ignored: it does not move, so it adds only a constant to the base wrench, which the plate-offset
-columns absorb.
+Without joint names, only serial chains of one-degree-of-freedom revolute (including ``continuous``)
+and prismatic joints are accepted; fixed joints are merged by Pinocchio. With the names of the logged
+joints (``joint_names``), any URDF is accepted (branching trees, mimic joints, floating or planar
+joints): every other joint is locked (at ``locked_at``, default 0; a ``<mimic>`` joint at
+``multiplier·q_driver + offset`` of its locked driver) and the bodies it carries are merged into the
+link they hang from (Pinocchio's ``buildReducedModel``), so the named joints form the serial chain.
+The inertia of the root link is ignored: it does not move, so it adds only a constant to the base
+wrench, which the plate-offset columns absorb.
 """
 
 from __future__ import annotations
@@ -16,7 +20,7 @@ import tempfile
 import threading
 import warnings
 import xml.etree.ElementTree as ElementTree
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -145,8 +149,9 @@ def _check_total_mass(path: Path, root: ElementTree.Element, parsed: float, pars
                                     "inside a number?)" + (f"; the parser reported: {parser_report}" if parser_report else ""))
 
 
-def robot_from_urdf(path: str | Path, *, gravity: np.ndarray | None = None) -> RobotModel:
-    """Read a serial chain from a URDF file.
+def robot_from_urdf(path: str | Path, *, gravity: np.ndarray | None = None, joint_names: Sequence[str] | None = None,
+                    locked_at: Mapping[str, float] | None = None) -> RobotModel:
+    """Read a serial chain from a URDF file, or the chain of the named joints of any URDF.
 
     Parameters
     ----------
@@ -154,26 +159,143 @@ def robot_from_urdf(path: str | Path, *, gravity: np.ndarray | None = None) -> R
         The URDF file.
     gravity
         Gravity in the base frame; default ``(0, 0, -9.81)``.
+    joint_names
+        The logged joints, from the base to the tip of one chain (revolute, continuous or prismatic);
+        every other joint of the file is locked and the bodies it carries merged into the link they
+        hang from. ``None``: the file must be a serial chain (all its movable joints, in order).
+    locked_at
+        Positions of locked joints (rad or m; default 0 for each, whatever its limits: a lock is not
+        a motion). A ``<mimic>`` joint follows its locked driver (``multiplier·q + offset``).
 
     Raises
     ------
     RobotDescriptionError
-        If the file cannot be parsed, or the chain branches, or holds a joint that is not a
-        one-degree-of-freedom revolute or prismatic joint (floating, planar, spherical…), or a
-        ``<mimic>`` joint (coupled to another).
+        If the file cannot be parsed; without ``joint_names``, if the chain branches, or holds a joint
+        that is not a one-degree-of-freedom revolute or prismatic joint, or a ``<mimic>`` joint; with
+        them, if a name is not a movable joint of the file, the named joints are not one chain from
+        base to tip in the order given, or a body with mass moves with a named joint through a
+        ``<mimic>`` coupling.
     """
     path = Path(path)
     if not path.is_file():
         raise RobotDescriptionError(f"URDF file {path} is a folder" if path.is_dir() else f"URDF file not found: {path}")
     root = _check_numbers(path)
-    _refuse_mimic_joints(path, root)
-    model = _pinocchio_model(path, root)
-    _check_serial_chain(path, model)
+    if joint_names is None:
+        if locked_at:
+            raise RobotDescriptionError(f"URDF {path}: locked joints ({', '.join(locked_at)}) given without the names "
+                                        "of the logged joints (joint_names, --joint-names)")
+        _refuse_mimic_joints(path, root)
+        model = _pinocchio_model(path, root)
+        _check_serial_chain(path, model)
+    else:
+        model = _named_joints_model(path, root, _checked_names(path, joint_names), dict(locked_at or {}))
     return RobotModel(
         name=model.name or path.stem,
         joints=tuple(_joint(path, model, joint_id) for joint_id in range(1, model.njoints)),
         gravity=np.asarray(DEFAULT_GRAVITY if gravity is None else gravity, dtype=float),
     )
+
+
+def _checked_names(path: Path, joint_names: Sequence[str]) -> list[str]:
+    """The joint names as a list of distinct non-empty strings."""
+    if isinstance(joint_names, str):
+        joint_names = [name.strip() for name in joint_names.split(",")]
+    names = list(joint_names)
+    if not names or not all(isinstance(name, str) and name for name in names):
+        raise RobotDescriptionError(f"URDF {path}: joint names must be non-empty strings, got {names!r}")
+    repeated = sorted({name for name in names if names.count(name) > 1})
+    if repeated:
+        raise RobotDescriptionError(f"URDF {path}: joint(s) {', '.join(repeated)} named twice")
+    return names
+
+
+def _mimics(root: ElementTree.Element) -> dict[str, tuple[str, float, float]]:
+    """``{joint: (driver, multiplier, offset)}`` of the file's ``<mimic>`` joints."""
+    found = {}
+    for joint in root.iter("joint"):
+        mimic = joint.find("mimic")
+        if mimic is not None:
+            found[joint.get("name", "")] = (mimic.get("joint", ""), float(mimic.get("multiplier", "1")),
+                                            float(mimic.get("offset", "0")))
+    return found
+
+
+def _named_joints_model(path: Path, root: ElementTree.Element, names: list[str], locked_at: dict[str, float]) -> Any:
+    """Pinocchio's model of the named joints: the file's full tree (``<mimic>`` joints read as
+    independent joints) with every other joint locked, its bodies merged (``buildReducedModel``)."""
+    import pinocchio as pin
+
+    full = _pinocchio_model(path, root)
+    movable = {full.names[joint_id]: joint_id for joint_id in range(1, full.njoints)}
+    declared = {joint.get("name"): joint.get("type") for joint in root.iter("joint")}
+    mimics = _mimics(root)
+    for name in names:
+        if name in mimics:
+            raise RobotDescriptionError(f"URDF {path}: joint {name!r} mimics joint {mimics[name][0]!r} (a <mimic> "
+                                        f"coupling): name its driver {mimics[name][0]!r} instead")
+        if name not in movable:
+            what = (f"a {declared[name]} joint" if name in declared else "not a joint of the file")
+            raise RobotDescriptionError(f"URDF {path}: joint {name!r} is {what}; its movable joints are "
+                                        + ", ".join(movable))
+    for name, value in locked_at.items():
+        if name in names:
+            raise RobotDescriptionError(f"URDF {path}: joint {name!r} is both named (logged) and locked")
+        if name not in movable:
+            raise RobotDescriptionError(f"URDF {path}: locked joint {name!r} is not a movable joint of the file "
+                                        "(its movable joints are " + ", ".join(movable) + ")")
+        if name in mimics:
+            raise RobotDescriptionError(f"URDF {path}: joint {name!r} mimics {mimics[name][0]!r}: lock its driver")
+        if not np.isfinite(float(value)):
+            raise RobotDescriptionError(f"URDF {path}: joint {name!r} locked at {value}: not a finite number")
+    named_ids = {movable[name] for name in names}
+
+    def locked_value(name: str, depth: int = 0) -> float:
+        if name not in mimics:
+            return float(locked_at.get(name, 0.0))
+        driver, multiplier, offset = mimics[name]
+        if driver not in movable or depth > len(mimics):
+            raise RobotDescriptionError(f"URDF {path}: joint {name!r} mimics {driver!r}, which is not a movable joint "
+                                        "(or the <mimic> couplings form a loop)")
+        if driver in names:
+            joint_id = movable[name]
+            carried = sum(full.inertias[index].mass for index in full.subtrees[joint_id])
+            if named_ids & set(full.subtrees[joint_id]) or carried > 0:
+                raise RobotDescriptionError(
+                    f"URDF {path}: joint {name!r} mimics the named joint {driver!r} and carries "
+                    + ("named joints" if named_ids & set(full.subtrees[joint_id]) else f"{carried:g} kg")
+                    + ": a body moving with a named joint through a <mimic> coupling is not supported (lock "
+                    f"{driver!r}, or describe the coupled body as part of {driver!r}'s link)")
+            return offset  # massless and no named joint below: where it stands changes no torque
+        return multiplier * locked_value(driver, depth + 1) + offset
+
+    q = pin.neutral(full)
+    for name, joint_id in movable.items():
+        if joint_id in named_ids:
+            continue
+        joint_model = full.joints[joint_id]
+        value = locked_value(name)
+        start = joint_model.idx_q
+        if joint_model.nq == 1:
+            q[start] = value
+        elif joint_model.nq == 2 and joint_model.nv == 1:  # continuous: (cos, sin)
+            q[start : start + 2] = (np.cos(value), np.sin(value))
+        elif value != 0:
+            raise RobotDescriptionError(f"URDF {path}: joint {name!r} has {joint_model.nv} degrees of freedom: it is "
+                                        "locked at its neutral position, not at one number")
+    locked_ids = [joint_id for joint_id in movable.values() if joint_id not in named_ids]
+    reduced = pin.buildReducedModel(full, locked_ids, q) if locked_ids else full
+    chain = list(reduced.names)[1:]
+    for joint_id in range(1, reduced.njoints):
+        parent = reduced.parents[joint_id]
+        if parent != joint_id - 1:
+            raise RobotDescriptionError(
+                f"URDF {path}: the named joints are not one chain: {reduced.names[joint_id]!r} does not hang below "
+                + (f"{reduced.names[joint_id - 1]!r}" if joint_id > 1 else "the base")
+                + " (name the joints of one chain from the base to the tip; a branching set is not supported)")
+    if chain != names:
+        raise RobotDescriptionError(f"URDF {path}: name the joints from the base to the tip: {','.join(chain)} "
+                                    f"(given: {','.join(names)})")
+    return reduced
 
 
 def _pinocchio_model(path: Path, root: ElementTree.Element) -> Any:

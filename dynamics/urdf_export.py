@@ -102,10 +102,16 @@ def robot_urdf(robot: RobotModel, link_parameters: ArrayLike | None = None, *, b
     return ElementTree.tostring(root, encoding="unicode") + "\n"
 
 
-def urdf_with_inertials(urdf_text: str, robot: RobotModel, link_parameters: ArrayLike) -> str:
+def urdf_with_inertials(urdf_text: str, robot: RobotModel, link_parameters: ArrayLike, *,
+                        merge_locked: bool = False) -> str:
     """``urdf_text`` with the ``<inertial>`` of each of ``robot``'s moving links replaced by
     ``link_parameters`` (``(n, 10)``, in the child-link frames), the links fixed to them emptied
-    (module docstring); everything else as it was."""
+    (module docstring); everything else as it was.
+
+    ``merge_locked``: ``robot`` is the chain of the named joints of the file (:func:`dynamics.urdf.robot_from_urdf`
+    with ``joint_names``), whose bodies hold those the locked joints carry: the links below a locked joint
+    (up to the next named joint) are emptied too, so that reading the file again with the same names gives the
+    identified bodies, wherever the locked joints stand."""
     values = _link_parameters(robot, link_parameters)
     try:
         root = ElementTree.fromstring(urdf_text)
@@ -125,7 +131,7 @@ def urdf_with_inertials(urdf_text: str, robot: RobotModel, link_parameters: Arra
         pending = list(children.get(child.get("name"), []))
         while pending:  # the links fixed to this one: merged into its body by the parser
             fixed = pending.pop()
-            if fixed.get("type") != "fixed":
+            if fixed.get("type") != "fixed" and (not merge_locked or fixed.get("name") in robot.joint_names):
                 continue
             link = links[fixed.find("child").get("link")]
             _replace_inertial(link, None)

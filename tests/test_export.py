@@ -161,3 +161,70 @@ def test_a_centre_of_mass_beyond_the_link_is_named():
     links[5, 4:] = about_origin[[0, 0, 1, 0, 1, 2], [0, 1, 1, 2, 2, 2]]
     messages = [message for message in link_findings(robot, links) if "centre of mass" in message]
     assert len(messages) == 1 and messages[0].startswith("link of joint6")
+
+
+def test_exported_urdf_and_friction_json_simulate_again(consistent_result, tmp_path, capsys):
+    """The round trip: `oed export` then `oed simulate --urdf out.urdf --effect-values friction.json`, the exported
+    friction simulated with the values exported."""
+    from oed.fourier import FourierTrajectory
+
+    _, result, _ = consistent_result
+    urdf, friction_path = tmp_path / "out.urdf", tmp_path / "friction.json"
+    assert main(["export", "--model", str(result), "--urdf", str(urdf), "--friction", str(friction_path)]) == 0
+    trajectory = tmp_path / "trajectory.json"
+    generator = np.random.default_rng(4)
+    FourierTrajectory(0.5, np.zeros(3), generator.uniform(-0.1, 0.1, (3, 3)),
+                      generator.uniform(-0.1, 0.1, (3, 3))).save(trajectory)
+    data, truth = tmp_path / "again.csv", tmp_path / "truth.json"
+    capsys.readouterr()
+    assert main(["simulate", "--urdf", str(urdf), "--effect-values", str(friction_path), "--trajectory",
+                 str(trajectory), "--rate", "200", "--out", str(data), "--truth", str(truth)]) == 0
+    captured = capsys.readouterr()
+    assert "a sign law, simulated as fc · tanh(dq / 0.05)" in captured.err  # said, not silent
+    friction = json.loads(friction_path.read_text())
+    simulated = json.loads(truth.read_text())
+    parameters = {name: value for effect in simulated["effects"] for name, value in effect["parameters"].items()}
+    for j, name in enumerate(["joint1", "joint2", "joint3"], start=1):
+        terms = friction["joints"][name]
+        assert parameters[f"fv{j}"] == terms["viscous"] and parameters[f"fc{j}"] == terms["coulomb"]
+        assert parameters[f"off{j}"] == terms["offset"] and parameters[f"Ia{j}"] == terms["armature"]
+    assert len(pd.read_csv(data)) == 400
+
+
+def test_the_exported_mjcf_reproduces_oed_predict_through_mujoco_inverse_dynamics(consistent_result, tmp_path,
+                                                                                   capsys):
+    """MuJoCo loads the MJCF; with friction loss (and limits) disabled, mj_inverse on the validation record is
+    `oed predict --consistent` less its Coulomb term and its offset (which MuJoCo cannot express, and which the
+    file and the verb's output list); frictionloss, damping and armature are the exported coefficients."""
+    mujoco = pytest.importorskip("mujoco", reason="the mujoco extra is not installed: pip install 'robot-oed[mujoco]'")
+    folder, result, validate = consistent_result
+    mjcf, friction_path, predictions = tmp_path / "robot.xml", tmp_path / "friction.json", tmp_path / "p.csv"
+    capsys.readouterr()
+    assert main(["export", "--model", str(result), "--mjcf", str(mjcf), "--friction", str(friction_path)]) == 0
+    output = capsys.readouterr().out
+    text = mjcf.read_text()
+    for name in ("joint1", "joint2", "joint3"):
+        assert f"joint {name}: offset" in output and f"joint {name}: offset" in text  # listed, not dropped
+    assert main(["predict", "--consistent", "--model", str(result), "--data", str(validate), "--out",
+                 str(predictions)]) == 0
+    friction = json.loads(friction_path.read_text())
+    terms = [friction["joints"][name] for name in ("joint1", "joint2", "joint3")]
+    model = mujoco.MjModel.from_xml_path(str(mjcf))
+    np.testing.assert_array_equal(model.dof_frictionloss, [entry["coulomb"] for entry in terms])
+    np.testing.assert_array_equal(model.dof_damping, [entry["viscous"] for entry in terms])
+    np.testing.assert_array_equal(model.dof_armature, [entry["armature"] for entry in terms])
+    model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_FRICTIONLOSS | mujoco.mjtDisableBit.mjDSBL_LIMIT
+    data = mujoco.MjData(model)
+    record = pd.read_csv(validate)
+    q, dq, ddq = (record[[f"{prefix}{j}" for j in (1, 2, 3)]].to_numpy() for prefix in ("q", "dq", "ddq"))
+    inverse = []
+    for qi, dqi, ddqi in zip(q, dq, ddq):
+        data.qpos[:], data.qvel[:], data.qacc[:] = qi, dqi, ddqi
+        mujoco.mj_inverse(model, data)
+        inverse.append(data.qfrc_inverse.copy())
+    predicted = pd.read_csv(predictions)[["tau1", "tau2", "tau3"]].to_numpy()
+    expected = predicted - np.array([entry["coulomb"] for entry in terms]) * np.sign(dq) \
+        - np.array([entry["offset"] for entry in terms])
+    np.testing.assert_allclose(np.array(inverse), expected, rtol=0, atol=1e-6 * np.abs(expected).max())
+    # numbers at full precision: the file reads back the doubles exported
+    assert repr(terms[0]["coulomb"]) in text

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -44,7 +44,8 @@ def truncate(robot: RobotModel, joints: int) -> RobotModel:
     return RobotModel(f"{robot.name}[{joints}]", kept, robot.gravity, geometry)
 
 
-def load_robot(name: str | None = None, *, urdf: str | Path | None = None, joints: int | None = None) -> RobotModel:
+def load_robot(name: str | None = None, *, urdf: str | Path | None = None, joints: int | None = None,
+               joint_names: Sequence[str] | None = None, locked_at: Mapping[str, float] | None = None) -> RobotModel:
     """Return a built-in robot by name, or one read from a URDF file.
 
     Parameters
@@ -55,9 +56,14 @@ def load_robot(name: str | None = None, *, urdf: str | Path | None = None, joint
         Path of a URDF file describing a serial chain.
     joints
         Keep only the first ``joints`` joints (the PUMA paper uses 3); default all.
+    joint_names, locked_at
+        With ``urdf``: the logged joints (base to tip) of any URDF, every other joint locked at
+        ``locked_at`` (default 0), see :func:`dynamics.urdf.robot_from_urdf`.
     """
+    if urdf is None and (joint_names is not None or locked_at):
+        raise RobotDescriptionError("joint names and locked joints select joints of a URDF: give the URDF file")
     if urdf is not None:
-        robot = robot_from_urdf(urdf)
+        robot = robot_from_urdf(urdf, joint_names=joint_names, locked_at=locked_at)
     elif name is None:
         raise RobotDescriptionError("name a robot (one of " + ", ".join(sorted(BUILT_IN_ROBOTS)) + ") or a URDF file")
     else:

@@ -27,6 +27,7 @@ from pathlib import Path
 
 from dynamics.models import IdentificationModel
 from dynamics.runtime.memory import available_memory
+from estimation.data.log_formats import is_log_file
 
 __all__ = ["DEFAULT_SHARE", "InMemoryNeed", "MemorySizeError", "READ_BYTES", "count_rows", "default_budget",
            "estimate_in_memory", "format_size", "parse_memory_size"]
@@ -95,6 +96,9 @@ def count_rows(path: str | Path, *, block: int = 1 << 20) -> int:
     ValueError
         Another format.
     """
+    if is_log_file(path):
+        raise ValueError(f"{path}: the streamed path (chunks, workers, a cluster) reads .csv and .parquet files; a ROS "
+                         "bag, an .npz or .mat file or a column map is read in memory (drop the streaming options)")
     path = Path(path)
     suffix = path.suffix.lower()
     if suffix not in (".csv", ".parquet"):

@@ -17,6 +17,7 @@ the wrong sign: :class:`dynamics.transmission.TransmissionSignError`).
 
 from __future__ import annotations
 
+import os
 import re
 from pathlib import Path
 
@@ -27,6 +28,7 @@ from dynamics.models import IdentificationModel
 from dynamics.transmission import Transmission, TransmissionError, check_power_signs
 from estimation.data.loading import MeasurementError, MissingColumnError
 from estimation.data.log_cleaning import DEFAULT_MAX_GAP
+from estimation.data.log_formats import is_log_file
 from estimation.data.records import read_parquet_frame, read_record, segments_from_frame
 from dynamics.measurements import Measurements
 
@@ -130,9 +132,9 @@ def _velocities_and_torques(frame: pd.DataFrame, n_joints: int) -> tuple[np.ndar
 def read_record_with_transmission(path: str | Path, *, model: IdentificationModel, transmission: Transmission | None,
                                   max_gap: float = DEFAULT_MAX_GAP, split: bool = True) -> tuple[Measurements, ...]:
     """:func:`estimation.data.records.read_record` (the segments of one file), motor-side columns converted first."""
-    path = Path(path)
-    if path.suffix.lower() not in (".csv", ".parquet") or not path.is_file():
-        return read_record(path, model=model, max_gap=max_gap, split=split)  # its messages for a folder, a format
+    source, path = path, Path(os.fspath(path))
+    if path.suffix.lower() not in (".csv", ".parquet") or not path.is_file() or is_log_file(source):
+        return read_record(source, model=model, max_gap=max_gap, split=split)  # its messages for a folder, a format
     header = pd.read_csv(path, nrows=0).columns if path.suffix.lower() == ".csv" else _read_frame(path).columns
     if not motor_columns(header):
         return read_record(path, model=model, max_gap=max_gap, split=split)

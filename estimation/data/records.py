@@ -12,6 +12,7 @@ split into segments there: :class:`~estimation.data.loading.SplitWarning`, or a
 
 from __future__ import annotations
 
+import os
 import warnings
 from collections.abc import Iterable
 from pathlib import Path
@@ -47,6 +48,7 @@ from estimation.data.loading import (
     required_groups,
     uniform_grid,
 )
+from estimation.data.log_formats import is_log_file, read_log_frame
 from estimation.data.log_cleaning import DEFAULT_MAX_GAP, describe, find_gaps, repeated_rows, split_rows, time_stamps_jump
 from dynamics.measurements import Measurements, joint_columns
 
@@ -111,7 +113,7 @@ def measurements_from_frame(
 
 
 def read_record(
-    path: str | Path,
+    path: str | os.PathLike[str],
     *,
     n_joints: int | None = None,
     model: IdentificationModel | ModelKind | str | None = None,
@@ -123,16 +125,27 @@ def read_record(
     """Read a file as one or more segments: :func:`read_measurements`, but a hole longer than
     ``max_gap`` seconds splits the record (a :class:`SplitWarning`) instead of failing.
 
+    ``path`` may also be a ROS bag, an ``.npz`` or ``.mat`` file, or a
+    :class:`~estimation.data.log_formats.LogSource` (a topic, a column map): :mod:`estimation.data.log_formats`
+    reads it into the table first, matching a bag's joints by name to the model's robot.
+
     Rows repeating the previous row on every channel are dropped (:class:`RepeatedRowsWarning`,
     :mod:`estimation.data.log_cleaning`), stalls up to ``max_gap`` bridged (:class:`StallWarning`). Each
     segment's ``metadata`` holds ``source``, ``segment`` (1-based) and ``repeated_rows_dropped``.
     """
-    path = Path(path)
+    source, path = path, Path(os.fspath(path))
     suffix = path.suffix.lower()
+    if is_log_file(source):  # a ROS bag, .npz, .mat, or a column map (estimation.data.log_formats)
+        robot = model.robot if isinstance(model, IdentificationModel) else None
+        frame = read_log_frame(source, joint_names=None if robot is None else robot.joint_names,
+                               n_joints=n_joints if robot is None else robot.n_joints)
+        return segments_from_frame(frame, n_joints=n_joints, model=model, require=require, resample=resample,
+                                   source=str(path), max_gap=max_gap, split=split)
     if path.is_dir():
         raise IsADirectoryError(f"data file {path} is a folder")
     if suffix not in (".csv", ".parquet"):
-        raise MeasurementError(f"unknown data format {path.suffix!r} for {path}: use .csv or .parquet")
+        raise MeasurementError(f"unknown data format {path.suffix!r} for {path}: use .csv or .parquet, a ROS bag "
+                               "(.mcap, .db3, .bag or a rosbag2 folder), .npz or .mat")
     if not path.is_file():
         raise FileNotFoundError(f"data file not found: {path}")
     try:

@@ -1,4 +1,4 @@
-"""A physically consistent identified model written out for other tools: a URDF and ``friction.json``.
+"""A physically consistent identified model written out for other tools: a URDF and ``friction.json``, or MuJoCo's MJCF.
 
 The URDF (:mod:`dynamics.urdf_export`) carries the identified bodies; ``friction.json`` the rest of
 the model, so that Pinocchio's RNEA on the URDF plus these terms is the model's prediction::
@@ -10,22 +10,31 @@ the model, so that Pinocchio's RNEA on the URDF plus these terms is the model's 
      "laws": {"viscous": "fv * dq", …}, "delay": 0.007 | null, "gravity": [0, 0, -9.81], "channels": […]}
 
 ``τ_j = RNEA(q, q̇, q̈)_j + Σ laws of joint j`` (joint rows; the other effects and the delay as named).
+The MJCF (:func:`exported_mjcf`, :mod:`dynamics.mjcf_export`) carries the bodies and the joint terms
+MuJoCo has: ``armature`` (rotor inertia), ``damping`` (viscous), ``frictionloss`` (Coulomb), ``stiffness``
+and ``springref`` (a spring), gravity; what it cannot express (an offset, a Stribeck law, a smoothed or
+shaped Coulomb law, an effect not on one joint, a motor-side effect, a delay) is listed in a comment and
+in :attr:`MjcfExport.notes`.
+
 Only a consistent estimate is exported: base parameters alone do not determine the bodies (a base
 parameter is a sum of standard ones, and a body of unconstrained values need not be a real one).
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from dynamics.effects.specs import effect_spec
+from dynamics.mjcf_export import robot_mjcf
 from dynamics.urdf_export import robot_urdf, urdf_with_inertials
 from estimation.identification.identified_model import IdentifiedModel
 from estimation.identification.plausibility import link_findings
 
-__all__ = ["LAWS", "ExportError", "exported_urdf", "friction_document", "implausible_links"]
+__all__ = ["LAWS", "ExportError", "MjcfExport", "exported_mjcf", "exported_urdf", "friction_document",
+           "implausible_links"]
 
 #: the per-joint laws friction.json names, as formulas of the joint's motion
 LAWS = {
@@ -62,11 +71,12 @@ def exported_urdf(model: IdentifiedModel) -> str:
     _check_consistent(model)
     links = model.file.consistent_links
     source = model.file.robot
+    merged = source.joint_names is not None  # the locked joints' bodies are in the named joints' ones
     if source.urdf_text is not None:
-        return urdf_with_inertials(source.urdf_text, model.robot, links)
+        return urdf_with_inertials(source.urdf_text, model.robot, links, merge_locked=merged)
     if source.urdf_path is not None:
         with open(source.urdf_path) as stream:  # the hash was checked when the model was loaded
-            return urdf_with_inertials(stream.read(), model.robot, links)
+            return urdf_with_inertials(stream.read(), model.robot, links, merge_locked=merged)
     return robot_urdf(model.robot, links)
 
 
@@ -103,3 +113,42 @@ def friction_document(model: IdentifiedModel) -> dict[str, Any]:
     return {"joints": joints, "effects": others, "laws": dict(LAWS),
             "delay": model.file.delay, "gravity": np.asarray(robot.gravity, dtype=float).tolist(),
             "channels": list(model.channels)}
+
+
+#: friction.json's per-joint laws as MuJoCo joint attributes (a spring as two)
+_MUJOCO_TERMS = {"viscous": "damping", "coulomb": "frictionloss", "armature": "armature"}
+
+
+@dataclass(frozen=True)
+class MjcfExport:
+    """The MJCF text of a consistent model and what MuJoCo cannot express of it (one note each)."""
+
+    text: str
+    notes: tuple[str, ...]
+
+
+def exported_mjcf(model: IdentifiedModel) -> MjcfExport:
+    """MuJoCo's MJCF of the consistent estimate (module docstring): MuJoCo's inverse dynamics of it, with
+    friction loss disabled, is ``oed predict --consistent`` less the Coulomb term and the terms in ``notes``."""
+    document = friction_document(model)
+    terms: dict[str, dict[str, float]] = {}
+    notes: list[str] = []
+    for joint, laws in document["joints"].items():
+        entry = terms.setdefault(joint, {})
+        for law, value in laws.items():
+            if law in _MUJOCO_TERMS:
+                entry[_MUJOCO_TERMS[law]] = float(value)
+            elif law == "spring":
+                entry.update(stiffness=float(value["k"]), springref=float(value["reference"]))
+            elif law == "coulomb_smoothing":
+                notes.append(f"joint {joint}: the Coulomb law is smoothed (tanh(dq / {value:g})); MuJoCo's "
+                             "frictionloss is its own dry-friction constraint")
+            else:
+                notes.append(f"joint {joint}: {law} {value} ({LAWS.get(law, law)})")
+    notes.extend(f"effect {effect['spec']}: {effect['parameters']}" for effect in document["effects"])
+    if document.get("delay"):
+        notes.append(f"a delay of {document['delay']:g} s between torques and motion")
+    header = (f"robot-oed: the physically consistent estimate of {model.robot.name} ({model.file.effects or 'no'} "
+              "effects); numbers at full precision")
+    text = robot_mjcf(model.robot, model.file.consistent_links, terms, notes=notes, header=header)
+    return MjcfExport(text, tuple(notes))

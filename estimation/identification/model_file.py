@@ -5,7 +5,8 @@
     "model_file": {
         "format": "robot-oed identified model", "version": 1,
         "robot": {"name": "puma560[3]", "builtin": "puma560", "joints": 3,
-                  "urdf": {"path": "/abs/arm.urdf", "sha256": "…", "text": "<robot …>" | null} | null},
+                  "urdf": {"path": "/abs/arm.urdf", "sha256": "…", "text": "<robot …>" | null} | null,
+                  "joint_names": ["torso_lift_joint", …], "locked_at": {"head_1_joint": 0.3}},  # when named
         "model": "internal", "channels": ["tau1", …], "joint_names": ["joint1", …],
         "effects": "viscous,coulomb:tanh",                   # the spec that rebuilds the model's columns
         "effect_values": [{"spec": "coulomb:tanh", "coefficients": {"fc1": 0.4, …}, "shape": {"vc1": 0.05}}],
@@ -76,17 +77,26 @@ class RobotSource:
     urdf_path: str | None = None
     urdf_sha256: str | None = None
     urdf_text: str | None = None
+    joint_names: tuple[str, ...] | None = None
+    locked_at: Mapping[str, float] | None = None
 
     @classmethod
     def from_description(cls, robot: RobotModel, *, builtin: str | None, urdf: str | Path | None,
-                         joints: int | None) -> RobotSource:
-        """The source of ``robot``, read from ``builtin`` (a name of :data:`dynamics.robots.BUILT_IN_ROBOTS`) or ``urdf``."""
+                         joints: int | None, joint_names: Sequence[str] | None = None,
+                         locked_at: Mapping[str, float] | None = None) -> RobotSource:
+        """The source of ``robot``, read from ``builtin`` (a name of :data:`dynamics.robots.BUILT_IN_ROBOTS`) or ``urdf``
+        (with the logged ``joint_names`` and the ``locked_at`` positions of the others, when given)."""
         if urdf is None:
             return cls(robot.name, builtin, joints)
         path = Path(urdf).expanduser().resolve()
         data = path.read_bytes()
         text = data.decode("utf-8", errors="replace") if len(data) <= MAX_EMBEDDED_URDF_BYTES else None
-        return cls(robot.name, None, joints, str(path), hashlib.sha256(data).hexdigest(), text)
+        return cls(robot.name, None, joints, str(path), hashlib.sha256(data).hexdigest(), text,
+                   None if joint_names is None else tuple(joint_names),
+                   None if not locked_at else {name: float(value) for name, value in locked_at.items()})
+
+    def _load_urdf(self, path: Path) -> RobotModel:
+        return load_robot(urdf=path, joints=self.joints, joint_names=self.joint_names, locked_at=self.locked_at)
 
     def load(self) -> RobotModel:
         """The robot again: the embedded URDF text, else the file at ``urdf_path`` if its hash matches,
@@ -99,7 +109,7 @@ class RobotSource:
             with tempfile.TemporaryDirectory() as folder:
                 path = Path(folder) / "robot.urdf"
                 path.write_text(self.urdf_text)
-                return load_robot(urdf=path, joints=self.joints)
+                return self._load_urdf(path)
         path = Path(self.urdf_path or "")
         if not path.is_file():
             raise ModelFileError(f"the model's URDF {self.urdf_path} is not there any more (and was too large to "
@@ -108,18 +118,25 @@ class RobotSource:
         if digest != self.urdf_sha256:
             raise ModelFileError(f"the URDF {path} changed since the identification (sha256 {digest[:12]}…, the model "
                                  f"file says {self.urdf_sha256[:12]}…): the model's base parameters belong to the old one")
-        return load_robot(urdf=path, joints=self.joints)
+        return self._load_urdf(path)
 
     def to_dict(self) -> dict[str, Any]:
         urdf = None if self.urdf_sha256 is None else {"path": self.urdf_path, "sha256": self.urdf_sha256,
                                                        "text": self.urdf_text}
-        return {"name": self.name, "builtin": self.builtin, "joints": self.joints, "urdf": urdf}
+        document = {"name": self.name, "builtin": self.builtin, "joints": self.joints, "urdf": urdf}
+        if self.joint_names is not None:
+            document["joint_names"] = list(self.joint_names)
+        if self.locked_at:
+            document["locked_at"] = dict(self.locked_at)
+        return document
 
     @classmethod
     def from_dict(cls, document: Mapping[str, Any]) -> RobotSource:
         urdf = document.get("urdf") or {}
+        names = document.get("joint_names")
         return cls(str(document["name"]), document.get("builtin"), document.get("joints"), urdf.get("path"),
-                   urdf.get("sha256"), urdf.get("text"))
+                   urdf.get("sha256"), urdf.get("text"), None if names is None else tuple(names),
+                   document.get("locked_at") or None)
 
 
 @dataclass(frozen=True)

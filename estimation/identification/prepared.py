@@ -18,6 +18,8 @@ filtering, without reading the files again.
 
 from __future__ import annotations
 
+import os
+
 import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -212,9 +214,9 @@ def read_files(paths: Sequence[str | Path], model: IdentificationModel, *, split
         if resolved in seen:
             raise ValueError(f"{path} given twice (as {seen[resolved]} too): each file is one segment of the record")
         seen[resolved] = path
-    return tuple(RecordedFile(path, tuple(read_record_with_transmission(path, model=model, transmission=transmission,
-                                                                        max_gap=max_gap, split=split)))
-                 for path in map(Path, paths))
+    return tuple(RecordedFile(Path(os.fspath(source)), tuple(read_record_with_transmission(
+        source, model=model, transmission=transmission, max_gap=max_gap, split=split)))
+        for source in paths)  # a path, or a LogSource (a topic, a column map) read as it says
 
 
 def prepare_records(model: IdentificationModel, train: Sequence[str | Path], validation: Sequence[str | Path] = (),

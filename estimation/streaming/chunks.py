@@ -43,6 +43,7 @@ from numpy.typing import NDArray
 from dynamics.models import IdentificationModel
 from dynamics.runtime.threads import single_threaded_blas
 from dynamics.effects.linear import WRENCH_CHANNELS
+from estimation.data.log_formats import LogSource, is_log_file
 from estimation.data.loading import (
     GAP_FACTOR,
     MeasurementError,
@@ -96,6 +97,10 @@ class FileSums:
 def _raw_frames(path: Path, chunk_size: int, only_time: bool = False) -> Iterator[pd.DataFrame]:
     """The file's rows as frames of ``chunk_size`` (with ``only_time``: column ``t`` alone, if any)."""
     suffix = path.suffix.lower()
+    if is_log_file(path) or isinstance(path, LogSource):
+        raise MeasurementError(f"{path}: the streamed path (chunks, workers, a cluster) reads .csv and .parquet files; "
+                               "a ROS bag, an .npz or .mat file or a column map is read in memory (drop the streaming "
+                               "options)")
     if path.is_dir():
         raise MeasurementError(f"data file {path} is a folder")
     if suffix not in (".csv", ".parquet"):

@@ -23,7 +23,10 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
         "mass beyond twice the link's reach) is refused unless --allow-implausible.",
     )
     parser.add_argument("--model", type=Path, required=True, help="result.json of oed identify --consistent")
-    parser.add_argument("--urdf", dest="urdf_out", type=Path, required=True, metavar="URDF", help="URDF file to write")
+    parser.add_argument("--urdf", dest="urdf_out", type=Path, metavar="URDF", help="URDF file to write")
+    parser.add_argument("--mjcf", dest="mjcf_out", type=Path, metavar="XML",
+                        help="MuJoCo MJCF file to write: the bodies, joint armature, damping (viscous), frictionloss "
+                             "(Coulomb), gravity; what MuJoCo cannot express is listed in a comment and here")
     parser.add_argument("--friction", dest="friction_out", type=Path, metavar="JSON",
                         help="friction.json to write: per joint viscous, coulomb, offset, armature…, other effects")
     parser.add_argument("--allow-implausible", action="store_true",
@@ -34,7 +37,8 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
 
 def derived_outputs(args: argparse.Namespace) -> dict[str, Path]:
     """``--urdf`` and ``--friction``: outputs here (checked against each other by :func:`oed.cli.shared.paths.check_paths`)."""
-    outputs = {"--urdf": args.urdf_out}
+    outputs = {option: path for option, path in (("--urdf", args.urdf_out), ("--mjcf", args.mjcf_out))
+               if path is not None}
     if args.friction_out is not None:
         outputs["--friction"] = args.friction_out
     return outputs
@@ -42,16 +46,21 @@ def derived_outputs(args: argparse.Namespace) -> dict[str, Path]:
 
 def run(args: argparse.Namespace) -> int:
     model_path = args.model.expanduser().resolve()
-    for option, path in (("--urdf", args.urdf_out), ("--friction", args.friction_out)):
+    written = (("--urdf", args.urdf_out), ("--mjcf", args.mjcf_out), ("--friction", args.friction_out))
+    if args.urdf_out is None and args.mjcf_out is None:
+        raise ValueError("give --urdf FILE.urdf or --mjcf FILE.xml (or both): what to write")
+    for option, path in written:
         if path is not None and path.expanduser().resolve() == model_path:
             raise ValueError(f"{option} {path} is the model file (--model): it would be overwritten; write elsewhere")
-    if args.urdf_out.suffix.lower() != ".urdf":
+    if args.urdf_out is not None and args.urdf_out.suffix.lower() != ".urdf":
         raise ValueError(f"--urdf {args.urdf_out}: give a .urdf file name")
+    if args.mjcf_out is not None and args.mjcf_out.suffix.lower() != ".xml":
+        raise ValueError(f"--mjcf {args.mjcf_out}: give an .xml file name")
     if args.friction_out is not None:
         check_json_path(args.friction_out, "--friction")
-    result = export(model=args.model, allow_implausible=args.allow_implausible)
-    result.write(args.urdf_out, friction=args.friction_out)
+    result = export(model=args.model, allow_implausible=args.allow_implausible, mjcf=args.mjcf_out is not None)
+    result.write(args.urdf_out, mjcf=args.mjcf_out, friction=args.friction_out)
     print_warnings("export", result.warnings)
     print_lines(result.summary())
-    print("wrote " + " and ".join(str(path) for path in (args.urdf_out, args.friction_out) if path is not None))
+    print("wrote " + " and ".join(str(path) for _, path in written if path is not None))
     return 0

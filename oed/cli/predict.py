@@ -6,7 +6,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from oed.cli.shared.common import print_lines, print_warnings
+from oed.cli.shared.common import add_log_arguments, print_lines, print_warnings
 from oed.cli.shared.verbs import verb_summary
 from oed.workflows.options import check_csv_path, check_json_path
 from oed.workflows.predict import predict
@@ -23,7 +23,9 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     )
     parser.add_argument("--model", type=Path, required=True, help="result.json or report.json holding a model_file")
     parser.add_argument("--data", type=Path, required=True, action="append",
-                        help="the record (.csv or .parquet); repeat for several segments of one record")
+                        help="the record (.csv or .parquet, a ROS bag, .npz or .mat); repeat for several segments "
+                             "of one record")
+    add_log_arguments(parser)
     parser.add_argument("--consistent", action="store_true",
                         help="predict with the physically consistent estimate (oed identify --consistent) rather than "
                              "the unconstrained one; what `oed export` writes")
@@ -52,7 +54,8 @@ def run(args: argparse.Namespace) -> int:
         check_csv_path(args.out)
     if args.metrics is not None:
         check_json_path(args.metrics, "--metrics")
-    result = predict(model=args.model, data=args.data, consistent=args.consistent)
+    result = predict(model=args.model, data=args.data, consistent=args.consistent, topic=args.topic,
+                     columns=args.columns)
     print_warnings("predict", result.warnings)
     result.write(out=args.out, metrics=args.metrics)
     print_lines(result.summary())

@@ -41,7 +41,8 @@ def resolve_transmission(args: RecordOptions, robot: RobotModel) -> Transmission
     """
     full = robot
     if getattr(args, "joints", None) is not None and (getattr(args, "transmission", None) or args.urdf is not None):
-        full = load_robot(args.robot, urdf=args.urdf)
+        full = load_robot(args.robot, urdf=args.urdf, joint_names=getattr(args, "joint_names", None),
+                          locked_at=getattr(args, "locked_at", None))
     if getattr(args, "transmission", None):
         try:  # a file for the joints kept, or for the whole robot
             transmission = transmission_from_json(args.transmission, robot)

@@ -66,7 +66,6 @@ from oed.workflows.options import (
     differentiation,
     executor_for,
     model_has_shapes,
-    paths,
     preparation_settings,
     robot_of,
     streaming_requested,
@@ -94,7 +93,7 @@ class DiagnoseOptions(RecordOptions):
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        object.__setattr__(self, "test", paths(self.test))
+        object.__setattr__(self, "test", self.sources(self.test))
         if not self.validate:
             raise ValueError("diagnose confirms every effect on held-out data: give validate=... (--validate FILE)")
 

@@ -1,8 +1,8 @@
-"""``oed export`` as a library call: a physically consistent identified model as a URDF (and its friction as JSON)
-for other tools.
+"""``oed export`` as a library call: a physically consistent identified model as a URDF and/or MuJoCo's MJCF (and
+its friction as JSON) for other tools.
 
-:func:`export` returns an :class:`ExportRun`: ``write(urdf, friction=...)`` writes the URDF and the friction JSON
-(``to_dict()``), ``summary()`` the lines ``oed export`` prints. A body that is not plausible is refused unless
+:func:`export` returns an :class:`ExportRun`: ``write(urdf, mjcf=..., friction=...)`` writes the URDF, the MJCF and
+the friction JSON (``to_dict()``), ``summary()`` the lines ``oed export`` prints. A body that is not plausible is refused unless
 ``allow_implausible``.
 """
 
@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import Any
 
 from dynamics.runtime.output_files import OutputFiles, json_text
-from estimation.identification.export import exported_urdf, friction_document, implausible_links
+from estimation.identification.export import MjcfExport, exported_mjcf, exported_urdf, friction_document, implausible_links
 from estimation.identification.identified_model import IdentifiedModel
 
 __all__ = ["ExportRun", "export"]
@@ -21,12 +21,14 @@ __all__ = ["ExportRun", "export"]
 
 @dataclass(frozen=True)
 class ExportRun:
-    """What ``oed export`` computed: the URDF text, the model it came from and the bodies found implausible."""
+    """What ``oed export`` computed: the URDF text, the MJCF (its text and what MuJoCo cannot express), the model
+    it came from and the bodies found implausible."""
 
     urdf: str = field(repr=False)
     model: Any = field(repr=False)
     findings: tuple[str, ...]
     lines: tuple[str, ...]
+    mjcf: MjcfExport | None = field(default=None, repr=False)
 
     @property
     def warnings(self) -> tuple[str, ...]:
@@ -41,20 +43,29 @@ class ExportRun:
         """The bodies exported (their masses)."""
         return list(self.lines)
 
-    def write(self, urdf: str | Path, *, friction: str | Path | None = None) -> None:
-        """The URDF at ``urdf`` and, with ``friction``, the friction JSON: all or none."""
+    def write(self, urdf: str | Path | None = None, *, mjcf: str | Path | None = None,
+              friction: str | Path | None = None) -> None:
+        """The URDF at ``urdf``, MuJoCo's MJCF at ``mjcf`` and the friction JSON at ``friction`` (each may be left
+        out): all or none."""
+        if mjcf is not None and self.mjcf is None:
+            raise ValueError("this export holds no MJCF: call export(..., mjcf=True)")
         document = self.to_dict() if friction is not None else None
         with OutputFiles() as outputs:  # all files or none
-            with outputs.open(urdf) as stream:
-                stream.write(self.urdf)
+            if urdf is not None:
+                with outputs.open(urdf) as stream:
+                    stream.write(self.urdf)
+            if mjcf is not None:
+                with outputs.open(mjcf) as stream:
+                    stream.write(self.mjcf.text)
             if document is not None:
                 with outputs.open(friction) as stream:
                     stream.write(json_text(document))
 
 
-def export(*, model: str | Path, allow_implausible: bool = False) -> ExportRun:
+def export(*, model: str | Path, allow_implausible: bool = False, mjcf: bool = False) -> ExportRun:
     """``oed export``: the consistent estimate of ``model`` (a result.json of ``oed identify --consistent``) as the
-    robot's URDF with every moving link's <inertial> replaced. Raises ``ValueError`` when a body is not plausible
+    robot's URDF with every moving link's <inertial> replaced, and with ``mjcf`` as MuJoCo's MJCF (bodies, armature,
+    damping, frictionloss, gravity; what MuJoCo cannot express listed in ``ExportRun.mjcf.notes`` and a comment). Raises ``ValueError`` when a body is not plausible
     (degenerate, a mass ten times the description's or a tenth of it, a centre of mass beyond twice the link's
     reach), unless ``allow_implausible``."""
     identified = IdentifiedModel.load(Path(model))  # exported_urdf refuses a model without a consistent estimate
@@ -67,4 +78,6 @@ def export(*, model: str | Path, allow_implausible: bool = False) -> ExportRun:
                          "--allow-implausible")
     masses = ", ".join(f"{link[0]:.4g}" for link in identified.file.consistent_links)
     line = f"{identified.robot.name}: {identified.robot.n_joints} bodies of the consistent estimate (masses {masses} kg)"
-    return ExportRun(text, identified, tuple(findings), (line,))
+    mujoco = exported_mjcf(identified) if mjcf else None
+    lines = (line, *(f"not expressed in MuJoCo (listed in the MJCF): {note}" for note in (mujoco.notes if mujoco else ())))
+    return ExportRun(text, identified, tuple(findings), lines, mujoco)

@@ -13,7 +13,8 @@ from oed.workflows.options import RecordOptions
 def robot_source(robot: Any, args: RecordOptions) -> RobotSource:
     """Where the robot of ``args`` came from (``--robot``, ``--urdf``, ``--joints``)."""
     return RobotSource.from_description(robot, builtin=None if args.urdf is not None else args.robot, urdf=args.urdf,
-                                        joints=args.joints)
+                                        joints=args.joints, joint_names=getattr(args, "joint_names", None),
+                                        locked_at=getattr(args, "locked_at", None))
 
 
 def rest_document(args: RecordOptions) -> dict[str, Any] | None:

@@ -11,6 +11,7 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import math
+import os
 import warnings
 from collections.abc import Iterable, Iterator
 from concurrent.futures import Executor, ProcessPoolExecutor
@@ -25,6 +26,7 @@ from dynamics.robot import RobotModel
 from dynamics.robots import load_robot
 from dynamics.transmission import Transmission
 from estimation.data.log_cleaning import DEFAULT_MAX_GAP
+from estimation.data.log_formats import DEFAULT_TOPIC, LogSource, is_log_file
 from estimation.estimators.effect_blocks import NoRowsError
 from estimation.identification.prepared import InMemoryBudget, PreparationSettings
 from estimation.preprocessing.differentiation import (
@@ -45,12 +47,21 @@ NOT_CSV_SUFFIXES = frozenset({".json", ".parquet", ".png", ".pdf", ".svg", ".npz
 
 
 def paths(value: Any) -> tuple[Path, ...]:
-    """A repeatable path option as a tuple of paths: ``None`` -> ``()``, one path -> a 1-tuple."""
+    """A repeatable path option as a tuple of paths: ``None`` -> ``()``, one path -> a 1-tuple; a
+    :class:`~estimation.data.log_formats.LogSource` stays one."""
     if value is None:
         return ()
-    if isinstance(value, (str, Path)):
-        return (Path(value),)
-    return tuple(Path(item) for item in value)
+    if isinstance(value, (str, os.PathLike)):
+        value = (value,)
+    return tuple(item if isinstance(item, LogSource) else Path(item) for item in value)
+
+
+def log_sources(value: tuple[Path, ...], topic: str, columns: Any) -> tuple[Path, ...]:
+    """Each path of ``value`` that is a log file (a ROS bag, ``.npz``, ``.mat``; any with a column map) as a
+    :class:`~estimation.data.log_formats.LogSource` carrying ``topic`` and ``columns`` (``--topic``, ``--columns``)."""
+    columns = dict(columns or {})
+    return tuple(item if isinstance(item, LogSource) or not (columns or is_log_file(item))
+                 else LogSource(item, topic=topic, columns=columns) for item in value)
 
 
 def optional_path(value: Any) -> Path | None:
@@ -99,19 +110,25 @@ def check_markdown_path(path: str | Path | None, option: str = "--report") -> No
 
 @dataclass(frozen=True, kw_only=True)
 class RobotOptions:
-    """``--robot NAME``, ``--urdf FILE`` (which wins) and ``--joints N``."""
+    """``--robot NAME``, ``--urdf FILE`` (which wins), ``--joints N``, and with ``--urdf`` the logged joints
+    ``--joint-names A,B,C`` (every other joint locked at ``--locked-at NAME=VALUE,...``, default 0)."""
 
     robot: str | None = "puma560"
     urdf: Path | None = None
     joints: int | None = None
+    joint_names: tuple[str, ...] | None = None
+    locked_at: dict[str, float] | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "urdf", optional_path(self.urdf))
+        if self.joint_names is not None:
+            object.__setattr__(self, "joint_names", tuple(self.joint_names))
 
 
 def robot_of(options: RobotOptions) -> RobotModel:
     """The robot the options name."""
-    return load_robot(options.robot, urdf=options.urdf, joints=options.joints)
+    return load_robot(options.robot, urdf=options.urdf, joints=options.joints, joint_names=options.joint_names,
+                      locked_at=options.locked_at)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -138,11 +155,13 @@ class RecordOptions(RobotOptions):
     scheduler: str | None = None
     workers: int = 0
     memory_budget: str | None = None
+    topic: str = DEFAULT_TOPIC
+    columns: dict[str, str] | None = None
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        object.__setattr__(self, "data", paths(self.data))
-        object.__setattr__(self, "validate", paths(self.validate))
+        object.__setattr__(self, "data", self.sources(self.data))
+        object.__setattr__(self, "validate", self.sources(self.validate))
         if not self.data:
             raise ValueError("give the training record: data=... (--data FILE)")
         check_choice("model", self.model, [kind.value for kind in ModelKind])
@@ -150,6 +169,10 @@ class RecordOptions(RobotOptions):
         check_choice("average_periods", self.average_periods, ("auto", "yes", "no"))
         if self.transmission is not None:
             object.__setattr__(self, "transmission", str(self.transmission))
+
+    def sources(self, value: Any) -> tuple[Path, ...]:
+        """A record option's paths, the log files among them read with ``topic`` and ``columns``."""
+        return log_sources(paths(value), self.topic, self.columns)
 
     def replace(self, **changes: Any) -> RecordOptions:
         """A copy with ``changes``."""

@@ -17,7 +17,8 @@ import pandas as pd
 from dynamics.runtime.output_files import OutputFiles, json_text
 from estimation.identification.identified_model import IdentifiedModel
 from estimation.identification.trivial_predictors import trivial_warnings
-from oed.workflows.options import paths
+from estimation.data.log_formats import DEFAULT_TOPIC
+from oed.workflows.options import log_sources, paths
 
 __all__ = ["PredictRun", "predict"]
 
@@ -55,13 +56,15 @@ class PredictRun:
                     stream.write(json_text(self.evaluation.to_dict()))
 
 
-def predict(*, model: str | Path, data: Any, consistent: bool = False) -> PredictRun:
+def predict(*, model: str | Path, data: Any, consistent: bool = False, topic: str = DEFAULT_TOPIC,
+            columns: dict[str, str] | None = None) -> PredictRun:
     """``oed predict``: the model of ``model`` (a result.json or report.json) on the record ``data`` (a path or
-    the list of its segments); ``consistent``: the physically consistent estimate (what ``oed export`` writes)."""
+    the list of its segments; a ROS bag read on ``topic``, an ``.npz`` or ``.mat`` file, any with the column map
+    ``columns``); ``consistent``: the physically consistent estimate (what ``oed export`` writes)."""
     identified = IdentifiedModel.load(Path(model), estimate="consistent" if consistent else "unconstrained")
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        evaluation = identified.evaluate(list(paths(data)))
+        evaluation = identified.evaluate(list(log_sources(paths(data), topic, columns)))
     prediction = evaluation.prediction
     notes = trivial_warnings(prediction.mse, {"zero_mse": evaluation.zero_mse, "nominal_mse": evaluation.nominal_mse},
                              label="model")

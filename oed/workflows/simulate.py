@@ -19,7 +19,7 @@ import numpy as np
 from dynamics.models import build_model
 from dynamics.runtime.output_files import OutputFiles, json_text
 from dynamics.simulation.controllers import ComputedTorqueController, computed_torque_gains
-from dynamics.simulation.effects import Viscous, effects_from_names
+from dynamics.simulation.effects import Viscous, effects_from_friction, effects_from_names, is_friction_document
 from dynamics.simulation.simulator import NoiseModel, Simulator
 from oed.fourier import FourierTrajectory
 from oed.workflows.options import RobotOptions, check_choice, optional_path, robot_of
@@ -151,7 +151,12 @@ def simulate(**options: Any) -> SimulateRun:
     if designed_for and designed_for != robot.name:
         notes.append(f"{args.trajectory} was designed for {designed_for}, and is played on {robot.name}: its bounds "
                      "were not checked for this robot")
-    effects = effects_from_names(args.effects, robot, effect_values(args.effect_values))
+    values = effect_values(args.effect_values)
+    if is_friction_document(values):  # the friction.json of `oed export`
+        effects, friction_notes = effects_from_friction(values, robot, args.effects)
+        notes.extend(friction_notes)
+    else:
+        effects = effects_from_names(args.effects, robot, values)
     noise = NoiseModel(args.noise_tau, tuple(args.noise_wrench), resolution(args.q_resolution))
     simulator = Simulator(robot, effects, noise=noise, rate_hz=args.rate)
     controller = controller_of(args.controller, simulator, args.bandwidth)

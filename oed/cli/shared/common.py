@@ -13,11 +13,12 @@ from typing import Any
 
 from dynamics.robots import BUILT_IN_ROBOTS
 from estimation.data.log_cleaning import DEFAULT_MAX_GAP
+from estimation.data.log_formats import DEFAULT_TOPIC, parse_column_map
 from estimation.estimators.normal_equations import DEFAULT_CHUNK_SIZE
 from estimation.streaming.cluster import SCHEDULER_VARIABLE
 
 __all__ = [
-    "add_data_arguments", "add_derivative_arguments", "add_jobs_argument", "add_robot_arguments",
+    "add_data_arguments", "add_derivative_arguments", "add_jobs_argument", "add_log_arguments", "add_robot_arguments",
     "add_streaming_arguments", "print_lines", "print_warnings", "seed", "stderr_say", "verb_keywords",
 ]
 
@@ -30,6 +31,58 @@ def add_robot_arguments(parser: argparse.ArgumentParser, *, default: str | None 
     )
     group.add_argument("--urdf", type=Path, help="URDF file of a serial chain (stands in for --robot)")
     group.add_argument("--joints", type=int, help="keep only the first N joints (the PUMA paper uses 3)")
+    add_joint_selection_arguments(group)
+
+
+def add_joint_selection_arguments(group: Any) -> None:
+    """``--joint-names a,b,c`` and ``--locked-at name=value,...`` (the logged joints of any URDF)."""
+    group.add_argument("--joint-names", type=joint_name_list, metavar="A,B,C",
+                       help="with --urdf: the logged joints, base to tip (columns q1..qN and tau1..tauN follow this "
+                            "order); every other joint of the URDF is locked")
+    group.add_argument("--locked-at", type=locked_positions, default=None, metavar="NAME=VALUE,...",
+                       help="with --joint-names: positions of locked joints, rad or m (default 0)")
+
+
+def joint_name_list(text: str) -> tuple[str, ...]:
+    """``--joint-names`` values: comma-separated names, checked by argparse."""
+    names = tuple(name.strip() for name in text.split(","))
+    if not all(names):
+        raise argparse.ArgumentTypeError(f"expected comma-separated joint names, got {text!r}")
+    return names
+
+
+def locked_positions(text: str) -> dict[str, float]:
+    """``--locked-at`` values: ``name=value`` pairs separated by commas, checked by argparse."""
+    positions: dict[str, float] = {}
+    for item in filter(None, (part.strip() for part in text.split(","))):
+        name, _, value = item.partition("=")
+        try:
+            positions[name.strip()] = float(value)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected NAME=VALUE pairs, got {item!r}") from None
+        if not name.strip():
+            raise argparse.ArgumentTypeError(f"expected NAME=VALUE pairs, got {item!r}")
+    return positions
+
+
+def add_log_arguments(parser: argparse.ArgumentParser) -> None:
+    """``--topic`` and ``--columns``: how to read ROS bags, ``.npz`` and ``.mat`` files (the library wraps such data
+    paths as :class:`estimation.data.log_formats.LogSource`)."""
+    group = parser.add_argument_group("logs (ROS bags, .npz, .mat, other column names)")
+    group.add_argument("--topic", default=DEFAULT_TOPIC,
+                       help=f"topic of the sensor_msgs/JointState messages in a ROS bag (default {DEFAULT_TOPIC}); "
+                            "joints matched by name to --joint-names or the URDF's joints")
+    group.add_argument("--columns", type=column_map, default=None, metavar="COLUMN=NAME,...",
+                       help="column map, e.g. t=times,q=positions,dq=velocities,tau=torques (an .npz's or .mat's "
+                            "arrays, a table's columns; a factor scales: tau=35.15*vir)")
+
+
+def column_map(text: str) -> dict[str, str]:
+    """``--columns`` values, checked by argparse."""
+    try:
+        return parse_column_map(text)
+    except ValueError as error:
+        raise argparse.ArgumentTypeError(str(error)) from None
 
 
 def seed(text: str) -> int:
@@ -44,15 +97,18 @@ def seed(text: str) -> int:
 
 
 def add_data_arguments(parser: argparse.ArgumentParser, *, validate_required: bool) -> None:
-    """``--data`` and ``--validate`` (each repeatable: the segments of one record) and ``--max-gap``."""
+    """``--data`` and ``--validate`` (each repeatable: the segments of one record), ``--max-gap``, and the options
+    of :func:`add_log_arguments`."""
     parser.add_argument("--data", type=Path, required=True, action="append",
-                        help="identification data (.csv or .parquet); repeat for several segments (files), each "
+                        help="identification data (.csv or .parquet; a ROS bag: .mcap, .db3, .bag or a rosbag2 "
+                             "folder; .npz or .mat with --columns); repeat for several segments (files), each "
                              "preprocessed on its own and stacked")
     parser.add_argument("--validate", type=Path, required=validate_required, action="append",
                         help="validation data from another trajectory; repeatable like --data")
     parser.add_argument("--max-gap", type=float, default=DEFAULT_MAX_GAP, metavar="SECONDS",
                         help=f"longest logger stall bridged by interpolation (default {DEFAULT_MAX_GAP:g} s); a longer "
                              "hole splits a --data file into segments (and is an error in a --validate file)")
+    add_log_arguments(parser)
 
 
 def jobs_count(text: str) -> int | None:

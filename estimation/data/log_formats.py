@@ -1,0 +1,338 @@
+"""Logs as they come: ROS bags, ``.npz`` and ``.mat`` files, and tables with other column names, read into the
+table of :mod:`dynamics.measurements` (``t, q1..qn [, dq1..dqn] [, tau1..taun]``).
+
+* **ROS bags** (the ``ros`` extra, ``pip install 'robot-oed[ros]'``: the pure-Python ``rosbags`` reader, no ROS
+  install): a ROS 2 bag (a rosbag2 folder with SQLite or MCAP storage, or a single ``.mcap`` or ``.db3`` file)
+  or a ROS 1 ``.bag``. The ``sensor_msgs/JointState`` messages on the topic (default ``/joint_states``) give, by
+  joint name: header stamp → ``t`` (seconds since the first stamp; the time the bag logged the message when
+  the publisher left every stamp at zero), position → ``q``, velocity → ``dq`` when every message carries it,
+  effort → ``tau`` when every message carries it. The joints are matched by name to the robot's (the logged
+  joints named, :func:`dynamics.urdf.robot_from_urdf`), in the robot's order; other joints in the messages are
+  ignored; messages of one stamp (split publishers) are merged; a stamp missing a joint is dropped (warned).
+* **.npz / .mat** (MATLAB 5 to 7.2, SciPy's reader): arrays by name, taken as the columns they are named
+  after (``t``, ``q1``…), a 2-D array named ``q``, ``dq``, ``ddq``, ``tau`` or ``wrench`` giving one column per
+  joint (or ``fx..mz``), or mapped by a column map.
+* **A column map** (``--columns t=times,q=positions,tau=35.15*vir``): each entry says which array (or table
+  column) is the column or group on the left, optionally scaled by a factor; for a table, a group whose
+  columns carry another prefix (``q=Pos`` for ``Pos1..Posn``) is renamed column by column.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import warnings
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from dynamics.effects.linear import WRENCH_CHANNELS
+from estimation.data.loading import MeasurementError, MeasurementWarning, MissingColumnError
+
+__all__ = ["BAG_SUFFIXES", "DEFAULT_TOPIC", "DroppedStampsWarning", "LogSource", "RosSupportError", "UnknownTopicError",
+           "apply_column_map", "is_log_file", "parse_column_map", "read_log_frame"]
+
+#: the topic of ``sensor_msgs/JointState`` read by default
+DEFAULT_TOPIC = "/joint_states"
+#: suffixes of bag files (a rosbag2 folder is recognised by its ``metadata.yaml``)
+BAG_SUFFIXES = (".bag", ".mcap", ".db3")
+#: suffixes of arrays by name
+ARRAY_SUFFIXES = (".npz", ".mat")
+#: column groups a map may name, with one column per joint
+JOINT_GROUPS = ("q", "dq", "ddq", "tau")
+_FACTOR = re.compile(r"^\s*([+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?)\s*\*\s*(.+?)\s*$")
+
+
+class RosSupportError(MeasurementError, ImportError):
+    """Reading a ROS bag needs the ``ros`` extra (the ``rosbags`` package), which is not installed."""
+
+
+class UnknownTopicError(MeasurementError):
+    """The bag holds no ``sensor_msgs/JointState`` messages on the topic asked for."""
+
+
+class DroppedStampsWarning(MeasurementWarning):
+    """Stamps at which a named joint was missing from every message were dropped."""
+
+
+@dataclass(frozen=True)
+class LogSource(os.PathLike):
+    """A log file (or rosbag2 folder) with how to read it: the ROS topic and a column map.
+
+    Anywhere a data path is taken, a :class:`LogSource` may stand in for it (it is path-like).
+
+    Parameters
+    ----------
+    path
+        The file or rosbag2 folder.
+    topic
+        The topic of the ``sensor_msgs/JointState`` messages in a bag.
+    columns
+        Column map ``{column or group: name in the file}`` (:func:`parse_column_map`); empty: names as they are.
+    joint_names
+        The joints of a bag's messages to read, in this order; default the robot's.
+    """
+
+    path: Path
+    topic: str = DEFAULT_TOPIC
+    columns: Mapping[str, str] = field(default_factory=dict)
+    joint_names: tuple[str, ...] | None = None
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "path", Path(self.path))
+        object.__setattr__(self, "columns", dict(self.columns))
+
+    def __fspath__(self) -> str:
+        return os.fspath(self.path)
+
+    def __str__(self) -> str:
+        return str(self.path)
+
+    def __getattr__(self, name: str) -> Any:  # the path's own (suffix, exists, expanduser…): it stands in for one
+        if name.startswith("__") or name == "path":
+            raise AttributeError(name)
+        return getattr(self.path, name)
+
+
+def parse_column_map(text: str | Mapping[str, str] | None) -> dict[str, str]:
+    """``"t=times,q=positions,tau=35.15*vir"`` as ``{"t": "times", "q": "positions", "tau": "35.15*vir"}``.
+
+    Raises
+    ------
+    ValueError
+        An entry that is not ``column=name``, or a column named twice.
+    """
+    if text is None:
+        return {}
+    if isinstance(text, Mapping):
+        return {str(key).strip(): str(value).strip() for key, value in text.items()}
+    columns: dict[str, str] = {}
+    for item in filter(None, (part.strip() for part in str(text).split(","))):
+        key, sign, value = item.partition("=")
+        if not sign or not key.strip() or not value.strip():
+            raise ValueError(f"column map entry {item!r}: expected COLUMN=NAME (e.g. t=times,q=positions)")
+        if key.strip() in columns:
+            raise ValueError(f"column map: {key.strip()!r} mapped twice")
+        columns[key.strip()] = value.strip()
+    return columns
+
+
+def _path(source: str | os.PathLike[str]) -> Path:
+    return Path(os.fspath(source))
+
+
+def is_log_file(source: str | os.PathLike[str]) -> bool:
+    """Whether ``source`` is read here rather than as a CSV or Parquet table: a bag, a rosbag2 folder, an
+    ``.npz`` or ``.mat`` file, or a :class:`LogSource` with a column map."""
+    path = _path(source)
+    if isinstance(source, LogSource) and source.columns:
+        return True
+    return path.suffix.lower() in BAG_SUFFIXES + ARRAY_SUFFIXES or (path.is_dir() and (path / "metadata.yaml").is_file())
+
+
+def read_log_frame(source: str | os.PathLike[str], *, joint_names: Sequence[str] | None = None,
+                   n_joints: int | None = None) -> pd.DataFrame:
+    """The log as a table of :mod:`dynamics.measurements` (module docstring).
+
+    Parameters
+    ----------
+    source
+        A path or :class:`LogSource`.
+    joint_names
+        The robot's joints, in its order (a bag's messages are matched to them by name); ``source.joint_names``
+        wins when given.
+    n_joints
+        The robot's number of joints (a 2-D array's columns are checked against it).
+
+    Raises
+    ------
+    RosSupportError
+        A bag without the ``ros`` extra installed.
+    UnknownTopicError
+        No ``JointState`` messages on the topic: the message names the topics and types the bag holds.
+    MissingColumnError
+        A named joint absent from the messages, or a mapped name absent from the file.
+    MeasurementError
+        A file that cannot be read.
+    """
+    path = _path(source)
+    log = source if isinstance(source, LogSource) else LogSource(path)
+    if not path.exists():
+        raise FileNotFoundError(f"data file not found: {path}")
+    suffix = path.suffix.lower()
+    if suffix in BAG_SUFFIXES or path.is_dir():
+        names = log.joint_names if log.joint_names is not None else joint_names
+        if names is None:
+            raise MeasurementError(f"{path}: a ROS bag is read by joint name: name the joints (--joint-names with "
+                                   "--urdf, or a robot)")
+        frame = _bag_frame(path, log.topic, list(names))
+        return apply_column_map(frame, log.columns, str(path)) if log.columns else frame
+    if suffix in ARRAY_SUFFIXES:
+        return _array_frame(_arrays(path), log.columns, str(path), n_joints)
+    try:
+        frame = pd.read_parquet(path) if suffix == ".parquet" else pd.read_csv(path)
+    except (ValueError, OSError, ImportError, pd.errors.ParserError) as error:
+        raise MeasurementError(f"cannot read {path}: {str(error).strip()}") from None
+    return apply_column_map(frame, log.columns, str(path))
+
+
+def _scaled(value: str) -> tuple[float, str]:
+    """``"35.15*vir"`` as ``(35.15, "vir")``; ``"vir"`` as ``(1.0, "vir")``."""
+    found = _FACTOR.match(value)
+    return (float(found.group(1)), found.group(2)) if found else (1.0, value)
+
+
+def apply_column_map(frame: pd.DataFrame, columns: Mapping[str, str], source: str) -> pd.DataFrame:
+    """``frame`` with the mapped columns under the names of :mod:`dynamics.measurements` (module docstring)."""
+    if not columns:
+        return frame
+    renamed: dict[str, Any] = {}
+    used: set[str] = set()
+    for key, value in columns.items():
+        factor, name = _scaled(value)
+        if name in frame.columns:
+            renamed[f"{key}1" if key in JOINT_GROUPS else key] = factor * pd.to_numeric(frame[name], errors="coerce") if factor != 1.0 else frame[name]
+            used.add(name)
+            continue
+        prefixed = sorted((column for column in frame.columns if re.fullmatch(re.escape(name) + r"\d+", str(column))),
+                          key=lambda column: int(str(column)[len(name):]))
+        if key in JOINT_GROUPS and prefixed:
+            for column in prefixed:
+                renamed[f"{key}{str(column)[len(name):]}"] = factor * frame[column] if factor != 1.0 else frame[column]
+            used.update(prefixed)
+            continue
+        raise MissingColumnError(f"{source}: column map {key}={value}: no column {name!r} (columns: "
+                                 + ", ".join(map(str, frame.columns)) + ")")
+    kept = frame[[column for column in frame.columns if column not in used and column not in renamed]]
+    return pd.concat([pd.DataFrame(renamed, index=frame.index), kept], axis=1)
+
+
+def _arrays(path: Path) -> dict[str, np.ndarray]:
+    """The arrays of an ``.npz`` or ``.mat`` file by name (MATLAB's own variables ``__header__``… left out)."""
+    try:
+        if path.suffix.lower() == ".npz":
+            with np.load(path, allow_pickle=False) as archive:
+                return {name: np.asarray(archive[name]) for name in archive.files}
+        from scipy.io import loadmat
+
+        return {name: np.asarray(value) for name, value in loadmat(path).items() if not name.startswith("__")}
+    except NotImplementedError:
+        raise MeasurementError(f"cannot read {path}: a MATLAB 7.3 (HDF5) file; save it with save(..., '-v7')") from None
+    except (ValueError, OSError, TypeError) as error:
+        raise MeasurementError(f"cannot read {path}: {str(error).strip()}") from None
+
+
+def _array_frame(arrays: Mapping[str, np.ndarray], columns: Mapping[str, str], source: str,
+                 n_joints: int | None) -> pd.DataFrame:
+    """The table of named arrays: each mapped (or, without a map, each array) as its column or group."""
+    wanted = dict(columns) if columns else {name: name for name in arrays}
+    table: dict[str, np.ndarray] = {}
+    for key, value in wanted.items():
+        factor, name = _scaled(value)
+        if name not in arrays:
+            raise MissingColumnError(f"{source}: column map {key}={value}: no array {name!r} (arrays: "
+                                     + ", ".join(sorted(arrays)) + ")")
+        array = np.asarray(arrays[name])
+        if array.dtype.kind not in "biuf":
+            if columns:
+                raise MeasurementError(f"{source}: array {name!r} holds {array.dtype} values, not numbers")
+            continue  # an unmapped array of text or objects: not a column
+        array = factor * array.astype(float)
+        if array.ndim == 2 and 1 in array.shape:
+            array = array.reshape(-1)
+        if array.ndim == 1:
+            table[f"{key}1" if key in JOINT_GROUPS else key] = array  # a group of one joint
+        elif array.ndim == 2 and key in JOINT_GROUPS + ("wrench",):
+            if array.shape[1] > array.shape[0]:
+                array = array.T  # joints x samples, as MATLAB users often store them
+            if key == "wrench":
+                table.update({channel: array[:, index] for index, channel in enumerate(WRENCH_CHANNELS)})
+                continue
+            if n_joints is not None and array.shape[1] < n_joints:
+                raise MissingColumnError(f"{source}: array {name!r} ({key}) has {array.shape[1]} columns for "
+                                         f"{n_joints} joints")
+            table.update({f"{key}{index + 1}": array[:, index] for index in range(array.shape[1])})
+        elif columns:
+            raise MeasurementError(f"{source}: array {name!r} has shape {array.shape}: map a 1-D array to a column "
+                                   f"or a 2-D one (samples x joints) to a group ({', '.join(JOINT_GROUPS)})")
+    lengths = {name: len(values) for name, values in table.items()}
+    if len(set(lengths.values())) > 1:
+        raise MeasurementError(f"{source}: the arrays have different lengths ({lengths}); map the ones of one record "
+                               "(--columns t=...,q=...)")
+    return pd.DataFrame(table)
+
+
+def _ros_reader() -> tuple[Any, Any, Any]:
+    try:
+        from rosbags.highlevel import AnyReader
+        from rosbags.typesys import Stores, get_typestore
+    except ImportError:
+        raise RosSupportError("reading ROS bags needs the ros extra: pip install 'robot-oed[ros]' (the pure-Python "
+                              "rosbags package, no ROS install)") from None
+    return AnyReader, Stores, get_typestore
+
+
+def _bag_frame(path: Path, topic: str, joint_names: list[str]) -> pd.DataFrame:
+    """The ``JointState`` messages of ``topic`` as a table (module docstring)."""
+    any_reader, stores, get_typestore = _ros_reader()
+    typestore = get_typestore(stores.ROS1_NOETIC if path.suffix.lower() == ".bag" else stores.ROS2_HUMBLE)
+    messages: list[tuple[int, int, list[str], list[float], list[float], list[float]]] = []
+    try:
+        with any_reader([path], default_typestore=typestore) as reader:
+            connections = [connection for connection in reader.connections if connection.topic == topic]
+            if not connections or not all(connection.msgtype.endswith("JointState") for connection in connections):
+                held = sorted({(connection.topic, connection.msgtype) for connection in reader.connections})
+                raise UnknownTopicError(
+                    f"{path}: no sensor_msgs/JointState messages on topic {topic!r}; the bag holds "
+                    + (", ".join(f"{name} ({kind})" for name, kind in held) if held else "no messages")
+                    + " (choose one with --topic)")
+            for connection, timestamp, data in reader.messages(connections=connections):
+                message = reader.deserialize(data, connection.msgtype)
+                stamp = int(message.header.stamp.sec) * 1_000_000_000 + int(message.header.stamp.nanosec)
+                messages.append((stamp, int(timestamp), list(message.name), list(message.position),
+                                 list(message.velocity), list(message.effort)))
+    except (UnknownTopicError, RosSupportError):
+        raise
+    except Exception as error:  # the reader's own errors (a corrupt or unknown bag) name no common base
+        if isinstance(error, (KeyboardInterrupt, MemoryError)):
+            raise
+        raise MeasurementError(f"cannot read the ROS bag {path}: {error.__class__.__name__}: {error}") from None
+    by_header = any(message[0] != 0 for message in messages)  # else the publisher left the header empty
+    stamps: dict[int, dict[str, list[float | None]]] = {}  # stamp (ns) -> joint -> [position, velocity, effort]
+    for stamp, logged, names, position, velocity, effort in messages:
+        row = stamps.setdefault(stamp if by_header else logged, {})
+        for index, name in enumerate(names):
+            row[name] = [float(values[index]) if index < len(values) else None
+                         for values in (position, velocity, effort)]
+    seen = {name for row in stamps.values() for name in row}
+    missing = [name for name in joint_names if name not in seen]
+    if missing:
+        raise MissingColumnError(f"{path}: joint(s) {', '.join(missing)} in no JointState message on {topic}; the "
+                                 "messages name " + (", ".join(sorted(seen)) or "no joint"))
+    return _joint_table(path, stamps, joint_names)
+
+
+def _joint_table(path: Path, stamps: Mapping[int, Mapping[str, list[float | None]]],
+                 joint_names: list[str]) -> pd.DataFrame:
+    """The rows of the stamps at which every named joint has a position, in time order."""
+    order = sorted(stamps)
+    complete = [stamp for stamp in order if all(name in stamps[stamp] and stamps[stamp][name][0] is not None
+                                               for name in joint_names)]
+    if not complete:
+        raise MissingColumnError(f"{path}: the joints {', '.join(joint_names)} never appear at one stamp together")
+    if len(complete) < len(order):
+        warnings.warn(DroppedStampsWarning(f"{path}: {len(order) - len(complete)} of {len(order)} stamps lack the "
+                                           "position of a named joint in every message: dropped"), stacklevel=3)
+    times = np.array(complete, dtype=np.int64)
+    table: dict[str, np.ndarray] = {"t": (times - times[0]).astype(float) * 1e-9}
+    for field_index, prefix in ((0, "q"), (1, "dq"), (2, "tau")):
+        values = [[stamps[stamp][name][field_index] for name in joint_names] for stamp in complete]
+        if field_index and any(value is None for row in values for value in row):
+            continue  # velocity or effort not in every message: not read
+        array = np.array(values, dtype=float)
+        table.update({f"{prefix}{index + 1}": array[:, index] for index in range(len(joint_names))})
+    return pd.DataFrame(table)
