@@ -1,0 +1,152 @@
+"""The physically consistent fit with the diagnosed effects (estimation.consistent.fixed_shapes): shaped laws at
+their fitted shapes, a delay, offsets, laws on joint combinations; `oed identify --consistent` with them, then
+`oed predict --consistent` and `oed export`. Simulated 3-joint PUMA with tanh-smoothed Coulomb friction and offsets."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from dynamics.effects.linear import CoulombFriction
+from dynamics.effects.specs import build_effects
+from dynamics.models import build_model
+from dynamics.physical_parameters import PhysicalParametrisation, is_consistent, project_link
+from dynamics.robots import load_robot
+from dynamics.simulation.synthetic import simulate
+from estimation.consistent.identification import consistent_fit, consistent_refit
+from estimation.consistent.least_squares import ConsistentLeastSquares
+from estimation.identification.fit import identify
+from estimation.preprocessing.delay import DelayBounds
+from oed.cli import main
+from oed.fourier import random_fourier
+
+SMOOTHING = 0.04  # rad/s: the true tanh smoothing of the Coulomb law
+NOISE = 0.1  # N·m on every joint
+COULOMB = (6.0, 4.0, 2.0)
+OFFSET = (1.0, -0.5, 0.3)
+
+
+def _truth(robot):
+    """Consistent bodies (the description's, projected, link 1 given a mass, scaled by 0.9..1.1), viscous
+    friction, the Coulomb law ``fc tanh(dq / 0.04)`` and offsets."""
+    generator = np.random.default_rng(0)
+    model = build_model(robot, "internal", ("viscous", CoulombFriction(smoothing=SMOOTHING), "offset"))
+    links = []
+    for k in range(robot.n_joints):
+        link = project_link(robot.joints[k].inertial, floor=0.05)
+        if link[0] < 1.0:
+            link = project_link(link + np.array([5.0, 0, 0, 0, 0.1, 0, 0.1, 0, 0, 0.1]), floor=0.05)
+        links.append(link * generator.uniform(0.9, 1.1))
+    assert all(is_consistent(link) for link in links)
+    theta = np.concatenate([*links, generator.uniform(2.0, 10.0, 3), COULOMB, OFFSET])
+    return model, theta
+
+
+@pytest.fixture(scope="module")
+def puma():
+    robot = load_robot("puma560", joints=3)
+    truth, theta = _truth(robot)
+    noise = {f"tau{j}": NOISE for j in (1, 2, 3)}
+    train, validate, test = (simulate(truth, theta, random_fourier(robot, seed=seed), rate_hz=250.0, periods=2,
+                                      noise=noise, seed=seed) for seed in (5, 6, 7))
+    model = build_model(robot, "internal", "viscous,coulomb:tanh,offset")
+    # the truth in the shaped model's parameter order: links, fv, fc (tanh), off
+    return robot, model, theta, train, validate, test
+
+
+def test_consistent_fit_with_coulomb_tanh_at_the_true_shape_recovers_the_parameters_and_predicts_at_the_floor(puma):
+    robot, model, theta, train, validate, test = puma
+    starts = {f"vc{j}": SMOOTHING for j in (1, 2, 3)}
+    result = identify(model, train, validate, shape_starts=starts, shape_search=False)
+    fit = consistent_fit(result, train, validate)  # the prior's weight chosen on the validation record
+    estimate = fit.estimate
+    assert fit.prior_weight_choice == "held-out" and len(fit.prior_weight_search) == 5
+    assert all(is_consistent(link) for link in estimate.link_parameters())
+    truth = model.base.K @ theta
+    z = (estimate.values - truth) / estimate.std
+    assert np.max(np.abs(z)) < 4.0, dict(zip(estimate.names, np.round(z, 2)))
+    effects = estimate.effect_values()
+    for j in range(3):
+        assert effects[f"fc{j + 1}"] >= 0 and effects[f"fv{j + 1}"] >= 0
+        assert abs(effects[f"fc{j + 1}"] - COULOMB[j]) < 4 * estimate.std[list(estimate.names).index(f"fc{j + 1}")]
+        assert abs(effects[f"off{j + 1}"] - OFFSET[j]) < 4 * estimate.std[list(estimate.names).index(f"off{j + 1}")]
+    # a record no choice saw, at the noise floor (σ² = 0.01), predicted at the fixed shapes
+    predicted = fit.predict(test)
+    mse = np.mean((test.tau - predicted) ** 2, axis=0)
+    assert np.all(mse < 1.1 * NOISE**2), mse
+    assert np.allclose(fit.predict(validate), fit.validation.predicted)
+    document = fit.to_dict()["consistent"]
+    assert document["shape"] == pytest.approx(starts) and document["delay"] is None
+
+
+def test_the_shapes_searched_and_a_delay_are_held_at_the_unconstrained_fit_values(puma):
+    robot, model, theta, train, validate, test = puma
+    result = identify(model, train, validate, delay=DelayBounds())
+    assert result.delay is not None and result.shaped_fit is not None
+    fit = consistent_refit(result, train, validate, prior_weight=1.0)
+    assert fit.prior_weight_choice == "given" and fit.estimate.prior_weight == 1.0
+    document = fit.to_dict()["consistent"]
+    assert document["delay"] == pytest.approx(result.delay.value)
+    assert set(document["shape"]) == {"vc1", "vc2", "vc3"}
+    # consistency costs nothing measurable on consistent truth: the validation error is the unconstrained one's
+    ratios = np.array(list(document["price"]["validation"].values()))
+    assert np.all(ratios < 1.05), ratios
+    assert np.allclose(fit.predict(test), fit.predict(test))
+    mse = np.mean((test.tau - fit.predict(test)) ** 2, axis=0)
+    assert np.all(mse < 1.15 * NOISE**2), mse
+
+
+def test_a_shaped_model_from_measurements_alone_is_refused_with_the_way_out(puma):
+    robot, model, theta, train, validate, test = puma
+    with pytest.raises(NotImplementedError, match="fixed_problem"):
+        ConsistentLeastSquares().fit(model, train)
+    with pytest.raises(TypeError, match="diagnosis"):
+        consistent_refit(object(), train)
+
+
+def test_friction_of_motors_and_joint_combinations_is_non_negative():
+    robot = load_robot("puma560", joints=3)
+    effects = build_effects("viscous,coulomb[q2+q3],coulomb:tanh[q2-q3],ripple@1,offset", robot)
+    model = build_model(robot, "internal", effects)
+    kinds = PhysicalParametrisation.of_model(model).effect_kinds
+    names = [name for effect in model.effects for name in effect.parameter_names(robot)]
+    kind = dict(zip(names, kinds))
+    assert kind["fc[q2+q3]"] == "nonnegative" and kind["fc[q2-q3]"] == "nonnegative"
+    assert kind["fv1"] == "nonnegative" and kind["rs1"] == "free" and kind["off2"] == "free"
+
+
+@pytest.fixture(scope="module")
+def files(puma, tmp_path_factory):
+    robot, model, theta, train, validate, test = puma
+    folder = tmp_path_factory.mktemp("consistent_effects")
+    paths = []
+    for name, record in (("train", train), ("validate", validate)):
+        paths.append(folder / f"{name}.csv")
+        record.write(paths[-1])
+    return folder, paths
+
+
+def test_identify_consistent_with_shaped_laws_and_a_delay_then_predict_and_export(files, capsys):
+    folder, (train, validate) = files
+    result, metrics, predictions = folder / "result.json", folder / "metrics.json", folder / "p.csv"
+    urdf, friction = folder / "out.urdf", folder / "friction.json"
+    assert main(["identify", "--joints", "3", "--data", str(train), "--validate", str(validate), "--friction",
+                 "viscous,coulomb:tanh,offset,delay", "--consistent", "--out", str(result)]) == 0
+    document = json.loads(result.read_text())
+    consistent = document["consistent"]
+    assert set(consistent["shape"]) == {"vc1", "vc2", "vc3"} and consistent["delay"] is not None
+    assert document["model_file"]["consistent"] is not None
+    assert main(["predict", "--consistent", "--model", str(result), "--data", str(validate), "--out",
+                 str(predictions), "--metrics", str(metrics)]) == 0
+    measured = json.loads(metrics.read_text())["mse"]
+    reported = consistent["validation"]["mse"]
+    assert max(abs(measured[c] / reported[c] - 1) for c in reported) < 1e-6
+    assert main(["export", "--model", str(result), "--urdf", str(urdf), "--friction", str(friction)]) == 0
+    joints = json.loads(friction.read_text())["joints"]
+    for j, name in enumerate(["joint1", "joint2", "joint3"]):
+        terms = joints[name]
+        assert terms["coulomb"] == pytest.approx(consistent["effects"][f"fc{j + 1}"])
+        assert terms["coulomb_smoothing"] == pytest.approx(consistent["shape"][f"vc{j + 1}"])
+        assert {"viscous", "offset"} <= set(terms)
