@@ -122,14 +122,14 @@ def files(puma, tmp_path_factory):
     robot, model, theta, train, validate, test = puma
     folder = tmp_path_factory.mktemp("consistent_effects")
     paths = []
-    for name, record in (("train", train), ("validate", validate)):
+    for name, record in (("train", train), ("validate", validate), ("test", test)):
         paths.append(folder / f"{name}.csv")
         record.write(paths[-1])
     return folder, paths
 
 
 def test_identify_consistent_with_shaped_laws_and_a_delay_then_predict_and_export(files, capsys):
-    folder, (train, validate) = files
+    folder, (train, validate, _) = files
     result, metrics, predictions = folder / "result.json", folder / "metrics.json", folder / "p.csv"
     urdf, friction = folder / "out.urdf", folder / "friction.json"
     assert main(["identify", "--joints", "3", "--data", str(train), "--validate", str(validate), "--friction",
@@ -150,3 +150,24 @@ def test_identify_consistent_with_shaped_laws_and_a_delay_then_predict_and_expor
         assert terms["coulomb"] == pytest.approx(consistent["effects"][f"fc{j + 1}"])
         assert terms["coulomb_smoothing"] == pytest.approx(consistent["shape"][f"vc{j + 1}"])
         assert {"viscous", "offset"} <= set(terms)
+
+
+def test_diagnose_consistent_refits_the_adopted_model_and_predict_uses_it(files, capsys):
+    folder, (train, validate, test) = files
+    report, metrics, predictions = folder / "report.json", folder / "d_metrics.json", folder / "d.csv"
+    assert main(["diagnose", "--joints", "3", "--data", str(train), "--validate", str(validate), "--test", str(test),
+                 "--friction", "viscous", "--out", str(report), "--consistent"]) == 0
+    document = json.loads(report.read_text())
+    consistent = document["consistent"]
+    adopted = {effect["name"] for effect in document["effects"]}
+    assert any(name.startswith("coulomb") for name in adopted), adopted
+    assert consistent["prior_weight_choice"] == "held-out"
+    assert document["model_file"]["consistent"] is not None and len(document["links"]) == 3
+    assert all(value >= 0 for name, value in consistent["effects"].items() if name.startswith(("fv", "fc")))
+    # the consistent refit with the adopted effects predicts the untouched record at the noise floor (σ² = 0.01)
+    assert all(value < 1.15 * NOISE**2 for value in consistent["test"]["mse"].values()), consistent["test"]
+    assert main(["predict", "--consistent", "--model", str(report), "--data", str(test), "--out", str(predictions),
+                 "--metrics", str(metrics)]) == 0
+    measured = json.loads(metrics.read_text())["mse"]
+    assert max(abs(measured[c] / consistent["test"]["mse"][c] - 1) for c in measured) < 1e-6
+    assert "consistent (prior weight" in capsys.readouterr().out

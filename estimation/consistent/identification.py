@@ -1,13 +1,16 @@
 """``oed identify --consistent``: the physically consistent estimate beside the unconstrained one.
 
-``identify_consistent(result, train, validate)`` refits an :class:`estimation.identification.fit.IdentificationResult`
-under the log-Cholesky map (:class:`estimation.consistent.least_squares.ConsistentLeastSquares`) with the
+``consistent_fit(result, train, validate)`` refits an :class:`estimation.identification.fit.IdentificationResult`
+(its shaped laws and delay held at their fitted values, :mod:`estimation.consistent.fixed_shapes`; the prior's
+weight chosen on ``validate``; :func:`identify_consistent` at one weight, :func:`consistent_refit` a diagnosis's
+adopted model) under the log-Cholesky map (:class:`estimation.consistent.least_squares.ConsistentLeastSquares`) with the
 unconstrained fit's channel weights, and compares both on the same data: the price of
 consistency per channel. Its :meth:`ConsistentResult.to_dict` adds these keys to ``result.json``::
 
     links: [{name, mass, com, inertia, inertia_com, consistency_margin, std}]   # std: with a prior only
     consistent: {method, uncertainty_method, prior_weight, prior, parameters: [{name, expression, value, std}],
                  effects: {fv1: ..}, active_bounds: [text], excess_chi2, solver: {...},
+                 [shape: {vc1: ..}, delay: s | null, shapes_held: text]   # shaped laws or a delay, held fixed
                  prior_weight_choice: text, prior_weight_search: [{prior_weight, weighted_validation_error}],
                  undetermined: {threshold_relative_std, n_directions, n_undetermined, n_structural,
                                 links: {NAME: [parameter]}, directions: [{relative_std, structural, parameters}]},
@@ -128,6 +131,13 @@ class ConsistentResult:
         """``(N, m)`` the consistent estimate's channels along ``measurements`` (at the unconstrained fit's
         shapes, along the motion moved by its delay, if any)."""
         return fixed_regressor(self.unconstrained, measurements) @ self.estimate.values
+
+    def compare(self, measurements: Measurements, *, label: str = "consistent") -> Comparison:
+        """The consistent estimate along another record (a test record, say) against its channels as recorded,
+        as ``train`` and ``validation`` are."""
+        if has_fixed_effects(self.unconstrained):
+            return fixed_comparison(self.unconstrained, self.estimate.values, measurements, label=label)
+        return compare(self.unconstrained.model, self.estimate.values, measurements, label=label)
 
     def robot(self) -> RobotModel:
         """The robot carrying the consistent links (for the simulator and the controllers)."""

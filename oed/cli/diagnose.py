@@ -52,6 +52,12 @@ from oed.cli.shared.common import (
     robot_from_arguments,
     streaming_requested,
 )
+from oed.cli.identify_consistent import (
+    add_consistent_arguments,
+    check_consistent_arguments,
+    consistent_refit,
+    print_consistent,
+)
 from oed.cli.diagnose_streaming import add_streamed_diagnosis_arguments, check_streamed_arguments, run_streaming
 from estimation.identification.repeated_motion import repeated_motion_note
 from oed.cli.shared.memory_path import decide_path
@@ -87,6 +93,7 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     parser.add_argument("--max-effects", type=int, default=20, metavar="N",
                         help="add at most N effects (default 20); the output says when the cap stopped the search")
     add_derivative_arguments(parser)
+    add_consistent_arguments(parser)  # --consistent: the adopted model refitted consistently (estimation.consistent)
     add_jobs_argument(parser, "the derivative candidates' scores and each round's candidate fits")
     add_streaming_arguments(parser)
     add_streamed_diagnosis_arguments(parser)
@@ -113,6 +120,7 @@ def derived_outputs(args: argparse.Namespace) -> dict[str, Path]:
 
 def run(args: argparse.Namespace) -> int:
     check_request(args)
+    check_consistent_arguments(args)
     differentiation(args)  # contradicting derivative options are an error even when the data hold dq, ddq
     args.friction, delay = split_delay(args.friction)  # a candidate in every diagnosis: 'delay:S' sets its bound
     with show_progress("oed diagnose", quiet=args.quiet):
@@ -139,6 +147,9 @@ def check_streamed_request(args: argparse.Namespace, delay: DelayBounds | None) 
     if delay is not None:
         raise ValueError("the delay between torques and motion is searched in memory: not with the streamed path "
                          "(--chunk-size, --scheduler or --workers), which does not try it")
+    if args.consistent:
+        raise ValueError("--consistent refits in memory: not with the streamed path (--chunk-size, --scheduler or "
+                         "--workers)")
 
 
 def in_memory_only(args: argparse.Namespace, model: IdentificationModel, delay: DelayBounds | None) -> str | None:
@@ -167,6 +178,8 @@ def run_in_memory(args: argparse.Namespace, model: IdentificationModel, transmis
         notes += worse_after(diagnosis)
         repeat = repeated_motion_note(records.train.measurements, records.validation.measurements)
         notes += () if repeat is None else (repeat,)
+        consistent = consistent_refit(args, diagnosis.after, records.train.measurements,
+                                      records.validation.measurements)  # None without --consistent
     print_warnings("diagnose", caught)
     for note in notes:
         print(f"oed diagnose: warning: {note}", file=sys.stderr)
@@ -175,7 +188,12 @@ def run_in_memory(args: argparse.Namespace, model: IdentificationModel, transmis
                                transmission=transmission, warnings_key=("warnings", "after"))
     document["preprocessing"] = records.preprocessing.to_dict()
     document["test"] = None if untouched is None else untouched.to_dict()
-    add_model_file(document, diagnosis.after, args, records.preprocessing, transmission, verb="diagnose")
+    if consistent is not None:
+        document.update(consistent.to_dict())
+        document["consistent"]["test"] = None if records.test is None else \
+            {"mse": consistent.compare(records.test.measurements).mse}
+    add_model_file(document, diagnosis.after, args, records.preprocessing, transmission, verb="diagnose",
+                   consistent=consistent)
     add_runner_up_model_file(document, diagnosis.runner_up, args, records.preprocessing, transmission)
     document["diagnosis_path"] = "in-memory"  # "streamed": --chunk-size (oed.cli.diagnose_streaming)
     document["max_effects"] = args.max_effects
@@ -184,6 +202,7 @@ def run_in_memory(args: argparse.Namespace, model: IdentificationModel, transmis
     print(records.preprocessing.describe())
     print_summary(diagnosis)
     print_test(untouched)
+    print_consistent(consistent)
     if len(diagnosis.effects) >= args.max_effects:
         untested = sum(rejected.reason.startswith("not tested") for rejected in diagnosis.rejected)
         print(f"stopped at --max-effects {args.max_effects}: {untested} candidate(s) not tested; raise --max-effects "
