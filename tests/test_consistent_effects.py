@@ -15,7 +15,7 @@ from dynamics.models import build_model
 from dynamics.physical_parameters import PhysicalParametrisation, is_consistent, project_link
 from dynamics.robots import load_robot
 from dynamics.simulation.synthetic import simulate
-from estimation.consistent.identification import consistent_fit, consistent_refit
+from estimation.consistent.identification import consistent_fit, consistent_refit, consistent_refit_file
 from estimation.consistent.least_squares import ConsistentLeastSquares
 from estimation.identification.fit import identify
 from estimation.preprocessing.delay import DelayBounds
@@ -171,3 +171,8 @@ def test_diagnose_consistent_refits_the_adopted_model_and_predict_uses_it(files,
     measured = json.loads(metrics.read_text())["mse"]
     assert max(abs(measured[c] / consistent["test"]["mse"][c] - 1) for c in measured) < 1e-6
     assert "consistent (prior weight" in capsys.readouterr().out
+    # the same refit from the report's model file and the record files (library: consistent_refit_file)
+    again = consistent_refit_file(report, [train], [validate])
+    assert again.estimate.prior_weight == consistent["prior_weight"]
+    reported = consistent["validation"]["mse"]
+    assert max(abs(again.validation.mse[c] / reported[c] - 1) for c in reported) < 1e-4

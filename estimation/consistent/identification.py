@@ -3,7 +3,7 @@
 ``consistent_fit(result, train, validate)`` refits an :class:`estimation.identification.fit.IdentificationResult`
 (its shaped laws and delay held at their fitted values, :mod:`estimation.consistent.fixed_shapes`; the prior's
 weight chosen on ``validate``; :func:`identify_consistent` at one weight, :func:`consistent_refit` a diagnosis's
-adopted model) under the log-Cholesky map (:class:`estimation.consistent.least_squares.ConsistentLeastSquares`) with the
+adopted model, :func:`consistent_refit_file` the model of a ``result.json``/``report.json``) under the log-Cholesky map (:class:`estimation.consistent.least_squares.ConsistentLeastSquares`) with the
 unconstrained fit's channel weights, and compares both on the same data: the price of
 consistency per channel. Its :meth:`ConsistentResult.to_dict` adds these keys to ``result.json``::
 
@@ -32,7 +32,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
@@ -45,7 +45,8 @@ from dynamics.robot import RobotModel
 from estimation.consistent.determination import Determination, determination
 from estimation.consistent.fixed_shapes import fixed_comparison, fixed_problem, fixed_regressor, has_fixed_effects
 from estimation.consistent.least_squares import ConsistentEstimate, ConsistentLeastSquares
-from estimation.identification.fit import IdentificationResult
+from estimation.identification.fit import IdentificationResult, identify
+from estimation.identification.identified_model import IdentifiedModel
 from estimation.estimators.identification_problem import stack
 from dynamics.measurements import Measurements
 from estimation.identification.validation import Comparison, compare
@@ -252,6 +253,33 @@ def consistent_refit(diagnosis: Any, train: Measurements, validate: Measurements
     if not isinstance(after, IdentificationResult):
         raise TypeError(f"expected a diagnosis (with .after) or an IdentificationResult, got {type(diagnosis).__name__}")
     return consistent_fit(after, train, validate, **settings)
+
+
+def consistent_refit_file(model: str | Path | IdentifiedModel, train: Measurements | Sequence[str | Path],
+                          validate: Measurements | Sequence[str | Path] | None = None,
+                          **settings: Any) -> ConsistentResult:
+    """The consistent refit of the model of a ``result.json``/``report.json`` (``model``: its path or the
+    :class:`estimation.identification.identified_model.IdentifiedModel`), on its training and validation records
+    (files, read and prepared as the model file says, or prepared measurements).
+
+    The model is rebuilt from its effects, its shaped laws held at the file's shapes and its motion moved by the
+    file's delay; its linear coefficients are estimated again on ``train`` (those of the file when ``train`` is the
+    record it was identified on) and refitted consistently by :func:`consistent_fit` (``settings``)."""
+    identified = model if isinstance(model, IdentifiedModel) else IdentifiedModel.load(model)
+
+    def prepared(records: Measurements | Sequence[str | Path]) -> Measurements:
+        if isinstance(records, Measurements):
+            return records
+        if isinstance(records, (str, Path)):
+            records = [records]
+        return identified.prepare(identified.read(list(records)))
+
+    train = prepared(train)
+    validate = None if validate is None else prepared(validate)
+    shapes = {name: float(value) for name, value in identified.file.shape.items()}
+    result = identify(identified.model, train, validate, weighted=identified.file.method != "ols",
+                      shape_starts=shapes or None, shape_search=False, delay=identified.file.delay)
+    return consistent_fit(result, train, validate, **settings)
 
 
 def _ratio(numerator: dict[str, float], denominator: dict[str, float]) -> dict[str, float | None]:
