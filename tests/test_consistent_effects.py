@@ -196,3 +196,52 @@ def test_diagnose_consistent_refits_the_adopted_model_and_predict_uses_it(files,
     assert again.estimate.prior_weight == consistent["prior_weight"]
     reported = consistent["validation"]["mse"]
     assert max(abs(again.validation.mse[c] / reported[c] - 1) for c in reported) < 1e-4
+
+
+def _law_torques(terms: dict, q, dq):
+    """One joint's friction.json terms as torques, from the formulas its ``laws`` name (independent of the library)."""
+    tau = np.zeros_like(dq)
+    tau += terms.get("viscous", 0.0) * dq + terms.get("offset", 0.0)
+    if "coulomb" in terms:
+        smoothing = terms.get("coulomb_smoothing")
+        tau += terms["coulomb"] * (np.sign(dq) if smoothing is None else np.tanh(dq / smoothing))
+    if "stribeck" in terms:
+        tau += terms["stribeck"]["fs"] * np.exp(-((dq / terms["stribeck"]["velocity"]) ** 2)) * np.sign(dq)
+    if "sigmoid" in terms:
+        p1, p2, p3 = (terms["sigmoid"][key] for key in ("phi1", "phi2", "phi3"))
+        tau += p1 / (1 + np.exp(-p2 * (dq + p3))) - p1 / (1 + np.exp(-p2 * p3))
+    if "ripple" in terms:
+        r = terms["ripple"]
+        tau += r["rs"] * np.sin(r["n"] * q) + r["rc"] * np.cos(r["n"] * q)
+    return tau
+
+
+def test_exported_shaped_laws_reproduce_predict_consistent_through_pinocchio(files):
+    import pandas as pd
+    import pinocchio as pin
+
+    folder, (train, validate, _) = files
+    result, predictions, metrics = folder / "shaped.json", folder / "shaped.csv", folder / "shaped_metrics.json"
+    urdf, friction = folder / "shaped.urdf", folder / "shaped_friction.json"
+    assert main(["identify", "--joints", "3", "--data", str(train), "--validate", str(validate), "--friction",
+                 "viscous,offset,stribeck:velocity@1,sigmoid@2,ripple@3,coulomb:tanh@3", "--consistent",
+                 "--out", str(result)]) == 0
+    assert main(["export", "--model", str(result), "--urdf", str(urdf), "--friction", str(friction),
+                 "--allow-implausible"]) == 0  # link 1 of the 3-joint PUMA: only its z inertia is seen
+    assert main(["predict", "--consistent", "--model", str(result), "--data", str(validate), "--out",
+                 str(predictions), "--metrics", str(metrics)]) == 0
+    document = json.loads(friction.read_text())
+    assert {"stribeck", "coulomb"} <= set(document["joints"]["joint1"]) and "sigmoid" in document["joints"]["joint2"]
+    assert {"ripple", "coulomb_smoothing"} <= set(document["joints"]["joint3"])
+    record = pd.read_csv(validate)
+    q, dq, ddq = (record[[f"{prefix}{j}" for j in (1, 2, 3)]].to_numpy() for prefix in ("q", "dq", "ddq"))
+    model = pin.buildModelFromUrdf(str(urdf))
+    model.gravity = pin.Motion(np.asarray(document["gravity"], dtype=float), np.zeros(3))
+    data = model.createData()
+    tau = np.array([pin.rnea(model, data, a, b, c).copy() for a, b, c in zip(q, dq, ddq)])
+    for j, name in enumerate(["joint1", "joint2", "joint3"]):
+        tau[:, j] += _law_torques(document["joints"][name], q[:, j], dq[:, j])
+    predicted = pd.read_csv(predictions)
+    rows = np.searchsorted(record["t"].to_numpy(), predicted["t"].to_numpy())
+    expected = predicted[["tau1", "tau2", "tau3"]].to_numpy()
+    assert np.max(np.abs(tau[rows] - expected)) / np.max(np.abs(expected)) < 1e-6
