@@ -18,6 +18,7 @@ from dynamics.transmission import puma560_transmission
 from dynamics.simulation.synthetic import simulate
 from estimation.consistent.identification import consistent_fit, consistent_refit, consistent_refit_file
 from estimation.consistent.least_squares import ConsistentLeastSquares
+from estimation.consistent.simulation import consistent_simulator
 from estimation.identification.fit import identify
 from estimation.preprocessing.delay import DelayBounds
 from oed.cli import main
@@ -118,6 +119,11 @@ def test_a_shaped_model_from_measurements_alone_is_refused_with_the_way_out(puma
         ConsistentLeastSquares().fit(model, train)
     with pytest.raises(TypeError, match="diagnosis"):
         consistent_refit(object(), train)
+    # the simulator's Coulomb law has one smoothing for all joints: a fitted tanh law is named, not simulated wrongly
+    result = identify(model, train, shape_starts={f"vc{j}": SMOOTHING for j in (1, 2, 3)}, shape_search=False)
+    fit = consistent_fit(result, train, prior_weight=1.0)
+    with pytest.raises(ValueError, match="coulomb:tanh"):
+        consistent_simulator(model, fit.estimate)
 
 
 def test_friction_of_motors_and_joint_combinations_is_non_negative():
