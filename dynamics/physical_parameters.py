@@ -22,9 +22,11 @@ Effect parameters that physics makes non-negative (friction, armature;
 springs, plate offsets) are free, ``θ = z``. :class:`PhysicalParametrisation` builds the whole
 map ``φ → θ`` of a model as a named ``casadi.Function``.
 
-Extension point: an effect with shape parameters (a nonlinear friction law) adds its own entry in
-:data:`PARAMETER_MAPS` keyed by effect name; :meth:`PhysicalParametrisation.effect_kinds` is the
-only place that reads it.
+An effect is looked up by its ``physical_kind`` when it has one (friction and inertia of motors and of
+joint combinations: ``coulomb[q5+q6]``, ``motor_viscous[m6]``), else by its name; the shaped laws of
+:mod:`dynamics.effects.shaped` (their shapes held fixed) by theirs (``coulomb``, ``stribeck``, ``sigmoid``).
+Extension point: a new law adds its own entry in :data:`PARAMETER_MAPS`;
+:meth:`PhysicalParametrisation.of_model` is the only place that reads it.
 """
 
 from __future__ import annotations
@@ -257,7 +259,7 @@ class PhysicalParametrisation:
         """The parametrisation of an :class:`dynamics.models.IdentificationModel`."""
         kinds: list[ParameterKind] = []
         for effect in model.effects:
-            kind = PARAMETER_MAPS.get(effect.name, "free")
+            kind = PARAMETER_MAPS.get(getattr(effect, "physical_kind", effect.name), "free")
             kinds.extend([kind] * len(effect.parameter_names(model.robot)))
         return cls(model.robot.n_joints, tuple(kinds), tuple(model.robot.joint_names), dict(bounds or {}))
 

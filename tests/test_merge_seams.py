@@ -58,14 +58,15 @@ def test_trivial_predictors_are_measured_against_the_recording(robot):
     assert zero["tau1"] != pytest.approx(float(np.mean(data.tau[:, 0] ** 2)))
 
 
-def test_the_consistent_refit_refuses_laws_with_shape_parameters(robot):
+def test_the_consistent_refit_holds_laws_with_shape_parameters_at_their_fitted_shapes(robot):
     model = build_model(robot, "internal", ("viscous", TanhCoulombFriction(joints=(0,))))
     declared = build_model(robot, "internal", "viscous")
     theta = true_parameters(declared, seed=1)
     train = simulate(declared, theta, random_fourier(robot, 2), noise={"tau1": 0.1, "tau2": 0.1, "tau3": 0.1}, seed=3)
     result = identify(model, train)
-    with pytest.raises(ValueError, match="shape parameters"):
-        identify_consistent(result, train, None)
+    consistent = identify_consistent(result, train, None)
+    assert consistent.to_dict()["consistent"]["shape"] == {"vc1": pytest.approx(result.shapes[0].value)}
+    assert np.allclose(consistent.predict(train), consistent.train.predicted)
 
 
 def test_options_of_the_in_memory_path_are_refused_on_the_streamed_one(robot, tmp_path, capsys):

@@ -1,13 +1,16 @@
 """``oed identify --consistent``: the physically consistent estimate beside the unconstrained one.
 
-``identify_consistent(result, train, validate)`` refits an :class:`estimation.identification.fit.IdentificationResult`
-under the log-Cholesky map (:class:`estimation.consistent.least_squares.ConsistentLeastSquares`) with the
+``consistent_fit(result, train, validate)`` refits an :class:`estimation.identification.fit.IdentificationResult`
+(its shaped laws and delay held at their fitted values, :mod:`estimation.consistent.fixed_shapes`; the prior's
+weight chosen on ``validate``; :func:`identify_consistent` at one weight, :func:`consistent_refit` a diagnosis's
+adopted model, :func:`consistent_refit_file` the model of a ``result.json``/``report.json``) under the log-Cholesky map (:class:`estimation.consistent.least_squares.ConsistentLeastSquares`) with the
 unconstrained fit's channel weights, and compares both on the same data: the price of
 consistency per channel. Its :meth:`ConsistentResult.to_dict` adds these keys to ``result.json``::
 
     links: [{name, mass, com, inertia, inertia_com, consistency_margin, std}]   # std: with a prior only
     consistent: {method, uncertainty_method, prior_weight, prior, parameters: [{name, expression, value, std}],
                  effects: {fv1: ..}, active_bounds: [text], excess_chi2, solver: {...},
+                 [shape: {vc1: ..}, delay: s | null, shapes_held: text]   # shaped laws or a delay, held fixed
                  prior_weight_choice: text, prior_weight_search: [{prior_weight, weighted_validation_error}],
                  undetermined: {threshold_relative_std, n_directions, n_undetermined, n_structural,
                                 links: {NAME: [parameter]}, directions: [{relative_std, structural, parameters}]},
@@ -27,11 +30,12 @@ Files: a prior (``--prior``) is a JSON document with ``links: [{name, mass, com,
 
 from __future__ import annotations
 
+import dataclasses
 import json
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import NDArray
@@ -39,11 +43,25 @@ from numpy.typing import NDArray
 from dynamics.physical_parameters import LinkBounds, link_summary
 from dynamics.robot import RobotModel
 from estimation.consistent.determination import Determination, determination
+from estimation.consistent.fixed_shapes import fixed_comparison, fixed_problem, fixed_regressor, has_fixed_effects
 from estimation.consistent.least_squares import ConsistentEstimate, ConsistentLeastSquares
-from estimation.identification.fit import IdentificationResult
+from estimation.identification.fit import IdentificationResult, identify
+from estimation.identification.identified_model import IdentifiedModel
 from estimation.estimators.identification_problem import stack
 from dynamics.measurements import Measurements
 from estimation.identification.validation import Comparison, compare
+
+
+#: the prior weights ``prior_weight="auto"`` tries
+PRIOR_WEIGHT_GRID = (0.0, 0.1, 1.0, 10.0, 100.0)
+#: ``prior_weight="auto"`` takes the largest weight whose validation error is within this fraction of the best
+PRIOR_WEIGHT_TOLERANCE = 0.01
+#: the prior's weight without a validation record to choose it: one unit of ½χ², where the prior weighs about as
+#: much as the data on a direction of the bodies known to its own size (estimation.consistent.determination); the
+#: data decide every direction they determine better than that
+DEFAULT_PRIOR_WEIGHT = 1.0
+
+PriorWeightChoice = Literal["given", "held-out", "default"]
 
 
 class PriorMismatchError(ValueError):
@@ -87,6 +105,7 @@ class ConsistentResult:
                 "undetermined": None if self.determination is None else self.determination.to_dict(),
                 "parameters": estimate.records(),
                 "effects": estimate.effect_values(),
+                **self._fixed_effects(),
                 "active_bounds": list(estimate.active_bounds),
                 "excess_chi2": estimate.excess_chi2,
                 "solver": estimate.solver,
@@ -99,6 +118,27 @@ class ConsistentResult:
                 },
             },
         }
+
+    def _fixed_effects(self) -> dict[str, Any]:
+        """``shape`` (the shaped laws' shapes) and ``delay`` (s) the refit held at the unconstrained fit's values."""
+        result = self.unconstrained
+        if not has_fixed_effects(result):
+            return {}
+        shapes = {value.name: float(value.value) for value in result.shapes if value.name != "delay"}
+        return {"shape": shapes, "delay": None if result.delay is None else float(result.delay.value),
+                "shapes_held": "at the unconstrained fit's values (estimation.consistent.fixed_shapes)"}
+
+    def predict(self, measurements: Measurements) -> NDArray[np.float64]:
+        """``(N, m)`` the consistent estimate's channels along ``measurements`` (at the unconstrained fit's
+        shapes, along the motion moved by its delay, if any)."""
+        return fixed_regressor(self.unconstrained, measurements) @ self.estimate.values
+
+    def compare(self, measurements: Measurements, *, label: str = "consistent") -> Comparison:
+        """The consistent estimate along another record (a test record, say) against its channels as recorded,
+        as ``train`` and ``validation`` are."""
+        if has_fixed_effects(self.unconstrained):
+            return fixed_comparison(self.unconstrained, self.estimate.values, measurements, label=label)
+        return compare(self.unconstrained.model, self.estimate.values, measurements, label=label)
 
     def robot(self) -> RobotModel:
         """The robot carrying the consistent links (for the simulator and the controllers)."""
@@ -116,20 +156,130 @@ def identify_consistent(
     bounds: Mapping[str, LinkBounds] | None = None,
     starts: int = 2,
 ) -> ConsistentResult:
-    """Consistent refit of ``result`` (its model, train data and channel weights), with what its data did
-    not determine of the bodies (:func:`estimation.consistent.determination.determination`, in units of the
-    prior's bodies: ``prior``, else the robot description's)."""
-    if getattr(result, "shaped_fit", None) is not None:
-        raise ValueError("the consistent refit works on the linear effects: this result has laws with shape parameters "
-                         "(coulomb:tanh, sigmoid…), fitted by variable projection; declare their plain forms")
+    """Consistent refit of ``result`` (its model, train data and channel weights) at one prior weight, with what
+    its data did not determine of the bodies (:func:`estimation.consistent.determination.determination`, in units
+    of the prior's bodies: ``prior``, else the robot description's).
+
+    ``result`` may hold shaped laws and a delay (``identify(..., delay=DelayBounds())``, the diagnosis's
+    adopted model): they are held at its fitted values (:mod:`estimation.consistent.fixed_shapes`).
+    :func:`consistent_fit` also chooses the prior's weight."""
     model = result.model
     estimator = ConsistentLeastSquares(prior_weight=prior_weight, prior=prior, bounds=bounds, starts=starts)
-    estimate = estimator.fit(model, stack(model, train), unconstrained=result.estimate).estimate_
-    train_comparison = compare(model, estimate.values, train, label="identification (consistent)")
-    validation = None if validate is None else compare(model, estimate.values, validate, label="validation (consistent)")
+    if has_fixed_effects(result):
+        estimate = estimator.fit(model, fixed_problem(result, train), unconstrained=result.estimate).estimate_
+        train_comparison = fixed_comparison(result, estimate.values, train, label="identification (consistent)")
+        validation = None if validate is None else fixed_comparison(result, estimate.values, validate,
+                                                                    label="validation (consistent)")
+    else:
+        estimate = estimator.fit(model, stack(model, train), unconstrained=result.estimate).estimate_
+        train_comparison = compare(model, estimate.values, train, label="identification (consistent)")
+        validation = None if validate is None else compare(model, estimate.values, validate,
+                                                           label="validation (consistent)")
     nominal = model.robot.standard_parameters if prior is None else np.asarray(prior, dtype=float).reshape(-1)
     return ConsistentResult(estimate, result, train_comparison, validation, prior_source,
                             determination=determination(model, result.estimate.cov, nominal))
+
+
+def prior_weight_choice(given: float | str | None, validated: bool) -> tuple[float | str, PriorWeightChoice]:
+    """``(weight, how)``: the weight given, else ``auto`` with a validation record, else
+    :data:`DEFAULT_PRIOR_WEIGHT`; ``how`` is ``given``, ``held-out`` or ``default``."""
+    if given is None:
+        return ("auto", "held-out") if validated else (DEFAULT_PRIOR_WEIGHT, "default")
+    if isinstance(given, str):
+        if given.strip().lower() != "auto":
+            raise ValueError(f"prior_weight must be a number, 'auto' or None, got {given!r}")
+        if not validated:
+            raise ValueError("prior_weight 'auto' chooses the weight by the validation error: give a validation record")
+        return "auto", "held-out"
+    return float(given), "given"
+
+
+def choose_prior_weight(refit: Callable[[float], ConsistentResult], result: IdentificationResult) -> ConsistentResult:
+    """The consistent fit of the largest weight of :data:`PRIOR_WEIGHT_GRID` whose channel-weighted validation
+    error is within :data:`PRIOR_WEIGHT_TOLERANCE` of the best: where the data do not determine a body, the
+    prior (the description's by default) does, as far as the held-out record allows. The search is kept in
+    the result (``prior_weight_search``). ``refit(weight)`` is the fit at one weight, with a validation record."""
+    weights = result.estimate.weights if result.estimate.method == "wls" else 1.0 / result.estimate.channel_variance
+    fits, errors = [], []
+    for weight in PRIOR_WEIGHT_GRID:
+        fit = refit(weight)
+        if fit.validation is None:
+            raise ValueError("choosing the prior's weight needs a validation record")
+        fits.append(fit)
+        errors.append(float(sum(w * fit.validation.mse[c] for w, c in zip(weights, result.model.channels))))
+    best = min(errors)
+    chosen = max(index for index, error in enumerate(errors) if error <= (1 + PRIOR_WEIGHT_TOLERANCE) * best)
+    search = tuple({"prior_weight": weight, "weighted_validation_error": error}
+                   for weight, error in zip(PRIOR_WEIGHT_GRID, errors))
+    return dataclasses.replace(fits[chosen], prior_weight_search=search)
+
+
+def consistent_fit(
+    result: IdentificationResult,
+    train: Measurements,
+    validate: Measurements | None = None,
+    *,
+    prior_weight: float | str | None = None,
+    prior: NDArray[np.float64] | None = None,
+    prior_source: str = "robot description",
+    bounds: Mapping[str, LinkBounds] | None = None,
+    starts: int = 2,
+) -> ConsistentResult:
+    """The physically consistent refit of ``result`` with the prior's weight chosen: ``None`` (default) is
+    ``"auto"`` with ``validate`` (the largest of :data:`PRIOR_WEIGHT_GRID` whose validation error is within
+    :data:`PRIOR_WEIGHT_TOLERANCE` of the best), else :data:`DEFAULT_PRIOR_WEIGHT`; a number is used as given.
+
+    ``result`` holds the model with its effects, shaped laws and delay included (held at its fitted values,
+    :mod:`estimation.consistent.fixed_shapes`); ``train``/``validate`` are the records it was fitted and
+    validated on (prepared: ``dq``, ``ddq``). ``prior``: ``10 n`` link parameters (default the robot
+    description's bodies); ``bounds``: :class:`dynamics.physical_parameters.LinkBounds` by link name.
+    """
+    weight, how = prior_weight_choice(prior_weight, validate is not None)
+
+    def refit(value: float) -> ConsistentResult:
+        return identify_consistent(result, train, validate, prior_weight=value, prior=prior,
+                                   prior_source=prior_source, bounds=bounds, starts=starts)
+
+    fit = choose_prior_weight(refit, result) if weight == "auto" else refit(float(weight))
+    return dataclasses.replace(fit, prior_weight_choice=how)
+
+
+def consistent_refit(diagnosis: Any, train: Measurements, validate: Measurements | None = None,
+                     **settings: Any) -> ConsistentResult:
+    """The consistent refit of a diagnosis's adopted model (:class:`estimation.diagnosis.results.Diagnosis`:
+    its ``after``, with the effects it adopted, their fitted shapes and the delay), on the records it was
+    diagnosed with; ``settings`` as :func:`consistent_fit` (the prior's weight chosen on ``validate``)."""
+    after = getattr(diagnosis, "after", diagnosis)
+    if not isinstance(after, IdentificationResult):
+        raise TypeError(f"expected a diagnosis (with .after) or an IdentificationResult, got {type(diagnosis).__name__}")
+    return consistent_fit(after, train, validate, **settings)
+
+
+def consistent_refit_file(model: str | Path | IdentifiedModel, train: Measurements | Sequence[str | Path],
+                          validate: Measurements | Sequence[str | Path] | None = None,
+                          **settings: Any) -> ConsistentResult:
+    """The consistent refit of the model of a ``result.json``/``report.json`` (``model``: its path or the
+    :class:`estimation.identification.identified_model.IdentifiedModel`), on its training and validation records
+    (files, read and prepared as the model file says, or prepared measurements).
+
+    The model is rebuilt from its effects, its shaped laws held at the file's shapes and its motion moved by the
+    file's delay; its linear coefficients are estimated again on ``train`` (those of the file when ``train`` is the
+    record it was identified on) and refitted consistently by :func:`consistent_fit` (``settings``)."""
+    identified = model if isinstance(model, IdentifiedModel) else IdentifiedModel.load(model)
+
+    def prepared(records: Measurements | Sequence[str | Path]) -> Measurements:
+        if isinstance(records, Measurements):
+            return records
+        if isinstance(records, (str, Path)):
+            records = [records]
+        return identified.prepare(identified.read(list(records)))
+
+    train = prepared(train)
+    validate = None if validate is None else prepared(validate)
+    shapes = {name: float(value) for name, value in identified.file.shape.items()}
+    result = identify(identified.model, train, validate, weighted=identified.file.method != "ols",
+                      shape_starts=shapes or None, shape_search=False, delay=identified.file.delay)
+    return consistent_fit(result, train, validate, **settings)
 
 
 def _ratio(numerator: dict[str, float], denominator: dict[str, float]) -> dict[str, float | None]:

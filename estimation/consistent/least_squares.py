@@ -36,9 +36,10 @@ so their uncertainty is not understated. Without a prior this is the unconstrain
 prior shrinks it. Standard deviations of the link parameters themselves are given only with a prior
 (the data alone do not determine them). Both, and the bounds met, in :mod:`estimation.consistent.reduced_hessian`.
 
-Extension point: effects with shape parameters (nonlinear in their parameters) do not fit the
-quadratic form; :func:`check_linear_effects` names them until the variable-projection estimator
-of the nonlinear-effects issue supplies their residual.
+Effects with shape parameters (nonlinear in them) fit the quadratic form once their shapes are held
+fixed: give the problem at those shapes (:func:`estimation.consistent.fixed_shapes.fixed_problem`, from the
+variable-projection fit); measurements alone would be evaluated at the laws' reference shapes, so
+:func:`check_linear_effects` refuses them.
 """
 
 from __future__ import annotations
@@ -51,6 +52,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from dynamics.effects.shaped import is_shaped
 from dynamics.models import IdentificationModel
 from dynamics.physical_parameters import (
     ConsistencyBoundsError, LinkBounds, PhysicalParametrisation, consistency_margin, is_consistent, project_link,
@@ -147,13 +149,14 @@ class ConsistentEstimate:
 
 
 def check_linear_effects(model: IdentificationModel) -> None:
-    """Refuse effects with shape parameters (nonlinear in them): the extension point for the
-    variable-projection estimator of nonlinear effects."""
-    nonlinear = [effect.name for effect in model.effects if getattr(effect, "shape_parameter_names", None)]
+    """Refuse effects with shape parameters when the columns would be evaluated from measurements (at the
+    laws' reference shapes, not fitted ones): such a model is fitted on the problem at its fitted shapes."""
+    nonlinear = [getattr(effect, "spec", effect.name) for effect in model.effects if is_shaped(effect, model.robot)]
     if nonlinear:
         raise NotImplementedError(
-            f"consistent identification handles effects linear in their parameters; {nonlinear} have shape "
-            "parameters (fit them first, then fix them, or extend estimation.consistent.least_squares)")
+            f"effects {nonlinear} have shape parameters: fit them first (estimation.identification.fit.identify) and "
+            "give the problem at the fitted shapes (estimation.consistent.fixed_shapes.fixed_problem), or use "
+            "estimation.consistent.identification.consistent_fit")
 
 
 class ConsistentLeastSquares(Estimator):
@@ -198,7 +201,8 @@ class ConsistentLeastSquares(Estimator):
         started = time.perf_counter()
         if not isinstance(model, IdentificationModel):
             raise TypeError(f"model must be an IdentificationModel, got {type(model).__name__}")
-        check_linear_effects(model)
+        if not isinstance(data, IdentificationProblem):
+            check_linear_effects(model)
         weight = self._check_settings()
         problem = data if isinstance(data, IdentificationProblem) else stack(model, data)
         if problem.n_parameters != model.n_base:

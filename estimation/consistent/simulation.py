@@ -23,6 +23,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from dynamics.simulation.controllers import ComputedTorqueController, computed_torque_gains
 from dynamics.effects.linear import CoulombFriction
+from dynamics.effects.shaped import is_shaped
 from dynamics.models import IdentificationModel, build_model
 from dynamics.robot import RobotModel
 from dynamics.simulation.sensors import NoiseModel
@@ -50,6 +51,10 @@ def simulated_effects(model: IdentificationModel, estimate: ConsistentEstimate, 
     for effect in model.effects:
         if effect.name in NOT_SIMULATED:
             continue
+        if is_shaped(effect, model.robot):
+            raise ValueError(f"effect {getattr(effect, 'spec', effect.name)!r} has fitted shape parameters the "
+                             "simulator's joint effects do not take (its Coulomb law has one smoothing for all "
+                             f"joints); simulate {', '.join(SIMULATED_EFFECTS)} only")
         names = effect.parameter_names(model.robot)
         for name in names:
             symbol = name.rstrip("0123456789")

@@ -5,8 +5,10 @@ the model, so that Pinocchio's RNEA on the URDF plus these terms is the model's 
 
     {"joints": {"<joint name>": {"viscous": fv, "coulomb": fc, "offset": off, "armature": Ia,
                                  "coulomb_smoothing": V,                       # tanh(dq / V) instead of sign
-                                 "stribeck": {"fs": …, "velocity": …}, "spring": {"k": …, "reference": …}}},
-     "effects": [{"spec": "coulomb[q5+q6]", "parameters": {"fc56": …}}],       # effects not on one joint
+                                 "stribeck": {"fs": …, "velocity": …}, "spring": {"k": …, "reference": …},
+                                 "sigmoid": {"phi1": …, "phi2": …, "phi3": …}, "ripple": {"rs": …, "rc": …, "n": …}}},
+     "effects": [{"spec": "coulomb:tanh[q5+q6]", "parameters": {"fc[q5+q6]": …},  # effects not on one joint
+                  "shape": {"vc[q5+q6]": …}}],
      "laws": {"viscous": "fv * dq", …}, "delay": 0.007 | null, "gravity": [0, 0, -9.81], "channels": […]}
 
 ``τ_j = RNEA(q, q̇, q̈)_j + Σ laws of joint j`` (joint rows; the other effects and the delay as named).
@@ -16,6 +18,9 @@ and ``springref`` (a spring), gravity; what it cannot express (an offset, a Stri
 shaped Coulomb law, an effect not on one joint, a motor-side effect, a delay) is listed in a comment and
 in :attr:`MjcfExport.notes`.
 
+The shaped laws (:mod:`dynamics.effects.shaped`) are written at their fitted shapes: ``coulomb:tanh`` as
+``coulomb`` with its ``coulomb_smoothing``, ``stribeck:velocity`` as ``coulomb`` and ``stribeck`` with its
+velocity, ``sigmoid`` and ``ripple`` with their shape parameters.
 Only a consistent estimate is exported: base parameters alone do not determine the bodies (a base
 parameter is a sum of standard ones, and a body of unconstrained values need not be a real one).
 """
@@ -27,13 +32,14 @@ from typing import Any
 
 import numpy as np
 
+from dynamics.effects.shaped import shape_parameters
 from dynamics.effects.specs import effect_spec
 from dynamics.mjcf_export import robot_mjcf
 from dynamics.urdf_export import robot_urdf, urdf_with_inertials
 from estimation.identification.identified_model import IdentifiedModel
 from estimation.identification.plausibility import link_findings
 
-__all__ = ["LAWS", "ExportError", "MjcfExport", "exported_mjcf", "exported_urdf", "friction_document",
+__all__ = ["LAWS", "SHAPED_ENTRIES", "ExportError", "MjcfExport", "exported_mjcf", "exported_urdf", "friction_document",
            "implausible_links"]
 
 #: the per-joint laws friction.json names, as formulas of the joint's motion
@@ -44,6 +50,16 @@ LAWS = {
     "armature": "Ia * ddq",
     "stribeck": "fs * exp(-(dq / velocity)**2) * sign(dq)",
     "spring": "k * (q - reference)",
+    "sigmoid": "phi1 / (1 + exp(-phi2 * (dq + phi3))) - phi1 / (1 + exp(-phi2 * phi3))",
+    "ripple": "rs * sin(n * q) + rc * cos(n * q)",
+}
+#: a shaped per-joint law (its spec) as friction.json's entries: the key of each linear coefficient (a
+#: ``(law, field)`` pair, field ``None`` for a plain number) and of each shape parameter, by symbol
+SHAPED_ENTRIES: dict[str, dict[str, tuple[str, str | None]]] = {
+    "coulomb:tanh": {"fc": ("coulomb", None), "vc": ("coulomb_smoothing", None)},
+    "stribeck:velocity": {"fc": ("coulomb", None), "fs": ("stribeck", "fs"), "vs": ("stribeck", "velocity")},
+    "sigmoid": {"phi1_": ("sigmoid", "phi1"), "phi2_": ("sigmoid", "phi2"), "phi3_": ("sigmoid", "phi3")},
+    "ripple": {"rs": ("ripple", "rs"), "rc": ("ripple", "rc"), "n": ("ripple", "n")},
 }
 
 
@@ -91,18 +107,44 @@ def _joint_entry(effect: Any, value: float) -> tuple[str, Any]:
     return name, value
 
 
+def _shaped_entries(effect: Any, robot: Any, values: dict[str, float], shape: dict[str, float],
+                    joints: dict[str, dict[str, Any]]) -> bool:
+    """Write a built-in shaped per-joint law into ``joints`` (:data:`SHAPED_ENTRIES`); ``False`` for another effect."""
+    entries = SHAPED_ENTRIES.get(getattr(effect, "spec", ""))
+    if entries is None or not hasattr(effect, "kinds"):
+        return False
+    indices = effect.joints if effect.joints is not None else range(robot.n_joints)
+    for index in indices:
+        terms = joints[robot.joint_names[index]]
+        symbols = [(symbol, values) for symbol in effect.linear] + [(kind.symbol, shape) for kind in effect.kinds]
+        for symbol, source in symbols:
+            key, field = entries[symbol]
+            value = source.get(f"{symbol}{index + 1}")
+            value = None if value is None else float(value)
+            if field is None:
+                terms[key] = value
+            else:
+                terms.setdefault(key, {})[field] = value
+    return True
+
+
 def friction_document(model: IdentifiedModel) -> dict[str, Any]:
     """The ``friction.json`` document (module docstring) of the consistent estimate."""
     _check_consistent(model)
     values = dict(model.file.consistent_effects or {})
+    shape = {name: float(value) for name, value in model.file.shape.items()}
     robot = model.robot
     joints: dict[str, dict[str, Any]] = {name: {} for name in robot.joint_names}
     others = []
     for effect in model.model.effects:
         names = effect.parameter_names(robot)
+        if _shaped_entries(effect, robot, values, shape, joints):
+            continue
         per_joint = getattr(effect, "symbol", "") and not getattr(effect, "motor", False) and effect.name in LAWS
         if not per_joint:
-            others.append({"spec": effect_spec(effect), "parameters": {name: values.get(name) for name in names}})
+            shape_names = [parameter.name for parameter in shape_parameters(effect, robot)]
+            others.append({"spec": effect_spec(effect), "parameters": {name: values.get(name) for name in names},
+                           **({"shape": {name: shape.get(name) for name in shape_names}} if shape_names else {})})
             continue
         indices = effect.joints if effect.joints is not None else range(robot.n_joints)
         for index, name in zip(indices, names):

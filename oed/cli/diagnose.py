@@ -20,6 +20,7 @@ from oed.cli.shared.common import (
     stderr_say,
     verb_keywords,
 )
+from oed.cli.identify_consistent import add_consistent_arguments
 from oed.cli.shared.verbs import verb_summary
 from oed.workflows.diagnose import DiagnoseOptions, diagnose, residual_figure, trace_figure
 from oed.workflows.options import check_json_path, check_markdown_path
@@ -54,6 +55,7 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     add_jobs_argument(parser, "the derivative candidates' scores and each round's candidate fits")
     add_streaming_arguments(parser)
     add_streamed_diagnosis_arguments(parser)
+    add_consistent_arguments(parser)  # --consistent: the adopted model refitted consistently (estimation.consistent)
     return parser
 
 

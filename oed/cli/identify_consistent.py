@@ -1,10 +1,10 @@
-"""``oed identify --consistent``: its options (the refit and the prior-weight choice: :mod:`oed.workflows.consistent`)."""
+"""``--consistent`` of ``oed identify`` and ``oed diagnose``: its options (the refit and the prior-weight choice: :mod:`oed.workflows.consistent`)."""
 
 from __future__ import annotations
 
 import argparse
 
-from oed.workflows.consistent import DEFAULT_PRIOR_WEIGHT, PRIOR_WEIGHT_GRID, PRIOR_WEIGHT_TOLERANCE
+from estimation.consistent.identification import DEFAULT_PRIOR_WEIGHT, PRIOR_WEIGHT_GRID, PRIOR_WEIGHT_TOLERANCE
 
 
 def add_consistent_arguments(parser: argparse.ArgumentParser) -> None:

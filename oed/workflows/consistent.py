@@ -1,24 +1,25 @@
-"""``--consistent`` of ``oed identify``: the checks of its options, the refit and the choice of the prior's weight
-(:data:`PRIOR_WEIGHT_GRID`, :data:`PRIOR_WEIGHT_TOLERANCE`, :data:`DEFAULT_PRIOR_WEIGHT`), and its summary lines."""
+"""``--consistent`` of ``oed identify`` and ``oed diagnose``: the checks of its options, the refit (the prior's weight
+chosen in :mod:`estimation.consistent.identification`: :data:`PRIOR_WEIGHT_GRID`, :data:`PRIOR_WEIGHT_TOLERANCE`,
+:data:`DEFAULT_PRIOR_WEIGHT`), and its summary lines."""
 
 from __future__ import annotations
 
-import dataclasses
 from typing import Any
 
 import numpy as np
 
-from estimation.consistent.identification import ConsistentResult, identify_consistent, load_link_bounds, load_prior
+from estimation.consistent.identification import (
+    DEFAULT_PRIOR_WEIGHT,
+    PRIOR_WEIGHT_GRID,
+    PRIOR_WEIGHT_TOLERANCE,
+    ConsistentResult,
+    consistent_fit,
+    load_link_bounds,
+    load_prior,
+)
 
-
-#: the prior weights ``--prior-weight auto`` tries
-PRIOR_WEIGHT_GRID = (0.0, 0.1, 1.0, 10.0, 100.0)
-#: ``--prior-weight auto`` takes the largest weight whose validation error is within this fraction of the best
-PRIOR_WEIGHT_TOLERANCE = 0.01
-#: the prior's weight without ``--validate`` to choose it: one unit of ½χ², where the prior weighs about as much as
-#: the data on a direction of the bodies known to its own size (estimation.consistent.determination); the data
-#: decide every direction they determine better than that
-DEFAULT_PRIOR_WEIGHT = 1.0
+__all__ = ["DEFAULT_PRIOR_WEIGHT", "PRIOR_WEIGHT_GRID", "PRIOR_WEIGHT_TOLERANCE", "check_consistent_arguments",
+           "consistent_lines", "consistent_refit"]
 
 
 def check_consistent_arguments(args: Any) -> None:
@@ -37,47 +38,16 @@ def check_consistent_arguments(args: Any) -> None:
 
 
 def consistent_refit(args: Any, result, train, validation) -> ConsistentResult | None:
-    """The consistent refit of ``result`` (``None`` without ``consistent``), its prior weight given or chosen."""
+    """The consistent refit of ``result`` (``None`` without ``consistent``), its prior weight given or chosen on the
+    validation record (:func:`estimation.consistent.identification.consistent_fit`); shaped laws and a delay held at
+    their fitted values."""
     if not args.consistent:
         return None
     robot = result.model.robot
     prior = None if args.prior is None else load_prior(args.prior, robot)
     bounds = None if args.link_bounds is None else load_link_bounds(args.link_bounds, robot)
-
-    def refit(weight: float) -> ConsistentResult:
-        return identify_consistent(result, train, validation, prior_weight=weight, prior=prior,
-                                   prior_source=args.prior or "robot description", bounds=bounds)
-
-    weight, choice = prior_weight_choice(args.prior_weight, validation is not None)
-    if weight != "auto":
-        return dataclasses.replace(refit(weight), prior_weight_choice=choice)
-    return dataclasses.replace(choose_prior_weight(refit, result), prior_weight_choice=choice)
-
-
-def prior_weight_choice(given: float | str | None, validated: bool) -> tuple[float | str, str]:
-    """``(weight, how)``: the weight given, else ``auto`` with a validation record, else
-    :data:`DEFAULT_PRIOR_WEIGHT`; ``how`` is ``given``, ``held-out`` or ``default``."""
-    if given is None:
-        return ("auto", "held-out") if validated else (DEFAULT_PRIOR_WEIGHT, "default")
-    return given, "held-out" if given == "auto" else "given"
-
-
-def choose_prior_weight(refit, result) -> ConsistentResult:
-    """The consistent fit of the largest weight of :data:`PRIOR_WEIGHT_GRID` whose channel-weighted validation
-    error is within :data:`PRIOR_WEIGHT_TOLERANCE` of the best: where the data do not determine a body, the
-    prior (the description's by default) does, as far as the held-out record allows. The search is kept in
-    the result (``prior_weight_search``)."""
-    weights = result.estimate.weights if result.estimate.method == "wls" else 1.0 / result.estimate.channel_variance
-    fits, errors = [], []
-    for weight in PRIOR_WEIGHT_GRID:
-        fit = refit(weight)
-        fits.append(fit)
-        errors.append(float(sum(w * fit.validation.mse[c] for w, c in zip(weights, result.model.channels))))
-    best = min(errors)
-    chosen = max(index for index, error in enumerate(errors) if error <= (1 + PRIOR_WEIGHT_TOLERANCE) * best)
-    search = tuple({"prior_weight": weight, "weighted_validation_error": error}
-                   for weight, error in zip(PRIOR_WEIGHT_GRID, errors))
-    return dataclasses.replace(fits[chosen], prior_weight_search=search)
+    return consistent_fit(result, train, validation, prior_weight=args.prior_weight, prior=prior,
+                          prior_source=args.prior or "robot description", bounds=bounds)
 
 
 def consistent_lines(consistent: ConsistentResult | None) -> list[str]:

@@ -51,6 +51,7 @@ from oed.workflows.asbuilt import (
     worse_after,
 )
 from oed.workflows.memory_path import decide_path, streamed_choice
+from oed.workflows.consistent import check_consistent_arguments, consistent_lines, consistent_refit
 from oed.workflows.model_files import (
     add_model_file,
     add_runner_up_model_file,
@@ -82,7 +83,9 @@ IN_MEMORY = InMemoryBudget(64, "diagnosing", "use --chunk-size to stream them in
 class DiagnoseOptions(RecordOptions):
     """The options of ``oed diagnose`` (:class:`~oed.workflows.options.RecordOptions` and these): ``test`` (a path
     or a list), ``report`` (whether the Markdown report will be written: it keeps the run in memory), ``alpha``,
-    ``max_effects``, ``subsample`` and ``floor_window`` (the streamed path's)."""
+    ``max_effects``, ``subsample`` and ``floor_window`` (the streamed path's), and ``consistent`` (the adopted model
+    refitted physically consistent, shaped laws and a delay at their fitted values) with ``prior_weight`` (a number
+    or ``"auto"``), ``prior``, ``link_bounds``."""
 
     test: tuple[Path, ...] = ()
     report: bool = False
@@ -90,6 +93,10 @@ class DiagnoseOptions(RecordOptions):
     max_effects: int = 20
     subsample: int = DEFAULT_SUBSAMPLE
     floor_window: int = FLOOR_WINDOW
+    consistent: bool = False
+    prior_weight: float | str | None = None
+    prior: str | None = None
+    link_bounds: str | None = None
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -211,6 +218,7 @@ def diagnose(*, say: Callable[[str], None] | None = None, **options: Any) -> Dia
 def run_diagnose(args: DiagnoseOptions, *, say: Callable[[str], None]) -> DiagnoseRun:
     """:func:`diagnose` of checked options."""
     check_request(args)
+    check_consistent_arguments(args)
     differentiation(args)  # contradicting derivative options are an error even when the data hold dq, ddq
     friction, delay = split_delay(args.friction)  # a candidate in every diagnosis: 'delay:S' sets its bound
     if streaming_requested(args):  # bounded memory (estimation.streaming.diagnosis)
@@ -236,6 +244,9 @@ def check_streamed_request(args: DiagnoseOptions, delay: DelayBounds | None) -> 
     if delay is not None:
         raise ValueError("the delay between torques and motion is searched in memory: not with the streamed path "
                          "(--chunk-size, --scheduler or --workers), which does not try it")
+    if args.consistent:
+        raise ValueError("--consistent refits in memory: not with the streamed path (--chunk-size, --scheduler or "
+                         "--workers)")
 
 
 def in_memory_only(args: DiagnoseOptions, model: IdentificationModel, delay: DelayBounds | None) -> str | None:
@@ -264,18 +275,26 @@ def diagnose_in_memory(args: DiagnoseOptions, model: IdentificationModel, transm
         notes += worse_after(diagnosis)
         repeat = repeated_motion_note(records.train.measurements, records.validation.measurements)
         notes += () if repeat is None else (repeat,)
+        consistent = consistent_refit(args, diagnosis.after, records.train.measurements,
+                                      records.validation.measurements)  # None without --consistent
     messages = caught_messages(caught) + list(notes)
     rest = rest_records(records)
     document = finish_document(diagnosis.to_dict(), diagnosis.after, trivial=trivial, warnings=notes, rest=rest,
                                transmission=transmission, warnings_key=("warnings", "after"))
     document["preprocessing"] = records.preprocessing.to_dict()
     document["test"] = None if untouched is None else untouched.to_dict()
-    messages += add_model_file(document, diagnosis.after, args, records.preprocessing, transmission)
+    if consistent is not None:
+        document.update(consistent.to_dict())
+        document["consistent"]["test"] = None if records.test is None else \
+            {"mse": consistent.compare(records.test.measurements).mse}
+    messages += add_model_file(document, diagnosis.after, args, records.preprocessing, transmission,
+                               consistent=consistent)
     add_runner_up_model_file(document, diagnosis.runner_up, args, records.preprocessing, transmission)
     document["diagnosis_path"] = "in-memory"  # "streamed": --chunk-size (diagnose_streaming)
     document["max_effects"] = args.max_effects
     document["max_effects_reached"] = len(diagnosis.effects) >= args.max_effects
-    lines = [records.preprocessing.describe(), *summary_lines(diagnosis), *test_lines(untouched)]
+    lines = [records.preprocessing.describe(), *summary_lines(diagnosis), *test_lines(untouched),
+             *consistent_lines(consistent)]
     if len(diagnosis.effects) >= args.max_effects:
         untested = sum(rejected.reason.startswith("not tested") for rejected in diagnosis.rejected)
         lines.append(f"stopped at --max-effects {args.max_effects}: {untested} candidate(s) not tested; raise "

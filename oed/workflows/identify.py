@@ -274,13 +274,10 @@ def in_memory_only(args: IdentifyOptions, model: IdentificationModel, delay: Del
 
 
 def check_model_request(args: IdentifyOptions, model: IdentificationModel, delay: DelayBounds | None) -> None:
-    """A delay only in memory without ``--consistent``; ``--consistent`` only without laws with shape parameters."""
-    if delay is not None and (args.consistent or streaming_requested(args)):
+    """A delay only in memory (``--consistent`` holds it, and the shaped laws' shapes, at their fitted values)."""
+    if delay is not None and streaming_requested(args):
         raise ValueError("a delay between torques and motion is searched in memory by the weighted least squares: "
-                         "not with --consistent or the streamed path (--chunk-size, --scheduler or --workers)")
-    if args.consistent and model_has_shapes(model):
-        raise ValueError("--consistent refits the linear effects: laws with shape parameters (coulomb:tanh, sigmoid…) "
-                         "are not supported there yet; declare their plain forms (coulomb) for the consistent fit")
+                         "not with the streamed path (--chunk-size, --scheduler or --workers)")
 
 
 def check_streamed_request(args: IdentifyOptions, model: IdentificationModel) -> None:
