@@ -10,7 +10,8 @@ the model, so that Pinocchio's RNEA on the URDF plus these terms is the model's 
      "laws": {"viscous": "fv * dq", …}, "delay": 0.007 | null, "gravity": [0, 0, -9.81], "channels": […]}
 
 ``τ_j = RNEA(q, q̇, q̈)_j + Σ laws of joint j`` (joint rows; the other effects and the delay as named).
-Only a consistent estimate is exported: base parameters alone do not determine the bodies (a base
+A payload the model file carries (``oed payload``) is added to its link's body (the sum of two rigid bodies in
+one frame is the sum of their standard parameters). Only a consistent estimate is exported: base parameters alone do not determine the bodies (a base
 parameter is a sum of standard ones, and a body of unconstrained values need not be a real one).
 """
 
@@ -60,7 +61,9 @@ def exported_urdf(model: IdentifiedModel) -> str:
     """The URDF of the identified bodies: the model's own URDF with its inertials replaced, or one
     written from a built-in robot's description."""
     _check_consistent(model)
-    links = model.file.consistent_links
+    links = np.array(model.file.consistent_links, dtype=float)
+    if model.payload_link is not None:
+        links[model.payload_link - 1] += model.payload_theta
     source = model.file.robot
     if source.urdf_text is not None:
         return urdf_with_inertials(source.urdf_text, model.robot, links)
