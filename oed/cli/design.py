@@ -23,6 +23,7 @@ from oed.cli.shared.common import (
     seed,
 )
 from oed.cli.shared.options import check_hertz, handover, sqp_after
+from oed.cli.design_payload import add_payload_arguments, run_payload
 from oed.cli.design_sequential import add_sequential_arguments, run_sequential, sequential_requested
 from oed.criteria import CRITERIA
 from oed.cli.shared.design_bounds import bounds_from_arguments
@@ -52,8 +53,9 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     parser.add_argument("--workers", type=int, default=0, help="run the starts in a process pool of this size")
     parser.add_argument("--scheduler", help=f"dask scheduler address (tcp://host:8786) to run the starts on a cluster "
                         f"(default: ${SCHEDULER_VARIABLE}); needs pip install 'robot-oed[cluster]'")
-    parser.add_argument("--frequency", type=float, default=0.2, help="fundamental frequency, Hz (default 0.2)")
-    parser.add_argument("--harmonics", type=int, default=5)
+    parser.add_argument("--frequency", type=float, default=None,
+                        help="fundamental frequency, Hz (default 0.2; with --payload 0.1: one period of 10 s)")
+    parser.add_argument("--harmonics", type=int, default=None, help="default 5; with --payload 10")
     parser.add_argument("--samples", type=int, default=250, help="cost samples per period during optimisation")
     parser.add_argument("--constraint-points", type=int, default=60)
     parser.add_argument("--max-iter", type=int, default=None,
@@ -65,6 +67,7 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     parser.add_argument("--csv", type=Path, help="sampled trajectory t, q1..qn, dq1..dqn, ddq1..ddqn (1 kHz)")
     parser.add_argument("--plot", type=Path, help="figure of q, dq, ddq with the bounds")
     add_sequential_arguments(parser)
+    add_payload_arguments(parser)
     verbosity = parser.add_mutually_exclusive_group()
     verbosity.add_argument("--quiet", action="store_true", help="no progress output")
     verbosity.add_argument("--verbose", action="store_true", help="IPOPT iteration log")
@@ -80,6 +83,10 @@ def trajectory_table(trajectory, rate_hz: float = 1000.0) -> tuple[list[str], np
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.payload:
+        return run_payload(args)
+    args.frequency = 0.2 if args.frequency is None else args.frequency
+    args.harmonics = 5 if args.harmonics is None else args.harmonics
     if sequential_requested(args):
         return run_sequential(args)
     args.model = args.model or "combined"

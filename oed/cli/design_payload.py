@@ -1,0 +1,75 @@
+"""``oed design --payload --from robot.json``: a short excitation for a payload's parameters, the robot's model given
+(:mod:`oed.payload.design`)."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+import numpy as np
+
+from estimation.identification.identified_model import IdentifiedModel
+from oed.cli.shared.common import OutputFiles, check_csv_path, check_json_path, json_text
+from oed.cli.shared.design_bounds import bounds_from_arguments
+from oed.cli.shared.options import check_hertz, handover
+from oed.design_settings import DesignSettings
+from oed.payload import MassAndCentre, design_payload_excitation
+from oed.payload.design import PAYLOAD_FREQUENCY_HZ, PAYLOAD_HARMONICS
+
+
+def add_payload_arguments(parser: argparse.ArgumentParser) -> None:
+    group = parser.add_argument_group("a payload's excitation")
+    group.add_argument("--payload", action="store_true",
+                       help="design one period (default 10 s) for the mass and centre of mass of a payload on the "
+                            "robot of --from (its identified model), within the bounds")
+    group.add_argument("--link", help="with --payload: the payload's link (URDF name, joint name or link<k>; "
+                                      "default the last)")
+    group.add_argument("--payload-mass", type=float, default=1.0,
+                       help="with --payload: the payload's expected mass, kg (default 1)")
+
+
+def run_payload(args: argparse.Namespace) -> int:
+    """``oed design --payload`` (module docstring): ``--out`` (trajectory JSON with ``payload_design``), ``--csv``."""
+    if args.from_model is None:
+        raise ValueError("--payload designs for an identified robot: give its result.json or report.json with --from")
+    given = [option for option, value in (("--data", args.data), ("--focus", args.focus), ("--periods", args.periods),
+                                          ("--rival", args.rival), ("--model", args.model), ("--friction", args.friction),
+                                          ("--criterion", args.criterion), ("--plot", args.plot))
+             if value is not None] + (["--discriminate"] if args.discriminate else [])
+    if given:
+        raise ValueError(f"{', '.join(given)}: not with --payload (the model file fixes the model; the criterion is "
+                         "the worst relative standard deviation of the mass and the centre of mass)")
+    args.frequency = PAYLOAD_FREQUENCY_HZ if args.frequency is None else args.frequency
+    args.harmonics = PAYLOAD_HARMONICS if args.harmonics is None else args.harmonics
+    check_hertz(args, "frequency")
+    check_json_path(args.out)
+    if args.csv is not None:
+        check_csv_path(args.csv, "--csv")
+    model = IdentifiedModel.load(args.from_model)
+    bounds = bounds_from_arguments(args, model.robot)
+    settings = DesignSettings(frequency_hz=args.frequency, harmonics=args.harmonics, cost_samples=args.samples,
+                              constraint_points=args.constraint_points, verbose=args.verbose,
+                              max_iter=500 if args.max_iter is None else args.max_iter,
+                              sqp_after=handover(args, DesignSettings.sqp_after))
+
+    def progress(start, total) -> None:
+        if not args.quiet:
+            print(f"start {start.index + 1}/{total}: {start.status}, {start.iterations} iterations, {start.time_s:.2f} s, "
+                  f"criterion {start.criterion_value:.4f}" + ("" if start.feasible else " (bounds not met)"),
+                  file=sys.stderr, flush=True)
+
+    result = design_payload_excitation(model, bounds=bounds, link=args.link, criterion=MassAndCentre(args.payload_mass),
+                                       settings=settings, starts=args.starts, seed=args.seed, progress=progress)
+    from oed.cli.design import trajectory_table
+
+    with OutputFiles() as outputs:  # all files or none
+        with outputs.open(args.out) as stream:
+            stream.write(json_text(result.to_dict()))
+        if args.csv is not None:
+            header, table = trajectory_table(result.trajectory, settings.rate_hz)
+            with outputs.open(args.csv) as stream:
+                np.savetxt(stream, table, delimiter=",", header=",".join(header), comments="", fmt="%.10g")
+    if not args.quiet:
+        print(result.summary(), file=sys.stderr)
+        print(f"{result.design.total_time_s:.2f} s -> {args.out}", file=sys.stderr)
+    return 0
