@@ -13,7 +13,7 @@ from oed.cli.shared.common import OutputFiles, check_csv_path, check_json_path, 
 from oed.cli.shared.design_bounds import bounds_from_arguments
 from oed.cli.shared.options import check_hertz, handover
 from oed.design_settings import DesignSettings
-from oed.payload import MassAndCentre, design_payload_excitation
+from oed.payload import design_payload_excitation
 from oed.payload.design import PAYLOAD_FREQUENCY_HZ, PAYLOAD_HARMONICS
 
 
@@ -58,7 +58,7 @@ def run_payload(args: argparse.Namespace) -> int:
                   f"criterion {start.criterion_value:.4f}" + ("" if start.feasible else " (bounds not met)"),
                   file=sys.stderr, flush=True)
 
-    result = design_payload_excitation(model, bounds=bounds, link=args.link, criterion=MassAndCentre(args.payload_mass),
+    result = design_payload_excitation(model, bounds=bounds, link=args.link, mass=args.payload_mass,
                                        settings=settings, starts=args.starts, seed=args.seed, progress=progress)
     from oed.cli.design import trajectory_table
 

@@ -14,6 +14,17 @@ a smooth maximum of their logarithms, the log-sum-exp at sharpness ``κ``,
 
 the worst relative variance of the four (as :class:`oed.sequential.criteria.WorstRelativeVariance`, for linear
 combinations). D-optimality over all ten would spend information on the inertia the controller needs least.
+
+**The robot model's share.** The payload is fitted against the robot model's prediction, whose parameters ``θ_b``
+are uncertain (covariance ``Σ_θ``); their error moves the payload estimate by ``A⁻¹ B δθ_b`` (``A = n M_kk`` and
+``B = n M_kb`` the record's information of the payload's and the robot's columns together, ``n`` samples,
+:mod:`estimation.payload.fit`). Given ``Σ_θ`` (``robot_cov``) the criterion acts on the information ``M`` of the
+stacked columns ``[Y_k | Y_b]`` (per sample) and counts both parts,
+
+    cov(π) = (1/n) M_kk⁻¹ + M_kk⁻¹ M_kb Σ_θ M_bk M_kk⁻¹ :
+
+a design for the record's noise alone drives the motion where the robot model is least known (measured on the
+PUMA: the robot's share of the mass's standard deviation four times that of random excitations).
 """
 
 from __future__ import annotations
@@ -36,7 +47,7 @@ DEFAULT_LENGTH = 0.1
 SHARPNESS = 8.0
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class MassAndCentre(Criterion):
     """``(1/κ) log Σ_k var(u_k)^κ`` over the mass and centre-of-mass combinations ``u = T π`` (module docstring).
 
@@ -46,12 +57,19 @@ class MassAndCentre(Criterion):
         The guess ``m₀`` (kg), ``c₀`` (m, link frame) and the length ``ℓ`` (m) the centre of mass is relative to.
     sharpness
         ``κ > 0``.
+    robot_cov
+        ``Σ_θ`` (``r x r``) of the robot model's parameters, or ``None``: the record's noise alone, ``M`` then the
+        information of the payload's ten parameters.
+    samples
+        ``n``: the samples of the record, ``M`` being per sample (default 1: ``M`` is the record's information).
     """
 
     mass: float = DEFAULT_MASS
     com: tuple[float, float, float] = (0.0, 0.0, 0.0)
     length: float = DEFAULT_LENGTH
     sharpness: float = SHARPNESS
+    robot_cov: NDArray[np.float64] | None = None
+    samples: float = 1.0
     name: ClassVar[str] = "payload-worst-relative"
     smooth: ClassVar[bool] = True
 
@@ -64,6 +82,18 @@ class MassAndCentre(Criterion):
         if len(com) != 3 or not all(np.isfinite(com)):
             raise ValueError(f"com must be three finite numbers (m), got {self.com!r}")
         object.__setattr__(self, "com", com)
+        if not (np.isfinite(self.samples) and self.samples > 0):
+            raise ValueError(f"samples must be positive, got {self.samples}")
+        if self.robot_cov is not None:
+            cov = np.asarray(self.robot_cov, dtype=float)
+            if cov.ndim != 2 or cov.shape[0] != cov.shape[1] or not np.all(np.isfinite(cov)):
+                raise ValueError(f"robot_cov must be a finite square matrix, got shape {cov.shape}")
+            object.__setattr__(self, "robot_cov", (cov + cov.T) / 2)
+
+    @property
+    def size(self) -> int:
+        """The size of the information ``M`` the criterion takes: 10, or 10 + r with ``robot_cov``."""
+        return 10 + (0 if self.robot_cov is None else self.robot_cov.shape[0])
 
     @property
     def combinations(self) -> NDArray[np.float64]:
@@ -75,19 +105,35 @@ class MassAndCentre(Criterion):
             T[1 + i, 0] = -self.com[i] / (self.mass * self.length)
         return T
 
-    def relative_std(self, M: ArrayLike) -> NDArray[np.float64]:
-        """Standard deviations of ``u`` (relative mass, centre of mass in units of ``ℓ``) for the information ``M``."""
+    def relative_variances(self, M: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Variances of ``u`` (relative mass, centre of mass in units of ``ℓ``) for the information ``M``: the record's
+        noise part and the robot model's (zero without ``robot_cov``)."""
         M = np.asarray(M, dtype=float)
+        M = (M + M.T) / 2
         T = self.combinations
         try:
-            variances = np.sum(T.T * np.linalg.solve((M + M.T) / 2, T.T), axis=0)
+            X = np.linalg.solve(M[:10, :10], T.T)
         except np.linalg.LinAlgError:
-            return np.full(4, np.inf)
-        return np.sqrt(np.where(variances > 0, variances, np.inf))
+            return np.full(4, np.inf), np.zeros(4)
+        noise = np.sum(T.T * X, axis=0) / self.samples
+        if self.robot_cov is None:
+            return noise, np.zeros(4)
+        Z = M[10:, :10] @ X
+        return noise, np.sum(Z * (self.robot_cov @ Z), axis=0)
+
+    def relative_std(self, M: ArrayLike) -> NDArray[np.float64]:
+        """Standard deviations of ``u``, both parts together."""
+        noise, robot = self.relative_variances(M)
+        total = noise + robot
+        return np.sqrt(np.where(noise > 0, total, np.inf))
 
     def expression(self, M):
         T = casadi.DM(self.combinations)
-        variances = casadi.sum1(T.T * casadi.solve(M, T.T)).T
+        X = casadi.solve(M[:10, :10], T.T)
+        variances = casadi.sum1(T.T * X).T / self.samples
+        if self.robot_cov is not None:
+            Z = casadi.mtimes(M[10:, :10], X)
+            variances = variances + casadi.sum1(Z * casadi.mtimes(casadi.DM(self.robot_cov), Z)).T
         logs = casadi.log(variances)
         top = casadi.mmax(logs)  # a shift that leaves the value and its derivative alone
         return top + casadi.log(casadi.sum1(casadi.exp(self.sharpness * (logs - top)))) / self.sharpness
