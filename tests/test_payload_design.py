@@ -92,3 +92,5 @@ def test_payload_design_needs_the_robots_model(robot_json, capsys):
     assert main(["design", "--payload", "--from", str(path), "--link", "wrist", "--bounds", str(bounds),
                  "--out", str(folder / "x.json")]) != 0
     assert "no link 'wrist'" in capsys.readouterr().err
+    assert main(["design", "--link", "joint6", "--out", str(folder / "x.json")]) != 0
+    assert "give --payload too" in capsys.readouterr().err

@@ -23,7 +23,7 @@ from oed.cli.shared.common import (
     seed,
 )
 from oed.cli.shared.options import check_hertz, handover, sqp_after
-from oed.cli.design_payload import add_payload_arguments, run_payload
+from oed.cli.design_payload import add_payload_arguments, payload_requested, run_payload
 from oed.cli.design_sequential import add_sequential_arguments, run_sequential, sequential_requested
 from oed.criteria import CRITERIA
 from oed.cli.shared.design_bounds import bounds_from_arguments
@@ -83,7 +83,7 @@ def trajectory_table(trajectory, rate_hz: float = 1000.0) -> tuple[list[str], np
 
 
 def run(args: argparse.Namespace) -> int:
-    if args.payload:
+    if payload_requested(args):
         return run_payload(args)
     args.frequency = 0.2 if args.frequency is None else args.frequency
     args.harmonics = 5 if args.harmonics is None else args.harmonics

@@ -24,8 +24,21 @@ def add_payload_arguments(parser: argparse.ArgumentParser) -> None:
                             "robot of --from (its identified model), within the bounds")
     group.add_argument("--link", help="with --payload: the payload's link (URDF name, joint name or link<k>; "
                                       "default the last)")
-    group.add_argument("--payload-mass", type=float, default=1.0,
+    group.add_argument("--payload-mass", type=float, default=None,
                        help="with --payload: the payload's expected mass, kg (default 1)")
+    group.add_argument("--payload-noise-only", action="store_true",
+                       help="with --payload: design for the record's torque noise alone, not counting the robot "
+                            "model's share of the uncertainty (which such a design can let grow)")
+
+
+def payload_requested(args: argparse.Namespace) -> bool:
+    """Whether ``--payload`` was given; its options without it are an error."""
+    if not args.payload:
+        given = [option for option, value in (("--link", args.link), ("--payload-mass", args.payload_mass))
+                 if value is not None] + (["--payload-noise-only"] if args.payload_noise_only else [])
+        if given:
+            raise ValueError(f"{', '.join(given)} belong to a payload's design: give --payload too")
+    return bool(args.payload)
 
 
 def run_payload(args: argparse.Namespace) -> int:
@@ -58,7 +71,8 @@ def run_payload(args: argparse.Namespace) -> int:
                   f"criterion {start.criterion_value:.4f}" + ("" if start.feasible else " (bounds not met)"),
                   file=sys.stderr, flush=True)
 
-    result = design_payload_excitation(model, bounds=bounds, link=args.link, mass=args.payload_mass,
+    result = design_payload_excitation(model, bounds=bounds, link=args.link, mass=1.0 if args.payload_mass is None else args.payload_mass,
+                                       robot_share=not args.payload_noise_only,
                                        settings=settings, starts=args.starts, seed=args.seed, progress=progress)
     from oed.cli.design import trajectory_table
 
