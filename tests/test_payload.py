@@ -200,3 +200,25 @@ def test_cli_writes_payload_json_and_predict_uses_it(puma, tmp_path, capsys):
     frame.to_csv(seven, index=False)
     assert main(["payload", "--model", str(robot_json), "--data", str(seven), "--out", str(tmp_path / "z.json")]) != 0
     assert "more joints" in capsys.readouterr().err
+
+
+def test_export_adds_the_payload_to_its_links_body(puma, tmp_path):
+    """A consistent model with a payload: the exported URDF's link 6 is the link's body plus the payload (read back by
+    the URDF parser, against the same model exported without it: the difference is the payload's body, in the URDF's
+    frame of the link)."""
+    from estimation.identification.export import exported_urdf
+    from dynamics.robots import load_robot as load
+
+    result = identify_payload(puma["identified"], puma["records"][0])
+    exported = []
+    for document in (puma["identified"].file.to_dict(), result.model_file_document(puma["identified"])):
+        document["consistent"] = {"links": puma["theta"][:60].reshape(6, 10).tolist(), "effects": {},
+                                  "theta": document["theta"], "cov": document["cov"], "validation_mse": None}
+        urdf = tmp_path / f"exported{len(exported)}.urdf"
+        urdf.write_text(exported_urdf(IdentifiedModel(ModelFile.from_dict(document))))
+        exported.append(load(urdf=urdf))
+    without, with_payload = exported
+    assert np.allclose(with_payload.joints[4].inertial, without.joints[4].inertial)
+    added = PayloadBody(with_payload.joints[5].inertial - without.joints[5].inertial, np.zeros((10, 10)))
+    assert added.mass == pytest.approx(result.body.mass, rel=1e-9)
+    assert np.allclose(added.principal_moments, result.body.principal_moments, rtol=1e-6)
