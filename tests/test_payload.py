@@ -222,3 +222,20 @@ def test_export_adds_the_payload_to_its_links_body(puma, tmp_path):
     added = PayloadBody(with_payload.joints[5].inertial - without.joints[5].inertial, np.zeros((10, 10)))
     assert added.mass == pytest.approx(result.body.mass, rel=1e-9)
     assert np.allclose(added.principal_moments, result.body.principal_moments, rtol=1e-6)
+
+
+def test_urdf_link_names_name_the_payloads_link():
+    """A URDF robot: its child-link names, its joint names and link<k> name links; a fixed link (merged into its
+    parent, in a frame of its own) is not one."""
+    from pathlib import Path
+    from types import SimpleNamespace
+
+    path = Path(__file__).parent / "data" / "prismatic_arm.urdf"
+    robot = load_robot(urdf=path)
+    source = RobotSource("arm", None, None, str(path), "0" * 64, path.read_text())
+    model = SimpleNamespace(file=SimpleNamespace(robot=source), robot=robot)
+    assert resolve_link(model, "link2") == (2, "j2")
+    assert resolve_link(model, "j3") == (3, "j3")
+    assert resolve_link(model, None) == (3, "j3")
+    with pytest.raises(PayloadError, match="no link 'tool'.*link1, link2, link3, j1"):
+        resolve_link(model, "tool")

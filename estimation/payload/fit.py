@@ -15,7 +15,8 @@ robot model's channel variances, then the residual variances of the first pass),
 solved in scaled parameters (mass, mass x length, mass x length²) so that a direction the data do not see is
 left at zero rather than guessed. Uncertainty, two independent parts added:
 
-- the record's noise: ``Σ_e = A⁺`` (the ``σ_c²`` estimated from the residuals);
+- the record's noise: ``Σ_e = A⁺`` (the ``σ_c²`` estimated from the residuals), or by default its Newey–West
+  sandwich, which holds when the residuals are correlated in time (:mod:`estimation.uncertainty.covariance`);
 - the robot model's own: ``θ_b`` is an estimate, ``Σ_R = G Σ_θ Gᵀ`` with ``G = A⁺ Σ_c w_c Y_{k,c}^T Y_{b,c}``
   (the payload estimate's sensitivity to the robot's parameters through the target). No payload experiment
   shrinks this part.
@@ -50,7 +51,9 @@ from dynamics.measurements import Measurements
 from dynamics.physical_parameters import consistency_margin, link_from_psi, log_cholesky_from_link, project_link
 from dynamics.robot import LINK_PARAMETER_NAMES
 from estimation.identification.identified_model import IdentifiedModel
+from estimation.data.segments import segment_slices
 from estimation.preprocessing.delay import delayed
+from estimation.uncertainty.covariance import CovarianceMethod, check_method, hac_covariance
 from estimation.payload.body import PayloadBody
 
 __all__ = ["MISMATCH_RATIO", "NO_PAYLOAD_SIGMAS", "RELATIVE_STD_THRESHOLD", "STD_NOTE", "PayloadError",
@@ -138,12 +141,15 @@ class PayloadRows:
         ``(N, m, 10)`` the link's standard-parameter columns ``Y_k``.
     robot_jacobian
         ``(N, m, r)`` the robot prediction's derivative in its parameters ``θ_b`` (its base regressor).
+    segments
+        ``(start, stop)`` samples of each segment (records stacked): no lag of the HAC covariance crosses them.
     """
 
     measured: NDArray[np.float64]
     robot: NDArray[np.float64]
     columns: NDArray[np.float64]
     robot_jacobian: NDArray[np.float64]
+    segments: tuple[tuple[int, int], ...] = ()
 
     @property
     def target(self) -> NDArray[np.float64]:
@@ -206,8 +212,9 @@ def payload_rows(model: IdentifiedModel, data: Any, link: int, *, as_recorded: b
     except (KeyError, ValueError) as error:
         raise PayloadError(f"{role} lack the model's channels {list(model.channels)}: {error}") from None
     q, dq, ddq = prepared.q, prepared.dq, prepared.ddq
+    segments = tuple((int(piece.start), int(piece.stop)) for piece in segment_slices(prepared))
     return PayloadRows(measured, model.robot_prediction(q, dq, ddq), model.link_columns(link, q, dq, ddq),
-                       model.regressor(q, dq, ddq))
+                       model.regressor(q, dq, ddq), segments)
 
 
 # ---------------------------------------------------------------------------------------------- the fit
@@ -405,7 +412,7 @@ def _mse(measured: NDArray[np.float64], predicted: NDArray[np.float64], channels
 
 
 def identify_payload(model: IdentifiedModel, data: Any, *, validate: Any = None, link: str | int | None = None,
-                     mass: float | None = None) -> PayloadResult:
+                     mass: float | None = None, covariance: CovarianceMethod = "hac") -> PayloadResult:
     """The payload on ``link`` (default the last) from ``data``, ``model`` held fixed (module docstring).
 
     Parameters
@@ -420,6 +427,10 @@ def identify_payload(model: IdentifiedModel, data: Any, *, validate: Any = None,
         A URDF link name, the joint that moves it, ``link<k>`` or ``k``; ``None``: the last link.
     mass
         The payload's known mass, kg (then the nine other parameters are fitted).
+    covariance
+        The record-noise part: ``"hac"`` (default; Newey–West, it holds when the residuals are correlated in time,
+        e.g. filtered channels, and equals the classical one within sampling error when they are white:
+        :mod:`estimation.uncertainty.covariance`) or ``"classical"`` (``A⁺``, white residuals assumed).
 
     Raises
     ------
@@ -433,6 +444,7 @@ def identify_payload(model: IdentifiedModel, data: Any, *, validate: Any = None,
                            "result.json of `oed identify` or report.json of `oed diagnose`)")
     if mass is not None and not (np.isfinite(mass) and mass > 0):
         raise PayloadError(f"the known mass must be positive, got {mass} kg")
+    covariance = check_method(covariance)
     index, name = resolve_link(model, link)
     rows = payload_rows(model, data, index)
     channels = model.channels
@@ -458,6 +470,12 @@ def identify_payload(model: IdentifiedModel, data: Any, *, validate: Any = None,
 
     weights = 1.0 / variance
     cov_noise = fit.inverse
+    if covariance == "hac":
+        residuals = rows.target - rows.columns @ fit.parameters
+        hac, _ = hac_covariance(rows.columns[:, :, free], residuals, weights, fit.inverse[np.ix_(free, free)],
+                                segments=rows.segments or None)
+        cov_noise = np.zeros((10, 10))
+        cov_noise[np.ix_(free, free)] = hac
     sensitivity = fit.inverse @ np.einsum("nmi,m,nmr->ir", rows.columns, weights, rows.robot_jacobian, optimize=True)
     cov_robot = sensitivity @ model.cov @ sensitivity.T
     cov = cov_noise + cov_robot
