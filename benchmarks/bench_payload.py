@@ -48,25 +48,26 @@ VISCOUS = [4.0, 4.0, 3.0, 1.0, 1.0, 1.0]
 DDQ_MAX = [15.0, 15.0, 15.0, 20.0, 20.0, 20.0]
 
 
-def robot_model(model, theta, noise) -> IdentifiedModel:
-    train = simulate(model, theta, random_fourier(model.robot, seed=1, frequency_hz=0.1), rate_hz=RATE_HZ, periods=3,
-                     noise=noise, seed=3)
+def robot_model(model, train) -> IdentifiedModel:
+    """The robot's model identified on ``train`` (records without the payload), as ``oed identify`` saves it."""
     result = identify(model, train, covariance="classical")
     document = model_file_document(result, robot=RobotSource("puma560", "puma560", None), preprocessing=None)
     return IdentifiedModel(ModelFile.from_dict(document))
 
 
-def recorder(kind: str, model, loaded, noise):
-    """``record(trajectory, seed) -> Measurements`` of one period with the payload."""
+def recorder(kind: str, model, parameters, noise):
+    """``record(trajectory, seed, periods=1) -> Measurements`` of the robot with ``parameters`` (the model's; for
+    Pinocchio, the rigid body's, with the simulator's default viscous friction)."""
     if kind == "model":
-        return lambda trajectory, seed: simulate(model, loaded, trajectory, rate_hz=RATE_HZ, noise=noise, seed=seed)
+        return lambda trajectory, seed, periods=1: simulate(model, parameters, trajectory, rate_hz=RATE_HZ,
+                                                            periods=periods, noise=noise, seed=seed)
     from dynamics.simulation.sensors import NoiseModel
     from dynamics.simulation.simulator import Simulator
 
-    simulator = Simulator(model.robot, "viscous", tuple(loaded[:60]),
+    simulator = Simulator(model.robot, "viscous", tuple(parameters[:60]),
                           NoiseModel(tau_std=tuple(noise.values()), q_resolution=None))
-    return lambda trajectory, seed: simulator.run(trajectory, warmup_periods=1, with_derivatives=True,
-                                                  seed=seed).measurements
+    return lambda trajectory, seed, periods=1: simulator.run(trajectory, periods=periods, warmup_periods=1,
+                                                             with_derivatives=True, seed=seed).measurements
 
 
 def fitted(identified: IdentifiedModel, record) -> dict[str, float]:
@@ -99,7 +100,8 @@ def main() -> None:
     loaded[50:60] += PAYLOAD
     clean = simulate(model, loaded, random_fourier(robot, seed=1, frequency_hz=0.1), rate_hz=RATE_HZ)
     noise = {f"tau{j + 1}": 0.01 * span for j, span in enumerate(np.ptp(clean.tau, axis=0))}
-    identified = robot_model(model, theta, noise)
+    train = recorder(args.simulator, model, theta, noise)(random_fourier(robot, seed=1, frequency_hz=0.1), 3, periods=3)
+    identified = robot_model(model, train)
     bounds = JointBounds.from_robot(robot, ddq_max=DDQ_MAX, scale=0.9)
 
     settings = DesignSettings(frequency_hz=PAYLOAD_FREQUENCY_HZ, harmonics=PAYLOAD_HARMONICS)

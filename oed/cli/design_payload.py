@@ -74,13 +74,11 @@ def run_payload(args: argparse.Namespace) -> int:
     result = design_payload_excitation(model, bounds=bounds, link=args.link, mass=1.0 if args.payload_mass is None else args.payload_mass,
                                        robot_share=not args.payload_noise_only,
                                        settings=settings, starts=args.starts, seed=args.seed, progress=progress)
-    from oed.cli.design import trajectory_table
-
     with OutputFiles() as outputs:  # all files or none
         with outputs.open(args.out) as stream:
             stream.write(json_text(result.to_dict()))
         if args.csv is not None:
-            header, table = trajectory_table(result.trajectory, settings.rate_hz)
+            header, table = result.table(settings.rate_hz)
             with outputs.open(args.csv) as stream:
                 np.savetxt(stream, table, delimiter=",", header=",".join(header), comments="", fmt="%.10g")
     if not args.quiet:

@@ -207,6 +207,13 @@ class PayloadDesignResult:
         }
         return document
 
+    def table(self, rate_hz: float = 1000.0) -> tuple[list[str], NDArray[np.float64]]:
+        """Columns ``t, q1..qn, dq1..dqn, ddq1..ddqn`` and the samples of one period at ``rate_hz`` (``--csv``)."""
+        t, q, dq, ddq = self.trajectory.sample(rate_hz)
+        n = self.trajectory.n_joints
+        header = ["t"] + [f"{state}{i}" for state in ("q", "dq", "ddq") for i in range(1, n + 1)]
+        return header, np.column_stack([t, q, dq, ddq])
+
     def summary(self) -> str:
         designed, random = self.designed_std, self.random_std
         noise, random_noise = designed["record_noise"], random["record_noise"]
