@@ -36,6 +36,7 @@ VERB_FUNCTIONS: dict[str, str] = {
     "diagnose": "diagnose",
     "predict": "predict",
     "export": "export",
+    "payload": "payload",
 }
 
 __all__ = ["__version__", *VERB_FUNCTIONS]

@@ -18,7 +18,7 @@ from tests.conftest import REPOSITORY, shared_data
 NOTEBOOKS = REPOSITORY / "notebooks"
 # notebook -> the shared data folder it needs (None: simulation only, or it skips that part itself)
 CASES = {"puma_loop.ipynb": None, "servo_arm.ipynb": None, "emps.ipynb": "emps", "shaped_effects.ipynb": None,
-         "model_export.ipynb": None, "sequential_design.ipynb": None}
+         "model_export.ipynb": None, "sequential_design.ipynb": None, "payload.ipynb": None}
 
 
 def _read(name: str) -> nbformat.NotebookNode:

@@ -21,6 +21,8 @@ in :attr:`MjcfExport.notes`.
 The shaped laws (:mod:`dynamics.effects.shaped`) are written at their fitted shapes: ``coulomb:tanh`` as
 ``coulomb`` with its ``coulomb_smoothing``, ``stribeck:velocity`` as ``coulomb`` and ``stribeck`` with its
 velocity, ``sigmoid`` and ``ripple`` with their shape parameters.
+A payload the model file carries (``oed payload``) is added to its link's body (the sum of two rigid bodies in
+one frame is the sum of their standard parameters), in the URDF and the MJCF.
 Only a consistent estimate is exported: base parameters alone do not determine the bodies (a base
 parameter is a sum of standard ones, and a body of unconstrained values need not be a real one).
 """
@@ -81,11 +83,20 @@ def implausible_links(model: IdentifiedModel) -> tuple[str, ...]:
     return link_findings(model.robot, model.file.consistent_links)
 
 
+def exported_links(model: IdentifiedModel) -> np.ndarray:
+    """The bodies exported: the consistent estimate's, with the payload the model file carries (``oed payload``)
+    added to its link's."""
+    links = np.array(model.file.consistent_links, dtype=float)
+    if model.payload_link is not None:
+        links[model.payload_link - 1] += model.payload_theta
+    return links
+
+
 def exported_urdf(model: IdentifiedModel) -> str:
     """The URDF of the identified bodies: the model's own URDF with its inertials replaced, or one
     written from a built-in robot's description."""
     _check_consistent(model)
-    links = model.file.consistent_links
+    links = exported_links(model)
     source = model.file.robot
     merged = source.joint_names is not None  # the locked joints' bodies are in the named joints' ones
     if source.urdf_text is not None:
@@ -192,5 +203,5 @@ def exported_mjcf(model: IdentifiedModel) -> MjcfExport:
         notes.append(f"a delay of {document['delay']:g} s between torques and motion")
     header = (f"robot-oed: the physically consistent estimate of {model.robot.name} ({model.file.effects or 'no'} "
               "effects); numbers at full precision")
-    text = robot_mjcf(model.robot, model.file.consistent_links, terms, notes=notes, header=header)
+    text = robot_mjcf(model.robot, exported_links(model), terms, notes=notes, header=header)
     return MjcfExport(text, tuple(notes))

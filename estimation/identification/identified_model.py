@@ -13,6 +13,10 @@ fitted delay (:mod:`estimation.preprocessing.delay`). Its 95 % prediction interv
 channel is ``ŷ ± z √(y_bᵀ Σ_θ y_b + σ_c²)``: the parameters' covariance ``Σ_θ`` (the linear
 coefficients'; for shaped effects it includes the shapes' uncertainty through the full Jacobian)
 plus the channel's residual variance ``σ_c²`` on the training record, against its channels as recorded.
+
+A model file that carries a payload (``oed payload``, :mod:`estimation.payload`) adds ``Y_k π`` to the
+prediction, ``Y_k`` the ten standard-parameter columns of its link, and ``y_kᵀ Σ_π y_k`` to the band's variance
+(the payload's covariance, independent of the robot model's).
 """
 
 from __future__ import annotations
@@ -160,6 +164,16 @@ class IdentifiedModel:
                    if parameter.name not in model_file.shape]
         if missing:
             raise ModelFileError(f"the model file lacks the fitted shape parameters {missing}")
+        self.payload_link: int | None = None  # 1-based index of the payload's link
+        self.payload_theta = self.payload_cov = None
+        if model_file.payload is not None:
+            index = int(model_file.payload["link_index"])
+            if not 1 <= index <= self.robot.n_joints:
+                raise ModelFileError(f"the model file's payload is on link {index}; the robot has "
+                                     f"{self.robot.n_joints}")
+            self.payload_link = index
+            self.payload_theta = np.asarray(model_file.payload["parameters"], dtype=float)
+            self.payload_cov = np.asarray(model_file.payload["cov"], dtype=float)
 
     @classmethod
     def load(cls, path: str | Path, *, estimate: Estimate = "unconstrained") -> IdentifiedModel:
@@ -209,17 +223,36 @@ class IdentifiedModel:
                 Y[:, row, indices] = columns[:, row_position, :]
         return Y
 
-    def predict(self, q: ArrayLike, dq: ArrayLike, ddq: ArrayLike) -> NDArray[np.float64]:
-        """``(N, m)`` predicted channels along the motion ``q, dq, ddq`` (``(N, n)`` each; no delay applied:
-        :meth:`predict_record` moves a record's motion by it)."""
+    def link_columns(self, link: int, q: ArrayLike, dq: ArrayLike, ddq: ArrayLike) -> NDArray[np.float64]:
+        """``(N, m, 10)``: the ten standard-parameter columns of link ``link`` (1-based) in the model's channels
+        (the Newton–Euler regressor, :mod:`dynamics.newton_euler`): what a body fixed to that link adds per unit
+        of its parameters."""
+        if not 1 <= int(link) <= self.robot.n_joints:
+            raise ValueError(f"link must be 1 to {self.robot.n_joints}, got {link}")
+        start = 10 * (int(link) - 1)
+        return np.ascontiguousarray(self.model.evaluate(q, dq, ddq)[:, :, start:start + 10])
+
+    def robot_prediction(self, q: ArrayLike, dq: ArrayLike, ddq: ArrayLike) -> NDArray[np.float64]:
+        """``(N, m)`` the robot model's prediction alone (without the payload the file may carry)."""
         if not self._shaped:
             return self.model.predict(self.theta, q, dq, ddq)
         return self.regressor(q, dq, ddq) @ self.theta
+
+    def predict(self, q: ArrayLike, dq: ArrayLike, ddq: ArrayLike) -> NDArray[np.float64]:
+        """``(N, m)`` predicted channels along the motion ``q, dq, ddq`` (``(N, n)`` each; no delay applied:
+        :meth:`predict_record` moves a record's motion by it), the payload included when the file carries one."""
+        predicted = self.robot_prediction(q, dq, ddq)
+        if self.payload_link is not None:
+            predicted = predicted + self.link_columns(self.payload_link, q, dq, ddq) @ self.payload_theta
+        return predicted
 
     def interval(self, q: ArrayLike, dq: ArrayLike, ddq: ArrayLike, *, z: float = Z_95) -> NDArray[np.float64]:
         """``(N, m)`` half-widths ``z √(y_bᵀ Σ_θ y_b + σ_c²)`` of the prediction band (module docstring)."""
         Y = self.regressor(q, dq, ddq)
         variance = np.einsum("nmr,rs,nms->nm", Y, self.cov, Y, optimize=True)
+        if self.payload_link is not None:
+            Y = self.link_columns(self.payload_link, q, dq, ddq)
+            variance += np.einsum("nmr,rs,nms->nm", Y, self.payload_cov, Y, optimize=True)
         return z * np.sqrt(np.clip(variance, 0.0, None) + self.file.band_variance[None, :])
 
     def predict_record(self, measurements: Measurements) -> Prediction:

@@ -23,11 +23,17 @@
         "reported": {"validation_mse": {channel: value} | null},
         "consistent": {"links": [[m, mx, …, Izz], …], "effects": {"fv1": …},   # oed identify --consistent
                        "theta": […], "cov": [[…]],                          # its base parameters
-                       "validation_mse": {channel: value} | null} | null}
+                       "validation_mse": {channel: value} | null} | null,
+        "payload": {"link": "joint6", "link_index": 6,                        # oed payload: a rigid body fixed
+                    "parameters": [m, mx, …, Izz], "cov": [[…]]}}            # to that link (absent: none)
 
 The model's prediction along a motion is ``Y_b(q, q̇, q̈; s) θ`` with the shaped columns at the
 fitted shapes ``s`` (:mod:`estimation.identification.shaped`), along the motion moved by the delay
-(:mod:`estimation.preprocessing.delay`). :class:`ModelFile` is the parsed document (:func:`model_file_document` writes it for an in-memory fit,
+(:mod:`estimation.preprocessing.delay`), plus, when the file carries a payload, ``Y_k(q, q̇, q̈) π``: the ten
+standard-parameter columns of its link ``k`` times its parameters ``π`` (link frame, inertia about the link-frame
+origin; :mod:`estimation.payload`).
+
+:class:`ModelFile` is the parsed document (:func:`model_file_document` writes it for an in-memory fit,
 :func:`summed_model_file_document` for one from sums, the streamed path);
 :class:`estimation.identification.identified_model.IdentifiedModel` predicts with it.
 """
@@ -172,6 +178,7 @@ class ModelFile:
     consistent_theta: NDArray[np.float64] | None = None
     consistent_cov: NDArray[np.float64] | None = None
     consistent_validation_mse: Mapping[str, float] | None = None
+    payload: Mapping[str, Any] | None = None
 
     @property
     def band_variance(self) -> NDArray[np.float64]:
@@ -183,7 +190,7 @@ class ModelFile:
     def to_dict(self) -> dict[str, Any]:
         """The ``model_file`` document (module docstring)."""
         channels = list(self.channels)
-        return {
+        document = {
             "format": FORMAT, "version": VERSION,
             "robot": self.robot.to_dict(), "model": self.model, "channels": channels,
             "joint_names": list(self.joint_names), "effects": self.effects,
@@ -208,6 +215,9 @@ class ModelFile:
                 "validation_mse": None if self.consistent_validation_mse is None
                 else dict(self.consistent_validation_mse)},
         }
+        if self.payload is not None:  # written only when there is one: files without it stay as they were
+            document["payload"] = dict(self.payload)
+        return document
 
     @classmethod
     def from_dict(cls, document: Mapping[str, Any]) -> ModelFile:
@@ -246,9 +256,27 @@ class ModelFile:
                 consistent_validation_mse=None if consistent is None else consistent.get("validation_mse"),
                 recorded_variance=None if document.get("recorded_variance") is None
                 else np.array([document["recorded_variance"][c] for c in channels], dtype=float),
+                payload=_payload(document.get("payload")),
             )
         except (KeyError, TypeError) as error:
             raise ModelFileError(f"the model file lacks or garbles {error}") from None
+
+
+def _payload(document: Any) -> dict[str, Any] | None:
+    """The ``payload`` entry, checked: a link and ten parameters with their ``10 x 10`` covariance."""
+    if document is None:
+        return None
+    if not isinstance(document, Mapping):
+        raise ModelFileError("the model file's payload is not an object")
+    try:
+        parameters = np.asarray(document["parameters"], dtype=float).reshape(-1)
+        cov = np.asarray(document["cov"], dtype=float)
+        index = int(document["link_index"])
+    except (KeyError, TypeError, ValueError) as error:
+        raise ModelFileError(f"the model file's payload lacks or garbles {error}") from None
+    if parameters.shape != (10,) or cov.shape != (10, 10) or not np.all(np.isfinite(parameters)):
+        raise ModelFileError("the model file's payload must hold 10 finite parameters and a 10 x 10 covariance")
+    return {**dict(document), "link_index": index, "parameters": parameters.tolist(), "cov": cov.tolist()}
 
 
 def _effect_values(result: IdentificationResult) -> tuple[dict[str, Any], ...]:

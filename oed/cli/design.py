@@ -41,8 +41,9 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     parser.add_argument("--workers", type=int, default=0, help="run the starts in a process pool of this size")
     parser.add_argument("--scheduler", help=f"dask scheduler address (tcp://host:8786) to run the starts on a cluster "
                         f"(default: ${SCHEDULER_VARIABLE}); needs pip install 'robot-oed[cluster]'")
-    parser.add_argument("--frequency", type=float, default=0.2, help="fundamental frequency, Hz (default 0.2)")
-    parser.add_argument("--harmonics", type=int, default=5)
+    parser.add_argument("--frequency", type=float, default=None,
+                        help="fundamental frequency, Hz (default 0.2; with --payload 0.1: one period of 10 s)")
+    parser.add_argument("--harmonics", type=int, default=None, help="default 5; with --payload 10")
     parser.add_argument("--samples", type=int, default=250, help="cost samples per period during optimisation")
     parser.add_argument("--constraint-points", type=int, default=60)
     parser.add_argument("--max-iter", type=int, default=None,
@@ -54,6 +55,7 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     parser.add_argument("--csv", type=Path, help="sampled trajectory t, q1..qn, dq1..dqn, ddq1..ddqn (1 kHz)")
     parser.add_argument("--plot", type=Path, help="figure of q, dq, ddq with the bounds")
     add_sequential_arguments(parser)
+    add_payload_arguments(parser)
     verbosity = parser.add_mutually_exclusive_group()
     verbosity.add_argument("--quiet", action="store_true", help="no progress output")
     verbosity.add_argument("--verbose", action="store_true", help="IPOPT iteration log")
@@ -78,10 +80,24 @@ def add_sequential_arguments(parser: argparse.ArgumentParser) -> None:
                                                   "instead of the --from report's runner-up")
 
 
+def add_payload_arguments(parser: argparse.ArgumentParser) -> None:
+    group = parser.add_argument_group("a payload's excitation")
+    group.add_argument("--payload", action="store_true",
+                       help="design one period (default 10 s) for the mass and centre of mass of a payload on the "
+                            "robot of --from (its identified model), within the bounds")
+    group.add_argument("--link", help="with --payload: the payload's link (URDF name, joint name or link<k>; "
+                                      "default the last)")
+    group.add_argument("--payload-mass", type=float, default=None,
+                       help="with --payload: the payload's expected mass, kg (default 1)")
+    group.add_argument("--payload-noise-only", action="store_true",
+                       help="with --payload: design for the record's torque noise alone, not counting the robot "
+                            "model's share of the uncertainty (which such a design can let grow)")
+
+
 def run(args: argparse.Namespace) -> int:
     check_figure_path(args.plot)
     check_json_path(args.out)
-    if args.csv is not None and args.from_model is None:
+    if args.csv is not None and (args.from_model is None or args.payload):
         check_csv_path(args.csv, "--csv")
     result = design(say=None if args.quiet else stderr_say_plain(),
                     **verb_keywords(args, DesignOptions, csv=args.csv is not None))

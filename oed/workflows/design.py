@@ -15,6 +15,8 @@ with ``discriminate`` it maximises how far the predictions of the model and a ri
 
 from __future__ import annotations
 
+import dataclasses
+
 import copy
 import warnings
 from collections.abc import Callable
@@ -37,6 +39,8 @@ from oed.sequential.next_experiment import check_bounds, design_next
 from oed.sequential.prior import read_records
 from oed.sequential.problem import SEQUENTIAL_MAX_ITER
 from oed.sequential.rivals import load_rival
+from oed.payload_design import design_payload_excitation
+from oed.payload_design.design import PAYLOAD_FREQUENCY_HZ, PAYLOAD_HARMONICS
 from oed.workflows.design_bounds import bounds_of
 from oed.workflows.options import RobotOptions, check_hertz, optional_path, paths, robot_of
 
@@ -44,6 +48,9 @@ __all__ = ["IPOPT_ALONE", "DesignOptions", "DesignRun", "design", "trajectory_ta
 
 #: ``sqp_after="none"`` (``--sqp-after none``): IPOPT alone (``None``: the verb's default)
 IPOPT_ALONE = "none"
+#: a plain design's fundamental frequency (Hz) and harmonics when not given (the PUMA paper's)
+DEFAULT_FREQUENCY_HZ = 0.2
+DEFAULT_HARMONICS = 5
 #: options of a plain design that a model file fixes
 FIXED_BY_MODEL = ("model", "friction")
 
@@ -62,8 +69,8 @@ class DesignOptions(RobotOptions):
     seed: int = 0
     workers: int = 0
     scheduler: str | None = None
-    frequency: float = 0.2
-    harmonics: int = 5
+    frequency: float | None = None
+    harmonics: int | None = None
     samples: int = 250
     constraint_points: int = 60
     max_iter: int | None = None
@@ -76,6 +83,10 @@ class DesignOptions(RobotOptions):
     periods: float | None = None
     discriminate: bool = False
     rival: Path | None = None
+    payload: bool = False
+    link: str | None = None
+    payload_mass: float | None = None
+    payload_noise_only: bool = False
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -174,6 +185,11 @@ def design(*, say: Callable[[str], None] | None = None, **options: Any) -> Desig
     """
     settings = DesignOptions(**options)
     say = say or (lambda line: None)
+    if payload_requested(settings):
+        return design_payload(settings, say)
+    settings = dataclasses.replace(settings, frequency=DEFAULT_FREQUENCY_HZ if settings.frequency is None
+                                   else settings.frequency,
+                                   harmonics=DEFAULT_HARMONICS if settings.harmonics is None else settings.harmonics)
     if sequential_requested(settings):
         return design_sequential(settings, say)
     return design_plain(settings, say)
@@ -228,6 +244,57 @@ def design_plain(args: DesignOptions, say: Callable[[str], None]) -> DesignRun:
             f"cost -log det(Y'Y) = {result.cost:.4f}, cond = {result.cond:.2f}, {result.total_time_s:.2f} s")
     return DesignRun(trajectory.to_dict(), (line,), tuple(str(warning.message) for warning in caught), result,
                      figure, trajectory, settings.rate_hz)
+
+
+def payload_requested(args: DesignOptions) -> bool:
+    """Whether ``payload`` was given; its options without it are an error."""
+    if not args.payload:
+        given = [option for option, value in (("--link", args.link), ("--payload-mass", args.payload_mass))
+                 if value is not None] + (["--payload-noise-only"] if args.payload_noise_only else [])
+        if given:
+            raise ValueError(f"{', '.join(given)} belong to a payload's design: give --payload too")
+    return bool(args.payload)
+
+
+def design_payload(args: DesignOptions, say: Callable[[str], None]) -> DesignRun:
+    """``oed design --payload --from robot.json`` (:func:`oed.payload_design.design_payload_excitation`): one short
+    period for the mass and centre of mass of a payload on the identified robot, within the bounds."""
+    if args.from_model is None:
+        raise ValueError("--payload designs for an identified robot: give its result.json or report.json with --from")
+    given = [option for option, value in (("--data", args.data), ("--focus", args.focus), ("--periods", args.periods),
+                                          ("--rival", args.rival), ("--model", args.model), ("--friction", args.friction),
+                                          ("--criterion", args.criterion)) if value is not None] \
+        + (["--discriminate"] if args.discriminate else [])
+    if given:
+        raise ValueError(f"{', '.join(given)}: not with --payload (the model file fixes the model; the criterion is "
+                         "the worst relative standard deviation of the mass and the centre of mass)")
+    args = dataclasses.replace(args, frequency=PAYLOAD_FREQUENCY_HZ if args.frequency is None else args.frequency,
+                               harmonics=PAYLOAD_HARMONICS if args.harmonics is None else args.harmonics)
+    check_hertz(args, "frequency")
+    model = IdentifiedModel.load(args.from_model)
+    bounds = bounds_of(args, model.robot)
+    settings = DesignSettings(frequency_hz=args.frequency, harmonics=args.harmonics, cost_samples=args.samples,
+                              constraint_points=args.constraint_points, verbose=args.verbose,
+                              max_iter=500 if args.max_iter is None else args.max_iter,
+                              sqp_after=handover(args, DesignSettings.sqp_after))
+
+    def progress(start: Any, total: int) -> None:
+        say(f"start {start.index + 1}/{total}: {start.status}, {start.iterations} iterations, {start.time_s:.2f} s, "
+            f"criterion {start.criterion_value:.4f}" + ("" if start.feasible else " (bounds not met)"))
+
+    result = design_payload_excitation(model, bounds=bounds, link=args.link,
+                                       mass=1.0 if args.payload_mass is None else args.payload_mass,
+                                       robot_share=not args.payload_noise_only, settings=settings,
+                                       starts=args.starts, seed=args.seed, progress=progress)
+
+    def figure() -> Any:
+        from oed.design_plot import plot_trajectory
+
+        return plot_trajectory(result.trajectory, bounds, rate_hz=settings.rate_hz,
+                               title=f"{model.robot.name}: payload excitation")
+
+    lines = (result.summary(), f"{result.design.total_time_s:.2f} s")
+    return DesignRun(result.to_dict(), lines, (), result, figure, result.trajectory, settings.rate_hz)
 
 
 def sequential_requested(args: DesignOptions) -> bool:

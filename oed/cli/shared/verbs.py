@@ -34,6 +34,7 @@ VERBS: tuple[Verb, ...] = (
     Verb("servo-fit", "servo_fit", "fit second-order joint models to t,u1..uJ,q1..qJ data (JSON out)"),
     Verb("diagnose", "diagnose", "find the effects a model lacks in measured data and report the error before and after"),
     Verb("predict", "predict", "predict the torques/wrench of a record with an identified model, and its errors"),
+    Verb("payload", "payload", "identify a payload's mass, centre of mass and inertia with the robot's model held fixed"),
     Verb("export", "export", "write a consistent identified model as a URDF (and its friction as JSON)"),
     Verb("demo", "demo", "the whole loop on the built-in PUMA 560: design, simulate, identify, diagnose, re-identify"),
 )

@@ -1,0 +1,96 @@
+"""The payload's excitation design (oed.payload_design, `oed design --payload --from`): its criterion against plain linear
+algebra, and a designed period that determines the mass and the centre of mass better than random excitations
+within the same bounds."""
+
+from __future__ import annotations
+
+import json
+
+import casadi
+import numpy as np
+import pandas as pd
+import pytest
+
+from dynamics.models import build_model
+from dynamics.robots import load_robot
+from dynamics.simulation.synthetic import simulate
+from oed.bounds import JointBounds
+from oed.cli import main
+from oed.fourier import random_fourier
+from oed.payload_design import MassAndCentre
+from tests.test_payload import VISCOUS, robot_model_file
+
+
+def test_criterion_is_the_smooth_maximum_of_the_relative_variances():
+    generator = np.random.default_rng(0)
+    A = generator.normal(size=(40, 10))
+    M = A.T @ A
+    criterion = MassAndCentre(mass=2.0, com=(0.01, -0.02, 0.08), length=0.1)
+    covariance = np.linalg.inv(M)
+    # u = (m/m0, (h - c0 m)/(m0 l)): its variances straight from the covariance
+    T = criterion.combinations
+    assert np.allclose(criterion.relative_std(M) ** 2, np.diag(T @ covariance @ T.T))
+    worst = np.max(np.log(criterion.relative_std(M) ** 2))
+    assert worst <= criterion.value(M) <= worst + np.log(4) / criterion.sharpness
+    symbol = casadi.SX.sym("M", 10, 10)
+    function = casadi.Function("J", [symbol], [criterion.expression(symbol)])
+    assert float(function(M)) == pytest.approx(criterion.value(M), rel=1e-10)
+    with pytest.raises(ValueError, match="mass must be a positive"):
+        MassAndCentre(mass=0.0)
+
+
+@pytest.fixture(scope="module")
+def robot_json(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("payload_design")
+    robot = load_robot("puma560")
+    model = build_model(robot, "internal", "viscous")
+    theta = model.nominal_parameters(viscous=VISCOUS)
+    noise = {f"tau{j}": value for j, value in zip(range(1, 7), (0.15, 0.15, 0.2, 0.05, 0.05, 0.05))}
+    train = simulate(model, theta, random_fourier(robot, seed=1, frequency_hz=0.1), rate_hz=500.0, periods=3, noise=noise,
+                     seed=3)
+    path = folder / "robot.json"
+    path.write_text(json.dumps({"model_file": robot_model_file(model, train).file.to_dict()}))
+    bounds = folder / "bounds.json"
+    bounds.write_text(json.dumps(JointBounds.from_robot(robot, ddq_max=[15, 15, 15, 20, 20, 20], scale=0.9).to_dict()))
+    return folder, path, bounds
+
+
+def test_designed_period_beats_random_excitations(robot_json, capsys):
+    folder, path, bounds = robot_json
+    out, csv = folder / "d.json", folder / "d.csv"
+    assert main(["design", "--payload", "--from", str(path), "--bounds", str(bounds), "--starts", "2",
+                 "--samples", "200", "--out", str(out), "--csv", str(csv)]) == 0
+    document = json.loads(out.read_text())
+    assert document["frequency_hz"] == 0.1 and len(document["a"][0]) == 10
+    design = document["payload_design"]
+    assert design["link"] == "joint6" and design["duration_s"] == 10.0
+    designed, random = design["predicted_std"]["designed"], design["predicted_std"]["random_median"]
+    assert design["criterion"]["robot_share"]  # the robot model's share counted, and reported apart
+
+    def worst_relative(std):  # the criterion's guess: 1 kg, the centre of mass relative to 0.1 m
+        return max(std["mass"] / 1.0, max(std["com"]) / 0.1)
+
+    assert worst_relative(designed) < worst_relative(random) / 1.5
+    assert max(designed["record_noise"]["com"]) < max(random["record_noise"]["com"]) / 2
+    table = pd.read_csv(csv)
+    assert table.shape == (10_000, 19) and table["t"].iloc[-1] < 10.0
+    # within the bounds on the 1 kHz grid
+    limits = json.loads(bounds.read_text())
+    for j in range(6):
+        assert np.abs(table[f"dq{j + 1}"]).max() <= limits["dq_max"][j] * (1 + 1e-6)
+        assert np.abs(table[f"ddq{j + 1}"]).max() <= limits["ddq_max"][j] * (1 + 1e-6)
+    assert "payload excitation for link 6" in capsys.readouterr().err
+
+
+def test_payload_design_needs_the_robots_model(robot_json, capsys):
+    folder, path, bounds = robot_json
+    assert main(["design", "--payload", "--bounds", str(bounds), "--out", str(folder / "x.json")]) != 0
+    assert "give its result.json" in capsys.readouterr().err
+    assert main(["design", "--payload", "--from", str(path), "--criterion", "logdet", "--bounds", str(bounds),
+                 "--out", str(folder / "x.json")]) != 0
+    assert "not with --payload" in capsys.readouterr().err
+    assert main(["design", "--payload", "--from", str(path), "--link", "wrist", "--bounds", str(bounds),
+                 "--out", str(folder / "x.json")]) != 0
+    assert "no link 'wrist'" in capsys.readouterr().err
+    assert main(["design", "--link", "joint6", "--out", str(folder / "x.json")]) != 0
+    assert "give --payload too" in capsys.readouterr().err
