@@ -262,7 +262,9 @@ def prepare_records(model: IdentificationModel, train: Sequence[str | Path], val
         if files is not None:
             check_varying_channels([segment for file in files for segment in file.segments], model.channels,
                                    f"{role} data")
-    preprocessing = choose_plan(model, [segment for file in train_files for segment in file.segments], settings)
+    preprocessing = choose_plan(model, [segment for file in train_files for segment in file.segments], settings,
+                                [segment for files in held_out.values() if files for file in files
+                                 for segment in file.segments])
     if preprocessing.method == "measured" and settings.held_torques:
         warnings.warn("held torques: nothing to align, the data hold measured dq and ddq", stacklevel=2)
     prepared = {"train": _prepared(train_files, preprocessing, "training data", check=False)}
@@ -313,8 +315,10 @@ def check_no_shared_samples(records: dict[str, tuple[RecordedFile, ...] | None],
                                  "another experiment")
 
 
-def choose_plan(model: IdentificationModel, train: Sequence[Measurements], settings: PreparationSettings) -> Preprocessing:
-    """The preprocessing of the training segments: ``settings.plan``, else chosen as ``settings.selection`` says."""
+def choose_plan(model: IdentificationModel, train: Sequence[Measurements], settings: PreparationSettings,
+                held_out: Sequence[Measurements] = ()) -> Preprocessing:
+    """The preprocessing of the training segments: ``settings.plan``, else chosen as ``settings.selection`` says,
+    among plans that also apply to the ``held_out`` segments (validation, test)."""
     if settings.plan is not None:
         return settings.plan
     options = {"frequency_hz": settings.frequency_hz, "harmonics": settings.harmonics, "cutoff_hz": settings.cutoff_hz,
@@ -322,7 +326,7 @@ def choose_plan(model: IdentificationModel, train: Sequence[Measurements], setti
                "held_torques": settings.held_torques}
     if settings.selection == "rule":
         return choose_preprocessing(train, **{**options, "held_torques": bool(settings.held_torques)})
-    return choose_by_evidence(model, train, **options, jobs=settings.jobs).chosen
+    return choose_by_evidence(model, train, **options, jobs=settings.jobs, held_out=held_out).chosen
 
 
 def _prepared(files: tuple[RecordedFile, ...], preprocessing: Preprocessing, role: str, *,

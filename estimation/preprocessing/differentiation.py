@@ -6,11 +6,14 @@ Two differentiation methods, each a small frozen object with ``apply(measurement
   measured periods when the record holds two or more whole periods of a whole number of samples
   (noise on every channel drops by ``√periods``), fit the finite Fourier series of eq. 18 to the
   positions by linear least squares on their time stamps (any fundamental, any record of at least
-  one period), and take ``q, dq, ddq`` analytically from the fit.
+  one period), and take ``q, dq, ddq`` analytically from the fit. The recorded channels of every sample
+  (the tail past the last whole period too) are kept beside the averaged ones.
 * :class:`ButterworthDifferentiation` — for any motion: zero-phase Butterworth low-pass
   (``filtfilt``) of the positions, central differences for ``dq`` and ``ddq``, and the same
   filter on the torques and wrench so that both sides of ``Y θ = τ`` see the same delay-free
-  attenuation.
+  attenuation. The filter covers the whole record: each end is extended by its odd reflection
+  over the filter's settling time (:func:`settling_samples`), so no sample is dropped and every
+  cut-off is judged on the same samples (trimming the settling instead is an option).
 
 Both keep the torques and wrench as recorded beside the filtered or averaged ones
 (``Measurements.recorded``, with the derived motion at the recorded instants): errors are
@@ -23,6 +26,7 @@ motion with joint torques held over each sample (zero-order hold).
 
 from __future__ import annotations
 
+import functools
 import warnings
 from dataclasses import dataclass, replace
 from typing import Literal, Protocol
@@ -170,9 +174,6 @@ class FourierDifferentiation:
         averaged = self.averages(measurements)
         if averaged:
             measurements = average_periods(measurements, self.frequency_hz)
-            kept = raw.select(slice(0, measurements.metadata["periods_averaged"] * measurements.n_samples))
-        else:
-            kept = raw
         nyquist = 0.5 * sampling_rate(measurements.t)
         if self.harmonics * self.frequency_hz >= nyquist:
             raise ValueError(f"{self.harmonics} harmonics of {self.frequency_hz:g} Hz reach the Nyquist frequency {nyquist:.6g} Hz")
@@ -182,15 +183,20 @@ class FourierDifferentiation:
         metadata = dict(measurements.metadata, differentiation="fourier", fourier_fit=fit.to_dict(), fit_rms=rms.tolist())
         if not averaged:
             metadata["periods_averaged"] = 0
-        recorded = None
-        if averaged:  # the recorded channels of every period kept, the fit's motion at their instants
-            periods = measurements.metadata["periods_averaged"]
-            if repeats_exactly(kept.t, periods, self.frequency_hz):  # the averaged period's motion, repeated
-                q_kept, dq_kept, ddq_kept = (np.tile(values, (periods, 1)) for values in (q, dq, ddq))
+        recorded, rows = None, None
+        if averaged:  # every recorded sample (the tail past the last whole period too), the fit's motion at its instant
+            periods, samples = measurements.metadata["periods_averaged"], measurements.n_samples
+            whole = periods * samples
+            if repeats_exactly(raw.t[:whole], periods, self.frequency_hz):  # the averaged period's motion, repeated
+                q_raw, dq_raw, ddq_raw = (np.tile(values, (periods, 1)) for values in (q, dq, ddq))
+                if raw.n_samples > whole:
+                    tail = fit.evaluate(raw.t[whole:])
+                    q_raw, dq_raw, ddq_raw = (np.vstack([head, rest]) for head, rest in zip((q_raw, dq_raw, ddq_raw), tail))
             else:
-                q_kept, dq_kept, ddq_kept = fit.evaluate(kept.t)
-            recorded = replace(kept, q=q_kept, dq=dq_kept, ddq=ddq_kept, metadata=dict(metadata), recorded=None)
-        return replace(measurements, q=q, dq=dq, ddq=ddq, metadata=metadata, recorded=recorded)
+                q_raw, dq_raw, ddq_raw = fit.evaluate(raw.t)
+            recorded = replace(raw, q=q_raw, dq=dq_raw, ddq=ddq_raw, metadata=dict(metadata), recorded=None)
+            rows = np.arange(raw.n_samples) % samples
+        return replace(measurements, q=q, dq=dq, ddq=ddq, metadata=metadata, recorded=recorded, recorded_rows=rows)
 
 
 @dataclass(frozen=True)
@@ -206,7 +212,8 @@ class ButterworthDifferentiation:
     order
         Filter order (``filtfilt`` doubles it and cancels the phase).
     trim
-        Drop the edges where the filter has not settled (:meth:`settling_samples` at each end).
+        Drop the edges where the filter has not settled (:meth:`settling_samples` at each end); by default
+        the filter covers the record, its ends extended by their odd reflection over that time.
     """
 
     cutoff_hz: float | None = None
@@ -234,21 +241,16 @@ class ButterworthDifferentiation:
 
     def settling_samples(self, rate: float, cutoff: float) -> int:
         """Samples after which the zero-phase (forward-backward) impulse response of the filter stays
-        below :data:`SETTLING_FRACTION` of its peak: what ``filtfilt`` smears at each edge of a record."""
-        sos = scipy.signal.butter(self.order, cutoff, btype="low", fs=rate, output="sos")
-        length = int(np.ceil(40 * rate / cutoff)) + 1
-        impulse = np.zeros(length)
-        impulse[0] = 1.0
-        forward = scipy.signal.sosfilt(sos, impulse)
-        # centred at lag 0; by FFT: the direct sum is O(length²), 1.2 s at a 1 Hz cut-off and 1 kHz
-        response = np.abs(scipy.signal.correlate(forward, forward, mode="full", method="fft")[length - 1:])
-        return int(np.flatnonzero(response > SETTLING_FRACTION * response.max())[-1]) + 1
+        below :data:`SETTLING_FRACTION` of its peak: what ``filtfilt`` smears at each edge of a record
+        (:func:`settling_samples`)."""
+        return settling_samples(self.order, float(rate), float(cutoff))
 
     def apply(self, measurements: Measurements) -> Measurements:
         rate = sampling_rate(measurements.t)
         given = self.cutoff_hz is not None and self.cutoff_hz < 0.5 * rate
         cutoff = float(self.cutoff_hz) if given else self.cutoff(measurements)  # the length check first
-        trim = self.settling_samples(rate, cutoff) if self.trim else 0
+        settling = self.settling_samples(rate, cutoff)
+        trim = settling if self.trim else 0
         if self.trim and measurements.n_samples < 4 * trim:
             raise ValueError(f"{measurements.n_samples} samples ({measurements.n_samples / rate:.4g} s) are too few for "
                              f"the {cutoff:.4g} Hz filter: it settles in {trim / rate:.3g} s at each edge, trimmed; "
@@ -256,10 +258,12 @@ class ButterworthDifferentiation:
         if given:
             self.cutoff(measurements)  # the cut-off against the record's length
         sos = scipy.signal.butter(self.order, cutoff, btype="low", fs=rate, output="sos")
-        padding = min(measurements.n_samples - 1, 3 * (2 * len(sos) + 1) * 10)
+        # each end extended by its odd reflection over the settling time (at least scipy's default reach)
+        padding = min(measurements.n_samples - 1, max(3 * (2 * len(sos) + 1) * 10, settling))
 
         def smooth(values):
-            return None if values is None else scipy.signal.sosfiltfilt(sos, values, axis=0, padlen=padding)
+            return None if values is None else scipy.signal.sosfiltfilt(sos, values, axis=0, padtype="odd",
+                                                                        padlen=padding)
 
         q = smooth(measurements.q)
         dq = smooth(measurements.dq) if measurements.dq is not None else np.gradient(q, measurements.t, axis=0)
@@ -273,6 +277,20 @@ class ButterworthDifferentiation:
         recorded = replace(filtered, tau=measurements.tau, wrench=measurements.wrench)  # the recording, same motion
         filtered = replace(filtered, recorded=recorded)
         return filtered.select(slice(trim, measurements.n_samples - trim)) if trim else filtered
+
+
+@functools.lru_cache(maxsize=64)
+def settling_samples(order: int, rate: float, cutoff: float) -> int:
+    """Samples after which the zero-phase (forward-backward) impulse response of an ``order`` Butterworth
+    low-pass at ``cutoff`` Hz, sampled at ``rate`` Hz, stays below :data:`SETTLING_FRACTION` of its peak."""
+    sos = scipy.signal.butter(order, cutoff, btype="low", fs=rate, output="sos")
+    length = int(np.ceil(40 * rate / cutoff)) + 1
+    impulse = np.zeros(length)
+    impulse[0] = 1.0
+    forward = scipy.signal.sosfilt(sos, impulse)
+    # centred at lag 0; by FFT: the direct sum is O(length²), 1.2 s at a 1 Hz cut-off and 1 kHz
+    response = np.abs(scipy.signal.correlate(forward, forward, mode="full", method="fft")[length - 1:])
+    return int(np.flatnonzero(response > SETTLING_FRACTION * response.max())[-1]) + 1
 
 
 def motion_bandwidth(q: NDArray[np.float64], rate: float, fraction: float = 0.999) -> float:
@@ -314,9 +332,12 @@ def decimate(measurements: Measurements, factor: int, *, order: int = 8) -> Meas
                            t=measurements.t[::factor], tau=None if measurements.tau is None else measurements.tau[::factor],
                            wrench=None if measurements.wrench is None else measurements.wrench[::factor],
                            metadata=metadata, recorded=None)
+    rows = None
+    if measurements.recorded_rows is not None:  # the recorded samples kept beside the samples kept
+        rows = np.minimum(measurements.recorded_rows[::factor] // factor, -(-measurements.n_samples // factor) - 1)
     return Measurements(
         measurements.t[::factor], reduce(measurements.q), reduce(measurements.dq), reduce(measurements.ddq),
-        reduce(measurements.tau), reduce(measurements.wrench), metadata, recorded,
+        reduce(measurements.tau), reduce(measurements.wrench), metadata, recorded, rows,
     )
 
 

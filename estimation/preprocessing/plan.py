@@ -8,8 +8,10 @@
   (:mod:`estimation.preprocessing.periodicity`) when no cut-off was given; Fourier fit on the time stamps,
   periods averaged as ``average_periods`` says;
 * ``butterworth`` — otherwise: the cut-off given, or five times the training motion's bandwidth
-  (the widest over the segments), fixed here so that validation is filtered alike; the edges of
-  each segment are trimmed by the filter's settling time.
+  (the widest over the segments), fixed here so that validation is filtered alike. The filter
+  covers each segment whole (its ends extended by their odd reflection over the filter's settling
+  time): no sample is dropped, so a record of any length takes any cut-off above ``1 / duration``.
+  A plan with ``trimmed_s > 0`` (written by earlier versions) trims the settling at each edge.
 
 :func:`prepare` applies it to each segment of a record on its own (never across a boundary),
 with the hold compensation and decimation, and stacks the segments. The plan is written to the
@@ -77,6 +79,9 @@ class CandidateEvidence:
         Why the candidate could not run, or ``None``.
     seconds
         What scoring it cost.
+    samples
+        The recorded samples of the training window its score is taken on (every candidate scored on the
+        same ones: one that drops samples is not compared).
     """
 
     preprocessing: Preprocessing
@@ -84,12 +89,13 @@ class CandidateEvidence:
     held_out_mse: dict[str, float]
     error: str | None = None
     seconds: float = 0.0
+    samples: int = 0
 
     def to_dict(self) -> dict[str, Any]:
         """The candidate's keys (as :meth:`Preprocessing.to_dict`) with ``score``, ``held_out_mse``, ``error``."""
         document = self.preprocessing.to_dict()
         document.update(score=self.score if np.isfinite(self.score) else None, held_out_mse=self.held_out_mse,
-                        seconds=round(self.seconds, 3))
+                        seconds=round(self.seconds, 3), samples=self.samples)
         if self.error is not None:
             document["error"] = self.error
         return document
@@ -122,7 +128,8 @@ class Preprocessing:
     cutoff_hz, order
         Butterworth low-pass (``butterworth``).
     trimmed_s
-        Time cut at each edge of each segment (the filter's settling), s.
+        Time cut at each edge of each segment (the filter's settling), s: ``0`` (the filter covers the
+        segment, its ends extended), unless a plan of an earlier version said otherwise.
     decimation, held_torques
         As :func:`estimation.preprocessing.differentiation.fill_derivatives`.
     evidence
@@ -177,7 +184,8 @@ class Preprocessing:
                     f"period averaging {self.average_periods}")
         elif self.method == "butterworth":
             text = (f"Butterworth low-pass, cut-off {self.cutoff_hz:.4g} Hz (order {self.order}, zero phase), "
-                    f"{1e3 * self.trimmed_s:.0f} ms trimmed at each segment edge")
+                    + (f"{1e3 * self.trimmed_s:.0f} ms trimmed at each segment edge" if self.trimmed_s > 0
+                       else "ends extended by reflection, no sample dropped"))
         else:
             text = "measured dq, ddq"
         extras = ([f"decimated by {self.decimation}"] if self.decimation > 1 else []) + \
@@ -248,12 +256,11 @@ def choose_preprocessing(
     nyquist = 0.5 * rate
     if cutoff_hz is None:
         bandwidth = max(motion_bandwidth(segment.q, sampling_rate(segment.t)) for segment in segments)
-        cutoff = min(5.0 * bandwidth, 0.8 * nyquist)
+        shortest = min(float(segment.t[-1] - segment.t[0]) for segment in segments)
+        cutoff = min(max(5.0 * bandwidth, 1.0 / shortest), 0.8 * nyquist)  # a filter every segment takes
     else:
         cutoff = float(ButterworthDifferentiation(cutoff_hz).cutoff(longest))  # checks it
-    filter_ = ButterworthDifferentiation(cutoff, trim=True)
-    trimmed = filter_.settling_samples(rate, cutoff) / rate
-    return Preprocessing("butterworth", cutoff_hz=cutoff, order=filter_.order, trimmed_s=trimmed, **common)
+    return Preprocessing("butterworth", cutoff_hz=cutoff, order=ButterworthDifferentiation().order, **common)
 
 
 def check_frequency(segments: Sequence[Measurements], frequency_hz: float) -> None:
@@ -311,7 +318,8 @@ def _derive(segment: Measurements, preprocessing: Preprocessing, name: str) -> M
         if preprocessing.method == "fourier":
             return FourierDifferentiation(preprocessing.frequency_hz, preprocessing.harmonics,
                                           preprocessing.average_periods).apply(segment)
-        filter_ = ButterworthDifferentiation(preprocessing.cutoff_hz, preprocessing.order, trim=True)
+        filter_ = ButterworthDifferentiation(preprocessing.cutoff_hz, preprocessing.order,
+                                             trim=preprocessing.trimmed_s > 0)
         return filter_.apply(segment)
     except ValueError as error:
         text = str(error)
