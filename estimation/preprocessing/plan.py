@@ -296,6 +296,8 @@ def prepare(data: Measurements | Sequence[Measurements], preprocessing: Preproce
     prepared = []
     for segment in segments:
         name = _name(segment)
+        stamps = segment.recorded if segment.recorded_rows is not None else None  # a resampled log's own samples
+        segment = replace(segment, recorded=None)
         derived = _derive(segment, preprocessing, name)
         if preprocessing.held_torques and preprocessing.method != "measured":
             derived = compensate_hold(derived)
@@ -304,11 +306,42 @@ def prepare(data: Measurements | Sequence[Measurements], preprocessing: Preproce
                 derived = decimate(derived, preprocessing.decimation)
             except ValueError as error:
                 raise SegmentTooShortForFilterError(f"{name}: {error}") from None
+        if stamps is not None:
+            derived = at_recorded_stamps(derived, stamps, measured=preprocessing.method == "measured"
+                                         and preprocessing.decimation == 1)
         metadata = dict(derived.metadata, preprocessing=preprocessing.to_dict())
         recorded = derived.recorded
         prepared.append(replace(derived, metadata=metadata,
                                 recorded=None if recorded is None else replace(recorded, metadata=metadata)))
     return concatenate(prepared)
+
+
+def at_recorded_stamps(prepared: Measurements, stamps: Measurements, *, measured: bool = False) -> Measurements:
+    """``prepared`` (a segment resampled onto a uniform grid, then preprocessed) with its recorded channels those of
+    the samples as logged, ``stamps`` (:func:`estimation.data.records.read_record` keeps them as the segment's
+    ``recorded``): the torques and wrench at their own time stamps, never interpolated, and the derived motion
+    linearly interpolated there (the motion as logged when ``measured``: derivatives read, not derived). Samples
+    outside the prepared span (edges trimmed by a plan that trims) are left out; each kept one stands beside its
+    nearest prepared sample (``recorded_rows``). Errors (:func:`estimation.identification.validation.compare`),
+    predictions and every score are then taken at the recorded time stamps.
+    """
+    source = prepared.as_recorded  # the motion on the whole grid (every period of an averaged record)
+    beside = prepared.beside_recorded()
+    t = stamps.t
+    kept = np.flatnonzero((t >= source.t[0] - 1e-9 * abs(source.t[0]) - 1e-12) & (t <= source.t[-1] + 1e-12
+                                                                                  + 1e-9 * abs(source.t[-1])))
+    t = t[kept]
+    nearest = np.clip(np.searchsorted(source.t, t), 1, source.n_samples - 1)
+    nearest -= (t - source.t[nearest - 1]) < (source.t[nearest] - t)
+    if measured:
+        q, dq, ddq = (None if values is None else values[kept] for values in (stamps.q, stamps.dq, stamps.ddq))
+    else:
+        q, dq, ddq = (np.column_stack([np.interp(t, source.t, column) for column in values.T])
+                      for values in (source.q, source.dq, source.ddq))
+    recorded = Measurements(t, q, dq, ddq, None if stamps.tau is None else stamps.tau[kept],
+                            None if stamps.wrench is None else stamps.wrench[kept],
+                            dict(source.metadata, recorded_stamps=True))
+    return replace(prepared, recorded=recorded, recorded_rows=beside[nearest])
 
 
 def _derive(segment: Measurements, preprocessing: Preprocessing, name: str) -> Measurements:
