@@ -258,22 +258,30 @@ class ButterworthDifferentiation:
         if given:
             self.cutoff(measurements)  # the cut-off against the record's length
         sos = scipy.signal.butter(self.order, cutoff, btype="low", fs=rate, output="sos")
-        # each end extended by its odd reflection over the settling time (at least scipy's default reach)
-        padding = min(measurements.n_samples - 1, max(3 * (2 * len(sos) + 1) * 10, settling))
+        # each end extended by its odd reflection over the settling time (at least scipy's default reach), filtered
+        # and differentiated on the extended record: central differences up to its edges
+        n = measurements.n_samples
+        padding = min(n - 1, max(3 * (2 * len(sos) + 1) * 10, settling))
+        step = (measurements.t[-1] - measurements.t[0]) / (n - 1)
+        t = measurements.t[0] + step * np.arange(-padding, n + padding)
+        inside = slice(padding, padding + n)
 
         def smooth(values):
-            return None if values is None else scipy.signal.sosfiltfilt(sos, values, axis=0, padtype="odd",
-                                                                        padlen=padding)
+            if values is None:
+                return None
+            extended = np.concatenate([2 * values[:1] - values[padding:0:-1], values,
+                                       2 * values[-1:] - values[-2:-padding - 2:-1]], axis=0)
+            return scipy.signal.sosfiltfilt(sos, extended, axis=0, padtype=None)
 
         q = smooth(measurements.q)
-        dq = smooth(measurements.dq) if measurements.dq is not None else np.gradient(q, measurements.t, axis=0)
-        ddq = smooth(measurements.ddq) if measurements.ddq is not None else np.gradient(dq, measurements.t, axis=0)
+        dq = smooth(measurements.dq) if measurements.dq is not None else np.gradient(q, t, axis=0)
+        ddq = smooth(measurements.ddq) if measurements.ddq is not None else np.gradient(dq, t, axis=0)
+        q, dq, ddq = q[inside], dq[inside], ddq[inside]
+        tau, wrench = (None if values is None else smooth(values)[inside] for values in (measurements.tau,
+                                                                                        measurements.wrench))
         metadata = dict(measurements.metadata, differentiation="butterworth", cutoff_hz=cutoff, filter_order=self.order,
                         trimmed_s=trim / rate)
-        filtered = replace(
-            measurements, q=q, dq=dq, ddq=ddq, tau=smooth(measurements.tau), wrench=smooth(measurements.wrench),
-            metadata=metadata, recorded=None,
-        )
+        filtered = replace(measurements, q=q, dq=dq, ddq=ddq, tau=tau, wrench=wrench, metadata=metadata, recorded=None)
         recorded = replace(filtered, tau=measurements.tau, wrench=measurements.wrench)  # the recording, same motion
         filtered = replace(filtered, recorded=recorded)
         return filtered.select(slice(trim, measurements.n_samples - trim)) if trim else filtered
