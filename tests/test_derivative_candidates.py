@@ -56,9 +56,9 @@ def motion(t: np.ndarray, bursts: tuple[float, ...], *, slow=(0.05, 0.09, 0.13),
 
 
 def record(model, duration: float, bursts: tuple[float, ...], seed: int, start: float = 0.0,
-           q_noise: float = 1e-5) -> Measurements:
+           q_noise: float = 1e-5, slow=(0.05, 0.09, 0.13)) -> Measurements:
     t = start + np.arange(int(round(duration * RATE)) + 1) / RATE
-    q, dq, ddq = motion(t, bursts)
+    q, dq, ddq = motion(t, bursts, slow=slow)
     theta = model.nominal_parameters(viscous=2.0)
     tau = model.predict(theta, q, dq, ddq) + np.random.default_rng(seed).normal(0, NOISE, (t.size, 3))
     return Measurements(t, q + np.random.default_rng(seed + 100).normal(0, q_noise, q.shape), tau=tau,
@@ -135,3 +135,29 @@ def test_no_candidate_the_validation_record_cannot_take(model, tmp_path):
     pd.DataFrame(short.to_frame()).to_csv(tmp_path / "short.csv", index=False, float_format="%.10g")
     assert main(["identify", "--joints", "3", "--data", str(tmp_path / "train.csv"), "--validate",
                  str(tmp_path / "short.csv"), "--out", str(tmp_path / "result.json"), "--quiet"]) == 0
+
+
+def test_a_logged_velocity_that_lags_loses_to_the_positions_and_one_that_does_not_is_kept(model):
+    """A record that logs dq (not ddq): each filter is scored on the logged velocity and with dq from the positions.
+    A logger whose velocity lags its positions by 5 ms (the Panda's) loses to the positions; an exact one is kept
+    (on a tie, the measurement)."""
+    duration, faster = 20.0, (0.3, 0.7, 1.1)
+    clean = record(model, duration, (), seed=5, slow=faster)
+    _, dq, _ = motion(clean.t, (), slow=faster)
+    lag = int(round(0.005 * RATE))
+    lagged = np.vstack([np.repeat(dq[:1], lag, axis=0), dq[:-lag]])
+    chosen = {}
+    for name, logged in (("lagged", lagged), ("exact", dq)):
+        train = replace(clean, dq=logged)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", PreprocessingWarning)
+            choice = choose_by_evidence(model, [train], jobs=1, families=("butterworth",))
+        plans = [item.preprocessing for item in choice.chosen.evidence.candidates]
+        assert any(plan.velocity_from_positions for plan in plans) and any(not plan.velocity_from_positions
+                                                                           for plan in plans)
+        chosen[name] = choice.chosen
+    assert chosen["lagged"].velocity_from_positions
+    assert not chosen["exact"].velocity_from_positions
+    # the plan's choice is written and read back (oed predict derives alike)
+    from estimation.identification.identified_model import preprocessing_from_dict
+    assert preprocessing_from_dict(chosen["lagged"].to_dict()) == chosen["lagged"].without_evidence()

@@ -60,6 +60,8 @@ def preprocessing_from_dict(document: dict[str, Any] | None) -> Preprocessing:
                                              "held_torques") if key in document}
     if "filter_order" in document:
         fields["order"] = int(document["filter_order"])
+    if "velocity_from_positions" in document:
+        fields["velocity_from_positions"] = bool(document["velocity_from_positions"])
     return Preprocessing(**fields)
 
 

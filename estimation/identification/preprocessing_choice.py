@@ -33,7 +33,7 @@ PUMA record, 5 harmonics won, because blurred derivatives imitate part of the mi
 Choice: among the candidates whose score is within :data:`EQUIVALENT` of the lowest (they predict held-out data
 equally well), the best-scored Fourier fit if there is one (fewer harmonics on a tie to four digits: the
 simplest description of a periodic motion that predicts as well), else the filter with the highest cut-off (the
-least distortion of the motion);
+least distortion of the motion; on the logged velocity rather than from the positions);
 ties by the candidate's description, so the order of the grid does not matter. The flexible friction can take up
 what a blurred motion does to a law with a jump at zero speed, so a strongly smoothing candidate may score as
 well as the others and still leave a sign or Stribeck law out of reach of the diagnosis: on a simulated PUMA
@@ -243,14 +243,16 @@ def geometric_mean(mse: NDArray[np.float64]) -> float:
 
 def candidates(train: Sequence[Measurements], rule: Preprocessing, given: Preprocessing | None,
                families: Sequence[Family] = ("fourier", "butterworth"), *,
-               shortest_s: float | None = None, held_out: Sequence[Measurements] = ()) -> tuple[Preprocessing, ...]:
+               shortest_s: float | None = None, held_out: Sequence[Measurements] = (),
+               velocity_variants: bool = True) -> tuple[Preprocessing, ...]:
     """The derivative candidates of a record without measured ``dq, ddq`` (module docstring), each once, of the
     ``families`` asked for (the rule's and the given plan are candidates whatever their family). Only plans that
     apply to every record: to the training segments (the shortest lasting ``shortest_s``, default: the shortest of
     ``train``) and to the ``held_out`` ones (validation, test): no filter cut-off below ``1 / duration`` of one of
     them nor at 0.4 of a rate, no Fourier fit unless each of them repeats at its fundamental (:func:`repeats_at`).
     The user's plan is kept whatever (it is theirs to refuse); the rule's only when it applies, unless nothing else
-    does."""
+    does. A record that logs ``dq`` (not ``ddq``) gets each filter twice (``velocity_variants``): on the logged
+    velocity, and with ``dq`` from the positions (``Preprocessing.velocity_from_positions``)."""
     common = {"decimation": rule.decimation, "held_torques": rule.held_torques}
     longest = max(train, key=lambda segment: segment.n_samples)
     rate = min(sampling_rate(segment.t) for segment in (*train, *held_out))
@@ -276,8 +278,10 @@ def candidates(train: Sequence[Measurements], rule: Preprocessing, given: Prepro
         cutoff = float(f"{fraction * rate:.6g}")
         if cutoff < bandwidth or cutoff >= 0.4 * rate:
             continue
-        found.append(Preprocessing("butterworth", cutoff_hz=cutoff, order=ButterworthDifferentiation().order,
-                                   **common))
+        plan = Preprocessing("butterworth", cutoff_hz=cutoff, order=ButterworthDifferentiation().order, **common)
+        found.append(plan)
+        if velocity_variants and all(segment.dq is not None for segment in train):
+            found.append(replace(plan, velocity_from_positions=True))
     kept = [plan for plan in dict.fromkeys(found) if plan == given or applies(plan)]
     return tuple(kept if any(plan != given for plan in kept) else dict.fromkeys(found))
 
@@ -355,6 +359,7 @@ def choose_by_evidence(
     families: Sequence[Family] = ("fourier", "butterworth"),
     jobs: int | None = None,
     held_out: Sequence[Measurements] = (),
+    velocity_variants: bool = True,
 ) -> PreprocessingChoice:
     """The preprocessing of ``train`` for ``model``, chosen by held-out error (module docstring).
 
@@ -366,6 +371,8 @@ def choose_by_evidence(
     too (:func:`with_held_torques`). Everything is decided on the record's :class:`ChoiceWindow` (a window
     already made may be given: a streamed record's). ``held_out``: the segments of the validation and test
     records, which every candidate must be able to prepare (:func:`candidates`); they are not scored.
+    ``velocity_variants``: with a logged ``dq``, filters with ``dq`` from the positions are candidates too (the
+    streamed chunks filter the logged velocity only).
 
     Warns
     -----
@@ -388,7 +395,7 @@ def choose_by_evidence(
         return PreprocessingChoice(rule, rule)
     score = HeldOutScore(model, folds=folds, max_rows=max_rows)
     plans = [plan for plan in candidates(segments, rule, given, families, shortest_s=window.shortest_s,
-                                         held_out=tuple(held_out))
+                                         held_out=tuple(held_out), velocity_variants=velocity_variants)
              if plan.method in families or plan in (rule, given)]
     started = time.perf_counter()
     scored = run_tasks([functools.partial(score, segments, plan) for plan in plans],
@@ -446,7 +453,7 @@ def preferred(evidence: Sequence[CandidateEvidence]) -> Preprocessing:
                                               item.preprocessing.describe())).preprocessing
     filters = [plan for plan in equivalent if plan.method == "butterworth"]
     if filters:
-        return max(filters, key=lambda plan: (plan.cutoff_hz, plan.describe()))
+        return max(filters, key=lambda plan: (plan.cutoff_hz, not plan.velocity_from_positions, plan.describe()))
     return equivalent[0]
 
 

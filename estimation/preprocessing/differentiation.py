@@ -213,12 +213,16 @@ class ButterworthDifferentiation:
         Filter order (``filtfilt`` doubles it and cancels the phase).
     trim
         Drop the edges where the filter has not settled (:meth:`settling_samples` at each end); by default
-        the filter covers the record, its ends extended by their odd reflection over that time.
+        the filter covers the record, its ends extended over that time (:func:`extend_edges`).
+    logged_velocity
+        A ``dq`` in the measurements is filtered (and ``ddq`` differentiated from it); ``False``: ``dq`` is
+        differentiated from the positions whatever the record logs.
     """
 
     cutoff_hz: float | None = None
     order: int = 4
     trim: bool = False
+    logged_velocity: bool = True
 
     def __post_init__(self) -> None:
         if self.cutoff_hz is not None and not (np.isfinite(self.cutoff_hz) and self.cutoff_hz > 0):
@@ -273,7 +277,8 @@ class ButterworthDifferentiation:
             return scipy.signal.sosfiltfilt(sos, extend_edges(values, padding, window), axis=0, padtype=None)
 
         q = smooth(measurements.q)
-        dq = smooth(measurements.dq) if measurements.dq is not None else np.gradient(q, t, axis=0)
+        logged = measurements.dq is not None and self.logged_velocity
+        dq = smooth(measurements.dq) if logged else np.gradient(q, t, axis=0)
         ddq = smooth(measurements.ddq) if measurements.ddq is not None else np.gradient(dq, t, axis=0)
         q, dq, ddq = q[inside], dq[inside], ddq[inside]
         tau, wrench = (None if values is None else smooth(values)[inside] for values in (measurements.tau,

@@ -132,6 +132,9 @@ class Preprocessing:
         segment, its ends extended), unless a plan of an earlier version said otherwise.
     decimation, held_torques
         As :func:`estimation.preprocessing.differentiation.fill_derivatives`.
+    velocity_from_positions
+        ``butterworth`` on a record that logs ``dq`` (not ``ddq``): ``dq`` derived from the positions instead of
+        the logged velocity filtered (a logger's velocity may lag its positions, or be a command).
     evidence
         The candidates scored when the choice was made on held-out data (``None`` for a fixed rule); not part
         of the plan's identity.
@@ -147,6 +150,7 @@ class Preprocessing:
     trimmed_s: float = 0.0
     decimation: int = 1
     held_torques: bool = False
+    velocity_from_positions: bool = False
     evidence: Evidence | None = field(default=None, compare=False, repr=False)
 
     def without_evidence(self) -> Preprocessing:
@@ -162,7 +166,8 @@ class Preprocessing:
             document.update(frequency_hz=self.frequency_hz, harmonics=self.harmonics,
                             frequency_source=self.frequency_source, average_periods=self.average_periods)
         elif self.method == "butterworth":
-            document.update(cutoff_hz=self.cutoff_hz, filter_order=self.order)
+            document.update(cutoff_hz=self.cutoff_hz, filter_order=self.order,
+                            velocity_from_positions=self.velocity_from_positions)
         document.update(trimmed_s=self.trimmed_s, decimation=self.decimation, held_torques=self.held_torques)
         if self.evidence is not None:
             document.update(selection=self.evidence.selection, folds=self.evidence.folds,
@@ -174,7 +179,8 @@ class Preprocessing:
         if self.method == "fourier":
             return f"a {self.harmonics}-harmonic Fourier fit at {self.frequency_hz:.6g} Hz"
         if self.method == "butterworth":
-            return f"a {self.cutoff_hz:.4g} Hz Butterworth filter"
+            return f"a {self.cutoff_hz:.4g} Hz Butterworth filter" + (" (dq from the positions)"
+                                                                        if self.velocity_from_positions else "")
         return "measured dq, ddq"
 
     def describe(self) -> str:
@@ -352,7 +358,8 @@ def _derive(segment: Measurements, preprocessing: Preprocessing, name: str) -> M
             return FourierDifferentiation(preprocessing.frequency_hz, preprocessing.harmonics,
                                           preprocessing.average_periods).apply(segment)
         filter_ = ButterworthDifferentiation(preprocessing.cutoff_hz, preprocessing.order,
-                                             trim=preprocessing.trimmed_s > 0)
+                                             trim=preprocessing.trimmed_s > 0,
+                                             logged_velocity=not preprocessing.velocity_from_positions)
         return filter_.apply(segment)
     except ValueError as error:
         text = str(error)

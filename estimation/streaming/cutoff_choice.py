@@ -77,7 +77,8 @@ def choose_streamed_preprocessing(paths: Sequence[str | Path], model: Identifica
     windows = tuple(first_rows(path, model, SCORED_SAMPLES) for path in held_out)
     return choose_by_evidence(model, streamed_window(paths, model, rows), frequency_hz=frequency_hz,
                               harmonics=harmonics, cutoff_hz=cutoff_hz, average_periods=average_periods,
-                              decimation=decimation, held_torques=held_torques, held_out=windows)
+                              decimation=decimation, held_torques=held_torques, held_out=windows,
+                              velocity_variants=False)
 
 
 def choose_streamed_cutoff(path: str | Path, model: IdentificationModel, *, decimation: int = 1,
@@ -90,4 +91,4 @@ def choose_streamed_cutoff(path: str | Path, model: IdentificationModel, *, deci
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", PreprocessingWarning)
         return choose_by_evidence(model, [first], decimation=decimation, held_torques=held_torques,
-                                  families=("butterworth",)).chosen
+                                  families=("butterworth",), velocity_variants=False).chosen
