@@ -159,3 +159,19 @@ def test_panda_log_errors_are_those_of_its_recorded_samples(tmp_path):
     expected = recomputed(result, validate)
     for channel, value in expected.items():
         assert reported[channel] == pytest.approx(value, rel=1e-6)
+
+
+def test_the_noise_floor_of_a_jittered_log_is_that_of_its_recorded_samples(records):
+    """Interpolated onto the grid, the torques' noise is smoothed: the floor comes from the samples as recorded
+    (0.2 N·m simulated: variance 0.04)."""
+    folder, paths = records
+    result = folder / "result.json"
+    if not result.is_file():
+        assert main(["identify", "--joints", "3", "--friction", "viscous", "--data", str(paths["train"]),
+                     "--validate", str(paths["validate"]), "--out", str(result), "--quiet"]) == 0
+    model = IdentifiedModel.load(result)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        segments = model.read([paths["validate"]])
+        floor = model.floor(segments)
+    assert all(0.8 < value / 0.04 < 1.25 for value in floor.values()), floor

@@ -177,12 +177,13 @@ class PreparedRecord:
         """The noise floor of the record as read, before any differentiation, averaging or filtering
         (:func:`estimation.uncertainty.noise_floor.noise_floor`: period-to-period at ``frequency_hz``, given or
         detected, or the file's frequency, else differences), pooled over the segments that can give one;
-        ``None`` with a warning when none can."""
+        ``None`` with a warning when none can. On the samples as recorded: a resampled log's own (interpolated
+        onto a grid, a log jittered by ±30 % of a step showed 0.012 for the 0.04 simulated)."""
         floors, failures = [], []
         for file in self.files:
             for segment in file.segments:
                 try:
-                    floors.append(noise_floor(segment, tuple(channels), frequency_hz=frequency_hz))
+                    floors.append(noise_floor(segment.as_recorded, tuple(channels), frequency_hz=frequency_hz))
                 except NoiseFloorError as error:
                     failures.append(f"{file.path}: {error}")
         if failures:

@@ -333,10 +333,9 @@ def at_recorded_stamps(prepared: Measurements, stamps: Measurements, *, measured
     """
     source = prepared.as_recorded  # the motion on the whole grid (every period of an averaged record)
     beside = prepared.beside_recorded()
-    t = stamps.t
-    kept = np.flatnonzero((t >= source.t[0] - 1e-9 * abs(source.t[0]) - 1e-12) & (t <= source.t[-1] + 1e-12
-                                                                                  + 1e-9 * abs(source.t[-1])))
-    t = t[kept]
+    tolerance = 1e-9 * (source.t[-1] - source.t[0])  # the grid's last point may round below the last stamp
+    kept = np.flatnonzero((stamps.t >= source.t[0] - tolerance) & (stamps.t <= source.t[-1] + tolerance))
+    t = stamps.t[kept]
     nearest = np.clip(np.searchsorted(source.t, t), 1, source.n_samples - 1)
     nearest -= (t - source.t[nearest - 1]) < (source.t[nearest] - t)
     if measured:
