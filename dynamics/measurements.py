@@ -155,7 +155,7 @@ class Measurements:
             renumbered[chosen] = np.arange(chosen.shape[0])
             beside = renumbered[self.recorded_rows]
             kept = np.flatnonzero(beside >= 0)
-            if np.any(np.diff(chosen) <= 0):  # reordered or repeated: each recorded sample beside its first choice
+            if np.any(np.diff(chosen) <= 0):  # reordered: the recorded samples in the order of those chosen
                 kept = kept[np.argsort(beside[kept], kind="stable")]
             recorded, rows = recorded.select(kept), beside[kept]
         elif recorded is not None and recorded.n_samples == self.n_samples:  # the same grid: the same samples
