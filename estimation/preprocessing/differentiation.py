@@ -253,7 +253,7 @@ class ButterworthDifferentiation:
         rate = sampling_rate(measurements.t)
         given = self.cutoff_hz is not None and self.cutoff_hz < 0.5 * rate
         cutoff = float(self.cutoff_hz) if given else self.cutoff(measurements)  # the length check first
-        settling = self.settling_samples(rate, cutoff)
+        settling = self.settling_samples(float(f"{rate:.9g}"), cutoff)  # one length for every window of a record
         trim = settling if self.trim else 0
         if self.trim and measurements.n_samples < 4 * trim:
             raise ValueError(f"{measurements.n_samples} samples ({measurements.n_samples / rate:.4g} s) are too few for "
@@ -269,7 +269,7 @@ class ButterworthDifferentiation:
         step = (measurements.t[-1] - measurements.t[0]) / (n - 1)
         t = measurements.t[0] + step * np.arange(-padding, n + padding)
         inside = slice(padding, padding + n)
-        window = int(np.ceil(rate / cutoff))  # the filter's resolution: one period of the cut-off
+        window = int(round(rate / cutoff))  # one period of the cut-off (rounded: the same for every window of a record)
 
         def smooth(values):
             if values is None:
