@@ -20,7 +20,7 @@ from dynamics.measurements import Measurements
 from dynamics.models import build_model
 from dynamics.robots import load_robot
 from estimation.identification.preprocessing_choice import HeldOutScore, choose_by_evidence, preferred
-from estimation.preprocessing.differentiation import settling_samples
+from estimation.preprocessing.differentiation import FourierDifferentiation, settling_samples
 from estimation.preprocessing.plan import PreprocessingWarning, prepare
 from oed.cli import main
 
@@ -161,3 +161,18 @@ def test_a_logged_velocity_that_lags_loses_to_the_positions_and_one_that_does_no
     # the plan's choice is written and read back (oed predict derives alike)
     from estimation.identification.identified_model import preprocessing_from_dict
     assert preprocessing_from_dict(chosen["lagged"].to_dict()) == chosen["lagged"].without_evidence()
+
+
+def test_an_averaged_fourier_fit_keeps_the_samples_past_its_last_whole_period(model):
+    """Period averaging folds whole periods; the recorded samples of the tail stay beside them (scored and
+    compared like every other candidate's), the fit's motion at their instants."""
+    t = np.arange(8500) / RATE  # 3.4 periods of 0.2 Hz, 2500 samples each
+    q = 0.5 * np.column_stack([np.sin(2 * np.pi * 0.2 * t + k) + 0.2 * np.sin(2 * np.pi * 0.6 * t) for k in range(3)])
+    tau = np.random.default_rng(4).normal(0, NOISE, q.shape)
+    prepared = FourierDifferentiation(0.2, 5).apply(Measurements(t, q, tau=tau))
+    assert prepared.n_samples == 2500 and prepared.recorded.n_samples == 8500
+    np.testing.assert_array_equal(prepared.recorded.tau, tau)
+    np.testing.assert_allclose(prepared.recorded.q, q, atol=1e-9)  # the tail's motion from the fit too
+    half = prepared.select(slice(0, 1250))
+    assert half.recorded.n_samples == 3 * 1250 + 1000  # three whole periods' first halves, and the tail's
+    np.testing.assert_array_equal(np.sort(half.recorded.t), half.recorded.t)
