@@ -59,6 +59,11 @@ class Measurements:
         recorded, on the samples kept, with the derived motion at their instants; ``None`` when
         these measurements are themselves as recorded. Errors are measured against it
         (:func:`estimation.identification.validation.compare`).
+    recorded_rows
+        ``(len(recorded),)`` for each sample of :attr:`recorded`, the sample of these measurements it stands
+        beside (a recorded time stamp between two samples of a resampled grid: the nearest; a sample of an
+        averaged period: that period's sample); ``None``: :attr:`recorded` holds these samples one by one, or
+        whole periods of them one after the other. Selecting samples keeps the recorded ones beside them.
     """
 
     t: NDArray[np.float64]
@@ -69,6 +74,7 @@ class Measurements:
     wrench: NDArray[np.float64] | None = None
     metadata: dict[str, Any] = field(default_factory=dict)
     recorded: Measurements | None = None
+    recorded_rows: NDArray[np.int_] | None = None
 
     def __post_init__(self) -> None:
         t = _real_array(self.t, "t")
@@ -102,6 +108,14 @@ class Measurements:
                 raise TypeError(f"recorded must be Measurements, got {type(self.recorded).__name__}")
             if self.recorded.n_joints != q.shape[1]:
                 raise ValueError(f"recorded has {self.recorded.n_joints} joints, these measurements {q.shape[1]}")
+        if self.recorded is None:
+            object.__setattr__(self, "recorded_rows", None)
+        elif self.recorded_rows is not None:
+            rows = np.asarray(self.recorded_rows, dtype=np.int_)
+            if rows.shape != (self.recorded.n_samples,) or (rows.size and (rows.min() < 0 or rows.max() >= t.shape[0])):
+                raise ValueError(f"recorded_rows must give one of these {t.shape[0]} samples for each of the "
+                                 f"{self.recorded.n_samples} recorded ones, got shape {rows.shape}")
+            object.__setattr__(self, "recorded_rows", rows)
 
     @property
     def n_samples(self) -> int:
@@ -134,8 +148,17 @@ class Measurements:
         """A subset of the samples."""
         def take(values):
             return None if values is None else values[indices]
-        recorded = self.recorded
-        if recorded is not None and recorded.n_samples == self.n_samples:  # the same grid: the same samples
+        recorded, rows = self.recorded, None
+        if recorded is not None and self.recorded_rows is not None:  # the recorded samples beside those chosen
+            chosen = np.arange(self.n_samples)[indices]
+            renumbered = np.full(self.n_samples, -1)
+            renumbered[chosen] = np.arange(chosen.shape[0])
+            beside = renumbered[self.recorded_rows]
+            kept = np.flatnonzero(beside >= 0)
+            if np.any(np.diff(chosen) <= 0):  # reordered: the recorded samples in the order of those chosen
+                kept = kept[np.argsort(beside[kept], kind="stable")]
+            recorded, rows = recorded.select(kept), beside[kept]
+        elif recorded is not None and recorded.n_samples == self.n_samples:  # the same grid: the same samples
             recorded = recorded.select(indices)
         elif recorded is not None and recorded.n_samples % self.n_samples == 0:
             # averaged periods: the recorded channels hold P periods of these samples, one after the other
@@ -146,7 +169,7 @@ class Measurements:
             recorded = None
         return replace(
             self, t=self.t[indices], q=self.q[indices], dq=take(self.dq), ddq=take(self.ddq),
-            tau=take(self.tau), wrench=take(self.wrench), recorded=recorded,
+            tau=take(self.tau), wrench=take(self.wrench), recorded=recorded, recorded_rows=rows,
             metadata=self._selected_segments(np.arange(self.n_samples)[indices]),
         )
 
@@ -167,6 +190,16 @@ class Measurements:
                 renumbered.append({**entry, "start": int(start), "stop": int(stop)})
         metadata["segments"] = renumbered
         return metadata
+
+    def beside_recorded(self) -> NDArray[np.int_]:
+        """For each sample of :attr:`as_recorded`, the sample of these measurements it stands beside
+        (:attr:`recorded_rows` made explicit)."""
+        if self.recorded_rows is not None:
+            return self.recorded_rows
+        recorded = self.as_recorded
+        if recorded.n_samples % self.n_samples:
+            raise ValueError(f"{recorded.n_samples} recorded samples beside {self.n_samples}: say which with recorded_rows")
+        return np.arange(recorded.n_samples) % self.n_samples
 
     @property
     def as_recorded(self) -> Measurements:

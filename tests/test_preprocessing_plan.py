@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import warnings
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -74,21 +75,28 @@ def test_averaged_channels_keep_the_recording_with_the_fit_motion(trajectory):
     np.testing.assert_allclose(prepared.recorded.q, q, atol=1e-5)
 
 
-def test_the_cutoff_is_chosen_on_training_and_reused_and_the_edges_trimmed(trajectory):
+def test_the_cutoff_is_chosen_on_training_and_reused_and_every_sample_kept(trajectory):
     train = [record(trajectory, 0.0, 3.0, seed=1), record(trajectory, 5.0, 3.5, seed=2)]  # not periodic within
     validate = record(trajectory, 20.0, 4.0, seed=3)
     plan = choose_preprocessing(train)
-    assert plan.method == "butterworth" and plan.trimmed_s > 0
+    assert plan.method == "butterworth" and plan.trimmed_s == 0
     prepared = prepare(train, plan)
     checked = prepare(validate, plan)
     for measurements in (prepared, checked):
         assert measurements.metadata["preprocessing"]["cutoff_hz"] == plan.cutoff_hz
-    trim = int(round(plan.trimmed_s * 500.0))
-    assert [part.stop - part.start for part in segment_slices(prepared)] == [1500 - 2 * trim, 1750 - 2 * trim]
-    np.testing.assert_array_equal(checked.recorded.tau, validate.tau[trim:-trim])  # as recorded, samples kept
+    assert [part.stop - part.start for part in segment_slices(prepared)] == [1500, 1750]
+    np.testing.assert_array_equal(checked.recorded.tau, validate.tau)  # as recorded, every sample
     assert not np.allclose(checked.tau, checked.recorded.tau)  # the estimation saw the filtered torque
+    # the filter's ends extended by reflection: the edges' velocity close to the truth's
+    _, dq, _ = trajectory.evaluate(validate.t)
+    edge = slice(0, 50)
+    assert np.max(np.abs(checked.dq[edge] - dq[edge])) < 0.05 * np.max(np.abs(dq))
+    # a plan of an earlier version that trims the settling still does, and refuses what it cannot trim
+    trimmed = replace(plan, trimmed_s=0.2)
+    trim = ButterworthDifferentiation(plan.cutoff_hz).settling_samples(500.0, plan.cutoff_hz)
+    np.testing.assert_array_equal(prepare(validate, trimmed).recorded.tau, validate.tau[trim:-trim])
     with pytest.raises(SegmentTooShortForFilterError, match="too few for"):
-        prepare([record(trajectory, 0.0, 2 * plan.trimmed_s, seed=4)], plan)
+        prepare([record(trajectory, 0.0, 2 * trim / 500.0, seed=4)], trimmed)
 
 
 def test_a_periodic_record_gets_its_fundamental_detected(trajectory):

@@ -3,6 +3,7 @@ the same estimate as the in-memory path, from several files and in chunks."""
 
 from __future__ import annotations
 
+import dataclasses
 import warnings
 
 import numpy as np
@@ -41,7 +42,9 @@ def test_two_kuka_runs_streamed_in_chunks_equal_the_in_memory_estimate(tmp_path)
     assert result.train.n_samples == joined.n_samples
     error = np.linalg.norm(result.estimate.values - reference.values) / np.linalg.norm(reference.values)
     assert error < 1e-10
-    expected = compare(model, reference.values, runs[2]).mse
+    # the streamed path still takes a jittered file's errors on its resampled grid (in memory: at the recorded
+    # stamps, tests/test_recorded_stamps.py); on the grid they agree
+    expected = compare(model, reference.values, dataclasses.replace(runs[2], recorded=None)).mse
     for channel, value in result.validation_mse.items():
         assert value == pytest.approx(expected[channel], rel=1e-9)
     assert [entry["resampled_from"] for entry in result.to_dict()["streaming"]["files"]] == [5027, 5027]

@@ -97,13 +97,13 @@ def test_streamed_diagnosis_equals_the_in_memory_one(model, files):
 
 
 def test_filter_path_errors_against_the_recording_as_in_memory(model, files):
-    """No dq, ddq in the files: Butterworth derivatives on overlapping windows, the edges trimmed,
+    """No dq, ddq in the files: Butterworth derivatives on overlapping windows, the record's ends covered,
     errors against the torques as recorded; the in-memory diagnosis of the whole records filtered at once finds the same
     effects. Here a shaped law (coulomb:tanh) is found: in memory its shape is refined again in later
     rounds and refitted jointly at the end, here it stays at its first optimum (module docstring of
     estimation.streaming.selection): the declared model's errors agree to 1e-8, the augmented model's
     estimates to about 1e-2, not to rounding."""
-    method = ButterworthDifferentiation(CUTOFF, trim=True)  # the CLI's: the filter's settling trimmed at the ends
+    method = ButterworthDifferentiation(CUTOFF)  # the CLI's: the filter covers the record's ends
     train, validate = (read_measurements(path, model=model) for path in files["raw"])
     floor = noise_floor(validate, model.channels)
     train, validate = method.apply(train), method.apply(validate)

@@ -226,12 +226,28 @@ def segments_from_frame(
                                        "too few for a time series; cut them from the file")
         metadata: dict[str, object] = {"source": source, "segment": index, "segments_in_file": len(holes) + 1,
                                        "repeated_rows_dropped": dropped}
-        segment_t, piece = uniform_grid(t[rows], piece, resample, name, metadata, bridged=bool(stalls) or dropped > 0)
-        segments.append(Measurements(segment_t, piece["q"], piece["dq"], piece["ddq"], piece["tau"], piece["wrench"],
-                                     metadata))
+        stamps = t[rows]
+        segment_t, grid = uniform_grid(stamps, piece, resample, name, metadata, bridged=bool(stalls) or dropped > 0)
+        segments.append(Measurements(segment_t, grid["q"], grid["dq"], grid["ddq"], grid["tau"], grid["wrench"],
+                                     metadata, *_as_recorded(stamps, piece, segment_t, metadata)))
     if isinstance(model, IdentificationModel):
         check_sample_count(segments, model)
     return tuple(segments)
+
+
+def _as_recorded(t: NDArray[np.float64], piece: dict, grid: NDArray[np.float64], metadata: dict
+                 ) -> tuple[Measurements | None, NDArray[np.int_] | None]:
+    """The samples as recorded beside a resampled segment (``Measurements.recorded``, each beside its nearest grid
+    sample: ``recorded_rows``), or ``(None, None)`` when the segment was not resampled. Errors are taken on them:
+    the torques are never interpolated (the motion derived on the grid is, at their time stamps,
+    :func:`estimation.preprocessing.plan.prepare`)."""
+    if grid is t:
+        return None, None
+    step = (grid[-1] - grid[0]) / max(grid.shape[0] - 1, 1)
+    rows = np.clip(np.rint((t - grid[0]) / step), 0, grid.shape[0] - 1).astype(np.int_)
+    recorded = Measurements(t, piece["q"], piece["dq"], piece["ddq"], piece["tau"], piece["wrench"],
+                            dict(metadata, recorded_stamps=True))
+    return recorded, rows
 
 
 def _joint_count(frame: pd.DataFrame, n_joints: int | None, model: IdentificationModel | ModelKind | str | None,

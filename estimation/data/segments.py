@@ -76,16 +76,19 @@ def concatenate(data: Measurements | Sequence[Measurements]) -> Measurements:
         values = [getattr(part, name) for part in parts]
         return None if values[0] is None else np.concatenate(values, axis=0)
 
-    recorded = None
+    recorded, rows = None, None
     if any(segment.recorded is not None for segment in segments):
         recorded = concatenate([segment.as_recorded for segment in segments])
+        if any(segment.recorded_rows is not None for segment in segments):
+            offsets = np.cumsum([0] + [segment.n_samples for segment in segments[:-1]])
+            rows = np.concatenate([segment.beside_recorded() + offset for segment, offset in zip(segments, offsets)])
     bounds, start = [], 0
     for segment in segments:
         bounds.append({"source": _label(segment), "start": start, "stop": start + segment.n_samples})
         start += segment.n_samples
     metadata = dict(segments[0].metadata, segments=bounds)
     return Measurements(joined("t", segments), joined("q", segments), joined("dq", segments), joined("ddq", segments),
-                        joined("tau", segments), joined("wrench", segments), metadata, recorded)
+                        joined("tau", segments), joined("wrench", segments), metadata, recorded, rows)
 
 
 def segment_slices(measurements: Measurements) -> list[slice]:

@@ -64,6 +64,8 @@ def preprocessing_from_dict(document: dict[str, Any] | None) -> Preprocessing:
                                              "held_torques") if key in document}
     if "filter_order" in document:
         fields["order"] = int(document["filter_order"])
+    if "velocity_from_positions" in document:
+        fields["velocity_from_positions"] = bool(document["velocity_from_positions"])
     return Preprocessing(**fields)
 
 
@@ -294,13 +296,14 @@ class IdentifiedModel:
         return prepared
 
     def floor(self, segments: Sequence[Measurements]) -> dict[str, float] | None:
-        """The noise floor per channel of the records as read (as ``oed diagnose`` measures it), or ``None``."""
+        """The noise floor per channel of the records as read (as ``oed diagnose`` measures it), or ``None``: on the
+        samples as recorded (a resampled log's own, whose interpolation onto a grid would smooth the noise)."""
         preprocessing = self.preprocessing
         frequency = preprocessing.frequency_hz if preprocessing.method == "fourier" else None
         floors = []
         for segment in segments:
             try:
-                floors.append(noise_floor(segment, self.channels, frequency_hz=frequency))
+                floors.append(noise_floor(segment.as_recorded, self.channels, frequency_hz=frequency))
             except NoiseFloorError as error:
                 warnings.warn(f"no noise floor from {segment.metadata.get('source', 'the record')}: {error}",
                               stacklevel=2)

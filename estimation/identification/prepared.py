@@ -179,12 +179,13 @@ class PreparedRecord:
         """The noise floor of the record as read, before any differentiation, averaging or filtering
         (:func:`estimation.uncertainty.noise_floor.noise_floor`: period-to-period at ``frequency_hz``, given or
         detected, or the file's frequency, else differences), pooled over the segments that can give one;
-        ``None`` with a warning when none can."""
+        ``None`` with a warning when none can. On the samples as recorded: a resampled log's own (interpolated
+        onto a grid, a log jittered by ±30 % of a step showed 0.012 for the 0.04 simulated)."""
         floors, failures = [], []
         for file in self.files:
             for segment in file.segments:
                 try:
-                    floors.append(noise_floor(segment, tuple(channels), frequency_hz=frequency_hz))
+                    floors.append(noise_floor(segment.as_recorded, tuple(channels), frequency_hz=frequency_hz))
                 except NoiseFloorError as error:
                     failures.append(f"{file.path}: {error}")
         if failures:
@@ -264,7 +265,9 @@ def prepare_records(model: IdentificationModel, train: Sequence[str | Path], val
         if files is not None:
             check_varying_channels([segment for file in files for segment in file.segments], model.channels,
                                    f"{role} data")
-    preprocessing = choose_plan(model, [segment for file in train_files for segment in file.segments], settings)
+    preprocessing = choose_plan(model, [segment for file in train_files for segment in file.segments], settings,
+                                [segment for files in held_out.values() if files for file in files
+                                 for segment in file.segments])
     if preprocessing.method == "measured" and settings.held_torques:
         warnings.warn("held torques: nothing to align, the data hold measured dq and ddq", stacklevel=2)
     prepared = {"train": _prepared(train_files, preprocessing, "training data", check=False)}
@@ -315,8 +318,10 @@ def check_no_shared_samples(records: dict[str, tuple[RecordedFile, ...] | None],
                                  "another experiment")
 
 
-def choose_plan(model: IdentificationModel, train: Sequence[Measurements], settings: PreparationSettings) -> Preprocessing:
-    """The preprocessing of the training segments: ``settings.plan``, else chosen as ``settings.selection`` says."""
+def choose_plan(model: IdentificationModel, train: Sequence[Measurements], settings: PreparationSettings,
+                held_out: Sequence[Measurements] = ()) -> Preprocessing:
+    """The preprocessing of the training segments: ``settings.plan``, else chosen as ``settings.selection`` says,
+    among plans that also apply to the ``held_out`` segments (validation, test)."""
     if settings.plan is not None:
         return settings.plan
     options = {"frequency_hz": settings.frequency_hz, "harmonics": settings.harmonics, "cutoff_hz": settings.cutoff_hz,
@@ -324,7 +329,7 @@ def choose_plan(model: IdentificationModel, train: Sequence[Measurements], setti
                "held_torques": settings.held_torques}
     if settings.selection == "rule":
         return choose_preprocessing(train, **{**options, "held_torques": bool(settings.held_torques)})
-    return choose_by_evidence(model, train, **options, jobs=settings.jobs).chosen
+    return choose_by_evidence(model, train, **options, jobs=settings.jobs, held_out=held_out).chosen
 
 
 def _prepared(files: tuple[RecordedFile, ...], preprocessing: Preprocessing, role: str, *,

@@ -9,7 +9,16 @@ derivative method is a choice the data must support.
 Candidates (:func:`candidates`): the measured derivatives when the record holds them (then the only candidate);
 otherwise Fourier fits (PUMA paper, eq. 18) at the given or detected fundamental over a grid of harmonics, and
 zero-phase Butterworth filters over a geometric grid of cut-offs; the rule of
-:func:`estimation.preprocessing.plan.choose_preprocessing` (what the toolkit did before) is always one of them.
+:func:`estimation.preprocessing.plan.choose_preprocessing` (what the toolkit did before) is one of them. A plan
+that cannot prepare the validation or test record (a cut-off below ``1 / duration``, a Fourier fit at a
+fundamental the record is not seen to repeat at) is not a candidate: the defaults never choose what they must then
+refuse, nor a description of the training motion that another motion does not follow.
+
+Same samples: every candidate is scored on every recorded sample of the window. The filters cover the record
+(their ends extended by reflection, :class:`~estimation.preprocessing.differentiation.ButterworthDifferentiation`:
+a low cut-off may not skip a record's hardest seconds at each edge, as trimming each filter's own settling let it
+do), and a period-averaged Fourier fit predicts the samples past its last whole period too; a candidate scored on
+fewer samples than the others is set aside (:func:`on_common_samples`).
 
 Score (:class:`HeldOutScore`): the training record (past :data:`SCORED_SAMPLES` samples, a window of its longest
 segment), prepared by the candidate and thinned to at most ``max_rows`` samples, is cut into ``folds`` contiguous blocks in time. The declared model plus a flexible friction
@@ -24,7 +33,7 @@ PUMA record, 5 harmonics won, because blurred derivatives imitate part of the mi
 Choice: among the candidates whose score is within :data:`EQUIVALENT` of the lowest (they predict held-out data
 equally well), the best-scored Fourier fit if there is one (fewer harmonics on a tie to four digits: the
 simplest description of a periodic motion that predicts as well), else the filter with the highest cut-off (the
-least distortion of the motion);
+least distortion of the motion; on the logged velocity rather than from the positions);
 ties by the candidate's description, so the order of the grid does not matter. The flexible friction can take up
 what a blurred motion does to a law with a jump at zero speed, so a strongly smoothing candidate may score as
 well as the others and still leave a sign or Stribeck law out of reach of the diagnosis: on a simulated PUMA
@@ -62,7 +71,7 @@ from dynamics.runtime.threads import single_threaded_blas
 from estimation.data.segments import as_segments, column_set
 from estimation.estimators.identification_problem import stack
 from estimation.preprocessing.differentiation import ButterworthDifferentiation, motion_bandwidth, sampling_rate
-from estimation.preprocessing.periodicity import detect_fundamental
+from estimation.preprocessing.periodicity import REPEAT_THRESHOLD, detect_fundamental, repeat_error
 from estimation.preprocessing.plan import (
     CandidateEvidence,
     Evidence,
@@ -147,7 +156,8 @@ class HeldOutScore:
         Y = np.concatenate([problem.Y, self.friction_columns(kept, problem.channels)], axis=2)
         mse = self.held_out_mse(Y, problem.y)
         return CandidateEvidence(preprocessing.without_evidence(), geometric_mean(mse),
-                                 dict(zip(problem.channels, map(float, mse))), None, time.perf_counter() - started)
+                                 dict(zip(problem.channels, map(float, mse))), None, time.perf_counter() - started,
+                                 recorded.n_samples)
 
     def held_out_mse(self, Y: NDArray[np.float64], y: NDArray[np.float64]) -> NDArray[np.float64]:
         """Per channel, the mean squared error of each block predicted from the others.
@@ -233,13 +243,29 @@ def geometric_mean(mse: NDArray[np.float64]) -> float:
 
 def candidates(train: Sequence[Measurements], rule: Preprocessing, given: Preprocessing | None,
                families: Sequence[Family] = ("fourier", "butterworth"), *,
-               shortest_s: float | None = None) -> tuple[Preprocessing, ...]:
+               shortest_s: float | None = None, held_out: Sequence[Measurements] = (),
+               velocity_variants: bool = True) -> tuple[Preprocessing, ...]:
     """The derivative candidates of a record without measured ``dq, ddq`` (module docstring), each once, of the
-    ``families`` asked for (the rule's and the given plan are candidates whatever their family); no filter
-    whose settling needs more than ``shortest_s`` (default: the shortest of ``train``)."""
+    ``families`` asked for (the rule's and the given plan are candidates whatever their family). Only plans that
+    apply to every record: to the training segments (the shortest lasting ``shortest_s``, default: the shortest of
+    ``train``) and to the ``held_out`` ones (validation, test): no filter cut-off below ``1 / duration`` of one of
+    them nor at 0.4 of a rate, no Fourier fit unless each of them repeats at its fundamental (:func:`repeats_at`).
+    The user's plan is kept whatever (it is theirs to refuse); the rule's only when it applies, unless nothing else
+    does. A record that logs ``dq`` (not ``ddq``) gets each filter twice (``velocity_variants``): on the logged
+    velocity, and with ``dq`` from the positions (``Preprocessing.velocity_from_positions``)."""
     common = {"decimation": rule.decimation, "held_torques": rule.held_torques}
     longest = max(train, key=lambda segment: segment.n_samples)
-    rate = min(sampling_rate(segment.t) for segment in train)
+    rate = min(sampling_rate(segment.t) for segment in (*train, *held_out))
+    shortest = min(duration(segment) for segment in train) if shortest_s is None else shortest_s
+    shortest = min([shortest, *(duration(segment) for segment in held_out)])
+
+    def applies(plan: Preprocessing) -> bool:
+        if plan.method == "fourier":
+            return all(repeats_at(segment, plan.frequency_hz) for segment in held_out)
+        if plan.method == "butterworth":
+            return 1.0 / shortest <= plan.cutoff_hz < 0.5 * rate
+        return True
+
     found: list[Preprocessing] = [rule] + ([given] if given is not None else [])
     frequency, source = fundamental(longest, rule, given) if "fourier" in families else (None, None)
     if frequency is not None:
@@ -248,15 +274,29 @@ def candidates(train: Sequence[Measurements], rule: Preprocessing, given: Prepro
         found += [Preprocessing("fourier", frequency, harmonics, source, average, **common)
                   for harmonics in HARMONICS_GRID if harmonics <= nyquist_harmonic]
     bandwidth = max(motion_bandwidth(segment.q, sampling_rate(segment.t)) for segment in train)
-    shortest = min(duration(segment) for segment in train) if shortest_s is None else shortest_s
     for fraction in CUTOFF_FRACTIONS if "butterworth" in families else ():
         cutoff = float(f"{fraction * rate:.6g}")
-        if cutoff < bandwidth or cutoff < 1.0 / shortest or cutoff >= 0.4 * rate:
+        if cutoff < bandwidth or cutoff >= 0.4 * rate:
             continue
-        filter_ = ButterworthDifferentiation(cutoff, trim=True)
-        found.append(Preprocessing("butterworth", cutoff_hz=cutoff, order=filter_.order,
-                                   trimmed_s=filter_.settling_samples(rate, cutoff) / rate, **common))
-    return tuple(dict.fromkeys(found))
+        plan = Preprocessing("butterworth", cutoff_hz=cutoff, order=ButterworthDifferentiation().order, **common)
+        found.append(plan)
+        if velocity_variants and all(segment.dq is not None for segment in train):
+            found.append(replace(plan, velocity_from_positions=True))
+    kept = [plan for plan in dict.fromkeys(found) if plan == given or applies(plan)]
+    return tuple(kept if any(plan != given for plan in kept) else dict.fromkeys(found))
+
+
+def repeats_at(segment: Measurements, frequency_hz: float) -> bool:
+    """Whether a record's positions are seen to repeat at ``frequency_hz``: it spans
+    :data:`~estimation.preprocessing.periodicity.MIN_PERIODS` periods and its positions one period apart differ by
+    less than :data:`~estimation.preprocessing.periodicity.REPEAT_THRESHOLD` of their variance. A Fourier series at
+    that fundamental describes such a record; of another (a different motion, a record too short to tell) nothing
+    says it would, while a filter applies to any record. On the EMPS (training: the first 16 s, 2.6 periods of
+    0.16 Hz; validation: the 8.8 s after, 1.4 periods), a 400-harmonic fit won on the training record and on the
+    validation record but predicted the pulses record 6.7 times worse than the 85 Hz filter: with the validation
+    unable to show the period, the filters decide."""
+    error = repeat_error(segment.q, sampling_rate(segment.t) / frequency_hz)
+    return bool(np.isfinite(error) and error <= REPEAT_THRESHOLD)
 
 
 def fundamental(longest: Measurements, rule: Preprocessing, given: Preprocessing | None) -> tuple[float | None, str | None]:
@@ -318,6 +358,8 @@ def choose_by_evidence(
     max_rows: int = 6000,
     families: Sequence[Family] = ("fourier", "butterworth"),
     jobs: int | None = None,
+    held_out: Sequence[Measurements] = (),
+    velocity_variants: bool = True,
 ) -> PreprocessingChoice:
     """The preprocessing of ``train`` for ``model``, chosen by held-out error (module docstring).
 
@@ -327,7 +369,10 @@ def choose_by_evidence(
     process may use, at most 4; the same choice and scores whatever the number:
     :mod:`dynamics.runtime.processes`). ``held_torques=None``: whether the torques were held over each sample is chosen
     too (:func:`with_held_torques`). Everything is decided on the record's :class:`ChoiceWindow` (a window
-    already made may be given: a streamed record's).
+    already made may be given: a streamed record's). ``held_out``: the segments of the validation and test
+    records, which every candidate must be able to prepare (:func:`candidates`); they are not scored.
+    ``velocity_variants``: with a logged ``dq``, filters with ``dq`` from the positions are candidates too (the
+    streamed chunks filter the logged velocity only).
 
     Warns
     -----
@@ -349,12 +394,13 @@ def choose_by_evidence(
     if rule.method == "measured" or all(name in column_set(segments[0]) for name in ("dq", "ddq")):
         return PreprocessingChoice(rule, rule)
     score = HeldOutScore(model, folds=folds, max_rows=max_rows)
-    plans = [plan for plan in candidates(segments, rule, given, families, shortest_s=window.shortest_s)
+    plans = [plan for plan in candidates(segments, rule, given, families, shortest_s=window.shortest_s,
+                                         held_out=tuple(held_out), velocity_variants=velocity_variants)
              if plan.method in families or plan in (rule, given)]
     started = time.perf_counter()
     scored = run_tasks([functools.partial(score, segments, plan) for plan in plans],
                        worker_count(jobs, len(plans), min_tasks=MIN_PARALLEL_SCORES))
-    evidence = tuple(sorted(scored, key=lambda item: (item.score, item.preprocessing.describe())))
+    evidence = tuple(sorted(on_common_samples(scored), key=lambda item: (item.score, item.preprocessing.describe())))
     best = preferred(evidence)
     chosen = best if given is None else given
     if choose_hold:
@@ -370,6 +416,15 @@ def choose_by_evidence(
     else:
         say_what_was_chosen(attached, segments)
     return PreprocessingChoice(attached, best)
+
+
+def on_common_samples(scored: Sequence[CandidateEvidence]) -> list[CandidateEvidence]:
+    """The scores, with any candidate scored on fewer recorded samples than the others set to ``inf`` (with the
+    reason): a candidate may not win by leaving out samples the others predict."""
+    most = max((item.samples for item in scored if np.isfinite(item.score)), default=0)
+    return [item if not np.isfinite(item.score) or item.samples == most else
+            replace(item, score=float("inf"), error=f"scored on {item.samples} of the {most} recorded samples the "
+                    "other candidates predict: not comparable") for item in scored]
 
 
 def with_held_torques(chosen: Preprocessing, evidence: tuple[CandidateEvidence, ...], score: HeldOutScore,
@@ -398,7 +453,7 @@ def preferred(evidence: Sequence[CandidateEvidence]) -> Preprocessing:
                                               item.preprocessing.describe())).preprocessing
     filters = [plan for plan in equivalent if plan.method == "butterworth"]
     if filters:
-        return max(filters, key=lambda plan: (plan.cutoff_hz, plan.describe()))
+        return max(filters, key=lambda plan: (plan.cutoff_hz, not plan.velocity_from_positions, plan.describe()))
     return equivalent[0]
 
 

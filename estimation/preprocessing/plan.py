@@ -8,8 +8,10 @@
   (:mod:`estimation.preprocessing.periodicity`) when no cut-off was given; Fourier fit on the time stamps,
   periods averaged as ``average_periods`` says;
 * ``butterworth`` — otherwise: the cut-off given, or five times the training motion's bandwidth
-  (the widest over the segments), fixed here so that validation is filtered alike; the edges of
-  each segment are trimmed by the filter's settling time.
+  (the widest over the segments), fixed here so that validation is filtered alike. The filter
+  covers each segment whole (its ends extended by their odd reflection over the filter's settling
+  time): no sample is dropped, so a record of any length takes any cut-off above ``1 / duration``.
+  A plan with ``trimmed_s > 0`` (written by earlier versions) trims the settling at each edge.
 
 :func:`prepare` applies it to each segment of a record on its own (never across a boundary),
 with the hold compensation and decimation, and stacks the segments. The plan is written to the
@@ -77,6 +79,9 @@ class CandidateEvidence:
         Why the candidate could not run, or ``None``.
     seconds
         What scoring it cost.
+    samples
+        The recorded samples of the training window its score is taken on (every candidate scored on the
+        same ones: one that drops samples is not compared).
     """
 
     preprocessing: Preprocessing
@@ -84,12 +89,13 @@ class CandidateEvidence:
     held_out_mse: dict[str, float]
     error: str | None = None
     seconds: float = 0.0
+    samples: int = 0
 
     def to_dict(self) -> dict[str, Any]:
         """The candidate's keys (as :meth:`Preprocessing.to_dict`) with ``score``, ``held_out_mse``, ``error``."""
         document = self.preprocessing.to_dict()
         document.update(score=self.score if np.isfinite(self.score) else None, held_out_mse=self.held_out_mse,
-                        seconds=round(self.seconds, 3))
+                        seconds=round(self.seconds, 3), samples=self.samples)
         if self.error is not None:
             document["error"] = self.error
         return document
@@ -122,9 +128,13 @@ class Preprocessing:
     cutoff_hz, order
         Butterworth low-pass (``butterworth``).
     trimmed_s
-        Time cut at each edge of each segment (the filter's settling), s.
+        Time cut at each edge of each segment (the filter's settling), s: ``0`` (the filter covers the
+        segment, its ends extended), unless a plan of an earlier version said otherwise.
     decimation, held_torques
         As :func:`estimation.preprocessing.differentiation.fill_derivatives`.
+    velocity_from_positions
+        ``butterworth`` on a record that logs ``dq`` (not ``ddq``): ``dq`` derived from the positions instead of
+        the logged velocity filtered (a logger's velocity may lag its positions, or be a command).
     evidence
         The candidates scored when the choice was made on held-out data (``None`` for a fixed rule); not part
         of the plan's identity.
@@ -140,6 +150,7 @@ class Preprocessing:
     trimmed_s: float = 0.0
     decimation: int = 1
     held_torques: bool = False
+    velocity_from_positions: bool = False
     evidence: Evidence | None = field(default=None, compare=False, repr=False)
 
     def without_evidence(self) -> Preprocessing:
@@ -155,7 +166,8 @@ class Preprocessing:
             document.update(frequency_hz=self.frequency_hz, harmonics=self.harmonics,
                             frequency_source=self.frequency_source, average_periods=self.average_periods)
         elif self.method == "butterworth":
-            document.update(cutoff_hz=self.cutoff_hz, filter_order=self.order)
+            document.update(cutoff_hz=self.cutoff_hz, filter_order=self.order,
+                            velocity_from_positions=self.velocity_from_positions)
         document.update(trimmed_s=self.trimmed_s, decimation=self.decimation, held_torques=self.held_torques)
         if self.evidence is not None:
             document.update(selection=self.evidence.selection, folds=self.evidence.folds,
@@ -167,7 +179,8 @@ class Preprocessing:
         if self.method == "fourier":
             return f"a {self.harmonics}-harmonic Fourier fit at {self.frequency_hz:.6g} Hz"
         if self.method == "butterworth":
-            return f"a {self.cutoff_hz:.4g} Hz Butterworth filter"
+            return f"a {self.cutoff_hz:.4g} Hz Butterworth filter" + (" (dq from the positions)"
+                                                                        if self.velocity_from_positions else "")
         return "measured dq, ddq"
 
     def describe(self) -> str:
@@ -177,7 +190,8 @@ class Preprocessing:
                     f"period averaging {self.average_periods}")
         elif self.method == "butterworth":
             text = (f"Butterworth low-pass, cut-off {self.cutoff_hz:.4g} Hz (order {self.order}, zero phase), "
-                    f"{1e3 * self.trimmed_s:.0f} ms trimmed at each segment edge")
+                    + (f"{1e3 * self.trimmed_s:.0f} ms trimmed at each segment edge" if self.trimmed_s > 0
+                       else "ends extended by reflection, no sample dropped"))
         else:
             text = "measured dq, ddq"
         extras = ([f"decimated by {self.decimation}"] if self.decimation > 1 else []) + \
@@ -248,12 +262,11 @@ def choose_preprocessing(
     nyquist = 0.5 * rate
     if cutoff_hz is None:
         bandwidth = max(motion_bandwidth(segment.q, sampling_rate(segment.t)) for segment in segments)
-        cutoff = min(5.0 * bandwidth, 0.8 * nyquist)
+        shortest = min(float(segment.t[-1] - segment.t[0]) for segment in segments)
+        cutoff = min(max(5.0 * bandwidth, 1.0 / shortest), 0.8 * nyquist)  # a filter every segment takes
     else:
         cutoff = float(ButterworthDifferentiation(cutoff_hz).cutoff(longest))  # checks it
-    filter_ = ButterworthDifferentiation(cutoff, trim=True)
-    trimmed = filter_.settling_samples(rate, cutoff) / rate
-    return Preprocessing("butterworth", cutoff_hz=cutoff, order=filter_.order, trimmed_s=trimmed, **common)
+    return Preprocessing("butterworth", cutoff_hz=cutoff, order=ButterworthDifferentiation().order, **common)
 
 
 def check_frequency(segments: Sequence[Measurements], frequency_hz: float) -> None:
@@ -289,6 +302,8 @@ def prepare(data: Measurements | Sequence[Measurements], preprocessing: Preproce
     prepared = []
     for segment in segments:
         name = _name(segment)
+        stamps = segment.recorded if segment.recorded_rows is not None else None  # a resampled log's own samples
+        segment = replace(segment, recorded=None)
         derived = _derive(segment, preprocessing, name)
         if preprocessing.held_torques and preprocessing.method != "measured":
             derived = compensate_hold(derived)
@@ -297,11 +312,41 @@ def prepare(data: Measurements | Sequence[Measurements], preprocessing: Preproce
                 derived = decimate(derived, preprocessing.decimation)
             except ValueError as error:
                 raise SegmentTooShortForFilterError(f"{name}: {error}") from None
+        if stamps is not None:
+            derived = at_recorded_stamps(derived, stamps, measured=preprocessing.method == "measured"
+                                         and preprocessing.decimation == 1)
         metadata = dict(derived.metadata, preprocessing=preprocessing.to_dict())
         recorded = derived.recorded
         prepared.append(replace(derived, metadata=metadata,
                                 recorded=None if recorded is None else replace(recorded, metadata=metadata)))
     return concatenate(prepared)
+
+
+def at_recorded_stamps(prepared: Measurements, stamps: Measurements, *, measured: bool = False) -> Measurements:
+    """``prepared`` (a segment resampled onto a uniform grid, then preprocessed) with its recorded channels those of
+    the samples as logged, ``stamps`` (:func:`estimation.data.records.read_record` keeps them as the segment's
+    ``recorded``): the torques and wrench at their own time stamps, never interpolated, and the derived motion
+    linearly interpolated there (the motion as logged when ``measured``: derivatives read, not derived). Samples
+    outside the prepared span (edges trimmed by a plan that trims) are left out; each kept one stands beside its
+    nearest prepared sample (``recorded_rows``). Errors (:func:`estimation.identification.validation.compare`),
+    predictions and every score are then taken at the recorded time stamps.
+    """
+    source = prepared.as_recorded  # the motion on the whole grid (every period of an averaged record)
+    beside = prepared.beside_recorded()
+    tolerance = 1e-9 * (source.t[-1] - source.t[0])  # the grid's last point may round below the last stamp
+    kept = np.flatnonzero((stamps.t >= source.t[0] - tolerance) & (stamps.t <= source.t[-1] + tolerance))
+    t = stamps.t[kept]
+    nearest = np.clip(np.searchsorted(source.t, t), 1, source.n_samples - 1)
+    nearest -= (t - source.t[nearest - 1]) < (source.t[nearest] - t)
+    if measured:
+        q, dq, ddq = (None if values is None else values[kept] for values in (stamps.q, stamps.dq, stamps.ddq))
+    else:
+        q, dq, ddq = (np.column_stack([np.interp(t, source.t, column) for column in values.T])
+                      for values in (source.q, source.dq, source.ddq))
+    recorded = Measurements(t, q, dq, ddq, None if stamps.tau is None else stamps.tau[kept],
+                            None if stamps.wrench is None else stamps.wrench[kept],
+                            dict(source.metadata, recorded_stamps=True))
+    return replace(prepared, recorded=recorded, recorded_rows=beside[nearest])
 
 
 def _derive(segment: Measurements, preprocessing: Preprocessing, name: str) -> Measurements:
@@ -311,7 +356,9 @@ def _derive(segment: Measurements, preprocessing: Preprocessing, name: str) -> M
         if preprocessing.method == "fourier":
             return FourierDifferentiation(preprocessing.frequency_hz, preprocessing.harmonics,
                                           preprocessing.average_periods).apply(segment)
-        filter_ = ButterworthDifferentiation(preprocessing.cutoff_hz, preprocessing.order, trim=True)
+        filter_ = ButterworthDifferentiation(preprocessing.cutoff_hz, preprocessing.order,
+                                             trim=preprocessing.trimmed_s > 0,
+                                             logged_velocity=not preprocessing.velocity_from_positions)
         return filter_.apply(segment)
     except ValueError as error:
         text = str(error)

@@ -68,13 +68,17 @@ def _duration(path: str | Path, model: IdentificationModel, rows: int) -> float:
 def choose_streamed_preprocessing(paths: Sequence[str | Path], model: IdentificationModel, *,
                                   frequency_hz: float | None = None, harmonics: int | None = None,
                                   cutoff_hz: float | None = None, average_periods: str = "auto", decimation: int = 1,
-                                  held_torques: bool | None = False, rows: Sequence[int] | None = None
-                                  ) -> PreprocessingChoice:
+                                  held_torques: bool | None = False, rows: Sequence[int] | None = None,
+                                  held_out: Sequence[str | Path] = ()) -> PreprocessingChoice:
     """The preprocessing of the training files ``paths``, chosen as in memory (module docstring); the options
-    are those of :func:`~estimation.identification.preprocessing_choice.choose_by_evidence`."""
+    are those of :func:`~estimation.identification.preprocessing_choice.choose_by_evidence`. ``held_out``: the
+    validation (and test) files, whose first :data:`SCORED_SAMPLES` rows every candidate must be able to prepare
+    (in bounded memory: a longer file is judged on that window, which only narrows the candidates)."""
+    windows = tuple(first_rows(path, model, SCORED_SAMPLES) for path in held_out)
     return choose_by_evidence(model, streamed_window(paths, model, rows), frequency_hz=frequency_hz,
                               harmonics=harmonics, cutoff_hz=cutoff_hz, average_periods=average_periods,
-                              decimation=decimation, held_torques=held_torques)
+                              decimation=decimation, held_torques=held_torques, held_out=windows,
+                              velocity_variants=False)
 
 
 def choose_streamed_cutoff(path: str | Path, model: IdentificationModel, *, decimation: int = 1,
@@ -87,4 +91,4 @@ def choose_streamed_cutoff(path: str | Path, model: IdentificationModel, *, deci
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", PreprocessingWarning)
         return choose_by_evidence(model, [first], decimation=decimation, held_torques=held_torques,
-                                  families=("butterworth",)).chosen
+                                  families=("butterworth",), velocity_variants=False).chosen

@@ -134,9 +134,9 @@ class StreamedSettings:
 
     def reading(self) -> dict[str, Any]:
         """How each file is read and prepared (:func:`estimation.streaming.periods.plan_chunks`): the filter's
-        settling trimmed at each record's ends, as the CLI's in-memory preprocessing does; or the Fourier path."""
+        filter covering the record's ends (nothing trimmed), as the in-memory preprocessing does; or the Fourier path."""
         options = {"chunk_size": self.chunk_size, "cutoff_hz": self.cutoff_hz, "decimation": self.decimation,
-                   "held_torques": self.held_torques, "trim": True, "order": self.order}
+                   "held_torques": self.held_torques, "trim": False, "order": self.order}
         if self.frequency_hz is not None:
             options.update(frequency_hz=self.frequency_hz, harmonics=self.harmonics)
         return options

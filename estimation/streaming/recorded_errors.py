@@ -2,16 +2,15 @@
 estimate against the channels as recorded, file by file in bounded memory.
 
 :func:`streamed_plan` is the in-memory :class:`estimation.preprocessing.plan.Preprocessing` (as its
-``to_dict``) that derives the motion as the streamed chunks do (the filter path trims the filter's settling
-at the record's ends, :func:`estimation.streaming.chunks.preprocessed_chunks` with ``trim``).
+``to_dict``) that derives the motion as the streamed chunks do (the filter path covers the record's ends,
+nothing trimmed, as the in-memory preprocessing does).
 
 The streamed identification sums the channels it was fitted on: on the filter path those are
 filtered, so its MSEs are against the filtered channels (``mse_filtered``). The model file promises
 the error ``oed predict`` measures: the prediction along the derived motion against the channels as
-recorded, on the samples the in-memory preprocessing keeps (the filter's settling trimmed at each
-record's ends). :func:`recorded_mse` is that error, from one more pass over the files, chunk by chunk
-(:func:`estimation.streaming.chunks.preprocessed_chunks` with ``trim``: the kept samples equal the
-whole-record ones to :data:`estimation.streaming.chunks.MARGIN_TOLERANCE`).
+recorded, on every sample, as the in-memory preprocessing keeps them. :func:`recorded_mse` is that error,
+from one more pass over the files, chunk by chunk (:func:`estimation.streaming.chunks.preprocessed_chunks`: the
+samples equal the whole-record ones to :data:`estimation.streaming.chunks.MARGIN_TOLERANCE`).
 """
 
 from __future__ import annotations
@@ -24,8 +23,8 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from dynamics.models import IdentificationModel
-from estimation.preprocessing.differentiation import ButterworthDifferentiation, sampling_rate
-from estimation.streaming.chunks import preprocessed_chunks, read_chunks
+from estimation.preprocessing.differentiation import ButterworthDifferentiation
+from estimation.streaming.chunks import preprocessed_chunks
 
 __all__ = ["recorded_mse", "streamed_plan"]
 
@@ -33,15 +32,12 @@ __all__ = ["recorded_mse", "streamed_plan"]
 def streamed_plan(path: str | Path, model: IdentificationModel, *, cutoff_hz: float | None, decimation: int = 1,
                   held_torques: bool = False, chunk_size: int) -> dict[str, Any]:
     """The preprocessing plan (``Preprocessing.to_dict`` keys) of the streamed filter path at ``cutoff_hz``, or of
-    measured derivatives without one; the settling trimmed is that of the first chunk of ``path``'s rate."""
+    measured derivatives without one; nothing trimmed (``path`` is read for its interface's sake only)."""
     common = {"decimation": int(decimation), "held_torques": bool(held_torques)}
     if cutoff_hz is None:
         return {"method": "measured", "trimmed_s": 0.0, **common}
-    first = next(read_chunks(path, model, chunk_size=chunk_size))
-    rate = sampling_rate(first.t)
-    method = ButterworthDifferentiation(cutoff_hz, trim=True)
-    return {"method": "butterworth", "cutoff_hz": float(cutoff_hz), "filter_order": method.order,
-            "trimmed_s": method.settling_samples(rate, cutoff_hz) / rate, **common}
+    return {"method": "butterworth", "cutoff_hz": float(cutoff_hz), "filter_order": ButterworthDifferentiation().order,
+            "trimmed_s": 0.0, **common}
 
 
 def recorded_mse(model: IdentificationModel, theta: ArrayLike, paths: Sequence[str | Path], *, chunk_size: int,
@@ -57,7 +53,7 @@ def recorded_mse(model: IdentificationModel, theta: ArrayLike, paths: Sequence[s
     count = 0
     for path in paths:
         for chunk in preprocessed_chunks(path, model, chunk_size=chunk_size, cutoff_hz=cutoff_hz,
-                                         decimation=decimation, held_torques=held_torques, trim=True):
+                                         decimation=decimation, held_torques=held_torques):
             record = chunk.as_recorded
             residual = record.channels(model.channels) - model.predict(theta, record.q, record.dq, record.ddq)
             squares += np.sum(residual**2, axis=0)

@@ -62,7 +62,8 @@ def streamed_choice(args: RecordOptions, model: IdentificationModel,
     derivative options given."""
     return choose_streamed_preprocessing(args.data, model, frequency_hz=args.frequency, harmonics=args.harmonics,
                                          cutoff_hz=args.cutoff, average_periods=args.average_periods,
-                                         decimation=args.decimate, held_torques=args.held_torques, rows=rows)
+                                         decimation=args.decimate, held_torques=args.held_torques, rows=rows,
+                                         held_out=getattr(args, "validate", None) or ())
 
 
 def averaged_rows(plan: Preprocessing, args: RecordOptions, model: IdentificationModel,
