@@ -91,7 +91,7 @@ def test_the_loaded_model_predicts_as_the_fit_did(records):
     result = folder / "plain.json"
     assert main(["identify", "--joints", "3", "--data", str(train), "--validate", str(validate),
                  "--friction", "viscous,coulomb", "--out", str(result)]) == 0
-    model = IdentifiedModel.load(result)
+    model = IdentifiedModel.load(result, estimate="unconstrained")  # the top-level parameters: the unconstrained fit
     document = json.loads(result.read_text())
     theta = np.array([record["value"] for record in document["parameters"]])
     q, dq, ddq = (np.random.default_rng(0).normal(size=(7, 3)) for _ in range(3))

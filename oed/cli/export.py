@@ -6,8 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from estimation.identification.export import exported_urdf, friction_document, implausible_links
-from estimation.identification.identified_model import IdentifiedModel
+from estimation.identification.export import exported_model, exported_urdf, friction_document, implausible_links
 from oed.cli.shared.common import OutputFiles, check_json_path, json_text
 from oed.cli.shared.verbs import verb_summary
 
@@ -16,7 +15,8 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     parser = subparsers.add_parser(
         "export",
         help=verb_summary("export"),
-        description="From a result.json of `oed identify --consistent`: the robot's URDF with every moving link's "
+        description="From a result.json of `oed identify` (its chosen model when physically consistent, else its "
+        "consistent alternative, named on stderr): the robot's URDF with every moving link's "
         "<inertial> replaced by the identified mass, centre of mass and inertia (the same joint and link names; a "
         "built-in robot is written from its description), and the joints' friction, offsets and armature as JSON. "
         "A body that is not plausible (degenerate, a mass ten times the description's or a tenth of it, a centre of "
@@ -26,6 +26,9 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     parser.add_argument("--urdf", dest="urdf_out", type=Path, required=True, metavar="URDF", help="URDF file to write")
     parser.add_argument("--friction", dest="friction_out", type=Path, metavar="JSON",
                         help="friction.json to write: per joint viscous, coulomb, offset, armature…, other effects")
+    parser.add_argument("--alternative", metavar="NAME",
+                        help="export the alternative model NAME of the file (only 'consistent' has bodies); default: "
+                             "the chosen model when it is physically consistent, else the consistent alternative")
     parser.add_argument("--allow-implausible", action="store_true",
                         help="write the files even when a body is not plausible (each named on stderr); without it "
                              "such a model is refused (exit 2, nothing written)")
@@ -49,7 +52,9 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError(f"--urdf {args.urdf_out}: give a .urdf file name")
     if args.friction_out is not None:
         check_json_path(args.friction_out, "--friction")
-    model = IdentifiedModel.load(args.model)  # exported_urdf refuses a model without a consistent estimate
+    model, note = exported_model(args.model, alternative=args.alternative)  # refuses a model without bodies
+    if note is not None:
+        print(f"oed export: {note}", file=sys.stderr)
     text = exported_urdf(model)
     findings = implausible_links(model)
     if findings and not args.allow_implausible:

@@ -15,7 +15,7 @@ from dynamics.runtime.progress import show_progress, step
 from dynamics.transmission import Transmission
 from estimation.data.log_cleaning import DEFAULT_MAX_GAP
 from estimation.estimators.normal_equations import DEFAULT_CHUNK_SIZE
-from estimation.identification.fit import IdentificationResult, identify
+from estimation.identification.fit import IdentificationResult
 from estimation.identification.validation import plot_comparison
 from estimation.preprocessing.delay import DelayBounds, split_delay
 from estimation.preprocessing.plan import Preprocessing
@@ -60,9 +60,10 @@ from oed.cli.shared.common import (
 from oed.cli.identify_consistent import (
     add_consistent_arguments,
     check_consistent_arguments,
-    consistent_refit,
+    consistent_settings,
     print_consistent,
 )
+from estimation.consistent.model_selection import select_model
 from oed.cli.shared.verbs import verb_summary
 
 STREAMED = "the streamed path (--chunk-size, --scheduler or --workers)"
@@ -259,14 +260,16 @@ def run_in_memory(args: argparse.Namespace, robot: RobotModel, model: Identifica
         weighting = choose_weighting(model, weighting_samples(ChoiceWindow.of(records.train.segments),
                                                               records.preprocessing, train)) \
             if args.method == "auto" and delay is None and not model_has_shapes(model) else None
-        method = args.method if weighting is None else weighting.method
-        result = identify(model, train, validation, weighted=method != "ols", delay=delay)
+        base = weighting.method if weighting is not None else "ols" if args.method == "ols" else "wls"
+        given = "consistent" if args.consistent else None if args.method == "auto" else args.method
+        selection = select_model(model, train, validation, base=base, given=given, delay=delay,
+                                 consistent=consistent_settings(args, robot))
+        result, consistent = selection.unconstrained, selection.consistent
         trivial, notes = trivial_predictors(result, validation)
         floor_report = None if validation is None else floor_check(records, model, result, args.frequency)
         notes = (*notes, *above_floor_notes(floor_report))
         repeat = None if validation is None else repeated_motion_note(train, validation)
         notes = notes if repeat is None else (*notes, repeat)
-        consistent = consistent_refit(args, result, train, validation)  # None without --consistent
     print_warnings("identify", caught)
     for note in notes:
         print(f"oed identify: warning: {note}", file=sys.stderr)
@@ -277,14 +280,19 @@ def run_in_memory(args: argparse.Namespace, robot: RobotModel, model: Identifica
         document.update(consistent.to_dict())
     if weighting is not None:
         document["method_selection"] = weighting.to_dict()
-    add_model_file(document, result, args, records.preprocessing, transmission, verb="identify", consistent=consistent)
+    document["model_selection"] = selection.to_dict()
+    add_model_file(document, result, args, records.preprocessing, transmission, verb="identify", consistent=consistent,
+                   selection=selection)
     if floor_report is not None and document.get("validation") is not None:
         document["validation"]["mse_over_floor"] = floor_report.ratios("after") or None
         document["noise_floor"] = None if floor_report.floor is None else {
             "mse": floor_report.floor.mse(), "method": floor_report.floor.method, "note": floor_report.floor_note}
     write_outputs(args, robot, model, result, document)
     print_summary(robot, model, result, records.preprocessing, train.n_samples, rest)
-    print_consistent(consistent)
+    if consistent is not None and (args.consistent or selection.chosen == "consistent"):
+        print_consistent(consistent)
+    for line in selection.lines():
+        print(line)
     print(f"wrote {args.out}" + (f" and {args.plot}" if args.plot else ""))
     return 0
 

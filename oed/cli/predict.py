@@ -27,9 +27,13 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     parser.add_argument("--model", type=Path, required=True, help="result.json or report.json holding a model_file")
     parser.add_argument("--data", type=Path, required=True, action="append",
                         help="the record (.csv or .parquet); repeat for several segments of one record")
+    parser.add_argument("--alternative", metavar="NAME",
+                        help="predict with the alternative model NAME the file holds beside the chosen one (ols, wls, "
+                             "consistent; unconstrained: the unconstrained fit behind the choice); default: the model "
+                             "the verb chose (model_selection.chosen)")
     parser.add_argument("--consistent", action="store_true",
-                        help="predict with the physically consistent estimate (oed identify --consistent) rather than "
-                             "the unconstrained one; what `oed export` writes")
+                        help="the same as --alternative consistent: the physically consistent estimate, what "
+                             "`oed export` writes")
     parser.add_argument("--out", type=Path, help="predictions CSV: t, each channel, and its _lo/_hi 95 %% band")
     parser.add_argument("--metrics", type=Path, help="metrics JSON: mse, mse_over_floor, n_samples, zero_mse, "
                                                      "nominal_mse, noise_floor_mse, reported_validation_mse")
@@ -55,7 +59,9 @@ def run(args: argparse.Namespace) -> int:
         check_csv_path(args.out)
     if args.metrics is not None:
         check_json_path(args.metrics, "--metrics")
-    model = IdentifiedModel.load(args.model, estimate="consistent" if args.consistent else "unconstrained")
+    if args.consistent and args.alternative not in (None, "consistent"):
+        raise ValueError(f"--consistent is --alternative consistent: not with --alternative {args.alternative}")
+    model = IdentifiedModel.load(args.model, estimate="consistent" if args.consistent else args.alternative)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         evaluation = model.evaluate(args.data)
@@ -71,8 +77,9 @@ def run(args: argparse.Namespace) -> int:
         if args.metrics is not None:
             with outputs.open(args.metrics) as stream:
                 stream.write(json_text(evaluation.to_dict()))
-    print(f"{model.robot.name}: {model.file.model} model ({model.file.effects}" + (", consistent" if args.consistent else "")
-          + (f", delay {1e3 * model.file.delay:.3g} ms" if model.file.delay is not None else "")
+    print(f"{model.robot.name}: {model.file.model} model ({model.file.effects}, {model.estimate}"
+          + ("" if model.estimate == (model.file.chosen or "unconstrained") else ": an alternative")
+          + (f", delay {1e3 * model.delay:.3g} ms" if model.delay is not None else "")
           + f"), {prediction.t.shape[0]} samples; {model.preprocessing.describe().removeprefix('preprocessing: ')}")
     print_table(evaluation)
     written = [str(path) for path in (args.out, args.metrics) if path is not None]
