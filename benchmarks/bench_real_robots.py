@@ -15,9 +15,9 @@ on the test record, per joint, MSE against the torques as recorded, every model 
     the same with ``--method ols``;
 ``plain OLS``
     what a user writes without the toolkit: Pinocchio's joint-torque regressor plus viscous, Coulomb and offset
-    columns per joint, ordinary least squares (minimum norm), derivatives of the positions low-passed by a
-    zero-phase 4th-order Butterworth filter, its cut-off chosen among :data:`CUTOFFS_HZ` by the total validation
-    MSE.
+    columns per joint, ordinary least squares (minimum norm), the logged velocity (else the positions'
+    derivative) low-passed by a zero-phase 4th-order Butterworth filter and differentiated
+    (:func:`filtered_derivatives`), its cut-off chosen among :data:`CUTOFFS_HZ` by the total validation MSE.
 
 Robots (the records' facts are in ``../shared/data/README.md``):
 
@@ -53,7 +53,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pinocchio as pin
-from scipy.signal import butter, filtfilt
+from scipy.signal import butter, sosfiltfilt
 
 from dynamics.pinocchio_bridge import to_pinocchio
 from dynamics.robots import load_robot
@@ -65,7 +65,7 @@ ROOT = Path(__file__).resolve().parents[1]
 DATA = ROOT.parent / "shared" / "data"
 FRICTION = "viscous,coulomb,offset"
 #: the plain fit's cut-off candidates (those below 40 % of the sampling rate)
-CUTOFFS_HZ = (1.0, 2.0, 3.0, 5.0, 8.0, 12.0, 20.0, 30.0, 50.0)
+CUTOFFS_HZ = (1.0, 2.0, 3.0, 5.0, 8.0, 12.0, 20.0, 30.0, 50.0, 80.0, 120.0, 200.0)
 TX40_RATIOS = np.array([32.0, 32.0, 45.0, -48.0, 45.0, 32.0])
 TX40_ZERO = np.array([0.0, -np.pi / 2, np.pi / 2, 0.0, 0.0, 0.0])  # q_urdf = q_log + TX40_ZERO
 
@@ -77,6 +77,7 @@ class Record:
     t: np.ndarray
     q: np.ndarray
     tau: np.ndarray
+    dq: np.ndarray | None = None  # the logged velocity, when the log has one
 
 
 @dataclass
@@ -102,7 +103,7 @@ def kuka(folder: Path) -> Case:
     case = Case("KUKA LWR4+ (runs 1 / 2 / 3)", ["--urdf", str(source / "kuka_lwr4.urdf")], {})
     for role, index in (("train", 1), ("validate", 2), ("test", 3)):
         run = load_kuka_run(source / f"kuka_lwr4_HW_measurements_{index}.npz")
-        case.records[role] = Record(run.t, run.q, run.tau)
+        case.records[role] = Record(run.t, run.q, run.tau, run.dq)
         frame = pd.DataFrame({"t": run.t, **_columns("q", run.q), **_columns("dq", run.dq), **_columns("ddq", run.ddq),
                               **_columns("tau", run.tau)})
         case.files[role] = _write(frame, folder / f"kuka_{role}.csv")
@@ -119,7 +120,7 @@ def panda(folder: Path) -> Case:
                 {})
     for role, (start, stop) in (("train", (0.0, 13.84)), ("validate", (13.84, 17.2)), ("test", (17.2, np.inf))):
         keep = (t >= start) & (t < stop)
-        case.records[role] = Record(t[keep], q[keep], tau[keep])
+        case.records[role] = Record(t[keep], q[keep], tau[keep], dq[keep])
         frame = pd.DataFrame({"t": t[keep], **_columns("q", q[keep]), **_columns("dq", dq[keep]),
                               **_columns("tau", tau[keep])})
         case.files[role] = _write(frame, folder / f"panda_{role}.csv")
@@ -171,6 +172,24 @@ def emps(folder: Path) -> Case:
 ROBOTS = {"kuka": kuka, "panda": panda, "tx40": tx40, "emps": emps}
 
 
+def filtered_derivatives(record: Record, cutoff_hz: float) -> tuple[np.ndarray, np.ndarray]:
+    """``dq, ddq`` at the recorded samples: the logged velocity if the log has one, else the positions, without the
+    rows that repeat the previous one (a logger's re-sent packets), interpolated onto a uniform grid at the median
+    rate, low-passed by a zero-phase 4th-order Butterworth filter (second-order sections), differentiated by
+    central differences (once more for positions), interpolated back."""
+    fresh = np.r_[True, np.any(np.diff(record.q, axis=0) != 0, axis=1)]
+    signal = record.q if record.dq is None else record.dq
+    t, values = record.t[fresh], signal[fresh]
+    step = float(np.median(np.diff(t)))
+    grid = np.arange(t[0], t[-1] + 0.5 * step, step)
+    uniform = np.column_stack([np.interp(grid, t, column) for column in values.T])
+    smooth = sosfiltfilt(butter(4, cutoff_hz / (0.5 / step), output="sos"), uniform, axis=0)
+    dq = smooth if record.dq is not None else np.gradient(smooth, step, axis=0)
+    ddq = np.gradient(dq, step, axis=0)
+    back = [np.column_stack([np.interp(record.t, grid, column) for column in series.T]) for series in (dq, ddq)]
+    return back[0], back[1]
+
+
 class PlainFit:
     """The plain least-squares fit (module docstring) of one robot."""
 
@@ -181,12 +200,9 @@ class PlainFit:
         self.n = robot.n_joints
 
     def regressor(self, record: Record, cutoff_hz: float) -> np.ndarray:
-        """``(N, n, 10 n + 3 n)``: rigid body, viscous, Coulomb, offset, the derivatives filtered at ``cutoff_hz``."""
-        rate = 1.0 / float(np.median(np.diff(record.t)))
-        b, a = butter(4, cutoff_hz / (rate / 2))
-        q = filtfilt(b, a, record.q, axis=0)
-        dq = np.gradient(q, record.t, axis=0)
-        ddq = np.gradient(dq, record.t, axis=0)
+        """``(N, n, 10 n + 3 n)``: rigid body, viscous, Coulomb, offset, the derivatives filtered at ``cutoff_hz``
+        (:func:`filtered_derivatives`) at the recorded samples."""
+        dq, ddq = filtered_derivatives(record, cutoff_hz)
         n = self.n
         Y = np.zeros((record.t.shape[0], n, 13 * n))
         for k in range(record.t.shape[0]):
@@ -199,7 +215,8 @@ class PlainFit:
 
     def fit(self, train: Record, validate: Record) -> tuple[float, dict[str, np.ndarray]]:
         """The cut-off of the smallest total validation MSE and its parameters, per cut-off tried."""
-        rate = 1.0 / float(np.median(np.diff(train.t)))
+        fresh = np.r_[True, np.any(np.diff(train.q, axis=0) != 0, axis=1)]
+        rate = 1.0 / float(np.median(np.diff(train.t[fresh])))
         best = None
         for cutoff in (c for c in CUTOFFS_HZ if c < 0.4 * rate):
             Y = self.regressor(train, cutoff)
