@@ -15,9 +15,11 @@ on the test record, per joint, MSE against the torques as recorded, every model 
     the same with ``--method ols``;
 ``plain OLS``
     what a user writes without the toolkit: Pinocchio's joint-torque regressor plus viscous, Coulomb and offset
-    columns per joint, ordinary least squares (minimum norm), the logged velocity (else the positions'
-    derivative) low-passed by a zero-phase 4th-order Butterworth filter and differentiated
-    (:func:`filtered_derivatives`), its cut-off chosen among :data:`CUTOFFS_HZ` by the total validation MSE.
+    columns per joint, reduced to numerically independent columns (:meth:`PlainFit.base_columns`), ordinary least
+    squares, the logged velocity (else the positions'
+    derivative) and the torques low-passed by a zero-phase 4th-order Butterworth filter, the motion
+    differentiated (:func:`filtered_motion`), ``2 / cut-off`` seconds trimmed at each edge, the cut-off chosen
+    among :data:`CUTOFFS_HZ` by the total validation MSE against the recorded torques.
 
 Robots (the records' facts are in ``../shared/data/README.md``):
 
@@ -53,6 +55,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pinocchio as pin
+from scipy.linalg import qr
 from scipy.signal import butter, sosfiltfilt
 
 from dynamics.pinocchio_bridge import to_pinocchio
@@ -66,6 +69,9 @@ DATA = ROOT.parent / "shared" / "data"
 FRICTION = "viscous,coulomb,offset"
 #: the plain fit's cut-off candidates (those below 40 % of the sampling rate)
 CUTOFFS_HZ = (1.0, 2.0, 3.0, 5.0, 8.0, 12.0, 20.0, 30.0, 50.0, 80.0, 120.0, 200.0)
+#: the plain fit trims this many periods of its cut-off at each edge of a record (where the filtered acceleration
+#: settles; the toolkit's own trim is about 1.8)
+SETTLING = 2.0
 TX40_RATIOS = np.array([32.0, 32.0, 45.0, -48.0, 45.0, 32.0])
 TX40_ZERO = np.array([0.0, -np.pi / 2, np.pi / 2, 0.0, 0.0, 0.0])  # q_urdf = q_log + TX40_ZERO
 
@@ -172,22 +178,36 @@ def emps(folder: Path) -> Case:
 ROBOTS = {"kuka": kuka, "panda": panda, "tx40": tx40, "emps": emps}
 
 
-def filtered_derivatives(record: Record, cutoff_hz: float) -> tuple[np.ndarray, np.ndarray]:
-    """``dq, ddq`` at the recorded samples: the logged velocity if the log has one, else the positions, without the
-    rows that repeat the previous one (a logger's re-sent packets), interpolated onto a uniform grid at the median
-    rate, low-passed by a zero-phase 4th-order Butterworth filter (second-order sections), differentiated by
-    central differences (once more for positions), interpolated back."""
-    fresh = np.r_[True, np.any(np.diff(record.q, axis=0) != 0, axis=1)]
-    signal = record.q if record.dq is None else record.dq
-    t, values = record.t[fresh], signal[fresh]
+def _filtered(t_record: np.ndarray, fresh: np.ndarray, values: np.ndarray, cutoff_hz: float
+              ) -> tuple[np.ndarray, np.ndarray, float]:
+    """``(grid, filtered, step)``: ``values`` at the ``fresh`` rows, on a uniform grid at their median step,
+    low-passed by a zero-phase 4th-order Butterworth filter (second-order sections)."""
+    t, values = t_record[fresh], values[fresh]
     step = float(np.median(np.diff(t)))
     grid = np.arange(t[0], t[-1] + 0.5 * step, step)
     uniform = np.column_stack([np.interp(grid, t, column) for column in values.T])
-    smooth = sosfiltfilt(butter(4, cutoff_hz / (0.5 / step), output="sos"), uniform, axis=0)
-    dq = smooth if record.dq is not None else np.gradient(smooth, step, axis=0)
+    return grid, sosfiltfilt(butter(4, cutoff_hz / (0.5 / step), output="sos"), uniform, axis=0), step
+
+
+def _back(t_record: np.ndarray, grid: np.ndarray, series: np.ndarray) -> np.ndarray:
+    return np.column_stack([np.interp(t_record, grid, column) for column in series.T])
+
+
+def filtered_motion(record: Record, cutoff_hz: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``q, dq, ddq, tau`` filtered at the recorded samples: the rows that repeat the previous one (a logger's
+    re-sent packets) left out, the rest on a uniform grid at the median rate, low-passed by a zero-phase 4th-order
+    Butterworth filter: the positions (differentiated twice), or the logged velocity if the log has one
+    (differentiated once), and the torques alike (the fit's targets; errors are always against the recorded
+    torques); interpolated back to the recorded time stamps."""
+    fresh = np.r_[True, np.any(np.diff(record.q, axis=0) != 0, axis=1)]
+    grid, q, step = _filtered(record.t, fresh, record.q, cutoff_hz)
+    if record.dq is None:
+        dq = np.gradient(q, step, axis=0)
+    else:
+        dq = _filtered(record.t, fresh, record.dq, cutoff_hz)[1]
     ddq = np.gradient(dq, step, axis=0)
-    back = [np.column_stack([np.interp(record.t, grid, column) for column in series.T]) for series in (dq, ddq)]
-    return back[0], back[1]
+    tau = _filtered(record.t, fresh, record.tau, cutoff_hz)[1]
+    return tuple(_back(record.t, grid, series) for series in (q, dq, ddq, tau))
 
 
 class PlainFit:
@@ -198,36 +218,66 @@ class PlainFit:
         self.model = to_pinocchio(robot)
         self.data = self.model.createData()
         self.n = robot.n_joints
+        self.columns = self.base_columns()
+
+    def base_columns(self, samples: int = 300, tolerance: float = 1e-8) -> np.ndarray:
+        """The independent columns (numerical base parameters): a column-pivoted QR of the regressor of random
+        states, the columns whose pivot exceeds ``tolerance`` times the largest (Gautier's numerical method)."""
+        generator = np.random.default_rng(0)
+        states = [generator.uniform(-np.pi, np.pi, (samples, self.n)) for _ in range(3)]
+        Y = self.stacked(*states).reshape(-1, 13 * self.n)
+        _, R, pivot = qr(Y, mode="economic", pivoting=True)
+        rank = int(np.sum(np.abs(np.diag(R)) > tolerance * abs(R[0, 0])))
+        return np.sort(pivot[:rank])
 
     def regressor(self, record: Record, cutoff_hz: float) -> np.ndarray:
         """``(N, n, 10 n + 3 n)``: rigid body, viscous, Coulomb, offset, the derivatives filtered at ``cutoff_hz``
-        (:func:`filtered_derivatives`) at the recorded samples."""
-        dq, ddq = filtered_derivatives(record, cutoff_hz)
+        (:func:`filtered_motion`) at the recorded samples."""
+        q, dq, ddq, _ = filtered_motion(record, cutoff_hz)
+        return self.stacked(q, dq, ddq)[:, :, self.columns]
+
+    def stacked(self, q: np.ndarray, dq: np.ndarray, ddq: np.ndarray) -> np.ndarray:
+        """``(N, n, 13 n)``: every column along ``q, dq, ddq``."""
         n = self.n
-        Y = np.zeros((record.t.shape[0], n, 13 * n))
-        for k in range(record.t.shape[0]):
-            Y[k, :, : 10 * n] = pin.computeJointTorqueRegressor(self.model, self.data, record.q[k], dq[k], ddq[k])
+        Y = np.zeros((q.shape[0], n, 13 * n))
+        for k in range(q.shape[0]):
+            Y[k, :, : 10 * n] = pin.computeJointTorqueRegressor(self.model, self.data, q[k], dq[k], ddq[k])
         rows = np.arange(n)
         Y[:, rows, 10 * n + rows] = dq
         Y[:, rows, 11 * n + rows] = np.sign(dq)
         Y[:, rows, 12 * n + rows] = 1.0
         return Y
 
-    def fit(self, train: Record, validate: Record) -> tuple[float, dict[str, np.ndarray]]:
-        """The cut-off of the smallest total validation MSE and its parameters, per cut-off tried."""
+    @staticmethod
+    def kept(record: Record, cutoff_hz: float) -> np.ndarray:
+        """The samples beyond the filter's settling at each edge, :data:`SETTLING` periods of the cut-off."""
+        trim = SETTLING / cutoff_hz
+        return (record.t >= record.t[0] + trim) & (record.t <= record.t[-1] - trim)
+
+    def fit(self, train: Record, validate: Record) -> tuple[float, np.ndarray]:
+        """The cut-off of the smallest total validation MSE and its parameters. Each cut-off is fitted on the
+        training samples its filter keeps and scored on the same validation samples (those the lowest cut-off
+        keeps); cut-offs whose settling would take more than a tenth of the validation record are not tried."""
         fresh = np.r_[True, np.any(np.diff(train.q, axis=0) != 0, axis=1)]
         rate = 1.0 / float(np.median(np.diff(train.t[fresh])))
+        duration = validate.t[-1] - validate.t[0]
+        cutoffs = [c for c in CUTOFFS_HZ if c < 0.4 * rate and SETTLING / c <= 0.1 * duration]
+        scored = self.kept(validate, min(cutoffs))
         best = None
-        for cutoff in (c for c in CUTOFFS_HZ if c < 0.4 * rate):
-            Y = self.regressor(train, cutoff)
-            theta = np.linalg.lstsq(Y.reshape(-1, Y.shape[2]), train.tau.reshape(-1), rcond=None)[0]
-            error = float(np.mean((validate.tau - self.regressor(validate, cutoff) @ theta) ** 2, axis=0).sum())
+        for cutoff in cutoffs:
+            keep = self.kept(train, cutoff)
+            Y = self.regressor(train, cutoff)[keep]
+            target = filtered_motion(train, cutoff)[3][keep]
+            theta = np.linalg.lstsq(Y.reshape(-1, Y.shape[2]), target.reshape(-1), rcond=None)[0]
+            residual = validate.tau[scored] - (self.regressor(validate, cutoff) @ theta)[scored]
+            error = float(np.mean(residual**2, axis=0).sum())
             if best is None or error < best[0]:
                 best = (error, cutoff, theta)
         return best[1], best[2]
 
-    def predict(self, record: Record, cutoff_hz: float, theta: np.ndarray) -> np.ndarray:
-        return self.regressor(record, cutoff_hz) @ theta
+    def predict(self, record: Record, cutoff_hz: float, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The prediction along ``record`` and the samples it holds (:meth:`kept`)."""
+        return self.regressor(record, cutoff_hz) @ theta, self.kept(record, cutoff_hz)
 
 
 def _quiet(arguments: list[str]) -> int:
@@ -270,11 +320,15 @@ def _at_recorded(t_record: np.ndarray, t_predicted: np.ndarray, predicted: np.nd
     return index, values
 
 
-def compare(case: Case, folder: Path) -> dict:
-    """Per joint test MSE of every model at the recorded samples every toolkit run predicted."""
-    runs = {"default": toolkit(case, folder, "default", []),
-            "consistent": toolkit(case, folder, "consistent", ["--consistent"]),
-            "toolkit OLS": toolkit(case, folder, "ols", ["--method", "ols"])}
+#: the toolkit's runs compared: label, file stem, options
+RUNS = (("default", "default", ()), ("consistent", "consistent", ("--consistent",)),
+        ("toolkit OLS", "ols", ("--method", "ols")))
+
+
+def compare(case: Case, folder: Path, labels: tuple[str, ...] = tuple(run[0] for run in RUNS)) -> dict:
+    """Per joint test MSE of the toolkit's runs ``labels`` and the plain fit at the recorded samples every toolkit
+    run predicted."""
+    runs = {label: toolkit(case, folder, stem, list(options)) for label, stem, options in RUNS if label in labels}
     test = case.records["test"]
     at = {label: None if run is None else _at_recorded(test.t, run["t"], run["predicted"]) for label, run in runs.items()}
     common = None
@@ -282,17 +336,13 @@ def compare(case: Case, folder: Path) -> dict:
         if value is not None:
             common = set(value[0].tolist()) if common is None else common & set(value[0].tolist())
     common = np.array(sorted(common))
-    mse = {}
-    for label, value in at.items():
-        if value is None:
-            mse[label] = None
-            continue
-        index, predicted = value
-        keep = np.isin(index, common)
-        mse[label] = np.mean((test.tau[index[keep]] - predicted[keep]) ** 2, axis=0)
     plain = PlainFit(case.robot)
     cutoff, theta = plain.fit(case.records["train"], case.records["validate"])
-    predicted = plain.predict(test, cutoff, theta)
+    predicted, kept = plain.predict(test, cutoff, theta)
+    common = common[kept[common]]
+    mse = {label: None if value is None else
+           np.mean((test.tau[value[0][np.isin(value[0], common)]] - value[1][np.isin(value[0], common)]) ** 2, axis=0)
+           for label, value in at.items()}
     mse["plain OLS"] = np.mean((test.tau[common] - predicted[common]) ** 2, axis=0)
     default = runs["default"]["result"] if runs["default"] is not None else None
     return {"mse": mse, "cutoff": cutoff, "samples": common.shape[0], "of": test.t.shape[0],
