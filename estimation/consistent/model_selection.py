@@ -375,8 +375,13 @@ def _choose(candidates: tuple[Candidate, ...], given: CandidateName | None, base
         return (base, "no-validation" if ratio is None else "repeated-motion",  # type: ignore[return-value]
                 f"{why}, and {available_reason(candidates)}: the weighting the training record's blocked "
                 "cross-validation prefers is kept")
-    scores = {name: candidate.score for name, candidate in available.items()}
-    best = min(score for score in scores.values() if score is not None and math.isfinite(score))
+    scores = {name: candidate.score for name, candidate in available.items()
+              if candidate.score is not None and math.isfinite(candidate.score)}
+    if not scores:
+        return (base, "validation",  # type: ignore[return-value]
+                "no candidate has a finite validation error: the weighting the training record's blocked "
+                "cross-validation prefers is kept")
+    best = min(scores.values())
     chosen = next(name for name in PREFERENCE if name in scores and scores[name] == best)
     others = ", ".join(f"{name} {score / best:.3g}x" for name, score in scores.items() if name != chosen)
     return chosen, "validation", (f"the smallest validation error on another motion ({CRITERION}; the others: "

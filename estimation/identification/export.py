@@ -130,5 +130,5 @@ def friction_document(model: IdentifiedModel) -> dict[str, Any]:
             if key == "coulomb" and getattr(effect, "smoothing", None) is not None:
                 joints[robot.joint_names[index]]["coulomb_smoothing"] = float(effect.smoothing)
     return {"joints": joints, "effects": others, "laws": dict(LAWS),
-            "delay": model.file.delay, "gravity": np.asarray(robot.gravity, dtype=float).tolist(),
+            "delay": model.delay, "gravity": np.asarray(robot.gravity, dtype=float).tolist(),
             "channels": list(model.channels)}
