@@ -93,7 +93,8 @@ def test_the_exported_urdf_and_friction_reproduce_oed_predict_through_pinocchio(
 def test_an_unconstrained_fit_is_not_exported(consistent_result, tmp_path, capsys):
     _, _, validate = consistent_result
     result = tmp_path / "plain.json"
-    assert main(["identify", "--joints", "3", "--data", str(validate), "--friction", "viscous", "--out", str(result)]) == 0
+    assert main(["identify", "--joints", "3", "--data", str(validate), "--friction", "viscous", "--method", "wls",
+                 "--out", str(result)]) == 0  # an explicit method: no consistent candidate
     urdf = tmp_path / "out.urdf"
     assert main(["export", "--model", str(result), "--urdf", str(urdf)]) == 2
     error = capsys.readouterr().err

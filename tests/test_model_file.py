@@ -57,7 +57,13 @@ def test_predict_reproduces_the_validation_mse_of_a_shaped_fit_with_a_delay(reco
     document, measured = json.loads(result.read_text()), json.loads(metrics.read_text())
     model_file = document["model_file"]
     assert set(model_file["shape"]) == {"vc1", "vc2", "vc3"} and model_file["delay"]["value"] > 0
-    assert _relative(measured["mse"], document["validation"]["mse"]) < 1e-6
+    chosen = document["model_selection"]["chosen"]  # the model the file holds, at its fitted shapes and delay
+    assert _relative(measured["mse"], model_file["reported"]["validation_mse"]) < 1e-6
+    assert _relative(measured["mse"], next(candidate["validation_mse"] for candidate in
+                                           document["model_selection"]["candidates"] if candidate["name"] == chosen)) < 1e-6
+    assert main(["predict", "--model", str(result), "--data", str(validate), "--alternative", "unconstrained",
+                 "--metrics", str(metrics)]) == 0  # the unconstrained fit behind the choice: the top-level errors
+    assert _relative(json.loads(metrics.read_text())["mse"], document["validation"]["mse"]) < 1e-6
     assert measured["n_samples"] > 0 and set(measured["mse_over_floor"]) == {"tau1", "tau2", "tau3"}
     assert all(measured["mse"][c] < measured["nominal_mse"][c] < measured["zero_mse"][c] for c in measured["mse"])
     table = pd.read_csv(predictions)
@@ -91,7 +97,7 @@ def test_the_loaded_model_predicts_as_the_fit_did(records):
     result = folder / "plain.json"
     assert main(["identify", "--joints", "3", "--data", str(train), "--validate", str(validate),
                  "--friction", "viscous,coulomb", "--out", str(result)]) == 0
-    model = IdentifiedModel.load(result)
+    model = IdentifiedModel.load(result, estimate="unconstrained")  # the top-level parameters: the unconstrained fit
     document = json.loads(result.read_text())
     theta = np.array([record["value"] for record in document["parameters"]])
     q, dq, ddq = (np.random.default_rng(0).normal(size=(7, 3)) for _ in range(3))

@@ -215,7 +215,7 @@ def test_export_adds_the_payload_to_its_links_body(puma, tmp_path):
         document["consistent"] = {"links": puma["theta"][:60].reshape(6, 10).tolist(), "effects": {},
                                   "theta": document["theta"], "cov": document["cov"], "validation_mse": None}
         urdf = tmp_path / f"exported{len(exported)}.urdf"
-        urdf.write_text(exported_urdf(IdentifiedModel(ModelFile.from_dict(document))))
+        urdf.write_text(exported_urdf(IdentifiedModel(ModelFile.from_dict(document), estimate="consistent")))
         exported.append(load(urdf=urdf))
     without, with_payload = exported
     assert np.allclose(with_payload.joints[4].inertial, without.joints[4].inertial)

@@ -23,13 +23,15 @@ The shaped laws (:mod:`dynamics.effects.shaped`) are written at their fitted sha
 velocity, ``sigmoid`` and ``ripple`` with their shape parameters.
 A payload the model file carries (``oed payload``) is added to its link's body (the sum of two rigid bodies in
 one frame is the sum of their standard parameters), in the URDF and the MJCF.
-Only a consistent estimate is exported: base parameters alone do not determine the bodies (a base
+Only a consistent estimate is exported (:func:`exported_model`: the chosen model when it is one, else the
+file's consistent alternative, named): base parameters alone do not determine the bodies (a base
 parameter is a sum of standard ones, and a body of unconstrained values need not be a real one).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -39,10 +41,11 @@ from dynamics.effects.specs import effect_spec
 from dynamics.mjcf_export import robot_mjcf
 from dynamics.urdf_export import robot_urdf, urdf_with_inertials
 from estimation.identification.identified_model import IdentifiedModel
+from estimation.identification.model_file import read_model_file
 from estimation.identification.plausibility import link_findings
 
-__all__ = ["LAWS", "SHAPED_ENTRIES", "ExportError", "MjcfExport", "exported_mjcf", "exported_urdf", "friction_document",
-           "implausible_links"]
+__all__ = ["LAWS", "SHAPED_ENTRIES", "ExportError", "MjcfExport", "exported_mjcf", "exported_model", "exported_urdf",
+           "friction_document", "implausible_links"]
 
 #: the per-joint laws friction.json names, as formulas of the joint's motion
 LAWS = {
@@ -74,6 +77,32 @@ def _check_consistent(model: IdentifiedModel) -> None:
         raise ExportError("this model holds base parameters only (an unconstrained fit): they do not determine the "
                           "bodies' masses, centres of mass and inertias, and unconstrained values need not be a real "
                           "body; identify with `oed identify --consistent` and export that result")
+    if model.estimate != "consistent":
+        raise ExportError(f"the model {model.estimate!r} holds base parameters only (an unconstrained fit): only the "
+                          "physically consistent one ('consistent') has bodies to export")
+
+
+def exported_model(path: str | Path, *, alternative: str | None = None) -> tuple[IdentifiedModel, str | None]:
+    """The model ``oed export`` writes from the result file ``path``, and a note when it is not the chosen one.
+
+    The chosen model when it is physically consistent; else the file's consistent alternative, named in the
+    note; ``alternative``: that model, which must be the consistent one. :class:`ExportError` when there is none.
+    """
+    model_file = read_model_file(path)
+    if alternative is not None:
+        model = IdentifiedModel(model_file, estimate=alternative)
+        _check_consistent(model)
+        return model, None
+    chosen = model_file.chosen or "unconstrained"
+    if chosen == "consistent":
+        return IdentifiedModel(model_file), None
+    if model_file.consistent_links is None:
+        model = IdentifiedModel(model_file)
+        _check_consistent(model)
+    note = (f"the chosen model ({chosen}) holds base parameters only, which do not determine bodies: wrote its "
+            "physically consistent alternative 'consistent' instead (oed predict --alternative consistent predicts "
+            "with it)")
+    return IdentifiedModel(model_file, estimate="consistent"), note
 
 
 def implausible_links(model: IdentifiedModel) -> tuple[str, ...]:
@@ -164,7 +193,7 @@ def friction_document(model: IdentifiedModel) -> dict[str, Any]:
             if key == "coulomb" and getattr(effect, "smoothing", None) is not None:
                 joints[robot.joint_names[index]]["coulomb_smoothing"] = float(effect.smoothing)
     return {"joints": joints, "effects": others, "laws": dict(LAWS),
-            "delay": model.file.delay, "gravity": np.asarray(robot.gravity, dtype=float).tolist(),
+            "delay": model.delay, "gravity": np.asarray(robot.gravity, dtype=float).tolist(),
             "channels": list(model.channels)}
 
 

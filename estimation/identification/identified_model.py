@@ -23,10 +23,10 @@ from __future__ import annotations
 
 import dataclasses
 import warnings
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -48,9 +48,8 @@ from estimation.preprocessing.delay import delayed
 from estimation.preprocessing.plan import Preprocessing, check_frequency, prepare
 from estimation.uncertainty.noise_floor import NoiseFloorError, noise_floor, pooled_floor
 
-__all__ = ["Z_95", "Evaluation", "IdentifiedModel", "Prediction", "preprocessing_from_dict"]
+__all__ = ["Z_95", "Evaluation", "IdentifiedModel", "Prediction", "alternative_names", "preprocessing_from_dict"]
 
-Estimate = Literal["unconstrained", "consistent"]
 #: the two-sided 95 % quantile of the normal distribution
 Z_95 = 1.959963984540054
 
@@ -67,6 +66,55 @@ def preprocessing_from_dict(document: dict[str, Any] | None) -> Preprocessing:
     if "velocity_from_positions" in document:
         fields["velocity_from_positions"] = bool(document["velocity_from_positions"])
     return Preprocessing(**fields)
+
+
+@dataclass(frozen=True)
+class _Entry:
+    """One model of a model file: the file's own or one of its alternatives."""
+
+    theta: Any
+    cov: Any
+    shape: Mapping[str, float]
+    delay: float | None
+    band_variance: NDArray[np.float64]
+    validation_mse: Mapping[str, float] | None
+
+
+def alternative_names(model_file: ModelFile) -> tuple[str, ...]:
+    """The names ``--alternative`` takes for ``model_file``: its chosen model's, its alternatives', and
+    ``consistent`` for a file with a consistent fit."""
+    names = ([model_file.chosen] if model_file.chosen else []) + list(model_file.alternatives)
+    if model_file.consistent_theta is not None and "consistent" not in names:
+        names.append("consistent")
+    return tuple(dict.fromkeys(names))
+
+
+def _selected(model_file: ModelFile, name: str | None) -> tuple[str, _Entry]:
+    """``(name, entry)`` of the model called ``name`` in ``model_file`` (``None``: the chosen one)."""
+    chosen = model_file.chosen or "unconstrained"
+    if name == "unconstrained":  # the unconstrained fit behind the choice (the consistent fit's start)
+        name = chosen if chosen != "consistent" else model_file.method
+    if name is None or name == chosen:
+        return chosen, _Entry(model_file.theta, model_file.cov, model_file.shape, model_file.delay,
+                              model_file.band_variance, model_file.reported_validation_mse)
+    if name in model_file.alternatives:
+        entry = model_file.alternatives[name]
+        try:
+            channels = model_file.channels
+            recorded = entry.get("recorded_variance") or entry["channel_variance"]
+            delay = entry.get("delay")
+            return name, _Entry(np.asarray(entry["theta"], dtype=float), np.asarray(entry["cov"], dtype=float),
+                                dict(entry.get("shape") or {}), None if delay is None else float(delay["value"]),
+                                np.array([recorded[c] for c in channels], dtype=float), entry.get("validation_mse"))
+        except (KeyError, TypeError) as error:
+            raise ModelFileError(f"the model file's alternative {name!r} lacks or garbles {error}") from None
+    if name == "consistent" and model_file.consistent_theta is not None:  # a file of an earlier release
+        return name, _Entry(model_file.consistent_theta, model_file.consistent_cov, model_file.shape, model_file.delay,
+                            model_file.band_variance, model_file.consistent_validation_mse)
+    if name == "consistent":
+        raise ModelFileError("the model file holds no physically consistent estimate: identify with "
+                             "`oed identify --consistent`")
+    raise ModelFileError(f"the model file holds no model {name!r}; it holds: {', '.join(alternative_names(model_file))}")
 
 
 @dataclass(frozen=True)
@@ -118,6 +166,8 @@ class Evaluation:
     nominal_mse: dict[str, float]
     floor_mse: dict[str, float] | None
     reported_validation_mse: dict[str, float] | None
+    #: the name of the model that predicted (the chosen one's, or an alternative's)
+    model: str | None = None
 
     @property
     def mse_over_floor(self) -> dict[str, float] | None:
@@ -130,22 +180,19 @@ class Evaluation:
         return {"mse": self.prediction.mse, "mse_over_floor": self.mse_over_floor,
                 "n_samples": int(self.prediction.t.shape[0]), "zero_mse": self.zero_mse,
                 "nominal_mse": self.nominal_mse, "noise_floor_mse": self.floor_mse,
-                "reported_validation_mse": self.reported_validation_mse}
+                "reported_validation_mse": self.reported_validation_mse, "model": self.model}
 
 
 class IdentifiedModel:
     """An identified model rebuilt from its :class:`~estimation.identification.model_file.ModelFile`."""
 
-    def __init__(self, model_file: ModelFile, *, estimate: Estimate = "unconstrained") -> None:
+    def __init__(self, model_file: ModelFile, *, estimate: str | None = None) -> None:
         if not isinstance(model_file, ModelFile):
             raise TypeError(f"model_file must be a ModelFile, got {type(model_file).__name__}")
-        if estimate not in ("unconstrained", "consistent"):
-            raise ValueError(f"estimate must be 'unconstrained' or 'consistent', got {estimate!r}")
-        if estimate == "consistent" and model_file.consistent_theta is None:
-            raise ModelFileError("the model file holds no physically consistent estimate: identify with "
-                                 "`oed identify --consistent`")
-        self.estimate = estimate
+        if estimate is not None and not isinstance(estimate, str):
+            raise TypeError(f"estimate must be a name or None, got {type(estimate).__name__}")
         self.file = model_file
+        self.estimate, entry = _selected(model_file, estimate)
         self.robot = model_file.robot.load()
         if list(self.robot.joint_names) != list(model_file.joint_names):
             raise ModelFileError(f"the robot's joints {self.robot.joint_names} are not the model's "
@@ -158,12 +205,15 @@ class IdentifiedModel:
         if tuple(self.model.base.names) != tuple(model_file.names):
             raise ModelFileError("the model rebuilt from the file has other base parameters than it was identified "
                                  f"with ({list(self.model.base.names)[:5]}… against {list(model_file.names)[:5]}…)")
-        consistent = estimate == "consistent"
-        self.theta = np.asarray(model_file.consistent_theta if consistent else model_file.theta, dtype=float)
-        self.cov = np.asarray(model_file.consistent_cov if consistent else model_file.cov, dtype=float)
+        self.theta = np.asarray(entry.theta, dtype=float)
+        self.cov = np.asarray(entry.cov, dtype=float).reshape(self.theta.shape[0], -1)
+        self.shape: dict[str, float] = dict(entry.shape)
+        self.delay: float | None = entry.delay
+        self.band_variance = entry.band_variance
+        self._reported = entry.validation_mse
         self._blocks, self._replaced = shaped_blocks(self.model) if self._shaped else ([], [])
         missing = [parameter.name for block in self._blocks for parameter in block.parameters
-                   if parameter.name not in model_file.shape]
+                   if parameter.name not in self.shape]
         if missing:
             raise ModelFileError(f"the model file lacks the fitted shape parameters {missing}")
         self.payload_link: int | None = None  # 1-based index of the payload's link
@@ -178,17 +228,16 @@ class IdentifiedModel:
             self.payload_cov = np.asarray(model_file.payload["cov"], dtype=float)
 
     @classmethod
-    def load(cls, path: str | Path, *, estimate: Estimate = "unconstrained") -> IdentifiedModel:
-        """The model of a ``result.json`` (``oed identify``) or ``report.json`` (``oed diagnose``);
-        ``estimate="consistent"``: its physically consistent estimate (``oed identify --consistent``)."""
+    def load(cls, path: str | Path, *, estimate: str | None = None) -> IdentifiedModel:
+        """The model of a ``result.json`` (``oed identify``) or ``report.json`` (``oed diagnose``): the one the
+        verb chose, or the alternative named ``estimate`` (``ols``, ``wls``, ``consistent``; ``unconstrained``:
+        the unconstrained fit behind the choice; :func:`alternative_names` lists them)."""
         return cls(read_model_file(path), estimate=estimate)
 
     @property
     def reported_validation_mse(self) -> dict[str, float] | None:
         """The validation MSE the identification reported for this estimate."""
-        reported = self.file.consistent_validation_mse if self.estimate == "consistent" \
-            else self.file.reported_validation_mse
-        return None if reported is None else dict(reported)
+        return None if self._reported is None else dict(self._reported)
 
     @property
     def _shaped(self) -> bool:
@@ -216,7 +265,7 @@ class IdentifiedModel:
         states = States(q, dq, ddq)
         position = 0
         for block in self._blocks:
-            shape = np.array([self.file.shape[parameter.name] for parameter in block.parameters])
+            shape = np.array([self.shape[parameter.name] for parameter in block.parameters])
             columns = block.evaluate(states, shape)
             indices = list(self._replaced[position:position + block.n_linear])
             position += block.n_linear
@@ -255,7 +304,7 @@ class IdentifiedModel:
         if self.payload_link is not None:
             Y = self.link_columns(self.payload_link, q, dq, ddq)
             variance += np.einsum("nmr,rs,nms->nm", Y, self.payload_cov, Y, optimize=True)
-        return z * np.sqrt(np.clip(variance, 0.0, None) + self.file.band_variance[None, :])
+        return z * np.sqrt(np.clip(variance, 0.0, None) + self.band_variance[None, :])
 
     def predict_record(self, measurements: Measurements) -> Prediction:
         """The prediction along a prepared record (``q, dq, ddq`` present), its motion moved by the fitted
@@ -263,8 +312,8 @@ class IdentifiedModel:
         if measurements.dq is None or measurements.ddq is None:
             raise ValueError("the record lacks dq/ddq: prepare it first (IdentifiedModel.prepare, or "
                              "estimation.preprocessing.plan.prepare)")
-        if self.file.delay is not None:
-            measurements = delayed(measurements, self.file.delay)
+        if self.delay is not None:
+            measurements = delayed(measurements, self.delay)
         record = measurements.as_recorded
         predicted = self.predict(record.q, record.dq, record.ddq)
         half = self.interval(record.q, record.dq, record.ddq)
@@ -317,4 +366,4 @@ class IdentifiedModel:
         trivial = trivial_mse(self.model, prepared)
         return Evaluation(self.predict_record(prepared), trivial["zero_mse"], trivial["nominal_mse"],
                           self.floor(segments),
-                          self.reported_validation_mse)
+                          self.reported_validation_mse, self.estimate)

@@ -21,11 +21,18 @@
         "preprocessing": {method, frequency_hz | cutoff_hz, …},
         "rest": {"min_speed": 0.05, "rest": "drop"} | null, "max_gap": 0.05,
         "reported": {"validation_mse": {channel: value} | null},
-        "consistent": {"links": [[m, mx, …, Izz], …], "effects": {"fv1": …},   # oed identify --consistent
+        "consistent": {"links": [[m, mx, …, Izz], …], "effects": {"fv1": …},   # the consistent fit, when made
                        "theta": […], "cov": [[…]],                          # its base parameters
                        "validation_mse": {channel: value} | null} | null,
+        "chosen": "wls" | "ols" | "consistent" | null,       # the model above (oed identify's choice; null: unnamed)
+        "alternatives": {NAME: {"theta", "cov", "method", "channel_variance", "weights", "recorded_variance",
+                                "validation_mse", "shape", "shape_std", "delay", "effect_values"}},
         "payload": {"link": "joint6", "link_index": 6,                        # oed payload: a rigid body fixed
                     "parameters": [m, mx, …, Izz], "cov": [[…]]}}            # to that link (absent: none)
+
+``theta``, ``cov`` and the keys beside them are the model the identification chose
+(:mod:`estimation.consistent.model_selection`); the other candidates stay as named ``alternatives``, each
+with what predicting with it needs (``oed predict --alternative NAME``).
 
 The model's prediction along a motion is ``Y_b(q, q̇, q̈; s) θ`` with the shaped columns at the
 fitted shapes ``s`` (:mod:`estimation.identification.shaped`), along the motion moved by the delay
@@ -58,8 +65,9 @@ from dynamics.robot import RobotModel
 from dynamics.robots import load_robot
 from estimation.identification.fit import IdentificationResult
 
-__all__ = ["FORMAT", "MAX_EMBEDDED_URDF_BYTES", "ModelFile", "ModelFileError", "RobotSource", "effect_entries",
-           "model_file_document", "read_model_file", "summed_model_file_document"]
+__all__ = ["FORMAT", "MAX_EMBEDDED_URDF_BYTES", "MODEL_KEYS", "ModelFile", "ModelFileError", "RobotSource",
+           "alternative_entry", "effect_entries", "model_file_document", "read_model_file", "summed_model_file_document",
+           "with_model"]
 
 FORMAT = "robot-oed identified model"
 VERSION = 1
@@ -179,6 +187,8 @@ class ModelFile:
     consistent_cov: NDArray[np.float64] | None = None
     consistent_validation_mse: Mapping[str, float] | None = None
     payload: Mapping[str, Any] | None = None
+    chosen: str | None = None
+    alternatives: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
 
     @property
     def band_variance(self) -> NDArray[np.float64]:
@@ -214,6 +224,8 @@ class ModelFile:
                 "cov": None if self.consistent_cov is None else self.consistent_cov.tolist(),
                 "validation_mse": None if self.consistent_validation_mse is None
                 else dict(self.consistent_validation_mse)},
+            "chosen": self.chosen,
+            "alternatives": {name: dict(entry) for name, entry in self.alternatives.items()},
         }
         if self.payload is not None:  # written only when there is one: files without it stay as they were
             document["payload"] = dict(self.payload)
@@ -257,6 +269,7 @@ class ModelFile:
                 recorded_variance=None if document.get("recorded_variance") is None
                 else np.array([document["recorded_variance"][c] for c in channels], dtype=float),
                 payload=_payload(document.get("payload")),
+                chosen=document.get("chosen"), alternatives=dict(document.get("alternatives") or {}),
             )
         except (KeyError, TypeError) as error:
             raise ModelFileError(f"the model file lacks or garbles {error}") from None
@@ -380,6 +393,26 @@ def model_file_document(result: IdentificationResult, *, robot: RobotSource, pre
         recorded_variance=np.array([result.train.mse[channel] for channel in model.channels]),
     )
     return document.to_dict()
+
+
+#: the keys of a model file that make one model: what an alternative holds
+MODEL_KEYS = ("theta", "cov", "method", "channel_variance", "weights", "recorded_variance", "shape", "shape_std",
+              "delay", "effect_values")
+
+
+def alternative_entry(document: Mapping[str, Any]) -> dict[str, Any]:
+    """The ``alternatives`` entry of the model of a ``model_file`` document: its :data:`MODEL_KEYS` and
+    ``validation_mse`` (the validation MSE reported for it)."""
+    return {**{key: document.get(key) for key in MODEL_KEYS},
+            "validation_mse": (document.get("reported") or {}).get("validation_mse")}
+
+
+def with_model(document: Mapping[str, Any], entry: Mapping[str, Any]) -> dict[str, Any]:
+    """``document`` with its model (:data:`MODEL_KEYS`, the reported validation MSE) replaced by ``entry``'s."""
+    replaced = dict(document)
+    replaced.update({key: entry.get(key) for key in MODEL_KEYS})
+    replaced["reported"] = {"validation_mse": entry.get("validation_mse")}
+    return replaced
 
 
 def read_model_file(path: str | Path) -> ModelFile:

@@ -29,6 +29,9 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
                              "(Coulomb), gravity; what MuJoCo cannot express is listed in a comment and here")
     parser.add_argument("--friction", dest="friction_out", type=Path, metavar="JSON",
                         help="friction.json to write: per joint viscous, coulomb, offset, armature…, other effects")
+    parser.add_argument("--alternative", metavar="NAME",
+                        help="export the alternative model NAME of the file (only 'consistent' has bodies); default: "
+                             "the chosen model when it is physically consistent, else the consistent alternative")
     parser.add_argument("--allow-implausible", action="store_true",
                         help="write the files even when a body is not plausible (each named on stderr); without it "
                              "such a model is refused (exit 2, nothing written)")
@@ -58,7 +61,8 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError(f"--mjcf {args.mjcf_out}: give an .xml file name")
     if args.friction_out is not None:
         check_json_path(args.friction_out, "--friction")
-    result = export(model=args.model, allow_implausible=args.allow_implausible, mjcf=args.mjcf_out is not None)
+    result = export(model=args.model, allow_implausible=args.allow_implausible, mjcf=args.mjcf_out is not None,
+                    alternative=args.alternative)
     result.write(args.urdf_out, mjcf=args.mjcf_out, friction=args.friction_out)
     print_warnings("export", result.warnings)
     print_lines(result.summary())

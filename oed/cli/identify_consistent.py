@@ -10,8 +10,10 @@ from estimation.consistent.identification import DEFAULT_PRIOR_WEIGHT, PRIOR_WEI
 def add_consistent_arguments(parser: argparse.ArgumentParser) -> None:
     group = parser.add_argument_group("physical consistency")
     group.add_argument("--consistent", action="store_true",
-                       help="also fit every link as a real rigid body and friction/armature >= 0 (log-Cholesky map, "
-                            "IPOPT); adds links and consistent to the result")
+                       help="choose the physically consistent fit (every link a real rigid body, friction/armature >= 0; "
+                            "log-Cholesky map, IPOPT) whatever the validation error says; without it the consistent "
+                            "fit is a candidate of oed identify's default choice (model_selection in the result); "
+                            "oed diagnose: refit the adopted model consistently")
     group.add_argument("--prior-weight", type=prior_weight, default=None, metavar="W",
                        help="with --consistent: weight of the log-det prior towards the nominal bodies (URDF/DH, or "
                             "--prior), in units of half a chi-square (0: none); 'auto': the largest of "

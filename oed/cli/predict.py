@@ -26,9 +26,13 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
                         help="the record (.csv or .parquet, a ROS bag, .npz or .mat); repeat for several segments "
                              "of one record")
     add_log_arguments(parser)
+    parser.add_argument("--alternative", metavar="NAME",
+                        help="predict with the alternative model NAME the file holds beside the chosen one (ols, wls, "
+                             "consistent; unconstrained: the unconstrained fit behind the choice); default: the model "
+                             "the verb chose (model_selection.chosen)")
     parser.add_argument("--consistent", action="store_true",
-                        help="predict with the physically consistent estimate (oed identify --consistent) rather than "
-                             "the unconstrained one; what `oed export` writes")
+                        help="the same as --alternative consistent: the physically consistent estimate, what "
+                             "`oed export` writes")
     parser.add_argument("--out", type=Path, help="predictions CSV: t, each channel, and its _lo/_hi 95 %% band")
     parser.add_argument("--metrics", type=Path, help="metrics JSON: mse, mse_over_floor, n_samples, zero_mse, "
                                                      "nominal_mse, noise_floor_mse, reported_validation_mse")
@@ -54,7 +58,8 @@ def run(args: argparse.Namespace) -> int:
         check_csv_path(args.out)
     if args.metrics is not None:
         check_json_path(args.metrics, "--metrics")
-    result = predict(model=args.model, data=args.data, consistent=args.consistent, topic=args.topic,
+    result = predict(model=args.model, data=args.data, consistent=args.consistent, alternative=args.alternative,
+                     topic=args.topic,
                      columns=args.columns)
     print_warnings("predict", result.warnings)
     result.write(out=args.out, metrics=args.metrics)

@@ -132,7 +132,7 @@ def model_jacobian(model: IdentifiedModel, noise_std: NDArray[np.float64] | None
         position += block.n_linear
     regressor = casadi.horzcat(*columns)
     theta = casadi.DM(np.asarray(model.theta, dtype=float))
-    shape_values = np.array([model.file.shape[name] for name in shape_names], dtype=float)
+    shape_values = np.array([model.shape[name] for name in shape_names], dtype=float)
     predicted = casadi.mtimes(regressor, theta)
     jacobian = casadi.horzcat(regressor, casadi.jacobian(predicted, shape))
     noise_std = np.sqrt(variance)

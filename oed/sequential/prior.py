@@ -90,7 +90,7 @@ def read_records(model: IdentifiedModel, paths: Sequence[str | Path]) -> Measure
         raise SequentialDesignError(f"the records do not match the model ({model.robot.name}, joints "
                                     f"{', '.join(model.file.joint_names)}): {error}") from None
     prepared = model.prepare(segments)
-    return prepared if model.file.delay is None else delayed(prepared, model.file.delay)
+    return prepared if model.delay is None else delayed(prepared, model.delay)
 
 
 def prior_information(jacobian: ModelJacobian, records: Measurements) -> PriorInformation:

@@ -17,9 +17,10 @@ from estimation.consistent.identification import (
     load_link_bounds,
     load_prior,
 )
+from estimation.consistent.model_selection import ConsistentSettings
 
 __all__ = ["DEFAULT_PRIOR_WEIGHT", "PRIOR_WEIGHT_GRID", "PRIOR_WEIGHT_TOLERANCE", "check_consistent_arguments",
-           "consistent_lines", "consistent_refit"]
+           "consistent_lines", "consistent_refit", "consistent_settings"]
 
 
 def check_consistent_arguments(args: Any) -> None:
@@ -48,6 +49,15 @@ def consistent_refit(args: Any, result, train, validation) -> ConsistentResult |
     bounds = None if args.link_bounds is None else load_link_bounds(args.link_bounds, robot)
     return consistent_fit(result, train, validation, prior_weight=args.prior_weight, prior=prior,
                           prior_source=args.prior or "robot description", bounds=bounds)
+
+
+def consistent_settings(args: Any, robot: Any) -> ConsistentSettings:
+    """How the consistent candidate of the default choice is fitted: ``prior_weight``, ``prior``, ``link_bounds``
+    (:class:`estimation.consistent.model_selection.ConsistentSettings`)."""
+    return ConsistentSettings(prior_weight=args.prior_weight,
+                              prior=None if args.prior is None else load_prior(args.prior, robot),
+                              prior_source=args.prior or "robot description",
+                              bounds=None if args.link_bounds is None else load_link_bounds(args.link_bounds, robot))
 
 
 def consistent_lines(consistent: ConsistentResult | None) -> list[str]:

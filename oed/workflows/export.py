@@ -13,8 +13,14 @@ from pathlib import Path
 from typing import Any
 
 from dynamics.runtime.output_files import OutputFiles, json_text
-from estimation.identification.export import MjcfExport, exported_mjcf, exported_urdf, friction_document, implausible_links
-from estimation.identification.identified_model import IdentifiedModel
+from estimation.identification.export import (
+    MjcfExport,
+    exported_mjcf,
+    exported_model,
+    exported_urdf,
+    friction_document,
+    implausible_links,
+)
 
 __all__ = ["ExportRun", "export"]
 
@@ -29,11 +35,14 @@ class ExportRun:
     findings: tuple[str, ...]
     lines: tuple[str, ...]
     mjcf: MjcfExport | None = field(default=None, repr=False)
+    note: str | None = None
 
     @property
     def warnings(self) -> tuple[str, ...]:
-        """The warnings ``oed export`` prints: each implausible body exported as asked."""
-        return tuple(f"exported as asked (--allow-implausible), not plausible: {message}" for message in self.findings)
+        """The warnings ``oed export`` prints: the model written when it is not the chosen one (``note``), and each
+        implausible body exported as asked."""
+        return (*(() if self.note is None else (self.note,)),
+                *(f"exported as asked (--allow-implausible), not plausible: {message}" for message in self.findings))
 
     def to_dict(self) -> dict[str, Any]:
         """The friction JSON (``--friction``): per joint viscous, coulomb, offset, armature…, other effects."""
@@ -62,13 +71,14 @@ class ExportRun:
                     stream.write(json_text(document))
 
 
-def export(*, model: str | Path, allow_implausible: bool = False, mjcf: bool = False) -> ExportRun:
+def export(*, model: str | Path, allow_implausible: bool = False, mjcf: bool = False,
+           alternative: str | None = None) -> ExportRun:
     """``oed export``: the consistent estimate of ``model`` (a result.json of ``oed identify --consistent``) as the
     robot's URDF with every moving link's <inertial> replaced, and with ``mjcf`` as MuJoCo's MJCF (bodies, armature,
     damping, frictionloss, gravity; what MuJoCo cannot express listed in ``ExportRun.mjcf.notes`` and a comment). Raises ``ValueError`` when a body is not plausible
     (degenerate, a mass ten times the description's or a tenth of it, a centre of mass beyond twice the link's
     reach), unless ``allow_implausible``."""
-    identified = IdentifiedModel.load(Path(model))  # exported_urdf refuses a model without a consistent estimate
+    identified, note = exported_model(Path(model), alternative=alternative)  # refuses a model without bodies
     text = exported_urdf(identified)
     findings = implausible_links(identified)
     if findings and not allow_implausible:
@@ -80,4 +90,4 @@ def export(*, model: str | Path, allow_implausible: bool = False, mjcf: bool = F
     line = f"{identified.robot.name}: {identified.robot.n_joints} bodies of the consistent estimate (masses {masses} kg)"
     mujoco = exported_mjcf(identified) if mjcf else None
     lines = (line, *(f"not expressed in MuJoCo (listed in the MJCF): {note}" for note in (mujoco.notes if mujoco else ())))
-    return ExportRun(text, identified, tuple(findings), lines, mujoco)
+    return ExportRun(text, identified, tuple(findings), lines, mujoco, note)

@@ -24,7 +24,6 @@ from estimation.data.log_cleaning import DEFAULT_MAX_GAP
 from estimation.diagnosis.statistics import ResidualReport, residual_report
 from estimation.estimators.normal_equations import DEFAULT_CHUNK_SIZE
 from estimation.identification.fit import IdentificationResult
-from estimation.identification.fit import identify as identify_model
 from estimation.identification.prepared import InMemoryBudget, PreparedRecords, prepare_records
 from estimation.identification.preprocessing_choice import ChoiceWindow
 from estimation.identification.repeated_motion import repeated_motion_note
@@ -44,7 +43,8 @@ from oed.workflows.asbuilt import (
     rest_records,
     trivial_predictors,
 )
-from oed.workflows.consistent import check_consistent_arguments, consistent_lines, consistent_refit
+from estimation.consistent.model_selection import select_model
+from oed.workflows.consistent import check_consistent_arguments, consistent_lines, consistent_settings
 from oed.workflows.memory_path import decide_path, streamed_choice
 from oed.workflows.model_files import add_model_file, add_summed_model_file
 from oed.workflows.options import (
@@ -314,14 +314,16 @@ def identify_in_memory(args: IdentifyOptions, robot: RobotModel, model: Identifi
         weighting = choose_weighting(model, weighting_samples(ChoiceWindow.of(records.train.segments),
                                                               records.preprocessing, train)) \
             if args.method == "auto" and delay is None and not model_has_shapes(model) else None
-        method = args.method if weighting is None else weighting.method
-        result = identify_model(model, train, validation, weighted=method != "ols", delay=delay)
+        base = weighting.method if weighting is not None else "ols" if args.method == "ols" else "wls"
+        given = "consistent" if args.consistent else None if args.method == "auto" else args.method
+        selection = select_model(model, train, validation, base=base, given=given, delay=delay,
+                                 consistent=consistent_settings(args, robot))
+        result, consistent = selection.unconstrained, selection.consistent
         trivial, notes = trivial_predictors(result, validation)
         floor_report = None if validation is None else floor_check(records, model, result, args.frequency)
         notes = (*notes, *above_floor_notes(floor_report))
         repeat = None if validation is None else repeated_motion_note(train, validation)
         notes = notes if repeat is None else (*notes, repeat)
-        consistent = consistent_refit(args, result, train, validation)  # None without --consistent
     messages = caught_messages(caught) + list(notes)
     rest = rest_records(records)
     document = finish_document(result.to_dict(), result, trivial=trivial, warnings=notes, rest=rest,
@@ -330,12 +332,17 @@ def identify_in_memory(args: IdentifyOptions, robot: RobotModel, model: Identifi
         document.update(consistent.to_dict())
     if weighting is not None:
         document["method_selection"] = weighting.to_dict()
-    messages += add_model_file(document, result, args, records.preprocessing, transmission, consistent=consistent)
+    document["model_selection"] = selection.to_dict()
+    messages += add_model_file(document, result, args, records.preprocessing, transmission, consistent=consistent,
+                               selection=selection)
     if floor_report is not None and document.get("validation") is not None:
         document["validation"]["mse_over_floor"] = floor_report.ratios("after") or None
         document["noise_floor"] = None if floor_report.floor is None else {
             "mse": floor_report.floor.mse(), "method": floor_report.floor.method, "note": floor_report.floor_note}
-    lines = summary_lines(robot, model, result, records.preprocessing, train.n_samples, rest) + consistent_lines(consistent)
+    lines = summary_lines(robot, model, result, records.preprocessing, train.n_samples, rest)
+    if consistent is not None and (args.consistent or selection.chosen == "consistent"):
+        lines += consistent_lines(consistent)
+    lines += selection.lines()
     return IdentifyRun(document, tuple(lines), tuple(messages), result, streamed=False,
                        title=f"{robot.name}: {model.kind.value} model ({result.estimate.method})")
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from estimation.consistent.model_selection import selection_model_file
 from estimation.identification.fit import IdentificationResult
 from estimation.identification.model_file import RobotSource, model_file_document, summed_model_file_document
 from estimation.identification.plausibility import assess_plausibility, link_findings
@@ -34,20 +35,26 @@ def add_runner_up_model_file(document: dict[str, Any], runner_up: Any, args: Rec
 
 
 def add_model_file(document: dict[str, Any], result: IdentificationResult, args: RecordOptions, preprocessing: Any,
-                   transmission: Any, *, consistent: Any = None) -> tuple[str, ...]:
+                   transmission: Any, *, consistent: Any = None, selection: Any = None) -> tuple[str, ...]:
     """Put ``model_file`` (what ``oed predict`` and ``oed export`` read) and ``plausibility`` into
     ``document``, in place; return the plausibility warnings.
 
     ``preprocessing``: the :class:`estimation.preprocessing.plan.Preprocessing` chosen on the training data;
-    ``consistent``: the :class:`estimation.consistent.identification.ConsistentResult` of ``--consistent``, or ``None``.
+    ``consistent``: the :class:`estimation.consistent.identification.ConsistentResult` of a consistent fit, or
+    ``None``; ``selection``: the :class:`estimation.consistent.model_selection.ModelSelection` whose chosen model
+    the file holds (its other candidates as alternatives), or ``None`` (``result`` is the model).
     """
     robot = robot_source(result.model.robot, args)
     rest = rest_document(args)
-    document["model_file"] = model_file_document(result, robot=robot, preprocessing=preprocessing.to_dict(),
-                                                 transmission=transmission, rest=rest, max_gap=args.max_gap,
-                                                 consistent=None if consistent is None else consistent.estimate,
-                                                 consistent_validation_mse=None if consistent is None
-                                                 or consistent.validation is None else consistent.validation.mse)
+    if selection is not None:
+        document["model_file"] = selection_model_file(selection, robot=robot, preprocessing=preprocessing.to_dict(),
+                                                      transmission=transmission, rest=rest, max_gap=args.max_gap)
+    else:
+        document["model_file"] = model_file_document(
+            result, robot=robot, preprocessing=preprocessing.to_dict(), transmission=transmission, rest=rest,
+            max_gap=args.max_gap, consistent=None if consistent is None else consistent.estimate,
+            consistent_validation_mse=None if consistent is None or consistent.validation is None
+            else consistent.validation.mse)
     validation = document.get("validation") or {}
     plausibility = assess_plausibility(result.model, result.estimate.records(),
                                        validation_mse=None if result.validation is None else result.validation.mse,

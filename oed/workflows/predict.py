@@ -56,12 +56,16 @@ class PredictRun:
                     stream.write(json_text(self.evaluation.to_dict()))
 
 
-def predict(*, model: str | Path, data: Any, consistent: bool = False, topic: str = DEFAULT_TOPIC,
-            columns: dict[str, str] | None = None) -> PredictRun:
+def predict(*, model: str | Path, data: Any, consistent: bool = False, alternative: str | None = None,
+            topic: str = DEFAULT_TOPIC, columns: dict[str, str] | None = None) -> PredictRun:
     """``oed predict``: the model of ``model`` (a result.json or report.json) on the record ``data`` (a path or
     the list of its segments; a ROS bag read on ``topic``, an ``.npz`` or ``.mat`` file, any with the column map
-    ``columns``); ``consistent``: the physically consistent estimate (what ``oed export`` writes)."""
-    identified = IdentifiedModel.load(Path(model), estimate="consistent" if consistent else "unconstrained")
+    ``columns``): the model the verb chose, or the ``alternative`` the file holds beside it (``ols``, ``wls``,
+    ``consistent``; ``unconstrained``: the unconstrained fit behind the choice); ``consistent``: the same as
+    ``alternative="consistent"`` (the physically consistent estimate, what ``oed export`` writes)."""
+    if consistent and alternative not in (None, "consistent"):
+        raise ValueError(f"--consistent is --alternative consistent: not with --alternative {alternative}")
+    identified = IdentifiedModel.load(Path(model), estimate="consistent" if consistent else alternative)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         evaluation = identified.evaluate(list(log_sources(paths(data), topic, columns)))
@@ -69,9 +73,9 @@ def predict(*, model: str | Path, data: Any, consistent: bool = False, topic: st
     notes = trivial_warnings(prediction.mse, {"zero_mse": evaluation.zero_mse, "nominal_mse": evaluation.nominal_mse},
                              label="model")
     messages = tuple(dict.fromkeys([str(warning.message) for warning in caught] + list(notes)))
-    lines = [f"{identified.robot.name}: {identified.file.model} model ({identified.file.effects}"
-             + (", consistent" if consistent else "")
-             + (f", delay {1e3 * identified.file.delay:.3g} ms" if identified.file.delay is not None else "")
+    lines = [f"{identified.robot.name}: {identified.file.model} model ({identified.file.effects}, {identified.estimate}"
+             + ("" if identified.estimate == (identified.file.chosen or "unconstrained") else ": an alternative")
+             + (f", delay {1e3 * identified.delay:.3g} ms" if identified.delay is not None else "")
              + f"), {prediction.t.shape[0]} samples; "
              f"{identified.preprocessing.describe().removeprefix('preprocessing: ')}",
              *table_lines(evaluation)]

@@ -1,0 +1,401 @@
+"""The default answer of ``oed identify``: of the principled candidate models, the one that predicts another motion best.
+
+Users identify a robot to use the model on other motions (feed-forward, simulation, collision detection), so the
+answer is chosen by its error on a motion the fit did not see (issue 34). The candidates:
+
+``ols``
+    ordinary least squares on the base parameters (PUMA paper, section IV, eq. 13);
+``wls``
+    channel-weighted least squares, each channel weighted by the inverse of its residual variance (eq. 20);
+``consistent``
+    the physically consistent fit (:func:`estimation.consistent.identification.identify_consistent`: every link a
+    rigid body under the log-Cholesky map, friction and armature ``>= 0``) refitted from the unconstrained fit the
+    training record's blocked cross-validation prefers (:mod:`estimation.identification.weighting_choice`), with the
+    robot description's bodies as prior, the prior's weight chosen by the validation error
+    (:func:`choose_prior_weight`; :data:`DEFAULT_PRIOR_WEIGHT` without a validation record).
+
+**Comparison.** Every candidate predicts the same validation samples and is scored against the channels as recorded
+by the geometric mean over channels of its MSE (no channel's unit dominates it; the ratio of two candidates' scores
+is the geometric mean of their per-channel ratios); the smallest wins, a tie going to the candidate that
+regularises most (:data:`PREFERENCE`, a fixed order: the answer does not depend on the order of a list).
+
+**No comparison.** When there is no validation record, or it repeats the training motion
+(:func:`estimation.identification.repeated_motion.repeated_motion`), nothing measured how a candidate extrapolates
+to another motion: the consistent candidate is chosen, since it regularises toward the description where the data
+say nothing, and the summary says why. A candidate that cannot be fitted (IPOPT failing from every start) is no candidate: it is listed with the reason.
+
+A choice given by the user (``--method ols|wls``, ``--consistent``) is kept: the selection is then ``given``.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any, Literal
+
+import numpy as np
+from numpy.typing import NDArray
+
+from dynamics.measurements import Measurements
+from dynamics.models import IdentificationModel
+from estimation.consistent.identification import (
+    DEFAULT_PRIOR_WEIGHT,
+    PRIOR_WEIGHT_GRID,
+    PRIOR_WEIGHT_TOLERANCE,
+    ConsistentResult,
+    choose_prior_weight,
+    consistent_fit,
+    prior_weight_choice,
+)
+from estimation.identification.fit import IdentificationResult, identify
+from estimation.identification.model_file import alternative_entry, effect_entries, model_file_document, with_model
+from estimation.identification.preprocessing_choice import geometric_mean
+from estimation.identification.repeated_motion import REPEAT_FRACTION, repeated_motion
+from estimation.identification.validation import Comparison
+
+__all__ = ["CANDIDATES", "DEFAULT_PRIOR_WEIGHT", "PREFERENCE", "PRIOR_WEIGHT_GRID", "PRIOR_WEIGHT_TOLERANCE",
+           "Candidate", "ConsistentSettings", "ModelSelection", "choose_prior_weight", "consistent_entry",
+           "prior_weight_choice", "select_model", "selection_model_file"]
+
+CandidateName = Literal["ols", "wls", "consistent"]
+Selection = Literal["validation", "given", "no-validation", "repeated-motion"]
+
+#: the candidates, in the order they are listed
+CANDIDATES: tuple[CandidateName, ...] = ("ols", "wls", "consistent")
+#: ties go to the first of these: the candidate that regularises most
+PREFERENCE: tuple[CandidateName, ...] = ("consistent", "wls", "ols")
+#: what the candidates' scores are
+CRITERION = "geometric mean over channels of the validation MSE against the channels as recorded"
+#: errors that make the consistent fit no candidate (a failure of the toolkit's own choice never ends the run)
+_CONSISTENT_FAILURES = (ValueError, RuntimeError, NotImplementedError, np.linalg.LinAlgError)
+
+
+@dataclass(frozen=True)
+class ConsistentSettings:
+    """How the consistent candidate is fitted.
+
+    Attributes
+    ----------
+    prior_weight
+        A number, ``"auto"`` (chosen by the validation error) or ``None`` (auto with a validation record, else
+        :data:`DEFAULT_PRIOR_WEIGHT`).
+    prior
+        The ``10 n`` link parameters of the prior (``None``: the robot description's).
+    prior_source
+        What the prior is, for the result.
+    bounds
+        Link bounds by link name (:class:`dynamics.physical_parameters.LinkBounds`), or ``None``.
+    """
+
+    prior_weight: float | str | None = None
+    prior: NDArray[np.float64] | None = None
+    prior_source: str = "robot description"
+    bounds: Mapping[str, Any] | None = None
+
+    def refit(self, result: IdentificationResult, train: Measurements,
+              validation: Measurements | None) -> ConsistentResult:
+        """The consistent fit of ``result`` (:func:`estimation.consistent.identification.consistent_fit`: its prior
+        weight chosen on ``validation``; shaped laws and a delay held at their fitted values)."""
+        if self.prior_weight == "auto" and validation is None:
+            raise ValueError("the prior weight 'auto' chooses the weight by the validation error: give a "
+                             "validation record")
+        return consistent_fit(result, train, validation, prior_weight=self.prior_weight, prior=self.prior,
+                              prior_source=self.prior_source, bounds=self.bounds)
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """One candidate model and its error on the validation record.
+
+    Attributes
+    ----------
+    name
+        ``ols``, ``wls`` or ``consistent``.
+    fit
+        Its :class:`IdentificationResult` (``ols``, ``wls``) or :class:`ConsistentResult`, ``None`` when it could
+        not be fitted.
+    unavailable
+        Why it is no candidate (``None``: it is one).
+    """
+
+    name: CandidateName
+    fit: IdentificationResult | ConsistentResult | None
+    unavailable: str | None = None
+
+    @property
+    def train(self) -> Comparison | None:
+        return None if self.fit is None else self.fit.train
+
+    @property
+    def validation(self) -> Comparison | None:
+        return None if self.fit is None else self.fit.validation
+
+    @property
+    def score(self) -> float | None:
+        """The geometric mean over channels of the validation MSE (``None`` without a validation record)."""
+        if self.validation is None:
+            return None
+        mse = self.validation.mse
+        return geometric_mean(np.array([mse[channel] for channel in self.validation.channels]))
+
+    @property
+    def description(self) -> str:
+        if self.name == "consistent":
+            return "physically consistent, the robot description's bodies as prior"
+        return {"ols": "ordinary least squares", "wls": "channel-weighted least squares"}[self.name]
+
+    def to_dict(self) -> dict[str, Any]:
+        """``{name, description, available, reason, validation_mse, train_mse, score[, prior_weight]}``."""
+        document: dict[str, Any] = {
+            "name": self.name, "description": self.description, "available": self.fit is not None,
+            "reason": self.unavailable,
+            "validation_mse": None if self.validation is None else self.validation.mse,
+            "train_mse": None if self.train is None else self.train.mse,
+            "score": self.score,
+        }
+        if isinstance(self.fit, ConsistentResult):
+            document["prior_weight"] = self.fit.estimate.prior_weight
+        return document
+
+
+@dataclass(frozen=True)
+class ModelSelection:
+    """The candidates, which was chosen, and why (module docstring).
+
+    Attributes
+    ----------
+    chosen
+        The chosen candidate's name.
+    selection
+        ``validation`` (smallest validation error), ``given`` (the user's option), ``no-validation`` or
+        ``repeated-motion`` (the consistent candidate preferred since nothing measured the extrapolation).
+    reason
+        One sentence saying why.
+    candidates
+        Every candidate tried, in :data:`CANDIDATES` order.
+    base
+        The name of the unconstrained fit the consistent candidate is refitted from.
+    repeat_ratio
+        :func:`estimation.identification.repeated_motion.repeated_motion` of the validation record (``None``:
+        none given).
+    """
+
+    chosen: CandidateName
+    selection: Selection
+    reason: str
+    candidates: tuple[Candidate, ...]
+    base: CandidateName
+    repeat_ratio: float | None = None
+
+    def candidate(self, name: str) -> Candidate:
+        for candidate in self.candidates:
+            if candidate.name == name:
+                return candidate
+        raise KeyError(f"no candidate {name!r}; the candidates are {[c.name for c in self.candidates]}")
+
+    @property
+    def chosen_candidate(self) -> Candidate:
+        return self.candidate(self.chosen)
+
+    @property
+    def unconstrained(self) -> IdentificationResult:
+        """The unconstrained fit behind the answer: the chosen one, or the one the consistent fit starts from."""
+        name = self.chosen if self.chosen != "consistent" else self.base
+        fit = self.candidate(name).fit
+        assert isinstance(fit, IdentificationResult)
+        return fit
+
+    @property
+    def consistent(self) -> ConsistentResult | None:
+        """The consistent candidate's fit, if there is one."""
+        for candidate in self.candidates:
+            if candidate.name == "consistent" and isinstance(candidate.fit, ConsistentResult):
+                return candidate.fit
+        return None
+
+    @property
+    def alternatives(self) -> tuple[Candidate, ...]:
+        """The fitted candidates other than the chosen one."""
+        return tuple(c for c in self.candidates if c.fit is not None and c.name != self.chosen)
+
+    def to_dict(self) -> dict[str, Any]:
+        """The key ``model_selection`` of ``result.json``::
+
+            {chosen, selection, reason, criterion, base, repeat_ratio,
+             candidates: [{name, description, available, reason, validation_mse, train_mse, score[, prior_weight]}]}
+        """
+        return {"chosen": self.chosen, "selection": self.selection, "reason": self.reason, "criterion": CRITERION,
+                "base": self.base, "repeat_ratio": self.repeat_ratio,
+                "candidates": [candidate.to_dict() for candidate in self.candidates]}
+
+    def lines(self) -> list[str]:
+        """The summary: each candidate's validation MSE side by side, the choice and why."""
+        lines = [f"model: {self.chosen} ({self.chosen_candidate.description}); {self.reason}"]
+        channels = next((c.validation.channels for c in self.candidates if c.validation is not None), None)
+        if channels is not None:
+            lines.append("  validation MSE (vs recorded)  " + "  ".join(f"{c:>10s}" for c in channels)
+                         + f"  {'score':>10s}")
+        for candidate in self.candidates:
+            mark = "*" if candidate.name == self.chosen else " "
+            if candidate.fit is None:
+                lines.append(f"  {mark} {candidate.name:<27s} not a candidate: {candidate.unavailable}")
+            elif candidate.validation is not None:
+                mse = candidate.validation.mse
+                lines.append(f"  {mark} {candidate.name:<27s} " + "  ".join(f"{mse[c]:10.4g}" for c in channels)
+                             + f"  {candidate.score:10.4g}")
+            else:
+                lines.append(f"  {mark} {candidate.name:<27s} (no validation record)")
+        return lines
+
+
+def select_model(model: IdentificationModel, train: Measurements, validation: Measurements | None = None, *,
+                 base: Literal["ols", "wls"] = "wls", given: CandidateName | None = None,
+                 consistent: ConsistentSettings | None = None, delay: Any = None,
+                 fits: Mapping[str, IdentificationResult] | None = None) -> ModelSelection:
+    """Fit the candidates on ``train``, score them on ``validation`` and choose (module docstring).
+
+    Parameters
+    ----------
+    model
+        The identification model.
+    train, validation
+        Prepared records (``q, dq, ddq`` present); ``validation`` may be ``None``.
+    base
+        The unconstrained weighting the consistent fit starts from (the training record's own choice,
+        :func:`estimation.identification.weighting_choice.choose_weighting`, or the user's).
+    given
+        A candidate the user asked for (``--method ols|wls``, ``--consistent``): it is chosen, and only what it
+        needs is fitted.
+    consistent
+        How the consistent candidate is fitted (default :class:`ConsistentSettings`).
+    delay
+        A delay search (:mod:`estimation.preprocessing.delay`) for the unconstrained fits; the consistent fit holds the fitted delay.
+    fits
+        Unconstrained fits already made, by name (``ols``, ``wls``), reused instead of refitted.
+    """
+    if given is not None and given not in CANDIDATES:
+        raise ValueError(f"given must be one of {CANDIDATES}, got {given!r}")
+    if base not in ("ols", "wls"):
+        raise ValueError(f"base must be 'ols' or 'wls', got {base!r}")
+    settings = ConsistentSettings() if consistent is None else consistent
+    known = dict(fits or {})
+
+    def unconstrained(name: str) -> IdentificationResult:
+        if name not in known:
+            known[name] = identify(model, train, validation, weighted=name == "wls", delay=delay)
+        return known[name]
+
+    if given in ("ols", "wls"):
+        wanted: tuple[str, ...] = (given,)
+    elif given == "consistent":
+        wanted = (base, "consistent")
+    else:
+        wanted = CANDIDATES if validation is not None else (base, "consistent")
+    candidates = []
+    for name in CANDIDATES:
+        if name not in wanted:
+            continue
+        if name != "consistent":
+            candidates.append(Candidate(name, unconstrained(name)))
+            continue
+        start = unconstrained(base)
+        reason = _no_consistent_fit(start, delay)
+        if reason is not None and given == "consistent":
+            raise ValueError(f"the consistent fit: {reason}")
+        if reason is None:
+            try:
+                candidates.append(Candidate("consistent", settings.refit(start, train, validation)))
+                continue
+            except _CONSISTENT_FAILURES as error:
+                if given == "consistent":
+                    raise
+                reason = f"the consistent fit failed ({error})"
+        candidates.append(Candidate("consistent", None, reason))
+    ratio = None if validation is None else repeated_motion(train, validation)
+    chosen, selection, reason = _choose(tuple(candidates), given, base, ratio)
+    return ModelSelection(chosen, selection, reason, tuple(candidates), base, ratio)
+
+
+def _no_consistent_fit(result: IdentificationResult, delay: Any) -> str | None:
+    """Why the consistent fit cannot start from ``result``, or ``None``: it always can (shaped laws and a delay are
+    held at their fitted values, :mod:`estimation.consistent.fixed_shapes`); a failure is caught where it is fitted."""
+    return None
+
+
+def _choose(candidates: tuple[Candidate, ...], given: CandidateName | None, base: str,
+            ratio: float | None) -> tuple[CandidateName, Selection, str]:
+    available = {candidate.name: candidate for candidate in candidates if candidate.fit is not None}
+    if given is not None:
+        return given, "given", "chosen by the options given"
+    if ratio is None or ratio <= REPEAT_FRACTION:
+        why = "no validation record" if ratio is None else \
+            f"the validation record repeats the training motion (positions within {100 * ratio:.2g} % of their spread)"
+        if "consistent" in available:
+            return ("consistent", "no-validation" if ratio is None else "repeated-motion",
+                    f"{why}: nothing measured how the candidates extrapolate to another motion, so the fit that "
+                    "regularises toward the robot description where the data say nothing is chosen")
+        return (base, "no-validation" if ratio is None else "repeated-motion",  # type: ignore[return-value]
+                f"{why}, and {available_reason(candidates)}: the weighting the training record's blocked "
+                "cross-validation prefers is kept")
+    scores = {name: candidate.score for name, candidate in available.items()
+              if candidate.score is not None and math.isfinite(candidate.score)}
+    if not scores:
+        return (base, "validation",  # type: ignore[return-value]
+                "no candidate has a finite validation error: the weighting the training record's blocked "
+                "cross-validation prefers is kept")
+    best = min(scores.values())
+    chosen = next(name for name in PREFERENCE if name in scores and scores[name] == best)
+    others = ", ".join(f"{name} {score / best:.3g}x" for name, score in scores.items() if name != chosen)
+    return chosen, "validation", (f"the smallest validation error on another motion ({CRITERION}; the others: "
+                                  f"{others or 'none'})")
+
+
+def available_reason(candidates: tuple[Candidate, ...]) -> str:
+    """Why the consistent candidate is missing, in a few words."""
+    for candidate in candidates:
+        if candidate.name == "consistent" and candidate.unavailable:
+            return f"no consistent candidate ({candidate.unavailable})"
+    return "no consistent candidate"
+
+
+def selection_model_file(selection: ModelSelection, **settings: Any) -> dict[str, Any]:
+    """The ``model_file`` document (:mod:`estimation.identification.model_file`) of ``selection``: the chosen
+    model as the file's model, every other fitted candidate as a named alternative.
+
+    ``settings``: the keyword arguments of :func:`estimation.identification.model_file.model_file_document`
+    but ``consistent`` (``robot``, ``preprocessing``, ``transmission``, ``rest``, ``max_gap``).
+    """
+    consistent = selection.consistent
+    extra = {} if consistent is None else {
+        "consistent": consistent.estimate,
+        "consistent_validation_mse": None if consistent.validation is None else consistent.validation.mse}
+    documents = {candidate.name: model_file_document(candidate.fit, **settings, **extra)
+                 for candidate in selection.candidates if isinstance(candidate.fit, IdentificationResult)}
+    entries = {name: alternative_entry(document) for name, document in documents.items()}
+    if consistent is not None:
+        entries["consistent"] = consistent_entry(consistent, documents[selection.base])
+    unconstrained = selection.chosen if selection.chosen != "consistent" else selection.base
+    document = with_model(documents[unconstrained], entries[selection.chosen])
+    document["chosen"] = selection.chosen
+    document["alternatives"] = {name: entry for name, entry in entries.items() if name != selection.chosen}
+    return document
+
+
+def consistent_entry(consistent: ConsistentResult, base: Mapping[str, Any]) -> dict[str, Any]:
+    """The model-file entry of the consistent fit, refitted from the unconstrained fit whose ``model_file``
+    document is ``base`` (its channel weights and variances)."""
+    estimate, model = consistent.estimate, consistent.unconstrained.model
+    if tuple(estimate.names) != tuple(base["base"]["names"]):
+        raise ValueError("the consistent estimate's base parameters are not those of the fit it was refitted from")
+    entry = alternative_entry(base)
+    channels = list(model.channels)
+    entry.update({
+        "theta": np.asarray(estimate.values, dtype=float).tolist(), "cov": np.asarray(estimate.cov, dtype=float).tolist(),
+        "recorded_variance": {channel: consistent.train.mse[channel] for channel in channels},
+        "validation_mse": None if consistent.validation is None else dict(consistent.validation.mse),
+        "shape_std": {},  # the shapes and the delay: held at the unconstrained fit's (base's) values
+        "effect_values": list(effect_entries(model, estimate.names, estimate.expressions, estimate.values,
+                                             dict(base.get("shape") or {}))),
+    })
+    return entry
