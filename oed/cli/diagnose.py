@@ -84,6 +84,9 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     parser.add_argument("--out", type=Path, required=True, help="report JSON")
     parser.add_argument("--report", type=Path, help="Markdown report (a residual figure is written beside it)")
     parser.add_argument("--alpha", type=float, default=1e-3, help="significance level of the F test (default 1e-3)")
+    parser.add_argument("--unseen-stretches", action="store_true",
+                        help="when --validate repeats the training motion, also refuse an effect that raises the error "
+                             "on the stretches of the motion its fit did not see (off by default)")
     parser.add_argument("--max-effects", type=int, default=20, metavar="N",
                         help="add at most N effects (default 20); the output says when the cap stopped the search")
     add_derivative_arguments(parser)
@@ -224,7 +227,8 @@ def diagnose_records(args: argparse.Namespace, model: IdentificationModel, trans
     train, validation = records.train.measurements, records.validation.measurements
     candidates = default_candidates(model) + coupling_candidates(model, transmission, train=train)
     return diagnose(model, train, validation, alpha=args.alpha, candidates=candidates, max_effects=args.max_effects,
-                    noise_floor=floor, delay=delay or DelayBounds(), jobs=args.jobs)
+                    noise_floor=floor, delay=delay or DelayBounds(), jobs=args.jobs,
+                    unseen_stretches=getattr(args, "unseen_stretches", False))
 
 
 def test_errors(records: PreparedRecords, diagnosis: Diagnosis, floor: NoiseFloor | None) -> UntouchedErrors | None:
