@@ -285,3 +285,5 @@ OUTSIDE: tuple[Case, ...] = (
          named(("sigmoid", "tau1"), ("sigmoid", "tau2"), ("sigmoid", "tau3")), repeat=True),
     Case("stribeck, validation repeats the motion", (STRIBECK,), named(("stribeck:velocity", "tau3")), repeat=True),
 )
+#: the same truths, the derivatives made from the positions as a user gets them (slow)
+OUTSIDE_POSITIONS: tuple[Case, ...] = tuple(positions_only(case) for case in OUTSIDE)

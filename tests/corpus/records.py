@@ -14,6 +14,7 @@ import warnings
 from collections.abc import Iterable
 from dataclasses import dataclass
 from functools import lru_cache
+from typing import Any
 
 import numpy as np
 
@@ -26,6 +27,7 @@ from estimation.estimators.effect_blocks import Block, States
 from estimation.identification.fit import identify
 from estimation.identification.preprocessing_choice import choose_by_evidence
 from estimation.preprocessing.plan import PreprocessingWarning, prepare
+from estimation.uncertainty.noise_floor import NoiseFloor, noise_floor
 from tests.corpus.cases import NOISE, Case
 from dynamics.simulation.synthetic import simulate, true_parameters
 from oed.fourier import random_fourier
@@ -143,9 +145,20 @@ def outcome(case: Case, diagnosis: Diagnosis, train: Measurements, validate: Mea
                    over_known, estimate_errors(diagnosis, truth(case)))
 
 
-def run(case: Case, *, candidates: Iterable | None = None) -> tuple[Diagnosis, Outcome]:
+def validation_floor(case: Case) -> NoiseFloor | None:
+    """From positions only, the noise floor of the validation record as recorded, before its preprocessing (as
+    ``oed diagnose`` computes it from the file); with measured derivatives the diagnosis estimates it itself."""
+    if case.derivatives != "positions":
+        return None
+    seed, noise_seed = (case.seeds[0], case.seeds[1]) if case.repeat else (case.seeds[1], None)
+    return noise_floor(simulated(case, seed, noise_seed), declared_model().channels)
+
+
+def run(case: Case, *, candidates: Iterable | None = None, **options: Any) -> tuple[Diagnosis, Outcome]:
+    """The case diagnosed (``options``: more keywords of :func:`~estimation.diagnosis.search.diagnose`)."""
     train, validate = records(case)
-    diagnosis = diagnose(declared_model(), train, validate, candidates=candidates)
+    diagnosis = diagnose(declared_model(), train, validate, candidates=candidates, noise_floor=validation_floor(case),
+                         **options)
     return diagnosis, outcome(case, diagnosis, train, validate)
 
 
