@@ -75,6 +75,7 @@ class Case:
     slow: bool = False
     seeds: tuple[int, int] = (3, 4)
     repeat: bool = False  # the validation record repeats the training motion (other noise)
+    rate_hz: float = 250.0  # samples per second (two 5 s periods a record)
 
     def __post_init__(self) -> None:
         if self.derivatives not in ("given", "positions"):
@@ -217,7 +218,7 @@ SIGN_LAW_ON_TANH = WrongLawCase(
 
 # truths outside the candidate families (test-only laws): the diagnosis may name what they hold, nothing else, and
 # must say where the residual stays above the floor
-COULOMB_LIKE_LAWS = ("coulomb", "coulomb:tanh")
+COULOMB_LIKE_LAWS = ("coulomb", "coulomb:tanh", "sigmoid")  # the sigmoid: a Coulomb law, asymmetric over the motion
 
 
 def dahl(fc: float, stiffness: float) -> Callable[..., NDArray[np.float64]]:
@@ -285,5 +286,23 @@ OUTSIDE: tuple[Case, ...] = (
          named(("sigmoid", "tau1"), ("sigmoid", "tau2"), ("sigmoid", "tau3")), repeat=True),
     Case("stribeck, validation repeats the motion", (STRIBECK,), named(("stribeck:velocity", "tau3")), repeat=True),
 )
+def _long_xfail() -> dict[str, str]:
+    """Measured on the code of the day, where a 1 kHz case misses its targets."""
+    return {
+        "stribeck on every joint": "measured: named coulomb@tau2 (the sign law, fc2 = 7.9: the truth's fc + fs) beside "
+                                   "stribeck:velocity@tau1 and @tau3, tau2 9.9x its floor (said); the Stribeck law on "
+                                   "joint 2 alone fits best at a non-physical optimum (fc2 = 64.7, fs2 = -56.3, fv2 = "
+                                   "-4.1: its shape traded against the viscous term over joint 2's velocities) and is "
+                                   "refused, so the sign law stays",
+    }
+
+
 #: the same truths, the derivatives made from the positions as a user gets them (slow)
 OUTSIDE_POSITIONS: tuple[Case, ...] = tuple(positions_only(case) for case in OUTSIDE)
+#: longer records (1 kHz, 10 000 samples each), where more power lets an approximation pass more tests (slow)
+OUTSIDE_LONG: tuple[Case, ...] = tuple(
+    Case(**{**{key: getattr(case, key) for key in Case.__dataclass_fields__},
+            "name": f"{case.name}, 1 kHz", "rate_hz": 1000.0, "slow": True,
+            "xfail": _long_xfail().get(case.name, "")})
+    for case in OUTSIDE + NON_DEFAULT[1:2] if not case.repeat)
+

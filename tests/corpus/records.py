@@ -1,7 +1,7 @@
 """A corpus case simulated and diagnosed in the library, and the outcome the tests check.
 
 The records: :func:`dynamics.simulation.synthetic.simulate` (declared model ``Y θ`` of a 3-joint PUMA 560, Fourier motion at
-250 Hz, two 5 s periods: 2500 samples a record) plus each true term's columns at its true shape times its
+the case's rate, 250 Hz by default, two 5 s periods: 2500 samples a record) plus each true term's columns at its true shape times its
 coefficients; a delay moves the recorded motion ahead of the torques. From positions only, the derivatives are
 made as a user gets them: the preprocessing chosen by held-out evidence on the training record
 (:func:`estimation.identification.preprocessing_choice.choose_by_evidence`), both records prepared with it.
@@ -32,7 +32,6 @@ from tests.corpus.cases import NOISE, Case
 from dynamics.simulation.synthetic import simulate, true_parameters
 from oed.fourier import random_fourier
 
-RATE_HZ = 250.0
 PERIODS = 2
 
 
@@ -56,7 +55,7 @@ def simulated(case: Case, seed: int, noise_seed: int | None = None) -> Measureme
     theta = true_parameters(declared, seed=0)
     trajectory = random_fourier(robot(), seed=seed)
     noise = {channel: NOISE for channel in declared.channels}
-    data = simulate(declared, theta, trajectory, rate_hz=RATE_HZ, periods=PERIODS, noise=noise,
+    data = simulate(declared, theta, trajectory, rate_hz=case.rate_hz, periods=PERIODS, noise=noise,
                     seed=seed if noise_seed is None else noise_seed)
     tau = data.tau.copy()
     states = States(data.q, data.dq, data.ddq)
