@@ -72,17 +72,18 @@ class HeldOutBlocks:
         (its Gram matrices and moments taken out of the whole record's)."""
         residual = np.empty_like(validate.y)
         for block in range(self.n_blocks):
-            left_out = _part(train, self.train == block)
-            fold = dataclasses.replace(train, gram=train.gram - left_out.gram, moment=train.moment - left_out.moment,
-                                       power=train.power - left_out.power)
+            gram, moment, power = _sums(train, self.train == block)
+            fold = dataclasses.replace(train, gram=train.gram - gram, moment=train.moment - moment,
+                                       power=train.power - power)
             theta = solve_linear(fold, [], None, [], weights).theta
             rows = self.validate == block
             residual[:, rows] = validate.y[:, rows] - validate.predict(theta)[:, rows]
         return residual
 
 
-def _part(fixed: FixedPart, samples: NDArray[np.bool_]) -> FixedPart:
-    """The Gram matrices, moments and powers of ``fixed`` on ``samples`` alone."""
+def _sums(fixed: FixedPart, samples: NDArray[np.bool_]
+          ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """The per-channel Gram matrices, moments and powers of ``fixed`` on ``samples`` alone."""
     m, p0 = len(fixed.own), fixed.n_fixed
     gram, moment = np.zeros((m, p0, p0)), np.zeros((m, p0))
     y = fixed.y[:, samples]
@@ -92,7 +93,7 @@ def _part(fixed: FixedPart, samples: NDArray[np.bool_]) -> FixedPart:
         places = where[kept]
         gram[channel][np.ix_(places, places)] = stored.T @ stored
         moment[channel, places] = stored.T @ y[channel]
-    return FixedPart(fixed.own, fixed.where, y, gram, moment, np.sum(y**2, axis=1))
+    return gram, moment, np.sum(y**2, axis=1)
 
 
 def blocked_comparison(trial: Trial, fixed_train: FixedPart, fixed_validate: FixedPart, states_train: States,
@@ -217,7 +218,6 @@ def simplify_laws(selected, after, model, train, validate, starts, weights, min_
     if weighted_validation(candidate, weights) <= (1.0 + min_improvement) * weighted_validation(after, weights):
         return simplified, candidate
     return selected, after
-
 
 
 def unseen_veto(repeat: Comparison, unseen: Comparison) -> Comparison:

@@ -122,7 +122,7 @@ def physical_optimum(blocks: Sequence[Block], fixed: FixedPart, states: States,
 
     The law's family holds its coefficients non-negative (a friction below zero is no friction); when the
     unconstrained optimum leaves that family (a Stribeck law whose shape trades against the viscous term over the
-    velocities a joint reaches: ``fc = 64.7, fs = −56.3`` for a truth ``2, 3``), the estimate is the constrained
+    velocities a joint reaches: ``fc = 64.7, fs = −56.3`` for a truth ``5, 3``), the estimate is the constrained
     optimum, not the refusal of the law, which would leave a simpler law to stand in for it."""
     screened = [fit for fit in (_screened(blocks, fixed, states, weights, shape) for shape in product_grid(blocks))
                 if fit is not None]
