@@ -86,10 +86,12 @@ def nested_test(rss: float, rss_augmented: float, count: int, n_rows: int, n_fix
 
 def try_candidate(group: tuple[int, ...], blocks: Sequence[Block], fixed: FixedPart, states: States,
                   weights: NDArray[np.float64], rss: float, *, starts: NDArray[np.float64] | None = None,
-                  search: bool = True) -> Trial:
+                  search: bool = True, physical: bool = True) -> Trial:
     """Fit one candidate group; raises :class:`numpy.linalg.LinAlgError` when the current columns
     absorb plain candidates, :class:`ShapeSearchError` when a shaped search fails. Without
-    ``search`` the shapes stay at ``starts`` (a screening by the linear solve alone)."""
+    ``search`` the shapes stay at ``starts`` (a screening by the linear solve alone). With ``physical``, a
+    searched shaped law whose optimum has a non-physical sign is fitted at its best physical optimum
+    (:func:`physical_optimum`)."""
     if all(block.n_shape == 0 for block in blocks):  # the linear solve is the fit (LinAlgError when absorbed)
         fit = _fitted(blocks, solve_linear(fixed, blocks, states, [np.zeros(0)] * len(blocks), weights), np.zeros(0))
     else:
@@ -100,7 +102,7 @@ def try_candidate(group: tuple[int, ...], blocks: Sequence[Block], fixed: FixedP
     count = sum(block.n_linear + block.n_shape for block in blocks)
     statistic, p_value, bic = nested_test(rss, fit.rss, count, fixed.n_rows, fixed.n_fixed)
     trial = Trial(tuple(group), tuple(blocks), fit, fit.rss, statistic, p_value, bic)
-    if search and any(block.n_shape for block in blocks) and _non_physical(trial):
+    if physical and search and any(block.n_shape for block in blocks) and _non_physical(trial):
         physical = physical_optimum(blocks, fixed, states, weights)
         if physical is not None:
             statistic, p_value, bic = nested_test(rss, physical.rss, count, fixed.n_rows, fixed.n_fixed)
@@ -225,12 +227,13 @@ def trial_starts(previous: ShapeFit | None) -> NDArray[np.float64] | None:
 
 
 def fit_or_reason(group: tuple[int, ...], blocks: Sequence[Block], fixed: FixedPart, states: States,
-                  weights: NDArray[np.float64], rss: float, previous: ShapeFit | None, *, search: bool = True) -> Trial | str:
-    """A :class:`Trial`, or the reason the candidate cannot be fitted here (``search``: see
+                  weights: NDArray[np.float64], rss: float, previous: ShapeFit | None, *, search: bool = True,
+                  physical: bool = True) -> Trial | str:
+    """A :class:`Trial`, or the reason the candidate cannot be fitted here (``search``, ``physical``: see
     :func:`try_candidate`; a candidate without a previous fit is always searched)."""
     try:
         return try_candidate(group, blocks, fixed, states, weights, rss, starts=trial_starts(previous),
-                             search=search or previous is None)
+                             search=search or previous is None, physical=physical)
     except np.linalg.LinAlgError:
         return "not identifiable: the base parameters already absorb it"
     except ShapeSearchError as error:
