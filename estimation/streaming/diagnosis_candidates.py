@@ -52,10 +52,7 @@ def shape_search(model: IdentificationModel, blocks: dict[int, Block], subsample
         if block.effect.name in FRICTION_LAWS and joints & declared:
             shapes[index] = np.array([p.starts[0] for p in block.parameters], dtype=float)  # rejected in the loop
             continue
-        # the shape fixed here from a subsample is adopted without the in-memory search's baseline of the law it would
-        # replace: its unconstrained optimum, refused when non-physical, not its physical one (measured: a Stribeck
-        # law at a grid shape took the place of a sign-law truth on filtered velocities)
-        outcome = fit_or_reason((index,), [block], fixed, states, weights, rss, None, search=False, physical=False)
+        outcome = fit_or_reason((index,), [block], fixed, states, weights, rss, None, search=False)
         if isinstance(outcome, str):
             failed[index] = RejectedEffect(block.effect.name, tuple(model.channels[r] for r in block.rows),
                                            outcome + " (on the subsample)", candidate_label(block.effect))

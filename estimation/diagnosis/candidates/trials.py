@@ -25,7 +25,6 @@ from dynamics.effects.linear import POSITIVE_EFFECTS, Effect
 from dynamics.models import IdentificationModel
 from estimation.estimators.effect_blocks import Block, ShapeSearchError, States
 from estimation.estimators.separable_least_squares import FixedPart, LinearSolution, residuals, solve_linear
-from estimation.estimators.shape_starts import product_grid
 from estimation.estimators.variable_projection import ShapeFit, fit_shapes
 
 
@@ -86,12 +85,10 @@ def nested_test(rss: float, rss_augmented: float, count: int, n_rows: int, n_fix
 
 def try_candidate(group: tuple[int, ...], blocks: Sequence[Block], fixed: FixedPart, states: States,
                   weights: NDArray[np.float64], rss: float, *, starts: NDArray[np.float64] | None = None,
-                  search: bool = True, physical: bool = True) -> Trial:
+                  search: bool = True) -> Trial:
     """Fit one candidate group; raises :class:`numpy.linalg.LinAlgError` when the current columns
     absorb plain candidates, :class:`ShapeSearchError` when a shaped search fails. Without
-    ``search`` the shapes stay at ``starts`` (a screening by the linear solve alone). With ``physical``, a
-    searched shaped law whose optimum has a non-physical sign is fitted at its best physical optimum
-    (:func:`physical_optimum`)."""
+    ``search`` the shapes stay at ``starts`` (a screening by the linear solve alone)."""
     if all(block.n_shape == 0 for block in blocks):  # the linear solve is the fit (LinAlgError when absorbed)
         fit = _fitted(blocks, solve_linear(fixed, blocks, states, [np.zeros(0)] * len(blocks), weights), np.zeros(0))
     else:
@@ -101,43 +98,7 @@ def try_candidate(group: tuple[int, ...], blocks: Sequence[Block], fixed: FixedP
                          max_iter=60 if search else 0, covariance="none")
     count = sum(block.n_linear + block.n_shape for block in blocks)
     statistic, p_value, bic = nested_test(rss, fit.rss, count, fixed.n_rows, fixed.n_fixed)
-    trial = Trial(tuple(group), tuple(blocks), fit, fit.rss, statistic, p_value, bic)
-    if physical and search and any(block.n_shape for block in blocks) and _non_physical(trial):
-        physical = physical_optimum(blocks, fixed, states, weights)
-        if physical is not None:
-            statistic, p_value, bic = nested_test(rss, physical.rss, count, fixed.n_rows, fixed.n_fixed)
-            return Trial(tuple(group), tuple(blocks), physical, physical.rss, statistic, p_value, bic)
-    return trial
-
-
-def _non_physical(trial: Trial) -> bool:
-    """Whether a law's coefficients have a non-physical sign (a friction or armature below zero)."""
-    return any(getattr(block.effect, "physical_kind", block.effect.name) in POSITIVE_EFFECTS
-               and np.any(np.asarray(trial.coefficients(position)) <= 0) for position, block in enumerate(trial.blocks))
-
-
-def physical_optimum(blocks: Sequence[Block], fixed: FixedPart, states: States,
-                     weights: NDArray[np.float64]) -> ShapeFit | None:
-    """The best fit of a shaped law among those with physical coefficients, or ``None``: the shape grid's points
-    (:func:`estimation.estimators.shape_starts.product_grid`) screened by the linear solve, the physical one of
-    least cost refined by variable projection (kept when it stays physical, else the grid point).
-
-    The law's family holds its coefficients non-negative (a friction below zero is no friction); when the
-    unconstrained optimum leaves that family (a Stribeck law whose shape trades against the viscous term over the
-    velocities a joint reaches: ``fc = 64.7, fs = −56.3`` for a truth ``5, 3``), the estimate is the constrained
-    optimum, not the refusal of the law, which would leave a simpler law to stand in for it."""
-    screened = [fit for fit in (_screened(blocks, fixed, states, weights, shape) for shape in product_grid(blocks))
-                if fit is not None]
-    for fit in sorted(screened, key=lambda fit: fit.rss):
-        if _non_physical(Trial((), tuple(blocks), fit, fit.rss, 0.0, 1.0, 0.0)):
-            continue
-        try:
-            refined = fit_shapes(fixed, blocks, states, weights, starts=fit.shape[None, :], refine=1, max_iter=60,
-                                 covariance="none")
-        except ShapeSearchError:
-            return fit
-        return fit if _non_physical(Trial((), tuple(blocks), refined, refined.rss, 0.0, 1.0, 0.0)) else refined
-    return None
+    return Trial(tuple(group), tuple(blocks), fit, fit.rss, statistic, p_value, bic)
 
 
 def _screened(blocks: Sequence[Block], fixed: FixedPart, states: States, weights: NDArray[np.float64],
@@ -227,13 +188,12 @@ def trial_starts(previous: ShapeFit | None) -> NDArray[np.float64] | None:
 
 
 def fit_or_reason(group: tuple[int, ...], blocks: Sequence[Block], fixed: FixedPart, states: States,
-                  weights: NDArray[np.float64], rss: float, previous: ShapeFit | None, *, search: bool = True,
-                  physical: bool = True) -> Trial | str:
-    """A :class:`Trial`, or the reason the candidate cannot be fitted here (``search``, ``physical``: see
+                  weights: NDArray[np.float64], rss: float, previous: ShapeFit | None, *, search: bool = True) -> Trial | str:
+    """A :class:`Trial`, or the reason the candidate cannot be fitted here (``search``: see
     :func:`try_candidate`; a candidate without a previous fit is always searched)."""
     try:
         return try_candidate(group, blocks, fixed, states, weights, rss, starts=trial_starts(previous),
-                             search=search or previous is None, physical=physical)
+                             search=search or previous is None)
     except np.linalg.LinAlgError:
         return "not identifiable: the base parameters already absorb it"
     except ShapeSearchError as error:
