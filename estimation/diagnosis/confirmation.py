@@ -6,6 +6,12 @@
   an effect is missing from (its residual is large), so at those weights fixing that channel looks
   like a loss on the others (the KUKA LWR4+'s joint 1: Coulomb friction and an offset lower its
   validation MSE from 3.9 to 1.2 N²m², and every other channel's with it, once reweighted).
+* :class:`HeldOutBlocks`: when the validation record repeats the training motion
+  (:func:`estimation.identification.repeated_motion.repeated_motion`), another noise on the same motion
+  cannot reject an effect fitted to that motion's own features. The comparison is then blocked: the
+  motion cut into :data:`HELD_OUT_BLOCKS` stretches (of the period, when the records say it: every
+  period's stretch left out together), each model trained on the training record without one stretch
+  and its error taken on the validation record's same stretch, which its fit did not see.
 * :func:`channels_made_worse`: a candidate is not confirmed when it raises the validation error of a
   channel it acts on (a pair acting on two rows must not trade one for the other).
 * :func:`simplify_laws`: after the joint refit, a several-term law whose extra term the final fit does
@@ -20,6 +26,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+import dataclasses
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -34,6 +41,76 @@ from estimation.estimators.separable_least_squares import FixedPart, residuals, 
 
 #: reweighting passes of a candidate's linear coefficients (the weighted least squares settles in two)
 REWEIGHTING_PASSES = 2
+#: stretches of the motion left out in turn when the validation record repeats the training motion
+HELD_OUT_BLOCKS = 5
+
+
+@dataclass(frozen=True)
+class HeldOutBlocks:
+    """Which stretch of the motion each sample of the training and validation records is in (``0 …
+    n_blocks − 1``): by the phase of the period when the records' ``frequency_hz`` is known, else by time."""
+
+    train: NDArray[np.intp]
+    validate: NDArray[np.intp]
+    n_blocks: int = HELD_OUT_BLOCKS
+
+    @classmethod
+    def of(cls, train_t: NDArray[np.float64], validate_t: NDArray[np.float64], frequency_hz: float | None = None,
+           n_blocks: int = HELD_OUT_BLOCKS) -> HeldOutBlocks:
+        def labels(t: NDArray[np.float64]) -> NDArray[np.intp]:
+            t = np.asarray(t, dtype=float) - t[0]
+            if frequency_hz:  # the same stretch of every period, so that no other period shows it to the fit
+                phase = np.mod(t * frequency_hz, 1.0)
+            else:
+                phase = np.arange(t.shape[0]) / max(t.shape[0], 1)
+            return np.minimum((phase * n_blocks).astype(np.intp), n_blocks - 1)
+
+        return cls(labels(train_t), labels(validate_t), n_blocks)
+
+    def residual(self, train: FixedPart, validate: FixedPart, weights: NDArray[np.float64]) -> NDArray[np.float64]:
+        """``(m, N)`` validation residuals, each stretch predicted by the fit without that stretch of training
+        (its Gram matrices and moments taken out of the whole record's)."""
+        residual = np.empty_like(validate.y)
+        for block in range(self.n_blocks):
+            gram, moment, power = _sums(train, self.train == block)
+            fold = dataclasses.replace(train, gram=train.gram - gram, moment=train.moment - moment,
+                                       power=train.power - power)
+            theta = solve_linear(fold, [], None, [], weights).theta
+            rows = self.validate == block
+            residual[:, rows] = validate.y[:, rows] - validate.predict(theta)[:, rows]
+        return residual
+
+
+def _sums(fixed: FixedPart, samples: NDArray[np.bool_]
+          ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """The per-channel Gram matrices, moments and powers of ``fixed`` on ``samples`` alone."""
+    m, p0 = len(fixed.own), fixed.n_fixed
+    gram, moment = np.zeros((m, p0, p0)), np.zeros((m, p0))
+    y = fixed.y[:, samples]
+    for channel, (own, where) in enumerate(zip(fixed.own, fixed.where)):
+        kept = where >= 0
+        stored = own[samples][:, kept]
+        places = where[kept]
+        gram[channel][np.ix_(places, places)] = stored.T @ stored
+        moment[channel, places] = stored.T @ y[channel]
+    return gram, moment, np.sum(y**2, axis=1)
+
+
+def blocked_comparison(trial: Trial, fixed_train: FixedPart, fixed_validate: FixedPart, states_train: States,
+                       states_validate: States, settled: NDArray[np.float64], blocks: HeldOutBlocks,
+                       current: tuple[FixedPart, FixedPart] | None = None) -> Comparison:
+    """:func:`reweighted_comparison` on a validation record that repeats the training motion: both models trained
+    at ``settled``, the weights the candidate's training residuals give (:func:`settled_weights`, as the
+    comparison on the whole repeat found them), each stretch of the validation record predicted by the fits that
+    did not see that stretch (:class:`HeldOutBlocks`)."""
+    shapes = trial.shapes()
+    candidate = blocks.residual(fixed_train.with_blocks(trial.blocks, states_train, shapes),
+                                fixed_validate.with_blocks(trial.blocks, states_validate, shapes), settled)
+    current_train, current_validate = (fixed_train, fixed_validate) if current is None else current
+    current_residual = blocks.residual(current_train, current_validate, settled)
+    return Comparison(settled, float(settled @ np.mean(candidate**2, axis=1)), candidate,
+                      float(settled @ np.mean(current_residual**2, axis=1)), current_residual,
+                      "the stretches of the repeated motion its fit did not see")
 
 
 @dataclass(frozen=True)
@@ -45,6 +122,7 @@ class Comparison:
     residual: NDArray[np.float64]  # (m, N)
     current_error: float
     current_residual: NDArray[np.float64]
+    held_out: str = "the validation record"  # what the errors are on
 
 
 def settled_weights(fixed: FixedPart, blocks, states: States, shapes, weights: NDArray[np.float64],
@@ -140,3 +218,11 @@ def simplify_laws(selected, after, model, train, validate, starts, weights, min_
     if weighted_validation(candidate, weights) <= (1.0 + min_improvement) * weighted_validation(after, weights):
         return simplified, candidate
     return selected, after
+
+
+def unseen_veto(repeat: Comparison, unseen: Comparison) -> Comparison:
+    """The comparison on a repeat of the training motion, unless the candidate raises the error on the stretches
+    of that motion its fit did not see (``unseen``: :func:`blocked_comparison`): then that one, which the search
+    refuses. The size of the gain (``min_improvement``) is judged on the whole repeat: the stretches' errors also
+    hold what a fit on four fifths of the motion misses of the rigid body, which is not the candidate's."""
+    return unseen if unseen.error >= unseen.current_error else repeat

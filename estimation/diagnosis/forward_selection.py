@@ -303,7 +303,8 @@ class DiagnosisSearch:
         if error >= (1.0 - min_improvement) * current_error:
             change = ("raises the validation error" if error > current_error else
                       f"lowers the validation error by less than {100 * min_improvement:g} %")
-            return text + f"{change} ({current_error:.4g} -> {error:.4g})"
+            return text + f"{change} ({current_error:.4g} -> {error:.4g}" + (
+                ")" if comparison.held_out == "the validation record" else f" on {comparison.held_out})")
         beaten = self.beaten_by_baseline(trial, error / current_error)
         if beaten:
             return text + beaten

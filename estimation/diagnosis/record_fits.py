@@ -27,7 +27,8 @@ from dynamics.measurements import Measurements
 from dynamics.models import IdentificationModel
 from dynamics.runtime.processes import run_tasks, worker_count
 from estimation.diagnosis.candidates.trials import Trial, fit_or_reason, weighted_error
-from estimation.diagnosis.confirmation import Comparison, removal_comparison, reweighted_comparison
+from estimation.diagnosis.confirmation import (Comparison, HeldOutBlocks, blocked_comparison, unseen_veto,
+                                               removal_comparison, reweighted_comparison)
 from estimation.diagnosis.candidates.delay import DelayComparison, DelayTrial, Regressor
 from estimation.diagnosis.candidates.delay_search import DelaySearch
 from estimation.diagnosis.search_fits import AdoptedEffect, TrialRequest, TrialTest
@@ -39,6 +40,7 @@ from estimation.estimators.effect_blocks import Block, States
 from estimation.estimators.separable_least_squares import FixedPart, residuals, solve_linear
 from estimation.estimators.variable_projection import ShapeFit
 from estimation.identification.fit import IdentificationResult
+from estimation.identification.repeated_motion import REPEAT_FRACTION, repeated_motion
 from estimation.preprocessing.delay import DelayBounds
 
 __all__ = ["MIN_PARALLEL_SEARCHES", "RecordFit", "RecordFits", "declared_regressor"]
@@ -91,13 +93,17 @@ class RecordFits:
     jobs
         Processes that fit a round's candidates side by side (``None``: the available cores;
         :func:`dynamics.runtime.processes.worker_count`).
+    unseen_stretches
+        When the validation record repeats the training motion
+        (:func:`estimation.identification.repeated_motion.repeated_motion`), refuse a candidate that raises the
+        error on the stretches of the motion its fit did not see (:func:`estimation.diagnosis.confirmation.unseen_veto`).
     """
 
     def __init__(self, model: IdentificationModel, regressor: Regressor, train: Measurements, recorded: Measurements,
                  delay: DelayBounds | None, stopping_rule: Callable[[SearchState], bool], shaped: bool = False,
-                 jobs: int | None = 1) -> None:
+                 jobs: int | None = 1, unseen_stretches: bool = False) -> None:
         self.model, self.stopping_rule, self.regressor, self.shaped = model, stopping_rule, regressor, shaped
-        self.jobs = jobs
+        self.jobs, self.unseen_stretches = jobs, unseen_stretches
         self.adopted: tuple[AdoptedEffect, ...] = ()
         self._move(train, recorded)
         self.delay = DelaySearch(train, recorded, regressor, delay)  # the delay and, once adopted, the moved records
@@ -110,6 +116,9 @@ class RecordFits:
         self.states_validate = States(recorded.q, recorded.dq, recorded.ddq)
         self.declared = FixedPart.from_arrays(self.regressor(train), train.channels(self.model.channels))
         self.declared_validate = FixedPart.from_arrays(self.regressor(recorded), recorded.channels(self.model.channels))
+        # a validation record that repeats the training motion confirms on stretches of it the fits did not see
+        self.held_out = HeldOutBlocks.of(train.t, recorded.t, train.metadata.get("frequency_hz")) \
+            if self.unseen_stretches and repeated_motion(train, recorded) <= REPEAT_FRACTION else None
         self.set_model(self.adopted)
 
     @property
@@ -246,8 +255,13 @@ class RecordFits:
 
     def compare(self, trial: Trial, weights: NDArray[np.float64]) -> Comparison:
         fixed_train, fixed_validate = self._columns(trial.without)
-        return reweighted_comparison(trial, fixed_train, fixed_validate, self.states_train, self.states_validate,
-                                     weights, current=(self.fixed_train, self.fixed_validate))
+        repeat = reweighted_comparison(trial, fixed_train, fixed_validate, self.states_train, self.states_validate,
+                                       weights, current=(self.fixed_train, self.fixed_validate))
+        if self.held_out is None:
+            return repeat
+        return unseen_veto(repeat, blocked_comparison(trial, fixed_train, fixed_validate, self.states_train,
+                                                      self.states_validate, repeat.weights, self.held_out,
+                                                      current=(self.fixed_train, self.fixed_validate)))
 
     def removal(self, without: tuple[int, ...], weights: NDArray[np.float64]) -> Comparison:
         return removal_comparison(*self._columns(without), self.fixed_train, self.fixed_validate, weights)

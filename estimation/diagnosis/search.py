@@ -153,6 +153,7 @@ def diagnose(
     noise_floor: NoiseFloor | None = None,
     delay: DelayBounds | None = DelayBounds(),
     jobs: int | None = None,
+    unseen_stretches: bool = False,
 ) -> Diagnosis:
     """Find, by a search over models, the effects ``model`` lacks in ``train``, confirmed on ``validate``.
 
@@ -189,6 +190,13 @@ def diagnose(
         (:mod:`dynamics.runtime.processes`), and, when no delay is adopted, the best rival beside the joint refit
         (:class:`~estimation.diagnosis.runner_up.RivalAhead`); ``None``: the cores this process may use, at most 4;
         1: in turn. The diagnosis is the same bit for bit whatever the number.
+    unseen_stretches
+        When ``validate`` repeats the training motion (positions within 5 % of their spread sample by sample,
+        :mod:`estimation.identification.repeated_motion`), also refuse a candidate that raises the error on the
+        stretches of the motion its fit did not see (fifths of the record or of its period, each predicted by the
+        fit without it: :class:`estimation.diagnosis.confirmation.HeldOutBlocks`). Off by default: on the KUKA
+        LWR4+ (run 2 repeats run 1) the fits without a fifth of the motion extrapolate the rigid body, which
+        refuses the shoulder's friction law, and run 3 is predicted worse (``benchmarks/README.md``).
 
     The validation errors that confirm a candidate, and those reported, are measured against the
     validation channels as recorded (``validate.recorded`` when preprocessing filtered or averaged
@@ -203,7 +211,7 @@ def diagnose(
     weights = before.estimate.weights if before.estimate.method == "wls" else 1.0 / before.estimate.channel_variance
     # errors against the channels as recorded, along the derived motion
     fits = RecordFits(model, declared_regressor(model, before), train, validate.as_recorded, delay, stopping_rule,
-                      shaped=before.shaped_fit is not None, jobs=jobs)
+                      shaped=before.shaped_fit is not None, jobs=jobs, unseen_stretches=unseen_stretches)
     blocks, rejected = candidate_blocks(model, candidates)
     settings = SearchSettings(alpha, min_improvement, max_effects, len(candidates) + (delay is not None),  # the delay too
                               same_effect_adopted=True)

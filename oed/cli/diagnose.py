@@ -55,6 +55,9 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     add_jobs_argument(parser, "the derivative candidates' scores and each round's candidate fits")
     add_streaming_arguments(parser)
     add_streamed_diagnosis_arguments(parser)
+    parser.add_argument("--unseen-stretches", action="store_true",
+                        help="when --validate repeats the training motion, also refuse an effect that raises the error "
+                             "on the stretches of the motion its fit did not see (off by default)")
     add_consistent_arguments(parser)  # --consistent: the adopted model refitted consistently (estimation.consistent)
     return parser
 

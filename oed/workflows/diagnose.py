@@ -83,7 +83,9 @@ IN_MEMORY = InMemoryBudget(64, "diagnosing", "use --chunk-size to stream them in
 class DiagnoseOptions(RecordOptions):
     """The options of ``oed diagnose`` (:class:`~oed.workflows.options.RecordOptions` and these): ``test`` (a path
     or a list), ``report`` (whether the Markdown report will be written: it keeps the run in memory), ``alpha``,
-    ``max_effects``, ``subsample`` and ``floor_window`` (the streamed path's), and ``consistent`` (the adopted model
+    ``max_effects``, ``subsample`` and ``floor_window`` (the streamed path's), ``unseen_stretches`` (with a validation
+    record that repeats the training motion, refuse an effect that raises the error on stretches its fit did not
+    see), and ``consistent`` (the adopted model
     refitted physically consistent, shaped laws and a delay at their fitted values) with ``prior_weight`` (a number
     or ``"auto"``), ``prior``, ``link_bounds``."""
 
@@ -93,6 +95,7 @@ class DiagnoseOptions(RecordOptions):
     max_effects: int = 20
     subsample: int = DEFAULT_SUBSAMPLE
     floor_window: int = FLOOR_WINDOW
+    unseen_stretches: bool = False
     consistent: bool = False
     prior_weight: float | str | None = None
     prior: str | None = None
@@ -335,7 +338,8 @@ def diagnose_records(args: DiagnoseOptions, model: IdentificationModel, transmis
     train, validation = records.train.measurements, records.validation.measurements
     candidates = default_candidates(model) + coupling_candidates(model, transmission, train=train)
     return diagnose_model(model, train, validation, alpha=args.alpha, candidates=candidates,
-                          max_effects=args.max_effects, noise_floor=floor, delay=delay or DelayBounds(), jobs=args.jobs)
+                          max_effects=args.max_effects, noise_floor=floor, delay=delay or DelayBounds(), jobs=args.jobs,
+                          unseen_stretches=args.unseen_stretches)
 
 
 def test_errors(records: PreparedRecords, diagnosis: Diagnosis, floor: NoiseFloor | None) -> UntouchedErrors | None:

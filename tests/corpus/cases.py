@@ -16,8 +16,12 @@ every channel, two records from different trajectories (training, validation). I
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, Literal
+
+import numpy as np
+from numpy.typing import NDArray
 
 from dynamics.effects.linear import Armature, CoulombFriction, JointOffset, Spring
 from dynamics.effects.motor import CombinationEffect
@@ -44,18 +48,34 @@ class TrueTerm:
 
 
 @dataclass(frozen=True)
+class ExoticTerm:
+    """A true torque of a form no candidate family holds (a test-only truth): ``law(q_j, dq_j, t)`` added on joint
+    ``joint``'s channel. ``holds``: the candidate specs the truth may be said to hold on that channel (the Coulomb-like
+    part of a friction law, say); any other effect named there, or anywhere else, is a false effect."""
+
+    name: str
+    joint: int
+    law: Callable[[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]], NDArray[np.float64]]
+    holds: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True)
 class Case:
     """A simulated case and the outcome the diagnosis loop must reach on it (module docstring)."""
 
     name: str
     terms: tuple[TrueTerm, ...]
     named: frozenset[tuple[str, str]]
+    exotic: tuple[ExoticTerm, ...] = ()
+    above_floor: tuple[str, ...] = ()
     derivatives: Literal["given", "positions"] = "given"
     delay: float = 0.0
     floor_tolerance: float = 1.5
     xfail: str = ""
     slow: bool = False
     seeds: tuple[int, int] = (3, 4)
+    repeat: bool = False  # the validation record repeats the training motion (other noise)
+    rate_hz: float = 250.0  # samples per second (two 5 s periods a record)
 
     def __post_init__(self) -> None:
         if self.derivatives not in ("given", "positions"):
@@ -64,6 +84,11 @@ class Case:
     @property
     def known_law_tolerance(self) -> float:
         return KNOWN_LAW_GIVEN if self.derivatives == "given" else KNOWN_LAW_POSITIONS
+
+    @property
+    def allowed(self) -> frozenset[tuple[str, str]]:
+        """What may be named beside ``named``: what the exotic truths hold on their channels."""
+        return frozenset((spec, f"tau{term.joint + 1}") for term in self.exotic for spec in term.holds)
 
 
 def named(*pairs: tuple[str, str]) -> frozenset[tuple[str, str]]:
@@ -189,3 +214,96 @@ SIGN_LAW_ON_TANH = WrongLawCase(
     "viscous,coulomb",
     flagged=("tau2",),
 )
+
+
+# truths outside the candidate families (test-only laws): the diagnosis may name what they hold, nothing else, and
+# must say where the residual stays above the floor
+COULOMB_LIKE_LAWS = ("coulomb", "coulomb:tanh", "sigmoid")  # the sigmoid: a Coulomb law, asymmetric over the motion
+
+
+def dahl(fc: float, stiffness: float) -> Callable[..., NDArray[np.float64]]:
+    """Dahl's friction (1968): ``dF/dx = σ (1 − sign(dx) F / fc)`` along the joint's path ``x = q``, a hysteresis
+    whose steady state is Coulomb friction ``fc sign(dq)``, integrated exactly step by step from the state the
+    periodic record ends in (so that the record is periodic in it)."""
+
+    def law(q: NDArray[np.float64], dq: NDArray[np.float64], t: NDArray[np.float64]) -> NDArray[np.float64]:
+        steps = np.diff(q, prepend=q[0])
+        force, out = 0.0, np.empty_like(q)
+        for _ in range(2):  # the second pass starts where the first ended
+            for index, step in enumerate(steps):
+                target = fc * np.sign(step) if step else force
+                force = target + (force - target) * np.exp(-stiffness * abs(step) / fc)
+                out[index] = force
+        return out
+
+    return law
+
+
+def position_dependent_coulomb(fc: float, depth: float, n: float) -> Callable[..., NDArray[np.float64]]:
+    """Coulomb friction whose level varies along the joint's travel, ``fc (1 + depth sin(n q)) tanh(dq / 0.02)``
+    (a worn or eccentric gear): neither a plain law nor a ripple, which does not change sign with the motion."""
+
+    def law(q: NDArray[np.float64], dq: NDArray[np.float64], t: NDArray[np.float64]) -> NDArray[np.float64]:
+        return fc * (1.0 + depth * np.sin(n * q)) * np.tanh(dq / 0.02)
+
+    return law
+
+
+def exponential_stribeck(fc: float, fs: float, vs: float) -> Callable[..., NDArray[np.float64]]:
+    """Stribeck's law with the exponent 1, ``(fc + fs exp(−|dq|/vs)) sign(dq)``: the candidate ``stribeck:velocity``
+    holds the Gaussian form (exponent 2) only."""
+
+    def law(q: NDArray[np.float64], dq: NDArray[np.float64], t: NDArray[np.float64]) -> NDArray[np.float64]:
+        return (fc + fs * np.exp(-np.abs(dq) / vs)) * np.sign(dq)
+
+    return law
+
+
+OUTSIDE: tuple[Case, ...] = (
+    # a hysteresis: on joint 2's short travel (0.38 rad) more a stiff spring at each reversal than a Coulomb law
+    Case("dahl, tau2", (), named(), exotic=(ExoticTerm("dahl", 1, dahl(6.0, 150.0), COULOMB_LIKE_LAWS),),
+         above_floor=("tau2",)),
+    Case("dahl, tau2, validation repeats the motion", (), named(),
+         exotic=(ExoticTerm("dahl", 1, dahl(6.0, 150.0), COULOMB_LIKE_LAWS),), above_floor=("tau2",), repeat=True),
+    Case("position-dependent coulomb, tau3", (), named(),
+         exotic=(ExoticTerm("position-dependent coulomb", 2, position_dependent_coulomb(3.0, 0.6, 3.0),
+                            COULOMB_LIKE_LAWS),), above_floor=("tau3",)),
+    Case("position-dependent coulomb, tau3, validation repeats the motion", (), named(),
+         exotic=(ExoticTerm("position-dependent coulomb", 2, position_dependent_coulomb(3.0, 0.6, 3.0),
+                            COULOMB_LIKE_LAWS),), above_floor=("tau3",), repeat=True),
+    Case("exponential stribeck, tau3", (), named(),
+         exotic=(ExoticTerm("exponential stribeck", 2, exponential_stribeck(2.0, 3.0, 0.1),
+                            COULOMB_LIKE_LAWS + ("stribeck:velocity",)),), above_floor=("tau3",)),
+    Case("exponential stribeck on every joint", (), named(),
+         exotic=tuple(ExoticTerm("exponential stribeck", joint, exponential_stribeck(fc, fs, vs),
+                                 COULOMB_LIKE_LAWS + ("stribeck:velocity",))
+                      for joint, fc, fs, vs in ((0, 3.0, 2.0, 0.15), (1, 5.0, 3.0, 0.3), (2, 2.0, 3.0, 0.2))),
+         above_floor=("tau1", "tau2", "tau3")),
+    # the issue's truths (sigmoid, Stribeck on every joint), confirmed on a repeat of the training motion
+    Case("sigmoid on every joint, validation repeats the motion",
+         tuple(TrueTerm(SigmoidFriction(joints=(joint,)), (height,), (slope, shift))
+               for joint, height, slope, shift in ((0, 6.0, 30.0, 0.1), (1, 8.0, 40.0, 0.15), (2, 3.0, 60.0, -0.05))),
+         named(("sigmoid", "tau1"), ("sigmoid", "tau2"), ("sigmoid", "tau3")), repeat=True),
+    Case("stribeck, validation repeats the motion", (STRIBECK,), named(("stribeck:velocity", "tau3")), repeat=True),
+)
+def _long_xfail() -> dict[str, str]:
+    """Measured on the code of the day, where a 1 kHz case misses its targets."""
+    return {
+        "stribeck on every joint": "measured: named coulomb@tau2 (the sign law, fc2 = 7.9: the truth's fc + fs) beside "
+                                   "stribeck:velocity@tau1 and @tau3, tau2 9.9x its floor (said); the Stribeck law on "
+                                   "joint 2 alone fits best at a non-physical optimum (fc2 = 64.7, fs2 = -56.3, fv2 = "
+                                   "-4.1: its shape traded against the viscous term over joint 2's velocities) and is "
+                                   "refused, so the sign law stays (a physical optimum, tried, named a Stribeck law on "
+                                   "a sign-law truth in the streamed diagnosis: not kept)",
+    }
+
+
+#: the same truths, the derivatives made from the positions as a user gets them (slow)
+OUTSIDE_POSITIONS: tuple[Case, ...] = tuple(positions_only(case) for case in OUTSIDE)
+#: longer records (1 kHz, 10 000 samples each), where more power lets an approximation pass more tests (slow)
+OUTSIDE_LONG: tuple[Case, ...] = tuple(
+    Case(**{**{key: getattr(case, key) for key in Case.__dataclass_fields__},
+            "name": f"{case.name}, 1 kHz", "rate_hz": 1000.0, "slow": True,
+            "xfail": _long_xfail().get(case.name, "")})
+    for case in OUTSIDE + NON_DEFAULT[1:2] if not case.repeat)
+

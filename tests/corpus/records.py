@@ -1,7 +1,7 @@
 """A corpus case simulated and diagnosed in the library, and the outcome the tests check.
 
 The records: :func:`dynamics.simulation.synthetic.simulate` (declared model ``Y θ`` of a 3-joint PUMA 560, Fourier motion at
-250 Hz, two 5 s periods: 2500 samples a record) plus each true term's columns at its true shape times its
+the case's rate, 250 Hz by default, two 5 s periods: 2500 samples a record) plus each true term's columns at its true shape times its
 coefficients; a delay moves the recorded motion ahead of the torques. From positions only, the derivatives are
 made as a user gets them: the preprocessing chosen by held-out evidence on the training record
 (:func:`estimation.identification.preprocessing_choice.choose_by_evidence`), both records prepared with it.
@@ -14,6 +14,7 @@ import warnings
 from collections.abc import Iterable
 from dataclasses import dataclass
 from functools import lru_cache
+from typing import Any
 
 import numpy as np
 
@@ -26,11 +27,11 @@ from estimation.estimators.effect_blocks import Block, States
 from estimation.identification.fit import identify
 from estimation.identification.preprocessing_choice import choose_by_evidence
 from estimation.preprocessing.plan import PreprocessingWarning, prepare
+from estimation.uncertainty.noise_floor import NoiseFloor, noise_floor
 from tests.corpus.cases import NOISE, Case
 from dynamics.simulation.synthetic import simulate, true_parameters
 from oed.fourier import random_fourier
 
-RATE_HZ = 250.0
 PERIODS = 2
 
 
@@ -48,18 +49,21 @@ def true_model(case: Case) -> IdentificationModel:
     return build_model(robot(), "internal", ("viscous", *(term.effect for term in case.terms)))
 
 
-def simulated(case: Case, seed: int) -> Measurements:
-    """One record of the case (``seed`` picks the trajectory and the noise)."""
+def simulated(case: Case, seed: int, noise_seed: int | None = None) -> Measurements:
+    """One record of the case (``seed`` picks the trajectory and, unless ``noise_seed`` is given, the noise)."""
     declared = declared_model()
     theta = true_parameters(declared, seed=0)
     trajectory = random_fourier(robot(), seed=seed)
     noise = {channel: NOISE for channel in declared.channels}
-    data = simulate(declared, theta, trajectory, rate_hz=RATE_HZ, periods=PERIODS, noise=noise, seed=seed)
+    data = simulate(declared, theta, trajectory, rate_hz=case.rate_hz, periods=PERIODS, noise=noise,
+                    seed=seed if noise_seed is None else noise_seed)
     tau = data.tau.copy()
     states = States(data.q, data.dq, data.ddq)
     for term in case.terms:
         block = Block(ModelKind.INTERNAL, robot(), term.effect, declared.n_channels)
         tau[:, list(block.rows)] += block.evaluate(states, np.array(term.shape, dtype=float)) @ np.array(term.coefficients)
+    for exotic in case.exotic:
+        tau[:, exotic.joint] += exotic.law(data.q[:, exotic.joint], data.dq[:, exotic.joint], data.t)
     data = dataclasses.replace(data, tau=tau)
     if case.delay:
         q, dq, ddq = trajectory.evaluate(data.t + case.delay)  # the recorded motion runs ahead of the torques
@@ -71,7 +75,10 @@ def simulated(case: Case, seed: int) -> Measurements:
 
 def records(case: Case) -> tuple[Measurements, Measurements]:
     """Training and validation records, with derivatives (measured, or chosen by evidence on training)."""
-    train, validate = (simulated(case, seed) for seed in case.seeds)
+    if case.repeat:  # the training motion again, with the other seed's noise
+        train, validate = simulated(case, case.seeds[0]), simulated(case, case.seeds[0], noise_seed=case.seeds[1])
+    else:
+        train, validate = (simulated(case, seed) for seed in case.seeds)
     if case.derivatives == "positions":
         with warnings.catch_warnings():  # the detected fundamental is said to a user, not to the corpus
             warnings.simplefilter("ignore", PreprocessingWarning)
@@ -129,22 +136,36 @@ def estimate_errors(diagnosis: Diagnosis, true_values: dict[str, float]) -> dict
 
 def outcome(case: Case, diagnosis: Diagnosis, train: Measurements, validate: Measurements) -> Outcome:
     after = diagnosis.after.validation.mse
-    reference = identify(true_model(case), train, validate, delay=case.delay or None)
-    over_known = {channel: value / reference.validation.mse[channel] for channel, value in after.items()}
+    over_known = {}
+    if not case.exotic:  # no model knows an exotic law
+        reference = identify(true_model(case), train, validate, delay=case.delay or None)
+        over_known = {channel: value / reference.validation.mse[channel] for channel, value in after.items()}
     return Outcome(named_pairs(diagnosis), {channel: value / NOISE**2 for channel, value in after.items()},
                    over_known, estimate_errors(diagnosis, truth(case)))
 
 
-def run(case: Case, *, candidates: Iterable | None = None) -> tuple[Diagnosis, Outcome]:
+def validation_floor(case: Case) -> NoiseFloor | None:
+    """From positions only, the noise floor of the validation record as recorded, before its preprocessing (as
+    ``oed diagnose`` computes it from the file); with measured derivatives the diagnosis estimates it itself."""
+    if case.derivatives != "positions":
+        return None
+    seed, noise_seed = (case.seeds[0], case.seeds[1]) if case.repeat else (case.seeds[1], None)
+    return noise_floor(simulated(case, seed, noise_seed), declared_model().channels)
+
+
+def run(case: Case, *, candidates: Iterable | None = None, **options: Any) -> tuple[Diagnosis, Outcome]:
+    """The case diagnosed (``options``: more keywords of :func:`~estimation.diagnosis.search.diagnose`)."""
     train, validate = records(case)
-    diagnosis = diagnose(declared_model(), train, validate, candidates=candidates)
+    diagnosis = diagnose(declared_model(), train, validate, candidates=candidates, noise_floor=validation_floor(case),
+                         **options)
     return diagnosis, outcome(case, diagnosis, train, validate)
 
 
-def matches(expected: frozenset[tuple[str, str]], found: frozenset[tuple[str, str]]) -> bool:
-    """Every expected pair named (``a|b``: either spec) and nothing else."""
+def matches(expected: frozenset[tuple[str, str]], found: frozenset[tuple[str, str]],
+            allowed: frozenset[tuple[str, str]] = frozenset()) -> bool:
+    """Every expected pair named (``a|b``: either spec) and nothing else but what ``allowed`` lets be named."""
     def accepts(pattern: tuple[str, str], pair: tuple[str, str]) -> bool:
         return pair[1] == pattern[1] and pair[0] in pattern[0].split("|")
 
     return (all(any(accepts(pattern, pair) for pair in found) for pattern in expected)
-            and all(any(accepts(pattern, pair) for pattern in expected) for pair in found))
+            and all(any(accepts(pattern, pair) for pattern in expected | allowed) for pair in found))
