@@ -116,7 +116,8 @@ def pin_wrong_signs(selected: list, after: IdentificationResult, declared: Ident
         names = set(negative)
         found_names = {id(effect) for effect, _, _ in selected}
         for effect in list(effects) + [effect for effect, _, _ in selected]:
-            for name in set(effect.parameter_names(declared.robot)) & names:
+            for name in (name for name in effect.parameter_names(declared.robot) if name in names):  # in order:
+                # the report must not depend on the hash seed
                 value, std = negative[name]
                 pinned.append(PinnedTerm(name, getattr(effect, "spec", effect.name), value, std, id(effect) in found_names))
         effects = [kept for kept in (_without(effect, names, declared) for effect in effects) if kept is not None]
