@@ -27,6 +27,8 @@ from oed.cli.design_sequential import add_sequential_arguments, run_sequential, 
 from oed.criteria import CRITERIA
 from oed.cli.shared.design_bounds import bounds_from_arguments
 from oed.design import DesignSettings, ShrunkDesignWarning, design_excitation
+from oed.design_constraints import DEFAULT_COLLISION_MARGIN, constraints_from_options
+from oed.rest_ramps import RestStart, experiment_samples, rest_of
 from oed.sequential.criteria import SEQUENTIAL_CRITERIA
 from oed.sequential.problem import SEQUENTIAL_MAX_ITER
 from oed.cli.shared.verbs import verb_summary
@@ -64,6 +66,16 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     parser.add_argument("--out", type=Path, required=True, help="trajectory JSON")
     parser.add_argument("--csv", type=Path, help="sampled trajectory t, q1..qn, dq1..dqn, ddq1..ddqn (1 kHz)")
     parser.add_argument("--plot", type=Path, help="figure of q, dq, ddq with the bounds")
+    feasible = parser.add_argument_group("a design the robot can run (docs/cli/design.md)")
+    feasible.add_argument("--torque-limits", action="store_true",
+                          help="the URDF's effort limits hold for the nominal model's torque at every sample")
+    feasible.add_argument("--start", type=joint_positions, metavar="Q1,Q2,...",
+                          help="start and end at rest there (rad or m), quintic ramps in and out")
+    feasible.add_argument("--floor", type=float, metavar="Z", help="collision geometry stays above z = Z (base frame, m)")
+    feasible.add_argument("--self-collision", action="store_true",
+                          help="non-adjacent links keep --collision-margin between their collision geometries")
+    feasible.add_argument("--collision-margin", type=float, default=DEFAULT_COLLISION_MARGIN, metavar="M",
+                          help=f"least distance between non-adjacent links, m (default {DEFAULT_COLLISION_MARGIN})")
     add_sequential_arguments(parser)
     verbosity = parser.add_mutually_exclusive_group()
     verbosity.add_argument("--quiet", action="store_true", help="no progress output")
@@ -71,9 +83,19 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     return parser
 
 
+def joint_positions(text: str) -> tuple[float, ...]:
+    """``--start`` values: a comma list of numbers."""
+    try:
+        return tuple(float(value) for value in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a comma list of joint positions, got {text!r}") from None
+
+
 def trajectory_table(trajectory, rate_hz: float = 1000.0) -> tuple[list[str], np.ndarray]:
-    """Columns ``t, q1..qn, dq1..dqn, ddq1..ddqn`` and the samples of one period."""
-    t, q, dq, ddq = trajectory.sample(rate_hz)
+    """Columns ``t, q1..qn, dq1..dqn, ddq1..ddqn`` and the samples of one period (with a rest start:
+    the whole experiment, ramps in and out, its last sample at rest)."""
+    rest, periods = rest_of(trajectory)
+    t, q, dq, ddq = experiment_samples(trajectory, rest, rate_hz, periods)
     n = trajectory.n_joints
     header = ["t"] + [f"{state}{i}" for state in ("q", "dq", "ddq") for i in range(1, n + 1)]
     return header, np.column_stack([t, q, dq, ddq])
@@ -81,6 +103,11 @@ def trajectory_table(trajectory, rate_hz: float = 1000.0) -> tuple[list[str], np
 
 def run(args: argparse.Namespace) -> int:
     if sequential_requested(args):
+        asked = [option for option, given in (("--torque-limits", args.torque_limits), ("--start", args.start),
+                                              ("--floor", args.floor), ("--self-collision", args.self_collision))
+                 if given not in (None, False)]
+        if asked:
+            raise ValueError(f"{', '.join(asked)} cannot be combined with --from yet (sequential designs)")
         return run_sequential(args)
     args.model = args.model or "combined"
     args.criterion = args.criterion or "logdet"
@@ -109,8 +136,12 @@ def run(args: argparse.Namespace) -> int:
                   f"{start.time_s:.2f} s, cost {start.cost:.4f}" + ("" if start.feasible else " (bounds not met)"),
                   file=sys.stderr, flush=True)
 
+    constraints = constraints_from_options(robot, args.urdf, torque_limits=args.torque_limits, floor=args.floor,
+                                           self_collision=args.self_collision, collision_margin=args.collision_margin)
+    rest = None if args.start is None else RestStart(args.start)
     options = dict(model=args.model, bounds=bounds, criterion=args.criterion, effects=args.friction,
-                   starts=args.starts, seed=args.seed, settings=settings, progress=progress)
+                   starts=args.starts, seed=args.seed, settings=settings, progress=progress,
+                   constraints=constraints, rest=rest)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", ShrunkDesignWarning)
         address = scheduler_address(args.scheduler)
@@ -139,7 +170,7 @@ def run(args: argparse.Namespace) -> int:
             from dynamics.runtime.output_files import save_figure
             from oed.design_plot import plot_trajectory
 
-            figure = plot_trajectory(trajectory, bounds, rate_hz=settings.rate_hz,
+            figure = plot_trajectory(trajectory, bounds, rate_hz=settings.rate_hz, margins=result.margins,
                                      title=f"{robot.name}, {args.model} model, cost {result.cost:.2f}")
             save_figure(figure, outputs.stage_figure(args.plot))
     if not args.quiet:
