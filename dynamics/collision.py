@@ -108,6 +108,11 @@ class CollisionGeometry:
     link_names: tuple[str, ...]
     model: Any = field(repr=False)
     geometry_model: Any = field(repr=False)
+    _cache: dict = field(default_factory=dict, repr=False)
+
+    def __getstate__(self) -> dict:
+        """Pickled without the distance checker's Pinocchio data (rebuilt where unpickled)."""
+        return {**self.__dict__, "_cache": {}}
 
     @property
     def n_joints(self) -> int:
@@ -158,23 +163,30 @@ class CollisionGeometry:
 
     def pair_distances(self, q: NDArray[np.float64], pairs: list[tuple[int, int]]) -> NDArray[np.float64]:
         """Smallest signed distance (m, negative: penetration) between the shapes of each pair of joints'
-        links at ``q``, by Pinocchio's ``computeDistances`` (coal), no cached collision guess."""
+        links at ``q`` (one row per configuration when ``q`` is ``(T, n)``), by Pinocchio's
+        ``computeDistances`` (coal): no cached collision guess."""
         import pinocchio as pin
 
-        geometry_model = self.geometry_model.copy()
-        index_pairs = []
-        for i, j in pairs:
+        key = ("distances", tuple(pairs))
+        if key not in self._cache:
+            geometry_model = self.geometry_model.copy()
+            geometry_model.removeAllCollisionPairs()
             members = []
-            for a in self.on_joint(i):
-                for b in self.on_joint(j):
-                    members.append(len(geometry_model.collisionPairs))
-                    geometry_model.addCollisionPair(pin.CollisionPair(a, b))
-            index_pairs.append(members)
-        data = self.model.createData()
-        geometry_data = pin.GeometryData(geometry_model)
-        pin.computeDistances(self.model, data, geometry_model, geometry_data, np.asarray(q, float))
-        distances = np.array([result.min_distance for result in geometry_data.distanceResults])
-        return np.array([distances[members].min() for members in index_pairs])
+            for i, j in pairs:
+                members.append([])
+                for a in self.on_joint(i):
+                    for b in self.on_joint(j):
+                        members[-1].append(len(geometry_model.collisionPairs))
+                        geometry_model.addCollisionPair(pin.CollisionPair(a, b))
+            self._cache[key] = (geometry_model, self.model.createData(), pin.GeometryData(geometry_model), members)
+        geometry_model, data, geometry_data, members = self._cache[key]
+        configurations = np.atleast_2d(np.asarray(q, dtype=float))
+        result = np.empty((configurations.shape[0], len(pairs)))
+        for row, sample in enumerate(configurations):
+            pin.computeDistances(self.model, data, geometry_model, geometry_data, sample)
+            distances = np.array([item.min_distance for item in geometry_data.distanceResults])
+            result[row] = [distances[group].min() for group in members]
+        return result if np.ndim(q) == 2 else result[0]
 
 
 def read_collision_geometry(path: str | Path, robot: RobotModel) -> CollisionGeometry:

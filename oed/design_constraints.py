@@ -81,6 +81,10 @@ class TorqueLimits:
     name = "torque"
     unit = "N·m"
 
+    def __getstate__(self) -> dict:
+        """Pickled without the built CasADi functions (rebuilt where unpickled)."""
+        return {**self.__dict__, "_cache": {}}
+
     def __post_init__(self) -> None:
         n = self.robot.n_joints
         effort = np.array([joint.effort for joint in self.robot.joints], dtype=float)
@@ -161,6 +165,10 @@ class _GeometricConstraint:
     robot: RobotModel
     geometry: CollisionGeometry
     _cache: dict = field(default_factory=dict, repr=False)
+
+    def __getstate__(self) -> dict:
+        """Pickled without the built CasADi functions (rebuilt where unpickled)."""
+        return {**self.__dict__, "_cache": {}}
 
     def _check_geometry(self, option: str) -> None:
         missing = self.geometry.links_without_geometry()
@@ -303,7 +311,7 @@ class SelfCollision(_GeometricConstraint):
         """``(T, pairs)``: signed distance (coal) less the margin, per non-adjacent pair of links (m)."""
         q = np.atleast_2d(np.asarray(q, dtype=float))
         pairs = self.pairs
-        return np.array([self.geometry.pair_distances(sample, pairs) for sample in q]) - self.margin
+        return self.geometry.pair_distances(q, pairs) - self.margin
 
     def describe(self) -> dict[str, Any]:
         return {"margin": self.margin, "pairs": list(self.labels),

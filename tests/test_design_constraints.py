@@ -256,3 +256,52 @@ def test_cli_design_with_torque_limits_and_start(tmp_path):
     bad = subprocess.run(command[:-8] + ["--start", "0,3,0,0,0,0", "--out", "e.json"], cwd=tmp_path,
                          capture_output=True, text=True, timeout=600)
     assert bad.returncode != 0 and "outside its bounds" in bad.stderr and "Traceback" not in bad.stderr
+
+
+def _independent_margins(trajectory, rest, periods, geometry):
+    """Floor height and least coal distance of non-adjacent links over the whole experiment at 1 kHz."""
+    _, q, dq, ddq = experiment_samples(trajectory, rest, 1000.0, periods)
+    joints = np.array([primitive.joint for primitive in geometry.primitives])
+    lowest = np.array([geometry.lowest_points(sample)[joints > 0].min() for sample in q[::2]])
+    distances = geometry.pair_distances(q[::2], geometry.non_adjacent_pairs())
+    return q, dq, ddq, lowest.min(), distances.min()
+
+
+def test_design_above_the_floor_and_clear_of_itself_by_coal(arm, bounds, geometry):
+    free = design_excitation(arm, model="internal", bounds=bounds, starts=1, settings=SMALL)
+    *_, free_floor, free_distance = _independent_margins(free.trajectory, None, 1, geometry)
+    assert free_floor < 0 or free_distance < 0.02, "the unconstrained design should break a constraint"
+    constraints = (Floor(arm, geometry, height=0.0), SelfCollision(arm, geometry, margin=0.02))
+    held = design_excitation(arm, model="internal", bounds=bounds, starts=1, settings=SMALL, constraints=constraints)
+    q, dq, ddq, floor, distance = _independent_margins(held.trajectory, None, 1, geometry)
+    assert floor >= 0 and distance >= 0.02
+    assert not bounds.violations(q, dq, ddq, tolerance=1e-6)
+    recorded = {entry["name"]: entry for entry in held.trajectory.metadata["constraints"]}
+    assert recorded["floor"]["worst_margin"] == pytest.approx(floor, abs=2e-3)
+    assert recorded["self_collision"]["worst_margin"] == pytest.approx(distance - 0.02, abs=2e-3)
+
+
+@pytest.mark.slow
+def test_issue_36_done_when_on_the_six_joint_arm(arm, bounds, geometry):
+    """Every constraint at once, four starts: margins kept on the 1 kHz grid (Pinocchio, coal), rest at both
+    ends, bounds held, D-efficiency >= 0.85 against the unconstrained design."""
+    settings = DesignSettings()
+    free = design_excitation(arm, model="internal", bounds=bounds, starts=4, settings=settings)
+    rest = RestStart(np.array([0.0, 0.3, 0.6, 0.0, 0.5, 0.0]))
+    constraints = constraints_from_options(arm, URDF, torque_limits=True, floor=0.0, self_collision=True)
+    held = design_excitation(arm, model="internal", bounds=bounds, starts=4, settings=settings,
+                             constraints=constraints, rest=rest)
+    periods = held.trajectory.metadata["experiment"]["periods"]
+    q, dq, ddq, floor, distance = _independent_margins(held.trajectory, rest, periods, geometry)
+    assert floor >= 0 and distance >= 0.02
+    model = pin.buildModelFromUrdf(str(URDF))
+    data = model.createData()
+    tau = np.array([pin.rnea(model, data, a, b, c) for a, b, c in zip(q, dq, ddq)])
+    tau += np.asarray(model.damping) * dq + np.asarray(model.friction) * np.sign(dq)
+    assert np.all(np.abs(tau) <= np.asarray(model.effortLimit))
+    assert not bounds.violations(q, dq, ddq, tolerance=1e-6)
+    np.testing.assert_allclose([dq[0], ddq[0], dq[-1], ddq[-1]], 0, atol=1e-9)
+    from dynamics.models import build_model
+
+    p = build_model(arm, "internal", ("viscous",)).n_base
+    assert np.exp((free.cost - held.cost) / p) >= 0.85
