@@ -103,11 +103,9 @@ def trajectory_table(trajectory, rate_hz: float = 1000.0) -> tuple[list[str], np
 
 def run(args: argparse.Namespace) -> int:
     if sequential_requested(args):
-        asked = [option for option, given in (("--torque-limits", args.torque_limits), ("--start", args.start),
-                                              ("--floor", args.floor), ("--self-collision", args.self_collision))
-                 if given not in (None, False)]
-        if asked:
-            raise ValueError(f"{', '.join(asked)} cannot be combined with --from yet (sequential designs)")
+        if args.start is not None:
+            raise ValueError("--start cannot be combined with --from yet (sequential designs: the next experiment's "
+                             "information is that of whole periods)")
         return run_sequential(args)
     args.model = args.model or "combined"
     args.criterion = args.criterion or "logdet"

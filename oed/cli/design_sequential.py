@@ -21,6 +21,7 @@ from oed.cli.shared.common import OutputFiles, check_figure_path, check_json_pat
 from oed.cli.shared.design_bounds import bounds_from_arguments
 from oed.cli.shared.options import check_hertz, handover
 from oed.design import DesignSettings, ShrunkDesignWarning
+from oed.design_constraints import constraints_from_options
 from oed.sequential.criteria import SEQUENTIAL_CRITERIA
 from oed.sequential.discrimination import design_discriminating
 from oed.sequential.figure import plot_next_experiment
@@ -119,8 +120,12 @@ def run_sequential(args: argparse.Namespace) -> int:
                   f"criterion {start.criterion_value:.4f}" + ("" if start.feasible else " (bounds not met)"),
                   file=sys.stderr, flush=True)
 
+    recorded = model.file.robot.urdf_path  # the model's URDF when --urdf is not given
+    urdf = args.urdf if args.urdf is not None or recorded is None or not Path(recorded).is_file() else Path(recorded)
+    constraints = constraints_from_options(model.robot, urdf, torque_limits=args.torque_limits, floor=args.floor,
+                                           self_collision=args.self_collision, collision_margin=args.collision_margin)
     options = dict(bounds=bounds, settings=settings, duration_s=duration, starts=args.starts, seed=args.seed,
-                   progress=progress)
+                   progress=progress, constraints=constraints)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", ShrunkDesignWarning)
         if rival is None:
