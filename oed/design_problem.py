@@ -29,6 +29,7 @@ import numpy as np
 import scipy.sparse
 from numpy.typing import NDArray
 
+from dynamics.codegen.jit_cache import cached_jit
 from dynamics.effects.linear import parse_effects
 from dynamics.runtime.memory import check_allocation
 from dynamics.models import ModelKind, build_model
@@ -193,9 +194,15 @@ class ExcitationDesign:
                 weights[:, mask] = w[:, 0 if ramp_in else 5, :]
         return rows, weights
 
-    def _states(self, x: casadi.MX | NDArray, indices: NDArray[np.int64]) -> list:
-        """``q, dq, ddq`` (``n x T``) of ``x`` at fine-grid points (symbolic for an MX ``x``)."""
-        rows, weights = self.point_matrices(indices)
+    def _states(self, x: casadi.MX | NDArray, indices: NDArray[np.int64] | None = None) -> list:
+        """``q, dq, ddq`` (``n x T``) of ``x`` at fine-grid points (symbolic for an MX ``x``); ``None``: the
+        whole fine grid (its matrices cached)."""
+        if indices is None:
+            if "fine" not in self._cache:
+                self._cache["fine"] = self.point_matrices(np.arange(self.fine_size))
+            rows, weights = self._cache["fine"]
+        else:
+            rows, weights = self.point_matrices(indices)
         q_rest = np.zeros(self.n_joints) if self.rest is None else self.rest.q
         if isinstance(x, casadi.MX):
             q0, a, b = unpack(x, self.n_joints, self.settings.harmonics)
@@ -207,7 +214,7 @@ class ExcitationDesign:
 
     def fine_states(self, x: NDArray[np.float64]) -> tuple[NDArray[np.float64], ...]:
         """``q, dq, ddq`` ``(T, n)`` of ``x`` on the fine grid (the period, then the ramps)."""
-        return tuple(state.T for state in self._states(x, np.arange(self.fine_size)))
+        return tuple(state.T for state in self._states(x))
 
     def base_points(self) -> NDArray[np.int64]:
         """The fine-grid indices of the constraint points: ``constraint_points`` equidistant over the
@@ -224,18 +231,57 @@ class ExcitationDesign:
 
     def nonlinear_function(self, indices: NDArray[np.int64]) -> casadi.Function | None:
         """``x -> g``: every constraint's rows at the points ``indices`` (``g ≥ 0`` met), constraint by
-        constraint, point-major within each (``None`` without constraints)."""
+        constraint, point-major within each (``None`` without constraints).
+
+        Its Jacobian is given by the chain rule, not left to AD over the coefficients: the states at a point
+        are linear in ``x`` (``state_j = block_j · rows_k``), so ``∂g_k/∂x`` is the per-sample Jacobian
+        ``∂g/∂(q, dq, ddq)`` (``3n`` columns, compiled with the constraint) times those rows; AD in the
+        ``n (2N+1)`` coefficient directions costs several times more (``custom_jacobian``).
+        """
         if not self.constraints:
             return None
         x = casadi.MX.sym("x", self.n_variables)
         states = self._states(x, indices)
-        parts = [casadi.vec(constraint.function().map(len(indices))(*states)) for constraint in self.constraints]
-        return casadi.Function("design_constraints", [x], [casadi.vertcat(*parts)], ["x"], ["g"])
+        rows = [casadi.DM(matrix) for matrix in self.point_matrices(indices)[0]]
+        count = len(indices)
+        values = [casadi.vec(self._compiled(constraint).map(count)(*states)) for constraint in self.constraints]
+        transposed = [self._compiled(constraint, jacobian=True).map(count)(*states, *rows)
+                      for constraint in self.constraints]
+        g = casadi.vertcat(*values)
+        jacobian = casadi.Function("jac_design_constraints", [x, casadi.MX.sym("g", g.shape[0])],
+                                   [casadi.horzcat(*transposed).T])
+        return casadi.Function("design_constraints", [x], [g], ["x"], ["g"],
+                               {"custom_jacobian": jacobian, "jac_penalty": 0, "never_inline": True})
+
+    def _jacobian_rows(self, constraint: Any) -> casadi.Function:
+        """``(q, dq, ddq, r_q, r_dq, r_ddq) -> (∂g/∂x)ᵀ`` of one point (``n (2N+1) x m``), ``r`` the point's
+        rows of :meth:`point_matrices` (the same for every joint)."""
+        n, width = self.n_joints, 2 * self.settings.harmonics + 1
+        q, dq, ddq = (casadi.SX.sym(name, n) for name in ("q", "dq", "ddq"))
+        r = [casadi.SX.sym(f"r_{name}", width) for name in ("q", "dq", "ddq")]
+        per_state = casadi.jacobian(constraint.function()(q, dq, ddq), casadi.vertcat(q, dq, ddq))  # m x 3n
+        blocks = [sum(casadi.mtimes(r[k], per_state[:, k * n + j].T) for k in range(3)) for j in range(n)]
+        return casadi.Function(f"{constraint.name}_jacobian_rows", [q, dq, ddq, *r], [casadi.vertcat(*blocks)],
+                               ["q", "dq", "ddq", "r_q", "r_dq", "r_ddq"], ["jacobian_t"])
+
+    def _compiled(self, constraint: Any, jacobian: bool = False) -> casadi.Function:
+        """The constraint's per-sample function (``jacobian``: :meth:`_jacobian_rows`), compiled into the
+        on-disk cache when ``settings.jit`` (:func:`dynamics.codegen.jit_cache.cached_jit`; as it is if that
+        fails)."""
+        key = ("compiled", id(constraint), jacobian)
+        if key not in self._cache:
+            function = self._jacobian_rows(constraint) if jacobian else constraint.function()
+            cached = cached_jit(function) if self.settings.jit else None
+            self._cache[key] = function if cached is None else cached.function
+        return self._cache[key]
 
     def constraint_margins(self, x: NDArray[np.float64]) -> list[NDArray[np.float64]]:
         """The smooth rows ``g`` ``(T, m)`` of each constraint on the fine grid (``< 0``: broken)."""
-        q, dq, ddq = self._states(x, np.arange(self.fine_size))
-        return [np.asarray(constraint.function().map(q.shape[1])(q, dq, ddq)).T for constraint in self.constraints]
+        q, dq, ddq = self._states(x)
+        key = ("fine map", self.fine_size)
+        if key not in self._cache:
+            self._cache[key] = [self._compiled(constraint).map(self.fine_size) for constraint in self.constraints]
+        return [np.asarray(function(q, dq, ddq)).T for function in self._cache[key]]
 
     def experiment_time(self, indices: NDArray[np.int64], periods: int = 1) -> NDArray[np.float64]:
         """Time (s) in the experiment of fine-grid points: the ramp in from 0, the first period after it,
