@@ -16,6 +16,7 @@ import pinocchio as pin
 import pytest
 
 from dynamics.collision import read_collision_geometry
+from dynamics.errors import RobotDescriptionError
 from dynamics.kinematics import joint_frames
 from dynamics.robots import load_robot
 from oed.bounds import JointBounds
@@ -305,3 +306,33 @@ def test_issue_36_done_when_on_the_six_joint_arm(arm, bounds, geometry):
 
     p = build_model(arm, "internal", ("viscous",)).n_base
     assert np.exp((free.cost - held.cost) / p) >= 0.85
+
+
+def test_a_mesh_found_beside_the_urdf_is_covered_by_its_spheres(arm, tmp_path):
+    """A mesh file next to the URDF is read (coal), bounded by a capsule along its principal axis, and every
+    vertex lies inside the spheres the optimiser uses; a mesh that is not there is named."""
+    half = np.array([0.05, 0.03, 0.15])
+    corners = [np.where(np.array(index) == 1, half, -half) for index in np.ndindex(2, 2, 2)]
+    faces = [(0, 1, 3), (0, 3, 2), (4, 6, 7), (4, 7, 5), (0, 4, 5), (0, 5, 1), (2, 3, 7), (2, 7, 6), (0, 2, 6),
+             (0, 6, 4), (1, 5, 7), (1, 7, 3)]
+    lines = ["solid part"]
+    for face in faces:
+        lines += [" facet normal 0 0 0", "  outer loop", *(f"   vertex {' '.join(map(str, corners[i]))}" for i in face),
+                  "  endloop", " endfacet"]
+    (tmp_path / "part.stl").write_text("\n".join(lines + ["endsolid part"]) + "\n")
+    text = URDF.read_text()
+    start = text.index("<collision>", text.index('<link name="link3">'))
+    end = text.index("</collision>", start) + len("</collision>")
+    mesh = '<collision><origin xyz="0 0 0.17"/><geometry><mesh filename="part.stl"/></geometry></collision>'
+    (tmp_path / "mesh.urdf").write_text(text[:start] + mesh + text[end:])
+    robot = load_robot(urdf=tmp_path / "mesh.urdf")
+    geometry = read_collision_geometry(tmp_path / "mesh.urdf", robot)
+    (primitive,) = [item for item in geometry.primitives if item.kind == "mesh"]
+    centres, radii = primitive.spheres()
+    vertices = primitive.vertices @ primitive.placement[:3, :3].T + primitive.placement[:3, 3]
+    gaps = np.linalg.norm(vertices[:, None] - centres[None], axis=2) - radii[None]
+    assert np.all(gaps.min(axis=1) <= 1e-12)
+    assert geometry.lowest_points(np.zeros(6))[3] == pytest.approx(0.12 + 0.2 + 0.4 + 0.17 - 0.15, abs=1e-6)
+    (tmp_path / "part.stl").unlink()
+    with pytest.raises(RobotDescriptionError, match="part.stl"):
+        read_collision_geometry(tmp_path / "mesh.urdf", robot)
