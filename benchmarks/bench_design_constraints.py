@@ -20,6 +20,7 @@ the D-efficiency ``exp((L_u − L_c)/p)`` (``L = −log det`` of the information
 from __future__ import annotations
 
 import argparse
+import os
 import time
 from importlib import resources
 from pathlib import Path
@@ -74,15 +75,15 @@ def main() -> None:
     settings = DesignSettings(harmonics=args.harmonics)
     common = dict(model=args.model, bounds=bounds, starts=args.starts, seed=args.seed, settings=settings)
 
-    started = time.perf_counter()
+    started, cpu = time.perf_counter(), time.process_time()
     free = design_excitation(robot, **common)
-    free_time = time.perf_counter() - started
+    free_time, free_cpu = time.perf_counter() - started, time.process_time() - cpu
     constraints = constraints_from_options(robot, URDF, torque_limits=True, floor=0.0, self_collision=True,
                                            collision_margin=0.02)
     rest = RestStart(START)
-    started = time.perf_counter()
+    started, cpu = time.perf_counter(), time.process_time()
     held = design_excitation(robot, constraints=constraints, rest=rest, **common)
-    held_time = time.perf_counter() - started
+    held_time, held_cpu = time.perf_counter() - started, time.process_time() - cpu
 
     p = build_model(robot, args.model, ("viscous",)).n_base
     efficiency = float(np.exp((free.cost - held.cost) / p))
@@ -91,12 +92,13 @@ def main() -> None:
     held_check = independent_check(held.trajectory, rest, periods, bounds, geometry)
     print(f"arm6 ({robot.n_joints} joints), {args.model} model, p = {p} base parameters, {args.starts} starts, "
           f"{args.harmonics} harmonics")
-    print(f"unconstrained: {free_time:6.1f} s, cost {free.cost:.3f}, "
+    print(f"unconstrained: {free_time:6.1f} s wall, {free_cpu:6.1f} s CPU, cost {free.cost:.3f}, "
           f"successful starts {sum(s.success for s in free.starts)}/{args.starts}")
-    print(f"constrained  : {held_time:6.1f} s, cost {held.cost:.3f}, "
+    print(f"constrained  : {held_time:6.1f} s wall, {held_cpu:6.1f} s CPU, cost {held.cost:.3f}, "
           f"successful starts {sum(s.success for s in held.starts)}/{args.starts}, "
           f"iterations {[s.iterations for s in held.starts]}, refinements {[s.refinements for s in held.starts]}")
-    print(f"time ratio constrained/unconstrained: {held_time / free_time:.2f}")
+    print(f"time ratio constrained/unconstrained: {held_time / free_time:.2f} wall, {held_cpu / free_cpu:.2f} CPU; "
+          f"load average at the end {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores")
     print(f"D-efficiency exp((L_u - L_c)/p) of the period: {efficiency:.3f}")
     experiment = held.trajectory.metadata["experiment"]
     print(f"experiment: ramps of {experiment['ramp_s']} s around {periods} periods ({experiment['duration_s']} s); "

@@ -122,12 +122,65 @@ def experiment_samples(trajectory: FourierTrajectory, rest: RestStart | None, ra
     return (t, *states)
 
 
+@dataclass(frozen=True)
+class Experiment:
+    """The whole experiment of a design with a rest start, as a reference to play (``oed simulate``):
+    ``evaluate(t)`` gives ``q, dq, ddq`` at any times of ``[0, duration_s]`` (ramp in, periods, ramp out;
+    at rest before and after)."""
+
+    trajectory: FourierTrajectory
+    rest: RestStart
+    periods: int
+
+    @property
+    def n_joints(self) -> int:
+        return self.trajectory.n_joints
+
+    @property
+    def duration_s(self) -> float:
+        return 2 * self.rest.ramp_s + self.periods * self.trajectory.period
+
+    def evaluate(self, t: ArrayLike) -> tuple[NDArray[np.float64], ...]:
+        t = np.asarray(t, dtype=float).reshape(-1)
+        ramp, middle = self.rest.ramp_s, self.periods * self.trajectory.period
+        start = tuple(v[0] for v in self.trajectory.evaluate(np.zeros(1)))
+        states = [np.empty((t.size, self.n_joints)) for _ in range(3)]
+        pieces = ((t < ramp, lambda s: ramp_states(self.rest, start, np.clip(s, 0, ramp), True)),
+                  ((t >= ramp) & (t < ramp + middle), lambda s: self.trajectory.evaluate(s - ramp)),
+                  (t >= ramp + middle, lambda s: ramp_states(self.rest, start, np.clip(s - ramp - middle, 0, ramp), False)))
+        for mask, piece in pieces:
+            if mask.any():
+                for state, values in zip(states, piece(t[mask])):
+                    state[mask] = values
+        return tuple(states)
+
+
 def rest_of(trajectory: FourierTrajectory) -> tuple[RestStart | None, int | None]:
     """The rest start and the periods a designed trajectory's metadata records (``experiment``), or ``None``."""
     experiment = trajectory.metadata.get("experiment")
     if not experiment:
         return None, None
     return RestStart(experiment["q"], experiment["ramp_s"], experiment.get("periods")), experiment.get("periods")
+
+
+def playable(trajectory: FourierTrajectory, rate_hz: float, periods: int = 1,
+             warmup_periods: int = 0) -> tuple[FourierTrajectory | Experiment, float | None]:
+    """What ``oed simulate`` plays: a design with a rest start as its whole :class:`Experiment` (ramps included,
+    the last sample at rest) and its duration; any other trajectory as it is (``None``: by periods).
+
+    Raises
+    ------
+    ValueError
+        ``periods`` or ``warmup_periods`` asked of a whole experiment.
+    """
+    rest, count = rest_of(trajectory)
+    if rest is None:
+        return trajectory, None
+    if periods != 1 or warmup_periods:
+        raise ValueError("the design holds a whole experiment (start and end at rest, experiment.periods periods): "
+                         "--periods and --warmup-periods do not apply")
+    experiment = Experiment(trajectory, rest, count or 1)
+    return experiment, experiment.duration_s + 1.0 / rate_hz
 
 
 def choose_periods(information, trajectory: FourierTrajectory, rest: RestStart, rate_hz: float) -> tuple[int, list[float]]:

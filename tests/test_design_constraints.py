@@ -336,3 +336,23 @@ def test_a_mesh_found_beside_the_urdf_is_covered_by_its_spheres(arm, tmp_path):
     (tmp_path / "part.stl").unlink()
     with pytest.raises(RobotDescriptionError, match="part.stl"):
         read_collision_geometry(tmp_path / "mesh.urdf", robot)
+
+
+def test_simulate_plays_the_whole_experiment(tmp_path):
+    """`oed simulate` of a design with a rest start plays ramps and periods: the reference is the CSV's."""
+    from oed.fourier import FourierTrajectory
+    from oed.rest_ramps import playable
+
+    generator = np.random.default_rng(9)
+    rest = RestStart(np.full(2, 0.1), ramp_s=0.5)
+    trajectory = FourierTrajectory(0.5, [0.0, 0.2], generator.normal(size=(2, 2)) * 0.2,
+                                   generator.normal(size=(2, 2)) * 0.2,
+                                   metadata={"experiment": {**rest.to_dict(), "periods": 3}})
+    reference, duration = playable(trajectory, 1000.0)
+    t, q, dq, ddq = experiment_samples(trajectory, rest, 1000.0, 3)
+    assert duration == pytest.approx(t[-1] + 1e-3)
+    for played, expected in zip(reference.evaluate(t), (q, dq, ddq)):
+        np.testing.assert_allclose(played, expected, atol=1e-12)
+    with pytest.raises(ValueError, match="--periods"):
+        playable(trajectory, 1000.0, periods=2)
+    assert playable(FourierTrajectory(0.5, [0.0], [[0.1]], [[0.1]]), 1000.0)[1] is None

@@ -21,6 +21,7 @@ from dynamics.simulation.effects import SIMULATED_EFFECTS, Viscous, effects_from
 from dynamics.simulation.simulator import NoiseModel, Simulator
 from oed.cli.shared.common import OutputFiles, add_robot_arguments, json_text, robot_from_arguments, seed
 from oed.fourier import FourierTrajectory
+from oed.rest_ramps import playable
 from oed.cli.shared.verbs import verb_summary
 
 CONTROLLERS = ("pd", "computed-torque")
@@ -127,8 +128,9 @@ def run(args: argparse.Namespace) -> int:
     noise = NoiseModel(args.noise_tau, tuple(args.noise_wrench), _resolution(args.q_resolution))
     simulator = Simulator(robot, effects, noise=noise, rate_hz=args.rate)
     controller = _controller(args.controller, simulator, args.bandwidth)
+    reference, duration = playable(trajectory, args.rate, args.periods, args.warmup_periods)
     result = simulator.run(
-        trajectory, controller, periods=args.periods, warmup_periods=args.warmup_periods,
+        reference, controller, periods=args.periods, duration=duration, warmup_periods=args.warmup_periods,
         with_derivatives=args.with_derivatives, seed=args.seed,
     )
     metadata = dict(result.metadata, trajectory=str(args.trajectory), data=str(args.out))
