@@ -244,17 +244,19 @@ def test_cli_design_with_torque_limits_and_start(tmp_path):
     (tmp_path / "b.json").write_text(json.dumps(bounds))
     command = [sys.executable, "-m", "oed", "design", "--urdf", str(URDF), "--bounds", "b.json", "--model", "internal",
                "--starts", "1", "--harmonics", "3", "--samples", "100", "--constraint-points", "30",
-               "--torque-limits", "--start", "0,0.3,0.6,0,0.5,0", "--out", "d.json", "--csv", "d.csv", "--quiet"]
+               "--torque-limits", "--start", "0,0.3,0.6,0,0.5,0", "--out", "d.json", "--csv", "d.csv", "--quiet",
+               "--plot", "d.png"]
     done = subprocess.run(command, cwd=tmp_path, capture_output=True, text=True, timeout=600)
     assert done.returncode == 0, done.stderr
     design = json.loads((tmp_path / "d.json").read_text())
     assert design["experiment"]["q"] == [0, 0.3, 0.6, 0, 0.5, 0]
     assert design["constraints"][0]["name"] == "torque"
+    assert (tmp_path / "d.png").stat().st_size > 0
     table = np.loadtxt(tmp_path / "d.csv", delimiter=",", skiprows=1)
     assert table.shape[0] == round(design["experiment"]["duration_s"] * 1000) + 1
     np.testing.assert_allclose(table[[0, -1], 1:7], [[0, 0.3, 0.6, 0, 0.5, 0]] * 2, atol=1e-9)
     np.testing.assert_allclose(table[[0, -1], 7:], 0, atol=1e-9)
-    bad = subprocess.run(command[:-8] + ["--start", "0,3,0,0,0,0", "--out", "e.json"], cwd=tmp_path,
+    bad = subprocess.run(command[:-10] + ["--start", "0,3,0,0,0,0", "--out", "e.json"], cwd=tmp_path,
                          capture_output=True, text=True, timeout=600)
     assert bad.returncode != 0 and "outside its bounds" in bad.stderr and "Traceback" not in bad.stderr
 
