@@ -34,7 +34,8 @@ from dynamics.robots import load_robot
 from oed.bounds import JointBounds
 from oed.design import DesignSettings, design_excitation
 from oed.design_constraints import constraints_from_options
-from oed.rest_ramps import RestStart, experiment_samples
+from oed.criteria import information_matrix
+from oed.rest_ramps import RestStart, experiment_samples, rest_of
 
 URDF = Path(str(resources.files("dynamics.robots").joinpath("arm6_collision.urdf")))
 START = np.array([0.0, 0.3, 0.6, 0.0, 0.5, 0.0])
@@ -85,9 +86,17 @@ def main() -> None:
     held = design_excitation(robot, constraints=constraints, rest=rest, **common)
     held_time, held_cpu = time.perf_counter() - started, time.process_time() - cpu
 
-    p = build_model(robot, args.model, ("viscous",)).n_base
+    model = build_model(robot, args.model, ("viscous",))
+    p = model.n_base
     efficiency = float(np.exp((free.cost - held.cost) / p))
-    periods = held.trajectory.metadata["experiment"]["periods"]
+    rest, periods = rest_of(held.trajectory)  # the rest start as designed (its ramp resolved)
+
+    def log_det_per_sample(trajectory, rest, periods) -> float:
+        _, q, dq, ddq = experiment_samples(trajectory, rest, 1000.0, periods)
+        return float(np.linalg.slogdet(information_matrix(model.evaluate_base(q, dq, ddq)) / q.shape[0])[1])
+
+    whole = float(np.exp((log_det_per_sample(held.trajectory, rest, periods)
+                          - log_det_per_sample(free.trajectory, None, 1)) / p))
     free_check = independent_check(free.trajectory, None, 1, bounds, geometry)
     held_check = independent_check(held.trajectory, rest, periods, bounds, geometry)
     print(f"arm6 ({robot.n_joints} joints), {args.model} model, p = {p} base parameters, {args.starts} starts, "
@@ -99,7 +108,8 @@ def main() -> None:
           f"iterations {[s.iterations for s in held.starts]}, refinements {[s.refinements for s in held.starts]}")
     print(f"time ratio constrained/unconstrained: {held_time / free_time:.2f} wall, {held_cpu / free_cpu:.2f} CPU; "
           f"load average at the end {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores")
-    print(f"D-efficiency exp((L_u - L_c)/p) of the period: {efficiency:.3f}")
+    print(f"D-efficiency exp((L_u - L_c)/p) of the period: {efficiency:.3f}; of the whole experiment (ramps "
+          f"included, per sample) against the unconstrained period: {whole:.3f}")
     experiment = held.trajectory.metadata["experiment"]
     print(f"experiment: ramps of {experiment['ramp_s']} s around {periods} periods ({experiment['duration_s']} s); "
           f"D-efficiency per sample of the whole experiment against its period by periods: "

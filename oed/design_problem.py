@@ -130,6 +130,8 @@ class ExcitationDesign:
         if self.rest is not None:
             if not isinstance(self.rest, RestStart):
                 raise TypeError(f"rest must be a RestStart, got {type(self.rest).__name__}")
+            s = self.settings
+            object.__setattr__(self, "rest", self.rest.with_ramp_for(s.frequency_hz, s.harmonics, s.rate_hz))
             self.rest.check(bounds, self.settings.rate_hz)
             from oed.design_constraints import check_rest_state
 

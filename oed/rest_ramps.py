@@ -24,9 +24,9 @@ from oed.bounds import JointBounds
 from oed.fourier import FourierTrajectory
 
 #: the whole experiment keeps at least this D-efficiency per sample of its periodic part (choose_periods)
-KEPT_INFORMATION = 0.9
+KEPT_INFORMATION = 0.95
 #: most periods choose_periods considers
-MAX_PERIODS = 8
+MAX_PERIODS = 12
 
 # quintic Hermite basis on s in [0, 1], coefficients of s^0..s^5: p0, v0 T, a0 T², a1 T², v1 T, p1
 _HERMITE = np.array([
@@ -43,11 +43,16 @@ _HERMITE = np.array([
 class RestStart:
     """Start and end at rest at ``q`` (rad or m), ramps of ``ramp_s`` seconds around ``periods`` periods.
 
+    ``ramp_s=None``: one period of the trajectory's highest harmonic, ``1/(f N)`` (1 s for 5 harmonics of
+    0.2 Hz; :meth:`with_ramp_for`), so that the ramps' accelerations stay on the scale of the trajectory's.
+    On the 6-joint example arm, ramps of 0.5, 1 and 2 s cost the period about the same information, and the
+    whole experiment kept 0.95, 0.92 and 0.91 of it per sample with 2, 2 and 4 periods
+    (``benchmarks/README.md``): short ramps dilute less.
     ``periods=None``: chosen by :func:`choose_periods` once the periodic part is designed.
     """
 
     q: NDArray[np.float64]
-    ramp_s: float = 2.0
+    ramp_s: float | None = None
     periods: int | None = None
 
     def __post_init__(self) -> None:
@@ -55,11 +60,17 @@ class RestStart:
         if q.size == 0 or not np.all(np.isfinite(q)):
             raise ValueError(f"--start must be finite joint positions, got {self.q!r}")
         object.__setattr__(self, "q", q)
-        if not (np.isfinite(self.ramp_s) and self.ramp_s > 0):
+        if self.ramp_s is not None and not (np.isfinite(self.ramp_s) and self.ramp_s > 0):
             raise ValueError(f"ramp_s must be a positive duration (s), got {self.ramp_s}")
         if self.periods is not None and (isinstance(self.periods, bool) or not isinstance(self.periods, (int, np.integer))
                                          or self.periods < 1):
             raise ValueError(f"periods must be a positive integer or None, got {self.periods!r}")
+
+    def with_ramp_for(self, frequency_hz: float, harmonics: int, rate_hz: float) -> RestStart:
+        """This start with ``ramp_s`` set (default: ``1/(f N)``, rounded to whole samples at ``rate_hz``)."""
+        if self.ramp_s is not None:
+            return self
+        return RestStart(self.q, max(1, round(rate_hz / (frequency_hz * harmonics))) / rate_hz, self.periods)
 
     def check(self, bounds: JointBounds, rate_hz: float) -> None:
         """Refuse a start outside the position bounds (named joint) or a ramp of no whole number of samples."""
@@ -110,6 +121,7 @@ def experiment_samples(trajectory: FourierTrajectory, rest: RestStart | None, ra
     sample (at rest) included."""
     if rest is None:
         return trajectory.sample(rate_hz, periods or 1)
+    rest = rest.with_ramp_for(trajectory.frequency_hz, trajectory.harmonics, rate_hz)
     count = periods or rest.periods or 1
     _, q, dq, ddq = trajectory.sample(rate_hz, count)
     start = tuple(v[0] for v in trajectory.evaluate(np.zeros(1)))
