@@ -43,11 +43,11 @@ _HERMITE = np.array([
 class RestStart:
     """Start and end at rest at ``q`` (rad or m), ramps of ``ramp_s`` seconds around ``periods`` periods.
 
-    ``ramp_s=None``: one period of the trajectory's highest harmonic, ``1/(f N)`` (1 s for 5 harmonics of
+    ``ramp_s=None``: two periods of the trajectory's highest harmonic, ``2/(f N)`` (2 s for 5 harmonics of
     0.2 Hz; :meth:`with_ramp_for`), so that the ramps' accelerations stay on the scale of the trajectory's.
-    On the 6-joint example arm, ramps of 0.5, 1 and 2 s cost the period about the same information, and the
-    whole experiment kept 0.95, 0.92 and 0.91 of it per sample with 2, 2 and 4 periods
-    (``benchmarks/README.md``): short ramps dilute less.
+    On the 6-joint example arm under every constraint (4 starts, ``benchmarks/README.md``), 1 s ramps left
+    the period a D-efficiency of 0.81 against the unconstrained design, 2 s ramps 0.90: a short ramp has to
+    leave from a slow state of the period, which costs it more than the longer ramp dilutes.
     ``periods=None``: chosen by :func:`choose_periods` once the periodic part is designed.
     """
 
@@ -67,10 +67,10 @@ class RestStart:
             raise ValueError(f"periods must be a positive integer or None, got {self.periods!r}")
 
     def with_ramp_for(self, frequency_hz: float, harmonics: int, rate_hz: float) -> RestStart:
-        """This start with ``ramp_s`` set (default: ``1/(f N)``, rounded to whole samples at ``rate_hz``)."""
+        """This start with ``ramp_s`` set (default: ``2/(f N)``, rounded to whole samples at ``rate_hz``)."""
         if self.ramp_s is not None:
             return self
-        return RestStart(self.q, max(1, round(rate_hz / (frequency_hz * harmonics))) / rate_hz, self.periods)
+        return RestStart(self.q, max(1, round(2 * rate_hz / (frequency_hz * harmonics))) / rate_hz, self.periods)
 
     def check(self, bounds: JointBounds, rate_hz: float) -> None:
         """Refuse a start outside the position bounds (named joint) or a ramp of no whole number of samples."""

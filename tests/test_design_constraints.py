@@ -358,3 +358,9 @@ def test_simulate_plays_the_whole_experiment(tmp_path):
     with pytest.raises(ValueError, match="--periods"):
         playable(trajectory, 1000.0, periods=2)
     assert playable(FourierTrajectory(0.5, [0.0], [[0.1]], [[0.1]]), 1000.0)[1] is None
+
+
+def test_default_ramp_is_two_periods_of_the_highest_harmonic(arm, bounds):
+    assert RestStart([0.0]).with_ramp_for(0.2, 5, 1000.0).ramp_s == pytest.approx(2.0)
+    problem = ExcitationDesign(arm, "internal", bounds, settings=SMALL, rest=RestStart(np.zeros(arm.n_joints)))
+    assert problem.rest.ramp_s == pytest.approx(round(2000 / 0.6) / 1000) and problem.ramp_steps == round(2000 / 0.6)
