@@ -364,3 +364,15 @@ def test_default_ramp_is_two_periods_of_the_highest_harmonic(arm, bounds):
     assert RestStart([0.0]).with_ramp_for(0.2, 5, 1000.0).ramp_s == pytest.approx(2.0)
     problem = ExcitationDesign(arm, "internal", bounds, settings=SMALL, rest=RestStart(np.zeros(arm.n_joints)))
     assert problem.rest.ramp_s == pytest.approx(round(2000 / 0.6) / 1000) and problem.ramp_steps == round(2000 / 0.6)
+
+
+def test_constraints_and_rest_travel_to_pool_workers(arm, bounds):
+    """A worker rebuilds the problem from its pickled definition, constraints and rest start included."""
+    from oed.design import solve_start
+    from oed.design_parallel import payload_of
+
+    problem = ExcitationDesign(arm, "internal", bounds, settings=SMALL, constraints=(TorqueLimits.from_urdf(URDF, arm),),
+                               rest=RestStart([0.0, 0.3, 0.6, 0.0, 0.5, 0.0]))
+    x0 = problem.random_start(np.random.default_rng(10))
+    here, there = problem.solve(x0), solve_start(payload_of(problem), x0, 0)
+    assert there.cost == pytest.approx(here.cost, rel=1e-9) and there.feasible == here.feasible
