@@ -334,7 +334,7 @@ def check_rest_state(constraints: tuple, q: ArrayLike) -> None:
 
 def constraints_from_options(robot: RobotModel, urdf: str | Path | None, *, torque_limits: bool = False,
                              floor: float | None = None, self_collision: bool = False,
-                             collision_margin: float = DEFAULT_COLLISION_MARGIN) -> tuple:
+                             collision_margin: float | None = None) -> tuple:
     """The constraints the command line's options ask for (``--torque-limits``, ``--floor Z``,
     ``--self-collision``, ``--collision-margin M``), read from the URDF ``urdf``.
 
@@ -342,8 +342,10 @@ def constraints_from_options(robot: RobotModel, urdf: str | Path | None, *, torq
     ------
     ConstraintError
         A geometric option without a URDF, a link without collision geometry, no effort limits, a floor
-        the base crosses.
+        the base crosses, a collision margin without ``self_collision``.
     """
+    if collision_margin is not None and not self_collision:
+        raise ConstraintError("--collision-margin applies to --self-collision: give both")
     constraints: list[Any] = []
     if torque_limits:
         constraints.append(TorqueLimits.from_urdf(urdf, robot) if urdf is not None else TorqueLimits(robot))
@@ -353,5 +355,6 @@ def constraints_from_options(robot: RobotModel, urdf: str | Path | None, *, torq
     if floor is not None:
         constraints.append(Floor(robot, geometry, height=float(floor)))
     if self_collision:
-        constraints.append(SelfCollision(robot, geometry, margin=float(collision_margin)))
+        margin = DEFAULT_COLLISION_MARGIN if collision_margin is None else float(collision_margin)
+        constraints.append(SelfCollision(robot, geometry, margin=margin))
     return tuple(constraints)

@@ -215,6 +215,8 @@ def test_bad_input_is_refused_before_optimising(arm, bounds, geometry, tmp_path)
     bare.write_text(text[:start] + text[text.index("</collision>", start) + len("</collision>"):])
     with pytest.raises(ConstraintError, match="link4"):
         constraints_from_options(load_robot(urdf=bare), bare, self_collision=True)
+    with pytest.raises(ConstraintError, match="--collision-margin"):
+        constraints_from_options(arm, URDF, collision_margin=0.05)
     with pytest.raises(ConstraintError, match="--urdf"):
         constraints_from_options(puma, None, floor=0.0)
 

@@ -74,7 +74,7 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     feasible.add_argument("--floor", type=float, metavar="Z", help="collision geometry stays above z = Z (base frame, m)")
     feasible.add_argument("--self-collision", action="store_true",
                           help="non-adjacent links keep --collision-margin between their collision geometries")
-    feasible.add_argument("--collision-margin", type=float, default=DEFAULT_COLLISION_MARGIN, metavar="M",
+    feasible.add_argument("--collision-margin", type=float, default=None, metavar="M",
                           help=f"least distance between non-adjacent links, m (default {DEFAULT_COLLISION_MARGIN})")
     add_sequential_arguments(parser)
     verbosity = parser.add_mutually_exclusive_group()
