@@ -20,8 +20,8 @@ from oed.design_problem import ExcitationDesign, StartResult
 @functools.lru_cache(maxsize=8)
 def _problem_from_payload(payload: bytes, thread: int) -> ExcitationDesign:
     """One problem per definition and thread: a CasADi solver must not run in two threads at once."""
-    robot, model, bounds, criterion, effects, settings = pickle.loads(payload)
-    return ExcitationDesign(robot, model, bounds, criterion, effects, settings)
+    robot, model, bounds, criterion, effects, settings, constraints, rest = pickle.loads(payload)
+    return ExcitationDesign(robot, model, bounds, criterion, effects, settings, constraints=constraints, rest=rest)
 
 
 def solve_start(payload: bytes, x0: NDArray[np.float64], index: int) -> StartResult:
@@ -32,4 +32,4 @@ def solve_start(payload: bytes, x0: NDArray[np.float64], index: int) -> StartRes
 def payload_of(problem: ExcitationDesign) -> bytes:
     """The problem's definition as bytes a worker process can rebuild it from."""
     return pickle.dumps((problem.robot, problem.model.value, problem.bounds, problem.criterion,
-                         problem.effects, problem.settings))
+                         problem.effects, problem.settings, problem.constraints, problem.rest))

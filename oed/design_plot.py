@@ -17,6 +17,7 @@ def plot_trajectory(
     rate_hz: float = 1000.0,
     executed: Sequence[np.ndarray] | None = None,
     title: str | None = None,
+    margins: Sequence[dict] = (),
 ):
     """``q, dq, ddq`` (rows) of each joint (columns) over one period, bounds dashed.
 
@@ -29,6 +30,9 @@ def plot_trajectory(
     executed
         Optional ``(t, q, dq, ddq)`` of the trajectory as executed by the robot, drawn on top
         (the paper's "real" trajectories).
+    margins
+        The constraints' margins over the experiment (:meth:`oed.design_problem.ExcitationDesign.margin_report`:
+        ``name, unit, t_s, margin``), drawn in a bottom row over the experiment's time, zero dashed.
 
     Returns
     -------
@@ -38,8 +42,13 @@ def plot_trajectory(
 
     t, q, dq, ddq = trajectory.sample(rate_hz)
     n = trajectory.n_joints
-    figure = Figure(figsize=(3.2 * n, 6.5))
-    axes = figure.subplots(3, n, sharex=True, squeeze=False)
+    rows = 3 + bool(margins)
+    figure = Figure(figsize=(3.2 * n, 6.5 + 2.0 * bool(margins)))
+    grid = figure.add_gridspec(rows, n)
+    axes = np.empty((3, n), dtype=object)
+    for row in range(3):
+        for joint in range(n):
+            axes[row, joint] = figure.add_subplot(grid[row, joint], sharex=axes[0, 0] if row or joint else None)
     labels = ("q [rad]", "dq [rad/s]", "ddq [rad/s²]")
     for row, (values, label) in enumerate(zip((q, dq, ddq), labels)):
         for joint in range(n):
@@ -62,6 +71,16 @@ def plot_trajectory(
             if row == 2:
                 axis.set_xlabel("t [s]")
             axis.grid(alpha=0.3)
+    if margins:
+        axis = figure.add_subplot(grid[3, :])
+        for entry in margins:
+            axis.plot(entry["t_s"], entry["margin"], lw=1.0, label=f"{entry['name']} [{entry['unit']}]")
+        axis.axhline(0.0, color="k", ls="--", lw=0.8)
+        axis.set_xlabel("experiment time [s]")
+        axis.set_ylabel("worst margin")
+        axis.set_yscale("symlog", linthresh=1e-3)
+        axis.legend(fontsize="small")
+        axis.grid(alpha=0.3)
     if title:
         figure.suptitle(title)
     figure.tight_layout()

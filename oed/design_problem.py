@@ -29,6 +29,7 @@ import numpy as np
 import scipy.sparse
 from numpy.typing import NDArray
 
+from dynamics.codegen.jit_cache import cached_jit
 from dynamics.effects.linear import parse_effects
 from dynamics.runtime.memory import check_allocation
 from dynamics.models import ModelKind, build_model
@@ -46,9 +47,15 @@ from oed.design_solver import (
     violation_peaks,
 )
 from oed.fourier import FourierTrajectory, basis, unpack
+from oed.rest_ramps import RestStart, hermite_weights
 from oed.interrupt import interrupt_flag
 
 _BOUND_GUARD = 1e-7
+#: the constraints' smooth rows are asked to reach this much above zero (scaled units: about 1e-5 of an
+#: effort limit, 3 nm of distance after the smooth minimum's log): IPOPT meets rows only to its tolerance
+_NONLINEAR_GUARD = 1e-5
+#: least refinement rounds of a problem with constraints (ExcitationDesign.refinement_rounds)
+CONSTRAINED_REFINEMENTS = 10
 
 SUCCESS_STATUSES = frozenset({"Solve_Succeeded", "Solved_To_Acceptable_Level"})
 
@@ -96,6 +103,8 @@ class ExcitationDesign:
     criterion: Any = "logdet"
     effects: Any = ("viscous",)
     settings: DesignSettings = field(default_factory=DesignSettings)
+    constraints: tuple = ()
+    rest: RestStart | None = None
     _cache: dict = field(default_factory=dict, repr=False)
 
     def __post_init__(self) -> None:
@@ -112,6 +121,21 @@ class ExcitationDesign:
         bounds = self.bounds if self.bounds is not None else default_bounds(self.robot)
         bounds.check_joint_count(self.robot.n_joints)
         object.__setattr__(self, "bounds", bounds)
+        constraints = tuple(self.constraints)
+        for constraint in constraints:
+            if not (callable(getattr(constraint, "function", None)) and callable(getattr(constraint, "margins", None))):
+                raise TypeError(f"constraints must have function() and margins() (oed.design_constraints), got "
+                                f"{type(constraint).__name__}")
+        object.__setattr__(self, "constraints", constraints)
+        if self.rest is not None:
+            if not isinstance(self.rest, RestStart):
+                raise TypeError(f"rest must be a RestStart, got {type(self.rest).__name__}")
+            s = self.settings
+            object.__setattr__(self, "rest", self.rest.with_ramp_for(s.frequency_hz, s.harmonics, s.rate_hz))
+            self.rest.check(bounds, self.settings.rate_hz)
+            from oed.design_constraints import check_rest_state
+
+            check_rest_state(constraints, self.rest.q)
 
     # ---------------------------------------------------------------- building
     @property
@@ -135,6 +159,174 @@ class ExcitationDesign:
             np.vstack([zeros, B["cos"].T, B["sin"].T]),
             np.vstack([zeros, B["sin_dd"].T, B["cos_dd"].T]),
         )
+
+    # ------------------------------------------------------- the experiment's grid
+    @property
+    def ramp_steps(self) -> int:
+        """Samples of one ramp at ``rate_hz`` (0 without a rest start)."""
+        return 0 if self.rest is None else self.rest.ramp_samples(self.settings.rate_hz)
+
+    @property
+    def fine_size(self) -> int:
+        """Points of the fine grid: one period at ``rate_hz``, then the ramp in (``steps`` points) and the
+        ramp out (``steps + 1``, its last at rest)."""
+        steps = self.ramp_steps
+        return self.settings.period_samples + (2 * steps + 1 if steps else 0)
+
+    def point_matrices(self, indices: NDArray[np.int64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """``(3, 2N+1, T)`` rows and ``(3, T)`` weights of the rest position: at fine-grid point ``k``,
+        ``state_j = block_j · rows[:, :, k] + Q_j · weights[:, k]`` for q, dq, ddq (period points: weight 0)."""
+        s, steps = self.settings, self.ramp_steps
+        indices = np.asarray(indices, dtype=int).reshape(-1)
+        P, width = s.period_samples, 2 * s.harmonics + 1
+        rows, weights = np.zeros((3, width, indices.size)), np.zeros((3, indices.size))
+        periodic = indices < P
+        if periodic.any():
+            rows[:, :, periodic] = np.stack(self._state_matrices(indices[periodic] / s.rate_hz))
+        if steps:
+            at_zero = np.stack(self._state_matrices(np.zeros(1)))[:, :, 0]  # (3, width): q, dq, ddq at t = 0
+            for ramp_in, mask, first in ((True, (indices >= P) & (indices < P + steps), P),
+                                         (False, indices >= P + steps, P + steps)):
+                if not mask.any():
+                    continue
+                w = hermite_weights((indices[mask] - first) / s.rate_hz, self.rest.ramp_s)  # (3, 6, T)
+                # ends p0, v0, a0, a1, v1, p1: the periodic state's rows enter by its q, dq, ddq at t = 0
+                order = (5, 4, 3) if ramp_in else (0, 1, 2)
+                rows[:, :, mask] = sum(w[:, m, None, :] * at_zero[k][None, :, None] for k, m in enumerate(order))
+                weights[:, mask] = w[:, 0 if ramp_in else 5, :]
+        return rows, weights
+
+    def _states(self, x: casadi.MX | NDArray, indices: NDArray[np.int64] | None = None) -> list:
+        """``q, dq, ddq`` (``n x T``) of ``x`` at fine-grid points (symbolic for an MX ``x``); ``None``: the
+        whole fine grid (its matrices cached)."""
+        if indices is None:
+            if "fine" not in self._cache:
+                self._cache["fine"] = self.point_matrices(np.arange(self.fine_size))
+            rows, weights = self._cache["fine"]
+        else:
+            rows, weights = self.point_matrices(indices)
+        q_rest = np.zeros(self.n_joints) if self.rest is None else self.rest.q
+        if isinstance(x, casadi.MX):
+            q0, a, b = unpack(x, self.n_joints, self.settings.harmonics)
+            block = casadi.horzcat(q0, a, b)
+            return [casadi.mtimes(block, casadi.DM(rows[k])) + casadi.DM(np.outer(q_rest, weights[k]))
+                    for k in range(3)]
+        block = np.asarray(x, dtype=float).reshape(self.n_joints, -1)
+        return [block @ rows[k] + np.outer(q_rest, weights[k]) for k in range(3)]
+
+    def fine_states(self, x: NDArray[np.float64]) -> tuple[NDArray[np.float64], ...]:
+        """``q, dq, ddq`` ``(T, n)`` of ``x`` on the fine grid (the period, then the ramps)."""
+        return tuple(state.T for state in self._states(x))
+
+    def base_points(self) -> NDArray[np.int64]:
+        """The fine-grid indices of the constraint points: ``constraint_points`` equidistant over the
+        period and, on each ramp, as many per second (at least 10; not the ends at rest)."""
+        s, steps = self.settings, self.ramp_steps
+        grid = np.arange(s.constraint_points) * s.period_samples // s.constraint_points
+        if not steps:
+            return grid
+        count = max(10, int(np.ceil(s.constraint_points * self.rest.ramp_s * s.frequency_hz)))
+        ramp = np.unique(np.round(np.linspace(0, steps, count + 1)).astype(int))
+        P = s.period_samples
+        # the ramps' ends at rest are fixed (checked before the design): no row there
+        return np.concatenate([grid, P + ramp[(ramp > 0) & (ramp < steps)], P + steps + ramp[ramp < steps]])
+
+    def nonlinear_function(self, indices: NDArray[np.int64]) -> casadi.Function | None:
+        """``x -> g``: every constraint's rows at the points ``indices`` (``g ≥ 0`` met), constraint by
+        constraint, point-major within each (``None`` without constraints).
+
+        Its Jacobian is given by the chain rule, not left to AD over the coefficients: the states at a point
+        are linear in ``x`` (``state_j = block_j · rows_k``), so ``∂g_k/∂x`` is the per-sample Jacobian
+        ``∂g/∂(q, dq, ddq)`` (``3n`` columns, compiled with the constraint) times those rows; AD in the
+        ``n (2N+1)`` coefficient directions costs several times more (``custom_jacobian``).
+        """
+        if not self.constraints:
+            return None
+        x = casadi.MX.sym("x", self.n_variables)
+        states = self._states(x, indices)
+        rows = [casadi.DM(matrix) for matrix in self.point_matrices(indices)[0]]
+        count = len(indices)
+        values = [casadi.vec(self._compiled(constraint).map(count)(*states)) for constraint in self.constraints]
+        transposed = [self._compiled(constraint, jacobian=True).map(count)(*states, *rows)
+                      for constraint in self.constraints]
+        g = casadi.vertcat(*values)
+        jacobian = casadi.Function("jac_design_constraints", [x, casadi.MX.sym("g", g.shape[0])],
+                                   [casadi.horzcat(*transposed).T])
+        return casadi.Function("design_constraints", [x], [g], ["x"], ["g"],
+                               {"custom_jacobian": jacobian, "jac_penalty": 0, "never_inline": True})
+
+    def _jacobian_rows(self, constraint: Any) -> casadi.Function:
+        """``(q, dq, ddq, r_q, r_dq, r_ddq) -> (∂g/∂x)ᵀ`` of one point (``n (2N+1) x m``), ``r`` the point's
+        rows of :meth:`point_matrices` (the same for every joint)."""
+        n, width = self.n_joints, 2 * self.settings.harmonics + 1
+        q, dq, ddq = (casadi.SX.sym(name, n) for name in ("q", "dq", "ddq"))
+        r = [casadi.SX.sym(f"r_{name}", width) for name in ("q", "dq", "ddq")]
+        per_state = casadi.jacobian(constraint.function()(q, dq, ddq), casadi.vertcat(q, dq, ddq))  # m x 3n
+        blocks = [sum(casadi.mtimes(r[k], per_state[:, k * n + j].T) for k in range(3)) for j in range(n)]
+        return casadi.Function(f"{constraint.name}_jacobian_rows", [q, dq, ddq, *r], [casadi.vertcat(*blocks)],
+                               ["q", "dq", "ddq", "r_q", "r_dq", "r_ddq"], ["jacobian_t"])
+
+    def _compiled(self, constraint: Any, jacobian: bool = False) -> casadi.Function:
+        """The constraint's per-sample function (``jacobian``: :meth:`_jacobian_rows`), compiled into the
+        on-disk cache when ``settings.jit`` (:func:`dynamics.codegen.jit_cache.cached_jit`; as it is if that
+        fails)."""
+        key = ("compiled", id(constraint), jacobian)
+        if key not in self._cache:
+            function = self._jacobian_rows(constraint) if jacobian else constraint.function()
+            cached = cached_jit(function) if self.settings.jit else None
+            self._cache[key] = function if cached is None else cached.function
+        return self._cache[key]
+
+    def constraint_margins(self, x: NDArray[np.float64]) -> list[NDArray[np.float64]]:
+        """The smooth rows ``g`` ``(T, m)`` of each constraint on the fine grid (``< 0``: broken)."""
+        q, dq, ddq = self._states(x)
+        key = ("fine map", self.fine_size)
+        if key not in self._cache:
+            self._cache[key] = [self._compiled(constraint).map(self.fine_size) for constraint in self.constraints]
+        return [np.asarray(function(q, dq, ddq)).T for function in self._cache[key]]
+
+    def experiment_time(self, indices: NDArray[np.int64], periods: int = 1) -> NDArray[np.float64]:
+        """Time (s) in the experiment of fine-grid points: the ramp in from 0, the first period after it,
+        the ramp out after ``periods`` periods (without a rest start: the period's time)."""
+        s, steps = self.settings, self.ramp_steps
+        indices = np.asarray(indices, dtype=int)
+        if not steps:
+            return indices / s.rate_hz
+        P = s.period_samples
+        return np.where(indices < P, steps + indices,
+                        np.where(indices < P + steps, indices - P, steps + periods * P + indices - P - steps)) / s.rate_hz
+
+    def broken(self, x: NDArray[np.float64]) -> list[str]:
+        """What ``x`` breaks on the fine grid: bounds and constraints named with their worst joint, link or pair."""
+        messages = self.bounds.violations(*self.fine_states(x))
+        for constraint, margins in zip(self.constraints, self.constraint_margins(x)):
+            column = int(np.argmin(margins.min(axis=0)))
+            if margins[:, column].min() < -1e-9:
+                messages.append(f"{constraint.name} constraint at {constraint.labels[column % len(constraint.labels)]}")
+        return messages
+
+    def margin_report(self, x: NDArray[np.float64], periods: int = 1) -> list[dict[str, Any]]:
+        """Each constraint, its rule and the worst margin on the fine grid (``rate_hz``, period and ramps)
+        by the constraint's independent check (:meth:`margins`), with where and when it is reached, and
+        the worst margin per sample over time (``t_s``, ``margin``, in experiment order)."""
+        states = self.fine_states(x)
+        indices = np.arange(self.fine_size)
+        t = self.experiment_time(indices, periods)
+        P, steps = self.settings.period_samples, self.ramp_steps
+        # the experiment in order: ramp in, the period repeated, ramp out
+        order = (np.concatenate([np.arange(P, P + steps), np.tile(np.arange(P), periods), np.arange(P + steps, self.fine_size)])
+                 if steps else np.arange(P))
+        report = []
+        for constraint in self.constraints:
+            margins = constraint.margins(*states)
+            row, column = np.unravel_index(int(np.argmin(margins)), margins.shape)
+            report.append({
+                "name": constraint.name, "unit": constraint.unit, **constraint.describe(),
+                "worst_margin": float(margins[row, column]), "worst_at": constraint.labels[column],
+                "worst_t_s": float(t[row]), "grid_hz": self.settings.rate_hz, "met": bool(margins.min() >= 0),
+                "t_s": np.arange(order.size) / self.settings.rate_hz, "margin": margins.min(axis=1)[order],
+            })
+        return report
 
     def cost_function(self) -> casadi.Function:
         """``design_objective(x) -> J``: criterion of ``M/N`` over ``cost_samples`` samples (cached)."""
@@ -166,25 +358,39 @@ class ExcitationDesign:
 
     def constraint_matrix(self, t: NDArray[np.float64]) -> tuple[scipy.sparse.csr_matrix, NDArray, NDArray]:
         """Sparse ``A`` and bounds ``lb ≤ A x ≤ ub`` for q, dq, ddq of every joint at times ``t``."""
+        rows = np.stack(self._state_matrices(np.asarray(t, dtype=float).reshape(-1)))
+        return self._linear_rows(rows, np.zeros((3, rows.shape[2])))
+
+    def _linear_rows(self, state_rows: NDArray[np.float64],
+                     weights: NDArray[np.float64]) -> tuple[scipy.sparse.csr_matrix, NDArray, NDArray]:
+        """:meth:`constraint_matrix` at points given by :meth:`point_matrices` (``rows, weights``): the rest
+        position's share ``Q_j · weights`` moves each joint's bounds. Rows: joint, then q/dq/ddq, then point."""
         bounds, width, factor = self.bounds, 2 * self.settings.harmonics + 1, self.grid_factor
         blocks, lower, upper = [], [], []
-        state_rows = self._state_matrices(np.asarray(t, dtype=float))
+        q_rest = np.zeros(self.n_joints) if self.rest is None else self.rest.q
         for joint in range(self.n_joints):
             centre, half = (bounds.q_max[joint] + bounds.q_min[joint]) / 2, (bounds.q_max[joint] - bounds.q_min[joint]) / 2
             limits = [(centre - factor * half, centre + factor * half),
                       (-factor * bounds.dq_max[joint], factor * bounds.dq_max[joint]),
                       (-factor * bounds.ddq_max[joint], factor * bounds.ddq_max[joint])]
-            for rows, (low, high) in zip(state_rows, limits):
+            for rows, weight, (low, high) in zip(state_rows, weights, limits):
                 block = scipy.sparse.lil_matrix((rows.shape[1], self.n_variables))
                 block[:, joint * width:(joint + 1) * width] = rows.T
                 blocks.append(block.tocsr())
-                lower.append(np.full(rows.shape[1], low))
-                upper.append(np.full(rows.shape[1], high))
+                lower.append(np.full(rows.shape[1], low) - q_rest[joint] * weight)
+                upper.append(np.full(rows.shape[1], high) - q_rest[joint] * weight)
         A = scipy.sparse.vstack(blocks).tocsr()
         A.eliminate_zeros()
         lower, upper = np.concatenate(lower), np.concatenate(upper)
         # IPOPT relaxes bounds by 1e-8 relative (bound_relax_factor): pull them in by more than that
         return A, lower + _BOUND_GUARD * np.maximum(1, np.abs(lower)), upper - _BOUND_GUARD * np.maximum(1, np.abs(upper))
+
+    def points(self, extra: tuple[int, ...] = ()) -> NDArray[np.int64]:
+        """The fine-grid indices of :meth:`base_points` plus ``extra`` (sorted)."""
+        s = self.settings
+        check_allocation(8.0 * 2 * (s.constraint_points + len(extra)) * 3 * self.n_joints * self.n_variables,
+                         f"constraint_points = {s.constraint_points}")
+        return np.union1d(self.base_points(), np.asarray(extra, dtype=int))
 
     def constraint_times(self, extra: tuple[int, ...] = ()) -> NDArray[np.float64]:
         """The equidistant constraint points plus the ``rate_hz`` samples ``extra`` (sorted, seconds)."""
@@ -205,7 +411,7 @@ class ExcitationDesign:
             s = self.settings
             A, lower, upper = self._rows(extra)
             max_iter = min(s.max_iter, s.sqp_after) if handover and s.sqp_after is not None else s.max_iter
-            solver = ipopt_solver(self.cost_function(), A, tol=s.tol, acceptable_tol=s.acceptable_tol,
+            solver = ipopt_solver(self.cost_function(), A, nonlinear=self._nonlinear(extra), tol=s.tol, acceptable_tol=s.acceptable_tol,
                                   acceptable_iter=s.acceptable_iter, max_iter=max_iter,
                                   lbfgs_memory=s.lbfgs_memory, verbose=s.verbose, warm=warm,
                                   ipopt_options=dict(s.ipopt_options))
@@ -213,10 +419,24 @@ class ExcitationDesign:
         return self._cache[key]
 
     def _rows(self, extra: tuple[int, ...]) -> tuple[scipy.sparse.csr_matrix, NDArray, NDArray]:
-        """:meth:`constraint_matrix` at the constraint points plus ``extra`` (cached)."""
+        """The linear rows at the constraint points plus ``extra``, then the nonlinear constraints' bounds
+        (``0 ≤ g``) appended to ``lower, upper`` (cached)."""
         key = ("rows", extra)
         if key not in self._cache:
-            self._cache[key] = self.constraint_matrix(self.constraint_times(extra))
+            A, lower, upper = self._linear_rows(*self.point_matrices(self.points(extra)))
+            function = self._nonlinear(extra)
+            if function is not None:
+                rows = function.size1_out(0)
+                # IPOPT meets constraints to its tolerance: ask for a little more than g >= 0
+                lower = np.concatenate([lower, np.full(rows, _NONLINEAR_GUARD)])
+                upper = np.concatenate([upper, np.full(rows, np.inf)])
+            self._cache[key] = (A, lower, upper)
+        return self._cache[key]
+
+    def _nonlinear(self, extra: tuple[int, ...]) -> casadi.Function | None:
+        key = ("nonlinear", extra)
+        if key not in self._cache:
+            self._cache[key] = self.nonlinear_function(self.points(extra))
         return self._cache[key]
 
     def _sqp(self, extra: tuple[int, ...]) -> tuple[casadi.Function, NDArray, NDArray]:
@@ -225,7 +445,7 @@ class ExcitationDesign:
         kept across starts would make a start's result depend on the starts before it."""
         A, lower, upper = self._rows(extra)
         s = self.settings
-        return sqp_solver(self.cost_function(), A, tol=s.tol, max_iter=s.max_iter, verbose=s.verbose), lower, upper
+        return sqp_solver(self.cost_function(), A, nonlinear=self._nonlinear(extra), tol=s.tol, max_iter=s.max_iter, verbose=s.verbose), lower, upper
 
     @property
     def hands_over(self) -> bool:
@@ -236,12 +456,21 @@ class ExcitationDesign:
 
     def _extend_multipliers(self, lam_g: NDArray, old: tuple[int, ...], new: tuple[int, ...]) -> NDArray:
         """Constraint multipliers of the old constraint set placed on the rows of the new one (0 elsewhere)."""
-        old_t, new_t = self.constraint_times(old), self.constraint_times(new)
+        old_t, new_t = self.points(old), self.points(new)
         position = np.searchsorted(new_t, old_t)
-        blocks = lam_g.reshape(-1, old_t.size)  # rows: joint-major, then q, dq, ddq, then time
+        linear = 3 * self.n_joints * old_t.size
+        blocks = lam_g[:linear].reshape(-1, old_t.size)  # rows: joint-major, then q, dq, ddq, then point
         extended = np.zeros((blocks.shape[0], new_t.size))
         extended[:, position] = blocks
-        return extended.reshape(-1)
+        parts, offset = [extended.reshape(-1)], linear
+        for constraint in self.constraints:  # point-major within each constraint
+            rows = constraint.function().size1_out(0)
+            block = lam_g[offset:offset + rows * old_t.size].reshape(old_t.size, rows)
+            wider = np.zeros((new_t.size, rows))
+            wider[position] = block
+            parts.append(wider.reshape(-1))
+            offset += rows * old_t.size
+        return np.concatenate(parts)
 
     def build(self) -> float:
         """Build the objective and the first solver; returns the seconds it took (0 once built)."""
@@ -356,14 +585,20 @@ class ExcitationDesign:
             used += int(stats.get("iter_count", 0))
         return solution, {**stats, "iter_count": used}
 
+    @property
+    def refinement_rounds(self) -> int:
+        """``settings.refinements``; with constraints at least :data:`CONSTRAINED_REFINEMENTS` (between two
+        points a torque or a distance can dip further than a bound, and no shrinking repairs it)."""
+        return max(self.settings.refinements, CONSTRAINED_REFINEMENTS) if self.constraints else self.settings.refinements
+
     def _solve(self, x0: NDArray[np.float64], index: int, interrupted: Callable[[], bool] = lambda: False) -> StartResult:
         s = self.settings
         started = time.perf_counter()
         extra: tuple[int, ...] = ()
         x, iterations, status, objective, rounds = x0, 0, "Not_Started", float("nan"), 0
         multipliers: dict[str, Any] = {}
-        sampled: tuple[NDArray[np.float64], ...] | None = None  # q, dq, ddq of x at rate_hz
-        for rounds in range(s.refinements + 1):
+        sampled: tuple[NDArray[np.float64], ...] | None = None  # q, dq, ddq of x on the fine grid
+        for rounds in range(self.refinement_rounds + 1):
             solution, stats = self._round(extra, x, multipliers, interrupted)
             x = np.asarray(solution["x"]).reshape(-1)
             iterations += int(stats.get("iter_count", 0))
@@ -371,10 +606,13 @@ class ExcitationDesign:
             objective = float(solution["f"])
             if status not in SUCCESS_STATUSES:
                 break
-            sampled = self.sample(x)[1:]
+            sampled = self.fine_states(x)
             peaks = violation_peaks(self.bounds.excess(*sampled))
+            for margins in self.constraint_margins(x):
+                peaks |= violation_peaks({"g": -margins})
             if s.verbose:
-                print(f"  round {rounds}: {stats.get('iter_count')} iterations, {len(peaks)} points over a bound at {s.rate_hz:g} Hz")
+                print(f"  round {rounds}: {stats.get('iter_count')} iterations, {len(peaks)} points over a bound "
+                      f"or constraint at {s.rate_hz:g} Hz")
             if not peaks:
                 break
             new_extra = tuple(sorted(set(extra) | peaks))
@@ -383,13 +621,14 @@ class ExcitationDesign:
             extra = new_extra
             sampled = None  # the next round moves x
         if sampled is None:
-            sampled = self.sample(x)[1:]
-        shrunk = bool(self.bounds.violations(*sampled))
+            sampled = self.fine_states(x)
+        shrunk = bool(self.bounds.violations(*sampled)) and self.rest is None
         if shrunk:
             x = self.shrink_to_bounds(x)
-            sampled = self.sample(x)[1:]
-        feasible = not self.bounds.violations(*sampled)
-        values = self.evaluate(x, sampled)
+            sampled = self.fine_states(x)
+        feasible = not self.bounds.violations(*sampled) and all(
+            margins.min(initial=0.0) >= -1e-9 for margins in self.constraint_margins(x))
+        values = self.evaluate(x, tuple(state[:s.period_samples] for state in sampled))
         return StartResult(
             index=index, status=status, success=status in SUCCESS_STATUSES and feasible, iterations=iterations,
             time_s=time.perf_counter() - started, cost=values["cost"], criterion_value=values["criterion"],

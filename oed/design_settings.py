@@ -48,7 +48,8 @@ class DesignSettings:
         (``cond``, ``mineig``: their kinks defeat the BFGS model), nor any when ``max_iter`` is at most
         ``sqp_after``.
     refinements
-        Rounds of "add the violated points and re-solve".
+        Rounds of "add the violated points and re-solve" (with torque, floor or self-collision constraints
+        at least ``oed.design_problem.CONSTRAINED_REFINEMENTS``, 10).
     jit
         Compile the per-sample regressor and its reverse derivative with the system C compiler
         (about 3x faster objective gradients for a one-time build of about 1 s); default: when a

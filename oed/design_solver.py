@@ -90,7 +90,8 @@ def sampled_information(base_regressor: casadi.Function, states: list[casadi.MX]
     return summed + casadi.triu(summed, False).T
 
 
-def ipopt_solver(objective: casadi.Function, A: scipy.sparse.spmatrix, *, tol: float, acceptable_tol: float,
+def ipopt_solver(objective: casadi.Function, A: scipy.sparse.spmatrix, *, nonlinear: casadi.Function | None = None,
+                 tol: float, acceptable_tol: float,
                  acceptable_iter: int, max_iter: int, lbfgs_memory: int, verbose: bool,
                  warm: bool, ipopt_options: Mapping[str, Any] | None = None,
                  nlpsol_options: Mapping[str, Any] | None = None) -> casadi.Function:
@@ -102,6 +103,9 @@ def ipopt_solver(objective: casadi.Function, A: scipy.sparse.spmatrix, *, tol: f
         ``x -> J`` (scalar, exact derivatives by AD).
     A
         Constant constraint matrix (sparse).
+    nonlinear
+        ``x -> g``: further constraints (torque, distances; :mod:`oed.design_constraints`) appended below
+        ``A x``, with exact Jacobians by AD (then the constraint Jacobian is not constant).
     tol, acceptable_tol, acceptable_iter, max_iter, lbfgs_memory, verbose
         IPOPT's ``tol``, ``acceptable_tol``, ``acceptable_iter``, ``max_iter``,
         ``limited_memory_max_history`` and iteration log on/off.
@@ -115,8 +119,8 @@ def ipopt_solver(objective: casadi.Function, A: scipy.sparse.spmatrix, *, tol: f
         "ipopt": {
             "hessian_approximation": "limited-memory",
             "limited_memory_max_history": lbfgs_memory,
-            "jac_c_constant": "yes",
-            "jac_d_constant": "yes",
+            "jac_c_constant": "yes" if nonlinear is None else "no",
+            "jac_d_constant": "yes" if nonlinear is None else "no",
             "tol": tol,
             "acceptable_tol": acceptable_tol,
             "acceptable_iter": acceptable_iter,
@@ -129,11 +133,13 @@ def ipopt_solver(objective: casadi.Function, A: scipy.sparse.spmatrix, *, tol: f
         "print_time": bool(verbose),
         **(nlpsol_options or {}),
     }
-    return casadi.nlpsol("excitation_design", "ipopt", linear_problem(objective, A), options)
+    return casadi.nlpsol("excitation_design", "ipopt", linear_problem(objective, A, nonlinear), options)
 
 
-def linear_problem(objective: casadi.Function, A: scipy.sparse.spmatrix) -> dict[str, casadi.MX]:
-    """``{x, f, g}`` of ``min objective(x)`` s.t. ``lbg ≤ A x ≤ ubg`` with ``A`` a sparse CasADi constant.
+def linear_problem(objective: casadi.Function, A: scipy.sparse.spmatrix,
+                   nonlinear: casadi.Function | None = None) -> dict[str, casadi.MX]:
+    """``{x, f, g}`` of ``min objective(x)`` s.t. ``lbg ≤ A x ≤ ubg`` with ``A`` a sparse CasADi constant
+    (and ``nonlinear(x)`` appended to ``g`` when given).
 
     The objective's graph is inlined, not called as a function: the solvers' gradient functions (which
     return the objective with its gradient) then reuse the forward pass (the sampled information
@@ -146,11 +152,14 @@ def linear_problem(objective: casadi.Function, A: scipy.sparse.spmatrix) -> dict
     A_dm = casadi.DM(pattern, np.asarray(csc.data, dtype=float))  # CasADi stores column-compressed, like CSC
     x = casadi.MX.sym("x", csc.shape[1])
     (f,) = objective.call([x], True, False)  # always inline
-    return {"x": x, "f": f, "g": casadi.mtimes(A_dm, x)}
+    g = casadi.mtimes(A_dm, x)
+    if nonlinear is not None:
+        g = casadi.vertcat(g, nonlinear(x))
+    return {"x": x, "f": f, "g": casadi.densify(g)}
 
 
-def sqp_solver(objective: casadi.Function, A: scipy.sparse.spmatrix, *, tol: float, max_iter: int,
-               verbose: bool) -> casadi.Function:
+def sqp_solver(objective: casadi.Function, A: scipy.sparse.spmatrix, *, nonlinear: casadi.Function | None = None,
+               tol: float, max_iter: int, verbose: bool) -> casadi.Function:
     """SQP (CasADi ``sqpmethod``) for ``min objective(x)`` s.t. ``lbg ≤ A x ≤ ubg``.
 
     Each iteration solves one dense QP in the ``n`` coefficients with the rows of ``A`` (qpOASES, an
@@ -163,7 +172,7 @@ def sqp_solver(objective: casadi.Function, A: scipy.sparse.spmatrix, *, tol: flo
 
     Parameters
     ----------
-    objective, A
+    objective, A, nonlinear
         As for :func:`ipopt_solver`.
     tol
         Stationarity tolerance on the gradient of the objective (``tol_du``, scaled with
@@ -191,7 +200,7 @@ def sqp_solver(objective: casadi.Function, A: scipy.sparse.spmatrix, *, tol: flo
         "error_on_fail": False,
     }
     with stdout_silenced():  # qpOASES prints its licence banner whatever its printLevel
-        problem = linear_problem(objective, A)
+        problem = linear_problem(objective, A, nonlinear)
         problem["f"] = SQP_OBJECTIVE_SCALE * problem["f"]
         return casadi.nlpsol("excitation_design_sqp", "sqpmethod", problem, options)
 

@@ -28,6 +28,7 @@ from oed.design_problem import (
 )
 from oed.design_parallel import payload_of, solve_start
 from oed.fourier import FourierTrajectory
+from oed.rest_ramps import RestStart, choose_periods
 
 class ShrunkDesignWarning(UserWarning):
     """The returned trajectory was scaled down onto the bounds after the solver's refinements."""
@@ -59,6 +60,7 @@ class DesignResult:
     best: int
     build_time_s: float
     total_time_s: float
+    margins: tuple[dict[str, Any], ...] = ()
 
 
 def check_room_to_move(problem: ExcitationDesign) -> None:
@@ -91,6 +93,8 @@ def design_excitation(
     settings: DesignSettings | None = None,
     progress: Callable[[StartResult, int], None] | None = None,
     problem: ExcitationDesign | None = None,
+    constraints: tuple = (),
+    rest: RestStart | None = None,
 ) -> DesignResult:
     """Optimal Fourier excitation (PUMA paper, section IV.A, eqs. 18–19): multi-start IPOPT.
 
@@ -107,6 +111,9 @@ def design_excitation(
         Called with each finished start and the number of starts.
     problem
         A prebuilt :class:`ExcitationDesign` to reuse (then the problem arguments are ignored).
+    constraints, rest
+        Torque limits, a floor, self-collision (:mod:`oed.design_constraints`) and a start and end at
+        rest (:class:`oed.rest_ramps.RestStart`), inside the optimisation (issue #36).
 
     Returns
     -------
@@ -124,7 +131,8 @@ def design_excitation(
     seed = _checked_arguments(starts, seed, bounds, executor)
     started = time.perf_counter()
     if problem is None:
-        problem = ExcitationDesign(robot, model, bounds, criterion, effects, settings or DesignSettings())
+        problem = ExcitationDesign(robot, model, bounds, criterion, effects, settings or DesignSettings(),
+                                   constraints=tuple(constraints), rest=rest)
     check_room_to_move(problem)
     generator = np.random.default_rng(seed)
     initial = [problem.random_start(generator) for _ in range(starts)]
@@ -136,6 +144,18 @@ def design_excitation(
     best = _best_start(problem, results)
     values = problem.evaluate(best.x)
     metadata = _trajectory_metadata(problem, values, best, results, starts, seed)
+    periods = 1
+    if problem.rest is not None:
+        periods, efficiencies = (problem.rest.periods, []) if problem.rest.periods else choose_periods(
+            problem.information, problem.trajectory(best.x), problem.rest, problem.settings.rate_hz)
+        metadata["experiment"] = {**problem.rest.to_dict(), "periods": periods,
+                                  "d_efficiency_by_periods": efficiencies,
+                                  "duration_s": 2 * problem.rest.ramp_s + periods / problem.settings.frequency_hz,
+                                  "rate_hz": problem.settings.rate_hz}
+    margins = tuple(problem.margin_report(best.x, periods))
+    if margins:
+        metadata["constraints"] = [{key: value for key, value in entry.items() if key not in ("t_s", "margin")}
+                                   for entry in margins]
     return DesignResult(
         trajectory=problem.trajectory(best.x, **metadata),
         cost=values["cost"],
@@ -146,6 +166,7 @@ def design_excitation(
         best=best.index,
         build_time_s=build_time,
         total_time_s=time.perf_counter() - started,
+        margins=margins,
     )
 
 
@@ -201,7 +222,8 @@ def _best_start(problem: ExcitationDesign, results: list[StartResult]) -> StartR
     good = [result for result in results if result.success]
     if not good:
         details = "; ".join(
-            f"start {r.index}: {r.status}" + ("" if r.feasible else " (bounds not met)") for r in results
+            f"start {r.index}: {r.status}" + ("" if r.feasible else f" ({', '.join(problem.broken(r.x)) or 'bounds'}"
+                                                                  " not met)") for r in results
         )
         raise DesignError(f"IPOPT found no acceptable trajectory in {len(results)} start(s): {details}")
     best = min(good, key=lambda result: result.criterion_value)

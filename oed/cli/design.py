@@ -14,6 +14,7 @@ from oed.cli.shared.common import add_robot_arguments, print_lines, print_warnin
 from oed.cli.shared.options import sqp_after
 from oed.cli.shared.verbs import verb_summary
 from oed.criteria import CRITERIA
+from oed.design_constraints import DEFAULT_COLLISION_MARGIN
 from oed.excitation import DesignSettings
 from oed.sequential.criteria import SEQUENTIAL_CRITERIA
 from oed.sequential.problem import SEQUENTIAL_MAX_ITER
@@ -54,6 +55,16 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     parser.add_argument("--out", type=Path, required=True, help="trajectory JSON")
     parser.add_argument("--csv", type=Path, help="sampled trajectory t, q1..qn, dq1..dqn, ddq1..ddqn (1 kHz)")
     parser.add_argument("--plot", type=Path, help="figure of q, dq, ddq with the bounds")
+    feasible = parser.add_argument_group("a design the robot can run (docs/cli/design.md)")
+    feasible.add_argument("--torque-limits", action="store_true",
+                          help="the URDF's effort limits hold for the nominal model's torque at every sample")
+    feasible.add_argument("--start", type=joint_positions, metavar="Q1,Q2,...",
+                          help="start and end at rest there (rad or m), quintic ramps in and out")
+    feasible.add_argument("--floor", type=float, metavar="Z", help="collision geometry stays above z = Z (base frame, m)")
+    feasible.add_argument("--self-collision", action="store_true",
+                          help="non-adjacent links keep --collision-margin between their collision geometries")
+    feasible.add_argument("--collision-margin", type=float, default=None, metavar="M",
+                          help=f"least distance between non-adjacent links, m (default {DEFAULT_COLLISION_MARGIN})")
     add_sequential_arguments(parser)
     add_payload_arguments(parser)
     verbosity = parser.add_mutually_exclusive_group()
@@ -78,6 +89,14 @@ def add_sequential_arguments(parser: argparse.ArgumentParser) -> None:
                             "the runner-up the --from report.json of `oed diagnose` kept, or --rival FILE")
     group.add_argument("--rival", type=Path, help="the rival model (result.json or report.json) for --discriminate, "
                                                   "instead of the --from report's runner-up")
+
+
+def joint_positions(text: str) -> tuple[float, ...]:
+    """``--start`` values: a comma list of numbers."""
+    try:
+        return tuple(float(value) for value in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a comma list of joint positions, got {text!r}") from None
 
 
 def add_payload_arguments(parser: argparse.ArgumentParser) -> None:

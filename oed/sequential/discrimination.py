@@ -232,8 +232,10 @@ def separation(problem: DiscriminatingDesign, records: Measurements, duration_s:
 def design_discriminating(model: IdentifiedModel, rival: IdentifiedModel, records: Measurements, *,
                           bounds: JointBounds, settings: DesignSettings | None = None, duration_s: float | None = None,
                           starts: int = 8, seed: int | None = 0,
-                          progress: Callable[[StartResult, int], None] | None = None) -> Discrimination:
-    """The T-optimal experiment between ``model`` and ``rival`` after ``records`` (module docstring)."""
+                          progress: Callable[[StartResult, int], None] | None = None,
+                          constraints: tuple = ()) -> Discrimination:
+    """The T-optimal experiment between ``model`` and ``rival`` after ``records`` (module docstring);
+    ``constraints``: torque limits, a floor, self-collision (:mod:`oed.design_constraints`)."""
     check_rivals(model, rival)
     check_bounds(bounds, model)
     noise_std = np.sqrt(np.asarray(model.file.channel_variance, dtype=float))
@@ -241,7 +243,8 @@ def design_discriminating(model: IdentifiedModel, rival: IdentifiedModel, record
     prior = rivalries[0].prior
     duration = prior.duration_s if duration_s is None else float(duration_s)
     problem = DiscriminatingDesign(model.robot, model.model.kind, bounds, TOptimality(), model.model.effects,
-                                   settings or DesignSettings(max_iter=SEQUENTIAL_MAX_ITER, sqp_after=None), rivalries=rivalries, duration_s=duration)
+                                   settings or DesignSettings(max_iter=SEQUENTIAL_MAX_ITER, sqp_after=None),
+                                   constraints=tuple(constraints), rivalries=rivalries, duration_s=duration)
     result = design_excitation(model.robot, starts=starts, seed=seed, progress=progress, problem=problem)
     best = next(start for start in result.starts if start.index == result.best)
     designed = problem.separations(best.x)

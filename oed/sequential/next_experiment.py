@@ -120,7 +120,8 @@ def design_next(model: IdentifiedModel, records: Measurements, *, bounds: JointB
                 settings: DesignSettings | None = None, focus: str | Sequence[str] | None = None,
                 criterion: SequentialCriterionName | None = None, duration_s: float | None = None,
                 starts: int = 8, seed: int | None = 0,
-                progress: Callable[[StartResult, int], None] | None = None) -> NextExperiment:
+                progress: Callable[[StartResult, int], None] | None = None,
+                constraints: tuple = ()) -> NextExperiment:
     """The next experiment after ``records`` that best determines the ``focus`` parameters (module docstring).
 
     Parameters
@@ -140,6 +141,8 @@ def design_next(model: IdentifiedModel, records: Measurements, *, bounds: JointB
         ``"d"`` without.
     duration_s
         Length of the new experiment, s (default: that of the records).
+    constraints
+        Torque limits, a floor, self-collision (:mod:`oed.design_constraints`), inside the optimisation.
     """
     check_bounds(bounds, model)
     jacobian = model_jacobian(model)
@@ -149,7 +152,8 @@ def design_next(model: IdentifiedModel, records: Measurements, *, bounds: JointB
     duration = prior.duration_s if duration_s is None else float(duration_s)
     settings = settings or DesignSettings(max_iter=SEQUENTIAL_MAX_ITER, sqp_after=None)
     problem = SequentialDesign(model.robot, model.model.kind, bounds, posterior_criterion(jacobian, chosen, kind, prior=prior),
-                               model.model.effects, settings, jacobian=jacobian, prior=prior, duration_s=duration)
+                               model.model.effects, settings, constraints=tuple(constraints), jacobian=jacobian,
+                               prior=prior, duration_s=duration)
     result = design_excitation(model.robot, starts=starts, seed=seed, progress=progress, problem=problem)
     best = next(start for start in result.starts if start.index == result.best)
     designed = problem.designed_information(best.x)

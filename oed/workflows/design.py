@@ -41,6 +41,8 @@ from oed.sequential.problem import SEQUENTIAL_MAX_ITER
 from oed.sequential.rivals import load_rival
 from oed.payload_design import design_payload_excitation
 from oed.payload_design.design import PAYLOAD_FREQUENCY_HZ, PAYLOAD_HARMONICS
+from oed.design_constraints import constraints_from_options
+from oed.rest_ramps import RestStart, experiment_samples, rest_of
 from oed.workflows.design_bounds import bounds_of
 from oed.workflows.options import RobotOptions, check_hertz, optional_path, paths, robot_of
 
@@ -83,6 +85,11 @@ class DesignOptions(RobotOptions):
     periods: float | None = None
     discriminate: bool = False
     rival: Path | None = None
+    torque_limits: bool = False
+    start: tuple[float, ...] | None = None
+    floor: float | None = None
+    self_collision: bool = False
+    collision_margin: float | None = None
     payload: bool = False
     link: str | None = None
     payload_mass: float | None = None
@@ -104,8 +111,10 @@ def handover(options: DesignOptions, default: int | None) -> int | None:
 
 
 def trajectory_table(trajectory: Any, rate_hz: float = 1000.0) -> tuple[list[str], np.ndarray]:
-    """Columns ``t, q1..qn, dq1..dqn, ddq1..ddqn`` and the samples of one period."""
-    t, q, dq, ddq = trajectory.sample(rate_hz)
+    """Columns ``t, q1..qn, dq1..dqn, ddq1..ddqn`` and the samples of one period (with a rest start:
+    the whole experiment, ramps in and out, its last sample at rest)."""
+    rest, periods = rest_of(trajectory)
+    t, q, dq, ddq = experiment_samples(trajectory, rest, rate_hz, periods)
     n = trajectory.n_joints
     header = ["t"] + [f"{state}{i}" for state in ("q", "dq", "ddq") for i in range(1, n + 1)]
     return header, np.column_stack([t, q, dq, ddq])
@@ -217,8 +226,12 @@ def design_plain(args: DesignOptions, say: Callable[[str], None]) -> DesignRun:
         say(f"start {start.index + 1}/{total}: {start.status}, {start.iterations} iterations, "
             f"{start.time_s:.2f} s, cost {start.cost:.4f}" + ("" if start.feasible else " (bounds not met)"))
 
+    constraints = constraints_from_options(robot, args.urdf, torque_limits=args.torque_limits, floor=args.floor,
+                                           self_collision=args.self_collision, collision_margin=args.collision_margin)
+    rest = None if args.start is None else RestStart(tuple(args.start))
     options = dict(model=model, bounds=bounds, criterion=criterion, effects=friction,
-                   starts=args.starts, seed=args.seed, settings=settings, progress=progress)
+                   starts=args.starts, seed=args.seed, settings=settings, progress=progress,
+                   constraints=constraints, rest=rest)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", ShrunkDesignWarning)
         address = scheduler_address(args.scheduler)
@@ -237,7 +250,7 @@ def design_plain(args: DesignOptions, say: Callable[[str], None]) -> DesignRun:
     def figure() -> Any:
         from oed.design_plot import plot_trajectory
 
-        return plot_trajectory(trajectory, bounds, rate_hz=settings.rate_hz,
+        return plot_trajectory(trajectory, bounds, rate_hz=settings.rate_hz, margins=result.margins,
                                title=f"{robot.name}, {model} model, cost {result.cost:.2f}")
 
     line = (f"{robot.name}, {model} model, {criterion}: best start {result.best + 1}/{len(result.starts)}, "
@@ -299,6 +312,9 @@ def design_payload(args: DesignOptions, say: Callable[[str], None]) -> DesignRun
 
 def sequential_requested(args: DesignOptions) -> bool:
     """Whether ``from_model`` was given; the sequential options without it are an error."""
+    if args.from_model is not None and args.start is not None and not args.payload:
+        raise ValueError("--start cannot be combined with --from yet (sequential designs: the next experiment's "
+                         "information is that of whole periods)")
     if args.from_model is None:
         given = [option for option, value in (("--data", args.data), ("--focus", args.focus), ("--periods", args.periods),
                                               ("--rival", args.rival)) if value is not None]
@@ -361,8 +377,12 @@ def design_sequential(args: DesignOptions, say: Callable[[str], None]) -> Design
         say(f"start {start.index + 1}/{total}: {start.status}, {start.iterations} iterations, {start.time_s:.2f} s, "
             f"criterion {start.criterion_value:.4f}" + ("" if start.feasible else " (bounds not met)"))
 
+    recorded = model.file.robot.urdf_path  # the model's URDF when --urdf is not given
+    urdf = args.urdf if args.urdf is not None or recorded is None or not Path(recorded).is_file() else Path(recorded)
+    constraints = constraints_from_options(model.robot, urdf, torque_limits=args.torque_limits, floor=args.floor,
+                                           self_collision=args.self_collision, collision_margin=args.collision_margin)
     options = dict(bounds=bounds, settings=settings, duration_s=duration, starts=args.starts, seed=args.seed,
-                   progress=progress)
+                   progress=progress, constraints=constraints)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", ShrunkDesignWarning)
         if rival is None:

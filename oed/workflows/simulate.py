@@ -19,6 +19,7 @@ import numpy as np
 from dynamics.models import build_model
 from dynamics.runtime.output_files import OutputFiles, json_text
 from dynamics.simulation.controllers import ComputedTorqueController, computed_torque_gains
+from oed.rest_ramps import playable
 from dynamics.simulation.effects import Viscous, effects_from_friction, effects_from_names, is_friction_document
 from dynamics.simulation.simulator import NoiseModel, Simulator
 from oed.fourier import FourierTrajectory
@@ -160,8 +161,9 @@ def simulate(**options: Any) -> SimulateRun:
     noise = NoiseModel(args.noise_tau, tuple(args.noise_wrench), resolution(args.q_resolution))
     simulator = Simulator(robot, effects, noise=noise, rate_hz=args.rate)
     controller = controller_of(args.controller, simulator, args.bandwidth)
+    reference, duration = playable(trajectory, args.rate, args.periods, args.warmup_periods)
     result = simulator.run(
-        trajectory, controller, periods=args.periods, warmup_periods=args.warmup_periods,
+        reference, controller, periods=args.periods, duration=duration, warmup_periods=args.warmup_periods,
         with_derivatives=args.with_derivatives, seed=args.seed,
     )
     metadata = dict(result.metadata, trajectory=str(args.trajectory))
