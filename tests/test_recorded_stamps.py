@@ -87,7 +87,7 @@ def test_reported_errors_on_a_jittered_log_are_those_of_the_recorded_samples(rec
     code = main(["identify", "--joints", "3", "--friction", "viscous", "--data", str(paths["train"]),
                  "--validate", str(paths["validate"]), "--out", str(result), "--quiet"])
     assert code == 0
-    reported = json.loads(result.read_text())["validation"]["mse"]
+    reported = json.loads(result.read_text())["model_file"]["reported"]["validation_mse"]  # the chosen model's
     expected = recomputed(result, paths["validate"])
     for channel, value in expected.items():
         assert reported[channel] == pytest.approx(value, rel=1e-6)
