@@ -154,7 +154,7 @@ def escape(model, parametrisation, compiled, psi, G, target, *, prior_inverses: 
     With ``prior_inverses`` (per link ``J₀⁻¹``, 16 values, column-major) the prior's term is part of the
     certificate: ``Γ_k + w (J₀⁻¹ − J_k⁻¹)`` is the whole cost's gradient in ``J_k`` (the entropic divergence
     ``tr(J₀⁻¹J) − log det J``, Lee & Park 2018), and the line search minimises the whole cost along the
-    direction (:func:`_prior_line_search`, exact). The cost is then convex in the pseudo-inertias and
+    direction (:func:`prior_line_search`, exact). The cost is then convex in the pseudo-inertias and
     strictly inside the cone, so a stationary point the certificate passes is the global optimum: the point
     another start would reach, to the solver's tolerance. Without it (no prior: the vanishing pull of
     ``regularisation`` left out), the data term's certificate as before."""
@@ -182,7 +182,7 @@ def escape(model, parametrisation, compiled, psi, G, target, *, prior_inverses: 
     slope = change @ G @ error
     if with_prior:
         inverse_prior = prior_inverses[16 * link : 16 * (link + 1)].reshape(4, 4, order="F")
-        alpha, gain = _prior_line_search(slope, curvature, prior_weight, direction @ inverse_prior @ direction,
+        alpha, gain = prior_line_search(slope, curvature, prior_weight, direction @ inverse_prior @ direction,
                                          direction @ np.linalg.solve(pseudo[link], direction))
     else:
         if not (curvature > 0 and slope < 0):
@@ -194,7 +194,7 @@ def escape(model, parametrisation, compiled, psi, G, target, *, prior_inverses: 
     return parametrisation.psi_from_phi(parametrisation.inverse(moved))
 
 
-def _prior_line_search(slope: float, curvature: float, weight: float, a: float, b: float) -> tuple[float, float]:
+def prior_line_search(slope: float, curvature: float, weight: float, a: float, b: float) -> tuple[float, float]:
     """``(α*, gain)``: the minimiser over ``α ≥ 0`` of the whole cost along ``J += α v vᵀ``,
     ``f(α) = s α + ½ c α² + w (a α − log(1 + b α))`` (``s, c`` the data term's slope and curvature,
     ``a = vᵀJ₀⁻¹v``, ``b = vᵀJ⁻¹v > 0``), and ``f(0) − f(α*)``. ``f'(α) = 0`` is the quadratic
@@ -210,7 +210,7 @@ def _prior_line_search(slope: float, curvature: float, weight: float, a: float, 
     elif linear > 0:
         alpha = -constant / linear
     else:
-        return 0.0, 0.0  # no curvature and the prior's gain unbounded: nothing to certify against
+        return 0.0, 0.0  # unbounded: not with G ⪰ 0 (no curvature means no slope) and J₀ ≻ 0 (a > 0)
     value = slope * alpha + 0.5 * curvature * alpha * alpha + weight * (a * alpha - np.log1p(b * alpha))
     return float(alpha), float(-value)
 
