@@ -26,7 +26,11 @@ Non-negative effects (friction, armature) are bounded at zero; active bounds are
 Starts: the projection of the unconstrained estimate onto the consistent set (the minimum-norm
 standard parameters reproducing ``θ̂_b`` around the nominal ones, each link's pseudo-inertia with
 its eigenvalues clipped, friction clipped at zero), the nominal bodies, and random perturbations
-of the first (``starts``); the best solution wins.
+of the first (``starts``); the best solution wins. A ``warm_start`` (the optimum at a neighbouring prior
+weight) is tried first, and alone when its solution is certified. Each solution is certified by the convex
+problem's optimality condition in the pseudo-inertias (:func:`estimation.consistent.solver.escape`): with a prior
+(``prior_weight > 0``) that of the whole cost, which is then convex and strictly inside the cone, so that a
+certified point is the one every start reaches; without, the data term's.
 
 Uncertainty (``uncertainty_method = "reduced Hessian"``): the Gauss–Newton Hessian of ``f`` in the
 coordinates ``ψ`` that are not at a user bound (mass, centre of mass) plus the prior's exact
