@@ -48,6 +48,7 @@ variable-projection fit); measurements alone would be evaluated at the laws' ref
 
 from __future__ import annotations
 
+import functools
 import time
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -329,7 +330,12 @@ class _Solves:
         self.compiled = compiled_problem(model, max_iter)
         self.lower, self.upper = parametrisation.psi_bounds()
         self.scales = variable_scales(prior, n, model.n_parameters - 10 * n)
-        self.escape_solver = compiled_problem(model, min(max_iter, ESCAPE_ITERATIONS))
+        self.max_iter = max_iter
+
+    @functools.cached_property
+    def escape_solver(self):
+        """The shorter solver run after an escape, built on first use (a certified first solve needs none)."""
+        return compiled_problem(self.model, min(self.max_iter, ESCAPE_ITERATIONS))
 
     def parameters(self, prior_weight: float) -> NDArray[np.float64]:
         """The compiled problem's parameter vector at ``prior_weight``."""
