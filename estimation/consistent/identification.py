@@ -155,6 +155,7 @@ def identify_consistent(
     prior_source: str = "robot description",
     bounds: Mapping[str, LinkBounds] | None = None,
     starts: int = 2,
+    warm_start: NDArray[np.float64] | None = None,
 ) -> ConsistentResult:
     """Consistent refit of ``result`` (its model, train data and channel weights) at one prior weight, with what
     its data did not determine of the bodies (:func:`estimation.consistent.determination.determination`, in units
@@ -162,9 +163,11 @@ def identify_consistent(
 
     ``result`` may hold shaped laws and a delay (``identify(..., delay=DelayBounds())``, the diagnosis's
     adopted model): they are held at its fitted values (:mod:`estimation.consistent.fixed_shapes`).
-    :func:`consistent_fit` also chooses the prior's weight."""
+    :func:`consistent_fit` also chooses the prior's weight. ``warm_start``: log-Cholesky coordinates to start from
+    first (:class:`estimation.consistent.least_squares.ConsistentLeastSquares`)."""
     model = result.model
-    estimator = ConsistentLeastSquares(prior_weight=prior_weight, prior=prior, bounds=bounds, starts=starts)
+    estimator = ConsistentLeastSquares(prior_weight=prior_weight, prior=prior, bounds=bounds, starts=starts,
+                                       warm_start=warm_start)
     if has_fixed_effects(result):
         estimate = estimator.fit(model, fixed_problem(result, train), unconstrained=result.estimate).estimate_
         train_comparison = fixed_comparison(result, estimate.values, train, label="identification (consistent)")
@@ -194,24 +197,36 @@ def prior_weight_choice(given: float | str | None, validated: bool) -> tuple[flo
     return float(given), "given"
 
 
-def choose_prior_weight(refit: Callable[[float], ConsistentResult], result: IdentificationResult) -> ConsistentResult:
+def choose_prior_weight(refit: Callable[[float, NDArray[np.float64] | None], ConsistentResult],
+                        result: IdentificationResult) -> ConsistentResult:
     """The consistent fit of the largest weight of :data:`PRIOR_WEIGHT_GRID` whose channel-weighted validation
     error is within :data:`PRIOR_WEIGHT_TOLERANCE` of the best: where the data do not determine a body, the
     prior (the description's by default) does, as far as the held-out record allows. The search is kept in
-    the result (``prior_weight_search``). ``refit(weight)`` is the fit at one weight, with a validation record."""
+    the result (``prior_weight_search``). ``refit(weight, warm_start)`` is the fit at one weight, with a validation
+    record, started first from ``warm_start`` (log-Cholesky coordinates, or ``None``).
+
+    The weights above zero are fitted from the largest down, each started from the optimum of the one before (a
+    homotopy along the grid, the path an interior-point method follows as its barrier weight falls): with a prior
+    the cost is convex in the pseudo-inertias and strictly inside the cone, so a warm start the certificate
+    passes is the optimum the cold starts reach (to IPOPT's tolerance) in a fraction of the iterations, and one
+    it does not pass is followed by the cold starts. Weight zero (no prior: the optimum on the cone's boundary,
+    where starts may stop at different points) keeps its cold starts."""
     weights = result.estimate.weights if result.estimate.method == "wls" else 1.0 / result.estimate.channel_variance
-    fits, errors = [], []
-    for weight in PRIOR_WEIGHT_GRID:
-        fit = refit(weight)
+    fits: dict[float, ConsistentResult] = {}
+    warm = None
+    for weight in sorted(PRIOR_WEIGHT_GRID, reverse=True):
+        fit = refit(weight, warm if weight > 0 else None)
         if fit.validation is None:
             raise ValueError("choosing the prior's weight needs a validation record")
-        fits.append(fit)
-        errors.append(float(sum(w * fit.validation.mse[c] for w, c in zip(weights, result.model.channels))))
+        fits[weight] = fit
+        warm = fit.estimate.phi
+    errors = [float(sum(w * fits[weight].validation.mse[c] for w, c in zip(weights, result.model.channels)))
+              for weight in PRIOR_WEIGHT_GRID]
     best = min(errors)
     chosen = max(index for index, error in enumerate(errors) if error <= (1 + PRIOR_WEIGHT_TOLERANCE) * best)
     search = tuple({"prior_weight": weight, "weighted_validation_error": error}
                    for weight, error in zip(PRIOR_WEIGHT_GRID, errors))
-    return dataclasses.replace(fits[chosen], prior_weight_search=search)
+    return dataclasses.replace(fits[PRIOR_WEIGHT_GRID[chosen]], prior_weight_search=search)
 
 
 def consistent_fit(
@@ -236,9 +251,9 @@ def consistent_fit(
     """
     weight, how = prior_weight_choice(prior_weight, validate is not None)
 
-    def refit(value: float) -> ConsistentResult:
+    def refit(value: float, warm_start: NDArray[np.float64] | None = None) -> ConsistentResult:
         return identify_consistent(result, train, validate, prior_weight=value, prior=prior,
-                                   prior_source=prior_source, bounds=bounds, starts=starts)
+                                   prior_source=prior_source, bounds=bounds, starts=starts, warm_start=warm_start)
 
     fit = choose_prior_weight(refit, result) if weight == "auto" else refit(float(weight))
     return dataclasses.replace(fit, prior_weight_choice=how)

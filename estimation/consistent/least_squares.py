@@ -26,7 +26,11 @@ Non-negative effects (friction, armature) are bounded at zero; active bounds are
 Starts: the projection of the unconstrained estimate onto the consistent set (the minimum-norm
 standard parameters reproducing ``θ̂_b`` around the nominal ones, each link's pseudo-inertia with
 its eigenvalues clipped, friction clipped at zero), the nominal bodies, and random perturbations
-of the first (``starts``); the best solution wins.
+of the first (``starts``); the best solution wins. A ``warm_start`` (the optimum at a neighbouring prior
+weight) is tried first, and alone when its solution is certified. Each solution is certified by the convex
+problem's optimality condition in the pseudo-inertias (:func:`estimation.consistent.solver.escape`): with a prior
+(``prior_weight > 0``) that of the whole cost, which is then convex and strictly inside the cone, so that a
+certified point is the one every start reaches; without, the data term's.
 
 Uncertainty (``uncertainty_method = "reduced Hessian"``): the Gauss–Newton Hessian of ``f`` in the
 coordinates ``ψ`` that are not at a user bound (mass, centre of mass) plus the prior's exact
@@ -44,6 +48,7 @@ variable-projection fit); measurements alone would be evaluated at the laws' ref
 
 from __future__ import annotations
 
+import functools
 import time
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -179,11 +184,16 @@ class ConsistentLeastSquares(Estimator):
         Seed of the random starts.
     max_iter
         IPOPT's iteration limit per start.
+    warm_start
+        ``(p,)`` log-Cholesky coordinates ``φ`` to start from first (:attr:`ConsistentEstimate.phi` of a fit of the
+        same problem at a neighbouring prior weight, say: a homotopy). When its solution is certified (the convex
+        problem's optimum; with a prior the whole cost's, :func:`estimation.consistent.solver.escape`) no other
+        start is run; otherwise the usual starts follow and the best solution wins.
     """
 
     def __init__(self, *, prior_weight: float = 0.0, prior: ArrayLike | None = None,
                  bounds: Mapping[str, LinkBounds] | None = None, starts: int = 2, regularisation: float = 1e-6,
-                 seed: int = 0, max_iter: int = 3000) -> None:
+                 seed: int = 0, max_iter: int = 3000, warm_start: ArrayLike | None = None) -> None:
         self.prior_weight = prior_weight
         self.prior = prior
         self.bounds = bounds
@@ -191,6 +201,7 @@ class ConsistentLeastSquares(Estimator):
         self.regularisation = regularisation
         self.seed = seed
         self.max_iter = max_iter
+        self.warm_start = warm_start
 
     @single_threaded_blas()
     def fit(self, model: IdentificationModel, data: IdentificationProblem | Measurements, *,
@@ -214,13 +225,17 @@ class ConsistentLeastSquares(Estimator):
         G = 0.5 * (G + G.T)
         parametrisation = PhysicalParametrisation.of_model(model, self.bounds)
         prior = self._prior(model, parametrisation, weight)
-        solves = _Solves(model, parametrisation, G, unconstrained.values, prior, int(self.max_iter))
+        solves = _Solves(model, parametrisation, G, unconstrained.values, prior, int(self.max_iter),
+                         prior_in_certificate=weight > 0)
         effective = weight if weight > 0 else float(self.regularisation)
         results: list[dict[str, Any]] = []
-        for count, (name, phi0) in enumerate(self._starts(model, parametrisation, unconstrained.values, prior)):
-            if count >= self.starts and any(r["certified"] for r in results):
-                break  # the extra starts are only for when no configured one reached a certified optimum
-            results.append(solves.solve(name, phi0, effective))
+        if self.warm_start is not None:
+            results.append(solves.solve("warm", self._warm_phi(parametrisation), effective))
+        if not (results and results[0]["certified"]):  # a certified warm start is the optimum: no cold start needed
+            for count, (name, phi0) in enumerate(self._starts(model, parametrisation, unconstrained.values, prior)):
+                if count >= self.starts and any(r["certified"] for r in results):
+                    break  # the extra starts are only for when no configured one reached a certified optimum
+                results.append(solves.solve(name, phi0, effective))
         accepted = [result for result in results if result["status"] in ACCEPTED_STATUSES and np.isfinite(result["cost"])]
         if not accepted:
             raise ConsistentSolverError(
@@ -268,6 +283,13 @@ class ConsistentLeastSquares(Estimator):
                         "the prior pulls towards a body the bounds exclude")
         return prior
 
+    def _warm_phi(self, parametrisation: PhysicalParametrisation) -> NDArray[np.float64]:
+        phi = np.asarray(self.warm_start, dtype=float).reshape(-1)
+        if phi.shape != (parametrisation.n_phi,) or not np.all(np.isfinite(phi)):
+            raise ValueError(f"warm_start must hold {parametrisation.n_phi} finite log-Cholesky coordinates, "
+                             f"got shape {phi.shape}")
+        return phi
+
     def _starts(self, model, parametrisation, values, prior):
         """(name, φ₀): the projection of the unconstrained estimate, the nominal bodies, random
         perturbations of the projection (``starts`` in all), then up to five fallbacks (nominal and
@@ -297,20 +319,34 @@ class _Solves:
     bounds and scales, the compiled problem and the shorter one run after an escape."""
 
     def __init__(self, model: IdentificationModel, parametrisation: PhysicalParametrisation, G: NDArray[np.float64],
-                 target: NDArray[np.float64], prior: NDArray[np.float64], max_iter: int) -> None:
+                 target: NDArray[np.float64], prior: NDArray[np.float64], max_iter: int, *,
+                 prior_in_certificate: bool = False) -> None:
         n = model.robot.n_joints
         self.model, self.parametrisation, self.G, self.target = model, parametrisation, G, target
+        self.prior_in_certificate = prior_in_certificate
         J0 = [pseudo_inertia(prior[10 * k : 10 * (k + 1)]) for k in range(n)]
         self.inverses = np.concatenate([np.linalg.inv(J).reshape(-1, order="F") for J in J0])
         self.log_dets = np.array([np.linalg.slogdet(J)[1] for J in J0])
         self.compiled = compiled_problem(model, max_iter)
         self.lower, self.upper = parametrisation.psi_bounds()
         self.scales = variable_scales(prior, n, model.n_parameters - 10 * n)
-        self.escape_solver = compiled_problem(model, min(max_iter, ESCAPE_ITERATIONS))
+        self.max_iter = max_iter
+
+    @functools.cached_property
+    def escape_solver(self):
+        """The shorter solver run after an escape, built on first use (a certified first solve needs none)."""
+        return compiled_problem(self.model, min(self.max_iter, ESCAPE_ITERATIONS))
 
     def parameters(self, prior_weight: float) -> NDArray[np.float64]:
         """The compiled problem's parameter vector at ``prior_weight``."""
         return np.concatenate([self.G.reshape(-1, order="F"), self.target, [prior_weight], self.inverses, self.log_dets])
+
+    def _prior_terms(self, prior_weight: float) -> dict[str, Any]:
+        """The prior's terms of the certificate: with a prior (``prior_weight > 0`` given by the user) the whole
+        cost's; without, the data term's alone (the vanishing pull of ``regularisation`` left out)."""
+        if not self.prior_in_certificate:
+            return {}
+        return {"prior_inverses": self.inverses, "prior_weight": prior_weight}
 
     def solve(self, name: str, phi0: NDArray[np.float64], prior_weight: float) -> dict[str, Any]:
         """IPOPT from ``phi0``, then certified or escaped along a descent direction and solved again
@@ -322,7 +358,8 @@ class _Solves:
         while result["status"] in ACCEPTED_STATUSES and escapes <= MAX_ESCAPES:
             # a stationary point of the factorised problem need not be the convex problem's optimum
             # (Burer–Monteiro): certify it, or leave it along a descent direction and solve again
-            escaped = escape(self.model, self.parametrisation, self.compiled, result["psi"], self.G, self.target)
+            escaped = escape(self.model, self.parametrisation, self.compiled, result["psi"], self.G, self.target,
+                             **self._prior_terms(prior_weight))
             if escaped is None:
                 certified = True
                 break

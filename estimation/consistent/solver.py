@@ -17,7 +17,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from dynamics.models import IdentificationModel
-from dynamics.physical_parameters import PhysicalParametrisation, from_pseudo_inertia, link_from_psi
+from dynamics.physical_parameters import PhysicalParametrisation, from_pseudo_inertia, link_from_psi, pseudo_inertia
 
 
 #: a descent step gaining less than this (units of ½χ², far below a standard deviation's 0.5) certifies the point
@@ -144,14 +144,29 @@ def link_gradients(model: IdentificationModel, theta: NDArray, G: NDArray, targe
     return gradients
 
 
-def escape(model, parametrisation, compiled, psi, G, target) -> NDArray | None:
+def escape(model, parametrisation, compiled, psi, G, target, *, prior_inverses: NDArray | None = None,
+           prior_weight: float = 0.0) -> NDArray | None:
     """``None`` when every link's ``Γ_k`` is positive semidefinite (the point is the convex optimum,
     up to the prior's pull); otherwise ``ψ`` after the exact line search along ``J_k += α v vᵀ``, ``v``
     the eigenvector of the most negative eigenvalue of ``Γ_k`` (a descent direction the triangular
-    factor could not follow)."""
+    factor could not follow).
+
+    With ``prior_inverses`` (per link ``J₀⁻¹``, 16 values, column-major) the prior's term is part of the
+    certificate: ``Γ_k + w (J₀⁻¹ − J_k⁻¹)`` is the whole cost's gradient in ``J_k`` (the entropic divergence
+    ``tr(J₀⁻¹J) − log det J``, Lee & Park 2018), and the line search minimises the whole cost along the
+    direction (:func:`prior_line_search`, exact). The cost is then convex in the pseudo-inertias and
+    strictly inside the cone, so a stationary point the certificate passes is the global optimum: the point
+    another start would reach, to the solver's tolerance. Without it (no prior: the vanishing pull of
+    ``regularisation`` left out), the data term's certificate as before."""
     theta = np.asarray(compiled.mapping(psi)[0]).reshape(-1)
     gradients = link_gradients(model, theta, G, target)
-    size = max(np.abs(np.linalg.eigvalsh(Gamma)).max() for Gamma in gradients)
+    size = max(np.abs(np.linalg.eigvalsh(Gamma)).max() for Gamma in gradients)  # the data term's scale
+    with_prior = prior_inverses is not None and prior_weight > 0
+    pseudo = [pseudo_inertia(theta[10 * k : 10 * (k + 1)]) for k in range(len(gradients))] if with_prior else []
+    if with_prior:
+        for k, J in enumerate(pseudo):
+            prior_gradient = prior_inverses[16 * k : 16 * (k + 1)].reshape(4, 4, order="F") - np.linalg.inv(J)
+            gradients[k] = gradients[k] + prior_weight * 0.5 * (prior_gradient + prior_gradient.T)
     worst, link, direction = 0.0, None, None
     for k, Gamma in enumerate(gradients):
         eigenvalues, vectors = np.linalg.eigh(Gamma)
@@ -163,14 +178,41 @@ def escape(model, parametrisation, compiled, psi, G, target) -> NDArray | None:
     step[10 * link : 10 * (link + 1)] = from_pseudo_inertia(np.outer(direction, direction))
     change = model.base.K @ step
     curvature = change @ G @ change
-    slope = change @ G @ (model.base.K @ theta - target)
-    if not (curvature > 0 and slope < 0):
-        return None
     error = model.base.K @ theta - target
-    if slope * slope / (2 * curvature) < CERTIFICATE_GAIN + 1e-9 * 0.5 * (error @ G @ error):
+    slope = change @ G @ error
+    if with_prior:
+        inverse_prior = prior_inverses[16 * link : 16 * (link + 1)].reshape(4, 4, order="F")
+        alpha, gain = prior_line_search(slope, curvature, prior_weight, direction @ inverse_prior @ direction,
+                                         direction @ np.linalg.solve(pseudo[link], direction))
+    else:
+        if not (curvature > 0 and slope < 0):
+            return None
+        alpha, gain = -slope / curvature, slope * slope / (2 * curvature)
+    if not alpha > 0 or gain < CERTIFICATE_GAIN + 1e-9 * 0.5 * (error @ G @ error):
         return None  # the best step along the direction gains nothing measurable (in units of ½χ²)
-    moved = parametrisation.project(theta + (-slope / curvature) * step, floor=1e-6)
+    moved = parametrisation.project(theta + alpha * step, floor=1e-6)
     return parametrisation.psi_from_phi(parametrisation.inverse(moved))
+
+
+def prior_line_search(slope: float, curvature: float, weight: float, a: float, b: float) -> tuple[float, float]:
+    """``(α*, gain)``: the minimiser over ``α ≥ 0`` of the whole cost along ``J += α v vᵀ``,
+    ``f(α) = s α + ½ c α² + w (a α − log(1 + b α))`` (``s, c`` the data term's slope and curvature,
+    ``a = vᵀJ₀⁻¹v``, ``b = vᵀJ⁻¹v > 0``), and ``f(0) − f(α*)``. ``f'(α) = 0`` is the quadratic
+    ``c b α² + (c + (s + w a) b) α + (s + w a − w b) = 0``; ``f`` is convex, so its root ``> 0`` is the minimiser
+    when ``f'(0) = s + w a − w b < 0`` (else ``α* = 0``)."""
+    first = slope + weight * a - weight * b
+    if not (first < 0 and b > 0):
+        return 0.0, 0.0
+    quadratic, linear, constant = curvature * b, curvature + (slope + weight * a) * b, first
+    if quadratic > 0:
+        root = np.sqrt(max(linear * linear - 4 * quadratic * constant, 0.0))
+        alpha = (-linear + root) / (2 * quadratic) if linear <= 0 else -2 * constant / (linear + root)
+    elif linear > 0:
+        alpha = -constant / linear
+    else:
+        return 0.0, 0.0  # unbounded: not with G ⪰ 0 (no curvature means no slope) and J₀ ≻ 0 (a > 0)
+    value = slope * alpha + 0.5 * curvature * alpha * alpha + weight * (a * alpha - np.log1p(b * alpha))
+    return float(alpha), float(-value)
 
 
 def variable_scales(prior: NDArray[np.float64], n_links: int, n_effects: int) -> tuple[NDArray, NDArray]:
