@@ -15,7 +15,7 @@ from dynamics.simulation.effects import (
     Armature, Coulomb, Offset, PlateCable, PlateOffset, Spring, Viscous, effects_from_names, puma560_link_friction,
 )
 from dynamics.simulation.sensors import encoder_resolution
-from dynamics.simulation.simulator import NoiseModel, Simulator, simulate
+from dynamics.simulation.simulator import NoiseModel, Simulator, simulate_controlled
 from oed.fourier import FourierTrajectory
 
 
@@ -164,7 +164,7 @@ def test_positions_are_quantised_to_the_encoder_resolution(robot, trajectory):
 
 
 def test_derivatives_are_written_only_when_asked(robot, trajectory):
-    plain = simulate(robot, trajectory, periods=1, seed=0)
+    plain = simulate_controlled(robot, trajectory, periods=1, seed=0)
     assert plain.dq is None and plain.ddq is None and plain.tau.shape == (5000, 3) and plain.wrench.shape == (5000, 6)
     simulator = Simulator(robot)
     full = simulator.run(trajectory, duration=1.0, with_derivatives=True, seed=0)
@@ -176,7 +176,7 @@ def test_whole_periods_record_the_frequency_for_the_fourier_fit(robot, trajector
     from estimation.identification.fit import identify
     from estimation.preprocessing.differentiation import FourierDifferentiation, fill_derivatives
 
-    periodic = simulate(robot, trajectory, periods=1, seed=0)
+    periodic = simulate_controlled(robot, trajectory, periods=1, seed=0)
     assert periodic.metadata["frequency_hz"] == pytest.approx(0.2) and periodic.metadata["harmonics"] == 5
     assert fill_derivatives(periodic).metadata["differentiation"] == "fourier"
     # why three times the reference's harmonics: the tracking error adds harmonics above them, and a
