@@ -46,3 +46,15 @@ def test_importing_the_fronts_imports_no_module_behind_them():
     shown = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert eval(shown) == sorted(["dynamics", "estimation", "oed", "estimation.identification", "estimation.diagnosis",
                                   "estimation.streaming", "dynamics.simulation", "oed.workflows"])
+
+
+def test_a_name_in_two_fronts_means_one_thing_unless_it_is_a_verb():
+    """``oed.identify`` (the verb, a run object) beside ``estimation.identification.identify`` (the estimate) is
+    by design; any other name two fronts list is the same object."""
+    meanings: dict[str, set[int]] = {}
+    for name in FRONTS:
+        package = importlib.import_module(name)
+        for public in package.__all__:
+            meanings.setdefault(public, set()).add(id(getattr(package, public)))
+    shared = sorted(public for public, objects in meanings.items() if len(objects) > 1)
+    assert set(shared) <= set(oed.VERB_FUNCTIONS), shared

@@ -11,7 +11,7 @@ from typing import Any
 #: each name users import from this package and the module that defines it; the modules behind may move,
 #: these names stay (imported on first use, PEP 562, so that importing the package stays light)
 _EXPORTS: dict[str, str] = {
-    "Armature": "dynamics.simulation.joint_effects",
+    "SimulatedArmature": "dynamics.simulation.joint_effects",
     "ComputedTorqueController": "dynamics.simulation.controllers",
     "Controller": "dynamics.simulation.controllers",
     "Coulomb": "dynamics.simulation.joint_effects",
@@ -29,7 +29,7 @@ _EXPORTS: dict[str, str] = {
     "ServoJoint": "dynamics.simulation.servo_simulator",
     "SimulationResult": "dynamics.simulation.simulator",
     "Simulator": "dynamics.simulation.simulator",
-    "Spring": "dynamics.simulation.joint_effects",
+    "SimulatedSpring": "dynamics.simulation.joint_effects",
     "Viscous": "dynamics.simulation.joint_effects",
     "computed_torque_gains": "dynamics.simulation.controllers",
     "effects_from_friction": "dynamics.simulation.effects",

@@ -13,7 +13,7 @@ from typing import Any
 _EXPORTS: dict[str, str] = {
     "AdoptedEffect": "estimation.diagnosis.search_fits",
     "Alternative": "estimation.diagnosis.runner_up",
-    "Comparison": "estimation.diagnosis.confirmation",
+    "CandidateComparison": "estimation.diagnosis.confirmation",
     "Diagnosis": "estimation.diagnosis.results",
     "DiagnosisSearch": "estimation.diagnosis.forward_selection",
     "FLOOR_ALPHA": "estimation.diagnosis.statistics",

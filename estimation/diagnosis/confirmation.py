@@ -37,7 +37,7 @@ REWEIGHTING_PASSES = 2
 
 
 @dataclass(frozen=True)
-class Comparison:
+class CandidateComparison:
     """A candidate against the current model on held-out data, both trained at ``weights``."""
 
     weights: NDArray[np.float64]
@@ -62,7 +62,7 @@ def settled_weights(fixed: FixedPart, blocks, states: States, shapes, weights: N
 
 def reweighted_comparison(trial: Trial, fixed_train: FixedPart, fixed_validate: FixedPart, states_train: States,
                           states_validate: States, weights: NDArray[np.float64],
-                          current: tuple[FixedPart, FixedPart] | None = None) -> Comparison:
+                          current: tuple[FixedPart, FixedPart] | None = None) -> CandidateComparison:
     """The candidate and the current model, both trained at the weights the candidate's training
     residuals give (:func:`settled_weights`), and their weighted validation errors at those weights.
     ``fixed_train``, ``fixed_validate``: the columns the candidate joins; ``current``: the current
@@ -77,14 +77,14 @@ def reweighted_comparison(trial: Trial, fixed_train: FixedPart, fixed_validate: 
 
 
 def _against_current(settled: NDArray[np.float64], error: float, residual: NDArray[np.float64],
-                     current_train: FixedPart, current_validate: FixedPart) -> Comparison:
+                     current_train: FixedPart, current_validate: FixedPart) -> CandidateComparison:
     current = solve_linear(current_train, [], None, [], settled)
     current_error, current_residual = weighted_error(current_validate, [], None, [], current.theta, settled)
-    return Comparison(settled, error, residual, current_error, current_residual)
+    return CandidateComparison(settled, error, residual, current_error, current_residual)
 
 
 def removal_comparison(reduced_train: FixedPart, reduced_validate: FixedPart, current_train: FixedPart,
-                       current_validate: FixedPart, weights: NDArray[np.float64]) -> Comparison:
+                       current_validate: FixedPart, weights: NDArray[np.float64]) -> CandidateComparison:
     """The current model without an adopted effect (``reduced``) against the current model, both trained
     at the weights the reduced model's training residuals give, as :func:`reweighted_comparison`."""
     settled = settled_weights(reduced_train, [], None, [], weights)
