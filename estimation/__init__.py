@@ -11,6 +11,7 @@ from typing import Any
 #: these names stay (imported on first use, PEP 562, so that importing the package stays light)
 _EXPORTS: dict[str, str] = {
     "identify": "estimation.identification.fit",
+    "noise_floor": "estimation.uncertainty.noise_floor",
     "prepare_records": "estimation.identification.prepared",
     "read_record": "estimation.data.records",
 }
