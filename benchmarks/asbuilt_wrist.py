@@ -47,7 +47,7 @@ from dynamics.effects.specs import build_effects
 from dynamics.models import build_model
 from dynamics.robots import load_robot
 from dynamics.simulation.sensors import NoiseModel
-from dynamics.simulation.joint_effects import PUMA560_ROTOR_INERTIA, Armature
+from dynamics.simulation.joint_effects import PUMA560_ROTOR_INERTIA, SimulatedArmature
 from dynamics.simulation.motor_effects import MotorFriction
 from dynamics.simulation.simulator import Simulator
 from dynamics.transmission import Transmission, puma560_transmission
@@ -72,7 +72,7 @@ def main() -> None:
     base = MotorFriction.default(robot)
     friction = MotorFriction(tuple(map(tuple, transmission.matrix)), base.viscous, base.coulomb, (1.0,))
     rotor = np.diag(transmission.matrix.T @ np.diag(PUMA560_ROTOR_INERTIA) @ transmission.matrix)
-    simulator = Simulator(robot, (friction, Armature(tuple(rotor))), noise=NoiseModel())
+    simulator = Simulator(robot, (friction, SimulatedArmature(tuple(rotor))), noise=NoiseModel())
     train, validate = (simulator.run(random_fourier(robot, seed=seed, frequency_hz=0.5), periods=1, warmup_periods=1,
                                      with_derivatives=True, seed=seed).measurements for seed in (3, 4))
 

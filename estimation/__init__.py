@@ -1,3 +1,32 @@
 """Estimation from measured data, in subpackages by idea (layers from the bottom up): ``data``, ``preprocessing``,
 ``uncertainty``, ``estimators``, ``identification``, ``consistent``, ``diagnosis``, ``streaming``; beside them ``servo``
 (the servo-arm paper) and ``datasets`` (loaders of the shared real data sets)."""
+
+from __future__ import annotations
+
+import importlib
+from typing import Any
+
+#: each name users import from this package and the module that defines it; the modules behind may move,
+#: these names stay (imported on first use, PEP 562, so that importing the package stays light)
+_EXPORTS: dict[str, str] = {
+    "identify": "estimation.identification.fit",
+    "noise_floor": "estimation.uncertainty.noise_floor",
+    "prepare_records": "estimation.identification.prepared",
+    "read_record": "estimation.data.records",
+}
+
+__all__ = sorted(_EXPORTS)
+
+
+def __getattr__(name: str) -> Any:
+    """The names of ``__all__``, imported from their modules when first asked for (PEP 562)."""
+    if name in _EXPORTS:
+        value = getattr(importlib.import_module(_EXPORTS[name]), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), *_EXPORTS})

@@ -106,7 +106,7 @@ class APRBSSignal:
     holds: tuple[np.ndarray, ...] = field(repr=False)
 
 
-class Criterion(Protocol):
+class SignalCriterion(Protocol):
     """A design criterion: larger is better."""
 
     def score(self, signal: APRBSSignal) -> float: ...
@@ -146,7 +146,7 @@ class SpectralContent:
 class WeightedSum:
     """``Σ w_i · criterion_i.score`` over ``terms = ((criterion, weight), ...)``."""
 
-    terms: tuple[tuple[Criterion, float], ...] = ((AmplitudeCoverage(), 1.0), (SpectralContent(), 1.0))
+    terms: tuple[tuple[SignalCriterion, float], ...] = ((AmplitudeCoverage(), 1.0), (SpectralContent(), 1.0))
 
     def score(self, signal: APRBSSignal) -> float:
         return float(sum(weight * criterion.score(signal) for criterion, weight in self.terms))
@@ -163,7 +163,7 @@ class APRBSResult:
     best_index: int
     seed: int | None
     design: APRBSDesign
-    criterion: Criterion
+    criterion: SignalCriterion
 
 
 def hold_min_from_time_constant(time_constant: float, *, dt: float, factor: float = 1.0) -> float:
@@ -212,7 +212,7 @@ def _no_repeats(bins: np.ndarray, n_levels: int, rng: np.random.Generator) -> np
     return bins
 
 
-def design_aprbs(design: APRBSDesign, *, criterion: Criterion | None = None, candidates: int = 64, seed: int | None = None) -> APRBSResult:
+def design_aprbs(design: APRBSDesign, *, criterion: SignalCriterion | None = None, candidates: int = 64, seed: int | None = None) -> APRBSResult:
     """Best of ``candidates`` random APRBS under ``criterion`` (default: coverage + spectral content).
 
     Parameters

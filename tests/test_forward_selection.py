@@ -12,7 +12,7 @@ from dynamics.effects.linear import CoulombFriction, JointOffset, StribeckFricti
 from dynamics.models import build_model
 from dynamics.robots import load_robot
 from estimation.diagnosis.candidates.trials import Trial
-from estimation.diagnosis.confirmation import Comparison
+from estimation.diagnosis.confirmation import CandidateComparison
 from estimation.diagnosis.forward_selection import DiagnosisSearch, SearchSettings, candidate_blocks
 from estimation.diagnosis.search_fits import TrialTest
 from estimation.diagnosis.rules.robust_test import WaldTest
@@ -65,11 +65,11 @@ class PrescribedFits:
 
     def compare(self, trial, weights):
         residual = np.full((3, 1), 1.0)
-        return Comparison(weights, self.errors.get(trial.group, 0.5), residual, 1.0, residual)
+        return CandidateComparison(weights, self.errors.get(trial.group, 0.5), residual, 1.0, residual)
 
     def removal(self, without, weights):
         residual = np.full((3, 1), 1.0)
-        return Comparison(weights, 2.0, residual, 1.0, residual)
+        return CandidateComparison(weights, 2.0, residual, 1.0, residual)
 
     def set_model(self, adopted):
         self.model = tuple(item.index for item in adopted)

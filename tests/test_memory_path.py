@@ -195,3 +195,28 @@ def test_identify_chooses_alike_in_memory_and_streamed(tmp_path, records):
                                 else model_file["alternatives"][weighting]["theta"])
     assert values["memory"].size > 18 and memory["preprocessing"]["method"] == "fourier"
     np.testing.assert_allclose(values["streamed"], values["memory"], rtol=1e-6, atol=1e-9 * np.max(np.abs(values["memory"])))
+
+
+@pytest.mark.parametrize("available", [10**5, 4 * 10**9, 24 * 10**9, 10**13])
+def test_the_path_is_decided_by_the_record_whatever_the_free_memory(model, records, monkeypatch, available):
+    """The default budget is fixed (1 GB): the small record stays in memory, a million-row record of the same
+    files would stream, however much memory the machine has free; ``memory_budget`` still overrides."""
+    import dynamics.runtime.memory
+    from oed.workflows import memory_path
+    from oed.workflows.options import RecordOptions
+
+    monkeypatch.setattr(dynamics.runtime.memory, "available_memory", lambda: available)
+    assert memory_path.default_budget() == memory_path.budget_of(RecordOptions(joints=3, data=records[:1])) == 10**9
+    said = []
+    options = RecordOptions(joints=3, data=records[:1], validate=records[1:])
+    small = memory_path.decide_path(options, model, task="diagnosing", bytes_per_value=64,
+                                    in_memory_only=lambda: None, say=said.append)
+    assert not small.stream and not small.need.stream and small.need.budget == 10**9 and said == []
+    monkeypatch.setattr(memory_path, "count_rows", lambda path: 10**6)
+    large = memory_path.decide_path(options, model, task="diagnosing", bytes_per_value=64,
+                                    in_memory_only=lambda: "an option the streamed path lacks", say=said.append)
+    assert large.need.stream and large.need.rows == 2 * 10**6 and large.need.budget == 10**9
+    assert said == [large.need.describe("diagnosing") + ", but an option the streamed path lacks: in memory"]
+    generous = memory_path.decide_path(options.replace(memory_budget="1TB"), model, task="diagnosing",
+                                       bytes_per_value=64, in_memory_only=lambda: None, say=said.append)
+    assert not generous.stream and generous.need.budget == 10**12

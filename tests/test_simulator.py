@@ -12,10 +12,10 @@ from dynamics.models import build_model
 from dynamics.pinocchio_bridge import to_pinocchio
 from dynamics.robots import load_robot
 from dynamics.simulation.effects import (
-    Armature, Coulomb, Offset, PlateCable, PlateOffset, Spring, Viscous, effects_from_names, puma560_link_friction,
+    SimulatedArmature, Coulomb, Offset, PlateCable, PlateOffset, SimulatedSpring, Viscous, effects_from_names, puma560_link_friction,
 )
 from dynamics.simulation.sensors import encoder_resolution
-from dynamics.simulation.simulator import NoiseModel, Simulator, simulate
+from dynamics.simulation.simulator import NoiseModel, Simulator, simulate_controlled
 from oed.fourier import FourierTrajectory
 
 
@@ -46,7 +46,7 @@ def test_default_puma_friction_is_corke_motor_data_reflected_through_the_gears()
 
 def test_recorded_torques_equal_the_model_prediction_at_the_true_states(robot, trajectory):
     simulator = Simulator(robot, (Viscous.default(robot), Coulomb.default(robot), Offset.default(robot),
-                                  Armature.default(robot)), noise=NoiseModel.none())
+                                  SimulatedArmature.default(robot)), noise=NoiseModel.none())
     result = simulator.run(trajectory, duration=2.0)
     model = build_model(robot, "internal", ("viscous", model_effects.CoulombFriction(smoothing=0.05), "offset", "armature"))
     predicted = model.predict(simulator.true_theta(model), result.q, result.dq, result.ddq)
@@ -103,7 +103,7 @@ def _residuals(robot, trajectory, effects):
     [
         (Coulomb((3.0, 2.0, 1.0)), [0, 1, 2], []),
         (Offset((0.0, 1.5, 0.0)), [1], []),
-        (Spring(joints=(1,), stiffness=(5.0,), q_ref=(0.4,)), [0], []),
+        (SimulatedSpring(joints=(1,), stiffness=(5.0,), q_ref=(0.4,)), [0], []),
         (PlateOffset(("mz",), (2.0,)), [], [5]),
         (PlateCable(joint=1, stiffness=3.0, q_ref=0.1, channel="mx"), [], [3]),
     ],
@@ -164,7 +164,7 @@ def test_positions_are_quantised_to_the_encoder_resolution(robot, trajectory):
 
 
 def test_derivatives_are_written_only_when_asked(robot, trajectory):
-    plain = simulate(robot, trajectory, periods=1, seed=0)
+    plain = simulate_controlled(robot, trajectory, periods=1, seed=0)
     assert plain.dq is None and plain.ddq is None and plain.tau.shape == (5000, 3) and plain.wrench.shape == (5000, 6)
     simulator = Simulator(robot)
     full = simulator.run(trajectory, duration=1.0, with_derivatives=True, seed=0)
@@ -176,7 +176,7 @@ def test_whole_periods_record_the_frequency_for_the_fourier_fit(robot, trajector
     from estimation.identification.fit import identify
     from estimation.preprocessing.differentiation import FourierDifferentiation, fill_derivatives
 
-    periodic = simulate(robot, trajectory, periods=1, seed=0)
+    periodic = simulate_controlled(robot, trajectory, periods=1, seed=0)
     assert periodic.metadata["frequency_hz"] == pytest.approx(0.2) and periodic.metadata["harmonics"] == 5
     assert fill_derivatives(periodic).metadata["differentiation"] == "fourier"
     # why three times the reference's harmonics: the tracking error adds harmonics above them, and a
@@ -215,7 +215,7 @@ def test_warmup_starts_the_record_in_the_periodic_steady_state(robot):
         (lambda robot: Simulator(robot, "magnets"), "unknown effect 'magnets'"),
         (lambda robot: Simulator(robot, (Coulomb((1.0, 2.0)),)), "2 values for a robot of 3 joints"),
         (lambda robot: Simulator(robot, theta=(1.0,) * 10), "30 finite standard parameters"),
-        (lambda robot: Simulator(robot, (Spring(joints=(4,)),)), "joint 4 outside 1..3"),
+        (lambda robot: Simulator(robot, (SimulatedSpring(joints=(4,)),)), "joint 4 outside 1..3"),
         (lambda robot: effects_from_names("coulomb", robot, {"cable": 2.0}), "not simulated"),
         (lambda robot: NoiseModel(tau_std=-1.0), "tau_std"),
         (lambda robot: PlateOffset(("mq",), (1.0,)), "channels"),

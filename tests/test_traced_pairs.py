@@ -17,7 +17,7 @@ from dynamics.effects.specs import build_effects
 from dynamics.effects.motor import KINDS, combination_from_label, pair_combinations
 from dynamics.models import build_model
 from dynamics.robots import load_robot
-from dynamics.simulation.joint_effects import PUMA560_ROTOR_INERTIA, Armature
+from dynamics.simulation.joint_effects import PUMA560_ROTOR_INERTIA, SimulatedArmature
 from dynamics.simulation.motor_effects import MotorFriction
 from dynamics.simulation.sensors import NoiseModel
 from dynamics.simulation.simulator import Simulator
@@ -99,7 +99,7 @@ def coupled_wrist():
     base = MotorFriction.default(robot)
     friction = MotorFriction(tuple(map(tuple, matrix)), base.viscous, base.coulomb, (1.0,))
     rotor = np.diag(matrix.T @ np.diag(PUMA560_ROTOR_INERTIA) @ matrix)
-    simulator = Simulator(robot, (friction, Armature(tuple(rotor))), noise=NoiseModel())
+    simulator = Simulator(robot, (friction, SimulatedArmature(tuple(rotor))), noise=NoiseModel())
     train = simulator.run(random_fourier(robot, seed=3, frequency_hz=0.5), periods=1, warmup_periods=1,
                           with_derivatives=True, seed=3).measurements
     return robot, train

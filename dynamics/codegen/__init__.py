@@ -1,2 +1,34 @@
 """Compiled code: the regressors compiled once with the system C compiler (:mod:`dynamics.codegen.compiled`)
 and the on-disk cache of the design's just-in-time compiled functions (:mod:`dynamics.codegen.jit_cache`)."""
+
+from __future__ import annotations
+
+import importlib
+from typing import Any
+
+#: each name users import from this package and the module that defines it; the modules behind may move,
+#: these names stay (imported on first use, PEP 562, so that importing the package stays light)
+_EXPORTS: dict[str, str] = {
+    "SampleEvaluator": "dynamics.codegen.compiled",
+    "cache_directory": "dynamics.codegen.compiled",
+    "cached_jit": "dynamics.codegen.jit_cache",
+    "compile_function": "dynamics.codegen.compiled",
+    "find_compiler": "dynamics.codegen.compiled",
+    "jit_directory": "dynamics.codegen.jit_cache",
+    "library_path": "dynamics.codegen.jit_cache",
+}
+
+__all__ = sorted(_EXPORTS)
+
+
+def __getattr__(name: str) -> Any:
+    """The names of ``__all__``, imported from their modules when first asked for (PEP 562)."""
+    if name in _EXPORTS:
+        value = getattr(importlib.import_module(_EXPORTS[name]), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), *_EXPORTS})

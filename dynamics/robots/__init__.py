@@ -15,6 +15,9 @@ from dynamics.robots.puma560 import puma560
 from dynamics.robots.servo_arm import servo_arm
 from dynamics.urdf import robot_from_urdf
 
+__all__ = ["BUILT_IN_ROBOTS", "emps", "load_robot", "truncate"]
+
+
 def emps() -> RobotModel:
     """The EMPS linear axis (one prismatic joint), described by the packaged ``emps.urdf``."""
     with resources.as_file(resources.files("dynamics.robots").joinpath("emps.urdf")) as path:

@@ -28,10 +28,10 @@ from dynamics.simulation.joint_effects import (  # noqa: F401  (re-exported)
     PUMA560_MOTOR_COULOMB,
     PUMA560_MOTOR_VISCOUS,
     PUMA560_ROTOR_INERTIA,
-    Armature,
+    SimulatedArmature,
     Coulomb,
     Offset,
-    Spring,
+    SimulatedSpring,
     Viscous,
     is_puma560,
     SimulatedPerJoint,
@@ -41,7 +41,7 @@ from dynamics.simulation.joint_effects import (  # noqa: F401  (re-exported)
 from dynamics.simulation.plate_effects import PLATE_EFFECTS, PlateCable, PlateOffset, PlateMoment  # noqa: F401
 
 SIMULATED_EFFECTS: dict[str, type] = {
-    "viscous": Viscous, "coulomb": Coulomb, "offset": Offset, "armature": Armature, "spring": Spring,
+    "viscous": Viscous, "coulomb": Coulomb, "offset": Offset, "armature": SimulatedArmature, "spring": SimulatedSpring,
     "plate_offset": PlateOffset, "plate_moment": PlateMoment, "cable": PlateCable,
 }
 
@@ -173,7 +173,7 @@ def effects_from_friction(document: Mapping[str, Any], robot: RobotModel,
 
 __all__ = [
     "is_friction_document", "effects_from_friction",
-    "Viscous", "Coulomb", "Offset", "Armature", "Spring", "PlateOffset", "PlateCable",
+    "Viscous", "Coulomb", "Offset", "SimulatedArmature", "SimulatedSpring", "PlateOffset", "PlateCable",
     "SIMULATED_EFFECTS", "effects_from_names", "describe", "default_joint_values",
     "JOINT_EFFECTS", "PLATE_EFFECTS", "is_plate_effect", "puma560_link_friction",
 ]

@@ -176,11 +176,11 @@ class Offset(SimulatedPerJoint):
 
 
 @dataclass(frozen=True)
-class Armature(SimulatedPerJoint):
+class SimulatedArmature(SimulatedPerJoint):
     """Reflected rotor inertia ``Ia_i · ddq_i`` (kg·m²), added to the mass matrix diagonal.
 
     Joint rows only: the rotor's reaction on the stator (``1/G`` of it) is neglected, as in the
-    identification model :class:`dynamics.effects.linear.Armature`.
+    identification model :class:`dynamics.effects.linear.SimulatedArmature`.
     """
 
     name: ClassVar[str] = "armature"
@@ -192,7 +192,7 @@ class Armature(SimulatedPerJoint):
 
 
 @dataclass(frozen=True)
-class Spring:
+class SimulatedSpring:
     """A configuration-dependent joint moment ``k_j (q_j − q_ref_j)`` (a cable harness on joint ``j``).
 
     ``joints`` are 1-based joint numbers; ``stiffness`` (N·m/rad) and ``q_ref`` (rad) one value
@@ -247,4 +247,4 @@ class Spring:
         return cls(**value) if isinstance(value, Mapping) else cls(stiffness=value)
 
 
-JOINT_EFFECTS = (Viscous, Coulomb, Offset, Armature, Spring)
+JOINT_EFFECTS = (Viscous, Coulomb, Offset, SimulatedArmature, SimulatedSpring)

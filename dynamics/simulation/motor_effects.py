@@ -13,7 +13,7 @@ With a coupled wrist one motor's friction acts on two or three joint rows at onc
 
 Rotor inertia is not simulated here: ``Rᵀ J R`` is not diagonal for a coupled wrist, and the
 simulator adds armature to the mass matrix diagonal only (use
-:class:`dynamics.simulation.joint_effects.Armature` with ``diag(Rᵀ J R)``).
+:class:`dynamics.simulation.joint_effects.SimulatedArmature` with ``diag(Rᵀ J R)``).
 
 PUMA 560 defaults (:meth:`MotorFriction.default`): the motor data of Corke's Robotics Toolbox
 (``mdl_puma560``: viscous ``B``, Coulomb ``(Tc⁺ − Tc⁻)/2``) and

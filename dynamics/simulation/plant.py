@@ -20,7 +20,7 @@ from numpy.typing import NDArray
 from dynamics.pinocchio_bridge import to_pinocchio
 from dynamics.robot import RobotModel
 from dynamics.simulation.controllers import Controller
-from dynamics.simulation.effects import Armature
+from dynamics.simulation.effects import SimulatedArmature
 
 __all__ = ["Plant"]
 
@@ -49,7 +49,7 @@ class Plant:
         data = model.createData()
         self.forward_dynamics = functools.partial(pin.aba, model, data)
         self.mass_matrix = functools.partial(pin.crba, model, data)
-        self.joint_effects = [effect for effect in joint_effects if not isinstance(effect, Armature)]  # armature: in M
+        self.joint_effects = [effect for effect in joint_effects if not isinstance(effect, SimulatedArmature)]  # armature: in M
 
     def acceleration(self, q: NDArray, dq: NDArray, tau: NDArray) -> NDArray:
         """``ddq = aba(q, dq, τ − Σ_e τ_e(q, dq))``."""

@@ -381,7 +381,7 @@ def base_wrench(robot: RobotModel, theta: Sequence[float] | None, q: NDArray, dq
     return wrench
 
 
-def simulate(
+def simulate_controlled(
     robot: RobotModel,
     trajectory: Any,
     *,

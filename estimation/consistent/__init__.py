@@ -2,3 +2,40 @@
 
 Modules: :mod:`~estimation.consistent.identification`, :mod:`~estimation.consistent.least_squares`, :mod:`~estimation.consistent.model_selection`, :mod:`~estimation.consistent.reduced_hessian`, :mod:`~estimation.consistent.simulation`, :mod:`~estimation.consistent.solver`.
 """
+
+from __future__ import annotations
+
+import importlib
+from typing import Any
+
+#: each name users import from this package and the module that defines it; the modules behind may move,
+#: these names stay (imported on first use, PEP 562, so that importing the package stays light)
+_EXPORTS: dict[str, str] = {
+    "ConsistentLeastSquares": "estimation.consistent.least_squares",
+    "ConsistentResult": "estimation.consistent.identification",
+    "ConsistentSolverError": "estimation.consistent.least_squares",
+    "RELATIVE_STD_THRESHOLD": "estimation.consistent.determination",
+    "consistent_controller": "estimation.consistent.simulation",
+    "consistent_robot": "estimation.consistent.simulation",
+    "consistent_simulator": "estimation.consistent.simulation",
+    "identify_consistent": "estimation.consistent.identification",
+    "load_link_bounds": "estimation.consistent.identification",
+    "load_prior": "estimation.consistent.identification",
+    "mass_matrix_eigenvalues": "estimation.consistent.simulation",
+    "measured_reference": "estimation.consistent.simulation",
+}
+
+__all__ = sorted(_EXPORTS)
+
+
+def __getattr__(name: str) -> Any:
+    """The names of ``__all__``, imported from their modules when first asked for (PEP 562)."""
+    if name in _EXPORTS:
+        value = getattr(importlib.import_module(_EXPORTS[name]), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), *_EXPORTS})

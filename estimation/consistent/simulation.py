@@ -27,13 +27,13 @@ from dynamics.effects.shaped import is_shaped
 from dynamics.models import IdentificationModel, build_model
 from dynamics.robot import RobotModel
 from dynamics.simulation.sensors import NoiseModel
-from dynamics.simulation.joint_effects import Armature, Coulomb, Offset, Viscous
+from dynamics.simulation.joint_effects import SimulatedArmature, Coulomb, Offset, Viscous
 from dynamics.simulation.simulator import Simulator
 from estimation.consistent.least_squares import ConsistentEstimate
 from dynamics.measurements import Measurements
 
 #: identification-model symbol -> simulated effect
-SIMULATED_EFFECTS = {"fv": Viscous, "fc": Coulomb, "off": Offset, "Ia": Armature}
+SIMULATED_EFFECTS = {"fv": Viscous, "fc": Coulomb, "off": Offset, "Ia": SimulatedArmature}
 #: effects that do not act on the motion (force-plate offsets)
 NOT_SIMULATED = ("wrench_offset",)
 

@@ -5,9 +5,11 @@ The in-memory identification and diagnosis hold, at their peak, a stacked regres
 7-joint arm (50 base parameters) asked 1.5 GB of the in-memory diagnosis just to be read and prepared, and its
 estimation would have asked about 23 GB; the streamed path (:mod:`estimation.streaming.diagnosis`) diagnosed it
 in 0.6 GB. So the path is chosen by an estimate made from the files' row counts (:func:`count_rows`: the Parquet
-footer, or the line breaks of a CSV file, without parsing a value) against a budget, by default
-:data:`DEFAULT_SHARE` of the memory available now (:func:`dynamics.runtime.memory.available_memory`:
-``MemAvailable`` of ``/proc/meminfo``, else ``os.sysconf``, within a container's limit)::
+footer, or the line breaks of a CSV file, without parsing a value) against a budget, by default the fixed
+:data:`DEFAULT_BUDGET` (1 GB), never the memory free at the moment: the same command takes the same path on every
+machine, and a record whose in-memory peak would pass what the streamed path takes is streamed (bounded memory by
+default). The hard limit of :func:`dynamics.runtime.memory.check_allocation` still refuses an in-memory run the
+machine cannot hold::
 
     budget = parse_memory_size("2GB")                      # or default_budget()
     need = estimate_in_memory([count_rows(p) for p in paths], model, bytes_per_value=64, budget=budget)
@@ -26,15 +28,16 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from dynamics.models import IdentificationModel
-from dynamics.runtime.memory import available_memory
 from estimation.data.log_formats import is_log_file
 
-__all__ = ["DEFAULT_SHARE", "InMemoryNeed", "MemorySizeError", "READ_BYTES", "count_rows", "default_budget",
+__all__ = ["DEFAULT_BUDGET", "InMemoryNeed", "MemorySizeError", "READ_BYTES", "count_rows", "default_budget",
            "estimate_in_memory", "format_size", "parse_memory_size"]
 
-#: share of the memory available when the run starts that the in-memory path may take before streaming is chosen
-#: (the machine is shared with other work, and the streamed path gives the same decisions)
-DEFAULT_SHARE = 0.25
+#: bytes the in-memory path may take before streaming is chosen when ``--memory-budget`` is not given: fixed, so the
+#: path depends on the record only (rows, channels, base parameters), not on the memory free at the moment; about
+#: what the streamed path peaks at on a long record (0.6 GB for 1 M samples of a 7-joint arm), so a long record never
+#: costs more in memory than streamed (``benchmarks/README.md``)
+DEFAULT_BUDGET = 10**9
 #: bytes a value of a file's columns costs while it is read and prepared in memory (the table, the arrays, the
 #: recorded channels beside the derived ones; measured: 1.5 GB for 1.1 M rows of 15 columns, about 90)
 READ_BYTES = 96
@@ -78,11 +81,9 @@ def format_size(n_bytes: float) -> str:
     return f"{n_bytes:.0f} bytes"
 
 
-def default_budget(share: float = DEFAULT_SHARE) -> int:
-    """``share`` of the memory available now, bytes."""
-    if not 0 < share <= 1:
-        raise ValueError(f"share must lie in (0, 1], got {share}")
-    return int(share * available_memory())
+def default_budget() -> int:
+    """The budget when none is given, bytes: :data:`DEFAULT_BUDGET`, whatever the memory free now."""
+    return DEFAULT_BUDGET
 
 
 def count_rows(path: str | Path, *, block: int = 1 << 20) -> int:

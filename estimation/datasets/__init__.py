@@ -2,3 +2,34 @@
 
 Modules: :mod:`~estimation.datasets.emps_model`, :mod:`~estimation.datasets.kuka`, :mod:`~estimation.datasets.shared`.
 """
+
+from __future__ import annotations
+
+import importlib
+from typing import Any
+
+#: each name users import from this package and the module that defines it; the modules behind may move,
+#: these names stay (imported on first use, PEP 562, so that importing the package stays light)
+_EXPORTS: dict[str, str] = {
+    "emps_measurements": "estimation.datasets.shared",
+    "fit_emps_second_order": "estimation.datasets.emps_model",
+    "load_daisy_robot_arm": "estimation.datasets.shared",
+    "load_emps": "estimation.datasets.shared",
+    "load_kuka_run": "estimation.datasets.kuka",
+    "validate_emps": "estimation.datasets.emps_model",
+}
+
+__all__ = sorted(_EXPORTS)
+
+
+def __getattr__(name: str) -> Any:
+    """The names of ``__all__``, imported from their modules when first asked for (PEP 562)."""
+    if name in _EXPORTS:
+        value = getattr(importlib.import_module(_EXPORTS[name]), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), *_EXPORTS})

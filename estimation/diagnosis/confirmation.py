@@ -98,7 +98,7 @@ def _sums(fixed: FixedPart, samples: NDArray[np.bool_]
 
 def blocked_comparison(trial: Trial, fixed_train: FixedPart, fixed_validate: FixedPart, states_train: States,
                        states_validate: States, settled: NDArray[np.float64], blocks: HeldOutBlocks,
-                       current: tuple[FixedPart, FixedPart] | None = None) -> Comparison:
+                       current: tuple[FixedPart, FixedPart] | None = None) -> CandidateComparison:
     """:func:`reweighted_comparison` on a validation record that repeats the training motion: both models trained
     at ``settled``, the weights the candidate's training residuals give (:func:`settled_weights`, as the
     comparison on the whole repeat found them), each stretch of the validation record predicted by the fits that
@@ -108,13 +108,13 @@ def blocked_comparison(trial: Trial, fixed_train: FixedPart, fixed_validate: Fix
                                 fixed_validate.with_blocks(trial.blocks, states_validate, shapes), settled)
     current_train, current_validate = (fixed_train, fixed_validate) if current is None else current
     current_residual = blocks.residual(current_train, current_validate, settled)
-    return Comparison(settled, float(settled @ np.mean(candidate**2, axis=1)), candidate,
+    return CandidateComparison(settled, float(settled @ np.mean(candidate**2, axis=1)), candidate,
                       float(settled @ np.mean(current_residual**2, axis=1)), current_residual,
                       "the stretches of the repeated motion its fit did not see")
 
 
 @dataclass(frozen=True)
-class Comparison:
+class CandidateComparison:
     """A candidate against the current model on held-out data, both trained at ``weights``."""
 
     weights: NDArray[np.float64]
@@ -140,7 +140,7 @@ def settled_weights(fixed: FixedPart, blocks, states: States, shapes, weights: N
 
 def reweighted_comparison(trial: Trial, fixed_train: FixedPart, fixed_validate: FixedPart, states_train: States,
                           states_validate: States, weights: NDArray[np.float64],
-                          current: tuple[FixedPart, FixedPart] | None = None) -> Comparison:
+                          current: tuple[FixedPart, FixedPart] | None = None) -> CandidateComparison:
     """The candidate and the current model, both trained at the weights the candidate's training
     residuals give (:func:`settled_weights`), and their weighted validation errors at those weights.
     ``fixed_train``, ``fixed_validate``: the columns the candidate joins; ``current``: the current
@@ -155,14 +155,14 @@ def reweighted_comparison(trial: Trial, fixed_train: FixedPart, fixed_validate: 
 
 
 def _against_current(settled: NDArray[np.float64], error: float, residual: NDArray[np.float64],
-                     current_train: FixedPart, current_validate: FixedPart) -> Comparison:
+                     current_train: FixedPart, current_validate: FixedPart) -> CandidateComparison:
     current = solve_linear(current_train, [], None, [], settled)
     current_error, current_residual = weighted_error(current_validate, [], None, [], current.theta, settled)
-    return Comparison(settled, error, residual, current_error, current_residual)
+    return CandidateComparison(settled, error, residual, current_error, current_residual)
 
 
 def removal_comparison(reduced_train: FixedPart, reduced_validate: FixedPart, current_train: FixedPart,
-                       current_validate: FixedPart, weights: NDArray[np.float64]) -> Comparison:
+                       current_validate: FixedPart, weights: NDArray[np.float64]) -> CandidateComparison:
     """The current model without an adopted effect (``reduced``) against the current model, both trained
     at the weights the reduced model's training residuals give, as :func:`reweighted_comparison`."""
     settled = settled_weights(reduced_train, [], None, [], weights)
@@ -220,7 +220,7 @@ def simplify_laws(selected, after, model, train, validate, starts, weights, min_
     return selected, after
 
 
-def unseen_veto(repeat: Comparison, unseen: Comparison) -> Comparison:
+def unseen_veto(repeat: CandidateComparison, unseen: CandidateComparison) -> CandidateComparison:
     """The comparison on a repeat of the training motion, unless the candidate raises the error on the stretches
     of that motion its fit did not see (``unseen``: :func:`blocked_comparison`): then that one, which the search
     refuses. The size of the gain (``min_improvement``) is judged on the whole repeat: the stretches' errors also

@@ -45,7 +45,7 @@ from dynamics.effects.linear import Effect
 from dynamics.effects.shaped import FRICTION_LAWS
 from dynamics.models import IdentificationModel
 from estimation.diagnosis.candidates.trials import Trial, candidate_label, joints_of, wrong_sign
-from estimation.diagnosis.confirmation import Comparison, channels_made_worse
+from estimation.diagnosis.confirmation import CandidateComparison, channels_made_worse
 from estimation.diagnosis.candidates.coupling import combination_groups
 from estimation.diagnosis.candidates.delay import DelayTrial
 from estimation.diagnosis.results import RejectedEffect
@@ -289,7 +289,7 @@ class DiagnosisSearch:
         return None
 
     def confirm(self, trial: Trial, springs_beaten: dict[tuple[int, ...], str]
-                ) -> tuple[Comparison, WaldTest] | str:
+                ) -> tuple[CandidateComparison, WaldTest] | str:
         """The comparison on validation (both models trained at the weights the candidate's residuals
         give) and the robust test when the trial is physical, confirmed and significant by that test, else
         why not (the robust test, the costliest, last)."""

@@ -27,7 +27,7 @@ from dynamics.measurements import Measurements
 from dynamics.models import IdentificationModel
 from dynamics.runtime.processes import run_tasks, worker_count
 from estimation.diagnosis.candidates.trials import Trial, fit_or_reason, weighted_error
-from estimation.diagnosis.confirmation import (Comparison, HeldOutBlocks, blocked_comparison, unseen_veto,
+from estimation.diagnosis.confirmation import (CandidateComparison, HeldOutBlocks, blocked_comparison, unseen_veto,
                                                removal_comparison, reweighted_comparison)
 from estimation.diagnosis.candidates.delay import DelayComparison, DelayTrial, Regressor
 from estimation.diagnosis.candidates.delay_search import DelaySearch
@@ -253,7 +253,7 @@ class RecordFits:
             start = block.stop
         return tests
 
-    def compare(self, trial: Trial, weights: NDArray[np.float64]) -> Comparison:
+    def compare(self, trial: Trial, weights: NDArray[np.float64]) -> CandidateComparison:
         fixed_train, fixed_validate = self._columns(trial.without)
         repeat = reweighted_comparison(trial, fixed_train, fixed_validate, self.states_train, self.states_validate,
                                        weights, current=(self.fixed_train, self.fixed_validate))
@@ -263,7 +263,7 @@ class RecordFits:
                                                       self.states_validate, repeat.weights, self.held_out,
                                                       current=(self.fixed_train, self.fixed_validate)))
 
-    def removal(self, without: tuple[int, ...], weights: NDArray[np.float64]) -> Comparison:
+    def removal(self, without: tuple[int, ...], weights: NDArray[np.float64]) -> CandidateComparison:
         return removal_comparison(*self._columns(without), self.fixed_train, self.fixed_validate, weights)
 
     @property
@@ -280,7 +280,7 @@ class RecordFits:
         return self.delay.confirm(trial, [a.block for a in adopted], [a.shape for a in adopted], self.model,
                                   self.fixed_train, self.fixed_validate, weights, min_improvement)
 
-    def adopt_delay(self, trial: DelayTrial, outcome: DelayComparison) -> Comparison:
+    def adopt_delay(self, trial: DelayTrial, outcome: DelayComparison) -> CandidateComparison:
         """The records moved by the adopted delay, and its comparison."""
         self._move(*self.delay.adopt(trial))
         return outcome.comparison

@@ -3,24 +3,74 @@
 trivial predictors.
 
 Modules: :mod:`~estimation.identification.delayed`, :mod:`~estimation.identification.fit`, :mod:`~estimation.identification.model_parameters`, :mod:`~estimation.identification.prepared`, :mod:`~estimation.identification.preprocessing_choice`, :mod:`~estimation.identification.shaped`, :mod:`~estimation.identification.trivial_predictors`, :mod:`~estimation.identification.validation`.
-
-``from estimation.identification import identify`` (the path release 0.1 showed) still works for one release, with a
-DeprecationWarning: import it from :mod:`estimation.identification.fit`.
 """
 
+from __future__ import annotations
+
 import importlib
-import warnings
 from typing import Any
+
+#: each name users import from this package and the module that defines it; the modules behind may move,
+#: these names stay (imported on first use, PEP 562, so that importing the package stays light)
+_EXPORTS: dict[str, str] = {
+    "ChoiceWindow": "estimation.identification.preprocessing_choice",
+    "Comparison": "estimation.identification.validation",
+    "DelayFit": "estimation.identification.delayed",
+    "EQUIVALENT": "estimation.identification.preprocessing_choice",
+    "HeldOutScore": "estimation.identification.preprocessing_choice",
+    "IdentificationResult": "estimation.identification.fit",
+    "IdentifiedModel": "estimation.identification.identified_model",
+    "ImplausibleEstimateWarning": "estimation.identification.fit",
+    "InMemoryBudget": "estimation.identification.prepared",
+    "MjcfExport": "estimation.identification.export",
+    "ModelFile": "estimation.identification.model_file",
+    "ModelFileError": "estimation.identification.model_file",
+    "PreparationSettings": "estimation.identification.prepared",
+    "PreparedRecords": "estimation.identification.prepared",
+    "PreprocessingChoice": "estimation.identification.preprocessing_choice",
+    "REPEAT_FRACTION": "estimation.identification.repeated_motion",
+    "RobotSource": "estimation.identification.model_file",
+    "SCORED_SAMPLES": "estimation.identification.preprocessing_choice",
+    "ShapeValue": "estimation.identification.shaped",
+    "assess_plausibility": "estimation.identification.plausibility",
+    "choose_by_evidence": "estimation.identification.preprocessing_choice",
+    "choose_weighting": "estimation.identification.weighting_choice",
+    "compare": "estimation.identification.validation",
+    "exported_mjcf": "estimation.identification.export",
+    "exported_urdf": "estimation.identification.export",
+    "fit_delay": "estimation.identification.delayed",
+    "friction_document": "estimation.identification.export",
+    "identify": "estimation.identification.fit",
+    "implausible_estimates": "estimation.identification.fit",
+    "implausible_links": "estimation.identification.export",
+    "link_findings": "estimation.identification.plausibility",
+    "link_reach": "estimation.identification.plausibility",
+    "model_file_document": "estimation.identification.model_file",
+    "plot_comparison": "estimation.identification.validation",
+    "positive_base_parameters": "estimation.identification.plausibility",
+    "preferred": "estimation.identification.preprocessing_choice",
+    "prepare_records": "estimation.identification.prepared",
+    "read_files": "estimation.identification.prepared",
+    "read_model_file": "estimation.identification.model_file",
+    "repeated_motion_note": "estimation.identification.repeated_motion",
+    "shaped_blocks": "estimation.identification.shaped",
+    "summed_model_file_document": "estimation.identification.model_file",
+    "trivial_mse": "estimation.identification.trivial_predictors",
+    "trivial_warnings": "estimation.identification.trivial_predictors",
+    "weighting_samples": "estimation.identification.weighting_choice",
+}
+
+__all__ = sorted(_EXPORTS)
 
 
 def __getattr__(name: str) -> Any:
-    """The deprecated alias ``estimation.identification.identify`` (see docs/migration.md)."""
-    if name == "identify":
-        warnings.warn(
-            "estimation.identification.identify is deprecated and will be removed in the next release; "
-            "import it from estimation.identification.fit",
-            DeprecationWarning,
-            stacklevel=2,
-        )
-        return importlib.import_module("estimation.identification.fit").identify
+    """The names of ``__all__``, imported from their modules when first asked for (PEP 562)."""
+    if name in _EXPORTS:
+        value = getattr(importlib.import_module(_EXPORTS[name]), name)
+        globals()[name] = value
+        return value
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), *_EXPORTS})

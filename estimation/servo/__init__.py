@@ -2,3 +2,45 @@
 
 Modules: :mod:`~estimation.servo.files`, :mod:`~estimation.servo.model`, :mod:`~estimation.servo.output_error`, :mod:`~estimation.servo.output_error_arm`, :mod:`~estimation.servo.output_error_covariance`, :mod:`~estimation.servo.output_error_model`, :mod:`~estimation.servo.protocol`.
 """
+
+from __future__ import annotations
+
+import importlib
+from typing import Any
+
+#: each name users import from this package and the module that defines it; the modules behind may move,
+#: these names stay (imported on first use, PEP 562, so that importing the package stays light)
+_EXPORTS: dict[str, str] = {
+    "FREE_RUN_LIMIT": "estimation.servo.free_run_check",
+    "KalmanFusionSettings": "estimation.servo.output_error",
+    "OutputErrorDivergedError": "estimation.servo.output_error",
+    "OutputErrorInputError": "estimation.servo.output_error",
+    "check_free_run": "estimation.servo.free_run_check",
+    "discrete_to_gray_box": "estimation.servo.model",
+    "fit_servo_arm": "estimation.servo.protocol",
+    "fit_servo_arm_output_error": "estimation.servo.output_error_arm",
+    "fit_servo_joint": "estimation.servo.protocol",
+    "fit_servo_joint_output_error": "estimation.servo.output_error",
+    "free_run": "estimation.servo.model",
+    "gray_box_to_discrete": "estimation.servo.model",
+    "joint_step_function": "estimation.servo.model",
+    "read_csv": "estimation.servo.files",
+    "write_csv": "estimation.servo.files",
+    "write_text_atomic": "estimation.servo.files",
+    "zoh_function": "estimation.servo.output_error_model",
+}
+
+__all__ = sorted(_EXPORTS)
+
+
+def __getattr__(name: str) -> Any:
+    """The names of ``__all__``, imported from their modules when first asked for (PEP 562)."""
+    if name in _EXPORTS:
+        value = getattr(importlib.import_module(_EXPORTS[name]), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), *_EXPORTS})

@@ -2,3 +2,57 @@
 
 Modules: :mod:`~estimation.streaming.candidate_screening`, :mod:`~estimation.streaming.chunks`, :mod:`~estimation.streaming.cluster`, :mod:`~estimation.streaming.covariance`, :mod:`~estimation.streaming.cutoff_choice`, :mod:`~estimation.streaming.diagnosis`, :mod:`~estimation.streaming.diagnosis_result`, :mod:`~estimation.streaming.diagnosis_candidates`, :mod:`~estimation.streaming.diagnosis_passes`, :mod:`~estimation.streaming.diagnosis_sums`, :mod:`~estimation.streaming.identification`, :mod:`~estimation.streaming.periods`, :mod:`~estimation.streaming.recorded_errors`, :mod:`~estimation.streaming.selection`, :mod:`~estimation.streaming.time_base`.
 """
+
+from __future__ import annotations
+
+import importlib
+from typing import Any
+
+#: each name users import from this package and the module that defines it; the modules behind may move,
+#: these names stay (imported on first use, PEP 562, so that importing the package stays light)
+_EXPORTS: dict[str, str] = {
+    "BATCH_LENGTHS": "estimation.streaming.covariance",
+    "BatchScores": "estimation.streaming.covariance",
+    "DEFAULT_SUBSAMPLE": "estimation.streaming.diagnosis",
+    "EvenSubsample": "estimation.streaming.diagnosis_sums",
+    "FLOOR_WINDOW": "estimation.streaming.diagnosis_passes",
+    "IncompleteSumError": "estimation.streaming.cluster",
+    "SCHEDULER_VARIABLE": "estimation.streaming.cluster",
+    "StreamedDiagnosis": "estimation.streaming.diagnosis_result",
+    "StreamingUnsupportedError": "estimation.streaming.chunks",
+    "WorkerLostError": "estimation.streaming.cluster",
+    "accumulate_candidates": "estimation.streaming.candidate_screening",
+    "check_parts": "estimation.streaming.cluster",
+    "choose_streamed_preprocessing": "estimation.streaming.cutoff_choice",
+    "connect": "estimation.streaming.cluster",
+    "diagnose_files": "estimation.streaming.diagnosis",
+    "f_tests": "estimation.streaming.candidate_screening",
+    "file_sums": "estimation.streaming.chunks",
+    "filter_margin": "estimation.streaming.chunks",
+    "first_rows": "estimation.streaming.cutoff_choice",
+    "identify_files": "estimation.streaming.identification",
+    "lag_one_correlation": "estimation.streaming.covariance",
+    "plan_options": "estimation.streaming.periods",
+    "streamed_recorded_mse": "estimation.streaming.recorded_errors",
+    "scheduler_address": "estimation.streaming.cluster",
+    "streamed_plan": "estimation.streaming.recorded_errors",
+    "streamed_window": "estimation.streaming.cutoff_choice",
+    "sum_files": "estimation.streaming.cluster",
+    "weighted_fit": "estimation.streaming.candidate_screening",
+    "weighted_mse": "estimation.streaming.candidate_screening",
+}
+
+__all__ = sorted(_EXPORTS)
+
+
+def __getattr__(name: str) -> Any:
+    """The names of ``__all__``, imported from their modules when first asked for (PEP 562)."""
+    if name in _EXPORTS:
+        value = getattr(importlib.import_module(_EXPORTS[name]), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), *_EXPORTS})

@@ -8,7 +8,7 @@ nothing trimmed, as the in-memory preprocessing does).
 The streamed identification sums the channels it was fitted on: on the filter path those are
 filtered, so its MSEs are against the filtered channels (``mse_filtered``). The model file promises
 the error ``oed predict`` measures: the prediction along the derived motion against the channels as
-recorded, on every sample, as the in-memory preprocessing keeps them. :func:`recorded_mse` is that error,
+recorded, on every sample, as the in-memory preprocessing keeps them. :func:`streamed_recorded_mse` is that error,
 from one more pass over the files, chunk by chunk (:func:`estimation.streaming.chunks.preprocessed_chunks`: the
 samples equal the whole-record ones to :data:`estimation.streaming.chunks.MARGIN_TOLERANCE`).
 """
@@ -26,7 +26,7 @@ from dynamics.models import IdentificationModel
 from estimation.preprocessing.differentiation import ButterworthDifferentiation
 from estimation.streaming.chunks import preprocessed_chunks
 
-__all__ = ["recorded_mse", "streamed_plan"]
+__all__ = ["streamed_recorded_mse", "streamed_plan"]
 
 
 def streamed_plan(path: str | Path, model: IdentificationModel, *, cutoff_hz: float | None, decimation: int = 1,
@@ -40,7 +40,7 @@ def streamed_plan(path: str | Path, model: IdentificationModel, *, cutoff_hz: fl
             "trimmed_s": 0.0, **common}
 
 
-def recorded_mse(model: IdentificationModel, theta: ArrayLike, paths: Sequence[str | Path], *, chunk_size: int,
+def streamed_recorded_mse(model: IdentificationModel, theta: ArrayLike, paths: Sequence[str | Path], *, chunk_size: int,
                  cutoff_hz: float | None = None, decimation: int = 1, held_torques: bool = False) -> dict[str, float]:
     """Per channel, ``Σ (y − Y_b θ)² / N`` over ``paths`` (the samples of all files pooled), ``y`` the
     channels as recorded and ``Y_b`` the base regressor along the motion derived as the streamed path derives it."""

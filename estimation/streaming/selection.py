@@ -40,7 +40,7 @@ from dynamics.effects.linear import CoulombFriction, Effect
 from dynamics.effects.shaped import ShapedStribeckFriction
 from dynamics.models import IdentificationModel, build_model
 from estimation.diagnosis.candidates.trials import SIGNIFICANT_TERM, Trial, nested_test
-from estimation.diagnosis.confirmation import REWEIGHTING_PASSES, Comparison
+from estimation.diagnosis.confirmation import REWEIGHTING_PASSES, CandidateComparison
 from estimation.diagnosis.candidates.delay import DelayTrial
 from estimation.diagnosis.search_fits import AdoptedEffect, TrialRequest, TrialTest
 from estimation.diagnosis.rules.robust_test import WaldTest, wald_test
@@ -193,7 +193,7 @@ class SummedFits:
             weights = 1.0 / np.maximum(self.train.channel_rss(columns, theta, target=0) / (n - n_parameters / m), floor)
         return weights
 
-    def _comparison(self, columns: list[int], n_parameters: int, weights: NDArray[np.float64]) -> Comparison:
+    def _comparison(self, columns: list[int], n_parameters: int, weights: NDArray[np.float64]) -> CandidateComparison:
         """The model on ``columns`` against the current one, both trained at the weights the former's
         training residuals give, compared on validation; the "residuals" are the per-channel root MSEs,
         ``(m, 1)`` (one "sample" whose square is the MSE, which is all
@@ -201,15 +201,15 @@ class SummedFits:
         settled = self._settled_weights(columns, n_parameters, weights)
         candidate_mse = self.validate.channel_mse(columns, self.train.solve(columns, settled)[0])
         current_mse = self.validate.channel_mse(self.selection, self.train.solve(self.selection, settled)[0])
-        return Comparison(settled, float(settled @ candidate_mse), np.sqrt(candidate_mse)[:, None],
+        return CandidateComparison(settled, float(settled @ candidate_mse), np.sqrt(candidate_mse)[:, None],
                           float(settled @ current_mse), np.sqrt(current_mse)[:, None])
 
-    def compare(self, trial: Trial, weights: NDArray[np.float64]) -> Comparison:
+    def compare(self, trial: Trial, weights: NDArray[np.float64]) -> CandidateComparison:
         """The trial's model (the current one without what it replaces, with its group) against the current one."""
         selection = self._selection(trial.without)
         return self._comparison(selection + self._columns(trial.group), len(selection) + trial.n_parameters, weights)
 
-    def removal(self, without: tuple[int, ...], weights: NDArray[np.float64]) -> Comparison:
+    def removal(self, without: tuple[int, ...], weights: NDArray[np.float64]) -> CandidateComparison:
         columns = self._selection(without)
         return self._comparison(columns, len(columns), weights)
 
@@ -227,7 +227,7 @@ class SummedFits:
     def confirm_delay(self, trial, adopted, weights, min_improvement) -> None:
         raise ValueError("the streamed diagnosis has no delay candidate")
 
-    def adopt_delay(self, trial, outcome) -> Comparison:
+    def adopt_delay(self, trial, outcome) -> CandidateComparison:
         raise ValueError("the streamed diagnosis has no delay candidate")
 
 

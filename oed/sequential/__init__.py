@@ -11,3 +11,52 @@
 - :mod:`oed.sequential.rivals`: the rival, from a model file or the runner-up a diagnosis kept;
 - :mod:`oed.sequential.figure`: the new trajectory beside the old ones, at low speed.
 """
+
+from __future__ import annotations
+
+import importlib
+from typing import Any
+
+#: each name users import from this package and the module that defines it; the modules behind may move,
+#: these names stay (imported on first use, PEP 562, so that importing the package stays light)
+_EXPORTS: dict[str, str] = {
+    "FocusedLogDet": "oed.sequential.criteria",
+    "NextExperiment": "oed.sequential.next_experiment",
+    "NoRunnerUpError": "oed.sequential.rivals",
+    "PredictedStd": "oed.sequential.next_experiment",
+    "SEQUENTIAL_CRITERIA": "oed.sequential.criteria",
+    "SEQUENTIAL_MAX_ITER": "oed.sequential.problem",
+    "SequentialDesign": "oed.sequential.problem",
+    "SequentialDesignError": "oed.sequential.jacobian",
+    "WorstRelativeVariance": "oed.sequential.criteria",
+    "check_bounds": "oed.sequential.next_experiment",
+    "check_rivals": "oed.sequential.discrimination",
+    "design_discriminating": "oed.sequential.discrimination",
+    "design_next": "oed.sequential.next_experiment",
+    "focus_names": "oed.sequential.criteria",
+    "load_rival": "oed.sequential.rivals",
+    "model_jacobian": "oed.sequential.jacobian",
+    "plot_next_experiment": "oed.sequential.figure",
+    "posterior_criterion": "oed.sequential.criteria",
+    "predicted_std": "oed.sequential.next_experiment",
+    "prior_information": "oed.sequential.prior",
+    "read_records": "oed.sequential.prior",
+    "runner_up_file": "oed.sequential.rivals",
+    "screened_start": "oed.sequential.starts",
+    "slowed_start": "oed.sequential.starts",
+}
+
+__all__ = sorted(_EXPORTS)
+
+
+def __getattr__(name: str) -> Any:
+    """The names of ``__all__``, imported from their modules when first asked for (PEP 562)."""
+    if name in _EXPORTS:
+        value = getattr(importlib.import_module(_EXPORTS[name]), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), *_EXPORTS})

@@ -10,3 +10,44 @@ common keys), :mod:`.memory_path` (in memory or streamed), :mod:`.model_files` (
 keys), :mod:`.consistent` (the prior-weight choice of ``--consistent``), :mod:`.design_bounds` (the motion
 bounds of ``oed design``).
 """
+
+from __future__ import annotations
+
+import importlib
+from typing import Any
+
+#: each name users import from this package and the module that defines it; the modules behind may move,
+#: these names stay (imported on first use, PEP 562, so that importing the package stays light)
+_EXPORTS: dict[str, str] = {
+    "CONTROLLERS": "oed.workflows.simulate",
+    "DATA_SUFFIXES": "oed.workflows.simulate",
+    "DEFAULT_PRIOR_WEIGHT": "oed.workflows.consistent",
+    "DesignOptions": "oed.workflows.design",
+    "DiagnoseOptions": "oed.workflows.diagnose",
+    "IPOPT_ALONE": "oed.workflows.design",
+    "IdentifyOptions": "oed.workflows.identify",
+    "PRIOR_WEIGHT_GRID": "oed.workflows.consistent",
+    "PRIOR_WEIGHT_TOLERANCE": "oed.workflows.consistent",
+    "RecordOptions": "oed.workflows.options",
+    "SimulateOptions": "oed.workflows.simulate",
+    "check_csv_path": "oed.workflows.options",
+    "check_json_path": "oed.workflows.options",
+    "check_markdown_path": "oed.workflows.options",
+    "residual_figure": "oed.workflows.diagnose",
+    "trace_figure": "oed.workflows.diagnose",
+}
+
+__all__ = sorted(_EXPORTS)
+
+
+def __getattr__(name: str) -> Any:
+    """The names of ``__all__``, imported from their modules when first asked for (PEP 562)."""
+    if name in _EXPORTS:
+        value = getattr(importlib.import_module(_EXPORTS[name]), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), *_EXPORTS})

@@ -34,7 +34,7 @@ from estimation.preprocessing.plan import Preprocessing
 from estimation.streaming.cutoff_choice import streamed_window
 from estimation.streaming.identification import identify_files
 from estimation.streaming.periods import plan_options
-from estimation.streaming.recorded_errors import recorded_mse, streamed_plan
+from estimation.streaming.recorded_errors import streamed_plan, streamed_recorded_mse
 from oed.workflows.asbuilt import (
     finish_document,
     model_effects,
@@ -234,7 +234,7 @@ def add_streamed_model_file(document: dict[str, Any], args: IdentifyOptions, res
     """The model file of the streamed identification. Its validation error is the one ``oed predict`` measures:
     against the channels as recorded, on the samples the in-memory preprocessing keeps; on the filter path (where
     the sums hold filtered channels) from one more pass over the validation files
-    (:func:`estimation.streaming.recorded_errors.recorded_mse`); on the Fourier path none is reported. Returns the
+    (:func:`estimation.streaming.recorded_errors.streamed_recorded_mse`); on the Fourier path none is reported. Returns the
     plausibility warnings."""
     if result.frequency_hz is not None:
         plan = {"method": "fourier", "frequency_hz": result.frequency_hz, "harmonics": 5 if args.harmonics is None
@@ -247,7 +247,7 @@ def add_streamed_model_file(document: dict[str, Any], args: IdentifyOptions, res
     if result.frequency_hz is not None:
         validation = None
     elif document["validation"] is not None and validation is None:  # the sums hold filtered channels
-        validation = recorded_mse(result.model, result.estimate.values, args.validate, chunk_size=chunk_size,
+        validation = streamed_recorded_mse(result.model, result.estimate.values, args.validate, chunk_size=chunk_size,
                                   cutoff_hz=result.cutoff_hz, decimation=args.decimate,
                                   held_torques=bool(args.held_torques))
         document["validation"]["mse"] = validation

@@ -1,8 +1,9 @@
 """In memory or streamed: the path of ``oed identify`` and ``oed diagnose``, decided before the records are read.
 
 ``--chunk-size``, ``--workers`` or a scheduler ask for the streamed path. Otherwise the files' rows are counted
-and what the in-memory path would need is compared with ``--memory-budget`` (default a quarter of the memory
-available; :mod:`estimation.data.memory_budget`). Past it, and when every option given is one the streamed
+and what the in-memory path would need (rows × channels × base parameters) is compared with ``--memory-budget``
+(default a fixed 1 GB, :data:`estimation.data.memory_budget.DEFAULT_BUDGET`: the record decides the path, not the
+memory free at the moment). Past it, and when every option given is one the streamed
 path has, the derivatives are chosen on the same window as in memory
 (:func:`estimation.streaming.cutoff_choice.choose_streamed_preprocessing`) and the files are streamed; a Fourier
 fit of averaged periods shrinks the training record to one period, which may bring it back within the budget.
@@ -52,7 +53,7 @@ class PathDecision:
 
 
 def budget_of(args: RecordOptions) -> int:
-    """``--memory-budget`` in bytes, else the default share of the available memory."""
+    """``--memory-budget`` in bytes, else the fixed default budget (the same on every machine)."""
     return default_budget() if args.memory_budget is None else parse_memory_size(args.memory_budget)
 
 

@@ -5,3 +5,48 @@ Modules: :mod:`~estimation.diagnosis.candidates.coupling`, :mod:`~estimation.dia
 :mod:`~estimation.diagnosis.candidates.delay_search`, :mod:`~estimation.diagnosis.candidates.projected_columns`,
 :mod:`~estimation.diagnosis.candidates.trials`.
 """
+
+from __future__ import annotations
+
+import importlib
+from typing import Any
+
+#: each name users import from this package and the module that defines it; the modules behind may move,
+#: these names stay (imported on first use, PEP 562, so that importing the package stays light)
+_EXPORTS: dict[str, str] = {
+    "DelayComparison": "estimation.diagnosis.candidates.delay",
+    "DelaySearch": "estimation.diagnosis.candidates.delay_search",
+    "DelayTrial": "estimation.diagnosis.candidates.delay",
+    "Regressor": "estimation.diagnosis.candidates.delay",
+    "SIGNIFICANT_TERM": "estimation.diagnosis.candidates.trials",
+    "Trial": "estimation.diagnosis.candidates.trials",
+    "candidate_label": "estimation.diagnosis.candidates.trials",
+    "combination_groups": "estimation.diagnosis.candidates.coupling",
+    "combination_taken": "estimation.diagnosis.candidates.coupling",
+    "coupling_candidates": "estimation.diagnosis.candidates.coupling",
+    "fit_or_reason": "estimation.diagnosis.candidates.trials",
+    "joints_of": "estimation.diagnosis.candidates.trials",
+    "nested_test": "estimation.diagnosis.candidates.trials",
+    "pair_tests": "estimation.diagnosis.candidates.coupling",
+    "per_joint_extra": "estimation.diagnosis.candidates.coupling",
+    "search_delay": "estimation.diagnosis.candidates.delay",
+    "traced_pairs": "estimation.diagnosis.candidates.coupling",
+    "weighted_error": "estimation.diagnosis.candidates.trials",
+    "with_delay": "estimation.diagnosis.candidates.delay_search",
+    "wrong_sign": "estimation.diagnosis.candidates.trials",
+}
+
+__all__ = sorted(_EXPORTS)
+
+
+def __getattr__(name: str) -> Any:
+    """The names of ``__all__``, imported from their modules when first asked for (PEP 562)."""
+    if name in _EXPORTS:
+        value = getattr(importlib.import_module(_EXPORTS[name]), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), *_EXPORTS})

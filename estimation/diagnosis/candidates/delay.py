@@ -18,7 +18,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from estimation.diagnosis.candidates.trials import nested_test, weighted_error
-from estimation.diagnosis.confirmation import Comparison, settled_weights
+from estimation.diagnosis.confirmation import CandidateComparison, settled_weights
 from estimation.identification.delayed import DelayFit, fit_delay
 from dynamics.measurements import Measurements
 from estimation.preprocessing.delay import DELAY, DelayBounds, delayed
@@ -90,10 +90,10 @@ def try_delay(columns: Regressor, train: Measurements, channels: tuple[str, ...]
 
 @dataclass(frozen=True)
 class DelayComparison:
-    """The delayed model against the current one on held-out data (:class:`Comparison`), and the
+    """The delayed model against the current one on held-out data (:class:`CandidateComparison`), and the
     delayed records' fixed parts, should it be adopted."""
 
-    comparison: Comparison
+    comparison: CandidateComparison
     fixed_train: FixedPart
     fixed_validate: FixedPart
 
@@ -111,11 +111,11 @@ def compare_delay(trial: DelayTrial, columns: Regressor, train: Measurements, re
     error, residual = weighted_error(candidate_validate, [], None, [], candidate.theta, settled)
     current = solve_linear(fixed_train, [], None, [], settled)
     current_error, current_residual = weighted_error(fixed_validate, [], None, [], current.theta, settled)
-    return DelayComparison(Comparison(settled, error, residual, current_error, current_residual),
+    return DelayComparison(CandidateComparison(settled, error, residual, current_error, current_residual),
                            candidate_train, candidate_validate)
 
 
-def channels_made_worse(comparison: Comparison, tolerance: float, channels: Sequence[str]) -> str:
+def channels_made_worse(comparison: CandidateComparison, tolerance: float, channels: Sequence[str]) -> str:
     """Every channel whose validation MSE the delay raises by more than ``tolerance`` (it acts on all)."""
     before = np.mean(comparison.current_residual**2, axis=1)
     after = np.mean(comparison.residual**2, axis=1)

@@ -163,8 +163,8 @@ def add_streaming_arguments(parser: argparse.ArgumentParser) -> None:
                            f"cluster (default: ${SCHEDULER_VARIABLE}); needs pip install 'robot-oed[cluster]'")
     streaming.add_argument("--workers", type=int, default=0, help="sum the files in a local process pool of this size")
     streaming.add_argument("--memory-budget", metavar="SIZE",
-                           help="memory the in-memory path may take (2GB, 500MB, 1.5GiB or bytes; default a quarter of "
-                                "the memory available): past it, estimated from the files' rows before reading them, "
+                           help="memory the in-memory path may take (2GB, 500MB, 1.5GiB or bytes; default 1GB, the "
+                                "same on every machine): past it, estimated from the files' rows before reading them, "
                                 "the files are streamed (the same choices; one line on stderr says so)")
     streaming.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
 
