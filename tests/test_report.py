@@ -151,3 +151,16 @@ def test_the_html_report_opens_in_a_headless_browser(records, tmp_path):
 
     pixels = imread(shot)
     assert pixels.shape[0] >= 1000 and np.std(pixels[..., :3]) > 0.05  # drawn, not a blank page
+
+
+def test_predict_plots_measured_against_predicted_with_the_residual(records, capsys):
+    model, figure = records / "model.json", records / "predicted.png"
+    oed.identify(joints=3, friction="viscous,coulomb", data=records / "train.csv",
+                 validate=records / "validate.csv").write(model)
+    assert main(["predict", "--model", str(model), "--data", str(records / "test.csv"), "--plot", str(figure)]) == 0
+    assert figure.read_bytes().startswith(b"\x89PNG") and f"wrote {figure}" in capsys.readouterr().out
+    drawn = oed.predict(model=model, data=records / "test.csv").plot()
+    assert len(drawn.axes) == 2 * 3  # per channel: measured and predicted with the band, then the residual
+    code = main(["predict", "--model", str(model), "--data", str(records / "missing.csv"), "--plot",
+                 str(records / "predicted.xyz")])
+    assert code == 2 and "xyz" in capsys.readouterr().err and not (records / "predicted.xyz").exists()
