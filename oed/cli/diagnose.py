@@ -80,10 +80,10 @@ def derived_outputs(args: argparse.Namespace) -> dict[str, Path]:
 def run(args: argparse.Namespace) -> int:
     check_json_path(args.out)
     check_report_path(args.report)
-    with show_progress("oed diagnose", quiet=args.quiet):
+    with show_progress("oed diagnose", quiet=args.quiet) as shown:
         result = diagnose(say=stderr_say("diagnose"),
                           **verb_keywords(args, DiagnoseOptions, report=args.report is not None))
-        print_warnings("diagnose", result.warnings)
+        print_warnings("diagnose", shown.unsaid(result.warnings))  # those about the inputs: said as read
         result.write(args.out, report=args.report)
         print_lines(result.summary())
         print(f"wrote {args.out}" + (f" and {args.report}" if args.report else ""))

@@ -64,10 +64,10 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
 def run(args: argparse.Namespace) -> int:
     check_json_path(args.out)
     check_figure_path(args.plot)
-    with show_progress("oed identify", quiet=args.quiet):
+    with show_progress("oed identify", quiet=args.quiet) as shown:
         result = identify(say=stderr_say("identify"),
                           **verb_keywords(args, IdentifyOptions, plot=args.plot is not None))
-        print_warnings("identify", result.warnings)
+        print_warnings("identify", shown.unsaid(result.warnings))  # those about the inputs: said as read
         result.write(args.out, plot=args.plot)
         print_lines(result.summary())
         print(f"wrote {args.out}" + (f" and {args.plot}" if args.plot else ""))

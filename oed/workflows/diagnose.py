@@ -284,10 +284,10 @@ def diagnose_in_memory(args: DiagnoseOptions, model: IdentificationModel, transm
     """Read and prepare the records (``plan``: the derivatives chosen before reading), diagnose, build the document."""
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        with step(f"read and prepared {len(args.data) + len(args.validate) + len(args.test or ())} file(s)"):
-            records = prepare_records(model, args.data, args.validate, args.test or (),
-                                      settings=replace(preparation_settings(args, transmission, IN_MEMORY), plan=plan))
-        validation_floor, test_floor = record_floors(records, model, args.frequency, args.jobs)
+        records = prepare_records(model, args.data, args.validate, args.test or (),  # reports its steps
+                                  settings=replace(preparation_settings(args, transmission, IN_MEMORY), plan=plan))
+        with step("noise floors of the held-out records"):
+            validation_floor, test_floor = record_floors(records, model, args.frequency, args.jobs)
         with step("diagnosis in memory"):
             diagnosis = diagnose_records(args, model, transmission, records, delay, validation_floor)
         untouched = test_errors(records, diagnosis, test_floor)

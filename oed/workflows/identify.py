@@ -309,22 +309,25 @@ def identify_in_memory(args: IdentifyOptions, robot: RobotModel, model: Identifi
     derivatives chosen before reading), identify, and build the document."""
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        with step(f"read and prepared {len(args.data) + len(args.validate or ())} file(s)"):
-            records = prepare_records(model, args.data, args.validate or (),
-                                      settings=replace(preparation_settings(args, transmission, IN_MEMORY), plan=plan))
+        records = prepare_records(model, args.data, args.validate or (),  # reports its steps
+                                  settings=replace(preparation_settings(args, transmission, IN_MEMORY), plan=plan))
         train = records.train.measurements
         validation = None if records.validation is None else records.validation.measurements
-        weighting = choose_weighting(model, weighting_samples(ChoiceWindow.of(records.train.segments),
-                                                              records.preprocessing, train)) \
-            if args.method == "auto" and delay is None and not model_has_shapes(model) else None
+        with step("weighting chosen on held-out blocks"):
+            weighting = choose_weighting(model, weighting_samples(ChoiceWindow.of(records.train.segments),
+                                                                  records.preprocessing, train)) \
+                if args.method == "auto" and delay is None and not model_has_shapes(model) else None
         method = args.method if weighting is None else weighting.method
-        result = identify_model(model, train, validation, weighted=method != "ols", delay=delay)
+        with step("identified"):
+            result = identify_model(model, train, validation, weighted=method != "ols", delay=delay)
         trivial, notes = trivial_predictors(result, validation)
-        floor_report = None if validation is None else floor_check(records, model, result, args.frequency)
+        with step("noise floor of the validation record"):
+            floor_report = None if validation is None else floor_check(records, model, result, args.frequency)
         notes = (*notes, *above_floor_notes(floor_report))
         repeat = None if validation is None else repeated_motion_note(train, validation)
         notes = notes if repeat is None else (*notes, repeat)
-        consistent = consistent_refit(args, result, train, validation)  # None without --consistent
+        with step("consistent refit"):
+            consistent = consistent_refit(args, result, train, validation)  # None without --consistent
     messages = caught_messages(caught) + list(notes)
     rest = rest_records(records)
     document = finish_document(result.to_dict(), result, trivial=trivial, warnings=notes, rest=rest,
