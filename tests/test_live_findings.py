@@ -74,7 +74,7 @@ def test_findings_are_grouped_by_their_words_figures_aside():
         with warnings.catch_warnings(record=True) as record:
             warnings.simplefilter("always")
             for message, category in messages:
-                warnings.warn(message, category)
+                warnings.warn(message, category, stacklevel=2)
         return record
 
     record = caught(("/d/a.csv: column t advances by 0.05 s a sample", UserWarning),

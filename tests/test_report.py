@@ -164,3 +164,19 @@ def test_predict_plots_measured_against_predicted_with_the_residual(records, cap
     code = main(["predict", "--model", str(model), "--data", str(records / "missing.csv"), "--plot",
                  str(records / "predicted.xyz")])
     assert code == 2 and "xyz" in capsys.readouterr().err and not (records / "predicted.xyz").exists()
+
+
+def test_identify_writes_its_report_in_either_format(records, capsys):
+    out = records / "result.json"
+    arguments = ["identify", "--joints", "3", "--friction", "viscous,coulomb", "--data", str(records / "train.csv"),
+                 "--validate", str(records / "validate.csv"), "--out", str(out)]
+    assert main([*arguments, "--report", str(records / "identified.html")]) == 0
+    assert f"and {records / 'identified.html'}" in capsys.readouterr().out
+    page = parse((records / "identified.html").read_text())
+    text = " ".join(page.text)
+    assert len(page.images) == 3 and "Parameters" in text and "fc2" in text and "Error per channel" in text
+    assert main([*arguments, "--report", str(records / "identified.md")]) == 0
+    markdown = (records / "identified.md").read_text()
+    assert "(identified.validation.tau2.png)" in markdown and (records / "identified.validation.tau2.png").exists()
+    assert main([*arguments, "--report", str(records / "identified.pdf")]) == 2
+    assert "--report" in capsys.readouterr().err

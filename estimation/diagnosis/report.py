@@ -16,7 +16,8 @@ from dynamics.measurements import Measurements
 from dynamics.runtime.output_files import save_figure
 from dynamics.runtime.report_document import Block, Bullets, Figure as ReportFigure, Heading, Paragraph, Report, Table
 from estimation.diagnosis.results import runner_up_line
-from estimation.identification.validation import Comparison
+from estimation.identification.report import parameter_table
+from estimation.identification.validation import Comparison, plot_channel, subsample_step
 from estimation.uncertainty.residual_tracing import ResidualTrace, TraceRow, plot_residual_trace, state_variables
 
 if TYPE_CHECKING:
@@ -61,8 +62,6 @@ def markdown_report(diagnosis: Diagnosis, figure: str | None = None, trace_figur
     return text + "".join(f"\n{link}\n" for link in links)
 
 
-#: at most this many points of a time series drawn in a figure (every k-th sample beyond)
-MAX_POINTS = 4000
 #: a traced variable explaining less than this share of a residual's validation variance says nothing
 LEAST_SHARE = 0.05
 
@@ -163,15 +162,10 @@ def choice_blocks(diagnosis: Diagnosis, document: dict[str, Any], preprocessing:
 
 def parameter_blocks(diagnosis: Diagnosis) -> list[Block]:
     """The diagnosed model's base parameters with their standard deviations."""
-    rows = tuple((record["name"], str(record.get("expression", "")), f"{record['value']:.5g}",
-                  f"{record['std']:.2g}", f"{record['relative_std']:.2g} %"
-                  if np.isfinite(record.get("relative_std", np.nan)) else "n/a")
-                 for record in diagnosis.after.estimate.records())
-    shapes = tuple((value.name, "shape", f"{value.value:.5g}", f"{value.std:.2g}", "") for value in diagnosis.after.shapes)
     return [Heading("Parameters of the diagnosed model"),
             Paragraph(f"Standard deviations: {diagnosis.after.estimate.cov_method}; condition number "
                       f"{float(diagnosis.after.estimate.cond):.3g}."),
-            Table(("parameter", "expression", "value", "std", "relative std"), rows + shapes)]
+            parameter_table(diagnosis.after)]
 
 
 def error_blocks(document: dict[str, Any]) -> list[Block]:
@@ -196,7 +190,7 @@ def test_blocks(errors: dict[str, Any]) -> list[Block]:
 def comparison_blocks(label: str, before: Comparison, after: Comparison) -> list[Block]:
     """A figure per channel: measured against predicted before and after, and the residuals, on record ``label``."""
     n = before.t.shape[0]
-    step = max(1, -(-n // MAX_POINTS))
+    step = subsample_step(n)
     drawn = f"every {step}th of {n} samples" if step > 1 else f"all {n} samples"
     blocks: list[Block] = [Heading(f"Measured against predicted ({label} record)"),
                            Paragraph(f"Torques as recorded, at the recorded time stamps ({drawn} drawn); the "
@@ -210,31 +204,8 @@ def comparison_blocks(label: str, before: Comparison, after: Comparison) -> list
 
 def plot_before_after(before: Comparison, after: Comparison, row: int, step: int = 1, title: str = "") -> Figure:
     """Channel ``row``: measured, predicted before and after (top) and both residuals (bottom) against time,
-    every ``step``-th sample; lines break between segments."""
-    from matplotlib.figure import Figure  # no pyplot
-
-    figure = Figure(figsize=(11, 4.2))
-    top, bottom = figure.subplots(2, 1, sharex=True, gridspec_kw={"height_ratios": (3, 2)})
-    for number, part in enumerate(before.segments or (slice(None),)):
-        t = before.t[part][::step]
-        first = number == 0
-        top.plot(t, before.measured[part, row][::step], color="0.5", linewidth=0.8, label="measured" if first else None)
-        top.plot(t, before.predicted[part, row][::step], color="C0", linewidth=0.9, label="before" if first else None)
-        top.plot(t, after.predicted[part, row][::step], color="C3", linewidth=0.9, label="after" if first else None)
-        bottom.plot(t, before.residuals[part, row][::step], color="C0", linewidth=0.7)
-        bottom.plot(t, after.residuals[part, row][::step], color="C3", linewidth=0.7)
-    channel = before.channels[row]
-    for comparison, colour, y in ((before, "C0", 0.95), (after, "C3", 0.8)):
-        top.text(0.99, y, f"MSE {comparison.mse[channel]:.3g}", transform=top.transAxes, ha="right", va="top",
-                 fontsize=8, color=colour)
-    top.set_ylabel(channel)
-    top.legend(loc="upper left", fontsize=8)
-    bottom.set_ylabel("residual")
-    bottom.set_xlabel("t [s]")
-    if title:
-        top.set_title(title)
-    figure.tight_layout()
-    return figure
+    every ``step``-th sample (:func:`~estimation.identification.validation.plot_channel`)."""
+    return plot_channel({"before": before, "after": after}, row, step, title)
 
 
 def statistics_blocks(document: dict[str, Any]) -> list[Block]:

@@ -19,6 +19,7 @@ from dynamics.models import IdentificationModel, build_model
 from dynamics.robot import RobotModel
 from dynamics.runtime.output_files import OutputFiles, check_figure_path, json_text
 from dynamics.runtime.progress import step
+from dynamics.runtime.report_document import Report
 from dynamics.transmission import Transmission
 from estimation.data.log_cleaning import DEFAULT_MAX_GAP
 from estimation.diagnosis.statistics import ResidualReport, residual_report
@@ -28,6 +29,7 @@ from estimation.identification.fit import identify as identify_model
 from estimation.identification.prepared import InMemoryBudget, PreparedRecords, prepare_records
 from estimation.identification.preprocessing_choice import ChoiceWindow
 from estimation.identification.repeated_motion import repeated_motion_note
+from estimation.identification.report import identification_report
 from estimation.identification.validation import plot_comparison
 from estimation.identification.weighting_choice import choose_weighting, weighting_samples
 from estimation.preprocessing.delay import DelayBounds, split_delay
@@ -52,6 +54,7 @@ from oed.workflows.options import (
     caught_messages,
     check_choice,
     check_json_path,
+    check_report_path,
     check_shaped_effects_kept,
     differentiation,
     executor_for,
@@ -73,11 +76,12 @@ IN_MEMORY = InMemoryBudget(2 * 8, "identifying", "use --chunk-size to stream the
 @dataclass(frozen=True, kw_only=True)
 class IdentifyOptions(RecordOptions):
     """The options of ``oed identify`` (:class:`~oed.workflows.options.RecordOptions` and these): ``method``
-    (``auto``, ``wls``, ``ols``), ``plot`` (whether a figure of every sample will be drawn: it keeps the run in
-    memory), ``consistent``, ``prior_weight`` (a number or ``"auto"``), ``prior``, ``link_bounds``."""
+    (``auto``, ``wls``, ``ols``), ``plot`` and ``report`` (whether a figure or the report, which draw every sample,
+    will be written: they keep the run in memory), ``consistent``, ``prior_weight`` (a number or ``"auto"``), ``prior``, ``link_bounds``."""
 
     method: str = "auto"
     plot: bool = False
+    report: bool = False
     consistent: bool = False
     prior_weight: float | str | None = None
     prior: str | None = None
@@ -115,6 +119,8 @@ class IdentifyRun:
     result: Any = field(repr=False)
     streamed: bool
     title: str = ""
+    #: the preprocessing chosen, in one line (the report's choices)
+    preprocessing: str = ""
 
     def to_dict(self) -> dict[str, Any]:
         """``result.json``, as ``oed identify`` writes it."""
@@ -131,17 +137,31 @@ class IdentifyRun:
         comparisons = [self.result.train] + ([self.result.validation] if self.result.validation is not None else [])
         plot_comparison(comparisons, path, title=self.title)
 
-    def write(self, out: str | Path, *, plot: str | Path | None = None) -> None:
-        """The result JSON at ``out`` and, with ``plot``, the figure: all files or none."""
+    def report(self) -> Report:
+        """The report a person reads (:func:`estimation.identification.report.identification_report`): the choices,
+        every warning, the parameters with their standard deviations, the errors beside the floor, measured
+        against predicted per channel. Written as Markdown or HTML (:meth:`write`)."""
+        if self.streamed:
+            raise ValueError(f"--report draws every sample: not with {STREAMED}")
+        return identification_report(self.result, self.document, preprocessing=self.preprocessing,
+                                     warnings=self.warnings, title=self.title)
+
+    def write(self, out: str | Path, *, plot: str | Path | None = None, report: str | Path | None = None) -> None:
+        """The result JSON at ``out``, with ``plot`` the figure, with ``report`` the report (HTML with its figures
+        inline, or Markdown with them beside it, by the suffix): all files or none."""
         check_json_path(out)
         check_figure_path(plot)
+        check_report_path(report)
         if plot is not None and self.streamed:
             raise ValueError(f"--plot draws every sample: not with {STREAMED}")
+        document = None if report is None else self.report()
         with OutputFiles() as outputs:
             with outputs.open(out) as stream:
                 stream.write(json_text(self.document))
             if plot is not None:
                 self.plot(outputs.stage_figure(plot))
+            if document is not None:
+                document.write(report, outputs)
 
 
 def identify(*, say: Callable[[str], None] | None = None, **options: Any) -> IdentifyRun:
@@ -285,8 +305,9 @@ def check_model_request(args: IdentifyOptions, model: IdentificationModel, delay
 
 def check_streamed_request(args: IdentifyOptions, model: IdentificationModel) -> None:
     """Options the streamed identification does not have: an error naming them, before anything is read."""
-    if args.plot:
-        raise ValueError(f"--plot draws every sample: not with {STREAMED}")
+    for option, given in (("--plot", args.plot), ("--report", args.report)):
+        if given:
+            raise ValueError(f"{option} draws every sample: not with {STREAMED}")
     if args.min_speed is not None:
         raise ValueError(f"--min-speed drops rows of the whole record: not with {STREAMED}")
     if model_has_shapes(model):
@@ -343,7 +364,8 @@ def identify_in_memory(args: IdentifyOptions, robot: RobotModel, model: Identifi
             "mse": floor_report.floor.mse(), "method": floor_report.floor.method, "note": floor_report.floor_note}
     lines = summary_lines(robot, model, result, records.preprocessing, train.n_samples, rest) + consistent_lines(consistent)
     return IdentifyRun(document, tuple(lines), tuple(messages), result, streamed=False,
-                       title=f"{robot.name}: {model.kind.value} model ({result.estimate.method})")
+                       title=f"{robot.name}: {model.kind.value} model ({result.estimate.method})",
+                       preprocessing=records.preprocessing.describe())
 
 
 def floor_check(records: PreparedRecords, model: IdentificationModel, result: IdentificationResult,
