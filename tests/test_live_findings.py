@@ -86,3 +86,12 @@ def test_findings_are_grouped_by_their_words_figures_aside():
         "2 files (a.csv, b.csv): column t advances by 0.05 s a sample", "/d/b.csv: 3 holes",
         "something about no file"]
     assert [finding.category for finding in findings] == [UserWarning, RuntimeWarning, UserWarning]
+
+
+def test_the_streamed_path_says_a_finding_once_for_every_file_and_pass(files, capsys):
+    folder, paths = files
+    assert main(["identify", "--joints", "3", "--data", paths[0], "--data", paths[1], "--validate", paths[3],
+                 "--chunk-size", "1000", "--out", str(folder / "streamed.json")]) == 0
+    error = capsys.readouterr().err.splitlines()
+    found = [line for line in error if "dropped 2 row(s)" in line]
+    assert len(found) == 1 and "3 files (part0.csv, part1.csv, part3.csv): " in found[0], error

@@ -18,10 +18,11 @@ from pathlib import Path
 
 from dynamics.runtime.progress import report_warning
 
-__all__ = ["Finding", "group_findings", "reading_findings"]
+__all__ = ["Finding", "group_findings", "grouped_messages", "reading_findings"]
 
 #: files named in a grouped line before "and N more"
 NAMED = 3
+_CHUNK = re.compile(r"(?: \(rows [^)]*\))?: ")
 _NUMBER = re.compile(r"[-+]?\d+(?:\.\d+)?(?:e[-+]?\d+)?")
 
 
@@ -51,11 +52,10 @@ def group_findings(caught: Sequence[warnings.WarningMessage], sources: Sequence[
     by_key: dict[tuple[object, ...], Finding] = {}
     for warning in caught:
         message = str(warning.message)
-        source = next((s for s in sorted(sources, key=len, reverse=True) if message.startswith(f"{s}: ")), None)
+        source, text = _split(message, sources)
         if source is None:
             by_key.setdefault(("as is", message), Finding(message, warning.category, []))
             continue
-        text = message[len(source) + 2:]
         finding = by_key.setdefault((warning.category, _NUMBER.sub("#", text)), Finding(text, warning.category))
         if source not in finding.sources:
             finding.sources.append(source)
@@ -63,8 +63,23 @@ def group_findings(caught: Sequence[warnings.WarningMessage], sources: Sequence[
     return list(by_key.values())
 
 
+def _split(message: str, sources: Sequence[str]) -> tuple[str | None, str]:
+    """The source a message names first (``path: …``, or ``path (rows a-b): …`` of a chunk) and the rest."""
+    for source in sorted(sources, key=len, reverse=True):
+        if message.startswith(source):
+            after = _CHUNK.match(message, len(source))
+            if after is not None:
+                return source, message[after.end():]
+    return None, message
+
+
 def _said(finding: Finding) -> str:
     return finding.message() if finding.sources else finding.text
+
+
+def grouped_messages(caught: Sequence[warnings.WarningMessage], sources: Sequence[object]) -> list[str]:
+    """The lines of :func:`group_findings` (for a run that reads its files in passes, said at its end)."""
+    return [_said(finding) for finding in group_findings(caught, [str(source) for source in sources])]
 
 
 @contextlib.contextmanager

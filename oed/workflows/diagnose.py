@@ -38,6 +38,7 @@ from estimation.streaming.diagnosis import DEFAULT_SUBSAMPLE, diagnose_files
 from estimation.streaming.diagnosis_result import StreamedDiagnosis
 from estimation.streaming.recorded_errors import streamed_plan
 from estimation.estimators.normal_equations import DEFAULT_CHUNK_SIZE
+from estimation.data.input_findings import grouped_messages
 from estimation.data.log_cleaning import DEFAULT_MAX_GAP
 from dynamics.robot import RobotModel
 from estimation.streaming.diagnosis_passes import FLOOR_WINDOW
@@ -449,7 +450,7 @@ def diagnose_streaming(args: DiagnoseOptions, friction: str, plan: Preprocessing
             result = diagnose_files(model, args.data, args.validate, chunk_size=chunk_size, alpha=args.alpha,
                                     max_effects=args.max_effects, subsample=args.subsample,
                                     floor_window=args.floor_window, executor=executor, preprocessing=plan)
-    messages = caught_messages(caught)
+    messages = grouped_messages(caught, [*args.data, *args.validate])  # one line per finding across files
     document = result.to_dict()
     document["preprocessing"] = {"cutoff_hz": result.streaming["cutoff_hz"], **plan.to_dict()}
     document["max_effects"] = args.max_effects

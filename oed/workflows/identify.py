@@ -21,6 +21,7 @@ from dynamics.runtime.output_files import OutputFiles, check_figure_path, json_t
 from dynamics.runtime.progress import step
 from dynamics.runtime.report_document import Report
 from dynamics.transmission import Transmission
+from estimation.data.input_findings import grouped_messages
 from estimation.data.log_cleaning import DEFAULT_MAX_GAP
 from estimation.diagnosis.statistics import ResidualReport, residual_report
 from estimation.estimators.normal_equations import DEFAULT_CHUNK_SIZE
@@ -225,7 +226,7 @@ def identify_streaming(args: IdentifyOptions, robot: RobotModel, model: Identifi
                                     cutoff_hz=options["cutoff_hz"], frequency_hz=options["frequency_hz"],
                                     harmonics=options["harmonics"], decimation=options["decimation"],
                                     held_torques=options["held_torques"], executor=executor)
-    notes = caught_messages(caught)
+    notes = grouped_messages(caught, [*args.data, *(args.validate or ())])  # one line per finding across files
     document = result.to_dict()
     document["preprocessing"] = plan.to_dict()
     if weighting is not None:

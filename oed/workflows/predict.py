@@ -17,6 +17,7 @@ import pandas as pd
 from dynamics.runtime.output_files import OutputFiles, check_figure_path, json_text
 from estimation.identification.identified_model import IdentifiedModel
 from estimation.identification.trivial_predictors import trivial_warnings
+from estimation.data.input_findings import grouped_messages
 from estimation.data.log_formats import DEFAULT_TOPIC
 from oed.workflows.options import log_sources, paths
 
@@ -79,7 +80,7 @@ def predict(*, model: str | Path, data: Any, consistent: bool = False, topic: st
     prediction = evaluation.prediction
     notes = trivial_warnings(prediction.mse, {"zero_mse": evaluation.zero_mse, "nominal_mse": evaluation.nominal_mse},
                              label="model")
-    messages = tuple(dict.fromkeys([str(warning.message) for warning in caught] + list(notes)))
+    messages = tuple(dict.fromkeys(grouped_messages(caught, paths(data)) + list(notes)))  # a line per finding
     lines = [f"{identified.robot.name}: {identified.file.model} model ({identified.file.effects}"
              + (", consistent" if consistent else "")
              + (f", delay {1e3 * identified.file.delay:.3g} ms" if identified.file.delay is not None else "")
