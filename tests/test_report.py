@@ -180,3 +180,23 @@ def test_identify_writes_its_report_in_either_format(records, capsys):
     assert "(identified.validation.tau2.png)" in markdown and (records / "identified.validation.tau2.png").exists()
     assert main([*arguments, "--report", str(records / "identified.pdf")]) == 2
     assert "--report" in capsys.readouterr().err
+
+
+def test_the_tracing_figure_shows_only_the_channel_whose_residual_follows_a_variable(records):
+    from estimation.data.records import read_measurements
+    from estimation.diagnosis.report import diagnosis_report
+    from estimation.diagnosis.search import diagnose
+
+    robot = load_robot("puma560", joints=3)
+    train = read_measurements(records / "train.csv", n_joints=3)
+    validate = read_measurements(records / "validate.csv", n_joints=3)
+    diagnosis = diagnose(build_model(robot, "internal", "viscous"), train, validate, candidates=[])  # Coulomb missed
+    kept = telling_rows(diagnosis.statistics.tracing["after"], validate)
+    assert list(kept) == ["tau2"] and kept["tau2"][0].variable in ("dq2", "sign_dq2")
+    report = diagnosis_report(diagnosis, train=train, validate=validate)
+    names = [figure.name for figure in report.figures()]
+    assert names == ["trace", "residuals"]
+    drawn = report.figures()[0].draw()
+    titles = [axis.get_title() for axis in drawn.axes if axis.get_title()]
+    assert titles and all(title.startswith("tau2: ") and not title.startswith("tau2: 0 %") for title in titles)
+    assert len(set(titles)) == len(titles)  # no panel twice

@@ -93,7 +93,8 @@ def diagnosis_report(diagnosis: Diagnosis, *, train: Measurements | None = None,
     blocks: list[Block] = [Paragraph(f"Declared effects: {', '.join(f'`{e}`' for e in document['declared_effects']) or 'none'}.")]
     blocks.append(Paragraph("Errors are mean squared errors against the channels as recorded, at the recorded time "
                             "stamps."))
-    blocks += [Heading("Warnings"), Bullets(tuple(warnings)) if warnings else Paragraph("None.")]
+    warnings = tuple(dict.fromkeys([*warnings, *document["warnings"]["after"]]))  # the estimate's own too
+    blocks += [Heading("Warnings"), Bullets(warnings) if warnings else Paragraph("None.")]
     blocks += effect_blocks(document)
     blocks += choice_blocks(diagnosis, document, preprocessing)
     blocks += parameter_blocks(diagnosis)
