@@ -84,7 +84,7 @@ IN_MEMORY = InMemoryBudget(64, "diagnosing", "use --chunk-size to stream them in
 @dataclass(frozen=True, kw_only=True)
 class DiagnoseOptions(RecordOptions):
     """The options of ``oed diagnose`` (:class:`~oed.workflows.options.RecordOptions` and these): ``test`` (a path
-    or a list), ``report`` (whether the Markdown report will be written: it keeps the run in memory), ``alpha``,
+    or a list), ``report`` (whether the report, HTML or Markdown, will be written: it keeps the run in memory), ``alpha``,
     ``max_effects``, ``subsample`` and ``floor_window`` (the streamed path's)."""
 
     test: tuple[Path, ...] = ()
