@@ -90,8 +90,10 @@ def test_cli_prints_how_far_above_the_floor_each_channel_stays(setting, tmp_path
     assert code == 0
     assert "noise floor" in out and "(periods;" in out and "after / floor" in out
     assert out.count("at its floor") == 3
-    assert (tmp_path / "report.trace.png").exists()
-    assert "## Noise floor" in (tmp_path / "report.md").read_text()
+    text = (tmp_path / "report.md").read_text()
+    assert "## Noise floor" in text
+    # every channel at its floor: no traced variable explains anything after, so no tracing figure of "0 %" panels
+    assert not (tmp_path / "report.trace.png").exists() and "no tracing figure" in text
 
 
 def test_short_records_still_get_a_report(setting):

@@ -67,7 +67,11 @@ def test_predict_reproduces_the_validation_mse_of_a_shaped_fit_with_a_delay(reco
     assert measured["n_samples"] > 0 and set(measured["mse_over_floor"]) == {"tau1", "tau2", "tau3"}
     assert all(measured["mse"][c] < measured["nominal_mse"][c] < measured["zero_mse"][c] for c in measured["mse"])
     table = pd.read_csv(predictions)
-    assert list(table.columns) == ["t"] + [f"{c}{s}" for c in ("tau1", "tau2", "tau3") for s in ("", "_lo", "_hi")]
+    assert list(table.columns) == ["t"] + [f"{c}{s}" for c in ("tau1", "tau2", "tau3") for s in ("", "_lo", "_hi")] \
+        + [f"{c}{s}" for c in ("tau1", "tau2", "tau3") for s in ("_measured", "_residual")]
+    # the residual is measured minus predicted, and its mean square is the reported MSE
+    np.testing.assert_allclose(table["tau2_residual"], table["tau2_measured"] - table["tau2"], atol=1e-9)
+    assert np.mean(table["tau2_residual"] ** 2) == pytest.approx(measured["mse"]["tau2"], rel=1e-6)
     assert np.all(table["tau1_lo"] < table["tau1"]) and np.all(table["tau1"] < table["tau1_hi"])
     # the 95 % band holds about 95 % of the recorded torques (the channel noise dominates it)
     # (at the instants predicted: a filter chosen for the derivatives trims each record's edges)

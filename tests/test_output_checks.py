@@ -14,7 +14,7 @@ from oed.cli import main
     (["identify", "--data", "{d}/missing.csv", "--out", "{d}/result.csv"], "--out"),
     (["diagnose", "--data", "{d}/missing.csv", "--validate", "{d}/other.csv", "--out", "{d}/report.csv"], "--out"),
     (["diagnose", "--data", "{d}/missing.csv", "--validate", "{d}/other.csv", "--out", "{d}/report.json",
-      "--report", "{d}/report.html"], "--report"),
+      "--report", "{d}/report.pdf"], "--report"),
     (["servo-fit", "--data", "{d}/missing.csv", "--out", "{d}/fit.csv"], "--out"),
 ])
 def test_an_output_named_like_another_format_is_refused_before_the_inputs_are_read(tmp_path, capsys, arguments,

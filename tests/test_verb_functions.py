@@ -84,7 +84,7 @@ def test_diagnose_from_python_gives_the_command_lines_effects_and_errors(records
     assert printed[:-1] == run.summary()
     run.write(records / "python_report.json", report=records / "python_report.md")
     assert (records / "python_report.md").read_text() == report.read_text().replace("cli_report", "python_report")
-    assert (records / "python_report.residuals.png").exists() and (records / "python_report.trace.png").exists()
+    assert (records / "python_report.residuals.png").exists() and (records / "python_report.validation.tau1.png").exists()
 
 
 def test_predict_from_python_gives_the_command_lines_metrics(records, capsys):

@@ -41,6 +41,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from dynamics.runtime.progress import step
 from dynamics.effects.linear import Effect
 from dynamics.effects.shaped import FRICTION_LAWS
 from dynamics.models import IdentificationModel
@@ -179,12 +180,13 @@ class DiagnosisSearch:
 
     def one_round(self) -> tuple[Trial | DelayTrial, Any] | None:
         """One round: every group fitted, the best-ranked confirmed one (with its comparison), or ``None``."""
-        trials = self.fit_candidates()
-        trials = self.fits.refine(trials, self.current, self.weights, self.rounds == 0)
-        self.rounds += 1
-        springs_beaten = offsets_beat_springs(trials, self.model, self.offset_joints())
-        delay_trials = self.fits.delay_trials(self.adopted, self.weights, self.current.rss, trials)
-        return self.choose(trials + delay_trials, springs_beaten)
+        with step(f"round {self.rounds + 1} of the search ({len(self.adopted)} effect(s) adopted so far)"):
+            trials = self.fit_candidates()
+            trials = self.fits.refine(trials, self.current, self.weights, self.rounds == 0)
+            self.rounds += 1
+            springs_beaten = offsets_beat_springs(trials, self.model, self.offset_joints())
+            delay_trials = self.fits.delay_trials(self.adopted, self.weights, self.current.rss, trials)
+            return self.choose(trials + delay_trials, springs_beaten)
 
     def offset_joints(self) -> set[tuple[int, ...]]:
         """The joints whose offset the current model holds (declared or adopted)."""

@@ -47,6 +47,7 @@ from collections.abc import Callable, Iterable, Sequence
 import numpy as np
 from numpy.typing import NDArray
 
+from dynamics.runtime.progress import step
 from dynamics.effects.linear import (
     WRENCH_CHANNELS,
     Armature,
@@ -207,7 +208,8 @@ def diagnose(
     worker_count(jobs, 0)  # so is a wrong number of processes
     if stopping_rule is None:
         stopping_rule = provisional_stopping_rule
-    before = identify(model, train, validate)
+    with step("declared model identified"):
+        before = identify(model, train, validate)
     weights = before.estimate.weights if before.estimate.method == "wls" else 1.0 / before.estimate.channel_variance
     # errors against the channels as recorded, along the derived motion
     fits = RecordFits(model, declared_regressor(model, before), train, validate.as_recorded, delay, stopping_rule,
@@ -215,18 +217,20 @@ def diagnose(
     blocks, rejected = candidate_blocks(model, candidates)
     settings = SearchSettings(alpha, min_improvement, max_effects, len(candidates) + (delay is not None),  # the delay too
                               same_effect_adopted=True)
-    outcome = RunnerUpSearch(model, blocks, rejected, fits, weights, settings).run()
+    with step("forward selection"):
+        outcome = RunnerUpSearch(model, blocks, rejected, fits, weights, settings).run()
     final = functools.partial(_diagnosis, model, before, outcome, blocks, fits.delay, train, validate, noise_floor,
                               len(candidates), settings)
     ahead = None if fits.delay.adopted is not None else RivalAhead.planned(
         model, outcome, blocks, build_model(model.robot, model.kind, model.effects + tuple(
             item.effect for item in outcome.adopted)))
-    if ahead is None:
-        return with_runner_up(final(), outcome, blocks, train, validate)  # the best rival not chosen, fitted
-    # with no delay to move the records, the best rival's fit does not wait for the joint refit: side by side
-    diagnosis, ahead = run_tasks([final, functools.partial(ahead.fitted, in_memory_fitter(train, validate, None))],
-                                 worker_count(jobs, 2), shared=[model, model.robot, ahead.model, *blocks.values()])
-    return with_runner_up(diagnosis, outcome, blocks, train, validate, ahead)
+    with step("joint refit of the chosen model, residual statistics and the runner-up"):
+        if ahead is None:
+            return with_runner_up(final(), outcome, blocks, train, validate)  # the best rival not chosen, fitted
+        # with no delay to move the records, the best rival's fit does not wait for the joint refit: side by side
+        diagnosis, ahead = run_tasks([final, functools.partial(ahead.fitted, in_memory_fitter(train, validate, None))],
+                                     worker_count(jobs, 2), shared=[model, model.robot, ahead.model, *blocks.values()])
+        return with_runner_up(diagnosis, outcome, blocks, train, validate, ahead)
 
 
 def _checked_candidates(model: IdentificationModel, train: Measurements, validate: Measurements,

@@ -18,10 +18,12 @@ import numpy as np
 
 from dynamics.measurements import Measurements
 from estimation.diagnosis.results import Diagnosis
+from estimation.data.segments import segment_slices
 from estimation.identification.fit import IdentificationResult
+from estimation.identification.validation import Comparison
 from estimation.uncertainty.noise_floor import NoiseFloor
 
-__all__ = ["UntouchedErrors", "untouched_errors", "recorded_mse"]
+__all__ = ["UntouchedErrors", "recorded_comparison", "recorded_mse", "untouched_errors"]
 
 
 @dataclass(frozen=True)
@@ -65,6 +67,14 @@ def recorded_mse(result: IdentificationResult, measurements: Measurements) -> di
     recorded = measurements.as_recorded
     residual = recorded.channels(result.model.channels) - result.predict(recorded)
     return {channel: float(value) for channel, value in zip(result.model.channels, np.mean(residual**2, axis=0))}
+
+
+def recorded_comparison(result: IdentificationResult, measurements: Measurements, label: str = "") -> Comparison:
+    """``result`` predicting ``measurements`` (prepared), paired with the channels as recorded at their time stamps
+    (the residual of :func:`recorded_mse`)."""
+    recorded = measurements.as_recorded
+    return Comparison(recorded.t, recorded.channels(result.model.channels), result.predict(recorded),
+                      result.model.channels, label, segments=tuple(segment_slices(recorded)))
 
 
 def untouched_errors(diagnosis: Diagnosis, test: Measurements, floor: NoiseFloor | None) -> UntouchedErrors:

@@ -26,7 +26,7 @@ import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -35,6 +35,7 @@ from dynamics.effects.shaped import is_shaped
 from dynamics.effects.specs import build_effects, effect_spec
 from dynamics.measurements import Measurements
 from dynamics.models import IdentificationModel, build_model, check_states
+from dynamics.runtime.output_files import save_figure
 from dynamics.transmission_files import transmission_from_json
 from estimation.data.log_cleaning import DEFAULT_MAX_GAP
 from estimation.data.motor_side import read_record_with_transmission
@@ -42,6 +43,9 @@ from estimation.data.rest import coulomb_combinations, drop_rest
 from estimation.estimators.effect_blocks import States
 from estimation.identification.model_file import ModelFile, ModelFileError, read_model_file
 from estimation.identification.shaped import shaped_blocks
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 from estimation.identification.trivial_predictors import trivial_mse
 from estimation.identification.validation import channel_mse
 from estimation.preprocessing.delay import delayed
@@ -148,13 +152,50 @@ class Prediction:
         return channel_mse(self.measured, self.predicted, self.channels)
 
     def columns(self) -> dict[str, NDArray[np.float64]]:
-        """``t``, then per channel its prediction, ``_lo`` and ``_hi``: the CSV of ``oed predict``."""
+        """``t``, then per channel its prediction, ``_lo`` and ``_hi``, then (when the record holds the channels)
+        per channel ``_measured`` (as recorded) and ``_residual`` (measured minus predicted): the CSV of
+        ``oed predict``."""
         table = {"t": self.t}
         for index, channel in enumerate(self.channels):
             table[channel] = self.predicted[:, index]
             table[f"{channel}_lo"] = self.lower[:, index]
             table[f"{channel}_hi"] = self.upper[:, index]
+        if self.measured is not None:
+            for index, channel in enumerate(self.channels):
+                table[f"{channel}_measured"] = self.measured[:, index]
+                table[f"{channel}_residual"] = self.measured[:, index] - self.predicted[:, index]
         return table
+
+    def plot(self, path: str | Path | None = None, *, title: str = "", max_points: int = 4000) -> Figure:
+        """Per channel, measured (as recorded) and predicted with its 95 % band, and below it the residual, against
+        time (every k-th sample beyond ``max_points``); saved to ``path`` when given (format from the suffix)."""
+        from matplotlib.figure import Figure  # no pyplot; here: a run without figures skips matplotlib
+
+        step = max(1, -(-self.t.shape[0] // max_points))
+        t = self.t[::step]
+        figure = Figure(figsize=(11, 3.6 * len(self.channels)))
+        axes = figure.subplots(2 * len(self.channels), 1, sharex=True, squeeze=False,
+                               gridspec_kw={"height_ratios": (3, 2) * len(self.channels)})[:, 0]
+        for index, channel in enumerate(self.channels):
+            top, bottom = axes[2 * index], axes[2 * index + 1]
+            top.fill_between(t, self.lower[::step, index], self.upper[::step, index], color="C3", alpha=0.2,
+                             linewidth=0, label="95 % band")
+            if self.measured is not None:
+                top.plot(t, self.measured[::step, index], color="0.45", linewidth=0.8, label="measured")
+                bottom.plot(t, (self.measured - self.predicted)[::step, index], color="C0", linewidth=0.7)
+                top.text(0.99, 0.95, f"MSE {self.mse[channel]:.3g}", transform=top.transAxes, ha="right", va="top",
+                         fontsize=8)
+            top.plot(t, self.predicted[::step, index], color="C3", linewidth=0.9, label="predicted")
+            top.set_ylabel(channel)
+            bottom.set_ylabel(f"residual {channel}")
+        axes[0].legend(loc="upper left", fontsize=8)
+        axes[-1].set_xlabel("t [s]" + (f" (every {step}th of {self.t.shape[0]} samples)" if step > 1 else ""))
+        if title:
+            figure.suptitle(title)
+        figure.tight_layout()
+        if path is not None:
+            save_figure(figure, path)
+        return figure
 
 
 @dataclass(frozen=True)

@@ -31,7 +31,9 @@ import numpy as np
 from dynamics.measurements import Measurements
 from dynamics.models import IdentificationModel
 from dynamics.runtime.memory import check_allocation
+from dynamics.runtime.progress import step
 from dynamics.transmission import Transmission
+from estimation.data.input_findings import reading_findings
 from estimation.data.log_cleaning import DEFAULT_MAX_GAP
 from estimation.data.motor_side import read_record_with_transmission
 from estimation.data.segments import check_varying_channels
@@ -256,23 +258,27 @@ def prepare_records(model: IdentificationModel, train: Sequence[str | Path], val
     """
     settings = PreparationSettings() if settings is None else settings
     check_distinct_records({"--data": train, "--validate": validation, "--test": test})
-    train_files = read_files(train, model, split=True, max_gap=settings.max_gap, transmission=settings.transmission)
-    held_out = {role: read_files(paths, model, split=False, max_gap=settings.max_gap,
-                                 transmission=settings.transmission) if paths else None
-                for role, paths in (("validation", validation), ("test", test))}
+    with step(f"read {len(train) + len(validation) + len(test)} file(s)"), \
+            reading_findings([*train, *validation, *test]):  # each finding said once, at once
+        train_files = read_files(train, model, split=True, max_gap=settings.max_gap, transmission=settings.transmission)
+        held_out = {role: read_files(paths, model, split=False, max_gap=settings.max_gap,
+                                     transmission=settings.transmission) if paths else None
+                    for role, paths in (("validation", validation), ("test", test))}
     check_no_shared_samples({"training": train_files, **held_out})
     for role, files in (("training", train_files), *held_out.items()):
         if files is not None:
             check_varying_channels([segment for file in files for segment in file.segments], model.channels,
                                    f"{role} data")
-    preprocessing = choose_plan(model, [segment for file in train_files for segment in file.segments], settings,
-                                [segment for files in held_out.values() if files for file in files
-                                 for segment in file.segments])
+    with step("preprocessing chosen"):
+        preprocessing = choose_plan(model, [segment for file in train_files for segment in file.segments], settings,
+                                    [segment for files in held_out.values() if files for file in files
+                                     for segment in file.segments])
     if preprocessing.method == "measured" and settings.held_torques:
         warnings.warn("held torques: nothing to align, the data hold measured dq and ddq", stacklevel=2)
-    prepared = {"train": _prepared(train_files, preprocessing, "training data", check=False)}
-    for role, files in held_out.items():
-        prepared[role] = None if files is None else _prepared(files, preprocessing, f"{role} data", check=True)
+    with step("records prepared"):
+        prepared = {"train": _prepared(train_files, preprocessing, "training data", check=False)}
+        for role, files in held_out.items():
+            prepared[role] = None if files is None else _prepared(files, preprocessing, f"{role} data", check=True)
     if settings.memory is not None:
         settings.memory.check(model, [record.measurements for record in prepared.values() if record is not None])
     records = {role: None if record is None else _without_rest(record, model, settings, role)

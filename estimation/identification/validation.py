@@ -147,3 +147,44 @@ def plot_comparison(comparisons: Comparison | Sequence[Comparison], path: str | 
     if path is not None:
         save_figure(figure, path)
     return figure
+
+
+#: at most this many points of a time series drawn in a figure (every k-th sample beyond)
+MAX_POINTS = 4000
+
+
+def subsample_step(n_samples: int, max_points: int = MAX_POINTS) -> int:
+    """The stride that draws at most ``max_points`` of ``n_samples``."""
+    return max(1, -(-n_samples // max_points))
+
+
+def plot_channel(comparisons: dict[str, Comparison], row: int, step: int = 1, title: str = ""):
+    """Channel ``row`` of one record: measured (as recorded) and each comparison's prediction (top), each one's
+    residual (bottom), against time, every ``step``-th sample; lines break between segments. ``comparisons``:
+    ``{label: Comparison}`` on the same samples (e.g. ``before`` and ``after``)."""
+    from matplotlib.figure import Figure  # no pyplot
+
+    figure = Figure(figsize=(11, 4.2))
+    top, bottom = figure.subplots(2, 1, sharex=True, gridspec_kw={"height_ratios": (3, 2)})
+    first = next(iter(comparisons.values()))
+    colours = ("C0", "C3", "C2", "C1")
+    for number, part in enumerate(first.segments or (slice(None),)):
+        t = first.t[part][::step]
+        top.plot(t, first.measured[part, row][::step], color="0.5", linewidth=0.8,
+                 label="measured" if number == 0 else None)
+        for colour, (label, comparison) in zip(colours, comparisons.items()):
+            top.plot(t, comparison.predicted[part, row][::step], color=colour, linewidth=0.9,
+                     label=label if number == 0 else None)
+            bottom.plot(t, comparison.residuals[part, row][::step], color=colour, linewidth=0.7)
+    channel = first.channels[row]
+    for index, (colour, comparison) in enumerate(zip(colours, comparisons.values())):
+        top.text(0.99, 0.95 - 0.15 * index, f"MSE {comparison.mse[channel]:.3g}", transform=top.transAxes, ha="right",
+                 va="top", fontsize=8, color=colour)
+    top.set_ylabel(channel)
+    top.legend(loc="upper left", fontsize=8)
+    bottom.set_ylabel("residual")
+    bottom.set_xlabel("t [s]")
+    if title:
+        top.set_title(title)
+    figure.tight_layout()
+    return figure

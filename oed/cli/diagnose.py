@@ -8,6 +8,7 @@ from pathlib import Path
 
 from dynamics.models import ModelKind
 from dynamics.runtime.progress import show_progress
+from dynamics.runtime.report_document import HTML_SUFFIXES
 from oed.cli.shared.asbuilt import add_asbuilt_arguments
 from oed.cli.shared.common import (
     add_data_arguments,
@@ -23,7 +24,7 @@ from oed.cli.shared.common import (
 from oed.cli.identify_consistent import add_consistent_arguments
 from oed.cli.shared.verbs import verb_summary
 from oed.workflows.diagnose import DiagnoseOptions, diagnose, residual_figure, trace_figure
-from oed.workflows.options import check_json_path, check_markdown_path
+from oed.workflows.options import check_json_path, check_report_path
 from estimation.streaming.diagnosis import DEFAULT_SUBSAMPLE
 from estimation.streaming.diagnosis_passes import FLOOR_WINDOW
 
@@ -47,7 +48,8 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
                         help="test data from a third experiment, never used for a decision: the error before and after "
                              "on it is the one to quote (test{before,after} in the report); repeatable like --data")
     parser.add_argument("--out", type=Path, required=True, help="report JSON")
-    parser.add_argument("--report", type=Path, help="Markdown report (a residual figure is written beside it)")
+    parser.add_argument("--report", type=Path, help="the report a person reads: report.html (one self-contained "
+                        "page, figures inline) or report.md (Markdown, its figures as PNG files beside it)")
     parser.add_argument("--alpha", type=float, default=1e-3, help="significance level of the F test (default 1e-3)")
     parser.add_argument("--max-effects", type=int, default=20, metavar="N",
                         help="add at most N effects (default 20); the output says when the cap stopped the search")
@@ -74,7 +76,7 @@ def add_streamed_diagnosis_arguments(parser: argparse.ArgumentParser) -> None:
 
 def derived_outputs(args: argparse.Namespace) -> dict[str, Path]:
     """Files written besides the named outputs (checked against them by :func:`oed.cli.shared.paths.check_paths`)."""
-    if args.report is None:
+    if args.report is None or args.report.suffix.lower() in HTML_SUFFIXES:
         return {}
     return {"the report's residual figure": residual_figure(args.report),
             "the report's tracing figure": trace_figure(args.report)}
@@ -82,11 +84,11 @@ def derived_outputs(args: argparse.Namespace) -> dict[str, Path]:
 
 def run(args: argparse.Namespace) -> int:
     check_json_path(args.out)
-    check_markdown_path(args.report)
-    with show_progress("oed diagnose", quiet=args.quiet):
+    check_report_path(args.report)
+    with show_progress("oed diagnose", quiet=args.quiet) as shown:
         result = diagnose(say=stderr_say("diagnose"),
                           **verb_keywords(args, DiagnoseOptions, report=args.report is not None))
-        print_warnings("diagnose", result.warnings)
+        print_warnings("diagnose", shown.unsaid(result.warnings))  # those about the inputs: said as read
         result.write(args.out, report=args.report)
         print_lines(result.summary())
         print(f"wrote {args.out}" + (f" and {args.report}" if args.report else ""))

@@ -24,7 +24,7 @@ from oed.cli.shared.common import (
 )
 from oed.cli.shared.verbs import verb_summary
 from oed.workflows.identify import IdentifyOptions, identify
-from oed.workflows.options import check_json_path
+from oed.workflows.options import check_json_path, check_report_path
 
 
 def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -50,6 +50,8 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     add_data_arguments(parser, validate_required=False)
     parser.add_argument("--out", type=Path, required=True, help="result JSON file")
     parser.add_argument("--plot", type=Path, help="figure of measured vs predicted channels (.png, .pdf, .svg)")
+    parser.add_argument("--report", type=Path, help="the report a person reads: report.html (one self-contained "
+                        "page, figures inline) or report.md (Markdown, its figures as PNG files beside it)")
     parser.add_argument("--method", choices=("auto", "wls", "ols"), default="auto",
                         help="auto (default): channel-weighted least squares unless ordinary least squares predicts "
                              "held-out blocks of the training data clearly better (method_selection in the JSON); "
@@ -64,11 +66,13 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
 def run(args: argparse.Namespace) -> int:
     check_json_path(args.out)
     check_figure_path(args.plot)
-    with show_progress("oed identify", quiet=args.quiet):
+    check_report_path(args.report)
+    with show_progress("oed identify", quiet=args.quiet) as shown:
         result = identify(say=stderr_say("identify"),
-                          **verb_keywords(args, IdentifyOptions, plot=args.plot is not None))
-        print_warnings("identify", result.warnings)
-        result.write(args.out, plot=args.plot)
+                          **verb_keywords(args, IdentifyOptions, plot=args.plot is not None,
+                                          report=args.report is not None))
+        print_warnings("identify", shown.unsaid(result.warnings))  # those about the inputs: said as read
+        result.write(args.out, plot=args.plot, report=args.report)
         print_lines(result.summary())
-        print(f"wrote {args.out}" + (f" and {args.plot}" if args.plot else ""))
+        print("wrote " + " and ".join(str(path) for path in (args.out, args.plot, args.report) if path is not None))
     return 0

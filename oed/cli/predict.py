@@ -6,6 +6,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from dynamics.runtime.output_files import check_figure_path
 from oed.cli.shared.common import add_log_arguments, print_lines, print_warnings
 from oed.cli.shared.verbs import verb_summary
 from oed.workflows.options import check_csv_path, check_json_path
@@ -33,7 +34,10 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     parser.add_argument("--consistent", action="store_true",
                         help="the same as --alternative consistent: the physically consistent estimate, what "
                              "`oed export` writes")
-    parser.add_argument("--out", type=Path, help="predictions CSV: t, each channel, and its _lo/_hi 95 %% band")
+    parser.add_argument("--out", type=Path, help="predictions CSV: t, each channel, and its _lo/_hi 95 %% band, then "
+                        "each channel's _measured (as recorded) and _residual (measured minus predicted)")
+    parser.add_argument("--plot", type=Path, help="figure of measured against predicted per channel, with the 95 %% "
+                        "band and the residual (.png, .pdf, .svg)")
     parser.add_argument("--metrics", type=Path, help="metrics JSON: mse, mse_over_floor, n_samples, zero_mse, "
                                                      "nominal_mse, noise_floor_mse, reported_validation_mse")
     return parser
@@ -41,7 +45,7 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
 
 def derived_outputs(args: argparse.Namespace) -> dict[str, Path]:
     """``--metrics``, checked with ``--out`` against the inputs (:func:`oed.cli.shared.paths.check_paths`)."""
-    return {} if args.metrics is None else {"--metrics": args.metrics}
+    return {option: path for option, path in (("--metrics", args.metrics), ("--plot", args.plot)) if path is not None}
 
 
 def check_not_model(args: argparse.Namespace, *outputs: tuple[str, Path | None]) -> None:
@@ -53,7 +57,8 @@ def check_not_model(args: argparse.Namespace, *outputs: tuple[str, Path | None])
 
 
 def run(args: argparse.Namespace) -> int:
-    check_not_model(args, ("--out", args.out), ("--metrics", args.metrics))
+    check_not_model(args, ("--out", args.out), ("--metrics", args.metrics), ("--plot", args.plot))
+    check_figure_path(args.plot)
     if args.out is not None:
         check_csv_path(args.out)
     if args.metrics is not None:
@@ -62,9 +67,9 @@ def run(args: argparse.Namespace) -> int:
                      topic=args.topic,
                      columns=args.columns)
     print_warnings("predict", result.warnings)
-    result.write(out=args.out, metrics=args.metrics)
+    result.write(out=args.out, metrics=args.metrics, plot=args.plot)
     print_lines(result.summary())
-    written = [str(path) for path in (args.out, args.metrics) if path is not None]
+    written = [str(path) for path in (args.out, args.metrics, args.plot) if path is not None]
     if written:
         print("wrote " + " and ".join(written))
     return 0

@@ -4,8 +4,8 @@ error before and after.
 :func:`diagnose` takes the verb's options as keywords (:class:`DiagnoseOptions`), decides the path (in memory, or
 the files streamed chunk by chunk: :func:`diagnose_streaming`, :mod:`estimation.streaming.diagnosis`, the same
 report keys) and returns a :class:`DiagnoseRun`:
-``to_dict()`` is ``report.json``, ``write(out, report=...)`` writes it (and the Markdown report with its two
-figures), ``summary()`` the lines ``oed diagnose`` prints.
+``to_dict()`` is ``report.json``, ``write(out, report=...)`` writes it (and the report, HTML or Markdown:
+:meth:`DiagnoseRun.report`), ``summary()`` the lines ``oed diagnose`` prints.
 """
 
 from __future__ import annotations
@@ -24,11 +24,12 @@ from dynamics.runtime.processes import run_tasks, worker_count
 from dynamics.runtime.progress import step
 from dynamics.transmission import Transmission
 from estimation.diagnosis.candidates.coupling import coupling_candidates
-from estimation.diagnosis.report import markdown_report, plot_residuals, plot_trace
+from dynamics.runtime.report_document import Report, figure_path, report_format
+from estimation.diagnosis.report import diagnosis_report, plot_residuals, plot_trace
 from estimation.diagnosis.results import Diagnosis, runner_up_line
 from estimation.diagnosis.search import default_candidates
 from estimation.diagnosis.search import diagnose as diagnose_model
-from estimation.diagnosis.untouched import UntouchedErrors, untouched_errors
+from estimation.diagnosis.untouched import UntouchedErrors, recorded_comparison, untouched_errors
 from estimation.identification.prepared import InMemoryBudget, PreparedRecords, prepare_records
 from estimation.identification.repeated_motion import repeated_motion_note
 from estimation.preprocessing.delay import DelayBounds, split_delay
@@ -37,6 +38,7 @@ from estimation.streaming.diagnosis import DEFAULT_SUBSAMPLE, diagnose_files
 from estimation.streaming.diagnosis_result import StreamedDiagnosis
 from estimation.streaming.recorded_errors import streamed_plan
 from estimation.estimators.normal_equations import DEFAULT_CHUNK_SIZE
+from estimation.data.input_findings import grouped_messages
 from estimation.data.log_cleaning import DEFAULT_MAX_GAP
 from dynamics.robot import RobotModel
 from estimation.streaming.diagnosis_passes import FLOOR_WINDOW
@@ -62,7 +64,7 @@ from oed.workflows.options import (
     RecordOptions,
     caught_messages,
     check_json_path,
-    check_markdown_path,
+    check_report_path,
     check_shaped_effects_kept,
     differentiation,
     executor_for,
@@ -72,7 +74,8 @@ from oed.workflows.options import (
     streaming_requested,
 )
 
-__all__ = ["IN_MEMORY", "DiagnoseOptions", "DiagnoseRun", "diagnose", "residual_figure", "trace_figure"]
+__all__ = ["IN_MEMORY", "DiagnoseOptions", "DiagnoseRun", "diagnose", "report_figures", "residual_figure",
+           "trace_figure"]
 
 #: what the in-memory diagnosis holds at its peak: bytes a sample, channel and base parameter (measured: 2.8 GB
 #: for 100 000 samples of the 7-joint KUKA, m r = 350, i.e. about 75; a lower bound is used)
@@ -82,7 +85,7 @@ IN_MEMORY = InMemoryBudget(64, "diagnosing", "use --chunk-size to stream them in
 @dataclass(frozen=True, kw_only=True)
 class DiagnoseOptions(RecordOptions):
     """The options of ``oed diagnose`` (:class:`~oed.workflows.options.RecordOptions` and these): ``test`` (a path
-    or a list), ``report`` (whether the Markdown report will be written: it keeps the run in memory), ``alpha``,
+    or a list), ``report`` (whether the report, HTML or Markdown, will be written: it keeps the run in memory), ``alpha``,
     ``max_effects``, ``subsample`` and ``floor_window`` (the streamed path's), ``unseen_stretches`` (with a validation
     record that repeats the training motion, refuse an effect that raises the error on stretches its fit did not
     see), and ``consistent`` (the adopted model
@@ -110,12 +113,28 @@ class DiagnoseOptions(RecordOptions):
 
 def residual_figure(report: str | Path) -> Path:
     """The residual figure written beside the Markdown report."""
-    return Path(report).with_suffix(".residuals.png")
+    return figure_path(report, "residuals")
 
 
 def trace_figure(report: str | Path) -> Path:
-    """The figure of the residual against its strongest variables, beside the Markdown report."""
-    return Path(report).with_suffix(".trace.png")
+    """The figure of the residual against its strongest variables, beside the Markdown report (written when a
+    traced variable says something)."""
+    return figure_path(report, "trace")
+
+
+def report_figures(report: str | Path, channels: tuple[str, ...] = (), test: bool = False) -> tuple[Path, ...]:
+    """The figure files beside the Markdown report ``report`` (none beside an HTML one): the residual and
+    tracing figures, and one per channel and record (``report.validation.tau1.png``, ``report.test.tau1.png``)."""
+    if report_format(report) == "html":
+        return ()
+    records = ("validation", "test") if test else ("validation",)
+    return (residual_figure(report), trace_figure(report),
+            *(figure_path(report, f"{record}.{channel}") for record in records for channel in channels))
+
+
+#: the report's note when no test record was given
+TEST_NOTE = ("The 'after' error is measured on the validation record, which chose the effects: it is optimistic. "
+             "Give `--test FILE` (a third record) for an error no choice saw.")
 
 
 @dataclass(frozen=True)
@@ -154,13 +173,30 @@ class DiagnoseRun:
         """The lines ``oed diagnose`` prints (the effects found, the errors before and after, the floor)."""
         return list(self.lines)
 
-    def markdown(self, residuals: str, trace: str) -> str:
-        """The Markdown report, naming its figures ``residuals`` and ``trace`` (file names beside it)."""
+    def report(self) -> Report:
+        """The report a person reads (:func:`estimation.diagnosis.report.diagnosis_report`): the parameters with
+        their uncertainties, the choices made, every warning, the errors before and after, measured against
+        predicted on the validation and test records, the floor and what the residual follows. One document,
+        written as Markdown (:meth:`markdown`) or HTML (:meth:`html`)."""
         self._check_in_memory()
-        preprocessing: Preprocessing = self.records.preprocessing
-        return (markdown_report(self.diagnosis, residuals, trace) + f"\n{preprocessing.describe()[0].upper()}"
-                f"{preprocessing.describe()[1:]}; validation MSEs against the recorded channels.\n"
-                + markdown_test(self.untouched))
+        diagnosis, records = self.diagnosis, self.records
+        validation = (diagnosis.before.validation, diagnosis.after.validation)
+        test = None
+        if self.untouched is not None and records.test is not None:
+            test = tuple(recorded_comparison(result, records.test.measurements, "test")
+                         for result in (diagnosis.before, diagnosis.after))
+        return diagnosis_report(
+            diagnosis, train=records.train.measurements, validate=records.validation.measurements,
+            validation=validation, test=test, preprocessing=records.preprocessing.describe(), warnings=self.warnings,
+            test_errors=None if self.untouched is None else self.untouched.to_dict(), test_note=TEST_NOTE)
+
+    def markdown(self, report: str | Path = "report.md") -> str:
+        """The Markdown report, linking its figures as the files beside ``report`` (:func:`report_figures`)."""
+        return self.report().markdown(lambda figure: figure_path(report, figure.name).name)
+
+    def html(self) -> str:
+        """The report as one self-contained HTML page (figures inline)."""
+        return self.report().html()
 
     def plot_residuals(self, path: str | Path) -> None:
         """The residual figure of the report, saved at ``path``."""
@@ -168,27 +204,23 @@ class DiagnoseRun:
         plot_residuals(self.diagnosis, self.records.train.measurements, path)
 
     def plot_trace(self, path: str | Path) -> None:
-        """The residual against its strongest variables, saved at ``path``."""
+        """The residual against the variables that say something about it, saved at ``path`` (nothing written
+        when none does)."""
         self._check_in_memory()
         plot_trace(self.diagnosis, self.records.validation.measurements, path)
 
     def write(self, out: str | Path, *, report: str | Path | None = None) -> None:
-        """The report JSON at ``out`` and, with ``report``, the Markdown report and its two figures beside it
-        (:func:`residual_figure`, :func:`trace_figure`): all files or none."""
+        """The report JSON at ``out`` and, with ``report``, the report: Markdown with its figures beside it
+        (:func:`report_figures`) or HTML with them inline, by the suffix: all files or none."""
         check_json_path(out)
-        check_markdown_path(report)
+        check_report_path(report)
         if report is not None:
             self._check_in_memory()
         with OutputFiles() as outputs:
             with outputs.open(out) as stream:
                 stream.write(json_text(self.document))
             if report is not None:
-                figure = residual_figure(report)
-                self.plot_residuals(outputs.stage_figure(figure))
-                tracing = trace_figure(report)
-                self.plot_trace(outputs.stage_figure(tracing))
-                with outputs.open(report) as stream:
-                    stream.write(self.markdown(figure.name, tracing.name))
+                self.report().write(report, outputs)
 
     def _check_in_memory(self) -> None:
         if self.records is None:
@@ -267,10 +299,10 @@ def diagnose_in_memory(args: DiagnoseOptions, model: IdentificationModel, transm
     """Read and prepare the records (``plan``: the derivatives chosen before reading), diagnose, build the document."""
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        with step(f"read and prepared {len(args.data) + len(args.validate) + len(args.test or ())} file(s)"):
-            records = prepare_records(model, args.data, args.validate, args.test or (),
-                                      settings=replace(preparation_settings(args, transmission, IN_MEMORY), plan=plan))
-        validation_floor, test_floor = record_floors(records, model, args.frequency, args.jobs)
+        records = prepare_records(model, args.data, args.validate, args.test or (),  # reports its steps
+                                  settings=replace(preparation_settings(args, transmission, IN_MEMORY), plan=plan))
+        with step("noise floors of the held-out records"):
+            validation_floor, test_floor = record_floors(records, model, args.frequency, args.jobs)
         with step("diagnosis in memory"):
             diagnosis = diagnose_records(args, model, transmission, records, delay, validation_floor)
         untouched = test_errors(records, diagnosis, test_floor)
@@ -365,20 +397,6 @@ def test_lines(untouched: UntouchedErrors | None) -> list[str]:
     return lines
 
 
-def markdown_test(untouched: UntouchedErrors | None) -> str:
-    """The report's section on the test record."""
-    if untouched is None:
-        return ("\nThe 'after' error is measured on the validation record, which chose the effects: it is optimistic. "
-                "Give `--test FILE` (a third record) for an error no choice saw.\n")
-    ratios = untouched.over_floor("after") or {}
-    rows = "".join(f"| {channel} | {untouched.before[channel]:.4g} | {value:.4g} | "
-                   f"{ratios[channel]:.3g} |\n" if channel in ratios else
-                   f"| {channel} | {untouched.before[channel]:.4g} | {value:.4g} | n/a |\n"
-                   for channel, value in untouched.after.items())
-    return ("\n## Test record (no choice used it)\n\n| channel | MSE before | MSE after | after / floor |\n"
-            "|---|---|---|---|\n" + rows)
-
-
 def summary_lines(diagnosis: Diagnosis) -> list[str]:
     """Effects found and the validation MSE per channel before and after."""
     lines = []
@@ -455,7 +473,7 @@ def diagnose_streaming(args: DiagnoseOptions, friction: str, plan: Preprocessing
             result = diagnose_files(model, args.data, args.validate, chunk_size=chunk_size, alpha=args.alpha,
                                     max_effects=args.max_effects, subsample=args.subsample,
                                     floor_window=args.floor_window, executor=executor, preprocessing=plan)
-    messages = caught_messages(caught)
+    messages = grouped_messages(caught, [*args.data, *args.validate])  # one line per finding across files
     document = result.to_dict()
     document["preprocessing"] = {"cutoff_hz": result.streaming["cutoff_hz"], **plan.to_dict()}
     document["max_effects"] = args.max_effects

@@ -19,7 +19,9 @@ from dynamics.models import IdentificationModel, build_model
 from dynamics.robot import RobotModel
 from dynamics.runtime.output_files import OutputFiles, check_figure_path, json_text
 from dynamics.runtime.progress import step
+from dynamics.runtime.report_document import Report
 from dynamics.transmission import Transmission
+from estimation.data.input_findings import grouped_messages
 from estimation.data.log_cleaning import DEFAULT_MAX_GAP
 from estimation.diagnosis.statistics import ResidualReport, residual_report
 from estimation.estimators.normal_equations import DEFAULT_CHUNK_SIZE
@@ -27,6 +29,7 @@ from estimation.identification.fit import IdentificationResult
 from estimation.identification.prepared import InMemoryBudget, PreparedRecords, prepare_records
 from estimation.identification.preprocessing_choice import ChoiceWindow
 from estimation.identification.repeated_motion import repeated_motion_note
+from estimation.identification.report import identification_report
 from estimation.identification.validation import plot_comparison
 from estimation.identification.weighting_choice import choose_weighting, weighting_samples
 from estimation.preprocessing.delay import DelayBounds, split_delay
@@ -52,6 +55,7 @@ from oed.workflows.options import (
     caught_messages,
     check_choice,
     check_json_path,
+    check_report_path,
     check_shaped_effects_kept,
     differentiation,
     executor_for,
@@ -73,11 +77,12 @@ IN_MEMORY = InMemoryBudget(2 * 8, "identifying", "use --chunk-size to stream the
 @dataclass(frozen=True, kw_only=True)
 class IdentifyOptions(RecordOptions):
     """The options of ``oed identify`` (:class:`~oed.workflows.options.RecordOptions` and these): ``method``
-    (``auto``, ``wls``, ``ols``), ``plot`` (whether a figure of every sample will be drawn: it keeps the run in
-    memory), ``consistent``, ``prior_weight`` (a number or ``"auto"``), ``prior``, ``link_bounds``."""
+    (``auto``, ``wls``, ``ols``), ``plot`` and ``report`` (whether a figure or the report, which draw every sample,
+    will be written: they keep the run in memory), ``consistent``, ``prior_weight`` (a number or ``"auto"``), ``prior``, ``link_bounds``."""
 
     method: str = "auto"
     plot: bool = False
+    report: bool = False
     consistent: bool = False
     prior_weight: float | str | None = None
     prior: str | None = None
@@ -115,6 +120,8 @@ class IdentifyRun:
     result: Any = field(repr=False)
     streamed: bool
     title: str = ""
+    #: the preprocessing chosen, in one line (the report's choices)
+    preprocessing: str = ""
 
     def to_dict(self) -> dict[str, Any]:
         """``result.json``, as ``oed identify`` writes it."""
@@ -131,17 +138,31 @@ class IdentifyRun:
         comparisons = [self.result.train] + ([self.result.validation] if self.result.validation is not None else [])
         plot_comparison(comparisons, path, title=self.title)
 
-    def write(self, out: str | Path, *, plot: str | Path | None = None) -> None:
-        """The result JSON at ``out`` and, with ``plot``, the figure: all files or none."""
+    def report(self) -> Report:
+        """The report a person reads (:func:`estimation.identification.report.identification_report`): the choices,
+        every warning, the parameters with their standard deviations, the errors beside the floor, measured
+        against predicted per channel. Written as Markdown or HTML (:meth:`write`)."""
+        if self.streamed:
+            raise ValueError(f"--report draws every sample: not with {STREAMED}")
+        return identification_report(self.result, self.document, preprocessing=self.preprocessing,
+                                     warnings=self.warnings, title=self.title)
+
+    def write(self, out: str | Path, *, plot: str | Path | None = None, report: str | Path | None = None) -> None:
+        """The result JSON at ``out``, with ``plot`` the figure, with ``report`` the report (HTML with its figures
+        inline, or Markdown with them beside it, by the suffix): all files or none."""
         check_json_path(out)
         check_figure_path(plot)
+        check_report_path(report)
         if plot is not None and self.streamed:
             raise ValueError(f"--plot draws every sample: not with {STREAMED}")
+        document = None if report is None else self.report()
         with OutputFiles() as outputs:
             with outputs.open(out) as stream:
                 stream.write(json_text(self.document))
             if plot is not None:
                 self.plot(outputs.stage_figure(plot))
+            if document is not None:
+                document.write(report, outputs)
 
 
 def identify(*, say: Callable[[str], None] | None = None, **options: Any) -> IdentifyRun:
@@ -205,7 +226,7 @@ def identify_streaming(args: IdentifyOptions, robot: RobotModel, model: Identifi
                                     cutoff_hz=options["cutoff_hz"], frequency_hz=options["frequency_hz"],
                                     harmonics=options["harmonics"], decimation=options["decimation"],
                                     held_torques=options["held_torques"], executor=executor)
-    notes = caught_messages(caught)
+    notes = grouped_messages(caught, [*args.data, *(args.validate or ())])  # one line per finding across files
     document = result.to_dict()
     document["preprocessing"] = plan.to_dict()
     if weighting is not None:
@@ -282,8 +303,9 @@ def check_model_request(args: IdentifyOptions, model: IdentificationModel, delay
 
 def check_streamed_request(args: IdentifyOptions, model: IdentificationModel) -> None:
     """Options the streamed identification does not have: an error naming them, before anything is read."""
-    if args.plot:
-        raise ValueError(f"--plot draws every sample: not with {STREAMED}")
+    for option, given in (("--plot", args.plot), ("--report", args.report)):
+        if given:
+            raise ValueError(f"{option} draws every sample: not with {STREAMED}")
     if args.min_speed is not None:
         raise ValueError(f"--min-speed drops rows of the whole record: not with {STREAMED}")
     if model_has_shapes(model):
@@ -306,21 +328,23 @@ def identify_in_memory(args: IdentifyOptions, robot: RobotModel, model: Identifi
     derivatives chosen before reading), identify, and build the document."""
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        with step(f"read and prepared {len(args.data) + len(args.validate or ())} file(s)"):
-            records = prepare_records(model, args.data, args.validate or (),
-                                      settings=replace(preparation_settings(args, transmission, IN_MEMORY), plan=plan))
+        records = prepare_records(model, args.data, args.validate or (),  # reports its steps
+                                  settings=replace(preparation_settings(args, transmission, IN_MEMORY), plan=plan))
         train = records.train.measurements
         validation = None if records.validation is None else records.validation.measurements
-        weighting = choose_weighting(model, weighting_samples(ChoiceWindow.of(records.train.segments),
-                                                              records.preprocessing, train)) \
-            if args.method == "auto" and delay is None and not model_has_shapes(model) else None
+        with step("weighting chosen on held-out blocks"):
+            weighting = choose_weighting(model, weighting_samples(ChoiceWindow.of(records.train.segments),
+                                                                  records.preprocessing, train)) \
+                if args.method == "auto" and delay is None and not model_has_shapes(model) else None
         base = weighting.method if weighting is not None else "ols" if args.method == "ols" else "wls"
         given = "consistent" if args.consistent else None if args.method == "auto" else args.method
-        selection = select_model(model, train, validation, base=base, given=given, delay=delay,
-                                 consistent=consistent_settings(args, robot))
+        with step("identified (the candidate models fitted and compared)"):
+            selection = select_model(model, train, validation, base=base, given=given, delay=delay,
+                                     consistent=consistent_settings(args, robot))
         result, consistent = selection.unconstrained, selection.consistent
         trivial, notes = trivial_predictors(result, validation)
-        floor_report = None if validation is None else floor_check(records, model, result, args.frequency)
+        with step("noise floor of the validation record"):
+            floor_report = None if validation is None else floor_check(records, model, result, args.frequency)
         notes = (*notes, *above_floor_notes(floor_report))
         repeat = None if validation is None else repeated_motion_note(train, validation)
         notes = notes if repeat is None else (*notes, repeat)
@@ -344,7 +368,8 @@ def identify_in_memory(args: IdentifyOptions, robot: RobotModel, model: Identifi
         lines += consistent_lines(consistent)
     lines += selection.lines()
     return IdentifyRun(document, tuple(lines), tuple(messages), result, streamed=False,
-                       title=f"{robot.name}: {model.kind.value} model ({result.estimate.method})")
+                       title=f"{robot.name}: {model.kind.value} model ({result.estimate.method})",
+                       preprocessing=records.preprocessing.describe())
 
 
 def floor_check(records: PreparedRecords, model: IdentificationModel, result: IdentificationResult,

@@ -25,6 +25,7 @@ from dynamics.models import IdentificationModel, ModelKind
 from dynamics.robot import RobotModel
 from dynamics.robots import load_robot
 from dynamics.transmission import Transmission
+from dynamics.runtime.report_document import HTML_SUFFIXES, MARKDOWN_SUFFIXES
 from estimation.data.log_cleaning import DEFAULT_MAX_GAP
 from estimation.data.log_formats import DEFAULT_TOPIC, LogSource, is_log_file
 from estimation.estimators.effect_blocks import NoRowsError
@@ -38,7 +39,7 @@ from estimation.streaming.cluster import connect, scheduler_address
 
 __all__ = [
     "NOT_CSV_SUFFIXES", "RecordOptions", "RobotOptions", "caught_messages", "check_choice", "check_csv_path",
-    "check_hertz", "check_json_path", "check_markdown_path", "check_shaped_effects_kept", "differentiation", "executor_for",
+    "check_hertz", "check_json_path", "check_markdown_path", "check_report_path", "check_shaped_effects_kept", "differentiation", "executor_for",
     "model_has_shapes", "paths", "preparation_settings", "robot_of", "streaming_requested",
 ]
 
@@ -98,14 +99,17 @@ def check_json_path(path: str | Path, option: str = "--out") -> None:
         raise ValueError(f"{option} {path}: this writes JSON; give a .json file name")
 
 
-#: suffixes of a Markdown report
-MARKDOWN_SUFFIXES = frozenset({".md", ".markdown"})
-
-
 def check_markdown_path(path: str | Path | None, option: str = "--report") -> None:
-    """Refuse, before any work, a Markdown output named like another format (``--report r.html``)."""
+    """Refuse, before any work, a Markdown output named like another format (``--report r.pdf``)."""
     if path is not None and Path(path).suffix.lower() not in MARKDOWN_SUFFIXES:
         raise ValueError(f"{option} {path}: this writes Markdown; give a .md file name")
+
+
+def check_report_path(path: str | Path | None, option: str = "--report") -> None:
+    """Refuse, before any work, a report named like neither Markdown nor HTML (``--report r.pdf``)."""
+    if path is not None and Path(path).suffix.lower() not in MARKDOWN_SUFFIXES | HTML_SUFFIXES:
+        raise ValueError(f"{option} {path}: this writes Markdown (.md, figures beside it) or a self-contained "
+                         "HTML page (.html); give one of these suffixes")
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -1,7 +1,7 @@
 """``oed predict`` as a library call: an identified model (result.json or report.json) applied to another record.
 
 :func:`predict` returns a :class:`PredictRun`: ``to_dict()`` is the metrics JSON (``--metrics``), ``write(out=...,
-metrics=...)`` writes the predictions CSV and the metrics, ``summary()`` the lines ``oed predict`` prints.
+metrics=..., plot=...)`` writes the predictions CSV, the metrics and the figure, ``summary()`` the lines ``oed predict`` prints.
 """
 
 from __future__ import annotations
@@ -14,9 +14,10 @@ from typing import Any
 
 import pandas as pd
 
-from dynamics.runtime.output_files import OutputFiles, json_text
+from dynamics.runtime.output_files import OutputFiles, check_figure_path, json_text
 from estimation.identification.identified_model import IdentifiedModel
 from estimation.identification.trivial_predictors import trivial_warnings
+from estimation.data.input_findings import grouped_messages
 from estimation.data.log_formats import DEFAULT_TOPIC
 from oed.workflows.options import log_sources, paths
 
@@ -42,12 +43,23 @@ class PredictRun:
         return list(self.lines)
 
     def columns(self) -> dict[str, Any]:
-        """The predictions CSV's columns: t, each channel, and its _lo/_hi 95 % band."""
+        """The predictions CSV's columns: t, each channel, and its _lo/_hi 95 % band, then each channel's
+        _measured (as recorded) and _residual (measured minus predicted)."""
         return self.evaluation.prediction.columns()
 
-    def write(self, *, out: str | Path | None = None, metrics: str | Path | None = None) -> None:
-        """The predictions CSV at ``out`` and the metrics JSON at ``metrics`` (either may be left out): all or none."""
+    def plot(self, path: str | Path | None = None) -> Any:
+        """Measured against predicted per channel, with the band and the residual (a matplotlib figure, saved at
+        ``path`` when given)."""
+        return self.evaluation.prediction.plot(path, title=self.lines[0].split(";")[0])
+
+    def write(self, *, out: str | Path | None = None, metrics: str | Path | None = None,
+              plot: str | Path | None = None) -> None:
+        """The predictions CSV at ``out``, the metrics JSON at ``metrics`` and the figure at ``plot`` (each may be
+        left out): all or none."""
+        check_figure_path(plot)
         with OutputFiles() as outputs:  # all files or none
+            if plot is not None:
+                self.plot(outputs.stage_figure(plot))
             if out is not None:
                 with outputs.open(out) as stream:
                     pd.DataFrame(self.columns()).to_csv(stream, index=False)
@@ -72,7 +84,7 @@ def predict(*, model: str | Path, data: Any, consistent: bool = False, alternati
     prediction = evaluation.prediction
     notes = trivial_warnings(prediction.mse, {"zero_mse": evaluation.zero_mse, "nominal_mse": evaluation.nominal_mse},
                              label="model")
-    messages = tuple(dict.fromkeys([str(warning.message) for warning in caught] + list(notes)))
+    messages = tuple(dict.fromkeys(grouped_messages(caught, paths(data)) + list(notes)))  # a line per finding
     lines = [f"{identified.robot.name}: {identified.file.model} model ({identified.file.effects}, {identified.estimate}"
              + ("" if identified.estimate == (identified.file.chosen or "unconstrained") else ": an alternative")
              + (f", delay {1e3 * identified.delay:.3g} ms" if identified.delay is not None else "")

@@ -1,0 +1,68 @@
+"""The report of an identification (``oed identify --report``): one document (:mod:`dynamics.runtime.report_document`)
+with the choices made, every warning, the parameters with their standard deviations, the errors against the
+channels as recorded beside the noise floor, and measured against predicted per channel on the validation (else
+the training) record."""
+
+from __future__ import annotations
+
+import functools
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from dynamics.runtime.report_document import Block, Bullets, Figure, Heading, Paragraph, Report, Table
+from estimation.identification.fit import IdentificationResult
+from estimation.identification.validation import plot_channel, subsample_step
+
+__all__ = ["identification_report", "parameter_table"]
+
+
+def parameter_table(result: IdentificationResult) -> Table:
+    """The base parameters (and shape parameters) with their standard deviations."""
+    rows = tuple((record["name"], str(record.get("expression", "")), f"{record['value']:.5g}", f"{record['std']:.2g}",
+                  f"{record['relative_std']:.2g} %" if np.isfinite(record.get("relative_std", np.nan)) else "n/a")
+                 for record in result.estimate.records())
+    shapes = tuple((value.name, f"shape of {value.effect}", f"{value.value:.5g}", f"{value.std:.2g}", "")
+                   for value in result.shapes)
+    return Table(("parameter", "expression", "value", "std", "relative std"), rows + shapes)
+
+
+def identification_report(result: IdentificationResult, document: dict[str, Any], *, preprocessing: str = "",
+                          warnings: Sequence[str] = (), title: str = "") -> Report:
+    """The report of ``result`` (``document``: its ``result.json``, for the choices and the floor)."""
+    estimate = result.estimate
+    blocks: list[Block] = [
+        Paragraph(f"Effects: {', '.join(f'`{e.name}`' for e in result.model.effects) or 'none'}; "
+                  f"{result.train.t.shape[0]} training samples. Errors are mean squared errors against the channels as recorded, at the recorded time "
+                  "stamps."),
+        Heading("Warnings"), Bullets(tuple(warnings)) if warnings else Paragraph("None.")]
+    choices = [preprocessing] if preprocessing else []
+    selection = document.get("method_selection")
+    choices.append(f"estimator: {estimate.method}" + (" (chosen on held-out blocks of the training record)"
+                                                       if selection else "") + f"; standard deviations: "
+                   f"{estimate.cov_method}; condition number {float(estimate.cond):.3g}")
+    blocks += [Heading("Choices made"), Bullets(tuple(choices)),
+               Heading("Parameters"), parameter_table(result)]
+    rows = []
+    floor = (document.get("noise_floor") or {}).get("mse") or {}
+    over = (document.get("validation") or {}).get("mse_over_floor") or {}
+    for channel, value in result.train.mse.items():
+        validation = result.validation.mse[channel] if result.validation is not None else None
+        rows.append((channel, f"{value:.4g}", "n/a" if validation is None else f"{validation:.4g}",
+                     f"{floor[channel]:.4g}" if channel in floor else "n/a",
+                     f"{over[channel]:.3g}" if channel in over else "n/a"))
+    blocks += [Heading("Error per channel"),
+               Table(("channel", "training MSE", "validation MSE", "noise floor", "validation / floor"), tuple(rows))]
+    comparison, label = (result.validation, "validation") if result.validation is not None else (result.train,
+                                                                                                   "training")
+    n = comparison.t.shape[0]
+    step = subsample_step(n)
+    drawn = f"every {step}th of {n} samples" if step > 1 else f"all {n} samples"
+    blocks += [Heading(f"Measured against predicted ({label} record)"),
+               Paragraph(f"Channels as recorded, at the recorded time stamps ({drawn} drawn), and the model's "
+                         "prediction; below, the residual.")]
+    blocks += [Figure(f"{label}.{channel}", f"{channel} on the {label} record: measured, predicted, residual",
+                      functools.partial(plot_channel, {"predicted": comparison}, row, step, f"{channel}, {label} record"))
+               for row, channel in enumerate(comparison.channels)]
+    return Report(title or f"Identification: {result.model.robot.name}, {result.model.kind.value} model", tuple(blocks))
