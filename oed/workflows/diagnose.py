@@ -23,6 +23,7 @@ from dynamics.runtime.output_files import OutputFiles, json_text
 from dynamics.runtime.processes import run_tasks, worker_count
 from dynamics.runtime.progress import step
 from dynamics.transmission import Transmission
+from estimation.consistent.model_selection import ModelSelection, select_refit
 from estimation.diagnosis.candidates.coupling import coupling_candidates
 from estimation.diagnosis.report import markdown_report, plot_residuals, plot_trace
 from estimation.diagnosis.results import Diagnosis, runner_up_line
@@ -51,7 +52,7 @@ from oed.workflows.asbuilt import (
     worse_after,
 )
 from oed.workflows.memory_path import decide_path, streamed_choice
-from oed.workflows.consistent import check_consistent_arguments, consistent_lines, consistent_refit
+from oed.workflows.consistent import check_consistent_arguments, consistent_lines, consistent_settings
 from oed.workflows.model_files import (
     add_model_file,
     add_runner_up_model_file,
@@ -278,8 +279,9 @@ def diagnose_in_memory(args: DiagnoseOptions, model: IdentificationModel, transm
         notes += worse_after(diagnosis)
         repeat = repeated_motion_note(records.train.measurements, records.validation.measurements)
         notes += () if repeat is None else (repeat,)
-        consistent = consistent_refit(args, diagnosis.after, records.train.measurements,
-                                      records.validation.measurements)  # None without --consistent
+        with step("the default answer: the adopted model or its consistent refit"):
+            selection = diagnosis_selection(args, diagnosis, records)
+        consistent = selection.consistent
     messages = caught_messages(caught) + list(notes)
     rest = rest_records(records)
     document = finish_document(diagnosis.to_dict(), diagnosis.after, trivial=trivial, warnings=notes, rest=rest,
@@ -290,14 +292,20 @@ def diagnose_in_memory(args: DiagnoseOptions, model: IdentificationModel, transm
         document.update(consistent.to_dict())
         document["consistent"]["test"] = None if records.test is None else \
             {"mse": consistent.compare(records.test.measurements).mse}
+    document["model_selection"] = selection.to_dict()
+    if document["test"] is not None:  # the chosen model's error on the test record (what `oed predict` gives there)
+        document["test"]["chosen"] = {"name": selection.chosen, "mse": dict(
+            untouched.after if selection.chosen != "consistent" else document["consistent"]["test"]["mse"])}
     messages += add_model_file(document, diagnosis.after, args, records.preprocessing, transmission,
-                               consistent=consistent)
+                               consistent=consistent, selection=selection)
     add_runner_up_model_file(document, diagnosis.runner_up, args, records.preprocessing, transmission)
     document["diagnosis_path"] = "in-memory"  # "streamed": --chunk-size (diagnose_streaming)
     document["max_effects"] = args.max_effects
     document["max_effects_reached"] = len(diagnosis.effects) >= args.max_effects
-    lines = [records.preprocessing.describe(), *summary_lines(diagnosis), *test_lines(untouched),
-             *consistent_lines(consistent)]
+    lines = [records.preprocessing.describe(), *summary_lines(diagnosis), *test_lines(untouched)]
+    if consistent is not None and (args.consistent or selection.chosen == "consistent"):
+        lines += consistent_lines(consistent)
+    lines += selection.lines() + chosen_test_lines(document["test"])
     if len(diagnosis.effects) >= args.max_effects:
         untested = sum(rejected.reason.startswith("not tested") for rejected in diagnosis.rejected)
         lines.append(f"stopped at --max-effects {args.max_effects}: {untested} candidate(s) not tested; raise "
@@ -306,6 +314,26 @@ def diagnose_in_memory(args: DiagnoseOptions, model: IdentificationModel, transm
     if message:
         lines.append(message)
     return DiagnoseRun(document, tuple(lines), tuple(messages), diagnosis, records, untouched)
+
+
+def diagnosis_selection(args: DiagnoseOptions, diagnosis: Diagnosis, records: PreparedRecords) -> ModelSelection:
+    """The default answer (:func:`estimation.consistent.model_selection.select_refit`): the adopted model as fitted
+    (unconstrained) or its consistent refit (the description's bodies as prior, its weight chosen on the validation
+    record; shaped laws and a delay at their fitted values), by the validation error when the validation record is
+    another motion, else the consistent refit; ``--consistent`` forces it. A refit that fails is no candidate."""
+    return select_refit(diagnosis.after, records.train.measurements, records.validation.measurements,
+                        given="consistent" if args.consistent else None,
+                        consistent=consistent_settings(args, diagnosis.after.model.robot),
+                        note="with the diagnosed effects")
+
+
+def chosen_test_lines(test: dict[str, Any] | None) -> list[str]:
+    """The chosen model's MSE on the ``--test`` record (none without one)."""
+    if test is None or "chosen" not in test:
+        return []
+    chosen = test["chosen"]
+    return [f"test MSE vs recorded, the chosen model ({chosen['name']}): "
+            + "  ".join(f"{channel} {value:.4g}" for channel, value in chosen["mse"].items())]
 
 
 def check_request(args: DiagnoseOptions) -> None:
