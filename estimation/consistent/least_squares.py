@@ -220,7 +220,7 @@ class ConsistentLeastSquares(Estimator):
         for count, (name, phi0) in enumerate(self._starts(model, parametrisation, unconstrained.values, prior)):
             if count >= self.starts and any(r["certified"] for r in results):
                 break  # the extra starts are only for when no configured one reached a certified optimum
-            results.append(solves.solve(name, phi0, effective))
+            results.append(solves.solve(name, phi0, effective, certify_prior=weight > 0))
         accepted = [result for result in results if result["status"] in ACCEPTED_STATUSES and np.isfinite(result["cost"])]
         if not accepted:
             raise ConsistentSolverError(
@@ -312,9 +312,12 @@ class _Solves:
         """The compiled problem's parameter vector at ``prior_weight``."""
         return np.concatenate([self.G.reshape(-1, order="F"), self.target, [prior_weight], self.inverses, self.log_dets])
 
-    def solve(self, name: str, phi0: NDArray[np.float64], prior_weight: float) -> dict[str, Any]:
+    def solve(self, name: str, phi0: NDArray[np.float64], prior_weight: float, *,
+              certify_prior: bool = False) -> dict[str, Any]:
         """IPOPT from ``phi0``, then certified or escaped along a descent direction and solved again
-        (at most :data:`MAX_ESCAPES` times); the solver's result with ``name, escapes, certified``."""
+        (at most :data:`MAX_ESCAPES` times); the solver's result with ``name, escapes, certified``.
+        ``certify_prior``: the certificate holds the prior's gradient (a prior given; not the small pull
+        without one)."""
         lower, upper = self.lower, self.upper
         psi0 = np.clip(self.parametrisation.psi_from_phi(phi0), inside(lower, +1e-9), inside(upper, -1e-9))
         result = self.compiled.solve(psi0, self.parameters(prior_weight), lower, upper, *self.scales)
@@ -322,7 +325,8 @@ class _Solves:
         while result["status"] in ACCEPTED_STATUSES and escapes <= MAX_ESCAPES:
             # a stationary point of the factorised problem need not be the convex problem's optimum
             # (Burer–Monteiro): certify it, or leave it along a descent direction and solve again
-            escaped = escape(self.model, self.parametrisation, self.compiled, result["psi"], self.G, self.target)
+            escaped = escape(self.model, self.parametrisation, self.compiled, result["psi"], self.G, self.target,
+                             prior_weight if certify_prior else 0.0, self.inverses)
             if escaped is None:
                 certified = True
                 break

@@ -17,7 +17,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from dynamics.models import IdentificationModel
-from dynamics.physical_parameters import PhysicalParametrisation, from_pseudo_inertia, link_from_psi
+from dynamics.physical_parameters import PhysicalParametrisation, from_pseudo_inertia, link_from_psi, pseudo_inertia
 
 
 #: a descent step gaining less than this (units of ½χ², far below a standard deviation's 0.5) certifies the point
@@ -144,14 +144,28 @@ def link_gradients(model: IdentificationModel, theta: NDArray, G: NDArray, targe
     return gradients
 
 
-def escape(model, parametrisation, compiled, psi, G, target) -> NDArray | None:
-    """``None`` when every link's ``Γ_k`` is positive semidefinite (the point is the convex optimum,
-    up to the prior's pull); otherwise ``ψ`` after the exact line search along ``J_k += α v vᵀ``, ``v``
-    the eigenvector of the most negative eigenvalue of ``Γ_k`` (a descent direction the triangular
-    factor could not follow)."""
+def escape(model, parametrisation, compiled, psi, G, target, prior_weight: float = 0.0,
+           prior_inverses: NDArray | None = None) -> NDArray | None:
+    """``None`` when every link's ``Γ_k`` is positive semidefinite (the point is the convex optimum);
+    otherwise ``ψ`` after the exact line search along ``J_k += α v vᵀ``, ``v`` the eigenvector of the
+    most negative eigenvalue of ``Γ_k`` (a descent direction the triangular factor could not follow).
+
+    With a prior (``prior_weight > 0``; ``prior_inverses``: each link's ``J₀⁻¹``, 16 values in column order)
+    ``Γ_k`` holds the divergence's gradient too, ``w (J₀⁻¹ − J_k⁻¹)``: the convex problem's optimum has
+    ``Γ_k = 0`` there (the log-det keeps ``J_k`` inside the cone), so a stationary point of the factorised
+    problem is certified instead of escaped along the data's gradient alone, which the prior opposes. The
+    tolerance stays relative to the data's gradient. (The small pull toward the nominal bodies without a prior is
+    left out: ``prior_weight`` 0 there.)"""
     theta = np.asarray(compiled.mapping(psi)[0]).reshape(-1)
     gradients = link_gradients(model, theta, G, target)
     size = max(np.abs(np.linalg.eigvalsh(Gamma)).max() for Gamma in gradients)
+    if prior_weight > 0 and prior_inverses is not None:
+        pulls = []
+        for k in range(len(gradients)):
+            J = pseudo_inertia(theta[10 * k : 10 * (k + 1)])
+            inverse = np.asarray(prior_inverses[16 * k : 16 * (k + 1)]).reshape(4, 4, order="F")
+            pulls.append(prior_weight * (inverse - np.linalg.inv(J)))
+        gradients = [Gamma + pull for Gamma, pull in zip(gradients, pulls)]
     worst, link, direction = 0.0, None, None
     for k, Gamma in enumerate(gradients):
         eigenvalues, vectors = np.linalg.eigh(Gamma)
