@@ -3,7 +3,8 @@ error before and after.
 
 :func:`diagnose` takes the verb's options as keywords (:class:`DiagnoseOptions`), decides the path (in memory, or
 the files streamed chunk by chunk: :func:`diagnose_streaming`, :mod:`estimation.streaming.diagnosis`, the same
-report keys) and returns a :class:`DiagnoseRun`:
+report keys; in memory the answer is the adopted model or its consistent refit, :func:`diagnosis_selection`) and
+returns a :class:`DiagnoseRun`:
 ``to_dict()`` is ``report.json``, ``write(out, report=...)`` writes it (and the Markdown report with its two
 figures), ``summary()`` the lines ``oed diagnose`` prints.
 """
@@ -86,9 +87,9 @@ class DiagnoseOptions(RecordOptions):
     or a list), ``report`` (whether the Markdown report will be written: it keeps the run in memory), ``alpha``,
     ``max_effects``, ``subsample`` and ``floor_window`` (the streamed path's), ``unseen_stretches`` (with a validation
     record that repeats the training motion, refuse an effect that raises the error on stretches its fit did not
-    see), and ``consistent`` (the adopted model
-    refitted physically consistent, shaped laws and a delay at their fitted values) with ``prior_weight`` (a number
-    or ``"auto"``), ``prior``, ``link_bounds``."""
+    see), and ``consistent`` (the answer forced to the adopted model's physically consistent refit, shaped laws and
+    a delay at their fitted values; without it the refit is a candidate of the default answer,
+    :func:`diagnosis_selection`) with ``prior_weight`` (a number or ``"auto"``), ``prior``, ``link_bounds``."""
 
     test: tuple[Path, ...] = ()
     report: bool = False
