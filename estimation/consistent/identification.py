@@ -155,6 +155,7 @@ def identify_consistent(
     prior_source: str = "robot description",
     bounds: Mapping[str, LinkBounds] | None = None,
     starts: int = 2,
+    undetermined: bool = True,
 ) -> ConsistentResult:
     """Consistent refit of ``result`` (its model, train data and channel weights) at one prior weight, with what
     its data did not determine of the bodies (:func:`estimation.consistent.determination.determination`, in units
@@ -162,7 +163,8 @@ def identify_consistent(
 
     ``result`` may hold shaped laws and a delay (``identify(..., delay=DelayBounds())``, the diagnosis's
     adopted model): they are held at its fitted values (:mod:`estimation.consistent.fixed_shapes`).
-    :func:`consistent_fit` also chooses the prior's weight."""
+    :func:`consistent_fit` also chooses the prior's weight. ``undetermined=False`` leaves the determination out
+    (``None``; it does not depend on the weight: :func:`consistent_fit` assesses it once)."""
     model = result.model
     estimator = ConsistentLeastSquares(prior_weight=prior_weight, prior=prior, bounds=bounds, starts=starts)
     if has_fixed_effects(result):
@@ -175,9 +177,15 @@ def identify_consistent(
         train_comparison = compare(model, estimate.values, train, label="identification (consistent)")
         validation = None if validate is None else compare(model, estimate.values, validate,
                                                            label="validation (consistent)")
-    nominal = model.robot.standard_parameters if prior is None else np.asarray(prior, dtype=float).reshape(-1)
     return ConsistentResult(estimate, result, train_comparison, validation, prior_source,
-                            determination=determination(model, result.estimate.cov, nominal))
+                            determination=_determination(result, prior) if undetermined else None)
+
+
+def _determination(result: IdentificationResult, prior: NDArray[np.float64] | None) -> Determination:
+    """What the data of ``result`` did not determine of the bodies, in units of the prior's (the description's)."""
+    model = result.model
+    nominal = model.robot.standard_parameters if prior is None else np.asarray(prior, dtype=float).reshape(-1)
+    return determination(model, result.estimate.cov, nominal)
 
 
 def prior_weight_choice(given: float | str | None, validated: bool) -> tuple[float | str, PriorWeightChoice]:
@@ -238,10 +246,10 @@ def consistent_fit(
 
     def refit(value: float) -> ConsistentResult:
         return identify_consistent(result, train, validate, prior_weight=value, prior=prior,
-                                   prior_source=prior_source, bounds=bounds, starts=starts)
+                                   prior_source=prior_source, bounds=bounds, starts=starts, undetermined=False)
 
     fit = choose_prior_weight(refit, result) if weight == "auto" else refit(float(weight))
-    return dataclasses.replace(fit, prior_weight_choice=how)
+    return dataclasses.replace(fit, prior_weight_choice=how, determination=_determination(result, prior))
 
 
 def consistent_refit(diagnosis: Any, train: Measurements, validate: Measurements | None = None,
