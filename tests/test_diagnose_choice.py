@@ -89,6 +89,9 @@ def test_the_smaller_validation_error_on_another_motion_is_chosen_and_predict_re
     assert relative(predict(folder, report, paths["test"]), document["test"]["chosen"]["mse"]) < 1e-6
     assert relative(predict(folder, report, paths["test"], "--alternative", "unconstrained"),
                     document["test"]["after"]["mse"]) < 1e-6
+    # oed export writes the consistent model (the chosen one, or the alternative it names)
+    assert main(["export", "--model", str(report), "--urdf", str(folder / "exported.urdf")]) == 0
+    assert (folder / "exported.urdf").read_text().count("<inertial>") >= 3
 
 
 def test_a_validation_record_that_repeats_the_training_motion_chooses_the_consistent_refit(records, capsys):
