@@ -13,6 +13,10 @@ on the test record, per joint, MSE against the torques as recorded, every model 
     the same with ``--consistent`` (the prior weight chosen on the validation record);
 ``toolkit OLS``
     the same with ``--method ols``;
+``diagnose``
+    ``oed diagnose --data TRAIN --validate VALIDATE`` (its own defaults: the declared viscous model, the effects
+    found and confirmed on the validation record, then the default answer between the adopted model and its
+    consistent refit, ``model_selection``), then ``oed predict --data TEST``;
 ``plain OLS``
     what a user writes without the toolkit: Pinocchio's joint-torque regressor plus viscous, Coulomb and offset
     columns per joint, reduced to numerically independent columns (:meth:`PlainFit.base_columns`), ordinary least
@@ -37,7 +41,8 @@ Robots (the records' facts are in ``../shared/data/README.md``):
     EMPS (one prismatic axis): ``DATA_EMPS`` split at two thirds (training, validation), tested on
     ``DATA_EMPS_PULSES`` (which holds external force pulses no model has).
 
-Run: ``python benchmarks/bench_real_robots.py [--robots kuka,panda,tx40,emps] [--markdown table.md]``.
+Run: ``python benchmarks/bench_real_robots.py [--robots kuka,panda,tx40,emps] [--runs default,diagnose,...]
+[--markdown table.md]``.
 """
 
 from __future__ import annotations
@@ -288,12 +293,14 @@ def _quiet(arguments: list[str]) -> int:
     return code, out.getvalue()
 
 
-def toolkit(case: Case, folder: Path, label: str, options: list[str]) -> dict | None:
-    """Identify with ``options``, predict the test record: ``{t, predicted, result}`` or ``None`` on failure."""
+def toolkit(case: Case, folder: Path, label: str, options: list[str], verb: str = "identify") -> dict | None:
+    """Identify (``verb="identify"``, the model class :data:`FRICTION`) or diagnose (``verb="diagnose"``, its own
+    defaults) with ``options``, predict the test record: ``{t, predicted, result}`` or ``None`` on failure."""
     result, predictions = folder / f"{label}.json", folder / f"{label}.csv"
     started = time.perf_counter()
-    code, _ = _quiet(["identify", *case.robot, *case.options, "--data", str(case.files["train"]), "--validate",
-                      str(case.files["validate"]), "--friction", FRICTION, *options, "--out", str(result)])
+    friction = ["--friction", FRICTION] if verb == "identify" else []
+    code, _ = _quiet([verb, *case.robot, *case.options, "--data", str(case.files["train"]), "--validate",
+                      str(case.files["validate"]), *friction, *options, "--out", str(result)])
     seconds = time.perf_counter() - started
     if code != 0:
         return None
@@ -320,15 +327,15 @@ def _at_recorded(t_record: np.ndarray, t_predicted: np.ndarray, predicted: np.nd
     return index, values
 
 
-#: the toolkit's runs compared: label, file stem, options
+#: the toolkit's runs compared: label, file stem, options[, verb]
 RUNS = (("default", "default", ()), ("consistent", "consistent", ("--consistent",)),
-        ("toolkit OLS", "ols", ("--method", "ols")))
+        ("toolkit OLS", "ols", ("--method", "ols")), ("diagnose", "diagnose", (), "diagnose"))
 
 
 def compare(case: Case, folder: Path, labels: tuple[str, ...] = tuple(run[0] for run in RUNS)) -> dict:
     """Per joint test MSE of the toolkit's runs ``labels`` and the plain fit at the recorded samples every toolkit
     run predicted."""
-    runs = {label: toolkit(case, folder, stem, list(options)) for label, stem, options in RUNS if label in labels}
+    runs = {run[0]: toolkit(case, folder, run[1], list(run[2]), *run[3:]) for run in RUNS if run[0] in labels}
     test = case.records["test"]
     at = {label: None if run is None else _at_recorded(test.t, run["t"], run["predicted"]) for label, run in runs.items()}
     common = None
@@ -344,9 +351,13 @@ def compare(case: Case, folder: Path, labels: tuple[str, ...] = tuple(run[0] for
            np.mean((test.tau[value[0][np.isin(value[0], common)]] - value[1][np.isin(value[0], common)]) ** 2, axis=0)
            for label, value in at.items()}
     mse["plain OLS"] = np.mean((test.tau[common] - predicted[common]) ** 2, axis=0)
-    default = runs["default"]["result"] if runs["default"] is not None else None
+    default = runs["default"]["result"] if runs.get("default") is not None else None
+    diagnosed = runs["diagnose"]["result"] if runs.get("diagnose") is not None else None
     return {"mse": mse, "cutoff": cutoff, "samples": common.shape[0], "of": test.t.shape[0],
             "selection": None if default is None else default.get("model_selection"),
+            "diagnose_selection": None if diagnosed is None else diagnosed.get("model_selection"),
+            "effects": None if diagnosed is None else [f"{e['spec']} on {','.join(e['channels'])}"
+                                                        for e in diagnosed.get("effects", [])],
             "preprocessing": None if default is None else default.get("preprocessing"),
             "seconds": {label: None if run is None else run["seconds"] for label, run in runs.items()}}
 
@@ -372,6 +383,12 @@ def table(name: str, outcome: dict) -> list[str]:
         lines += ["", f"default chose **{selection['chosen']}** ({selection['selection']}; validation scores: "
                       f"{scores or 'none'}); derivatives: {outcome['preprocessing'].get('method')} "
                       f"{outcome['preprocessing'].get('cutoff_hz') or ''}"]
+    selection = outcome.get("diagnose_selection")
+    if selection is not None:
+        scores = ", ".join(f"{c['name']} {c['score']:.4g}" if c["score"] is not None else f"{c['name']} (none)"
+                           for c in selection["candidates"])
+        lines += ["", f"diagnose chose **{selection['chosen']}** ({selection['selection']}; validation scores: "
+                      f"{scores}); effects adopted: {', '.join(outcome['effects']) or 'none'}"]
     return lines
 
 
@@ -379,6 +396,8 @@ def main_benchmark() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--robots", default="kuka,panda,tx40,emps")
     parser.add_argument("--markdown", type=Path, help="write the tables to this file too")
+    parser.add_argument("--runs", default=",".join(run[0] for run in RUNS),
+                        help="the toolkit's runs, comma-separated (default: all)")
     args = parser.parse_args()
     if not DATA.is_dir():
         sys.exit(f"no real data at {DATA}")
@@ -387,7 +406,7 @@ def main_benchmark() -> None:
         for key in args.robots.split(","):
             started = time.perf_counter()
             case = ROBOTS[key](Path(folder))
-            outcome = compare(case, Path(folder))
+            outcome = compare(case, Path(folder), tuple(args.runs.split(",")))
             block = table(case.name, outcome)
             print("\n".join(block) + f"\n({time.perf_counter() - started:.0f} s; identify: "
                   + ", ".join(f"{label} {s:.1f} s" for label, s in outcome["seconds"].items() if s is not None) + ")\n",

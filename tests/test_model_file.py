@@ -90,7 +90,17 @@ def test_predict_reproduces_the_diagnosis_after_mse(records):
     document = json.loads(report.read_text())
     assert any(effect["shape"] for effect in document["effects"])  # a shaped law was found
     assert document["model_file"]["delay"] is not None and document["model_file"]["shape"]
+    # the report's model is the one its default choice made (model_selection: the adopted model as fitted or its
+    # consistent refit); predict reproduces that one's validation error, and the adopted model's ('after') with
+    # --alternative unconstrained
+    chosen = next(candidate for candidate in document["model_selection"]["candidates"]
+                  if candidate["name"] == document["model_selection"]["chosen"])
     assert main(["predict", "--model", str(report), "--data", str(validate), "--metrics", str(metrics)]) == 0
+    measured = json.loads(metrics.read_text())
+    assert _relative(measured["mse"], chosen["validation_mse"]) < 1e-6
+    assert measured["reported_validation_mse"] == chosen["validation_mse"]
+    assert main(["predict", "--model", str(report), "--data", str(validate), "--metrics", str(metrics),
+                 "--alternative", "unconstrained"]) == 0
     measured = json.loads(metrics.read_text())
     assert _relative(measured["mse"], document["validation"]["after"]["mse"]) < 1e-6
     assert measured["reported_validation_mse"] == document["validation"]["after"]["mse"]

@@ -156,6 +156,7 @@ def identify_consistent(
     bounds: Mapping[str, LinkBounds] | None = None,
     starts: int = 2,
     warm_start: NDArray[np.float64] | None = None,
+    undetermined: bool = True,
 ) -> ConsistentResult:
     """Consistent refit of ``result`` (its model, train data and channel weights) at one prior weight, with what
     its data did not determine of the bodies (:func:`estimation.consistent.determination.determination`, in units
@@ -164,7 +165,8 @@ def identify_consistent(
     ``result`` may hold shaped laws and a delay (``identify(..., delay=DelayBounds())``, the diagnosis's
     adopted model): they are held at its fitted values (:mod:`estimation.consistent.fixed_shapes`).
     :func:`consistent_fit` also chooses the prior's weight. ``warm_start``: log-Cholesky coordinates to start from
-    first (:class:`estimation.consistent.least_squares.ConsistentLeastSquares`)."""
+    first (:class:`estimation.consistent.least_squares.ConsistentLeastSquares`). ``undetermined=False`` leaves the
+    determination out (``None``; it does not depend on the weight: :func:`consistent_fit` assesses it once)."""
     model = result.model
     estimator = ConsistentLeastSquares(prior_weight=prior_weight, prior=prior, bounds=bounds, starts=starts,
                                        warm_start=warm_start)
@@ -178,9 +180,15 @@ def identify_consistent(
         train_comparison = compare(model, estimate.values, train, label="identification (consistent)")
         validation = None if validate is None else compare(model, estimate.values, validate,
                                                            label="validation (consistent)")
-    nominal = model.robot.standard_parameters if prior is None else np.asarray(prior, dtype=float).reshape(-1)
     return ConsistentResult(estimate, result, train_comparison, validation, prior_source,
-                            determination=determination(model, result.estimate.cov, nominal))
+                            determination=_determination(result, prior) if undetermined else None)
+
+
+def _determination(result: IdentificationResult, prior: NDArray[np.float64] | None) -> Determination:
+    """What the data of ``result`` did not determine of the bodies, in units of the prior's (the description's)."""
+    model = result.model
+    nominal = model.robot.standard_parameters if prior is None else np.asarray(prior, dtype=float).reshape(-1)
+    return determination(model, result.estimate.cov, nominal)
 
 
 def prior_weight_choice(given: float | str | None, validated: bool) -> tuple[float | str, PriorWeightChoice]:
@@ -253,10 +261,11 @@ def consistent_fit(
 
     def refit(value: float, warm_start: NDArray[np.float64] | None = None) -> ConsistentResult:
         return identify_consistent(result, train, validate, prior_weight=value, prior=prior,
-                                   prior_source=prior_source, bounds=bounds, starts=starts, warm_start=warm_start)
+                                   prior_source=prior_source, bounds=bounds, starts=starts, warm_start=warm_start,
+                                   undetermined=False)
 
     fit = choose_prior_weight(refit, result) if weight == "auto" else refit(float(weight))
-    return dataclasses.replace(fit, prior_weight_choice=how)
+    return dataclasses.replace(fit, prior_weight_choice=how, determination=_determination(result, prior))
 
 
 def consistent_refit(diagnosis: Any, train: Measurements, validate: Measurements | None = None,

@@ -25,12 +25,17 @@ to another motion: the consistent candidate is chosen, since it regularises towa
 say nothing, and the summary says why. A candidate that cannot be fitted (IPOPT failing from every start) is no candidate: it is listed with the reason.
 
 A choice given by the user (``--method ols|wls``, ``--consistent``) is kept: the selection is then ``given``.
+
+**Already-fitted candidates.** :func:`select_fitted` makes the same choice among candidates fitted elsewhere;
+:func:`select_refit` takes one unconstrained fit (``oed diagnose``'s adopted model, with its effects, shaped laws
+and delay) and its consistent refit (:func:`estimation.consistent.identification.consistent_fit`, shaped laws and
+the delay held at their fitted values) as the two candidates: the default answer of ``oed diagnose``.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, Literal
 
@@ -56,7 +61,7 @@ from estimation.identification.validation import Comparison
 
 __all__ = ["CANDIDATES", "DEFAULT_PRIOR_WEIGHT", "PREFERENCE", "PRIOR_WEIGHT_GRID", "PRIOR_WEIGHT_TOLERANCE",
            "Candidate", "ConsistentSettings", "ModelSelection", "choose_prior_weight", "consistent_entry",
-           "prior_weight_choice", "select_model", "selection_model_file"]
+           "prior_weight_choice", "select_fitted", "select_model", "select_refit", "selection_model_file"]
 
 CandidateName = Literal["ols", "wls", "consistent"]
 Selection = Literal["validation", "given", "no-validation", "repeated-motion"]
@@ -117,11 +122,14 @@ class Candidate:
         not be fitted.
     unavailable
         Why it is no candidate (``None``: it is one).
+    note
+        What the candidate holds beside its name, appended to its description (``"with the diagnosed effects"``).
     """
 
     name: CandidateName
     fit: IdentificationResult | ConsistentResult | None
     unavailable: str | None = None
+    note: str = ""
 
     @property
     def train(self) -> Comparison | None:
@@ -142,8 +150,10 @@ class Candidate:
     @property
     def description(self) -> str:
         if self.name == "consistent":
-            return "physically consistent, the robot description's bodies as prior"
-        return {"ols": "ordinary least squares", "wls": "channel-weighted least squares"}[self.name]
+            text = "physically consistent, the robot description's bodies as prior"
+        else:
+            text = {"ols": "ordinary least squares", "wls": "channel-weighted least squares"}[self.name]
+        return f"{text}, {self.note}" if self.note else text
 
     def to_dict(self) -> dict[str, Any]:
         """``{name, description, available, reason, validation_mse, train_mse, score[, prior_weight]}``."""
@@ -312,9 +322,48 @@ def select_model(model: IdentificationModel, train: Measurements, validation: Me
                     raise
                 reason = f"the consistent fit failed ({error})"
         candidates.append(Candidate("consistent", None, reason))
+    return select_fitted(candidates, train, validation, base=base, given=given)
+
+
+def select_fitted(candidates: Sequence[Candidate], train: Measurements, validation: Measurements | None = None, *,
+                  base: Literal["ols", "wls"], given: CandidateName | None = None) -> ModelSelection:
+    """The choice among candidates already fitted and scored on ``validation`` (module docstring: the criterion,
+    the preference without another motion, ``given``); ``base`` names the unconstrained candidate the consistent
+    one was refitted from, and is kept when nothing else can be chosen.
+
+    The candidates are listed in :data:`CANDIDATES` order whatever the order given."""
+    by_name = {candidate.name: candidate for candidate in candidates}
+    if len(by_name) != len(candidates):
+        raise ValueError(f"two candidates share a name: {[candidate.name for candidate in candidates]}")
+    if given is None and (base not in by_name or by_name[base].fit is None):
+        raise ValueError(f"the base candidate {base!r} must be among the fitted candidates {sorted(by_name)}")
+    ordered = tuple(by_name[name] for name in CANDIDATES if name in by_name)
     ratio = None if validation is None else repeated_motion(train, validation)
-    chosen, selection, reason = _choose(tuple(candidates), given, base, ratio)
-    return ModelSelection(chosen, selection, reason, tuple(candidates), base, ratio)
+    chosen, selection, reason = _choose(ordered, given, base, ratio)
+    return ModelSelection(chosen, selection, reason, ordered, base, ratio)
+
+
+def select_refit(result: IdentificationResult, train: Measurements, validation: Measurements | None = None, *,
+                 given: Literal["consistent"] | None = None, consistent: ConsistentSettings | None = None,
+                 note: str = "") -> ModelSelection:
+    """The choice between ``result`` (an unconstrained fit, named by its method ``ols`` or ``wls``) and its
+    consistent refit (``consistent``: how, default :class:`ConsistentSettings`: the prior's weight chosen on
+    ``validation``), by :func:`select_fitted`: the default answer of ``oed diagnose`` (``result``: its adopted
+    model). A refit that fails is no candidate (listed with the reason), unless ``given="consistent"`` asked for it
+    (the error is raised then). ``note``: appended to both candidates' descriptions."""
+    if given not in (None, "consistent"):
+        raise ValueError(f"given must be None or 'consistent', got {given!r}")
+    base = result.estimate.method
+    if base not in ("ols", "wls"):
+        raise ValueError(f"the unconstrained fit's method must be 'ols' or 'wls', got {base!r}")
+    settings = ConsistentSettings() if consistent is None else consistent
+    try:
+        refit = Candidate("consistent", settings.refit(result, train, validation), note=note)
+    except _CONSISTENT_FAILURES as error:
+        if given == "consistent":
+            raise
+        refit = Candidate("consistent", None, f"the consistent fit failed ({error})", note=note)
+    return select_fitted((Candidate(base, result, note=note), refit), train, validation, base=base, given=given)
 
 
 def _no_consistent_fit(result: IdentificationResult, delay: Any) -> str | None:

@@ -3,7 +3,8 @@ error before and after.
 
 :func:`diagnose` takes the verb's options as keywords (:class:`DiagnoseOptions`), decides the path (in memory, or
 the files streamed chunk by chunk: :func:`diagnose_streaming`, :mod:`estimation.streaming.diagnosis`, the same
-report keys) and returns a :class:`DiagnoseRun`:
+report keys; in memory the answer is the adopted model or its consistent refit, :func:`diagnosis_selection`) and
+returns a :class:`DiagnoseRun`:
 ``to_dict()`` is ``report.json``, ``write(out, report=...)`` writes it (and the report, HTML or Markdown:
 :meth:`DiagnoseRun.report`), ``summary()`` the lines ``oed diagnose`` prints.
 """
@@ -23,6 +24,7 @@ from dynamics.runtime.output_files import OutputFiles, json_text
 from dynamics.runtime.processes import run_tasks, worker_count
 from dynamics.runtime.progress import step
 from dynamics.transmission import Transmission
+from estimation.consistent.model_selection import ModelSelection, select_refit
 from estimation.diagnosis.candidates.coupling import coupling_candidates
 from dynamics.runtime.report_document import Report, figure_path, report_format
 from estimation.diagnosis.report import diagnosis_report, plot_residuals, plot_trace
@@ -53,7 +55,7 @@ from oed.workflows.asbuilt import (
     worse_after,
 )
 from oed.workflows.memory_path import decide_path, streamed_choice
-from oed.workflows.consistent import check_consistent_arguments, consistent_lines, consistent_refit
+from oed.workflows.consistent import check_consistent_arguments, consistent_lines, consistent_settings
 from oed.workflows.model_files import (
     add_model_file,
     add_runner_up_model_file,
@@ -88,9 +90,9 @@ class DiagnoseOptions(RecordOptions):
     or a list), ``report`` (whether the report, HTML or Markdown, will be written: it keeps the run in memory), ``alpha``,
     ``max_effects``, ``subsample`` and ``floor_window`` (the streamed path's), ``unseen_stretches`` (with a validation
     record that repeats the training motion, refuse an effect that raises the error on stretches its fit did not
-    see), and ``consistent`` (the adopted model
-    refitted physically consistent, shaped laws and a delay at their fitted values) with ``prior_weight`` (a number
-    or ``"auto"``), ``prior``, ``link_bounds``."""
+    see), and ``consistent`` (the answer forced to the adopted model's physically consistent refit, shaped laws and
+    a delay at their fitted values; without it the refit is a candidate of the default answer,
+    :func:`diagnosis_selection`) with ``prior_weight`` (a number or ``"auto"``), ``prior``, ``link_bounds``."""
 
     test: tuple[Path, ...] = ()
     report: bool = False
@@ -310,8 +312,9 @@ def diagnose_in_memory(args: DiagnoseOptions, model: IdentificationModel, transm
         notes += worse_after(diagnosis)
         repeat = repeated_motion_note(records.train.measurements, records.validation.measurements)
         notes += () if repeat is None else (repeat,)
-        consistent = consistent_refit(args, diagnosis.after, records.train.measurements,
-                                      records.validation.measurements)  # None without --consistent
+        with step("the default answer: the adopted model or its consistent refit"):
+            selection = diagnosis_selection(args, diagnosis, records)
+        consistent = selection.consistent
     messages = caught_messages(caught) + list(notes)
     rest = rest_records(records)
     document = finish_document(diagnosis.to_dict(), diagnosis.after, trivial=trivial, warnings=notes, rest=rest,
@@ -322,14 +325,20 @@ def diagnose_in_memory(args: DiagnoseOptions, model: IdentificationModel, transm
         document.update(consistent.to_dict())
         document["consistent"]["test"] = None if records.test is None else \
             {"mse": consistent.compare(records.test.measurements).mse}
+    document["model_selection"] = selection.to_dict()
+    if document["test"] is not None:  # the chosen model's error on the test record (what `oed predict` gives there)
+        document["test"]["chosen"] = {"name": selection.chosen, "mse": dict(
+            untouched.after if selection.chosen != "consistent" else document["consistent"]["test"]["mse"])}
     messages += add_model_file(document, diagnosis.after, args, records.preprocessing, transmission,
-                               consistent=consistent)
+                               consistent=consistent, selection=selection)
     add_runner_up_model_file(document, diagnosis.runner_up, args, records.preprocessing, transmission)
     document["diagnosis_path"] = "in-memory"  # "streamed": --chunk-size (diagnose_streaming)
     document["max_effects"] = args.max_effects
     document["max_effects_reached"] = len(diagnosis.effects) >= args.max_effects
-    lines = [records.preprocessing.describe(), *summary_lines(diagnosis), *test_lines(untouched),
-             *consistent_lines(consistent)]
+    lines = [records.preprocessing.describe(), *summary_lines(diagnosis), *test_lines(untouched)]
+    if consistent is not None and (args.consistent or selection.chosen == "consistent"):
+        lines += consistent_lines(consistent)
+    lines += selection.lines() + chosen_test_lines(document["test"])
     if len(diagnosis.effects) >= args.max_effects:
         untested = sum(rejected.reason.startswith("not tested") for rejected in diagnosis.rejected)
         lines.append(f"stopped at --max-effects {args.max_effects}: {untested} candidate(s) not tested; raise "
@@ -338,6 +347,26 @@ def diagnose_in_memory(args: DiagnoseOptions, model: IdentificationModel, transm
     if message:
         lines.append(message)
     return DiagnoseRun(document, tuple(lines), tuple(messages), diagnosis, records, untouched)
+
+
+def diagnosis_selection(args: DiagnoseOptions, diagnosis: Diagnosis, records: PreparedRecords) -> ModelSelection:
+    """The default answer (:func:`estimation.consistent.model_selection.select_refit`): the adopted model as fitted
+    (unconstrained) or its consistent refit (the description's bodies as prior, its weight chosen on the validation
+    record; shaped laws and a delay at their fitted values), by the validation error when the validation record is
+    another motion, else the consistent refit; ``--consistent`` forces it. A refit that fails is no candidate."""
+    return select_refit(diagnosis.after, records.train.measurements, records.validation.measurements,
+                        given="consistent" if args.consistent else None,
+                        consistent=consistent_settings(args, diagnosis.after.model.robot),
+                        note="with the diagnosed effects")
+
+
+def chosen_test_lines(test: dict[str, Any] | None) -> list[str]:
+    """The chosen model's MSE on the ``--test`` record (none without one)."""
+    if test is None or "chosen" not in test:
+        return []
+    chosen = test["chosen"]
+    return [f"test MSE vs recorded, the chosen model ({chosen['name']}): "
+            + "  ".join(f"{channel} {value:.4g}" for channel, value in chosen["mse"].items())]
 
 
 def check_request(args: DiagnoseOptions) -> None:
