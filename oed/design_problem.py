@@ -150,6 +150,15 @@ class ExcitationDesign:
     def identification_model(self):
         return build_model(self.robot, self.model, self.effects)
 
+    def sampled_states(self, x: casadi.MX) -> list[casadi.MX]:
+        """``[q, dq, ddq]`` of the trajectory ``x`` at the ``cost_samples`` instants of one period, each ``(n, N)``,
+        as expressions of the decision vector (the Fourier series of :mod:`oed.fourier`, eq. 30 of the PUMA paper)."""
+        n, H, N = self.n_joints, self.settings.harmonics, self.settings.cost_samples
+        t = np.arange(N) / N / self.settings.frequency_hz
+        q0, a, b = unpack(x, n, H)
+        block = casadi.horzcat(q0, a, b)  # (n, 2H+1)
+        return [casadi.mtimes(block, casadi.DM(matrix)) for matrix in self._state_matrices(t)]
+
     def _state_matrices(self, t: NDArray[np.float64]) -> tuple[NDArray[np.float64], ...]:
         """``(3, 2N+1, T)`` rows of one joint's block: q, dq, ddq = block · B at times t (eq. 18)."""
         B = basis(self.settings.frequency_hz, self.settings.harmonics, t)
@@ -337,11 +346,8 @@ class ExcitationDesign:
             # derivative arrays (about four (N, channels, r) blocks): refuse before building them
             check_allocation(8.0 * N * (3 * (2 * H + 1) + 3 * n + 4 * model.n_channels * model.n_base),
                              f"cost_samples = {N}")
-            t = np.arange(N) / N / self.settings.frequency_hz
             x = casadi.MX.sym("x", self.n_variables)
-            q0, a, b = unpack(x, n, H)
-            block = casadi.horzcat(q0, a, b)  # (n, 2H+1)
-            states = [casadi.mtimes(block, casadi.DM(matrix)) for matrix in self._state_matrices(t)]
+            states = self.sampled_states(x)  # (n, N) each: q, dq, ddq
             information = sampled_information(self.identification_model.base_regressor, states,
                                               self.settings.jit) / N
             objective = self.criterion.expression(information)

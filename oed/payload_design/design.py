@@ -40,7 +40,7 @@ from oed.excitation import DesignResult, design_excitation
 from oed.design_problem import ExcitationDesign, StartResult
 from oed.design_settings import DesignSettings
 from oed.design_solver import jit_options, sampled_information
-from oed.fourier import FourierTrajectory, unpack
+from oed.fourier import FourierTrajectory
 from oed.payload_design.criterion import DEFAULT_LENGTH, DEFAULT_MASS, MassAndCentre
 
 __all__ = ["PAYLOAD_FREQUENCY_HZ", "PAYLOAD_HARMONICS", "PayloadDesign", "PayloadDesignResult", "design_payload_excitation", "payload_regressor"]
@@ -105,12 +105,9 @@ class PayloadDesign(ExcitationDesign):
     def cost_function(self) -> casadi.Function:
         """``payload_objective(x) -> J``: the criterion of ``M`` over ``cost_samples`` samples (cached)."""
         if "cost" not in self._cache:
-            n, H, N = self.n_joints, self.settings.harmonics, self.settings.cost_samples
-            t = np.arange(N) / N / self.settings.frequency_hz
+            N = self.settings.cost_samples
             x = casadi.MX.sym("x", self.n_variables)
-            q0, a, b = unpack(x, n, H)
-            block = casadi.horzcat(q0, a, b)
-            states = [casadi.mtimes(block, casadi.DM(matrix)) for matrix in self._state_matrices(t)]
+            states = self.sampled_states(x)  # (n, N) each: q, dq, ddq
             information = self._sampled_information(states) / N
             self._cache["cost"] = casadi.Function("payload_objective", [x], [self.criterion.expression(information)],
                                                   ["x"], ["J"])

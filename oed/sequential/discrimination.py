@@ -35,7 +35,6 @@ from oed.criteria import Criterion
 from oed.excitation import DesignResult, DesignSettings, design_excitation
 from oed.design_problem import ExcitationDesign, StartResult
 from oed.design_solver import jit_options
-from oed.fourier import unpack
 from oed.sequential.jacobian import ModelJacobian, SequentialDesignError, model_jacobian
 from oed.sequential.next_experiment import check_bounds
 from oed.sequential.prior import PriorInformation, prior_information
@@ -146,12 +145,9 @@ class DiscriminatingDesign(ExcitationDesign):
 
     def cost_function(self) -> casadi.Function:
         if "cost" not in self._cache:
-            n, H, N = self.n_joints, self.settings.harmonics, self.settings.cost_samples
-            t = np.arange(N) / N / self.settings.frequency_hz
+            N = self.settings.cost_samples
             x = casadi.MX.sym("x", self.n_variables)
-            q0, a, b = unpack(x, n, H)
-            block = casadi.horzcat(q0, a, b)
-            states = [casadi.mtimes(block, casadi.DM(matrix)) for matrix in self._state_matrices(t)]
+            states = self.sampled_states(x)  # (n, N) each: q, dq, ddq
             objective = 0
             for rivalry in self.rivalries:
                 terms = rivalry.terms

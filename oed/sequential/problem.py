@@ -26,7 +26,6 @@ from dynamics.runtime.memory import check_allocation
 from oed.criteria import LogDet
 from oed.design_problem import SUCCESS_STATUSES, ExcitationDesign, StartResult
 from oed.design_solver import jit_options, sampled_information
-from oed.fourier import unpack
 from oed.sequential.criteria import scaled, symbolic_scaled
 from oed.sequential.jacobian import ModelJacobian, SequentialDesignError
 from oed.sequential.prior import PriorInformation
@@ -112,11 +111,8 @@ class SequentialDesign(ExcitationDesign):
             n, H, N = self.n_joints, self.settings.harmonics, self.settings.cost_samples
             m, p = self.jacobian.function.size1_out(0), self.jacobian.n_parameters
             check_allocation(8.0 * N * (3 * (2 * H + 1) + 3 * n + 4 * m * p), f"cost_samples = {N}")
-            t = np.arange(N) / N / self.settings.frequency_hz
             x = casadi.MX.sym("x", self.n_variables)
-            q0, a, b = unpack(x, n, H)
-            block = casadi.horzcat(q0, a, b)
-            states = [casadi.mtimes(block, casadi.DM(matrix)) for matrix in self._state_matrices(t)]
+            states = self.sampled_states(x)  # (n, N) each: q, dq, ddq
             own = self._sampled_information(states) / N
             prior = casadi.DM(self.prior.information / self.new_samples)
             objective = self.criterion.expression(symbolic_scaled(prior + own, self.scale))
