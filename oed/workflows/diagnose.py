@@ -426,17 +426,24 @@ def test_lines(untouched: UntouchedErrors | None) -> list[str]:
     return lines
 
 
+def found_lines(effects: Any, *, shape_std: bool) -> list[str]:
+    """One line an effect found (its values with standard deviations, its shape, its p-value), or that none was;
+    ``shape_std``: the shapes' standard deviations too (the streamed path has none)."""
+    if not effects:
+        return ["found nothing: the declared model explains the data"]
+    lines = []
+    for effect in effects:
+        values = ", ".join(f"{n} = {v:.4g} ± {s:.2g}" for n, v, s in zip(effect.parameters, effect.values, effect.std))
+        values += "".join(f", {n} = {v:.4g}" + (f" ± {effect.shape_std[n]:.2g}" if shape_std else "")
+                          for n, v in effect.shape.items())
+        lines.append(f"found {effect.spec or effect.name} on {', '.join(effect.channels)}: {values} "
+                     f"(p = {effect.p_value:.2g})")
+    return lines
+
+
 def summary_lines(diagnosis: Diagnosis) -> list[str]:
     """Effects found and the validation MSE per channel before and after."""
-    lines = []
-    if diagnosis.effects:
-        for effect in diagnosis.effects:
-            values = ", ".join(f"{n} = {v:.4g} ± {s:.2g}" for n, v, s in zip(effect.parameters, effect.values, effect.std))
-            values += "".join(f", {n} = {v:.4g} ± {effect.shape_std[n]:.2g}" for n, v in effect.shape.items())
-            lines.append(f"found {effect.spec or effect.name} on {', '.join(effect.channels)}: {values} "
-                         f"(p = {effect.p_value:.2g})")
-    else:
-        lines.append("found nothing: the declared model explains the data")
+    lines = found_lines(diagnosis.effects, shape_std=True)
     lines.append(runner_up_line(diagnosis.runner_up, diagnosis.runner_up_reason))
     before, after = diagnosis.before.validation.mse, diagnosis.after.validation.mse
     lines += ["validation MSE vs recorded",
@@ -533,14 +540,7 @@ def streamed_summary_lines(args: DiagnoseOptions, robot: RobotModel, model: Iden
     lines = [f"{robot.name}: {model.kind.value} model, streamed diagnosis of {result.n_train} training samples from "
              f"{len(streaming['files'])} file(s) in chunks of {chunk_size}, {result.n_validation} validation samples; "
              f"shapes searched on {streaming['subsample']['samples']} samples"]
-    if result.effects:
-        for effect in result.effects:
-            values = ", ".join(f"{n} = {v:.4g} ± {s:.2g}" for n, v, s in zip(effect.parameters, effect.values, effect.std))
-            values += "".join(f", {n} = {v:.4g}" for n, v in effect.shape.items())
-            lines.append(f"found {effect.spec or effect.name} on {', '.join(effect.channels)}: {values} "
-                         f"(p = {effect.p_value:.2g})")
-    else:
-        lines.append("found nothing: the declared model explains the data")
+    lines += found_lines(result.effects, shape_std=False)
     lines.append(runner_up_line(result.runner_up, result.runner_up_reason))
     before, after = result.validation_mse["before"], result.validation_mse["after"]
     lines += ["validation MSE vs recorded",
