@@ -39,6 +39,26 @@ def test_criterion_is_the_smooth_maximum_of_the_relative_variances():
         MassAndCentre(mass=0.0)
 
 
+@pytest.mark.parametrize("width", [5, 40])
+def test_information_sum_per_sample_and_stacked_equal_the_plain_sum(width):
+    """oed.design_solver.stacked_information (the payload and the sequential designs): the per-sample JᵀJ up to
+    STACKED_ABOVE columns, one product of the stacked transposes above; both the plain Σ J_kᵀ J_k."""
+    from oed.design_solver import STACKED_ABOVE, stacked_information
+
+    generator = np.random.default_rng(1)
+    weights = generator.normal(size=(3 * 2, width))
+    q, dq, ddq = (casadi.SX.sym(name, 2) for name in ("q", "dq", "ddq"))
+    J = casadi.reshape(casadi.mtimes(casadi.DM(weights).T, casadi.vertcat(casadi.sin(q), dq * ddq, q * dq)), width, 1)
+    function = casadi.Function("J", [q, dq, ddq], [casadi.repmat(J.T, 3, 1) * casadi.DM([[1], [2], [3]])])
+    states = [generator.normal(size=(2, 7)) for _ in range(3)]
+    symbols = [casadi.MX.sym(name, 2, 7) for name in ("q", "dq", "ddq")]
+    total = casadi.Function("total", symbols, [stacked_information(function, symbols, False)])(*states)
+    expected = sum(np.asarray(function(*(state[:, k] for state in states))).T
+                   @ np.asarray(function(*(state[:, k] for state in states))) for k in range(7))
+    assert (width > STACKED_ABOVE) == (width == 40)
+    assert np.allclose(np.asarray(total), expected, rtol=1e-12, atol=1e-12)
+
+
 @pytest.fixture(scope="module")
 def robot_json(tmp_path_factory):
     folder = tmp_path_factory.mktemp("payload_design")

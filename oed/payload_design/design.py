@@ -39,7 +39,7 @@ from oed.criteria import LogDet
 from oed.excitation import DesignResult, design_excitation
 from oed.design_problem import ExcitationDesign, StartResult
 from oed.design_settings import DesignSettings
-from oed.design_solver import jit_options, sampled_information
+from oed.design_solver import stacked_information
 from oed.fourier import FourierTrajectory
 from oed.payload_design.criterion import DEFAULT_LENGTH, DEFAULT_MASS, MassAndCentre
 
@@ -51,11 +51,6 @@ __all__ = ["PAYLOAD_FREQUENCY_HZ", "PAYLOAD_HARMONICS", "PayloadDesign", "Payloa
 #: excitations', 5 harmonics 1.3 and 3.7 times
 PAYLOAD_FREQUENCY_HZ = 0.1
 PAYLOAD_HARMONICS = 10
-
-
-#: more columns than this: the information as one product of the stacked per-sample columns (as
-#: :class:`oed.sequential.problem.SequentialDesign`: far shorter to compile than the per-sample ``YᵀY``)
-STACKED_ABOVE = 30
 
 
 def robot_share_available(model: IdentifiedModel) -> bool:
@@ -108,22 +103,10 @@ class PayloadDesign(ExcitationDesign):
             N = self.settings.cost_samples
             x = casadi.MX.sym("x", self.n_variables)
             states = self.sampled_states(x)  # (n, N) each: q, dq, ddq
-            information = self._sampled_information(states) / N
+            information = stacked_information(self.regressor, states, self.settings.jit) / N
             self._cache["cost"] = casadi.Function("payload_objective", [x], [self.criterion.expression(information)],
                                                   ["x"], ["J"])
         return self._cache["cost"]
-
-    def _sampled_information(self, states: list[casadi.MX]) -> casadi.MX:
-        """``Σ_k Y_kᵀ Y_k`` over the cost samples, per sample or as one product (:data:`STACKED_ABOVE`)."""
-        width = self.regressor.size2_out(0)
-        if width <= STACKED_ABOVE:
-            return sampled_information(self.regressor, states, self.settings.jit)
-        n = self.n_joints
-        q, dq, ddq = (casadi.SX.sym(name, n) for name in ("q", "dq", "ddq"))
-        transposed = casadi.Function("payload_regressor_t", [q, dq, ddq], [self.regressor(q, dq, ddq).T],
-                                     ["q", "dq", "ddq"], ["Yt"], jit_options() if self.settings.jit else {})
-        stacked = transposed.map(self.settings.cost_samples, "serial")(*states)  # (p, m N)
-        return casadi.mtimes(stacked, stacked.T)
 
     def information(self, q, dq, ddq) -> NDArray[np.float64]:
         """``Σ_k Y_kᵀ W Y_k`` at the given samples (the information one record of them holds; with the robot's
