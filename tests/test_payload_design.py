@@ -85,12 +85,12 @@ def test_designed_period_beats_random_excitations(robot_json, capsys):
     design = document["payload_design"]
     assert design["link"] == "joint6" and design["duration_s"] == 10.0
     designed, random = design["predicted_std"]["designed"], design["predicted_std"]["random_median"]
-    assert design["criterion"]["robot_share"]  # the robot model's share counted, and reported apart
-
-    def worst_relative(std):  # the criterion's guess: 1 kg, the centre of mass relative to 0.1 m
-        return max(std["mass"] / 1.0, max(std["com"]) / 0.1)
-
-    assert worst_relative(designed) < worst_relative(random) / 1.5
+    # the default criterion: the record's torque noise, the robot model given; the robot model's share apart
+    assert not design["criterion"]["robot_share"] and design["criterion"]["counts"] == "record_noise"
+    assert set(designed) == set(random) == {"mass", "com", "record_noise", "robot_model"}
+    total = np.hypot(designed["record_noise"]["mass"], designed["robot_model"]["mass"])
+    assert designed["mass"] == pytest.approx(total, rel=1e-9) and designed["robot_model"]["mass"] > 0
+    assert designed["record_noise"]["mass"] < random["record_noise"]["mass"] / 2
     assert max(designed["record_noise"]["com"]) < max(random["record_noise"]["com"]) / 2
     table = pd.read_csv(csv)
     assert table.shape == (10_000, 19) and table["t"].iloc[-1] < 10.0
@@ -114,3 +114,8 @@ def test_payload_design_needs_the_robots_model(robot_json, capsys):
     assert "no link 'wrist'" in capsys.readouterr().err
     assert main(["design", "--link", "joint6", "--out", str(folder / "x.json")]) != 0
     assert "give --payload too" in capsys.readouterr().err
+    assert main(["design", "--payload-robot-share", "--out", str(folder / "x.json")]) != 0
+    assert "give --payload too" in capsys.readouterr().err
+    assert main(["design", "--payload", "--from", str(path), "--payload-noise-only", "--payload-robot-share",
+                 "--bounds", str(bounds), "--out", str(folder / "x.json")]) != 0
+    assert "give one" in capsys.readouterr().err
