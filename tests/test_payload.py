@@ -205,6 +205,39 @@ def test_another_robots_model_is_refused(puma):
         identify_payload(puma["identified"], records)
 
 
+def test_a_model_file_of_another_robot_is_refused(puma, tmp_path, capsys):
+    """The model file of another 6-joint robot (another URDF: other kinematics and bodies) against the PUMA's records
+    with the payload; and the PUMA's model against a 3-joint robot's record: each refused, naming the problem."""
+    from pathlib import Path
+
+    urdf = (Path(__file__).parents[1] / "dynamics" / "robots" / "arm6_collision.urdf").resolve()
+    other = load_robot(urdf=urdf)
+    other_model = build_model(other, "internal", "viscous")
+    train = simulate(other_model, other_model.nominal_parameters(viscous=VISCOUS),
+                     random_fourier(other, seed=1, frequency_hz=FREQUENCY_HZ), rate_hz=200.0, periods=2,
+                     noise={f"tau{j}": 0.05 for j in range(1, 7)}, seed=3)
+    document = model_file_document(identify(other_model, train, covariance="classical"),
+                                   robot=RobotSource("arm6", None, None, str(urdf), "0" * 64, urdf.read_text()),
+                                   preprocessing=None)
+    with pytest.raises(PayloadError, match="model of arm6 does not explain these records"):
+        identify_payload(IdentifiedModel(ModelFile.from_dict(document)), puma["records"][0])
+    other_json, loaded = tmp_path / "arm6.json", tmp_path / "loaded.csv"
+    other_json.write_text(json.dumps({"model_file": document}))
+    puma["records"][0].write(loaded)
+    assert main(["payload", "--model", str(other_json), "--data", str(loaded), "--out", str(tmp_path / "x.json")]) != 0
+    assert "does not explain these records" in capsys.readouterr().err
+    small = load_robot(urdf=Path(__file__).parent / "data" / "prismatic_arm.urdf")
+    small_model = build_model(small, "internal", "viscous")
+    simulate(small_model, small_model.nominal_parameters(viscous=[1.0, 1.0, 1.0]),
+             random_fourier(small, seed=7, frequency_hz=FREQUENCY_HZ), rate_hz=200.0, seed=4).write(tmp_path / "small.csv")
+    robot_json = tmp_path / "robot.json"
+    robot_json.write_text(json.dumps({"model_file": puma["identified"].file.to_dict()}))
+    assert main(["payload", "--model", str(robot_json), "--data", str(tmp_path / "small.csv"),
+                 "--out", str(tmp_path / "y.json")]) != 0
+    assert "missing column(s) q4, q5, q6" in capsys.readouterr().err
+    assert not (tmp_path / "x.json").exists() and not (tmp_path / "y.json").exists()
+
+
 def test_cli_writes_payload_json_and_predict_uses_it(puma, tmp_path, capsys):
     robot_json = tmp_path / "robot.json"
     robot_json.write_text(json.dumps({"model_file": puma["identified"].file.to_dict()}))
