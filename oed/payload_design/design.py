@@ -17,9 +17,10 @@ covariance propagated through its prediction) is reported apart, for the design 
 is not in the default criterion: it is the robot experiment's to shrink (a longer or better robot record), and the
 quantity the issue's target is set on is the record's. It does depend on the motion, though: the robot model's error
 grows where the motion leaves what its own records covered, and a design for the record's noise drives the motion
-there. Measured on the 6-joint PUMA (benchmarks/bench_payload.py): the default design gives the record-noise standard
-deviations of the mass and the centre of mass 2.5–3x below random excitations' of the same period and bounds, while
-the robot model's share of the mass's grows about 4x. ``robot_share=True`` (``--payload-robot-share``) counts both
+there. Measured on the 6-joint PUMA (benchmarks/bench_payload.py, 12 random excitations, two design seeds): the
+default design gives the record-noise standard deviations of the mass 2.7x and of the centre of mass 2.9–4.5x below
+the random excitations' median of the same period and bounds, while the robot model's share of the mass's grows
+about 4x. ``robot_share=True`` (``--payload-robot-share``) counts both
 parts in the criterion (the information of the stacked columns ``[Y_k | Y_b]``): for when the robot model is what it
 is and the total matters more than the record's part.
 
