@@ -99,7 +99,12 @@ def test_designed_period_beats_random_excitations(robot_json, capsys):
     for j in range(6):
         assert np.abs(table[f"dq{j + 1}"]).max() <= limits["dq_max"][j] * (1 + 1e-6)
         assert np.abs(table[f"ddq{j + 1}"]).max() <= limits["ddq_max"][j] * (1 + 1e-6)
-    assert "payload excitation for link 6" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "payload excitation for link 6" in err and "the robot model's share, apart" in err
+    # worse known in total than random excitations (the robot model's share grew on the motion): said, not hidden
+    worse = designed["mass"] > random["mass"]
+    assert ("warning: in total (the robot model's share included) the design's mass std" in err) == worse
+    assert any("design's mass" in warning for warning in design["warnings"]) == worse
 
 
 def test_payload_design_needs_the_robots_model(robot_json, capsys):
@@ -119,3 +124,22 @@ def test_payload_design_needs_the_robots_model(robot_json, capsys):
     assert main(["design", "--payload", "--from", str(path), "--payload-noise-only", "--payload-robot-share",
                  "--bounds", str(bounds), "--out", str(folder / "x.json")]) != 0
     assert "give one" in capsys.readouterr().err
+
+
+def test_robot_share_in_the_criterion_on_request(robot_json):
+    """``robot_share=True`` (``--payload-robot-share``): the criterion counts the robot model's share too (the
+    stacked columns [Y_k | Y_b]); the design's report is the same two parts either way."""
+    from estimation.identification.identified_model import IdentifiedModel
+    from oed.design_settings import DesignSettings
+    from oed.payload_design import design_payload_excitation
+
+    folder, path, bounds = robot_json
+    model = IdentifiedModel.load(path)
+    settings = DesignSettings(frequency_hz=0.1, harmonics=10, cost_samples=100, max_iter=20)
+    result = design_payload_excitation(model, bounds=JointBounds.from_dict(json.loads(bounds.read_text())),
+                                       robot_share=True, settings=settings, starts=1)
+    assert result.criterion.robot_cov is not None and result.criterion.size > 30  # the stacked information sum
+    assert result.to_dict()["payload_design"]["criterion"]["counts"] == "record_noise+robot_model"
+    designed = result.designed_std
+    assert designed["robot_model"]["mass"] > 0 and result.warnings == ()
+    assert designed["mass"] == pytest.approx(np.hypot(designed["record_noise"]["mass"], designed["robot_model"]["mass"]))

@@ -199,8 +199,28 @@ class PayloadDesignResult:
                                       "noise (what a payload experiment shrinks) and the robot model's own "
                                       "uncertainty propagated (reported apart; null when its prediction is not "
                                       "linear in its parameters), and in total"},
+            "warnings": list(self.warnings),
         }
         return document
+
+    @property
+    def warnings(self) -> tuple[str, ...]:
+        """A warning for each of the mass and the centre of mass (worst axis) the design knows worse *in total* than
+        the random excitations' median: the robot model's share grew on its motion past what the record's noise
+        gained (the criterion counting the record's noise alone)."""
+        designed, random = self.designed_std, self.random_std
+        if self.criterion.robot_cov is not None or designed["robot_model"] is None:
+            return ()
+        found = []
+        for label, unit, scale, ours, theirs in (
+                ("mass", "g", 1e3, designed["mass"], random["mass"]),
+                ("centre of mass", "mm", 1e3, max(designed["com"]), max(random["com"]))):
+            if ours > theirs:
+                found.append(f"in total (the robot model's share included) the design's {label} std {scale * ours:.3g} "
+                             f"{unit} exceeds random excitations' {scale * theirs:.3g} {unit}: its motion goes where "
+                             "the robot model is less known; --payload-robot-share counts that share in the "
+                             "criterion, and a longer robot record lowers it")
+        return tuple(found)
 
     def table(self, rate_hz: float = 1000.0) -> tuple[list[str], NDArray[np.float64]]:
         """Columns ``t, q1..qn, dq1..dqn, ddq1..ddqn`` and the samples of one period at ``rate_hz`` (``--csv``)."""

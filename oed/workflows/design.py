@@ -312,7 +312,7 @@ def design_payload(args: DesignOptions, say: Callable[[str], None]) -> DesignRun
                                title=f"{model.robot.name}: payload excitation")
 
     lines = (result.summary(), f"{result.design.total_time_s:.2f} s")
-    return DesignRun(result.to_dict(), lines, (), result, figure, result.trajectory, settings.rate_hz)
+    return DesignRun(result.to_dict(), lines, result.warnings, result, figure, result.trajectory, settings.rate_hz)
 
 
 def sequential_requested(args: DesignOptions) -> bool:
