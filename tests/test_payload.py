@@ -44,14 +44,20 @@ def noise_of(model, theta) -> dict[str, float]:
     return {f"tau{j + 1}": 0.01 * span for j, span in enumerate(np.ptp(clean.tau, axis=0))}
 
 
-@pytest.fixture(scope="module")
-def puma():
-    robot = load_robot("puma560")
-    model = build_model(robot, "internal", "viscous")
+def puma_with_payload():
+    """``(model, theta, loaded, noise)``: the PUMA's viscous internal model, its parameters without and with
+    :data:`PAYLOAD` on link 6, and the torque noise (1 % of each joint's range)."""
+    model = build_model(load_robot("puma560"), "internal", "viscous")
     theta = model.nominal_parameters(viscous=VISCOUS)
     loaded = theta.copy()
     loaded[50:60] += PAYLOAD
-    noise = noise_of(model, loaded)
+    return model, theta, loaded, noise_of(model, loaded)
+
+
+@pytest.fixture(scope="module")
+def puma():
+    model, theta, loaded, noise = puma_with_payload()
+    robot = model.robot
     train = simulate(model, theta, random_fourier(robot, seed=1, frequency_hz=FREQUENCY_HZ), rate_hz=RATE_HZ,
                      periods=3, noise=noise, seed=3)
     records = [simulate(model, loaded, random_fourier(robot, seed=seed, frequency_hz=FREQUENCY_HZ), rate_hz=RATE_HZ,
