@@ -4,7 +4,7 @@
 
     result = diagnose_files(model, ["run1.parquet", "run2.parquet"], ["check.parquet"], chunk_size=10_000,
                             executor=client.get_executor())
-    result.to_dict()   # the ``oed diagnose`` document (same keys), with ``diagnosis_path: "streamed"``
+    result.to_dict()   # the ``oed diagnose`` document (the in-memory Diagnosis, same keys), ``diagnosis_path: "streamed"``
 
 Passes over the data (each file one task on any ``concurrent.futures.Executor``, as
 :func:`estimation.streaming.cluster.sum_files`; the chunks preprocessed on overlapping windows,
@@ -65,8 +65,8 @@ from estimation.streaming.covariance import sandwich
 from estimation.streaming.diagnosis_passes import (FLOOR_WINDOW, SumsPass, scores_pass, subsample_pass,
                                                   sums_pass, window_floor)
 from estimation.streaming.diagnosis_candidates import StreamedCandidates, streamed_candidates
-from estimation.streaming.diagnosis_result import (StreamedDiagnosis, StreamedRun, StreamedSettings, streamed_result,
-                                                  streaming_record)
+from estimation.diagnosis.results import Diagnosis
+from estimation.streaming.diagnosis_result import StreamedRun, StreamedSettings, streamed_result, streaming_record
 from estimation.streaming.diagnosis_sums import ChannelSums, normal_equations
 from estimation.streaming.periods import plan_options
 from estimation.streaming.selection import SummedFits, simpler_laws, summed_runner_up
@@ -192,7 +192,7 @@ def diagnose_files(
     floor_window: int = FLOOR_WINDOW,
     executor: Any = None,
     preprocessing: Preprocessing | None = None,
-) -> StreamedDiagnosis:
+) -> Diagnosis:
     """Diagnose ``model`` on the training ``paths``, confirmed on the ``validate`` files, in bounded memory.
 
     The settings are those of :func:`estimation.diagnosis.search.diagnose`; ``chunk_size``, ``cutoff_hz``,
