@@ -154,6 +154,39 @@ def test_in_memory_and_streamed_make_the_same_choices(tmp_path, records, capsys,
         for which in ("before", "after"):
             np.testing.assert_allclose(list(streamed["validation"][which]["mse"].values()),
                                        list(memory["validation"][which]["mse"].values()), rtol=0.05)
+        # one document: the streamed one has every key of the in-memory one, and says why each it lacks is None
+        assert set(memory) <= set(streamed) and set(memory["validation"]) <= set(streamed["validation"])
+        missing = {key for key, value in streamed.items() if value is None and memory.get(key) is not None}
+        assert missing and missing <= set(streamed["not_computed"])
+        assert all(streamed["not_computed"].values()) and memory["not_computed"] == {}
+
+
+def test_one_result_type_whichever_the_path(records):
+    """``oed.diagnose`` in memory and streamed (a tiny budget): one result type, the same fields filled (the
+    errors before and after, the floor against them), the summary in the same form."""
+    import oed
+    from estimation.diagnosis.results import Diagnosis
+
+    options = dict(joints=3, model="internal", friction="viscous", data=records[0], validate=records[1], cutoff=6.0)
+    memory, streamed = oed.diagnose(**options), oed.diagnose(**options, memory_budget="1000")
+    assert (memory.diagnosis.path, streamed.diagnosis.path) == ("in-memory", "streamed")
+    for run in (memory, streamed):
+        diagnosis = run.diagnosis
+        assert type(diagnosis) is Diagnosis
+        document, own = run.to_dict(), diagnosis.to_dict()
+        assert set(own) <= set(document)
+        for key in ("effects", "rejected", "train", "cov_method", "noise_floor", "floor_comparison", "diagnosis_path",
+                    "tracing", "whiteness", "residuals", "not_computed"):
+            assert document[key] == own[key], key
+        for which in ("before", "after"):
+            fit = getattr(diagnosis, which)
+            assert set(fit.validation.mse) == set(fit.train.mse) == {"tau1", "tau2", "tau3"}
+            assert diagnosis.statistics.ratios(which)
+        assert any(line.startswith("  after / floor") for line in run.summary())
+        assert "validation MSE vs recorded" in run.summary()
+    assert streamed.diagnosis.residuals is None and "residuals" in streamed.diagnosis.not_computed
+    assert streamed.diagnosis.statistics.tracing is None and memory.diagnosis.statistics.tracing is not None
+    assert [e.spec for e in streamed.diagnosis.effects] == [e.spec for e in memory.diagnosis.effects]
 
 
 def test_progress_lines_go_to_stderr_unless_quiet(capsys):
