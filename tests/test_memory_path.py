@@ -189,6 +189,50 @@ def test_one_result_type_whichever_the_path(records):
     assert [e.spec for e in streamed.diagnosis.effects] == [e.spec for e in memory.diagnosis.effects]
 
 
+def test_a_long_step_says_so_while_it_runs(capsys):
+    """A step past the limit says so while it runs (its watcher's wait timed out), then how long it took (a fake
+    clock); a short one says nothing; nothing is watched unless a program shows the lines."""
+    import io
+
+    def timed_out(done, seconds):
+        assert not done.is_set() and seconds == 2.0  # asked while the step runs, for the limit
+        return False
+
+    stream = io.StringIO()
+    with progress.show_progress("oed test", stream=stream):
+        ticks = iter([10.0, 15.5])
+        with progress.step("a pass", clock=lambda: next(ticks), wait=timed_out):
+            pass
+        ticks = iter([20.0, 20.5])
+        with progress.step("a short pass", clock=lambda: next(ticks), wait=lambda done, seconds: done.wait()):
+            pass
+    assert stream.getvalue().splitlines() == ["oed test: a pass: running (over 2 s)", "oed test: a pass: 5.5 s"]
+    ticks = iter([0.0, 0.0])
+    with progress.step("unseen", clock=lambda: next(ticks), wait=timed_out):
+        pass
+    assert capsys.readouterr().err == ""
+
+
+def test_a_long_step_is_said_by_its_watcher_before_it_ends():
+    """With the real wait: a step that outlasts a short limit is said while still running."""
+    import io
+    import threading
+
+    stream, said = io.StringIO(), threading.Event()
+
+    class Written(io.StringIO):
+        def write(self, text):
+            stream.write(text)
+            said.set()
+            return len(text)
+
+    with progress.show_progress("oed test", stream=Written()):
+        with progress.step("a long pass", seconds=0.01):
+            assert said.wait(30.0)  # the line comes while the step runs
+            assert stream.getvalue() == "oed test: a long pass: running (over 0.01 s)\n"
+    assert stream.getvalue().splitlines()[-1].startswith("oed test: a long pass: ")
+
+
 def test_progress_lines_go_to_stderr_unless_quiet(capsys):
     with progress.show_progress("oed test"):
         with progress.step("a pass", seconds=0.0):
