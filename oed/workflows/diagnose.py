@@ -42,7 +42,7 @@ from estimation.preprocessing.plan import Preprocessing
 from estimation.streaming.diagnosis import DEFAULT_SUBSAMPLE, diagnose_files
 from estimation.streaming.recorded_errors import streamed_plan
 from estimation.estimators.normal_equations import DEFAULT_CHUNK_SIZE
-from estimation.data.input_findings import grouped_messages
+from estimation.data.input_findings import FindingsSaid
 from estimation.data.log_cleaning import DEFAULT_MAX_GAP
 from estimation.streaming.diagnosis_passes import FLOOR_WINDOW
 from estimation.uncertainty.noise_floor import NoiseFloor
@@ -272,7 +272,7 @@ def run_diagnose(args: DiagnoseOptions, *, say: Callable[[str], None]) -> Diagno
         check_shaped_effects_kept(effects, model)
         decision = decide_path(args, model, task="diagnosing", bytes_per_value=IN_MEMORY.bytes_per_value,
                                in_memory_only=lambda: in_memory_only(args, model, delay), say=say)
-        diagnosed = (diagnosis_streamed(args, friction, decision.plan) if decision.stream
+        diagnosed = (diagnosis_streamed(args, friction, decision.plan, decision.findings) if decision.stream
                      else diagnosis_in_memory(args, model, transmission, delay, decision.plan))
     document = diagnose_document(args, diagnosed)
     return DiagnoseRun(document, tuple(summary_lines(args, diagnosed, document)), tuple(diagnosed.messages),
@@ -580,24 +580,31 @@ def check_streamed_arguments(args: DiagnoseOptions, model: IdentificationModel) 
             raise ValueError(f"--{option.replace('_', '-')} must be a positive integer, got {value}")
 
 
-def diagnosis_streamed(args: DiagnoseOptions, friction: str, plan: Preprocessing | None = None) -> Diagnosed:
+def diagnosis_streamed(args: DiagnoseOptions, friction: str, plan: Preprocessing | None = None,
+                       findings: FindingsSaid | None = None) -> Diagnosed:
     """Diagnose the files read in blocks (:func:`estimation.streaming.diagnosis.diagnose_files`), their
-    derivatives chosen as in memory (``plan``: already chosen); ``friction``: the declared effects without the delay."""
+    derivatives chosen as in memory (``plan``: already chosen); ``friction``: the declared effects without the delay.
+    The findings about the files are said as each pass ends, each once (``findings``: what the path decision said
+    already)."""
     robot = robot_of(args)
     effects = model_effects(args, friction, robot, None)
     model = build_model(robot, args.model, effects)
     check_shaped_effects_kept(effects, model)
     check_streamed_arguments(args, model)
     chunk_size = DEFAULT_CHUNK_SIZE if args.chunk_size is None else args.chunk_size
+    if findings is None:  # each pass's findings said as it ends, each once
+        findings = FindingsSaid([*args.data, *args.validate])
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         if plan is None:
-            plan = streamed_choice(args, model).chosen
+            with findings.reading():
+                plan = streamed_choice(args, model).chosen
         with executor_for(args) as executor:
             diagnosis = diagnose_files(model, args.data, args.validate, chunk_size=chunk_size, alpha=args.alpha,
                                        max_effects=args.max_effects, subsample=args.subsample,
-                                       floor_window=args.floor_window, executor=executor, preprocessing=plan)
-    messages = grouped_messages(caught, [*args.data, *args.validate])  # one line per finding across files
+                                       floor_window=args.floor_window, executor=executor, preprocessing=plan,
+                                       findings=findings)
+    messages = caught_messages(caught)  # the findings as said (one line per finding across files), the others
     cutoff_hz = diagnosis.streaming["cutoff_hz"]
     if plan.method == "fourier":
         model_file = plan.to_dict(), None
