@@ -274,9 +274,9 @@ def run_diagnose(args: DiagnoseOptions, *, say: Callable[[str], None]) -> Diagno
                                in_memory_only=lambda: in_memory_only(args, model, delay), say=say)
         diagnosed = (diagnosis_streamed(args, friction, decision.plan, decision.findings) if decision.stream
                      else diagnosis_in_memory(args, model, transmission, delay, decision.plan))
-    document = diagnose_document(args, diagnosed)
-    return DiagnoseRun(document, tuple(summary_lines(args, diagnosed, document)), tuple(diagnosed.messages),
-                       diagnosed.diagnosis, diagnosed.records, diagnosed.untouched)
+    document, messages = diagnose_document(args, diagnosed)
+    return DiagnoseRun(document, tuple(summary_lines(args, diagnosed, document)), messages, diagnosed.diagnosis,
+                       diagnosed.records, diagnosed.untouched)
 
 
 @dataclass(frozen=True)
@@ -292,7 +292,7 @@ class Diagnosed:
     describe
         The preprocessing in one line (the summary's first).
     messages
-        The warnings said, in order.
+        The warnings said, in order (the model files' come after them: :func:`diagnose_document`).
     records, untouched, selection, transmission, notes
         In memory: the prepared records, the test record's errors, the default answer
         (:func:`diagnosis_selection`), the transmission, the run's own notes; ``None`` or empty when streamed.
@@ -305,7 +305,7 @@ class Diagnosed:
     diagnosis: Diagnosis
     preprocessing: dict[str, Any]
     describe: str
-    messages: list[str]
+    messages: tuple[str, ...]
     records: PreparedRecords | None = None
     untouched: UntouchedErrors | None = None
     selection: ModelSelection | None = None
@@ -359,14 +359,14 @@ def diagnosis_in_memory(args: DiagnoseOptions, model: IdentificationModel, trans
         with step("the default answer: the adopted model or its consistent refit"):
             selection = diagnosis_selection(args, diagnosis, records)
     return Diagnosed(diagnosis, records.preprocessing.to_dict(), records.preprocessing.describe(),
-                     caught_messages(caught) + list(notes), records=records, untouched=untouched, selection=selection,
+                     (*caught_messages(caught), *notes), records=records, untouched=untouched, selection=selection,
                      transmission=transmission, notes=notes)
 
 
-def diagnose_document(args: DiagnoseOptions, diagnosed: Diagnosed) -> dict[str, Any]:
+def diagnose_document(args: DiagnoseOptions, diagnosed: Diagnosed) -> tuple[dict[str, Any], tuple[str, ...]]:
     """``report.json`` (the same keys on both paths: :meth:`estimation.diagnosis.results.Diagnosis.to_dict`, the
-    preprocessing, the held-out and chosen models' errors, the model files); adds the model files' warnings to
-    ``diagnosed.messages``."""
+    preprocessing, the held-out and chosen models' errors, the model files), and the run's warnings with those of
+    its model files."""
     diagnosis = diagnosed.diagnosis
     document = diagnosis.to_dict()
     records, selection = diagnosed.records, diagnosed.selection
@@ -385,8 +385,8 @@ def diagnose_document(args: DiagnoseOptions, diagnosed: Diagnosed) -> dict[str, 
         if document["test"] is not None:  # the chosen model's error on the test record (what `oed predict` gives)
             document["test"]["chosen"] = {"name": selection.chosen, "mse": dict(
                 untouched.after if selection.chosen != "consistent" else document["consistent"]["test"]["mse"])}
-        diagnosed.messages.extend(add_model_file(document, diagnosis.after, args, records.preprocessing,
-                                                 diagnosed.transmission, consistent=consistent, selection=selection))
+        files = add_model_file(document, diagnosis.after, args, records.preprocessing, diagnosed.transmission,
+                               consistent=consistent, selection=selection)
         add_runner_up_model_file(document, diagnosis.runner_up, args, records.preprocessing, diagnosed.transmission)
     else:
         # the model file: the final model's estimate from the sums; on the filter path (and with measured
@@ -395,15 +395,15 @@ def diagnose_document(args: DiagnoseOptions, diagnosed: Diagnosed) -> dict[str, 
         # `oed predict` repeats
         model_plan, validation_mse = diagnosed.model_file
         after, runner_up = diagnosis.after, diagnosis.runner_up
-        diagnosed.messages.extend(add_summed_model_file(
-            document, diagnosis.final_model(), after.estimate, args, model_plan, shape=diagnosis.final_shape(),
-            recorded_mse=after.train.mse, validation_mse=validation_mse))
+        files = add_summed_model_file(document, diagnosis.final_model(), after.estimate, args, model_plan,
+                                      shape=diagnosis.final_shape(), recorded_mse=after.train.mse,
+                                      validation_mse=validation_mse)
         add_summed_runner_up_model_file(document, runner_up, args, model_plan, None if validation_mse is None or
                                         runner_up is None else runner_up.validation_mse)
     document["diagnosis_path"] = diagnosis.path
     document["max_effects"] = args.max_effects
     document["max_effects_reached"] = len(diagnosis.effects) >= args.max_effects
-    return document
+    return document, (*diagnosed.messages, *files)
 
 
 def diagnosis_selection(args: DiagnoseOptions, diagnosis: Diagnosis, records: PreparedRecords) -> ModelSelection:
@@ -604,7 +604,7 @@ def diagnosis_streamed(args: DiagnoseOptions, friction: str, plan: Preprocessing
                                        max_effects=args.max_effects, subsample=args.subsample,
                                        floor_window=args.floor_window, executor=executor, preprocessing=plan,
                                        findings=findings)
-    messages = caught_messages(caught)  # the findings as said (one line per finding across files), the others
+    messages = tuple(caught_messages(caught))  # the findings as said (one line per finding across files), others
     cutoff_hz = diagnosis.streaming["cutoff_hz"]
     if plan.method == "fourier":
         model_file = plan.to_dict(), None
