@@ -161,7 +161,7 @@ def test_in_memory_and_streamed_make_the_same_choices(tmp_path, records, capsys,
         assert all(streamed["not_computed"].values()) and memory["not_computed"] == {}
 
 
-def test_one_result_type_whichever_the_path(records):
+def test_one_result_type_whichever_the_path(records, tmp_path):
     """``oed.diagnose`` in memory and streamed (a tiny budget): one result type, the same fields filled (the
     errors before and after, the floor against them), the summary in the same form."""
     import oed
@@ -187,6 +187,15 @@ def test_one_result_type_whichever_the_path(records):
     assert streamed.diagnosis.residuals is None and "residuals" in streamed.diagnosis.not_computed
     assert streamed.diagnosis.statistics.tracing is None and memory.diagnosis.statistics.tracing is not None
     assert [e.spec for e in streamed.diagnosis.effects] == [e.spec for e in memory.diagnosis.effects]
+    # one report builder: the streamed run's report has the same sections but the figures, and says what it lacks
+    streamed.write(tmp_path / "r.json", report=tmp_path / "r.md")
+    text = (tmp_path / "r.md").read_text()
+    assert "## Parameters of the diagnosed model" in text and "## Not computed on this path" in text
+    assert "- tracing: residual tracing needs the residuals sample by sample" in text
+    assert sorted(path.name for path in tmp_path.iterdir()) == ["r.json", "r.md"]
+    assert "<img" not in streamed.html() and "<img" in memory.html()
+    with pytest.raises(ValueError, match="need the samples"):
+        streamed.plot_residuals(tmp_path / "r.png")
 
 
 def test_a_long_step_says_so_while_it_runs(capsys):

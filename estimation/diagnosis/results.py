@@ -191,6 +191,11 @@ class Diagnosis:
         """The declared model."""
         return self.before.model
 
+    @property
+    def cov_method(self) -> str:
+        """How the final estimate's covariance was had (the document's ``cov_method``)."""
+        return self.after.cov_method if isinstance(self.after, SummedFit) else self.after.estimate.cov_method
+
     def final_model(self) -> IdentificationModel:
         """The declared model with the effects found: ``after`` holds its estimate (in the order of its columns)."""
         return self.after.model
@@ -202,7 +207,6 @@ class Diagnosis:
     def to_dict(self) -> dict[str, Any]:
         """The JSON document of ``oed diagnose`` (the same keys on both paths; ``None`` where :attr:`not_computed`
         says why)."""
-        cov_method = self.after.cov_method if isinstance(self.after, SummedFit) else self.after.estimate.cov_method
         document = {
             "robot": self.before.model.robot.name,
             "model": self.before.model.kind.value,
@@ -217,7 +221,7 @@ class Diagnosis:
                 "before": {"mse": self.before.validation.mse if self.before.validation else None},
                 "after": {"mse": self.after.validation.mse if self.after.validation else None},
             },
-            "cov_method": cov_method,
+            "cov_method": self.cov_method,
             "pinned": [term.to_dict() for term in self.pinned],
             "runner_up": None if self.runner_up is None else self.runner_up.to_dict(),
             "runner_up_reason": self.runner_up_reason,

@@ -179,9 +179,11 @@ class DiagnoseRun:
         """The report a person reads (:func:`estimation.diagnosis.report.diagnosis_report`): the parameters with
         their uncertainties, the choices made, every warning, the errors before and after, measured against
         predicted on the validation and test records, the floor and what the residual follows. One document,
-        written as Markdown (:meth:`markdown`) or HTML (:meth:`html`)."""
-        self._check_in_memory()
+        written as Markdown (:meth:`markdown`) or HTML (:meth:`html`). A streamed run's report has no figures (no
+        samples held) and says what its path did not compute."""
         diagnosis, records = self.diagnosis, self.records
+        if records is None:  # streamed
+            return diagnosis_report(diagnosis, preprocessing=self.lines[0], warnings=self.warnings)
         validation = (diagnosis.before.validation, diagnosis.after.validation)
         test = None
         if self.untouched is not None and records.test is not None:
@@ -216,8 +218,6 @@ class DiagnoseRun:
         (:func:`report_figures`) or HTML with them inline, by the suffix: all files or none."""
         check_json_path(out)
         check_report_path(report)
-        if report is not None:
-            self._check_in_memory()
         with OutputFiles() as outputs:
             with outputs.open(out) as stream:
                 stream.write(json_text(self.document))
@@ -226,8 +226,8 @@ class DiagnoseRun:
 
     def _check_in_memory(self) -> None:
         if self.records is None:
-            raise ValueError("--report: not with the streamed path (--chunk-size, --scheduler or --workers), which "
-                             "writes the JSON report only")
+            raise ValueError("the residual figures need the samples: not with the streamed path (--chunk-size, "
+                             "--scheduler, --workers or a record over --memory-budget), which holds none")
 
 
 def diagnose(*, say: Callable[[str], None] | None = None, **options: Any) -> DiagnoseRun:
