@@ -20,6 +20,7 @@ from dynamics.models import IdentificationModel
 from estimation.identification.preprocessing_choice import SCORED_SAMPLES, PreprocessingChoice
 from estimation.preprocessing.differentiation import whole_periods
 from estimation.preprocessing.plan import Preprocessing
+from estimation.data.input_findings import FindingsSaid, grouped_messages
 from estimation.streaming.cutoff_choice import choose_streamed_preprocessing, first_rows
 from estimation.data.memory_budget import (
     InMemoryNeed,
@@ -28,7 +29,7 @@ from estimation.data.memory_budget import (
     estimate_in_memory,
     parse_memory_size,
 )
-from oed.workflows.options import RecordOptions, caught_messages, streaming_requested
+from oed.workflows.options import RecordOptions, streaming_requested
 
 __all__ = ["PathDecision", "decide_path", "streamed_choice"]
 
@@ -45,11 +46,15 @@ class PathDecision:
         The derivatives chosen before reading (``None``: the in-memory path chooses them as it reads).
     need
         The in-memory estimate against the budget (``None`` when streaming was asked for).
+    findings
+        What was said about the files while choosing the derivatives (``None`` when nothing was read): the
+        streamed run goes on with it, so that its passes do not say those findings again.
     """
 
     stream: bool
     plan: Preprocessing | None = None
     need: InMemoryNeed | None = None
+    findings: FindingsSaid | None = None
 
 
 def budget_of(args: RecordOptions) -> int:
@@ -105,8 +110,11 @@ def decide_path(args: RecordOptions, model: IdentificationModel, *, task: str, b
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         plan = streamed_choice(args, model, train).chosen
-    for message in caught_messages(caught):
+    sources = [*args.data, *(args.validate or ()), *(getattr(args, "test", None) or ())]
+    for message in grouped_messages(caught, sources):  # one line per finding across files
         say(f"warning: {message}")
+    findings = FindingsSaid(sources)
+    findings.mark(caught)
     kept = averaged_rows(plan, args, model, train)
     if kept is not None:
         need = estimate_in_memory(train + held_out, model, bytes_per_value=bytes_per_value, budget=budget,
@@ -118,5 +126,5 @@ def decide_path(args: RecordOptions, model: IdentificationModel, *, task: str, b
         say(f"{need.describe(task)}, but {plan.describe_method()} of every sample is made in memory: in memory")
         return PathDecision(False, plan, need)
     say(need.describe(task) + " (--memory-budget to change it, --chunk-size to set the chunks)")
-    return PathDecision(True, plan, need)
+    return PathDecision(True, plan, need, findings)
 
