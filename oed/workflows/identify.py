@@ -329,7 +329,8 @@ def identify_in_memory(args: IdentifyOptions, robot: RobotModel, model: Identifi
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         records = prepare_records(model, args.data, args.validate or (),  # reports its steps
-                                  settings=replace(preparation_settings(args, transmission, IN_MEMORY), plan=plan))
+                                  settings=replace(preparation_settings(args, transmission, IN_MEMORY), plan=plan,
+                                                   validation_fits=validation_fits(args, model, delay)))
         train = records.train.measurements
         validation = None if records.validation is None else records.validation.measurements
         with step("weighting chosen on held-out blocks"):
@@ -370,6 +371,16 @@ def identify_in_memory(args: IdentifyOptions, robot: RobotModel, model: Identifi
     return IdentifyRun(document, tuple(lines), tuple(messages), result, streamed=False,
                        title=f"{robot.name}: {model.kind.value} model ({result.estimate.method})",
                        preprocessing=records.preprocessing.describe())
+
+
+def validation_fits(args: IdentifyOptions, model: IdentificationModel, delay: DelayBounds | None) -> tuple[str, ...]:
+    """The unconstrained fits that choose the derivatives on a validation record of another motion
+    (:mod:`estimation.identification.preprocessing_on_validation`): the weighting asked for, else both; none
+    with a delay search or shaped laws (fitted by a search each, not repeated for every candidate: the
+    training record's choice is kept)."""
+    if delay is not None or model_has_shapes(model):
+        return ()
+    return ("ols", "wls") if args.method == "auto" else (args.method,)
 
 
 def floor_check(records: PreparedRecords, model: IdentificationModel, result: IdentificationResult,
