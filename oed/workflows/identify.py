@@ -202,7 +202,8 @@ def run_identify(args: IdentifyOptions, *, say: Callable[[str], None]) -> Identi
         check_streamed_request(args, model)
         return identify_streaming(args, robot, model)
     decision = decide_path(args, model, task="identifying", bytes_per_value=IN_MEMORY.bytes_per_value,
-                           in_memory_only=lambda: in_memory_only(args, model, delay), say=say)
+                           in_memory_only=lambda: in_memory_only(args, model, delay), say=say,
+                           validation_fits=validation_fits(args, model, delay))
     if decision.stream:
         return identify_streaming(args, robot, model, decision.plan)
     return identify_in_memory(args, robot, model, transmission, delay, decision.plan)
@@ -216,7 +217,7 @@ def identify_streaming(args: IdentifyOptions, robot: RobotModel, model: Identifi
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         if plan is None:
-            plan = streamed_choice(args, model).chosen
+            plan = streamed_choice(args, model, validation_fits=validation_fits(args, model, None)).chosen
         options = plan_options(plan)
         weighting = choose_weighting(model, weighting_samples(streamed_window(args.data, model), plan)) \
             if args.method == "auto" else None  # on the samples the in-memory path chooses it on
