@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import warnings
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -15,6 +16,7 @@ from dynamics.measurements import Measurements
 from dynamics.models import build_model
 from dynamics.robots import load_robot
 from dynamics.simulation.synthetic import simulate, true_parameters
+from estimation.consistent.model_selection import validation_base
 from estimation.estimators.least_squares import LeastSquares, WeightedLeastSquares, stack
 from estimation.identification.fit import identify
 from estimation.identification.prepared import PreparationSettings, prepare_records, read_files
@@ -128,3 +130,16 @@ def test_oed_identify_writes_the_validation_candidates_and_says_how_it_chose(set
     assert document["selection"] == "validation" and document["held_out_choice"]
     assert document["validation_candidates"][0]["cutoff_hz"] == document["cutoff_hz"]
     assert {candidate["fit"] for candidate in document["validation_candidates"]} <= {"ols", "wls"}
+
+
+def test_the_consistent_fit_starts_from_the_weighting_the_other_motion_prefers():
+    def fitted(**mse):
+        return SimpleNamespace(validation=SimpleNamespace(mse=mse, channels=tuple(mse)))
+
+    fits = {"ols": fitted(tau1=1.0, tau2=2.0), "wls": fitted(tau1=1.5, tau2=2.0)}
+    assert validation_base(fits.__getitem__, "wls") == "ols"
+    fits["wls"] = fitted(tau1=0.5, tau2=2.0)
+    assert validation_base(fits.__getitem__, "ols") == "wls"
+    fits["wls"] = fitted(tau1=1.0, tau2=2.0)  # a tie: the training record's own preference
+    assert validation_base(fits.__getitem__, "wls") == "wls"
+    assert validation_base(fits.__getitem__, "ols") == "ols"

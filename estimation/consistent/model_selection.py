@@ -36,7 +36,7 @@ the delay held at their fitted values) as the two candidates: the default answer
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, Literal
 
@@ -300,7 +300,7 @@ def select_model(model: IdentificationModel, train: Measurements, validation: Me
         return known[name]
 
     if given is None and validation is not None and repeated_motion(train, validation) > REPEAT_FRACTION:
-        base = validation_base(model, unconstrained, validation, base)
+        base = validation_base(unconstrained, base)
     if given in ("ols", "wls"):
         wanted: tuple[str, ...] = (given,)
     elif given == "consistent":
@@ -330,7 +330,7 @@ def select_model(model: IdentificationModel, train: Measurements, validation: Me
     return select_fitted(candidates, train, validation, base=base, given=given)
 
 
-def validation_base(model: IdentificationModel, unconstrained: Any, validation: Measurements,
+def validation_base(unconstrained: Callable[[str], IdentificationResult],
                     base: Literal["ols", "wls"]) -> Literal["ols", "wls"]:
     """The unconstrained fit the consistent candidate is refitted from when the validation record is another
     motion: of ``ols`` and ``wls`` (``unconstrained(name)`` fits them), the one of the smaller validation score
