@@ -54,13 +54,19 @@ import numpy as np
 
 from dynamics.measurements import Measurements
 from dynamics.models import IdentificationModel
+from dynamics.runtime.memory import available_memory
 from dynamics.runtime.processes import run_tasks, worker_count
 from dynamics.runtime.progress import SECONDS as PROGRESS_SECONDS
 from dynamics.runtime.progress import report
 from dynamics.runtime.threads import single_threaded_blas
 from estimation.data.segments import concatenate
 from estimation.estimators.least_squares import LeastSquares, WeightedLeastSquares, stack
-from estimation.identification.preprocessing_choice import MIN_PARALLEL_SCORES, geometric_mean
+from estimation.identification.preprocessing_choice import (
+    MIN_PARALLEL_SCORES,
+    SCORED_SAMPLES,
+    geometric_mean,
+    scored_window,
+)
 from estimation.identification.repeated_motion import REPEAT_FRACTION, repeated_motion
 from estimation.identification.validation import compare
 from estimation.preprocessing.plan import (
@@ -78,6 +84,9 @@ __all__ = ["FITS", "TIE_DIGITS", "ValidationScore", "choose_on_validation", "cho
 FITS = ("ols", "wls")
 #: scores equal to this many significant digits are a tie (the tie rule decides)
 TIE_DIGITS = 6
+#: what scoring one candidate holds at its peak: bytes a sample, channel and base parameter (the stacked
+#: regressor, its weighted copy and the predictions); fewer processes score side by side when memory is short
+BYTES_PER_VALUE = 3 * 8
 
 
 @dataclass(frozen=True)
@@ -171,8 +180,11 @@ def choose_on_validation(model: IdentificationModel, train: Sequence[Measurement
     score = ValidationScore(model, tuple(fits))
     unique = list(dict.fromkeys(plan.without_evidence() for plan in plans))
     started = time.perf_counter()
-    scored = run_tasks([functools.partial(score, tuple(train), tuple(validation), plan) for plan in unique],
-                       worker_count(jobs, len(unique), min_tasks=MIN_PARALLEL_SCORES))
+    samples = sum(segment.n_samples for segment in (*train, *validation))
+    task_bytes = BYTES_PER_VALUE * samples * model.n_channels * model.n_base
+    workers = min(worker_count(jobs, len(unique), min_tasks=MIN_PARALLEL_SCORES),
+                  max(1, int(available_memory() // (2 * task_bytes))))  # the same choice whatever the number
+    scored = run_tasks([functools.partial(score, tuple(train), tuple(validation), plan) for plan in unique], workers)
     evidence = tuple(sorted(on_same_samples(scored), key=lambda item: (item.score, tie_key(item.preprocessing))))
     finite = [item for item in evidence if np.isfinite(item.score)]
     if not finite:
@@ -196,13 +208,25 @@ def chooses_on_validation(chosen: Preprocessing, train: Sequence[Measurements],
     return repeated_motion(concatenate(train), concatenate(validation)) > REPEAT_FRACTION
 
 
+def window(segment: Measurements) -> Measurements:
+    """A validation segment's first :data:`~estimation.identification.preprocessing_choice.SCORED_SAMPLES`
+    samples (all of them when it holds fewer): what the streamed path reads of a validation file."""
+    return segment if segment.n_samples <= SCORED_SAMPLES else segment.select(slice(0, SCORED_SAMPLES))
+
+
 def on_validation(chosen: Preprocessing, model: IdentificationModel, train: Sequence[Measurements],
                   validation: Sequence[Measurements], *, fits: tuple[str, ...] = FITS,
                   jobs: int | None = None) -> Preprocessing:
     """``chosen`` (the training record's choice, with its evidence) chosen again among the same candidates on
     the validation record when that is another motion (:func:`chooses_on_validation`), else ``chosen`` as it is.
+    Scored on windows, as the training record's choice is: the training record's
+    (:func:`~estimation.identification.preprocessing_choice.scored_window`: the whole record up to
+    :data:`~estimation.identification.preprocessing_choice.SCORED_SAMPLES` samples) and each validation segment's
+    first :data:`~estimation.identification.preprocessing_choice.SCORED_SAMPLES` samples (:func:`window`), so
+    that memory stays bounded and the streamed path, which reads those windows, chooses alike.
     The plan returned carries both: ``evidence.candidates`` (the training record's scores) and
     ``evidence.validation`` (the validation scores), with ``evidence.selection`` ``"validation"``."""
+    train, validation = scored_window(train), [window(segment) for segment in validation]
     if chosen.evidence is None or not chooses_on_validation(chosen, train, validation):
         return chosen
     plans = [item.preprocessing for item in chosen.evidence.candidates]
