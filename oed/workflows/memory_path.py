@@ -63,13 +63,15 @@ def budget_of(args: RecordOptions) -> int:
 
 
 def streamed_choice(args: RecordOptions, model: IdentificationModel,
-                    rows: Sequence[int] | None = None) -> PreprocessingChoice:
+                    rows: Sequence[int] | None = None, *, validation_fits: tuple[str, ...] = ()) -> PreprocessingChoice:
     """The derivatives of ``--data``, chosen as in memory (the same window, candidates and rule), with the
-    derivative options given."""
+    derivative options given; ``validation_fits``: chosen again on a ``--validate`` record of another motion, as
+    in memory (:mod:`estimation.identification.preprocessing_on_validation`)."""
+    validation = getattr(args, "validate", None) or ()
     return choose_streamed_preprocessing(args.data, model, frequency_hz=args.frequency, harmonics=args.harmonics,
                                          cutoff_hz=args.cutoff, average_periods=args.average_periods,
                                          decimation=args.decimate, held_torques=args.held_torques, rows=rows,
-                                         held_out=getattr(args, "validate", None) or ())
+                                         held_out=validation, validation=validation, validation_fits=validation_fits)
 
 
 def averaged_rows(plan: Preprocessing, args: RecordOptions, model: IdentificationModel,
@@ -88,10 +90,12 @@ def averaged_rows(plan: Preprocessing, args: RecordOptions, model: Identificatio
 
 
 def decide_path(args: RecordOptions, model: IdentificationModel, *, task: str, bytes_per_value: float,
-                in_memory_only: Callable[[], str | None], say: Callable[[str], None]) -> PathDecision:
+                in_memory_only: Callable[[], str | None], say: Callable[[str], None],
+                validation_fits: tuple[str, ...] = ()) -> PathDecision:
     """The path of this run (module docstring); ``in_memory_only`` names an option given that the streamed path
     lacks (``None`` when there is none). Says the decision in one line (``say``) when it streams or when the
-    budget is passed, and the warnings of choosing the derivatives before reading (``warning: ...``)."""
+    budget is passed, and the warnings of choosing the derivatives before reading (``warning: ...``).
+    ``validation_fits``: as :func:`streamed_choice`."""
     budget = budget_of(args)  # a bad --memory-budget is an error whichever the path
     if streaming_requested(args):
         return PathDecision(True)
@@ -109,7 +113,7 @@ def decide_path(args: RecordOptions, model: IdentificationModel, *, task: str, b
         return PathDecision(False, None, need)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        plan = streamed_choice(args, model, train).chosen
+        plan = streamed_choice(args, model, train, validation_fits=validation_fits).chosen
     sources = [*args.data, *(args.validate or ()), *(getattr(args, "test", None) or ())]
     for message in grouped_messages(caught, sources):  # one line per finding across files
         say(f"warning: {message}")
