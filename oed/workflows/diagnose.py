@@ -39,6 +39,7 @@ from estimation.preprocessing.plan import Preprocessing
 from estimation.streaming.diagnosis import DEFAULT_SUBSAMPLE, diagnose_files
 from estimation.streaming.diagnosis_result import StreamedDiagnosis
 from estimation.streaming.recorded_errors import streamed_plan
+from estimation.identification.model_file import summed_model_file_document
 from estimation.estimators.normal_equations import DEFAULT_CHUNK_SIZE
 from estimation.data.input_findings import grouped_messages
 from estimation.data.log_cleaning import DEFAULT_MAX_GAP
@@ -54,6 +55,7 @@ from oed.workflows.asbuilt import (
     trivial_predictors,
     worse_after,
 )
+from oed.workflows.chosen_model import ChosenModel, answer_diagnosis, mse_line
 from oed.workflows.memory_path import decide_path, streamed_choice
 from oed.workflows.consistent import check_consistent_arguments, consistent_lines, consistent_settings
 from oed.workflows.model_files import (
@@ -61,6 +63,8 @@ from oed.workflows.model_files import (
     add_runner_up_model_file,
     add_summed_model_file,
     add_summed_runner_up_model_file,
+    recorded_validation_mse,
+    robot_source,
 )
 from oed.workflows.options import (
     RecordOptions,
@@ -331,6 +335,8 @@ def diagnose_in_memory(args: DiagnoseOptions, model: IdentificationModel, transm
             untouched.after if selection.chosen != "consistent" else document["consistent"]["test"]["mse"])}
     messages += add_model_file(document, diagnosis.after, args, records.preprocessing, transmission,
                                consistent=consistent, selection=selection)
+    chosen = ChosenModel.of(selection)  # its errors beside the diagnosis's before and after
+    answer_diagnosis(document, chosen, floor=validation_floor)
     add_runner_up_model_file(document, diagnosis.runner_up, args, records.preprocessing, transmission)
     document["diagnosis_path"] = "in-memory"  # "streamed": --chunk-size (diagnose_streaming)
     document["max_effects"] = args.max_effects
@@ -338,7 +344,7 @@ def diagnose_in_memory(args: DiagnoseOptions, model: IdentificationModel, transm
     lines = [records.preprocessing.describe(), *summary_lines(diagnosis), *test_lines(untouched)]
     if consistent is not None and (args.consistent or selection.chosen == "consistent"):
         lines += consistent_lines(consistent)
-    lines += selection.lines() + chosen_test_lines(document["test"])
+    lines += selection.lines() + chosen_lines(document["validation"]) + chosen_test_lines(document["test"])
     if len(diagnosis.effects) >= args.max_effects:
         untested = sum(rejected.reason.startswith("not tested") for rejected in diagnosis.rejected)
         lines.append(f"stopped at --max-effects {args.max_effects}: {untested} candidate(s) not tested; raise "
@@ -358,6 +364,14 @@ def diagnosis_selection(args: DiagnoseOptions, diagnosis: Diagnosis, records: Pr
                         given="consistent" if args.consistent else None,
                         consistent=consistent_settings(args, diagnosis.after.model.robot),
                         note="with the diagnosed effects")
+
+
+def chosen_lines(validation: dict[str, Any]) -> list[str]:
+    """The chosen model's MSE on the validation record (what `oed predict` gives there)."""
+    chosen = validation.get("chosen")
+    if chosen is None or chosen["mse"] is None:
+        return []
+    return [mse_line(f"validation MSE vs recorded, the chosen model ({chosen['name']})", chosen["mse"])]
 
 
 def chosen_test_lines(test: dict[str, Any] | None) -> list[str]:
@@ -526,16 +540,40 @@ def diagnose_streaming(args: DiagnoseOptions, friction: str, plan: Preprocessing
     messages += add_summed_model_file(document, result.final_model(), result.after, args, model_plan,
                                       shape=result.final_shape(), recorded_mse=result.train_mse["after"],
                                       validation_mse=validation_mse)
+    if validation_mse is not None:  # a jittered or cleaned record: the errors on the samples as recorded
+        validation_mse = recorded_errors(document, result, args, model_plan) or validation_mse
+    name = result.after.method  # the one model the report's model file holds: its errors, named as predict names it
+    document["train"]["chosen"] = {"name": name, "mse": dict(result.train_mse["after"])}
+    document["validation"]["chosen"] = {"name": name, "mse": None if validation_mse is None else dict(validation_mse)}
     runner_up = result.runner_up
     add_summed_runner_up_model_file(document, runner_up, args, model_plan, None if validation_mse is None or
                                     runner_up is None else runner_up.validation_mse)
-    lines = [plan.describe(), *streamed_summary_lines(args, robot, model, result, chunk_size)]
+    lines = [plan.describe(), *streamed_summary_lines(args, robot, model, result, chunk_size, document["validation"]),
+             *chosen_lines(document["validation"])]
     return DiagnoseRun(document, tuple(lines), tuple(messages), result)
 
 
+def recorded_errors(document: dict[str, Any], result: StreamedDiagnosis, args: DiagnoseOptions,
+                    plan: dict[str, Any]) -> dict[str, float] | None:
+    """When the loader cleaned or resampled a validation record (jitter, re-sent rows, stalls), the validation
+    MSE before and after on its samples as recorded (:func:`oed.workflows.model_files.recorded_validation_mse`,
+    what ``oed predict`` measures), put into ``document`` (``validation.before``/``after``, the model file's
+    reported error) in place; the 'after' one is returned. ``None``: the records were read as recorded."""
+    after = recorded_validation_mse(document["model_file"], args.validate)
+    if after is None:
+        return None
+    declared = summed_model_file_document(result.model, result.before, robot=robot_source(result.model.robot, args),
+                                          preprocessing=plan, recorded_mse=result.train_mse["before"])
+    before = recorded_validation_mse(declared, args.validate)
+    document["validation"]["before"]["mse"] = before
+    document["validation"]["after"]["mse"] = document["model_file"]["reported"]["validation_mse"] = after
+    return after
+
+
 def streamed_summary_lines(args: DiagnoseOptions, robot: RobotModel, model: IdentificationModel, result: StreamedDiagnosis,
-                           chunk_size: int) -> list[str]:
-    """The records, the effects found, the validation MSE before and after and the noise floor."""
+                           chunk_size: int, validation: dict[str, Any] | None = None) -> list[str]:
+    """The records, the effects found, the validation MSE before and after (``validation``: the report's, else
+    the result's) and the noise floor."""
     streaming = result.streaming
     lines = [f"{robot.name}: {model.kind.value} model, streamed diagnosis of {result.n_train} training samples from "
              f"{len(streaming['files'])} file(s) in chunks of {chunk_size}, {result.n_validation} validation samples; "
@@ -543,6 +581,8 @@ def streamed_summary_lines(args: DiagnoseOptions, robot: RobotModel, model: Iden
     lines += found_lines(result.effects, shape_std=False)
     lines.append(runner_up_line(result.runner_up, result.runner_up_reason))
     before, after = result.validation_mse["before"], result.validation_mse["after"]
+    if validation is not None:
+        before, after = validation["before"]["mse"], validation["after"]["mse"]
     lines += ["validation MSE vs recorded",
               "                 " + "  ".join(f"{channel:>9s}" for channel in before),
               "  before         " + "  ".join(f"{value:9.4g}" for value in before.values()),
