@@ -379,7 +379,7 @@ def identify_in_memory(args: IdentifyOptions, robot: RobotModel, model: Identifi
     answer_identification(document, chosen, floor=None if floor_report is None else floor_report.floor)
     lines = summary_lines(robot, model, result, records.preprocessing, train.n_samples, rest, chosen)
     if consistent is not None and (args.consistent or selection.chosen == "consistent"):
-        lines += consistent_lines(consistent, errors=not chosen.consistent)
+        lines += consistent_lines(consistent)
     lines += selection.lines()
     return IdentifyRun(document, tuple(lines), tuple(messages), result, streamed=False,
                        title=f"{robot.name}: {model.kind.value} model ({result.estimate.method})",
@@ -404,8 +404,10 @@ def above_floor_notes(report: ResidualReport | None, chosen: ChosenModel | None 
     comparisons = report.comparison.get("after", {})
     if chosen is not None and chosen.consistent and chosen.validation is not None:
         comparisons = compare_with_floor(chosen.validation.mse, report.floor, chosen.validation.t.shape[0])
-        return [f"{comparison.statement()}: the model lacks something there; `oed diagnose` searches for it"
-                for comparison in comparisons.values() if comparison.above]
+        traced = {channel: report.statements.get(channel, "").partition("; ")[2] for channel in comparisons}
+        return [f"{comparison.statement()}{'; ' + traced[channel] if traced[channel] else ''}: the model lacks "
+                "something there; `oed diagnose` searches for it"
+                for channel, comparison in comparisons.items() if comparison.above]
     above = [channel for channel, comparison in comparisons.items() if comparison.above]
     return [f"{report.statements[channel]}: the model lacks something there; `oed diagnose` searches for it"
             for channel in above]
