@@ -60,9 +60,8 @@ def consistent_settings(args: Any, robot: Any) -> ConsistentSettings:
                               bounds=None if args.link_bounds is None else load_link_bounds(args.link_bounds, robot))
 
 
-def consistent_lines(consistent: ConsistentResult | None, *, errors: bool = True) -> list[str]:
-    """The summary lines of the consistent refit (none without one); ``errors``: its training and validation MSE
-    too (printed already when it is the answer)."""
+def consistent_lines(consistent: ConsistentResult | None) -> list[str]:
+    """The summary lines of the consistent refit (none without one)."""
     if consistent is None:
         return []
     lines = []
@@ -79,6 +78,6 @@ def consistent_lines(consistent: ConsistentResult | None, *, errors: bool = True
         for line in consistent.determination.lines():
             lines.append(line)
     for label, comparison in (("train", consistent.train), ("validation", consistent.validation)):
-        if comparison is not None and errors:
+        if comparison is not None:
             lines.append(f"consistent {label} MSE: " + "  ".join(f"{c} {v:.4g}" for c, v in comparison.mse.items()))
     return lines
