@@ -124,6 +124,9 @@ class IdentifyRun:
     title: str = ""
     #: the preprocessing chosen, in one line (the report's choices)
     preprocessing: str = ""
+    #: the model the result holds (:class:`oed.workflows.chosen_model.ChosenModel`; in memory): what the figure
+    #: and the report draw
+    answer: ChosenModel | None = field(default=None, repr=False)
 
     def to_dict(self) -> dict[str, Any]:
         """``result.json``, as ``oed identify`` writes it."""
@@ -137,7 +140,8 @@ class IdentifyRun:
         """The figure of measured against predicted channels (training and validation), saved at ``path``."""
         if self.streamed:
             raise ValueError(f"--plot draws every sample: not with {STREAMED}")
-        comparisons = [self.result.train] + ([self.result.validation] if self.result.validation is not None else [])
+        fit = self.result if self.answer is None else self.answer
+        comparisons = [fit.train] + ([fit.validation] if fit.validation is not None else [])
         plot_comparison(comparisons, path, title=self.title)
 
     def report(self) -> Report:
@@ -147,7 +151,7 @@ class IdentifyRun:
         if self.streamed:
             raise ValueError(f"--report draws every sample: not with {STREAMED}")
         return identification_report(self.result, self.document, preprocessing=self.preprocessing,
-                                     warnings=self.warnings, title=self.title)
+                                     warnings=self.warnings, title=self.title, chosen=self.answer)
 
     def write(self, out: str | Path, *, plot: str | Path | None = None, report: str | Path | None = None) -> None:
         """The result JSON at ``out``, with ``plot`` the figure, with ``report`` the report (HTML with its figures
@@ -382,8 +386,8 @@ def identify_in_memory(args: IdentifyOptions, robot: RobotModel, model: Identifi
         lines += consistent_lines(consistent)
     lines += selection.lines()
     return IdentifyRun(document, tuple(lines), tuple(messages), result, streamed=False,
-                       title=f"{robot.name}: {model.kind.value} model ({result.estimate.method})",
-                       preprocessing=records.preprocessing.describe())
+                       title=f"{robot.name}: {model.kind.value} model ({chosen.name})",
+                       preprocessing=records.preprocessing.describe(), answer=chosen)
 
 
 def floor_check(records: PreparedRecords, model: IdentificationModel, result: IdentificationResult,
