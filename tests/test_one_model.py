@@ -102,6 +102,13 @@ def test_predict_reproduces_the_reported_error_of_the_chosen_model_and_export_wr
         assert theta == model_file["theta"] and document["model_parameters"]["values"] == theta
         assert [p["std"] for p in document["parameters"]] == pytest.approx(np.sqrt(np.diag(model_file["cov"])),
                                                                            rel=1e-12)
+    # the errors over the noise floor are those errors' (on a jittered log too)
+    floor = (document.get("noise_floor") or {}).get("mse")
+    for errors in ([document["validation"]["after"], document["validation"]["chosen"]] if verb.startswith("diagnose")
+                   else [document["validation"]]):
+        if floor and errors.get("mse_over_floor"):
+            assert errors["mse_over_floor"] == pytest.approx({c: v / floor[c] for c, v in errors["mse"].items()},
+                                                             rel=1e-12)
     # the summary prints the chosen model's validation error
     numbers = "  ".join(f"{channel} {value:.4g}" for channel, value in reported.items())
     assert re.search(rf"validation MSE.*\({chosen}\)" if verb.startswith("diagnose") else "validation MSE",

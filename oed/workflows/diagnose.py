@@ -31,6 +31,7 @@ from estimation.diagnosis.report import diagnosis_report, plot_residuals, plot_t
 from estimation.diagnosis.results import Diagnosis, runner_up_line
 from estimation.diagnosis.search import default_candidates
 from estimation.diagnosis.search import diagnose as diagnose_model
+from estimation.diagnosis.statistics import FLOOR_ALPHA
 from estimation.diagnosis.untouched import UntouchedErrors, recorded_comparison, untouched_errors
 from estimation.identification.prepared import InMemoryBudget, PreparedRecords, prepare_records
 from estimation.identification.repeated_motion import repeated_motion_note
@@ -45,6 +46,7 @@ from estimation.data.input_findings import grouped_messages
 from estimation.data.log_cleaning import DEFAULT_MAX_GAP
 from dynamics.robot import RobotModel
 from estimation.streaming.diagnosis_passes import FLOOR_WINDOW
+from estimation.uncertainty.floor_comparison import compare_with_floor
 from estimation.uncertainty.noise_floor import NoiseFloor
 from oed.workflows.asbuilt import (
     finish_document,
@@ -565,8 +567,15 @@ def recorded_errors(document: dict[str, Any], result: StreamedDiagnosis, args: D
     declared = summed_model_file_document(result.model, result.before, robot=robot_source(result.model.robot, args),
                                           preprocessing=plan, recorded_mse=result.train_mse["before"])
     before = recorded_validation_mse(declared, args.validate)
-    document["validation"]["before"]["mse"] = before
-    document["validation"]["after"]["mse"] = document["model_file"]["reported"]["validation_mse"] = after
+    document["model_file"]["reported"]["validation_mse"] = after
+    for which, mse in (("before", before), ("after", after)):
+        document["validation"][which]["mse"] = mse
+        if result.floor is not None:  # the floor's comparisons of these errors
+            comparison = compare_with_floor(mse, result.floor, result.n_validation, alpha=FLOOR_ALPHA)
+            document["validation"][which]["mse_over_floor"] = {c: value.ratio for c, value in comparison.items()}
+            document["floor_comparison"][which] = {c: value.to_dict() for c, value in comparison.items()}
+            if which == "after":
+                document["floor_statements"] = {c: value.statement() for c, value in comparison.items()}
     return after
 
 
