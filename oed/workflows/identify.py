@@ -23,7 +23,7 @@ from dynamics.runtime.report_document import Report
 from dynamics.transmission import Transmission
 from estimation.data.input_findings import grouped_messages
 from estimation.data.log_cleaning import DEFAULT_MAX_GAP
-from estimation.diagnosis.statistics import ResidualReport, residual_report
+from estimation.diagnosis.statistics import FLOOR_ALPHA, ResidualReport, residual_report
 from estimation.uncertainty.floor_comparison import compare_with_floor
 from estimation.estimators.normal_equations import DEFAULT_CHUNK_SIZE
 from estimation.identification.fit import IdentificationResult
@@ -362,7 +362,7 @@ def identify_in_memory(args: IdentifyOptions, robot: RobotModel, model: Identifi
         trivial, notes = trivial_predictors(result, validation, chosen.validation)
         with step("noise floor of the validation record"):
             floor_report = None if validation is None else floor_check(records, model, result, args.frequency)
-        notes = (*notes, *above_floor_notes(floor_report, chosen))
+        notes = (*notes, *above_floor_notes(floor_report, chosen, None if validation is None else validation.n_samples))
         repeat = None if validation is None else repeated_motion_note(train, validation)
         notes = notes if repeat is None else (*notes, repeat)
     messages = caught_messages(caught) + list(notes)
@@ -400,14 +400,17 @@ def floor_check(records: PreparedRecords, model: IdentificationModel, result: Id
     return residual_report(result, result, records.train.measurements, records.validation.measurements, floor)
 
 
-def above_floor_notes(report: ResidualReport | None, chosen: ChosenModel | None = None) -> list[str]:
+def above_floor_notes(report: ResidualReport | None, chosen: ChosenModel | None = None,
+                      n_samples: int | None = None) -> list[str]:
     """A warning for each channel whose validation error stays significantly above its floor: the unconstrained
-    fit's (``report``), or the ``chosen`` model's when it is the consistent fit."""
+    fit's (``report``), or the ``chosen`` model's when it is the consistent fit (tested as ``report`` tests,
+    ``n_samples`` the validation record's)."""
     if report is None or report.floor is None:
         return []
     comparisons = report.comparison.get("after", {})
     if chosen is not None and chosen.consistent and chosen.validation is not None:
-        comparisons = compare_with_floor(chosen.validation.mse, report.floor, chosen.validation.t.shape[0])
+        n_samples = chosen.validation.t.shape[0] if n_samples is None else n_samples
+        comparisons = compare_with_floor(chosen.validation.mse, report.floor, n_samples, alpha=FLOOR_ALPHA)
         traced = {channel: report.statements.get(channel, "").partition("; ")[2] for channel in comparisons}
         return [f"{comparison.statement()}{'; ' + traced[channel] if traced[channel] else ''}: the model lacks "
                 "something there; `oed diagnose` searches for it"
