@@ -66,6 +66,7 @@ from oed.workflows.model_files import (
     add_summed_model_file,
     add_summed_runner_up_model_file,
     recorded_validation_mse,
+    resampled_validation,
     robot_source,
 )
 from oed.workflows.options import (
@@ -542,7 +543,7 @@ def diagnose_streaming(args: DiagnoseOptions, friction: str, plan: Preprocessing
     messages += add_summed_model_file(document, result.final_model(), result.after, args, model_plan,
                                       shape=result.final_shape(), recorded_mse=result.train_mse["after"],
                                       validation_mse=validation_mse)
-    if validation_mse is not None:  # a jittered or cleaned record: the errors on the samples as recorded
+    if validation_mse is not None and resampled_validation(document):  # the errors on the samples as recorded
         validation_mse = recorded_errors(document, result, args, model_plan) or validation_mse
     name = result.after.method  # the one model the report's model file holds: its errors, named as predict names it
     document["train"]["chosen"] = {"name": name, "mse": dict(result.train_mse["after"])}

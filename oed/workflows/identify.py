@@ -51,7 +51,12 @@ from estimation.consistent.model_selection import select_model
 from oed.workflows.consistent import check_consistent_arguments, consistent_lines, consistent_settings
 from oed.workflows.chosen_model import ChosenModel, answer_identification
 from oed.workflows.memory_path import decide_path, streamed_choice
-from oed.workflows.model_files import add_model_file, add_summed_model_file, recorded_validation_mse
+from oed.workflows.model_files import (
+    add_model_file,
+    add_summed_model_file,
+    recorded_validation_mse,
+    resampled_validation,
+)
 from oed.workflows.options import (
     RecordOptions,
     caught_messages,
@@ -286,7 +291,8 @@ def add_streamed_model_file(document: dict[str, Any], args: IdentifyOptions, res
         document["validation"]["mse"] = validation
     notes = add_summed_model_file(document, result.model, result.estimate, args, plan,
                                   recorded_mse=document["train"]["mse"], validation_mse=validation)
-    recorded = None if validation is None else recorded_validation_mse(document["model_file"], args.validate)
+    recorded = None if validation is None or not resampled_validation(document) else \
+        recorded_validation_mse(document["model_file"], args.validate)
     if recorded is not None:  # a jittered or cleaned record: its error on the samples as recorded, as predict's
         document["validation"]["mse"] = document["model_file"]["reported"]["validation_mse"] = recorded
     return notes

@@ -119,3 +119,12 @@ def recorded_validation_mse(model_file: dict[str, Any], validate: Sequence[str |
         if all(segment.recorded is None for segment in segments):
             return None
         return dict(model.predict_record(model.prepare(segments)).mse)
+
+
+def resampled_validation(document: dict[str, Any]) -> bool:
+    """Whether the streamed run of ``document`` (``result.json`` or ``report.json``) resampled a validation file
+    onto a uniform grid (``streaming.validation_files[].resampled_from``: jittered stamps, stalls): its errors there
+    are then measured again at the recorded samples (:func:`recorded_validation_mse`). Reading the validation files
+    in memory only then keeps the streamed path's memory bounded on regular records."""
+    files = (document.get("streaming") or {}).get("validation_files") or ()
+    return any(entry.get("resampled_from") is not None for entry in files)
