@@ -85,7 +85,7 @@ def panda_table(folder: Path, declared: str) -> None:
         metrics = result.with_suffix(".metrics.json")
         assert oed(["predict", "--model", str(result), "--data", files["test"], "--out",
                     str(result.with_suffix(".csv")), "--metrics", str(metrics),
-                    *(["--consistent"] if consistent else [])]) == 0
+                    "--alternative", "consistent" if consistent else "unconstrained"]) == 0
         return json.loads(metrics.read_text())["mse"]
 
     report = folder / "report.json"
@@ -98,7 +98,9 @@ def panda_table(folder: Path, declared: str) -> None:
         document = json.loads(result.read_text())
         rows.append(_row(f"consistent, {friction}, W = {document['consistent']['prior_weight']:g}",
                          document["consistent"]["validation"]["mse"], predicted(result, True)))
-        rows.append(_row(f"unconstrained, {friction}", document["validation"]["mse"], predicted(result, False)))
+        selection = document["model_selection"]  # the top level is the chosen (consistent) model's
+        unconstrained = next(c for c in selection["candidates"] if c["name"] == selection["base"])
+        rows.append(_row(f"unconstrained, {friction}", unconstrained["validation_mse"], predicted(result, False)))
     document = json.loads(report.read_text())
     print("diagnosed effects:", [effect["name"] for effect in document["effects"]])
     rows.append(_row(f"consistent, diagnosed effects, W = {document['consistent']['prior_weight']:g}",

@@ -175,6 +175,7 @@ def test_one_result_type_whichever_the_path(records, tmp_path):
         assert type(diagnosis) is Diagnosis
         document, own = run.to_dict(), diagnosis.to_dict()
         assert set(own) <= set(document)
+        assert set(document["train"].pop("chosen")) == {"name", "mse"}  # the chosen model's, beside the diagnosis's
         for key in ("effects", "rejected", "train", "cov_method", "noise_floor", "floor_comparison", "diagnosis_path",
                     "tracing", "whiteness", "residuals", "not_computed"):
             assert document[key] == own[key], key

@@ -61,9 +61,14 @@ def test_predict_reproduces_the_validation_mse_of_a_shaped_fit_with_a_delay(reco
     assert _relative(measured["mse"], model_file["reported"]["validation_mse"]) < 1e-6
     assert _relative(measured["mse"], next(candidate["validation_mse"] for candidate in
                                            document["model_selection"]["candidates"] if candidate["name"] == chosen)) < 1e-6
+    assert _relative(measured["mse"], document["validation"]["mse"]) < 1e-6  # the top level: the chosen model's
+    assert document["validation"]["model"] == chosen
     assert main(["predict", "--model", str(result), "--data", str(validate), "--alternative", "unconstrained",
-                 "--metrics", str(metrics)]) == 0  # the unconstrained fit behind the choice: the top-level errors
-    assert _relative(json.loads(metrics.read_text())["mse"], document["validation"]["mse"]) < 1e-6
+                 "--metrics", str(metrics)]) == 0  # the unconstrained fit behind the choice: its candidate's errors
+    unconstrained = chosen if chosen != "consistent" else document["model_selection"]["base"]
+    assert _relative(json.loads(metrics.read_text())["mse"], next(
+        candidate["validation_mse"] for candidate in document["model_selection"]["candidates"]
+        if candidate["name"] == unconstrained)) < 1e-6
     assert measured["n_samples"] > 0 and set(measured["mse_over_floor"]) == {"tau1", "tau2", "tau3"}
     assert all(measured["mse"][c] < measured["nominal_mse"][c] < measured["zero_mse"][c] for c in measured["mse"])
     table = pd.read_csv(predictions)
@@ -111,8 +116,9 @@ def test_the_loaded_model_predicts_as_the_fit_did(records):
     result = folder / "plain.json"
     assert main(["identify", "--joints", "3", "--data", str(train), "--validate", str(validate),
                  "--friction", "viscous,coulomb", "--out", str(result)]) == 0
-    model = IdentifiedModel.load(result, estimate="unconstrained")  # the top-level parameters: the unconstrained fit
+    model = IdentifiedModel.load(result)  # the top-level parameters: the chosen model's
     document = json.loads(result.read_text())
+    assert model.estimate == document["chosen"]
     theta = np.array([record["value"] for record in document["parameters"]])
     q, dq, ddq = (np.random.default_rng(0).normal(size=(7, 3)) for _ in range(3))
     expected = model.model.predict(theta, q, dq, ddq)
@@ -168,9 +174,9 @@ def test_a_fit_worse_than_the_nominal_model_says_so(tmp_path, capsys):
     validate = tmp_path / "validate.csv"
     simulate(model, true_parameters(model, seed=1), random_fourier(robot, seed=6), rate_hz=100.0, noise=NOISE,
              seed=6).write(validate)
-    result = tmp_path / "result.json"
+    result = tmp_path / "result.json"  # the unconstrained fit (by default the consistent fit, far better, is chosen)
     assert main(["identify", "--joints", "3", "--data", str(tmp_path / "poor.csv"), "--validate", str(validate),
-                 "--out", str(result)]) == 0
+                 "--method", "wls", "--out", str(result)]) == 0
     plausibility = json.loads(result.read_text())["plausibility"]
     assert plausibility["worse_than_nominal"] and not plausibility["plausible"]
     assert "worse than the nominal description" in capsys.readouterr().err

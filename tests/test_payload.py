@@ -264,9 +264,13 @@ def test_cli_writes_payload_json_and_predict_uses_it(puma, tmp_path, capsys):
     # the model with the payload predicts the held-out record as payload.json says
     metrics = tmp_path / "metrics.json"
     assert main(["predict", "--model", str(out), "--data", str(held_out), "--metrics", str(metrics)]) == 0
-    predicted = json.loads(metrics.read_text())["mse"]
+    measured = json.loads(metrics.read_text())
+    predicted = measured["mse"]
     for channel, value in document["validation"]["after"]["mse"].items():
         assert predicted[channel] == pytest.approx(value, rel=1e-6)
+    # the error the file reports for its model is that one (not the robot's own, without the payload)
+    assert measured["reported_validation_mse"] == document["validation"]["after"]["mse"]
+    assert document["model_file"]["reported"]["validation_mse"] == document["validation"]["after"]["mse"]
     # bad input: an unknown link, a model file that carries a payload already, a record of a 7-joint robot
     assert main(["payload", "--model", str(robot_json), "--data", str(loaded), "--link", "tool0",
                  "--out", str(tmp_path / "x.json")]) != 0

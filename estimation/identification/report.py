@@ -18,20 +18,30 @@ from estimation.identification.validation import plot_channel, subsample_step
 __all__ = ["identification_report", "parameter_table"]
 
 
-def parameter_table(result: IdentificationResult) -> Table:
-    """The base parameters (and shape parameters) with their standard deviations."""
-    rows = tuple((record["name"], str(record.get("expression", "")), f"{record['value']:.5g}", f"{record['std']:.2g}",
-                  f"{record['relative_std']:.2g} %" if np.isfinite(record.get("relative_std", np.nan)) else "n/a")
-                 for record in result.estimate.records())
+def parameter_table(result: IdentificationResult, records: Sequence[dict[str, Any]] | None = None) -> Table:
+    """The base parameters (and shape parameters) with their standard deviations: ``records`` (those of the
+    model the result chose: ``name, expression, value, std, relative_std``), by default ``result``'s."""
+    records = result.estimate.records() if records is None else records
+    rows = tuple((record["name"], str(record.get("expression", "")), f"{record['value']:.5g}",
+                  "n/a" if record["std"] is None else f"{record['std']:.2g}",
+                  f"{record['relative_std']:.2g} %" if np.isfinite(_number(record.get("relative_std"))) else "n/a")
+                 for record in records)
     shapes = tuple((value.name, f"shape of {value.effect}", f"{value.value:.5g}", f"{value.std:.2g}", "")
                    for value in result.shapes)
     return Table(("parameter", "expression", "value", "std", "relative std"), rows + shapes)
 
 
+def _number(value: Any) -> float:
+    return np.nan if value is None else float(value)
+
+
 def identification_report(result: IdentificationResult, document: dict[str, Any], *, preprocessing: str = "",
-                          warnings: Sequence[str] = (), title: str = "") -> Report:
-    """The report of ``result`` (``document``: its ``result.json``, for the choices and the floor)."""
+                          warnings: Sequence[str] = (), title: str = "", chosen: Any = None) -> Report:
+    """The report of ``result`` (``document``: its ``result.json``, for the choices and the floor); ``chosen``:
+    the model the result holds when it is not ``result`` itself (the consistent refit: its ``name``, ``train``,
+    ``validation`` comparisons and ``records()``), whose parameters and errors the report gives."""
     estimate = result.estimate
+    answer = result if chosen is None else chosen
     blocks: list[Block] = [
         Paragraph(f"Effects: {', '.join(f'`{e.name}`' for e in result.model.effects) or 'none'}; "
                   f"{result.train.t.shape[0]} training samples. Errors are mean squared errors against the channels as recorded, at the recorded time "
@@ -42,19 +52,23 @@ def identification_report(result: IdentificationResult, document: dict[str, Any]
     choices.append(f"estimator: {estimate.method}" + (" (chosen on held-out blocks of the training record)"
                                                        if selection else "") + f"; standard deviations: "
                    f"{estimate.cov_method}; condition number {float(estimate.cond):.3g}")
+    if chosen is not None and chosen.name != estimate.method:
+        reason = (document.get("model_selection") or {}).get("reason")
+        choices.append(f"model: {chosen.name} (refitted from {estimate.method}; standard deviations: "
+                       f"{chosen.cov_method})" + (f"; {reason}" if reason else ""))
     blocks += [Heading("Choices made"), Bullets(tuple(choices)),
-               Heading("Parameters"), parameter_table(result)]
+               Heading("Parameters"), parameter_table(result, None if chosen is None else chosen.records())]
     rows = []
     floor = (document.get("noise_floor") or {}).get("mse") or {}
     over = (document.get("validation") or {}).get("mse_over_floor") or {}
-    for channel, value in result.train.mse.items():
-        validation = result.validation.mse[channel] if result.validation is not None else None
+    for channel, value in answer.train.mse.items():
+        validation = answer.validation.mse[channel] if answer.validation is not None else None
         rows.append((channel, f"{value:.4g}", "n/a" if validation is None else f"{validation:.4g}",
                      f"{floor[channel]:.4g}" if channel in floor else "n/a",
                      f"{over[channel]:.3g}" if channel in over else "n/a"))
     blocks += [Heading("Error per channel"),
                Table(("channel", "training MSE", "validation MSE", "noise floor", "validation / floor"), tuple(rows))]
-    comparison, label = (result.validation, "validation") if result.validation is not None else (result.train,
+    comparison, label = (answer.validation, "validation") if answer.validation is not None else (answer.train,
                                                                                                    "training")
     n = comparison.t.shape[0]
     step = subsample_step(n)

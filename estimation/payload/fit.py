@@ -373,9 +373,19 @@ class PayloadResult:
                 "cov": self.body.cov.tolist(), "names": list(LINK_PARAMETER_NAMES)}
 
     def model_file_document(self, model: IdentifiedModel) -> dict[str, Any]:
-        """``model``'s model file with this payload: what ``oed predict`` and ``oed export`` read."""
+        """``model``'s model file with this payload: what ``oed predict`` and ``oed export`` read. The error it
+        reports (``reported.validation_mse``) is the one of the model with the payload on the validation records
+        with it (``validation.after``, what ``oed predict`` measures there; ``None`` without them); the
+        alternatives' errors, measured without the payload on the robot's own validation record, are dropped
+        (``None``)."""
         document = model.file.to_dict()
         document["payload"] = self.model_file_entry()
+        document["reported"] = {"validation_mse": None if self.validation_after is None
+                                else dict(self.validation_after)}
+        document["alternatives"] = {name: {**entry, "validation_mse": None}
+                                    for name, entry in document["alternatives"].items()}
+        if document.get("consistent") is not None:
+            document["consistent"]["validation_mse"] = None
         return document
 
     def document(self, model: IdentifiedModel) -> dict[str, Any]:

@@ -96,7 +96,8 @@ class StreamedRun:
 
 def file_record(path: str, sums, record: dict) -> dict[str, Any]:
     return {"path": path, "rows": record["rows"], "samples": sums.n_samples,
-            "trimmed_samples": record["metadata"].get("trimmed_samples", 0)}
+            "trimmed_samples": record["metadata"].get("trimmed_samples", 0),
+            "resampled_from": record["metadata"].get("resampled_from")}  # rows of a file resampled onto a grid
 
 
 def found_effects(model: IdentificationModel, run: StreamedRun, after: SummedEstimate) -> tuple[FoundEffect, ...]:

@@ -7,8 +7,9 @@ options, calls them and prints.
 What several verbs share: :mod:`.options` (the option sets, the robot, derivatives, streaming settings),
 :mod:`.asbuilt` (the robot as built: transmission, effects, rest rows, trivial predictors, the document's
 common keys), :mod:`.memory_path` (in memory or streamed), :mod:`.model_files` (the model file and plausibility
-keys), :mod:`.consistent` (the prior-weight choice of ``--consistent``), :mod:`.design_bounds` (the motion
-bounds of ``oed design``).
+keys), :mod:`.chosen_model` (the top-level answer of result.json and report.json: the chosen model's),
+:mod:`.consistent` (the prior-weight choice of ``--consistent``), :mod:`.design_bounds` (the motion bounds of
+``oed design``).
 """
 
 from __future__ import annotations

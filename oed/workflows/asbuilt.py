@@ -89,12 +89,14 @@ def rest_message(verb: str, records: dict[str, dict | None]) -> str | None:
     return f"rows at rest (slower than {speed:g}) dropped: " + ", ".join(parts)
 
 
-def trivial_predictors(result: IdentificationResult, validate: Measurements | None) -> tuple[dict | None, tuple[str, ...]]:
-    """Per-channel zero and nominal validation MSE of ``result``'s model, and the warnings."""
+def trivial_predictors(result: IdentificationResult, validate: Measurements | None,
+                       chosen: Any = None) -> tuple[dict | None, tuple[str, ...]]:
+    """Per-channel zero and nominal validation MSE of ``result``'s model, and the warnings where the model is
+    worse: ``result``, or the ``chosen`` model's validation comparison when given (the answer the result holds)."""
     if validate is None or result.validation is None:
         return None, ()
     trivial = trivial_mse(result.model, validate)
-    return trivial, trivial_warnings(result.validation.mse, trivial)
+    return trivial, trivial_warnings((result.validation if chosen is None else chosen).mse, trivial)
 
 
 def finish_document(document: dict[str, Any], result: IdentificationResult, *, trivial: dict | None,

@@ -40,7 +40,9 @@ from estimation.identification.repeated_motion import repeated_motion_note
 from estimation.preprocessing.delay import DelayBounds, split_delay
 from estimation.preprocessing.plan import Preprocessing
 from estimation.streaming.diagnosis import DEFAULT_SUBSAMPLE, diagnose_files
+from estimation.streaming.diagnosis_result import floor_report
 from estimation.streaming.recorded_errors import streamed_plan
+from estimation.identification.model_file import summed_model_file_document
 from estimation.estimators.normal_equations import DEFAULT_CHUNK_SIZE
 from estimation.data.input_findings import FindingsSaid
 from estimation.data.log_cleaning import DEFAULT_MAX_GAP
@@ -55,6 +57,7 @@ from oed.workflows.asbuilt import (
     trivial_predictors,
     worse_after,
 )
+from oed.workflows.chosen_model import ChosenModel, answer_diagnosis, mse_line
 from oed.workflows.memory_path import decide_path, streamed_choice
 from oed.workflows.consistent import check_consistent_arguments, consistent_lines, consistent_settings
 from oed.workflows.model_files import (
@@ -62,6 +65,9 @@ from oed.workflows.model_files import (
     add_runner_up_model_file,
     add_summed_model_file,
     add_summed_runner_up_model_file,
+    recorded_validation_mse,
+    resampled_validation,
+    robot_source,
 )
 from oed.workflows.options import (
     RecordOptions,
@@ -387,17 +393,23 @@ def diagnose_document(args: DiagnoseOptions, diagnosed: Diagnosed) -> tuple[dict
                 untouched.after if selection.chosen != "consistent" else document["consistent"]["test"]["mse"])}
         files = add_model_file(document, diagnosis.after, args, records.preprocessing, diagnosed.transmission,
                                consistent=consistent, selection=selection)
+        chosen = ChosenModel.of(selection)  # its errors beside the diagnosis's before and after
+        answer_diagnosis(document, chosen, floor=None if diagnosis.statistics is None else diagnosis.statistics.floor)
         add_runner_up_model_file(document, diagnosis.runner_up, args, records.preprocessing, diagnosed.transmission)
     else:
         # the model file: the final model's estimate from the sums; on the filter path (and with measured
         # derivatives) its validation error is against the channels as recorded, on the samples the in-memory
-        # preprocessing keeps, which is what `oed predict` measures; a Fourier fit of averaged periods is not what
-        # `oed predict` repeats
+        # preprocessing keeps, which is what `oed predict` measures (on a resampled validation file, measured at its
+        # recorded samples: diagnosis_streamed); a Fourier fit of averaged periods is not what `oed predict` repeats
         model_plan, validation_mse = diagnosed.model_file
         after, runner_up = diagnosis.after, diagnosis.runner_up
         files = add_summed_model_file(document, diagnosis.final_model(), after.estimate, args, model_plan,
                                       shape=diagnosis.final_shape(), recorded_mse=after.train.mse,
                                       validation_mse=validation_mse)
+        name = after.estimate.method  # the one model the report's model file holds: its errors, as predict names it
+        document["train"]["chosen"] = {"name": name, "mse": dict(after.train.mse)}
+        document["validation"]["chosen"] = {"name": name,
+                                            "mse": None if validation_mse is None else dict(validation_mse)}
         add_summed_runner_up_model_file(document, runner_up, args, model_plan, None if validation_mse is None or
                                         runner_up is None else runner_up.validation_mse)
     document["diagnosis_path"] = diagnosis.path
@@ -415,6 +427,14 @@ def diagnosis_selection(args: DiagnoseOptions, diagnosis: Diagnosis, records: Pr
                         given="consistent" if args.consistent else None,
                         consistent=consistent_settings(args, diagnosis.after.model.robot),
                         note="with the diagnosed effects")
+
+
+def chosen_lines(validation: dict[str, Any]) -> list[str]:
+    """The chosen model's MSE on the validation record (what `oed predict` gives there)."""
+    chosen = validation.get("chosen")
+    if chosen is None or chosen["mse"] is None:
+        return []
+    return [mse_line(f"validation MSE vs recorded, the chosen model ({chosen['name']})", chosen["mse"])]
 
 
 def chosen_test_lines(test: dict[str, Any] | None) -> list[str]:
@@ -521,7 +541,9 @@ def summary_lines(args: DiagnoseOptions, diagnosed: Diagnosed, document: dict[st
         lines += test_lines(diagnosed.untouched)
         if consistent is not None and (args.consistent or selection.chosen == "consistent"):
             lines += consistent_lines(consistent)
-        lines += selection.lines() + chosen_test_lines(document["test"])
+        lines += selection.lines() + chosen_lines(document["validation"]) + chosen_test_lines(document["test"])
+    else:  # streamed: the one model its model file holds
+        lines += chosen_lines(document["validation"])
     if len(diagnosis.effects) >= args.max_effects:
         untested = sum(rejected.reason.startswith("not tested") for rejected in diagnosis.rejected)
         lines.append(f"stopped at --max-effects {args.max_effects}: {untested} candidate(s) not tested; raise "
@@ -609,8 +631,34 @@ def diagnosis_streamed(args: DiagnoseOptions, friction: str, plan: Preprocessing
     if plan.method == "fourier":
         model_file = plan.to_dict(), None
     else:
-        model_file = (streamed_plan(args.data[0], model, cutoff_hz=cutoff_hz, decimation=plan.decimation,
-                                    held_torques=plan.held_torques, chunk_size=chunk_size),
-                      diagnosis.after.validation.mse)
+        model_plan = streamed_plan(args.data[0], model, cutoff_hz=cutoff_hz, decimation=plan.decimation,
+                                   held_torques=plan.held_torques, chunk_size=chunk_size)
+        if resampled_validation({"streaming": diagnosis.streaming}):  # the errors on the samples as recorded
+            diagnosis = recorded_errors(diagnosis, args, model_plan)
+        model_file = model_plan, diagnosis.after.validation.mse
     return Diagnosed(diagnosis, {"cutoff_hz": cutoff_hz, **plan.to_dict()}, plan.describe(), messages,
                      chunk_size=chunk_size, model_file=model_file)
+
+
+def recorded_errors(diagnosis: Diagnosis, args: DiagnoseOptions, plan: dict[str, Any]) -> Diagnosis:
+    """When the loader cleaned or resampled a validation record (jitter, re-sent rows, stalls), ``diagnosis`` with
+    its validation MSE before and after measured on the record's samples as recorded
+    (:func:`oed.workflows.model_files.recorded_validation_mse`, what ``oed predict`` measures) and the floor's
+    comparisons of those errors; the streamed passes scored the record on the uniform grid. Unchanged when the
+    records were read as recorded. ``plan``: the model files' preprocessing."""
+    robot = robot_source(diagnosis.model.robot, args)
+    after_file = summed_model_file_document(diagnosis.final_model(), diagnosis.after.estimate, robot=robot,
+                                            preprocessing=plan, shape=diagnosis.final_shape(),
+                                            recorded_mse=diagnosis.after.train.mse)
+    after = recorded_validation_mse(after_file, args.validate)
+    if after is None:
+        return diagnosis
+    declared = summed_model_file_document(diagnosis.model, diagnosis.before.estimate, robot=robot,
+                                          preprocessing=plan, recorded_mse=diagnosis.before.train.mse)
+    before = recorded_validation_mse(declared, args.validate)
+    fits = {which: replace(fit, validation=replace(fit.validation, mse=mse))
+            for which, fit, mse in (("before", diagnosis.before, before), ("after", diagnosis.after, after))}
+    statistics = diagnosis.statistics
+    if statistics is not None:  # the floor's comparisons of these errors
+        statistics = floor_report(fits["before"], fits["after"], statistics.floor, statistics.floor_note)
+    return replace(diagnosis, before=fits["before"], after=fits["after"], statistics=statistics)

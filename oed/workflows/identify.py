@@ -23,7 +23,8 @@ from dynamics.runtime.report_document import Report
 from dynamics.transmission import Transmission
 from estimation.data.input_findings import grouped_messages
 from estimation.data.log_cleaning import DEFAULT_MAX_GAP
-from estimation.diagnosis.statistics import ResidualReport, residual_report
+from estimation.diagnosis.statistics import FLOOR_ALPHA, ResidualReport, residual_report
+from estimation.uncertainty.floor_comparison import compare_with_floor
 from estimation.estimators.normal_equations import DEFAULT_CHUNK_SIZE
 from estimation.identification.fit import IdentificationResult
 from estimation.identification.prepared import InMemoryBudget, PreparedRecords, prepare_records
@@ -48,8 +49,14 @@ from oed.workflows.asbuilt import (
 )
 from estimation.consistent.model_selection import select_model
 from oed.workflows.consistent import check_consistent_arguments, consistent_lines, consistent_settings
+from oed.workflows.chosen_model import ChosenModel, answer_identification
 from oed.workflows.memory_path import decide_path, streamed_choice
-from oed.workflows.model_files import add_model_file, add_summed_model_file
+from oed.workflows.model_files import (
+    add_model_file,
+    add_summed_model_file,
+    recorded_validation_mse,
+    resampled_validation,
+)
 from oed.workflows.options import (
     RecordOptions,
     caught_messages,
@@ -122,6 +129,9 @@ class IdentifyRun:
     title: str = ""
     #: the preprocessing chosen, in one line (the report's choices)
     preprocessing: str = ""
+    #: the model the result holds (:class:`oed.workflows.chosen_model.ChosenModel`; in memory): what the figure
+    #: and the report draw
+    answer: ChosenModel | None = field(default=None, repr=False)
 
     def to_dict(self) -> dict[str, Any]:
         """``result.json``, as ``oed identify`` writes it."""
@@ -135,7 +145,8 @@ class IdentifyRun:
         """The figure of measured against predicted channels (training and validation), saved at ``path``."""
         if self.streamed:
             raise ValueError(f"--plot draws every sample: not with {STREAMED}")
-        comparisons = [self.result.train] + ([self.result.validation] if self.result.validation is not None else [])
+        fit = self.result if self.answer is None else self.answer
+        comparisons = [fit.train] + ([fit.validation] if fit.validation is not None else [])
         plot_comparison(comparisons, path, title=self.title)
 
     def report(self) -> Report:
@@ -145,7 +156,7 @@ class IdentifyRun:
         if self.streamed:
             raise ValueError(f"--report draws every sample: not with {STREAMED}")
         return identification_report(self.result, self.document, preprocessing=self.preprocessing,
-                                     warnings=self.warnings, title=self.title)
+                                     warnings=self.warnings, title=self.title, chosen=self.answer)
 
     def write(self, out: str | Path, *, plot: str | Path | None = None, report: str | Path | None = None) -> None:
         """The result JSON at ``out``, with ``plot`` the figure, with ``report`` the report (HTML with its figures
@@ -234,6 +245,10 @@ def identify_streaming(args: IdentifyOptions, robot: RobotModel, model: Identifi
         document["method_selection"] = weighting.to_dict()
     notes += add_streamed_model_file(document, args, result, chunk_size)
     estimate = result.estimate
+    document["chosen"] = estimate.method  # the one model: what the errors below are of, what the model file holds
+    for label in ("train", "validation"):
+        if document[label] is not None:
+            document[label]["model"] = estimate.method
     lines = [plan.describe(),
              f"{robot.name}: {model.kind.value} model, {model.n_base} base parameters, {result.train.n_samples} samples "
              f"from {len(result.files)} file(s) in chunks of {chunk_size}, {estimate.method.upper()}, "
@@ -269,12 +284,19 @@ def add_streamed_model_file(document: dict[str, Any], args: IdentifyOptions, res
     if result.frequency_hz is not None:
         validation = None
     elif document["validation"] is not None and validation is None:  # the sums hold filtered channels
-        validation = streamed_recorded_mse(result.model, result.estimate.values, args.validate, chunk_size=chunk_size,
-                                  cutoff_hz=result.cutoff_hz, decimation=args.decimate,
-                                  held_torques=bool(args.held_torques))
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # the files' findings were said on the first pass
+            validation = streamed_recorded_mse(result.model, result.estimate.values, args.validate,
+                                               chunk_size=chunk_size, cutoff_hz=result.cutoff_hz,
+                                               decimation=args.decimate, held_torques=bool(args.held_torques))
         document["validation"]["mse"] = validation
-    return add_summed_model_file(document, result.model, result.estimate, args, plan,
-                                 recorded_mse=document["train"]["mse"], validation_mse=validation)
+    notes = add_summed_model_file(document, result.model, result.estimate, args, plan,
+                                  recorded_mse=document["train"]["mse"], validation_mse=validation)
+    recorded = None if validation is None or not resampled_validation(document) else \
+        recorded_validation_mse(document["model_file"], args.validate)
+    if recorded is not None:  # a jittered or cleaned record: its error on the samples as recorded, as predict's
+        document["validation"]["mse"] = document["model_file"]["reported"]["validation_mse"] = recorded
+    return notes
 
 
 def estimate_lines(estimate: Any) -> list[str]:
@@ -344,10 +366,11 @@ def identify_in_memory(args: IdentifyOptions, robot: RobotModel, model: Identifi
             selection = select_model(model, train, validation, base=base, given=given, delay=delay,
                                      consistent=consistent_settings(args, robot))
         result, consistent = selection.unconstrained, selection.consistent
-        trivial, notes = trivial_predictors(result, validation)
+        chosen = ChosenModel.of(selection)  # the answer: what the summary, result.json, predict and export hold
+        trivial, notes = trivial_predictors(result, validation, chosen.validation)
         with step("noise floor of the validation record"):
             floor_report = None if validation is None else floor_check(records, model, result, args.frequency)
-        notes = (*notes, *above_floor_notes(floor_report))
+        notes = (*notes, *above_floor_notes(floor_report, chosen, None if validation is None else validation.n_samples))
         repeat = None if validation is None else repeated_motion_note(train, validation)
         notes = notes if repeat is None else (*notes, repeat)
     messages = caught_messages(caught) + list(notes)
@@ -365,13 +388,14 @@ def identify_in_memory(args: IdentifyOptions, robot: RobotModel, model: Identifi
         document["validation"]["mse_over_floor"] = floor_report.ratios("after") or None
         document["noise_floor"] = None if floor_report.floor is None else {
             "mse": floor_report.floor.mse(), "method": floor_report.floor.method, "note": floor_report.floor_note}
-    lines = summary_lines(robot, model, result, records.preprocessing, train.n_samples, rest)
+    answer_identification(document, chosen, floor=None if floor_report is None else floor_report.floor)
+    lines = summary_lines(robot, model, result, records.preprocessing, train.n_samples, rest, chosen)
     if consistent is not None and (args.consistent or selection.chosen == "consistent"):
         lines += consistent_lines(consistent)
     lines += selection.lines()
     return IdentifyRun(document, tuple(lines), tuple(messages), result, streamed=False,
-                       title=f"{robot.name}: {model.kind.value} model ({result.estimate.method})",
-                       preprocessing=records.preprocessing.describe())
+                       title=f"{robot.name}: {model.kind.value} model ({chosen.name})",
+                       preprocessing=records.preprocessing.describe(), answer=chosen)
 
 
 def validation_fits(args: IdentifyOptions, model: IdentificationModel, delay: DelayBounds | None) -> tuple[str, ...]:
@@ -394,28 +418,46 @@ def floor_check(records: PreparedRecords, model: IdentificationModel, result: Id
     return residual_report(result, result, records.train.measurements, records.validation.measurements, floor)
 
 
-def above_floor_notes(report: ResidualReport | None) -> list[str]:
-    """A warning for each channel whose validation error stays significantly above its floor."""
+def above_floor_notes(report: ResidualReport | None, chosen: ChosenModel | None = None,
+                      n_samples: int | None = None) -> list[str]:
+    """A warning for each channel whose validation error stays significantly above its floor: the unconstrained
+    fit's (``report``), or the ``chosen`` model's when it is the consistent fit (tested as ``report`` tests,
+    ``n_samples`` the validation record's)."""
     if report is None or report.floor is None:
         return []
-    above = [channel for channel, comparison in report.comparison.get("after", {}).items() if comparison.above]
+    comparisons = report.comparison.get("after", {})
+    if chosen is not None and chosen.consistent and chosen.validation is not None:
+        n_samples = chosen.validation.t.shape[0] if n_samples is None else n_samples
+        comparisons = compare_with_floor(chosen.validation.mse, report.floor, n_samples, alpha=FLOOR_ALPHA)
+        traced = {channel: report.statements.get(channel, "").partition("; ")[2] for channel in comparisons}
+        return [f"{comparison.statement()}{'; ' + traced[channel] if traced[channel] else ''}: the model lacks "
+                "something there; `oed diagnose` searches for it"
+                for channel, comparison in comparisons.items() if comparison.above]
+    above = [channel for channel, comparison in comparisons.items() if comparison.above]
     return [f"{report.statements[channel]}: the model lacks something there; `oed diagnose` searches for it"
             for channel in above]
 
 
 def summary_lines(robot: RobotModel, model: IdentificationModel, result: IdentificationResult,
-                  preprocessing: Preprocessing, n_samples: int, rest: dict[str, dict | None]) -> list[str]:
-    """The preprocessing, the estimate with its shape parameters, the errors and the rows at rest dropped."""
+                  preprocessing: Preprocessing, n_samples: int, rest: dict[str, dict | None],
+                  chosen: ChosenModel | None = None) -> list[str]:
+    """The preprocessing, the estimate with its shape parameters, the errors and the rows at rest dropped: those of
+    the ``chosen`` model (default ``result``; the consistent fit's shapes are held at ``result``'s)."""
     estimate = result.estimate
+    chosen = ChosenModel(estimate.method, result) if chosen is None else chosen
+    fit = f"{estimate.method.upper()}" if not chosen.consistent else \
+        f"physically consistent, refitted from {estimate.method.upper()}"
     lines = [preprocessing.describe(),
              f"{robot.name}: {model.kind.value} model, {model.n_base} base parameters, {n_samples} samples, "
-             f"{estimate.method.upper()}, cond {estimate.cond:.4g}"]
-    lines += estimate_lines(estimate)
+             f"{fit}, cond {estimate.cond:.4g}"]
+    lines += chosen.parameter_lines()
     width = max(len(name) for name in estimate.names)
     for value in result.shapes:
         bound = "  (at its bound)" if value.at_bound else ""
-        lines.append(f"  {value.name:<{width}}  {value.value:+.5g} ± {value.std:.2g}  (shape of {value.effect}){bound}")
-    for label, comparison in (("train", result.train), ("validation", result.validation)):
+        held = "; held by the consistent fit" if chosen.consistent else ""
+        lines.append(f"  {value.name:<{width}}  {value.value:+.5g} ± {value.std:.2g}  (shape of {value.effect}{held})"
+                     f"{bound}")
+    for label, comparison in (("train", chosen.train), ("validation", chosen.validation)):
         if comparison is not None:
             lines.append(f"{label} MSE (vs recorded): " + "  ".join(
                 f"{channel} {value:.4g}" for channel, value in comparison.mse.items()))

@@ -2,12 +2,22 @@
 
 from __future__ import annotations
 
+import warnings
+from collections.abc import Sequence
+from pathlib import Path
 from typing import Any
 
 from estimation.consistent.model_selection import selection_model_file
 from estimation.identification.fit import IdentificationResult
-from estimation.identification.model_file import RobotSource, model_file_document, summed_model_file_document
+from estimation.identification.identified_model import IdentifiedModel
+from estimation.identification.model_file import (
+    ModelFile,
+    RobotSource,
+    model_file_document,
+    summed_model_file_document,
+)
 from estimation.identification.plausibility import assess_plausibility, link_findings
+from oed.workflows.chosen_model import ChosenModel
 from oed.workflows.options import RecordOptions
 
 
@@ -56,8 +66,9 @@ def add_model_file(document: dict[str, Any], result: IdentificationResult, args:
             consistent_validation_mse=None if consistent is None or consistent.validation is None
             else consistent.validation.mse)
     validation = document.get("validation") or {}
-    plausibility = assess_plausibility(result.model, result.estimate.records(),
-                                       validation_mse=None if result.validation is None else result.validation.mse,
+    answer = ChosenModel(result.estimate.method, result) if selection is None else ChosenModel.of(selection)
+    plausibility = assess_plausibility(result.model, answer.records(),  # of the model the file holds
+                                       validation_mse=None if answer.validation is None else answer.validation.mse,
                                        nominal_mse=validation.get("nominal_mse"), zero_mse=validation.get("zero_mse"))
     document["plausibility"] = plausibility.to_dict()
     links = () if consistent is None else link_findings(result.model.robot, consistent.estimate.link_parameters())
@@ -86,8 +97,34 @@ def add_summed_model_file(document: dict[str, Any], model: Any, estimate: Any, a
     document["model_file"] = summed_model_file_document(model, estimate, robot=robot_source(model.robot, args),
                                                         preprocessing=preprocessing, shape=shape,
                                                         recorded_mse=recorded_mse, validation_mse=validation_mse)
+    document["model_file"]["chosen"] = estimate.method  # the only model: named, as predict and the summary name it
     validation = document.get("validation") or {}
     plausibility = assess_plausibility(model, estimate.records(), validation_mse=validation_mse,
                                        nominal_mse=validation.get("nominal_mse"), zero_mse=validation.get("zero_mse"))
     document["plausibility"] = {**plausibility.to_dict(), "consistent_links": []}
     return tuple(plausibility.messages())
+
+
+def recorded_validation_mse(model_file: dict[str, Any], validate: Sequence[str | Path]) -> dict[str, float] | None:
+    """The validation MSE of the model of ``model_file`` (a ``model_file`` document) on the records ``validate``,
+    as ``oed predict`` measures it (:meth:`estimation.identification.identified_model.IdentifiedModel.evaluate`: at
+    the recorded time stamps, against the torques as recorded), when the loader cleaned or resampled a record
+    (jittered stamps, rows a logger re-sent, stalls): the streamed chunks score such a record on the uniform grid,
+    against torques interpolated onto it. ``None`` when every record is read as it was recorded (the streamed
+    pass measured that error already). Reads the validation records in memory, as ``oed predict`` does."""
+    model = IdentifiedModel(ModelFile.from_dict(model_file))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # the records' findings were said when the verb read them
+        segments = model.read(list(validate))
+        if all(segment.recorded is None for segment in segments):
+            return None
+        return dict(model.predict_record(model.prepare(segments)).mse)
+
+
+def resampled_validation(document: dict[str, Any]) -> bool:
+    """Whether the streamed run of ``document`` (``result.json`` or ``report.json``) resampled a validation file
+    onto a uniform grid (``streaming.validation_files[].resampled_from``: jittered stamps, stalls): its errors there
+    are then measured again at the recorded samples (:func:`recorded_validation_mse`). Reading the validation files
+    in memory only then keeps the streamed path's memory bounded on regular records."""
+    files = (document.get("streaming") or {}).get("validation_files") or ()
+    return any(entry.get("resampled_from") is not None for entry in files)
