@@ -287,15 +287,10 @@ OUTSIDE: tuple[Case, ...] = (
     Case("stribeck, validation repeats the motion", (STRIBECK,), named(("stribeck:velocity", "tau3")), repeat=True),
 )
 def _long_xfail() -> dict[str, str]:
-    """Measured on the code of the day, where a 1 kHz case misses its targets."""
-    return {
-        "stribeck on every joint": "measured: named coulomb@tau2 (the sign law, fc2 = 7.9: the truth's fc + fs) beside "
-                                   "stribeck:velocity@tau1 and @tau3, tau2 9.9x its floor (said); the Stribeck law on "
-                                   "joint 2 alone fits best at a non-physical optimum (fc2 = 64.7, fs2 = -56.3, fv2 = "
-                                   "-4.1: its shape traded against the viscous term over joint 2's velocities) and is "
-                                   "refused, so the sign law stays (a physical optimum, tried, named a Stribeck law on "
-                                   "a sign-law truth in the streamed diagnosis: not kept)",
-    }
+    """Measured on the code of the day, where a 1 kHz case misses its targets (none now: the issue's Stribeck truth
+    on every joint passes since a non-physical local optimum of a shaped law gives way to a better physical one,
+    :func:`estimation.diagnosis.candidates.trials.better_physical_optimum`)."""
+    return {}
 
 
 #: the same truths, the derivatives made from the positions as a user gets them (slow)
