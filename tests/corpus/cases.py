@@ -153,12 +153,7 @@ NON_DEFAULT: tuple[Case, ...] = (
 )
 
 #: measured on the code of the day, where a case from positions only misses its targets
-POSITIONS_XFAIL: dict[str, str] = {
-    "coulomb sign": "measured: named coulomb@tau2 (the sign law, the truth); after/floor 0.99/2.42/0.98, after/known "
-                    "law 1.00/1.00/1.00: only the floor is missed, and the fit that knows the law misses it as much "
-                    "(derivatives: a Fourier fit chosen by held-out evidence; a sign law's jump is smoothed by any "
-                    "derivative from positions)",
-}
+POSITIONS_XFAIL: dict[str, str] = {}  # none: the sign law from positions reaches its floor (0.99/0.99/0.98)
 POSITIONS: tuple[Case, ...] = tuple(
     positions_only(case, xfail=POSITIONS_XFAIL.get(case.name, "")) for case in ALONE + PAIRS[:3]
     if case.name != "coupled coulomb q2+q3"
