@@ -2,7 +2,8 @@
 and an arm), 6 and 7 joints, with the hard cases of the issue's table (short records, a short validation record,
 jittered and stalled time stamps, a logged velocity and none, 100 Hz to 1 kHz). For each, the default
 ``oed identify`` and ``oed diagnose`` (then ``oed predict`` on a test record of another motion) must run on their
-defaults (no exit where an explicit option would have worked) and predict the test record about as well as a plain
+defaults (no exit where an explicit option would have worked; ``identify`` told the plain fit's model class,
+``diagnose`` only its own defaults: the viscous model, whose Coulomb friction and offsets it must find) and predict the test record about as well as a plain
 Pinocchio least-squares fit of rigid body, viscous and Coulomb friction and offsets
 (``benchmarks/bench_real_robots.py``: the plain fit, its cut-off chosen on the validation record, and the
 comparison at the recorded samples every run predicted): per joint within 1.3x, in total at most 1.0x, each
@@ -117,7 +118,7 @@ def run_case(case: UnseenCase, folder: Path) -> dict:
     robot = load_robot(urdf=urdf)
     model = build_model(robot, "internal", FRICTION)
     theta = true_parameters(model, seed=0)
-    benchmark = Case(case.name, ["--urdf", str(urdf)], {}, {}, ["--friction", FRICTION])
+    benchmark = Case(case.name, ["--urdf", str(urdf)], {}, {})  # identify: --friction FRICTION; diagnose: its defaults
     spread = None
     for role, log, seed in (("train", case.train, 11), ("validate", case.validate, 12), ("test", case.test, 13)):
         path = folder / f"{role}.csv"
@@ -179,7 +180,7 @@ def test_the_defaults_run_and_predict_a_new_motion_as_well_as_a_plain_fit(case, 
     outcome = run_case(case, tmp_path)
     mse, floor = outcome["mse"], outcome["floor"]
     plain = mse["plain OLS"]
-    print(f"\n{case.name}: plain cut-off {outcome['cutoff']} Hz; " + "; ".join(
+    print(f"\n{case.name}: plain cut-off {outcome['cutoff']} Hz; diagnose adopted {outcome['effects']}; " + "; ".join(
         f"{label} {None if values is None else (values / plain).round(3).tolist()}" for label, values in mse.items()))
     for label in ("default", "diagnose"):
         assert mse[label] is not None, f"oed {label} failed on its defaults"
