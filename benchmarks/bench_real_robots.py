@@ -368,21 +368,22 @@ def table(name: str, outcome: dict) -> list[str]:
     n = plain.shape[0]
     lines = [f"**{name}**: test MSE per joint (N²m², N² for EMPS) on {outcome['samples']} of {outcome['of']} test "
              f"samples; plain OLS cut-off {outcome['cutoff']:g} Hz (chosen on the validation record)", "",
-             "| model | " + " | ".join(f"j{j + 1}" for j in range(n)) + " | total | total / plain | worst joint / plain |",
-             "|---|" + "---|" * (n + 3)]
+             "| model | " + " | ".join(f"j{j + 1}" for j in range(n))
+             + " | total | total / plain | mean joint / plain | worst joint / plain |",
+             "|---|" + "---|" * (n + 4)]
     for label, values in mse.items():
         if values is None:
-            lines.append(f"| {label} | " + " | ".join("–" for _ in range(n)) + " | failed | – | – |")
+            lines.append(f"| {label} | " + " | ".join("–" for _ in range(n)) + " | failed | – | – | – |")
             continue
         ratio = values / plain
         lines.append(f"| {label} | " + " | ".join(f"{v:.4g}" for v in values)
-                     + f" | {values.sum():.4g} | {values.sum() / plain.sum():.3f} | {ratio.max():.3f} (j{ratio.argmax() + 1}) |")
+                     + f" | {values.sum():.4g} | {values.sum() / plain.sum():.3f} | {ratio.mean():.3f} "
+                     f"| {ratio.max():.3f} (j{ratio.argmax() + 1}) |")
     selection = outcome["selection"]
     if selection is not None:
         scores = ", ".join(f"{c['name']} {c['score']:.4g}" for c in selection["candidates"] if c["score"] is not None)
         lines += ["", f"default chose **{selection['chosen']}** ({selection['selection']}; validation scores: "
-                      f"{scores or 'none'}); derivatives: {outcome['preprocessing'].get('method')} "
-                      f"{outcome['preprocessing'].get('cutoff_hz') or ''}"]
+                      f"{scores or 'none'}); derivatives: {derivatives(outcome['preprocessing'])}"]
     selection = outcome.get("diagnose_selection")
     if selection is not None:
         scores = ", ".join(f"{c['name']} {c['score']:.4g}" if c["score"] is not None else f"{c['name']} (none)"
@@ -390,6 +391,22 @@ def table(name: str, outcome: dict) -> list[str]:
         lines += ["", f"diagnose chose **{selection['chosen']}** ({selection['selection']}; validation scores: "
                       f"{scores}); effects adopted: {', '.join(outcome['effects']) or 'none'}"]
     return lines
+
+
+def derivatives(plan: dict) -> str:
+    """The default's derivatives in a few words: the method, and how it was chosen (on the training record's
+    held-out blocks, or on the validation record, then with the training record's own choice)."""
+    text = plan.get("method", "?")
+    if plan.get("method") == "butterworth":
+        text += f" {plan['cutoff_hz']:.4g} Hz" + (" (dq from the positions)" if plan.get("velocity_from_positions")
+                                                  else "")
+    elif plan.get("method") == "fourier":
+        text += f" {plan['frequency_hz']:.4g} Hz, {plan['harmonics']} harmonics"
+    if plan.get("selection"):
+        text += f", chosen by {plan['selection']}"
+    if plan.get("held_out_choice"):
+        text += f" (the training record's blocked cross-validation: {plan['held_out_choice']})"
+    return text
 
 
 def main_benchmark() -> None:

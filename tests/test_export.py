@@ -229,3 +229,29 @@ def test_the_exported_mjcf_reproduces_oed_predict_through_mujoco_inverse_dynamic
     np.testing.assert_allclose(np.array(inverse), expected, rtol=0, atol=1e-6 * np.abs(expected).max())
     # numbers at full precision: the file reads back the doubles exported
     assert repr(terms[0]["coulomb"]) in text
+
+
+@pytest.mark.parametrize(("outputs", "named"), [
+    ({"urdf": "model.txt"}, "--urdf model.txt: this writes a URDF; give a .urdf file name"),
+    ({"urdf": "m.urdf", "mjcf": "j.urdf"}, "--mjcf j.urdf: this writes MuJoCo's MJCF; give an .xml file name"),
+    ({"urdf": "m.urdf", "friction": "f.csv"}, "--friction f.csv: this writes JSON; give a .json file name")])
+def test_a_wrong_suffix_is_refused_by_the_library_as_by_the_command_line(consistent_result, tmp_path, capsys,
+                                                                          outputs, named):
+    """``oed.export(...).write("x.txt")`` refuses as ``oed export --urdf x.txt`` does: a typed error naming the
+    option and the suffix wanted, and nothing written."""
+    import oed
+    from oed.workflows.options import OutputPathError
+
+    _, result, _ = consistent_result
+    run = oed.export(model=result, mjcf=True)
+    paths = {key: tmp_path / name for key, name in outputs.items()}
+    option, name = named.split(" ", 1)[0], named.split(" ", 1)[1]
+    with pytest.raises(OutputPathError) as refused:
+        run.write(paths.pop("urdf"), **paths)
+    assert str(refused.value).startswith(f"{option} {tmp_path}/") and str(refused.value).endswith(name)
+    assert isinstance(refused.value, ValueError)
+    assert list(tmp_path.iterdir()) == []
+    options = [item for key, name in outputs.items() for item in (f"--{key}", str(tmp_path / name))]
+    assert main(["export", "--model", str(result), *options]) == 2
+    assert named.split(": ", 1)[1] in capsys.readouterr().err
+    assert list(tmp_path.iterdir()) == []

@@ -96,3 +96,40 @@ def test_the_streamed_path_says_a_finding_once_for_every_file_and_pass(files, ca
     found = [line for line in error if "dropped 2 row(s)" in line]
     assert len(found) == 1 and "3 files (" in found[0], error  # named in the order they were read (the validation
     assert all(name in found[0].split("):")[0] for name in ("part0.csv", "part1.csv", "part3.csv"))  # file: first)
+
+
+def test_findings_of_several_passes_are_said_as_each_pass_ends_each_once(capsys):
+    """The streamed path reads its files two or three times: a pass says the findings new to the run, naming the
+    files that gave them in that pass; the same finding of the same file is not said again."""
+    from estimation.data.input_findings import FindingsSaid
+
+    findings = FindingsSaid(["/d/a.csv", "/d/b.csv", "/d/c.csv"])
+    with progress.show_progress("oed test"):
+        with pytest.warns(UserWarning) as issued:
+            with findings.reading():
+                warnings.warn("/d/a.csv (rows 1-500): dropped 2 row(s)", UserWarning, stacklevel=1)
+                warnings.warn("/d/b.csv (rows 1-500): dropped 3 row(s)", UserWarning, stacklevel=1)
+                warnings.warn("no file named", UserWarning, stacklevel=1)
+            said_first = capsys.readouterr().err.splitlines()
+            with findings.reading():
+                for name in ("a", "b", "c"):
+                    warnings.warn(f"/d/{name}.csv: dropped 2 row(s)", UserWarning, stacklevel=1)
+                warnings.warn("no file named", UserWarning, stacklevel=1)
+    assert said_first == ["oed test: warning: 2 files (a.csv, b.csv): dropped 2 row(s) (figures of a.csv; the "
+                          "others' differ)", "oed test: warning: no file named"]
+    assert capsys.readouterr().err.splitlines() == ["oed test: warning: /d/c.csv: dropped 2 row(s)"]
+    assert [str(warning.message) for warning in issued] == [line.split("warning: ", 1)[1] for line in said_first] + [
+        "/d/c.csv: dropped 2 row(s)"]
+    assert findings.lines == [str(warning.message) for warning in issued]
+
+
+def test_the_streamed_diagnosis_says_a_finding_once_as_its_files_are_read(files, capsys, monkeypatch):
+    folder, paths = files
+    monkeypatch.setattr(progress, "SECONDS", 0.0)  # every step says so
+    assert main(["diagnose", "--joints", "3", "--data", paths[0], "--data", paths[1], "--data", paths[2],
+                 "--validate", paths[3], "--chunk-size", "1000", "--out", str(folder / "streamed_report.json")]) == 0
+    error = capsys.readouterr().err.splitlines()
+    found = [line for line in error if "dropped 2 row(s)" in line]
+    assert len(found) == 1 and found[0].startswith("oed diagnose: warning: 4 files ("), error
+    # said as the files are read: before the first pass over them ends, not with the run's end
+    assert error.index(found[0]) < next(i for i, line in enumerate(error) if "first pass" in line)

@@ -154,6 +154,92 @@ def test_in_memory_and_streamed_make_the_same_choices(tmp_path, records, capsys,
         for which in ("before", "after"):
             np.testing.assert_allclose(list(streamed["validation"][which]["mse"].values()),
                                        list(memory["validation"][which]["mse"].values()), rtol=0.05)
+        # one document: the streamed one has every key of the in-memory one, and says why each it lacks is None
+        assert set(memory) <= set(streamed) and set(memory["validation"]) <= set(streamed["validation"])
+        missing = {key for key, value in streamed.items() if value is None and memory.get(key) is not None}
+        assert missing and missing <= set(streamed["not_computed"])
+        assert all(streamed["not_computed"].values()) and memory["not_computed"] == {}
+
+
+def test_one_result_type_whichever_the_path(records, tmp_path):
+    """``oed.diagnose`` in memory and streamed (a tiny budget): one result type, the same fields filled (the
+    errors before and after, the floor against them), the summary in the same form."""
+    import oed
+    from estimation.diagnosis.results import Diagnosis
+
+    options = dict(joints=3, model="internal", friction="viscous", data=records[0], validate=records[1], cutoff=6.0)
+    memory, streamed = oed.diagnose(**options), oed.diagnose(**options, memory_budget="1000")
+    assert (memory.diagnosis.path, streamed.diagnosis.path) == ("in-memory", "streamed")
+    for run in (memory, streamed):
+        diagnosis = run.diagnosis
+        assert type(diagnosis) is Diagnosis
+        document, own = run.to_dict(), diagnosis.to_dict()
+        assert set(own) <= set(document)
+        for key in ("effects", "rejected", "train", "cov_method", "noise_floor", "floor_comparison", "diagnosis_path",
+                    "tracing", "whiteness", "residuals", "not_computed"):
+            assert document[key] == own[key], key
+        for which in ("before", "after"):
+            fit = getattr(diagnosis, which)
+            assert set(fit.validation.mse) == set(fit.train.mse) == {"tau1", "tau2", "tau3"}
+            assert diagnosis.statistics.ratios(which)
+        assert any(line.startswith("  after / floor") for line in run.summary())
+        assert "validation MSE vs recorded" in run.summary()
+    assert streamed.diagnosis.residuals is None and "residuals" in streamed.diagnosis.not_computed
+    assert streamed.diagnosis.statistics.tracing is None and memory.diagnosis.statistics.tracing is not None
+    assert [e.spec for e in streamed.diagnosis.effects] == [e.spec for e in memory.diagnosis.effects]
+    # one report builder: the streamed run's report has the same sections but the figures, and says what it lacks
+    streamed.write(tmp_path / "r.json", report=tmp_path / "r.md")
+    text = (tmp_path / "r.md").read_text()
+    assert "## Parameters of the diagnosed model" in text and "## Not computed on this path" in text
+    assert "- tracing: residual tracing needs the residuals sample by sample" in text
+    assert sorted(path.name for path in tmp_path.iterdir()) == ["r.json", "r.md"]
+    assert "<img" not in streamed.html() and "<img" in memory.html()
+    with pytest.raises(ValueError, match="need the samples"):
+        streamed.plot_residuals(tmp_path / "r.png")
+
+
+def test_a_long_step_says_so_while_it_runs(capsys):
+    """A step past the limit says so while it runs (its watcher's wait timed out), then how long it took (a fake
+    clock); a short one says nothing; nothing is watched unless a program shows the lines."""
+    import io
+
+    def timed_out(done, seconds):
+        assert not done.is_set() and seconds == 2.0  # asked while the step runs, for the limit
+        return False
+
+    stream = io.StringIO()
+    with progress.show_progress("oed test", stream=stream):
+        ticks = iter([10.0, 15.5])
+        with progress.step("a pass", clock=lambda: next(ticks), wait=timed_out):
+            pass
+        ticks = iter([20.0, 20.5])
+        with progress.step("a short pass", clock=lambda: next(ticks), wait=lambda done, seconds: done.wait()):
+            pass
+    assert stream.getvalue().splitlines() == ["oed test: a pass: running (over 2 s)", "oed test: a pass: 5.5 s"]
+    ticks = iter([0.0, 0.0])
+    with progress.step("unseen", clock=lambda: next(ticks), wait=timed_out):
+        pass
+    assert capsys.readouterr().err == ""
+
+
+def test_a_long_step_is_said_by_its_watcher_before_it_ends():
+    """With the real wait: a step that outlasts a short limit is said while still running."""
+    import io
+    import threading
+
+    stream, said = io.StringIO(), threading.Event()
+
+    class Written(io.StringIO):
+        def write(self, text):
+            stream.write(text)
+            said.set()
+            return len(text)
+
+    with progress.show_progress("oed test", stream=Written()):
+        with progress.step("a long pass", seconds=0.01):
+            assert said.wait(30.0)  # the line comes while the step runs
+            assert stream.getvalue() == "oed test: a long pass: running (over 0.01 s)\n"
+    assert stream.getvalue().splitlines()[-1].startswith("oed test: a long pass: ")
 
 
 def test_progress_lines_go_to_stderr_unless_quiet(capsys):
@@ -182,8 +268,15 @@ def test_identify_chooses_alike_in_memory_and_streamed(tmp_path, records):
                      "--data", str(records[0]), "--validate", str(records[1]), "--out", str(out), *options]) == 0
         documents[name] = json.loads(out.read_text())
     memory, streamed = documents["memory"], documents["streamed"]
-    plan = {key: value for key, value in memory["preprocessing"].items() if key != "candidates"}
+    plan = {key: value for key, value in memory["preprocessing"].items()
+            if key not in ("candidates", "validation_candidates")}
     assert {key: streamed["preprocessing"][key] for key in plan} == plan
+
+    def untimed(document):  # the validation's scores, without the seconds they took
+        return [{key: value for key, value in candidate.items() if key != "seconds"}
+                for candidate in document["preprocessing"].get("validation_candidates", [])]
+
+    assert untimed(streamed) == untimed(memory)
     assert streamed["method_selection"]["chosen"] == memory["method_selection"]["chosen"]
     assert streamed["method_selection"]["candidates"] == memory["method_selection"]["candidates"]
     values = {name: np.array([record["value"] for record in document["parameters"]])

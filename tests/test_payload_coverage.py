@@ -6,12 +6,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from dynamics.models import build_model
-from dynamics.robots import load_robot
 from dynamics.simulation.synthetic import simulate
 from estimation.payload import PayloadBody, identify_payload
 from oed.fourier import random_fourier
-from tests.test_payload import PAYLOAD, VISCOUS, noise_of, robot_model_file
+from tests.test_payload import PAYLOAD, puma_with_payload, robot_model_file
 
 Z_95 = 1.959963984540054
 TRIALS = 100
@@ -20,12 +18,8 @@ RATE_HZ = 200.0
 
 def coverage(trials: int = TRIALS) -> np.ndarray:
     """``(trials, 10)``: whether each body value (mass, centre of mass, inertia about it) lay in its 95 % interval."""
-    robot = load_robot("puma560")
-    model = build_model(robot, "internal", "viscous")
-    theta = model.nominal_parameters(viscous=VISCOUS)
-    loaded = theta.copy()
-    loaded[50:60] += PAYLOAD
-    noise = noise_of(model, loaded)
+    model, theta, loaded, noise = puma_with_payload()
+    robot = model.robot
     truth = PayloadBody(PAYLOAD, np.zeros((10, 10))).values
     training, excitation = random_fourier(robot, seed=1, frequency_hz=0.1), random_fourier(robot, seed=7, frequency_hz=0.1)
     inside = []

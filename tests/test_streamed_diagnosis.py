@@ -69,11 +69,11 @@ def _compare(streamed, memory, tolerance=1e-8):
     assert {"tau1", "tau2"} <= {channel for e in streamed.effects for channel in e.channels}
     for s, m in zip(streamed.effects, memory.effects):
         assert relative(s.values, m.values) < tolerance
-    assert relative(streamed.after.values, memory.after.estimate.values) < tolerance
-    assert relative(list(streamed.validation_mse["before"].values()), list(memory.before.validation.mse.values())) < 1e-8
-    assert relative(list(streamed.train_mse["before"].values()), list(memory.before.train.mse.values())) < 1e-8
-    assert relative(list(streamed.validation_mse["after"].values()), list(memory.after.validation.mse.values())) < tolerance
-    assert relative(list(streamed.train_mse["after"].values()), list(memory.after.train.mse.values())) < tolerance
+    assert relative(streamed.after.estimate.values, memory.after.estimate.values) < tolerance
+    assert relative(list(streamed.before.validation.mse.values()), list(memory.before.validation.mse.values())) < 1e-8
+    assert relative(list(streamed.before.train.mse.values()), list(memory.before.train.mse.values())) < 1e-8
+    assert relative(list(streamed.after.validation.mse.values()), list(memory.after.validation.mse.values())) < tolerance
+    assert relative(list(streamed.after.train.mse.values()), list(memory.after.train.mse.values())) < tolerance
 
 
 def test_streamed_diagnosis_equals_the_in_memory_one(model, files):
@@ -122,9 +122,9 @@ def test_process_pool_gives_the_serial_diagnosis(model, files):
     assert [(e.spec, e.channels) for e in pooled.effects] == [(e.spec, e.channels) for e in serial.effects]
     # two files, one set of sums: the effects of the whole record (test above)
     assert [(e.spec, e.channels) for e in serial.effects] == [("coulomb", ("tau2",)), ("offset", ("tau1",))]
-    assert relative(pooled.after.values, serial.after.values) < 1e-10
+    assert relative(pooled.after.estimate.values, serial.after.estimate.values) < 1e-10
     for which in ("before", "after"):
-        assert pooled.validation_mse[which] == pytest.approx(serial.validation_mse[which], rel=1e-10)
+        assert getattr(pooled, which).validation.mse == pytest.approx(getattr(serial, which).validation.mse, rel=1e-10)
 
 
 def test_even_subsample_is_bounded_and_spread():
@@ -179,7 +179,7 @@ def test_dask_local_cluster_gives_the_serial_diagnosis(model, files):
         clustered = diagnose_files(model, files["halves"], files["full"][1:], chunk_size=300,
                                    executor=client.get_executor(pure=False))
     assert [(e.spec, e.channels) for e in clustered.effects] == [(e.spec, e.channels) for e in serial.effects]
-    assert relative(clustered.after.values, serial.after.values) < 1e-10
+    assert relative(clustered.after.estimate.values, serial.after.estimate.values) < 1e-10
 
 
 def test_a_lost_worker_fails_the_diagnosis_naming_the_file(model, files):

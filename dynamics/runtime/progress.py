@@ -5,7 +5,11 @@ Library code reports a step with :func:`step` (a context manager) or :func:`repo
 them on stderr (never into its JSON outputs), unless ``--quiet`` (:func:`show_progress`)::
 
     with step("sums pass over 3 files"):
-        ...                      # "oed diagnose: sums pass over 3 files: 12.3 s" when it took 2 s or more
+        ...                      # "oed diagnose: sums pass over 3 files: running (over 2 s)" once it has run 2 s,
+                                 # "oed diagnose: sums pass over 3 files: 12.3 s" when it ends
+
+A step that runs longer than :data:`SECONDS` says so while it runs (a watcher thread waits for its end that long,
+and only while a program shows the lines); its end line says how long it took.
 
 A warning known early (about the input files, :mod:`estimation.data.input_findings`) is also said at once with
 :func:`report_warning` (``oed diagnose: warning: …``); :func:`show_progress` yields the :class:`Shown` lines, so
@@ -17,8 +21,9 @@ from __future__ import annotations
 import contextlib
 import logging
 import sys
+import threading
 import time
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from typing import TextIO
 
 __all__ = ["LOGGER_NAME", "SECONDS", "Shown", "report", "report_warning", "show_progress", "step"]
@@ -42,13 +47,51 @@ def report_warning(message: str) -> None:
 
 
 @contextlib.contextmanager
-def step(what: str, *, seconds: float | None = None) -> Iterator[None]:
-    """Report ``what`` and the time it took when it took ``seconds`` (default :data:`SECONDS`) or more."""
-    started = time.perf_counter()
-    yield
-    elapsed = time.perf_counter() - started
-    if elapsed >= (SECONDS if seconds is None else seconds):
+def step(what: str, *, seconds: float | None = None, clock: Callable[[], float] = time.perf_counter,
+         wait: Callable[[threading.Event, float], bool] | None = None) -> Iterator[None]:
+    """Report ``what`` while it runs once it has run ``seconds`` (default :data:`SECONDS`): ``what: running (over
+    2 s)``, and at its end the time it took when it took that long or longer.
+
+    Parameters
+    ----------
+    what
+        The step, in a few words.
+    seconds
+        How long a step runs before it is said (default :data:`SECONDS`).
+    clock
+        The clock the time taken is read on (for tests: a fake one).
+    wait
+        ``wait(done, seconds)``: waits for the step's end (``done`` set) at most ``seconds``; ``True`` when it
+        ended. Default ``done.wait(seconds)`` in a watcher thread; a test passes one that returns at once.
+    """
+    limit = SECONDS if seconds is None else seconds
+    started = clock()
+    done = threading.Event()
+    watcher = None
+    if _LOGGER.isEnabledFor(logging.INFO) and _LOGGER.hasHandlers():  # a program shows the lines: watch the step
+        watcher = threading.Thread(target=_say_running, args=(what, limit, done, wait or _wait), daemon=True,
+                                   name=f"progress: {what}")
+        watcher.start()
+    try:
+        yield
+    finally:
+        done.set()
+        if watcher is not None:
+            watcher.join()
+    elapsed = clock() - started
+    if elapsed >= limit:
         report("%s: %.1f s", what, elapsed)
+
+
+def _wait(done: threading.Event, seconds: float) -> bool:
+    return done.wait(seconds)
+
+
+def _say_running(what: str, seconds: float, done: threading.Event,
+                 wait: Callable[[threading.Event, float], bool]) -> None:
+    """The watcher of :func:`step`: says the step once it has run ``seconds`` without ending."""
+    if not wait(done, seconds):
+        report("%s: running (over %.3g s)", what, seconds)
 
 
 class Shown(logging.Handler):

@@ -9,8 +9,9 @@ answer is chosen by its error on a motion the fit did not see (issue 34). The ca
     channel-weighted least squares, each channel weighted by the inverse of its residual variance (eq. 20);
 ``consistent``
     the physically consistent fit (:func:`estimation.consistent.identification.identify_consistent`: every link a
-    rigid body under the log-Cholesky map, friction and armature ``>= 0``) refitted from the unconstrained fit the
-    training record's blocked cross-validation prefers (:mod:`estimation.identification.weighting_choice`), with the
+    rigid body under the log-Cholesky map, friction and armature ``>= 0``) refitted from the unconstrained fit that
+    predicts a validation record of another motion best (:func:`validation_base`), else from the one the training
+    record's blocked cross-validation prefers (:mod:`estimation.identification.weighting_choice`), with the
     robot description's bodies as prior, the prior's weight chosen by the validation error
     (:func:`choose_prior_weight`; :data:`DEFAULT_PRIOR_WEIGHT` without a validation record).
 
@@ -35,7 +36,7 @@ the delay held at their fitted values) as the two candidates: the default answer
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, Literal
 
@@ -273,7 +274,9 @@ def select_model(model: IdentificationModel, train: Measurements, validation: Me
         Prepared records (``q, dq, ddq`` present); ``validation`` may be ``None``.
     base
         The unconstrained weighting the consistent fit starts from (the training record's own choice,
-        :func:`estimation.identification.weighting_choice.choose_weighting`, or the user's).
+        :func:`estimation.identification.weighting_choice.choose_weighting`, or the user's); with no choice given
+        and a validation record of another motion, the weighting that predicts it better instead
+        (:func:`validation_base`).
     given
         A candidate the user asked for (``--method ols|wls``, ``--consistent``): it is chosen, and only what it
         needs is fitted.
@@ -296,6 +299,8 @@ def select_model(model: IdentificationModel, train: Measurements, validation: Me
             known[name] = identify(model, train, validation, weighted=name == "wls", delay=delay)
         return known[name]
 
+    if given is None and validation is not None and repeated_motion(train, validation) > REPEAT_FRACTION:
+        base = validation_base(unconstrained, base)
     if given in ("ols", "wls"):
         wanted: tuple[str, ...] = (given,)
     elif given == "consistent":
@@ -323,6 +328,19 @@ def select_model(model: IdentificationModel, train: Measurements, validation: Me
                 reason = f"the consistent fit failed ({error})"
         candidates.append(Candidate("consistent", None, reason))
     return select_fitted(candidates, train, validation, base=base, given=given)
+
+
+def validation_base(unconstrained: Callable[[str], IdentificationResult],
+                    base: Literal["ols", "wls"]) -> Literal["ols", "wls"]:
+    """The unconstrained fit the consistent candidate is refitted from when the validation record is another
+    motion: of ``ols`` and ``wls`` (``unconstrained(name)`` fits them), the one of the smaller validation score
+    (:data:`CRITERION`; a tie to ``base``, the training record's own preference). The weighting is a choice like the
+    others, made on the motion the choice did not see when there is one."""
+    scores = {name: Candidate(name, unconstrained(name)).score for name in ("ols", "wls")}
+    finite = {name: score for name, score in scores.items() if score is not None and math.isfinite(score)}
+    if len(finite) < 2 or finite["ols"] == finite["wls"]:
+        return base
+    return min(finite, key=finite.__getitem__)  # type: ignore[return-value]
 
 
 def select_fitted(candidates: Sequence[Candidate], train: Measurements, validation: Measurements | None = None, *,

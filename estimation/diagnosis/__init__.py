@@ -11,6 +11,7 @@ from dynamics.runtime.lazy import lazy_exports
 #: these names stay (imported on first use, PEP 562, so that importing the package stays light)
 _EXPORTS: dict[str, str] = {
     "AdoptedEffect": "estimation.diagnosis.search_fits",
+    "ChannelErrors": "estimation.diagnosis.results",
     "Alternative": "estimation.diagnosis.runner_up",
     "CandidateComparison": "estimation.diagnosis.confirmation",
     "Diagnosis": "estimation.diagnosis.results",
@@ -30,6 +31,7 @@ _EXPORTS: dict[str, str] = {
     "RunnerUpSearch": "estimation.diagnosis.runner_up",
     "SearchOutcome": "estimation.diagnosis.forward_selection",
     "SearchSettings": "estimation.diagnosis.forward_selection",
+    "SummedFit": "estimation.diagnosis.results",
     "TrialRequest": "estimation.diagnosis.search_fits",
     "TrialTest": "estimation.diagnosis.search_fits",
     "UntouchedErrors": "estimation.diagnosis.untouched",

@@ -149,7 +149,7 @@ def choice_blocks(diagnosis: Diagnosis, document: dict[str, Any], preprocessing:
     """The choices made: preprocessing, weighting, effects adopted and rejected, the runner-up."""
     estimate = diagnosis.after.estimate
     items = [preprocessing] if preprocessing else []
-    items.append(f"estimator: {estimate.method}; standard deviations: {estimate.cov_method}")
+    items.append(f"estimator: {estimate.method}; standard deviations: {diagnosis.cov_method}")
     items.append("adopted: " + (", ".join(f"{e.get('spec', e['name'])} on {', '.join(e['channels'])} "
                                          f"(p = {e['p_value']:.2g})" for e in document["effects"]) or "nothing"))
     items.append(runner_up_line(diagnosis.runner_up, diagnosis.runner_up_reason))
@@ -164,7 +164,7 @@ def choice_blocks(diagnosis: Diagnosis, document: dict[str, Any], preprocessing:
 def parameter_blocks(diagnosis: Diagnosis) -> list[Block]:
     """The diagnosed model's base parameters with their standard deviations."""
     return [Heading("Parameters of the diagnosed model"),
-            Paragraph(f"Standard deviations: {diagnosis.after.estimate.cov_method}; condition number "
+            Paragraph(f"Standard deviations: {diagnosis.cov_method}; condition number "
                       f"{float(diagnosis.after.estimate.cond):.3g}."),
             parameter_table(diagnosis.after)]
 
@@ -226,6 +226,8 @@ def statistics_blocks(document: dict[str, Any]) -> list[Block]:
     if document.get("floor_statements"):
         blocks.append(Bullets(tuple(document["floor_statements"].values())))
     tracing = document["tracing"]
+    if tracing is None or document["whiteness"] is None:  # the streamed path holds no residuals sample by sample
+        return blocks + not_computed_blocks(document, ("tracing", "whiteness"))
 
     def strongest(which: str, channel: str) -> str:
         rows = [row for row in tracing[which]["rows"] if row["channel"] == channel
@@ -286,8 +288,17 @@ def telling_rows(trace: ResidualTrace, validate: Measurements, count: int = 3) -
     return kept
 
 
+def not_computed_blocks(document: dict[str, Any], keys: Sequence[str]) -> list[Block]:
+    """What the path did not compute of ``keys``, and why (the document's ``not_computed``)."""
+    missing = document.get("not_computed") or {}
+    reasons = tuple(f"{key}: {missing[key]}" for key in keys if key in missing)
+    return [Heading("Not computed on this path"), Bullets(reasons)] if reasons else []
+
+
 def residual_blocks(document: dict[str, Any]) -> list[Block]:
     """The declared model's training residual statistics."""
+    if document["residuals"] is None:
+        return not_computed_blocks(document, ("residuals",))
     rows = []
     for channel, stats in document["residuals"].items():
         autocorrelation = " / ".join(f"{stats[key]:.2f}" for key in stats if key.startswith("autocorrelation"))

@@ -1,10 +1,17 @@
-"""What a diagnosis returns (:func:`estimation.diagnosis.search.diagnose`): the effects found, the candidates
-rejected and why, the model before and after, and the JSON document of ``oed diagnose``."""
+"""What a diagnosis returns, in memory (:func:`estimation.diagnosis.search.diagnose`) or from records read in
+blocks and summed (:func:`estimation.streaming.diagnosis.diagnose_files`): one :class:`Diagnosis` with the effects
+found, the candidates rejected and why, the model before and after, and the JSON document of ``oed diagnose``.
+
+The streamed path fills the same fields; its models before and after are :class:`SummedFit` (an estimate from sums
+and its errors per channel, no samples held) where the in-memory path has an
+:class:`~estimation.identification.fit.IdentificationResult`, and what it cannot compute (the per-sample residual
+statistics, tracing, whiteness…) is ``None``, each with its reason in :attr:`Diagnosis.not_computed`.
+"""
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 
@@ -14,6 +21,7 @@ from dynamics.effects.shaped import shape_parameters
 from estimation.diagnosis.candidates.trials import candidate_label
 from estimation.diagnosis.rules.robust_test import wald_test
 from estimation.diagnosis.statistics import ResidualReport
+from estimation.estimators.summed_least_squares import SummedEstimate
 from estimation.identification.fit import IdentificationResult
 from estimation.diagnosis.sign_constraints import PinnedTerm
 from estimation.estimators.effect_blocks import effect_rows
@@ -95,22 +103,110 @@ class RunnerUp:
 
 
 @dataclass(frozen=True)
+class ChannelErrors:
+    """The errors of a fit on one record where its samples are not held (the streamed path): what a
+    :class:`~estimation.identification.validation.Comparison` gives as ``mse``, against the channels as recorded."""
+
+    mse: dict[str, float]
+    n_samples: int | None = None
+
+
+@dataclass(frozen=True)
+class SummedFit:
+    """A model estimated from sums (the streamed diagnosis), with the fields of an
+    :class:`~estimation.identification.fit.IdentificationResult` that a :class:`Diagnosis` reads: ``model``,
+    ``estimate`` (a :class:`~estimation.estimators.summed_least_squares.SummedEstimate`), ``train`` and
+    ``validation`` (:class:`ChannelErrors`), ``warnings``; ``cov_method``: how its covariance was had."""
+
+    model: IdentificationModel
+    estimate: SummedEstimate = field(repr=False)
+    train: ChannelErrors
+    validation: ChannelErrors
+    warnings: tuple[str, ...] = ()
+    cov_method: str = "classical"
+    shapes: tuple[Any, ...] = ()
+    delay: None = None
+
+
+#: what the streamed diagnosis cannot compute, by the document's key (``Diagnosis.not_computed``)
+STREAMED_NOT_COMPUTED = {
+    "residuals": "per-sample residual statistics need the residuals sample by sample, which the streamed path does "
+                 "not hold",
+    "tracing": "residual tracing needs the residuals sample by sample, which the streamed path does not hold",
+    "whiteness": "whiteness checks need the residuals sample by sample, which the streamed path does not hold",
+    "model_parameters": "the physical reading of the estimate is made in memory",
+    "rest": "rest stretches are found in memory (the streamed path reads whole files)",
+    "transmission": "--transmission is read in memory",
+    "test": "--test is read in memory",
+    "consistent": "the physically consistent refit is made in memory",
+    "links": "the bodies of the physically consistent refit are had in memory",
+    "model_selection": "the choice between the adopted model and its consistent refit is made in memory",
+}
+
+
+@dataclass(frozen=True)
 class Diagnosis:
-    """Result of :func:`diagnose`."""
+    """Result of a diagnosis, in memory (:func:`estimation.diagnosis.search.diagnose`) or streamed
+    (:func:`estimation.streaming.diagnosis.diagnose_files`): the same fields on both paths.
+
+    Attributes
+    ----------
+    effects, rejected
+        The effects found (:class:`FoundEffect`) and the candidates not added, with why.
+    before, after
+        The declared and the augmented model fitted: an
+        :class:`~estimation.identification.fit.IdentificationResult` in memory, a :class:`SummedFit` streamed;
+        both have ``model``, ``estimate``, ``train.mse``, ``validation.mse`` and ``warnings``.
+    residuals
+        Per-sample residual statistics, or ``None`` (streamed: :attr:`not_computed` says why).
+    statistics
+        The noise floor and the errors against it, tracing and whiteness (``None`` inside where not computed).
+    path
+        ``"in-memory"`` or ``"streamed"`` (the document's ``diagnosis_path``).
+    not_computed
+        What this path could not compute, by the document's key, and why (empty in memory).
+    trivial
+        The validation MSE of the trivial predictors (``zero_mse``, ``nominal_mse``), or ``None``.
+    streaming
+        How the files were read, summed and estimated (the document's ``streaming``), or ``None`` in memory.
+    """
 
     effects: tuple[FoundEffect, ...]
     rejected: tuple[RejectedEffect, ...]
-    before: IdentificationResult
-    after: IdentificationResult
-    residuals: dict[str, dict[str, float]] = field(repr=False)
+    before: IdentificationResult | SummedFit
+    after: IdentificationResult | SummedFit
+    residuals: dict[str, dict[str, float]] | None = field(repr=False)
     statistics: ResidualReport | None = field(default=None, repr=False)
     pinned: tuple[PinnedTerm, ...] = ()
     #: the best rival model not chosen (:mod:`estimation.diagnosis.runner_up`), or ``None`` and why
     runner_up: RunnerUp | None = field(default=None, repr=False)
     runner_up_reason: str | None = None
+    path: Literal["in-memory", "streamed"] = "in-memory"
+    not_computed: dict[str, str] = field(default_factory=dict, repr=False)
+    trivial: dict[str, dict[str, float]] | None = field(default=None, repr=False)
+    streaming: dict[str, Any] | None = field(default=None, repr=False)
+
+    @property
+    def model(self) -> IdentificationModel:
+        """The declared model."""
+        return self.before.model
+
+    @property
+    def cov_method(self) -> str:
+        """How the final estimate's covariance was had (the document's ``cov_method``)."""
+        return self.after.cov_method if isinstance(self.after, SummedFit) else self.after.estimate.cov_method
+
+    def final_model(self) -> IdentificationModel:
+        """The declared model with the effects found: ``after`` holds its estimate (in the order of its columns)."""
+        return self.after.model
+
+    def final_shape(self) -> dict[str, float]:
+        """The shapes of the shaped laws found, by parameter name."""
+        return {name: float(value) for effect in self.effects for name, value in effect.shape.items()}
 
     def to_dict(self) -> dict[str, Any]:
-        """The JSON document of ``oed diagnose``."""
+        """The JSON document of ``oed diagnose`` (the same keys on both paths; ``None`` where :attr:`not_computed`
+        says why)."""
         document = {
             "robot": self.before.model.robot.name,
             "model": self.before.model.kind.value,
@@ -125,7 +221,7 @@ class Diagnosis:
                 "before": {"mse": self.before.validation.mse if self.before.validation else None},
                 "after": {"mse": self.after.validation.mse if self.after.validation else None},
             },
-            "cov_method": self.after.estimate.cov_method,
+            "cov_method": self.cov_method,
             "pinned": [term.to_dict() for term in self.pinned],
             "runner_up": None if self.runner_up is None else self.runner_up.to_dict(),
             "runner_up_reason": self.runner_up_reason,
@@ -134,6 +230,12 @@ class Diagnosis:
             document.update(self.statistics.to_dict())
             for which in ("before", "after"):
                 document["validation"][which]["mse_over_floor"] = self.statistics.ratios(which) or None
+        if self.trivial is not None:  # the trivial predictors' validation errors
+            document["validation"].update({key: dict(value) for key, value in self.trivial.items()})
+        document.update({key: None for key in self.not_computed if key not in document})
+        document["diagnosis_path"] = self.path
+        document["streaming"] = None if self.streaming is None else dict(self.streaming)
+        document["not_computed"] = dict(self.not_computed)
         return document
 
 

@@ -44,8 +44,9 @@ class ResidualReport:
     floor: NoiseFloor | None
     floor_note: str
     comparison: dict[str, dict[str, FloorComparison]] = field(repr=False)
-    tracing: dict[str, ResidualTrace] = field(repr=False)
-    checks: dict[str, ResidualChecks] = field(repr=False)
+    #: ``None`` where the residuals are not held sample by sample (the streamed diagnosis)
+    tracing: dict[str, ResidualTrace] | None = field(repr=False)
+    checks: dict[str, ResidualChecks] | None = field(repr=False)
     statements: dict[str, str] = field(default_factory=dict)
 
     def ratios(self, which: str = "after") -> dict[str, float]:
@@ -59,8 +60,8 @@ class ResidualReport:
             "floor_comparison": {which: {channel: c.to_dict() for channel, c in comparisons.items()}
                                  for which, comparisons in self.comparison.items()},
             "floor_statements": dict(self.statements),
-            "tracing": {which: trace.to_dict() for which, trace in self.tracing.items()},
-            "whiteness": {which: checks.to_dict() for which, checks in self.checks.items()},
+            "tracing": None if self.tracing is None else {which: trace.to_dict() for which, trace in self.tracing.items()},
+            "whiteness": None if self.checks is None else {which: checks.to_dict() for which, checks in self.checks.items()},
         }
 
 

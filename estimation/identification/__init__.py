@@ -1,8 +1,8 @@
 """Identification of a model on one experiment and validation on another: the records read and prepared in one call
-(the derivatives chosen by held-out evidence), plain, shaped and delayed fits, the model's parameter vector as JSON,
+(the derivatives chosen by held-out evidence, on another motion when a validation record holds one), plain, shaped and delayed fits, the model's parameter vector as JSON,
 trivial predictors.
 
-Modules: :mod:`~estimation.identification.delayed`, :mod:`~estimation.identification.fit`, :mod:`~estimation.identification.model_parameters`, :mod:`~estimation.identification.prepared`, :mod:`~estimation.identification.preprocessing_choice`, :mod:`~estimation.identification.shaped`, :mod:`~estimation.identification.trivial_predictors`, :mod:`~estimation.identification.validation`.
+Modules: :mod:`~estimation.identification.delayed`, :mod:`~estimation.identification.fit`, :mod:`~estimation.identification.model_parameters`, :mod:`~estimation.identification.prepared`, :mod:`~estimation.identification.preprocessing_choice`, :mod:`~estimation.identification.preprocessing_on_validation`, :mod:`~estimation.identification.shaped`, :mod:`~estimation.identification.trivial_predictors`, :mod:`~estimation.identification.validation`.
 """
 
 from __future__ import annotations
@@ -33,6 +33,7 @@ _EXPORTS: dict[str, str] = {
     "ShapeValue": "estimation.identification.shaped",
     "assess_plausibility": "estimation.identification.plausibility",
     "choose_by_evidence": "estimation.identification.preprocessing_choice",
+    "choose_on_validation": "estimation.identification.preprocessing_on_validation",
     "choose_weighting": "estimation.identification.weighting_choice",
     "compare": "estimation.identification.validation",
     "exported_mjcf": "estimation.identification.export",

@@ -6,7 +6,9 @@ error there), motor-side columns converted by the transmission
 (:func:`estimation.data.motor_side.read_record_with_transmission`). It refuses a validation or test file that
 is a training file, and a channel that holds one value throughout a record. It chooses one preprocessing on the
 training segments, by held-out evidence (:func:`estimation.identification.preprocessing_choice.choose_by_evidence`,
-the default) or by the fixed rule (:func:`estimation.preprocessing.plan.choose_preprocessing`), prepares every record
+the default) or by the fixed rule (:func:`estimation.preprocessing.plan.choose_preprocessing`), when asked
+(``validation_fits``) chooses again among the same candidates on a validation record of another motion
+(:func:`estimation.identification.preprocessing_on_validation.on_validation`), prepares every record
 with it (:func:`estimation.preprocessing.plan.prepare`), optionally refuses records too large for an
 in-memory estimation (:class:`InMemoryBudget`), and drops the rows at rest
 (:func:`estimation.data.rest.drop_rest`, ``--min-speed V --rest drop``).
@@ -44,6 +46,7 @@ from estimation.data.rest import (
     drop_rest,
 )
 from estimation.identification.preprocessing_choice import choose_by_evidence
+from estimation.identification.preprocessing_on_validation import FITS, on_validation
 from estimation.preprocessing.differentiation import AverageChoice
 from estimation.uncertainty.noise_floor import NoiseFloor, NoiseFloorError, noise_floor, pooled_floor
 from estimation.preprocessing.plan import (
@@ -116,6 +119,12 @@ class PreparationSettings:
     jobs
         Processes that score the derivative candidates side by side (``None``: the cores available, at
         most 4; :func:`~estimation.identification.preprocessing_choice.choose_by_evidence`).
+    validation_fits
+        The unconstrained fits (``ols``, ``wls``) that score the derivative candidates on the validation record
+        when it holds another motion (:mod:`estimation.identification.preprocessing_on_validation`: the candidate
+        whose fitted model predicts it best is chosen); empty (default): the training record's choice is kept.
+        Not with rows at rest dropped (they depend on each candidate's ``dq``: the candidates would not be
+        scored on the same samples).
     """
 
     max_gap: float = DEFAULT_MAX_GAP
@@ -132,10 +141,13 @@ class PreparationSettings:
     selection: Selection = "held-out"
     plan: Preprocessing | None = None
     jobs: int | None = None
+    validation_fits: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         if self.selection not in ("held-out", "rule"):
             raise ValueError(f"selection must be 'held-out' or 'rule', got {self.selection!r}")
+        if any(fit not in FITS for fit in self.validation_fits):
+            raise ValueError(f"validation_fits must be among {FITS}, got {self.validation_fits!r}")
         if not (self.max_gap > 0 and self.max_gap < float("inf")):
             raise ValueError(f"--max-gap must be a positive number of seconds, got {self.max_gap}")
         if self.rest not in ("drop", "smooth"):
@@ -270,9 +282,14 @@ def prepare_records(model: IdentificationModel, train: Sequence[str | Path], val
             check_varying_channels([segment for file in files for segment in file.segments], model.channels,
                                    f"{role} data")
     with step("preprocessing chosen"):
-        preprocessing = choose_plan(model, [segment for file in train_files for segment in file.segments], settings,
+        train_segments = [segment for file in train_files for segment in file.segments]
+        preprocessing = choose_plan(model, train_segments, settings,
                                     [segment for files in held_out.values() if files for file in files
                                      for segment in file.segments])
+        if settings.validation_fits and held_out["validation"] and settings.plan is None and not settings.drops_rest():
+            preprocessing = on_validation(preprocessing, model, train_segments,
+                                          [segment for file in held_out["validation"] for segment in file.segments],
+                                          fits=settings.validation_fits, jobs=settings.jobs)
     if preprocessing.method == "measured" and settings.held_torques:
         warnings.warn("held torques: nothing to align, the data hold measured dq and ddq", stacklevel=2)
     with step("records prepared"):

@@ -102,13 +102,67 @@ class CandidateEvidence:
 
 
 @dataclass(frozen=True)
-class Evidence:
-    """How a preprocessing was chosen: ``selection`` is ``held-out`` (the best score) or ``given`` (the user's
-    options decided); ``candidates`` sorted best first, each scored on ``folds`` blocks of the training data."""
+class ValidationEvidence:
+    """One derivative candidate scored on a validation record of another motion
+    (:mod:`estimation.identification.preprocessing_on_validation`): the model fitted on the training record
+    prepared by the candidate predicts the validation record prepared alike, against its channels as recorded.
 
-    selection: Literal["held-out", "given"]
+    Attributes
+    ----------
+    preprocessing
+        The candidate.
+    score
+        Geometric mean over the channels of the validation MSE of the better of the fits tried (``inf`` when the
+        candidate could not run or was not scored on the same samples as the others).
+    validation_mse
+        Per channel, that fit's validation MSE against the channels as recorded, at the recorded time stamps.
+    fit
+        The fit that gave the score (``ols`` or ``wls``), ``None`` when none did.
+    fit_scores
+        Each fit's score.
+    error
+        Why the candidate was not compared, or ``None``.
+    seconds
+        What scoring it cost.
+    samples
+        The recorded validation samples its score is taken on (the same for every candidate compared).
+    """
+
+    preprocessing: Preprocessing
+    score: float
+    validation_mse: dict[str, float]
+    fit: str | None = None
+    fit_scores: dict[str, float] = field(default_factory=dict)
+    error: str | None = None
+    seconds: float = 0.0
+    samples: int = 0
+
+    def to_dict(self) -> dict[str, Any]:
+        """The candidate's keys (as :meth:`Preprocessing.to_dict`) with ``score``, ``validation_mse``, ``fit``,
+        ``fit_scores``, ``seconds``, ``samples`` (and ``error``)."""
+        document = self.preprocessing.to_dict()
+        document.update(score=self.score if np.isfinite(self.score) else None, validation_mse=self.validation_mse,
+                        fit=self.fit, fit_scores={name: value if np.isfinite(value) else None
+                                                  for name, value in self.fit_scores.items()},
+                        seconds=round(self.seconds, 3), samples=self.samples)
+        if self.error is not None:
+            document["error"] = self.error
+        return document
+
+
+@dataclass(frozen=True)
+class Evidence:
+    """How a preprocessing was chosen: ``selection`` is ``held-out`` (the best score on held-out blocks of the
+    training data), ``given`` (the user's options decided) or ``validation`` (the smallest error on a validation
+    record of another motion, :attr:`validation`); ``candidates`` sorted best first, each scored on ``folds``
+    blocks of the training data; ``validation`` sorted best first and ``held_out_choice`` the training record's
+    own choice (empty and ``None`` unless chosen on a validation record)."""
+
+    selection: Literal["held-out", "given", "validation"]
     folds: int
     candidates: tuple[CandidateEvidence, ...]
+    validation: tuple[ValidationEvidence, ...] = ()
+    held_out_choice: Preprocessing | None = None
 
 
 @dataclass(frozen=True)
@@ -172,6 +226,10 @@ class Preprocessing:
         if self.evidence is not None:
             document.update(selection=self.evidence.selection, folds=self.evidence.folds,
                             candidates=[candidate.to_dict() for candidate in self.evidence.candidates])
+            if self.evidence.validation:
+                document["validation_candidates"] = [candidate.to_dict() for candidate in self.evidence.validation]
+            if self.evidence.held_out_choice is not None:
+                document["held_out_choice"] = self.evidence.held_out_choice.describe_method()
         return document
 
     def describe_method(self) -> str:
@@ -196,7 +254,13 @@ class Preprocessing:
             text = "measured dq, ddq"
         extras = ([f"decimated by {self.decimation}"] if self.decimation > 1 else []) + \
             (["held torques"] if self.held_torques else [])
-        if self.evidence is not None and self.evidence.selection == "held-out":
+        if self.evidence is not None and self.evidence.selection == "validation":
+            how = (f"chosen among {len(self.evidence.validation)} candidates by the validation error of the model "
+                   "fitted with each, the validation record being another motion")
+            held_out = self.evidence.held_out_choice
+            if held_out is not None and held_out != self.without_evidence():
+                how += f"; blocked cross-validation on the training data preferred {held_out.describe_method()}"
+        elif self.evidence is not None and self.evidence.selection == "held-out":
             how = (f"chosen among {len(self.evidence.candidates)} candidates by held-out error on the training data, "
                    "used for validation")
         elif self.evidence is not None:

@@ -17,7 +17,6 @@ _EXPORTS: dict[str, str] = {
     "FLOOR_WINDOW": "estimation.streaming.diagnosis_passes",
     "IncompleteSumError": "estimation.streaming.cluster",
     "SCHEDULER_VARIABLE": "estimation.streaming.cluster",
-    "StreamedDiagnosis": "estimation.streaming.diagnosis_result",
     "StreamingUnsupportedError": "estimation.streaming.chunks",
     "WorkerLostError": "estimation.streaming.cluster",
     "accumulate_candidates": "estimation.streaming.candidate_screening",

@@ -30,6 +30,7 @@ from estimation.identification.preprocessing_choice import (
     PreprocessingChoice,
     choose_by_evidence,
 )
+from estimation.identification.preprocessing_on_validation import on_validation
 from estimation.preprocessing.plan import Preprocessing, PreprocessingWarning
 from estimation.streaming.chunks import read_chunks
 from estimation.data.memory_budget import count_rows
@@ -69,16 +70,26 @@ def choose_streamed_preprocessing(paths: Sequence[str | Path], model: Identifica
                                   frequency_hz: float | None = None, harmonics: int | None = None,
                                   cutoff_hz: float | None = None, average_periods: str = "auto", decimation: int = 1,
                                   held_torques: bool | None = False, rows: Sequence[int] | None = None,
-                                  held_out: Sequence[str | Path] = ()) -> PreprocessingChoice:
+                                  held_out: Sequence[str | Path] = (), validation: Sequence[str | Path] = (),
+                                  validation_fits: tuple[str, ...] = ()) -> PreprocessingChoice:
     """The preprocessing of the training files ``paths``, chosen as in memory (module docstring); the options
     are those of :func:`~estimation.identification.preprocessing_choice.choose_by_evidence`. ``held_out``: the
     validation (and test) files, whose first :data:`SCORED_SAMPLES` rows every candidate must be able to prepare
-    (in bounded memory: a longer file is judged on that window, which only narrows the candidates)."""
-    windows = tuple(first_rows(path, model, SCORED_SAMPLES) for path in held_out)
-    return choose_by_evidence(model, streamed_window(paths, model, rows), frequency_hz=frequency_hz,
-                              harmonics=harmonics, cutoff_hz=cutoff_hz, average_periods=average_periods,
-                              decimation=decimation, held_torques=held_torques, held_out=windows,
-                              velocity_variants=False)
+    (in bounded memory: a longer file is judged on that window, which only narrows the candidates).
+    ``validation_fits``: with ``validation`` files of another motion, the candidates chosen again by the
+    validation error of these fits (:func:`estimation.identification.preprocessing_on_validation.on_validation`),
+    on the training window and the validation files' first :data:`SCORED_SAMPLES` rows."""
+    windows = {Path(path): first_rows(path, model, SCORED_SAMPLES) for path in (*held_out, *validation)}
+    window = streamed_window(paths, model, rows)
+    choice = choose_by_evidence(model, window, frequency_hz=frequency_hz,
+                                harmonics=harmonics, cutoff_hz=cutoff_hz, average_periods=average_periods,
+                                decimation=decimation, held_torques=held_torques,
+                                held_out=tuple(windows[Path(path)] for path in held_out), velocity_variants=False)
+    if not (validation_fits and validation):
+        return choice
+    chosen = on_validation(choice.chosen, model, window.segments, [windows[Path(path)] for path in validation],
+                           fits=validation_fits)
+    return choice if chosen is choice.chosen else PreprocessingChoice(chosen, chosen)
 
 
 def choose_streamed_cutoff(path: str | Path, model: IdentificationModel, *, decimation: int = 1,

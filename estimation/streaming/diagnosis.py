@@ -4,7 +4,7 @@
 
     result = diagnose_files(model, ["run1.parquet", "run2.parquet"], ["check.parquet"], chunk_size=10_000,
                             executor=client.get_executor())
-    result.to_dict()   # the ``oed diagnose`` document (same keys), with ``diagnosis_path: "streamed"``
+    result.to_dict()   # the ``oed diagnose`` document (the in-memory Diagnosis, same keys), ``diagnosis_path: "streamed"``
 
 Passes over the data (each file one task on any ``concurrent.futures.Executor``, as
 :func:`estimation.streaming.cluster.sum_files`; the chunks preprocessed on overlapping windows,
@@ -55,6 +55,7 @@ import numpy as np
 from dynamics.effects.linear import Effect
 from dynamics.runtime.progress import step
 from dynamics.models import IdentificationModel
+from estimation.data.input_findings import FindingsSaid
 from estimation.diagnosis.forward_selection import SearchOutcome, SearchSettings
 from estimation.diagnosis.runner_up import RunnerUpSearch
 from estimation.estimators.summed_least_squares import SummedEstimate, SummedLeastSquares
@@ -65,8 +66,8 @@ from estimation.streaming.covariance import sandwich
 from estimation.streaming.diagnosis_passes import (FLOOR_WINDOW, SumsPass, scores_pass, subsample_pass,
                                                   sums_pass, window_floor)
 from estimation.streaming.diagnosis_candidates import StreamedCandidates, streamed_candidates
-from estimation.streaming.diagnosis_result import (StreamedDiagnosis, StreamedRun, StreamedSettings, streamed_result,
-                                                  streaming_record)
+from estimation.diagnosis.results import Diagnosis
+from estimation.streaming.diagnosis_result import StreamedRun, StreamedSettings, streamed_result, streaming_record
 from estimation.streaming.diagnosis_sums import ChannelSums, normal_equations
 from estimation.streaming.periods import plan_options
 from estimation.streaming.selection import SummedFits, simpler_laws, summed_runner_up
@@ -192,7 +193,8 @@ def diagnose_files(
     floor_window: int = FLOOR_WINDOW,
     executor: Any = None,
     preprocessing: Preprocessing | None = None,
-) -> StreamedDiagnosis:
+    findings: FindingsSaid | None = None,
+) -> Diagnosis:
     """Diagnose ``model`` on the training ``paths``, confirmed on the ``validate`` files, in bounded memory.
 
     The settings are those of :func:`estimation.diagnosis.search.diagnose`; ``chunk_size``, ``cutoff_hz``,
@@ -202,23 +204,29 @@ def diagnose_files(
     the window). ``preprocessing``: a plan chosen beforehand (as the in-memory path chooses it,
     :func:`estimation.streaming.cutoff_choice.choose_streamed_preprocessing`) sets the derivatives instead of
     ``cutoff_hz``, ``decimation`` and ``held_torques``: a filter, or a Fourier fit of averaged periods
-    (:func:`estimation.streaming.periods.plan_chunks`).
+    (:func:`estimation.streaming.periods.plan_chunks`). ``findings``: what the run has said about its files
+    (:class:`~estimation.data.input_findings.FindingsSaid`; default a new one): the readers' warnings of each pass
+    are said as it ends, one line per finding across files, each finding of a file once.
     """
     paths, validate = [str(path) for path in paths], [str(path) for path in validate]
+    findings = FindingsSaid([*paths, *validate]) if findings is None else findings
     settings = StreamedSettings(chunk_size, cutoff_hz, decimation, held_torques, alpha, min_improvement, max_effects,
                                 noise_floor, subsample, floor_window)
-    settings = _checked_settings(model, paths, validate, settings if preprocessing is None else
-                                 replace(settings, **plan_options(preprocessing)))
+    with findings.reading():
+        settings = _checked_settings(model, paths, validate, settings if preprocessing is None else
+                                     replace(settings, **plan_options(preprocessing)))
     options, payload, clock = settings.reading(), model_payload(model), Stopwatch()
-    with step(f"first pass over {len(paths)} training file(s) (subsample)"):
+    with step(f"first pass over {len(paths)} training file(s) (subsample)"), findings.reading():
         first = subsample_pass(executor, payload, paths, options, settings.subsample)  # pass 1 (training files)
     with step(f"shape search and coupling tracing on {first.sample.n_samples} samples"):
         found = streamed_candidates(model, candidates, first.sample, clock.lap)
-    with step(f"second pass over {len(paths) + len(validate)} file(s) (sums of {len(found.blocks)} candidates)"):
+    with step(f"second pass over {len(paths) + len(validate)} file(s) (sums of {len(found.blocks)} candidates)"), \
+            findings.reading():
         sums = sums_pass(executor, payload, found.plan, paths, validate, options, first)  # pass 2 (all files)
     clock.lap("sums_pass")
     if noise_floor is None:
-        floor, floor_note = window_floor(validate, model, window=floor_window, frequency_hz=settings.frequency_hz)
+        with findings.reading():
+            floor, floor_note = window_floor(validate, model, window=floor_window, frequency_hz=settings.frequency_hz)
     else:
         floor, floor_note = noise_floor, f"given ({noise_floor.method})"
     with step("forward selection from the sums"):
@@ -226,7 +234,7 @@ def diagnose_files(
         chosen, columns, after = _final_estimate(model, sums, found, outcome, min_improvement)
         runner_up = summed_runner_up(model, sums.train, sums.validation, found, outcome, chosen, after)
     clock.lap("selection_and_estimates")
-    with step(f"third pass over {len(paths)} training file(s) (covariance)"):  # the batch-means covariance
+    with step(f"third pass over {len(paths)} training file(s) (covariance)"), findings.reading():  # batch means
         parts_scores = scores_pass(executor, payload, found.final_plan(chosen), paths, options, after.values,
                                    after.weights)
     after, covariance = _batch_means(model, after, parts_scores, sums.train.normal_system(columns, after.weights)[0])

@@ -1,23 +1,28 @@
 """The result of a streamed diagnosis (:func:`estimation.streaming.diagnosis.diagnose_files`): its settings, the
-passes and search it ran (:class:`StreamedRun`), and the report assembled from them (:class:`StreamedDiagnosis`, the
-keys of the in-memory diagnosis's document, with ``diagnosis_path: "streamed"`` and a ``streaming`` entry saying how
-the files were read, summed and estimated).
+passes and search it ran (:class:`StreamedRun`), and the result assembled from them (:func:`streamed_result`: the
+in-memory path's :class:`~estimation.diagnosis.results.Diagnosis`, with ``path="streamed"``, a ``streaming`` entry
+saying how the files were read, summed and estimated, and what the sums cannot give in ``not_computed``).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-from dynamics.effects.linear import Effect
 from dynamics.models import IdentificationModel, build_model
 from estimation.diagnosis.candidates.trials import candidate_label
 from estimation.diagnosis.forward_selection import SearchOutcome
 from estimation.diagnosis.rules.robust_test import estimate_test
-from estimation.diagnosis.search import FoundEffect, RejectedEffect
-from estimation.diagnosis.statistics import FLOOR_ALPHA
+from estimation.diagnosis.results import (
+    STREAMED_NOT_COMPUTED,
+    ChannelErrors,
+    Diagnosis,
+    FoundEffect,
+    SummedFit,
+)
+from estimation.diagnosis.statistics import FLOOR_ALPHA, ResidualReport
 from estimation.estimators.summed_least_squares import SummedEstimate
 from estimation.identification.fit import implausible_estimates
 from estimation.identification.trivial_predictors import trivial_warnings
@@ -26,7 +31,7 @@ from estimation.uncertainty.floor_comparison import compare_with_floor
 from estimation.streaming.diagnosis_candidates import StreamedCandidates
 from estimation.streaming.diagnosis_passes import SubsamplePass, SumsPass
 
-__all__ = ["NOT_ON_THIS_PATH", "StreamedDiagnosis", "StreamedRun", "StreamedSettings", "file_record", "found_effects",
+__all__ = ["NOT_ON_THIS_PATH", "StreamedRun", "StreamedSettings", "file_record", "floor_report", "found_effects",
            "streamed_result", "streaming_record"]
 
 NOT_ON_THIS_PATH = (
@@ -43,75 +48,6 @@ NOT_ON_THIS_PATH = (
     "a pair's Coulomb and viscous laws tried as one candidate, limit laws, negative friction held at zero "
     "(pinned), the traced shape refinement",
 )
-
-
-@dataclass(frozen=True)
-class StreamedDiagnosis:
-    """Result of :func:`diagnose_files` (the keys of :class:`estimation.diagnosis.search.Diagnosis`'s document)."""
-
-    model: IdentificationModel
-    effects: tuple[FoundEffect, ...]
-    rejected: tuple[RejectedEffect, ...]
-    before: SummedEstimate
-    after: SummedEstimate
-    train_mse: dict[str, dict[str, float]]  # before/after, against the recording
-    validation_mse: dict[str, dict[str, float]]
-    n_train: int
-    n_validation: int
-    floor: NoiseFloor | None
-    floor_note: str
-    streaming: dict[str, Any] = field(repr=False)
-    warnings: dict[str, tuple[str, ...]] = field(default_factory=dict)
-    trivial: dict[str, dict[str, float]] = field(default_factory=dict)  # zero_mse, nominal_mse (validation)
-    #: the effect objects of ``effects``, in the order of ``after``'s columns (shaped laws at ``effects[i].shape``)
-    found_effects: tuple[Effect, ...] = ()
-    runner_up: Any = field(default=None, repr=False)  # estimation.diagnosis.runner_up, from the sums
-    runner_up_reason: str | None = None
-
-    def final_model(self) -> IdentificationModel:
-        """The declared model with the effects found: ``after`` holds its base parameters (in the order of its columns)."""
-        return build_model(self.model.robot, self.model.kind, tuple(self.model.effects) + tuple(self.found_effects))
-
-    def final_shape(self) -> dict[str, float]:
-        """The fixed shapes of the shaped laws found, by parameter name."""
-        return {name: float(value) for effect in self.effects for name, value in effect.shape.items()}
-
-    def to_dict(self) -> dict[str, Any]:
-        comparison, statements, ratios = {}, {}, {"before": None, "after": None}
-        if self.floor is not None:
-            for which in ("before", "after"):
-                comparison[which] = compare_with_floor(self.validation_mse[which], self.floor, self.n_validation,
-                                                       alpha=FLOOR_ALPHA)
-                ratios[which] = {channel: c.ratio for channel, c in comparison[which].items()}
-            statements = {channel: c.statement() for channel, c in comparison["after"].items()}
-        floor = ({"mse": None, "note": self.floor_note} if self.floor is None
-                 else {**self.floor.to_dict(), "note": self.floor_note})
-        return {
-            "robot": self.model.robot.name,
-            "model": self.model.kind.value,
-            "declared_effects": [effect.name for effect in self.model.effects],
-            "effects": [effect.to_dict() for effect in self.effects],
-            "rejected": [{"name": r.name, "spec": r.spec or r.name, "channels": list(r.channels), "reason": r.reason}
-                         for r in self.rejected],
-            "residuals": None,  # per-sample statistics: not on the streamed path
-            "warnings": {which: list(self.warnings.get(which, ())) for which in ("before", "after")},
-            "train": {which: {"mse": self.train_mse[which]} for which in ("before", "after")},
-            "validation": {**{which: {"mse": self.validation_mse[which], "mse_over_floor": ratios[which]}
-                              for which in ("before", "after")}, **{key: dict(value) for key, value in self.trivial.items()}},
-            "cov_method": "batch_means",  # the sandwich of estimation.streaming.covariance (a third pass)
-            "noise_floor": floor,
-            "floor_comparison": {which: {channel: c.to_dict() for channel, c in values.items()}
-                                 for which, values in comparison.items()},
-            "floor_statements": statements,
-            "tracing": None,
-            "whiteness": None,
-            "rest": None,
-            "transmission": None,
-            "diagnosis_path": "streamed",
-            "streaming": dict(self.streaming),
-            "runner_up": None if self.runner_up is None else self.runner_up.to_dict(),
-            "runner_up_reason": self.runner_up_reason,
-        }
 
 
 @dataclass(frozen=True)
@@ -205,8 +141,10 @@ def streaming_record(run: StreamedRun, covariance: dict[str, Any], seconds: dict
 
 
 def streamed_result(model: IdentificationModel, run: StreamedRun, before: SummedEstimate, after: SummedEstimate,
-            floor: NoiseFloor | None, floor_note: str, streaming: dict[str, Any]) -> StreamedDiagnosis:
-    """The result: errors before and after against the recording, the trivial predictors, warnings."""
+                    floor: NoiseFloor | None, floor_note: str, streaming: dict[str, Any]) -> Diagnosis:
+    """The result (the :class:`~estimation.diagnosis.results.Diagnosis` of the in-memory path, its fields filled
+    from the sums): errors before and after against the recording, the floor comparison, the trivial predictors,
+    warnings; what the sums cannot give is ``None`` with its reason (``not_computed``)."""
     train, validation, base = run.sums.train, run.sums.validation, list(range(model.n_base))
     nominal = model.base.K @ model.nominal_parameters()
     trivial = {"zero_mse": dict(zip(model.channels, map(float, validation.power[:, 1] / validation.n_samples))),
@@ -215,14 +153,29 @@ def streamed_result(model: IdentificationModel, run: StreamedRun, before: Summed
            for name, part in (("train", train), ("validation", validation))
            for which, selection, theta in (("before", base, before.values), ("after", run.columns, after.values))}
     rejected = run.outcome.rejected
-    return StreamedDiagnosis(
-        model=model, effects=found_effects(model, run, after), rejected=tuple(rejected[i] for i in sorted(rejected)),
-        before=before, after=after,
-        train_mse={which: mse["train", which] for which in ("before", "after")},
-        validation_mse={which: mse["validation", which] for which in ("before", "after")},
-        n_train=train.n_samples, n_validation=validation.n_samples, floor=floor, floor_note=floor_note,
-        streaming=streaming,
-        warnings={"before": implausible_estimates(model, before),
-                  "after": implausible_estimates(model, after) + trivial_warnings(mse["validation", "after"], trivial)},
-        trivial=trivial, found_effects=tuple(run.found.blocks[index].effect for index in run.chosen),
-    )
+    found = tuple(run.found.blocks[index].effect for index in run.chosen)
+    final = build_model(model.robot, model.kind, tuple(model.effects) + found)
+    fits = {which: SummedFit(
+        model=model if which == "before" else final, estimate=estimate,
+        train=ChannelErrors(mse["train", which], train.n_samples),
+        validation=ChannelErrors(mse["validation", which], validation.n_samples),
+        warnings=implausible_estimates(model, estimate) + (
+            trivial_warnings(mse["validation", "after"], trivial) if which == "after" else ()),
+        cov_method="classical" if which == "before" else "batch_means")  # batch means: estimation.streaming.covariance
+        for which, estimate in (("before", before), ("after", after))}
+    return Diagnosis(
+        effects=found_effects(model, run, after), rejected=tuple(rejected[i] for i in sorted(rejected)),
+        before=fits["before"], after=fits["after"], residuals=None,
+        statistics=floor_report(fits["before"], fits["after"], floor, floor_note),
+        path="streamed", not_computed=dict(STREAMED_NOT_COMPUTED), trivial=trivial, streaming=streaming)
+
+
+def floor_report(before: SummedFit, after: SummedFit, floor: NoiseFloor | None, floor_note: str) -> ResidualReport:
+    """The validation errors against the noise floor (no tracing nor whiteness: no residuals held)."""
+    comparison, statements = {}, {}
+    if floor is not None:
+        for which, fit in (("before", before), ("after", after)):
+            comparison[which] = compare_with_floor(fit.validation.mse, floor, fit.validation.n_samples,
+                                                   alpha=FLOOR_ALPHA)
+        statements = {channel: c.statement() for channel, c in comparison["after"].items()}
+    return ResidualReport(floor, floor_note, comparison, tracing=None, checks=None, statements=statements)

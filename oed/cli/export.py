@@ -8,8 +8,7 @@ from pathlib import Path
 
 from oed.cli.shared.common import print_lines, print_warnings
 from oed.cli.shared.verbs import verb_summary
-from oed.workflows.export import export
-from oed.workflows.options import check_json_path
+from oed.workflows.export import check_outputs, export
 
 
 def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -55,12 +54,7 @@ def run(args: argparse.Namespace) -> int:
     for option, path in written:
         if path is not None and path.expanduser().resolve() == model_path:
             raise ValueError(f"{option} {path} is the model file (--model): it would be overwritten; write elsewhere")
-    if args.urdf_out is not None and args.urdf_out.suffix.lower() != ".urdf":
-        raise ValueError(f"--urdf {args.urdf_out}: give a .urdf file name")
-    if args.mjcf_out is not None and args.mjcf_out.suffix.lower() != ".xml":
-        raise ValueError(f"--mjcf {args.mjcf_out}: give an .xml file name")
-    if args.friction_out is not None:
-        check_json_path(args.friction_out, "--friction")
+    check_outputs(args.urdf_out, mjcf=args.mjcf_out, friction=args.friction_out)  # before any work
     result = export(model=args.model, allow_implausible=args.allow_implausible, mjcf=args.mjcf_out is not None,
                     alternative=args.alternative)
     result.write(args.urdf_out, mjcf=args.mjcf_out, friction=args.friction_out)

@@ -18,13 +18,15 @@ combinations). D-optimality over all ten would spend information on the inertia 
 **The robot model's share.** The payload is fitted against the robot model's prediction, whose parameters ``θ_b``
 are uncertain (covariance ``Σ_θ``); their error moves the payload estimate by ``A⁻¹ B δθ_b`` (``A = n M_kk`` and
 ``B = n M_kb`` the record's information of the payload's and the robot's columns together, ``n`` samples,
-:mod:`estimation.payload.fit`). Given ``Σ_θ`` (``robot_cov``) the criterion acts on the information ``M`` of the
-stacked columns ``[Y_k | Y_b]`` (per sample) and counts both parts,
+:mod:`estimation.payload.fit`). Without ``robot_cov`` (the default of ``oed design --payload``, issue 37's target)
+the criterion counts the record's noise alone, ``(1/n) M⁻¹``, the robot model given. Given ``Σ_θ`` (``robot_cov``)
+it acts on the information ``M`` of the stacked columns ``[Y_k | Y_b]`` (per sample) and counts both parts,
 
-    cov(π) = (1/n) M_kk⁻¹ + M_kk⁻¹ M_kb Σ_θ M_bk M_kk⁻¹ :
+    cov(π) = (1/n) M_kk⁻¹ + M_kk⁻¹ M_kb Σ_θ M_bk M_kk⁻¹ ;
 
-a design for the record's noise alone drives the motion where the robot model is least known (measured on the
-PUMA: the robot's share of the mass's standard deviation four times that of random excitations).
+:meth:`MassAndCentre.relative_variances` gives the two apart either way (with ``robot_cov``). A design for the
+record's noise alone drives the motion where the robot model is least known (measured on the PUMA: the robot's share
+of the mass's standard deviation about four times that of random excitations).
 """
 
 from __future__ import annotations

@@ -94,6 +94,7 @@ class DesignOptions(RobotOptions):
     link: str | None = None
     payload_mass: float | None = None
     payload_noise_only: bool = False
+    payload_robot_share: bool = False
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -263,7 +264,8 @@ def payload_requested(args: DesignOptions) -> bool:
     """Whether ``payload`` was given; its options without it are an error."""
     if not args.payload:
         given = [option for option, value in (("--link", args.link), ("--payload-mass", args.payload_mass))
-                 if value is not None] + (["--payload-noise-only"] if args.payload_noise_only else [])
+                 if value is not None] + (["--payload-noise-only"] if args.payload_noise_only else []) \
+            + (["--payload-robot-share"] if args.payload_robot_share else [])
         if given:
             raise ValueError(f"{', '.join(given)} belong to a payload's design: give --payload too")
     return bool(args.payload)
@@ -281,6 +283,9 @@ def design_payload(args: DesignOptions, say: Callable[[str], None]) -> DesignRun
     if given:
         raise ValueError(f"{', '.join(given)}: not with --payload (the model file fixes the model; the criterion is "
                          "the worst relative standard deviation of the mass and the centre of mass)")
+    if args.payload_noise_only and args.payload_robot_share:
+        raise ValueError("--payload-noise-only and --payload-robot-share: give one (the criterion counts the record's "
+                         "noise by default)")
     args = dataclasses.replace(args, frequency=PAYLOAD_FREQUENCY_HZ if args.frequency is None else args.frequency,
                                harmonics=PAYLOAD_HARMONICS if args.harmonics is None else args.harmonics)
     check_hertz(args, "frequency")
@@ -297,7 +302,7 @@ def design_payload(args: DesignOptions, say: Callable[[str], None]) -> DesignRun
 
     result = design_payload_excitation(model, bounds=bounds, link=args.link,
                                        mass=1.0 if args.payload_mass is None else args.payload_mass,
-                                       robot_share=not args.payload_noise_only, settings=settings,
+                                       robot_share=args.payload_robot_share, settings=settings,
                                        starts=args.starts, seed=args.seed, progress=progress)
 
     def figure() -> Any:
@@ -307,7 +312,7 @@ def design_payload(args: DesignOptions, say: Callable[[str], None]) -> DesignRun
                                title=f"{model.robot.name}: payload excitation")
 
     lines = (result.summary(), f"{result.design.total_time_s:.2f} s")
-    return DesignRun(result.to_dict(), lines, (), result, figure, result.trajectory, settings.rate_hz)
+    return DesignRun(result.to_dict(), lines, result.warnings, result, figure, result.trajectory, settings.rate_hz)
 
 
 def sequential_requested(args: DesignOptions) -> bool:

@@ -1,10 +1,13 @@
 """``oed diagnose`` as a library call: find what an identified model lacks in measured data, add it, report the
 error before and after.
 
-:func:`diagnose` takes the verb's options as keywords (:class:`DiagnoseOptions`), decides the path (in memory, or
-the files streamed chunk by chunk: :func:`diagnose_streaming`, :mod:`estimation.streaming.diagnosis`, the same
-report keys; in memory the answer is the adopted model or its consistent refit, :func:`diagnosis_selection`) and
-returns a :class:`DiagnoseRun`:
+:func:`diagnose` takes the verb's options as keywords (:class:`DiagnoseOptions`) and runs one workflow
+(:func:`run_diagnose`): the path is decided by the records (:func:`~oed.workflows.memory_path.decide_path`), the data
+are read whole (:func:`diagnosis_in_memory`) or in blocks (:func:`diagnosis_streamed`,
+:mod:`estimation.streaming.diagnosis`), both give one :class:`~estimation.diagnosis.results.Diagnosis` (what the
+streamed path cannot compute is ``None``, its reason in ``not_computed``), and one builder makes the document
+(:func:`diagnose_document`) and the summary (:func:`summary_lines`) from it; in memory the answer is the adopted
+model or its consistent refit (:func:`diagnosis_selection`). It returns a :class:`DiagnoseRun`:
 ``to_dict()`` is ``report.json``, ``write(out, report=...)`` writes it (and the report, HTML or Markdown:
 :meth:`DiagnoseRun.report`), ``summary()`` the lines ``oed diagnose`` prints.
 """
@@ -37,12 +40,10 @@ from estimation.identification.repeated_motion import repeated_motion_note
 from estimation.preprocessing.delay import DelayBounds, split_delay
 from estimation.preprocessing.plan import Preprocessing
 from estimation.streaming.diagnosis import DEFAULT_SUBSAMPLE, diagnose_files
-from estimation.streaming.diagnosis_result import StreamedDiagnosis
 from estimation.streaming.recorded_errors import streamed_plan
 from estimation.estimators.normal_equations import DEFAULT_CHUNK_SIZE
-from estimation.data.input_findings import grouped_messages
+from estimation.data.input_findings import FindingsSaid
 from estimation.data.log_cleaning import DEFAULT_MAX_GAP
-from dynamics.robot import RobotModel
 from estimation.streaming.diagnosis_passes import FLOOR_WINDOW
 from estimation.uncertainty.noise_floor import NoiseFloor
 from oed.workflows.asbuilt import (
@@ -152,8 +153,7 @@ class DiagnoseRun:
     warnings
         The warnings it prints on stderr, in order.
     diagnosis
-        The :class:`~estimation.diagnosis.results.Diagnosis` (in memory) or the
-        :class:`~estimation.streaming.diagnosis_result.StreamedDiagnosis` (streamed).
+        The :class:`~estimation.diagnosis.results.Diagnosis`, in memory or streamed (``diagnosis.path``).
     records
         The prepared records (in memory; ``None`` when streamed: no Markdown report then).
     untouched
@@ -163,7 +163,7 @@ class DiagnoseRun:
     document: dict[str, Any] = field(repr=False)
     lines: tuple[str, ...]
     warnings: tuple[str, ...]
-    diagnosis: Any = field(repr=False)
+    diagnosis: Diagnosis = field(repr=False)
     records: PreparedRecords | None = field(default=None, repr=False)
     untouched: UntouchedErrors | None = field(default=None, repr=False)
 
@@ -179,9 +179,11 @@ class DiagnoseRun:
         """The report a person reads (:func:`estimation.diagnosis.report.diagnosis_report`): the parameters with
         their uncertainties, the choices made, every warning, the errors before and after, measured against
         predicted on the validation and test records, the floor and what the residual follows. One document,
-        written as Markdown (:meth:`markdown`) or HTML (:meth:`html`)."""
-        self._check_in_memory()
+        written as Markdown (:meth:`markdown`) or HTML (:meth:`html`). A streamed run's report has no figures (no
+        samples held) and says what its path did not compute."""
         diagnosis, records = self.diagnosis, self.records
+        if records is None:  # streamed
+            return diagnosis_report(diagnosis, preprocessing=self.lines[0], warnings=self.warnings)
         validation = (diagnosis.before.validation, diagnosis.after.validation)
         test = None
         if self.untouched is not None and records.test is not None:
@@ -216,8 +218,6 @@ class DiagnoseRun:
         (:func:`report_figures`) or HTML with them inline, by the suffix: all files or none."""
         check_json_path(out)
         check_report_path(report)
-        if report is not None:
-            self._check_in_memory()
         with OutputFiles() as outputs:
             with outputs.open(out) as stream:
                 stream.write(json_text(self.document))
@@ -226,8 +226,8 @@ class DiagnoseRun:
 
     def _check_in_memory(self) -> None:
         if self.records is None:
-            raise ValueError("--report: not with the streamed path (--chunk-size, --scheduler or --workers), which "
-                             "writes the JSON report only")
+            raise ValueError("the residual figures need the samples: not with the streamed path (--chunk-size, "
+                             "--scheduler, --workers or a record over --memory-budget), which holds none")
 
 
 def diagnose(*, say: Callable[[str], None] | None = None, **options: Any) -> DiagnoseRun:
@@ -253,24 +253,66 @@ def diagnose(*, say: Callable[[str], None] | None = None, **options: Any) -> Dia
 
 
 def run_diagnose(args: DiagnoseOptions, *, say: Callable[[str], None]) -> DiagnoseRun:
-    """:func:`diagnose` of checked options."""
+    """:func:`diagnose` of checked options: the path decided by the records (:func:`decide_path`: their rows against
+    the memory budget, or the streamed path asked for), the data read whole or in blocks
+    (:func:`diagnosis_in_memory`, :func:`diagnosis_streamed`), one :class:`Diagnosed` either way, and from it the
+    one document (:func:`diagnose_document`) and summary (:func:`summary_lines`)."""
     check_request(args)
     check_consistent_arguments(args)
     differentiation(args)  # contradicting derivative options are an error even when the data hold dq, ddq
     friction, delay = split_delay(args.friction)  # a candidate in every diagnosis: 'delay:S' sets its bound
     if streaming_requested(args):  # bounded memory (estimation.streaming.diagnosis)
         check_streamed_request(args, delay)
-        return diagnose_streaming(args, friction)
-    robot = robot_of(args)
-    transmission = resolve_transmission(args, robot)
-    effects = model_effects(args, friction, robot, transmission)
-    model = build_model(robot, args.model, effects)
-    check_shaped_effects_kept(effects, model)
-    decision = decide_path(args, model, task="diagnosing", bytes_per_value=IN_MEMORY.bytes_per_value,
-                           in_memory_only=lambda: in_memory_only(args, model, delay), say=say)
-    if decision.stream:
-        return diagnose_streaming(args, friction, decision.plan)
-    return diagnose_in_memory(args, model, transmission, delay, decision.plan)
+        diagnosed = diagnosis_streamed(args, friction)
+    else:
+        robot = robot_of(args)
+        transmission = resolve_transmission(args, robot)
+        effects = model_effects(args, friction, robot, transmission)
+        model = build_model(robot, args.model, effects)
+        check_shaped_effects_kept(effects, model)
+        decision = decide_path(args, model, task="diagnosing", bytes_per_value=IN_MEMORY.bytes_per_value,
+                               in_memory_only=lambda: in_memory_only(args, model, delay), say=say)
+        diagnosed = (diagnosis_streamed(args, friction, decision.plan, decision.findings) if decision.stream
+                     else diagnosis_in_memory(args, model, transmission, delay, decision.plan))
+    document, messages = diagnose_document(args, diagnosed)
+    return DiagnoseRun(document, tuple(summary_lines(args, diagnosed, document)), messages, diagnosed.diagnosis,
+                       diagnosed.records, diagnosed.untouched)
+
+
+@dataclass(frozen=True)
+class Diagnosed:
+    """A diagnosis, in memory or streamed, and what its document and summary need besides it.
+
+    Attributes
+    ----------
+    diagnosis
+        The :class:`~estimation.diagnosis.results.Diagnosis` (``diagnosis.path``: which path made it).
+    preprocessing
+        How the motion was derived: the document's ``preprocessing``.
+    describe
+        The preprocessing in one line (the summary's first).
+    messages
+        The warnings said, in order (the model files' come after them: :func:`diagnose_document`).
+    records, untouched, selection, transmission, notes
+        In memory: the prepared records, the test record's errors, the default answer
+        (:func:`diagnosis_selection`), the transmission, the run's own notes; ``None`` or empty when streamed.
+    chunk_size
+        Streamed: the rows a block; ``None`` in memory.
+    model_file
+        Streamed: what the summed model file is written with (its plan and validation error).
+    """
+
+    diagnosis: Diagnosis
+    preprocessing: dict[str, Any]
+    describe: str
+    messages: tuple[str, ...]
+    records: PreparedRecords | None = None
+    untouched: UntouchedErrors | None = None
+    selection: ModelSelection | None = None
+    transmission: Transmission | None = None
+    notes: tuple[str, ...] = ()
+    chunk_size: int | None = None
+    model_file: tuple[dict[str, Any], dict[str, float] | None] | None = None
 
 
 def check_streamed_request(args: DiagnoseOptions, delay: DelayBounds | None) -> None:
@@ -296,9 +338,10 @@ def in_memory_only(args: DiagnoseOptions, model: IdentificationModel, delay: Del
     return None
 
 
-def diagnose_in_memory(args: DiagnoseOptions, model: IdentificationModel, transmission: Transmission | None,
-                       delay: DelayBounds | None, plan: Preprocessing | None) -> DiagnoseRun:
-    """Read and prepare the records (``plan``: the derivatives chosen before reading), diagnose, build the document."""
+def diagnosis_in_memory(args: DiagnoseOptions, model: IdentificationModel, transmission: Transmission | None,
+                        delay: DelayBounds | None, plan: Preprocessing | None) -> Diagnosed:
+    """Read and prepare the records whole (``plan``: the derivatives chosen before reading), diagnose, and choose
+    the default answer."""
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         records = prepare_records(model, args.data, args.validate, args.test or (),  # reports its steps
@@ -309,44 +352,58 @@ def diagnose_in_memory(args: DiagnoseOptions, model: IdentificationModel, transm
             diagnosis = diagnose_records(args, model, transmission, records, delay, validation_floor)
         untouched = test_errors(records, diagnosis, test_floor)
         trivial, notes = trivial_predictors(diagnosis.after, records.validation.measurements)
+        diagnosis = replace(diagnosis, trivial=trivial)
         notes += worse_after(diagnosis)
         repeat = repeated_motion_note(records.train.measurements, records.validation.measurements)
         notes += () if repeat is None else (repeat,)
         with step("the default answer: the adopted model or its consistent refit"):
             selection = diagnosis_selection(args, diagnosis, records)
-        consistent = selection.consistent
-    messages = caught_messages(caught) + list(notes)
-    rest = rest_records(records)
-    document = finish_document(diagnosis.to_dict(), diagnosis.after, trivial=trivial, warnings=notes, rest=rest,
-                               transmission=transmission, warnings_key=("warnings", "after"))
-    document["preprocessing"] = records.preprocessing.to_dict()
-    document["test"] = None if untouched is None else untouched.to_dict()
-    if consistent is not None:
-        document.update(consistent.to_dict())
-        document["consistent"]["test"] = None if records.test is None else \
-            {"mse": consistent.compare(records.test.measurements).mse}
-    document["model_selection"] = selection.to_dict()
-    if document["test"] is not None:  # the chosen model's error on the test record (what `oed predict` gives there)
-        document["test"]["chosen"] = {"name": selection.chosen, "mse": dict(
-            untouched.after if selection.chosen != "consistent" else document["consistent"]["test"]["mse"])}
-    messages += add_model_file(document, diagnosis.after, args, records.preprocessing, transmission,
+    return Diagnosed(diagnosis, records.preprocessing.to_dict(), records.preprocessing.describe(),
+                     (*caught_messages(caught), *notes), records=records, untouched=untouched, selection=selection,
+                     transmission=transmission, notes=notes)
+
+
+def diagnose_document(args: DiagnoseOptions, diagnosed: Diagnosed) -> tuple[dict[str, Any], tuple[str, ...]]:
+    """``report.json`` (the same keys on both paths: :meth:`estimation.diagnosis.results.Diagnosis.to_dict`, the
+    preprocessing, the held-out and chosen models' errors, the model files), and the run's warnings with those of
+    its model files."""
+    diagnosis = diagnosed.diagnosis
+    document = diagnosis.to_dict()
+    records, selection = diagnosed.records, diagnosed.selection
+    if records is not None:  # in memory
+        finish_document(document, diagnosis.after, trivial=None, warnings=diagnosed.notes, rest=rest_records(records),
+                        transmission=diagnosed.transmission, warnings_key=("warnings", "after"))
+    document["preprocessing"] = diagnosed.preprocessing
+    if records is not None:
+        untouched, consistent = diagnosed.untouched, selection.consistent
+        document["test"] = None if untouched is None else untouched.to_dict()
+        if consistent is not None:
+            document.update(consistent.to_dict())
+            document["consistent"]["test"] = None if records.test is None else \
+                {"mse": consistent.compare(records.test.measurements).mse}
+        document["model_selection"] = selection.to_dict()
+        if document["test"] is not None:  # the chosen model's error on the test record (what `oed predict` gives)
+            document["test"]["chosen"] = {"name": selection.chosen, "mse": dict(
+                untouched.after if selection.chosen != "consistent" else document["consistent"]["test"]["mse"])}
+        files = add_model_file(document, diagnosis.after, args, records.preprocessing, diagnosed.transmission,
                                consistent=consistent, selection=selection)
-    add_runner_up_model_file(document, diagnosis.runner_up, args, records.preprocessing, transmission)
-    document["diagnosis_path"] = "in-memory"  # "streamed": --chunk-size (diagnose_streaming)
+        add_runner_up_model_file(document, diagnosis.runner_up, args, records.preprocessing, diagnosed.transmission)
+    else:
+        # the model file: the final model's estimate from the sums; on the filter path (and with measured
+        # derivatives) its validation error is against the channels as recorded, on the samples the in-memory
+        # preprocessing keeps, which is what `oed predict` measures; a Fourier fit of averaged periods is not what
+        # `oed predict` repeats
+        model_plan, validation_mse = diagnosed.model_file
+        after, runner_up = diagnosis.after, diagnosis.runner_up
+        files = add_summed_model_file(document, diagnosis.final_model(), after.estimate, args, model_plan,
+                                      shape=diagnosis.final_shape(), recorded_mse=after.train.mse,
+                                      validation_mse=validation_mse)
+        add_summed_runner_up_model_file(document, runner_up, args, model_plan, None if validation_mse is None or
+                                        runner_up is None else runner_up.validation_mse)
+    document["diagnosis_path"] = diagnosis.path
     document["max_effects"] = args.max_effects
     document["max_effects_reached"] = len(diagnosis.effects) >= args.max_effects
-    lines = [records.preprocessing.describe(), *summary_lines(diagnosis), *test_lines(untouched)]
-    if consistent is not None and (args.consistent or selection.chosen == "consistent"):
-        lines += consistent_lines(consistent)
-    lines += selection.lines() + chosen_test_lines(document["test"])
-    if len(diagnosis.effects) >= args.max_effects:
-        untested = sum(rejected.reason.startswith("not tested") for rejected in diagnosis.rejected)
-        lines.append(f"stopped at --max-effects {args.max_effects}: {untested} candidate(s) not tested; raise "
-                     "--max-effects to test them")
-    message = rest_message("diagnose", rest)
-    if message:
-        lines.append(message)
-    return DiagnoseRun(document, tuple(lines), tuple(messages), diagnosis, records, untouched)
+    return document, (*diagnosed.messages, *files)
 
 
 def diagnosis_selection(args: DiagnoseOptions, diagnosis: Diagnosis, records: PreparedRecords) -> ModelSelection:
@@ -441,16 +498,47 @@ def found_lines(effects: Any, *, shape_std: bool) -> list[str]:
     return lines
 
 
-def summary_lines(diagnosis: Diagnosis) -> list[str]:
-    """Effects found and the validation MSE per channel before and after."""
-    lines = found_lines(diagnosis.effects, shape_std=True)
+def summary_lines(args: DiagnoseOptions, diagnosed: Diagnosed, document: dict[str, Any]) -> list[str]:
+    """The lines ``oed diagnose`` prints, on both paths: the preprocessing (and, streamed, how the files were
+    read), the effects found, the validation MSE per channel before and after, the floor; in memory the test
+    record's errors and the default answer (``document``: :func:`diagnose_document`); the stop at
+    ``max_effects``."""
+    diagnosis = diagnosed.diagnosis
+    lines = [diagnosed.describe]
+    if diagnosis.path == "streamed":
+        lines.append(streamed_line(diagnosis, diagnosed.chunk_size))
+    lines += found_lines(diagnosis.effects, shape_std=diagnosis.path == "in-memory")
     lines.append(runner_up_line(diagnosis.runner_up, diagnosis.runner_up_reason))
     before, after = diagnosis.before.validation.mse, diagnosis.after.validation.mse
     lines += ["validation MSE vs recorded",
               "                 " + "  ".join(f"{channel:>9s}" for channel in before),
               "  before         " + "  ".join(f"{value:9.4g}" for value in before.values()),
               "  after          " + "  ".join(f"{after[channel]:9.4g}" for channel in before)]
-    return lines + floor_lines(diagnosis)
+    lines += floor_lines(diagnosis)
+    selection = diagnosed.selection
+    if selection is not None:  # in memory
+        consistent = selection.consistent
+        lines += test_lines(diagnosed.untouched)
+        if consistent is not None and (args.consistent or selection.chosen == "consistent"):
+            lines += consistent_lines(consistent)
+        lines += selection.lines() + chosen_test_lines(document["test"])
+    if len(diagnosis.effects) >= args.max_effects:
+        untested = sum(rejected.reason.startswith("not tested") for rejected in diagnosis.rejected)
+        lines.append(f"stopped at --max-effects {args.max_effects}: {untested} candidate(s) not tested; raise "
+                     "--max-effects to test them")
+    message = None if diagnosed.records is None else rest_message("diagnose", rest_records(diagnosed.records))
+    if message:
+        lines.append(message)
+    return lines
+
+
+def streamed_line(diagnosis: Diagnosis, chunk_size: int | None) -> str:
+    """How a streamed diagnosis read its files: the samples, files, blocks and the shape search's subsample."""
+    streaming = diagnosis.streaming
+    return (f"{diagnosis.model.robot.name}: {diagnosis.model.kind.value} model, streamed diagnosis of "
+            f"{diagnosis.after.train.n_samples} training samples from {len(streaming['files'])} file(s) in chunks of "
+            f"{chunk_size}, {diagnosis.after.validation.n_samples} validation samples; shapes searched on "
+            f"{streaming['subsample']['samples']} samples")
 
 
 def floor_lines(diagnosis: Diagnosis) -> list[str]:
@@ -492,67 +580,37 @@ def check_streamed_arguments(args: DiagnoseOptions, model: IdentificationModel) 
             raise ValueError(f"--{option.replace('_', '-')} must be a positive integer, got {value}")
 
 
-def diagnose_streaming(args: DiagnoseOptions, friction: str, plan: Preprocessing | None = None) -> DiagnoseRun:
-    """Diagnose the files read chunk by chunk (:func:`estimation.streaming.diagnosis.diagnose_files`), their
-    derivatives chosen as in memory (``plan``: already chosen); ``friction``: the declared effects without the delay."""
+def diagnosis_streamed(args: DiagnoseOptions, friction: str, plan: Preprocessing | None = None,
+                       findings: FindingsSaid | None = None) -> Diagnosed:
+    """Diagnose the files read in blocks (:func:`estimation.streaming.diagnosis.diagnose_files`), their
+    derivatives chosen as in memory (``plan``: already chosen); ``friction``: the declared effects without the delay.
+    The findings about the files are said as each pass ends, each once (``findings``: what the path decision said
+    already)."""
     robot = robot_of(args)
     effects = model_effects(args, friction, robot, None)
     model = build_model(robot, args.model, effects)
     check_shaped_effects_kept(effects, model)
     check_streamed_arguments(args, model)
     chunk_size = DEFAULT_CHUNK_SIZE if args.chunk_size is None else args.chunk_size
+    if findings is None:  # each pass's findings said as it ends, each once
+        findings = FindingsSaid([*args.data, *args.validate])
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         if plan is None:
-            plan = streamed_choice(args, model).chosen
+            with findings.reading():
+                plan = streamed_choice(args, model).chosen
         with executor_for(args) as executor:
-            result = diagnose_files(model, args.data, args.validate, chunk_size=chunk_size, alpha=args.alpha,
-                                    max_effects=args.max_effects, subsample=args.subsample,
-                                    floor_window=args.floor_window, executor=executor, preprocessing=plan)
-    messages = grouped_messages(caught, [*args.data, *args.validate])  # one line per finding across files
-    document = result.to_dict()
-    document["preprocessing"] = {"cutoff_hz": result.streaming["cutoff_hz"], **plan.to_dict()}
-    document["max_effects"] = args.max_effects
-    document["max_effects_reached"] = len(result.effects) >= args.max_effects
-    # the model file: the final model's estimate from the sums; on the filter path (and with measured derivatives)
-    # its validation error is against the channels as recorded, on the samples the in-memory preprocessing keeps,
-    # which is what `oed predict` measures; a Fourier fit of averaged periods is not what `oed predict` repeats
+            diagnosis = diagnose_files(model, args.data, args.validate, chunk_size=chunk_size, alpha=args.alpha,
+                                       max_effects=args.max_effects, subsample=args.subsample,
+                                       floor_window=args.floor_window, executor=executor, preprocessing=plan,
+                                       findings=findings)
+    messages = tuple(caught_messages(caught))  # the findings as said (one line per finding across files), others
+    cutoff_hz = diagnosis.streaming["cutoff_hz"]
     if plan.method == "fourier":
-        model_plan, validation_mse = plan.to_dict(), None
+        model_file = plan.to_dict(), None
     else:
-        model_plan = streamed_plan(args.data[0], model, cutoff_hz=result.streaming["cutoff_hz"],
-                                   decimation=plan.decimation, held_torques=plan.held_torques, chunk_size=chunk_size)
-        validation_mse = result.validation_mse["after"]
-    messages += add_summed_model_file(document, result.final_model(), result.after, args, model_plan,
-                                      shape=result.final_shape(), recorded_mse=result.train_mse["after"],
-                                      validation_mse=validation_mse)
-    runner_up = result.runner_up
-    add_summed_runner_up_model_file(document, runner_up, args, model_plan, None if validation_mse is None or
-                                    runner_up is None else runner_up.validation_mse)
-    lines = [plan.describe(), *streamed_summary_lines(args, robot, model, result, chunk_size)]
-    return DiagnoseRun(document, tuple(lines), tuple(messages), result)
-
-
-def streamed_summary_lines(args: DiagnoseOptions, robot: RobotModel, model: IdentificationModel, result: StreamedDiagnosis,
-                           chunk_size: int) -> list[str]:
-    """The records, the effects found, the validation MSE before and after and the noise floor."""
-    streaming = result.streaming
-    lines = [f"{robot.name}: {model.kind.value} model, streamed diagnosis of {result.n_train} training samples from "
-             f"{len(streaming['files'])} file(s) in chunks of {chunk_size}, {result.n_validation} validation samples; "
-             f"shapes searched on {streaming['subsample']['samples']} samples"]
-    lines += found_lines(result.effects, shape_std=False)
-    lines.append(runner_up_line(result.runner_up, result.runner_up_reason))
-    before, after = result.validation_mse["before"], result.validation_mse["after"]
-    lines += ["validation MSE vs recorded",
-              "                 " + "  ".join(f"{channel:>9s}" for channel in before),
-              "  before         " + "  ".join(f"{value:9.4g}" for value in before.values()),
-              "  after          " + "  ".join(f"{after[channel]:9.4g}" for channel in before)]
-    if result.floor is not None:
-        floor = result.floor.mse()
-        lines.append("  noise floor    " + "  ".join(f"{floor[channel]:9.4g}" for channel in before)
-                     + f"   ({result.floor.method}; {result.floor_note})")
-    else:
-        lines.append(result.floor_note)
-    if len(result.effects) >= args.max_effects:
-        lines.append(f"stopped at --max-effects {args.max_effects}; raise --max-effects to test the rest")
-    return lines
+        model_file = (streamed_plan(args.data[0], model, cutoff_hz=cutoff_hz, decimation=plan.decimation,
+                                    held_torques=plan.held_torques, chunk_size=chunk_size),
+                      diagnosis.after.validation.mse)
+    return Diagnosed(diagnosis, {"cutoff_hz": cutoff_hz, **plan.to_dict()}, plan.describe(), messages,
+                     chunk_size=chunk_size, model_file=model_file)

@@ -21,8 +21,9 @@ from estimation.identification.export import (
     friction_document,
     implausible_links,
 )
+from oed.workflows.options import check_json_path, check_mjcf_path, check_urdf_path
 
-__all__ = ["ExportRun", "export"]
+__all__ = ["ExportRun", "check_outputs", "export"]
 
 
 @dataclass(frozen=True)
@@ -55,7 +56,9 @@ class ExportRun:
     def write(self, urdf: str | Path | None = None, *, mjcf: str | Path | None = None,
               friction: str | Path | None = None) -> None:
         """The URDF at ``urdf``, MuJoCo's MJCF at ``mjcf`` and the friction JSON at ``friction`` (each may be left
-        out): all or none."""
+        out): all or none. A path named like another format is refused before anything is written
+        (:class:`~oed.workflows.options.OutputPathError`, as ``oed export`` refuses it)."""
+        check_outputs(urdf, mjcf=mjcf, friction=friction)
         if mjcf is not None and self.mjcf is None:
             raise ValueError("this export holds no MJCF: call export(..., mjcf=True)")
         document = self.to_dict() if friction is not None else None
@@ -69,6 +72,16 @@ class ExportRun:
             if document is not None:
                 with outputs.open(friction) as stream:
                     stream.write(json_text(document))
+
+
+def check_outputs(urdf: str | Path | None = None, *, mjcf: str | Path | None = None,
+                  friction: str | Path | None = None) -> None:
+    """Refuse outputs named like another format (:class:`~oed.workflows.options.OutputPathError`): a URDF not
+    ``.urdf``, an MJCF not ``.xml``, a friction JSON named like another format (``.csv``, ``.md``…)."""
+    check_urdf_path(urdf)
+    check_mjcf_path(mjcf)
+    if friction is not None:
+        check_json_path(friction, "--friction")
 
 
 def export(*, model: str | Path, allow_implausible: bool = False, mjcf: bool = False,

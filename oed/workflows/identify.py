@@ -202,7 +202,8 @@ def run_identify(args: IdentifyOptions, *, say: Callable[[str], None]) -> Identi
         check_streamed_request(args, model)
         return identify_streaming(args, robot, model)
     decision = decide_path(args, model, task="identifying", bytes_per_value=IN_MEMORY.bytes_per_value,
-                           in_memory_only=lambda: in_memory_only(args, model, delay), say=say)
+                           in_memory_only=lambda: in_memory_only(args, model, delay), say=say,
+                           validation_fits=validation_fits(args, model, delay))
     if decision.stream:
         return identify_streaming(args, robot, model, decision.plan)
     return identify_in_memory(args, robot, model, transmission, delay, decision.plan)
@@ -216,7 +217,7 @@ def identify_streaming(args: IdentifyOptions, robot: RobotModel, model: Identifi
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         if plan is None:
-            plan = streamed_choice(args, model).chosen
+            plan = streamed_choice(args, model, validation_fits=validation_fits(args, model, None)).chosen
         options = plan_options(plan)
         weighting = choose_weighting(model, weighting_samples(streamed_window(args.data, model), plan)) \
             if args.method == "auto" else None  # on the samples the in-memory path chooses it on
@@ -329,7 +330,8 @@ def identify_in_memory(args: IdentifyOptions, robot: RobotModel, model: Identifi
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         records = prepare_records(model, args.data, args.validate or (),  # reports its steps
-                                  settings=replace(preparation_settings(args, transmission, IN_MEMORY), plan=plan))
+                                  settings=replace(preparation_settings(args, transmission, IN_MEMORY), plan=plan,
+                                                   validation_fits=validation_fits(args, model, delay)))
         train = records.train.measurements
         validation = None if records.validation is None else records.validation.measurements
         with step("weighting chosen on held-out blocks"):
@@ -370,6 +372,16 @@ def identify_in_memory(args: IdentifyOptions, robot: RobotModel, model: Identifi
     return IdentifyRun(document, tuple(lines), tuple(messages), result, streamed=False,
                        title=f"{robot.name}: {model.kind.value} model ({result.estimate.method})",
                        preprocessing=records.preprocessing.describe())
+
+
+def validation_fits(args: IdentifyOptions, model: IdentificationModel, delay: DelayBounds | None) -> tuple[str, ...]:
+    """The unconstrained fits that choose the derivatives on a validation record of another motion
+    (:mod:`estimation.identification.preprocessing_on_validation`): the weighting asked for, else both; none
+    with a delay search or shaped laws (fitted by a search each, not repeated for every candidate: the
+    training record's choice is kept)."""
+    if delay is not None or model_has_shapes(model):
+        return ()
+    return ("ols", "wls") if args.method == "auto" else (args.method,)
 
 
 def floor_check(records: PreparedRecords, model: IdentificationModel, result: IdentificationResult,

@@ -20,6 +20,7 @@ from dynamics.models import IdentificationModel
 from estimation.identification.preprocessing_choice import SCORED_SAMPLES, PreprocessingChoice
 from estimation.preprocessing.differentiation import whole_periods
 from estimation.preprocessing.plan import Preprocessing
+from estimation.data.input_findings import FindingsSaid, grouped_messages
 from estimation.streaming.cutoff_choice import choose_streamed_preprocessing, first_rows
 from estimation.data.memory_budget import (
     InMemoryNeed,
@@ -28,7 +29,7 @@ from estimation.data.memory_budget import (
     estimate_in_memory,
     parse_memory_size,
 )
-from oed.workflows.options import RecordOptions, caught_messages, streaming_requested
+from oed.workflows.options import RecordOptions, streaming_requested
 
 __all__ = ["PathDecision", "decide_path", "streamed_choice"]
 
@@ -45,11 +46,15 @@ class PathDecision:
         The derivatives chosen before reading (``None``: the in-memory path chooses them as it reads).
     need
         The in-memory estimate against the budget (``None`` when streaming was asked for).
+    findings
+        What was said about the files while choosing the derivatives (``None`` when nothing was read): the
+        streamed run goes on with it, so that its passes do not say those findings again.
     """
 
     stream: bool
     plan: Preprocessing | None = None
     need: InMemoryNeed | None = None
+    findings: FindingsSaid | None = None
 
 
 def budget_of(args: RecordOptions) -> int:
@@ -58,13 +63,15 @@ def budget_of(args: RecordOptions) -> int:
 
 
 def streamed_choice(args: RecordOptions, model: IdentificationModel,
-                    rows: Sequence[int] | None = None) -> PreprocessingChoice:
+                    rows: Sequence[int] | None = None, *, validation_fits: tuple[str, ...] = ()) -> PreprocessingChoice:
     """The derivatives of ``--data``, chosen as in memory (the same window, candidates and rule), with the
-    derivative options given."""
+    derivative options given; ``validation_fits``: chosen again on a ``--validate`` record of another motion, as
+    in memory (:mod:`estimation.identification.preprocessing_on_validation`)."""
+    validation = getattr(args, "validate", None) or ()
     return choose_streamed_preprocessing(args.data, model, frequency_hz=args.frequency, harmonics=args.harmonics,
                                          cutoff_hz=args.cutoff, average_periods=args.average_periods,
                                          decimation=args.decimate, held_torques=args.held_torques, rows=rows,
-                                         held_out=getattr(args, "validate", None) or ())
+                                         held_out=validation, validation=validation, validation_fits=validation_fits)
 
 
 def averaged_rows(plan: Preprocessing, args: RecordOptions, model: IdentificationModel,
@@ -83,10 +90,12 @@ def averaged_rows(plan: Preprocessing, args: RecordOptions, model: Identificatio
 
 
 def decide_path(args: RecordOptions, model: IdentificationModel, *, task: str, bytes_per_value: float,
-                in_memory_only: Callable[[], str | None], say: Callable[[str], None]) -> PathDecision:
+                in_memory_only: Callable[[], str | None], say: Callable[[str], None],
+                validation_fits: tuple[str, ...] = ()) -> PathDecision:
     """The path of this run (module docstring); ``in_memory_only`` names an option given that the streamed path
     lacks (``None`` when there is none). Says the decision in one line (``say``) when it streams or when the
-    budget is passed, and the warnings of choosing the derivatives before reading (``warning: ...``)."""
+    budget is passed, and the warnings of choosing the derivatives before reading (``warning: ...``).
+    ``validation_fits``: as :func:`streamed_choice`."""
     budget = budget_of(args)  # a bad --memory-budget is an error whichever the path
     if streaming_requested(args):
         return PathDecision(True)
@@ -104,9 +113,12 @@ def decide_path(args: RecordOptions, model: IdentificationModel, *, task: str, b
         return PathDecision(False, None, need)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        plan = streamed_choice(args, model, train).chosen
-    for message in caught_messages(caught):
+        plan = streamed_choice(args, model, train, validation_fits=validation_fits).chosen
+    sources = [*args.data, *(args.validate or ()), *(getattr(args, "test", None) or ())]
+    for message in grouped_messages(caught, sources):  # one line per finding across files
         say(f"warning: {message}")
+    findings = FindingsSaid(sources)
+    findings.mark(caught)
     kept = averaged_rows(plan, args, model, train)
     if kept is not None:
         need = estimate_in_memory(train + held_out, model, bytes_per_value=bytes_per_value, budget=budget,
@@ -118,5 +130,5 @@ def decide_path(args: RecordOptions, model: IdentificationModel, *, task: str, b
         say(f"{need.describe(task)}, but {plan.describe_method()} of every sample is made in memory: in memory")
         return PathDecision(False, plan, need)
     say(need.describe(task) + " (--memory-budget to change it, --chunk-size to set the chunks)")
-    return PathDecision(True, plan, need)
+    return PathDecision(True, plan, need, findings)
 

@@ -38,10 +38,16 @@ from estimation.preprocessing.differentiation import (
 from estimation.streaming.cluster import connect, scheduler_address
 
 __all__ = [
-    "NOT_CSV_SUFFIXES", "RecordOptions", "RobotOptions", "caught_messages", "check_choice", "check_csv_path",
-    "check_hertz", "check_json_path", "check_markdown_path", "check_report_path", "check_shaped_effects_kept", "differentiation", "executor_for",
+    "NOT_CSV_SUFFIXES", "OutputPathError", "RecordOptions", "RobotOptions", "caught_messages", "check_choice",
+    "check_csv_path", "check_hertz", "check_json_path", "check_markdown_path", "check_mjcf_path", "check_report_path",
+    "check_urdf_path", "check_shaped_effects_kept", "differentiation", "executor_for",
     "model_has_shapes", "paths", "preparation_settings", "robot_of", "streaming_requested",
 ]
+
+class OutputPathError(ValueError):
+    """An output path named like another format than the one written there (``--out t.csv`` for JSON,
+    ``write("model.txt")`` for a URDF): refused before anything is written."""
+
 
 #: suffixes that promise another format than the CSV a verb writes
 NOT_CSV_SUFFIXES = frozenset({".json", ".parquet", ".png", ".pdf", ".svg", ".npz", ".npy", ".mat", ".xlsx", ".md"})
@@ -89,26 +95,38 @@ def check_hertz(options: Any, *names: str) -> None:
 def check_csv_path(path: str | Path, option: str = "--out") -> None:
     """Refuse, before any work, a CSV output named like another format (``--out u.json``)."""
     if Path(path).suffix.lower() in NOT_CSV_SUFFIXES:
-        raise ValueError(f"{option} {path}: this verb writes CSV; give a .csv file name")
+        raise OutputPathError(f"{option} {path}: this verb writes CSV; give a .csv file name")
 
 
 def check_json_path(path: str | Path, option: str = "--out") -> None:
     """Refuse, before any work, a JSON output named like another format (``--out t.csv``)."""
     suffix = Path(path).suffix.lower()
     if suffix in NOT_CSV_SUFFIXES - {".json"} or suffix == ".csv":
-        raise ValueError(f"{option} {path}: this writes JSON; give a .json file name")
+        raise OutputPathError(f"{option} {path}: this writes JSON; give a .json file name")
+
+
+def check_urdf_path(path: str | Path | None, option: str = "--urdf") -> None:
+    """Refuse, before any work, a URDF output without the ``.urdf`` suffix (``--urdf model.txt``)."""
+    if path is not None and Path(path).suffix.lower() != ".urdf":
+        raise OutputPathError(f"{option} {path}: this writes a URDF; give a .urdf file name")
+
+
+def check_mjcf_path(path: str | Path | None, option: str = "--mjcf") -> None:
+    """Refuse, before any work, a MuJoCo MJCF output without the ``.xml`` suffix (``--mjcf model.urdf``)."""
+    if path is not None and Path(path).suffix.lower() != ".xml":
+        raise OutputPathError(f"{option} {path}: this writes MuJoCo's MJCF; give an .xml file name")
 
 
 def check_markdown_path(path: str | Path | None, option: str = "--report") -> None:
     """Refuse, before any work, a Markdown output named like another format (``--report r.pdf``)."""
     if path is not None and Path(path).suffix.lower() not in MARKDOWN_SUFFIXES:
-        raise ValueError(f"{option} {path}: this writes Markdown; give a .md file name")
+        raise OutputPathError(f"{option} {path}: this writes Markdown; give a .md file name")
 
 
 def check_report_path(path: str | Path | None, option: str = "--report") -> None:
     """Refuse, before any work, a report named like neither Markdown nor HTML (``--report r.pdf``)."""
     if path is not None and Path(path).suffix.lower() not in MARKDOWN_SUFFIXES | HTML_SUFFIXES:
-        raise ValueError(f"{option} {path}: this writes Markdown (.md, figures beside it) or a self-contained "
+        raise OutputPathError(f"{option} {path}: this writes Markdown (.md, figures beside it) or a self-contained "
                          "HTML page (.html); give one of these suffixes")
 
 

@@ -1,0 +1,237 @@
+"""The preprocessing chosen on another motion: each derivative candidate scored by the validation error of the
+model fitted with it.
+
+Blocked cross-validation inside the training record
+(:mod:`estimation.identification.preprocessing_choice`) scores a derivative candidate by how well a flexible
+model predicts held-out blocks of the *same* motion. What a user wants is a model that predicts *another* motion,
+and choices made inside one motion do not carry to another (issue 34: a 1.5 Hz cut-off on a KUKA KR300, WLS on
+a Schunk arm). On the real Franka Panda of ``benchmarks/README.md`` the training record's cross-validation chose a
+10 Hz filter, while a plain least-squares fit whose cut-off was chosen on the validation record predicted the test
+record 4 % better. When the user gives a validation record of another motion, the candidates are therefore
+compared on it, as the model is (:mod:`estimation.consistent.model_selection`).
+
+**Score** (:class:`ValidationScore`). For each candidate: the training record prepared by it (its derivatives, and
+its torques filtered alike as the fit's targets), the declared model fitted by each unconstrained estimator asked
+for (``ols``, ``wls``: PUMA paper, eqs. 13 and 20), the validation record prepared by the same candidate, and the
+fit's prediction along it compared with the validation torques **as recorded**, at the recorded time stamps
+(:func:`estimation.identification.validation.compare`; never the filtered torques). The score is the criterion
+of the model choice, the geometric mean over the channels of the validation MSE
+(:data:`estimation.consistent.model_selection.CRITERION`), of the better of the fits: the choice is the joint
+minimum over (preprocessing, weighting) of one criterion.
+
+**Same samples.** Every candidate is scored on the same recorded validation samples, checked by their time
+stamps: a candidate whose prediction covers other samples than those most candidates cover (one that drops
+samples at the edges) is set aside with the reason, so no candidate may win by discarding hard samples.
+
+**Choice** (:func:`choose_on_validation`). The smallest score wins; exact ties (to :data:`TIE_DIGITS` significant
+digits) go to the least distorting candidate, as in the training record's choice (a Fourier fit of fewer
+harmonics, else the highest cut-off, the logged velocity before the positions', then the description): the
+answer does not depend on the order of a list.
+
+**Nesting with the model choice.** The physically consistent candidate (five prior weights, each an IPOPT
+refit) is not fitted for every derivative candidate: the preprocessing is chosen with the cheap unconstrained
+fits, and the model among OLS, WLS and the consistent refit is then chosen on the same validation record with the
+chosen preprocessing (:func:`estimation.consistent.model_selection.select_model`). The consistent fit is a
+regularised refit of the same prepared data; the derivatives decide which data, so they are chosen first.
+
+**When it applies** (:func:`chooses_on_validation`): a validation record is given, it holds another motion
+(:func:`estimation.identification.repeated_motion.repeated_motion` above
+:data:`~estimation.identification.repeated_motion.REPEAT_FRACTION`), and the training record's choice was made
+among candidates (not measured derivatives, not the user's ``--cutoff``/``--frequency``). A validation record
+that repeats the training motion measures nothing about another motion: the training record's choice is kept.
+"""
+
+from __future__ import annotations
+
+import functools
+import hashlib
+import time
+import warnings
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from dynamics.measurements import Measurements
+from dynamics.models import IdentificationModel
+from dynamics.runtime.memory import available_memory
+from dynamics.runtime.processes import run_tasks, worker_count
+from dynamics.runtime.progress import SECONDS as PROGRESS_SECONDS
+from dynamics.runtime.progress import report
+from dynamics.runtime.threads import single_threaded_blas
+from estimation.data.segments import concatenate
+from estimation.estimators.least_squares import LeastSquares, WeightedLeastSquares, stack
+from estimation.identification.preprocessing_choice import (
+    MIN_PARALLEL_SCORES,
+    SCORED_SAMPLES,
+    geometric_mean,
+    scored_window,
+)
+from estimation.identification.repeated_motion import REPEAT_FRACTION, repeated_motion
+from estimation.identification.validation import compare
+from estimation.preprocessing.plan import (
+    Evidence,
+    Preprocessing,
+    SegmentTooShortForFilterError,
+    ValidationEvidence,
+    prepare,
+)
+
+__all__ = ["FITS", "TIE_DIGITS", "ValidationScore", "choose_on_validation", "chooses_on_validation",
+           "on_validation"]
+
+#: the unconstrained fits a candidate may be scored with, in the order ties between them are broken
+FITS = ("ols", "wls")
+#: scores equal to this many significant digits are a tie (the tie rule decides)
+TIE_DIGITS = 6
+#: what scoring one candidate holds at its peak: bytes a sample, channel and base parameter (the stacked
+#: regressor, its weighted copy and the predictions); fewer processes score side by side when memory is short
+BYTES_PER_VALUE = 3 * 8
+
+
+@dataclass(frozen=True)
+class ValidationScore:
+    """The validation error of the model fitted with a candidate preprocessing (module docstring).
+
+    Attributes
+    ----------
+    model
+        The declared identification model (no shaped laws: their variable projection is not repeated per
+        candidate).
+    fits
+        The unconstrained fits tried, among :data:`FITS`.
+    """
+
+    model: IdentificationModel
+    fits: tuple[str, ...] = FITS
+
+    def __post_init__(self) -> None:
+        if not self.fits or any(fit not in FITS for fit in self.fits):
+            raise ValueError(f"fits must be a non-empty tuple of {FITS}, got {self.fits!r}")
+
+    @single_threaded_blas()  # tall thin least squares: threaded BLAS only loses (dynamics.runtime.threads)
+    def __call__(self, train: Sequence[Measurements], validation: Sequence[Measurements],
+                 preprocessing: Preprocessing) -> tuple[ValidationEvidence, str]:
+        """The candidate's evidence and a digest of the recorded validation time stamps it was scored on."""
+        started = time.perf_counter()
+        plan = preprocessing.without_evidence()
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")  # said once, for the choice, when the records are prepared again
+                prepared_train = prepare(train, plan, role="training data")
+                prepared_validation = prepare(validation, plan, role="validation data")
+                problem = stack(self.model, concatenate(prepared_train))
+                comparisons = {}
+                for fit in FITS:
+                    if fit in self.fits:
+                        estimator = WeightedLeastSquares() if fit == "wls" else LeastSquares()
+                        estimate = estimator.fit(problem).estimate_
+                        comparisons[fit] = compare(self.model, estimate.values, prepared_validation,
+                                                   label="validation")
+        except (SegmentTooShortForFilterError, ValueError, np.linalg.LinAlgError) as error:
+            return ValidationEvidence(plan, float("inf"), {}, error=str(error),
+                                      seconds=time.perf_counter() - started), ""
+        scores = {fit: score_of(comparison.mse, comparison.channels) for fit, comparison in comparisons.items()}
+        best = min(scores, key=lambda fit: (scores[fit], FITS.index(fit)))
+        comparison = comparisons[best]
+        stamps = np.ascontiguousarray(comparison.t, dtype=float)
+        return (ValidationEvidence(plan, scores[best], dict(comparison.mse), best, scores, None,
+                                   time.perf_counter() - started, int(stamps.shape[0])),
+                hashlib.sha256(stamps.tobytes()).hexdigest())
+
+
+def score_of(mse: dict[str, float], channels: Sequence[str]) -> float:
+    """The criterion: the geometric mean over ``channels`` of their MSE (``inf`` when one is not finite)."""
+    values = np.array([mse[channel] for channel in channels], dtype=float)
+    return geometric_mean(values) if np.all(np.isfinite(values)) else float("inf")
+
+
+def on_same_samples(scored: Sequence[tuple[ValidationEvidence, str]]) -> list[ValidationEvidence]:
+    """The evidence, with any candidate scored on other recorded validation samples than the reference set to
+    ``inf`` (with the reason). The reference: the time stamps of the candidates scored on the most samples, the
+    digest most of them share (then the smallest digest: not the order of the list)."""
+    finite = [(item, digest) for item, digest in scored if np.isfinite(item.score)]
+    if not finite:
+        return [item for item, _ in scored]
+    most = max(item.samples for item, _ in finite)
+    digests = [digest for item, digest in finite if item.samples == most]
+    reference = min(set(digests), key=lambda digest: (-digests.count(digest), digest))
+    return [item if not np.isfinite(item.score) or digest == reference else
+            replace(item, score=float("inf"), error=f"scored on {item.samples} recorded validation samples, not the "
+                    f"{most} the other candidates predict: not comparable") for item, digest in scored]
+
+
+def tie_key(plan: Preprocessing) -> tuple:
+    """Among candidates of equal score: a Fourier fit of fewer harmonics, else the highest cut-off (the logged
+    velocity before the positions'), then the description."""
+    return (plan.method != "fourier", plan.harmonics or 0, -(plan.cutoff_hz or 0.0), plan.velocity_from_positions,
+            plan.describe())
+
+
+def choose_on_validation(model: IdentificationModel, train: Sequence[Measurements],
+                         validation: Sequence[Measurements], plans: Sequence[Preprocessing], *,
+                         fits: tuple[str, ...] = FITS, jobs: int | None = None
+                         ) -> tuple[Preprocessing | None, tuple[ValidationEvidence, ...]]:
+    """The candidate of the smallest validation score and every candidate's evidence, best first (module
+    docstring); ``None`` when no candidate could be scored. ``train``, ``validation``: the segments as read.
+    ``jobs``: processes that score the candidates side by side (as
+    :func:`~estimation.identification.preprocessing_choice.choose_by_evidence`; the same choice whatever the
+    number)."""
+    score = ValidationScore(model, tuple(fits))
+    unique = list(dict.fromkeys(plan.without_evidence() for plan in plans))
+    started = time.perf_counter()
+    samples = sum(segment.n_samples for segment in (*train, *validation))
+    task_bytes = BYTES_PER_VALUE * samples * model.n_channels * model.n_base
+    workers = min(worker_count(jobs, len(unique), min_tasks=MIN_PARALLEL_SCORES),
+                  max(1, int(available_memory() // (2 * task_bytes))))  # the same choice whatever the number
+    scored = run_tasks([functools.partial(score, tuple(train), tuple(validation), plan) for plan in unique], workers)
+    evidence = tuple(sorted(on_same_samples(scored), key=lambda item: (item.score, tie_key(item.preprocessing))))
+    finite = [item for item in evidence if np.isfinite(item.score)]
+    if not finite:
+        return None, evidence
+    best = float(f"{finite[0].score:.{TIE_DIGITS}g}")
+    tied = [item.preprocessing for item in finite if float(f"{item.score:.{TIE_DIGITS}g}") == best]
+    chosen = min(tied, key=tie_key)
+    if time.perf_counter() - started >= PROGRESS_SECONDS:
+        report("derivatives: %s chosen on the validation record among %d candidates (%.1f s)",
+               chosen.describe_method(), len(evidence), time.perf_counter() - started)
+    return chosen, evidence
+
+
+def chooses_on_validation(chosen: Preprocessing, train: Sequence[Measurements],
+                          validation: Sequence[Measurements]) -> bool:
+    """Whether the preprocessing is chosen again on the validation record (module docstring: when it applies):
+    ``chosen`` was chosen among candidates on the training record, and the validation record holds another
+    motion."""
+    if not validation or chosen.evidence is None or chosen.evidence.selection != "held-out":
+        return False
+    return repeated_motion(concatenate(train), concatenate(validation)) > REPEAT_FRACTION
+
+
+def window(segment: Measurements) -> Measurements:
+    """A validation segment's first :data:`~estimation.identification.preprocessing_choice.SCORED_SAMPLES`
+    samples (all of them when it holds fewer): what the streamed path reads of a validation file."""
+    return segment if segment.n_samples <= SCORED_SAMPLES else segment.select(slice(0, SCORED_SAMPLES))
+
+
+def on_validation(chosen: Preprocessing, model: IdentificationModel, train: Sequence[Measurements],
+                  validation: Sequence[Measurements], *, fits: tuple[str, ...] = FITS,
+                  jobs: int | None = None) -> Preprocessing:
+    """``chosen`` (the training record's choice, with its evidence) chosen again among the same candidates on
+    the validation record when that is another motion (:func:`chooses_on_validation`), else ``chosen`` as it is.
+    Scored on windows, as the training record's choice is: the training record's
+    (:func:`~estimation.identification.preprocessing_choice.scored_window`: the whole record up to
+    :data:`~estimation.identification.preprocessing_choice.SCORED_SAMPLES` samples) and each validation segment's
+    first :data:`~estimation.identification.preprocessing_choice.SCORED_SAMPLES` samples (:func:`window`), so
+    that memory stays bounded and the streamed path, which reads those windows, chooses alike.
+    The plan returned carries both: ``evidence.candidates`` (the training record's scores) and
+    ``evidence.validation`` (the validation scores), with ``evidence.selection`` ``"validation"``."""
+    train, validation = scored_window(train), [window(segment) for segment in validation]
+    if chosen.evidence is None or not chooses_on_validation(chosen, train, validation):
+        return chosen
+    plans = [item.preprocessing for item in chosen.evidence.candidates]
+    best, evidence = choose_on_validation(model, train, validation, plans, fits=fits, jobs=jobs)
+    if best is None:
+        return chosen
+    return replace(best, evidence=Evidence("validation", chosen.evidence.folds, chosen.evidence.candidates, evidence,
+                                           chosen.without_evidence()))
