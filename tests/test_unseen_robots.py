@@ -44,6 +44,7 @@ class Log:
     velocity: bool = True
     jitter: float = 0.0  # of a step, uniform
     stalls: int = 0  # runs of re-sent samples
+    bursts: int = 0  # stamps on receipt: a logger that stalls 5 steps, then delivers the samples in a burst
     quantum: float = 0.0  # the encoders' resolution (rad or m): positions rounded to it
     velocity_noise: float = 0.0  # white noise on a logged velocity, of its channel's spread
     motion_hz: float = 0.2  # the motion's fundamental (five harmonics)
@@ -99,6 +100,15 @@ def times(log: Log, generator: np.random.Generator) -> np.ndarray:
     return t
 
 
+def received(t: np.ndarray, log: Log, generator: np.random.Generator) -> np.ndarray:
+    """The time stamps as logged: with ``bursts``, five samples at a time stamped when they arrive together
+    (10 µs apart, just before the next sample), the motion and torques still those of their sampling times."""
+    t = t.copy()
+    for start in generator.choice(np.arange(20, t.shape[0] - 20, 10), log.bursts, replace=False):
+        t[start:start + 5] = t[start + 5] - 1e-5 * np.arange(5, 0, -1)
+    return t
+
+
 def write_record(model, theta, log: Log, seed: int, path: Path, spread: np.ndarray | None = None):
     """One record at ``log``'s time stamps (another motion a seed); returns the plain fit's view of it."""
     from benchmarks.bench_real_robots import Record
@@ -119,6 +129,8 @@ def write_record(model, theta, log: Log, seed: int, path: Path, spread: np.ndarr
         q = np.round(q / log.quantum) * log.quantum
     if log.velocity_noise:
         dq = dq + generator.normal(0.0, 1.0, dq.shape) * log.velocity_noise * dq.std(axis=0)
+    if log.bursts:
+        t = received(t, log, generator)
     n = q.shape[1]
     frame = {"t": t, **{f"q{j + 1}": q[:, j] for j in range(n)}}
     if log.velocity:
@@ -173,6 +185,11 @@ CASES = (
     UnseenCase("puma 6 joints, 12 s train, 2 s validation at 1 kHz, no dq, stalled", "puma560:6",
                Log(12.0, 1000.0, velocity=False, stalls=10), Log(2.0, 1000.0, velocity=False, stalls=2),
                Log(5.0, 1000.0, velocity=False), slow=True),
+    UnseenCase("puma 6 joints, 500 Hz, 10 s / 3 s / 4 s, logged dq, stamped on receipt (bursts)", "puma560:6",
+               Log(10.0, 500.0, bursts=8), Log(3.0, 500.0, bursts=3), Log(4.0, 500.0, bursts=3), slow=True,
+               xfail="measured (main 069ef4a + this branch): default 0.84/0.96/0.98/1.03/1.12/1.04x, 1.01x in total "
+                     "(met within the floor's spread); diagnose 1.28/1.25/1.46/1.23/1.82/1.26x, 1.33x in total (its "
+                     "consistent refit chosen; coulomb:tanh on tau1, no offset on tau2)"),
     UnseenCase("puma 6 joints, 3 s records at 100 Hz, no dq", "puma560:6", Log(3.0, 100.0, velocity=False),
                Log(3.0, 100.0, velocity=False), Log(3.0, 100.0, velocity=False), slow=True),
     UnseenCase("servo arm (4 joints), 100 Hz, 8 s / 2 s, logged dq, jittered and stalled", "servo_arm:4",
