@@ -218,12 +218,14 @@ def choose_prior_weight(refit: Callable[[float, NDArray[np.float64] | None], Con
     the cost is convex in the pseudo-inertias and strictly inside the cone, so a warm start the certificate
     passes is the optimum the cold starts reach (to IPOPT's tolerance) in a fraction of the iterations, and one
     it does not pass is followed by the cold starts. Weight zero (no prior: the optimum on the cone's boundary,
-    where starts may stop at different points) keeps its cold starts."""
+    where cold starts stop at different points) continues the path from the optimum at the smallest weight down to
+    the vanishing pull of ``regularisation`` (:meth:`~estimation.consistent.least_squares.ConsistentLeastSquares.
+    _regularised_path`): one certified answer whatever the start."""
     weights = result.estimate.weights if result.estimate.method == "wls" else 1.0 / result.estimate.channel_variance
     fits: dict[float, ConsistentResult] = {}
     warm = None
     for weight in sorted(PRIOR_WEIGHT_GRID, reverse=True):
-        fit = refit(weight, warm if weight > 0 else None)
+        fit = refit(weight, warm)
         if fit.validation is None:
             raise ValueError("choosing the prior's weight needs a validation record")
         fits[weight] = fit

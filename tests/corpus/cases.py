@@ -153,12 +153,7 @@ NON_DEFAULT: tuple[Case, ...] = (
 )
 
 #: measured on the code of the day, where a case from positions only misses its targets
-POSITIONS_XFAIL: dict[str, str] = {
-    "coulomb sign": "measured: named coulomb@tau2 (the sign law, the truth); after/floor 0.99/2.42/0.98, after/known "
-                    "law 1.00/1.00/1.00: only the floor is missed, and the fit that knows the law misses it as much "
-                    "(derivatives: a Fourier fit chosen by held-out evidence; a sign law's jump is smoothed by any "
-                    "derivative from positions)",
-}
+POSITIONS_XFAIL: dict[str, str] = {}  # none: the sign law from positions reaches its floor (0.99/0.99/0.98)
 POSITIONS: tuple[Case, ...] = tuple(
     positions_only(case, xfail=POSITIONS_XFAIL.get(case.name, "")) for case in ALONE + PAIRS[:3]
     if case.name != "coupled coulomb q2+q3"
@@ -287,15 +282,10 @@ OUTSIDE: tuple[Case, ...] = (
     Case("stribeck, validation repeats the motion", (STRIBECK,), named(("stribeck:velocity", "tau3")), repeat=True),
 )
 def _long_xfail() -> dict[str, str]:
-    """Measured on the code of the day, where a 1 kHz case misses its targets."""
-    return {
-        "stribeck on every joint": "measured: named coulomb@tau2 (the sign law, fc2 = 7.9: the truth's fc + fs) beside "
-                                   "stribeck:velocity@tau1 and @tau3, tau2 9.9x its floor (said); the Stribeck law on "
-                                   "joint 2 alone fits best at a non-physical optimum (fc2 = 64.7, fs2 = -56.3, fv2 = "
-                                   "-4.1: its shape traded against the viscous term over joint 2's velocities) and is "
-                                   "refused, so the sign law stays (a physical optimum, tried, named a Stribeck law on "
-                                   "a sign-law truth in the streamed diagnosis: not kept)",
-    }
+    """Measured on the code of the day, where a 1 kHz case misses its targets (none now: the issue's Stribeck truth
+    on every joint passes since a non-physical local optimum of a shaped law gives way to a better physical one,
+    :func:`estimation.diagnosis.candidates.trials.better_physical_optimum`)."""
+    return {}
 
 
 #: the same truths, the derivatives made from the positions as a user gets them (slow)

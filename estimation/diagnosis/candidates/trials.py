@@ -25,6 +25,7 @@ from dynamics.effects.linear import POSITIVE_EFFECTS, Effect
 from dynamics.models import IdentificationModel
 from estimation.estimators.effect_blocks import Block, ShapeSearchError, States
 from estimation.estimators.separable_least_squares import FixedPart, LinearSolution, residuals, solve_linear
+from estimation.estimators.shape_starts import product_grid
 from estimation.estimators.variable_projection import ShapeFit, fit_shapes
 
 
@@ -98,7 +99,46 @@ def try_candidate(group: tuple[int, ...], blocks: Sequence[Block], fixed: FixedP
                          max_iter=60 if search else 0, covariance="none")
     count = sum(block.n_linear + block.n_shape for block in blocks)
     statistic, p_value, bic = nested_test(rss, fit.rss, count, fixed.n_rows, fixed.n_fixed)
-    return Trial(tuple(group), tuple(blocks), fit, fit.rss, statistic, p_value, bic)
+    trial = Trial(tuple(group), tuple(blocks), fit, fit.rss, statistic, p_value, bic)
+    if search and any(block.n_shape for block in blocks) and _non_physical(trial):
+        better = better_physical_optimum(blocks, fixed, states, weights, fit.rss)
+        if better is not None:
+            statistic, p_value, bic = nested_test(rss, better.rss, count, fixed.n_rows, fixed.n_fixed)
+            return Trial(tuple(group), tuple(blocks), better, better.rss, statistic, p_value, bic)
+    return trial
+
+
+def _non_physical(trial: Trial) -> bool:
+    """Whether a law's coefficients have a non-physical sign (a friction or armature below zero)."""
+    return any(getattr(block.effect, "physical_kind", block.effect.name) in POSITIVE_EFFECTS
+               and np.any(np.asarray(trial.coefficients(position)) <= 0) for position, block in enumerate(trial.blocks))
+
+
+def better_physical_optimum(blocks: Sequence[Block], fixed: FixedPart, states: States, weights: NDArray[np.float64],
+                            rss: float) -> ShapeFit | None:
+    """A physical optimum of a shaped law that fits the training data better than the non-physical one the
+    search ended in (weighted RSS ``rss``), or ``None``.
+
+    The search from the grid's valley floors is local: a Stribeck law can end where its shape trades against the
+    viscous term over the velocities a joint reaches (``fc = 64.7, fs = −56.3`` for a truth ``5, 3``), a local
+    optimum, while the best physical point of the shape grid (screened by the linear solve), refined by variable
+    projection, fits better still. Only a *better* optimum of the same unconstrained problem replaces the search's:
+    the law is never held physical at a cost (a constrained optimum worse than a non-physical one is the data
+    asking for another law, which is refused as before)."""
+    screened = [fit for fit in (_screened(blocks, fixed, states, weights, shape) for shape in product_grid(blocks))
+                if fit is not None]
+    for fit in sorted(screened, key=lambda fit: fit.rss):
+        if _non_physical(Trial((), tuple(blocks), fit, fit.rss, 0.0, 1.0, 0.0)):
+            continue
+        try:
+            refined = fit_shapes(fixed, blocks, states, weights, starts=fit.shape[None, :], refine=1, max_iter=60,
+                                 covariance="none")
+        except ShapeSearchError:
+            refined = fit
+        if _non_physical(Trial((), tuple(blocks), refined, refined.rss, 0.0, 1.0, 0.0)):
+            refined = fit
+        return refined if refined.rss < rss else None
+    return None
 
 
 def _screened(blocks: Sequence[Block], fixed: FixedPart, states: States, weights: NDArray[np.float64],
