@@ -66,6 +66,8 @@ StreamedCovariance = Literal["hac", "classical"]
 #: what the streamed identification cannot compute, by the ``oed identify`` document's key
 #: (:attr:`~estimation.identification.fit.IdentificationResult.not_computed`)
 STREAMED_NOT_COMPUTED = {
+    "hac_lags": "the standard deviations are not HAC ones: batch means from a pass over the files (cov_method; "
+                "their batch length in streaming.covariance), or classical",
     "consistent": "the physically consistent refit is made in memory (--consistent refits in memory)",
     "links": "the bodies of the physically consistent refit are had in memory",
     "model_selection": "the choice among ols, wls and the consistent refit by their validation errors is made in "

@@ -321,6 +321,9 @@ def identify_document(args: IdentifyOptions, identified: Identified) -> tuple[di
     document = finish_document(result.to_dict(), result, trivial=identified.trivial, warnings=identified.notes,
                                rest=identified.rest, transmission=identified.transmission)
     document["not_computed"] = dict(identified.not_computed)
+    for key in ("zero_mse", "nominal_mse"):  # not computed: null, as the other keys the path says why it lacks
+        if f"validation.{key}" in identified.not_computed and document.get("validation") is not None:
+            document["validation"][key] = None
     if result.path == "streamed":
         document["preprocessing"] = dict(identified.preprocessing)
     if identified.consistent is not None:
