@@ -117,6 +117,10 @@ class IdentificationResult:
     not_computed: dict[str, str] = field(default_factory=dict, repr=False)
     #: how the files were read, summed and estimated (the document's ``streaming``), or ``None`` in memory
     streaming: dict[str, Any] | None = field(default=None, repr=False)
+    #: the validation errors of the trivial predictors (``zero_mse``, ``nominal_mse``:
+    #: :mod:`estimation.identification.trivial_predictors`) where the fit had them at no cost (streamed: from the
+    #: validation sums when they hold the recording), else ``None``
+    trivial: dict[str, dict[str, float]] | None = field(default=None, repr=False)
 
     def predict(self, measurements: Measurements) -> np.ndarray:
         """``(N, m)`` predicted channels along ``measurements`` (at the fitted shapes, if any, and

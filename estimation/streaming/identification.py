@@ -198,8 +198,13 @@ def identify_files(
         files=files, validation_files=tuple(validation_files), cov_method=cov_method, batch_length=batch,
         classical_std=None if classical_std is None else dict(zip(estimate.names, map(float, classical_std))),
         seconds={key: round(value, 3) for key, value in seconds.items()})
+    trivial = None
+    if validation is not None and validation.n_samples and not _filtered(validation_files):  # as recorded
+        nominal = model.base.K @ model.nominal_parameters()
+        trivial = {"zero_mse": dict(zip(model.channels, map(float, validation.power / validation.n_samples))),
+                   "nominal_mse": validation.channel_mse(nominal)}
     return IdentificationResult(model, estimate, train_errors, validation_errors, notes, path="streamed",
-                                not_computed=dict(STREAMED_NOT_COMPUTED), streaming=streaming)
+                                not_computed=dict(STREAMED_NOT_COMPUTED), streaming=streaming, trivial=trivial)
 
 
 def _has_derivatives(path: str, model: IdentificationModel, chunk_size: int) -> bool:

@@ -415,7 +415,7 @@ def recorded_validation(args: IdentifyOptions, result: IdentificationResult, chu
     """The streamed ``result`` with its validation error against the channels as recorded, on the samples the
     in-memory preprocessing keeps (what ``oed predict`` measures), and the trivial predictors' errors there, from
     one pass over the validation files (:func:`estimation.streaming.recorded_errors.streamed_recorded_errors`; the
-    filter path's sums hold filtered channels); on a file resampled onto a uniform grid, the error at the recorded
+    filter path's sums hold filtered channels; sums of the recording give both: ``result.trivial``); on a file resampled onto a uniform grid, the error at the recorded
     samples (:func:`~oed.workflows.model_files.recorded_validation_mse`). On the Fourier path (the sums hold
     averaged periods) neither: ``None`` and why."""
     streaming = result.streaming
@@ -425,15 +425,17 @@ def recorded_validation(args: IdentifyOptions, result: IdentificationResult, chu
         return result, None, {"validation.mse": reason, "validation.zero_mse": reason,
                               "validation.nominal_mse": reason, "validation.mse_over_floor": reason}
     model = result.model
-    thetas = {"zero_mse": np.zeros(model.n_base), "nominal_mse": model.base.K @ model.nominal_parameters()}
-    if result.validation.mse is None:
-        thetas["mse"] = result.estimate.values
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # the files' findings were said on the first pass
-        errors = streamed_recorded_errors(model, thetas, args.validate, chunk_size=chunk_size,
-                                          cutoff_hz=streaming["cutoff_hz"], decimation=args.decimate,
-                                          held_torques=bool(args.held_torques))
-    mse = errors.pop("mse", result.validation.mse)
+    if result.trivial is not None and result.validation.mse is not None:  # the sums hold the recording
+        errors, mse = {key: dict(value) for key, value in result.trivial.items()}, result.validation.mse
+    else:
+        thetas = {"zero_mse": np.zeros(model.n_base), "nominal_mse": model.base.K @ model.nominal_parameters(),
+                  "mse": result.estimate.values}
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # the files' findings were said on the first pass
+            errors = streamed_recorded_errors(model, thetas, args.validate, chunk_size=chunk_size,
+                                              cutoff_hz=streaming["cutoff_hz"], decimation=args.decimate,
+                                              held_torques=bool(args.held_torques))
+        mse = errors.pop("mse")
     if resampled_validation({"streaming": streaming}):  # jittered or cleaned: its error at the recorded samples
         recorded = recorded_validation_mse(summed_model_file_document(
             model, result.estimate, robot=robot_source(model.robot, args), preprocessing=streamed_plan(
