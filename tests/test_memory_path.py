@@ -365,8 +365,9 @@ def test_identify_one_document_whichever_the_path(tmp_path, records, capsys, der
     assert "validation MSE (vs" in printed and "validation MSE (vs" in printed_memory
 
 
-def test_identify_one_result_type_whichever_the_path(records):
-    """``oed.identify`` in memory and streamed: one result type (IdentificationResult), the same fields filled."""
+def test_identify_one_result_type_whichever_the_path(records, tmp_path):
+    """``oed.identify`` in memory and streamed: one result type (IdentificationResult), the same fields filled, one
+    report builder."""
     import oed
     from estimation.identification.fit import IdentificationResult
 
@@ -384,3 +385,14 @@ def test_identify_one_result_type_whichever_the_path(records):
         assert run.to_dict()["not_computed"] == {**own["not_computed"], **run.to_dict()["not_computed"]}
     assert streamed.result.not_computed and memory.result.not_computed == {}
     np.testing.assert_allclose(streamed.result.estimate.values, memory.result.estimate.values, rtol=0.1, atol=0.05)
+    # one report builder: the streamed run's report has the same sections but the figures, and says what it lacks
+    folder = tmp_path
+    streamed.write(folder / "r.json", report=folder / "r.md")
+    text = (folder / "r.md").read_text()
+    assert "## Parameters" in text and "## Error per channel" in text and "## Not computed on this path" in text
+    assert "- model_selection: the choice among ols, wls and the consistent refit" in text
+    assert sorted(path.name for path in folder.iterdir()) == ["r.json", "r.md"]
+    assert "<img" not in streamed.report().html() and "<img" in memory.report().html()
+    assert "Not computed on this path" not in memory.report().html()
+    with pytest.raises(ValueError, match="--plot"):
+        streamed.plot(folder / "r.png")

@@ -166,9 +166,8 @@ class IdentifyRun:
     def report(self) -> Report:
         """The report a person reads (:func:`estimation.identification.report.identification_report`): the choices,
         every warning, the parameters with their standard deviations, the errors beside the floor, measured
-        against predicted per channel. Written as Markdown or HTML (:meth:`write`)."""
-        if self.streamed:
-            raise ValueError(f"--report draws every sample: not with {STREAMED}")
+        against predicted per channel. Written as Markdown or HTML (:meth:`write`). A streamed run's report has no
+        figure (no samples held) and says what its path did not compute."""
         return identification_report(self.result, self.document, preprocessing=self.preprocessing,
                                      warnings=self.warnings, title=self.title, chosen=self.answer)
 
