@@ -314,3 +314,85 @@ def test_the_path_is_decided_by_the_record_whatever_the_free_memory(model, recor
     generous = memory_path.decide_path(options.replace(memory_budget="1TB"), model, task="diagnosing",
                                        bytes_per_value=64, in_memory_only=lambda: None, say=said.append)
     assert not generous.stream and generous.need.budget == 10**12
+
+
+def _identify(tmp_path, records, name, *options):
+    out = tmp_path / f"identify_{name}.json"
+    code = main(["identify", "--joints", "3", "--model", "internal", "--friction", "viscous,coulomb,offset", "--data",
+                 str(records[0]), "--validate", str(records[1]), "--out", str(out), *options])
+    assert code == 0
+    return json.loads(out.read_text())
+
+
+@pytest.mark.parametrize("derivatives", [(), ("--cutoff", "6")])
+def test_identify_one_document_whichever_the_path(tmp_path, records, capsys, derivatives):
+    """``oed identify`` in memory and streamed (forced by --chunk-size, chosen by a tiny --memory-budget): the
+    streamed document has every key of the in-memory one (the validation's too), the same derivatives and estimate
+    and errors; what it lacks is null with its reason in not_computed; the summary in the same form."""
+    memory = _identify(tmp_path, records, "memory", *derivatives)
+    printed_memory = capsys.readouterr().out
+    forced = _identify(tmp_path, records, "forced", "--chunk-size", "250", *derivatives)
+    printed = capsys.readouterr().out
+    budget = _identify(tmp_path, records, "budget", "--memory-budget", "1000", *derivatives)
+    assert "over the budget of 1 kB: streaming" in capsys.readouterr().err
+    assert memory["identification_path"] == "in-memory" and memory["streaming"] is None
+    assert memory["not_computed"] == {}
+    for streamed in (forced, budget):
+        assert streamed["identification_path"] == "streamed" and streamed["streaming"]["files"]
+        assert set(memory) <= set(streamed) and set(memory["validation"]) <= set(streamed["validation"])
+        assert set(memory["model_parameters"]) <= set(streamed["model_parameters"])
+        missing = {key for key, value in streamed.items() if value is None and memory.get(key) is not None}
+        missing |= {f"validation.{key}" for key, value in streamed["validation"].items()
+                    if value is None and memory["validation"].get(key) is not None}
+        assert missing and missing <= set(streamed["not_computed"]), missing
+        assert all(streamed["not_computed"].values())
+        assert streamed["preprocessing"]["method"] == memory["preprocessing"]["method"]
+        assert streamed["transmission"] == memory["transmission"] and streamed["rest"] is None is memory["rest"]
+        assert streamed["model_parameters"]["names"] == memory["model_parameters"]["names"]
+        assert streamed["model_parameters"]["values"] == [p["value"] for p in streamed["parameters"]]
+        assert streamed["model_parameters"]["chosen"] == streamed["chosen"] == streamed["model_file"]["chosen"]
+        assert set(streamed["noise_floor"]["mse"]) == set(memory["noise_floor"]["mse"])
+        if memory["preprocessing"]["method"] == "butterworth":  # against the recording on both paths
+            for key, rtol in (("zero_mse", 1e-3), ("nominal_mse", 1e-3), ("mse", 0.25)):  # the chosen models differ
+                np.testing.assert_allclose(list(streamed["validation"][key].values()),
+                                           list(memory["validation"][key].values()), rtol=rtol)
+            assert streamed["validation"]["mse_over_floor"] == pytest.approx(
+                {c: v / streamed["noise_floor"]["mse"][c] for c, v in streamed["validation"]["mse"].items()},
+                rel=1e-12)
+        else:  # averaged periods: the sums hold no error against the recording, and say why
+            assert {"validation.mse", "validation.zero_mse"} <= set(streamed["not_computed"])
+    assert printed.splitlines()[0] == printed_memory.splitlines()[0]  # the same derivatives, said alike
+    assert "validation MSE (vs" in printed and "validation MSE (vs" in printed_memory
+
+
+def test_identify_one_result_type_whichever_the_path(records, tmp_path):
+    """``oed.identify`` in memory and streamed: one result type (IdentificationResult), the same fields filled, one
+    report builder."""
+    import oed
+    from estimation.identification.fit import IdentificationResult
+
+    options = dict(joints=3, model="internal", friction="viscous,coulomb,offset", data=records[0],
+                   validate=records[1], cutoff=6.0)
+    memory, streamed = oed.identify(**options), oed.identify(**options, chunk_size=250)
+    assert (memory.result.path, streamed.result.path) == ("in-memory", "streamed")
+    assert not memory.streamed and streamed.streamed
+    for run in (memory, streamed):
+        result = run.result
+        assert type(result) is IdentificationResult
+        assert set(result.validation.mse) == set(result.train.mse_filtered) == {"tau1", "tau2", "tau3"}
+        own = result.to_dict()
+        assert set(own) <= set(run.to_dict())
+        assert run.to_dict()["not_computed"] == {**own["not_computed"], **run.to_dict()["not_computed"]}
+    assert streamed.result.not_computed and memory.result.not_computed == {}
+    np.testing.assert_allclose(streamed.result.estimate.values, memory.result.estimate.values, rtol=0.1, atol=0.05)
+    # one report builder: the streamed run's report has the same sections but the figures, and says what it lacks
+    folder = tmp_path
+    streamed.write(folder / "r.json", report=folder / "r.md")
+    text = (folder / "r.md").read_text()
+    assert "## Parameters" in text and "## Error per channel" in text and "## Not computed on this path" in text
+    assert "- model_selection: the choice among ols, wls and the consistent refit" in text
+    assert sorted(path.name for path in folder.iterdir()) == ["r.json", "r.md"]
+    assert "<img" not in streamed.report().html() and "<img" in memory.report().html()
+    assert "Not computed on this path" not in memory.report().html()
+    with pytest.raises(ValueError, match="--plot"):
+        streamed.plot(folder / "r.png")

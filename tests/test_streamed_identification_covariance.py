@@ -61,6 +61,15 @@ def files(model, tmp_path_factory):
     return paths
 
 
+def batch_length_of(result):
+    return result.streaming["covariance"]["batch_length"]
+
+
+def classical_std_of(result):
+    """The white-noise standard deviations the streamed result reports beside its batch-means ones."""
+    return np.array([result.streaming["covariance"]["classical_std"][name] for name in result.estimate.names])
+
+
 def in_memory_batch_means(model, paths, result, method=None):
     """The batch-means covariance on the stacked records' residuals and scores at the streamed estimate
     (each file read and prepared whole by ``method``; batches restarting at each file), with the
@@ -79,25 +88,25 @@ def in_memory_batch_means(model, paths, result, method=None):
     score, residual = np.concatenate(scores), np.concatenate(residuals, axis=1)
     n_samples, p = score.shape
     inverse = np.linalg.inv(H)
-    cov = inverse @ batch_means(score, result.batch_length, segments) @ inverse * n_samples / (n_samples - p)
-    std = np.sqrt(np.maximum(np.diag(cov), result.classical_std**2))
+    cov = inverse @ batch_means(score, batch_length_of(result), segments) @ inverse * n_samples / (n_samples - p)
+    std = np.sqrt(np.maximum(np.diag(cov), classical_std_of(result)**2))
     return std, batch_length(residual, weights, segments)
 
 
 @pytest.mark.parametrize("name", ["white", "coloured"])
 def test_streamed_batch_means_std_equal_the_in_memory_batch_means(model, files, name):
     result = identify_files(model, files[name], chunk_size=300)
-    assert result.cov_method == "batch_means" and result.to_dict()["cov_method"] == "batch_means"
+    assert result.estimate.cov_method == "batch_means" and result.to_dict()["cov_method"] == "batch_means"
     std, andrews = in_memory_batch_means(model, files[name], result)
     assert np.max(np.abs(result.estimate.std - std) / std) < 1e-8
     # the power of two nearest to Andrews' length of the whole record, at least twenty batches
     allowed = [2**k for k in range(17) if 2**k <= result.train.n_samples // 20]
-    assert result.batch_length == min(allowed, key=lambda length: abs(np.log(length / andrews)))
+    assert batch_length_of(result) == min(allowed, key=lambda length: abs(np.log(length / andrews)))
     classical = identify_files(model, files[name], chunk_size=300, covariance="classical")
-    assert classical.cov_method == "classical" and classical.batch_length is None
-    assert np.allclose(classical.estimate.std, result.classical_std, rtol=1e-12)
+    assert classical.estimate.cov_method == "classical" and batch_length_of(classical) is None
+    assert np.allclose(classical.estimate.std, classical_std_of(result), rtol=1e-12)
     assert np.allclose(classical.estimate.values, result.estimate.values, rtol=1e-12)
-    ratio = result.estimate.std / result.classical_std
+    ratio = result.estimate.std / classical_std_of(result)
     if name == "white":
         assert np.all(ratio >= 1.0) and np.median(ratio) < 1.3, ratio
     else:  # slow AR(1) noise: the white-noise std are far too small
@@ -116,13 +125,13 @@ def test_filter_and_fourier_paths_score_the_samples_they_summed(model, files, tm
     filtered = identify_files(model, raw, chunk_size=250, cutoff_hz=8.0)
     std = in_memory_batch_means(model, raw, filtered, ButterworthDifferentiation(8.0))[0]
     assert np.max(np.abs(filtered.estimate.std - std) / std) < 1e-8
-    assert np.median(filtered.estimate.std / filtered.classical_std) > 2.0
+    assert np.median(filtered.estimate.std / classical_std_of(filtered)) > 2.0
     whole = tmp_path / "periodic.csv"  # the two periods of 0.2 Hz at 200 Hz in one file
     record = read_measurements(files["coloured"][0], model=model)
     second = read_measurements(files["coloured"][1], model=model)
     Measurements(np.r_[record.t, second.t], np.r_[record.q, second.q], tau=np.r_[record.tau, second.tau]).write(whole)
     periodic = identify_files(model, [whole], chunk_size=300, frequency_hz=0.2, harmonics=10)
-    assert periodic.train.n_samples == 1000 and periodic.cov_method == "batch_means"
+    assert periodic.train.n_samples == 1000 and periodic.estimate.cov_method == "batch_means"
     std = in_memory_batch_means(model, [whole], periodic, FourierDifferentiation(0.2, 10))[0]
     assert np.max(np.abs(periodic.estimate.std - std) / std) < 1e-8
 
@@ -145,7 +154,7 @@ def test_process_pool_gives_the_serial_std(model, files):
     serial = identify_files(model, files["coloured"], chunk_size=500)
     with ProcessPoolExecutor(2) as executor:
         pooled = identify_files(model, files["coloured"], chunk_size=500, executor=executor)
-    assert pooled.batch_length == serial.batch_length
+    assert batch_length_of(pooled) == batch_length_of(serial)
     assert np.max(np.abs(pooled.estimate.std - serial.estimate.std) / serial.estimate.std) < 1e-10
 
 

@@ -229,7 +229,9 @@ def test_cli_several_files_with_chunks(model, files, tmp_path):
     assert main(["identify", "--joints", "3", "--model", "internal", "--data", str(files["full"][0]), "--chunk-size", "999",
                  "--method", "wls", "--out", str(streamed)]) == 0
     a, b = json.loads(single.read_text()), json.loads(streamed.read_text())
-    assert set(b) - set(a) == {"streaming"}
+    assert set(b) == set(a)  # one document: in memory, streaming null and not_computed empty
+    assert a["streaming"] is None and b["streaming"] is not None and a["not_computed"] == {}
+    assert (a["identification_path"], b["identification_path"]) == ("in-memory", "streamed")
     for key in ("train",):
         for channel, value in a[key]["mse"].items():
             assert b[key]["mse"][channel] == pytest.approx(value, rel=1e-10)

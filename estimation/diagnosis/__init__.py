@@ -11,7 +11,7 @@ from dynamics.runtime.lazy import lazy_exports
 #: these names stay (imported on first use, PEP 562, so that importing the package stays light)
 _EXPORTS: dict[str, str] = {
     "AdoptedEffect": "estimation.diagnosis.search_fits",
-    "ChannelErrors": "estimation.diagnosis.results",
+    "ChannelErrors": "estimation.identification.validation",
     "Alternative": "estimation.diagnosis.runner_up",
     "CandidateComparison": "estimation.diagnosis.confirmation",
     "Diagnosis": "estimation.diagnosis.results",

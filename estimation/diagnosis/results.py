@@ -23,6 +23,7 @@ from estimation.diagnosis.rules.robust_test import wald_test
 from estimation.diagnosis.statistics import ResidualReport
 from estimation.estimators.summed_least_squares import SummedEstimate
 from estimation.identification.fit import IdentificationResult
+from estimation.identification.validation import ChannelErrors
 from estimation.diagnosis.sign_constraints import PinnedTerm
 from estimation.estimators.effect_blocks import effect_rows
 
@@ -100,15 +101,6 @@ class RunnerUp:
         """One line for the printed summary."""
         return (f"runner-up: {self.instead} (BIC {self.bic_gap:+.3g} against the chosen model; kept in the report "
                 "for `oed design --discriminate`)")
-
-
-@dataclass(frozen=True)
-class ChannelErrors:
-    """The errors of a fit on one record where its samples are not held (the streamed path): what a
-    :class:`~estimation.identification.validation.Comparison` gives as ``mse``, against the channels as recorded."""
-
-    mse: dict[str, float]
-    n_samples: int | None = None
 
 
 @dataclass(frozen=True)

@@ -76,6 +76,10 @@ class SummedEstimate(ParameterRecords):
     channels: tuple[str, ...]
     method: Literal["ols", "wls"]
     n_iterations: int
+    #: how ``cov`` was had: ``"classical"`` (white residuals, from the sums) or ``"batch_means"`` (the sandwich of a
+    #: pass over the files, :mod:`estimation.streaming.covariance`); no HAC lags (the in-memory estimate's field)
+    cov_method: Literal["classical", "batch_means"] = "classical"
+    hac_lags: None = None
 
     def __post_init__(self) -> None:
         freeze_arrays(self, ("values", "cov", "std", "relative_std", "channel_variance", "channel_rss", "weights"))

@@ -13,6 +13,7 @@ from dynamics.runtime.lazy import lazy_exports
 #: these names stay (imported on first use, PEP 562, so that importing the package stays light)
 _EXPORTS: dict[str, str] = {
     "ChoiceWindow": "estimation.identification.preprocessing_choice",
+    "ChannelErrors": "estimation.identification.validation",
     "Comparison": "estimation.identification.validation",
     "DelayFit": "estimation.identification.delayed",
     "EQUIVALENT": "estimation.identification.preprocessing_choice",

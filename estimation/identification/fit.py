@@ -13,9 +13,9 @@ For repeated use (several estimators, extra columns) work with
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 
@@ -72,16 +72,22 @@ def _effect_of(model: IdentificationModel, parameter: str) -> str:
 
 @dataclass(frozen=True)
 class IdentificationResult:
-    """Estimates with their fit on the training data and, if given, on validation data.
+    """Estimates with their fit on the training data and, if given, on validation data: of records held in memory
+    (:func:`identify`) or read in blocks and summed (:func:`estimation.streaming.identification.identify_files`),
+    the same fields on both paths.
 
     Attributes
     ----------
     model
         The identification model (robot, kind, effects).
     estimate
-        Base-parameter estimates, covariance, condition number, residuals.
+        Base-parameter estimates, covariance, condition number: an
+        :class:`~estimation.estimators.least_squares.Estimate` (with the residuals) in memory, a
+        :class:`~estimation.estimators.summed_least_squares.SummedEstimate` (no samples held) streamed.
     train
-        Measured vs predicted on the identification experiment.
+        Measured vs predicted on the identification experiment: a
+        :class:`~estimation.identification.validation.Comparison` in memory, its errors only
+        (:class:`~estimation.identification.validation.ChannelErrors`) streamed.
     validation
         The same on the validation experiment, or ``None``.
     warnings
@@ -105,6 +111,16 @@ class IdentificationResult:
     #: the fitted delay between torques and motion (a shape value named ``delay``, also in
     #: ``shapes``; :mod:`estimation.preprocessing.delay`), or ``None``
     delay: Any = None
+    #: ``"in-memory"`` or ``"streamed"`` (the document's ``identification_path``)
+    path: Literal["in-memory", "streamed"] = "in-memory"
+    #: what this path could not compute, by the document's key, and why (empty in memory)
+    not_computed: dict[str, str] = field(default_factory=dict, repr=False)
+    #: how the files were read, summed and estimated (the document's ``streaming``), or ``None`` in memory
+    streaming: dict[str, Any] | None = field(default=None, repr=False)
+    #: the validation errors of the trivial predictors (``zero_mse``, ``nominal_mse``:
+    #: :mod:`estimation.identification.trivial_predictors`) where the fit had them at no cost (streamed: from the
+    #: validation sums when they hold the recording), else ``None``
+    trivial: dict[str, dict[str, float]] | None = field(default=None, repr=False)
 
     def predict(self, measurements: Measurements) -> np.ndarray:
         """``(N, m)`` predicted channels along ``measurements`` (at the fitted shapes, if any, and
@@ -126,13 +142,15 @@ class IdentificationResult:
 
         ``mse`` is measured against the torques/wrench as recorded (on the samples kept);
         ``mse_filtered``, present when preprocessing filtered or averaged them, against those.
+        Both paths add ``identification_path``, ``streaming`` (how the streamed path read the files, else
+        ``null``) and ``not_computed`` (what the path could not compute, and why; ``{}`` in memory).
         """
         return {
             "robot": self.model.robot.name,
             "model": self.model.kind.value,
             "effects": [effect.name for effect in self.model.effects],
             "method": self.estimate.method,
-            "n_samples": int(self.train.t.shape[0]),
+            "n_samples": int(self.train.n_samples),
             "parameters": [_finite(record) for record in self.estimate.records()],
             "cond": float(self.estimate.cond),
             "channel_std": dict(zip(self.estimate.channels, map(float, np.sqrt(self.estimate.channel_variance)))),
@@ -145,6 +163,9 @@ class IdentificationResult:
             **({"shape": {value.name: value.value for value in self.shapes},
                 "shape_std": {value.name: value.std for value in self.shapes}} if self.shapes else {}),
             **({"delay": {"value": self.delay.value, "std": self.delay.std, "unit": "s"}} if self.delay is not None else {}),
+            "identification_path": self.path,
+            "streaming": None if self.streaming is None else dict(self.streaming),
+            "not_computed": dict(self.not_computed),
         }
 
 

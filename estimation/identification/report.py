@@ -31,6 +31,15 @@ def parameter_table(result: IdentificationResult, records: Sequence[dict[str, An
     return Table(("parameter", "expression", "value", "std", "relative std"), rows + shapes)
 
 
+def _error(errors: Any, channel: str) -> str:
+    """A channel's MSE against the recording, else against the filtered channels (marked), else ``n/a``."""
+    if errors is None:
+        return "n/a"
+    if errors.mse is not None:
+        return f"{errors.mse[channel]:.4g}"
+    return "n/a" if errors.mse_filtered is None else f"{errors.mse_filtered[channel]:.4g} (filtered)"
+
+
 def _number(value: Any) -> float:
     return np.nan if value is None else float(value)
 
@@ -44,8 +53,9 @@ def identification_report(result: IdentificationResult, document: dict[str, Any]
     answer = result if chosen is None else chosen
     blocks: list[Block] = [
         Paragraph(f"Effects: {', '.join(f'`{e.name}`' for e in result.model.effects) or 'none'}; "
-                  f"{result.train.t.shape[0]} training samples. Errors are mean squared errors against the channels as recorded, at the recorded time "
-                  "stamps."),
+                  f"{result.train.n_samples} training samples. Errors are mean squared errors against the channels as recorded, at the recorded time "
+                  "stamps" + ("" if result.path == "in-memory" else "; read in blocks and summed (the streamed path): "
+                              "marked *filtered* where the sums hold the filtered or averaged channels only") + "."),
         Heading("Warnings"), Bullets(tuple(warnings)) if warnings else Paragraph("None.")]
     choices = [preprocessing] if preprocessing else []
     selection = document.get("method_selection")
@@ -61,15 +71,22 @@ def identification_report(result: IdentificationResult, document: dict[str, Any]
     rows = []
     floor = (document.get("noise_floor") or {}).get("mse") or {}
     over = (document.get("validation") or {}).get("mse_over_floor") or {}
-    for channel, value in answer.train.mse.items():
-        validation = answer.validation.mse[channel] if answer.validation is not None else None
-        rows.append((channel, f"{value:.4g}", "n/a" if validation is None else f"{validation:.4g}",
+    for channel in result.model.channels:
+        rows.append((channel, _error(answer.train, channel), _error(answer.validation, channel),
                      f"{floor[channel]:.4g}" if channel in floor else "n/a",
                      f"{over[channel]:.3g}" if channel in over else "n/a"))
     blocks += [Heading("Error per channel"),
                Table(("channel", "training MSE", "validation MSE", "noise floor", "validation / floor"), tuple(rows))]
+    missing = document.get("not_computed") or {}
+    if missing:
+        blocks += [Heading("Not computed on this path"), Bullets(tuple(f"{key}: {why}" for key, why in missing.items()))]
     comparison, label = (answer.validation, "validation") if answer.validation is not None else (answer.train,
                                                                                                    "training")
+    if not hasattr(comparison, "t"):  # streamed: errors from sums, no samples held
+        blocks += [Heading(f"Measured against predicted ({label} record)"),
+                   Paragraph("No figure: the streamed path holds no samples (its errors come from sums).")]
+        return Report(title or f"Identification: {result.model.robot.name}, {result.model.kind.value} model",
+                      tuple(blocks))
     n = comparison.t.shape[0]
     step = subsample_step(n)
     drawn = f"every {step}th of {n} samples" if step > 1 else f"all {n} samples"

@@ -71,6 +71,10 @@ class Comparison:
         return document
 
     @property
+    def n_samples(self) -> int:
+        return int(self.t.shape[0])
+
+    @property
     def relative_mse(self) -> dict[str, float]:
         """MSE divided by the measured channel's mean square (0 perfect, 1 no better than zero)."""
         power = np.mean(self.measured**2, axis=0)
@@ -156,6 +160,24 @@ MAX_POINTS = 4000
 def subsample_step(n_samples: int, max_points: int = MAX_POINTS) -> int:
     """The stride that draws at most ``max_points`` of ``n_samples``."""
     return max(1, -(-n_samples // max_points))
+
+
+@dataclass(frozen=True)
+class ChannelErrors:
+    """The errors of a fit on a record whose samples are not held (read in blocks and summed): what a
+    :class:`Comparison` gives, ``mse`` against the channels as recorded (``None`` when the sums hold filtered or
+    period-averaged channels only) and ``mse_filtered`` against those (``None`` when the sums hold the recording)."""
+
+    mse: dict[str, float] | None
+    n_samples: int | None = None
+    mse_filtered: dict[str, float] | None = None
+
+    def to_dict(self) -> dict[str, dict[str, float] | None]:
+        """``{mse}`` and, when there is one, ``{mse_filtered}`` (:meth:`Comparison.to_dict`)."""
+        document: dict[str, dict[str, float] | None] = {"mse": None if self.mse is None else dict(self.mse)}
+        if self.mse_filtered is not None:
+            document["mse_filtered"] = dict(self.mse_filtered)
+        return document
 
 
 def plot_channel(comparisons: dict[str, Comparison], row: int, step: int = 1, title: str = ""):

@@ -31,6 +31,7 @@ _EXPORTS: dict[str, str] = {
     "identify_files": "estimation.streaming.identification",
     "lag_one_correlation": "estimation.streaming.covariance",
     "plan_options": "estimation.streaming.periods",
+    "streamed_recorded_errors": "estimation.streaming.recorded_errors",
     "streamed_recorded_mse": "estimation.streaming.recorded_errors",
     "scheduler_address": "estimation.streaming.cluster",
     "streamed_plan": "estimation.streaming.recorded_errors",

@@ -4,7 +4,13 @@
 
     result = identify_files(model, ["run1.csv", "run2.parquet"], ["check.csv"], chunk_size=10_000,
                             cutoff_hz=5.0, executor=client.get_executor())
-    result.to_dict()   # the ``oed identify`` document, plus a ``streaming`` block
+    result.to_dict()   # the ``oed identify`` document (the in-memory IdentificationResult, same keys), with its
+                       # ``streaming`` block and ``identification_path: "streamed"``
+
+The result is the in-memory path's :class:`~estimation.identification.fit.IdentificationResult` (``path="streamed"``):
+its estimate a :class:`~estimation.estimators.summed_least_squares.SummedEstimate`, its training and validation
+errors :class:`~estimation.identification.validation.ChannelErrors` (no samples held), what the sums cannot give
+in ``not_computed`` and how the files were read in ``streaming``.
 
 The training files reduce to one :class:`~estimation.estimators.normal_equations.NormalEquations`
 (:func:`estimation.streaming.cluster.sum_files`), the estimator solves from it
@@ -29,7 +35,7 @@ from __future__ import annotations
 import time
 import warnings
 from collections.abc import Iterator, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from pathlib import Path
 from typing import Any, Literal
 
@@ -41,8 +47,9 @@ from dynamics.models import IdentificationModel
 from dynamics.runtime.progress import step
 from dynamics.runtime.threads import single_threaded_blas
 from estimation.estimators.normal_equations import DEFAULT_CHUNK_SIZE, NormalEquations
-from estimation.estimators.summed_least_squares import SummedEstimate, SummedLeastSquares
-from estimation.identification.fit import ImplausibleEstimateWarning, implausible_estimates
+from estimation.estimators.summed_least_squares import SummedLeastSquares
+from estimation.identification.fit import IdentificationResult, ImplausibleEstimateWarning, implausible_estimates
+from estimation.identification.validation import ChannelErrors
 from estimation.streaming.chunks import (FileSums, StreamingUnsupportedError, automatic_cutoff, preprocessed_chunks,
                                          read_chunks)
 from estimation.streaming.cluster import (IncompleteSumError, caught_warnings, file_stamp, model_from_payload,
@@ -56,100 +63,50 @@ from estimation.streaming.periods import periodic_prepared
 StreamedCovariance = Literal["hac", "classical"]
 
 
-@dataclass(frozen=True)
-class StreamedIdentificationResult:
-    """Estimates from sums, with the MSE per channel on the training and validation files.
+#: what the streamed identification cannot compute, by the ``oed identify`` document's key
+#: (:attr:`~estimation.identification.fit.IdentificationResult.not_computed`)
+STREAMED_NOT_COMPUTED = {
+    "hac_lags": "the standard deviations are not HAC ones: batch means from a pass over the files (cov_method; "
+                "their batch length in streaming.covariance), or classical",
+    "consistent": "the physically consistent refit is made in memory (--consistent refits in memory)",
+    "links": "the bodies of the physically consistent refit are had in memory",
+    "model_selection": "the choice among ols, wls and the consistent refit by their validation errors is made in "
+                       "memory; streamed, the model is the weighting asked for or chosen on held-out blocks "
+                       "(method_selection)",
+}
 
-    Attributes
-    ----------
-    model, estimate
-        The model and its estimate (no per-sample residuals).
-    train, validation
-        Sums of the training files and of the validation files (``None`` without).
-    train_mse, validation_mse
-        Mean squared error per channel.
-    files, validation_files
-        Each file's sums (rows read, samples summed, preprocessing).
-    chunk_size, cutoff_hz, frequency_hz
-        The chunk used, the Butterworth cut-off and the Fourier path's frequency (``None`` when not used).
-    warnings
-        Implausible estimates (:func:`estimation.identification.fit.implausible_estimates`).
-    cov_method, batch_length, classical_std
-        ``"batch_means"`` (the estimate's covariance is the sandwich; the batch length in samples and
-        the white-noise standard deviations beside it) or ``"classical"`` (``None``, ``None``).
-    seconds
-        Wall time of the passes (``sums_pass``, ``covariance_pass``) and the solve.
+
+def streaming_record(*, chunk_size: int, cutoff_hz: float | None, frequency_hz: float | None,
+                     files: Sequence[FileSums], validation_files: Sequence[FileSums], cov_method: str,
+                     batch_length: int | None, classical_std: dict[str, float] | None,
+                     seconds: dict[str, float]) -> dict[str, Any]:
+    """The document's ``streaming``::
+
+        streaming: {chunk_size, cutoff_hz, frequency_hz, files: [{path, rows, samples, decimation, margin,
+                    periods_averaged, resampled_from}], validation_files: [...],
+                    covariance: {method, batch_length, classical_std: {name: std}}, seconds: {...}}
+
+    ``rows``: samples read (on the uniform grid when the file was resampled from ``resampled_from`` rows);
+    ``samples``: samples summed (after averaging or decimation).
     """
+    return {
+        "chunk_size": chunk_size,
+        "cutoff_hz": cutoff_hz,
+        "frequency_hz": frequency_hz,
+        "files": [_file_record(part) for part in files],
+        "validation_files": [_file_record(part) for part in validation_files],
+        "covariance": {"method": cov_method, "batch_length": batch_length, "classical_std": classical_std},
+        "seconds": dict(seconds),
+    }
 
-    model: IdentificationModel
-    estimate: SummedEstimate
-    train: NormalEquations
-    validation: NormalEquations | None
-    train_mse: dict[str, float]
-    validation_mse: dict[str, float] | None
-    files: tuple[FileSums, ...]
-    validation_files: tuple[FileSums, ...]
-    chunk_size: int
-    cutoff_hz: float | None
-    warnings: tuple[str, ...] = ()
-    frequency_hz: float | None = None
-    cov_method: Literal["batch_means", "classical"] = "classical"
-    batch_length: int | None = None
-    classical_std: NDArray[np.float64] | None = None
-    seconds: dict[str, float] | None = None
 
-    @property
-    def filtered(self) -> bool:
-        """Some summed channels were filtered or averaged: their MSEs are not against the recording."""
-        return _filtered(self.files) or _filtered(self.validation_files)
-
-    @staticmethod
-    def _errors(mse: dict[str, float], parts: Sequence[FileSums]) -> dict[str, Any]:
-        """``{mse}``, or ``{mse: null, mse_filtered}`` when the files' channels were filtered (errors are
-        reported against the recording, which the sums of filtered channels do not hold)."""
-        return {"mse": None, "mse_filtered": mse} if _filtered(parts) else {"mse": mse}
-
-    def to_dict(self) -> dict[str, Any]:
-        """The JSON document of ``oed identify`` (same keys) plus ``streaming``::
-
-            streaming: {chunk_size, cutoff_hz, frequency_hz, files: [{path, rows, samples, decimation, margin,
-                        periods_averaged, resampled_from}], validation_files: [...],
-                        covariance: {method, batch_length, classical_std: {name: std}}, seconds: {...}}
-
-        ``rows``: samples read (on the uniform grid when the file was resampled from
-        ``resampled_from`` rows); ``samples``: samples summed (after averaging or decimation).
-        """
-        estimate = self.estimate
-        records = [{key: (None if isinstance(value, float) and not np.isfinite(value) else value)
-                    for key, value in record.items()} for record in estimate.records()]
-        return {
-            "robot": self.model.robot.name,
-            "model": self.model.kind.value,
-            "effects": [effect.name for effect in self.model.effects],
-            "method": estimate.method,
-            "n_samples": int(self.train.n_samples),
-            "parameters": records,
-            "cond": float(estimate.cond),
-            "channel_std": dict(zip(estimate.channels, map(float, np.sqrt(estimate.channel_variance)))),
-            "train": self._errors(self.train_mse, self.files),
-            "validation": None if self.validation_mse is None else self._errors(self.validation_mse,
-                                                                                 self.validation_files),
-            "warnings": list(self.warnings),
-            "cov_method": self.cov_method,  # batch_means: the sandwich from a third pass over the files
-            "hac_lags": None,
-            "streaming": {
-                "chunk_size": self.chunk_size,
-                "cutoff_hz": self.cutoff_hz,
-                "frequency_hz": self.frequency_hz,
-                "files": [_file_record(part) for part in self.files],
-                "validation_files": [_file_record(part) for part in self.validation_files],
-                "covariance": {
-                    "method": self.cov_method, "batch_length": self.batch_length,
-                    "classical_std": None if self.classical_std is None else dict(
-                        zip(estimate.names, map(float, self.classical_std)))},
-                "seconds": dict(self.seconds or {}),
-            },
-        }
+def summed_errors(mse: dict[str, float], n_samples: int, parts: Sequence[FileSums]) -> ChannelErrors:
+    """The errors of the sums of ``parts``: against the recording (``mse``), or, when the files' channels were
+    filtered or averaged, against those (``mse_filtered``; ``mse`` is then ``None``: errors are reported against
+    the recording, which the sums of filtered channels do not hold)."""
+    if _filtered(parts):
+        return ChannelErrors(None, n_samples, mse_filtered=mse)
+    return ChannelErrors(mse, n_samples)
 
 
 def _filtered(parts: Sequence[FileSums]) -> bool:
@@ -179,7 +136,7 @@ def identify_files(
     held_torques: bool = False,
     executor: Any = None,
     covariance: StreamedCovariance = "hac",
-) -> StreamedIdentificationResult:
+) -> IdentificationResult:
     """Identify ``model`` from the training ``paths`` (one estimate) and validate on ``validate``.
 
     ``frequency_hz``: periodic records without ``dq``/``ddq`` take the Fourier path (periods averaged
@@ -227,17 +184,27 @@ def identify_files(
         with np.errstate(divide="ignore", invalid="ignore"):
             relative_std = np.where(estimate.values != 0, 100.0 * std / np.abs(estimate.values), np.inf)
         cov_method, classical_std = "batch_means", estimate.std
-        estimate = replace(estimate, cov=cov, std=std, relative_std=relative_std)
+        estimate = replace(estimate, cov=cov, std=std, relative_std=relative_std, cov_method="batch_means")
     notes = implausible_estimates(model, estimate)  # type: ignore[arg-type]  (records() is all it reads)
     for note in notes:
         warnings.warn(note, ImplausibleEstimateWarning, stacklevel=2)
-    return StreamedIdentificationResult(
-        model, estimate, train, validation, train.channel_mse(estimate.values),
-        None if validation is None else validation.channel_mse(estimate.values), files, tuple(validation_files),
-        int(chunk_size), None if all(part.metadata.get("cutoff_hz") is None for part in files) else cutoff_hz, notes,
-        frequency_hz if any(part.metadata.get("differentiation") == "fourier" for part in files) else None,
-        cov_method, batch, classical_std, {key: round(value, 3) for key, value in seconds.items()},
-    )
+    train_errors = summed_errors(train.channel_mse(estimate.values), int(train.n_samples), files)
+    validation_errors = None if validation is None else summed_errors(
+        validation.channel_mse(estimate.values), int(validation.n_samples), validation_files)
+    streaming = streaming_record(
+        chunk_size=int(chunk_size),
+        cutoff_hz=None if all(part.metadata.get("cutoff_hz") is None for part in files) else cutoff_hz,
+        frequency_hz=frequency_hz if any(part.metadata.get("differentiation") == "fourier" for part in files) else None,
+        files=files, validation_files=tuple(validation_files), cov_method=cov_method, batch_length=batch,
+        classical_std=None if classical_std is None else dict(zip(estimate.names, map(float, classical_std))),
+        seconds={key: round(value, 3) for key, value in seconds.items()})
+    trivial = None
+    if validation is not None and validation.n_samples and not _filtered(validation_files):  # as recorded
+        nominal = model.base.K @ model.nominal_parameters()
+        trivial = {"zero_mse": dict(zip(model.channels, map(float, validation.power / validation.n_samples))),
+                   "nominal_mse": validation.channel_mse(nominal)}
+    return IdentificationResult(model, estimate, train_errors, validation_errors, notes, path="streamed",
+                                not_computed=dict(STREAMED_NOT_COMPUTED), streaming=streaming, trivial=trivial)
 
 
 def _has_derivatives(path: str, model: IdentificationModel, chunk_size: int) -> bool:

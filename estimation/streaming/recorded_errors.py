@@ -15,7 +15,7 @@ samples equal the whole-record ones to :data:`estimation.streaming.chunks.MARGIN
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -26,7 +26,7 @@ from dynamics.models import IdentificationModel
 from estimation.preprocessing.differentiation import ButterworthDifferentiation
 from estimation.streaming.chunks import preprocessed_chunks
 
-__all__ = ["streamed_recorded_mse", "streamed_plan"]
+__all__ = ["streamed_plan", "streamed_recorded_errors", "streamed_recorded_mse"]
 
 
 def streamed_plan(path: str | Path, model: IdentificationModel, *, cutoff_hz: float | None, decimation: int = 1,
@@ -44,20 +44,33 @@ def streamed_recorded_mse(model: IdentificationModel, theta: ArrayLike, paths: S
                  cutoff_hz: float | None = None, decimation: int = 1, held_torques: bool = False) -> dict[str, float]:
     """Per channel, ``Σ (y − Y_b θ)² / N`` over ``paths`` (the samples of all files pooled), ``y`` the
     channels as recorded and ``Y_b`` the base regressor along the motion derived as the streamed path derives it."""
-    theta = np.asarray(theta, dtype=float)
-    if theta.shape != (model.n_base,):
-        raise ValueError(f"theta must hold the model's {model.n_base} base parameters, got shape {theta.shape}")
+    return streamed_recorded_errors(model, {"theta": theta}, paths, chunk_size=chunk_size, cutoff_hz=cutoff_hz,
+                                    decimation=decimation, held_torques=held_torques)["theta"]
+
+
+def streamed_recorded_errors(model: IdentificationModel, thetas: Mapping[str, ArrayLike], paths: Sequence[str | Path], *,
+                             chunk_size: int, cutoff_hz: float | None = None, decimation: int = 1,
+                             held_torques: bool = False) -> dict[str, dict[str, float]]:
+    """:func:`streamed_recorded_mse` of several parameter vectors in one pass over ``paths`` (by the names of
+    ``thetas``): e.g. the estimate's and the trivial predictors' (zero, nominal:
+    :mod:`estimation.identification.trivial_predictors`)."""
+    vectors = {name: np.asarray(theta, dtype=float) for name, theta in thetas.items()}
+    for theta in vectors.values():
+        if theta.shape != (model.n_base,):
+            raise ValueError(f"theta must hold the model's {model.n_base} base parameters, got shape {theta.shape}")
     if not paths:
         raise ValueError("no files to measure the error on")
-    squares = np.zeros(model.n_channels)
+    squares = {name: np.zeros(model.n_channels) for name in vectors}
     count = 0
     for path in paths:
         for chunk in preprocessed_chunks(path, model, chunk_size=chunk_size, cutoff_hz=cutoff_hz,
                                          decimation=decimation, held_torques=held_torques):
             record = chunk.as_recorded
-            residual = record.channels(model.channels) - model.predict(theta, record.q, record.dq, record.ddq)
-            squares += np.sum(residual**2, axis=0)
-            count += residual.shape[0]
+            measured = record.channels(model.channels)
+            for name, theta in vectors.items():
+                residual = measured - model.predict(theta, record.q, record.dq, record.ddq)
+                squares[name] += np.sum(residual**2, axis=0)
+            count += measured.shape[0]
     if count == 0:
         raise ValueError("the files hold no samples once preprocessed")
-    return dict(zip(model.channels, map(float, squares / count)))
+    return {name: dict(zip(model.channels, map(float, total / count))) for name, total in squares.items()}

@@ -1,8 +1,12 @@
 """``oed identify`` as a library call: base parameters from measured data, with uncertainties and validation.
 
-:func:`identify` takes the verb's options as keywords (:class:`IdentifyOptions`), decides the path (in memory, or
-the files streamed chunk by chunk: :mod:`oed.workflows.memory_path`), identifies and returns an
-:class:`IdentifyRun`: ``to_dict()`` is ``result.json``, ``write(out, plot=...)`` writes it (and the figure),
+:func:`identify` takes the verb's options as keywords (:class:`IdentifyOptions`) and runs one workflow
+(:func:`run_identify`): the path is decided by the records (:func:`~oed.workflows.memory_path.decide_path`), the data
+are read whole (:func:`identification_in_memory`) or in blocks (:func:`identification_streamed`,
+:mod:`estimation.streaming.identification`), both give one
+:class:`~estimation.identification.fit.IdentificationResult` (what the streamed path cannot compute is ``None``, its
+reason in ``not_computed``) in an :class:`Identified`, and one builder makes the document
+(:func:`identify_document`) and the summary (:func:`summary_lines`) from it. It returns an :class:`IdentifyRun`: ``to_dict()`` is ``result.json``, ``write(out, plot=...)`` writes it (and the figure),
 ``summary()`` the lines ``oed identify`` prints, ``warnings`` the warnings it prints on stderr.
 """
 
@@ -15,6 +19,8 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from dynamics.models import IdentificationModel, build_model
 from dynamics.robot import RobotModel
 from dynamics.runtime.output_files import OutputFiles, check_figure_path, json_text
@@ -25,12 +31,15 @@ from estimation.data.input_findings import grouped_messages
 from estimation.data.log_cleaning import DEFAULT_MAX_GAP
 from estimation.diagnosis.statistics import FLOOR_ALPHA, ResidualReport, residual_report
 from estimation.uncertainty.floor_comparison import compare_with_floor
+from estimation.uncertainty.noise_floor import NoiseFloor
 from estimation.estimators.normal_equations import DEFAULT_CHUNK_SIZE
 from estimation.identification.fit import IdentificationResult
 from estimation.identification.prepared import InMemoryBudget, PreparedRecords, prepare_records
 from estimation.identification.preprocessing_choice import ChoiceWindow
 from estimation.identification.repeated_motion import repeated_motion_note
+from estimation.identification.model_file import summed_model_file_document
 from estimation.identification.report import identification_report
+from estimation.identification.trivial_predictors import trivial_warnings
 from estimation.identification.validation import plot_comparison
 from estimation.identification.weighting_choice import choose_weighting, weighting_samples
 from estimation.preprocessing.delay import DelayBounds, split_delay
@@ -38,7 +47,8 @@ from estimation.preprocessing.plan import Preprocessing
 from estimation.streaming.cutoff_choice import streamed_window
 from estimation.streaming.identification import identify_files
 from estimation.streaming.periods import plan_options
-from estimation.streaming.recorded_errors import streamed_plan, streamed_recorded_mse
+from estimation.streaming.diagnosis_passes import window_floor
+from estimation.streaming.recorded_errors import streamed_plan, streamed_recorded_errors
 from oed.workflows.asbuilt import (
     finish_document,
     model_effects,
@@ -47,15 +57,17 @@ from oed.workflows.asbuilt import (
     rest_records,
     trivial_predictors,
 )
-from estimation.consistent.model_selection import select_model
+from estimation.consistent.identification import ConsistentResult
+from estimation.consistent.model_selection import ModelSelection, select_model
 from oed.workflows.consistent import check_consistent_arguments, consistent_lines, consistent_settings
-from oed.workflows.chosen_model import ChosenModel, answer_identification
+from oed.workflows.chosen_model import ChosenModel, answer_identification, mse_line
 from oed.workflows.memory_path import decide_path, streamed_choice
 from oed.workflows.model_files import (
     add_model_file,
     add_summed_model_file,
     recorded_validation_mse,
     resampled_validation,
+    robot_source,
 )
 from oed.workflows.options import (
     RecordOptions,
@@ -113,10 +125,8 @@ class IdentifyRun:
     warnings
         The warnings it prints on stderr, in order.
     result
-        The :class:`~estimation.identification.fit.IdentificationResult` of the in-memory path, or the
-        :class:`~estimation.streaming.identification.StreamedIdentification` of the streamed one.
-    streamed
-        Whether the files were streamed (no figure then).
+        The :class:`~estimation.identification.fit.IdentificationResult`, in memory or streamed (``result.path``;
+        :attr:`streamed`).
     title
         The figure's title.
     """
@@ -124,14 +134,18 @@ class IdentifyRun:
     document: dict[str, Any] = field(repr=False)
     lines: tuple[str, ...]
     warnings: tuple[str, ...]
-    result: Any = field(repr=False)
-    streamed: bool
+    result: IdentificationResult = field(repr=False)
     title: str = ""
     #: the preprocessing chosen, in one line (the report's choices)
     preprocessing: str = ""
     #: the model the result holds (:class:`oed.workflows.chosen_model.ChosenModel`; in memory): what the figure
     #: and the report draw
     answer: ChosenModel | None = field(default=None, repr=False)
+
+    @property
+    def streamed(self) -> bool:
+        """Whether the files were read in blocks (no figure nor report then: no samples held)."""
+        return self.result.path == "streamed"
 
     def to_dict(self) -> dict[str, Any]:
         """``result.json``, as ``oed identify`` writes it."""
@@ -152,9 +166,8 @@ class IdentifyRun:
     def report(self) -> Report:
         """The report a person reads (:func:`estimation.identification.report.identification_report`): the choices,
         every warning, the parameters with their standard deviations, the errors beside the floor, measured
-        against predicted per channel. Written as Markdown or HTML (:meth:`write`)."""
-        if self.streamed:
-            raise ValueError(f"--report draws every sample: not with {STREAMED}")
+        against predicted per channel. Written as Markdown or HTML (:meth:`write`). A streamed run's report has no
+        figure (no samples held) and says what its path did not compute."""
         return identification_report(self.result, self.document, preprocessing=self.preprocessing,
                                      warnings=self.warnings, title=self.title, chosen=self.answer)
 
@@ -199,7 +212,10 @@ def identify(*, say: Callable[[str], None] | None = None, **options: Any) -> Ide
 
 
 def run_identify(args: IdentifyOptions, *, say: Callable[[str], None]) -> IdentifyRun:
-    """:func:`identify` of checked options."""
+    """:func:`identify` of checked options: the path decided by the records (:func:`decide_path`: their rows against
+    the memory budget, or the streamed path asked for), the data read whole or in blocks
+    (:func:`identification_in_memory`, :func:`identification_streamed`), one :class:`Identified` either way, and
+    from it the one document (:func:`identify_document`) and summary (:func:`summary_lines`)."""
     differentiation(args)  # contradicting derivative options are an error even when the data hold dq, ddq
     check_consistent_arguments(args)
     robot = robot_of(args)
@@ -211,19 +227,138 @@ def run_identify(args: IdentifyOptions, *, say: Callable[[str], None]) -> Identi
     check_model_request(args, model, delay)
     if streaming_requested(args):
         check_streamed_request(args, model)
-        return identify_streaming(args, robot, model)
-    decision = decide_path(args, model, task="identifying", bytes_per_value=IN_MEMORY.bytes_per_value,
-                           in_memory_only=lambda: in_memory_only(args, model, delay), say=say,
-                           validation_fits=validation_fits(args, model, delay))
-    if decision.stream:
-        return identify_streaming(args, robot, model, decision.plan)
-    return identify_in_memory(args, robot, model, transmission, delay, decision.plan)
+        identified = identification_streamed(args, model, transmission)
+    else:
+        decision = decide_path(args, model, task="identifying", bytes_per_value=IN_MEMORY.bytes_per_value,
+                               in_memory_only=lambda: in_memory_only(args, model, delay), say=say,
+                               validation_fits=validation_fits(args, model, delay))
+        identified = (identification_streamed(args, model, transmission, decision.plan) if decision.stream
+                      else identification_in_memory(args, robot, model, transmission, delay, decision.plan))
+    document, messages = identify_document(args, identified)
+    chosen = identified.chosen
+    return IdentifyRun(document, tuple(summary_lines(args, identified)), messages, identified.result,
+                       title=f"{robot.name}: {model.kind.value} model ({chosen.name})",
+                       preprocessing=identified.describe, answer=chosen if identified.records is not None else None)
 
 
-def identify_streaming(args: IdentifyOptions, robot: RobotModel, model: IdentificationModel,
-                       plan: Preprocessing | None = None) -> IdentifyRun:
-    """Identify from the files read chunk by chunk (:func:`estimation.streaming.identification.identify_files`), their
-    derivatives chosen as in memory (``plan``: already chosen)."""
+@dataclass(frozen=True)
+class Identified:
+    """An identification, in memory or streamed, and what its document and summary need besides it.
+
+    Attributes
+    ----------
+    result
+        The :class:`~estimation.identification.fit.IdentificationResult` (``result.path``: which path made it);
+        streamed, its validation errors are against the recording where the sums hold filtered channels
+        (measured again, :func:`recorded_validation`).
+    chosen
+        The model the result holds (:class:`~oed.workflows.chosen_model.ChosenModel`): in memory the one the
+        comparison of candidates chose, streamed the one fitted.
+    preprocessing
+        How the motion was derived: the document's ``preprocessing``.
+    describe
+        The preprocessing in one line (the summary's first).
+    messages
+        The warnings said, in order (the model files' come after them: :func:`identify_document`).
+    notes
+        The run's own warnings, into the document's ``warnings``.
+    trivial
+        The validation MSE of the trivial predictors (``zero_mse``, ``nominal_mse``), or ``None``.
+    floor, floor_note
+        The validation record's noise floor and how it was had (``None``: no validation record, or none found).
+    not_computed
+        What this run could not compute, by the document's key, and why (the result's and the run's own).
+    records, selection, consistent, floor_report
+        In memory: the prepared records, the comparison of candidate models, the consistent refit, the floor's
+        comparison of the validation error; ``None`` when streamed.
+    weighting
+        The weighting chosen on held-out blocks (``--method auto``), or ``None``.
+    transmission
+        The robot's transmission (``--transmission``, the URDF's or the built-in robot's), or ``None``.
+    chunk_size
+        Streamed: the rows a block; ``None`` in memory.
+    model_file
+        Streamed: what the summed model file is written with (its plan and validation error).
+    n_samples
+        The training samples fitted (in memory after averaging periods or decimating; ``None``: the result's).
+    """
+
+    result: IdentificationResult
+    chosen: ChosenModel
+    preprocessing: dict[str, Any]
+    describe: str
+    messages: tuple[str, ...]
+    notes: tuple[str, ...] = ()
+    trivial: dict[str, dict[str, float]] | None = None
+    floor: NoiseFloor | None = None
+    floor_note: str | None = None
+    not_computed: dict[str, str] = field(default_factory=dict)
+    records: PreparedRecords | None = None
+    selection: ModelSelection | None = None
+    consistent: ConsistentResult | None = None
+    floor_report: ResidualReport | None = None
+    weighting: Any = None
+    transmission: Transmission | None = None
+    chunk_size: int | None = None
+    model_file: tuple[dict[str, Any], dict[str, float] | None] | None = None
+    n_samples: int | None = None
+
+    @property
+    def rest(self) -> dict[str, dict | None]:
+        """What was dropped as at rest (``--min-speed``, in memory only: the streamed path drops nothing)."""
+        if self.records is None:
+            return {"train": None, "validation": None}
+        return rest_records(self.records)
+
+
+def identify_document(args: IdentifyOptions, identified: Identified) -> tuple[dict[str, Any], tuple[str, ...]]:
+    """``result.json`` (the same keys on both paths: :meth:`IdentificationResult.to_dict`, the preprocessing, the
+    trivial predictors, the model's parameters, the weighting and model choices, the model file, the noise floor,
+    the chosen model's answer at the top level) and the warnings said, the model file's after the run's."""
+    result = identified.result
+    messages = list(identified.messages)
+    document = finish_document(result.to_dict(), result, trivial=identified.trivial, warnings=identified.notes,
+                               rest=identified.rest, transmission=identified.transmission)
+    document["not_computed"] = dict(identified.not_computed)
+    for key in ("zero_mse", "nominal_mse"):  # not computed: null, as the other keys the path says why it lacks
+        if f"validation.{key}" in identified.not_computed and document.get("validation") is not None:
+            document["validation"][key] = None
+    if result.path == "streamed":
+        document["preprocessing"] = dict(identified.preprocessing)
+    if identified.consistent is not None:
+        document.update(identified.consistent.to_dict())
+    else:  # not fitted: null, as the streamed path says why (not_computed)
+        document.update({key: None for key in ("consistent", "links") if key in identified.not_computed})
+    if identified.weighting is not None:
+        document["method_selection"] = identified.weighting.to_dict()
+    selection = identified.selection
+    document["model_selection"] = None if selection is None else selection.to_dict()
+    if identified.records is not None:
+        messages += add_model_file(document, result, args, identified.records.preprocessing, identified.transmission,
+                                   consistent=identified.consistent, selection=selection)
+    else:
+        model_plan, validation_mse = identified.model_file
+        messages += add_summed_model_file(document, result.model, result.estimate, args, model_plan,
+                                          recorded_mse=document["train"]["mse"], validation_mse=validation_mse)
+    floor, floor_report = identified.floor, identified.floor_report
+    if document.get("validation") is not None:
+        if floor_report is not None:
+            document["validation"]["mse_over_floor"] = floor_report.ratios("after") or None
+        document["noise_floor"] = None if floor is None else {
+            "mse": floor.mse(), "method": floor.method, "note": identified.floor_note}
+    answered = identified.chosen.validation is None or identified.chosen.validation.mse is not None
+    answer_identification(document, identified.chosen, floor=floor if answered else None)
+    if document.get("validation") is not None and "mse_over_floor" not in document["validation"]:
+        document["validation"]["mse_over_floor"] = None  # no floor, or no error against the recording
+    return document, tuple(messages)
+
+
+def identification_streamed(args: IdentifyOptions, model: IdentificationModel, transmission: Transmission | None,
+                            plan: Preprocessing | None = None) -> Identified:
+    """Identify from the files read in blocks (:func:`estimation.streaming.identification.identify_files`), their
+    derivatives chosen as in memory (``plan``: already chosen); on the validation files, the errors against the
+    channels as recorded, the trivial predictors' and the noise floor of their first rows
+    (:func:`recorded_validation`)."""
     chunk_size = DEFAULT_CHUNK_SIZE if args.chunk_size is None else args.chunk_size
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
@@ -238,72 +373,75 @@ def identify_streaming(args: IdentifyOptions, robot: RobotModel, model: Identifi
                                     cutoff_hz=options["cutoff_hz"], frequency_hz=options["frequency_hz"],
                                     harmonics=options["harmonics"], decimation=options["decimation"],
                                     held_torques=options["held_torques"], executor=executor)
-    notes = grouped_messages(caught, [*args.data, *(args.validate or ())])  # one line per finding across files
-    document = result.to_dict()
-    document["preprocessing"] = plan.to_dict()
-    if weighting is not None:
-        document["method_selection"] = weighting.to_dict()
-    notes += add_streamed_model_file(document, args, result, chunk_size)
-    estimate = result.estimate
-    document["chosen"] = estimate.method  # the one model: what the errors below are of, what the model file holds
-    for label in ("train", "validation"):
-        if document[label] is not None:
-            document[label]["model"] = estimate.method
-    lines = [plan.describe(),
-             f"{robot.name}: {model.kind.value} model, {model.n_base} base parameters, {result.train.n_samples} samples "
-             f"from {len(result.files)} file(s) in chunks of {chunk_size}, {estimate.method.upper()}, "
-             f"cond {estimate.cond:.4g}"]
-    if result.cov_method == "batch_means":
-        lines.append(f"standard deviations: batch means (batches of {result.batch_length} samples; a third pass over "
-                     f"the files, {result.seconds['covariance_pass']:.3g} s)")
-    lines += estimate_lines(estimate)
-    for label in ("train", "validation"):
-        errors = document[label]
-        if errors is not None:
-            against, mse = ("vs recorded", errors["mse"]) if errors["mse"] is not None else \
-                ("vs filtered: not against the recording", errors["mse_filtered"])
-            lines.append(f"{label} MSE ({against}): " + "  ".join(f"{channel} {value:.4g}" for channel, value in mse.items()))
-    return IdentifyRun(document, tuple(lines), tuple(notes), result, streamed=True)
-
-
-def add_streamed_model_file(document: dict[str, Any], args: IdentifyOptions, result: Any,
-                            chunk_size: int) -> tuple[str, ...]:
-    """The model file of the streamed identification. Its validation error is the one ``oed predict`` measures:
-    against the channels as recorded, on the samples the in-memory preprocessing keeps; on the filter path (where
-    the sums hold filtered channels) from one more pass over the validation files
-    (:func:`estimation.streaming.recorded_errors.streamed_recorded_mse`); on the Fourier path none is reported. Returns the
-    plausibility warnings."""
-    if result.frequency_hz is not None:
-        plan = {"method": "fourier", "frequency_hz": result.frequency_hz, "harmonics": 5 if args.harmonics is None
-                else args.harmonics, "frequency_source": "given", "average_periods": "auto",
-                "decimation": args.decimate, "held_torques": bool(args.held_torques)}
+    messages = grouped_messages(caught, [*args.data, *(args.validate or ())])  # one line per finding across files
+    not_computed = dict(result.not_computed)
+    if args.method != "auto":  # in memory too, the consistent refit is a candidate of the default choice only
+        for key in ("consistent", "links"):
+            not_computed.pop(key, None)
+    cutoff_hz, frequency_hz = result.streaming["cutoff_hz"], result.streaming["frequency_hz"]
+    if frequency_hz is not None:  # a Fourier fit of averaged periods: not what `oed predict` repeats
+        model_plan = {"method": "fourier", "frequency_hz": frequency_hz, "harmonics": 5 if args.harmonics is None
+                      else args.harmonics, "frequency_source": "given", "average_periods": "auto",
+                      "decimation": args.decimate, "held_torques": bool(args.held_torques)}
     else:
-        plan = streamed_plan(args.data[0], result.model, cutoff_hz=result.cutoff_hz, decimation=args.decimate,
-                             held_torques=bool(args.held_torques), chunk_size=chunk_size)
-    validation = None if document["validation"] is None else document["validation"]["mse"]
-    if result.frequency_hz is not None:
-        validation = None
-    elif document["validation"] is not None and validation is None:  # the sums hold filtered channels
+        model_plan = streamed_plan(args.data[0], model, cutoff_hz=cutoff_hz, decimation=args.decimate,
+                                   held_torques=bool(args.held_torques), chunk_size=chunk_size)
+    trivial, floor, floor_note, notes = None, None, None, ()
+    if result.validation is not None:
+        result, trivial, reasons = recorded_validation(args, result, chunk_size)
+        not_computed.update(reasons)
+        frequency = plan.frequency_hz if plan.method == "fourier" else args.frequency
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # the files' findings were said on the first pass
-            validation = streamed_recorded_mse(result.model, result.estimate.values, args.validate,
-                                               chunk_size=chunk_size, cutoff_hz=result.cutoff_hz,
-                                               decimation=args.decimate, held_torques=bool(args.held_torques))
-        document["validation"]["mse"] = validation
-    notes = add_summed_model_file(document, result.model, result.estimate, args, plan,
-                                  recorded_mse=document["train"]["mse"], validation_mse=validation)
-    recorded = None if validation is None or not resampled_validation(document) else \
-        recorded_validation_mse(document["model_file"], args.validate)
-    if recorded is not None:  # a jittered or cleaned record: its error on the samples as recorded, as predict's
-        document["validation"]["mse"] = document["model_file"]["reported"]["validation_mse"] = recorded
-    return notes
+            floor, floor_note = window_floor(args.validate, model, frequency_hz=frequency)
+        if floor is None:
+            not_computed["noise_floor"] = floor_note
+        mse = result.validation.mse
+        if trivial is not None and mse is not None:
+            notes += trivial_warnings(mse, trivial)
+        if floor is not None and mse is not None:
+            comparisons = compare_with_floor(mse, floor, result.validation.n_samples, alpha=FLOOR_ALPHA)
+            notes += tuple(f"{comparison.statement()}: the model lacks something there; `oed diagnose` searches for it"
+                           for comparison in comparisons.values() if comparison.above)
+    validation_mse = None if result.validation is None or frequency_hz is not None else result.validation.mse
+    return Identified(result, ChosenModel(result.estimate.method, result), plan.to_dict(), plan.describe(),
+                      (*messages, *notes), notes, trivial, floor, floor_note, not_computed, weighting=weighting,
+                      transmission=transmission, chunk_size=chunk_size, model_file=(model_plan, validation_mse))
 
 
-def estimate_lines(estimate: Any) -> list[str]:
-    """One line a base parameter: value, standard deviation and relative standard deviation."""
-    width = max(len(name) for name in estimate.names)
-    return [f"  {record['name']:<{width}}  {record['value']:+.5g} ± {record['std']:.2g}  ({record['relative_std']:.3g} %)"
-            for record in estimate.records()]
+def recorded_validation(args: IdentifyOptions, result: IdentificationResult, chunk_size: int
+                        ) -> tuple[IdentificationResult, dict[str, dict[str, float]] | None, dict[str, str]]:
+    """The streamed ``result`` with its validation error against the channels as recorded, on the samples the
+    in-memory preprocessing keeps (what ``oed predict`` measures), and the trivial predictors' errors there, from
+    one pass over the validation files (:func:`estimation.streaming.recorded_errors.streamed_recorded_errors`; the
+    filter path's sums hold filtered channels; sums of the recording give both: ``result.trivial``); on a file resampled onto a uniform grid, the error at the recorded
+    samples (:func:`~oed.workflows.model_files.recorded_validation_mse`). On the Fourier path (the sums hold
+    averaged periods) neither: ``None`` and why."""
+    streaming = result.streaming
+    if streaming["frequency_hz"] is not None:
+        reason = ("a Fourier fit of averaged periods: the sums hold the averaged channels, not the recording, and "
+                  "the fit of the periods is not what `oed predict` repeats")
+        return result, None, {"validation.mse": reason, "validation.zero_mse": reason,
+                              "validation.nominal_mse": reason, "validation.mse_over_floor": reason}
+    model = result.model
+    if result.trivial is not None and result.validation.mse is not None:  # the sums hold the recording
+        errors, mse = {key: dict(value) for key, value in result.trivial.items()}, result.validation.mse
+    else:
+        thetas = {"zero_mse": np.zeros(model.n_base), "nominal_mse": model.base.K @ model.nominal_parameters(),
+                  "mse": result.estimate.values}
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # the files' findings were said on the first pass
+            errors = streamed_recorded_errors(model, thetas, args.validate, chunk_size=chunk_size,
+                                              cutoff_hz=streaming["cutoff_hz"], decimation=args.decimate,
+                                              held_torques=bool(args.held_torques))
+        mse = errors.pop("mse")
+    if resampled_validation({"streaming": streaming}):  # jittered or cleaned: its error at the recorded samples
+        recorded = recorded_validation_mse(summed_model_file_document(
+            model, result.estimate, robot=robot_source(model.robot, args), preprocessing=streamed_plan(
+                args.data[0], model, cutoff_hz=streaming["cutoff_hz"], decimation=args.decimate,
+                held_torques=bool(args.held_torques), chunk_size=chunk_size)), args.validate)
+        mse = mse if recorded is None else recorded
+    return replace(result, validation=replace(result.validation, mse=mse)), errors, {}
 
 
 def in_memory_only(args: IdentifyOptions, model: IdentificationModel, delay: DelayBounds | None) -> str | None:
@@ -344,11 +482,12 @@ def check_streamed_request(args: IdentifyOptions, model: IdentificationModel) ->
                          "joint-side columns, and averages periods whenever --frequency is given")
 
 
-def identify_in_memory(args: IdentifyOptions, robot: RobotModel, model: IdentificationModel,
-                       transmission: Transmission | None, delay: DelayBounds | None,
-                       plan: Preprocessing | None = None) -> IdentifyRun:
+def identification_in_memory(args: IdentifyOptions, robot: RobotModel, model: IdentificationModel,
+                             transmission: Transmission | None, delay: DelayBounds | None,
+                             plan: Preprocessing | None = None) -> Identified:
     """Read and prepare the records (:func:`estimation.identification.prepared.prepare_records`; ``plan``: the
-    derivatives chosen before reading), identify, and build the document."""
+    derivatives chosen before reading), identify, compare the candidate models, and measure the validation error
+    against the trivial predictors and the noise floor."""
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         records = prepare_records(model, args.data, args.validate or (),  # reports its steps
@@ -373,29 +512,12 @@ def identify_in_memory(args: IdentifyOptions, robot: RobotModel, model: Identifi
         notes = (*notes, *above_floor_notes(floor_report, chosen, None if validation is None else validation.n_samples))
         repeat = None if validation is None else repeated_motion_note(train, validation)
         notes = notes if repeat is None else (*notes, repeat)
-    messages = caught_messages(caught) + list(notes)
-    rest = rest_records(records)
-    document = finish_document(result.to_dict(), result, trivial=trivial, warnings=notes, rest=rest,
-                               transmission=transmission)
-    if consistent is not None:
-        document.update(consistent.to_dict())
-    if weighting is not None:
-        document["method_selection"] = weighting.to_dict()
-    document["model_selection"] = selection.to_dict()
-    messages += add_model_file(document, result, args, records.preprocessing, transmission, consistent=consistent,
-                               selection=selection)
-    if floor_report is not None and document.get("validation") is not None:
-        document["validation"]["mse_over_floor"] = floor_report.ratios("after") or None
-        document["noise_floor"] = None if floor_report.floor is None else {
-            "mse": floor_report.floor.mse(), "method": floor_report.floor.method, "note": floor_report.floor_note}
-    answer_identification(document, chosen, floor=None if floor_report is None else floor_report.floor)
-    lines = summary_lines(robot, model, result, records.preprocessing, train.n_samples, rest, chosen)
-    if consistent is not None and (args.consistent or selection.chosen == "consistent"):
-        lines += consistent_lines(consistent)
-    lines += selection.lines()
-    return IdentifyRun(document, tuple(lines), tuple(messages), result, streamed=False,
-                       title=f"{robot.name}: {model.kind.value} model ({chosen.name})",
-                       preprocessing=records.preprocessing.describe(), answer=chosen)
+    return Identified(result, chosen, records.preprocessing.to_dict(), records.preprocessing.describe(),
+                      (*caught_messages(caught), *notes), notes, trivial,
+                      None if floor_report is None else floor_report.floor,
+                      None if floor_report is None else floor_report.floor_note, records=records, selection=selection,
+                      consistent=consistent, floor_report=floor_report, weighting=weighting, transmission=transmission,
+                      n_samples=train.n_samples)
 
 
 def validation_fits(args: IdentifyOptions, model: IdentificationModel, delay: DelayBounds | None) -> tuple[str, ...]:
@@ -438,18 +560,23 @@ def above_floor_notes(report: ResidualReport | None, chosen: ChosenModel | None 
             for channel in above]
 
 
-def summary_lines(robot: RobotModel, model: IdentificationModel, result: IdentificationResult,
-                  preprocessing: Preprocessing, n_samples: int, rest: dict[str, dict | None],
-                  chosen: ChosenModel | None = None) -> list[str]:
-    """The preprocessing, the estimate with its shape parameters, the errors and the rows at rest dropped: those of
-    the ``chosen`` model (default ``result``; the consistent fit's shapes are held at ``result``'s)."""
-    estimate = result.estimate
-    chosen = ChosenModel(estimate.method, result) if chosen is None else chosen
+def summary_lines(args: IdentifyOptions, identified: Identified) -> list[str]:
+    """The lines ``oed identify`` prints, on both paths: the preprocessing, the records (streamed: how the files were
+    read, and the batch-means standard deviations), the chosen model's estimate with its shape parameters and
+    errors, the rows at rest dropped; in memory the consistent refit and the comparison of candidate models."""
+    result, chosen = identified.result, identified.chosen
+    model, estimate = result.model, result.estimate
     fit = f"{estimate.method.upper()}" if not chosen.consistent else \
         f"physically consistent, refitted from {estimate.method.upper()}"
-    lines = [preprocessing.describe(),
-             f"{robot.name}: {model.kind.value} model, {model.n_base} base parameters, {n_samples} samples, "
-             f"{fit}, cond {estimate.cond:.4g}"]
+    read = "" if result.path == "in-memory" else \
+        f" from {len(result.streaming['files'])} file(s) in chunks of {identified.chunk_size}"
+    lines = [identified.describe,
+             f"{model.robot.name}: {model.kind.value} model, {model.n_base} base parameters, "
+             f"{identified.n_samples or result.train.n_samples} samples{read}, {fit}, cond {estimate.cond:.4g}"]
+    covariance = (result.streaming or {}).get("covariance") or {}
+    if covariance.get("method") == "batch_means":
+        lines.append(f"standard deviations: batch means (batches of {covariance['batch_length']} samples; a third "
+                     f"pass over the files, {result.streaming['seconds']['covariance_pass']:.3g} s)")
     lines += chosen.parameter_lines()
     width = max(len(name) for name in estimate.names)
     for value in result.shapes:
@@ -457,14 +584,20 @@ def summary_lines(robot: RobotModel, model: IdentificationModel, result: Identif
         held = "; held by the consistent fit" if chosen.consistent else ""
         lines.append(f"  {value.name:<{width}}  {value.value:+.5g} ± {value.std:.2g}  (shape of {value.effect}{held})"
                      f"{bound}")
-    for label, comparison in (("train", chosen.train), ("validation", chosen.validation)):
-        if comparison is not None:
-            lines.append(f"{label} MSE (vs recorded): " + "  ".join(
-                f"{channel} {value:.4g}" for channel, value in comparison.mse.items()))
-            if comparison.mse_filtered is not None:
-                lines.append(f"{label} MSE (vs filtered): " + "  ".join(
-                    f"{channel} {value:.4g}" for channel, value in comparison.mse_filtered.items()))
-    message = rest_message("identify", rest)
+    for label, errors in (("train", chosen.train), ("validation", chosen.validation)):
+        if errors is None:
+            continue
+        if errors.mse is not None:
+            lines.append(mse_line(f"{label} MSE (vs recorded)", errors.mse))
+        if errors.mse_filtered is not None:
+            against = "vs filtered" if errors.mse is not None else "vs filtered: not against the recording"
+            lines.append(mse_line(f"{label} MSE ({against})", errors.mse_filtered))
+    message = rest_message("identify", identified.rest)
     if message:
         lines.append(message)
+    selection, consistent = identified.selection, identified.consistent
+    if consistent is not None and (args.consistent or selection.chosen == "consistent"):
+        lines += consistent_lines(consistent)
+    if selection is not None:
+        lines += selection.lines()
     return lines
