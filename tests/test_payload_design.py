@@ -202,3 +202,53 @@ def test_robot_share_in_the_criterion_on_request(robot_json):
     designed = result.designed_std
     assert designed["robot_model"]["mass"] > 0 and result.warnings == () and result.constraints == ()
     assert designed["mass"] == pytest.approx(np.hypot(designed["record_noise"]["mass"], designed["robot_model"]["mass"]))
+
+
+class _TwoRows:
+    """A per-sample constraint of two rows (``1 − q₁² ≥ 0``, ``2 + dq₁ ≥ 0``), for the order of the rows."""
+
+    name, unit, labels = "two_rows", "1", ("a", "b")
+
+    def function(self):
+        q, dq, ddq = (casadi.SX.sym(name, 6) for name in ("q", "dq", "ddq"))
+        return casadi.Function("two_rows", [q, dq, ddq], [casadi.vertcat(1 - q[0] ** 2, 2 + dq[0])])
+
+    def margins(self, q, dq, ddq):
+        return np.column_stack([1 - np.asarray(q)[:, 0] ** 2, 2 + np.asarray(dq)[:, 0]])
+
+
+def test_information_constraints_follow_the_pointwise_ones(robot_json):
+    """PayloadDesign: the information constraints' rows come after the per-sample constraints' (torque limits here),
+    their values those of RobotShareBound on the cost samples' information, and their multipliers are kept as they
+    are when constraint points are added."""
+    from estimation.identification.identified_model import IdentifiedModel
+    from oed.design_settings import DesignSettings
+    from oed.payload_design import PayloadDesign, RobotShareBound, payload_regressor
+
+    folder, path, bounds = robot_json
+    model = IdentifiedModel.load(path)
+    settings = DesignSettings(frequency_hz=0.1, harmonics=3, cost_samples=60, constraint_points=10, jit=False)
+    criterion = MassAndCentre(samples=settings.period_samples, robot_cov=model.cov)
+    limits = JointBounds.from_dict(json.loads(bounds.read_text()))
+    robot = model.robot
+    probe = PayloadDesign(robot, model.file.model, limits, criterion, (), settings,
+                          regressor=payload_regressor(model, 6, with_robot=True))
+    x = probe.random_start(np.random.default_rng(4))
+    reference = 1.5 * criterion.relative_variances(probe.cost_grid_information(x))[1]
+    bound = RobotShareBound(criterion, reference)
+    problem = PayloadDesign(robot, model.file.model, limits, MassAndCentre(samples=settings.period_samples), (),
+                            settings, constraints=(_TwoRows(),),
+                            regressor=payload_regressor(model, 6, with_robot=True), information_constraints=(bound,))
+    points = problem.base_points()
+    g = np.asarray(problem.nonlinear_function(points)(x)).ravel()
+    pointwise = 2 * points.size
+    assert g.size == pointwise + 4
+    assert np.allclose(g[pointwise:], np.log(1.5), atol=1e-8)
+    assert np.allclose(g[pointwise:], bound.margins(problem.cost_grid_information(x)), atol=1e-10)
+    multipliers = np.arange(3 * robot.n_joints * points.size + g.size, dtype=float)
+    extended = problem._extend_multipliers(multipliers, (), (3,))
+    assert extended.size == multipliers.size + 3 * robot.n_joints + 2
+    assert np.array_equal(extended[-4:], multipliers[-4:])
+    with pytest.raises(ValueError, match="takes the information of"):
+        PayloadDesign(robot, model.file.model, limits, MassAndCentre(), (), settings,
+                      regressor=payload_regressor(model, 6), information_constraints=(bound,))
