@@ -28,8 +28,9 @@ mass's 2.4–3.3x; in total 1.3–1.5x and 1.6–2.1x better than random (benchm
 ``"ignored"`` (``--payload-noise-only``) leaves it free.
 
 The result reports the standard deviations of the mass and the centre of mass an experiment of one period would
-give, by part (``record_noise``, ``robot_model``) and in total, for the design and for the random starts it began from
-(random excitations within the same bounds and period).
+give, by part (``record_noise``, ``robot_model``) and in total, for the design and for the median of the
+:data:`REFERENCE_EXCITATIONS` random excitations (within the same bounds and period, drawn from the design's seed: its
+starts are the first of them).
 """
 
 from __future__ import annotations
