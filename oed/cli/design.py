@@ -109,11 +109,12 @@ def add_payload_arguments(parser: argparse.ArgumentParser) -> None:
     group.add_argument("--payload-mass", type=float, default=None,
                        help="with --payload: the payload's expected mass, kg (default 1)")
     group.add_argument("--payload-noise-only", action="store_true",
-                       help="with --payload: the criterion counts the record's torque noise, the robot model given "
-                            "(the default; the robot model's share is reported apart)")
+                       help="with --payload: the criterion counts the record's torque noise, the robot model given, "
+                            "and nothing holds the robot model's share (reported apart; by default it is kept at most "
+                            "random excitations')")
     group.add_argument("--payload-robot-share", action="store_true",
                        help="with --payload: the criterion counts the robot model's share of the uncertainty too "
-                            "(which a design for the record's noise can let grow)")
+                            "(by default it is a bound: at most random excitations')")
 
 
 def run(args: argparse.Namespace) -> int:

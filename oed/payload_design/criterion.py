@@ -129,13 +129,20 @@ class MassAndCentre(Criterion):
         total = noise + robot
         return np.sqrt(np.where(noise > 0, total, np.inf))
 
-    def expression(self, M):
+    def variance_expressions(self, M) -> tuple[casadi.MX, casadi.MX | None]:
+        """:meth:`relative_variances` as CasADi expressions of ``M`` (``(10 + r) x 10`` suffices: the first ten
+        columns): the record's noise part and the robot model's (``None`` without ``robot_cov``), each ``4 x 1``."""
         T = casadi.DM(self.combinations)
         X = casadi.solve(M[:10, :10], T.T)
-        variances = casadi.sum1(T.T * X).T / self.samples
-        if self.robot_cov is not None:
-            Z = casadi.mtimes(M[10:, :10], X)
-            variances = variances + casadi.sum1(Z * casadi.mtimes(casadi.DM(self.robot_cov), Z)).T
+        noise = casadi.sum1(T.T * X).T / self.samples
+        if self.robot_cov is None:
+            return noise, None
+        Z = casadi.mtimes(M[10:, :10], X)
+        return noise, casadi.sum1(Z * casadi.mtimes(casadi.DM(self.robot_cov), Z)).T
+
+    def expression(self, M):
+        noise, robot = self.variance_expressions(M)
+        variances = noise if robot is None else noise + robot
         logs = casadi.log(variances)
         top = casadi.mmax(logs)  # a shift that leaves the value and its derivative alone
         return top + casadi.log(casadi.sum1(casadi.exp(self.sharpness * (logs - top)))) / self.sharpness

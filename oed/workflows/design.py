@@ -284,8 +284,8 @@ def design_payload(args: DesignOptions, say: Callable[[str], None]) -> DesignRun
         raise ValueError(f"{', '.join(given)}: not with --payload (the model file fixes the model; the criterion is "
                          "the worst relative standard deviation of the mass and the centre of mass)")
     if args.payload_noise_only and args.payload_robot_share:
-        raise ValueError("--payload-noise-only and --payload-robot-share: give one (the criterion counts the record's "
-                         "noise by default)")
+        raise ValueError("--payload-noise-only and --payload-robot-share: give one (by default the criterion counts the "
+                         "record's noise, the robot model's share at most random excitations')")
     args = dataclasses.replace(args, frequency=PAYLOAD_FREQUENCY_HZ if args.frequency is None else args.frequency,
                                harmonics=PAYLOAD_HARMONICS if args.harmonics is None else args.harmonics)
     check_hertz(args, "frequency")
@@ -302,7 +302,8 @@ def design_payload(args: DesignOptions, say: Callable[[str], None]) -> DesignRun
 
     result = design_payload_excitation(model, bounds=bounds, link=args.link,
                                        mass=1.0 if args.payload_mass is None else args.payload_mass,
-                                       robot_share=args.payload_robot_share, settings=settings,
+                                       robot_share="counted" if args.payload_robot_share else
+                                       "ignored" if args.payload_noise_only else "bounded", settings=settings,
                                        starts=args.starts, seed=args.seed, progress=progress)
 
     def figure() -> Any:
