@@ -182,6 +182,26 @@ def channels_made_worse(trial, current: NDArray[np.float64], candidate: NDArray[
                      for row in rows if after[row] > (1.0 + tolerance) * before[row])
 
 
+def own_rows_gain(trial, comparison: CandidateComparison, min_improvement: float, model: IdentificationModel,
+                  replaced: Sequence[Block] = ()) -> str:
+    """Why a trial's gain on the channels its effects (and those it replaces) act on falls short, or ``""``.
+
+    An effect enters the torque equations of its rows only (a joint's friction law the equation of its joint);
+    it is confirmed by lowering their weighted validation MSE by at least ``min_improvement`` (relative), not the
+    sum over every channel, where the other channels' errors dilute its gain (a law that makes its joint 4 %
+    better moves the sum of seven joints by 0.6 %), and where a reshuffle of the shared rigid-body parameters can
+    pass for it (an effect that leaves its own joint as it was but moves the others)."""
+    rows = sorted({row for block in tuple(trial.blocks) + tuple(replaced) for row in block.rows})
+    weights = np.asarray(comparison.weights, dtype=float)[rows]
+    before = float(weights @ np.mean(comparison.current_residual[rows] ** 2, axis=1))
+    after = float(weights @ np.mean(comparison.residual[rows] ** 2, axis=1))
+    if after < (1.0 - min_improvement) * before:
+        return ""
+    channels = ", ".join(model.channels[row] for row in rows)
+    change = "raises" if after > before else f"lowers by less than {100 * min_improvement:g} %"
+    return f"{change} the validation error of the channels it acts on ({channels}: {before:.4g} -> {after:.4g}"
+
+
 def weighted_validation(result: IdentificationResult, weights: NDArray[np.float64]) -> float:
     return float(np.dot(weights, list(result.validation.mse.values())))
 

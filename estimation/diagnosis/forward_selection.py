@@ -46,7 +46,7 @@ from dynamics.effects.linear import Effect
 from dynamics.effects.shaped import FRICTION_LAWS
 from dynamics.models import IdentificationModel
 from estimation.diagnosis.candidates.trials import Trial, candidate_label, joints_of, wrong_sign
-from estimation.diagnosis.confirmation import CandidateComparison, channels_made_worse
+from estimation.diagnosis.confirmation import CandidateComparison, channels_made_worse, own_rows_gain
 from estimation.diagnosis.candidates.coupling import combination_groups
 from estimation.diagnosis.candidates.delay import DelayTrial
 from estimation.diagnosis.results import RejectedEffect
@@ -302,11 +302,13 @@ class DiagnosisSearch:
         comparison = self.fits.compare(trial, self.weights)
         error, current_error = comparison.error, comparison.current_error
         min_improvement = self.settings.min_improvement
-        if error >= (1.0 - min_improvement) * current_error:
-            change = ("raises the validation error" if error > current_error else
-                      f"lowers the validation error by less than {100 * min_improvement:g} %")
-            return text + f"{change} ({current_error:.4g} -> {error:.4g}" + (
-                ")" if comparison.held_out == "the validation record" else f" on {comparison.held_out})")
+        where = ")" if comparison.held_out == "the validation record" else f" on {comparison.held_out})"
+        if error >= current_error:
+            return text + f"raises the validation error ({current_error:.4g} -> {error:.4g}" + where
+        # the gain is judged in the equations the effect enters (its joint's torque), not diluted by the others
+        own = own_rows_gain(trial, comparison, min_improvement, self.model, self.replaced_blocks(trial))
+        if own:
+            return text + own + where
         beaten = self.beaten_by_baseline(trial, error / current_error)
         if beaten:
             return text + beaten
