@@ -67,6 +67,8 @@ from estimation.diagnosis.candidates.trials import candidate_label
 from estimation.diagnosis.candidates.coupling import coupling_candidates
 from estimation.diagnosis.candidates.delay_search import DelaySearch
 from estimation.diagnosis.final_refit import refit_significant
+from estimation.diagnosis.plain_laws import plain_law_choice
+from estimation.diagnosis.rules.robust_test import estimate_test
 from estimation.diagnosis.forward_selection import SearchOutcome, SearchSettings, candidate_blocks
 from estimation.diagnosis.record_fits import RecordFits, declared_regressor
 from estimation.diagnosis.results import Diagnosis, FoundEffect, RejectedEffect, found_delay, found_effect
@@ -263,6 +265,18 @@ def _diagnosis(model: IdentificationModel, before: IdentificationResult, outcome
                                                          outcome.weights, outcome.current.validation_error,
                                                          settings.min_improvement, settings.threshold)
     rejected = dict(outcome.rejected)
+    # each joint's diagnosed effects against the plain law, on that joint's validation error (another motion only)
+    mixed = plain_law_choice(model, after, [effect for effect, _, _ in selected], train, validate,
+                             min_improvement=settings.min_improvement)
+    if mixed is not None:
+        after = mixed.after
+        selected = [(effect, test.p_value, test.f_statistic) for effect in mixed.effects
+                    for test in (estimate_test(after.estimate, effect.parameter_names(model.robot)),)]
+        for position, (effect, reason) in enumerate(mixed.dropped):
+            index = next((index for index, block in blocks.items() if block.effect == effect),
+                         n_candidates + len(pinned) + 1 + position)
+            rejected[index] = RejectedEffect(effect.name, effect_channels(effect, model), reason,
+                                             candidate_label(effect))
     for item, reason in dropped:
         rejected[item.index] = RejectedEffect(item.effect.name, effect_channels(item.effect, model), reason,
                                               candidate_label(item.effect))
