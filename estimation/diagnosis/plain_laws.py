@@ -113,18 +113,34 @@ def plain_law_choice(model: IdentificationModel, after: IdentificationResult, fo
         return None
     channels = model.channels
     diagnosed_mse, plain_mse = after.validation.mse, plain.validation.mse
-    joints = {row for row in range(n_joints)
-              if plain_mse[channels[row]] < (1.0 - min_improvement) * diagnosed_mse[channels[row]]}
+
+    def better(result: IdentificationResult, row: int) -> bool:
+        return result.validation.mse[channels[row]] < (1.0 - min_improvement) * diagnosed_mse[channels[row]]
+
+    def closure(rows: set[int]) -> set[int]:  # a dropped coupled law leaves its other joints: they take the plain law
+        while True:
+            touched = set().union(*(set(_rows(model, effect)) for effect in found if set(_rows(model, effect)) & rows))
+            grown = rows | {row for row in touched if row < n_joints}
+            if grown == rows:
+                return rows
+            rows = grown
+
+    def swapped(rows: set[int]) -> tuple[Effect, ...]:
+        return tuple(effect for effect in found if not set(_rows(model, effect)) & rows) \
+            + plain_model_effects(model, sorted(rows))
+
+    # screened by the plain model, confirmed joint by joint: the diagnosed model with only that joint's effects
+    # swapped for the plain law must predict that joint better (the plain model's other laws also move the shared
+    # rigid-body parameters, which can lower a joint's error that its own law does not)
+    joints: set[int] = set()
+    for row in (row for row in range(n_joints) if better(plain, row)):
+        swap = fit(swapped(closure({row})))
+        if swap is not None and better(swap, row):
+            joints |= closure({row})
     if not joints:
         return None
     why = ", ".join(f"{channels[row]} {diagnosed_mse[channels[row]]:.4g} -> {plain_mse[channels[row]]:.4g}"
-                    for row in sorted(joints))
-    while True:  # a dropped coupled law leaves its other joints without it: they take the plain law too
-        touched = set().union(*(set(_rows(model, effect)) for effect in found if set(_rows(model, effect)) & joints))
-        grown = joints | {row for row in touched if row < n_joints}
-        if grown == joints:
-            break
-        joints = grown
+                    for row in sorted(joints) if better(plain, row))
     kept = tuple(effect for effect in found if not set(_rows(model, effect)) & joints)
     laws = plain_model_effects(model, sorted(joints))
     mixed = fit(kept + laws)
