@@ -93,3 +93,20 @@ def test_a_right_effect_is_kept(records):
     model = build_model(declared.robot, "internal", declared.effects + right)
     after = identify(model, made["train"], made["other"])
     assert plain_law_choice(declared, after, list(right), made["train"], made["other"], min_improvement=0.01) is None
+
+
+def test_a_plain_term_within_its_noise_is_not_named():
+    """Joint 3 has an offset and no Coulomb friction: the plain law that replaces a wrong spring there is the
+    offset alone (the Coulomb term, within its noise in the mixed model, is left out)."""
+    robot = load_robot("puma560", joints=3)
+    declared = build_model(robot, "internal", "viscous")
+    truth = build_model(robot, "internal", (*declared.effects, JointOffset(joints=(2,))))
+    theta = true_parameters(truth, seed=1, offset=[1.5])
+    made = {name: simulate(truth, theta, random_fourier(robot, seed=seed), rate_hz=100.0, periods=1, noise=NOISE,
+                           seed=seed) for name, seed in (("train", 5), ("other", 6))}
+    wrong = Spring(joints=(2,))
+    after = identify(build_model(robot, "internal", declared.effects + (wrong,)), made["train"], made["other"])
+    choice = plain_law_choice(declared, after, [wrong], made["train"], made["other"], min_improvement=0.01,
+                              threshold=1e-3 / 50)
+    assert choice is not None
+    assert [(effect.name, effect.joints) for effect in choice.plain] == [("offset", (2,))]

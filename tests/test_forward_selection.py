@@ -64,8 +64,9 @@ class PrescribedFits:
                 for index in self.model}
 
     def compare(self, trial, weights):
-        residual = np.full((3, 1), 1.0)
-        return CandidateComparison(weights, self.errors.get(trial.group, 0.5), residual, 1.0, residual)
+        # every channel moved alike: the channels the trial acts on by the ratio of the sums
+        error = self.errors.get(trial.group, 0.5)
+        return CandidateComparison(weights, error, np.full((3, 1), np.sqrt(error)), 1.0, np.full((3, 1), 1.0))
 
     def removal(self, without, weights):
         residual = np.full((3, 1), 1.0)
@@ -167,3 +168,18 @@ def test_a_move_is_not_taken_on_the_white_f_test_alone(model):
     outcome = DiagnosisSearch(model, blocks, rejected, Robust({(0,): 1e-12}, {}), np.ones(3), settings).run()
     assert outcome.adopted == ()
     assert outcome.rejected[0].reason.startswith("not significant: its coefficients are within their noise (Wald p = 0.3")
+
+
+def test_a_move_whose_gain_is_on_other_joints_only_is_not_confirmed(model):
+    # coulomb on joint 1 lowers the sum by 5 %, all of it on joints 2 and 3 (the shared parameters moved): refused
+    class Elsewhere(PrescribedFits):
+        def compare(self, trial, weights):
+            current = np.full((3, 1), 1.0)
+            candidate = np.sqrt(np.array([[1.0], [0.925], [0.925]]))
+            return CandidateComparison(weights, float(weights @ candidate[:, 0] ** 2), candidate,
+                                       float(weights @ current[:, 0] ** 2), current)
+
+    outcome = search(model, Elsewhere({(0,): 1e-12}, {})).run()
+    assert outcome.adopted == ()
+    assert outcome.rejected[0].reason == ("significant on training (p = 1e-12) but lowers by less than 1 % the "
+                                          "validation error of the channels it acts on (tau1: 1 -> 1)")

@@ -15,7 +15,8 @@ the comparison is joint by joint: a joint whose validation MSE the plain model l
 it are dropped (with them the joints a dropped coupled law acts on, which then take the plain law too). The model
 so **mixed** is adopted when it predicts the validation record better than the diagnosed one by the criterion of
 the default answer (:mod:`estimation.consistent.model_selection`: the geometric mean over channels of the
-validation MSE). Only when the validation record is another motion: on a repeat of the training motion the
+validation MSE); a plain term within its noise there (Wald test at the search's threshold) is left out, and the
+model refitted without it. Only when the validation record is another motion: on a repeat of the training motion the
 validation error does not measure how a law extrapolates, and the diagnosis is kept as the search left it.
 """
 
@@ -31,6 +32,7 @@ from dynamics.effects.shaped import FRICTION_LAWS, shape_parameters
 from dynamics.measurements import Measurements
 from dynamics.models import IdentificationModel, ModelKind, build_model
 from estimation.diagnosis.candidates.delay_search import with_delay
+from estimation.diagnosis.rules.robust_test import estimate_test
 from estimation.estimators.effect_blocks import ShapeSearchError, effect_rows
 from estimation.identification.fit import IdentificationResult, identify
 from estimation.identification.preprocessing_choice import geometric_mean
@@ -86,9 +88,13 @@ def plain_model_effects(model: IdentificationModel, joints: Sequence[int]) -> tu
 
 
 def plain_law_choice(model: IdentificationModel, after: IdentificationResult, found: Sequence[Effect],
-                     train: Measurements, validate: Measurements, *, min_improvement: float) -> PlainLawChoice | None:
+                     train: Measurements, validate: Measurements, *, min_improvement: float,
+                     max_effects: int | None = None, threshold: float | None = None) -> PlainLawChoice | None:
     """The mixed model when it validates better than the diagnosed one ``after`` (whose effects beyond the declared
-    ``model``'s are ``found``), else ``None`` (module docstring). ``train``, ``validate``: the records as given."""
+    ``model``'s are ``found``), else ``None`` (module docstring). ``train``, ``validate``: the records as given;
+    ``max_effects``: the most effects the diagnosis may name (the delay counted), which the mixed model respects;
+    ``threshold``: a plain term whose Wald p-value in the mixed model is not below it is not named (the model is
+    refitted without it), as the joint refit drops a finding within its noise."""
     if model.kind is ModelKind.EXTERNAL or after.validation is None or not found:
         return None
     if repeated_motion(train, validate) <= REPEAT_FRACTION:
@@ -143,9 +149,19 @@ def plain_law_choice(model: IdentificationModel, after: IdentificationResult, fo
                     for row in sorted(joints) if better(plain, row))
     kept = tuple(effect for effect in found if not set(_rows(model, effect)) & joints)
     laws = plain_model_effects(model, sorted(joints))
+    if max_effects is not None and len(kept) + len(laws) + (after.delay is not None) > max_effects:
+        return None
     mixed = fit(kept + laws)
     if mixed is None:
         return None
+    if threshold is not None:  # a plain term within its noise (an offset on a joint that has none) is not named
+        weak = [law for law in laws
+                if estimate_test(mixed.estimate, law.parameter_names(model.robot)).p_value >= threshold]
+        if weak:
+            laws = tuple(law for law in laws if law not in weak)
+            mixed = fit(kept + laws)
+            if mixed is None:
+                return None
     scores = (_score(after), _score(mixed))
     if not scores[1] < scores[0]:
         return None

@@ -267,7 +267,8 @@ def _diagnosis(model: IdentificationModel, before: IdentificationResult, outcome
     rejected = dict(outcome.rejected)
     # each joint's diagnosed effects against the plain law, on that joint's validation error (another motion only)
     mixed = plain_law_choice(model, after, [effect for effect, _, _ in selected], train, validate,
-                             min_improvement=settings.min_improvement)
+                             min_improvement=settings.min_improvement, max_effects=settings.max_effects,
+                             threshold=settings.threshold)
     if mixed is not None:
         after = mixed.after
         selected = [(effect, test.p_value, test.f_statistic) for effect in mixed.effects
