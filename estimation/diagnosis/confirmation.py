@@ -12,6 +12,8 @@
   motion cut into :data:`HELD_OUT_BLOCKS` stretches (of the period, when the records say it: every
   period's stretch left out together), each model trained on the training record without one stretch
   and its error taken on the validation record's same stretch, which its fit did not see.
+* :func:`own_rows_gain`: a candidate's gain is judged on the channels it acts on (the torque equations its
+  effects enter), at least ``min_improvement`` there, not on the sum over every channel.
 * :func:`channels_made_worse`: a candidate is not confirmed when it raises the validation error of a
   channel it acts on (a pair acting on two rows must not trade one for the other).
 * :func:`simplify_laws`: after the joint refit, a several-term law whose extra term the final fit does

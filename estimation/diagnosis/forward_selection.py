@@ -15,8 +15,9 @@ and the delay. :class:`DiagnosisSearch` moves between such models (steps 2–4 o
   adopted when the Wald test of its block from the HAC covariance is significant at the same
   threshold (:mod:`estimation.diagnosis.rules.robust_test`: the statistic the reported p-values and
   standard deviations come from), its estimate is physical (:func:`wrong_sign`, a spring that is no
-  offset in disguise) and it lowers the weighted validation error of the current model by
-  ``min_improvement`` without making a channel it acts on worse;
+  offset in disguise) and it lowers the weighted validation error of the channels it acts on by
+  ``min_improvement`` (:func:`estimation.diagnosis.confirmation.own_rows_gain`), the sum over every channel not
+  rising, without making a channel it acts on worse;
 
 until no move improves the model; a model once left is never returned to, nor a candidate that left the
 model (so that the search ends: at most two moves a candidate). Every verdict is against the model of the

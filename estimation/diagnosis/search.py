@@ -20,8 +20,9 @@ Procedure (a search over nested linear models: additions, replacements, removals
    is significant at the same threshold (:mod:`estimation.diagnosis.rules.robust_test`), its estimate is
    physical (friction, armature positive, each term of a several-term law significant; a spring's
    stiffness positive, and a spring alone only when it explains more than an offset on its joint
-   does), and it lowers the weighted validation error on the held-out data by at least
-   ``min_improvement``, the move's model and the current model both trained and compared at the
+   does), and it lowers the weighted validation error on the held-out data of the channels it acts on
+   by at least ``min_improvement`` (:func:`estimation.diagnosis.confirmation.own_rows_gain`), the sum over
+   every channel not rising, the move's model and the current model both trained and compared at the
    weights the move's own residuals give (:func:`estimation.diagnosis.confirmation.reweighted_comparison`).
    A move adds a candidate, or replaces the Coulomb-like law the search adopted on a joint by another
    (a law on a joint whose law was declared is refused); before each round an adopted effect is
@@ -31,6 +32,9 @@ Procedure (a search over nested linear models: additions, replacements, removals
 5. Re-identify the augmented model (all shapes refit jointly, :mod:`estimation.diagnosis.final_refit`),
    each finding's p-value the Wald test from the covariance its standard deviations come from (a
    finding not significant there dropped), and report the validation MSE per channel before and after.
+   When the validation record is another motion, each joint's diagnosed effects are compared with the plain
+   law (Coulomb friction and an offset) on that joint's validation error, and the model mixed so is kept when
+   it validates better (:mod:`estimation.diagnosis.plain_laws`).
 6. Keep the runner-up: the best-ranked rival of the last adopted move (another law on the joint, or the
    model without the effect), fitted as the chosen model was (:mod:`estimation.diagnosis.runner_up`).
 
