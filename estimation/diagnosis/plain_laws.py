@@ -93,8 +93,9 @@ def plain_law_choice(model: IdentificationModel, after: IdentificationResult, fo
     """The mixed model when it validates better than the diagnosed one ``after`` (whose effects beyond the declared
     ``model``'s are ``found``), else ``None`` (module docstring). ``train``, ``validate``: the records as given;
     ``max_effects``: the most effects the diagnosis may name (the delay counted), which the mixed model respects;
-    ``threshold``: a plain term whose Wald p-value in the mixed model is not below it is not named (the model is
-    refitted without it), as the joint refit drops a finding within its noise."""
+    ``threshold``: a plain term whose Wald p-value in the mixed model is not below it, or a Coulomb term estimated
+    below zero, is not named (the model is refitted without it), as the joint refit drops a finding within its
+    noise and the search a law of the wrong sign."""
     if model.kind is ModelKind.EXTERNAL or after.validation is None or not found:
         return None
     if repeated_motion(train, validate) <= REPEAT_FRACTION:
@@ -154,9 +155,13 @@ def plain_law_choice(model: IdentificationModel, after: IdentificationResult, fo
     mixed = fit(kept + laws)
     if mixed is None:
         return None
-    if threshold is not None:  # a plain term within its noise (an offset on a joint that has none) is not named
-        weak = [law for law in laws
-                if estimate_test(mixed.estimate, law.parameter_names(model.robot)).p_value >= threshold]
+    if threshold is not None:  # a plain term within its noise (an offset on a joint that has none) or of the wrong
+        # sign is not named
+        values = dict(zip(mixed.estimate.names, mixed.estimate.values))
+        weak = [law for law in laws  # (a term the base parameters absorb has no estimate of its own: not named)
+                if not set(law.parameter_names(model.robot)) <= set(values)
+                or estimate_test(mixed.estimate, law.parameter_names(model.robot)).p_value >= threshold
+                or (law.name == "coulomb" and any(values[name] < 0 for name in law.parameter_names(model.robot)))]
         if weak:
             laws = tuple(law for law in laws if law not in weak)
             mixed = fit(kept + laws)
