@@ -1,5 +1,5 @@
-"""Each effect judged in the equations it enters (issue 34): an effect is confirmed by the validation error of the
-channels it acts on (estimation.diagnosis.confirmation.own_rows_gain), and a joint's diagnosed effects give way to
+"""Each effect judged in the equations it enters (issue 34): an effect's gain on the validation error of the
+channels it acts on counts (estimation.diagnosis.confirmation.own_rows_gain), and a joint's diagnosed effects give way to
 the plain law (Coulomb friction and an offset) when that law predicts the joint better on another motion
 (estimation.diagnosis.plain_laws)."""
 
@@ -34,7 +34,6 @@ def test_a_joints_gain_is_not_diluted_by_the_other_channels():
     trial = SimpleNamespace(blocks=(SimpleNamespace(rows=(2,)),))
     # joint 3 4 % better: the sum of seven equal channels moves by 0.6 %, its own equation by 4 %
     assert own_rows_gain(trial, _comparison([1.0] * 7, [1, 1, 0.96, 1, 1, 1, 1]), 0.01, model) == ""
-    # the sum 5 % lower, but from the other joints (a reshuffle of the shared parameters): joint 3 as it was
     reason = own_rows_gain(trial, _comparison([1.0] * 7, [0.94, 0.94, 0.998, 0.94, 0.94, 0.94, 0.94]), 0.01, model)
     assert reason.startswith("lowers by less than 1 % the validation error of the channels it acts on (tau3")
     reason = own_rows_gain(trial, _comparison([1.0] * 7, [0.9, 0.9, 1.02, 0.9, 0.9, 0.9, 0.9]), 0.01, model)

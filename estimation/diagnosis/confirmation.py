@@ -14,6 +14,8 @@
   and its error taken on the validation record's same stretch, which its fit did not see.
 * :func:`own_rows_gain`: a candidate's gain is judged on the channels it acts on (the torque equations its
   effects enter), at least ``min_improvement`` there, not on the sum over every channel.
+* :func:`own_rows_gain`: a candidate's gain on the channels it acts on (the torque equations its effects
+  enter): at least ``min_improvement`` there confirms it as on the sum over every channel.
 * :func:`channels_made_worse`: a candidate is not confirmed when it raises the validation error of a
   channel it acts on (a pair acting on two rows must not trade one for the other).
 * :func:`simplify_laws`: after the joint refit, a several-term law whose extra term the final fit does
@@ -189,10 +191,9 @@ def own_rows_gain(trial, comparison: CandidateComparison, min_improvement: float
     """Why a trial's gain on the channels its effects (and those it replaces) act on falls short, or ``""``.
 
     An effect enters the torque equations of its rows only (a joint's friction law the equation of its joint);
-    it is confirmed by lowering their weighted validation MSE by at least ``min_improvement`` (relative), not the
-    sum over every channel, where the other channels' errors dilute its gain (a law that makes its joint 4 %
-    better moves the sum of seven joints by 0.6 %), and where a reshuffle of the shared rigid-body parameters can
-    pass for it (an effect that leaves its own joint as it was but moves the others)."""
+    lowering their weighted validation MSE by at least ``min_improvement`` (relative) confirms it as lowering the
+    sum over every channel by as much does, where the other channels' errors dilute its gain (a law that makes its
+    joint 4 % better moves the sum of seven joints by 0.6 %)."""
     rows = sorted({row for block in tuple(trial.blocks) + tuple(replaced) for row in block.rows})
     weights = np.asarray(comparison.weights, dtype=float)[rows]
     before = float(weights @ np.mean(comparison.current_residual[rows] ** 2, axis=1))
