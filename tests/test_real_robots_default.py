@@ -33,7 +33,7 @@ def test_the_default_model_predicts_a_new_record_about_as_well_as_a_plain_fit_or
 
 
 #: the bound on the total of `oed diagnose` → `oed predict` (measured 2026-11-26: KUKA 0.171x, worst joint 0.792x;
-#: Panda 1.044x, 1.130x; TX40 0.482x, 0.942x): the target where it is met, else the measured miss
+#: Panda 1.044x, 1.130x; TX40 0.482x, 0.941x): the target where it is met, else the measured miss
 DIAGNOSE_TOTAL_BOUND = {"kuka": 1.0, "panda": 1.1, "tx40": 1.0}
 
 
