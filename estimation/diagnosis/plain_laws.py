@@ -11,13 +11,16 @@ The forward search never compares the two models; this step does, once the searc
 them (the model class of a plain least-squares fit), fitted on the same training samples (along the records moved
 by an adopted delay, shaped laws at their fitted shapes). A joint's torque equation is where its effects act, so
 the comparison is joint by joint: a joint whose validation MSE the plain model lowers by at least
-``min_improvement`` (relative) against the diagnosed model takes the plain law, and the diagnosed effects acting on
-it are dropped (with them the joints a dropped coupled law acts on, which then take the plain law too). The model
-so **mixed** is adopted when it predicts the validation record better than the diagnosed one by the criterion of
-the default answer (:mod:`estimation.consistent.model_selection`: the geometric mean over channels of the
-validation MSE); a plain term within its noise there (Wald test at the search's threshold) is left out, and the
-model refitted without it. Only when the validation record is another motion: on a repeat of the training motion the
-validation error does not measure how a law extrapolates, and the diagnosis is kept as the search left it.
+``min_improvement`` (relative) against the diagnosed model, and for which swapping only that joint's diagnosed
+effects for the plain law lowers it too, takes the plain law; the diagnosed effects acting on it are dropped (with
+them the joints a dropped coupled law acts on, which then take the plain law too). The model so **mixed** is
+adopted when it predicts the validation record better than the diagnosed one by the criterion of the default
+answer (:mod:`estimation.consistent.model_selection`: the geometric mean over channels of the validation MSE) and
+no friction or inertia term of it is below zero; a plain term within its noise there (Wald test at the search's
+threshold), of the wrong sign or absorbed by the base parameters is left out and the model refitted without it.
+The declared effects are those the diagnosis left (a declared term it held at zero stays so). Only when the
+validation record is another motion: on a repeat of the training motion the validation error does not measure
+how a law extrapolates, and the diagnosis is kept as the search left it.
 """
 
 from __future__ import annotations
@@ -33,6 +36,7 @@ from dynamics.measurements import Measurements
 from dynamics.models import IdentificationModel, ModelKind, build_model
 from estimation.diagnosis.candidates.delay_search import with_delay
 from estimation.diagnosis.rules.robust_test import estimate_test
+from estimation.diagnosis.sign_constraints import negative_terms
 from estimation.estimators.effect_blocks import ShapeSearchError, effect_rows
 from estimation.identification.fit import IdentificationResult, identify
 from estimation.identification.preprocessing_choice import geometric_mean
@@ -104,11 +108,13 @@ def plain_law_choice(model: IdentificationModel, after: IdentificationResult, fo
         train, validate = delayed(train, after.delay.value), delayed(validate, after.delay.value)
     starts = {value.name: value.value for value in after.shapes if value.name != "delay"}
     n_joints = model.robot.n_joints
+    # the declared effects as the diagnosis left them (a declared term of the wrong sign held at zero stays so)
+    base = tuple(effect for effect in after.model.effects if effect not in found)
 
     def fit(effects: tuple[Effect, ...]) -> IdentificationResult | None:
         names = {parameter.name for effect in effects for parameter in shape_parameters(effect, model.robot)}
         try:
-            return identify(build_model(model.robot, model.kind, model.effects + effects), train, validate,
+            return identify(build_model(model.robot, model.kind, base + effects), train, validate,
                             weighted=after.estimate.method == "wls",
                             shape_starts={name: value for name, value in starts.items() if name in names} or None,
                             shape_search=False)
@@ -168,7 +174,7 @@ def plain_law_choice(model: IdentificationModel, after: IdentificationResult, fo
             if mixed is None:
                 return None
     scores = (_score(after), _score(mixed))
-    if not scores[1] < scores[0]:
+    if not scores[1] < scores[0] or negative_terms(mixed):  # a friction or inertia below zero: not physical
         return None
     mixed = with_delay(mixed, after.delay)
     dropped = tuple((effect, f"added, but on {', '.join(channels[row] for row in _rows(model, effect))} the plain "
