@@ -12,6 +12,10 @@
   motion cut into :data:`HELD_OUT_BLOCKS` stretches (of the period, when the records say it: every
   period's stretch left out together), each model trained on the training record without one stretch
   and its error taken on the validation record's same stretch, which its fit did not see.
+* :func:`own_rows_gain`: a candidate's gain is judged on the channels it acts on (the torque equations its
+  effects enter), at least ``min_improvement`` there, not on the sum over every channel.
+* :func:`own_rows_gain`: a candidate's gain on the channels it acts on (the torque equations its effects
+  enter): at least ``min_improvement`` there confirms it as on the sum over every channel.
 * :func:`channels_made_worse`: a candidate is not confirmed when it raises the validation error of a
   channel it acts on (a pair acting on two rows must not trade one for the other).
 * :func:`simplify_laws`: after the joint refit, a several-term law whose extra term the final fit does
@@ -180,6 +184,25 @@ def channels_made_worse(trial, current: NDArray[np.float64], candidate: NDArray[
     rows = sorted({row for block in tuple(trial.blocks) + tuple(replaced) for row in block.rows})
     return ", ".join(f"{model.channels[row]} ({before[row]:.4g} -> {after[row]:.4g})"
                      for row in rows if after[row] > (1.0 + tolerance) * before[row])
+
+
+def own_rows_gain(trial, comparison: CandidateComparison, min_improvement: float, model: IdentificationModel,
+                  replaced: Sequence[Block] = ()) -> str:
+    """Why a trial's gain on the channels its effects (and those it replaces) act on falls short, or ``""``.
+
+    An effect enters the torque equations of its rows only (a joint's friction law the equation of its joint);
+    lowering their weighted validation MSE by at least ``min_improvement`` (relative) confirms it as lowering the
+    sum over every channel by as much does, where the other channels' errors dilute its gain (a law that makes its
+    joint 4 % better moves the sum of seven joints by 0.6 %)."""
+    rows = sorted({row for block in tuple(trial.blocks) + tuple(replaced) for row in block.rows})
+    weights = np.asarray(comparison.weights, dtype=float)[rows]
+    before = float(weights @ np.mean(comparison.current_residual[rows] ** 2, axis=1))
+    after = float(weights @ np.mean(comparison.residual[rows] ** 2, axis=1))
+    if after < (1.0 - min_improvement) * before:
+        return ""
+    channels = ", ".join(model.channels[row] for row in rows)
+    change = "raises" if after > before else f"lowers by less than {100 * min_improvement:g} %"
+    return f"{change} the validation error of the channels it acts on ({channels}: {before:.4g} -> {after:.4g}"
 
 
 def weighted_validation(result: IdentificationResult, weights: NDArray[np.float64]) -> float:

@@ -15,8 +15,9 @@ and the delay. :class:`DiagnosisSearch` moves between such models (steps 2–4 o
   adopted when the Wald test of its block from the HAC covariance is significant at the same
   threshold (:mod:`estimation.diagnosis.rules.robust_test`: the statistic the reported p-values and
   standard deviations come from), its estimate is physical (:func:`wrong_sign`, a spring that is no
-  offset in disguise) and it lowers the weighted validation error of the current model by
-  ``min_improvement`` without making a channel it acts on worse;
+  offset in disguise) and it lowers the weighted validation error by ``min_improvement``, summed over every
+  channel or over the channels it acts on (:func:`estimation.diagnosis.confirmation.own_rows_gain`: a joint's law
+  is not diluted by the other joints) with the sum not rising, without making a channel it acts on worse;
 
 until no move improves the model; a model once left is never returned to, nor a candidate that left the
 model (so that the search ends: at most two moves a candidate). Every verdict is against the model of the
@@ -46,7 +47,7 @@ from dynamics.effects.linear import Effect
 from dynamics.effects.shaped import FRICTION_LAWS
 from dynamics.models import IdentificationModel
 from estimation.diagnosis.candidates.trials import Trial, candidate_label, joints_of, wrong_sign
-from estimation.diagnosis.confirmation import CandidateComparison, channels_made_worse
+from estimation.diagnosis.confirmation import CandidateComparison, channels_made_worse, own_rows_gain
 from estimation.diagnosis.candidates.coupling import combination_groups
 from estimation.diagnosis.candidates.delay import DelayTrial
 from estimation.diagnosis.results import RejectedEffect
@@ -302,11 +303,15 @@ class DiagnosisSearch:
         comparison = self.fits.compare(trial, self.weights)
         error, current_error = comparison.error, comparison.current_error
         min_improvement = self.settings.min_improvement
-        if error >= (1.0 - min_improvement) * current_error:
-            change = ("raises the validation error" if error > current_error else
-                      f"lowers the validation error by less than {100 * min_improvement:g} %")
-            return text + f"{change} ({current_error:.4g} -> {error:.4g}" + (
-                ")" if comparison.held_out == "the validation record" else f" on {comparison.held_out})")
+        where = ")" if comparison.held_out == "the validation record" else f" on {comparison.held_out})"
+        if error >= current_error:
+            return text + f"raises the validation error ({current_error:.4g} -> {error:.4g}" + where
+        # the gain counts in the sum over every channel, or in the equations the effect enters (its joint's
+        # torque), where the other joints do not dilute it
+        own = own_rows_gain(trial, comparison, min_improvement, self.model, self.replaced_blocks(trial))
+        if own and error >= (1.0 - min_improvement) * current_error:
+            return (text + f"lowers the validation error by less than {100 * min_improvement:g} % ({current_error:.4g}"
+                    f" -> {error:.4g}), and {own}" + where)
         beaten = self.beaten_by_baseline(trial, error / current_error)
         if beaten:
             return text + beaten

@@ -21,7 +21,8 @@ Procedure (a search over nested linear models: additions, replacements, removals
    physical (friction, armature positive, each term of a several-term law significant; a spring's
    stiffness positive, and a spring alone only when it explains more than an offset on its joint
    does), and it lowers the weighted validation error on the held-out data by at least
-   ``min_improvement``, the move's model and the current model both trained and compared at the
+   ``min_improvement``, summed over every channel or over the channels it acts on
+   (:func:`estimation.diagnosis.confirmation.own_rows_gain`) with the sum not rising, the move's model and the current model both trained and compared at the
    weights the move's own residuals give (:func:`estimation.diagnosis.confirmation.reweighted_comparison`).
    A move adds a candidate, or replaces the Coulomb-like law the search adopted on a joint by another
    (a law on a joint whose law was declared is refused); before each round an adopted effect is
@@ -31,6 +32,9 @@ Procedure (a search over nested linear models: additions, replacements, removals
 5. Re-identify the augmented model (all shapes refit jointly, :mod:`estimation.diagnosis.final_refit`),
    each finding's p-value the Wald test from the covariance its standard deviations come from (a
    finding not significant there dropped), and report the validation MSE per channel before and after.
+   When the validation record is another motion, each joint's diagnosed effects are compared with the plain
+   law (Coulomb friction and an offset) on that joint's validation error, and the model mixed so is kept when
+   it validates better (:mod:`estimation.diagnosis.plain_laws`).
 6. Keep the runner-up: the best-ranked rival of the last adopted move (another law on the joint, or the
    model without the effect), fitted as the chosen model was (:mod:`estimation.diagnosis.runner_up`).
 
@@ -67,6 +71,8 @@ from estimation.diagnosis.candidates.trials import candidate_label
 from estimation.diagnosis.candidates.coupling import coupling_candidates
 from estimation.diagnosis.candidates.delay_search import DelaySearch
 from estimation.diagnosis.final_refit import refit_significant
+from estimation.diagnosis.plain_laws import plain_law_choice
+from estimation.diagnosis.rules.robust_test import estimate_test
 from estimation.diagnosis.forward_selection import SearchOutcome, SearchSettings, candidate_blocks
 from estimation.diagnosis.record_fits import RecordFits, declared_regressor
 from estimation.diagnosis.results import Diagnosis, FoundEffect, RejectedEffect, found_delay, found_effect
@@ -263,6 +269,19 @@ def _diagnosis(model: IdentificationModel, before: IdentificationResult, outcome
                                                          outcome.weights, outcome.current.validation_error,
                                                          settings.min_improvement, settings.threshold)
     rejected = dict(outcome.rejected)
+    # each joint's diagnosed effects against the plain law, on that joint's validation error (another motion only)
+    mixed = plain_law_choice(model, after, [effect for effect, _, _ in selected], train, validate,
+                             min_improvement=settings.min_improvement, max_effects=settings.max_effects,
+                             threshold=settings.threshold)
+    if mixed is not None:
+        after = mixed.after
+        selected = [(effect, test.p_value, test.f_statistic) for effect in mixed.effects
+                    for test in (estimate_test(after.estimate, effect.parameter_names(model.robot)),)]
+        for position, (effect, reason) in enumerate(mixed.dropped):
+            index = next((index for index, block in blocks.items() if block.effect == effect),
+                         n_candidates + len(pinned) + 1 + position)
+            rejected[index] = RejectedEffect(effect.name, effect_channels(effect, model), reason,
+                                             candidate_label(effect))
     for item, reason in dropped:
         rejected[item.index] = RejectedEffect(item.effect.name, effect_channels(item.effect, model), reason,
                                               candidate_label(item.effect))

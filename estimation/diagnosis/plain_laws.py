@@ -1,0 +1,188 @@
+"""Each joint's diagnosed effects against the plain friction law, judged on that joint's validation error.
+
+The search (:mod:`estimation.diagnosis.forward_selection`) moves one effect at a time, ranked by the training
+record: on a joint it can adopt a law that validates (a coupled ``coulomb:tanh[q2-q3]`` that lowers joint 3's
+validation error by a quarter) and then refuse every law of the joint's own (against the adopted one, each turns
+negative), although the plain law, Coulomb friction and an offset on the joint, validates far better there (the
+Stäubli TX40's joint 3: 13.4 against 4.8 N²m², and 37 against 8.4 on the test record, ``benchmarks/README.md``).
+The forward search never compares the two models; this step does, once the search is over.
+
+**The plain model** is the declared model plus Coulomb friction and an offset on every joint that does not declare
+them (the model class of a plain least-squares fit), fitted on the same training samples (along the records moved
+by an adopted delay, shaped laws at their fitted shapes). A joint's torque equation is where its effects act, so
+the comparison is joint by joint: a joint whose validation MSE the plain model lowers by at least
+``min_improvement`` (relative) against the diagnosed model, and for which swapping only that joint's diagnosed
+effects for the plain law lowers it too, takes the plain law; the diagnosed effects acting on it are dropped (with
+them the joints a dropped coupled law acts on, which then take the plain law too). The model so **mixed** is
+adopted when it predicts the validation record better than the diagnosed one by the criterion of the default
+answer (:mod:`estimation.consistent.model_selection`: the geometric mean over channels of the validation MSE) and
+no friction or inertia term of it is below zero; a plain term within its noise there (Wald test at the search's
+threshold), of the wrong sign or absorbed by the base parameters is left out and the model refitted without it.
+The declared effects are those the diagnosis left (a declared term it held at zero stays so). Only when the
+validation record is another motion: on a repeat of the training motion the validation error does not measure
+how a law extrapolates, and the diagnosis is kept as the search left it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from dynamics.effects.linear import CoulombFriction, Effect, JointOffset
+from dynamics.effects.shaped import FRICTION_LAWS, shape_parameters
+from dynamics.measurements import Measurements
+from dynamics.models import IdentificationModel, ModelKind, build_model
+from estimation.diagnosis.candidates.delay_search import with_delay
+from estimation.diagnosis.rules.robust_test import estimate_test
+from estimation.diagnosis.sign_constraints import negative_terms
+from estimation.estimators.effect_blocks import ShapeSearchError, effect_rows
+from estimation.identification.fit import IdentificationResult, identify
+from estimation.identification.preprocessing_choice import geometric_mean
+from estimation.identification.repeated_motion import REPEAT_FRACTION, repeated_motion
+from estimation.preprocessing.delay import delayed
+
+__all__ = ["PlainLawChoice", "plain_law_choice", "plain_model_effects"]
+
+
+@dataclass(frozen=True)
+class PlainLawChoice:
+    """The mixed model and why (module docstring).
+
+    Attributes
+    ----------
+    after
+        The mixed model's fit (carrying the diagnosis's delay, if any).
+    effects
+        Its effects beyond the declared ones: the diagnosed effects kept, then the plain laws.
+    plain
+        The plain laws added, each a per-joint Coulomb law or offset.
+    dropped
+        ``[(effect, reason)]``: the diagnosed effects the plain law replaced.
+    scores
+        ``(diagnosed, mixed)``: the validation scores compared.
+    """
+
+    after: IdentificationResult
+    effects: tuple[Effect, ...]
+    plain: tuple[Effect, ...]
+    dropped: tuple[tuple[Effect, str], ...]
+    scores: tuple[float, float]
+
+
+def _score(result: IdentificationResult) -> float:
+    mse = result.validation.mse
+    return geometric_mean(np.array([mse[channel] for channel in result.validation.channels]))
+
+
+def plain_model_effects(model: IdentificationModel, joints: Sequence[int]) -> tuple[Effect, ...]:
+    """Coulomb friction and an offset on each of ``joints`` that the declared ``model`` does not give them."""
+    declared = {(effect.name, parameter) for effect in model.effects for parameter in effect.parameter_names(model.robot)}
+    laws = {joint for effect in model.effects if effect.name in FRICTION_LAWS
+            for joint in (range(model.robot.n_joints) if getattr(effect, "joints", None) is None else effect.joints)}
+    added: list[Effect] = []
+    for joint in joints:
+        for effect in (CoulombFriction(joints=(joint,)), JointOffset(joints=(joint,))):
+            if effect.name == "coulomb" and joint in laws:
+                continue
+            if not {(effect.name, name) for name in effect.parameter_names(model.robot)} & declared:
+                added.append(effect)
+    return tuple(added)
+
+
+def plain_law_choice(model: IdentificationModel, after: IdentificationResult, found: Sequence[Effect],
+                     train: Measurements, validate: Measurements, *, min_improvement: float,
+                     max_effects: int | None = None, threshold: float | None = None) -> PlainLawChoice | None:
+    """The mixed model when it validates better than the diagnosed one ``after`` (whose effects beyond the declared
+    ``model``'s are ``found``), else ``None`` (module docstring). ``train``, ``validate``: the records as given;
+    ``max_effects``: the most effects the diagnosis may name (the delay counted), which the mixed model respects;
+    ``threshold``: a plain term whose Wald p-value in the mixed model is not below it, or a Coulomb term estimated
+    below zero, is not named (the model is refitted without it), as the joint refit drops a finding within its
+    noise and the search a law of the wrong sign."""
+    if model.kind is ModelKind.EXTERNAL or after.validation is None or not found:
+        return None
+    if repeated_motion(train, validate) <= REPEAT_FRACTION:
+        return None
+    if after.delay is not None:  # along the records moved by the diagnosis's delay, held at its value
+        train, validate = delayed(train, after.delay.value), delayed(validate, after.delay.value)
+    starts = {value.name: value.value for value in after.shapes if value.name != "delay"}
+    n_joints = model.robot.n_joints
+    # the declared effects as the diagnosis left them (a declared term of the wrong sign held at zero stays so)
+    base = tuple(effect for effect in after.model.effects if effect not in found)
+
+    def fit(effects: tuple[Effect, ...]) -> IdentificationResult | None:
+        names = {parameter.name for effect in effects for parameter in shape_parameters(effect, model.robot)}
+        try:
+            return identify(build_model(model.robot, model.kind, base + effects), train, validate,
+                            weighted=after.estimate.method == "wls",
+                            shape_starts={name: value for name, value in starts.items() if name in names} or None,
+                            shape_search=False)
+        except (ShapeSearchError, ValueError, np.linalg.LinAlgError):
+            return None
+
+    plain = fit(plain_model_effects(model, range(n_joints)))
+    if plain is None:
+        return None
+    channels = model.channels
+    diagnosed_mse, plain_mse = after.validation.mse, plain.validation.mse
+
+    def better(result: IdentificationResult, row: int) -> bool:
+        return result.validation.mse[channels[row]] < (1.0 - min_improvement) * diagnosed_mse[channels[row]]
+
+    def closure(rows: set[int]) -> set[int]:  # a dropped coupled law leaves its other joints: they take the plain law
+        while True:
+            touched = set().union(*(set(_rows(model, effect)) for effect in found if set(_rows(model, effect)) & rows))
+            grown = rows | {row for row in touched if row < n_joints}
+            if grown == rows:
+                return rows
+            rows = grown
+
+    def swapped(rows: set[int]) -> tuple[Effect, ...]:
+        return tuple(effect for effect in found if not set(_rows(model, effect)) & rows) \
+            + plain_model_effects(model, sorted(rows))
+
+    # screened by the plain model, confirmed joint by joint: the diagnosed model with only that joint's effects
+    # swapped for the plain law must predict that joint better (the plain model's other laws also move the shared
+    # rigid-body parameters, which can lower a joint's error that its own law does not)
+    joints: set[int] = set()
+    for row in (row for row in range(n_joints) if better(plain, row)):
+        swap = fit(swapped(closure({row})))
+        if swap is not None and better(swap, row):
+            joints |= closure({row})
+    if not joints:
+        return None
+    why = ", ".join(f"{channels[row]} {diagnosed_mse[channels[row]]:.4g} -> {plain_mse[channels[row]]:.4g}"
+                    for row in sorted(joints) if better(plain, row))
+    kept = tuple(effect for effect in found if not set(_rows(model, effect)) & joints)
+    laws = plain_model_effects(model, sorted(joints))
+    if max_effects is not None and len(kept) + len(laws) + (after.delay is not None) > max_effects:
+        return None
+    mixed = fit(kept + laws)
+    if mixed is None:
+        return None
+    if threshold is not None:  # a plain term within its noise (an offset on a joint that has none) or of the wrong
+        # sign is not named
+        values = dict(zip(mixed.estimate.names, mixed.estimate.values))
+        weak = [law for law in laws  # (a term the base parameters absorb has no estimate of its own: not named)
+                if not set(law.parameter_names(model.robot)) <= set(values)
+                or estimate_test(mixed.estimate, law.parameter_names(model.robot)).p_value >= threshold
+                or (law.name == "coulomb" and any(values[name] < 0 for name in law.parameter_names(model.robot)))]
+        if weak:
+            laws = tuple(law for law in laws if law not in weak)
+            mixed = fit(kept + laws)
+            if mixed is None:
+                return None
+    scores = (_score(after), _score(mixed))
+    if not scores[1] < scores[0] or negative_terms(mixed):  # a friction or inertia below zero: not physical
+        return None
+    mixed = with_delay(mixed, after.delay)
+    dropped = tuple((effect, f"added, but on {', '.join(channels[row] for row in _rows(model, effect))} the plain "
+                             f"law (Coulomb friction and an offset) validates better (validation MSE {why}); the "
+                             f"model with it instead scores {scores[1]:.4g} against {scores[0]:.4g}: replaced")
+                    for effect in found if effect not in kept)
+    return PlainLawChoice(mixed, kept + laws, laws, dropped, scores)
+
+
+def _rows(model: IdentificationModel, effect: Effect) -> tuple[int, ...]:
+    return tuple(effect_rows(model.kind, model.robot, effect, model.n_channels))
