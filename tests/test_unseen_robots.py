@@ -159,18 +159,14 @@ def run_case(case: UnseenCase, folder: Path) -> dict:
 
 
 #: measured where a case misses its targets (issue 34's margins), with the figures of the day
-XFAIL_0 = ('measured (main 069ef4a + this branch): diagnose 1.03/2.09/2.43x the plain fit (default 1.00/1.02/1.03x): the offsets on tau2, tau3 (true -0.75, 1.0) adopted, then removed as within their noise (HAC Wald p = 0.015, 0.51: on this motion the gravity columns take them up), and an armature named on tau3 the truth does not hold')
-XFAIL_1 = ("measured (main 069ef4a + this branch): default 2.38/0.94/0.93/0.35x the plain fit (the derivatives chosen on the 4 s validation record; the torso's prismatic joint pays); diagnose 0.04/2.00/0.98/1.31x (derivatives from the training record's blocked CV, Butterworth 5 Hz; the plain fit's cut-off 12 Hz)")
-XFAIL_2 = ('measured (main 069ef4a + this branch): default 0.94/0.70/1.15/0.97x (met); diagnose 1.38/6.88/5.00/3.42x: offsets on tau2, tau3 not adopted, a sigmoid on tau4 for Coulomb friction and an offset (with friction="viscous,offset" it names the sign law on every joint, test 1.00/1.42/1.36/1.02 times the floor; the derivatives are not the cause)')
-XFAIL_3 = ("measured (main 069ef4a + this branch): default 19.9/0.13/2.06/0.81x the plain fit: Butterworth 5 Hz chosen on the validation record by the geometric mean over channels (joint 2's gain outweighs the torso's 20x loss; with --cutoff 2, the plain fit's, 0.93/0.31/0.65/0.60x); diagnose 1.08/0.97/2.09/3.46x")
-XFAIL_4 = ("measured (main 069ef4a + this branch): default 0.12/0.37/0.48/0.61x (met); diagnose 0.07/2.03/1.48/1.35x (derivatives from the training record's blocked CV; coulomb:tanh adopted where the truth is the sign law)")
-XFAIL_5 = ('measured (main 069ef4a + this branch): default 0.52/0.56/0.64/0.88/0.80/1.16/1.09x (met); diagnose 0.95/0.77/1.76/2.42/3.71/1.30/1.14x (coulomb:tanh and a sigmoid adopted where the truth is the sign law; no offset on tau2, tau4)')
+XFAIL_1 = ("measured (main d224120): default 2.38/0.94/0.93/0.35x the plain fit (the derivatives chosen on the 4 s validation record; the torso's prismatic joint pays); diagnose 0.04/1.83/0.98/1.32x (derivatives from the training record's blocked CV, Butterworth 5 Hz; the plain fit's cut-off 12 Hz)")
+XFAIL_3 = ("measured (main d224120): default 19.9/0.13/2.06/0.81x the plain fit: Butterworth 5 Hz chosen on the validation record by the geometric mean over channels (joint 2's gain outweighs the torso's 20x loss; with --cutoff 2, the plain fit's, 0.93/0.31/0.65/0.60x); diagnose 1.08/0.97/2.09/3.46x")
+XFAIL_4 = ("measured (main d224120): default 0.12/0.37/0.48/0.61x (met); diagnose 0.07/2.03/1.10/1.35x (derivatives from the training record's blocked CV; coulomb:tanh adopted where the truth is the sign law)")
 
 SHORT_VALIDATION = Log(2.0, 250.0)  # the TIAGo's: a validation record too short for the toolkit's own cut-off
 CASES = (
     UnseenCase("puma 3 joints, 12 s train, 2 s validation, logged dq", "puma560:3", Log(12.0, 250.0),
-               SHORT_VALIDATION, Log(6.0, 250.0),
-               xfail=XFAIL_0),
+               SHORT_VALIDATION, Log(6.0, 250.0)),
     UnseenCase("EMPS-like axis (1 prismatic joint), 3.7 s records at 1 kHz, no dq",
                str(HERE.parent / "dynamics" / "robots" / "emps.urdf"), Log(3.7, 1000.0, velocity=False),
                Log(3.7, 1000.0, velocity=False), Log(3.7, 1000.0, velocity=False)),
@@ -187,15 +183,14 @@ CASES = (
                Log(5.0, 1000.0, velocity=False), slow=True),
     UnseenCase("puma 6 joints, 500 Hz, 10 s / 3 s / 4 s, logged dq, stamped on receipt (bursts)", "puma560:6",
                Log(10.0, 500.0, bursts=8), Log(3.0, 500.0, bursts=3), Log(4.0, 500.0, bursts=3), slow=True,
-               xfail="measured (main 069ef4a + this branch): default 0.84/0.96/0.98/1.03/1.12/1.04x, 1.01x in total "
+               xfail="measured (main d224120): default 0.84/0.96/0.98/1.03/1.12/1.04x, 1.01x in total "
                      "(met within the floor's spread); diagnose 1.28/1.25/1.46/1.23/1.82/1.26x, 1.33x in total (its "
                      "consistent refit chosen; coulomb:tanh on tau1, no offset on tau2)"),
     UnseenCase("puma 6 joints, 3 s records at 100 Hz, no dq", "puma560:6", Log(3.0, 100.0, velocity=False),
                Log(3.0, 100.0, velocity=False), Log(3.0, 100.0, velocity=False), slow=True),
     UnseenCase("servo arm (4 joints), 100 Hz, 8 s / 2 s, logged dq, jittered and stalled", "servo_arm:4",
                Log(8.0, 100.0, jitter=0.4, stalls=3), Log(2.0, 100.0, jitter=0.4), Log(4.0, 100.0, jitter=0.4),
-               slow=True,
-               xfail=XFAIL_2),
+               slow=True),
     # the TIAGo's log: one long record, a 12 s validation window, slow motion and coarse encoders
     UnseenCase("torso + arm, a slow motion (0.05 Hz), 60 s / 12 s / 18 s, 1 mrad encoders, no dq",
                str(HERE / "data" / "torso_arm.urdf"), *(Log(seconds, 100.0, velocity=False, quantum=1e-3,
@@ -211,8 +206,7 @@ CASES = (
     UnseenCase("KUKA LWR4+ description (7 joints), 500 Hz, 12 s / 2 s / 6 s, 0.2 mrad encoders, no dq",
                "shared:kuka_lwr4/kuka_lwr4.urdf", Log(12.0, 500.0, velocity=False, quantum=2e-4),
                Log(2.0, 500.0, velocity=False, quantum=2e-4), Log(6.0, 500.0, velocity=False, quantum=2e-4),
-               slow=True,
-               xfail=XFAIL_5),
+               slow=True),
 )
 
 
