@@ -20,7 +20,7 @@ from estimation.consistent.model_selection import validation_base
 from estimation.estimators.least_squares import LeastSquares, WeightedLeastSquares, stack
 from estimation.identification.fit import identify
 from estimation.identification.prepared import PreparationSettings, prepare_records, read_files
-from estimation.identification.preprocessing_on_validation import on_same_samples, score_of
+from estimation.identification.preprocessing_on_validation import FITS, on_same_samples
 from estimation.identification.validation import compare
 from estimation.preprocessing.plan import Preprocessing, ValidationEvidence, prepare
 from oed.cli import main
@@ -95,7 +95,17 @@ def test_every_candidate_is_scored_on_the_same_recorded_validation_samples(setti
     np.testing.assert_array_equal(comparison.measured, raw.tau)
     np.testing.assert_array_equal(comparison.t, raw.t)
     assert comparison.mse == pytest.approx(best.validation_mse, rel=1e-9)
-    assert best.score == pytest.approx(score_of(comparison.mse, comparison.channels), rel=1e-12)
+    assert best.fit_mse[best.fit] == best.validation_mse
+    # the score: the mean over channels of its error over the smallest any candidate's fit reaches on that channel
+    pairs = [item.fit_mse[fit] for item in evidence if np.isfinite(item.score) for fit in FITS if fit in item.fit_mse]
+    smallest = {c: min(mse[c] for mse in pairs) for c in comparison.channels}
+    for item in evidence:
+        if np.isfinite(item.score):
+            expected = min(np.mean([item.fit_mse[fit][c] / smallest[c] for c in comparison.channels])
+                           for fit in item.fit_mse)
+            assert item.score == pytest.approx(expected, rel=1e-12)
+    assert best.score == pytest.approx(np.mean([comparison.mse[c] / smallest[c] for c in comparison.channels]),
+                                       rel=1e-9)
 
 
 def test_a_validation_that_repeats_the_training_motion_keeps_the_training_record_choice(setting):

@@ -16,9 +16,11 @@ answer is chosen by its error on a motion the fit did not see (issue 34). The ca
     (:func:`choose_prior_weight`; :data:`DEFAULT_PRIOR_WEIGHT` without a validation record).
 
 **Comparison.** Every candidate predicts the same validation samples and is scored against the channels as recorded
-by the geometric mean over channels of its MSE (no channel's unit dominates it; the ratio of two candidates' scores
-is the geometric mean of their per-channel ratios); the smallest wins, a tie going to the candidate that
-regularises most (:data:`PREFERENCE`, a fixed order: the answer does not depend on the order of a list).
+by the criterion of every choice on a validation record (:mod:`estimation.identification.relative_error`): the
+mean over channels of its MSE over the smallest any candidate reaches on that channel (no channel's unit dominates
+it, and no candidate wins by trading one joint's large loss for another's gain); the smallest wins, a tie going to
+the candidate that regularises most (:data:`PREFERENCE`, a fixed order: the answer does not depend on the order of
+a list).
 
 **No comparison.** When there is no validation record, or it repeats the training motion
 (:func:`estimation.identification.repeated_motion.repeated_motion`), nothing measured how a candidate extrapolates
@@ -56,7 +58,7 @@ from estimation.consistent.identification import (
 )
 from estimation.identification.fit import IdentificationResult, identify
 from estimation.identification.model_file import alternative_entry, effect_entries, model_file_document, with_model
-from estimation.identification.preprocessing_choice import geometric_mean
+from estimation.identification.relative_error import CRITERION, relative_scores
 from estimation.identification.repeated_motion import REPEAT_FRACTION, repeated_motion
 from estimation.identification.validation import Comparison
 
@@ -71,8 +73,6 @@ Selection = Literal["validation", "given", "no-validation", "repeated-motion"]
 CANDIDATES: tuple[CandidateName, ...] = ("ols", "wls", "consistent")
 #: ties go to the first of these: the candidate that regularises most
 PREFERENCE: tuple[CandidateName, ...] = ("consistent", "wls", "ols")
-#: what the candidates' scores are
-CRITERION = "geometric mean over channels of the validation MSE against the channels as recorded"
 #: errors that make the consistent fit no candidate (a failure of the toolkit's own choice never ends the run)
 _CONSISTENT_FAILURES = (ValueError, RuntimeError, NotImplementedError, np.linalg.LinAlgError)
 
@@ -141,14 +141,6 @@ class Candidate:
         return None if self.fit is None else self.fit.validation
 
     @property
-    def score(self) -> float | None:
-        """The geometric mean over channels of the validation MSE (``None`` without a validation record)."""
-        if self.validation is None:
-            return None
-        mse = self.validation.mse
-        return geometric_mean(np.array([mse[channel] for channel in self.validation.channels]))
-
-    @property
     def description(self) -> str:
         if self.name == "consistent":
             text = "physically consistent, the robot description's bodies as prior"
@@ -156,14 +148,15 @@ class Candidate:
             text = {"ols": "ordinary least squares", "wls": "channel-weighted least squares"}[self.name]
         return f"{text}, {self.note}" if self.note else text
 
-    def to_dict(self) -> dict[str, Any]:
-        """``{name, description, available, reason, validation_mse, train_mse, score[, prior_weight]}``."""
+    def to_dict(self, score: float | None = None) -> dict[str, Any]:
+        """``{name, description, available, reason, validation_mse, train_mse, score[, prior_weight]}``; ``score``:
+        its score among the candidates it was compared with (:func:`scores`)."""
         document: dict[str, Any] = {
             "name": self.name, "description": self.description, "available": self.fit is not None,
             "reason": self.unavailable,
             "validation_mse": None if self.validation is None else self.validation.mse,
             "train_mse": None if self.train is None else self.train.mse,
-            "score": self.score,
+            "score": score,
         }
         if isinstance(self.fit, ConsistentResult):
             document["prior_weight"] = self.fit.estimate.prior_weight
@@ -226,6 +219,11 @@ class ModelSelection:
         return None
 
     @property
+    def scores(self) -> dict[str, float]:
+        """Each candidate's validation score among the others (:func:`scores`), by name."""
+        return scores(self.candidates)
+
+    @property
     def alternatives(self) -> tuple[Candidate, ...]:
         """The fitted candidates other than the chosen one."""
         return tuple(c for c in self.candidates if c.fit is not None and c.name != self.chosen)
@@ -238,12 +236,13 @@ class ModelSelection:
         """
         return {"chosen": self.chosen, "selection": self.selection, "reason": self.reason, "criterion": CRITERION,
                 "base": self.base, "repeat_ratio": self.repeat_ratio,
-                "candidates": [candidate.to_dict() for candidate in self.candidates]}
+                "candidates": [candidate.to_dict(self.scores.get(candidate.name)) for candidate in self.candidates]}
 
     def lines(self) -> list[str]:
         """The summary: each candidate's validation MSE side by side, the choice and why."""
         lines = [f"model: {self.chosen} ({self.chosen_candidate.description}); {self.reason}"]
         channels = next((c.validation.channels for c in self.candidates if c.validation is not None), None)
+        scored = self.scores
         if channels is not None:
             lines.append("  validation MSE (vs recorded)  " + "  ".join(f"{c:>10s}" for c in channels)
                          + f"  {'score':>10s}")
@@ -254,7 +253,7 @@ class ModelSelection:
             elif candidate.validation is not None:
                 mse = candidate.validation.mse
                 lines.append(f"  {mark} {candidate.name:<27s} " + "  ".join(f"{mse[c]:10.4g}" for c in channels)
-                             + f"  {candidate.score:10.4g}")
+                             + f"  {scored.get(candidate.name, float('inf')):10.4g}")
             else:
                 lines.append(f"  {mark} {candidate.name:<27s} (no validation record)")
         return lines
@@ -334,13 +333,22 @@ def validation_base(unconstrained: Callable[[str], IdentificationResult],
                     base: Literal["ols", "wls"]) -> Literal["ols", "wls"]:
     """The unconstrained fit the consistent candidate is refitted from when the validation record is another
     motion: of ``ols`` and ``wls`` (``unconstrained(name)`` fits them), the one of the smaller validation score
-    (:data:`CRITERION`; a tie to ``base``, the training record's own preference). The weighting is a choice like the
-    others, made on the motion the choice did not see when there is one."""
-    scores = {name: Candidate(name, unconstrained(name)).score for name in ("ols", "wls")}
-    finite = {name: score for name, score in scores.items() if score is not None and math.isfinite(score)}
+    (:data:`CRITERION`, between the two; a tie to ``base``, the training record's own preference). The weighting is
+    a choice like the others, made on the motion the choice did not see when there is one."""
+    finite = scores([Candidate(name, unconstrained(name)) for name in ("ols", "wls")])
     if len(finite) < 2 or finite["ols"] == finite["wls"]:
         return base
     return min(finite, key=finite.__getitem__)  # type: ignore[return-value]
+
+
+def scores(candidates: Sequence[Candidate]) -> dict[str, float]:
+    """The finite validation scores (:data:`CRITERION`) of the fitted ``candidates`` with a validation record,
+    each relative to the others' errors, by name; the others are left out."""
+    errors = {c.name: c.validation.mse for c in candidates if c.fit is not None and c.validation is not None}
+    if not errors:
+        return {}
+    channels = next(c.validation.channels for c in candidates if c.fit is not None and c.validation is not None)
+    return {name: score for name, score in relative_scores(errors, channels).items() if math.isfinite(score)}
 
 
 def select_fitted(candidates: Sequence[Candidate], train: Measurements, validation: Measurements | None = None, *,
@@ -405,17 +413,16 @@ def _choose(candidates: tuple[Candidate, ...], given: CandidateName | None, base
         return (base, "no-validation" if ratio is None else "repeated-motion",  # type: ignore[return-value]
                 f"{why}, and {available_reason(candidates)}: the weighting the training record's blocked "
                 "cross-validation prefers is kept")
-    scores = {name: candidate.score for name, candidate in available.items()
-              if candidate.score is not None and math.isfinite(candidate.score)}
-    if not scores:
+    scored = scores(tuple(available.values()))
+    if not scored:
         return (base, "validation",  # type: ignore[return-value]
                 "no candidate has a finite validation error: the weighting the training record's blocked "
                 "cross-validation prefers is kept")
-    best = min(scores.values())
-    chosen = next(name for name in PREFERENCE if name in scores and scores[name] == best)
-    others = ", ".join(f"{name} {score / best:.3g}x" for name, score in scores.items() if name != chosen)
-    return chosen, "validation", (f"the smallest validation error on another motion ({CRITERION}; the others: "
-                                  f"{others or 'none'})")
+    best = min(scored.values())
+    chosen = next(name for name in PREFERENCE if name in scored and scored[name] == best)
+    others = ", ".join(f"{name} {score:.3g}" for name, score in scored.items() if name != chosen)
+    return chosen, "validation", (f"the smallest validation error on another motion ({CRITERION}: {chosen} "
+                                  f"{best:.3g}; the others: {others or 'none'})")
 
 
 def available_reason(candidates: tuple[Candidate, ...]) -> str:

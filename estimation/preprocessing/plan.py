@@ -112,8 +112,9 @@ class ValidationEvidence:
     preprocessing
         The candidate.
     score
-        Geometric mean over the channels of the validation MSE of the better of the fits tried (``inf`` when the
-        candidate could not run or was not scored on the same samples as the others).
+        The score of the better of the fits tried: the mean over the channels of the validation MSE, each over the
+        smallest any candidate's fit reaches on it (:mod:`estimation.identification.relative_error`; ``inf``
+        when the candidate could not run or was not scored on the same samples as the others).
     validation_mse
         Per channel, that fit's validation MSE against the channels as recorded, at the recorded time stamps.
     fit
@@ -126,6 +127,8 @@ class ValidationEvidence:
         What scoring it cost.
     samples
         The recorded validation samples its score is taken on (the same for every candidate compared).
+    fit_mse
+        Each fit's validation MSE per channel (what the scores are computed from).
     """
 
     preprocessing: Preprocessing
@@ -136,15 +139,16 @@ class ValidationEvidence:
     error: str | None = None
     seconds: float = 0.0
     samples: int = 0
+    fit_mse: dict[str, dict[str, float]] = field(default_factory=dict)
 
     def to_dict(self) -> dict[str, Any]:
         """The candidate's keys (as :meth:`Preprocessing.to_dict`) with ``score``, ``validation_mse``, ``fit``,
-        ``fit_scores``, ``seconds``, ``samples`` (and ``error``)."""
+        ``fit_scores``, ``fit_validation_mse``, ``seconds``, ``samples`` (and ``error``)."""
         document = self.preprocessing.to_dict()
         document.update(score=self.score if np.isfinite(self.score) else None, validation_mse=self.validation_mse,
                         fit=self.fit, fit_scores={name: value if np.isfinite(value) else None
                                                   for name, value in self.fit_scores.items()},
-                        seconds=round(self.seconds, 3), samples=self.samples)
+                        fit_validation_mse=self.fit_mse, seconds=round(self.seconds, 3), samples=self.samples)
         if self.error is not None:
             document["error"] = self.error
         return document
