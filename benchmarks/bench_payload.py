@@ -5,8 +5,8 @@ Setting: the built-in PUMA 560 with its 6 joints and viscous friction; its model
 ``--robot-seconds`` (default 30) without the payload, along ``--robot-record``'s motion: ``designed`` (the default, the
 toolkit's own workflow: ``oed design``'s default excitation for the internal model with viscous friction, one period of
 5 s, 5 harmonics, 4 starts, within the same bounds, recorded over whole periods) or ``random`` (a random Fourier series
-of 10 s periods); torque noise 1 % of each joint's range along a random motion with the payload; a 2 kg payload of non-diagonal
-inertia fixed to link 6 (:data:`PAYLOAD`). The payload excitation is designed with
+of 10 s periods, the default until 2026-11-27); torque noise 1 % of each joint's range (along a random motion with the
+payload); a 2 kg payload of non-diagonal inertia fixed to link 6 (:data:`PAYLOAD`). The payload excitation is designed with
 :func:`oed.payload_design.design_payload_excitation` (one period of 10 s, 10 harmonics, ``--starts`` starts) within the
 URDF-like limits of the description scaled by 0.9 and accelerations of 15 rad/s² (joints 1–3) and 20 (4–6); the
 random excitations are the design problem's own random starts (random Fourier series scaled into 30–90 % of the same
@@ -22,8 +22,9 @@ excitations' median, for the mass and for the centre of mass (its worst axis).
 
 Run: ``python -m benchmarks.bench_payload [--random 12] [--starts 4] [--simulator model|pinocchio] [--seed 0]
 [--robot-share bounded|counted|ignored] [--allowance A] [--robot-record designed|random] [--robot-seconds S]``
-(the robot model's share: by default at most the median of
-12 random excitations' (times ``A``, default 1), or in the criterion, or free).
+(the robot model's share: by default at most the median of 12 random excitations' (times ``A``, default 1), or in the
+criterion, or free). The target holds with the designed robot record, not with a random one of any length measured
+(30–300 s): see benchmarks/README.md.
 """
 
 from __future__ import annotations
