@@ -15,15 +15,17 @@ mass). One period is the experiment (``frequency_hz`` sets its length: by defaul
 given: the part of the payload's uncertainty the payload experiment is there to shrink. The robot model's own share
 (its parameters' covariance propagated through its prediction) cannot be shrunk by a payload experiment, but it
 depends on the motion: it grows where the motion leaves what the robot's own records covered, and a design for the
-record's noise alone drives the motion there (measured on the 6-joint PUMA, benchmarks/bench_payload.py: the record's
-noise part of the mass's standard deviation 2.6–2.7x below random excitations' median, its robot share 4x above, the
-total 2.2x worse). So by default (``robot_share="bounded"``) a constraint holds the robot model's share of the
+record's noise alone can drive the motion there (measured on the 6-joint PUMA, benchmarks/bench_payload.py, its robot
+model identified on a random record: the record's noise part of the mass's standard deviation 2.6–2.7x below random
+excitations' median, its robot share 4x above, the total 2.2x worse). So by default (``robot_share="bounded"``) a constraint holds the robot model's share of the
 variance of the mass and of each axis of the centre of mass at most the median over :data:`REFERENCE_EXCITATIONS`
 random excitations of the same period and bounds (:class:`oed.payload_design.constraints.RobotShareBound`): the design
-never leaves the robot model's share, and so the total, worse than a random excitation would. The price, measured on
-the PUMA: the mass's record-noise standard deviation 1.6–1.9x below random excitations' (not 2.6x), the centre of
-mass's 2.4–3.3x; in total 1.3–1.5x and 1.6–2.1x better than random (benchmarks/README.md, with the trade-off against
-``allowance``, the ratio of standard deviations the share may exceed the reference by). ``"counted"``
+never leaves the robot model's share, and so the total, worse than a random excitation would. Measured on the PUMA
+with its robot model identified on ``oed design``'s excitation (10–120 s), the bound costs nothing: the mass's
+record-noise standard deviation 2.5–2.9x below random excitations', the centre of mass's 2.9–4.6x, the robot share
+no larger, in total 1.3–2.2x and 1.6–3.9x better than random. With a robot model identified on a random record (of any
+length: the bound is relative) it is the price: the mass's record noise 1.6–2.0x (benchmarks/README.md, with the
+trade-off against ``allowance``, the ratio of standard deviations the share may exceed the reference by). ``"counted"``
 (``--payload-robot-share``) puts the share in the criterion (the information of the stacked columns ``[Y_k | Y_b]``),
 ``"ignored"`` (``--payload-noise-only``) leaves it free.
 
