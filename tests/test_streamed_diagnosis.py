@@ -115,10 +115,10 @@ def test_filter_path_errors_against_the_recording_as_in_memory(model, files):
     assert [(e.spec, e.channels) for e in memory.effects] == [("offset", ("tau1",)), ("coulomb", ("tau2",))]
     replaced = next(r for r in memory.rejected if r.spec == "coulomb:tanh" and r.channels == ("tau2",))
     assert "the plain law (Coulomb friction and an offset) validates better" in replaced.reason
-    assert relative(list(streamed.validation_mse["before"].values()), list(memory.before.validation.mse.values())) < 1e-8
-    assert relative(list(streamed.train_mse["before"].values()), list(memory.before.train.mse.values())) < 1e-8
+    assert relative(list(streamed.before.validation.mse.values()), list(memory.before.validation.mse.values())) < 1e-8
+    assert relative(list(streamed.before.train.mse.values()), list(memory.before.train.mse.values())) < 1e-8
     # the sign law of the truth validates better than the tanh law at its first optimum on joint 2
-    assert memory.after.validation.mse["tau2"] < streamed.validation_mse["after"]["tau2"]
+    assert memory.after.validation.mse["tau2"] < streamed.after.validation.mse["tau2"]
 
 
 def test_process_pool_gives_the_serial_diagnosis(model, files):
