@@ -43,7 +43,7 @@ from estimation.identification.preprocessing_choice import geometric_mean
 from estimation.identification.repeated_motion import REPEAT_FRACTION, repeated_motion
 from estimation.preprocessing.delay import delayed
 
-__all__ = ["PlainLawChoice", "plain_law_choice", "plain_model_effects"]
+__all__ = ["PlainLawChoice", "plain_law_choice", "plain_model", "plain_model_effects"]
 
 
 @dataclass(frozen=True)
@@ -89,6 +89,14 @@ def plain_model_effects(model: IdentificationModel, joints: Sequence[int]) -> tu
             if not {(effect.name, name) for name in effect.parameter_names(model.robot)} & declared:
                 added.append(effect)
     return tuple(added)
+
+
+def plain_model(model: IdentificationModel) -> IdentificationModel:
+    """The plain model of ``model`` (module docstring): its effects plus Coulomb friction and an offset on every
+    joint that does not declare them (:func:`plain_model_effects`); ``model`` itself when nothing is added (the
+    external model, where friction has no rows)."""
+    added = plain_model_effects(model, range(model.robot.n_joints)) if model.kind is not ModelKind.EXTERNAL else ()
+    return build_model(model.robot, model.kind, (*model.effects, *added)) if added else model
 
 
 def plain_law_choice(model: IdentificationModel, after: IdentificationResult, found: Sequence[Effect],

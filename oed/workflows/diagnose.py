@@ -29,6 +29,7 @@ from dynamics.runtime.progress import step
 from dynamics.transmission import Transmission
 from estimation.consistent.model_selection import ModelSelection, select_refit
 from estimation.diagnosis.candidates.coupling import coupling_candidates
+from estimation.diagnosis.plain_laws import plain_model
 from dynamics.runtime.report_document import Report, figure_path, report_format
 from estimation.diagnosis.report import diagnosis_report, plot_residuals, plot_trace
 from estimation.diagnosis.results import Diagnosis, runner_up_line
@@ -351,7 +352,8 @@ def diagnosis_in_memory(args: DiagnoseOptions, model: IdentificationModel, trans
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         records = prepare_records(model, args.data, args.validate, args.test or (),  # reports its steps
-                                  settings=replace(preparation_settings(args, transmission, IN_MEMORY), plan=plan))
+                                  settings=replace(preparation_settings(args, transmission, IN_MEMORY), plan=plan,
+                                                   **derivatives_on_validation(model, delay)))
         with step("noise floors of the held-out records"):
             validation_floor, test_floor = record_floors(records, model, args.frequency, args.jobs)
         with step("diagnosis in memory"):
@@ -367,6 +369,20 @@ def diagnosis_in_memory(args: DiagnoseOptions, model: IdentificationModel, trans
     return Diagnosed(diagnosis, records.preprocessing.to_dict(), records.preprocessing.describe(),
                      (*caught_messages(caught), *notes), records=records, untouched=untouched, selection=selection,
                      transmission=transmission, notes=notes)
+
+
+def derivatives_on_validation(model: IdentificationModel, delay: DelayBounds | None) -> dict[str, Any]:
+    """How the derivatives are chosen again on a validation record of another motion, as ``oed identify`` chooses
+    them (:mod:`estimation.identification.preprocessing_on_validation`), as keywords of
+    :class:`~estimation.identification.prepared.PreparationSettings`: each candidate scored by the OLS and WLS fits
+    of the plain model (:func:`estimation.diagnosis.plain_laws.plain_model`: the declared model plus Coulomb
+    friction and an offset on every joint), not of the declared one, whose missing friction would otherwise decide
+    the filter (a low cut-off smooths the targets' jumps at each velocity reversal, which then look like a shaped
+    law). None with a delay search or declared shaped laws (as ``oed identify``: fitted by a search each); the
+    training record's choice is kept then."""
+    if delay is not None or model_has_shapes(model):
+        return {}
+    return {"validation_fits": ("ols", "wls"), "validation_model": plain_model(model)}
 
 
 def diagnose_document(args: DiagnoseOptions, diagnosed: Diagnosed) -> tuple[dict[str, Any], tuple[str, ...]]:
