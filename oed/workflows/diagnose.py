@@ -278,7 +278,8 @@ def run_diagnose(args: DiagnoseOptions, *, say: Callable[[str], None]) -> Diagno
         model = build_model(robot, args.model, effects)
         check_shaped_effects_kept(effects, model)
         decision = decide_path(args, model, task="diagnosing", bytes_per_value=IN_MEMORY.bytes_per_value,
-                               in_memory_only=lambda: in_memory_only(args, model, delay), say=say)
+                               in_memory_only=lambda: in_memory_only(args, model, delay), say=say,
+                               **derivatives_on_validation(model, delay))
         diagnosed = (diagnosis_streamed(args, friction, decision.plan, decision.findings) if decision.stream
                      else diagnosis_in_memory(args, model, transmission, delay, decision.plan))
     document, messages = diagnose_document(args, diagnosed)
@@ -374,7 +375,8 @@ def diagnosis_in_memory(args: DiagnoseOptions, model: IdentificationModel, trans
 def derivatives_on_validation(model: IdentificationModel, delay: DelayBounds | None) -> dict[str, Any]:
     """How the derivatives are chosen again on a validation record of another motion, as ``oed identify`` chooses
     them (:mod:`estimation.identification.preprocessing_on_validation`), as keywords of
-    :class:`~estimation.identification.prepared.PreparationSettings`: each candidate scored by the OLS and WLS fits
+    :class:`~estimation.identification.prepared.PreparationSettings` and of
+    :func:`~oed.workflows.memory_path.decide_path` (the streamed path chooses alike): each candidate scored by the OLS and WLS fits
     of the plain model (:func:`estimation.diagnosis.plain_laws.plain_model`: the declared model plus Coulomb
     friction and an offset on every joint), not of the declared one, whose missing friction would otherwise decide
     the filter (a low cut-off smooths the targets' jumps at each velocity reversal, which then look like a shaped
@@ -636,7 +638,7 @@ def diagnosis_streamed(args: DiagnoseOptions, friction: str, plan: Preprocessing
         warnings.simplefilter("always")
         if plan is None:
             with findings.reading():
-                plan = streamed_choice(args, model).chosen
+                plan = streamed_choice(args, model, **derivatives_on_validation(model, None)).chosen
         with executor_for(args) as executor:
             diagnosis = diagnose_files(model, args.data, args.validate, chunk_size=chunk_size, alpha=args.alpha,
                                        max_effects=args.max_effects, subsample=args.subsample,
