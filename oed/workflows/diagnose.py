@@ -380,7 +380,7 @@ def derivatives_on_validation(model: IdentificationModel, delay: DelayBounds | N
     of the plain model (:func:`estimation.diagnosis.plain_laws.plain_model`: the declared model plus Coulomb
     friction and an offset on every joint), not of the declared one, whose missing friction would otherwise decide
     the filter (a low cut-off smooths the targets' jumps at each velocity reversal, which then look like a shaped
-    law). None with a delay search or declared shaped laws (as ``oed identify``: fitted by a search each); the
+    law). None with a declared delay bound or declared shaped laws (as ``oed identify``: fitted by a search each); the
     training record's choice is kept then."""
     if delay is not None or model_has_shapes(model):
         return {}
