@@ -28,6 +28,7 @@ from dynamics.runtime.processes import run_tasks, worker_count
 from dynamics.runtime.progress import step
 from dynamics.transmission import Transmission
 from estimation.consistent.model_selection import ModelSelection, select_refit
+from estimation.identification.relative_error import relative_scores
 from estimation.diagnosis.candidates.coupling import coupling_candidates
 from estimation.diagnosis.plain_laws import plain_model
 from dynamics.runtime.report_document import Report, figure_path, report_format
@@ -359,6 +360,10 @@ def diagnosis_in_memory(args: DiagnoseOptions, model: IdentificationModel, trans
             validation_floor, test_floor = record_floors(records, model, args.frequency, args.jobs)
         with step("diagnosis in memory"):
             diagnosis = diagnose_records(args, model, transmission, records, delay, validation_floor)
+        selection = None
+        if diagnosis.swap is not None:
+            with step("the plain-law swap judged on the default answer's candidates"):
+                diagnosis, selection = judged_swap(args, diagnosis, records)
         untouched = test_errors(records, diagnosis, test_floor)
         trivial, notes = trivial_predictors(diagnosis.after, records.validation.measurements)
         diagnosis = replace(diagnosis, trivial=trivial)
@@ -366,7 +371,8 @@ def diagnosis_in_memory(args: DiagnoseOptions, model: IdentificationModel, trans
         repeat = repeated_motion_note(records.train.measurements, records.validation.measurements)
         notes += () if repeat is None else (repeat,)
         with step("the default answer: the adopted model or its consistent refit"):
-            selection = diagnosis_selection(args, diagnosis, records)
+            if selection is None:
+                selection = diagnosis_selection(args, diagnosis, records)
     return Diagnosed(diagnosis, records.preprocessing.to_dict(), records.preprocessing.describe(),
                      (*caught_messages(caught), *notes), records=records, untouched=untouched, selection=selection,
                      transmission=transmission, notes=notes)
@@ -445,6 +451,33 @@ def diagnosis_selection(args: DiagnoseOptions, diagnosis: Diagnosis, records: Pr
                         given="consistent" if args.consistent else None,
                         consistent=consistent_settings(args, diagnosis.after.model.robot),
                         note="with the diagnosed effects")
+
+
+def judged_swap(args: DiagnoseOptions, diagnosis: Diagnosis,
+                records: PreparedRecords) -> tuple[Diagnosis, ModelSelection]:
+    """The diagnosis whose default answer predicts the validation record better: ``diagnosis`` or its
+    :attr:`~estimation.diagnosis.results.Diagnosis.swap` (the mixed model of
+    :mod:`estimation.diagnosis.plain_laws`, refused on the unconstrained fits' score alone), with its selection.
+
+    Each model's answer is the better of it as fitted and its consistent refit (:func:`diagnosis_selection`); the
+    two answers are compared by the criterion of the default answer
+    (:func:`estimation.identification.relative_error.relative_scores`) on the same validation samples, the
+    diagnosed model kept on a tie. Without a validation record of another motion, or with ``--consistent`` given,
+    nothing is compared there beyond what the selection itself does, and the swap stays refused. One consistent
+    refit more than the diagnosis alone, and only when a swap was refused."""
+    kept = replace(diagnosis, swap=None)
+    selection = diagnosis_selection(args, kept, records)
+    if selection.selection != "validation" or args.consistent:
+        return kept, selection
+    swapped = replace(diagnosis.swap, swap=None, runner_up=diagnosis.runner_up,
+                      runner_up_reason=diagnosis.runner_up_reason)
+    other = diagnosis_selection(args, swapped, records)
+    answers = {"diagnosed": selection.chosen_candidate, "swap": other.chosen_candidate}
+    if any(answer.fit is None or answer.validation is None for answer in answers.values()):
+        return kept, selection
+    channels = answers["diagnosed"].validation.channels
+    scored = relative_scores({name: answer.validation.mse for name, answer in answers.items()}, channels)
+    return (swapped, other) if scored["swap"] < scored["diagnosed"] else (kept, selection)
 
 
 def chosen_lines(validation: dict[str, Any]) -> list[str]:
