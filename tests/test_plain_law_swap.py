@@ -17,7 +17,8 @@ CHANNELS = ("tau1", "tau2", "tau3")
 
 def _selection(mse: list[float], selection: str = "validation") -> SimpleNamespace:
     validation = SimpleNamespace(channels=CHANNELS, mse=dict(zip(CHANNELS, mse)))
-    return SimpleNamespace(selection=selection, chosen_candidate=SimpleNamespace(fit=object(), validation=validation))
+    return SimpleNamespace(selection=selection, chosen="consistent",
+                           chosen_candidate=SimpleNamespace(fit=object(), validation=validation))
 
 
 @pytest.fixture
@@ -36,7 +37,10 @@ def judged(monkeypatch):
         swap = Diagnosis(effects=(), rejected=(), before=None, after="swap", residuals=None)
         diagnosis = Diagnosis(effects=(), rejected=(), before=None, after="kept", residuals=None, runner_up="rival",
                               swap=swap)
-        chosen, selected = workflow.judged_swap(SimpleNamespace(consistent=consistent), diagnosis, None)
+        chosen, selected, note = workflow.judged_swap(SimpleNamespace(consistent=consistent), diagnosis, None)
+        assert (note is None) == (calls == ["kept"])
+        if note is not None:
+            assert note.endswith("adopted" if chosen.after == "swap" else "refused")
         return chosen, selected, calls
     return run
 

@@ -360,14 +360,14 @@ def diagnosis_in_memory(args: DiagnoseOptions, model: IdentificationModel, trans
             validation_floor, test_floor = record_floors(records, model, args.frequency, args.jobs)
         with step("diagnosis in memory"):
             diagnosis = diagnose_records(args, model, transmission, records, delay, validation_floor)
-        selection = None
+        selection, swap_note = None, None
         if diagnosis.swap is not None:
             with step("the plain-law swap judged on the default answer's candidates"):
-                diagnosis, selection = judged_swap(args, diagnosis, records)
+                diagnosis, selection, swap_note = judged_swap(args, diagnosis, records)
         untouched = test_errors(records, diagnosis, test_floor)
         trivial, notes = trivial_predictors(diagnosis.after, records.validation.measurements)
         diagnosis = replace(diagnosis, trivial=trivial)
-        notes += worse_after(diagnosis)
+        notes += worse_after(diagnosis) + (() if swap_note is None else (swap_note,))
         repeat = repeated_motion_note(records.train.measurements, records.validation.measurements)
         notes += () if repeat is None else (repeat,)
         with step("the default answer: the adopted model or its consistent refit"):
@@ -454,7 +454,7 @@ def diagnosis_selection(args: DiagnoseOptions, diagnosis: Diagnosis, records: Pr
 
 
 def judged_swap(args: DiagnoseOptions, diagnosis: Diagnosis,
-                records: PreparedRecords) -> tuple[Diagnosis, ModelSelection]:
+                records: PreparedRecords) -> tuple[Diagnosis, ModelSelection, str | None]:
     """The diagnosis whose default answer predicts the validation record better: ``diagnosis`` or its
     :attr:`~estimation.diagnosis.results.Diagnosis.swap` (the mixed model of
     :mod:`estimation.diagnosis.plain_laws`, refused on the unconstrained fits' score alone), with its selection.
@@ -464,20 +464,26 @@ def judged_swap(args: DiagnoseOptions, diagnosis: Diagnosis,
     (:func:`estimation.identification.relative_error.relative_scores`) on the same validation samples, the
     diagnosed model kept on a tie. Without a validation record of another motion, or with ``--consistent`` given,
     nothing is compared there beyond what the selection itself does, and the swap stays refused. One consistent
-    refit more than the diagnosis alone, and only when a swap was refused."""
+    refit more than the diagnosis alone, and only when a swap was refused. The third item: a note saying what was
+    compared and chosen (``None`` when nothing was)."""
     kept = replace(diagnosis, swap=None)
     selection = diagnosis_selection(args, kept, records)
     if selection.selection != "validation" or args.consistent:
-        return kept, selection
+        return kept, selection, None
     swapped = replace(diagnosis.swap, swap=None, runner_up=diagnosis.runner_up,
                       runner_up_reason=diagnosis.runner_up_reason)
     other = diagnosis_selection(args, swapped, records)
     answers = {"diagnosed": selection.chosen_candidate, "swap": other.chosen_candidate}
     if any(answer.fit is None or answer.validation is None for answer in answers.values()):
-        return kept, selection
+        return kept, selection, None
     channels = answers["diagnosed"].validation.channels
     scored = relative_scores({name: answer.validation.mse for name, answer in answers.items()}, channels)
-    return (swapped, other) if scored["swap"] < scored["diagnosed"] else (kept, selection)
+    adopted = scored["swap"] < scored["diagnosed"]
+    note = (f"the plain-law swap, refused on the unconstrained fits, judged on the default answer's candidates: the "
+            f"model with the plain law ({other.chosen}) {scored['swap']:.4g} against the diagnosed model "
+            f"({selection.chosen}) {scored['diagnosed']:.4g} on the validation record (relative error): "
+            + ("adopted" if adopted else "refused"))
+    return (swapped, other, note) if adopted else (kept, selection, note)
 
 
 def chosen_lines(validation: dict[str, Any]) -> list[str]:
