@@ -5,6 +5,7 @@ the plain law (Coulomb friction and an offset) when that law predicts the joint 
 
 from __future__ import annotations
 
+from dataclasses import replace
 from types import SimpleNamespace
 
 import numpy as np
@@ -109,3 +110,30 @@ def test_a_plain_term_within_its_noise_is_not_named():
                               threshold=1e-3 / 50)
     assert choice is not None
     assert [(effect.name, effect.joints) for effect in choice.plain] == [("offset", (2,))]
+
+
+def test_a_swap_refused_on_the_fits_score_alone_is_returned_only_when_asked(records):
+    """The diagnosed model made to validate far better on joints 1 and 3 (its predictions there moved toward the
+    record) keeps joint 2's screen and confirmation but wins the score: the mixed model is refused (``None``), and
+    with ``keep_refused`` returned marked ``adopted=False`` for the default answer to judge
+    (oed.workflows.diagnose.judged_swap)."""
+    declared, made = records
+    wrong = Spring(joints=(1,))
+    after = identify(build_model(declared.robot, "internal", declared.effects + (wrong,)), made["train"], made["other"])
+    arguments = (declared, after, [wrong], made["train"], made["other"])
+    adopted = plain_law_choice(*arguments, min_improvement=0.01, keep_refused=True)
+    assert adopted is not None and adopted.adopted
+    validation = after.validation
+    predicted = validation.predicted.copy()
+    for column in (0, 2):
+        predicted[:, column] = validation.measured[:, column] + 0.01 * (predicted[:, column]
+                                                                       - validation.measured[:, column])
+    better = replace(after, validation=replace(validation, predicted=predicted))
+    assert better.validation.mse["tau2"] == pytest.approx(after.validation.mse["tau2"])
+    arguments = (declared, better, [wrong], made["train"], made["other"])
+    assert plain_law_choice(*arguments, min_improvement=0.01) is None
+    refused = plain_law_choice(*arguments, min_improvement=0.01, keep_refused=True)
+    assert refused is not None and not refused.adopted
+    assert not refused.scores[1] < refused.scores[0]
+    assert [(effect.name, effect.joints) for effect in refused.plain] == [("coulomb", (1,)), ("offset", (1,))]
+    assert "as fitted, but the better of it as fitted and its consistent refit" in refused.dropped[0][1]

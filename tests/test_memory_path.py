@@ -142,9 +142,16 @@ def test_in_memory_and_streamed_make_the_same_choices(tmp_path, records, capsys,
     assert "over the budget of 1 kB: streaming" in error
     assert memory["diagnosis_path"] == "in-memory" and forced["diagnosis_path"] == budget["diagnosis_path"] == "streamed"
     assert memory["preprocessing"]["method"] == ("butterworth" if derivatives else "fourier")  # both paths exercised
-    plan = {key: value for key, value in memory["preprocessing"].items() if key not in ("candidates", "trimmed_s")}
+    plan = {key: value for key, value in memory["preprocessing"].items()
+            if key not in ("candidates", "trimmed_s", "validation_candidates")}
+
+    def untimed(document):  # the validation's scores (chosen again there, by the plain model), without their seconds
+        return [{key: value for key, value in candidate.items() if key != "seconds"}
+                for candidate in document["preprocessing"].get("validation_candidates", [])]
+
     for streamed in (forced, budget):
         assert {key: streamed["preprocessing"][key] for key in plan} == plan
+        assert untimed(streamed) == untimed(memory)
         assert [c["score"] for c in streamed["preprocessing"]["candidates"]] == \
             [c["score"] for c in memory["preprocessing"]["candidates"]]
         assert _effects(streamed) == _effects(memory)

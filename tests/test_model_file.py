@@ -90,10 +90,12 @@ def test_predict_reproduces_the_validation_mse_of_a_shaped_fit_with_a_delay(reco
 def test_predict_reproduces_the_diagnosis_after_mse(records):
     folder, (train, validate) = records
     report, metrics = folder / "report.json", folder / "diagnosis_metrics.json"
+    # a shaped law declared (with only the viscous model declared, the derivatives chosen on the validation record
+    # let the diagnosis name the truth's sign law, no shape): the model file holds its shapes and the delay found
     assert main(["diagnose", "--joints", "3", "--data", str(train), "--validate", str(validate),
-                 "--friction", "viscous", "--out", str(report)]) == 0
+                 "--friction", "viscous,coulomb:tanh", "--out", str(report)]) == 0
     document = json.loads(report.read_text())
-    assert any(effect["shape"] for effect in document["effects"])  # a shaped law was found
+    assert any(effect["shape"] for effect in document["effects"])  # the delay found
     assert document["model_file"]["delay"] is not None and document["model_file"]["shape"]
     # the report's model is the one its default choice made (model_selection: the adopted model as fitted or its
     # consistent refit); predict reproduces that one's validation error, and the adopted model's ('after') with
@@ -180,3 +182,20 @@ def test_a_fit_worse_than_the_nominal_model_says_so(tmp_path, capsys):
     plausibility = json.loads(result.read_text())["plausibility"]
     assert plausibility["worse_than_nominal"] and not plausibility["plausible"]
     assert "worse than the nominal description" in capsys.readouterr().err
+
+
+def test_the_diagnosis_names_the_truths_sign_law_and_delay(records):
+    """The truth: viscous and Coulomb friction (the sign law) and a 6 ms delay. With the derivatives chosen on
+    the validation record by the plain model (oed.workflows.diagnose.derivatives_on_validation), the viscous
+    diagnosis names the sign law on each joint and the delay; on the training record's own choice (a 5-harmonic
+    Fourier fit, which smooths the law's jump at each reversal) it named coulomb:tanh on every joint and a 3.2 ms
+    delay, validating 1.7-3.4x worse per joint."""
+    folder, (train, validate) = records
+    report = folder / "sign_law.json"
+    assert main(["diagnose", "--joints", "3", "--data", str(train), "--validate", str(validate),
+                 "--friction", "viscous", "--out", str(report)]) == 0
+    document = json.loads(report.read_text())
+    assert document["preprocessing"]["selection"] == "validation"
+    assert sorted((effect["spec"], tuple(effect["channels"])) for effect in document["effects"]) == \
+        [("coulomb", ("tau1",)), ("coulomb", ("tau2",)), ("coulomb", ("tau3",)), ("delay", ("tau1", "tau2", "tau3"))]
+    assert document["model_file"]["delay"]["value"] == pytest.approx(DELAY, abs=1e-3)

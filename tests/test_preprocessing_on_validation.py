@@ -153,3 +153,33 @@ def test_the_consistent_fit_starts_from_the_weighting_the_other_motion_prefers()
     fits["wls"] = fitted(tau1=1.0, tau2=2.0)  # a tie: the training record's own preference
     assert validation_base(fits.__getitem__, "wls") == "wls"
     assert validation_base(fits.__getitem__, "ols") == "ols"
+
+
+def test_diagnose_chooses_the_derivatives_on_the_validation_record_by_the_plain_model(setting):
+    """``oed diagnose`` declares the viscous model, whose missing Coulomb friction and offsets must not choose the
+    filter that will reveal them: its candidates are scored by the plain model (declared + Coulomb + offset), the
+    scores those of the plain model's own choice; the chosen derivatives are in the report."""
+    import oed
+    from estimation.diagnosis.plain_laws import plain_model
+
+    folder, plain, paths = setting
+    declared = build_model(plain.robot, "internal", "viscous")
+    assert plain_model(declared).n_base == plain.n_base
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        by_plain = prepare_records(declared, [paths["train"]], [paths["validate"]], settings=PreparationSettings(
+            validation_fits=("ols", "wls"), validation_model=plain_model(declared))).preprocessing
+    reference = prepared(plain, paths).preprocessing
+    assert by_plain.evidence.selection == "validation"
+    assert by_plain.without_evidence() == reference.without_evidence()
+    assert [item.preprocessing for item in by_plain.evidence.validation] == \
+        [item.preprocessing for item in reference.evidence.validation]
+    assert [item.score for item in by_plain.evidence.validation] == \
+        pytest.approx([item.score for item in reference.evidence.validation], rel=1e-8)
+    with pytest.raises(ValueError, match="validation_model has channels"):
+        prepare_records(declared, [paths["train"]], [paths["validate"]], settings=PreparationSettings(
+            validation_fits=("ols",), validation_model=build_model(plain.robot, "external", "viscous")))
+    run = oed.diagnose(joints=3, data=paths["train"], validate=paths["validate"], max_effects=2)
+    document = run.to_dict()["preprocessing"]
+    assert document["selection"] == "validation" and document["validation_candidates"]
+    assert document["cutoff_hz"] == reference.cutoff_hz and document["method"] == reference.method

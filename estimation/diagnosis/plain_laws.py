@@ -21,6 +21,15 @@ threshold), of the wrong sign or absorbed by the base parameters is left out and
 The declared effects are those the diagnosis left (a declared term it held at zero stays so). Only when the
 validation record is another motion: on a repeat of the training motion the validation error does not measure
 how a law extrapolates, and the diagnosis is kept as the search left it.
+
+**Refused on the fits, judged on the answer.** The comparison above is between the two unconstrained fits, but the
+default answer of ``oed diagnose`` is the better of the adopted model as fitted and its consistent refit. The shared
+rigid-body parameters of an unconstrained fit move with the laws (a joint's validation error can rise when another
+joint takes the plain law), which the description's bodies as prior hold in place. So a mixed model refused only
+on its score is returned with ``keep_refused=True``, marked ``adopted=False``: the caller that makes the default
+answer (:func:`oed.workflows.diagnose.judged_swap`) compares the better of {as fitted, consistent refit} of each
+model by the same criterion on the same validation samples, and adopts it only when it wins there. A mixed model
+with a negative friction or inertia term stays refused.
 """
 
 from __future__ import annotations
@@ -43,7 +52,7 @@ from estimation.identification.preprocessing_choice import geometric_mean
 from estimation.identification.repeated_motion import REPEAT_FRACTION, repeated_motion
 from estimation.preprocessing.delay import delayed
 
-__all__ = ["PlainLawChoice", "plain_law_choice", "plain_model_effects"]
+__all__ = ["PlainLawChoice", "plain_law_choice", "plain_model", "plain_model_effects"]
 
 
 @dataclass(frozen=True)
@@ -62,6 +71,9 @@ class PlainLawChoice:
         ``[(effect, reason)]``: the diagnosed effects the plain law replaced.
     scores
         ``(diagnosed, mixed)``: the validation scores compared.
+    adopted
+        Whether the mixed model scores lower than the diagnosed one as fitted (``False``: refused on the
+        unconstrained fits, returned only with ``keep_refused=True``, module docstring).
     """
 
     after: IdentificationResult
@@ -69,6 +81,7 @@ class PlainLawChoice:
     plain: tuple[Effect, ...]
     dropped: tuple[tuple[Effect, str], ...]
     scores: tuple[float, float]
+    adopted: bool = True
 
 
 def _score(result: IdentificationResult) -> float:
@@ -91,15 +104,25 @@ def plain_model_effects(model: IdentificationModel, joints: Sequence[int]) -> tu
     return tuple(added)
 
 
+def plain_model(model: IdentificationModel) -> IdentificationModel:
+    """The plain model of ``model`` (module docstring): its effects plus Coulomb friction and an offset on every
+    joint that does not declare them (:func:`plain_model_effects`); ``model`` itself when nothing is added (the
+    external model, where friction has no rows)."""
+    added = plain_model_effects(model, range(model.robot.n_joints)) if model.kind is not ModelKind.EXTERNAL else ()
+    return build_model(model.robot, model.kind, (*model.effects, *added)) if added else model
+
+
 def plain_law_choice(model: IdentificationModel, after: IdentificationResult, found: Sequence[Effect],
                      train: Measurements, validate: Measurements, *, min_improvement: float,
-                     max_effects: int | None = None, threshold: float | None = None) -> PlainLawChoice | None:
+                     max_effects: int | None = None, threshold: float | None = None,
+                     keep_refused: bool = False) -> PlainLawChoice | None:
     """The mixed model when it validates better than the diagnosed one ``after`` (whose effects beyond the declared
     ``model``'s are ``found``), else ``None`` (module docstring). ``train``, ``validate``: the records as given;
     ``max_effects``: the most effects the diagnosis may name (the delay counted), which the mixed model respects;
     ``threshold``: a plain term whose Wald p-value in the mixed model is not below it, or a Coulomb term estimated
     below zero, is not named (the model is refitted without it), as the joint refit drops a finding within its
-    noise and the search a law of the wrong sign."""
+    noise and the search a law of the wrong sign; ``keep_refused``: return the mixed model, ``adopted=False``, when
+    only its score refuses it (module docstring)."""
     if model.kind is ModelKind.EXTERNAL or after.validation is None or not found:
         return None
     if repeated_motion(train, validate) <= REPEAT_FRACTION:
@@ -174,14 +197,19 @@ def plain_law_choice(model: IdentificationModel, after: IdentificationResult, fo
             if mixed is None:
                 return None
     scores = (_score(after), _score(mixed))
-    if not scores[1] < scores[0] or negative_terms(mixed):  # a friction or inertia below zero: not physical
+    adopted = scores[1] < scores[0]
+    if (not adopted and not keep_refused) or negative_terms(mixed):  # a friction or inertia below zero: not physical
         return None
     mixed = with_delay(mixed, after.delay)
+    verdict = (f"the model with it instead scores {scores[1]:.4g} against {scores[0]:.4g}" if adopted else
+               f"the model with it instead scores {scores[1]:.4g} against {scores[0]:.4g} as fitted, but the better "
+               "of it as fitted and its consistent refit validates better than the diagnosed model's "
+               "(the default answer's candidates)")
     dropped = tuple((effect, f"added, but on {', '.join(channels[row] for row in _rows(model, effect))} the plain "
-                             f"law (Coulomb friction and an offset) validates better (validation MSE {why}); the "
-                             f"model with it instead scores {scores[1]:.4g} against {scores[0]:.4g}: replaced")
+                             f"law (Coulomb friction and an offset) validates better (validation MSE {why}); "
+                             f"{verdict}: replaced")
                     for effect in found if effect not in kept)
-    return PlainLawChoice(mixed, kept + laws, laws, dropped, scores)
+    return PlainLawChoice(mixed, kept + laws, laws, dropped, scores, adopted)
 
 
 def _rows(model: IdentificationModel, effect: Effect) -> tuple[int, ...]:

@@ -161,6 +161,10 @@ class Diagnosis:
         The validation MSE of the trivial predictors (``zero_mse``, ``nominal_mse``), or ``None``.
     streaming
         How the files were read, summed and estimated (the document's ``streaming``), or ``None`` in memory.
+    swap
+        The diagnosis with the mixed model of :mod:`estimation.diagnosis.plain_laws` adopted, when that model was
+        refused only on the unconstrained fits' validation score: the default answer judges it on its candidates
+        (:func:`oed.workflows.diagnose.judged_swap`); ``None`` otherwise.
     """
 
     effects: tuple[FoundEffect, ...]
@@ -177,6 +181,7 @@ class Diagnosis:
     not_computed: dict[str, str] = field(default_factory=dict, repr=False)
     trivial: dict[str, dict[str, float]] | None = field(default=None, repr=False)
     streaming: dict[str, Any] | None = field(default=None, repr=False)
+    swap: Diagnosis | None = field(default=None, repr=False)
 
     @property
     def model(self) -> IdentificationModel:

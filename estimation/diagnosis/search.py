@@ -47,6 +47,8 @@ from __future__ import annotations
 
 import functools
 from collections.abc import Callable, Iterable, Sequence
+from dataclasses import replace
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -71,7 +73,7 @@ from estimation.diagnosis.candidates.trials import candidate_label
 from estimation.diagnosis.candidates.coupling import coupling_candidates
 from estimation.diagnosis.candidates.delay_search import DelaySearch
 from estimation.diagnosis.final_refit import refit_significant
-from estimation.diagnosis.plain_laws import plain_law_choice
+from estimation.diagnosis.plain_laws import PlainLawChoice, plain_law_choice
 from estimation.diagnosis.rules.robust_test import estimate_test
 from estimation.diagnosis.forward_selection import SearchOutcome, SearchSettings, candidate_blocks
 from estimation.diagnosis.record_fits import RecordFits, declared_regressor
@@ -268,11 +270,28 @@ def _diagnosis(model: IdentificationModel, before: IdentificationResult, outcome
     selected, after, pinned, dropped = refit_significant(model, before, outcome.adopted, moved, train, validate,
                                                          outcome.weights, outcome.current.validation_error,
                                                          settings.min_improvement, settings.threshold)
-    rejected = dict(outcome.rejected)
-    # each joint's diagnosed effects against the plain law, on that joint's validation error (another motion only)
+    # each joint's diagnosed effects against the plain law, on that joint's validation error (another motion only);
+    # a mixed model refused only on the unconstrained fits' score is kept as the diagnosis's ``swap``, to be judged
+    # on the default answer's candidates (:mod:`estimation.diagnosis.plain_laws`)
     mixed = plain_law_choice(model, after, [effect for effect, _, _ in selected], train, validate,
                              min_improvement=settings.min_improvement, max_effects=settings.max_effects,
-                             threshold=settings.threshold)
+                             threshold=settings.threshold, keep_refused=True)
+    if mixed is not None and not mixed.adopted:
+        return replace(_built(model, before, moved, train, validate, noise_floor, n_candidates, blocks, outcome,
+                              selected, after, pinned, dropped, None),
+                       swap=_built(model, before, moved, train, validate, noise_floor, n_candidates, blocks, outcome,
+                                   selected, after, pinned, dropped, mixed))
+    return _built(model, before, moved, train, validate, noise_floor, n_candidates, blocks, outcome, selected, after,
+                  pinned, dropped, mixed)
+
+
+def _built(model: IdentificationModel, before: IdentificationResult, moved: DelaySearch, train: Measurements,
+           validate: Measurements, noise_floor: NoiseFloor | None, n_candidates: int, blocks: dict[int, Block],
+           outcome: SearchOutcome, selected: list, after: IdentificationResult, pinned: Any, dropped: Any,
+           mixed: PlainLawChoice | None) -> Diagnosis:
+    """The diagnosis of the joint refit ``after`` (its ``selected`` effects), or, with ``mixed``, of the mixed
+    model that replaces diagnosed effects by the plain law (step 5 of :func:`_diagnosis`)."""
+    rejected = dict(outcome.rejected)
     if mixed is not None:
         after = mixed.after
         selected = [(effect, test.p_value, test.f_statistic) for effect in mixed.effects

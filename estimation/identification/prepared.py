@@ -125,6 +125,10 @@ class PreparationSettings:
         whose fitted model predicts it best is chosen); empty (default): the training record's choice is kept.
         Not with rows at rest dropped (they depend on each candidate's ``dq``: the candidates would not be
         scored on the same samples).
+    validation_model
+        The model those fits fit (its channels those of the model the records are read for); ``None``: that
+        model. ``oed diagnose`` gives the plain model (its declared effects plus Coulomb friction and an offset on
+        every joint): the effects the declared model lacks must not choose the derivatives that will reveal them.
     """
 
     max_gap: float = DEFAULT_MAX_GAP
@@ -142,6 +146,7 @@ class PreparationSettings:
     plan: Preprocessing | None = None
     jobs: int | None = None
     validation_fits: tuple[str, ...] = ()
+    validation_model: IdentificationModel | None = None
 
     def __post_init__(self) -> None:
         if self.selection not in ("held-out", "rule"):
@@ -287,7 +292,10 @@ def prepare_records(model: IdentificationModel, train: Sequence[str | Path], val
                                     [segment for files in held_out.values() if files for file in files
                                      for segment in file.segments])
         if settings.validation_fits and held_out["validation"] and settings.plan is None and not settings.drops_rest():
-            preprocessing = on_validation(preprocessing, model, train_segments,
+            chooser = model if settings.validation_model is None else settings.validation_model
+            if tuple(chooser.channels) != tuple(model.channels):
+                raise ValueError(f"validation_model has channels {chooser.channels}, the records {model.channels}")
+            preprocessing = on_validation(preprocessing, chooser, train_segments,
                                           [segment for file in held_out["validation"] for segment in file.segments],
                                           fits=settings.validation_fits, jobs=settings.jobs)
     if preprocessing.method == "measured" and settings.held_torques:

@@ -71,14 +71,17 @@ def choose_streamed_preprocessing(paths: Sequence[str | Path], model: Identifica
                                   cutoff_hz: float | None = None, average_periods: str = "auto", decimation: int = 1,
                                   held_torques: bool | None = False, rows: Sequence[int] | None = None,
                                   held_out: Sequence[str | Path] = (), validation: Sequence[str | Path] = (),
-                                  validation_fits: tuple[str, ...] = ()) -> PreprocessingChoice:
+                                  validation_fits: tuple[str, ...] = (),
+                                  validation_model: IdentificationModel | None = None) -> PreprocessingChoice:
     """The preprocessing of the training files ``paths``, chosen as in memory (module docstring); the options
     are those of :func:`~estimation.identification.preprocessing_choice.choose_by_evidence`. ``held_out``: the
     validation (and test) files, whose first :data:`SCORED_SAMPLES` rows every candidate must be able to prepare
     (in bounded memory: a longer file is judged on that window, which only narrows the candidates).
     ``validation_fits``: with ``validation`` files of another motion, the candidates chosen again by the
     validation error of these fits (:func:`estimation.identification.preprocessing_on_validation.on_validation`),
-    on the training window and the validation files' first :data:`SCORED_SAMPLES` rows."""
+    on the training window and the validation files' first :data:`SCORED_SAMPLES` rows; ``validation_model``: the
+    model those fits fit (its channels ``model``'s; ``None``: ``model``), as
+    :class:`~estimation.identification.prepared.PreparationSettings` has it."""
     windows = {Path(path): first_rows(path, model, SCORED_SAMPLES) for path in (*held_out, *validation)}
     window = streamed_window(paths, model, rows)
     choice = choose_by_evidence(model, window, frequency_hz=frequency_hz,
@@ -87,7 +90,10 @@ def choose_streamed_preprocessing(paths: Sequence[str | Path], model: Identifica
                                 held_out=tuple(windows[Path(path)] for path in held_out), velocity_variants=False)
     if not (validation_fits and validation):
         return choice
-    chosen = on_validation(choice.chosen, model, window.segments, [windows[Path(path)] for path in validation],
+    chooser = model if validation_model is None else validation_model
+    if tuple(chooser.channels) != tuple(model.channels):
+        raise ValueError(f"validation_model has channels {chooser.channels}, the records {model.channels}")
+    chosen = on_validation(choice.chosen, chooser, window.segments, [windows[Path(path)] for path in validation],
                            fits=validation_fits)
     return choice if chosen is choice.chosen else PreprocessingChoice(chosen, chosen)
 

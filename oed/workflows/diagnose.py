@@ -28,7 +28,9 @@ from dynamics.runtime.processes import run_tasks, worker_count
 from dynamics.runtime.progress import step
 from dynamics.transmission import Transmission
 from estimation.consistent.model_selection import ModelSelection, select_refit
+from estimation.identification.relative_error import relative_scores
 from estimation.diagnosis.candidates.coupling import coupling_candidates
+from estimation.diagnosis.plain_laws import plain_model
 from dynamics.runtime.report_document import Report, figure_path, report_format
 from estimation.diagnosis.report import diagnosis_report, plot_residuals, plot_trace
 from estimation.diagnosis.results import Diagnosis, runner_up_line
@@ -277,7 +279,8 @@ def run_diagnose(args: DiagnoseOptions, *, say: Callable[[str], None]) -> Diagno
         model = build_model(robot, args.model, effects)
         check_shaped_effects_kept(effects, model)
         decision = decide_path(args, model, task="diagnosing", bytes_per_value=IN_MEMORY.bytes_per_value,
-                               in_memory_only=lambda: in_memory_only(args, model, delay), say=say)
+                               in_memory_only=lambda: in_memory_only(args, model, delay), say=say,
+                               **derivatives_on_validation(model, delay))
         diagnosed = (diagnosis_streamed(args, friction, decision.plan, decision.findings) if decision.stream
                      else diagnosis_in_memory(args, model, transmission, delay, decision.plan))
     document, messages = diagnose_document(args, diagnosed)
@@ -351,22 +354,43 @@ def diagnosis_in_memory(args: DiagnoseOptions, model: IdentificationModel, trans
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         records = prepare_records(model, args.data, args.validate, args.test or (),  # reports its steps
-                                  settings=replace(preparation_settings(args, transmission, IN_MEMORY), plan=plan))
+                                  settings=replace(preparation_settings(args, transmission, IN_MEMORY), plan=plan,
+                                                   **derivatives_on_validation(model, delay)))
         with step("noise floors of the held-out records"):
             validation_floor, test_floor = record_floors(records, model, args.frequency, args.jobs)
         with step("diagnosis in memory"):
             diagnosis = diagnose_records(args, model, transmission, records, delay, validation_floor)
+        selection, swap_note = None, None
+        if diagnosis.swap is not None:
+            with step("the plain-law swap judged on the default answer's candidates"):
+                diagnosis, selection, swap_note = judged_swap(args, diagnosis, records)
         untouched = test_errors(records, diagnosis, test_floor)
         trivial, notes = trivial_predictors(diagnosis.after, records.validation.measurements)
         diagnosis = replace(diagnosis, trivial=trivial)
-        notes += worse_after(diagnosis)
+        notes += worse_after(diagnosis) + (() if swap_note is None else (swap_note,))
         repeat = repeated_motion_note(records.train.measurements, records.validation.measurements)
         notes += () if repeat is None else (repeat,)
         with step("the default answer: the adopted model or its consistent refit"):
-            selection = diagnosis_selection(args, diagnosis, records)
+            if selection is None:
+                selection = diagnosis_selection(args, diagnosis, records)
     return Diagnosed(diagnosis, records.preprocessing.to_dict(), records.preprocessing.describe(),
                      (*caught_messages(caught), *notes), records=records, untouched=untouched, selection=selection,
                      transmission=transmission, notes=notes)
+
+
+def derivatives_on_validation(model: IdentificationModel, delay: DelayBounds | None) -> dict[str, Any]:
+    """How the derivatives are chosen again on a validation record of another motion, as ``oed identify`` chooses
+    them (:mod:`estimation.identification.preprocessing_on_validation`), as keywords of
+    :class:`~estimation.identification.prepared.PreparationSettings` and of
+    :func:`~oed.workflows.memory_path.decide_path` (the streamed path chooses alike): each candidate scored by the OLS and WLS fits
+    of the plain model (:func:`estimation.diagnosis.plain_laws.plain_model`: the declared model plus Coulomb
+    friction and an offset on every joint), not of the declared one, whose missing friction would otherwise decide
+    the filter (a low cut-off smooths the targets' jumps at each velocity reversal, which then look like a shaped
+    law). None with a declared delay bound or declared shaped laws (as ``oed identify``: fitted by a search each); the
+    training record's choice is kept then."""
+    if delay is not None or model_has_shapes(model):
+        return {}
+    return {"validation_fits": ("ols", "wls"), "validation_model": plain_model(model)}
 
 
 def diagnose_document(args: DiagnoseOptions, diagnosed: Diagnosed) -> tuple[dict[str, Any], tuple[str, ...]]:
@@ -427,6 +451,39 @@ def diagnosis_selection(args: DiagnoseOptions, diagnosis: Diagnosis, records: Pr
                         given="consistent" if args.consistent else None,
                         consistent=consistent_settings(args, diagnosis.after.model.robot),
                         note="with the diagnosed effects")
+
+
+def judged_swap(args: DiagnoseOptions, diagnosis: Diagnosis,
+                records: PreparedRecords) -> tuple[Diagnosis, ModelSelection, str | None]:
+    """The diagnosis whose default answer predicts the validation record better: ``diagnosis`` or its
+    :attr:`~estimation.diagnosis.results.Diagnosis.swap` (the mixed model of
+    :mod:`estimation.diagnosis.plain_laws`, refused on the unconstrained fits' score alone), with its selection.
+
+    Each model's answer is the better of it as fitted and its consistent refit (:func:`diagnosis_selection`); the
+    two answers are compared by the criterion of the default answer
+    (:func:`estimation.identification.relative_error.relative_scores`) on the same validation samples, the
+    diagnosed model kept on a tie. Without a validation record of another motion, or with ``--consistent`` given,
+    nothing is compared there beyond what the selection itself does, and the swap stays refused. One consistent
+    refit more than the diagnosis alone, and only when a swap was refused. The third item: a note saying what was
+    compared and chosen (``None`` when nothing was)."""
+    kept = replace(diagnosis, swap=None)
+    selection = diagnosis_selection(args, kept, records)
+    if selection.selection != "validation" or args.consistent:
+        return kept, selection, None
+    swapped = replace(diagnosis.swap, swap=None, runner_up=diagnosis.runner_up,
+                      runner_up_reason=diagnosis.runner_up_reason)
+    other = diagnosis_selection(args, swapped, records)
+    answers = {"diagnosed": selection.chosen_candidate, "swap": other.chosen_candidate}
+    if any(answer.fit is None or answer.validation is None for answer in answers.values()):
+        return kept, selection, None
+    channels = answers["diagnosed"].validation.channels
+    scored = relative_scores({name: answer.validation.mse for name, answer in answers.items()}, channels)
+    adopted = scored["swap"] < scored["diagnosed"]
+    note = (f"the plain-law swap, refused on the unconstrained fits, judged on the default answer's candidates: the "
+            f"model with the plain law ({other.chosen}) {scored['swap']:.4g} against the diagnosed model "
+            f"({selection.chosen}) {scored['diagnosed']:.4g} on the validation record (relative error): "
+            + ("adopted" if adopted else "refused"))
+    return (swapped, other, note) if adopted else (kept, selection, note)
 
 
 def chosen_lines(validation: dict[str, Any]) -> list[str]:
@@ -620,7 +677,7 @@ def diagnosis_streamed(args: DiagnoseOptions, friction: str, plan: Preprocessing
         warnings.simplefilter("always")
         if plan is None:
             with findings.reading():
-                plan = streamed_choice(args, model).chosen
+                plan = streamed_choice(args, model, **derivatives_on_validation(model, None)).chosen
         with executor_for(args) as executor:
             diagnosis = diagnose_files(model, args.data, args.validate, chunk_size=chunk_size, alpha=args.alpha,
                                        max_effects=args.max_effects, subsample=args.subsample,

@@ -63,15 +63,18 @@ def budget_of(args: RecordOptions) -> int:
 
 
 def streamed_choice(args: RecordOptions, model: IdentificationModel,
-                    rows: Sequence[int] | None = None, *, validation_fits: tuple[str, ...] = ()) -> PreprocessingChoice:
+                    rows: Sequence[int] | None = None, *, validation_fits: tuple[str, ...] = (),
+                    validation_model: IdentificationModel | None = None) -> PreprocessingChoice:
     """The derivatives of ``--data``, chosen as in memory (the same window, candidates and rule), with the
     derivative options given; ``validation_fits``: chosen again on a ``--validate`` record of another motion, as
-    in memory (:mod:`estimation.identification.preprocessing_on_validation`)."""
+    in memory (:mod:`estimation.identification.preprocessing_on_validation`), by fits of ``validation_model``
+    (``None``: ``model``)."""
     validation = getattr(args, "validate", None) or ()
     return choose_streamed_preprocessing(args.data, model, frequency_hz=args.frequency, harmonics=args.harmonics,
                                          cutoff_hz=args.cutoff, average_periods=args.average_periods,
                                          decimation=args.decimate, held_torques=args.held_torques, rows=rows,
-                                         held_out=validation, validation=validation, validation_fits=validation_fits)
+                                         held_out=validation, validation=validation, validation_fits=validation_fits,
+                                         validation_model=validation_model)
 
 
 def averaged_rows(plan: Preprocessing, args: RecordOptions, model: IdentificationModel,
@@ -91,11 +94,12 @@ def averaged_rows(plan: Preprocessing, args: RecordOptions, model: Identificatio
 
 def decide_path(args: RecordOptions, model: IdentificationModel, *, task: str, bytes_per_value: float,
                 in_memory_only: Callable[[], str | None], say: Callable[[str], None],
-                validation_fits: tuple[str, ...] = ()) -> PathDecision:
+                validation_fits: tuple[str, ...] = (),
+                validation_model: IdentificationModel | None = None) -> PathDecision:
     """The path of this run (module docstring); ``in_memory_only`` names an option given that the streamed path
     lacks (``None`` when there is none). Says the decision in one line (``say``) when it streams or when the
     budget is passed, and the warnings of choosing the derivatives before reading (``warning: ...``).
-    ``validation_fits``: as :func:`streamed_choice`."""
+    ``validation_fits``, ``validation_model``: as :func:`streamed_choice`."""
     budget = budget_of(args)  # a bad --memory-budget is an error whichever the path
     if streaming_requested(args):
         return PathDecision(True)
@@ -113,7 +117,8 @@ def decide_path(args: RecordOptions, model: IdentificationModel, *, task: str, b
         return PathDecision(False, None, need)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        plan = streamed_choice(args, model, train, validation_fits=validation_fits).chosen
+        plan = streamed_choice(args, model, train, validation_fits=validation_fits,
+                               validation_model=validation_model).chosen
     sources = [*args.data, *(args.validate or ()), *(getattr(args, "test", None) or ())]
     for message in grouped_messages(caught, sources):  # one line per finding across files
         say(f"warning: {message}")
