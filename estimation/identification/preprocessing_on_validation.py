@@ -71,7 +71,7 @@ from estimation.identification.preprocessing_choice import (
 )
 from estimation.identification.relative_error import relative_scores
 from estimation.identification.repeated_motion import REPEAT_FRACTION, repeated_motion
-from estimation.identification.validation import compare
+from estimation.identification.validation import compare_recorded
 from estimation.preprocessing.plan import (
     Evidence,
     Preprocessing,
@@ -124,13 +124,11 @@ class ValidationScore:
                 prepared_train = prepare(train, plan, role="training data")
                 prepared_validation = prepare(validation, plan, role="validation data")
                 problem = stack(self.model, concatenate(prepared_train))
-                comparisons = {}
-                for fit in FITS:
-                    if fit in self.fits:
-                        estimator = WeightedLeastSquares() if fit == "wls" else LeastSquares()
-                        estimate = estimator.fit(problem).estimate_
-                        comparisons[fit] = compare(self.model, estimate.values, prepared_validation,
-                                                   label="validation")
+                del prepared_train
+                estimates = {fit: (WeightedLeastSquares() if fit == "wls" else LeastSquares()).fit(problem)
+                             .estimate_.values for fit in FITS if fit in self.fits}
+                del problem  # the training regressor freed before the validation one is made, a chunk at a time
+                comparisons = compare_recorded(self.model, estimates, prepared_validation, label="validation")
         except (SegmentTooShortForFilterError, ValueError, np.linalg.LinAlgError) as error:
             return ValidationEvidence(plan, float("inf"), {}, error=str(error),
                                       seconds=time.perf_counter() - started), ""

@@ -104,6 +104,39 @@ def compare(model: IdentificationModel, theta: ArrayLike, measurements: Measurem
     return replace(recorded, filtered=filtered)
 
 
+def compare_recorded(model: IdentificationModel, thetas: dict[str, ArrayLike], measurements: Measurements, *,
+                     label: str = "", chunk_size: int = 10_000) -> dict[str, Comparison]:
+    """:func:`compare` of several parameter vectors (each base ``r`` or standard ``p`` values) on the same
+    measurements, against the channels **as recorded** only (no ``filtered`` comparison): the same predictions
+    ``Y θ`` and errors as :func:`compare`'s, the regressor evaluated once for all the vectors, ``chunk_size``
+    samples at a time, so that memory stays bounded by a chunk's regressor whatever the record's length (the
+    derivative candidates' scoring, :mod:`estimation.identification.preprocessing_on_validation`)."""
+    if measurements.dq is None or measurements.ddq is None:
+        raise ValueError("the measurements lack dq/ddq: derive them first (estimation.preprocessing.differentiation.fill_derivatives)")
+    if int(chunk_size) < 1:
+        raise ValueError(f"chunk_size must be a positive integer, got {chunk_size!r}")
+    recorded = measurements if measurements.recorded is None else measurements.recorded
+    vectors = {name: np.asarray(theta, dtype=float).reshape(-1) for name, theta in thetas.items()}
+    widths = {vector.shape[0] for vector in vectors.values()}
+    if not widths <= {model.n_parameters, model.n_base}:
+        raise ValueError(f"theta has {sorted(widths)} values; this model has {model.n_parameters} standard "
+                         f"and {model.n_base} base parameters")
+    n_samples = recorded.t.shape[0]
+    predicted = {name: np.empty((n_samples, model.n_channels)) for name in vectors}
+    for start in range(0, n_samples, int(chunk_size)):
+        rows = slice(start, min(start + int(chunk_size), n_samples))
+        states = (recorded.q[rows], recorded.dq[rows], recorded.ddq[rows])
+        regressors = {width: (model.evaluate if width == model.n_parameters else model.evaluate_base)(*states)
+                      for width in widths}
+        for name, vector in vectors.items():
+            predicted[name][rows] = regressors[vector.shape[0]] @ vector
+        del regressors
+    measured = recorded.channels(model.channels)
+    segments = tuple(segment_slices(recorded))
+    return {name: Comparison(recorded.t, measured, predicted[name], model.channels, label, segments=segments)
+            for name in vectors}
+
+
 def _compare_as_is(model: IdentificationModel, theta: ArrayLike, measurements: Measurements, label: str) -> Comparison:
     predicted = model.predict(theta, measurements.q, measurements.dq, measurements.ddq)
     return Comparison(measurements.t, measurements.channels(model.channels), predicted, model.channels, label,
