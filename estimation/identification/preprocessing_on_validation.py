@@ -14,7 +14,11 @@ compared on it, as the model is (:mod:`estimation.consistent.model_selection`).
 its torques filtered alike as the fit's targets), the declared model fitted by each unconstrained estimator asked
 for (``ols``, ``wls``: PUMA paper, eqs. 13 and 20), the validation record prepared by the same candidate, and the
 fit's prediction along it compared with the validation torques **as recorded**, at the recorded time stamps
-(:func:`estimation.identification.validation.compare`; never the filtered torques). The score is the criterion
+(:func:`estimation.identification.validation.compare_recorded`; never the filtered torques). Memory stays that of
+a chunk's regressor whatever the window: the fits are made from sums of the training regressor
+(:class:`~estimation.estimators.summed_least_squares.SummedLeastSquares`, the same estimators as accurate as a QR of
+the whole regressor), the predictions a chunk at a time, so that scoring the candidates never costs more than the
+streamed path (issue 33). The score is the criterion
 of every choice on a validation record (:mod:`estimation.identification.relative_error`, the model choice's too):
 the mean over the channels of each channel's validation MSE over the smallest that any (candidate, fit) pair
 reaches on it, a candidate scored by the better of its fits: the choice is the joint minimum over
@@ -63,7 +67,8 @@ from dynamics.runtime.progress import SECONDS as PROGRESS_SECONDS
 from dynamics.runtime.progress import report
 from dynamics.runtime.threads import single_threaded_blas
 from estimation.data.segments import concatenate
-from estimation.estimators.least_squares import LeastSquares, WeightedLeastSquares, stack
+from estimation.estimators.normal_equations import DEFAULT_CHUNK_SIZE, accumulate
+from estimation.estimators.summed_least_squares import SummedLeastSquares
 from estimation.identification.preprocessing_choice import (
     MIN_PARALLEL_SCORES,
     SCORED_SAMPLES,
@@ -87,9 +92,11 @@ __all__ = ["FITS", "TIE_DIGITS", "ValidationScore", "choose_on_validation", "cho
 FITS = ("ols", "wls")
 #: scores equal to this many significant digits are a tie (the tie rule decides)
 TIE_DIGITS = 6
-#: what scoring one candidate holds at its peak: bytes a sample, channel and base parameter (the stacked
-#: regressor, its weighted copy and the predictions); fewer processes score side by side when memory is short
-BYTES_PER_VALUE = 3 * 8
+#: what scoring one candidate holds at its peak, bytes a sample and joint or channel (the records prepared, as
+#: prepared and as recorded: q, dq, ddq and the channels; the predictions), besides a chunk's regressor (the fits
+#: are made from sums, the regressor a chunk at a time: :func:`~estimation.estimators.normal_equations.accumulate`);
+#: fewer processes score side by side when memory is short
+BYTES_PER_VALUE = 6 * 8
 
 
 @dataclass(frozen=True)
@@ -123,11 +130,12 @@ class ValidationScore:
                 warnings.simplefilter("ignore")  # said once, for the choice, when the records are prepared again
                 prepared_train = prepare(train, plan, role="training data")
                 prepared_validation = prepare(validation, plan, role="validation data")
-                problem = stack(self.model, concatenate(prepared_train))
+                # the fits from sums of the regressor made a chunk at a time (the same estimators, as accurate as a
+                # QR of the whole regressor): memory stays that of a chunk, whatever the window (issue 33)
+                sums = accumulate(self.model, concatenate(prepared_train))
                 del prepared_train
-                estimates = {fit: (WeightedLeastSquares() if fit == "wls" else LeastSquares()).fit(problem)
-                             .estimate_.values for fit in FITS if fit in self.fits}
-                del problem  # the training regressor freed before the validation one is made, a chunk at a time
+                estimates = {fit: SummedLeastSquares(method=fit).fit(sums).estimate_.values
+                             for fit in FITS if fit in self.fits}
                 comparisons = compare_recorded(self.model, estimates, prepared_validation, label="validation")
         except (SegmentTooShortForFilterError, ValueError, np.linalg.LinAlgError) as error:
             return ValidationEvidence(plan, float("inf"), {}, error=str(error),
@@ -202,7 +210,8 @@ def choose_on_validation(model: IdentificationModel, train: Sequence[Measurement
     unique = list(dict.fromkeys(plan.without_evidence() for plan in plans))
     started = time.perf_counter()
     samples = sum(segment.n_samples for segment in (*train, *validation))
-    task_bytes = BYTES_PER_VALUE * samples * model.n_channels * model.n_base
+    task_bytes = (BYTES_PER_VALUE * samples * (model.robot.n_joints + model.n_channels)
+                  + 2 * 8 * DEFAULT_CHUNK_SIZE * model.n_channels * model.n_base)  # a chunk's regressor, its QR work
     workers = min(worker_count(jobs, len(unique), min_tasks=MIN_PARALLEL_SCORES),
                   max(1, int(available_memory() // (2 * task_bytes))))  # the same choice whatever the number
     scored = run_tasks([functools.partial(score, tuple(train), tuple(validation), plan) for plan in unique], workers)
