@@ -21,7 +21,7 @@ from estimation.estimators.least_squares import LeastSquares, WeightedLeastSquar
 from estimation.identification.fit import identify
 from estimation.identification.prepared import PreparationSettings, prepare_records, read_files
 from estimation.identification.preprocessing_on_validation import FITS, on_same_samples
-from estimation.identification.validation import compare
+from estimation.identification.validation import compare, compare_recorded
 from estimation.preprocessing.plan import Preprocessing, ValidationEvidence, prepare
 from oed.cli import main
 from oed.fourier import random_fourier
@@ -183,3 +183,30 @@ def test_diagnose_chooses_the_derivatives_on_the_validation_record_by_the_plain_
     document = run.to_dict()["preprocessing"]
     assert document["selection"] == "validation" and document["validation_candidates"]
     assert document["cutoff_hz"] == reference.cutoff_hz and document["method"] == reference.method
+
+
+def test_the_candidates_predictions_are_compare_s_made_a_chunk_at_a_time(setting):
+    """The scoring's predictions (estimation.identification.validation.compare_recorded): the errors ``compare``
+    gives against the recording, for every fit, whatever the chunk; a wrong-length theta refused."""
+    _, model, paths = setting
+    train = read_files([paths["train"]], model, split=True)[0].segments
+    raw = read_files([paths["validate"]], model, split=False)[0].segments[0]
+    plan = Preprocessing("butterworth", cutoff_hz=5.0)
+    problem = stack(model, prepare(train, plan))
+    thetas = {"ols": LeastSquares().fit(problem).estimate_.values,
+              "wls": WeightedLeastSquares().fit(problem).estimate_.values}
+    validation = prepare([raw], plan, role="validation data")
+    assert validation.recorded is not None  # filtered: the recording is what is compared
+    for chunk_size in (7, 1000, raw.n_samples + 1):
+        comparisons = compare_recorded(model, thetas, validation, label="validation", chunk_size=chunk_size)
+        assert list(comparisons) == ["ols", "wls"]
+        for fit, theta in thetas.items():
+            expected = compare(model, theta, validation, label="validation")
+            np.testing.assert_array_equal(comparisons[fit].t, expected.t)
+            np.testing.assert_array_equal(comparisons[fit].measured, expected.measured)
+            np.testing.assert_allclose(comparisons[fit].predicted, expected.predicted, rtol=1e-12, atol=1e-12)
+            assert comparisons[fit].mse == pytest.approx(expected.mse, rel=1e-12)
+    with pytest.raises(ValueError, match="values"):
+        compare_recorded(model, {"ols": thetas["ols"][:-1]}, validation)
+    with pytest.raises(ValueError, match="chunk_size"):
+        compare_recorded(model, thetas, validation, chunk_size=0)
