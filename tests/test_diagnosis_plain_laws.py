@@ -41,27 +41,15 @@ def test_a_joints_gain_is_not_diluted_by_the_other_channels():
     assert reason.startswith("raises the validation error of the channels it acts on (tau3")
 
 
-def test_a_joints_gain_within_the_sampling_spread_of_its_error_is_not_confirmed():
-    """A 1.2 % gain on one joint counts when that joint's error is known better than that along the record
-    (the spread of its batch means), not when the error wanders by more (the PUMA notebook's spring on tau1)."""
-    model = SimpleNamespace(channels=("tau1", "tau2", "tau3"))
+def test_a_joints_gain_that_is_mostly_on_other_channels_is_not_its_own():
+    """A 1.2 % gain on one joint confirms the effect when it holds most of the sum's gain, not when the sum gains
+    mostly on channels the effect does not act on (the PUMA notebook's spring on tau1: 29 % of the sum's gain)."""
+    model = SimpleNamespace(channels=("tau1", "tau2", "tau3", "mz"))
     trial = SimpleNamespace(blocks=(SimpleNamespace(rows=(0,)),))
-    count = 200_000
-    noise = np.random.default_rng(0).standard_normal((3, count))
-    for wander, confirmed in ((0.0, True), (0.5, False)):
-        # the current model's residual: white, its variance drifting by ``wander`` along the record; the
-        # candidate's 1.2 % lower on tau1 at every sample
-        level = 1.0 + wander * np.sin(np.linspace(0.0, 3.0 * np.pi, count))
-        current = noise * np.sqrt(level)
-        candidate = current.copy()
-        candidate[0] *= np.sqrt(0.988)
-        comparison = CandidateComparison(np.ones(3), float(np.sum(np.mean(candidate**2, axis=1))), candidate,
-                                         float(np.sum(np.mean(current**2, axis=1))), current)
-        reason = own_rows_gain(trial, comparison, 0.01, model)
-        assert (reason == "") == confirmed, reason
-        if not confirmed:
-            assert reason.startswith("lowers the validation error of the channels it acts on within its sampling "
-                                     "spread (tau1"), reason
+    assert own_rows_gain(trial, _comparison([1.0] * 4, [0.988, 1, 0.999, 1]), 0.01, model) == ""
+    reason = own_rows_gain(trial, _comparison([1.0] * 4, [0.988, 0.99, 0.99, 0.99]), 0.01, model)
+    assert reason.startswith("lowers the validation error of the channels it acts on (tau1: 1 -> 0.988) by under "
+                             "50 % of the sum's gain"), reason
 
 
 @pytest.fixture(scope="module")
