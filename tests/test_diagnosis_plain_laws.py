@@ -41,6 +41,17 @@ def test_a_joints_gain_is_not_diluted_by_the_other_channels():
     assert reason.startswith("raises the validation error of the channels it acts on (tau3")
 
 
+def test_a_joints_gain_that_is_mostly_on_other_channels_is_not_its_own():
+    """A 1.2 % gain on one joint confirms the effect when it holds most of the sum's gain, not when the sum gains
+    mostly on channels the effect does not act on (the PUMA notebook's spring on tau1: 29 % of the sum's gain)."""
+    model = SimpleNamespace(channels=("tau1", "tau2", "tau3", "mz"))
+    trial = SimpleNamespace(blocks=(SimpleNamespace(rows=(0,)),))
+    assert own_rows_gain(trial, _comparison([1.0] * 4, [0.988, 1, 0.999, 1]), 0.01, model) == ""
+    reason = own_rows_gain(trial, _comparison([1.0] * 4, [0.988, 0.99, 0.99, 0.99]), 0.01, model)
+    assert reason.startswith("lowers the validation error of the channels it acts on (tau1: 1 -> 0.988) by under "
+                             "50 % of the sum's gain"), reason
+
+
 @pytest.fixture(scope="module")
 def records():
     """A 3-joint PUMA whose joint 2 has Coulomb friction and an offset (nothing else beyond viscous friction): a

@@ -22,7 +22,7 @@ Procedure (a search over nested linear models: additions, replacements, removals
    stiffness positive, and a spring alone only when it explains more than an offset on its joint
    does), and it lowers the weighted validation error on the held-out data by at least
    ``min_improvement``, summed over every channel or over the channels it acts on
-   (:func:`estimation.diagnosis.confirmation.own_rows_gain`) with the sum not rising, the move's model and the current model both trained and compared at the
+   (:func:`estimation.diagnosis.confirmation.own_rows_gain`; there also at least half the sum's gain) with the sum not rising, the move's model and the current model both trained and compared at the
    weights the move's own residuals give (:func:`estimation.diagnosis.confirmation.reweighted_comparison`).
    A move adds a candidate, or replaces the Coulomb-like law the search adopted on a joint by another
    (a law on a joint whose law was declared is refused); before each round an adopted effect is
