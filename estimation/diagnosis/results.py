@@ -97,6 +97,10 @@ class RunnerUp:
                 "validation": {"mse": None if self.validation_mse is None else dict(self.validation_mse)},
                 "warnings": list(self.warnings)}
 
+    def shape(self) -> dict[str, float]:
+        """The shapes of its shaped laws, by parameter name (its model file's ``shape``)."""
+        return {name: float(value) for effect in self.effects for name, value in effect.shape.items()}
+
     def summary(self) -> str:
         """One line for the printed summary."""
         return (f"runner-up: {self.instead} (BIC {self.bic_gap:+.3g} against the chosen model; kept in the report "

@@ -702,7 +702,8 @@ def recorded_errors(diagnosis: Diagnosis, args: DiagnoseOptions, plan: dict[str,
     its validation MSE before and after measured on the record's samples as recorded
     (:func:`oed.workflows.model_files.recorded_validation_mse`, what ``oed predict`` measures) and the floor's
     comparisons of those errors; the streamed passes scored the record on the uniform grid. Unchanged when the
-    records were read as recorded. ``plan``: the model files' preprocessing."""
+    records were read as recorded. ``plan``: the model files' preprocessing. The runner-up's validation MSE is
+    measured again alike (its model file's, :func:`~oed.workflows.model_files.add_summed_runner_up_model_file`)."""
     robot = robot_source(diagnosis.model.robot, args)
     after_file = summed_model_file_document(diagnosis.final_model(), diagnosis.after.estimate, robot=robot,
                                             preprocessing=plan, shape=diagnosis.final_shape(),
@@ -718,4 +719,9 @@ def recorded_errors(diagnosis: Diagnosis, args: DiagnoseOptions, plan: dict[str,
     statistics = diagnosis.statistics
     if statistics is not None:  # the floor's comparisons of these errors
         statistics = floor_report(fits["before"], fits["after"], statistics.floor, statistics.floor_note)
-    return replace(diagnosis, before=fits["before"], after=fits["after"], statistics=statistics)
+    runner_up = diagnosis.runner_up
+    if runner_up is not None and runner_up.validation_mse is not None:
+        rival = summed_model_file_document(runner_up.model, runner_up.fit, robot=robot, preprocessing=plan,
+                                           shape=runner_up.shape(), recorded_mse=runner_up.train_mse)
+        runner_up = replace(runner_up, validation_mse=recorded_validation_mse(rival, args.validate))
+    return replace(diagnosis, before=fits["before"], after=fits["after"], statistics=statistics, runner_up=runner_up)

@@ -82,10 +82,9 @@ def add_summed_runner_up_model_file(document: dict[str, Any], runner_up: Any, ar
     shapes (``validation_mse``: its validation MSE as ``oed predict`` measures it, or ``None``)."""
     if runner_up is None or document.get("runner_up") is None:
         return
-    shape = {name: value for effect in runner_up.effects for name, value in effect.shape.items()}
     document["runner_up"]["model_file"] = summed_model_file_document(
         runner_up.model, runner_up.fit, robot=robot_source(runner_up.model.robot, args), preprocessing=preprocessing,
-        shape=shape, recorded_mse=runner_up.train_mse, validation_mse=validation_mse)
+        shape=runner_up.shape(), recorded_mse=runner_up.train_mse, validation_mse=validation_mse)
 
 
 def add_summed_model_file(document: dict[str, Any], model: Any, estimate: Any, args: RecordOptions,

@@ -1,0 +1,203 @@
+"""One answer per result (issue 34), audited verb by verb: after every verb that writes a model (``oed identify`` by
+default, with ``--method ols`` and with ``--consistent``; ``oed diagnose``, by default, with ``--consistent`` and with
+``--test``), on both paths (in memory, streamed by ``--chunk-size 250``, streamed by ``--memory-budget 1KB``) and on
+a regular and a jittered log:
+
+* ``oed predict`` on the validation record reproduces the validation error the verb reported for its chosen model
+  (relative 1e-6), and ``oed predict --alternative NAME`` the error reported for each alternative the file names
+  (``model_file.alternatives``, ``model_selection.candidates``; ``unconstrained`` too); the runner-up's model file
+  of ``oed diagnose`` the runner-up's reported error; ``--test``: the chosen model's test error;
+* on the jittered log those errors are taken at the recorded samples: every row ``oed predict`` scores is a row of
+  the file (its time stamp and its torques as written), and the reported error is the mean square of those rows'
+  residuals;
+* the top level of ``result.json`` describes the chosen model (its parameters are the model file's);
+* ``oed export`` writes the chosen model, or names the consistent alternative it writes instead, or refuses a file
+  without bodies (exit 2, nothing written).
+
+Small simulated 3-joint PUMA records (a few seconds each case)."""
+
+from __future__ import annotations
+
+import json
+import xml.etree.ElementTree as ElementTree
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from dynamics.models import build_model
+from dynamics.robots import load_robot
+from dynamics.simulation.simulator import Simulator
+from dynamics.simulation.synthetic import simulate, true_parameters
+from oed.cli import main
+from oed.fourier import random_fourier
+from tests.test_recorded_stamps import logger_faults
+
+NOISE = {"tau1": 0.2, "tau2": 0.2, "tau3": 0.1}
+EFFECTS = "viscous,coulomb,offset"
+RELATIVE = 1e-6
+
+#: the verbs, each with the paths it takes (the streamed ones refuse --consistent and --test)
+VERBS = {
+    "identify": ["identify", "--friction", EFFECTS],
+    "identify --method ols": ["identify", "--friction", EFFECTS, "--method", "ols"],
+    "identify --consistent": ["identify", "--friction", EFFECTS, "--consistent"],
+    "diagnose": ["diagnose", "--friction", "viscous"],
+    "diagnose --consistent": ["diagnose", "--friction", "viscous", "--consistent"],
+    "diagnose --test": ["diagnose", "--friction", "viscous"],
+}
+PATHS = {"in-memory": [], "chunks": ["--chunk-size", "250"], "budget": ["--memory-budget", "1KB"]}
+IN_MEMORY_ONLY = ("identify --consistent", "diagnose --consistent", "diagnose --test")
+CASES = [(verb, path) for verb in VERBS for path in PATHS if path == "in-memory" or verb not in IN_MEMORY_ONLY]
+
+
+@pytest.fixture(scope="module")
+def records(tmp_path_factory):
+    """``arm``: training, validation and test motions of a 3-joint PUMA with Coulomb friction and offsets, logged
+    with q, dq, ddq at 100 Hz; ``jittered``: the same robot's positions and torques at 200 Hz over 8 s (derivatives
+    by a filter), the validation and test logs jittered (stamps moved, rows re-sent, a stall)."""
+    folder = tmp_path_factory.mktemp("one_answer")
+    robot = load_robot("puma560", joints=3)
+    truth = build_model(robot, "internal", EFFECTS)
+    theta = true_parameters(truth, seed=1, coulomb=[3.0, 2.0, 1.0], offset=[0.5, -0.3, 0.2])
+    paths = {}
+    for name, seed in (("train", 5), ("validate", 6), ("test", 7)):
+        paths["arm", name] = folder / f"arm_{name}.csv"
+        simulate(truth, theta, random_fourier(robot, seed=seed), rate_hz=100.0, periods=1, noise=NOISE,
+                 seed=seed).write(paths["arm", name])
+    simulator = Simulator(robot, rate_hz=200.0)
+    for name, seed in (("train", 1), ("validate", 2), ("test", 3)):
+        frame = simulator.run(random_fourier(robot, seed, frequency_hz=0.1), duration=8.0, warmup_periods=1,
+                              seed=seed).measurements.to_frame()
+        frame = frame[[column for column in frame.columns if not column.startswith(("dq", "ddq"))]]
+        if name != "train":
+            frame = logger_faults(frame, seed)
+        paths["jittered", name] = folder / f"jittered_{name}.csv"
+        frame.to_csv(paths["jittered", name], index=False, float_format="%.10g")
+    return folder, paths
+
+
+def relative(measured: dict[str, float], reported: dict[str, float]) -> float:
+    assert set(measured) == set(reported), (measured, reported)
+    return max(abs(measured[channel] / reported[channel] - 1) for channel in reported)
+
+
+def predicted(folder, model, data, *options: str) -> tuple[dict, pd.DataFrame]:
+    """``oed predict`` of ``model`` on ``data``: its metrics and its predictions CSV."""
+    metrics, out = folder / "metrics.json", folder / "predictions.csv"
+    assert main(["predict", "--model", str(model), "--data", str(data), "--metrics", str(metrics), "--out", str(out),
+                 *options]) == 0
+    return json.loads(metrics.read_text()), pd.read_csv(out)
+
+
+def check_recorded_rows(predictions: pd.DataFrame, path, metrics: dict) -> None:
+    """Every row scored is a row of the file as written (its stamp, its torques), and the error is those rows'."""
+    raw = pd.read_csv(path)
+    channels = list(metrics["mse"])
+    rows = raw.set_index("t")
+    assert predictions.t.isin(rows.index).all(), "a scored time stamp is not one of the file's"
+    written = rows.loc[predictions.t, channels].to_numpy()
+    measured = predictions[[f"{channel}_measured" for channel in channels]].to_numpy()
+    assert np.array_equal(written, measured), "a scored torque is not the file's"
+    mse = np.mean(predictions[[f"{channel}_residual" for channel in channels]].to_numpy() ** 2, axis=0)
+    assert dict(zip(channels, mse)) == pytest.approx(metrics["mse"], rel=1e-9)
+
+
+def reported_models(document: dict) -> tuple[str, dict[str, float], dict[str, dict[str, float]]]:
+    """The chosen model's name and reported validation error, and each alternative's reported validation error by
+    name (from the model file's alternatives and the comparison of candidates, which must agree)."""
+    if "chosen" in document["validation"]:  # report.json
+        chosen, reported = document["validation"]["chosen"]["name"], document["validation"]["chosen"]["mse"]
+    else:
+        chosen, reported = document["chosen"], document["validation"]["mse"]
+    model_file = document["model_file"]
+    alternatives = {name: entry["validation_mse"] for name, entry in model_file["alternatives"].items()}
+    selection = document.get("model_selection")
+    if selection is not None:
+        assert selection["chosen"] == chosen
+        for candidate in selection["candidates"]:
+            if not candidate["available"]:
+                continue
+            expected = reported if candidate["name"] == chosen else alternatives[candidate["name"]]
+            assert candidate["validation_mse"] == expected, candidate["name"]
+    return chosen, reported, alternatives
+
+
+@pytest.mark.parametrize(("verb", "path"), CASES)
+@pytest.mark.parametrize("record", ["arm", "jittered"])
+def test_every_model_a_verb_reports_is_the_one_predict_measures(records, verb, path, record, capsys):
+    folder, paths = records
+    out = folder / f"{record}_{verb.replace(' ', '_').replace('-', '')}_{path}.json"
+    test = ["--test", str(paths[record, "test"])] if verb.endswith("--test") else []
+    assert main([*VERBS[verb], *PATHS[path], "--joints", "3", "--data", str(paths[record, "train"]), "--validate",
+                 str(paths[record, "validate"]), *test, "--out", str(out)]) == 0
+    capsys.readouterr()
+    document = json.loads(out.read_text())
+    streamed = path != "in-memory"
+    assert (document.get("diagnosis_path") or document.get("identification_path")) == \
+        ("streamed" if streamed else "in-memory")
+    chosen, reported, alternatives = reported_models(document)
+    model_file = document["model_file"]
+    assert model_file["chosen"] == chosen and model_file["reported"]["validation_mse"] == reported
+    if verb.endswith("--consistent"):
+        assert chosen == "consistent"
+    elif verb.endswith("ols"):
+        assert chosen == "ols"
+
+    # the chosen model: predict on the validation record reproduces its reported error, at the recorded samples
+    metrics, predictions = predicted(folder, out, paths[record, "validate"])
+    assert metrics["model"] == chosen
+    assert relative(metrics["mse"], reported) < RELATIVE, (metrics["mse"], reported)
+    if record == "jittered":
+        check_recorded_rows(predictions, paths[record, "validate"], metrics)
+
+    # every alternative the file names, and the unconstrained fit behind the choice
+    for name, expected in alternatives.items():
+        measured, _ = predicted(folder, out, paths[record, "validate"], "--alternative", name)
+        assert measured["model"] == name
+        assert relative(measured["mse"], expected) < RELATIVE, (name, measured["mse"], expected)
+    unconstrained = chosen if chosen != "consistent" else model_file["method"]
+    measured, _ = predicted(folder, out, paths[record, "validate"], "--alternative", "unconstrained")
+    expected = reported if unconstrained == chosen else alternatives[unconstrained]
+    assert relative(measured["mse"], expected) < RELATIVE, ("unconstrained", measured["mse"], expected)
+
+    if verb.startswith("identify"):  # the top level is the chosen model's: its parameters are the model file's
+        names = model_file["base"]["names"]
+        values = dict(zip(names, model_file["theta"]))
+        assert {p["name"]: p["value"] for p in document["parameters"]} == pytest.approx(values, rel=1e-12)
+        assert document["model_parameters"]["values"] == pytest.approx(
+            [values[name] for name in document["model_parameters"]["names"]], rel=1e-12)
+        assert document["validation"]["model"] == document["train"]["model"] == chosen
+        assert document.get("shape_std", {}) == (model_file.get("shape_std") or {})
+    else:
+        # the runner-up's model file: its reported validation error is what predict measures with it
+        runner_up = document.get("runner_up")
+        if runner_up is not None and runner_up["validation"]["mse"] is not None:
+            rival = folder / "runner_up.json"
+            rival.write_text(json.dumps({"model_file": runner_up["model_file"]}))
+            measured, predictions = predicted(folder, rival, paths[record, "validate"])
+            assert relative(measured["mse"], runner_up["validation"]["mse"]) < RELATIVE, \
+                (measured["mse"], runner_up["validation"]["mse"])
+            if record == "jittered":
+                check_recorded_rows(predictions, paths[record, "validate"], measured)
+        if test:  # the chosen model's error on the test record, which no choice saw
+            measured, predictions = predicted(folder, out, paths[record, "test"])
+            assert document["test"]["chosen"]["name"] == chosen
+            assert relative(measured["mse"], document["test"]["chosen"]["mse"]) < RELATIVE
+            if record == "jittered":
+                check_recorded_rows(predictions, paths[record, "test"], measured)
+
+    # oed export: the chosen model when it has bodies, else the consistent alternative named, else a refusal
+    urdf = folder / "exported.urdf"
+    urdf.unlink(missing_ok=True)
+    code = main(["export", "--model", str(out), "--urdf", str(urdf)])
+    error = capsys.readouterr().err
+    if chosen == "consistent":
+        assert code == 0 and "instead" not in error
+    elif "consistent" in alternatives:
+        assert code == 0 and f"the chosen model ({chosen})" in error and "'consistent' instead" in error
+    else:
+        assert code == 2 and "base parameters only" in error and not urdf.exists()
+        return
+    masses = [float(element.get("value")) for element in ElementTree.parse(urdf).findall("./link/inertial/mass")]
+    assert masses[-3:] == pytest.approx([link["mass"] for link in document["links"]], rel=1e-9)
