@@ -129,11 +129,13 @@ def test_every_model_a_verb_reports_is_the_one_predict_measures(records, verb, p
     folder, paths = records
     out = folder / f"{record}_{verb.replace(' ', '_').replace('-', '')}_{path}.json"
     test = ["--test", str(paths[record, "test"])] if verb.endswith("--test") else []
-    assert main([*VERBS[verb], *PATHS[path], "--joints", "3", "--data", str(paths[record, "train"]), "--validate",
-                 str(paths[record, "validate"]), *test, "--out", str(out)]) == 0
-    capsys.readouterr()
-    document = json.loads(out.read_text())
     streamed = path != "in-memory"
+    report = out.with_suffix(".html")  # streamed (no figures: cheap), and the diagnosis with its test record
+    report_option = ["--report", str(report)] if streamed or verb.endswith("--test") else []
+    assert main([*VERBS[verb], *PATHS[path], "--joints", "3", "--data", str(paths[record, "train"]), "--validate",
+                 str(paths[record, "validate"]), *test, "--out", str(out), *report_option]) == 0
+    printed = capsys.readouterr().out
+    document = json.loads(out.read_text())
     assert (document.get("diagnosis_path") or document.get("identification_path")) == \
         ("streamed" if streamed else "in-memory")
     chosen, reported, alternatives = reported_models(document)
@@ -143,6 +145,18 @@ def test_every_model_a_verb_reports_is_the_one_predict_measures(records, verb, p
         assert chosen == "consistent"
     elif verb.endswith("ols"):
         assert chosen == "ols"
+    # the summary and the report give the chosen model's validation error
+    assert "  ".join(f"{channel} {value:.4g}" for channel, value in reported.items()) in printed, printed
+    if report_option:
+        text = report.read_text()
+        assert ("<img" not in text and "Not computed on this path" in text) if streamed else "<img" in text
+        if verb.startswith("diagnose"):
+            assert f"Model: {chosen}" in text
+            assert all(f">{value:.5g}</td>" in text for value in reported.values()), reported
+            if test:
+                assert all(f">{value:.5g}</td>" in text for value in document["test"]["chosen"]["mse"].values())
+        else:
+            assert all(f">{value:.4g}</td>" in text for value in reported.values()), reported
 
     # the chosen model: predict on the validation record reproduces its reported error, at the recorded samples
     metrics, predictions = predicted(folder, out, paths[record, "validate"])
@@ -201,3 +215,77 @@ def test_every_model_a_verb_reports_is_the_one_predict_measures(records, verb, p
         return
     masses = [float(element.get("value")) for element in ElementTree.parse(urdf).findall("./link/inertial/mass")]
     assert masses[-3:] == pytest.approx([link["mass"] for link in document["links"]], rel=1e-9)
+
+
+@pytest.fixture(scope="module")
+def negative_friction(tmp_path_factory):
+    """A 3-joint PUMA whose third joint's viscous coefficient is negative (a sign a consistent fit cannot give:
+    the unconstrained fit warns of it) and whose Coulomb law is smoothed by tanh (a shaped law: its smoothing
+    velocities estimated by the unconstrained fit, held by the consistent one)."""
+    from dynamics.effects.linear import CoulombFriction
+
+    folder = tmp_path_factory.mktemp("negative_friction")
+    robot = load_robot("puma560", joints=3)
+    truth = build_model(robot, "internal", ("viscous", CoulombFriction(smoothing=0.04), "offset"))
+    theta = true_parameters(truth, seed=1, viscous=[5.0, 3.0, -1.5], coulomb=[3.0, 2.0, 1.0],
+                            offset=[0.5, -0.3, 0.2])
+    paths = {}
+    for name, seed in (("train", 5), ("validate", 6)):
+        paths[name] = folder / f"{name}.csv"
+        simulate(truth, theta, random_fourier(robot, seed=seed), rate_hz=100.0, periods=1, noise=NOISE,
+                 seed=seed).write(paths[name])
+    return folder, paths
+
+
+def test_the_top_level_warnings_and_shape_deviations_are_the_chosen_model_s(negative_friction, capsys):
+    """``identify --consistent``: the unconstrained fit's warning (a negative viscous coefficient) and its shapes'
+    standard deviations stay under its alternative entry; result.json's top level, the printed summary, the
+    warnings said and the report describe the consistent model (the coefficient held at zero, which says the model
+    lacks something; its shapes held, not estimated)."""
+    folder, paths = negative_friction
+    out, report = folder / "result.json", folder / "report.html"
+    assert main(["identify", "--joints", "3", "--friction", "viscous,coulomb:tanh,offset", "--consistent", "--data",
+                 str(paths["train"]), "--validate", str(paths["validate"]), "--out", str(out), "--report",
+                 str(report)]) == 0
+    captured = capsys.readouterr()
+    document = json.loads(out.read_text())
+    model_file = document["model_file"]
+    assert document["chosen"] == model_file["chosen"] == "consistent"
+    base = model_file["method"]
+    unconstrained = [text for text in model_file["alternatives"][base]["warnings"] if text.startswith("fv3 = -1.")]
+    assert len(unconstrained) == 1  # the unconstrained fit's own, under its name
+    assert model_file["alternatives"][base]["shape_std"]["vc3"] > 0
+    # the top level: the consistent model's
+    held = [text for text in document["warnings"] if text.startswith("fv3 = ")]
+    assert len(held) == 1 and "held >= 0 by the physically consistent fit" in held[0], document["warnings"]
+    assert f"unconstrained {base} fit puts it at -1." in held[0] and unconstrained[0] not in document["warnings"]
+    assert document["shape"] == model_file["shape"] and set(document["shape_std"]) == {"vc1", "vc2", "vc3"}
+    assert all(value is None for value in document["shape_std"].values()) and model_file["shape_std"] == {}
+    assert document["model_parameters"]["shape_std"] == document["shape_std"]
+    values = {p["name"]: p["value"] for p in document["parameters"]}
+    assert values["fv3"] > -1e-6
+    assert values == pytest.approx(dict(zip(model_file["base"]["names"], model_file["theta"])), rel=1e-12)
+    # said, printed and reported: the consistent model's warning, its shapes without a deviation
+    assert held[0] in captured.err and unconstrained[0] not in captured.err
+    shape_lines = [line for line in captured.out.splitlines() if "(shape of coulomb:tanh" in line]
+    assert len(shape_lines) == 3 and not any("±" in line for line in shape_lines), shape_lines
+    text = report.read_text()
+    section = text[text.index("<h2>Warnings</h2>"):text.index("<h2>Choices made</h2>")]
+    assert "held &gt;= 0 by the physically consistent fit" in section and "is negative" not in section
+    assert text.count("n/a (held)") == 3
+    # and predict measures the error reported
+    metrics = folder / "metrics.json"
+    assert main(["predict", "--model", str(out), "--data", str(paths["validate"]), "--metrics", str(metrics)]) == 0
+    assert relative(json.loads(metrics.read_text())["mse"], document["validation"]["mse"]) < RELATIVE
+
+
+def test_an_unconstrained_answer_keeps_its_own_warning(negative_friction, capsys):
+    """The same records with ``--method wls``: the warning is the chosen model's, at the top level and said."""
+    folder, paths = negative_friction
+    out = folder / "wls.json"
+    assert main(["identify", "--joints", "3", "--friction", "viscous,coulomb,offset", "--method", "wls", "--data",
+                 str(paths["train"]), "--validate", str(paths["validate"]), "--out", str(out)]) == 0
+    captured = capsys.readouterr()
+    document = json.loads(out.read_text())
+    assert document["chosen"] == "wls"
+    assert any(text.startswith("fv3 = -") for text in document["warnings"]) and "fv3 = -" in captured.err

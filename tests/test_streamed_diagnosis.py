@@ -162,17 +162,20 @@ def test_bad_files_are_named_and_nothing_is_written(model, files, tmp_path, caps
         assert main(arguments) == 2
         assert data[1].name in capsys.readouterr().err
         assert not out.exists()
-    assert main(base + ["--data", str(files["full"][0]), "--report", str(tmp_path / "r.md")]) == 2
-    assert "--report" in capsys.readouterr().err and not out.exists()
 
 
 def test_cli_streamed_diagnosis_writes_the_diagnose_keys(files, tmp_path, capsys):
     out = tmp_path / "report.json"
+    report = tmp_path / "report.md"
     code = main(["diagnose", "--joints", "3", "--model", "internal", "--data", str(files["full"][0]), "--validate",
-                 str(files["full"][1]), "--out", str(out), "--chunk-size", "400"])
+                 str(files["full"][1]), "--out", str(out), "--chunk-size", "400", "--report", str(report)])
     assert code == 0
     document = json.loads(out.read_text())
     assert document["diagnosis_path"] == "streamed" and document["cov_method"] == "batch_means"
+    # the report on the streamed path: no figures (no samples held), and what the path did not compute
+    text = report.read_text()
+    assert "Not computed on this path" in text and "![" not in text
+    assert sorted(path.name for path in tmp_path.iterdir()) == ["report.json", "report.md"]
     assert [(e["name"], e["channels"]) for e in document["effects"]] == [("coulomb", ["tau2"]), ("offset", ["tau1"])]
     assert set(document["validation"]["after"]) >= {"mse", "mse_over_floor"}
     assert "found coulomb on tau2" in capsys.readouterr().out

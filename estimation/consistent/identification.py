@@ -45,7 +45,7 @@ from dynamics.robot import RobotModel
 from estimation.consistent.determination import Determination, determination
 from estimation.consistent.fixed_shapes import fixed_comparison, fixed_problem, fixed_regressor, has_fixed_effects
 from estimation.consistent.least_squares import ConsistentEstimate, ConsistentLeastSquares
-from estimation.identification.fit import IdentificationResult, identify
+from estimation.identification.fit import IMPLAUSIBLE_CAUSE, IdentificationResult, identify, implausible_records
 from estimation.identification.identified_model import IdentifiedModel
 from estimation.estimators.identification_problem import stack
 from dynamics.measurements import Measurements
@@ -118,6 +118,22 @@ class ConsistentResult:
                 },
             },
         }
+
+    @property
+    def warnings(self) -> tuple[str, ...]:
+        """The consistent model's own warnings: each friction or armature parameter the unconstrained fit it was
+        refitted from puts implausibly far below zero
+        (:func:`~estimation.identification.fit.implausible_records`), held at or above zero here: its value here
+        and the unconstrained one, which says the model lacks something (as the unconstrained fit's warning)."""
+        values = dict(zip(self.estimate.names, np.asarray(self.estimate.values, dtype=float)))
+        method = self.unconstrained.estimate.method
+        return tuple(
+            f"{record['name']} = {values[record['name']]:.4g} held >= 0 by the physically consistent fit, where the "
+            f"unconstrained {method} fit puts it at {record['value']:.4g} ± {record['std']:.2g} "
+            f"({-record['value'] / record['std']:.0f} standard deviations below zero), which no {effect} can be: "
+            f"{IMPLAUSIBLE_CAUSE}"
+            for record, effect in implausible_records(self.unconstrained.model, self.unconstrained.estimate)
+            if record["name"] in values)
 
     def _fixed_effects(self) -> dict[str, Any]:
         """``shape`` (the shaped laws' shapes) and ``delay`` (s) the refit held at the unconstrained fit's values."""

@@ -449,6 +449,9 @@ def selection_model_file(selection: ModelSelection, **settings: Any) -> dict[str
     entries = {name: alternative_entry(document) for name, document in documents.items()}
     if consistent is not None:
         entries["consistent"] = consistent_entry(consistent, documents[selection.base])
+    for candidate in selection.candidates:  # each model's own warnings (an unconstrained fit's implausible values)
+        if candidate.name in entries:
+            entries[candidate.name]["warnings"] = list(getattr(candidate.fit, "warnings", ()))
     unconstrained = selection.chosen if selection.chosen != "consistent" else selection.base
     document = with_model(documents[unconstrained], entries[selection.chosen])
     document["chosen"] = selection.chosen

@@ -70,7 +70,8 @@ def diagnosis_report(diagnosis: Diagnosis, *, train: Measurements | None = None,
                      validation: tuple[Comparison, Comparison] | None = None,
                      test: tuple[Comparison, Comparison] | None = None, validate: Measurements | None = None,
                      preprocessing: str | None = None, warnings: Sequence[str] = (),
-                     test_errors: dict[str, Any] | None = None, test_note: str | None = None) -> Report:
+                     test_errors: dict[str, Any] | None = None, test_note: str | None = None,
+                     answer: dict[str, Any] | None = None) -> Report:
     """The report a person reads, built once for Markdown and HTML (:class:`~dynamics.runtime.report_document.Report`).
 
     Parameters
@@ -88,6 +89,10 @@ def diagnosis_report(diagnosis: Diagnosis, *, train: Measurements | None = None,
         Every warning of the run.
     test_errors
         ``UntouchedErrors.to_dict()`` of the test record, or ``None`` (then ``test_note`` says why it matters).
+    answer
+        ``report.json`` as the verb writes it: the model it chose (``validation.chosen``, ``test.chosen``,
+        ``model_selection``), the one ``oed predict`` uses and ``oed export`` writes, and its errors
+        (:func:`answer_blocks`); ``None``: no such section.
     """
     document = diagnosis.to_dict()
     blocks: list[Block] = [Paragraph(f"Declared effects: {', '.join(f'`{e}`' for e in document['declared_effects']) or 'none'}.")]
@@ -103,6 +108,7 @@ def diagnosis_report(diagnosis: Diagnosis, *, train: Measurements | None = None,
                    Bullets(tuple(f"{term['parameter']} ({term['effect']}{', found' if term['found'] else ''}): "
                                  f"{term['reason']}" for term in document["pinned"]))]
     blocks += error_blocks(document)
+    blocks += answer_blocks(answer)
     if test_errors is not None:
         blocks += test_blocks(test_errors)
     elif test_note:
@@ -176,6 +182,21 @@ def error_blocks(document: dict[str, Any]) -> list[Block]:
                  for channel, value in before.items())
     return [Heading("Validation error per channel (held-out data)"),
             Table(("channel", "MSE before", "MSE after", "ratio"), rows)]
+
+
+def answer_blocks(document: dict[str, Any] | None) -> list[Block]:
+    """The model the verb chose (``report.json``'s ``validation.chosen``, ``test.chosen`` and ``model_selection``):
+    its name, why, and its errors on the validation and test records, what ``oed predict`` gives there."""
+    chosen = None if document is None else (document.get("validation") or {}).get("chosen")
+    if chosen is None or chosen.get("mse") is None:
+        return []
+    reason = (document.get("model_selection") or {}).get("reason")
+    test = (document.get("test") or {}).get("chosen")
+    head = ("channel", "validation MSE") + (("test MSE",) if test is not None else ())
+    rows = tuple((channel, f"{value:.5g}") + ((f"{test['mse'][channel]:.5g}",) if test is not None else ())
+                 for channel, value in chosen["mse"].items())
+    return [Heading("The answer: the model `oed predict` uses and `oed export` writes"),
+            Paragraph(f"Model: {chosen['name']}" + (f" ({reason})" if reason else "") + "."), Table(head, rows)]
 
 
 def test_blocks(errors: dict[str, Any]) -> list[Block]:

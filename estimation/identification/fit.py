@@ -50,17 +50,25 @@ def implausible_estimates(model: IdentificationModel, estimate: Estimate,
     Such a value is not friction: it usually absorbs an effect the model lacks (or a torque-sign or
     unit error); :func:`estimation.diagnosis.search.diagnose` looks for the missing effect.
     """
+    return tuple(f"{record['name']} = {record['value']:.4g} ± {record['std']:.2g} is negative "
+                 f"({-record['value'] / record['std']:.0f} standard deviations), which no {effect} can be: "
+                 f"{IMPLAUSIBLE_CAUSE}" for record, effect in implausible_records(model, estimate, sigmas))
+
+
+#: what a positive-by-physics estimate far below zero usually means (:func:`implausible_estimates`)
+IMPLAUSIBLE_CAUSE = ("the model probably lacks an effect (what `oed diagnose` looks for), or a sign or unit is "
+                     "wrong")
+
+
+def implausible_records(model: IdentificationModel, estimate: Estimate,
+                        sigmas: float = IMPLAUSIBLE_SIGMAS) -> list[tuple[dict[str, Any], str]]:
+    """The records (``estimate.records()``) of :func:`implausible_estimates`, each with the effect it belongs to
+    in words (``viscous friction``, ``armature``)."""
     positive = {name for effect in model.effects if getattr(effect, "physical_kind", effect.name) in POSITIVE_EFFECTS
                 for name in effect.parameter_names(model.robot)}
-    messages = []
-    for record in estimate.records():
-        if record["expression"].strip() in positive and record["std"] > 0 and record["value"] < -sigmas * record["std"]:
-            messages.append(
-                f"{record['name']} = {record['value']:.4g} ± {record['std']:.2g} is negative "
-                f"({-record['value'] / record['std']:.0f} standard deviations), which no {_effect_of(model, record['expression'])} "
-                "can be: the model probably lacks an effect (what `oed diagnose` looks for), or a sign or unit is wrong"
-            )
-    return tuple(messages)
+    return [(record, _effect_of(model, record["expression"])) for record in estimate.records()
+            if record["expression"].strip() in positive and record["std"] > 0
+            and record["value"] < -sigmas * record["std"]]
 
 
 def _effect_of(model: IdentificationModel, parameter: str) -> str:

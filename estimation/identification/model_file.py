@@ -26,7 +26,7 @@
                        "validation_mse": {channel: value} | null} | null,
         "chosen": "wls" | "ols" | "consistent" | null,       # the model above (oed identify's choice; null: unnamed)
         "alternatives": {NAME: {"theta", "cov", "method", "channel_variance", "weights", "recorded_variance",
-                                "validation_mse", "shape", "shape_std", "delay", "effect_values"}},
+                                "validation_mse", "shape", "shape_std", "delay", "effect_values", "warnings"}},
         "payload": {"link": "joint6", "link_index": 6,                        # oed payload: a rigid body fixed
                     "parameters": [m, mx, …, Izz], "cov": [[…]]}}            # to that link (absent: none)
 

@@ -6,7 +6,7 @@ the training) record."""
 from __future__ import annotations
 
 import functools
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -18,15 +18,20 @@ from estimation.identification.validation import plot_channel, subsample_step
 __all__ = ["identification_report", "parameter_table"]
 
 
-def parameter_table(result: IdentificationResult, records: Sequence[dict[str, Any]] | None = None) -> Table:
+def parameter_table(result: IdentificationResult, records: Sequence[dict[str, Any]] | None = None,
+                    shape_std: Mapping[str, float | None] | None = None) -> Table:
     """The base parameters (and shape parameters) with their standard deviations: ``records`` (those of the
-    model the result chose: ``name, expression, value, std, relative_std``), by default ``result``'s."""
+    model the result chose: ``name, expression, value, std, relative_std``), by default ``result``'s;
+    ``shape_std``: the chosen model's standard deviations of the shapes (``None`` each: held, not estimated, by
+    the consistent fit), by default ``result``'s."""
     records = result.estimate.records() if records is None else records
     rows = tuple((record["name"], str(record.get("expression", "")), f"{record['value']:.5g}",
                   "n/a" if record["std"] is None else f"{record['std']:.2g}",
                   f"{record['relative_std']:.2g} %" if np.isfinite(_number(record.get("relative_std"))) else "n/a")
                  for record in records)
-    shapes = tuple((value.name, f"shape of {value.effect}", f"{value.value:.5g}", f"{value.std:.2g}", "")
+    stds = {value.name: value.std for value in result.shapes} if shape_std is None else shape_std
+    shapes = tuple((value.name, f"shape of {value.effect}", f"{value.value:.5g}",
+                    "n/a (held)" if stds.get(value.name) is None else f"{stds[value.name]:.2g}", "")
                    for value in result.shapes)
     return Table(("parameter", "expression", "value", "std", "relative std"), rows + shapes)
 
@@ -67,7 +72,8 @@ def identification_report(result: IdentificationResult, document: dict[str, Any]
         choices.append(f"model: {chosen.name} (refitted from {estimate.method}; standard deviations: "
                        f"{chosen.cov_method})" + (f"; {reason}" if reason else ""))
     blocks += [Heading("Choices made"), Bullets(tuple(choices)),
-               Heading("Parameters"), parameter_table(result, None if chosen is None else chosen.records())]
+               Heading("Parameters"), parameter_table(result, None if chosen is None else chosen.records(),
+                                                      None if chosen is None else chosen.shape_std)]
     rows = []
     floor = (document.get("noise_floor") or {}).get("mse") or {}
     over = (document.get("validation") or {}).get("mse_over_floor") or {}

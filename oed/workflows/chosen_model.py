@@ -14,7 +14,7 @@ candidates' errors stay in ``model_selection.candidates`` and their models in ``
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -26,7 +26,8 @@ from estimation.identification.fit import IdentificationResult
 from estimation.identification.validation import Comparison
 from estimation.uncertainty.noise_floor import NoiseFloor
 
-__all__ = ["ChosenModel", "answer_diagnosis", "answer_identification", "mse_line"]
+__all__ = ["ChosenModel", "alternative_warnings", "answer_diagnosis", "answer_identification", "chosen_messages",
+           "mse_line"]
 
 
 @dataclass(frozen=True)
@@ -83,6 +84,24 @@ class ChosenModel:
     def hac_lags(self) -> int | None:
         return None if self.consistent else self.fit.estimate.hac_lags
 
+    @property
+    def warnings(self) -> tuple[str, ...]:
+        """The model's own warnings: an unconstrained fit's implausible estimates, or those the consistent fit
+        holds at or above zero (:attr:`~estimation.consistent.identification.ConsistentResult.warnings`)."""
+        return tuple(self.fit.warnings)
+
+    @property
+    def shapes(self) -> tuple[Any, ...]:
+        """The shape parameters (and the delay) of its laws: an unconstrained fit's, or those the consistent fit
+        holds at the unconstrained fit's values (:class:`~estimation.identification.shaped.ShapeValue`)."""
+        return tuple((self.fit.unconstrained if self.consistent else self.fit).shapes)
+
+    @property
+    def shape_std(self) -> dict[str, float | None]:
+        """The shapes' standard deviations by name: an unconstrained fit's; ``None`` each for the consistent fit,
+        which holds them fixed (not estimated: its model file's ``shape_std`` is empty)."""
+        return {value.name: None if self.consistent else float(value.std) for value in self.shapes}
+
     def records(self) -> list[dict[str, Any]]:
         """One dict a base parameter: ``name, expression, value, std, relative_std`` (in %; ``None`` at a value of
         exactly 0 or a standard deviation that is not finite)."""
@@ -100,6 +119,26 @@ class ChosenModel:
         width = max(len(record["name"]) for record in records)
         return [f"  {r['name']:<{width}}  {r['value']:+.5g} ± {_number(r['std'], '.2g')}  "
                 f"({_number(r['relative_std'], '.3g')} %)" for r in records]
+
+
+def alternative_warnings(selection: ModelSelection) -> dict[str, tuple[str, ...]]:
+    """The warnings of the fitted candidates not chosen (an unconstrained fit's implausible estimates) that are not
+    the chosen model's, by name (those with none left out): said beside those candidates, not as the answer's."""
+    chosen = ChosenModel.of(selection)
+    found = {candidate.name: tuple(text for text in getattr(candidate.fit, "warnings", ()) if text not in chosen.warnings)
+             for candidate in selection.alternatives}
+    return {name: texts for name, texts in found.items() if texts}
+
+
+def chosen_messages(messages: Sequence[str], selection: ModelSelection | None) -> list[str]:
+    """``messages`` (the warnings caught while fitting) without the other candidates' own
+    (:func:`alternative_warnings`), and with the chosen model's own (the consistent fit's are not issued as
+    warnings): what is said of the result is said of the chosen model."""
+    if selection is None:
+        return list(messages)
+    others = {text for texts in alternative_warnings(selection).values() for text in texts}
+    kept = [text for text in messages if text not in others]
+    return [*kept, *(text for text in ChosenModel.of(selection).warnings if text not in kept)]
 
 
 def _number(value: float | None, form: str) -> str:
@@ -121,16 +160,27 @@ def floor_ratios(mse: Mapping[str, float], floor: NoiseFloor | None) -> dict[str
 
 
 def answer_identification(document: dict[str, Any], chosen: ChosenModel, *,
-                          floor: NoiseFloor | None = None) -> None:
+                          floor: NoiseFloor | None = None, fitted: IdentificationResult | None = None) -> None:
     """Make ``result.json``'s top level (``document``, in place) the chosen model's: ``parameters``, ``train``,
     ``validation`` (its ``mse``, ``mse_filtered`` and ``mse_over_floor``; the trivial predictors' errors kept),
-    ``cov_method``, ``hac_lags``, ``model_parameters.values``/``std``; add ``chosen``, ``train.model``,
+    ``cov_method``, ``hac_lags``, ``model_parameters.values``/``std``, ``shape_std`` and
+    ``model_parameters.shape_std`` (``null`` each for shapes the consistent fit held), ``delay.std`` (``null`` when
+    held), ``warnings`` (the chosen model's own in place of those of ``fitted``, the unconstrained fit ``document``
+    was made from: these stay in ``model_file.alternatives``); add ``chosen``, ``train.model``,
     ``validation.model`` and ``model_parameters.chosen`` (its name). ``method``, ``cond`` and ``channel_std``
     stay: the consistent fit is the unconstrained fit's weighting of the same regressor. ``floor``: the validation
     record's noise floor."""
     document["chosen"] = chosen.name
     document["parameters"] = chosen.records()
     document["cov_method"], document["hac_lags"] = chosen.cov_method, chosen.hac_lags
+    if fitted is not None:  # the fit's own warnings first (IdentificationResult.to_dict), the run's after them
+        others = set(fitted.warnings) - set(chosen.warnings)
+        kept = [text for text in document.get("warnings", []) if text not in others]
+        document["warnings"] = [*(text for text in chosen.warnings if text not in kept), *kept]
+    if "shape_std" in document:
+        document["shape_std"] = chosen.shape_std
+    if document.get("delay") is not None and chosen.consistent:
+        document["delay"] = {**document["delay"], "std": None}  # held at the unconstrained fit's value
     document["train"] = {**chosen.train.to_dict(), "model": chosen.name}
     if chosen.validation is not None and document.get("validation") is not None:
         kept = {key: value for key, value in document["validation"].items() if key in ("zero_mse", "nominal_mse")}
@@ -142,9 +192,11 @@ def answer_identification(document: dict[str, Any], chosen: ChosenModel, *,
 
 def answer_diagnosis(document: dict[str, Any], chosen: ChosenModel, *, floor: NoiseFloor | None = None) -> None:
     """Add the chosen model's errors to ``report.json`` (``document``, in place) beside the diagnosis's ``before``
-    and ``after``: ``train.chosen: {name, mse}`` and ``validation.chosen: {name, mse[, mse_over_floor]}``; make
-    ``model_parameters`` the chosen model's (``model_parameters.chosen`` its name)."""
+    and ``after``: ``train.chosen: {name, mse}`` and ``validation.chosen: {name, mse[, mse_over_floor]}``, and its
+    own warnings as ``warnings.chosen``; make ``model_parameters`` the chosen model's (``model_parameters.chosen``
+    its name)."""
     document["train"]["chosen"] = {"name": chosen.name, "mse": dict(chosen.train.mse)}
+    document["warnings"]["chosen"] = list(chosen.warnings)
     if chosen.validation is not None:
         document["validation"]["chosen"] = {"name": chosen.name, "mse": dict(chosen.validation.mse)}
         ratios = floor_ratios(chosen.validation.mse, floor)
@@ -161,4 +213,6 @@ def _answer_parameters(document: dict[str, Any], chosen: ChosenModel) -> None:
         raise ValueError("the chosen model's base parameters are not those of model_parameters")
     parameters["values"] = [float(value) for value in chosen.values]
     parameters["std"] = [float(value) if np.isfinite(value) else None for value in chosen.std]
+    if parameters.get("shape_std"):
+        parameters["shape_std"] = chosen.shape_std
     parameters["chosen"] = chosen.name

@@ -191,7 +191,8 @@ class DiagnoseRun:
         samples held) and says what its path did not compute."""
         diagnosis, records = self.diagnosis, self.records
         if records is None:  # streamed
-            return diagnosis_report(diagnosis, preprocessing=self.lines[0], warnings=self.warnings)
+            return diagnosis_report(diagnosis, preprocessing=self.lines[0], warnings=self.warnings,
+                                    answer=self.document)
         validation = (diagnosis.before.validation, diagnosis.after.validation)
         test = None
         if self.untouched is not None and records.test is not None:
@@ -200,7 +201,8 @@ class DiagnoseRun:
         return diagnosis_report(
             diagnosis, train=records.train.measurements, validate=records.validation.measurements,
             validation=validation, test=test, preprocessing=records.preprocessing.describe(), warnings=self.warnings,
-            test_errors=None if self.untouched is None else self.untouched.to_dict(), test_note=TEST_NOTE)
+            test_errors=None if self.untouched is None else self.untouched.to_dict(), test_note=TEST_NOTE,
+            answer=self.document)
 
     def markdown(self, report: str | Path = "report.md") -> str:
         """The Markdown report, linking its figures as the files beside ``report`` (:func:`report_figures`)."""
@@ -419,6 +421,7 @@ def diagnose_document(args: DiagnoseOptions, diagnosed: Diagnosed) -> tuple[dict
                                consistent=consistent, selection=selection)
         chosen = ChosenModel.of(selection)  # its errors beside the diagnosis's before and after
         answer_diagnosis(document, chosen, floor=None if diagnosis.statistics is None else diagnosis.statistics.floor)
+        files = (*files, *(text for text in chosen.warnings if text not in diagnosed.messages))  # said of it too
         add_runner_up_model_file(document, diagnosis.runner_up, args, records.preprocessing, diagnosed.transmission)
     else:
         # the model file: the final model's estimate from the sums; on the filter path (and with measured
@@ -432,6 +435,7 @@ def diagnose_document(args: DiagnoseOptions, diagnosed: Diagnosed) -> tuple[dict
                                       validation_mse=validation_mse)
         name = after.estimate.method  # the one model the report's model file holds: its errors, as predict names it
         document["train"]["chosen"] = {"name": name, "mse": dict(after.train.mse)}
+        document["warnings"]["chosen"] = list(after.warnings)
         document["validation"]["chosen"] = {"name": name,
                                             "mse": None if validation_mse is None else dict(validation_mse)}
         add_summed_runner_up_model_file(document, runner_up, args, model_plan, None if validation_mse is None or
@@ -641,15 +645,13 @@ STREAMED = "the streamed path (--chunk-size, --scheduler or --workers)"
 def check_streamed_arguments(args: DiagnoseOptions, model: IdentificationModel) -> None:
     """Options the streamed diagnosis does not have: an error naming them, before anything is read."""
     unsupported = [option for option, given in (
-        ("--report", bool(args.report)),
         ("--transmission", args.transmission is not None),
         ("--min-speed", args.min_speed is not None),
         ("--average-periods no", args.average_periods == "no"),
         ("--max-gap", args.max_gap != DEFAULT_MAX_GAP)) if given]
     if unsupported:
         raise ValueError(f"{', '.join(unsupported)}: not with {STREAMED}, which reads whole files without holes "
-                         "on the filter path, the files' dq, ddq or a Fourier fit of averaged periods, and writes the "
-                         "JSON report only")
+                         "on the filter path, the files' dq, ddq or a Fourier fit of averaged periods")
     if model_has_shapes(model):
         raise ValueError(f"declared laws with shape parameters (coulomb:tanh, sigmoid…) are fitted in memory: not with "
                          f"{STREAMED}; declare their plain forms, or let the diagnosis find them")

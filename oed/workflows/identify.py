@@ -60,7 +60,12 @@ from oed.workflows.asbuilt import (
 from estimation.consistent.identification import ConsistentResult
 from estimation.consistent.model_selection import ModelSelection, select_model
 from oed.workflows.consistent import check_consistent_arguments, consistent_lines, consistent_settings
-from oed.workflows.chosen_model import ChosenModel, answer_identification, mse_line
+from oed.workflows.chosen_model import (
+    ChosenModel,
+    answer_identification,
+    chosen_messages,
+    mse_line,
+)
 from oed.workflows.memory_path import decide_path, streamed_choice
 from oed.workflows.model_files import (
     add_model_file,
@@ -96,8 +101,9 @@ IN_MEMORY = InMemoryBudget(2 * 8, "identifying", "use --chunk-size to stream the
 @dataclass(frozen=True, kw_only=True)
 class IdentifyOptions(RecordOptions):
     """The options of ``oed identify`` (:class:`~oed.workflows.options.RecordOptions` and these): ``method``
-    (``auto``, ``wls``, ``ols``), ``plot`` and ``report`` (whether a figure or the report, which draw every sample,
-    will be written: they keep the run in memory), ``consistent``, ``prior_weight`` (a number or ``"auto"``), ``prior``, ``link_bounds``."""
+    (``auto``, ``wls``, ``ols``), ``plot`` (whether a figure, which draws every sample, will be written: it keeps
+    the run in memory), ``report`` (whether the report will be written: on the streamed path it has no figures and
+    says what the path did not compute), ``consistent``, ``prior_weight`` (a number or ``"auto"``), ``prior``, ``link_bounds``."""
 
     method: str = "auto"
     plot: bool = False
@@ -347,7 +353,7 @@ def identify_document(args: IdentifyOptions, identified: Identified) -> tuple[di
         document["noise_floor"] = None if floor is None else {
             "mse": floor.mse(), "method": floor.method, "note": identified.floor_note}
     answered = identified.chosen.validation is None or identified.chosen.validation.mse is not None
-    answer_identification(document, identified.chosen, floor=floor if answered else None)
+    answer_identification(document, identified.chosen, floor=floor if answered else None, fitted=result)
     if document.get("validation") is not None and "mse_over_floor" not in document["validation"]:
         document["validation"]["mse_over_floor"] = None  # no floor, or no error against the recording
     return document, tuple(messages)
@@ -464,9 +470,8 @@ def check_model_request(args: IdentifyOptions, model: IdentificationModel, delay
 
 def check_streamed_request(args: IdentifyOptions, model: IdentificationModel) -> None:
     """Options the streamed identification does not have: an error naming them, before anything is read."""
-    for option, given in (("--plot", args.plot), ("--report", args.report)):
-        if given:
-            raise ValueError(f"{option} draws every sample: not with {STREAMED}")
+    if args.plot:  # the report is written on both paths (streamed: without figures, saying what it lacks)
+        raise ValueError(f"--plot draws every sample: not with {STREAMED}")
     if args.min_speed is not None:
         raise ValueError(f"--min-speed drops rows of the whole record: not with {STREAMED}")
     if model_has_shapes(model):
@@ -513,7 +518,7 @@ def identification_in_memory(args: IdentifyOptions, robot: RobotModel, model: Id
         repeat = None if validation is None else repeated_motion_note(train, validation)
         notes = notes if repeat is None else (*notes, repeat)
     return Identified(result, chosen, records.preprocessing.to_dict(), records.preprocessing.describe(),
-                      (*caught_messages(caught), *notes), notes, trivial,
+                      (*chosen_messages(caught_messages(caught), selection), *notes), notes, trivial,
                       None if floor_report is None else floor_report.floor,
                       None if floor_report is None else floor_report.floor_note, records=records, selection=selection,
                       consistent=consistent, floor_report=floor_report, weighting=weighting, transmission=transmission,
@@ -581,8 +586,11 @@ def summary_lines(args: IdentifyOptions, identified: Identified) -> list[str]:
     width = max(len(name) for name in estimate.names)
     for value in result.shapes:
         bound = "  (at its bound)" if value.at_bound else ""
-        held = "; held by the consistent fit" if chosen.consistent else ""
-        lines.append(f"  {value.name:<{width}}  {value.value:+.5g} ± {value.std:.2g}  (shape of {value.effect}{held})"
+        if chosen.consistent:  # held, not estimated: no standard deviation of the chosen model's
+            lines.append(f"  {value.name:<{width}}  {value.value:+.5g}  (shape of {value.effect}; held by the "
+                         f"consistent fit at the {estimate.method} fit's value){bound}")
+            continue
+        lines.append(f"  {value.name:<{width}}  {value.value:+.5g} ± {value.std:.2g}  (shape of {value.effect})"
                      f"{bound}")
     for label, errors in (("train", chosen.train), ("validation", chosen.validation)):
         if errors is None:
