@@ -48,13 +48,18 @@ VERBS = {
 }
 PATHS = {"in-memory": [], "chunks": ["--chunk-size", "250"], "budget": ["--memory-budget", "1KB"]}
 IN_MEMORY_ONLY = ("identify --consistent", "diagnose --consistent", "diagnose --test")
-CASES = [(verb, path) for verb in VERBS for path in PATHS if path == "in-memory" or verb not in IN_MEMORY_ONLY]
+#: the options a record needs: the period of the periodic one
+RECORD_OPTIONS = {"periodic": ["--frequency", "0.2"]}
+CASES = [pytest.param(verb, path, record, id=f"{record}-{verb}-{path}")
+         for record in ("arm", "periodic", "jittered") for verb in VERBS for path in PATHS
+         if path == "in-memory" or verb not in IN_MEMORY_ONLY]
 
 
 @pytest.fixture(scope="module")
 def records(tmp_path_factory):
     """``arm``: training, validation and test motions of a 3-joint PUMA with Coulomb friction and offsets, logged
-    with q, dq, ddq at 100 Hz; ``jittered``: the same robot's positions and torques at 200 Hz over 8 s (derivatives
+    with q, dq, ddq at 100 Hz; ``periodic``: the same with positions only, two periods of 5 s (derivatives by a
+    Fourier fit, ``--frequency 0.2``); ``jittered``: the same robot's positions and torques at 200 Hz over 8 s (derivatives
     by a filter), the validation and test logs jittered (stamps moved, rows re-sent, a stall)."""
     folder = tmp_path_factory.mktemp("one_answer")
     robot = load_robot("puma560", joints=3)
@@ -65,6 +70,13 @@ def records(tmp_path_factory):
         paths["arm", name] = folder / f"arm_{name}.csv"
         simulate(truth, theta, random_fourier(robot, seed=seed), rate_hz=100.0, periods=1, noise=NOISE,
                  seed=seed).write(paths["arm", name])
+    for name, seed in (("train", 5), ("validate", 6), ("test", 7)):  # two periods, positions only
+        paths["periodic", name] = folder / f"periodic_{name}.csv"
+        simulate(truth, theta, random_fourier(robot, seed=seed, frequency_hz=0.2), rate_hz=100.0, periods=2,
+                 noise=NOISE, seed=seed).write(paths["periodic", name])
+        frame = pd.read_csv(paths["periodic", name])
+        frame[[column for column in frame.columns if not column.startswith(("dq", "ddq"))]].to_csv(
+            paths["periodic", name], index=False, float_format="%.10g")
     simulator = Simulator(robot, rate_hz=200.0)
     for name, seed in (("train", 1), ("validate", 2), ("test", 3)):
         frame = simulator.run(random_fourier(robot, seed, frequency_hz=0.1), duration=8.0, warmup_periods=1,
@@ -123,8 +135,7 @@ def reported_models(document: dict) -> tuple[str, dict[str, float], dict[str, di
     return chosen, reported, alternatives
 
 
-@pytest.mark.parametrize(("verb", "path"), CASES)
-@pytest.mark.parametrize("record", ["arm", "jittered"])
+@pytest.mark.parametrize(("verb", "path", "record"), CASES)
 def test_every_model_a_verb_reports_is_the_one_predict_measures(records, verb, path, record, capsys):
     folder, paths = records
     out = folder / f"{record}_{verb.replace(' ', '_').replace('-', '')}_{path}.json"
@@ -132,7 +143,7 @@ def test_every_model_a_verb_reports_is_the_one_predict_measures(records, verb, p
     streamed = path != "in-memory"
     report = out.with_suffix(".html")  # streamed (no figures: cheap), and the diagnosis with its test record
     report_option = ["--report", str(report)] if streamed or verb.endswith("--test") else []
-    assert main([*VERBS[verb], *PATHS[path], "--joints", "3", "--data", str(paths[record, "train"]), "--validate",
+    assert main([*VERBS[verb], *PATHS[path], *RECORD_OPTIONS.get(record, []), "--joints", "3", "--data", str(paths[record, "train"]), "--validate",
                  str(paths[record, "validate"]), *test, "--out", str(out), *report_option]) == 0
     printed = capsys.readouterr().out
     document = json.loads(out.read_text())

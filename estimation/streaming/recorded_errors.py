@@ -24,7 +24,7 @@ from numpy.typing import ArrayLike
 
 from dynamics.models import IdentificationModel
 from estimation.preprocessing.differentiation import ButterworthDifferentiation
-from estimation.streaming.chunks import preprocessed_chunks
+from estimation.streaming.periods import plan_chunks
 
 __all__ = ["streamed_plan", "streamed_recorded_errors", "streamed_recorded_mse"]
 
@@ -50,10 +50,13 @@ def streamed_recorded_mse(model: IdentificationModel, theta: ArrayLike, paths: S
 
 def streamed_recorded_errors(model: IdentificationModel, thetas: Mapping[str, ArrayLike], paths: Sequence[str | Path], *,
                              chunk_size: int, cutoff_hz: float | None = None, decimation: int = 1,
-                             held_torques: bool = False) -> dict[str, dict[str, float]]:
+                             held_torques: bool = False, frequency_hz: float | None = None,
+                             harmonics: int = 5) -> dict[str, dict[str, float]]:
     """:func:`streamed_recorded_mse` of several parameter vectors in one pass over ``paths`` (by the names of
     ``thetas``): e.g. the estimate's and the trivial predictors' (zero, nominal:
-    :mod:`estimation.identification.trivial_predictors`)."""
+    :mod:`estimation.identification.trivial_predictors`). ``frequency_hz``: the Fourier path (a file without
+    ``dq``, ``ddq`` is read as the in-memory validation and ``oed predict`` read it: every sample of its whole
+    periods, the fit of its averaged period at their instants, :func:`estimation.streaming.periods.plan_chunks`)."""
     vectors = {name: np.asarray(theta, dtype=float) for name, theta in thetas.items()}
     for theta in vectors.values():
         if theta.shape != (model.n_base,):
@@ -63,8 +66,9 @@ def streamed_recorded_errors(model: IdentificationModel, thetas: Mapping[str, Ar
     squares = {name: np.zeros(model.n_channels) for name in vectors}
     count = 0
     for path in paths:
-        for chunk in preprocessed_chunks(path, model, chunk_size=chunk_size, cutoff_hz=cutoff_hz,
-                                         decimation=decimation, held_torques=held_torques):
+        for chunk in plan_chunks(path, model, frequency_hz=frequency_hz, harmonics=harmonics, as_recorded=True,
+                                 chunk_size=chunk_size, cutoff_hz=cutoff_hz, decimation=decimation,
+                                 held_torques=held_torques):
             record = chunk.as_recorded
             measured = record.channels(model.channels)
             for name, theta in vectors.items():

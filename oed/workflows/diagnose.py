@@ -424,10 +424,10 @@ def diagnose_document(args: DiagnoseOptions, diagnosed: Diagnosed) -> tuple[dict
         files = (*files, *(text for text in chosen.warnings if text not in diagnosed.messages))  # said of it too
         add_runner_up_model_file(document, diagnosis.runner_up, args, records.preprocessing, diagnosed.transmission)
     else:
-        # the model file: the final model's estimate from the sums; on the filter path (and with measured
-        # derivatives) its validation error is against the channels as recorded, on the samples the in-memory
-        # preprocessing keeps, which is what `oed predict` measures (on a resampled validation file, measured at its
-        # recorded samples: diagnosis_streamed); a Fourier fit of averaged periods is not what `oed predict` repeats
+        # the model file: the final model's estimate from the sums; its validation error is against the channels
+        # as recorded, on the samples the in-memory preprocessing keeps (on the Fourier path every sample of the
+        # whole periods), which is what `oed predict` measures (on a resampled validation file, measured at its
+        # recorded samples: diagnosis_streamed)
         model_plan, validation_mse = diagnosed.model_file
         after, runner_up = diagnosis.after, diagnosis.runner_up
         files = add_summed_model_file(document, diagnosis.final_model(), after.estimate, args, model_plan,
@@ -687,8 +687,8 @@ def diagnosis_streamed(args: DiagnoseOptions, friction: str, plan: Preprocessing
                                        findings=findings)
     messages = tuple(caught_messages(caught))  # the findings as said (one line per finding across files), others
     cutoff_hz = diagnosis.streaming["cutoff_hz"]
-    if plan.method == "fourier":
-        model_file = plan.to_dict(), None
+    if plan.method == "fourier":  # validated on every sample of whole periods as recorded: what predict measures
+        model_file = plan.to_dict(), diagnosis.after.validation.mse
     else:
         model_plan = streamed_plan(args.data[0], model, cutoff_hz=cutoff_hz, decimation=plan.decimation,
                                    held_torques=plan.held_torques, chunk_size=chunk_size)

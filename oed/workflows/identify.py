@@ -386,15 +386,15 @@ def identification_streamed(args: IdentifyOptions, model: IdentificationModel, t
             not_computed.pop(key, None)
     cutoff_hz, frequency_hz = result.streaming["cutoff_hz"], result.streaming["frequency_hz"]
     if frequency_hz is not None:  # a Fourier fit of averaged periods: not what `oed predict` repeats
-        model_plan = {"method": "fourier", "frequency_hz": frequency_hz, "harmonics": 5 if args.harmonics is None
-                      else args.harmonics, "frequency_source": "given", "average_periods": "auto",
+        model_plan = {"method": "fourier", "frequency_hz": frequency_hz, "harmonics": options["harmonics"],
+                      "frequency_source": "given", "average_periods": "auto",
                       "decimation": args.decimate, "held_torques": bool(args.held_torques)}
     else:
         model_plan = streamed_plan(args.data[0], model, cutoff_hz=cutoff_hz, decimation=args.decimate,
                                    held_torques=bool(args.held_torques), chunk_size=chunk_size)
     trivial, floor, floor_note, notes = None, None, None, ()
     if result.validation is not None:
-        result, trivial, reasons = recorded_validation(args, result, chunk_size)
+        result, trivial, reasons = recorded_validation(args, result, chunk_size, harmonics=options["harmonics"])
         not_computed.update(reasons)
         frequency = plan.frequency_hz if plan.method == "fourier" else args.frequency
         with warnings.catch_warnings():
@@ -409,26 +409,22 @@ def identification_streamed(args: IdentifyOptions, model: IdentificationModel, t
             comparisons = compare_with_floor(mse, floor, result.validation.n_samples, alpha=FLOOR_ALPHA)
             notes += tuple(f"{comparison.statement()}: the model lacks something there; `oed diagnose` searches for it"
                            for comparison in comparisons.values() if comparison.above)
-    validation_mse = None if result.validation is None or frequency_hz is not None else result.validation.mse
+    validation_mse = None if result.validation is None else result.validation.mse
     return Identified(result, ChosenModel(result.estimate.method, result), plan.to_dict(), plan.describe(),
                       (*messages, *notes), notes, trivial, floor, floor_note, not_computed, weighting=weighting,
                       transmission=transmission, chunk_size=chunk_size, model_file=(model_plan, validation_mse))
 
 
-def recorded_validation(args: IdentifyOptions, result: IdentificationResult, chunk_size: int
+def recorded_validation(args: IdentifyOptions, result: IdentificationResult, chunk_size: int, *, harmonics: int = 5
                         ) -> tuple[IdentificationResult, dict[str, dict[str, float]] | None, dict[str, str]]:
     """The streamed ``result`` with its validation error against the channels as recorded, on the samples the
     in-memory preprocessing keeps (what ``oed predict`` measures), and the trivial predictors' errors there, from
     one pass over the validation files (:func:`estimation.streaming.recorded_errors.streamed_recorded_errors`; the
     filter path's sums hold filtered channels; sums of the recording give both: ``result.trivial``); on a file resampled onto a uniform grid, the error at the recorded
     samples (:func:`~oed.workflows.model_files.recorded_validation_mse`). On the Fourier path (the sums hold
-    averaged periods) neither: ``None`` and why."""
+    averaged periods) the pass reads every sample of the validation files' whole periods with the fit's motion at
+    their instants (``harmonics``: the fit's), as ``oed predict`` reads them."""
     streaming = result.streaming
-    if streaming["frequency_hz"] is not None:
-        reason = ("a Fourier fit of averaged periods: the sums hold the averaged channels, not the recording, and "
-                  "the fit of the periods is not what `oed predict` repeats")
-        return result, None, {"validation.mse": reason, "validation.zero_mse": reason,
-                              "validation.nominal_mse": reason, "validation.mse_over_floor": reason}
     model = result.model
     if result.trivial is not None and result.validation.mse is not None:  # the sums hold the recording
         errors, mse = {key: dict(value) for key, value in result.trivial.items()}, result.validation.mse
@@ -439,7 +435,8 @@ def recorded_validation(args: IdentifyOptions, result: IdentificationResult, chu
             warnings.simplefilter("ignore")  # the files' findings were said on the first pass
             errors = streamed_recorded_errors(model, thetas, args.validate, chunk_size=chunk_size,
                                               cutoff_hz=streaming["cutoff_hz"], decimation=args.decimate,
-                                              held_torques=bool(args.held_torques))
+                                              held_torques=bool(args.held_torques),
+                                              frequency_hz=streaming["frequency_hz"], harmonics=harmonics)
         mse = errors.pop("mse")
     if resampled_validation({"streaming": streaming}):  # jittered or cleaned: its error at the recorded samples
         recorded = recorded_validation_mse(summed_model_file_document(
