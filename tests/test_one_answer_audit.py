@@ -300,3 +300,37 @@ def test_an_unconstrained_answer_keeps_its_own_warning(negative_friction, capsys
     document = json.loads(out.read_text())
     assert document["chosen"] == "wls"
     assert any(text.startswith("fv3 = -") for text in document["warnings"]) and "fv3 = -" in captured.err
+
+
+#: derivative options and several validation files, each on the path it changes
+OPTION_CASES = {
+    "periodic identify streamed --held-torques": ("periodic", ["identify", "--friction", EFFECTS, "--chunk-size", "250",
+                                                               "--held-torques"]),
+    "periodic diagnose streamed --held-torques": ("periodic", ["diagnose", "--friction", "viscous", "--chunk-size", "250",
+                                                               "--held-torques"]),
+    "arm identify streamed --decimate 2": ("arm", ["identify", "--friction", EFFECTS, "--chunk-size", "250",
+                                                   "--decimate", "2"]),
+    "jittered identify --held-torques": ("jittered", ["identify", "--friction", EFFECTS, "--held-torques"]),
+    "jittered identify streamed --held-torques": ("jittered", ["identify", "--friction", EFFECTS, "--chunk-size",
+                                                               "250", "--held-torques"]),
+    "jittered diagnose streamed --held-torques": ("jittered", ["diagnose", "--friction", "viscous", "--chunk-size",
+                                                               "250", "--held-torques"]),
+}
+
+
+@pytest.mark.parametrize("case", list(OPTION_CASES))
+def test_derivative_options_and_two_validation_records_keep_one_answer(records, case, capsys):
+    """With ``--held-torques`` or ``--decimate`` and two validation records (``--validate`` twice), the validation
+    error reported for the chosen model is what ``oed predict`` measures on both records (given as segments)."""
+    folder, paths = records
+    record, options = OPTION_CASES[case]
+    out = folder / f"options_{case.replace(' ', '_').replace('-', '')}.json"
+    validation = [paths[record, "validate"], paths[record, "test"]]
+    assert main([*options, *RECORD_OPTIONS.get(record, []), "--joints", "3", "--data", str(paths[record, "train"]),
+                 *(argument for path in validation for argument in ("--validate", str(path))), "--out", str(out)]) == 0
+    capsys.readouterr()
+    document = json.loads(out.read_text())
+    chosen, reported, _ = reported_models(document)
+    assert reported is not None and document["model_file"]["reported"]["validation_mse"] == reported
+    metrics, _ = predicted(folder, out, validation[0], "--data", str(validation[1]))
+    assert metrics["model"] == chosen and relative(metrics["mse"], reported) < RELATIVE, (metrics["mse"], reported)

@@ -150,7 +150,11 @@ def periodic_chunks(path: str | Path, model: IdentificationModel, *, frequency_h
         q, dq, ddq = fit.evaluate(chunk.t)
         if held_torques:  # the fit half a sample later (compensate_hold, with the fit's own next sample)
             step = float(averaged.t[1] - averaged.t[0])
-            later = fit.evaluate(chunk.t + step)
+            later = [np.array(values) for values in fit.evaluate(chunk.t + step)]
+            if done == kept:  # the last sample kept: extrapolated from the one before, as compensate_hold does
+                before = fit.evaluate(chunk.t[-1:] - step)
+                for values, now, previous in zip(later, (q, dq, ddq), before):
+                    values[-1] = 2 * now[-1] - previous[-1]
             q, dq, ddq = ((now + next_) / 2 for now, next_ in zip((q, dq, ddq), later))
         yield replace(chunk, q=q, dq=dq, ddq=ddq, recorded=None)
 
