@@ -181,6 +181,9 @@ def test_every_model_a_verb_reports_is_the_one_predict_measures(records, verb, p
         measured, _ = predicted(folder, out, paths[record, "validate"], "--alternative", name)
         assert measured["model"] == name
         assert relative(measured["mse"], expected) < RELATIVE, (name, measured["mse"], expected)
+    if "consistent" in alternatives:  # --consistent is --alternative consistent
+        measured, _ = predicted(folder, out, paths[record, "validate"], "--consistent")
+        assert relative(measured["mse"], alternatives["consistent"]) < RELATIVE
     unconstrained = chosen if chosen != "consistent" else model_file["method"]
     measured, _ = predicted(folder, out, paths[record, "validate"], "--alternative", "unconstrained")
     expected = reported if unconstrained == chosen else alternatives[unconstrained]
@@ -215,6 +218,10 @@ def test_every_model_a_verb_reports_is_the_one_predict_measures(records, verb, p
     # oed export: the chosen model when it has bodies, else the consistent alternative named, else a refusal
     urdf = folder / "exported.urdf"
     urdf.unlink(missing_ok=True)
+    for name in alternatives:  # an unconstrained alternative has no bodies to write
+        if name != "consistent":
+            assert main(["export", "--model", str(out), "--urdf", str(urdf), "--alternative", name]) == 2
+            assert "base parameters only" in capsys.readouterr().err and not urdf.exists()
     code = main(["export", "--model", str(out), "--urdf", str(urdf)])
     error = capsys.readouterr().err
     if chosen == "consistent":
