@@ -60,12 +60,7 @@ from oed.workflows.asbuilt import (
 from estimation.consistent.identification import ConsistentResult
 from estimation.consistent.model_selection import ModelSelection, select_model
 from oed.workflows.consistent import check_consistent_arguments, consistent_lines, consistent_settings
-from oed.workflows.chosen_model import (
-    ChosenModel,
-    answer_identification,
-    chosen_messages,
-    mse_line,
-)
+from oed.workflows.chosen_model import ChosenModel, answer_identification, chosen_messages, mse_line
 from oed.workflows.memory_path import decide_path, streamed_choice
 from oed.workflows.model_files import (
     add_model_file,
@@ -385,7 +380,7 @@ def identification_streamed(args: IdentifyOptions, model: IdentificationModel, t
         for key in ("consistent", "links"):
             not_computed.pop(key, None)
     cutoff_hz, frequency_hz = result.streaming["cutoff_hz"], result.streaming["frequency_hz"]
-    if frequency_hz is not None:  # a Fourier fit of averaged periods: not what `oed predict` repeats
+    if frequency_hz is not None:  # a Fourier fit of averaged periods: `oed predict` fits a record's periods alike
         model_plan = {"method": "fourier", "frequency_hz": frequency_hz, "harmonics": options["harmonics"],
                       "frequency_source": "given", "average_periods": "auto",
                       "decimation": args.decimate, "held_torques": bool(args.held_torques)}
