@@ -148,8 +148,7 @@ def periodic_chunks(path: str | Path, model: IdentificationModel, *, frequency_h
         if not chunk.n_samples:
             continue
         q, dq, ddq = fit.evaluate(chunk.t)
-        if held_torques:  # the fit half a sample later (compensate_hold: the fit's own next sample, the last one
-            # extrapolated)
+        if held_torques:  # the fit half a sample later (compensate_hold, with the fit's own next sample)
             step = float(averaged.t[1] - averaged.t[0])
             later = [np.array(values) for values in fit.evaluate(chunk.t + step)]
             if done == kept:  # the last sample kept: extrapolated from the one before, as compensate_hold does
