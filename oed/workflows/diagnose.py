@@ -96,7 +96,7 @@ IN_MEMORY = InMemoryBudget(64, "diagnosing", "use --chunk-size to stream them in
 @dataclass(frozen=True, kw_only=True)
 class DiagnoseOptions(RecordOptions):
     """The options of ``oed diagnose`` (:class:`~oed.workflows.options.RecordOptions` and these): ``test`` (a path
-    or a list), ``report`` (whether the report, HTML or Markdown, will be written: it keeps the run in memory), ``alpha``,
+    or a list), ``report`` (whether the report, HTML or Markdown, will be written: streamed, without figures), ``alpha``,
     ``max_effects``, ``subsample`` and ``floor_window`` (the streamed path's), ``unseen_stretches`` (with a validation
     record that repeats the training motion, refuse an effect that raises the error on stretches its fit did not
     see), and ``consistent`` (the answer forced to the adopted model's physically consistent refit, shaped laws and
