@@ -1,7 +1,7 @@
 """One answer per result (issue 34), audited verb by verb: after every verb that writes a model (``oed identify`` by
 default, with ``--method ols`` and with ``--consistent``; ``oed diagnose``, by default, with ``--consistent`` and with
 ``--test``), on both paths (in memory, streamed by ``--chunk-size 250``, streamed by ``--memory-budget 1KB``) and on
-a regular and a jittered log:
+a regular log (derivatives logged), a periodic one (a Fourier fit of averaged periods) and a jittered one:
 
 * ``oed predict`` on the validation record reproduces the validation error the verb reported for its chosen model
   (relative 1e-6), and ``oed predict --alternative NAME`` the error reported for each alternative the file names
@@ -12,7 +12,13 @@ a regular and a jittered log:
   residuals;
 * the top level of ``result.json`` describes the chosen model (its parameters are the model file's);
 * ``oed export`` writes the chosen model, or names the consistent alternative it writes instead, or refuses a file
-  without bodies (exit 2, nothing written).
+  without bodies (exit 2, nothing written);
+* the printed summary and the report (``--report``, on the streamed path too: no figures, what the path did not
+  compute) give the chosen model's validation error.
+
+Beside: ``--held-torques``, ``--decimate`` and two validation records; and, on a record whose third joint's viscous
+coefficient is negative, that ``identify --consistent`` says the consistent model's warning and deviations, the
+unconstrained fit's staying under its alternative entry.
 
 Small simulated 3-joint PUMA records (a few seconds each case)."""
 
