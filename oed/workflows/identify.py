@@ -240,7 +240,7 @@ def run_identify(args: IdentifyOptions, *, say: Callable[[str], None]) -> Identi
     chosen = identified.chosen
     return IdentifyRun(document, tuple(summary_lines(args, identified)), messages, identified.result,
                        title=f"{robot.name}: {model.kind.value} model ({chosen.name})",
-                       preprocessing=identified.describe, answer=chosen if identified.records is not None else None)
+                       preprocessing=identified.describe, answer=chosen)
 
 
 @dataclass(frozen=True)
@@ -407,6 +407,8 @@ def identification_streamed(args: IdentifyOptions, model: IdentificationModel, t
         else:
             reason = next((c.unavailable for c in selection.candidates if c.name == "consistent"), None)
             not_computed.update({key: reason for key in ("consistent", "links") if reason})
+        result = replace(result, not_computed={key: value for key, value in result.not_computed.items()
+                                               if key in not_computed})  # what the selection computed
     elif frequency_hz is not None:
         not_computed["model_selection"] = (
             "a Fourier fit of averaged periods: the sums hold the averaged channels, not the recording the candidates "

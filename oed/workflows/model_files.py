@@ -102,16 +102,19 @@ def add_summed_model_file(document: dict[str, Any], model: Any, estimate: Any, a
     alternatives (``estimate``, ``recorded_mse`` and ``validation_mse`` are then its candidates')."""
     robot = robot_source(model.robot, args)
     if selection is not None:
+        consistent = selection.consistent
+        extra = {} if consistent is None else {
+            "consistent": consistent.estimate,
+            "consistent_validation_mse": None if consistent.validation is None else consistent.validation.mse}
         documents = {candidate.name: summed_model_file_document(
             model, candidate.fit.estimate, robot=robot, preprocessing=preprocessing, shape=shape,
             recorded_mse=candidate.fit.train.mse,
-            validation_mse=None if candidate.fit.validation is None else candidate.fit.validation.mse)
+            validation_mse=None if candidate.fit.validation is None else candidate.fit.validation.mse, **extra)
             for candidate in selection.candidates if isinstance(candidate.fit, IdentificationResult)}
         document["model_file"] = selection_file(selection, documents)
         answer = ChosenModel.of(selection)
         records = answer.records()
         validation_mse = None if answer.validation is None else answer.validation.mse
-        consistent = selection.consistent
     else:
         document["model_file"] = summed_model_file_document(model, estimate, robot=robot, preprocessing=preprocessing,
                                                             shape=shape, recorded_mse=recorded_mse,
