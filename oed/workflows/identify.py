@@ -471,14 +471,17 @@ class ValidationScores:
         summed = {key: self.sums.validation_errors(theta) for key, theta in vectors.items()}
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # the files' findings were said on the first pass
+            recorded = None
             if resampled_validation({"streaming": streaming}):  # jittered or cleaned: at the recorded samples
                 document = summed_model_file_document(
                     model, self.result.estimate, robot=robot_source(model.robot, args),
                     preprocessing=streamed_plan(args.data[0], model, cutoff_hz=streaming["cutoff_hz"],
                                                 decimation=args.decimate, held_torques=bool(args.held_torques),
                                                 chunk_size=self.chunk_size))
-                recorded = recorded_validation_errors(document, vectors, args.validate)
-            elif summed and next(iter(summed.values())).mse is not None:  # the sums hold the recording
+                recorded = recorded_validation_errors(document, vectors, args.validate)  # None: read as recorded
+            if recorded is not None:
+                pass
+            elif next(iter(summed.values())).mse is not None:  # the sums hold the recording
                 recorded = {key: errors.mse for key, errors in summed.items()}
             else:
                 recorded = streamed_recorded_errors(model, vectors, args.validate, chunk_size=self.chunk_size,
