@@ -59,7 +59,7 @@ from estimation.streaming.time_base import Resampler, TimeScan, scan_time
 
 __all__ = [
     "FileSums", "MARGIN_TOLERANCE", "StreamingUnsupportedError", "automatic_cutoff", "file_sums", "filter_margin",
-    "preprocessed_chunks", "read_chunks",
+    "logged_chunks", "preprocessed_chunks", "read_chunks",
 ]
 
 #: relative size of the impulse response at which the overlap margin ends
@@ -172,6 +172,20 @@ def read_chunks(path: str | Path, model: IdentificationModel, *, chunk_size: int
                             "change while it was read?)")
     if chunk.n_samples:
         yield chunk
+
+
+def logged_chunks(path: str | Path, model: IdentificationModel, *, chunk_size: int = DEFAULT_CHUNK_SIZE
+                  ) -> Iterator[Measurements]:
+    """The samples of ``path`` as logged, ``chunk_size`` rows at a time, before any resampling (rows repeating the
+    previous one dropped, as the loader drops them): the recorded time stamps and channels a resampled file's errors
+    are measured at (:func:`estimation.streaming.recorded_errors.streamed_errors_at_stamps`)."""
+    for frame in _raw_frames(Path(path), chunk_size):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # said when the file was read for its sums
+            chunk = measurements_from_frame(frame, model=model, resample=True, source=str(path))
+        chunk = chunk.as_recorded  # the samples kept as logged, when the block was resampled
+        if chunk.n_samples:
+            yield chunk
 
 
 class _ChunkChecks:

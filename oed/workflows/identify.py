@@ -49,7 +49,11 @@ from estimation.streaming.identification import SummedFits, identify_files_candi
 from estimation.streaming.model_selection import streamed_repeated_motion, summed_selection
 from estimation.streaming.periods import plan_options
 from estimation.streaming.diagnosis_passes import window_floor
-from estimation.streaming.recorded_errors import streamed_plan, streamed_recorded_errors
+from estimation.streaming.recorded_errors import (
+    streamed_errors_at_stamps,
+    streamed_plan,
+    streamed_recorded_errors,
+)
 from oed.workflows.asbuilt import (
     finish_document,
     model_effects,
@@ -386,7 +390,7 @@ def identification_streamed(args: IdentifyOptions, model: IdentificationModel, t
         cutoff_hz, frequency_hz = result.streaming["cutoff_hz"], result.streaming["frequency_hz"]
         scores = None
         if frequency_hz is None:  # the answer chosen as in memory (a Fourier fit: the sums hold averaged periods)
-            scores = None if result.validation is None else ValidationScores(args, sums, result, chunk_size)
+            scores = None if result.validation is None else ValidationScores(args, sums, result, chunk_size, options)
             ratio = None if not args.validate else streamed_repeated_motion(model, args.data, args.validate,
                                                                             chunk_size=chunk_size)
             with step("identified (the candidate models fitted and compared)"):
@@ -418,8 +422,8 @@ def identification_streamed(args: IdentifyOptions, model: IdentificationModel, t
                       else args.harmonics, "frequency_source": "given", "average_periods": "auto",
                       "decimation": args.decimate, "held_torques": bool(args.held_torques)}
     else:
-        model_plan = streamed_plan(args.data[0], model, cutoff_hz=cutoff_hz, decimation=args.decimate,
-                                   held_torques=bool(args.held_torques), chunk_size=chunk_size)
+        model_plan = streamed_plan(args.data[0], model, cutoff_hz=cutoff_hz, decimation=options["decimation"],
+                                   held_torques=bool(options["held_torques"]), chunk_size=chunk_size)  # as summed
     chosen = ChosenModel(result.estimate.method, result) if selection is None else ChosenModel.of(selection)
     trivial, floor, floor_note, notes = None, None, None, ()
     if result.validation is not None:
@@ -458,8 +462,11 @@ class ValidationScores:
     (:func:`~oed.workflows.model_files.recorded_validation_mse`'s measurement, what ``oed predict`` measures). The
     first call scores the trivial predictors too (:attr:`trivial`: zero and nominal parameters)."""
 
-    def __init__(self, args: IdentifyOptions, sums: SummedFits, result: IdentificationResult, chunk_size: int) -> None:
+    def __init__(self, args: IdentifyOptions, sums: SummedFits, result: IdentificationResult, chunk_size: int,
+                 options: dict[str, Any]) -> None:
         self.args, self.sums, self.result, self.chunk_size = args, sums, result, chunk_size
+        #: the derivatives as the files were summed (:func:`estimation.streaming.periods.plan_options`)
+        self.decimation, self.held_torques = int(options["decimation"]), bool(options["held_torques"])
         self.trivial: dict[str, dict[str, float]] | None = None
 
     def __call__(self, thetas: Mapping[Any, np.ndarray]) -> dict[Any, ChannelErrors]:
@@ -473,10 +480,14 @@ class ValidationScores:
             warnings.simplefilter("ignore")  # the files' findings were said on the first pass
             recorded = None
             if resampled_validation({"streaming": streaming}):  # jittered or cleaned: at the recorded samples
+                recorded = streamed_errors_at_stamps(model, vectors, args.validate, chunk_size=self.chunk_size,
+                                                     cutoff_hz=streaming["cutoff_hz"], decimation=self.decimation,
+                                                     held_torques=self.held_torques)  # block by block
+            if recorded is None and resampled_validation({"streaming": streaming}):  # rows the loader drops: whole
                 document = summed_model_file_document(
                     model, self.result.estimate, robot=robot_source(model.robot, args),
                     preprocessing=streamed_plan(args.data[0], model, cutoff_hz=streaming["cutoff_hz"],
-                                                decimation=args.decimate, held_torques=bool(args.held_torques),
+                                                decimation=self.decimation, held_torques=self.held_torques,
                                                 chunk_size=self.chunk_size))
                 recorded = recorded_validation_errors(document, vectors, args.validate)  # None: read as recorded
             if recorded is not None:
@@ -485,8 +496,8 @@ class ValidationScores:
                 recorded = {key: errors.mse for key, errors in summed.items()}
             else:
                 recorded = streamed_recorded_errors(model, vectors, args.validate, chunk_size=self.chunk_size,
-                                                    cutoff_hz=streaming["cutoff_hz"], decimation=args.decimate,
-                                                    held_torques=bool(args.held_torques))
+                                                    cutoff_hz=streaming["cutoff_hz"], decimation=self.decimation,
+                                                    held_torques=self.held_torques)
         if self.trivial is None:
             self.trivial = {name: dict(recorded[("trivial", name)]) for name in ("zero_mse", "nominal_mse")}
         return {key: ChannelErrors(dict(recorded[("theta", key)]), summed[("theta", key)].n_samples,
