@@ -256,10 +256,11 @@ class Identified:
     result
         The :class:`~estimation.identification.fit.IdentificationResult` (``result.path``: which path made it);
         streamed, its validation errors are against the recording where the sums hold filtered channels
-        (measured again, :func:`recorded_validation`).
+        (measured again: :class:`ValidationScores`, on the Fourier path :func:`recorded_validation`).
     chosen
-        The model the result holds (:class:`~oed.workflows.chosen_model.ChosenModel`): in memory the one the
-        comparison of candidates chose, streamed the one fitted.
+        The model the result holds (:class:`~oed.workflows.chosen_model.ChosenModel`): the one the comparison of
+        candidates chose (streamed from sums, :mod:`estimation.streaming.model_selection`; on the streamed Fourier
+        path the weighting fitted).
     preprocessing
         How the motion was derived: the document's ``preprocessing``.
     describe
@@ -275,8 +276,9 @@ class Identified:
     not_computed
         What this run could not compute, by the document's key, and why (the result's and the run's own).
     records, selection, consistent, floor_report
-        In memory: the prepared records, the comparison of candidate models, the consistent refit, the floor's
-        comparison of the validation error; ``None`` when streamed.
+        The prepared records and the floor's comparison of the validation error (in memory; ``None`` when
+        streamed), the comparison of candidate models and the consistent refit (both paths; ``None`` on the
+        streamed Fourier path).
     weighting
         The weighting chosen on held-out blocks (``--method auto``), or ``None``.
     transmission
