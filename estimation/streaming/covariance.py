@@ -39,9 +39,12 @@ def chunk_scores(model: IdentificationModel, layout: ColumnLayout, blocks: Seque
     """Scores ``(N, p)`` and residuals ``(m, N)`` (prepared channels) of ``θ`` on all of ``layout``'s columns
     (``Y``: the chunk's base regressor when already evaluated)."""
     Y = model.evaluate_base(chunk.q, chunk.dq, chunk.ddq) if Y is None else Y
+    measured = chunk.channels(model.channels)
+    if not blocks and len(layout.names) == Y.shape[2]:  # the base columns alone, on every channel: one product each
+        residual = measured - np.einsum("ncp,p->nc", Y, theta, optimize=True)
+        return np.einsum("nc,ncp->np", residual * weights, Y, optimize=True), np.ascontiguousarray(residual.T)
     states = States(chunk.q, chunk.dq, chunk.ddq)
     columns = [block.evaluate(states, shape) for block, shape in zip(blocks, shapes)]
-    measured = chunk.channels(model.channels)
     scores = np.zeros((chunk.n_samples, len(layout.names)))
     residual = np.empty((layout.n_channels, chunk.n_samples))
     for c in range(layout.n_channels):
