@@ -107,12 +107,16 @@ def record(folder: Path, n_samples: int, seed: int, truth=None, prefix: str = "k
     return path
 
 
-def time_identify(path: Path, chunk_size: int | None, out: Path) -> tuple[float, float, float]:
+def time_identify(path: Path, chunk_size: int | None, out: Path,
+                  validate: Path | None = None) -> tuple[float, float, float]:
     """Wall time (s), CPU time (user + system, s) and peak resident memory (MB) of ``oed identify`` on
     ``path`` in a fresh process (the CPU time is the steadier figure on a shared machine); without
-    ``chunk_size`` the in-memory path."""
+    ``chunk_size`` the in-memory path; ``validate``: a validation record (the default answer is then chosen
+    among the candidate models on it)."""
     command = ["/usr/bin/time", "-v", sys.executable, "-m", "oed", "identify", "--urdf", str(URDF), "--model",
                "internal", "--friction", "viscous", "--data", str(path), "--cutoff", str(CUTOFF), "--out", str(out)]
+    if validate is not None:
+        command += ["--validate", str(validate)]
     if chunk_size is not None:
         command += ["--chunk-size", str(chunk_size)]
     run = subprocess.run(command, capture_output=True, text=True, cwd=ROOT)
@@ -125,16 +129,24 @@ def time_identify(path: Path, chunk_size: int | None, out: Path) -> tuple[float,
     return seconds, cpu, peak
 
 
-def bench_lengths(folder: Path, lengths: list[int], chunk_size: int) -> None:
-    print(f"identify, filter path, chunks of {chunk_size} (KUKA, 7 joints, internal + viscous):")
+def bench_lengths(folder: Path, lengths: list[int], chunk_size: int, validate_length: int | None = None) -> None:
+    print(f"identify, filter path, chunks of {chunk_size} (KUKA, 7 joints, internal + viscous)"
+          + (f", validated on another motion of {validate_length} samples" if validate_length else "") + ":")
+    validate = None if not validate_length else record(folder, validate_length, seed=2)
     rows = []
     for length in lengths:
         path = record(folder, length, seed=1)
-        seconds, cpu, peak = time_identify(path, chunk_size, folder / f"identify_{length}.json")
+        seconds, cpu, peak = time_identify(path, chunk_size, folder / f"identify_{length}.json", validate)
         rows.append((length, seconds, cpu, peak))
         print(f"  {length:>9} samples: wall {seconds:7.1f} s, CPU {cpu:7.1f} s, peak {peak:7.0f} MB, "
               f"{1e6 * seconds / length:6.1f} µs a sample", flush=True)
-        print("            " + covariance_summary(json.loads((folder / f"identify_{length}.json").read_text())), flush=True)
+        document = json.loads((folder / f"identify_{length}.json").read_text())
+        print("            " + covariance_summary(document), flush=True)
+        if document.get("model_selection"):
+            selection = document["model_selection"]
+            print(f"            chosen {selection['chosen']} ({selection['selection']}); scores "
+                  + ", ".join(f"{c['name']} {c['score']:.4g}" for c in selection["candidates"] if c["score"] is not None),
+                  flush=True)
     if len(rows) > 1:
         (n0, t0, c0, _), (n1, t1, c1, _) = rows[0], rows[-1]
         print(f"  wall ratio {t1 / t0:.2f}, CPU ratio {c1 / c0:.2f} for a length ratio {n1 / n0:.2f}")
@@ -213,6 +225,8 @@ def main() -> None:
     parser.add_argument("--file-samples", type=int, default=100_000)
     parser.add_argument("--chunk-size", type=int, default=10_000)
     parser.add_argument("--folder", type=Path)
+    parser.add_argument("--validate-length", type=int, default=0,
+                        help="samples of a validation record of another motion given to the --lengths runs (0: none)")
     parser.add_argument("--in-memory", type=int, nargs="*", default=[100_000, 300_000],
                         help="lengths also identified in memory, for comparison")
     parser.add_argument("--chunk-sizes", type=int, nargs="*", default=[1000, 3000, 10_000, 30_000, 100_000],
@@ -223,7 +237,7 @@ def main() -> None:
     print(f"records in {folder}; {os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f} (other jobs make wall "
           "times longer: the CPU times of the identify runs are the steadier figure)")
     if args.lengths:
-        bench_lengths(folder, args.lengths, args.chunk_size)
+        bench_lengths(folder, args.lengths, args.chunk_size, args.validate_length or None)
     if args.in_memory:
         bench_in_memory(folder, args.in_memory)
     if args.chunk_sizes:

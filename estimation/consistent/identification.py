@@ -49,7 +49,8 @@ from estimation.identification.fit import IMPLAUSIBLE_CAUSE, IdentificationResul
 from estimation.identification.identified_model import IdentifiedModel
 from estimation.estimators.identification_problem import stack
 from dynamics.measurements import Measurements
-from estimation.identification.validation import Comparison, compare
+from estimation.identification.validation import ChannelErrors, Comparison, compare
+from estimation.estimators.normal_equations import NormalEquations
 
 
 #: the prior weights ``prior_weight="auto"`` tries
@@ -74,8 +75,10 @@ class ConsistentResult:
 
     estimate: ConsistentEstimate
     unconstrained: IdentificationResult
-    train: Comparison
-    validation: Comparison | None
+    #: the errors on the training and validation records (:class:`~estimation.identification.validation.ChannelErrors`
+    #: when fitted from sums: :func:`consistent_fit_sums`)
+    train: Comparison | ChannelErrors
+    validation: Comparison | ChannelErrors | None
     prior_source: str
     #: the weights tried by ``--prior-weight auto`` and their channel-weighted validation errors (else empty)
     prior_weight_search: tuple[dict[str, float], ...] = ()
@@ -112,9 +115,10 @@ class ConsistentResult:
                 "train": {"mse": self.train.mse},
                 "validation": None if self.validation is None else {"mse": self.validation.mse},
                 "price": {
-                    "train": _ratio(self.train.mse, self.unconstrained.train.mse),
+                    "train": None if self.train.mse is None or self.unconstrained.train.mse is None
+                    else _ratio(self.train.mse, self.unconstrained.train.mse),
                     "validation": None if self.validation is None or self.unconstrained.validation is None
-                    else _ratio(self.validation.mse, self.unconstrained.validation.mse),
+                    or self.validation.mse is None or self.unconstrained.validation.mse is None else _ratio(self.validation.mse, self.unconstrained.validation.mse),
                 },
             },
         }
@@ -237,15 +241,28 @@ def choose_prior_weight(refit: Callable[[float, NDArray[np.float64] | None], Con
     where cold starts stop at different points) continues the path from the optimum at the smallest weight down to
     the vanishing pull of ``regularisation`` (:meth:`~estimation.consistent.least_squares.ConsistentLeastSquares.
     _regularised_path`): one certified answer whatever the start."""
-    weights = result.estimate.weights if result.estimate.method == "wls" else 1.0 / result.estimate.channel_variance
+    return chosen_prior_weight(prior_weight_path(refit), result)
+
+
+def prior_weight_path(refit: Callable[[float, NDArray[np.float64] | None], ConsistentResult]
+                      ) -> dict[float, ConsistentResult]:
+    """The consistent fits at every weight of :data:`PRIOR_WEIGHT_GRID`, from the largest down, each started from
+    the optimum of the one before (:func:`choose_prior_weight`), by weight."""
     fits: dict[float, ConsistentResult] = {}
     warm = None
     for weight in sorted(PRIOR_WEIGHT_GRID, reverse=True):
-        fit = refit(weight, warm)
-        if fit.validation is None:
-            raise ValueError("choosing the prior's weight needs a validation record")
-        fits[weight] = fit
-        warm = fit.estimate.phi
+        fits[weight] = refit(weight, warm)
+        warm = fits[weight].estimate.phi
+    return fits
+
+
+def chosen_prior_weight(fits: Mapping[float, ConsistentResult], result: IdentificationResult) -> ConsistentResult:
+    """Of the fits at every weight of :data:`PRIOR_WEIGHT_GRID` (each with its validation error), the one of the
+    largest weight whose channel-weighted validation error is within :data:`PRIOR_WEIGHT_TOLERANCE` of the best
+    (:func:`choose_prior_weight`), with the search."""
+    weights = result.estimate.weights if result.estimate.method == "wls" else 1.0 / result.estimate.channel_variance
+    if any(fits[weight].validation is None or fits[weight].validation.mse is None for weight in PRIOR_WEIGHT_GRID):
+        raise ValueError("choosing the prior's weight needs a validation record")
     errors = [float(sum(w * fits[weight].validation.mse[c] for w, c in zip(weights, result.model.channels)))
               for weight in PRIOR_WEIGHT_GRID]
     best = min(errors)
@@ -283,6 +300,45 @@ def consistent_fit(
                                    undetermined=False)
 
     fit = choose_prior_weight(refit, result) if weight == "auto" else refit(float(weight))
+    return dataclasses.replace(fit, prior_weight_choice=how, determination=_determination(result, prior))
+
+
+#: scores parameter vectors on the validation record, all in one pass: ``{key: θ_b}`` to ``{key: ChannelErrors}``
+Scorer = Callable[[Mapping[Any, NDArray[np.float64]]], Mapping[Any, ChannelErrors]]
+
+
+def consistent_fit_sums(
+    result: IdentificationResult,
+    sums: NormalEquations,
+    train_errors: Callable[[NDArray[np.float64]], ChannelErrors],
+    score: Scorer | None = None,
+    *,
+    prior_weight: float | str | None = None,
+    prior: NDArray[np.float64] | None = None,
+    prior_source: str = "robot description",
+    bounds: Mapping[str, LinkBounds] | None = None,
+    starts: int = 2,
+) -> ConsistentResult:
+    """:func:`consistent_fit` of a fit from sums (the streamed path: ``result``'s estimate solved from ``sums``, the
+    training record's :class:`~estimation.estimators.normal_equations.NormalEquations`): the cost needs the
+    per-channel Gram matrices only (:class:`~estimation.consistent.least_squares.ConsistentLeastSquares`), the errors
+    are had from the sums (``train_errors(θ_b)``) and from ``score`` (the validation record's errors of several
+    parameter vectors, in one pass over its blocks: every weight of the prior's search scored at once, on the same
+    samples; ``None``: no validation record). The prior's weight is chosen as :func:`consistent_fit` chooses it, by
+    the same rule (:func:`chosen_prior_weight`) along the same path (:func:`prior_weight_path`)."""
+    weight, how = prior_weight_choice(prior_weight, score is not None)
+
+    def refit(value: float, warm_start: NDArray[np.float64] | None = None) -> ConsistentResult:
+        estimator = ConsistentLeastSquares(prior_weight=value, prior=prior, bounds=bounds, starts=starts,
+                                           warm_start=warm_start)
+        estimate = estimator.fit(result.model, sums, unconstrained=result.estimate).estimate_
+        return ConsistentResult(estimate, result, train_errors(estimate.values), None, prior_source)
+
+    fits = prior_weight_path(refit) if weight == "auto" else {float(weight): refit(float(weight))}
+    if score is not None:
+        scored = score({key: fit.estimate.values for key, fit in fits.items()})
+        fits = {key: dataclasses.replace(fit, validation=scored[key]) for key, fit in fits.items()}
+    fit = chosen_prior_weight(fits, result) if weight == "auto" else fits[float(weight)]
     return dataclasses.replace(fit, prior_weight_choice=how, determination=_determination(result, prior))
 
 

@@ -72,6 +72,7 @@ from dynamics.runtime.threads import single_threaded_blas
 from estimation.estimators.estimator import Estimator
 from estimation.estimators.identification_problem import IdentificationProblem, stack
 from estimation.estimators.least_squares import Estimate, WeightedLeastSquares, channel_gram
+from estimation.estimators.normal_equations import NormalEquations
 from estimation.consistent.reduced_hessian import active_bounds, at_user_bounds, reduced_hessian_covariance
 from estimation.consistent.solver import compiled_problem, escape, inside, variable_scales
 from dynamics.measurements import Measurements
@@ -213,10 +214,13 @@ class ConsistentLeastSquares(Estimator):
         self.warm_start = warm_start
 
     @single_threaded_blas()
-    def fit(self, model: IdentificationModel, data: IdentificationProblem | Measurements, *,
+    def fit(self, model: IdentificationModel, data: IdentificationProblem | Measurements | NormalEquations, *,
             unconstrained: Estimate | None = None) -> ConsistentLeastSquares:
-        """Fit ``model`` on ``data`` (a stacked problem or measurements), from ``unconstrained``
-        (a weighted or ordinary estimate of the same problem; fitted here when not given)."""
+        """Fit ``model`` on ``data`` (a stacked problem, measurements, or the sums of the problem over its samples,
+        :class:`~estimation.estimators.normal_equations.NormalEquations`: the cost needs the per-channel Gram
+        matrices only, so a record read in blocks is fitted as the whole one), from ``unconstrained`` (a weighted or
+        ordinary estimate of the same problem; fitted here when not given, but from sums, whose estimate is
+        :class:`~estimation.estimators.summed_least_squares.SummedLeastSquares`'s)."""
         self._forget_fit()
         started = time.perf_counter()
         if not isinstance(model, IdentificationModel):
@@ -224,12 +228,18 @@ class ConsistentLeastSquares(Estimator):
         if not isinstance(data, IdentificationProblem):
             check_linear_effects(model)
         weight = self._check_settings()
-        problem = data if isinstance(data, IdentificationProblem) else stack(model, data)
-        if problem.n_parameters != model.n_base:
-            raise ValueError(f"the problem has {problem.n_parameters} parameters, the model {model.n_base} base parameters")
-        if unconstrained is None:
-            unconstrained = WeightedLeastSquares().fit(problem).estimate_
-        gram, _ = channel_gram(problem)
+        if isinstance(data, NormalEquations):
+            if data.n_columns != model.n_base or unconstrained is None:
+                raise ValueError(f"sums of {data.n_columns} columns for {model.n_base} base parameters, and the "
+                                 "unconstrained estimate fitted from them, are needed")
+            gram = data.gram
+        else:
+            problem = data if isinstance(data, IdentificationProblem) else stack(model, data)
+            if problem.n_parameters != model.n_base:
+                raise ValueError(f"the problem has {problem.n_parameters} parameters, the model {model.n_base} base parameters")
+            if unconstrained is None:
+                unconstrained = WeightedLeastSquares().fit(problem).estimate_
+            gram, _ = channel_gram(problem)
         G = np.tensordot(unconstrained.weights, gram, axes=1)
         G = 0.5 * (G + G.T)
         parametrisation = PhysicalParametrisation.of_model(model, self.bounds)

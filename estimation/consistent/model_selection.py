@@ -60,11 +60,12 @@ from estimation.identification.fit import IdentificationResult, identify
 from estimation.identification.model_file import alternative_entry, effect_entries, model_file_document, with_model
 from estimation.identification.relative_error import CRITERION, relative_scores
 from estimation.identification.repeated_motion import REPEAT_FRACTION, repeated_motion
-from estimation.identification.validation import Comparison
+from estimation.identification.validation import ChannelErrors, Comparison
 
-__all__ = ["CANDIDATES", "DEFAULT_PRIOR_WEIGHT", "PREFERENCE", "PRIOR_WEIGHT_GRID", "PRIOR_WEIGHT_TOLERANCE",
+__all__ = ["CANDIDATES", "CONSISTENT_FAILURES", "DEFAULT_PRIOR_WEIGHT", "PREFERENCE", "PRIOR_WEIGHT_GRID", "PRIOR_WEIGHT_TOLERANCE",
            "Candidate", "ConsistentSettings", "ModelSelection", "choose_prior_weight", "consistent_entry",
-           "prior_weight_choice", "select_fitted", "select_model", "select_refit", "selection_model_file"]
+           "prior_weight_choice", "select_fitted", "select_model", "select_refit", "select_scored",
+           "selection_model_file"]
 
 CandidateName = Literal["ols", "wls", "consistent"]
 Selection = Literal["validation", "given", "no-validation", "repeated-motion"]
@@ -74,7 +75,8 @@ CANDIDATES: tuple[CandidateName, ...] = ("ols", "wls", "consistent")
 #: ties go to the first of these: the candidate that regularises most
 PREFERENCE: tuple[CandidateName, ...] = ("consistent", "wls", "ols")
 #: errors that make the consistent fit no candidate (a failure of the toolkit's own choice never ends the run)
-_CONSISTENT_FAILURES = (ValueError, RuntimeError, NotImplementedError, np.linalg.LinAlgError)
+CONSISTENT_FAILURES = (ValueError, RuntimeError, NotImplementedError, np.linalg.LinAlgError)
+_CONSISTENT_FAILURES = CONSISTENT_FAILURES
 
 
 @dataclass(frozen=True)
@@ -241,7 +243,8 @@ class ModelSelection:
     def lines(self) -> list[str]:
         """The summary: each candidate's validation MSE side by side, the choice and why."""
         lines = [f"model: {self.chosen} ({self.chosen_candidate.description}); {self.reason}"]
-        channels = next((c.validation.channels for c in self.candidates if c.validation is not None), None)
+        channels = next((_channels(c.validation) for c in self.candidates if c.validation is not None
+                         and c.validation.mse is not None), None)
         scored = self.scores
         if channels is not None:
             lines.append("  validation MSE (vs recorded)  " + "  ".join(f"{c:>10s}" for c in channels)
@@ -250,7 +253,7 @@ class ModelSelection:
             mark = "*" if candidate.name == self.chosen else " "
             if candidate.fit is None:
                 lines.append(f"  {mark} {candidate.name:<27s} not a candidate: {candidate.unavailable}")
-            elif candidate.validation is not None:
+            elif candidate.validation is not None and candidate.validation.mse is not None:
                 mse = candidate.validation.mse
                 lines.append(f"  {mark} {candidate.name:<27s} " + "  ".join(f"{mse[c]:10.4g}" for c in channels)
                              + f"  {scored.get(candidate.name, float('inf')):10.4g}")
@@ -344,10 +347,11 @@ def validation_base(unconstrained: Callable[[str], IdentificationResult],
 def scores(candidates: Sequence[Candidate]) -> dict[str, float]:
     """The finite validation scores (:data:`CRITERION`) of the fitted ``candidates`` with a validation record,
     each relative to the others' errors, by name; the others are left out."""
-    errors = {c.name: c.validation.mse for c in candidates if c.fit is not None and c.validation is not None}
+    errors = {c.name: c.validation.mse for c in candidates
+              if c.fit is not None and c.validation is not None and c.validation.mse is not None}
     if not errors:
         return {}
-    channels = next(c.validation.channels for c in candidates if c.fit is not None and c.validation is not None)
+    channels = tuple(next(iter(errors.values())))
     return {name: score for name, score in relative_scores(errors, channels).items() if math.isfinite(score)}
 
 
@@ -358,15 +362,28 @@ def select_fitted(candidates: Sequence[Candidate], train: Measurements, validati
     one was refitted from, and is kept when nothing else can be chosen.
 
     The candidates are listed in :data:`CANDIDATES` order whatever the order given."""
+    ratio = None if validation is None else repeated_motion(train, validation)
+    return select_scored(candidates, base=base, given=given, ratio=ratio)
+
+
+def select_scored(candidates: Sequence[Candidate], *, base: Literal["ols", "wls"], given: CandidateName | None = None,
+                  ratio: float | None) -> ModelSelection:
+    """:func:`select_fitted` of candidates whose records are not held (the streamed path: their errors from sums,
+    :class:`~estimation.identification.validation.ChannelErrors`), ``ratio`` the
+    :func:`~estimation.identification.repeated_motion.repeated_motion` of the validation record (``None``: none)."""
     by_name = {candidate.name: candidate for candidate in candidates}
     if len(by_name) != len(candidates):
         raise ValueError(f"two candidates share a name: {[candidate.name for candidate in candidates]}")
     if given is None and (base not in by_name or by_name[base].fit is None):
         raise ValueError(f"the base candidate {base!r} must be among the fitted candidates {sorted(by_name)}")
     ordered = tuple(by_name[name] for name in CANDIDATES if name in by_name)
-    ratio = None if validation is None else repeated_motion(train, validation)
     chosen, selection, reason = _choose(ordered, given, base, ratio)
     return ModelSelection(chosen, selection, reason, ordered, base, ratio)
+
+
+def _channels(errors: Comparison | ChannelErrors) -> tuple[str, ...]:
+    """The channels of a record's errors (a :class:`Comparison`'s, or the keys of sums' errors)."""
+    return tuple(getattr(errors, "channels", None) or errors.mse)
 
 
 def select_refit(result: IdentificationResult, train: Measurements, validation: Measurements | None = None, *,
@@ -446,6 +463,13 @@ def selection_model_file(selection: ModelSelection, **settings: Any) -> dict[str
         "consistent_validation_mse": None if consistent.validation is None else consistent.validation.mse}
     documents = {candidate.name: model_file_document(candidate.fit, **settings, **extra)
                  for candidate in selection.candidates if isinstance(candidate.fit, IdentificationResult)}
+    return selection_file(selection, documents)
+
+
+def selection_file(selection: ModelSelection, documents: Mapping[str, Mapping[str, Any]]) -> dict[str, Any]:
+    """:func:`selection_model_file` of the ``model_file`` documents of the unconstrained candidates, by name (made
+    from sums on the streamed path: :func:`estimation.identification.model_file.summed_model_file_document`)."""
+    consistent = selection.consistent
     entries = {name: alternative_entry(document) for name, document in documents.items()}
     if consistent is not None:
         entries["consistent"] = consistent_entry(consistent, documents[selection.base])
@@ -469,7 +493,8 @@ def consistent_entry(consistent: ConsistentResult, base: Mapping[str, Any]) -> d
     channels = list(model.channels)
     entry.update({
         "theta": np.asarray(estimate.values, dtype=float).tolist(), "cov": np.asarray(estimate.cov, dtype=float).tolist(),
-        "recorded_variance": {channel: consistent.train.mse[channel] for channel in channels},
+        "recorded_variance": None if consistent.train.mse is None  # sums of filtered channels: as the base's
+        else {channel: consistent.train.mse[channel] for channel in channels},
         "validation_mse": None if consistent.validation is None else dict(consistent.validation.mse),
         "shape_std": {},  # the shapes and the delay: held at the unconstrained fit's (base's) values
         "effect_values": list(effect_entries(model, estimate.names, estimate.expressions, estimate.values,

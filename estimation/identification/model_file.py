@@ -321,13 +321,16 @@ def effect_entries(model: Any, names: Sequence[str], expressions: Sequence[str],
 def summed_model_file_document(model: Any, estimate: Any, *, robot: RobotSource, preprocessing: Mapping[str, Any],
                                shape: Mapping[str, float] | None = None,
                                recorded_mse: Mapping[str, float] | None = None,
-                               validation_mse: Mapping[str, float] | None = None) -> dict[str, Any]:
+                               validation_mse: Mapping[str, float] | None = None, consistent: Any = None,
+                               consistent_validation_mse: Mapping[str, float] | None = None) -> dict[str, Any]:
     """The ``model_file`` document of an estimate from sums (the streamed path,
     :class:`estimation.estimators.summed_least_squares.SummedEstimate`) of ``model``.
 
     ``shape``: the fixed shapes of its shaped laws; ``recorded_mse``: the training MSE against the channels
     as recorded (the prediction band's noise; ``None``: the fit's residual variance serves);
-    ``validation_mse``: the validation MSE against the channels as recorded, as ``oed predict`` measures it.
+    ``validation_mse``: the validation MSE against the channels as recorded, as ``oed predict`` measures it;
+    ``consistent``: the :class:`estimation.consistent.least_squares.ConsistentEstimate` of a physically consistent
+    refit from the sums, or ``None``, with its validation MSE (as :func:`model_file_document`'s).
     """
     names = tuple(model.base.names)
     if sorted(estimate.names) != sorted(names):
@@ -348,6 +351,11 @@ def summed_model_file_document(model: Any, estimate: Any, *, robot: RobotSource,
         reported_validation_mse=None if validation_mse is None else dict(validation_mse),
         effect_values=effect_entries(model, names, model.base.expressions, theta, shape),
         recorded_variance=None if recorded_mse is None else np.array([recorded_mse[c] for c in channels], dtype=float),
+        consistent_links=None if consistent is None else np.asarray(consistent.link_parameters(), dtype=float),
+        consistent_effects=None if consistent is None else dict(consistent.effect_values()),
+        consistent_theta=None if consistent is None else np.asarray(consistent.values, dtype=float),
+        consistent_cov=None if consistent is None else np.asarray(consistent.cov, dtype=float),
+        consistent_validation_mse=None if consistent_validation_mse is None else dict(consistent_validation_mse),
     )
     return document.to_dict()
 

@@ -1,6 +1,6 @@
 """Long records in bounded memory: records read chunk by chunk, their time base and periods, sums over many files (clusters), and the streamed identification and diagnosis.
 
-Modules: :mod:`~estimation.streaming.candidate_screening`, :mod:`~estimation.streaming.chunks`, :mod:`~estimation.streaming.cluster`, :mod:`~estimation.streaming.covariance`, :mod:`~estimation.streaming.cutoff_choice`, :mod:`~estimation.streaming.diagnosis`, :mod:`~estimation.streaming.diagnosis_result`, :mod:`~estimation.streaming.diagnosis_candidates`, :mod:`~estimation.streaming.diagnosis_passes`, :mod:`~estimation.streaming.diagnosis_sums`, :mod:`~estimation.streaming.identification`, :mod:`~estimation.streaming.periods`, :mod:`~estimation.streaming.recorded_errors`, :mod:`~estimation.streaming.selection`, :mod:`~estimation.streaming.time_base`.
+Modules: :mod:`~estimation.streaming.candidate_screening`, :mod:`~estimation.streaming.chunks`, :mod:`~estimation.streaming.cluster`, :mod:`~estimation.streaming.covariance`, :mod:`~estimation.streaming.cutoff_choice`, :mod:`~estimation.streaming.diagnosis`, :mod:`~estimation.streaming.diagnosis_result`, :mod:`~estimation.streaming.diagnosis_candidates`, :mod:`~estimation.streaming.diagnosis_passes`, :mod:`~estimation.streaming.diagnosis_sums`, :mod:`~estimation.streaming.identification`, :mod:`~estimation.streaming.model_selection`, :mod:`~estimation.streaming.periods`, :mod:`~estimation.streaming.recorded_errors`, :mod:`~estimation.streaming.selection`, :mod:`~estimation.streaming.time_base`.
 """
 
 from __future__ import annotations
@@ -29,6 +29,9 @@ _EXPORTS: dict[str, str] = {
     "filter_margin": "estimation.streaming.chunks",
     "first_rows": "estimation.streaming.cutoff_choice",
     "identify_files": "estimation.streaming.identification",
+    "identify_files_candidates": "estimation.streaming.identification",
+    "streamed_repeated_motion": "estimation.streaming.model_selection",
+    "summed_selection": "estimation.streaming.model_selection",
     "lag_one_correlation": "estimation.streaming.covariance",
     "plan_options": "estimation.streaming.periods",
     "streamed_recorded_errors": "estimation.streaming.recorded_errors",

@@ -30,6 +30,7 @@ median step (:mod:`estimation.streaming.time_base`: one extra pass reading colum
 from __future__ import annotations
 
 import functools
+import itertools
 import warnings
 from collections.abc import Iterator
 from dataclasses import dataclass, replace
@@ -59,7 +60,7 @@ from estimation.streaming.time_base import Resampler, TimeScan, scan_time
 
 __all__ = [
     "FileSums", "MARGIN_TOLERANCE", "StreamingUnsupportedError", "automatic_cutoff", "file_sums", "filter_margin",
-    "preprocessed_chunks", "read_chunks",
+    "logged_chunks", "preprocessed_chunks", "read_chunks",
 ]
 
 #: relative size of the impulse response at which the overlap margin ends
@@ -172,6 +173,26 @@ def read_chunks(path: str | Path, model: IdentificationModel, *, chunk_size: int
                             "change while it was read?)")
     if chunk.n_samples:
         yield chunk
+
+
+def logged_chunks(path: str | Path, model: IdentificationModel, *, chunk_size: int = DEFAULT_CHUNK_SIZE
+                  ) -> Iterator[Measurements]:
+    """The samples of ``path`` as logged, ``chunk_size`` rows at a time, before any resampling (rows repeating the
+    previous one dropped, as the loader drops them): the recorded time stamps and channels a resampled file's errors
+    are measured at (:func:`estimation.streaming.recorded_errors.streamed_errors_at_stamps`)."""
+    least = model.n_base + 1  # a short last block is joined to the one before, as read_chunks joins it
+    pending: pd.DataFrame | None = None
+    for frame in itertools.chain(_raw_frames(Path(path), chunk_size), [None]):
+        if frame is not None and pending is not None and len(frame) < least:
+            pending = pd.concat([pending, frame], ignore_index=True)
+            continue
+        if pending is not None:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")  # said when the file was read for its sums
+                chunk = measurements_from_frame(pending, model=model, resample=True, source=str(path)).as_recorded
+            if chunk.n_samples:  # the samples kept as logged, when the block was resampled
+                yield chunk
+        pending = frame
 
 
 class _ChunkChecks:

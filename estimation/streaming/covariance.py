@@ -34,12 +34,17 @@ BATCH_LENGTHS: tuple[int, ...] = tuple(2**k for k in range(17))
 
 def chunk_scores(model: IdentificationModel, layout: ColumnLayout, blocks: Sequence[Block],
                  shapes: Sequence[NDArray[np.float64]], chunk: Measurements, theta: NDArray[np.float64],
-                 weights: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Scores ``(N, p)`` and residuals ``(m, N)`` (prepared channels) of ``θ`` on all of ``layout``'s columns."""
-    Y = model.evaluate_base(chunk.q, chunk.dq, chunk.ddq)
+                 weights: NDArray[np.float64], *, Y: NDArray[np.float64] | None = None
+                 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Scores ``(N, p)`` and residuals ``(m, N)`` (prepared channels) of ``θ`` on all of ``layout``'s columns
+    (``Y``: the chunk's base regressor when already evaluated)."""
+    Y = model.evaluate_base(chunk.q, chunk.dq, chunk.ddq) if Y is None else Y
+    measured = chunk.channels(model.channels)
+    if not blocks and len(layout.names) == Y.shape[2]:  # the base columns alone, on every channel: one product each
+        residual = measured - np.einsum("ncp,p->nc", Y, theta, optimize=True)
+        return np.einsum("nc,ncp->np", residual * weights, Y, optimize=True), np.ascontiguousarray(residual.T)
     states = States(chunk.q, chunk.dq, chunk.ddq)
     columns = [block.evaluate(states, shape) for block, shape in zip(blocks, shapes)]
-    measured = chunk.channels(model.channels)
     scores = np.zeros((chunk.n_samples, len(layout.names)))
     residual = np.empty((layout.n_channels, chunk.n_samples))
     for c in range(layout.n_channels):

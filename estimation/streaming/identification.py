@@ -35,7 +35,7 @@ from __future__ import annotations
 import time
 import warnings
 from collections.abc import Iterator, Sequence
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, Literal
 
@@ -147,8 +147,61 @@ def identify_files(
     batch-means standard deviations from a third pass over the training files (module docstring),
     ``"classical"`` the white-noise ones of the sums (no third pass).
     """
+    return identify_files_candidates(
+        model, paths, validate, methods=(method,), chunk_size=chunk_size, cutoff_hz=cutoff_hz,
+        frequency_hz=frequency_hz, harmonics=harmonics, decimation=decimation, held_torques=held_torques,
+        executor=executor, covariance=covariance).fits[method]
+
+
+@dataclass(frozen=True)
+class SummedFits:
+    """The unconstrained fits of :func:`identify_files_candidates`, by method (the first asked for first), and the
+    sums they were solved from: what the consistent refit (the training sums' Gram matrices,
+    :func:`estimation.consistent.identification.consistent_fit_sums`) and the validation errors of other parameter
+    vectors (the validation sums) need."""
+
+    fits: dict[str, IdentificationResult]
+    train: NormalEquations
+    validation: NormalEquations | None
+    files: tuple[FileSums, ...]
+    validation_files: tuple[FileSums, ...]
+
+    def train_errors(self, theta: NDArray[np.float64]) -> ChannelErrors:
+        """The training errors of the base parameters ``theta``, from the sums."""
+        return summed_errors(self.train.channel_mse(theta), int(self.train.n_samples), self.files)
+
+    def validation_errors(self, theta: NDArray[np.float64]) -> ChannelErrors:
+        """The validation errors of ``theta`` from the validation sums (against the recording only when the sums hold
+        it: :func:`summed_errors`)."""
+        if self.validation is None:
+            raise ValueError("no validation files were summed")
+        return summed_errors(self.validation.channel_mse(theta), int(self.validation.n_samples),
+                             self.validation_files)
+
+
+def identify_files_candidates(
+    model: IdentificationModel,
+    paths: Sequence[str | Path],
+    validate: Sequence[str | Path] = (),
+    *,
+    methods: Sequence[Literal["ols", "wls"]] = ("wls", "ols"),
+    chunk_size: int,
+    cutoff_hz: float | None = None,
+    frequency_hz: float | None = None,
+    harmonics: int = 5,
+    decimation: int = 1,
+    held_torques: bool = False,
+    executor: Any = None,
+    covariance: StreamedCovariance = "hac",
+) -> SummedFits:
+    """:func:`identify_files` of several weightings at once (``methods``, the first the one whose implausible values
+    are warned of): the same sums solved with each, their batch-means standard deviations from the same third
+    pass (one reading and one regressor a chunk for all), and the sums kept (:class:`SummedFits`)."""
     if covariance not in ("hac", "classical"):
         raise ValueError(f"covariance must be 'hac' or 'classical', got {covariance!r}")
+    methods = tuple(dict.fromkeys(methods))
+    if not methods or not set(methods) <= {"ols", "wls"}:
+        raise ValueError(f"methods must be among 'ols' and 'wls', got {methods!r}")
     paths = [str(path) for path in paths]
     if not paths:
         raise ValueError("no training data files")
@@ -171,40 +224,49 @@ def identify_files(
         validation, validation_files = (None, ()) if not validate else sum_files(model, validate, executor=executor,
                                                                                  **options)
     clock = time.perf_counter()
-    estimate = SummedLeastSquares(method=method).fit(train).estimate_
+    estimates = {name: SummedLeastSquares(method=name).fit(train).estimate_ for name in methods}
     seconds["solve"] = time.perf_counter() - clock
-    cov_method, batch, classical_std = "classical", None, None
+    cov_method, batches, classical_std = "classical", dict.fromkeys(methods), dict.fromkeys(methods)
     if covariance == "hac":
         clock = time.perf_counter()
         with step(f"covariance pass over {len(paths)} training file(s)"):
-            cov, batch = batch_means_covariance(model, files, train, options, estimate.values, estimate.weights,
-                                                estimate.cov, executor=executor)
+            covariances = batch_means_covariance(
+                model, files, train, options, [estimates[name].values for name in methods],
+                [estimates[name].weights for name in methods], [estimates[name].cov for name in methods],
+                executor=executor)
         seconds["covariance_pass"] = time.perf_counter() - clock
-        std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
-        with np.errstate(divide="ignore", invalid="ignore"):
-            relative_std = np.where(estimate.values != 0, 100.0 * std / np.abs(estimate.values), np.inf)
-        cov_method, classical_std = "batch_means", estimate.std
-        estimate = replace(estimate, cov=cov, std=std, relative_std=relative_std, cov_method="batch_means")
-    notes = implausible_estimates(model, estimate)  # type: ignore[arg-type]  (records() is all it reads)
-    for note in notes:
-        warnings.warn(note, ImplausibleEstimateWarning, stacklevel=2)
-    train_errors = summed_errors(train.channel_mse(estimate.values), int(train.n_samples), files)
-    validation_errors = None if validation is None else summed_errors(
-        validation.channel_mse(estimate.values), int(validation.n_samples), validation_files)
-    streaming = streaming_record(
-        chunk_size=int(chunk_size),
-        cutoff_hz=None if all(part.metadata.get("cutoff_hz") is None for part in files) else cutoff_hz,
-        frequency_hz=frequency_hz if any(part.metadata.get("differentiation") == "fourier" for part in files) else None,
-        files=files, validation_files=tuple(validation_files), cov_method=cov_method, batch_length=batch,
-        classical_std=None if classical_std is None else dict(zip(estimate.names, map(float, classical_std))),
-        seconds={key: round(value, 3) for key, value in seconds.items()})
+        cov_method = "batch_means"
+        for name, (cov, batch) in zip(methods, covariances):
+            estimate = estimates[name]
+            std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+            with np.errstate(divide="ignore", invalid="ignore"):
+                relative_std = np.where(estimate.values != 0, 100.0 * std / np.abs(estimate.values), np.inf)
+            batches[name], classical_std[name] = batch, estimate.std
+            estimates[name] = replace(estimate, cov=cov, std=std, relative_std=relative_std, cov_method="batch_means")
     trivial = None
     if validation is not None and validation.n_samples and not _filtered(validation_files):  # as recorded
         nominal = model.base.K @ model.nominal_parameters()
         trivial = {"zero_mse": dict(zip(model.channels, map(float, validation.power / validation.n_samples))),
                    "nominal_mse": validation.channel_mse(nominal)}
-    return IdentificationResult(model, estimate, train_errors, validation_errors, notes, path="streamed",
-                                not_computed=dict(STREAMED_NOT_COMPUTED), streaming=streaming, trivial=trivial)
+    sums = SummedFits({}, train, validation, tuple(files), tuple(validation_files))
+    for name in methods:
+        estimate = estimates[name]
+        notes = implausible_estimates(model, estimate)  # type: ignore[arg-type]  (records() is all it reads)
+        for note in notes if name == methods[0] else ():
+            warnings.warn(note, ImplausibleEstimateWarning, stacklevel=2)
+        streaming = streaming_record(
+            chunk_size=int(chunk_size),
+            cutoff_hz=None if all(part.metadata.get("cutoff_hz") is None for part in files) else cutoff_hz,
+            frequency_hz=frequency_hz if any(part.metadata.get("differentiation") == "fourier" for part in files)
+            else None, files=files, validation_files=tuple(validation_files), cov_method=cov_method,
+            batch_length=batches[name], classical_std=None if classical_std[name] is None
+            else dict(zip(estimate.names, map(float, classical_std[name]))),
+            seconds={key: round(value, 3) for key, value in seconds.items()})
+        sums.fits[name] = IdentificationResult(
+            model, estimate, sums.train_errors(estimate.values),
+            None if validation is None else sums.validation_errors(estimate.values), notes, path="streamed",
+            not_computed=dict(STREAMED_NOT_COMPUTED), streaming=streaming, trivial=trivial)
+    return sums
 
 
 def _has_derivatives(path: str, model: IdentificationModel, chunk_size: int) -> bool:
@@ -245,13 +307,16 @@ def prepared_chunks(path: str, model: IdentificationModel, *, frequency_hz: floa
 
 @single_threaded_blas()
 def file_scores(path: str, model: IdentificationModel, options: dict[str, Any], theta: NDArray[np.float64],
-                weights: NDArray[np.float64]) -> BatchScores:
-    """One file's :class:`BatchScores` of the base-parameter problem at ``theta`` (channel ``weights``)."""
+                weights: NDArray[np.float64]) -> list[BatchScores]:
+    """One file's :class:`BatchScores` of the base-parameter problem at each row of ``theta`` ``(k, r)`` (channel
+    ``weights`` ``(k, m)``): one reading, one regressor a chunk for all of them."""
     layout = ColumnLayout.build(model, [])
-    scores = BatchScores.empty(model.n_base, model.n_channels)
+    scores = [BatchScores.empty(model.n_base, model.n_channels) for _ in range(len(theta))]
     for chunk in prepared_chunks(path, model, **options):
-        scores.add(*chunk_scores(model, layout, (), (), chunk, theta, weights))
-    return scores.closed()
+        Y = model.evaluate_base(chunk.q, chunk.dq, chunk.ddq)
+        for summed, values, weight in zip(scores, theta, weights):
+            summed.add(*chunk_scores(model, layout, (), (), chunk, values, weight, Y=Y))
+    return [summed.closed() for summed in scores]
 
 
 def scores_task(payload: bytes, path: str, options: dict[str, Any], theta, weights, stamp=None):
@@ -260,12 +325,12 @@ def scores_task(payload: bytes, path: str, options: dict[str, Any], theta, weigh
 
 
 def batch_means_covariance(model: IdentificationModel, files: Sequence[FileSums], train: NormalEquations,
-                           options: dict[str, Any], theta: NDArray[np.float64], weights: NDArray[np.float64],
-                           classical: NDArray[np.float64], *, executor: Any = None
-                           ) -> tuple[NDArray[np.float64], int]:
-    """The batch-means covariance of ``theta`` (fitted with channel ``weights``) from one more pass over
-    the training ``files`` (their sums ``train``, the reading ``options`` of
-    :func:`estimation.streaming.cluster.sum_files`), and the batch length used.
+                           options: dict[str, Any], theta: Sequence[NDArray[np.float64]],
+                           weights: Sequence[NDArray[np.float64]], classical: Sequence[NDArray[np.float64]], *,
+                           executor: Any = None) -> list[tuple[NDArray[np.float64], int]]:
+    """The batch-means covariance of each estimate ``theta[i]`` (fitted with channel ``weights[i]``, its classical
+    covariance ``classical[i]``) from one more pass over the training ``files`` (their sums ``train``, the reading
+    ``options`` of :func:`estimation.streaming.cluster.sum_files`), and the batch length used, by estimate.
 
     Raises
     ------
@@ -281,10 +346,11 @@ def batch_means_covariance(model: IdentificationModel, files: Sequence[FileSums]
         payload = b""
     else:
         task, payload = scores_task, model_payload(model)
+    theta, weights = np.atleast_2d(np.asarray(theta, dtype=float)), np.atleast_2d(np.asarray(weights, dtype=float))
     parts = map_files(executor, task, paths, lambda path: (payload, path, dict(options), theta, weights, file_stamp(path)))
     for part, scores in zip(files, parts):
-        if scores.n_samples != part.sums.n_samples:
-            raise IncompleteSumError(f"{part.path}: {scores.n_samples} samples scored, {part.sums.n_samples} summed "
+        if any(estimate.n_samples != part.sums.n_samples for estimate in scores):
+            raise IncompleteSumError(f"{part.path}: {scores[0].n_samples} samples scored, {part.sums.n_samples} summed "
                                      "(did the file change while it was read?)")
-    normal = np.einsum("c,cij->ij", np.asarray(weights, dtype=float), train.gram)
-    return sandwich(parts, normal, classical, np.asarray(weights, dtype=float))
+    return [sandwich([scores[index] for scores in parts], np.einsum("c,cij->ij", weight, train.gram), cov, weight)
+            for index, (weight, cov) in enumerate(zip(weights, classical))]

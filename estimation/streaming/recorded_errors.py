@@ -20,13 +20,14 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from numpy.typing import ArrayLike
+from numpy.typing import ArrayLike, NDArray
 
 from dynamics.models import IdentificationModel
 from estimation.preprocessing.differentiation import ButterworthDifferentiation
+from estimation.streaming.chunks import logged_chunks, preprocessed_chunks
 from estimation.streaming.periods import plan_chunks
 
-__all__ = ["streamed_plan", "streamed_recorded_errors", "streamed_recorded_mse"]
+__all__ = ["streamed_errors_at_stamps", "streamed_plan", "streamed_recorded_errors", "streamed_recorded_mse"]
 
 
 def streamed_plan(path: str | Path, model: IdentificationModel, *, cutoff_hz: float | None, decimation: int = 1,
@@ -78,3 +79,117 @@ def streamed_recorded_errors(model: IdentificationModel, thetas: Mapping[str, Ar
     if count == 0:
         raise ValueError("the files hold no samples once preprocessed")
     return {name: dict(zip(model.channels, map(float, total / count))) for name, total in squares.items()}
+
+
+def streamed_errors_at_stamps(model: IdentificationModel, thetas: Mapping[Any, ArrayLike], paths: Sequence[str | Path],
+                              *, chunk_size: int, cutoff_hz: float | None = None, decimation: int = 1,
+                              held_torques: bool = False) -> dict[Any, dict[str, float]] | None:
+    """:func:`streamed_recorded_errors` at the samples as logged, block by block: on a file the streamed path
+    resampled onto a uniform grid (jittered stamps), the derived motion of its grid blocks
+    (:func:`~estimation.streaming.chunks.preprocessed_chunks`) is interpolated linearly at the recorded time stamps
+    (:func:`~estimation.streaming.chunks.logged_chunks`) and the prediction compared with the channels as recorded
+    there, never interpolated (:func:`estimation.preprocessing.plan.at_recorded_stamps` of the whole record, what
+    ``oed predict`` measures); stamps outside the grid's span are left out as there. A file the streamed path reads
+    as logged is scored on its own samples. The samples of all files pooled; memory: a few blocks and the time
+    stamps (8 bytes a sample, as the scan of the streamed path's grid holds them), checked at the end.
+
+    ``None`` when the loader resamples a file from other samples than the streamed path interpolates (rows it drops:
+    a logger's re-sent rows, :func:`estimation.data.records.segments_from_frame`): its grid is then another, and the
+    caller measures the files whole. A stall shorter than ``max_gap`` is bridged alike on both paths (the same grid
+    over the same samples)."""
+    vectors = {name: np.asarray(theta, dtype=float) for name, theta in thetas.items()}
+    if not paths:
+        raise ValueError("no files to measure the error on")
+    squares = {name: np.zeros(model.n_channels) for name in vectors}
+    count = 0
+
+    def add(q, dq, ddq, measured) -> None:
+        nonlocal count
+        for name, theta in vectors.items():
+            squares[name] += np.sum((measured - model.predict(theta, q, dq, ddq)) ** 2, axis=0)
+        count += measured.shape[0]
+
+    for path in paths:
+        grid = (chunk.as_recorded for chunk in preprocessed_chunks(
+            path, model, chunk_size=chunk_size, cutoff_hz=cutoff_hz, decimation=decimation, held_torques=held_torques))
+        first = next(grid, None)
+        if first is None:
+            continue
+        if first.metadata.get("resampled_from") is None:  # read as logged: its own samples
+            for chunk in (first, *grid):
+                add(chunk.q, chunk.dq, chunk.ddq, chunk.channels(model.channels))
+            continue
+        stamps: list[NDArray[np.float64]] = []
+        _at_stamps(model, first, grid, _watched(logged_chunks(path, model, chunk_size=chunk_size), model, stamps),
+                   measured=cutoff_hz is None and decimation == 1, add=add)
+        t = np.concatenate(stamps)
+        if t.shape[0] != first.metadata["resampled_from"] or not np.all(np.isfinite(t)):
+            return None  # rows the loader drops: its grid interpolates other samples than the streamed one
+    if count == 0:
+        raise ValueError("the files hold no samples once preprocessed")
+    return {name: dict(zip(model.channels, map(float, total / count))) for name, total in squares.items()}
+
+
+def _watched(chunks: Any, model: IdentificationModel, stamps: list[NDArray[np.float64]]) -> Any:
+    """``chunks``, their time stamps appended to ``stamps`` as they pass (``nan`` for a block whose first row
+    repeats the last of the block before: a row the loader drops, unseen within a block)."""
+    previous = None
+    for chunk in chunks:
+        row = np.concatenate([chunk.q[0], chunk.channels(model.channels)[0]])
+        if previous is not None and np.array_equal(row, previous):
+            stamps.append(np.full(1, np.nan))
+        previous = np.concatenate([chunk.q[-1], chunk.channels(model.channels)[-1]])
+        stamps.append(chunk.t)
+        yield chunk
+
+
+def _at_stamps(model: IdentificationModel, first: Any, grid: Any, logged: Any, *, measured: bool, add: Any) -> None:
+    """The logged samples of one resampled file against the motion of its grid blocks (``first``, then ``grid``),
+    each stamp interpolated between the two grid samples around it (:func:`streamed_errors_at_stamps`)."""
+    t_grid, motion = first.t, [first.q, first.dq, first.ddq]
+    start, done = float(first.t[0]), False
+    opening = [values[:1] for values in motion]  # what a stamp before the grid's start is interpolated to
+    held: list[Any] = []  # stamps before the grid's start, decided when its span is known
+    span_end = None
+
+    def extend() -> bool:
+        nonlocal t_grid, motion
+        chunk = next(grid, None)
+        if chunk is None:
+            return False
+        t_grid = np.concatenate([t_grid, chunk.t])
+        motion = [np.vstack([old, new]) for old, new in zip(motion, (chunk.q, chunk.dq, chunk.ddq))]
+        return True
+
+    def score(stamps: Any, keep: Any, clamped: bool = False) -> None:
+        t = stamps.t[keep]
+        if t.size == 0:
+            return
+        if measured:
+            q, dq, ddq = stamps.q[keep], stamps.dq[keep], stamps.ddq[keep]
+        elif clamped:  # np.interp's value before the first sample
+            q, dq, ddq = (np.repeat(values, t.size, axis=0) for values in opening)
+        else:
+            q, dq, ddq = (np.column_stack([np.interp(t, t_grid, column) for column in values.T]) for values in motion)
+        add(q, dq, ddq, stamps.channels(model.channels)[keep])
+
+    for stamps in logged:
+        while not done and t_grid[-1] < stamps.t[-1]:
+            done = not extend()
+        if done and span_end is None:
+            span_end = float(t_grid[-1])
+        before = stamps.t < start
+        if np.any(before):
+            held.append(stamps.select(np.flatnonzero(before)))
+        inside = ~before
+        if span_end is not None:
+            inside &= stamps.t <= span_end + 1e-9 * (span_end - start)
+        score(stamps, inside)
+        keep_from = max(int(np.searchsorted(t_grid, stamps.t[-1])) - 1, 0)  # the grid sample before the last stamp
+        t_grid, motion = t_grid[keep_from:], [values[keep_from:] for values in motion]
+    while not done:
+        done = not extend()
+    end = float(t_grid[-1]) if span_end is None else span_end
+    tolerance = 1e-9 * (end - start)
+    for stamps in held:
+        score(stamps, stamps.t >= start - tolerance, clamped=True)

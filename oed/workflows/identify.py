@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import copy
 import warnings
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -40,15 +40,20 @@ from estimation.identification.repeated_motion import repeated_motion_note
 from estimation.identification.model_file import summed_model_file_document
 from estimation.identification.report import identification_report
 from estimation.identification.trivial_predictors import trivial_warnings
-from estimation.identification.validation import plot_comparison
+from estimation.identification.validation import ChannelErrors, plot_comparison
 from estimation.identification.weighting_choice import choose_weighting, weighting_samples
 from estimation.preprocessing.delay import DelayBounds, split_delay
 from estimation.preprocessing.plan import Preprocessing
 from estimation.streaming.cutoff_choice import streamed_window
-from estimation.streaming.identification import identify_files
+from estimation.streaming.identification import SummedFits, identify_files_candidates
+from estimation.streaming.model_selection import streamed_repeated_motion, summed_selection
 from estimation.streaming.periods import plan_options
 from estimation.streaming.diagnosis_passes import window_floor
-from estimation.streaming.recorded_errors import streamed_plan, streamed_recorded_errors
+from estimation.streaming.recorded_errors import (
+    streamed_errors_at_stamps,
+    streamed_plan,
+    streamed_recorded_errors,
+)
 from oed.workflows.asbuilt import (
     finish_document,
     model_effects,
@@ -65,6 +70,7 @@ from oed.workflows.memory_path import decide_path, streamed_choice
 from oed.workflows.model_files import (
     add_model_file,
     add_summed_model_file,
+    recorded_validation_errors,
     recorded_validation_mse,
     resampled_validation,
     robot_source,
@@ -239,7 +245,7 @@ def run_identify(args: IdentifyOptions, *, say: Callable[[str], None]) -> Identi
     chosen = identified.chosen
     return IdentifyRun(document, tuple(summary_lines(args, identified)), messages, identified.result,
                        title=f"{robot.name}: {model.kind.value} model ({chosen.name})",
-                       preprocessing=identified.describe, answer=chosen if identified.records is not None else None)
+                       preprocessing=identified.describe, answer=chosen)
 
 
 @dataclass(frozen=True)
@@ -251,10 +257,11 @@ class Identified:
     result
         The :class:`~estimation.identification.fit.IdentificationResult` (``result.path``: which path made it);
         streamed, its validation errors are against the recording where the sums hold filtered channels
-        (measured again, :func:`recorded_validation`).
+        (measured again: :class:`ValidationScores`, on the Fourier path :func:`recorded_validation`).
     chosen
-        The model the result holds (:class:`~oed.workflows.chosen_model.ChosenModel`): in memory the one the
-        comparison of candidates chose, streamed the one fitted.
+        The model the result holds (:class:`~oed.workflows.chosen_model.ChosenModel`): the one the comparison of
+        candidates chose (streamed from sums, :mod:`estimation.streaming.model_selection`; on the streamed Fourier
+        path the weighting fitted).
     preprocessing
         How the motion was derived: the document's ``preprocessing``.
     describe
@@ -270,8 +277,9 @@ class Identified:
     not_computed
         What this run could not compute, by the document's key, and why (the result's and the run's own).
     records, selection, consistent, floor_report
-        In memory: the prepared records, the comparison of candidate models, the consistent refit, the floor's
-        comparison of the validation error; ``None`` when streamed.
+        The prepared records and the floor's comparison of the validation error (in memory; ``None`` when
+        streamed), the comparison of candidate models and the consistent refit (both paths; ``None`` on the
+        streamed Fourier path).
     weighting
         The weighting chosen on held-out blocks (``--method auto``), or ``None``.
     transmission
@@ -340,7 +348,8 @@ def identify_document(args: IdentifyOptions, identified: Identified) -> tuple[di
     else:
         model_plan, validation_mse = identified.model_file
         messages += add_summed_model_file(document, result.model, result.estimate, args, model_plan,
-                                          recorded_mse=document["train"]["mse"], validation_mse=validation_mse)
+                                          recorded_mse=document["train"]["mse"], validation_mse=validation_mse,
+                                          selection=selection)
     floor, floor_report = identified.floor, identified.floor_report
     if document.get("validation") is not None:
         if floor_report is not None:
@@ -356,11 +365,15 @@ def identify_document(args: IdentifyOptions, identified: Identified) -> tuple[di
 
 def identification_streamed(args: IdentifyOptions, model: IdentificationModel, transmission: Transmission | None,
                             plan: Preprocessing | None = None) -> Identified:
-    """Identify from the files read in blocks (:func:`estimation.streaming.identification.identify_files`), their
-    derivatives chosen as in memory (``plan``: already chosen); on the validation files, the errors against the
-    channels as recorded, the trivial predictors' and the noise floor of their first rows
+    """Identify from the files read in blocks (:func:`estimation.streaming.identification.identify_files_candidates`),
+    their derivatives chosen as in memory (``plan``: already chosen), and choose the answer as in memory among the
+    unconstrained fits and the consistent refit (:func:`estimation.streaming.model_selection.summed_selection`: from
+    the sums, every candidate scored on the same validation samples against the channels as recorded,
+    :class:`ValidationScores`; not on the Fourier path, whose sums hold averaged periods); on the validation files,
+    the errors against the channels as recorded, the trivial predictors' and the noise floor of their first rows
     (:func:`recorded_validation`)."""
     chunk_size = DEFAULT_CHUNK_SIZE if args.chunk_size is None else args.chunk_size
+    selection = None
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         if plan is None:
@@ -368,36 +381,68 @@ def identification_streamed(args: IdentifyOptions, model: IdentificationModel, t
         options = plan_options(plan)
         weighting = choose_weighting(model, weighting_samples(streamed_window(args.data, model), plan)) \
             if args.method == "auto" else None  # on the samples the in-memory path chooses it on
+        base = args.method if weighting is None else weighting.method
+        methods = (base,) if args.method != "auto" else (base, "ols" if base == "wls" else "wls")
         with executor_for(args) as executor:
-            result = identify_files(model, args.data, args.validate or [],
-                                    method=args.method if weighting is None else weighting.method, chunk_size=chunk_size,
-                                    cutoff_hz=options["cutoff_hz"], frequency_hz=options["frequency_hz"],
-                                    harmonics=options["harmonics"], decimation=options["decimation"],
-                                    held_torques=options["held_torques"], executor=executor)
+            sums = identify_files_candidates(model, args.data, args.validate or [], methods=methods,
+                                             chunk_size=chunk_size, cutoff_hz=options["cutoff_hz"],
+                                             frequency_hz=options["frequency_hz"], harmonics=options["harmonics"],
+                                             decimation=options["decimation"], held_torques=options["held_torques"],
+                                             executor=executor)
+        result = sums.fits[base]
+        cutoff_hz, frequency_hz = result.streaming["cutoff_hz"], result.streaming["frequency_hz"]
+        scores = None
+        if frequency_hz is None:  # the answer chosen as in memory (a Fourier fit: the sums hold averaged periods)
+            scores = None if result.validation is None else ValidationScores(args, sums, result, chunk_size, options)
+            ratio = None if not args.validate else streamed_repeated_motion(model, args.data, args.validate,
+                                                                            chunk_size=chunk_size)
+            with step("identified (the candidate models fitted and compared)"):
+                selection = summed_selection(sums, base=base, given=None if args.method == "auto" else args.method,
+                                             consistent=consistent_settings(args, model.robot), score=scores,
+                                             ratio=ratio)
+            result = selection.unconstrained
     messages = grouped_messages(caught, [*args.data, *(args.validate or ())])  # one line per finding across files
     not_computed = dict(result.not_computed)
     if args.method != "auto":  # in memory too, the consistent refit is a candidate of the default choice only
         for key in ("consistent", "links"):
             not_computed.pop(key, None)
-    cutoff_hz, frequency_hz = result.streaming["cutoff_hz"], result.streaming["frequency_hz"]
+    if selection is not None:
+        not_computed.pop("model_selection", None)
+        if selection.consistent is not None or args.method != "auto":
+            not_computed.pop("consistent", None)
+            not_computed.pop("links", None)
+        else:
+            reason = next((c.unavailable for c in selection.candidates if c.name == "consistent"), None)
+            not_computed.update({key: reason for key in ("consistent", "links") if reason})
+        result = replace(result, not_computed={key: value for key, value in result.not_computed.items()
+                                               if key in not_computed})  # what the selection computed
+    elif frequency_hz is not None:
+        not_computed["model_selection"] = (
+            "a Fourier fit of averaged periods: the sums hold the averaged channels, not the recording the candidates "
+            "are compared on; the model is the weighting asked for or chosen on held-out blocks (method_selection)")
     if frequency_hz is not None:  # a Fourier fit of averaged periods: `oed predict` fits a record's periods alike
         model_plan = {"method": "fourier", "frequency_hz": frequency_hz, "harmonics": options["harmonics"],
                       "frequency_source": "given", "average_periods": "auto",
                       "decimation": args.decimate, "held_torques": bool(args.held_torques)}
     else:
-        model_plan = streamed_plan(args.data[0], model, cutoff_hz=cutoff_hz, decimation=args.decimate,
-                                   held_torques=bool(args.held_torques), chunk_size=chunk_size)
+        model_plan = streamed_plan(args.data[0], model, cutoff_hz=cutoff_hz, decimation=options["decimation"],
+                                   held_torques=bool(options["held_torques"]), chunk_size=chunk_size)  # as summed
+    chosen = ChosenModel(result.estimate.method, result) if selection is None else ChosenModel.of(selection)
     trivial, floor, floor_note, notes = None, None, None, ()
     if result.validation is not None:
-        result, trivial, reasons = recorded_validation(args, result, chunk_size, harmonics=options["harmonics"])
-        not_computed.update(reasons)
+        if scores is not None:  # every candidate's and the trivial predictors' errors, scored on the same samples
+            trivial = scores.trivial
+        else:
+            result, trivial, reasons = recorded_validation(args, result, chunk_size, harmonics=options["harmonics"])
+            not_computed.update(reasons)
+            chosen = ChosenModel(result.estimate.method, result)
         frequency = plan.frequency_hz if plan.method == "fourier" else args.frequency
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # the files' findings were said on the first pass
             floor, floor_note = window_floor(args.validate, model, frequency_hz=frequency)
         if floor is None:
             not_computed["noise_floor"] = floor_note
-        mse = result.validation.mse
+        mse = chosen.validation.mse
         if trivial is not None and mse is not None:
             notes += trivial_warnings(mse, trivial)
         if floor is not None and mse is not None:
@@ -405,9 +450,62 @@ def identification_streamed(args: IdentifyOptions, model: IdentificationModel, t
             notes += tuple(f"{comparison.statement()}: the model lacks something there; `oed diagnose` searches for it"
                            for comparison in comparisons.values() if comparison.above)
     validation_mse = None if result.validation is None else result.validation.mse
-    return Identified(result, ChosenModel(result.estimate.method, result), plan.to_dict(), plan.describe(),
-                      (*messages, *notes), notes, trivial, floor, floor_note, not_computed, weighting=weighting,
+    return Identified(result, chosen, plan.to_dict(), plan.describe(),
+                      (*messages, *notes), notes, trivial, floor, floor_note, not_computed, selection=selection,
+                      consistent=None if selection is None else selection.consistent, weighting=weighting,
                       transmission=transmission, chunk_size=chunk_size, model_file=(model_plan, validation_mse))
+
+
+class ValidationScores:
+    """The validation errors of several base-parameter vectors of a streamed run, all on the same samples and
+    against the channels as recorded (:data:`estimation.consistent.identification.Scorer`): from the validation
+    sums when they hold the recording, else from one pass over the validation files' blocks
+    (:func:`estimation.streaming.recorded_errors.streamed_recorded_errors`; the sums give the errors against the
+    filtered channels beside them), and on a file resampled onto a uniform grid at the recorded samples
+    (:func:`~oed.workflows.model_files.recorded_validation_mse`'s measurement, what ``oed predict`` measures). The
+    first call scores the trivial predictors too (:attr:`trivial`: zero and nominal parameters)."""
+
+    def __init__(self, args: IdentifyOptions, sums: SummedFits, result: IdentificationResult, chunk_size: int,
+                 options: dict[str, Any]) -> None:
+        self.args, self.sums, self.result, self.chunk_size = args, sums, result, chunk_size
+        #: the derivatives as the files were summed (:func:`estimation.streaming.periods.plan_options`)
+        self.decimation, self.held_torques = int(options["decimation"]), bool(options["held_torques"])
+        self.trivial: dict[str, dict[str, float]] | None = None
+
+    def __call__(self, thetas: Mapping[Any, np.ndarray]) -> dict[Any, ChannelErrors]:
+        model, args, streaming = self.result.model, self.args, self.result.streaming
+        vectors = {("theta", key): np.asarray(theta, dtype=float) for key, theta in thetas.items()}
+        if self.trivial is None:
+            vectors.update({("trivial", "zero_mse"): np.zeros(model.n_base),
+                            ("trivial", "nominal_mse"): model.base.K @ model.nominal_parameters()})
+        summed = {key: self.sums.validation_errors(theta) for key, theta in vectors.items()}
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # the files' findings were said on the first pass
+            recorded = None
+            if resampled_validation({"streaming": streaming}):  # jittered or cleaned: at the recorded samples
+                recorded = streamed_errors_at_stamps(model, vectors, args.validate, chunk_size=self.chunk_size,
+                                                     cutoff_hz=streaming["cutoff_hz"], decimation=self.decimation,
+                                                     held_torques=self.held_torques)  # block by block
+            if recorded is None and resampled_validation({"streaming": streaming}):  # rows the loader drops: whole
+                document = summed_model_file_document(
+                    model, self.result.estimate, robot=robot_source(model.robot, args),
+                    preprocessing=streamed_plan(args.data[0], model, cutoff_hz=streaming["cutoff_hz"],
+                                                decimation=self.decimation, held_torques=self.held_torques,
+                                                chunk_size=self.chunk_size))
+                recorded = recorded_validation_errors(document, vectors, args.validate)  # None: read as recorded
+            if recorded is not None:
+                pass
+            elif next(iter(summed.values())).mse is not None:  # the sums hold the recording
+                recorded = {key: errors.mse for key, errors in summed.items()}
+            else:
+                recorded = streamed_recorded_errors(model, vectors, args.validate, chunk_size=self.chunk_size,
+                                                    cutoff_hz=streaming["cutoff_hz"], decimation=self.decimation,
+                                                    held_torques=self.held_torques)
+        if self.trivial is None:
+            self.trivial = {name: dict(recorded[("trivial", name)]) for name in ("zero_mse", "nominal_mse")}
+        return {key: ChannelErrors(dict(recorded[("theta", key)]), summed[("theta", key)].n_samples,
+                                   mse_filtered=summed[("theta", key)].mse_filtered)
+                for key in thetas}
 
 
 def recorded_validation(args: IdentifyOptions, result: IdentificationResult, chunk_size: int, *, harmonics: int = 5

@@ -3,11 +3,13 @@
 from __future__ import annotations
 
 import warnings
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from estimation.consistent.model_selection import selection_model_file
+import numpy as np
+
+from estimation.consistent.model_selection import selection_file, selection_model_file
 from estimation.identification.fit import IdentificationResult
 from estimation.identification.identified_model import IdentifiedModel
 from estimation.identification.model_file import (
@@ -16,6 +18,7 @@ from estimation.identification.model_file import (
     model_file_document,
     summed_model_file_document,
 )
+from estimation.identification.validation import channel_mse
 from estimation.identification.plausibility import assess_plausibility, link_findings
 from oed.workflows.chosen_model import ChosenModel
 from oed.workflows.options import RecordOptions
@@ -90,18 +93,40 @@ def add_summed_runner_up_model_file(document: dict[str, Any], runner_up: Any, ar
 def add_summed_model_file(document: dict[str, Any], model: Any, estimate: Any, args: RecordOptions,
                           preprocessing: dict[str, Any], *, shape: dict[str, float] | None = None,
                           recorded_mse: dict[str, float] | None = None,
-                          validation_mse: dict[str, float] | None = None) -> tuple[str, ...]:
+                          validation_mse: dict[str, float] | None = None, selection: Any = None) -> tuple[str, ...]:
     """``model_file`` and ``plausibility`` of the streamed path, in place (its estimate from sums,
-    :func:`estimation.identification.model_file.summed_model_file_document`); return the plausibility warnings."""
-    document["model_file"] = summed_model_file_document(model, estimate, robot=robot_source(model.robot, args),
-                                                        preprocessing=preprocessing, shape=shape,
-                                                        recorded_mse=recorded_mse, validation_mse=validation_mse)
-    document["model_file"]["chosen"] = estimate.method  # the only model: named, as predict and the summary name it
+    :func:`estimation.identification.model_file.summed_model_file_document`); return the plausibility warnings.
+    ``selection``: the :class:`estimation.consistent.model_selection.ModelSelection` made from sums
+    (:mod:`estimation.streaming.model_selection`), whose chosen model the file holds, the other candidates as
+    alternatives (``estimate``, ``recorded_mse`` and ``validation_mse`` are then its candidates')."""
+    robot = robot_source(model.robot, args)
+    if selection is not None:
+        consistent = selection.consistent
+        extra = {} if consistent is None else {
+            "consistent": consistent.estimate,
+            "consistent_validation_mse": None if consistent.validation is None else consistent.validation.mse}
+        documents = {candidate.name: summed_model_file_document(
+            model, candidate.fit.estimate, robot=robot, preprocessing=preprocessing, shape=shape,
+            recorded_mse=candidate.fit.train.mse,
+            validation_mse=None if candidate.fit.validation is None else candidate.fit.validation.mse, **extra)
+            for candidate in selection.candidates if isinstance(candidate.fit, IdentificationResult)}
+        document["model_file"] = selection_file(selection, documents)
+        answer = ChosenModel.of(selection)
+        records = answer.records()
+        validation_mse = None if answer.validation is None else answer.validation.mse
+    else:
+        document["model_file"] = summed_model_file_document(model, estimate, robot=robot, preprocessing=preprocessing,
+                                                            shape=shape, recorded_mse=recorded_mse,
+                                                            validation_mse=validation_mse)
+        document["model_file"]["chosen"] = estimate.method  # the only model: named, as predict and the summary name it
+        records, consistent = estimate.records(), None
     validation = document.get("validation") or {}
-    plausibility = assess_plausibility(model, estimate.records(), validation_mse=validation_mse,
+    plausibility = assess_plausibility(model, records, validation_mse=validation_mse,
                                        nominal_mse=validation.get("nominal_mse"), zero_mse=validation.get("zero_mse"))
-    document["plausibility"] = {**plausibility.to_dict(), "consistent_links": []}
-    return tuple(plausibility.messages())
+    document["plausibility"] = plausibility.to_dict()
+    links = () if consistent is None else link_findings(model.robot, consistent.estimate.link_parameters())
+    document["plausibility"]["consistent_links"] = list(links)
+    return tuple(plausibility.messages()) + tuple(links)
 
 
 def recorded_validation_mse(model_file: dict[str, Any], validate: Sequence[str | Path]) -> dict[str, float] | None:
@@ -118,6 +143,27 @@ def recorded_validation_mse(model_file: dict[str, Any], validate: Sequence[str |
         if all(segment.recorded is None for segment in segments):
             return None
         return dict(model.predict_record(model.prepare(segments)).mse)
+
+
+def recorded_validation_errors(model_file: dict[str, Any], thetas: Mapping[Any, Any],
+                               validate: Sequence[str | Path]) -> dict[Any, dict[str, float]] | None:
+    """:func:`recorded_validation_mse` of several base-parameter vectors of the model of ``model_file`` (by key), on
+    the same samples: at the recorded time stamps, against the torques as recorded, as ``oed predict`` measures
+    each; ``None`` when every record is read as it was recorded."""
+    model = IdentifiedModel(ModelFile.from_dict(model_file))
+    if model.delay is not None or model.payload_link is not None or any(model.shape.values()):
+        raise ValueError("the errors of other parameter vectors are measured for a model without shaped laws, "
+                         "delay or payload")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # the records' findings were said when the verb read them
+        segments = model.read(list(validate))
+        if all(segment.recorded is None for segment in segments):
+            return None
+        record = model.prepare(segments).as_recorded
+    measured = record.channels(model.channels)
+    return {key: channel_mse(measured, model.model.predict(np.asarray(theta, dtype=float), record.q, record.dq,
+                                                           record.ddq), model.channels)
+            for key, theta in thetas.items()}
 
 
 def resampled_validation(document: dict[str, Any]) -> bool:

@@ -1,0 +1,152 @@
+"""The default answer of ``oed identify`` on the streamed path: the in-memory choice among candidate models, from sums.
+
+The in-memory identification chooses among ordinary and channel-weighted least squares and the physically
+consistent fit with the robot description's bodies as prior, by their errors on a validation record of another
+motion (:mod:`estimation.consistent.model_selection`, issue 34). A record over the memory budget is read in blocks
+(:mod:`estimation.streaming.identification`), and every piece of that choice needs sums only:
+
+* the unconstrained fits are solved from the training record's per-channel sums
+  (:func:`~estimation.streaming.identification.identify_files_candidates`: both weightings, one covariance pass);
+* the consistent fit's cost is a quadratic form in the per-channel Gram matrices ``Y_cᵀY_c`` of those sums
+  (:class:`~estimation.consistent.least_squares.ConsistentLeastSquares`), and its prior's weight is chosen by the
+  same rule along the same path (:func:`~estimation.consistent.identification.consistent_fit_sums`);
+* each candidate's validation error comes from a ``score`` of several parameter vectors at once: from the
+  validation sums when they hold the channels as recorded, else from one more pass over the validation record's
+  blocks, every candidate on the same samples (the caller's);
+* whether the validation record repeats the training motion is the in-memory test
+  (:func:`~estimation.identification.repeated_motion.repeated_motion`) from running sums over both records read
+  side by side (:func:`streamed_repeated_motion`).
+
+The choice itself is the in-memory one (:func:`~estimation.consistent.model_selection.select_scored`), so that a
+record gives the same answer whichever path its length sends it down.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator, Sequence
+from dataclasses import replace
+from pathlib import Path
+from typing import Literal
+
+import numpy as np
+from numpy.typing import NDArray
+
+from dynamics.models import IdentificationModel
+from estimation.consistent.identification import Scorer, consistent_fit_sums
+from estimation.consistent.model_selection import (
+    CANDIDATES,
+    CONSISTENT_FAILURES,
+    Candidate,
+    CandidateName,
+    ConsistentSettings,
+    ModelSelection,
+    select_scored,
+    validation_base,
+)
+from estimation.identification.repeated_motion import REPEAT_FRACTION
+from estimation.streaming.chunks import read_chunks
+from estimation.streaming.identification import SummedFits
+
+__all__ = ["streamed_repeated_motion", "summed_selection"]
+
+
+def summed_selection(sums: SummedFits, *, base: Literal["ols", "wls"], given: CandidateName | None = None,
+                     consistent: ConsistentSettings | None = None, score: Scorer | None = None,
+                     ratio: float | None = None) -> ModelSelection:
+    """:func:`estimation.consistent.model_selection.select_model` of fits from sums (module docstring).
+
+    Parameters
+    ----------
+    sums
+        The unconstrained fits (``ols`` and ``wls``, or the one ``given``) and the sums they were solved from.
+    base, given, consistent
+        As :func:`~estimation.consistent.model_selection.select_model`'s.
+    score
+        The validation errors of several base-parameter vectors, by key, in one pass (``None``: no validation record).
+    ratio
+        :func:`streamed_repeated_motion` of the validation record (``None``: none).
+    """
+    settings = ConsistentSettings() if consistent is None else consistent
+    fits = dict(sums.fits)
+    if score is not None:  # the unconstrained candidates' errors, on the samples the others are scored on
+        scored = score({name: fit.estimate.values for name, fit in fits.items()})
+        fits = {name: replace(fit, validation=scored[name]) for name, fit in fits.items()}
+    validated = score is not None and ratio is not None and ratio > REPEAT_FRACTION
+    if given is None and validated and {"ols", "wls"} <= set(fits):
+        base = validation_base(fits.__getitem__, base)
+    if given in ("ols", "wls"):
+        wanted: tuple[str, ...] = (given,)
+    elif given == "consistent":
+        wanted = (base, "consistent")
+    else:
+        wanted = CANDIDATES if score is not None else (base, "consistent")
+    candidates = []
+    for name in CANDIDATES:
+        if name not in wanted:
+            continue
+        if name != "consistent":
+            candidates.append(Candidate(name, fits[name]))
+            continue
+        try:
+            refit = consistent_fit_sums(fits[base], sums.train, sums.train_errors, score,
+                                        prior_weight=settings.prior_weight, prior=settings.prior,
+                                        prior_source=settings.prior_source, bounds=settings.bounds)
+            candidates.append(Candidate("consistent", refit))
+        except CONSISTENT_FAILURES as error:
+            if given == "consistent":
+                raise
+            candidates.append(Candidate("consistent", None, f"the consistent fit failed ({error})"))
+    return select_scored(candidates, base=base, given=given, ratio=ratio)
+
+
+def streamed_repeated_motion(model: IdentificationModel, train: Sequence[str | Path],
+                             validation: Sequence[str | Path], *, chunk_size: int) -> float:
+    """:func:`estimation.identification.repeated_motion.repeated_motion` of the records ``train`` and ``validation``
+    (each its files one after the other) read block by block side by side: the largest over the joints of
+    ``rms(q_val − q_train) / rms(q_train − mean)`` over the samples both records have, from running sums (the
+    positions as read, on the uniform grid of a resampled file)."""
+    n_joints = model.robot.n_joints
+    difference, total, square = np.zeros(n_joints), np.zeros(n_joints), np.zeros(n_joints)
+    shift: NDArray[np.float64] | None = None
+    count = 0
+    for q_train, q_validation in _side_by_side(_positions(model, train, chunk_size),
+                                               _positions(model, validation, chunk_size)):
+        if q_train.shape[1] != q_validation.shape[1]:
+            return float("inf")
+        shift = q_train[0] if shift is None else shift  # sums about the first sample: no cancellation
+        centred = q_train - shift
+        difference += np.sum((q_validation - q_train) ** 2, axis=0)
+        total += centred.sum(axis=0)
+        square += np.sum(centred**2, axis=0)
+        count += q_train.shape[0]
+    if count == 0:
+        return float("inf")
+    rms_difference = np.sqrt(difference / count)
+    spread = np.sqrt(np.clip(square / count - (total / count) ** 2, 0.0, None))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = np.where(spread > 0, rms_difference / spread, np.where(rms_difference > 0, np.inf, 0.0))
+    return float(np.max(ratio))
+
+
+def _positions(model: IdentificationModel, paths: Sequence[str | Path], chunk_size: int) -> Iterator[np.ndarray]:
+    for path in paths:
+        for chunk in read_chunks(path, model, chunk_size=chunk_size):
+            yield chunk.q
+
+
+def _side_by_side(first: Iterator[np.ndarray], second: Iterator[np.ndarray]
+                  ) -> Iterator[tuple[np.ndarray, np.ndarray]]:
+    """Blocks of the same rows of two streams of row blocks, until either ends."""
+    left = right = np.empty((0, 0))
+    while True:
+        while left.shape[0] == 0:
+            left = next(first, None)
+            if left is None:
+                return
+        while right.shape[0] == 0:
+            right = next(second, None)
+            if right is None:
+                return
+        rows = min(left.shape[0], right.shape[0])
+        yield left[:rows], right[:rows]
+        left, right = left[rows:], right[rows:]
