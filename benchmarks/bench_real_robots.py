@@ -3,7 +3,8 @@ joint, on a record no choice saw, on the real robots of ``../shared/data``.
 
 Each robot gives three records: training, validation (another motion where the data allow it) and test. Compared
 on the test record, per joint, MSE against the torques as recorded, every model on the same samples (those
-``oed predict`` predicted):
+``oed predict`` predicted, but rows that repeat the previous row on every channel: a logger's re-sent packets,
+which the toolkit drops when it reads a record, :func:`resent`):
 
 ``default``
     ``oed identify --data TRAIN --validate VALIDATE --friction viscous,coulomb,offset`` (no other option: the
@@ -327,6 +328,14 @@ def _at_recorded(t_record: np.ndarray, t_predicted: np.ndarray, predicted: np.nd
     return index, values
 
 
+def resent(record: Record) -> np.ndarray:
+    """The rows that repeat the previous row on every channel (``q``, a logged ``dq``, ``tau``): a logger re-sending
+    its last packet at a later time stamp, not a sample of the motion at that stamp. The toolkit drops them when it
+    reads a record, the plain fit leaves them out of its filter; no model is scored on them."""
+    data = np.column_stack([record.q, record.tau] + ([] if record.dq is None else [record.dq]))
+    return np.r_[False, np.all(np.diff(data, axis=0) == 0, axis=1)]
+
+
 #: the toolkit's runs compared: label, file stem, options[, verb]
 RUNS = (("default", "default", ()), ("consistent", "consistent", ("--consistent",)),
         ("toolkit OLS", "ols", ("--method", "ols")), ("diagnose", "diagnose", (), "diagnose"))
@@ -334,7 +343,7 @@ RUNS = (("default", "default", ()), ("consistent", "consistent", ("--consistent"
 
 def compare(case: Case, folder: Path, labels: tuple[str, ...] = tuple(run[0] for run in RUNS)) -> dict:
     """Per joint test MSE of the toolkit's runs ``labels`` and the plain fit at the recorded samples every toolkit
-    run predicted."""
+    run predicted (the re-sent rows left out: :func:`resent`)."""
     runs = {run[0]: toolkit(case, folder, run[1], list(run[2]), *run[3:]) for run in RUNS if run[0] in labels}
     test = case.records["test"]
     at = {label: None if run is None else _at_recorded(test.t, run["t"], run["predicted"]) for label, run in runs.items()}
@@ -346,7 +355,7 @@ def compare(case: Case, folder: Path, labels: tuple[str, ...] = tuple(run[0] for
     plain = PlainFit(case.robot)
     cutoff, theta = plain.fit(case.records["train"], case.records["validate"])
     predicted, kept = plain.predict(test, cutoff, theta)
-    common = common[kept[common]]
+    common = common[kept[common] & ~resent(test)[common]]
     mse = {label: None if value is None else
            np.mean((test.tau[value[0][np.isin(value[0], common)]] - value[1][np.isin(value[0], common)]) ** 2, axis=0)
            for label, value in at.items()}
