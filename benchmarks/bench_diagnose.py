@@ -16,20 +16,28 @@ and shaped (``coulomb:tanh``, ``stribeck:velocity``, ``sigmoid``, ``ripple``).
    goes"), the records are simulated from it, three seeds (training, validation, test), in two cases: the URDF's
    own friction (the declared model is at its noise floor: one round of candidates, nothing added) and Coulomb
    friction and offsets of 0.1–3 N·m (14 effects to find); each is timed end to end against the same fit.
+   With ``--baseline COMMIT`` (default ``6dc3793``, ``main`` when issue 34 was filed; ``none`` leaves it out), the
+   same ``oed diagnose`` of that commit of this repository (``git archive`` into a temporary folder, checked to be
+   the code the process imports), timed in the same run: ``--repeats`` pairs, the commit's run and this checkout's
+   alternating, each in a new process (``OMP_NUM_THREADS=1``), the ratio this/baseline of wall and CPU time taken
+   pair by pair and its median printed (issue 34: "within 1.5x of today's time").
 
 Parts 1 and 2 time ``diagnose`` alone (the records are made or loaded before), one run, with the
 compiled column functions already in the cache (``~/.cache/robot-oed``; a first run compiles them
-once, a few seconds more). Run: ``python benchmarks/bench_diagnose.py [--skip-kuka] [--skip-end-to-end] [--excitation TRAJECTORY.json]``.
+once, a few seconds more). Run: ``python benchmarks/bench_diagnose.py [--skip-kuka] [--skip-end-to-end] [--excitation TRAJECTORY.json]
+[--baseline COMMIT|none] [--repeats N]``.
 """
 
 from __future__ import annotations
 
 import argparse
 import dataclasses
+import io
 import os
 import resource
 import subprocess
 import sys
+import tarfile
 import tempfile
 import time
 from pathlib import Path
@@ -75,12 +83,16 @@ def run(label: str, model, train, validate, target_s: float) -> None:
     print(f"   validation MSE total before {sum(before.values()):.4g}, after {sum(after.values()):.4g}")
 
 
-def oed_command(*arguments: str) -> tuple[float, float]:
-    """``python -m oed ARGUMENTS`` in a new process: its wall time and its CPU time (user + system), s."""
-    environment = dict(os.environ, PYTHONPATH=os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")])))
+def oed_command(*arguments: str, code: Path = ROOT, cwd: Path | None = None) -> tuple[float, float]:
+    """``python -m oed ARGUMENTS`` in a new process, the package imported from ``code`` (this checkout, or a
+    baseline commit's export) run in ``cwd`` (default ``code``): its wall time and its CPU time (user + system),
+    s."""
+    environment = dict(os.environ, PYTHONPATH=os.pathsep.join(filter(None, [str(code), os.environ.get("PYTHONPATH")])),
+                       OMP_NUM_THREADS=os.environ.get("OMP_NUM_THREADS", "1"))
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     start = time.perf_counter()
-    subprocess.run([sys.executable, "-m", "oed", *arguments], check=True, env=environment, cwd=ROOT,
+    # the working folder comes first on sys.path (``-m``): never this checkout's when timing another code
+    subprocess.run([sys.executable, "-m", "oed", *arguments], check=True, env=environment, cwd=code if cwd is None else cwd,
                    stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     wall = time.perf_counter() - start
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
@@ -125,9 +137,44 @@ def one_fit_seconds(train_path: Path, repeats: int = 5) -> float:
     return min(times)
 
 
-def end_to_end(target_s: float = 10.0, excitation: Path | None = None) -> None:
+def baseline_code(commit: str, folder: Path) -> Path:
+    """``commit`` of this repository exported into ``folder`` (``git archive``), checked to be the package a process
+    run there imports."""
+    archive = subprocess.run(["git", "-C", str(ROOT), "archive", commit], check=True, capture_output=True).stdout
+    with tarfile.open(fileobj=io.BytesIO(archive)) as tar:
+        tar.extractall(folder, filter="data")
+    environment = dict(os.environ, PYTHONPATH=str(folder))
+    imported = subprocess.run([sys.executable, "-c", "import oed; print(oed.__file__)"], check=True, env=environment,
+                              cwd=folder, capture_output=True, text=True).stdout.strip()
+    if Path(imported).resolve().parent != (folder / "oed").resolve():
+        raise RuntimeError(f"the baseline {commit} imports {imported}, not its export in {folder}")
+    return folder
+
+
+def against_baseline(arguments: list[str], commit: str, repeats: int, folder: Path) -> None:
+    """``oed diagnose ARGUMENTS`` of this checkout against ``commit``'s: ``repeats`` pairs, alternating, after one
+    unreported run of each (compiled functions into the cache); the ratios' medians."""
+    code = baseline_code(commit, folder / f"baseline-{commit}")
+    runs = {"baseline": [], "this": []}
+    for index in range(repeats + 1):
+        for name, where in (("baseline", code), ("this", ROOT)):
+            timing = oed_command(*arguments, code=where, cwd=folder)
+            if index:
+                runs[name].append(timing)
+    ratios = [(this[0] / base[0], this[1] / base[1]) for this, base in zip(runs["this"], runs["baseline"])]
+    median = lambda values: float(np.median(values))  # noqa: E731
+    print(f"   against {commit} (the same command, {repeats} pairs alternating, medians): wall "
+          f"{median([r[0] for r in runs['this']]):.1f} s / {median([r[0] for r in runs['baseline']]):.1f} s, CPU "
+          f"{median([r[1] for r in runs['this']]):.1f} s / {median([r[1] for r in runs['baseline']]):.1f} s; ratio "
+          f"this/baseline wall {median([r[0] for r in ratios]):.2f}x, CPU {median([r[1] for r in ratios]):.2f}x "
+          "(issue 34: at most 1.5x)")
+
+
+def end_to_end(target_s: float = 10.0, excitation: Path | None = None, baseline: str | None = None,
+               repeats: int = 3) -> None:
     """Part 3: ``oed diagnose`` on a simulated 7-joint 14 000-sample log, against one least-squares fit (with a
-    designed ``excitation``: the two cases of ``benchmarks/README.md``, training, validation and test records)."""
+    designed ``excitation``: the two cases of ``benchmarks/README.md``, training, validation and test records), and
+    against a ``baseline`` commit's ``oed diagnose`` (:func:`against_baseline`)."""
     cases = {"random excitation, effects": EFFECT_VALUES} if excitation is None else \
         {"at its floor": None, "14 effects": EFFECT_VALUES}
     for label, values in cases.items():
@@ -143,6 +190,8 @@ def end_to_end(target_s: float = 10.0, excitation: Path | None = None) -> None:
             print(f"KUKA LWR4+ simulated, 7 joints, 14 000-sample records, {label}: `oed diagnose` end to end "
                   f"{wall:.1f} s (target <= {target_s:g} s; CPU {cpu:.1f} s), {wall / fit:.0f} least-squares fits "
                   "of the record")
+            if baseline is not None:
+                against_baseline(arguments, baseline, repeats, Path(folder))
 
 
 def main() -> None:
@@ -151,9 +200,13 @@ def main() -> None:
     parser.add_argument("--skip-end-to-end", action="store_true")
     parser.add_argument("--excitation", type=Path, default=None,
                         help="a designed trajectory JSON for part 3 (default: a random 5-harmonic excitation)")
+    parser.add_argument("--baseline", default="6dc3793",
+                        help="a commit whose `oed diagnose` part 3 also times, alternating ('none': not timed)")
+    parser.add_argument("--repeats", type=int, default=3, help="pairs of runs against the baseline (default 3)")
     args = parser.parse_args()
     if not args.skip_end_to_end and DATA.is_dir():
-        end_to_end(excitation=args.excitation)
+        end_to_end(excitation=args.excitation, baseline=None if args.baseline.lower() == "none" else args.baseline,
+                   repeats=args.repeats)
     model, (train, validate) = puma_records()
     diagnose(model, train, validate)  # warm-up: compiled column functions into the cache
     run("PUMA 560, 3 joints", model, train, validate, 10.0)

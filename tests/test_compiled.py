@@ -112,3 +112,15 @@ def test_sparse_output_into_a_given_array_is_zeroed_first():
     out = np.full((2, 4), 7.0)
     SampleEvaluator(function, backend="vm")(np.array([[1.0, 2.0], [3.0, 4.0]]), out=out)
     np.testing.assert_array_equal(out, [[3, 0, 0, 6], [9, 0, 0, 12]])
+
+
+def test_the_source_made_in_memory_is_the_file_casadi_generates(tmp_path):
+    """The cache key is computed from the source made in memory (no temporary directory per function): it is byte
+    for byte the file ``CodeGenerator.generate`` writes, so the libraries compiled before keep their keys."""
+    model = build_model(load_robot("puma560", joints=3), "internal", "viscous")
+    x = casadi.MX.sym("x", 3)
+    for function in (model.base_regressor, casadi.Function("product", [x], [casadi.mtimes(x.T, x) * casadi.sin(x)])):
+        generator = casadi.CodeGenerator(f"{function.name()}.c")
+        generator.add(function)
+        generator.generate(str(tmp_path) + "/")
+        assert compiled.generated_source(function) == (tmp_path / f"{function.name()}.c").read_bytes()

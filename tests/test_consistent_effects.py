@@ -4,6 +4,7 @@ their fitted shapes, a delay, offsets, laws on joint combinations; `oed identify
 
 from __future__ import annotations
 
+import dataclasses
 import json
 
 import numpy as np
@@ -251,3 +252,40 @@ def test_exported_shaped_laws_reproduce_predict_consistent_through_pinocchio(fil
     rows = np.searchsorted(record["t"].to_numpy(), predicted["t"].to_numpy())
     expected = predicted[["tau1", "tau2", "tau3"]].to_numpy()
     assert np.max(np.abs(tau[rows] - expected)) / np.max(np.abs(expected)) < 1e-6
+
+
+@pytest.mark.parametrize("shaped", [True, False])
+def test_the_prior_weight_search_evaluating_each_regressor_once_is_the_refits_one_by_one_bit_for_bit(puma, shaped):
+    """consistent_fit's search (the training problem built once, each record's regressor once for every weight) gives
+    what choose_prior_weight over identify_consistent at each weight gives, to the last bit: the estimate, every
+    comparison (as recorded and filtered), the search; with shaped laws and a delay held, and on a linear model."""
+    from estimation.consistent.identification import choose_prior_weight, identify_consistent
+    from estimation.preprocessing.plan import choose_preprocessing, prepare
+
+    robot, model, theta, train, validate, test = puma
+    if shaped:
+        result = identify(model, train, validate, delay=DelayBounds())
+        assert result.delay is not None and result.shaped_fit is not None
+    else:  # filtered channels (a Butterworth filter): the comparisons as recorded and filtered
+        linear = build_model(robot, "internal", "viscous,coulomb,offset")
+        train, validate = (dataclasses.replace(record, dq=None, ddq=None) for record in (train, validate))
+        plan = choose_preprocessing(train, cutoff_hz=20.0)
+        train, validate = prepare(train, plan), prepare(validate, plan)
+        assert train.recorded is not None
+        result = identify(linear, train, validate)
+    searched = consistent_fit(result, train, validate)
+
+    def refit(weight, warm):
+        return identify_consistent(result, train, validate, prior_weight=weight, warm_start=warm, undetermined=False)
+
+    one_by_one = choose_prior_weight(refit, result)
+    assert searched.prior_weight_search == one_by_one.prior_weight_search
+    assert np.array_equal(searched.estimate.values, one_by_one.estimate.values)
+    assert np.array_equal(searched.estimate.cov, one_by_one.estimate.cov)
+    for name in ("train", "validation"):
+        mine, theirs = getattr(searched, name), getattr(one_by_one, name)
+        assert np.array_equal(mine.predicted, theirs.predicted) and np.array_equal(mine.measured, theirs.measured)
+        assert (mine.filtered is None) == (theirs.filtered is None)
+        if mine.filtered is not None:
+            assert np.array_equal(mine.filtered.predicted, theirs.filtered.predicted)
+        assert mine.label == theirs.label and mine.segments == theirs.segments

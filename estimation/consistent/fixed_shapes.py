@@ -26,6 +26,7 @@ the unconstrained model's (:class:`estimation.identification.identified_model.Id
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import replace
 
 import numpy as np
@@ -38,7 +39,7 @@ from estimation.identification.fit import IdentificationResult
 from estimation.identification.validation import Comparison
 from estimation.preprocessing.delay import delayed
 
-__all__ = ["fixed_comparison", "fixed_problem", "fixed_regressor", "has_fixed_effects"]
+__all__ = ["comparisons", "fixed_comparison", "fixed_problem", "fixed_regressor", "has_fixed_effects"]
 
 
 def has_fixed_effects(result: IdentificationResult) -> bool:
@@ -93,3 +94,41 @@ def _comparison(result: IdentificationResult, theta: NDArray[np.float64], measur
     predicted = fixed_regressor(result, measurements) @ theta
     return Comparison(measurements.t, measurements.channels(channels), predicted, channels, label,
                       segments=tuple(segment_slices(measurements)))
+
+
+def comparisons(result: IdentificationResult, values: Sequence[ArrayLike], measurements: Measurements, *,
+                label: str = "", regressor: NDArray[np.float64] | None = None) -> list[Comparison]:
+    """The comparisons of several base-parameter vectors ``values`` of ``result``'s model on ``measurements``, each
+    the one :func:`fixed_comparison` (shaped laws or a delay) or
+    :func:`estimation.identification.validation.compare` (a linear model) makes, with the regressor of each record
+    (the filtered one, then the recording) evaluated once for all the vectors and released before the next: the
+    same predictions ``Y θ``, bit for bit (the prior-weight search, :func:`estimation.consistent.identification.
+    consistent_fit`). ``regressor``: the regressor along ``measurements`` itself, already evaluated (the training
+    problem's)."""
+    thetas = [np.asarray(value, dtype=float).reshape(-1) for value in values]
+    filtered = _comparisons(result, thetas, measurements, label, regressor)
+    if measurements.recorded is None:
+        return filtered
+    recorded = _comparisons(result, thetas, measurements.recorded, label, None)
+    return [replace(on_record, filtered=on_filtered) for on_record, on_filtered in zip(recorded, filtered)]
+
+
+def _comparisons(result: IdentificationResult, thetas: Sequence[NDArray[np.float64]], measurements: Measurements,
+                 label: str, regressor: NDArray[np.float64] | None) -> list[Comparison]:
+    channels = result.model.channels
+    Y = _regressor(result, measurements) if regressor is None else regressor
+    measured, segments = measurements.channels(channels), tuple(segment_slices(measurements))
+    return [Comparison(measurements.t, measured, Y @ theta, channels, label, segments=segments) for theta in thetas]
+
+
+def _regressor(result: IdentificationResult, measurements: Measurements) -> NDArray[np.float64]:
+    """The regressor ``fixed_comparison`` (shaped laws or a delay) or ``compare`` (``model.predict`` of base
+    values) multiplies by the base parameters."""
+    if has_fixed_effects(result):
+        return fixed_regressor(result, measurements)
+    model = result.model
+    if measurements.dq is None or measurements.ddq is None:
+        raise ValueError("the measurements lack dq/ddq: derive them first (estimation.preprocessing.plan.prepare)")
+    states = (measurements.q, measurements.dq, measurements.ddq)
+    # model.predict takes a vector as long as the standard parameters as standard values
+    return model.evaluate(*states) if model.n_parameters == model.n_base else model.evaluate_base(*states)

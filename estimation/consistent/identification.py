@@ -43,7 +43,14 @@ from numpy.typing import NDArray
 from dynamics.physical_parameters import LinkBounds, link_summary
 from dynamics.robot import RobotModel
 from estimation.consistent.determination import Determination, determination
-from estimation.consistent.fixed_shapes import fixed_comparison, fixed_problem, fixed_regressor, has_fixed_effects
+from estimation.consistent.fixed_shapes import (
+    comparisons,
+    fixed_comparison,
+    fixed_problem,
+    fixed_regressor,
+    has_fixed_effects,
+)
+from estimation.data.segments import concatenate
 from estimation.consistent.least_squares import ConsistentEstimate, ConsistentLeastSquares
 from estimation.identification.fit import IMPLAUSIBLE_CAUSE, IdentificationResult, identify, implausible_records
 from estimation.identification.identified_model import IdentifiedModel
@@ -260,16 +267,52 @@ def chosen_prior_weight(fits: Mapping[float, ConsistentResult], result: Identifi
     """Of the fits at every weight of :data:`PRIOR_WEIGHT_GRID` (each with its validation error), the one of the
     largest weight whose channel-weighted validation error is within :data:`PRIOR_WEIGHT_TOLERANCE` of the best
     (:func:`choose_prior_weight`), with the search."""
-    weights = result.estimate.weights if result.estimate.method == "wls" else 1.0 / result.estimate.channel_variance
     if any(fits[weight].validation is None or fits[weight].validation.mse is None for weight in PRIOR_WEIGHT_GRID):
         raise ValueError("choosing the prior's weight needs a validation record")
-    errors = [float(sum(w * fits[weight].validation.mse[c] for w, c in zip(weights, result.model.channels)))
+    chosen, search = _chosen_weight({weight: fit.validation for weight, fit in fits.items()}, result)
+    return dataclasses.replace(fits[chosen], prior_weight_search=search)
+
+
+def _chosen_weight(validations: Mapping[float, Comparison],
+                   result: IdentificationResult) -> tuple[float, tuple[dict[str, float], ...]]:
+    """The weight :func:`choose_prior_weight` chooses from each weight's comparison on the validation record, and
+    the search as kept in the result."""
+    weights = result.estimate.weights if result.estimate.method == "wls" else 1.0 / result.estimate.channel_variance
+    errors = [float(sum(w * validations[weight].mse[c] for w, c in zip(weights, result.model.channels)))
               for weight in PRIOR_WEIGHT_GRID]
     best = min(errors)
     chosen = max(index for index, error in enumerate(errors) if error <= (1 + PRIOR_WEIGHT_TOLERANCE) * best)
     search = tuple({"prior_weight": weight, "weighted_validation_error": error}
                    for weight, error in zip(PRIOR_WEIGHT_GRID, errors))
-    return dataclasses.replace(fits[PRIOR_WEIGHT_GRID[chosen]], prior_weight_search=search)
+    return PRIOR_WEIGHT_GRID[chosen], search
+
+
+def _searched_fit(result: IdentificationResult, train: Measurements, validate: Measurements, *,
+                  prior: NDArray[np.float64] | None, prior_source: str, bounds: Mapping[str, LinkBounds] | None,
+                  starts: int) -> ConsistentResult:
+    """:func:`choose_prior_weight` over :func:`identify_consistent` at each weight, the same fits and comparisons
+    with each regressor evaluated once: the training problem for every weight of the homotopy, then each
+    record's regressor for the estimates it compares (every weight's on the validation record, the chosen one's on
+    the training record), held one at a time."""
+    problem = fixed_problem(result, train) if has_fixed_effects(result) else stack(result.model, train)
+    estimates: dict[float, ConsistentEstimate] = {}
+    warm = None
+    for weight in sorted(PRIOR_WEIGHT_GRID, reverse=True):
+        estimator = ConsistentLeastSquares(prior_weight=weight, prior=prior, bounds=bounds, starts=starts,
+                                           warm_start=warm)
+        estimates[weight] = estimator.fit(result.model, problem, unconstrained=result.estimate).estimate_
+        warm = estimates[weight].phi
+    # the training problem's regressor is the one along ``train`` when ``train`` is one record (stack and
+    # fixed_problem evaluate it on concatenate(train), ``train`` itself then)
+    same = concatenate(train) is train
+    regressor, problem = (problem.Y if same else None), None
+    validations = dict(zip(PRIOR_WEIGHT_GRID, comparisons(result, [estimates[w].values for w in PRIOR_WEIGHT_GRID],
+                                                          validate, label="validation (consistent)")))
+    chosen, search = _chosen_weight(validations, result)
+    (train_comparison,) = comparisons(result, [estimates[chosen].values], train,
+                                      label="identification (consistent)", regressor=regressor)
+    return ConsistentResult(estimates[chosen], result, train_comparison, validations[chosen], prior_source,
+                            prior_weight_search=search)
 
 
 def consistent_fit(
@@ -299,7 +342,11 @@ def consistent_fit(
                                    prior_source=prior_source, bounds=bounds, starts=starts, warm_start=warm_start,
                                    undetermined=False)
 
-    fit = choose_prior_weight(refit, result) if weight == "auto" else refit(float(weight))
+    if weight == "auto" and validate is not None:
+        fit = _searched_fit(result, train, validate, prior=prior, prior_source=prior_source, bounds=bounds,
+                            starts=starts)
+    else:
+        fit = refit(float(weight))
     return dataclasses.replace(fit, prior_weight_choice=how, determination=_determination(result, prior))
 
 

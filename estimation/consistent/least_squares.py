@@ -82,7 +82,9 @@ ACCEPTED_STATUSES = frozenset({"Solve_Succeeded", "Solved_To_Acceptable_Level"})
 UNCERTAINTY_METHOD = "reduced Hessian"
 #: most restarts from a certified non-optimal stationary point (per start)
 MAX_ESCAPES = 5
-#: IPOPT's iteration limit after an escape (a warm start near the optimum; a longer run is a failure)
+#: IPOPT's iteration limit after an escape, and at each step of the weight-0 path after its first (a warm start near
+#: the optimum; a longer run is a failure: on the 7-joint 14 000-sample log of benchmarks/bench_diagnose.py the
+#: path's last step ran 3000 iterations, 1.5 s, to fail all the same, where the steps that converge take 9-140)
 ESCAPE_ITERATIONS = 300
 #: weight 0: the prior's weights followed down to ``regularisation``, each fit started at the one before
 #: (:meth:`ConsistentLeastSquares._regularised_path`)
@@ -285,8 +287,8 @@ class ConsistentLeastSquares(Estimator):
         the data term plus the pull ``regularisation`` of the prior's divergence; with that pull in the certificate
         its cost is convex in the pseudo-inertias and strictly inside the cone, so its certified optimum is unique
         and every start reaches it. IPOPT gets there along the path the weight follows down from
-        :data:`ZERO_WEIGHT_PATH`'s first value (each step started at the optimum before, each certified by the
-        whole cost's condition). Where the certificate fails before the path's end (numerically, the pull being
+        :data:`ZERO_WEIGHT_PATH`'s first value (each step started at the optimum before and given :data:`ESCAPE_ITERATIONS`,
+        each certified by the whole cost's condition). Where the certificate fails before the path's end (numerically, the pull being
         tiny), the answer is the last certified point, and ``solver["regularisation"]`` the weight it holds (the
         answer depends on the data and that weight only, never on a start)."""
         solves = _Solves(model, parametrisation, G, unconstrained.values, prior, int(self.max_iter),
@@ -303,7 +305,7 @@ class ConsistentLeastSquares(Estimator):
             return None
         best = dict(min(certified, key=lambda r: r["cost"]), weight=weights[0])
         for weight in weights[1:]:
-            result = solves.solve(f"path {weight:g}", parametrisation.phi_from_psi(best["psi"]), weight)
+            result = solves.solve(f"path {weight:g}", parametrisation.phi_from_psi(best["psi"]), weight, short=True)
             results.append(result)
             if not (result["certified"] and result["status"] in ACCEPTED_STATUSES):
                 break
@@ -415,12 +417,14 @@ class _Solves:
             return {}
         return {"prior_inverses": self.inverses, "prior_weight": prior_weight}
 
-    def solve(self, name: str, phi0: NDArray[np.float64], prior_weight: float) -> dict[str, Any]:
+    def solve(self, name: str, phi0: NDArray[np.float64], prior_weight: float, *, short: bool = False) -> dict[str, Any]:
         """IPOPT from ``phi0``, then certified or escaped along a descent direction and solved again
-        (at most :data:`MAX_ESCAPES` times); the solver's result with ``name, escapes, certified``."""
+        (at most :data:`MAX_ESCAPES` times); the solver's result with ``name, escapes, certified``. ``short``: the
+        first solve too within :data:`ESCAPE_ITERATIONS` (``phi0`` the optimum of a neighbouring problem)."""
         lower, upper = self.lower, self.upper
         psi0 = np.clip(self.parametrisation.psi_from_phi(phi0), inside(lower, +1e-9), inside(upper, -1e-9))
-        result = self.compiled.solve(psi0, self.parameters(prior_weight), lower, upper, *self.scales)
+        first = self.escape_solver if short else self.compiled
+        result = first.solve(psi0, self.parameters(prior_weight), lower, upper, *self.scales)
         escapes, certified = 0, False
         while result["status"] in ACCEPTED_STATUSES and escapes <= MAX_ESCAPES:
             # a stationary point of the factorised problem need not be the convex problem's optimum
