@@ -1,8 +1,7 @@
 """The records of an identification, read once and prepared alike: one call from file names to estimator input.
 
-:func:`prepare_records` reads the training files (a hole longer than ``max_gap`` splits a file into
-segments, :func:`estimation.data.records.read_record`), and the validation and test files (a hole is an
-error there), motor-side columns converted by the transmission
+:func:`prepare_records` reads the training, validation and test files (a hole longer than ``max_gap`` splits a
+file into segments, :func:`estimation.data.records.read_record`, as ``oed predict`` reads a record), motor-side columns converted by the transmission
 (:func:`estimation.data.motor_side.read_record_with_transmission`). It refuses a validation or test file that
 is a training file, and a channel that holds one value throughout a record. It chooses one preprocessing on the
 training segments, by held-out evidence (:func:`estimation.identification.preprocessing_choice.choose_by_evidence`,
@@ -97,8 +96,8 @@ class PreparationSettings:
     Attributes
     ----------
     max_gap
-        Longest logger stall bridged by interpolation, s; a longer hole splits a training file into
-        segments and is an error in a validation or test file.
+        Longest logger stall bridged by interpolation, s; a longer hole splits a file (training,
+        validation or test) into segments.
     transmission
         Converts motor-side columns (``qm``, ``taum``, ``im``…) to joint-side ones; ``None``: none may appear.
     frequency_hz, harmonics, cutoff_hz, average_periods, decimation, held_torques
@@ -278,7 +277,10 @@ def prepare_records(model: IdentificationModel, train: Sequence[str | Path], val
     with step(f"read {len(train) + len(validation) + len(test)} file(s)"), \
             reading_findings([*train, *validation, *test]):  # each finding said once, at once
         train_files = read_files(train, model, split=True, max_gap=settings.max_gap, transmission=settings.transmission)
-        held_out = {role: read_files(paths, model, split=False, max_gap=settings.max_gap,
+        # a hole splits a held-out file too, as it does a training file and as ``oed predict`` reads one: each
+        # segment is scored on its own samples as recorded (refusing it made the defaults exit where the user's
+        # own split of the file into two --validate files works)
+        held_out = {role: read_files(paths, model, split=True, max_gap=settings.max_gap,
                                      transmission=settings.transmission) if paths else None
                     for role, paths in (("validation", validation), ("test", test))}
     check_no_shared_samples({"training": train_files, **held_out})
