@@ -141,12 +141,13 @@ def stamp_defects(record: Record, seed: int = 0) -> Record:
     return _rows(record, np.sort(np.r_[np.setdiff1d(np.arange(n), drop), repeat]))
 
 
-def hole(seconds: float) -> Callable[[Record], Record]:
-    """The rows of ``seconds`` in the middle of the record lost (a logger's stall longer than the default
-    ``--max-gap``)."""
+def hole(seconds: float, after: float | None = None) -> Callable[[Record], Record]:
+    """The rows of ``seconds`` lost (a logger's stall longer than the default ``--max-gap``), in the middle of the
+    record or ``after`` seconds from its start."""
     def apply(record: Record) -> Record:
-        middle = 0.5 * (record.t[0] + record.t[-1])
-        return _rows(record, np.flatnonzero(np.abs(record.t - middle) > 0.5 * seconds))
+        start = 0.5 * (record.t[-1] - record.t[0]) - 0.5 * seconds if after is None else after
+        lost = (record.t - record.t[0] >= start) & (record.t - record.t[0] < start + seconds)
+        return _rows(record, np.flatnonzero(~lost))
     return apply
 
 
@@ -194,6 +195,13 @@ CONFIGS = [
            note="KUKA 1/2/3, columns in another order and extra columns"),
     Config("kuka-gapval", "kuka", {"train": ("run1", 0, INF), "validate": ("run2", 0, INF), "test": ("run3", 0, INF)},
            transform=hole(0.1), note="KUKA 1/2/3, 0.1 s of rows lost in the middle of every record"),
+    Config("kuka-edgehole", "kuka", {"train": ("run1", 0, INF), "validate": ("run2", 0, INF),
+                                     "test": ("run3", 0, INF)}, transform=hole(0.1, after=0.3),
+           note="KUKA 1/2/3, 0.1 s of rows lost 0.3 s after the start of every record"),
+    Config("kuka-val05", "kuka", {"train": ("run1", 0, INF), "validate": ("run2", 10.0, 10.5),
+                                  "test": ("run3", 0, INF)}, note="KUKA 1/2/3, validation 0.5 s of run 2"),
+    Config("kuka-shorttest", "kuka", {"train": ("run1", 0, INF), "validate": ("run2", 0, INF),
+                                      "test": ("run3", 5.0, 6.0)}, note="KUKA 1/2/3, test 1 s of run 3"),
     Config("kuka-epoch", "kuka", {"train": ("run1", 0, INF), "validate": ("run2", 0, INF), "test": ("run3", 0, INF)},
            transform=epoch, note="KUKA 1/2/3, time stamps in seconds since 1970"),
     Config("kuka-shorttrain", "kuka", {"train": ("run1", 0, 5.0), "validate": ("run2", 0, INF),
@@ -324,9 +332,10 @@ def sweep(config: Config, folder: Path, logs: dict[str, Log]) -> dict:
             common = np.intersect1d(common, at[verb][0])
     outcome["plain"] = np.mean((test.tau[common] - predicted[common]) ** 2, axis=0)
     outcome["cutoff"] = cutoff
-    outcome["mse"] = {verb: np.mean((test.tau[common] - values[np.isin(index, common)]) ** 2, axis=0)
+    outcome["mse"] = {verb: None if common.size == 0 else np.mean((test.tau[common] - values[np.isin(index, common)]) ** 2, axis=0)
                       for verb, (index, values) in at.items()}
     outcome["samples"] = (common.shape[0], test.t.shape[0])
+    outcome["at"] = at
     return outcome
 
 
@@ -336,6 +345,11 @@ def rows(config: Config, outcome: dict) -> list[str]:
     for verb in ("identify", "diagnose"):
         mse = outcome["mse"].get(verb)
         note = outcome["messages"].get(verb, "")
+        if outcome["samples"][0] == 0 and verb in outcome["at"]:
+            index = outcome["at"][verb][0]
+            lines.append(f"| {config.name} | {verb} | – | – | – | exit 0, predicted {index.shape[0]} of "
+                         f"{outcome['samples'][1]} test samples; the plain fit's filter keeps none |")
+            continue
         if mse is None:
             lines.append(f"| {config.name} | {verb} | – | – | – | {note} |")
             continue
