@@ -37,13 +37,16 @@ import pandas as pd
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_real_robots import (  # noqa: E402
+    CUTOFFS_HZ,
     DATA,
+    SETTLING,
     FRICTION,
     TX40_RATIOS,
     TX40_ZERO,
     PlainFit,
     Record,
     _at_recorded,
+    filtered_motion,
     tx40_transmission,
 )
 
@@ -170,7 +173,7 @@ class Config:
     name: str
     robot: str  # kuka, panda, tx40, emps
     roles: dict[str, tuple[str, float, float]]  # role -> (record, start, stop); validate may be absent
-    transform: Callable[[Record], Record] | None = None
+    transform: Callable[[Record], Record] | dict[str, Callable[[Record], Record]] | None = None  # or by role
     layout: str = "plain"  # plain | shuffled (columns reordered, extra columns)
     note: str = ""
 
@@ -202,6 +205,14 @@ CONFIGS = [
                                   "test": ("run3", 0, INF)}, note="KUKA 1/2/3, validation 0.5 s of run 2"),
     Config("kuka-shorttest", "kuka", {"train": ("run1", 0, INF), "validate": ("run2", 0, INF),
                                       "test": ("run3", 5.0, 6.0)}, note="KUKA 1/2/3, test 1 s of run 3"),
+    Config("kuka-mixedrate", "kuka", {"train": ("run1", 0, INF), "validate": ("run2", 0, INF),
+                                      "test": ("run3", 0, INF)}, transform={"validate": subsample(5),
+                                                                            "test": subsample(2)},
+           note="KUKA 1/2/3: training at 200 Hz, validation at 40 Hz, test at 100 Hz"),
+    Config("panda-mixedrate", "panda", {"train": ("log", 0, 13.84), "validate": ("log", 13.84, 17.2),
+                                        "test": ("log", 17.2, INF)}, transform={"train": subsample(5),
+                                                                                "test": subsample(10)},
+           note="Panda 13.84 / 17.2 s: training at 200 Hz, validation at 1 kHz, test at 100 Hz"),
     Config("kuka-epoch", "kuka", {"train": ("run1", 0, INF), "validate": ("run2", 0, INF), "test": ("run3", 0, INF)},
            transform=epoch, note="KUKA 1/2/3, time stamps in seconds since 1970"),
     Config("kuka-shorttrain", "kuka", {"train": ("run1", 0, 5.0), "validate": ("run2", 0, INF),
@@ -248,6 +259,28 @@ CONFIGS = [
 ]
 
 
+class SweepPlainFit(PlainFit):
+    """:class:`bench_real_robots.PlainFit` whose cut-offs stay below 40 % of the slowest record's rate (the
+    records of a configuration may be logged at different rates)."""
+
+    def fit_on(self, train: Record, validate: Record, records: list[Record]) -> tuple[float, np.ndarray]:
+        rate = min(1.0 / float(np.median(np.diff(np.unique(record.t)))) for record in records)
+        duration = validate.t[-1] - validate.t[0]
+        cutoffs = [c for c in CUTOFFS_HZ if c < 0.4 * rate and SETTLING / c <= 0.1 * duration]
+        scored = self.kept(validate, min(cutoffs))
+        best = None
+        for cutoff in cutoffs:
+            keep = self.kept(train, cutoff)
+            Y = self.regressor(train, cutoff)[keep]
+            target = filtered_motion(train, cutoff)[3][keep]
+            theta = np.linalg.lstsq(Y.reshape(-1, Y.shape[2]), target.reshape(-1), rcond=None)[0]
+            residual = validate.tau[scored] - (self.regressor(validate, cutoff) @ theta)[scored]
+            error = float(np.mean(residual**2, axis=0).sum())
+            if best is None or error < best[0]:
+                best = (error, cutoff, theta)
+        return best[1], best[2]
+
+
 def _columns(prefix: str, values: np.ndarray) -> dict[str, np.ndarray]:
     return {f"{prefix}{j + 1}": values[:, j] for j in range(values.shape[1])}
 
@@ -291,8 +324,9 @@ def sweep(config: Config, folder: Path, logs: dict[str, Log]) -> dict:
     records, files = {}, {}
     for role, (name, start, stop) in config.roles.items():
         record = _slice(log.records[name], start, stop)
-        if config.transform is not None:
-            record = config.transform(record)
+        transform = config.transform.get(role) if isinstance(config.transform, dict) else config.transform
+        if transform is not None:
+            record = transform(record)
         records[role] = record
         files[role] = write(log, record, config.layout, folder / f"{config.name}_{role}.csv")
     validate = ["--validate", str(files["validate"])] if "validate" in files else []
@@ -321,8 +355,8 @@ def sweep(config: Config, folder: Path, logs: dict[str, Log]) -> dict:
         outcome["runs"][verb] = {"t": table["t"].to_numpy(), "predicted": table[channels].to_numpy(),
                                  "seconds": seconds, "result": json.loads(result.read_text())}
     test = records["test"]
-    plain = PlainFit(log.robot)
-    cutoff, theta = plain.fit(records["train"], records.get("validate", records["train"]))
+    plain = SweepPlainFit(log.robot)
+    cutoff, theta = plain.fit_on(records["train"], records.get("validate", records["train"]), list(records.values()))
     predicted, kept = plain.predict(test, cutoff, theta)
     common = np.flatnonzero(kept)
     at = {}
