@@ -9,6 +9,7 @@ import sys
 from dataclasses import replace
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 import pytest
 
@@ -196,3 +197,23 @@ with outputs.open({str(out)!r}) as stream:
     assert [path.name for path in tmp_path.iterdir() if path.name.startswith(".result.json.oed-")]
     assert main(["identify", "--joints", "3", "--data", str(files / "train.csv"), "--out", str(out)]) == 0
     assert sorted(path.name for path in tmp_path.iterdir()) == ["result.json"]
+
+
+def test_a_validation_record_at_rest_is_named(files, capsys, tmp_path):
+    """Issue 34's sweep: a Stäubli TX40 validation record where the robot holds its pose chose a 3.5 Hz filter and
+    the weighting on no dynamics (1.37x the plain fit on the test), with nothing saying why. The verb runs, and says
+    the record hardly moves."""
+    frame = pd.read_csv(files / "val.csv")
+    generator = np.random.default_rng(0)
+    for j in (1, 2, 3):
+        frame[f"q{j}"] = frame[f"q{j}"].iloc[0] + 1e-5 * generator.normal(size=len(frame))
+        frame[f"tau{j}"] = frame[f"tau{j}"].mean() + 0.5 * generator.normal(size=len(frame))
+    frame.to_csv(files / "val_still.csv", index=False)
+    code = main(["identify", "--robot", "puma560", "--joints", "3", "--data", str(files / "train.csv"), "--validate",
+                 str(files / "val_still.csv"), "--out", str(tmp_path / "still.json")])
+    error = capsys.readouterr().err
+    assert code == 0, error
+    assert "the validation record hardly moves" in error, error
+    code = main(["identify", "--robot", "puma560", "--joints", "3", "--data", str(files / "train.csv"), "--validate",
+                 str(files / "val.csv"), "--out", str(tmp_path / "moves.json")])
+    assert code == 0 and "hardly moves" not in capsys.readouterr().err

@@ -288,6 +288,10 @@ def prepare_records(model: IdentificationModel, train: Sequence[str | Path], val
         if files is not None:
             check_varying_channels([segment for file in files for segment in file.segments], model.channels,
                                    f"{role} data")
+    if held_out["validation"]:
+        note = still_record_note(train_files, held_out["validation"])
+        if note is not None:
+            warnings.warn(note, stacklevel=2)
     with step("preprocessing chosen"):
         train_segments = [segment for file in train_files for segment in file.segments]
         preprocessing = choose_plan(model, train_segments, settings,
@@ -311,6 +315,27 @@ def prepare_records(model: IdentificationModel, train: Sequence[str | Path], val
     records = {role: None if record is None else _without_rest(record, model, settings, role)
                for role, record in prepared.items()}
     return PreparedRecords(preprocessing, records["train"], records["validation"], records["test"])
+
+
+#: a validation record whose joints all span less than this share of the training motion's range hardly moves
+STILL_SHARE = 0.05
+
+
+def still_record_note(train: Sequence[RecordedFile], validation: Sequence[RecordedFile]) -> str | None:
+    """A warning when every joint of the validation record spans less than :data:`STILL_SHARE` of its range in the
+    training record (a robot holding its pose: what is chosen on it measures little of the dynamics), else ``None``.
+    """
+    def span(files: Sequence[RecordedFile]) -> np.ndarray:
+        q = np.concatenate([segment.q for file in files for segment in file.segments], axis=0)
+        return np.ptp(q, axis=0)
+
+    moved, held = span(train), span(validation)
+    if not np.all(held < STILL_SHARE * moved):
+        return None
+    return ("the validation record hardly moves (its joints span " + ", ".join(f"{value:.3g}" for value in held)
+            + f", each less than {100 * STILL_SHARE:g} % of its range in training): the robot holds a pose there, "
+            "and what is chosen on it (derivatives, weighting, model) measures little of the dynamics; give a record "
+            "of another motion")
 
 
 def check_distinct_records(records: dict[str, Sequence[str | Path]]) -> None:
