@@ -236,8 +236,13 @@ def puma560_transmission(n_joints: int = 6) -> Transmission:
     return Transmission(matrix, source="puma560 (gears: Corke's toolbox; wrist coupling unverified)").truncated(n_joints)
 
 
+#: a joint whose positions span less than this (rad, or m) over a record is not judged by :func:`check_power_signs`:
+#: at rest its velocity is the derivative of the encoder's noise and the sign of its mean power is chance
+MIN_SWEEP = 0.01
+
+
 def check_power_signs(transmission: Transmission, dq: ArrayLike, tau: ArrayLike, *, source: str = "data",
-                      tolerance: float = 0.2) -> None:
+                      tolerance: float = 0.2, q: ArrayLike | None = None) -> None:
     """Raise :class:`TransmissionSignError` when a joint's converted torque pushes against its motion.
 
     Over a record, friction dissipates: the mean power ``τ_j q̇_j`` of each joint is positive or
@@ -246,6 +251,11 @@ def check_power_signs(transmission: Transmission, dq: ArrayLike, tau: ArrayLike,
     joint disagree in sign: a gear ratio or torque constant of the wrong sign for the data
     (when positions are joint-side, e.g. link encoders, and torques motor-side).
 
+    With the positions ``q`` (rows as ``dq``), a joint whose positions span less than :data:`MIN_SWEEP` is not
+    judged: a record at rest (a robot holding its pose under gravity) dissipates nothing, and the sign of
+    ``τ_j q̇_j`` there follows the encoder's noise (a Stäubli TX40's record at rest was refused as a wrong gear
+    sign on joint 3).
+
     Limit: on a joint whose torque is mostly gravity (given and taken back over the motion), the
     dissipated part may be too small to show. In the 3-joint simulated PUMA of
     ``tests/test_asbuilt_cli.py`` a flipped ratio is named on joint 1 but not on joint 2.
@@ -253,7 +263,9 @@ def check_power_signs(transmission: Transmission, dq: ArrayLike, tau: ArrayLike,
     dq, tau = np.asarray(dq, dtype=float), np.asarray(tau, dtype=float)
     power = tau * dq
     mean, scale = power.mean(axis=0), np.abs(power).mean(axis=0)
-    wrong = [index for index in range(power.shape[1]) if scale[index] > 0 and mean[index] < -tolerance * scale[index]]
+    moves = np.ones(power.shape[1], dtype=bool) if q is None else np.ptp(np.asarray(q, dtype=float), axis=0) >= MIN_SWEEP
+    wrong = [index for index in range(power.shape[1])
+             if moves[index] and scale[index] > 0 and mean[index] < -tolerance * scale[index]]
     if wrong:
         index = wrong[0]
         raise TransmissionSignError(

@@ -12,6 +12,7 @@ from dynamics.models import build_model
 from dynamics.robots import load_robot
 from estimation.data.loading import (
     AngleUnitError,
+    DuplicatedTimesWarning,
     JointCountError,
     MeasurementWarning,
     MissingColumnError,
@@ -20,7 +21,7 @@ from estimation.data.loading import (
     TimeBaseError,
     TooFewSamplesError,
 )
-from estimation.data.records import read_measurements
+from estimation.data.records import read_measurements, read_record
 from dynamics.measurements import Measurements
 
 
@@ -80,13 +81,31 @@ def test_nan_is_reported_with_column_and_row(tmp_path, model):
 
 def test_duplicated_and_decreasing_times_are_errors(tmp_path, model):
     frame = sample_data().to_frame()
-    frame.loc[10, "t"] = frame.loc[9, "t"]
+    frame["t"] = np.floor(frame["t"] * 10) / 10  # a coarse clock: most rows share a stamp
     with pytest.raises(TimeBaseError, match="duplicated"):
         read_measurements(write_frame(tmp_path, frame), model=model)
     frame = sample_data().to_frame()
     frame.loc[10, "t"] = 0.0
     with pytest.raises(TimeBaseError, match="decreases at row 10"):
         read_measurements(write_frame(tmp_path, frame), model=model)
+
+
+def test_a_few_duplicated_time_stamps_with_new_values_are_dropped(tmp_path, model):
+    """A logger's clock that did not tick now and then (issue 34: a Panda-like log with ten such rows exited):
+    the later row of each pair dropped with a warning counting them, the record read as if it had not been
+    logged; the rows kept are those recorded (their torques never interpolated)."""
+    frame = sample_data(400).to_frame()
+    rows = [40, 75, 130]
+    frame.loc[rows, "t"] = frame.loc[[row - 1 for row in rows], "t"].to_numpy()
+    with pytest.warns(MeasurementWarning) as caught:  # and a stall: the dropped rows' instants are missing
+        (segment,) = read_record(write_frame(tmp_path, frame), model=model)
+    said = [str(warning.message) for warning in caught if warning.category is DuplicatedTimesWarning]
+    assert len(said) == 1 and "dropped 3 row(s) stamped with the previous row's time" in said[0], said
+    assert segment.metadata["duplicated_times_dropped"] == 3
+    recorded = segment.as_recorded
+    kept = np.setdiff1d(np.arange(len(frame)), rows)
+    np.testing.assert_array_equal(recorded.t, frame["t"].to_numpy()[kept])
+    np.testing.assert_array_equal(recorded.tau[:, 0], frame["tau1"].to_numpy()[kept])
 
 
 def test_time_in_other_units_and_gaps_are_errors_not_resampled(tmp_path, model):

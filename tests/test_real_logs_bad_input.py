@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+import json
 import os
 import subprocess
 import sys
 from dataclasses import replace
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 import pytest
 
@@ -63,17 +65,28 @@ def test_segments_with_different_column_sets(files, capsys):
     assert code == 2 and "segments with different columns" in error and "dq, ddq, tau" in error, error
 
 
-def test_a_hole_inside_a_validation_file(files, capsys):
-    frame = pd.read_csv(files / "val.csv").drop(index=range(500, 900))  # 2 s without samples
-    frame.to_csv(files / "val_hole.csv", index=False)
-    code = identify(files, "--data", str(files / "train.csv"), "--validate", str(files / "val_hole.csv"),
-                    "--frequency", "0.2")
-    error = capsys.readouterr().err
-    assert code == 2 and "val_hole.csv: column t jumps by 2.005 s" in error and "split the record" in error, error
+def test_a_hole_inside_a_validation_file_splits_it_as_two_files_would(files, capsys, tmp_path):
+    """A hole in a --validate file splits it, as in a --data file (issue 34: the defaults must not exit where the
+    user's own split into two files works): the same validation errors as the two pieces given as two files."""
+    frame = pd.read_csv(files / "val.csv")
+    frame.drop(index=range(500, 900)).to_csv(files / "val_hole.csv", index=False)  # 2 s without samples
+    frame.iloc[:500].to_csv(files / "val_piece1.csv", index=False)
+    frame.iloc[900:].to_csv(files / "val_piece2.csv", index=False)
+    validation = {}
+    for name, pieces in (("hole", ["val_hole.csv"]), ("pieces", ["val_piece1.csv", "val_piece2.csv"])):
+        out = tmp_path / f"{name}.json"
+        code = main(["identify", "--robot", "puma560", "--joints", "3", "--data", str(files / "train.csv"),
+                     *[argument for piece in pieces for argument in ("--validate", str(files / piece))],
+                     "--out", str(out)])
+        error = capsys.readouterr().err
+        assert code == 0, error
+        validation[name] = json.loads(out.read_text())["validation"]
+    for channel, value in validation["pieces"]["mse"].items():
+        assert validation["hole"]["mse"][channel] == pytest.approx(value, rel=1e-9), channel
     with pytest.raises(HoleError):
-        read_measurements(files / "val_hole.csv")
+        read_measurements(files / "val_hole.csv")  # one segment asked for: an error
     with pytest.warns(UserWarning, match="split into 2 segments"):
-        assert len(read_record(files / "val_hole.csv")) == 2  # as training data: two segments
+        assert len(read_record(files / "val_hole.csv")) == 2
 
 
 def test_parquet_without_pyarrow_is_a_named_error(files, monkeypatch, capsys):
@@ -184,3 +197,23 @@ with outputs.open({str(out)!r}) as stream:
     assert [path.name for path in tmp_path.iterdir() if path.name.startswith(".result.json.oed-")]
     assert main(["identify", "--joints", "3", "--data", str(files / "train.csv"), "--out", str(out)]) == 0
     assert sorted(path.name for path in tmp_path.iterdir()) == ["result.json"]
+
+
+def test_a_validation_record_at_rest_is_named(files, capsys, tmp_path):
+    """Issue 34's sweep: a Stäubli TX40 validation record where the robot holds its pose chose a 3.5 Hz filter and
+    the weighting on no dynamics (1.37x the plain fit on the test), with nothing saying why. The verb runs, and says
+    the record hardly moves."""
+    frame = pd.read_csv(files / "val.csv")
+    generator = np.random.default_rng(0)
+    for j in (1, 2, 3):
+        frame[f"q{j}"] = frame[f"q{j}"].iloc[0] + 1e-5 * generator.normal(size=len(frame))
+        frame[f"tau{j}"] = frame[f"tau{j}"].mean() + 0.5 * generator.normal(size=len(frame))
+    frame.to_csv(files / "val_still.csv", index=False)
+    code = main(["identify", "--robot", "puma560", "--joints", "3", "--data", str(files / "train.csv"), "--validate",
+                 str(files / "val_still.csv"), "--out", str(tmp_path / "still.json")])
+    error = capsys.readouterr().err
+    assert code == 0, error
+    assert "the validation record hardly moves" in error, error
+    code = main(["identify", "--robot", "puma560", "--joints", "3", "--data", str(files / "train.csv"), "--validate",
+                 str(files / "val.csv"), "--out", str(tmp_path / "moves.json")])
+    assert code == 0 and "hardly moves" not in capsys.readouterr().err

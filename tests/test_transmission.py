@@ -130,3 +130,21 @@ def test_wrong_sign_for_the_data_is_named():
     tau[:, 1] *= -1
     with pytest.raises(TransmissionSignError, match="joint 2"):
         check_power_signs(transmission, dq, tau)
+
+
+def test_a_joint_at_rest_is_not_judged_by_its_power_sign():
+    """Issue 34's sweep: a Stäubli TX40 record at rest (the robot holding its pose) was refused as 'the gear ratio
+    of motor 3 has the wrong sign': at rest the velocity is the encoder's noise differentiated and the sign of the
+    mean power is chance. With the positions, a joint that does not move is not judged; a moving one still is."""
+    transmission = Transmission(np.diag([50.0, -50.0]))
+    t = np.linspace(0, 2, 2001)
+    ticks = -np.round(np.linspace(0.0, 3e-4, t.size) / 1e-4) * 1e-4  # three encoder ticks of drift, against τ
+    q = np.column_stack([ticks, np.sin(2 * t)])  # joint 1 rests (holding 20 N·m), joint 2 moves
+    dq = np.gradient(q, t, axis=0)
+    tau = np.column_stack([np.full(t.size, 20.0), 0.5 * np.sign(dq[:, 1]) + 0.1 * dq[:, 1]])
+    with pytest.raises(TransmissionSignError, match="joint 1"):
+        check_power_signs(transmission, dq, tau)  # without the positions: judged on noise
+    check_power_signs(transmission, dq, tau, q=q)  # at rest: not judged
+    tau[:, 1] *= -1
+    with pytest.raises(TransmissionSignError, match="joint 2"):
+        check_power_signs(transmission, dq, tau, q=q)  # a moving joint still is

@@ -17,6 +17,7 @@ _EXPORTS: dict[str, str] = {
     "DEFAULT_TOPIC": "estimation.data.log_formats",
     "DEGREES_THRESHOLD": "estimation.data.loading",
     "GAP_FACTOR": "estimation.data.loading",
+    "DuplicatedTimesWarning": "estimation.data.loading",
     "HoleError": "estimation.data.loading",
     "IRREGULAR_TOLERANCE": "estimation.data.loading",
     "InMemoryNeed": "estimation.data.memory_budget",

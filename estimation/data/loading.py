@@ -110,6 +110,11 @@ class RepeatedRowsWarning(MeasurementWarning):
     """Rows repeating the previous one on every channel (a re-sent packet) were dropped."""
 
 
+class DuplicatedTimesWarning(MeasurementWarning):
+    """A few rows stamped with the previous row's time but new values (a logger's clock that did not tick) were
+    dropped."""
+
+
 class StallWarning(MeasurementWarning):
     """Short stalls of the logger (samples missing) were bridged by interpolation."""
 

@@ -91,9 +91,9 @@ def joint_side_frame(frame: pd.DataFrame, transmission: Transmission | None, n_j
         for index, column in enumerate(targets):
             converted[column] = joint[:, index]
     if torque_source is not None:
-        velocity, tau = _velocities_and_torques(converted, n_joints)
+        velocity, tau, q = _velocities_and_torques(converted, n_joints)
         if velocity is not None:
-            check_power_signs(transmission, velocity, tau, source=source)
+            check_power_signs(transmission, velocity, tau, source=source, q=q)
     return converted
 
 
@@ -101,8 +101,10 @@ def _numeric(frame: pd.DataFrame, columns: list[str]) -> np.ndarray:
     return frame[columns].apply(pd.to_numeric, errors="coerce").to_numpy(dtype=float)
 
 
-def _velocities_and_torques(frame: pd.DataFrame, n_joints: int) -> tuple[np.ndarray | None, np.ndarray]:
-    """Joint velocities and torques for the power-sign check, on the rows where both are finite.
+def _velocities_and_torques(frame: pd.DataFrame, n_joints: int
+                            ) -> tuple[np.ndarray | None, np.ndarray, np.ndarray | None]:
+    """Joint velocities, torques and positions (``None`` without ``q``) for the power-sign check, on the rows where
+    all are finite.
 
     The recorded ``dq`` when present; else the derivative of ``q`` along the time stamps, the rows
     ordered by ``t`` and a repeated stamp kept once (a log that writes a sample twice must not skip
@@ -111,22 +113,26 @@ def _velocities_and_torques(frame: pd.DataFrame, n_joints: int) -> tuple[np.ndar
     """
     joints = range(1, n_joints + 1)
     tau = _numeric(frame, [f"tau{j}" for j in joints])
+    q = _numeric(frame, [f"q{j}" for j in joints]) if all(f"q{j}" in frame.columns for j in joints) else None
     if all(f"dq{j}" in frame.columns for j in joints):
         velocity = _numeric(frame, [f"dq{j}" for j in joints])
-    elif all(f"q{j}" in frame.columns for j in joints):
-        q = _numeric(frame, [f"q{j}" for j in joints])
+    elif q is not None:
         t = _numeric(frame, ["t"])[:, 0] if "t" in frame.columns else np.arange(float(len(frame)))
         rows = np.flatnonzero(np.isfinite(t) & np.all(np.isfinite(q), axis=1))
         rows = rows[np.argsort(t[rows], kind="stable")]
         rows = rows[np.concatenate([[True], np.diff(t[rows]) > 0])] if rows.size else rows  # each stamp once
         if rows.size < 3:
-            return None, tau
+            return None, tau, None
         velocity = np.full_like(q, np.nan)
         velocity[rows] = np.gradient(q[rows], t[rows], axis=0)
     else:
-        return None, tau
+        return None, tau, None
     finite = np.all(np.isfinite(velocity), axis=1) & np.all(np.isfinite(tau), axis=1)
-    return (velocity[finite], tau[finite]) if finite.sum() >= 3 else (None, tau)
+    if q is not None:
+        finite &= np.all(np.isfinite(q), axis=1)
+    if finite.sum() < 3:
+        return None, tau, None
+    return velocity[finite], tau[finite], None if q is None else q[finite]
 
 
 def read_record_with_transmission(path: str | Path, *, model: IdentificationModel, transmission: Transmission | None,

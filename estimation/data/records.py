@@ -27,6 +27,7 @@ from estimation.data.loading import (
     ABSURD_VALUE,
     AbsurdValueError,
     COLUMN_GROUPS,
+    DuplicatedTimesWarning,
     GROUP_MEANING,
     HoleError,
     MeasurementError,
@@ -130,8 +131,10 @@ def read_record(
     reads it into the table first, matching a bag's joints by name to the model's robot.
 
     Rows repeating the previous row on every channel are dropped (:class:`RepeatedRowsWarning`,
-    :mod:`estimation.data.log_cleaning`), stalls up to ``max_gap`` bridged (:class:`StallWarning`). Each
-    segment's ``metadata`` holds ``source``, ``segment`` (1-based) and ``repeated_rows_dropped``.
+    :mod:`estimation.data.log_cleaning`), and a few rows stamped with the previous row's time but new values
+    (:class:`DuplicatedTimesWarning`; many are a :class:`TimeBaseError`), stalls up to ``max_gap`` bridged
+    (:class:`StallWarning`). Each segment's ``metadata`` holds ``source``, ``segment`` (1-based),
+    ``repeated_rows_dropped`` and ``duplicated_times_dropped``.
     """
     source, path = path, Path(os.fspath(path))
     suffix = path.suffix.lower()
@@ -213,10 +216,11 @@ def segments_from_frame(
     _check_absurd(t, arrays, n_joints, source)
     t_recorded = t
     t, arrays, dropped = _drop_repeated_rows(t, arrays, source)
+    t, arrays, duplicated = _drop_duplicated_times(t, arrays, source)
     step = check_time(t, source)
     check_angles(arrays["q"], model, source)
 
-    holes, stalls = _holes_and_stalls(t, step, max_gap, split, source, t_recorded if dropped else None)
+    holes, stalls = _holes_and_stalls(t, step, max_gap, split, source, t_recorded if dropped or duplicated else None)
     segments = []
     for index, rows in enumerate(split_rows(t.shape[0], holes), start=1):
         name = source if len(holes) == 0 else f"{source} (segment {index})"
@@ -225,9 +229,9 @@ def segments_from_frame(
             raise SegmentTooShortError(f"{name}: {t[rows].shape[0]} sample(s) between holes (t = {t[rows][0]:.6g} s): "
                                        "too few for a time series; cut them from the file")
         metadata: dict[str, object] = {"source": source, "segment": index, "segments_in_file": len(holes) + 1,
-                                       "repeated_rows_dropped": dropped}
+                                       "repeated_rows_dropped": dropped, "duplicated_times_dropped": duplicated}
         stamps = t[rows]
-        segment_t, grid = uniform_grid(stamps, piece, resample, name, metadata, bridged=bool(stalls) or dropped > 0)
+        segment_t, grid = uniform_grid(stamps, piece, resample, name, metadata, bridged=bool(stalls) or dropped + duplicated > 0)
         segments.append(Measurements(segment_t, grid["q"], grid["dq"], grid["ddq"], grid["tau"], grid["wrench"],
                                      metadata, *_as_recorded(stamps, piece, segment_t, metadata)))
     if isinstance(model, IdentificationModel):
@@ -331,6 +335,30 @@ def _drop_repeated_rows(t, arrays, source: str):
         RepeatedRowsWarning, stacklevel=4)
     keep = ~repeated
     return t[keep], {key: None if values is None else values[keep] for key, values in arrays.items()}, count
+
+
+#: at most this share of the rows may repeat the previous row's time stamp with new values to be dropped (a logger's
+#: clock that did not tick now and then); more is a time base that cannot be trusted (a coarse clock, t in whole
+#: seconds, rows out of order): :class:`~estimation.data.loading.TimeBaseError`
+MAX_DUPLICATED_TIMES = 0.01
+
+
+def _drop_duplicated_times(t, arrays, source: str):
+    """Rows stamped with the previous row's time but holding new values: a few (at most :data:`MAX_DUPLICATED_TIMES`
+    of the rows, and the time base otherwise increasing) are dropped, the first row at each time stamp kept, with
+    one warning counting them (their instant is unknown: placing them would invent a time; the errors are taken on
+    the rows kept). More are left to :func:`~estimation.data.loading.check_time`, which refuses them."""
+    steps = np.diff(t)
+    later = np.flatnonzero(steps == 0) + 1
+    if later.size == 0 or later.size > MAX_DUPLICATED_TIMES * t.shape[0] or np.any(steps < 0):
+        return t, arrays, 0
+    warnings.warn(
+        f"{source}: dropped {later.size} row(s) stamped with the previous row's time but holding new values (a "
+        f"logger's clock that did not tick), first at row {int(later[0])} (t = {t[later[0]]:.6g} s); the first row "
+        "at each time stamp is kept", DuplicatedTimesWarning, stacklevel=4)
+    keep = np.ones(t.shape[0], dtype=bool)
+    keep[later] = False
+    return t[keep], {key: None if values is None else values[keep] for key, values in arrays.items()}, int(later.size)
 
 
 def _check_absurd(t, arrays, n_joints: int, source: str) -> None:

@@ -1,8 +1,7 @@
 """The records of an identification, read once and prepared alike: one call from file names to estimator input.
 
-:func:`prepare_records` reads the training files (a hole longer than ``max_gap`` splits a file into
-segments, :func:`estimation.data.records.read_record`), and the validation and test files (a hole is an
-error there), motor-side columns converted by the transmission
+:func:`prepare_records` reads the training, validation and test files (a hole longer than ``max_gap`` splits a
+file into segments, :func:`estimation.data.records.read_record`, as ``oed predict`` reads a record), motor-side columns converted by the transmission
 (:func:`estimation.data.motor_side.read_record_with_transmission`). It refuses a validation or test file that
 is a training file, and a channel that holds one value throughout a record. It chooses one preprocessing on the
 training segments, by held-out evidence (:func:`estimation.identification.preprocessing_choice.choose_by_evidence`,
@@ -97,8 +96,8 @@ class PreparationSettings:
     Attributes
     ----------
     max_gap
-        Longest logger stall bridged by interpolation, s; a longer hole splits a training file into
-        segments and is an error in a validation or test file.
+        Longest logger stall bridged by interpolation, s; a longer hole splits a file (training,
+        validation or test) into segments.
     transmission
         Converts motor-side columns (``qm``, ``taum``, ``im``…) to joint-side ones; ``None``: none may appear.
     frequency_hz, harmonics, cutoff_hz, average_periods, decimation, held_torques
@@ -278,7 +277,10 @@ def prepare_records(model: IdentificationModel, train: Sequence[str | Path], val
     with step(f"read {len(train) + len(validation) + len(test)} file(s)"), \
             reading_findings([*train, *validation, *test]):  # each finding said once, at once
         train_files = read_files(train, model, split=True, max_gap=settings.max_gap, transmission=settings.transmission)
-        held_out = {role: read_files(paths, model, split=False, max_gap=settings.max_gap,
+        # a hole splits a held-out file too, as it does a training file and as ``oed predict`` reads one: each
+        # segment is scored on its own samples as recorded (refusing it made the defaults exit where the user's
+        # own split of the file into two --validate files works)
+        held_out = {role: read_files(paths, model, split=True, max_gap=settings.max_gap,
                                      transmission=settings.transmission) if paths else None
                     for role, paths in (("validation", validation), ("test", test))}
     check_no_shared_samples({"training": train_files, **held_out})
@@ -286,6 +288,10 @@ def prepare_records(model: IdentificationModel, train: Sequence[str | Path], val
         if files is not None:
             check_varying_channels([segment for file in files for segment in file.segments], model.channels,
                                    f"{role} data")
+    if held_out["validation"]:
+        note = still_record_note(train_files, held_out["validation"])
+        if note is not None:
+            warnings.warn(note, stacklevel=2)
     with step("preprocessing chosen"):
         train_segments = [segment for file in train_files for segment in file.segments]
         preprocessing = choose_plan(model, train_segments, settings,
@@ -309,6 +315,27 @@ def prepare_records(model: IdentificationModel, train: Sequence[str | Path], val
     records = {role: None if record is None else _without_rest(record, model, settings, role)
                for role, record in prepared.items()}
     return PreparedRecords(preprocessing, records["train"], records["validation"], records["test"])
+
+
+#: a validation record whose joints all span less than this share of the training motion's range hardly moves
+STILL_SHARE = 0.05
+
+
+def still_record_note(train: Sequence[RecordedFile], validation: Sequence[RecordedFile]) -> str | None:
+    """A warning when every joint of the validation record spans less than :data:`STILL_SHARE` of its range in the
+    training record (a robot holding its pose: what is chosen on it measures little of the dynamics), else ``None``.
+    """
+    def span(files: Sequence[RecordedFile]) -> np.ndarray:
+        q = np.concatenate([segment.q for file in files for segment in file.segments], axis=0)
+        return np.ptp(q, axis=0)
+
+    moved, held = span(train), span(validation)
+    if not np.all(held < STILL_SHARE * moved):
+        return None
+    return ("the validation record hardly moves (its joints span " + ", ".join(f"{value:.3g}" for value in held)
+            + f", each less than {100 * STILL_SHARE:g} % of its range in training): the robot holds a pose there, "
+            "and what is chosen on it (derivatives, weighting, model) measures little of the dynamics; give a record "
+            "of another motion")
 
 
 def check_distinct_records(records: dict[str, Sequence[str | Path]]) -> None:

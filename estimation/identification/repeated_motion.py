@@ -9,8 +9,10 @@ sample), and effects confirmed on it raised the error on run 3, a faster traject
 plain fit (``benchmarks/README.md``).
 
 :func:`repeated_motion` compares the positions sample by sample from each record's start (a repeat
-run is sampled alike); :data:`REPEAT_FRACTION` of the training motion's spread on every joint makes a
-repeat. A repeat shifted in time, or resampled at another rate, is not detected.
+run is sampled alike), or, when the two records are sampled at different rates (a repeat logged at another
+rate, or subsampled), at the training record's times from its start, the validation positions interpolated
+there; :data:`REPEAT_FRACTION` of the training motion's spread on every joint makes a repeat. A repeat
+shifted in time is not detected.
 """
 
 from __future__ import annotations
@@ -21,6 +23,10 @@ from dynamics.measurements import Measurements
 
 __all__ = ["REPEAT_FRACTION", "repeated_motion", "repeated_motion_note"]
 
+#: two records whose median sampling steps differ by more than this fraction are compared in time, not sample by
+#: sample
+SAME_RATE = 1e-3
+
 #: the validation positions within this fraction of the training motion's spread (root mean square, every
 #: joint) sample by sample: the same motion again
 REPEAT_FRACTION = 0.05
@@ -28,16 +34,36 @@ REPEAT_FRACTION = 0.05
 
 def repeated_motion(train: Measurements, validation: Measurements) -> float:
     """The largest over the joints of ``rms(q_val − q_train) / rms(q_train − mean)`` over the samples both
-    records have (from their starts); ``inf`` for a joint that does not move in training but does in validation."""
+    records have (from their starts; at the training record's times from its start when the records are sampled at
+    different rates); ``inf`` for a joint that does not move in training but does in validation."""
     n = min(train.q.shape[0], validation.q.shape[0])
     if n == 0 or train.q.shape[1] != validation.q.shape[1]:
         return float("inf")
-    q_train, q_validation = train.q[:n], validation.q[:n]
+    q_train, q_validation = _aligned(train, validation, n)
     difference = np.sqrt(np.mean((q_validation - q_train) ** 2, axis=0))
     spread = np.sqrt(np.mean((q_train - q_train.mean(axis=0)) ** 2, axis=0))
     with np.errstate(divide="ignore", invalid="ignore"):
         ratio = np.where(spread > 0, difference / spread, np.where(difference > 0, np.inf, 0.0))
     return float(np.max(ratio))
+
+
+def _aligned(train: Measurements, validation: Measurements, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """``(q_train, q_validation)`` on common instants: the first ``n`` samples of each when both are sampled at one
+    rate (or a time base is not increasing: stacked segments), else the training samples within the validation
+    record's duration and the validation positions interpolated at their times from each record's start."""
+    t_train, t_validation = np.asarray(train.t, dtype=float), np.asarray(validation.t, dtype=float)
+    increasing = t_train.shape[0] > 1 and t_validation.shape[0] > 1 and np.all(np.diff(t_train) > 0) \
+        and np.all(np.diff(t_validation) > 0)
+    if not increasing:
+        return train.q[:n], validation.q[:n]
+    step_train, step_validation = float(np.median(np.diff(t_train))), float(np.median(np.diff(t_validation)))
+    if abs(step_train - step_validation) <= SAME_RATE * step_train:
+        return train.q[:n], validation.q[:n]
+    elapsed, elapsed_validation = t_train - t_train[0], t_validation - t_validation[0]
+    inside = elapsed <= elapsed_validation[-1]
+    q_validation = np.column_stack([np.interp(elapsed[inside], elapsed_validation, column)
+                                    for column in validation.q.T])
+    return train.q[inside], q_validation
 
 
 def repeated_motion_note(train: Measurements, validation: Measurements, *, option: str = "--validate") -> str | None:

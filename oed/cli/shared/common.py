@@ -107,7 +107,7 @@ def add_data_arguments(parser: argparse.ArgumentParser, *, validate_required: bo
                         help="validation data from another trajectory; repeatable like --data")
     parser.add_argument("--max-gap", type=float, default=DEFAULT_MAX_GAP, metavar="SECONDS",
                         help=f"longest logger stall bridged by interpolation (default {DEFAULT_MAX_GAP:g} s); a longer "
-                             "hole splits a --data file into segments (and is an error in a --validate file)")
+                             "hole splits a --data or --validate file into segments")
     add_log_arguments(parser)
 
 
