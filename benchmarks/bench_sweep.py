@@ -305,7 +305,9 @@ def _columns(prefix: str, values: np.ndarray) -> dict[str, np.ndarray]:
 def write(log: Log, record: Record, layout: str, path: Path) -> Path:
     if log.motor_side:
         matrix = tx40_transmission()
-        qm = record.q @ matrix.T - TX40_ZERO * TX40_RATIOS
+        # q_m = R q in the URDF's zeros, as bench_real_robots writes it (the plain fit uses the same q); the log's
+        # own motor zeros (R q - TX40_ZERO * TX40_RATIOS) put joints 2 and 3 a quarter turn off the description's
+        qm = record.q @ matrix.T
         taum = np.linalg.solve(matrix.T, record.tau.T).T
         columns = {"t": record.t, **_columns("qm", qm), **_columns("taum", taum)}
     else:
