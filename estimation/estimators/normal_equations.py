@@ -224,7 +224,7 @@ def accumulate(model: IdentificationModel, measurements: Measurements, *, chunk_
 
     ``gram=False``: only the TSQR factors and the powers are summed, the Gram matrices and moments are left NaN
     (not summed): enough for :class:`~estimation.estimators.summed_least_squares.SummedLeastSquares`, which
-    solves and takes residuals from the factors, and about a third less work a chunk (the fits of
+    solves and takes residuals from the factors, and a fifth less time a chunk (the fits of
     :mod:`estimation.identification.preprocessing_on_validation`, one per derivative candidate)."""
     if measurements.dq is None or measurements.ddq is None:
         raise ValueError("the measurements lack dq/ddq: derive them first (estimation.preprocessing.differentiation.fill_derivatives)")
