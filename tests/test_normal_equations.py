@@ -123,3 +123,20 @@ def test_rank_deficient_sums_are_refused(case):
     with pytest.raises(IdentifiabilityError, match="do not determine"):
         SummedLeastSquares().fit(doubled)
     assert sums.n_samples == 200
+
+
+@pytest.mark.parametrize("method", ["ols", "wls"])
+def test_sums_without_the_gram_fit_the_same_bit_for_bit(case, method):
+    """``accumulate(gram=False)`` (the derivative choice on a validation record): the same factors and powers,
+    the Gram sums and moments left NaN, and the same fit to the last bit (the estimators use the factors only)."""
+    model, train = case
+    full = accumulate(model, train, chunk_size=333)
+    lean = accumulate(model, train, chunk_size=333, gram=False)
+    np.testing.assert_array_equal(lean.factor, full.factor)
+    np.testing.assert_array_equal(lean.power, full.power)
+    assert np.all(np.isnan(lean.gram)) and np.all(np.isnan(lean.moment))
+    reference = SummedLeastSquares(method=method).fit(full).estimate_
+    estimate = SummedLeastSquares(method=method).fit(lean).estimate_
+    for name in ("values", "cov", "channel_rss", "weights"):
+        np.testing.assert_array_equal(getattr(estimate, name), getattr(reference, name))
+    assert (estimate.cond, estimate.n_iterations) == (reference.cond, reference.n_iterations)

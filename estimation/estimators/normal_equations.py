@@ -156,9 +156,11 @@ class NormalEquations:
                                factor, self.n_samples + other.n_samples, self.channels, self.names,
                                self.expressions, self.sources + other.sources)
 
-    def add_block(self, Y: NDArray[np.float64], y: NDArray[np.float64], source: str = "") -> NormalEquations:
+    def add_block(self, Y: NDArray[np.float64], y: NDArray[np.float64], source: str = "", *,
+                  gram: bool = True) -> NormalEquations:
         """These sums plus a block's, re-factoring each channel's rows under its current factor
-        (one QR of ``(k+1) + N`` rows a channel rather than two)."""
+        (one QR of ``(k+1) + N`` rows a channel rather than two). ``gram=False``: the Gram sums and moments
+        are not formed (left NaN: :func:`accumulate`), only the factors and powers."""
         Y, y = np.asarray(Y, dtype=float), np.asarray(y, dtype=float)
         if Y.ndim != 3 or y.shape != Y.shape[:2] or Y.shape[1:] != (self.n_channels, self.n_columns):
             raise ValueError(f"block Y {Y.shape}, y {y.shape} does not fit {self.n_channels} channels, {self.n_columns} columns")
@@ -174,8 +176,8 @@ class NormalEquations:
             work[width:, -1] = y[:, c]
             factor[c] = _factor_in_place(work, width)
         return NormalEquations(
-            self.gram + np.matmul(by_channel, Y.transpose(1, 0, 2)),
-            self.moment + np.matmul(by_channel, y.T[:, :, None])[:, :, 0],
+            self.gram + np.matmul(by_channel, Y.transpose(1, 0, 2)) if gram else np.full_like(self.gram, np.nan),
+            self.moment + np.matmul(by_channel, y.T[:, :, None])[:, :, 0] if gram else np.full_like(self.moment, np.nan),
             self.power + np.einsum("nm,nm->m", y, y), factor, self.n_samples + Y.shape[0],
             self.channels, self.names, self.expressions, self.sources + ((source,) if source else ()),
         )
@@ -216,9 +218,14 @@ def check_chunk_size(chunk_size: int, model: IdentificationModel, extra_columns:
 
 @single_threaded_blas()
 def accumulate(model: IdentificationModel, measurements: Measurements, *, chunk_size: int = DEFAULT_CHUNK_SIZE,
-               sums: NormalEquations | None = None, source: str = "") -> NormalEquations:
+               sums: NormalEquations | None = None, source: str = "", gram: bool = True) -> NormalEquations:
     """Sums of ``model``'s base-parameter problem on ``measurements`` (with ``dq``, ``ddq``), the
-    regressor evaluated ``chunk_size`` samples at a time, added to ``sums`` if given."""
+    regressor evaluated ``chunk_size`` samples at a time, added to ``sums`` if given.
+
+    ``gram=False``: only the TSQR factors and the powers are summed, the Gram matrices and moments are left NaN
+    (not summed): enough for :class:`~estimation.estimators.summed_least_squares.SummedLeastSquares`, which
+    solves and takes residuals from the factors, and a fifth less time a chunk (the fits of
+    :mod:`estimation.identification.preprocessing_on_validation`, one per derivative candidate)."""
     if measurements.dq is None or measurements.ddq is None:
         raise ValueError("the measurements lack dq/ddq: derive them first (estimation.preprocessing.differentiation.fill_derivatives)")
     if measurements.n_joints != model.robot.n_joints:
@@ -237,7 +244,7 @@ def accumulate(model: IdentificationModel, measurements: Measurements, *, chunk_
         if not np.all(np.isfinite(Y)):
             raise ValueError(f"{source or 'the data'}: the regressor holds NaN or inf near sample {start}: "
                              "check the measured q, dq, ddq")
-        sums = sums.add_block(Y, measured[start:stop])
+        sums = sums.add_block(Y, measured[start:stop], gram=gram)
     return NormalEquations(sums.gram, sums.moment, sums.power, sums.factor, sums.n_samples, sums.channels,
                            sums.names, sums.expressions, sums.sources + ((source,) if source else ()))
 

@@ -32,6 +32,17 @@ def solve_sums(sums: NormalEquations, weights: NDArray[np.float64]) -> tuple[NDA
     uses the same tolerance as the in-memory solve (on eigenvalues of the equilibrated ``YᵀWY``,
     i.e. squared singular values of the equilibrated factor).
     """
+    theta, R_theta = _solved(sums, weights)
+    k = sums.n_columns
+    inverse_factor = scipy.linalg.solve_triangular(R_theta, np.eye(k), check_finite=False)
+    inverse = inverse_factor @ inverse_factor.T
+    extremes = np.linalg.svd(R_theta, compute_uv=False)[[0, -1]]
+    return theta, inverse, float(extremes[0] / max(extremes[1], np.finfo(float).tiny))
+
+
+def _solved(sums: NormalEquations, weights: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """``θ̂`` of :func:`solve_sums` (the same factor, rank test and back substitution) and the weighted factor
+    ``R_θ``, without the inverse and the condition number: what each pass of the weight iteration needs."""
     weights = np.asarray(weights, dtype=float)
     k = sums.n_columns
     if not np.all(np.isfinite(sums.factor)):
@@ -50,11 +61,7 @@ def solve_sums(sums: NormalEquations, weights: NDArray[np.float64]) -> tuple[NDA
         raise IdentifiabilityError(
             f"the data do not determine parameter(s) {weak}: the regressor is rank deficient "
             "(excite the robot more, or drop those columns)")
-    theta = scipy.linalg.solve_triangular(R_theta, R[:k, k], check_finite=False)
-    inverse_factor = scipy.linalg.solve_triangular(R_theta, np.eye(k), check_finite=False)
-    inverse = inverse_factor @ inverse_factor.T
-    extremes = np.linalg.svd(R_theta, compute_uv=False)[[0, -1]]
-    return theta, inverse, float(extremes[0] / max(extremes[1], np.finfo(float).tiny))
+    return scipy.linalg.solve_triangular(R_theta, R[:k, k], check_finite=False), R_theta
 
 
 @dataclass(frozen=True)
@@ -131,7 +138,7 @@ class SummedLeastSquares(Estimator):
             variance = None
             iterations = 0
             for _ in range(int(self.max_iter) + 1):
-                theta = solve_sums(sums, weights)[0]
+                theta = _solved(sums, weights)[0]  # only θ: the inverse and cond at the settled weights
                 iterations += 1
                 updated = np.maximum(sums.channel_rss(theta) / dof_channel, floor)
                 change = np.inf if variance is None else np.max(np.abs(updated - variance) / variance)

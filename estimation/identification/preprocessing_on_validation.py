@@ -132,7 +132,7 @@ class ValidationScore:
                 prepared_validation = prepare(validation, plan, role="validation data")
                 # the fits from sums of the regressor made a chunk at a time (the same estimators, as accurate as a
                 # QR of the whole regressor): memory stays that of a chunk, whatever the window (issue 33)
-                sums = accumulate(self.model, concatenate(prepared_train))
+                sums = accumulate(self.model, concatenate(prepared_train), gram=False)  # the fits use the factors
                 del prepared_train
                 estimates = {fit: SummedLeastSquares(method=fit).fit(sums).estimate_.values
                              for fit in FITS if fit in self.fits}

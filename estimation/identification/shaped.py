@@ -157,10 +157,13 @@ def fit_shaped_model(model: IdentificationModel, train: Measurements, *, weighte
     if starts is not None:
         first = np.array([[starts.get(parameter.name, parameter.reference) for block in blocks
                            for parameter in block.parameters]])
+    # the rounds before the last use the shapes and θ only: the white covariance (the same singularity check)
+    # rather than the batch-means sandwich, whose sample scores are the cost
+    settling = "white" if weighted else covariance
     for _ in range(rounds if weighted else 1):
         start_points = first if fit is None else fit.shape[None, :]
         fit = fit_shapes(fixed, blocks, states, weights, starts=start_points, max_iter=60 if search else 0,
-                         covariance=covariance, segments=segments)
+                         covariance=settling, segments=segments)
         shaped = ShapedFit(model, tuple(blocks), tuple(kept), tuple(replaced), fit, weights)
         residual = y - shaped.predict(train, Y)
         variance = np.maximum(channel_variance(residual, model.n_base + len(fit.names)), 1e-14 * np.mean(y**2, axis=0))
