@@ -22,6 +22,8 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from dynamics.models import IdentificationModel, build_model
 from dynamics.runtime.output_files import OutputFiles, json_text
 from dynamics.runtime.processes import run_tasks, worker_count
@@ -29,6 +31,7 @@ from dynamics.runtime.progress import step
 from dynamics.transmission import Transmission
 from estimation.consistent.model_selection import ModelSelection, select_refit
 from estimation.identification.relative_error import relative_scores
+from estimation.identification.validation import ChannelErrors
 from estimation.diagnosis.candidates.coupling import coupling_candidates
 from estimation.diagnosis.plain_laws import plain_model
 from dynamics.runtime.report_document import Report, figure_path, report_format
@@ -41,7 +44,10 @@ from estimation.identification.prepared import InMemoryBudget, PreparedRecords, 
 from estimation.identification.repeated_motion import repeated_motion_note
 from estimation.preprocessing.delay import DelayBounds, split_delay
 from estimation.preprocessing.plan import Preprocessing
-from estimation.streaming.diagnosis import DEFAULT_SUBSAMPLE, diagnose_files
+from estimation.streaming.diagnosis import DEFAULT_SUBSAMPLE, diagnose_files_run
+from estimation.streaming.diagnosis_result import StreamedRun
+from estimation.streaming.diagnosis_selection import streamed_refit_selection
+from estimation.streaming.model_selection import streamed_repeated_motion
 from estimation.streaming.diagnosis_result import floor_report
 from estimation.streaming.recorded_errors import streamed_plan
 from estimation.identification.model_file import summed_model_file_document
@@ -334,9 +340,6 @@ def check_streamed_request(args: DiagnoseOptions, delay: DelayBounds | None) -> 
     if delay is not None:
         raise ValueError("the delay between torques and motion is searched in memory: not with the streamed path "
                          "(--chunk-size, --scheduler or --workers), which does not try it")
-    if args.consistent:
-        raise ValueError("--consistent refits in memory: not with the streamed path (--chunk-size, --scheduler or "
-                         "--workers)")
 
 
 def in_memory_only(args: DiagnoseOptions, model: IdentificationModel, delay: DelayBounds | None) -> str | None:
@@ -430,20 +433,50 @@ def diagnose_document(args: DiagnoseOptions, diagnosed: Diagnosed) -> tuple[dict
         # recorded samples: diagnosis_streamed)
         model_plan, validation_mse = diagnosed.model_file
         after, runner_up = diagnosis.after, diagnosis.runner_up
-        files = add_summed_model_file(document, diagnosis.final_model(), after.estimate, args, model_plan,
-                                      shape=diagnosis.final_shape(), recorded_mse=after.train.mse,
-                                      validation_mse=validation_mse)
-        name = after.estimate.method  # the one model the report's model file holds: its errors, as predict names it
-        document["train"]["chosen"] = {"name": name, "mse": dict(after.train.mse)}
-        document["warnings"]["chosen"] = list(after.warnings)
-        document["validation"]["chosen"] = {"name": name,
-                                            "mse": None if validation_mse is None else dict(validation_mse)}
+        if selection is not None:  # the default answer from the sums (diagnosis_streamed), as in memory
+            files = summed_answer(document, args, diagnosed, selection)
+        else:
+            files = add_summed_model_file(document, diagnosis.final_model(), after.estimate, args, model_plan,
+                                          shape=diagnosis.final_shape(), recorded_mse=after.train.mse,
+                                          validation_mse=validation_mse)
+            name = after.estimate.method  # the one model the model file holds: its errors, as predict names it
+            document["train"]["chosen"] = {"name": name, "mse": dict(after.train.mse)}
+            document["warnings"]["chosen"] = list(after.warnings)
+            document["validation"]["chosen"] = {"name": name,
+                                                "mse": None if validation_mse is None else dict(validation_mse)}
         add_summed_runner_up_model_file(document, runner_up, args, model_plan, None if validation_mse is None or
                                         runner_up is None else runner_up.validation_mse)
     document["diagnosis_path"] = diagnosis.path
     document["max_effects"] = args.max_effects
     document["max_effects_reached"] = len(diagnosis.effects) >= args.max_effects
     return document, (*diagnosed.messages, *files)
+
+
+def summed_answer(document: dict[str, Any], args: DiagnoseOptions, diagnosed: Diagnosed,
+                  selection: ModelSelection) -> tuple[str, ...]:
+    """The streamed document (in place) given the default answer made from the sums, with the in-memory keys:
+    ``consistent`` and ``links`` (the refit; its shapes held at the adopted model's), ``model_selection``, the model
+    file holding the chosen model and the other as an alternative, and the chosen model's errors beside the
+    diagnosis's (``train.chosen``, ``validation.chosen``); return the model file's warnings and the chosen model's
+    own not said yet."""
+    diagnosis = diagnosed.diagnosis
+    consistent = selection.consistent
+    if consistent is not None:
+        document.update(consistent.to_dict())
+        document["consistent"]["test"] = None  # --test is read in memory
+        shape = diagnosis.final_shape()
+        if shape:  # held at the adopted model's fixed shapes (the sums' columns)
+            document["consistent"].update(shape=shape, delay=None, shapes_held="at the unconstrained fit's values "
+                                          "(estimation.streaming.diagnosis_selection)")
+    document["model_selection"] = selection.to_dict()
+    for key in ("consistent", "links", "model_selection"):
+        document["not_computed"].pop(key, None)
+    model_plan, _ = diagnosed.model_file
+    files = add_summed_model_file(document, diagnosis.final_model(), diagnosis.after.estimate, args, model_plan,
+                                  shape=diagnosis.final_shape(), selection=selection)
+    chosen = ChosenModel.of(selection)
+    answer_diagnosis(document, chosen, floor=None if diagnosis.statistics is None else diagnosis.statistics.floor)
+    return (*files, *(text for text in chosen.warnings if text not in diagnosed.messages))
 
 
 def diagnosis_selection(args: DiagnoseOptions, diagnosis: Diagnosis, records: PreparedRecords) -> ModelSelection:
@@ -597,13 +630,14 @@ def summary_lines(args: DiagnoseOptions, diagnosed: Diagnosed, document: dict[st
               "  after          " + "  ".join(f"{after[channel]:9.4g}" for channel in before)]
     lines += floor_lines(diagnosis)
     selection = diagnosed.selection
-    if selection is not None:  # in memory
-        consistent = selection.consistent
+    if diagnosed.records is not None:  # in memory
         lines += test_lines(diagnosed.untouched)
+    if selection is not None:
+        consistent = selection.consistent
         if consistent is not None and (args.consistent or selection.chosen == "consistent"):
             lines += consistent_lines(consistent)
-        lines += selection.lines() + chosen_lines(document["validation"]) + chosen_test_lines(document["test"])
-    else:  # streamed: the one model its model file holds
+        lines += selection.lines() + chosen_lines(document["validation"]) + chosen_test_lines(document.get("test"))
+    else:  # the one model its model file holds
         lines += chosen_lines(document["validation"])
     if len(diagnosis.effects) >= args.max_effects:
         untested = sum(rejected.reason.startswith("not tested") for rejected in diagnosis.rejected)
@@ -681,7 +715,7 @@ def diagnosis_streamed(args: DiagnoseOptions, friction: str, plan: Preprocessing
             with findings.reading():
                 plan = streamed_choice(args, model, **derivatives_on_validation(model, None)).chosen
         with executor_for(args) as executor:
-            diagnosis = diagnose_files(model, args.data, args.validate, chunk_size=chunk_size, alpha=args.alpha,
+            diagnosis, run = diagnose_files_run(model, args.data, args.validate, chunk_size=chunk_size, alpha=args.alpha,
                                        max_effects=args.max_effects, subsample=args.subsample,
                                        floor_window=args.floor_window, executor=executor, preprocessing=plan,
                                        findings=findings)
@@ -695,8 +729,50 @@ def diagnosis_streamed(args: DiagnoseOptions, friction: str, plan: Preprocessing
         if resampled_validation({"streaming": diagnosis.streaming}):  # the errors on the samples as recorded
             diagnosis = recorded_errors(diagnosis, args, model_plan)
         model_file = model_plan, diagnosis.after.validation.mse
+    with step("the default answer: the adopted model or its consistent refit (from the sums)"):
+        selection = streamed_selection(args, diagnosis, run, model_file[0], chunk_size)
     return Diagnosed(diagnosis, {"cutoff_hz": cutoff_hz, **plan.to_dict()}, plan.describe(), messages,
-                     chunk_size=chunk_size, model_file=model_file)
+                     selection=selection, chunk_size=chunk_size, model_file=model_file)
+
+
+def streamed_selection(args: DiagnoseOptions, diagnosis: Diagnosis, run: StreamedRun, plan: dict[str, Any],
+                       chunk_size: int) -> ModelSelection:
+    """The default answer of a streamed diagnosis, chosen as in memory (:func:`diagnosis_selection`) from its sums
+    (:func:`estimation.streaming.diagnosis_selection.streamed_refit_selection`): the adopted model or its consistent
+    refit, every candidate (every weight of the prior's search) scored on the same validation samples against the
+    channels as recorded: from the validation sums, or, on a validation file the loader resampled onto a uniform
+    grid, at its recorded samples as ``oed predict`` measures them (:func:`resampled_scorer`, read in memory as the
+    adopted model's own error there is). ``plan``: the model files' preprocessing."""
+    model = diagnosis.model
+    ratio = streamed_repeated_motion(model, args.data, args.validate, chunk_size=chunk_size)
+    score = None
+    if resampled_validation({"streaming": diagnosis.streaming}):
+        score = resampled_scorer(args, diagnosis, plan)
+    return streamed_refit_selection(diagnosis, run, given="consistent" if args.consistent else None,
+                                    consistent=consistent_settings(args, model.robot), score=score, ratio=ratio)
+
+
+def resampled_scorer(args: DiagnoseOptions, diagnosis: Diagnosis,
+                     plan: dict[str, Any]) -> Callable[[Any], dict[Any, ChannelErrors]]:
+    """The validation errors of base-parameter vectors of the adopted model (in its base order), each measured as
+    ``oed predict`` measures the model file holding it (:func:`~oed.workflows.model_files.recorded_validation_mse`:
+    at the recorded samples of a resampled validation file, against the torques as recorded; shaped laws at their
+    fixed shapes)."""
+    robot = robot_source(diagnosis.model.robot, args)
+    final, estimate, shape = diagnosis.final_model(), diagnosis.after.estimate, diagnosis.final_shape()
+    order = [list(estimate.names).index(name) for name in final.base.names]
+    n_samples = diagnosis.after.validation.n_samples
+
+    def score(thetas: Any) -> dict[Any, ChannelErrors]:
+        errors = {}
+        for key, theta in thetas.items():
+            values = np.empty(len(order))
+            values[order] = np.asarray(theta, dtype=float)  # back to the estimate's order
+            document = summed_model_file_document(final, replace(estimate, values=values), robot=robot,
+                                                  preprocessing=plan, shape=shape)
+            errors[key] = ChannelErrors(recorded_validation_mse(document, args.validate), n_samples)
+        return errors
+    return score
 
 
 def recorded_errors(diagnosis: Diagnosis, args: DiagnoseOptions, plan: dict[str, Any]) -> Diagnosis:

@@ -9,6 +9,7 @@ from typing import Any
 
 import numpy as np
 
+from estimation.consistent.identification import ConsistentResult
 from estimation.consistent.model_selection import selection_file, selection_model_file
 from estimation.identification.fit import IdentificationResult
 from estimation.identification.identified_model import IdentifiedModel
@@ -109,7 +110,8 @@ def add_summed_model_file(document: dict[str, Any], model: Any, estimate: Any, a
             model, candidate.fit.estimate, robot=robot, preprocessing=preprocessing, shape=shape,
             recorded_mse=candidate.fit.train.mse,
             validation_mse=None if candidate.fit.validation is None else candidate.fit.validation.mse, **extra)
-            for candidate in selection.candidates if isinstance(candidate.fit, IdentificationResult)}
+            for candidate in selection.candidates  # the unconstrained fits (a streamed diagnosis's: SummedFit)
+            if candidate.fit is not None and not isinstance(candidate.fit, ConsistentResult)}
         document["model_file"] = selection_file(selection, documents)
         answer = ChosenModel.of(selection)
         records = answer.records()
