@@ -469,8 +469,6 @@ def summed_answer(document: dict[str, Any], args: DiagnoseOptions, diagnosed: Di
             document["consistent"].update(shape=shape, delay=None, shapes_held="at the unconstrained fit's values "
                                           "(estimation.streaming.diagnosis_selection)")
     document["model_selection"] = selection.to_dict()
-    for key in ("consistent", "links", "model_selection"):
-        document["not_computed"].pop(key, None)
     model_plan, _ = diagnosed.model_file
     files = add_summed_model_file(document, diagnosis.final_model(), diagnosis.after.estimate, args, model_plan,
                                   shape=diagnosis.final_shape(), selection=selection)
@@ -731,8 +729,14 @@ def diagnosis_streamed(args: DiagnoseOptions, friction: str, plan: Preprocessing
         model_file = model_plan, diagnosis.after.validation.mse
     with step("the default answer: the adopted model or its consistent refit (from the sums)"):
         selection = streamed_selection(args, diagnosis, run, model_file[0], chunk_size)
+    diagnosis = replace(diagnosis, not_computed={key: reason for key, reason in diagnosis.not_computed.items()
+                                                 if key not in SELECTION_KEYS})  # computed now
     return Diagnosed(diagnosis, {"cutoff_hz": cutoff_hz, **plan.to_dict()}, plan.describe(), messages,
                      selection=selection, chunk_size=chunk_size, model_file=model_file)
+
+
+#: the keys of report.json the default answer fills (on the streamed path too, :func:`streamed_selection`)
+SELECTION_KEYS = ("consistent", "links", "model_selection")
 
 
 def streamed_selection(args: DiagnoseOptions, diagnosis: Diagnosis, run: StreamedRun, plan: dict[str, Any],
@@ -744,12 +748,14 @@ def streamed_selection(args: DiagnoseOptions, diagnosis: Diagnosis, run: Streame
     grid, at its recorded samples as ``oed predict`` measures them (:func:`resampled_scorer`, read in memory as the
     adopted model's own error there is). ``plan``: the model files' preprocessing."""
     model = diagnosis.model
-    ratio = streamed_repeated_motion(model, args.data, args.validate, chunk_size=chunk_size)
-    score = None
-    if resampled_validation({"streaming": diagnosis.streaming}):
-        score = resampled_scorer(args, diagnosis, plan)
-    return streamed_refit_selection(diagnosis, run, given="consistent" if args.consistent else None,
-                                    consistent=consistent_settings(args, model.robot), score=score, ratio=ratio)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # the files' findings were said on the diagnosis's passes
+        ratio = streamed_repeated_motion(model, args.data, args.validate, chunk_size=chunk_size)
+        score = None
+        if resampled_validation({"streaming": diagnosis.streaming}):
+            score = resampled_scorer(args, diagnosis, plan)
+        return streamed_refit_selection(diagnosis, run, given="consistent" if args.consistent else None,
+                                        consistent=consistent_settings(args, model.robot), score=score, ratio=ratio)
 
 
 def resampled_scorer(args: DiagnoseOptions, diagnosis: Diagnosis,
