@@ -341,14 +341,26 @@ def test_streamed_diagnosis_chooses_the_default_answer_as_in_memory(noisy_files,
         assert measured == pytest.approx(reported, rel=1e-6)
 
 
-def test_a_shaped_law_enters_the_streamed_consistent_refit_at_its_fixed_shape(model, files, tmp_path):
+@pytest.mark.parametrize("jittered", [False, True])
+def test_a_shaped_law_enters_the_streamed_consistent_refit_at_its_fixed_shape(model, files, tmp_path, jittered):
     """The filter path finds ``coulomb:tanh`` on joint 2 streamed (its shape fixed at the subsample's optimum): its
     consistent refit holds that shape (the sums' columns at it, in the model's base order), and ``oed predict`` of
-    each model of the file (the consistent refit and the adopted model) measures the errors the run reported."""
+    each model of the file (the consistent refit and the adopted model) measures the errors the run reported; on a
+    jittered validation log (stamps moved, rows re-sent, a stall: resampled by the loader) every candidate and
+    prior weight is scored at the recorded samples, as predict scores them."""
     import oed
+    import pandas as pd
 
-    run = oed.diagnose(joints=3, model="internal", friction="viscous", data=files["raw"][0],
-                       validate=files["raw"][1], cutoff=CUTOFF, memory_budget="1KB")
+    from tests.test_recorded_stamps import logger_faults
+
+    validate = files["raw"][1]
+    if jittered:
+        validate = tmp_path / "jittered_validate.csv"
+        logger_faults(pd.read_parquet(files["raw"][1]), 2).to_csv(validate, index=False, float_format="%.10g")
+    run = oed.diagnose(joints=3, model="internal", friction="viscous", data=files["raw"][0], validate=validate,
+                       cutoff=CUTOFF, memory_budget="1KB")
+    if jittered:
+        assert any(entry["resampled_from"] for entry in run.to_dict()["streaming"]["validation_files"])
     document = run.to_dict()
     assert document["diagnosis_path"] == "streamed"
     assert ("coulomb:tanh", ["tau2"]) in [(e["spec"], e["channels"]) for e in document["effects"]]
@@ -360,6 +372,6 @@ def test_a_shaped_law_enters_the_streamed_consistent_refit_at_its_fixed_shape(mo
     run.write(out)
     for name, candidate in candidates.items():
         metrics = tmp_path / f"{name}.json"
-        assert main(["predict", "--model", str(out), "--data", str(files["raw"][1]), "--metrics", str(metrics),
+        assert main(["predict", "--model", str(out), "--data", str(validate), "--metrics", str(metrics),
                      "--alternative", name]) == 0
         assert json.loads(metrics.read_text())["mse"] == pytest.approx(candidate["validation_mse"], rel=1e-6), name

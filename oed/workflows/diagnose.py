@@ -22,8 +22,6 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from dynamics.models import IdentificationModel, build_model
 from dynamics.runtime.output_files import OutputFiles, json_text
 from dynamics.runtime.processes import run_tasks, worker_count
@@ -73,6 +71,7 @@ from oed.workflows.model_files import (
     add_runner_up_model_file,
     add_summed_model_file,
     add_summed_runner_up_model_file,
+    recorded_validation_errors,
     recorded_validation_mse,
     resampled_validation,
     robot_source,
@@ -760,24 +759,20 @@ def streamed_selection(args: DiagnoseOptions, diagnosis: Diagnosis, run: Streame
 
 def resampled_scorer(args: DiagnoseOptions, diagnosis: Diagnosis,
                      plan: dict[str, Any]) -> Callable[[Any], dict[Any, ChannelErrors]]:
-    """The validation errors of base-parameter vectors of the adopted model (in its base order), each measured as
-    ``oed predict`` measures the model file holding it (:func:`~oed.workflows.model_files.recorded_validation_mse`:
-    at the recorded samples of a resampled validation file, against the torques as recorded; shaped laws at their
-    fixed shapes)."""
-    robot = robot_source(diagnosis.model.robot, args)
-    final, estimate, shape = diagnosis.final_model(), diagnosis.after.estimate, diagnosis.final_shape()
-    order = [list(estimate.names).index(name) for name in final.base.names]
+    """The validation errors of base-parameter vectors of the adopted model (in its base order), on a validation
+    file the loader resampled: at its recorded samples, against the torques as recorded, as ``oed predict``
+    measures the model file holding each (:func:`~oed.workflows.model_files.recorded_validation_errors`, shaped
+    laws at their fixed shapes; the record read once for all the vectors)."""
+    document = summed_model_file_document(diagnosis.final_model(), diagnosis.after.estimate,
+                                          robot=robot_source(diagnosis.model.robot, args), preprocessing=plan,
+                                          shape=diagnosis.final_shape())
     n_samples = diagnosis.after.validation.n_samples
 
     def score(thetas: Any) -> dict[Any, ChannelErrors]:
-        errors = {}
-        for key, theta in thetas.items():
-            values = np.empty(len(order))
-            values[order] = np.asarray(theta, dtype=float)  # back to the estimate's order
-            document = summed_model_file_document(final, replace(estimate, values=values), robot=robot,
-                                                  preprocessing=plan, shape=shape)
-            errors[key] = ChannelErrors(recorded_validation_mse(document, args.validate), n_samples)
-        return errors
+        errors = recorded_validation_errors(document, thetas, args.validate)
+        if errors is None:
+            raise ValueError("the validation files were read as recorded: score them from the sums")
+        return {key: ChannelErrors(dict(errors[key]), n_samples) for key in thetas}
     return score
 
 
