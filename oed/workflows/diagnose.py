@@ -445,10 +445,30 @@ def diagnose_document(args: DiagnoseOptions, diagnosed: Diagnosed) -> tuple[dict
                                                 "mse": None if validation_mse is None else dict(validation_mse)}
         add_summed_runner_up_model_file(document, runner_up, args, model_plan, None if validation_mse is None or
                                         runner_up is None else runner_up.validation_mse)
+        if diagnosis.streaming.get("frequency_hz") is not None:
+            averaged_training_errors(document)
     document["diagnosis_path"] = diagnosis.path
     document["max_effects"] = args.max_effects
     document["max_effects_reached"] = len(diagnosis.effects) >= args.max_effects
     return document, (*diagnosed.messages, *files)
+
+
+def averaged_training_errors(document: dict[str, Any]) -> None:
+    """Label the training errors of a streamed diagnosis on the Fourier path (``document``, in place) as what they
+    are: its training sums hold the averaged period (a Fourier fit of averaged periods, whose torques are averaged
+    over the periods too), not the recording, so each training ``mse`` is moved to ``mse_filtered`` and ``mse`` is
+    ``null``, as the streamed ``oed identify`` labels them (``train.before``, ``train.after``, ``train.chosen``,
+    ``runner_up.train``, ``consistent.train``, ``model_selection.candidates[].train_mse`` to ``train_mse_filtered``).
+    The validation errors are against every recorded sample of the whole periods (what ``oed predict`` measures)."""
+    entries = [document["train"].get(key) for key in ("before", "after", "chosen")]
+    entries += [(document.get(key) or {}).get("train") for key in ("runner_up", "consistent")]
+    for entry in entries:
+        if isinstance(entry, dict) and entry.get("mse") is not None:
+            entry["mse_filtered"], entry["mse"] = entry["mse"], None
+    for candidate in (document.get("model_selection") or {}).get("candidates", ()):
+        candidate["train_mse_filtered"], candidate["train_mse"] = candidate.get("train_mse"), None
+    document["train"]["against"] = ("the averaged period of the training files (a Fourier fit of averaged periods): "
+                                    "mse_filtered, not the recording")
 
 
 def summed_answer(document: dict[str, Any], args: DiagnoseOptions, diagnosed: Diagnosed,
