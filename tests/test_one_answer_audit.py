@@ -43,7 +43,7 @@ NOISE = {"tau1": 0.2, "tau2": 0.2, "tau3": 0.1}
 EFFECTS = "viscous,coulomb,offset"
 RELATIVE = 1e-6
 
-#: the verbs, each with the paths it takes (the streamed ones refuse --consistent and --test)
+#: the verbs, each with the paths it takes (the streamed ones refuse identify --consistent and --test)
 VERBS = {
     "identify": ["identify", "--friction", EFFECTS],
     "identify --method ols": ["identify", "--friction", EFFECTS, "--method", "ols"],
@@ -53,7 +53,7 @@ VERBS = {
     "diagnose --test": ["diagnose", "--friction", "viscous"],
 }
 PATHS = {"in-memory": [], "chunks": ["--chunk-size", "250"], "budget": ["--memory-budget", "1KB"]}
-IN_MEMORY_ONLY = ("identify --consistent", "diagnose --consistent", "diagnose --test")
+IN_MEMORY_ONLY = ("identify --consistent", "diagnose --test")
 #: the options a record needs: the period of the periodic one
 RECORD_OPTIONS = {"periodic": ["--frequency", "0.2"]}
 CASES = [pytest.param(verb, path, record, id=f"{record}-{verb}-{path}")

@@ -254,3 +254,124 @@ def test_trivial_predictors_from_the_sums_equal_the_in_memory_ones(model, files)
     document = streamed.to_dict()
     for key in ("zero_mse", "nominal_mse"):
         assert relative(list(document["validation"][key].values()), list(expected[key].values())) < 1e-10
+
+
+@pytest.fixture(scope="module")
+def noisy_files(model, tmp_path_factory):
+    """The truth of ``files`` (Coulomb friction on joint 2, an offset on joint 1, both plain laws) logged with q, dq,
+    ddq at 100 Hz under a noise of 1 N·m: a record where the consistent refit of the adopted model predicts the
+    validation motion better than the adopted model as fitted (the in-memory default answer is the refit)."""
+    folder = tmp_path_factory.mktemp("streamed_answer")
+    truth = build_model(model.robot, "internal", ("viscous", CoulombFriction(joints=(1,)), JointOffset(joints=(0,))))
+    theta = true_parameters(truth, seed=0, coulomb=[8.0], offset=[3.0])
+    paths = []
+    for seed, trajectory in ((1, 3), (2, 4)):
+        path = folder / f"noisy{seed}.csv"
+        simulate(truth, theta, random_fourier(model.robot, seed=trajectory), noise={c: 1.0 for c in truth.channels},
+                 seed=seed, rate_hz=100.0, periods=1).write(path)
+        paths.append(path)
+    return paths
+
+
+def _candidates(document):
+    return {candidate["name"]: candidate for candidate in document["model_selection"]["candidates"]}
+
+
+@pytest.mark.parametrize("given", [False, True])
+def test_streamed_diagnosis_chooses_the_default_answer_as_in_memory(noisy_files, tmp_path, given):
+    """Issue 34 on the streamed path of ``oed diagnose``: a record over the memory budget gets the in-memory default
+    answer, the adopted model as fitted or its consistent refit (its prior weight chosen on the validation record)
+    from the diagnosis's sums: the same effects, choice, prior weight and search, parameters and every candidate's
+    validation error against the recording to 1e-6; the same keys in report.json (``chosen`` through
+    ``model_selection``, ``consistent``, ``links`` and the model file's alternatives); ``--consistent`` refits there
+    too. ``oed predict`` measures the streamed run's reported errors of the chosen model and of the alternative."""
+    import oed
+
+    options = dict(joints=3, model="internal", friction="viscous", data=noisy_files[0], validate=noisy_files[1],
+                   consistent=given)
+    runs = {"memory": oed.diagnose(**options), "streamed": oed.diagnose(**options, memory_budget="1KB")}
+    memory, streamed = (runs[name].to_dict() for name in ("memory", "streamed"))
+    assert (memory["diagnosis_path"], streamed["diagnosis_path"]) == ("in-memory", "streamed")
+    assert [(e["spec"], e["channels"]) for e in streamed["effects"]] == \
+        [(e["spec"], e["channels"]) for e in memory["effects"]] == [("coulomb", ["tau2"]), ("offset", ["tau1"])]
+    assert memory["model_selection"]["chosen"] == "consistent"  # the refit wins: the streamed path must see it
+    for key in ("chosen", "selection", "base"):
+        assert streamed["model_selection"][key] == memory["model_selection"][key], key
+    assert streamed["model_file"]["chosen"] == memory["model_file"]["chosen"] == "consistent"
+    assert {"consistent", "links", "model_selection"}.isdisjoint(streamed["not_computed"])
+    assert set(memory) <= set(streamed)
+    assert streamed["model_selection"]["repeat_ratio"] == pytest.approx(memory["model_selection"]["repeat_ratio"],
+                                                                        rel=1e-6)
+    for name, candidate in _candidates(memory).items():
+        other = _candidates(streamed)[name]
+        assert other["validation_mse"] == pytest.approx(candidate["validation_mse"], rel=1e-6), name
+        assert other["train_mse"] == pytest.approx(candidate["train_mse"], rel=1e-6), name
+        if not given:
+            assert other["score"] == pytest.approx(candidate["score"], rel=1e-6), name
+    for key in ("prior_weight", "prior_weight_choice"):
+        assert streamed["consistent"][key] == memory["consistent"][key], key
+    search = {name: [entry["weighted_validation_error"] for entry in document["consistent"].get("prior_weight_search",
+                                                                                                    [])]
+              for name, document in (("memory", memory), ("streamed", streamed))}
+    assert search["streamed"] == pytest.approx(search["memory"], rel=1e-6)
+    assert len(search["memory"]) == 5
+    values = {name: np.array([p["value"] for p in document["consistent"]["parameters"]])
+              for name, document in (("memory", memory), ("streamed", streamed))}
+    np.testing.assert_allclose(values["streamed"], values["memory"], rtol=1e-6,
+                               atol=1e-6 * np.abs(values["memory"]).max())
+    assert [link["name"] for link in streamed["links"]] == [link["name"] for link in memory["links"]]
+    for which in ("train", "validation"):
+        assert streamed[which]["chosen"]["name"] == memory[which]["chosen"]["name"] == "consistent"
+        assert streamed[which]["chosen"]["mse"] == pytest.approx(memory[which]["chosen"]["mse"], rel=1e-6)
+    assert set(streamed["model_file"]["alternatives"]) == set(memory["model_file"]["alternatives"]) == {"wls"}
+    for name, entry in memory["model_file"]["alternatives"].items():
+        np.testing.assert_allclose(streamed["model_file"]["alternatives"][name]["theta"], entry["theta"], rtol=1e-6,
+                                   atol=1e-6 * np.abs(entry["theta"]).max())
+    summary = runs["streamed"].summary()
+    assert any(line.startswith("model: consistent") for line in summary)
+    # oed predict measures what the streamed run reported, for the chosen model and its alternative
+    out = tmp_path / "streamed.json"
+    runs["streamed"].write(out)
+    for alternative, reported in ((None, streamed["validation"]["chosen"]["mse"]),
+                                  ("wls", _candidates(streamed)["wls"]["validation_mse"])):
+        metrics = tmp_path / "metrics.json"
+        assert main(["predict", "--model", str(out), "--data", str(noisy_files[1]), "--metrics", str(metrics),
+                     *(("--alternative", alternative) if alternative else ())]) == 0
+        measured = json.loads(metrics.read_text())["mse"]
+        assert measured == pytest.approx(reported, rel=1e-6)
+
+
+@pytest.mark.parametrize("jittered", [False, True])
+def test_a_shaped_law_enters_the_streamed_consistent_refit_at_its_fixed_shape(model, files, tmp_path, jittered):
+    """The filter path finds ``coulomb:tanh`` on joint 2 streamed (its shape fixed at the subsample's optimum): its
+    consistent refit holds that shape (the sums' columns at it, in the model's base order), and ``oed predict`` of
+    each model of the file (the consistent refit and the adopted model) measures the errors the run reported; on a
+    jittered validation log (stamps moved, rows re-sent, a stall: resampled by the loader) every candidate and
+    prior weight is scored at the recorded samples, as predict scores them."""
+    import oed
+    import pandas as pd
+
+    from tests.test_recorded_stamps import logger_faults
+
+    validate = files["raw"][1]
+    if jittered:
+        validate = tmp_path / "jittered_validate.csv"
+        logger_faults(pd.read_parquet(files["raw"][1]), 2).to_csv(validate, index=False, float_format="%.10g")
+    run = oed.diagnose(joints=3, model="internal", friction="viscous", data=files["raw"][0], validate=validate,
+                       cutoff=CUTOFF, memory_budget="1KB")
+    if jittered:
+        assert any(entry["resampled_from"] for entry in run.to_dict()["streaming"]["validation_files"])
+    document = run.to_dict()
+    assert document["diagnosis_path"] == "streamed"
+    assert ("coulomb:tanh", ["tau2"]) in [(e["spec"], e["channels"]) for e in document["effects"]]
+    candidates = _candidates(document)
+    assert candidates["consistent"]["available"], candidates["consistent"]["reason"]
+    assert set(document["consistent"]["shape"]) == set(document["model_file"]["shape"]) != set()
+    assert document["consistent"]["shape"] == pytest.approx(document["model_file"]["shape"], rel=1e-12)
+    out = tmp_path / "shaped.json"
+    run.write(out)
+    for name, candidate in candidates.items():
+        metrics = tmp_path / f"{name}.json"
+        assert main(["predict", "--model", str(out), "--data", str(validate), "--metrics", str(metrics),
+                     "--alternative", name]) == 0
+        assert json.loads(metrics.read_text())["mse"] == pytest.approx(candidate["validation_mse"], rel=1e-6), name

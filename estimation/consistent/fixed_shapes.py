@@ -44,7 +44,9 @@ __all__ = ["comparisons", "fixed_comparison", "fixed_problem", "fixed_regressor"
 
 def has_fixed_effects(result: IdentificationResult) -> bool:
     """Whether ``result`` has shaped laws or a delay (held fixed by the consistent refit)."""
-    return result.shaped_fit is not None or result.delay is not None
+    # a fit from sums (the streamed diagnosis's SummedFit) has no shaped_fit: its shaped columns were summed at
+    # their fixed shapes
+    return getattr(result, "shaped_fit", None) is not None or result.delay is not None
 
 
 def _moved(result: IdentificationResult, measurements: Measurements) -> Measurements:

@@ -365,6 +365,7 @@ def consistent_fit_sums(
     prior_source: str = "robot description",
     bounds: Mapping[str, LinkBounds] | None = None,
     starts: int = 2,
+    shapes_fixed: bool = False,
 ) -> ConsistentResult:
     """:func:`consistent_fit` of a fit from sums (the streamed path: ``result``'s estimate solved from ``sums``, the
     training record's :class:`~estimation.estimators.normal_equations.NormalEquations`): the cost needs the
@@ -372,13 +373,15 @@ def consistent_fit_sums(
     are had from the sums (``train_errors(θ_b)``) and from ``score`` (the validation record's errors of several
     parameter vectors, in one pass over its blocks: every weight of the prior's search scored at once, on the same
     samples; ``None``: no validation record). The prior's weight is chosen as :func:`consistent_fit` chooses it, by
-    the same rule (:func:`chosen_prior_weight`) along the same path (:func:`prior_weight_path`)."""
+    the same rule (:func:`chosen_prior_weight`) along the same path (:func:`prior_weight_path`). ``shapes_fixed``:
+    the sums hold ``result``'s shaped laws at its fitted shapes (:mod:`estimation.streaming.diagnosis_selection`)."""
     weight, how = prior_weight_choice(prior_weight, score is not None)
 
     def refit(value: float, warm_start: NDArray[np.float64] | None = None) -> ConsistentResult:
         estimator = ConsistentLeastSquares(prior_weight=value, prior=prior, bounds=bounds, starts=starts,
                                            warm_start=warm_start)
-        estimate = estimator.fit(result.model, sums, unconstrained=result.estimate).estimate_
+        estimate = estimator.fit(result.model, sums, unconstrained=result.estimate,
+                                 shapes_fixed=shapes_fixed).estimate_
         return ConsistentResult(estimate, result, train_errors(estimate.values), None, prior_source)
 
     fits = prior_weight_path(refit) if weight == "auto" else {float(weight): refit(float(weight))}

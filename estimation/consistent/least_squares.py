@@ -217,17 +217,20 @@ class ConsistentLeastSquares(Estimator):
 
     @single_threaded_blas()
     def fit(self, model: IdentificationModel, data: IdentificationProblem | Measurements | NormalEquations, *,
-            unconstrained: Estimate | None = None) -> ConsistentLeastSquares:
+            unconstrained: Estimate | None = None, shapes_fixed: bool = False) -> ConsistentLeastSquares:
         """Fit ``model`` on ``data`` (a stacked problem, measurements, or the sums of the problem over its samples,
         :class:`~estimation.estimators.normal_equations.NormalEquations`: the cost needs the per-channel Gram
         matrices only, so a record read in blocks is fitted as the whole one), from ``unconstrained`` (a weighted or
         ordinary estimate of the same problem; fitted here when not given, but from sums, whose estimate is
-        :class:`~estimation.estimators.summed_least_squares.SummedLeastSquares`'s)."""
+        :class:`~estimation.estimators.summed_least_squares.SummedLeastSquares`'s). ``shapes_fixed``: the sums were
+        evaluated at the shaped laws' fitted shapes (the streamed diagnosis's adopted model,
+        :mod:`estimation.streaming.diagnosis_selection`), as a problem from
+        :func:`~estimation.consistent.fixed_shapes.fixed_problem` is."""
         self._forget_fit()
         started = time.perf_counter()
         if not isinstance(model, IdentificationModel):
             raise TypeError(f"model must be an IdentificationModel, got {type(model).__name__}")
-        if not isinstance(data, IdentificationProblem):
+        if not isinstance(data, IdentificationProblem) and not (shapes_fixed and isinstance(data, NormalEquations)):
             check_linear_effects(model)
         weight = self._check_settings()
         if isinstance(data, NormalEquations):

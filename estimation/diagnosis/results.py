@@ -134,9 +134,13 @@ STREAMED_NOT_COMPUTED = {
     "rest": "rest stretches are found in memory (the streamed path reads whole files)",
     "transmission": "--transmission is read in memory",
     "test": "--test is read in memory",
-    "consistent": "the physically consistent refit is made in memory",
-    "links": "the bodies of the physically consistent refit are had in memory",
-    "model_selection": "the choice between the adopted model and its consistent refit is made in memory",
+    # made by ``oed diagnose`` from the diagnosis's sums (estimation.streaming.diagnosis_selection), which drops them
+    "consistent": "the physically consistent refit is made from the sums by oed diagnose "
+                  "(estimation.streaming.diagnosis_selection), not by diagnose_files",
+    "links": "the bodies of the physically consistent refit are had from the sums by oed diagnose "
+             "(estimation.streaming.diagnosis_selection), not by diagnose_files",
+    "model_selection": "the choice between the adopted model and its consistent refit is made from the sums by oed "
+                       "diagnose (estimation.streaming.diagnosis_selection), not by diagnose_files",
 }
 
 

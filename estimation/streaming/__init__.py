@@ -1,6 +1,6 @@
 """Long records in bounded memory: records read chunk by chunk, their time base and periods, sums over many files (clusters), and the streamed identification and diagnosis.
 
-Modules: :mod:`~estimation.streaming.candidate_screening`, :mod:`~estimation.streaming.chunks`, :mod:`~estimation.streaming.cluster`, :mod:`~estimation.streaming.covariance`, :mod:`~estimation.streaming.cutoff_choice`, :mod:`~estimation.streaming.diagnosis`, :mod:`~estimation.streaming.diagnosis_result`, :mod:`~estimation.streaming.diagnosis_candidates`, :mod:`~estimation.streaming.diagnosis_passes`, :mod:`~estimation.streaming.diagnosis_sums`, :mod:`~estimation.streaming.identification`, :mod:`~estimation.streaming.model_selection`, :mod:`~estimation.streaming.periods`, :mod:`~estimation.streaming.recorded_errors`, :mod:`~estimation.streaming.selection`, :mod:`~estimation.streaming.time_base`.
+Modules: :mod:`~estimation.streaming.candidate_screening`, :mod:`~estimation.streaming.chunks`, :mod:`~estimation.streaming.cluster`, :mod:`~estimation.streaming.covariance`, :mod:`~estimation.streaming.cutoff_choice`, :mod:`~estimation.streaming.diagnosis`, :mod:`~estimation.streaming.diagnosis_result`, :mod:`~estimation.streaming.diagnosis_selection`, :mod:`~estimation.streaming.diagnosis_candidates`, :mod:`~estimation.streaming.diagnosis_passes`, :mod:`~estimation.streaming.diagnosis_sums`, :mod:`~estimation.streaming.identification`, :mod:`~estimation.streaming.model_selection`, :mod:`~estimation.streaming.periods`, :mod:`~estimation.streaming.recorded_errors`, :mod:`~estimation.streaming.selection`, :mod:`~estimation.streaming.time_base`.
 """
 
 from __future__ import annotations
@@ -24,6 +24,8 @@ _EXPORTS: dict[str, str] = {
     "choose_streamed_preprocessing": "estimation.streaming.cutoff_choice",
     "connect": "estimation.streaming.cluster",
     "diagnose_files": "estimation.streaming.diagnosis",
+    "diagnose_files_run": "estimation.streaming.diagnosis",
+    "streamed_refit_selection": "estimation.streaming.diagnosis_selection",
     "f_tests": "estimation.streaming.candidate_screening",
     "file_sums": "estimation.streaming.chunks",
     "filter_margin": "estimation.streaming.chunks",

@@ -73,7 +73,7 @@ from estimation.streaming.periods import plan_options
 from estimation.streaming.selection import SummedFits, simpler_laws, summed_runner_up
 from estimation.uncertainty.noise_floor import NoiseFloor
 
-__all__ = ["DEFAULT_SUBSAMPLE", "diagnose_files"]
+__all__ = ["DEFAULT_SUBSAMPLE", "diagnose_files", "diagnose_files_run"]
 
 #: samples (about; at most twice) of the evenly spread training subsample the shapes are searched on.
 #: The shape search costs what the in-memory diagnosis's first round costs on that many samples.
@@ -175,7 +175,13 @@ def _search(model: IdentificationModel, sums: SumsPass, found: StreamedCandidate
     return before, RunnerUpSearch(model, found.blocks, found.rejected, fits, weights, search_settings).run()
 
 
-def diagnose_files(
+def diagnose_files(*args: Any, **kwargs: Any) -> Diagnosis:
+    """Diagnose ``model`` on the training ``paths``, confirmed on the ``validate`` files, in bounded memory: the
+    :class:`~estimation.diagnosis.results.Diagnosis` of :func:`diagnose_files_run` (the same arguments)."""
+    return diagnose_files_run(*args, **kwargs)[0]
+
+
+def diagnose_files_run(
     model: IdentificationModel,
     paths: Sequence[str | Path],
     validate: Sequence[str | Path],
@@ -194,8 +200,10 @@ def diagnose_files(
     executor: Any = None,
     preprocessing: Preprocessing | None = None,
     findings: FindingsSaid | None = None,
-) -> Diagnosis:
-    """Diagnose ``model`` on the training ``paths``, confirmed on the ``validate`` files, in bounded memory.
+) -> tuple[Diagnosis, StreamedRun]:
+    """Diagnose ``model`` on the training ``paths``, confirmed on the ``validate`` files, in bounded memory; the
+    diagnosis and the :class:`~estimation.streaming.diagnosis_result.StreamedRun` behind it (its sums: what the
+    consistent refit of the adopted model needs, :mod:`estimation.streaming.diagnosis_selection`).
 
     The settings are those of :func:`estimation.diagnosis.search.diagnose`; ``chunk_size``, ``cutoff_hz``,
     ``decimation``, ``held_torques`` and ``executor`` those of
@@ -241,4 +249,4 @@ def diagnose_files(
     clock.lap("covariance_pass")
     run = StreamedRun(paths, validate, settings, first, sums, found, outcome, chosen, columns)
     result = streamed_result(model, run, before, after, floor, floor_note, streaming_record(run, covariance, clock.seconds))
-    return replace(result, runner_up=runner_up[0], runner_up_reason=runner_up[1])
+    return replace(result, runner_up=runner_up[0], runner_up_reason=runner_up[1]), run

@@ -29,6 +29,7 @@ from dynamics.runtime.progress import step
 from dynamics.transmission import Transmission
 from estimation.consistent.model_selection import ModelSelection, select_refit
 from estimation.identification.relative_error import relative_scores
+from estimation.identification.validation import ChannelErrors
 from estimation.diagnosis.candidates.coupling import coupling_candidates
 from estimation.diagnosis.plain_laws import plain_model
 from dynamics.runtime.report_document import Report, figure_path, report_format
@@ -41,7 +42,10 @@ from estimation.identification.prepared import InMemoryBudget, PreparedRecords, 
 from estimation.identification.repeated_motion import repeated_motion_note
 from estimation.preprocessing.delay import DelayBounds, split_delay
 from estimation.preprocessing.plan import Preprocessing
-from estimation.streaming.diagnosis import DEFAULT_SUBSAMPLE, diagnose_files
+from estimation.streaming.diagnosis import DEFAULT_SUBSAMPLE, diagnose_files_run
+from estimation.streaming.diagnosis_result import StreamedRun
+from estimation.streaming.diagnosis_selection import streamed_refit_selection
+from estimation.streaming.model_selection import streamed_repeated_motion
 from estimation.streaming.diagnosis_result import floor_report
 from estimation.streaming.recorded_errors import streamed_plan
 from estimation.identification.model_file import summed_model_file_document
@@ -67,6 +71,7 @@ from oed.workflows.model_files import (
     add_runner_up_model_file,
     add_summed_model_file,
     add_summed_runner_up_model_file,
+    recorded_validation_errors,
     recorded_validation_mse,
     resampled_validation,
     robot_source,
@@ -334,9 +339,6 @@ def check_streamed_request(args: DiagnoseOptions, delay: DelayBounds | None) -> 
     if delay is not None:
         raise ValueError("the delay between torques and motion is searched in memory: not with the streamed path "
                          "(--chunk-size, --scheduler or --workers), which does not try it")
-    if args.consistent:
-        raise ValueError("--consistent refits in memory: not with the streamed path (--chunk-size, --scheduler or "
-                         "--workers)")
 
 
 def in_memory_only(args: DiagnoseOptions, model: IdentificationModel, delay: DelayBounds | None) -> str | None:
@@ -430,20 +432,68 @@ def diagnose_document(args: DiagnoseOptions, diagnosed: Diagnosed) -> tuple[dict
         # recorded samples: diagnosis_streamed)
         model_plan, validation_mse = diagnosed.model_file
         after, runner_up = diagnosis.after, diagnosis.runner_up
-        files = add_summed_model_file(document, diagnosis.final_model(), after.estimate, args, model_plan,
-                                      shape=diagnosis.final_shape(), recorded_mse=after.train.mse,
-                                      validation_mse=validation_mse)
-        name = after.estimate.method  # the one model the report's model file holds: its errors, as predict names it
-        document["train"]["chosen"] = {"name": name, "mse": dict(after.train.mse)}
-        document["warnings"]["chosen"] = list(after.warnings)
-        document["validation"]["chosen"] = {"name": name,
-                                            "mse": None if validation_mse is None else dict(validation_mse)}
+        if selection is not None:  # the default answer from the sums (diagnosis_streamed), as in memory
+            files = summed_answer(document, args, diagnosed, selection)
+        else:
+            files = add_summed_model_file(document, diagnosis.final_model(), after.estimate, args, model_plan,
+                                          shape=diagnosis.final_shape(), recorded_mse=after.train.mse,
+                                          validation_mse=validation_mse)
+            name = after.estimate.method  # the one model the model file holds: its errors, as predict names it
+            document["train"]["chosen"] = {"name": name, "mse": dict(after.train.mse)}
+            document["warnings"]["chosen"] = list(after.warnings)
+            document["validation"]["chosen"] = {"name": name,
+                                                "mse": None if validation_mse is None else dict(validation_mse)}
         add_summed_runner_up_model_file(document, runner_up, args, model_plan, None if validation_mse is None or
                                         runner_up is None else runner_up.validation_mse)
+        if diagnosis.streaming.get("frequency_hz") is not None:
+            averaged_training_errors(document)
     document["diagnosis_path"] = diagnosis.path
     document["max_effects"] = args.max_effects
     document["max_effects_reached"] = len(diagnosis.effects) >= args.max_effects
     return document, (*diagnosed.messages, *files)
+
+
+def averaged_training_errors(document: dict[str, Any]) -> None:
+    """Label the training errors of a streamed diagnosis on the Fourier path (``document``, in place) as what they
+    are: its training sums hold the averaged period (a Fourier fit of averaged periods, whose torques are averaged
+    over the periods too), not the recording, so each training ``mse`` is moved to ``mse_filtered`` and ``mse`` is
+    ``null``, as the streamed ``oed identify`` labels them (``train.before``, ``train.after``, ``train.chosen``,
+    ``runner_up.train``, ``consistent.train``, ``model_selection.candidates[].train_mse`` to ``train_mse_filtered``).
+    The validation errors are against every recorded sample of the whole periods (what ``oed predict`` measures)."""
+    entries = [document["train"].get(key) for key in ("before", "after", "chosen")]
+    entries += [(document.get(key) or {}).get("train") for key in ("runner_up", "consistent")]
+    for entry in entries:
+        if isinstance(entry, dict) and entry.get("mse") is not None:
+            entry["mse_filtered"], entry["mse"] = entry["mse"], None
+    for candidate in (document.get("model_selection") or {}).get("candidates", ()):
+        candidate["train_mse_filtered"], candidate["train_mse"] = candidate.get("train_mse"), None
+    document["train"]["against"] = ("the averaged period of the training files (a Fourier fit of averaged periods): "
+                                    "mse_filtered, not the recording")
+
+
+def summed_answer(document: dict[str, Any], args: DiagnoseOptions, diagnosed: Diagnosed,
+                  selection: ModelSelection) -> tuple[str, ...]:
+    """The streamed document (in place) given the default answer made from the sums, with the in-memory keys:
+    ``consistent`` and ``links`` (the refit; its shapes held at the adopted model's), ``model_selection``, the model
+    file holding the chosen model and the other as an alternative, and the chosen model's errors beside the
+    diagnosis's (``train.chosen``, ``validation.chosen``); return the model file's warnings and the chosen model's
+    own not said yet."""
+    diagnosis = diagnosed.diagnosis
+    consistent = selection.consistent
+    if consistent is not None:
+        document.update(consistent.to_dict())
+        document["consistent"]["test"] = None  # --test is read in memory
+        shape = diagnosis.final_shape()
+        if shape:  # held at the adopted model's fixed shapes (the sums' columns)
+            document["consistent"].update(shape=shape, delay=None, shapes_held="at the unconstrained fit's values "
+                                          "(estimation.streaming.diagnosis_selection)")
+    document["model_selection"] = selection.to_dict()
+    model_plan, _ = diagnosed.model_file
+    files = add_summed_model_file(document, diagnosis.final_model(), diagnosis.after.estimate, args, model_plan,
+                                  shape=diagnosis.final_shape(), selection=selection)
+    chosen = ChosenModel.of(selection)
+    answer_diagnosis(document, chosen, floor=None if diagnosis.statistics is None else diagnosis.statistics.floor)
+    return (*files, *(text for text in chosen.warnings if text not in diagnosed.messages))
 
 
 def diagnosis_selection(args: DiagnoseOptions, diagnosis: Diagnosis, records: PreparedRecords) -> ModelSelection:
@@ -597,13 +647,14 @@ def summary_lines(args: DiagnoseOptions, diagnosed: Diagnosed, document: dict[st
               "  after          " + "  ".join(f"{after[channel]:9.4g}" for channel in before)]
     lines += floor_lines(diagnosis)
     selection = diagnosed.selection
-    if selection is not None:  # in memory
-        consistent = selection.consistent
+    if diagnosed.records is not None:  # in memory
         lines += test_lines(diagnosed.untouched)
+    if selection is not None:
+        consistent = selection.consistent
         if consistent is not None and (args.consistent or selection.chosen == "consistent"):
             lines += consistent_lines(consistent)
-        lines += selection.lines() + chosen_lines(document["validation"]) + chosen_test_lines(document["test"])
-    else:  # streamed: the one model its model file holds
+        lines += selection.lines() + chosen_lines(document["validation"]) + chosen_test_lines(document.get("test"))
+    else:  # the one model its model file holds
         lines += chosen_lines(document["validation"])
     if len(diagnosis.effects) >= args.max_effects:
         untested = sum(rejected.reason.startswith("not tested") for rejected in diagnosis.rejected)
@@ -681,7 +732,7 @@ def diagnosis_streamed(args: DiagnoseOptions, friction: str, plan: Preprocessing
             with findings.reading():
                 plan = streamed_choice(args, model, **derivatives_on_validation(model, None)).chosen
         with executor_for(args) as executor:
-            diagnosis = diagnose_files(model, args.data, args.validate, chunk_size=chunk_size, alpha=args.alpha,
+            diagnosis, run = diagnose_files_run(model, args.data, args.validate, chunk_size=chunk_size, alpha=args.alpha,
                                        max_effects=args.max_effects, subsample=args.subsample,
                                        floor_window=args.floor_window, executor=executor, preprocessing=plan,
                                        findings=findings)
@@ -695,8 +746,54 @@ def diagnosis_streamed(args: DiagnoseOptions, friction: str, plan: Preprocessing
         if resampled_validation({"streaming": diagnosis.streaming}):  # the errors on the samples as recorded
             diagnosis = recorded_errors(diagnosis, args, model_plan)
         model_file = model_plan, diagnosis.after.validation.mse
+    with step("the default answer: the adopted model or its consistent refit (from the sums)"):
+        selection = streamed_selection(args, diagnosis, run, model_file[0], chunk_size)
+    diagnosis = replace(diagnosis, not_computed={key: reason for key, reason in diagnosis.not_computed.items()
+                                                 if key not in SELECTION_KEYS})  # computed now
     return Diagnosed(diagnosis, {"cutoff_hz": cutoff_hz, **plan.to_dict()}, plan.describe(), messages,
-                     chunk_size=chunk_size, model_file=model_file)
+                     selection=selection, chunk_size=chunk_size, model_file=model_file)
+
+
+#: the keys of report.json the default answer fills (on the streamed path too, :func:`streamed_selection`)
+SELECTION_KEYS = ("consistent", "links", "model_selection")
+
+
+def streamed_selection(args: DiagnoseOptions, diagnosis: Diagnosis, run: StreamedRun, plan: dict[str, Any],
+                       chunk_size: int) -> ModelSelection:
+    """The default answer of a streamed diagnosis, chosen as in memory (:func:`diagnosis_selection`) from its sums
+    (:func:`estimation.streaming.diagnosis_selection.streamed_refit_selection`): the adopted model or its consistent
+    refit, every candidate (every weight of the prior's search) scored on the same validation samples against the
+    channels as recorded: from the validation sums, or, on a validation file the loader resampled onto a uniform
+    grid, at its recorded samples as ``oed predict`` measures them (:func:`resampled_scorer`, read in memory as the
+    adopted model's own error there is). ``plan``: the model files' preprocessing."""
+    model = diagnosis.model
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # the files' findings were said on the diagnosis's passes
+        ratio = streamed_repeated_motion(model, args.data, args.validate, chunk_size=chunk_size)
+        score = None
+        if resampled_validation({"streaming": diagnosis.streaming}):
+            score = resampled_scorer(args, diagnosis, plan)
+        return streamed_refit_selection(diagnosis, run, given="consistent" if args.consistent else None,
+                                        consistent=consistent_settings(args, model.robot), score=score, ratio=ratio)
+
+
+def resampled_scorer(args: DiagnoseOptions, diagnosis: Diagnosis,
+                     plan: dict[str, Any]) -> Callable[[Any], dict[Any, ChannelErrors]]:
+    """The validation errors of base-parameter vectors of the adopted model (in its base order), on a validation
+    file the loader resampled: at its recorded samples, against the torques as recorded, as ``oed predict``
+    measures the model file holding each (:func:`~oed.workflows.model_files.recorded_validation_errors`, shaped
+    laws at their fixed shapes; the record read once for all the vectors)."""
+    document = summed_model_file_document(diagnosis.final_model(), diagnosis.after.estimate,
+                                          robot=robot_source(diagnosis.model.robot, args), preprocessing=plan,
+                                          shape=diagnosis.final_shape())
+    n_samples = diagnosis.after.validation.n_samples
+
+    def score(thetas: Any) -> dict[Any, ChannelErrors]:
+        errors = recorded_validation_errors(document, thetas, args.validate)
+        if errors is None:
+            raise ValueError("the validation files were read as recorded: score them from the sums")
+        return {key: ChannelErrors(dict(errors[key]), n_samples) for key in thetas}
+    return score
 
 
 def recorded_errors(diagnosis: Diagnosis, args: DiagnoseOptions, plan: dict[str, Any]) -> Diagnosis:

@@ -9,6 +9,7 @@ from typing import Any
 
 import numpy as np
 
+from estimation.consistent.identification import ConsistentResult
 from estimation.consistent.model_selection import selection_file, selection_model_file
 from estimation.identification.fit import IdentificationResult
 from estimation.identification.identified_model import IdentifiedModel
@@ -109,7 +110,8 @@ def add_summed_model_file(document: dict[str, Any], model: Any, estimate: Any, a
             model, candidate.fit.estimate, robot=robot, preprocessing=preprocessing, shape=shape,
             recorded_mse=candidate.fit.train.mse,
             validation_mse=None if candidate.fit.validation is None else candidate.fit.validation.mse, **extra)
-            for candidate in selection.candidates if isinstance(candidate.fit, IdentificationResult)}
+            for candidate in selection.candidates  # the unconstrained fits (a streamed diagnosis's: SummedFit)
+            if candidate.fit is not None and not isinstance(candidate.fit, ConsistentResult)}
         document["model_file"] = selection_file(selection, documents)
         answer = ChosenModel.of(selection)
         records = answer.records()
@@ -147,13 +149,13 @@ def recorded_validation_mse(model_file: dict[str, Any], validate: Sequence[str |
 
 def recorded_validation_errors(model_file: dict[str, Any], thetas: Mapping[Any, Any],
                                validate: Sequence[str | Path]) -> dict[Any, dict[str, float]] | None:
-    """:func:`recorded_validation_mse` of several base-parameter vectors of the model of ``model_file`` (by key), on
-    the same samples: at the recorded time stamps, against the torques as recorded, as ``oed predict`` measures
-    each; ``None`` when every record is read as it was recorded."""
+    """:func:`recorded_validation_mse` of several base-parameter vectors of the model of ``model_file`` (by key, in
+    the file's base order), on the same samples: at the recorded time stamps, against the torques as recorded, as
+    ``oed predict`` measures each (shaped laws at the file's shapes); ``None`` when every record is read as it was
+    recorded."""
     model = IdentifiedModel(ModelFile.from_dict(model_file))
-    if model.delay is not None or model.payload_link is not None or any(model.shape.values()):
-        raise ValueError("the errors of other parameter vectors are measured for a model without shaped laws, "
-                         "delay or payload")
+    if model.delay is not None or model.payload_link is not None:
+        raise ValueError("the errors of other parameter vectors are measured for a model without delay or payload")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # the records' findings were said when the verb read them
         segments = model.read(list(validate))
@@ -161,6 +163,10 @@ def recorded_validation_errors(model_file: dict[str, Any], thetas: Mapping[Any, 
             return None
         record = model.prepare(segments).as_recorded
     measured = record.channels(model.channels)
+    if any(model.shape.values()):  # the shaped columns at the file's shapes, as predict evaluates them
+        Y = model.regressor(record.q, record.dq, record.ddq)
+        return {key: channel_mse(measured, Y @ np.asarray(theta, dtype=float), model.channels)
+                for key, theta in thetas.items()}
     return {key: channel_mse(measured, model.model.predict(np.asarray(theta, dtype=float), record.q, record.dq,
                                                            record.ddq), model.channels)
             for key, theta in thetas.items()}

@@ -1,0 +1,108 @@
+"""The default answer of ``oed diagnose`` on the streamed path: the adopted model or its consistent refit, from sums.
+
+In memory, ``oed diagnose`` answers with the model it adopted (the declared model with the diagnosed effects,
+shaped laws at their fitted shapes) as fitted, or with its physically consistent refit (the robot description's
+bodies as prior, the prior's weight chosen on the validation record), whichever predicts the validation record
+better when that record is another motion (:func:`estimation.consistent.model_selection.select_refit`, issue 34). A
+record over the memory budget is diagnosed from sums (:mod:`estimation.streaming.diagnosis`), and so is this choice:
+
+* the streamed diagnosis's second pass already holds, per channel, the Gram matrix of the base regressor and of
+  every candidate's columns at its fixed shape, with their moments against the prepared channels and the channels
+  as recorded, on the training and on the validation records
+  (:class:`~estimation.streaming.diagnosis_sums.ChannelSums`); the adopted model's columns, put in its base-parameter
+  order (:func:`model_order`), give the consistent fit's Gram statistics
+  (:func:`~estimation.streaming.diagnosis_sums.normal_equations`), with the shaped columns at their fitted shapes as
+  :func:`~estimation.consistent.fixed_shapes.fixed_problem` gives them in memory;
+* the consistent fit is :func:`~estimation.consistent.identification.consistent_fit_sums` (the same solver and
+  prior-weight path as in memory), its training errors against the recording from the training sums;
+* every candidate's validation error, every weight of the prior's search included, is scored on the same samples
+  against the channels as recorded: from the validation sums (:func:`sums_scorer`), or by the caller's scorer (a
+  validation file the loader resampled is measured at its recorded samples);
+* the choice is the in-memory one (:func:`~estimation.consistent.model_selection.select_scored`), ``ratio`` the
+  validation record's :func:`~estimation.streaming.model_selection.streamed_repeated_motion`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import replace
+from typing import Any, Literal
+
+import numpy as np
+
+from estimation.consistent.identification import Scorer, consistent_fit_sums
+from estimation.consistent.model_selection import (
+    CONSISTENT_FAILURES,
+    Candidate,
+    ConsistentSettings,
+    ModelSelection,
+    select_scored,
+)
+from estimation.diagnosis.results import Diagnosis, SummedFit
+from estimation.identification.validation import ChannelErrors
+from estimation.streaming.diagnosis_result import StreamedRun
+from estimation.streaming.diagnosis_sums import ChannelSums, normal_equations
+
+__all__ = ["model_order", "streamed_refit_selection", "sums_scorer"]
+
+
+def model_order(fit: SummedFit, columns: Sequence[int]) -> tuple[SummedFit, list[int]]:
+    """``fit`` (the streamed diagnosis's adopted model, its estimate in the order of the summed columns ``columns``)
+    with its estimate in its model's base-parameter order, and the columns in that order: what the consistent fit
+    maps through the model's base (``θ_b = K θ``)."""
+    estimate, names = fit.estimate, tuple(fit.model.base.names)
+    if sorted(estimate.names) != sorted(names) or len(columns) != len(names):
+        raise ValueError("the adopted model's estimate does not hold its model's base parameters")
+    order = [list(estimate.names).index(name) for name in names]
+    index = np.asarray(order, dtype=int)
+    ordered = replace(estimate, values=np.asarray(estimate.values)[index],
+                      cov=np.asarray(estimate.cov)[np.ix_(index, index)], std=np.asarray(estimate.std)[index],
+                      relative_std=np.asarray(estimate.relative_std)[index], names=names,
+                      expressions=tuple(estimate.expressions[i] for i in order))
+    return replace(fit, estimate=ordered), [columns[i] for i in order]
+
+
+def _errors(sums: ChannelSums, columns: Sequence[int], theta: np.ndarray) -> ChannelErrors:
+    """Errors of ``theta`` (on ``columns``) against the channels as recorded, from ``sums``."""
+    return ChannelErrors(dict(zip(sums.layout.channels, map(float, sums.channel_mse(columns, theta, target=1)))),
+                         int(sums.n_samples))
+
+
+def sums_scorer(validation: ChannelSums, columns: Sequence[int]) -> Scorer:
+    """The validation errors of several base-parameter vectors (on ``columns``, in that order) against the channels
+    as recorded, from the validation sums: every vector on the same samples."""
+    def score(thetas: Mapping[Any, np.ndarray]) -> dict[Any, ChannelErrors]:
+        return {key: _errors(validation, columns, np.asarray(theta, dtype=float)) for key, theta in thetas.items()}
+    return score
+
+
+def streamed_refit_selection(diagnosis: Diagnosis, run: StreamedRun, *, given: Literal["consistent"] | None = None,
+                             consistent: ConsistentSettings | None = None, score: Scorer | None = None,
+                             ratio: float | None = None, note: str = "with the diagnosed effects") -> ModelSelection:
+    """:func:`~estimation.consistent.model_selection.select_refit` of a streamed diagnosis (module docstring): its
+    adopted model as fitted (``diagnosis.after``, its validation error as the diagnosis measured it) or its
+    consistent refit from the sums of ``run``. ``score``: the validation errors of several base-parameter vectors in
+    the model's base order (default :func:`sums_scorer`); ``ratio``: the validation record's repeated-motion ratio
+    (``None``: no comparison on another motion). A refit that fails is no candidate (listed with the reason), unless
+    ``given="consistent"`` asked for it."""
+    if given not in (None, "consistent"):
+        raise ValueError(f"given must be None or 'consistent', got {given!r}")
+    if diagnosis.path != "streamed":
+        raise ValueError("a streamed diagnosis is needed (diagnosis.path == 'streamed')")
+    fit, columns = model_order(diagnosis.after, run.columns)
+    base = fit.estimate.method
+    sums = run.sums
+    score = sums_scorer(sums.validation, columns) if score is None else score
+    settings = ConsistentSettings() if consistent is None else consistent
+    names, expressions = fit.estimate.names, fit.estimate.expressions
+    try:
+        refit = consistent_fit_sums(fit, normal_equations(sums.train, columns, names, expressions),
+                                    lambda theta: _errors(sums.train, columns, theta), score,
+                                    prior_weight=settings.prior_weight, prior=settings.prior,
+                                    prior_source=settings.prior_source, bounds=settings.bounds, shapes_fixed=True)
+        candidate = Candidate("consistent", refit, note=note)
+    except CONSISTENT_FAILURES as error:
+        if given == "consistent":
+            raise
+        candidate = Candidate("consistent", None, f"the consistent fit failed ({error})", note=note)
+    return select_scored((Candidate(base, fit, note=note), candidate), base=base, given=given, ratio=ratio)
