@@ -23,8 +23,11 @@ Preprocessing at chunk boundaries:
 * Fourier path (period averaging): needs whole periods of the whole record; refused here
   (:class:`StreamingUnsupportedError`).
 
-Irregular sampling (jitter) is resampled as the loader does, onto the grid of the whole file's
-median step (:mod:`estimation.streaming.time_base`: one extra pass reading column ``t`` alone).
+A logger's defects are handled as the loader handles them, with the same warnings, said once for the file:
+re-sent rows and a few rows stamped with the previous row's time dropped, stalls bridged, irregular sampling
+(jitter) resampled onto the grid of the whole file's median step (:mod:`estimation.streaming.time_base`: one extra
+pass over the file keeps column ``t`` and a mask of the rows kept). A hole longer than ``max_gap`` is a
+:class:`~estimation.data.loading.HoleError` here (the in-memory path splits the record there).
 """
 
 from __future__ import annotations
@@ -46,9 +49,8 @@ from dynamics.runtime.threads import single_threaded_blas
 from dynamics.effects.linear import WRENCH_CHANNELS
 from estimation.data.log_formats import LogSource, is_log_file
 from estimation.data.loading import (
-    GAP_FACTOR,
     MeasurementError,
-    ResampledWarning,
+    MeasurementWarning,
     TimeBaseError,
     TooFewSamplesError,
 )
@@ -145,13 +147,8 @@ def read_chunks(path: str | Path, model: IdentificationModel, *, chunk_size: int
         raise ValueError(f"a chunk of {chunk_size} samples is shorter than the {least} samples each chunk is checked "
                          f"with ({model.n_base} base parameters): give at least {least} (10 000 is a good size)")
     pending: pd.DataFrame | None = None
-    scan = scan_time(_raw_frames(path, chunk_size, only_time=True), path)
+    scan = scan_time(_raw_frames(path, chunk_size), path, model)  # the loader's findings, said once for the file
     resampler = Resampler(scan) if scan is not None and scan.irregular else None
-    if resampler is not None:
-        warnings.warn(
-            f"{path}: irregular sampling in column t (step varies by {100 * scan.spread:.3g}% of the median "
-            f"{scan.step:.4g} s): resampled by linear interpolation onto {scan.grid_count} uniform samples",
-            ResampledWarning, stacklevel=3)
     checked = _ChunkChecks(path, model, scan, resampler)
     emitted = 0
     for frame in _raw_frames(path, chunk_size):
@@ -182,7 +179,13 @@ def logged_chunks(path: str | Path, model: IdentificationModel, *, chunk_size: i
     are measured at (:func:`estimation.streaming.recorded_errors.streamed_errors_at_stamps`)."""
     least = model.n_base + 1  # a short last block is joined to the one before, as read_chunks joins it
     pending: pd.DataFrame | None = None
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # said when the file was read for its sums
+        scan = scan_time(_raw_frames(Path(path), chunk_size), path, model)
+    row = 0
     for frame in itertools.chain(_raw_frames(Path(path), chunk_size), [None]):
+        if frame is not None and scan is not None and scan.keep is not None:  # the rows the loader keeps
+            frame, row = frame[scan.keep[row:row + len(frame)]], row + len(frame)
         if frame is not None and pending is not None and len(frame) < least:
             pending = pd.concat([pending, frame], ignore_index=True)
             continue
@@ -206,12 +209,19 @@ class _ChunkChecks:
         self.previous: tuple[float, float] | None = None  # last time and step of the chunk before
 
     def __call__(self, frame: pd.DataFrame) -> Measurements:
-        """The next chunk, checked."""
+        """The next chunk, checked (the rows the loader keeps: the file's scan dropped the others)."""
         path, previous = self.path, self.previous
         source = f"{path} (rows {self.row + 1}-{self.row + len(frame)})"
-        if self.resampler is not None:
-            return self.resampled(frame, source)
-        measurements = measurements_from_frame(frame, model=self.model, resample=False, source=source)
+        rows = len(frame)
+        if self.scan is not None and self.scan.keep is not None:
+            frame = frame[self.scan.keep[self.row:self.row + rows]]
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", MeasurementWarning)  # the time base's findings: said once for the file
+            if self.resampler is not None:
+                measurements = self.resampled(frame, source)
+                self.row += rows
+                return measurements
+            measurements = measurements_from_frame(frame, model=self.model, resample=False, source=source)
         step = float(np.median(np.diff(measurements.t)))
         if previous is not None:
             gap = measurements.t[0] - previous[0]
@@ -220,25 +230,19 @@ class _ChunkChecks:
                                     f"{self.row + 1}, not one step of {previous[1]:.4g} s: a gap or a jump in the "
                                     "record (split the record there)")
         self.previous = (float(measurements.t[-1]), step)
-        self.row += len(frame)
+        self.row += rows
         return measurements
 
     def resampled(self, frame: pd.DataFrame, source: str) -> Measurements:
         """The chunk checked as the loader checks it, then put on the whole file's grid."""
         path, previous, scan, n_joints = self.path, self.previous, self.scan, self.model.robot.n_joints
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", ResampledWarning)  # once for the file, in read_chunks
-            checked_chunk = measurements_from_frame(frame, model=self.model, resample=True, source=source)
+        checked_chunk = measurements_from_frame(frame, model=self.model, resample=True, source=source)
         frame = frame.rename(columns=lambda name: str(name).strip())
         t = pd.to_numeric(frame["t"], errors="coerce").to_numpy(dtype=float)
         if previous is not None:
             if not t[0] > previous[0]:
                 raise TimeBaseError(f"{path}: column t does not increase at row {self.row + 1} ({previous[0]:.9g} -> "
                                     f"{t[0]:.9g}); sort the samples")
-            if t[0] - previous[0] > GAP_FACTOR * scan.step:
-                raise TimeBaseError(f"{path}: column t jumps by {t[0] - previous[0]:.4g} s at row {self.row + 1}, "
-                                    f"{(t[0] - previous[0]) / scan.step:.3g} times the median step: a gap in the "
-                                    "record; split the record there")
         groups = [name for name in _GROUPS if getattr(checked_chunk, name) is not None]
         columns = [column for name in groups for column in _group_columns(name, n_joints)]
         values = np.column_stack([pd.to_numeric(frame[column], errors="coerce").to_numpy(dtype=float)
@@ -250,7 +254,6 @@ class _ChunkChecks:
             arrays[name] = interpolated[:, start:start + width]
             start += width
         self.previous = (float(t[-1]), scan.step)
-        self.row += len(frame)
         metadata = dict(checked_chunk.metadata, resampled_from=scan.rows)
         return Measurements(grid, arrays["q"], arrays.get("dq"), arrays.get("ddq"), arrays.get("tau"),
                             arrays.get("wrench"), metadata)
