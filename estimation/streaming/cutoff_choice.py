@@ -34,14 +34,22 @@ from estimation.identification.preprocessing_on_validation import on_validation
 from estimation.preprocessing.plan import Preprocessing, PreprocessingWarning
 from estimation.streaming.chunks import read_chunks
 from estimation.data.memory_budget import count_rows
+from estimation.data.records import read_measurements
 
 __all__ = ["choose_streamed_cutoff", "choose_streamed_preprocessing", "first_rows", "streamed_window"]
 
 
 def first_rows(path: str | Path, model: IdentificationModel, rows: int) -> Measurements:
     """The first ``rows`` samples of ``path`` (all of them when it holds fewer), read and checked as the
-    streamed path reads every chunk."""
+    streamed path reads every chunk. A resampled file (jitter, stalls, rows dropped) of at most ``rows`` rows is
+    read whole as the in-memory loader reads it (the same grid and samples, :mod:`estimation.streaming.time_base`),
+    with its samples as recorded beside (:attr:`Measurements.recorded`: errors are taken on them), as the
+    in-memory choice scores it."""
     first = next(read_chunks(path, model, chunk_size=max(int(rows), model.n_base + 1)))
+    if first.metadata.get("resampled_from") is not None and count_rows(path) <= rows:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # said by read_chunks
+            return read_measurements(path, model=model)
     return first if first.n_samples <= rows else first.select(slice(0, int(rows)))
 
 
@@ -52,7 +60,7 @@ def streamed_window(paths: Sequence[str | Path], model: IdentificationModel,
     if not paths:
         raise ValueError("no training data files")
     rows = [count_rows(path) for path in paths] if rows is None else list(rows)
-    if sum(rows) <= SCORED_SAMPLES:  # every file read whole
+    if sum(rows) <= SCORED_SAMPLES:  # every file read whole (a resampled file holds other than its rows' count)
         segments = tuple(first_rows(path, model, count) for path, count in zip(paths, rows))
         return ChoiceWindow(segments, min(float(segment.t[-1] - segment.t[0]) for segment in segments))
     longest = int(np.argmax(rows))  # the first of the longest, as max() picks it in memory

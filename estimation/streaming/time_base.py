@@ -78,7 +78,7 @@ def scan_time(frames, path: str | Path, model: IdentificationModel, *, max_gap: 
         count += t.shape[0]
         check_allocation(8.0 * 3 * count, f"the time column of {path} ({count} samples)")
         parts.append(t)
-        if previous is not None and previous.shape[0] == data.shape[1] and data.shape[0]:
+        if previous is not None and previous.shape[1] == data.shape[1] and data.shape[0]:
             data = np.vstack([previous, data])
             repeated.append(repeated_rows(data)[1:])
         else:
