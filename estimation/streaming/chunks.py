@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import functools
 import itertools
+import re
 import warnings
 from collections.abc import Iterator
 from dataclasses import dataclass, replace
@@ -48,6 +49,7 @@ from dynamics.models import IdentificationModel
 from dynamics.runtime.threads import single_threaded_blas
 from dynamics.effects.linear import WRENCH_CHANNELS
 from estimation.data.log_formats import LogSource, is_log_file
+from estimation.data.memory_budget import count_rows
 from estimation.data.loading import (
     MeasurementError,
     MeasurementWarning,
@@ -58,11 +60,11 @@ from estimation.data.records import measurements_from_frame
 from dynamics.measurements import Measurements, joint_columns
 from estimation.estimators.normal_equations import DEFAULT_CHUNK_SIZE, NormalEquations, accumulate, check_chunk_size
 from estimation.preprocessing.differentiation import ButterworthDifferentiation, compensate_hold, decimate
-from estimation.streaming.time_base import Resampler, TimeScan, scan_time
+from estimation.streaming.time_base import Resampler, TimeScan, file_segments, scan_time
 
 __all__ = [
     "FileSums", "MARGIN_TOLERANCE", "StreamingUnsupportedError", "automatic_cutoff", "file_sums", "filter_margin",
-    "logged_chunks", "preprocessed_chunks", "read_chunks",
+    "logged_chunks", "preprocessed_chunks", "read_chunks", "segment_sources", "source_file", "source_files", "source_rows",
 ]
 
 #: relative size of the impulse response at which the overlap margin ends
@@ -135,6 +137,84 @@ def _raw_frames(path: Path, chunk_size: int, only_time: bool = False) -> Iterato
         raise
 
 
+#: a streamed source naming one segment of a file split at its holes, as the loader names it
+_SEGMENT = re.compile(r"^(?P<file>.*) \(segment (?P<index>[0-9]+)\)$")
+
+
+def source_file(path: str | Path) -> tuple[Path, int | None]:
+    """The file and segment (1-based; ``None``: the whole file) of a streamed source: ``run.csv (segment 2)`` (the
+    name the loader gives the second segment of a file split at a hole longer than ``max_gap``,
+    :func:`segment_sources`) is the second segment of ``run.csv``."""
+    file = Path(path)
+    if not file.exists():
+        match = _SEGMENT.match(str(path))
+        if match is not None and Path(match["file"]).is_file():
+            return Path(match["file"]), int(match["index"])
+    return file, None
+
+
+def segment_sources(paths, model: IdentificationModel, *, chunk_size: int = DEFAULT_CHUNK_SIZE) -> list:
+    """``paths`` with each file the loader splits at its holes (longer than ``max_gap``,
+    :func:`estimation.data.records.read_record`) replaced by its segments' sources (``run.csv (segment 1)``…,
+    :func:`source_file`), in order, each read and preprocessed on its own as in memory; a source already a segment,
+    or a file that is not a .csv or .parquet one, is kept (the reader names its fault)."""
+    sources = []
+    for path in paths:
+        file, segment = source_file(path)
+        if segment is not None or file.suffix.lower() not in (".csv", ".parquet") or not file.is_file():
+            sources.append(path)
+            continue
+        count = file_segments(_raw_frames(file, max(int(chunk_size), 1)), file, model)
+        sources.extend([path] if count == 1 else [type(path)(f"{path} (segment {index})") if isinstance(path, Path)
+                                                  else f"{path} (segment {index})" for index in range(1, count + 1)])
+    return sources
+
+
+def source_files(paths) -> list:
+    """The files of streamed sources (:func:`source_file`), each once, in order: what the in-memory reader reads
+    (it splits a file into the same segments)."""
+    files: list = []
+    for path in paths:
+        file, segment = source_file(path)
+        entry = path if segment is None else (file if isinstance(path, Path) else str(file))
+        if entry not in files:
+            files.append(entry)
+    return files
+
+
+def source_rows(path: str | Path, model: IdentificationModel) -> int:
+    """The rows of a streamed source: a file's (:func:`estimation.data.memory_budget.count_rows`, without parsing),
+    or those the loader keeps of a segment (one scan of the file)."""
+    file, segment = source_file(path)
+    if segment is None:
+        return count_rows(file)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # said when the segment is read
+        scan = scan_time(_raw_frames(file, DEFAULT_CHUNK_SIZE), file, model, segment=segment)
+    return count_rows(file) if scan is None or scan.keep is None else int(np.count_nonzero(scan.keep))
+
+
+def _kept_frames(path: Path, chunk_size: int, keep: NDArray[np.bool_] | None) -> Iterator[pd.DataFrame]:
+    """The rows of the file the loader keeps (``keep``, by row; ``None``: every row), ``chunk_size`` at a time."""
+    if keep is None:
+        yield from _raw_frames(path, chunk_size)
+        return
+    row, held, count = 0, [], 0
+    for frame in _raw_frames(path, chunk_size):
+        part = frame[keep[row:row + len(frame)]]
+        row += len(frame)
+        if len(part):
+            held.append(part)
+            count += len(part)
+        while count >= chunk_size:
+            joined = pd.concat(held, ignore_index=True) if len(held) > 1 else held[0]
+            yield joined.iloc[:chunk_size]
+            rest = joined.iloc[chunk_size:]
+            held, count = ([rest] if len(rest) else []), len(rest)
+    if count:
+        yield pd.concat(held, ignore_index=True) if len(held) > 1 else held[0]
+
+
 def read_chunks(path: str | Path, model: IdentificationModel, *, chunk_size: int = DEFAULT_CHUNK_SIZE
                 ) -> Iterator[Measurements]:
     """The checked measurements of ``path``, ``chunk_size`` rows at a time (a short last chunk is
@@ -147,11 +227,12 @@ def read_chunks(path: str | Path, model: IdentificationModel, *, chunk_size: int
         raise ValueError(f"a chunk of {chunk_size} samples is shorter than the {least} samples each chunk is checked "
                          f"with ({model.n_base} base parameters): give at least {least} (10 000 is a good size)")
     pending: pd.DataFrame | None = None
-    scan = scan_time(_raw_frames(path, chunk_size), path, model)  # the loader's findings, said once for the file
+    file, segment = source_file(path)
+    scan = scan_time(_raw_frames(file, chunk_size), file, model, segment=segment)  # the loader's findings, said once
     resampler = Resampler(scan) if scan is not None and scan.irregular else None
     checked = _ChunkChecks(path, model, scan, resampler)
     emitted = 0
-    for frame in _raw_frames(path, chunk_size):
+    for frame in _kept_frames(file, chunk_size, None if scan is None else scan.keep):
         if pending is not None and len(frame) < least:
             pending = pd.concat([pending, frame], ignore_index=True)
             continue
@@ -179,13 +260,11 @@ def logged_chunks(path: str | Path, model: IdentificationModel, *, chunk_size: i
     are measured at (:func:`estimation.streaming.recorded_errors.streamed_errors_at_stamps`)."""
     least = model.n_base + 1  # a short last block is joined to the one before, as read_chunks joins it
     pending: pd.DataFrame | None = None
+    file, segment = source_file(path)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # said when the file was read for its sums
-        scan = scan_time(_raw_frames(Path(path), chunk_size), path, model)
-    row = 0
-    for frame in itertools.chain(_raw_frames(Path(path), chunk_size), [None]):
-        if frame is not None and scan is not None and scan.keep is not None:  # the rows the loader keeps
-            frame, row = frame[scan.keep[row:row + len(frame)]], row + len(frame)
+        scan = scan_time(_raw_frames(file, chunk_size), file, model, segment=segment)
+    for frame in itertools.chain(_kept_frames(file, chunk_size, None if scan is None else scan.keep), [None]):
         if frame is not None and pending is not None and len(frame) < least:
             pending = pd.concat([pending, frame], ignore_index=True)
             continue
@@ -213,8 +292,6 @@ class _ChunkChecks:
         path, previous = self.path, self.previous
         source = f"{path} (rows {self.row + 1}-{self.row + len(frame)})"
         rows = len(frame)
-        if self.scan is not None and self.scan.keep is not None:
-            frame = frame[self.scan.keep[self.row:self.row + rows]]
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", MeasurementWarning)  # the time base's findings: said once for the file
             if self.resampler is not None:

@@ -32,9 +32,8 @@ from estimation.identification.preprocessing_choice import (
 )
 from estimation.identification.preprocessing_on_validation import on_validation
 from estimation.preprocessing.plan import Preprocessing, PreprocessingWarning
-from estimation.streaming.chunks import read_chunks
-from estimation.data.memory_budget import count_rows
-from estimation.data.records import read_measurements
+from estimation.streaming.chunks import read_chunks, source_file, source_rows
+from estimation.data.records import read_record
 
 __all__ = ["choose_streamed_cutoff", "choose_streamed_preprocessing", "first_rows", "streamed_window"]
 
@@ -46,10 +45,11 @@ def first_rows(path: str | Path, model: IdentificationModel, rows: int) -> Measu
     with its samples as recorded beside (:attr:`Measurements.recorded`: errors are taken on them), as the
     in-memory choice scores it."""
     first = next(read_chunks(path, model, chunk_size=max(int(rows), model.n_base + 1)))
-    if first.metadata.get("resampled_from") is not None and count_rows(path) <= rows:
+    if first.metadata.get("resampled_from") is not None and source_rows(path, model) <= rows:
+        file, segment = source_file(path)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # said by read_chunks
-            return read_measurements(path, model=model)
+            return read_record(file, model=model, split=segment is not None)[0 if segment is None else segment - 1]
     return first if first.n_samples <= rows else first.select(slice(0, int(rows)))
 
 
@@ -59,7 +59,7 @@ def streamed_window(paths: Sequence[str | Path], model: IdentificationModel,
     row counts when already known."""
     if not paths:
         raise ValueError("no training data files")
-    rows = [count_rows(path) for path in paths] if rows is None else list(rows)
+    rows = [source_rows(path, model) for path in paths] if rows is None else list(rows)
     if sum(rows) <= SCORED_SAMPLES:  # every file read whole (a resampled file holds other than its rows' count)
         segments = tuple(first_rows(path, model, count) for path, count in zip(paths, rows))
         return ChoiceWindow(segments, min(float(segment.t[-1] - segment.t[0]) for segment in segments))

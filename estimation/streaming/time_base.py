@@ -14,6 +14,7 @@ chunks is interpolated between the same two samples as in memory.
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -25,11 +26,11 @@ from dynamics.effects.linear import WRENCH_CHANNELS
 from dynamics.measurements import joint_columns
 from dynamics.models import IdentificationModel
 from dynamics.runtime.memory import check_allocation
-from estimation.data.loading import resampling_grid
-from estimation.data.log_cleaning import DEFAULT_MAX_GAP, repeated_rows
+from estimation.data.loading import SegmentTooShortError, resampling_grid
+from estimation.data.log_cleaning import DEFAULT_MAX_GAP, repeated_rows, split_rows
 from estimation.data.records import clean_time_base
 
-__all__ = ["Resampler", "TimeScan", "scan_time"]
+__all__ = ["Resampler", "TimeScan", "file_segments", "scan_time"]
 
 
 @dataclass(frozen=True)
@@ -55,13 +56,51 @@ class TimeScan:
         return int(np.floor((self.t_last - self.t0) / self.step + 1e-9)) + 1
 
 
-def scan_time(frames, path: str | Path, model: IdentificationModel, *, max_gap: float = DEFAULT_MAX_GAP
-              ) -> TimeScan | None:
+def scan_time(frames, path: str | Path, model: IdentificationModel, *, max_gap: float = DEFAULT_MAX_GAP,
+              segment: int | None = None) -> TimeScan | None:
     """Scan the rows of ``frames`` (an iterator of the file's blocks) with the loader's rules on the whole record
-    (module docstring; :class:`~estimation.data.loading.TimeBaseError`: many duplicated or decreasing times;
-    :class:`~estimation.data.loading.HoleError`: a hole longer than ``max_gap``, which the streamed path does not
-    split); ``None`` when column ``t`` is absent or not numeric, or a channel not numeric (the per-chunk checks
-    then name the fault)."""
+    (module docstring; :class:`~estimation.data.loading.TimeBaseError`: many duplicated or decreasing times). A hole
+    longer than ``max_gap`` splits the record into segments as in memory: ``segment`` (1-based) is the one scanned
+    (its rows alone kept, its own grid); without one, a hole is a :class:`~estimation.data.loading.HoleError`
+    (:func:`file_segments` names the segments). ``None`` when column ``t`` is absent or not numeric (the per-chunk
+    checks then name the fault)."""
+    times = _cleaned(frames, path, model, max_gap=max_gap, split=segment is not None)
+    if times is None:
+        return None
+    keep, kept, name = times.keep, times.t, str(path)
+    if segment is not None:
+        pieces = split_rows(kept.shape[0], times.holes)
+        if not 1 <= segment <= len(pieces):
+            raise ValueError(f"{path} holds {len(pieces)} segment(s), not a segment {segment}")
+        rows = np.flatnonzero(keep)[pieces[segment - 1]]
+        keep = np.zeros_like(keep)
+        keep[rows] = True
+        kept = kept[pieces[segment - 1]]
+        if times.holes:
+            name = f"{path} (segment {segment})"
+            if kept.shape[0] < 3:
+                raise SegmentTooShortError(f"{name}: {kept.shape[0]} sample(s) between holes (t = {kept[0]:.6g} s): "
+                                           "too few for a time series; cut them from the file")
+    grid = resampling_grid(kept, True, name, bridged=times.bridged, stacklevel=4)
+    keep = None if keep.all() else keep
+    if grid is None:
+        return TimeScan(float(kept[0]), float(kept[-1]), float(np.median(np.diff(kept))), int(kept.shape[0]), keep)
+    step = float(kept[-1] - kept[0]) / (grid.shape[0] - 1)
+    return TimeScan(float(kept[0]), float(kept[-1]), step, int(kept.shape[0]), keep, resampled=True)
+
+
+def file_segments(frames, path: str | Path, model: IdentificationModel, *, max_gap: float = DEFAULT_MAX_GAP) -> int:
+    """The segments the loader splits the file of ``frames`` into (its holes longer than ``max_gap``, one more);
+    1 when its time column cannot be read (the per-chunk checks name the fault)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # said when each segment is read
+        times = _cleaned(frames, path, model, max_gap=max_gap, split=True)
+    return 1 if times is None else len(times.holes) + 1
+
+
+def _cleaned(frames, path: str | Path, model: IdentificationModel, *, max_gap: float, split: bool):
+    """The rows the loader keeps of the file of ``frames`` (:func:`estimation.data.records.clean_time_base`), or
+    ``None`` when its time column cannot be read."""
     parts: list[NDArray[np.float64]] = []
     repeated: list[NDArray[np.bool_]] = []
     previous: NDArray[np.float64] | None = None
@@ -92,14 +131,7 @@ def scan_time(frames, path: str | Path, model: IdentificationModel, *, max_gap: 
     same = np.concatenate(repeated)
     if same.shape[0] != t.shape[0]:  # the channels change between blocks: the per-chunk checks name it
         return None
-    times = clean_time_base(t, same, str(path), max_gap=max_gap, split=False)
-    kept = times.t
-    grid = resampling_grid(kept, True, str(path), bridged=times.bridged, stacklevel=4)
-    keep = None if times.keep.all() else times.keep
-    if grid is None:
-        return TimeScan(float(kept[0]), float(kept[-1]), times.step, int(kept.shape[0]), keep)
-    step = float(kept[-1] - kept[0]) / (grid.shape[0] - 1)
-    return TimeScan(float(kept[0]), float(kept[-1]), step, int(kept.shape[0]), keep, resampled=True)
+    return clean_time_base(t, same, str(path), max_gap=max_gap, split=split)
 
 
 def _columns(group: str, n_joints: int) -> list[str]:

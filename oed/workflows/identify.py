@@ -44,6 +44,7 @@ from estimation.identification.validation import ChannelErrors, plot_comparison
 from estimation.identification.weighting_choice import choose_weighting, weighting_samples
 from estimation.preprocessing.delay import DelayBounds, split_delay
 from estimation.preprocessing.plan import Preprocessing
+from estimation.streaming.chunks import source_files
 from estimation.streaming.cutoff_choice import streamed_window
 from estimation.streaming.identification import SummedFits, identify_files_candidates
 from estimation.streaming.model_selection import streamed_repeated_motion, summed_selection
@@ -66,7 +67,7 @@ from estimation.consistent.identification import ConsistentResult
 from estimation.consistent.model_selection import ModelSelection, select_model
 from oed.workflows.consistent import check_consistent_arguments, consistent_lines, consistent_settings
 from oed.workflows.chosen_model import ChosenModel, answer_identification, chosen_messages, mse_line
-from oed.workflows.memory_path import decide_path, streamed_choice
+from oed.workflows.memory_path import decide_path, streamed_choice, streamed_records
 from oed.workflows.model_files import (
     add_model_file,
     add_summed_model_file,
@@ -373,6 +374,7 @@ def identification_streamed(args: IdentifyOptions, model: IdentificationModel, t
     the errors against the channels as recorded, the trivial predictors' and the noise floor of their first rows
     (:func:`recorded_validation`)."""
     chunk_size = DEFAULT_CHUNK_SIZE if args.chunk_size is None else args.chunk_size
+    args = streamed_records(args, model)  # a file with holes: its segments, each on its own as in memory
     selection = None
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
@@ -492,7 +494,7 @@ class ValidationScores:
                     preprocessing=streamed_plan(args.data[0], model, cutoff_hz=streaming["cutoff_hz"],
                                                 decimation=self.decimation, held_torques=self.held_torques,
                                                 chunk_size=self.chunk_size))
-                recorded = recorded_validation_errors(document, vectors, args.validate)  # None: read as recorded
+                recorded = recorded_validation_errors(document, vectors, source_files(args.validate))  # None: as recorded
             if recorded is not None:
                 pass
             elif next(iter(summed.values())).mse is not None:  # the sums hold the recording
@@ -535,7 +537,7 @@ def recorded_validation(args: IdentifyOptions, result: IdentificationResult, chu
         recorded = recorded_validation_mse(summed_model_file_document(
             model, result.estimate, robot=robot_source(model.robot, args), preprocessing=streamed_plan(
                 args.data[0], model, cutoff_hz=streaming["cutoff_hz"], decimation=args.decimate,
-                held_torques=bool(args.held_torques), chunk_size=chunk_size)), args.validate)
+                held_torques=bool(args.held_torques), chunk_size=chunk_size)), source_files(args.validate))
         mse = mse if recorded is None else recorded
     return replace(result, validation=replace(result.validation, mse=mse)), errors, {}
 
