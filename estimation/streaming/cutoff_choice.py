@@ -90,8 +90,8 @@ def choose_streamed_preprocessing(paths: Sequence[str | Path], model: Identifica
     on the training window and the validation files' first :data:`SCORED_SAMPLES` rows; ``validation_model``: the
     model those fits fit (its channels ``model``'s; ``None``: ``model``), as
     :class:`~estimation.identification.prepared.PreparationSettings` has it."""
+    window = streamed_window(paths, model, rows)  # first, as in memory: the findings said in the files' order
     windows = {Path(path): first_rows(path, model, SCORED_SAMPLES) for path in (*held_out, *validation)}
-    window = streamed_window(paths, model, rows)
     choice = choose_by_evidence(model, window, frequency_hz=frequency_hz,
                                 harmonics=harmonics, cutoff_hz=cutoff_hz, average_periods=average_periods,
                                 decimation=decimation, held_torques=held_torques,

@@ -403,7 +403,7 @@ def identification_streamed(args: IdentifyOptions, model: IdentificationModel, t
                                              consistent=consistent_settings(args, model.robot), score=scores,
                                              ratio=ratio)
             result = selection.unconstrained
-    messages = grouped_messages(caught, [*args.data, *(args.validate or ())])  # one line per finding across files
+    messages = grouped_messages(caught, source_files([*args.data, *(args.validate or ())]))  # a line per finding
     not_computed = dict(result.not_computed)
     if args.method != "auto":  # in memory too, the consistent refit is a candidate of the default choice only
         for key in ("consistent", "links"):
