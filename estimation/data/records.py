@@ -218,7 +218,7 @@ def segments_from_frame(
     data = np.hstack([values for values in arrays.values() if values is not None])
     times = clean_time_base(t, repeated_rows(data), source, max_gap=max_gap, split=split,
                             check=lambda keep: check_angles(arrays["q"][keep], model, source))
-    t, holes, stalls = times.t, times.holes, times.stalls
+    t, holes = times.t, times.holes
     dropped, duplicated = times.repeated_rows_dropped, times.duplicated_times_dropped
     if dropped or duplicated:
         arrays = {key: None if values is None else values[times.keep] for key, values in arrays.items()}
