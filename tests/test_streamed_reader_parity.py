@@ -132,6 +132,21 @@ def test_identify_streamed_reads_a_defective_log_as_in_memory(logs, kind, tmp_pa
 
 
 @pytest.mark.parametrize("kind", ["hole", "duplicated", "jitter"])
+def test_past_the_memory_budget_the_defaults_read_as_in_memory(logs, kind, tmp_path, capsys):
+    """The defaults' own route to the streamed path (the record past ``--memory-budget``): the same answer, and each
+    finding said once (when the path is decided), as in memory."""
+    documents, said = {}, {}
+    for mode, options in (("memory", ()), ("streamed", ("--memory-budget", "1KB"))):
+        out = tmp_path / f"{mode}.json"
+        code, said[mode], error = _run("identify", logs, kind, out, capsys, *options)
+        assert code == 0, error
+        documents[mode] = json.loads(out.read_text())
+    assert documents["streamed"]["identification_path"] == "streamed"
+    assert said["streamed"] == said["memory"]
+    _close(documents["memory"]["validation"]["mse"], documents["streamed"]["validation"]["mse"], "validation")
+
+
+@pytest.mark.parametrize("kind", ["hole", "duplicated", "jitter"])
 def test_diagnose_streamed_reads_a_defective_log_as_in_memory(logs, kind, tmp_path, capsys):
     documents, said = {}, {}
     for mode, options in (("memory", ()), ("streamed", ("--chunk-size", CHUNK))):

@@ -27,7 +27,7 @@ from dynamics.runtime.output_files import OutputFiles, check_figure_path, json_t
 from dynamics.runtime.progress import step
 from dynamics.runtime.report_document import Report
 from dynamics.transmission import Transmission
-from estimation.data.input_findings import grouped_messages
+from estimation.data.input_findings import FindingsSaid, grouped_messages
 from estimation.data.log_cleaning import DEFAULT_MAX_GAP
 from estimation.diagnosis.statistics import FLOOR_ALPHA, ResidualReport, residual_report
 from estimation.uncertainty.floor_comparison import compare_with_floor
@@ -240,7 +240,8 @@ def run_identify(args: IdentifyOptions, *, say: Callable[[str], None]) -> Identi
         decision = decide_path(args, model, task="identifying", bytes_per_value=IN_MEMORY.bytes_per_value,
                                in_memory_only=lambda: in_memory_only(args, model, delay), say=say,
                                validation_fits=validation_fits(args, model, delay))
-        identified = (identification_streamed(args, model, transmission, decision.plan) if decision.stream
+        identified = (identification_streamed(args, model, transmission, decision.plan, decision.findings)
+                      if decision.stream
                       else identification_in_memory(args, robot, model, transmission, delay, decision.plan))
     document, messages = identify_document(args, identified)
     chosen = identified.chosen
@@ -365,14 +366,14 @@ def identify_document(args: IdentifyOptions, identified: Identified) -> tuple[di
 
 
 def identification_streamed(args: IdentifyOptions, model: IdentificationModel, transmission: Transmission | None,
-                            plan: Preprocessing | None = None) -> Identified:
+                            plan: Preprocessing | None = None, findings: FindingsSaid | None = None) -> Identified:
     """Identify from the files read in blocks (:func:`estimation.streaming.identification.identify_files_candidates`),
     their derivatives chosen as in memory (``plan``: already chosen), and choose the answer as in memory among the
     unconstrained fits and the consistent refit (:func:`estimation.streaming.model_selection.summed_selection`: from
     the sums, every candidate scored on the same validation samples against the channels as recorded,
     :class:`ValidationScores`; not on the Fourier path, whose sums hold averaged periods); on the validation files,
     the errors against the channels as recorded, the trivial predictors' and the noise floor of their first rows
-    (:func:`recorded_validation`)."""
+    (:func:`recorded_validation`). ``findings``: what the path decision said of the files (not said again)."""
     chunk_size = DEFAULT_CHUNK_SIZE if args.chunk_size is None else args.chunk_size
     args = streamed_records(args, model)  # a file with holes: its segments, each on its own as in memory
     selection = None
@@ -403,7 +404,9 @@ def identification_streamed(args: IdentifyOptions, model: IdentificationModel, t
                                              consistent=consistent_settings(args, model.robot), score=scores,
                                              ratio=ratio)
             result = selection.unconstrained
-    messages = grouped_messages(caught, source_files([*args.data, *(args.validate or ())]))  # a line per finding
+    # a line per finding across files; those said when the path was decided (``findings``) not again
+    messages = grouped_messages(caught, source_files([*args.data, *(args.validate or ())])) if findings is None \
+        else findings.mark(caught)
     not_computed = dict(result.not_computed)
     if args.method != "auto":  # in memory too, the consistent refit is a candidate of the default choice only
         for key in ("consistent", "links"):
