@@ -113,11 +113,10 @@ def test_identify_streamed_reads_a_defective_log_as_in_memory(logs, kind, tmp_pa
     assert streamed["preprocessing"]["cutoff_hz"] == pytest.approx(memory["preprocessing"]["cutoff_hz"], rel=1e-9)
     values = {mode: np.array([entry["value"] for entry in document["parameters"]])
               for mode, document in documents.items()}
-    # epoch stamps are quantised (2.4e-7 s at 1.7e9 s): each block's median step, the rate its filter is designed
-    # for (ButterworthDifferentiation.apply: the rate of the window it is given), differs from the record's by up to
-    # 5e-5; the estimate differs by 1.5e-6 of its largest parameter, the validation errors (and predict's) by 4e-5.
-    # The rows, grid and warnings are the same: what is left is the block-wise filter's, not the reader's.
-    tolerance = 1e-4 if kind == "epoch" else 1e-6
+    # epoch stamps are quantised (2.4e-7 s at 1.7e9 s): each block's median step differs from the record's by up to
+    # 5e-5 (the filter is designed for the record's rate, ButterworthDifferentiation.rate_hz), and differences of
+    # epoch times round to 5e-5 of a step (the derivatives take the time from the record's start)
+    tolerance = 1e-6
     assert np.max(np.abs(values["streamed"] - values["memory"])) <= tolerance * np.max(np.abs(values["memory"]))
     _close(memory["validation"]["mse"], streamed["validation"]["mse"], "validation", tolerance)
     candidates = {mode: {entry["name"]: entry["validation_mse"] for entry in document["model_selection"]["candidates"]}

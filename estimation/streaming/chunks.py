@@ -308,6 +308,8 @@ class _ChunkChecks:
                                     "record (split the record there)")
         self.previous = (float(measurements.t[-1]), step)
         self.row += rows
+        if self.scan is not None:  # the whole record's median step: its rate, as the in-memory filter takes it
+            measurements = replace(measurements, metadata=dict(measurements.metadata, sampling_step=self.scan.step))
         return measurements
 
     def resampled(self, frame: pd.DataFrame, source: str) -> Measurements:
@@ -431,10 +433,11 @@ class _OverlappingWindows:
         if derive and cutoff_hz is None:
             raise StreamingUnsupportedError(f"{path}: without dq/ddq the streamed path needs one Butterworth cut-off for "
                                             "every chunk: give it (--cutoff), or let the caller pick it once")
-        method = ButterworthDifferentiation(cutoff_hz, order) if derive else None
+        step = first.metadata.get("sampling_step")  # the record's (a block's median differs where stamps are coarse)
+        rate = 1.0 / float(np.median(np.diff(first.t)) if step is None else step)
+        method = ButterworthDifferentiation(cutoff_hz, order, rate_hz=None if step is None else rate) if derive else None
         if held_torques and not derive:
             held_torques = False  # nothing to align (the in-memory path warns)
-        rate = 1.0 / float(np.median(np.diff(first.t)))
         self.path, self.chunks, self.chunk_size, self.method = path, chunks, chunk_size, method
         self.cutoff_hz, self.order, self.decimation, self.held_torques = cutoff_hz, order, decimation, held_torques
         self.first_metadata = first.metadata
