@@ -145,6 +145,7 @@ def test_past_the_memory_budget_the_defaults_read_as_in_memory(logs, kind, tmp_p
     _close(documents["memory"]["validation"]["mse"], documents["streamed"]["validation"]["mse"], "validation")
 
 
+@pytest.mark.slow  # about 40 s: the diagnosis passes, in memory and in blocks
 @pytest.mark.parametrize("kind", ["hole", "duplicated", "jitter"])
 def test_diagnose_streamed_reads_a_defective_log_as_in_memory(logs, kind, tmp_path, capsys):
     documents, said = {}, {}
