@@ -42,6 +42,10 @@ def _defect(frame: pd.DataFrame, kind: str, seed: int) -> pd.DataFrame:
         rows = np.unique(np.r_[generator.choice(np.arange(100, len(frame) - 100), 30, replace=False), BOUNDARIES])
         frame.loc[rows, data] = frame.loc[rows - 1, data].to_numpy()
         return frame
+    if kind == "resent_same_stamp":  # the previous row again, time stamp too: the rest of the record regular
+        rows = np.array(BOUNDARIES + [333, 1666])
+        frame = pd.concat([frame, frame.loc[rows - 1]]).sort_index(kind="stable").reset_index(drop=True)
+        return frame
     if kind == "jitter":
         frame["t"] = frame.t + generator.uniform(-0.3, 0.3, len(frame)) * step
         return frame
@@ -59,7 +63,7 @@ def _defect(frame: pd.DataFrame, kind: str, seed: int) -> pd.DataFrame:
     raise ValueError(kind)
 
 
-KINDS = ["hole", "duplicated", "resent", "jitter", "stall", "epoch", "columns", "hole_and_jitter"]
+KINDS = ["hole", "duplicated", "resent", "resent_same_stamp", "jitter", "stall", "epoch", "columns", "hole_and_jitter"]
 
 
 @pytest.fixture(scope="module")
