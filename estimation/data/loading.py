@@ -286,9 +286,10 @@ def check_angles(q: NDArray[np.float64], model, source: str) -> None:
             )
 
 
-def uniform_grid(t, arrays, resample: bool, source: str, metadata: dict, *, bridged: bool = False):
-    """Data on a uniform grid: as they are when regular, else interpolated (a :class:`ResampledWarning` says
-    so, ``metadata["resampled_from"]`` keeps the sample count; :class:`TimeBaseError` if not ``resample``).
+def resampling_grid(t, resample: bool, source: str, *, bridged: bool = False, stacklevel: int = 5):
+    """The uniform grid the samples at ``t`` are interpolated onto, ``None`` when they are regular (a
+    :class:`ResampledWarning` says what was done, :class:`TimeBaseError` if not ``resample``): one rule for the
+    in-memory reader (:func:`uniform_grid`) and the streamed one (:mod:`estimation.streaming.time_base`).
 
     The grid's step is the median step corrected so that a whole number of steps spans the record:
     float32 or jittered stamps make the median one of a few rounded values (1 kHz at t ≈ 10 s in
@@ -297,7 +298,7 @@ def uniform_grid(t, arrays, resample: bool, source: str, metadata: dict, *, brid
     step = float(np.median(steps))
     spread = float(np.max(np.abs(steps - step))) / step
     if spread <= IRREGULAR_TOLERANCE:
-        return t, arrays
+        return None
     if not resample:
         raise TimeBaseError(f"{source}: irregular sampling in column t (step varies by {100 * spread:.3g}% of {step:.4g} s)")
     intervals = max(int(round((t[-1] - t[0]) / step)), 1)
@@ -311,7 +312,18 @@ def uniform_grid(t, arrays, resample: bool, source: str, metadata: dict, *, brid
         warnings.warn(
             f"{source}: irregular sampling in column t ({reason}step varies by {100 * spread:.3g}% of the median "
             f"{float(np.median(steps)):.4g} s): resampled by linear interpolation onto {grid.shape[0]} uniform "
-            f"samples of {step:.6g} s", ResampledWarning, stacklevel=4)
+            f"samples of {step:.6g} s", ResampledWarning, stacklevel=stacklevel)
+    return grid
+
+
+def uniform_grid(t, arrays, resample: bool, source: str, metadata: dict, *, bridged: bool = False):
+    """Data on a uniform grid: as they are when regular, else interpolated (a :class:`ResampledWarning` says
+    so, ``metadata["resampled_from"]`` keeps the sample count; :class:`TimeBaseError` if not ``resample``).
+
+    The grid is :func:`resampling_grid`'s."""
+    grid = resampling_grid(t, resample, source, bridged=bridged)
+    if grid is None:
+        return t, arrays
     metadata["resampled_from"] = int(t.shape[0])
     resampled = {
         name: None if values is None else np.column_stack([np.interp(grid, t, column) for column in values.T])

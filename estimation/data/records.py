@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import os
 import warnings
+from dataclasses import dataclass
 from collections.abc import Iterable
 from pathlib import Path
 
@@ -214,13 +215,13 @@ def segments_from_frame(
                             "the format wants seconds as numbers (e.g. (t - t[0]).dt.total_seconds())")
     t = numeric_columns(frame, ["t"], source)[:, 0]
     _check_absurd(t, arrays, n_joints, source)
-    t_recorded = t
-    t, arrays, dropped = _drop_repeated_rows(t, arrays, source)
-    t, arrays, duplicated = _drop_duplicated_times(t, arrays, source)
-    step = check_time(t, source)
-    check_angles(arrays["q"], model, source)
-
-    holes, stalls = _holes_and_stalls(t, step, max_gap, split, source, t_recorded if dropped or duplicated else None)
+    data = np.hstack([values for values in arrays.values() if values is not None])
+    times = clean_time_base(t, repeated_rows(data), source, max_gap=max_gap, split=split,
+                            check=lambda keep: check_angles(arrays["q"][keep], model, source))
+    t, holes = times.t, times.holes
+    dropped, duplicated = times.repeated_rows_dropped, times.duplicated_times_dropped
+    if dropped or duplicated:
+        arrays = {key: None if values is None else values[times.keep] for key, values in arrays.items()}
     segments = []
     for index, rows in enumerate(split_rows(t.shape[0], holes), start=1):
         name = source if len(holes) == 0 else f"{source} (segment {index})"
@@ -231,7 +232,7 @@ def segments_from_frame(
         metadata: dict[str, object] = {"source": source, "segment": index, "segments_in_file": len(holes) + 1,
                                        "repeated_rows_dropped": dropped, "duplicated_times_dropped": duplicated}
         stamps = t[rows]
-        segment_t, grid = uniform_grid(stamps, piece, resample, name, metadata, bridged=bool(stalls) or dropped + duplicated > 0)
+        segment_t, grid = uniform_grid(stamps, piece, resample, name, metadata, bridged=times.bridged)
         segments.append(Measurements(segment_t, grid["q"], grid["dq"], grid["ddq"], grid["tau"], grid["wrench"],
                                      metadata, *_as_recorded(stamps, piece, segment_t, metadata)))
     if isinstance(model, IdentificationModel):
@@ -311,30 +312,84 @@ def _holes_and_stalls(t: NDArray[np.float64], step: float, max_gap: float, split
         warnings.warn(
             f"{source}: the logger stalled {len(stalls)} time(s) for at most {max_gap:g} s (--max-gap), longest at "
             f"{describe(sorted(stalls, key=lambda gap: -gap.duration))}; bridged by linear interpolation (resampled "
-            "onto a uniform grid)", StallWarning, stacklevel=4)
+            "onto a uniform grid)", StallWarning, stacklevel=5)
     if holes:
         warnings.warn(
             f"{source}: {len(holes)} hole(s) longer than --max-gap {max_gap:g} s at {describe(holes)}: the record is "
-            f"split into {len(holes) + 1} segments there, each preprocessed on its own", SplitWarning, stacklevel=4)
+            f"split into {len(holes) + 1} segments there, each preprocessed on its own", SplitWarning, stacklevel=5)
     return holes, stalls
 
 
-def _drop_repeated_rows(t, arrays, source: str):
-    """Rows repeating the previous one on every channel: dropped, with one warning counting them."""
-    data = np.hstack([values for values in arrays.values() if values is not None])
-    repeated = repeated_rows(data) & np.concatenate([[False], np.diff(t) >= 0])
+@dataclass(frozen=True)
+class CleanedTimes:
+    """What a record's time stamps and re-sent rows say, before its channels are read into segments: one rule for
+    the in-memory reader (:func:`segments_from_frame`) and the streamed one
+    (:func:`estimation.streaming.time_base.scan_records`, which holds the time column and this mask only).
+
+    Attributes
+    ----------
+    keep
+        ``(N,)`` the rows of the file kept (re-sent rows and duplicated time stamps dropped).
+    t
+        Their time stamps.
+    step
+        The median step of ``t``.
+    holes, stalls
+        The gaps longer than ``max_gap`` (the record is split there) and the shorter ones (bridged), by row of ``t``.
+    repeated_rows_dropped, duplicated_times_dropped
+        Rows dropped of each kind.
+    """
+
+    keep: NDArray[np.bool_]
+    t: NDArray[np.float64]
+    step: float
+    holes: list
+    stalls: list
+    repeated_rows_dropped: int
+    duplicated_times_dropped: int
+
+    @property
+    def bridged(self) -> bool:
+        """Whether samples are interpolated where the logger left none (stalls, rows dropped)."""
+        return bool(self.stalls) or self.repeated_rows_dropped + self.duplicated_times_dropped > 0
+
+
+def clean_time_base(t: NDArray[np.float64], repeated: NDArray[np.bool_], source: str, *, max_gap: float, split: bool,
+                    check=None) -> CleanedTimes:
+    """The rows kept of a record whose time column is ``t`` and whose rows repeating the previous one on every
+    channel are ``repeated`` (:func:`estimation.data.log_cleaning.repeated_rows`), with the loader's warnings and
+    errors: re-sent rows dropped (:class:`RepeatedRowsWarning`), then a few rows stamped with the previous row's
+    time (:class:`DuplicatedTimesWarning`), the time base checked (:func:`check_time`), ``check`` called with the
+    mask of the rows kept (the units of the angles), and the gaps found (:func:`_holes_and_stalls`)."""
+    recorded = t
+    keep = _unrepeated(t, repeated, source)
+    dropped = int(t.shape[0] - np.count_nonzero(keep))
+    kept_rows = np.flatnonzero(keep)
+    later = _duplicated_times(t[kept_rows], source)
+    keep[kept_rows[later]] = False
+    t = t[keep]
+    step = check_time(t, source)
+    if check is not None:
+        check(keep)
+    holes, stalls = _holes_and_stalls(t, step, max_gap, split, source, recorded if dropped or later.size else None)
+    return CleanedTimes(keep, t, step, holes, stalls, dropped, int(later.size))
+
+
+def _unrepeated(t, repeated, source: str):
+    """The mask of the rows kept once those repeating the previous one on every channel are dropped, with one
+    warning counting them."""
+    repeated = repeated & np.concatenate([[False], np.diff(t) >= 0])
     count = int(repeated.sum())
     if count == 0:
-        return t, arrays, 0
+        return np.ones(t.shape[0], dtype=bool)
     rows = np.flatnonzero(repeated)
     same_time = int(np.sum(np.diff(t)[rows - 1] == 0))
     warnings.warn(
         f"{source}: dropped {count} row(s) that repeat the previous row on every channel (a logger re-sending its "
         f"last packet; {same_time} with the same time stamp, {count - same_time} with an advanced one), first at "
         f"row {int(rows[0])} (t = {t[rows[0]]:.6g} s); the samples they stood for are interpolated",
-        RepeatedRowsWarning, stacklevel=4)
-    keep = ~repeated
-    return t[keep], {key: None if values is None else values[keep] for key, values in arrays.items()}, count
+        RepeatedRowsWarning, stacklevel=5)
+    return ~repeated
 
 
 #: at most this share of the rows may repeat the previous row's time stamp with new values to be dropped (a logger's
@@ -343,22 +398,20 @@ def _drop_repeated_rows(t, arrays, source: str):
 MAX_DUPLICATED_TIMES = 0.01
 
 
-def _drop_duplicated_times(t, arrays, source: str):
+def _duplicated_times(t, source: str):
     """Rows stamped with the previous row's time but holding new values: a few (at most :data:`MAX_DUPLICATED_TIMES`
     of the rows, and the time base otherwise increasing) are dropped, the first row at each time stamp kept, with
     one warning counting them (their instant is unknown: placing them would invent a time; the errors are taken on
-    the rows kept). More are left to :func:`~estimation.data.loading.check_time`, which refuses them."""
+    the rows kept); their rows. More are left to :func:`~estimation.data.loading.check_time`, which refuses them."""
     steps = np.diff(t)
     later = np.flatnonzero(steps == 0) + 1
     if later.size == 0 or later.size > MAX_DUPLICATED_TIMES * t.shape[0] or np.any(steps < 0):
-        return t, arrays, 0
+        return np.zeros(0, dtype=np.int_)
     warnings.warn(
         f"{source}: dropped {later.size} row(s) stamped with the previous row's time but holding new values (a "
         f"logger's clock that did not tick), first at row {int(later[0])} (t = {t[later[0]]:.6g} s); the first row "
-        "at each time stamp is kept", DuplicatedTimesWarning, stacklevel=4)
-    keep = np.ones(t.shape[0], dtype=bool)
-    keep[later] = False
-    return t[keep], {key: None if values is None else values[keep] for key, values in arrays.items()}, int(later.size)
+        "at each time stamp is kept", DuplicatedTimesWarning, stacklevel=5)
+    return later
 
 
 def _check_absurd(t, arrays, n_joints: int, source: str) -> None:

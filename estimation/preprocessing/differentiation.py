@@ -217,12 +217,17 @@ class ButterworthDifferentiation:
     logged_velocity
         A ``dq`` in the measurements is filtered (and ``ddq`` differentiated from it); ``False``: ``dq`` is
         differentiated from the positions whatever the record logs.
+    rate_hz
+        The record's sampling rate, when the samples given are a window of it (the streamed path's blocks: a
+        window's median step differs from the record's where the stamps are coarse, epoch or float32 time);
+        ``None``: the rate of the samples given.
     """
 
     cutoff_hz: float | None = None
     order: int = 4
     trim: bool = False
     logged_velocity: bool = True
+    rate_hz: float | None = None
 
     def __post_init__(self) -> None:
         if self.cutoff_hz is not None and not (np.isfinite(self.cutoff_hz) and self.cutoff_hz > 0):
@@ -231,7 +236,7 @@ class ButterworthDifferentiation:
             raise ValueError(f"order must be a positive integer, got {self.order}")
 
     def cutoff(self, measurements: Measurements) -> float:
-        rate = sampling_rate(measurements.t)
+        rate = sampling_rate(measurements.t) if self.rate_hz is None else float(self.rate_hz)
         nyquist = 0.5 * rate
         if self.cutoff_hz is not None:
             if self.cutoff_hz >= nyquist:
@@ -250,7 +255,7 @@ class ButterworthDifferentiation:
         return settling_samples(self.order, float(rate), float(cutoff))
 
     def apply(self, measurements: Measurements) -> Measurements:
-        rate = sampling_rate(measurements.t)
+        rate = sampling_rate(measurements.t) if self.rate_hz is None else float(self.rate_hz)
         given = self.cutoff_hz is not None and self.cutoff_hz < 0.5 * rate
         cutoff = float(self.cutoff_hz) if given else self.cutoff(measurements)  # the length check first
         settling = self.settling_samples(float(f"{rate:.9g}"), cutoff)  # one length for every window of a record
@@ -267,7 +272,8 @@ class ButterworthDifferentiation:
         n = measurements.n_samples
         padding = min(n - 1, max(3 * (2 * len(sos) + 1) * 10, settling))
         step = (measurements.t[-1] - measurements.t[0]) / (n - 1)
-        t = measurements.t[0] + step * np.arange(-padding, n + padding)
+        # from the record's start: the differences only matter, and epoch stamps (1.7e9 s) would round each to 2.4e-7 s
+        t = step * np.arange(-padding, n + padding)
         inside = slice(padding, padding + n)
         window = int(round(rate / cutoff))  # one period of the cut-off (rounded: the same for every window of a record)
 

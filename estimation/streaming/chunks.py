@@ -23,14 +23,18 @@ Preprocessing at chunk boundaries:
 * Fourier path (period averaging): needs whole periods of the whole record; refused here
   (:class:`StreamingUnsupportedError`).
 
-Irregular sampling (jitter) is resampled as the loader does, onto the grid of the whole file's
-median step (:mod:`estimation.streaming.time_base`: one extra pass reading column ``t`` alone).
+A logger's defects are handled as the loader handles them, with the same warnings, said once for the file:
+re-sent rows and a few rows stamped with the previous row's time dropped, stalls bridged, irregular sampling
+(jitter) resampled onto the grid of the whole file's median step (:mod:`estimation.streaming.time_base`: one extra
+pass over the file keeps column ``t`` and a mask of the rows kept). A hole longer than ``max_gap`` is a
+:class:`~estimation.data.loading.HoleError` here (the in-memory path splits the record there).
 """
 
 from __future__ import annotations
 
 import functools
 import itertools
+import re
 import warnings
 from collections.abc import Iterator
 from dataclasses import dataclass, replace
@@ -45,10 +49,10 @@ from dynamics.models import IdentificationModel
 from dynamics.runtime.threads import single_threaded_blas
 from dynamics.effects.linear import WRENCH_CHANNELS
 from estimation.data.log_formats import LogSource, is_log_file
+from estimation.data.memory_budget import count_rows
 from estimation.data.loading import (
-    GAP_FACTOR,
     MeasurementError,
-    ResampledWarning,
+    MeasurementWarning,
     TimeBaseError,
     TooFewSamplesError,
 )
@@ -56,11 +60,11 @@ from estimation.data.records import measurements_from_frame
 from dynamics.measurements import Measurements, joint_columns
 from estimation.estimators.normal_equations import DEFAULT_CHUNK_SIZE, NormalEquations, accumulate, check_chunk_size
 from estimation.preprocessing.differentiation import ButterworthDifferentiation, compensate_hold, decimate
-from estimation.streaming.time_base import Resampler, TimeScan, scan_time
+from estimation.streaming.time_base import Resampler, TimeScan, file_segments, scan_time
 
 __all__ = [
     "FileSums", "MARGIN_TOLERANCE", "StreamingUnsupportedError", "automatic_cutoff", "file_sums", "filter_margin",
-    "logged_chunks", "preprocessed_chunks", "read_chunks",
+    "logged_chunks", "preprocessed_chunks", "read_chunks", "segment_sources", "source_file", "source_files", "source_rows",
 ]
 
 #: relative size of the impulse response at which the overlap margin ends
@@ -133,6 +137,84 @@ def _raw_frames(path: Path, chunk_size: int, only_time: bool = False) -> Iterato
         raise
 
 
+#: a streamed source naming one segment of a file split at its holes, as the loader names it
+_SEGMENT = re.compile(r"^(?P<file>.*) \(segment (?P<index>[0-9]+)\)$")
+
+
+def source_file(path: str | Path) -> tuple[Path, int | None]:
+    """The file and segment (1-based; ``None``: the whole file) of a streamed source: ``run.csv (segment 2)`` (the
+    name the loader gives the second segment of a file split at a hole longer than ``max_gap``,
+    :func:`segment_sources`) is the second segment of ``run.csv``."""
+    file = Path(path)
+    if not file.exists():
+        match = _SEGMENT.match(str(path))
+        if match is not None and Path(match["file"]).is_file():
+            return Path(match["file"]), int(match["index"])
+    return file, None
+
+
+def segment_sources(paths, model: IdentificationModel, *, chunk_size: int = DEFAULT_CHUNK_SIZE) -> list:
+    """``paths`` with each file the loader splits at its holes (longer than ``max_gap``,
+    :func:`estimation.data.records.read_record`) replaced by its segments' sources (``run.csv (segment 1)``…,
+    :func:`source_file`), in order, each read and preprocessed on its own as in memory; a source already a segment,
+    or a file that is not a .csv or .parquet one, is kept (the reader names its fault)."""
+    sources = []
+    for path in paths:
+        file, segment = source_file(path)
+        if segment is not None or file.suffix.lower() not in (".csv", ".parquet") or not file.is_file():
+            sources.append(path)
+            continue
+        count = file_segments(_raw_frames(file, max(int(chunk_size), 1)), file, model)
+        sources.extend([path] if count == 1 else [type(path)(f"{path} (segment {index})") if isinstance(path, Path)
+                                                  else f"{path} (segment {index})" for index in range(1, count + 1)])
+    return sources
+
+
+def source_files(paths) -> list:
+    """The files of streamed sources (:func:`source_file`), each once, in order: what the in-memory reader reads
+    (it splits a file into the same segments)."""
+    files: list = []
+    for path in paths:
+        file, segment = source_file(path)
+        entry = path if segment is None else (file if isinstance(path, Path) else str(file))
+        if entry not in files:
+            files.append(entry)
+    return files
+
+
+def source_rows(path: str | Path, model: IdentificationModel) -> int:
+    """The rows of a streamed source: a file's (:func:`estimation.data.memory_budget.count_rows`, without parsing),
+    or those the loader keeps of a segment (one scan of the file)."""
+    file, segment = source_file(path)
+    if segment is None:
+        return count_rows(file)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # said when the segment is read
+        scan = scan_time(_raw_frames(file, DEFAULT_CHUNK_SIZE), file, model, segment=segment)
+    return count_rows(file) if scan is None or scan.keep is None else int(np.count_nonzero(scan.keep))
+
+
+def _kept_frames(path: Path, chunk_size: int, keep: NDArray[np.bool_] | None) -> Iterator[pd.DataFrame]:
+    """The rows of the file the loader keeps (``keep``, by row; ``None``: every row), ``chunk_size`` at a time."""
+    if keep is None:
+        yield from _raw_frames(path, chunk_size)
+        return
+    row, held, count = 0, [], 0
+    for frame in _raw_frames(path, chunk_size):
+        part = frame[keep[row:row + len(frame)]]
+        row += len(frame)
+        if len(part):
+            held.append(part)
+            count += len(part)
+        while count >= chunk_size:
+            joined = pd.concat(held, ignore_index=True) if len(held) > 1 else held[0]
+            yield joined.iloc[:chunk_size]
+            rest = joined.iloc[chunk_size:]
+            held, count = ([rest] if len(rest) else []), len(rest)
+    if count:
+        yield pd.concat(held, ignore_index=True) if len(held) > 1 else held[0]
+
+
 def read_chunks(path: str | Path, model: IdentificationModel, *, chunk_size: int = DEFAULT_CHUNK_SIZE
                 ) -> Iterator[Measurements]:
     """The checked measurements of ``path``, ``chunk_size`` rows at a time (a short last chunk is
@@ -145,16 +227,12 @@ def read_chunks(path: str | Path, model: IdentificationModel, *, chunk_size: int
         raise ValueError(f"a chunk of {chunk_size} samples is shorter than the {least} samples each chunk is checked "
                          f"with ({model.n_base} base parameters): give at least {least} (10 000 is a good size)")
     pending: pd.DataFrame | None = None
-    scan = scan_time(_raw_frames(path, chunk_size, only_time=True), path)
+    file, segment = source_file(path)
+    scan = scan_time(_raw_frames(file, chunk_size), file, model, segment=segment)  # the loader's findings, said once
     resampler = Resampler(scan) if scan is not None and scan.irregular else None
-    if resampler is not None:
-        warnings.warn(
-            f"{path}: irregular sampling in column t (step varies by {100 * scan.spread:.3g}% of the median "
-            f"{scan.step:.4g} s): resampled by linear interpolation onto {scan.grid_count} uniform samples",
-            ResampledWarning, stacklevel=3)
     checked = _ChunkChecks(path, model, scan, resampler)
     emitted = 0
-    for frame in _raw_frames(path, chunk_size):
+    for frame in _kept_frames(file, chunk_size, None if scan is None else scan.keep):
         if pending is not None and len(frame) < least:
             pending = pd.concat([pending, frame], ignore_index=True)
             continue
@@ -182,7 +260,11 @@ def logged_chunks(path: str | Path, model: IdentificationModel, *, chunk_size: i
     are measured at (:func:`estimation.streaming.recorded_errors.streamed_errors_at_stamps`)."""
     least = model.n_base + 1  # a short last block is joined to the one before, as read_chunks joins it
     pending: pd.DataFrame | None = None
-    for frame in itertools.chain(_raw_frames(Path(path), chunk_size), [None]):
+    file, segment = source_file(path)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # said when the file was read for its sums
+        scan = scan_time(_raw_frames(file, chunk_size), file, model, segment=segment)
+    for frame in itertools.chain(_kept_frames(file, chunk_size, None if scan is None else scan.keep), [None]):
         if frame is not None and pending is not None and len(frame) < least:
             pending = pd.concat([pending, frame], ignore_index=True)
             continue
@@ -206,12 +288,17 @@ class _ChunkChecks:
         self.previous: tuple[float, float] | None = None  # last time and step of the chunk before
 
     def __call__(self, frame: pd.DataFrame) -> Measurements:
-        """The next chunk, checked."""
+        """The next chunk, checked (the rows the loader keeps: the file's scan dropped the others)."""
         path, previous = self.path, self.previous
         source = f"{path} (rows {self.row + 1}-{self.row + len(frame)})"
-        if self.resampler is not None:
-            return self.resampled(frame, source)
-        measurements = measurements_from_frame(frame, model=self.model, resample=False, source=source)
+        rows = len(frame)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", MeasurementWarning)  # the time base's findings: said once for the file
+            if self.resampler is not None:
+                measurements = self.resampled(frame, source)
+                self.row += rows
+                return measurements
+            measurements = measurements_from_frame(frame, model=self.model, resample=False, source=source)
         step = float(np.median(np.diff(measurements.t)))
         if previous is not None:
             gap = measurements.t[0] - previous[0]
@@ -220,25 +307,21 @@ class _ChunkChecks:
                                     f"{self.row + 1}, not one step of {previous[1]:.4g} s: a gap or a jump in the "
                                     "record (split the record there)")
         self.previous = (float(measurements.t[-1]), step)
-        self.row += len(frame)
+        self.row += rows
+        if self.scan is not None:  # the whole record's median step: its rate, as the in-memory filter takes it
+            measurements = replace(measurements, metadata=dict(measurements.metadata, sampling_step=self.scan.step))
         return measurements
 
     def resampled(self, frame: pd.DataFrame, source: str) -> Measurements:
         """The chunk checked as the loader checks it, then put on the whole file's grid."""
         path, previous, scan, n_joints = self.path, self.previous, self.scan, self.model.robot.n_joints
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", ResampledWarning)  # once for the file, in read_chunks
-            checked_chunk = measurements_from_frame(frame, model=self.model, resample=True, source=source)
+        checked_chunk = measurements_from_frame(frame, model=self.model, resample=True, source=source)
         frame = frame.rename(columns=lambda name: str(name).strip())
         t = pd.to_numeric(frame["t"], errors="coerce").to_numpy(dtype=float)
         if previous is not None:
             if not t[0] > previous[0]:
                 raise TimeBaseError(f"{path}: column t does not increase at row {self.row + 1} ({previous[0]:.9g} -> "
                                     f"{t[0]:.9g}); sort the samples")
-            if t[0] - previous[0] > GAP_FACTOR * scan.step:
-                raise TimeBaseError(f"{path}: column t jumps by {t[0] - previous[0]:.4g} s at row {self.row + 1}, "
-                                    f"{(t[0] - previous[0]) / scan.step:.3g} times the median step: a gap in the "
-                                    "record; split the record there")
         groups = [name for name in _GROUPS if getattr(checked_chunk, name) is not None]
         columns = [column for name in groups for column in _group_columns(name, n_joints)]
         values = np.column_stack([pd.to_numeric(frame[column], errors="coerce").to_numpy(dtype=float)
@@ -250,7 +333,6 @@ class _ChunkChecks:
             arrays[name] = interpolated[:, start:start + width]
             start += width
         self.previous = (float(t[-1]), scan.step)
-        self.row += len(frame)
         metadata = dict(checked_chunk.metadata, resampled_from=scan.rows)
         return Measurements(grid, arrays["q"], arrays.get("dq"), arrays.get("ddq"), arrays.get("tau"),
                             arrays.get("wrench"), metadata)
@@ -351,10 +433,11 @@ class _OverlappingWindows:
         if derive and cutoff_hz is None:
             raise StreamingUnsupportedError(f"{path}: without dq/ddq the streamed path needs one Butterworth cut-off for "
                                             "every chunk: give it (--cutoff), or let the caller pick it once")
-        method = ButterworthDifferentiation(cutoff_hz, order) if derive else None
+        step = first.metadata.get("sampling_step")  # the record's (a block's median differs where stamps are coarse)
+        rate = 1.0 / float(np.median(np.diff(first.t)) if step is None else step)
+        method = ButterworthDifferentiation(cutoff_hz, order, rate_hz=None if step is None else rate) if derive else None
         if held_torques and not derive:
             held_torques = False  # nothing to align (the in-memory path warns)
-        rate = 1.0 / float(np.median(np.diff(first.t)))
         self.path, self.chunks, self.chunk_size, self.method = path, chunks, chunk_size, method
         self.cutoff_hz, self.order, self.decimation, self.held_torques = cutoff_hz, order, decimation, held_torques
         self.first_metadata = first.metadata

@@ -32,16 +32,24 @@ from estimation.identification.preprocessing_choice import (
 )
 from estimation.identification.preprocessing_on_validation import on_validation
 from estimation.preprocessing.plan import Preprocessing, PreprocessingWarning
-from estimation.streaming.chunks import read_chunks
-from estimation.data.memory_budget import count_rows
+from estimation.streaming.chunks import read_chunks, source_file, source_rows
+from estimation.data.records import read_record
 
 __all__ = ["choose_streamed_cutoff", "choose_streamed_preprocessing", "first_rows", "streamed_window"]
 
 
 def first_rows(path: str | Path, model: IdentificationModel, rows: int) -> Measurements:
     """The first ``rows`` samples of ``path`` (all of them when it holds fewer), read and checked as the
-    streamed path reads every chunk."""
+    streamed path reads every chunk. A resampled file (jitter, stalls, rows dropped) of at most ``rows`` rows is
+    read whole as the in-memory loader reads it (the same grid and samples, :mod:`estimation.streaming.time_base`),
+    with its samples as recorded beside (:attr:`Measurements.recorded`: errors are taken on them), as the
+    in-memory choice scores it."""
     first = next(read_chunks(path, model, chunk_size=max(int(rows), model.n_base + 1)))
+    if first.metadata.get("resampled_from") is not None and source_rows(path, model) <= rows:
+        file, segment = source_file(path)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # said by read_chunks
+            return read_record(file, model=model, split=segment is not None)[0 if segment is None else segment - 1]
     return first if first.n_samples <= rows else first.select(slice(0, int(rows)))
 
 
@@ -51,8 +59,8 @@ def streamed_window(paths: Sequence[str | Path], model: IdentificationModel,
     row counts when already known."""
     if not paths:
         raise ValueError("no training data files")
-    rows = [count_rows(path) for path in paths] if rows is None else list(rows)
-    if sum(rows) <= SCORED_SAMPLES:  # every file read whole
+    rows = [source_rows(path, model) for path in paths] if rows is None else list(rows)
+    if sum(rows) <= SCORED_SAMPLES:  # every file read whole (a resampled file holds other than its rows' count)
         segments = tuple(first_rows(path, model, count) for path, count in zip(paths, rows))
         return ChoiceWindow(segments, min(float(segment.t[-1] - segment.t[0]) for segment in segments))
     longest = int(np.argmax(rows))  # the first of the longest, as max() picks it in memory
@@ -82,8 +90,8 @@ def choose_streamed_preprocessing(paths: Sequence[str | Path], model: Identifica
     on the training window and the validation files' first :data:`SCORED_SAMPLES` rows; ``validation_model``: the
     model those fits fit (its channels ``model``'s; ``None``: ``model``), as
     :class:`~estimation.identification.prepared.PreparationSettings` has it."""
+    window = streamed_window(paths, model, rows)  # first, as in memory: the findings said in the files' order
     windows = {Path(path): first_rows(path, model, SCORED_SAMPLES) for path in (*held_out, *validation)}
-    window = streamed_window(paths, model, rows)
     choice = choose_by_evidence(model, window, frequency_hz=frequency_hz,
                                 harmonics=harmonics, cutoff_hz=cutoff_hz, average_periods=average_periods,
                                 decimation=decimation, held_torques=held_torques,

@@ -34,7 +34,7 @@ from estimation.streaming.cluster import caught_warnings, file_stamp, model_from
 from estimation.streaming.diagnosis_sums import ChannelSums, ColumnLayout, EvenSubsample, chunk_sums, concatenate
 from estimation.data.loading import MeasurementError
 from estimation.uncertainty.noise_floor import NoiseFloor, NoiseFloorError, noise_floor, pooled_floor
-from estimation.streaming.chunks import read_chunks
+from estimation.streaming.chunks import logged_chunks
 from estimation.streaming.periods import plan_chunks
 from estimation.streaming.covariance import BatchScores, chunk_scores
 from estimation.estimators.effect_blocks import Block
@@ -192,7 +192,8 @@ def window_floor(paths: Sequence[str | Path], model: IdentificationModel, *, win
     over the files; ``None`` and why when none can be had."""
     floors, failures = [], []
     for path in paths:
-        first = next(read_chunks(path, model, chunk_size=max(int(window), model.n_base + 1)))
+        # as logged: a resampled file's own samples, as the in-memory floor takes them (interpolation smooths noise)
+        first = next(logged_chunks(path, model, chunk_size=max(int(window), model.n_base + 1)))
         try:
             floors.append(noise_floor(first, model.channels, frequency_hz=frequency_hz))
         except NoiseFloorError as error:

@@ -1,16 +1,20 @@
-"""The time base of a streamed file: one scan of column ``t``, then resampling chunk by chunk.
+"""The time base of a streamed file: one scan of its rows, then resampling chunk by chunk.
 
-The in-memory loader (:func:`estimation.data.records.read_measurements`) resamples an irregular time
-base (jitter, as in the KUKA logs: steps of 3.4–6.5 ms around 5 ms) by linear interpolation onto
-``t_0 + k·h``, ``h`` the median step of the whole record. A streamed file gets the same grid:
-:func:`scan_time` reads column ``t`` alone first (8 bytes a sample: the exact median needs every
-step), and :class:`Resampler` interpolates each chunk onto the grid points it spans, carrying the
-last sample of the chunk before so that a grid point between two chunks is interpolated between
-the same two samples as in memory.
+The in-memory loader (:func:`estimation.data.records.segments_from_frame`) drops a logger's re-sent rows and a few
+rows stamped with the previous row's time, checks the time base, bridges stalls up to ``max_gap`` and resamples an
+irregular time base (jitter, as in the KUKA logs: steps of 3.4–6.5 ms around 5 ms; stalls; rows dropped) by linear
+interpolation onto ``t_0 + k·h``, ``h`` the median step of the rows kept
+(:func:`estimation.data.loading.resampling_grid`). A streamed file gets the same rows and the same grid, with the same
+warnings: :func:`scan_time` reads the file block by block once, keeping column ``t`` and whether each row repeats the
+one before on every channel (9 bytes a row: the exact median needs every step), and hands them to the loader's own
+rule (:func:`estimation.data.records.clean_time_base`); :class:`Resampler` then interpolates each chunk of the rows
+kept onto the grid points it spans, carrying the last sample of the chunk before so that a grid point between two
+chunks is interpolated between the same two samples as in memory.
 """
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -18,60 +22,120 @@ import numpy as np
 import pandas as pd
 from numpy.typing import NDArray
 
+from dynamics.effects.linear import WRENCH_CHANNELS
+from dynamics.measurements import joint_columns
+from dynamics.models import IdentificationModel
 from dynamics.runtime.memory import check_allocation
-from estimation.data.loading import IRREGULAR_TOLERANCE, check_time
+from estimation.data.loading import SegmentTooShortError, resampling_grid
+from estimation.data.log_cleaning import DEFAULT_MAX_GAP, repeated_rows, split_rows
+from estimation.data.records import clean_time_base
 
-__all__ = ["Resampler", "TimeScan", "scan_time"]
+__all__ = ["Resampler", "TimeScan", "file_segments", "scan_time"]
 
 
 @dataclass(frozen=True)
 class TimeScan:
-    """What one pass over column ``t`` says: first and last time, median step, spread, rows."""
+    """What one pass over a file's rows says: the rows kept, the first and last time kept, the grid's step, the
+    samples kept, and whether they are resampled."""
 
     t0: float
     t_last: float
     step: float
-    spread: float
     rows: int
+    keep: NDArray[np.bool_] | None = None
+    resampled: bool = False
 
     @property
     def irregular(self) -> bool:
-        """The loader would resample (largest deviation from the median step above its tolerance)."""
-        return self.spread > IRREGULAR_TOLERANCE
+        """The loader resamples the rows kept onto a uniform grid."""
+        return self.resampled
 
     @property
     def grid_count(self) -> int:
-        """Samples of the uniform grid (as :func:`estimation.data.records.read_measurements` makes it)."""
+        """Samples of the uniform grid (as :func:`estimation.data.loading.resampling_grid` makes it)."""
         return int(np.floor((self.t_last - self.t0) / self.step + 1e-9)) + 1
 
 
-def scan_time(frames, path: str | Path) -> TimeScan | None:
-    """Scan the ``t`` column of ``frames`` (an iterator of one-column frames) with the loader's time
-    checks on the whole record (:class:`~estimation.data.loading.TimeBaseError`: duplicated or decreasing
-    times, a gap); ``None`` when the column is absent or not numeric (the per-chunk checks then name
-    the fault)."""
+def scan_time(frames, path: str | Path, model: IdentificationModel, *, max_gap: float = DEFAULT_MAX_GAP,
+              segment: int | None = None) -> TimeScan | None:
+    """Scan the rows of ``frames`` (an iterator of the file's blocks) with the loader's rules on the whole record
+    (module docstring; :class:`~estimation.data.loading.TimeBaseError`: many duplicated or decreasing times). A hole
+    longer than ``max_gap`` splits the record into segments as in memory: ``segment`` (1-based) is the one scanned
+    (its rows alone kept, its own grid); without one, a hole is a :class:`~estimation.data.loading.HoleError`
+    (:func:`file_segments` names the segments). ``None`` when column ``t`` is absent or not numeric (the per-chunk
+    checks then name the fault)."""
+    times = _cleaned(frames, path, model, max_gap=max_gap, split=segment is not None)
+    if times is None:
+        return None
+    keep, kept, name = times.keep, times.t, str(path)
+    if segment is not None:
+        pieces = split_rows(kept.shape[0], times.holes)
+        if not 1 <= segment <= len(pieces):
+            raise ValueError(f"{path} holds {len(pieces)} segment(s), not a segment {segment}")
+        rows = np.flatnonzero(keep)[pieces[segment - 1]]
+        keep = np.zeros_like(keep)
+        keep[rows] = True
+        kept = kept[pieces[segment - 1]]
+        if times.holes:
+            name = f"{path} (segment {segment})"
+            if kept.shape[0] < 3:
+                raise SegmentTooShortError(f"{name}: {kept.shape[0]} sample(s) between holes (t = {kept[0]:.6g} s): "
+                                           "too few for a time series; cut them from the file")
+    grid = resampling_grid(kept, True, name, bridged=times.bridged, stacklevel=4)
+    keep = None if keep.all() else keep
+    if grid is None:
+        return TimeScan(float(kept[0]), float(kept[-1]), float(np.median(np.diff(kept))), int(kept.shape[0]), keep)
+    step = float(kept[-1] - kept[0]) / (grid.shape[0] - 1)
+    return TimeScan(float(kept[0]), float(kept[-1]), step, int(kept.shape[0]), keep, resampled=True)
+
+
+def file_segments(frames, path: str | Path, model: IdentificationModel, *, max_gap: float = DEFAULT_MAX_GAP) -> int:
+    """The segments the loader splits the file of ``frames`` into (its holes longer than ``max_gap``, one more);
+    1 when its time column cannot be read (the per-chunk checks name the fault)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # said when each segment is read
+        times = _cleaned(frames, path, model, max_gap=max_gap, split=True)
+    return 1 if times is None else len(times.holes) + 1
+
+
+def _cleaned(frames, path: str | Path, model: IdentificationModel, *, max_gap: float, split: bool):
+    """The rows the loader keeps of the file of ``frames`` (:func:`estimation.data.records.clean_time_base`), or
+    ``None`` when its time column cannot be read."""
     parts: list[NDArray[np.float64]] = []
-    count = 0
+    repeated: list[NDArray[np.bool_]] = []
+    previous: NDArray[np.float64] | None = None
+    count, n_joints = 0, model.robot.n_joints
     for frame in frames:
         frame = frame.rename(columns=lambda name: str(name).strip())
         if "t" not in frame.columns:
             return None
         t = pd.to_numeric(frame["t"], errors="coerce").to_numpy(dtype=float)
+        columns = [column for group in ("q", "dq", "ddq", "tau", "wrench")
+                   for column in [_columns(group, n_joints)] if all(name in frame.columns for name in column)]
+        data = np.column_stack([pd.to_numeric(frame[name], errors="coerce").to_numpy(dtype=float)
+                                for column in columns for name in column]) if columns else np.zeros((len(frame), 0))
         count += t.shape[0]
         check_allocation(8.0 * 3 * count, f"the time column of {path} ({count} samples)")
         parts.append(t)
+        if previous is not None and previous.shape[1] == data.shape[1] and data.shape[0]:
+            data = np.vstack([previous, data])
+            repeated.append(repeated_rows(data)[1:])
+        else:
+            repeated.append(repeated_rows(data))
+        previous = data[-1:] if data.shape[0] else previous
     if not parts:
         return None
     t = np.concatenate(parts)
     if t.shape[0] < 2 or not np.all(np.isfinite(t)):
         return None
-    check_time(t, str(path))  # the loader's checks on the whole record: duplicates, order, unit, gaps
-    steps = np.diff(t)
-    step = float(np.median(steps))
-    spread = float(np.max(np.abs(steps - step))) / step
-    if spread > IRREGULAR_TOLERANCE:  # the loader's grid: a whole number of steps spans the record
-        step = float(t[-1] - t[0]) / max(int(round((t[-1] - t[0]) / step)), 1)
-    return TimeScan(float(t[0]), float(t[-1]), step, spread, int(t.shape[0]))
+    same = np.concatenate(repeated)
+    if same.shape[0] != t.shape[0]:  # the channels change between blocks: the per-chunk checks name it
+        return None
+    return clean_time_base(t, same, str(path), max_gap=max_gap, split=split)
+
+
+def _columns(group: str, n_joints: int) -> list[str]:
+    return list(WRENCH_CHANNELS) if group == "wrench" else joint_columns(group, n_joints)
 
 
 class Resampler:

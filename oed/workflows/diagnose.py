@@ -42,6 +42,7 @@ from estimation.identification.prepared import InMemoryBudget, PreparedRecords, 
 from estimation.identification.repeated_motion import repeated_motion_note
 from estimation.preprocessing.delay import DelayBounds, split_delay
 from estimation.preprocessing.plan import Preprocessing
+from estimation.streaming.chunks import source_files
 from estimation.streaming.diagnosis import DEFAULT_SUBSAMPLE, diagnose_files_run
 from estimation.streaming.diagnosis_result import StreamedRun
 from estimation.streaming.diagnosis_selection import streamed_refit_selection
@@ -64,7 +65,7 @@ from oed.workflows.asbuilt import (
     worse_after,
 )
 from oed.workflows.chosen_model import ChosenModel, answer_diagnosis, mse_line
-from oed.workflows.memory_path import decide_path, streamed_choice
+from oed.workflows.memory_path import decide_path, streamed_choice, streamed_records
 from oed.workflows.consistent import check_consistent_arguments, consistent_lines, consistent_settings
 from oed.workflows.model_files import (
     add_model_file,
@@ -726,6 +727,7 @@ def diagnosis_streamed(args: DiagnoseOptions, friction: str, plan: Preprocessing
     chunk_size = DEFAULT_CHUNK_SIZE if args.chunk_size is None else args.chunk_size
     if findings is None:  # each pass's findings said as it ends, each once
         findings = FindingsSaid([*args.data, *args.validate])
+    args = streamed_records(args, model)  # a file with holes: its segments, each on its own as in memory
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         if plan is None:
@@ -789,7 +791,7 @@ def resampled_scorer(args: DiagnoseOptions, diagnosis: Diagnosis,
     n_samples = diagnosis.after.validation.n_samples
 
     def score(thetas: Any) -> dict[Any, ChannelErrors]:
-        errors = recorded_validation_errors(document, thetas, args.validate)
+        errors = recorded_validation_errors(document, thetas, source_files(args.validate))
         if errors is None:
             raise ValueError("the validation files were read as recorded: score them from the sums")
         return {key: ChannelErrors(dict(errors[key]), n_samples) for key in thetas}
@@ -807,12 +809,12 @@ def recorded_errors(diagnosis: Diagnosis, args: DiagnoseOptions, plan: dict[str,
     after_file = summed_model_file_document(diagnosis.final_model(), diagnosis.after.estimate, robot=robot,
                                             preprocessing=plan, shape=diagnosis.final_shape(),
                                             recorded_mse=diagnosis.after.train.mse)
-    after = recorded_validation_mse(after_file, args.validate)
+    after = recorded_validation_mse(after_file, source_files(args.validate))
     if after is None:
         return diagnosis
     declared = summed_model_file_document(diagnosis.model, diagnosis.before.estimate, robot=robot,
                                           preprocessing=plan, recorded_mse=diagnosis.before.train.mse)
-    before = recorded_validation_mse(declared, args.validate)
+    before = recorded_validation_mse(declared, source_files(args.validate))
     fits = {which: replace(fit, validation=replace(fit.validation, mse=mse))
             for which, fit, mse in (("before", diagnosis.before, before), ("after", diagnosis.after, after))}
     statistics = diagnosis.statistics

@@ -27,7 +27,7 @@ from dynamics.runtime.output_files import OutputFiles, check_figure_path, json_t
 from dynamics.runtime.progress import step
 from dynamics.runtime.report_document import Report
 from dynamics.transmission import Transmission
-from estimation.data.input_findings import grouped_messages
+from estimation.data.input_findings import FindingsSaid, grouped_messages
 from estimation.data.log_cleaning import DEFAULT_MAX_GAP
 from estimation.diagnosis.statistics import FLOOR_ALPHA, ResidualReport, residual_report
 from estimation.uncertainty.floor_comparison import compare_with_floor
@@ -44,6 +44,7 @@ from estimation.identification.validation import ChannelErrors, plot_comparison
 from estimation.identification.weighting_choice import choose_weighting, weighting_samples
 from estimation.preprocessing.delay import DelayBounds, split_delay
 from estimation.preprocessing.plan import Preprocessing
+from estimation.streaming.chunks import source_files
 from estimation.streaming.cutoff_choice import streamed_window
 from estimation.streaming.identification import SummedFits, identify_files_candidates
 from estimation.streaming.model_selection import streamed_repeated_motion, summed_selection
@@ -66,7 +67,7 @@ from estimation.consistent.identification import ConsistentResult
 from estimation.consistent.model_selection import ModelSelection, select_model
 from oed.workflows.consistent import check_consistent_arguments, consistent_lines, consistent_settings
 from oed.workflows.chosen_model import ChosenModel, answer_identification, chosen_messages, mse_line
-from oed.workflows.memory_path import decide_path, streamed_choice
+from oed.workflows.memory_path import decide_path, streamed_choice, streamed_records
 from oed.workflows.model_files import (
     add_model_file,
     add_summed_model_file,
@@ -239,7 +240,8 @@ def run_identify(args: IdentifyOptions, *, say: Callable[[str], None]) -> Identi
         decision = decide_path(args, model, task="identifying", bytes_per_value=IN_MEMORY.bytes_per_value,
                                in_memory_only=lambda: in_memory_only(args, model, delay), say=say,
                                validation_fits=validation_fits(args, model, delay))
-        identified = (identification_streamed(args, model, transmission, decision.plan) if decision.stream
+        identified = (identification_streamed(args, model, transmission, decision.plan, decision.findings)
+                      if decision.stream
                       else identification_in_memory(args, robot, model, transmission, delay, decision.plan))
     document, messages = identify_document(args, identified)
     chosen = identified.chosen
@@ -364,15 +366,16 @@ def identify_document(args: IdentifyOptions, identified: Identified) -> tuple[di
 
 
 def identification_streamed(args: IdentifyOptions, model: IdentificationModel, transmission: Transmission | None,
-                            plan: Preprocessing | None = None) -> Identified:
+                            plan: Preprocessing | None = None, findings: FindingsSaid | None = None) -> Identified:
     """Identify from the files read in blocks (:func:`estimation.streaming.identification.identify_files_candidates`),
     their derivatives chosen as in memory (``plan``: already chosen), and choose the answer as in memory among the
     unconstrained fits and the consistent refit (:func:`estimation.streaming.model_selection.summed_selection`: from
     the sums, every candidate scored on the same validation samples against the channels as recorded,
     :class:`ValidationScores`; not on the Fourier path, whose sums hold averaged periods); on the validation files,
     the errors against the channels as recorded, the trivial predictors' and the noise floor of their first rows
-    (:func:`recorded_validation`)."""
+    (:func:`recorded_validation`). ``findings``: what the path decision said of the files (not said again)."""
     chunk_size = DEFAULT_CHUNK_SIZE if args.chunk_size is None else args.chunk_size
+    args = streamed_records(args, model)  # a file with holes: its segments, each on its own as in memory
     selection = None
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
@@ -401,7 +404,9 @@ def identification_streamed(args: IdentifyOptions, model: IdentificationModel, t
                                              consistent=consistent_settings(args, model.robot), score=scores,
                                              ratio=ratio)
             result = selection.unconstrained
-    messages = grouped_messages(caught, [*args.data, *(args.validate or ())])  # one line per finding across files
+    # a line per finding across files; those said when the path was decided (``findings``) not again
+    messages = grouped_messages(caught, source_files([*args.data, *(args.validate or ())])) if findings is None \
+        else findings.mark(caught)
     not_computed = dict(result.not_computed)
     if args.method != "auto":  # in memory too, the consistent refit is a candidate of the default choice only
         for key in ("consistent", "links"):
@@ -492,7 +497,7 @@ class ValidationScores:
                     preprocessing=streamed_plan(args.data[0], model, cutoff_hz=streaming["cutoff_hz"],
                                                 decimation=self.decimation, held_torques=self.held_torques,
                                                 chunk_size=self.chunk_size))
-                recorded = recorded_validation_errors(document, vectors, args.validate)  # None: read as recorded
+                recorded = recorded_validation_errors(document, vectors, source_files(args.validate))  # None: as recorded
             if recorded is not None:
                 pass
             elif next(iter(summed.values())).mse is not None:  # the sums hold the recording
@@ -535,7 +540,7 @@ def recorded_validation(args: IdentifyOptions, result: IdentificationResult, chu
         recorded = recorded_validation_mse(summed_model_file_document(
             model, result.estimate, robot=robot_source(model.robot, args), preprocessing=streamed_plan(
                 args.data[0], model, cutoff_hz=streaming["cutoff_hz"], decimation=args.decimate,
-                held_torques=bool(args.held_torques), chunk_size=chunk_size)), args.validate)
+                held_torques=bool(args.held_torques), chunk_size=chunk_size)), source_files(args.validate))
         mse = mse if recorded is None else recorded
     return replace(result, validation=replace(result.validation, mse=mse)), errors, {}
 

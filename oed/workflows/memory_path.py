@@ -14,13 +14,14 @@ from __future__ import annotations
 
 import warnings
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from dynamics.models import IdentificationModel
 from estimation.identification.preprocessing_choice import SCORED_SAMPLES, PreprocessingChoice
 from estimation.preprocessing.differentiation import whole_periods
 from estimation.preprocessing.plan import Preprocessing
 from estimation.data.input_findings import FindingsSaid, grouped_messages
+from estimation.streaming.chunks import segment_sources
 from estimation.streaming.cutoff_choice import choose_streamed_preprocessing, first_rows
 from estimation.data.memory_budget import (
     InMemoryNeed,
@@ -31,7 +32,7 @@ from estimation.data.memory_budget import (
 )
 from oed.workflows.options import RecordOptions, streaming_requested
 
-__all__ = ["PathDecision", "decide_path", "streamed_choice"]
+__all__ = ["PathDecision", "decide_path", "streamed_choice", "streamed_records"]
 
 
 @dataclass(frozen=True)
@@ -69,8 +70,10 @@ def streamed_choice(args: RecordOptions, model: IdentificationModel,
     derivative options given; ``validation_fits``: chosen again on a ``--validate`` record of another motion, as
     in memory (:mod:`estimation.identification.preprocessing_on_validation`), by fits of ``validation_model``
     (``None``: ``model``)."""
-    validation = getattr(args, "validate", None) or ()
-    return choose_streamed_preprocessing(args.data, model, frequency_hz=args.frequency, harmonics=args.harmonics,
+    data = segment_sources(args.data, model)  # a file split at its holes, as in memory
+    validation = segment_sources(getattr(args, "validate", None) or (), model)
+    rows = rows if len(data) == len(args.data) else None
+    return choose_streamed_preprocessing(data, model, frequency_hz=args.frequency, harmonics=args.harmonics,
                                          cutoff_hz=args.cutoff, average_periods=args.average_periods,
                                          decimation=args.decimate, held_torques=args.held_torques, rows=rows,
                                          held_out=validation, validation=validation, validation_fits=validation_fits,
@@ -90,6 +93,15 @@ def averaged_rows(plan: Preprocessing, args: RecordOptions, model: Identificatio
     if any(count < 2 * per_period for count in rows):
         return None  # fewer than two periods: fitted sample by sample in memory
     return [per_period] * len(rows)
+
+
+def streamed_records(args, model: IdentificationModel):
+    """``args`` with the files of ``--data``, ``--validate`` and ``--test`` that hold holes longer than ``--max-gap``
+    replaced by their segments (:func:`estimation.streaming.chunks.segment_sources`): the streamed path reads and
+    preprocesses each on its own, as the in-memory path splits such a file."""
+    changes = {name: segment_sources(getattr(args, name), model) for name in ("data", "validate", "test")
+               if getattr(args, name, None)}
+    return replace(args, **changes) if changes else args
 
 
 def decide_path(args: RecordOptions, model: IdentificationModel, *, task: str, bytes_per_value: float,
