@@ -5,6 +5,7 @@ errors are still reported."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 
 import numpy as np
@@ -14,9 +15,13 @@ import pytest
 from dynamics.models import build_model
 from dynamics.robots import load_robot
 from dynamics.simulation.synthetic import simulate, true_parameters
+from estimation.diagnosis.search import diagnose
 from estimation.identification.repeated_motion import still_motion
 from oed.cli import main
 from oed.fourier import random_fourier
+from tests.corpus.cases import ALONE
+from tests.corpus.records import declared_model, matches, named_pairs
+from tests.corpus.records import records as corpus_records
 
 NOISE = {"tau1": 0.2, "tau2": 0.2, "tau3": 0.1}
 EFFECTS = "viscous,coulomb,offset"
@@ -83,3 +88,41 @@ def test_a_validation_record_at_rest_makes_no_choice_and_says_so(records, capsys
     assert still["validation"]["mse"] and all(np.isfinite(v) for v in still["validation"]["mse"].values())
     assert moving["preprocessing"]["selection"] == "validation"  # the derivatives chosen on the other motion
     assert still["preprocessing"]["selection"] == "held-out"  # not on the record at rest
+
+
+def at_rest(record, samples=500, seed=0):
+    """``samples`` of ``record``'s first pose held: positions within 1e-5 rad, no velocity, its torques with noise."""
+    generator = np.random.default_rng(seed)
+    held = record.select(slice(0, samples))
+    q = np.repeat(record.q[:1], samples, axis=0) + 1e-5 * generator.normal(size=(samples, record.q.shape[1]))
+    tau = np.repeat(record.tau[:1], samples, axis=0) + 0.1 * generator.normal(size=(samples, record.tau.shape[1]))
+    return dataclasses.replace(held, q=q, dq=np.zeros_like(q), ddq=np.zeros_like(q), tau=tau)
+
+
+@pytest.mark.parametrize("name", ["coulomb sign", "clean"])
+def test_a_diagnosis_with_a_validation_record_at_rest_confirms_on_unseen_stretches_of_training(name, monkeypatch):
+    """A record at rest cannot confirm a friction law (nothing moves there): each candidate is judged on the stretches
+    of the training record its fit did not see instead (every comparison made there); the truth's law is named, and
+    nothing on a clean truth."""
+    import estimation.diagnosis.record_fits as record_fits
+
+    judged_on = []
+    blocked = record_fits.blocked_comparison
+
+    def spy(*args, **kwargs):
+        comparison = blocked(*args, **kwargs)
+        judged_on.append(comparison.held_out)
+        return comparison
+
+    monkeypatch.setattr(record_fits, "blocked_comparison", spy)
+    case = next(case for case in ALONE if case.name == name)
+    train, validate = corpus_records(case)
+    still = at_rest(validate)
+    assert still_motion(train, still)
+    diagnosis = diagnose(declared_model(), train, still)
+    assert matches(case.named, named_pairs(diagnosis)), named_pairs(diagnosis)
+    if case.named:
+        assert judged_on and all("training record" in where for where in judged_on), judged_on
+    judged_on.clear()
+    diagnose(declared_model(), train, validate)  # a record of another motion confirms on itself
+    assert judged_on == []
