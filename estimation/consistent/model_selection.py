@@ -59,7 +59,7 @@ from estimation.consistent.identification import (
 from estimation.identification.fit import IdentificationResult, identify
 from estimation.identification.model_file import alternative_entry, effect_entries, model_file_document, with_model
 from estimation.identification.relative_error import CRITERION, relative_scores
-from estimation.identification.repeated_motion import REPEAT_FRACTION, repeated_motion
+from estimation.identification.repeated_motion import REPEAT_FRACTION, repeated_motion, still_motion
 from estimation.identification.validation import ChannelErrors, Comparison
 
 __all__ = ["CANDIDATES", "CONSISTENT_FAILURES", "DEFAULT_PRIOR_WEIGHT", "PREFERENCE", "PRIOR_WEIGHT_GRID", "PRIOR_WEIGHT_TOLERANCE",
@@ -68,7 +68,7 @@ __all__ = ["CANDIDATES", "CONSISTENT_FAILURES", "DEFAULT_PRIOR_WEIGHT", "PREFERE
            "selection_model_file"]
 
 CandidateName = Literal["ols", "wls", "consistent"]
-Selection = Literal["validation", "given", "no-validation", "repeated-motion"]
+Selection = Literal["validation", "given", "no-validation", "repeated-motion", "still-validation"]
 
 #: the candidates, in the order they are listed
 CANDIDATES: tuple[CandidateName, ...] = ("ols", "wls", "consistent")
@@ -175,7 +175,8 @@ class ModelSelection:
         The chosen candidate's name.
     selection
         ``validation`` (smallest validation error), ``given`` (the user's option), ``no-validation`` or
-        ``repeated-motion`` (the consistent candidate preferred since nothing measured the extrapolation).
+        ``repeated-motion`` (the consistent candidate preferred since nothing measured the extrapolation), or
+        ``still-validation`` (as ``repeated-motion``: the validation record hardly moves).
     reason
         One sentence saying why.
     candidates
@@ -301,7 +302,8 @@ def select_model(model: IdentificationModel, train: Measurements, validation: Me
             known[name] = identify(model, train, validation, weighted=name == "wls", delay=delay)
         return known[name]
 
-    if given is None and validation is not None and repeated_motion(train, validation) > REPEAT_FRACTION:
+    if given is None and validation is not None and repeated_motion(train, validation) > REPEAT_FRACTION \
+            and not still_motion(train, validation):
         base = validation_base(unconstrained, base)
     if given in ("ols", "wls"):
         wanted: tuple[str, ...] = (given,)
@@ -363,21 +365,24 @@ def select_fitted(candidates: Sequence[Candidate], train: Measurements, validati
 
     The candidates are listed in :data:`CANDIDATES` order whatever the order given."""
     ratio = None if validation is None else repeated_motion(train, validation)
-    return select_scored(candidates, base=base, given=given, ratio=ratio)
+    still = validation is not None and still_motion(train, validation)
+    return select_scored(candidates, base=base, given=given, ratio=ratio, still=still)
 
 
 def select_scored(candidates: Sequence[Candidate], *, base: Literal["ols", "wls"], given: CandidateName | None = None,
-                  ratio: float | None) -> ModelSelection:
+                  ratio: float | None, still: bool = False) -> ModelSelection:
     """:func:`select_fitted` of candidates whose records are not held (the streamed path: their errors from sums,
     :class:`~estimation.identification.validation.ChannelErrors`), ``ratio`` the
-    :func:`~estimation.identification.repeated_motion.repeated_motion` of the validation record (``None``: none)."""
+    :func:`~estimation.identification.repeated_motion.repeated_motion` of the validation record (``None``: none);
+    ``still``: the validation record hardly moves (:func:`~estimation.identification.repeated_motion.still_motion`),
+    and chooses nothing, as a repeat does not."""
     by_name = {candidate.name: candidate for candidate in candidates}
     if len(by_name) != len(candidates):
         raise ValueError(f"two candidates share a name: {[candidate.name for candidate in candidates]}")
     if given is None and (base not in by_name or by_name[base].fit is None):
         raise ValueError(f"the base candidate {base!r} must be among the fitted candidates {sorted(by_name)}")
     ordered = tuple(by_name[name] for name in CANDIDATES if name in by_name)
-    chosen, selection, reason = _choose(ordered, given, base, ratio)
+    chosen, selection, reason = _choose(ordered, given, base, ratio, still)
     return ModelSelection(chosen, selection, reason, ordered, base, ratio)
 
 
@@ -416,18 +421,20 @@ def _no_consistent_fit(result: IdentificationResult, delay: Any) -> str | None:
 
 
 def _choose(candidates: tuple[Candidate, ...], given: CandidateName | None, base: str,
-            ratio: float | None) -> tuple[CandidateName, Selection, str]:
+            ratio: float | None, still: bool = False) -> tuple[CandidateName, Selection, str]:
     available = {candidate.name: candidate for candidate in candidates if candidate.fit is not None}
     if given is not None:
         return given, "given", "chosen by the options given"
-    if ratio is None or ratio <= REPEAT_FRACTION:
+    if ratio is None or ratio <= REPEAT_FRACTION or still:
         why = "no validation record" if ratio is None else \
-            f"the validation record repeats the training motion (positions within {100 * ratio:.2g} % of their spread)"
+            ("the validation record hardly moves (every joint within 5 % of its range in training)" if still else
+             f"the validation record repeats the training motion (positions within {100 * ratio:.2g} % of their spread)")
+        kind = "no-validation" if ratio is None else "still-validation" if still else "repeated-motion"
         if "consistent" in available:
-            return ("consistent", "no-validation" if ratio is None else "repeated-motion",
+            return ("consistent", kind,
                     f"{why}: nothing measured how the candidates extrapolate to another motion, so the fit that "
                     "regularises toward the robot description where the data say nothing is chosen")
-        return (base, "no-validation" if ratio is None else "repeated-motion",  # type: ignore[return-value]
+        return (base, kind,  # type: ignore[return-value]
                 f"{why}, and {available_reason(candidates)}: the weighting the training record's blocked "
                 "cross-validation prefers is kept")
     scored = scores(tuple(available.values()))

@@ -106,7 +106,8 @@ def _sums(fixed: FixedPart, samples: NDArray[np.bool_]
 
 def blocked_comparison(trial: Trial, fixed_train: FixedPart, fixed_validate: FixedPart, states_train: States,
                        states_validate: States, settled: NDArray[np.float64], blocks: HeldOutBlocks,
-                       current: tuple[FixedPart, FixedPart] | None = None) -> CandidateComparison:
+                       current: tuple[FixedPart, FixedPart] | None = None,
+                       held_out: str = "the stretches of the repeated motion its fit did not see") -> CandidateComparison:
     """:func:`reweighted_comparison` on a validation record that repeats the training motion: both models trained
     at ``settled``, the weights the candidate's training residuals give (:func:`settled_weights`, as the
     comparison on the whole repeat found them), each stretch of the validation record predicted by the fits that
@@ -117,8 +118,7 @@ def blocked_comparison(trial: Trial, fixed_train: FixedPart, fixed_validate: Fix
     current_train, current_validate = (fixed_train, fixed_validate) if current is None else current
     current_residual = blocks.residual(current_train, current_validate, settled)
     return CandidateComparison(settled, float(settled @ np.mean(candidate**2, axis=1)), candidate,
-                      float(settled @ np.mean(current_residual**2, axis=1)), current_residual,
-                      "the stretches of the repeated motion its fit did not see")
+                      float(settled @ np.mean(current_residual**2, axis=1)), current_residual, held_out)
 
 
 @dataclass(frozen=True)

@@ -40,7 +40,7 @@ from estimation.estimators.effect_blocks import Block, States
 from estimation.estimators.separable_least_squares import FixedPart, residuals, solve_linear
 from estimation.estimators.variable_projection import ShapeFit
 from estimation.identification.fit import IdentificationResult
-from estimation.identification.repeated_motion import REPEAT_FRACTION, repeated_motion
+from estimation.identification.repeated_motion import REPEAT_FRACTION, repeated_motion, still_motion
 from estimation.preprocessing.delay import DelayBounds
 
 __all__ = ["MIN_PARALLEL_SEARCHES", "RecordFit", "RecordFits", "declared_regressor"]
@@ -119,6 +119,10 @@ class RecordFits:
         # a validation record that repeats the training motion confirms on stretches of it the fits did not see
         self.held_out = HeldOutBlocks.of(train.t, recorded.t, train.metadata.get("frequency_hz")) \
             if self.unseen_stretches and repeated_motion(train, recorded) <= REPEAT_FRACTION else None
+        # a validation record at rest measures little of the dynamics: a candidate is judged on the stretches of the
+        # training record its fit did not see
+        self.own_stretches = HeldOutBlocks.of(train.t, train.t, train.metadata.get("frequency_hz")) \
+            if still_motion(train, recorded) else None
         self.set_model(self.adopted)
 
     @property
@@ -257,6 +261,11 @@ class RecordFits:
         fixed_train, fixed_validate = self._columns(trial.without)
         repeat = reweighted_comparison(trial, fixed_train, fixed_validate, self.states_train, self.states_validate,
                                        weights, current=(self.fixed_train, self.fixed_validate))
+        if self.own_stretches is not None:
+            return blocked_comparison(trial, fixed_train, fixed_train, self.states_train, self.states_train,
+                                      repeat.weights, self.own_stretches, current=(self.fixed_train, self.fixed_train),
+                                      held_out="the stretches of the training record its fit did not see (the "
+                                               "validation record hardly moves)")
         if self.held_out is None:
             return repeat
         return unseen_veto(repeat, blocked_comparison(trial, fixed_train, fixed_validate, self.states_train,

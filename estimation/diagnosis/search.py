@@ -253,7 +253,7 @@ def _checked_candidates(model: IdentificationModel, train: Measurements, validat
         raise ValueError(f"alpha must lie in (0, 1), got {alpha}")
     if not 0 <= min_improvement < 1:
         raise ValueError(f"min_improvement must lie in [0, 1), got {min_improvement}")
-    candidates = tuple(default_candidates(model) + coupling_candidates(model, train=train)  # coulomb[q5+q6] …
+    candidates = tuple(default_candidates(model) + coupling_candidates(model, train=train, held_out=validate)  # coulomb[q5+q6]
                        if candidates is None else candidates)
     for candidate in candidates:
         if not isinstance(candidate, Effect):

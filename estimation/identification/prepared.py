@@ -46,6 +46,7 @@ from estimation.data.rest import (
 )
 from estimation.identification.preprocessing_choice import choose_by_evidence
 from estimation.identification.preprocessing_on_validation import FITS, on_validation
+from estimation.identification.repeated_motion import STILL_SHARE
 from estimation.preprocessing.differentiation import AverageChoice
 from estimation.uncertainty.noise_floor import NoiseFloor, NoiseFloorError, noise_floor, pooled_floor
 from estimation.preprocessing.plan import (
@@ -317,10 +318,6 @@ def prepare_records(model: IdentificationModel, train: Sequence[str | Path], val
     return PreparedRecords(preprocessing, records["train"], records["validation"], records["test"])
 
 
-#: a validation record whose joints all span less than this share of the training motion's range hardly moves
-STILL_SHARE = 0.05
-
-
 def still_record_note(train: Sequence[RecordedFile], validation: Sequence[RecordedFile]) -> str | None:
     """A warning when every joint of the validation record spans less than :data:`STILL_SHARE` of its range in the
     training record (a robot holding its pose: what is chosen on it measures little of the dynamics), else ``None``.
@@ -334,8 +331,8 @@ def still_record_note(train: Sequence[RecordedFile], validation: Sequence[Record
         return None
     return ("the validation record hardly moves (its joints span " + ", ".join(f"{value:.3g}" for value in held)
             + f", each less than {100 * STILL_SHARE:g} % of its range in training): the robot holds a pose there, "
-            "and what is chosen on it (derivatives, weighting, model) measures little of the dynamics; give a record "
-            "of another motion")
+            "which measures little of the dynamics: the derivatives, the weighting and the default answer are chosen "
+            "as without a validation record, its errors still reported; give a record of another motion")
 
 
 def check_distinct_records(records: dict[str, Sequence[str | Path]]) -> None:

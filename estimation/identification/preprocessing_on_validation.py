@@ -75,7 +75,7 @@ from estimation.identification.preprocessing_choice import (
     scored_window,
 )
 from estimation.identification.relative_error import relative_scores
-from estimation.identification.repeated_motion import REPEAT_FRACTION, repeated_motion
+from estimation.identification.repeated_motion import REPEAT_FRACTION, repeated_motion, still_motion
 from estimation.identification.validation import compare_recorded
 from estimation.preprocessing.plan import (
     Evidence,
@@ -233,10 +233,12 @@ def chooses_on_validation(chosen: Preprocessing, train: Sequence[Measurements],
                           validation: Sequence[Measurements]) -> bool:
     """Whether the preprocessing is chosen again on the validation record (module docstring: when it applies):
     ``chosen`` was chosen among candidates on the training record, and the validation record holds another
-    motion."""
+    motion (neither a repeat of it nor a record at rest: :func:`~estimation.identification.repeated_motion.still_motion`)."""
     if not validation or chosen.evidence is None or chosen.evidence.selection != "held-out":
         return False
-    return repeated_motion(concatenate(train), concatenate(validation)) > REPEAT_FRACTION
+    train_record, validation_record = concatenate(train), concatenate(validation)
+    return (repeated_motion(train_record, validation_record) > REPEAT_FRACTION
+            and not still_motion(train_record, validation_record))
 
 
 def window(segment: Measurements) -> Measurements:

@@ -21,7 +21,7 @@ import numpy as np
 
 from dynamics.measurements import Measurements
 
-__all__ = ["REPEAT_FRACTION", "repeated_motion", "repeated_motion_note"]
+__all__ = ["REPEAT_FRACTION", "STILL_SHARE", "repeated_motion", "repeated_motion_note", "still_motion"]
 
 #: two records whose median sampling steps differ by more than this fraction are compared in time, not sample by
 #: sample
@@ -30,6 +30,19 @@ SAME_RATE = 1e-3
 #: the validation positions within this fraction of the training motion's spread (root mean square, every
 #: joint) sample by sample: the same motion again
 REPEAT_FRACTION = 0.05
+
+
+#: a validation record whose joints all span less than this share of the training motion's range hardly moves
+STILL_SHARE = 0.05
+
+
+def still_motion(train: Measurements, validation: Measurements) -> bool:
+    """Whether every joint of ``validation`` spans less than :data:`STILL_SHARE` of its range in ``train`` (a robot
+    holding a pose). Such a record measures little of the dynamics: the choices that read a validation record
+    (derivatives, weighting, the default answer) treat it as no validation record, its errors still reported."""
+    if validation.q.shape[0] == 0 or train.q.shape[0] == 0 or train.q.shape[1] != validation.q.shape[1]:
+        return False
+    return bool(np.all(np.ptp(validation.q, axis=0) < STILL_SHARE * np.ptp(train.q, axis=0)))
 
 
 def repeated_motion(train: Measurements, validation: Measurements) -> float:

@@ -586,7 +586,7 @@ def diagnose_records(args: DiagnoseOptions, model: IdentificationModel, transmis
                      records: PreparedRecords, delay: DelayBounds | None, floor: NoiseFloor | None) -> Diagnosis:
     """The diagnosis of the prepared records; ``floor``: the validation record's as recorded (:func:`record_floors`)."""
     train, validation = records.train.measurements, records.validation.measurements
-    candidates = default_candidates(model) + coupling_candidates(model, transmission, train=train)
+    candidates = default_candidates(model) + coupling_candidates(model, transmission, train=train, held_out=validation)
     return diagnose_model(model, train, validation, alpha=args.alpha, candidates=candidates,
                           max_effects=args.max_effects, noise_floor=floor, delay=delay or DelayBounds(), jobs=args.jobs,
                           unseen_stretches=args.unseen_stretches)
