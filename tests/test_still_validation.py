@@ -54,10 +54,10 @@ def records(tmp_path_factory):
     return folder, paths, data
 
 
-def identify(folder, paths, validate):
-    out = folder / f"{validate}.json"
+def identify(folder, paths, validate, *options):
+    out = folder / f"{validate}{''.join(options)}.json"
     assert main(["identify", "--joints", "3", "--data", str(paths["train"]), "--validate", str(paths[validate]),
-                 "--friction", EFFECTS, "--out", str(out)]) == 0
+                 "--friction", EFFECTS, "--out", str(out), *options]) == 0
     return json.loads(out.read_text())
 
 
@@ -88,6 +88,41 @@ def test_a_validation_record_at_rest_makes_no_choice_and_says_so(records, capsys
     assert still["validation"]["mse"] and all(np.isfinite(v) for v in still["validation"]["mse"].values())
     assert moving["preprocessing"]["selection"] == "validation"  # the derivatives chosen on the other motion
     assert still["preprocessing"]["selection"] == "held-out"  # not on the record at rest
+
+
+@pytest.mark.parametrize("options", [("--chunk-size", "250"), ("--memory-budget", "1KB")])
+def test_a_validation_record_at_rest_streamed_makes_no_choice_as_in_memory(records, capsys, options):
+    """Streamed (in blocks, the still test from each joint's running minimum and maximum), a record at rest gives
+    the in-memory answer: the same selection, the same chosen model, the derivatives not chosen on it; said."""
+    folder, paths, _ = records
+    in_memory = identify(folder, paths, "still")
+    capsys.readouterr()
+    streamed = identify(folder, paths, "still", *options)
+    error = capsys.readouterr().err
+    assert "hardly moves" in error and "as without a validation record" in error, error
+    assert in_memory["identification_path"] == "in-memory" and streamed["identification_path"] == "streamed"
+    assert streamed["model_selection"]["selection"] == in_memory["model_selection"]["selection"] == "still-validation"
+    assert streamed["model_selection"]["chosen"] == in_memory["model_selection"]["chosen"]
+    assert streamed["preprocessing"]["selection"] == in_memory["preprocessing"]["selection"] == "held-out"
+    assert streamed["validation"]["mse"] and all(np.isfinite(v) for v in streamed["validation"]["mse"].values())
+
+
+def test_a_streamed_diagnosis_with_a_validation_record_at_rest_chooses_its_answer_as_in_memory(records, capsys):
+    """``oed diagnose``'s default answer (the adopted model or its consistent refit) with a record at rest: streamed,
+    as in memory, no choice on it (``still-validation``), said."""
+    folder, paths, _ = records
+    documents = {}
+    for name, options in (("memory", ()), ("streamed", ("--chunk-size", "250"))):
+        out = folder / f"diagnose-{name}.json"
+        assert main(["diagnose", "--joints", "3", "--model", "internal", "--data", str(paths["train"]), "--validate",
+                     str(paths["still"]), "--out", str(out), *options]) == 0
+        error = capsys.readouterr().err
+        assert "hardly moves" in error, error
+        documents[name] = json.loads(out.read_text())
+    assert documents["memory"]["diagnosis_path"] == "in-memory" and documents["streamed"]["diagnosis_path"] == "streamed"
+    memory, streamed = documents["memory"]["model_selection"], documents["streamed"]["model_selection"]
+    assert streamed["selection"] == memory["selection"] == "still-validation"
+    assert streamed["chosen"] == memory["chosen"]
 
 
 def at_rest(record, samples=500, seed=0):

@@ -46,7 +46,7 @@ from estimation.data.rest import (
 )
 from estimation.identification.preprocessing_choice import choose_by_evidence
 from estimation.identification.preprocessing_on_validation import FITS, on_validation
-from estimation.identification.repeated_motion import STILL_SHARE
+from estimation.identification.repeated_motion import still_spans_note
 from estimation.preprocessing.differentiation import AverageChoice
 from estimation.uncertainty.noise_floor import NoiseFloor, NoiseFloorError, noise_floor, pooled_floor
 from estimation.preprocessing.plan import (
@@ -326,13 +326,7 @@ def still_record_note(train: Sequence[RecordedFile], validation: Sequence[Record
         q = np.concatenate([segment.q for file in files for segment in file.segments], axis=0)
         return np.ptp(q, axis=0)
 
-    moved, held = span(train), span(validation)
-    if not np.all(held < STILL_SHARE * moved):
-        return None
-    return ("the validation record hardly moves (its joints span " + ", ".join(f"{value:.3g}" for value in held)
-            + f", each less than {100 * STILL_SHARE:g} % of its range in training): the robot holds a pose there, "
-            "which measures little of the dynamics: the derivatives, the weighting and the default answer are chosen "
-            "as without a validation record, its errors still reported; give a record of another motion")
+    return still_spans_note(span(train), span(validation))
 
 
 def check_distinct_records(records: dict[str, Sequence[str | Path]]) -> None:

@@ -21,7 +21,8 @@ import numpy as np
 
 from dynamics.measurements import Measurements
 
-__all__ = ["REPEAT_FRACTION", "STILL_SHARE", "repeated_motion", "repeated_motion_note", "still_motion"]
+__all__ = ["REPEAT_FRACTION", "STILL_SHARE", "repeated_motion", "repeated_motion_note", "still_motion",
+           "still_spans_note"]
 
 #: two records whose median sampling steps differ by more than this fraction are compared in time, not sample by
 #: sample
@@ -43,6 +44,19 @@ def still_motion(train: Measurements, validation: Measurements) -> bool:
     if validation.q.shape[0] == 0 or train.q.shape[0] == 0 or train.q.shape[1] != validation.q.shape[1]:
         return False
     return bool(np.all(np.ptp(validation.q, axis=0) < STILL_SHARE * np.ptp(train.q, axis=0)))
+
+
+def still_spans_note(moved: np.ndarray, held: np.ndarray) -> str | None:
+    """The warning of a validation record at rest (:func:`still_motion`), from each joint's span (max − min) in the
+    training record (``moved``) and in the validation record (``held``), else ``None``: in memory
+    (:func:`estimation.identification.prepared.still_record_note`) and from spans computed block by block
+    (:func:`estimation.streaming.model_selection.streamed_spans`)."""
+    if moved.shape != held.shape or not np.all(held < STILL_SHARE * moved):
+        return None
+    return ("the validation record hardly moves (its joints span " + ", ".join(f"{value:.3g}" for value in held)
+            + f", each less than {100 * STILL_SHARE:g} % of its range in training): the robot holds a pose there, "
+            "which measures little of the dynamics: the derivatives, the weighting and the default answer are chosen "
+            "as without a validation record, its errors still reported; give a record of another motion")
 
 
 def repeated_motion(train: Measurements, validation: Measurements) -> float:

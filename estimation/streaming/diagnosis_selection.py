@@ -78,12 +78,14 @@ def sums_scorer(validation: ChannelSums, columns: Sequence[int]) -> Scorer:
 
 def streamed_refit_selection(diagnosis: Diagnosis, run: StreamedRun, *, given: Literal["consistent"] | None = None,
                              consistent: ConsistentSettings | None = None, score: Scorer | None = None,
-                             ratio: float | None = None, note: str = "with the diagnosed effects") -> ModelSelection:
+                             ratio: float | None = None, still: bool = False,
+                             note: str = "with the diagnosed effects") -> ModelSelection:
     """:func:`~estimation.consistent.model_selection.select_refit` of a streamed diagnosis (module docstring): its
     adopted model as fitted (``diagnosis.after``, its validation error as the diagnosis measured it) or its
     consistent refit from the sums of ``run``. ``score``: the validation errors of several base-parameter vectors in
     the model's base order (default :func:`sums_scorer`); ``ratio``: the validation record's repeated-motion ratio
-    (``None``: no comparison on another motion). A refit that fails is no candidate (listed with the reason), unless
+    (``None``: no comparison on another motion); ``still``: the validation record is at rest
+    (:func:`~estimation.streaming.model_selection.streamed_still_motion`) and chooses nothing, as in memory. A refit that fails is no candidate (listed with the reason), unless
     ``given="consistent"`` asked for it."""
     if given not in (None, "consistent"):
         raise ValueError(f"given must be None or 'consistent', got {given!r}")
@@ -105,4 +107,5 @@ def streamed_refit_selection(diagnosis: Diagnosis, run: StreamedRun, *, given: L
         if given == "consistent":
             raise
         candidate = Candidate("consistent", None, f"the consistent fit failed ({error})", note=note)
-    return select_scored((Candidate(base, fit, note=note), candidate), base=base, given=given, ratio=ratio)
+    return select_scored((Candidate(base, fit, note=note), candidate), base=base, given=given, ratio=ratio,
+                         still=still)

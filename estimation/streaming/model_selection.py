@@ -15,7 +15,9 @@ motion (:mod:`estimation.consistent.model_selection`, issue 34). A record over t
   blocks, every candidate on the same samples (the caller's);
 * whether the validation record repeats the training motion is the in-memory test
   (:func:`~estimation.identification.repeated_motion.repeated_motion`) from running sums over both records read
-  side by side (:func:`streamed_repeated_motion`).
+  side by side (:func:`streamed_repeated_motion`), and whether it is a record at rest
+  (:func:`~estimation.identification.repeated_motion.still_motion`) from each joint's running minimum and maximum
+  over both records (:func:`streamed_still_motion`): such a record chooses nothing, as in memory.
 
 The choice itself is the in-memory one (:func:`~estimation.consistent.model_selection.select_scored`), so that a
 record gives the same answer whichever path its length sends it down.
@@ -23,6 +25,7 @@ record gives the same answer whichever path its length sends it down.
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Iterator, Sequence
 from dataclasses import replace
 from pathlib import Path
@@ -43,16 +46,17 @@ from estimation.consistent.model_selection import (
     select_scored,
     validation_base,
 )
-from estimation.identification.repeated_motion import REPEAT_FRACTION
+from estimation.identification.repeated_motion import REPEAT_FRACTION, STILL_SHARE, still_spans_note
 from estimation.streaming.chunks import read_chunks
 from estimation.streaming.identification import SummedFits
 
-__all__ = ["streamed_repeated_motion", "summed_selection"]
+__all__ = ["streamed_repeated_motion", "streamed_spans", "streamed_still_motion", "summed_selection",
+           "warned_still_motion"]
 
 
 def summed_selection(sums: SummedFits, *, base: Literal["ols", "wls"], given: CandidateName | None = None,
                      consistent: ConsistentSettings | None = None, score: Scorer | None = None,
-                     ratio: float | None = None) -> ModelSelection:
+                     ratio: float | None = None, still: bool = False) -> ModelSelection:
     """:func:`estimation.consistent.model_selection.select_model` of fits from sums (module docstring).
 
     Parameters
@@ -65,13 +69,16 @@ def summed_selection(sums: SummedFits, *, base: Literal["ols", "wls"], given: Ca
         The validation errors of several base-parameter vectors, by key, in one pass (``None``: no validation record).
     ratio
         :func:`streamed_repeated_motion` of the validation record (``None``: none).
+    still
+        :func:`streamed_still_motion` of the validation record: a record at rest chooses neither the weighting
+        nor the answer (as in memory), its errors still listed.
     """
     settings = ConsistentSettings() if consistent is None else consistent
     fits = dict(sums.fits)
     if score is not None:  # the unconstrained candidates' errors, on the samples the others are scored on
         scored = score({name: fit.estimate.values for name, fit in fits.items()})
         fits = {name: replace(fit, validation=scored[name]) for name, fit in fits.items()}
-    validated = score is not None and ratio is not None and ratio > REPEAT_FRACTION
+    validated = score is not None and ratio is not None and ratio > REPEAT_FRACTION and not still
     if given is None and validated and {"ols", "wls"} <= set(fits):
         base = validation_base(fits.__getitem__, base)
     if given in ("ols", "wls"):
@@ -96,7 +103,7 @@ def summed_selection(sums: SummedFits, *, base: Literal["ols", "wls"], given: Ca
             if given == "consistent":
                 raise
             candidates.append(Candidate("consistent", None, f"the consistent fit failed ({error})"))
-    return select_scored(candidates, base=base, given=given, ratio=ratio)
+    return select_scored(candidates, base=base, given=given, ratio=ratio, still=still)
 
 
 def streamed_repeated_motion(model: IdentificationModel, train: Sequence[str | Path],
@@ -126,6 +133,48 @@ def streamed_repeated_motion(model: IdentificationModel, train: Sequence[str | P
     with np.errstate(divide="ignore", invalid="ignore"):
         ratio = np.where(spread > 0, rms_difference / spread, np.where(rms_difference > 0, np.inf, 0.0))
     return float(np.max(ratio))
+
+
+def streamed_spans(model: IdentificationModel, paths: Sequence[str | Path], *,
+                   chunk_size: int) -> NDArray[np.float64] | None:
+    """Each joint's span (max − min) of the positions over the files ``paths`` read block by block (as
+    :func:`streamed_repeated_motion` reads them), ``None`` when they hold no rows."""
+    low: NDArray[np.float64] | None = None
+    high: NDArray[np.float64] | None = None
+    for q in _positions(model, paths, chunk_size):
+        if q.shape[0] == 0:
+            continue
+        low = q.min(axis=0) if low is None else np.minimum(low, q.min(axis=0))
+        high = q.max(axis=0) if high is None else np.maximum(high, q.max(axis=0))
+    return None if low is None or high is None else high - low
+
+
+def streamed_still_motion(model: IdentificationModel, train: Sequence[str | Path], validation: Sequence[str | Path],
+                          *, chunk_size: int) -> tuple[bool, NDArray[np.float64] | None, NDArray[np.float64] | None]:
+    """:func:`estimation.identification.repeated_motion.still_motion` of the records ``train`` and ``validation``
+    (each its files one after the other) in bounded memory: whether every joint of the validation record spans
+    less than :data:`~estimation.identification.repeated_motion.STILL_SHARE` of its range in training, with the
+    two records' spans (:func:`streamed_spans`; ``None``: no rows)."""
+    moved = streamed_spans(model, train, chunk_size=chunk_size)
+    held = streamed_spans(model, validation, chunk_size=chunk_size)
+    if moved is None or held is None or moved.shape != held.shape:
+        return False, moved, held
+    return bool(np.all(held < STILL_SHARE * moved)), moved, held
+
+
+def warned_still_motion(model: IdentificationModel, train: Sequence[str | Path], validation: Sequence[str | Path],
+                        *, chunk_size: int) -> bool:
+    """:func:`streamed_still_motion`, warned as in memory (:func:`~estimation.identification.repeated_motion.
+    still_spans_note`) when the validation record is at rest: it then chooses nothing. The files' own findings are
+    not said again (the passes that fit them say them)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        still, moved, held = streamed_still_motion(model, train, validation, chunk_size=chunk_size)
+    if still and moved is not None and held is not None:
+        note = still_spans_note(moved, held)
+        if note is not None:
+            warnings.warn(note, stacklevel=2)
+    return still
 
 
 def _positions(model: IdentificationModel, paths: Sequence[str | Path], chunk_size: int) -> Iterator[np.ndarray]:

@@ -46,7 +46,7 @@ from estimation.streaming.chunks import source_files
 from estimation.streaming.diagnosis import DEFAULT_SUBSAMPLE, diagnose_files_run
 from estimation.streaming.diagnosis_result import StreamedRun
 from estimation.streaming.diagnosis_selection import streamed_refit_selection
-from estimation.streaming.model_selection import streamed_repeated_motion
+from estimation.streaming.model_selection import streamed_repeated_motion, warned_still_motion
 from estimation.streaming.diagnosis_result import floor_report
 from estimation.streaming.recorded_errors import streamed_plan
 from estimation.identification.model_file import summed_model_file_document
@@ -738,6 +738,7 @@ def diagnosis_streamed(args: DiagnoseOptions, friction: str, plan: Preprocessing
                                        max_effects=args.max_effects, subsample=args.subsample,
                                        floor_window=args.floor_window, executor=executor, preprocessing=plan,
                                        findings=findings)
+        still = warned_still_motion(model, args.data, args.validate, chunk_size=chunk_size)  # said as in memory
     messages = tuple(caught_messages(caught))  # the findings as said (one line per finding across files), others
     cutoff_hz = diagnosis.streaming["cutoff_hz"]
     if plan.method == "fourier":  # validated on every sample of whole periods as recorded: what predict measures
@@ -749,7 +750,7 @@ def diagnosis_streamed(args: DiagnoseOptions, friction: str, plan: Preprocessing
             diagnosis = recorded_errors(diagnosis, args, model_plan)
         model_file = model_plan, diagnosis.after.validation.mse
     with step("the default answer: the adopted model or its consistent refit (from the sums)"):
-        selection = streamed_selection(args, diagnosis, run, model_file[0], chunk_size)
+        selection = streamed_selection(args, diagnosis, run, model_file[0], chunk_size, still=still)
     diagnosis = replace(diagnosis, not_computed={key: reason for key, reason in diagnosis.not_computed.items()
                                                  if key not in SELECTION_KEYS})  # computed now
     return Diagnosed(diagnosis, {"cutoff_hz": cutoff_hz, **plan.to_dict()}, plan.describe(), messages,
@@ -761,13 +762,14 @@ SELECTION_KEYS = ("consistent", "links", "model_selection")
 
 
 def streamed_selection(args: DiagnoseOptions, diagnosis: Diagnosis, run: StreamedRun, plan: dict[str, Any],
-                       chunk_size: int) -> ModelSelection:
+                       chunk_size: int, *, still: bool = False) -> ModelSelection:
     """The default answer of a streamed diagnosis, chosen as in memory (:func:`diagnosis_selection`) from its sums
     (:func:`estimation.streaming.diagnosis_selection.streamed_refit_selection`): the adopted model or its consistent
     refit, every candidate (every weight of the prior's search) scored on the same validation samples against the
     channels as recorded: from the validation sums, or, on a validation file the loader resampled onto a uniform
     grid, at its recorded samples as ``oed predict`` measures them (:func:`resampled_scorer`, read in memory as the
-    adopted model's own error there is). ``plan``: the model files' preprocessing."""
+    adopted model's own error there is). ``plan``: the model files' preprocessing; ``still``: the validation record
+    is at rest (:func:`estimation.streaming.model_selection.warned_still_motion`): it chooses nothing, as in memory."""
     model = diagnosis.model
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # the files' findings were said on the diagnosis's passes
@@ -776,7 +778,8 @@ def streamed_selection(args: DiagnoseOptions, diagnosis: Diagnosis, run: Streame
         if resampled_validation({"streaming": diagnosis.streaming}):
             score = resampled_scorer(args, diagnosis, plan)
         return streamed_refit_selection(diagnosis, run, given="consistent" if args.consistent else None,
-                                        consistent=consistent_settings(args, model.robot), score=score, ratio=ratio)
+                                        consistent=consistent_settings(args, model.robot), score=score, ratio=ratio,
+                                        still=still)
 
 
 def resampled_scorer(args: DiagnoseOptions, diagnosis: Diagnosis,

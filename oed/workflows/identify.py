@@ -47,7 +47,7 @@ from estimation.preprocessing.plan import Preprocessing
 from estimation.streaming.chunks import source_files
 from estimation.streaming.cutoff_choice import streamed_window
 from estimation.streaming.identification import SummedFits, identify_files_candidates
-from estimation.streaming.model_selection import streamed_repeated_motion, summed_selection
+from estimation.streaming.model_selection import streamed_repeated_motion, summed_selection, warned_still_motion
 from estimation.streaming.periods import plan_options
 from estimation.streaming.diagnosis_passes import window_floor
 from estimation.streaming.recorded_errors import (
@@ -399,10 +399,12 @@ def identification_streamed(args: IdentifyOptions, model: IdentificationModel, t
             scores = None if result.validation is None else ValidationScores(args, sums, result, chunk_size, options)
             ratio = None if not args.validate else streamed_repeated_motion(model, args.data, args.validate,
                                                                             chunk_size=chunk_size)
+            still = bool(args.validate) and warned_still_motion(model, args.data, args.validate,
+                                                                chunk_size=chunk_size)
             with step("identified (the candidate models fitted and compared)"):
                 selection = summed_selection(sums, base=base, given=None if args.method == "auto" else args.method,
                                              consistent=consistent_settings(args, model.robot), score=scores,
-                                             ratio=ratio)
+                                             ratio=ratio, still=still)
             result = selection.unconstrained
     # a line per finding across files; those said when the path was decided (``findings``) not again
     messages = grouped_messages(caught, source_files([*args.data, *(args.validate or ())])) if findings is None \
