@@ -260,12 +260,13 @@ class PlainFit:
         trim = SETTLING / cutoff_hz
         return (record.t >= record.t[0] + trim) & (record.t <= record.t[-1] - trim)
 
-    def fit(self, train: Record, validate: Record) -> tuple[float, np.ndarray]:
+    def fit(self, train: Record, validate: Record, *, rate_hz: float | None = None) -> tuple[float, np.ndarray]:
         """The cut-off of the smallest total validation MSE and its parameters. Each cut-off is fitted on the
         training samples its filter keeps and scored on the same validation samples (those the lowest cut-off
-        keeps); cut-offs whose settling would take more than a tenth of the validation record are not tried."""
+        keeps); cut-offs whose settling would take more than a tenth of the validation record are not tried, nor
+        those above 40 % of ``rate_hz`` (default the training record's rate, its fresh rows)."""
         fresh = np.r_[True, np.any(np.diff(train.q, axis=0) != 0, axis=1)]
-        rate = 1.0 / float(np.median(np.diff(train.t[fresh])))
+        rate = 1.0 / float(np.median(np.diff(train.t[fresh]))) if rate_hz is None else rate_hz
         duration = validate.t[-1] - validate.t[0]
         cutoffs = [c for c in CUTOFFS_HZ if c < 0.4 * rate and SETTLING / c <= 0.1 * duration]
         scored = self.kept(validate, min(cutoffs))
@@ -314,7 +315,7 @@ def toolkit(case: Case, folder: Path, label: str, options: list[str], verb: str 
             "result": json.loads(result.read_text()), "seconds": seconds}
 
 
-def _at_recorded(t_record: np.ndarray, t_predicted: np.ndarray, predicted: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def at_recorded(t_record: np.ndarray, t_predicted: np.ndarray, predicted: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """``(indices, values)``: the prediction at the recorded time stamps it covers (linear in time between its
     own samples: the states interpolated, never the recorded torques; none within a gap of its samples)."""
     step = float(np.median(np.diff(t_predicted)))
@@ -346,7 +347,7 @@ def compare(case: Case, folder: Path, labels: tuple[str, ...] = tuple(run[0] for
     run predicted (the re-sent rows left out: :func:`resent`)."""
     runs = {run[0]: toolkit(case, folder, run[1], list(run[2]), *run[3:]) for run in RUNS if run[0] in labels}
     test = case.records["test"]
-    at = {label: None if run is None else _at_recorded(test.t, run["t"], run["predicted"]) for label, run in runs.items()}
+    at = {label: None if run is None else at_recorded(test.t, run["t"], run["predicted"]) for label, run in runs.items()}
     common = None
     for value in at.values():
         if value is not None:

@@ -37,16 +37,13 @@ import pandas as pd
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_real_robots import (  # noqa: E402
-    CUTOFFS_HZ,
     DATA,
-    SETTLING,
     FRICTION,
     TX40_RATIOS,
     TX40_ZERO,
     PlainFit,
     Record,
-    _at_recorded,
-    filtered_motion,
+    at_recorded,
     tx40_transmission,
 )
 
@@ -282,20 +279,7 @@ class SweepPlainFit(PlainFit):
 
     def fit_on(self, train: Record, validate: Record, records: list[Record]) -> tuple[float, np.ndarray]:
         rate = min(1.0 / float(np.median(np.diff(np.unique(record.t)))) for record in records)
-        duration = validate.t[-1] - validate.t[0]
-        cutoffs = [c for c in CUTOFFS_HZ if c < 0.4 * rate and SETTLING / c <= 0.1 * duration]
-        scored = self.kept(validate, min(cutoffs))
-        best = None
-        for cutoff in cutoffs:
-            keep = self.kept(train, cutoff)
-            Y = self.regressor(train, cutoff)[keep]
-            target = filtered_motion(train, cutoff)[3][keep]
-            theta = np.linalg.lstsq(Y.reshape(-1, Y.shape[2]), target.reshape(-1), rcond=None)[0]
-            residual = validate.tau[scored] - (self.regressor(validate, cutoff) @ theta)[scored]
-            error = float(np.mean(residual**2, axis=0).sum())
-            if best is None or error < best[0]:
-                best = (error, cutoff, theta)
-        return best[1], best[2]
+        return self.fit(train, validate, rate_hz=rate)
 
 
 def _columns(prefix: str, values: np.ndarray) -> dict[str, np.ndarray]:
@@ -381,7 +365,7 @@ def sweep(config: Config, folder: Path, logs: dict[str, Log]) -> dict:
     at = {}
     for verb, value in outcome["runs"].items():
         if value is not None:
-            at[verb] = _at_recorded(test.t, value["t"], value["predicted"])
+            at[verb] = at_recorded(test.t, value["t"], value["predicted"])
             common = np.intersect1d(common, at[verb][0])
     outcome["plain"] = np.mean((test.tau[common] - predicted[common]) ** 2, axis=0)
     outcome["cutoff"] = cutoff
