@@ -305,12 +305,7 @@ def select_model(model: IdentificationModel, train: Measurements, validation: Me
     if given is None and validation is not None and repeated_motion(train, validation) > REPEAT_FRACTION \
             and not still_motion(train, validation):
         base = validation_base(unconstrained, base)
-    if given in ("ols", "wls"):
-        wanted: tuple[str, ...] = (given,)
-    elif given == "consistent":
-        wanted = (base, "consistent")
-    else:
-        wanted = CANDIDATES if validation is not None else (base, "consistent")
+    wanted = wanted_candidates(given, base, validated=validation is not None)
     candidates = []
     for name in CANDIDATES:
         if name not in wanted:
@@ -332,6 +327,17 @@ def select_model(model: IdentificationModel, train: Measurements, validation: Me
                 reason = f"the consistent fit failed ({error})"
         candidates.append(Candidate("consistent", None, reason))
     return select_fitted(candidates, train, validation, base=base, given=given)
+
+
+def wanted_candidates(given: CandidateName | None, base: str, *, validated: bool) -> tuple[str, ...]:
+    """The candidates a selection fits: the weighting ``given`` alone; the consistent refit from ``base`` beside
+    ``base`` when it is ``given``; else every one of :data:`CANDIDATES` with a validation record to compare them on
+    (``validated``), and without one ``base`` and its refit (the refit preferred, :data:`PREFERENCE`)."""
+    if given in ("ols", "wls"):
+        return (given,)
+    if given == "consistent" or not validated:
+        return (base, "consistent")
+    return CANDIDATES
 
 
 def validation_base(unconstrained: Callable[[str], IdentificationResult],

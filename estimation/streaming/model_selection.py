@@ -45,6 +45,7 @@ from estimation.consistent.model_selection import (
     ModelSelection,
     select_scored,
     validation_base,
+    wanted_candidates,
 )
 from estimation.identification.repeated_motion import REPEAT_FRACTION, STILL_SHARE, still_spans_note
 from estimation.streaming.chunks import read_chunks
@@ -81,12 +82,7 @@ def summed_selection(sums: SummedFits, *, base: Literal["ols", "wls"], given: Ca
     validated = score is not None and ratio is not None and ratio > REPEAT_FRACTION and not still
     if given is None and validated and {"ols", "wls"} <= set(fits):
         base = validation_base(fits.__getitem__, base)
-    if given in ("ols", "wls"):
-        wanted: tuple[str, ...] = (given,)
-    elif given == "consistent":
-        wanted = (base, "consistent")
-    else:
-        wanted = CANDIDATES if score is not None else (base, "consistent")
+    wanted = wanted_candidates(given, base, validated=score is not None)
     candidates = []
     for name in CANDIDATES:
         if name not in wanted:
