@@ -3,7 +3,11 @@
 A robot as built drives its joints through gears, belts and differentials. With ``q`` the joint
 coordinates and ``θ_m`` the motor (rotor) angles, a rigid transmission is linear::
 
-    θ_m = R q,     θ̇_m = R q̇,     θ̈_m = R q̈,     τ = Rᵀ τ_m               (power: τᵀ q̇ = τ_mᵀ θ̇_m)
+    θ_m = R (q − q₀),     θ̇_m = R q̇,     θ̈_m = R q̈,     τ = Rᵀ τ_m               (power: τᵀ q̇ = τ_mᵀ θ̇_m)
+
+``q₀`` are the joint offsets (default zero): the joint positions, in the robot description's zeros, where the
+motors' encoders read zero, so that ``q = R⁻¹ θ_m + q₀`` (ros_control's ``SimpleTransmission`` ``offset``:
+``q = θ_a / reduction + offset``). They shift positions only, never velocities, accelerations or torques.
 
 ``R`` is square (one motor per joint) and invertible; its diagonal holds the gear ratios (signed:
 a motor that turns backwards has a negative ratio) and off-diagonal entries the coupling (a wrist
@@ -71,12 +75,16 @@ class Transmission:
         (``τ_m = k_t i``); ``None`` when unknown.
     source
         Where the transmission comes from (for reports).
+    offsets
+        Joint offsets ``q₀`` (rad, or m for a prismatic joint), one per joint: ``q = R⁻¹ θ_m + q₀``; ``None``
+        when all are zero (the encoders' zeros are the description's).
     """
 
     matrix: NDArray[np.float64]
     motor_names: tuple[str, ...] = ()
     torque_constants: tuple[float, ...] | None = None
     source: str = ""
+    offsets: tuple[float, ...] | None = None
 
     def __post_init__(self) -> None:
         try:
@@ -109,6 +117,17 @@ class Transmission:
             if constants.shape != (n,) or not np.all(np.isfinite(constants)) or np.any(constants == 0):
                 raise TransmissionError(f"torque_constants: give {n} finite, non-zero values (N·m/A), one per motor")
             object.__setattr__(self, "torque_constants", tuple(float(value) for value in constants))
+        if self.offsets is not None:
+            try:
+                offsets = np.atleast_1d(np.asarray(self.offsets, dtype=float))
+            except (TypeError, ValueError):
+                raise TransmissionError(f"offsets: give {n} numbers (rad, or m), one per joint") from None
+            if offsets.shape != (n,) or not np.all(np.isfinite(offsets)):
+                raise TransmissionError(f"offsets: give {n} finite numbers (rad, or m), one per joint; got "
+                                        f"{offsets.size} value(s)" + ("" if np.all(np.isfinite(offsets)) else
+                                                                      " with NaN or inf"))
+            object.__setattr__(self, "offsets", None if not np.any(offsets) else
+                               tuple(float(value) for value in offsets))
 
     @property
     def n_motors(self) -> int:
@@ -143,15 +162,32 @@ class Transmission:
         if np.any(self.matrix[:n_joints, n_joints:]):
             raise TransmissionError(f"motors 1..{n_joints} turn with joints beyond {n_joints}: keep more joints")
         constants = None if self.torque_constants is None else self.torque_constants[:n_joints]
-        return Transmission(self.matrix[:n_joints, :n_joints], self.motor_names[:n_joints], constants, self.source)
+        offsets = None if self.offsets is None else self.offsets[:n_joints]
+        return Transmission(self.matrix[:n_joints, :n_joints], self.motor_names[:n_joints], constants, self.source,
+                            offsets)
+
+    @property
+    def joint_offsets(self) -> NDArray[np.float64]:
+        """``q₀``, one per joint (zeros when none were declared)."""
+        return np.zeros(self.n_motors) if self.offsets is None else np.array(self.offsets)
 
     def motor_positions(self, q: ArrayLike) -> NDArray[np.float64]:
-        """``θ_m = R q`` for ``(N, n)`` joint positions (also velocities, accelerations)."""
-        return np.asarray(q, dtype=float) @ self.matrix.T
+        """``θ_m = R (q − q₀)`` for ``(N, n)`` joint positions (without offsets, also velocities and accelerations:
+        :meth:`motor_rates`)."""
+        return (np.asarray(q, dtype=float) - self.joint_offsets) @ self.matrix.T
 
     def joint_positions(self, theta_m: ArrayLike) -> NDArray[np.float64]:
-        """``q = R⁻¹ θ_m`` for ``(N, n)`` motor positions (also velocities, accelerations)."""
-        return np.linalg.solve(self.matrix, np.asarray(theta_m, dtype=float).T).T
+        """``q = R⁻¹ θ_m + q₀`` for ``(N, n)`` motor positions (without offsets, also velocities and
+        accelerations: :meth:`joint_rates`)."""
+        return self.joint_rates(theta_m) + self.joint_offsets
+
+    def motor_rates(self, dq: ArrayLike) -> NDArray[np.float64]:
+        """``θ̇_m = R q̇`` for ``(N, n)`` joint velocities (or accelerations): no offset."""
+        return np.asarray(dq, dtype=float) @ self.matrix.T
+
+    def joint_rates(self, dtheta_m: ArrayLike) -> NDArray[np.float64]:
+        """``q̇ = R⁻¹ θ̇_m`` for ``(N, n)`` motor velocities (or accelerations): no offset."""
+        return np.linalg.solve(self.matrix, np.asarray(dtheta_m, dtype=float).T).T
 
     def joint_torques(self, tau_m: ArrayLike) -> NDArray[np.float64]:
         """``τ = Rᵀ τ_m`` for ``(N, n)`` motor torques."""
@@ -186,6 +222,8 @@ class Transmission:
         document: dict[str, Any] = {"matrix": self.matrix.tolist(), "motors": list(self.motor_names)}
         if self.torque_constants is not None:
             document["torque_constants"] = list(self.torque_constants)
+        if self.offsets is not None:
+            document["offsets"] = list(self.offsets)
         return document
 
 

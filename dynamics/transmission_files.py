@@ -43,9 +43,12 @@ def transmission_from_json(source: str | Path | Mapping[str, Any], robot: RobotM
          "matrix": [[...], ...],                               # or the full R, n x n (motors x joints)
          "joints": ["joint1", ...],                            # optional: the column order of "matrix"
          "couplings": {"6": {"5": 76.69, "4": 1.41}},          # optional: extra entries R[motor][joint]
-         "torque_constants": [0.26, ...]}                      # optional, N·m/A, per motor
+         "torque_constants": [0.26, ...],                      # optional, N·m/A, per motor
+         "offsets": {"joint2": -1.5708}}                       # optional, rad (m): q = R⁻¹ θ_m + offset
 
-    Joints not named in ``ratios`` are direct drive (ratio 1).
+    Joints not named in ``ratios`` are direct drive (ratio 1); joints not named in ``offsets`` have none.
+    ``offsets`` (by joint name or number, or a list, one per joint) are the joint positions, in the robot
+    description's zeros, where the motors' encoders read zero (:class:`dynamics.transmission.Transmission`).
     """
     where = "transmission"
     if isinstance(source, Mapping):
@@ -61,10 +64,11 @@ def transmission_from_json(source: str | Path | Mapping[str, Any], robot: RobotM
             raise TransmissionError(f"{where}: not valid JSON ({error})") from None
     if not isinstance(document, dict):
         raise TransmissionError(f"{where}: expected a JSON object with 'ratios' or 'matrix'")
-    unknown = sorted(set(document) - {"ratios", "matrix", "joints", "couplings", "torque_constants", "motors"})
+    unknown = sorted(set(document) - {"ratios", "matrix", "joints", "couplings", "torque_constants", "motors",
+                                      "offsets"})
     if unknown:
         raise TransmissionError(f"{where}: unknown key(s) {unknown}; expected ratios, matrix, joints, couplings, "
-                                "torque_constants, motors")
+                                "torque_constants, motors, offsets")
     n = robot.n_joints
     if "matrix" in document:
         if "ratios" in document:
@@ -102,8 +106,39 @@ def transmission_from_json(source: str | Path | Mapping[str, Any], robot: RobotM
         motor = _joint_index(robot, motor_key, where)
         for joint_key, value in dict(row).items():
             matrix[motor, _joint_index(robot, joint_key, where)] = float(value)
+    offsets = joint_offsets(document["offsets"], robot, where) if document.get("offsets") is not None else None
     return Transmission(matrix, tuple(document.get("motors", ())), document.get("torque_constants"),
-                        source=where).check(robot)
+                        source=where, offsets=offsets).check(robot)
+
+
+def joint_offsets(values: Any, robot: RobotModel, where: str = "offsets") -> tuple[float, ...]:
+    """One offset a joint (rad, or m) from a mapping by joint name or 1-based number (joints not named: 0) or a
+    list of one a joint; :class:`TransmissionError` naming ``where`` for anything else (text, NaN, a wrong count)."""
+    n = robot.n_joints
+    offsets = np.zeros(n)
+    if isinstance(values, Mapping):
+        for key, value in values.items():
+            index = _joint_index(robot, key, where)
+            offsets[index] = _offset(value, f"{where}: joint {key!r}")
+        return tuple(float(value) for value in offsets)
+    if isinstance(values, (str, bytes)) or not isinstance(values, (list, tuple)):
+        raise TransmissionError(f"{where}: offsets must be an object by joint ({{\"joint2\": -1.5708}}) or a list of "
+                                f"{n} numbers (rad, or m), got {values!r}")
+    if len(values) != n:
+        raise CouplingShapeError(f"{where}: {len(values)} offsets for the {n} joints of {robot.name}")
+    return tuple(_offset(value, f"{where}: offset {index + 1}") for index, value in enumerate(values))
+
+
+def _offset(value: Any, where: str) -> float:
+    if isinstance(value, bool):
+        raise TransmissionError(f"{where}: {value!r} is not a number (rad, or m)")
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        raise TransmissionError(f"{where}: {value!r} is not a number (rad, or m)") from None
+    if not np.isfinite(number):
+        raise TransmissionError(f"{where}: {value!r} must be finite")
+    return number
 
 
 def _reduction(element: ElementTree.Element | None) -> float:
@@ -127,7 +162,8 @@ def transmission_from_urdf(path: str | Path, robot: RobotModel) -> Transmission 
     Kinds (ros_control ``transmission_interface``): ``SimpleTransmission`` (one joint, one actuator,
     ``mechanicalReduction`` of the actuator, or of the joint in the older format),
     ``DifferentialTransmission`` and ``FourBarLinkageTransmission`` (two joints, two actuators,
-    actuator reductions ``ar`` and joint reductions ``jr``, see the module docstring).
+    actuator reductions ``ar`` and joint reductions ``jr``, see the module docstring). A joint's ``<offset>``
+    (ros_control's joint offset, rad or m) is its offset ``q₀``: ``q = R⁻¹ θ_m + q₀``.
 
     The transmissions of joints of the file that ``robot`` leaves out (locked: a robot of the named
     joints, :func:`dynamics.urdf.robot_from_urdf`) are ignored; those of its joints are kept.
@@ -160,6 +196,7 @@ def transmission_from_urdf(path: str | Path, robot: RobotModel) -> Transmission 
         return None
     n = robot.n_joints
     matrix = np.eye(n)
+    offsets = np.zeros(n)
     driven: dict[int, str] = {}
     names = [f"m{index}" for index in range(1, n + 1)]
     for element in elements:
@@ -170,11 +207,14 @@ def transmission_from_urdf(path: str | Path, robot: RobotModel) -> Transmission 
         joints = element.findall("joint")
         actuators = element.findall("actuator")
         indices = [_joint_index(robot, joint.get("name", ""), where) for joint in joints]
-        for index in indices:
+        for index, joint in zip(indices, joints):
             if index in driven:
                 raise TransmissionError(f"{where}: joint {robot.joint_names[index]!r} is already driven by "
                                         f"transmission {driven[index]!r}")
             driven[index] = label
+            found = joint.find("offset")
+            if found is not None and found.text is not None:
+                offsets[index] = _offset(found.text.strip(), f"{where}: joint {robot.joint_names[index]!r} <offset>")
         short = kind.rsplit("/", 1)[-1]
         if short == "SimpleTransmission":
             if len(joints) != 1 or len(actuators) > 1:
@@ -202,4 +242,4 @@ def transmission_from_urdf(path: str | Path, robot: RobotModel) -> Transmission 
         else:
             raise TransmissionError(f"{where}: unsupported transmission type {kind!r} (SimpleTransmission, "
                                     "DifferentialTransmission, FourBarLinkageTransmission)")
-    return Transmission(matrix, tuple(names), source=f"URDF {path}")
+    return Transmission(matrix, tuple(names), source=f"URDF {path}", offsets=tuple(offsets))

@@ -3,7 +3,7 @@
 Columns a record may hold instead of (or besides) the joint-side ones of
 :mod:`dynamics.measurements` (SI: rad, rad/s, N·m, A)::
 
-    qm1..qmn  [dqm1..dqmn, ddqm1..ddqmn]   motor (rotor) positions: q = R⁻¹ θ_m
+    qm1..qmn  [dqm1..dqmn, ddqm1..ddqmn]   motor (rotor) positions: q = R⁻¹ θ_m + q₀ (q₀: the joint offsets)
     taum1..taumn                            motor torques:           τ = Rᵀ τ_m
     im1..imn                                motor currents:          τ = Rᵀ (k_t i)   (torque_constants)
 
@@ -85,8 +85,10 @@ def joint_side_frame(frame: pd.DataFrame, transmission: Transmission | None, n_j
             torque_m = values if prefix == "taum" else transmission.torques_from_currents(values)
             joint = transmission.joint_torques(torque_m)
             torque_source = prefix
+        elif prefix == "qm":
+            joint = transmission.joint_positions(values)  # with the joint offsets
         else:
-            joint = transmission.joint_positions(values)
+            joint = transmission.joint_rates(values)
         converted = converted.drop(columns=columns)
         for index, column in enumerate(targets):
             converted[column] = joint[:, index]

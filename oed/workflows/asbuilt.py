@@ -26,11 +26,14 @@ from dynamics.transmission import (
 )
 from dynamics.transmission_files import transmission_from_json, transmission_from_urdf
 from estimation.data.rest import check_min_speed, smooth_coulomb
+from dynamics.models import IdentificationModel
+from dynamics.runtime.progress import step
 from estimation.identification.fit import IdentificationResult
+from estimation.identification.joint_zeros import check_joint_zeros
 from estimation.identification.model_parameters import model_parameters
 from estimation.identification.prepared import PreparedRecords
 from estimation.identification.trivial_predictors import trivial_mse, trivial_warnings
-from oed.workflows.options import RecordOptions
+from oed.workflows.options import RecordOptions, model_has_shapes
 
 
 def resolve_transmission(args: RecordOptions, robot: RobotModel) -> Transmission | None:
@@ -125,3 +128,16 @@ def worse_after(diagnosis: Any) -> tuple[str, ...]:
     return tuple(f"{channel}: the diagnosis raised its validation MSE from {before[channel]:.4g} to {after[channel]:.4g} "
                  f"({100 * (after[channel] / before[channel] - 1):.0f} % worse)"
                  for channel in before if channel in after and before[channel] > 0 and after[channel] > 1.01 * before[channel])
+
+
+def joint_zero_notes(model: IdentificationModel, train: Measurements, validation: Measurements | None, *,
+                     delay: Any = None) -> tuple[str, ...]:
+    """The warning that the recorded joint positions look offset from the description's zeros, when a constant
+    offset per joint lowers the held-out error markedly (:func:`estimation.identification.joint_zeros.check_joint_zeros`:
+    ``validation``, or the second half of ``train``); none with a delay search or shaped laws (fitted by a search
+    each: the check refits the plain columns only)."""
+    if delay is not None or model_has_shapes(model):
+        return ()
+    with step("joint zeros checked against the description's"):
+        check = check_joint_zeros(model, train, validation, warn=False)
+    return () if check is None or not check.marked else (check.message(model.robot.joint_names),)

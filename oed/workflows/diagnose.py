@@ -57,6 +57,7 @@ from estimation.streaming.diagnosis_passes import FLOOR_WINDOW
 from estimation.uncertainty.noise_floor import NoiseFloor
 from oed.workflows.asbuilt import (
     finish_document,
+    joint_zero_notes,
     model_effects,
     resolve_transmission,
     rest_message,
@@ -375,6 +376,7 @@ def diagnosis_in_memory(args: DiagnoseOptions, model: IdentificationModel, trans
         notes += worse_after(diagnosis) + (() if swap_note is None else (swap_note,))
         repeat = repeated_motion_note(records.train.measurements, records.validation.measurements)
         notes += () if repeat is None else (repeat,)
+        notes += joint_zero_notes(model, records.train.measurements, records.validation.measurements, delay=delay)
         with step("the default answer: the adopted model or its consistent refit"):
             if selection is None:
                 selection = diagnosis_selection(args, diagnosis, records)

@@ -57,6 +57,7 @@ from estimation.streaming.recorded_errors import (
 )
 from oed.workflows.asbuilt import (
     finish_document,
+    joint_zero_notes,
     model_effects,
     resolve_transmission,
     rest_message,
@@ -614,6 +615,7 @@ def identification_in_memory(args: IdentifyOptions, robot: RobotModel, model: Id
         notes = (*notes, *above_floor_notes(floor_report, chosen, None if validation is None else validation.n_samples))
         repeat = None if validation is None else repeated_motion_note(train, validation)
         notes = notes if repeat is None else (*notes, repeat)
+        notes = (*notes, *joint_zero_notes(model, train, validation, delay=delay))
     return Identified(result, chosen, records.preprocessing.to_dict(), records.preprocessing.describe(),
                       (*chosen_messages(caught_messages(caught), selection), *notes), notes, trivial,
                       None if floor_report is None else floor_report.floor,

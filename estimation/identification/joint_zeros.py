@@ -1,0 +1,301 @@
+"""Encoder zeros that differ from the robot description's: a constant position offset per joint, tested on held-out data.
+
+A joint whose recorded position is ``q_j`` where the description's is ``q_j + δ_j`` (a calibration offset, an
+encoder zeroed a quarter or half turn away from the URDF's zero) is not a change of base parameters: the
+rigid-body columns of the regressor ``Y(q, q̇, q̈)`` describe another robot (a 225 mm upper arm a quarter turn
+off moves the elbow), while friction and torque-offset columns do not depend on ``q``. The fit runs and predicts
+worse (a Stäubli TX40 with joints 2 and 3 a quarter turn off: 1.1–2.3x the error of the same fit in the
+description's zeros, ``benchmarks/README.md``).
+
+:func:`check_joint_zeros` estimates ``δ`` on the training samples and tests it on held-out ones:
+
+1. a scan over quarter and half turns (``δ_j ∈ {−π/2, +π/2, π}``), one joint at a time, greedily (the joint and
+   turn that lower the training error most, then again from there);
+2. Gauss–Newton on ``(θ, δ)`` together from the best scanned point: the residual ``τ − Y(q + δ) θ`` linearised
+   with ``∂(Y θ)/∂q_j`` by forward differences (the nonlinear least squares of a constant offset per joint);
+3. the held-out test: ``θ`` fitted by least squares on the training samples with and without ``δ``, each
+   channel's error on the held-out samples (the validation record, or without one the second half of the
+   training record, ``δ`` then chosen on the first half) compared.
+
+Only a marked gain is reported (:data:`MARKED_GAIN`: the mean over channels of the held-out MSE ratio, and the
+total held-out MSE, both at most ``1 −`` it), and only joints whose offset matters by itself
+(:data:`MIN_OFFSET`, and removing it alone raises the training error by :data:`MIN_JOINT_GAIN`): a correctly
+zeroed log whose model lacks something (a spring, a cable) must not be told its zeros are wrong. The samples are
+thinned to :data:`MAX_SAMPLES` evenly spaced rows of each record: the cost is about a hundred evaluations of the
+regressor on them. Joints no column depends on (a vertical first axis in the joint-torque model) and prismatic
+joints beyond Gauss–Newton's reach are left as they are; only revolute joints are scanned for turns.
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from dynamics.measurements import Measurements
+from dynamics.models import IdentificationModel
+from dynamics.robot import JointType
+
+#: the held-out error must fall by at least this fraction (mean of the channels' ratios and total) to be reported
+MARKED_GAIN = 0.15
+#: a joint's offset smaller than this (rad, or m) is not named
+MIN_OFFSET = np.deg2rad(2.0)
+#: a joint is named only if zeroing its offset alone raises the training error by this fraction
+MIN_JOINT_GAIN = 0.02
+#: evenly spaced rows of each record used by the check
+MAX_SAMPLES = 1500
+#: the turns scanned on a revolute joint (rad)
+TURNS: tuple[float, ...] = (-np.pi / 2, np.pi / 2, np.pi)
+#: Gauss–Newton iterations and the forward-difference step (rad, or m)
+ITERATIONS = 8
+STEP = 1e-5
+
+
+class JointZeroWarning(UserWarning):
+    """The recorded joint positions look offset from the robot description's zeros (by a constant per joint)."""
+
+
+@dataclass(frozen=True)
+class JointZeroCheck:
+    """What :func:`check_joint_zeros` found.
+
+    Attributes
+    ----------
+    offsets
+        ``δ``, one per joint (rad, or m): the description's position is the recorded one plus ``δ``; zero on the
+        joints not named.
+    joints
+        0-based indices of the joints named (offset at least :data:`MIN_OFFSET`, and needed by itself).
+    mse_ratio
+        Per channel, the held-out MSE with ``δ`` over that without.
+    total_ratio
+        The total held-out MSE with ``δ`` over that without.
+    held_out
+        What the held-out samples were (``"validation record"`` or ``"second half of the training record"``).
+    """
+
+    offsets: NDArray[np.float64]
+    joints: tuple[int, ...]
+    mse_ratio: dict[str, float]
+    total_ratio: float
+    held_out: str
+
+    @property
+    def mean_ratio(self) -> float:
+        return float(np.mean(list(self.mse_ratio.values()))) if self.mse_ratio else 1.0
+
+    @property
+    def marked(self) -> bool:
+        """Whether the offsets lower the held-out error markedly (the warning is said)."""
+        return bool(self.joints) and self.mean_ratio <= 1 - MARKED_GAIN and self.total_ratio <= 1 - MARKED_GAIN
+
+    def message(self, joint_names: tuple[str, ...] | None = None) -> str:
+        """The warning's text: the joints, their offsets in rad and degrees, the gain, and how to apply them."""
+        names = [f"q{index + 1}" if joint_names is None else joint_names[index] for index in range(len(self.offsets))]
+        listed = ", ".join(f"joint {index + 1} ({names[index]}) {self.offsets[index]:+.4f} rad "
+                           f"({np.rad2deg(self.offsets[index]):+.1f}°)" for index in self.joints)
+        as_json = ", ".join(f'"{names[index]}": {self.offsets[index]:.4f}' for index in self.joints)
+        return (f"the recorded joint positions look offset from the robot description's zeros: {listed}. With "
+                f"q + offset the {self.held_out} is predicted with {100 * (1 - self.total_ratio):.0f} % less error "
+                f"(mean of the channels' ratios {self.mean_ratio:.2f}). If the encoders' zeros differ from the URDF's, "
+                f"declare them: \"offsets\": {{{as_json}}} in a transmission JSON (--transmission FILE; motor-side "
+                "columns qm), or a JSON of the same object given to --joint-offsets FILE (the recorded q columns), "
+                "and identify again")
+
+
+def _thinned(measurements: Measurements, channels: tuple[str, ...], max_samples: int
+             ) -> tuple[NDArray, NDArray, NDArray, NDArray] | None:
+    if measurements.dq is None or measurements.ddq is None:
+        return None
+    try:
+        target = measurements.channels(channels)
+    except ValueError:
+        return None
+    q, dq, ddq = measurements.q, measurements.dq, measurements.ddq
+    rows = np.flatnonzero(np.all(np.isfinite(np.hstack([q, dq, ddq, target])), axis=1))
+    if rows.size > max_samples:
+        rows = rows[np.round(np.linspace(0, rows.size - 1, max_samples)).astype(int)]
+    if rows.size < 10:
+        return None
+    return q[rows], dq[rows], ddq[rows], target[rows]
+
+
+class _Problem:
+    """The weighted least squares of ``θ`` at given offsets, on thinned samples (weights fixed once: each
+    channel's residual RMS of the fit without offsets, so that every candidate is scored alike)."""
+
+    def __init__(self, model: IdentificationModel, samples: tuple[NDArray, NDArray, NDArray, NDArray]) -> None:
+        self.model = model
+        self.q, self.dq, self.ddq, self.target = samples
+        self.weights = np.ones(model.n_channels)
+        _, residual = self.fit(np.zeros(self.q.shape[1]))
+        rms = np.sqrt(np.mean(residual**2, axis=0))
+        scale = np.sqrt(np.mean(self.target**2, axis=0))
+        self.weights = 1.0 / np.maximum(rms, 1e-9 * np.maximum(scale, 1e-300) + 1e-300)
+
+    def regressor(self, offsets: NDArray) -> NDArray:
+        return self.model.evaluate_base(self.q + offsets, self.dq, self.ddq)
+
+    def fit(self, offsets: NDArray, regressor: NDArray | None = None) -> tuple[NDArray, NDArray]:
+        """``θ`` and the (unweighted) residual ``(N, channels)`` at ``offsets``."""
+        Y = self.regressor(offsets) if regressor is None else regressor
+        return (theta := _least_squares(Y * self.weights[None, :, None], self.target * self.weights)), \
+            self.target - Y @ theta
+
+    def cost(self, offsets: NDArray) -> float:
+        _, residual = self.fit(offsets)
+        return float(np.mean((residual * self.weights) ** 2))
+
+
+def _least_squares(Y: NDArray, target: NDArray) -> NDArray:
+    """``argmin ‖target − Y θ‖`` for ``Y (N, channels, r)`` through the normal equations of the scaled columns
+    (``r x r``: an SVD of the tall matrix costs a hundred times more, and this check solves about a hundred)."""
+    A = Y.reshape(-1, Y.shape[2])
+    scale = np.linalg.norm(A, axis=0)
+    scale[scale == 0] = 1.0
+    A = A / scale
+    gram = A.T @ A
+    return np.linalg.lstsq(gram, A.T @ target.reshape(-1), rcond=1e-12)[0] / scale
+
+
+def _wrapped(offsets: NDArray, revolute: NDArray) -> NDArray:
+    wrapped = offsets.copy()
+    wrapped[revolute] = (wrapped[revolute] + np.pi) % (2 * np.pi) - np.pi
+    return wrapped
+
+
+def _gauss_newton(problem: _Problem, offsets: NDArray, free: NDArray, revolute: NDArray) -> NDArray:
+    """Gauss–Newton on ``(θ, δ_free)`` from ``offsets``: ``τ − Y(q + δ) θ`` linearised in both, the derivative of
+    ``Y θ`` in ``q_j`` by forward differences; a step that does not lower the cost is halved (at most 4 times)."""
+    cost = problem.cost(offsets)
+    joints = np.flatnonzero(free)
+    if joints.size == 0:
+        return offsets
+    for _ in range(ITERATIONS):
+        Y = problem.regressor(offsets)
+        theta, residual = problem.fit(offsets, Y)
+        predicted = Y @ theta
+        columns = []
+        for joint in joints:
+            shifted = offsets.copy()
+            shifted[joint] += STEP
+            columns.append((problem.regressor(shifted) @ theta - predicted) / STEP)
+        J = np.concatenate([Y, np.stack(columns, axis=2)], axis=2) * problem.weights[None, :, None]
+        step = _least_squares(J, residual * problem.weights)
+        delta = step[Y.shape[2]:]
+        improved = False
+        for _ in range(5):
+            trial = offsets.copy()
+            trial[joints] += delta
+            trial = _wrapped(trial, revolute)
+            trial_cost = problem.cost(trial)
+            if trial_cost < cost:
+                improved = True
+                break
+            delta = delta / 2
+        if not improved:
+            break
+        converged = np.max(np.abs(trial - offsets)) < 1e-6
+        offsets, cost = trial, trial_cost
+        if converged:
+            break
+    return offsets
+
+
+def estimate_offsets(model: IdentificationModel, problem: _Problem) -> NDArray[np.float64]:
+    """``δ`` minimising the training cost: the scan over turns, then Gauss–Newton (the module docstring)."""
+    robot = model.robot
+    n = robot.n_joints
+    revolute = np.array([joint.joint_type == JointType.REVOLUTE for joint in robot.joints])
+    base = problem.regressor(np.zeros(n))
+    scale = np.linalg.norm(base)
+    free = np.zeros(n, dtype=bool)
+    for joint in range(n):  # a joint no column depends on: its offset is not identifiable
+        shifted = np.zeros(n)
+        shifted[joint] = 0.5 if revolute[joint] else 0.05
+        free[joint] = np.linalg.norm(problem.regressor(shifted) - base) > 1e-9 * max(scale, 1e-300)
+    offsets, cost = np.zeros(n), problem.cost(np.zeros(n))
+    scanned = np.flatnonzero(free & revolute)
+    for _ in range(scanned.size):
+        best = None
+        for joint in scanned:
+            for turn in TURNS:
+                trial = offsets.copy()
+                trial[joint] += turn
+                trial = _wrapped(trial, revolute)
+                trial_cost = problem.cost(trial)
+                if trial_cost < cost * (1 - MIN_JOINT_GAIN) and (best is None or trial_cost < best[0]):
+                    best = (trial_cost, trial)
+        if best is None:
+            break
+        cost, offsets = best
+    return _gauss_newton(problem, offsets, free, revolute)
+
+
+def _held_out_mse(model: IdentificationModel, theta: NDArray, samples: tuple[NDArray, NDArray, NDArray, NDArray],
+                  offsets: NDArray) -> NDArray:
+    q, dq, ddq, target = samples
+    predicted = model.evaluate_base(q + offsets, dq, ddq) @ theta
+    return np.mean((target - predicted) ** 2, axis=0)
+
+
+def check_joint_zeros(model: IdentificationModel, train: Measurements, held_out: Measurements | None = None, *,
+                      max_samples: int = MAX_SAMPLES, warn: bool = True) -> JointZeroCheck | None:
+    """Test whether a constant position offset per joint lowers the held-out error markedly (module docstring).
+
+    Parameters
+    ----------
+    model
+        The identification model fitted (its base regressor; the offsets change only ``q``).
+    train, held_out
+        The training and held-out measurements with their derivatives (as prepared for the fit); without
+        ``held_out``, ``δ`` is chosen on the first half of ``train`` and tested on the second.
+    max_samples
+        Evenly spaced rows of each record used.
+    warn
+        Issue a :class:`JointZeroWarning` when the gain is marked.
+
+    Returns
+    -------
+    JointZeroCheck or None
+        ``None`` when the check cannot run (no derivatives, no channel the model predicts, too few samples, no
+        joint the regressor depends on).
+    """
+    label = "validation record"
+    if held_out is None:
+        half = train.n_samples // 2
+        if half < 20:
+            return None
+        train, held_out = train.select(slice(0, half)), train.select(slice(half, None))
+        label = "second half of the training record"
+    fitted = _thinned(train, model.channels, max_samples)
+    scored = _thinned(held_out, model.channels, max_samples)
+    if fitted is None or scored is None:
+        return None
+    problem = _Problem(model, fitted)
+    with np.errstate(all="ignore"):
+        offsets = estimate_offsets(model, problem)
+    n = model.robot.n_joints
+    if not np.any(offsets):
+        return JointZeroCheck(np.zeros(n), (), {channel: 1.0 for channel in model.channels}, 1.0, label)
+    cost = problem.cost(offsets)
+    named = []
+    for joint in np.flatnonzero(np.abs(offsets) >= MIN_OFFSET):
+        without = offsets.copy()
+        without[joint] = 0.0
+        if problem.cost(without) > cost * (1 + MIN_JOINT_GAIN):
+            named.append(int(joint))
+    kept = np.zeros(n)
+    kept[named] = offsets[named]
+    theta_zero, _ = problem.fit(np.zeros(n))
+    theta_offset, _ = problem.fit(kept)
+    before = _held_out_mse(model, theta_zero, scored, np.zeros(n))
+    after = _held_out_mse(model, theta_offset, scored, kept)
+    ratio = {channel: float(a / b) if b > 0 else 1.0 for channel, a, b in zip(model.channels, after, before)}
+    total = float(after.sum() / before.sum()) if before.sum() > 0 else 1.0
+    check = JointZeroCheck(kept, tuple(named), ratio, total, label)
+    if warn and check.marked:
+        warnings.warn(JointZeroWarning(check.message(model.robot.joint_names)), stacklevel=2)
+    return check

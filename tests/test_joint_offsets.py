@@ -1,0 +1,126 @@
+"""Joint offsets: the encoders' zeros declared in a transmission file (``q = R⁻¹ θ_m + q₀``), loading and bad input,
+and a simulated motor-side log whose zeros differ from the description's identified as well as one whose zeros agree."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from dynamics.models import build_model
+from dynamics.robots import load_robot
+from dynamics.simulation.synthetic import simulate, true_parameters
+from dynamics.transmission import CouplingShapeError, Transmission, TransmissionError, UnknownJointError
+from dynamics.transmission_files import transmission_from_json, transmission_from_urdf
+from oed.cli import main
+from oed.fourier import random_fourier
+from tests.test_transmission import SIMPLE, transmission_urdf
+
+RATIOS = [-62.6111, 107.815, -53.7063]
+OFFSETS = [0.0, -np.pi / 2, 0.3]  # the joint positions where the motors' encoders read zero
+
+
+def test_offsets_shift_positions_only_and_round_trip():
+    matrix = np.array([[2.0, 0, 0], [0, 3.0, 0], [0, 1.5, 4.0]])
+    transmission = Transmission(matrix, offsets=(0.1, -0.2, 0.0))
+    q = np.random.default_rng(0).normal(size=(5, 3))
+    theta = transmission.motor_positions(q)
+    np.testing.assert_allclose(theta, (q - [0.1, -0.2, 0.0]) @ matrix.T)
+    np.testing.assert_allclose(transmission.joint_positions(theta), q)
+    np.testing.assert_allclose(transmission.motor_rates(q), q @ matrix.T)  # velocities: no offset
+    np.testing.assert_allclose(transmission.joint_rates(q @ matrix.T), q)
+    assert transmission.truncated(2).offsets == (0.1, -0.2)
+    robot = load_robot("puma560", joints=3)
+    again = transmission_from_json(transmission.to_dict(), robot)
+    assert again.offsets == (0.1, -0.2, 0.0)
+    assert Transmission(matrix, offsets=(0.0, 0.0, 0.0)).offsets is None  # all zero: none
+    assert "offsets" not in Transmission(matrix).to_dict()
+
+
+def test_offsets_from_json_by_name_number_or_list():
+    robot = load_robot("puma560", joints=3)
+    by_name = transmission_from_json({"ratios": RATIOS, "offsets": {"joint2": -1.5708, "3": 0.3}}, robot)
+    assert by_name.offsets == (0.0, -1.5708, 0.3)
+    by_list = transmission_from_json({"ratios": RATIOS, "offsets": [0, -1.5708, 0.3]}, robot)
+    assert by_list.offsets == by_name.offsets
+    assert transmission_from_json({"ratios": RATIOS}, robot).offsets is None
+
+
+@pytest.mark.parametrize("offsets, error, message", [
+    ({"joint2": "a quarter"}, TransmissionError, "is not a number"),
+    ({"joint2": float("nan")}, TransmissionError, "must be finite"),
+    ({"joint9": 0.1}, UnknownJointError, "not a joint of"),
+    ([0.1, 0.2], CouplingShapeError, "2 offsets for the 3 joints"),
+    ("0.1", TransmissionError, "must be an object by joint"),
+    ({"joint2": True}, TransmissionError, "is not a number"),
+])
+def test_bad_offsets_name_the_problem(offsets, error, message):
+    robot = load_robot("puma560", joints=3)
+    with pytest.raises(error, match=message):
+        transmission_from_json({"ratios": RATIOS, "offsets": offsets}, robot)
+
+
+def test_offsets_of_a_urdf_transmission(tmp_path):
+    element = SIMPLE.replace('<hardwareInterface>EffortJointInterface</hardwareInterface>',
+                             '<hardwareInterface>EffortJointInterface</hardwareInterface><offset>0.25</offset>')
+    path = transmission_urdf(tmp_path, element)
+    transmission = transmission_from_urdf(path, load_robot(urdf=path))
+    assert transmission.offsets == (0.25, 0.0, 0.0)
+    bad = transmission_urdf(tmp_path, element.replace("0.25", "zero"))
+    with pytest.raises(TransmissionError, match="<offset>"):
+        transmission_from_urdf(bad, load_robot(urdf=bad))
+
+
+@pytest.fixture(scope="module")
+def logs(tmp_path_factory):
+    """A 3-joint PUMA's training and validation records, joint side and motor side with the encoders zeroed at
+    ``OFFSETS`` (θ_m = R (q − q₀)), and the transmission files with and without the offsets."""
+    robot = load_robot("puma560", joints=3)
+    model = build_model(robot, "internal", "viscous")
+    theta = true_parameters(model, seed=4)
+    folder = tmp_path_factory.mktemp("offsets")
+    noise = {"tau1": 0.2, "tau2": 0.2, "tau3": 0.1}
+    declared = Transmission(np.diag(RATIOS), offsets=OFFSETS)
+    for name, seed in (("train", 5), ("val", 6)):
+        record = simulate(model, theta, random_fourier(robot, seed), noise=noise, seed=seed + 10)
+        record.write(folder / f"{name}.csv")
+        frame = pd.read_csv(folder / f"{name}.csv")
+        motor = frame.drop(columns=[f"{p}{j}" for p in ("q", "dq", "ddq") for j in (1, 2, 3)])
+        for prefix, values in (("qm", declared.motor_positions(record.q)), ("dqm", declared.motor_rates(record.dq)),
+                               ("ddqm", declared.motor_rates(record.ddq))):
+            for j, column in enumerate(values.T):
+                motor[f"{prefix}{j + 1}"] = column
+        motor.to_csv(folder / f"{name}_motor.csv", index=False)
+    (folder / "with_offsets.json").write_text(json.dumps({"ratios": RATIOS, "offsets": {"joint2": OFFSETS[1],
+                                                                                      "joint3": OFFSETS[2]}}))
+    (folder / "without.json").write_text(json.dumps({"ratios": RATIOS}))
+    return folder
+
+
+def _identify(folder, *options, data="train.csv", validate="val.csv", out="result.json"):
+    code = main(["identify", "--robot", "puma560", "--joints", "3", "--data", str(folder / data), "--validate",
+                 str(folder / validate), "--friction", "viscous", "--method", "ols", "--cutoff", "20", *options,
+                 "--out", str(folder / out)])
+    assert code == 0
+    return json.loads((folder / out).read_text())
+
+
+def test_a_motor_side_log_with_declared_offsets_is_identified_as_the_joint_side_log(logs):
+    joint = _identify(logs, out="joint.json", data="train.csv", validate="val.csv")
+    offset = _identify(logs, "--transmission", str(logs / "with_offsets.json"), data="train_motor.csv",
+                       validate="val_motor.csv", out="offset.json")
+    np.testing.assert_allclose(offset["model_parameters"]["values"], joint["model_parameters"]["values"],
+                               rtol=1e-6, atol=1e-8)
+    assert offset["transmission"]["offsets"] == pytest.approx(OFFSETS)
+    for channel, value in joint["validation"]["mse"].items():
+        assert offset["validation"]["mse"][channel] == pytest.approx(value, rel=1e-6)
+    # the offsets not declared: the same log predicts its validation record worse, and the check says why
+    undeclared = _identify(logs, "--transmission", str(logs / "without.json"), data="train_motor.csv",
+                           validate="val_motor.csv", out="undeclared.json")
+    total = sum(undeclared["validation"]["mse"].values())
+    assert total > 1.5 * sum(joint["validation"]["mse"].values())
+    warned = [message for message in undeclared["warnings"] if "offset from the robot description's zeros" in message]
+    assert len(warned) == 1 and "joint 2" in warned[0] and '"offsets"' in warned[0]
+    assert not any("offset from the robot" in message for message in joint["warnings"] + offset["warnings"])
