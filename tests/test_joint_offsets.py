@@ -122,6 +122,13 @@ def test_a_motor_side_log_with_declared_offsets_is_identified_as_the_joint_side_
     assert offset["transmission"]["offsets"] == pytest.approx(OFFSETS)
     for channel, value in joint["validation"]["mse"].items():
         assert offset["validation"]["mse"][channel] == pytest.approx(value, rel=1e-6)
+    # oed predict applies the stored offsets to a new motor-side log
+    for model, data in (("joint.json", "val.csv"), ("offset.json", "val_motor.csv")):
+        assert main(["predict", "--model", str(logs / model), "--data", str(logs / data), "--out",
+                     str(logs / f"predicted_{model}.csv")]) == 0
+    predicted = [pd.read_csv(logs / f"predicted_{model}.csv") for model in ("joint.json", "offset.json")]
+    channels = [f"tau{j}" for j in (1, 2, 3)]
+    np.testing.assert_allclose(predicted[1][channels], predicted[0][channels], rtol=1e-6, atol=1e-8)
     # the offsets not declared: the same log predicts its validation record worse, and the check says why
     undeclared = _identify(logs, "--transmission", str(logs / "without.json"), data="train_motor.csv",
                            validate="val_motor.csv", out="undeclared.json")
