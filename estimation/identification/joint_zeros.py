@@ -39,7 +39,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from dynamics.measurements import Measurements
-from dynamics.models import IdentificationModel
+from dynamics.effects.linear import parse_effects
+from dynamics.models import IdentificationModel, ModelKind, build_model
 from dynamics.robot import JointType
 
 #: the held-out error must fall by at least this fraction (mean of the channels' ratios and total) to be reported
@@ -255,6 +256,26 @@ def estimate_offsets(model: IdentificationModel, problem: _Problem) -> NDArray[n
     return _gauss_newton(problem, offsets, free, revolute)
 
 
+#: the friction of the plain fit's class the check adds to a joint-torque model that lacks it
+PLAIN_FRICTION: tuple[str, ...] = ("viscous", "coulomb", "offset")
+
+
+def check_model(model: IdentificationModel) -> IdentificationModel:
+    """The model the check refits: ``model`` with viscous and Coulomb friction and a torque offset on every joint
+    where it lacks them (the plain fit's class; joint-torque models only). Friction a model lacks must not be taken
+    up by a turn of a joint: with viscous friction alone (the verbs' default) the KUKA LWR4+'s log, zeroed as its
+    URDF, finds joint 6 at +141° on both of its records, and 14 % less held-out error."""
+    if model.kind == ModelKind.EXTERNAL:
+        return model
+    added = tuple(effect for effect in parse_effects(",".join(PLAIN_FRICTION)) if effect not in model.effects)
+    if not added:
+        return model
+    try:
+        return build_model(model.robot, model.kind, (*model.effects, *added))
+    except (ValueError, TypeError):  # an effect that cannot be combined with these: the model as it is
+        return model
+
+
 def _held_out_mse(model: IdentificationModel, theta: NDArray, samples: tuple[NDArray, NDArray, NDArray, NDArray],
                   offsets: NDArray) -> NDArray:
     q, dq, ddq, target = samples
@@ -269,7 +290,8 @@ def check_joint_zeros(model: IdentificationModel, train: Measurements, held_out:
     Parameters
     ----------
     model
-        The identification model fitted (its base regressor; the offsets change only ``q``).
+        The identification model fitted; the check refits its columns with the plain fit's friction added where it
+        lacks it (:func:`check_model`; the offsets change only ``q``).
     train, held_out
         The training and held-out measurements with their derivatives (as prepared for the fit); without
         ``held_out``, ``δ`` is chosen on the first half of ``train`` and tested on the second.
@@ -291,6 +313,7 @@ def check_joint_zeros(model: IdentificationModel, train: Measurements, held_out:
             return None
         train, held_out = train.select(slice(0, half)), train.select(slice(half, None))
         label = "second half of the training record"
+    model = check_model(model)
     fitted = _thinned(train, model.channels, max_samples)
     scored = _thinned(held_out, model.channels, max_samples)
     if fitted is None or scored is None:
