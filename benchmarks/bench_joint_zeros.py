@@ -1,0 +1,88 @@
+"""The check of the encoders' zeros (``estimation.identification.joint_zeros``) on the real logs: does it stay quiet on
+the logs zeroed as their URDF, and speak on the TX40's log in its own zeros (joints 2 and 3 a quarter turn off)?
+
+For each robot of ``bench_real_robots.py`` (its files, its split) the verb runs with its defaults (``--friction``
+left out, as a new user runs it), and the check's outcome is recorded as the verb computed it: the offsets named, the
+held-out MSE ratios (total, mean of the channels'), whether it warned, its seconds, and the verb's seconds.
+``tx40-logzeros`` is the TX40 with the motor positions as logged (``TX40_ZERO`` not applied).
+
+    PYTHONPATH=. .venv/bin/python benchmarks/bench_joint_zeros.py [--robots kuka,panda,tx40,tx40-logzeros,emps]
+        [--verbs identify,diagnose]
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import io
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+import bench_real_robots as real  # noqa: E402
+
+import oed.workflows.asbuilt as asbuilt  # noqa: E402
+from estimation.identification.joint_zeros import check_joint_zeros  # noqa: E402
+from oed.cli import main  # noqa: E402
+
+
+def case_of(name: str, folder: Path) -> real.Case:
+    if name != "tx40-logzeros":
+        return real.ROBOTS[name](folder)
+    saved = real.TX40_ZERO.copy()
+    real.TX40_ZERO[:] = 0.0
+    try:
+        return real.tx40(folder)
+    finally:
+        real.TX40_ZERO[:] = saved
+
+
+def run(name: str, verb: str) -> str:
+    checks = []
+
+    def recorded(*args, **kwargs):
+        started = time.perf_counter()
+        check = check_joint_zeros(*args, **kwargs)
+        checks.append((check, time.perf_counter() - started))
+        return check
+
+    asbuilt.check_joint_zeros = recorded
+    with tempfile.TemporaryDirectory() as folder:
+        folder = Path(folder)
+        case = case_of(name, folder)
+        errors = io.StringIO()
+        started = time.perf_counter()
+        with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(errors):
+            code = main([verb, *case.robot, *case.options, "--data", str(case.files["train"]), "--validate",
+                         str(case.files["validate"]), "--out", str(folder / "result.json")])
+        seconds = time.perf_counter() - started
+    asbuilt.check_joint_zeros = check_joint_zeros
+    warned = any("offset from the robot description's zeros" in line for line in errors.getvalue().splitlines())
+    if not checks or checks[0][0] is None:
+        return f"| {name} | {verb} | exit {code} | not run | | | {seconds:.1f} |"
+    check, check_seconds = checks[0]
+    named = ", ".join(f"j{index + 1} {np.rad2deg(check.offsets[index]):+.1f}° (held-out alone "
+                      f"{np.rad2deg(check.held_out_offsets[index]):+.1f}°)" for index in check.joints) or "none"
+    return (f"| {name} | {verb} | {named} | {check.total_ratio:.3f} · {check.mean_ratio:.3f} | "
+            f"{'**yes**' if warned else 'no'} | {check_seconds:.2f} / {seconds:.1f} |")
+
+
+def main_benchmark() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--robots", default="kuka,panda,tx40,tx40-logzeros,emps")
+    parser.add_argument("--verbs", default="identify,diagnose")
+    args = parser.parse_args()
+    print("| log | verb | joints named | held-out MSE ratio total · mean | warned | check / verb s |")
+    print("|---|---|---|---|---|---|")
+    for verb in args.verbs.split(","):
+        for name in args.robots.split(","):
+            print(run(name, verb), flush=True)
+
+
+if __name__ == "__main__":
+    main_benchmark()
