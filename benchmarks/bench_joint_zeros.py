@@ -4,10 +4,12 @@ the logs zeroed as their URDF, and speak on the TX40's log in its own zeros (joi
 For each robot of ``bench_real_robots.py`` (its files, its split) the verb runs with its defaults (``--friction``
 left out, as a new user runs it), and the check's outcome is recorded as the verb computed it: the offsets named, the
 held-out MSE ratios (total, mean of the channels'), whether it warned, its seconds, and the verb's seconds.
-``tx40-logzeros`` is the TX40 with the motor positions as logged (``TX40_ZERO`` not applied).
+``tx40-logzeros`` is the TX40 with the motor positions as logged (``TX40_ZERO`` not applied). The verb
+``identify-alone`` is ``oed identify`` without ``--validate`` (the check then holds out the training record's second
+half).
 
     PYTHONPATH=. .venv/bin/python benchmarks/bench_joint_zeros.py [--robots kuka,panda,tx40,tx40-logzeros,emps]
-        [--verbs identify,diagnose]
+        [--verbs identify,diagnose,identify-alone]
 """
 
 from __future__ import annotations
@@ -57,9 +59,10 @@ def run(name: str, verb: str) -> str:
         case = case_of(name, folder)
         errors = io.StringIO()
         started = time.perf_counter()
+        validate = [] if verb == "identify-alone" else ["--validate", str(case.files["validate"])]
         with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(errors):
-            code = main([verb, *case.robot, *case.options, "--data", str(case.files["train"]), "--validate",
-                         str(case.files["validate"]), "--out", str(folder / "result.json")])
+            code = main([verb.removesuffix("-alone"), *case.robot, *case.options, "--data", str(case.files["train"]),
+                         *validate, "--out", str(folder / "result.json")])
         seconds = time.perf_counter() - started
     asbuilt.check_joint_zeros = check_joint_zeros
     warned = any("offset from the robot description's zeros" in line for line in errors.getvalue().splitlines())
