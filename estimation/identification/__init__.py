@@ -2,7 +2,7 @@
 (the derivatives chosen by held-out evidence, on another motion when a validation record holds one), plain, shaped and delayed fits, the model's parameter vector as JSON,
 trivial predictors.
 
-Modules: :mod:`~estimation.identification.delayed`, :mod:`~estimation.identification.fit`, :mod:`~estimation.identification.model_parameters`, :mod:`~estimation.identification.prepared`, :mod:`~estimation.identification.preprocessing_choice`, :mod:`~estimation.identification.preprocessing_on_validation`, :mod:`~estimation.identification.shaped`, :mod:`~estimation.identification.trivial_predictors`, :mod:`~estimation.identification.validation`.
+Modules: :mod:`~estimation.identification.delayed`, :mod:`~estimation.identification.fit`, :mod:`~estimation.identification.joint_zeros`, :mod:`~estimation.identification.model_parameters`, :mod:`~estimation.identification.prepared`, :mod:`~estimation.identification.preprocessing_choice`, :mod:`~estimation.identification.preprocessing_on_validation`, :mod:`~estimation.identification.shaped`, :mod:`~estimation.identification.trivial_predictors`, :mod:`~estimation.identification.validation`.
 """
 
 from __future__ import annotations
@@ -22,6 +22,8 @@ _EXPORTS: dict[str, str] = {
     "IdentifiedModel": "estimation.identification.identified_model",
     "ImplausibleEstimateWarning": "estimation.identification.fit",
     "InMemoryBudget": "estimation.identification.prepared",
+    "JointZeroCheck": "estimation.identification.joint_zeros",
+    "JointZeroWarning": "estimation.identification.joint_zeros",
     "MjcfExport": "estimation.identification.export",
     "ModelFile": "estimation.identification.model_file",
     "ModelFileError": "estimation.identification.model_file",
@@ -33,6 +35,7 @@ _EXPORTS: dict[str, str] = {
     "SCORED_SAMPLES": "estimation.identification.preprocessing_choice",
     "ShapeValue": "estimation.identification.shaped",
     "assess_plausibility": "estimation.identification.plausibility",
+    "check_joint_zeros": "estimation.identification.joint_zeros",
     "choose_by_evidence": "estimation.identification.preprocessing_choice",
     "choose_on_validation": "estimation.identification.preprocessing_on_validation",
     "choose_weighting": "estimation.identification.weighting_choice",
