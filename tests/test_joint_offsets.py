@@ -214,3 +214,14 @@ def test_the_simulated_corpus_cries_no_wolf(case):
     train, validate = corpus_records(case)
     check = check_joint_zeros(declared_model(), train, validate, warn=False)
     assert check is None or not check.marked, (check.offsets, check.total_ratio, check.mean_ratio)
+
+
+def test_the_message_in_metres_for_a_prismatic_joint_and_degrees_for_a_revolute_one():
+    from estimation.identification.joint_zeros import JointZeroCheck
+
+    check = JointZeroCheck(np.array([0.02, np.pi]), (0, 1), {"tau1": 0.5, "tau2": 0.5}, 0.5, "validation record",
+                           np.array([0.021, -3.1]), (True, False))
+    text = check.message(("slide", "turn"))
+    assert "joint 1 (slide) +0.0200 m (the validation record alone: +0.0210 m)" in text
+    assert "joint 2 (turn) +3.1416 rad (+180.0°, about a half turn; the validation record alone: -177.6°)" in text
+    assert '"offsets": {"slide": 0.0200, "turn": 3.1416}' in text

@@ -86,6 +86,8 @@ class JointZeroCheck:
         What the held-out samples were (``"validation record"`` or ``"second half of the training record"``).
     held_out_offsets
         ``δ`` estimated on the held-out samples alone (a joint is named only where both estimates agree).
+    prismatic
+        Per joint, whether it is prismatic (its offset in m); empty: all revolute.
     """
 
     offsets: NDArray[np.float64]
@@ -94,6 +96,7 @@ class JointZeroCheck:
     total_ratio: float
     held_out: str
     held_out_offsets: NDArray[np.float64]
+    prismatic: tuple[bool, ...] = ()
 
     @property
     def mean_ratio(self) -> float:
@@ -107,15 +110,21 @@ class JointZeroCheck:
     def message(self, joint_names: tuple[str, ...] | None = None) -> str:
         """The warning's text: the joints, their offsets in rad and degrees, the gain, and how to apply them."""
         names = [f"q{index + 1}" if joint_names is None else joint_names[index] for index in range(len(self.offsets))]
-        listed = ", ".join(f"joint {index + 1} ({names[index]}) {self.offsets[index]:+.4f} rad "
-                           f"({np.rad2deg(self.offsets[index]):+.1f}°{_turn(self.offsets[index])}; the {self.held_out} "
-                           f"alone: {np.rad2deg(self.held_out_offsets[index]):+.1f}°)" for index in self.joints)
+        listed = ", ".join(f"joint {index + 1} ({names[index]}) {self._amount(index)}" for index in self.joints)
         as_json = ", ".join(f'"{names[index]}": {self.offsets[index]:.4f}' for index in self.joints)
         return (f"the recorded joint positions look offset from the robot description's zeros: {listed}. With "
                 f"q + offset the {self.held_out} is predicted with {100 * (1 - self.total_ratio):.0f} % less error "
                 f"(mean of the channels' ratios {self.mean_ratio:.2f}). If the encoders' zeros differ from the URDF's, "
                 f"declare them, \"offsets\": {{{as_json}}} in a transmission JSON (--transmission FILE) for motor-side "
                 "columns qm (q = R⁻¹ qm + offset), or add them to the log's q columns, and run again")
+
+
+    def _amount(self, index: int) -> str:
+        offset, again = self.offsets[index], self.held_out_offsets[index]
+        if self.prismatic and self.prismatic[index]:
+            return f"{offset:+.4f} m (the {self.held_out} alone: {again:+.4f} m)"
+        return (f"{offset:+.4f} rad ({np.rad2deg(offset):+.1f}°{_turn(offset)}; the {self.held_out} alone: "
+                f"{np.rad2deg(again):+.1f}°)")
 
 
 def _turn(offset: float) -> str:
@@ -346,7 +355,7 @@ def check_joint_zeros(model: IdentificationModel, train: Measurements, held_out:
     after = _held_out_mse(model, theta_offset, scored, kept)
     ratio = {channel: float(a / b) if b > 0 else 1.0 for channel, a, b in zip(model.channels, after, before)}
     total = float(after.sum() / before.sum()) if before.sum() > 0 else 1.0
-    check = JointZeroCheck(kept, tuple(named), ratio, total, label, again)
+    check = JointZeroCheck(kept, tuple(named), ratio, total, label, again, tuple(bool(value) for value in ~revolute))
     if warn and check.marked:
         warnings.warn(JointZeroWarning(check.message(model.robot.joint_names)), stacklevel=2)
     return check
