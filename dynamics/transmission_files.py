@@ -129,6 +129,45 @@ def joint_offsets(values: Any, robot: RobotModel, where: str = "offsets") -> tup
     return tuple(_offset(value, f"{where}: offset {index + 1}") for index, value in enumerate(values))
 
 
+def read_joint_offsets(path: str | Path, robot: RobotModel) -> tuple[float, ...]:
+    """The joint offsets of ``--joint-offsets FILE`` (rad, or m; added to the recorded joint positions).
+
+    ``.json``: ``{"offsets": {...}}``, or the object itself, by joint name or 1-based number (``{"joint2":
+    -1.5708}``), or a list of one a joint; ``.csv``: the columns ``joint`` and ``offset``, one row a joint.
+    Joints not named: 0. :class:`TransmissionError` (or :class:`UnknownJointError`, :class:`CouplingShapeError`)
+    naming the file for anything else.
+    """
+    path = Path(path)
+    where = f"joint offsets {path}"
+    if not path.is_file():
+        raise FileNotFoundError(f"joint offsets file not found: {path}")
+    suffix = path.suffix.lower()
+    if suffix == ".json":
+        try:
+            document = json.loads(path.read_text())
+        except (json.JSONDecodeError, UnicodeDecodeError) as error:
+            raise TransmissionError(f"{where}: not valid JSON ({error})") from None
+        if isinstance(document, dict) and set(document) == {"offsets"}:
+            document = document["offsets"]
+        return joint_offsets(document, robot, where)
+    if suffix == ".csv":
+        import pandas as pd
+
+        try:
+            frame = pd.read_csv(path, dtype=str)
+        except (ValueError, OSError, pd.errors.ParserError) as error:
+            raise TransmissionError(f"{where}: cannot read it ({error})") from None
+        frame = frame.rename(columns=lambda name: str(name).strip().lower())
+        if not {"joint", "offset"} <= set(frame.columns):
+            raise TransmissionError(f"{where}: give the columns joint and offset (one row a joint), got "
+                                    f"{', '.join(map(str, frame.columns)) or 'none'}")
+        joints = [str(value).strip() for value in frame["joint"]]
+        if len(set(joints)) != len(joints):
+            raise TransmissionError(f"{where}: a joint named twice")
+        return joint_offsets(dict(zip(joints, frame["offset"].str.strip())), robot, where)
+    raise TransmissionError(f"{where}: give a .json or .csv file")
+
+
 def _offset(value: Any, where: str) -> float:
     if isinstance(value, bool):
         raise TransmissionError(f"{where}: {value!r} is not a number (rad, or m)")

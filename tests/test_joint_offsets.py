@@ -225,3 +225,80 @@ def test_the_message_in_metres_for_a_prismatic_joint_and_degrees_for_a_revolute_
     assert "joint 1 (slide) +0.0200 m (the validation record alone: +0.0210 m)" in text
     assert "joint 2 (turn) +3.1416 rad (+180.0°, about a half turn; the validation record alone: -177.6°)" in text
     assert '"offsets": {"slide": 0.0200, "turn": 3.1416}' in text
+
+
+# --- --joint-offsets FILE: offsets added to the recorded joint positions (joint-side logs) ---
+
+@pytest.fixture(scope="module")
+def joint_side(logs):
+    """The joint-side records as logged by encoders zeroed at ``OFFSETS`` (q_log = q − q₀), and the offset files."""
+    for name in ("train", "val"):
+        frame = pd.read_csv(logs / f"{name}.csv")
+        for j, offset in enumerate(OFFSETS):
+            frame[f"q{j + 1}"] -= offset
+        frame.to_csv(logs / f"{name}_zeroed.csv", index=False)
+    (logs / "offsets.json").write_text(json.dumps({"offsets": {"joint2": OFFSETS[1], "3": OFFSETS[2]}}))
+    pd.DataFrame({"joint": ["joint2", "joint3"], "offset": OFFSETS[1:]}).to_csv(logs / "offsets.csv", index=False)
+    return logs
+
+
+@pytest.mark.parametrize("offsets", ["offsets.json", "offsets.csv"])
+def test_joint_offsets_option_gives_the_correctly_zeroed_result(joint_side, offsets):
+    folder = joint_side
+    joint = _identify(folder, out="joint_ref.json")
+    shifted = _identify(folder, "--joint-offsets", str(folder / offsets), data="train_zeroed.csv",
+                        validate="val_zeroed.csv", out=f"shifted_{offsets}.json")
+    np.testing.assert_allclose(shifted["model_parameters"]["values"], joint["model_parameters"]["values"],
+                               rtol=1e-6, atol=1e-8)
+    assert shifted["model_file"]["joint_offsets"] == pytest.approx(OFFSETS)
+    assert "joint_offsets" not in joint["model_file"]  # outputs without the option stay as they were
+    assert not any("offset from the robot" in message for message in shifted["warnings"])
+    # oed predict adds the stored offsets to a new log in the encoders' zeros
+    for model, data in (("joint_ref.json", "val.csv"), (f"shifted_{offsets}.json", "val_zeroed.csv")):
+        assert main(["predict", "--model", str(folder / model), "--data", str(folder / data), "--out",
+                     str(folder / f"predicted_{model}.csv")]) == 0
+    channels = [f"tau{j}" for j in (1, 2, 3)]
+    np.testing.assert_allclose(pd.read_csv(folder / f"predicted_shifted_{offsets}.json.csv")[channels],
+                               pd.read_csv(folder / "predicted_joint_ref.json.csv")[channels], rtol=1e-6, atol=1e-8)
+
+
+@pytest.mark.parametrize("content, name, message", [
+    ('{"joint2": "a quarter"}', "bad.json", "is not a number"),
+    ('{"joint9": 0.1}', "bad.json", "not a joint of"),
+    ("[0.1, 0.2]", "bad.json", "2 offsets for the 3 joints"),
+    ("not json", "bad.json", "not valid JSON"),
+    ("joint,angle\njoint2,0.1\n", "bad.csv", "give the columns joint and offset"),
+    ("joint2: 0.1", "bad.txt", "give a .json or .csv file"),
+])
+def test_bad_joint_offsets_files_exit_2_and_write_nothing(joint_side, capsys, content, name, message):
+    folder = joint_side
+    (folder / name).write_text(content)
+    out = folder / "never.json"
+    code = main(["identify", "--robot", "puma560", "--joints", "3", "--data", str(folder / "train.csv"), "--validate",
+                 str(folder / "val.csv"), "--joint-offsets", str(folder / name), "--out", str(out)])
+    assert code == 2
+    error = capsys.readouterr().err
+    assert error.startswith("oed identify: error:") and message in error and name in error
+    assert not out.exists()
+
+
+def test_joint_offsets_are_refused_on_the_streamed_path(joint_side, capsys):
+    folder = joint_side
+    code = main(["identify", "--robot", "puma560", "--joints", "3", "--data", str(folder / "train.csv"),
+                 "--joint-offsets", str(folder / "offsets.json"), "--chunk-size", "200", "--out",
+                 str(folder / "never.json")])
+    assert code == 2 and "--joint-offsets" in capsys.readouterr().err
+
+
+def test_diagnose_reads_the_joint_offsets_too(joint_side):
+    folder = joint_side
+    results = []
+    for data, validate, extra in (("train.csv", "val.csv", []),
+                                  ("train_zeroed.csv", "val_zeroed.csv", ["--joint-offsets", str(folder / "offsets.json")])):
+        out = folder / f"diagnosed_{data}.json"
+        assert main(["diagnose", "--robot", "puma560", "--joints", "3", "--data", str(folder / data), "--validate",
+                     str(folder / validate), *extra, "--out", str(out)]) == 0
+        results.append(json.loads(out.read_text()))
+    np.testing.assert_allclose(results[1]["model_file"]["theta"], results[0]["model_file"]["theta"], rtol=1e-6,
+                               atol=1e-8)
+    assert results[1]["model_file"]["joint_offsets"] == pytest.approx(OFFSETS)

@@ -19,10 +19,12 @@ from __future__ import annotations
 
 import os
 import re
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
+from numpy.typing import ArrayLike
 
 from dynamics.models import IdentificationModel
 from dynamics.transmission import Transmission, TransmissionError, check_power_signs
@@ -138,8 +140,22 @@ def _velocities_and_torques(frame: pd.DataFrame, n_joints: int
 
 
 def read_record_with_transmission(path: str | Path, *, model: IdentificationModel, transmission: Transmission | None,
-                                  max_gap: float = DEFAULT_MAX_GAP, split: bool = True) -> tuple[Measurements, ...]:
-    """:func:`estimation.data.records.read_record` (the segments of one file), motor-side columns converted first."""
+                                  max_gap: float = DEFAULT_MAX_GAP, split: bool = True,
+                                  joint_offsets: ArrayLike | None = None) -> tuple[Measurements, ...]:
+    """:func:`estimation.data.records.read_record` (the segments of one file), motor-side columns converted first;
+    ``joint_offsets`` (one a joint, rad or m: ``--joint-offsets``) added to the joint positions read, after the
+    transmission's conversion."""
+    segments = _read_record(path, model=model, transmission=transmission, max_gap=max_gap, split=split)
+    if joint_offsets is None:
+        return segments
+    offsets = np.asarray(joint_offsets, dtype=float).reshape(-1)
+    if offsets.shape != (model.robot.n_joints,):
+        raise ValueError(f"{offsets.size} joint offsets for the {model.robot.n_joints} joints of {model.robot.name}")
+    return tuple(replace(segment, q=segment.q + offsets) for segment in segments)
+
+
+def _read_record(path: str | Path, *, model: IdentificationModel, transmission: Transmission | None,
+                 max_gap: float, split: bool) -> tuple[Measurements, ...]:
     source, path = path, Path(os.fspath(path))
     if path.suffix.lower() not in (".csv", ".parquet") or not path.is_file() or is_log_file(source):
         return read_record(source, model=model, max_gap=max_gap, split=split)  # its messages for a folder, a format

@@ -365,12 +365,14 @@ class IdentifiedModel:
         return Prediction(record.t, predicted, predicted - half, predicted + half, measured, self.channels)
 
     def read(self, paths: Sequence[str | Path]) -> tuple[Measurements, ...]:
-        """The segments of the files, motor-side columns converted by the model's transmission."""
+        """The segments of the files, motor-side columns converted by the model's transmission, the model file's
+        ``joint_offsets`` added to the joint positions."""
         max_gap = DEFAULT_MAX_GAP if self.file.max_gap is None else float(self.file.max_gap)
         segments: list[Measurements] = []
         for path in paths:
             segments.extend(read_record_with_transmission(path, model=self.model, transmission=self.transmission,
-                                                          max_gap=max_gap, split=True))
+                                                          max_gap=max_gap, split=True,
+                                                          joint_offsets=self.file.joint_offsets))
         return tuple(segments)
 
     def prepare(self, segments: Sequence[Measurements]) -> Measurements:

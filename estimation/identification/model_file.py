@@ -28,7 +28,8 @@
         "alternatives": {NAME: {"theta", "cov", "method", "channel_variance", "weights", "recorded_variance",
                                 "validation_mse", "shape", "shape_std", "delay", "effect_values", "warnings"}},
         "payload": {"link": "joint6", "link_index": 6,                        # oed payload: a rigid body fixed
-                    "parameters": [m, mx, …, Izz], "cov": [[…]]}}            # to that link (absent: none)
+                    "parameters": [m, mx, …, Izz], "cov": [[…]]},            # to that link (absent: none)
+        "joint_offsets": [0, -1.5708, …]}                   # --joint-offsets: added to q as read (absent: none)
 
 ``theta``, ``cov`` and the keys beside them are the model the identification chose
 (:mod:`estimation.consistent.model_selection`); the other candidates stay as named ``alternatives``, each
@@ -189,6 +190,7 @@ class ModelFile:
     payload: Mapping[str, Any] | None = None
     chosen: str | None = None
     alternatives: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
+    joint_offsets: tuple[float, ...] | None = None
 
     @property
     def band_variance(self) -> NDArray[np.float64]:
@@ -229,6 +231,8 @@ class ModelFile:
         }
         if self.payload is not None:  # written only when there is one: files without it stay as they were
             document["payload"] = dict(self.payload)
+        if self.joint_offsets is not None:  # --joint-offsets: added to the joint positions of every record read
+            document["joint_offsets"] = list(self.joint_offsets)
         return document
 
     @classmethod
@@ -270,9 +274,23 @@ class ModelFile:
                 else np.array([document["recorded_variance"][c] for c in channels], dtype=float),
                 payload=_payload(document.get("payload")),
                 chosen=document.get("chosen"), alternatives=dict(document.get("alternatives") or {}),
+                joint_offsets=_joint_offsets(document.get("joint_offsets"), len(document["joint_names"])),
             )
         except (KeyError, TypeError) as error:
             raise ModelFileError(f"the model file lacks or garbles {error}") from None
+
+
+def _joint_offsets(values: Any, n_joints: int) -> tuple[float, ...] | None:
+    """The ``joint_offsets`` entry, checked: one finite number a joint."""
+    if values is None:
+        return None
+    try:
+        offsets = np.asarray(values, dtype=float).reshape(-1)
+    except (TypeError, ValueError):
+        raise ModelFileError(f"joint_offsets must be {n_joints} numbers, got {values!r}") from None
+    if offsets.shape != (n_joints,) or not np.all(np.isfinite(offsets)):
+        raise ModelFileError(f"joint_offsets must be {n_joints} finite numbers, got {values!r}")
+    return tuple(float(value) for value in offsets)
 
 
 def _payload(document: Any) -> dict[str, Any] | None:

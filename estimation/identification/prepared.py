@@ -129,6 +129,9 @@ class PreparationSettings:
         The model those fits fit (its channels those of the model the records are read for); ``None``: that
         model. ``oed diagnose`` gives the plain model (its declared effects plus Coulomb friction and an offset on
         every joint): the effects the declared model lacks must not choose the derivatives that will reveal them.
+    joint_offsets
+        Added to the joint positions of every record read (rad, or m; one a joint): encoders zeroed elsewhere than
+        the robot description (``--joint-offsets``); ``None``: none.
     """
 
     max_gap: float = DEFAULT_MAX_GAP
@@ -147,6 +150,7 @@ class PreparationSettings:
     jobs: int | None = None
     validation_fits: tuple[str, ...] = ()
     validation_model: IdentificationModel | None = None
+    joint_offsets: tuple[float, ...] | None = None
 
     def __post_init__(self) -> None:
         if self.selection not in ("held-out", "rule"):
@@ -225,9 +229,11 @@ class PreparedRecords:
 
 
 def read_files(paths: Sequence[str | Path], model: IdentificationModel, *, split: bool,
-               max_gap: float = DEFAULT_MAX_GAP, transmission: Transmission | None = None) -> tuple[RecordedFile, ...]:
+               max_gap: float = DEFAULT_MAX_GAP, transmission: Transmission | None = None,
+               joint_offsets: tuple[float, ...] | None = None) -> tuple[RecordedFile, ...]:
     """The segments of every file (a hole splits a file when ``split``, else it is an error); motor-side
-    columns converted by ``transmission``. A file given twice is an error: each file is one segment."""
+    columns converted by ``transmission``, ``joint_offsets`` added to the joint positions. A file given twice is an
+    error: each file is one segment."""
     seen: dict[Path, Path] = {}
     for path in map(Path, paths):
         resolved = path.expanduser().resolve()
@@ -235,7 +241,7 @@ def read_files(paths: Sequence[str | Path], model: IdentificationModel, *, split
             raise ValueError(f"{path} given twice (as {seen[resolved]} too): each file is one segment of the record")
         seen[resolved] = path
     return tuple(RecordedFile(Path(os.fspath(source)), tuple(read_record_with_transmission(
-        source, model=model, transmission=transmission, max_gap=max_gap, split=split)))
+        source, model=model, transmission=transmission, max_gap=max_gap, split=split, joint_offsets=joint_offsets)))
         for source in paths)  # a path, or a LogSource (a topic, a column map) read as it says
 
 
@@ -277,12 +283,14 @@ def prepare_records(model: IdentificationModel, train: Sequence[str | Path], val
     check_distinct_records({"--data": train, "--validate": validation, "--test": test})
     with step(f"read {len(train) + len(validation) + len(test)} file(s)"), \
             reading_findings([*train, *validation, *test]):  # each finding said once, at once
-        train_files = read_files(train, model, split=True, max_gap=settings.max_gap, transmission=settings.transmission)
+        train_files = read_files(train, model, split=True, max_gap=settings.max_gap, transmission=settings.transmission,
+                                 joint_offsets=settings.joint_offsets)
         # a hole splits a held-out file too, as it does a training file and as ``oed predict`` reads one: each
         # segment is scored on its own samples as recorded (refusing it made the defaults exit where the user's
         # own split of the file into two --validate files works)
         held_out = {role: read_files(paths, model, split=True, max_gap=settings.max_gap,
-                                     transmission=settings.transmission) if paths else None
+                                     transmission=settings.transmission, joint_offsets=settings.joint_offsets)
+                    if paths else None
                     for role, paths in (("validation", validation), ("test", test))}
     check_no_shared_samples({"training": train_files, **held_out})
     for role, files in (("training", train_files), *held_out.items()):

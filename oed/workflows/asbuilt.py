@@ -3,7 +3,8 @@ motor-side effects, rest segments, trivial predictors, the model's parameter vec
 the verbs' documents (:func:`finish_document`).
 
 Options (both verbs): ``transmission`` (a JSON file, :func:`dynamics.transmission_files.transmission_from_json`;
-default: the URDF's <transmission> elements, or the built-in robot's: PUMA 560), ``min_speed`` (rows slower than
+default: the URDF's <transmission> elements, or the built-in robot's: PUMA 560), ``joint_offsets`` (a JSON or CSV
+file, :func:`dynamics.transmission_files.read_joint_offsets`: added to the recorded joint positions), ``min_speed`` (rows slower than
 it, rad/s or m/s, are at rest) and ``rest`` (``drop``, the default, or ``smooth`` the Coulomb laws to
 tanh(v / V)).
 """
@@ -24,7 +25,7 @@ from dynamics.transmission import (
     UnknownJointError,
     puma560_transmission,
 )
-from dynamics.transmission_files import transmission_from_json, transmission_from_urdf
+from dynamics.transmission_files import read_joint_offsets, transmission_from_json, transmission_from_urdf
 from estimation.data.rest import check_min_speed, smooth_coulomb
 from dynamics.models import IdentificationModel
 from dynamics.runtime.progress import step
@@ -128,6 +129,13 @@ def worse_after(diagnosis: Any) -> tuple[str, ...]:
     return tuple(f"{channel}: the diagnosis raised its validation MSE from {before[channel]:.4g} to {after[channel]:.4g} "
                  f"({100 * (after[channel] / before[channel] - 1):.0f} % worse)"
                  for channel in before if channel in after and before[channel] > 0 and after[channel] > 1.01 * before[channel])
+
+
+def resolve_joint_offsets(args: RecordOptions, robot: RobotModel) -> tuple[float, ...] | None:
+    """``--joint-offsets FILE`` read for ``robot`` (:func:`dynamics.transmission_files.read_joint_offsets`), or
+    ``None``."""
+    path = getattr(args, "joint_offsets", None)
+    return None if path is None else read_joint_offsets(path, robot)
 
 
 def joint_zero_notes(model: IdentificationModel, train: Measurements, validation: Measurements | None, *,

@@ -59,6 +59,7 @@ from oed.workflows.asbuilt import (
     finish_document,
     joint_zero_notes,
     model_effects,
+    resolve_joint_offsets,
     resolve_transmission,
     rest_message,
     rest_records,
@@ -361,6 +362,7 @@ def diagnosis_in_memory(args: DiagnoseOptions, model: IdentificationModel, trans
         warnings.simplefilter("always")
         records = prepare_records(model, args.data, args.validate, args.test or (),  # reports its steps
                                   settings=replace(preparation_settings(args, transmission, IN_MEMORY), plan=plan,
+                                                   joint_offsets=resolve_joint_offsets(args, model.robot),
                                                    **derivatives_on_validation(model, delay)))
         with step("noise floors of the held-out records"):
             validation_floor, test_floor = record_floors(records, model, args.frequency, args.jobs)
@@ -700,6 +702,7 @@ def check_streamed_arguments(args: DiagnoseOptions, model: IdentificationModel) 
     """Options the streamed diagnosis does not have: an error naming them, before anything is read."""
     unsupported = [option for option, given in (
         ("--transmission", args.transmission is not None),
+        ("--joint-offsets", args.joint_offsets is not None),
         ("--min-speed", args.min_speed is not None),
         ("--average-periods no", args.average_periods == "no"),
         ("--max-gap", args.max_gap != DEFAULT_MAX_GAP)) if given]

@@ -59,6 +59,7 @@ from oed.workflows.asbuilt import (
     finish_document,
     joint_zero_notes,
     model_effects,
+    resolve_joint_offsets,
     resolve_transmission,
     rest_message,
     rest_records,
@@ -578,7 +579,8 @@ def check_streamed_request(args: IdentifyOptions, model: IdentificationModel) ->
     if args.consistent:
         raise ValueError(f"--consistent refits in memory: not with {STREAMED}")
     unsupported = [option for option, given in (
-        ("--transmission", args.transmission is not None), ("--average-periods", args.average_periods != "auto"),
+        ("--transmission", args.transmission is not None), ("--joint-offsets", args.joint_offsets is not None),
+        ("--average-periods", args.average_periods != "auto"),
         ("--max-gap", args.max_gap != DEFAULT_MAX_GAP)) if given]
     if unsupported:
         raise ValueError(f"{', '.join(unsupported)}: not with {STREAMED}, which reads whole files without holes, "
@@ -595,7 +597,8 @@ def identification_in_memory(args: IdentifyOptions, robot: RobotModel, model: Id
         warnings.simplefilter("always")
         records = prepare_records(model, args.data, args.validate or (),  # reports its steps
                                   settings=replace(preparation_settings(args, transmission, IN_MEMORY), plan=plan,
-                                                   validation_fits=validation_fits(args, model, delay)))
+                                                   validation_fits=validation_fits(args, model, delay),
+                                                   joint_offsets=resolve_joint_offsets(args, robot)))
         train = records.train.measurements
         validation = None if records.validation is None else records.validation.measurements
         with step("weighting chosen on held-out blocks"):

@@ -21,6 +21,7 @@ from estimation.identification.model_file import (
 )
 from estimation.identification.validation import channel_mse
 from estimation.identification.plausibility import assess_plausibility, link_findings
+from oed.workflows.asbuilt import resolve_joint_offsets
 from oed.workflows.chosen_model import ChosenModel
 from oed.workflows.options import RecordOptions
 
@@ -46,6 +47,9 @@ def add_runner_up_model_file(document: dict[str, Any], runner_up: Any, args: Rec
     document["runner_up"]["model_file"] = model_file_document(
         runner_up.fit, robot=robot_source(runner_up.model.robot, args), preprocessing=preprocessing.to_dict(),
         transmission=transmission, rest=rest_document(args), max_gap=args.max_gap)
+    offsets = resolve_joint_offsets(args, runner_up.model.robot)
+    if offsets is not None:
+        document["runner_up"]["model_file"]["joint_offsets"] = list(offsets)
 
 
 def add_model_file(document: dict[str, Any], result: IdentificationResult, args: RecordOptions, preprocessing: Any,
@@ -69,6 +73,9 @@ def add_model_file(document: dict[str, Any], result: IdentificationResult, args:
             max_gap=args.max_gap, consistent=None if consistent is None else consistent.estimate,
             consistent_validation_mse=None if consistent is None or consistent.validation is None
             else consistent.validation.mse)
+    offsets = resolve_joint_offsets(args, result.model.robot)
+    if offsets is not None:  # added to the joint positions of every record oed predict reads with this file
+        document["model_file"]["joint_offsets"] = list(offsets)
     validation = document.get("validation") or {}
     answer = ChosenModel(result.estimate.method, result) if selection is None else ChosenModel.of(selection)
     plausibility = assess_plausibility(result.model, answer.records(),  # of the model the file holds

@@ -161,6 +161,7 @@ class RecordOptions(RobotOptions):
     model: str = "internal"
     friction: str = "viscous"
     transmission: str | None = None
+    joint_offsets: str | None = None
     min_speed: float | None = None
     rest: str = "drop"
     data: tuple[Path, ...] = ()
@@ -191,6 +192,8 @@ class RecordOptions(RobotOptions):
         check_choice("average_periods", self.average_periods, ("auto", "yes", "no"))
         if self.transmission is not None:
             object.__setattr__(self, "transmission", str(self.transmission))
+        if self.joint_offsets is not None:
+            object.__setattr__(self, "joint_offsets", str(self.joint_offsets))
 
     def sources(self, value: Any) -> tuple[Path, ...]:
         """A record option's paths, the log files among them read with ``topic`` and ``columns``."""

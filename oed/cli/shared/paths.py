@@ -19,7 +19,7 @@ from pathlib import Path
 
 #: options that name files a verb reads
 INPUT_OPTIONS: tuple[str, ...] = ("data", "validate", "trajectory", "bounds", "aprbs", "urdf", "transmission", "prior",
-                                 "link_bounds")
+                                 "link_bounds", "joint_offsets")
 #: options that name files a verb writes (or folders, for the options a verb lists in ``folder_options``)
 OUTPUT_OPTIONS: tuple[str, ...] = ("out", "csv", "plot", "figure", "truth", "report")
 
