@@ -116,7 +116,8 @@ class JointZeroCheck:
                 f"q + offset the {self.held_out} is predicted with {100 * (1 - self.total_ratio):.0f} % less error "
                 f"(mean of the channels' ratios {self.mean_ratio:.2f}). If the encoders' zeros differ from the URDF's, "
                 f"declare them, \"offsets\": {{{as_json}}} in a transmission JSON (--transmission FILE) for motor-side "
-                "columns qm (q = R⁻¹ qm + offset), or add them to the log's q columns, and run again")
+                "columns qm (q = R⁻¹ qm + offset), or the same object in a JSON file given to --joint-offsets FILE "
+                "(added to the recorded q), and run again")
 
 
     def _amount(self, index: int) -> str:
