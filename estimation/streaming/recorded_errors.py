@@ -27,7 +27,8 @@ from estimation.preprocessing.differentiation import ButterworthDifferentiation
 from estimation.streaming.chunks import logged_chunks, preprocessed_chunks
 from estimation.streaming.periods import plan_chunks
 
-__all__ = ["streamed_errors_at_stamps", "streamed_plan", "streamed_recorded_errors", "streamed_recorded_mse"]
+__all__ = ["counted_errors_at_stamps", "counted_recorded_errors", "recorded_training_errors",
+           "streamed_errors_at_stamps", "streamed_plan", "streamed_recorded_errors", "streamed_recorded_mse"]
 
 
 def streamed_plan(path: str | Path, model: IdentificationModel, *, cutoff_hz: float | None, decimation: int = 1,
@@ -58,6 +59,16 @@ def streamed_recorded_errors(model: IdentificationModel, thetas: Mapping[str, Ar
     :mod:`estimation.identification.trivial_predictors`). ``frequency_hz``: the Fourier path (a file without
     ``dq``, ``ddq`` is read as the in-memory validation and ``oed predict`` read it: every sample of its whole
     periods, the fit of its averaged period at their instants, :func:`estimation.streaming.periods.plan_chunks`)."""
+    return counted_recorded_errors(model, thetas, paths, chunk_size=chunk_size, cutoff_hz=cutoff_hz,
+                                   decimation=decimation, held_torques=held_torques, frequency_hz=frequency_hz,
+                                   harmonics=harmonics)[0]
+
+
+def counted_recorded_errors(model: IdentificationModel, thetas: Mapping[Any, ArrayLike], paths: Sequence[str | Path],
+                            *, chunk_size: int, cutoff_hz: float | None = None, decimation: int = 1,
+                            held_torques: bool = False, frequency_hz: float | None = None,
+                            harmonics: int = 5) -> tuple[dict[Any, dict[str, float]], int]:
+    """:func:`streamed_recorded_errors` and the number of samples they are measured on (the files pooled)."""
     vectors = {name: np.asarray(theta, dtype=float) for name, theta in thetas.items()}
     for theta in vectors.values():
         if theta.shape != (model.n_base,):
@@ -78,12 +89,21 @@ def streamed_recorded_errors(model: IdentificationModel, thetas: Mapping[str, Ar
             count += measured.shape[0]
     if count == 0:
         raise ValueError("the files hold no samples once preprocessed")
-    return {name: dict(zip(model.channels, map(float, total / count))) for name, total in squares.items()}
+    return {name: dict(zip(model.channels, map(float, total / count))) for name, total in squares.items()}, count
 
 
 def streamed_errors_at_stamps(model: IdentificationModel, thetas: Mapping[Any, ArrayLike], paths: Sequence[str | Path],
                               *, chunk_size: int, cutoff_hz: float | None = None, decimation: int = 1,
                               held_torques: bool = False) -> dict[Any, dict[str, float]] | None:
+    """:func:`counted_errors_at_stamps` without the count (see there)."""
+    counted = counted_errors_at_stamps(model, thetas, paths, chunk_size=chunk_size, cutoff_hz=cutoff_hz,
+                                       decimation=decimation, held_torques=held_torques)
+    return None if counted is None else counted[0]
+
+
+def counted_errors_at_stamps(model: IdentificationModel, thetas: Mapping[Any, ArrayLike], paths: Sequence[str | Path],
+                             *, chunk_size: int, cutoff_hz: float | None = None, decimation: int = 1,
+                             held_torques: bool = False) -> tuple[dict[Any, dict[str, float]], int] | None:
     """:func:`streamed_recorded_errors` at the samples as logged, block by block: on a file the streamed path
     resampled onto a uniform grid (jittered stamps), the derived motion of its grid blocks
     (:func:`~estimation.streaming.chunks.preprocessed_chunks`) is interpolated linearly at the recorded time stamps
@@ -127,7 +147,7 @@ def streamed_errors_at_stamps(model: IdentificationModel, thetas: Mapping[Any, A
             return None  # rows the loader drops: its grid interpolates other samples than the streamed one
     if count == 0:
         raise ValueError("the files hold no samples once preprocessed")
-    return {name: dict(zip(model.channels, map(float, total / count))) for name, total in squares.items()}
+    return {name: dict(zip(model.channels, map(float, total / count))) for name, total in squares.items()}, count
 
 
 def _watched(chunks: Any, model: IdentificationModel, stamps: list[NDArray[np.float64]]) -> Any:
@@ -193,3 +213,25 @@ def _at_stamps(model: IdentificationModel, first: Any, grid: Any, logged: Any, *
     tolerance = 1e-9 * (end - start)
     for stamps in held:
         score(stamps, stamps.t >= start - tolerance, clamped=True)
+
+
+def recorded_training_errors(model: IdentificationModel, thetas: Mapping[Any, ArrayLike], paths: Sequence[str | Path],
+                             files: Sequence[Mapping[str, Any]], *, chunk_size: int, cutoff_hz: float | None = None,
+                             decimation: int = 1, held_torques: bool = False, frequency_hz: float | None = None,
+                             harmonics: int = 5) -> tuple[dict[Any, dict[str, float]], int] | None:
+    """The training errors of ``thetas`` against the channels as recorded, on the samples the in-memory fit measures
+    them on, and how many those are, from one more pass over the training ``paths`` block by block (memory: a few
+    blocks; a resampled file's time stamps): on the filter path the derived motion against the recorded channels
+    (:func:`counted_recorded_errors`), on a file the streamed path resampled onto a uniform grid at the recorded
+    stamps (:func:`counted_errors_at_stamps`), on the Fourier path every sample of the files' whole periods with the
+    fit of their averaged period at its instant, as the in-memory Fourier fit compares them. ``files``: the
+    streamed record of each training file (``streaming.files``: ``resampled_from``). ``None`` where the loader
+    drops rows the streamed grid interpolates (:func:`counted_errors_at_stamps`): the caller keeps the errors it
+    has."""
+    resampled = any(record.get("resampled_from") is not None for record in files)
+    if resampled and frequency_hz is None:
+        return counted_errors_at_stamps(model, thetas, paths, chunk_size=chunk_size, cutoff_hz=cutoff_hz,
+                                        decimation=decimation, held_torques=held_torques)
+    return counted_recorded_errors(model, thetas, paths, chunk_size=chunk_size, cutoff_hz=cutoff_hz,
+                                   decimation=decimation, held_torques=held_torques, frequency_hz=frequency_hz,
+                                   harmonics=harmonics)
