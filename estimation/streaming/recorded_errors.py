@@ -15,7 +15,8 @@ samples equal the whole-record ones to :data:`estimation.streaming.chunks.MARGIN
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+import functools
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -27,8 +28,9 @@ from estimation.preprocessing.differentiation import ButterworthDifferentiation
 from estimation.streaming.chunks import logged_chunks, preprocessed_chunks
 from estimation.streaming.periods import plan_chunks
 
-__all__ = ["counted_errors_at_stamps", "counted_recorded_errors", "recorded_training_errors",
-           "streamed_errors_at_stamps", "streamed_plan", "streamed_recorded_errors", "streamed_recorded_mse"]
+__all__ = ["Predictor", "counted_errors_at_stamps", "counted_predicted_errors", "counted_recorded_errors",
+           "recorded_training_errors", "streamed_errors_at_stamps", "streamed_plan", "streamed_recorded_errors",
+           "streamed_recorded_mse", "theta_predictors"]
 
 
 def streamed_plan(path: str | Path, model: IdentificationModel, *, cutoff_hz: float | None, decimation: int = 1,
@@ -69,13 +71,35 @@ def counted_recorded_errors(model: IdentificationModel, thetas: Mapping[Any, Arr
                             held_torques: bool = False, frequency_hz: float | None = None,
                             harmonics: int = 5) -> tuple[dict[Any, dict[str, float]], int]:
     """:func:`streamed_recorded_errors` and the number of samples they are measured on (the files pooled)."""
-    vectors = {name: np.asarray(theta, dtype=float) for name, theta in thetas.items()}
-    for theta in vectors.values():
-        if theta.shape != (model.n_base,):
-            raise ValueError(f"theta must hold the model's {model.n_base} base parameters, got shape {theta.shape}")
+    return counted_predicted_errors(model, theta_predictors(model, thetas), paths, chunk_size=chunk_size,
+                                    cutoff_hz=cutoff_hz, decimation=decimation, held_torques=held_torques,
+                                    frequency_hz=frequency_hz, harmonics=harmonics)
+
+
+#: a prediction of the channels ``(N, m)`` along the motion ``q, dq, ddq`` (each ``(N, n)``)
+Predictor = Callable[[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]], NDArray[np.float64]]
+
+
+def theta_predictors(model: IdentificationModel, thetas: Mapping[Any, ArrayLike]) -> dict[Any, Predictor]:
+    """``model``'s prediction at each base-parameter vector of ``thetas`` (by the same keys)."""
+    predictors = {}
+    for name, theta in thetas.items():
+        vector = np.asarray(theta, dtype=float)
+        if vector.shape != (model.n_base,):
+            raise ValueError(f"theta must hold the model's {model.n_base} base parameters, got shape {vector.shape}")
+        predictors[name] = functools.partial(model.predict, vector)
+    return predictors
+
+
+def counted_predicted_errors(model: IdentificationModel, predictors: Mapping[Any, Predictor],
+                             paths: Sequence[str | Path], *, chunk_size: int, cutoff_hz: float | None = None,
+                             decimation: int = 1, held_torques: bool = False, frequency_hz: float | None = None,
+                             harmonics: int = 5) -> tuple[dict[Any, dict[str, float]], int]:
+    """:func:`counted_recorded_errors` of any predictions (``predictors``: e.g. a model file's, shaped laws at its
+    shapes); ``model`` reads the files (its joints and channels)."""
     if not paths:
         raise ValueError("no files to measure the error on")
-    squares = {name: np.zeros(model.n_channels) for name in vectors}
+    squares = {name: np.zeros(model.n_channels) for name in predictors}
     count = 0
     for path in paths:
         for chunk in plan_chunks(path, model, frequency_hz=frequency_hz, harmonics=harmonics, as_recorded=True,
@@ -83,9 +107,8 @@ def counted_recorded_errors(model: IdentificationModel, thetas: Mapping[Any, Arr
                                  held_torques=held_torques):
             record = chunk.as_recorded
             measured = record.channels(model.channels)
-            for name, theta in vectors.items():
-                residual = measured - model.predict(theta, record.q, record.dq, record.ddq)
-                squares[name] += np.sum(residual**2, axis=0)
+            for name, predict in predictors.items():
+                squares[name] += np.sum((measured - predict(record.q, record.dq, record.ddq)) ** 2, axis=0)
             count += measured.shape[0]
     if count == 0:
         raise ValueError("the files hold no samples once preprocessed")
@@ -103,7 +126,8 @@ def streamed_errors_at_stamps(model: IdentificationModel, thetas: Mapping[Any, A
 
 def counted_errors_at_stamps(model: IdentificationModel, thetas: Mapping[Any, ArrayLike], paths: Sequence[str | Path],
                              *, chunk_size: int, cutoff_hz: float | None = None, decimation: int = 1,
-                             held_torques: bool = False) -> tuple[dict[Any, dict[str, float]], int] | None:
+                             held_torques: bool = False, predictors: Mapping[Any, Predictor] | None = None
+                             ) -> tuple[dict[Any, dict[str, float]], int] | None:
     """:func:`streamed_recorded_errors` at the samples as logged, block by block: on a file the streamed path
     resampled onto a uniform grid (jittered stamps), the derived motion of its grid blocks
     (:func:`~estimation.streaming.chunks.preprocessed_chunks`) is interpolated linearly at the recorded time stamps
@@ -117,16 +141,18 @@ def counted_errors_at_stamps(model: IdentificationModel, thetas: Mapping[Any, Ar
     a logger's re-sent rows, :func:`estimation.data.records.segments_from_frame`): its grid is then another, and the
     caller measures the files whole. A stall shorter than ``max_gap`` is bridged alike on both paths (the same grid
     over the same samples)."""
-    vectors = {name: np.asarray(theta, dtype=float) for name, theta in thetas.items()}
+    if predictors is None:
+        predictors = {name: functools.partial(model.predict, np.asarray(theta, dtype=float))
+                      for name, theta in thetas.items()}
     if not paths:
         raise ValueError("no files to measure the error on")
-    squares = {name: np.zeros(model.n_channels) for name in vectors}
+    squares = {name: np.zeros(model.n_channels) for name in predictors}
     count = 0
 
     def add(q, dq, ddq, measured) -> None:
         nonlocal count
-        for name, theta in vectors.items():
-            squares[name] += np.sum((measured - model.predict(theta, q, dq, ddq)) ** 2, axis=0)
+        for name, predict in predictors.items():
+            squares[name] += np.sum((measured - predict(q, dq, ddq)) ** 2, axis=0)
         count += measured.shape[0]
 
     for path in paths:
@@ -215,11 +241,11 @@ def _at_stamps(model: IdentificationModel, first: Any, grid: Any, logged: Any, *
         score(stamps, stamps.t >= start - tolerance, clamped=True)
 
 
-def recorded_training_errors(model: IdentificationModel, thetas: Mapping[Any, ArrayLike], paths: Sequence[str | Path],
+def recorded_training_errors(model: IdentificationModel, predictors: Mapping[Any, Predictor], paths: Sequence[str | Path],
                              files: Sequence[Mapping[str, Any]], *, chunk_size: int, cutoff_hz: float | None = None,
                              decimation: int = 1, held_torques: bool = False, frequency_hz: float | None = None,
                              harmonics: int = 5) -> tuple[dict[Any, dict[str, float]], int] | None:
-    """The training errors of ``thetas`` against the channels as recorded, on the samples the in-memory fit measures
+    """The training errors of ``predictors`` (:func:`theta_predictors`, or a model file's) against the channels as recorded, on the samples the in-memory fit measures
     them on, and how many those are, from one more pass over the training ``paths`` block by block (memory: a few
     blocks; a resampled file's time stamps): on the filter path the derived motion against the recorded channels
     (:func:`counted_recorded_errors`), on a file the streamed path resampled onto a uniform grid at the recorded
@@ -230,8 +256,8 @@ def recorded_training_errors(model: IdentificationModel, thetas: Mapping[Any, Ar
     has."""
     resampled = any(record.get("resampled_from") is not None for record in files)
     if resampled and frequency_hz is None:
-        return counted_errors_at_stamps(model, thetas, paths, chunk_size=chunk_size, cutoff_hz=cutoff_hz,
-                                        decimation=decimation, held_torques=held_torques)
-    return counted_recorded_errors(model, thetas, paths, chunk_size=chunk_size, cutoff_hz=cutoff_hz,
-                                   decimation=decimation, held_torques=held_torques, frequency_hz=frequency_hz,
-                                   harmonics=harmonics)
+        return counted_errors_at_stamps(model, {}, paths, chunk_size=chunk_size, cutoff_hz=cutoff_hz,
+                                        decimation=decimation, held_torques=held_torques, predictors=predictors)
+    return counted_predicted_errors(model, predictors, paths, chunk_size=chunk_size, cutoff_hz=cutoff_hz,
+                                    decimation=decimation, held_torques=held_torques, frequency_hz=frequency_hz,
+                                    harmonics=harmonics)

@@ -55,6 +55,7 @@ from estimation.streaming.recorded_errors import (
     streamed_errors_at_stamps,
     streamed_plan,
     streamed_recorded_errors,
+    theta_predictors,
 )
 from oed.workflows.asbuilt import (
     finish_document,
@@ -487,7 +488,8 @@ def recorded_training(args: IdentifyOptions, result: IdentificationResult, chose
             warnings.catch_warnings():
         warnings.simplefilter("ignore")  # the files' findings were said on the first pass
         counted = recorded_training_errors(
-            result.model, {key: fit.estimate.values for key, fit in fits.items()}, args.data, files,
+            result.model, theta_predictors(result.model, {key: fit.estimate.values for key, fit in fits.items()}),
+            args.data, files,
             chunk_size=chunk_size, cutoff_hz=streaming.get("cutoff_hz"), decimation=int(options["decimation"]),
             held_torques=bool(options["held_torques"]), frequency_hz=streaming.get("frequency_hz"),
             harmonics=int(options["harmonics"]))
