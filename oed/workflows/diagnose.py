@@ -745,6 +745,8 @@ def diagnosis_streamed(args: DiagnoseOptions, friction: str, plan: Preprocessing
                                        floor_window=args.floor_window, executor=executor, preprocessing=plan,
                                        findings=findings)
         still = warned_still_motion(model, args.data, args.validate, chunk_size=chunk_size)  # said as in memory
+        if still:  # the choices below ignore it, as in memory; the effect search above did not
+            warnings.warn(STILL_SEARCH, stacklevel=2)
     messages = tuple(caught_messages(caught))  # the findings as said (one line per finding across files), others
     cutoff_hz = diagnosis.streaming["cutoff_hz"]
     if plan.method == "fourier":  # validated on every sample of whole periods as recorded: what predict measures
@@ -761,9 +763,17 @@ def diagnosis_streamed(args: DiagnoseOptions, friction: str, plan: Preprocessing
                                                  if key not in SELECTION_KEYS})  # computed now
     # the training errors against the recording where the sums hold averaged periods or a resampled grid
     diagnosis, selection, averaged = recorded_training(args, diagnosis, selection, model_file[0], chunk_size)
+    if still:
+        diagnosis = replace(diagnosis, streaming={**diagnosis.streaming, "effect_search_on_still_validation": STILL_SEARCH})
     return Diagnosed(diagnosis, {"cutoff_hz": cutoff_hz, **plan.to_dict()}, plan.describe(), messages,
                      selection=selection, chunk_size=chunk_size, model_file=model_file, averaged_train=averaged)
 
+
+#: what the streamed diagnosis says of a validation record at rest (its effect search compares the candidates there)
+STILL_SEARCH = ("the streamed diagnosis compared its candidate effects on that validation record at rest (in memory "
+                "they are compared on stretches of the training record their fits did not see): an effect it adopted "
+                "was judged on a record that measures little of the dynamics; run `oed diagnose` in memory (a larger "
+                "--memory-budget, without --chunk-size) or give a validation record of another motion")
 
 #: the keys of report.json the default answer fills (on the streamed path too, :func:`streamed_selection`)
 SELECTION_KEYS = ("consistent", "links", "model_selection")
