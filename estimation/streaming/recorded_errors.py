@@ -16,6 +16,7 @@ samples equal the whole-record ones to :data:`estimation.streaming.chunks.MARGIN
 from __future__ import annotations
 
 import functools
+import itertools
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -25,7 +26,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from dynamics.models import IdentificationModel
 from estimation.preprocessing.differentiation import ButterworthDifferentiation
-from estimation.streaming.chunks import logged_chunks, preprocessed_chunks
+from estimation.streaming.chunks import logged_chunks
 from estimation.streaming.periods import plan_chunks
 
 __all__ = ["Predictor", "counted_errors_at_stamps", "counted_predicted_errors", "counted_recorded_errors",
@@ -126,7 +127,8 @@ def streamed_errors_at_stamps(model: IdentificationModel, thetas: Mapping[Any, A
 
 def counted_errors_at_stamps(model: IdentificationModel, thetas: Mapping[Any, ArrayLike], paths: Sequence[str | Path],
                              *, chunk_size: int, cutoff_hz: float | None = None, decimation: int = 1,
-                             held_torques: bool = False, predictors: Mapping[Any, Predictor] | None = None
+                             held_torques: bool = False, predictors: Mapping[Any, Predictor] | None = None,
+                             frequency_hz: float | None = None, harmonics: int = 5
                              ) -> tuple[dict[Any, dict[str, float]], int] | None:
     """:func:`streamed_recorded_errors` at the samples as logged, block by block: on a file the streamed path
     resampled onto a uniform grid (jittered stamps), the derived motion of its grid blocks
@@ -134,7 +136,9 @@ def counted_errors_at_stamps(model: IdentificationModel, thetas: Mapping[Any, Ar
     (:func:`~estimation.streaming.chunks.logged_chunks`) and the prediction compared with the channels as recorded
     there, never interpolated (:func:`estimation.preprocessing.plan.at_recorded_stamps` of the whole record, what
     ``oed predict`` measures); stamps outside the grid's span are left out as there. A file the streamed path reads
-    as logged is scored on its own samples. The samples of all files pooled; memory: a few blocks and the time
+    as logged is scored on its own samples. ``frequency_hz``: the Fourier path (the motion of the grid's whole periods,
+    the fit of the averaged period at each grid sample, :func:`estimation.streaming.periods.plan_chunks`, interpolated
+    alike). The samples of all files pooled; memory: a few blocks and the time
     stamps (8 bytes a sample, as the scan of the streamed path's grid holds them), checked at the end.
 
     ``None`` when the loader resamples a file from other samples than the streamed path interpolates (rows it drops:
@@ -156,8 +160,9 @@ def counted_errors_at_stamps(model: IdentificationModel, thetas: Mapping[Any, Ar
         count += measured.shape[0]
 
     for path in paths:
-        grid = (chunk.as_recorded for chunk in preprocessed_chunks(
-            path, model, chunk_size=chunk_size, cutoff_hz=cutoff_hz, decimation=decimation, held_torques=held_torques))
+        grid = (chunk.as_recorded for chunk in plan_chunks(
+            path, model, frequency_hz=frequency_hz, harmonics=harmonics, as_recorded=True, chunk_size=chunk_size,
+            cutoff_hz=cutoff_hz, decimation=decimation, held_torques=held_torques))
         first = next(grid, None)
         if first is None:
             continue
@@ -166,8 +171,11 @@ def counted_errors_at_stamps(model: IdentificationModel, thetas: Mapping[Any, Ar
                 add(chunk.q, chunk.dq, chunk.ddq, chunk.channels(model.channels))
             continue
         stamps: list[NDArray[np.float64]] = []
-        _at_stamps(model, first, grid, _watched(logged_chunks(path, model, chunk_size=chunk_size), model, stamps),
-                   measured=cutoff_hz is None and decimation == 1, add=add)
+        logged = _watched(logged_chunks(path, model, chunk_size=chunk_size), model, stamps)
+        opening = next(logged)
+        # the logged derivatives where the path uses them (no filter, no Fourier fit of the file's positions)
+        measured = cutoff_hz is None and decimation == 1 and opening.dq is not None and opening.ddq is not None
+        _at_stamps(model, first, grid, itertools.chain([opening], logged), measured=measured, add=add)
         t = np.concatenate(stamps)
         if t.shape[0] != first.metadata["resampled_from"] or not np.all(np.isfinite(t)):
             return None  # rows the loader drops: its grid interpolates other samples than the streamed one
@@ -254,10 +262,10 @@ def recorded_training_errors(model: IdentificationModel, predictors: Mapping[Any
     streamed record of each training file (``streaming.files``: ``resampled_from``). ``None`` where the loader
     drops rows the streamed grid interpolates (:func:`counted_errors_at_stamps`): the caller keeps the errors it
     has."""
-    resampled = any(record.get("resampled_from") is not None for record in files)
-    if resampled and frequency_hz is None:
+    if any(record.get("resampled_from") is not None for record in files):
         return counted_errors_at_stamps(model, {}, paths, chunk_size=chunk_size, cutoff_hz=cutoff_hz,
-                                        decimation=decimation, held_torques=held_torques, predictors=predictors)
+                                        decimation=decimation, held_torques=held_torques, predictors=predictors,
+                                        frequency_hz=frequency_hz, harmonics=harmonics)
     return counted_predicted_errors(model, predictors, paths, chunk_size=chunk_size, cutoff_hz=cutoff_hz,
                                     decimation=decimation, held_torques=held_torques, frequency_hz=frequency_hz,
                                     harmonics=harmonics)

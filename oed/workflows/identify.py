@@ -430,9 +430,7 @@ def identification_streamed(args: IdentifyOptions, model: IdentificationModel, t
             "a Fourier fit of averaged periods: the sums hold the averaged channels, not the recording the candidates "
             "are compared on; the model is the weighting asked for or chosen on held-out blocks (method_selection)")
     if frequency_hz is not None:  # a Fourier fit of averaged periods: `oed predict` fits a record's periods alike
-        model_plan = {"method": "fourier", "frequency_hz": frequency_hz, "harmonics": options["harmonics"],
-                      "frequency_source": "given", "average_periods": "auto",
-                      "decimation": args.decimate, "held_torques": bool(args.held_torques)}
+        model_plan = fourier_plan(args, frequency_hz, options["harmonics"])
     else:
         model_plan = streamed_plan(args.data[0], model, cutoff_hz=cutoff_hz, decimation=options["decimation"],
                                    held_torques=bool(options["held_torques"]), chunk_size=chunk_size)  # as summed
@@ -588,12 +586,21 @@ def recorded_validation(args: IdentifyOptions, result: IdentificationResult, chu
                                               frequency_hz=streaming["frequency_hz"], harmonics=harmonics)
         mse = errors.pop("mse")
     if resampled_validation({"streaming": streaming}):  # jittered or cleaned: its error at the recorded samples
+        plan = fourier_plan(args, streaming["frequency_hz"], harmonics) if streaming["frequency_hz"] is not None \
+            else streamed_plan(args.data[0], model, cutoff_hz=streaming["cutoff_hz"], decimation=args.decimate,
+                               held_torques=bool(args.held_torques), chunk_size=chunk_size)
         recorded = recorded_validation_mse(summed_model_file_document(
-            model, result.estimate, robot=robot_source(model.robot, args), preprocessing=streamed_plan(
-                args.data[0], model, cutoff_hz=streaming["cutoff_hz"], decimation=args.decimate,
-                held_torques=bool(args.held_torques), chunk_size=chunk_size)), source_files(args.validate))
+            model, result.estimate, robot=robot_source(model.robot, args), preprocessing=plan),
+            source_files(args.validate))
         mse = mse if recorded is None else recorded
     return replace(result, validation=replace(result.validation, mse=mse)), errors, {}
+
+
+def fourier_plan(args: IdentifyOptions, frequency_hz: float, harmonics: int) -> dict[str, Any]:
+    """The model file's preprocessing of a streamed Fourier fit of averaged periods (``oed predict`` fits a record's
+    periods alike)."""
+    return {"method": "fourier", "frequency_hz": frequency_hz, "harmonics": harmonics, "frequency_source": "given",
+            "average_periods": "auto", "decimation": args.decimate, "held_torques": bool(args.held_torques)}
 
 
 def in_memory_only(args: IdentifyOptions, model: IdentificationModel, delay: DelayBounds | None) -> str | None:
