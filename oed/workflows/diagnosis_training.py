@@ -14,6 +14,7 @@ report as ``mse_filtered`` (:func:`averaged_errors`).
 
 from __future__ import annotations
 
+import time
 import warnings
 from collections.abc import Mapping
 from dataclasses import replace
@@ -36,20 +37,21 @@ __all__ = ["averaged_errors", "recorded_training"]
 
 class _Prediction:
     """A model file's prediction at other base-parameter vectors: its regressor (shaped columns at the file's shapes)
-    evaluated once a block, whichever vector asks."""
+    evaluated once a block for the vectors asked one after the other; ``slot`` holds one regressor, of whichever
+    model asked last (shared by the models of one pass: a block's regressor of one model at a time in memory)."""
 
-    def __init__(self, document: dict[str, Any]) -> None:
+    def __init__(self, document: dict[str, Any], slot: dict[str, Any]) -> None:
         self.model = IdentifiedModel(ModelFile.from_dict(document))
-        self.block: Any = None
-        self.Y: Any = None
+        self.slot = slot
 
     def at(self, theta: Any) -> Predictor:
         vector = np.asarray(theta, dtype=float)
 
         def predict(q, dq, ddq):
-            if self.block is not q:
-                self.block, self.Y = q, self.model.regressor(q, dq, ddq)
-            return self.Y @ vector
+            if self.slot.get("model") is not self or self.slot.get("block") is not q:
+                self.slot.clear()  # the regressor before freed first
+                self.slot.update(model=self, block=q, Y=self.model.regressor(q, dq, ddq))
+            return self.slot["Y"] @ vector
 
         return predict
 
@@ -69,10 +71,11 @@ def recorded_training(args: RecordOptions, diagnosis: Diagnosis, selection: Mode
     if not fourier and not any(record.get("resampled_from") is not None for record in files):
         return diagnosis, selection, None
     robot = robot_source(diagnosis.model.robot, args)
+    slot: dict[str, Any] = {}  # the predictors asked in order, model by model: each regressor once a block
     declared = _Prediction(summed_model_file_document(diagnosis.model, diagnosis.before.estimate, robot=robot,
-                                                      preprocessing=dict(plan)))
+                                                      preprocessing=dict(plan)), slot)
     final = _Prediction(summed_model_file_document(diagnosis.final_model(), diagnosis.after.estimate, robot=robot,
-                                                   preprocessing=dict(plan), shape=diagnosis.final_shape()))
+                                                   preprocessing=dict(plan), shape=diagnosis.final_shape()), slot)
     predictors: dict[Any, Predictor] = {"before": declared.at(diagnosis.before.estimate.values),
                                         "after": final.at(diagnosis.after.estimate.values)}
     fitted = [] if selection is None else [candidate for candidate in selection.candidates if candidate.fit is not None]
@@ -81,8 +84,9 @@ def recorded_training(args: RecordOptions, diagnosis: Diagnosis, selection: Mode
     runner_up = diagnosis.runner_up
     if runner_up is not None:
         rival = _Prediction(summed_model_file_document(runner_up.model, runner_up.fit, robot=robot,
-                                                       preprocessing=dict(plan), shape=runner_up.shape()))
+                                                       preprocessing=dict(plan), shape=runner_up.shape()), slot)
         predictors["runner_up"] = rival.at(runner_up.fit.values)
+    clock = time.perf_counter()
     with step(f"training errors against the recording: a pass over {len(args.data)} training file(s)"), \
             warnings.catch_warnings():
         warnings.simplefilter("ignore")  # the files' findings were said on the first pass
@@ -93,6 +97,7 @@ def recorded_training(args: RecordOptions, diagnosis: Diagnosis, selection: Mode
     if counted is None:
         return diagnosis, selection, None
     errors, count = counted
+    seconds = {**streaming.get("seconds", {}), "training_errors_pass": round(time.perf_counter() - clock, 3)}
     averaged = None if not fourier else {
         "before": diagnosis.before.train.mse, "after": diagnosis.after.train.mse,
         "runner_up": None if runner_up is None else dict(runner_up.train_mse),
@@ -101,7 +106,8 @@ def recorded_training(args: RecordOptions, diagnosis: Diagnosis, selection: Mode
     after = replace(diagnosis.after, train=ChannelErrors(errors["after"], count))
     if runner_up is not None:
         runner_up = replace(runner_up, train_mse=dict(errors["runner_up"]))
-    diagnosis = replace(diagnosis, before=before, after=after, runner_up=runner_up)
+    diagnosis = replace(diagnosis, before=before, after=after, runner_up=runner_up,
+                        streaming={**streaming, "seconds": seconds})
     if selection is not None:
         selection = replace(selection, candidates=tuple(
             candidate if candidate.fit is None else replace(candidate, fit=replace(

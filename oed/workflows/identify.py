@@ -13,6 +13,7 @@ reason in ``not_computed``) in an :class:`Identified`, and one builder makes the
 from __future__ import annotations
 
 import copy
+import time
 import warnings
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
@@ -482,6 +483,7 @@ def recorded_training(args: IdentifyOptions, result: IdentificationResult, chose
     fits: dict[str, Any] = {"result": result, "chosen": chosen.fit}
     if selection is not None:
         fits.update({candidate.name: candidate.fit for candidate in selection.candidates if candidate.fit is not None})
+    clock = time.perf_counter()
     with step(f"training errors against the recording: a pass over {len(args.data)} training file(s)"), \
             warnings.catch_warnings():
         warnings.simplefilter("ignore")  # the files' findings were said on the first pass
@@ -494,6 +496,7 @@ def recorded_training(args: IdentifyOptions, result: IdentificationResult, chose
     if counted is None:
         return result, chosen, selection
     errors, count = counted
+    seconds = {**streaming.get("seconds", {}), "training_errors_pass": round(time.perf_counter() - clock, 3)}
 
     def measured(key: str) -> Any:
         fit = fits[key]
@@ -501,7 +504,7 @@ def recorded_training(args: IdentifyOptions, result: IdentificationResult, chose
         against = summed.mse_filtered if summed.mse_filtered is not None else summed.mse
         return replace(fit, train=ChannelErrors(dict(errors[key]), count, mse_filtered=against))
 
-    result = measured("result")
+    result = replace(measured("result"), streaming={**streaming, "seconds": seconds})
     chosen = ChosenModel(chosen.name, measured("chosen"))
     if selection is not None:
         selection = replace(selection, candidates=tuple(
