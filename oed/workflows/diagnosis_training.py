@@ -14,6 +14,7 @@ report as ``mse_filtered`` (:func:`averaged_errors`).
 
 from __future__ import annotations
 
+import functools
 import time
 import warnings
 from collections.abc import Mapping
@@ -36,9 +37,10 @@ __all__ = ["averaged_errors", "recorded_training"]
 
 
 class _Prediction:
-    """A model file's prediction at other base-parameter vectors: its regressor (shaped columns at the file's shapes)
-    evaluated once a block for the vectors asked one after the other; ``slot`` holds one regressor, of whichever
-    model asked last (shared by the models of one pass: a block's regressor of one model at a time in memory)."""
+    """A model file's prediction at other base-parameter vectors: without shaped laws its model's own prediction,
+    else its regressor (shaped columns at the file's shapes) evaluated once a block for the vectors asked one after
+    the other; ``slot`` holds one regressor, of whichever model asked last (shared by the models of one pass: a
+    block's regressor of one model at a time in memory)."""
 
     def __init__(self, document: dict[str, Any], slot: dict[str, Any]) -> None:
         self.model = IdentifiedModel(ModelFile.from_dict(document))
@@ -46,6 +48,8 @@ class _Prediction:
 
     def at(self, theta: Any) -> Predictor:
         vector = np.asarray(theta, dtype=float)
+        if not self.model.shape:  # no shaped law: the model's own prediction (no regressor held)
+            return functools.partial(self.model.model.predict, vector)
 
         def predict(q, dq, ddq):
             if self.slot.get("model") is not self or self.slot.get("block") is not q:
