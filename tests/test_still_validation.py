@@ -118,11 +118,14 @@ def test_a_streamed_diagnosis_with_a_validation_record_at_rest_chooses_its_answe
                      str(paths["still"]), "--out", str(out), *options]) == 0
         error = capsys.readouterr().err
         assert "hardly moves" in error, error
+        # the streamed effect search still compares its candidates on the record at rest: said, not hidden
+        assert ("compared its candidate effects on that validation record at rest" in error) == (name == "streamed")
         documents[name] = json.loads(out.read_text())
     assert documents["memory"]["diagnosis_path"] == "in-memory" and documents["streamed"]["diagnosis_path"] == "streamed"
     memory, streamed = documents["memory"]["model_selection"], documents["streamed"]["model_selection"]
     assert streamed["selection"] == memory["selection"] == "still-validation"
     assert streamed["chosen"] == memory["chosen"]
+    assert "at rest" in documents["streamed"]["streaming"]["effect_search_on_still_validation"]
 
 
 def at_rest(record, samples=500, seed=0):

@@ -15,7 +15,9 @@ samples equal the whole-record ones to :data:`estimation.streaming.chunks.MARGIN
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+import functools
+import itertools
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -24,10 +26,12 @@ from numpy.typing import ArrayLike, NDArray
 
 from dynamics.models import IdentificationModel
 from estimation.preprocessing.differentiation import ButterworthDifferentiation
-from estimation.streaming.chunks import logged_chunks, preprocessed_chunks
+from estimation.streaming.chunks import logged_chunks
 from estimation.streaming.periods import plan_chunks
 
-__all__ = ["streamed_errors_at_stamps", "streamed_plan", "streamed_recorded_errors", "streamed_recorded_mse"]
+__all__ = ["Predictor", "counted_errors_at_stamps", "counted_predicted_errors", "counted_recorded_errors",
+           "recorded_training_errors", "streamed_errors_at_stamps", "streamed_plan", "streamed_recorded_errors",
+           "streamed_recorded_mse", "theta_predictors"]
 
 
 def streamed_plan(path: str | Path, model: IdentificationModel, *, cutoff_hz: float | None, decimation: int = 1,
@@ -58,13 +62,45 @@ def streamed_recorded_errors(model: IdentificationModel, thetas: Mapping[str, Ar
     :mod:`estimation.identification.trivial_predictors`). ``frequency_hz``: the Fourier path (a file without
     ``dq``, ``ddq`` is read as the in-memory validation and ``oed predict`` read it: every sample of its whole
     periods, the fit of its averaged period at their instants, :func:`estimation.streaming.periods.plan_chunks`)."""
-    vectors = {name: np.asarray(theta, dtype=float) for name, theta in thetas.items()}
-    for theta in vectors.values():
-        if theta.shape != (model.n_base,):
-            raise ValueError(f"theta must hold the model's {model.n_base} base parameters, got shape {theta.shape}")
+    return counted_recorded_errors(model, thetas, paths, chunk_size=chunk_size, cutoff_hz=cutoff_hz,
+                                   decimation=decimation, held_torques=held_torques, frequency_hz=frequency_hz,
+                                   harmonics=harmonics)[0]
+
+
+def counted_recorded_errors(model: IdentificationModel, thetas: Mapping[Any, ArrayLike], paths: Sequence[str | Path],
+                            *, chunk_size: int, cutoff_hz: float | None = None, decimation: int = 1,
+                            held_torques: bool = False, frequency_hz: float | None = None,
+                            harmonics: int = 5) -> tuple[dict[Any, dict[str, float]], int]:
+    """:func:`streamed_recorded_errors` and the number of samples they are measured on (the files pooled)."""
+    return counted_predicted_errors(model, theta_predictors(model, thetas), paths, chunk_size=chunk_size,
+                                    cutoff_hz=cutoff_hz, decimation=decimation, held_torques=held_torques,
+                                    frequency_hz=frequency_hz, harmonics=harmonics)
+
+
+#: a prediction of the channels ``(N, m)`` along the motion ``q, dq, ddq`` (each ``(N, n)``)
+Predictor = Callable[[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]], NDArray[np.float64]]
+
+
+def theta_predictors(model: IdentificationModel, thetas: Mapping[Any, ArrayLike]) -> dict[Any, Predictor]:
+    """``model``'s prediction at each base-parameter vector of ``thetas`` (by the same keys)."""
+    predictors = {}
+    for name, theta in thetas.items():
+        vector = np.asarray(theta, dtype=float)
+        if vector.shape != (model.n_base,):
+            raise ValueError(f"theta must hold the model's {model.n_base} base parameters, got shape {vector.shape}")
+        predictors[name] = functools.partial(model.predict, vector)
+    return predictors
+
+
+def counted_predicted_errors(model: IdentificationModel, predictors: Mapping[Any, Predictor],
+                             paths: Sequence[str | Path], *, chunk_size: int, cutoff_hz: float | None = None,
+                             decimation: int = 1, held_torques: bool = False, frequency_hz: float | None = None,
+                             harmonics: int = 5) -> tuple[dict[Any, dict[str, float]], int]:
+    """:func:`counted_recorded_errors` of any predictions (``predictors``: e.g. a model file's, shaped laws at its
+    shapes); ``model`` reads the files (its joints and channels)."""
     if not paths:
         raise ValueError("no files to measure the error on")
-    squares = {name: np.zeros(model.n_channels) for name in vectors}
+    squares = {name: np.zeros(model.n_channels) for name in predictors}
     count = 0
     for path in paths:
         for chunk in plan_chunks(path, model, frequency_hz=frequency_hz, harmonics=harmonics, as_recorded=True,
@@ -72,46 +108,61 @@ def streamed_recorded_errors(model: IdentificationModel, thetas: Mapping[str, Ar
                                  held_torques=held_torques):
             record = chunk.as_recorded
             measured = record.channels(model.channels)
-            for name, theta in vectors.items():
-                residual = measured - model.predict(theta, record.q, record.dq, record.ddq)
-                squares[name] += np.sum(residual**2, axis=0)
+            for name, predict in predictors.items():
+                squares[name] += np.sum((measured - predict(record.q, record.dq, record.ddq)) ** 2, axis=0)
             count += measured.shape[0]
     if count == 0:
         raise ValueError("the files hold no samples once preprocessed")
-    return {name: dict(zip(model.channels, map(float, total / count))) for name, total in squares.items()}
+    return {name: dict(zip(model.channels, map(float, total / count))) for name, total in squares.items()}, count
 
 
 def streamed_errors_at_stamps(model: IdentificationModel, thetas: Mapping[Any, ArrayLike], paths: Sequence[str | Path],
                               *, chunk_size: int, cutoff_hz: float | None = None, decimation: int = 1,
                               held_torques: bool = False) -> dict[Any, dict[str, float]] | None:
+    """:func:`counted_errors_at_stamps` without the count (see there)."""
+    counted = counted_errors_at_stamps(model, thetas, paths, chunk_size=chunk_size, cutoff_hz=cutoff_hz,
+                                       decimation=decimation, held_torques=held_torques)
+    return None if counted is None else counted[0]
+
+
+def counted_errors_at_stamps(model: IdentificationModel, thetas: Mapping[Any, ArrayLike], paths: Sequence[str | Path],
+                             *, chunk_size: int, cutoff_hz: float | None = None, decimation: int = 1,
+                             held_torques: bool = False, predictors: Mapping[Any, Predictor] | None = None,
+                             frequency_hz: float | None = None, harmonics: int = 5
+                             ) -> tuple[dict[Any, dict[str, float]], int] | None:
     """:func:`streamed_recorded_errors` at the samples as logged, block by block: on a file the streamed path
     resampled onto a uniform grid (jittered stamps), the derived motion of its grid blocks
     (:func:`~estimation.streaming.chunks.preprocessed_chunks`) is interpolated linearly at the recorded time stamps
     (:func:`~estimation.streaming.chunks.logged_chunks`) and the prediction compared with the channels as recorded
     there, never interpolated (:func:`estimation.preprocessing.plan.at_recorded_stamps` of the whole record, what
     ``oed predict`` measures); stamps outside the grid's span are left out as there. A file the streamed path reads
-    as logged is scored on its own samples. The samples of all files pooled; memory: a few blocks and the time
+    as logged is scored on its own samples. ``frequency_hz``: the Fourier path (the motion of the grid's whole periods,
+    the fit of the averaged period at each grid sample, :func:`estimation.streaming.periods.plan_chunks`, interpolated
+    alike). The samples of all files pooled; memory: a few blocks and the time
     stamps (8 bytes a sample, as the scan of the streamed path's grid holds them), checked at the end.
 
     ``None`` when the loader resamples a file from other samples than the streamed path interpolates (rows it drops:
     a logger's re-sent rows, :func:`estimation.data.records.segments_from_frame`): its grid is then another, and the
     caller measures the files whole. A stall shorter than ``max_gap`` is bridged alike on both paths (the same grid
     over the same samples)."""
-    vectors = {name: np.asarray(theta, dtype=float) for name, theta in thetas.items()}
+    if predictors is None:
+        predictors = {name: functools.partial(model.predict, np.asarray(theta, dtype=float))
+                      for name, theta in thetas.items()}
     if not paths:
         raise ValueError("no files to measure the error on")
-    squares = {name: np.zeros(model.n_channels) for name in vectors}
+    squares = {name: np.zeros(model.n_channels) for name in predictors}
     count = 0
 
     def add(q, dq, ddq, measured) -> None:
         nonlocal count
-        for name, theta in vectors.items():
-            squares[name] += np.sum((measured - model.predict(theta, q, dq, ddq)) ** 2, axis=0)
+        for name, predict in predictors.items():
+            squares[name] += np.sum((measured - predict(q, dq, ddq)) ** 2, axis=0)
         count += measured.shape[0]
 
     for path in paths:
-        grid = (chunk.as_recorded for chunk in preprocessed_chunks(
-            path, model, chunk_size=chunk_size, cutoff_hz=cutoff_hz, decimation=decimation, held_torques=held_torques))
+        grid = (chunk.as_recorded for chunk in plan_chunks(
+            path, model, frequency_hz=frequency_hz, harmonics=harmonics, as_recorded=True, chunk_size=chunk_size,
+            cutoff_hz=cutoff_hz, decimation=decimation, held_torques=held_torques))
         first = next(grid, None)
         if first is None:
             continue
@@ -120,14 +171,17 @@ def streamed_errors_at_stamps(model: IdentificationModel, thetas: Mapping[Any, A
                 add(chunk.q, chunk.dq, chunk.ddq, chunk.channels(model.channels))
             continue
         stamps: list[NDArray[np.float64]] = []
-        _at_stamps(model, first, grid, _watched(logged_chunks(path, model, chunk_size=chunk_size), model, stamps),
-                   measured=cutoff_hz is None and decimation == 1, add=add)
+        logged = _watched(logged_chunks(path, model, chunk_size=chunk_size), model, stamps)
+        opening = next(logged)
+        # the logged derivatives where the path uses them (no filter, no Fourier fit of the file's positions)
+        measured = cutoff_hz is None and decimation == 1 and opening.dq is not None and opening.ddq is not None
+        _at_stamps(model, first, grid, itertools.chain([opening], logged), measured=measured, add=add)
         t = np.concatenate(stamps)
         if t.shape[0] != first.metadata["resampled_from"] or not np.all(np.isfinite(t)):
             return None  # rows the loader drops: its grid interpolates other samples than the streamed one
     if count == 0:
         raise ValueError("the files hold no samples once preprocessed")
-    return {name: dict(zip(model.channels, map(float, total / count))) for name, total in squares.items()}
+    return {name: dict(zip(model.channels, map(float, total / count))) for name, total in squares.items()}, count
 
 
 def _watched(chunks: Any, model: IdentificationModel, stamps: list[NDArray[np.float64]]) -> Any:
@@ -193,3 +247,25 @@ def _at_stamps(model: IdentificationModel, first: Any, grid: Any, logged: Any, *
     tolerance = 1e-9 * (end - start)
     for stamps in held:
         score(stamps, stamps.t >= start - tolerance, clamped=True)
+
+
+def recorded_training_errors(model: IdentificationModel, predictors: Mapping[Any, Predictor], paths: Sequence[str | Path],
+                             files: Sequence[Mapping[str, Any]], *, chunk_size: int, cutoff_hz: float | None = None,
+                             decimation: int = 1, held_torques: bool = False, frequency_hz: float | None = None,
+                             harmonics: int = 5) -> tuple[dict[Any, dict[str, float]], int] | None:
+    """The training errors of ``predictors`` (:func:`theta_predictors`, or a model file's) against the channels as recorded, on the samples the in-memory fit measures
+    them on, and how many those are, from one more pass over the training ``paths`` block by block (memory: a few
+    blocks; a resampled file's time stamps): on the filter path the derived motion against the recorded channels
+    (:func:`counted_recorded_errors`), on a file the streamed path resampled onto a uniform grid at the recorded
+    stamps (:func:`counted_errors_at_stamps`), on the Fourier path every sample of the files' whole periods with the
+    fit of their averaged period at its instant, as the in-memory Fourier fit compares them. ``files``: the
+    streamed record of each training file (``streaming.files``: ``resampled_from``). ``None`` where the loader
+    drops rows the streamed grid interpolates (:func:`counted_errors_at_stamps`): the caller keeps the errors it
+    has."""
+    if any(record.get("resampled_from") is not None for record in files):
+        return counted_errors_at_stamps(model, {}, paths, chunk_size=chunk_size, cutoff_hz=cutoff_hz,
+                                        decimation=decimation, held_torques=held_torques, predictors=predictors,
+                                        frequency_hz=frequency_hz, harmonics=harmonics)
+    return counted_predicted_errors(model, predictors, paths, chunk_size=chunk_size, cutoff_hz=cutoff_hz,
+                                    decimation=decimation, held_torques=held_torques, frequency_hz=frequency_hz,
+                                    harmonics=harmonics)

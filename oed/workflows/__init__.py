@@ -9,7 +9,7 @@ What several verbs share: :mod:`.options` (the option sets, the robot, derivativ
 common keys), :mod:`.memory_path` (in memory or streamed), :mod:`.model_files` (the model file and plausibility
 keys), :mod:`.chosen_model` (the top-level answer of result.json and report.json: the chosen model's),
 :mod:`.consistent` (the prior-weight choice of ``--consistent``), :mod:`.design_bounds` (the motion bounds of
-``oed design``).
+``oed design``), :mod:`.diagnosis_training` (the streamed diagnosis's training errors against the recording).
 """
 
 from __future__ import annotations

@@ -67,6 +67,7 @@ from oed.workflows.asbuilt import (
     worse_after,
 )
 from oed.workflows.chosen_model import ChosenModel, answer_diagnosis, mse_line
+from oed.workflows.diagnosis_training import averaged_errors, recorded_training
 from oed.workflows.memory_path import decide_path, streamed_choice, streamed_records
 from oed.workflows.consistent import check_consistent_arguments, consistent_lines, consistent_settings
 from oed.workflows.model_files import (
@@ -332,6 +333,9 @@ class Diagnosed:
     notes: tuple[str, ...] = ()
     chunk_size: int | None = None
     model_file: tuple[dict[str, Any], dict[str, float] | None] | None = None
+    #: streamed, Fourier path: the sums' training errors against the averaged period, by the report's entry, beside
+    #: those measured against the recording (:func:`oed.workflows.diagnosis_training.recorded_training`)
+    averaged_train: dict[str, Any] | None = None
 
 
 def check_streamed_request(args: DiagnoseOptions, delay: DelayBounds | None) -> None:
@@ -450,7 +454,9 @@ def diagnose_document(args: DiagnoseOptions, diagnosed: Diagnosed) -> tuple[dict
                                                 "mse": None if validation_mse is None else dict(validation_mse)}
         add_summed_runner_up_model_file(document, runner_up, args, model_plan, None if validation_mse is None or
                                         runner_up is None else runner_up.validation_mse)
-        if diagnosis.streaming.get("frequency_hz") is not None:
+        if diagnosed.averaged_train is not None:  # measured against the recording, the sums' errors beside
+            averaged_errors(document, diagnosed.averaged_train)
+        elif diagnosis.streaming.get("frequency_hz") is not None:
             averaged_training_errors(document)
     document["diagnosis_path"] = diagnosis.path
     document["max_effects"] = args.max_effects
@@ -744,6 +750,8 @@ def diagnosis_streamed(args: DiagnoseOptions, friction: str, plan: Preprocessing
                                        floor_window=args.floor_window, executor=executor, preprocessing=plan,
                                        findings=findings)
         still = warned_still_motion(model, args.data, args.validate, chunk_size=chunk_size)  # said as in memory
+        if still:  # the choices below ignore it, as in memory; the effect search above did not
+            warnings.warn(STILL_SEARCH, stacklevel=2)
     messages = tuple(caught_messages(caught))  # the findings as said (one line per finding across files), others
     cutoff_hz = diagnosis.streaming["cutoff_hz"]
     if plan.method == "fourier":  # validated on every sample of whole periods as recorded: what predict measures
@@ -758,9 +766,19 @@ def diagnosis_streamed(args: DiagnoseOptions, friction: str, plan: Preprocessing
         selection = streamed_selection(args, diagnosis, run, model_file[0], chunk_size, still=still)
     diagnosis = replace(diagnosis, not_computed={key: reason for key, reason in diagnosis.not_computed.items()
                                                  if key not in SELECTION_KEYS})  # computed now
+    # the training errors against the recording where the sums hold averaged periods or a resampled grid
+    diagnosis, selection, averaged = recorded_training(args, diagnosis, selection, model_file[0], chunk_size)
+    if still:
+        diagnosis = replace(diagnosis, streaming={**diagnosis.streaming, "effect_search_on_still_validation": STILL_SEARCH})
     return Diagnosed(diagnosis, {"cutoff_hz": cutoff_hz, **plan.to_dict()}, plan.describe(), messages,
-                     selection=selection, chunk_size=chunk_size, model_file=model_file)
+                     selection=selection, chunk_size=chunk_size, model_file=model_file, averaged_train=averaged)
 
+
+#: what the streamed diagnosis says of a validation record at rest (its effect search compares the candidates there)
+STILL_SEARCH = ("the streamed diagnosis compared its candidate effects on that validation record at rest (in memory "
+                "they are compared on stretches of the training record their fits did not see): an effect it adopted "
+                "was judged on a record that measures little of the dynamics; run `oed diagnose` in memory (a larger "
+                "--memory-budget, without --chunk-size) or give a validation record of another motion")
 
 #: the keys of report.json the default answer fills (on the streamed path too, :func:`streamed_selection`)
 SELECTION_KEYS = ("consistent", "links", "model_selection")

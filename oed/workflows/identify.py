@@ -13,6 +13,7 @@ reason in ``not_computed``) in an :class:`Identified`, and one builder makes the
 from __future__ import annotations
 
 import copy
+import time
 import warnings
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
@@ -51,9 +52,11 @@ from estimation.streaming.model_selection import streamed_repeated_motion, summe
 from estimation.streaming.periods import plan_options
 from estimation.streaming.diagnosis_passes import window_floor
 from estimation.streaming.recorded_errors import (
+    recorded_training_errors,
     streamed_errors_at_stamps,
     streamed_plan,
     streamed_recorded_errors,
+    theta_predictors,
 )
 from oed.workflows.asbuilt import (
     finish_document,
@@ -430,9 +433,7 @@ def identification_streamed(args: IdentifyOptions, model: IdentificationModel, t
             "a Fourier fit of averaged periods: the sums hold the averaged channels, not the recording the candidates "
             "are compared on; the model is the weighting asked for or chosen on held-out blocks (method_selection)")
     if frequency_hz is not None:  # a Fourier fit of averaged periods: `oed predict` fits a record's periods alike
-        model_plan = {"method": "fourier", "frequency_hz": frequency_hz, "harmonics": options["harmonics"],
-                      "frequency_source": "given", "average_periods": "auto",
-                      "decimation": args.decimate, "held_torques": bool(args.held_torques)}
+        model_plan = fourier_plan(args, frequency_hz, options["harmonics"])
     else:
         model_plan = streamed_plan(args.data[0], model, cutoff_hz=cutoff_hz, decimation=options["decimation"],
                                    held_torques=bool(options["held_torques"]), chunk_size=chunk_size)  # as summed
@@ -458,11 +459,60 @@ def identification_streamed(args: IdentifyOptions, model: IdentificationModel, t
             comparisons = compare_with_floor(mse, floor, result.validation.n_samples, alpha=FLOOR_ALPHA)
             notes += tuple(f"{comparison.statement()}: the model lacks something there; `oed diagnose` searches for it"
                            for comparison in comparisons.values() if comparison.above)
+    result, chosen, selection = recorded_training(args, result, chosen, selection, chunk_size, options)
     validation_mse = None if result.validation is None else result.validation.mse
     return Identified(result, chosen, plan.to_dict(), plan.describe(),
                       (*messages, *notes), notes, trivial, floor, floor_note, not_computed, selection=selection,
                       consistent=None if selection is None else selection.consistent, weighting=weighting,
                       transmission=transmission, chunk_size=chunk_size, model_file=(model_plan, validation_mse))
+
+
+def recorded_training(args: IdentifyOptions, result: IdentificationResult, chosen: ChosenModel,
+                      selection: ModelSelection | None, chunk_size: int, options: Mapping[str, Any]
+                      ) -> tuple[IdentificationResult, ChosenModel, ModelSelection | None]:
+    """The streamed fits with their training errors against the channels as recorded, on the samples the in-memory
+    path measures them on (``n_samples``: the recorded samples, as in memory), from one more pass over the training
+    files (:func:`estimation.streaming.recorded_errors.recorded_training_errors`): where the sums hold filtered or
+    period-averaged channels (their errors kept as ``mse_filtered``) or a file was resampled onto a uniform grid
+    (the sums' errors, against interpolated channels, kept as ``mse_filtered``). Every fitted candidate's, the
+    unconstrained result's and the chosen model's, in the one pass. Unchanged where the sums hold the recording
+    of files read as logged, or where the loader drops rows the grid interpolates (then measured on the grid)."""
+    streaming = result.streaming or {}
+    files = streaming.get("files") or []
+    resampled = any(record.get("resampled_from") is not None for record in files)
+    if result.train.mse is not None and not resampled:
+        return result, chosen, selection
+    fits: dict[str, Any] = {"result": result, "chosen": chosen.fit}
+    if selection is not None:
+        fits.update({candidate.name: candidate.fit for candidate in selection.candidates if candidate.fit is not None})
+    clock = time.perf_counter()
+    with step(f"training errors against the recording: a pass over {len(args.data)} training file(s)"), \
+            warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # the files' findings were said on the first pass
+        counted = recorded_training_errors(
+            result.model, theta_predictors(result.model, {key: fit.estimate.values for key, fit in fits.items()}),
+            args.data, files,
+            chunk_size=chunk_size, cutoff_hz=streaming.get("cutoff_hz"), decimation=int(options["decimation"]),
+            held_torques=bool(options["held_torques"]), frequency_hz=streaming.get("frequency_hz"),
+            harmonics=int(options["harmonics"]))
+    if counted is None:
+        return result, chosen, selection
+    errors, count = counted
+    seconds = {**streaming.get("seconds", {}), "training_errors_pass": round(time.perf_counter() - clock, 3)}
+
+    def measured(key: str) -> Any:
+        fit = fits[key]
+        summed = fit.train
+        against = summed.mse_filtered if summed.mse_filtered is not None else summed.mse
+        return replace(fit, train=ChannelErrors(dict(errors[key]), count, mse_filtered=against))
+
+    result = replace(measured("result"), streaming={**streaming, "seconds": seconds})
+    chosen = ChosenModel(chosen.name, measured("chosen"))
+    if selection is not None:
+        selection = replace(selection, candidates=tuple(
+            candidate if candidate.fit is None else replace(candidate, fit=measured(candidate.name))
+            for candidate in selection.candidates))
+    return result, chosen, selection
 
 
 class ValidationScores:
@@ -541,12 +591,21 @@ def recorded_validation(args: IdentifyOptions, result: IdentificationResult, chu
                                               frequency_hz=streaming["frequency_hz"], harmonics=harmonics)
         mse = errors.pop("mse")
     if resampled_validation({"streaming": streaming}):  # jittered or cleaned: its error at the recorded samples
+        plan = fourier_plan(args, streaming["frequency_hz"], harmonics) if streaming["frequency_hz"] is not None \
+            else streamed_plan(args.data[0], model, cutoff_hz=streaming["cutoff_hz"], decimation=args.decimate,
+                               held_torques=bool(args.held_torques), chunk_size=chunk_size)
         recorded = recorded_validation_mse(summed_model_file_document(
-            model, result.estimate, robot=robot_source(model.robot, args), preprocessing=streamed_plan(
-                args.data[0], model, cutoff_hz=streaming["cutoff_hz"], decimation=args.decimate,
-                held_torques=bool(args.held_torques), chunk_size=chunk_size)), source_files(args.validate))
+            model, result.estimate, robot=robot_source(model.robot, args), preprocessing=plan),
+            source_files(args.validate))
         mse = mse if recorded is None else recorded
     return replace(result, validation=replace(result.validation, mse=mse)), errors, {}
+
+
+def fourier_plan(args: IdentifyOptions, frequency_hz: float, harmonics: int) -> dict[str, Any]:
+    """The model file's preprocessing of a streamed Fourier fit of averaged periods (``oed predict`` fits a record's
+    periods alike)."""
+    return {"method": "fourier", "frequency_hz": frequency_hz, "harmonics": harmonics, "frequency_source": "given",
+            "average_periods": "auto", "decimation": args.decimate, "held_torques": bool(args.held_torques)}
 
 
 def in_memory_only(args: IdentifyOptions, model: IdentificationModel, delay: DelayBounds | None) -> str | None:
