@@ -10,7 +10,8 @@ least squares problems whose variables separate", SIAM J. Numer. Anal. 10, 1973)
 Levenberg–Marquardt on ``f`` with Kaufman's Jacobian ``J_j = −P⊥ (∂C/∂s_j) θ̂`` (Kaufman, BIT 15,
 1975) and the exact gradient ``∇f = 2 Jᵀ W r``; the derivatives ``∂C/∂s`` come from the effects' own
 CasADi graphs (one named ``casadi.Function`` per effect, built once, cached, mapped over the
-samples). Bounds are kept by projection; positive scales (velocities) are searched on ``log s``.
+samples). Bounds are kept by projection (a shape held at a bound its descent direction leaves is left out of
+the step: :meth:`_ShapeSearch.free`); positive scales (velocities) are searched on ``log s``.
 The search starts from every point of the declared grid (:func:`dynamics.effects.shaped.start_grid`),
 evaluated by the linear solve alone, and refines the best few valley floors (one start a valley).
 
