@@ -198,7 +198,8 @@ def end_to_end(target_s: float = 10.0, excitation: Path | None = None, baseline:
 
 def panda_against_baseline(baseline: str | None, repeats: int) -> None:
     """Part 3 on the real Franka Panda (``--panda``): ``oed diagnose`` on ``bench_real_robots.py``'s training and
-    validation files (7 joints, 13 840 training samples) against ``baseline``'s (:func:`against_baseline`)."""
+    validation files (7 joints, 13 616 training rows, read as 13 840 uniform samples) against ``baseline``'s
+    (:func:`against_baseline`)."""
     sys.path.insert(0, str(Path(__file__).resolve().parent))
     from bench_real_robots import DATA as SHARED, panda
 
@@ -210,7 +211,7 @@ def panda_against_baseline(baseline: str | None, repeats: int) -> None:
         arguments = ["diagnose", *case.robot, "--data", str(case.files["train"]), "--validate",
                      str(case.files["validate"]), "--out", str(Path(folder) / "report.json")]
         wall, cpu = oed_command(*arguments)
-        print(f"Franka Panda (real, 7 joints, {case.records['train'].t.shape[0]} training samples): `oed diagnose` end "
+        print(f"Franka Panda (real, 7 joints, {case.records['train'].t.shape[0]} training rows): `oed diagnose` end "
               f"to end {wall:.1f} s (CPU {cpu:.1f} s)")
         if baseline is not None:
             against_baseline(arguments, baseline, repeats, Path(folder))
