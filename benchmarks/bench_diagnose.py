@@ -20,12 +20,14 @@ and shaped (``coulomb:tanh``, ``stribeck:velocity``, ``sigmoid``, ``ripple``).
    same ``oed diagnose`` of that commit of this repository (``git archive`` into a temporary folder, checked to be
    the code the process imports), timed in the same run: ``--repeats`` pairs, the commit's run and this checkout's
    alternating, each in a new process (``OMP_NUM_THREADS=1``), the ratio this/baseline of wall and CPU time taken
-   pair by pair and its median printed (issue 34: "within 1.5x of today's time").
+   pair by pair and its median printed (issue 34: "within 1.5x of today's time"). With ``--panda``, part 3 alone on
+   the real Franka Panda instead (``bench_real_robots.py``'s training and validation files: 7 joints, 13 840
+   training samples), against the baseline.
 
 Parts 1 and 2 time ``diagnose`` alone (the records are made or loaded before), one run, with the
 compiled column functions already in the cache (``~/.cache/robot-oed``; a first run compiles them
 once, a few seconds more). Run: ``python benchmarks/bench_diagnose.py [--skip-kuka] [--skip-end-to-end] [--excitation TRAJECTORY.json]
-[--baseline COMMIT|none] [--repeats N]``.
+[--baseline COMMIT|none] [--repeats N] [--panda]``.
 """
 
 from __future__ import annotations
@@ -194,6 +196,27 @@ def end_to_end(target_s: float = 10.0, excitation: Path | None = None, baseline:
                 against_baseline(arguments, baseline, repeats, Path(folder))
 
 
+def panda_against_baseline(baseline: str | None, repeats: int) -> None:
+    """Part 3 on the real Franka Panda (``--panda``): ``oed diagnose`` on ``bench_real_robots.py``'s training and
+    validation files (7 joints, 13 616 training rows, read as 13 840 uniform samples) against ``baseline``'s
+    (:func:`against_baseline`)."""
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    from bench_real_robots import DATA as SHARED, panda
+
+    if not (SHARED / "panda").is_dir():
+        print("Franka Panda: skipped (no ../shared/data/panda)")
+        return
+    with tempfile.TemporaryDirectory() as folder:
+        case = panda(Path(folder))
+        arguments = ["diagnose", *case.robot, "--data", str(case.files["train"]), "--validate",
+                     str(case.files["validate"]), "--out", str(Path(folder) / "report.json")]
+        wall, cpu = oed_command(*arguments)
+        print(f"Franka Panda (real, 7 joints, {case.records['train'].t.shape[0]} training rows): `oed diagnose` end "
+              f"to end {wall:.1f} s (CPU {cpu:.1f} s)")
+        if baseline is not None:
+            against_baseline(arguments, baseline, repeats, Path(folder))
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--skip-kuka", action="store_true")
@@ -203,7 +226,13 @@ def main() -> None:
     parser.add_argument("--baseline", default="6dc3793",
                         help="a commit whose `oed diagnose` part 3 also times, alternating ('none': not timed)")
     parser.add_argument("--repeats", type=int, default=3, help="pairs of runs against the baseline (default 3)")
+    parser.add_argument("--panda", action="store_true",
+                        help="part 3 on the real Franka Panda's training and validation files instead, against the "
+                             "baseline, and nothing else")
     args = parser.parse_args()
+    if args.panda:
+        panda_against_baseline(None if args.baseline.lower() == "none" else args.baseline, args.repeats)
+        return
     if not args.skip_end_to_end and DATA.is_dir():
         end_to_end(excitation=args.excitation, baseline=None if args.baseline.lower() == "none" else args.baseline,
                    repeats=args.repeats)

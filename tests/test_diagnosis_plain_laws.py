@@ -90,6 +90,30 @@ def test_an_effect_that_fits_training_but_not_another_motion_gives_way_to_the_pl
     assert {effect.joints for effect in choice.effects} == {(1,)}
 
 
+
+def test_a_fit_of_the_same_effects_is_made_once_and_is_that_fit(records, monkeypatch):
+    """One joint swaps: its swap is the mixed model, fitted once; the choice's model is the fit made directly."""
+    import estimation.diagnosis.plain_laws as plain_laws
+
+    declared, made = records
+    wrong = Spring(joints=(1,))
+    after = identify(build_model(declared.robot, "internal", declared.effects + (wrong,)), made["train"], made["other"])
+    fitted = []
+
+    def spy(model, *arguments, **options):
+        fitted.append(model.effects)
+        return identify(model, *arguments, **options)
+
+    monkeypatch.setattr(plain_laws, "identify", spy)
+    choice = plain_law_choice(declared, after, [wrong], made["train"], made["other"], min_improvement=0.01)
+    assert choice is not None and len(fitted) == len(set(fitted))  # the mixed model is joint 2's swap: not again
+    assert declared.effects + choice.effects in fitted
+    direct = identify(build_model(declared.robot, "internal", declared.effects + choice.effects), made["train"],
+                      made["other"], weighted=after.estimate.method == "wls", shape_search=False)
+    assert np.array_equal(choice.after.estimate.values, direct.estimate.values)
+    assert np.array_equal(choice.after.estimate.cov, direct.estimate.cov)
+    assert choice.after.validation.mse == direct.validation.mse
+
 def test_nothing_is_swapped_on_a_repeat_of_the_training_motion(records):
     declared, made = records
     wrong = Spring(joints=(1,))

@@ -209,3 +209,30 @@ def test_states_are_contiguous_copies_and_refuse_a_missing_derivative():
     np.testing.assert_array_equal(states.dq, q[:, ::-1])
     with pytest.raises(ValueError, match="the states need ddq"):
         States(q, q, None)
+
+
+def test_a_shape_held_at_its_bound_leaves_the_others_a_newton_step(robot, tanh_records, monkeypatch):
+    """Joint 1's smoothing bounded above its truth (0.03): its optimum is the lower bound. The step of the other
+    shapes leaves it out (projected Newton); the step of every shape, clipped, ran to the iteration limit and
+    stopped higher. A search that reaches no bound takes the same steps as before, to the last bit."""
+    import estimation.estimators.variable_projection as variable_projection
+
+    train, _ = tanh_records
+    model = build_model(robot, "internal", "viscous")
+    fixed = FixedPart.from_arrays(model.evaluate_base(train.q, train.dq, train.ddq), train.channels(model.channels))
+    states, weights = States(train.q, train.dq, train.ddq), np.ones(len(model.channels))
+
+    def fits(first_bounds):
+        blocks = [Block(ModelKind.INTERNAL, robot, TanhCoulombFriction(joints=(joint,), bounds=bounds), 3)
+                  for joint, bounds in enumerate((first_bounds, None, None))]
+        return fit_shapes(fixed, blocks, states, weights, starts=np.array([[0.5, 0.5, 0.5]]), covariance="none")
+
+    held, free = fits(((0.1, 2.0),)), fits(None)
+    monkeypatch.setattr(variable_projection._ShapeSearch, "free", lambda self, u, gradient: None)  # the clipped step
+    clipped, free_clipped = fits(((0.1, 2.0),)), fits(None)
+    assert held.shape[0] == pytest.approx(0.1, rel=1e-12) and clipped.shape[0] == pytest.approx(0.1, rel=1e-12)
+    assert held.iterations < 20 and clipped.iterations == 60
+    assert held.rss < clipped.rss
+    assert np.allclose(held.shape[1:], 0.03, rtol=0.05)
+    assert free.iterations < 60 and np.array_equal(free.shape, free_clipped.shape) and free.rss == free_clipped.rss
+    assert np.array_equal(free.theta, free_clipped.theta)

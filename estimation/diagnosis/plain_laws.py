@@ -134,15 +134,21 @@ def plain_law_choice(model: IdentificationModel, after: IdentificationResult, fo
     # the declared effects as the diagnosis left them (a declared term of the wrong sign held at zero stays so)
     base = tuple(effect for effect in after.model.effects if effect not in found)
 
+    fitted: dict[tuple[Effect, ...], IdentificationResult | None] = {}  # a swap of one joint is the mixed model
+
     def fit(effects: tuple[Effect, ...]) -> IdentificationResult | None:
+        if effects in fitted:  # the same effects, the same records and starts: the same fit
+            return fitted[effects]
         names = {parameter.name for effect in effects for parameter in shape_parameters(effect, model.robot)}
         try:
-            return identify(build_model(model.robot, model.kind, base + effects), train, validate,
-                            weighted=after.estimate.method == "wls",
-                            shape_starts={name: value for name, value in starts.items() if name in names} or None,
-                            shape_search=False)
+            result = identify(build_model(model.robot, model.kind, base + effects), train, validate,
+                              weighted=after.estimate.method == "wls",
+                              shape_starts={name: value for name, value in starts.items() if name in names} or None,
+                              shape_search=False)
         except (ShapeSearchError, ValueError, np.linalg.LinAlgError):
-            return None
+            result = None
+        fitted[effects] = result
+        return result
 
     plain = fit(plain_model_effects(model, range(n_joints)))
     if plain is None:

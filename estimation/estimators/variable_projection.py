@@ -10,7 +10,8 @@ least squares problems whose variables separate", SIAM J. Numer. Anal. 10, 1973)
 Levenberg–Marquardt on ``f`` with Kaufman's Jacobian ``J_j = −P⊥ (∂C/∂s_j) θ̂`` (Kaufman, BIT 15,
 1975) and the exact gradient ``∇f = 2 Jᵀ W r``; the derivatives ``∂C/∂s`` come from the effects' own
 CasADi graphs (one named ``casadi.Function`` per effect, built once, cached, mapped over the
-samples). Bounds are kept by projection; positive scales (velocities) are searched on ``log s``.
+samples). Bounds are kept by projection (a shape held at a bound its descent direction leaves is left out of
+the step: :meth:`_ShapeSearch.free`); positive scales (velocities) are searched on ``log s``.
 The search starts from every point of the declared grid (:func:`dynamics.effects.shaped.start_grid`),
 evaluated by the linear solve alone, and refines the best few valley floors (one start a valley).
 
@@ -327,11 +328,17 @@ class _ShapeSearch:
             if not (np.all(np.isfinite(gradient_u)) and np.all(np.isfinite(hessian_u))):
                 return s, np.inf, iterations
             improved = False
+            free = self.free(u, gradient_u)
             for _ in range(30):
                 diagonal = (np.diag(np.diag(hessian_u))
                             + 1e-12 * np.eye(u.size) * max(np.max(np.abs(np.diag(hessian_u))), 1e-300))
                 try:
-                    step = -np.linalg.solve(hessian_u + damping * diagonal, gradient_u)
+                    if free is None:
+                        step = -np.linalg.solve(hessian_u + damping * diagonal, gradient_u)
+                    else:  # the shapes held at their bounds stay there: the step of the others alone
+                        step = np.zeros(u.size)
+                        step[free] = -np.linalg.solve((hessian_u + damping * diagonal)[np.ix_(free, free)],
+                                                      gradient_u[free])
                 except np.linalg.LinAlgError:
                     damping *= 10
                     continue
@@ -350,6 +357,19 @@ class _ShapeSearch:
                 break
         s = self.to_s(u)
         return s, self.cost(s), iterations
+
+    def free(self, u: NDArray[np.float64], gradient_u: NDArray[np.float64]) -> NDArray[np.bool_] | None:
+        """The shapes a step may move when some, not all, sit at a bound their descent direction leaves (the
+        projected Newton step: Bertsekas, "Projected Newton methods for optimization problems with simple
+        constraints", SIAM J. Control Optim. 20, 1982); ``None`` when none does, or all do (the full step, clipped).
+
+        A step of every shape clipped at the bound moves the others by a step that assumed the held one moves
+        too; it decreases ``f`` little and the search runs to its iteration limit (a ripple's period held at its
+        lower bound beside seven shapes: 60 iterations a reweighting round)."""
+        held = ((u <= self.u_lower) & (gradient_u > 0)) | ((u >= self.u_upper) & (gradient_u < 0))
+        if not held.any() or held.all():
+            return None
+        return ~held
 
 
 def _with_diagonal(matrix: NDArray[np.float64], diagonal: NDArray[np.float64]) -> NDArray[np.float64]:
