@@ -31,7 +31,7 @@ from estimation.consistent.model_selection import ModelSelection, select_refit
 from estimation.identification.relative_error import relative_scores
 from estimation.identification.validation import ChannelErrors
 from estimation.diagnosis.candidates.coupling import coupling_candidates
-from estimation.diagnosis.plain_laws import plain_model
+from estimation.diagnosis.plain_laws import plain_completion, plain_model
 from dynamics.runtime.report_document import Report, figure_path, report_format
 from estimation.diagnosis.report import diagnosis_report, plot_residuals, plot_trace
 from estimation.diagnosis.results import Diagnosis, runner_up_line
@@ -405,8 +405,11 @@ def diagnose_document(args: DiagnoseOptions, diagnosed: Diagnosed) -> tuple[dict
     diagnosis = diagnosed.diagnosis
     document = diagnosis.to_dict()
     records, selection = diagnosed.records, diagnosed.selection
+    # the unconstrained fit behind the answer: the adopted model, or on a repeat of the training motion the adopted
+    # model with the plain law completed (:func:`diagnosis_selection`)
+    answered = diagnosis.after if selection is None else selection.unconstrained
     if records is not None:  # in memory
-        finish_document(document, diagnosis.after, trivial=None, warnings=diagnosed.notes, rest=rest_records(records),
+        finish_document(document, answered, trivial=None, warnings=diagnosed.notes, rest=rest_records(records),
                         transmission=diagnosed.transmission, warnings_key=("warnings", "after"))
     document["preprocessing"] = diagnosed.preprocessing
     if records is not None:
@@ -420,7 +423,7 @@ def diagnose_document(args: DiagnoseOptions, diagnosed: Diagnosed) -> tuple[dict
         if document["test"] is not None:  # the chosen model's error on the test record (what `oed predict` gives)
             document["test"]["chosen"] = {"name": selection.chosen, "mse": dict(
                 untouched.after if selection.chosen != "consistent" else document["consistent"]["test"]["mse"])}
-        files = add_model_file(document, diagnosis.after, args, records.preprocessing, diagnosed.transmission,
+        files = add_model_file(document, answered, args, records.preprocessing, diagnosed.transmission,
                                consistent=consistent, selection=selection)
         chosen = ChosenModel.of(selection)  # its errors beside the diagnosis's before and after
         answer_diagnosis(document, chosen, floor=None if diagnosis.statistics is None else diagnosis.statistics.floor)
@@ -502,10 +505,24 @@ def diagnosis_selection(args: DiagnoseOptions, diagnosis: Diagnosis, records: Pr
     (unconstrained) or its consistent refit (the description's bodies as prior, its weight chosen on the validation
     record; shaped laws and a delay at their fitted values), by the validation error when the validation record is
     another motion, else the consistent refit; ``--consistent`` forces it. A refit that fails is no candidate."""
-    return select_refit(diagnosis.after, records.train.measurements, records.validation.measurements,
-                        given="consistent" if args.consistent else None,
-                        consistent=consistent_settings(args, diagnosis.after.model.robot),
-                        note="with the diagnosed effects")
+    train, validation = records.train.measurements, records.validation.measurements
+    settings = consistent_settings(args, diagnosis.after.model.robot)
+    selection = select_refit(diagnosis.after, train, validation, given="consistent" if args.consistent else None,
+                             consistent=settings, note="with the diagnosed effects")
+    if args.consistent or selection.selection != "repeated-motion":
+        return selection
+    # nothing measured on another motion what the search left out either: the plain law completed
+    # (:func:`estimation.diagnosis.plain_laws.plain_completion`), its consistent refit chosen as above
+    completion = plain_completion(diagnosis.after, train, validation)
+    if completion is None:
+        return selection
+    completed, added = completion
+    laws = ", ".join(f"{effect.name} on {completed.model.channels[effect.joints[0]]}" for effect in added)
+    other = select_refit(completed, train, validation, consistent=settings,
+                         note=f"with the diagnosed effects and the plain law where the diagnosis named none ({laws}; "
+                              "not findings: the validation record repeats the training motion, so nothing measured "
+                              "how leaving them out extrapolates)")
+    return other if other.chosen == "consistent" else selection
 
 
 def judged_swap(args: DiagnoseOptions, diagnosis: Diagnosis,
