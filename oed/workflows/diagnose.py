@@ -504,15 +504,21 @@ def diagnosis_selection(args: DiagnoseOptions, diagnosis: Diagnosis, records: Pr
     """The default answer (:func:`estimation.consistent.model_selection.select_refit`): the adopted model as fitted
     (unconstrained) or its consistent refit (the description's bodies as prior, its weight chosen on the validation
     record; shaped laws and a delay at their fitted values), by the validation error when the validation record is
-    another motion, else the consistent refit; ``--consistent`` forces it. A refit that fails is no candidate."""
+    another motion, else the consistent refit; ``--consistent`` forces it. A refit that fails is no candidate.
+
+    On a validation record that repeats the training motion, nothing measured on another motion what the search left
+    out either (a law refused by the Wald test at the search's Bonferroni threshold although it lowered the
+    validation error): the adopted model completed with the plain law on the joints the diagnosis left without one
+    (:func:`estimation.diagnosis.plain_laws.plain_completion`; not named as findings) is refitted alike, and its
+    consistent refit is the answer when it predicts the validation record better than the adopted model's
+    consistent refit by the criterion of the default answer (the adopted model kept on a tie), as
+    :func:`judged_swap` judges a plain-law swap; the selection's reason says which and the two scores."""
     train, validation = records.train.measurements, records.validation.measurements
     settings = consistent_settings(args, diagnosis.after.model.robot)
     selection = select_refit(diagnosis.after, train, validation, given="consistent" if args.consistent else None,
                              consistent=settings, note="with the diagnosed effects")
-    if args.consistent or selection.selection != "repeated-motion":
+    if args.consistent or selection.selection != "repeated-motion" or selection.chosen != "consistent":
         return selection
-    # nothing measured on another motion what the search left out either: the plain law completed
-    # (:func:`estimation.diagnosis.plain_laws.plain_completion`), its consistent refit chosen as above
     completion = plain_completion(diagnosis.after, train, validation)
     if completion is None:
         return selection
@@ -520,9 +526,17 @@ def diagnosis_selection(args: DiagnoseOptions, diagnosis: Diagnosis, records: Pr
     laws = ", ".join(f"{effect.name} on {completed.model.channels[effect.joints[0]]}" for effect in added)
     other = select_refit(completed, train, validation, consistent=settings,
                          note=f"with the diagnosed effects and the plain law where the diagnosis named none ({laws}; "
-                              "not findings: the validation record repeats the training motion, so nothing measured "
-                              "how leaving them out extrapolates)")
-    return other if other.chosen == "consistent" else selection
+                              "not findings)")
+    answers = {"diagnosed": selection.chosen_candidate, "completed": other.chosen_candidate}
+    if other.chosen != "consistent" or any(answer.validation is None for answer in answers.values()):
+        return selection
+    scored = relative_scores({name: answer.validation.mse for name, answer in answers.items()},
+                             answers["diagnosed"].validation.channels)
+    taken = scored["completed"] < scored["diagnosed"]
+    why = (f"; the plain law completed ({laws}): its consistent refit validates {scored['completed']:.4g} against "
+           f"{scored['diagnosed']:.4g} for the diagnosed model's (the mean relative validation error), "
+           + ("taken" if taken else "not taken"))
+    return replace(other, reason=other.reason + why) if taken else replace(selection, reason=selection.reason + why)
 
 
 def judged_swap(args: DiagnoseOptions, diagnosis: Diagnosis,
