@@ -109,5 +109,10 @@ def test_plain_completion_adds_only_what_the_model_lacks():
     assert sorted((effect.name, effect.joints) for effect in added) == [
         ("coulomb", (1,)), ("coulomb", (2,)), ("offset", (0,)), ("offset", (2,))]
     assert completed.estimate.method == partial.estimate.method
+    # the linear Stribeck law is the static-friction bump alone: its joint still takes Coulomb friction
+    bump = identify(build_model(robot, "internal", "viscous,stribeck@1,offset"), train)
+    _, added = plain_completion(bump, train, None)
+    assert [(effect.name, effect.joints) for effect in added] == [("coulomb", (0,)), ("coulomb", (1,)),
+                                                                   ("coulomb", (2,))]
     residual = np.mean(completed.train.mse["tau1"])
     assert residual < partial.train.mse["tau1"]

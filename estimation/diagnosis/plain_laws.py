@@ -48,7 +48,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from dynamics.effects.linear import CoulombFriction, Effect, JointOffset
+from dynamics.effects.linear import CoulombFriction, Effect, JointOffset, StribeckFriction
 from dynamics.effects.shaped import FRICTION_LAWS, shape_parameters
 from dynamics.measurements import Measurements
 from dynamics.models import IdentificationModel, ModelKind, build_model
@@ -98,10 +98,14 @@ def _score(result: IdentificationResult) -> float:
     return geometric_mean(np.array([mse[channel] for channel in result.validation.channels]))
 
 
-def plain_model_effects(model: IdentificationModel, joints: Sequence[int]) -> tuple[Effect, ...]:
-    """Coulomb friction and an offset on each of ``joints`` that the declared ``model`` does not give them."""
+def plain_model_effects(model: IdentificationModel, joints: Sequence[int], *,
+                        level: bool = False) -> tuple[Effect, ...]:
+    """Coulomb friction and an offset on each of ``joints`` that the declared ``model`` does not give them;
+    ``level``: the linear Stribeck law (:class:`dynamics.effects.linear.StribeckFriction`, the static-friction bump
+    at low speed alone) does not count as its joint's friction law, since it holds no Coulomb level at speed."""
     declared = {(effect.name, parameter) for effect in model.effects for parameter in effect.parameter_names(model.robot)}
     laws = {joint for effect in model.effects if effect.name in FRICTION_LAWS
+            and not (level and isinstance(effect, StribeckFriction))
             for joint in (range(model.robot.n_joints) if getattr(effect, "joints", None) is None else effect.joints)}
     added: list[Effect] = []
     for joint in joints:
@@ -124,14 +128,14 @@ def plain_model(model: IdentificationModel) -> IdentificationModel:
 def plain_completion(after: IdentificationResult, train: Measurements, validate: Measurements | None
                      ) -> tuple[IdentificationResult, tuple[Effect, ...]] | None:
     """The diagnosed model ``after`` (declared plus found effects) with the plain law added on every joint that has
-    none (:func:`plain_model_effects`: Coulomb friction where no friction law acts on the joint, an offset where
-    none does), fitted on the same records as given as ``after`` (same weighting; shaped laws and a delay held at
+    none (:func:`plain_model_effects`: Coulomb friction where no friction law with a Coulomb level acts on the joint,
+    the linear Stribeck bump alone holding none; an offset where none does), fitted on the same records as given as ``after`` (same weighting; shaped laws and a delay held at
     their fitted values), and the laws added; ``None`` when nothing is added (the external model, or every joint
     already holds both) or the fit fails (module docstring: on a repeat of the training motion)."""
     model = after.model
     if model.kind is ModelKind.EXTERNAL:
         return None
-    added = plain_model_effects(model, range(model.robot.n_joints))
+    added = plain_model_effects(model, range(model.robot.n_joints), level=True)
     if not added:
         return None
     if after.delay is not None:  # along the records moved by the diagnosis's delay, held at its value
