@@ -405,10 +405,10 @@ def diagnose_document(args: DiagnoseOptions, diagnosed: Diagnosed) -> tuple[dict
     diagnosis = diagnosed.diagnosis
     document = diagnosis.to_dict()
     records, selection = diagnosed.records, diagnosed.selection
-    # the unconstrained fit behind the answer: the adopted model, or on a repeat of the training motion the adopted
-    # model with the plain law completed (:func:`diagnosis_selection`)
-    answered = diagnosis.after if selection is None else selection.unconstrained
     if records is not None:  # in memory
+        # the unconstrained fit behind the answer: the adopted model, or on a repeat of the training motion the
+        # adopted model with the plain law completed (:func:`diagnosis_selection`)
+        answered = selection.unconstrained
         finish_document(document, answered, trivial=None, warnings=diagnosed.notes, rest=rest_records(records),
                         transmission=diagnosed.transmission, warnings_key=("warnings", "after"))
     document["preprocessing"] = diagnosed.preprocessing
