@@ -27,8 +27,9 @@ refusals were not measured on another motion either: a joint's Coulomb law that 
 refused by the Wald test at the search's Bonferroni threshold (the KUKA LWR4+'s joint 1 from positions only: Wald
 p = 8e-4 against a threshold near 1e-5; its test error 2.0x the plain fit's without it, 1.0x with it,
 ``benchmarks/README.md``). The default answer of ``oed diagnose`` then takes the diagnosed model with the plain law
-added on each joint the diagnosis left without one (Coulomb friction where no friction law acts on the joint, an
-offset where none does): the model class of a plain least-squares fit is the least the answer holds when nothing
+added on each joint the diagnosis left without one (Coulomb friction where no friction law with a Coulomb level acts
+on the joint, an offset where none does), when its consistent refit predicts the validation record better than the
+diagnosed model's (:func:`oed.workflows.diagnose.diagnosis_selection`): the model class of a plain least-squares fit is the least the answer holds when nothing
 measured the extrapolation of what the search left out. The added laws are not named as findings.
 
 **Refused on the fits, judged on the answer.** The comparison above is between the two unconstrained fits, but the
@@ -129,9 +130,10 @@ def plain_completion(after: IdentificationResult, train: Measurements, validate:
                      ) -> tuple[IdentificationResult, tuple[Effect, ...]] | None:
     """The diagnosed model ``after`` (declared plus found effects) with the plain law added on every joint that has
     none (:func:`plain_model_effects`: Coulomb friction where no friction law with a Coulomb level acts on the joint,
-    the linear Stribeck bump alone holding none; an offset where none does), fitted on the same records as given as ``after`` (same weighting; shaped laws and a delay held at
-    their fitted values), and the laws added; ``None`` when nothing is added (the external model, or every joint
-    already holds both) or the fit fails (module docstring: on a repeat of the training motion)."""
+    the linear Stribeck bump alone holding none; an offset where none does), fitted on the same records as ``after``
+    (the same weighting; shaped laws started at their fitted shapes, not searched; along the records moved by its
+    delay), and the laws added; ``None`` when nothing is added (the external model, or every joint already holds
+    both) or the fit fails (module docstring: on a repeat of the training motion)."""
     model = after.model
     if model.kind is ModelKind.EXTERNAL:
         return None
