@@ -131,7 +131,7 @@ def plain_completion(after: IdentificationResult, train: Measurements, validate:
     """The diagnosed model ``after`` (declared plus found effects) with the plain law added on every joint that has
     none (:func:`plain_model_effects`: Coulomb friction where no friction law with a Coulomb level acts on the joint,
     the linear Stribeck bump alone holding none; an offset where none does), fitted on the same records as ``after``
-    (the same weighting; shaped laws started at their fitted shapes, not searched; along the records moved by its
+    (the same weighting; shaped laws held at their fitted shapes; along the records moved by its
     delay), and the laws added; ``None`` when nothing is added (the external model, or every joint already holds
     both) or the fit fails (module docstring: on a repeat of the training motion)."""
     model = after.model
