@@ -31,7 +31,7 @@ from estimation.consistent.model_selection import ModelSelection, select_refit
 from estimation.identification.relative_error import relative_scores
 from estimation.identification.validation import ChannelErrors
 from estimation.diagnosis.candidates.coupling import coupling_candidates
-from estimation.diagnosis.plain_laws import plain_model
+from estimation.diagnosis.plain_laws import plain_completion, plain_model
 from dynamics.runtime.report_document import Report, figure_path, report_format
 from estimation.diagnosis.report import diagnosis_report, plot_residuals, plot_trace
 from estimation.diagnosis.results import Diagnosis, runner_up_line
@@ -414,7 +414,10 @@ def diagnose_document(args: DiagnoseOptions, diagnosed: Diagnosed) -> tuple[dict
     document = diagnosis.to_dict()
     records, selection = diagnosed.records, diagnosed.selection
     if records is not None:  # in memory
-        finish_document(document, diagnosis.after, trivial=None, warnings=diagnosed.notes, rest=rest_records(records),
+        # the unconstrained fit behind the answer: the adopted model, or on a repeat of the training motion the
+        # adopted model with the plain law completed (:func:`diagnosis_selection`)
+        answered = selection.unconstrained
+        finish_document(document, answered, trivial=None, warnings=diagnosed.notes, rest=rest_records(records),
                         transmission=diagnosed.transmission, warnings_key=("warnings", "after"))
     document["preprocessing"] = diagnosed.preprocessing
     if records is not None:
@@ -428,7 +431,7 @@ def diagnose_document(args: DiagnoseOptions, diagnosed: Diagnosed) -> tuple[dict
         if document["test"] is not None:  # the chosen model's error on the test record (what `oed predict` gives)
             document["test"]["chosen"] = {"name": selection.chosen, "mse": dict(
                 untouched.after if selection.chosen != "consistent" else document["consistent"]["test"]["mse"])}
-        files = add_model_file(document, diagnosis.after, args, records.preprocessing, diagnosed.transmission,
+        files = add_model_file(document, answered, args, records.preprocessing, diagnosed.transmission,
                                consistent=consistent, selection=selection)
         chosen = ChosenModel.of(selection)  # its errors beside the diagnosis's before and after
         answer_diagnosis(document, chosen, floor=None if diagnosis.statistics is None else diagnosis.statistics.floor)
@@ -511,11 +514,39 @@ def diagnosis_selection(args: DiagnoseOptions, diagnosis: Diagnosis, records: Pr
     """The default answer (:func:`estimation.consistent.model_selection.select_refit`): the adopted model as fitted
     (unconstrained) or its consistent refit (the description's bodies as prior, its weight chosen on the validation
     record; shaped laws and a delay at their fitted values), by the validation error when the validation record is
-    another motion, else the consistent refit; ``--consistent`` forces it. A refit that fails is no candidate."""
-    return select_refit(diagnosis.after, records.train.measurements, records.validation.measurements,
-                        given="consistent" if args.consistent else None,
-                        consistent=consistent_settings(args, diagnosis.after.model.robot),
-                        note="with the diagnosed effects")
+    another motion, else the consistent refit; ``--consistent`` forces it. A refit that fails is no candidate.
+
+    On a validation record that repeats the training motion, nothing measured on another motion what the search left
+    out either (a law refused by the Wald test at the search's Bonferroni threshold although it lowered the
+    validation error): the adopted model completed with the plain law on the joints the diagnosis left without one
+    (:func:`estimation.diagnosis.plain_laws.plain_completion`; not named as findings) is refitted alike, and its
+    consistent refit is the answer when it predicts the validation record better than the adopted model's
+    consistent refit by the criterion of the default answer (the adopted model kept on a tie), as
+    :func:`judged_swap` judges a plain-law swap; the selection's reason says which and the two scores."""
+    train, validation = records.train.measurements, records.validation.measurements
+    settings = consistent_settings(args, diagnosis.after.model.robot)
+    selection = select_refit(diagnosis.after, train, validation, given="consistent" if args.consistent else None,
+                             consistent=settings, note="with the diagnosed effects")
+    if args.consistent or selection.selection != "repeated-motion" or selection.chosen != "consistent":
+        return selection
+    completion = plain_completion(diagnosis.after, train, validation)
+    if completion is None:
+        return selection
+    completed, added = completion
+    laws = ", ".join(f"{effect.name} on {completed.model.channels[effect.joints[0]]}" for effect in added)
+    other = select_refit(completed, train, validation, consistent=settings,
+                         note=f"with the diagnosed effects and the plain law where the diagnosis named none ({laws}; "
+                              "not findings)")
+    answers = {"diagnosed": selection.chosen_candidate, "completed": other.chosen_candidate}
+    if other.chosen != "consistent" or any(answer.validation is None for answer in answers.values()):
+        return selection
+    scored = relative_scores({name: answer.validation.mse for name, answer in answers.items()},
+                             answers["diagnosed"].validation.channels)
+    taken = scored["completed"] < scored["diagnosed"]
+    why = (f"; the plain law completed ({laws}): its consistent refit validates {scored['completed']:.4g} against "
+           f"{scored['diagnosed']:.4g} for the diagnosed model's (the mean relative validation error), "
+           + ("taken" if taken else "not taken"))
+    return replace(other, reason=other.reason + why) if taken else replace(selection, reason=selection.reason + why)
 
 
 def judged_swap(args: DiagnoseOptions, diagnosis: Diagnosis,
