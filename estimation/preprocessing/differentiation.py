@@ -269,7 +269,7 @@ class ButterworthDifferentiation:
             self.cutoff(measurements)  # the cut-off against the record's length
         sos = scipy.signal.butter(self.order, cutoff, btype="low", fs=rate, output="sos")
         # each end extended over the settling time (at least scipy's default reach), filtered and differentiated
-        # on the extended record: central differences up to its edges (extend_edges)
+        # on the extended record: the derivatives up to its edges (extend_edges)
         n = measurements.n_samples
         padding = min(n - 1, max(3 * (2 * len(sos) + 1) * 10, settling))
         # the step from the record's span: epoch stamps (1.7e9 s) would round each difference to 2.4e-7 s
