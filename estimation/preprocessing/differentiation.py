@@ -315,10 +315,10 @@ def spline_derivatives(values: NDArray[np.float64], step: float, orders: int) ->
     spline's ``dq`` and ``ddq`` are within 0.5 % of a sinusoid's up to a fifth of the sampling rate, where
     central differences are 24 % and 43 % low (the quintic spline of biomechanics' differentiation, Woltring, "A Fortran
     package for generalized, cross-validatory spline smoothing and differentiation", Adv. Eng. Software 8,
-    1986). Fewer samples than the spline needs: central differences. The spline is taken of the filtered
-    positions: its derivatives, differentiated first and filtered after (the two commute in the record), would
-    carry the filter's start-up from a noisy derivative at the extended edges (a 3 Hz filter on positions with
-    1 mrad noise at 500 Hz: ddq 7 times further from the truth over the first and last 2 s).
+    1986). Fewer samples than the spline needs: central differences. The spline is that of the filtered
+    positions: differentiating first and filtering after (the two commute inside the record) starts the filter
+    from a noisy derivative at the extended edges (a 3 Hz filter, positions with 1 mrad noise at 500 Hz: ddq 7
+    times further from the truth over the first and last 2 s).
     """
     if values.shape[0] <= SPLINE_DEGREE:
         found, current = [], values
