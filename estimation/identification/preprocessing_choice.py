@@ -85,7 +85,7 @@ from estimation.preprocessing.plan import (
 #: harmonics of the Fourier candidates (those below the Nyquist frequency are kept)
 HARMONICS_GRID = (5, 10, 20, 40, 80, 160, 250, 400)
 #: cut-offs of the filter candidates, as fractions of the sampling rate (1 Hz to 250 Hz at 1 kHz)
-CUTOFF_FRACTIONS = (0.001, 0.002, 0.0035, 0.006, 0.01, 0.017, 0.03, 0.05, 0.085, 0.15, 0.25)
+CUTOFF_FRACTIONS = (0.001, 0.002, 0.0035, 0.006, 0.01, 0.017, 0.03, 0.05, 0.085, 0.15, 0.25, 0.35)
 #: speeds of the flexible friction's tanh columns, as fractions of the joint's root-mean-square speed
 FRICTION_SPEEDS = (0.01, 0.03, 0.1, 0.3)
 #: a candidate predicts clearly better when its score (geometric-mean held-out MSE) is below this fraction
