@@ -369,18 +369,9 @@ def run_kind(kind: Kind, folder: Path) -> dict:
 UR10E_LOG = Log(10.0, 500.0, motion_hz=0.1)
 KINDS = (
     Kind("UR10e-like, Fourier train/validate (10 s at 500 Hz, logged dq), point-to-point test with rests",
-         dh_urdf(ur10e), UR10E_LOG, UR10E_LOG, Log(12.0, 500.0), test_motion="point-to-point", slow=True,
-         xfail="diagnose 0.867/1.573/0.943/0.960/0.958/0.852x the plain fit (total 1.025): the offset on tau2 (truth "
-               "-0.6 N m) removed in the search, Wald p = 0.0029 from the HAC covariance on the Fourier training "
-               "motion, the gravity terms absorb it and extrapolate badly to the point-to-point poses; identify "
-               "(offset declared) 0.923 in total, worst joint 0.961"),
+         dh_urdf(ur10e), UR10E_LOG, UR10E_LOG, Log(12.0, 500.0), test_motion="point-to-point", slow=True),
     Kind("Schunk LWA 4P-like, 15 x 3.7 s training, 5 validation, 6 test records at 100 Hz, no dq",
-         dh_urdf(lwa4p), *(Log(3.7, 100.0, velocity=False, motion_hz=0.27),) * 3, records=(15, 5, 6), slow=True,
-         xfail="identify 1.022/1.028/1.062/1.067/1.170/1.110x the plain fit (total 1.074), diagnose the same: the "
-               "cut-off grid stops at 0.25 of the rate (25 Hz; the plain fit takes 30 Hz) and the fit's Coulomb "
-               "friction is biased low as the cut-off falls (fc6 2.78/2.84/2.89/2.92/2.96 at 15/20/25/30/40 Hz, "
-               "truth 3.0: the filtered torques' steps smeared, the sign column sharp); the test error falls with "
-               "it (--cutoff 30: 0.93x the default's, --cutoff 40: 0.86x)"),
+         dh_urdf(lwa4p), *(Log(3.7, 100.0, velocity=False, motion_hz=0.27),) * 3, records=(15, 5, 6), slow=True),
     Kind("KR300-like heavy arm, 10 s / 10 s / 10 s at 250 Hz, no dq, slow motion, large Coulomb friction",
          dh_urdf(kr300), *(Log(10.0, 250.0, velocity=False, motion_hz=0.08),) * 3,
          coulomb=(500.0, 1200.0, 600.0, 70.0, 120.0, 8.0), viscous=(800.0, 1500.0, 800.0, 80.0, 120.0, 8.0),
