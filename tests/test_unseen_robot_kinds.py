@@ -404,3 +404,19 @@ def test_the_defaults_run_and_predict_another_kind_of_robot_as_well_as_a_plain_f
         plain = mse[f"plain OLS ({label}'s samples)"]
         assert np.all(within(mse[label], plain, floor, PER_JOINT)), (label, (mse[label] / plain).round(3))
         assert within(mse[label].sum(), plain.sum(), floor.sum(), TOTAL), (label, mse[label].sum() / plain.sum())
+
+
+def test_the_filter_candidates_reach_the_limit_the_candidates_respect():
+    """A record at 100 Hz (the Schunk-like case): a 35 Hz filter is a candidate (the fit's Coulomb friction is
+    biased low as the cut-off falls, and the validation error with it), none at or above 0.4 of the rate."""
+    from dynamics.measurements import Measurements
+    from estimation.identification.preprocessing_choice import candidates
+    from estimation.preprocessing.plan import Preprocessing
+
+    t = np.arange(0.0, 3.7, 0.01)
+    q = np.column_stack([np.sin(2 * PI * 0.27 * t), np.cos(2 * PI * 0.54 * t)])
+    record = Measurements(t, q, None, None, np.zeros_like(q), None, {})
+    found = candidates([record], Preprocessing("butterworth", cutoff_hz=10.0), None, ("butterworth",),
+                       held_out=[record])
+    cutoffs = sorted(plan.cutoff_hz for plan in found if plan.method == "butterworth")
+    assert 35.0 in cutoffs and max(cutoffs) < 40.0, cutoffs

@@ -84,7 +84,10 @@ from estimation.preprocessing.plan import (
 
 #: harmonics of the Fourier candidates (those below the Nyquist frequency are kept)
 HARMONICS_GRID = (5, 10, 20, 40, 80, 160, 250, 400)
-#: cut-offs of the filter candidates, as fractions of the sampling rate (1 Hz to 250 Hz at 1 kHz)
+#: cut-offs of the filter candidates, as fractions of the sampling rate (1 Hz to 350 Hz at 1 kHz): up to the candidates'
+#: own limit of 0.4 of the rate, as the plain fit's; the fit's Coulomb friction is biased low as the cut-off falls
+#: (the filtered torques' steps smeared, the sign column sharp), which a grid stopping at 0.25 hid on records at
+#: 100 Hz (benchmarks/README.md, "Robot kinds the project has not seen")
 CUTOFF_FRACTIONS = (0.001, 0.002, 0.0035, 0.006, 0.01, 0.017, 0.03, 0.05, 0.085, 0.15, 0.25, 0.35)
 #: speeds of the flexible friction's tanh columns, as fractions of the joint's root-mean-square speed
 FRICTION_SPEEDS = (0.01, 0.03, 0.1, 0.3)
