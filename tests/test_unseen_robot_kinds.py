@@ -342,6 +342,10 @@ def run_kind(kind: Kind, folder: Path) -> dict:
             exits[label] = message
             continue
         summary = json.loads(result.read_text())
+        named = {(effect["spec"], tuple(effect["channels"])) for effect in summary.get("effects", [])
+                 if isinstance(effect, dict)}
+        both = named & {(effect["spec"], tuple(effect["channels"])) for effect in summary.get("rejected", [])}
+        assert not both, f"oed {verb}: effects both adopted and rejected: {sorted(both)}"
         selected[label] = [effect if isinstance(effect, str) else f"{effect['spec']} on {','.join(effect['channels'])}"
                            for effect in summary.get("effects", [])]
         squares, plain_squares, count = 0.0, 0.0, 0
