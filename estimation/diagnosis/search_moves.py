@@ -27,6 +27,7 @@ from dynamics.effects.shaped import FRICTION_LAWS
 from dynamics.models import IdentificationModel
 from estimation.diagnosis.candidates.coupling import combination_taken
 from estimation.diagnosis.candidates.trials import joints_of
+from estimation.diagnosis.confirmation import CandidateComparison
 from estimation.diagnosis.rules.robust_test import WaldTest
 from estimation.estimators.effect_blocks import Block
 
@@ -102,7 +103,7 @@ def removable(test: WaldTest, threshold: float) -> str | None:
     return None
 
 
-def removal_raises(comparison, block: Block, tolerance: float) -> bool:
+def removal_raises(comparison: CandidateComparison, block: Block, tolerance: float) -> bool:
     """Whether removing an adopted effect (``comparison``: the model without it against the current model,
     :func:`estimation.diagnosis.confirmation.removal_comparison`) raises the validation MSE of a channel the effect
     acts on by more than ``tolerance`` (relative): the held-out evidence that adopted it still stands."""
