@@ -136,7 +136,9 @@ def _refuse_mimic_joints(path: Path, root: ElementTree.Element) -> None:
         if mimic is not None:
             raise RobotDescriptionError(
                 f"URDF {path}: joint {joint.get('name')!r} mimics joint {mimic.get('joint')!r} (a <mimic> coupling): "
-                "coupled joints are not supported; the chain would be identified as if it moved freely")
+                "coupled joints are not supported; the chain would be identified as if it moved freely. Name the "
+                "logged joints (joint_names, --joint-names): the others are locked and a <mimic> joint follows its "
+                "locked driver")
 
 
 def _check_total_mass(path: Path, root: ElementTree.Element, parsed: float, parser_report: str = "") -> None:
@@ -332,7 +334,8 @@ def _check_serial_chain(path: Path, model: Any) -> None:
         if parent != joint_id - 1:
             raise RobotDescriptionError(
                 f"URDF {path}: joint {model.names[joint_id]!r} hangs from {model.names[parent]!r}, "
-                "not from the previous joint: branching chains are not supported (serial chains only)"
+                "not from the previous joint: branching chains are not supported (serial chains only); name the "
+                "logged joints, base to tip (joint_names, --joint-names), and the others are locked"
             )
 
 

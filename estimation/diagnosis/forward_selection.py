@@ -7,7 +7,9 @@ and the delay. :class:`DiagnosisSearch` moves between such models (steps 2–4 o
 :mod:`estimation.diagnosis.search`):
 
 * **remove** an adopted effect whose coefficients are within their noise in the current model
-  (:func:`estimation.diagnosis.search_moves.removable`);
+  (:func:`estimation.diagnosis.search_moves.removable`) unless removing it raises the validation error of a
+  channel it acts on by more than ``min_improvement`` (:func:`estimation.diagnosis.search_moves.removal_raises`:
+  an effect leaves on the evidence it was adopted on, training significance and held-out error);
 * **add** a candidate group, or **replace** an adopted law by another on its joint
   (:func:`estimation.diagnosis.search_moves.replaced_by`): each group is fitted against the current model
   (without the law it replaces), screened by the nested F test at a Bonferroni threshold, ranked by its
@@ -53,8 +55,8 @@ from estimation.diagnosis.candidates.delay import DelayTrial
 from estimation.diagnosis.results import RejectedEffect
 from estimation.diagnosis.rules.robust_test import WaldTest
 from estimation.diagnosis.search_fits import AdoptedEffect, CurrentFit, Fits, TrialRequest
-from estimation.diagnosis.search_moves import (declared_conflict, move_bic, removable, replaced_by, replaced_in_place,
-                                               tie_key)
+from estimation.diagnosis.search_moves import (declared_conflict, move_bic, removable, removal_raises, replaced_by,
+                                               replaced_in_place, tie_key)
 from estimation.diagnosis.rules.selection_rules import candidate_groups, offsets_beat_springs
 from estimation.estimators.effect_blocks import Block, NoRowsError
 
@@ -387,7 +389,10 @@ class DiagnosisSearch:
                 break  # the weakest is significant: so are the others
             if self.key({other.index for other in self.adopted} - {item.index}) in self.visited:
                 continue
-            self.weights = self.fits.removal((item.index,), self.weights).weights
+            comparison = self.fits.removal((item.index,), self.weights)
+            if removal_raises(comparison, item.block, self.settings.min_improvement):
+                continue  # within its noise on the training record, but the validation record needs it
+            self.weights = comparison.weights
             self.verdicts[item.index] = reason
             self.departed.add(item.index)
             self.adopted = [other for other in self.adopted if other.index != item.index]

@@ -301,9 +301,13 @@ def _built(model: IdentificationModel, before: IdentificationResult, moved: Dela
                          n_candidates + len(pinned) + 1 + position)
             rejected[index] = RejectedEffect(effect.name, effect_channels(effect, model), reason,
                                              candidate_label(effect))
+    final = [effect for effect, _, _ in selected]
     for item, reason in dropped:
         rejected[item.index] = RejectedEffect(item.effect.name, effect_channels(item.effect, model), reason,
                                               candidate_label(item.effect))
+    for index, block in blocks.items():  # removed or dropped, then back in the mixed model's plain law: not rejected
+        if block.effect in final:
+            rejected.pop(index, None)
     for position, term in enumerate(term for term in pinned if term.found):
         effect = next((block.effect for block in blocks.values() if term.parameter in block.names
                        and candidate_label(block.effect) == term.effect), None)  # a law simplified after selection: none

@@ -87,7 +87,9 @@ HARMONICS_GRID = (5, 10, 20, 40, 80, 160, 250, 400)
 #: cut-offs of the filter candidates, as fractions of the sampling rate (1 Hz to 400 Hz at 1 kHz); the last is
 #: the least smoothing the rule itself applies (0.8 × Nyquist, :func:`~estimation.preprocessing.plan.choose_preprocessing`):
 #: a record logged at a low rate may hold the motion up to there (the EMPS at 50 Hz: the validation error fell from
-#: 160 N² at 12.5 Hz to 39 N² at 20 Hz, the test error from 1.07 to 0.62 times the plain fit's)
+#: 160 N² at 12.5 Hz to 39 N² at 20 Hz, the test error from 1.07 to 0.62 times the plain fit's), and the fit's Coulomb
+#: friction is biased low as the cut-off falls (the filtered torques' steps smeared, the sign column sharp), which a
+#: grid stopping at 0.25 hid on records at 100 Hz (benchmarks/README.md, "Robot kinds the project has not seen")
 CUTOFF_FRACTIONS = (0.001, 0.002, 0.0035, 0.006, 0.01, 0.017, 0.03, 0.05, 0.085, 0.15, 0.25, 0.4)
 #: speeds of the flexible friction's tanh columns, as fractions of the joint's root-mean-square speed
 FRICTION_SPEEDS = (0.01, 0.03, 0.1, 0.3)
