@@ -1,7 +1,7 @@
 """The derivatives chosen on a validation record of another motion (issue 34,
 estimation.identification.preprocessing_on_validation): every candidate scored on the same recorded validation
 samples by the model fitted with it, the choice predicting a test record no choice saw better than the training
-record's own blocked cross-validation; a repeat of the training motion (another run) chooses too."""
+record's own blocked cross-validation, and today's choice kept when the validation repeats the training motion."""
 
 from __future__ import annotations
 
@@ -108,13 +108,11 @@ def test_every_candidate_is_scored_on_the_same_recorded_validation_samples(setti
                                        rel=1e-9)
 
 
-def test_a_validation_that_repeats_the_training_motion_chooses_too(setting):
-    """Another run of the training motion, with its own noise, scores the derivatives on every sample with the fits
-    that are used (the training record's blocked cross-validation: on a block the others may not cover)."""
+def test_a_validation_that_repeats_the_training_motion_keeps_the_training_record_choice(setting):
     _, model, paths = setting
     repeat = prepared(model, paths, validation="repeat").preprocessing
-    assert repeat.evidence.selection == "validation" and repeat.evidence.validation
-    assert repeat.evidence.held_out_choice == prepared(model, paths, fits=()).preprocessing.without_evidence()
+    assert repeat.evidence.selection == "held-out" and not repeat.evidence.validation
+    assert repeat == prepared(model, paths, fits=()).preprocessing
 
 
 def test_a_candidate_scored_on_other_samples_is_set_aside():

@@ -41,19 +41,11 @@ fits, and the model among OLS, WLS and the consistent refit is then chosen on th
 chosen preprocessing (:func:`estimation.consistent.model_selection.select_model`). The consistent fit is a
 regularised refit of the same prepared data; the derivatives decide which data, so they are chosen first.
 
-**When it applies** (:func:`chooses_on_validation`): a validation record is given, it is not a record at rest
-(:func:`estimation.identification.repeated_motion.still_motion`), and the training record's choice was made among
-candidates (not measured derivatives, not the user's ``--cutoff``/``--frequency``). A validation record that
-repeats the training motion (another run of it, with its own noise) applies too: it measures nothing about another
-motion, but neither does the training record's cross-validation, and of the two it is the better evidence on the
-derivatives. The training record's blocked cross-validation predicts each block from a fit on the others: a block
-the others do not cover (a record's slow start) is an extrapolation that dominates the score, and its flexible
-friction is not the fit that is used. On the real KUKA LWR4+ without logged derivatives (``bench_sweep.py``
-``kuka-posonly``, the validation record a repeat), its scores did not separate a 0.2 Hz filter (0.185) from a
-50 Hz one (0.190) across five folds (their paired log-differences: mean 0.01, standard error 0.2; the first block
-alone made a third of the score); the 50 Hz filter, chosen by the tie rule, put the test record's joint 1 at 1.44
-times the plain fit's, the 0.2 Hz filter at 3.4 times. Scored on the repeat, a 1.2 Hz filter was chosen: joint 1
-at 0.76 times (benchmarks/README.md, "A validation record that repeats the training motion").
+**When it applies** (:func:`chooses_on_validation`): a validation record is given, it holds another motion
+(:func:`estimation.identification.repeated_motion.repeated_motion` above
+:data:`~estimation.identification.repeated_motion.REPEAT_FRACTION`), and the training record's choice was made
+among candidates (not measured derivatives, not the user's ``--cutoff``/``--frequency``). A validation record
+that repeats the training motion measures nothing about another motion: the training record's choice is kept.
 """
 
 from __future__ import annotations
@@ -83,7 +75,7 @@ from estimation.identification.preprocessing_choice import (
     scored_window,
 )
 from estimation.identification.relative_error import relative_scores
-from estimation.identification.repeated_motion import still_motion
+from estimation.identification.repeated_motion import REPEAT_FRACTION, repeated_motion, still_motion
 from estimation.identification.validation import compare_recorded
 from estimation.preprocessing.plan import (
     Evidence,
@@ -240,11 +232,13 @@ def choose_on_validation(model: IdentificationModel, train: Sequence[Measurement
 def chooses_on_validation(chosen: Preprocessing, train: Sequence[Measurements],
                           validation: Sequence[Measurements]) -> bool:
     """Whether the preprocessing is chosen again on the validation record (module docstring: when it applies):
-    ``chosen`` was chosen among candidates on the training record, and the validation record is not at rest
-    (:func:`~estimation.identification.repeated_motion.still_motion`); a repeat of the training motion counts."""
+    ``chosen`` was chosen among candidates on the training record, and the validation record holds another
+    motion (neither a repeat of it nor a record at rest: :func:`~estimation.identification.repeated_motion.still_motion`)."""
     if not validation or chosen.evidence is None or chosen.evidence.selection != "held-out":
         return False
-    return not still_motion(concatenate(train), concatenate(validation))
+    train_record, validation_record = concatenate(train), concatenate(validation)
+    return (repeated_motion(train_record, validation_record) > REPEAT_FRACTION
+            and not still_motion(train_record, validation_record))
 
 
 def window(segment: Measurements) -> Measurements:
@@ -257,7 +251,7 @@ def on_validation(chosen: Preprocessing, model: IdentificationModel, train: Sequ
                   validation: Sequence[Measurements], *, fits: tuple[str, ...] = FITS,
                   jobs: int | None = None) -> Preprocessing:
     """``chosen`` (the training record's choice, with its evidence) chosen again among the same candidates on
-    the validation record when that applies (:func:`chooses_on_validation`), else ``chosen`` as it is.
+    the validation record when that is another motion (:func:`chooses_on_validation`), else ``chosen`` as it is.
     Scored on windows, as the training record's choice is: the training record's
     (:func:`~estimation.identification.preprocessing_choice.scored_window`: the whole record up to
     :data:`~estimation.identification.preprocessing_choice.SCORED_SAMPLES` samples) and each validation segment's

@@ -260,7 +260,7 @@ class Preprocessing:
             (["held torques"] if self.held_torques else [])
         if self.evidence is not None and self.evidence.selection == "validation":
             how = (f"chosen among {len(self.evidence.validation)} candidates by the validation error of the model "
-                   "fitted with each")
+                   "fitted with each, the validation record being another motion")
             held_out = self.evidence.held_out_choice
             if held_out is not None and held_out != self.without_evidence():
                 how += f"; blocked cross-validation on the training data preferred {held_out.describe_method()}"
