@@ -1,7 +1,8 @@
 """The derivatives chosen on a validation record of another motion (issue 34,
 estimation.identification.preprocessing_on_validation): every candidate scored on the same recorded validation
 samples by the model fitted with it, the choice predicting a test record no choice saw better than the training
-record's own blocked cross-validation, and today's choice kept when the validation repeats the training motion."""
+record's own blocked cross-validation; a validation that repeats the training motion scores the training record's
+candidates by the training record's own score."""
 
 from __future__ import annotations
 
@@ -20,6 +21,7 @@ from estimation.consistent.model_selection import validation_base
 from estimation.estimators.least_squares import LeastSquares, WeightedLeastSquares, stack
 from estimation.identification.fit import identify
 from estimation.identification.prepared import PreparationSettings, prepare_records, read_files
+from estimation.identification.preprocessing_choice import preferred
 from estimation.identification.preprocessing_on_validation import FITS, on_same_samples
 from estimation.identification.validation import compare, compare_recorded
 from estimation.preprocessing.plan import Preprocessing, ValidationEvidence, prepare
@@ -108,11 +110,19 @@ def test_every_candidate_is_scored_on_the_same_recorded_validation_samples(setti
                                        rel=1e-9)
 
 
-def test_a_validation_that_repeats_the_training_motion_keeps_the_training_record_choice(setting):
+def test_a_validation_that_repeats_the_training_motion_scores_the_training_record_candidates(setting):
+    """A repeat of the training motion is not scored as another motion (no validation fits): the training record's
+    candidates are scored on it by the held-out score's model fitted on the whole training record, the same tie
+    rule choosing (estimation.identification.preprocessing_choice.choose_on_repeat)."""
     _, model, paths = setting
     repeat = prepared(model, paths, validation="repeat").preprocessing
-    assert repeat.evidence.selection == "held-out" and not repeat.evidence.validation
-    assert repeat == prepared(model, paths, fits=()).preprocessing
+    trained = prepared(model, paths, fits=()).preprocessing
+    assert repeat.evidence.selection == "repeat" and not repeat.evidence.validation
+    assert repeat.evidence.held_out_choice == trained.without_evidence()
+    assert {item.preprocessing for item in repeat.evidence.candidates} == \
+        {item.preprocessing for item in trained.evidence.candidates}
+    assert repeat.without_evidence() == preferred(repeat.evidence.candidates)
+    assert "a repeat of the training motion" in repeat.describe()
 
 
 def test_a_candidate_scored_on_other_samples_is_set_aside():

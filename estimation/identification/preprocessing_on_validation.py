@@ -45,7 +45,9 @@ regularised refit of the same prepared data; the derivatives decide which data, 
 (:func:`estimation.identification.repeated_motion.repeated_motion` above
 :data:`~estimation.identification.repeated_motion.REPEAT_FRACTION`), and the training record's choice was made
 among candidates (not measured derivatives, not the user's ``--cutoff``/``--frequency``). A validation record
-that repeats the training motion measures nothing about another motion: the training record's choice is kept.
+that repeats the training motion measures nothing about another motion: the training record's candidates are
+scored on it by the training record's own score, fitted on the whole training record
+(:func:`estimation.identification.preprocessing_choice.choose_on_repeat`).
 """
 
 from __future__ import annotations
@@ -72,6 +74,7 @@ from estimation.estimators.summed_least_squares import SummedLeastSquares
 from estimation.identification.preprocessing_choice import (
     MIN_PARALLEL_SCORES,
     SCORED_SAMPLES,
+    choose_on_repeat,
     scored_window,
 )
 from estimation.identification.relative_error import relative_scores
@@ -260,8 +263,12 @@ def on_validation(chosen: Preprocessing, model: IdentificationModel, train: Sequ
     The plan returned carries both: ``evidence.candidates`` (the training record's scores) and
     ``evidence.validation`` (the validation scores), with ``evidence.selection`` ``"validation"``."""
     train, validation = scored_window(train), [window(segment) for segment in validation]
-    if chosen.evidence is None or not chooses_on_validation(chosen, train, validation):
+    if chosen.evidence is None or not validation or chosen.evidence.selection != "held-out":
         return chosen
+    if not chooses_on_validation(chosen, train, validation):
+        if still_motion(concatenate(train), concatenate(validation)):
+            return chosen
+        return choose_on_repeat(chosen, model, train, validation, jobs=jobs)  # a repeat of the training motion
     plans = [item.preprocessing for item in chosen.evidence.candidates]
     best, evidence = choose_on_validation(model, train, validation, plans, fits=fits, jobs=jobs)
     if best is None:

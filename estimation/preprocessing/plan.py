@@ -158,11 +158,13 @@ class ValidationEvidence:
 class Evidence:
     """How a preprocessing was chosen: ``selection`` is ``held-out`` (the best score on held-out blocks of the
     training data), ``given`` (the user's options decided) or ``validation`` (the smallest error on a validation
-    record of another motion, :attr:`validation`); ``candidates`` sorted best first, each scored on ``folds``
-    blocks of the training data; ``validation`` sorted best first and ``held_out_choice`` the training record's
+    record of another motion, :attr:`validation`) or ``repeat`` (the best score on a validation record that repeats
+    the training motion, predicted by the held-out score's model fitted on the whole training record:
+    :func:`estimation.identification.preprocessing_choice.choose_on_repeat`; ``candidates`` then hold those scores,
+    ``folds`` 0); ``candidates`` sorted best first, each scored on ``folds`` blocks of the training data; ``validation`` sorted best first and ``held_out_choice`` the training record's
     own choice (empty and ``None`` unless chosen on a validation record)."""
 
-    selection: Literal["held-out", "given", "validation"]
+    selection: Literal["held-out", "given", "validation", "repeat"]
     folds: int
     candidates: tuple[CandidateEvidence, ...]
     validation: tuple[ValidationEvidence, ...] = ()
@@ -261,6 +263,12 @@ class Preprocessing:
         if self.evidence is not None and self.evidence.selection == "validation":
             how = (f"chosen among {len(self.evidence.validation)} candidates by the validation error of the model "
                    "fitted with each, the validation record being another motion")
+            held_out = self.evidence.held_out_choice
+            if held_out is not None and held_out != self.without_evidence():
+                how += f"; blocked cross-validation on the training data preferred {held_out.describe_method()}"
+        elif self.evidence is not None and self.evidence.selection == "repeat":
+            how = (f"chosen among {len(self.evidence.candidates)} candidates by the error on the validation record, a "
+                   "repeat of the training motion, of the fit on the training data")
             held_out = self.evidence.held_out_choice
             if held_out is not None and held_out != self.without_evidence():
                 how += f"; blocked cross-validation on the training data preferred {held_out.describe_method()}"
