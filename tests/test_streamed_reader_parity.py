@@ -26,7 +26,7 @@ CHUNK = "250"
 BOUNDARIES = [250, 500, 750, 1000, 1250]
 
 
-def _defect(frame: pd.DataFrame, kind: str, seed: int) -> pd.DataFrame:
+def with_defect(frame: pd.DataFrame, kind: str, seed: int) -> pd.DataFrame:
     """``frame`` as a logger with the defect ``kind`` writes it."""
     frame = frame.copy()
     generator = np.random.default_rng(seed)
@@ -80,7 +80,7 @@ def logs(tmp_path_factory):
         clean[name] = frame[[column for column in frame.columns if not column.startswith(("dq", "ddq"))]]
     for kind in [*KINDS, "many_duplicated"]:
         for name, seed in (("train", 5), ("val", 6)):
-            frame = clean[name] if kind == "many_duplicated" and name == "train" else _defect(clean[name], kind, seed)
+            frame = clean[name] if kind == "many_duplicated" and name == "train" else with_defect(clean[name], kind, seed)
             frame.to_csv(folder / f"{name}_{kind}.csv", index=False, float_format="%.17g")
     return folder
 

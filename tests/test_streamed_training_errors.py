@@ -20,7 +20,7 @@ from estimation.streaming.chunks import read_chunks
 from estimation.streaming.recorded_errors import counted_recorded_errors
 from oed.cli import main
 from oed.fourier import random_fourier
-from tests.test_streamed_reader_parity import _defect
+from tests.test_streamed_reader_parity import with_defect
 
 EFFECTS = "viscous,coulomb,offset"
 CHUNK = "250"
@@ -40,7 +40,7 @@ def logs(tmp_path_factory):
             frame = frame[[column for column in frame.columns if not column.startswith(("dq", "ddq"))]]
             frame.to_csv(folder / f"{name}_{prefix}clean.csv", index=False, float_format="%.17g")
             for kind in ("stall",) if prefix else ("jitter", "stall"):
-                _defect(frame, kind, 5 + (name == "val")).to_csv(folder / f"{name}_{prefix}{kind}.csv", index=False,
+                with_defect(frame, kind, 5 + (name == "val")).to_csv(folder / f"{name}_{prefix}{kind}.csv", index=False,
                                                                  float_format="%.17g")
     return folder
 
