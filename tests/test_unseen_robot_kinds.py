@@ -223,7 +223,7 @@ def write_record(model, theta, limits, kind: Kind, log: Log, motion: str, seed: 
     """One record (another motion a seed) as :func:`tests.test_unseen_robots.write_record`, with this kind's
     sensor offset, torque resolution and column layout; returns the plain fit's view of it and the spread."""
     from benchmarks.bench_real_robots import Record
-    from tests.test_unseen_robots import received, times
+    from tests.test_unseen_robots import logged, times
 
     generator = np.random.default_rng(1000 + seed)
     t = times(log, generator)
@@ -238,24 +238,10 @@ def write_record(model, theta, limits, kind: Kind, log: Log, motion: str, seed: 
     if kind.torque_quantum:
         quantum = kind.torque_quantum * spread
         tau = np.round(tau / quantum) * quantum
-    stalls = [(int(generator.integers(10, t.shape[0] - 20)), int(generator.integers(2, 6))) for _ in range(log.stalls)]
-    for start, length in sorted(stalls):
-        for array in (q, dq, tau):
-            array[start:start + length] = array[start - 1]
-    if log.quantum:
-        q = np.round(q / log.quantum) * log.quantum
-    if log.velocity_noise:
-        dq = dq + generator.normal(0.0, 1.0, dq.shape) * log.velocity_noise * dq.std(axis=0)
-    if log.bursts:
-        t = received(t, log, generator)
-    n = q.shape[1]
-    frame = {"t": t, **{f"q{j + 1}": q[:, j] for j in range(n)}}
-    if log.velocity:
-        frame.update({f"dq{j + 1}": dq[:, j] for j in range(n)})
-    frame.update({f"tau{j + 1}": tau[:, j] for j in range(n)})
+    t, q, dq, tau, frame = logged(t, q, dq, tau, log, generator)
     table = pd.DataFrame(frame)
     if kind.columns == "shuffled":  # another order, blanks around the names, a controller's further columns
-        for j in range(n):
+        for j in range(q.shape[1]):
             table[f"temperature{j + 1}"] = 35.0 + generator.normal(0.0, 0.1, t.shape[0])
         table["mode"] = 2
         order = list(generator.permutation(table.columns))

@@ -121,6 +121,15 @@ def write_record(model, theta, log: Log, seed: int, path: Path, spread: np.ndarr
     if spread is None:
         spread = tau.std(axis=0)
     tau = tau + generator.normal(0.0, 1.0, tau.shape) * NOISE * spread
+    t, q, dq, tau, frame = logged(t, q, dq, tau, log, generator)
+    pd.DataFrame(frame).to_csv(path, index=False)
+    return Record(t, q, tau, dq if log.velocity else None), spread
+
+
+def logged(t: np.ndarray, q: np.ndarray, dq: np.ndarray, tau: np.ndarray, log: Log, generator: np.random.Generator
+           ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, np.ndarray]]:
+    """The record as ``log``'s logger writes it: stalls, position quantum, velocity noise, bursts of time stamps;
+    ``(t, q, dq, tau, columns)``, the columns ``t, q1.., [dq1..], tau1..``."""
     stalls = [(int(generator.integers(10, t.shape[0] - 20)), int(generator.integers(2, 6))) for _ in range(log.stalls)]
     for start, length in sorted(stalls):  # a stalled logger: the last sample it sent re-sent for a few time stamps
         for array in (q, dq, tau):  # (in time order: a stall that overlaps an earlier one re-sends what that sent)
@@ -136,8 +145,7 @@ def write_record(model, theta, log: Log, seed: int, path: Path, spread: np.ndarr
     if log.velocity:
         frame.update({f"dq{j + 1}": dq[:, j] for j in range(n)})
     frame.update({f"tau{j + 1}": tau[:, j] for j in range(n)})
-    pd.DataFrame(frame).to_csv(path, index=False)
-    return Record(t, q, tau, dq if log.velocity else None), spread
+    return t, q, dq, tau, frame
 
 
 def run_case(case: UnseenCase, folder: Path) -> dict:
