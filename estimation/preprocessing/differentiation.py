@@ -284,9 +284,13 @@ class ButterworthDifferentiation:
 
         q = smooth(measurements.q)
         logged = measurements.dq is not None and self.logged_velocity
-        dq = smooth(measurements.dq) if logged else spline_derivatives(q, step, 1)[0]
-        ddq = (smooth(measurements.ddq) if measurements.ddq is not None else
-               spline_derivatives(dq, step, 1)[0] if logged else spline_derivatives(q, step, 2)[1])
+        if logged:
+            dq = smooth(measurements.dq)
+            ddq = smooth(measurements.ddq) if measurements.ddq is not None else spline_derivatives(dq, step, 1)[0]
+        elif measurements.ddq is not None:
+            dq, ddq = spline_derivatives(q, step, 1)[0], smooth(measurements.ddq)
+        else:
+            dq, ddq = spline_derivatives(q, step, 2)  # one spline of the positions for both (its derivatives)
         q, dq, ddq = q[inside], dq[inside], ddq[inside]
         tau, wrench = (None if values is None else smooth(values)[inside] for values in (measurements.tau,
                                                                                         measurements.wrench))
