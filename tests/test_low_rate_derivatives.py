@@ -46,6 +46,33 @@ def test_short_records_fall_back_to_central_differences():
     np.testing.assert_allclose(second[:, 0], np.gradient(np.gradient(values[:, 0])))
 
 
+@pytest.mark.parametrize(("shape", "step"), [((16000, 7), 1e-3), ((3011, 3), 1 / 500.0), ((6,), 0.1),
+                                             ((40, 2, 3), 0.02)])
+def test_the_interpolating_spline_is_scipys_bit_for_bit(shape, step):
+    """The spline whose factors are kept for records of the same length and step is ``make_interp_spline``'s: the
+    same knots, coefficients and derivatives, bit for bit (twice: the second from the kept factors)."""
+    import scipy.interpolate
+
+    from estimation.preprocessing.differentiation import interpolating_spline
+
+    grid = step * np.arange(shape[0])
+    for seed in (1, 2):
+        values = np.cumsum(np.random.default_rng(seed).standard_normal(shape), axis=0) * 1e-3
+        reference = scipy.interpolate.make_interp_spline(grid, values, k=5, axis=0)
+        spline = interpolating_spline(values, step)
+        np.testing.assert_array_equal(spline.t, reference.t)
+        np.testing.assert_array_equal(spline.c, reference.c)
+        for order in (0, 1, 2):
+            np.testing.assert_array_equal(spline(grid, nu=order), reference(grid, nu=order))
+
+
+def test_a_spline_of_non_finite_values_is_refused_as_scipy_does():
+    values = np.ones((50, 2))
+    values[10, 1] = np.nan
+    with pytest.raises(ValueError, match="(?i)infs or nans"):
+        spline_derivatives(values, 0.01, 2)
+
+
 @pytest.mark.parametrize("logged_ddq", [False, True])
 def test_the_positions_spline_is_built_once_for_both_derivatives(logged_ddq, monkeypatch):
     """``dq`` and ``ddq`` from the positions come from one spline, built once (it was built once for each): the
