@@ -188,6 +188,36 @@ def test_a_calibration_offset_is_estimated(puma6):
     assert "about a quarter turn" not in check.message()
 
 
+def test_the_kept_regressor_and_fit_change_nothing(puma6, monkeypatch):
+    """The check's problem keeps the regressor and fit it last made (Gauss–Newton asks again for those of the step
+    it accepted): the check is the same, bit for bit, as when each is made anew every time."""
+    from estimation.identification import joint_zeros
+
+    model, train, validate = puma6
+    offsets = [0.0, 0.8, 0.0, 0.0, 0.0, 0.0]
+    train, validate = _recorded(train, offsets), _recorded(validate, offsets)
+    kept = check_joint_zeros(model, train, validate, warn=False)
+    made = []
+
+    def regressor(self, offsets):
+        made.append(1)
+        return self.model.evaluate_base(self.q + offsets, self.dq, self.ddq)
+
+    def fit(self, offsets, regressor=None):
+        Y = self.regressor(offsets) if regressor is None else regressor
+        theta = joint_zeros._least_squares(Y * self.weights[None, :, None], self.target * self.weights)
+        return theta, self.target - Y @ theta
+
+    monkeypatch.setattr(joint_zeros._Problem, "regressor", regressor)
+    monkeypatch.setattr(joint_zeros._Problem, "fit", fit)
+    anew = check_joint_zeros(model, train, validate, warn=False)
+    assert kept.joints == anew.joints == (1,)
+    for name in ("offsets", "held_out_offsets"):
+        np.testing.assert_array_equal(getattr(kept, name), getattr(anew, name))
+    assert kept.mse_ratio == anew.mse_ratio and kept.total_ratio == anew.total_ratio
+    assert len(made) > 0
+
+
 @pytest.mark.parametrize("held_out", ["validation", "halves"])
 def test_no_offset_no_warning(puma6, held_out):
     model, train, validate = puma6

@@ -46,6 +46,61 @@ def test_short_records_fall_back_to_central_differences():
     np.testing.assert_allclose(second[:, 0], np.gradient(np.gradient(values[:, 0])))
 
 
+@pytest.mark.parametrize(("shape", "step"), [((16000, 7), 1e-3), ((3011, 3), 1 / 500.0), ((6,), 0.1),
+                                             ((40, 2, 3), 0.02)])
+def test_the_interpolating_spline_is_scipys_bit_for_bit(shape, step):
+    """The spline whose factors are kept for records of the same length and step is ``make_interp_spline``'s: the
+    same knots, coefficients and derivatives, bit for bit (twice: the second from the kept factors)."""
+    import scipy.interpolate
+
+    from estimation.preprocessing.differentiation import interpolating_spline
+
+    grid = step * np.arange(shape[0])
+    for seed in (1, 2):
+        values = np.cumsum(np.random.default_rng(seed).standard_normal(shape), axis=0) * 1e-3
+        reference = scipy.interpolate.make_interp_spline(grid, values, k=5, axis=0)
+        spline = interpolating_spline(values, step)
+        np.testing.assert_array_equal(spline.t, reference.t)
+        np.testing.assert_array_equal(spline.c, reference.c)
+        for order in (0, 1, 2):
+            np.testing.assert_array_equal(spline(grid, nu=order), reference(grid, nu=order))
+
+
+def test_a_spline_of_non_finite_values_is_refused_as_scipy_does():
+    values = np.ones((50, 2))
+    values[10, 1] = np.nan
+    with pytest.raises(ValueError, match="(?i)infs or nans"):
+        spline_derivatives(values, 0.01, 2)
+
+
+@pytest.mark.parametrize("logged_ddq", [False, True])
+def test_the_positions_spline_is_built_once_for_both_derivatives(logged_ddq, monkeypatch):
+    """``dq`` and ``ddq`` from the positions come from one spline, built once (it was built once for each): the
+    derivatives are those of the separately built splines, bit for bit."""
+    import estimation.preprocessing.differentiation as differentiation
+
+    calls = []
+
+    def recording(values, step, orders):
+        calls.append((values.copy(), step, orders))
+        return spline_derivatives(values, step, orders)
+
+    monkeypatch.setattr(differentiation, "spline_derivatives", recording)
+    generator = np.random.default_rng(4)
+    t = np.arange(3000) / 500.0
+    q = np.cumsum(generator.standard_normal((3000, 3)), axis=0) * 1e-3
+    ddq = generator.standard_normal((3000, 3)) if logged_ddq else None
+    filtered = ButterworthDifferentiation(20.0, logged_velocity=False).apply(
+        Measurements(t, q, q.copy(), ddq, q.copy(), None, {}))
+    assert len(calls) == 1
+    values, step, orders = calls[0]
+    assert orders == (1 if logged_ddq else 2)
+    inside = slice((values.shape[0] - t.shape[0]) // 2, (values.shape[0] + t.shape[0]) // 2)
+    np.testing.assert_array_equal(filtered.dq, spline_derivatives(values, step, 1)[0][inside])  # the old dq
+    if not logged_ddq:
+        np.testing.assert_array_equal(filtered.ddq, spline_derivatives(values, step, 2)[1][inside])  # the old ddq
+
+
 def motion(seed: int, duration: float) -> Measurements:
     """An EMPS-like axis (mass 100 kg, viscous 200, Coulomb 20, offset -3) at 50 Hz: five sinusoids of 0.2 to
     7.3 Hz whose positions lie mostly below 2 Hz (the rule's filter: 5 times that) while the 7.3 Hz one carries a

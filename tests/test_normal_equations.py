@@ -140,3 +140,20 @@ def test_sums_without_the_gram_fit_the_same_bit_for_bit(case, method):
     for name in ("values", "cov", "channel_rss", "weights"):
         np.testing.assert_array_equal(getattr(estimate, name), getattr(reference, name))
     assert (estimate.cond, estimate.n_iterations) == (reference.cond, reference.n_iterations)
+
+
+@pytest.mark.parametrize("rows", [1, 511, 512, 1300])
+def test_a_block_copied_in_pieces_is_factored_as_the_whole_channel(rows):
+    """Each channel's rows are copied into the work array a few hundred at a time: its factor is that of the whole
+    channel's rows ``[R; Y_c y_c]`` copied at once, bit for bit."""
+    from estimation.estimators.normal_equations import stacked_factor
+
+    generator = np.random.default_rng(rows)
+    names = tuple(f"p{i}" for i in range(9))
+    first = NormalEquations.empty(("a", "b", "c"), names).add_block(
+        generator.standard_normal((40, 3, 9)), generator.standard_normal((40, 3)))
+    Y, y = generator.standard_normal((rows, 3, 9)), generator.standard_normal((rows, 3))
+    summed = first.add_block(Y, y, gram=False)
+    for c in range(3):  # the same work array, [R_c; Y_c y_c], filled at once
+        whole = stacked_factor([first.factor[c], np.column_stack([Y[:, c, :], y[:, c]])], 10)
+        np.testing.assert_array_equal(summed.factor[c], whole)

@@ -156,25 +156,40 @@ def _thinned(measurements: Measurements, channels: tuple[str, ...], max_samples:
 
 class _Problem:
     """The weighted least squares of ``θ`` at given offsets, on thinned samples (weights fixed once: each
-    channel's residual RMS of the fit without offsets, so that every candidate is scored alike)."""
+    channel's residual RMS of the fit without offsets, so that every candidate is scored alike).
+
+    The regressor and the fit at the offsets last asked for are kept: Gauss–Newton asks again for those of the
+    step it has just accepted (the same values: nothing is recomputed differently)."""
 
     def __init__(self, model: IdentificationModel, samples: tuple[NDArray, NDArray, NDArray, NDArray]) -> None:
         self.model = model
         self.q, self.dq, self.ddq, self.target = samples
         self.weights = np.ones(model.n_channels)
+        self._last_regressor: tuple[bytes, NDArray] | None = None
+        self._last_fit: tuple[bytes, tuple[NDArray, NDArray]] | None = None
         _, residual = self.fit(np.zeros(self.q.shape[1]))
         rms = np.sqrt(np.mean(residual**2, axis=0))
         scale = np.sqrt(np.mean(self.target**2, axis=0))
         self.weights = 1.0 / np.maximum(rms, 1e-9 * np.maximum(scale, 1e-300) + 1e-300)
+        self._last_fit = None  # the fit depends on the weights
 
     def regressor(self, offsets: NDArray) -> NDArray:
-        return self.model.evaluate_base(self.q + offsets, self.dq, self.ddq)
+        key = np.asarray(offsets, dtype=float).tobytes()
+        if self._last_regressor is None or self._last_regressor[0] != key:
+            self._last_regressor = key, self.model.evaluate_base(self.q + offsets, self.dq, self.ddq)
+        return self._last_regressor[1]
 
     def fit(self, offsets: NDArray, regressor: NDArray | None = None) -> tuple[NDArray, NDArray]:
         """``θ`` and the (unweighted) residual ``(N, channels)`` at ``offsets``."""
+        key = np.asarray(offsets, dtype=float).tobytes()
+        if regressor is None and self._last_fit is not None and self._last_fit[0] == key:
+            return self._last_fit[1]
         Y = self.regressor(offsets) if regressor is None else regressor
-        return (theta := _least_squares(Y * self.weights[None, :, None], self.target * self.weights)), \
-            self.target - Y @ theta
+        found = ((theta := _least_squares(Y * self.weights[None, :, None], self.target * self.weights)),
+                 self.target - Y @ theta)
+        if regressor is None:
+            self._last_fit = key, found
+        return found
 
     def cost(self, offsets: NDArray) -> float:
         _, residual = self.fit(offsets)
@@ -206,8 +221,8 @@ def _gauss_newton(problem: _Problem, offsets: NDArray, free: NDArray, revolute: 
     if joints.size == 0:
         return offsets
     for _ in range(ITERATIONS):
+        theta, residual = problem.fit(offsets)  # those of the step just accepted (kept by the problem)
         Y = problem.regressor(offsets)
-        theta, residual = problem.fit(offsets, Y)
         predicted = Y @ theta
         columns = []
         for joint in joints:

@@ -33,6 +33,7 @@ from typing import Literal, Protocol
 
 import numpy as np
 import scipy.interpolate
+import scipy.linalg.lapack
 import scipy.signal
 from numpy.typing import NDArray
 
@@ -284,9 +285,13 @@ class ButterworthDifferentiation:
 
         q = smooth(measurements.q)
         logged = measurements.dq is not None and self.logged_velocity
-        dq = smooth(measurements.dq) if logged else spline_derivatives(q, step, 1)[0]
-        ddq = (smooth(measurements.ddq) if measurements.ddq is not None else
-               spline_derivatives(dq, step, 1)[0] if logged else spline_derivatives(q, step, 2)[1])
+        if logged:
+            dq = smooth(measurements.dq)
+            ddq = smooth(measurements.ddq) if measurements.ddq is not None else spline_derivatives(dq, step, 1)[0]
+        elif measurements.ddq is not None:
+            dq, ddq = spline_derivatives(q, step, 1)[0], smooth(measurements.ddq)
+        else:
+            dq, ddq = spline_derivatives(q, step, 2)  # one spline of the positions for both (its derivatives)
         q, dq, ddq = q[inside], dq[inside], ddq[inside]
         tau, wrench = (None if values is None else smooth(values)[inside] for values in (measurements.tau,
                                                                                         measurements.wrench))
@@ -327,8 +332,43 @@ def spline_derivatives(values: NDArray[np.float64], step: float, orders: int) ->
             found.append(current)
         return found
     grid = step * np.arange(values.shape[0])
-    spline = scipy.interpolate.make_interp_spline(grid, values, k=SPLINE_DEGREE, axis=0)
+    spline = interpolating_spline(values, step)
     return [spline(grid, nu=order) for order in range(1, orders + 1)]
+
+
+def interpolating_spline(values: NDArray[np.float64], step: float) -> scipy.interpolate.BSpline:
+    """The quintic interpolating spline (not-a-knot ends) of ``values`` (samples along axis 0) at ``step * k``:
+    ``scipy.interpolate.make_interp_spline(step * arange(N), values, k=5, axis=0)`` bit for bit, its banded
+    collocation matrix factored once for every record of the same length and step (:func:`interpolation_factors`:
+    a choice's candidates filter the same record alike), the coefficients by the same LAPACK solve (``dgbsv`` is
+    ``dgbtrf`` then ``dgbtrs``)."""
+    n = values.shape[0]
+    if values.dtype != np.float64 or not np.all(np.isfinite(values)):  # scipy's own path and errors
+        return scipy.interpolate.make_interp_spline(step * np.arange(n), values, k=SPLINE_DEGREE, axis=0)
+    knots, lu, pivots = interpolation_factors(n, float(step))
+    coefficients, info = scipy.linalg.lapack.dgbtrs(lu, SPLINE_DEGREE, SPLINE_DEGREE, values.reshape(n, -1), pivots)
+    if info != 0:
+        raise ValueError(f"illegal value in {-info}-th argument of internal gbtrs")
+    return scipy.interpolate.BSpline.construct_fast(knots, np.ascontiguousarray(coefficients.reshape(values.shape)),
+                                                    SPLINE_DEGREE, axis=0)
+
+
+@functools.lru_cache(maxsize=16)
+def interpolation_factors(n: int, step: float) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.int32]]:
+    """The not-a-knot knots of the quintic spline through ``n > 5`` samples ``step`` apart and the banded LU factors
+    (LAPACK ``dgbtrf``) of its collocation matrix, as ``make_interp_spline`` forms them (read-only arrays)."""
+    k = SPLINE_DEGREE
+    grid = step * np.arange(n)
+    knots = np.r_[(grid[0],) * (k + 1), grid[(k + 1) // 2: -((k + 1) // 2)], (grid[-1],) * (k + 1)]
+    collocation = scipy.interpolate.BSpline.design_matrix(grid, knots, k).tocoo()
+    band = np.zeros((3 * k + 1, n), order="F")  # LAPACK band storage: row kl + ku + i - j, column j
+    band[2 * k + collocation.row - collocation.col, collocation.col] = collocation.data
+    lu, pivots, info = scipy.linalg.lapack.dgbtrf(band, k, k)
+    if info > 0:
+        raise np.linalg.LinAlgError("Colocation matrix is singular.")
+    for array in (knots, lu, pivots):
+        array.setflags(write=False)
+    return knots, lu, pivots
 
 
 def extend_edges(values: NDArray[np.float64], padding: int, window: int, *, degree: int = 3) -> NDArray[np.float64]:
