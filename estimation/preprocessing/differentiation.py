@@ -345,7 +345,8 @@ def interpolating_spline(values: NDArray[np.float64], step: float) -> scipy.inte
     n = values.shape[0]
     if values.dtype != np.float64 or not np.all(np.isfinite(values)):  # scipy's own path and errors
         return scipy.interpolate.make_interp_spline(step * np.arange(n), values, k=SPLINE_DEGREE, axis=0)
-    knots, lu, pivots = interpolation_factors(n, float(step))
+    factors = interpolation_factors if n <= CACHED_SPLINE_SAMPLES else interpolation_factors.__wrapped__
+    knots, lu, pivots = factors(n, float(step))
     coefficients, info = scipy.linalg.lapack.dgbtrs(lu, SPLINE_DEGREE, SPLINE_DEGREE, values.reshape(n, -1), pivots)
     if info != 0:
         raise ValueError(f"illegal value in {-info}-th argument of internal gbtrs")
@@ -353,7 +354,13 @@ def interpolating_spline(values: NDArray[np.float64], step: float) -> scipy.inte
                                                     SPLINE_DEGREE, axis=0)
 
 
-@functools.lru_cache(maxsize=16)
+#: records up to this many samples keep their spline's factors (:func:`interpolation_factors`, at most 4 lengths
+#: held: 16 rows of 8 bytes a sample each, 51 MB at most); longer ones factor afresh, so what is held does not grow
+#: with the record
+CACHED_SPLINE_SAMPLES = 100_000
+
+
+@functools.lru_cache(maxsize=4)
 def interpolation_factors(n: int, step: float) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.int32]]:
     """The not-a-knot knots of the quintic spline through ``n > 5`` samples ``step`` apart and the banded LU factors
     (LAPACK ``dgbtrf``) of its collocation matrix, as ``make_interp_spline`` forms them (read-only arrays)."""
