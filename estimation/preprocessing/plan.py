@@ -260,14 +260,11 @@ class Preprocessing:
             text = "measured dq, ddq"
         extras = ([f"decimated by {self.decimation}"] if self.decimation > 1 else []) + \
             (["held torques"] if self.held_torques else [])
-        if self.evidence is not None and self.evidence.selection == "validation":
+        if self.evidence is not None and self.evidence.selection in ("validation", "repeat"):
             how = (f"chosen among {len(self.evidence.validation)} candidates by the validation error of the model "
-                   "fitted with each, the validation record being another motion")
-            held_out = self.evidence.held_out_choice
-            if held_out is not None and held_out != self.without_evidence():
-                how += f"; blocked cross-validation on the training data preferred {held_out.describe_method()}"
-        elif self.evidence is not None and self.evidence.selection == "repeat":
-            how = (f"chosen among {len(self.evidence.candidates)} candidates by the error on the validation record, a "
+                   "fitted with each, the validation record being another motion"
+                   if self.evidence.selection == "validation" else
+                   f"chosen among {len(self.evidence.candidates)} candidates by the error on the validation record, a "
                    "repeat of the training motion, of the fit on the training data")
             held_out = self.evidence.held_out_choice
             if held_out is not None and held_out != self.without_evidence():
