@@ -115,3 +115,61 @@ def test_plain_completion_adds_only_what_the_model_lacks():
                                                                    ("coulomb", (2,))]
     residual = np.mean(completed.train.mse["tau1"])
     assert residual < partial.train.mse["tau1"]
+
+
+@pytest.fixture(scope="module")
+def capped_in_memory(friction):
+    """The capped diagnosis of the repeat in memory, without ``--test`` (the streamed path reads none)."""
+    folder, paths = friction
+    out = folder / "capped_memory.json"
+    assert main(["diagnose", "--joints", "3", "--friction", "viscous", "--data", str(paths["train"]), "--validate",
+                 str(paths["repeat"]), "--out", str(out), "--quiet", "--max-effects", "2"]) == 0
+    return json.loads(out.read_text())
+
+
+@pytest.mark.parametrize("options", [("--chunk-size", "250"), ("--memory-budget", "1KB"), ("jittered",)],
+                         ids=["chunk-size", "memory-budget", "jittered-validation"])
+def test_the_streamed_diagnosis_completes_the_plain_law_as_in_memory(friction, capped_in_memory, tmp_path, options):
+    """A log streamed (``--chunk-size``, or past ``--memory-budget``) answers the repeat as in memory: the same
+    effects, the plain law completed and taken with the same scores, the same model file's parameters, the same
+    validation errors of the chosen model; ``oed predict`` reproduces them. On a jittered validation log (resampled by
+    the loader, streamed with ``--chunk-size``) every candidate is scored at the recorded samples on both paths."""
+    import pandas as pd
+
+    folder, paths = friction
+    memory, validate = capped_in_memory, paths["repeat"]
+    if options == ("jittered",):  # every stamp moved by up to ±30 % of a step, the readings those of the true instant
+        validate = tmp_path / "jittered_repeat.csv"
+        frame = pd.read_csv(paths["repeat"])
+        step = float(np.median(np.diff(frame.t)))
+        frame["t"] = frame.t + np.random.default_rng(2).uniform(-0.3, 0.3, len(frame)) * step
+        frame.to_csv(validate, index=False, float_format="%.10g")
+        options = ("--chunk-size", "250")
+        out = tmp_path / "jittered_memory.json"
+        assert main(["diagnose", "--joints", "3", "--friction", "viscous", "--data", str(paths["train"]),
+                     "--validate", str(validate), "--out", str(out), "--quiet", "--max-effects", "2"]) == 0
+        memory = json.loads(out.read_text())
+    out = tmp_path / "streamed.json"
+    assert main(["diagnose", "--joints", "3", "--friction", "viscous", "--data", str(paths["train"]), "--validate",
+                 str(validate), "--out", str(out), "--quiet", "--max-effects", "2", *options]) == 0
+    streamed = json.loads(out.read_text())
+    assert streamed["diagnosis_path"] == "streamed" and memory["diagnosis_path"] == "in-memory"
+    assert [(e["spec"], e["channels"]) for e in streamed["effects"]] == \
+        [(e["spec"], e["channels"]) for e in memory["effects"]]
+    for document in (memory, streamed):
+        selection = document["model_selection"]
+        assert selection["selection"] == "repeated-motion" and selection["chosen"] == "consistent"
+        assert "the plain law completed" in selection["reason"] and selection["reason"].endswith("taken")
+        assert not selection["reason"].endswith("not taken")
+    assert streamed["model_selection"]["reason"] == memory["model_selection"]["reason"]
+    assert streamed["model_file"]["base"]["names"] == memory["model_file"]["base"]["names"]
+    assert {"fc1", "off1", "off2", "off3"} <= set(streamed["model_file"]["base"]["names"])
+    assert streamed["consistent"]["prior_weight"] == memory["consistent"]["prior_weight"]
+    chosen = streamed["validation"]["chosen"]["mse"]
+    assert chosen == pytest.approx(memory["validation"]["chosen"]["mse"], rel=1e-8)
+    values = {name: np.array([p["value"] for p in document["consistent"]["parameters"]])
+              for name, document in (("memory", memory), ("streamed", streamed))}
+    np.testing.assert_allclose(values["streamed"], values["memory"], rtol=1e-6,
+                               atol=1e-6 * np.abs(values["memory"]).max())
+    measured = predict(tmp_path, out, validate)
+    assert measured == pytest.approx(chosen, rel=1e-6)

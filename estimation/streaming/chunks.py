@@ -65,6 +65,7 @@ from estimation.streaming.time_base import Resampler, TimeScan, file_segments, s
 __all__ = [
     "FileSums", "MARGIN_TOLERANCE", "StreamingUnsupportedError", "automatic_cutoff", "file_sums", "filter_margin",
     "logged_chunks", "preprocessed_chunks", "read_chunks", "segment_sources", "source_file", "source_files", "source_rows",
+    "source_step",
 ]
 
 #: relative size of the impulse response at which the overlap margin ends
@@ -192,6 +193,17 @@ def source_rows(path: str | Path, model: IdentificationModel) -> int:
         warnings.simplefilter("ignore")  # said when the segment is read
         scan = scan_time(_raw_frames(file, DEFAULT_CHUNK_SIZE), file, model, segment=segment)
     return count_rows(file) if scan is None or scan.keep is None else int(np.count_nonzero(scan.keep))
+
+
+def source_step(path: str | Path, model: IdentificationModel) -> float | None:
+    """The sampling step of a streamed source as the in-memory reader has it: the median step of the rows kept, or
+    the step of the uniform grid a resampled record is put on (one scan of the file's times; ``None``: no numeric
+    column ``t``)."""
+    file, segment = source_file(path)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # said when the file is read
+        scan = scan_time(_raw_frames(file, DEFAULT_CHUNK_SIZE), file, model, segment=segment)
+    return None if scan is None else float(scan.step)
 
 
 def _kept_frames(path: Path, chunk_size: int, keep: NDArray[np.bool_] | None) -> Iterator[pd.DataFrame]:

@@ -20,6 +20,12 @@ record over the memory budget is diagnosed from sums (:mod:`estimation.streaming
   validation file the loader resampled is measured at its recorded samples);
 * the choice is the in-memory one (:func:`~estimation.consistent.model_selection.select_scored`), ``ratio`` the
   validation record's :func:`~estimation.streaming.model_selection.streamed_repeated_motion`.
+
+On a validation record that repeats the training motion, the in-memory answer also weighs the adopted model with the
+plain law completed (:func:`estimation.diagnosis.plain_laws.plain_completion`: Coulomb friction and an offset on each
+joint the diagnosis left without one). The streamed sums hold those laws' columns too (they are candidates of the
+search, :func:`~estimation.diagnosis.search.default_candidates`), so the completed model is fitted from the same
+training sums with the adopted model's weighting (:func:`streamed_completion`) and refitted alike.
 """
 
 from __future__ import annotations
@@ -30,6 +36,8 @@ from typing import Any, Literal
 
 import numpy as np
 
+from dynamics.effects.linear import Effect
+from dynamics.models import ModelKind, build_model
 from estimation.consistent.identification import Scorer, consistent_fit_sums
 from estimation.consistent.model_selection import (
     CONSISTENT_FAILURES,
@@ -38,12 +46,15 @@ from estimation.consistent.model_selection import (
     ModelSelection,
     select_scored,
 )
+from estimation.diagnosis.plain_laws import plain_model_effects
 from estimation.diagnosis.results import Diagnosis, SummedFit
+from estimation.estimators.summed_least_squares import SummedLeastSquares
+from estimation.identification.fit import implausible_estimates
 from estimation.identification.validation import ChannelErrors
 from estimation.streaming.diagnosis_result import StreamedRun
 from estimation.streaming.diagnosis_sums import ChannelSums, normal_equations
 
-__all__ = ["model_order", "streamed_refit_selection", "sums_scorer"]
+__all__ = ["model_order", "refit_selection", "streamed_completion", "streamed_refit_selection", "sums_scorer"]
 
 
 def model_order(fit: SummedFit, columns: Sequence[int]) -> tuple[SummedFit, list[int]]:
@@ -92,6 +103,18 @@ def streamed_refit_selection(diagnosis: Diagnosis, run: StreamedRun, *, given: L
     if diagnosis.path != "streamed":
         raise ValueError("a streamed diagnosis is needed (diagnosis.path == 'streamed')")
     fit, columns = model_order(diagnosis.after, run.columns)
+    return refit_selection(fit, columns, run, given=given, consistent=consistent, score=score, ratio=ratio,
+                           still=still, note=note)
+
+
+def refit_selection(fit: SummedFit, columns: Sequence[int], run: StreamedRun, *,
+                    given: Literal["consistent"] | None = None, consistent: ConsistentSettings | None = None,
+                    score: Scorer | None = None, ratio: float | None = None, still: bool = False,
+                    note: str = "with the diagnosed effects") -> ModelSelection:
+    """:func:`streamed_refit_selection` of an unconstrained fit ``fit`` from the sums of ``run``, its estimate in its
+    model's base order on the summed ``columns`` (the adopted model's, or :func:`streamed_completion`'s)."""
+    if given not in (None, "consistent"):
+        raise ValueError(f"given must be None or 'consistent', got {given!r}")
     base = fit.estimate.method
     sums = run.sums
     score = sums_scorer(sums.validation, columns) if score is None else score
@@ -109,3 +132,50 @@ def streamed_refit_selection(diagnosis: Diagnosis, run: StreamedRun, *, given: L
         candidate = Candidate("consistent", None, f"the consistent fit failed ({error})", note=note)
     return select_scored((Candidate(base, fit, note=note), candidate), base=base, given=given, ratio=ratio,
                          still=still)
+
+
+def streamed_completion(diagnosis: Diagnosis, run: StreamedRun, score: Scorer | None = None
+                        ) -> tuple[SummedFit, list[int], tuple[Effect, ...]] | None:
+    """:func:`estimation.diagnosis.plain_laws.plain_completion` from the sums of a streamed diagnosis: its adopted
+    model with Coulomb friction and an offset added on each joint that has none (the linear Stribeck bump holding no
+    Coulomb level), fitted from the training sums with the adopted model's weighting (shaped laws at their fixed
+    shapes), as ``(fit, columns, added)``: the fit with its estimate in the completed model's base order and its
+    validation errors from ``score`` (default: the validation sums against the channels as recorded), its columns in
+    the sums in that order, the laws added. ``None`` when nothing is added, a law added has no column in the sums
+    (not a candidate of the search), its base parameters are not the adopted model's and the laws' (a column the
+    rigid body already holds), or the fit fails."""
+    if diagnosis.path != "streamed":
+        raise ValueError("a streamed diagnosis is needed (diagnosis.path == 'streamed')")
+    after = diagnosis.after
+    model = after.model
+    if model.kind is ModelKind.EXTERNAL:
+        return None
+    added = plain_model_effects(model, range(model.robot.n_joints), level=True)
+    if not added:
+        return None
+    blocks = run.found.blocks
+    indices = []
+    for effect in added:
+        index = next((i for i, block in blocks.items() if block.n_shape == 0 and block.effect == effect), None)
+        if index is None:
+            return None
+        indices.append(index)
+    completed = build_model(model.robot, model.kind, (*model.effects, *added))
+    columns = list(run.columns) + [column for index in indices for column in run.found.columns[index]]
+    names = list(after.estimate.names) + [name for index in indices for name in blocks[index].names]
+    if sorted(names) != sorted(completed.base.names):
+        return None
+    expressions = list(after.estimate.expressions) + names[len(after.estimate.names):]
+    sums = run.sums
+    try:
+        estimate = SummedLeastSquares(method=after.estimate.method).fit(
+            normal_equations(sums.train, columns, names, expressions)).estimate_
+    except (ValueError, np.linalg.LinAlgError):
+        return None
+    fit = SummedFit(model=completed, estimate=estimate, train=_errors(sums.train, columns, estimate.values),
+                    validation=_errors(sums.validation, columns, estimate.values),
+                    warnings=implausible_estimates(completed, estimate), cov_method="classical")
+    fit, ordered = model_order(fit, columns)
+    if score is not None:  # on the samples every candidate is scored on
+        fit = replace(fit, validation=score({"completed": fit.estimate.values})["completed"])
+    return fit, ordered, added

@@ -47,8 +47,8 @@ from estimation.consistent.model_selection import (
     validation_base,
     wanted_candidates,
 )
-from estimation.identification.repeated_motion import REPEAT_FRACTION, STILL_SHARE, still_spans_note
-from estimation.streaming.chunks import read_chunks
+from estimation.identification.repeated_motion import REPEAT_FRACTION, SAME_RATE, STILL_SHARE, still_spans_note
+from estimation.streaming.chunks import read_chunks, source_step
 from estimation.streaming.identification import SummedFits
 
 __all__ = ["streamed_repeated_motion", "streamed_spans", "streamed_still_motion", "summed_selection",
@@ -107,13 +107,19 @@ def streamed_repeated_motion(model: IdentificationModel, train: Sequence[str | P
     """:func:`estimation.identification.repeated_motion.repeated_motion` of the records ``train`` and ``validation``
     (each its files one after the other) read block by block side by side: the largest over the joints of
     ``rms(q_val − q_train) / rms(q_train − mean)`` over the samples both records have, from running sums (the
-    positions as read, on the uniform grid of a resampled file)."""
+    positions as read, on the uniform grid of a resampled file). Two single files sampled at different rates (a
+    validation log the loader resampled onto a grid of another step, say) are compared as in memory: the training
+    samples within the validation record's duration, the validation positions interpolated at their times from each
+    record's start (:func:`_interpolated_side_by_side`)."""
     n_joints = model.robot.n_joints
     difference, total, square = np.zeros(n_joints), np.zeros(n_joints), np.zeros(n_joints)
     shift: NDArray[np.float64] | None = None
     count = 0
-    for q_train, q_validation in _side_by_side(_positions(model, train, chunk_size),
-                                               _positions(model, validation, chunk_size)):
+    if _other_rates(model, train, validation):
+        pairs = _interpolated_side_by_side(_timed(model, train, chunk_size), _timed(model, validation, chunk_size))
+    else:
+        pairs = _side_by_side(_positions(model, train, chunk_size), _positions(model, validation, chunk_size))
+    for q_train, q_validation in pairs:
         if q_train.shape[1] != q_validation.shape[1]:
             return float("inf")
         shift = q_train[0] if shift is None else shift  # sums about the first sample: no cancellation
@@ -129,6 +135,65 @@ def streamed_repeated_motion(model: IdentificationModel, train: Sequence[str | P
     with np.errstate(divide="ignore", invalid="ignore"):
         ratio = np.where(spread > 0, rms_difference / spread, np.where(rms_difference > 0, np.inf, 0.0))
     return float(np.max(ratio))
+
+
+def _other_rates(model: IdentificationModel, train: Sequence[str | Path], validation: Sequence[str | Path]) -> bool:
+    """Whether the records are one file each sampled at rates that differ by more than
+    :data:`~estimation.identification.repeated_motion.SAME_RATE` (the in-memory test; several files stack time
+    bases that do not increase, compared sample by sample there)."""
+    if len(train) != 1 or len(validation) != 1:
+        return False
+    step_train, step_validation = source_step(train[0], model), source_step(validation[0], model)
+    if step_train is None or step_validation is None:
+        return False
+    return abs(step_train - step_validation) > SAME_RATE * step_train
+
+
+def _timed(model: IdentificationModel, paths: Sequence[str | Path], chunk_size: int
+           ) -> Iterator[tuple[np.ndarray, np.ndarray]]:
+    for path in paths:
+        for chunk in read_chunks(path, model, chunk_size=chunk_size):
+            yield np.asarray(chunk.t, dtype=float), chunk.q
+
+
+def _interpolated_side_by_side(train: Iterator[tuple[np.ndarray, np.ndarray]],
+                               validation: Iterator[tuple[np.ndarray, np.ndarray]]
+                               ) -> Iterator[tuple[np.ndarray, np.ndarray]]:
+    """Blocks of the training positions within the validation record's duration and the validation positions
+    linearly interpolated at their times from each record's start (as
+    :func:`estimation.identification.repeated_motion.repeated_motion` aligns records of other rates), holding a
+    few blocks of the validation record at a time."""
+    held_t, held_q = np.empty(0), None
+    start_train = start_validation = None
+    exhausted = False
+    for t, q in train:
+        if t.shape[0] == 0:
+            continue
+        start_train = t[0] if start_train is None else start_train
+        elapsed = t - start_train
+        while not exhausted and (held_q is None or held_t[-1] < elapsed[-1]):
+            block = next(validation, None)
+            if block is None:
+                exhausted = True
+                break
+            t_v, q_v = block
+            if t_v.shape[0] == 0:
+                continue
+            start_validation = t_v[0] if start_validation is None else start_validation
+            held_t = np.concatenate([held_t, t_v - start_validation])
+            held_q = q_v if held_q is None else np.vstack([held_q, q_v])
+        if held_q is None:
+            return
+        if held_q.shape[1] != q.shape[1]:
+            yield q, held_q[:0]
+            return
+        inside = elapsed <= held_t[-1]
+        if np.any(inside):
+            yield q[inside], np.column_stack([np.interp(elapsed[inside], held_t, column) for column in held_q.T])
+        if not np.all(inside) and exhausted:
+            return
+        keep = max(int(np.searchsorted(held_t, elapsed[-1], side="right")) - 1, 0)  # the sample at or before
+        held_t, held_q = held_t[keep:], held_q[keep:]
 
 
 def streamed_spans(model: IdentificationModel, paths: Sequence[str | Path], *,

@@ -34,7 +34,7 @@ from estimation.diagnosis.candidates.coupling import coupling_candidates
 from estimation.diagnosis.plain_laws import plain_completion, plain_model
 from dynamics.runtime.report_document import Report, figure_path, report_format
 from estimation.diagnosis.report import diagnosis_report, plot_residuals, plot_trace
-from estimation.diagnosis.results import Diagnosis, runner_up_line
+from estimation.diagnosis.results import Diagnosis, SummedFit, runner_up_line
 from estimation.diagnosis.search import default_candidates
 from estimation.diagnosis.search import diagnose as diagnose_model
 from estimation.diagnosis.untouched import UntouchedErrors, recorded_comparison, untouched_errors
@@ -45,7 +45,7 @@ from estimation.preprocessing.plan import Preprocessing
 from estimation.streaming.chunks import source_files
 from estimation.streaming.diagnosis import DEFAULT_SUBSAMPLE, diagnose_files_run
 from estimation.streaming.diagnosis_result import StreamedRun
-from estimation.streaming.diagnosis_selection import streamed_refit_selection
+from estimation.streaming.diagnosis_selection import refit_selection, streamed_completion, streamed_refit_selection
 from estimation.streaming.model_selection import streamed_repeated_motion, warned_still_motion
 from estimation.streaming.diagnosis_result import floor_report
 from estimation.streaming.recorded_errors import streamed_plan
@@ -67,7 +67,7 @@ from oed.workflows.asbuilt import (
     worse_after,
 )
 from oed.workflows.chosen_model import ChosenModel, answer_diagnosis, mse_line
-from oed.workflows.diagnosis_training import averaged_errors, recorded_training
+from oed.workflows.diagnosis_training import averaged_errors, recorded_training, summed_unconstrained
 from oed.workflows.memory_path import decide_path, streamed_choice, streamed_records
 from oed.workflows.consistent import check_consistent_arguments, consistent_lines, consistent_settings
 from oed.workflows.model_files import (
@@ -503,7 +503,8 @@ def summed_answer(document: dict[str, Any], args: DiagnoseOptions, diagnosed: Di
                                           "(estimation.streaming.diagnosis_selection)")
     document["model_selection"] = selection.to_dict()
     model_plan, _ = diagnosed.model_file
-    files = add_summed_model_file(document, diagnosis.final_model(), diagnosis.after.estimate, args, model_plan,
+    answered = summed_unconstrained(selection)  # the adopted model, or on a repeat that model with the plain law
+    files = add_summed_model_file(document, answered.model, answered.estimate, args, model_plan,
                                   shape=diagnosis.final_shape(), selection=selection)
     chosen = ChosenModel.of(selection)
     answer_diagnosis(document, chosen, floor=None if diagnosis.statistics is None else diagnosis.statistics.floor)
@@ -533,15 +534,31 @@ def diagnosis_selection(args: DiagnoseOptions, diagnosis: Diagnosis, records: Pr
     if completion is None:
         return selection
     completed, added = completion
-    laws = ", ".join(f"{effect.name} on {completed.model.channels[effect.joints[0]]}" for effect in added)
-    other = select_refit(completed, train, validation, consistent=settings,
-                         note=f"with the diagnosed effects and the plain law where the diagnosis named none ({laws}; "
-                              "not findings)")
+    laws = completed_laws(completed.model, added)
+    other = select_refit(completed, train, validation, consistent=settings, note=completed_note(laws))
+    return completed_answer(selection, other, laws)
+
+
+def completed_laws(model: IdentificationModel, added: Any) -> str:
+    """The plain laws a completion added (:func:`estimation.diagnosis.plain_laws.plain_completion`), in words."""
+    return ", ".join(f"{effect.name} on {model.channels[effect.joints[0]]}" for effect in added)
+
+
+def completed_note(laws: str) -> str:
+    """The note of the completed model's candidates (:func:`diagnosis_selection`)."""
+    return f"with the diagnosed effects and the plain law where the diagnosis named none ({laws}; not findings)"
+
+
+def completed_answer(selection: ModelSelection, other: ModelSelection, laws: str) -> ModelSelection:
+    """The default answer on a repeat of the training motion (:func:`diagnosis_selection`, on both paths): the
+    completed model's selection ``other`` when its consistent refit validates better than the adopted model's
+    (``selection``) by the default answer's criterion, else ``selection``; the reason gives both scores."""
     answers = {"diagnosed": selection.chosen_candidate, "completed": other.chosen_candidate}
     if other.chosen != "consistent" or any(answer.validation is None for answer in answers.values()):
         return selection
-    scored = relative_scores({name: answer.validation.mse for name, answer in answers.items()},
-                             answers["diagnosed"].validation.channels)
+    validation = answers["diagnosed"].validation  # a streamed fit's errors hold their channels in order
+    channels = getattr(validation, "channels", None) or tuple(validation.mse)
+    scored = relative_scores({name: answer.validation.mse for name, answer in answers.items()}, channels)
     taken = scored["completed"] < scored["diagnosed"]
     why = (f"; the plain law completed ({laws}): its consistent refit validates {scored['completed']:.4g} against "
            f"{scored['diagnosed']:.4g} for the diagnosed model's (the mean relative validation error), "
@@ -831,20 +848,34 @@ def streamed_selection(args: DiagnoseOptions, diagnosis: Diagnosis, run: Streame
         score = None
         if resampled_validation({"streaming": diagnosis.streaming}):
             score = resampled_scorer(args, diagnosis, plan)
-        return streamed_refit_selection(diagnosis, run, given="consistent" if args.consistent else None,
-                                        consistent=consistent_settings(args, model.robot), score=score, ratio=ratio,
-                                        still=still)
+        settings = consistent_settings(args, model.robot)
+        selection = streamed_refit_selection(diagnosis, run, given="consistent" if args.consistent else None,
+                                             consistent=settings, score=score, ratio=ratio, still=still)
+        if args.consistent or selection.selection != "repeated-motion" or selection.chosen != "consistent":
+            return selection
+        completion = streamed_completion(diagnosis, run)  # the plain law completed on a repeat, as in memory
+        if completion is None:
+            return selection
+        completed, columns, added = completion
+        if score is not None:  # every candidate on the validation file's recorded samples
+            score = resampled_scorer(args, diagnosis, plan, fit=completed)
+            completed = replace(completed, validation=score({"completed": completed.estimate.values})["completed"])
+        laws = completed_laws(completed.model, added)
+        other = refit_selection(completed, columns, run, consistent=settings, score=score, ratio=ratio, still=still,
+                                note=completed_note(laws))
+        return completed_answer(selection, other, laws)
 
 
-def resampled_scorer(args: DiagnoseOptions, diagnosis: Diagnosis,
-                     plan: dict[str, Any]) -> Callable[[Any], dict[Any, ChannelErrors]]:
-    """The validation errors of base-parameter vectors of the adopted model (in its base order), on a validation
+def resampled_scorer(args: DiagnoseOptions, diagnosis: Diagnosis, plan: dict[str, Any], *,
+                     fit: SummedFit | None = None) -> Callable[[Any], dict[Any, ChannelErrors]]:
+    """The validation errors of base-parameter vectors of the adopted model (in its base order; ``fit``: of that
+    fit's model instead, the adopted model completed with the plain law), on a validation
     file the loader resampled: at its recorded samples, against the torques as recorded, as ``oed predict``
     measures the model file holding each (:func:`~oed.workflows.model_files.recorded_validation_errors`, shaped
     laws at their fixed shapes; the record read once for all the vectors)."""
-    document = summed_model_file_document(diagnosis.final_model(), diagnosis.after.estimate,
-                                          robot=robot_source(diagnosis.model.robot, args), preprocessing=plan,
-                                          shape=diagnosis.final_shape())
+    model, estimate = (diagnosis.final_model(), diagnosis.after.estimate) if fit is None else (fit.model, fit.estimate)
+    document = summed_model_file_document(model, estimate, robot=robot_source(diagnosis.model.robot, args),
+                                          preprocessing=plan, shape=diagnosis.final_shape())
     n_samples = diagnosis.after.validation.n_samples
 
     def score(thetas: Any) -> dict[Any, ChannelErrors]:

@@ -33,7 +33,7 @@ from estimation.streaming.recorded_errors import Predictor, recorded_training_er
 from oed.workflows.model_files import robot_source
 from oed.workflows.options import RecordOptions
 
-__all__ = ["averaged_errors", "recorded_training"]
+__all__ = ["averaged_errors", "recorded_training", "summed_unconstrained"]
 
 
 class _Prediction:
@@ -60,6 +60,13 @@ class _Prediction:
         return predict
 
 
+def summed_unconstrained(selection: ModelSelection) -> Any:
+    """The unconstrained fit behind a streamed diagnosis's answer (a
+    :class:`~estimation.diagnosis.results.SummedFit`): the chosen one, or the one the consistent fit starts from
+    (:attr:`~estimation.consistent.model_selection.ModelSelection.unconstrained` of fits from sums)."""
+    return selection.candidate(selection.chosen if selection.chosen != "consistent" else selection.base).fit
+
+
 def recorded_training(args: RecordOptions, diagnosis: Diagnosis, selection: ModelSelection | None,
                       plan: Mapping[str, Any], chunk_size: int
                       ) -> tuple[Diagnosis, ModelSelection | None, dict[str, Any] | None]:
@@ -83,8 +90,14 @@ def recorded_training(args: RecordOptions, diagnosis: Diagnosis, selection: Mode
     predictors: dict[Any, Predictor] = {"before": declared.at(diagnosis.before.estimate.values),
                                         "after": final.at(diagnosis.after.estimate.values)}
     fitted = [] if selection is None else [candidate for candidate in selection.candidates if candidate.fit is not None]
+    answered = final  # the candidates' model: the adopted one, or on a repeat that model with the plain law completed
+    behind = None if selection is None else summed_unconstrained(selection)
+    if behind is not None and behind.model is not diagnosis.final_model():
+        answered = _Prediction(summed_model_file_document(behind.model, behind.estimate, robot=robot,
+                                                          preprocessing=dict(plan), shape=diagnosis.final_shape()),
+                               slot)
     for candidate in fitted:
-        predictors["candidate", candidate.name] = final.at(candidate.fit.estimate.values)
+        predictors["candidate", candidate.name] = answered.at(candidate.fit.estimate.values)
     runner_up = diagnosis.runner_up
     if runner_up is not None:
         rival = _Prediction(summed_model_file_document(runner_up.model, runner_up.fit, robot=robot,
