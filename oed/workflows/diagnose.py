@@ -76,6 +76,7 @@ from oed.workflows.model_files import (
     add_summed_model_file,
     add_summed_runner_up_model_file,
     recorded_validation_errors,
+    recorded_validation_counted,
     recorded_validation_mse,
     resampled_validation,
     robot_source,
@@ -897,13 +898,14 @@ def recorded_errors(diagnosis: Diagnosis, args: DiagnoseOptions, plan: dict[str,
     after_file = summed_model_file_document(diagnosis.final_model(), diagnosis.after.estimate, robot=robot,
                                             preprocessing=plan, shape=diagnosis.final_shape(),
                                             recorded_mse=diagnosis.after.train.mse)
-    after = recorded_validation_mse(after_file, source_files(args.validate))
-    if after is None:
+    counted = recorded_validation_counted(after_file, source_files(args.validate))
+    if counted is None:
         return diagnosis
+    after, n_samples = counted  # the recorded samples, as in memory (the floor's test and the summary count them)
     declared = summed_model_file_document(diagnosis.model, diagnosis.before.estimate, robot=robot,
                                           preprocessing=plan, recorded_mse=diagnosis.before.train.mse)
     before = recorded_validation_mse(declared, source_files(args.validate))
-    fits = {which: replace(fit, validation=replace(fit.validation, mse=mse))
+    fits = {which: replace(fit, validation=replace(fit.validation, mse=mse, n_samples=n_samples))
             for which, fit, mse in (("before", diagnosis.before, before), ("after", diagnosis.after, after))}
     statistics = diagnosis.statistics
     if statistics is not None:  # the floor's comparisons of these errors

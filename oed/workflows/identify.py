@@ -77,7 +77,7 @@ from oed.workflows.model_files import (
     add_model_file,
     add_summed_model_file,
     recorded_validation_errors,
-    recorded_validation_mse,
+    recorded_validation_counted,
     resampled_validation,
     robot_source,
 )
@@ -594,10 +594,12 @@ def recorded_validation(args: IdentifyOptions, result: IdentificationResult, chu
         plan = fourier_plan(args, streaming["frequency_hz"], harmonics) if streaming["frequency_hz"] is not None \
             else streamed_plan(args.data[0], model, cutoff_hz=streaming["cutoff_hz"], decimation=args.decimate,
                                held_torques=bool(args.held_torques), chunk_size=chunk_size)
-        recorded = recorded_validation_mse(summed_model_file_document(
+        recorded = recorded_validation_counted(summed_model_file_document(
             model, result.estimate, robot=robot_source(model.robot, args), preprocessing=plan),
             source_files(args.validate))
-        mse = mse if recorded is None else recorded
+        if recorded is not None:  # and counted there, as in memory (not the grid's samples)
+            mse, count = recorded
+            return replace(result, validation=replace(result.validation, mse=mse, n_samples=count)), errors, {}
     return replace(result, validation=replace(result.validation, mse=mse)), errors, {}
 
 

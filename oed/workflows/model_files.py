@@ -145,13 +145,22 @@ def recorded_validation_mse(model_file: dict[str, Any], validate: Sequence[str |
     (jittered stamps, rows a logger re-sent, stalls): the streamed chunks score such a record on the uniform grid,
     against torques interpolated onto it. ``None`` when every record is read as it was recorded (the streamed
     pass measured that error already). Reads the validation records in memory, as ``oed predict`` does."""
+    counted = recorded_validation_counted(model_file, validate)
+    return None if counted is None else counted[0]
+
+
+def recorded_validation_counted(model_file: dict[str, Any], validate: Sequence[str | Path]
+                                ) -> tuple[dict[str, float], int] | None:
+    """:func:`recorded_validation_mse` with the number of recorded samples it is measured on (those ``oed predict``
+    measures: the validation errors' sample count, not the uniform grid's)."""
     model = IdentifiedModel(ModelFile.from_dict(model_file))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # the records' findings were said when the verb read them
         segments = model.read(list(validate))
         if all(segment.recorded is None for segment in segments):
             return None
-        return dict(model.predict_record(model.prepare(segments)).mse)
+        prediction = model.predict_record(model.prepare(segments))
+        return dict(prediction.mse), int(np.asarray(prediction.t).shape[0])
 
 
 def recorded_validation_errors(model_file: dict[str, Any], thetas: Mapping[Any, Any],

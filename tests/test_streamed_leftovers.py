@@ -1,0 +1,99 @@
+"""The streamed path (``--chunk-size``, or records past ``--memory-budget``) gives the in-memory path's answers
+(issue 34: "the result must not depend on ... the free memory of the machine"): the leftovers of h-streamdiag.
+
+Simulated 3-joint PUMA records at 100 Hz, each read in memory and in blocks of 250 rows:
+
+* the validation record's samples as recorded are counted (the floor's F test, the summary), not the uniform grid's
+  a jittered log is resampled onto;
+* whether a validation record of another sampling rate repeats the training motion is tested at common instants, as
+  in memory (:func:`estimation.streaming.model_selection.streamed_repeated_motion`).
+"""
+
+from __future__ import annotations
+
+import json
+import warnings
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from dynamics.models import build_model
+from dynamics.robots import load_robot
+from dynamics.simulation.synthetic import simulate, true_parameters
+from estimation.data.records import read_measurements
+from estimation.identification.repeated_motion import repeated_motion
+from estimation.streaming.model_selection import streamed_repeated_motion
+from oed import diagnose
+from oed.fourier import random_fourier
+
+NOISE = {"tau1": 0.2, "tau2": 0.2, "tau3": 0.1}
+
+
+def jittered(source, target, seed):
+    """``source`` with every stamp moved by up to ±30 % of a step (the readings those of the true instant)."""
+    frame = pd.read_csv(source)
+    step = float(np.median(np.diff(frame.t)))
+    frame["t"] = frame.t + np.random.default_rng(seed).uniform(-0.3, 0.3, len(frame)) * step
+    frame.to_csv(target, index=False, float_format="%.10g")
+    return target
+
+
+@pytest.fixture(scope="module")
+def records(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("streamed_leftovers")
+    robot = load_robot("puma560", joints=3)
+    truth = build_model(robot, "internal", "viscous,coulomb,offset")
+    theta = true_parameters(truth, seed=1, coulomb=[3.0, 2.0, 1.0], offset=[0.5, -0.3, 0.2])
+    paths = {}
+    for name, seed, noise_seed in (("train", 5, 5), ("repeat", 5, 9), ("other", 7, 7)):
+        data = simulate(truth, theta, random_fourier(robot, seed=seed), rate_hz=100.0, periods=1, noise=NOISE,
+                        seed=noise_seed)
+        paths[name] = folder / f"{name}.csv"
+        data.write(paths[name])
+    paths["jittered_repeat"] = jittered(paths["repeat"], folder / "jittered_repeat.csv", 2)
+    paths["jittered_other"] = jittered(paths["other"], folder / "jittered_other.csv", 3)
+    return truth, paths
+
+
+@pytest.mark.parametrize("validation", ["jittered_repeat", "jittered_other", "repeat"])
+def test_repeated_motion_of_records_at_other_rates_as_in_memory(records, validation):
+    """A jittered validation log is resampled onto a grid of another step than the training record's: both paths
+    compare the positions at common instants (at the training record's times from its start), so the repeat of the
+    training motion is found streamed too (before: compared sample by sample, the grids drifting apart)."""
+    model, paths = records
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # the loader's findings on the jittered log
+        train = read_measurements(paths["train"], model=model)
+        other = read_measurements(paths[validation], model=model)
+        memory = repeated_motion(train, other)
+        streamed = streamed_repeated_motion(model, [paths["train"]], [paths[validation]], chunk_size=250)
+    if validation.startswith("jittered"):
+        assert other.q.shape[0] != train.q.shape[0]  # another grid
+    assert streamed == pytest.approx(memory, rel=1e-9)
+    assert (streamed < 0.05) == validation.endswith("repeat")
+
+
+@pytest.mark.parametrize("validation", ["jittered_other", "jittered_repeat"])
+def test_the_streamed_diagnosis_counts_the_recorded_validation_samples(records, validation):
+    """The validation errors of a jittered log are measured at its recorded samples on both paths; the streamed
+    diagnosis now counts those samples too (the floor's F test and the summary), not the 495 of the grid."""
+    _, paths = records
+    runs = {name: diagnose(joints=3, friction="viscous", data=paths["train"], validate=paths[validation],
+                           max_effects=2, **options)
+            for name, options in (("memory", {}), ("streamed", {"chunk_size": 250}))}
+    memory, streamed = (runs[name].to_dict() for name in ("memory", "streamed"))
+    assert streamed["diagnosis_path"] == "streamed"
+    rows = len(pd.read_csv(paths[validation]))
+    grid = streamed["streaming"]["validation_files"][0]["samples"]
+    assert grid != rows  # resampled onto another count of samples
+    line = next(line for line in runs["streamed"].summary() if "streamed diagnosis of" in line)
+    assert f", {rows} validation samples" in line, line
+    for which in ("before", "after"):
+        for channel, entry in memory["floor_comparison"][which].items():
+            other = streamed["floor_comparison"][which][channel]
+            assert other["p_value"] == pytest.approx(entry["p_value"], rel=1e-6, abs=1e-300), (which, channel)
+            assert other["ratio"] == pytest.approx(entry["ratio"], rel=1e-9), (which, channel)
+    assert streamed["floor_statements"] == {channel: text.split(";")[0]
+                                            for channel, text in memory["floor_statements"].items()}
+    assert json.dumps(streamed["model_selection"]["selection"]) == json.dumps(memory["model_selection"]["selection"])
