@@ -28,6 +28,7 @@ from oed import diagnose
 from oed.fourier import random_fourier
 
 NOISE = {"tau1": 0.2, "tau2": 0.2, "tau3": 0.1}
+OFFSETS = [0.0, -np.pi / 2, 0.3]  # the joint positions where the encoders read zero (tests/test_joint_offsets.py)
 
 
 def jittered(source, target, seed):
@@ -97,3 +98,59 @@ def test_the_streamed_diagnosis_counts_the_recorded_validation_samples(records, 
     assert streamed["floor_statements"] == {channel: text.split(";")[0]
                                             for channel, text in memory["floor_statements"].items()}
     assert json.dumps(streamed["model_selection"]["selection"]) == json.dumps(memory["model_selection"]["selection"])
+
+
+@pytest.fixture(scope="module")
+def zeroed(tmp_path_factory):
+    """A 3-joint PUMA's records as logged by encoders zeroed away from the description's (joint 2 a quarter turn
+    off, joint 3 by 0.3 rad: ``tests/test_joint_offsets.py``'s), and the offsets file that puts them right."""
+    robot = load_robot("puma560", joints=3)
+    model = build_model(robot, "internal", "viscous")
+    theta = true_parameters(model, seed=4)
+    folder = tmp_path_factory.mktemp("zeroed")
+    for name, seed in (("train", 5), ("val", 6)):
+        record = simulate(model, theta, random_fourier(robot, seed), noise=NOISE, seed=seed + 10)
+        record.write(folder / f"{name}.csv")
+        frame = pd.read_csv(folder / f"{name}.csv")
+        for j, offset in enumerate(OFFSETS):
+            frame[f"q{j + 1}"] -= offset
+        frame.to_csv(folder / f"{name}_zeroed.csv", index=False)
+    (folder / "offsets.json").write_text(json.dumps({"offsets": {"joint2": OFFSETS[1], "3": OFFSETS[2]}}))
+    return folder
+
+
+def _zero_warnings(run):
+    return [text for text in run.warnings if "offset from the robot description's zeros" in text]
+
+
+@pytest.mark.parametrize("validate", [True, False], ids=["validation-record", "halves"])
+def test_the_streamed_identify_checks_the_joint_zeros_as_in_memory(zeroed, validate):
+    """The joint-zero check on a log read in blocks keeps the samples the in-memory check keeps: the same warning,
+    the same offsets; nothing on the correctly zeroed log."""
+    from oed import identify
+
+    held = {"validate": zeroed / "val_zeroed.csv"} if validate else {}
+    runs = {name: identify(joints=3, friction="viscous", data=zeroed / "train_zeroed.csv", cutoff=20, **held,
+                           **options)
+            for name, options in (("memory", {}), ("streamed", {"chunk_size": 250}))}
+    assert runs["streamed"].to_dict()["streaming"] is not None
+    memory, streamed = _zero_warnings(runs["memory"]), _zero_warnings(runs["streamed"])
+    assert len(memory) == 1 and "joint 2" in memory[0]
+    assert streamed == memory
+    clean = identify(joints=3, friction="viscous", data=zeroed / "train.csv", cutoff=20, chunk_size=250,
+                     **({"validate": zeroed / "val.csv"} if validate else {}))
+    assert _zero_warnings(clean) == []
+
+
+def test_the_streamed_diagnosis_checks_the_joint_zeros_as_in_memory(zeroed):
+    """``oed diagnose`` streamed says the joint-zero warning of the in-memory run (in its warnings and in
+    ``warnings.after``), and the notes it says beside it: the channels the diagnosis made worse."""
+    runs = {name: diagnose(joints=3, friction="viscous", data=zeroed / "train_zeroed.csv",
+                           validate=zeroed / "val_zeroed.csv", cutoff=20, **options)
+            for name, options in (("memory", {}), ("streamed", {"chunk_size": 250}))}
+    memory, streamed = _zero_warnings(runs["memory"]), _zero_warnings(runs["streamed"])
+    assert len(memory) == 1 and "joint 2" in memory[0]
+    assert streamed == memory
+    documents = {name: run.to_dict() for name, run in runs.items()}
+    assert documents["streamed"]["diagnosis_path"] == "streamed"
+    assert documents["streamed"]["warnings"]["after"] == documents["memory"]["warnings"]["after"]

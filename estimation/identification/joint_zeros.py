@@ -309,7 +309,8 @@ def _held_out_mse(model: IdentificationModel, theta: NDArray, samples: tuple[NDA
 
 
 def check_joint_zeros(model: IdentificationModel, train: Measurements, held_out: Measurements | None = None, *,
-                      max_samples: int = MAX_SAMPLES, warn: bool = True) -> JointZeroCheck | None:
+                      max_samples: int = MAX_SAMPLES, warn: bool = True,
+                      label: str = "validation record") -> JointZeroCheck | None:
     """Test whether a constant position offset per joint lowers the held-out error markedly (module docstring).
 
     Parameters
@@ -324,6 +325,9 @@ def check_joint_zeros(model: IdentificationModel, train: Measurements, held_out:
         Evenly spaced rows of each record used.
     warn
         Issue a :class:`JointZeroWarning` when the gain is marked.
+    label
+        What ``held_out`` is (the check's ``held_out``; the streamed check gives the training record's second half,
+        thinned, as ``held_out``: :mod:`estimation.streaming.joint_zeros`).
 
     Returns
     -------
@@ -331,7 +335,6 @@ def check_joint_zeros(model: IdentificationModel, train: Measurements, held_out:
         ``None`` when the check cannot run (no derivatives, no channel the model predicts, too few samples, no
         joint the regressor depends on).
     """
-    label = "validation record"
     if held_out is None:
         half = train.n_samples // 2
         if half < 20:

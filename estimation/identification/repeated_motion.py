@@ -21,7 +21,7 @@ import numpy as np
 
 from dynamics.measurements import Measurements
 
-__all__ = ["REPEAT_FRACTION", "STILL_SHARE", "repeated_motion", "repeated_motion_note", "still_motion",
+__all__ = ["REPEAT_FRACTION", "STILL_SHARE", "repeated_motion", "repeat_note", "repeated_motion_note", "still_motion",
            "still_spans_note"]
 
 #: two records whose median sampling steps differ by more than this fraction are compared in time, not sample by
@@ -95,7 +95,12 @@ def _aligned(train: Measurements, validation: Measurements, n: int) -> tuple[np.
 
 def repeated_motion_note(train: Measurements, validation: Measurements, *, option: str = "--validate") -> str | None:
     """A warning when ``validation`` repeats ``train``'s motion (:func:`repeated_motion`), else ``None``."""
-    ratio = repeated_motion(train, validation)
+    return repeat_note(repeated_motion(train, validation), option=option)
+
+
+def repeat_note(ratio: float, *, option: str = "--validate") -> str | None:
+    """:func:`repeated_motion_note` of a validation record whose :func:`repeated_motion` is ``ratio`` (the streamed
+    path computes it from sums: :func:`estimation.streaming.model_selection.streamed_repeated_motion`)."""
     if ratio > REPEAT_FRACTION:
         return None
     return (f"the {option} record repeats the training motion (its positions differ by at most {100 * ratio:.2g} % of "

@@ -11,6 +11,9 @@ tanh(v / V)).
 
 from __future__ import annotations
 
+import warnings
+from collections.abc import Mapping, Sequence
+from pathlib import Path
 from typing import Any
 
 from dynamics.effects.specs import build_effects
@@ -34,6 +37,7 @@ from estimation.identification.joint_zeros import check_joint_zeros
 from estimation.identification.model_parameters import model_parameters
 from estimation.identification.prepared import PreparedRecords
 from estimation.identification.trivial_predictors import trivial_mse, trivial_warnings
+from estimation.streaming.joint_zeros import streamed_joint_zeros
 from oed.workflows.options import RecordOptions, model_has_shapes
 
 
@@ -148,4 +152,20 @@ def joint_zero_notes(model: IdentificationModel, train: Measurements, validation
         return ()
     with step("joint zeros checked against the description's"):
         check = check_joint_zeros(model, train, validation, warn=False)
+    return () if check is None or not check.marked else (check.message(model.robot.joint_names),)
+
+
+def streamed_joint_zero_notes(model: IdentificationModel, train: Sequence[str | Path], train_samples: int,
+                              held_out: Sequence[str | Path], held_out_samples: int, *,
+                              options: Mapping[str, Any]) -> tuple[str, ...]:
+    """:func:`joint_zero_notes` of records read in blocks (``train`` and ``held_out``: their files, with their
+    counts of prepared samples; ``options``: how the streamed fit prepared them,
+    :func:`estimation.streaming.periods.plan_chunks`' keywords), on the samples the in-memory check keeps
+    (:func:`estimation.streaming.joint_zeros.streamed_joint_zeros`): one more pass over the files. None with shaped
+    laws, nor on the Fourier path (its prepared samples are averaged periods, not the record)."""
+    if model_has_shapes(model) or options.get("frequency_hz") is not None:
+        return ()
+    with step("joint zeros checked against the description's (a pass over the files)"), warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # the files' findings were said when the fit read them
+        check = streamed_joint_zeros(model, train, train_samples, held_out, held_out_samples, options=options)
     return () if check is None or not check.marked else (check.message(model.robot.joint_names),)

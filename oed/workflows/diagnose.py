@@ -39,7 +39,7 @@ from estimation.diagnosis.search import default_candidates
 from estimation.diagnosis.search import diagnose as diagnose_model
 from estimation.diagnosis.untouched import UntouchedErrors, recorded_comparison, untouched_errors
 from estimation.identification.prepared import InMemoryBudget, PreparedRecords, prepare_records
-from estimation.identification.repeated_motion import repeated_motion_note
+from estimation.identification.repeated_motion import repeat_note, repeated_motion_note
 from estimation.preprocessing.delay import DelayBounds, split_delay
 from estimation.preprocessing.plan import Preprocessing
 from estimation.streaming.chunks import source_files
@@ -58,6 +58,7 @@ from estimation.uncertainty.noise_floor import NoiseFloor
 from oed.workflows.asbuilt import (
     finish_document,
     joint_zero_notes,
+    streamed_joint_zero_notes,
     model_effects,
     resolve_joint_offsets,
     resolve_transmission,
@@ -316,7 +317,8 @@ class Diagnosed:
         The warnings said, in order (the model files' come after them: :func:`diagnose_document`).
     records, untouched, selection, transmission, notes
         In memory: the prepared records, the test record's errors, the default answer
-        (:func:`diagnosis_selection`), the transmission, the run's own notes; ``None`` or empty when streamed.
+        (:func:`diagnosis_selection`), the transmission, the run's own notes; ``None`` when streamed, but the notes
+        (a channel made worse, a repeat of the training motion, the joint zeros: said and in ``warnings.after``).
     chunk_size
         Streamed: the rows a block; ``None`` in memory.
     model_file
@@ -456,6 +458,7 @@ def diagnose_document(args: DiagnoseOptions, diagnosed: Diagnosed) -> tuple[dict
             document["warnings"]["chosen"] = list(after.warnings)
             document["validation"]["chosen"] = {"name": name,
                                                 "mse": None if validation_mse is None else dict(validation_mse)}
+        document["warnings"]["after"] = list(document["warnings"].get("after", [])) + list(diagnosed.notes)
         add_summed_runner_up_model_file(document, runner_up, args, model_plan, None if validation_mse is None or
                                         runner_up is None else runner_up.validation_mse)
         if diagnosed.averaged_train is not None:  # measured against the recording, the sums' errors beside
@@ -811,8 +814,17 @@ def diagnosis_streamed(args: DiagnoseOptions, friction: str, plan: Preprocessing
         if resampled_validation({"streaming": diagnosis.streaming}):  # the errors on the samples as recorded
             diagnosis = recorded_errors(diagnosis, args, model_plan)
         model_file = model_plan, diagnosis.after.validation.mse
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # the files' findings were said on the diagnosis's passes
+        ratio = streamed_repeated_motion(model, args.data, args.validate, chunk_size=chunk_size)
     with step("the default answer: the adopted model or its consistent refit (from the sums)"):
-        selection = streamed_selection(args, diagnosis, run, model_file[0], chunk_size, still=still)
+        selection = streamed_selection(args, diagnosis, run, model_file[0], chunk_size, still=still, ratio=ratio)
+    # the notes said in memory: a channel made worse, a repeat of the training motion, the joint zeros
+    repeat = repeat_note(ratio)
+    notes = worse_after(diagnosis) + (() if repeat is None else (repeat,)) + streamed_joint_zero_notes(
+        model, run.paths, sum(part.n_samples for part, _ in run.sums.train_parts), run.validate,
+        sum(part.n_samples for part, _ in run.sums.validate_parts), options=run.settings.reading())
+    messages = (*messages, *notes)
     diagnosis = replace(diagnosis, not_computed={key: reason for key, reason in diagnosis.not_computed.items()
                                                  if key not in SELECTION_KEYS})  # computed now
     # the training errors against the recording where the sums hold averaged periods or a resampled grid
@@ -820,7 +832,8 @@ def diagnosis_streamed(args: DiagnoseOptions, friction: str, plan: Preprocessing
     if still:
         diagnosis = replace(diagnosis, streaming={**diagnosis.streaming, "effect_search_on_still_validation": STILL_SEARCH})
     return Diagnosed(diagnosis, {"cutoff_hz": cutoff_hz, **plan.to_dict()}, plan.describe(), messages,
-                     selection=selection, chunk_size=chunk_size, model_file=model_file, averaged_train=averaged)
+                     selection=selection, chunk_size=chunk_size, model_file=model_file, averaged_train=averaged,
+                     notes=notes)
 
 
 #: what the streamed diagnosis says of a validation record at rest (its effect search compares the candidates there)
@@ -834,18 +847,20 @@ SELECTION_KEYS = ("consistent", "links", "model_selection")
 
 
 def streamed_selection(args: DiagnoseOptions, diagnosis: Diagnosis, run: StreamedRun, plan: dict[str, Any],
-                       chunk_size: int, *, still: bool = False) -> ModelSelection:
+                       chunk_size: int, *, still: bool = False, ratio: float | None = None) -> ModelSelection:
     """The default answer of a streamed diagnosis, chosen as in memory (:func:`diagnosis_selection`) from its sums
     (:func:`estimation.streaming.diagnosis_selection.streamed_refit_selection`): the adopted model or its consistent
     refit, every candidate (every weight of the prior's search) scored on the same validation samples against the
     channels as recorded: from the validation sums, or, on a validation file the loader resampled onto a uniform
     grid, at its recorded samples as ``oed predict`` measures them (:func:`resampled_scorer`, read in memory as the
     adopted model's own error there is). ``plan``: the model files' preprocessing; ``still``: the validation record
-    is at rest (:func:`estimation.streaming.model_selection.warned_still_motion`): it chooses nothing, as in memory."""
+    is at rest (:func:`estimation.streaming.model_selection.warned_still_motion`): it chooses nothing, as in memory;
+    ``ratio``: the validation record's repeated-motion ratio (``None``: computed here)."""
     model = diagnosis.model
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # the files' findings were said on the diagnosis's passes
-        ratio = streamed_repeated_motion(model, args.data, args.validate, chunk_size=chunk_size)
+        if ratio is None:
+            ratio = streamed_repeated_motion(model, args.data, args.validate, chunk_size=chunk_size)
         score = None
         if resampled_validation({"streaming": diagnosis.streaming}):
             score = resampled_scorer(args, diagnosis, plan)
