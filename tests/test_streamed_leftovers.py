@@ -154,3 +154,14 @@ def test_the_streamed_diagnosis_checks_the_joint_zeros_as_in_memory(zeroed):
     documents = {name: run.to_dict() for name, run in runs.items()}
     assert documents["streamed"]["diagnosis_path"] == "streamed"
     assert documents["streamed"]["warnings"]["after"] == documents["memory"]["warnings"]["after"]
+
+
+def test_the_streamed_identify_says_a_repeat_as_in_memory(records):
+    """A validation record that repeats the training motion is said on both paths, with the same words."""
+    from oed import identify
+
+    _, paths = records
+    runs = {name: identify(joints=3, friction="viscous", data=paths["train"], validate=paths["repeat"], **options)
+            for name, options in (("memory", {}), ("streamed", {"chunk_size": 250}))}
+    said = {name: [text for text in run.warnings if "repeats the training motion" in text] for name, run in runs.items()}
+    assert len(said["memory"]) == 1 and said["streamed"] == said["memory"]

@@ -37,7 +37,7 @@ from estimation.estimators.normal_equations import DEFAULT_CHUNK_SIZE
 from estimation.identification.fit import IdentificationResult
 from estimation.identification.prepared import InMemoryBudget, PreparedRecords, prepare_records
 from estimation.identification.preprocessing_choice import ChoiceWindow
-from estimation.identification.repeated_motion import repeated_motion_note
+from estimation.identification.repeated_motion import repeat_note, repeated_motion_note
 from estimation.identification.model_file import summed_model_file_document
 from estimation.identification.report import identification_report
 from estimation.identification.trivial_predictors import trivial_warnings
@@ -61,6 +61,7 @@ from estimation.streaming.recorded_errors import (
 from oed.workflows.asbuilt import (
     finish_document,
     joint_zero_notes,
+    streamed_joint_zero_notes,
     model_effects,
     resolve_joint_offsets,
     resolve_transmission,
@@ -399,7 +400,7 @@ def identification_streamed(args: IdentifyOptions, model: IdentificationModel, t
                                              executor=executor)
         result = sums.fits[base]
         cutoff_hz, frequency_hz = result.streaming["cutoff_hz"], result.streaming["frequency_hz"]
-        scores = None
+        scores, ratio = None, None
         if frequency_hz is None:  # the answer chosen as in memory (a Fourier fit: the sums hold averaged periods)
             scores = None if result.validation is None else ValidationScores(args, sums, result, chunk_size, options)
             ratio = None if not args.validate else streamed_repeated_motion(model, args.data, args.validate,
@@ -459,6 +460,18 @@ def identification_streamed(args: IdentifyOptions, model: IdentificationModel, t
             comparisons = compare_with_floor(mse, floor, result.validation.n_samples, alpha=FLOOR_ALPHA)
             notes += tuple(f"{comparison.statement()}: the model lacks something there; `oed diagnose` searches for it"
                            for comparison in comparisons.values() if comparison.above)
+    if ratio is None and args.validate:  # the Fourier path: not computed for a selection
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # the files' findings were said on the first pass
+            ratio = streamed_repeated_motion(model, args.data, args.validate, chunk_size=chunk_size)
+    repeat = None if ratio is None else repeat_note(ratio)  # the notes said in memory after the floor's
+    notes = notes if repeat is None else (*notes, repeat)
+    notes = (*notes, *streamed_joint_zero_notes(
+        model, args.data, int(sums.train.n_samples), args.validate or [],
+        0 if sums.validation is None else int(sums.validation.n_samples),
+        options={"chunk_size": chunk_size, "cutoff_hz": options["cutoff_hz"], "frequency_hz": options["frequency_hz"],
+                 "harmonics": options["harmonics"], "decimation": options["decimation"],
+                 "held_torques": options["held_torques"]}))
     result, chosen, selection = recorded_training(args, result, chosen, selection, chunk_size, options)
     validation_mse = None if result.validation is None else result.validation.mse
     return Identified(result, chosen, plan.to_dict(), plan.describe(),
