@@ -165,3 +165,28 @@ def test_the_streamed_identify_says_a_repeat_as_in_memory(records):
             for name, options in (("memory", {}), ("streamed", {"chunk_size": 250}))}
     said = {name: [text for text in run.warnings if "repeats the training motion" in text] for name, run in runs.items()}
     assert len(said["memory"]) == 1 and said["streamed"] == said["memory"]
+
+
+@pytest.mark.parametrize("verb", ["identify", "diagnose"])
+def test_options_read_in_memory_name_the_in_memory_route(zeroed, capsys, verb):
+    """``--joint-offsets`` and ``--transmission`` are read in memory: asked for the streamed path they exit 2 naming
+    the route that works; past ``--memory-budget`` the run is read in memory and gives the in-memory answer."""
+    from oed.cli import main
+
+    (zeroed / "transmission.json").write_text(json.dumps({"ratios": [1.0, 1.0, 1.0]}))
+    common = [verb, "--joints", "3", "--friction", "viscous", "--data", str(zeroed / "train_zeroed.csv"), "--validate",
+              str(zeroed / "val_zeroed.csv"), "--cutoff", "20", "--quiet"]
+    for option in (["--joint-offsets", str(zeroed / "offsets.json")],
+                   ["--transmission", str(zeroed / "transmission.json")]):
+        out = zeroed / f"never_{verb}.json"
+        assert main([*common, *option, "--chunk-size", "250", "--out", str(out)]) == 2
+        error = capsys.readouterr().err
+        assert option[0] in error and "leave out --chunk-size, --scheduler and --workers" in error, error
+        assert not out.exists()
+    documents = {}
+    for name, extra in (("memory", []), ("budget", ["--memory-budget", "1KB"])):
+        out = zeroed / f"{verb}_{name}.json"
+        assert main([*common, "--joint-offsets", str(zeroed / "offsets.json"), *extra, "--out", str(out)]) == 0
+        documents[name] = json.loads(out.read_text())
+    assert documents["budget"]["model_file"]["joint_offsets"] == pytest.approx(OFFSETS)
+    assert documents["budget"]["model_file"]["theta"] == documents["memory"]["model_file"]["theta"]

@@ -69,7 +69,7 @@ from oed.workflows.asbuilt import (
 )
 from oed.workflows.chosen_model import ChosenModel, answer_diagnosis, mse_line
 from oed.workflows.diagnosis_training import averaged_errors, recorded_training, summed_unconstrained
-from oed.workflows.memory_path import decide_path, streamed_choice, streamed_records
+from oed.workflows.memory_path import IN_MEMORY_ROUTE, decide_path, streamed_choice, streamed_records
 from oed.workflows.consistent import check_consistent_arguments, consistent_lines, consistent_settings
 from oed.workflows.model_files import (
     add_model_file,
@@ -766,7 +766,8 @@ def check_streamed_arguments(args: DiagnoseOptions, model: IdentificationModel) 
         ("--max-gap", args.max_gap != DEFAULT_MAX_GAP)) if given]
     if unsupported:
         raise ValueError(f"{', '.join(unsupported)}: not with {STREAMED}, which reads whole files without holes "
-                         "on the filter path, the files' dq, ddq or a Fourier fit of averaged periods")
+                         "on the filter path, joint-side columns, the files' dq, ddq or a Fourier fit of averaged "
+                         f"periods; {IN_MEMORY_ROUTE}")
     if model_has_shapes(model):
         raise ValueError(f"declared laws with shape parameters (coulomb:tanh, sigmoid…) are fitted in memory: not with "
                          f"{STREAMED}; declare their plain forms, or let the diagnosis find them")

@@ -73,7 +73,7 @@ from estimation.consistent.identification import ConsistentResult
 from estimation.consistent.model_selection import ModelSelection, select_model
 from oed.workflows.consistent import check_consistent_arguments, consistent_lines, consistent_settings
 from oed.workflows.chosen_model import ChosenModel, answer_identification, chosen_messages, mse_line
-from oed.workflows.memory_path import decide_path, streamed_choice, streamed_records
+from oed.workflows.memory_path import IN_MEMORY_ROUTE, decide_path, streamed_choice, streamed_records
 from oed.workflows.model_files import (
     add_model_file,
     add_summed_model_file,
@@ -658,7 +658,7 @@ def check_streamed_request(args: IdentifyOptions, model: IdentificationModel) ->
         ("--max-gap", args.max_gap != DEFAULT_MAX_GAP)) if given]
     if unsupported:
         raise ValueError(f"{', '.join(unsupported)}: not with {STREAMED}, which reads whole files without holes, "
-                         "joint-side columns, and averages periods whenever --frequency is given")
+                         f"joint-side columns, and averages periods whenever --frequency is given; {IN_MEMORY_ROUTE}")
 
 
 def identification_in_memory(args: IdentifyOptions, robot: RobotModel, model: IdentificationModel,

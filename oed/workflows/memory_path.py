@@ -32,7 +32,12 @@ from estimation.data.memory_budget import (
 )
 from oed.workflows.options import RecordOptions, streaming_requested
 
-__all__ = ["PathDecision", "decide_path", "streamed_choice", "streamed_records"]
+__all__ = ["IN_MEMORY_ROUTE", "PathDecision", "decide_path", "streamed_choice", "streamed_records"]
+
+#: what an option the streamed path lacks leaves the user (:func:`decide_path` reads such a run in memory whatever
+#: the records' size): said where ``--chunk-size``, ``--scheduler`` or ``--workers`` asked for the streamed path
+IN_MEMORY_ROUTE = ("leave out --chunk-size, --scheduler and --workers to read the records in memory with it (a run "
+                   "with this option is read in memory whatever --memory-budget says, and needs the memory for it)")
 
 
 @dataclass(frozen=True)
