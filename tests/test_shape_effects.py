@@ -239,8 +239,9 @@ def test_a_shape_held_at_its_bound_leaves_the_others_a_newton_step(robot, tanh_r
 
 
 def test_the_rounds_predict_in_the_regressor_they_were_given_bit_for_bit(robot, tanh_records, monkeypatch):
-    """``fit_shaped_model`` writes each round's shaped columns into its own base regressor rather than a copy
-    (issue 34's cost): the predictions and the fit are those of the copy, bit for bit."""
+    """``fit_shaped_model`` writes each round's shaped columns into its own base regressor rather than a copy, and a
+    prediction without one into the regressor it evaluates (issue 34's cost): the predictions and the fit are those
+    of the copy, bit for bit."""
     from estimation.identification import shaped as shaped_module
 
     train, _ = tanh_records
@@ -253,6 +254,7 @@ def test_the_rounds_predict_in_the_regressor_they_were_given_bit_for_bit(robot, 
         np.testing.assert_array_equal(fit.predict(train, work, overwrite=True), fit.predict(train, base))
         np.testing.assert_array_equal(work[:, :, kept], base[:, :, kept])
     np.testing.assert_array_equal(base, model.evaluate_base(train.q, train.dq, train.ddq))  # the copy path: untouched
+    np.testing.assert_array_equal(fit.predict(train), fit.predict(train, base))  # evaluated: written in place
     copied = shaped_module.ShapedFit.predict
     monkeypatch.setattr(shaped_module.ShapedFit, "predict",
                         lambda self, measurements, base=None, overwrite=False: copied(self, measurements, base))

@@ -110,12 +110,13 @@ class ShapedFit:
         shaped columns written into ``base`` itself when it is a writable C-ordered float array (the same values as
         the copy: only the shaped columns change, each call writes them all), which spares a copy of the whole
         regressor each round of :func:`fit_shaped_model`."""
-        if base is not None and overwrite and isinstance(base, np.ndarray) and base.dtype == np.float64 \
-                and base.flags.c_contiguous and base.flags.writeable:
+        if base is None:  # a new array of its own, written in place
+            Y = self.model.evaluate_base(measurements.q, measurements.dq, measurements.ddq)
+        elif overwrite and isinstance(base, np.ndarray) and base.dtype == np.float64 and base.flags.c_contiguous \
+                and base.flags.writeable:
             Y = base
         else:
-            Y = np.array(self.model.evaluate_base(measurements.q, measurements.dq, measurements.ddq) if base is None
-                         else base)
+            Y = np.array(base)
         states = States(measurements.q, measurements.dq, measurements.ddq)
         start, position = 0, 0
         for block in self.blocks:
