@@ -255,6 +255,13 @@ def test_the_rounds_predict_in_the_regressor_they_were_given_bit_for_bit(robot, 
         np.testing.assert_array_equal(work[:, :, kept], base[:, :, kept])
     np.testing.assert_array_equal(base, model.evaluate_base(train.q, train.dq, train.ddq))  # the copy path: untouched
     np.testing.assert_array_equal(fit.predict(train), fit.predict(train, base))  # evaluated: written in place
+    taken = FixedPart.from_arrays(np.take(base, kept, axis=2), train.tau)  # the fixed part from a C-ordered copy
+    indexed = FixedPart.from_arrays(np.ascontiguousarray(base[:, :, kept]), train.tau)
+    for name in ("own", "where"):
+        for mine, theirs in zip(getattr(taken, name), getattr(indexed, name)):
+            np.testing.assert_array_equal(mine, theirs)
+    for name in ("y", "gram", "moment", "power"):
+        np.testing.assert_array_equal(getattr(taken, name), getattr(indexed, name))
     copied = shaped_module.ShapedFit.predict
     monkeypatch.setattr(shaped_module.ShapedFit, "predict",
                         lambda self, measurements, base=None, overwrite=False: copied(self, measurements, base))

@@ -158,7 +158,7 @@ def fit_shaped_model(model: IdentificationModel, train: Measurements, *, weighte
     kept = [index for index in range(model.n_base) if index not in set(replaced)]
     Y = model.evaluate_base(train.q, train.dq, train.ddq)
     y = train.channels(model.channels)
-    fixed = FixedPart.from_arrays(np.ascontiguousarray(Y[:, :, kept]), y)
+    fixed = FixedPart.from_arrays(np.take(Y, kept, axis=2), y)  # C-ordered (a fancy index's copy is strided)
     states = States(train.q, train.dq, train.ddq)
     weights = np.ones(model.n_channels)
     segments = [(piece.start, piece.stop) for piece in segment_slices(train)]
