@@ -157,3 +157,46 @@ def test_a_block_copied_in_pieces_is_factored_as_the_whole_channel(rows):
     for c in range(3):  # the same work array, [R_c; Y_c y_c], filled at once
         whole = stacked_factor([first.factor[c], np.column_stack([Y[:, c, :], y[:, c]])], 10)
         np.testing.assert_array_equal(summed.factor[c], whole)
+
+
+def test_a_channel_is_factored_on_its_own_columns():
+    """``add_block`` factors each channel on the columns that are not zero on it (a distal joint's torque reaches
+    few base parameters): its factor is the QR of those columns alone, put back in place, bit for bit; its
+    ``RᵀR`` is the dense factor's, and the fits are those of the dense factors to rounding (issue 34's cost)."""
+    from estimation.estimators.normal_equations import channel_columns, stacked_factor
+
+    generator = np.random.default_rng(5)
+    names = tuple(f"p{i}" for i in range(8))
+    support = np.array([[1, 1, 1, 1, 1, 1, 1, 1], [0, 1, 1, 0, 1, 1, 0, 1], [0, 0, 0, 1, 0, 1, 1, 0]], dtype=bool)
+    blocks = []
+    for rows in (300, 40, 1):
+        Y = generator.standard_normal((rows, 3, 8)) * support[None]
+        blocks.append((Y, generator.standard_normal((rows, 3)) + Y @ generator.standard_normal(8)))
+    sums, dense = NormalEquations.empty(("a", "b", "c"), names), None
+    for Y, y in blocks:
+        before = sums
+        sums = sums.add_block(Y, y)
+        part = NormalEquations.from_arrays(Y, y, ("a", "b", "c"), names)
+        dense = part if dense is None else dense + part
+        for c in range(3):
+            columns = np.append(np.flatnonzero(support[c]), 8)
+            np.testing.assert_array_equal(channel_columns(before.factor[c], support[c]), columns)
+            narrow = stacked_factor([before.factor[c][np.ix_(columns, columns)],
+                                     np.column_stack([Y[:, c, columns[:-1]], y[:, c]])], len(columns))
+            expected = np.zeros((9, 9))
+            expected[np.ix_(columns, columns)] = narrow
+            np.testing.assert_array_equal(sums.factor[c], expected)
+            assert np.all(sums.factor[c] == np.triu(sums.factor[c]))
+    for c in range(3):
+        gram, reference = sums.factor[c].T @ sums.factor[c], dense.factor[c].T @ dense.factor[c]
+        assert np.max(np.abs(gram - reference)) < 1e-12 * np.max(np.abs(reference))
+    for method in ("ols", "wls"):
+        estimate = SummedLeastSquares(method=method).fit(sums).estimate_
+        reference = SummedLeastSquares(method=method).fit(dense).estimate_
+        assert relative(estimate.values, reference.values) < 1e-12
+        assert relative(estimate.channel_rss, reference.channel_rss) < 1e-12
+    # a dense factor (summed by ``+``) keeps every column it has a row or a column on
+    combined = sums + dense
+    np.testing.assert_array_equal(channel_columns(combined.factor[2], np.zeros(8, dtype=bool)),
+                                  np.flatnonzero(np.any(combined.factor[2] != 0, axis=0)
+                                                 | np.any(combined.factor[2] != 0, axis=1)))

@@ -220,3 +220,55 @@ def test_the_candidates_predictions_are_compare_s_made_a_chunk_at_a_time(setting
         compare_recorded(model, {"ols": thetas["ols"][:-1]}, validation)
     with pytest.raises(ValueError, match="chunk_size"):
         compare_recorded(model, thetas, validation, chunk_size=0)
+
+
+def test_the_training_sums_of_the_blocked_cross_validation_are_those_the_validation_choice_makes(setting,
+                                                                                                 monkeypatch):
+    """Issue 34's cost: the blocked cross-validation, which prepares each candidate's training window, also sums it
+    for the validation choice's fits, which then does not prepare it again. The sums are those the choice made
+    itself, bit for bit, and so is every candidate's evidence and the plan chosen; on a repeat of the training
+    motion nothing is summed."""
+    from dataclasses import replace
+
+    from estimation.estimators.normal_equations import accumulate
+    from estimation.identification import prepared as prepared_module
+    from estimation.identification import preprocessing_on_validation as on_validation_module
+    from estimation.identification.preprocessing_choice import choose_by_evidence, scored_window
+
+    _, model, paths = setting
+
+    def segments(name):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            return [segment for file in read_files([paths[name]], model, split=True) for segment in file.segments]
+
+    train = segments("train")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        choice = choose_by_evidence(model, train, sums_model=model, jobs=1)
+    assert len(choice.training_sums) == len(choice.chosen.evidence.candidates)
+    window = scored_window(train)
+    for plan, sums in choice.training_sums:
+        own = accumulate(model, prepare(window, plan), gram=False)
+        for name in ("factor", "power"):
+            np.testing.assert_array_equal(getattr(sums, name), getattr(own, name))
+        assert sums.n_samples == own.n_samples
+
+    calls = []
+    choose = on_validation_module.choose_on_validation
+    monkeypatch.setattr(on_validation_module, "choose_on_validation",
+                        lambda *args, **kwargs: calls.append(kwargs.get("training_sums")) or choose(*args, **kwargs))
+    shared = prepared(model, paths)
+    shares = prepared_module.shares_training_sums
+    monkeypatch.setattr(prepared_module, "shares_training_sums", lambda *args: False)
+    own = prepared(model, paths)
+    assert calls[0] and not calls[1]
+    assert set(calls[0]) <= {item.preprocessing for item in shared.preprocessing.evidence.candidates}
+    assert shared.preprocessing == own.preprocessing
+    untimed = lambda evidence: [replace(item, seconds=0.0) for item in evidence]  # noqa: E731
+    assert untimed(shared.preprocessing.evidence.validation) == untimed(own.preprocessing.evidence.validation)
+    np.testing.assert_array_equal(shared.train.measurements.dq, own.train.measurements.dq)
+
+    assert not shares(PreparationSettings(), train, segments("repeat"))
+    assert shares(PreparationSettings(), train, segments("validate"))
+    assert not shares(PreparationSettings(cutoff_hz=5.0), train, segments("validate"))

@@ -236,3 +236,36 @@ def test_a_shape_held_at_its_bound_leaves_the_others_a_newton_step(robot, tanh_r
     assert np.allclose(held.shape[1:], 0.03, rtol=0.05)
     assert free.iterations < 60 and np.array_equal(free.shape, free_clipped.shape) and free.rss == free_clipped.rss
     assert np.array_equal(free.theta, free_clipped.theta)
+
+
+def test_the_rounds_predict_in_the_regressor_they_were_given_bit_for_bit(robot, tanh_records, monkeypatch):
+    """``fit_shaped_model`` writes each round's shaped columns into its own base regressor rather than a copy, and a
+    prediction without one into the regressor it evaluates (issue 34's cost): the predictions and the fit are those
+    of the copy, bit for bit."""
+    from estimation.identification import shaped as shaped_module
+
+    train, _ = tanh_records
+    model = build_model(robot, "internal", "viscous,coulomb:tanh")
+    fit, estimate = shaped_module.fit_shaped_model(model, train)
+    base = model.evaluate_base(train.q, train.dq, train.ddq)
+    work = base.copy()
+    kept = list(fit.kept)
+    for _ in range(2):  # written twice: the same values, the kept columns untouched
+        np.testing.assert_array_equal(fit.predict(train, work, overwrite=True), fit.predict(train, base))
+        np.testing.assert_array_equal(work[:, :, kept], base[:, :, kept])
+    np.testing.assert_array_equal(base, model.evaluate_base(train.q, train.dq, train.ddq))  # the copy path: untouched
+    np.testing.assert_array_equal(fit.predict(train), fit.predict(train, base))  # evaluated: written in place
+    taken = FixedPart.from_arrays(np.take(base, kept, axis=2), train.tau)  # the fixed part from a C-ordered copy
+    indexed = FixedPart.from_arrays(np.ascontiguousarray(base[:, :, kept]), train.tau)
+    for name in ("own", "where"):
+        for mine, theirs in zip(getattr(taken, name), getattr(indexed, name)):
+            np.testing.assert_array_equal(mine, theirs)
+    for name in ("y", "gram", "moment", "power"):
+        np.testing.assert_array_equal(getattr(taken, name), getattr(indexed, name))
+    copied = shaped_module.ShapedFit.predict
+    monkeypatch.setattr(shaped_module.ShapedFit, "predict",
+                        lambda self, measurements, base=None, overwrite=False: copied(self, measurements, base))
+    reference_fit, reference = shaped_module.fit_shaped_model(model, train)
+    np.testing.assert_array_equal(fit.fit.shape, reference_fit.fit.shape)
+    for name in ("values", "cov", "residuals", "weights"):
+        np.testing.assert_array_equal(getattr(estimate, name), getattr(reference, name))

@@ -44,8 +44,8 @@ from estimation.data.rest import (
     coulomb_combinations,
     drop_rest,
 )
-from estimation.identification.preprocessing_choice import choose_by_evidence
-from estimation.identification.preprocessing_on_validation import FITS, on_validation
+from estimation.identification.preprocessing_choice import PreprocessingChoice, choose_by_evidence, scored_window
+from estimation.identification.preprocessing_on_validation import FITS, another_motion, on_validation, window
 from estimation.identification.repeated_motion import still_spans_note
 from estimation.preprocessing.differentiation import AverageChoice
 from estimation.uncertainty.noise_floor import NoiseFloor, NoiseFloorError, noise_floor, pooled_floor
@@ -303,16 +303,22 @@ def prepare_records(model: IdentificationModel, train: Sequence[str | Path], val
             warnings.warn(note, stacklevel=2)
     with step("preprocessing chosen"):
         train_segments = [segment for file in train_files for segment in file.segments]
-        preprocessing = choose_plan(model, train_segments, settings,
-                                    [segment for files in held_out.values() if files for file in files
-                                     for segment in file.segments])
+        chooser = None
         if settings.validation_fits and held_out["validation"] and settings.plan is None and not settings.drops_rest():
             chooser = model if settings.validation_model is None else settings.validation_model
             if tuple(chooser.channels) != tuple(model.channels):
                 raise ValueError(f"validation_model has channels {chooser.channels}, the records {model.channels}")
-            preprocessing = on_validation(preprocessing, chooser, train_segments,
-                                          [segment for file in held_out["validation"] for segment in file.segments],
-                                          fits=settings.validation_fits, jobs=settings.jobs)
+        validation_segments = [segment for file in held_out["validation"] or () for segment in file.segments]
+        choice = choose_plan(model, train_segments, settings,
+                             [segment for files in held_out.values() if files for file in files
+                              for segment in file.segments],
+                             sums_model=chooser if chooser is not None and shares_training_sums(
+                                 settings, train_segments, validation_segments) else None)
+        preprocessing = choice.chosen
+        if chooser is not None:
+            preprocessing = on_validation(preprocessing, chooser, train_segments, validation_segments,
+                                          fits=settings.validation_fits, jobs=settings.jobs,
+                                          training_sums=choice.training_sums)
     if preprocessing.method == "measured" and settings.held_torques:
         warnings.warn("held torques: nothing to align, the data hold measured dq and ddq", stacklevel=2)
     with step("records prepared"):
@@ -376,17 +382,33 @@ def check_no_shared_samples(records: dict[str, tuple[RecordedFile, ...] | None],
 
 
 def choose_plan(model: IdentificationModel, train: Sequence[Measurements], settings: PreparationSettings,
-                held_out: Sequence[Measurements] = ()) -> Preprocessing:
+                held_out: Sequence[Measurements] = (), *,
+                sums_model: IdentificationModel | None = None) -> PreprocessingChoice:
     """The preprocessing of the training segments: ``settings.plan``, else chosen as ``settings.selection`` says,
-    among plans that also apply to the ``held_out`` segments (validation, test)."""
+    among plans that also apply to the ``held_out`` segments (validation, test). ``sums_model``: each candidate's
+    training window also summed for it, for the choice on the validation record
+    (:attr:`~estimation.identification.preprocessing_choice.PreprocessingChoice.training_sums`)."""
     if settings.plan is not None:
-        return settings.plan
+        return PreprocessingChoice(settings.plan, settings.plan)
     options = {"frequency_hz": settings.frequency_hz, "harmonics": settings.harmonics, "cutoff_hz": settings.cutoff_hz,
                "average_periods": settings.average_periods, "decimation": settings.decimation,
                "held_torques": settings.held_torques}
     if settings.selection == "rule":
-        return choose_preprocessing(train, **{**options, "held_torques": bool(settings.held_torques)})
-    return choose_by_evidence(model, train, **options, jobs=settings.jobs, held_out=held_out).chosen
+        rule = choose_preprocessing(train, **{**options, "held_torques": bool(settings.held_torques)})
+        return PreprocessingChoice(rule, rule)
+    return choose_by_evidence(model, train, **options, jobs=settings.jobs, held_out=held_out, sums_model=sums_model)
+
+
+def shares_training_sums(settings: PreparationSettings, train: Sequence[Measurements],
+                         validation: Sequence[Measurements]) -> bool:
+    """Whether the derivative candidates will be chosen again on the validation record
+    (:func:`~estimation.identification.preprocessing_on_validation.chooses_on_validation`: chosen among candidates,
+    not given by the user, and the validation record another motion), so that the blocked cross-validation, which
+    prepares each candidate's training window, also sums it for the fits of that choice: the window is then prepared
+    once a candidate, not twice (issue 34's cost)."""
+    return (settings.selection != "rule" and settings.frequency_hz is None and settings.harmonics is None
+            and settings.cutoff_hz is None and bool(validation)
+            and another_motion(scored_window(train), [window(segment) for segment in validation]))
 
 
 def _prepared(files: tuple[RecordedFile, ...], preprocessing: Preprocessing, role: str, *,

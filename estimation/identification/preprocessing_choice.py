@@ -56,7 +56,7 @@ import functools
 import time
 import warnings
 from collections.abc import Iterator, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from typing import Literal
 
 import numpy as np
@@ -68,7 +68,8 @@ from dynamics.runtime.processes import run_tasks, worker_count
 from dynamics.runtime.progress import SECONDS as PROGRESS_SECONDS
 from dynamics.runtime.progress import report
 from dynamics.runtime.threads import single_threaded_blas
-from estimation.data.segments import as_segments, column_set
+from estimation.data.segments import as_segments, column_set, concatenate
+from estimation.estimators.normal_equations import NormalEquations, accumulate
 from estimation.estimators.identification_problem import stack
 from estimation.preprocessing.differentiation import ButterworthDifferentiation, motion_bandwidth, sampling_rate
 from estimation.preprocessing.periodicity import REPEAT_THRESHOLD, detect_fundamental, repeat_error
@@ -118,10 +119,14 @@ class PreprocessingChoice:
         The preprocessing used (with its :class:`~estimation.preprocessing.plan.Evidence` attached).
     best
         The candidate the held-out evidence prefers (``chosen`` unless the user's options decided).
+    training_sums
+        ``(candidate, sums)``: each candidate's training window, as it prepared it, summed for the fits of the choice
+        on a validation record (:func:`choose_by_evidence`'s ``sums_model``; empty without it).
     """
 
     chosen: Preprocessing
     best: Preprocessing
+    training_sums: tuple[tuple[Preprocessing, NormalEquations], ...] = field(default=(), repr=False, compare=False)
 
 
 @dataclass(frozen=True)
@@ -148,21 +153,29 @@ class HeldOutScore:
         if int(self.max_rows) != self.max_rows or self.max_rows < 10 * self.folds:
             raise ValueError(f"max_rows must be an integer of at least {10 * self.folds}, got {self.max_rows}")
 
-    def __call__(self, train: Sequence[Measurements], preprocessing: Preprocessing) -> CandidateEvidence:
-        """The candidate's held-out MSE per channel and its score (``inf`` with the reason when it cannot run)."""
+    def __call__(self, train: Sequence[Measurements], preprocessing: Preprocessing,
+                 sums_model: IdentificationModel | None = None
+                 ) -> CandidateEvidence | tuple[CandidateEvidence, NormalEquations | None]:
+        """The candidate's held-out MSE per channel and its score (``inf`` with the reason when it cannot run);
+        with ``sums_model``, also the training window as the candidate prepared it summed for that model
+        (:func:`training_sums`: what the choice on a validation record fits, made here from the same preparation
+        rather than preparing the record again there)."""
         started = time.perf_counter()
         try:
-            recorded = prepare(train, preprocessing, role="training data").as_recorded
+            prepared = prepare(train, preprocessing, role="training data")
         except (SegmentTooShortForFilterError, ValueError) as error:
-            return CandidateEvidence(preprocessing.without_evidence(), float("inf"), {}, str(error),
-                                     time.perf_counter() - started)
+            failed = CandidateEvidence(preprocessing.without_evidence(), float("inf"), {}, str(error),
+                                       time.perf_counter() - started)
+            return failed if sums_model is None else (failed, None)
+        recorded = prepared.as_recorded
         kept = thinned(recorded, self.max_rows)
         problem = stack(self.model, kept)
         Y = np.concatenate([problem.Y, self.friction_columns(kept, problem.channels)], axis=2)
         mse = self.held_out_mse(Y, problem.y)
-        return CandidateEvidence(preprocessing.without_evidence(), geometric_mean(mse),
-                                 dict(zip(problem.channels, map(float, mse))), None, time.perf_counter() - started,
-                                 recorded.n_samples)
+        evidence = CandidateEvidence(preprocessing.without_evidence(), geometric_mean(mse),
+                                     dict(zip(problem.channels, map(float, mse))), None, time.perf_counter() - started,
+                                     recorded.n_samples)
+        return evidence if sums_model is None else (evidence, training_sums(sums_model, prepared))
 
     def held_out_mse(self, Y: NDArray[np.float64], y: NDArray[np.float64]) -> NDArray[np.float64]:
         """Per channel, the mean squared error of each block predicted from the others.
@@ -238,6 +251,16 @@ class HeldOutScore:
 
 
 Family = Literal["fourier", "butterworth"]
+
+
+def training_sums(model: IdentificationModel, prepared: Measurements) -> NormalEquations | None:
+    """A training record as a candidate prepared it, summed for ``model``'s unconstrained fits (the TSQR factors and
+    powers, no Gram sums: :func:`~estimation.estimators.normal_equations.accumulate`), or ``None`` when it cannot
+    be (the choice on a validation record then prepares it again and says why)."""
+    try:
+        return accumulate(model, concatenate(prepared), gram=False)
+    except (ValueError, np.linalg.LinAlgError):
+        return None
 
 
 def joint_speeds(measurements: Measurements) -> NDArray[np.float64]:
@@ -401,6 +424,7 @@ def choose_by_evidence(
     jobs: int | None = None,
     held_out: Sequence[Measurements] = (),
     velocity_variants: bool = True,
+    sums_model: IdentificationModel | None = None,
 ) -> PreprocessingChoice:
     """The preprocessing of ``train`` for ``model``, chosen by held-out error (module docstring).
 
@@ -413,7 +437,9 @@ def choose_by_evidence(
     already made may be given: a streamed record's). ``held_out``: the segments of the validation and test
     records, which every candidate must be able to prepare (:func:`candidates`); they are not scored.
     ``velocity_variants``: with a logged ``dq``, filters with ``dq`` from the positions are candidates too (the
-    streamed chunks filter the logged velocity only).
+    streamed chunks filter the logged velocity only). ``sums_model``: each candidate's training window, as it
+    prepared it, also summed for that model (:attr:`PreprocessingChoice.training_sums`: the choice on a validation
+    record fits them, and does not prepare the record again).
 
     Warns
     -----
@@ -439,8 +465,13 @@ def choose_by_evidence(
                                          held_out=tuple(held_out), velocity_variants=velocity_variants)
              if plan.method in families or plan in (rule, given)]
     started = time.perf_counter()
-    scored = run_tasks([functools.partial(score, segments, plan) for plan in plans],
+    extra = {} if sums_model is None else {"sums_model": sums_model}
+    scored = run_tasks([functools.partial(score, segments, plan, **extra) for plan in plans],
                        worker_count(jobs, len(plans), min_tasks=MIN_PARALLEL_SCORES))
+    sums = ()
+    if sums_model is not None:
+        sums = tuple((plan.without_evidence(), summed) for plan, (_, summed) in zip(plans, scored) if summed is not None)
+        scored = [item for item, _ in scored]
     evidence = tuple(sorted(on_common_samples(scored), key=lambda item: (item.score, item.preprocessing.describe())))
     best = preferred(evidence)
     chosen = best if given is None else given
@@ -456,7 +487,7 @@ def choose_by_evidence(
         warn_if_clearly_better(attached)
     else:
         say_what_was_chosen(attached, segments)
-    return PreprocessingChoice(attached, best)
+    return PreprocessingChoice(attached, best, sums)
 
 
 def choose_on_repeat(chosen: Preprocessing, model: IdentificationModel, train: Sequence[Measurements],

@@ -56,7 +56,7 @@ import functools
 import hashlib
 import time
 import warnings
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -69,7 +69,7 @@ from dynamics.runtime.progress import SECONDS as PROGRESS_SECONDS
 from dynamics.runtime.progress import report
 from dynamics.runtime.threads import single_threaded_blas
 from estimation.data.segments import concatenate
-from estimation.estimators.normal_equations import DEFAULT_CHUNK_SIZE, accumulate
+from estimation.estimators.normal_equations import DEFAULT_CHUNK_SIZE, NormalEquations, accumulate
 from estimation.estimators.summed_least_squares import SummedLeastSquares
 from estimation.identification.preprocessing_choice import (
     MIN_PARALLEL_SCORES,
@@ -88,7 +88,7 @@ from estimation.preprocessing.plan import (
     prepare,
 )
 
-__all__ = ["FITS", "TIE_DIGITS", "ValidationScore", "choose_on_validation", "chooses_on_validation",
+__all__ = ["FITS", "TIE_DIGITS", "ValidationScore", "another_motion", "choose_on_validation", "chooses_on_validation",
            "on_validation"]
 
 #: the unconstrained fits a candidate may be scored with, in the order ties between them are broken
@@ -124,18 +124,22 @@ class ValidationScore:
 
     @single_threaded_blas()  # tall thin least squares: threaded BLAS only loses (dynamics.runtime.threads)
     def __call__(self, train: Sequence[Measurements], validation: Sequence[Measurements],
-                 preprocessing: Preprocessing) -> tuple[ValidationEvidence, str]:
-        """The candidate's evidence and a digest of the recorded validation time stamps it was scored on."""
+                 preprocessing: Preprocessing, sums: NormalEquations | None = None) -> tuple[ValidationEvidence, str]:
+        """The candidate's evidence and a digest of the recorded validation time stamps it was scored on.
+        ``sums``: ``train`` as the candidate prepares it, already summed for this model
+        (:func:`~estimation.identification.preprocessing_choice.training_sums`, by the blocked cross-validation
+        that prepared it): the same sums, not made again."""
         started = time.perf_counter()
         plan = preprocessing.without_evidence()
         try:
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")  # said once, for the choice, when the records are prepared again
-                prepared_train = prepare(train, plan, role="training data")
+                prepared_train = prepare(train, plan, role="training data") if sums is None else None
                 prepared_validation = prepare(validation, plan, role="validation data")
-                # the fits from sums of the regressor made a chunk at a time (the same estimators, as accurate as a
-                # QR of the whole regressor): memory stays that of a chunk, whatever the window (issue 33)
-                sums = accumulate(self.model, concatenate(prepared_train), gram=False)  # the fits use the factors
+                if sums is None:
+                    # the fits from sums of the regressor made a chunk at a time (the same estimators, as accurate as
+                    # a QR of the whole regressor): memory stays that of a chunk, whatever the window (issue 33)
+                    sums = accumulate(self.model, concatenate(prepared_train), gram=False)  # the fits use the factors
                 del prepared_train
                 estimates = {fit: SummedLeastSquares(method=fit).fit(sums).estimate_.values
                              for fit in FITS if fit in self.fits}
@@ -202,13 +206,16 @@ def tie_key(plan: Preprocessing) -> tuple:
 
 def choose_on_validation(model: IdentificationModel, train: Sequence[Measurements],
                          validation: Sequence[Measurements], plans: Sequence[Preprocessing], *,
-                         fits: tuple[str, ...] = FITS, jobs: int | None = None
+                         fits: tuple[str, ...] = FITS, jobs: int | None = None,
+                         training_sums: Mapping[Preprocessing, NormalEquations] | None = None
                          ) -> tuple[Preprocessing | None, tuple[ValidationEvidence, ...]]:
     """The candidate of the smallest validation score and every candidate's evidence, best first (module
     docstring); ``None`` when no candidate could be scored. ``train``, ``validation``: the segments as read.
     ``jobs``: processes that score the candidates side by side (as
     :func:`~estimation.identification.preprocessing_choice.choose_by_evidence`; the same choice whatever the
-    number)."""
+    number). ``training_sums``: ``train`` as a candidate prepares it, summed for ``model`` by the blocked
+    cross-validation that prepared it (:attr:`~estimation.identification.preprocessing_choice.PreprocessingChoice.training_sums`):
+    those candidates' fits are made from them, the same sums, without preparing ``train`` again."""
     score = ValidationScore(model, tuple(fits))
     unique = list(dict.fromkeys(plan.without_evidence() for plan in plans))
     started = time.perf_counter()
@@ -217,7 +224,10 @@ def choose_on_validation(model: IdentificationModel, train: Sequence[Measurement
                   + 2 * 8 * DEFAULT_CHUNK_SIZE * model.n_channels * model.n_base)  # a chunk's regressor, its QR work
     workers = min(worker_count(jobs, len(unique), min_tasks=MIN_PARALLEL_SCORES),
                   max(1, int(available_memory() // (2 * task_bytes))))  # the same choice whatever the number
-    scored = run_tasks([functools.partial(score, tuple(train), tuple(validation), plan) for plan in unique], workers)
+    given = {} if training_sums is None else training_sums
+    scored = run_tasks([functools.partial(score, tuple(train), tuple(validation), plan,
+                                          **({"sums": given[plan]} if plan in given else {})) for plan in unique],
+                       workers)
     evidence = tuple(sorted(rescored(on_same_samples(scored), model.channels),
                             key=lambda item: (item.score, tie_key(item.preprocessing))))
     finite = [item for item in evidence if np.isfinite(item.score)]
@@ -239,6 +249,15 @@ def chooses_on_validation(chosen: Preprocessing, train: Sequence[Measurements],
     motion (neither a repeat of it nor a record at rest: :func:`~estimation.identification.repeated_motion.still_motion`)."""
     if not validation or chosen.evidence is None or chosen.evidence.selection != "held-out":
         return False
+    return another_motion(train, validation)
+
+
+def another_motion(train: Sequence[Measurements], validation: Sequence[Measurements]) -> bool:
+    """Whether the validation record holds another motion than the training record: neither a repeat of it
+    (:func:`~estimation.identification.repeated_motion.repeated_motion` above
+    :data:`~estimation.identification.repeated_motion.REPEAT_FRACTION`) nor a record at rest
+    (:func:`~estimation.identification.repeated_motion.still_motion`); ``train``, ``validation``: the windows the
+    choice scores (:func:`on_validation`)."""
     train_record, validation_record = concatenate(train), concatenate(validation)
     return (repeated_motion(train_record, validation_record) > REPEAT_FRACTION
             and not still_motion(train_record, validation_record))
@@ -252,7 +271,8 @@ def window(segment: Measurements) -> Measurements:
 
 def on_validation(chosen: Preprocessing, model: IdentificationModel, train: Sequence[Measurements],
                   validation: Sequence[Measurements], *, fits: tuple[str, ...] = FITS,
-                  jobs: int | None = None) -> Preprocessing:
+                  jobs: int | None = None,
+                  training_sums: Sequence[tuple[Preprocessing, NormalEquations]] = ()) -> Preprocessing:
     """``chosen`` (the training record's choice, with its evidence) chosen again among the same candidates on
     the validation record when that is another motion (:func:`chooses_on_validation`), else ``chosen`` as it is.
     Scored on windows, as the training record's choice is: the training record's
@@ -261,7 +281,9 @@ def on_validation(chosen: Preprocessing, model: IdentificationModel, train: Sequ
     first :data:`~estimation.identification.preprocessing_choice.SCORED_SAMPLES` samples (:func:`window`), so
     that memory stays bounded and the streamed path, which reads those windows, chooses alike.
     The plan returned carries both: ``evidence.candidates`` (the training record's scores) and
-    ``evidence.validation`` (the validation scores), with ``evidence.selection`` ``"validation"``."""
+    ``evidence.validation`` (the validation scores), with ``evidence.selection`` ``"validation"``.
+    ``training_sums``: see :func:`choose_on_validation` (:attr:`~estimation.identification.preprocessing_choice.PreprocessingChoice.training_sums`
+    of the choice that made ``chosen``)."""
     train, validation = scored_window(train), [window(segment) for segment in validation]
     if chosen.evidence is None or not validation or chosen.evidence.selection != "held-out":
         return chosen
@@ -270,7 +292,8 @@ def on_validation(chosen: Preprocessing, model: IdentificationModel, train: Sequ
             return chosen
         return choose_on_repeat(chosen, model, train, validation, jobs=jobs)  # a repeat of the training motion
     plans = [item.preprocessing for item in chosen.evidence.candidates]
-    best, evidence = choose_on_validation(model, train, validation, plans, fits=fits, jobs=jobs)
+    best, evidence = choose_on_validation(model, train, validation, plans, fits=fits, jobs=jobs,
+                                          training_sums=dict(training_sums))
     if best is None:
         return chosen
     return replace(best, evidence=Evidence("validation", chosen.evidence.folds, chosen.evidence.candidates, evidence,

@@ -97,16 +97,26 @@ class ShapedFit:
         theta[list(self.replaced)] = self.fit.theta[len(self.kept):]
         return theta
 
-    def predict(self, measurements: Measurements, base: np.ndarray | None = None) -> np.ndarray:
-        """``(N, m)`` predicted channels at the fitted shapes (``base``: see :meth:`regressor`)."""
-        Y = self.regressor(measurements, base)
+    def predict(self, measurements: Measurements, base: np.ndarray | None = None, *,
+                overwrite: bool = False) -> np.ndarray:
+        """``(N, m)`` predicted channels at the fitted shapes (``base``, ``overwrite``: see :meth:`regressor`)."""
+        Y = self.regressor(measurements, base, overwrite=overwrite)
         return Y @ self.theta_base()
 
-    def regressor(self, measurements: Measurements, base: np.ndarray | None = None) -> np.ndarray:
+    def regressor(self, measurements: Measurements, base: np.ndarray | None = None, *,
+                  overwrite: bool = False) -> np.ndarray:
         """The base regressor ``(N, m, r)`` with the shaped columns at the fitted shapes; ``base``: the model's base
-        regressor along ``measurements`` when the caller has it (copied, not evaluated again)."""
-        Y = np.array(self.model.evaluate_base(measurements.q, measurements.dq, measurements.ddq) if base is None
-                     else base)
+        regressor along ``measurements`` when the caller has it (copied, not evaluated again). ``overwrite``: the
+        shaped columns written into ``base`` itself when it is a writable C-ordered float array (the same values as
+        the copy: only the shaped columns change, each call writes them all), which spares a copy of the whole
+        regressor each round of :func:`fit_shaped_model`."""
+        if base is None:  # a new array of its own, written in place
+            Y = self.model.evaluate_base(measurements.q, measurements.dq, measurements.ddq)
+        elif overwrite and isinstance(base, np.ndarray) and base.dtype == np.float64 and base.flags.c_contiguous \
+                and base.flags.writeable:
+            Y = base
+        else:
+            Y = np.array(base)
         states = States(measurements.q, measurements.dq, measurements.ddq)
         start, position = 0, 0
         for block in self.blocks:
@@ -148,7 +158,7 @@ def fit_shaped_model(model: IdentificationModel, train: Measurements, *, weighte
     kept = [index for index in range(model.n_base) if index not in set(replaced)]
     Y = model.evaluate_base(train.q, train.dq, train.ddq)
     y = train.channels(model.channels)
-    fixed = FixedPart.from_arrays(np.ascontiguousarray(Y[:, :, kept]), y)
+    fixed = FixedPart.from_arrays(np.take(Y, kept, axis=2), y)  # C-ordered (a fancy index's copy is strided)
     states = States(train.q, train.dq, train.ddq)
     weights = np.ones(model.n_channels)
     segments = [(piece.start, piece.stop) for piece in segment_slices(train)]
@@ -165,7 +175,7 @@ def fit_shaped_model(model: IdentificationModel, train: Measurements, *, weighte
         fit = fit_shapes(fixed, blocks, states, weights, starts=start_points, max_iter=60 if search else 0,
                          covariance=settling, segments=segments)
         shaped = ShapedFit(model, tuple(blocks), tuple(kept), tuple(replaced), fit, weights)
-        residual = y - shaped.predict(train, Y)
+        residual = y - shaped.predict(train, Y, overwrite=True)  # Y's shaped columns only are rewritten
         variance = np.maximum(channel_variance(residual, model.n_base + len(fit.names)), 1e-14 * np.mean(y**2, axis=0))
         if not weighted:
             break
@@ -178,7 +188,7 @@ def fit_shaped_model(model: IdentificationModel, train: Measurements, *, weighte
         fit = fit_shapes(fixed, blocks, states, weights, starts=fit.shape[None, :], max_iter=60 if search else 0,
                          covariance=covariance, segments=segments)
     shaped = ShapedFit(model, tuple(blocks), tuple(kept), tuple(replaced), fit, weights)
-    residual = y - shaped.predict(train, Y)
+    residual = y - shaped.predict(train, Y, overwrite=True)
     order = list(kept) + list(replaced)
     n_linear = len(order)
     cov = np.empty((model.n_base, model.n_base))
