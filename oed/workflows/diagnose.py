@@ -37,7 +37,7 @@ from estimation.diagnosis.report import diagnosis_report, plot_residuals, plot_t
 from estimation.diagnosis.results import Diagnosis, runner_up_line
 from estimation.diagnosis.search import default_candidates
 from estimation.diagnosis.search import diagnose as diagnose_model
-from estimation.diagnosis.untouched import UntouchedErrors, recorded_comparison, untouched_errors
+from estimation.diagnosis.untouched import UntouchedErrors, recorded_comparison, recorded_mse, untouched_errors
 from estimation.identification.prepared import InMemoryBudget, PreparedRecords, prepare_records
 from estimation.identification.repeated_motion import repeated_motion_note
 from estimation.preprocessing.delay import DelayBounds, split_delay
@@ -414,8 +414,8 @@ def diagnose_document(args: DiagnoseOptions, diagnosed: Diagnosed) -> tuple[dict
     document = diagnosis.to_dict()
     records, selection = diagnosed.records, diagnosed.selection
     if records is not None:  # in memory
-        # the unconstrained fit behind the answer: the adopted model, or on a repeat of the training motion the
-        # adopted model with the plain law completed (:func:`diagnosis_selection`)
+        # the unconstrained fit behind the answer: the adopted model, or the adopted model with the plain law
+        # completed (:func:`completed_selection`)
         answered = selection.unconstrained
         finish_document(document, answered, trivial=None, warnings=diagnosed.notes, rest=rest_records(records),
                         transmission=diagnosed.transmission, warnings_key=("warnings", "after"))
@@ -429,8 +429,11 @@ def diagnose_document(args: DiagnoseOptions, diagnosed: Diagnosed) -> tuple[dict
                 {"mse": consistent.compare(records.test.measurements).mse}
         document["model_selection"] = selection.to_dict()
         if document["test"] is not None:  # the chosen model's error on the test record (what `oed predict` gives)
-            document["test"]["chosen"] = {"name": selection.chosen, "mse": dict(
-                untouched.after if selection.chosen != "consistent" else document["consistent"]["test"]["mse"])}
+            # the adopted model's errors are the diagnosis's own; the plain law completed (completed_selection), its
+            # own prediction of the record
+            mse = document["consistent"]["test"]["mse"] if selection.chosen == "consistent" else untouched.after \
+                if answered is diagnosis.after else recorded_mse(answered, records.test.measurements)
+            document["test"]["chosen"] = {"name": selection.chosen, "mse": dict(mse)}
         files = add_model_file(document, answered, args, records.preprocessing, diagnosed.transmission,
                                consistent=consistent, selection=selection)
         chosen = ChosenModel.of(selection)  # its errors beside the diagnosis's before and after
@@ -510,42 +513,59 @@ def summed_answer(document: dict[str, Any], args: DiagnoseOptions, diagnosed: Di
     return (*files, *(text for text in chosen.warnings if text not in diagnosed.messages))
 
 
-def diagnosis_selection(args: DiagnoseOptions, diagnosis: Diagnosis, records: PreparedRecords) -> ModelSelection:
+def diagnosis_selection(args: DiagnoseOptions, diagnosis: Diagnosis, records: PreparedRecords, *,
+                        complete: bool = True) -> ModelSelection:
     """The default answer (:func:`estimation.consistent.model_selection.select_refit`): the adopted model as fitted
     (unconstrained) or its consistent refit (the description's bodies as prior, its weight chosen on the validation
     record; shaped laws and a delay at their fitted values), by the validation error when the validation record is
     another motion, else the consistent refit; ``--consistent`` forces it. A refit that fails is no candidate.
 
-    On a validation record that repeats the training motion, nothing measured on another motion what the search left
-    out either (a law refused by the Wald test at the search's Bonferroni threshold although it lowered the
-    validation error): the adopted model completed with the plain law on the joints the diagnosis left without one
-    (:func:`estimation.diagnosis.plain_laws.plain_completion`; not named as findings) is refitted alike, and its
-    consistent refit is the answer when it predicts the validation record better than the adopted model's
-    consistent refit by the criterion of the default answer (the adopted model kept on a tie), as
-    :func:`judged_swap` judges a plain-law swap; the selection's reason says which and the two scores."""
+    ``complete``: then :func:`completed_selection` (the plain law completed where the diagnosis named none) judges
+    the answer against the adopted model's; :func:`judged_swap` completes only the model it keeps."""
     train, validation = records.train.measurements, records.validation.measurements
     settings = consistent_settings(args, diagnosis.after.model.robot)
     selection = select_refit(diagnosis.after, train, validation, given="consistent" if args.consistent else None,
                              consistent=settings, note="with the diagnosed effects")
-    if args.consistent or selection.selection != "repeated-motion" or selection.chosen != "consistent":
+    return completed_selection(args, diagnosis, records, selection) if complete else selection
+
+
+def completed_selection(args: DiagnoseOptions, diagnosis: Diagnosis, records: PreparedRecords,
+                        selection: ModelSelection) -> ModelSelection:
+    """``selection`` (the default answer of the adopted model, :func:`diagnosis_selection`), or the same choice made
+    for the adopted model completed with the plain law on the joints the diagnosis left without one
+    (:func:`estimation.diagnosis.plain_laws.plain_completion`; not named as findings) when that answer predicts
+    the validation record better by the criterion of the default answer (the adopted model kept on a tie), as
+    :func:`judged_swap` judges a plain-law swap; the selection's reason says which and the two scores.
+
+    The search's refusals (a law refused by the Wald test at the search's Bonferroni threshold although it lowered
+    the validation error, or never proposed beside a stronger law on another joint) leave a joint without the plain
+    law's terms that a plain least-squares fit holds. On a validation record of another motion the two answers
+    (each the better of as fitted and consistent refit) are compared there; on a repeat of the training motion
+    (``repeated-motion``) only the two consistent refits, since nothing measured the extrapolation. A validation
+    record at rest, ``--consistent``, or a model that needs nothing added keep ``selection``."""
+    if args.consistent or selection.selection not in ("repeated-motion", "validation"):
         return selection
+    repeat = selection.selection == "repeated-motion"
+    if repeat and selection.chosen != "consistent":
+        return selection
+    train, validation = records.train.measurements, records.validation.measurements
     completion = plain_completion(diagnosis.after, train, validation)
     if completion is None:
         return selection
     completed, added = completion
     laws = ", ".join(f"{effect.name} on {completed.model.channels[effect.joints[0]]}" for effect in added)
-    other = select_refit(completed, train, validation, consistent=settings,
+    other = select_refit(completed, train, validation, consistent=consistent_settings(args, completed.model.robot),
                          note=f"with the diagnosed effects and the plain law where the diagnosis named none ({laws}; "
                               "not findings)")
     answers = {"diagnosed": selection.chosen_candidate, "completed": other.chosen_candidate}
-    if other.chosen != "consistent" or any(answer.validation is None for answer in answers.values()):
+    if (repeat and other.chosen != "consistent") or any(answer.validation is None for answer in answers.values()):
         return selection
     scored = relative_scores({name: answer.validation.mse for name, answer in answers.items()},
                              answers["diagnosed"].validation.channels)
     taken = scored["completed"] < scored["diagnosed"]
-    why = (f"; the plain law completed ({laws}): its consistent refit validates {scored['completed']:.4g} against "
-           f"{scored['diagnosed']:.4g} for the diagnosed model's (the mean relative validation error), "
-           + ("taken" if taken else "not taken"))
+    why = (f"; the plain law completed ({laws}): its answer ({other.chosen}) validates {scored['completed']:.4g} "
+           f"against {scored['diagnosed']:.4g} for the diagnosed model's ({selection.chosen}; the mean relative "
+           "validation error), " + ("taken" if taken else "not taken"))
     return replace(other, reason=other.reason + why) if taken else replace(selection, reason=selection.reason + why)
 
 
@@ -563,15 +583,15 @@ def judged_swap(args: DiagnoseOptions, diagnosis: Diagnosis,
     refit more than the diagnosis alone, and only when a swap was refused. The third item: a note saying what was
     compared and chosen (``None`` when nothing was)."""
     kept = replace(diagnosis, swap=None)
-    selection = diagnosis_selection(args, kept, records)
+    selection = diagnosis_selection(args, kept, records, complete=False)
     if selection.selection != "validation" or args.consistent:
-        return kept, selection, None
+        return kept, completed_selection(args, kept, records, selection), None
     swapped = replace(diagnosis.swap, swap=None, runner_up=diagnosis.runner_up,
                       runner_up_reason=diagnosis.runner_up_reason)
-    other = diagnosis_selection(args, swapped, records)
+    other = diagnosis_selection(args, swapped, records, complete=False)
     answers = {"diagnosed": selection.chosen_candidate, "swap": other.chosen_candidate}
     if any(answer.fit is None or answer.validation is None for answer in answers.values()):
-        return kept, selection, None
+        return kept, completed_selection(args, kept, records, selection), None
     channels = answers["diagnosed"].validation.channels
     scored = relative_scores({name: answer.validation.mse for name, answer in answers.items()}, channels)
     adopted = scored["swap"] < scored["diagnosed"]
@@ -579,7 +599,9 @@ def judged_swap(args: DiagnoseOptions, diagnosis: Diagnosis,
             f"model with the plain law ({other.chosen}) {scored['swap']:.4g} against the diagnosed model "
             f"({selection.chosen}) {scored['diagnosed']:.4g} on the validation record (relative error): "
             + ("adopted" if adopted else "refused"))
-    return (swapped, other, note) if adopted else (kept, selection, note)
+    if adopted:
+        return swapped, completed_selection(args, swapped, records, other), note
+    return kept, completed_selection(args, kept, records, selection), note
 
 
 def chosen_lines(validation: dict[str, Any]) -> list[str]:
