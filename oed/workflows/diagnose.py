@@ -100,6 +100,10 @@ __all__ = ["IN_MEMORY", "DiagnoseOptions", "DiagnoseRun", "diagnose", "report_fi
 #: what the in-memory diagnosis holds at its peak: bytes a sample, channel and base parameter (measured: 2.8 GB
 #: for 100 000 samples of the 7-joint KUKA, m r = 350, i.e. about 75; a lower bound is used)
 IN_MEMORY = InMemoryBudget(64, "diagnosing", "use --chunk-size to stream them in bounded memory")
+#: on a validation record of another motion, the plain law completed is taken only when its answer's validation score
+#: is below the adopted model's by more than this fraction: within it is a tie, kept by the model with fewer laws (a
+#: truth without the laws gives the completed model a few tenths of a percent by chance)
+COMPLETION_TOLERANCE = 0.01
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -534,7 +538,8 @@ def completed_selection(args: DiagnoseOptions, diagnosis: Diagnosis, records: Pr
     """``selection`` (the default answer of the adopted model, :func:`diagnosis_selection`), or the same choice made
     for the adopted model completed with the plain law on the joints the diagnosis left without one
     (:func:`estimation.diagnosis.plain_laws.plain_completion`; not named as findings) when that answer predicts
-    the validation record better by the criterion of the default answer (the adopted model kept on a tie), as
+    the validation record better by the criterion of the default answer (the adopted model kept on a tie; on
+    another motion, a score within :data:`COMPLETION_TOLERANCE` of the adopted model's is a tie), as
     :func:`judged_swap` judges a plain-law swap; the selection's reason says which and the two scores.
 
     The search's refusals (a law refused by the Wald test at the search's Bonferroni threshold although it lowered
@@ -575,7 +580,7 @@ def completed_selection(args: DiagnoseOptions, diagnosis: Diagnosis, records: Pr
                                                 for c in other.candidates))
     scored = relative_scores({name: answer.validation.mse for name, answer in answers.items()},
                              answers["diagnosed"].validation.channels)
-    taken = scored["completed"] < scored["diagnosed"]
+    taken = (1.0 + (0.0 if repeat else COMPLETION_TOLERANCE)) * scored["completed"] < scored["diagnosed"]
     why = (f"; the plain law completed ({laws}): its answer ({other.chosen}) validates {scored['completed']:.4g} "
            f"against {scored['diagnosed']:.4g} for the diagnosed model's ({selection.chosen}; the mean relative "
            "validation error" + (f"; its consistent refit at the adopted model's prior weight "
