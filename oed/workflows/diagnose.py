@@ -37,7 +37,7 @@ from estimation.diagnosis.report import diagnosis_report, plot_residuals, plot_t
 from estimation.diagnosis.results import Diagnosis, SummedFit, runner_up_line
 from estimation.diagnosis.search import default_candidates
 from estimation.diagnosis.search import diagnose as diagnose_model
-from estimation.diagnosis.untouched import UntouchedErrors, recorded_comparison, untouched_errors
+from estimation.diagnosis.untouched import UntouchedErrors, recorded_comparison, recorded_mse, untouched_errors
 from estimation.identification.prepared import InMemoryBudget, PreparedRecords, prepare_records
 from estimation.identification.repeated_motion import repeat_note, repeated_motion_note
 from estimation.preprocessing.delay import DelayBounds, split_delay
@@ -102,6 +102,10 @@ __all__ = ["IN_MEMORY", "DiagnoseOptions", "DiagnoseRun", "diagnose", "report_fi
 #: what the in-memory diagnosis holds at its peak: bytes a sample, channel and base parameter (measured: 2.8 GB
 #: for 100 000 samples of the 7-joint KUKA, m r = 350, i.e. about 75; a lower bound is used)
 IN_MEMORY = InMemoryBudget(64, "diagnosing", "use --chunk-size to stream them in bounded memory")
+#: on a validation record of another motion, the plain law completed is taken only when its answer's validation score
+#: is below the adopted model's by more than this fraction: within it is a tie, kept by the model with fewer laws (a
+#: truth without the laws gives the completed model a few tenths of a percent by chance)
+COMPLETION_TOLERANCE = 0.01
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -417,8 +421,8 @@ def diagnose_document(args: DiagnoseOptions, diagnosed: Diagnosed) -> tuple[dict
     document = diagnosis.to_dict()
     records, selection = diagnosed.records, diagnosed.selection
     if records is not None:  # in memory
-        # the unconstrained fit behind the answer: the adopted model, or on a repeat of the training motion the
-        # adopted model with the plain law completed (:func:`diagnosis_selection`)
+        # the unconstrained fit behind the answer: the adopted model, or the adopted model with the plain law
+        # completed (:func:`completed_selection`)
         answered = selection.unconstrained
         finish_document(document, answered, trivial=None, warnings=diagnosed.notes, rest=rest_records(records),
                         transmission=diagnosed.transmission, warnings_key=("warnings", "after"))
@@ -432,8 +436,11 @@ def diagnose_document(args: DiagnoseOptions, diagnosed: Diagnosed) -> tuple[dict
                 {"mse": consistent.compare(records.test.measurements).mse}
         document["model_selection"] = selection.to_dict()
         if document["test"] is not None:  # the chosen model's error on the test record (what `oed predict` gives)
-            document["test"]["chosen"] = {"name": selection.chosen, "mse": dict(
-                untouched.after if selection.chosen != "consistent" else document["consistent"]["test"]["mse"])}
+            # the adopted model's errors are the diagnosis's own; the plain law completed (completed_selection), its
+            # own prediction of the record
+            mse = document["consistent"]["test"]["mse"] if selection.chosen == "consistent" else untouched.after \
+                if answered is diagnosis.after else recorded_mse(answered, records.test.measurements)
+            document["test"]["chosen"] = {"name": selection.chosen, "mse": dict(mse)}
         files = add_model_file(document, answered, args, records.preprocessing, diagnosed.transmission,
                                consistent=consistent, selection=selection)
         chosen = ChosenModel.of(selection)  # its errors beside the diagnosis's before and after
@@ -515,32 +522,64 @@ def summed_answer(document: dict[str, Any], args: DiagnoseOptions, diagnosed: Di
     return (*files, *(text for text in chosen.warnings if text not in diagnosed.messages))
 
 
-def diagnosis_selection(args: DiagnoseOptions, diagnosis: Diagnosis, records: PreparedRecords) -> ModelSelection:
+def diagnosis_selection(args: DiagnoseOptions, diagnosis: Diagnosis, records: PreparedRecords, *,
+                        complete: bool = True) -> ModelSelection:
     """The default answer (:func:`estimation.consistent.model_selection.select_refit`): the adopted model as fitted
     (unconstrained) or its consistent refit (the description's bodies as prior, its weight chosen on the validation
     record; shaped laws and a delay at their fitted values), by the validation error when the validation record is
     another motion, else the consistent refit; ``--consistent`` forces it. A refit that fails is no candidate.
 
-    On a validation record that repeats the training motion, nothing measured on another motion what the search left
-    out either (a law refused by the Wald test at the search's Bonferroni threshold although it lowered the
-    validation error): the adopted model completed with the plain law on the joints the diagnosis left without one
-    (:func:`estimation.diagnosis.plain_laws.plain_completion`; not named as findings) is refitted alike, and its
-    consistent refit is the answer when it predicts the validation record better than the adopted model's
-    consistent refit by the criterion of the default answer (the adopted model kept on a tie), as
-    :func:`judged_swap` judges a plain-law swap; the selection's reason says which and the two scores."""
+    ``complete``: then :func:`completed_selection` (the plain law completed where the diagnosis named none) judges
+    the answer against the adopted model's; :func:`judged_swap` completes only the model it keeps."""
     train, validation = records.train.measurements, records.validation.measurements
     settings = consistent_settings(args, diagnosis.after.model.robot)
     selection = select_refit(diagnosis.after, train, validation, given="consistent" if args.consistent else None,
                              consistent=settings, note="with the diagnosed effects")
-    if args.consistent or selection.selection != "repeated-motion" or selection.chosen != "consistent":
+    return completed_selection(args, diagnosis, records, selection) if complete else selection
+
+
+def completed_selection(args: DiagnoseOptions, diagnosis: Diagnosis, records: PreparedRecords,
+                        selection: ModelSelection) -> ModelSelection:
+    """``selection`` (the default answer of the adopted model, :func:`diagnosis_selection`), or the same choice made
+    for the adopted model completed with the plain law on the joints the diagnosis left without one
+    (:func:`estimation.diagnosis.plain_laws.plain_completion`; not named as findings) when that answer predicts
+    the validation record better by the criterion of the default answer (the adopted model kept on a tie; on
+    another motion, a score within :data:`COMPLETION_TOLERANCE` of the adopted model's is a tie), as
+    :func:`judged_swap` judges a plain-law swap; the selection's reason says which and the two scores.
+
+    The search's refusals (a law refused by the Wald test at the search's Bonferroni threshold although it lowered
+    the validation error, or never proposed beside a stronger law on another joint) leave a joint without the plain
+    law's terms that a plain least-squares fit holds. On a validation record of another motion the two answers
+    (each the better of as fitted and consistent refit) are compared there; on a repeat of the training motion
+    (``repeated-motion``) only the two consistent refits, since nothing measured the extrapolation. A validation
+    record at rest, ``--consistent``, or a model that needs nothing added keep ``selection``.
+
+    On another motion the completed model's consistent refit takes the prior weight the validation record chose for
+    the adopted model's (its search kept in the result): the laws are compared, and the weight search is not made
+    again (five refits of the Panda's 7 joints, about 1 s); on a repeat the weight is searched again."""
+    if args.consistent or selection.selection not in ("repeated-motion", "validation"):
         return selection
+    repeat = selection.selection == "repeated-motion"
+    if repeat and selection.chosen != "consistent":
+        return selection
+    train, validation = records.train.measurements, records.validation.measurements
     completion = plain_completion(diagnosis.after, train, validation)
     if completion is None:
         return selection
     completed, added = completion
     laws = completed_laws(completed.model, added)
+    settings, adopted = consistent_settings(args, completed.model.robot), selection.consistent
+    held = not repeat and adopted is not None and settings.prior_weight in (None, "auto")
+    if held:  # the laws are compared, not the prior's weight: the one the validation record chose for the adopted model
+        settings = replace(settings, prior_weight=float(adopted.estimate.prior_weight))
     other = select_refit(completed, train, validation, consistent=settings, note=completed_note(laws))
-    return completed_answer(selection, other, laws)
+    if held and other.consistent is not None:
+        refit = replace(other.consistent, prior_weight_choice=adopted.prior_weight_choice,
+                        prior_weight_search=adopted.prior_weight_search)  # chosen, held out, for the adopted model
+        other = replace(other, candidates=tuple(replace(c, fit=refit) if c.name == "consistent" else c
+                                                for c in other.candidates))
+    held_note = f"; its consistent refit at the adopted model's prior weight {settings.prior_weight:g}" if held else ""
+    return completed_answer(selection, other, laws, repeat=repeat, note=held_note)
 
 
 def completed_laws(model: IdentificationModel, added: Any) -> str:
@@ -553,20 +592,25 @@ def completed_note(laws: str) -> str:
     return f"with the diagnosed effects and the plain law where the diagnosis named none ({laws}; not findings)"
 
 
-def completed_answer(selection: ModelSelection, other: ModelSelection, laws: str) -> ModelSelection:
-    """The default answer on a repeat of the training motion (:func:`diagnosis_selection`, on both paths): the
-    completed model's selection ``other`` when its consistent refit validates better than the adopted model's
-    (``selection``) by the default answer's criterion, else ``selection``; the reason gives both scores."""
+def completed_answer(selection: ModelSelection, other: ModelSelection, laws: str, *, repeat: bool = True,
+                     note: str = "") -> ModelSelection:
+    """The default answer with the plain law completed (:func:`completed_selection`, on both paths): the completed
+    model's selection ``other`` when its answer validates better than the adopted model's (``selection``) by the
+    default answer's criterion, else ``selection``; the reason gives both scores and ``note``.
+
+    On a repeat of the training motion (``repeat``) only a consistent refit of the completed model is an answer,
+    and any lower score takes it; on another motion a score within :data:`COMPLETION_TOLERANCE` of the adopted
+    model's is a tie, which keeps it."""
     answers = {"diagnosed": selection.chosen_candidate, "completed": other.chosen_candidate}
-    if other.chosen != "consistent" or any(answer.validation is None for answer in answers.values()):
+    if (repeat and other.chosen != "consistent") or any(answer.validation is None for answer in answers.values()):
         return selection
     validation = answers["diagnosed"].validation  # a streamed fit's errors hold their channels in order
     channels = getattr(validation, "channels", None) or tuple(validation.mse)
     scored = relative_scores({name: answer.validation.mse for name, answer in answers.items()}, channels)
-    taken = scored["completed"] < scored["diagnosed"]
-    why = (f"; the plain law completed ({laws}): its consistent refit validates {scored['completed']:.4g} against "
-           f"{scored['diagnosed']:.4g} for the diagnosed model's (the mean relative validation error), "
-           + ("taken" if taken else "not taken"))
+    taken = (1.0 + (0.0 if repeat else COMPLETION_TOLERANCE)) * scored["completed"] < scored["diagnosed"]
+    why = (f"; the plain law completed ({laws}): its answer ({other.chosen}) validates {scored['completed']:.4g} "
+           f"against {scored['diagnosed']:.4g} for the diagnosed model's ({selection.chosen}; the mean relative "
+           f"validation error{note}), " + ("taken" if taken else "not taken"))
     return replace(other, reason=other.reason + why) if taken else replace(selection, reason=selection.reason + why)
 
 
@@ -584,15 +628,15 @@ def judged_swap(args: DiagnoseOptions, diagnosis: Diagnosis,
     refit more than the diagnosis alone, and only when a swap was refused. The third item: a note saying what was
     compared and chosen (``None`` when nothing was)."""
     kept = replace(diagnosis, swap=None)
-    selection = diagnosis_selection(args, kept, records)
+    selection = diagnosis_selection(args, kept, records, complete=False)
     if selection.selection != "validation" or args.consistent:
-        return kept, selection, None
+        return kept, completed_selection(args, kept, records, selection), None
     swapped = replace(diagnosis.swap, swap=None, runner_up=diagnosis.runner_up,
                       runner_up_reason=diagnosis.runner_up_reason)
-    other = diagnosis_selection(args, swapped, records)
+    other = diagnosis_selection(args, swapped, records, complete=False)
     answers = {"diagnosed": selection.chosen_candidate, "swap": other.chosen_candidate}
     if any(answer.fit is None or answer.validation is None for answer in answers.values()):
-        return kept, selection, None
+        return kept, completed_selection(args, kept, records, selection), None
     channels = answers["diagnosed"].validation.channels
     scored = relative_scores({name: answer.validation.mse for name, answer in answers.items()}, channels)
     adopted = scored["swap"] < scored["diagnosed"]
@@ -600,7 +644,9 @@ def judged_swap(args: DiagnoseOptions, diagnosis: Diagnosis,
             f"model with the plain law ({other.chosen}) {scored['swap']:.4g} against the diagnosed model "
             f"({selection.chosen}) {scored['diagnosed']:.4g} on the validation record (relative error): "
             + ("adopted" if adopted else "refused"))
-    return (swapped, other, note) if adopted else (kept, selection, note)
+    if adopted:
+        return swapped, completed_selection(args, swapped, records, other), note
+    return kept, completed_selection(args, kept, records, selection), note
 
 
 def chosen_lines(validation: dict[str, Any]) -> list[str]:
