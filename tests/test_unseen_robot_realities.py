@@ -240,7 +240,9 @@ def run_reality(case: Reality, folder: Path) -> dict:
         summary = json.loads(result.read_text())
         effects[label] = [f"{e['spec']} on {','.join(e['channels'])}" for e in summary.get("effects", [])
                           if isinstance(e, dict)]
-        selections[label] = (summary.get("model_selection") or {}).get("chosen"), summary.get("preprocessing")
+        plan = summary.get("preprocessing") or {}
+        selections[label] = ((summary.get("model_selection") or {}).get("chosen"), plan.get("method"),
+                             plan.get("cutoff_hz"), plan.get("velocity_from_positions"))
         out = folder / f"{label}_test.csv"
         code, message = quiet(["predict", "--model", str(result), "--data", str(files["test"]), "--out", str(out)])
         if code != 0:

@@ -293,8 +293,12 @@ class ButterworthDifferentiation:
         else:
             dq, ddq = spline_derivatives(q, step, 2)  # one spline of the positions for both (its derivatives)
         q, dq, ddq = q[inside], dq[inside], ddq[inside]
-        tau, wrench = (None if values is None else smooth(values)[inside] for values in (measurements.tau,
-                                                                                        measurements.wrench))
+        # the torques and wrench as recorded, not filtered: the regressor's columns are those of the filtered motion,
+        # which the filter leaves as they are where they are smooth, but not a Coulomb law's sign(dq) step, which
+        # stays sharp while a filtered torque's step is smeared over a period of the cut-off (its friction fitted
+        # low, the more so the lower the cut-off); the torques' noise is white and enters the least squares
+        # unbiased either way (the smooth columns see the same projection of it)
+        tau, wrench = measurements.tau, measurements.wrench
         metadata = dict(measurements.metadata, differentiation="butterworth", cutoff_hz=cutoff, filter_order=self.order,
                         trimmed_s=trim / rate)
         filtered = replace(measurements, q=q, dq=dq, ddq=ddq, tau=tau, wrench=wrench, metadata=metadata, recorded=None)
