@@ -10,8 +10,9 @@ Two differentiation methods, each a small frozen object with ``apply(measurement
   (the tail past the last whole period too) are kept beside the averaged ones.
 * :class:`ButterworthDifferentiation` — for any motion: zero-phase Butterworth low-pass
   (``filtfilt``) of the positions, ``dq`` and ``ddq`` the derivatives of their quintic interpolating
-  spline (:func:`spline_derivatives`), and the same filter on the torques and wrench so that both
-  sides of ``Y θ = τ`` see the same delay-free attenuation. The filter covers the whole record: each end is extended by its odd reflection
+  spline (:func:`spline_derivatives`); the torques and wrench stay as recorded, the fit's target (filtered
+  alike, a Coulomb law's step would be smeared while the regressor's ``sign(dq)`` stays sharp, its friction fitted
+  low; the smooth columns see the same projection of white noise either way). The filter covers the whole record: each end is extended by its odd reflection
   over the filter's settling time (:func:`settling_samples`), so no sample is dropped and every
   cut-off is judged on the same samples (trimming the settling instead is an option).
 
