@@ -54,7 +54,7 @@ class ResidualBand:
         step = float(np.median(np.diff(measurements.t)))
         if not step > 0:
             return None
-        rate, cutoff = 1.0 / step, float(metadata["cutoff_hz"])
+        rate, cutoff = float(f"{1.0 / step:.9g}"), float(metadata["cutoff_hz"])  # as the differentiation rounds it
         if not cutoff < 0.45 * rate:
             return None
         pieces = segment_slices(measurements)
