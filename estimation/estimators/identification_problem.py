@@ -45,9 +45,12 @@ class ResidualBand:
     @classmethod
     def of(cls, measurements: Measurements) -> ResidualBand | None:
         """The band of prepared ``measurements``: ``None`` unless a Butterworth differentiation filtered their motion
-        below their Nyquist frequency (the torques then hold nothing the motion's columns cannot)."""
+        below their Nyquist frequency and kept the torques as recorded (``torques="recorded"``; filtered alike, they
+        hold nothing the motion's columns cannot)."""
         metadata = measurements.metadata
         if metadata.get("differentiation") != "butterworth" or metadata.get("cutoff_hz") is None:
+            return None
+        if metadata.get("torques") != "recorded":  # filtered alike, the target holds nothing out of band
             return None
         if measurements.n_samples < 2:
             return None

@@ -10,9 +10,8 @@ Two differentiation methods, each a small frozen object with ``apply(measurement
   (the tail past the last whole period too) are kept beside the averaged ones.
 * :class:`ButterworthDifferentiation` — for any motion: zero-phase Butterworth low-pass
   (``filtfilt``) of the positions, ``dq`` and ``ddq`` the derivatives of their quintic interpolating
-  spline (:func:`spline_derivatives`); the torques and wrench stay as recorded, the fit's target (filtered
-  alike, a Coulomb law's step would be smeared while the regressor's ``sign(dq)`` stays sharp, its friction fitted
-  low; the smooth columns see the same projection of white noise either way). The filter covers the whole record: each end is extended by its odd reflection
+  spline (:func:`spline_derivatives`), and the same filter on the torques and wrench so that both
+  sides of ``Y θ = τ`` see the same delay-free attenuation. The filter covers the whole record: each end is extended by its odd reflection
   over the filter's settling time (:func:`settling_samples`), so no sample is dropped and every
   cut-off is judged on the same samples (trimming the settling instead is an option).
 
@@ -224,6 +223,13 @@ class ButterworthDifferentiation:
         The record's sampling rate, when the samples given are a window of it (the streamed path's blocks: a
         window's median step differs from the record's where the stamps are coarse, epoch or float32 time);
         ``None``: the rate of the samples given.
+    torques
+        ``"filtered"``: the torques and wrench filtered alike (the fit's target); ``"recorded"``: kept as recorded,
+        the fit's target (a filtered Coulomb step is smeared over a period of the cut-off while the regressor's
+        ``sign(dq)`` stays sharp: friction fitted low, the more so the lower the cut-off), and a weighted fit's
+        channel weights taken from the residual in the motion's band
+        (:class:`estimation.estimators.identification_problem.ResidualBand`). Not the default: the streamed path
+        does not take the in-band weights yet (benchmarks/README.md, h-target).
     """
 
     cutoff_hz: float | None = None
@@ -231,12 +237,15 @@ class ButterworthDifferentiation:
     trim: bool = False
     logged_velocity: bool = True
     rate_hz: float | None = None
+    torques: Literal["filtered", "recorded"] = "filtered"
 
     def __post_init__(self) -> None:
         if self.cutoff_hz is not None and not (np.isfinite(self.cutoff_hz) and self.cutoff_hz > 0):
             raise ValueError(f"cutoff_hz must be positive, got {self.cutoff_hz}")
         if int(self.order) != self.order or self.order < 1:
             raise ValueError(f"order must be a positive integer, got {self.order}")
+        if self.torques not in ("filtered", "recorded"):
+            raise ValueError(f"torques must be 'filtered' or 'recorded', got {self.torques!r}")
 
     def cutoff(self, measurements: Measurements) -> float:
         rate = sampling_rate(measurements.t) if self.rate_hz is None else float(self.rate_hz)
@@ -294,14 +303,15 @@ class ButterworthDifferentiation:
         else:
             dq, ddq = spline_derivatives(q, step, 2)  # one spline of the positions for both (its derivatives)
         q, dq, ddq = q[inside], dq[inside], ddq[inside]
-        # the torques and wrench as recorded, not filtered: the regressor's columns are those of the filtered motion,
-        # which the filter leaves as they are where they are smooth, but not a Coulomb law's sign(dq) step, which
-        # stays sharp while a filtered torque's step is smeared over a period of the cut-off (its friction fitted
-        # low, the more so the lower the cut-off); the torques' noise is white and enters the least squares
-        # unbiased either way (the smooth columns see the same projection of it)
-        tau, wrench = measurements.tau, measurements.wrench
+        if self.torques == "recorded":
+            tau, wrench = measurements.tau, measurements.wrench
+        else:
+            tau, wrench = (None if values is None else smooth(values)[inside] for values in (measurements.tau,
+                                                                                            measurements.wrench))
         metadata = dict(measurements.metadata, differentiation="butterworth", cutoff_hz=cutoff, filter_order=self.order,
                         trimmed_s=trim / rate)
+        if self.torques == "recorded":
+            metadata["torques"] = "recorded"
         filtered = replace(measurements, q=q, dq=dq, ddq=ddq, tau=tau, wrench=wrench, metadata=metadata, recorded=None)
         recorded = replace(filtered, tau=measurements.tau, wrench=measurements.wrench)  # the recording, same motion
         filtered = replace(filtered, recorded=recorded)

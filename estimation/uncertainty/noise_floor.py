@@ -313,7 +313,8 @@ def pooled_floor(floors: Sequence[NoiseFloor]) -> NoiseFloor | None:
 
 def preprocessing_gain(measurements: Measurements) -> tuple[float, list[str]]:
     """Variance gain on white noise of the preprocessing recorded in ``metadata`` (period averaging,
-    decimation; the zero-phase Butterworth differentiation leaves the torques as recorded), and what it was."""
+    zero-phase Butterworth filtering of the torques, decimation), and what it was (a Butterworth differentiation that
+    keeps the torques as recorded, ``torques="recorded"``: gain 1, the floor that of the recording)."""
     metadata = measurements.metadata
     gain, notes = 1.0, []
     periods = int(metadata.get("periods_averaged") or 1)
@@ -323,7 +324,12 @@ def preprocessing_gain(measurements: Measurements) -> tuple[float, list[str]]:
     step = float(np.median(np.diff(measurements.t))) if measurements.n_samples > 1 else 1.0
     decimation = int(metadata.get("decimation") or 1)
     original_rate = decimation / step  # the filters ran before the decimation
-    # a zero-phase Butterworth differentiation filters the motion only: the torques stay as recorded (gain 1)
+    if metadata.get("differentiation") == "butterworth" and metadata.get("torques") != "recorded":
+        sos = scipy.signal.butter(int(metadata.get("filter_order", 4)), float(metadata["cutoff_hz"]), btype="low",
+                                  fs=original_rate, output="sos")
+        filter_gain = _filtfilt_gain(sos)
+        gain *= filter_gain
+        notes.append(f"zero-phase Butterworth at {float(metadata['cutoff_hz']):.4g} Hz ({filter_gain:.3g})")
     if decimation > 1:
         sos = scipy.signal.butter(8, 0.8 * 0.5 * original_rate / decimation, btype="low", fs=original_rate,
                                   output="sos")
