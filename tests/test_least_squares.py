@@ -187,3 +187,41 @@ def test_extra_columns_and_channel_selection_keep_the_problem_consistent(puma):
     assert abs(estimate.values[-1]) < 1e-6
     with pytest.raises(ValueError, match="already"):
         problem.with_columns(np.ones(problem.y.shape), ["fv1"])
+
+
+def test_channel_weights_come_from_the_residual_in_the_motions_band():
+    """Torques fitted as recorded after a Butterworth differentiation (``torques="recorded"``): the channel weights are those of the residual
+    in the motion's band, not of the recording's high-frequency noise, which no column fits. Two channels with the
+    same in-band noise, one with a large white noise on top: weighted alike in band, 10 times apart as recorded."""
+    from estimation.estimators.identification_problem import ResidualBand, in_band_variance
+    from estimation.preprocessing.differentiation import ButterworthDifferentiation
+    from dynamics.measurements import Measurements
+
+    rate, n = 200.0, 8000
+    rng = np.random.default_rng(3)
+    t = np.arange(n) / rate
+    band = ResidualBand(2.0, 4, rate)
+    slow = band.apply(rng.normal(size=(n, 2)))  # in-band noise, the same on both channels
+    slow /= slow.std(axis=0)
+    white = rng.normal(size=(n, 2)) * np.array([0.0, 3.0])  # 2 % of its variance in band
+    columns = np.stack([np.sin(0.5 * t), np.cos(0.3 * t)], axis=1)
+    Y = np.zeros((n, 2, 2))
+    Y[:, 0, 0], Y[:, 1, 1] = columns[:, 0], columns[:, 1]
+    y = Y @ np.array([2.0, -1.0]) + slow + white
+    recorded = WeightedLeastSquares().fit(IdentificationProblem(Y, y, ("tau1", "tau2"), ("a", "b")))
+    banded = WeightedLeastSquares().fit(IdentificationProblem(Y, y, ("tau1", "tau2"), ("a", "b"), band=band))
+    assert recorded.estimate_.weights[0] / recorded.estimate_.weights[1] > 5
+    assert banded.estimate_.weights[0] / banded.estimate_.weights[1] == pytest.approx(1.0, rel=0.3)
+    # the weights are the inverse in-band variances; the reported variance stays that of the recorded residual
+    np.testing.assert_allclose(banded.estimate_.weights,
+                               1 / in_band_variance(banded.estimate_.residuals, 2, band), rtol=1e-4)
+    np.testing.assert_allclose(banded.estimate_.channel_variance, recorded.estimate_.channel_variance, rtol=0.05)
+    # a Butterworth-prepared record carries its band into the problem; its torques as recorded
+    q = np.stack([np.sin(0.5 * t), np.cos(0.3 * t)], axis=1)
+    measured = Measurements(t=t, q=q, tau=y)
+    prepared = ButterworthDifferentiation(cutoff_hz=2.0, torques="recorded").apply(measured)
+    np.testing.assert_array_equal(prepared.tau, y)
+    assert ResidualBand.of(prepared) == band
+    assert ResidualBand.of(measured) is None
+    # torques filtered alike (the default): nothing out of band, no band
+    assert ResidualBand.of(ButterworthDifferentiation(cutoff_hz=2.0).apply(measured)) is None

@@ -36,6 +36,7 @@ from estimation.diagnosis.rules.robust_test import WaldTest, fit_covariance, wal
 from estimation.diagnosis.rules.selection_rules import SCREEN_REFINED, refine_best
 from estimation.diagnosis.rules.stopping_rules import SearchState
 from estimation.diagnosis.traced_refinement import current_trace, traced_first
+from estimation.estimators.identification_problem import ResidualBand
 from estimation.estimators.effect_blocks import Block, States
 from estimation.estimators.separable_least_squares import FixedPart, residuals, solve_linear
 from estimation.estimators.variable_projection import ShapeFit
@@ -114,7 +115,8 @@ class RecordFits:
         self.train, self.recorded = train, recorded
         self.states_train = States(train.q, train.dq, train.ddq)
         self.states_validate = States(recorded.q, recorded.dq, recorded.ddq)
-        self.declared = FixedPart.from_arrays(self.regressor(train), train.channels(self.model.channels))
+        self.declared = FixedPart.from_arrays(self.regressor(train), train.channels(self.model.channels),
+                                              ResidualBand.of(train))  # the weights from the residual in the band
         self.declared_validate = FixedPart.from_arrays(self.regressor(recorded), recorded.channels(self.model.channels))
         # a validation record that repeats the training motion confirms on stretches of it the fits did not see
         self.held_out = HeldOutBlocks.of(train.t, recorded.t, train.metadata.get("frequency_hz")) \

@@ -11,12 +11,81 @@ from collections.abc import Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
+import scipy.signal
 from numpy.typing import ArrayLike, NDArray
 
 from dynamics.models import IdentificationModel
 from dynamics.measurements import Measurements
 from estimation.uncertainty.covariance import segment_bounds
 from estimation.data.segments import concatenate, segment_slices
+
+
+@dataclass(frozen=True)
+class ResidualBand:
+    """The band the motion was low-passed to (a zero-phase Butterworth differentiation): the torques are fitted as
+    recorded, but only their part in this band can be fitted by the motion's columns, so the channel weights of a
+    weighted fit come from the residual filtered alike (:func:`in_band_variance`); out of band, the residual holds
+    the recording's high-frequency noise, which no column fits and which differs by channel.
+
+    Attributes
+    ----------
+    cutoff_hz, order
+        The motion's zero-phase Butterworth filter (``filtfilt`` of this order).
+    rate_hz
+        The samples' rate.
+    segments
+        ``(start, stop)`` of each segment (filtered on its own); empty: one.
+    """
+
+    cutoff_hz: float
+    order: int
+    rate_hz: float
+    segments: tuple[tuple[int, int], ...] = ()
+
+    @classmethod
+    def of(cls, measurements: Measurements) -> ResidualBand | None:
+        """The band of prepared ``measurements``: ``None`` unless a Butterworth differentiation filtered their motion
+        below their Nyquist frequency and kept the torques as recorded (``torques="recorded"``; filtered alike, they
+        hold nothing the motion's columns cannot)."""
+        metadata = measurements.metadata
+        if metadata.get("differentiation") != "butterworth" or metadata.get("cutoff_hz") is None:
+            return None
+        if metadata.get("torques") != "recorded":  # filtered alike, the target holds nothing out of band
+            return None
+        if measurements.n_samples < 2:
+            return None
+        step = float(np.median(np.diff(measurements.t)))
+        if not step > 0:
+            return None
+        rate, cutoff = float(f"{1.0 / step:.9g}"), float(metadata["cutoff_hz"])  # as the differentiation rounds it
+        if not cutoff < 0.45 * rate:
+            return None
+        pieces = segment_slices(measurements)
+        bounds = tuple((piece.start, piece.stop) for piece in pieces) if len(pieces) > 1 else ()
+        return cls(cutoff, int(metadata.get("filter_order") or 4), rate, bounds)
+
+    def apply(self, values: NDArray[np.float64]) -> NDArray[np.float64]:
+        """``values`` (samples along axis 0) low-passed by the same zero-phase filter, each segment on its own
+        (a segment too short for the filter's padding is left as it is)."""
+        sos = scipy.signal.butter(self.order, self.cutoff_hz, btype="low", fs=self.rate_hz, output="sos")
+        values = np.asarray(values, dtype=float)
+        filtered = values.copy()
+        for start, stop in (self.segments or ((0, values.shape[0]),)):
+            if stop - start > 3 * (2 * len(sos) + 1):
+                filtered[start:stop] = scipy.signal.sosfiltfilt(sos, values[start:stop], axis=0)
+        return filtered
+
+
+def in_band_variance(residuals: NDArray[np.float64], n_parameters: int,
+                     band: ResidualBand | None) -> NDArray[np.float64]:
+    """Per channel, the variance of the residuals ``(N, m)`` in ``band`` (as recorded when ``None``),
+    ``‖ρ_c‖² / (N − r/m)``: the variance channel weights ``1/σ_c²`` are taken from."""
+    n_samples, n_channels = residuals.shape
+    dof = n_samples - n_parameters / n_channels
+    if dof <= 0:
+        raise ValueError(f"{n_samples} samples leave no degrees of freedom for {n_parameters} parameters")
+    values = residuals if band is None else band.apply(residuals)
+    return np.sum(values**2, axis=0) / dof
 
 
 @dataclass(frozen=True)
@@ -36,6 +105,9 @@ class IdentificationProblem:
     segments
         ``(start, stop)`` samples of each segment of a stacked record (:mod:`estimation.data.segments`;
         empty: one segment): the HAC covariance runs no lag across a boundary.
+    band
+        The band the motion was low-passed to (:class:`ResidualBand`): a weighted fit's channel weights come from
+        the residual in it; ``None``: from the residual as it is.
     """
 
     Y: NDArray[np.float64]
@@ -44,6 +116,7 @@ class IdentificationProblem:
     names: tuple[str, ...]
     expressions: tuple[str, ...] = ()
     segments: tuple[tuple[int, int], ...] = ()
+    band: ResidualBand | None = None
 
     def __post_init__(self) -> None:
         Y, y = np.asarray(self.Y, dtype=float), np.asarray(self.y, dtype=float)
@@ -109,6 +182,7 @@ class IdentificationProblem:
         return IdentificationProblem(
             np.concatenate([self.Y, columns], axis=2), self.y, self.channels,
             self.names + tuple(names), self.expressions + (tuple(expressions) or tuple(names)), self.segments,
+            self.band,
         )
 
     def select_channels(self, channels: tuple[str, ...] | list[str]) -> IdentificationProblem:
@@ -134,7 +208,8 @@ def stack(model: IdentificationModel, measurements: Measurements | Sequence[Meas
     Y = model.evaluate_base(measurements.q, measurements.dq, measurements.ddq)  # compiled, zero-copy
     segments = segment_slices(measurements)
     bounds = tuple((piece.start, piece.stop) for piece in segments) if len(segments) > 1 else ()
-    return IdentificationProblem(Y, measured, model.channels, model.base.names, model.base.expressions, bounds)
+    return IdentificationProblem(Y, measured, model.channels, model.base.names, model.base.expressions, bounds,
+                                 ResidualBand.of(measurements))
 
 
 def _check_theta(theta: ArrayLike, count: int) -> NDArray[np.float64]:

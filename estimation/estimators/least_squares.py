@@ -260,6 +260,9 @@ class LeastSquares(Estimator):
 class WeightedLeastSquares(LeastSquares):
     """Channel-weighted least squares with weights ``1/σ_c²`` from the residuals, iterated.
 
+    The variances are those of the residual in the problem's band (``problem.band``, the band the motion was
+    low-passed to: :func:`estimation.estimators.identification_problem.in_band_variance`), else of the residual.
+
     Parameters
     ----------
     max_iter
@@ -308,7 +311,12 @@ class WeightedLeastSquares(LeastSquares):
         # The weights are iterated on per-channel Gram matrices (r x r each, formed once): every
         # iteration costs O(m r²). The final solve refines on the exact residuals (see solve).
         gram, moment = channel_gram(problem)  # (m, r, r), (m, r)
-        power = np.sum(problem.y**2, axis=0)  # (m,)
+        # the variances from the residual in the motion's band (problem.band: in_band_variance), as sums of the
+        # filtered regressor and target (filtering is linear: the filtered residual is F y − (F Y) θ)
+        in_band = problem if problem.band is None else IdentificationProblem(
+            problem.band.apply(problem.Y), problem.band.apply(problem.y), problem.channels, problem.names)
+        band_gram, band_moment = (gram, moment) if problem.band is None else channel_gram(in_band)
+        power = np.sum(in_band.y**2, axis=0)  # (m,)
         dof = problem.n_samples - problem.n_parameters / problem.n_channels
         weights = np.ones(problem.n_channels)
         variance = None
@@ -316,7 +324,8 @@ class WeightedLeastSquares(LeastSquares):
         for _ in range(int(self.max_iter) + 1):
             theta = _normal_solve(np.tensordot(weights, gram, axes=1), weights @ moment)
             iterations += 1
-            updated = np.maximum((power - 2 * moment @ theta + np.einsum("r,mrs,s->m", theta, gram, theta)) / dof, floor)
+            updated = np.maximum((power - 2 * band_moment @ theta
+                                  + np.einsum("r,mrs,s->m", theta, band_gram, theta)) / dof, floor)
             change = np.inf if variance is None else np.max(np.abs(updated - variance) / variance)
             variance = updated
             weights = 1.0 / variance
@@ -325,7 +334,9 @@ class WeightedLeastSquares(LeastSquares):
         theta, unscaled, cond = solve(problem, weights, (gram, moment))
         residuals = problem.residuals(theta)
         dof = problem.n_samples * problem.n_channels - problem.n_parameters
-        scale = float(np.sum(residuals**2 * weights)) / dof  # ≈ 1 once the weights are the inverse variances
+        # ≈ 1 once the weights are the inverse variances; above 1 with a band, by the recording's out-of-band noise,
+        # which the covariance of a fit to the recorded torques must hold
+        scale = float(np.sum(residuals**2 * weights)) / dof
         self._store(problem, theta, scale * unscaled, cond, residuals, weights, iterations, unscaled)
         return self
 

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import functools
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import scipy.linalg
@@ -30,6 +30,7 @@ from numpy.typing import NDArray
 
 from estimation.estimators.bordered_normal import RANK_THRESHOLD, BorderedFactor, FixedFactor, solve_bordered
 from estimation.estimators.effect_blocks import Block, States
+from estimation.estimators.identification_problem import ResidualBand
 
 __all__ = ["FixedPart", "LinearSolution", "full_information", "residuals", "sample_scores", "solve_linear", "solve_normal"]
 
@@ -50,11 +51,14 @@ class FixedPart:
     gram: NDArray[np.float64]  # (m, p0, p0)
     moment: NDArray[np.float64]  # (m, p0)
     power: NDArray[np.float64]  # (m,)
+    band: ResidualBand | None = None  # the motion's band: channel weights from the residual in it
 
     @classmethod
-    def from_arrays(cls, Y: NDArray[np.float64], y: NDArray[np.float64]) -> FixedPart:
-        """From ``Y (N, m, p0)`` and ``y (N, m)``."""
-        return cls.per_channel(np.transpose(Y, (1, 0, 2)), np.ascontiguousarray(y.T))
+    def from_arrays(cls, Y: NDArray[np.float64], y: NDArray[np.float64], band: ResidualBand | None = None) -> FixedPart:
+        """From ``Y (N, m, p0)`` and ``y (N, m)``; ``band``: the band the motion was low-passed to
+        (:class:`estimation.estimators.identification_problem.ResidualBand`)."""
+        part = cls.per_channel(np.transpose(Y, (1, 0, 2)), np.ascontiguousarray(y.T))
+        return part if band is None else replace(part, band=band)
 
     @classmethod
     def per_channel(cls, A: NDArray[np.float64], values: NDArray[np.float64]) -> FixedPart:
@@ -100,7 +104,7 @@ class FixedPart:
         place[list(columns)] = np.arange(len(columns))
         index = np.asarray(columns, dtype=np.intp)
         return FixedPart(self.own, tuple(place[where] for where in self.where), self.y,
-                         self.gram[:, index][:, :, index], self.moment[:, index], self.power)
+                         self.gram[:, index][:, :, index], self.moment[:, index], self.power, self.band)
 
     def extended(self, columns: NDArray[np.float64], rows: Sequence[int]) -> FixedPart:
         """With extra columns ``(N, rows, k)`` that are zero off ``rows``: only those channels' products are
@@ -116,7 +120,7 @@ class FixedPart:
             moment[row, p0:] = C.T @ self.y[row]
             own[row] = np.concatenate([self.own[row], C], axis=1)
             where[row] = np.concatenate([self.where[row], np.arange(p0, p0 + k)])
-        return FixedPart(tuple(own), tuple(where), self.y, gram, moment, self.power)
+        return FixedPart(tuple(own), tuple(where), self.y, gram, moment, self.power, self.band)
 
     def with_blocks(self, blocks: Sequence[Block], states: States, shapes: Sequence[NDArray[np.float64]]) -> FixedPart:
         """This part extended by each block's columns at its shape along ``states``, block after block

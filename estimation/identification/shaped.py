@@ -20,6 +20,7 @@ import numpy as np
 
 from dynamics.models import IdentificationModel
 from dynamics.effects.shaped import ShapedPerJointEffect, is_shaped
+from estimation.estimators.identification_problem import ResidualBand, in_band_variance
 from estimation.estimators.least_squares import Estimate, channel_variance
 from dynamics.measurements import Measurements
 from estimation.data.segments import segment_slices
@@ -162,6 +163,7 @@ def fit_shaped_model(model: IdentificationModel, train: Measurements, *, weighte
     states = States(train.q, train.dq, train.ddq)
     weights = np.ones(model.n_channels)
     segments = [(piece.start, piece.stop) for piece in segment_slices(train)]
+    band = ResidualBand.of(train)
     fit = None
     first = None
     if starts is not None:
@@ -176,7 +178,8 @@ def fit_shaped_model(model: IdentificationModel, train: Measurements, *, weighte
                          covariance=settling, segments=segments)
         shaped = ShapedFit(model, tuple(blocks), tuple(kept), tuple(replaced), fit, weights)
         residual = y - shaped.predict(train, Y, overwrite=True)  # Y's shaped columns only are rewritten
-        variance = np.maximum(channel_variance(residual, model.n_base + len(fit.names)), 1e-14 * np.mean(y**2, axis=0))
+        variance = np.maximum(in_band_variance(residual, model.n_base + len(fit.names), band),
+                              1e-14 * np.mean(y**2, axis=0))  # the residual in the motion's band
         if not weighted:
             break
         updated = 1.0 / variance

@@ -17,7 +17,7 @@ streamed identification reads too, so that both paths choose alike.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any, Literal
 
 import numpy as np
@@ -26,7 +26,7 @@ from numpy.typing import NDArray
 from dynamics.measurements import Measurements
 from dynamics.models import IdentificationModel
 from dynamics.runtime.threads import single_threaded_blas
-from estimation.estimators.identification_problem import IdentificationProblem, stack
+from estimation.estimators.identification_problem import IdentificationProblem, ResidualBand, stack
 from estimation.estimators.least_squares import LeastSquares, WeightedLeastSquares
 from estimation.identification.preprocessing_choice import (
     CLEARLY_BETTER,
@@ -90,10 +90,24 @@ def held_out_mse(problem: IdentificationProblem, estimator: type[LeastSquares], 
     squared = np.zeros(problem.n_channels)
     for held, kept in blocked_folds(problem.n_samples, folds):
         part = IdentificationProblem(problem.Y[kept], problem.y[kept], problem.channels, problem.names,
-                                     problem.expressions)
+                                     problem.expressions, band=_kept_band(problem, held))
         theta = estimator().fit(part).theta_
         squared += np.sum((problem.y[held] - problem.Y[held] @ theta) ** 2, axis=0)
     return squared / problem.n_samples
+
+
+def _kept_band(problem: IdentificationProblem, held: slice) -> ResidualBand | None:
+    """The problem's band on the samples left when ``held`` is taken out: each segment's remainder filtered on its
+    own (the held block joins no two stretches)."""
+    if problem.band is None:
+        return None
+    bounds, removed = [], held.stop - held.start
+    for start, stop in problem.segments or ((0, problem.n_samples),):
+        for lower, upper in ((start, min(stop, held.start)), (max(start, held.stop), stop)):
+            if upper > lower:
+                shift = removed if lower >= held.stop else 0
+                bounds.append((lower - shift, upper - shift))
+    return replace(problem.band, segments=tuple(bounds))
 
 
 def weighting_samples(window: ChoiceWindow, plan: Preprocessing, prepared: Measurements | None = None) -> Measurements:

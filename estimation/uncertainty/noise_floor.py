@@ -313,7 +313,8 @@ def pooled_floor(floors: Sequence[NoiseFloor]) -> NoiseFloor | None:
 
 def preprocessing_gain(measurements: Measurements) -> tuple[float, list[str]]:
     """Variance gain on white noise of the preprocessing recorded in ``metadata`` (period averaging,
-    zero-phase Butterworth filtering, decimation), and what it was."""
+    zero-phase Butterworth filtering of the torques, decimation), and what it was (a Butterworth differentiation that
+    keeps the torques as recorded, ``torques="recorded"``: gain 1, the floor that of the recording)."""
     metadata = measurements.metadata
     gain, notes = 1.0, []
     periods = int(metadata.get("periods_averaged") or 1)
@@ -323,7 +324,7 @@ def preprocessing_gain(measurements: Measurements) -> tuple[float, list[str]]:
     step = float(np.median(np.diff(measurements.t))) if measurements.n_samples > 1 else 1.0
     decimation = int(metadata.get("decimation") or 1)
     original_rate = decimation / step  # the filters ran before the decimation
-    if metadata.get("differentiation") == "butterworth":
+    if metadata.get("differentiation") == "butterworth" and metadata.get("torques") != "recorded":
         sos = scipy.signal.butter(int(metadata.get("filter_order", 4)), float(metadata["cutoff_hz"]), btype="low",
                                   fs=original_rate, output="sos")
         filter_gain = _filtfilt_gain(sos)

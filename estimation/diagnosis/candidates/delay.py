@@ -104,7 +104,8 @@ def compare_delay(trial: DelayTrial, columns: Regressor, train: Measurements, re
     """Both models trained at the weights the delayed model's residuals give; validation errors against
     the validation channels as recorded, along the validation motion moved by the same delay."""
     moved_train, moved_validate = delayed(train, trial.delay), delayed(recorded, trial.delay)
-    candidate_train = FixedPart.from_arrays(columns(moved_train), moved_train.channels(list(channels)))
+    candidate_train = FixedPart.from_arrays(columns(moved_train), moved_train.channels(list(channels)),
+                                            fixed_train.band)
     candidate_validate = FixedPart.from_arrays(columns(moved_validate), moved_validate.channels(list(channels)))
     settled = settled_weights(candidate_train, [], None, [], weights)
     candidate = solve_linear(candidate_train, [], None, [], settled)
