@@ -56,10 +56,11 @@ import functools
 import hashlib
 import time
 import warnings
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
+from numpy.typing import NDArray
 
 from dynamics.measurements import Measurements
 from dynamics.models import IdentificationModel
@@ -72,6 +73,7 @@ from estimation.data.segments import concatenate
 from estimation.estimators.normal_equations import DEFAULT_CHUNK_SIZE, accumulate
 from estimation.estimators.summed_least_squares import SummedLeastSquares
 from estimation.identification.preprocessing_choice import (
+    EQUIVALENT,
     MIN_PARALLEL_SCORES,
     SCORED_SAMPLES,
     choose_on_repeat,
@@ -79,10 +81,11 @@ from estimation.identification.preprocessing_choice import (
 )
 from estimation.identification.relative_error import relative_scores
 from estimation.identification.repeated_motion import REPEAT_FRACTION, repeated_motion, still_motion
-from estimation.identification.validation import compare_recorded
+from estimation.identification.validation import Comparison, compare_recorded
 from estimation.preprocessing.plan import (
     Evidence,
     Preprocessing,
+    TIED_SE,
     SegmentTooShortForFilterError,
     ValidationEvidence,
     prepare,
@@ -95,6 +98,8 @@ __all__ = ["FITS", "TIE_DIGITS", "ValidationScore", "choose_on_validation", "cho
 FITS = ("ols", "wls")
 #: scores equal to this many significant digits are a tie (the tie rule decides)
 TIE_DIGITS = 6
+#: contiguous blocks of the validation record whose errors give the standard error of two candidates' difference
+BLOCKS = 5
 #: what scoring one candidate holds at its peak, bytes a sample and joint or channel (the records prepared, as
 #: prepared and as recorded: q, dq, ddq and the channels; the predictions), besides a chunk's regressor (the fits
 #: are made from sums, the regressor a chunk at a time: :func:`~estimation.estimators.normal_equations.accumulate`);
@@ -150,8 +155,21 @@ class ValidationScore:
         stamps = np.ascontiguousarray(comparison.t, dtype=float)
         return (ValidationEvidence(plan, 1.0 if finite else float("inf"), dict(comparison.mse),
                                    finite[0] if finite else None, {}, None, time.perf_counter() - started,
-                                   int(stamps.shape[0]), fit_mse),
+                                   int(stamps.shape[0]), fit_mse,
+                                   {fit: block_mse(item) for fit, item in comparisons.items()}),
                 hashlib.sha256(stamps.tobytes()).hexdigest())
+
+
+def block_mse(comparison: Comparison) -> dict[str, tuple[float, ...]]:
+    """Per channel, the MSE on each of :data:`BLOCKS` contiguous blocks of the compared samples (as
+    :func:`numpy.array_split` cuts them: sizes differ by one sample at most); none when there are fewer samples
+    than blocks."""
+    residual = np.asarray(comparison.measured, dtype=float) - np.asarray(comparison.predicted, dtype=float)
+    if residual.shape[0] < BLOCKS:
+        return {}
+    parts = np.array_split(residual ** 2, BLOCKS, axis=0)
+    return {channel: tuple(float(part[:, column].mean()) for part in parts)
+            for column, channel in enumerate(comparison.channels)}
 
 
 def finite_on(mse: dict[str, float], channels: Sequence[str]) -> bool:
@@ -175,6 +193,45 @@ def rescored(evidence: Sequence[ValidationEvidence], channels: Sequence[str]) ->
         best = min(fit_scores, key=lambda fit: (fit_scores[fit], FITS.index(fit)))
         result.append(replace(item, score=fit_scores[best], validation_mse=dict(item.fit_mse[best]), fit=best,
                               fit_scores=fit_scores))
+    return result
+
+
+def with_standard_errors(evidence: Sequence[ValidationEvidence], channels: Sequence[str]
+                         ) -> list[ValidationEvidence]:
+    """The evidence (best first, rescored) with each finite candidate's standard error of the difference of its
+    score to the best's and whether it is :func:`tied <choose_on_validation>` with it.
+
+    The score is a weighted sum of the channels' MSE (weights ``1 / (n_channels * min_j e[j, c])``,
+    :mod:`estimation.identification.relative_error`), so the difference of two candidates' scores is the
+    sample-weighted mean of the differences on the validation record's :data:`BLOCKS` contiguous blocks; its
+    standard error is that of a mean of batch means (the blocks' differences' spread, the errors being correlated
+    in time within a block, not across blocks). Without blocks (too few samples) no candidate is tied."""
+    finite = [item for item in evidence if np.isfinite(item.score)]
+    if not finite:
+        return list(evidence)
+    channels = tuple(channels)
+    best = finite[0]
+    floors = np.array([min(item.fit_mse[fit][channel] for item in finite for fit in item.fit_mse
+                           if np.isfinite(item.fit_mse[fit][channel])) for channel in channels])
+    if any(len(item.fit_block_mse.get(item.fit, {})) != len(channels) for item in finite) or not np.all(floors > 0):
+        return list(evidence)
+
+    def blocks(item: ValidationEvidence) -> NDArray[np.float64]:
+        block = item.fit_block_mse[item.fit]
+        return (np.array([block[channel] for channel in channels]) / floors[:, None]).mean(axis=0)
+
+    sizes = np.array([part.shape[0] for part in np.array_split(np.empty(best.samples), BLOCKS)], dtype=float)
+    weights = sizes / sizes.sum()
+    result = []
+    for item in evidence:
+        if not np.isfinite(item.score):
+            result.append(item)
+            continue
+        differences = blocks(item) - blocks(best)
+        mean = float(weights @ differences)
+        error = float(np.sqrt(BLOCKS / (BLOCKS - 1) * np.sum(weights ** 2 * (differences - mean) ** 2)))
+        result.append(replace(item, standard_error=error, tied=item.score - best.score <= TIED_SE * error
+                              and item.score <= (1.0 + EQUIVALENT) * best.score))
     return result
 
 
@@ -202,13 +259,16 @@ def tie_key(plan: Preprocessing) -> tuple:
 
 def choose_on_validation(model: IdentificationModel, train: Sequence[Measurements],
                          validation: Sequence[Measurements], plans: Sequence[Preprocessing], *,
-                         fits: tuple[str, ...] = FITS, jobs: int | None = None
+                         fits: tuple[str, ...] = FITS, jobs: int | None = None,
+                         held_out: Mapping[Preprocessing, float] | None = None
                          ) -> tuple[Preprocessing | None, tuple[ValidationEvidence, ...]]:
     """The candidate of the smallest validation score and every candidate's evidence, best first (module
     docstring); ``None`` when no candidate could be scored. ``train``, ``validation``: the segments as read.
     ``jobs``: processes that score the candidates side by side (as
     :func:`~estimation.identification.preprocessing_choice.choose_by_evidence`; the same choice whatever the
-    number)."""
+    number). ``held_out``: each candidate's score on held-out blocks of the training record (lower is better),
+    which decides among the candidates the validation record cannot tell apart (module docstring: *Weak
+    validation record*); without it the smallest validation score wins."""
     score = ValidationScore(model, tuple(fits))
     unique = list(dict.fromkeys(plan.without_evidence() for plan in plans))
     started = time.perf_counter()
@@ -218,18 +278,41 @@ def choose_on_validation(model: IdentificationModel, train: Sequence[Measurement
     workers = min(worker_count(jobs, len(unique), min_tasks=MIN_PARALLEL_SCORES),
                   max(1, int(available_memory() // (2 * task_bytes))))  # the same choice whatever the number
     scored = run_tasks([functools.partial(score, tuple(train), tuple(validation), plan) for plan in unique], workers)
-    evidence = tuple(sorted(rescored(on_same_samples(scored), model.channels),
-                            key=lambda item: (item.score, tie_key(item.preprocessing))))
-    finite = [item for item in evidence if np.isfinite(item.score)]
-    if not finite:
+    evidence = tuple(with_standard_errors(sorted(rescored(on_same_samples(scored), model.channels),
+                                                 key=lambda item: (item.score, tie_key(item.preprocessing))),
+                                          model.channels))
+    chosen = decided(evidence, held_out)
+    if chosen is None:
         return None, evidence
-    best = float(f"{finite[0].score:.{TIE_DIGITS}g}")
-    tied = [item.preprocessing for item in finite if float(f"{item.score:.{TIE_DIGITS}g}") == best]
-    chosen = min(tied, key=tie_key)
     if time.perf_counter() - started >= PROGRESS_SECONDS:
         report("derivatives: %s chosen on the validation record among %d candidates (%.1f s)",
                chosen.describe_method(), len(evidence), time.perf_counter() - started)
     return chosen, evidence
+
+
+def decided(evidence: Sequence[ValidationEvidence], held_out: Mapping[Preprocessing, float] | None
+            ) -> Preprocessing | None:
+    """The candidate chosen from the evidence (best first, with :func:`with_standard_errors`): the smallest score,
+    exact ties (:data:`TIE_DIGITS`) to :func:`tie_key`; when several candidates are tied within the validation
+    record's standard error (module docstring: *Weak validation record*) and each has a finite score in
+    ``held_out`` (the training record's held-out scores, lower is better), the tied one of the best held-out score
+    (ties to :data:`TIE_DIGITS` by :func:`tie_key`) if the smallest score's held-out score is more than
+    :data:`~estimation.identification.preprocessing_choice.EQUIVALENT` above it (the training record's own margin
+    of equivalence: within it neither record tells them apart, and the validation record's smallest score stays).
+    ``None`` when no candidate was scored."""
+    finite = [item for item in evidence if np.isfinite(item.score)]
+    if not finite:
+        return None
+    best = float(f"{finite[0].score:.{TIE_DIGITS}g}")
+    tied = [item.preprocessing for item in finite if float(f"{item.score:.{TIE_DIGITS}g}") == best]
+    chosen = min(tied, key=tie_key)
+    scores = {plan.without_evidence(): score for plan, score in (held_out or {}).items() if np.isfinite(score)}
+    undecided = [item.preprocessing for item in finite if item.tied]
+    if len(undecided) > 1 and all(plan in scores for plan in undecided):
+        held = min(undecided, key=lambda plan: (float(f"{scores[plan]:.{TIE_DIGITS}g}"), tie_key(plan)))
+        if scores[chosen] > (1.0 + EQUIVALENT) * scores[held]:  # the training record tells them apart
+            chosen = held
+    return chosen
 
 
 def chooses_on_validation(chosen: Preprocessing, train: Sequence[Measurements],
@@ -270,7 +353,8 @@ def on_validation(chosen: Preprocessing, model: IdentificationModel, train: Sequ
             return chosen
         return choose_on_repeat(chosen, model, train, validation, jobs=jobs)  # a repeat of the training motion
     plans = [item.preprocessing for item in chosen.evidence.candidates]
-    best, evidence = choose_on_validation(model, train, validation, plans, fits=fits, jobs=jobs)
+    held_out = {item.preprocessing.without_evidence(): item.score for item in chosen.evidence.candidates}
+    best, evidence = choose_on_validation(model, train, validation, plans, fits=fits, jobs=jobs, held_out=held_out)
     if best is None:
         return chosen
     return replace(best, evidence=Evidence("validation", chosen.evidence.folds, chosen.evidence.candidates, evidence,
