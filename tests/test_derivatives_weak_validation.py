@@ -114,20 +114,48 @@ def test_the_standard_error_is_that_of_the_blocks_paired_differences():
     assert not result[40.0].tied
 
 
-def test_the_training_record_decides_only_among_the_tied():
-    from dynamics.robots import load_robot as load
+def blocks(values):
+    """One fit's MSE on the training record's five blocks, one channel."""
+    return {"ols": {"tau1": tuple(values)}}
 
-    model = build_model(load("puma560", joints=1), "internal", "viscous")
+
+def test_the_training_blocks_decide_among_the_tied_only_when_they_tell_them_apart():
     best = item(10.0, [1.0, 2.0, 1.0, 2.0, 1.0])
     close = item(20.0, [1.0, 2.05, 0.99, 2.0, 1.03])
-    far = item(40.0, [1.2, 2.4, 1.2, 2.4, 1.2])
-    evidence = with_standard_errors(module.rescored([best, close, far], ("tau1",)), ("tau1",))
-    plans = {entry.preprocessing.cutoff_hz: entry.preprocessing for entry in evidence}
-    assert model.channels == ("tau1",)
-    assert module.decided(evidence, {plans[10.0]: 2.0, plans[20.0]: 1.0, plans[40.0]: 0.5}) == plans[20.0]
-    assert module.decided(evidence, {plans[10.0]: 1.0, plans[20.0]: 2.0, plans[40.0]: 0.5}) == plans[10.0]
-    assert module.decided(evidence, None) == plans[10.0]
-    assert module.decided(evidence, {plans[10.0]: 2.0}) == plans[10.0]  # a tied one without a held-out score
-    # within the training record's own margin (EQUIVALENT) neither record tells them apart: the smallest score stays
-    assert module.decided(evidence, {plans[10.0]: 1.04, plans[20.0]: 1.0, plans[40.0]: 0.5}) == plans[10.0]
-    assert module.decided(evidence, {plans[10.0]: 1.06, plans[20.0]: 1.0, plans[40.0]: 0.5}) == plans[20.0]
+    tied = [entry for entry in with_standard_errors(module.rescored([best, close], ("tau1",)), ("tau1",))]
+    assert all(entry.tied for entry in tied)
+    first, second = (entry.preprocessing for entry in tied)
+    samples = 50
+    # the training blocks prefer the second by 10 % on every block: it is taken
+    chosen, scores = module.on_training_blocks(tied, {first: blocks([1.1, 2.2, 1.1, 2.2, 1.1]),
+                                                      second: blocks([1.0, 2.0, 1.0, 2.0, 1.0])}, ("tau1",), samples)
+    assert chosen == second and scores[second] == pytest.approx(1.0) and scores[first] == pytest.approx(1.1)
+    # 3 % better on average, but not on every block (within two standard errors): the validation record's choice
+    chosen, _ = module.on_training_blocks(tied, {first: blocks([1.0, 2.0, 1.0, 2.0, 1.0]),
+                                                 second: blocks([0.8, 2.1, 1.05, 1.85, 1.02])}, ("tau1",), samples)
+    assert chosen == first
+    # blocks missing for a tied candidate: the validation record's choice
+    assert module.on_training_blocks(tied, {first: blocks([1.0] * 5)}, ("tau1",), samples) == (first, {})
+
+
+def test_the_held_out_blocks_are_each_predicted_by_the_fit_on_the_others(records):
+    from estimation.estimators.least_squares import LeastSquares, stack
+    from estimation.identification.prepared import read_files
+    from estimation.data.segments import concatenate
+    from estimation.identification.validation import compare_recorded
+    from estimation.preprocessing.plan import prepare
+
+    model, paths = records
+    plan = Preprocessing("butterworth", cutoff_hz=6.0)
+    train = read_files([paths["train"]], model, split=True)[0].segments
+    result, samples = module.HeldOutBlocks(model, ("ols",))(train, plan)
+    whole = concatenate(prepare(train, plan))
+    assert samples == whole.n_samples
+    edges = np.linspace(0, samples, BLOCKS + 1).astype(int)
+    held = slice(edges[2], edges[3])
+    kept = np.ones(samples, dtype=bool)
+    kept[held] = False
+    estimate = LeastSquares().fit(stack(model, whole.select(np.flatnonzero(kept)))).estimate_
+    comparison = compare_recorded(model, {"ols": estimate.values}, whole.select(held))["ols"]  # against the record
+    for channel in model.channels:
+        assert result["ols"][channel][2] == pytest.approx(comparison.mse[channel], rel=1e-6)

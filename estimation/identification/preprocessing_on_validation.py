@@ -35,6 +35,25 @@ digits) go to the least distorting candidate, as in the training record's choice
 harmonics, else the highest cut-off, the logged velocity before the positions', then the description): the
 answer does not depend on the order of a list.
 
+**Weak validation record** (:func:`with_standard_errors`, :func:`decided`). A short validation record may rank two
+candidates by a fraction of a percent that another stretch of the same motion would reverse: on the Stäubli TX40 at
+2.5 kHz (``benchmarks/README.md``, ``tx40-sub2``) its 1.5 s validation record scored a 125 Hz filter 0.4 % better
+than 75 Hz, while the training record's blocked cross-validation scored 125 Hz 11 % worse, and the test record was
+predicted 9 % worse with it. The score is a weighted sum of the channels' MSE, so the difference of two candidates'
+scores is the mean of their differences on :data:`BLOCKS` contiguous blocks of the validation record, and its
+standard error that of a mean of batch means. A candidate within
+:data:`~estimation.preprocessing.plan.TIED_SE` standard errors of the best **and** within
+:data:`~estimation.identification.preprocessing_choice.EQUIVALENT` of it (the margin within which the training
+record's choice calls candidates equivalent) is *tied* with it: the validation record does not tell them apart.
+Among the tied ones the training record's held-out score (already computed by the training record's own choice: no
+extra fit) decides, when it tells them apart by more than the same
+:data:`~estimation.identification.preprocessing_choice.EQUIVALENT`; otherwise the smallest validation score stays.
+Both margins are needed: on a simulated PUMA whose training motion is five times slower than the validation motion
+(``tests/test_preprocessing_on_validation.py``) the 8 s validation record scores 6 Hz 15 % better than 3.4 Hz,
+within two standard errors, and the training record prefers 3.4 Hz by a factor 2; 6 Hz predicts the test record
+better (``tau1`` 1.6 against 2.6 N²m²). A record of another motion that separates the candidates by more than
+:data:`~estimation.identification.preprocessing_choice.EQUIVALENT` decides, however noisy.
+
 **Nesting with the model choice.** The physically consistent candidate (five prior weights, each an IPOPT
 refit) is not fitted for every derivative candidate: the preprocessing is chosen with the cheap unconstrained
 fits, and the model among OLS, WLS and the consistent refit is then chosen on the same validation record with the
@@ -54,6 +73,7 @@ from __future__ import annotations
 
 import functools
 import hashlib
+import operator
 import time
 import warnings
 from collections.abc import Mapping, Sequence
@@ -77,6 +97,7 @@ from estimation.identification.preprocessing_choice import (
     MIN_PARALLEL_SCORES,
     SCORED_SAMPLES,
     choose_on_repeat,
+    blocked_folds,
     scored_window,
 )
 from estimation.identification.relative_error import relative_scores
@@ -160,6 +181,44 @@ class ValidationScore:
                 hashlib.sha256(stamps.tobytes()).hexdigest())
 
 
+@dataclass(frozen=True)
+class HeldOutBlocks:
+    """A candidate's error on :data:`BLOCKS` contiguous blocks of the training record, each predicted by the fits
+    of :class:`ValidationScore` on the other blocks (from the blocks' sums), against the channels as recorded: the
+    evidence that decides among the candidates a weak validation record cannot tell apart (module docstring)."""
+
+    model: IdentificationModel
+    fits: tuple[str, ...] = FITS
+
+    @single_threaded_blas()
+    def __call__(self, train: Sequence[Measurements], preprocessing: Preprocessing
+                 ) -> tuple[dict[str, dict[str, tuple[float, ...]]], int]:
+        """Per fit, each channel's MSE on each block, and the samples cut into the blocks (``({}, 0)`` when the
+        blocks cannot be fitted or predicted)."""
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                whole = concatenate(prepare(train, preprocessing.without_evidence(), role="training data"))
+                blocks = [whole.select(held) for held, _ in blocked_folds(whole.n_samples, BLOCKS)]
+                if any(block.n_samples == 0 for block in blocks):
+                    return {}, 0
+                sums = [accumulate(self.model, block, gram=False) for block in blocks]
+                result: dict[str, dict[str, list[float]]] = {}
+                for index, block in enumerate(blocks):
+                    rest = functools.reduce(operator.add, [item for k, item in enumerate(sums) if k != index])
+                    estimates = {fit: SummedLeastSquares(method=fit).fit(rest).estimate_.values
+                                 for fit in FITS if fit in self.fits}
+                    for fit, comparison in compare_recorded(self.model, estimates, block, label="held-out").items():
+                        for channel, mse in comparison.mse.items():
+                            result.setdefault(fit, {}).setdefault(channel, []).append(float(mse))
+        except (SegmentTooShortForFilterError, ValueError, np.linalg.LinAlgError):
+            return {}, 0
+        if any(not np.all(np.isfinite(values)) for item in result.values() for values in item.values()):
+            return {}, 0
+        return ({fit: {channel: tuple(values) for channel, values in item.items()} for fit, item in result.items()},
+                whole.n_samples)
+
+
 def block_mse(comparison: Comparison) -> dict[str, tuple[float, ...]]:
     """Per channel, the MSE on each of :data:`BLOCKS` contiguous blocks of the compared samples (as
     :func:`numpy.array_split` cuts them: sizes differ by one sample at most); none when there are fewer samples
@@ -215,21 +274,14 @@ def with_standard_errors(evidence: Sequence[ValidationEvidence], channels: Seque
                            if np.isfinite(item.fit_mse[fit][channel])) for channel in channels])
     if any(len(item.fit_block_mse.get(item.fit, {})) != len(channels) for item in finite) or not np.all(floors > 0):
         return list(evidence)
-
-    def blocks(item: ValidationEvidence) -> NDArray[np.float64]:
-        block = item.fit_block_mse[item.fit]
-        return (np.array([block[channel] for channel in channels]) / floors[:, None]).mean(axis=0)
-
     sizes = np.array([part.shape[0] for part in np.array_split(np.empty(best.samples), BLOCKS)], dtype=float)
-    weights = sizes / sizes.sum()
     result = []
     for item in evidence:
         if not np.isfinite(item.score):
             result.append(item)
             continue
-        differences = blocks(item) - blocks(best)
-        mean = float(weights @ differences)
-        error = float(np.sqrt(BLOCKS / (BLOCKS - 1) * np.sum(weights ** 2 * (differences - mean) ** 2)))
+        _, error = paired_difference(item.fit_block_mse[item.fit], best.fit_block_mse[best.fit], floors, channels,
+                                     sizes)
         result.append(replace(item, standard_error=error, tied=item.score - best.score <= TIED_SE * error
                               and item.score <= (1.0 + EQUIVALENT) * best.score))
     return result
@@ -259,16 +311,14 @@ def tie_key(plan: Preprocessing) -> tuple:
 
 def choose_on_validation(model: IdentificationModel, train: Sequence[Measurements],
                          validation: Sequence[Measurements], plans: Sequence[Preprocessing], *,
-                         fits: tuple[str, ...] = FITS, jobs: int | None = None,
-                         held_out: Mapping[Preprocessing, float] | None = None
+                         fits: tuple[str, ...] = FITS, jobs: int | None = None
                          ) -> tuple[Preprocessing | None, tuple[ValidationEvidence, ...]]:
     """The candidate of the smallest validation score and every candidate's evidence, best first (module
     docstring); ``None`` when no candidate could be scored. ``train``, ``validation``: the segments as read.
     ``jobs``: processes that score the candidates side by side (as
     :func:`~estimation.identification.preprocessing_choice.choose_by_evidence`; the same choice whatever the
-    number). ``held_out``: each candidate's score on held-out blocks of the training record (lower is better),
-    which decides among the candidates the validation record cannot tell apart (module docstring: *Weak
-    validation record*); without it the smallest validation score wins."""
+    number). Among the candidates a weak validation record cannot tell apart, the training record's held-out
+    blocks decide (module docstring: *Weak validation record*)."""
     score = ValidationScore(model, tuple(fits))
     unique = list(dict.fromkeys(plan.without_evidence() for plan in plans))
     started = time.perf_counter()
@@ -281,38 +331,90 @@ def choose_on_validation(model: IdentificationModel, train: Sequence[Measurement
     evidence = tuple(with_standard_errors(sorted(rescored(on_same_samples(scored), model.channels),
                                                  key=lambda item: (item.score, tie_key(item.preprocessing))),
                                           model.channels))
-    chosen = decided(evidence, held_out)
+    chosen = decided(evidence)
     if chosen is None:
         return None, evidence
+    tied = [item for item in evidence if np.isfinite(item.score) and item.tied]
+    if len(tied) > 1:  # a weak validation record (module docstring): the training record's held-out blocks decide
+        tied.sort(key=lambda item: item.preprocessing != chosen)  # the validation record's choice first
+        scored_blocks = run_tasks([functools.partial(HeldOutBlocks(model, tuple(fits)), tuple(train), item.preprocessing)
+                                   for item in tied], min(workers, len(tied)))
+        counts = {count for _, count in scored_blocks}
+        if len(counts) == 1 and 0 not in counts:
+            chosen, block_scores = on_training_blocks(
+                tied, {item.preprocessing: blocks for item, (blocks, _) in zip(tied, scored_blocks)}, model.channels,
+                counts.pop())
+            evidence = tuple(replace(item, training_blocks_score=block_scores.get(item.preprocessing))
+                             for item in evidence)
     if time.perf_counter() - started >= PROGRESS_SECONDS:
         report("derivatives: %s chosen on the validation record among %d candidates (%.1f s)",
                chosen.describe_method(), len(evidence), time.perf_counter() - started)
     return chosen, evidence
 
 
-def decided(evidence: Sequence[ValidationEvidence], held_out: Mapping[Preprocessing, float] | None
-            ) -> Preprocessing | None:
-    """The candidate chosen from the evidence (best first, with :func:`with_standard_errors`): the smallest score,
-    exact ties (:data:`TIE_DIGITS`) to :func:`tie_key`; when several candidates are tied within the validation
-    record's standard error (module docstring: *Weak validation record*) and each has a finite score in
-    ``held_out`` (the training record's held-out scores, lower is better), the tied one of the best held-out score
-    (ties to :data:`TIE_DIGITS` by :func:`tie_key`) if the smallest score's held-out score is more than
-    :data:`~estimation.identification.preprocessing_choice.EQUIVALENT` above it (the training record's own margin
-    of equivalence: within it neither record tells them apart, and the validation record's smallest score stays).
-    ``None`` when no candidate was scored."""
+def paired_difference(first: dict[str, tuple[float, ...]], second: dict[str, tuple[float, ...]],
+                      floors: NDArray[np.float64], channels: Sequence[str], sizes: NDArray[np.float64]
+                      ) -> tuple[float, float]:
+    """The difference of two candidates' scores (the mean over ``channels`` of each block's MSE over the channel's
+    ``floors``, the blocks weighted by their ``sizes``) and its standard error as a mean of batch means."""
+    weights = np.asarray(sizes, dtype=float) / np.sum(sizes)
+
+    def blocks(item: dict[str, tuple[float, ...]]) -> NDArray[np.float64]:
+        return (np.array([item[channel] for channel in channels]) / floors[:, None]).mean(axis=0)
+
+    differences = blocks(first) - blocks(second)
+    mean = float(weights @ differences)
+    count = differences.shape[0]
+    return mean, float(np.sqrt(count / (count - 1) * np.sum(weights ** 2 * (differences - mean) ** 2)))
+
+
+def on_training_blocks(tied: Sequence[ValidationEvidence],
+                       blocks: Mapping[Preprocessing, dict[str, dict[str, tuple[float, ...]]]],
+                       channels: Sequence[str], samples: int) -> tuple[Preprocessing, dict[Preprocessing, float]]:
+    """Among ``tied`` (best first: ``tied[0]`` the smallest validation score), the candidate the training record's
+    held-out blocks (:class:`HeldOutBlocks`, ``blocks`` per candidate) prefer when they tell it from ``tied[0]``
+    (its score smaller by more than :data:`~estimation.preprocessing.plan.TIED_SE` standard errors of the blocks'
+    paired differences), else ``tied[0]``; and each candidate's score on the blocks (the criterion of
+    :mod:`~estimation.identification.relative_error`, each by its better fit). ``samples``: the training samples
+    cut into the blocks."""
+    first = tied[0].preprocessing
+    channels = tuple(channels)
+    pool = {(item.preprocessing, fit): {channel: float(np.average(values, weights=sizes_of(samples)))
+                                        for channel, values in per_fit.items()}
+            for item in tied for fit, per_fit in blocks.get(item.preprocessing, {}).items()}
+    if any(item.preprocessing not in blocks or not blocks[item.preprocessing] for item in tied):
+        return first, {}
+    scores = relative_scores(pool, channels)
+    fit_of = {plan: min((key for key in scores if key[0] == plan), key=lambda key: (scores[key], FITS.index(key[1])))
+              for plan in blocks}
+    plan_scores = {plan: scores[key] for plan, key in fit_of.items()}
+    held = min((item.preprocessing for item in tied),
+               key=lambda plan: (float(f"{plan_scores[plan]:.{TIE_DIGITS}g}"), tie_key(plan)))
+    if held == first:
+        return first, plan_scores
+    floors = np.array([min(mse[channel] for mse in pool.values()) for channel in channels])
+    if not np.all(floors > 0):
+        return first, plan_scores
+    difference, error = paired_difference(blocks[first][fit_of[first][1]], blocks[held][fit_of[held][1]], floors,
+                                          channels, sizes_of(samples))
+    return (held if difference > TIED_SE * error else first), plan_scores
+
+
+def sizes_of(samples: int) -> NDArray[np.float64]:
+    """The sizes of :data:`BLOCKS` contiguous blocks of ``samples`` (as
+    :func:`~estimation.identification.preprocessing_choice.blocked_folds` cuts them)."""
+    edges = np.linspace(0, samples, BLOCKS + 1).astype(int)
+    return np.diff(edges).astype(float)
+
+
+def decided(evidence: Sequence[ValidationEvidence]) -> Preprocessing | None:
+    """The candidate of the smallest score in the evidence (best first), exact ties (:data:`TIE_DIGITS`) to
+    :func:`tie_key`; ``None`` when no candidate was scored."""
     finite = [item for item in evidence if np.isfinite(item.score)]
     if not finite:
         return None
     best = float(f"{finite[0].score:.{TIE_DIGITS}g}")
-    tied = [item.preprocessing for item in finite if float(f"{item.score:.{TIE_DIGITS}g}") == best]
-    chosen = min(tied, key=tie_key)
-    scores = {plan.without_evidence(): score for plan, score in (held_out or {}).items() if np.isfinite(score)}
-    undecided = [item.preprocessing for item in finite if item.tied]
-    if len(undecided) > 1 and all(plan in scores for plan in undecided):
-        held = min(undecided, key=lambda plan: (float(f"{scores[plan]:.{TIE_DIGITS}g}"), tie_key(plan)))
-        if scores[chosen] > (1.0 + EQUIVALENT) * scores[held]:  # the training record tells them apart
-            chosen = held
-    return chosen
+    return min((item.preprocessing for item in finite if float(f"{item.score:.{TIE_DIGITS}g}") == best), key=tie_key)
 
 
 def chooses_on_validation(chosen: Preprocessing, train: Sequence[Measurements],
@@ -353,8 +455,7 @@ def on_validation(chosen: Preprocessing, model: IdentificationModel, train: Sequ
             return chosen
         return choose_on_repeat(chosen, model, train, validation, jobs=jobs)  # a repeat of the training motion
     plans = [item.preprocessing for item in chosen.evidence.candidates]
-    held_out = {item.preprocessing.without_evidence(): item.score for item in chosen.evidence.candidates}
-    best, evidence = choose_on_validation(model, train, validation, plans, fits=fits, jobs=jobs, held_out=held_out)
+    best, evidence = choose_on_validation(model, train, validation, plans, fits=fits, jobs=jobs)
     if best is None:
         return chosen
     return replace(best, evidence=Evidence("validation", chosen.evidence.folds, chosen.evidence.candidates, evidence,
