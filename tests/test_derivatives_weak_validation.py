@@ -114,48 +114,20 @@ def test_the_standard_error_is_that_of_the_blocks_paired_differences():
     assert not result[40.0].tied
 
 
-def blocks(values):
-    """One fit's MSE on the training record's five blocks, one channel."""
-    return {"ols": {"tau1": tuple(values)}}
-
-
-def test_the_training_blocks_decide_among_the_tied_only_when_they_tell_them_apart():
-    best = item(10.0, [1.0, 2.0, 1.0, 2.0, 1.0])
-    close = item(20.0, [1.0, 2.05, 0.99, 2.0, 1.03])
-    tied = [entry for entry in with_standard_errors(module.rescored([best, close], ("tau1",)), ("tau1",))]
-    assert all(entry.tied for entry in tied)
-    first, second = (entry.preprocessing for entry in tied)
-    samples = 50
-    # the training blocks prefer the second by 10 % on every block: it is taken
-    chosen, scores = module.on_training_blocks(tied, {first: blocks([1.1, 2.2, 1.1, 2.2, 1.1]),
-                                                      second: blocks([1.0, 2.0, 1.0, 2.0, 1.0])}, ("tau1",), samples)
-    assert chosen == second and scores[second] == pytest.approx(1.0) and scores[first] == pytest.approx(1.1)
-    # 3 % better on average, but not on every block (within two standard errors): the validation record's choice
-    chosen, _ = module.on_training_blocks(tied, {first: blocks([1.0, 2.0, 1.0, 2.0, 1.0]),
-                                                 second: blocks([0.8, 2.1, 1.05, 1.85, 1.02])}, ("tau1",), samples)
-    assert chosen == first
-    # blocks missing for a tied candidate: the validation record's choice
-    assert module.on_training_blocks(tied, {first: blocks([1.0] * 5)}, ("tau1",), samples) == (first, {})
-
-
-def test_the_held_out_blocks_are_each_predicted_by_the_fit_on_the_others(records):
-    from estimation.estimators.least_squares import LeastSquares, stack
-    from estimation.identification.prepared import read_files
-    from estimation.data.segments import concatenate
-    from estimation.identification.validation import compare_recorded
-    from estimation.preprocessing.plan import prepare
-
-    model, paths = records
-    plan = Preprocessing("butterworth", cutoff_hz=6.0)
-    train = read_files([paths["train"]], model, split=True)[0].segments
-    result, samples = module.HeldOutBlocks(model, ("ols",))(train, plan)
-    whole = concatenate(prepare(train, plan))
-    assert samples == whole.n_samples
-    edges = np.linspace(0, samples, BLOCKS + 1).astype(int)
-    held = slice(edges[2], edges[3])
-    kept = np.ones(samples, dtype=bool)
-    kept[held] = False
-    estimate = LeastSquares().fit(stack(model, whole.select(np.flatnonzero(kept)))).estimate_
-    comparison = compare_recorded(model, {"ols": estimate.values}, whole.select(held))["ols"]  # against the record
-    for channel in model.channels:
-        assert result["ols"][channel][2] == pytest.approx(comparison.mse[channel], rel=1e-6)
+def test_among_three_or_more_tied_the_median_cut_off_is_taken():
+    # validation scores 1.00 (125 Hz), 1.004 (75 Hz), 1.03 (42.5 Hz), each block alike up to noise: all tied
+    noisy = [0.0, 0.06, -0.05, 0.04, -0.05]
+    entries = [item(125.0, [1.0 + 0.0 * n for n in noisy]), item(75.0, [1.004 + n for n in noisy]),
+               item(42.5, [1.03 + 0.9 * n for n in noisy]), item(10.0, [1.5] * 5)]
+    evidence = with_standard_errors(sorted(module.rescored(entries, ("tau1",)), key=lambda entry: entry.score),
+                                    ("tau1",))
+    assert [entry.tied for entry in evidence] == [True, True, True, False]
+    assert module.decided(evidence).cutoff_hz == 75.0
+    # two tied: the smaller score stays
+    assert module.decided(evidence[:2] + evidence[3:]).cutoff_hz == 125.0
+    # four tied: of the two middle ones, the smaller score
+    entries.append(item(30.0, [1.02 + 0.8 * n for n in noisy]))
+    evidence = with_standard_errors(sorted(module.rescored(entries, ("tau1",)), key=lambda entry: entry.score),
+                                    ("tau1",))
+    assert sum(entry.tied for entry in evidence) == 4
+    assert module.decided(evidence).cutoff_hz == 75.0  # 30, 42.5, 75, 125: of 42.5 (1.03) and 75 (1.004), 75

@@ -35,23 +35,27 @@ digits) go to the least distorting candidate, as in the training record's choice
 harmonics, else the highest cut-off, the logged velocity before the positions', then the description): the
 answer does not depend on the order of a list.
 
-**Weak validation record** (:func:`with_standard_errors`, :func:`decided`). A short validation record may rank two
+**Weak validation record** (:func:`with_standard_errors`, :func:`decided`). A short validation record may rank
 candidates by a fraction of a percent that another stretch of the same motion would reverse: on the Stäubli TX40 at
 2.5 kHz (``benchmarks/README.md``, ``tx40-sub2``) its 1.5 s validation record scored a 125 Hz filter 0.4 % better
-than 75 Hz, while the training record's blocked cross-validation scored 125 Hz 11 % worse, and the test record was
-predicted 9 % worse with it. The score is a weighted sum of the channels' MSE, so the difference of two candidates'
-scores is the mean of their differences on :data:`BLOCKS` contiguous blocks of the validation record, and its
-standard error that of a mean of batch means. A candidate within
-:data:`~estimation.preprocessing.plan.TIED_SE` standard errors of the best **and** within
-:data:`~estimation.identification.preprocessing_choice.EQUIVALENT` of it (the margin within which the training
-record's choice calls candidates equivalent) is *tied* with it: the validation record does not tell them apart.
-Among the tied ones the training record's held-out score (already computed by the training record's own choice: no
-extra fit) decides, when it tells them apart by more than the same
-:data:`~estimation.identification.preprocessing_choice.EQUIVALENT`; otherwise the smallest validation score stays.
-Both margins are needed: on a simulated PUMA whose training motion is five times slower than the validation motion
+than 75 Hz (the other half of the same decimation chose 75 Hz), and the test record was predicted 9 % worse with
+it. The score is a weighted sum of the channels' MSE, so the difference of two candidates' scores is the mean of
+their differences on :data:`BLOCKS` contiguous blocks of the validation record, and its standard error that of a
+mean of batch means. A candidate within :data:`~estimation.preprocessing.plan.TIED_SE` standard errors of the best
+**and** within :data:`~estimation.identification.preprocessing_choice.EQUIVALENT` of it (the margin within which
+the training record's choice calls candidates equivalent) is *tied* with it: the validation record does not tell
+them apart. Among three or more tied candidates the **median** by :func:`bandwidth` is taken (of the two middle
+ones of an even count, the smaller score; two tied candidates keep the smaller score): the best of the tied range
+is unknown, and the median is the guess farthest from both ends of it, leaning neither toward the distortion of a
+low cut-off nor toward the noise of a high one. The training record does not break the tie: its held-out blocks
+of the *same* motion favour smoothing (a fit absorbs what a low cut-off does to that motion's spectrum, which does
+not carry to another motion). Scored by them (the declared model fitted on four blocks predicting the fifth),
+simulated PUMAs at 1 kHz took 10 Hz among 10 and 17 Hz tied on 1.5 s validation records in two of six ties where
+the test record preferred 17 Hz by 12 % and 59 % (``benchmarks/README.md``, h-weakval2). Both margins of a tie are
+needed: on a simulated PUMA whose training motion is five times slower than the validation motion
 (``tests/test_preprocessing_on_validation.py``) the 8 s validation record scores 6 Hz 15 % better than 3.4 Hz,
-within two standard errors, and the training record prefers 3.4 Hz by a factor 2; 6 Hz predicts the test record
-better (``tau1`` 1.6 against 2.6 N²m²). A record of another motion that separates the candidates by more than
+within two standard errors, and 6 Hz predicts the test record better (``tau1`` 1.6 against 2.6 N²m²): a record of
+another motion that separates the candidates by more than
 :data:`~estimation.identification.preprocessing_choice.EQUIVALENT` decides, however noisy.
 
 **Nesting with the model choice.** The physically consistent candidate (five prior weights, each an IPOPT
@@ -73,10 +77,9 @@ from __future__ import annotations
 
 import functools
 import hashlib
-import operator
 import time
 import warnings
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -97,7 +100,6 @@ from estimation.identification.preprocessing_choice import (
     MIN_PARALLEL_SCORES,
     SCORED_SAMPLES,
     choose_on_repeat,
-    blocked_folds,
     scored_window,
 )
 from estimation.identification.relative_error import relative_scores
@@ -179,44 +181,6 @@ class ValidationScore:
                                    int(stamps.shape[0]), fit_mse,
                                    {fit: block_mse(item) for fit, item in comparisons.items()}),
                 hashlib.sha256(stamps.tobytes()).hexdigest())
-
-
-@dataclass(frozen=True)
-class HeldOutBlocks:
-    """A candidate's error on :data:`BLOCKS` contiguous blocks of the training record, each predicted by the fits
-    of :class:`ValidationScore` on the other blocks (from the blocks' sums), against the channels as recorded: the
-    evidence that decides among the candidates a weak validation record cannot tell apart (module docstring)."""
-
-    model: IdentificationModel
-    fits: tuple[str, ...] = FITS
-
-    @single_threaded_blas()
-    def __call__(self, train: Sequence[Measurements], preprocessing: Preprocessing
-                 ) -> tuple[dict[str, dict[str, tuple[float, ...]]], int]:
-        """Per fit, each channel's MSE on each block, and the samples cut into the blocks (``({}, 0)`` when the
-        blocks cannot be fitted or predicted)."""
-        try:
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore")
-                whole = concatenate(prepare(train, preprocessing.without_evidence(), role="training data"))
-                blocks = [whole.select(held) for held, _ in blocked_folds(whole.n_samples, BLOCKS)]
-                if any(block.n_samples == 0 for block in blocks):
-                    return {}, 0
-                sums = [accumulate(self.model, block, gram=False) for block in blocks]
-                result: dict[str, dict[str, list[float]]] = {}
-                for index, block in enumerate(blocks):
-                    rest = functools.reduce(operator.add, [item for k, item in enumerate(sums) if k != index])
-                    estimates = {fit: SummedLeastSquares(method=fit).fit(rest).estimate_.values
-                                 for fit in FITS if fit in self.fits}
-                    for fit, comparison in compare_recorded(self.model, estimates, block, label="held-out").items():
-                        for channel, mse in comparison.mse.items():
-                            result.setdefault(fit, {}).setdefault(channel, []).append(float(mse))
-        except (SegmentTooShortForFilterError, ValueError, np.linalg.LinAlgError):
-            return {}, 0
-        if any(not np.all(np.isfinite(values)) for item in result.values() for values in item.values()):
-            return {}, 0
-        return ({fit: {channel: tuple(values) for channel, values in item.items()} for fit, item in result.items()},
-                whole.n_samples)
 
 
 def block_mse(comparison: Comparison) -> dict[str, tuple[float, ...]]:
@@ -334,18 +298,6 @@ def choose_on_validation(model: IdentificationModel, train: Sequence[Measurement
     chosen = decided(evidence)
     if chosen is None:
         return None, evidence
-    tied = [item for item in evidence if np.isfinite(item.score) and item.tied]
-    if len(tied) > 1:  # a weak validation record (module docstring): the training record's held-out blocks decide
-        tied.sort(key=lambda item: item.preprocessing != chosen)  # the validation record's choice first
-        scored_blocks = run_tasks([functools.partial(HeldOutBlocks(model, tuple(fits)), tuple(train), item.preprocessing)
-                                   for item in tied], min(workers, len(tied)))
-        counts = {count for _, count in scored_blocks}
-        if len(counts) == 1 and 0 not in counts:
-            chosen, block_scores = on_training_blocks(
-                tied, {item.preprocessing: blocks for item, (blocks, _) in zip(tied, scored_blocks)}, model.channels,
-                counts.pop())
-            evidence = tuple(replace(item, training_blocks_score=block_scores.get(item.preprocessing))
-                             for item in evidence)
     if time.perf_counter() - started >= PROGRESS_SECONDS:
         report("derivatives: %s chosen on the validation record among %d candidates (%.1f s)",
                chosen.describe_method(), len(evidence), time.perf_counter() - started)
@@ -368,53 +320,33 @@ def paired_difference(first: dict[str, tuple[float, ...]], second: dict[str, tup
     return mean, float(np.sqrt(count / (count - 1) * np.sum(weights ** 2 * (differences - mean) ** 2)))
 
 
-def on_training_blocks(tied: Sequence[ValidationEvidence],
-                       blocks: Mapping[Preprocessing, dict[str, dict[str, tuple[float, ...]]]],
-                       channels: Sequence[str], samples: int) -> tuple[Preprocessing, dict[Preprocessing, float]]:
-    """Among ``tied`` (best first: ``tied[0]`` the smallest validation score), the candidate the training record's
-    held-out blocks (:class:`HeldOutBlocks`, ``blocks`` per candidate) prefer when they tell it from ``tied[0]``
-    (its score smaller by more than :data:`~estimation.preprocessing.plan.TIED_SE` standard errors of the blocks'
-    paired differences), else ``tied[0]``; and each candidate's score on the blocks (the criterion of
-    :mod:`~estimation.identification.relative_error`, each by its better fit). ``samples``: the training samples
-    cut into the blocks."""
-    first = tied[0].preprocessing
-    channels = tuple(channels)
-    pool = {(item.preprocessing, fit): {channel: float(np.average(values, weights=sizes_of(samples)))
-                                        for channel, values in per_fit.items()}
-            for item in tied for fit, per_fit in blocks.get(item.preprocessing, {}).items()}
-    if any(item.preprocessing not in blocks or not blocks[item.preprocessing] for item in tied):
-        return first, {}
-    scores = relative_scores(pool, channels)
-    fit_of = {plan: min((key for key in scores if key[0] == plan), key=lambda key: (scores[key], FITS.index(key[1])))
-              for plan in blocks}
-    plan_scores = {plan: scores[key] for plan, key in fit_of.items()}
-    held = min((item.preprocessing for item in tied),
-               key=lambda plan: (float(f"{plan_scores[plan]:.{TIE_DIGITS}g}"), tie_key(plan)))
-    if held == first:
-        return first, plan_scores
-    floors = np.array([min(mse[channel] for mse in pool.values()) for channel in channels])
-    if not np.all(floors > 0):
-        return first, plan_scores
-    difference, error = paired_difference(blocks[first][fit_of[first][1]], blocks[held][fit_of[held][1]], floors,
-                                          channels, sizes_of(samples))
-    return (held if difference > TIED_SE * error else first), plan_scores
-
-
-def sizes_of(samples: int) -> NDArray[np.float64]:
-    """The sizes of :data:`BLOCKS` contiguous blocks of ``samples`` (as
-    :func:`~estimation.identification.preprocessing_choice.blocked_folds` cuts them)."""
-    edges = np.linspace(0, samples, BLOCKS + 1).astype(int)
-    return np.diff(edges).astype(float)
+def bandwidth(plan: Preprocessing) -> float:
+    """The band a candidate keeps of the motion, Hz: a filter's cut-off, a Fourier fit's highest harmonic
+    (``inf`` for the measured derivatives)."""
+    if plan.method == "butterworth":
+        return float(plan.cutoff_hz)
+    if plan.method == "fourier":
+        return float(plan.frequency_hz) * int(plan.harmonics or 0)
+    return float("inf")
 
 
 def decided(evidence: Sequence[ValidationEvidence]) -> Preprocessing | None:
-    """The candidate of the smallest score in the evidence (best first), exact ties (:data:`TIE_DIGITS`) to
-    :func:`tie_key`; ``None`` when no candidate was scored."""
+    """The candidate chosen from the evidence (best first, with :func:`with_standard_errors`; module docstring):
+    the smallest score, exact ties (:data:`TIE_DIGITS`) to :func:`tie_key`; when several candidates are tied with it
+    (a weak validation record), the median of the tied ones ordered by :func:`bandwidth` (of the two middle ones of
+    an even count, the smaller score). ``None`` when no candidate was scored."""
     finite = [item for item in evidence if np.isfinite(item.score)]
     if not finite:
         return None
     best = float(f"{finite[0].score:.{TIE_DIGITS}g}")
-    return min((item.preprocessing for item in finite if float(f"{item.score:.{TIE_DIGITS}g}") == best), key=tie_key)
+    chosen = min((item.preprocessing for item in finite if float(f"{item.score:.{TIE_DIGITS}g}") == best),
+                 key=tie_key)
+    tied = sorted((item for item in finite if item.tied),
+                  key=lambda item: (bandwidth(item.preprocessing), item.score, tie_key(item.preprocessing)))
+    if len(tied) < 3:
+        return chosen  # one, or two: the median of two is the better of them
+    middle = tied[(len(tied) - 1) // 2: len(tied) // 2 + 1]
+    return min(middle, key=lambda item: (item.score, tie_key(item.preprocessing))).preprocessing
 
 
 def chooses_on_validation(chosen: Preprocessing, train: Sequence[Measurements],

@@ -143,9 +143,6 @@ class ValidationEvidence:
     tied
         Whether the validation record cannot tell it from the best (:func:`estimation.identification.
         preprocessing_on_validation.choose_on_validation`: the difference within ``TIED_SE`` standard errors).
-    training_blocks_score
-        A tied candidate's score on held-out blocks of the training record, each predicted by the fit on the
-        others (what decides among the tied ones), ``None`` for the others.
     """
 
     preprocessing: Preprocessing
@@ -160,7 +157,6 @@ class ValidationEvidence:
     fit_block_mse: dict[str, dict[str, tuple[float, ...]]] = field(default_factory=dict)
     standard_error: float | None = None
     tied: bool = False
-    training_blocks_score: float | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """The candidate's keys (as :meth:`Preprocessing.to_dict`) with ``score``, ``validation_mse``, ``fit``,
@@ -171,8 +167,7 @@ class ValidationEvidence:
                         fit=self.fit, fit_scores={name: value if np.isfinite(value) else None
                                                   for name, value in self.fit_scores.items()},
                         fit_validation_mse=self.fit_mse, seconds=round(self.seconds, 3), samples=self.samples,
-                        standard_error=self.standard_error, tied=self.tied,
-                        training_blocks_score=self.training_blocks_score)
+                        standard_error=self.standard_error, tied=self.tied)
         if self.error is not None:
             document["error"] = self.error
         return document
@@ -294,7 +289,7 @@ class Preprocessing:
             tied = [item for item in self.evidence.validation if item.tied]
             if self.evidence.selection == "validation" and len(tied) > 1:
                 how += (f"; {len(tied)} of them within {TIED_SE:g} standard errors of the best on the validation "
-                        "record, decided by held-out blocks of the training data")
+                        "record, the median of their cut-offs taken")
             if held_out is not None and held_out != self.without_evidence():
                 how += f"; blocked cross-validation on the training data preferred {held_out.describe_method()}"
         elif self.evidence is not None and self.evidence.selection == "held-out":
