@@ -1,13 +1,14 @@
 """The derivatives chosen on a weak validation record (issue 34,
-estimation.identification.preprocessing_on_validation): candidates the validation record cannot tell apart (their
-scores within ``TIED_SE`` standard errors of the best's and within ``EQUIVALENT`` of it) are decided by the
-training record's held-out score, which the training record's own choice already computed (no extra fit).
+estimation.identification.preprocessing_on_validation): each candidate's standard error of its score's difference
+to the best's, from the validation record's five contiguous blocks, and whether the validation record tells it from
+the best (``tied``: within two standard errors and within EQUIVALENT). Reported, not acted on: the tie-breaks
+measured (the training record's held-out blocks, the median cut-off of the tied ones, the median over the blocks)
+each made a real or simulated case worse (benchmarks/README.md, h-weakval2).
 
 On the real Stäubli TX40 at 2.5 kHz the 1.5 s validation record chose a 125 Hz filter by 0.4 % of the score over
-75 Hz, and the test record was predicted 9 % worse (benchmarks/README.md, "The TX40 at other rates"). Here the
-same on a simulated 3-joint PUMA (the case of the unmerged branch h-weakval): positions with 3 mrad of noise, a 30 s
-training record, eight 0.5 s validation records of another motion (eight noise seeds), a test record of a third
-motion. Scored on the validation record alone some records take a filter that predicts the test record worse."""
+75 Hz, and the test record was predicted 9 % worse. Here a simulated 3-joint PUMA at 1 kHz: one 1.5 s validation
+motion with four noise realisations (torque noise eight times the training record's): the choice flips between
+10 Hz and 17 Hz with the noise, and every realisation flags the two as tied."""
 
 from __future__ import annotations
 
@@ -21,17 +22,18 @@ from dynamics.measurements import Measurements
 from dynamics.models import build_model
 from dynamics.robots import load_robot
 from dynamics.simulation.synthetic import simulate, true_parameters
-from estimation.identification.fit import identify
 from estimation.identification.prepared import PreparationSettings, prepare_records
 from estimation.identification.preprocessing_on_validation import BLOCKS, with_standard_errors
 from estimation.preprocessing.plan import Preprocessing, ValidationEvidence
 from oed.fourier import random_fourier
 
 NOISE = {"tau1": 0.2, "tau2": 0.2, "tau3": 0.1}
-#: position noise, rad: enough that the cut-off matters
-Q_NOISE = 3e-3
-RATE_HZ = 200.0
-VALIDATION_SEEDS = tuple(range(8))
+#: position noise, rad
+Q_NOISE = 1e-4
+RATE_HZ = 1000.0
+#: the validation record's torque noise over the training record's
+VALIDATION_NOISE = 8.0
+NOISE_SEEDS = (0, 1, 2, 3)
 
 
 @pytest.fixture(scope="module")
@@ -41,52 +43,41 @@ def records(tmp_path_factory):
     model = build_model(robot, "internal", "viscous,coulomb,offset")
     theta = true_parameters(model, seed=1, coulomb=[3.0, 2.0, 1.0], offset=[0.5, -0.3, 0.2])
 
-    def write(name, seed, periods, noise_seed, seconds=None):
+    def write(name, seed, periods, noise_seed, seconds=None, scale=1.0):
         data = simulate(model, theta, random_fourier(robot, seed=seed, frequency_hz=0.3), rate_hz=RATE_HZ,
-                        periods=periods, noise=NOISE, seed=noise_seed)
+                        periods=periods, noise={key: scale * value for key, value in NOISE.items()}, seed=noise_seed)
         q = data.q + np.random.default_rng(noise_seed + 100).normal(0.0, Q_NOISE, data.q.shape)
         keep = slice(None) if seconds is None else slice(0, int(seconds * RATE_HZ))
         path = folder / f"{name}.csv"
         Measurements(data.t[keep], q[keep], None, None, data.tau[keep], None, {}).write(path)
         return path
 
-    paths = {"train": write("train", 5, 3, 5), "test": write("test", 7, 2, 7)}
-    for seed in VALIDATION_SEEDS:
-        paths[seed] = write(f"validate{seed}", 20 + seed, 1, 40 + seed, seconds=0.5)
+    paths = {"train": write("train", 5, 3, 5), "test": write("test", 7, 1, 7)}
+    for seed in NOISE_SEEDS:
+        paths[seed] = write(f"validate{seed}", 20, 1, 40 + seed, seconds=1.5, scale=VALIDATION_NOISE)
     return model, paths
 
 
-def chosen_and_test_mse(model, paths, seed):
-    """The derivatives chosen on the validation record ``seed`` and the test MSE (all channels) of OLS with them."""
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        prepared = prepare_records(model, [paths["train"]], [paths[seed]], [paths["test"]],
-                                   settings=PreparationSettings(validation_fits=("ols", "wls")))
-        result = identify(model, prepared.train.measurements, prepared.test.measurements, weighted=False)
-    return prepared.preprocessing, sum(result.validation.mse.values())
-
-
 @pytest.mark.slow
-def test_fewer_short_validation_records_take_the_filter_that_predicts_another_motion_worse(records, monkeypatch):
+def test_a_choice_that_flips_with_the_validation_noise_is_flagged_tied(records):
     model, paths = records
-    outcome = {}
-    for seed in VALIDATION_SEEDS:
-        outcome[seed] = chosen_and_test_mse(model, paths, seed)
-    monkeypatch.setattr(module, "TIED_SE", 0.0)  # the validation record alone decides
-    alone = {seed: chosen_and_test_mse(model, paths, seed) for seed in VALIDATION_SEEDS}
-    best_test = min(test_mse for _, test_mse in (*outcome.values(), *alone.values()))
-    worse = sorted(seed for seed, (_, test_mse) in outcome.items() if test_mse > 1.05 * best_test)
-    worse_alone = sorted(seed for seed, (_, test_mse) in alone.items() if test_mse > 1.05 * best_test)
-    described = {seed: (plan.describe_method(), round(mse, 3)) for seed, (plan, mse) in outcome.items()}
-    assert len(worse) < len(worse_alone), (described, worse_alone)
-    for seed in VALIDATION_SEEDS:
-        plan = outcome[seed][0]
-        assert plan.evidence.selection == "validation"
-        if plan.without_evidence() != alone[seed][0].without_evidence():  # the tie decided by the training record
-            tied = [item.preprocessing for item in plan.evidence.validation if item.tied]
-            assert plan.without_evidence() in tied and len(tied) > 1
-            assert "standard errors of the best on the validation record" in plan.describe()
-            assert outcome[seed][1] <= alone[seed][1]
+    plans = {}
+    for seed in NOISE_SEEDS:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            plans[seed] = prepare_records(model, [paths["train"]], [paths[seed]], [paths["test"]],
+                                          settings=PreparationSettings(validation_fits=("ols", "wls"))).preprocessing
+    chosen = {plan.without_evidence() for plan in plans.values()}
+    assert len(chosen) > 1, "the test needs a choice that flips with the noise"
+    for plan in plans.values():
+        evidence = plan.evidence.validation
+        assert evidence[0].preprocessing == plan.without_evidence()  # the smallest score is still chosen
+        tied = {item.preprocessing for item in evidence if item.tied}
+        assert chosen <= tied
+        assert all(not item.tied for item in evidence if item.score > (1 + module.EQUIVALENT) * evidence[0].score)
+        assert "standard errors of its score: the validation record does not tell them apart" in plan.describe()
+        document = plan.to_dict()["validation_candidates"]
+        assert document[0]["standard_error"] == 0.0 and document[0]["tied"] is True
 
 
 def item(cutoff, blocks, fit="ols"):
@@ -114,20 +105,21 @@ def test_the_standard_error_is_that_of_the_blocks_paired_differences():
     assert not result[40.0].tied
 
 
-def test_among_three_or_more_tied_the_median_cut_off_is_taken():
-    # validation scores 1.00 (125 Hz), 1.004 (75 Hz), 1.03 (42.5 Hz), each block alike up to noise: all tied
+def test_the_smallest_score_is_chosen_whether_or_not_others_are_tied():
     noisy = [0.0, 0.06, -0.05, 0.04, -0.05]
-    entries = [item(125.0, [1.0 + 0.0 * n for n in noisy]), item(75.0, [1.004 + n for n in noisy]),
-               item(42.5, [1.03 + 0.9 * n for n in noisy]), item(10.0, [1.5] * 5)]
+    entries = [item(125.0, [1.0] * 5), item(75.0, [1.004 + n for n in noisy]), item(42.5, [1.03 + 0.9 * n for n in noisy]),
+               item(10.0, [1.5] * 5)]
     evidence = with_standard_errors(sorted(module.rescored(entries, ("tau1",)), key=lambda entry: entry.score),
                                     ("tau1",))
     assert [entry.tied for entry in evidence] == [True, True, True, False]
-    assert module.decided(evidence).cutoff_hz == 75.0
-    # two tied: the smaller score stays
-    assert module.decided(evidence[:2] + evidence[3:]).cutoff_hz == 125.0
-    # four tied: of the two middle ones, the smaller score
-    entries.append(item(30.0, [1.02 + 0.8 * n for n in noisy]))
-    evidence = with_standard_errors(sorted(module.rescored(entries, ("tau1",)), key=lambda entry: entry.score),
-                                    ("tau1",))
-    assert sum(entry.tied for entry in evidence) == 4
-    assert module.decided(evidence).cutoff_hz == 75.0  # 30, 42.5, 75, 125: of 42.5 (1.03) and 75 (1.004), 75
+    assert module.decided(evidence).cutoff_hz == 125.0
+    assert module.decided([evidence[-1].__class__(Preprocessing("butterworth", cutoff_hz=1.0), float("inf"), {})]) \
+        is None
+
+
+def test_too_few_validation_samples_for_the_blocks_tie_nothing():
+    few = [item(10.0, [1.0] * 5), item(20.0, [1.01] * 5)]
+    few = [entry.__class__(entry.preprocessing, 1.0, entry.validation_mse, "ols", {}, None, 0.0, BLOCKS - 1,
+                           entry.fit_mse, {}) for entry in few]
+    evidence = with_standard_errors(module.rescored(few, ("tau1",)), ("tau1",))
+    assert not any(entry.tied for entry in evidence) and all(entry.standard_error is None for entry in evidence)

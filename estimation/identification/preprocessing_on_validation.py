@@ -35,28 +35,22 @@ digits) go to the least distorting candidate, as in the training record's choice
 harmonics, else the highest cut-off, the logged velocity before the positions', then the description): the
 answer does not depend on the order of a list.
 
-**Weak validation record** (:func:`with_standard_errors`, :func:`decided`). A short validation record may rank
-candidates by a fraction of a percent that another stretch of the same motion would reverse: on the Stäubli TX40 at
-2.5 kHz (``benchmarks/README.md``, ``tx40-sub2``) its 1.5 s validation record scored a 125 Hz filter 0.4 % better
-than 75 Hz (the other half of the same decimation chose 75 Hz), and the test record was predicted 9 % worse with
-it. The score is a weighted sum of the channels' MSE, so the difference of two candidates' scores is the mean of
-their differences on :data:`BLOCKS` contiguous blocks of the validation record, and its standard error that of a
-mean of batch means. A candidate within :data:`~estimation.preprocessing.plan.TIED_SE` standard errors of the best
-**and** within :data:`~estimation.identification.preprocessing_choice.EQUIVALENT` of it (the margin within which
-the training record's choice calls candidates equivalent) is *tied* with it: the validation record does not tell
-them apart. Among three or more tied candidates the **median** by :func:`bandwidth` is taken (of the two middle
-ones of an even count, the smaller score; two tied candidates keep the smaller score): the best of the tied range
-is unknown, and the median is the guess farthest from both ends of it, leaning neither toward the distortion of a
-low cut-off nor toward the noise of a high one. The training record does not break the tie: its held-out blocks
-of the *same* motion favour smoothing (a fit absorbs what a low cut-off does to that motion's spectrum, which does
-not carry to another motion). Scored by them (the declared model fitted on four blocks predicting the fifth),
-simulated PUMAs at 1 kHz took 10 Hz among 10 and 17 Hz tied on 1.5 s validation records in two of six ties where
-the test record preferred 17 Hz by 12 % and 59 % (``benchmarks/README.md``, h-weakval2). Both margins of a tie are
-needed: on a simulated PUMA whose training motion is five times slower than the validation motion
-(``tests/test_preprocessing_on_validation.py``) the 8 s validation record scores 6 Hz 15 % better than 3.4 Hz,
-within two standard errors, and 6 Hz predicts the test record better (``tau1`` 1.6 against 2.6 N²m²): a record of
-another motion that separates the candidates by more than
-:data:`~estimation.identification.preprocessing_choice.EQUIVALENT` decides, however noisy.
+**Weak validation record** (:func:`with_standard_errors`). A short validation record may rank candidates by a
+fraction of a percent that another stretch of the same motion would reverse: on the Stäubli TX40 at 2.5 kHz
+(``benchmarks/README.md``, ``tx40-sub2``) its 1.5 s validation record scored a 125 Hz filter 0.4 % better than
+75 Hz, and the test record was predicted 9 % worse with it. The score is a weighted sum of the channels' MSE, so the
+difference of two candidates' scores is the mean of their differences on :data:`BLOCKS` contiguous blocks of the
+validation record, and its standard error that of a mean of batch means. A candidate within
+:data:`~estimation.preprocessing.plan.TIED_SE` standard errors of the best **and** within
+:data:`~estimation.identification.preprocessing_choice.EQUIVALENT` of it (the margin within which the training
+record's choice calls candidates equivalent) is reported *tied* with it (``standard_error``, ``tied`` in
+``result.json``; the summary says how many): the validation record does not tell them apart. The smallest score
+is still chosen. Three tie-breaks were measured on the real logs and simulated robots and each made some case
+worse (``benchmarks/README.md``, h-weakval2): the training record's held-out blocks (either score) favour
+smoothing, since a fit on the same motion absorbs what a low cut-off does to that motion's spectrum (simulated
+PUMAs at 1 kHz: 10 Hz taken where the test record preferred the tied 17 Hz by 12 % and 59 %); the median cut-off
+of the tied ones took 3.4 Hz on the real Panda where the smallest score's 6 Hz predicts the test record 10 %
+better; the median over the blocks keeps the TX40's 125 Hz.
 
 **Nesting with the model choice.** The physically consistent candidate (five prior weights, each an IPOPT
 refit) is not fitted for every derivative candidate: the preprocessing is chosen with the cheap unconstrained
@@ -222,7 +216,7 @@ def rescored(evidence: Sequence[ValidationEvidence], channels: Sequence[str]) ->
 def with_standard_errors(evidence: Sequence[ValidationEvidence], channels: Sequence[str]
                          ) -> list[ValidationEvidence]:
     """The evidence (best first, rescored) with each finite candidate's standard error of the difference of its
-    score to the best's and whether it is :func:`tied <choose_on_validation>` with it.
+    score to the best's and whether it is tied with it (module docstring: *Weak validation record*).
 
     The score is a weighted sum of the channels' MSE (weights ``1 / (n_channels * min_j e[j, c])``,
     :mod:`estimation.identification.relative_error`), so the difference of two candidates' scores is the
@@ -281,8 +275,8 @@ def choose_on_validation(model: IdentificationModel, train: Sequence[Measurement
     docstring); ``None`` when no candidate could be scored. ``train``, ``validation``: the segments as read.
     ``jobs``: processes that score the candidates side by side (as
     :func:`~estimation.identification.preprocessing_choice.choose_by_evidence`; the same choice whatever the
-    number). Among the candidates a weak validation record cannot tell apart, the training record's held-out
-    blocks decide (module docstring: *Weak validation record*)."""
+    number). Each candidate's evidence says whether a weak validation record tells it from the best (module
+    docstring: *Weak validation record*; reported, the smallest score still chosen)."""
     score = ValidationScore(model, tuple(fits))
     unique = list(dict.fromkeys(plan.without_evidence() for plan in plans))
     started = time.perf_counter()
@@ -320,33 +314,15 @@ def paired_difference(first: dict[str, tuple[float, ...]], second: dict[str, tup
     return mean, float(np.sqrt(count / (count - 1) * np.sum(weights ** 2 * (differences - mean) ** 2)))
 
 
-def bandwidth(plan: Preprocessing) -> float:
-    """The band a candidate keeps of the motion, Hz: a filter's cut-off, a Fourier fit's highest harmonic
-    (``inf`` for the measured derivatives)."""
-    if plan.method == "butterworth":
-        return float(plan.cutoff_hz)
-    if plan.method == "fourier":
-        return float(plan.frequency_hz) * int(plan.harmonics or 0)
-    return float("inf")
-
-
 def decided(evidence: Sequence[ValidationEvidence]) -> Preprocessing | None:
-    """The candidate chosen from the evidence (best first, with :func:`with_standard_errors`; module docstring):
-    the smallest score, exact ties (:data:`TIE_DIGITS`) to :func:`tie_key`; when several candidates are tied with it
-    (a weak validation record), the median of the tied ones ordered by :func:`bandwidth` (of the two middle ones of
-    an even count, the smaller score). ``None`` when no candidate was scored."""
+    """The candidate of the smallest score in the evidence (best first), exact ties (:data:`TIE_DIGITS`) to
+    :func:`tie_key`, whether or not other candidates are tied with it within the validation record's standard error
+    (module docstring: *Weak validation record*); ``None`` when no candidate was scored."""
     finite = [item for item in evidence if np.isfinite(item.score)]
     if not finite:
         return None
     best = float(f"{finite[0].score:.{TIE_DIGITS}g}")
-    chosen = min((item.preprocessing for item in finite if float(f"{item.score:.{TIE_DIGITS}g}") == best),
-                 key=tie_key)
-    tied = sorted((item for item in finite if item.tied),
-                  key=lambda item: (bandwidth(item.preprocessing), item.score, tie_key(item.preprocessing)))
-    if len(tied) < 3:
-        return chosen  # one, or two: the median of two is the better of them
-    middle = tied[(len(tied) - 1) // 2: len(tied) // 2 + 1]
-    return min(middle, key=lambda item: (item.score, tie_key(item.preprocessing))).preprocessing
+    return min((item.preprocessing for item in finite if float(f"{item.score:.{TIE_DIGITS}g}") == best), key=tie_key)
 
 
 def chooses_on_validation(chosen: Preprocessing, train: Sequence[Measurements],

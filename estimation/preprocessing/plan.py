@@ -48,9 +48,9 @@ GIVEN_HARMONICS = 5
 #: harmonics of the fit for a detected frequency, unless told: the reference's count is unknown, and a
 #: robot under feedback adds harmonics above it (three times the paper's 5: :func:`fill_derivatives`)
 DETECTED_HARMONICS = 15
-#: a derivative candidate whose validation score is within this many standard errors of the best's is tied with it:
-#: the validation record does not tell them apart, and the training record's held-out score decides among the tied
-#: ones (:func:`estimation.identification.preprocessing_on_validation.choose_on_validation`)
+#: a derivative candidate whose validation score is within this many standard errors of the best's (and within the
+#: training choice's margin of equivalence) is tied with it: the validation record does not tell them apart
+#: (:func:`estimation.identification.preprocessing_on_validation.with_standard_errors`; reported, not acted on)
 TIED_SE = 2.0
 
 
@@ -141,8 +141,8 @@ class ValidationEvidence:
         The standard error of the difference of its score to the best's, from the blocks (``0`` for the best,
         ``None`` when not scored).
     tied
-        Whether the validation record cannot tell it from the best (:func:`estimation.identification.
-        preprocessing_on_validation.choose_on_validation`: the difference within ``TIED_SE`` standard errors).
+        Whether the validation record does not tell it from the best: the difference within :data:`TIED_SE`
+        standard errors and within the training choice's margin of equivalence.
     """
 
     preprocessing: Preprocessing
@@ -286,10 +286,10 @@ class Preprocessing:
                    f"chosen among {len(self.evidence.candidates)} candidates by the error on the validation record, a "
                    "repeat of the training motion, of the fit on the training data")
             held_out = self.evidence.held_out_choice
-            tied = [item for item in self.evidence.validation if item.tied]
-            if self.evidence.selection == "validation" and len(tied) > 1:
-                how += (f"; {len(tied)} of them within {TIED_SE:g} standard errors of the best on the validation "
-                        "record, the median of their cut-offs taken")
+            tied = sum(item.tied for item in self.evidence.validation)
+            if self.evidence.selection == "validation" and tied > 1:
+                how += (f"; {tied - 1} other(s) within {TIED_SE:g} standard errors of its score: the validation "
+                        "record does not tell them apart")
             if held_out is not None and held_out != self.without_evidence():
                 how += f"; blocked cross-validation on the training data preferred {held_out.describe_method()}"
         elif self.evidence is not None and self.evidence.selection == "held-out":
