@@ -123,3 +123,45 @@ def test_too_few_validation_samples_for_the_blocks_tie_nothing():
                            entry.fit_mse, {}) for entry in few]
     evidence = with_standard_errors(module.rescored(few, ("tau1",)), ("tau1",))
     assert not any(entry.tied for entry in evidence) and all(entry.standard_error is None for entry in evidence)
+
+
+def test_with_the_weighting_chosen_later_the_derivatives_are_scored_by_ols():
+    """``oed identify`` (auto method) and ``oed diagnose`` score the derivative candidates by the OLS fit alone: the
+    weighting is chosen afterwards, on the same record, with the derivatives chosen; the minimum over (candidate,
+    fit) pairs picked a lucky pair (tx40-sub2: 125 Hz by its WLS fit, 0.4 % ahead; by OLS 75 Hz, 2.9 % ahead)."""
+    from types import SimpleNamespace
+
+    from oed.workflows.diagnose import derivatives_on_validation
+    from oed.workflows.identify import validation_fits
+
+    model = build_model(load_robot("puma560", joints=3), "internal", "viscous,coulomb,offset")
+    assert validation_fits(SimpleNamespace(method="auto"), model, None) == ("ols",)
+    assert validation_fits(SimpleNamespace(method="wls"), model, None) == ("wls",)
+    assert derivatives_on_validation(model, None)["validation_fits"] == ("ols",)
+
+
+@pytest.mark.slow
+def test_scored_by_ols_alone_no_fewer_noise_draws_take_the_filter_that_predicts_the_test_record_better(records):
+    from estimation.identification.fit import identify
+
+    model, paths = records
+    test_mse, chosen = {}, {}
+    for fits in (("ols", "wls"), ("ols",)):
+        for seed in NOISE_SEEDS:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                plan = prepare_records(model, [paths["train"]], [paths[seed]], [paths["test"]],
+                                       settings=PreparationSettings(validation_fits=fits)).preprocessing
+            chosen[fits, seed] = plan.without_evidence()
+    for plan in set(chosen.values()):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            prepared = prepare_records(model, [paths["train"]], [], [paths["test"]],
+                                       settings=PreparationSettings(cutoff_hz=plan.cutoff_hz))
+            test_mse[plan] = sum(identify(model, prepared.train.measurements, prepared.test.measurements,
+                                          weighted=False).validation.mse.values())
+    best = min(test_mse.values())
+    right = {fits: sum(test_mse[chosen[fits, seed]] <= 1.05 * best for seed in NOISE_SEEDS)
+             for fits in (("ols", "wls"), ("ols",))}
+    # measured: 2 of 4 by OLS alone (17 Hz, 0.33 against 0.48 for 10 Hz), 1 of 4 by the better of OLS and WLS
+    assert right[("ols",)] >= right[("ols", "wls")], right
