@@ -311,6 +311,10 @@ def write(log: Log, record: Record, layout: str, path: Path) -> Path:
     return path
 
 
+#: the verbs each configuration runs (``--verbs``)
+VERBS = ("identify", "diagnose")
+
+
 def run(arguments: list[str]) -> tuple[int, str]:
     process = subprocess.run([sys.executable, "-m", "oed", *arguments], capture_output=True, text=True)
     return process.returncode, process.stderr
@@ -322,7 +326,7 @@ def message(code: int, stderr: str) -> str:
     return f"exit {code}: {flag}{lines[-1][:160] if lines else ''}"
 
 
-def sweep(config: Config, folder: Path, logs: dict[str, Log]) -> dict:
+def sweep(config: Config, folder: Path, logs: dict[str, Log], verbs: tuple[str, ...] = VERBS) -> dict:
     log = logs[config.robot]
     records, files = {}, {}
     for role, (name, start, stop) in config.roles.items():
@@ -334,7 +338,7 @@ def sweep(config: Config, folder: Path, logs: dict[str, Log]) -> dict:
         files[role] = write(log, record, config.layout, folder / f"{config.name}_{role}.csv")
     validate = ["--validate", str(files["validate"])] if "validate" in files else []
     outcome = {"runs": {}, "messages": {}}
-    for verb in ("identify", "diagnose"):
+    for verb in verbs:
         result, predictions = folder / f"{config.name}_{verb}.json", folder / f"{config.name}_{verb}.csv"
         friction = ["--friction", FRICTION] if verb == "identify" else []
         started = time.perf_counter()
@@ -379,7 +383,7 @@ def sweep(config: Config, folder: Path, logs: dict[str, Log]) -> dict:
 def rows(config: Config, outcome: dict) -> list[str]:
     plain = outcome["plain"]
     lines = []
-    for verb in ("identify", "diagnose"):
+    for verb in outcome["runs"]:
         mse = outcome["mse"].get(verb)
         note = outcome["messages"].get(verb, "")
         if outcome["samples"][0] == 0 and verb in outcome["at"]:
@@ -411,6 +415,7 @@ def main() -> None:
     parser.add_argument("--only", help="configurations, comma-separated (default: all)")
     parser.add_argument("--list", action="store_true", help="list the configurations and stop")
     parser.add_argument("--markdown", type=Path, help="append the table's rows to this file too")
+    parser.add_argument("--verbs", default=",".join(VERBS), help="verbs to run, comma-separated (default: %(default)s)")
     args = parser.parse_args()
     configs = [c for c in CONFIGS if args.only is None or c.name in args.only.split(",")]
     if args.list:
@@ -427,7 +432,7 @@ def main() -> None:
             if config.robot not in logs:
                 logs[config.robot] = {"kuka": kuka_log, "panda": panda_log, "emps": emps_log,
                                       "tx40": lambda: tx40_log(folder)}[config.robot]()
-            outcome = sweep(config, folder, logs)
+            outcome = sweep(config, folder, logs, tuple(args.verbs.split(",")))
             block = rows(config, outcome)
             block[-1] += f" <!-- plain cut-off {outcome['cutoff']:g} Hz; {outcome['samples'][0]} of " \
                          f"{outcome['samples'][1]} test samples -->"

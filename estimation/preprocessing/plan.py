@@ -48,6 +48,10 @@ GIVEN_HARMONICS = 5
 #: harmonics of the fit for a detected frequency, unless told: the reference's count is unknown, and a
 #: robot under feedback adds harmonics above it (three times the paper's 5: :func:`fill_derivatives`)
 DETECTED_HARMONICS = 15
+#: a derivative candidate whose validation score is within this many standard errors of the best's (and within the
+#: training choice's margin of equivalence) is tied with it: the validation record does not tell them apart
+#: (:func:`estimation.identification.preprocessing_on_validation.with_standard_errors`; reported, not acted on)
+TIED_SE = 2.0
 
 
 class PreprocessingWarning(UserWarning):
@@ -129,6 +133,16 @@ class ValidationEvidence:
         The recorded validation samples its score is taken on (the same for every candidate compared).
     fit_mse
         Each fit's validation MSE per channel (what the scores are computed from).
+    fit_block_mse
+        Each fit's MSE per channel on each of the validation record's contiguous blocks
+        (:data:`estimation.identification.preprocessing_on_validation.BLOCKS`; what the score's standard error is
+        taken from); empty when it was not scored.
+    standard_error
+        The standard error of the difference of its score to the best's, from the blocks (``0`` for the best,
+        ``None`` when not scored).
+    tied
+        Whether the validation record does not tell it from the best: the difference within :data:`TIED_SE`
+        standard errors and within the training choice's margin of equivalence.
     """
 
     preprocessing: Preprocessing
@@ -140,15 +154,20 @@ class ValidationEvidence:
     seconds: float = 0.0
     samples: int = 0
     fit_mse: dict[str, dict[str, float]] = field(default_factory=dict)
+    fit_block_mse: dict[str, dict[str, tuple[float, ...]]] = field(default_factory=dict)
+    standard_error: float | None = None
+    tied: bool = False
 
     def to_dict(self) -> dict[str, Any]:
         """The candidate's keys (as :meth:`Preprocessing.to_dict`) with ``score``, ``validation_mse``, ``fit``,
-        ``fit_scores``, ``fit_validation_mse``, ``seconds``, ``samples`` (and ``error``)."""
+        ``fit_scores``, ``fit_validation_mse``, ``seconds``, ``samples``, ``standard_error``, ``tied`` (and
+        ``error``)."""
         document = self.preprocessing.to_dict()
         document.update(score=self.score if np.isfinite(self.score) else None, validation_mse=self.validation_mse,
                         fit=self.fit, fit_scores={name: value if np.isfinite(value) else None
                                                   for name, value in self.fit_scores.items()},
-                        fit_validation_mse=self.fit_mse, seconds=round(self.seconds, 3), samples=self.samples)
+                        fit_validation_mse=self.fit_mse, seconds=round(self.seconds, 3), samples=self.samples,
+                        standard_error=self.standard_error, tied=self.tied)
         if self.error is not None:
             document["error"] = self.error
         return document
@@ -267,6 +286,10 @@ class Preprocessing:
                    f"chosen among {len(self.evidence.candidates)} candidates by the error on the validation record, a "
                    "repeat of the training motion, of the fit on the training data")
             held_out = self.evidence.held_out_choice
+            tied = sum(item.tied for item in self.evidence.validation)
+            if self.evidence.selection == "validation" and tied > 1:
+                how += (f"; {tied - 1} other(s) within {TIED_SE:g} standard errors of its score: the validation "
+                        "record does not tell them apart")
             if held_out is not None and held_out != self.without_evidence():
                 how += f"; blocked cross-validation on the training data preferred {held_out.describe_method()}"
         elif self.evidence is not None and self.evidence.selection == "held-out":

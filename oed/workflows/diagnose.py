@@ -402,15 +402,15 @@ def derivatives_on_validation(model: IdentificationModel, delay: DelayBounds | N
     """How the derivatives are chosen again on a validation record of another motion, as ``oed identify`` chooses
     them (:mod:`estimation.identification.preprocessing_on_validation`), as keywords of
     :class:`~estimation.identification.prepared.PreparationSettings` and of
-    :func:`~oed.workflows.memory_path.decide_path` (the streamed path chooses alike): each candidate scored by the OLS and WLS fits
-    of the plain model (:func:`estimation.diagnosis.plain_laws.plain_model`: the declared model plus Coulomb
+    :func:`~oed.workflows.memory_path.decide_path` (the streamed path chooses alike): each candidate scored by the OLS fit
+    of the plain model (the weighting is chosen afterwards, as ``oed identify`` does) (:func:`estimation.diagnosis.plain_laws.plain_model`: the declared model plus Coulomb
     friction and an offset on every joint), not of the declared one, whose missing friction would otherwise decide
     the filter (a low cut-off smooths the targets' jumps at each velocity reversal, which then look like a shaped
     law). None with a declared delay bound or declared shaped laws (as ``oed identify``: fitted by a search each); the
     training record's choice is kept then."""
     if delay is not None or model_has_shapes(model):
         return {}
-    return {"validation_fits": ("ols", "wls"), "validation_model": plain_model(model)}
+    return {"validation_fits": ("ols",), "validation_model": plain_model(model)}
 
 
 def diagnose_document(args: DiagnoseOptions, diagnosed: Diagnosed) -> tuple[dict[str, Any], tuple[str, ...]]:

@@ -703,12 +703,15 @@ def identification_in_memory(args: IdentifyOptions, robot: RobotModel, model: Id
 
 def validation_fits(args: IdentifyOptions, model: IdentificationModel, delay: DelayBounds | None) -> tuple[str, ...]:
     """The unconstrained fits that choose the derivatives on a validation record of another motion
-    (:mod:`estimation.identification.preprocessing_on_validation`): the weighting asked for, else both; none
+    (:mod:`estimation.identification.preprocessing_on_validation`): the weighting asked for, else OLS alone (the
+    weighting is chosen afterwards on the same record, with the derivatives chosen; scored by the better of OLS and
+    WLS, the minimum over twice as many pairs took a lucky one: 125 Hz by its WLS fit on the TX40 at 2.5 kHz,
+    benchmarks/README.md, h-weakval2); none
     with a delay search or shaped laws (fitted by a search each, not repeated for every candidate: the
     training record's choice is kept)."""
     if delay is not None or model_has_shapes(model):
         return ()
-    return ("ols", "wls") if args.method == "auto" else (args.method,)
+    return ("ols",) if args.method == "auto" else (args.method,)
 
 
 def floor_check(records: PreparedRecords, model: IdentificationModel, result: IdentificationResult,
