@@ -194,7 +194,7 @@ def _read_conventions(path: str | Path, robot: RobotModel) -> tuple[tuple[float,
                    if "offset" in frame.columns else (0.0,) * n)
         return offsets, JointDirections(*(
             _signs({joint: value for joint, value in zip(joints, frame[column].str.strip()) if value == value},
-                   robot, f"{where}: {column}") if column in frame.columns else None
+                   robot, f"{where}: {column}") if column in frame.columns else (1.0,) * n
             for column in ("sign", "torque_sign")))
     raise TransmissionError(f"{where}: give a .json or .csv file")
 
