@@ -533,11 +533,23 @@ def _checked(model: IdentificationModel, train: Measurements, held_out: Measurem
             named.append(int(joint))
     kept = np.zeros(n)
     kept[named] = offsets[named]
-    if np.any(kept_signs < 0) or np.any(kept_torque < 0):
+    if np.any(kept_signs < 0) or np.any(kept_torque < 0):  # the description's own bodies must confirm each joint
         nominal = model.nominal_parameters()
-        with_reversals = _nominal_mse(model, nominal, fitted, kept, kept_signs, kept_torque)
-        without = _nominal_mse(model, nominal, fitted, np.zeros(n), np.ones(n), np.ones(n))
-        if not with_reversals <= (1 - MARKED_GAIN) * without:  # the description's bodies do not confirm them
+        with_all = _nominal_mse(model, nominal, fitted, kept, kept_signs, kept_torque)
+        confirmed = []
+        for joint in np.flatnonzero((kept_signs < 0) | (kept_torque < 0) | (kept != 0)):
+            signs_undone, torque_undone, kept_undone = kept_signs.copy(), kept_torque.copy(), kept.copy()
+            signs_undone[joint] = torque_undone[joint] = 1.0
+            kept_undone[joint] = 0.0
+            if with_all <= (1 - MIN_JOINT_GAIN) * _nominal_mse(model, nominal, fitted, kept_undone, signs_undone,
+                                                               torque_undone):
+                confirmed.append(joint)
+        unconfirmed = np.setdiff1d(np.arange(n), confirmed)
+        kept_signs[unconfirmed] = kept_torque[unconfirmed] = 1.0
+        kept[unconfirmed] = 0.0
+        named = [joint for joint in named if joint in confirmed]
+        if not _nominal_mse(model, nominal, fitted, kept, kept_signs, kept_torque) <= (1 - MARKED_GAIN) * \
+                _nominal_mse(model, nominal, fitted, np.zeros(n), np.ones(n), np.ones(n)):
             kept_signs, kept_torque = np.ones(n), np.ones(n)
     flips = np.any(kept_signs < 0) or np.any(kept_torque < 0)
     theta_zero, _ = problem.fit(np.zeros(n))
