@@ -143,7 +143,7 @@ def simulated(seeds: int = 10) -> None:
             print(f"| PUMA {joints} joints | {zeros} | {held_out} | {len(warned)} of {len(values)} | {largest} |")
 
 
-def simulated_directions(seeds: int = 10) -> None:
+def simulated_directions(seeds: int = 10, sizes: tuple[int, ...] = (6, 3)) -> None:
     """How often the check names a reversed joint on simulated PUMA records (3 and 6 joints, as :func:`simulated`):
     each joint in turn reversed (``q``, ``dq``, ``ddq`` and its torque: the URDF's axis reversed; or ``q``, ``dq``,
     ``ddq`` only; or the torque only), held out on a validation record or on the training record's second half;
@@ -157,7 +157,7 @@ def simulated_directions(seeds: int = 10) -> None:
 
     print("| robot | reversed | held out | warned | right | held-out MSE ratio total (median of the warned) |")
     print("|---|---|---|---|---|---|")
-    for joints in (6, 3):
+    for joints in sizes:
         robot = load_robot("puma560", joints=joints)
         model = build_model(robot, "internal", "viscous,coulomb")
         noise = {f"tau{j}": 0.3 for j in range(1, joints + 1)}
@@ -202,12 +202,14 @@ def main_benchmark() -> None:
     parser.add_argument("--simulated", action="store_true", help="the simulated PUMA records instead (10 seeds)")
     parser.add_argument("--simulated-directions", action="store_true",
                         help="the simulated PUMA records with a joint reversed instead (10 seeds)")
+    parser.add_argument("--seeds", type=int, default=10, help="with --simulated-directions: seeds a robot")
+    parser.add_argument("--joints", default="6,3", help="with --simulated-directions: the PUMAs' joint counts")
     args = parser.parse_args()
     if args.simulated:
         simulated()
         return
     if args.simulated_directions:
-        simulated_directions()
+        simulated_directions(args.seeds, tuple(int(size) for size in args.joints.split(",")))
         return
     print("| log | verb | joints named | held-out MSE ratio total · mean | warned | check / verb s | check with / "
           "without the directions' scan s |")
