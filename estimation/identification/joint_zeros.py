@@ -436,12 +436,17 @@ def _held_out_mse(model: IdentificationModel, theta: NDArray, samples: tuple[NDA
 
 def _nominal_mse(model: IdentificationModel, nominal: NDArray, samples: tuple[NDArray, NDArray, NDArray, NDArray],
                  offsets: NDArray, signs: NDArray, torque_signs: NDArray) -> float:
-    """The total MSE of the description's own bodies (its inertial values, the effects at zero) on ``samples`` in
-    the directions ``signs``, ``torque_signs`` at ``offsets``: the errors against the recorded channels."""
+    """The total MSE of the description's own bodies (its inertial values) on ``samples`` in the directions
+    ``signs``, ``torque_signs`` at ``offsets``, the effects' parameters (friction, torque offsets) fitted by least
+    squares to what the bodies leave: the errors against the recorded channels."""
     q, dq, ddq, target = samples
-    predicted = model.predict(nominal, q * signs + offsets, dq * signs, ddq * signs) * channel_signs(model,
-                                                                                                    torque_signs)
-    return float(np.sum(np.mean((target - predicted) ** 2, axis=0)))
+    target = target * channel_signs(model, torque_signs)
+    Y = model.evaluate(q * signs + offsets, dq * signs, ddq * signs)
+    bodies = len(nominal) - sum(len(effect.parameter_names(model.robot)) for effect in model.effects)
+    residual = target - Y[:, :, :bodies] @ nominal[:bodies]
+    if bodies < Y.shape[2]:
+        residual = residual - Y[:, :, bodies:] @ _least_squares(Y[:, :, bodies:], residual)
+    return float(np.sum(np.mean(residual ** 2, axis=0)))
 
 
 def check_joint_zeros(model: IdentificationModel, train: Measurements, held_out: Measurements | None = None, *,
