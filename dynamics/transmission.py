@@ -234,6 +234,38 @@ _PUMA560_GEARS = (-62.6111, 107.815, -53.7063, 76.0364, 71.923, 76.686)
 PUMA560_WRIST_COUPLING: tuple[float, float, float] = (0.0130, 0.0184, 0.0133)
 
 
+@dataclass(frozen=True)
+class JointDirections:
+    """The recorded joints' directions against the robot description's axes (``--joint-offsets FILE``'s ``signs``
+    and ``torque_signs``).
+
+    A log whose joint turns the other way than the URDF's axis: the description's ``q = s q_recorded + q₀``,
+    ``q̇ = s q̇_recorded``, ``q̈ = s q̈_recorded`` with ``s = signs[j]``, and its joint torque ``τ = t τ_recorded``
+    with ``t = torque_signs[j]`` (both ``-1``: the URDF's joint with its ``<axis>`` reversed; ``signs`` alone: the
+    encoder counts the other way, the torque does not). Each entry ``+1`` or ``-1``.
+    """
+
+    signs: tuple[float, ...]
+    torque_signs: tuple[float, ...]
+
+    def __post_init__(self) -> None:
+        if len(self.signs) != len(self.torque_signs):
+            raise CouplingShapeError(f"{len(self.signs)} signs for {len(self.torque_signs)} torque signs")
+        for name in ("signs", "torque_signs"):
+            values = getattr(self, name)
+            if any(value not in (1.0, -1.0) for value in values):
+                raise TransmissionError(f"joint {name} must be +1 or -1, got {list(values)}")
+            object.__setattr__(self, name, tuple(float(value) for value in values))
+
+    @property
+    def reversed(self) -> bool:
+        """Whether any joint's direction is reversed (else the directions change nothing)."""
+        return any(value < 0 for value in (*self.signs, *self.torque_signs))
+
+    def to_dict(self) -> dict[str, list[float]]:
+        return {"signs": list(self.signs), "torque_signs": list(self.torque_signs)}
+
+
 def puma560_transmission(n_joints: int = 6) -> Transmission:
     """The PUMA 560's gears and coupled wrist.
 

@@ -17,6 +17,7 @@ import numpy as np
 from dynamics.robot import RobotModel
 from dynamics.transmission import (
     CouplingShapeError,
+    JointDirections,
     Transmission,
     TransmissionError,
     UnknownJointError,
@@ -129,27 +130,52 @@ def joint_offsets(values: Any, robot: RobotModel, where: str = "offsets") -> tup
     return tuple(_offset(value, f"{where}: offset {index + 1}") for index, value in enumerate(values))
 
 
+#: the entries of a ``--joint-offsets`` JSON object (any other key is a joint's offset)
+CONVENTION_KEYS = ("offsets", "signs", "torque_signs")
+
+
 def read_joint_offsets(path: str | Path, robot: RobotModel) -> tuple[float, ...]:
     """The joint offsets of ``--joint-offsets FILE`` (rad, or m; added to the recorded joint positions).
 
-    ``.json``: ``{"offsets": {...}}``, or the object itself, by joint name or 1-based number (``{"joint2":
-    -1.5708}``), or a list of one a joint; ``.csv``: the columns ``joint`` and ``offset``, one row a joint.
-    Joints not named: 0. :class:`TransmissionError` (or :class:`UnknownJointError`, :class:`CouplingShapeError`)
-    naming the file for anything else.
+    ``.json``: ``{"offsets": {...}}`` (beside it, optionally, ``"signs"`` and ``"torque_signs"``: see
+    :func:`read_joint_directions`), or the object itself, by joint name or 1-based number (``{"joint2":
+    -1.5708}``), or a list of one a joint; ``.csv``: the columns ``joint`` and ``offset`` (and optionally ``sign``,
+    ``torque_sign``), one row a joint. Joints not named: 0. :class:`TransmissionError` (or
+    :class:`UnknownJointError`, :class:`CouplingShapeError`) naming the file for anything else.
     """
+    return _read_conventions(path, robot)[0]
+
+
+def read_joint_directions(path: str | Path, robot: RobotModel) -> JointDirections | None:
+    """The joints' directions of ``--joint-offsets FILE``, or ``None`` when it declares none reversed.
+
+    ``.json``: ``"signs"`` (the recorded ``q``, ``dq``, ``ddq`` of the joint times it) and ``"torque_signs"`` (its
+    recorded torque times it), each an object by joint name or 1-based number (``{"joint2": -1}``; joints not named:
+    +1) or a list of one a joint, beside ``"offsets"``; ``.csv``: the columns ``sign`` and ``torque_sign``. Applied
+    before the offsets: the description's ``q = sign · recorded q + offset``
+    (:class:`dynamics.transmission.JointDirections`).
+    """
+    directions = _read_conventions(path, robot)[1]
+    return directions if directions.reversed else None
+
+
+def _read_conventions(path: str | Path, robot: RobotModel) -> tuple[tuple[float, ...], JointDirections]:
     path = Path(path)
     where = f"joint offsets {path}"
     if not path.is_file():
         raise FileNotFoundError(f"joint offsets file not found: {path}")
     suffix = path.suffix.lower()
+    n = robot.n_joints
     if suffix == ".json":
         try:
             document = json.loads(path.read_text())
         except (json.JSONDecodeError, UnicodeDecodeError) as error:
             raise TransmissionError(f"{where}: not valid JSON ({error})") from None
-        if isinstance(document, dict) and set(document) == {"offsets"}:
-            document = document["offsets"]
-        return joint_offsets(document, robot, where)
+        if isinstance(document, dict) and document and set(document) <= set(CONVENTION_KEYS):
+            offsets = joint_offsets(document["offsets"], robot, where) if "offsets" in document else (0.0,) * n
+            return offsets, JointDirections(*(_signs(document.get(key), robot, f"{where}: {key}")
+                                              for key in ("signs", "torque_signs")))
+        return joint_offsets(document, robot, where), JointDirections((1.0,) * n, (1.0,) * n)
     if suffix == ".csv":
         import pandas as pd
 
@@ -158,14 +184,51 @@ def read_joint_offsets(path: str | Path, robot: RobotModel) -> tuple[float, ...]
         except (ValueError, OSError, pd.errors.ParserError) as error:
             raise TransmissionError(f"{where}: cannot read it ({error})") from None
         frame = frame.rename(columns=lambda name: str(name).strip().lower())
-        if not {"joint", "offset"} <= set(frame.columns):
-            raise TransmissionError(f"{where}: give the columns joint and offset (one row a joint), got "
-                                    f"{', '.join(map(str, frame.columns)) or 'none'}")
+        if "joint" not in frame.columns or not {"offset", "sign", "torque_sign"} & set(frame.columns):
+            raise TransmissionError(f"{where}: give the columns joint and offset (one row a joint; optionally sign "
+                                    f"and torque_sign), got {', '.join(map(str, frame.columns)) or 'none'}")
         joints = [str(value).strip() for value in frame["joint"]]
         if len(set(joints)) != len(joints):
             raise TransmissionError(f"{where}: a joint named twice")
-        return joint_offsets(dict(zip(joints, frame["offset"].str.strip())), robot, where)
+        offsets = (joint_offsets(dict(zip(joints, frame["offset"].str.strip())), robot, where)
+                   if "offset" in frame.columns else (0.0,) * n)
+        return offsets, JointDirections(*(
+            _signs({joint: value for joint, value in zip(joints, frame[column].str.strip()) if value == value},
+                   robot, f"{where}: {column}") if column in frame.columns else (1.0,) * n
+            for column in ("sign", "torque_sign")))
     raise TransmissionError(f"{where}: give a .json or .csv file")
+
+
+def _signs(values: Any, robot: RobotModel, where: str) -> tuple[float, ...]:
+    """One sign a joint (+1 or -1) from a mapping by joint name or number (joints not named: +1) or a list."""
+    n = robot.n_joints
+    if values is None:
+        return (1.0,) * n
+    if isinstance(values, Mapping):
+        signs = [1.0] * n
+        for key, value in values.items():
+            signs[_joint_index(robot, key, where)] = _sign(value, f"{where}: joint {key!r}")
+        return tuple(signs)
+    if isinstance(values, (str, bytes)) or not isinstance(values, (list, tuple)):
+        raise TransmissionError(f"{where}: must be an object by joint ({{\"joint2\": -1}}) or a list of {n} signs, "
+                                f"got {values!r}")
+    if len(values) != n:
+        raise CouplingShapeError(f"{where}: {len(values)} signs for the {n} joints of {robot.name}")
+    return tuple(_sign(value, f"{where}: sign {index + 1}") for index, value in enumerate(values))
+
+
+def _sign(value: Any, where: str) -> float:
+    number = None if isinstance(value, bool) else _number(value)
+    if number not in (1.0, -1.0):
+        raise TransmissionError(f"{where}: {value!r} is not a sign (+1 or -1)")
+    return float(number)
+
+
+def _number(value: Any) -> float | None:
+    try:
+        return float(value)
+    except (TypeError, ValueError):
+        return None
 
 
 def _offset(value: Any, where: str) -> float:

@@ -27,7 +27,7 @@ import pandas as pd
 from numpy.typing import ArrayLike
 
 from dynamics.models import IdentificationModel
-from dynamics.transmission import Transmission, TransmissionError, check_power_signs
+from dynamics.transmission import JointDirections, Transmission, TransmissionError, check_power_signs
 from estimation.data.loading import MeasurementError, MissingColumnError
 from estimation.data.log_cleaning import DEFAULT_MAX_GAP
 from estimation.data.log_formats import is_log_file
@@ -141,17 +141,35 @@ def _velocities_and_torques(frame: pd.DataFrame, n_joints: int
 
 def read_record_with_transmission(path: str | Path, *, model: IdentificationModel, transmission: Transmission | None,
                                   max_gap: float = DEFAULT_MAX_GAP, split: bool = True,
-                                  joint_offsets: ArrayLike | None = None) -> tuple[Measurements, ...]:
+                                  joint_offsets: ArrayLike | None = None,
+                                  joint_directions: JointDirections | None = None) -> tuple[Measurements, ...]:
     """:func:`estimation.data.records.read_record` (the segments of one file), motor-side columns converted first;
-    ``joint_offsets`` (one a joint, rad or m: ``--joint-offsets``) added to the joint positions read, after the
-    transmission's conversion."""
+    ``joint_directions`` (``--joint-offsets``' signs: :class:`dynamics.transmission.JointDirections`) applied to
+    the joint positions, rates and torques read, then ``joint_offsets`` (one a joint, rad or m: ``--joint-offsets``)
+    added to the joint positions, after the transmission's conversion."""
     segments = _read_record(path, model=model, transmission=transmission, max_gap=max_gap, split=split)
+    if joint_directions is not None and joint_directions.reversed:
+        segments = tuple(directed(segment, joint_directions) for segment in segments)
     if joint_offsets is None:
         return segments
     offsets = np.asarray(joint_offsets, dtype=float).reshape(-1)
     if offsets.shape != (model.robot.n_joints,):
         raise ValueError(f"{offsets.size} joint offsets for the {model.robot.n_joints} joints of {model.robot.name}")
     return tuple(replace(segment, q=segment.q + offsets) for segment in segments)
+
+
+def directed(segment: Measurements, directions: JointDirections) -> Measurements:
+    """``segment`` in the description's directions: ``q``, ``dq``, ``ddq`` of each joint times its sign, its joint
+    torque times its torque sign (the base wrench as it is)."""
+    if len(directions.signs) != segment.n_joints:
+        raise ValueError(f"{len(directions.signs)} joint signs for the {segment.n_joints} joints of the record")
+    signs, torque = np.asarray(directions.signs), np.asarray(directions.torque_signs)
+
+    def times(values, factor):
+        return None if values is None else values * factor
+
+    return replace(segment, q=segment.q * signs, dq=times(segment.dq, signs), ddq=times(segment.ddq, signs),
+                   tau=times(segment.tau, torque))
 
 
 def _read_record(path: str | Path, *, model: IdentificationModel, transmission: Transmission | None,

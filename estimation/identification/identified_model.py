@@ -362,6 +362,13 @@ class IdentifiedModel:
             measured = record.channels(self.channels)
         except (KeyError, ValueError):
             measured = None
+        directions = self.file.joint_directions
+        if directions is not None and directions.reversed:  # the torques back in the log's directions (read flipped)
+            signs = np.array([directions.torque_signs[int(channel[3:]) - 1]
+                              if channel.startswith("tau") and channel[3:].isdigit() else 1.0
+                              for channel in self.channels])
+            predicted = predicted * signs
+            measured = None if measured is None else measured * signs
         return Prediction(record.t, predicted, predicted - half, predicted + half, measured, self.channels)
 
     def read(self, paths: Sequence[str | Path]) -> tuple[Measurements, ...]:
@@ -372,7 +379,8 @@ class IdentifiedModel:
         for path in paths:
             segments.extend(read_record_with_transmission(path, model=self.model, transmission=self.transmission,
                                                           max_gap=max_gap, split=True,
-                                                          joint_offsets=self.file.joint_offsets))
+                                                          joint_offsets=self.file.joint_offsets,
+                                                          joint_directions=self.file.joint_directions))
         return tuple(segments)
 
     def prepare(self, segments: Sequence[Measurements]) -> Measurements:

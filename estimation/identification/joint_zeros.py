@@ -58,6 +58,16 @@ AGREEMENT = 0.4
 MAX_SAMPLES = 1000
 #: the turns scanned on a revolute joint (rad)
 TURNS: tuple[float, ...] = (-np.pi / 2, np.pi / 2, np.pi)
+#: a joint's reversal is taken by the scan of directions only if it lowers the training cost by this fraction
+REVERSAL_GAIN = 0.10
+#: a reversed revolute joint's zeros scanned with it (rad): as logged and the turns (a reversed encoder zeroed a
+#: quarter turn away: at its logged zero alone the scan takes a parallel joint's reversal instead on a PUMA)
+REVERSAL_TURNS: tuple[float, ...] = (0.0, *TURNS)
+#: a reversal is said only if the held-out MSE with it falls to at most this fraction of that without (in total): a
+#: joint reversed is a gross error, the torques of its gravity and inertia with the wrong sign (on simulated and real
+#: logs with a joint reversed the held-out MSE falls to 0.005–0.32 of it), where a correctly signed log whose model
+#: lacks something finds reversals that lower it by 7–15 % (the KUKA LWR4+ and TX40 logs)
+REVERSAL_MARK = 0.5
 #: Gauss–Newton iterations and the forward-difference step (rad, or m)
 ITERATIONS = 8
 STEP = 1e-5
@@ -88,6 +98,10 @@ class JointZeroCheck:
         ``δ`` estimated on the held-out samples alone (a joint is named only where both estimates agree).
     prismatic
         Per joint, whether it is prismatic (its offset in m); empty: all revolute.
+    signs, torque_signs
+        Per joint, ``-1`` where the recorded ``q`` (with ``q̇``, ``q̈``), or the recorded torque, is reversed against
+        the description's axis and both the training and the held-out samples say so (the description's ``q`` is
+        ``sign · q_recorded + offset``); empty: none reversed.
     """
 
     offsets: NDArray[np.float64]
@@ -97,6 +111,15 @@ class JointZeroCheck:
     held_out: str
     held_out_offsets: NDArray[np.float64]
     prismatic: tuple[bool, ...] = ()
+    signs: tuple[int, ...] = ()
+    torque_signs: tuple[int, ...] = ()
+
+    @property
+    def reversed_joints(self) -> tuple[int, ...]:
+        """0-based indices of the joints whose recorded direction (``q`` or torque) is reversed."""
+        signs = self.signs or (1,) * len(self.offsets)
+        torque = self.torque_signs or (1,) * len(self.offsets)
+        return tuple(index for index, (sign, other) in enumerate(zip(signs, torque)) if sign < 0 or other < 0)
 
     @property
     def mean_ratio(self) -> float:
@@ -105,20 +128,50 @@ class JointZeroCheck:
     @property
     def marked(self) -> bool:
         """Whether the offsets lower the held-out error markedly (the warning is said)."""
-        return bool(self.joints) and self.mean_ratio <= 1 - MARKED_GAIN and self.total_ratio <= 1 - MARKED_GAIN
+        return bool(self.joints or self.reversed_joints) and self.mean_ratio <= 1 - MARKED_GAIN and self.total_ratio <= 1 - MARKED_GAIN
 
     def message(self, joint_names: tuple[str, ...] | None = None) -> str:
-        """The warning's text: the joints, their offsets in rad and degrees, the gain, and how to apply them."""
+        """The warning's text: the joints, their offsets in rad and degrees or their reversed directions, the gain,
+        and how to declare them."""
         names = [f"q{index + 1}" if joint_names is None else joint_names[index] for index in range(len(self.offsets))]
-        listed = ", ".join(f"joint {index + 1} ({names[index]}) {self._amount(index)}" for index in self.joints)
-        as_json = ", ".join(f'"{names[index]}": {self.offsets[index]:.4f}' for index in self.joints)
-        return (f"the recorded joint positions look offset from the robot description's zeros: {listed}. With "
-                f"q + offset the {self.held_out} is predicted with {100 * (1 - self.total_ratio):.0f} % less error "
-                f"(mean of the channels' ratios {self.mean_ratio:.2f}). If the encoders' zeros differ from the URDF's, "
-                f"declare them, \"offsets\": {{{as_json}}} in a transmission JSON (--transmission FILE) for motor-side "
-                "columns qm (q = R⁻¹ qm + offset), or the same object in a JSON file given to --joint-offsets FILE "
-                "(added to the recorded q), and run again")
-
+        if not self.reversed_joints:
+            listed = ", ".join(f"joint {index + 1} ({names[index]}) {self._amount(index)}" for index in self.joints)
+            as_json = ", ".join(f'"{names[index]}": {self.offsets[index]:.4f}' for index in self.joints)
+            return (f"the recorded joint positions look offset from the robot description's zeros: {listed}. With "
+                    f"q + offset the {self.held_out} is predicted with {100 * (1 - self.total_ratio):.0f} % less "
+                    f"error (mean of the channels' ratios {self.mean_ratio:.2f}). If the encoders' zeros differ from "
+                    f"the URDF's, declare them, \"offsets\": {{{as_json}}} in a transmission JSON (--transmission FILE) "
+                    "for motor-side columns qm (q = R⁻¹ qm + offset), or the same object in a JSON file given to "
+                    "--joint-offsets FILE (added to the recorded q), and run again")
+        reversed_ = self.reversed_joints
+        signs = self.signs or (1,) * len(self.offsets)
+        torque = self.torque_signs or (1,) * len(self.offsets)
+        what = {(True, True): "q, dq, ddq and its torque", (True, False): "q, dq and ddq (not its torque)",
+                (False, True): "its torque (not q, dq, ddq)"}
+        listed = ", ".join(f"joint {index + 1} ({names[index]}): {what[signs[index] < 0, torque[index] < 0]}"
+                           for index in reversed_)
+        entries = []
+        kinematic = [index for index in reversed_ if signs[index] < 0]
+        if kinematic:
+            entries.append('"signs": {' + ", ".join(f'"{names[index]}": -1' for index in kinematic) + "}")
+        torques = [index for index in reversed_ if torque[index] < 0]
+        if torques:
+            entries.append('"torque_signs": {' + ", ".join(f'"{names[index]}": -1' for index in torques) + "}")
+        if self.joints:
+            entries.append('"offsets": {' + ", ".join(f'"{names[index]}": {self.offsets[index]:.4f}'
+                                                        for index in self.joints) + "}")
+        offsets = (" and offset from its zeros: " + ", ".join(f"joint {index + 1} ({names[index]}) "
+                                                              f"{self._amount(index)}" for index in self.joints)
+                   if self.joints else "")
+        axis = ("; a joint whose q and torque are both reversed is also the URDF's joint with its <axis> reversed "
+                "(xyz to -xyz)" if any(signs[index] < 0 and torque[index] < 0 for index in reversed_) else "")
+        return (f"the recorded joint directions look reversed against the robot description's axes: {listed} "
+                f"(the log's positive direction is the URDF axis's opposite){offsets}. In the description's "
+                f"directions the {self.held_out} is predicted with {100 * (1 - self.total_ratio):.0f} % less error "
+                f"(mean of the channels' ratios {self.mean_ratio:.2f}). If the log's conventions differ from the "
+                f"URDF's, declare them in a JSON file given to --joint-offsets FILE, {{{', '.join(entries)}}} (the "
+                "description's q = sign · recorded q + offset, dq and ddq times the sign, tau times the torque "
+                f"sign; after a --transmission's conversion){axis}, and run again")
 
     def _amount(self, index: int) -> str:
         offset, again = self.offsets[index], self.held_out_offsets[index]
@@ -161,12 +214,16 @@ class _Problem:
     The regressor and the fit at the offsets last asked for are kept: Gauss–Newton asks again for those of the
     step it has just accepted (the same values: nothing is recomputed differently)."""
 
-    def __init__(self, model: IdentificationModel, samples: tuple[NDArray, NDArray, NDArray, NDArray]) -> None:
+    def __init__(self, model: IdentificationModel, samples: tuple[NDArray, NDArray, NDArray, NDArray],
+                 weights: NDArray | None = None) -> None:
         self.model = model
         self.q, self.dq, self.ddq, self.target = samples
         self.weights = np.ones(model.n_channels)
         self._last_regressor: tuple[bytes, NDArray] | None = None
         self._last_fit: tuple[bytes, tuple[NDArray, NDArray]] | None = None
+        if weights is not None:
+            self.weights = weights
+            return
         _, residual = self.fit(np.zeros(self.q.shape[1]))
         rms = np.sqrt(np.mean(residual**2, axis=0))
         scale = np.sqrt(np.mean(self.target**2, axis=0))
@@ -194,6 +251,28 @@ class _Problem:
     def cost(self, offsets: NDArray) -> float:
         _, residual = self.fit(offsets)
         return float(np.mean((residual * self.weights) ** 2))
+
+    def flipped(self, signs: NDArray, torque_signs: NDArray) -> _Problem:
+        """The same samples in the description's directions: ``q``, ``q̇``, ``q̈`` of each joint times ``signs``, the
+        joint's torque channel times ``torque_signs``; the weights kept (every convention scored alike)."""
+        samples = (self.q * signs, self.dq * signs, self.ddq * signs,
+                   self.target * channel_signs(self.model, torque_signs))
+        return _Problem(self.model, samples, self.weights)
+
+    def scored(self, Y: NDArray, signs: NDArray) -> float:
+        """The cost of the fit of ``Y`` to the target times ``signs`` (one a channel)."""
+        target = self.target * signs
+        theta = _least_squares(Y * self.weights[None, :, None], target * self.weights)
+        return float(np.mean(((target - Y @ theta) * self.weights) ** 2))
+
+
+def channel_signs(model: IdentificationModel, torque_signs: NDArray) -> NDArray:
+    """One sign a channel of ``model``: joint ``j``'s in channel ``tau{j}``, 1 on the others (the base wrench)."""
+    signs = np.ones(model.n_channels)
+    for index, channel in enumerate(model.channels):
+        if channel.startswith("tau") and channel[3:].isdigit() and int(channel[3:]) <= len(torque_signs):
+            signs[index] = torque_signs[int(channel[3:]) - 1]
+    return signs
 
 
 def _least_squares(Y: NDArray, target: NDArray) -> NDArray:
@@ -281,6 +360,48 @@ def estimate_offsets(model: IdentificationModel, problem: _Problem) -> NDArray[n
     return _gauss_newton(problem, offsets, free, revolute)
 
 
+def estimate_signs(model: IdentificationModel, problem: _Problem) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """The joints' directions minimising the training cost: a greedy scan, one joint at a time, of the conventions
+    of :data:`SIGN_VARIANTS` (the joint's ``q``, ``q̇``, ``q̈`` reversed with its torque, without it, or its torque
+    alone), a reversed joint's zero at ``0`` or one of :data:`TURNS` (a revolute joint). A convention is taken when
+    it lowers the training cost by :data:`MIN_JOINT_GAIN`; returns ``(signs, torque_signs)``, one a joint."""
+    robot = model.robot
+    n = robot.n_joints
+    revolute = np.array([joint.joint_type == JointType.REVOLUTE for joint in robot.joints])
+    measured = np.array([f"tau{joint + 1}" in model.channels for joint in range(n)])
+    signs, torque = np.ones(n), np.ones(n)
+    cost = problem.cost(np.zeros(n))
+    for _ in range(n):
+        best = None
+        base = problem.flipped(signs, torque) if np.any(signs < 0) or np.any(torque < 0) else problem
+        for joint in np.flatnonzero((signs > 0) & (torque > 0)):
+            flipped_signs = signs.copy()
+            flipped_signs[joint] = -1.0
+            for turn in REVERSAL_TURNS if revolute[joint] else (0.0,):
+                offsets = np.zeros(n)
+                offsets[joint] = turn
+                Y = model.evaluate_base(base.q * np.where(np.arange(n) == joint, -1.0, 1.0) + offsets,
+                                        base.dq * np.where(np.arange(n) == joint, -1.0, 1.0),
+                                        base.ddq * np.where(np.arange(n) == joint, -1.0, 1.0))
+                for reversed_torque in (True, False) if measured[joint] else (False,):
+                    flipped_torque = torque.copy()
+                    if reversed_torque:
+                        flipped_torque[joint] = -1.0
+                    trial_cost = problem.scored(Y, channel_signs(model, flipped_torque))
+                    if trial_cost < cost * (1 - REVERSAL_GAIN) and (best is None or trial_cost < best[0]):
+                        best = (trial_cost, flipped_signs, flipped_torque)
+            if measured[joint]:  # the torque alone reversed
+                flipped_torque = torque.copy()
+                flipped_torque[joint] = -1.0
+                trial_cost = problem.scored(base.regressor(np.zeros(n)), channel_signs(model, flipped_torque))
+                if trial_cost < cost * (1 - REVERSAL_GAIN) and (best is None or trial_cost < best[0]):
+                    best = (trial_cost, signs.copy(), flipped_torque)
+        if best is None:
+            break
+        cost, signs, torque = best
+    return signs, torque
+
+
 #: the friction of the plain fit's class the check adds to a joint-torque model that lacks it
 PLAIN_FRICTION: tuple[str, ...] = ("viscous", "coulomb", "offset")
 
@@ -302,14 +423,34 @@ def check_model(model: IdentificationModel) -> IdentificationModel:
 
 
 def _held_out_mse(model: IdentificationModel, theta: NDArray, samples: tuple[NDArray, NDArray, NDArray, NDArray],
-                  offsets: NDArray) -> NDArray:
+                  offsets: NDArray, signs: NDArray | None = None, torque_signs: NDArray | None = None) -> NDArray:
+    """Each channel's MSE of the prediction at ``signs q + offsets`` (its torque channels times ``torque_signs``:
+    the errors are those against the recorded channels)."""
     q, dq, ddq, target = samples
-    predicted = model.evaluate_base(q + offsets, dq, ddq) @ theta
+    signs = np.ones(q.shape[1]) if signs is None else signs
+    predicted = model.evaluate_base(q * signs + offsets, dq * signs, ddq * signs) @ theta
+    if torque_signs is not None:
+        predicted = predicted * channel_signs(model, torque_signs)
     return np.mean((target - predicted) ** 2, axis=0)
 
 
+def _nominal_mse(model: IdentificationModel, nominal: NDArray, samples: tuple[NDArray, NDArray, NDArray, NDArray],
+                 offsets: NDArray, signs: NDArray, torque_signs: NDArray) -> float:
+    """The total MSE of the description's own bodies (its inertial values) on ``samples`` in the directions
+    ``signs``, ``torque_signs`` at ``offsets``, the effects' parameters (friction, torque offsets) fitted by least
+    squares to what the bodies leave: the errors against the recorded channels."""
+    q, dq, ddq, target = samples
+    target = target * channel_signs(model, torque_signs)
+    Y = model.evaluate(q * signs + offsets, dq * signs, ddq * signs)
+    bodies = len(nominal) - sum(len(effect.parameter_names(model.robot)) for effect in model.effects)
+    residual = target - Y[:, :, :bodies] @ nominal[:bodies]
+    if bodies < Y.shape[2]:
+        residual = residual - Y[:, :, bodies:] @ _least_squares(Y[:, :, bodies:], residual)
+    return float(np.sum(np.mean(residual ** 2, axis=0)))
+
+
 def check_joint_zeros(model: IdentificationModel, train: Measurements, held_out: Measurements | None = None, *,
-                      max_samples: int = MAX_SAMPLES, warn: bool = True,
+                      max_samples: int = MAX_SAMPLES, warn: bool = True, directions: bool = True,
                       label: str = "validation record") -> JointZeroCheck | None:
     """Test whether a constant position offset per joint lowers the held-out error markedly (module docstring).
 
@@ -325,6 +466,9 @@ def check_joint_zeros(model: IdentificationModel, train: Measurements, held_out:
         Evenly spaced rows of each record used.
     warn
         Issue a :class:`JointZeroWarning` when the gain is marked.
+    directions
+        Scan the joints' directions too (:func:`estimate_signs`): a joint whose recorded ``q`` (with ``q̇``, ``q̈``)
+        or torque is reversed against the description's axis.
     label
         What ``held_out`` is (the check's ``held_out``; the streamed check gives the training record's second half,
         thinned, as ``held_out``: :mod:`estimation.streaming.joint_zeros`).
@@ -335,46 +479,93 @@ def check_joint_zeros(model: IdentificationModel, train: Measurements, held_out:
         ``None`` when the check cannot run (no derivatives, no channel the model predicts, too few samples, no
         joint the regressor depends on).
     """
+    check, scanned = _checked(model, train, held_out, max_samples, directions, label)
+    if scanned and not (check is not None and check.reversed_joints and check.marked and
+                        check.total_ratio <= REVERSAL_MARK):
+        # reversals found on the training samples but not said: the offsets alone, as without the scan
+        check, _ = _checked(model, train, held_out, max_samples, False, label)
+    if warn and check is not None and check.marked:
+        warnings.warn(JointZeroWarning(check.message(check_model(model).robot.joint_names)), stacklevel=2)
+    return check
+
+
+def _checked(model: IdentificationModel, train: Measurements, held_out: Measurements | None, max_samples: int,
+             directions: bool, label: str) -> tuple[JointZeroCheck | None, bool]:
+    """The check (:func:`check_joint_zeros`), and whether the scan of directions found a reversal on the training
+    samples."""
     if held_out is None:
         half = train.n_samples // 2
         if half < 20:
-            return None
+            return None, False
         train, held_out = train.select(slice(0, half)), train.select(slice(half, None))
         label = "second half of the training record"
     model = check_model(model)
     fitted = _thinned(train, model.channels, max_samples)
     scored = _thinned(held_out, model.channels, max_samples)
     if fitted is None or scored is None:
-        return None
+        return None, False
     problem = _Problem(model, fitted)
-    with np.errstate(all="ignore"):
-        offsets = estimate_offsets(model, problem)
     n = model.robot.n_joints
+    with np.errstate(all="ignore"):
+        signs, torque = estimate_signs(model, problem) if directions else (np.ones(n), np.ones(n))
+        reversed_ = (signs < 0) | (torque < 0)
+        found = problem.flipped(signs, torque) if np.any(reversed_) else problem
+        offsets = estimate_offsets(model, found)
     large = np.abs(offsets) >= MIN_OFFSET
-    if not np.any(large) or problem.cost(offsets) > (1 - MARKED_GAIN / 2) * problem.cost(np.zeros(n)):
+    if not (np.any(large) or np.any(reversed_)) or \
+            found.cost(offsets) > (1 - MARKED_GAIN / 2) * problem.cost(np.zeros(n)):
         # nothing large, or the training error itself hardly falls: no marked held-out gain to test
-        return JointZeroCheck(np.zeros(n), (), {channel: 1.0 for channel in model.channels}, 1.0, label, np.zeros(n))
+        return (JointZeroCheck(np.zeros(n), (), {channel: 1.0 for channel in model.channels}, 1.0, label, np.zeros(n)),
+                bool(np.any(reversed_)))
+    held = _Problem(model, scored)
+    held_found = held.flipped(signs, torque) if np.any(reversed_) else held
     with np.errstate(all="ignore"):  # the held-out record's own estimate: a real offset is the same on both
-        again = estimate_offsets(model, _Problem(model, scored))
+        again = estimate_offsets(model, held_found)
     revolute = np.array([joint.joint_type == JointType.REVOLUTE for joint in model.robot.joints])
     apart = np.abs(np.where(revolute, _wrapped(offsets - again, revolute), offsets - again))
     agree = apart <= np.where(revolute, np.minimum(AGREEMENT, 0.5 * np.abs(offsets)), 0.25 * np.abs(offsets))
-    cost = problem.cost(offsets)
+    cost, held_cost = found.cost(offsets), held_found.cost(again)
+    kept_signs, kept_torque = np.ones(n), np.ones(n)
+    for joint in np.flatnonzero(reversed_):  # a reversal both records need by itself (each fitted alone)
+        undone_signs, undone_torque = signs.copy(), torque.copy()
+        undone_signs[joint] = undone_torque[joint] = 1.0
+        if problem.flipped(undone_signs, undone_torque).cost(offsets) > cost * (1 + MIN_JOINT_GAIN) and \
+                held.flipped(undone_signs, undone_torque).cost(again) > held_cost * (1 + MIN_JOINT_GAIN):
+            kept_signs[joint], kept_torque[joint] = signs[joint], torque[joint]
     named = []
     for joint in np.flatnonzero(large & agree):
         without = offsets.copy()
         without[joint] = 0.0
-        if problem.cost(without) > cost * (1 + MIN_JOINT_GAIN):
+        if found.cost(without) > cost * (1 + MIN_JOINT_GAIN):
             named.append(int(joint))
     kept = np.zeros(n)
     kept[named] = offsets[named]
+    if np.any(kept_signs < 0) or np.any(kept_torque < 0):  # the description's own bodies must confirm each joint
+        nominal = model.nominal_parameters()
+        with_all = _nominal_mse(model, nominal, fitted, kept, kept_signs, kept_torque)
+        confirmed = []
+        for joint in np.flatnonzero((kept_signs < 0) | (kept_torque < 0) | (kept != 0)):
+            signs_undone, torque_undone, kept_undone = kept_signs.copy(), kept_torque.copy(), kept.copy()
+            signs_undone[joint] = torque_undone[joint] = 1.0
+            kept_undone[joint] = 0.0
+            if with_all <= (1 - MIN_JOINT_GAIN) * _nominal_mse(model, nominal, fitted, kept_undone, signs_undone,
+                                                               torque_undone):
+                confirmed.append(joint)
+        unconfirmed = np.setdiff1d(np.arange(n), confirmed)
+        kept_signs[unconfirmed] = kept_torque[unconfirmed] = 1.0
+        kept[unconfirmed] = 0.0
+        named = [joint for joint in named if joint in confirmed]
+        if not _nominal_mse(model, nominal, fitted, kept, kept_signs, kept_torque) <= (1 - MARKED_GAIN) * \
+                _nominal_mse(model, nominal, fitted, np.zeros(n), np.ones(n), np.ones(n)):
+            kept_signs, kept_torque = np.ones(n), np.ones(n)
+    flips = np.any(kept_signs < 0) or np.any(kept_torque < 0)
     theta_zero, _ = problem.fit(np.zeros(n))
-    theta_offset, _ = problem.fit(kept)
+    theta_offset, _ = (problem.flipped(kept_signs, kept_torque) if flips else problem).fit(kept)
     before = _held_out_mse(model, theta_zero, scored, np.zeros(n))
-    after = _held_out_mse(model, theta_offset, scored, kept)
+    after = _held_out_mse(model, theta_offset, scored, kept, kept_signs, kept_torque)
     ratio = {channel: float(a / b) if b > 0 else 1.0 for channel, a, b in zip(model.channels, after, before)}
     total = float(after.sum() / before.sum()) if before.sum() > 0 else 1.0
-    check = JointZeroCheck(kept, tuple(named), ratio, total, label, again, tuple(bool(value) for value in ~revolute))
-    if warn and check.marked:
-        warnings.warn(JointZeroWarning(check.message(model.robot.joint_names)), stacklevel=2)
-    return check
+    check = JointZeroCheck(kept, tuple(named), ratio, total, label, again, tuple(bool(value) for value in ~revolute),
+                           tuple(int(value) for value in kept_signs) if flips else (),
+                           tuple(int(value) for value in kept_torque) if flips else ())
+    return check, bool(np.any(reversed_))

@@ -29,7 +29,9 @@
                                 "validation_mse", "shape", "shape_std", "delay", "effect_values", "warnings"}},
         "payload": {"link": "joint6", "link_index": 6,                        # oed payload: a rigid body fixed
                     "parameters": [m, mx, …, Izz], "cov": [[…]]},            # to that link (absent: none)
-        "joint_offsets": [0, -1.5708, …]}                   # --joint-offsets: added to q as read (absent: none)
+        "joint_offsets": [0, -1.5708, …],                   # --joint-offsets: added to q as read (absent: none)
+        "joint_directions": {"signs": [1, -1, …],            # --joint-offsets' signs: q, dq, ddq and tau times
+                             "torque_signs": [1, -1, …]}}   # them as read, before the offsets (absent: none)
 
 ``theta``, ``cov`` and the keys beside them are the model the identification chose
 (:mod:`estimation.consistent.model_selection`); the other candidates stay as named ``alternatives``, each
@@ -64,6 +66,7 @@ from dynamics.effects.specs import effect_spec
 from dynamics.errors import RobotDescriptionError
 from dynamics.robot import RobotModel
 from dynamics.robots import load_robot
+from dynamics.transmission import JointDirections
 from estimation.identification.fit import IdentificationResult
 
 __all__ = ["FORMAT", "MAX_EMBEDDED_URDF_BYTES", "MODEL_KEYS", "ModelFile", "ModelFileError", "RobotSource",
@@ -191,6 +194,7 @@ class ModelFile:
     chosen: str | None = None
     alternatives: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
     joint_offsets: tuple[float, ...] | None = None
+    joint_directions: JointDirections | None = None
 
     @property
     def band_variance(self) -> NDArray[np.float64]:
@@ -233,6 +237,8 @@ class ModelFile:
             document["payload"] = dict(self.payload)
         if self.joint_offsets is not None:  # --joint-offsets: added to the joint positions of every record read
             document["joint_offsets"] = list(self.joint_offsets)
+        if self.joint_directions is not None:  # --joint-offsets' signs: applied to every record read
+            document["joint_directions"] = self.joint_directions.to_dict()
         return document
 
     @classmethod
@@ -275,6 +281,7 @@ class ModelFile:
                 payload=_payload(document.get("payload")),
                 chosen=document.get("chosen"), alternatives=dict(document.get("alternatives") or {}),
                 joint_offsets=_joint_offsets(document.get("joint_offsets"), len(document["joint_names"])),
+                joint_directions=_joint_directions(document.get("joint_directions"), len(document["joint_names"])),
             )
         except (KeyError, TypeError) as error:
             raise ModelFileError(f"the model file lacks or garbles {error}") from None
@@ -291,6 +298,21 @@ def _joint_offsets(values: Any, n_joints: int) -> tuple[float, ...] | None:
     if offsets.shape != (n_joints,) or not np.all(np.isfinite(offsets)):
         raise ModelFileError(f"joint_offsets must be {n_joints} finite numbers, got {values!r}")
     return tuple(float(value) for value in offsets)
+
+
+def _joint_directions(values: Any, n_joints: int) -> JointDirections | None:
+    """The ``joint_directions`` entry, checked: ``signs`` and ``torque_signs``, one +1 or -1 a joint."""
+    if values is None:
+        return None
+    try:
+        directions = JointDirections(*(tuple(float(value) for value in values[key])
+                                       for key in ("signs", "torque_signs")))
+    except (TypeError, ValueError, KeyError):
+        raise ModelFileError(f"joint_directions must hold signs and torque_signs, {n_joints} times +1 or -1 each, "
+                             f"got {values!r}") from None
+    if len(directions.signs) != n_joints:
+        raise ModelFileError(f"joint_directions must hold {n_joints} signs, got {values!r}")
+    return directions
 
 
 def _payload(document: Any) -> dict[str, Any] | None:

@@ -33,7 +33,7 @@ from dynamics.measurements import Measurements
 from dynamics.models import IdentificationModel
 from dynamics.runtime.memory import check_allocation
 from dynamics.runtime.progress import step
-from dynamics.transmission import Transmission
+from dynamics.transmission import JointDirections, Transmission
 from estimation.data.input_findings import reading_findings
 from estimation.data.log_cleaning import DEFAULT_MAX_GAP
 from estimation.data.motor_side import read_record_with_transmission
@@ -132,6 +132,9 @@ class PreparationSettings:
     joint_offsets
         Added to the joint positions of every record read (rad, or m; one a joint): encoders zeroed elsewhere than
         the robot description (``--joint-offsets``); ``None``: none.
+    joint_directions
+        The joints' directions against the description's axes (``--joint-offsets``' ``signs`` and
+        ``torque_signs``), applied to every record read before the offsets; ``None``: as recorded.
     """
 
     max_gap: float = DEFAULT_MAX_GAP
@@ -151,6 +154,7 @@ class PreparationSettings:
     validation_fits: tuple[str, ...] = ()
     validation_model: IdentificationModel | None = None
     joint_offsets: tuple[float, ...] | None = None
+    joint_directions: JointDirections | None = None
 
     def __post_init__(self) -> None:
         if self.selection not in ("held-out", "rule"):
@@ -230,7 +234,8 @@ class PreparedRecords:
 
 def read_files(paths: Sequence[str | Path], model: IdentificationModel, *, split: bool,
                max_gap: float = DEFAULT_MAX_GAP, transmission: Transmission | None = None,
-               joint_offsets: tuple[float, ...] | None = None) -> tuple[RecordedFile, ...]:
+               joint_offsets: tuple[float, ...] | None = None,
+               joint_directions: JointDirections | None = None) -> tuple[RecordedFile, ...]:
     """The segments of every file (a hole splits a file when ``split``, else it is an error); motor-side
     columns converted by ``transmission``, ``joint_offsets`` added to the joint positions. A file given twice is an
     error: each file is one segment."""
@@ -241,7 +246,8 @@ def read_files(paths: Sequence[str | Path], model: IdentificationModel, *, split
             raise ValueError(f"{path} given twice (as {seen[resolved]} too): each file is one segment of the record")
         seen[resolved] = path
     return tuple(RecordedFile(Path(os.fspath(source)), tuple(read_record_with_transmission(
-        source, model=model, transmission=transmission, max_gap=max_gap, split=split, joint_offsets=joint_offsets)))
+        source, model=model, transmission=transmission, max_gap=max_gap, split=split, joint_offsets=joint_offsets,
+        joint_directions=joint_directions)))
         for source in paths)  # a path, or a LogSource (a topic, a column map) read as it says
 
 
@@ -284,12 +290,13 @@ def prepare_records(model: IdentificationModel, train: Sequence[str | Path], val
     with step(f"read {len(train) + len(validation) + len(test)} file(s)"), \
             reading_findings([*train, *validation, *test]):  # each finding said once, at once
         train_files = read_files(train, model, split=True, max_gap=settings.max_gap, transmission=settings.transmission,
-                                 joint_offsets=settings.joint_offsets)
+                                 joint_offsets=settings.joint_offsets, joint_directions=settings.joint_directions)
         # a hole splits a held-out file too, as it does a training file and as ``oed predict`` reads one: each
         # segment is scored on its own samples as recorded (refusing it made the defaults exit where the user's
         # own split of the file into two --validate files works)
         held_out = {role: read_files(paths, model, split=True, max_gap=settings.max_gap,
-                                     transmission=settings.transmission, joint_offsets=settings.joint_offsets)
+                                     transmission=settings.transmission, joint_offsets=settings.joint_offsets,
+                                     joint_directions=settings.joint_directions)
                     if paths else None
                     for role, paths in (("validation", validation), ("test", test))}
     check_no_shared_samples({"training": train_files, **held_out})

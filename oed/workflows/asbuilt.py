@@ -23,12 +23,18 @@ from dynamics.robots import load_robot
 from dynamics.simulation.joint_effects import is_puma560
 from dynamics.transmission import (
     CouplingShapeError,
+    JointDirections,
     Transmission,
     TransmissionError,
     UnknownJointError,
     puma560_transmission,
 )
-from dynamics.transmission_files import read_joint_offsets, transmission_from_json, transmission_from_urdf
+from dynamics.transmission_files import (
+    read_joint_directions,
+    read_joint_offsets,
+    transmission_from_json,
+    transmission_from_urdf,
+)
 from estimation.data.rest import check_min_speed, smooth_coulomb
 from dynamics.models import IdentificationModel
 from dynamics.runtime.progress import step
@@ -140,6 +146,13 @@ def resolve_joint_offsets(args: RecordOptions, robot: RobotModel) -> tuple[float
     ``None``."""
     path = getattr(args, "joint_offsets", None)
     return None if path is None else read_joint_offsets(path, robot)
+
+
+def resolve_joint_directions(args: RecordOptions, robot: RobotModel) -> JointDirections | None:
+    """The joints' directions of ``--joint-offsets FILE`` (its ``signs`` and ``torque_signs``:
+    :func:`dynamics.transmission_files.read_joint_directions`), or ``None`` (none reversed, or no file)."""
+    path = getattr(args, "joint_offsets", None)
+    return None if path is None else read_joint_directions(path, robot)
 
 
 def joint_zero_notes(model: IdentificationModel, train: Measurements, validation: Measurements | None, *,

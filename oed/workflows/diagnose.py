@@ -60,6 +60,7 @@ from oed.workflows.asbuilt import (
     joint_zero_notes,
     streamed_joint_zero_notes,
     model_effects,
+    resolve_joint_directions,
     resolve_joint_offsets,
     resolve_transmission,
     rest_message,
@@ -374,6 +375,7 @@ def diagnosis_in_memory(args: DiagnoseOptions, model: IdentificationModel, trans
         records = prepare_records(model, args.data, args.validate, args.test or (),  # reports its steps
                                   settings=replace(preparation_settings(args, transmission, IN_MEMORY), plan=plan,
                                                    joint_offsets=resolve_joint_offsets(args, model.robot),
+                                                   joint_directions=resolve_joint_directions(args, model.robot),
                                                    **derivatives_on_validation(model, delay)))
         with step("noise floors of the held-out records"):
             validation_floor, test_floor = record_floors(records, model, args.frequency, args.jobs)

@@ -63,6 +63,7 @@ from oed.workflows.asbuilt import (
     joint_zero_notes,
     streamed_joint_zero_notes,
     model_effects,
+    resolve_joint_directions,
     resolve_joint_offsets,
     resolve_transmission,
     rest_message,
@@ -672,7 +673,8 @@ def identification_in_memory(args: IdentifyOptions, robot: RobotModel, model: Id
         records = prepare_records(model, args.data, args.validate or (),  # reports its steps
                                   settings=replace(preparation_settings(args, transmission, IN_MEMORY), plan=plan,
                                                    validation_fits=validation_fits(args, model, delay),
-                                                   joint_offsets=resolve_joint_offsets(args, robot)))
+                                                   joint_offsets=resolve_joint_offsets(args, robot),
+                                                   joint_directions=resolve_joint_directions(args, robot)))
         train = records.train.measurements
         validation = None if records.validation is None else records.validation.measurements
         with step("weighting chosen on held-out blocks"):

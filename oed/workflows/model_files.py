@@ -21,7 +21,7 @@ from estimation.identification.model_file import (
 )
 from estimation.identification.validation import channel_mse
 from estimation.identification.plausibility import assess_plausibility, link_findings
-from oed.workflows.asbuilt import resolve_joint_offsets
+from oed.workflows.asbuilt import resolve_joint_directions, resolve_joint_offsets
 from oed.workflows.chosen_model import ChosenModel
 from oed.workflows.options import RecordOptions
 
@@ -50,6 +50,9 @@ def add_runner_up_model_file(document: dict[str, Any], runner_up: Any, args: Rec
     offsets = resolve_joint_offsets(args, runner_up.model.robot)
     if offsets is not None:
         document["runner_up"]["model_file"]["joint_offsets"] = list(offsets)
+    directions = resolve_joint_directions(args, runner_up.model.robot)
+    if directions is not None:
+        document["runner_up"]["model_file"]["joint_directions"] = directions.to_dict()
 
 
 def add_model_file(document: dict[str, Any], result: IdentificationResult, args: RecordOptions, preprocessing: Any,
@@ -76,6 +79,9 @@ def add_model_file(document: dict[str, Any], result: IdentificationResult, args:
     offsets = resolve_joint_offsets(args, result.model.robot)
     if offsets is not None:  # added to the joint positions of every record oed predict reads with this file
         document["model_file"]["joint_offsets"] = list(offsets)
+    directions = resolve_joint_directions(args, result.model.robot)
+    if directions is not None:  # the joints' directions of every record oed predict reads with this file
+        document["model_file"]["joint_directions"] = directions.to_dict()
     validation = document.get("validation") or {}
     answer = ChosenModel(result.estimate.method, result) if selection is None else ChosenModel.of(selection)
     plausibility = assess_plausibility(result.model, answer.records(),  # of the model the file holds
