@@ -28,12 +28,14 @@ def judged(monkeypatch):
         answers = {"kept": _selection(kept_mse, selection), "swap": _selection(swap_mse, selection)}
         calls = []
 
-        def select(args, diagnosis, records):
+        def select(args, diagnosis, records, *, complete=True):
             assert diagnosis.swap is None  # each model's answer, not the pair
             calls.append(diagnosis.after)
             return answers[diagnosis.after]
 
         monkeypatch.setattr(workflow, "diagnosis_selection", select)
+        # the plain law's completion of the model kept is tested in tests/test_diagnose_other_motion_plain_law.py
+        monkeypatch.setattr(workflow, "completed_selection", lambda args, diagnosis, records, selection: selection)
         swap = Diagnosis(effects=(), rejected=(), before=None, after="swap", residuals=None)
         diagnosis = Diagnosis(effects=(), rejected=(), before=None, after="kept", residuals=None, runner_up="rival",
                               swap=swap)
