@@ -87,3 +87,57 @@ def test_on_a_clean_truth_nothing_is_named_and_the_answer_stays_at_the_noise(tmp
     assert "the plain law completed" in document["model_selection"]["reason"]
     for channel, sigma in NOISE.items():
         assert document["test"]["chosen"]["mse"][channel] < 1.3 * sigma**2, document["test"]["chosen"]["mse"]
+
+
+@pytest.fixture(scope="module")
+def capped_in_memory(friction):
+    """The capped diagnosis in memory, without ``--test`` (the streamed path reads none)."""
+    folder, paths = friction
+    out = folder / "capped_memory.json"
+    assert main(["diagnose", "--joints", "3", "--friction", "viscous", "--data", str(paths["train"]), "--validate",
+                 str(paths["validate"]), "--out", str(out), "--quiet", "--max-effects", "2"]) == 0
+    return json.loads(out.read_text())
+
+
+@pytest.mark.parametrize("options", [("--chunk-size", "250"), ("--memory-budget", "1KB")],
+                         ids=["chunk-size", "memory-budget"])
+def test_the_streamed_diagnosis_completes_the_plain_law_as_in_memory(friction, capped_in_memory, tmp_path, options):
+    """A log streamed (``--chunk-size``, or past ``--memory-budget``) answers another motion as in memory: the same
+    effects, the plain law completed and taken with the same scores (the completed model's consistent refit at the
+    prior weight chosen for the adopted model, its search carried), the same model file's parameters, the same
+    validation errors of the chosen model; ``oed predict`` reproduces them."""
+    import numpy as np
+
+    folder, paths = friction
+    memory = capped_in_memory
+    out = tmp_path / "streamed.json"
+    assert main(["diagnose", "--joints", "3", "--friction", "viscous", "--data", str(paths["train"]), "--validate",
+                 str(paths["validate"]), "--out", str(out), "--quiet", "--max-effects", "2", *options]) == 0
+    streamed = json.loads(out.read_text())
+    assert streamed["diagnosis_path"] == "streamed" and memory["diagnosis_path"] == "in-memory"
+    assert [(e["spec"], e["channels"]) for e in streamed["effects"]] == \
+        [(e["spec"], e["channels"]) for e in memory["effects"]]
+    for document in (memory, streamed):
+        selection = document["model_selection"]
+        assert selection["selection"] == "validation"
+        assert "the plain law completed" in selection["reason"] and selection["reason"].endswith(", taken")
+    assert streamed["model_selection"]["chosen"] == memory["model_selection"]["chosen"]
+    assert streamed["model_selection"]["reason"] == memory["model_selection"]["reason"]
+    assert streamed["model_file"]["base"]["names"] == memory["model_file"]["base"]["names"]
+    assert {"fc1", "fc2", "fc3", "off1", "off2", "off3"} <= set(streamed["model_file"]["base"]["names"])
+    # the completed model's consistent refit at the weight chosen for the adopted model, its choice and search carried
+    assert streamed["consistent"]["prior_weight"] == memory["consistent"]["prior_weight"]
+    assert streamed["consistent"]["prior_weight_choice"] == memory["consistent"]["prior_weight_choice"]
+    searches = [[(entry["prior_weight"], entry["weighted_validation_error"]) for entry in document["consistent"]
+                 ["prior_weight_search"]] for document in (memory, streamed)]
+    assert len(searches[0]) > 1 and [w for w, _ in searches[1]] == [w for w, _ in searches[0]]
+    for (weight, error), (_, expected) in zip(*searches[::-1]):  # the weight 0 (no prior): to the solver's tolerance
+        assert error == pytest.approx(expected, rel=1e-2 if weight == 0 else 1e-6), weight
+    chosen = streamed["validation"]["chosen"]["mse"]
+    assert chosen == pytest.approx(memory["validation"]["chosen"]["mse"], rel=1e-8)
+    for vector in (lambda d: d["model_file"]["theta"], lambda d: [p["value"] for p in d["consistent"]["parameters"]]):
+        values = {name: np.array(vector(document)) for name, document in (("memory", memory), ("streamed", streamed))}
+        np.testing.assert_allclose(values["streamed"], values["memory"], rtol=1e-6,
+                                   atol=1e-6 * np.abs(values["memory"]).max())
+    measured = predict(tmp_path, out, paths["validate"])
+    assert measured == pytest.approx(chosen, rel=1e-6)

@@ -21,9 +21,9 @@ record over the memory budget is diagnosed from sums (:mod:`estimation.streaming
 * the choice is the in-memory one (:func:`~estimation.consistent.model_selection.select_scored`), ``ratio`` the
   validation record's :func:`~estimation.streaming.model_selection.streamed_repeated_motion`.
 
-On a validation record that repeats the training motion, the in-memory answer also weighs the adopted model with the
-plain law completed (:func:`estimation.diagnosis.plain_laws.plain_completion`: Coulomb friction and an offset on each
-joint the diagnosis left without one). The streamed sums hold those laws' columns too (they are candidates of the
+On a validation record that repeats the training motion or is another motion, the in-memory answer also weighs the
+adopted model with the plain law completed (:func:`estimation.diagnosis.plain_laws.plain_completion`: Coulomb
+friction and an offset on each joint the diagnosis left without one). The streamed sums hold those laws' columns too (they are candidates of the
 search, :func:`~estimation.diagnosis.search.default_candidates`), so the completed model is fitted from the same
 training sums with the adopted model's weighting (:func:`streamed_completion`) and refitted alike.
 """

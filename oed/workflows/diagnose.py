@@ -27,7 +27,7 @@ from dynamics.runtime.output_files import OutputFiles, json_text
 from dynamics.runtime.processes import run_tasks, worker_count
 from dynamics.runtime.progress import step
 from dynamics.transmission import Transmission
-from estimation.consistent.model_selection import ModelSelection, select_refit
+from estimation.consistent.model_selection import ConsistentSettings, ModelSelection, select_refit
 from estimation.identification.relative_error import relative_scores
 from estimation.identification.validation import ChannelErrors
 from estimation.diagnosis.candidates.coupling import coupling_candidates
@@ -559,10 +559,8 @@ def completed_selection(args: DiagnoseOptions, diagnosis: Diagnosis, records: Pr
     On another motion the completed model's consistent refit takes the prior weight the validation record chose for
     the adopted model's (its search kept in the result): the laws are compared, and the weight search is not made
     again (five refits of the Panda's 7 joints, about 1 s); on a repeat the weight is searched again."""
-    if args.consistent or selection.selection not in ("repeated-motion", "validation"):
-        return selection
-    repeat = selection.selection == "repeated-motion"
-    if repeat and selection.chosen != "consistent":
+    repeat = completion_repeat(args, selection)
+    if repeat is None:
         return selection
     train, validation = records.train.measurements, records.validation.measurements
     completion = plain_completion(diagnosis.after, train, validation)
@@ -570,11 +568,33 @@ def completed_selection(args: DiagnoseOptions, diagnosis: Diagnosis, records: Pr
         return selection
     completed, added = completion
     laws = completed_laws(completed.model, added)
-    settings, adopted = consistent_settings(args, completed.model.robot), selection.consistent
+    return held_completion(selection, consistent_settings(args, completed.model.robot), laws, repeat=repeat,
+                           select=lambda settings: select_refit(completed, train, validation, consistent=settings,
+                                                                note=completed_note(laws)))
+
+
+def completion_repeat(args: DiagnoseOptions, selection: ModelSelection) -> bool | None:
+    """Whether the plain law's completion is judged on a repeat of the training motion (``True``) or on another
+    motion (``False``), or ``None`` when it is not judged (:func:`completed_selection`, on both paths): a validation
+    record at rest, ``--consistent``, or a repeat whose default answer is not the consistent refit."""
+    if args.consistent or selection.selection not in ("repeated-motion", "validation"):
+        return None
+    repeat = selection.selection == "repeated-motion"
+    return None if repeat and selection.chosen != "consistent" else repeat
+
+
+def held_completion(selection: ModelSelection, settings: ConsistentSettings, laws: str, *, repeat: bool,
+                    select: Callable[[ConsistentSettings], ModelSelection]) -> ModelSelection:
+    """:func:`completed_answer` of the completed model's selection ``select(settings)`` against ``selection`` (the
+    adopted model's), on both paths (:func:`completed_selection`, :func:`streamed_selection`). On another motion
+    (not ``repeat``) with the prior's weight left to the validation record, the completed model's consistent refit
+    takes the weight chosen for the adopted model, and carries its choice and search (made, held out, for the
+    adopted model); on a repeat the weight is searched again."""
+    adopted = selection.consistent
     held = not repeat and adopted is not None and settings.prior_weight in (None, "auto")
     if held:  # the laws are compared, not the prior's weight: the one the validation record chose for the adopted model
         settings = replace(settings, prior_weight=float(adopted.estimate.prior_weight))
-    other = select_refit(completed, train, validation, consistent=settings, note=completed_note(laws))
+    other = select(settings)
     if held and other.consistent is not None:
         refit = replace(other.consistent, prior_weight_choice=adopted.prior_weight_choice,
                         prior_weight_search=adopted.prior_weight_search)  # chosen, held out, for the adopted model
@@ -904,7 +924,10 @@ def streamed_selection(args: DiagnoseOptions, diagnosis: Diagnosis, run: Streame
     grid, at its recorded samples as ``oed predict`` measures them (:func:`resampled_scorer`, read in memory as the
     adopted model's own error there is). ``plan``: the model files' preprocessing; ``still``: the validation record
     is at rest (:func:`estimation.streaming.model_selection.warned_still_motion`): it chooses nothing, as in memory;
-    ``ratio``: the validation record's repeated-motion ratio (``None``: computed here)."""
+    ``ratio``: the validation record's repeated-motion ratio (``None``: computed here). The plain law is completed
+    as in memory (:func:`completed_selection`: on a repeat of the training motion, and on another motion with the
+    prior weight chosen for the adopted model held, :func:`held_completion`) from the same sums
+    (:func:`estimation.streaming.diagnosis_selection.streamed_completion`)."""
     model = diagnosis.model
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # the files' findings were said on the diagnosis's passes
@@ -916,9 +939,10 @@ def streamed_selection(args: DiagnoseOptions, diagnosis: Diagnosis, run: Streame
         settings = consistent_settings(args, model.robot)
         selection = streamed_refit_selection(diagnosis, run, given="consistent" if args.consistent else None,
                                              consistent=settings, score=score, ratio=ratio, still=still)
-        if args.consistent or selection.selection != "repeated-motion" or selection.chosen != "consistent":
+        repeat = completion_repeat(args, selection)
+        if repeat is None:
             return selection
-        completion = streamed_completion(diagnosis, run)  # the plain law completed on a repeat, as in memory
+        completion = streamed_completion(diagnosis, run)  # the plain law completed, as in memory
         if completion is None:
             return selection
         completed, columns, added = completion
@@ -926,9 +950,10 @@ def streamed_selection(args: DiagnoseOptions, diagnosis: Diagnosis, run: Streame
             score = resampled_scorer(args, diagnosis, plan, fit=completed)
             completed = replace(completed, validation=score({"completed": completed.estimate.values})["completed"])
         laws = completed_laws(completed.model, added)
-        other = refit_selection(completed, columns, run, consistent=settings, score=score, ratio=ratio, still=still,
-                                note=completed_note(laws))
-        return completed_answer(selection, other, laws)
+        return held_completion(selection, settings, laws, repeat=repeat,
+                               select=lambda held: refit_selection(completed, columns, run, consistent=held,
+                                                                   score=score, ratio=ratio, still=still,
+                                                                   note=completed_note(laws)))
 
 
 def resampled_scorer(args: DiagnoseOptions, diagnosis: Diagnosis, plan: dict[str, Any], *,
