@@ -41,8 +41,8 @@ from dynamics.robot import JointType
 from dynamics.robots import load_robot
 from dynamics.urdf_export import robot_urdf
 from oed.fourier import random_fourier
-from tests.test_unseen_robot_kinds import cylinder, minimum_jerk, quiet, ur10e
-from tests.test_unseen_robots import FRICTION, NOISE, PER_JOINT, TOTAL, Log, logged, times, truth, within
+from tests.test_unseen_robot_kinds import as_well_as_the_plain_fit, cylinder, marks, minimum_jerk, quiet, ur10e
+from tests.test_unseen_robots import FRICTION, NOISE, Log, logged, times, truth
 
 PI = np.pi
 
@@ -287,27 +287,10 @@ REALITIES = (
 )
 
 
-def marks(case: Reality) -> list[pytest.MarkDecorator]:
-    chosen = [pytest.mark.slow] if case.slow else []
-    if case.xfail:
-        chosen.append(pytest.mark.xfail(strict=True, reason=case.xfail))
-    return chosen
-
-
 @pytest.mark.parametrize("case", [pytest.param(case, id=case.name, marks=marks(case)) for case in REALITIES])
 def test_the_defaults_run_and_predict_as_well_as_a_plain_fit_on_a_users_log(case, tmp_path):
     outcome = run_reality(case, tmp_path)
-    mse, floor = outcome["mse"], outcome["floor"]
-    print(f"\n{case.name}: plain cut-off {outcome['cutoff']} Hz; effects {outcome['effects']}; "
-          f"chosen {outcome['selections']}; " + "; ".join(
-              f"{label} {(mse[label] / mse[f'plain OLS ({label}' + chr(39) + 's samples)']).round(3).tolist()} total "
-              f"{mse[label].sum() / mse[f'plain OLS ({label}' + chr(39) + 's samples)'].sum():.3f}"
-              for label in ("default", "diagnose") if label in mse))
-    assert not outcome["exits"], outcome["exits"]
-    for label in ("default", "diagnose"):
-        plain = mse[f"plain OLS ({label}'s samples)"]
-        assert np.all(within(mse[label], plain, floor, PER_JOINT)), (label, (mse[label] / plain).round(3))
-        assert within(mse[label].sum(), plain.sum(), floor.sum(), TOTAL), (label, mse[label].sum() / plain.sum())
+    as_well_as_the_plain_fit(case.name, outcome, f"chosen {outcome['selections']}; ")
 
 
 @pytest.mark.xfail(strict=True, reason="the Butterworth path fits the torques filtered at the cut-off, whose Coulomb "
