@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import json
 import xml.etree.ElementTree as ElementTree
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -115,19 +115,27 @@ def transmission_from_json(source: str | Path | Mapping[str, Any], robot: RobotM
 def joint_offsets(values: Any, robot: RobotModel, where: str = "offsets") -> tuple[float, ...]:
     """One offset a joint (rad, or m) from a mapping by joint name or 1-based number (joints not named: 0) or a
     list of one a joint; :class:`TransmissionError` naming ``where`` for anything else (text, NaN, a wrong count)."""
+    return _per_joint(values, robot, where, default=0.0, convert=_offset, what="offsets",
+                      example='{"joint2": -1.5708}', unit="numbers (rad, or m)")
+
+
+def _per_joint(values: Any, robot: RobotModel, where: str, *, default: float, convert: Callable[[Any, str], float],
+               what: str, example: str, unit: str) -> tuple[float, ...]:
+    """One value a joint, each checked by ``convert``, from a mapping by joint name or 1-based number (joints not
+    named: ``default``) or a list of one a joint; :class:`TransmissionError` (or :class:`CouplingShapeError`,
+    :class:`UnknownJointError`) naming ``where`` for anything else."""
     n = robot.n_joints
-    offsets = np.zeros(n)
     if isinstance(values, Mapping):
+        found = [default] * n
         for key, value in values.items():
-            index = _joint_index(robot, key, where)
-            offsets[index] = _offset(value, f"{where}: joint {key!r}")
-        return tuple(float(value) for value in offsets)
+            found[_joint_index(robot, key, where)] = convert(value, f"{where}: joint {key!r}")
+        return tuple(float(value) for value in found)
     if isinstance(values, (str, bytes)) or not isinstance(values, (list, tuple)):
-        raise TransmissionError(f"{where}: offsets must be an object by joint ({{\"joint2\": -1.5708}}) or a list of "
-                                f"{n} numbers (rad, or m), got {values!r}")
+        raise TransmissionError(f"{where}: {what} must be an object by joint ({example}) or a list of {n} {unit}, "
+                                f"got {values!r}")
     if len(values) != n:
-        raise CouplingShapeError(f"{where}: {len(values)} offsets for the {n} joints of {robot.name}")
-    return tuple(_offset(value, f"{where}: offset {index + 1}") for index, value in enumerate(values))
+        raise CouplingShapeError(f"{where}: {len(values)} {what} for the {n} joints of {robot.name}")
+    return tuple(convert(value, f"{where}: {what[:-1]} {index + 1}") for index, value in enumerate(values))
 
 
 #: the entries of a ``--joint-offsets`` JSON object (any other key is a joint's offset)
@@ -190,7 +198,8 @@ def _read_conventions(path: str | Path, robot: RobotModel) -> tuple[tuple[float,
         joints = [str(value).strip() for value in frame["joint"]]
         if len(set(joints)) != len(joints):
             raise TransmissionError(f"{where}: a joint named twice")
-        offsets = (joint_offsets(dict(zip(joints, frame["offset"].str.strip())), robot, where)
+        offsets = (joint_offsets({joint: value for joint, value in zip(joints, frame["offset"].str.strip())
+                                  if value == value}, robot, where)  # a blank cell (NaN): the joint's default
                    if "offset" in frame.columns else (0.0,) * n)
         return offsets, JointDirections(*(
             _signs({joint: value for joint, value in zip(joints, frame[column].str.strip()) if value == value},
@@ -201,20 +210,10 @@ def _read_conventions(path: str | Path, robot: RobotModel) -> tuple[tuple[float,
 
 def _signs(values: Any, robot: RobotModel, where: str) -> tuple[float, ...]:
     """One sign a joint (+1 or -1) from a mapping by joint name or number (joints not named: +1) or a list."""
-    n = robot.n_joints
     if values is None:
-        return (1.0,) * n
-    if isinstance(values, Mapping):
-        signs = [1.0] * n
-        for key, value in values.items():
-            signs[_joint_index(robot, key, where)] = _sign(value, f"{where}: joint {key!r}")
-        return tuple(signs)
-    if isinstance(values, (str, bytes)) or not isinstance(values, (list, tuple)):
-        raise TransmissionError(f"{where}: must be an object by joint ({{\"joint2\": -1}}) or a list of {n} signs, "
-                                f"got {values!r}")
-    if len(values) != n:
-        raise CouplingShapeError(f"{where}: {len(values)} signs for the {n} joints of {robot.name}")
-    return tuple(_sign(value, f"{where}: sign {index + 1}") for index, value in enumerate(values))
+        return (1.0,) * robot.n_joints
+    return _per_joint(values, robot, where, default=1.0, convert=_sign, what="signs", example='{"joint2": -1}',
+                      unit="signs")
 
 
 def _sign(value: Any, where: str) -> float:

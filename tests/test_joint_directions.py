@@ -121,6 +121,10 @@ def test_directions_read_from_json_and_csv(tmp_path):
     pd.DataFrame({"joint": ["joint2", "joint3"], "sign": [-1, 1], "torque_sign": [-1, -1]}).to_csv(csv, index=False)
     assert read_joint_directions(csv, robot) == JointDirections((1, -1, 1), (1, -1, -1))
     assert read_joint_offsets(csv, robot) == (0.0, 0.0, 0.0)
+    # a blank cell is the joint's default, in either column: a reversed joint with no offset, an offset and no sign
+    pd.DataFrame({"joint": ["joint2", "joint3"], "offset": [None, 0.5], "sign": [-1, None]}).to_csv(csv, index=False)
+    assert read_joint_offsets(csv, robot) == (0.0, 0.0, 0.5)
+    assert read_joint_directions(csv, robot) == JointDirections((1, -1, 1), (1, 1, 1))
 
 
 @pytest.mark.parametrize("document, message", [
