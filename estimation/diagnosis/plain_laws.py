@@ -65,7 +65,7 @@ from estimation.identification.preprocessing_choice import geometric_mean
 from estimation.identification.repeated_motion import REPEAT_FRACTION, repeated_motion
 from estimation.preprocessing.delay import delayed
 
-__all__ = ["PlainLawChoice", "plain_completion", "plain_law_choice", "plain_model", "plain_model_effects"]
+__all__ = ["PlainLawChoice", "completion_laws", "plain_completion", "plain_law_choice", "plain_model", "plain_model_effects"]
 
 
 @dataclass(frozen=True)
@@ -129,6 +129,15 @@ def plain_model(model: IdentificationModel) -> IdentificationModel:
     return build_model(model.robot, model.kind, (*model.effects, *added)) if added else model
 
 
+def completion_laws(model: IdentificationModel) -> tuple[Effect, ...]:
+    """The plain laws a completion adds to ``model`` (:func:`plain_completion`, and the streamed one of
+    :mod:`estimation.streaming.diagnosis_selection`): Coulomb friction and an offset on each joint that holds none
+    (:func:`plain_model_effects` with ``level=True``); none on the external model."""
+    if model.kind is ModelKind.EXTERNAL:
+        return ()
+    return plain_model_effects(model, range(model.robot.n_joints), level=True)
+
+
 def plain_completion(after: IdentificationResult, train: Measurements, validate: Measurements | None
                      ) -> tuple[IdentificationResult, tuple[Effect, ...]] | None:
     """The diagnosed model ``after`` (declared plus found effects) with the plain law added on every joint that has
@@ -138,9 +147,7 @@ def plain_completion(after: IdentificationResult, train: Measurements, validate:
     delay), and the laws added; ``None`` when nothing is added (the external model, or every joint already holds
     both) or the fit fails (module docstring: on a repeat of the training motion)."""
     model = after.model
-    if model.kind is ModelKind.EXTERNAL:
-        return None
-    added = plain_model_effects(model, range(model.robot.n_joints), level=True)
+    added = completion_laws(model)
     if not added:
         return None
     if after.delay is not None:  # along the records moved by the diagnosis's delay, held at its value

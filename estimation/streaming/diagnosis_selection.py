@@ -37,7 +37,7 @@ from typing import Any, Literal
 import numpy as np
 
 from dynamics.effects.linear import Effect
-from dynamics.models import ModelKind, build_model
+from dynamics.models import build_model
 from estimation.consistent.identification import Scorer, consistent_fit_sums
 from estimation.consistent.model_selection import (
     CONSISTENT_FAILURES,
@@ -46,7 +46,7 @@ from estimation.consistent.model_selection import (
     ModelSelection,
     select_scored,
 )
-from estimation.diagnosis.plain_laws import plain_model_effects
+from estimation.diagnosis.plain_laws import completion_laws
 from estimation.diagnosis.results import Diagnosis, SummedFit
 from estimation.estimators.summed_least_squares import SummedLeastSquares
 from estimation.identification.fit import implausible_estimates
@@ -148,9 +148,7 @@ def streamed_completion(diagnosis: Diagnosis, run: StreamedRun, score: Scorer | 
         raise ValueError("a streamed diagnosis is needed (diagnosis.path == 'streamed')")
     after = diagnosis.after
     model = after.model
-    if model.kind is ModelKind.EXTERNAL:
-        return None
-    added = plain_model_effects(model, range(model.robot.n_joints), level=True)
+    added = completion_laws(model)
     if not added:
         return None
     blocks = run.found.blocks
