@@ -614,9 +614,9 @@ def completed_note(laws: str) -> str:
     return f"with the diagnosed effects and the plain law where the diagnosis named none ({laws}; not findings)"
 
 
-def completed_answer(selection: ModelSelection, other: ModelSelection, laws: str, *, repeat: bool = True,
+def completed_answer(selection: ModelSelection, other: ModelSelection, laws: str, *, repeat: bool,
                      note: str = "") -> ModelSelection:
-    """The default answer with the plain law completed (:func:`completed_selection`, on both paths): the completed
+    """The default answer with the plain law completed (:func:`held_completion`, on both paths): the completed
     model's selection ``other`` when its answer validates better than the adopted model's (``selection``) by the
     default answer's criterion, else ``selection``; the reason gives both scores and ``note``.
 
