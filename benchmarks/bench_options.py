@@ -11,7 +11,8 @@ Printed per run: test MSE per joint, its ratio to the plain fit (total · mean o
 model and derivatives chosen, and each candidate's validation MSE per joint (``model_selection``); then the runs
 ranked on the test record by the criterion of the toolkit's choices
 (:func:`estimation.identification.relative_error.relative_scores`: the mean over joints of each run's MSE over the
-smallest any run reaches) beside their total, and each joint's share of the plain fit's total test MSE.
+smallest any run reaches) beside their total, each joint's share of the plain fit's total test MSE, and the first
+run's total minus each other's on contiguous blocks of the test record (``--blocks``: how sure the record is).
 
 Run: ``PYTHONPATH=. python benchmarks/bench_options.py --robot tx40 "" "--method ols" "--cutoff 50"`` or
 ``PYTHONPATH=. python benchmarks/bench_options.py --sweep panda-noval "" "--cutoff 6 --method wls"``.
@@ -85,6 +86,8 @@ def main() -> None:
     where.add_argument("--robot", choices=sorted(real.ROBOTS), help="bench_real_robots.py's split of this robot")
     where.add_argument("--sweep", help="a configuration of bench_sweep.py (--list there names them)")
     parser.add_argument("options", nargs="+", help='option sets, each one argument ("" for the defaults)')
+    parser.add_argument("--blocks", type=int, default=10,
+                        help="contiguous blocks of the test record for the uncertainty of the totals (default 10)")
     args = parser.parse_args()
     if not real.DATA.is_dir():
         sys.exit(f"no real data at {real.DATA}")
@@ -108,9 +111,10 @@ def main() -> None:
     print(f"plain fit: cut-off {cutoff:g} Hz, test MSE {np.round(reference, 4).tolist()} "
           f"(total {reference.sum():.4g}) on {common.shape[0]} of {test.t.shape[0]} test samples")
     print("each joint's share of the plain fit's total test MSE:", np.round(reference / reference.sum(), 3).tolist())
-    errors = {}
+    errors, squared = {}, {"plain fit": (test.tau[common] - plain[common]) ** 2}
     for label, (index, values) in at.items():
-        mse = np.mean((test.tau[common] - values[np.isin(index, common)]) ** 2, axis=0)
+        squared[label] = (test.tau[common] - values[np.isin(index, common)]) ** 2
+        mse = np.mean(squared[label], axis=0)
         errors[label] = dict(zip(channels, mse, strict=True))
         ratio = mse / reference
         result = runs[label]["result"]
@@ -132,6 +136,24 @@ def main() -> None:
               "reaches), and the total / plain:")
         for label in sorted(scores, key=scores.__getitem__):
             print(f"  {scores[label]:.4f}  {sum(errors[label].values()) / reference.sum():.3f}  {label}")
+    print_block_differences(squared, reference.sum(), args.blocks)
+
+
+def print_block_differences(squared: dict[str, np.ndarray], total: float, blocks: int) -> None:
+    """How sure the test record is of each total: the first run's total MSE minus each other's (and the plain
+    fit's) on ``blocks`` contiguous blocks of the common samples, over the plain fit's total; mean ± the standard
+    error of the blocks' mean, and on how many blocks the first run is worse."""
+    labels = [label for label in squared if label != "plain fit"]
+    if not labels or blocks < 2:
+        return
+    first = squared[labels[0]].sum(axis=1)
+    parts = np.array_split(np.arange(first.shape[0]), blocks)
+    print(f"\n{labels[0]} minus each other run, total MSE on {blocks} contiguous blocks over the plain fit's total:")
+    for label in [*labels[1:], "plain fit"]:
+        other = squared[label].sum(axis=1)
+        difference = np.array([(first[part].mean() - other[part].mean()) / total for part in parts])
+        print(f"  {label}: {difference.mean():+.4f} ± {difference.std(ddof=1) / np.sqrt(blocks):.4f} "
+              f"(worse on {int(np.sum(difference > 0))} of {blocks})")
 
 
 if __name__ == "__main__":
