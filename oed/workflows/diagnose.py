@@ -24,7 +24,7 @@ from typing import Any
 
 from dynamics.models import IdentificationModel, build_model
 from dynamics.runtime.output_files import OutputFiles, json_text
-from dynamics.runtime.processes import run_tasks, worker_count
+from dynamics.runtime.processes import beside, run_tasks, worker_count
 from dynamics.runtime.progress import step
 from dynamics.transmission import Transmission
 from estimation.consistent.model_selection import ConsistentSettings, ModelSelection, select_refit
@@ -377,21 +377,26 @@ def diagnosis_in_memory(args: DiagnoseOptions, model: IdentificationModel, trans
                                                    joint_offsets=resolve_joint_offsets(args, model.robot),
                                                    joint_directions=resolve_joint_directions(args, model.robot),
                                                    **derivatives_on_validation(model, delay)))
-        with step("noise floors of the held-out records"):
-            validation_floor, test_floor = record_floors(records, model, args.frequency, args.jobs)
-        with step("diagnosis in memory"):
-            diagnosis = diagnose_records(args, model, transmission, records, delay, validation_floor)
-        selection, swap_note = None, None
-        if diagnosis.swap is not None:
-            with step("the plain-law swap judged on the default answer's candidates"):
-                diagnosis, selection, swap_note = judged_swap(args, diagnosis, records)
-        untouched = test_errors(records, diagnosis, test_floor)
-        trivial, notes = trivial_predictors(diagnosis.after, records.validation.measurements)
-        diagnosis = replace(diagnosis, trivial=trivial)
-        notes += worse_after(diagnosis) + (() if swap_note is None else (swap_note,))
-        repeat = repeated_motion_note(records.train.measurements, records.validation.measurements)
-        notes += () if repeat is None else (repeat,)
-        notes += joint_zero_notes(model, records.train.measurements, records.validation.measurements, delay=delay)
+        # the joint-zero check reads the prepared records only: it runs beside the diagnosis, in the cores that
+        # leaves idle (its serial steps, the slower worker of a round), and is said where it was
+        zeros = functools.partial(joint_zero_notes, model, records.train.measurements, records.validation.measurements,
+                                  delay=delay)
+        with beside(zeros, worker_count(args.jobs, 2)) as zero_notes:
+            with step("noise floors of the held-out records"):
+                validation_floor, test_floor = record_floors(records, model, args.frequency, args.jobs)
+            with step("diagnosis in memory"):
+                diagnosis = diagnose_records(args, model, transmission, records, delay, validation_floor)
+            selection, swap_note = None, None
+            if diagnosis.swap is not None:
+                with step("the plain-law swap judged on the default answer's candidates"):
+                    diagnosis, selection, swap_note = judged_swap(args, diagnosis, records)
+            untouched = test_errors(records, diagnosis, test_floor)
+            trivial, notes = trivial_predictors(diagnosis.after, records.validation.measurements)
+            diagnosis = replace(diagnosis, trivial=trivial)
+            notes += worse_after(diagnosis) + (() if swap_note is None else (swap_note,))
+            repeat = repeated_motion_note(records.train.measurements, records.validation.measurements)
+            notes += () if repeat is None else (repeat,)
+            notes += zero_notes()
         with step("the default answer: the adopted model or its consistent refit"):
             if selection is None:
                 selection = diagnosis_selection(args, diagnosis, records)
