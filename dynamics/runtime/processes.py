@@ -43,6 +43,8 @@ T = TypeVar("T")
 
 #: the most workers :func:`worker_count` gives by default
 MAX_WORKERS = 4
+#: how much lower the priority of :func:`beside`'s child is (``os.nice``; 19, the lowest)
+BESIDE_NICENESS = 19
 
 
 class TaskError(RuntimeError):
@@ -183,11 +185,13 @@ def run_tasks(tasks: Sequence[Callable[[], T]], workers: int, *, shared: Iterabl
 @contextlib.contextmanager
 def beside(task: Callable[[], T], workers: int) -> Iterator[Callable[[], T]]:
     """``task`` run in a forked child while the ``with`` block runs on in this process; the block calls the function
-    it is given for ``task()``'s result (waiting for the child then; its warnings issued again there, its exception
-    raised there). With ``workers`` 1 (or no ``fork``), ``task`` runs in turn at that call: the same result where it
-    is asked for. A task that only reads what exists before the block (the records, the model) and returns a small
-    result fills the cores the block leaves idle (its serial steps, a pool's slower worker). The child is killed and
-    reaped when the block ends, whatever happened, and the result is asked for at most once.
+    it is given for ``task()``'s result (its warnings issued again there, its exception raised there). The child runs
+    at the lowest priority (:data:`BESIDE_NICENESS`): a task that only reads what exists before the block (the
+    records, the model) and returns a small result takes the cores the block leaves idle (its serial steps, a pool's
+    slower worker) rather than sharing those its pools fill. A child not done when the result is asked for is
+    killed and the task run in turn there (one thread, as in the child): the same result, never a wait on a child
+    other programs starve. With ``workers`` 1 (or no ``fork``), ``task`` runs in turn at that call. The child is
+    killed and reaped when the block ends, whatever happened; ask for the result once.
     """
     if workers <= 1 or "fork" not in get_all_start_methods():
         yield task
@@ -202,6 +206,7 @@ def beside(task: Callable[[], T], workers: int) -> Iterator[Callable[[], T]]:
         pid = os.fork()
         if pid == 0:
             os.close(read_end)
+            os.nice(BESIDE_NICENESS)  # the cores the block leaves idle, not the ones its own work needs
             _child([task], counter, sharing, write_end)
         os.close(write_end)
         children[pid], received[pid] = read_end, bytearray()
@@ -209,7 +214,10 @@ def beside(task: Callable[[], T], workers: int) -> Iterator[Callable[[], T]]:
         reader.start()
 
         def result() -> T:
-            reader.join()
+            if reader.is_alive():  # not done (the idle cores were too few, or other programs took them): in turn
+                with contextlib.suppress(ProcessLookupError):
+                    os.kill(pid, signal.SIGKILL)  # reaped when the block ends (a starved child dies slowly too)
+                return _in_order([_run_one(0, task)], 1)[0]
             _reap(children, kill=False)
             return _in_order(sharing.loads_all(bytes(received[pid])), 1)[0]
 

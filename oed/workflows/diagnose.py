@@ -377,8 +377,8 @@ def diagnosis_in_memory(args: DiagnoseOptions, model: IdentificationModel, trans
                                                    joint_offsets=resolve_joint_offsets(args, model.robot),
                                                    joint_directions=resolve_joint_directions(args, model.robot),
                                                    **derivatives_on_validation(model, delay)))
-        # the joint-zero check reads the prepared records only: it runs beside the diagnosis, in the cores that
-        # leaves idle (its serial steps, the slower worker of a round), and is said where it was
+        # the joint-zero check reads the prepared records only: it runs beside the diagnosis and the default answer,
+        # in the cores they leave idle (their serial steps, the slower worker of a pool), and is said where it was
         zeros = functools.partial(joint_zero_notes, model, records.train.measurements, records.validation.measurements,
                                   delay=delay)
         with beside(zeros, worker_count(args.jobs, 2)) as zero_notes:
@@ -396,10 +396,10 @@ def diagnosis_in_memory(args: DiagnoseOptions, model: IdentificationModel, trans
             notes += worse_after(diagnosis) + (() if swap_note is None else (swap_note,))
             repeat = repeated_motion_note(records.train.measurements, records.validation.measurements)
             notes += () if repeat is None else (repeat,)
+            with step("the default answer: the adopted model or its consistent refit"):
+                if selection is None:
+                    selection = diagnosis_selection(args, diagnosis, records)
             notes += zero_notes()
-        with step("the default answer: the adopted model or its consistent refit"):
-            if selection is None:
-                selection = diagnosis_selection(args, diagnosis, records)
     return Diagnosed(diagnosis, records.preprocessing.to_dict(), records.preprocessing.describe(),
                      (*caught_messages(caught), *notes), records=records, untouched=untouched, selection=selection,
                      transmission=transmission, notes=notes)
