@@ -183,7 +183,7 @@ def run_tasks(tasks: Sequence[Callable[[], T]], workers: int, *, shared: Iterabl
 
 
 @contextlib.contextmanager
-def beside(task: Callable[[], T], workers: int) -> Iterator[Callable[[], T]]:
+def beside(task: Callable[[], T], workers: int, *, shared: Iterable[object] = ()) -> Iterator[Callable[[], T]]:
     """``task`` run in a forked child while the ``with`` block runs on in this process; the block calls the function
     it is given for ``task()``'s result (its warnings issued again there, its exception raised there). The child runs
     at the lowest priority (:data:`BESIDE_NICENESS`): a task that only reads what exists before the block (the
@@ -191,12 +191,13 @@ def beside(task: Callable[[], T], workers: int) -> Iterator[Callable[[], T]]:
     slower worker) rather than sharing those its pools fill. A child not done when the result is asked for is
     killed and the task run in turn there (one thread, as in the child): the same result, never a wait on a child
     other programs starve. With ``workers`` 1 (or no ``fork``), ``task`` runs in turn at that call. The child is
-    killed and reaped when the block ends, whatever happened; ask for the result once.
+    killed and reaped when the block ends, whatever happened; ask for the result once. ``shared``: objects that exist
+    before the block and may appear in the result, returned as this process's own (:func:`run_tasks`).
     """
     if workers <= 1 or "fork" not in get_all_start_methods():
         yield task
         return
-    sharing = _Sharing(())
+    sharing = _Sharing(shared)
     counter = get_context("fork").Value("q", 0)
     children: dict[int, int] = {}
     received: dict[int, bytearray] = {}
