@@ -4,12 +4,13 @@ from __future__ import annotations
 
 import json
 import os
+import time
 import warnings
 
 import numpy as np
 import pytest
 
-from dynamics.runtime.processes import TaskError, run_tasks, worker_count
+from dynamics.runtime.processes import TaskError, beside, run_tasks, worker_count
 from estimation.diagnosis import record_fits
 from estimation.diagnosis.candidates import delay_search
 from estimation.diagnosis.candidates.delay import search_delay
@@ -128,6 +129,37 @@ def test_a_child_warning_is_issued_in_the_parent():
     with pytest.warns(UserWarning) as caught:
         run_tasks([lambda value=value: _warns(value) for value in range(6)], 2)
     assert sorted(str(item.message) for item in caught) == [f"warning from task {value}" for value in range(6)]
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_a_task_beside_gives_its_result_warnings_and_exception_where_asked_for(workers):
+    with beside(lambda: _warns(7), workers) as result:
+        before = _square(3)  # the block runs on meanwhile
+        with pytest.warns(UserWarning, match="warning from task 7"):
+            value = result()
+    assert (before, value) == (9, 7)
+    with pytest.raises(ValueError, match="task 3 fails"), beside(lambda: _fails(3), workers) as result:
+        result()
+    with pytest.raises(KeyError), beside(lambda: _square(2), workers):  # the block fails: the child is killed
+        raise KeyError("the block's own error")
+    with pytest.raises(ChildProcessError):
+        os.waitpid(-1, os.WNOHANG)  # no child of this process remains
+
+
+def test_a_task_beside_not_done_when_asked_for_runs_in_turn_there():
+    parent = os.getpid()
+
+    def task():
+        if os.getpid() != parent:
+            time.sleep(600)  # a child the machine never lets finish
+        return os.getpid()
+
+    started = time.perf_counter()
+    with beside(task, 2) as result:
+        assert result() == parent
+    assert time.perf_counter() - started < 60
+    with pytest.raises(ChildProcessError):
+        os.waitpid(-1, os.WNOHANG)
 
 
 def test_worker_count_is_serial_for_few_tasks_and_refuses_a_bad_number():

@@ -207,3 +207,38 @@ def test_diagnose_reads_the_directions_too(logs):
     np.testing.assert_allclose(declared["model_file"]["theta"], reference["model_file"]["theta"], rtol=1e-6,
                                atol=1e-8)
     assert declared["model_file"]["joint_directions"]["signs"] == [1, -1, 1]
+
+
+@pytest.mark.parametrize("kinematic, torque", [(-1.0, -1.0), (1.0, -1.0)])
+def test_the_scan_forms_the_normal_equations_once_per_regressor_and_scores_bit_for_bit(puma6, monkeypatch,
+                                                                                         kinematic, torque):
+    """The direction scan forms one regressor's normal equations once for both torque signs (and once a round for
+    the torques reversed alone): every score, and so the check, the same bit for bit as the fit made anew for
+    each."""
+    from estimation.identification import joint_zeros
+
+    model, train, validate = puma6
+    train, validate = _logged(train, 2, kinematic, torque), _logged(validate, 2, kinematic, torque)
+    scored = joint_zeros._Problem.scored
+    costs = {"shared": [], "anew": []}
+
+    def recorded(which, fresh):
+        def score(self, Y, signs, normal=None):
+            value = scored(self, Y, signs, None if fresh else normal)
+            costs[which].append(value)
+            return value
+        return score
+
+    monkeypatch.setattr(joint_zeros._Problem, "scored", recorded("shared", fresh=False))
+    shared = check_joint_zeros(model, train, validate, warn=False)
+    monkeypatch.setattr(joint_zeros._Problem, "scored", recorded("anew", fresh=True))
+    anew = check_joint_zeros(model, train, validate, warn=False)
+    assert len(costs["shared"]) > 20 and costs["shared"] == costs["anew"]
+    assert shared.reversed_joints == anew.reversed_joints == (2,)
+    assert (shared.signs, shared.torque_signs, shared.total_ratio) == (anew.signs, anew.torque_signs, anew.total_ratio)
+    Y, target = np.random.default_rng(0).normal(size=(50, 3, 4)), np.random.default_rng(1).normal(size=(50, 3))
+    A = Y.reshape(-1, 4)
+    scale = np.linalg.norm(A, axis=0)
+    A = A / scale
+    np.testing.assert_array_equal(joint_zeros._Normal(Y).solve(target),  # the formula before, inline
+                                  np.linalg.lstsq(A.T @ A, A.T @ target.reshape(-1), rcond=1e-12)[0] / scale)

@@ -21,6 +21,7 @@ than ``min_tasks`` tasks.
 
 from __future__ import annotations
 
+import contextlib
 import io
 import os
 import pickle
@@ -29,19 +30,21 @@ import signal
 import threading
 import traceback
 import warnings
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass
 from multiprocessing import get_all_start_methods, get_context
 from typing import Any, TypeVar
 
 from dynamics.runtime.threads import available_cores, single_threaded
 
-__all__ = ["MAX_WORKERS", "TaskError", "run_tasks", "worker_count"]
+__all__ = ["MAX_WORKERS", "TaskError", "beside", "run_tasks", "worker_count"]
 
 T = TypeVar("T")
 
 #: the most workers :func:`worker_count` gives by default
 MAX_WORKERS = 4
+#: how much lower the priority of :func:`beside`'s child is (``os.nice``; 19, the lowest)
+BESIDE_NICENESS = 19
 
 
 class TaskError(RuntimeError):
@@ -177,6 +180,54 @@ def run_tasks(tasks: Sequence[Callable[[], T]], workers: int, *, shared: Iterabl
         for fd in ends:
             os.close(fd)
     return _in_order(outcomes, len(tasks))
+
+
+@contextlib.contextmanager
+def beside(task: Callable[[], T], workers: int, *, shared: Iterable[object] = ()) -> Iterator[Callable[[], T]]:
+    """``task`` run in a forked child while the ``with`` block runs on in this process; the block calls the function
+    it is given for ``task()``'s result (its warnings issued again there, its exception raised there). The child runs
+    at the lowest priority (:data:`BESIDE_NICENESS`): a task that only reads what exists before the block (the
+    records, the model) and returns a small result takes the cores the block leaves idle (its serial steps, a pool's
+    slower worker) rather than sharing those its pools fill. A child not done when the result is asked for is
+    killed and the task run in turn there (one thread, as in the child): the same result, never a wait on a child
+    other programs starve. With ``workers`` 1 (or no ``fork``), ``task`` runs in turn at that call. The child is
+    killed and reaped when the block ends, whatever happened; ask for the result once. ``shared``: objects that exist
+    before the block and may appear in the result, returned as this process's own (:func:`run_tasks`).
+    """
+    if workers <= 1 or "fork" not in get_all_start_methods():
+        yield task
+        return
+    sharing = _Sharing(shared)
+    counter = get_context("fork").Value("q", 0)
+    children: dict[int, int] = {}
+    received: dict[int, bytearray] = {}
+    read_end, write_end = os.pipe()
+    reader: threading.Thread | None = None
+    try:
+        pid = os.fork()
+        if pid == 0:
+            os.close(read_end)
+            os.nice(BESIDE_NICENESS)  # the cores the block leaves idle, not the ones its own work needs
+            _child([task], counter, sharing, write_end)
+        os.close(write_end)
+        children[pid], received[pid] = read_end, bytearray()
+        reader = threading.Thread(target=_read_all, args=(dict(children), received), daemon=True)
+        reader.start()
+
+        def result() -> T:
+            if reader.is_alive():  # not done (the idle cores were too few, or other programs took them): in turn
+                with contextlib.suppress(ProcessLookupError):
+                    os.kill(pid, signal.SIGKILL)  # reaped when the block ends (a starved child dies slowly too)
+                return _in_order([_run_one(0, task)], 1)[0]
+            _reap(children, kill=False)
+            return _in_order(sharing.loads_all(bytes(received[pid])), 1)[0]
+
+        yield result
+    finally:
+        _reap(children, kill=True)
+        if reader is not None:
+            reader.join()
+        os.close(read_end)
 
 
 def _read_all(ends: dict[int, int], received: dict[int, bytearray]) -> None:

@@ -259,11 +259,17 @@ class _Problem:
                    self.target * channel_signs(self.model, torque_signs))
         return _Problem(self.model, samples, self.weights)
 
-    def scored(self, Y: NDArray, signs: NDArray) -> float:
-        """The cost of the fit of ``Y`` to the target times ``signs`` (one a channel)."""
+    def scored(self, Y: NDArray, signs: NDArray, normal: _Normal | None = None) -> float:
+        """The cost of the fit of ``Y`` to the target times ``signs`` (one a channel); ``normal``: the normal equations
+        of ``Y`` with these weights (:meth:`normal`), formed once for the targets of several signs."""
         target = self.target * signs
-        theta = _least_squares(Y * self.weights[None, :, None], target * self.weights)
+        normal = self.normal(Y) if normal is None else normal
+        theta = normal.solve(target * self.weights)
         return float(np.mean(((target - Y @ theta) * self.weights) ** 2))
+
+    def normal(self, Y: NDArray) -> _Normal:
+        """The normal equations of ``Y`` weighted as this problem weights its channels (:func:`_least_squares`)."""
+        return _Normal(Y * self.weights[None, :, None])
 
 
 def channel_signs(model: IdentificationModel, torque_signs: NDArray) -> NDArray:
@@ -275,15 +281,27 @@ def channel_signs(model: IdentificationModel, torque_signs: NDArray) -> NDArray:
     return signs
 
 
+class _Normal:
+    """The normal equations of the scaled columns of ``Y (N, channels, r)`` (:func:`_least_squares`), formed once
+    and solved for any number of targets: each solution is the one :func:`_least_squares` gives, bit for bit."""
+
+    def __init__(self, Y: NDArray) -> None:
+        A = Y.reshape(-1, Y.shape[2])
+        scale = np.linalg.norm(A, axis=0)
+        scale[scale == 0] = 1.0
+        self.A = A / scale
+        self.scale = scale
+        self.gram = self.A.T @ self.A
+
+    def solve(self, target: NDArray) -> NDArray:
+        """``argmin ‖target − Y θ‖`` for ``target (N, channels)``."""
+        return np.linalg.lstsq(self.gram, self.A.T @ target.reshape(-1), rcond=1e-12)[0] / self.scale
+
+
 def _least_squares(Y: NDArray, target: NDArray) -> NDArray:
     """``argmin ‖target − Y θ‖`` for ``Y (N, channels, r)`` through the normal equations of the scaled columns
     (``r x r``: an SVD of the tall matrix costs a hundred times more, and this check solves about a hundred)."""
-    A = Y.reshape(-1, Y.shape[2])
-    scale = np.linalg.norm(A, axis=0)
-    scale[scale == 0] = 1.0
-    A = A / scale
-    gram = A.T @ A
-    return np.linalg.lstsq(gram, A.T @ target.reshape(-1), rcond=1e-12)[0] / scale
+    return _Normal(Y).solve(target)
 
 
 def _wrapped(offsets: NDArray, revolute: NDArray) -> NDArray:
@@ -374,6 +392,7 @@ def estimate_signs(model: IdentificationModel, problem: _Problem) -> tuple[NDArr
     for _ in range(n):
         best = None
         base = problem.flipped(signs, torque) if np.any(signs < 0) or np.any(torque < 0) else problem
+        unflipped = None  # the normal equations of base's regressor, for the torques reversed alone
         for joint in np.flatnonzero((signs > 0) & (torque > 0)):
             flipped_signs = signs.copy()
             flipped_signs[joint] = -1.0
@@ -383,17 +402,20 @@ def estimate_signs(model: IdentificationModel, problem: _Problem) -> tuple[NDArr
                 Y = model.evaluate_base(base.q * np.where(np.arange(n) == joint, -1.0, 1.0) + offsets,
                                         base.dq * np.where(np.arange(n) == joint, -1.0, 1.0),
                                         base.ddq * np.where(np.arange(n) == joint, -1.0, 1.0))
+                normal = problem.normal(Y)  # one for both torque signs
                 for reversed_torque in (True, False) if measured[joint] else (False,):
                     flipped_torque = torque.copy()
                     if reversed_torque:
                         flipped_torque[joint] = -1.0
-                    trial_cost = problem.scored(Y, channel_signs(model, flipped_torque))
+                    trial_cost = problem.scored(Y, channel_signs(model, flipped_torque), normal)
                     if trial_cost < cost * (1 - REVERSAL_GAIN) and (best is None or trial_cost < best[0]):
                         best = (trial_cost, flipped_signs, flipped_torque)
             if measured[joint]:  # the torque alone reversed
                 flipped_torque = torque.copy()
                 flipped_torque[joint] = -1.0
-                trial_cost = problem.scored(base.regressor(np.zeros(n)), channel_signs(model, flipped_torque))
+                Y = base.regressor(np.zeros(n))
+                unflipped = problem.normal(Y) if unflipped is None else unflipped
+                trial_cost = problem.scored(Y, channel_signs(model, flipped_torque), unflipped)
                 if trial_cost < cost * (1 - REVERSAL_GAIN) and (best is None or trial_cost < best[0]):
                     best = (trial_cost, signs.copy(), flipped_torque)
         if best is None:

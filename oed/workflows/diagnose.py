@@ -24,14 +24,14 @@ from typing import Any
 
 from dynamics.models import IdentificationModel, build_model
 from dynamics.runtime.output_files import OutputFiles, json_text
-from dynamics.runtime.processes import run_tasks, worker_count
+from dynamics.runtime.processes import beside, run_tasks, worker_count
 from dynamics.runtime.progress import step
 from dynamics.transmission import Transmission
 from estimation.consistent.model_selection import ConsistentSettings, ModelSelection, select_refit
 from estimation.identification.relative_error import relative_scores
 from estimation.identification.validation import ChannelErrors
 from estimation.diagnosis.candidates.coupling import coupling_candidates
-from estimation.diagnosis.plain_laws import plain_completion, plain_model
+from estimation.diagnosis.plain_laws import completion_laws, plain_completion, plain_model
 from dynamics.runtime.report_document import Report, figure_path, report_format
 from estimation.diagnosis.report import diagnosis_report, plot_residuals, plot_trace
 from estimation.diagnosis.results import Diagnosis, SummedFit, runner_up_line
@@ -377,24 +377,29 @@ def diagnosis_in_memory(args: DiagnoseOptions, model: IdentificationModel, trans
                                                    joint_offsets=resolve_joint_offsets(args, model.robot),
                                                    joint_directions=resolve_joint_directions(args, model.robot),
                                                    **derivatives_on_validation(model, delay)))
-        with step("noise floors of the held-out records"):
-            validation_floor, test_floor = record_floors(records, model, args.frequency, args.jobs)
-        with step("diagnosis in memory"):
-            diagnosis = diagnose_records(args, model, transmission, records, delay, validation_floor)
-        selection, swap_note = None, None
-        if diagnosis.swap is not None:
-            with step("the plain-law swap judged on the default answer's candidates"):
-                diagnosis, selection, swap_note = judged_swap(args, diagnosis, records)
-        untouched = test_errors(records, diagnosis, test_floor)
-        trivial, notes = trivial_predictors(diagnosis.after, records.validation.measurements)
-        diagnosis = replace(diagnosis, trivial=trivial)
-        notes += worse_after(diagnosis) + (() if swap_note is None else (swap_note,))
-        repeat = repeated_motion_note(records.train.measurements, records.validation.measurements)
-        notes += () if repeat is None else (repeat,)
-        notes += joint_zero_notes(model, records.train.measurements, records.validation.measurements, delay=delay)
-        with step("the default answer: the adopted model or its consistent refit"):
-            if selection is None:
-                selection = diagnosis_selection(args, diagnosis, records)
+        # the joint-zero check reads the prepared records only: it runs beside the diagnosis and the default answer,
+        # in the cores they leave idle (their serial steps, the slower worker of a pool), and is said where it was
+        zeros = functools.partial(joint_zero_notes, model, records.train.measurements, records.validation.measurements,
+                                  delay=delay)
+        with beside(zeros, worker_count(args.jobs, 2)) as zero_notes:
+            with step("noise floors of the held-out records"):
+                validation_floor, test_floor = record_floors(records, model, args.frequency, args.jobs)
+            with step("diagnosis in memory"):
+                diagnosis = diagnose_records(args, model, transmission, records, delay, validation_floor)
+            selection, swap_note = None, None
+            if diagnosis.swap is not None:
+                with step("the plain-law swap judged on the default answer's candidates"):
+                    diagnosis, selection, swap_note = judged_swap(args, diagnosis, records)
+            untouched = test_errors(records, diagnosis, test_floor)
+            trivial, notes = trivial_predictors(diagnosis.after, records.validation.measurements)
+            diagnosis = replace(diagnosis, trivial=trivial)
+            notes += worse_after(diagnosis) + (() if swap_note is None else (swap_note,))
+            repeat = repeated_motion_note(records.train.measurements, records.validation.measurements)
+            notes += () if repeat is None else (repeat,)
+            with step("the default answer: the adopted model or its consistent refit"):
+                if selection is None:
+                    selection = diagnosis_selection(args, diagnosis, records)
+            notes += zero_notes()
     return Diagnosed(diagnosis, records.preprocessing.to_dict(), records.preprocessing.describe(),
                      (*caught_messages(caught), *notes), records=records, untouched=untouched, selection=selection,
                      transmission=transmission, notes=notes)
@@ -535,13 +540,23 @@ def diagnosis_selection(args: DiagnoseOptions, diagnosis: Diagnosis, records: Pr
     the answer against the adopted model's; :func:`judged_swap` completes only the model it keeps."""
     train, validation = records.train.measurements, records.validation.measurements
     settings = consistent_settings(args, diagnosis.after.model.robot)
-    selection = select_refit(diagnosis.after, train, validation, given="consistent" if args.consistent else None,
-                             consistent=settings, note="with the diagnosed effects")
-    return completed_selection(args, diagnosis, records, selection) if complete else selection
+    # the completed model's fit waits for nothing the adopted model's refit gives: it runs beside it (used only when
+    # the completion is judged, completion_repeat), its model built here so that it comes back by reference
+    after = diagnosis.after
+    laws = completion_laws(after.model) if complete and not args.consistent else ()
+    shared = (build_model(after.model.robot, after.model.kind, (*after.model.effects, *laws)), after.model,
+              after.model.robot, train, validation) if laws else ()
+    with beside(functools.partial(plain_completion, after, train, validation),
+                worker_count(args.jobs, 2) if laws else 1, shared=shared) as completion:
+        selection = select_refit(after, train, validation, given="consistent" if args.consistent else None,
+                                 consistent=settings, note="with the diagnosed effects")
+        return completed_selection(args, diagnosis, records, selection, completion=completion) if complete \
+            else selection
 
 
 def completed_selection(args: DiagnoseOptions, diagnosis: Diagnosis, records: PreparedRecords,
-                        selection: ModelSelection) -> ModelSelection:
+                        selection: ModelSelection, *,
+                        completion: Callable[[], Any] | None = None) -> ModelSelection:
     """``selection`` (the default answer of the adopted model, :func:`diagnosis_selection`), or the same choice made
     for the adopted model completed with the plain law on the joints the diagnosis left without one
     (:func:`estimation.diagnosis.plain_laws.plain_completion`; not named as findings) when that answer predicts
@@ -558,12 +573,14 @@ def completed_selection(args: DiagnoseOptions, diagnosis: Diagnosis, records: Pr
 
     On another motion the completed model's consistent refit takes the prior weight the validation record chose for
     the adopted model's (its search kept in the result): the laws are compared, and the weight search is not made
-    again (five refits of the Panda's 7 joints, about 1 s); on a repeat the weight is searched again."""
+    again (five refits of the Panda's 7 joints, about 1 s); on a repeat the weight is searched again. ``completion``:
+    gives what :func:`~estimation.diagnosis.plain_laws.plain_completion` of the diagnosis gives (made beside the
+    adopted model's refit by :func:`diagnosis_selection`)."""
     repeat = completion_repeat(args, selection)
     if repeat is None:
         return selection
     train, validation = records.train.measurements, records.validation.measurements
-    completion = plain_completion(diagnosis.after, train, validation)
+    completion = plain_completion(diagnosis.after, train, validation) if completion is None else completion()
     if completion is None:
         return selection
     completed, added = completion
