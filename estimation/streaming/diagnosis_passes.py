@@ -40,7 +40,7 @@ from estimation.streaming.covariance import BatchScores, chunk_scores
 from estimation.estimators.effect_blocks import Block
 
 __all__ = ["FLOOR_WINDOW", "SubsamplePass", "SumsPass", "map_files", "scores_pass", "scores_task", "subsample_pass",
-           "subsample_task", "sums_pass", "sums_task", "window_floor"]
+           "subsample_task", "stretch_pass", "stretch_task", "sums_pass", "sums_task", "window_floor"]
 
 #: rows of each validation file (as recorded) the noise floor is estimated on
 FLOOR_WINDOW = 100_000
@@ -78,6 +78,42 @@ def _sums(path: str, model: IdentificationModel, payload: bytes, plan: bytes, op
         except ValueError as error:
             raise MeasurementError(f"{path} (near sample {sums.n_samples}): {error}") from None
     return sums, record
+
+
+@single_threaded_blas()
+def _stretch_sums(path: str, model: IdentificationModel, payload: bytes, plan: bytes, options: dict[str, Any],
+                  start: int, total: int, n_blocks: int) -> list[ChannelSums]:
+    layout, blocks, shapes = _plan(payload, plan)
+    sums = [ChannelSums.empty(layout) for _ in range(n_blocks)]
+    seen = start
+    for chunk in plan_chunks(path, model, **options):
+        labels = np.minimum((n_blocks * (seen + np.arange(chunk.n_samples))) // max(total, 1), n_blocks - 1)
+        seen += chunk.n_samples
+        for block in np.unique(labels):
+            sums[block] = chunk_sums(model, layout, blocks, shapes, chunk.select(np.flatnonzero(labels == block)),
+                                     sums[block])
+    return sums
+
+
+def stretch_task(payload: bytes, plan: bytes, path: str, options: dict[str, Any], start: int, total: int,
+                 n_blocks: int, stamp=None):
+    """Picklable: one training file's :class:`ChannelSums` on each of ``n_blocks`` stretches of the training record
+    (sample ``i`` of the record, ``start`` the file's first, in stretch ``⌊n_blocks i / total⌋``)."""
+    return caught_warnings(_stretch_sums, path, model_from_payload(payload), payload, plan, options, start, total,
+                           n_blocks)
+
+
+def stretch_pass(executor, payload: bytes, plan: bytes, paths: Sequence[str], options: dict[str, Any],
+                 first: SubsamplePass, n_blocks: int) -> list[ChannelSums]:
+    """The training sums on each of ``n_blocks`` consecutive stretches of the training record (the files in order,
+    as the in-memory record stacks them; :class:`~estimation.diagnosis.confirmation.HeldOutBlocks` by time):
+    what the comparison of candidates on stretches their fits did not see needs when the validation record is at
+    rest (:class:`~estimation.streaming.selection.SummedFits`)."""
+    starts = np.concatenate([[0], np.cumsum(first.counts)[:-1]]).astype(int)
+    start_of = dict(zip(paths, map(int, starts)))
+    parts = map_files(executor, stretch_task, paths, lambda path: (payload, plan, path, options, start_of[path],
+                                                                  first.seen, n_blocks, file_stamp(path)))
+    return [functools.reduce(lambda a, b: a + b, [part[block] for part in parts]) for block in range(n_blocks)]
 
 
 def sums_task(payload: bytes, plan: bytes, path: str, options: dict[str, Any], stamp=None):
