@@ -32,8 +32,8 @@ gives the augmented estimate's batch-means covariance (:mod:`estimation.streamin
 correlated in time, as on the filter path, make the classical standard deviations far too small;
 the declared model's stay classical); a finding within its noise there (Wald p not below the search's threshold) is
 dropped and the rest refitted, the weakest first, as the in-memory final refit drops it. The search's own Wald tests
-take the same batch-means covariance, a pass over the training files for each model tested
-(:func:`robust_covariance`; the in-memory search's are HAC too). With a validation record at rest (``still``), the
+take a batch-means covariance too, from the sums of 256 consecutive stretches of the training record and its lag
+sums (one more pass; :func:`robust_covariance`; the in-memory search's are HAC). With a validation record at rest (``still``), the
 candidates are compared on the stretches of the training record their fits did not see, from the training sums of
 each stretch (one more pass, :func:`~estimation.streaming.diagnosis_passes.stretch_pass`), as in memory. Every
 validation and training MSE is against the channels **as recorded** (the recorded torques, along the derived
@@ -69,7 +69,7 @@ from estimation.preprocessing.plan import Preprocessing
 from estimation.streaming.chunks import automatic_cutoff, read_chunks
 from estimation.streaming.cluster import model_payload
 from estimation.streaming.covariance import sandwich
-from estimation.streaming.diagnosis_passes import (FLOOR_WINDOW, SumsPass, scores_pass, stretch_pass,
+from estimation.streaming.diagnosis_passes import (FLOOR_WINDOW, LagSums, SumsPass, scores_pass, stretch_pass,
                                                   subsample_pass, sums_pass, window_floor)
 from estimation.diagnosis.confirmation import HELD_OUT_BLOCKS
 from estimation.streaming.diagnosis_candidates import StreamedCandidates, streamed_candidates
@@ -171,31 +171,58 @@ def _batch_means(model: IdentificationModel, after: SummedEstimate, parts_scores
     return replace(after, cov=cov, std=std, relative_std=relative_std), covariance
 
 
-def robust_covariance(model: IdentificationModel, sums: SumsPass, found: StreamedCandidates, executor: Any,
-                      payload: bytes, paths: Sequence[str], options: dict[str, Any], findings: FindingsSaid):
+#: the finest batches the search's robust covariance is summed on (:func:`robust_covariance`): the memory it holds is
+#: this many copies of the training sums, whatever the record's length
+MAX_BATCHES = 256
+
+
+def andrews_length(n_samples: int, rho: float) -> int:
+    """Andrews' AR(1) batch length ``1.1447 (α N)^{1/3}``, ``α = 4ρ²/(1−ρ)⁴``, at least 1 and at most ``N/20``
+    (:func:`estimation.uncertainty.batch_means.batch_length`'s rule)."""
+    alpha = 4 * rho**2 / (1 - rho) ** 4
+    return int(np.clip(round(1.1447 * (alpha * n_samples) ** (1 / 3)), 1, max(1, n_samples // 20)))
+
+
+def robust_covariance(model: IdentificationModel, sums: SumsPass, found: StreamedCandidates,
+                      batches: Sequence[ChannelSums], lags: LagSums):
     """``robust(indices, weights) -> (θ, cov θ)`` for :class:`~estimation.streaming.selection.SummedFits`: the declared
     columns and the candidates ``indices`` fitted from the training sums at ``weights``, with the batch-means
-    covariance of their residuals (:func:`~estimation.streaming.covariance.sandwich`, one pass over the training files
-    at that fit, :func:`~estimation.streaming.diagnosis_passes.scores_pass`; each model once). The in-memory search
-    tests its candidates with the HAC covariance (:mod:`estimation.diagnosis.rules.robust_test`): with the classical
-    one, residuals correlated in time made effects within their noise significant (20 effects on the KUKA LWR4+ log
-    against 14 in memory)."""
-    cache: dict[tuple[tuple[int, ...], bytes], tuple[np.ndarray, np.ndarray]] = {}
-    n_rows = sums.train.n_samples * sums.train.layout.n_channels
+    covariance of their residuals (``H⁻¹ M H⁻¹ · N/(N − p)``, never below the classical one on the diagonal, as
+    :func:`~estimation.streaming.covariance.sandwich` and the in-memory
+    :func:`~estimation.diagnosis.rules.robust_test.fit_covariance`). ``batches``: the training sums on consecutive
+    stretches of the record (:func:`~estimation.streaming.diagnosis_passes.stretch_pass`, at most
+    :data:`MAX_BATCHES`); each stretch's score sum ``S_b = Σ_c w_c (X_{b,c}ᵀy_{b,c} − X_{b,c}ᵀX_{b,c} θ)`` is exact
+    from its sums, and the stretches are joined into batches of about Andrews' length for this model's residual
+    (its lag-1 autocorrelation from ``lags``, :class:`~estimation.streaming.diagnosis_passes.LagSums`; a length
+    shorter than a stretch is a stretch). Every model of the search is so tested without another pass. The in-memory
+    search tests its candidates with the HAC covariance (:mod:`estimation.diagnosis.rules.robust_test`): with the
+    classical one, residuals correlated in time made effects within their noise significant (20 effects on the KUKA
+    LWR4+ log against 14 in memory)."""
+    train, found_columns = sums.train, found.columns
+    n_rows, n_samples, n_fine = train.n_samples * train.layout.n_channels, train.n_samples, len(batches)
 
     def robust(indices: tuple[int, ...], weights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        key = (tuple(indices), np.asarray(weights, dtype=float).tobytes())
-        if key not in cache:
-            columns = list(range(model.n_base)) + [column for index in indices for column in found.columns[index]]
-            normal = sums.train.normal_system(columns, weights)[0]
-            theta, rss = sums.train.solve(columns, weights)
-            scale = np.sqrt(np.diag(normal))
-            classical = (rss / max(n_rows - len(columns), 1)
-                         * np.linalg.pinv(normal / np.outer(scale, scale), hermitian=True) / np.outer(scale, scale))
-            with findings.reading():
-                parts = scores_pass(executor, payload, found.final_plan(list(indices)), paths, options, theta, weights)
-            cache[key] = theta, sandwich(parts, normal, classical, weights)[0]
-        return cache[key]
+        weights = np.asarray(weights, dtype=float)
+        columns = list(range(model.n_base)) + [column for index in indices for column in found_columns[index]]
+        normal = train.normal_system(columns, weights)[0]
+        theta, rss = train.solve(columns, weights)
+        scale = np.sqrt(np.diag(normal))
+        inverse = np.linalg.pinv(normal / np.outer(scale, scale), hermitian=True) / np.outer(scale, scale)
+        classical = rss / max(n_rows - len(columns), 1) * inverse
+        fine = np.zeros((n_fine, len(columns)))
+        for b, batch in enumerate(batches):
+            for c, w in enumerate(weights):
+                outer, inner = batch._positions(c, columns)
+                fine[b, outer] += w * (batch.moment[c][inner, 0] - batch.gram[c][np.ix_(inner, inner)] @ theta[outer])
+        length = andrews_length(n_samples, lags.rho(train, columns, theta, weights))
+        group = max(1, int(round(length * n_fine / max(n_samples, 1))))
+        scores = np.add.reduceat(fine, np.arange(0, n_fine, group), axis=0)
+        p = len(columns)
+        cov = inverse @ (scores.T @ scores) @ inverse * n_samples / max(n_samples - p, 1)
+        diagonal = np.maximum(np.diag(cov), np.diag(classical))
+        ratio = np.sqrt(np.clip(diagonal, 0.0, None) / np.clip(np.diag(classical), np.finfo(float).tiny, None))
+        return theta, classical * np.outer(ratio, ratio)
+
     return robust
 
 
@@ -303,7 +330,10 @@ def diagnose_files_run(
             floor, floor_note = window_floor(validate, model, window=floor_window, frequency_hz=settings.frequency_hz)
     else:
         floor, floor_note = noise_floor, f"given ({noise_floor.method})"
-    robust = robust_covariance(model, sums, found, executor, payload, paths, options, findings)
+    n_fine = min(MAX_BATCHES, sums.train.n_samples)
+    with step(f"a pass over {len(paths)} training file(s) (sums on {n_fine} stretches)"), findings.reading():
+        robust = robust_covariance(model, sums, found, *stretch_pass(executor, payload, found.plan, paths, options,
+                                                                     first, n_fine, lags=True))
     stretches = None
     if still and not settings.frequency_hz:
         with step(f"a pass over {len(paths)} training file(s) (sums on {HELD_OUT_BLOCKS} stretches)"), \

@@ -23,9 +23,9 @@ What this path does differently (said in the report's ``streaming.not_on_this_pa
 * no delay candidate, and a joint combination's Coulomb and viscous laws are not one candidate
   (:attr:`SearchSettings.combinations <estimation.diagnosis.forward_selection.SearchSettings>` off);
 * the Wald tests of the search use the batch-means covariance of the linear coefficients at the fixed shapes
-  (``robust``: a pass over the training files a model tested, the sums holding no per-sample residuals), where
-  the in-memory search takes the prewhitened Newey–West covariance, or the batch-means one with the shape
-  directions; without ``robust``, the classical covariance of the summed fit;
+  (``robust``: from the sums of consecutive stretches of the training record and its lag sums), where the in-memory
+  search takes the prewhitened Newey–West covariance, or the batch-means one with the shape directions; without
+  ``robust``, the classical covariance of the summed fit;
 * the stopping rule is the noise floor or none (a user's ``rule(SearchState)`` needs per-sample residuals).
 """
 
@@ -90,8 +90,8 @@ class SummedFits:
         The validation record's noise floor (``None``: none).
     robust
         ``robust(indices, weights) -> (θ, cov θ)``: the fit of the declared columns and the candidates ``indices``
-        (in that order) with the covariance that holds for residuals correlated in time (the batch-means sandwich of a
-        pass over the training files, :func:`estimation.streaming.diagnosis.robust_covariance`), for the Wald tests
+        (in that order) with the covariance that holds for residuals correlated in time (the batch-means sandwich from
+        sums, :func:`estimation.streaming.diagnosis.robust_covariance`), for the Wald tests
         of the search as in memory (the HAC covariance, :mod:`estimation.diagnosis.rules.robust_test`); ``None``: the
         classical covariance of the summed fit.
     stretches
