@@ -37,10 +37,10 @@ from estimation.uncertainty.noise_floor import NoiseFloor, NoiseFloorError, nois
 from estimation.streaming.chunks import logged_chunks
 from estimation.streaming.periods import plan_chunks
 from estimation.streaming.covariance import BatchScores, chunk_scores
-from estimation.estimators.effect_blocks import Block
+from estimation.estimators.effect_blocks import Block, States
 
-__all__ = ["FLOOR_WINDOW", "SubsamplePass", "SumsPass", "map_files", "scores_pass", "scores_task", "subsample_pass",
-           "subsample_task", "sums_pass", "sums_task", "window_floor"]
+__all__ = ["FLOOR_WINDOW", "LagSums", "SubsamplePass", "SumsPass", "map_files", "scores_pass", "scores_task", "subsample_pass",
+           "subsample_task", "stretch_pass", "stretch_task", "sums_pass", "sums_task", "window_floor"]
 
 #: rows of each validation file (as recorded) the noise floor is estimated on
 FLOOR_WINDOW = 100_000
@@ -78,6 +78,140 @@ def _sums(path: str, model: IdentificationModel, payload: bytes, plan: bytes, op
         except ValueError as error:
             raise MeasurementError(f"{path} (near sample {sums.n_samples}): {error}") from None
     return sums, record
+
+
+@dataclass
+class LagSums:
+    """Per channel, over consecutive pairs of samples of each file: ``Σ x_t x_{t−1}ᵀ``, ``Σ x_t y_{t−1}``,
+    ``Σ x_{t−1} y_t``, ``Σ y_t y_{t−1}``, and ``Σ x``, ``Σ y``, the first and last sample's ``x`` and ``y`` of each
+    file (summed over files): the lag-1 autocorrelation of any model's residual (:meth:`rho`), as
+    :func:`estimation.uncertainty.batch_means.batch_length` measures it, from sums."""
+
+    cross: list[np.ndarray]
+    x_prev_y: list[np.ndarray]  # Σ x_{t−1} y_t
+    x_y_prev: list[np.ndarray]  # Σ x_t y_{t−1}
+    yy: np.ndarray
+    sx: list[np.ndarray]
+    sy: np.ndarray
+    first: list[np.ndarray]  # [x, y] of each file's first sample, summed
+    last: list[np.ndarray]
+    n_samples: int = 0
+    n_files: int = 0
+
+    @classmethod
+    def empty(cls, layout: ColumnLayout) -> LagSums:
+        sizes = [len(layout.channel_columns(c)) for c in range(layout.n_channels)]
+        m = layout.n_channels
+        return cls([np.zeros((k, k)) for k in sizes], [np.zeros(k) for k in sizes], [np.zeros(k) for k in sizes],
+                   np.zeros(m), [np.zeros(k) for k in sizes], np.zeros(m), [np.zeros(k + 1) for k in sizes],
+                   [np.zeros(k + 1) for k in sizes])
+
+    def __add__(self, other: LagSums) -> LagSums:
+        def add(a, b):
+            return [x + y for x, y in zip(a, b)]
+        return LagSums(add(self.cross, other.cross), add(self.x_prev_y, other.x_prev_y),
+                       add(self.x_y_prev, other.x_y_prev), self.yy + other.yy, add(self.sx, other.sx),
+                       self.sy + other.sy, add(self.first, other.first), add(self.last, other.last),
+                       self.n_samples + other.n_samples, self.n_files + other.n_files)
+
+    def add(self, columns: list[np.ndarray], targets: np.ndarray, previous: list[np.ndarray] | None) -> None:
+        """The next consecutive samples of one file: ``columns[c]`` ``(n, k_c)``, ``targets`` ``(n, m)``; ``previous``:
+        the last ``[x, y]`` row of each channel before them (``None``: the file's first samples)."""
+        for c, X in enumerate(columns):
+            y = targets[:, c]
+            rows = np.column_stack([X, y])
+            if previous is not None:
+                rows = np.vstack([previous[c], rows])
+            else:
+                self.first[c] += rows[0]
+            self.cross[c] += rows[1:, :-1].T @ rows[:-1, :-1]
+            self.x_prev_y[c] += rows[:-1, :-1].T @ rows[1:, -1]
+            self.x_y_prev[c] += rows[1:, :-1].T @ rows[:-1, -1]
+            self.yy[c] += rows[1:, -1] @ rows[:-1, -1]
+            self.sx[c] += X.sum(axis=0)
+            self.sy[c] += y.sum()
+        self.n_samples += targets.shape[0]
+
+    def rho(self, sums: ChannelSums, selection, theta: np.ndarray, weights: np.ndarray) -> float:
+        """The weighted mean lag-1 autocorrelation of the centred residuals of ``theta`` on the columns ``selection``
+        (prepared channels; ``sums``: the training sums of the same samples)."""
+        theta, weights = np.asarray(theta, dtype=float), np.asarray(weights, dtype=float)
+        rss = sums.channel_rss(selection, theta, target=0)
+        n, pairs = self.n_samples, self.n_samples - self.n_files
+        covariance, variance = np.zeros_like(weights), np.zeros_like(weights)
+        for c in range(len(self.cross)):
+            outer, inner = sums._positions(c, selection)
+            part = theta[outer]
+            total = self.sy[c] - part @ self.sx[c][inner]
+            mean = total / max(n, 1)
+            first = self.first[c][-1] - part @ self.first[c][inner]
+            last = self.last[c][-1] - part @ self.last[c][inner]
+            lagged = (self.yy[c] - part @ self.x_prev_y[c][inner] - part @ self.x_y_prev[c][inner]
+                      + part @ self.cross[c][np.ix_(inner, inner)] @ part)
+            covariance[c] = lagged - mean * ((total - first) + (total - last)) + pairs * mean**2
+            variance[c] = rss[c] - n * mean**2
+        return float(np.clip(np.sum(weights * covariance) / max(np.sum(weights * variance), 1e-300), 0.0, 0.999))
+
+
+def _channel_columns(model: IdentificationModel, layout: ColumnLayout, blocks, shapes, chunk: Measurements
+                     ) -> tuple[list[np.ndarray], np.ndarray]:
+    """Each channel's columns (:meth:`ColumnLayout.channel_columns`) on ``chunk`` and its prepared channels."""
+    Y = model.evaluate_base(chunk.q, chunk.dq, chunk.ddq)
+    states = States(chunk.q, chunk.dq, chunk.ddq)
+    values = [block.evaluate(states, shape) for block, shape in zip(blocks, shapes)]
+    columns = [np.concatenate([Y[:, c, :]] + [v[:, rows.index(c), :] for v, rows in zip(values, layout.rows)
+                                              if c in rows], axis=1) for c in range(layout.n_channels)]
+    return columns, chunk.channels(model.channels)
+
+
+@single_threaded_blas()
+def _stretch_sums(path: str, model: IdentificationModel, payload: bytes, plan: bytes, options: dict[str, Any],
+                  start: int, total: int, n_blocks: int, lags: bool = False):
+    layout, blocks, shapes = _plan(payload, plan)
+    sums = [ChannelSums.empty(layout) for _ in range(n_blocks)]
+    lag, previous = (LagSums.empty(layout), None) if lags else (None, None)
+    seen = start
+    for chunk in plan_chunks(path, model, **options):
+        labels = np.minimum((n_blocks * (seen + np.arange(chunk.n_samples))) // max(total, 1), n_blocks - 1)
+        seen += chunk.n_samples
+        for block in np.unique(labels):
+            sums[block] = chunk_sums(model, layout, blocks, shapes, chunk.select(np.flatnonzero(labels == block)),
+                                     sums[block])
+        if lag is not None and chunk.n_samples:
+            columns, targets = _channel_columns(model, layout, blocks, shapes, chunk)
+            lag.add(columns, targets, previous)
+            previous = [np.append(X[-1], targets[-1, c]) for c, X in enumerate(columns)]
+    if lag is not None and previous is not None:
+        for c, row in enumerate(previous):
+            lag.last[c] += row
+        lag.n_files = 1
+    return sums if lag is None else (sums, lag)
+
+
+def stretch_task(payload: bytes, plan: bytes, path: str, options: dict[str, Any], start: int, total: int,
+                 n_blocks: int, lags: bool = False, stamp=None):
+    """Picklable: one training file's :class:`ChannelSums` on each of ``n_blocks`` stretches of the training record
+    (sample ``i`` of the record, ``start`` the file's first, in stretch ``⌊n_blocks i / total⌋``)."""
+    return caught_warnings(_stretch_sums, path, model_from_payload(payload), payload, plan, options, start, total,
+                           n_blocks, lags)
+
+
+def stretch_pass(executor, payload: bytes, plan: bytes, paths: Sequence[str], options: dict[str, Any],
+                 first: SubsamplePass, n_blocks: int, lags: bool = False):
+    """The training sums on each of ``n_blocks`` consecutive stretches of the training record (the files in order,
+    as the in-memory record stacks them; :class:`~estimation.diagnosis.confirmation.HeldOutBlocks` by time):
+    what the comparison of candidates on stretches their fits did not see needs when the validation record is at
+    rest (:class:`~estimation.streaming.selection.SummedFits`), or the batches of the search's robust covariance;
+    with ``lags``, also the record's :class:`LagSums`: ``(stretches, lags)``."""
+    starts = np.concatenate([[0], np.cumsum(first.counts)[:-1]]).astype(int)
+    start_of = dict(zip(paths, map(int, starts)))
+    parts = map_files(executor, stretch_task, paths, lambda path: (payload, plan, path, options, start_of[path],
+                                                                  first.seen, n_blocks, lags, file_stamp(path)))
+    stretches = [part[0] for part in parts] if lags else parts
+    summed = [functools.reduce(lambda a, b: a + b, [part[block] for part in stretches]) for block in range(n_blocks)]
+    if not lags:
+        return summed
+    return summed, functools.reduce(lambda a, b: a + b, [part[1] for part in parts])
 
 
 def sums_task(payload: bytes, plan: bytes, path: str, options: dict[str, Any], stamp=None):

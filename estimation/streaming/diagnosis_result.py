@@ -43,8 +43,8 @@ NOT_ON_THIS_PATH = (
     "user stopping rules (the noise floor is the rule)",
     "model_parameters (the physical reading of the estimate)",
     "a delay between torques and motion as a candidate (it moves the records)",
-    "the search's Wald tests from a HAC covariance (classical on the sums; the reported p-values are the final "
-    "estimate's batch-means ones, and a finding within its noise there is not dropped)",
+    "the search's Wald tests from the prewhitened Newey-West covariance with the shape directions (here the "
+    "batch-means covariance of the linear coefficients at the fixed shapes, from the sums of stretches of the record)",
     "a pair's Coulomb and viscous laws tried as one candidate, limit laws, negative friction held at zero "
     "(pinned), the traced shape refinement",
 )

@@ -22,14 +22,16 @@ What this path does differently (said in the report's ``streaming.not_on_this_pa
   its offset jointly (here the pair uses the law's own shape);
 * no delay candidate, and a joint combination's Coulomb and viscous laws are not one candidate
   (:attr:`SearchSettings.combinations <estimation.diagnosis.forward_selection.SearchSettings>` off);
-* the Wald tests of the search use the classical covariance of the summed fit (the sums hold no
-  per-sample residuals); the reported p-values are those of the final estimate's batch-means covariance;
+* the Wald tests of the search use the batch-means covariance of the linear coefficients at the fixed shapes
+  (``robust``: from the sums of consecutive stretches of the training record and its lag sums), where the in-memory
+  search takes the prewhitened Newey–West covariance, or the batch-means one with the shape directions; without
+  ``robust``, the classical covariance of the summed fit;
 * the stopping rule is the noise floor or none (a user's ``rule(SearchState)`` needs per-sample residuals).
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -55,7 +57,10 @@ from estimation.streaming.diagnosis_sums import ChannelSums, normal_equations
 from estimation.uncertainty.noise_floor import NoiseFloor
 from estimation.uncertainty.floor_comparison import above_floor
 
-__all__ = ["SummedFit", "SummedFits", "simpler_laws", "summed_rival_fitter", "summed_runner_up"]
+#: what a candidate is compared on when the validation record is at rest (the in-memory wording)
+STILL_HELD_OUT = "the stretches of the training record its fit did not see (the validation record hardly moves)"
+
+__all__ = ["STILL_HELD_OUT", "SummedFit", "SummedFits", "simpler_laws", "summed_rival_fitter", "summed_runner_up"]
 
 
 @dataclass(frozen=True)
@@ -83,6 +88,19 @@ class SummedFits:
         Each candidate's fixed shape, by candidate index.
     floor
         The validation record's noise floor (``None``: none).
+    robust
+        ``robust(indices, weights) -> (θ, cov θ)``: the fit of the declared columns and the candidates ``indices``
+        (in that order) with the covariance that holds for residuals correlated in time (the batch-means sandwich from
+        sums, :func:`estimation.streaming.diagnosis.robust_covariance`), for the Wald tests
+        of the search as in memory (the HAC covariance, :mod:`estimation.diagnosis.rules.robust_test`); ``None``: the
+        classical covariance of the summed fit.
+    stretches
+        The training sums on each stretch of the training record
+        (:func:`~estimation.streaming.diagnosis_passes.stretch_pass`): given when the validation record is at rest, a
+        candidate is then compared with the current model on the stretches of the training record its fit did not
+        see, each predicted by the fit on the others, as in memory
+        (:class:`~estimation.diagnosis.confirmation.HeldOutBlocks` on the training record); ``None``: on the
+        validation record.
     stop_at_floor
         Whether the floor is the stopping rule (:func:`~estimation.diagnosis.rules.stopping_rules.floor_stopping_rule`);
         by default the search runs until no move is significant and confirmed, as in memory.
@@ -90,8 +108,12 @@ class SummedFits:
 
     def __init__(self, model: IdentificationModel, train: ChannelSums, validate: ChannelSums,
                  columns: Mapping[int, Sequence[int]], shapes: Mapping[int, NDArray[np.float64]],
-                 floor: NoiseFloor | None, stop_at_floor: bool = False) -> None:
+                 floor: NoiseFloor | None, stop_at_floor: bool = False,
+                 robust: Callable[[tuple[int, ...], NDArray[np.float64]],
+                                  tuple[NDArray[np.float64], NDArray[np.float64]]] | None = None,
+                 stretches: Sequence[ChannelSums] | None = None) -> None:
         self.model, self.train, self.validate, self.floor = model, train, validate, floor
+        self.robust, self.stretches = robust, stretches
         self.stop_at_floor = stop_at_floor
         self.columns, self.shapes = columns, shapes
         self.adopted: tuple[int, ...] = ()
@@ -166,15 +188,23 @@ class SummedFits:
         scale = np.sqrt(np.diag(normal))
         return theta, sigma2 * np.linalg.pinv(normal / np.outer(scale, scale), hermitian=True) / np.outer(scale, scale)
 
+    def _covariance(self, indices: Sequence[int], weights: NDArray[np.float64]
+                    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """``(θ, cov θ)`` of the declared columns and the candidates ``indices``: robust when ``robust`` is given."""
+        if self.robust is not None:
+            return self.robust(tuple(indices), np.asarray(weights, dtype=float))
+        return self._classical(list(range(self.train.layout.n_base)) + self._columns(indices), weights)
+
     def test(self, trial: Trial, weights: NDArray[np.float64]) -> TrialTest:
-        """The Wald test of the trial's block from the classical covariance of the summed fit."""
-        selection = self._selection(trial.without)
-        theta, cov = self._classical(selection + self._columns(trial.group), weights)
-        block = slice(len(selection), theta.shape[0])
+        """The Wald test of the trial's block from the covariance of the summed fit (robust when ``robust`` is
+        given, as the in-memory HAC test; else classical)."""
+        kept = [index for index in self.adopted if index not in trial.without]
+        theta, cov = self._covariance(kept + list(trial.group), weights)
+        block = slice(theta.shape[0] - len(self._columns(trial.group)), theta.shape[0])
         return TrialTest(wald_test(theta[block], cov[block, block]), np.sqrt(np.clip(np.diag(cov)[block], 0.0, None)))
 
     def current_tests(self, weights: NDArray[np.float64]) -> dict[int, WaldTest]:
-        theta, cov = self._classical(self.selection, weights)
+        theta, cov = self._covariance(self.adopted, weights)
         tests, start = {}, self.train.layout.n_base
         for index in self.adopted:
             block = slice(start, start + len(self.columns[index]))
@@ -199,10 +229,25 @@ class SummedFits:
         ``(m, 1)`` (one "sample" whose square is the MSE, which is all
         :func:`~estimation.diagnosis.confirmation.channels_made_worse` needs)."""
         settled = self._settled_weights(columns, n_parameters, weights)
+        if self.stretches is not None:
+            candidate_mse, current_mse = (self._held_out_mse(selection, settled) for selection in (columns, self.selection))
+            return CandidateComparison(settled, float(settled @ candidate_mse), np.sqrt(candidate_mse)[:, None],
+                                       float(settled @ current_mse), np.sqrt(current_mse)[:, None], STILL_HELD_OUT)
         candidate_mse = self.validate.channel_mse(columns, self.train.solve(columns, settled)[0])
         current_mse = self.validate.channel_mse(self.selection, self.train.solve(self.selection, settled)[0])
         return CandidateComparison(settled, float(settled @ candidate_mse), np.sqrt(candidate_mse)[:, None],
                           float(settled @ current_mse), np.sqrt(current_mse)[:, None])
+
+    def _held_out_mse(self, columns: list[int], weights: NDArray[np.float64]) -> NDArray[np.float64]:
+        """The MSE per channel (prepared channels) of each stretch of the training record predicted by the fit on the
+        others (:meth:`~estimation.diagnosis.confirmation.HeldOutBlocks.residual` from sums)."""
+        rss = np.zeros(self.train.layout.n_channels)
+        for stretch in self.stretches:
+            fold = ChannelSums(self.train.layout, tuple(a - b for a, b in zip(self.train.gram, stretch.gram)),
+                               tuple(a - b for a, b in zip(self.train.moment, stretch.moment)),
+                               self.train.power - stretch.power, self.train.n_samples - stretch.n_samples)
+            rss += stretch.channel_rss(columns, fold.solve(columns, weights)[0], target=0)
+        return rss / self.train.n_samples
 
     def compare(self, trial: Trial, weights: NDArray[np.float64]) -> CandidateComparison:
         """The trial's model (the current one without what it replaces, with its group) against the current one."""

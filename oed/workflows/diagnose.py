@@ -882,13 +882,14 @@ def diagnosis_streamed(args: DiagnoseOptions, friction: str, plan: Preprocessing
         if plan is None:
             with findings.reading():
                 plan = streamed_choice(args, model, **derivatives_on_validation(model, None)).chosen
+        still = warned_still_motion(model, args.data, args.validate, chunk_size=chunk_size)  # said as in memory
         with executor_for(args) as executor:
             diagnosis, run = diagnose_files_run(model, args.data, args.validate, chunk_size=chunk_size, alpha=args.alpha,
                                        max_effects=args.max_effects, subsample=args.subsample,
                                        floor_window=args.floor_window, executor=executor, preprocessing=plan,
-                                       findings=findings)
-        still = warned_still_motion(model, args.data, args.validate, chunk_size=chunk_size)  # said as in memory
-        if still:  # the choices below ignore it, as in memory; the effect search above did not
+                                       findings=findings, still=still)
+        still_search = diagnosis.streaming.get("still_search") == "on the record at rest"
+        if still_search:  # the choices below ignore it, as in memory; the effect search above did not (Fourier path)
             warnings.warn(STILL_SEARCH, stacklevel=2)
     messages = tuple(caught_messages(caught))  # the findings as said (one line per finding across files), others
     cutoff_hz = diagnosis.streaming["cutoff_hz"]
@@ -915,14 +916,15 @@ def diagnosis_streamed(args: DiagnoseOptions, friction: str, plan: Preprocessing
                                                  if key not in SELECTION_KEYS})  # computed now
     # the training errors against the recording where the sums hold averaged periods or a resampled grid
     diagnosis, selection, averaged = recorded_training(args, diagnosis, selection, model_file[0], chunk_size)
-    if still:
+    if still_search:
         diagnosis = replace(diagnosis, streaming={**diagnosis.streaming, "effect_search_on_still_validation": STILL_SEARCH})
     return Diagnosed(diagnosis, {"cutoff_hz": cutoff_hz, **plan.to_dict()}, plan.describe(), messages,
                      selection=selection, chunk_size=chunk_size, model_file=model_file, averaged_train=averaged,
                      notes=notes)
 
 
-#: what the streamed diagnosis says of a validation record at rest (its effect search compares the candidates there)
+#: what the streamed diagnosis says of a validation record at rest when its effect search compares the candidates
+#: there (the Fourier path: its sums hold averaged periods, no stretches of the recording)
 STILL_SEARCH = ("the streamed diagnosis compared its candidate effects on that validation record at rest (in memory "
                 "they are compared on stretches of the training record their fits did not see): an effect it adopted "
                 "was judged on a record that measures little of the dynamics; run `oed diagnose` in memory (a larger "
