@@ -22,6 +22,8 @@ from typing import Any
 
 import numpy as np
 
+from dynamics.effects.specs import effect_spec
+from dynamics.measurements import Measurements
 from dynamics.models import IdentificationModel, build_model
 from dynamics.robot import RobotModel
 from dynamics.runtime.output_files import OutputFiles, check_figure_path, json_text
@@ -30,6 +32,7 @@ from dynamics.runtime.report_document import Report
 from dynamics.transmission import Transmission
 from estimation.data.input_findings import FindingsSaid, grouped_messages
 from estimation.data.log_cleaning import DEFAULT_MAX_GAP
+from estimation.data.rest import smooth_coulomb
 from estimation.diagnosis.statistics import FLOOR_ALPHA, ResidualReport, residual_report
 from estimation.uncertainty.floor_comparison import compare_with_floor
 from estimation.uncertainty.noise_floor import NoiseFloor
@@ -72,6 +75,7 @@ from oed.workflows.asbuilt import (
 )
 from estimation.consistent.identification import ConsistentResult
 from estimation.consistent.model_selection import ModelSelection, select_model
+from estimation.consistent.motor_friction import motor_friction_answer, motor_friction_laws
 from oed.workflows.consistent import check_consistent_arguments, consistent_lines, consistent_settings
 from oed.workflows.chosen_model import ChosenModel, answer_identification, chosen_messages, mse_line
 from oed.workflows.memory_path import IN_MEMORY_ROUTE, decide_path, streamed_choice, streamed_records
@@ -686,6 +690,8 @@ def identification_in_memory(args: IdentifyOptions, robot: RobotModel, model: Id
         with step("identified (the candidate models fitted and compared)"):
             selection = select_model(model, train, validation, base=base, given=given, delay=delay,
                                      consistent=consistent_settings(args, robot))
+        selection = motor_friction_selection(args, selection, model, transmission, train, validation,
+                                             base=base, given=given, delay=delay)
         result, consistent = selection.unconstrained, selection.consistent
         chosen = ChosenModel.of(selection)  # the answer: what the summary, result.json, predict and export hold
         trivial, notes = trivial_predictors(result, validation, chosen.validation)
@@ -701,6 +707,26 @@ def identification_in_memory(args: IdentifyOptions, robot: RobotModel, model: Id
                       None if floor_report is None else floor_report.floor_note, records=records, selection=selection,
                       consistent=consistent, floor_report=floor_report, weighting=weighting, transmission=transmission,
                       n_samples=train.n_samples)
+
+
+def motor_friction_selection(args: IdentifyOptions, selection: ModelSelection, model: IdentificationModel,
+                             transmission: Transmission | None, train: Measurements, validation: Measurements | None,
+                             *, base: str, given: str | None, delay: DelayBounds | None) -> ModelSelection:
+    """The default answer with motor-side friction on the coupled motors of the declared transmission a candidate
+    (:mod:`estimation.consistent.motor_friction`): the model with the motor laws added chosen among its candidates
+    as the declared model's were, on the same records, and taken when its answer validates better. ``selection``
+    unchanged when the user chose the estimator (``--method``, ``--consistent``), with a delay search or shaped laws
+    (fitted by a search each), without a validation record, or when no coupled motor lacks its laws."""
+    laws = motor_friction_laws(model, transmission)
+    if not laws or given is not None or delay is not None or model_has_shapes(model) or validation is None \
+            or selection.selection != "validation":
+        return selection
+    if args.min_speed is not None and args.rest == "smooth":
+        laws = smooth_coulomb(laws, args.min_speed)
+    with step("motor-side friction on the coupled motors fitted and compared"):
+        other = select_model(build_model(model.robot, model.kind, (*model.effects, *laws)), train, validation,
+                             base=base, consistent=consistent_settings(args, model.robot))
+    return motor_friction_answer(selection, other, ",".join(effect_spec(effect) for effect in laws))
 
 
 def validation_fits(args: IdentifyOptions, model: IdentificationModel, delay: DelayBounds | None) -> tuple[str, ...]:
