@@ -27,6 +27,7 @@ from dynamics.models import IdentificationModel, ModelKind
 from estimation.data.loading import (
     ABSURD_VALUE,
     AbsurdValueError,
+    BlankRowsWarning,
     COLUMN_GROUPS,
     DuplicatedTimesWarning,
     GROUP_MEANING,
@@ -51,7 +52,7 @@ from estimation.data.loading import (
     uniform_grid,
 )
 from estimation.data.log_formats import is_log_file, read_log_frame
-from estimation.data.log_cleaning import DEFAULT_MAX_GAP, describe, find_gaps, repeated_rows, split_rows, time_stamps_jump
+from estimation.data.log_cleaning import DEFAULT_MAX_GAP, blank_rows, describe, find_gaps, repeated_rows, split_rows, time_stamps_jump
 from dynamics.measurements import Measurements, joint_columns
 
 
@@ -203,6 +204,10 @@ def segments_from_frame(
         raise ValueError(f"max_gap must be a positive number of seconds, got {max_gap!r}")
     frame = frame.rename(columns=lambda name: str(name).strip())
     n_joints = _joint_count(frame, n_joints, model, source)
+    blank = dropouts(frame, n_joints)
+    if blank.any():
+        said_dropouts(frame["t"] if "t" in frame.columns else None, blank, source)
+        frame = frame[~blank].reset_index(drop=True)
     groups = set(require) | set(required_groups(model)) | {"q"}
     unknown = groups - set(COLUMN_GROUPS)
     if unknown:
@@ -238,6 +243,27 @@ def segments_from_frame(
     if isinstance(model, IdentificationModel):
         check_sample_count(segments, model)
     return tuple(segments)
+
+
+def dropouts(frame: pd.DataFrame, n_joints: int) -> NDArray[np.bool_]:
+    """``(N,)`` the rows of ``frame`` whose data cells (``q, dq, ddq, tau``, wrench: those present) are all empty:
+    a logger's dropouts (:func:`estimation.data.log_cleaning.blank_rows`; a cell holding text is not empty). One rule
+    for the in-memory reader and the streamed one (:mod:`estimation.streaming.time_base`)."""
+    columns = [column for group in COLUMN_GROUPS
+               for column in (list(WRENCH_CHANNELS) if group == "wrench" else joint_columns(group, n_joints))
+               if column in frame.columns]
+    return blank_rows(frame[columns].isna().to_numpy()) if columns else np.zeros(len(frame), dtype=bool)
+
+
+def said_dropouts(t: pd.Series | None, blank: NDArray[np.bool_], source: str, *, offset: int = 0) -> None:
+    """The :class:`BlankRowsWarning` for the rows ``blank`` dropped (``offset``: the row of the file ``blank``'s first
+    is)."""
+    first = int(np.flatnonzero(blank)[0])
+    stamp = "" if t is None else f" (t = {pd.to_numeric(t.iloc[first:first + 1], errors='coerce').iloc[0]:.6g} s)"
+    warnings.warn(
+        f"{source}: dropped {int(blank.sum())} row(s) whose data cells are all empty (a logger's dropouts), first at "
+        f"row {offset + first}{stamp}; the time they leave without samples is bridged by interpolation up to "
+        "--max-gap and split beyond, as any gap", BlankRowsWarning, stacklevel=5)
 
 
 def _as_recorded(t: NDArray[np.float64], piece: dict, grid: NDArray[np.float64], metadata: dict

@@ -418,6 +418,37 @@ def prepare(data: Measurements | Sequence[Measurements], preprocessing: Preproce
     return concatenate(prepared)
 
 
+#: the highest cut-off of a filter, as a fraction of the record's rate (0.8 x Nyquist: the rule's cap and the
+#: candidates' top, :data:`estimation.identification.preprocessing_choice.CUTOFF_FRACTIONS`)
+HIGHEST_CUTOFF_FRACTION = 0.4
+
+
+def prepare_unseen(segments: Sequence[Measurements], preprocessing: Preprocessing, *,
+                   role: str = "the data to predict") -> Measurements:
+    """:func:`prepare` on records no choice saw (``oed predict``): a segment logged at a lower rate than the
+    records the filter was chosen on, whose Nyquist frequency the chosen cut-off reaches, is filtered at the highest
+    cut-off it takes (:data:`HIGHEST_CUTOFF_FRACTION` of its rate, the candidates' own ceiling), with a
+    :class:`PreprocessingWarning`; every other segment as the plan says. (A filter cannot pass what a record does
+    not hold: the plan's cut-off was chosen to keep the motion's band, which lies below either.)"""
+    segments = as_segments(segments, role)
+    if preprocessing.method != "butterworth" or preprocessing.cutoff_hz is None:
+        return prepare(segments, preprocessing, role=role)
+    plans = []
+    for segment in segments:
+        rate = sampling_rate(segment.t)
+        plan = preprocessing
+        if preprocessing.cutoff_hz >= 0.5 * rate:
+            plan = replace(preprocessing, cutoff_hz=float(f"{HIGHEST_CUTOFF_FRACTION * rate:.6g}"))
+            warnings.warn(
+                f"{_name(segment)}: logged at {rate:.4g} Hz, whose Nyquist frequency the model's {preprocessing.cutoff_hz:g} "
+                f"Hz filter reaches (chosen on records of a higher rate): filtered at {plan.cutoff_hz:g} Hz, "
+                f"{HIGHEST_CUTOFF_FRACTION:g} of its rate", PreprocessingWarning, stacklevel=3)
+        plans.append(plan)
+    if all(plan == preprocessing for plan in plans):
+        return prepare(segments, preprocessing, role=role)
+    return concatenate([prepare([segment], plan, role=role) for segment, plan in zip(segments, plans)])
+
+
 def at_recorded_stamps(prepared: Measurements, stamps: Measurements, *, measured: bool = False) -> Measurements:
     """``prepared`` (a segment resampled onto a uniform grid, then preprocessed) with its recorded channels those of
     the samples as logged, ``stamps`` (:func:`estimation.data.records.read_record` keeps them as the segment's
