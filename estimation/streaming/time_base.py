@@ -105,6 +105,7 @@ def _cleaned(frames, path: str | Path, model: IdentificationModel, *, max_gap: f
     parts: list[NDArray[np.float64]] = []
     repeated: list[NDArray[np.bool_]] = []
     present: list[NDArray[np.bool_]] = []  # the rows not dropouts (:func:`estimation.data.records.dropouts`)
+    first_blank: tuple[int, object] | None = None  # the first dropout's row and time stamp
     previous: NDArray[np.float64] | None = None
     count, n_joints = 0, model.robot.n_joints
     for frame in frames:
@@ -112,8 +113,9 @@ def _cleaned(frames, path: str | Path, model: IdentificationModel, *, max_gap: f
         if "t" not in frame.columns:
             return None
         blank = dropouts(frame, n_joints)
-        if blank.any():
-            said_dropouts(frame["t"], blank, str(path), offset=sum(part.shape[0] for part in present))
+        if blank.any() and first_blank is None:  # said once for the file, after the scan
+            first = int(np.flatnonzero(blank)[0])
+            first_blank = (sum(part.shape[0] for part in present) + first, frame["t"].iloc[first])
         present.append(~blank)
         frame = frame[~blank]
         t = pd.to_numeric(frame["t"], errors="coerce").to_numpy(dtype=float)
@@ -138,8 +140,10 @@ def _cleaned(frames, path: str | Path, model: IdentificationModel, *, max_gap: f
     same = np.concatenate(repeated)
     if same.shape[0] != t.shape[0]:  # the channels change between blocks: the per-chunk checks name it
         return None
-    times = clean_time_base(t, same, str(path), max_gap=max_gap, split=split)
     rows = np.concatenate(present)
+    if first_blank is not None:
+        said_dropouts(int(np.count_nonzero(~rows)), *first_blank, str(path))
+    times = clean_time_base(t, same, str(path), max_gap=max_gap, split=split)
     if rows.all():
         return times
     keep = np.zeros(rows.shape[0], dtype=bool)
