@@ -2,7 +2,8 @@
 :mod:`tests.test_unseen_robots`, :mod:`tests.test_unseen_robot_kinds` and :mod:`tests.test_unseen_robot_realities`:
 
 - a gear-driven arm whose Coulomb friction changes with the position (an eccentric gear: ±50 % over a turn);
-- a gravity-compensating spring on the shoulder that the description does not hold;
+- springs that the description does not hold: a cable harness twisted about the base's vertical axis (no gravity
+  term can absorb it) and a gas spring holding the shoulder up;
 - a description whose inertials are badly wrong (CAD without motors: masses halved, first moments at 35 %,
   inertias halved), so the prior the consistent candidate pulls toward misleads;
 - torques logged in motor units, each joint's its own unknown gain (a current times a constant nobody gave);
@@ -109,8 +110,9 @@ def extra_torque(case: Lab, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
     if case.extra == "position coulomb":  # an eccentric gear: Coulomb friction ±50 % of its level over a turn
         phase = np.linspace(0.0, PI, n)
         out = np.linspace(1.0, 3.0, n) * 0.5 * np.sin(q + phase) * np.sign(dq)
-    if case.extra == "spring":  # a gas spring holding the shoulder up: 30 N m/rad about q2 = -0.5 rad
-        out[:, 1] = -30.0 * (q[:, 1] + 0.5)
+    if case.extra == "spring":  # springs pulling back to their rest positions (the motor holds k (q - q0)): a
+        out[:, 0] = 20.0 * (q[:, 0] - 0.3)  # cable harness twisted about the vertical base axis (no gravity term
+        out[:, 1] = 30.0 * (q[:, 1] + 0.5)  # absorbs it), 20 N m/rad about 0.3 rad; a gas spring on the shoulder
     return out
 
 
@@ -219,13 +221,18 @@ LABS = (
               "joint 5 1.88x. One cut-off serves every joint: the choice on the validation record takes 5 Hz (OLS "
               "validation MSE tau1 0.218, tau5 0.151), where 8 Hz (the plain fit's) gives tau1 2.30 (the 12-bit "
               "positions' quantisation differentiated twice at 100 Hz) and tau5 0.066; --cutoff 8 gives 0.995 total, "
-              "joint 5 0.97x, joint 1 1.06x. Open: a cut-off per joint's motion"),
+              "joint 5 0.97x, joint 1 1.06x. The cause is the fit's target, the torques filtered at the cut-off (the "
+              "Coulomb steps smeared, h-unseen3): the plain regressor fitted to the torques as recorded predicts the "
+              "test at 1.24 / 1.00 / 1.14 / 1.08 / 1.02 / 1.08 x the floor per joint at 3 Hz (filtered: 6.2 / 8.0 / "
+              "33 / 4.2 / 11 / 6.8; at 5 Hz filtered joint 5 5.1, recorded 1.03). Open: the recorded-torque target "
+              "as the default (h-band)"),
     Lab("PUMA 6 joints, training 10 s at 1 kHz with dq, validation 3 s at 250 Hz, test 6 s at 100 Hz, no dq",
         puma(6), Log(10.0, 1000.0), Log(3.0, 250.0, velocity=False), Log(6.0, 100.0, velocity=False), slow=True),
     Lab("PUMA 6 joints, gear friction changing with position (Coulomb ±50 % over a turn), 10 s / 4 s / 6 s at "
         "250 Hz, no dq", puma(6), *(Log(seconds, 250.0, velocity=False) for seconds in (10.0, 4.0, 6.0)),
         extra="position coulomb", slow=True),
-    Lab("PUMA 6 joints, a gravity-compensating spring on the shoulder not in the URDF, 10 s / 4 s / 6 s at 250 Hz",
+    Lab("PUMA 6 joints, springs not in the URDF (a cable harness on the base, a gas spring on the shoulder), "
+        "10 s / 4 s / 6 s at 250 Hz",
         puma(6), *(Log(seconds, 250.0) for seconds in (10.0, 4.0, 6.0)), extra="spring", slow=True),
     Lab("UR10e-like, the URDF's inertials from CAD without motors (masses halved), 10 s / 4 s / 6 s at 500 Hz, "
         "logged dq", ur10e, *(Log(seconds, 500.0, motion_hz=0.1) for seconds in (10.0, 4.0, 6.0)),
