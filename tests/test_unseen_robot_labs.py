@@ -325,3 +325,36 @@ def test_predict_filters_a_record_of_a_lower_rate_at_the_highest_cutoff_it_takes
     assert any("filtered at 40 Hz" in text and "200 Hz" in text for text in said), said
     mse = np.array(list(predicted.evaluation.prediction.mse.values()))
     assert np.all(mse < 1.5 * (NOISE * spread) ** 2), (mse / (NOISE * spread) ** 2).round(3)
+
+
+def test_predict_derives_the_motion_of_a_record_without_the_logged_derivatives_the_model_was_fitted_with(tmp_path):
+    """Training and validation logged by a controller with ``dq`` and ``ddq`` (the KUKA's kind of log), the test
+    record by another logger with positions and torques only: ``oed predict`` derives its motion with the rule's
+    filter, says so, and predicts it at the noise floor (it exited: "the data to predict lacks the measured dq/ddq
+    the training data hold")."""
+    import oed
+    from tests.test_unseen_robots import urdf_of
+
+    urdf = urdf_of("puma560:3", tmp_path)
+    model = build_model(load_robot(urdf=urdf), "internal", FRICTION)
+    theta = truth(model)
+    spread = None
+    for role, seed, seconds, logged_derivatives in (("train", 11, 10.0, True), ("validate", 12, 4.0, True),
+                                                     ("test", 13, 5.0, False)):
+        t = np.arange(0.0, seconds, 0.004)
+        q, dq, ddq = random_fourier(model.robot, seed=seed, frequency_hz=0.2).evaluate(t)
+        tau = model.predict(theta, q, dq, ddq)
+        spread = tau.std(axis=0) if spread is None else spread
+        tau = tau + np.random.default_rng(seed).normal(0.0, 1.0, tau.shape) * NOISE * spread
+        frame = {"t": t, **{f"q{j + 1}": q[:, j] for j in range(3)}}
+        if logged_derivatives:
+            frame.update({f"dq{j + 1}": dq[:, j] for j in range(3)})
+            frame.update({f"ddq{j + 1}": ddq[:, j] for j in range(3)})
+        frame.update({f"tau{j + 1}": tau[:, j] for j in range(3)})
+        pd.DataFrame(frame).to_csv(tmp_path / f"{role}.csv", index=False)
+    run = oed.identify(urdf=urdf, data=tmp_path / "train.csv", validate=tmp_path / "validate.csv", friction=FRICTION)
+    run.write(tmp_path / "result.json")
+    predicted = oed.predict(model=tmp_path / "result.json", data=tmp_path / "test.csv")
+    assert any("lacks the logged dq/ddq" in text and "Hz Butterworth filter" in text for text in predicted.warnings)
+    mse = np.array(list(predicted.evaluation.prediction.mse.values()))
+    assert np.all(mse < 1.3 * (NOISE * spread) ** 2), (mse / (NOISE * spread) ** 2).round(3)

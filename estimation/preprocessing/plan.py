@@ -429,8 +429,18 @@ def prepare_unseen(segments: Sequence[Measurements], preprocessing: Preprocessin
     records the filter was chosen on, whose Nyquist frequency the chosen cut-off reaches, is filtered at the highest
     cut-off it takes (:data:`HIGHEST_CUTOFF_FRACTION` of its rate, the candidates' own ceiling), with a
     :class:`PreprocessingWarning`; every other segment as the plan says. (A filter cannot pass what a record does
-    not hold: the plan's cut-off was chosen to keep the motion's band, which lies below either.)"""
+    not hold: the plan's cut-off was chosen to keep the motion's band, which lies below either.) A record without
+    the logged ``dq``/``ddq`` a model was fitted with gets the rule's filter (:func:`choose_preprocessing` without
+    a choice), also said in a warning."""
     segments = as_segments(segments, role)
+    measured = all(name in column_set(segments[0]) for name in ("dq", "ddq"))
+    if preprocessing.method == "measured" and not measured:  # the model's derivatives were logged, these are not
+        rule = choose_preprocessing(segments, detect=False, decimation=preprocessing.decimation)
+        warnings.warn(
+            f"{role} lacks the logged dq/ddq the model was fitted with: derivatives from a {rule.cutoff_hz:g} Hz "
+            f"Butterworth filter (order {rule.order}, zero phase), the one the toolkit takes on a record without a "
+            "choice (five times the motion's bandwidth)", PreprocessingWarning, stacklevel=3)
+        return prepare(segments, rule, role=role)
     if preprocessing.method != "butterworth" or preprocessing.cutoff_hz is None:
         return prepare(segments, preprocessing, role=role)
     plans = []
