@@ -327,11 +327,17 @@ def test_predict_filters_a_record_of_a_lower_rate_at_the_highest_cutoff_it_takes
     assert np.all(mse < 1.5 * (NOISE * spread) ** 2), (mse / (NOISE * spread) ** 2).round(3)
 
 
-def test_predict_derives_the_motion_of_a_record_without_the_logged_derivatives_the_model_was_fitted_with(tmp_path):
-    """Training and validation logged by a controller with ``dq`` and ``ddq`` (the KUKA's kind of log), the test
-    record by another logger with positions and torques only: ``oed predict`` derives its motion with the rule's
-    filter, says so, and predicts it at the noise floor (it exited: "the data to predict lacks the measured dq/ddq
-    the training data hold")."""
+@pytest.mark.parametrize(("validation_logged", "verbs"), [
+    pytest.param(True, ("identify",), id="validation with dq, ddq"),
+    pytest.param(False, ("identify",), id="validation without"),
+    pytest.param(False, ("diagnose",), id="validation without, diagnose", marks=pytest.mark.slow)])
+def test_records_without_the_logged_derivatives_the_training_record_has(validation_logged, verbs, tmp_path):
+    """Training (and validation) logged by a controller with ``dq`` and ``ddq`` (the KUKA's kind of log), the test
+    (and validation) record by another logger with positions and torques only. A validation record without: the
+    verbs leave the training record's logged derivatives out, every record's motion derived alike (they exited:
+    "validation data lacks the measured dq/ddq the training data hold"). A test record without: ``oed predict``
+    derives its motion with the rule's filter and says so (it exited: "the data to predict lacks the measured
+    dq/ddq the training data hold"). Either way the test record is predicted at the noise floor."""
     import oed
     from tests.test_unseen_robots import urdf_of
 
@@ -339,7 +345,7 @@ def test_predict_derives_the_motion_of_a_record_without_the_logged_derivatives_t
     model = build_model(load_robot(urdf=urdf), "internal", FRICTION)
     theta = truth(model)
     spread = None
-    for role, seed, seconds, logged_derivatives in (("train", 11, 10.0, True), ("validate", 12, 4.0, True),
+    for role, seed, seconds, logged_derivatives in (("train", 11, 10.0, True), ("validate", 12, 4.0, validation_logged),
                                                      ("test", 13, 5.0, False)):
         t = np.arange(0.0, seconds, 0.004)
         q, dq, ddq = random_fourier(model.robot, seed=seed, frequency_hz=0.2).evaluate(t)
@@ -352,9 +358,13 @@ def test_predict_derives_the_motion_of_a_record_without_the_logged_derivatives_t
             frame.update({f"ddq{j + 1}": ddq[:, j] for j in range(3)})
         frame.update({f"tau{j + 1}": tau[:, j] for j in range(3)})
         pd.DataFrame(frame).to_csv(tmp_path / f"{role}.csv", index=False)
-    run = oed.identify(urdf=urdf, data=tmp_path / "train.csv", validate=tmp_path / "validate.csv", friction=FRICTION)
-    run.write(tmp_path / "result.json")
-    predicted = oed.predict(model=tmp_path / "result.json", data=tmp_path / "test.csv")
-    assert any("lacks the logged dq/ddq" in text and "Hz Butterworth filter" in text for text in predicted.warnings)
-    mse = np.array(list(predicted.evaluation.prediction.mse.values()))
-    assert np.all(mse < 1.3 * (NOISE * spread) ** 2), (mse / (NOISE * spread) ** 2).round(3)
+    records = {"data": tmp_path / "train.csv", "validate": tmp_path / "validate.csv"}
+    for verb in verbs:
+        run = oed.identify(urdf=urdf, **records, friction=FRICTION) if verb == "identify" else \
+            oed.diagnose(urdf=urdf, **records)
+        run.write(tmp_path / f"{verb}.json")
+        predicted = oed.predict(model=tmp_path / f"{verb}.json", data=tmp_path / "test.csv")
+        said = any("lacks the logged dq/ddq" in text and "Hz Butterworth filter" in text for text in predicted.warnings)
+        assert said == validation_logged, predicted.warnings  # without: the model's own filter applies
+        mse = np.array(list(predicted.evaluation.prediction.mse.values()))
+        assert np.all(mse < 1.3 * (NOISE * spread) ** 2), (verb, (mse / (NOISE * spread) ** 2).round(3))
