@@ -51,9 +51,11 @@ from estimation.preprocessing.differentiation import AverageChoice
 from estimation.uncertainty.noise_floor import NoiseFloor, NoiseFloorError, noise_floor, pooled_floor
 from estimation.preprocessing.plan import (
     Preprocessing,
+    best_filter,
     check_frequency,
     choose_preprocessing,
     prepare,
+    prepare_unseen,
 )
 
 #: how the preprocessing is chosen: by held-out error among candidates, or by the fixed rule
@@ -452,11 +454,16 @@ def shares_training_sums(settings: PreparationSettings, train: Sequence[Measurem
 
 def _prepared(files: tuple[RecordedFile, ...], preprocessing: Preprocessing, role: str, *,
               check: bool) -> PreparedRecord:
-    """``files`` prepared by ``preprocessing``; a held-out record's frequency checked against the Fourier fit's."""
+    """``files`` prepared by ``preprocessing``; a held-out record (``check``) as ``oed predict`` prepares one
+    (:func:`estimation.preprocessing.plan.prepare_unseen`: by the plan where it applies, else by the rule's filter,
+    said), its frequency checked against the Fourier fit's."""
     segments = [segment for file in files for segment in file.segments]
-    if check and preprocessing.method == "fourier":
+    if not check:
+        return PreparedRecord(files, prepare(segments, preprocessing, role=role))
+    if preprocessing.method == "fourier":
         check_frequency(segments, preprocessing.frequency_hz)
-    return PreparedRecord(files, prepare(segments, preprocessing, role=role))
+    return PreparedRecord(files, prepare_unseen(segments, preprocessing, role=role,
+                                                fallback=best_filter(preprocessing.to_dict())))
 
 
 def _without_rest(record: PreparedRecord, model: IdentificationModel, settings: PreparationSettings,
