@@ -30,6 +30,7 @@ _EXPORTS: dict[str, str] = {
     "NonFiniteError": "estimation.data.loading",
     "ParquetSupportError": "estimation.data.loading",
     "RepeatedRowsWarning": "estimation.data.loading",
+    "BlankRowsWarning": "estimation.data.loading",
     "ResampledWarning": "estimation.data.loading",
     "RestHandling": "estimation.data.rest",
     "RestSelection": "estimation.data.rest",

@@ -115,6 +115,11 @@ class DuplicatedTimesWarning(MeasurementWarning):
     dropped."""
 
 
+class BlankRowsWarning(MeasurementWarning):
+    """Rows whose data cells are all empty (a logger's dropouts) were dropped; the time they leave without samples
+    is a gap like any other."""
+
+
 class StallWarning(MeasurementWarning):
     """Short stalls of the logger (samples missing) were bridged by interpolation."""
 

@@ -12,6 +12,10 @@
   stall when it lasts at most ``max_gap`` seconds — bridged by the loader's interpolation onto a
   uniform grid — and a hole otherwise, where the record is split into segments. Gaps are judged on the time
   stamps alone (:func:`time_stamps_jump`): the rows dropped as repeated leave none, however many there are.
+* **Dropouts.** A row whose data columns are all blank (its time stamp written or not) is a sample the logger
+  did not deliver (:func:`blank_rows`): it is dropped before anything else, and the time it leaves without a
+  sample is a gap like any other, bridged up to ``max_gap`` and split beyond. A row with some cells blank and
+  others not is no dropout, and stays an error.
 
 Pure functions on arrays; :mod:`estimation.data.loading` turns their findings into warnings and errors.
 """
@@ -49,6 +53,14 @@ class Gap:
     t: float
     duration: float
     missing: float
+
+
+def blank_rows(empty: NDArray[np.bool_]) -> NDArray[np.bool_]:
+    """``(N,)`` true where every cell of a row is empty (``empty (N, k)``: the data columns' cells that hold no
+    value, not those that hold text): a dropout, the logger wrote no value in the row; ``k = 0`` gives none."""
+    if empty.shape[1] == 0:
+        return np.zeros(empty.shape[0], dtype=bool)
+    return np.all(empty, axis=1)
 
 
 def repeated_rows(data: NDArray[np.float64]) -> NDArray[np.bool_]:

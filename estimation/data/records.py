@@ -27,6 +27,7 @@ from dynamics.models import IdentificationModel, ModelKind
 from estimation.data.loading import (
     ABSURD_VALUE,
     AbsurdValueError,
+    BlankRowsWarning,
     COLUMN_GROUPS,
     DuplicatedTimesWarning,
     GROUP_MEANING,
@@ -51,7 +52,7 @@ from estimation.data.loading import (
     uniform_grid,
 )
 from estimation.data.log_formats import is_log_file, read_log_frame
-from estimation.data.log_cleaning import DEFAULT_MAX_GAP, describe, find_gaps, repeated_rows, split_rows, time_stamps_jump
+from estimation.data.log_cleaning import DEFAULT_MAX_GAP, blank_rows, describe, find_gaps, repeated_rows, split_rows, time_stamps_jump
 from dynamics.measurements import Measurements, joint_columns
 
 
@@ -203,6 +204,11 @@ def segments_from_frame(
         raise ValueError(f"max_gap must be a positive number of seconds, got {max_gap!r}")
     frame = frame.rename(columns=lambda name: str(name).strip())
     n_joints = _joint_count(frame, n_joints, model, source)
+    blank = dropouts(frame, n_joints)
+    if blank.any():
+        first = int(np.flatnonzero(blank)[0])
+        said_dropouts(int(blank.sum()), first, frame["t"].iloc[first] if "t" in frame.columns else None, source)
+        frame = frame[~blank].reset_index(drop=True)
     groups = set(require) | set(required_groups(model)) | {"q"}
     unknown = groups - set(COLUMN_GROUPS)
     if unknown:
@@ -238,6 +244,27 @@ def segments_from_frame(
     if isinstance(model, IdentificationModel):
         check_sample_count(segments, model)
     return tuple(segments)
+
+
+def dropouts(frame: pd.DataFrame, n_joints: int) -> NDArray[np.bool_]:
+    """``(N,)`` the rows of ``frame`` whose data cells (``q, dq, ddq, tau``, wrench: those present) are all empty:
+    a logger's dropouts (:func:`estimation.data.log_cleaning.blank_rows`; a cell holding text is not empty). One rule
+    for the in-memory reader and the streamed one (:mod:`estimation.streaming.time_base`)."""
+    columns = [column for group in COLUMN_GROUPS
+               for column in (list(WRENCH_CHANNELS) if group == "wrench" else joint_columns(group, n_joints))
+               if column in frame.columns]
+    return blank_rows(frame[columns].isna().to_numpy()) if columns else np.zeros(len(frame), dtype=bool)
+
+
+def said_dropouts(count: int, first_row: int, first_stamp: object, source: str) -> None:
+    """The :class:`BlankRowsWarning` for ``count`` rows dropped as dropouts, the first at row ``first_row`` of the
+    file, stamped ``first_stamp`` (as written)."""
+    stamp = pd.to_numeric(pd.Series([first_stamp]), errors="coerce").iloc[0]
+    warnings.warn(
+        f"{source}: dropped {count} row(s) whose data cells are all empty (a logger's dropouts), first at row "
+        f"{first_row}" + ("" if not np.isfinite(stamp) else f" (t = {stamp:.6g} s)") + "; the time they leave "
+        "without samples is bridged by interpolation up to --max-gap and split beyond, as any gap",
+        BlankRowsWarning, stacklevel=5)
 
 
 def _as_recorded(t: NDArray[np.float64], piece: dict, grid: NDArray[np.float64], metadata: dict

@@ -49,7 +49,7 @@ if TYPE_CHECKING:
 from estimation.identification.trivial_predictors import trivial_mse
 from estimation.identification.validation import channel_mse
 from estimation.preprocessing.delay import delayed
-from estimation.preprocessing.plan import Preprocessing, check_frequency, prepare
+from estimation.preprocessing.plan import Preprocessing, best_filter, check_frequency, prepare_unseen
 from estimation.uncertainty.noise_floor import NoiseFloorError, noise_floor, pooled_floor
 
 __all__ = ["Z_95", "Evaluation", "IdentifiedModel", "Prediction", "alternative_names", "preprocessing_from_dict"]
@@ -388,7 +388,8 @@ class IdentifiedModel:
         preprocessing = self.preprocessing
         if preprocessing.method == "fourier":
             check_frequency(segments, preprocessing.frequency_hz)
-        prepared = prepare(segments, preprocessing, role="the data to predict")
+        prepared = prepare_unseen(segments, preprocessing, role="the data to predict",
+                                  fallback=best_filter(self.file.preprocessing))
         rest = self.file.rest
         if rest is not None and rest.get("rest") == "drop" and rest.get("min_speed"):
             prepared = drop_rest(prepared, float(rest["min_speed"]), combinations=coulomb_combinations(self.model.effects),

@@ -23,7 +23,7 @@ import os
 
 import warnings
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Literal
 
@@ -51,9 +51,11 @@ from estimation.preprocessing.differentiation import AverageChoice
 from estimation.uncertainty.noise_floor import NoiseFloor, NoiseFloorError, noise_floor, pooled_floor
 from estimation.preprocessing.plan import (
     Preprocessing,
+    best_filter,
     check_frequency,
     choose_preprocessing,
     prepare,
+    prepare_unseen,
 )
 
 #: how the preprocessing is chosen: by held-out error among candidates, or by the fixed rule
@@ -300,6 +302,7 @@ def prepare_records(model: IdentificationModel, train: Sequence[str | Path], val
                     if paths else None
                     for role, paths in (("validation", validation), ("test", test))}
     check_no_shared_samples({"training": train_files, **held_out})
+    train_files, held_out = logged_derivatives_alike(train_files, held_out)
     for role, files in (("training", train_files), *held_out.items()):
         if files is not None:
             check_varying_channels([segment for file in files for segment in file.segments], model.channels,
@@ -337,6 +340,37 @@ def prepare_records(model: IdentificationModel, train: Sequence[str | Path], val
     records = {role: None if record is None else _without_rest(record, model, settings, role)
                for role, record in prepared.items()}
     return PreparedRecords(preprocessing, records["train"], records["validation"], records["test"])
+
+
+def logged_derivatives_alike(train: Sequence[RecordedFile], held_out: dict[str, Sequence[RecordedFile] | None]
+                             ) -> tuple[tuple[RecordedFile, ...], dict[str, tuple[RecordedFile, ...] | None]]:
+    """The records with the logged derivatives (``ddq``, ``dq``) that every record holds, a warning naming those
+    dropped: a training record logged with ``dq`` and ``ddq`` beside a validation or test record logged without
+    (another logger) is prepared as they are, by a filter every record takes, so that every candidate is chosen
+    and scored on the same kind of samples (the logged derivatives cannot apply to the held-out record: no
+    candidate; they made the defaults exit, "validation data lacks the measured dq/ddq the training data hold")."""
+    records = [*train, *(file for files in held_out.values() if files for file in files)]
+    segments = [segment for file in records for segment in file.segments]
+    dropped = [name for name in ("ddq", "dq") if any(getattr(segment, name) is not None for segment in segments)
+               and any(getattr(segment, name) is None for segment in segments)]
+    if "dq" in dropped and "ddq" not in dropped and any(segment.ddq is not None for segment in segments):
+        dropped.insert(0, "ddq")
+    if not dropped:
+        return tuple(train), held_out
+    lacking = sorted({str(file.path) for file in records for segment in file.segments
+                      if any(getattr(segment, name) is None for name in dropped)})
+    warnings.warn(f"{', '.join(lacking)} logged without {' and '.join(dropped)}: the {' and '.join(dropped)} the "
+                  "other records log are left out, every record's derivatives taken alike from what all of them hold",
+                  stacklevel=3)
+    gone = {name: None for name in dropped}
+
+    def without(file: RecordedFile) -> RecordedFile:
+        return RecordedFile(file.path, tuple(
+            replace(segment, **gone, recorded=None if segment.recorded is None else replace(segment.recorded, **gone))
+            for segment in file.segments))
+
+    return (tuple(without(file) for file in train),
+            {role: None if files is None else tuple(without(file) for file in files) for role, files in held_out.items()})
 
 
 def still_record_note(train: Sequence[RecordedFile], validation: Sequence[RecordedFile]) -> str | None:
@@ -420,11 +454,16 @@ def shares_training_sums(settings: PreparationSettings, train: Sequence[Measurem
 
 def _prepared(files: tuple[RecordedFile, ...], preprocessing: Preprocessing, role: str, *,
               check: bool) -> PreparedRecord:
-    """``files`` prepared by ``preprocessing``; a held-out record's frequency checked against the Fourier fit's."""
+    """``files`` prepared by ``preprocessing``; a held-out record (``check``) as ``oed predict`` prepares one
+    (:func:`estimation.preprocessing.plan.prepare_unseen`: by the plan where it applies, else by the rule's filter,
+    said), its frequency checked against the Fourier fit's."""
     segments = [segment for file in files for segment in file.segments]
-    if check and preprocessing.method == "fourier":
+    if not check:
+        return PreparedRecord(files, prepare(segments, preprocessing, role=role))
+    if preprocessing.method == "fourier":
         check_frequency(segments, preprocessing.frequency_hz)
-    return PreparedRecord(files, prepare(segments, preprocessing, role=role))
+    return PreparedRecord(files, prepare_unseen(segments, preprocessing, role=role,
+                                                fallback=best_filter(preprocessing.to_dict())))
 
 
 def _without_rest(record: PreparedRecord, model: IdentificationModel, settings: PreparationSettings,

@@ -21,7 +21,7 @@ result documents as ``preprocessing`` (:meth:`Preprocessing.to_dict`).
 from __future__ import annotations
 
 import warnings
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from typing import Any, Literal
 
@@ -29,7 +29,7 @@ import numpy as np
 
 from dynamics.runtime.threads import single_threaded_blas
 from dynamics.measurements import Measurements
-from estimation.preprocessing.periodicity import detect_fundamental, frequency_mismatch
+from estimation.preprocessing.periodicity import REPEAT_THRESHOLD, detect_fundamental, frequency_mismatch, repeat_error
 from estimation.preprocessing.differentiation import (
     AverageChoice,
     ButterworthDifferentiation,
@@ -416,6 +416,94 @@ def prepare(data: Measurements | Sequence[Measurements], preprocessing: Preproce
         prepared.append(replace(derived, metadata=metadata,
                                 recorded=None if recorded is None else replace(recorded, metadata=metadata)))
     return concatenate(prepared)
+
+
+#: the highest cut-off of a filter, as a fraction of the record's rate (0.8 x Nyquist: the rule's cap and the
+#: candidates' top, :data:`estimation.identification.preprocessing_choice.CUTOFF_FRACTIONS`)
+HIGHEST_CUTOFF_FRACTION = 0.4
+
+
+def best_filter(document: Mapping[str, Any] | None) -> Preprocessing | None:
+    """The best-scored Butterworth filter among the candidates a plan's choice scored (``document``:
+    :meth:`Preprocessing.to_dict`, as the model file holds it): on the validation record when it was chosen there,
+    else on held-out blocks of the training data; ``None`` when no filter was scored."""
+    for key in ("validation_candidates", "candidates"):
+        filters = [candidate for candidate in (document or {}).get(key) or ()
+                   if candidate.get("method") == "butterworth" and candidate.get("cutoff_hz")
+                   and np.isfinite(float(candidate.get("score", np.inf)))]
+        if filters:
+            best = min(filters, key=lambda candidate: float(candidate["score"]))  # best first: ties keep the first
+            return Preprocessing("butterworth", cutoff_hz=float(best["cutoff_hz"]),
+                                 order=int(best.get("filter_order", 4)),
+                                 velocity_from_positions=bool(best.get("velocity_from_positions", False)),
+                                 decimation=int(best.get("decimation", 1)),
+                                 held_torques=bool(best.get("held_torques", False)))
+    return None
+
+
+def prepare_unseen(segments: Sequence[Measurements], preprocessing: Preprocessing, *,
+                   role: str = "the data to predict", fallback: Preprocessing | None = None) -> Measurements:
+    """:func:`prepare` on records the plan was not chosen on (a validation or test record, ``oed predict``'s), each
+    segment by the plan where the plan applies to it, else by ``fallback`` (the best filter the choice scored,
+    :func:`best_filter`) or, without one, by the filter the toolkit takes on a record without a choice
+    (:func:`choose_preprocessing` without detection: five times the motion's bandwidth), with a
+    :class:`PreprocessingWarning` saying which and why:
+
+    - a Fourier fit applies to a segment seen to repeat at its fundamental (its positions one period apart within
+      :data:`~estimation.preprocessing.periodicity.REPEAT_THRESHOLD` of their variance, over at least
+      :data:`~estimation.preprocessing.periodicity.MIN_PERIODS` periods): on another motion (a point-to-point test
+      after periodic excitation) a series at that fundamental is no description of the positions, and its
+      derivatives are garbage (115x the plain fit's test error, h-unseen4);
+    - logged derivatives (``measured``) apply to a segment that logs them;
+    - a filter applies to a segment whose Nyquist frequency lies above its cut-off; one logged at a lower rate is
+      filtered at :data:`HIGHEST_CUTOFF_FRACTION` of its rate (the candidates' own ceiling) instead.
+    """
+    segments = as_segments(segments, role)
+    plans = [_applied(segment, preprocessing, role, fallback) for segment in segments]
+    if all(plan == preprocessing for plan in plans):
+        return prepare(segments, preprocessing, role=role)
+    if all(plan == plans[0] for plan in plans):
+        return prepare(segments, plans[0], role=role)
+    return concatenate([prepare([segment], plan, role=role) for segment, plan in zip(segments, plans)])
+
+
+def _applied(segment: Measurements, preprocessing: Preprocessing, role: str,
+             fallback: Preprocessing | None) -> Preprocessing:
+    """The plan for one segment of a record it was not chosen on (:func:`prepare_unseen`)."""
+    rate = sampling_rate(segment.t)
+    name = _name(segment) if segment.metadata.get("source") else role
+
+    def rule(why: str) -> Preprocessing:
+        if fallback is not None:
+            plan = fallback
+            if plan.cutoff_hz >= 0.5 * rate:
+                plan = replace(plan, cutoff_hz=float(f"{HIGHEST_CUTOFF_FRACTION * rate:.6g}"))
+            which = "the best filter the choice scored"
+        else:
+            plan = choose_preprocessing([segment], detect=False, decimation=preprocessing.decimation,
+                                       held_torques=preprocessing.held_torques)
+            which = "the one the toolkit takes on a record without a choice (five times the motion's bandwidth)"
+        warnings.warn(f"{name}: {why}: derivatives from a {plan.cutoff_hz:g} Hz Butterworth filter (order "
+                      f"{plan.order}, zero phase), {which}", PreprocessingWarning, stacklevel=4)
+        return plan
+
+    measured = segment.dq is not None and segment.ddq is not None
+    if preprocessing.method == "measured" and not measured:
+        return rule("lacks the logged dq/ddq the model was fitted with")
+    if preprocessing.method == "fourier" and not measured:
+        error = repeat_error(segment.q, rate / preprocessing.frequency_hz)
+        if not (np.isfinite(error) and error <= REPEAT_THRESHOLD):
+            return rule(f"does not repeat at the model's fundamental {preprocessing.frequency_hz:.6g} Hz (another "
+                        "motion, or too short to tell): a Fourier series there would not describe it")
+    if preprocessing.method == "butterworth" and preprocessing.cutoff_hz is not None \
+            and preprocessing.cutoff_hz >= 0.5 * rate:
+        plan = replace(preprocessing, cutoff_hz=float(f"{HIGHEST_CUTOFF_FRACTION * rate:.6g}"))
+        warnings.warn(
+            f"{name}: logged at {rate:.4g} Hz, whose Nyquist frequency the model's {preprocessing.cutoff_hz:g} Hz "
+            f"filter reaches (chosen on records of a higher rate): filtered at {plan.cutoff_hz:g} Hz, "
+            f"{HIGHEST_CUTOFF_FRACTION:g} of its rate", PreprocessingWarning, stacklevel=4)
+        return plan
+    return preprocessing
 
 
 def at_recorded_stamps(prepared: Measurements, stamps: Measurements, *, measured: bool = False) -> Measurements:

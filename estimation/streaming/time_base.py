@@ -1,6 +1,7 @@
 """The time base of a streamed file: one scan of its rows, then resampling chunk by chunk.
 
-The in-memory loader (:func:`estimation.data.records.segments_from_frame`) drops a logger's re-sent rows and a few
+The in-memory loader (:func:`estimation.data.records.segments_from_frame`) drops a logger's dropouts (rows whose data
+cells are all empty), re-sent rows and a few
 rows stamped with the previous row's time, checks the time base, bridges stalls up to ``max_gap`` and resamples an
 irregular time base (jitter, as in the KUKA logs: steps of 3.4–6.5 ms around 5 ms; stalls; rows dropped) by linear
 interpolation onto ``t_0 + k·h``, ``h`` the median step of the rows kept
@@ -15,7 +16,7 @@ chunks is interpolated between the same two samples as in memory.
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -28,7 +29,7 @@ from dynamics.models import IdentificationModel
 from dynamics.runtime.memory import check_allocation
 from estimation.data.loading import SegmentTooShortError, resampling_grid
 from estimation.data.log_cleaning import DEFAULT_MAX_GAP, repeated_rows, split_rows
-from estimation.data.records import clean_time_base
+from estimation.data.records import clean_time_base, dropouts, said_dropouts
 
 __all__ = ["Resampler", "TimeScan", "file_segments", "scan_time"]
 
@@ -103,12 +104,20 @@ def _cleaned(frames, path: str | Path, model: IdentificationModel, *, max_gap: f
     ``None`` when its time column cannot be read."""
     parts: list[NDArray[np.float64]] = []
     repeated: list[NDArray[np.bool_]] = []
+    present: list[NDArray[np.bool_]] = []  # the rows not dropouts (:func:`estimation.data.records.dropouts`)
+    first_blank: tuple[int, object] | None = None  # the first dropout's row and time stamp
     previous: NDArray[np.float64] | None = None
     count, n_joints = 0, model.robot.n_joints
     for frame in frames:
         frame = frame.rename(columns=lambda name: str(name).strip())
         if "t" not in frame.columns:
             return None
+        blank = dropouts(frame, n_joints)
+        if blank.any() and first_blank is None:  # said once for the file, after the scan
+            first = int(np.flatnonzero(blank)[0])
+            first_blank = (sum(part.shape[0] for part in present) + first, frame["t"].iloc[first])
+        present.append(~blank)
+        frame = frame[~blank]
         t = pd.to_numeric(frame["t"], errors="coerce").to_numpy(dtype=float)
         columns = [column for group in ("q", "dq", "ddq", "tau", "wrench")
                    for column in [_columns(group, n_joints)] if all(name in frame.columns for name in column)]
@@ -131,7 +140,15 @@ def _cleaned(frames, path: str | Path, model: IdentificationModel, *, max_gap: f
     same = np.concatenate(repeated)
     if same.shape[0] != t.shape[0]:  # the channels change between blocks: the per-chunk checks name it
         return None
-    return clean_time_base(t, same, str(path), max_gap=max_gap, split=split)
+    rows = np.concatenate(present)
+    if first_blank is not None:
+        said_dropouts(int(np.count_nonzero(~rows)), *first_blank, str(path))
+    times = clean_time_base(t, same, str(path), max_gap=max_gap, split=split)
+    if rows.all():
+        return times
+    keep = np.zeros(rows.shape[0], dtype=bool)
+    keep[np.flatnonzero(rows)[times.keep]] = True
+    return replace(times, keep=keep)
 
 
 def _columns(group: str, n_joints: int) -> list[str]:
