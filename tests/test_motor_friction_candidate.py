@@ -27,7 +27,7 @@ import oed.workflows.identify as identify_workflow
 from dynamics.models import build_model
 from dynamics.robots import load_robot
 from dynamics.transmission import Transmission
-from estimation.consistent.motor_friction import coupled_motors, motor_friction_laws
+from estimation.consistent.motor_friction import motor_friction_laws
 from oed.cli import main
 from tests.test_unseen_robot_realities import Reality, puma6, transmission_matrix, write_records
 from tests.test_unseen_robots import FRICTION, Log
@@ -103,9 +103,9 @@ def test_no_coupled_transmission_adds_nothing():
     model = build_model(robot, "internal", FRICTION)
     assert motor_friction_laws(model, None) == ()
     diagonal = Transmission(np.diag(np.arange(1.0, 7.0)))
-    assert coupled_motors(diagonal) == () and motor_friction_laws(model, diagonal) == ()
+    assert diagonal.coupled_motors() == () and motor_friction_laws(model, diagonal) == ()
     coupled = Transmission(transmission_matrix())
-    assert coupled_motors(coupled) == (5,)
+    assert coupled.coupled_motors() == (5,)
     laws = motor_friction_laws(model, coupled)
     assert [(law.kind, law.labels) for law in laws] == [("viscous", ("m6",)), ("coulomb", ("m6",))]
     declared = build_model(robot, "internal", (*model.effects, laws[0]))

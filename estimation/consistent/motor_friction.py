@@ -24,7 +24,6 @@ from __future__ import annotations
 from dataclasses import replace
 from typing import Any
 
-import numpy as np
 
 from dynamics.effects.motor import motor_effects
 from dynamics.models import IdentificationModel, ModelKind
@@ -32,26 +31,17 @@ from dynamics.transmission import Transmission
 from estimation.consistent.model_selection import ModelSelection
 from estimation.identification.relative_error import relative_scores
 
-__all__ = ["MOTOR_FRICTION_TOLERANCE", "coupled_motors", "motor_friction_answer", "motor_friction_laws"]
+__all__ = ["MOTOR_FRICTION_TOLERANCE", "motor_friction_answer", "motor_friction_laws"]
 
 #: the relative score by which the model with the motor laws must beat the declared one (a tie keeps the declared)
 MOTOR_FRICTION_TOLERANCE = 0.01
 
 
-def coupled_motors(transmission: Transmission | None) -> tuple[int, ...]:
-    """The 0-based motors that turn with more than one joint (a row of the coupling matrix with more than one
-    non-zero entry); none without a transmission."""
-    if transmission is None:
-        return ()
-    matrix = np.asarray(transmission.matrix, dtype=float)
-    return tuple(int(row) for row in range(matrix.shape[0]) if np.count_nonzero(matrix[row]) > 1)
-
-
 def motor_friction_laws(model: IdentificationModel, transmission: Transmission | None) -> tuple[Any, ...]:
     """Motor-side viscous and Coulomb friction (``motor_viscous``, ``motor_coulomb``) on each coupled motor
-    (:func:`coupled_motors`) whose law of that kind ``model`` does not declare; none on the external model (friction
+    (:meth:`dynamics.transmission.Transmission.coupled_motors`) whose law of that kind ``model`` does not declare; none on the external model (friction
     has no rows there) or without a coupled transmission."""
-    motors = coupled_motors(transmission)
+    motors = () if transmission is None else transmission.coupled_motors()
     if not motors or model.kind is ModelKind.EXTERNAL:
         return ()
     declared = {(effect.kind, label) for effect in model.effects if getattr(effect, "motor", False)
