@@ -478,11 +478,29 @@ def identification_streamed(args: IdentifyOptions, model: IdentificationModel, t
                  "harmonics": options["harmonics"], "decimation": options["decimation"],
                  "held_torques": options["held_torques"]}))
     result, chosen, selection = recorded_training(args, result, chosen, selection, chunk_size, options)
+    untried = streamed_motor_friction(args, model, transmission)
+    if untried is not None:
+        not_computed["motor_friction"] = untried
+        notes = (*notes, untried)
     validation_mse = None if result.validation is None else result.validation.mse
     return Identified(result, chosen, plan.to_dict(), plan.describe(),
                       (*messages, *notes), notes, trivial, floor, floor_note, not_computed, selection=selection,
                       consistent=None if selection is None else selection.consistent, weighting=weighting,
                       transmission=transmission, chunk_size=chunk_size, model_file=(model_plan, validation_mse))
+
+
+def streamed_motor_friction(args: IdentifyOptions, model: IdentificationModel,
+                            transmission: Transmission | None) -> str | None:
+    """What the streamed path says when the in-memory default would also have tried motor-side friction on the
+    coupled motors of the transmission (:func:`motor_friction_selection`), which it does not: the answer may then
+    differ from the in-memory one, and the laws can be declared. ``None`` when the in-memory path would not try it."""
+    laws = motor_friction_laws(model, transmission)
+    if not laws or args.method != "auto" or args.consistent or not args.validate or model_has_shapes(model):
+        return None
+    specs = ",".join(effect_spec(effect) for effect in laws)
+    return (f"motor-side friction on the coupled motors ({specs}) is a candidate of the in-memory default answer, not "
+            f"tried on the streamed path: this answer may differ from the in-memory one; declare it with "
+            f"--friction ...,{specs} to fit it here")
 
 
 def recorded_training(args: IdentifyOptions, result: IdentificationResult, chosen: ChosenModel,
