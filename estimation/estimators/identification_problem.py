@@ -37,12 +37,16 @@ class ResidualBand:
         The samples' rate.
     segments
         ``(start, stop)`` of each segment (filtered on its own); empty: one.
+    rates
+        The rate of each segment when they differ (segments resampled each onto its own grid, each filtered at its
+        rate as the differentiation filtered it); empty: ``rate_hz`` for all.
     """
 
     cutoff_hz: float
     order: int
     rate_hz: float
     segments: tuple[tuple[int, int], ...] = ()
+    rates: tuple[float, ...] = ()
 
     @classmethod
     def of(cls, measurements: Measurements) -> ResidualBand | None:
@@ -66,7 +70,17 @@ class ResidualBand:
             return None
         pieces = segment_slices(measurements)
         bounds = tuple((piece.start, piece.stop) for piece in pieces) if len(pieces) > 1 else ()
-        return cls(cutoff, int(metadata.get("filter_order") or 4), rate, bounds)
+        rates = tuple(_rate(measurements.t[piece]) for piece in pieces) if len(pieces) > 1 else ()
+        if any(not (value is not None and cutoff < 0.45 * value) for value in rates):
+            return None
+        return cls(cutoff, int(metadata.get("filter_order") or 4), rate, bounds,
+                   rates if len(set(rates)) > 1 else ())
+
+    def pieces(self, n_samples: int) -> list[tuple[int, int, ResidualBand]]:
+        """``(start, stop, band)`` of each segment of ``n_samples`` and the band of that segment alone (its rate)."""
+        bounds = self.segments or ((0, n_samples),)
+        rates = self.rates or (self.rate_hz,) * len(bounds)
+        return [(start, stop, ResidualBand(self.cutoff_hz, self.order, rate)) for (start, stop), rate in zip(bounds, rates)]
 
     @property
     def margin(self) -> int:
@@ -74,15 +88,16 @@ class ResidualBand:
         this far beyond it on each side (or to its segment's ends) equals its segment filtered whole."""
         return _band_margin(self.cutoff_hz, self.order, self.rate_hz)
 
-    def windows(self, n_samples: int, size: int) -> list[tuple[int, int, int, int]]:
-        """``(low, start, stop, high)`` of each block ``start:stop`` of at most ``size`` samples of ``n_samples``
-        and the window ``low:high`` it is filtered in (:meth:`apply` of the window, then ``start − low`` on): the
-        blocks cover each segment in order, each window within its segment."""
-        margin, windows = self.margin, []
-        for first, last in (self.segments or ((0, n_samples),)):
+    def windows(self, n_samples: int, size: int) -> list[tuple[ResidualBand, int, int, int, int]]:
+        """``(band, low, start, stop, high)`` of each block ``start:stop`` of at most ``size`` samples of
+        ``n_samples`` and the window ``low:high`` it is filtered in (``band``'s :meth:`window`, then ``start − low``
+        on): the blocks cover each segment in order, each window within its segment, ``band`` its segment's."""
+        windows = []
+        for first, last, band in self.pieces(n_samples):
+            margin = band.margin
             for start in range(first, last, size):
                 stop = min(start + size, last)
-                windows.append((max(start - margin, first), start, stop, min(stop + margin, last)))
+                windows.append((band, max(start - margin, first), start, stop, min(stop + margin, last)))
         return windows
 
     def window(self, values: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -92,10 +107,10 @@ class ResidualBand:
     def apply(self, values: NDArray[np.float64]) -> NDArray[np.float64]:
         """``values`` (samples along axis 0) low-passed by the same zero-phase filter, each segment on its own
         (a segment too short for the filter's padding is left as it is)."""
-        sos = scipy.signal.butter(self.order, self.cutoff_hz, btype="low", fs=self.rate_hz, output="sos")
         values = np.asarray(values, dtype=float)
         filtered = values.copy()
-        for start, stop in (self.segments or ((0, values.shape[0]),)):
+        for start, stop, band in self.pieces(values.shape[0]):
+            sos = scipy.signal.butter(self.order, self.cutoff_hz, btype="low", fs=band.rate_hz, output="sos")
             if stop - start > 3 * (2 * len(sos) + 1):
                 filtered[start:stop] = scipy.signal.sosfiltfilt(sos, values[start:stop], axis=0)
         return filtered
@@ -150,8 +165,16 @@ def in_band_blocks(measurements: Measurements, size: int
     band = ResidualBand.of(measurements)
     if band is None:
         return None
-    return [(band, measurements.select(slice(low, high)), slice(start - low, stop - low))
-            for low, start, stop, high in band.windows(measurements.n_samples, size)]
+    return [(piece, measurements.select(slice(low, high)), slice(start - low, stop - low))
+            for piece, low, start, stop, high in band.windows(measurements.n_samples, size)]
+
+
+def _rate(t: NDArray[np.float64]) -> float | None:
+    """The rate of samples at times ``t`` as the differentiation takes it (the median step, rounded alike)."""
+    if t.shape[0] < 2:
+        return None
+    step = float(np.median(np.diff(t)))
+    return float(f"{1.0 / step:.9g}") if step > 0 else None
 
 
 def in_band_variance(residuals: NDArray[np.float64], n_parameters: int,
