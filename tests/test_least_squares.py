@@ -227,7 +227,7 @@ def test_channel_weights_come_from_the_residual_in_the_motions_band():
     assert ResidualBand.of(ButterworthDifferentiation(cutoff_hz=2.0, torques="filtered").apply(measured)) is None
 
 
-def test_summed_weights_come_from_the_residual_in_the_motions_band_as_in_memory(tmp_path):
+def test_summed_weights_come_from_the_residual_in_the_motions_band_as_in_memory(tmp_path, monkeypatch):
     """The sums of the in-band problem (``NormalEquations.band``): summed in blocks of a record in memory
     (``accumulate``) and read in chunks from a file (``file_sums``, windows reaching the band filter's margin further),
     the weighted fit from the sums has the in-memory weights and estimate (relative 1e-6, the iteration's tolerance); without the band (the
@@ -255,6 +255,13 @@ def test_summed_weights_come_from_the_residual_in_the_motions_band_as_in_memory(
     prepared = ButterworthDifferentiation(5.0, torques="recorded").apply(raw)
     memory = WeightedLeastSquares().fit(stack(model, prepared)).estimate_
     summed = accumulate(model, prepared, chunk_size=150)
+    import functools
+
+    import estimation.streaming.chunks as chunks
+
+    # the streamed reader's filter keeping the torques as recorded, whatever the default
+    monkeypatch.setattr(chunks, "ButterworthDifferentiation", functools.partial(ButterworthDifferentiation,
+                                                                                torques="recorded"))
     streamed = file_sums(path, model, chunk_size=150, cutoff_hz=5.0).sums
     assert summed.band is not None and streamed.band is not None
     for sums in (summed, streamed):
