@@ -269,14 +269,16 @@ def check_chunk_size(chunk_size: int, model: IdentificationModel, extra_columns:
 
 @single_threaded_blas()
 def accumulate(model: IdentificationModel, measurements: Measurements, *, chunk_size: int = DEFAULT_CHUNK_SIZE,
-               sums: NormalEquations | None = None, source: str = "", gram: bool = True) -> NormalEquations:
+               sums: NormalEquations | None = None, source: str = "", gram: bool = True,
+               band: bool = True) -> NormalEquations:
     """Sums of ``model``'s base-parameter problem on ``measurements`` (with ``dq``, ``ddq``), the
     regressor evaluated ``chunk_size`` samples at a time, added to ``sums`` if given.
 
     When the measurements have a band (:func:`~estimation.estimators.identification_problem.in_band_blocks`: the
     torques kept as recorded, the motion low-passed), the sums of the problem in that band are summed too (:attr:`NormalEquations.band`; each block's regressor and
     target filtered in a window reaching the filter's margin beyond it, as the whole record is
-    filtered), and added to the band of ``sums`` (given without one, the result has none).
+    filtered), and added to the band of ``sums`` (given without one, the result has none); ``band=False``: not
+    (ordinary least squares does not read them: they cost a second regressor and factor).
 
     ``gram=False``: only the TSQR factors and the powers are summed, the Gram matrices and moments are left NaN
     (not summed): enough for :class:`~estimation.estimators.summed_least_squares.SummedLeastSquares`, which
@@ -294,7 +296,7 @@ def accumulate(model: IdentificationModel, measurements: Measurements, *, chunk_
     if not np.all(np.isfinite(measured)):
         raise ValueError(f"{source or 'the data'}: a measured channel holds NaN or inf")
     buffer = np.empty((min(chunk_size, measurements.n_samples), model.n_channels, model.n_base))
-    blocks = in_band_blocks(measurements, chunk_size)
+    blocks = in_band_blocks(measurements, chunk_size) if band else None
     given = sums  # its band (add_block sums the problem as it is)
     for start in range(0, measurements.n_samples, chunk_size):
         stop = min(start + chunk_size, measurements.n_samples)
