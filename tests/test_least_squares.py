@@ -224,4 +224,52 @@ def test_channel_weights_come_from_the_residual_in_the_motions_band():
     assert ResidualBand.of(prepared) == band
     assert ResidualBand.of(measured) is None
     # torques filtered alike (the default): nothing out of band, no band
-    assert ResidualBand.of(ButterworthDifferentiation(cutoff_hz=2.0).apply(measured)) is None
+    assert ResidualBand.of(ButterworthDifferentiation(cutoff_hz=2.0, torques="filtered").apply(measured)) is None
+
+
+def test_summed_weights_come_from_the_residual_in_the_motions_band_as_in_memory(tmp_path, monkeypatch):
+    """The sums of the in-band problem (``NormalEquations.band``): summed in blocks of a record in memory
+    (``accumulate``) and read in chunks from a file (``file_sums``, windows reaching the band filter's margin further),
+    the weighted fit from the sums has the in-memory weights and estimate (relative 1e-6, the iteration's tolerance); without the band (the
+    torques filtered alike) the sums have none."""
+    from dynamics.models import build_model
+    from dynamics.robots import load_robot
+    from dynamics.measurements import Measurements
+    from dynamics.simulation.synthetic import simulate, true_parameters
+    from estimation.estimators.identification_problem import stack
+    from estimation.estimators.normal_equations import accumulate
+    from estimation.estimators.summed_least_squares import SummedLeastSquares
+    from estimation.preprocessing.differentiation import ButterworthDifferentiation
+    from estimation.streaming.chunks import file_sums
+    from oed.fourier import random_fourier
+
+    model = build_model(load_robot("puma560", joints=3), "internal", "viscous")
+    theta = true_parameters(model, seed=0)
+    data = simulate(model, theta, random_fourier(model.robot, seed=3), noise={c: 0.3 for c in model.channels},
+                    seed=1, rate_hz=200.0, periods=1)
+    rng = np.random.default_rng(0)
+    tau = data.tau + rng.normal(size=data.tau.shape) * np.array([0.1, 2.0, 0.5])  # unequal out-of-band noise
+    raw = Measurements(data.t, data.q, tau=tau)
+    path = tmp_path / "raw.csv"
+    raw.write(path)
+    prepared = ButterworthDifferentiation(5.0, torques="recorded").apply(raw)
+    memory = WeightedLeastSquares().fit(stack(model, prepared)).estimate_
+    summed = accumulate(model, prepared, chunk_size=150)
+    import functools
+
+    import estimation.streaming.chunks as chunks
+
+    # the streamed reader's filter keeping the torques as recorded, whatever the default
+    monkeypatch.setattr(chunks, "ButterworthDifferentiation", functools.partial(ButterworthDifferentiation,
+                                                                                torques="recorded"))
+    streamed = file_sums(path, model, chunk_size=150, cutoff_hz=5.0).sums
+    assert summed.band is not None and streamed.band is not None
+    for sums in (summed, streamed):
+        fit = SummedLeastSquares().fit(sums).estimate_
+        np.testing.assert_allclose(fit.weights, memory.weights, rtol=1e-6)  # the iteration stops at tol 1e-6
+        np.testing.assert_allclose(fit.values, memory.values, rtol=1e-6, atol=1e-8 * np.max(np.abs(memory.values)))
+    # without the band, the weights are those of the recorded residual, its white noise whole (a tenth in band)
+    from dataclasses import replace
+    unbanded = SummedLeastSquares().fit(replace(summed, band=None)).estimate_
+    assert np.all(unbanded.weights < 0.2 * memory.weights)
+    assert accumulate(model, ButterworthDifferentiation(5.0, torques="filtered").apply(raw)).band is None

@@ -341,9 +341,29 @@ def test_streamed_diagnosis_chooses_the_default_answer_as_in_memory(noisy_files,
         assert measured == pytest.approx(reported, rel=1e-6)
 
 
+@pytest.fixture(scope="module")
+def tanh_files(model, tmp_path_factory):
+    """As ``files["raw"]`` (noisy q and tau, Parquet), the Coulomb law of joint 2 smooth: ``8 tanh(q̇₂ / 0.1)``."""
+    folder = tmp_path_factory.mktemp("streamed_tanh")
+    truth = build_model(model.robot, "internal", ("viscous", JointOffset(joints=(0,))))
+    theta = true_parameters(truth, seed=0, offset=[3.0])
+    rng = np.random.default_rng(5)
+    paths = []
+    for seed, trajectory in ((1, 3), (2, 4)):
+        data = simulate(truth, theta, random_fourier(model.robot, seed=trajectory), noise={c: NOISE for c in truth.channels},
+                        seed=seed, rate_hz=200.0, periods=1)
+        tau = data.tau.copy()
+        tau[:, 1] += 8.0 * np.tanh(data.dq[:, 1] / 0.1)
+        raw = folder / f"tanh{seed}.parquet"
+        Measurements(data.t, data.q + 1e-5 * rng.standard_normal(data.q.shape), tau=tau).write(raw)
+        paths.append(raw)
+    return paths
+
+
 @pytest.mark.parametrize("jittered", [False, True])
-def test_a_shaped_law_enters_the_streamed_consistent_refit_at_its_fixed_shape(model, files, tmp_path, jittered):
-    """The filter path finds ``coulomb:tanh`` on joint 2 streamed (its shape fixed at the subsample's optimum): its
+def test_a_shaped_law_enters_the_streamed_consistent_refit_at_its_fixed_shape(model, tanh_files, tmp_path, jittered):
+    """The filter path finds the smooth Coulomb law of joint 2, ``coulomb:tanh``, streamed (its shape fixed at the
+    subsample's optimum): its
     consistent refit holds that shape (the sums' columns at it, in the model's base order), and ``oed predict`` of
     each model of the file (the consistent refit and the adopted model) measures the errors the run reported; on a
     jittered validation log (stamps moved, rows re-sent, a stall: resampled by the loader) every candidate and
@@ -353,11 +373,11 @@ def test_a_shaped_law_enters_the_streamed_consistent_refit_at_its_fixed_shape(mo
 
     from tests.test_recorded_stamps import logger_faults
 
-    validate = files["raw"][1]
+    validate = tanh_files[1]
     if jittered:
         validate = tmp_path / "jittered_validate.csv"
-        logger_faults(pd.read_parquet(files["raw"][1]), 2).to_csv(validate, index=False, float_format="%.10g")
-    run = oed.diagnose(joints=3, model="internal", friction="viscous", data=files["raw"][0], validate=validate,
+        logger_faults(pd.read_parquet(tanh_files[1]), 2).to_csv(validate, index=False, float_format="%.10g")
+    run = oed.diagnose(joints=3, model="internal", friction="viscous", data=tanh_files[0], validate=validate,
                        cutoff=CUTOFF, memory_budget="1KB")
     if jittered:
         assert any(entry["resampled_from"] for entry in run.to_dict()["streaming"]["validation_files"])

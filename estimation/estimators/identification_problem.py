@@ -10,6 +10,8 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
 
+import functools
+
 import numpy as np
 import scipy.signal
 from numpy.typing import ArrayLike, NDArray
@@ -35,12 +37,16 @@ class ResidualBand:
         The samples' rate.
     segments
         ``(start, stop)`` of each segment (filtered on its own); empty: one.
+    rates
+        The rate of each segment when they differ (segments resampled each onto its own grid, each filtered at its
+        rate as the differentiation filtered it); empty: ``rate_hz`` for all.
     """
 
     cutoff_hz: float
     order: int
     rate_hz: float
     segments: tuple[tuple[int, int], ...] = ()
+    rates: tuple[float, ...] = ()
 
     @classmethod
     def of(cls, measurements: Measurements) -> ResidualBand | None:
@@ -48,6 +54,8 @@ class ResidualBand:
         below their Nyquist frequency and kept the torques as recorded (``torques="recorded"``; filtered alike, they
         hold nothing the motion's columns cannot)."""
         metadata = measurements.metadata
+        if "band_window" in metadata:  # a block of a record read in chunks: its band is its window's (BandWindow)
+            return None
         if metadata.get("differentiation") != "butterworth" or metadata.get("cutoff_hz") is None:
             return None
         if metadata.get("torques") != "recorded":  # filtered alike, the target holds nothing out of band
@@ -62,18 +70,111 @@ class ResidualBand:
             return None
         pieces = segment_slices(measurements)
         bounds = tuple((piece.start, piece.stop) for piece in pieces) if len(pieces) > 1 else ()
-        return cls(cutoff, int(metadata.get("filter_order") or 4), rate, bounds)
+        rates = tuple(_rate(measurements.t[piece]) for piece in pieces) if len(pieces) > 1 else ()
+        if any(not (value is not None and cutoff < 0.45 * value) for value in rates):
+            return None
+        return cls(cutoff, int(metadata.get("filter_order") or 4), rate, bounds,
+                   rates if len(set(rates)) > 1 else ())
+
+    def pieces(self, n_samples: int) -> list[tuple[int, int, ResidualBand]]:
+        """``(start, stop, band)`` of each segment of ``n_samples`` and the band of that segment alone (its rate)."""
+        bounds = self.segments or ((0, n_samples),)
+        rates = self.rates or (self.rate_hz,) * len(bounds)
+        return [(start, stop, ResidualBand(self.cutoff_hz, self.order, rate)) for (start, stop), rate in zip(bounds, rates)]
+
+    @property
+    def margin(self) -> int:
+        """Samples the filter reaches beyond a block (:func:`decay_length`): a block filtered in a window reaching
+        this far beyond it on each side (or to its segment's ends) equals its segment filtered whole."""
+        return _band_margin(self.cutoff_hz, self.order, self.rate_hz)
+
+    def windows(self, n_samples: int, size: int) -> list[tuple[ResidualBand, int, int, int, int]]:
+        """``(band, low, start, stop, high)`` of each block ``start:stop`` of at most ``size`` samples of
+        ``n_samples`` and the window ``low:high`` it is filtered in (``band``'s :meth:`window`, then ``start − low``
+        on): the blocks cover each segment in order, each window within its segment, ``band`` its segment's."""
+        windows = []
+        for first, last, band in self.pieces(n_samples):
+            margin = band.margin
+            for start in range(first, last, size):
+                stop = min(start + size, last)
+                windows.append((band, max(start - margin, first), start, stop, min(stop + margin, last)))
+        return windows
+
+    def window(self, values: NDArray[np.float64]) -> NDArray[np.float64]:
+        """``values`` of one window of :meth:`windows` (samples along axis 0) low-passed as one segment."""
+        return replace(self, segments=()).apply(values)
 
     def apply(self, values: NDArray[np.float64]) -> NDArray[np.float64]:
         """``values`` (samples along axis 0) low-passed by the same zero-phase filter, each segment on its own
         (a segment too short for the filter's padding is left as it is)."""
-        sos = scipy.signal.butter(self.order, self.cutoff_hz, btype="low", fs=self.rate_hz, output="sos")
         values = np.asarray(values, dtype=float)
         filtered = values.copy()
-        for start, stop in (self.segments or ((0, values.shape[0]),)):
+        for start, stop, band in self.pieces(values.shape[0]):
+            sos = scipy.signal.butter(self.order, self.cutoff_hz, btype="low", fs=band.rate_hz, output="sos")
             if stop - start > 3 * (2 * len(sos) + 1):
                 filtered[start:stop] = scipy.signal.sosfiltfilt(sos, values[start:stop], axis=0)
         return filtered
+
+
+#: relative size of the impulse response at which a filter's reach ends (the streamed path's overlap margins)
+DECAY_TOLERANCE = 1e-13
+
+
+def decay_length(sos: NDArray[np.float64], tolerance: float = DECAY_TOLERANCE) -> int:
+    """Samples after which the impulse response of ``sos`` stays below ``tolerance`` of its peak: how far beyond a
+    block of samples a zero-phase filter reaches (a block filtered in a window this much wider on each side equals
+    the whole record filtered, to about ``tolerance``)."""
+    length = 1024
+    while True:
+        impulse = np.zeros(length)
+        impulse[0] = 1.0
+        response = np.abs(scipy.signal.sosfilt(sos, impulse))
+        above = np.flatnonzero(response > tolerance * response.max())
+        if above[-1] < length - length // 4 or length > 50_000_000:
+            return int(above[-1]) + 1
+        length *= 4
+
+
+@functools.lru_cache(maxsize=32)
+def _band_margin(cutoff_hz: float, order: int, rate_hz: float) -> int:
+    return decay_length(scipy.signal.butter(order, cutoff_hz, btype="low", fs=rate_hz, output="sos"))
+
+
+@dataclass(frozen=True)
+class BandWindow:
+    """A block of a record prepared in chunks (``metadata["band_window"]``, the streamed path) with what its in-band
+    problem needs: ``samples``, the block's prepared samples extended by the band's :attr:`~ResidualBand.margin`
+    on each side (less at the record's ends), the block from ``offset`` on, and the record's ``band``."""
+
+    band: ResidualBand
+    samples: Measurements
+    offset: int
+
+
+def in_band_blocks(measurements: Measurements, size: int
+                   ) -> list[tuple[ResidualBand, Measurements, slice]] | None:
+    """The blocks of ``measurements`` (at most ``size`` samples) as their in-band problem is built: ``(band, window,
+    kept)``, the block's columns evaluated on ``window``, low-passed (:meth:`ResidualBand.window`) and cut to
+    ``kept``, equal to those of the whole record low-passed; ``None``: no band (:meth:`ResidualBand.of`; a chunk
+    of a record read in chunks has its window's, :class:`BandWindow`)."""
+    if "band_window" in measurements.metadata:
+        window = measurements.metadata["band_window"]
+        if window is None:
+            return None
+        return [(window.band, window.samples, slice(window.offset, window.offset + measurements.n_samples))]
+    band = ResidualBand.of(measurements)
+    if band is None:
+        return None
+    return [(piece, measurements.select(slice(low, high)), slice(start - low, stop - low))
+            for piece, low, start, stop, high in band.windows(measurements.n_samples, size)]
+
+
+def _rate(t: NDArray[np.float64]) -> float | None:
+    """The rate of samples at times ``t`` as the differentiation takes it (the median step, rounded alike)."""
+    if t.shape[0] < 2:
+        return None
+    step = float(np.median(np.diff(t)))
+    return float(f"{1.0 / step:.9g}") if step > 0 else None
 
 
 def in_band_variance(residuals: NDArray[np.float64], n_parameters: int,

@@ -32,6 +32,7 @@ from dynamics.runtime.memory import check_allocation
 from dynamics.models import IdentificationModel
 from dynamics.runtime.threads import single_threaded_blas
 from dynamics.measurements import Measurements
+from estimation.estimators.identification_problem import in_band_blocks
 
 __all__ = ["DEFAULT_CHUNK_SIZE", "NormalEquations", "accumulate", "check_chunk_size", "reduce_sums", "stacked_factor"]
 
@@ -99,6 +100,11 @@ class NormalEquations:
         Channel names; column names and groupings (base parameters, then any candidate columns).
     sources
         What was summed (file names, chunks), for messages and the expected-count check.
+    band
+        The sums of the same problem in the motion's band, ``(F Y_c, F y_c)`` with ``F`` the zero-phase low-pass the
+        motion was filtered with (:class:`estimation.estimators.identification_problem.ResidualBand`), when the
+        torques were fitted as recorded: the channel weights of a weighted fit come from its residual
+        (:func:`~estimation.estimators.identification_problem.in_band_variance`); ``None``: from the residual.
     """
 
     gram: NDArray[np.float64]
@@ -110,6 +116,7 @@ class NormalEquations:
     names: tuple[str, ...]
     expressions: tuple[str, ...] = ()
     sources: tuple[str, ...] = ()
+    band: NormalEquations | None = None
 
     def __post_init__(self) -> None:
         m, k = len(self.channels), len(self.names)
@@ -124,6 +131,10 @@ class NormalEquations:
         object.__setattr__(self, "sources", tuple(self.sources))
         if int(self.n_samples) != self.n_samples or self.n_samples < 0:
             raise ValueError(f"n_samples must be a non-negative integer, got {self.n_samples}")
+        if self.band is not None and (not isinstance(self.band, NormalEquations) or self.band.band is not None
+                                      or self.band.channels != self.channels or self.band.names != self.names
+                                      or self.band.n_samples != self.n_samples):
+            raise ValueError("the band's sums must be those of the same problem (channels, columns, samples)")
 
     @property
     def n_channels(self) -> int:
@@ -170,7 +181,7 @@ class NormalEquations:
         factor = np.stack([stacked_factor([a, b], width) for a, b in zip(self.factor, other.factor)])
         return NormalEquations(self.gram + other.gram, self.moment + other.moment, self.power + other.power,
                                factor, self.n_samples + other.n_samples, self.channels, self.names,
-                               self.expressions, self.sources + other.sources)
+                               self.expressions, self.sources + other.sources, _added_bands(self, other))
 
     def add_block(self, Y: NDArray[np.float64], y: NDArray[np.float64], source: str = "", *,
                   gram: bool = True) -> NormalEquations:
@@ -212,7 +223,13 @@ class NormalEquations:
         factor = np.stack([stacked_factor([R[:, keep]], len(keep)) for R in self.factor])
         return NormalEquations(self.gram[:, index][:, :, index], self.moment[:, index], self.power, factor,
                                self.n_samples, self.channels, tuple(self.names[i] for i in index),
-                               tuple(self.expressions[i] for i in index), self.sources)
+                               tuple(self.expressions[i] for i in index), self.sources,
+                               None if self.band is None else self.band.select(index))
+
+    def in_band_rss(self, theta: NDArray[np.float64]) -> NDArray[np.float64]:
+        """``‖F(y_c − Y_c θ)‖²`` per channel, the residual in the motion's band (:attr:`band`), or
+        :meth:`channel_rss` when the sums have no band: what the channel weights are taken from."""
+        return (self if self.band is None else self.band).channel_rss(theta)
 
     def channel_rss(self, theta: NDArray[np.float64]) -> NDArray[np.float64]:
         """``‖y_c − Y_c θ‖²`` per channel, ``(m,)``, from the factors."""
@@ -228,6 +245,18 @@ class NormalEquations:
         return dict(zip(self.channels, map(float, self.channel_rss(theta) / self.n_samples)))
 
 
+def _added_bands(a: NormalEquations, b: NormalEquations) -> NormalEquations | None:
+    """The band sums of ``a + b``: their sum, the one side's when the other holds no samples, else ``None`` (a
+    record without a band among them: the weights come from the residual, as in memory for records stacked so)."""
+    if a.band is not None and b.band is not None:
+        return a.band + b.band
+    if b.n_samples == 0:
+        return a.band
+    if a.n_samples == 0:
+        return b.band
+    return None
+
+
 def check_chunk_size(chunk_size: int, model: IdentificationModel, extra_columns: int = 0) -> int:
     """A positive integer whose chunk fits in memory (regressor, its QR copies, the evaluation's output)."""
     if isinstance(chunk_size, bool) or int(chunk_size) != chunk_size or chunk_size < 1:
@@ -240,9 +269,16 @@ def check_chunk_size(chunk_size: int, model: IdentificationModel, extra_columns:
 
 @single_threaded_blas()
 def accumulate(model: IdentificationModel, measurements: Measurements, *, chunk_size: int = DEFAULT_CHUNK_SIZE,
-               sums: NormalEquations | None = None, source: str = "", gram: bool = True) -> NormalEquations:
+               sums: NormalEquations | None = None, source: str = "", gram: bool = True,
+               band: bool = True) -> NormalEquations:
     """Sums of ``model``'s base-parameter problem on ``measurements`` (with ``dq``, ``ddq``), the
     regressor evaluated ``chunk_size`` samples at a time, added to ``sums`` if given.
+
+    When the measurements have a band (:func:`~estimation.estimators.identification_problem.in_band_blocks`: the
+    torques kept as recorded, the motion low-passed), the sums of the problem in that band are summed too (:attr:`NormalEquations.band`; each block's regressor and
+    target filtered in a window reaching the filter's margin beyond it, as the whole record is
+    filtered), and added to the band of ``sums`` (given without one, the result has none); ``band=False``: not
+    (ordinary least squares does not read them: they cost a second regressor and factor).
 
     ``gram=False``: only the TSQR factors and the powers are summed, the Gram matrices and moments are left NaN
     (not summed): enough for :class:`~estimation.estimators.summed_least_squares.SummedLeastSquares`, which
@@ -253,12 +289,15 @@ def accumulate(model: IdentificationModel, measurements: Measurements, *, chunk_
     if measurements.n_joints != model.robot.n_joints:
         raise ValueError(f"the data have {measurements.n_joints} joints, the robot {model.robot.n_joints}")
     chunk_size = check_chunk_size(chunk_size, model)
+    empty = NormalEquations.empty(model.channels, model.base.names, model.base.expressions)
     if sums is None:
-        sums = NormalEquations.empty(model.channels, model.base.names, model.base.expressions)
+        sums = empty
     measured = measurements.channels(model.channels)
     if not np.all(np.isfinite(measured)):
         raise ValueError(f"{source or 'the data'}: a measured channel holds NaN or inf")
     buffer = np.empty((min(chunk_size, measurements.n_samples), model.n_channels, model.n_base))
+    blocks = in_band_blocks(measurements, chunk_size) if band else None
+    given = sums  # its band (add_block sums the problem as it is)
     for start in range(0, measurements.n_samples, chunk_size):
         stop = min(start + chunk_size, measurements.n_samples)
         Y = model.evaluate_base(measurements.q[start:stop], measurements.dq[start:stop], measurements.ddq[start:stop],
@@ -267,8 +306,14 @@ def accumulate(model: IdentificationModel, measurements: Measurements, *, chunk_
             raise ValueError(f"{source or 'the data'}: the regressor holds NaN or inf near sample {start}: "
                              "check the measured q, dq, ddq")
         sums = sums.add_block(Y, measured[start:stop], gram=gram)
+    in_band = None
+    if blocks is not None and (given.band is not None or given.n_samples == 0):
+        in_band = empty if given.band is None else given.band
+        for band, window, kept in blocks:
+            Y = band.window(model.evaluate_base(window.q, window.dq, window.ddq))[kept]
+            in_band = in_band.add_block(Y, band.window(window.channels(model.channels))[kept], gram=gram)
     return NormalEquations(sums.gram, sums.moment, sums.power, sums.factor, sums.n_samples, sums.channels,
-                           sums.names, sums.expressions, sums.sources + ((source,) if source else ()))
+                           sums.names, sums.expressions, sums.sources + ((source,) if source else ()), in_band)
 
 
 def reduce_sums(parts: Iterable[NormalEquations]) -> NormalEquations:

@@ -102,7 +102,8 @@ class SummedLeastSquares(Estimator):
     The same estimator as :class:`estimation.estimators.least_squares.WeightedLeastSquares` (weights
     ``1/σ_c²`` iterated until no channel variance moves by more than ``tol``, variances floored at
     ``variance_floor`` times the channel's mean square) or, with ``method="ols"``,
-    :class:`estimation.estimators.least_squares.LeastSquares`; only the data come as sums.
+    :class:`estimation.estimators.least_squares.LeastSquares`; only the data come as sums. The variances are those
+    of the residual in the motion's band when the sums hold its sums (:attr:`NormalEquations.band`), as in memory.
     ``fit(sums)`` returns ``self``; fitted attributes ``estimate_``, ``theta_``, ``cov_``, ``std_``.
     """
 
@@ -140,7 +141,8 @@ class SummedLeastSquares(Estimator):
             for _ in range(int(self.max_iter) + 1):
                 theta = _solved(sums, weights)[0]  # only θ: the inverse and cond at the settled weights
                 iterations += 1
-                updated = np.maximum(sums.channel_rss(theta) / dof_channel, floor)
+                # the variances of the residual in the motion's band when the sums hold it (NormalEquations.band)
+                updated = np.maximum(sums.in_band_rss(theta) / dof_channel, floor)
                 change = np.inf if variance is None else np.max(np.abs(updated - variance) / variance)
                 variance = updated
                 weights = 1.0 / variance

@@ -256,9 +256,10 @@ Family = Literal["fourier", "butterworth"]
 def training_sums(model: IdentificationModel, prepared: Measurements) -> NormalEquations | None:
     """A training record as a candidate prepared it, summed for ``model``'s unconstrained fits (the TSQR factors and
     powers, no Gram sums: :func:`~estimation.estimators.normal_equations.accumulate`), or ``None`` when it cannot
-    be (the choice on a validation record then prepares it again and says why)."""
+    be (the choice on a validation record then prepares it again and says why). Without the in-band sums: the
+    validation record scores the candidates by OLS unless WLS is asked for, which sums them again with it."""
     try:
-        return accumulate(model, concatenate(prepared), gram=False)
+        return accumulate(model, concatenate(prepared), gram=False, band=False)  # the OLS scores' sums
     except (ValueError, np.linalg.LinAlgError):
         return None
 

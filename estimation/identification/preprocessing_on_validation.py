@@ -159,12 +159,16 @@ class ValidationScore:
         try:
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")  # said once, for the choice, when the records are prepared again
+                weighted = "wls" in self.fits  # its channel weights from the in-band sums (NormalEquations.band)
+                if sums is not None and weighted and sums.band is None:
+                    sums = None  # the training choice's sums lack them (the OLS scores do not read them)
                 prepared_train = prepare(train, plan, role="training data") if sums is None else None
                 prepared_validation = prepare(validation, plan, role="validation data")
                 if sums is None:
                     # the fits from sums of the regressor made a chunk at a time (the same estimators, as accurate as
                     # a QR of the whole regressor): memory stays that of a chunk, whatever the window (issue 33)
-                    sums = accumulate(self.model, concatenate(prepared_train), gram=False)  # the fits use the factors
+                    sums = accumulate(self.model, concatenate(prepared_train), gram=False,  # the fits use the factors
+                                      band=weighted)
                 del prepared_train
                 estimates = {fit: SummedLeastSquares(method=fit).fit(sums).estimate_.values
                              for fit in FITS if fit in self.fits}

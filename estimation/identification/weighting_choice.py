@@ -101,13 +101,14 @@ def _kept_band(problem: IdentificationProblem, held: slice) -> ResidualBand | No
     own (the held block joins no two stretches)."""
     if problem.band is None:
         return None
-    bounds, removed = [], held.stop - held.start
-    for start, stop in problem.segments or ((0, problem.n_samples),):
+    bounds, rates, removed = [], [], held.stop - held.start
+    for start, stop, band in problem.band.pieces(problem.n_samples):  # each segment at its rate
         for lower, upper in ((start, min(stop, held.start)), (max(start, held.stop), stop)):
             if upper > lower:
                 shift = removed if lower >= held.stop else 0
                 bounds.append((lower - shift, upper - shift))
-    return replace(problem.band, segments=tuple(bounds))
+                rates.append(band.rate_hz)
+    return replace(problem.band, segments=tuple(bounds), rates=tuple(rates) if len(set(rates)) > 1 else ())
 
 
 def weighting_samples(window: ChoiceWindow, plan: Preprocessing, prepared: Measurements | None = None) -> Measurements:

@@ -58,6 +58,7 @@ from estimation.data.loading import (
 )
 from estimation.data.records import measurements_from_frame
 from dynamics.measurements import Measurements, joint_columns
+from estimation.estimators.identification_problem import BandWindow, ResidualBand, decay_length
 from estimation.estimators.normal_equations import DEFAULT_CHUNK_SIZE, NormalEquations, accumulate, check_chunk_size
 from estimation.preprocessing.differentiation import ButterworthDifferentiation, compensate_hold, decimate
 from estimation.streaming.time_base import Resampler, TimeScan, file_segments, scan_time
@@ -352,15 +353,7 @@ class _ChunkChecks:
 
 def _decay_length(sos: NDArray[np.float64], tolerance: float) -> int:
     """Samples after which the impulse response of ``sos`` stays below ``tolerance`` of its peak."""
-    length = 1024
-    while True:
-        impulse = np.zeros(length)
-        impulse[0] = 1.0
-        response = np.abs(scipy.signal.sosfilt(sos, impulse))
-        above = np.flatnonzero(response > tolerance * response.max())
-        if above[-1] < length - length // 4 or length > 50_000_000:
-            return int(above[-1]) + 1
-        length *= 4
+    return decay_length(sos, tolerance)
 
 
 @functools.lru_cache(maxsize=32)
@@ -407,8 +400,8 @@ def _preprocessed(window: Measurements, method: ButterworthDifferentiation | Non
 
 def preprocessed_chunks(path: str | Path, model: IdentificationModel, *, chunk_size: int = DEFAULT_CHUNK_SIZE,
                         cutoff_hz: float | None = None, order: int = 4, decimation: int = 1,
-                        held_torques: bool = False, trim: bool = False, record: dict | None = None
-                        ) -> Iterator[Measurements]:
+                        held_torques: bool = False, trim: bool = False, record: dict | None = None,
+                        band: bool = False) -> Iterator[Measurements]:
     """The preprocessed samples of one file, chunk by chunk (overlapping windows: module docstring).
 
     The arguments are those of :func:`file_sums`. ``trim``: on the filter path without decimation,
@@ -417,7 +410,12 @@ def preprocessed_chunks(path: str | Path, model: IdentificationModel, *, chunk_s
     does (``ButterworthDifferentiation(trim=True)``). ``record`` (a dict, optional) receives, once the
     file is read to its end, ``rows`` (samples read), ``columns`` (the column groups) and
     ``metadata`` (decimation, margin, differentiation…). Each chunk keeps the channels as recorded
-    (``Measurements.recorded``) beside the filtered ones when the filter path runs.
+    (``Measurements.recorded``) beside the filtered ones when the filter path runs. ``band``: when the torques are
+    kept as recorded (``ButterworthDifferentiation(torques="recorded")``), each chunk carries its samples extended by
+    the band filter's margin, ``metadata["band_window"]`` (:class:`~estimation.estimators.identification_problem.BandWindow`:
+    the windows reach that much further), from which the in-band problem of the chunk equals the whole record's
+    (:func:`~estimation.estimators.identification_problem.in_band_blocks`); without, or when there is no band, it is
+    ``None`` on the filter path (no chunk is low-passed on its own).
     """
     path = Path(path)
     chunk_size = check_chunk_size(chunk_size, model)
@@ -428,7 +426,8 @@ def preprocessed_chunks(path: str | Path, model: IdentificationModel, *, chunk_s
         record["chunk_size"] = chunk_size
     chunks = read_chunks(path, model, chunk_size=chunk_size)
     first = next(chunks)  # here, so that a warning of read_chunks points at the caller
-    windows = _OverlappingWindows(path, first, chunks, chunk_size, cutoff_hz, order, decimation, held_torques, trim)
+    windows = _OverlappingWindows(path, first, chunks, chunk_size, cutoff_hz, order, decimation, held_torques, trim,
+                                  band)
     yield from windows.kept_chunks()
     if record is not None:
         record.update(rows=windows.rows, columns=windows.columns, metadata=windows.metadata())
@@ -440,7 +439,8 @@ class _OverlappingWindows:
     samples whose preprocessed values are given out (``done``)."""
 
     def __init__(self, path: Path, first: Measurements, chunks: Iterator[Measurements], chunk_size: int,
-                 cutoff_hz: float | None, order: int, decimation: int, held_torques: bool, trim: bool) -> None:
+                 cutoff_hz: float | None, order: int, decimation: int, held_torques: bool, trim: bool,
+                 band: bool = False) -> None:
         derive = first.dq is None or first.ddq is None
         if derive and cutoff_hz is None:
             raise StreamingUnsupportedError(f"{path}: without dq/ddq the streamed path needs one Butterworth cut-off for "
@@ -457,6 +457,13 @@ class _OverlappingWindows:
                        if (derive or decimation > 1) else 0)
         self.columns = tuple(name for name in ("dq", "ddq", "tau", "wrench") if getattr(first, name) is not None)
         self.edge = method.settling_samples(rate, cutoff_hz) if trim and method is not None and decimation == 1 else 0
+        # the band of the in-band problem (ResidualBand.of of the record prepared in memory) and the samples beyond
+        # each chunk its filter reaches, on the prepared (decimated) samples; the windows reach that much further
+        rate_prepared = float(f"{rate / int(decimation):.9g}")
+        self.band = (ResidualBand(float(cutoff_hz), int(order), rate_prepared)
+                     if band and method is not None and method.torques == "recorded"
+                     and float(cutoff_hz) < 0.45 * rate_prepared else None)
+        self.extra = 0 if self.band is None else self.band.margin * int(decimation)
         self.buffer: list[Measurements] = [first]
         self.start = 0  # global index of buffer[0]
         self.done = 0  # samples whose sums are taken
@@ -478,7 +485,7 @@ class _OverlappingWindows:
             if kept.n_samples:
                 yield kept
             self.done = stop
-            keep_from = max(self.done - self.margin, 0)
+            keep_from = max(self.done - self.margin - self.extra, 0)
             if keep_from > self.start:
                 raw = raw.select(slice(keep_from - self.start, None))
                 self.buffer, self.start = [raw], keep_from
@@ -488,7 +495,7 @@ class _OverlappingWindows:
     def read_ahead(self) -> int:
         """Chunks read until the next chunk and its margins are held (or the file ends); the samples available."""
         available = self.start + sum(part.n_samples for part in self.buffer)
-        while not self.exhausted and available < self.done + self.chunk_size + self.margin + self.edge:
+        while not self.exhausted and available < self.done + self.chunk_size + self.margin + self.extra + self.edge:
             try:
                 part = next(self.chunks)
             except StopIteration:
@@ -506,8 +513,8 @@ class _OverlappingWindows:
     def kept(self, raw: Measurements, stop: int, available: int) -> Measurements:
         """Samples ``done`` to ``stop`` preprocessed in their window (the filter's settling at the
         record's ends dropped with ``trim``)."""
-        done, start, margin, decimation = self.done, self.start, self.margin, self.decimation
-        low, high = max(done - margin, start), min(stop + margin, available)
+        done, start, margin, decimation, extra = self.done, self.start, self.margin, self.decimation, self.extra
+        low, high = max(done - margin - extra, start), min(stop + margin + extra, available)
         window = raw.select(slice(low - start, high - start))
         if self.method is not None and not self.cutoff_checked:
             self.method.cutoff(window)  # the cut-off against Nyquist once
@@ -516,11 +523,22 @@ class _OverlappingWindows:
         first_kept = (-(-done // decimation) * decimation - low) // decimation
         last_kept = (-(-stop // decimation) * decimation - low) // decimation
         kept = processed.select(slice(first_kept, last_kept))
+        low_kept = 0
         if self.edge:  # the filter's settling at the record's two ends (the end is known once the file is exhausted)
             low_kept = max(self.edge - done, 0)
             high_kept = kept.n_samples - max(stop - (available - self.edge), 0) if self.exhausted else kept.n_samples
             kept = kept.select(slice(low_kept, max(high_kept, low_kept)))
-        return kept
+        if self.method is None:
+            return kept
+        window = None
+        if self.band is not None:  # the chunk's samples and the band's margin beyond, within the (trimmed) record
+            first = max(done - extra, self.edge)
+            last = min(stop + extra, available - self.edge if self.exhausted else available)
+            first_extended = (-(-first // decimation) * decimation - low) // decimation
+            last_extended = (-(-last // decimation) * decimation - low) // decimation
+            window = BandWindow(self.band, processed.select(slice(first_extended, last_extended)),
+                                first_kept + low_kept - first_extended)
+        return replace(kept, metadata=dict(kept.metadata, band_window=window))
 
     def metadata(self) -> dict:
         """What the preprocessing did: decimation, margin, samples trimmed, the filter."""
@@ -555,7 +573,7 @@ def file_sums(path: str | Path, model: IdentificationModel, *, chunk_size: int =
     sums = NormalEquations.empty(model.channels, model.base.names, model.base.expressions)
     record: dict = {}
     for kept in preprocessed_chunks(path, model, chunk_size=chunk_size, cutoff_hz=cutoff_hz, order=order,
-                                    decimation=decimation, held_torques=held_torques, record=record):
+                                    decimation=decimation, held_torques=held_torques, record=record, band=True):
         sums = accumulate(model, kept, chunk_size=record["chunk_size"], sums=sums)
     sums = replace(sums, sources=(str(path),))
     return FileSums(str(path), sums, record["rows"], record["columns"], record["metadata"])

@@ -21,7 +21,7 @@ import functools
 import pickle
 import warnings
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -294,13 +294,30 @@ def subsample_pass(executor, payload: bytes, paths: Sequence[str], options: dict
     parts = map_files(executor, subsample_task, paths, lambda path: (payload, path, options, cap, file_stamp(path)))
     records = tuple(record for _, _, record in parts)
     _same_columns(paths, records, paths[0], records[0])
-    return SubsamplePass(concatenate([part for part, _, _ in parts]), tuple(count for _, count, _ in parts), records)
+    return SubsamplePass(_whole_band(concatenate([part for part, _, _ in parts]), [part for part, _, _ in parts],
+                                     [count for _, count, _ in parts]),
+                         tuple(count for _, count, _ in parts), records)
+
+
+def _whole_band(sample: Measurements, parts: Sequence[Measurements], counts: Sequence[int]) -> Measurements:
+    """The subsample with the band of the in-band problem when it holds every sample of every file (each file a
+    segment, low-passed on its own as in memory: :meth:`~estimation.estimators.identification_problem.ResidualBand.of`);
+    a thinned subsample has none (its samples are not contiguous: the channel weights of its fits are from the
+    residual)."""
+    if "band_window" not in sample.metadata or any(part.n_samples != count for part, count in zip(parts, counts)):
+        return sample
+    metadata = {key: value for key, value in sample.metadata.items() if key != "band_window"}
+    if len(parts) > 1:
+        stops = np.cumsum([part.n_samples for part in parts])
+        metadata["segments"] = [{"start": int(stop - part.n_samples), "stop": int(stop)} for part, stop in zip(parts, stops)]
+    return replace(sample, metadata=metadata)
 
 
 def sums_pass(executor, payload: bytes, plan: bytes, paths: Sequence[str], validate: Sequence[str],
               options: dict[str, Any], first: SubsamplePass) -> SumsPass:
     """The sums of every training and validation file (:func:`sums_task`), checked against the first pass."""
-    train_parts = map_files(executor, sums_task, paths, lambda path: (payload, plan, path, options, file_stamp(path)))
+    banded = dict(options, band=True)  # the training sums with those of the in-band problem (the channel weights)
+    train_parts = map_files(executor, sums_task, paths, lambda path: (payload, plan, path, banded, file_stamp(path)))
     recorded = dict(options, as_recorded=True)  # the Fourier path validates on every sample (estimation.streaming.periods)
     validate_parts = map_files(executor, sums_task, validate, lambda path: (payload, plan, path, recorded, file_stamp(path)))
     for path, (sums, _), count in zip(paths, train_parts, first.counts):

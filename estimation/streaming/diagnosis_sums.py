@@ -32,6 +32,7 @@ from numpy.typing import NDArray
 
 from dynamics.models import IdentificationModel
 from dynamics.measurements import Measurements
+from estimation.estimators.identification_problem import in_band_blocks
 from estimation.estimators.normal_equations import NormalEquations
 from estimation.estimators.effect_blocks import Block, States
 from estimation.estimators.separable_least_squares import solve_normal
@@ -84,6 +85,10 @@ class ChannelSums:
     moment: tuple[NDArray[np.float64], ...]  # (k_c, 2)
     power: NDArray[np.float64]  # (m, 2)
     n_samples: int
+    #: the same sums of the problem in the motion's band (the columns and the channels low-passed alike, both targets
+    #: the channel as recorded), when the torques are fitted as recorded: the channel weights come from its residual
+    #: (:attr:`estimation.estimators.normal_equations.NormalEquations.band`); ``None``: from the residual
+    band: ChannelSums | None = None
 
     @classmethod
     def empty(cls, layout: ColumnLayout) -> ChannelSums:
@@ -94,9 +99,19 @@ class ChannelSums:
     def __add__(self, other: ChannelSums) -> ChannelSums:
         if not isinstance(other, ChannelSums) or other.layout != self.layout:
             raise ValueError("sums of different column layouts cannot be added")
+        if self.band is not None and other.band is not None:
+            band = self.band + other.band
+        else:  # a side without samples takes the other's band; two records, one without a band: none
+            band = self.band if other.n_samples == 0 else other.band if self.n_samples == 0 else None
         return ChannelSums(self.layout, tuple(a + b for a, b in zip(self.gram, other.gram)),
                            tuple(a + b for a, b in zip(self.moment, other.moment)), self.power + other.power,
-                           self.n_samples + other.n_samples)
+                           self.n_samples + other.n_samples, band)
+
+    def in_band_rss(self, selection: Sequence[int], theta: NDArray[np.float64]) -> NDArray[np.float64]:
+        """``‖F(y_c − X_c[S] θ)‖²`` per channel, the residual in the motion's band (:attr:`band`), else the residual
+        against the prepared channels: what the channel weights are taken from."""
+        return self.channel_rss(selection, theta, target=0) if self.band is None else \
+            self.band.channel_rss(selection, theta, target=0)
 
     def _positions(self, channel: int, selection: Sequence[int]) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
         """(positions in ``selection``, positions in the channel's columns) of the selected columns reaching it."""
@@ -142,7 +157,9 @@ class ChannelSums:
 def chunk_sums(model: IdentificationModel, layout: ColumnLayout, blocks: Sequence[Block],
                shapes: Sequence[NDArray[np.float64]], chunk: Measurements, sums: ChannelSums) -> ChannelSums:
     """``sums`` plus one preprocessed chunk's: base regressor and every candidate's columns (at its
-    fixed shape) on each channel, against the prepared channels and the channels as recorded."""
+    fixed shape) on each channel, against the prepared channels and the channels as recorded; and the sums of the
+    problem in the motion's band when the chunk has one (:func:`~estimation.estimators.identification_problem.in_band_blocks`:
+    a chunk of the streamed path carries its window) and ``sums`` hold it or no samples."""
     Y = model.evaluate_base(chunk.q, chunk.dq, chunk.ddq)
     if not np.all(np.isfinite(Y)):
         raise ValueError("the regressor holds NaN or inf: check the measured q, dq, ddq")
@@ -152,6 +169,24 @@ def chunk_sums(model: IdentificationModel, layout: ColumnLayout, blocks: Sequenc
     recorded = chunk.as_recorded.channels(model.channels)
     if not (np.all(np.isfinite(prepared)) and np.all(np.isfinite(recorded))):
         raise ValueError("a measured channel holds NaN or inf")
+    added = _added(layout, Y, columns, prepared, recorded, sums)
+    in_band = in_band_blocks(chunk, chunk.n_samples)
+    band = None
+    if in_band is not None and (sums.band is not None or sums.n_samples == 0):
+        band = ChannelSums.empty(layout) if sums.band is None else sums.band
+        for piece, window, kept in in_band:
+            window_states = States(window.q, window.dq, window.ddq)
+            Y_band = piece.window(model.evaluate_base(window.q, window.dq, window.ddq))[kept]
+            columns_band = [piece.window(block.evaluate(window_states, shape))[kept]
+                            for block, shape in zip(blocks, shapes)]
+            target = piece.window(window.channels(model.channels))[kept]
+            band = _added(layout, Y_band, columns_band, target, target, band)
+    return ChannelSums(layout, added.gram, added.moment, added.power, added.n_samples, band)
+
+
+def _added(layout: ColumnLayout, Y: NDArray[np.float64], columns: Sequence[NDArray[np.float64]],
+           prepared: NDArray[np.float64], recorded: NDArray[np.float64], sums: ChannelSums) -> ChannelSums:
+    """``sums`` (their band aside) plus a block's: regressor ``Y``, candidate ``columns``, the two targets."""
     gram, moment = [], []
     for c in range(layout.n_channels):
         parts = [Y[:, c, :]] + [values[:, rows.index(c), :] for values, rows in zip(columns, layout.rows) if c in rows]
@@ -163,7 +198,7 @@ def chunk_sums(model: IdentificationModel, layout: ColumnLayout, blocks: Sequenc
                                   axis=1)
     if not all(np.all(np.isfinite(g)) for g in gram):
         raise ValueError("a candidate's columns hold NaN or inf at its shape")
-    return ChannelSums(layout, tuple(gram), tuple(moment), power, sums.n_samples + chunk.n_samples)
+    return ChannelSums(layout, tuple(gram), tuple(moment), power, sums.n_samples + Y.shape[0])
 
 
 def _factor(augmented: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -189,7 +224,8 @@ def normal_equations(sums: ChannelSums, selection: Sequence[int], names: Sequenc
         augmented[:k, :k], augmented[:k, k], augmented[k, :k], augmented[k, k] = gram[c], moment[c], moment[c], sums.power[c, 0]
         factor[c] = _factor(augmented)
     return NormalEquations(gram, moment, sums.power[:, 0].copy(), factor, sums.n_samples, sums.layout.channels,
-                           tuple(names), tuple(expressions))
+                           tuple(names), tuple(expressions),
+                           band=None if sums.band is None else normal_equations(sums.band, selection, names, expressions))
 
 
 class EvenSubsample:

@@ -220,7 +220,7 @@ class SummedFits:
         floor = 1e-14 * self.train.power[:, 0] / n + np.finfo(float).tiny
         for _ in range(REWEIGHTING_PASSES):
             theta, _ = self.train.solve(columns, weights)
-            weights = 1.0 / np.maximum(self.train.channel_rss(columns, theta, target=0) / (n - n_parameters / m), floor)
+            weights = 1.0 / np.maximum(self.train.in_band_rss(columns, theta) / (n - n_parameters / m), floor)
         return weights
 
     def _comparison(self, columns: list[int], n_parameters: int, weights: NDArray[np.float64]) -> CandidateComparison:
