@@ -27,9 +27,10 @@ from dynamics.runtime.output_files import OutputFiles, json_text
 from dynamics.runtime.processes import beside, run_tasks, worker_count
 from dynamics.runtime.progress import step
 from dynamics.transmission import Transmission
-from estimation.consistent.model_selection import ConsistentSettings, ModelSelection, select_refit
+from estimation.consistent.model_selection import ModelSelection, select_refit
 from estimation.identification.relative_error import relative_scores
 from estimation.identification.validation import ChannelErrors
+from estimation.diagnosis.completion import completed_laws, completed_note, completion_repeat, held_completion
 from estimation.diagnosis.candidates.coupling import coupling_candidates
 from estimation.diagnosis.plain_laws import completion_laws, plain_completion, plain_model
 from dynamics.runtime.report_document import Report, figure_path, report_format
@@ -103,10 +104,6 @@ __all__ = ["IN_MEMORY", "DiagnoseOptions", "DiagnoseRun", "diagnose", "report_fi
 #: what the in-memory diagnosis holds at its peak: bytes a sample, channel and base parameter (measured: 2.8 GB
 #: for 100 000 samples of the 7-joint KUKA, m r = 350, i.e. about 75; a lower bound is used)
 IN_MEMORY = InMemoryBudget(64, "diagnosing", "use --chunk-size to stream them in bounded memory")
-#: on a validation record of another motion, the plain law completed is taken only when its answer's validation score
-#: is below the adopted model's by more than this fraction: within it is a tie, kept by the model with fewer laws (a
-#: truth without the laws gives the completed model a few tenths of a percent by chance)
-COMPLETION_TOLERANCE = 0.01
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -561,7 +558,7 @@ def completed_selection(args: DiagnoseOptions, diagnosis: Diagnosis, records: Pr
     for the adopted model completed with the plain law on the joints the diagnosis left without one
     (:func:`estimation.diagnosis.plain_laws.plain_completion`; not named as findings) when that answer predicts
     the validation record better by the criterion of the default answer (the adopted model kept on a tie; on
-    another motion, a score within :data:`COMPLETION_TOLERANCE` of the adopted model's is a tie), as
+    another motion, a score within :data:`~estimation.diagnosis.completion.COMPLETION_TOLERANCE` of the adopted model's is a tie), as
     :func:`judged_swap` judges a plain-law swap; the selection's reason says which and the two scores.
 
     The search's refusals (a law refused by the Wald test at the search's Bonferroni threshold although it lowered
@@ -576,7 +573,7 @@ def completed_selection(args: DiagnoseOptions, diagnosis: Diagnosis, records: Pr
     again (five refits of the Panda's 7 joints, about 1 s); on a repeat the weight is searched again. ``completion``:
     gives what :func:`~estimation.diagnosis.plain_laws.plain_completion` of the diagnosis gives (made beside the
     adopted model's refit by :func:`diagnosis_selection`)."""
-    repeat = completion_repeat(args, selection)
+    repeat = completion_repeat(selection, consistent=args.consistent)
     if repeat is None:
         return selection
     train, validation = records.train.measurements, records.validation.measurements
@@ -588,69 +585,6 @@ def completed_selection(args: DiagnoseOptions, diagnosis: Diagnosis, records: Pr
     return held_completion(selection, consistent_settings(args, completed.model.robot), laws, repeat=repeat,
                            select=lambda settings: select_refit(completed, train, validation, consistent=settings,
                                                                 note=completed_note(laws)))
-
-
-def completion_repeat(args: DiagnoseOptions, selection: ModelSelection) -> bool | None:
-    """Whether the plain law's completion is judged on a repeat of the training motion (``True``) or on another
-    motion (``False``), or ``None`` when it is not judged (:func:`completed_selection`, on both paths): a validation
-    record at rest, ``--consistent``, or a repeat whose default answer is not the consistent refit."""
-    if args.consistent or selection.selection not in ("repeated-motion", "validation"):
-        return None
-    repeat = selection.selection == "repeated-motion"
-    return None if repeat and selection.chosen != "consistent" else repeat
-
-
-def held_completion(selection: ModelSelection, settings: ConsistentSettings, laws: str, *, repeat: bool,
-                    select: Callable[[ConsistentSettings], ModelSelection]) -> ModelSelection:
-    """:func:`completed_answer` of the completed model's selection ``select(settings)`` against ``selection`` (the
-    adopted model's), on both paths (:func:`completed_selection`, :func:`streamed_selection`). On another motion
-    (not ``repeat``) with the prior's weight left to the validation record, the completed model's consistent refit
-    takes the weight chosen for the adopted model, and carries its choice and search (made, held out, for the
-    adopted model); on a repeat the weight is searched again."""
-    adopted = selection.consistent
-    held = not repeat and adopted is not None and settings.prior_weight in (None, "auto")
-    if held:  # the laws are compared, not the prior's weight: the one the validation record chose for the adopted model
-        settings = replace(settings, prior_weight=float(adopted.estimate.prior_weight))
-    other = select(settings)
-    if held and other.consistent is not None:
-        refit = replace(other.consistent, prior_weight_choice=adopted.prior_weight_choice,
-                        prior_weight_search=adopted.prior_weight_search)  # chosen, held out, for the adopted model
-        other = replace(other, candidates=tuple(replace(c, fit=refit) if c.name == "consistent" else c
-                                                for c in other.candidates))
-    held_note = f"; its consistent refit at the adopted model's prior weight {settings.prior_weight:g}" if held else ""
-    return completed_answer(selection, other, laws, repeat=repeat, note=held_note)
-
-
-def completed_laws(model: IdentificationModel, added: Any) -> str:
-    """The plain laws a completion added (:func:`estimation.diagnosis.plain_laws.plain_completion`), in words."""
-    return ", ".join(f"{effect.name} on {model.channels[effect.joints[0]]}" for effect in added)
-
-
-def completed_note(laws: str) -> str:
-    """The note of the completed model's candidates (:func:`diagnosis_selection`)."""
-    return f"with the diagnosed effects and the plain law where the diagnosis named none ({laws}; not findings)"
-
-
-def completed_answer(selection: ModelSelection, other: ModelSelection, laws: str, *, repeat: bool,
-                     note: str = "") -> ModelSelection:
-    """The default answer with the plain law completed (:func:`held_completion`, on both paths): the completed
-    model's selection ``other`` when its answer validates better than the adopted model's (``selection``) by the
-    default answer's criterion, else ``selection``; the reason gives both scores and ``note``.
-
-    On a repeat of the training motion (``repeat``) only a consistent refit of the completed model is an answer,
-    and any lower score takes it; on another motion a score within :data:`COMPLETION_TOLERANCE` of the adopted
-    model's is a tie, which keeps it."""
-    answers = {"diagnosed": selection.chosen_candidate, "completed": other.chosen_candidate}
-    if (repeat and other.chosen != "consistent") or any(answer.validation is None for answer in answers.values()):
-        return selection
-    validation = answers["diagnosed"].validation  # a streamed fit's errors hold their channels in order
-    channels = getattr(validation, "channels", None) or tuple(validation.mse)
-    scored = relative_scores({name: answer.validation.mse for name, answer in answers.items()}, channels)
-    taken = (1.0 + (0.0 if repeat else COMPLETION_TOLERANCE)) * scored["completed"] < scored["diagnosed"]
-    why = (f"; the plain law completed ({laws}): its answer ({other.chosen}) validates {scored['completed']:.4g} "
-           f"against {scored['diagnosed']:.4g} for the diagnosed model's ({selection.chosen}; the mean relative "
-           f"validation error{note}), " + ("taken" if taken else "not taken"))
-    return replace(other, reason=other.reason + why) if taken else replace(selection, reason=selection.reason + why)
 
 
 def judged_swap(args: DiagnoseOptions, diagnosis: Diagnosis,
@@ -945,7 +879,7 @@ def streamed_selection(args: DiagnoseOptions, diagnosis: Diagnosis, run: Streame
     is at rest (:func:`estimation.streaming.model_selection.warned_still_motion`): it chooses nothing, as in memory;
     ``ratio``: the validation record's repeated-motion ratio (``None``: computed here). The plain law is completed
     as in memory (:func:`completed_selection`: on a repeat of the training motion, and on another motion with the
-    prior weight chosen for the adopted model held, :func:`held_completion`) from the same sums
+    prior weight chosen for the adopted model held, :func:`~estimation.diagnosis.completion.held_completion`) from the same sums
     (:func:`estimation.streaming.diagnosis_selection.streamed_completion`)."""
     model = diagnosis.model
     with warnings.catch_warnings():
@@ -958,7 +892,7 @@ def streamed_selection(args: DiagnoseOptions, diagnosis: Diagnosis, run: Streame
         settings = consistent_settings(args, model.robot)
         selection = streamed_refit_selection(diagnosis, run, given="consistent" if args.consistent else None,
                                              consistent=settings, score=score, ratio=ratio, still=still)
-        repeat = completion_repeat(args, selection)
+        repeat = completion_repeat(selection, consistent=args.consistent)
         if repeat is None:
             return selection
         completion = streamed_completion(diagnosis, run)  # the plain law completed, as in memory
