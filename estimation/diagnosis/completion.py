@@ -41,10 +41,10 @@ def completion_repeat(selection: ModelSelection, *, consistent: bool) -> bool | 
 def held_completion(selection: ModelSelection, settings: ConsistentSettings, laws: str, *, repeat: bool,
                     select: Callable[[ConsistentSettings], ModelSelection]) -> ModelSelection:
     """:func:`completed_answer` of the completed model's selection ``select(settings)`` against ``selection`` (the
-    adopted model's), on both paths (``completed_selection`` and ``streamed_selection`` of :mod:`oed.workflows.diagnose`). On another motion
-    (not ``repeat``) with the prior's weight left to the validation record, the completed model's consistent refit
-    takes the weight chosen for the adopted model, and carries its choice and search (made, held out, for the
-    adopted model); on a repeat the weight is searched again."""
+    adopted model's), on both paths. On another motion (not ``repeat``) with the prior's weight left to the
+    validation record, the completed model's consistent refit takes the weight chosen for the adopted model, and
+    carries its choice and search (made, held out, for the adopted model); on a repeat the weight is searched
+    again."""
     adopted = selection.consistent
     held = not repeat and adopted is not None and settings.prior_weight in (None, "auto")
     if held:  # the laws are compared, not the prior's weight: the one the validation record chose for the adopted model
