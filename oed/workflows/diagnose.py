@@ -30,7 +30,7 @@ from dynamics.transmission import Transmission
 from estimation.consistent.model_selection import ModelSelection, select_refit
 from estimation.identification.relative_error import relative_scores
 from estimation.identification.validation import ChannelErrors
-from estimation.diagnosis.completion import completed_laws, completed_note, completion_repeat, held_completion
+from estimation.consistent.completion import completed_laws, completed_note, completion_repeat, held_completion
 from estimation.diagnosis.candidates.coupling import coupling_candidates
 from estimation.diagnosis.plain_laws import completion_laws, plain_completion, plain_model
 from dynamics.runtime.report_document import Report, figure_path, report_format
@@ -558,8 +558,9 @@ def completed_selection(args: DiagnoseOptions, diagnosis: Diagnosis, records: Pr
     for the adopted model completed with the plain law on the joints the diagnosis left without one
     (:func:`estimation.diagnosis.plain_laws.plain_completion`; not named as findings) when that answer predicts
     the validation record better by the criterion of the default answer (the adopted model kept on a tie; on
-    another motion, a score within :data:`~estimation.diagnosis.completion.COMPLETION_TOLERANCE` of the adopted model's is a tie), as
-    :func:`judged_swap` judges a plain-law swap; the selection's reason says which and the two scores.
+    another motion, a score within :data:`~estimation.consistent.completion.COMPLETION_TOLERANCE` of the adopted
+    model's is a tie), as :func:`judged_swap` judges a plain-law swap; the selection's reason says which and the two
+    scores.
 
     The search's refusals (a law refused by the Wald test at the search's Bonferroni threshold although it lowered
     the validation error, or never proposed beside a stronger law on another joint) leave a joint without the plain
@@ -879,8 +880,8 @@ def streamed_selection(args: DiagnoseOptions, diagnosis: Diagnosis, run: Streame
     is at rest (:func:`estimation.streaming.model_selection.warned_still_motion`): it chooses nothing, as in memory;
     ``ratio``: the validation record's repeated-motion ratio (``None``: computed here). The plain law is completed
     as in memory (:func:`completed_selection`: on a repeat of the training motion, and on another motion with the
-    prior weight chosen for the adopted model held, :func:`~estimation.diagnosis.completion.held_completion`) from the same sums
-    (:func:`estimation.streaming.diagnosis_selection.streamed_completion`)."""
+    prior weight chosen for the adopted model held, :func:`~estimation.consistent.completion.held_completion`) from
+    the same sums (:func:`estimation.streaming.diagnosis_selection.streamed_completion`)."""
     model = diagnosis.model
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # the files' findings were said on the diagnosis's passes
