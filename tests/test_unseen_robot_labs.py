@@ -46,6 +46,7 @@ from dynamics.urdf_export import robot_urdf
 from oed.fourier import random_fourier
 from tests.test_one_answer_audit import RELATIVE, relative, reported_models
 from tests.test_unseen_robot_kinds import as_well_as_the_plain_fit, marks, minimum_jerk, point_to_point, quiet, ur10e
+from tests.test_unseen_robot_realities import scored_on_test
 from tests.test_unseen_robots import FRICTION, NOISE, Log, logged, times, truth
 
 PI = np.pi
@@ -169,7 +170,7 @@ def write_records(case: Lab, folder: Path) -> tuple[Path, dict, dict, np.ndarray
 def run_lab(case: Lab, folder: Path) -> dict:
     """Write the records, run the verbs and the plain fit: per joint test MSE of each on the same samples; check
     that ``oed predict`` reproduces each verb's reported validation error."""
-    from benchmarks.bench_real_robots import PlainFit, at_recorded, resent
+    from benchmarks.bench_real_robots import PlainFit
 
     urdf, records, files, spread = write_records(case, folder)
     plain = PlainFit(["--urdf", str(urdf)])
@@ -199,18 +200,11 @@ def run_lab(case: Lab, folder: Path) -> dict:
             continue
         _, reported, _ = reported_models(summary)
         reproduced[label] = relative(json.loads(metrics.read_text())["mse"], reported)
-        out = folder / f"{label}_test.csv"
-        code, message = quiet(["predict", "--model", str(result), "--data", str(files["test"]), "--out", str(out)])
-        if code != 0:
-            exits[label] = message
+        scored = scored_on_test(result, files["test"], folder / f"{label}_test.csv", test, kept, predicted_plain)
+        if isinstance(scored, str):
+            exits[label] = scored
             continue
-        table = pd.read_csv(out)
-        channels = [column for column in table.columns if column.startswith("tau") and column[3:].isdigit()]
-        rows, values = at_recorded(test.t, table["t"].to_numpy(), table[channels].to_numpy())
-        use = kept[rows] & ~resent(test)[rows]
-        rows, values = rows[use], values[use]
-        mse[label] = np.mean((test.tau[rows] - values) ** 2, axis=0)
-        mse[f"plain OLS ({label}'s samples)"] = np.mean((test.tau[rows] - predicted_plain[rows]) ** 2, axis=0)
+        mse[label], mse[f"plain OLS ({label}'s samples)"] = scored
     return {"mse": mse, "exits": exits, "cutoff": cutoff, "floor": (NOISE * spread) ** 2, "effects": effects,
             "selections": selections, "reproduced": reproduced}
 

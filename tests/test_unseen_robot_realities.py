@@ -222,7 +222,7 @@ def write_records(case: Reality, folder: Path) -> tuple[Path, dict, dict, np.nda
 
 def run_reality(case: Reality, folder: Path) -> dict:
     """Write the records, run the verbs and the plain fit: per joint test MSE of each on the same samples."""
-    from benchmarks.bench_real_robots import PlainFit, at_recorded, resent
+    from benchmarks.bench_real_robots import PlainFit
 
     urdf, records, files, spread, options = write_records(case, folder)
     plain = PlainFit(["--urdf", str(urdf)])
@@ -243,20 +243,32 @@ def run_reality(case: Reality, folder: Path) -> dict:
         plan = summary.get("preprocessing") or {}
         selections[label] = ((summary.get("model_selection") or {}).get("chosen"), plan.get("method"),
                              plan.get("cutoff_hz"), plan.get("velocity_from_positions"))
-        out = folder / f"{label}_test.csv"
-        code, message = quiet(["predict", "--model", str(result), "--data", str(files["test"]), "--out", str(out)])
-        if code != 0:
-            exits[label] = message
+        scored = scored_on_test(result, files["test"], folder / f"{label}_test.csv", test, kept, predicted_plain)
+        if isinstance(scored, str):
+            exits[label] = scored
             continue
-        table = pd.read_csv(out)
-        channels = [column for column in table.columns if column.startswith("tau") and column[3:].isdigit()]
-        rows, values = at_recorded(test.t, table["t"].to_numpy(), table[channels].to_numpy())
-        use = kept[rows] & ~resent(test)[rows]
-        rows, values = rows[use], values[use]
-        mse[label] = np.mean((test.tau[rows] - values) ** 2, axis=0)
-        mse[f"plain OLS ({label}'s samples)"] = np.mean((test.tau[rows] - predicted_plain[rows]) ** 2, axis=0)
+        mse[label], mse[f"plain OLS ({label}'s samples)"] = scored
     return {"mse": mse, "exits": exits, "cutoff": cutoff, "floor": (NOISE * spread) ** 2, "effects": effects,
             "selections": selections}
+
+
+def scored_on_test(result: Path, test_file: Path, out: Path, test, kept: np.ndarray,
+                   predicted_plain: np.ndarray) -> tuple[np.ndarray, np.ndarray] | str:
+    """``oed predict`` of the model file ``result`` on ``test_file`` (written to ``out``): the MSE per channel of its
+    predictions and of the plain fit's (``predicted_plain``) at the recorded samples of ``test`` that ``kept`` keeps
+    and that were not written twice; the command's message when it exits."""
+    from benchmarks.bench_real_robots import at_recorded, resent
+
+    code, message = quiet(["predict", "--model", str(result), "--data", str(test_file), "--out", str(out)])
+    if code != 0:
+        return message
+    table = pd.read_csv(out)
+    channels = [column for column in table.columns if column.startswith("tau") and column[3:].isdigit()]
+    rows, values = at_recorded(test.t, table["t"].to_numpy(), table[channels].to_numpy())
+    use = kept[rows] & ~resent(test)[rows]
+    rows, values = rows[use], values[use]
+    return (np.mean((test.tau[rows] - values) ** 2, axis=0),
+            np.mean((test.tau[rows] - predicted_plain[rows]) ** 2, axis=0))
 
 
 TIAGO_LOG = Log(75.0, 100.0, jitter=0.3, stalls=20, velocity_noise=0.02)
