@@ -46,7 +46,7 @@ from dynamics.urdf_export import robot_urdf
 from oed.fourier import random_fourier
 from tests.test_one_answer_audit import RELATIVE, relative, reported_models
 from tests.test_unseen_robot_kinds import as_well_as_the_plain_fit, marks, minimum_jerk, point_to_point, quiet, ur10e
-from tests.test_unseen_robot_realities import scored_on_test
+from tests.test_unseen_robot_realities import named_and_chosen, scored_on_test
 from tests.test_unseen_robots import FRICTION, NOISE, Log, logged, times, truth
 
 PI = np.pi
@@ -187,11 +187,7 @@ def run_lab(case: Lab, folder: Path) -> dict:
             exits[label] = message
             continue
         summary = json.loads(result.read_text())
-        effects[label] = [f"{e['spec']} on {','.join(e['channels'])}" for e in summary.get("effects", [])
-                          if isinstance(e, dict)]
-        plan = summary.get("preprocessing") or {}
-        selections[label] = ((summary.get("model_selection") or {}).get("chosen"), plan.get("method"),
-                             plan.get("cutoff_hz"), plan.get("velocity_from_positions"))
+        effects[label], selections[label] = named_and_chosen(summary)
         metrics = folder / f"{label}_validate.json"
         code, message = quiet(["predict", "--model", str(result), "--data", str(files["validate"]), "--metrics",
                                str(metrics), "--out", str(folder / f"{label}_validate.csv")])

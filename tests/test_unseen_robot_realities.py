@@ -238,11 +238,7 @@ def run_reality(case: Reality, folder: Path) -> dict:
             exits[label] = message
             continue
         summary = json.loads(result.read_text())
-        effects[label] = [f"{e['spec']} on {','.join(e['channels'])}" for e in summary.get("effects", [])
-                          if isinstance(e, dict)]
-        plan = summary.get("preprocessing") or {}
-        selections[label] = ((summary.get("model_selection") or {}).get("chosen"), plan.get("method"),
-                             plan.get("cutoff_hz"), plan.get("velocity_from_positions"))
+        effects[label], selections[label] = named_and_chosen(summary)
         scored = scored_on_test(result, files["test"], folder / f"{label}_test.csv", test, kept, predicted_plain)
         if isinstance(scored, str):
             exits[label] = scored
@@ -250,6 +246,15 @@ def run_reality(case: Reality, folder: Path) -> dict:
         mse[label], mse[f"plain OLS ({label}'s samples)"] = scored
     return {"mse": mse, "exits": exits, "cutoff": cutoff, "floor": (NOISE * spread) ** 2, "effects": effects,
             "selections": selections}
+
+
+def named_and_chosen(summary: dict) -> tuple[list[str], tuple]:
+    """A verb's result.json in short: the effects it names (``spec on channels``), and its chosen model with the
+    derivatives' method, cut-off and whether the velocity came from the positions."""
+    effects = [f"{e['spec']} on {','.join(e['channels'])}" for e in summary.get("effects", []) if isinstance(e, dict)]
+    plan = summary.get("preprocessing") or {}
+    return effects, ((summary.get("model_selection") or {}).get("chosen"), plan.get("method"), plan.get("cutoff_hz"),
+                     plan.get("velocity_from_positions"))
 
 
 def scored_on_test(result: Path, test_file: Path, out: Path, test, kept: np.ndarray,
