@@ -16,6 +16,7 @@ import copy
 import time
 import warnings
 from collections.abc import Callable, Mapping
+from contextlib import ExitStack
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -78,6 +79,7 @@ from estimation.consistent.model_selection import ModelSelection, select_model
 from estimation.consistent.motor_friction import motor_friction_answer, motor_friction_laws
 from oed.workflows.consistent import check_consistent_arguments, consistent_lines, consistent_settings
 from oed.workflows.chosen_model import ChosenModel, answer_identification, chosen_messages, mse_line
+from oed.workflows.joint_side import joint_side_records, named_as_given, streams_converted
 from oed.workflows.memory_path import IN_MEMORY_ROUTE, decide_path, streamed_choice, streamed_records
 from oed.workflows.model_files import (
     add_model_file,
@@ -246,17 +248,28 @@ def run_identify(args: IdentifyOptions, *, say: Callable[[str], None]) -> Identi
     check_model_request(args, model, delay)
     if streaming_requested(args):
         check_streamed_request(args, model)
-        identified = identification_streamed(args, model, transmission)
-    else:
-        decision = decide_path(args, model, task="identifying", bytes_per_value=IN_MEMORY.bytes_per_value,
-                               in_memory_only=lambda: in_memory_only(args, model, delay), say=say,
-                               validation_fits=validation_fits(args, model, delay))
-        identified = (identification_streamed(args, model, transmission, decision.plan, decision.findings)
-                      if decision.stream
-                      else identification_in_memory(args, robot, model, transmission, delay, decision.plan))
-    document, messages = identify_document(args, identified)
+    with ExitStack() as copies:
+        read, names = args, {}
+        if streams_converted(args, model, bytes_per_value=IN_MEMORY.bytes_per_value,
+                             in_memory_only=lambda: in_memory_only(args, model, delay)):  # motor side, joint zeros
+            read, names = copies.enter_context(joint_side_records(args, model, transmission))
+        if streaming_requested(read):
+            identified = identification_streamed(read, model, transmission)
+        else:
+            decision = decide_path(read, model, task="identifying", bytes_per_value=IN_MEMORY.bytes_per_value,
+                                   in_memory_only=lambda: in_memory_only(read, model, delay), say=say,
+                                   validation_fits=validation_fits(read, model, delay))
+            identified = (identification_streamed(read, model, transmission, decision.plan, decision.findings)
+                          if decision.stream
+                          else identification_in_memory(read, robot, model, transmission, delay, decision.plan))
+        document, messages = identify_document(args, identified)
+        summary = tuple(summary_lines(args, identified))
+    if names:  # the files as given, not their joint-side copies
+        document, messages, summary = (named_as_given(value, names) for value in (document, messages, summary))
+        identified = replace(identified, result=replace(identified.result, streaming=named_as_given(
+            identified.result.streaming, names)))
     chosen = identified.chosen
-    return IdentifyRun(document, tuple(summary_lines(args, identified)), messages, identified.result,
+    return IdentifyRun(document, summary, messages, identified.result,
                        title=f"{robot.name}: {model.kind.value} model ({chosen.name})",
                        preprocessing=identified.describe, answer=chosen)
 
@@ -362,7 +375,7 @@ def identify_document(args: IdentifyOptions, identified: Identified) -> tuple[di
         model_plan, validation_mse = identified.model_file
         messages += add_summed_model_file(document, result.model, result.estimate, args, model_plan,
                                           recorded_mse=document["train"]["mse"], validation_mse=validation_mse,
-                                          selection=selection)
+                                          selection=selection, transmission=identified.transmission)
     floor, floor_report = identified.floor, identified.floor_report
     if document.get("validation") is not None:
         if floor_report is not None:
@@ -676,12 +689,11 @@ def check_streamed_request(args: IdentifyOptions, model: IdentificationModel) ->
     if args.consistent:
         raise ValueError(f"--consistent refits in memory: not with {STREAMED}")
     unsupported = [option for option, given in (
-        ("--transmission", args.transmission is not None), ("--joint-offsets", args.joint_offsets is not None),
         ("--average-periods", args.average_periods != "auto"),
         ("--max-gap", args.max_gap != DEFAULT_MAX_GAP)) if given]
     if unsupported:
-        raise ValueError(f"{', '.join(unsupported)}: not with {STREAMED}, which reads whole files without holes, "
-                         f"joint-side columns, and averages periods whenever --frequency is given; {IN_MEMORY_ROUTE}")
+        raise ValueError(f"{', '.join(unsupported)}: not with {STREAMED}, which reads whole files without holes "
+                         f"and averages periods whenever --frequency is given; {IN_MEMORY_ROUTE}")
 
 
 def identification_in_memory(args: IdentifyOptions, robot: RobotModel, model: IdentificationModel,

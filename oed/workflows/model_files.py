@@ -107,9 +107,11 @@ def add_summed_runner_up_model_file(document: dict[str, Any], runner_up: Any, ar
 def add_summed_model_file(document: dict[str, Any], model: Any, estimate: Any, args: RecordOptions,
                           preprocessing: dict[str, Any], *, shape: dict[str, float] | None = None,
                           recorded_mse: dict[str, float] | None = None,
-                          validation_mse: dict[str, float] | None = None, selection: Any = None) -> tuple[str, ...]:
+                          validation_mse: dict[str, float] | None = None, selection: Any = None,
+                          transmission: Any = None) -> tuple[str, ...]:
     """``model_file`` and ``plausibility`` of the streamed path, in place (its estimate from sums,
-    :func:`estimation.identification.model_file.summed_model_file_document`); return the plausibility warnings.
+    :func:`estimation.identification.model_file.summed_model_file_document`; ``transmission``, ``--joint-offsets``'
+    zeros and directions written as in memory); return the plausibility warnings.
     ``selection``: the :class:`estimation.consistent.model_selection.ModelSelection` made from sums
     (:mod:`estimation.streaming.model_selection`), whose chosen model the file holds, the other candidates as
     alternatives (``estimate``, ``recorded_mse`` and ``validation_mse`` are then its candidates')."""
@@ -135,6 +137,14 @@ def add_summed_model_file(document: dict[str, Any], model: Any, estimate: Any, a
                                                             validation_mse=validation_mse)
         document["model_file"]["chosen"] = estimate.method  # the only model: named, as predict and the summary name it
         records, consistent = estimate.records(), None
+    if transmission is not None:  # motor-side records, motor laws: oed predict reads them through it, as in memory
+        document["model_file"]["transmission"] = transmission.to_dict()
+    offsets = resolve_joint_offsets(args, model.robot)
+    if offsets is not None:  # added to the joint positions of every record oed predict reads with this file
+        document["model_file"]["joint_offsets"] = list(offsets)
+    directions = resolve_joint_directions(args, model.robot)
+    if directions is not None:  # the joints' directions of every record oed predict reads with this file
+        document["model_file"]["joint_directions"] = directions.to_dict()
     validation = document.get("validation") or {}
     plausibility = assess_plausibility(model, records, validation_mse=validation_mse,
                                        nominal_mse=validation.get("nominal_mse"), zero_mse=validation.get("zero_mse"))
