@@ -44,7 +44,7 @@ def test_joint_side_copies_hold_what_the_in_memory_reader_reads(logs, tmp_path):
     source = logs / "train_motor.csv"
     (copy,) = joint_side_copies([source], tmp_path, n_joints=3, transmission=transmission, joint_offsets=offsets,
                                 joint_directions=DIRECTIONS, chunk_size=97)
-    assert copy != source and copy.suffix == ".csv"
+    assert copy != source and copy.suffix == ".parquet"
     expected = read_record_with_transmission(source, model=model, transmission=transmission, joint_offsets=offsets,
                                              joint_directions=DIRECTIONS)
     read = read_record(copy, model=model)

@@ -22,6 +22,7 @@ import re
 from collections.abc import Iterator, Sequence
 from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -274,8 +275,8 @@ def joint_side_copies(paths: Sequence[str | Path], folder: str | Path, *, n_join
                       joint_directions: JointDirections | None = None, chunk_size: int = 100_000) -> list[Path]:
     """Joint-side copies of ``paths`` in ``folder`` (section comment above), one a file, in order: each .csv or
     .parquet file with motor-side columns converted by ``transmission``, then ``joint_directions`` and
-    ``joint_offsets`` applied to its joint-side columns, written as CSV (floats written to round-trip) under
-    ``folder/<index>/<the file's name>.csv``, read and written ``chunk_size`` rows at a time; the power-sign check
+    ``joint_offsets`` applied to its joint-side columns, written as Parquet (float64: exact) under
+    ``folder/<index>/<the file's name>.parquet``, read and written ``chunk_size`` rows at a time; the power-sign check
     of :func:`joint_side_frame` on each whole file (:class:`_PowerSums`). A file that needs nothing converted is
     returned as it is."""
     folder = Path(folder)
@@ -294,17 +295,42 @@ def joint_side_copies(paths: Sequence[str | Path], folder: str | Path, *, n_join
         if not motor_columns(header) and not directed:
             copies.append(source)
             continue
-        target = folder / str(index) / f"{path.stem}.csv"
+        target = folder / str(index) / f"{path.stem}.parquet"
         target.parent.mkdir(parents=True, exist_ok=True)
-        power = _PowerSums(n_joints)
-        with open(target, "w", newline="") as out:
-            for number, frame in enumerate(_frames(path, chunk_size)):
+        power, writer = _PowerSums(n_joints), None
+        try:
+            for frame in _frames(path, chunk_size):
                 frame = joint_side_frame(frame, transmission, n_joints, source=str(path), check_signs=False)
                 if any(str(column).startswith(("taum", "im")) for column in motor_columns(header)):
                     power.add(frame, n_joints)
                 if directed:
                     frame = _directed_frame(frame, n_joints, offsets, joint_directions)
-                frame.to_csv(out, index=False, header=number == 0)
+                writer = _written(frame, target, writer)
+        finally:
+            if writer is not None:
+                writer.close()
         power.check(transmission, str(path))
         copies.append(target)
     return copies
+
+
+def _written(frame: pd.DataFrame, target: Path, writer: Any) -> Any:
+    """``frame`` appended to the Parquet file ``target`` (``writer``: its writer, ``None`` before the first block):
+    numeric columns as float64 (exact), the others as text, the first block's columns the file's."""
+    import pyarrow
+    import pyarrow.parquet
+
+    if writer is None:
+        fields = [pyarrow.field(str(name), pyarrow.float64() if pd.api.types.is_numeric_dtype(dtype)
+                                else pyarrow.string()) for name, dtype in frame.dtypes.items()]
+        writer = pyarrow.parquet.ParquetWriter(target, pyarrow.schema(fields))
+    columns = {}
+    for field in writer.schema:
+        values = frame[field.name]
+        if pyarrow.types.is_floating(field.type):
+            columns[field.name] = pd.to_numeric(values, errors="coerce").astype("float64")
+        else:
+            columns[field.name] = values.astype(object).where(values.notna(), None).map(
+                lambda value: None if value is None else str(value))
+    writer.write_table(pyarrow.Table.from_pandas(pd.DataFrame(columns), schema=writer.schema, preserve_index=False))
+    return writer
