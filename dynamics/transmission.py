@@ -334,7 +334,16 @@ def check_power_signs(transmission: Transmission, dq: ArrayLike, tau: ArrayLike,
     power = tau * dq
     mean, scale = power.mean(axis=0), np.abs(power).mean(axis=0)
     moves = np.ones(power.shape[1], dtype=bool) if q is None else np.ptp(np.asarray(q, dtype=float), axis=0) >= MIN_SWEEP
-    wrong = [index for index in range(power.shape[1])
+    check_mean_power(transmission, mean, scale, moves, source=source, tolerance=tolerance)
+
+
+def check_mean_power(transmission: Transmission, mean: ArrayLike, scale: ArrayLike, moves: ArrayLike, *,
+                     source: str = "data", tolerance: float = 0.2) -> None:
+    """:func:`check_power_signs`' rule on a record's mean power ``τ_j q̇_j`` and mean absolute power by joint
+    (``moves``: the joints whose positions span at least :data:`MIN_SWEEP`, judged): what a record read in blocks
+    accumulates (:func:`estimation.data.motor_side.joint_side_copies`)."""
+    mean, scale, moves = np.asarray(mean, dtype=float), np.asarray(scale, dtype=float), np.asarray(moves, dtype=bool)
+    wrong = [index for index in range(mean.shape[0])
              if moves[index] and scale[index] > 0 and mean[index] < -tolerance * scale[index]]
     if wrong:
         index = wrong[0]

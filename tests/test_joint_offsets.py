@@ -312,12 +312,17 @@ def test_bad_joint_offsets_files_exit_2_and_write_nothing(joint_side, capsys, co
     assert not out.exists()
 
 
-def test_joint_offsets_are_refused_on_the_streamed_path(joint_side, capsys):
+def test_joint_offsets_on_the_streamed_path(joint_side):
+    """Streamed (``--chunk-size``), the records are read through joint-side copies with the zeros applied
+    (:mod:`oed.workflows.joint_side`): the correctly zeroed result, the zeros in the model file."""
     folder = joint_side
-    code = main(["identify", "--robot", "puma560", "--joints", "3", "--data", str(folder / "train.csv"),
-                 "--joint-offsets", str(folder / "offsets.json"), "--chunk-size", "200", "--out",
-                 str(folder / "never.json")])
-    assert code == 2 and "--joint-offsets" in capsys.readouterr().err
+    joint = _identify(folder, out="joint_ref_streamed.json")
+    shifted = _identify(folder, "--joint-offsets", str(folder / "offsets.json"), "--chunk-size", "200",
+                        data="train_zeroed.csv", validate="val_zeroed.csv", out="shifted_streamed.json")
+    assert shifted["identification_path"] == "streamed"
+    np.testing.assert_allclose(shifted["model_parameters"]["values"], joint["model_parameters"]["values"],
+                               rtol=1e-6, atol=1e-8)
+    assert shifted["model_file"]["joint_offsets"] == pytest.approx(OFFSETS)
 
 
 def test_diagnose_reads_the_joint_offsets_too(joint_side):

@@ -19,15 +19,24 @@ from __future__ import annotations
 
 import os
 import re
+from collections.abc import Iterator, Sequence
 from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
 from numpy.typing import ArrayLike
 
 from dynamics.models import IdentificationModel
-from dynamics.transmission import JointDirections, Transmission, TransmissionError, check_power_signs
+from dynamics.transmission import (
+    MIN_SWEEP,
+    JointDirections,
+    Transmission,
+    TransmissionError,
+    check_mean_power,
+    check_power_signs,
+)
 from estimation.data.loading import MeasurementError, MissingColumnError
 from estimation.data.log_cleaning import DEFAULT_MAX_GAP
 from estimation.data.log_formats import is_log_file
@@ -51,8 +60,10 @@ def _read_frame(path: Path) -> pd.DataFrame:
 
 
 def joint_side_frame(frame: pd.DataFrame, transmission: Transmission | None, n_joints: int,
-                     source: str = "data") -> pd.DataFrame:
-    """``frame`` with its motor-side columns converted to joint-side ones (see the module docstring)."""
+                     source: str = "data", *, check_signs: bool = True) -> pd.DataFrame:
+    """``frame`` with its motor-side columns converted to joint-side ones (see the module docstring); ``check_signs``:
+    the power-sign check on ``frame`` (a block of a record read in blocks: checked on the whole record instead,
+    :func:`joint_side_copies`)."""
     frame = frame.rename(columns=lambda name: str(name).strip())
     present = motor_columns(frame.columns)
     if not present:
@@ -94,7 +105,7 @@ def joint_side_frame(frame: pd.DataFrame, transmission: Transmission | None, n_j
         converted = converted.drop(columns=columns)
         for index, column in enumerate(targets):
             converted[column] = joint[:, index]
-    if torque_source is not None:
+    if torque_source is not None and check_signs:
         velocity, tau, q = _velocities_and_torques(converted, n_joints)
         if velocity is not None:
             check_power_signs(transmission, velocity, tau, source=source, q=q)
@@ -182,3 +193,144 @@ def _read_record(path: str | Path, *, model: IdentificationModel, transmission: 
         return read_record(path, model=model, max_gap=max_gap, split=split)
     frame = joint_side_frame(_read_frame(path), transmission, model.robot.n_joints, source=str(path))
     return segments_from_frame(frame, model=model, source=str(path), max_gap=max_gap, split=split)
+
+
+# ---------------------------------------------------------------- joint-side copies for the streamed path
+#
+# The streamed path (records read in blocks: ``--chunk-size``, or past ``--memory-budget``) reads joint-side columns
+# of .csv and .parquet files by path, in many passes and across process boundaries. A motor-side record
+# (``--transmission``) or one whose joint zeros or directions are given (``--joint-offsets``) is converted once,
+# block by block, into a joint-side copy holding what the in-memory reader makes of it row by row (the
+# transmission's conversion, then the directions, then the offsets: :func:`read_record_with_transmission`), and
+# the streamed path reads the copy. Memory: one block; disk: one copy of each converted file.
+
+
+def _frames(path: Path, chunk_size: int) -> Iterator[pd.DataFrame]:
+    """The rows of a .csv or .parquet file as frames of ``chunk_size`` rows."""
+    try:
+        if path.suffix.lower() == ".csv":
+            with pd.read_csv(path, chunksize=chunk_size) as reader:
+                yield from reader
+            return
+        try:
+            import pyarrow.parquet
+        except ImportError:
+            raise MeasurementError(f"{path}: reading Parquet needs pyarrow (pip install pyarrow)") from None
+        for batch in pyarrow.parquet.ParquetFile(path).iter_batches(batch_size=chunk_size):
+            yield batch.to_pandas()
+    except (ValueError, OSError, pd.errors.ParserError) as error:
+        raise MeasurementError(f"cannot read {path}: {error}") from None
+
+
+class _PowerSums:
+    """A record's mean power ``τ_j q̇_j``, mean absolute power and position span by joint, summed block by block
+    (:func:`check_power_signs`' rule on the whole record: :func:`dynamics.transmission.check_mean_power`). A block's
+    velocities derived from its positions differ from the whole record's at the block's two edge rows (one-sided
+    differences): the means differ by about 2 rows a block, immaterial to a sign test at a 20 % tolerance."""
+
+    def __init__(self, n_joints: int) -> None:
+        self.power, self.absolute, self.count = np.zeros(n_joints), np.zeros(n_joints), 0
+        self.low, self.high, self.positions = np.full(n_joints, np.inf), np.full(n_joints, -np.inf), True
+
+    def add(self, frame: pd.DataFrame, n_joints: int) -> None:
+        velocity, tau, q = _velocities_and_torques(frame, n_joints)
+        if velocity is None:
+            return
+        power = tau * velocity
+        self.power += power.sum(axis=0)
+        self.absolute += np.abs(power).sum(axis=0)
+        self.count += power.shape[0]
+        if q is None:
+            self.positions = False
+        else:
+            self.low, self.high = np.minimum(self.low, q.min(axis=0)), np.maximum(self.high, q.max(axis=0))
+
+    def check(self, transmission: Transmission, source: str) -> None:
+        if self.count < 3:
+            return
+        moves = (self.high - self.low >= MIN_SWEEP) if self.positions else np.ones(self.power.shape, dtype=bool)
+        check_mean_power(transmission, self.power / self.count, self.absolute / self.count, moves, source=source)
+
+
+def _directed_frame(frame: pd.DataFrame, n_joints: int, offsets: np.ndarray | None,
+                    directions: JointDirections | None) -> pd.DataFrame:
+    """``frame``'s joint-side columns in the description's directions, then its positions plus ``offsets``
+    (:func:`read_record_with_transmission`'s order)."""
+    frame = frame.copy()
+    signs = None if directions is None or not directions.reversed else np.asarray(directions.signs, dtype=float)
+    torque = None if signs is None else np.asarray(directions.torque_signs, dtype=float)
+    for index in range(n_joints):
+        for prefix, factor in (("q", signs), ("dq", signs), ("ddq", signs), ("tau", torque)):
+            column = f"{prefix}{index + 1}"
+            if factor is not None and column in frame.columns:
+                frame[column] = pd.to_numeric(frame[column], errors="coerce") * factor[index]
+        column = f"q{index + 1}"
+        if offsets is not None and column in frame.columns:
+            frame[column] = pd.to_numeric(frame[column], errors="coerce") + offsets[index]
+    return frame
+
+
+def joint_side_copies(paths: Sequence[str | Path], folder: str | Path, *, n_joints: int,
+                      transmission: Transmission | None, joint_offsets: ArrayLike | None = None,
+                      joint_directions: JointDirections | None = None, chunk_size: int = 100_000) -> list[Path]:
+    """Joint-side copies of ``paths`` in ``folder`` (section comment above), one a file, in order: each .csv or
+    .parquet file with motor-side columns converted by ``transmission``, then ``joint_directions`` and
+    ``joint_offsets`` applied to its joint-side columns, written as Parquet (float64: exact) under
+    ``folder/<index>/<the file's name>.parquet``, read and written ``chunk_size`` rows at a time; the power-sign check
+    of :func:`joint_side_frame` on each whole file (:class:`_PowerSums`). A file that needs nothing converted is
+    returned as it is."""
+    folder = Path(folder)
+    offsets = None if joint_offsets is None else np.asarray(joint_offsets, dtype=float).reshape(-1)
+    if offsets is not None and offsets.shape != (n_joints,):
+        raise ValueError(f"{offsets.size} joint offsets for {n_joints} joints")
+    directed = offsets is not None or (joint_directions is not None and joint_directions.reversed)
+    copies: list[Path] = []
+    for index, source in enumerate(paths):
+        path = Path(os.fspath(source))
+        if path.suffix.lower() not in (".csv", ".parquet") or not path.is_file() or is_log_file(source):
+            copies.append(source)  # the streamed reader names what it cannot read
+            continue
+        header = pd.read_csv(path, nrows=0).columns if path.suffix.lower() == ".csv" else \
+            next(_frames(path, 1)).columns
+        if not motor_columns(header) and not directed:
+            copies.append(source)
+            continue
+        target = folder / str(index) / f"{path.stem}.parquet"
+        target.parent.mkdir(parents=True, exist_ok=True)
+        power, writer = _PowerSums(n_joints), None
+        try:
+            for frame in _frames(path, chunk_size):
+                frame = joint_side_frame(frame, transmission, n_joints, source=str(path), check_signs=False)
+                if any(str(column).startswith(("taum", "im")) for column in motor_columns(header)):
+                    power.add(frame, n_joints)
+                if directed:
+                    frame = _directed_frame(frame, n_joints, offsets, joint_directions)
+                writer = _written(frame, target, writer)
+        finally:
+            if writer is not None:
+                writer.close()
+        power.check(transmission, str(path))
+        copies.append(target)
+    return copies
+
+
+def _written(frame: pd.DataFrame, target: Path, writer: Any) -> Any:
+    """``frame`` appended to the Parquet file ``target`` (``writer``: its writer, ``None`` before the first block):
+    numeric columns as float64 (exact), the others as text, the first block's columns the file's."""
+    import pyarrow
+    import pyarrow.parquet
+
+    if writer is None:
+        fields = [pyarrow.field(str(name), pyarrow.float64() if pd.api.types.is_numeric_dtype(dtype)
+                                else pyarrow.string()) for name, dtype in frame.dtypes.items()]
+        writer = pyarrow.parquet.ParquetWriter(target, pyarrow.schema(fields))
+    columns = {}
+    for field in writer.schema:
+        values = frame[field.name]
+        if pyarrow.types.is_floating(field.type):
+            columns[field.name] = pd.to_numeric(values, errors="coerce").astype("float64")
+        else:
+            columns[field.name] = values.astype(object).where(values.notna(), None).map(
+                lambda value: None if value is None else str(value))
+    writer.write_table(pyarrow.Table.from_pandas(pd.DataFrame(columns), schema=writer.schema, preserve_index=False))
+    return writer

@@ -132,7 +132,6 @@ STREAMED_NOT_COMPUTED = {
     "whiteness": "whiteness checks need the residuals sample by sample, which the streamed path does not hold",
     "model_parameters": "the physical reading of the estimate is made in memory",
     "rest": "rest stretches are found in memory (the streamed path reads whole files)",
-    "transmission": "--transmission is read in memory",
     "test": "--test is read in memory",
     # made by ``oed diagnose`` from the diagnosis's sums (estimation.streaming.diagnosis_selection), which drops them
     "consistent": "the physically consistent refit is made from the sums by oed diagnose "

@@ -264,11 +264,14 @@ def rival_models(declared: IdentificationModel, outcome: RunnerUpOutcome, blocks
                  ) -> Iterator[tuple[tuple[int, ...], tuple[Block, ...], IdentificationModel, dict[str, float],
                                      Alternative]]:
     """Each rival best-ranked first (:func:`rivals`): its candidate indices and blocks, its model, the starts of its
-    shapes, and the move that makes it."""
+    shapes, and the move that makes it; a rival that would hold one coefficient twice is none (no model)."""
     for indices, shapes, alternative in rivals(outcome):
         rival_blocks = tuple(blocks[index] for index in indices)
-        model = build_model(declared.robot, declared.kind,
-                            tuple(declared.effects) + tuple(block.effect for block in rival_blocks))
+        try:
+            model = build_model(declared.robot, declared.kind,
+                                tuple(declared.effects) + tuple(block.effect for block in rival_blocks))
+        except ValueError:  # a law twice (coulomb[q5+q6] beside coulomb:tanh[q5+q6], one coefficient): no model
+            continue
         yield indices, rival_blocks, model, _shape_starts(declared, rival_blocks, indices, shapes), alternative
 
 

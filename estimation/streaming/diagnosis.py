@@ -61,6 +61,7 @@ import numpy as np
 from dynamics.effects.linear import Effect
 from dynamics.runtime.progress import step
 from dynamics.models import IdentificationModel
+from dynamics.transmission import Transmission
 from estimation.data.input_findings import FindingsSaid
 from estimation.diagnosis.forward_selection import SearchOutcome, SearchSettings
 from estimation.diagnosis.runner_up import RunnerUpSearch
@@ -289,6 +290,7 @@ def diagnose_files_run(
     preprocessing: Preprocessing | None = None,
     findings: FindingsSaid | None = None,
     still: bool = False,
+    transmission: Transmission | None = None,
 ) -> tuple[Diagnosis, StreamedRun]:
     """Diagnose ``model`` on the training ``paths``, confirmed on the ``validate`` files, in bounded memory; the
     diagnosis and the :class:`~estimation.streaming.diagnosis_result.StreamedRun` behind it (its sums: what the
@@ -308,6 +310,7 @@ def diagnose_files_run(
     compared on the stretches of the training record their fits did not see, as in memory (one more pass over the
     training files, :func:`~estimation.streaming.diagnosis_passes.stretch_pass`; not on the Fourier path, whose
     sums hold averaged periods: there they are compared on the record at rest, ``streaming.still_search``).
+    ``transmission``: its coupled motors' friction laws are candidates, as in memory.
     """
     paths, validate = [str(path) for path in paths], [str(path) for path in validate]
     findings = FindingsSaid([*paths, *validate]) if findings is None else findings
@@ -320,7 +323,7 @@ def diagnose_files_run(
     with step(f"first pass over {len(paths)} training file(s) (subsample)"), findings.reading():
         first = subsample_pass(executor, payload, paths, options, settings.subsample)  # pass 1 (training files)
     with step(f"shape search and coupling tracing on {first.sample.n_samples} samples"):
-        found = streamed_candidates(model, candidates, first.sample, clock.lap)
+        found = streamed_candidates(model, candidates, first.sample, clock.lap, transmission)
     with step(f"second pass over {len(paths) + len(validate)} file(s) (sums of {len(found.blocks)} candidates)"), \
             findings.reading():
         sums = sums_pass(executor, payload, found.plan, paths, validate, options, first)  # pass 2 (all files)

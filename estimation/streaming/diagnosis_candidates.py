@@ -21,6 +21,7 @@ from dynamics.effects.linear import Effect
 from dynamics.effects.shaped import FRICTION_LAWS
 from dynamics.measurements import Measurements
 from dynamics.models import IdentificationModel
+from dynamics.transmission import Transmission
 from estimation.diagnosis.candidates.trials import candidate_label, fit_or_reason
 from estimation.diagnosis.candidates.coupling import coupling_candidates
 from estimation.diagnosis.forward_selection import candidate_blocks, declared_friction_joints
@@ -82,15 +83,15 @@ class StreamedCandidates:
 
 
 def streamed_candidates(model: IdentificationModel, candidates: Sequence[Effect] | None, sample: Measurements,
-                        lap: Callable[[str], None]) -> StreamedCandidates:
-    """The candidates (default: :func:`~estimation.diagnosis.search.default_candidates` and the pairs
-    traced on the subsample) and their shapes searched on the ``sample`` (``lap``: called with the
-    name of each stage done)."""
+                        lap: Callable[[str], None], transmission: Transmission | None = None) -> StreamedCandidates:
+    """The candidates (default: :func:`~estimation.diagnosis.search.default_candidates`, the pairs
+    traced on the subsample and the coupled motors' laws of ``transmission``, as in memory) and their shapes
+    searched on the ``sample`` (``lap``: called with the name of each stage done)."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # the subsample's own fit: its warnings are not the record's
         reference = identify(model, sample).estimate
     weights = reference.weights if reference.method == "wls" else 1.0 / reference.channel_variance
-    candidates = tuple(default_candidates(model) + coupling_candidates(model, train=sample)
+    candidates = tuple(default_candidates(model) + coupling_candidates(model, transmission, train=sample)
                        if candidates is None else candidates)
     blocks, rejected = candidate_blocks(model, candidates)
     lap("subsample_pass")

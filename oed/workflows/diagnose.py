@@ -18,6 +18,7 @@ import copy
 import functools
 import warnings
 from collections.abc import Callable
+from contextlib import ExitStack
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -71,6 +72,7 @@ from oed.workflows.asbuilt import (
 )
 from oed.workflows.chosen_model import ChosenModel, answer_diagnosis, mse_line
 from oed.workflows.diagnosis_training import averaged_errors, recorded_training, summed_unconstrained
+from oed.workflows.joint_side import joint_side_records, named_as_given, streams_converted
 from oed.workflows.memory_path import IN_MEMORY_ROUTE, decide_path, streamed_choice, streamed_records
 from oed.workflows.consistent import check_consistent_arguments, consistent_lines, consistent_settings
 from oed.workflows.model_files import (
@@ -286,21 +288,29 @@ def run_diagnose(args: DiagnoseOptions, *, say: Callable[[str], None]) -> Diagno
     friction, delay = split_delay(args.friction)  # a candidate in every diagnosis: 'delay:S' sets its bound
     if streaming_requested(args):  # bounded memory (estimation.streaming.diagnosis)
         check_streamed_request(args, delay)
-        diagnosed = diagnosis_streamed(args, friction)
-    else:
-        robot = robot_of(args)
-        transmission = resolve_transmission(args, robot)
-        effects = model_effects(args, friction, robot, transmission)
-        model = build_model(robot, args.model, effects)
-        check_shaped_effects_kept(effects, model)
-        decision = decide_path(args, model, task="diagnosing", bytes_per_value=IN_MEMORY.bytes_per_value,
-                               in_memory_only=lambda: in_memory_only(args, model, delay), say=say,
-                               **derivatives_on_validation(model, delay))
-        diagnosed = (diagnosis_streamed(args, friction, decision.plan, decision.findings) if decision.stream
-                     else diagnosis_in_memory(args, model, transmission, delay, decision.plan))
-    document, messages = diagnose_document(args, diagnosed)
-    return DiagnoseRun(document, tuple(summary_lines(args, diagnosed, document)), messages, diagnosed.diagnosis,
-                       diagnosed.records, diagnosed.untouched)
+    robot = robot_of(args)
+    transmission = resolve_transmission(args, robot)
+    effects = model_effects(args, friction, robot, transmission)
+    model = build_model(robot, args.model, effects)
+    with ExitStack() as copies:
+        read, names = args, {}
+        if streams_converted(args, model, bytes_per_value=IN_MEMORY.bytes_per_value,
+                             in_memory_only=lambda: in_memory_only(args, model, delay)):  # motor side, joint zeros
+            read, names = copies.enter_context(joint_side_records(args, model, transmission))
+        if streaming_requested(read):
+            diagnosed = diagnosis_streamed(read, friction)
+        else:
+            check_shaped_effects_kept(effects, model)
+            decision = decide_path(read, model, task="diagnosing", bytes_per_value=IN_MEMORY.bytes_per_value,
+                                   in_memory_only=lambda: in_memory_only(read, model, delay), say=say,
+                                   **derivatives_on_validation(model, delay))
+            diagnosed = (diagnosis_streamed(read, friction, decision.plan, decision.findings) if decision.stream
+                         else diagnosis_in_memory(read, model, transmission, delay, decision.plan))
+        document, messages = diagnose_document(args, diagnosed)
+        summary = tuple(summary_lines(args, diagnosed, document))
+    if names:  # the files as given, not their joint-side copies
+        document, messages, summary = (named_as_given(value, names) for value in (document, messages, summary))
+    return DiagnoseRun(document, summary, messages, diagnosed.diagnosis, diagnosed.records, diagnosed.untouched)
 
 
 @dataclass(frozen=True)
@@ -431,6 +441,10 @@ def diagnose_document(args: DiagnoseOptions, diagnosed: Diagnosed) -> tuple[dict
         finish_document(document, answered, trivial=None, warnings=diagnosed.notes, rest=rest_records(records),
                         transmission=diagnosed.transmission, warnings_key=("warnings", "after"))
     document["preprocessing"] = diagnosed.preprocessing
+    if records is None:  # streamed: the transmission read, as in memory
+        transmission = diagnosed.transmission
+        document["transmission"] = None if transmission is None else {**transmission.to_dict(),
+                                                                       "source": transmission.source}
     if records is not None:
         untouched, consistent = diagnosed.untouched, selection.consistent
         document["test"] = None if untouched is None else untouched.to_dict()
@@ -463,7 +477,7 @@ def diagnose_document(args: DiagnoseOptions, diagnosed: Diagnosed) -> tuple[dict
         else:
             files = add_summed_model_file(document, diagnosis.final_model(), after.estimate, args, model_plan,
                                           shape=diagnosis.final_shape(), recorded_mse=after.train.mse,
-                                          validation_mse=validation_mse)
+                                          validation_mse=validation_mse, transmission=diagnosed.transmission)
             name = after.estimate.method  # the one model the model file holds: its errors, as predict names it
             document["train"]["chosen"] = {"name": name, "mse": dict(after.train.mse)}
             document["warnings"]["chosen"] = list(after.warnings)
@@ -471,7 +485,7 @@ def diagnose_document(args: DiagnoseOptions, diagnosed: Diagnosed) -> tuple[dict
                                                 "mse": None if validation_mse is None else dict(validation_mse)}
         document["warnings"]["after"] = list(document["warnings"].get("after", [])) + list(diagnosed.notes)
         add_summed_runner_up_model_file(document, runner_up, args, model_plan, None if validation_mse is None or
-                                        runner_up is None else runner_up.validation_mse)
+                                        runner_up is None else runner_up.validation_mse, diagnosed.transmission)
         if diagnosed.averaged_train is not None:  # measured against the recording, the sums' errors beside
             averaged_errors(document, diagnosed.averaged_train)
         elif diagnosis.streaming.get("frequency_hz") is not None:
@@ -520,7 +534,8 @@ def summed_answer(document: dict[str, Any], args: DiagnoseOptions, diagnosed: Di
     model_plan, _ = diagnosed.model_file
     answered = summed_unconstrained(selection)  # the adopted model, or on a repeat that model with the plain law
     files = add_summed_model_file(document, answered.model, answered.estimate, args, model_plan,
-                                  shape=diagnosis.final_shape(), selection=selection)
+                                  shape=diagnosis.final_shape(), selection=selection,
+                                  transmission=diagnosed.transmission)
     chosen = ChosenModel.of(selection)
     answer_diagnosis(document, chosen, floor=None if diagnosis.statistics is None else diagnosis.statistics.floor)
     return (*files, *(text for text in chosen.warnings if text not in diagnosed.messages))
@@ -779,14 +794,12 @@ STREAMED = "the streamed path (--chunk-size, --scheduler or --workers)"
 def check_streamed_arguments(args: DiagnoseOptions, model: IdentificationModel) -> None:
     """Options the streamed diagnosis does not have: an error naming them, before anything is read."""
     unsupported = [option for option, given in (
-        ("--transmission", args.transmission is not None),
-        ("--joint-offsets", args.joint_offsets is not None),
         ("--min-speed", args.min_speed is not None),
         ("--average-periods no", args.average_periods == "no"),
         ("--max-gap", args.max_gap != DEFAULT_MAX_GAP)) if given]
     if unsupported:
         raise ValueError(f"{', '.join(unsupported)}: not with {STREAMED}, which reads whole files without holes "
-                         "on the filter path, joint-side columns, the files' dq, ddq or a Fourier fit of averaged "
+                         "on the filter path, the files' dq, ddq or a Fourier fit of averaged "
                          f"periods; {IN_MEMORY_ROUTE}")
     if model_has_shapes(model):
         raise ValueError(f"declared laws with shape parameters (coulomb:tanh, sigmoid…) are fitted in memory: not with "
@@ -804,7 +817,8 @@ def diagnosis_streamed(args: DiagnoseOptions, friction: str, plan: Preprocessing
     The findings about the files are said as each pass ends, each once (``findings``: what the path decision said
     already)."""
     robot = robot_of(args)
-    effects = model_effects(args, friction, robot, None)
+    transmission = resolve_transmission(args, robot)  # its motor laws; motor-side records read as joint-side copies
+    effects = model_effects(args, friction, robot, transmission)
     model = build_model(robot, args.model, effects)
     check_shaped_effects_kept(effects, model)
     check_streamed_arguments(args, model)
@@ -822,7 +836,7 @@ def diagnosis_streamed(args: DiagnoseOptions, friction: str, plan: Preprocessing
             diagnosis, run = diagnose_files_run(model, args.data, args.validate, chunk_size=chunk_size, alpha=args.alpha,
                                        max_effects=args.max_effects, subsample=args.subsample,
                                        floor_window=args.floor_window, executor=executor, preprocessing=plan,
-                                       findings=findings, still=still)
+                                       findings=findings, still=still, transmission=transmission)
         still_search = diagnosis.streaming.get("still_search") == "on the record at rest"
         if still_search:  # the choices below ignore it, as in memory; the effect search above did not (Fourier path)
             warnings.warn(STILL_SEARCH, stacklevel=2)
@@ -855,7 +869,7 @@ def diagnosis_streamed(args: DiagnoseOptions, friction: str, plan: Preprocessing
         diagnosis = replace(diagnosis, streaming={**diagnosis.streaming, "effect_search_on_still_validation": STILL_SEARCH})
     return Diagnosed(diagnosis, {"cutoff_hz": cutoff_hz, **plan.to_dict()}, plan.describe(), messages,
                      selection=selection, chunk_size=chunk_size, model_file=model_file, averaged_train=averaged,
-                     notes=notes)
+                     notes=notes, transmission=transmission)
 
 
 #: what the streamed diagnosis says of a validation record at rest when its effect search compares the candidates

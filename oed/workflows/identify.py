@@ -16,6 +16,7 @@ import copy
 import time
 import warnings
 from collections.abc import Callable, Mapping
+from contextlib import ExitStack
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -78,6 +79,7 @@ from estimation.consistent.model_selection import ModelSelection, select_model
 from estimation.consistent.motor_friction import motor_friction_answer, motor_friction_laws
 from oed.workflows.consistent import check_consistent_arguments, consistent_lines, consistent_settings
 from oed.workflows.chosen_model import ChosenModel, answer_identification, chosen_messages, mse_line
+from oed.workflows.joint_side import joint_side_records, named_as_given, streams_converted
 from oed.workflows.memory_path import IN_MEMORY_ROUTE, decide_path, streamed_choice, streamed_records
 from oed.workflows.model_files import (
     add_model_file,
@@ -246,17 +248,28 @@ def run_identify(args: IdentifyOptions, *, say: Callable[[str], None]) -> Identi
     check_model_request(args, model, delay)
     if streaming_requested(args):
         check_streamed_request(args, model)
-        identified = identification_streamed(args, model, transmission)
-    else:
-        decision = decide_path(args, model, task="identifying", bytes_per_value=IN_MEMORY.bytes_per_value,
-                               in_memory_only=lambda: in_memory_only(args, model, delay), say=say,
-                               validation_fits=validation_fits(args, model, delay))
-        identified = (identification_streamed(args, model, transmission, decision.plan, decision.findings)
-                      if decision.stream
-                      else identification_in_memory(args, robot, model, transmission, delay, decision.plan))
-    document, messages = identify_document(args, identified)
+    with ExitStack() as copies:
+        read, names = args, {}
+        if streams_converted(args, model, bytes_per_value=IN_MEMORY.bytes_per_value,
+                             in_memory_only=lambda: in_memory_only(args, model, delay)):  # motor side, joint zeros
+            read, names = copies.enter_context(joint_side_records(args, model, transmission))
+        if streaming_requested(read):
+            identified = identification_streamed(read, model, transmission)
+        else:
+            decision = decide_path(read, model, task="identifying", bytes_per_value=IN_MEMORY.bytes_per_value,
+                                   in_memory_only=lambda: in_memory_only(read, model, delay), say=say,
+                                   validation_fits=validation_fits(read, model, delay))
+            identified = (identification_streamed(read, model, transmission, decision.plan, decision.findings)
+                          if decision.stream
+                          else identification_in_memory(read, robot, model, transmission, delay, decision.plan))
+        document, messages = identify_document(args, identified)
+        summary = tuple(summary_lines(args, identified))
+    if names:  # the files as given, not their joint-side copies
+        document, messages, summary = (named_as_given(value, names) for value in (document, messages, summary))
+        identified = replace(identified, result=replace(identified.result, streaming=named_as_given(
+            identified.result.streaming, names)))
     chosen = identified.chosen
-    return IdentifyRun(document, tuple(summary_lines(args, identified)), messages, identified.result,
+    return IdentifyRun(document, summary, messages, identified.result,
                        title=f"{robot.name}: {model.kind.value} model ({chosen.name})",
                        preprocessing=identified.describe, answer=chosen)
 
@@ -362,7 +375,7 @@ def identify_document(args: IdentifyOptions, identified: Identified) -> tuple[di
         model_plan, validation_mse = identified.model_file
         messages += add_summed_model_file(document, result.model, result.estimate, args, model_plan,
                                           recorded_mse=document["train"]["mse"], validation_mse=validation_mse,
-                                          selection=selection)
+                                          selection=selection, transmission=identified.transmission)
     floor, floor_report = identified.floor, identified.floor_report
     if document.get("validation") is not None:
         if floor_report is not None:
@@ -416,6 +429,11 @@ def identification_streamed(args: IdentifyOptions, model: IdentificationModel, t
                 selection = summed_selection(sums, base=base, given=None if args.method == "auto" else args.method,
                                              consistent=consistent_settings(args, model.robot), score=scores,
                                              ratio=ratio, still=still)
+            motor = streamed_motor_friction_selection(
+                args, selection, model, transmission, base=base, methods=methods, chunk_size=chunk_size,
+                options=options, ratio=ratio, still=still, sums=sums, scores=scores)
+            if motor is not None:  # the selection with the candidate compared, and the sums of the model it holds
+                selection, sums, scores = motor
             result = selection.unconstrained
     # a line per finding across files; those said when the path was decided (``findings``) not again
     messages = grouped_messages(caught, source_files([*args.data, *(args.validate or ())])) if findings is None \
@@ -478,8 +496,8 @@ def identification_streamed(args: IdentifyOptions, model: IdentificationModel, t
                  "harmonics": options["harmonics"], "decimation": options["decimation"],
                  "held_torques": options["held_torques"]}))
     result, chosen, selection = recorded_training(args, result, chosen, selection, chunk_size, options)
-    untried = streamed_motor_friction(args, model, transmission)
-    if untried is not None:
+    untried = None if selection is not None else streamed_motor_friction(args, model, transmission)
+    if untried is not None:  # the Fourier path (its sums hold averaged periods): no selection, no candidate
         not_computed["motor_friction"] = untried
         notes = (*notes, untried)
     validation_mse = None if result.validation is None else result.validation.mse
@@ -489,18 +507,51 @@ def identification_streamed(args: IdentifyOptions, model: IdentificationModel, t
                       transmission=transmission, chunk_size=chunk_size, model_file=(model_plan, validation_mse))
 
 
+def streamed_motor_friction_selection(args: IdentifyOptions, selection: ModelSelection, model: IdentificationModel,
+                                      transmission: Transmission | None, *, base: str, methods: tuple[str, ...],
+                                      chunk_size: int, options: Mapping[str, Any], ratio: float | None, still: bool,
+                                      sums: SummedFits, scores: ValidationScores | None
+                                      ) -> tuple[ModelSelection, SummedFits, ValidationScores | None] | None:
+    """:func:`motor_friction_selection` of files read in blocks: the declared model with motor-side viscous and
+    Coulomb friction on the coupled motors added, summed over the same files with the same derivatives, weightings
+    and options, chosen among its candidates from its sums as the declared model's were
+    (:func:`estimation.streaming.model_selection.summed_selection`, scored on the same validation samples), and
+    compared with the declared model's answer by the same rule
+    (:func:`estimation.consistent.motor_friction.motor_friction_answer`). ``None`` when the in-memory path would not
+    try it (the same conditions), else the selection made, the sums and the scorer of the model it holds (``sums``,
+    ``scores``: the declared model's)."""
+    laws = motor_friction_laws(model, transmission)
+    if not laws or args.method != "auto" or args.consistent or not args.validate or model_has_shapes(model) \
+            or selection.selection != "validation":
+        return None
+    other_model = build_model(model.robot, model.kind, (*model.effects, *laws))
+    with step("motor-side friction on the coupled motors fitted and compared"):
+        with executor_for(args) as executor:
+            other_sums = identify_files_candidates(
+                other_model, args.data, args.validate, methods=methods, chunk_size=chunk_size,
+                cutoff_hz=options["cutoff_hz"], frequency_hz=options["frequency_hz"], harmonics=options["harmonics"],
+                decimation=options["decimation"], held_torques=options["held_torques"], executor=executor)
+        other_scores = ValidationScores(args, other_sums, other_sums.fits[base], chunk_size, dict(options))
+        other = summed_selection(other_sums, base=base, consistent=consistent_settings(args, model.robot),
+                                 score=other_scores, ratio=ratio, still=still)
+    answer = motor_friction_answer(selection, other, ",".join(effect_spec(effect) for effect in laws))
+    return (answer, other_sums, other_scores) if answer.unconstrained.model is other_model else (answer, sums, scores)
+
+
 def streamed_motor_friction(args: IdentifyOptions, model: IdentificationModel,
                             transmission: Transmission | None) -> str | None:
-    """What the streamed path says when the in-memory default would also have tried motor-side friction on the
-    coupled motors of the transmission (:func:`motor_friction_selection`), which it does not: the answer may then
-    differ from the in-memory one, and the laws can be declared. ``None`` when the in-memory path would not try it."""
+    """What the streamed path says on its Fourier path (averaged periods: no candidates compared) when the in-memory
+    default would also have tried motor-side friction on the coupled motors of the transmission
+    (:func:`motor_friction_selection`; elsewhere the streamed path tries it too:
+    :func:`streamed_motor_friction_selection`): the answer may then differ from the in-memory one, and the laws can
+    be declared. ``None`` when the in-memory path would not try it."""
     laws = motor_friction_laws(model, transmission)
     if not laws or args.method != "auto" or args.consistent or not args.validate or model_has_shapes(model):
         return None
     specs = ",".join(effect_spec(effect) for effect in laws)
     return (f"motor-side friction on the coupled motors ({specs}) is a candidate of the in-memory default answer, not "
-            f"tried on the streamed path: this answer may differ from the in-memory one; declare it with "
-            f"--friction ...,{specs} to fit it here")
+            f"tried on the streamed path when it fits averaged periods (--frequency: no candidates compared): this "
+            f"answer may differ from the in-memory one; declare it with --friction ...,{specs} to fit it here")
 
 
 def recorded_training(args: IdentifyOptions, result: IdentificationResult, chosen: ChosenModel,
@@ -676,12 +727,11 @@ def check_streamed_request(args: IdentifyOptions, model: IdentificationModel) ->
     if args.consistent:
         raise ValueError(f"--consistent refits in memory: not with {STREAMED}")
     unsupported = [option for option, given in (
-        ("--transmission", args.transmission is not None), ("--joint-offsets", args.joint_offsets is not None),
         ("--average-periods", args.average_periods != "auto"),
         ("--max-gap", args.max_gap != DEFAULT_MAX_GAP)) if given]
     if unsupported:
-        raise ValueError(f"{', '.join(unsupported)}: not with {STREAMED}, which reads whole files without holes, "
-                         f"joint-side columns, and averages periods whenever --frequency is given; {IN_MEMORY_ROUTE}")
+        raise ValueError(f"{', '.join(unsupported)}: not with {STREAMED}, which reads whole files without holes "
+                         f"and averages periods whenever --frequency is given; {IN_MEMORY_ROUTE}")
 
 
 def identification_in_memory(args: IdentifyOptions, robot: RobotModel, model: IdentificationModel,

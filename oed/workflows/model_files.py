@@ -94,22 +94,40 @@ def add_model_file(document: dict[str, Any], result: IdentificationResult, args:
 
 
 def add_summed_runner_up_model_file(document: dict[str, Any], runner_up: Any, args: RecordOptions,
-                                   preprocessing: dict[str, Any], validation_mse: dict[str, float] | None) -> None:
+                                   preprocessing: dict[str, Any], validation_mse: dict[str, float] | None,
+                                   transmission: Any = None) -> None:
     """The streamed path's :func:`add_runner_up_model_file`: the runner-up's estimate from the sums at its fixed
-    shapes (``validation_mse``: its validation MSE as ``oed predict`` measures it, or ``None``)."""
+    shapes (``validation_mse``: its validation MSE as ``oed predict`` measures it, or ``None``), the transmission
+    and ``--joint-offsets``' zeros and directions as in memory."""
     if runner_up is None or document.get("runner_up") is None:
         return
     document["runner_up"]["model_file"] = summed_model_file_document(
         runner_up.model, runner_up.fit, robot=robot_source(runner_up.model.robot, args), preprocessing=preprocessing,
         shape=runner_up.shape(), recorded_mse=runner_up.train_mse, validation_mse=validation_mse)
+    as_read(document["runner_up"]["model_file"], args, runner_up.model.robot, transmission)
+
+
+def as_read(model_file: dict[str, Any], args: RecordOptions, robot: Any, transmission: Any) -> None:
+    """``model_file`` (in place) with what every record ``oed predict`` reads with it goes through, as read here:
+    the transmission (motor-side columns, motor laws), ``--joint-offsets``' zeros and directions."""
+    if transmission is not None:
+        model_file["transmission"] = transmission.to_dict()
+    offsets = resolve_joint_offsets(args, robot)
+    if offsets is not None:  # added to the joint positions of every record oed predict reads with this file
+        model_file["joint_offsets"] = list(offsets)
+    directions = resolve_joint_directions(args, robot)
+    if directions is not None:  # the joints' directions of every record oed predict reads with this file
+        model_file["joint_directions"] = directions.to_dict()
 
 
 def add_summed_model_file(document: dict[str, Any], model: Any, estimate: Any, args: RecordOptions,
                           preprocessing: dict[str, Any], *, shape: dict[str, float] | None = None,
                           recorded_mse: dict[str, float] | None = None,
-                          validation_mse: dict[str, float] | None = None, selection: Any = None) -> tuple[str, ...]:
+                          validation_mse: dict[str, float] | None = None, selection: Any = None,
+                          transmission: Any = None) -> tuple[str, ...]:
     """``model_file`` and ``plausibility`` of the streamed path, in place (its estimate from sums,
-    :func:`estimation.identification.model_file.summed_model_file_document`); return the plausibility warnings.
+    :func:`estimation.identification.model_file.summed_model_file_document`; ``transmission``, ``--joint-offsets``'
+    zeros and directions written as in memory); return the plausibility warnings.
     ``selection``: the :class:`estimation.consistent.model_selection.ModelSelection` made from sums
     (:mod:`estimation.streaming.model_selection`), whose chosen model the file holds, the other candidates as
     alternatives (``estimate``, ``recorded_mse`` and ``validation_mse`` are then its candidates')."""
@@ -135,6 +153,7 @@ def add_summed_model_file(document: dict[str, Any], model: Any, estimate: Any, a
                                                             validation_mse=validation_mse)
         document["model_file"]["chosen"] = estimate.method  # the only model: named, as predict and the summary name it
         records, consistent = estimate.records(), None
+    as_read(document["model_file"], args, model.robot, transmission)  # as in memory
     validation = document.get("validation") or {}
     plausibility = assess_plausibility(model, records, validation_mse=validation_mse,
                                        nominal_mse=validation.get("nominal_mse"), zero_mse=validation.get("zero_mse"))
