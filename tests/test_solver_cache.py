@@ -45,6 +45,15 @@ def test_a_solver_is_built_once_then_loaded_and_solves_as_built():
     assert len(list(solver_directory().glob("toy_*.casadi"))) == 3
 
 
+def test_only_the_latest_solvers_are_kept(monkeypatch):
+    import dynamics.codegen.solver_cache as solver_cache
+
+    monkeypatch.setattr(solver_cache, "KEPT_SOLVERS", 2)
+    for scale in (1.0, 2.0, 3.0):
+        cached_nlpsol("toy", "ipopt", toy(scale), OPTIONS)
+    assert len(list(solver_directory().glob("toy_*.casadi"))) == 2
+
+
 def test_an_unreadable_entry_or_directory_builds_the_solver(tmp_path, monkeypatch):
     cached_nlpsol("toy", "ipopt", toy(), OPTIONS)
     (entry,) = solver_directory().glob("toy_*.casadi")

@@ -5,7 +5,7 @@ the Lagrangian's Hessian) from the problem's expression graph: for the consisten
 (:mod:`estimation.consistent.solver`) 0.2 s of CPU a model, every run. :func:`cached_nlpsol` builds a solver once,
 keeps CasADi's serialization of it (``Function.save``: the problem, the generated functions and the options) in
 ``<cache>/nlpsol`` (``$ROBOT_OED_CACHE/nlpsol``, by default ``~/.cache/robot-oed/nlpsol``; see
-:mod:`dynamics.codegen.compiled`), keyed by a hash of the problem's serialization, the solver plugin and name, the
+:mod:`dynamics.codegen.compiled`; the :data:`KEPT_SOLVERS` most recently used), keyed by a hash of the problem's serialization, the solver plugin and name, the
 options and the CasADi version, and later processes load it (``Function.load``, 0.07 s): the same functions, so the
 same iterates. Every failure (a directory that cannot be written, a file that does not load) builds the solver as
 ``casadi.nlpsol`` does.
@@ -22,6 +22,10 @@ from typing import Any
 import casadi
 
 from dynamics.codegen.compiled import cache_directory
+
+
+#: the most solvers the cache keeps (a 7-joint arm's consistent problem is 10 MB): the least recently used go
+KEPT_SOLVERS = 32
 
 
 def solver_directory() -> Path:
@@ -51,7 +55,9 @@ def cached_nlpsol(name: str, plugin: str, nlp: dict[str, casadi.SX], options: di
         path = None
     try:
         if path is not None and path.exists():
-            return casadi.Function.load(str(path))
+            loaded = casadi.Function.load(str(path))
+            os.utime(path)  # used: among the latest for :func:`_trim`
+            return loaded
     except (OSError, RuntimeError):  # a damaged entry: built again and written anew
         pass
     solver = casadi.nlpsol(name, plugin, nlp, options)
@@ -66,6 +72,14 @@ def cached_nlpsol(name: str, plugin: str, nlp: dict[str, casadi.SX], options: di
             finally:
                 if os.path.exists(temporary):
                     os.unlink(temporary)
+            _trim(path.parent)
         except (OSError, RuntimeError):
             pass
     return solver
+
+
+def _trim(directory: Path) -> None:
+    """Only the :data:`KEPT_SOLVERS` most recently used solvers kept (written or loaded: the files' times)."""
+    entries = sorted(directory.glob("*.casadi"), key=lambda entry: entry.stat().st_mtime)
+    for entry in entries[:-KEPT_SOLVERS]:
+        entry.unlink(missing_ok=True)
