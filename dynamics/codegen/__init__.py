@@ -1,5 +1,6 @@
 """Compiled code: the regressors compiled once with the system C compiler (:mod:`dynamics.codegen.compiled`)
-and the on-disk cache of the design's just-in-time compiled functions (:mod:`dynamics.codegen.jit_cache`)."""
+the on-disk cache of the design's just-in-time compiled functions (:mod:`dynamics.codegen.jit_cache`) and that of
+built IPOPT solvers (:mod:`dynamics.codegen.solver_cache`)."""
 
 from __future__ import annotations
 
@@ -11,10 +12,12 @@ _EXPORTS: dict[str, str] = {
     "SampleEvaluator": "dynamics.codegen.compiled",
     "cache_directory": "dynamics.codegen.compiled",
     "cached_jit": "dynamics.codegen.jit_cache",
+    "cached_nlpsol": "dynamics.codegen.solver_cache",
     "compile_function": "dynamics.codegen.compiled",
     "find_compiler": "dynamics.codegen.compiled",
     "jit_directory": "dynamics.codegen.jit_cache",
     "library_path": "dynamics.codegen.jit_cache",
+    "solver_directory": "dynamics.codegen.solver_cache",
 }
 
 __all__ = sorted(_EXPORTS)

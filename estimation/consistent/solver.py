@@ -16,6 +16,7 @@ import casadi
 import numpy as np
 from numpy.typing import NDArray
 
+from dynamics.codegen.solver_cache import cached_nlpsol
 from dynamics.models import IdentificationModel
 from dynamics.physical_parameters import PhysicalParametrisation, from_pseudo_inertia, link_from_psi, pseudo_inertia
 
@@ -144,7 +145,7 @@ def compiled_problem(model: IdentificationModel, max_iter: int = 3000) -> Consis
     (the escape's shorter one beside the full one) share their derivative functions: the first built generates them,
     the others are given them (the same functions, so the same iterates bit for bit)."""
     symbolic = _symbolic(model)
-    solver = casadi.nlpsol(
+    solver = cached_nlpsol(
         "consistent_least_squares", "ipopt", symbolic.nlp,
         {"print_time": False, "show_eval_warnings": False, "ipopt.print_level": 0, "ipopt.sb": "yes",
          "ipopt.tol": 1e-8, "ipopt.acceptable_tol": 1e-7, "ipopt.acceptable_iter": 5, "ipopt.max_iter": int(max_iter),

@@ -81,8 +81,21 @@ def effect_block_functions(kind: ModelKind, robot: RobotModel, effect: Effect) -
 def _evaluate(evaluator: SampleEvaluator, q, dq, ddq, shape: NDArray[np.float64] | None) -> NDArray[np.float64]:
     inputs = [q, dq, ddq]
     if shape is not None and np.size(shape):
-        inputs.append(np.broadcast_to(np.asarray(shape, dtype=float), (q.shape[0], np.size(shape))))
+        # the shape on every sample, C-contiguous: np.tile writes it whole (a broadcast view copied by
+        # ascontiguousarray is copied a row at a time, 20x slower: 0.1 ms of a 0.3 ms evaluation)
+        values = np.asarray(shape, dtype=float).reshape(-1)
+        inputs.append(np.tile(values, q.shape[0]).reshape(q.shape[0], values.size))
     return evaluator(*inputs)
+
+
+def _rows_taken(values: NDArray[np.float64], rows: tuple[int, ...]) -> NDArray[np.float64]:
+    """``values[..., rows, :]`` of ``values (N, …, m, k)``, laid out as numpy's advanced indexing lays it out (the
+    indexed axis outermost in memory), copied a row at a time: the same array, strides included, several times
+    faster than the indexing's general loop."""
+    taken = np.empty((len(rows), *values.shape[:-2], values.shape[-1]))
+    for position, row in enumerate(rows):
+        taken[position] = values[..., row, :]
+    return np.moveaxis(taken, 0, -2)
 
 
 def effect_columns(kind: ModelKind, robot: RobotModel, effect: Effect, n_channels: int, states: States,
@@ -165,9 +178,8 @@ class Block:
         n_samples, m, k = states.n_samples, self.n_channels, self.n_linear
         function = self.jacobian_function if jacobian else self.columns_function
         values = _evaluate(function, states.q, states.dq, states.ddq, shape)  # (N, m·k [+ m·k·n_s])
-        rows = list(self.rows)
-        columns = values[:, : m * k].reshape(n_samples, m, k)[:, rows, :]
+        columns = _rows_taken(values[:, : m * k].reshape(n_samples, m, k), self.rows)
         if not jacobian:
             return columns
-        derivative = values[:, m * k:].reshape(n_samples, self.n_shape, m, k)[:, :, rows, :].transpose(1, 0, 2, 3)
-        return columns, derivative
+        derivative = _rows_taken(values[:, m * k:].reshape(n_samples, self.n_shape, m, k), self.rows)
+        return columns, derivative.transpose(1, 0, 2, 3)

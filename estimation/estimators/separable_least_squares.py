@@ -184,10 +184,14 @@ def _layout(blocks: Sequence[Block], n_fixed: int) -> list[slice]:
 
 def solve_linear(fixed: FixedPart, blocks: Sequence[Block], states: States, shapes: Sequence[NDArray[np.float64]],
                  weights: NDArray[np.float64], *, jacobian: bool = False,
-                 factored: FixedFactor | None = None) -> LinearSolution:
+                 factored: FixedFactor | None = None,
+                 evaluated: Sequence[tuple[NDArray[np.float64], NDArray[np.float64] | None]] | None = None,
+                 ) -> LinearSolution:
     """Weighted least squares in ``θ = (θ₀, θ_b…)`` at the given shapes, from per-channel Gram matrices;
     ``factored``: the fixed block's factor at these ``weights`` (:class:`FixedFactor`), the blocks then
-    eliminated by their Schur complement (:func:`solve_bordered`)."""
+    eliminated by their Schur complement (:func:`solve_bordered`); ``evaluated``: each block's columns and (with
+    ``jacobian``) derivatives at its shape, as :meth:`Block.evaluate` gives them, when the caller has them already
+    (:class:`estimation.estimators.variable_projection` keeps its latest)."""
     p0 = fixed.n_fixed
     slices = _layout(blocks, p0)
     p = slices[-1].stop if slices else p0
@@ -196,8 +200,12 @@ def solve_linear(fixed: FixedPart, blocks: Sequence[Block], states: States, shap
     normal[:p0, :p0] = np.tensordot(weights, fixed.gram, axes=1)
     right[:p0] = weights @ fixed.moment
     columns, derivatives = [], [] if jacobian else None
-    for block, shape in zip(blocks, shapes):
-        if jacobian:
+    for index, (block, shape) in enumerate(zip(blocks, shapes)):
+        if evaluated is not None:
+            values, derivative = evaluated[index]
+            if jacobian:
+                derivatives.append(derivative)
+        elif jacobian:
             values, derivative = block.evaluate(states, shape, jacobian=True)
             derivatives.append(derivative)
         else:

@@ -191,6 +191,7 @@ class _ShapeSearch:
         self.u_upper = self.to_u(np.array([parameter.upper for parameter in self.parameters]))
         self.touched = sorted({row for block in blocks for row in block.rows})
         self.solved: dict[bytes, LinearSolution] = {}  # by the shapes' bytes (:meth:`remember`)
+        self.evaluated: list[dict[bytes, tuple]] = [{} for _ in blocks]  # per block, by its shape's bytes (:meth:`evaluate`)
         self.lowest: bytes | None = None
 
     def to_u(self, s: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -215,14 +216,30 @@ class _ShapeSearch:
         known = self.solved.get(key)
         if known is not None and (known.derivatives is not None or not jacobian):
             return known
+        shapes = self.split(s)
+        evaluated = [self.evaluate(index, shape, jacobian) for index, shape in enumerate(shapes)]
         if known is not None:
-            derivatives = [block.evaluate(self.states, shape, jacobian=True)[1]
-                           for block, shape in zip(self.blocks, self.split(s))]
-            known = replace(known, derivatives=derivatives)
+            known = replace(known, derivatives=[derivative for _, derivative in evaluated])
         else:
-            known = solve_linear(self.fixed, self.blocks, self.states, self.split(s), self.weights, jacobian=jacobian,
-                                 factored=self.factored)
+            known = solve_linear(self.fixed, self.blocks, self.states, shapes, self.weights, jacobian=jacobian,
+                                 factored=self.factored, evaluated=evaluated)
         self.remember(key, known)
+        return known
+
+    def evaluate(self, index: int, shape: NDArray[np.float64], jacobian: bool
+                 ) -> tuple[NDArray[np.float64], NDArray[np.float64] | None]:
+        """Block ``index``'s columns at ``shape`` and, with ``jacobian``, their derivatives (:meth:`Block.evaluate`);
+        the :data:`KEPT_SOLVES` latest of each block kept: a plain block's columns, or a shape held at its bound while
+        the others move, are evaluated once, not at every solve (the same arrays, so the same solves)."""
+        kept = self.evaluated[index]
+        key = shape.tobytes()
+        known = kept.pop(key, None)
+        if known is None or (jacobian and known[1] is None):
+            block = self.blocks[index]
+            known = block.evaluate(self.states, shape, jacobian=True) if jacobian else (block.evaluate(self.states, shape), None)
+        kept[key] = known
+        for old in list(kept)[:-KEPT_SOLVES]:
+            del kept[old]
         return known
 
     def remember(self, key: bytes, solution: LinearSolution) -> None:
@@ -234,11 +251,13 @@ class _ShapeSearch:
         for old in [item for item in self.solved if item != self.lowest][:-KEPT_SOLVES]:
             del self.solved[old]
 
-    def cost(self, s: NDArray[np.float64]) -> float:
-        """``f(s)``, or ``inf`` where the columns are non-finite or singular."""
+    def cost(self, s: NDArray[np.float64], *, jacobian: bool = False) -> float:
+        """``f(s)``, or ``inf`` where the columns are non-finite or singular; ``jacobian``: the solve kept with the
+        shape derivatives (a step of the search: accepted, it is the next iteration's point, whose derivatives cost
+        no more evaluated with the columns than after them)."""
         try:
             with np.errstate(all="ignore"):
-                return self.solve(s).rss
+                return self.solve(s, jacobian=jacobian).rss
         except (np.linalg.LinAlgError, FloatingPointError, ValueError):
             return np.inf
 
@@ -343,7 +362,7 @@ class _ShapeSearch:
                     damping *= 10
                     continue
                 trial = np.clip(u + step, self.u_lower, self.u_upper)
-                f_trial = self.cost(self.to_s(trial))
+                f_trial = self.cost(self.to_s(trial), jacobian=True)
                 if np.isfinite(f_trial) and f_trial <= f:
                     decrease = f - f_trial
                     u = trial
