@@ -25,7 +25,8 @@ how a law extrapolates, and the diagnosis is kept as the search left it.
 **A shaped law's shape must be measured.** A joint whose diagnosed friction law has a shape beyond the plain law's
 levels (``coulomb:tanh``, ``sigmoid``, a shaped Stribeck law) keeps it only when the validation record measures its
 gain over the plain law: the diagnosed model's validation MSE on the joint lower than the plain model's, and than
-the swap of that joint's laws alone, by more than :data:`~estimation.preprocessing.plan.TIED_SE` standard errors of
+the swap of that joint's laws alone for the shaped law's plain limit (the simplest first: Coulomb friction, then
+Coulomb friction and an offset, a sigmoid's two levels), by more than :data:`~estimation.preprocessing.plan.TIED_SE` standard errors of
 the difference (means of :data:`~estimation.identification.preprocessing_on_validation.BLOCKS` contiguous blocks,
 :func:`measured_gain`); and the mixed model that takes the plain law there is refused only when the validation
 record measures the diagnosed model's gain over it (the log of the score). The shape is one more effect over the
@@ -277,9 +278,18 @@ def plain_law_choice(model: IdentificationModel, after: IdentificationResult, fo
                 return rows
             rows = grown
 
-    def swapped(rows: set[int]) -> tuple[Effect, ...]:
-        return tuple(effect for effect in found if not set(_rows(model, effect)) & rows) \
-            + plain_model_effects(model, sorted(rows))
+    # a shaped law's plain limits, the simplest first: Coulomb friction alone (its shape, a slope, a shift, a static
+    # bump, is what the validation record must measure), then with an offset (a sigmoid's two levels); a shaped row
+    # takes the simplest limit the validation record does not tell from the shaped law
+    levels: set[int] = set()  # shaped rows whose limit holds the offset
+
+    def plain_laws(rows: set[int], offset: frozenset[int] = frozenset()) -> tuple[Effect, ...]:
+        with_offset = (rows - shaped) | (rows & (levels | offset))
+        return plain_model_effects(model, sorted(with_offset)) + tuple(
+            effect for effect in plain_model_effects(model, sorted(rows - with_offset)) if effect.name == "coulomb")
+
+    def swapped(rows: set[int], offset: frozenset[int] = frozenset()) -> tuple[Effect, ...]:
+        return tuple(effect for effect in found if not set(_rows(model, effect)) & rows) + plain_laws(rows, offset)
 
     # screened by the plain model, confirmed joint by joint: the diagnosed model with only that joint's effects
     # swapped for the plain law must predict that joint better (the plain model's other laws also move the shared
@@ -289,33 +299,48 @@ def plain_law_choice(model: IdentificationModel, after: IdentificationResult, fo
         swap = fit(swapped(closure({row})))
         if swap is not None and better(swap, row):
             joints |= closure({row})
+        elif row in shaped:  # the limit with the offset
+            swap = fit(swapped(closure({row}), frozenset({row})))
+            if swap is not None and better(swap, row):
+                joints |= closure({row})
+                levels.add(row)
     if not joints:
         return None
     why = ", ".join(f"{channels[row]} {diagnosed_mse[channels[row]]:.4g} -> {plain_mse[channels[row]]:.4g}"
                     for row in sorted(joints) if better(plain, row))
     kept = tuple(effect for effect in found if not set(_rows(model, effect)) & joints)
-    laws = plain_model_effects(model, sorted(joints))
-    if max_effects is not None and len(kept) + len(laws) + (after.delay is not None) > max_effects:
+
+    def judged() -> tuple[tuple[Effect, ...], IdentificationResult, tuple[float, float], bool] | None:
+        laws = plain_laws(joints)
+        if max_effects is not None and len(kept) + len(laws) + (after.delay is not None) > max_effects:
+            return None
+        mixed = fit(kept + laws)
+        if mixed is None:
+            return None
+        if threshold is not None:  # a plain term within its noise (an offset on a joint that has none) or of the
+            # wrong sign is not named
+            values = dict(zip(mixed.estimate.names, mixed.estimate.values))
+            weak = [law for law in laws  # (a term the base parameters absorb has no estimate of its own: not named)
+                    if not set(law.parameter_names(model.robot)) <= set(values)
+                    or estimate_test(mixed.estimate, law.parameter_names(model.robot)).p_value >= threshold
+                    or (law.name == "coulomb" and any(values[name] < 0 for name in law.parameter_names(model.robot)))]
+            if weak:
+                laws = tuple(law for law in laws if law not in weak)
+                mixed = fit(kept + laws)
+                if mixed is None:
+                    return None
+        scores = (_score(after), _score(mixed))
+        # a mixed model that takes the plain law where a shaped law's gain was not measured is refused only when the
+        # validation record measures the diagnosed model's gain over it
+        return laws, mixed, scores, scores[1] < scores[0] or (bool(joints & shaped) and not measured_gain(after, mixed))
+
+    outcome = judged()
+    if (outcome is None or not outcome[3]) and joints & shaped - levels:  # the shaped rows' limit with the offset
+        levels.update(joints & shaped)
+        outcome = judged() or outcome
+    if outcome is None:
         return None
-    mixed = fit(kept + laws)
-    if mixed is None:
-        return None
-    if threshold is not None:  # a plain term within its noise (an offset on a joint that has none) or of the wrong
-        # sign is not named
-        values = dict(zip(mixed.estimate.names, mixed.estimate.values))
-        weak = [law for law in laws  # (a term the base parameters absorb has no estimate of its own: not named)
-                if not set(law.parameter_names(model.robot)) <= set(values)
-                or estimate_test(mixed.estimate, law.parameter_names(model.robot)).p_value >= threshold
-                or (law.name == "coulomb" and any(values[name] < 0 for name in law.parameter_names(model.robot)))]
-        if weak:
-            laws = tuple(law for law in laws if law not in weak)
-            mixed = fit(kept + laws)
-            if mixed is None:
-                return None
-    scores = (_score(after), _score(mixed))
-    # a mixed model that takes the plain law where a shaped law's gain was not measured is refused only when the
-    # validation record measures the diagnosed model's gain over it
-    adopted = scores[1] < scores[0] or (bool(joints & shaped) and not measured_gain(after, mixed))
+    laws, mixed, scores, adopted = outcome
     if (not adopted and not keep_refused) or negative_terms(mixed):  # a friction or inertia below zero: not physical
         return None
     mixed = with_delay(mixed, after.delay)
