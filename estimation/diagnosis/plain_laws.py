@@ -124,19 +124,23 @@ def _blocks(values: NDArray[np.float64]) -> NDArray[np.float64]:
     return np.array([part.mean(axis=0) for part in np.array_split(values, BLOCKS, axis=0)])
 
 
-def measured_gain(better: IdentificationResult, other: IdentificationResult, row: int | None = None) -> bool:
+def measured_gain(better: IdentificationResult, other: IdentificationResult, row: int | None = None, *,
+                  rows: Sequence[int] | None = None) -> bool:
     """Whether the validation record measures ``better``'s gain over ``other``: on channel ``row`` its validation MSE
-    (``None``: the log of the score, :func:`_score`) lower by more than :data:`TIED_SE` standard errors of the
-    difference, the standard error that of a mean of the :data:`BLOCKS` contiguous blocks' differences (as the
-    derivative candidates' ties, :func:`estimation.identification.preprocessing_on_validation.with_standard_errors`).
-    Without the samples (errors from sums): whether it is lower."""
+    (``None``: the log of the score, :func:`_score`, over the channels ``rows``, ``None``: all) lower by more than
+    :data:`TIED_SE` standard errors of the difference, the standard error that of a mean of the :data:`BLOCKS`
+    contiguous blocks' differences (as the derivative candidates' ties,
+    :func:`estimation.identification.preprocessing_on_validation.with_standard_errors`). Without the samples (errors
+    from sums): whether it is lower."""
     ours, theirs = better.validation, other.validation
     residuals = (getattr(ours, "residuals", None), getattr(theirs, "residuals", None))
+    columns = list(range(len(ours.channels)) if rows is None else sorted(rows))
     if row is not None:
         channel = ours.channels[row]
         difference = theirs.mse[channel] - ours.mse[channel]
-    else:
-        difference = float(np.log(_score(other)) - np.log(_score(better)))
+    else:  # the mean over the channels of the log MSE
+        difference = float(np.mean([np.log(theirs.mse[ours.channels[column]]) - np.log(ours.mse[ours.channels[column]])
+                                    for column in columns]))
     if any(values is None for values in residuals) or residuals[0].shape != residuals[1].shape \
             or residuals[0].shape[0] < 2 * BLOCKS:
         return difference > 0
@@ -144,8 +148,8 @@ def measured_gain(better: IdentificationResult, other: IdentificationResult, row
         blocks = _blocks(residuals[1][:, row] ** 2) - _blocks(residuals[0][:, row] ** 2)
     else:  # the log score on each block: the mean over channels of the log MSE
         floor = np.finfo(float).tiny
-        blocks = np.mean(np.log(np.maximum(_blocks(residuals[1] ** 2), floor))
-                         - np.log(np.maximum(_blocks(residuals[0] ** 2), floor)), axis=1)
+        blocks = np.mean(np.log(np.maximum(_blocks(residuals[1][:, columns] ** 2), floor))
+                         - np.log(np.maximum(_blocks(residuals[0][:, columns] ** 2), floor)), axis=1)
     return difference > TIED_SE * float(np.std(blocks, ddof=1)) / np.sqrt(BLOCKS)
 
 
@@ -259,15 +263,7 @@ def plain_law_choice(model: IdentificationModel, after: IdentificationResult, fo
     channels = model.channels
     diagnosed_mse, plain_mse = after.validation.mse, plain.validation.mse
 
-    # a joint whose diagnosed friction law has a shape beyond the plain law's: the shape stands only when the
-    # validation record measures its gain over the plain law (the plain law takes the joint unless the diagnosed
-    # model's error there is lower by more than TIED_SE standard errors): no effect adopted unless it lowers the error
-    # on data its choice did not see, and the shape is one more effect over the plain law
-    shaped = {row for effect in found if _shaped_law(model, effect) for row in _rows(model, effect) if row < n_joints}
-
     def better(result: IdentificationResult, row: int) -> bool:
-        if row in shaped:
-            return not measured_gain(after, result, row)
         return result.validation.mse[channels[row]] < (1.0 - min_improvement) * diagnosed_mse[channels[row]]
 
     def closure(rows: set[int]) -> set[int]:  # a dropped coupled law leaves its other joints: they take the plain law
@@ -278,47 +274,32 @@ def plain_law_choice(model: IdentificationModel, after: IdentificationResult, fo
                 return rows
             rows = grown
 
-    # a shaped law's plain limits, the simplest first: Coulomb friction alone (its shape, a slope, a shift, a static
-    # bump, is what the validation record must measure), then with an offset (a sigmoid's two levels); a shaped row
-    # takes the simplest limit the validation record does not tell from the shaped law
-    levels: set[int] = set()  # shaped rows whose limit holds the offset
+    shaped = {row for effect in found if _shaped_law(model, effect) for row in _rows(model, effect) if row < n_joints}
 
-    def plain_laws(rows: set[int], offset: frozenset[int] = frozenset()) -> tuple[Effect, ...]:
-        with_offset = (rows - shaped) | (rows & (levels | offset))
-        return plain_model_effects(model, sorted(with_offset)) + tuple(
+    def plain_laws(rows: set[int], levels: set[int]) -> tuple[Effect, ...]:
+        # the plain law, Coulomb friction and an offset; a shaped row not in ``levels`` takes its simplest limit,
+        # Coulomb friction alone
+        with_offset = (rows - shaped) | (rows & levels)
+        laws = plain_model_effects(model, sorted(with_offset)) + tuple(
             effect for effect in plain_model_effects(model, sorted(rows - with_offset)) if effect.name == "coulomb")
+        return tuple(sorted(laws, key=lambda effect: (effect.joints, effect.name != "coulomb")))  # one order: one fit
 
-    def swapped(rows: set[int], offset: frozenset[int] = frozenset()) -> tuple[Effect, ...]:
-        return tuple(effect for effect in found if not set(_rows(model, effect)) & rows) + plain_laws(rows, offset)
+    def swapped(rows: set[int]) -> tuple[Effect, ...]:
+        return tuple(effect for effect in found if not set(_rows(model, effect)) & rows) + plain_laws(rows, rows)
 
-    # screened by the plain model, confirmed joint by joint: the diagnosed model with only that joint's effects
-    # swapped for the plain law must predict that joint better (the plain model's other laws also move the shared
-    # rigid-body parameters, which can lower a joint's error that its own law does not)
-    joints: set[int] = set()
-    for row in (row for row in range(n_joints) if better(plain, row)):
-        swap = fit(swapped(closure({row})))
-        if swap is not None and better(swap, row):
-            joints |= closure({row})
-        elif row in shaped:  # the limit with the offset
-            swap = fit(swapped(closure({row}), frozenset({row})))
-            if swap is not None and better(swap, row):
-                joints |= closure({row})
-                levels.add(row)
-    if not joints:
-        return None
-    why = ", ".join(f"{channels[row]} {diagnosed_mse[channels[row]]:.4g} -> {plain_mse[channels[row]]:.4g}"
-                    for row in sorted(joints) if better(plain, row))
-    kept = tuple(effect for effect in found if not set(_rows(model, effect)) & joints)
-
-    def judged() -> tuple[tuple[Effect, ...], IdentificationResult, tuple[float, float], bool] | None:
-        laws = plain_laws(joints)
+    def mixed_fit(joints: set[int], levels: set[int], *, weak: bool = True
+                  ) -> tuple[tuple[Effect, ...], tuple[Effect, ...], IdentificationResult] | None:
+        """The diagnosed model with the plain law on ``joints`` (kept effects, plain laws, fit); ``weak``: its plain
+        terms within their noise or of the wrong sign left out (``threshold``)."""
+        kept = tuple(effect for effect in found if not set(_rows(model, effect)) & joints)
+        laws = plain_laws(joints, levels)
         if max_effects is not None and len(kept) + len(laws) + (after.delay is not None) > max_effects:
             return None
         mixed = fit(kept + laws)
         if mixed is None:
             return None
-        if threshold is not None:  # a plain term within its noise (an offset on a joint that has none) or of the
-            # wrong sign is not named
+        if threshold is not None and weak:  # a plain term within its noise (an offset on a joint that has none) or
+            # of the wrong sign is not named
             values = dict(zip(mixed.estimate.names, mixed.estimate.values))
             weak = [law for law in laws  # (a term the base parameters absorb has no estimate of its own: not named)
                     if not set(law.parameter_names(model.robot)) <= set(values)
@@ -329,21 +310,60 @@ def plain_law_choice(model: IdentificationModel, after: IdentificationResult, fo
                 mixed = fit(kept + laws)
                 if mixed is None:
                     return None
-        scores = (_score(after), _score(mixed))
-        # a mixed model that takes the plain law where a shaped law's gain was not measured is refused only when the
-        # validation record measures the diagnosed model's gain over it
-        return laws, mixed, scores, scores[1] < scores[0] or (bool(joints & shaped) and not measured_gain(after, mixed))
+        return kept, laws, mixed
 
-    outcome = judged()
-    if (outcome is None or not outcome[3]) and joints & shaped - levels:  # the shaped rows' limit with the offset
-        levels.update(joints & shaped)
-        outcome = judged() or outcome
+    # 1. screened by the plain model, confirmed joint by joint: the diagnosed model with only that joint's effects
+    # swapped for the plain law must predict that joint better (the plain model's other laws also move the shared
+    # rigid-body parameters, which can lower a joint's error that its own law does not)
+    joints: set[int] = set()
+    for row in (row for row in range(n_joints) if better(plain, row)):
+        swap = fit(swapped(closure({row})))
+        if swap is not None and better(swap, row):
+            joints |= closure({row})
+    outcome = None
+    if joints:
+        made = mixed_fit(joints, joints)
+        if made is not None:
+            scores = (_score(after), _score(made[2]))
+            outcome = (joints, *made, scores, scores[1] < scores[0])
+            if (not outcome[-1] and not keep_refused) or negative_terms(made[2]):  # a friction or inertia below
+                outcome = None  # zero: not physical
+    # 2. a shaped law's shape stands only when the validation record measures its gain over the plain law: the
+    # screen reads the plain model's fit (no new fit), and only a joint it leaves costs fits, all of them in one
+    # mixed model (its shaped rows confirmed there), the simplest limit first; adopted unless the validation record
+    # measures the gain of the model it would replace
+    taken = joints if outcome is not None and outcome[-1] else set()
+    reference = outcome[3] if outcome is not None and outcome[-1] else after
+    screened = {row for row in shaped - taken if not measured_gain(after, plain, row)}
+    if screened and measured_gain(after, plain, rows=screened):  # the shapes' gain measured on those joints together
+        screened = set()
+
+    def adopted(made: tuple[tuple[Effect, ...], tuple[Effect, ...], IdentificationResult] | None) -> bool:
+        # refused only when the validation record measures the gain of the model it would replace
+        return made is not None and not negative_terms(made[2]) and (
+            _score(made[2]) < _score(reference) or not measured_gain(reference, made[2]))
+
+    rows = set(screened)
+    for levels in (set(), screened):  # Coulomb friction alone, then with an offset (a sigmoid's two levels)
+        while rows:  # the shaped rows confirmed in the mixed model: one whose gain it measures keeps its law
+            made = mixed_fit(taken | closure(rows), taken | levels, weak=False)
+            confirmed = set() if made is None else {row for row in rows if not measured_gain(after, made[2], row)}
+            if confirmed == rows:
+                break
+            rows = confirmed
+        if not rows or not adopted(made):  # judged before the weak terms are left out: a refusal costs no refit
+            continue
+        made = mixed_fit(taken | closure(rows), taken | levels)
+        if adopted(made):
+            outcome = (taken | closure(rows), *made, (_score(after), _score(made[2])), True)
+            break
     if outcome is None:
         return None
-    laws, mixed, scores, adopted = outcome
-    if (not adopted and not keep_refused) or negative_terms(mixed):  # a friction or inertia below zero: not physical
-        return None
+    joints, kept, laws, mixed, scores, adopted = outcome
     mixed = with_delay(mixed, after.delay)
+    why = ", ".join(f"{channels[row]} {diagnosed_mse[channels[row]]:.4g} -> {plain_mse[channels[row]]:.4g}"
+                    + ("" if better(plain, row) else " (the shaped law's gain not measured there)")
+                    for row in sorted(joints) if better(plain, row) or row in screened)
     verdict = (f"the model with it instead scores {scores[1]:.4g} against {scores[0]:.4g}" if adopted else
                f"the model with it instead scores {scores[1]:.4g} against {scores[0]:.4g} as fitted, but the better "
                "of it as fitted and its consistent refit validates better than the diagnosed model's "
