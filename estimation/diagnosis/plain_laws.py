@@ -24,17 +24,21 @@ how a law extrapolates, and the diagnosis is kept as the search left it.
 
 **A shaped law's shape must be measured.** A joint whose diagnosed friction law has a shape beyond the plain law's
 levels (``coulomb:tanh``, ``sigmoid``, a shaped Stribeck law) keeps it only when the validation record measures its
-gain over the plain law: the diagnosed model's validation MSE on the joint lower than the plain model's, and than
-the swap of that joint's laws alone for the shaped law's plain limit (the simplest first: Coulomb friction, then
-Coulomb friction and an offset, a sigmoid's two levels), by more than :data:`~estimation.preprocessing.plan.TIED_SE` standard errors of
-the difference (means of :data:`~estimation.identification.preprocessing_on_validation.BLOCKS` contiguous blocks,
-:func:`measured_gain`); and the mixed model that takes the plain law there is refused only when the validation
-record measures the diagnosed model's gain over it (the log of the score). The shape is one more effect over the
-plain law, and no effect is adopted unless it lowers the error on data its choice did not see: on a simulated servo
-arm whose truth is the sign law, the torques fitted as recorded, a ``sigmoid`` on joint 3 fitted its shift to the
-few training samples at the zero crossings (its sign change at +0.0034 rad/s), validated 0.2 standard errors from the
-plain law, and predicted the test record's joint 3 3.4 times worse than the plain fit (``benchmarks/README.md``,
-h-band). A joint with a plain law keeps the ``min_improvement`` screen above.
+gain over the plain law, by more than :data:`~estimation.preprocessing.plan.TIED_SE` standard errors of the
+difference (means of :data:`~estimation.identification.preprocessing_on_validation.BLOCKS` contiguous blocks,
+:func:`measured_gain`). The shape is one more effect over the plain law, and no effect is adopted unless it lowers
+the error on data its choice did not see: on a simulated servo arm whose truth is the sign law, the torques fitted as
+recorded, a ``sigmoid`` on joint 3 fitted its shift to the few training samples at the zero crossings (its sign change
+at +0.0034 rad/s), validated 0.2 standard errors from the plain law, and predicted the test record's joint 3 3.4
+times worse than the plain fit (``benchmarks/README.md``, h-band). This comes after the swap above (which it leaves
+as it is) and costs a fit only where it can change the answer: the screen reads the plain model's fit (no new fit),
+the diagnosed model's gain over it on each shaped joint not taken by the swap, then on those joints together (the
+mean over their channels of the log MSE); the joints it leaves take the shaped law's plain limit in one mixed model
+(beside the swap's joints), the simplest first (Coulomb friction, then Coulomb friction and an offset, a sigmoid's two
+levels), a joint whose gain the mixed model measures keeping its law (the model refitted without it). The mixed model
+is refused only when the validation record measures the gain of the model it would replace (the log of the score; the
+model is judged before its weak plain terms are left out, and again after); a refused one is not kept for the
+default answer's candidates (the swap's ``keep_refused`` below), since the validation record measured its loss.
 
 **The plain law completed on a repeat** (:func:`plain_completion`). On a repeat of the training motion the search's
 refusals were not measured on another motion either: a joint's Coulomb law that lowers the validation error can be
