@@ -296,25 +296,31 @@ def plain_law_choice(model: IdentificationModel, after: IdentificationResult, fo
         """The diagnosed model with the plain law on ``joints`` (kept effects, plain laws, fit); ``weak``: its plain
         terms within their noise or of the wrong sign left out (``threshold``)."""
         kept = tuple(effect for effect in found if not set(_rows(model, effect)) & joints)
-        laws = plain_laws(joints, levels)
-        if max_effects is not None and len(kept) + len(laws) + (after.delay is not None) > max_effects:
+        return laws_fit(kept, (), plain_laws(joints, levels), weak=weak)
+
+    def laws_fit(kept: tuple[Effect, ...], held: tuple[Effect, ...], laws: tuple[Effect, ...], *, weak: bool = True
+                 ) -> tuple[tuple[Effect, ...], tuple[Effect, ...], IdentificationResult] | None:
+        """The model of the diagnosed effects ``kept``, the plain laws ``held`` and ``laws`` (the latter left out
+        when weak): (kept, plain laws, fit)."""
+        if max_effects is not None and len(kept) + len(held) + len(laws) + (after.delay is not None) > max_effects:
             return None
-        mixed = fit(kept + laws)
+        mixed = fit(kept + held + laws)
         if mixed is None:
             return None
         if threshold is not None and weak:  # a plain term within its noise (an offset on a joint that has none) or
             # of the wrong sign is not named
             values = dict(zip(mixed.estimate.names, mixed.estimate.values))
-            weak = [law for law in laws  # (a term the base parameters absorb has no estimate of its own: not named)
-                    if not set(law.parameter_names(model.robot)) <= set(values)
-                    or estimate_test(mixed.estimate, law.parameter_names(model.robot)).p_value >= threshold
-                    or (law.name == "coulomb" and any(values[name] < 0 for name in law.parameter_names(model.robot)))]
-            if weak:
-                laws = tuple(law for law in laws if law not in weak)
-                mixed = fit(kept + laws)
+            weak_laws = [law for law in laws  # (a term the base parameters absorb has no estimate of its own: not named)
+                         if not set(law.parameter_names(model.robot)) <= set(values)
+                         or estimate_test(mixed.estimate, law.parameter_names(model.robot)).p_value >= threshold
+                         or (law.name == "coulomb"
+                             and any(values[name] < 0 for name in law.parameter_names(model.robot)))]
+            if weak_laws:
+                laws = tuple(law for law in laws if law not in weak_laws)
+                mixed = fit(kept + held + laws)
                 if mixed is None:
                     return None
-        return kept, laws, mixed
+        return kept, held + laws, mixed
 
     # 1. screened by the plain model, confirmed joint by joint: the diagnosed model with only that joint's effects
     # swapped for the plain law must predict that joint better (the plain model's other laws also move the shared
@@ -347,19 +353,38 @@ def plain_law_choice(model: IdentificationModel, after: IdentificationResult, fo
         return made is not None and not negative_terms(made[2]) and (
             _score(made[2]) < _score(reference) or not measured_gain(reference, made[2]))
 
+    # the model the shaped laws' limits start from: the swap's, when adopted, else the diagnosed one
+    current = (tuple(effect for effect in found if effect in outcome[1]), outcome[2]) if taken else (tuple(found), ())
+
+    def limited(rows: set[int], levels: set[int], *, weak: bool = True
+                ) -> tuple[set[int], tuple[tuple[Effect, ...], tuple[Effect, ...], IdentificationResult] | None]:
+        """The shaped laws acting on ``rows`` replaced by their plain limit, Coulomb friction on each joint they act on
+        (with an offset on a joint of ``levels``) that the effects kept leave without it: (their joints, fit)."""
+        limits = [effect for effect in current[0] if _shaped_law(model, effect) and set(_rows(model, effect)) & rows]
+        kept = tuple(effect for effect in current[0] if effect not in limits)
+        acted = {row for effect in limits for row in _rows(model, effect) if row < n_joints}
+        left = plain_model_effects(build_model(model.robot, model.kind, base + kept + current[1]), sorted(acted),
+                                   level=True)
+        laws = tuple(effect for effect in left if effect.name == "coulomb" or set(effect.joints) & levels)
+        return acted, laws_fit(kept, current[1], laws, weak=weak)
+
     rows = set(screened)
-    for levels in (set(), screened):  # Coulomb friction alone, then with an offset (a sigmoid's two levels)
+    sigmoids = {row for effect in found if effect.name == "sigmoid" for row in _rows(model, effect) if row < n_joints}
+    for levels in (set(), sigmoids):  # Coulomb friction alone, then with an offset on a sigmoid's joint (its levels)
+        if levels and not rows & levels:
+            break
+        made = None
         while rows:  # the shaped rows confirmed in the mixed model: one whose gain it measures keeps its law
-            made = mixed_fit(taken | closure(rows), taken | levels, weak=False)
+            acted, made = limited(rows, levels, weak=False)
             confirmed = set() if made is None else {row for row in rows if not measured_gain(after, made[2], row)}
             if confirmed == rows:
                 break
             rows = confirmed
         if not rows or not adopted(made):  # judged before the weak terms are left out: a refusal costs no refit
             continue
-        made = mixed_fit(taken | closure(rows), taken | levels)
+        acted, made = limited(rows, levels)
         if adopted(made):
-            outcome = (taken | closure(rows), *made, (_score(after), _score(made[2])), True)
+            outcome = (taken | acted, *made, (_score(after), _score(made[2])), True)
             break
     if outcome is None:
         return None
