@@ -33,9 +33,10 @@ at +0.0034 rad/s), validated 0.2 standard errors from the plain law, and predict
 times worse than the plain fit (``benchmarks/README.md``, h-band). This comes after the swap above (which it leaves
 as it is) and costs a fit only where it can change the answer: the screen reads the plain model's fit (no new fit),
 the diagnosed model's gain over it on each shaped joint not taken by the swap, then on those joints together (the
-mean over their channels of the log MSE); the joints it leaves take the shaped law's plain limit in one mixed model
-(beside the swap's joints), the simplest first (Coulomb friction, then Coulomb friction and an offset, a sigmoid's two
-levels), a joint whose gain the mixed model measures keeping its law (the model refitted without it). The mixed model
+mean over their channels of the log MSE); on the joints it leaves, each shaped law gives way to its plain limit in one
+mixed model (beside the swap's joints; the joints' other diagnosed effects stay), the simplest first: Coulomb friction
+on each joint it acts on, then, on a sigmoid's joint, Coulomb friction and an offset (its two levels); a joint whose
+gain the mixed model measures keeps its law (the model refitted without it). The mixed model
 is refused only when the validation record measures the gain of the model it would replace (the log of the score; the
 model is judged before its weak plain terms are left out, and again after); a refused one is not kept for the
 default answer's candidates (the swap's ``keep_refused`` below), since the validation record measured its loss.
