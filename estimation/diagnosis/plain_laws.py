@@ -22,6 +22,25 @@ The declared effects are those the diagnosis left (a declared term it held at ze
 validation record is another motion: on a repeat of the training motion the validation error does not measure
 how a law extrapolates, and the diagnosis is kept as the search left it.
 
+**A shaped law's shape must be measured.** A joint whose diagnosed friction law has a shape beyond the plain law's
+levels (``coulomb:tanh``, ``sigmoid``, a shaped Stribeck law) keeps it only when the validation record measures its
+gain over the plain law, by more than :data:`~estimation.preprocessing.plan.TIED_SE` standard errors of the
+difference (means of :data:`~estimation.identification.preprocessing_on_validation.BLOCKS` contiguous blocks,
+:func:`measured_gain`). The shape is one more effect over the plain law, and no effect is adopted unless it lowers
+the error on data its choice did not see: on a simulated servo arm whose truth is the sign law, the torques fitted as
+recorded, a ``sigmoid`` on joint 3 fitted its shift to the few training samples at the zero crossings (its sign change
+at +0.0034 rad/s), validated 0.2 standard errors from the plain law, and predicted the test record's joint 3 3.4
+times worse than the plain fit (``benchmarks/README.md``, h-band). This comes after the swap above (which it leaves
+as it is) and costs a fit only where it can change the answer: the screen reads the plain model's fit (no new fit),
+the diagnosed model's gain over it on each shaped joint not taken by the swap, then on those joints together (the
+mean over their channels of the log MSE); on the joints it leaves, each shaped law gives way to its plain limit in one
+mixed model (beside the swap's joints; the joints' other diagnosed effects stay), the simplest first: Coulomb friction
+on each joint it acts on, then, on a sigmoid's joint, Coulomb friction and an offset (its two levels); a joint whose
+gain the mixed model measures keeps its law (the model refitted without it). The mixed model
+is refused only when the validation record measures the gain of the model it would replace (the log of the score; the
+model is judged before its weak plain terms are left out, and again after); a refused one is not kept for the
+default answer's candidates (the swap's ``keep_refused`` below), since the validation record measured its loss.
+
 **The plain law completed on a repeat** (:func:`plain_completion`). On a repeat of the training motion the search's
 refusals were not measured on another motion either: a joint's Coulomb law that lowers the validation error can be
 refused by the Wald test at the search's Bonferroni threshold (the KUKA LWR4+'s joint 1 from positions only: Wald
@@ -51,6 +70,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import NDArray
 
 from dynamics.effects.linear import CoulombFriction, Effect, JointOffset, StribeckFriction
 from dynamics.effects.shaped import FRICTION_LAWS, shape_parameters
@@ -62,7 +82,9 @@ from estimation.diagnosis.sign_constraints import negative_terms
 from estimation.estimators.effect_blocks import ShapeSearchError, effect_rows
 from estimation.identification.fit import IdentificationResult, identify
 from estimation.identification.preprocessing_choice import geometric_mean
+from estimation.identification.preprocessing_on_validation import BLOCKS
 from estimation.identification.repeated_motion import REPEAT_FRACTION, repeated_motion
+from estimation.preprocessing.plan import TIED_SE
 from estimation.preprocessing.delay import delayed
 
 __all__ = ["PlainLawChoice", "completion_laws", "plain_completion", "plain_law_choice", "plain_model", "plain_model_effects"]
@@ -100,6 +122,46 @@ class PlainLawChoice:
 def _score(result: IdentificationResult) -> float:
     mse = result.validation.mse
     return geometric_mean(np.array([mse[channel] for channel in result.validation.channels]))
+
+
+def _blocks(values: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Means of ``values`` (samples along axis 0) on :data:`BLOCKS` contiguous blocks."""
+    return np.array([part.mean(axis=0) for part in np.array_split(values, BLOCKS, axis=0)])
+
+
+def measured_gain(better: IdentificationResult, other: IdentificationResult, row: int | None = None, *,
+                  rows: Sequence[int] | None = None) -> bool:
+    """Whether the validation record measures ``better``'s gain over ``other``: on channel ``row`` its validation MSE
+    (``None``: the log of the score, :func:`_score`, over the channels ``rows``, ``None``: all) lower by more than
+    :data:`TIED_SE` standard errors of the difference, the standard error that of a mean of the :data:`BLOCKS`
+    contiguous blocks' differences (as the derivative candidates' ties,
+    :func:`estimation.identification.preprocessing_on_validation.with_standard_errors`). Without the samples (errors
+    from sums): whether it is lower."""
+    ours, theirs = better.validation, other.validation
+    residuals = (getattr(ours, "residuals", None), getattr(theirs, "residuals", None))
+    columns = list(range(len(ours.channels)) if rows is None else sorted(rows))
+    if row is not None:
+        channel = ours.channels[row]
+        difference = theirs.mse[channel] - ours.mse[channel]
+    else:  # the mean over the channels of the log MSE
+        difference = float(np.mean([np.log(theirs.mse[ours.channels[column]]) - np.log(ours.mse[ours.channels[column]])
+                                    for column in columns]))
+    if any(values is None for values in residuals) or residuals[0].shape != residuals[1].shape \
+            or residuals[0].shape[0] < 2 * BLOCKS:
+        return difference > 0
+    if row is not None:
+        blocks = _blocks(residuals[1][:, row] ** 2) - _blocks(residuals[0][:, row] ** 2)
+    else:  # the log score on each block: the mean over channels of the log MSE
+        floor = np.finfo(float).tiny
+        blocks = np.mean(np.log(np.maximum(_blocks(residuals[1][:, columns] ** 2), floor))
+                         - np.log(np.maximum(_blocks(residuals[0][:, columns] ** 2), floor)), axis=1)
+    return difference > TIED_SE * float(np.std(blocks, ddof=1)) / np.sqrt(BLOCKS)
+
+
+def _shaped_law(model: IdentificationModel, effect: Effect) -> bool:
+    """Whether ``effect`` is a friction law with a shape fitted beyond the plain law's levels (``coulomb:tanh``,
+    ``sigmoid``, a shaped Stribeck law)."""
+    return effect.name in FRICTION_LAWS and bool(shape_parameters(effect, model.robot))
 
 
 def plain_model_effects(model: IdentificationModel, joints: Sequence[int], *,
@@ -217,11 +279,51 @@ def plain_law_choice(model: IdentificationModel, after: IdentificationResult, fo
                 return rows
             rows = grown
 
-    def swapped(rows: set[int]) -> tuple[Effect, ...]:
-        return tuple(effect for effect in found if not set(_rows(model, effect)) & rows) \
-            + plain_model_effects(model, sorted(rows))
+    shaped = {row for effect in found if _shaped_law(model, effect) for row in _rows(model, effect) if row < n_joints}
 
-    # screened by the plain model, confirmed joint by joint: the diagnosed model with only that joint's effects
+    def plain_laws(rows: set[int], levels: set[int]) -> tuple[Effect, ...]:
+        # the plain law, Coulomb friction and an offset; a shaped row not in ``levels`` takes its simplest limit,
+        # Coulomb friction alone
+        with_offset = (rows - shaped) | (rows & levels)
+        laws = plain_model_effects(model, sorted(with_offset)) + tuple(
+            effect for effect in plain_model_effects(model, sorted(rows - with_offset)) if effect.name == "coulomb")
+        return tuple(sorted(laws, key=lambda effect: (effect.joints, effect.name != "coulomb")))  # one order: one fit
+
+    def swapped(rows: set[int]) -> tuple[Effect, ...]:
+        return tuple(effect for effect in found if not set(_rows(model, effect)) & rows) + plain_laws(rows, rows)
+
+    def mixed_fit(joints: set[int], levels: set[int], *, weak: bool = True
+                  ) -> tuple[tuple[Effect, ...], tuple[Effect, ...], IdentificationResult] | None:
+        """The diagnosed model with the plain law on ``joints`` (kept effects, plain laws, fit); ``weak``: its plain
+        terms within their noise or of the wrong sign left out (``threshold``)."""
+        kept = tuple(effect for effect in found if not set(_rows(model, effect)) & joints)
+        return laws_fit(kept, (), plain_laws(joints, levels), weak=weak)
+
+    def laws_fit(kept: tuple[Effect, ...], held: tuple[Effect, ...], laws: tuple[Effect, ...], *, weak: bool = True
+                 ) -> tuple[tuple[Effect, ...], tuple[Effect, ...], IdentificationResult] | None:
+        """The model of the diagnosed effects ``kept``, the plain laws ``held`` and ``laws`` (the latter left out
+        when weak): (kept, plain laws, fit)."""
+        if max_effects is not None and len(kept) + len(held) + len(laws) + (after.delay is not None) > max_effects:
+            return None
+        mixed = fit(kept + held + laws)
+        if mixed is None:
+            return None
+        if threshold is not None and weak:  # a plain term within its noise (an offset on a joint that has none) or
+            # of the wrong sign is not named
+            values = dict(zip(mixed.estimate.names, mixed.estimate.values))
+            weak_laws = [law for law in laws  # (a term the base parameters absorb has no estimate of its own: not named)
+                         if not set(law.parameter_names(model.robot)) <= set(values)
+                         or estimate_test(mixed.estimate, law.parameter_names(model.robot)).p_value >= threshold
+                         or (law.name == "coulomb"
+                             and any(values[name] < 0 for name in law.parameter_names(model.robot)))]
+            if weak_laws:
+                laws = tuple(law for law in laws if law not in weak_laws)
+                mixed = fit(kept + held + laws)
+                if mixed is None:
+                    return None
+        return kept, held + laws, mixed
+
+    # 1. screened by the plain model, confirmed joint by joint: the diagnosed model with only that joint's effects
     # swapped for the plain law must predict that joint better (the plain model's other laws also move the shared
     # rigid-body parameters, which can lower a joint's error that its own law does not)
     joints: set[int] = set()
@@ -229,34 +331,69 @@ def plain_law_choice(model: IdentificationModel, after: IdentificationResult, fo
         swap = fit(swapped(closure({row})))
         if swap is not None and better(swap, row):
             joints |= closure({row})
-    if not joints:
+    outcome = None
+    if joints:
+        made = mixed_fit(joints, joints)
+        if made is not None:
+            scores = (_score(after), _score(made[2]))
+            outcome = (joints, *made, scores, scores[1] < scores[0])
+            if (not outcome[-1] and not keep_refused) or negative_terms(made[2]):  # a friction or inertia below
+                outcome = None  # zero: not physical
+    # 2. a shaped law's shape stands only when the validation record measures its gain over the plain law: the
+    # screen reads the plain model's fit (no new fit), and only a joint it leaves costs fits, all of them in one
+    # mixed model (its shaped rows confirmed there), the simplest limit first; adopted unless the validation record
+    # measures the gain of the model it would replace
+    taken = joints if outcome is not None and outcome[-1] else set()
+    reference = outcome[3] if outcome is not None and outcome[-1] else after
+    screened = {row for row in shaped - taken if not measured_gain(after, plain, row)}
+    if screened and measured_gain(after, plain, rows=screened):  # the shapes' gain measured on those joints together
+        screened = set()
+
+    def adopted(made: tuple[tuple[Effect, ...], tuple[Effect, ...], IdentificationResult] | None) -> bool:
+        # refused only when the validation record measures the gain of the model it would replace
+        return made is not None and not negative_terms(made[2]) and (
+            _score(made[2]) < _score(reference) or not measured_gain(reference, made[2]))
+
+    # the model the shaped laws' limits start from: the swap's, when adopted, else the diagnosed one
+    current = (tuple(effect for effect in found if effect in outcome[1]), outcome[2]) if taken else (tuple(found), ())
+
+    def limited(rows: set[int], levels: set[int], *, weak: bool = True
+                ) -> tuple[set[int], tuple[tuple[Effect, ...], tuple[Effect, ...], IdentificationResult] | None]:
+        """The shaped laws acting on ``rows`` replaced by their plain limit, Coulomb friction on each joint they act on
+        (with an offset on a joint of ``levels``) that the effects kept leave without it: (their joints, fit)."""
+        limits = [effect for effect in current[0] if _shaped_law(model, effect) and set(_rows(model, effect)) & rows]
+        kept = tuple(effect for effect in current[0] if effect not in limits)
+        acted = {row for effect in limits for row in _rows(model, effect) if row < n_joints}
+        left = plain_model_effects(build_model(model.robot, model.kind, base + kept + current[1]), sorted(acted),
+                                   level=True)
+        laws = tuple(effect for effect in left if effect.name == "coulomb" or set(effect.joints) & levels)
+        return acted, laws_fit(kept, current[1], laws, weak=weak)
+
+    rows = set(screened)
+    sigmoids = {row for effect in found if effect.name == "sigmoid" for row in _rows(model, effect) if row < n_joints}
+    for levels in (set(), sigmoids):  # Coulomb friction alone, then with an offset on a sigmoid's joint (its levels)
+        if levels and not rows & levels:
+            break
+        made = None
+        while rows:  # the shaped rows confirmed in the mixed model: one whose gain it measures keeps its law
+            acted, made = limited(rows, levels, weak=False)
+            confirmed = set() if made is None else {row for row in rows if not measured_gain(after, made[2], row)}
+            if confirmed == rows:
+                break
+            rows = confirmed
+        if not rows or not adopted(made):  # judged before the weak terms are left out: a refusal costs no refit
+            continue
+        acted, made = limited(rows, levels)
+        if adopted(made):
+            outcome = (taken | acted, *made, (_score(after), _score(made[2])), True)
+            break
+    if outcome is None:
         return None
-    why = ", ".join(f"{channels[row]} {diagnosed_mse[channels[row]]:.4g} -> {plain_mse[channels[row]]:.4g}"
-                    for row in sorted(joints) if better(plain, row))
-    kept = tuple(effect for effect in found if not set(_rows(model, effect)) & joints)
-    laws = plain_model_effects(model, sorted(joints))
-    if max_effects is not None and len(kept) + len(laws) + (after.delay is not None) > max_effects:
-        return None
-    mixed = fit(kept + laws)
-    if mixed is None:
-        return None
-    if threshold is not None:  # a plain term within its noise (an offset on a joint that has none) or of the wrong
-        # sign is not named
-        values = dict(zip(mixed.estimate.names, mixed.estimate.values))
-        weak = [law for law in laws  # (a term the base parameters absorb has no estimate of its own: not named)
-                if not set(law.parameter_names(model.robot)) <= set(values)
-                or estimate_test(mixed.estimate, law.parameter_names(model.robot)).p_value >= threshold
-                or (law.name == "coulomb" and any(values[name] < 0 for name in law.parameter_names(model.robot)))]
-        if weak:
-            laws = tuple(law for law in laws if law not in weak)
-            mixed = fit(kept + laws)
-            if mixed is None:
-                return None
-    scores = (_score(after), _score(mixed))
-    adopted = scores[1] < scores[0]
-    if (not adopted and not keep_refused) or negative_terms(mixed):  # a friction or inertia below zero: not physical
-        return None
+    joints, kept, laws, mixed, scores, adopted = outcome
     mixed = with_delay(mixed, after.delay)
+    why = ", ".join(f"{channels[row]} {diagnosed_mse[channels[row]]:.4g} -> {plain_mse[channels[row]]:.4g}"
+                    + ("" if better(plain, row) else " (the shaped law's gain not measured there)")
+                    for row in sorted(joints) if better(plain, row) or row in screened)
     verdict = (f"the model with it instead scores {scores[1]:.4g} against {scores[0]:.4g}" if adopted else
                f"the model with it instead scores {scores[1]:.4g} against {scores[0]:.4g} as fitted, but the better "
                "of it as fitted and its consistent refit validates better than the diagnosed model's "
