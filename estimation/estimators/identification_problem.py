@@ -110,7 +110,7 @@ class ResidualBand:
         values = np.asarray(values, dtype=float)
         filtered = values.copy()
         for start, stop, band in self.pieces(values.shape[0]):
-            sos = scipy.signal.butter(self.order, self.cutoff_hz, btype="low", fs=band.rate_hz, output="sos")
+            sos = _sos(self.order, self.cutoff_hz, band.rate_hz)
             if stop - start > 3 * (2 * len(sos) + 1):
                 filtered[start:stop] = scipy.signal.sosfiltfilt(sos, values[start:stop], axis=0)
         return filtered
@@ -137,7 +137,19 @@ def decay_length(sos: NDArray[np.float64], tolerance: float = DECAY_TOLERANCE) -
 
 @functools.lru_cache(maxsize=32)
 def _band_margin(cutoff_hz: float, order: int, rate_hz: float) -> int:
-    return decay_length(scipy.signal.butter(order, cutoff_hz, btype="low", fs=rate_hz, output="sos"))
+    return decay_length(_sos(order, cutoff_hz, rate_hz))
+
+
+def _sos(order: int, cutoff_hz: float, rate_hz: float) -> NDArray[np.float64]:
+    """The band's low-pass filter as second-order sections, designed once per band (a residual is filtered at every
+    reweighting); a copy, the design stays as cached."""
+    return np.array(_sections(order, cutoff_hz, rate_hz))
+
+
+@functools.lru_cache(maxsize=32)
+def _sections(order: int, cutoff_hz: float, rate_hz: float) -> tuple[tuple[float, ...], ...]:
+    sos = scipy.signal.butter(order, cutoff_hz, btype="low", fs=rate_hz, output="sos")
+    return tuple(tuple(float(value) for value in row) for row in sos)
 
 
 @dataclass(frozen=True)
