@@ -468,7 +468,10 @@ def test_identify_chooses_the_same_model_in_memory_and_streamed(tmp_path, record
     assert (memory["identification_path"], streamed["identification_path"]) == ("in-memory", "streamed")
     assert streamed["chosen"] == memory["chosen"] == streamed["model_file"]["chosen"] == memory["model_file"]["chosen"]
     if kind == "filtered" and validated:
-        assert memory["chosen"] == "consistent"  # the record makes the consistent fit win: the streamed path must see it
+        # fitted as recorded, the torques keep the Coulomb step the 6 Hz filter smeared (the filtered target, before
+        # h-flip, made the consistent fit win here): the unconstrained fit wins; the consistent candidate and its
+        # prior weight search are still compared path to path below
+        assert memory["chosen"] == "ols" and "consistent" in _candidates(memory)
     for key in ("selection", "base"):
         assert streamed["model_selection"][key] == memory["model_selection"][key]
     assert "model_selection" not in streamed["not_computed"] and "consistent" not in streamed["not_computed"]
