@@ -273,3 +273,22 @@ def test_summed_weights_come_from_the_residual_in_the_motions_band_as_in_memory(
     unbanded = SummedLeastSquares().fit(replace(summed, band=None)).estimate_
     assert np.all(unbanded.weights < 0.2 * memory.weights)
     assert accumulate(model, ButterworthDifferentiation(5.0, torques="filtered").apply(raw)).band is None
+
+
+def test_the_band_filters_as_scipys_zero_phase_filter():
+    """``ResidualBand.apply`` (the in-band variances, the in-band sums) equals ``scipy.signal.sosfiltfilt`` along the
+    samples, each segment on its own, whatever the trailing axes; a segment too short for the padding is left."""
+    import scipy.signal
+
+    from estimation.estimators.identification_problem import ResidualBand
+
+    rng = np.random.default_rng(5)
+    band = ResidualBand(6.0, 4, 200.0, segments=((0, 300), (300, 310), (310, 700)))
+    values = rng.normal(size=(700, 3, 4))
+    sos = scipy.signal.butter(4, 6.0, btype="low", fs=200.0, output="sos")
+    expected = values.copy()
+    for start, stop in ((0, 300), (310, 700)):
+        expected[start:stop] = scipy.signal.sosfiltfilt(sos, values[start:stop], axis=0)
+    np.testing.assert_allclose(band.apply(values), expected, rtol=1e-12, atol=1e-12)
+    assert not np.allclose(expected[:300], values[:300])
+    np.testing.assert_array_equal(band.apply(values)[300:310], values[300:310])

@@ -112,9 +112,13 @@ def test_processed_records_are_refused_and_prepared_floor_scales_them():
         noise_floor(averaged, ("tau1", "tau2"))
     scaled = prepared_floor(floor, averaged)
     np.testing.assert_allclose(scaled.variance, floor.variance / 4)
-    # filtered white noise: its variance is the recording's times the filter's gain
+    # filtered white noise (torques filtered alike, the option): its variance is the recording's times the filter's gain
     white = _record(np.random.default_rng(6).normal(size=(20000, 2)), np.arange(20000) / RATE)
-    filtered = ButterworthDifferentiation(cutoff_hz=50.0).apply(white)
+    recorded = ButterworthDifferentiation(cutoff_hz=50.0).apply(white)  # the default: the torques as recorded
+    np.testing.assert_array_equal(recorded.tau, white.tau)
+    np.testing.assert_allclose(prepared_floor(noise_floor(white, ("tau1", "tau2")), recorded).variance,
+                               noise_floor(white, ("tau1", "tau2")).variance)
+    filtered = ButterworthDifferentiation(cutoff_hz=50.0, torques="filtered").apply(white)
     gain = prepared_floor(noise_floor(white, ("tau1", "tau2")), filtered).variance / noise_floor(white, ("tau1", "tau2")).variance
     np.testing.assert_allclose(np.var(filtered.tau, axis=0), gain, rtol=0.1)
     assert 0.05 < gain[0] < 0.15  # about 2 x 50 Hz / 1000 Hz

@@ -34,12 +34,10 @@ def test_emps_diagnosis_finds_coulomb_friction_and_offset_near_published_values(
         assert {"coulomb", "offset"} <= set(found)
         assert values["fc1"] == pytest.approx(20.4, rel=0.10)
         assert values["off1"] == pytest.approx(-3.16, rel=0.15)
-    # against the 20 Hz-filtered force the estimation saw, and against the force as recorded (its
-    # noise and the validation file's unmodelled pulses stay)
-    before, after = diagnosis.before.validation.mse_filtered["tau1"], diagnosis.after.validation.mse_filtered["tau1"]
-    print(f"\nEMPS diagnosis: {[(e.spec, e.shape) for e in diagnosis.effects]}; validation MSE vs filtered "
-          f"{before:.1f} -> {after:.1f}, vs recorded {diagnosis.before.validation.mse['tau1']:.1f} -> "
-          f"{diagnosis.after.validation.mse['tau1']:.1f}")
-    assert after < 0.2 * before
+    # against the force as recorded (its noise and the validation file's unmodelled pulses stay; the fit's target
+    # is the force as recorded, so no filtered force holds less: with the force filtered at the cut-off, the
+    # target before the flip of h-flip, the same model gave 94.9 -> 6.0 against it, 299.8 -> 206.9 as recorded)
     before, after = diagnosis.before.validation.mse["tau1"], diagnosis.after.validation.mse["tau1"]
+    print(f"\nEMPS diagnosis: {[(e.spec, e.shape) for e in diagnosis.effects]}; validation MSE vs recorded "
+          f"{before:.1f} -> {after:.1f}")
     assert after < 0.75 * before

@@ -14,7 +14,7 @@ import pytest
 from dynamics.models import build_model
 from dynamics.robots import load_robot
 from estimation.streaming.cluster import IncompleteSumError, WorkerLostError, check_parts, sum_files
-from estimation.estimators.identification_problem import IdentificationProblem
+from estimation.estimators.identification_problem import IdentificationProblem, ResidualBand
 from estimation.estimators.least_squares import WeightedLeastSquares, stack
 from estimation.data.loading import (MeasurementError, MissingColumnError, ResampledWarning, StallWarning,
                                      TimeBaseError)
@@ -71,10 +71,19 @@ def files(model, tmp_path_factory):
 
 
 def in_memory(model, paths, method=None, **options):
-    """WLS on the stacked problems of each file preprocessed whole."""
+    """WLS on the stacked problems of each file preprocessed whole (each file a segment of the motion's band when the
+    torques are fitted as recorded: the channel weights from the in-band residual, each file filtered on its own)."""
     problems = [stack(model, fill_derivatives(read_measurements(path, model=model), method, **options)) for path in paths]
+    bands = [problem.band for problem in problems]
+    band = None
+    if all(entry is not None for entry in bands):
+        stops = np.cumsum([problem.n_samples for problem in problems])
+        bounds = tuple(zip((0, *stops[:-1].tolist()), stops.tolist()))
+        rates = tuple(entry.rate_hz for entry in bands)
+        band = ResidualBand(bands[0].cutoff_hz, bands[0].order, bands[0].rate_hz, bounds if len(bounds) > 1 else (),
+                            rates if len(set(rates)) > 1 else ())
     joined = IdentificationProblem(np.concatenate([p.Y for p in problems]), np.concatenate([p.y for p in problems]),
-                                   problems[0].channels, problems[0].names, problems[0].expressions)
+                                   problems[0].channels, problems[0].names, problems[0].expressions, band=band)
     return WeightedLeastSquares().fit(joined).estimate_
 
 

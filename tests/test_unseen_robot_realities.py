@@ -280,16 +280,7 @@ TIAGO_LOG = Log(75.0, 100.0, jitter=0.3, stalls=20, velocity_noise=0.02)
 REALITIES = (
     Reality("TIAGo-like torso + 7-joint arm, one 75 s log at 100 Hz (jittered, stalled, noisy dq) split 0-45 / "
             "45-57 / 57-75 s, the test around other poses", tiago, TIAGO_LOG, TIAGO_LOG, TIAGO_LOG,
-            one_log=(45.0, 57.0), slow=True,
-            xfail="measured at 07d2b6e: identify 0.697 total, torso 1.82x and joint 7 1.68x the plain fit (the "
-                  "consistent fit, positions' derivatives at 3.0 Hz); diagnose 0.767, torso 1.82x, joint 3 1.41x, joint 7 "
-                  "1.61x. Cause: the fit's target is the torques filtered at the cut-off, whose Coulomb steps are "
-                  "smeared while the regressor's sign(dq) stays sharp (friction fitted low, the more so the lower the "
-                  "cut-off this slow motion allows). Fitting the torques as recorded gives 0.325 (torso 0.42x) and "
-                  "0.316 but moves the Panda's WLS weights (high-frequency torque noise): 0.994 -> 1.013; with the "
-                  "weights from the residual in the motion's band as well the Panda holds (0.992) and this case "
-                  "passes (0.325, torso 0.42x; diagnose 0.315), not the default while the streamed path lacks the "
-                  "in-band weights (benchmarks/README.md, h-unseen3, h-target)"),
+            one_log=(45.0, 57.0), slow=True),  # a strict xfail until the torques were fitted as recorded (h-band)
     Reality("UR10e-like, Stribeck friction (static twice Coulomb), 10 s / 4 s / 6 s at 500 Hz, logged dq", ur10e,
             Log(10.0, 500.0, motion_hz=0.1), Log(4.0, 500.0, motion_hz=0.1), Log(6.0, 500.0, motion_hz=0.1),
             extra="stribeck", slow=True),
@@ -310,11 +301,6 @@ def test_the_defaults_run_and_predict_as_well_as_a_plain_fit_on_a_users_log(case
     as_well_as_the_plain_fit(case.name, outcome, f"chosen {outcome['selections']}; ")
 
 
-@pytest.mark.xfail(strict=True, reason="the Butterworth path fits the torques filtered at the cut-off, whose Coulomb "
-                   "steps are smeared while the sign(dq) column stays sharp: on this record fc2 2.47 (truth 3.0, "
-                   "std 0.13) and fv2 4.30 (truth 2.99) at 2 Hz, fc2 1.98 at 1 Hz, 2.79 at 5 Hz, 2.95 at 20 Hz; "
-                   "ButterworthDifferentiation(torques='recorded') passes, not the default while the streamed path "
-                   "lacks the in-band weights (benchmarks/README.md, h-unseen3, h-target)")
 def test_a_low_cutoff_on_a_slow_motion_leaves_the_coulomb_friction_unbiased(tmp_path):
     """The TIAGo-like miss in small: a slow motion (0.05 Hz) that a 2 Hz filter (FIGAROH's choice for a TIAGo) serves
     well, exact positions at 100 Hz, sign-law Coulomb friction: the fitted friction within 5 % of the truth."""

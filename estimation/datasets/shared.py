@@ -137,8 +137,8 @@ def emps_measurements(
 
     ``tau1`` is the motor force ``gtau·vir`` (the external pulses of the validation file are not
     added: their sign and point of application are not documented). Velocity and acceleration
-    come from a zero-phase Butterworth filter, the force filtered alike, as the benchmark's description
-    recommends (the derivatives those of the filtered positions' quintic spline, not its central differences:
+    come from a zero-phase Butterworth filter, as the benchmark's description recommends, the force kept as recorded
+    (the fit's target, ``ButterworthDifferentiation``'s default ``torques="recorded"``) (the derivatives those of the filtered positions' quintic spline, not its central differences:
     :func:`~estimation.preprocessing.differentiation.spline_derivatives`); ``trim`` samples at each end (filter transients)
     are dropped, then the record is decimated by ``decimation`` (1 kHz → 100 Hz by default).
     """

@@ -26,7 +26,7 @@ from estimation.diagnosis.candidates.trials import candidate_label
 from estimation.diagnosis.search_fits import AdoptedEffect
 from estimation.diagnosis.rules.robust_test import WaldTest, estimate_test
 from estimation.identification.fit import ImplausibleEstimateWarning, identify
-from estimation.diagnosis.limit_laws import replace_limit_laws
+from estimation.diagnosis.limit_laws import limit_law, replace_limit_laws
 from estimation.preprocessing.delay import delayed
 from estimation.diagnosis.sign_constraints import pin_wrong_signs
 from estimation.estimators.effect_blocks import ShapeSearchError
@@ -54,11 +54,21 @@ def refit_found(model, before, adopted: Sequence[AdoptedEffect], moved, train, v
             after = identify(current, train, validate, shape_starts=starts, delay=moved.final_bounds())
         except ShapeSearchError:  # the joint refit ran a shape to where the data do not determine it
             after = None
-        fallback = after is None or any(value.at_bound for value in after.shapes) \
+        # a smoothing run to its lower bound is the limit law (the sign law: estimation.diagnosis.limit_laws), not
+        # a shape the data leave undetermined: the joint refit's delay stands, the law is replaced below along it
+        limits = {name for item in adopted if limit_law(item.effect) is not None
+                  for name in (parameter.name for parameter in shape_parameters(item.effect, model.robot))}
+        undetermined = after is None or any(value.at_bound and not (value.name in limits and value.value - value.lower
+                                                                    <= value.upper - value.value)
+                                            for value in after.shapes)
+        fallback = undetermined or any(value.at_bound for value in after.shapes) \
             or weighted_validation(after, weights) > 1.05 * validation_error
         # the refits below run along the records moved by the delay of the fit kept (the selection's when
-        # the joint refit is rejected), the delay carried over
-        fitted_delay = moved.adopted_value() if fallback or after.delay is None else after.delay
+        # the joint refit is rejected, the joint refit's when only a smoothing ran to its limit law), the delay
+        # carried over
+        limit_only = fallback and not undetermined and weighted_validation(after, weights) <= 1.05 * validation_error
+        fitted_delay = after.delay if limit_only and after.delay is not None else \
+            moved.adopted_value() if fallback or after.delay is None else after.delay
         if fitted_delay is not None:
             train, validate = delayed(train, fitted_delay.value), delayed(validate, fitted_delay.value)
         if fallback:

@@ -110,10 +110,27 @@ class ResidualBand:
         values = np.asarray(values, dtype=float)
         filtered = values.copy()
         for start, stop, band in self.pieces(values.shape[0]):
-            sos = scipy.signal.butter(self.order, self.cutoff_hz, btype="low", fs=band.rate_hz, output="sos")
+            sos = _sos(self.order, self.cutoff_hz, band.rate_hz)
             if stop - start > 3 * (2 * len(sos) + 1):
-                filtered[start:stop] = scipy.signal.sosfiltfilt(sos, values[start:stop], axis=0)
+                filtered[start:stop] = _filtfilt(sos, values[start:stop])
         return filtered
+
+
+def _filtfilt(sos: NDArray[np.float64], values: NDArray[np.float64]) -> NDArray[np.float64]:
+    """``scipy.signal.sosfiltfilt(sos, values, axis=0)`` (its odd extension, padding and initial states), computed
+    on the samples as rows of one contiguous ``(columns, samples)`` array: equal to it, in half its time on a
+    residual of a few channels (the in-band variances are taken at every reweighting)."""
+    n_sections = sos.shape[0]
+    taps = 2 * n_sections + 1 - min(int(np.sum(sos[:, 2] == 0)), int(np.sum(sos[:, 5] == 0)))
+    padding = 3 * taps
+    rows = values.reshape(values.shape[0], -1)
+    first, last = rows[:1], rows[-1:]
+    extended = np.concatenate([2 * first - rows[padding:0:-1], rows, 2 * last - rows[-2:-(padding + 2):-1]]).T.copy()
+    zi = scipy.signal.sosfilt_zi(sos)[:, None, :]  # (sections, 1, 2)
+    forward, _ = scipy.signal.sosfilt(sos, extended, axis=-1, zi=zi * extended[None, :, :1])
+    backward = forward[:, ::-1].copy()
+    backward, _ = scipy.signal.sosfilt(sos, backward, axis=-1, zi=zi * backward[None, :, :1])
+    return backward[:, ::-1][:, padding:backward.shape[1] - padding].T.reshape(values.shape)
 
 
 #: relative size of the impulse response at which a filter's reach ends (the streamed path's overlap margins)
@@ -137,7 +154,19 @@ def decay_length(sos: NDArray[np.float64], tolerance: float = DECAY_TOLERANCE) -
 
 @functools.lru_cache(maxsize=32)
 def _band_margin(cutoff_hz: float, order: int, rate_hz: float) -> int:
-    return decay_length(scipy.signal.butter(order, cutoff_hz, btype="low", fs=rate_hz, output="sos"))
+    return decay_length(_sos(order, cutoff_hz, rate_hz))
+
+
+def _sos(order: int, cutoff_hz: float, rate_hz: float) -> NDArray[np.float64]:
+    """The band's low-pass filter as second-order sections, designed once per band (a residual is filtered at every
+    reweighting); a copy, the design stays as cached."""
+    return np.array(_sections(order, cutoff_hz, rate_hz))
+
+
+@functools.lru_cache(maxsize=32)
+def _sections(order: int, cutoff_hz: float, rate_hz: float) -> tuple[tuple[float, ...], ...]:
+    sos = scipy.signal.butter(order, cutoff_hz, btype="low", fs=rate_hz, output="sos")
+    return tuple(tuple(float(value) for value in row) for row in sos)
 
 
 @dataclass(frozen=True)

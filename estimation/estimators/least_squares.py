@@ -30,7 +30,7 @@ from dynamics.runtime.threads import single_threaded_blas
 from estimation.uncertainty.covariance import CovarianceLabel, CovarianceMethod, check_method, hac_covariance
 from estimation.estimators.errors import NotFittedError
 from estimation.estimators.estimator import Estimator
-from estimation.estimators.identification_problem import IdentificationProblem, stack
+from estimation.estimators.identification_problem import IdentificationProblem, in_band_variance, stack
 from dynamics.measurements import Measurements
 
 __all__ = [
@@ -311,12 +311,7 @@ class WeightedLeastSquares(LeastSquares):
         # The weights are iterated on per-channel Gram matrices (r x r each, formed once): every
         # iteration costs O(m r²). The final solve refines on the exact residuals (see solve).
         gram, moment = channel_gram(problem)  # (m, r, r), (m, r)
-        # the variances from the residual in the motion's band (problem.band: in_band_variance), as sums of the
-        # filtered regressor and target (filtering is linear: the filtered residual is F y − (F Y) θ)
-        in_band = problem if problem.band is None else IdentificationProblem(
-            problem.band.apply(problem.Y), problem.band.apply(problem.y), problem.channels, problem.names)
-        band_gram, band_moment = (gram, moment) if problem.band is None else channel_gram(in_band)
-        power = np.sum(in_band.y**2, axis=0)  # (m,)
+        power = np.sum(problem.y**2, axis=0)  # (m,)
         dof = problem.n_samples - problem.n_parameters / problem.n_channels
         weights = np.ones(problem.n_channels)
         variance = None
@@ -324,8 +319,12 @@ class WeightedLeastSquares(LeastSquares):
         for _ in range(int(self.max_iter) + 1):
             theta = _normal_solve(np.tensordot(weights, gram, axes=1), weights @ moment)
             iterations += 1
-            updated = np.maximum((power - 2 * band_moment @ theta
-                                  + np.einsum("r,mrs,s->m", theta, band_gram, theta)) / dof, floor)
+            if problem.band is None:
+                in_band = (power - 2 * moment @ theta + np.einsum("r,mrs,s->m", theta, gram, theta)) / dof
+            else:  # the residual in the motion's band (problem.band): the (N, m) residual filtered at each
+                # iteration, cheaper than the (N, m, r) regressor filtered once for the few iterations a fit takes
+                in_band = in_band_variance(problem.residuals(theta), problem.n_parameters, problem.band)
+            updated = np.maximum(in_band, floor)
             change = np.inf if variance is None else np.max(np.abs(updated - variance) / variance)
             variance = updated
             weights = 1.0 / variance

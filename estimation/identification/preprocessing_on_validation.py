@@ -11,7 +11,7 @@ record 4 % better. When the user gives a validation record of another motion, th
 compared on it, as the model is (:mod:`estimation.consistent.model_selection`).
 
 **Score** (:class:`ValidationScore`). For each candidate: the training record prepared by it (its derivatives, and
-its torques filtered alike as the fit's targets), the declared model fitted by each unconstrained estimator asked
+its torques as the fit's targets: as recorded after a Butterworth filter, its default), the declared model fitted by each unconstrained estimator asked
 for (``ols``, ``wls``: PUMA paper, eqs. 13 and 20), the validation record prepared by the same candidate, and the
 fit's prediction along it compared with the validation torques **as recorded**, at the recorded time stamps
 (:func:`estimation.identification.validation.compare_recorded`; never the filtered torques). Memory stays that of

@@ -10,8 +10,10 @@ Two differentiation methods, each a small frozen object with ``apply(measurement
   (the tail past the last whole period too) are kept beside the averaged ones.
 * :class:`ButterworthDifferentiation` — for any motion: zero-phase Butterworth low-pass
   (``filtfilt``) of the positions, ``dq`` and ``ddq`` the derivatives of their quintic interpolating
-  spline (:func:`spline_derivatives`), and the same filter on the torques and wrench so that both
-  sides of ``Y θ = τ`` see the same delay-free attenuation. The filter covers the whole record: each end is extended by its odd reflection
+  spline (:func:`spline_derivatives`); the torques and wrench stay as recorded, the fit's target (filtered
+  alike, a Coulomb law's step would be smeared while the regressor's ``sign(dq)`` stays sharp, its friction fitted
+  low), and a weighted fit's channel weights come from the residual in the motion's band
+  (:class:`estimation.estimators.identification_problem.ResidualBand`). The filter covers the whole record: each end is extended by its odd reflection
   over the filter's settling time (:func:`settling_samples`), so no sample is dropped and every
   cut-off is judged on the same samples (trimming the settling instead is an option).
 
@@ -228,8 +230,9 @@ class ButterworthDifferentiation:
         the fit's target (a filtered Coulomb step is smeared over a period of the cut-off while the regressor's
         ``sign(dq)`` stays sharp: friction fitted low, the more so the lower the cut-off), and a weighted fit's
         channel weights taken from the residual in the motion's band
-        (:class:`estimation.estimators.identification_problem.ResidualBand`). Not the default: the streamed path
-        does not take the in-band weights yet (benchmarks/README.md, h-target).
+        (:class:`estimation.estimators.identification_problem.ResidualBand`; the streamed path sums the in-band
+        problem too, :attr:`estimation.estimators.normal_equations.NormalEquations.band`). The default
+        (benchmarks/README.md, h-target, h-band).
     """
 
     cutoff_hz: float | None = None
@@ -237,7 +240,7 @@ class ButterworthDifferentiation:
     trim: bool = False
     logged_velocity: bool = True
     rate_hz: float | None = None
-    torques: Literal["filtered", "recorded"] = "filtered"
+    torques: Literal["filtered", "recorded"] = "recorded"
 
     def __post_init__(self) -> None:
         if self.cutoff_hz is not None and not (np.isfinite(self.cutoff_hz) and self.cutoff_hz > 0):
