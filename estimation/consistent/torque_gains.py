@@ -31,16 +31,21 @@ import numpy as np
 from numpy.typing import NDArray
 
 from dynamics.measurements import Measurements
+from dynamics.models import IdentificationModel
 from estimation.consistent.identification import ConsistentResult
 from estimation.consistent.model_selection import ModelSelection
+from estimation.identification.prepared import PreparedRecord, PreparedRecords
 from estimation.identification.relative_error import relative_scores
+from estimation.identification.repeated_motion import REPEAT_FRACTION, repeated_motion, still_motion
 from estimation.identification.validation import Comparison
 
 __all__ = ["TORQUE_GAINS_TOLERANCE", "TorqueGains", "channel_factors", "channel_sums", "description_scale",
-           "divided_torques", "fit_torque_gains", "in_recorded_units", "torque_gains_answer"]
+           "divided_records", "divided_torques", "fit_torque_gains", "gains_for_records", "gains_on_validation", "in_recorded_units", "torque_gains_answer"]
 
 #: the relative score by which the model with the gains must beat the declared one (a tie keeps the declared)
 TORQUE_GAINS_TOLERANCE = 0.01
+#: samples a block when the regressor is summed (:func:`channel_sums`)
+BLOCK = 2048
 
 
 @dataclass(frozen=True)
@@ -80,11 +85,62 @@ class TorqueGains:
                    str(document.get("scale", "")))
 
 
-def channel_sums(Y: NDArray[np.float64], tau: NDArray[np.float64]) -> tuple[NDArray, NDArray, NDArray]:
-    """Per channel ``G_j = Y_jᵀ Y_j``, ``b_j = Y_jᵀ τ_j``, ``c_j = τ_jᵀ τ_j`` of the regressor ``(N, m, r)`` and the
-    torques ``(N, m)``."""
-    return (np.einsum("nmr,nms->mrs", Y, Y, optimize=True), np.einsum("nmr,nm->mr", Y, tau, optimize=True),
-            np.einsum("nm,nm->m", tau, tau))
+def channel_sums(model: IdentificationModel, measurements: Measurements, *, block: int = BLOCK
+                 ) -> tuple[NDArray, NDArray, NDArray]:
+    """Per channel ``G_j = Y_jᵀ Y_j``, ``b_j = Y_jᵀ τ_j``, ``c_j = τ_jᵀ τ_j`` of the base regressor and the torques
+    of ``measurements``, summed over blocks of ``block`` samples (the regressor of the whole record never held)."""
+    m, r = model.n_channels, model.n_base
+    G, b, c = np.zeros((m, r, r)), np.zeros((m, r)), np.zeros(m)
+    tau = measurements.channels(model.channels)
+    for start in range(0, measurements.n_samples, block):
+        rows = slice(start, start + block)
+        Y = model.evaluate_base(measurements.q[rows], measurements.dq[rows], measurements.ddq[rows])
+        G += np.einsum("nmr,nms->mrs", Y, Y, optimize=True)
+        b += np.einsum("nmr,nm->mr", Y, tau[rows], optimize=True)
+        c += np.einsum("nm,nm->m", tau[rows], tau[rows])
+    return G, b, c
+
+
+def _predicted(model: IdentificationModel, theta: NDArray, record: Measurements, *, block: int = BLOCK) -> NDArray:
+    return np.vstack([model.evaluate_base(record.q[rows], record.dq[rows], record.ddq[rows]) @ theta
+                      for rows in (slice(start, start + block) for start in range(0, record.n_samples, block))])
+
+
+def _weighted_fit(G: NDArray, b: NDArray, c: NDArray, n: int, rounds: int = 4) -> NDArray:
+    """The channel-weighted least-squares fit without gains (the weights from the residual variances, iterated)."""
+    s = np.ones(b.shape[0])
+    w = 1.0 / np.maximum(c / n, np.finfo(float).tiny)
+    for _ in range(rounds):
+        theta = _solve_theta(G, b, s, w)
+        w = 1.0 / np.maximum(_rss(G, b, c, s, theta) / n, np.finfo(float).tiny)
+    return theta
+
+
+def gains_on_validation(model: IdentificationModel, train: Measurements, validation: Measurements
+                        ) -> tuple[TorqueGains, bool, str]:
+    """The gains fitted on ``train`` with ``model`` (:func:`fit_torque_gains`, the description's scale) and whether
+    they predict ``validation`` (a record of another motion, at its recorded samples) better than the same model's
+    channel-weighted fit without them, by the criterion of the default answer (the mean relative validation error,
+    :data:`TORQUE_GAINS_TOLERANCE`): ``(gains, taken, sentence)``. A cheap check (sums, no sample held) before the
+    answer's candidates are fitted again to the torques divided by the gains."""
+    channels = model.channels
+    G, b, c = channel_sums(model, train)
+    names = {name for effect in model.effects for name in effect.parameter_names(model.robot)}
+    rigid = np.array([name not in names for name in model.base.names])
+    gains, theta = fit_torque_gains((G, b, c), train.n_samples, channels, rigid=rigid,
+                                    description=model.base.to_base(model.nominal_parameters()))
+    plain = _weighted_fit(G, b, c, train.n_samples)
+    record = validation.as_recorded
+    measured = record.channels(channels)
+    errors = {"declared": np.mean((measured - _predicted(model, plain, record)) ** 2, axis=0),
+              "gains": np.mean((measured - gains.values * _predicted(model, theta, record)) ** 2, axis=0)}
+    scored = relative_scores({name: dict(zip(channels, mse.tolist())) for name, mse in errors.items()}, channels)
+    taken = bool((1.0 + TORQUE_GAINS_TOLERANCE) * scored["gains"] < scored["declared"])
+    said = ", ".join(f"{c} {v:.4g} ± {e:.2g}" for c, v, e in zip(gains.channels, gains.values, gains.std))
+    sentence = (f"an unknown gain on each joint's recorded torque ({said}; the scale from {gains.scale}): the "
+                f"channel-weighted fit with them validates {scored['gains']:.4g} against {scored['declared']:.4g} "
+                "without (the mean relative validation error), " + ("taken" if taken else "not taken"))
+    return gains, taken, sentence
 
 
 def _solve_theta(G: NDArray, b: NDArray, s: NDArray, w: NDArray) -> NDArray:
@@ -96,16 +152,16 @@ def _rss(G: NDArray, b: NDArray, c: NDArray, s: NDArray, theta: NDArray) -> NDAr
     return c - 2.0 * s * (b @ theta) + s**2 * np.einsum("r,mrs,s->m", theta, G, theta)
 
 
-def fit_torque_gains(Y: NDArray[np.float64], tau: NDArray[np.float64], channels: Sequence[str], *,
-                     rigid: NDArray[np.bool_], description: NDArray[np.float64], n_samples: int | None = None,
+def fit_torque_gains(sums: tuple[NDArray, NDArray, NDArray], n_samples: int, channels: Sequence[str], *,
+                     rigid: NDArray[np.bool_], description: NDArray[np.float64],
                      rounds: int = 4, max_iterations: int = 200, tolerance: float = 1e-10
                      ) -> tuple[TorqueGains, NDArray[np.float64]]:
     """Fit ``τ_rec,j = s_j Y_j θ`` (module docstring): ``(gains, theta)``, ``theta`` in the description's scale.
 
     Parameters
     ----------
-    Y, tau
-        The base regressor ``(N, m, r)`` and the recorded (or filtered) torques ``(N, m)`` of the training record.
+    sums, n_samples
+        :func:`channel_sums` of the training record (its base regressor and the torques fitted) and its samples.
     channels
         The ``m`` channel names.
     rigid
@@ -113,8 +169,8 @@ def fit_torque_gains(Y: NDArray[np.float64], tau: NDArray[np.float64], channels:
     description
         ``(r,)`` the description's base parameters (only the rigid body's are used).
     """
-    G, b, c = channel_sums(Y, tau)
-    n = Y.shape[0] if n_samples is None else n_samples
+    G, b, c = sums
+    n = n_samples
     m, r = b.shape
     s = np.ones(m)
     w = 1.0 / np.maximum(c / n, np.finfo(float).tiny)
@@ -255,3 +311,33 @@ def in_recorded_units(selection: ModelSelection, gains: TorqueGains) -> ModelSel
     factors = channel_factors(gains, first.train.channels)
     return replace(selection, candidates=tuple(replace(candidate, fit=_recorded_fit(candidate.fit, factors))
                                                for candidate in selection.candidates))
+
+
+def divided_records(records: PreparedRecords, gains: TorqueGains) -> PreparedRecords:
+    """``records`` with every record's torques divided by ``gains`` (:func:`divided_torques`: the prepared
+    measurements and the segments as read, whose noise floors the diagnosis compares with)."""
+    def divided(record: PreparedRecord | None) -> PreparedRecord | None:
+        if record is None:
+            return None
+        files = tuple(replace(file, segments=tuple(divided_torques(segment, gains) for segment in file.segments))
+                      for file in record.files)
+        return replace(record, files=files, measurements=divided_torques(record.measurements, gains))
+    return replace(records, train=divided(records.train), validation=divided(records.validation),
+                   test=divided(records.test))
+
+
+def gains_for_records(model: IdentificationModel, records: PreparedRecords) -> tuple[TorqueGains, bool, str] | None:
+    """:func:`gains_on_validation` of the prepared records, or ``None`` when nothing can measure the gains: no
+    validation record of another motion (none, a repeat of the training motion, or one that hardly moves), a model
+    with channels other than joint torques, or the fit fails."""
+    channels = model.channels
+    validation = None if records.validation is None else records.validation.measurements
+    train = records.train.measurements
+    if validation is None or len(channels) < 2 \
+            or not all(channel.startswith("tau") and channel[3:].isdigit() for channel in channels) \
+            or repeated_motion(train, validation) <= REPEAT_FRACTION or still_motion(train, validation):
+        return None
+    try:
+        return gains_on_validation(model, train, validation)
+    except (ValueError, np.linalg.LinAlgError):
+        return None

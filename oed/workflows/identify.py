@@ -79,7 +79,7 @@ from estimation.consistent.motor_friction import motor_friction_answer, motor_fr
 from estimation.consistent.torque_gains import (
     TorqueGains,
     divided_torques,
-    fit_torque_gains,
+    gains_on_validation,
     in_recorded_units,
     torque_gains_answer,
 )
@@ -777,16 +777,14 @@ def torque_gains_selection(args: IdentifyOptions, selection: ModelSelection, tra
             or selection.selection != "validation" or len(channels) < 2 \
             or not all(channel.startswith("tau") and channel[3:].isdigit() for channel in channels):
         return selection, None
-    with step("an unknown gain on each joint's torque fitted and compared"):
-        Y = model.evaluate_base(train.q, train.dq, train.ddq)
-        effect_names = {name for effect in model.effects for name in effect.parameter_names(model.robot)}
-        rigid = np.array([name not in effect_names for name in model.base.names])
+    with step("an unknown gain on each joint's torque fitted and checked on the validation record"):
         try:
-            gains, _ = fit_torque_gains(Y, train.channels(channels), channels, rigid=rigid,
-                                        description=model.base.to_base(model.nominal_parameters()))
+            gains, promising, _ = gains_on_validation(model, train, validation)
         except (ValueError, np.linalg.LinAlgError):
             return selection, None
-        del Y
+    if not promising:
+        return selection, (gains, False)
+    with step("the answer's candidates fitted to the torques divided by the gains and compared"):
         other = select_model(model, divided_torques(train, gains), divided_torques(validation, gains), base=base,
                              consistent=consistent_settings(args, model.robot))
     answer, taken = torque_gains_answer(selection, in_recorded_units(other, gains), gains)
