@@ -39,11 +39,15 @@ from estimation.identification.relative_error import relative_scores
 from estimation.identification.repeated_motion import REPEAT_FRACTION, repeated_motion, still_motion
 from estimation.identification.validation import Comparison
 
-__all__ = ["TORQUE_GAINS_TOLERANCE", "TorqueGains", "channel_factors", "channel_sums", "description_scale",
+__all__ = ["DETERMINED_RELATIVE_STD", "TORQUE_GAINS_TOLERANCE", "TorqueGains", "channel_factors", "channel_sums", "description_scale",
            "divided_records", "divided_torques", "fit_torque_gains", "gains_for_records", "gains_on_validation", "in_recorded_units", "torque_gains_answer"]
 
 #: the relative score by which the model with the gains must beat the declared one (a tie keeps the declared)
 TORQUE_GAINS_TOLERANCE = 0.01
+#: a gain whose standard error exceeds this fraction of it is not determined by the record (a sensor's calibration
+#: error is of this order: such a value measures nothing; on a PUMA's wrist the spread of the estimates over noise
+#: draws is then up to three times the linearised standard error, tests/test_torque_gains.py)
+DETERMINED_RELATIVE_STD = 0.1
 #: samples a block when the regressor is summed (:func:`channel_sums`)
 BLOCK = 2048
 
@@ -71,11 +75,22 @@ class TorqueGains:
     scale: str = "the robot description's bodies"
     iterations: int = 0
 
+    @property
+    def determined(self) -> NDArray[np.bool_]:
+        """Whether each gain's standard error is within :data:`DETERMINED_RELATIVE_STD` of it."""
+        return self.std <= DETERMINED_RELATIVE_STD * np.abs(self.values)
+
     def to_dict(self) -> dict[str, Any]:
-        """``{channels: {tau1: {value, std}, …}, scale}``."""
-        return {"channels": {channel: {"value": float(value), "std": float(std)}
-                             for channel, value, std in zip(self.channels, self.values, self.std)},
+        """``{channels: {tau1: {value, std, determined}, …}, scale}``."""
+        return {"channels": {channel: {"value": float(value), "std": float(std), "determined": bool(known)}
+                             for channel, value, std, known in zip(self.channels, self.values, self.std,
+                                                                   self.determined)},
                 "scale": self.scale}
+
+    def said(self) -> str:
+        """The gains in a few words: ``tau1 1.15 ± 0.0005, …`` (``not determined`` beside those that are not)."""
+        return ", ".join(f"{c} {v:.4g} ± {e:.2g}" + ("" if known else " (not determined)")
+                         for c, v, e, known in zip(self.channels, self.values, self.std, self.determined))
 
     @classmethod
     def from_dict(cls, document: Any) -> TorqueGains:
@@ -136,8 +151,7 @@ def gains_on_validation(model: IdentificationModel, train: Measurements, validat
               "gains": np.mean((measured - gains.values * _predicted(model, theta, record)) ** 2, axis=0)}
     scored = relative_scores({name: dict(zip(channels, mse.tolist())) for name, mse in errors.items()}, channels)
     taken = bool((1.0 + TORQUE_GAINS_TOLERANCE) * scored["gains"] < scored["declared"])
-    said = ", ".join(f"{c} {v:.4g} ± {e:.2g}" for c, v, e in zip(gains.channels, gains.values, gains.std))
-    sentence = (f"an unknown gain on each joint's recorded torque ({said}; the scale from {gains.scale}): the "
+    sentence = (f"an unknown gain on each joint's recorded torque ({gains.said()}; the scale from {gains.scale}): the "
                 f"channel-weighted fit with them validates {scored['gains']:.4g} against {scored['declared']:.4g} "
                 "without (the mean relative validation error), " + ("taken" if taken else "not taken"))
     return gains, taken, sentence
@@ -154,7 +168,7 @@ def _rss(G: NDArray, b: NDArray, c: NDArray, s: NDArray, theta: NDArray) -> NDAr
 
 def fit_torque_gains(sums: tuple[NDArray, NDArray, NDArray], n_samples: int, channels: Sequence[str], *,
                      rigid: NDArray[np.bool_], description: NDArray[np.float64],
-                     rounds: int = 4, max_iterations: int = 200, tolerance: float = 1e-10
+                     rounds: int = 4, max_iterations: int = 100, tolerance: float = 1e-9
                      ) -> tuple[TorqueGains, NDArray[np.float64]]:
     """Fit ``τ_rec,j = s_j Y_j θ`` (module docstring): ``(gains, theta)``, ``theta`` in the description's scale.
 
@@ -255,8 +269,7 @@ def torque_gains_answer(selection: ModelSelection, other: ModelSelection, gains:
     channels = getattr(validation, "channels", None) or tuple(validation.mse)
     scored = relative_scores({name: answer.validation.mse for name, answer in answers.items()}, channels)
     taken = (1.0 + TORQUE_GAINS_TOLERANCE) * scored["gains"] < scored["declared"]
-    said = ", ".join(f"{c} {v:.4g} ± {e:.2g}" for c, v, e in zip(gains.channels, gains.values, gains.std))
-    why = (f"; an unknown gain on each joint's recorded torque ({said}; the scale from {gains.scale}): its "
+    why = (f"; an unknown gain on each joint's recorded torque ({gains.said()}; the scale from {gains.scale}): its "
            f"answer ({other.chosen}) validates {scored['gains']:.4g} against {scored['declared']:.4g} for the "
            "declared model's (" + selection.chosen + "; the mean relative validation error), "
            + ("taken" if taken else "not taken"))
