@@ -450,6 +450,7 @@ def diagnose_document(args: DiagnoseOptions, diagnosed: Diagnosed) -> tuple[dict
         finish_document(document, answered, trivial=None, warnings=diagnosed.notes, rest=rest_records(records),
                         transmission=diagnosed.transmission, warnings_key=("warnings", "after"))
     document["preprocessing"] = diagnosed.preprocessing
+    document["torque_gains"] = None  # the in-memory path's, when the validation record measured them (below)
     if records is not None:
         untouched, consistent = diagnosed.untouched, selection.consistent
         document["test"] = None if untouched is None else untouched.to_dict()

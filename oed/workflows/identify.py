@@ -495,6 +495,11 @@ def identification_streamed(args: IdentifyOptions, model: IdentificationModel, t
     if untried is not None:
         not_computed["motor_friction"] = untried
         notes = (*notes, untried)
+    if args.method == "auto" and not args.consistent and args.validate and not model_has_shapes(model) \
+            and len(model.channels) > 1 and all(channel.startswith("tau") for channel in model.channels):
+        not_computed["torque_gains"] = ("an unknown gain on each joint's recorded torque is a candidate of the "
+                                        "in-memory default answer (estimation.consistent.torque_gains), not tried on "
+                                        "the streamed path")
     validation_mse = None if result.validation is None else result.validation.mse
     return Identified(result, chosen, plan.to_dict(), plan.describe(),
                       (*messages, *notes), notes, trivial, floor, floor_note, not_computed, selection=selection,
