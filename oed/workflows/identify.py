@@ -771,7 +771,9 @@ def torque_gains_selection(args: IdentifyOptions, selection: ModelSelection, tra
                            validation: Measurements | None, *, base: str, given: str | None,
                            delay: DelayBounds | None) -> tuple[ModelSelection, tuple[TorqueGains, bool] | None]:
     """The default answer with an unknown gain on each joint's recorded torque a candidate
-    (:mod:`estimation.consistent.torque_gains`): the gains fitted on the training record, the declared model (as
+    (:mod:`estimation.consistent.torque_gains`): the gains fitted on the training record and checked on the
+    validation record (:func:`~estimation.consistent.torque_gains.gains_on_validation`: the channel-weighted fit with
+    them must validate better, beyond the record's sampling spread); only then the declared model (as
     ``selection``'s, with the motor laws when they were taken) chosen among its candidates on the torques divided by
     them, and taken when its answer validates better in the recorded units. ``(selection, None)`` unchanged when the
     user chose the estimator, with a delay search or shaped laws, without a validation record of another motion,
