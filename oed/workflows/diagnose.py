@@ -477,6 +477,9 @@ def diagnose_document(args: DiagnoseOptions, diagnosed: Diagnosed) -> tuple[dict
         answer_diagnosis(document, chosen, floor=None if diagnosis.statistics is None else diagnosis.statistics.floor)
         files = (*files, *(text for text in chosen.warnings if text not in diagnosed.messages))  # said of it too
         add_runner_up_model_file(document, diagnosis.runner_up, args, records.preprocessing, diagnosed.transmission)
+        runner_up = document.get("runner_up") or {}
+        if diagnosed.torque_gains is not None and runner_up.get("model_file") is not None:  # fitted alike
+            runner_up["model_file"]["torque_gains"] = diagnosed.torque_gains.to_dict()
     else:
         # the model file: the final model's estimate from the sums; its validation error is against the channels
         # as recorded, on the samples the in-memory preprocessing keeps (on the Fourier path every sample of the
