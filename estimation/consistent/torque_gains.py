@@ -79,11 +79,14 @@ class TorqueGains:
     std: NDArray[np.float64]
     scale: str = "the robot description's bodies"
     iterations: int = 0
+    #: the gains held at the first channel's, the record not determining them (``None``: none)
+    held: NDArray[np.bool_] | None = None
 
     @property
     def determined(self) -> NDArray[np.bool_]:
-        """Whether each gain's standard error is within :data:`DETERMINED_RELATIVE_STD` of it."""
-        return self.std <= DETERMINED_RELATIVE_STD * np.abs(self.values)
+        """Whether each gain's standard error is within :data:`DETERMINED_RELATIVE_STD` of it (a held gain is not)."""
+        known = self.std <= DETERMINED_RELATIVE_STD * np.abs(self.values)
+        return known if self.held is None else known & ~self.held
 
     def to_dict(self) -> dict[str, Any]:
         """``{channels: {tau1: {value, std, determined}, …}, scale}``."""
@@ -94,8 +97,10 @@ class TorqueGains:
 
     def said(self) -> str:
         """The gains in a few words: ``tau1 1.15 ± 0.0005, …`` (``not determined`` beside those that are not)."""
-        return ", ".join(f"{c} {v:.4g} ± {e:.2g}" + ("" if known else " (not determined)")
-                         for c, v, e, known in zip(self.channels, self.values, self.std, self.determined))
+        held = np.zeros(len(self.channels), dtype=bool) if self.held is None else self.held
+        return ", ".join(f"{c} {v:.4g}" + (" (not determined: held at the first channel's)" if hold else
+                                           f" ± {e:.2g}" + ("" if known else " (not determined)"))
+                         for c, v, e, known, hold in zip(self.channels, self.values, self.std, self.determined, held))
 
     @classmethod
     def from_dict(cls, document: Any) -> TorqueGains:
@@ -148,8 +153,14 @@ def gains_on_validation(model: IdentificationModel, train: Measurements, validat
     G, b, c = channel_sums(model, train)
     names = {name for effect in model.effects for name in effect.parameter_names(model.robot)}
     rigid = np.array([name not in names for name in model.base.names])
-    gains, theta = fit_torque_gains((G, b, c), train.n_samples, channels, rigid=rigid,
-                                    description=model.base.to_base(model.nominal_parameters()))
+    description = model.base.to_base(model.nominal_parameters())
+    gains, theta = fit_torque_gains((G, b, c), train.n_samples, channels, rigid=rigid, description=description)
+    if gains.determined.sum() < 2:  # no gain relative to another measured: nothing to take
+        return gains, False, (f"an unknown gain on each joint's recorded torque ({gains.said()}): the training "
+                              "record determines fewer than two of them, not taken")
+    if not gains.determined.all():  # those the record does not determine held at the first channel's
+        gains, theta = fit_torque_gains((G, b, c), train.n_samples, channels, rigid=rigid, description=description,
+                                        held=~gains.determined)
     plain = _weighted_fit(G, b, c, train.n_samples)
     record = validation.as_recorded
     measured = record.channels(channels)
@@ -182,8 +193,8 @@ def _rss(G: NDArray, b: NDArray, c: NDArray, s: NDArray, theta: NDArray) -> NDAr
 
 def fit_torque_gains(sums: tuple[NDArray, NDArray, NDArray], n_samples: int, channels: Sequence[str], *,
                      rigid: NDArray[np.bool_], description: NDArray[np.float64],
-                     rounds: int = 4, max_iterations: int = 100, tolerance: float = 1e-9
-                     ) -> tuple[TorqueGains, NDArray[np.float64]]:
+                     held: NDArray[np.bool_] | None = None, rounds: int = 4, max_iterations: int = 100,
+                     tolerance: float = 1e-9) -> tuple[TorqueGains, NDArray[np.float64]]:
     """Fit ``τ_rec,j = s_j Y_j θ`` (module docstring): ``(gains, theta)``, ``theta`` in the description's scale.
 
     Parameters
@@ -196,8 +207,12 @@ def fit_torque_gains(sums: tuple[NDArray, NDArray, NDArray], n_samples: int, cha
         ``(r,)`` which base columns are the rigid body's (the description holds their values).
     description
         ``(r,)`` the description's base parameters (only the rigid body's are used).
+    held
+        ``(m,)`` the gains held at the first channel's (the record does not determine them); ``None``: none.
     """
     G, b, c = sums
+    free = np.flatnonzero(np.ones(b.shape[0], dtype=bool) if held is None else ~np.asarray(held, dtype=bool))
+    free = free[free > 0]  # the first channel's gain is the reference
     n = n_samples
     m, r = b.shape
     s = np.ones(m)
@@ -218,11 +233,12 @@ def fit_torque_gains(sums: tuple[NDArray, NDArray, NDArray], n_samples: int, cha
             H_ss = w * s**2 * tGt
             g_t = np.einsum("m,mr->r", w * s, b) - H_tt @ theta  # -Jᵀe (θ)
             g_s = w * s * bt - H_ss  # -Jᵀe (log s)
-            H = np.block([[H_tt, H_ts[1:].T], [H_ts[1:], np.diag(H_ss[1:])]])
-            g = np.r_[g_t, g_s[1:]]
+            H = np.block([[H_tt, H_ts[free].T], [H_ts[free], np.diag(H_ss[free])]])
+            g = np.r_[g_t, g_s[free]]
             while True:
                 step = np.linalg.lstsq(H + damping * np.diag(np.diag(H) + 1e-300), g, rcond=None)[0]
-                trial_s = s * np.exp(np.r_[0.0, step[r:]])
+                trial_s = s.copy()
+                trial_s[free] *= np.exp(step[r:])
                 trial_theta = theta + step[:r]
                 trial = float(w @ _rss(G, b, c, trial_s, trial_theta))
                 if trial <= cost or damping > 1e12:
@@ -235,19 +251,20 @@ def fit_torque_gains(sums: tuple[NDArray, NDArray, NDArray], n_samples: int, cha
             if done:
                 break
         w = 1.0 / np.maximum(_rss(G, b, c, s, theta) / n, np.finfo(float).tiny)
-    # covariance of (θ, log s_2..) at the optimum, s_1 held: σ² (JᵀJ)⁻¹ with the weights 1/σ_j²
+    # covariance of (θ, the free log s) at the optimum, s_1 held: σ² (JᵀJ)⁻¹ with the weights 1/σ_j²
     Gt = np.einsum("mrs,s->mr", G, theta)
-    H = np.block([[np.einsum("m,mrs->rs", w * s**2, G), ((w * s**2)[:, None] * Gt)[1:].T],
-                  [((w * s**2)[:, None] * Gt)[1:], np.diag((w * s**2 * (Gt @ theta))[1:])]])
+    H = np.block([[np.einsum("m,mrs->rs", w * s**2, G), ((w * s**2)[:, None] * Gt)[free].T],
+                  [((w * s**2)[:, None] * Gt)[free], np.diag((w * s**2 * (Gt @ theta))[free])]])
     cov = np.linalg.pinv(H)
     scale, d_log_k = description_scale(theta, cov[:r, :r], rigid, description)
     # the final log-gains log s_j + log k(θ): their covariance by the delta method through the scale's match
-    A = np.zeros((m, r + m - 1))
+    A = np.zeros((m, r + free.size))
     A[:, :r] = d_log_k
-    A[1:, r:] += np.eye(m - 1)
+    A[free, r + np.arange(free.size)] = 1.0
     log_std = np.sqrt(np.clip(np.diag(A @ cov @ A.T), 0.0, None))
     values = s * scale
-    return TorqueGains(tuple(channels), values, values * log_std, iterations=iterations), theta / scale
+    return TorqueGains(tuple(channels), values, values * log_std, iterations=iterations,
+                       held=None if held is None else np.asarray(held, dtype=bool)), theta / scale
 
 
 def description_scale(theta: NDArray, cov: NDArray, rigid: NDArray[np.bool_], description: NDArray
