@@ -48,10 +48,11 @@ TORQUE_GAINS_TOLERANCE = 0.01
 #: error is of this order: such a value measures nothing; on a PUMA's wrist the spread of the estimates over noise
 #: draws is then up to three times the linearised standard error, tests/test_torque_gains.py)
 DETERMINED_RELATIVE_STD = 0.1
-#: the validation record's contiguous blocks whose means give the standard error of the score's lowering, and the
-#: lowering (in standard errors) that measures the gains: a lowering within the record's sampling spread measures
+#: the counts of the validation record's contiguous blocks whose means give the standard error of the score's
+#: lowering (the largest of the three: the residuals are correlated over an unknown time, and a batch-means error
+#: grows with the blocks' length until they outlast it), and the lowering (in standard errors) that measures the gains: a lowering within the record's sampling spread measures
 #: nothing (the Franka Panda's log: gains of 0.93 to 1.07 lowered the score by 1.1 %, benchmarks/README.md)
-SIGNIFICANCE_BLOCKS = 20
+SIGNIFICANCE_BLOCKS = (40, 20, 10)
 SIGNIFICANCE_Z = 2.0
 #: samples a block when the regressor is summed (:func:`channel_sums`)
 BLOCK = 2048
@@ -147,7 +148,7 @@ def gains_on_validation(model: IdentificationModel, train: Measurements, validat
     they predict ``validation`` (a record of another motion, at its recorded samples) better than the same model's
     channel-weighted fit without them, by the criterion of the default answer (the mean relative validation error,
     :data:`TORQUE_GAINS_TOLERANCE`) and by more than :data:`SIGNIFICANCE_Z` standard errors of the lowering (the
-    means of :data:`SIGNIFICANCE_BLOCKS` contiguous blocks): ``(gains, taken, sentence)``. A cheap check (sums, no sample held) before the
+    largest over the means of :data:`SIGNIFICANCE_BLOCKS` contiguous blocks): ``(gains, taken, sentence)``. A cheap check (sums, no sample held) before the
     answer's candidates are fitted again to the torques divided by the gains."""
     channels = model.channels
     G, b, c = channel_sums(model, train)
@@ -169,10 +170,13 @@ def gains_on_validation(model: IdentificationModel, train: Measurements, validat
     errors = {name: values.mean(axis=0) for name, values in squared.items()}
     scored = relative_scores({name: dict(zip(channels, mse.tolist())) for name, mse in errors.items()}, channels)
     # the score's lowering, sample by sample (each channel over the smallest MSE), and its standard error from the
-    # means of contiguous blocks (the residuals are correlated in time)
+    # means of contiguous blocks (the residuals are correlated in time: the largest over the block counts)
     lowering = ((squared["declared"] - squared["gains"]) / np.minimum(errors["declared"], errors["gains"])).mean(axis=1)
-    blocks = np.array([part.mean() for part in np.array_split(lowering, SIGNIFICANCE_BLOCKS) if part.size])
-    error = float(blocks.std(ddof=1) / np.sqrt(blocks.size)) if blocks.size > 1 else float("inf")
+    error, blocks = 0.0, np.empty(0)
+    for count in SIGNIFICANCE_BLOCKS:  # the largest batch-means error: blocks longer than the residuals' memory
+        means = np.array([part.mean() for part in np.array_split(lowering, count) if part.size])
+        spread = float(means.std(ddof=1) / np.sqrt(means.size)) if means.size > 1 else float("inf")
+        error, blocks = (spread, means) if spread >= error else (error, blocks)
     taken = bool((1.0 + TORQUE_GAINS_TOLERANCE) * scored["gains"] < scored["declared"]
                  and lowering.mean() > SIGNIFICANCE_Z * error)
     sentence = (f"an unknown gain on each joint's recorded torque ({gains.said()}; the scale from {gains.scale}): the "
