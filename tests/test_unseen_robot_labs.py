@@ -227,13 +227,7 @@ LABS = (
         wrong_bodies=True, slow=True),
     Lab("UR10e-like, torques logged in motor units (per-joint unknown gains), point-to-point test, 500 Hz",
         ur10e, Log(10.0, 500.0, motion_hz=0.1), Log(4.0, 500.0, motion_hz=0.1), Log(8.0, 500.0),
-        test_motion="point-to-point", gains=(0.08, 0.12, 0.05, 0.02, 0.025, 0.03), slow=True,
-        xfail="measured at 981c3cf: no model of the plain class holds torques scaled by per-joint gains (the rigid "
-              "body's parameters are shared by the joints); the default (WLS, chosen on the validation record by the "
-              "mean relative error: tau3 88 against OLS's 3957) gives joints 1 and 2 1.39x and 1.41x the plain fit "
-              "(total 1.398 in motor units, dominated by joint 2; mean of the joints' ratios 0.95, joint 3 0.07x); "
-              "diagnose 1.35x, 1.41x, joint 4 1.42x. --method ols: 0.830 total, worst joint 1.11x. Open: the "
-              "per-joint gains as parameters (a torque constant per joint, the scale fixed by the description)"),
+        test_motion="point-to-point", gains=(0.08, 0.12, 0.05, 0.02, 0.025, 0.03), slow=True),
     Lab("UR10e-like, torques logged as currents (one unknown constant: 1/0.09 A per N m), Fourier test, 500 Hz",
         ur10e, Log(10.0, 500.0, motion_hz=0.1), Log(4.0, 500.0, motion_hz=0.1), Log(6.0, 500.0, motion_hz=0.1),
         gains=(0.09,) * 6, slow=True),

@@ -345,6 +345,10 @@ class IdentifiedModel:
         if self.payload_link is not None:
             Y = self.link_columns(self.payload_link, q, dq, ddq)
             variance += np.einsum("nmr,rs,nms->nm", Y, self.payload_cov, Y, optimize=True)
+        if self.file.torque_gains is not None:  # the band in the log's units (the noise variance recorded in them)
+            gains = self.file.channel_gains()
+            band = self.band_variance if self.file.recorded_variance is not None else self.band_variance * gains**2
+            return z * np.sqrt(np.clip(variance, 0.0, None) * gains[None, :] ** 2 + band[None, :]) / gains[None, :]
         return z * np.sqrt(np.clip(variance, 0.0, None) + self.band_variance[None, :])
 
     def predict_record(self, measurements: Measurements) -> Prediction:
@@ -358,6 +362,10 @@ class IdentifiedModel:
         record = measurements.as_recorded
         predicted = self.predict(record.q, record.dq, record.ddq)
         half = self.interval(record.q, record.dq, record.ddq)
+        if self.file.torque_gains is not None:  # the torques in the log's units: the model's times each gain
+            gains = self.file.channel_gains()
+            predicted = predicted * gains
+            half = half * gains
         try:
             measured = record.channels(self.channels)
         except (KeyError, ValueError):

@@ -195,6 +195,9 @@ class ModelFile:
     alternatives: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
     joint_offsets: tuple[float, ...] | None = None
     joint_directions: JointDirections | None = None
+    #: ``{channels: {tau1: {value, std}, …}, scale}``: each channel's recorded torque is its gain times the model's
+    #: (:mod:`estimation.consistent.torque_gains`); ``None``: none
+    torque_gains: Mapping[str, Any] | None = None
 
     @property
     def band_variance(self) -> NDArray[np.float64]:
@@ -239,7 +242,14 @@ class ModelFile:
             document["joint_offsets"] = list(self.joint_offsets)
         if self.joint_directions is not None:  # --joint-offsets' signs: applied to every record read
             document["joint_directions"] = self.joint_directions.to_dict()
+        if self.torque_gains is not None:  # the recorded torques over the model's, per channel
+            document["torque_gains"] = dict(self.torque_gains)
         return document
+
+    def channel_gains(self) -> NDArray[np.float64]:
+        """Each channel's gain on the recorded torque (``torque_gains``; ``1`` without one)."""
+        held = (self.torque_gains or {}).get("channels") or {}
+        return np.array([float(held[channel]["value"]) if channel in held else 1.0 for channel in self.channels])
 
     @classmethod
     def from_dict(cls, document: Mapping[str, Any]) -> ModelFile:
@@ -282,9 +292,24 @@ class ModelFile:
                 chosen=document.get("chosen"), alternatives=dict(document.get("alternatives") or {}),
                 joint_offsets=_joint_offsets(document.get("joint_offsets"), len(document["joint_names"])),
                 joint_directions=_joint_directions(document.get("joint_directions"), len(document["joint_names"])),
+                torque_gains=_torque_gains(document.get("torque_gains"), channels),
             )
         except (KeyError, TypeError) as error:
             raise ModelFileError(f"the model file lacks or garbles {error}") from None
+
+
+def _torque_gains(values: Any, channels: tuple[str, ...]) -> Mapping[str, Any] | None:
+    """The ``torque_gains`` entry, checked: a positive finite gain for channels of the model."""
+    if values is None:
+        return None
+    held = values.get("channels") if isinstance(values, Mapping) else None
+    if not isinstance(held, Mapping) or not set(held) <= set(channels):
+        raise ModelFileError(f"torque_gains must hold gains of the channels {list(channels)}, got {values!r}")
+    for channel, entry in held.items():
+        value = entry.get("value") if isinstance(entry, Mapping) else None
+        if not isinstance(value, (int, float)) or not np.isfinite(value) or value <= 0.0:
+            raise ModelFileError(f"torque_gains of {channel} must be a positive number, got {entry!r}")
+    return dict(values)
 
 
 def _joint_offsets(values: Any, n_joints: int) -> tuple[float, ...] | None:

@@ -29,6 +29,13 @@ from dynamics.runtime.processes import beside, run_tasks, worker_count
 from dynamics.runtime.progress import step
 from dynamics.transmission import Transmission
 from estimation.consistent.model_selection import ModelSelection, select_refit
+from estimation.consistent.torque_gains import (
+    TorqueGains,
+    channel_factors,
+    divided_records,
+    gains_for_records,
+    in_recorded_units,
+)
 from estimation.identification.relative_error import relative_scores
 from estimation.identification.validation import ChannelErrors
 from estimation.consistent.completion import completed_laws, completed_note, completion_repeat, held_completion
@@ -351,6 +358,8 @@ class Diagnosed:
     #: streamed, Fourier path: the sums' training errors against the averaged period, by the report's entry, beside
     #: those measured against the recording (:func:`oed.workflows.diagnosis_training.recorded_training`)
     averaged_train: dict[str, Any] | None = None
+    #: in memory: the per-joint torque gains the records were divided by (the validation record measured them)
+    torque_gains: TorqueGains | None = None
 
 
 def check_streamed_request(args: DiagnoseOptions, delay: DelayBounds | None) -> None:
@@ -384,6 +393,13 @@ def diagnosis_in_memory(args: DiagnoseOptions, model: IdentificationModel, trans
                                                    joint_offsets=resolve_joint_offsets(args, model.robot),
                                                    joint_directions=resolve_joint_directions(args, model.robot),
                                                    **derivatives_on_validation(model, delay)))
+        # an unknown gain on each joint's recorded torque, measured on the validation record: the diagnosis then of
+        # the torques divided by the gains, its answer's errors in the log's units (estimation.consistent.torque_gains)
+        gains = None if args.consistent or delay is not None or model_has_shapes(model) \
+            else gains_for_records(plain_model(model), records)
+        gains = gains if gains is not None and gains[1] else None
+        if gains is not None:
+            records = divided_records(records, gains[0])
         # the joint-zero check reads the prepared records only: it runs beside the diagnosis and the default answer,
         # in the cores they leave idle (their serial steps, the slower worker of a pool), and is said where it was
         zeros = functools.partial(joint_zero_notes, model, records.train.measurements, records.validation.measurements,
@@ -406,10 +422,13 @@ def diagnosis_in_memory(args: DiagnoseOptions, model: IdentificationModel, trans
             with step("the default answer: the adopted model or its consistent refit"):
                 if selection is None:
                     selection = diagnosis_selection(args, diagnosis, records)
+            if gains is not None:
+                selection = in_recorded_units(selection, gains[0])
+                notes += (gains[2],)
             notes += zero_notes()
     return Diagnosed(diagnosis, records.preprocessing.to_dict(), records.preprocessing.describe(),
                      (*caught_messages(caught), *notes), records=records, untouched=untouched, selection=selection,
-                     transmission=transmission, notes=notes)
+                     transmission=transmission, notes=notes, torque_gains=None if gains is None else gains[0])
 
 
 def derivatives_on_validation(model: IdentificationModel, delay: DelayBounds | None) -> dict[str, Any]:
@@ -445,6 +464,7 @@ def diagnose_document(args: DiagnoseOptions, diagnosed: Diagnosed) -> tuple[dict
         transmission = diagnosed.transmission
         document["transmission"] = None if transmission is None else {**transmission.to_dict(),
                                                                        "source": transmission.source}
+    document["torque_gains"] = None  # the in-memory path's, when the validation record measured them (below)
     if records is not None:
         untouched, consistent = diagnosed.untouched, selection.consistent
         document["test"] = None if untouched is None else untouched.to_dict()
@@ -458,13 +478,22 @@ def diagnose_document(args: DiagnoseOptions, diagnosed: Diagnosed) -> tuple[dict
             # own prediction of the record
             mse = document["consistent"]["test"]["mse"] if selection.chosen == "consistent" else untouched.after \
                 if answered is diagnosis.after else recorded_mse(answered, records.test.measurements)
+            if diagnosed.torque_gains is not None:  # in the log's units, as `oed predict` measures it
+                factors = dict(zip(mse, channel_factors(diagnosed.torque_gains, tuple(mse)) ** 2))
+                mse = {channel: value * factors[channel] for channel, value in mse.items()}
             document["test"]["chosen"] = {"name": selection.chosen, "mse": dict(mse)}
         files = add_model_file(document, answered, args, records.preprocessing, diagnosed.transmission,
                                consistent=consistent, selection=selection)
+        if diagnosed.torque_gains is not None:  # oed predict multiplies the model's torques by them
+            document["model_file"]["torque_gains"] = diagnosed.torque_gains.to_dict()
+        document["torque_gains"] = None if diagnosed.torque_gains is None else diagnosed.torque_gains.to_dict()
         chosen = ChosenModel.of(selection)  # its errors beside the diagnosis's before and after
         answer_diagnosis(document, chosen, floor=None if diagnosis.statistics is None else diagnosis.statistics.floor)
         files = (*files, *(text for text in chosen.warnings if text not in diagnosed.messages))  # said of it too
         add_runner_up_model_file(document, diagnosis.runner_up, args, records.preprocessing, diagnosed.transmission)
+        runner_up = document.get("runner_up") or {}
+        if diagnosed.torque_gains is not None and runner_up.get("model_file") is not None:  # fitted alike
+            runner_up["model_file"]["torque_gains"] = diagnosed.torque_gains.to_dict()
     else:
         # the model file: the final model's estimate from the sums; its validation error is against the channels
         # as recorded, on the samples the in-memory preprocessing keeps (on the Fourier path every sample of the

@@ -103,4 +103,8 @@ def export(*, model: str | Path, allow_implausible: bool = False, mjcf: bool = F
     line = f"{identified.robot.name}: {identified.robot.n_joints} bodies of the consistent estimate (masses {masses} kg)"
     mujoco = exported_mjcf(identified) if mjcf else None
     lines = (line, *(f"not expressed in MuJoCo (listed in the MJCF): {note}" for note in (mujoco.notes if mujoco else ())))
+    gains = (identified.file.torque_gains or {}).get("channels")
+    if gains:  # a property of the log's sensors, not of the bodies: the URDF holds the description's units
+        lines = (*lines, "the log's torques are these gains times the model's (torque_gains, not in the URDF): "
+                 + ", ".join(f"{channel} {entry['value']:.4g}" for channel, entry in gains.items()))
     return ExportRun(text, identified, tuple(findings), lines, mujoco, note)

@@ -77,6 +77,13 @@ from oed.workflows.asbuilt import (
 from estimation.consistent.identification import ConsistentResult
 from estimation.consistent.model_selection import ModelSelection, select_model
 from estimation.consistent.motor_friction import motor_friction_answer, motor_friction_laws
+from estimation.consistent.torque_gains import (
+    TorqueGains,
+    divided_torques,
+    gains_on_validation,
+    in_recorded_units,
+    torque_gains_answer,
+)
 from oed.workflows.consistent import check_consistent_arguments, consistent_lines, consistent_settings
 from oed.workflows.chosen_model import ChosenModel, answer_identification, chosen_messages, mse_line
 from oed.workflows.joint_side import joint_side_records, named_as_given, streams_converted
@@ -337,6 +344,8 @@ class Identified:
     chunk_size: int | None = None
     model_file: tuple[dict[str, Any], dict[str, float] | None] | None = None
     n_samples: int | None = None
+    #: the per-joint torque gains fitted (:func:`torque_gains_selection`) and whether the answer holds them
+    torque_gains: tuple[TorqueGains, bool] | None = None
 
     @property
     def rest(self) -> dict[str, dict | None]:
@@ -376,6 +385,10 @@ def identify_document(args: IdentifyOptions, identified: Identified) -> tuple[di
         messages += add_summed_model_file(document, result.model, result.estimate, args, model_plan,
                                           recorded_mse=document["train"]["mse"], validation_mse=validation_mse,
                                           selection=selection, transmission=identified.transmission)
+    gains = identified.torque_gains
+    document["torque_gains"] = None if gains is None else {**gains[0].to_dict(), "taken": gains[1]}
+    if gains is not None and gains[1]:  # oed predict multiplies the model's torques by them
+        document["model_file"]["torque_gains"] = gains[0].to_dict()
     floor, floor_report = identified.floor, identified.floor_report
     if document.get("validation") is not None:
         if floor_report is not None:
@@ -500,6 +513,11 @@ def identification_streamed(args: IdentifyOptions, model: IdentificationModel, t
     if untried is not None:  # the Fourier path (its sums hold averaged periods): no selection, no candidate
         not_computed["motor_friction"] = untried
         notes = (*notes, untried)
+    if args.method == "auto" and not args.consistent and args.validate and not model_has_shapes(model) \
+            and len(model.channels) > 1 and all(channel.startswith("tau") for channel in model.channels):
+        not_computed["torque_gains"] = ("an unknown gain on each joint's recorded torque is a candidate of the "
+                                        "in-memory default answer (estimation.consistent.torque_gains), not tried on "
+                                        "the streamed path")
     validation_mse = None if result.validation is None else result.validation.mse
     return Identified(result, chosen, plan.to_dict(), plan.describe(),
                       (*messages, *notes), notes, trivial, floor, floor_note, not_computed, selection=selection,
@@ -760,6 +778,8 @@ def identification_in_memory(args: IdentifyOptions, robot: RobotModel, model: Id
                                      consistent=consistent_settings(args, robot))
         selection = motor_friction_selection(args, selection, model, transmission, train, validation,
                                              base=base, given=given, delay=delay)
+        selection, gains = torque_gains_selection(args, selection, train, validation, base=base, given=given,
+                                                  delay=delay)
         result, consistent = selection.unconstrained, selection.consistent
         chosen = ChosenModel.of(selection)  # the answer: what the summary, result.json, predict and export hold
         trivial, notes = trivial_predictors(result, validation, chosen.validation)
@@ -774,7 +794,7 @@ def identification_in_memory(args: IdentifyOptions, robot: RobotModel, model: Id
                       None if floor_report is None else floor_report.floor,
                       None if floor_report is None else floor_report.floor_note, records=records, selection=selection,
                       consistent=consistent, floor_report=floor_report, weighting=weighting, transmission=transmission,
-                      n_samples=train.n_samples)
+                      n_samples=train.n_samples, torque_gains=gains)
 
 
 def motor_friction_selection(args: IdentifyOptions, selection: ModelSelection, model: IdentificationModel,
@@ -795,6 +815,37 @@ def motor_friction_selection(args: IdentifyOptions, selection: ModelSelection, m
         other = select_model(build_model(model.robot, model.kind, (*model.effects, *laws)), train, validation,
                              base=base, consistent=consistent_settings(args, model.robot))
     return motor_friction_answer(selection, other, ",".join(effect_spec(effect) for effect in laws))
+
+
+def torque_gains_selection(args: IdentifyOptions, selection: ModelSelection, train: Measurements,
+                           validation: Measurements | None, *, base: str, given: str | None,
+                           delay: DelayBounds | None) -> tuple[ModelSelection, tuple[TorqueGains, bool] | None]:
+    """The default answer with an unknown gain on each joint's recorded torque a candidate
+    (:mod:`estimation.consistent.torque_gains`): the gains fitted on the training record and checked on the
+    validation record (:func:`~estimation.consistent.torque_gains.gains_on_validation`: the channel-weighted fit with
+    them must validate better, beyond the record's sampling spread); only then the declared model (as
+    ``selection``'s, with the motor laws when they were taken) chosen among its candidates on the torques divided by
+    them, and taken when its answer validates better in the recorded units. ``(selection, None)`` unchanged when the
+    user chose the estimator, with a delay search or shaped laws, without a validation record of another motion,
+    or for a model with channels other than joint torques; else ``(answer, (gains, taken))``."""
+    model = selection.unconstrained.model
+    channels = model.channels
+    if given is not None or delay is not None or model_has_shapes(model) or validation is None \
+            or selection.selection != "validation" or len(channels) < 2 \
+            or not all(channel.startswith("tau") and channel[3:].isdigit() for channel in channels):
+        return selection, None
+    with step("an unknown gain on each joint's torque fitted and checked on the validation record"):
+        try:
+            gains, promising, _ = gains_on_validation(model, train, validation)
+        except (ValueError, np.linalg.LinAlgError):
+            return selection, None
+    if not promising:
+        return selection, (gains, False)
+    with step("the answer's candidates fitted to the torques divided by the gains and compared"):
+        other = select_model(model, divided_torques(train, gains), divided_torques(validation, gains), base=base,
+                             consistent=consistent_settings(args, model.robot))
+    answer, taken = torque_gains_answer(selection, in_recorded_units(other, gains), gains)
+    return answer, (gains, taken)
 
 
 def validation_fits(args: IdentifyOptions, model: IdentificationModel, delay: DelayBounds | None) -> tuple[str, ...]:

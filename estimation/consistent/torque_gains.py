@@ -1,0 +1,391 @@
+"""An unknown gain on each joint's recorded torque as a candidate of the default answer.
+
+A torque sensor's calibration, or a current logged in place of a torque (a torque constant nobody gave), records
+joint ``j``'s torque times its own unknown gain: ``τ_rec,j = s_j τ_j`` with ``τ_j = Y_j θ`` (the rigid body, friction
+and offsets, linear in ``θ``). Per-joint parameters (friction, offsets) absorb their joint's gain; the rigid body's
+parameters are shared between the joints' rows, so they make the gains identifiable relative to each other (the
+model is bilinear, gains times ``Y θ``). The overall scale is not: ``(c s, θ / c)`` predicts the same torques. It
+is fixed by the robot description's bodies (:func:`description_scale`: the fitted rigid-body parameters matched to
+the description's, weighted by their marginal precision).
+
+:func:`fit_torque_gains` fits ``(s, θ)`` by Gauss-Newton (Levenberg-Marquardt) on the channels' Gram sums
+``G_j = Y_jᵀ Y_j``, ``b_j = Y_jᵀ τ_j``, ``c_j = τ_jᵀ τ_j`` (no sample held per iteration), each channel weighted by
+the inverse of its residual variance (iterated, as WLS, PUMA paper eq. 20); the standard errors are those of the
+Gauss-Newton covariance ``σ² (JᵀJ)⁻¹`` with the scale held at the description's (the relative gains' errors).
+
+The default ``oed identify`` fits the declared model to the torques divided by these gains (the gains then part of
+how the records are read, as ``torque_signs``), chooses that model's answer among its own candidates as it chooses
+the declared model's, and compares the two answers on the same validation samples in the recorded units by the
+criterion of the default answer (:func:`torque_gains_answer`): the gains are taken only when they score lower by
+more than :data:`TORQUE_GAINS_TOLERANCE` on a validation record of another motion (on a repeat, or without a
+validation record, nothing measured them: the declared model is kept).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from dynamics.measurements import Measurements
+from dynamics.models import IdentificationModel
+from estimation.consistent.identification import ConsistentResult
+from estimation.consistent.model_selection import ModelSelection
+from estimation.identification.prepared import PreparedRecord, PreparedRecords
+from estimation.identification.relative_error import relative_scores
+from estimation.identification.repeated_motion import REPEAT_FRACTION, repeated_motion, still_motion
+from estimation.identification.validation import Comparison
+
+__all__ = ["DETERMINED_RELATIVE_STD", "SIGNIFICANCE_BLOCKS", "SIGNIFICANCE_Z", "TORQUE_GAINS_TOLERANCE", "TorqueGains", "channel_factors", "channel_sums", "description_scale",
+           "divided_records", "divided_torques", "fit_torque_gains", "gains_for_records", "gains_on_validation", "in_recorded_units", "torque_gains_answer"]
+
+#: the relative score by which the model with the gains must beat the declared one (a tie keeps the declared)
+TORQUE_GAINS_TOLERANCE = 0.01
+#: a gain whose standard error exceeds this fraction of it is not determined by the record (a sensor's calibration
+#: error is of this order: such a value measures nothing; on a PUMA's wrist the spread of the estimates over noise
+#: draws is then up to three times the linearised standard error, tests/test_torque_gains.py)
+DETERMINED_RELATIVE_STD = 0.1
+#: the counts of the validation record's contiguous blocks whose means give the standard error of the score's
+#: lowering (the largest of the three: the residuals are correlated over an unknown time, and a batch-means error
+#: grows with the blocks' length until they outlast it), and the lowering (in standard errors) that measures the gains: a lowering within the record's sampling spread measures
+#: nothing (the Franka Panda's log: gains of 0.93 to 1.07 lowered the score by 1.1 %, benchmarks/README.md)
+SIGNIFICANCE_BLOCKS = (40, 20, 10)
+SIGNIFICANCE_Z = 2.0
+#: samples a block when the regressor is summed (:func:`channel_sums`)
+BLOCK = 2048
+
+
+@dataclass(frozen=True)
+class TorqueGains:
+    """The recorded torque of each channel over the model's: ``τ_rec,j = values[j] τ_j``.
+
+    Attributes
+    ----------
+    channels
+        The torque channels (``tau1``…).
+    values, std
+        The gains and their standard errors (the Gauss-Newton covariance carried through the description's
+        scale by the delta method; the description itself taken as exact).
+    scale
+        How the overall scale was fixed.
+    iterations
+        The Gauss-Newton iterations taken.
+    """
+
+    channels: tuple[str, ...]
+    values: NDArray[np.float64]
+    std: NDArray[np.float64]
+    scale: str = "the robot description's bodies"
+    iterations: int = 0
+    #: the gains held at the first channel's, the record not determining them (``None``: none)
+    held: NDArray[np.bool_] | None = None
+
+    @property
+    def determined(self) -> NDArray[np.bool_]:
+        """Whether each gain's standard error is within :data:`DETERMINED_RELATIVE_STD` of it (a held gain is not)."""
+        known = self.std <= DETERMINED_RELATIVE_STD * np.abs(self.values)
+        return known if self.held is None else known & ~self.held
+
+    def to_dict(self) -> dict[str, Any]:
+        """``{channels: {tau1: {value, std, determined}, …}, scale}``."""
+        return {"channels": {channel: {"value": float(value), "std": float(std), "determined": bool(known)}
+                             for channel, value, std, known in zip(self.channels, self.values, self.std,
+                                                                   self.determined)},
+                "scale": self.scale}
+
+    def said(self) -> str:
+        """The gains in a few words: ``tau1 1.15 ± 0.0005, …`` (``not determined`` beside those that are not)."""
+        held = np.zeros(len(self.channels), dtype=bool) if self.held is None else self.held
+        return ", ".join(f"{c} {v:.4g}" + (" (not determined: held at the first channel's)" if hold else
+                                           f" ± {e:.2g}" + ("" if known else " (not determined)"))
+                         for c, v, e, known, hold in zip(self.channels, self.values, self.std, self.determined, held))
+
+    @classmethod
+    def from_dict(cls, document: Any) -> TorqueGains:
+        channels = tuple(document["channels"])
+        return cls(channels, np.array([float(document["channels"][c]["value"]) for c in channels]),
+                   np.array([float(document["channels"][c].get("std", np.nan)) for c in channels]),
+                   str(document.get("scale", "")))
+
+
+def channel_sums(model: IdentificationModel, measurements: Measurements, *, block: int = BLOCK
+                 ) -> tuple[NDArray, NDArray, NDArray]:
+    """Per channel ``G_j = Y_jᵀ Y_j``, ``b_j = Y_jᵀ τ_j``, ``c_j = τ_jᵀ τ_j`` of the base regressor and the torques
+    of ``measurements``, summed over blocks of ``block`` samples (the regressor of the whole record never held)."""
+    m, r = model.n_channels, model.n_base
+    G, b, c = np.zeros((m, r, r)), np.zeros((m, r)), np.zeros(m)
+    tau = measurements.channels(model.channels)
+    for start in range(0, measurements.n_samples, block):
+        rows = slice(start, start + block)
+        Y = model.evaluate_base(measurements.q[rows], measurements.dq[rows], measurements.ddq[rows])
+        G += np.einsum("nmr,nms->mrs", Y, Y, optimize=True)
+        b += np.einsum("nmr,nm->mr", Y, tau[rows], optimize=True)
+        c += np.einsum("nm,nm->m", tau[rows], tau[rows])
+    return G, b, c
+
+
+def _predicted(model: IdentificationModel, theta: NDArray, record: Measurements, *, block: int = BLOCK) -> NDArray:
+    return np.vstack([model.evaluate_base(record.q[rows], record.dq[rows], record.ddq[rows]) @ theta
+                      for rows in (slice(start, start + block) for start in range(0, record.n_samples, block))])
+
+
+def _weighted_fit(G: NDArray, b: NDArray, c: NDArray, n: int, rounds: int = 4) -> NDArray:
+    """The channel-weighted least-squares fit without gains (the weights from the residual variances, iterated)."""
+    s = np.ones(b.shape[0])
+    w = 1.0 / np.maximum(c / n, np.finfo(float).tiny)
+    for _ in range(rounds):
+        theta = _solve_theta(G, b, s, w)
+        w = 1.0 / np.maximum(_rss(G, b, c, s, theta) / n, np.finfo(float).tiny)
+    return theta
+
+
+def gains_on_validation(model: IdentificationModel, train: Measurements, validation: Measurements
+                        ) -> tuple[TorqueGains, bool, str]:
+    """The gains fitted on ``train`` with ``model`` (:func:`fit_torque_gains`, the description's scale) and whether
+    they predict ``validation`` (a record of another motion, at its recorded samples) better than the same model's
+    channel-weighted fit without them, by the criterion of the default answer (the mean relative validation error,
+    :data:`TORQUE_GAINS_TOLERANCE`) and by more than :data:`SIGNIFICANCE_Z` standard errors of the lowering (the
+    largest over the means of :data:`SIGNIFICANCE_BLOCKS` contiguous blocks): ``(gains, taken, sentence)``. A cheap check (sums, no sample held) before the
+    answer's candidates are fitted again to the torques divided by the gains."""
+    channels = model.channels
+    G, b, c = channel_sums(model, train)
+    names = {name for effect in model.effects for name in effect.parameter_names(model.robot)}
+    rigid = np.array([name not in names for name in model.base.names])
+    description = model.base.to_base(model.nominal_parameters())
+    gains, theta = fit_torque_gains((G, b, c), train.n_samples, channels, rigid=rigid, description=description)
+    if gains.determined.sum() < 2:  # no gain relative to another measured: nothing to take
+        return gains, False, (f"an unknown gain on each joint's recorded torque ({gains.said()}): the training "
+                              "record determines fewer than two of them, not taken")
+    if not gains.determined.all():  # those the record does not determine held at the first channel's
+        gains, theta = fit_torque_gains((G, b, c), train.n_samples, channels, rigid=rigid, description=description,
+                                        held=~gains.determined)
+    plain = _weighted_fit(G, b, c, train.n_samples)
+    record = validation.as_recorded
+    measured = record.channels(channels)
+    squared = {"declared": (measured - _predicted(model, plain, record)) ** 2,
+               "gains": (measured - gains.values * _predicted(model, theta, record)) ** 2}
+    errors = {name: values.mean(axis=0) for name, values in squared.items()}
+    scored = relative_scores({name: dict(zip(channels, mse.tolist())) for name, mse in errors.items()}, channels)
+    # the score's lowering, sample by sample (each channel over the smallest MSE), and its standard error from the
+    # means of contiguous blocks (the residuals are correlated in time: the largest over the block counts)
+    lowering = ((squared["declared"] - squared["gains"]) / np.minimum(errors["declared"], errors["gains"])).mean(axis=1)
+    error, blocks = 0.0, np.empty(0)
+    for count in SIGNIFICANCE_BLOCKS:  # the largest batch-means error: blocks longer than the residuals' memory
+        means = np.array([part.mean() for part in np.array_split(lowering, count) if part.size])
+        spread = float(means.std(ddof=1) / np.sqrt(means.size)) if means.size > 1 else float("inf")
+        error, blocks = (spread, means) if spread >= error else (error, blocks)
+    taken = bool((1.0 + TORQUE_GAINS_TOLERANCE) * scored["gains"] < scored["declared"]
+                 and lowering.mean() > SIGNIFICANCE_Z * error)
+    sentence = (f"an unknown gain on each joint's recorded torque ({gains.said()}; the scale from {gains.scale}): the "
+                f"channel-weighted fit with them validates {scored['gains']:.4g} against {scored['declared']:.4g} "
+                f"without (the mean relative validation error; lowered by {lowering.mean():.3g} ± {error:.2g}, "
+                f"standard error of {blocks.size} block means), " + ("taken" if taken else "not taken"))
+    return gains, taken, sentence
+
+
+def _solve_theta(G: NDArray, b: NDArray, s: NDArray, w: NDArray) -> NDArray:
+    A = np.einsum("m,mrs->rs", w * s**2, G)
+    return np.linalg.lstsq(A, np.einsum("m,mr->r", w * s, b), rcond=None)[0]
+
+
+def _rss(G: NDArray, b: NDArray, c: NDArray, s: NDArray, theta: NDArray) -> NDArray:
+    return c - 2.0 * s * (b @ theta) + s**2 * np.einsum("r,mrs,s->m", theta, G, theta)
+
+
+def fit_torque_gains(sums: tuple[NDArray, NDArray, NDArray], n_samples: int, channels: Sequence[str], *,
+                     rigid: NDArray[np.bool_], description: NDArray[np.float64],
+                     held: NDArray[np.bool_] | None = None, rounds: int = 4, max_iterations: int = 100,
+                     tolerance: float = 1e-9) -> tuple[TorqueGains, NDArray[np.float64]]:
+    """Fit ``τ_rec,j = s_j Y_j θ`` (module docstring): ``(gains, theta)``, ``theta`` in the description's scale.
+
+    Parameters
+    ----------
+    sums, n_samples
+        :func:`channel_sums` of the training record (its base regressor and the torques fitted) and its samples.
+    channels
+        The ``m`` channel names.
+    rigid
+        ``(r,)`` which base columns are the rigid body's (the description holds their values).
+    description
+        ``(r,)`` the description's base parameters (only the rigid body's are used).
+    held
+        ``(m,)`` the gains held at the first channel's (the record does not determine them); ``None``: none.
+    """
+    G, b, c = sums
+    free = np.flatnonzero(np.ones(b.shape[0], dtype=bool) if held is None else ~np.asarray(held, dtype=bool))
+    free = free[free > 0]  # the first channel's gain is the reference
+    n = n_samples
+    m, r = b.shape
+    s = np.ones(m)
+    w = 1.0 / np.maximum(c / n, np.finfo(float).tiny)
+    iterations = 0
+    for _ in range(rounds):  # weights from the residual variances, as WLS
+        theta = _solve_theta(G, b, s, w)
+        cost = float(w @ _rss(G, b, c, s, theta))
+        damping = 1e-3
+        for _ in range(max_iterations):  # Levenberg-Marquardt on (log s_2.., θ), s_1 held
+            iterations += 1
+            Gt = np.einsum("mrs,s->mr", G, theta)  # G_j θ
+            tGt = Gt @ theta  # θᵀ G_j θ
+            bt = b @ theta
+            # residual e_j = τ_j - s_j Y_j θ; derivatives: d/dθ = -s_j Y_j, d/dlog s_j = -s_j Y_j θ
+            H_tt = np.einsum("m,mrs->rs", w * s**2, G)
+            H_ts = (w * s**2)[:, None] * Gt  # (m, r): d e/d log s_j against d e/d θ
+            H_ss = w * s**2 * tGt
+            g_t = np.einsum("m,mr->r", w * s, b) - H_tt @ theta  # -Jᵀe (θ)
+            g_s = w * s * bt - H_ss  # -Jᵀe (log s)
+            H = np.block([[H_tt, H_ts[free].T], [H_ts[free], np.diag(H_ss[free])]])
+            g = np.r_[g_t, g_s[free]]
+            while True:
+                step = np.linalg.lstsq(H + damping * np.diag(np.diag(H) + 1e-300), g, rcond=None)[0]
+                trial_s = s.copy()
+                trial_s[free] *= np.exp(step[r:])
+                trial_theta = theta + step[:r]
+                trial = float(w @ _rss(G, b, c, trial_s, trial_theta))
+                if trial <= cost or damping > 1e12:
+                    break
+                damping *= 10.0
+            if trial > cost:
+                break
+            done = cost - trial <= tolerance * cost
+            s, theta, cost, damping = trial_s, trial_theta, trial, max(damping / 10.0, 1e-12)
+            if done:
+                break
+        w = 1.0 / np.maximum(_rss(G, b, c, s, theta) / n, np.finfo(float).tiny)
+    # covariance of (θ, the free log s) at the optimum, s_1 held: σ² (JᵀJ)⁻¹ with the weights 1/σ_j²
+    Gt = np.einsum("mrs,s->mr", G, theta)
+    H = np.block([[np.einsum("m,mrs->rs", w * s**2, G), ((w * s**2)[:, None] * Gt)[free].T],
+                  [((w * s**2)[:, None] * Gt)[free], np.diag((w * s**2 * (Gt @ theta))[free])]])
+    cov = np.linalg.pinv(H)
+    scale, d_log_k = description_scale(theta, cov[:r, :r], rigid, description)
+    # the final log-gains log s_j + log k(θ): their covariance by the delta method through the scale's match
+    A = np.zeros((m, r + free.size))
+    A[:, :r] = d_log_k
+    A[free, r + np.arange(free.size)] = 1.0
+    log_std = np.sqrt(np.clip(np.diag(A @ cov @ A.T), 0.0, None))
+    values = s * scale
+    return TorqueGains(tuple(channels), values, values * log_std, iterations=iterations,
+                       held=None if held is None else np.asarray(held, dtype=bool)), theta / scale
+
+
+def description_scale(theta: NDArray, cov: NDArray, rigid: NDArray[np.bool_], description: NDArray
+                      ) -> tuple[float, NDArray]:
+    """The overall scale ``k`` of the gains (``s k``, ``θ / k``) at which the fitted rigid-body parameters best
+    match the description's, weighted by their marginal precision ``P = C_rb⁻¹`` (the directions the record
+    determines; friction and offsets, which the description does not hold, marginalised out):
+    ``k = θ_rbᵀ P θ_desc / θ_descᵀ P θ_desc``; and ``d log k / d θ`` (zero off the rigid body)."""
+    index = np.flatnonzero(rigid)
+    precision = np.linalg.pinv(cov[np.ix_(index, index)])
+    fitted, described = theta[index], description[index]
+    cross, power = float(fitted @ precision @ described), float(described @ precision @ described)
+    if not np.isfinite(cross) or power <= 0.0 or cross <= 0.0:
+        raise ValueError("the description's rigid-body parameters do not fix the gains' scale (no positive match)")
+    gradient = np.zeros(theta.shape[0])
+    gradient[index] = precision @ described / cross
+    return cross / power, gradient
+
+
+def torque_gains_answer(selection: ModelSelection, other: ModelSelection, gains: TorqueGains
+                        ) -> tuple[ModelSelection, bool]:
+    """The default answer with per-joint torque gains a candidate (module docstring): ``(other, True)`` (the
+    selection of the declared model fitted to the torques divided by ``gains``, its validation errors in the
+    recorded units) when its answer scores lower on the validation record than the declared model's
+    (``selection``) by more than :data:`TORQUE_GAINS_TOLERANCE`, else ``(selection, False)``; the reason gives
+    both scores. Compared only when both selections were made on a validation record of another motion."""
+    answers = {"declared": selection.chosen_candidate, "gains": other.chosen_candidate}
+    if selection.selection != "validation" or other.selection != "validation" \
+            or any(answer.fit is None or answer.validation is None or answer.validation.mse is None
+                   for answer in answers.values()):
+        return selection, False
+    validation = answers["declared"].validation
+    channels = getattr(validation, "channels", None) or tuple(validation.mse)
+    scored = relative_scores({name: answer.validation.mse for name, answer in answers.items()}, channels)
+    taken = (1.0 + TORQUE_GAINS_TOLERANCE) * scored["gains"] < scored["declared"]
+    why = (f"; an unknown gain on each joint's recorded torque ({gains.said()}; the scale from {gains.scale}): its "
+           f"answer ({other.chosen}) validates {scored['gains']:.4g} against {scored['declared']:.4g} for the "
+           "declared model's (" + selection.chosen + "; the mean relative validation error), "
+           + ("taken" if taken else "not taken"))
+    return (replace(other, reason=other.reason + why), True) if taken \
+        else (replace(selection, reason=selection.reason + why), False)
+
+
+def divided_torques(measurements: Measurements, gains: TorqueGains) -> Measurements:
+    """``measurements`` with each torque divided by its gain (and the torques as recorded beside them): the
+    model's torques, in the description's units."""
+    factor = _joint_factors(gains, measurements.n_joints)
+    recorded = None if measurements.recorded is None else divided_torques(measurements.recorded, gains)
+    return replace(measurements, tau=None if measurements.tau is None else measurements.tau / factor,
+                   recorded=recorded)
+
+
+def _joint_factors(gains: TorqueGains, n_joints: int) -> NDArray[np.float64]:
+    factor = np.ones(n_joints)
+    for channel, value in zip(gains.channels, gains.values):
+        factor[int(channel[3:]) - 1] = value
+    return factor
+
+
+def channel_factors(gains: TorqueGains | None, channels: Sequence[str]) -> NDArray[np.float64]:
+    """Each channel's gain (``1`` for a channel without one)."""
+    held = {} if gains is None else dict(zip(gains.channels, gains.values))
+    return np.array([held.get(channel, 1.0) for channel in channels])
+
+
+def _recorded_comparison(comparison: Any, factors: NDArray[np.float64]) -> Any:
+    if comparison is None or not isinstance(comparison, Comparison):
+        return comparison
+    return replace(comparison, measured=comparison.measured * factors, predicted=comparison.predicted * factors,
+                   filtered=_recorded_comparison(comparison.filtered, factors))
+
+
+def _recorded_fit(fit: Any, factors: NDArray[np.float64]) -> Any:
+    if fit is None:
+        return None
+    changes = {"train": _recorded_comparison(fit.train, factors),
+               "validation": _recorded_comparison(fit.validation, factors)}
+    if isinstance(fit, ConsistentResult):
+        changes["unconstrained"] = _recorded_fit(fit.unconstrained, factors)
+    return replace(fit, **changes)
+
+
+def in_recorded_units(selection: ModelSelection, gains: TorqueGains) -> ModelSelection:
+    """``selection`` (fitted to the torques divided by ``gains``) with every candidate's training and validation
+    comparison back in the recorded units (measured and predicted torques times the gains): its errors are then
+    those ``oed predict`` measures against the records as logged."""
+    first = next(c.fit for c in selection.candidates if c.fit is not None)
+    factors = channel_factors(gains, first.train.channels)
+    return replace(selection, candidates=tuple(replace(candidate, fit=_recorded_fit(candidate.fit, factors))
+                                               for candidate in selection.candidates))
+
+
+def divided_records(records: PreparedRecords, gains: TorqueGains) -> PreparedRecords:
+    """``records`` with every record's torques divided by ``gains`` (:func:`divided_torques`: the prepared
+    measurements and the segments as read, whose noise floors the diagnosis compares with)."""
+    def divided(record: PreparedRecord | None) -> PreparedRecord | None:
+        if record is None:
+            return None
+        files = tuple(replace(file, segments=tuple(divided_torques(segment, gains) for segment in file.segments))
+                      for file in record.files)
+        return replace(record, files=files, measurements=divided_torques(record.measurements, gains))
+    return replace(records, train=divided(records.train), validation=divided(records.validation),
+                   test=divided(records.test))
+
+
+def gains_for_records(model: IdentificationModel, records: PreparedRecords) -> tuple[TorqueGains, bool, str] | None:
+    """:func:`gains_on_validation` of the prepared records, or ``None`` when nothing can measure the gains: no
+    validation record of another motion (none, a repeat of the training motion, or one that hardly moves), a model
+    with channels other than joint torques, or the fit fails."""
+    channels = model.channels
+    validation = None if records.validation is None else records.validation.measurements
+    train = records.train.measurements
+    if validation is None or len(channels) < 2 \
+            or not all(channel.startswith("tau") and channel[3:].isdigit() for channel in channels) \
+            or repeated_motion(train, validation) <= REPEAT_FRACTION or still_motion(train, validation):
+        return None
+    try:
+        return gains_on_validation(model, train, validation)
+    except (ValueError, np.linalg.LinAlgError):
+        return None
