@@ -48,14 +48,17 @@ TORQUE_GAINS_TOLERANCE = 0.01
 #: error is of this order: such a value measures nothing; on a PUMA's wrist the spread of the estimates over noise
 #: draws is then up to three times the linearised standard error, tests/test_torque_gains.py)
 DETERMINED_RELATIVE_STD = 0.1
-#: the counts of the validation record's contiguous blocks whose means give the standard error of the score's
-#: lowering (the largest of the three: the residuals are correlated over an unknown time, and a batch-means error
-#: grows with the blocks' length until they outlast it), and the lowering (in standard errors) that measures the gains: a lowering within the record's sampling spread measures
-#: nothing (the Franka Panda's log: gains of 0.93 to 1.07 lowered the score by 1.1 %, benchmarks/README.md)
+#: the counts of the validation record's contiguous blocks over which the log ratio of the two models' scores is
+#: taken, and the mean log ratio (in standard errors of the blocks' mean) that measures the gains, at every count (the
+#: residuals are correlated over an unknown time, and a batch-means error grows with the blocks' length until they
+#: outlast it): a lowering within the record's sampling spread measures nothing (the Franka Panda's log: gains of
+#: 0.93 to 1.07 lowered the score by 1.1 %, benchmarks/README.md)
 SIGNIFICANCE_BLOCKS = (40, 20, 10)
 SIGNIFICANCE_Z = 2.0
 #: samples a block when the regressor is summed (:func:`channel_sums`)
 BLOCK = 2048
+#: a score below this is taken as this (a block predicted exactly)
+TINY = float(np.finfo(float).tiny)
 
 
 @dataclass(frozen=True)
@@ -147,8 +150,8 @@ def gains_on_validation(model: IdentificationModel, train: Measurements, validat
     """The gains fitted on ``train`` with ``model`` (:func:`fit_torque_gains`, the description's scale) and whether
     they predict ``validation`` (a record of another motion, at its recorded samples) better than the same model's
     channel-weighted fit without them, by the criterion of the default answer (the mean relative validation error,
-    :data:`TORQUE_GAINS_TOLERANCE`) and by more than :data:`SIGNIFICANCE_Z` standard errors of the lowering (the
-    largest over the means of :data:`SIGNIFICANCE_BLOCKS` contiguous blocks): ``(gains, taken, sentence)``. A cheap check (sums, no sample held) before the
+    :data:`TORQUE_GAINS_TOLERANCE`) and by more than :data:`SIGNIFICANCE_Z` standard errors (the log ratio of the two
+    scores over each of :data:`SIGNIFICANCE_BLOCKS` contiguous blocks, at every count): ``(gains, taken, sentence)``. A cheap check (sums, no sample held) before the
     answer's candidates are fitted again to the torques divided by the gains."""
     channels = model.channels
     G, b, c = channel_sums(model, train)
@@ -169,20 +172,30 @@ def gains_on_validation(model: IdentificationModel, train: Measurements, validat
                "gains": (measured - gains.values * _predicted(model, theta, record)) ** 2}
     errors = {name: values.mean(axis=0) for name, values in squared.items()}
     scored = relative_scores({name: dict(zip(channels, mse.tolist())) for name, mse in errors.items()}, channels)
-    # the score's lowering, sample by sample (each channel over the smallest MSE), and its standard error from the
-    # means of contiguous blocks (the residuals are correlated in time: the largest over the block counts)
-    lowering = ((squared["declared"] - squared["gains"]) / np.minimum(errors["declared"], errors["gains"])).mean(axis=1)
-    error, blocks = 0.0, np.empty(0)
-    for count in SIGNIFICANCE_BLOCKS:  # the largest batch-means error: blocks longer than the residuals' memory
-        means = np.array([part.mean() for part in np.array_split(lowering, count) if part.size])
-        spread = float(means.std(ddof=1) / np.sqrt(means.size)) if means.size > 1 else float("inf")
-        error, blocks = (spread, means) if spread >= error else (error, blocks)
-    taken = bool((1.0 + TORQUE_GAINS_TOLERANCE) * scored["gains"] < scored["declared"]
-                 and lowering.mean() > SIGNIFICANCE_Z * error)
+    # the lowering, block by block: the log of the ratio of the two models' scores over each contiguous block (each
+    # channel's MSE over the same normaliser as the whole record's score), its standard error from the blocks' spread
+    # (the residuals are correlated in time: every block count must measure it). A log ratio, not a difference: where
+    # the motion is faster the errors are larger for both models, and a difference of errors would spread with them.
+    normaliser = np.minimum(errors["declared"], errors["gains"])
+    normaliser = np.where(normaliser > 0.0, normaliser, 1.0)
+    weakest = (np.inf, 0.0, 0.0, 0)
+    for count in SIGNIFICANCE_BLOCKS:
+        parts = [part for part in np.array_split(np.arange(measured.shape[0]), count) if part.size]
+        if len(parts) < 2:
+            continue
+        ratios = np.array([np.log(max(float((squared["declared"][part].mean(axis=0) / normaliser).mean()), TINY)
+                                  / max(float((squared["gains"][part].mean(axis=0) / normaliser).mean()), TINY))
+                           for part in parts])
+        mean, spread = float(ratios.mean()), float(ratios.std(ddof=1) / np.sqrt(ratios.size))
+        standing = mean / spread if spread > 0.0 else (np.inf if mean > 0.0 else -np.inf)
+        weakest = min(weakest, (standing, mean, spread, ratios.size))
+    standing, mean, spread, count = weakest
+    taken = bool((1.0 + TORQUE_GAINS_TOLERANCE) * scored["gains"] < scored["declared"] and count
+                 and standing > SIGNIFICANCE_Z)
     sentence = (f"an unknown gain on each joint's recorded torque ({gains.said()}; the scale from {gains.scale}): the "
                 f"channel-weighted fit with them validates {scored['gains']:.4g} against {scored['declared']:.4g} "
-                f"without (the mean relative validation error; lowered by {lowering.mean():.3g} ± {error:.2g}, "
-                f"standard error of {blocks.size} block means), " + ("taken" if taken else "not taken"))
+                f"without (the mean relative validation error; the log ratio of the two scores over {count} blocks "
+                f"{mean:.3g} ± {spread:.2g}), " + ("taken" if taken else "not taken"))
     return gains, taken, sentence
 
 

@@ -345,7 +345,7 @@ class Identified:
     model_file: tuple[dict[str, Any], dict[str, float] | None] | None = None
     n_samples: int | None = None
     #: the per-joint torque gains fitted (:func:`torque_gains_selection`) and whether the answer holds them
-    torque_gains: tuple[TorqueGains, bool] | None = None
+    torque_gains: tuple[TorqueGains, bool, str] | None = None
 
     @property
     def rest(self) -> dict[str, dict | None]:
@@ -386,7 +386,7 @@ def identify_document(args: IdentifyOptions, identified: Identified) -> tuple[di
                                           recorded_mse=document["train"]["mse"], validation_mse=validation_mse,
                                           selection=selection, transmission=identified.transmission)
     gains = identified.torque_gains
-    document["torque_gains"] = None if gains is None else {**gains[0].to_dict(), "taken": gains[1]}
+    document["torque_gains"] = None if gains is None else {**gains[0].to_dict(), "taken": gains[1], "reason": gains[2]}
     if gains is not None and gains[1]:  # oed predict multiplies the model's torques by them
         document["model_file"]["torque_gains"] = gains[0].to_dict()
     floor, floor_report = identified.floor, identified.floor_report
@@ -819,7 +819,7 @@ def motor_friction_selection(args: IdentifyOptions, selection: ModelSelection, m
 
 def torque_gains_selection(args: IdentifyOptions, selection: ModelSelection, train: Measurements,
                            validation: Measurements | None, *, base: str, given: str | None,
-                           delay: DelayBounds | None) -> tuple[ModelSelection, tuple[TorqueGains, bool] | None]:
+                           delay: DelayBounds | None) -> tuple[ModelSelection, tuple[TorqueGains, bool, str] | None]:
     """The default answer with an unknown gain on each joint's recorded torque a candidate
     (:mod:`estimation.consistent.torque_gains`): the gains fitted on the training record and checked on the
     validation record (:func:`~estimation.consistent.torque_gains.gains_on_validation`: the channel-weighted fit with
@@ -827,7 +827,8 @@ def torque_gains_selection(args: IdentifyOptions, selection: ModelSelection, tra
     ``selection``'s, with the motor laws when they were taken) chosen among its candidates on the torques divided by
     them, and taken when its answer validates better in the recorded units. ``(selection, None)`` unchanged when the
     user chose the estimator, with a delay search or shaped laws, without a validation record of another motion,
-    or for a model with channels other than joint torques; else ``(answer, (gains, taken))``."""
+    or for a model with channels other than joint torques; else ``(answer, (gains, taken, reason))``, the reason the
+    check's sentence (and the answers' comparison when the check let them be compared)."""
     model = selection.unconstrained.model
     channels = model.channels
     if given is not None or delay is not None or model_has_shapes(model) or validation is None \
@@ -836,16 +837,17 @@ def torque_gains_selection(args: IdentifyOptions, selection: ModelSelection, tra
         return selection, None
     with step("an unknown gain on each joint's torque fitted and checked on the validation record"):
         try:
-            gains, promising, _ = gains_on_validation(model, train, validation)
+            gains, promising, checked = gains_on_validation(model, train, validation)
         except (ValueError, np.linalg.LinAlgError):
             return selection, None
     if not promising:
-        return selection, (gains, False)
+        return selection, (gains, False, checked)
     with step("the answer's candidates fitted to the torques divided by the gains and compared"):
         other = select_model(model, divided_torques(train, gains), divided_torques(validation, gains), base=base,
                              consistent=consistent_settings(args, model.robot))
     answer, taken = torque_gains_answer(selection, in_recorded_units(other, gains), gains)
-    return answer, (gains, taken)
+    compared = answer.reason.rpartition("; an unknown gain")[2]
+    return answer, (gains, taken, f"{checked}; then an unknown gain{compared}")
 
 
 def validation_fits(args: IdentifyOptions, model: IdentificationModel, delay: DelayBounds | None) -> tuple[str, ...]:
