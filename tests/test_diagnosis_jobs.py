@@ -12,6 +12,7 @@ import pytest
 
 from dynamics.runtime import processes
 from dynamics.runtime.processes import TaskError, beside, run_tasks, spare_core, worker_count
+from dynamics.runtime.threads import sample_thread_limit
 from estimation.diagnosis import record_fits
 from estimation.diagnosis.candidates import delay_search
 from estimation.diagnosis.candidates.delay import search_delay
@@ -183,6 +184,12 @@ def test_a_task_beside_runs_in_a_child_only_when_the_machine_has_a_core_to_spare
     with beside(lambda: _square(4), 2) as result:
         assert result() == 16  # the same result, from a child or in turn here
     assert len(forks) == (load == 0.0)
+    with beside(lambda: _warns(5), 2) as result, pytest.warns(UserWarning, match="warning from task 5"):
+        assert result() == 5
+    with pytest.raises(ValueError, match="task 3 fails"), beside(lambda: _fails(3), 2) as result:
+        result()
+    with beside(sample_thread_limit, 2) as result:
+        assert result() == 1  # one thread, as in a child
     with pytest.raises(ChildProcessError):
         os.waitpid(-1, os.WNOHANG)
 

@@ -210,8 +210,11 @@ def beside(task: Callable[[], T], workers: int, *, shared: Iterable[object] = ()
     either when the machine has no core to spare (:func:`spare_core`): a child at the lowest priority would not get
     one, and the fork costs the parent a page fault for each page it writes while the child lives.
     """
-    if workers <= 1 or "fork" not in get_all_start_methods() or not spare_core():
+    if workers <= 1 or "fork" not in get_all_start_methods():
         yield task
+        return
+    if not spare_core():  # run in turn when asked for, as a child would run it (one thread), as a starved one is
+        yield lambda: _in_order([_run_one(0, task)], 1)[0]
         return
     sharing = _Sharing(shared)
     counter = get_context("fork").Value("q", 0)
