@@ -10,7 +10,9 @@ import warnings
 import numpy as np
 import pytest
 
-from dynamics.runtime.processes import TaskError, beside, run_tasks, worker_count
+from dynamics.runtime import processes
+from dynamics.runtime.processes import TaskError, beside, run_tasks, spare_core, worker_count
+from dynamics.runtime.threads import sample_thread_limit
 from estimation.diagnosis import record_fits
 from estimation.diagnosis.candidates import delay_search
 from estimation.diagnosis.candidates.delay import search_delay
@@ -131,8 +133,14 @@ def test_a_child_warning_is_issued_in_the_parent():
     assert sorted(str(item.message) for item in caught) == [f"warning from task {value}" for value in range(6)]
 
 
+@pytest.fixture
+def idle_machine(monkeypatch):
+    """A machine whose cores are idle (the load average 0), whatever this one's load: :func:`beside` forks."""
+    monkeypatch.setattr(processes.os, "getloadavg", lambda: (0.0, 0.0, 0.0))
+
+
 @pytest.mark.parametrize("workers", [1, 2])
-def test_a_task_beside_gives_its_result_warnings_and_exception_where_asked_for(workers):
+def test_a_task_beside_gives_its_result_warnings_and_exception_where_asked_for(workers, idle_machine):
     with beside(lambda: _warns(7), workers) as result:
         before = _square(3)  # the block runs on meanwhile
         with pytest.warns(UserWarning, match="warning from task 7"):
@@ -146,7 +154,7 @@ def test_a_task_beside_gives_its_result_warnings_and_exception_where_asked_for(w
         os.waitpid(-1, os.WNOHANG)  # no child of this process remains
 
 
-def test_a_task_beside_not_done_when_asked_for_runs_in_turn_there():
+def test_a_task_beside_not_done_when_asked_for_runs_in_turn_there(idle_machine):
     parent = os.getpid()
 
     def task():
@@ -160,6 +168,38 @@ def test_a_task_beside_not_done_when_asked_for_runs_in_turn_there():
     assert time.perf_counter() - started < 60
     with pytest.raises(ChildProcessError):
         os.waitpid(-1, os.WNOHANG)
+
+
+@pytest.mark.parametrize("load", [0.0, 1.0e6])
+def test_a_task_beside_runs_in_a_child_only_when_the_machine_has_a_core_to_spare(load, monkeypatch):
+    monkeypatch.setattr(processes.os, "getloadavg", lambda: (load, load, load))
+    assert spare_core() == (load == 0.0)
+    forks, fork = [], os.fork
+
+    def counted_fork():
+        forks.append(os.getpid())
+        return fork()
+
+    monkeypatch.setattr(processes.os, "fork", counted_fork)
+    with beside(lambda: _square(4), 2) as result:
+        assert result() == 16  # the same result, from a child or in turn here
+    assert len(forks) == (load == 0.0)
+    with beside(lambda: _warns(5), 2) as result, pytest.warns(UserWarning, match="warning from task 5"):
+        assert result() == 5
+    with pytest.raises(ValueError, match="task 3 fails"), beside(lambda: _fails(3), 2) as result:
+        result()
+    with beside(sample_thread_limit, 2) as result:
+        assert result() == 1  # one thread, as in a child
+    with pytest.raises(ChildProcessError):
+        os.waitpid(-1, os.WNOHANG)
+
+
+def test_a_machine_without_a_load_average_has_a_core_to_spare(monkeypatch):
+    def absent():
+        raise OSError("no load average")
+
+    monkeypatch.setattr(processes.os, "getloadavg", absent)
+    assert spare_core()
 
 
 def test_worker_count_is_serial_for_few_tasks_and_refuses_a_bad_number():
