@@ -249,7 +249,12 @@ def check_time(t: NDArray[np.float64], source: str) -> float:
     decreasing = np.flatnonzero(steps < 0)
     if decreasing.size:
         row = int(decreasing[0])
-        raise TimeBaseError(f"{source}: column t decreases at row {row + 1} ({t[row]} -> {t[row + 1]}); sort the samples")
+        if decreasing.size == 1:  # one step back, the rows either side in order: a logger that restarted its clock
+            raise TimeBaseError(f"{source}: column t decreases at row {row + 1} ({t[row]} -> {t[row + 1]}) and only "
+                                "there: a logger whose clock restarted? Split the file at that row and give each part "
+                                "as a segment (--data or --validate repeated); rows out of order: sort them")
+        raise TimeBaseError(f"{source}: column t decreases at row {row + 1} ({t[row]} -> {t[row + 1]}) and at "
+                            f"{decreasing.size - 1} other row(s); sort the samples")
     step = float(np.median(steps))
     if step >= MAX_SAMPLE_TIME:
         raise TimeBaseError(f"{source}: column t advances by {step:.4g} a sample: the format wants seconds, "

@@ -248,12 +248,23 @@ def segments_from_frame(
 
 def dropouts(frame: pd.DataFrame, n_joints: int) -> NDArray[np.bool_]:
     """``(N,)`` the rows of ``frame`` whose data cells (``q, dq, ddq, tau``, wrench: those present) are all empty:
-    a logger's dropouts (:func:`estimation.data.log_cleaning.blank_rows`; a cell holding text is not empty). One rule
-    for the in-memory reader and the streamed one (:mod:`estimation.streaming.time_base`)."""
-    columns = [column for group in COLUMN_GROUPS
-               for column in (list(WRENCH_CHANNELS) if group == "wrench" else joint_columns(group, n_joints))
-               if column in frame.columns]
-    return blank_rows(frame[columns].isna().to_numpy()) if columns else np.zeros(len(frame), dtype=bool)
+    a logger's dropouts (:func:`estimation.data.log_cleaning.blank_rows`; a cell holding text is not empty); and the
+    rows where one group's cells are all empty while other rows of the frame hold that group: a channel logged at a
+    lower rate than the others (torques at 125 Hz beside positions at 250 Hz, merged into one table with blanks),
+    its rows without a sample of it dropped as dropouts. A group empty on every row is not a dropout (the column
+    checks name it). One rule for the in-memory reader and the streamed one (:mod:`estimation.streaming.time_base`,
+    which applies it to each chunk)."""
+    groups = [[column for column in (list(WRENCH_CHANNELS) if group == "wrench" else joint_columns(group, n_joints))
+               if column in frame.columns] for group in COLUMN_GROUPS]
+    groups = [columns for columns in groups if columns]
+    if not groups:
+        return np.zeros(len(frame), dtype=bool)
+    blank = blank_rows(frame[[column for columns in groups for column in columns]].isna().to_numpy())
+    for columns in groups:
+        unlogged = blank_rows(frame[columns].isna().to_numpy())
+        if not unlogged.all():
+            blank |= unlogged
+    return blank
 
 
 def said_dropouts(count: int, first_row: int, first_stamp: object, source: str) -> None:
@@ -261,7 +272,8 @@ def said_dropouts(count: int, first_row: int, first_stamp: object, source: str) 
     file, stamped ``first_stamp`` (as written)."""
     stamp = pd.to_numeric(pd.Series([first_stamp]), errors="coerce").iloc[0]
     warnings.warn(
-        f"{source}: dropped {count} row(s) whose data cells are all empty (a logger's dropouts), first at row "
+        f"{source}: dropped {count} row(s) whose data cells are all empty (a logger's dropouts), or those of a "
+        "channel (joint positions, velocities, torques: one logged at a lower rate), first at row "
         f"{first_row}" + ("" if not np.isfinite(stamp) else f" (t = {stamp:.6g} s)") + "; the time they leave "
         "without samples is bridged by interpolation up to --max-gap and split beyond, as any gap",
         BlankRowsWarning, stacklevel=5)

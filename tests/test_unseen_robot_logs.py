@@ -1,0 +1,268 @@
+"""Logs as other labs' loggers write them (issue 34), beside :mod:`tests.test_unseen_robot_labs`: the same
+simulated robots and records, the files rewritten the way a logger writes them (h-unseen5)."""
+
+from __future__ import annotations
+
+import json
+import warnings
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from dynamics.models import build_model
+from dynamics.robots import load_robot
+from dynamics.urdf_export import robot_urdf
+from tests.test_one_answer_audit import RELATIVE, relative, reported_models
+from tests.test_unseen_robot_kinds import as_well_as_the_plain_fit, marks, quiet
+from tests.test_unseen_robot_labs import Lab, puma, write_records
+from tests.test_unseen_robot_realities import named_and_chosen
+from tests.test_unseen_robots import FRICTION, Log, truth
+
+Rewrite = Callable[[pd.DataFrame, str], pd.DataFrame]
+
+
+@dataclass(frozen=True)
+class LoggedAs:
+    name: str
+    lab: Lab
+    rewrite: Rewrite | None = None  # the table as the logger writes it, per role
+    options: tuple[str, ...] = ()  # what the user declares to identify and diagnose
+    reading: tuple[str, ...] = ()  # and to every verb: how the log reads (--columns)
+    slow: bool = False
+    xfail: str = ""
+    urdf: Callable[[str], str] | None = None  # the lab's description as given (the simulation's rewritten)
+    seconds: Callable[[np.ndarray], np.ndarray] = lambda t: t  # the predictions' time stamps, as the simulation's
+
+
+def scored(case: LoggedAs, result: Path, test_file: Path, out: Path, test, kept: np.ndarray,
+           predicted_plain: np.ndarray) -> tuple[np.ndarray, np.ndarray] | str:
+    """``oed predict`` on the test record (the case's options declared): the MSE per channel of its predictions and
+    of the plain fit's at the recorded samples; the command's message when it exits."""
+    from benchmarks.bench_real_robots import at_recorded, resent
+
+    code, message = quiet(["predict", "--model", str(result), "--data", str(test_file), *case.reading, "--out",
+                           str(out)])
+    if code != 0:
+        return message
+    table = pd.read_csv(out)
+    channels = [column for column in table.columns if column.startswith("tau") and column[3:].isdigit()]
+    rows, values = at_recorded(test.t, case.seconds(table["t"].to_numpy()), table[channels].to_numpy())
+    use = kept[rows] & ~resent(test)[rows]
+    rows, values = rows[use], values[use]
+    return (np.mean((test.tau[rows] - values) ** 2, axis=0),
+            np.mean((test.tau[rows] - predicted_plain[rows]) ** 2, axis=0))
+
+
+def run_logged(case: LoggedAs, folder: Path) -> dict:
+    from benchmarks.bench_real_robots import PlainFit
+
+    urdf, records, files, spread = write_records(case.lab, folder)
+    if case.rewrite is not None:
+        for role, path in files.items():
+            case.rewrite(pd.read_csv(path), role).to_csv(path, index=False, float_format="%.17g")
+    plain = PlainFit(["--urdf", str(urdf)])
+    if case.urdf is not None:
+        simulated = folder / "simulated.urdf"
+        simulated.write_text(urdf.read_text())
+        plain = PlainFit(["--urdf", str(simulated)])
+        urdf.write_text(case.urdf(urdf.read_text()))
+    rate = min(log.rate_hz for log in (case.lab.train, case.lab.validate, case.lab.test))
+    cutoff, plain_theta = plain.fit(records["train"], records["validate"], rate_hz=rate)
+    test = records["test"]
+    predicted_plain, kept = plain.predict(test, cutoff, plain_theta)
+    written = pd.read_csv(files["test"])
+    if len(written) == kept.shape[0]:  # scored where the test file holds torques (a channel at a lower rate)
+        kept = kept & written[[name for name in written.columns if name.startswith("tau")]].notna().all(axis=1).to_numpy()
+    mse, exits, effects, selections, reproduced = {}, {}, {}, {}, {}
+    for label, verb, more in (("default", "identify", ["--friction", FRICTION]), ("diagnose", "diagnose", [])):
+        result = folder / f"{label}.json"
+        code, message = quiet([verb, "--urdf", str(urdf), "--data", str(files["train"]), "--validate",
+                               str(files["validate"]), *case.options, *case.reading, *more, "--out", str(result)])
+        if code != 0:
+            exits[label] = message
+            continue
+        summary = json.loads(result.read_text())
+        effects[label], selections[label] = named_and_chosen(summary)
+        metrics = folder / f"{label}_validate.json"
+        code, message = quiet(["predict", "--model", str(result), "--data", str(files["validate"]),
+                               *case.reading, "--metrics", str(metrics), "--out", str(folder / f"{label}_v.csv")])
+        if code != 0:
+            exits[label] = message
+            continue
+        _, reported, _ = reported_models(summary)
+        reproduced[label] = relative(json.loads(metrics.read_text())["mse"], reported)
+        outcome = scored(case, result, files["test"], folder / f"{label}_test.csv", test, kept, predicted_plain)
+        if isinstance(outcome, str):
+            exits[label] = outcome
+            continue
+        mse[label], mse[f"plain OLS ({label}'s samples)"] = outcome
+    return {"mse": mse, "exits": exits, "cutoff": cutoff, "floor": (0.02 * spread) ** 2, "effects": effects,
+            "selections": selections, "reproduced": reproduced}
+
+
+def lab(name: str, train: float = 8.0) -> Lab:
+    """The PUMA's first 3 joints, 250 Hz, no logged velocity: training ``train`` s, validation 3 s, test 5 s."""
+    return Lab(name, puma(3), Log(train, 250.0, velocity=False), Log(3.0, 250.0, velocity=False),
+               Log(5.0, 250.0, velocity=False))
+
+
+EPOCH_NS = 1_764_240_000_000_000_000  # 27 Nov 2025 in nanoseconds since 1970: a ROS stamp
+
+
+def nanoseconds_degrees_millinewton_metres(frame: pd.DataFrame, role: str) -> pd.DataFrame:
+    """A logger's own names and units: stamps in ns since 1970, positions in degrees, torques in mN m."""
+    out = pd.DataFrame({"stamp_ns": np.round(frame["t"].to_numpy() * 1e9).astype(np.int64) + EPOCH_NS})
+    for name in frame.columns:
+        if name.startswith("q"):
+            out[f"pos_deg{name[1:]}"] = np.degrees(frame[name])
+    for name in frame.columns:
+        if name.startswith("tau"):
+            out[f"torque_mNm{name[3:]}"] = 1e3 * frame[name]
+    return out
+
+
+def clock_not_at_zero(frame: pd.DataFrame, role: str) -> pd.DataFrame:
+    return frame.assign(t=frame["t"] + 5321.25)
+
+
+def torques_at_half_rate(frame: pd.DataFrame, role: str) -> pd.DataFrame:
+    """Positions at 250 Hz and torques at 125 Hz merged into one table: the torque cells of every other row blank."""
+    frame = frame.copy()
+    frame.loc[frame.index % 2 == 1, [name for name in frame.columns if name.startswith("tau")]] = np.nan
+    return frame
+
+
+def joint_not_moving(frame: pd.DataFrame, role: str) -> pd.DataFrame:
+    """Joint 2 held by its brake at 0.35 rad through every record (the simulated torques are of the moving joint:
+    the plain fit is given those, so the comparison is of a record the lab could not have logged)."""
+    return frame.assign(q2=0.35)
+
+
+FINGERS = """
+  <link name="finger_left"><inertial><origin xyz="0 0.01 0.02"/><mass value="0.05"/>
+    <inertia ixx="1e-5" ixy="0" ixz="0" iyy="1e-5" iyz="0" izz="1e-5"/></inertial></link>
+  <joint name="finger_left_joint" type="prismatic"><origin xyz="0 0 0.1"/><axis xyz="0 1 0"/>
+    <parent link="joint3_link"/><child link="finger_left"/><limit lower="0" upper="0.04" velocity="0.2" effort="20"/>
+  </joint>
+  <link name="finger_right"><inertial><origin xyz="0 -0.01 0.02"/><mass value="0.05"/>
+    <inertia ixx="1e-5" ixy="0" ixz="0" iyy="1e-5" iyz="0" izz="1e-5"/></inertial></link>
+  <joint name="finger_right_joint" type="prismatic"><origin xyz="0 0 0.1"/><axis xyz="0 -1 0"/>
+    <parent link="joint3_link"/><child link="finger_right"/><limit lower="0" upper="0.04" velocity="0.2" effort="20"/>
+    MIMIC</joint>
+</robot>"""
+
+
+def gripper(mimic: bool) -> Callable[[str], str]:
+    """The arm's description with a parallel gripper at its flange: two prismatic fingers (0.05 kg each, closed at
+    0), the right one a ``<mimic>`` of the left when ``mimic``; the log holds the arm's joints only."""
+    tag = '<mimic joint="finger_left_joint"/>' if mimic else ""
+    return lambda text: text.replace("</robot>", FINGERS.replace("MIMIC", tag))
+
+
+ARM = ("--joint-names", "joint1,joint2,joint3")
+LOGS = (
+    LoggedAs("stamps in ns since 1970, positions in degrees, torques in mN m, declared by --columns",
+             lab("units"), nanoseconds_degrees_millinewton_metres,
+             reading=("--columns", "t=1e-9*stamp_ns,q=0.017453292519943295*pos_deg,tau=0.001*torque_mNm"),
+             seconds=lambda t: t - EPOCH_NS * 1e-9, slow=True),
+    LoggedAs("a clock that starts at 5321.25 s", lab("clock"), clock_not_at_zero, seconds=lambda t: t - 5321.25),
+    LoggedAs("torques at 125 Hz beside positions at 250 Hz (blank torque cells)", lab("rates"), torques_at_half_rate,
+             slow=True),
+    LoggedAs("a gripper's fingers in the URDF, not in the log, --joint-names given", lab("fingers"),
+             urdf=gripper(False), options=ARM, slow=True),
+    LoggedAs("a gripper's mimic fingers in the URDF, not in the log, --joint-names given", lab("mimic"),
+             urdf=gripper(True), options=ARM, slow=True),
+    LoggedAs("a gripper's fingers in the URDF, not in the log, on the defaults", lab("fingers"), urdf=gripper(False),
+             xfail="measured at 2878a20: both verbs exit (the URDF branches at joint3_link: serial chains only) "
+                   "where --joint-names joint1,joint2,joint3 runs (identify 0.995 total, diagnose 1.003); the "
+                   "message now names that option with the joints. Open: the log's joints as the default chain"),
+    LoggedAs("a gripper's mimic fingers in the URDF, not in the log, on the defaults", lab("mimic"),
+             urdf=gripper(True),
+             xfail="measured at 2878a20: both verbs exit (a <mimic> joint: coupled joints refused) where "
+                   "--joint-names joint1,joint2,joint3 runs (identify 0.995 total, diagnose 1.003). Open: as above"),
+    LoggedAs("1.5 s training and validation records", lab("short", train=1.5), slow=True,
+             xfail="measured at 2878a20: identify (told coulomb and offset) exits: the data do not determine "
+                   "fc2 and off2 (joint 2 does not reverse in 1.5 s: its Coulomb and offset columns are one); "
+                   "diagnose runs: 1.099 / 1.232 / 0.572 x the plain fit, 0.924 total. Open: a told effect the "
+                   "record does not determine, left out with a warning naming it"),
+    LoggedAs("joint 2 held still by its brake", lab("locked"), joint_not_moving,
+             xfail="measured at 2878a20: both verbs exit: the data do not determine mx2R, off2 (identify), "
+                   "Izz1R, Ixx2R, Ixy2 (diagnose): the joint's columns are zero; --joint-names joint1,joint3 "
+                   "--locked-at joint2=0.35 is the option that works. Open: a joint that never moves named in "
+                   "the message with that option"),
+)
+
+
+@pytest.mark.parametrize("case", [pytest.param(case, id=case.name, marks=marks(case)) for case in LOGS])
+def test_the_defaults_run_and_predict_a_log_as_its_logger_wrote_it(case, tmp_path):
+    outcome = run_logged(case, tmp_path)
+    as_well_as_the_plain_fit(case.name, outcome, f"chosen {outcome['selections']}; ")
+    for label, error in outcome["reproduced"].items():
+        assert error <= RELATIVE, (label, error)
+
+
+def test_a_clock_that_restarts_is_named_with_the_segments_that_read_it(tmp_path):
+    """One step back in the time stamps (a logger restarted): the message says so and names the segments; rows out
+    of order in many places: sort them."""
+    from estimation.data import TimeBaseError
+    from estimation.data.records import read_measurements
+    from tests.test_unseen_robots import urdf_of, write_record
+
+    urdf = urdf_of("puma560:3", tmp_path)
+    model = build_model(load_robot(urdf=urdf), "internal", FRICTION)
+    write_record(model, truth(model), Log(2.0, 250.0, velocity=False), 11, tmp_path / "clean.csv")
+    table = pd.read_csv(tmp_path / "clean.csv")
+    table.loc[250:, "t"] -= table["t"].iloc[250]
+    table.to_csv(tmp_path / "restart.csv", index=False)
+    with pytest.raises(TimeBaseError, match=r"decreases at row 250 .* only there: a logger whose clock restarted\? "
+                                            r"Split the file at that row .*--data or --validate repeated"):
+        read_measurements(tmp_path / "restart.csv", model=model)
+    table = pd.read_csv(tmp_path / "clean.csv").sample(frac=1.0, random_state=0)
+    table.to_csv(tmp_path / "shuffled.csv", index=False)
+    with pytest.raises(TimeBaseError, match="other row.*; sort the samples"):
+        read_measurements(tmp_path / "shuffled.csv", model=model)
+
+
+def test_torques_logged_at_a_lower_rate_are_read_alike_in_memory_and_streamed(tmp_path):
+    """Torque cells blank on every other row (a channel at half the rate, merged): those rows dropped with a warning
+    (the positions there with them), in memory and chunk by chunk alike; a torque column blank throughout stays an
+    error naming it."""
+    from estimation.data import BlankRowsWarning, NonFiniteError
+    from estimation.data.records import read_measurements
+    from estimation.streaming.chunks import read_chunks
+    from tests.test_unseen_robots import urdf_of, write_record
+
+    urdf = urdf_of("puma560:3", tmp_path)
+    model = build_model(load_robot(urdf=urdf), "internal", FRICTION)
+    write_record(model, truth(model), Log(4.0, 250.0, velocity=False), 11, tmp_path / "clean.csv")
+    table = torques_at_half_rate(pd.read_csv(tmp_path / "clean.csv"), "train")
+    table.to_csv(tmp_path / "rates.csv", index=False)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        memory = read_measurements(tmp_path / "rates.csv", model=model)
+        chunks = list(read_chunks(tmp_path / "rates.csv", model, chunk_size=250))
+    said = [str(item.message) for item in caught if issubclass(item.category, BlankRowsWarning)]
+    assert len(said) == 2 and all("dropped 500 row(s)" in text for text in said), "\n".join(said)
+    kept = np.arange(0, len(table), 2)
+    assert np.array_equal(memory.as_recorded.t, table["t"].to_numpy()[kept])
+    assert np.array_equal(memory.as_recorded.tau, table[["tau1", "tau2", "tau3"]].to_numpy()[kept])
+    assert np.allclose(np.concatenate([chunk.t for chunk in chunks]), memory.t, rtol=0, atol=1e-12)
+    assert np.allclose(np.vstack([chunk.tau for chunk in chunks]), memory.tau, rtol=0, atol=1e-12)
+    table["tau2"] = np.nan  # never logged
+    table.to_csv(tmp_path / "never.csv", index=False)
+    with pytest.raises(NonFiniteError, match="column tau2"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", BlankRowsWarning)
+        read_measurements(tmp_path / "never.csv", model=model)
+
+
+def test_a_branching_description_names_the_joint_names_that_read_it(tmp_path):
+    from dynamics.errors import RobotDescriptionError
+
+    path = tmp_path / "gripper.urdf"
+    path.write_text(gripper(False)(robot_urdf(load_robot("puma560", joints=3))))
+    with pytest.raises(RobotDescriptionError, match="--joint-names joint1,joint2,joint3"):
+        load_robot(urdf=path)
