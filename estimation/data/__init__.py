@@ -37,6 +37,7 @@ _EXPORTS: dict[str, str] = {
     "RosSupportError": "estimation.data.log_formats",
     "SegmentColumnsError": "estimation.data.segments",
     "StallWarning": "estimation.data.loading",
+    "StillJointWarning": "estimation.data.loading",
     "TimeBaseError": "estimation.data.loading",
     "TooFewSamplesError": "estimation.data.loading",
     "UnknownTopicError": "estimation.data.log_formats",

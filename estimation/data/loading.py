@@ -120,6 +120,11 @@ class BlankRowsWarning(MeasurementWarning):
     is a gap like any other."""
 
 
+class StillJointWarning(MeasurementWarning):
+    """A joint whose position never changes in a record (a brake held it): the record does not determine its
+    parameters; the message names the lock that leaves it out of the model."""
+
+
 class StallWarning(MeasurementWarning):
     """Short stalls of the logger (samples missing) were bridged by interpolation."""
 

@@ -39,6 +39,7 @@ from estimation.data.loading import (
     SegmentTooShortError,
     SplitWarning,
     StallWarning,
+    StillJointWarning,
     TimeBaseError,
     check_angles,
     check_no_further_joints,
@@ -221,6 +222,7 @@ def segments_from_frame(
                             "the format wants seconds as numbers (e.g. (t - t[0]).dt.total_seconds())")
     t = numeric_columns(frame, ["t"], source)[:, 0]
     _check_absurd(t, arrays, n_joints, source)
+    _said_still_joints(arrays["q"], model, source)
     data = np.hstack([values for values in arrays.values() if values is not None])
     times = clean_time_base(t, repeated_rows(data), source, max_gap=max_gap, split=split,
                             check=lambda keep: check_angles(arrays["q"][keep], model, source))
@@ -451,6 +453,29 @@ def _duplicated_times(t, source: str):
         f"logger's clock that did not tick), first at row {int(later[0])} (t = {t[later[0]]:.6g} s); the first row "
         "at each time stamp is kept", DuplicatedTimesWarning, stacklevel=5)
     return later
+
+
+def _said_still_joints(q: NDArray[np.float64], model, source: str) -> None:
+    """A :class:`StillJointWarning` for each joint whose position is the same on every row of the record (two rows
+    or more): a joint held still, whose parameters the record does not determine (the fit's rank-deficiency error
+    follows when no other record moves it); the message names ``--joint-names`` and ``--locked-at`` that lock it."""
+    if q.shape[0] < 2:
+        return
+    still = np.flatnonzero(np.all(q == q[0], axis=0))
+    if still.size == 0:
+        return
+    robot = getattr(model, "robot", None)
+    names = list(getattr(robot, "joint_names", None) or [f"joint{j + 1}" for j in range(q.shape[1])])
+    if len(names) != q.shape[1]:
+        names = [f"joint{j + 1}" for j in range(q.shape[1])]
+    moving = [name for j, name in enumerate(names) if j not in set(still.tolist())]
+    for j in still:
+        warnings.warn(
+            f"{source}: joint {names[j]} does not move (q{j + 1} = {q[0, j]:.6g} on every row): this record does "
+            f"not determine its parameters; a joint held still in every record is locked by --joint-names "
+            f"{','.join(moving)} --locked-at {names[j]}={q[0, j]:.6g} (with --urdf; the log's columns q1.., tau1.. then "
+            "those joints' in that order)",
+            StillJointWarning, stacklevel=4)
 
 
 def _check_absurd(t, arrays, n_joints: int, source: str) -> None:
