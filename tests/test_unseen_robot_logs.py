@@ -129,6 +129,16 @@ def clock_not_at_zero(frame: pd.DataFrame, role: str) -> pd.DataFrame:
     return frame.assign(t=frame["t"] + 5321.25)
 
 
+def numbered_from_zero(frame: pd.DataFrame, role: str) -> pd.DataFrame:
+    """A ROS ``JointState`` export: ``time``, ``position_0..``, ``effort_0..`` (arrays numbered from 0)."""
+    out = pd.DataFrame({"time": frame["t"]})
+    for group, prefix in (("q", "position_"), ("tau", "effort_")):
+        for name in frame.columns:
+            if name.startswith(group) and name[len(group):].isdigit():
+                out[f"{prefix}{int(name[len(group):]) - 1}"] = frame[name]
+    return out
+
+
 def torques_at_half_rate(frame: pd.DataFrame, role: str) -> pd.DataFrame:
     """Positions at 250 Hz and torques at 125 Hz merged into one table: the torque cells of every other row blank."""
     frame = frame.copy()
@@ -163,6 +173,11 @@ LOGS = (
              lab("units"), nanoseconds_degrees_millinewton_metres,
              reading=("--columns", "t=1e-9*stamp_ns,q=0.017453292519943295*pos_deg,tau=0.001*torque_mNm"),
              seconds=lambda t: t - EPOCH_NS * 1e-9, slow=True),
+    LoggedAs("a ROS JointState export, its arrays numbered from 0, declared by --columns", lab("ros"),
+             numbered_from_zero, reading=("--columns", "t=time,q=position_,tau=effort_"), slow=True),
+    LoggedAs("100 000 samples: 400 s at 250 Hz of training", Lab("long", puma(3), Log(400.0, 250.0, velocity=False),
+                                                                 Log(3.0, 250.0, velocity=False),
+                                                                 Log(5.0, 250.0, velocity=False)), slow=True),
     LoggedAs("a clock that starts at 5321.25 s", lab("clock"), clock_not_at_zero, seconds=lambda t: t - 5321.25),
     LoggedAs("torques at 125 Hz beside positions at 250 Hz (blank torque cells)", lab("rates"), torques_at_half_rate,
              slow=True),
@@ -275,3 +290,24 @@ def test_a_joint_held_still_is_named_with_the_lock_that_leaves_it_out(tmp_path):
     with warnings.catch_warnings():
         warnings.simplefilter("error", StillJointWarning)
         read_measurements(tmp_path / "clean.csv", model=model)
+
+
+def test_joints_numbered_from_zero_are_named_with_the_map_that_reads_them(tmp_path):
+    """``q0..q2``, ``tau0..tau2`` (a log numbered as Python arrays): the message names the map, and the map reads the
+    columns as joints 1 to 3."""
+    from estimation.data import MissingColumnError
+    from estimation.data.log_formats import LogSource
+    from estimation.data.records import read_measurements
+    from tests.test_unseen_robots import urdf_of, write_record
+
+    urdf = urdf_of("puma560:3", tmp_path)
+    model = build_model(load_robot(urdf=urdf), "internal", FRICTION)
+    write_record(model, truth(model), Log(2.0, 250.0, velocity=False), 11, tmp_path / "clean.csv")
+    clean = pd.read_csv(tmp_path / "clean.csv")
+    clean.rename(columns=lambda name: name if name == "t" else f"{name.rstrip('0123456789')}{int(name[-1]) - 1}"
+                 ).to_csv(tmp_path / "zero.csv", index=False)
+    with pytest.raises(MissingColumnError, match=r"numbers its joints from 0 \(q0, tau0\).*--columns q=q,tau=tau"):
+        read_measurements(tmp_path / "zero.csv", model=model)
+    read = read_measurements(LogSource(tmp_path / "zero.csv", columns={"q": "q", "tau": "tau"}), model=model)
+    assert np.array_equal(read.as_recorded.q if read.as_recorded is not None else read.q,
+                          clean[["q1", "q2", "q3"]].to_numpy())

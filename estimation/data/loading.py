@@ -201,6 +201,14 @@ def require_columns(frame: pd.DataFrame, columns: list[str], meaning: str, sourc
             raise MissingColumnError(
                 f"{source}: the columns are separated by {delimiter!r}, not by commas (one column "
                 f"{str(frame.columns[0])[:60]!r} was read): write the file comma-separated (a CSV file)")
+        zero = sorted({match.group(1) for column in frame.columns
+                       if (match := re.fullmatch(r"(q|dq|ddq|tau)0", str(column)))}, key=len)
+        if zero and any(re.fullmatch(r"(q|dq|ddq|tau)\d+", column) for column in missing):
+            mapped = ",".join(f"{group}={group}" for group in zero)
+            raise MissingColumnError(
+                f"{source}: missing column(s) {', '.join(missing)} ({meaning}); the file numbers its joints from 0 "
+                f"({', '.join(f'{group}0' for group in zero)}), the format from 1: --columns {mapped} reads them as "
+                "joints 1 to n (or rename the columns)")
         raise MissingColumnError(f"{source}: missing column(s) {', '.join(missing)} ({meaning})")
 
 

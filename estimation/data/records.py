@@ -457,17 +457,14 @@ def _duplicated_times(t, source: str):
 
 def _said_still_joints(q: NDArray[np.float64], model, source: str) -> None:
     """A :class:`StillJointWarning` for each joint whose position is the same on every row of the record (two rows
-    or more): a joint held still, whose parameters the record does not determine (the fit's rank-deficiency error
+    or more; read for a model, whose robot names the joints): a joint held still, whose parameters the record does not determine (the fit's rank-deficiency error
     follows when no other record moves it); the message names ``--joint-names`` and ``--locked-at`` that lock it."""
-    if q.shape[0] < 2:
+    if q.shape[0] < 2 or not isinstance(model, IdentificationModel):  # the lock names the robot's joints
         return
     still = np.flatnonzero(np.all(q == q[0], axis=0))
     if still.size == 0:
         return
-    robot = getattr(model, "robot", None)
-    names = list(getattr(robot, "joint_names", None) or [f"joint{j + 1}" for j in range(q.shape[1])])
-    if len(names) != q.shape[1]:
-        names = [f"joint{j + 1}" for j in range(q.shape[1])]
+    names = list(model.robot.joint_names)
     moving = [name for j, name in enumerate(names) if j not in set(still.tolist())]
     for j in still:
         warnings.warn(
