@@ -82,6 +82,10 @@ class TooFewSamplesError(MeasurementError):
     """Fewer equations than base parameters to estimate."""
 
 
+class WrappedAngleError(MeasurementError):
+    """A revolute joint's angle jumps by a whole turn between two rows: a logger that wraps it to ±π."""
+
+
 class AbsurdValueError(MeasurementError):
     """A value no sensor gives in SI units (a corrupt cell, a wrong unit by many orders of magnitude)."""
 

@@ -24,6 +24,7 @@ from numpy.typing import NDArray
 
 from dynamics.effects.linear import WRENCH_CHANNELS
 from dynamics.models import IdentificationModel, ModelKind
+from dynamics.robot import JointType
 from estimation.data.loading import (
     ABSURD_VALUE,
     AbsurdValueError,
@@ -41,6 +42,7 @@ from estimation.data.loading import (
     StallWarning,
     StillJointWarning,
     TimeBaseError,
+    WrappedAngleError,
     check_angles,
     check_no_further_joints,
     check_sample_count,
@@ -223,6 +225,7 @@ def segments_from_frame(
     t = numeric_columns(frame, ["t"], source)[:, 0]
     _check_absurd(t, arrays, n_joints, source)
     _said_still_joints(arrays["q"], model, source)
+    _check_wrapped(arrays["q"], model, source)
     data = np.hstack([values for values in arrays.values() if values is not None])
     times = clean_time_base(t, repeated_rows(data), source, max_gap=max_gap, split=split,
                             check=lambda keep: check_angles(arrays["q"][keep], model, source))
@@ -453,6 +456,28 @@ def _duplicated_times(t, source: str):
         f"logger's clock that did not tick), first at row {int(later[0])} (t = {t[later[0]]:.6g} s); the first row "
         "at each time stamp is kept", DuplicatedTimesWarning, stacklevel=5)
     return later
+
+
+#: a jump between two rows this close to a whole turn (rad), and more than half a turn: a wrapped angle
+WRAP_TOLERANCE = 0.5
+
+
+def _check_wrapped(q: NDArray[np.float64], model, source: str) -> None:
+    """:class:`WrappedAngleError` for a revolute joint (every joint without a robot) whose angle jumps between two
+    rows by more than half a turn and within :data:`WRAP_TOLERANCE` of whole turns: a logger that wraps a continuous
+    joint to ±π (no joint turns half a turn in one sample); the derivatives and the fit across the jump would be
+    garbage. Refused in memory and streamed alike (unwrapping needs the rows before a chunk)."""
+    revolute = ([joint.joint_type is JointType.REVOLUTE for joint in model.robot.joints]
+                if isinstance(model, IdentificationModel) else [True] * q.shape[1])
+    steps = np.abs(np.diff(q, axis=0))
+    turns = np.round(steps / (2 * np.pi))
+    wrapped = (steps > np.pi) & (np.abs(steps - 2 * np.pi * turns) < WRAP_TOLERANCE) & np.asarray(revolute, bool)
+    if wrapped.any():
+        row, column = (int(index) for index in np.argwhere(wrapped)[0])
+        raise WrappedAngleError(
+            f"{source}: column q{column + 1} jumps from {q[row, column]:.4g} to {q[row + 1, column]:.4g} rad between "
+            f"rows {row} and {row + 1} ({int(wrapped[:, column].sum())} such jump(s)): a whole turn, the logger wraps "
+            "the angle to ±π; unwrap it before identifying (numpy.unwrap on the column)")
 
 
 def _said_still_joints(q: NDArray[np.float64], model, source: str) -> None:
