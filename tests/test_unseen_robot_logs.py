@@ -3,6 +3,7 @@ simulated robots and records, the files rewritten the way a logger writes them (
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import re
 import warnings
@@ -64,7 +65,11 @@ def run_logged(case: LoggedAs, folder: Path) -> dict:
     urdf, records, files, spread = write_records(case.lab, folder)
     if case.rewrite is not None:
         for role, path in files.items():
-            case.rewrite(pd.read_csv(path), role).to_csv(path, index=False, float_format="%.17g")
+            written = case.rewrite(pd.read_csv(path), role)
+            written.to_csv(path, index=False, float_format="%.17g")
+            stamps = written["t"] if "t" in written.columns else None
+            if stamps is not None and len(written) == records[role].t.shape[0]:  # the plain fit reads them too
+                records[role] = dataclasses.replace(records[role], t=case.seconds(stamps.to_numpy(dtype=float)))
     plain = PlainFit(["--urdf", str(urdf)])
     if case.urdf is not None:
         simulated = folder / "simulated.urdf"
@@ -130,6 +135,17 @@ def clock_not_at_zero(frame: pd.DataFrame, role: str) -> pd.DataFrame:
     return frame.assign(t=frame["t"] + 5321.25)
 
 
+def float32_clock(start: float) -> Rewrite:
+    """Stamps of a clock started ``start`` s earlier (time since boot), stored as float32: rounded to 2⁻²³ of their
+    size (0.24 ms at 3000 s, 3.9 ms at 40 000 s, about the 4 ms sampling step)."""
+    return lambda frame, role: frame.assign(t=(frame["t"] + start).astype(np.float32).astype(float))
+
+
+def velocity_in_degrees(frame: pd.DataFrame, role: str) -> pd.DataFrame:
+    """The logged velocity in deg/s beside positions in rad (not declared)."""
+    return frame.assign(**{name: np.degrees(frame[name]) for name in frame.columns if name.startswith("dq")})
+
+
 def numbered_from_zero(frame: pd.DataFrame, role: str) -> pd.DataFrame:
     """A ROS ``JointState`` export: ``time``, ``position_0..``, ``effort_0..`` (arrays numbered from 0)."""
     out = pd.DataFrame({"time": frame["t"]})
@@ -191,6 +207,17 @@ LOGS = (
                                                                  Log(3.0, 250.0, velocity=False),
                                                                  Log(5.0, 250.0, velocity=False)), slow=True),
     LoggedAs("a clock that starts at 5321.25 s", lab("clock"), clock_not_at_zero, seconds=lambda t: t - 5321.25),
+    LoggedAs("a float32 clock at 3000 s (stamps rounded to 0.24 ms)", lab("f32"), float32_clock(3000.0),
+             seconds=lambda t: t - 3000.0, slow=True),
+    LoggedAs("a float32 clock at 40 000 s (stamps rounded to 3.9 ms, the step 4 ms)", lab("f32"),
+             float32_clock(40000.0), seconds=lambda t: t - 40000.0, slow=True,
+             xfail="measured at 2878a20: the time base is lost (stamps rounded to about the sampling step); the plain "
+                   "fit on the same stamps is worse (test MSE 6.76 / 1.48 / 0.100 against a floor of 0.029 / 0.028 / "
+                   "0.008), the defaults 0.108 / 0.199 / 0.220 (identify), joint 3 2.2x the plain fit, every joint "
+                   "far above its floor. Open: stamps quantised to about the step said as such (and the rows' index "
+                   "as the time base offered)"),
+    LoggedAs("a logged velocity in deg/s beside positions in rad, undeclared", Lab(
+        "dq", puma(3), Log(8.0, 250.0), Log(3.0, 250.0), Log(5.0, 250.0)), velocity_in_degrees, slow=True),
     LoggedAs("torques at 125 Hz beside positions at 250 Hz (blank torque cells)", lab("rates"), torques_at_half_rate,
              slow=True),
     LoggedAs("a gripper's fingers in the URDF, not in the log, --joint-names given", lab("fingers"),
