@@ -374,3 +374,22 @@ def test_an_angle_wrapped_to_half_a_turn_is_refused_in_memory_and_streamed(tmp_p
     with pytest.raises(WrappedAngleError, match="column q1 jumps"):
         list(read_chunks(tmp_path / "wrapped.csv", model, chunk_size=250))
     read_measurements(tmp_path / "clean.csv", model=model)
+
+
+def test_a_units_row_and_a_comment_line_are_named(tmp_path):
+    """A second header line of units beneath the names, a comment line above them: each refused, saying which."""
+    from estimation.data import MissingColumnError, NonFiniteError
+    from estimation.data.records import read_measurements
+    from tests.test_unseen_robots import urdf_of, write_record
+
+    urdf = urdf_of("puma560:3", tmp_path)
+    model = build_model(load_robot(urdf=urdf), "internal", FRICTION)
+    write_record(model, truth(model), Log(2.0, 250.0, velocity=False), 11, tmp_path / "clean.csv")
+    clean = pd.read_csv(tmp_path / "clean.csv")
+    units = pd.DataFrame([["s", "rad", "rad", "rad", "N m", "N m", "N m"]], columns=clean.columns)
+    pd.concat([units, clean]).to_csv(tmp_path / "units.csv", index=False)
+    with pytest.raises(NonFiniteError, match=r"a second header line \(units\?\) beneath the names"):
+        read_measurements(tmp_path / "units.csv", model=model)
+    (tmp_path / "comment.csv").write_text("# rig 3, 27 Nov\n" + (tmp_path / "clean.csv").read_text())
+    with pytest.raises(MissingColumnError, match="a comment .*remove the comment lines above the header"):
+        read_measurements(tmp_path / "comment.csv", model=model)

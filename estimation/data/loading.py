@@ -205,6 +205,10 @@ def require_columns(frame: pd.DataFrame, columns: list[str], meaning: str, sourc
             raise MissingColumnError(
                 f"{source}: the columns are separated by {delimiter!r}, not by commas (one column "
                 f"{str(frame.columns[0])[:60]!r} was read): write the file comma-separated (a CSV file)")
+        if str(frame.columns[0]).lstrip().startswith("#"):
+            raise MissingColumnError(
+                f"{source}: missing column(s) {', '.join(missing)} ({meaning}); the first line read as the header is "
+                f"a comment ({str(frame.columns[0])[:60]!r}): remove the comment lines above the header")
         zero = sorted({match.group(1) for column in frame.columns
                        if (match := re.fullmatch(r"(q|dq|ddq|tau)0", str(column)))}, key=len)
         if zero and any(re.fullmatch(r"(q|dq|ddq|tau)\d+", column) for column in missing):
@@ -236,6 +240,12 @@ def numeric_columns(frame: pd.DataFrame, columns: list[str], source: str) -> NDA
         bad = ~np.isfinite(numbers)
         if bad.any():
             row = int(np.flatnonzero(bad)[0])
+            if row == 0 and all(isinstance(frame[name].iloc[0], str) and pd.isna(pd.to_numeric(frame[name].iloc[0],
+                                                                                                  errors="coerce"))
+                                for name in columns):
+                raise NonFiniteError(
+                    f"{source}: row 0 holds text in every column ({', '.join(repr(frame[name].iloc[0]) for name in columns[:4])}"
+                    "…): a second header line (units?) beneath the names; remove it (the format is SI: s, rad, m, N m)")
             raise NonFiniteError(
                 f"{source}: column {column} holds {int(bad.sum())} NaN/inf or non-numeric value(s), "
                 f"first at row {row} ({_shown(frame[column].iloc[row])})"
