@@ -214,8 +214,7 @@ LOGS = (
              xfail="measured at 2878a20: the time base is lost (stamps rounded to about the sampling step); the plain "
                    "fit on the same stamps is worse (test MSE 6.76 / 1.48 / 0.100 against a floor of 0.029 / 0.028 / "
                    "0.008), the defaults 0.108 / 0.199 / 0.220 (identify), joint 3 2.2x the plain fit, every joint "
-                   "far above its floor. Open: stamps quantised to about the step said as such (and the rows' index "
-                   "as the time base offered)"),
+                   "far above its floor. Now said (CoarseStampsWarning). Open: the rows' index as the time base offered"),
     LoggedAs("a logged velocity in deg/s beside positions in rad, undeclared", Lab(
         "dq", puma(3), Log(8.0, 250.0), Log(3.0, 250.0), Log(5.0, 250.0)), velocity_in_degrees, slow=True),
     LoggedAs("torques at 125 Hz beside positions at 250 Hz (blank torque cells)", lab("rates"), torques_at_half_rate,
@@ -393,3 +392,25 @@ def test_a_units_row_and_a_comment_line_are_named(tmp_path):
     (tmp_path / "comment.csv").write_text("# rig 3, 27 Nov\n" + (tmp_path / "clean.csv").read_text())
     with pytest.raises(MissingColumnError, match="a comment .*remove the comment lines above the header"):
         read_measurements(tmp_path / "comment.csv", model=model)
+
+
+def test_float32_stamps_rounded_to_about_the_step_are_said(tmp_path):
+    """A float32 clock at 40 000 s (rounded to 3.9 ms, the step 4 ms): a :class:`CoarseStampsWarning`; at 3000 s
+    (0.24 ms) none."""
+    from estimation.data import CoarseStampsWarning
+    from estimation.data.records import read_measurements
+    from tests.test_unseen_robots import urdf_of, write_record
+
+    urdf = urdf_of("puma560:3", tmp_path)
+    model = build_model(load_robot(urdf=urdf), "internal", FRICTION)
+    write_record(model, truth(model), Log(2.0, 250.0, velocity=False), 11, tmp_path / "clean.csv")
+    clean = pd.read_csv(tmp_path / "clean.csv")
+    float32_clock(40000.0)(clean, "train").to_csv(tmp_path / "far.csv", index=False, float_format="%.17g")
+    float32_clock(3000.0)(clean, "train").to_csv(tmp_path / "near.csv", index=False, float_format="%.17g")
+    for name, said in (("far.csv", True), ("near.csv", False)):
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            read_measurements(tmp_path / name, model=model)
+        coarse = [str(item.message) for item in caught if issubclass(item.category, CoarseStampsWarning)]
+        assert bool(coarse) == said, (name, coarse)
+        assert all(re.search(r"rounded to 3.91 ms, \d+% of the sampling step", text) for text in coarse), coarse

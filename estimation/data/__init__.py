@@ -38,6 +38,7 @@ _EXPORTS: dict[str, str] = {
     "RosSupportError": "estimation.data.log_formats",
     "SegmentColumnsError": "estimation.data.segments",
     "StallWarning": "estimation.data.loading",
+    "CoarseStampsWarning": "estimation.data.loading",
     "StillJointWarning": "estimation.data.loading",
     "TimeBaseError": "estimation.data.loading",
     "TooFewSamplesError": "estimation.data.loading",

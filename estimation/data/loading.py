@@ -133,6 +133,11 @@ class StallWarning(MeasurementWarning):
     """Short stalls of the logger (samples missing) were bridged by interpolation."""
 
 
+class CoarseStampsWarning(MeasurementWarning):
+    """Time stamps stored as float32 so far from zero that their rounding reaches a good part of the sampling step:
+    the samples' instants are lost."""
+
+
 class SplitWarning(MeasurementWarning):
     """Holes longer than ``max_gap``: the record was split into segments there."""
 
@@ -259,6 +264,10 @@ def _shown(value: object) -> str:
     return repr(value) if isinstance(value, str) else str(value)
 
 
+#: float32 stamps whose rounding reaches this share of the sampling step are said (:class:`CoarseStampsWarning`)
+COARSE_STAMPS = 0.25
+
+
 def check_time(t: NDArray[np.float64], source: str) -> float:
     """The median sampling step of ``t`` (s), after checking that ``t`` is a time series in seconds.
 
@@ -283,6 +292,13 @@ def check_time(t: NDArray[np.float64], source: str) -> float:
         raise TimeBaseError(f"{source}: column t decreases at row {row + 1} ({t[row]} -> {t[row + 1]}) and at "
                             f"{decreasing.size - 1} other row(s); sort the samples")
     step = float(np.median(steps))
+    peak = float(np.max(np.abs(t)))
+    rounding = float(np.spacing(np.float32(peak)))
+    if step > 0 and rounding >= COARSE_STAMPS * step and np.array_equal(t, t.astype(np.float32)):
+        warnings.warn(f"{source}: the time stamps are float32 values (each exactly one): at t = {peak:.6g} s they are "
+                      f"rounded to {rounding * 1e3:.3g} ms, {rounding / step:.0%} of the sampling step, so the "
+                      "samples' instants are lost and the derivatives and errors with them; log the time as float64, "
+                      "or from the record's start", CoarseStampsWarning, stacklevel=4)
     if step >= MAX_SAMPLE_TIME:
         raise TimeBaseError(f"{source}: column t advances by {step:.4g} a sample: the format wants seconds, "
                             "and these look like milliseconds or nanoseconds (divide t by 1e3 or 1e9)")
