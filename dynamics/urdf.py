@@ -335,7 +335,9 @@ def _check_serial_chain(path: Path, model: Any) -> None:
             raise RobotDescriptionError(
                 f"URDF {path}: joint {model.names[joint_id]!r} hangs from {model.names[parent]!r}, "
                 "not from the previous joint: branching chains are not supported (serial chains only); name the "
-                "logged joints, base to tip (joint_names, --joint-names), and the others are locked"
+                "logged joints, base to tip (joint_names, --joint-names), and the others are locked (the chain "
+                "from the base to the branch: --joint-names "
+                + ",".join(model.names[index] for index in range(1, parent + 1)) + ")"
             )
 
 

@@ -12,6 +12,7 @@ from dynamics.runtime.lazy import lazy_exports
 _EXPORTS: dict[str, str] = {
     "AbsurdValueError": "estimation.data.loading",
     "AngleUnitError": "estimation.data.loading",
+    "WrappedAngleError": "estimation.data.loading",
     "ConstantChannelError": "estimation.data.segments",
     "DEFAULT_MAX_GAP": "estimation.data.log_cleaning",
     "DEFAULT_TOPIC": "estimation.data.log_formats",
@@ -37,6 +38,8 @@ _EXPORTS: dict[str, str] = {
     "RosSupportError": "estimation.data.log_formats",
     "SegmentColumnsError": "estimation.data.segments",
     "StallWarning": "estimation.data.loading",
+    "CoarseStampsWarning": "estimation.data.loading",
+    "StillJointWarning": "estimation.data.loading",
     "TimeBaseError": "estimation.data.loading",
     "TooFewSamplesError": "estimation.data.loading",
     "UnknownTopicError": "estimation.data.log_formats",

@@ -82,6 +82,10 @@ class TooFewSamplesError(MeasurementError):
     """Fewer equations than base parameters to estimate."""
 
 
+class WrappedAngleError(MeasurementError):
+    """A revolute joint's angle jumps by a whole turn between two rows: a logger that wraps it to ±π."""
+
+
 class AbsurdValueError(MeasurementError):
     """A value no sensor gives in SI units (a corrupt cell, a wrong unit by many orders of magnitude)."""
 
@@ -120,8 +124,18 @@ class BlankRowsWarning(MeasurementWarning):
     is a gap like any other."""
 
 
+class StillJointWarning(MeasurementWarning):
+    """A joint whose position never changes in a record (a brake held it): the record does not determine its
+    parameters; the message names the lock that leaves it out of the model."""
+
+
 class StallWarning(MeasurementWarning):
     """Short stalls of the logger (samples missing) were bridged by interpolation."""
+
+
+class CoarseStampsWarning(MeasurementWarning):
+    """Time stamps stored as float32 so far from zero that their rounding reaches a good part of the sampling step:
+    the samples' instants are lost."""
 
 
 class SplitWarning(MeasurementWarning):
@@ -196,6 +210,18 @@ def require_columns(frame: pd.DataFrame, columns: list[str], meaning: str, sourc
             raise MissingColumnError(
                 f"{source}: the columns are separated by {delimiter!r}, not by commas (one column "
                 f"{str(frame.columns[0])[:60]!r} was read): write the file comma-separated (a CSV file)")
+        if str(frame.columns[0]).lstrip().startswith("#"):
+            raise MissingColumnError(
+                f"{source}: missing column(s) {', '.join(missing)} ({meaning}); the first line read as the header is "
+                f"a comment ({str(frame.columns[0])[:60]!r}): remove the comment lines above the header")
+        zero = sorted({match.group(1) for column in frame.columns
+                       if (match := re.fullmatch(r"(q|dq|ddq|tau)0", str(column)))}, key=len)
+        if zero and any(re.fullmatch(r"(q|dq|ddq|tau)\d+", column) for column in missing):
+            mapped = ",".join(f"{group}={group}" for group in zero)
+            raise MissingColumnError(
+                f"{source}: missing column(s) {', '.join(missing)} ({meaning}); the file numbers its joints from 0 "
+                f"({', '.join(f'{group}0' for group in zero)}), the format from 1: --columns {mapped} reads them as "
+                "joints 1 to n (or rename the columns)")
         raise MissingColumnError(f"{source}: missing column(s) {', '.join(missing)} ({meaning})")
 
 
@@ -219,6 +245,12 @@ def numeric_columns(frame: pd.DataFrame, columns: list[str], source: str) -> NDA
         bad = ~np.isfinite(numbers)
         if bad.any():
             row = int(np.flatnonzero(bad)[0])
+            if row == 0 and all(isinstance(frame[name].iloc[0], str) and pd.isna(pd.to_numeric(frame[name].iloc[0],
+                                                                                                  errors="coerce"))
+                                for name in columns):
+                raise NonFiniteError(
+                    f"{source}: row 0 holds text in every column ({', '.join(repr(frame[name].iloc[0]) for name in columns[:4])}"
+                    "…): a second header line (units?) beneath the names; remove it (the format is SI: s, rad, m, N m)")
             raise NonFiniteError(
                 f"{source}: column {column} holds {int(bad.sum())} NaN/inf or non-numeric value(s), "
                 f"first at row {row} ({_shown(frame[column].iloc[row])})"
@@ -230,6 +262,10 @@ def numeric_columns(frame: pd.DataFrame, columns: list[str], source: str) -> NDA
 def _shown(value: object) -> str:
     """A cell for a message: strings quoted, numbers plain (``nan``, not ``np.float64(nan)``)."""
     return repr(value) if isinstance(value, str) else str(value)
+
+
+#: float32 stamps whose rounding reaches this share of the sampling step are said (:class:`CoarseStampsWarning`)
+COARSE_STAMPS = 0.25
 
 
 def check_time(t: NDArray[np.float64], source: str) -> float:
@@ -249,8 +285,20 @@ def check_time(t: NDArray[np.float64], source: str) -> float:
     decreasing = np.flatnonzero(steps < 0)
     if decreasing.size:
         row = int(decreasing[0])
-        raise TimeBaseError(f"{source}: column t decreases at row {row + 1} ({t[row]} -> {t[row + 1]}); sort the samples")
+        if decreasing.size == 1:  # one step back, the rows either side in order: a logger that restarted its clock
+            raise TimeBaseError(f"{source}: column t decreases at row {row + 1} ({t[row]} -> {t[row + 1]}) and only "
+                                "there: a logger whose clock restarted? Split the file at that row and give each part "
+                                "as a segment (--data or --validate repeated); rows out of order: sort them")
+        raise TimeBaseError(f"{source}: column t decreases at row {row + 1} ({t[row]} -> {t[row + 1]}) and at "
+                            f"{decreasing.size - 1} other row(s); sort the samples")
     step = float(np.median(steps))
+    peak = float(np.max(np.abs(t)))
+    rounding = float(np.spacing(np.float32(peak)))
+    if step > 0 and rounding >= COARSE_STAMPS * step and np.array_equal(t, t.astype(np.float32)):
+        warnings.warn(f"{source}: the time stamps are float32 values (each exactly one): at t = {peak:.6g} s they are "
+                      f"rounded to {rounding * 1e3:.3g} ms, {rounding / step:.0%} of the sampling step, so the "
+                      "samples' instants are lost and the derivatives and errors with them; log the time as float64, "
+                      "or from the record's start", CoarseStampsWarning, stacklevel=4)
     if step >= MAX_SAMPLE_TIME:
         raise TimeBaseError(f"{source}: column t advances by {step:.4g} a sample: the format wants seconds, "
                             "and these look like milliseconds or nanoseconds (divide t by 1e3 or 1e9)")

@@ -14,7 +14,8 @@ table of :mod:`dynamics.measurements` (``t, q1..qn [, dq1..dqn] [, tau1..taun]``
   joint (or ``fx..mz``), or mapped by a column map.
 * **A column map** (``--columns t=times,q=positions,tau=35.15*vir``): each entry says which array (or table
   column) is the column or group on the left, optionally scaled by a factor; for a table, a group whose
-  columns carry another prefix (``q=Pos`` for ``Pos1..Posn``) is renamed column by column.
+  columns carry another prefix (``q=Pos`` for ``Pos1..Posn``) is renamed column by column (numbered from 0,
+  ``Pos0..Pos{n-1}``, as joints 1 to n).
 """
 
 from __future__ import annotations
@@ -201,8 +202,10 @@ def apply_column_map(frame: pd.DataFrame, columns: Mapping[str, str], source: st
         prefixed = sorted((column for column in frame.columns if re.fullmatch(re.escape(name) + r"\d+", str(column))),
                           key=lambda column: int(str(column)[len(name):]))
         if key in JOINT_GROUPS and prefixed:
+            first = int(str(prefixed[0])[len(name):])  # numbered from 0 (a ROS array, Python): joint 1 is name0
             for column in prefixed:
-                renamed[f"{key}{str(column)[len(name):]}"] = factor * frame[column] if factor != 1.0 else frame[column]
+                joint = int(str(column)[len(name):]) + (1 if first == 0 else 0)
+                renamed[f"{key}{joint}"] = factor * frame[column] if factor != 1.0 else frame[column]
             used.update(prefixed)
             continue
         raise MissingColumnError(f"{source}: column map {key}={value}: no column {name!r} (columns: "

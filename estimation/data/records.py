@@ -24,6 +24,7 @@ from numpy.typing import NDArray
 
 from dynamics.effects.linear import WRENCH_CHANNELS
 from dynamics.models import IdentificationModel, ModelKind
+from dynamics.robot import JointType
 from estimation.data.loading import (
     ABSURD_VALUE,
     AbsurdValueError,
@@ -39,7 +40,9 @@ from estimation.data.loading import (
     SegmentTooShortError,
     SplitWarning,
     StallWarning,
+    StillJointWarning,
     TimeBaseError,
+    WrappedAngleError,
     check_angles,
     check_no_further_joints,
     check_sample_count,
@@ -221,6 +224,8 @@ def segments_from_frame(
                             "the format wants seconds as numbers (e.g. (t - t[0]).dt.total_seconds())")
     t = numeric_columns(frame, ["t"], source)[:, 0]
     _check_absurd(t, arrays, n_joints, source)
+    _said_still_joints(arrays["q"], model, source)
+    _check_wrapped(arrays["q"], model, source)
     data = np.hstack([values for values in arrays.values() if values is not None])
     times = clean_time_base(t, repeated_rows(data), source, max_gap=max_gap, split=split,
                             check=lambda keep: check_angles(arrays["q"][keep], model, source))
@@ -248,12 +253,23 @@ def segments_from_frame(
 
 def dropouts(frame: pd.DataFrame, n_joints: int) -> NDArray[np.bool_]:
     """``(N,)`` the rows of ``frame`` whose data cells (``q, dq, ddq, tau``, wrench: those present) are all empty:
-    a logger's dropouts (:func:`estimation.data.log_cleaning.blank_rows`; a cell holding text is not empty). One rule
-    for the in-memory reader and the streamed one (:mod:`estimation.streaming.time_base`)."""
-    columns = [column for group in COLUMN_GROUPS
-               for column in (list(WRENCH_CHANNELS) if group == "wrench" else joint_columns(group, n_joints))
-               if column in frame.columns]
-    return blank_rows(frame[columns].isna().to_numpy()) if columns else np.zeros(len(frame), dtype=bool)
+    a logger's dropouts (:func:`estimation.data.log_cleaning.blank_rows`; a cell holding text is not empty); and the
+    rows where one group's cells are all empty while other rows of the frame hold that group: a channel logged at a
+    lower rate than the others (torques at 125 Hz beside positions at 250 Hz, merged into one table with blanks),
+    its rows without a sample of it dropped as dropouts. A group empty on every row is not a dropout (the column
+    checks name it). One rule for the in-memory reader and the streamed one (:mod:`estimation.streaming.time_base`,
+    which applies it to each chunk)."""
+    groups = [[column for column in (list(WRENCH_CHANNELS) if group == "wrench" else joint_columns(group, n_joints))
+               if column in frame.columns] for group in COLUMN_GROUPS]
+    groups = [columns for columns in groups if columns]
+    if not groups:
+        return np.zeros(len(frame), dtype=bool)
+    blank = blank_rows(frame[[column for columns in groups for column in columns]].isna().to_numpy())
+    for columns in groups:
+        unlogged = blank_rows(frame[columns].isna().to_numpy())
+        if not unlogged.all():
+            blank |= unlogged
+    return blank
 
 
 def said_dropouts(count: int, first_row: int, first_stamp: object, source: str) -> None:
@@ -261,7 +277,8 @@ def said_dropouts(count: int, first_row: int, first_stamp: object, source: str) 
     file, stamped ``first_stamp`` (as written)."""
     stamp = pd.to_numeric(pd.Series([first_stamp]), errors="coerce").iloc[0]
     warnings.warn(
-        f"{source}: dropped {count} row(s) whose data cells are all empty (a logger's dropouts), first at row "
+        f"{source}: dropped {count} row(s) whose data cells are all empty (a logger's dropouts), or those of a "
+        "channel (joint positions, velocities, torques: one logged at a lower rate), first at row "
         f"{first_row}" + ("" if not np.isfinite(stamp) else f" (t = {stamp:.6g} s)") + "; the time they leave "
         "without samples is bridged by interpolation up to --max-gap and split beyond, as any gap",
         BlankRowsWarning, stacklevel=5)
@@ -439,6 +456,48 @@ def _duplicated_times(t, source: str):
         f"logger's clock that did not tick), first at row {int(later[0])} (t = {t[later[0]]:.6g} s); the first row "
         "at each time stamp is kept", DuplicatedTimesWarning, stacklevel=5)
     return later
+
+
+#: a jump between two rows this close to a whole turn (rad), and more than half a turn: a wrapped angle
+WRAP_TOLERANCE = 0.5
+
+
+def _check_wrapped(q: NDArray[np.float64], model, source: str) -> None:
+    """:class:`WrappedAngleError` for a revolute joint (every joint without a robot) whose angle jumps between two
+    rows by more than half a turn and within :data:`WRAP_TOLERANCE` of whole turns: a logger that wraps a continuous
+    joint to ±π (no joint turns half a turn in one sample); the derivatives and the fit across the jump would be
+    garbage. Refused in memory and streamed alike (unwrapping needs the rows before a chunk)."""
+    revolute = ([joint.joint_type is JointType.REVOLUTE for joint in model.robot.joints]
+                if isinstance(model, IdentificationModel) else [True] * q.shape[1])
+    steps = np.abs(np.diff(q, axis=0))
+    turns = np.round(steps / (2 * np.pi))
+    wrapped = (steps > np.pi) & (np.abs(steps - 2 * np.pi * turns) < WRAP_TOLERANCE) & np.asarray(revolute, bool)
+    if wrapped.any():
+        row, column = (int(index) for index in np.argwhere(wrapped)[0])
+        raise WrappedAngleError(
+            f"{source}: column q{column + 1} jumps from {q[row, column]:.4g} to {q[row + 1, column]:.4g} rad between "
+            f"rows {row} and {row + 1} ({int(wrapped[:, column].sum())} such jump(s)): a whole turn, the logger wraps "
+            "the angle to ±π; unwrap it before identifying (numpy.unwrap on the column)")
+
+
+def _said_still_joints(q: NDArray[np.float64], model, source: str) -> None:
+    """A :class:`StillJointWarning` for each joint whose position is the same on every row of the record (two rows
+    or more; read for a model, whose robot names the joints): a joint held still, whose parameters the record does not determine (the fit's rank-deficiency error
+    follows when no other record moves it); the message names ``--joint-names`` and ``--locked-at`` that lock it."""
+    if q.shape[0] < 2 or not isinstance(model, IdentificationModel):  # the lock names the robot's joints
+        return
+    still = np.flatnonzero(np.all(q == q[0], axis=0))
+    if still.size == 0:
+        return
+    names = list(model.robot.joint_names)
+    moving = [name for j, name in enumerate(names) if j not in set(still.tolist())]
+    for j in still:
+        warnings.warn(
+            f"{source}: joint {names[j]} does not move (q{j + 1} = {q[0, j]:.6g} on every row): this record does "
+            f"not determine its parameters; a joint held still in every record is locked by --joint-names "
+            f"{','.join(moving)} --locked-at {names[j]}={q[0, j]:.6g} (with --urdf; the log's columns q1.., tau1.. then "
+            "those joints' in that order)",
+            StillJointWarning, stacklevel=4)
 
 
 def _check_absurd(t, arrays, n_joints: int, source: str) -> None:
