@@ -79,7 +79,7 @@ from oed.workflows.asbuilt import (
 )
 from oed.workflows.chosen_model import ChosenModel, answer_diagnosis, mse_line
 from oed.workflows.diagnosis_training import averaged_errors, recorded_training, summed_unconstrained
-from oed.workflows.joint_side import joint_side_records, named_as_given, streams_converted
+from oed.workflows.joint_side import named_as_given, records_to_read
 from oed.workflows.memory_path import IN_MEMORY_ROUTE, decide_path, streamed_choice, streamed_records
 from oed.workflows.consistent import check_consistent_arguments, consistent_lines, consistent_settings
 from oed.workflows.model_files import (
@@ -300,10 +300,9 @@ def run_diagnose(args: DiagnoseOptions, *, say: Callable[[str], None]) -> Diagno
     effects = model_effects(args, friction, robot, transmission)
     model = build_model(robot, args.model, effects)
     with ExitStack() as copies:
-        read, names = args, {}
-        if streams_converted(args, model, bytes_per_value=IN_MEMORY.bytes_per_value,
-                             in_memory_only=lambda: in_memory_only(args, model, delay)):  # motor side, joint zeros
-            read, names = copies.enter_context(joint_side_records(args, model, transmission))
+        read, names = copies.enter_context(records_to_read(  # joint-side copies of motor-side, zeroed records
+            args, model, transmission, bytes_per_value=IN_MEMORY.bytes_per_value,
+            in_memory_only=lambda: in_memory_only(args, model, delay)))
         if streaming_requested(read):
             diagnosed = diagnosis_streamed(read, friction)
         else:

@@ -86,7 +86,7 @@ from estimation.consistent.torque_gains import (
 )
 from oed.workflows.consistent import check_consistent_arguments, consistent_lines, consistent_settings
 from oed.workflows.chosen_model import ChosenModel, answer_identification, chosen_messages, mse_line
-from oed.workflows.joint_side import joint_side_records, named_as_given, streams_converted
+from oed.workflows.joint_side import named_as_given, records_to_read
 from oed.workflows.memory_path import IN_MEMORY_ROUTE, decide_path, streamed_choice, streamed_records
 from oed.workflows.model_files import (
     add_model_file,
@@ -256,10 +256,9 @@ def run_identify(args: IdentifyOptions, *, say: Callable[[str], None]) -> Identi
     if streaming_requested(args):
         check_streamed_request(args, model)
     with ExitStack() as copies:
-        read, names = args, {}
-        if streams_converted(args, model, bytes_per_value=IN_MEMORY.bytes_per_value,
-                             in_memory_only=lambda: in_memory_only(args, model, delay)):  # motor side, joint zeros
-            read, names = copies.enter_context(joint_side_records(args, model, transmission))
+        read, names = copies.enter_context(records_to_read(  # joint-side copies of motor-side, zeroed records
+            args, model, transmission, bytes_per_value=IN_MEMORY.bytes_per_value,
+            in_memory_only=lambda: in_memory_only(args, model, delay)))
         if streaming_requested(read):
             identified = identification_streamed(read, model, transmission)
         else:

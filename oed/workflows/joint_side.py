@@ -27,7 +27,7 @@ from oed.workflows.asbuilt import resolve_joint_directions, resolve_joint_offset
 from oed.workflows.memory_path import budget_of
 from oed.workflows.options import RecordOptions, streaming_requested
 
-__all__ = ["joint_side_records", "named_as_given", "streams_converted"]
+__all__ = ["joint_side_records", "named_as_given", "records_to_read", "streams_converted"]
 
 #: the record options whose files are read (``--data``, ``--validate``, ``--test``)
 ROLES = ("data", "validate", "test")
@@ -98,6 +98,20 @@ def joint_side_records(args: RecordOptions, model: IdentificationModel, transmis
         yield replace(args, joint_offsets=None, **changes), names
     finally:
         shutil.rmtree(folder, ignore_errors=True)
+
+
+@contextmanager
+def records_to_read(args: RecordOptions, model: IdentificationModel, transmission: Transmission | None, *,
+                    bytes_per_value: float, in_memory_only: Callable[[], str | None],
+                    ) -> Iterator[tuple[RecordOptions, dict[str, str]]]:
+    """What a verb reads: ``(args, {})`` as given, or, when the run streams motor-side columns or
+    ``--joint-offsets`` (:func:`streams_converted`), the joint-side copies (:func:`joint_side_records`), removed on
+    leaving."""
+    if streams_converted(args, model, bytes_per_value=bytes_per_value, in_memory_only=in_memory_only):
+        with joint_side_records(args, model, transmission) as converted:
+            yield converted
+    else:
+        yield args, {}
 
 
 def named_as_given(value: Any, names: Mapping[str, str]) -> Any:
