@@ -6,6 +6,7 @@ joints (``joint_names``), any URDF is accepted (branching trees, mimic joints, f
 joints): every other joint is locked (at ``locked_at``, default 0; a ``<mimic>`` joint at
 ``multiplier·q_driver + offset`` of its locked driver) and the bodies it carries are merged into the
 link they hang from (Pinocchio's ``buildReducedModel``), so the named joints form the serial chain.
+:func:`logged_chain` finds those names for a log of ``n`` joints when the tree determines one chain.
 The inertia of the root link is ignored: it does not move, so it adds only a constant to the base
 wrench, which the plate-offset columns absorb.
 """

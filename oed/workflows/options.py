@@ -199,8 +199,8 @@ def with_logged_chain(args: Any) -> tuple[Any, dict[str, Any] | None]:
     chain, held = found
     reason = (f"URDF {args.urdf} branches or holds <mimic> joints and the log holds {n_logged} joint(s): read as "
               f"the chain {','.join(chain)} (--joint-names {','.join(chain)}), "
-              + (f"{', '.join(held)} held fixed at 0 (a <mimic> joint following its driver) and the bodies they "
-                 "carry merged into the link they hang from" if held else "no joint held fixed"))
+              + (f"{', '.join(held)} held fixed at 0 (a <mimic> joint, if any, following its driver) and the "
+                 "bodies they carry merged into the link they hang from" if held else "no joint held fixed"))
     warnings.warn(reason, LoggedChainWarning, stacklevel=2)
     return dataclasses.replace(args, joint_names=chain), {"joint_names": list(chain), "held_fixed": list(held),
                                                           "reason": reason}
