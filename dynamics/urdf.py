@@ -6,6 +6,7 @@ joints (``joint_names``), any URDF is accepted (branching trees, mimic joints, f
 joints): every other joint is locked (at ``locked_at``, default 0; a ``<mimic>`` joint at
 ``multiplier·q_driver + offset`` of its locked driver) and the bodies it carries are merged into the
 link they hang from (Pinocchio's ``buildReducedModel``), so the named joints form the serial chain.
+:func:`logged_chain` finds those names for a log of ``n`` joints when the tree determines one chain.
 The inertia of the root link is ignored: it does not move, so it adds only a constant to the base
 wrench, which the plate-offset columns absorb.
 """
@@ -196,6 +197,52 @@ def robot_from_urdf(path: str | Path, *, gravity: np.ndarray | None = None, join
         joints=tuple(_joint(path, model, joint_id) for joint_id in range(1, model.njoints)),
         gravity=np.asarray(DEFAULT_GRAVITY if gravity is None else gravity, dtype=float),
     )
+
+
+def logged_chain(path: str | Path, n_logged: int) -> tuple[tuple[str, ...], tuple[str, ...]] | None:
+    """The chain a log of ``n_logged`` joints (columns ``q1..qn``) determines in a URDF that is not a plain
+    serial chain (it branches, or holds a ``<mimic>`` joint): the one path of ``n_logged`` movable joints
+    from the base, each hanging from the one before, none a ``<mimic>`` joint; with the joints held fixed.
+
+    Returns
+    -------
+    ``(chain, held)``: the chain's joint names (base to tip) and the file's other movable joints (locked at
+    0, a ``<mimic>`` joint following its driver, their bodies merged as with ``joint_names``);
+    ``None`` when the file reads as a serial chain without names (read it as before).
+
+    Raises
+    ------
+    RobotDescriptionError
+        When no path, or more than one, of ``n_logged`` joints from the base fits: the message names
+        ``--joint-names`` with the candidates.
+    """
+    path = Path(path)
+    if not path.is_file():
+        return None  # robot_from_urdf names the problem
+    root = _check_numbers(path)
+    mimics = _mimics(root)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # said again when the chain is read
+        model = _pinocchio_model(path, root)
+    serial = all(model.parents[joint_id] == joint_id - 1 for joint_id in range(1, model.njoints))
+    if serial and not mimics:
+        return None
+    names = list(model.names)
+    usable = {joint_id for joint_id in range(1, model.njoints)
+              if names[joint_id] not in mimics and model.joints[joint_id].nv == 1}
+    paths: list[list[int]] = [[]]
+    for _ in range(max(n_logged, 0)):
+        paths = [chain + [joint_id] for chain in paths for joint_id in sorted(usable)
+                 if model.parents[joint_id] == (chain[-1] if chain else 0)]
+    chains = [tuple(names[joint_id] for joint_id in chain) for chain in paths] if n_logged > 0 else []
+    if len(chains) != 1:
+        what = ("no chain of " if not chains else f"{len(chains)} chains of ") + f"{n_logged} joint(s) from the base"
+        raise RobotDescriptionError(
+            f"URDF {path}: the tree branches or holds <mimic> joints, and the log's {n_logged} joint column(s) "
+            f"determine {what}" + (" (" + "; ".join(",".join(chain) for chain in chains[:4]) + ")" if chains else "")
+            + ": name the logged joints, base to tip (joint_names, --joint-names A,B,C); the others are locked")
+    held = tuple(names[joint_id] for joint_id in range(1, model.njoints) if names[joint_id] not in chains[0])
+    return chains[0], held
 
 
 def _checked_names(path: Path, joint_names: Sequence[str]) -> list[str]:

@@ -223,14 +223,11 @@ LOGS = (
              urdf=gripper(False), options=ARM, slow=True),
     LoggedAs("a gripper's mimic fingers in the URDF, not in the log, --joint-names given", lab("mimic"),
              urdf=gripper(True), options=ARM, slow=True),
-    LoggedAs("a gripper's fingers in the URDF, not in the log, on the defaults", lab("fingers"), urdf=gripper(False),
-             xfail="measured at 2878a20: both verbs exit (the URDF branches at joint3_link: serial chains only) "
-                   "where --joint-names joint1,joint2,joint3 runs (identify 0.995 total, diagnose 1.003); the "
-                   "message now names that option with the joints. Open: the log's joints as the default chain"),
+    # at 2878a20 both exited (serial chains only; a <mimic> joint refused) where --joint-names joint1,joint2,joint3
+    # ran; now the log's 3 joints determine that chain, the fingers held fixed (LoggedChainWarning)
+    LoggedAs("a gripper's fingers in the URDF, not in the log, on the defaults", lab("fingers"), urdf=gripper(False)),
     LoggedAs("a gripper's mimic fingers in the URDF, not in the log, on the defaults", lab("mimic"),
-             urdf=gripper(True),
-             xfail="measured at 2878a20: both verbs exit (a <mimic> joint: coupled joints refused) where "
-                   "--joint-names joint1,joint2,joint3 runs (identify 0.995 total, diagnose 1.003). Open: as above"),
+             urdf=gripper(True)),
     LoggedAs("a continuous base joint logged wrapped to ±π", lab("wrap"), wrapped_base, urdf=continuous_base,
              xfail="measured at 2878a20: both verbs ran and predicted garbage: joint 1 2382x and 2664x the plain fit "
                    "(1076 and 1203 in total; the jumps of 2π differentiated); the same log unwrapped runs at 0.995 / "

@@ -104,6 +104,7 @@ from oed.workflows.options import (
     model_has_shapes,
     preparation_settings,
     robot_of,
+    with_logged_chain,
     streaming_requested,
 )
 
@@ -295,6 +296,7 @@ def run_diagnose(args: DiagnoseOptions, *, say: Callable[[str], None]) -> Diagno
     friction, delay = split_delay(args.friction)  # a candidate in every diagnosis: 'delay:S' sets its bound
     if streaming_requested(args):  # bounded memory (estimation.streaming.diagnosis)
         check_streamed_request(args, delay)
+    args, chain = with_logged_chain(args)  # a branching or mimic URDF read as the log's chain
     robot = robot_of(args)
     transmission = resolve_transmission(args, robot)
     effects = model_effects(args, friction, robot, transmission)
@@ -313,6 +315,8 @@ def run_diagnose(args: DiagnoseOptions, *, say: Callable[[str], None]) -> Diagno
             diagnosed = (diagnosis_streamed(read, friction, decision.plan, decision.findings) if decision.stream
                          else diagnosis_in_memory(read, model, transmission, delay, decision.plan))
         document, messages = diagnose_document(args, diagnosed)
+        if chain is not None:
+            document["logged_chain"] = chain
         summary = tuple(summary_lines(args, diagnosed, document))
     if names:  # the files as given, not their joint-side copies
         document, messages, summary = (named_as_given(value, names) for value in (document, messages, summary))

@@ -108,6 +108,7 @@ from oed.workflows.options import (
     model_has_shapes,
     preparation_settings,
     robot_of,
+    with_logged_chain,
     streaming_requested,
 )
 
@@ -246,6 +247,7 @@ def run_identify(args: IdentifyOptions, *, say: Callable[[str], None]) -> Identi
     from it the one document (:func:`identify_document`) and summary (:func:`summary_lines`)."""
     differentiation(args)  # contradicting derivative options are an error even when the data hold dq, ddq
     check_consistent_arguments(args)
+    args, chain = with_logged_chain(args)  # a branching or mimic URDF read as the log's chain
     robot = robot_of(args)
     transmission = resolve_transmission(args, robot)
     friction, delay = split_delay(args.friction)  # the delay moves the motion: not a column effect
@@ -269,6 +271,8 @@ def run_identify(args: IdentifyOptions, *, say: Callable[[str], None]) -> Identi
                           if decision.stream
                           else identification_in_memory(read, robot, model, transmission, delay, decision.plan))
         document, messages = identify_document(args, identified)
+        if chain is not None:
+            document["logged_chain"] = chain
         summary = tuple(summary_lines(args, identified))
     if names:  # the files as given, not their joint-side copies
         document, messages, summary = (named_as_given(value, names) for value in (document, messages, summary))

@@ -19,15 +19,19 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import pandas as pd
+
 from dynamics.effects.linear import parse_effects
 from dynamics.effects.shaped import is_shaped
 from dynamics.models import IdentificationModel, ModelKind
 from dynamics.robot import RobotModel
 from dynamics.robots import load_robot
+from dynamics.urdf import logged_chain
 from dynamics.transmission import Transmission
 from dynamics.runtime.report_document import HTML_SUFFIXES, MARKDOWN_SUFFIXES
 from estimation.data.log_cleaning import DEFAULT_MAX_GAP
-from estimation.data.log_formats import DEFAULT_TOPIC, LogSource, is_log_file
+from estimation.data.loading import count_joint_columns
+from estimation.data.log_formats import BAG_SUFFIXES, DEFAULT_TOPIC, LogSource, apply_column_map, is_log_file, read_log_frame
 from estimation.estimators.effect_blocks import NoRowsError
 from estimation.identification.prepared import InMemoryBudget, PreparationSettings
 from estimation.preprocessing.differentiation import (
@@ -40,7 +44,8 @@ from estimation.streaming.cluster import connect, scheduler_address
 __all__ = [
     "NOT_CSV_SUFFIXES", "OutputPathError", "RecordOptions", "RobotOptions", "caught_messages", "check_choice",
     "check_csv_path", "check_hertz", "check_json_path", "check_markdown_path", "check_mjcf_path", "check_report_path",
-    "check_urdf_path", "check_shaped_effects_kept", "differentiation", "executor_for",
+    "check_urdf_path", "check_shaped_effects_kept", "differentiation", "executor_for", "LoggedChainWarning",
+    "with_logged_chain",
     "model_has_shapes", "paths", "preparation_settings", "robot_of", "streaming_requested",
 ]
 
@@ -151,6 +156,54 @@ def robot_of(options: RobotOptions) -> RobotModel:
     """The robot the options name."""
     return load_robot(options.robot, urdf=options.urdf, joints=options.joints, joint_names=options.joint_names,
                       locked_at=options.locked_at)
+
+
+class LoggedChainWarning(UserWarning):
+    """A URDF that branches or holds ``<mimic>`` joints read as the chain of the log's joints, the others held fixed."""
+
+
+def logged_joint_count(source: Path) -> int | None:
+    """The number of joints a record's columns ``q1..qn`` give (after its column map); ``None`` when its header
+    does not say (a ROS bag: read by joint name; a file that cannot be read: the reader names the problem)."""
+    log = source if isinstance(source, LogSource) else LogSource(source)
+    suffix = log.path.suffix.lower()
+    try:
+        if suffix in BAG_SUFFIXES or log.path.is_dir():
+            return None
+        if suffix in (".npz", ".mat", ".parquet"):
+            frame = read_log_frame(log)
+        else:
+            frame = apply_column_map(pd.read_csv(log.path, nrows=2), log.columns, str(log.path))
+    except (ValueError, OSError, ImportError, KeyError):
+        return None
+    count = count_joint_columns(frame, "q")
+    return count or None
+
+
+def with_logged_chain(args: Any) -> tuple[Any, dict[str, Any] | None]:
+    """``args`` with ``joint_names`` set to the chain the records' joint columns determine when ``--urdf`` names
+    a file that branches or holds ``<mimic>`` joints and neither ``--joint-names`` nor ``--joints`` is given
+    (:func:`dynamics.urdf.logged_chain`: the one path of the logged number of joints from the base; the other
+    joints held fixed at 0, their bodies merged), said in a :class:`LoggedChainWarning`; with it the document's
+    ``logged_chain`` (``{joint_names, held_fixed, reason}``). Otherwise ``args`` unchanged and ``None``; a tree the
+    columns do not determine one chain of is the error naming ``--joint-names``."""
+    if (args.urdf is None or args.joint_names is not None or args.joints is not None or args.locked_at
+            or not args.data):
+        return args, None
+    n_logged = logged_joint_count(args.data[0])
+    if n_logged is None:
+        return args, None
+    found = logged_chain(args.urdf, n_logged)
+    if found is None:
+        return args, None
+    chain, held = found
+    reason = (f"URDF {args.urdf} branches or holds <mimic> joints and the log holds {n_logged} joint(s): read as "
+              f"the chain {','.join(chain)} (--joint-names {','.join(chain)}), "
+              + (f"{', '.join(held)} held fixed at 0 (a <mimic> joint, if any, following its driver) and the "
+                 "bodies they carry merged into the link they hang from" if held else "no joint held fixed"))
+    warnings.warn(reason, LoggedChainWarning, stacklevel=2)
+    return dataclasses.replace(args, joint_names=chain), {"joint_names": list(chain), "held_fixed": list(held),
+                                                          "reason": reason}
 
 
 @dataclass(frozen=True, kw_only=True)
