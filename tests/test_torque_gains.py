@@ -5,6 +5,7 @@ measures it, and nothing taken on a robot whose torques carry no gain."""
 from __future__ import annotations
 
 import json
+import warnings
 
 import numpy as np
 import pandas as pd
@@ -13,6 +14,7 @@ import pytest
 from dynamics.measurements import Measurements
 from dynamics.models import build_model
 from dynamics.robots import load_robot
+from estimation.identification import IdentifiedModel
 from estimation.consistent.torque_gains import channel_sums, fit_torque_gains, gains_on_validation
 from oed.fourier import random_fourier
 from tests.test_unseen_robots import FRICTION, NOISE, truth, urdf_of
@@ -125,6 +127,14 @@ def test_the_default_answer_takes_the_gains_only_when_the_validation_record_meas
     reported = document["validation"]["mse"]
     measured = predicted.evaluation.prediction.mse
     assert all(abs(measured[c] / reported[c] - 1.0) < 1e-6 for c in reported), (measured, reported)
+    # the library's model predicts in the log's units too (the gains applied), as the verb scored it
+    identified = IdentifiedModel.load(tmp_path / "result.json")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        grid = identified.prepare(identified.read([tmp_path / "validate.csv"])).as_recorded
+    residual = grid.channels(identified.channels) - identified.predict(grid.q, grid.dq, grid.ddq)
+    direct = dict(zip(identified.channels, np.mean(residual**2, axis=0)))
+    assert all(abs(direct[c] / reported[c] - 1.0) < 1e-6 for c in reported), (direct, reported)
     tested = oed.predict(model=tmp_path / "result.json", data=tmp_path / "test.csv")
     mse = np.array(list(tested.evaluation.prediction.mse.values()))
     assert np.all(mse < 1.5 * (NOISE * spread) ** 2), (mse / (NOISE * spread) ** 2).round(3)

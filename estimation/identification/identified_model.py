@@ -332,14 +332,19 @@ class IdentifiedModel:
 
     def predict(self, q: ArrayLike, dq: ArrayLike, ddq: ArrayLike) -> NDArray[np.float64]:
         """``(N, m)`` predicted channels along the motion ``q, dq, ddq`` (``(N, n)`` each; no delay applied:
-        :meth:`predict_record` moves a record's motion by it), the payload included when the file carries one."""
+        :meth:`predict_record` moves a record's motion by it), the payload included when the file carries one, in
+        the log's units: times each channel's gain on the recorded torque when the file holds ``torque_gains``
+        (:mod:`estimation.consistent.torque_gains`), as the verb that wrote the file scored it."""
         predicted = self.robot_prediction(q, dq, ddq)
         if self.payload_link is not None:
             predicted = predicted + self.link_columns(self.payload_link, q, dq, ddq) @ self.payload_theta
+        if self.file.torque_gains is not None:  # the torques in the log's units: the model's times each gain
+            predicted = predicted * self.file.channel_gains()
         return predicted
 
     def interval(self, q: ArrayLike, dq: ArrayLike, ddq: ArrayLike, *, z: float = Z_95) -> NDArray[np.float64]:
-        """``(N, m)`` half-widths ``z √(y_bᵀ Σ_θ y_b + σ_c²)`` of the prediction band (module docstring)."""
+        """``(N, m)`` half-widths ``z √(y_bᵀ Σ_θ y_b + σ_c²)`` of the prediction band (module docstring), in the
+        log's units as :meth:`predict`."""
         Y = self.regressor(q, dq, ddq)
         variance = np.einsum("nmr,rs,nms->nm", Y, self.cov, Y, optimize=True)
         if self.payload_link is not None:
@@ -348,7 +353,7 @@ class IdentifiedModel:
         if self.file.torque_gains is not None:  # the band in the log's units (the noise variance recorded in them)
             gains = self.file.channel_gains()
             band = self.band_variance if self.file.recorded_variance is not None else self.band_variance * gains**2
-            return z * np.sqrt(np.clip(variance, 0.0, None) * gains[None, :] ** 2 + band[None, :]) / gains[None, :]
+            return z * np.sqrt(np.clip(variance, 0.0, None) * gains[None, :] ** 2 + band[None, :])
         return z * np.sqrt(np.clip(variance, 0.0, None) + self.band_variance[None, :])
 
     def predict_record(self, measurements: Measurements) -> Prediction:
@@ -362,10 +367,6 @@ class IdentifiedModel:
         record = measurements.as_recorded
         predicted = self.predict(record.q, record.dq, record.ddq)
         half = self.interval(record.q, record.dq, record.ddq)
-        if self.file.torque_gains is not None:  # the torques in the log's units: the model's times each gain
-            gains = self.file.channel_gains()
-            predicted = predicted * gains
-            half = half * gains
         try:
             measured = record.channels(self.channels)
         except (KeyError, ValueError):
