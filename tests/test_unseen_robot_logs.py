@@ -397,6 +397,41 @@ def test_an_angle_wrapped_to_half_a_turn_is_unwrapped_in_memory_and_streamed_ali
     read_measurements(tmp_path / "clean.csv", model=model)
 
 
+def test_a_wrapped_angle_is_read_by_identify_streamed_and_by_predict_as_unwrapped(tmp_path):
+    """``oed identify`` in memory and streamed (chunks of 200 rows, wraps inside and at chunk edges) give the same fit
+    of the wrapped log; ``oed predict`` on the wrapped record predicts what it predicts on the record unwrapped."""
+    from tests.test_unseen_robots import write_record
+
+    simulated = build_model(load_robot("puma560", joints=3), "internal", FRICTION)
+    for role, seed in (("train", 11), ("validate", 12)):
+        write_record(simulated, truth(simulated), Log(4.0, 250.0, velocity=False), seed, tmp_path / f"{role}_.csv")
+        wrapped = wrapped_base(pd.read_csv(tmp_path / f"{role}_.csv"), role)
+        wrapped.to_csv(tmp_path / f"{role}.csv", index=False, float_format="%.17g")
+        wrapped.assign(q1=np.unwrap(wrapped["q1"].to_numpy())).to_csv(tmp_path / f"{role}_unwrapped.csv",
+                                                                         index=False, float_format="%.17g")
+    urdf = tmp_path / "robot.urdf"
+    urdf.write_text(continuous_base(robot_urdf(load_robot("puma560", joints=3))))
+    fits = {}
+    for label, more in (("memory", []), ("streamed", ["--chunk-size", "200"])):
+        code, message = quiet(["identify", "--urdf", str(urdf), "--data", str(tmp_path / "train.csv"), "--validate",
+                               str(tmp_path / "validate.csv"), "--friction", FRICTION, *more,
+                               "--out", str(tmp_path / f"{label}.json")])
+        assert code == 0, message
+        assert "joint1 (q1): " in message and "wrap(s)" in message, message
+        fits[label] = json.loads((tmp_path / f"{label}.json").read_text())["validation"]["mse"]
+    for channel, mse in fits["memory"].items():
+        assert abs(fits["streamed"][channel] - mse) <= 1e-8 * mse, (channel, fits)
+    predicted = {}
+    for label in ("validate", "validate_unwrapped"):
+        code, message = quiet(["predict", "--model", str(tmp_path / "memory.json"), "--data",
+                               str(tmp_path / f"{label}.csv"), "--out", str(tmp_path / f"{label}_predicted.csv")])
+        assert code == 0, message
+        predicted[label] = pd.read_csv(tmp_path / f"{label}_predicted.csv")
+    columns = [name for name in predicted["validate"].columns if name.startswith("tau")]
+    assert columns and np.allclose(predicted["validate"][columns], predicted["validate_unwrapped"][columns],
+                                   rtol=1e-9, atol=1e-9)
+
+
 def _limited(folder: Path) -> Path:
     """The PUMA's first three joints with limits of ±2.5 rad on each."""
     text = robot_urdf(load_robot("puma560", joints=3))
