@@ -394,6 +394,18 @@ def test_an_angle_wrapped_to_half_a_turn_is_unwrapped_in_memory_and_streamed_ali
         read_measurements(tmp_path / "glitch.csv", model=limited)
     with pytest.raises(WrappedAngleError, match="column q2 jumps"):
         list(read_chunks(tmp_path / "glitch.csv", limited, chunk_size=250))
+    # joint 1 revolute with limits past ±π: unwrapped while the angle stays within them, refused once it would leave
+    for limit, refused in ((3.5, False), (float(np.max(np.abs(q[:, 0]))) - 0.2, True)):
+        urdf.write_text(re.sub(r'(<joint name="joint1" type="revolute">.*?)<limit[^>]*/>',
+                               rf'\1<limit lower="{-limit}" upper="{limit}" velocity="5" effort="200"/>',
+                               robot_urdf(load_robot("puma560", joints=3)), count=1, flags=re.S))
+        bounded = build_model(load_robot(urdf=urdf), "internal", FRICTION)
+        if refused:
+            with pytest.raises(WrappedAngleError, match=r"column q1 jumps .* leave the joint's limits.*numpy.unwrap"):
+                read_measurements(tmp_path / "wrapped.csv", model=bounded)
+        else:
+            with pytest.warns(UnwrappedAngleWarning):
+                assert np.array_equal(read_measurements(tmp_path / "wrapped.csv", model=bounded).q, read.q)
     read_measurements(tmp_path / "clean.csv", model=model)
 
 
