@@ -12,6 +12,7 @@ from dynamics.runtime.lazy import lazy_exports
 _EXPORTS: dict[str, str] = {
     "AbsurdValueError": "estimation.data.loading",
     "AngleUnitError": "estimation.data.loading",
+    "UnwrappedAngleWarning": "estimation.data.loading",
     "WrappedAngleError": "estimation.data.loading",
     "ConstantChannelError": "estimation.data.segments",
     "DEFAULT_MAX_GAP": "estimation.data.log_cleaning",

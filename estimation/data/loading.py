@@ -138,6 +138,10 @@ class CoarseStampsWarning(MeasurementWarning):
     the samples' instants are lost."""
 
 
+class UnwrappedAngleWarning(MeasurementWarning):
+    """A revolute joint's angle logged wrapped to ±π (or to a turn) was unwrapped on reading: which joint, how many wraps."""
+
+
 class SplitWarning(MeasurementWarning):
     """Holes longer than ``max_gap``: the record was split into segments there."""
 

@@ -42,6 +42,7 @@ from estimation.data.loading import (
     StallWarning,
     StillJointWarning,
     TimeBaseError,
+    UnwrappedAngleWarning,
     WrappedAngleError,
     check_angles,
     check_no_further_joints,
@@ -225,7 +226,6 @@ def segments_from_frame(
     t = numeric_columns(frame, ["t"], source)[:, 0]
     _check_absurd(t, arrays, n_joints, source)
     _said_still_joints(arrays["q"], model, source)
-    _check_wrapped(arrays["q"], model, source)
     data = np.hstack([values for values in arrays.values() if values is not None])
     times = clean_time_base(t, repeated_rows(data), source, max_gap=max_gap, split=split,
                             check=lambda keep: check_angles(arrays["q"][keep], model, source))
@@ -237,6 +237,8 @@ def segments_from_frame(
     for index, rows in enumerate(split_rows(t.shape[0], holes), start=1):
         name = source if len(holes) == 0 else f"{source} (segment {index})"
         piece = {key: None if values is None else values[rows] for key, values in arrays.items()}
+        piece["q"], _, wraps = unwrap_angles(piece["q"], model, name)
+        said_unwrapped(wraps, model, name)
         if t[rows].shape[0] < 3:
             raise SegmentTooShortError(f"{name}: {t[rows].shape[0]} sample(s) between holes (t = {t[rows][0]:.6g} s): "
                                        "too few for a time series; cut them from the file")
@@ -460,24 +462,89 @@ def _duplicated_times(t, source: str):
 
 #: a jump between two rows this close to a whole turn (rad), and more than half a turn: a wrapped angle
 WRAP_TOLERANCE = 0.5
+#: how far (rad) an unwrapped angle may pass the joint's limits in the description before the jump is not a wrap
+WRAP_LIMIT_MARGIN = 0.1
 
 
-def _check_wrapped(q: NDArray[np.float64], model, source: str) -> None:
-    """:class:`WrappedAngleError` for a revolute joint (every joint without a robot) whose angle jumps between two
-    rows by more than half a turn and within :data:`WRAP_TOLERANCE` of whole turns: a logger that wraps a continuous
-    joint to ±π (no joint turns half a turn in one sample); the derivatives and the fit across the jump would be
-    garbage. Refused in memory and streamed alike (unwrapping needs the rows before a chunk)."""
-    revolute = ([joint.joint_type is JointType.REVOLUTE for joint in model.robot.joints]
-                if isinstance(model, IdentificationModel) else [True] * q.shape[1])
-    steps = np.abs(np.diff(q, axis=0))
-    turns = np.round(steps / (2 * np.pi))
-    wrapped = (steps > np.pi) & (np.abs(steps - 2 * np.pi * turns) < WRAP_TOLERANCE) & np.asarray(revolute, bool)
-    if wrapped.any():
-        row, column = (int(index) for index in np.argwhere(wrapped)[0])
-        raise WrappedAngleError(
-            f"{source}: column q{column + 1} jumps from {q[row, column]:.4g} to {q[row + 1, column]:.4g} rad between "
-            f"rows {row} and {row + 1} ({int(wrapped[:, column].sum())} such jump(s)): a whole turn, the logger wraps "
-            "the angle to ±π; unwrap it before identifying (numpy.unwrap on the column)")
+@dataclass(frozen=True)
+class AngleTurns:
+    """Where the unwrap of a record stands after a block of rows: the last finite row's angles as logged (``(n,)``,
+    ``None`` before the first row) and the whole turns added to them (``(n,)`` integers); a streamed reader passes it
+    from one chunk of a file (or segment) to the next, so that the chunks are unwrapped as the whole record is."""
+
+    last: NDArray[np.float64] | None = None
+    turns: NDArray[np.int_] | None = None
+
+
+def unwrap_angles(q: NDArray[np.float64], model, source: str, before: AngleTurns = AngleTurns(), *, first_row: int = 0
+                  ) -> tuple[NDArray[np.float64], AngleTurns, NDArray[np.int_]]:
+    """``q`` with the whole turns of a logger that wraps a revolute joint's angle (to ±π, or to one turn) undone;
+    the state for the next block (:class:`AngleTurns`); the wraps per joint.
+
+    A wrap is a jump between two rows (rows with a non-finite angle skipped) by more than half a turn and within
+    :data:`WRAP_TOLERANCE` of whole turns (no joint turns half a turn in one sample), on a revolute joint (every joint
+    without a robot) that is continuous in the description (no position limits), or with both rows within
+    :data:`WRAP_TOLERANCE` of ±π (the logged range touches ±π there). Each row gets ``q + 2π k`` with ``k`` the integer
+    turns counted so far (the same arithmetic in memory and streamed: the chunks are identical to the last bit).
+    Refused (:class:`WrappedAngleError`, naming ``numpy.unwrap``): a whole-turn jump on a limited joint away from ±π,
+    or one whose unwrapped angle leaves the joint's limits by more than :data:`WRAP_LIMIT_MARGIN` (a motion the joint
+    could not make). Rows with no wrap before them are returned as logged."""
+    n = q.shape[1]
+    robot = model.robot if isinstance(model, IdentificationModel) else None
+    revolute = np.array([joint.joint_type is JointType.REVOLUTE for joint in robot.joints] if robot else [True] * n)
+    lower = np.array([joint.lower for joint in robot.joints] if robot else [-np.inf] * n, dtype=float)
+    upper = np.array([joint.upper for joint in robot.joints] if robot else [np.inf] * n, dtype=float)
+    finite = np.flatnonzero(np.all(np.isfinite(q), axis=1))
+    turns0 = np.zeros(n, dtype=np.int_) if before.turns is None else before.turns
+    rows = q[finite]
+    if rows.shape[0] == 0:
+        return q, before, np.zeros(n, dtype=np.int_)
+    extended = rows if before.last is None else np.vstack([before.last, rows])
+    steps = np.diff(extended, axis=0)
+    whole = np.round(steps / (2 * np.pi))
+    wrapped = (np.abs(steps) > np.pi) & (np.abs(steps - 2 * np.pi * whole) < WRAP_TOLERANCE) & revolute
+    state = AngleTurns(rows[-1].copy(), turns0)
+    if not wrapped.any() and not turns0.any():
+        return q, state, np.zeros(n, dtype=np.int_)
+    at_half_turn = (np.abs(extended[:-1]) > np.pi - WRAP_TOLERANCE) & (np.abs(extended[1:]) > np.pi - WRAP_TOLERANCE)
+    continuous = ~np.isfinite(lower) & ~np.isfinite(upper)
+    offset = 0 if before.last is None else 1  # the step into row i of ``rows`` is steps[i - 1 + offset]
+
+    def refused(step: int, column: int, why: str) -> WrappedAngleError:
+        row = int(finite[step + 1 - offset])
+        was = extended[step, column]
+        return WrappedAngleError(
+            f"{source}: column q{column + 1} jumps from {was:.4g} to {extended[step + 1, column]:.4g} rad at row "
+            f"{first_row + row} ({int(wrapped[:, column].sum())} such jump(s)): a whole turn, {why}; if the logger "
+            "wraps the angle, unwrap it before identifying (numpy.unwrap on the column)")
+
+    away = wrapped & ~(continuous | at_half_turn)
+    if away.any():
+        step, column = (int(index) for index in np.argwhere(away)[0])
+        raise refused(step, column, "on a joint with limits, away from ±π: not a wrap of its angle")
+    counted = np.cumsum(-(whole * wrapped).astype(np.int_), axis=0) + turns0
+    turns = counted if before.last is not None else np.vstack([turns0, counted])
+    unwrapped = q.copy()
+    unwrapped[finite] = np.where(turns != 0, rows + 2 * np.pi * turns, rows)
+    beyond = (turns != 0) & ((unwrapped[finite] < lower - WRAP_LIMIT_MARGIN) | (unwrapped[finite] > upper
+                                                                               + WRAP_LIMIT_MARGIN))
+    if beyond.any():
+        row, column = (int(index) for index in np.argwhere(beyond)[0])
+        step = int(np.flatnonzero(wrapped[:, column])[0])
+        raise refused(step, column, f"unwrapped it would leave the joint's limits [{lower[column]:.4g}, "
+                                    f"{upper[column]:.4g}] rad: a motion the joint could not make")
+    return unwrapped, AngleTurns(rows[-1].copy(), turns[-1].copy()), wrapped.sum(axis=0).astype(np.int_)
+
+
+def said_unwrapped(wraps: NDArray[np.int_], model, source: str) -> None:
+    """One :class:`UnwrappedAngleWarning` naming each joint whose angle was unwrapped and how many wraps."""
+    if not wraps.any():
+        return
+    names = (list(model.robot.joint_names) if isinstance(model, IdentificationModel)
+             else [f"q{j + 1}" for j in range(wraps.shape[0])])
+    said = ", ".join(f"{names[j]} (q{j + 1}): {int(wraps[j])} wrap(s)" for j in np.flatnonzero(wraps))
+    warnings.warn(f"{source}: unwrapped the angle a logger wrapped by whole turns: {said}; the record is read with "
+                  "the turns added (numpy.unwrap's result)", UnwrappedAngleWarning, stacklevel=4)
 
 
 def _said_still_joints(q: NDArray[np.float64], model, source: str) -> None:

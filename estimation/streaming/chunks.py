@@ -56,7 +56,7 @@ from estimation.data.loading import (
     TimeBaseError,
     TooFewSamplesError,
 )
-from estimation.data.records import measurements_from_frame
+from estimation.data.records import AngleTurns, measurements_from_frame, said_unwrapped, unwrap_angles
 from dynamics.measurements import Measurements, joint_columns
 from estimation.estimators.identification_problem import BandWindow, ResidualBand, decay_length
 from estimation.estimators.normal_equations import DEFAULT_CHUNK_SIZE, NormalEquations, accumulate, check_chunk_size
@@ -228,6 +228,21 @@ def _kept_frames(path: Path, chunk_size: int, keep: NDArray[np.bool_] | None) ->
         yield pd.concat(held, ignore_index=True) if len(held) > 1 else held[0]
 
 
+def _unwrapped(frame: pd.DataFrame, model: IdentificationModel, source: str, before: AngleTurns, first_row: int
+               ) -> tuple[pd.DataFrame, AngleTurns, NDArray[np.int_]]:
+    """The chunk with the angles a logger wrapped unwrapped as the whole record is
+    (:func:`estimation.data.records.unwrap_angles`, from where the chunk before left them)."""
+    frame = frame.rename(columns=lambda name: str(name).strip())
+    columns = _group_columns("q", model.robot.n_joints)
+    if not set(columns) <= set(frame.columns):  # the chunk's checks name the missing column
+        return frame, before, np.zeros(len(columns), dtype=np.int_)
+    q = np.column_stack([pd.to_numeric(frame[column], errors="coerce").to_numpy(dtype=float) for column in columns])
+    unwrapped, after, wraps = unwrap_angles(q, model, source, before, first_row=first_row)
+    if unwrapped is not q:
+        frame = frame.assign(**{column: unwrapped[:, j] for j, column in enumerate(columns)})
+    return frame, after, wraps
+
+
 def read_chunks(path: str | Path, model: IdentificationModel, *, chunk_size: int = DEFAULT_CHUNK_SIZE
                 ) -> Iterator[Measurements]:
     """The checked measurements of ``path``, ``chunk_size`` rows at a time (a short last chunk is
@@ -259,6 +274,7 @@ def read_chunks(path: str | Path, model: IdentificationModel, *, chunk_size: int
         raise TooFewSamplesError(f"{path}: no samples")
     chunk = checked(pending)
     emitted += chunk.n_samples
+    said_unwrapped(checked.wraps, model, str(path))
     if resampler is not None and emitted != scan.grid_count:
         raise TimeBaseError(f"{path}: {emitted} samples resampled of the {scan.grid_count} of the grid (did the file "
                             "change while it was read?)")
@@ -277,11 +293,14 @@ def logged_chunks(path: str | Path, model: IdentificationModel, *, chunk_size: i
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # said when the file was read for its sums
         scan = scan_time(_raw_frames(file, chunk_size), file, model, segment=segment)
+    turns, row = AngleTurns(), 0
     for frame in itertools.chain(_kept_frames(file, chunk_size, None if scan is None else scan.keep), [None]):
         if frame is not None and pending is not None and len(frame) < least:
             pending = pd.concat([pending, frame], ignore_index=True)
             continue
         if pending is not None:
+            pending, turns, _ = _unwrapped(pending, model, f"{path} (rows {row + 1}-{row + len(pending)})", turns, row)
+            row += len(pending)
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")  # said when the file was read for its sums
                 chunk = measurements_from_frame(pending, model=model, resample=True, source=str(path)).as_recorded
@@ -299,12 +318,16 @@ class _ChunkChecks:
         self.path, self.model, self.scan, self.resampler = path, model, scan, resampler
         self.row = 0  # rows checked so far
         self.previous: tuple[float, float] | None = None  # last time and step of the chunk before
+        self.turns = AngleTurns()  # where the unwrap of a wrapped angle stands after the chunk before
+        self.wraps = np.zeros(model.robot.n_joints, dtype=np.int_)  # wraps undone so far, per joint
 
     def __call__(self, frame: pd.DataFrame) -> Measurements:
         """The next chunk, checked (the rows the loader keeps: the file's scan dropped the others)."""
         path, previous = self.path, self.previous
         source = f"{path} (rows {self.row + 1}-{self.row + len(frame)})"
         rows = len(frame)
+        frame, self.turns, wraps = _unwrapped(frame, self.model, source, self.turns, self.row)
+        self.wraps = self.wraps + wraps
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", MeasurementWarning)  # the time base's findings: said once for the file
             if self.resampler is not None:
