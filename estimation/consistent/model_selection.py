@@ -63,7 +63,7 @@ from estimation.identification.repeated_motion import REPEAT_FRACTION, repeated_
 from estimation.identification.validation import ChannelErrors, Comparison
 
 __all__ = ["CANDIDATES", "CONSISTENT_FAILURES", "DEFAULT_PRIOR_WEIGHT", "PREFERENCE", "PRIOR_WEIGHT_GRID", "PRIOR_WEIGHT_TOLERANCE",
-           "Candidate", "ConsistentSettings", "ModelSelection", "choose_prior_weight", "consistent_entry",
+           "Candidate", "ConsistentSettings", "ModelSelection", "answers_scored", "choose_prior_weight", "consistent_entry",
            "prior_weight_choice", "select_fitted", "select_model", "select_refit", "select_scored",
            "selection_model_file"]
 
@@ -390,6 +390,21 @@ def select_scored(candidates: Sequence[Candidate], *, base: Literal["ols", "wls"
     ordered = tuple(by_name[name] for name in CANDIDATES if name in by_name)
     chosen, selection, reason = _choose(ordered, given, base, ratio, still)
     return ModelSelection(chosen, selection, reason, ordered, base, ratio)
+
+
+def answers_scored(selection: ModelSelection, other: ModelSelection) -> tuple[float, float] | None:
+    """The scores of two selections' answers on the same validation record, ``(selection's, other's)``, by the
+    default answer's criterion (:func:`~estimation.identification.relative_error.relative_scores`): how a candidate
+    model (with motor-side friction, with torque gains) is judged against the declared one. ``None`` unless both
+    were chosen on a validation record of another motion and both answers have validation errors."""
+    answers = (selection.chosen_candidate, other.chosen_candidate)
+    if selection.selection != "validation" or other.selection != "validation" \
+            or any(answer.fit is None or answer.validation is None or answer.validation.mse is None
+                   for answer in answers):
+        return None
+    scored = relative_scores({index: answer.validation.mse for index, answer in enumerate(answers)},
+                             _channels(answers[0].validation))
+    return scored[0], scored[1]
 
 
 def _channels(errors: Comparison | ChannelErrors) -> tuple[str, ...]:

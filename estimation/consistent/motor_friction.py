@@ -28,8 +28,7 @@ from typing import Any
 from dynamics.effects.motor import motor_effects
 from dynamics.models import IdentificationModel, ModelKind
 from dynamics.transmission import Transmission
-from estimation.consistent.model_selection import ModelSelection
-from estimation.identification.relative_error import relative_scores
+from estimation.consistent.model_selection import ModelSelection, answers_scored
 
 __all__ = ["MOTOR_FRICTION_TOLERANCE", "motor_friction_answer", "motor_friction_laws"]
 
@@ -55,16 +54,12 @@ def motor_friction_answer(selection: ModelSelection, other: ModelSelection, laws
     model with the motor laws ``laws`` added) when its answer scores lower on the validation record than the
     declared model's (``selection``) by more than :data:`MOTOR_FRICTION_TOLERANCE`, else ``selection``; the reason
     gives both scores. Compared only when both selections were made on a validation record of another motion."""
-    answers = {"declared": selection.chosen_candidate, "motor": other.chosen_candidate}
-    if selection.selection != "validation" or other.selection != "validation" \
-            or any(answer.fit is None or answer.validation is None or answer.validation.mse is None
-                   for answer in answers.values()):
+    scored = answers_scored(selection, other)
+    if scored is None:
         return selection
-    validation = answers["declared"].validation
-    channels = getattr(validation, "channels", None) or tuple(validation.mse)
-    scored = relative_scores({name: answer.validation.mse for name, answer in answers.items()}, channels)
-    taken = (1.0 + MOTOR_FRICTION_TOLERANCE) * scored["motor"] < scored["declared"]
+    declared, motor = scored
+    taken = (1.0 + MOTOR_FRICTION_TOLERANCE) * motor < declared
     why = (f"; motor-side friction on the coupled motors ({laws}): its answer ({other.chosen}) validates "
-           f"{scored['motor']:.4g} against {scored['declared']:.4g} for the declared model's ({selection.chosen}; "
+           f"{motor:.4g} against {declared:.4g} for the declared model's ({selection.chosen}; "
            "the mean relative validation error), " + ("taken" if taken else "not taken"))
     return replace(other, reason=other.reason + why) if taken else replace(selection, reason=selection.reason + why)

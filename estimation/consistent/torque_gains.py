@@ -33,7 +33,7 @@ from numpy.typing import NDArray
 from dynamics.measurements import Measurements
 from dynamics.models import IdentificationModel
 from estimation.consistent.identification import ConsistentResult
-from estimation.consistent.model_selection import ModelSelection
+from estimation.consistent.model_selection import ModelSelection, answers_scored
 from estimation.identification.prepared import PreparedRecord, PreparedRecords
 from estimation.identification.relative_error import relative_scores
 from estimation.identification.repeated_motion import REPEAT_FRACTION, repeated_motion, still_motion
@@ -302,27 +302,23 @@ def description_scale(theta: NDArray, cov: NDArray, rigid: NDArray[np.bool_], de
 
 
 def torque_gains_answer(selection: ModelSelection, other: ModelSelection, gains: TorqueGains
-                        ) -> tuple[ModelSelection, bool]:
-    """The default answer with per-joint torque gains a candidate (module docstring): ``(other, True)`` (the
+                        ) -> tuple[ModelSelection, bool, str]:
+    """The default answer with per-joint torque gains a candidate (module docstring): ``(other, True, why)`` (the
     selection of the declared model fitted to the torques divided by ``gains``, its validation errors in the
     recorded units) when its answer scores lower on the validation record than the declared model's
-    (``selection``) by more than :data:`TORQUE_GAINS_TOLERANCE`, else ``(selection, False)``; the reason gives
-    both scores. Compared only when both selections were made on a validation record of another motion."""
-    answers = {"declared": selection.chosen_candidate, "gains": other.chosen_candidate}
-    if selection.selection != "validation" or other.selection != "validation" \
-            or any(answer.fit is None or answer.validation is None or answer.validation.mse is None
-                   for answer in answers.values()):
-        return selection, False
-    validation = answers["declared"].validation
-    channels = getattr(validation, "channels", None) or tuple(validation.mse)
-    scored = relative_scores({name: answer.validation.mse for name, answer in answers.items()}, channels)
-    taken = (1.0 + TORQUE_GAINS_TOLERANCE) * scored["gains"] < scored["declared"]
-    why = (f"; an unknown gain on each joint's recorded torque ({gains.said()}; the scale from {gains.scale}): its "
-           f"answer ({other.chosen}) validates {scored['gains']:.4g} against {scored['declared']:.4g} for the "
-           "declared model's (" + selection.chosen + "; the mean relative validation error), "
-           + ("taken" if taken else "not taken"))
-    return (replace(other, reason=other.reason + why), True) if taken \
-        else (replace(selection, reason=selection.reason + why), False)
+    (``selection``) by more than :data:`TORQUE_GAINS_TOLERANCE`, else ``(selection, False, why)``; ``why`` gives
+    both scores (appended to the answer's reason too; empty when they were not compared). Compared only when both
+    selections were made on a validation record of another motion."""
+    scored = answers_scored(selection, other)
+    if scored is None:
+        return selection, False, ""
+    declared, with_gains = scored
+    taken = (1.0 + TORQUE_GAINS_TOLERANCE) * with_gains < declared
+    why = (f"an unknown gain on each joint's recorded torque ({gains.said()}; the scale from {gains.scale}): its "
+           f"answer ({other.chosen}) validates {with_gains:.4g} against {declared:.4g} for the declared model's ("
+           + selection.chosen + "; the mean relative validation error), " + ("taken" if taken else "not taken"))
+    return (replace(other, reason=f"{other.reason}; {why}"), True, why) if taken \
+        else (replace(selection, reason=f"{selection.reason}; {why}"), False, why)
 
 
 def divided_torques(measurements: Measurements, gains: TorqueGains) -> Measurements:

@@ -848,9 +848,8 @@ def torque_gains_selection(args: IdentifyOptions, selection: ModelSelection, tra
     with step("the answer's candidates fitted to the torques divided by the gains and compared"):
         other = select_model(model, divided_torques(train, gains), divided_torques(validation, gains), base=base,
                              consistent=consistent_settings(args, model.robot))
-    answer, taken = torque_gains_answer(selection, in_recorded_units(other, gains), gains)
-    compared = answer.reason.rpartition("; an unknown gain")[2]
-    return answer, (gains, taken, f"{checked}; then an unknown gain{compared}")
+    answer, taken, compared = torque_gains_answer(selection, in_recorded_units(other, gains), gains)
+    return answer, (gains, taken, f"{checked}; then {compared}" if compared else checked)
 
 
 def validation_fits(args: IdentifyOptions, model: IdentificationModel, delay: DelayBounds | None) -> tuple[str, ...]:
