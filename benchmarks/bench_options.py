@@ -51,12 +51,7 @@ def sweep_case(name: str, folder: Path) -> tuple[list[str], dict[str, Path], dic
     config = next(config for config in sweep.CONFIGS if config.name == name)
     log = {"kuka": sweep.kuka_log, "panda": sweep.panda_log, "emps": sweep.emps_log,
            "tx40": lambda: sweep.tx40_log(folder)}[config.robot]()
-    records, files = {}, {}
-    for role, (source, start, stop) in config.roles.items():
-        record = sweep._slice(log.records[source], start, stop)
-        transform = config.transform.get(role) if isinstance(config.transform, dict) else config.transform
-        records[role] = record if transform is None else transform(record)
-        files[role] = sweep.write(log, records[role], config.layout, folder / f"{name}_{role}.csv")
+    records, files = sweep.config_records(config, log, folder)
     plain = sweep.SweepPlainFit(log.robot)
     cutoff, theta = plain.fit_on(records["train"], records.get("validate", records["train"]), list(records.values()))
     predicted, kept = plain.predict(records["test"], cutoff, theta)

@@ -326,8 +326,9 @@ def message(code: int, stderr: str) -> str:
     return f"exit {code}: {flag}{lines[-1][:160] if lines else ''}"
 
 
-def sweep(config: Config, folder: Path, logs: dict[str, Log], verbs: tuple[str, ...] = VERBS) -> dict:
-    log = logs[config.robot]
+def config_records(config: Config, log: Log, folder: Path) -> tuple[dict[str, Record], dict[str, Path]]:
+    """The configuration's records (sliced from ``log``, transformed) and the files written for them in ``folder``
+    (``<name>_<role>.csv``), by role."""
     records, files = {}, {}
     for role, (name, start, stop) in config.roles.items():
         record = _slice(log.records[name], start, stop)
@@ -336,6 +337,12 @@ def sweep(config: Config, folder: Path, logs: dict[str, Log], verbs: tuple[str, 
             record = transform(record)
         records[role] = record
         files[role] = write(log, record, config.layout, folder / f"{config.name}_{role}.csv")
+    return records, files
+
+
+def sweep(config: Config, folder: Path, logs: dict[str, Log], verbs: tuple[str, ...] = VERBS) -> dict:
+    log = logs[config.robot]
+    records, files = config_records(config, log, folder)
     validate = ["--validate", str(files["validate"])] if "validate" in files else []
     outcome = {"runs": {}, "messages": {}}
     for verb in verbs:

@@ -56,12 +56,7 @@ def main() -> None:
         folder = Path(name)
         log = {"kuka": sweep.kuka_log, "panda": sweep.panda_log, "emps": sweep.emps_log,
                "tx40": lambda: sweep.tx40_log(folder)}[config.robot]()
-        records, files = {}, {}
-        for role, (source, start, stop) in config.roles.items():
-            record = sweep._slice(log.records[source], start, stop)
-            transform = config.transform.get(role) if isinstance(config.transform, dict) else config.transform
-            records[role] = record if transform is None else transform(record)
-            files[role] = sweep.write(log, records[role], config.layout, folder / f"{role}.csv")
+        records, files = sweep.config_records(config, log, folder)
         for key in args.on.split(","):
             if key not in records:
                 records[key] = log.records[key]
