@@ -10,6 +10,12 @@ the data answer: both are fitted on ``folds - 1`` contiguous blocks of the train
 derivatives, and scored by the geometric mean over channels of the held-out MSE. The weighted fit stays unless
 ordinary least squares is clearly better (:data:`~estimation.identification.preprocessing_choice.CLEARLY_BETTER`).
 
+A block whose others do not determine every parameter (a joint that reverses only inside that block: its Coulomb
+and offset columns are one elsewhere) cannot be predicted by either weighting: it is left unscored for both, so that
+both are scored on the same samples, and said (:class:`HeldOutBlocksWarning`); the whole record may still determine
+the model. With no block scored the weighted fit stays, for want of evidence. The choice is the toolkit's own: it
+never ends the run (issue 34).
+
 A record longer than :data:`~estimation.identification.preprocessing_choice.SCORED_SAMPLES` samples is scored on the
 window its derivatives were chosen on, prepared by the plan chosen (:func:`weighting_samples`): the samples a
 streamed identification reads too, so that both paths choose alike.
@@ -17,6 +23,7 @@ streamed identification reads too, so that both paths choose alike.
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, replace
 from typing import Any, Literal
 
@@ -27,7 +34,7 @@ from dynamics.measurements import Measurements
 from dynamics.models import IdentificationModel
 from dynamics.runtime.threads import single_threaded_blas
 from estimation.estimators.identification_problem import IdentificationProblem, ResidualBand, stack
-from estimation.estimators.least_squares import LeastSquares, WeightedLeastSquares
+from estimation.estimators.least_squares import IdentifiabilityError, LeastSquares, WeightedLeastSquares
 from estimation.identification.preprocessing_choice import (
     CLEARLY_BETTER,
     ChoiceWindow,
@@ -37,9 +44,14 @@ from estimation.identification.preprocessing_choice import (
 )
 from estimation.preprocessing.plan import Preprocessing, prepare
 
-__all__ = ["WeightingChoice", "choose_weighting", "weighting_samples"]
+__all__ = ["HeldOutBlocksWarning", "WeightingChoice", "choose_weighting", "weighting_samples"]
 
 Weighting = Literal["wls", "ols"]
+
+
+class HeldOutBlocksWarning(UserWarning):
+    """Blocks of the training record left unscored by the weighting choice: the other blocks do not determine every
+    parameter (module docstring)."""
 
 
 @dataclass(frozen=True)
@@ -56,18 +68,30 @@ class WeightingChoice:
         Per weighting, ``{channel: held-out MSE}``.
     folds
         Blocks of the training record, each held out once.
+    unscored
+        The blocks (numbered from 1) left unscored for every weighting: the other blocks do not determine every
+        parameter; ``note`` says which.
+    note
+        Why those blocks are unscored (the parameters not determined), or ``""``.
     """
 
     method: Weighting
     scores: dict[str, float]
     held_out_mse: dict[str, dict[str, float]]
     folds: int
+    unscored: tuple[int, ...] = ()
+    note: str = ""
 
     def to_dict(self) -> dict[str, Any]:
-        """``{selection: "held-out", chosen, folds, candidates: {wls: {score, held_out_mse}, ols: {…}}}``."""
-        return {"selection": "held-out", "chosen": self.method, "folds": self.folds,
-                "candidates": {name: {"score": self.scores[name], "held_out_mse": self.held_out_mse[name]}
-                               for name in self.scores}}
+        """``{selection: "held-out", chosen, folds, candidates: {wls: {score, held_out_mse}, ols: {…}}}``, and
+        ``unscored_blocks`` with its ``note`` when blocks were left unscored."""
+        document: dict[str, Any] = {
+            "selection": "held-out", "chosen": self.method, "folds": self.folds,
+            "candidates": {name: {"score": self.scores[name], "held_out_mse": self.held_out_mse[name]}
+                           for name in self.scores}}
+        if self.unscored:
+            document.update(unscored_blocks=list(self.unscored), note=self.note)
+        return document
 
 
 @single_threaded_blas()
@@ -77,23 +101,46 @@ def choose_weighting(model: IdentificationModel, train: Measurements, *, folds: 
     if int(folds) != folds or folds < 2:
         raise ValueError(f"folds must be an integer of at least 2, got {folds}")
     problem = stack(model, thinned(train.as_recorded, max_rows))
-    errors = {name: held_out_mse(problem, estimator, folds)
-              for name, estimator in (("wls", WeightedLeastSquares), ("ols", LeastSquares))}
+    squares = {name: held_out_squares(problem, estimator, folds)
+               for name, estimator in (("wls", WeightedLeastSquares), ("ols", LeastSquares))}
+    unscored = {number: lacking for blocks in squares.values() for number, lacking in enumerate(blocks, start=1)
+                if isinstance(lacking, str)}
+    note = ""
+    if unscored:
+        note = (f"the weighting's held-out block(s) {', '.join(map(str, sorted(unscored)))} of {int(folds)} left "
+                f"unscored for both weightings (the other blocks do not determine "
+                f"{'; '.join(dict.fromkeys(unscored.values()))}); the whole record is fitted"
+                + ("" if len(unscored) < folds else "; no block scored: the weighted fit stays, for want of "
+                   "evidence"))
+        warnings.warn(note, HeldOutBlocksWarning, stacklevel=2)
+    if len(unscored) == folds:
+        return WeightingChoice("wls", {}, {}, int(folds), tuple(sorted(unscored)), note)
+    errors = {}
+    for name, blocks in squares.items():
+        scored = [block for number, block in enumerate(blocks, start=1) if number not in unscored]
+        errors[name] = sum(squared for squared, _ in scored) / sum(count for _, count in scored)
     scores = {name: geometric_mean(mse) for name, mse in errors.items()}
     method: Weighting = "ols" if scores["ols"] < CLEARLY_BETTER * scores["wls"] else "wls"
     return WeightingChoice(method, scores, {name: dict(zip(problem.channels, map(float, mse)))
-                                            for name, mse in errors.items()}, int(folds))
+                                            for name, mse in errors.items()}, int(folds),
+                           tuple(sorted(unscored)), note)
 
 
-def held_out_mse(problem: IdentificationProblem, estimator: type[LeastSquares], folds: int) -> NDArray[np.float64]:
-    """Per channel, the MSE of each contiguous block predicted by ``estimator`` fitted on the others."""
-    squared = np.zeros(problem.n_channels)
+def held_out_squares(problem: IdentificationProblem, estimator: type[LeastSquares],
+                     folds: int) -> list[tuple[NDArray[np.float64], int] | str]:
+    """Per contiguous block, predicted by ``estimator`` fitted on the others: the sum of squared errors per channel
+    and the block's samples, or, where the others do not determine every parameter, the parameters they lack."""
+    blocks: list[tuple[NDArray[np.float64], int] | str] = []
     for held, kept in blocked_folds(problem.n_samples, folds):
         part = IdentificationProblem(problem.Y[kept], problem.y[kept], problem.channels, problem.names,
                                      problem.expressions, band=_kept_band(problem, held))
-        theta = estimator().fit(part).theta_
-        squared += np.sum((problem.y[held] - problem.Y[held] @ theta) ** 2, axis=0)
-    return squared / problem.n_samples
+        try:
+            theta = estimator().fit(part).theta_
+        except IdentifiabilityError as error:
+            blocks.append(str(error).split(": the regressor")[0].removeprefix("the data do not determine "))
+            continue
+        blocks.append((np.sum((problem.y[held] - problem.Y[held] @ theta) ** 2, axis=0), held.stop - held.start))
+    return blocks
 
 
 def _kept_band(problem: IdentificationProblem, held: slice) -> ResidualBand | None:
