@@ -164,13 +164,16 @@ CASES: tuple[Case, ...] = ALONE + PAIRS + NON_DEFAULT + POSITIONS
 
 @dataclass(frozen=True)
 class LoopCase:
-    """A user's loop through the CLI on files, and its targets (see :mod:`tests.corpus.test_user_loops`)."""
+    """A user's loop through the CLI on files, and its targets (see :mod:`tests.corpus.test_user_loops`): ``named``
+    exactly, or any set in ``also`` (the same physics in other laws), and besides what ``allowed`` lets be named."""
 
     name: str
     named: frozenset[tuple[str, str]]
     floor_tolerance: float | None = 1.5
     after_over_before: float | None = None
     xfail: str = ""
+    also: tuple[frozenset[tuple[str, str]], ...] = ()
+    allowed: frozenset[tuple[str, str]] = frozenset()
 
 
 # the simulator's Coulomb law is tanh(dq / 0.05): the sign law or the tanh law names it
@@ -179,17 +182,27 @@ README_LOOP = LoopCase(
     "README loop",
     named(*((family, f"tau{joint}") for joint in (1, 2, 3) for family in (COULOMB_LIKE, "offset"))),
 )
+# EMPS's friction is asymmetric: the published IDIM-LS model (Script_IDIM_LS_Asym_Fric.m beside the symmetric one;
+# Fc 20.4 N, offset -3.16 N) is a Coulomb law whose levels differ with the direction, Fc·sign(dq) + offset while
+# moving. The shifted sigmoid is that law in one smooth term: at 74a5e1a the loop names sigmoid@tau1 (phi1 43.93,
+# phi2 207.6 s/m, phi3 1.45 mm/s: Fc = phi1/2 = 22.0 N, offset while moving -phi1/2 tanh(phi2 phi3/2) = -3.29 N)
+# and delay@tau1 (-1.44 ms), after/before 0.253 on DATA_EMPS_PULSES (a repeat of the training motion). On a record
+# no choice saw (h-xfail3: trained on DATA_EMPS's first two thirds, validated on its last third, tested on
+# DATA_EMPS_PULSES as benchmarks/bench_real_robots.py splits it), test MSE in N²: viscous,coulomb,offset 47.72;
+# viscous,sigmoid 47.09; viscous,sigmoid,delay 45.48 (the diagnosis's answer, 0.497 of the plain fit);
+# viscous,coulomb:tanh,offset 47.54; viscous,coulomb,offset,delay 49.83: the sigmoid is no false effect. Either
+# description is accepted, a delay beside it allowed. (Until 74a5e1a this case was a strict xfail measured at
+# 7cfacee on a 400-harmonic Fourier fit: after/before 0.786 at 0.99x the validation record's period-to-period
+# floor, 332 N², which counts the response to the pulses as noise: DATA_EMPS's, the same motion without them, is
+# 0.16 N²; the floor from differences is 0.023 N². The 0.3 is reachable, and reached.)
 EMPS_LOOP = LoopCase(
     "EMPS, no flags",
-    named((COULOMB_LIKE, "tau1"), ("offset", "tau1")),
+    named(("sigmoid", "tau1")),
     floor_tolerance=None,
     after_over_before=0.3,
-    xfail="measured: named sigmoid@tau1 (a shifted sigmoid, phi3 = 0.00048 ± 0.00002 m/s: the asymmetric law a "
-          "symmetric law beside an offset approximates); validation MSE 418.7 -> 329.2 (after/before 0.786), at its noise "
-          "floor (0.99x: no model can go lower on this split), derivatives from a 400-harmonic Fourier fit at a "
-          "detected 0.160 Hz with held torques, chosen by held-out evidence",
+    also=(named((COULOMB_LIKE, "tau1"), ("offset", "tau1")),),
+    allowed=named(("delay", "tau1")),
 )
-
 
 @dataclass(frozen=True)
 class WrongLawCase:
