@@ -43,7 +43,12 @@ IDENTIFIABILITY_TOLERANCE = 1e-13
 
 
 class IdentifiabilityError(ValueError):
-    """The data do not determine every parameter (rank-deficient regressor)."""
+    """The data do not determine every parameter (rank-deficient regressor); ``parameters``: those it names
+    (empty when it names none)."""
+
+    def __init__(self, message: str, parameters: tuple[str, ...] = ()) -> None:
+        super().__init__(message)
+        self.parameters = tuple(parameters)
 
 
 
@@ -162,7 +167,7 @@ def solve(
         weak = [problem.names[i] for i in np.flatnonzero(direction > 0.3 * direction.max())]
         raise IdentifiabilityError(
             f"the data do not determine parameter(s) {weak}: the regressor is rank deficient "
-            "(excite the robot more, or drop those columns)"
+            "(excite the robot more, or drop those columns)", tuple(weak)
         )
     factor = scipy.linalg.cho_factor(equilibrated, check_finite=False)
     theta = scipy.linalg.cho_solve(factor, (weights @ moments) / scale, check_finite=False) / scale

@@ -60,7 +60,7 @@ def _solved(sums: NormalEquations, weights: NDArray[np.float64]) -> tuple[NDArra
         weak = [sums.names[i] for i in np.flatnonzero(direction > 0.3 * direction.max())]
         raise IdentifiabilityError(
             f"the data do not determine parameter(s) {weak}: the regressor is rank deficient "
-            "(excite the robot more, or drop those columns)")
+            "(excite the robot more, or drop those columns)", tuple(weak))
     return scipy.linalg.solve_triangular(R_theta, R[:k, k], check_finite=False), R_theta
 
 

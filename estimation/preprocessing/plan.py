@@ -430,7 +430,7 @@ def best_filter(document: Mapping[str, Any] | None) -> Preprocessing | None:
     for key in ("validation_candidates", "candidates"):
         filters = [candidate for candidate in (document or {}).get(key) or ()
                    if candidate.get("method") == "butterworth" and candidate.get("cutoff_hz")
-                   and np.isfinite(float(candidate.get("score", np.inf)))]
+                   and candidate.get("score") is not None and np.isfinite(float(candidate["score"]))]
         if filters:
             best = min(filters, key=lambda candidate: float(candidate["score"]))  # best first: ties keep the first
             return Preprocessing("butterworth", cutoff_hz=float(best["cutoff_hz"]),

@@ -49,6 +49,8 @@ from estimation.diagnosis.search import diagnose as diagnose_model
 from estimation.diagnosis.untouched import UntouchedErrors, recorded_comparison, recorded_mse, untouched_errors
 from estimation.identification.prepared import InMemoryBudget, PreparedRecords, prepare_records
 from estimation.identification.repeated_motion import repeat_note, repeated_motion_note
+from estimation.identification.undetermined import MergedColumn, merged_one_way
+from estimation.estimators.least_squares import IdentifiabilityError
 from estimation.preprocessing.delay import DelayBounds, split_delay
 from estimation.preprocessing.plan import Preprocessing
 from estimation.streaming.chunks import source_files
@@ -305,22 +307,43 @@ def run_diagnose(args: DiagnoseOptions, *, say: Callable[[str], None]) -> Diagno
         read, names = copies.enter_context(records_to_read(  # joint-side copies of motor-side, zeroed records
             args, model, transmission, bytes_per_value=IN_MEMORY.bytes_per_value,
             in_memory_only=lambda: in_memory_only(args, model, delay)))
-        if streaming_requested(read):
-            diagnosed = diagnosis_streamed(read, friction)
-        else:
-            check_shaped_effects_kept(effects, model)
-            decision = decide_path(read, model, task="diagnosing", bytes_per_value=IN_MEMORY.bytes_per_value,
-                                   in_memory_only=lambda: in_memory_only(read, model, delay), say=say,
-                                   **derivatives_on_validation(model, delay))
-            diagnosed = (diagnosis_streamed(read, friction, decision.plan, decision.findings) if decision.stream
-                         else diagnosis_in_memory(read, model, transmission, delay, decision.plan))
+        merged: tuple[MergedColumn, ...] = ()
+        while True:  # in memory, a declared Coulomb column the record cannot tell from the offset: merged, said
+            try:
+                diagnosed = diagnosis_by_path(read, friction, effects, model, transmission, delay, say)
+                break
+            except IdentifiabilityError as error:
+                change = None if streaming_requested(read) else merged_one_way(model, error.parameters)
+                if change is None:
+                    raise
+                model, merged = build_model(robot, args.model, change[0]), (*merged, *change[1])
+        if merged:
+            said = tuple(column.statement() for column in merged)
+            diagnosed = replace(diagnosed, messages=(*said, *diagnosed.messages), notes=(*said, *diagnosed.notes))
         document, messages = diagnose_document(args, diagnosed)
+        if merged:
+            document["not_determined"] = [column.to_dict() for column in merged]
         if chain is not None:
             document["logged_chain"] = chain
         summary = tuple(summary_lines(args, diagnosed, document))
     if names:  # the files as given, not their joint-side copies
         document, messages, summary = (named_as_given(value, names) for value in (document, messages, summary))
     return DiagnoseRun(document, summary, messages, diagnosed.diagnosis, diagnosed.records, diagnosed.untouched)
+
+
+def diagnosis_by_path(read: DiagnoseOptions, friction: str | None, effects: tuple[Any, ...],
+                      model: IdentificationModel, transmission: Transmission | None, delay: DelayBounds | None,
+                      say: Callable[[str], None]) -> Diagnosed:
+    """The diagnosis of the records ``read``, streamed when asked for or when they exceed the memory budget
+    (:func:`decide_path`), else in memory."""
+    if streaming_requested(read):
+        return diagnosis_streamed(read, friction)
+    check_shaped_effects_kept(effects, model)
+    decision = decide_path(read, model, task="diagnosing", bytes_per_value=IN_MEMORY.bytes_per_value,
+                           in_memory_only=lambda: in_memory_only(read, model, delay), say=say,
+                           **derivatives_on_validation(model, delay))
+    return (diagnosis_streamed(read, friction, decision.plan, decision.findings) if decision.stream
+            else diagnosis_in_memory(read, model, transmission, delay, decision.plan))
 
 
 @dataclass(frozen=True)

@@ -37,6 +37,7 @@ from estimation.data.rest import smooth_coulomb
 from estimation.diagnosis.statistics import FLOOR_ALPHA, ResidualReport, residual_report
 from estimation.uncertainty.floor_comparison import compare_with_floor
 from estimation.uncertainty.noise_floor import NoiseFloor
+from estimation.estimators.least_squares import IdentifiabilityError
 from estimation.estimators.normal_equations import DEFAULT_CHUNK_SIZE
 from estimation.identification.fit import IdentificationResult
 from estimation.identification.prepared import InMemoryBudget, PreparedRecords, prepare_records
@@ -45,6 +46,7 @@ from estimation.identification.repeated_motion import repeat_note, repeated_moti
 from estimation.identification.model_file import summed_model_file_document
 from estimation.identification.report import identification_report
 from estimation.identification.trivial_predictors import trivial_warnings
+from estimation.identification.undetermined import MergedColumn, merged_one_way
 from estimation.identification.validation import ChannelErrors, plot_comparison
 from estimation.identification.weighting_choice import choose_weighting, weighting_samples
 from estimation.preprocessing.delay import DelayBounds, split_delay
@@ -261,16 +263,22 @@ def run_identify(args: IdentifyOptions, *, say: Callable[[str], None]) -> Identi
         read, names = copies.enter_context(records_to_read(  # joint-side copies of motor-side, zeroed records
             args, model, transmission, bytes_per_value=IN_MEMORY.bytes_per_value,
             in_memory_only=lambda: in_memory_only(args, model, delay)))
-        if streaming_requested(read):
-            identified = identification_streamed(read, model, transmission)
-        else:
-            decision = decide_path(read, model, task="identifying", bytes_per_value=IN_MEMORY.bytes_per_value,
-                                   in_memory_only=lambda: in_memory_only(read, model, delay), say=say,
-                                   validation_fits=validation_fits(read, model, delay))
-            identified = (identification_streamed(read, model, transmission, decision.plan, decision.findings)
-                          if decision.stream
-                          else identification_in_memory(read, robot, model, transmission, delay, decision.plan))
+        merged: tuple[MergedColumn, ...] = ()
+        while True:  # a declared Coulomb column the record cannot tell from the offset: merged, said (issue 34)
+            try:
+                identified = identification_by_path(read, robot, model, transmission, delay, say)
+                break
+            except IdentifiabilityError as error:
+                change = merged_one_way(model, error.parameters)
+                if change is None:
+                    raise
+                model, merged = build_model(robot, args.model, change[0]), (*merged, *change[1])
+        if merged:
+            said = tuple(column.statement() for column in merged)
+            identified = replace(identified, messages=(*said, *identified.messages), notes=(*said, *identified.notes))
         document, messages = identify_document(args, identified)
+        if merged:
+            document["not_determined"] = [column.to_dict() for column in merged]
         if chain is not None:
             document["logged_chain"] = chain
         summary = tuple(summary_lines(args, identified))
@@ -282,6 +290,21 @@ def run_identify(args: IdentifyOptions, *, say: Callable[[str], None]) -> Identi
     return IdentifyRun(document, summary, messages, identified.result,
                        title=f"{robot.name}: {model.kind.value} model ({chosen.name})",
                        preprocessing=identified.describe, answer=chosen)
+
+
+def identification_by_path(read: IdentifyOptions, robot: RobotModel, model: IdentificationModel,
+                           transmission: Transmission | None, delay: DelayBounds | None,
+                           say: Callable[[str], None]) -> Identified:
+    """The identification of the records ``read``, streamed when asked for or when they exceed the memory budget
+    (:func:`decide_path`), else in memory."""
+    if streaming_requested(read):
+        return identification_streamed(read, model, transmission)
+    decision = decide_path(read, model, task="identifying", bytes_per_value=IN_MEMORY.bytes_per_value,
+                           in_memory_only=lambda: in_memory_only(read, model, delay), say=say,
+                           validation_fits=validation_fits(read, model, delay))
+    return (identification_streamed(read, model, transmission, decision.plan, decision.findings)
+            if decision.stream
+            else identification_in_memory(read, robot, model, transmission, delay, decision.plan))
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,94 @@
+"""Declared friction a training record cannot separate: the Coulomb and offset columns of a joint that never reverses.
+
+While joint ``i`` moves one way only, ``sign(dq_i)`` is constant and its Coulomb column ``fc_i sign(dq_i)`` is its
+offset column ``off_i`` times ``±1``: the record determines their sum (the level it shows), not each (Gautier's
+base parameters: a column that is a combination of others on the data is regrouped into them). An unconstrained fit
+then stops on a rank-deficient regressor. When the user declared both (``--friction ...,coulomb,offset``), the
+identification goes on with the pair merged: the offset keeps the column, so ``off_i`` holds the level the record
+shows while the joint moves that way, and ``fc_i`` is left out and reported as not determined (a warning naming the
+joint, and ``not_determined`` in ``result.json``). The offset, not the Coulomb term, keeps it because the offset is
+the law that asserts nothing about a reversal the record never showed (issue 34: "adding nothing and saying what
+remains beats naming the wrong effect"). A record in which the joint reverses determines both.
+
+Only that pair is merged: any other parameter the data do not determine stays the error it is (a rigid-body
+direction, a spring on a joint at rest: the remedy is the user's).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from typing import Any
+
+from dynamics.effects.linear import CoulombFriction, JointOffset
+from dynamics.models import IdentificationModel
+
+__all__ = ["MergedColumn", "merged_one_way"]
+
+
+@dataclass(frozen=True)
+class MergedColumn:
+    """A Coulomb column left out where the record does not tell it from the offset of the same joint.
+
+    Attributes
+    ----------
+    joint
+        The joint, counted from 1.
+    joint_name
+        Its name in the robot description.
+    parameter, merged_into
+        The parameter left out (``fc_i``) and the one holding the pair's sum (``off_i``).
+    """
+
+    joint: int
+    joint_name: str
+    parameter: str
+    merged_into: str
+
+    def statement(self) -> str:
+        """The warning: what is not determined, why, and what determines it."""
+        return (f"joint {self.joint} ({self.joint_name}) does not reverse in the training record: its Coulomb and "
+                f"offset columns are one there, so the data do not determine {self.parameter} apart from "
+                f"{self.merged_into}; {self.parameter} is left out (not determined) and {self.merged_into} holds "
+                f"their sum, the level the record shows; a record in which joint {self.joint} reverses determines "
+                "both")
+
+    def to_dict(self) -> dict[str, Any]:
+        """``{effect, joint, joint_name, parameter, merged_into, reason}`` (``result.json``'s ``not_determined``)."""
+        return {"effect": "coulomb", "joint": self.joint, "joint_name": self.joint_name, "parameter": self.parameter,
+                "merged_into": self.merged_into, "reason": self.statement()}
+
+
+def merged_one_way(model: IdentificationModel,
+                   parameters: tuple[str, ...]) -> tuple[tuple[Any, ...], tuple[MergedColumn, ...]] | None:
+    """The model's effects with the Coulomb column of each joint whose Coulomb and offset parameters are among the
+    undetermined ``parameters`` left out, and what was left out; ``None`` when ``parameters`` hold anything else
+    (or nothing to merge): that rank deficiency is not this one.
+
+    Parameters
+    ----------
+    model
+        The declared model.
+    parameters
+        The parameters the data do not determine, as the rank-deficiency error names them
+        (:class:`~estimation.estimators.least_squares.IdentifiabilityError`).
+    """
+    robot = model.robot
+    coulomb = [effect for effect in model.effects if type(effect) is CoulombFriction]
+    offset = [effect for effect in model.effects if type(effect) is JointOffset]
+    if len(coulomb) != 1 or len(offset) != 1 or not parameters:
+        return None
+    coulomb_joints = tuple(range(robot.n_joints)) if coulomb[0].joints is None else tuple(coulomb[0].joints)
+    offset_joints = tuple(range(robot.n_joints)) if offset[0].joints is None else tuple(offset[0].joints)
+    weak = set(parameters)
+    merged = []
+    for joint in coulomb_joints:
+        pair = (f"{CoulombFriction.symbol}{joint + 1}", f"{JointOffset.symbol}{joint + 1}")
+        if joint in offset_joints and set(pair) <= weak:
+            merged.append(MergedColumn(joint + 1, robot.joints[joint].name, *pair))
+            weak -= set(pair)
+    if not merged or weak:
+        return None
+    kept = tuple(joint for joint in coulomb_joints if joint + 1 not in {column.joint for column in merged})
+    effects = tuple(effect for effect in model.effects if effect is not coulomb[0] or kept)
+    effects = tuple(replace(effect, joints=kept) if effect is coulomb[0] else effect for effect in effects)
+    return effects, tuple(merged)
