@@ -1,0 +1,72 @@
+"""Quantities the default `oed diagnose` forms once and reuses (issue 34's cost) equal those formed again, bit for
+bit: the flexible friction columns of the derivative choice written into one array, and the Gram matrices of the
+consistent fit's problem formed once for every prior weight of its search."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from dynamics.measurements import Measurements
+from dynamics.models import build_model
+from dynamics.robots import load_robot
+from estimation.consistent.least_squares import ConsistentLeastSquares
+from estimation.estimators.least_squares import WeightedLeastSquares, channel_gram
+from estimation.identification.preprocessing_choice import FRICTION_SPEEDS, HeldOutScore, joint_speeds, \
+    with_friction_columns
+from tests.test_consistent import consistent_truth, simulated_problem
+
+
+def friction_by_blocks(measurements: Measurements, channels, speeds=None) -> np.ndarray:
+    """The flexible friction as it was built before: a zero block a joint, concatenated."""
+    speeds = joint_speeds(measurements) if speeds is None else speeds
+    blocks = []
+    for joint in range(measurements.n_joints):
+        name = f"tau{joint + 1}"
+        if name not in channels:
+            continue
+        dq = measurements.dq[:, joint]
+        speed = float(speeds[joint])
+        columns = np.zeros((measurements.n_samples, len(channels), 2 + len(FRICTION_SPEEDS)))
+        channel = list(channels).index(name)
+        columns[:, channel, 0] = 1.0
+        columns[:, channel, 1] = dq / speed
+        for k, fraction in enumerate(FRICTION_SPEEDS):
+            columns[:, channel, 2 + k] = np.tanh(dq / (fraction * speed))
+        blocks.append(columns)
+    return np.concatenate(blocks, axis=2) if blocks else np.zeros((measurements.n_samples, len(channels), 0))
+
+
+@pytest.mark.parametrize("channels", [("tau1", "tau2", "tau3"), ("tau3", "fz", "tau1"), ("fx", "fy")])
+def test_the_friction_columns_written_into_one_array_are_those_concatenated_bit_for_bit(channels):
+    rng = np.random.default_rng(3)
+    n = 500
+    dq = rng.normal(size=(n, 3)) * np.array([0.1, 2.0, 30.0])
+    dq[:, 2] = 0.0  # a joint at rest: its speed is 1
+    measurements = Measurements(t=np.arange(n) * 1e-3, q=rng.normal(size=(n, 3)), dq=dq, ddq=rng.normal(size=(n, 3)),
+                                tau=rng.normal(size=(n, 3)))
+    Y = rng.normal(size=(n, len(channels), 5))
+    expected = friction_by_blocks(measurements, channels)
+    np.testing.assert_array_equal(HeldOutScore.friction_columns(measurements, channels), expected)
+    found = with_friction_columns(Y, measurements, channels)
+    assert found.shape == (n, len(channels), 5 + expected.shape[2]) and found.flags.c_contiguous
+    np.testing.assert_array_equal(found, np.concatenate([Y, expected], axis=2))
+    speeds = np.array([0.5, 3.0, 7.0])  # another record's speeds (the score on a repeat)
+    np.testing.assert_array_equal(with_friction_columns(Y, measurements, channels, speeds),
+                                  np.concatenate([Y, friction_by_blocks(measurements, channels, speeds)], axis=2))
+
+
+def test_the_consistent_fit_from_gram_matrices_formed_once_is_the_fit_that_forms_them_bit_for_bit():
+    model = build_model(load_robot("puma560", joints=3), "internal", "viscous")
+    problem, _ = simulated_problem(model, consistent_truth(model), 60, 1.0, seed=5)
+    unconstrained = WeightedLeastSquares().fit(problem).estimate_
+    gram, _ = channel_gram(problem)
+    for weight in (10.0, 0.1):
+        again = ConsistentLeastSquares(prior_weight=weight).fit(model, problem, unconstrained=unconstrained).estimate_
+        reused = ConsistentLeastSquares(prior_weight=weight).fit(model, problem, unconstrained=unconstrained,
+                                                                 gram=gram).estimate_
+        for name in ("values", "phi", "cov", "std"):
+            np.testing.assert_array_equal(getattr(reused, name), getattr(again, name))
+        assert reused.excess_chi2 == again.excess_chi2
+    with pytest.raises(ValueError, match="gram has shape"):
+        ConsistentLeastSquares(prior_weight=1.0).fit(model, problem, unconstrained=unconstrained, gram=gram[:, :-1])
