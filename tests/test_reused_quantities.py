@@ -1,19 +1,28 @@
 """Quantities the default `oed diagnose` forms once and reuses (issue 34's cost) equal those formed again, bit for
-bit: the flexible friction columns of the derivative choice written into one array, and the Gram matrices of the
-consistent fit's problem formed once for every prior weight of its search."""
+bit: the flexible friction columns of the derivative choice written into one array, the Gram matrices of the
+consistent fit's problem formed once for every prior weight of its search, and a shaped fit's prediction along its
+training record taken from the fit for the comparison there."""
 
 from __future__ import annotations
+
+from dataclasses import replace as dc_replace
 
 import numpy as np
 import pytest
 
+from dynamics.effects.linear import CoulombFriction
 from dynamics.measurements import Measurements
 from dynamics.models import build_model
 from dynamics.robots import load_robot
+from dynamics.simulation.synthetic import simulate, true_parameters
 from estimation.consistent.least_squares import ConsistentLeastSquares
 from estimation.estimators.least_squares import WeightedLeastSquares, channel_gram
 from estimation.identification.preprocessing_choice import FRICTION_SPEEDS, HeldOutScore, joint_speeds, \
     with_friction_columns
+from estimation.identification.fit import identify
+from estimation.identification.shaped import fit_shaped_model, fit_shaped_model_predicting, shaped_comparison
+from estimation.preprocessing.plan import Preprocessing, prepare
+from oed.fourier import random_fourier
 from tests.test_consistent import consistent_truth, simulated_problem
 
 
@@ -70,3 +79,39 @@ def test_the_consistent_fit_from_gram_matrices_formed_once_is_the_fit_that_forms
         assert reused.excess_chi2 == again.excess_chi2
     with pytest.raises(ValueError, match="gram has shape"):
         ConsistentLeastSquares(prior_weight=1.0).fit(model, problem, unconstrained=unconstrained, gram=gram[:, :-1])
+
+
+@pytest.fixture(scope="module")
+def shaped_records():
+    robot = load_robot("puma560", joints=3)
+    truth = build_model(robot, "internal", ("viscous", CoulombFriction(smoothing=0.04)))
+    theta = true_parameters(truth, seed=1, coulomb=[6.0, 4.0, 2.0])
+    records = []
+    for seed in (5, 6):
+        clean = simulate(truth, theta, random_fourier(robot, seed=seed), rate_hz=250, periods=2)
+        noisy = dc_replace(clean, tau=clean.tau + 0.05 * np.random.default_rng(seed).normal(size=clean.tau.shape))
+        records.append(noisy)
+    return build_model(robot, "internal", ("viscous", "coulomb:tanh")), records  # a shaped law fitted
+
+
+def test_the_shaped_fit_compared_on_its_training_record_with_its_own_prediction_is_the_comparison_formed_again(
+        shaped_records):
+    model, (train, validate) = shaped_records
+    positions_only = [dc_replace(record, dq=None, ddq=None) for record in (train, validate)]
+    plan = Preprocessing("butterworth", cutoff_hz=10.0)  # the torques kept as recorded: a comparison with `filtered`
+    for pair in ((train, validate), tuple(prepare(record, plan) for record in positions_only)):
+        result = identify(model, *pair)
+        again = shaped_comparison(result.shaped_fit, pair[0], "identification")
+        found = result.train
+        for one, other in ((found, again), (found.filtered, again.filtered)):
+            if other is None:
+                assert one is None
+                continue
+            np.testing.assert_array_equal(one.predicted, other.predicted)
+            np.testing.assert_array_equal(one.measured, other.measured)
+            assert one.mse == other.mse
+        assert (found.filtered is None) == (pair[0].recorded is None)
+    _, _, fitted = fit_shaped_model_predicting(model, train)
+    np.testing.assert_array_equal(fitted, fit_shaped_model(model, train)[0].predict(train))
+    with pytest.raises(ValueError, match="predicted has shape"):
+        shaped_comparison(result.shaped_fit, pair[0], "identification", predicted=fitted[:-1])

@@ -28,7 +28,7 @@ from estimation.estimators.least_squares import Estimate, LeastSquares, Weighted
 from dynamics.measurements import Measurements
 from estimation.data.segments import concatenate
 from estimation.identification.delayed import identify_delayed
-from estimation.identification.shaped import ShapeValue, fit_shaped_model, shaped_comparison
+from estimation.identification.shaped import ShapeValue, fit_shaped_model_predicting, shaped_comparison
 from estimation.identification.validation import Comparison, compare
 from estimation.preprocessing.delay import DelayBounds, check_delay, delayed
 
@@ -259,9 +259,10 @@ def _identify_shaped(model, train, validate, weighted, shape_starts=None, shape_
                      covariance: CovarianceMethod = "hac") -> IdentificationResult:
     """Variable projection for shaped effects (:mod:`estimation.identification.shaped`); ``covariance``
     ``"hac"``: the batch-means sandwich, ``"classical"``: white residuals (both from the full Jacobian)."""
-    shaped, estimate = fit_shaped_model(model, train, weighted=weighted, starts=shape_starts, search=shape_search,
-                                        covariance="white" if covariance == "classical" else "hac")
-    train_comparison = shaped_comparison(shaped, train, "identification")
+    shaped, estimate, fitted = fit_shaped_model_predicting(model, train, weighted=weighted, starts=shape_starts,
+                                                           search=shape_search,
+                                                           covariance="white" if covariance == "classical" else "hac")
+    train_comparison = shaped_comparison(shaped, train, "identification", predicted=fitted)  # the fit's own
     validation = None if validate is None else shaped_comparison(shaped, validate, "validation")
     notes = implausible_estimates(model, estimate)
     for note in notes:
