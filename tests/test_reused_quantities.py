@@ -20,6 +20,7 @@ from estimation.estimators.least_squares import WeightedLeastSquares, channel_gr
 from estimation.identification.preprocessing_choice import FRICTION_SPEEDS, HeldOutScore, joint_speeds, \
     with_friction_columns
 from estimation.identification.fit import identify
+from estimation.identification.validation import compare
 from estimation.identification.shaped import fit_shaped_model, fit_shaped_model_predicting, shaped_comparison
 from estimation.preprocessing.plan import Preprocessing, prepare
 from oed.fourier import random_fourier
@@ -115,3 +116,25 @@ def test_the_shaped_fit_compared_on_its_training_record_with_its_own_prediction_
     np.testing.assert_array_equal(fitted, fit_shaped_model(model, train)[0].predict(train))
     with pytest.raises(ValueError, match="predicted has shape"):
         shaped_comparison(result.shaped_fit, pair[0], "identification", predicted=fitted[:-1])
+
+
+def test_a_linear_fit_compared_on_its_training_record_with_its_regressor_is_the_comparison_formed_again(
+        shaped_records):
+    _, (train, validate) = shaped_records
+    plan = Preprocessing("butterworth", cutoff_hz=10.0)
+    prepared = prepare(dc_replace(train, dq=None, ddq=None), plan)
+    for model in (build_model(load_robot("puma560", joints=3), "internal", ("viscous", "coulomb", "offset")),
+                  build_model(load_robot("emps"), "internal", ("viscous", "coulomb", "offset"))):
+        for record in (train, prepared) if model.robot.n_joints == 3 else (dc_replace(train, q=train.q[:, :1],
+                                                                           dq=train.dq[:, :1], ddq=train.ddq[:, :1],
+                                                                           tau=train.tau[:, :1]),):
+            result = identify(model, record)
+            again = compare(model, result.estimate.values, record, label="identification")
+            for one, other in ((result.train, again), (result.train.filtered, again.filtered)):
+                if other is None:
+                    assert one is None
+                    continue
+                np.testing.assert_array_equal(one.predicted, other.predicted)
+                assert one.mse == other.mse
+    with pytest.raises(ValueError, match="predicted has shape"):
+        compare(model, result.estimate.values, record, predicted=np.zeros((3, 1)))

@@ -245,8 +245,13 @@ def identify(
         return _identify_shaped(model, train, validate, weighted, shape_starts, shape_search, check_method(covariance))
     if estimator is None:
         estimator = WeightedLeastSquares(covariance=covariance) if weighted else LeastSquares(covariance=covariance)
-    estimate = estimator.fit(stack(model, train)).estimate_
-    train_comparison = compare(model, estimate.values, train, label="identification")
+    problem = stack(model, train)
+    estimate = estimator.fit(problem).estimate_
+    # the prediction along ``train`` from the fit's own regressor (the base one, which model.predict takes for base
+    # values unless the model has as many standard parameters), not evaluated again
+    base = estimate.values.shape[0] == model.n_base != model.n_parameters
+    train_comparison = compare(model, estimate.values, train, label="identification",
+                               predicted=problem.Y @ np.asarray(estimate.values, dtype=float) if base else None)
     validation = None if validate is None else compare(model, estimate.values, validate, label="validation")
     notes = implausible_estimates(model, estimate)
     for note in notes:
