@@ -55,6 +55,7 @@ from estimation.consistent.least_squares import ConsistentEstimate, ConsistentLe
 from estimation.identification.fit import IMPLAUSIBLE_CAUSE, IdentificationResult, identify, implausible_records
 from estimation.identification.identified_model import IdentifiedModel
 from estimation.estimators.identification_problem import stack
+from estimation.estimators.least_squares import channel_gram
 from dynamics.measurements import Measurements
 from estimation.identification.validation import ChannelErrors, Comparison, compare
 from estimation.estimators.normal_equations import NormalEquations
@@ -297,10 +298,11 @@ def _searched_fit(result: IdentificationResult, train: Measurements, validate: M
     problem = fixed_problem(result, train) if has_fixed_effects(result) else stack(result.model, train)
     estimates: dict[float, ConsistentEstimate] = {}
     warm = None
+    gram, _ = channel_gram(problem)  # the same problem at every weight: its Gram matrices formed once
     for weight in sorted(PRIOR_WEIGHT_GRID, reverse=True):
         estimator = ConsistentLeastSquares(prior_weight=weight, prior=prior, bounds=bounds, starts=starts,
                                            warm_start=warm)
-        estimates[weight] = estimator.fit(result.model, problem, unconstrained=result.estimate).estimate_
+        estimates[weight] = estimator.fit(result.model, problem, unconstrained=result.estimate, gram=gram).estimate_
         warm = estimates[weight].phi
     # the training problem's regressor is the one along ``train`` when ``train`` is one record (stack and
     # fixed_problem evaluate it on concatenate(train), ``train`` itself then)

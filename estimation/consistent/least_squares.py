@@ -217,7 +217,8 @@ class ConsistentLeastSquares(Estimator):
 
     @single_threaded_blas()
     def fit(self, model: IdentificationModel, data: IdentificationProblem | Measurements | NormalEquations, *,
-            unconstrained: Estimate | None = None, shapes_fixed: bool = False) -> ConsistentLeastSquares:
+            unconstrained: Estimate | None = None, shapes_fixed: bool = False,
+            gram: NDArray[np.float64] | None = None) -> ConsistentLeastSquares:
         """Fit ``model`` on ``data`` (a stacked problem, measurements, or the sums of the problem over its samples,
         :class:`~estimation.estimators.normal_equations.NormalEquations`: the cost needs the per-channel Gram
         matrices only, so a record read in blocks is fitted as the whole one), from ``unconstrained`` (a weighted or
@@ -225,7 +226,10 @@ class ConsistentLeastSquares(Estimator):
         :class:`~estimation.estimators.summed_least_squares.SummedLeastSquares`'s). ``shapes_fixed``: the sums were
         evaluated at the shaped laws' fitted shapes (the streamed diagnosis's adopted model,
         :mod:`estimation.streaming.diagnosis_selection`), as a problem from
-        :func:`~estimation.consistent.fixed_shapes.fixed_problem` is."""
+        :func:`~estimation.consistent.fixed_shapes.fixed_problem` is. ``gram``: the per-channel Gram matrices
+        ``(m, r, r)`` of ``data`` (a problem or measurements) when the caller has them
+        (:func:`~estimation.estimators.least_squares.channel_gram`: a search over the prior's weight fits one problem
+        at every weight), not formed again."""
         self._forget_fit()
         started = time.perf_counter()
         if not isinstance(model, IdentificationModel):
@@ -244,7 +248,11 @@ class ConsistentLeastSquares(Estimator):
                 raise ValueError(f"the problem has {problem.n_parameters} parameters, the model {model.n_base} base parameters")
             if unconstrained is None:
                 unconstrained = WeightedLeastSquares().fit(problem).estimate_
-            gram, _ = channel_gram(problem)
+            if gram is None:
+                gram, _ = channel_gram(problem)
+            elif np.shape(gram) != (problem.n_channels, problem.n_parameters, problem.n_parameters):
+                raise ValueError(f"gram has shape {np.shape(gram)}, expected "
+                                 f"{(problem.n_channels, problem.n_parameters, problem.n_parameters)}")
         G = np.tensordot(unconstrained.weights, gram, axes=1)
         G = 0.5 * (G + G.T)
         parametrisation = PhysicalParametrisation.of_model(model, self.bounds)

@@ -28,7 +28,7 @@ from estimation.estimators.least_squares import Estimate, LeastSquares, Weighted
 from dynamics.measurements import Measurements
 from estimation.data.segments import concatenate
 from estimation.identification.delayed import identify_delayed
-from estimation.identification.shaped import ShapeValue, fit_shaped_model, shaped_comparison
+from estimation.identification.shaped import ShapeValue, fit_shaped_model_predicting, shaped_comparison
 from estimation.identification.validation import Comparison, compare
 from estimation.preprocessing.delay import DelayBounds, check_delay, delayed
 
@@ -245,8 +245,13 @@ def identify(
         return _identify_shaped(model, train, validate, weighted, shape_starts, shape_search, check_method(covariance))
     if estimator is None:
         estimator = WeightedLeastSquares(covariance=covariance) if weighted else LeastSquares(covariance=covariance)
-    estimate = estimator.fit(stack(model, train)).estimate_
-    train_comparison = compare(model, estimate.values, train, label="identification")
+    problem = stack(model, train)
+    estimate = estimator.fit(problem).estimate_
+    # the prediction along ``train`` from the fit's own regressor (the base one, which model.predict takes for base
+    # values unless the model has as many standard parameters), not evaluated again
+    base = estimate.values.shape[0] == model.n_base != model.n_parameters
+    train_comparison = compare(model, estimate.values, train, label="identification",
+                               predicted=problem.Y @ np.asarray(estimate.values, dtype=float) if base else None)
     validation = None if validate is None else compare(model, estimate.values, validate, label="validation")
     notes = implausible_estimates(model, estimate)
     for note in notes:
@@ -259,9 +264,10 @@ def _identify_shaped(model, train, validate, weighted, shape_starts=None, shape_
                      covariance: CovarianceMethod = "hac") -> IdentificationResult:
     """Variable projection for shaped effects (:mod:`estimation.identification.shaped`); ``covariance``
     ``"hac"``: the batch-means sandwich, ``"classical"``: white residuals (both from the full Jacobian)."""
-    shaped, estimate = fit_shaped_model(model, train, weighted=weighted, starts=shape_starts, search=shape_search,
-                                        covariance="white" if covariance == "classical" else "hac")
-    train_comparison = shaped_comparison(shaped, train, "identification")
+    shaped, estimate, fitted = fit_shaped_model_predicting(model, train, weighted=weighted, starts=shape_starts,
+                                                           search=shape_search,
+                                                           covariance="white" if covariance == "classical" else "hac")
+    train_comparison = shaped_comparison(shaped, train, "identification", predicted=fitted)  # the fit's own
     validation = None if validate is None else shaped_comparison(shaped, validate, "validation")
     notes = implausible_estimates(model, estimate)
     for note in notes:

@@ -170,7 +170,7 @@ class HeldOutScore:
         recorded = prepared.as_recorded
         kept = thinned(recorded, self.max_rows)
         problem = stack(self.model, kept)
-        Y = np.concatenate([problem.Y, self.friction_columns(kept, problem.channels)], axis=2)
+        Y = with_friction_columns(problem.Y, kept, problem.channels)
         mse = self.held_out_mse(Y, problem.y)
         evidence = CandidateEvidence(preprocessing.without_evidence(), geometric_mean(mse),
                                      dict(zip(problem.channels, map(float, mse))), None, time.perf_counter() - started,
@@ -215,8 +215,8 @@ class HeldOutScore:
         fitted, predicted = thinned(fitted, self.max_rows), thinned(predicted, self.max_rows)
         problem, other = stack(self.model, fitted), stack(self.model, predicted)
         speeds = joint_speeds(fitted)
-        Y = np.concatenate([problem.Y, self.friction_columns(fitted, problem.channels, speeds)], axis=2)
-        X = np.concatenate([other.Y, self.friction_columns(predicted, problem.channels, speeds)], axis=2)
+        Y = with_friction_columns(problem.Y, fitted, problem.channels, speeds)
+        X = with_friction_columns(other.Y, predicted, problem.channels, speeds)
         scale = np.std(problem.y, axis=0)
         scale[scale == 0] = 1.0
         rows = (Y / scale[None, :, None]).reshape(-1, Y.shape[2])
@@ -232,25 +232,34 @@ class HeldOutScore:
                          speeds: NDArray[np.float64] | None = None) -> NDArray[np.float64]:
         """Per joint, on its own torque channel: an offset, ``dq`` and ``tanh(dq / s)`` (:data:`FRICTION_SPEEDS`),
         the speeds ``s`` fractions of the joint's root-mean-square speed (``speeds``: given, else this record's)."""
-        speeds = joint_speeds(measurements) if speeds is None else speeds
-        blocks = []
-        for joint in range(measurements.n_joints):
-            name = f"tau{joint + 1}"
-            if name not in channels:
-                continue
-            dq = measurements.dq[:, joint]
-            speed = float(speeds[joint])
-            columns = np.zeros((measurements.n_samples, len(channels), 2 + len(FRICTION_SPEEDS)))
-            channel = list(channels).index(name)
-            columns[:, channel, 0] = 1.0
-            columns[:, channel, 1] = dq / speed
-            for k, fraction in enumerate(FRICTION_SPEEDS):
-                columns[:, channel, 2 + k] = np.tanh(dq / (fraction * speed))
-            blocks.append(columns)
-        return np.concatenate(blocks, axis=2) if blocks else np.zeros((measurements.n_samples, len(channels), 0))
+        return with_friction_columns(None, measurements, channels, speeds)
 
 
 Family = Literal["fourier", "butterworth"]
+
+
+def with_friction_columns(Y: NDArray[np.float64] | None, measurements: Measurements, channels: Sequence[str],
+                          speeds: NDArray[np.float64] | None = None) -> NDArray[np.float64]:
+    """``Y (N, m, r)`` with :meth:`HeldOutScore.friction_columns` appended along its columns (``Y`` ``None``: those
+    columns alone), written into one array: the same values as concatenating them, without a zero block a joint
+    and the copies of the concatenation (each candidate of the choice builds them)."""
+    speeds = joint_speeds(measurements) if speeds is None else speeds
+    joints = [joint for joint in range(measurements.n_joints) if f"tau{joint + 1}" in channels]
+    width = 2 + len(FRICTION_SPEEDS)
+    base = 0 if Y is None else Y.shape[2]
+    columns = np.zeros((measurements.n_samples, len(channels), base + width * len(joints)))
+    if Y is not None:
+        columns[:, :, :base] = Y
+    for position, joint in enumerate(joints):
+        dq = measurements.dq[:, joint]
+        speed = float(speeds[joint])
+        channel = list(channels).index(f"tau{joint + 1}")
+        first = base + width * position
+        columns[:, channel, first] = 1.0
+        columns[:, channel, first + 1] = dq / speed
+        for k, fraction in enumerate(FRICTION_SPEEDS):
+            columns[:, channel, first + 2 + k] = np.tanh(dq / (fraction * speed))
+    return columns
 
 
 def training_sums(model: IdentificationModel, prepared: Measurements) -> NormalEquations | None:

@@ -17,6 +17,7 @@ from dataclasses import dataclass, replace
 from typing import Any, Literal
 
 import numpy as np
+from numpy.typing import NDArray
 
 from dynamics.models import IdentificationModel
 from dynamics.effects.shaped import ShapedPerJointEffect, is_shaped
@@ -151,6 +152,18 @@ def fit_shaped_model(model: IdentificationModel, train: Measurements, *, weighte
     (``cov_method="batch_means"``), ``"white"`` ``σ̂² (J_fᵀWJ_f)⁻¹`` (``cov_method="classical"``), both
     from the full Jacobian (:func:`estimation.estimators.variable_projection.fit_shapes`).
     """
+    shaped, estimate, _ = fit_shaped_model_predicting(model, train, weighted=weighted, rounds=rounds, starts=starts,
+                                                      search=search, covariance=covariance)
+    return shaped, estimate
+
+
+def fit_shaped_model_predicting(model: IdentificationModel, train: Measurements, *, weighted: bool = True,
+                                rounds: int = 4, starts: dict[str, float] | None = None, search: bool = True,
+                                covariance: Literal["hac", "white"] = "hac"
+                                ) -> tuple[ShapedFit, Estimate, NDArray[np.float64]]:
+    """:func:`fit_shaped_model`, and its prediction along ``train`` ``(N, m)``: the fit forms it for its residual,
+    the very values :meth:`ShapedFit.predict` gives along ``train`` (the comparison on the training record takes it
+    rather than evaluating the regressor again: :func:`shaped_comparison`'s ``predicted``)."""
     if covariance not in ("hac", "white"):
         raise ValueError(f"covariance must be 'hac' or 'white', got {covariance!r}")
     if train.dq is None or train.ddq is None:
@@ -191,7 +204,8 @@ def fit_shaped_model(model: IdentificationModel, train: Measurements, *, weighte
         fit = fit_shapes(fixed, blocks, states, weights, starts=fit.shape[None, :], max_iter=60 if search else 0,
                          covariance=covariance, segments=segments)
     shaped = ShapedFit(model, tuple(blocks), tuple(kept), tuple(replaced), fit, weights)
-    residual = y - shaped.predict(train, Y, overwrite=True)
+    predicted = shaped.predict(train, Y, overwrite=True)
+    residual = y - predicted
     order = list(kept) + list(replaced)
     n_linear = len(order)
     cov = np.empty((model.n_base, model.n_base))
@@ -211,19 +225,27 @@ def fit_shaped_model(model: IdentificationModel, train: Measurements, *, weighte
         method="wls" if weighted else "ols", n_iterations=1,
         cov_method="batch_means" if covariance == "hac" else "classical",
     )
-    return shaped, estimate
+    return shaped, estimate, predicted
 
 
-def shaped_comparison(shaped: ShapedFit, measurements: Measurements, label: str) -> Comparison:
+def shaped_comparison(shaped: ShapedFit, measurements: Measurements, label: str, *,
+                      predicted: NDArray[np.float64] | None = None) -> Comparison:
     """Measured against predicted at the fitted shapes, against the channels **as recorded**
     (``measurements.recorded`` when preprocessing filtered or averaged them; the comparison with
-    the filtered channels kept as ``filtered``), as :func:`estimation.identification.validation.compare`."""
-    filtered = _comparison_as_is(shaped, measurements, label)
+    the filtered channels kept as ``filtered``), as :func:`estimation.identification.validation.compare`.
+    ``predicted``: ``shaped.predict(measurements)`` when the caller has it (the fit's own along its training record,
+    :func:`fit_shaped_model_predicting`), not formed again; the recorded samples' is formed here."""
+    if predicted is not None and np.shape(predicted) != (measurements.n_samples, shaped.model.n_channels):
+        raise ValueError(f"predicted has shape {np.shape(predicted)}, expected "
+                         f"{(measurements.n_samples, shaped.model.n_channels)}")
+    filtered = _comparison_as_is(shaped, measurements, label, predicted)
     if measurements.recorded is None:
         return filtered
     return replace(_comparison_as_is(shaped, measurements.recorded, label), filtered=filtered)
 
 
-def _comparison_as_is(shaped: ShapedFit, measurements: Measurements, label: str) -> Comparison:
-    return Comparison(measurements.t, measurements.channels(shaped.model.channels), shaped.predict(measurements),
+def _comparison_as_is(shaped: ShapedFit, measurements: Measurements, label: str,
+                      predicted: NDArray[np.float64] | None = None) -> Comparison:
+    return Comparison(measurements.t, measurements.channels(shaped.model.channels),
+                      shaped.predict(measurements) if predicted is None else predicted,
                       shaped.model.channels, label, segments=tuple(segment_slices(measurements)))

@@ -90,14 +90,19 @@ def channel_mse(measured: ArrayLike, predicted: ArrayLike, channels: Sequence[st
     return {channel: float(value) for channel, value in zip(channels, np.mean((measured - predicted) ** 2, axis=0))}
 
 
-def compare(model: IdentificationModel, theta: ArrayLike, measurements: Measurements, *, label: str = "") -> Comparison:
+def compare(model: IdentificationModel, theta: ArrayLike, measurements: Measurements, *, label: str = "",
+            predicted: NDArray[np.float64] | None = None) -> Comparison:
     """Predict ``model``'s channels with parameters ``theta`` (base ``r`` or standard ``p`` values)
     along the measured (or derived) motion and pair them with the channels **as recorded**
     (``measurements.recorded`` when preprocessing filtered or averaged them; the comparison with
-    the filtered channels is kept as ``filtered``)."""
+    the filtered channels is kept as ``filtered``). ``predicted``: ``model.predict(theta, …)`` along
+    ``measurements`` itself when the caller has it (a fit's regressor times its estimate,
+    :func:`estimation.identification.fit.identify`), not formed again; the recorded samples' is formed here."""
     if measurements.dq is None or measurements.ddq is None:
         raise ValueError("the measurements lack dq/ddq: derive them first (estimation.preprocessing.differentiation.fill_derivatives)")
-    filtered = _compare_as_is(model, theta, measurements, label)
+    if predicted is not None and np.shape(predicted) != (measurements.n_samples, model.n_channels):
+        raise ValueError(f"predicted has shape {np.shape(predicted)}, expected {(measurements.n_samples, model.n_channels)}")
+    filtered = _compare_as_is(model, theta, measurements, label, predicted)
     if measurements.recorded is None:
         return filtered
     recorded = _compare_as_is(model, theta, measurements.recorded, label)
@@ -137,8 +142,10 @@ def compare_recorded(model: IdentificationModel, thetas: dict[str, ArrayLike], m
             for name in vectors}
 
 
-def _compare_as_is(model: IdentificationModel, theta: ArrayLike, measurements: Measurements, label: str) -> Comparison:
-    predicted = model.predict(theta, measurements.q, measurements.dq, measurements.ddq)
+def _compare_as_is(model: IdentificationModel, theta: ArrayLike, measurements: Measurements, label: str,
+                   predicted: NDArray[np.float64] | None = None) -> Comparison:
+    if predicted is None:
+        predicted = model.predict(theta, measurements.q, measurements.dq, measurements.ddq)
     return Comparison(measurements.t, measurements.channels(model.channels), predicted, model.channels, label,
                       segments=tuple(segment_slices(measurements)))
 
