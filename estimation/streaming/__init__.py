@@ -1,6 +1,6 @@
 """Long records in bounded memory: records read chunk by chunk, their time base and periods, sums over many files (clusters), and the streamed identification and diagnosis.
 
-Modules: :mod:`~estimation.streaming.candidate_screening`, :mod:`~estimation.streaming.chunks`, :mod:`~estimation.streaming.cluster`, :mod:`~estimation.streaming.covariance`, :mod:`~estimation.streaming.cutoff_choice`, :mod:`~estimation.streaming.diagnosis`, :mod:`~estimation.streaming.diagnosis_result`, :mod:`~estimation.streaming.diagnosis_selection`, :mod:`~estimation.streaming.diagnosis_candidates`, :mod:`~estimation.streaming.diagnosis_passes`, :mod:`~estimation.streaming.diagnosis_sums`, :mod:`~estimation.streaming.identification`, :mod:`~estimation.streaming.model_selection`, :mod:`~estimation.streaming.periods`, :mod:`~estimation.streaming.recorded_errors`, :mod:`~estimation.streaming.selection`, :mod:`~estimation.streaming.time_base`.
+Modules: :mod:`~estimation.streaming.candidate_screening`, :mod:`~estimation.streaming.chunks`, :mod:`~estimation.streaming.cluster`, :mod:`~estimation.streaming.covariance`, :mod:`~estimation.streaming.cutoff_choice`, :mod:`~estimation.streaming.diagnosis`, :mod:`~estimation.streaming.diagnosis_result`, :mod:`~estimation.streaming.diagnosis_selection`, :mod:`~estimation.streaming.diagnosis_candidates`, :mod:`~estimation.streaming.diagnosis_passes`, :mod:`~estimation.streaming.diagnosis_sums`, :mod:`~estimation.streaming.identification`, :mod:`~estimation.streaming.model_selection`, :mod:`~estimation.streaming.periods`, :mod:`~estimation.streaming.recorded_errors`, :mod:`~estimation.streaming.selection`, :mod:`~estimation.streaming.settings`, :mod:`~estimation.streaming.time_base`.
 """
 
 from __future__ import annotations
@@ -12,11 +12,11 @@ from dynamics.runtime.lazy import lazy_exports
 _EXPORTS: dict[str, str] = {
     "BATCH_LENGTHS": "estimation.streaming.covariance",
     "BatchScores": "estimation.streaming.covariance",
-    "DEFAULT_SUBSAMPLE": "estimation.streaming.diagnosis",
+    "DEFAULT_SUBSAMPLE": "estimation.streaming.settings",
     "EvenSubsample": "estimation.streaming.diagnosis_sums",
-    "FLOOR_WINDOW": "estimation.streaming.diagnosis_passes",
+    "FLOOR_WINDOW": "estimation.streaming.settings",
     "IncompleteSumError": "estimation.streaming.cluster",
-    "SCHEDULER_VARIABLE": "estimation.streaming.cluster",
+    "SCHEDULER_VARIABLE": "estimation.streaming.settings",
     "StreamingUnsupportedError": "estimation.streaming.chunks",
     "WorkerLostError": "estimation.streaming.cluster",
     "accumulate_candidates": "estimation.streaming.candidate_screening",
@@ -38,7 +38,7 @@ _EXPORTS: dict[str, str] = {
     "plan_options": "estimation.streaming.periods",
     "streamed_recorded_errors": "estimation.streaming.recorded_errors",
     "streamed_recorded_mse": "estimation.streaming.recorded_errors",
-    "scheduler_address": "estimation.streaming.cluster",
+    "scheduler_address": "estimation.streaming.settings",
     "streamed_plan": "estimation.streaming.recorded_errors",
     "streamed_window": "estimation.streaming.cutoff_choice",
     "sum_files": "estimation.streaming.cluster",

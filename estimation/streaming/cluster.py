@@ -33,6 +33,7 @@ from estimation.data.loading import MeasurementError
 from estimation.estimators.normal_equations import DEFAULT_CHUNK_SIZE, NormalEquations, reduce_sums
 from estimation.streaming.chunks import FileSums, file_sums, read_chunks
 from estimation.streaming.periods import periodic_file_sums
+from estimation.streaming.settings import SCHEDULER_VARIABLE, scheduler_address
 
 __all__ = [
     "SCHEDULER_VARIABLE", "ClusterUnavailableError", "IncompleteSumError", "WorkerLostError", "caught_warnings",
@@ -40,8 +41,6 @@ __all__ = [
     "task_result",
 ]
 
-#: environment variable holding a dask scheduler's address (``tcp://host:8786``)
-SCHEDULER_VARIABLE = "ROBOT_OED_SCHEDULER"
 #: seconds to wait for a scheduler before giving up
 CONNECT_TIMEOUT = 20.0
 
@@ -202,12 +201,6 @@ def check_parts(model: IdentificationModel, paths: Sequence[str], parts: Sequenc
     if total.n_samples != expected:
         raise IncompleteSumError(f"{total.n_samples} samples summed of {expected} expected")
     return total
-
-
-def scheduler_address(given: str | None) -> str | None:
-    """The scheduler to use: ``given``, else ``$ROBOT_OED_SCHEDULER``, else ``None`` (no cluster)."""
-    address = given if given is not None else os.environ.get(SCHEDULER_VARIABLE)
-    return address.strip() or None if address is not None else None
 
 
 @contextlib.contextmanager

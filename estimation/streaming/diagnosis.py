@@ -81,13 +81,11 @@ from estimation.streaming.diagnosis_result import StreamedRun, StreamedSettings,
 from estimation.streaming.diagnosis_sums import ChannelSums, normal_equations
 from estimation.streaming.periods import plan_options
 from estimation.streaming.selection import STILL_HELD_OUT, SummedFits, simpler_laws, summed_runner_up
+from estimation.streaming.settings import DEFAULT_SUBSAMPLE
 from estimation.uncertainty.noise_floor import NoiseFloor
 
 __all__ = ["DEFAULT_SUBSAMPLE", "diagnose_files", "diagnose_files_run"]
 
-#: samples (about; at most twice) of the evenly spread training subsample the shapes are searched on.
-#: The shape search costs what the in-memory diagnosis's first round costs on that many samples.
-DEFAULT_SUBSAMPLE = 10_000
 
 
 # ---------------------------------------------------------------- the diagnosis

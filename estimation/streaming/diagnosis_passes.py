@@ -37,13 +37,12 @@ from estimation.uncertainty.noise_floor import NoiseFloor, NoiseFloorError, nois
 from estimation.streaming.chunks import logged_chunks
 from estimation.streaming.periods import plan_chunks
 from estimation.streaming.covariance import BatchScores, chunk_scores
+from estimation.streaming.settings import FLOOR_WINDOW
 from estimation.estimators.effect_blocks import Block, States
 
 __all__ = ["FLOOR_WINDOW", "LagSums", "SubsamplePass", "SumsPass", "map_files", "scores_pass", "scores_task", "subsample_pass",
            "subsample_task", "stretch_pass", "stretch_task", "sums_pass", "sums_task", "window_floor"]
 
-#: rows of each validation file (as recorded) the noise floor is estimated on
-FLOOR_WINDOW = 100_000
 
 
 def _subsample(path: str, model: IdentificationModel, options: dict[str, Any], cap: int):

@@ -25,8 +25,7 @@ from oed.cli.identify_consistent import add_consistent_arguments
 from oed.cli.shared.verbs import verb_summary
 from oed.workflows.diagnose import DiagnoseOptions, diagnose, residual_figure, trace_figure
 from oed.workflows.options import check_json_path, check_report_path
-from estimation.streaming.diagnosis import DEFAULT_SUBSAMPLE
-from estimation.streaming.diagnosis_passes import FLOOR_WINDOW
+from estimation.streaming.settings import DEFAULT_SUBSAMPLE, FLOOR_WINDOW
 
 
 def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:

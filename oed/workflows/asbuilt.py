@@ -43,7 +43,6 @@ from estimation.identification.joint_zeros import check_joint_zeros
 from estimation.identification.model_parameters import model_parameters
 from estimation.identification.prepared import PreparedRecords
 from estimation.identification.trivial_predictors import trivial_mse, trivial_warnings
-from estimation.streaming.joint_zeros import streamed_joint_zeros
 from oed.workflows.options import RecordOptions, model_has_shapes
 
 
@@ -178,6 +177,8 @@ def streamed_joint_zero_notes(model: IdentificationModel, train: Sequence[str | 
     laws, nor on the Fourier path (its prepared samples are averaged periods, not the record)."""
     if model_has_shapes(model) or options.get("frequency_hz") is not None:
         return ()
+    from estimation.streaming.joint_zeros import streamed_joint_zeros  # the streamed path's: imported when it runs
+
     with step("joint zeros checked against the description's (a pass over the files)"), warnings.catch_warnings():
         warnings.simplefilter("ignore")  # the files' findings were said when the fit read them
         check = streamed_joint_zeros(model, train, train_samples, held_out, held_out_samples, options=options)

@@ -21,7 +21,7 @@ from collections.abc import Callable
 from contextlib import ExitStack
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from dynamics.models import IdentificationModel, build_model
 from dynamics.runtime.output_files import OutputFiles, json_text
@@ -42,7 +42,6 @@ from estimation.consistent.completion import completed_laws, completed_note, com
 from estimation.diagnosis.candidates.coupling import coupling_candidates
 from estimation.diagnosis.plain_laws import completion_laws, plain_completion, plain_model
 from dynamics.runtime.report_document import Report, figure_path, report_format
-from estimation.diagnosis.report import diagnosis_report, plot_residuals, plot_trace
 from estimation.diagnosis.results import Diagnosis, SummedFit, runner_up_line
 from estimation.diagnosis.search import default_candidates
 from estimation.diagnosis.search import diagnose as diagnose_model
@@ -53,18 +52,11 @@ from estimation.identification.undetermined import MergedColumn, merged_one_way
 from estimation.estimators.least_squares import IdentifiabilityError
 from estimation.preprocessing.delay import DelayBounds, split_delay
 from estimation.preprocessing.plan import Preprocessing
-from estimation.streaming.chunks import source_files
-from estimation.streaming.diagnosis import DEFAULT_SUBSAMPLE, diagnose_files_run
-from estimation.streaming.diagnosis_result import StreamedRun
-from estimation.streaming.diagnosis_selection import refit_selection, streamed_completion, streamed_refit_selection
-from estimation.streaming.model_selection import streamed_repeated_motion, warned_still_motion
-from estimation.streaming.diagnosis_result import floor_report
-from estimation.streaming.recorded_errors import streamed_plan
+from estimation.streaming.settings import DEFAULT_SUBSAMPLE, FLOOR_WINDOW
 from estimation.identification.model_file import summed_model_file_document
 from estimation.estimators.normal_equations import DEFAULT_CHUNK_SIZE
 from estimation.data.input_findings import FindingsSaid
 from estimation.data.log_cleaning import DEFAULT_MAX_GAP
-from estimation.streaming.diagnosis_passes import FLOOR_WINDOW
 from estimation.uncertainty.noise_floor import NoiseFloor
 from oed.workflows.asbuilt import (
     finish_document,
@@ -109,6 +101,12 @@ from oed.workflows.options import (
     with_logged_chain,
     streaming_requested,
 )
+
+if TYPE_CHECKING:
+    from estimation.streaming.diagnosis_result import StreamedRun
+
+# the streamed path's modules and the Markdown/HTML report's are imported where they are used: a run in memory
+# without --report never imports them (each run compiles and imports every module it imports)
 
 __all__ = ["IN_MEMORY", "DiagnoseOptions", "DiagnoseRun", "diagnose", "report_figures", "residual_figure",
            "trace_figure"]
@@ -214,6 +212,8 @@ class DiagnoseRun:
         predicted on the validation and test records, the floor and what the residual follows. One document,
         written as Markdown (:meth:`markdown`) or HTML (:meth:`html`). A streamed run's report has no figures (no
         samples held) and says what its path did not compute."""
+        from estimation.diagnosis.report import diagnosis_report
+
         diagnosis, records = self.diagnosis, self.records
         if records is None:  # streamed
             return diagnosis_report(diagnosis, preprocessing=self.lines[0], warnings=self.warnings,
@@ -239,12 +239,16 @@ class DiagnoseRun:
 
     def plot_residuals(self, path: str | Path) -> None:
         """The residual figure of the report, saved at ``path``."""
+        from estimation.diagnosis.report import plot_residuals
+
         self._check_in_memory()
         plot_residuals(self.diagnosis, self.records.train.measurements, path)
 
     def plot_trace(self, path: str | Path) -> None:
         """The residual against the variables that say something about it, saved at ``path`` (nothing written
         when none does)."""
+        from estimation.diagnosis.report import plot_trace
+
         self._check_in_memory()
         plot_trace(self.diagnosis, self.records.validation.measurements, path)
 
@@ -871,6 +875,10 @@ def diagnosis_streamed(args: DiagnoseOptions, friction: str, plan: Preprocessing
     derivatives chosen as in memory (``plan``: already chosen); ``friction``: the declared effects without the delay.
     The findings about the files are said as each pass ends, each once (``findings``: what the path decision said
     already)."""
+    from estimation.streaming.diagnosis import diagnose_files_run
+    from estimation.streaming.model_selection import streamed_repeated_motion, warned_still_motion
+    from estimation.streaming.recorded_errors import streamed_plan
+
     robot = robot_of(args)
     transmission = resolve_transmission(args, robot)  # its motor laws; motor-side records read as joint-side copies
     effects = model_effects(args, friction, robot, transmission)
@@ -951,6 +959,9 @@ def streamed_selection(args: DiagnoseOptions, diagnosis: Diagnosis, run: Streame
     as in memory (:func:`completed_selection`: on a repeat of the training motion, and on another motion with the
     prior weight chosen for the adopted model held, :func:`~estimation.consistent.completion.held_completion`) from
     the same sums (:func:`estimation.streaming.diagnosis_selection.streamed_completion`)."""
+    from estimation.streaming.diagnosis_selection import refit_selection, streamed_completion, streamed_refit_selection
+    from estimation.streaming.model_selection import streamed_repeated_motion
+
     model = diagnosis.model
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # the files' findings were said on the diagnosis's passes
@@ -986,6 +997,8 @@ def resampled_scorer(args: DiagnoseOptions, diagnosis: Diagnosis, plan: dict[str
     file the loader resampled: at its recorded samples, against the torques as recorded, as ``oed predict``
     measures the model file holding each (:func:`~oed.workflows.model_files.recorded_validation_errors`, shaped
     laws at their fixed shapes; the record read once for all the vectors)."""
+    from estimation.streaming.chunks import source_files
+
     model, estimate = (diagnosis.final_model(), diagnosis.after.estimate) if fit is None else (fit.model, fit.estimate)
     document = summed_model_file_document(model, estimate, robot=robot_source(diagnosis.model.robot, args),
                                           preprocessing=plan, shape=diagnosis.final_shape())
@@ -1006,6 +1019,9 @@ def recorded_errors(diagnosis: Diagnosis, args: DiagnoseOptions, plan: dict[str,
     comparisons of those errors; the streamed passes scored the record on the uniform grid. Unchanged when the
     records were read as recorded. ``plan``: the model files' preprocessing. The runner-up's validation MSE is
     measured again alike (its model file's, :func:`~oed.workflows.model_files.add_summed_runner_up_model_file`)."""
+    from estimation.streaming.chunks import source_files
+    from estimation.streaming.diagnosis_result import floor_report
+
     robot = robot_source(diagnosis.model.robot, args)
     after_file = summed_model_file_document(diagnosis.final_model(), diagnosis.after.estimate, robot=robot,
                                             preprocessing=plan, shape=diagnosis.final_shape(),

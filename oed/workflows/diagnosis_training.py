@@ -19,7 +19,7 @@ import time
 import warnings
 from collections.abc import Mapping
 from dataclasses import replace
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -29,9 +29,11 @@ from estimation.diagnosis.results import Diagnosis
 from estimation.identification.identified_model import IdentifiedModel
 from estimation.identification.model_file import ModelFile, summed_model_file_document
 from estimation.identification.validation import ChannelErrors
-from estimation.streaming.recorded_errors import Predictor, recorded_training_errors
 from oed.workflows.model_files import robot_source
 from oed.workflows.options import RecordOptions
+
+if TYPE_CHECKING:  # the streamed path's modules: imported when it runs
+    from estimation.streaming.recorded_errors import Predictor
 
 __all__ = ["averaged_errors", "recorded_training", "summed_unconstrained"]
 
@@ -81,6 +83,8 @@ def recorded_training(args: RecordOptions, diagnosis: Diagnosis, selection: Mode
     fourier = streaming.get("frequency_hz") is not None
     if not fourier and not any(record.get("resampled_from") is not None for record in files):
         return diagnosis, selection, None
+    from estimation.streaming.recorded_errors import recorded_training_errors
+
     robot = robot_source(diagnosis.model.robot, args)
     slot: dict[str, Any] = {}  # the predictors asked in order, model by model: each regressor once a block
     declared = _Prediction(summed_model_file_document(diagnosis.model, diagnosis.before.estimate, robot=robot,

@@ -21,8 +21,6 @@ from estimation.identification.preprocessing_choice import SCORED_SAMPLES, Prepr
 from estimation.preprocessing.differentiation import whole_periods
 from estimation.preprocessing.plan import Preprocessing
 from estimation.data.input_findings import FindingsSaid, grouped_messages
-from estimation.streaming.chunks import segment_sources
-from estimation.streaming.cutoff_choice import choose_streamed_preprocessing, first_rows
 from estimation.data.memory_budget import (
     InMemoryNeed,
     count_rows,
@@ -75,6 +73,9 @@ def streamed_choice(args: RecordOptions, model: IdentificationModel,
     derivative options given; ``validation_fits``: chosen again on a ``--validate`` record of another motion, as
     in memory (:mod:`estimation.identification.preprocessing_on_validation`), by fits of ``validation_model``
     (``None``: ``model``)."""
+    from estimation.streaming.chunks import segment_sources
+    from estimation.streaming.cutoff_choice import choose_streamed_preprocessing
+
     data = segment_sources(args.data, model)  # a file split at its holes, as in memory
     validation = segment_sources(getattr(args, "validate", None) or (), model)
     rows = rows if len(data) == len(args.data) else None
@@ -90,6 +91,8 @@ def averaged_rows(plan: Preprocessing, args: RecordOptions, model: Identificatio
     """Samples each training file keeps when ``plan`` averages its periods (one period each), else ``None``."""
     if plan.method != "fourier" or plan.average_periods == "no":
         return None
+    from estimation.streaming.cutoff_choice import first_rows
+
     head = first_rows(args.data[0], model, min(rows[0], SCORED_SAMPLES))
     found = whole_periods(head, plan.frequency_hz)
     if found is None:
@@ -104,6 +107,8 @@ def streamed_records(args, model: IdentificationModel):
     """``args`` with the files of ``--data``, ``--validate`` and ``--test`` that hold holes longer than ``--max-gap``
     replaced by their segments (:func:`estimation.streaming.chunks.segment_sources`): the streamed path reads and
     preprocesses each on its own, as the in-memory path splits such a file."""
+    from estimation.streaming.chunks import segment_sources
+
     changes = {name: segment_sources(getattr(args, name), model) for name in ("data", "validate", "test")
                if getattr(args, name, None)}
     return replace(args, **changes) if changes else args

@@ -39,7 +39,7 @@ from estimation.preprocessing.differentiation import (
     Differentiation,
     FourierDifferentiation,
 )
-from estimation.streaming.cluster import connect, scheduler_address
+from estimation.streaming.settings import scheduler_address
 
 __all__ = [
     "NOT_CSV_SUFFIXES", "OutputPathError", "RecordOptions", "RobotOptions", "caught_messages", "check_choice",
@@ -272,6 +272,8 @@ def executor_for(options: RecordOptions) -> Iterator[Executor | None]:
     if address is not None and options.workers:
         raise ValueError("give --scheduler (a dask cluster) or --workers (a local pool), not both")
     if address is not None:
+        from estimation.streaming.cluster import connect  # the streamed path's modules: imported when it runs
+
         with connect(address) as executor:
             yield executor
     elif options.workers:

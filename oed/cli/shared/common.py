@@ -15,7 +15,7 @@ from dynamics.robots import BUILT_IN_ROBOTS
 from estimation.data.log_cleaning import DEFAULT_MAX_GAP
 from estimation.data.log_formats import DEFAULT_TOPIC, parse_column_map
 from estimation.estimators.normal_equations import DEFAULT_CHUNK_SIZE
-from estimation.streaming.cluster import SCHEDULER_VARIABLE
+from estimation.streaming.settings import SCHEDULER_VARIABLE
 
 __all__ = [
     "add_data_arguments", "add_derivative_arguments", "add_jobs_argument", "add_log_arguments", "add_robot_arguments",
