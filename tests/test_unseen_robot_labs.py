@@ -176,33 +176,45 @@ def run_lab(case: Lab, folder: Path) -> dict:
     plain = PlainFit(["--urdf", str(urdf)])
     rate = min(log.rate_hz for log in (case.train, case.validate, case.test))  # a cut-off every record can take
     cutoff, plain_theta = plain.fit(records["train"], records["validate"], rate_hz=rate)
-    test = records["test"]
-    predicted_plain, kept = plain.predict(test, cutoff, plain_theta)
+    predicted_plain, kept = plain.predict(records["test"], cutoff, plain_theta)
+    outcome = verbs_against_the_plain_fit(urdf, files, records["test"], kept, predicted_plain, folder)
+    return {**outcome, "cutoff": cutoff, "floor": (NOISE * spread) ** 2}
+
+
+def verbs_against_the_plain_fit(urdf: Path, files: dict, test, kept: np.ndarray, predicted_plain: np.ndarray,
+                                folder: Path, *, options: tuple[str, ...] = (), reading: tuple[str, ...] = (),
+                                seconds: Callable[[np.ndarray], np.ndarray] | None = None) -> dict:
+    """The default ``oed identify`` (told the plain fit's model class) and ``oed diagnose`` on ``files``'
+    training and validation records (``options`` declared to both, ``reading`` to every verb: how the log reads),
+    then ``oed predict`` on the validation record (its error against the one each verb reported) and on the test
+    record (:func:`tests.test_unseen_robot_realities.scored_on_test`, its time stamps mapped by ``seconds``):
+    ``mse`` (each verb's and the plain fit's on its samples), ``exits`` (a command's message where one exited),
+    ``effects``, ``selections`` and ``reproduced`` (relative) per verb."""
     mse, exits, effects, selections, reproduced = {}, {}, {}, {}, {}
     for label, verb, more in (("default", "identify", ["--friction", FRICTION]), ("diagnose", "diagnose", [])):
         result = folder / f"{label}.json"
         code, message = quiet([verb, "--urdf", str(urdf), "--data", str(files["train"]), "--validate",
-                               str(files["validate"]), *more, "--out", str(result)])
+                               str(files["validate"]), *options, *reading, *more, "--out", str(result)])
         if code != 0:
             exits[label] = message
             continue
         summary = json.loads(result.read_text())
         effects[label], selections[label] = named_and_chosen(summary)
         metrics = folder / f"{label}_validate.json"
-        code, message = quiet(["predict", "--model", str(result), "--data", str(files["validate"]), "--metrics",
-                               str(metrics), "--out", str(folder / f"{label}_validate.csv")])
+        code, message = quiet(["predict", "--model", str(result), "--data", str(files["validate"]), *reading,
+                               "--metrics", str(metrics), "--out", str(folder / f"{label}_validate.csv")])
         if code != 0:
             exits[label] = message
             continue
         _, reported, _ = reported_models(summary)
         reproduced[label] = relative(json.loads(metrics.read_text())["mse"], reported)
-        scored = scored_on_test(result, files["test"], folder / f"{label}_test.csv", test, kept, predicted_plain)
+        scored = scored_on_test(result, files["test"], folder / f"{label}_test.csv", test, kept, predicted_plain,
+                                reading=reading, seconds=seconds)
         if isinstance(scored, str):
             exits[label] = scored
             continue
         mse[label], mse[f"plain OLS ({label}'s samples)"] = scored
-    return {"mse": mse, "exits": exits, "cutoff": cutoff, "floor": (NOISE * spread) ** 2, "effects": effects,
-            "selections": selections, "reproduced": reproduced}
+    return {"mse": mse, "exits": exits, "effects": effects, "selections": selections, "reproduced": reproduced}
 
 
 LABS = (
