@@ -1,0 +1,84 @@
+"""Work cells the project has not seen (issue 34), beside the other unseen-robot modules
+(:mod:`tests.test_unseen_robots`, ``_kinds``, ``_realities``, ``_labs``, ``_logs``), run by the same harness
+(:func:`tests.test_unseen_robot_logs.run_logged`):
+
+- a SCARA described by a hand-written URDF: two revolute joints about the vertical (no gravity on them), a
+  prismatic quill moving along the vertical (its gravity load a constant, the same column as its offset) and a
+  roll joint carrying a tool off its axis;
+
+No data are copied; every record is simulated (the plain fit's model class, :func:`tests.test_unseen_robots.truth`,
+white torque noise of 2 % of each channel's spread). Each case runs the default ``oed identify`` (told the plain
+fit's model class) and ``oed diagnose`` (its own defaults), then ``oed predict`` on a test record no choice saw,
+against the plain Pinocchio least-squares fit of ``benchmarks/bench_real_robots.py`` (its cut-off chosen on the
+validation record) on the same recorded samples: per joint within 1.3x, in total at most 1.0x, each figure allowed
+its noise floor's sampling spread; and ``oed predict`` on the validation record reproduces the validation error each
+verb reported (relative 1e-6)."""
+
+from __future__ import annotations
+
+import tempfile
+from pathlib import Path
+
+import pytest
+
+from dynamics.robots import load_robot
+from tests.test_one_answer_audit import RELATIVE
+from tests.test_unseen_robot_kinds import as_well_as_the_plain_fit, marks
+from tests.test_unseen_robot_labs import Lab
+from tests.test_unseen_robot_logs import LoggedAs, run_logged
+from tests.test_unseen_robots import Log
+
+#: a SCARA of a 0.6 m reach (the published lengths of a mid-size one: 0.325 + 0.275 m, a 0.2 m quill), link masses
+#: split by hand; the roll joint carries a 1 kg tool off its axis
+SCARA = """<?xml version="1.0"?>
+<robot name="scara">
+  <link name="world"/>
+  <joint name="pedestal" type="fixed"><origin xyz="0 0 0.2"/><parent link="world"/><child link="base"/></joint>
+  <link name="base"><inertial><origin xyz="0 0 0.1"/><mass value="15"/><inertia ixx="0.2" ixy="0" ixz="0" iyy="0.2" iyz="0" izz="0.1"/></inertial></link>
+  <joint name="shoulder" type="revolute"><origin xyz="0 0 0.25"/><axis xyz="0 0 1"/><parent link="base"/><child link="arm1"/>
+    <limit lower="-2.6" upper="2.6" velocity="3.0" effort="200"/></joint>
+  <link name="arm1"><inertial><origin xyz="0.16 0 0.03"/><mass value="7.5"/><inertia ixx="0.02" ixy="0" ixz="0.001" iyy="0.09" iyz="0" izz="0.085"/></inertial></link>
+  <joint name="elbow" type="revolute"><origin xyz="0.325 0 0.05"/><axis xyz="0 0 1"/><parent link="arm1"/><child link="arm2"/>
+    <limit lower="-2.5" upper="2.5" velocity="4.0" effort="100"/></joint>
+  <link name="arm2"><inertial><origin xyz="0.14 0.01 -0.02"/><mass value="5.0"/><inertia ixx="0.01" ixy="0.001" ixz="0" iyy="0.045" iyz="0" izz="0.042"/></inertial></link>
+  <joint name="quill" type="prismatic"><origin xyz="0.275 0 0"/><axis xyz="0 0 -1"/><parent link="arm2"/><child link="spline"/>
+    <limit lower="0" upper="0.2" velocity="0.5" effort="300"/></joint>
+  <link name="spline"><inertial><origin xyz="0 0 0.1"/><mass value="1.2"/><inertia ixx="0.005" ixy="0" ixz="0" iyy="0.005" iyz="0" izz="0.0003"/></inertial></link>
+  <joint name="roll" type="revolute"><origin xyz="0 0 -0.05"/><axis xyz="0 0 1"/><parent link="spline"/><child link="flange"/>
+    <limit lower="-3.0" upper="3.0" velocity="6.0" effort="12"/></joint>
+  <link name="flange"><inertial><origin xyz="0 0 -0.01"/><mass value="0.3"/><inertia ixx="0.0002" ixy="0" ixz="0" iyy="0.0002" iyz="0" izz="0.0002"/></inertial></link>
+  <joint name="tool_mount" type="fixed"><origin xyz="0.04 0.01 -0.03"/><parent link="flange"/><child link="tool"/></joint>
+  <link name="tool"><inertial><origin xyz="0 0 -0.02"/><mass value="1.0"/><inertia ixx="0.001" ixy="0" ixz="0" iyy="0.001" iyz="0" izz="0.0008"/></inertial></link>
+</robot>
+"""
+
+
+def scara() -> object:
+    """The SCARA as the simulation's robot (read from :data:`SCARA`)."""
+    with tempfile.TemporaryDirectory() as folder:
+        path = Path(folder) / "scara.urdf"
+        path.write_text(SCARA)
+        return load_robot(urdf=path)
+
+
+def as_written(text: str) -> str:
+    """The description the lab hands over: :data:`SCARA` as written (a world link, fixed pedestal and tool)."""
+    del text
+    return SCARA
+
+
+CELLS = (
+    LoggedAs("SCARA from a hand-written URDF (vertical prismatic quill, a 1 kg tool on the roll joint), 10 s / 4 s / "
+             "6 s at 250 Hz, no dq", Lab("scara", scara, *(Log(seconds, 250.0, velocity=False)
+                                                          for seconds in (10.0, 4.0, 6.0))), urdf=as_written,
+             slow=True),
+)
+
+
+@pytest.mark.parametrize("case", [pytest.param(case, id=case.name, marks=marks(case)) for case in CELLS])
+def test_the_defaults_run_and_predict_a_cells_log_as_well_as_a_plain_fit(case, tmp_path):
+    outcome = run_logged(case, tmp_path)
+    print(f"\nreproduced validation error (relative): {outcome['reproduced']}")
+    as_well_as_the_plain_fit(case.name, outcome, f"chosen {outcome['selections']}; ")
+    for label, error in outcome["reproduced"].items():
+        assert error <= RELATIVE, (label, error)
