@@ -5,6 +5,8 @@
 - a SCARA described by a hand-written URDF: two revolute joints about the vertical (no gravity on them), a
   prismatic quill moving along the vertical (its gravity load a constant, the same column as its offset) and a
   roll joint carrying a tool off its axis;
+- a URDF whose inertials are placeholders (every link 1 kg at its frame's origin, identity inertia), so the
+  description's prior is far from the truth;
 
 No data are copied; every record is simulated (the plain fit's model class, :func:`tests.test_unseen_robots.truth`,
 white torque noise of 2 % of each channel's spread). Each case runs the default ``oed identify`` (told the plain
@@ -16,6 +18,7 @@ verb reported (relative 1e-6)."""
 
 from __future__ import annotations
 
+import re
 import tempfile
 from pathlib import Path
 
@@ -23,7 +26,7 @@ import pytest
 
 from dynamics.robots import load_robot
 from tests.test_one_answer_audit import RELATIVE
-from tests.test_unseen_robot_kinds import as_well_as_the_plain_fit, marks
+from tests.test_unseen_robot_kinds import as_well_as_the_plain_fit, marks, ur10e
 from tests.test_unseen_robot_labs import Lab
 from tests.test_unseen_robot_logs import LoggedAs, run_logged
 from tests.test_unseen_robots import Log
@@ -67,11 +70,22 @@ def as_written(text: str) -> str:
     return SCARA
 
 
+def placeholders(text: str) -> str:
+    """Every link's inertial a placeholder: 1 kg at the link frame's origin, identity inertia."""
+    text = re.sub(r'<mass value="[^"]*"\s*/>', '<mass value="1.0" />', text)
+    text = re.sub(r'(<inertial>\s*<origin xyz=")[^"]*(")', r"\g<1>0 0 0\2", text)
+    return re.sub(r"<inertia [^>]*/>", '<inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="1" />', text)
+
+
 CELLS = (
     LoggedAs("SCARA from a hand-written URDF (vertical prismatic quill, a 1 kg tool on the roll joint), 10 s / 4 s / "
              "6 s at 250 Hz, no dq", Lab("scara", scara, *(Log(seconds, 250.0, velocity=False)
                                                           for seconds in (10.0, 4.0, 6.0))), urdf=as_written,
              slow=True),
+    LoggedAs("UR10e-like, the URDF's inertials placeholders (1 kg at each frame, identity inertia), 10 s / 4 s / 6 s "
+             "at 500 Hz, logged dq", Lab("placeholders", ur10e, *(Log(seconds, 500.0, motion_hz=0.1)
+                                                                   for seconds in (10.0, 4.0, 6.0))),
+             urdf=placeholders, slow=True),
 )
 
 
