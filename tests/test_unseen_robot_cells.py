@@ -7,6 +7,7 @@
   roll joint carrying a tool off its axis;
 - a URDF whose inertials are placeholders (every link 1 kg at its frame's origin, identity inertia), so the
   description's prior is far from the truth;
+- a training record at rest for half its length (the robot stopped in the middle of the excitation);
 
 No data are copied; every record is simulated (the plain fit's model class, :func:`tests.test_unseen_robots.truth`,
 white torque noise of 2 % of each channel's spread). Each case runs the default ``oed identify`` (told the plain
@@ -27,7 +28,7 @@ import pytest
 from dynamics.robots import load_robot
 from tests.test_one_answer_audit import RELATIVE
 from tests.test_unseen_robot_kinds import as_well_as_the_plain_fit, marks, ur10e
-from tests.test_unseen_robot_labs import Lab
+from tests.test_unseen_robot_labs import Lab, puma
 from tests.test_unseen_robot_logs import LoggedAs, run_logged
 from tests.test_unseen_robots import Log
 
@@ -77,6 +78,13 @@ def placeholders(text: str) -> str:
     return re.sub(r"<inertia [^>]*/>", '<inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="1" />', text)
 
 
+#: measured at ad08589 (test MSE over the plain fit's, per joint, and over the noise floor)
+HALTED = ("measured at ad08589: identify 2.15/5.11/6.02/4.01/3.76/4.59x the plain fit, 4.11 total (19.6-198x the "
+          "noise floor; the plain fit itself 5.6-33x); diagnose 4.14 total. Cause: at rest the true velocity is 0 and "
+          "the truth's Coulomb term 0, while the derivative of the held positions is filter noise whose sign switches "
+          "the Coulomb columns between +fc and -fc on half the rows. With the user's explicit --min-speed 0.02 (rows "
+          "at rest dropped) identify is at the floor on the test record (0.96-1.09x the floor). Open: rows of a hold "
+          "(every joint's position unchanged) left out of the fit by default")
 CELLS = (
     LoggedAs("SCARA from a hand-written URDF (vertical prismatic quill, a 1 kg tool on the roll joint), 10 s / 4 s / "
              "6 s at 250 Hz, no dq", Lab("scara", scara, *(Log(seconds, 250.0, velocity=False)
@@ -86,6 +94,10 @@ CELLS = (
              "at 500 Hz, logged dq", Lab("placeholders", ur10e, *(Log(seconds, 500.0, motion_hz=0.1)
                                                                    for seconds in (10.0, 4.0, 6.0))),
              urdf=placeholders, slow=True),
+    LoggedAs("PUMA 6 joints, the training record at rest for half its length (stopped mid-excitation), 16 s / 4 s / "
+             "6 s at 250 Hz, no dq", Lab("halted", puma(6), *(Log(seconds, 250.0, velocity=False)
+                                                             for seconds in (16.0, 4.0, 6.0)), halted=0.5),
+             slow=True, xfail=HALTED),
 )
 
 

@@ -72,6 +72,7 @@ class Lab:
     gains: tuple[float, ...] = ()  # torques logged in motor units: tau_j / gain_j
     dropouts: int = 0  # rows whose values are blank (the time stamp kept)
     duplicates: int = 0  # rows written twice (the same time stamp, the same values)
+    halted: float = 0.0  # the training record's share at rest, in its middle (:func:`halt`)
     slow: bool = False
     xfail: str = ""
 
@@ -106,6 +107,32 @@ def jog(limits, seed: int, t: np.ndarray, speed: float = 0.1, rest: float = 0.5)
         ddq[inside, joint] = acceleration[inside] * step / duration**2
         pose[joint], clock = target, clock + duration + rest
     return q, dq, ddq
+
+
+def halt(motion, t: np.ndarray, share: float, ramp: float = 0.5) -> tuple[np.ndarray, ...]:
+    """``motion`` (an object with ``evaluate(t) -> (q, dq, ddq)``) stopped for ``share`` of the record in its middle:
+    its own time ``τ(t)`` slows to rest in ``ramp`` seconds (``τ' = 1 − s³(10 − 15 s + 6 s²)``), stays, and speeds
+    up again alike; ``q = f(τ)``, ``dq = f'(τ) τ'``, ``ddq = f''(τ) τ'² + f'(τ) τ''``."""
+    span = t[-1] - t[0]
+    start = t[0] + 0.5 * (1.0 - share) * span - ramp
+    stop = start + share * span + 2 * ramp
+    tau, rate, change = t.copy(), np.ones_like(t), np.zeros_like(t)
+    down = (t >= start) & (t < start + ramp)
+    s = (t[down] - start) / ramp
+    tau[down] = start + ramp * (s - (2.5 * s**4 - 3 * s**5 + s**6))
+    rate[down] = 1.0 - minimum_jerk(s)[0]
+    change[down] = -minimum_jerk(s)[1] / ramp
+    still = (t >= start + ramp) & (t < stop - ramp)
+    tau[still], rate[still] = start + 0.5 * ramp, 0.0
+    up = (t >= stop - ramp) & (t < stop)
+    s = (t[up] - stop + ramp) / ramp
+    tau[up] = start + 0.5 * ramp + ramp * (2.5 * s**4 - 3 * s**5 + s**6)
+    rate[up] = minimum_jerk(s)[0]
+    change[up] = minimum_jerk(s)[1] / ramp
+    after = t >= stop
+    tau[after] = t[after] - (stop - start - ramp)
+    q, dq, ddq = motion.evaluate(tau)
+    return q, dq * rate[:, None], ddq * rate[:, None] ** 2 + dq * change[:, None]
 
 
 def extra_torque(case: Lab, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
@@ -145,6 +172,8 @@ def write_records(case: Lab, folder: Path) -> tuple[Path, dict, dict, np.ndarray
             q, dq, ddq = point_to_point(limits, seed, t)
         elif motion == "jog":
             q, dq, ddq = jog(limits, seed, t)
+        elif case.halted and role == "train":
+            q, dq, ddq = halt(random_fourier(limits, seed=seed, frequency_hz=log.motion_hz), t, case.halted)
         else:
             q, dq, ddq = random_fourier(limits, seed=seed, frequency_hz=log.motion_hz).evaluate(t)
         tau = (model.predict(theta, q, dq, ddq) + extra_torque(case, q, dq)) / gains
