@@ -73,6 +73,7 @@ class Lab:
     dropouts: int = 0  # rows whose values are blank (the time stamp kept)
     duplicates: int = 0  # rows written twice (the same time stamp, the same values)
     halted: float = 0.0  # the training record's share at rest, in its middle (:func:`halt`)
+    drift: float = 0.0  # a torque sensor's bias warming up (:func:`warming`), of each channel's spread
     slow: bool = False
     xfail: str = ""
 
@@ -135,6 +136,17 @@ def halt(motion, t: np.ndarray, share: float, ramp: float = 0.5) -> tuple[np.nda
     return q, dq * rate[:, None], ddq * rate[:, None] ** 2 + dq * change[:, None]
 
 
+#: when each role's record starts after the sensor is switched on (s): training while it warms, the others later
+WARMED = {"train": 0.0, "validate": 40.0, "test": 80.0}
+
+
+def warming(t: np.ndarray, role: str, n: int, minutes: float = 0.5) -> np.ndarray:
+    """A torque sensor's bias as it warms up: ``1 − exp(−(t + t₀)/T)`` (``t₀`` the record's start after switching
+    on, :data:`WARMED`; ``T`` = ``minutes``), a column per joint, the sign alternating along the joints."""
+    level = 1.0 - np.exp(-(t - t[0] + WARMED[role]) / (60.0 * minutes))
+    return np.outer(level, (-1.0) ** np.arange(n))
+
+
 def extra_torque(case: Lab, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
     """The truth's torque beyond the plain class, joint side."""
     n = q.shape[1]
@@ -180,6 +192,8 @@ def write_records(case: Lab, folder: Path) -> tuple[Path, dict, dict, np.ndarray
         if spread is None:
             spread = tau.std(axis=0)
         tau = tau + generator.normal(0.0, 1.0, tau.shape) * NOISE * spread
+        if case.drift:
+            tau = tau + case.drift * spread * warming(t, role, tau.shape[1])
         t, q, dq, tau, frame = logged(t, q, dq, tau, log, generator)
         table = pd.DataFrame(frame)
         keep = np.ones(t.shape[0], dtype=bool)
