@@ -24,13 +24,15 @@ import re
 import tempfile
 from pathlib import Path
 
+import numpy as np
+import pandas as pd
 import pytest
 
 from dynamics.robots import load_robot
 from tests.test_one_answer_audit import RELATIVE
 from tests.test_unseen_robot_kinds import as_well_as_the_plain_fit, marks, ur10e
 from tests.test_unseen_robot_labs import Lab, puma
-from tests.test_unseen_robot_logs import LoggedAs, run_logged
+from tests.test_unseen_robot_logs import EPOCH_NS, LoggedAs, run_logged
 from tests.test_unseen_robots import Log
 
 #: a SCARA of a 0.6 m reach (the published lengths of a mid-size one: 0.325 + 0.275 m, a 0.2 m quill), link masses
@@ -79,6 +81,33 @@ def placeholders(text: str) -> str:
     return re.sub(r"<inertia [^>]*/>", '<inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="1" />', text)
 
 
+#: the UR10e's joints as Universal Robots' driver names them, and the order its /joint_states messages list them
+UR_NAMES = ("shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint", "wrist_1_joint", "wrist_2_joint",
+            "wrist_3_joint")
+PUBLISHED = (2, 1, 0, 3, 4, 5)  # elbow, shoulder lift, shoulder pan, wrist 1-3: the driver's alphabetical order
+
+
+def ur_names(text: str) -> str:
+    """The description with the driver's joint names."""
+    for index, name in enumerate(UR_NAMES):
+        text = text.replace(f'"ur_joint{index + 1}"', f'"{name}"')
+    return text
+
+
+def rostopic_echo(frame: pd.DataFrame, role: str) -> pd.DataFrame:
+    """``rostopic echo -p /joint_states`` of a UR driver's messages: ``%time`` (ns since 1970), the header, the names
+    ``field.name0..`` and ``field.position0..``, ``field.velocity0..``, ``field.effort0..`` in the order the
+    messages list the joints (:data:`PUBLISHED`), not the description's."""
+    n = len(PUBLISHED)
+    out = {"%time": np.round(frame["t"].to_numpy() * 1e9).astype(np.int64) + EPOCH_NS,
+           "field.header.seq": np.arange(len(frame)), "field.header.frame_id": ""}
+    out.update({f"field.name{k}": UR_NAMES[PUBLISHED[k]] for k in range(n)})
+    for group, prefix in (("q", "field.position"), ("dq", "field.velocity"), ("tau", "field.effort")):
+        if f"{group}1" in frame.columns:
+            out.update({f"{prefix}{k}": frame[f"{group}{PUBLISHED[k] + 1}"].to_numpy() for k in range(n)})
+    return pd.DataFrame(out)
+
+
 CELLS = (
     LoggedAs("SCARA from a hand-written URDF (vertical prismatic quill, a 1 kg tool on the roll joint), 10 s / 4 s / "
              "6 s at 250 Hz, no dq", Lab("scara", scara, *(Log(seconds, 250.0, velocity=False)
@@ -100,6 +129,12 @@ CELLS = (
              "12 s / 4 s / 6 s at 250 Hz, no dq", Lab("drift", puma(6), *(Log(seconds, 250.0, velocity=False)
                                                                          for seconds in (12.0, 4.0, 6.0)),
                                                     drift=0.1), slow=True),
+    LoggedAs("UR10e-like logged by `rostopic echo -p /joint_states`: the driver's joint order (elbow first), the "
+             "names in field.name0.., declared by --columns", Lab("rostopic", ur10e, *(Log(seconds, 500.0, motion_hz=0.1)
+                                                                                      for seconds in (10.0, 4.0, 6.0))),
+             rostopic_echo, urdf=ur_names, reading=("--columns", "t=1e-9*%time,q=field.position,dq=field.velocity,"
+                                                                "tau=field.effort"),
+             seconds=lambda t: t - EPOCH_NS * 1e-9, slow=True),
 )
 
 
@@ -117,8 +152,6 @@ def test_a_hold_is_cut_out_of_the_training_record_and_said(tmp_path):
     (the segment split there) with a :class:`HoldWarning`; runs of repeated positions shorter than that (a slow
     joint's quantised encoder, the TX40's 7.6 ms at 5 kHz) and a hold of one joint alone are not holds; with
     ``--min-speed`` the user's rule applies instead."""
-    import numpy as np
-
     from dynamics.measurements import Measurements
     from estimation.data import HoldWarning
     from estimation.data.rest import holds, without_holds
@@ -138,3 +171,31 @@ def test_a_hold_is_cut_out_of_the_training_record_and_said(tmp_path):
         (file,) = training_without_holds([RecordedFile(tmp_path / "train.csv", (segment,))], 0.05)
     assert len(file.segments) == 2
     assert holds(t, q, 0.2) == []
+
+
+
+def test_a_joint_state_table_is_matched_to_the_robot_by_its_names(tmp_path):
+    """``rostopic echo -p``'s table read through a column map: each index's joint taken from ``field.name<k>`` (at
+    35f0061 index k was joint k + 1: the UR case above predicted 1322x worse than the plain fit, both verbs running),
+    a joint of the log the robot lacks left out; a robot's joint no index names, or names changing between rows,
+    refused naming them."""
+    from estimation.data import MissingColumnError
+    from estimation.data.log_formats import LogSource, parse_column_map, read_log_frame
+
+    t = np.arange(0.0, 0.1, 0.01)
+    frame = pd.DataFrame({f"q{j + 1}": (j + 1) * np.ones_like(t) for j in range(6)} | {"t": t}
+                         | {f"tau{j + 1}": -(j + 1) * np.ones_like(t) for j in range(6)})
+    table = rostopic_echo(frame, "train")
+    table["field.name6"], table["field.position6"], table["field.effort6"] = "gripper_joint", 7.0, -7.0
+    table.to_csv(tmp_path / "echo.csv", index=False)
+    columns = parse_column_map("t=1e-9*%time,q=field.position,tau=field.effort")
+    read = read_log_frame(LogSource(tmp_path / "echo.csv", columns=columns), joint_names=UR_NAMES)
+    for j in range(6):
+        assert np.all(read[f"q{j + 1}"] == j + 1) and np.all(read[f"tau{j + 1}"] == -(j + 1)), j
+    assert "q7" not in read.columns
+    with pytest.raises(MissingColumnError, match="joint\\(s\\) tool_joint are not among"):
+        read_log_frame(LogSource(tmp_path / "echo.csv", columns=columns), joint_names=(*UR_NAMES, "tool_joint"))
+    table.loc[3, "field.name0"] = "shoulder_pan_joint"
+    table.to_csv(tmp_path / "changing.csv", index=False)
+    with pytest.raises(MissingColumnError, match="field.name0 change from row to row"):
+        read_log_frame(LogSource(tmp_path / "changing.csv", columns=columns), joint_names=UR_NAMES)
