@@ -35,7 +35,7 @@ from dynamics.effects.linear import WRENCH_CHANNELS
 from estimation.data.loading import MeasurementError, MeasurementWarning, MissingColumnError
 
 __all__ = ["BAG_SUFFIXES", "DEFAULT_TOPIC", "DroppedStampsWarning", "LogSource", "RosSupportError", "UnknownTopicError",
-           "apply_column_map", "is_log_file", "logged_joints", "parse_column_map", "read_log_frame"]
+           "JointStateTableWarning", "apply_column_map", "is_log_file", "joint_state_echo", "logged_joints", "parse_column_map", "read_log_frame"]
 
 #: the topic of ``sensor_msgs/JointState`` read by default
 DEFAULT_TOPIC = "/joint_states"
@@ -58,6 +58,33 @@ class UnknownTopicError(MeasurementError):
 
 class DroppedStampsWarning(MeasurementWarning):
     """Stamps at which a named joint was missing from every message were dropped."""
+
+
+class JointStateTableWarning(MeasurementWarning):
+    """A table with no ``t, q1..`` columns was read as ``rostopic echo -p`` of ``JointState`` messages; the message
+    gives the column map that reads it so."""
+
+
+#: the columns of ``rostopic echo -p`` of ``sensor_msgs/JointState`` messages, by group: index k of each array
+JOINT_STATE_ECHO = {"q": "field.position", "dq": "field.velocity", "tau": "field.effort"}
+
+
+def joint_state_echo(frame: pd.DataFrame) -> dict[str, str] | None:
+    """The column map of a table of ``JointState`` messages as ``rostopic echo -p`` writes them (``%time`` and
+    ``field.header.stamp`` in ns, ``field.name0..``, ``field.position0..`` [, ``field.velocity0..``,
+    ``field.effort0..``]), for a table without ``t`` and ``q1``: ``t`` from the messages' stamps (the time the
+    topic was logged, ``%time``, where every stamp is 0), each array present as its group; ``None`` otherwise.
+    The joints are matched by the names (:func:`logged_joints`)."""
+    if {"t", "q1"} & set(frame.columns) or not {"field.position0", "field.name0"} <= set(frame.columns):
+        return None
+    stamps = "field.header.stamp"
+    if stamps not in frame.columns or not (pd.to_numeric(frame[stamps], errors="coerce").fillna(0) != 0).any():
+        stamps = "%time"
+    if stamps not in frame.columns:
+        return None
+    groups = {group: prefix for group, prefix in JOINT_STATE_ECHO.items()
+              if f"{prefix}0" in frame.columns and pd.to_numeric(frame[f"{prefix}0"], errors="coerce").notna().all()}
+    return {"t": f"1e-9*{stamps}", **groups}
 
 
 @dataclass(frozen=True)
