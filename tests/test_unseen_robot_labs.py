@@ -72,7 +72,8 @@ class Lab:
     gains: tuple[float, ...] = ()  # torques logged in motor units: tau_j / gain_j
     dropouts: int = 0  # rows whose values are blank (the time stamp kept)
     duplicates: int = 0  # rows written twice (the same time stamp, the same values)
-    halted: float = 0.0  # the training record's share at rest, in its middle (:func:`halt`)
+    halted: float = 0.0  # the share at rest, in its middle, of the records of ``halted_in`` (:func:`halt`)
+    halted_in: tuple[str, ...] = ("train",)
     drift: float = 0.0  # a torque sensor's bias warming up (:func:`warming`), of each channel's spread
     slow: bool = False
     xfail: str = ""
@@ -184,7 +185,7 @@ def write_records(case: Lab, folder: Path) -> tuple[Path, dict, dict, np.ndarray
             q, dq, ddq = point_to_point(limits, seed, t)
         elif motion == "jog":
             q, dq, ddq = jog(limits, seed, t)
-        elif case.halted and role == "train":
+        elif case.halted and role in case.halted_in:
             q, dq, ddq = halt(random_fourier(limits, seed=seed, frequency_hz=log.motion_hz), t, case.halted)
         else:
             q, dq, ddq = random_fourier(limits, seed=seed, frequency_hz=log.motion_hz).evaluate(t)

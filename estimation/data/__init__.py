@@ -57,6 +57,7 @@ _EXPORTS: dict[str, str] = {
     "default_budget": "estimation.data.memory_budget",
     "drop_rest": "estimation.data.rest",
     "holds": "estimation.data.rest",
+    "held_rows": "estimation.data.rest",
     "without_holds": "estimation.data.rest",
     "estimate_in_memory": "estimation.data.memory_budget",
     "format_size": "estimation.data.memory_budget",

@@ -146,3 +146,11 @@ def without_holds(segment: Measurements, longer_than: float) -> tuple[tuple[Meas
             parts.append(segment.select(slice(begin, start)))
         begin = stop
     return tuple(parts), segment.n_samples - sum(part.n_samples for part in parts)
+
+
+def held_rows(t: NDArray[np.float64], q: NDArray[np.float64], longer_than: float) -> NDArray[np.bool_]:
+    """Rows within the :func:`holds` of a record: the robot still, its velocity and acceleration exactly zero."""
+    held = np.zeros(t.shape[0], dtype=bool)
+    for start, stop in holds(t, q, longer_than):
+        held[start:stop] = True
+    return held
