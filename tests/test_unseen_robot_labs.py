@@ -72,6 +72,9 @@ class Lab:
     gains: tuple[float, ...] = ()  # torques logged in motor units: tau_j / gain_j
     dropouts: int = 0  # rows whose values are blank (the time stamp kept)
     duplicates: int = 0  # rows written twice (the same time stamp, the same values)
+    halted: float = 0.0  # the share at rest, in its middle, of the records of ``halted_in`` (:func:`halt`)
+    halted_in: tuple[str, ...] = ("train",)
+    drift: float = 0.0  # a torque sensor's bias warming up (:func:`warming`), of each channel's spread
     slow: bool = False
     xfail: str = ""
 
@@ -106,6 +109,43 @@ def jog(limits, seed: int, t: np.ndarray, speed: float = 0.1, rest: float = 0.5)
         ddq[inside, joint] = acceleration[inside] * step / duration**2
         pose[joint], clock = target, clock + duration + rest
     return q, dq, ddq
+
+
+def halt(motion, t: np.ndarray, share: float, ramp: float = 0.5) -> tuple[np.ndarray, ...]:
+    """``motion`` (an object with ``evaluate(t) -> (q, dq, ddq)``) stopped for ``share`` of the record in its middle:
+    its own time ``τ(t)`` slows to rest in ``ramp`` seconds (``τ' = 1 − s³(10 − 15 s + 6 s²)``), stays, and speeds
+    up again alike; ``q = f(τ)``, ``dq = f'(τ) τ'``, ``ddq = f''(τ) τ'² + f'(τ) τ''``."""
+    span = t[-1] - t[0]
+    start = t[0] + 0.5 * (1.0 - share) * span - ramp
+    stop = start + share * span + 2 * ramp
+    tau, rate, change = t.copy(), np.ones_like(t), np.zeros_like(t)
+    down = (t >= start) & (t < start + ramp)
+    s = (t[down] - start) / ramp
+    tau[down] = start + ramp * (s - (2.5 * s**4 - 3 * s**5 + s**6))
+    rate[down] = 1.0 - minimum_jerk(s)[0]
+    change[down] = -minimum_jerk(s)[1] / ramp
+    still = (t >= start + ramp) & (t < stop - ramp)
+    tau[still], rate[still] = start + 0.5 * ramp, 0.0
+    up = (t >= stop - ramp) & (t < stop)
+    s = (t[up] - stop + ramp) / ramp
+    tau[up] = start + 0.5 * ramp + ramp * (2.5 * s**4 - 3 * s**5 + s**6)
+    rate[up] = minimum_jerk(s)[0]
+    change[up] = minimum_jerk(s)[1] / ramp
+    after = t >= stop
+    tau[after] = t[after] - (stop - start - ramp)
+    q, dq, ddq = motion.evaluate(tau)
+    return q, dq * rate[:, None], ddq * rate[:, None] ** 2 + dq * change[:, None]
+
+
+#: when each role's record starts after the sensor is switched on (s): training while it warms, the others later
+WARMED = {"train": 0.0, "validate": 40.0, "test": 80.0}
+
+
+def warming(t: np.ndarray, role: str, n: int, minutes: float = 0.5) -> np.ndarray:
+    """A torque sensor's bias as it warms up: ``1 − exp(−(t + t₀)/T)`` (``t₀`` the record's start after switching
+    on, :data:`WARMED`; ``T`` = ``minutes``), a column per joint, the sign alternating along the joints."""
+    level = 1.0 - np.exp(-(t - t[0] + WARMED[role]) / (60.0 * minutes))
+    return np.outer(level, (-1.0) ** np.arange(n))
 
 
 def extra_torque(case: Lab, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
@@ -145,12 +185,16 @@ def write_records(case: Lab, folder: Path) -> tuple[Path, dict, dict, np.ndarray
             q, dq, ddq = point_to_point(limits, seed, t)
         elif motion == "jog":
             q, dq, ddq = jog(limits, seed, t)
+        elif case.halted and role in case.halted_in:
+            q, dq, ddq = halt(random_fourier(limits, seed=seed, frequency_hz=log.motion_hz), t, case.halted)
         else:
             q, dq, ddq = random_fourier(limits, seed=seed, frequency_hz=log.motion_hz).evaluate(t)
         tau = (model.predict(theta, q, dq, ddq) + extra_torque(case, q, dq)) / gains
         if spread is None:
             spread = tau.std(axis=0)
         tau = tau + generator.normal(0.0, 1.0, tau.shape) * NOISE * spread
+        if case.drift:
+            tau = tau + case.drift * spread * warming(t, role, tau.shape[1])
         t, q, dq, tau, frame = logged(t, q, dq, tau, log, generator)
         table = pd.DataFrame(frame)
         keep = np.ones(t.shape[0], dtype=bool)
@@ -176,33 +220,45 @@ def run_lab(case: Lab, folder: Path) -> dict:
     plain = PlainFit(["--urdf", str(urdf)])
     rate = min(log.rate_hz for log in (case.train, case.validate, case.test))  # a cut-off every record can take
     cutoff, plain_theta = plain.fit(records["train"], records["validate"], rate_hz=rate)
-    test = records["test"]
-    predicted_plain, kept = plain.predict(test, cutoff, plain_theta)
+    predicted_plain, kept = plain.predict(records["test"], cutoff, plain_theta)
+    outcome = verbs_against_the_plain_fit(urdf, files, records["test"], kept, predicted_plain, folder)
+    return {**outcome, "cutoff": cutoff, "floor": (NOISE * spread) ** 2}
+
+
+def verbs_against_the_plain_fit(urdf: Path, files: dict, test, kept: np.ndarray, predicted_plain: np.ndarray,
+                                folder: Path, *, options: tuple[str, ...] = (), reading: tuple[str, ...] = (),
+                                seconds: Callable[[np.ndarray], np.ndarray] | None = None) -> dict:
+    """The default ``oed identify`` (told the plain fit's model class) and ``oed diagnose`` on ``files``'
+    training and validation records (``options`` declared to both, ``reading`` to every verb: how the log reads),
+    then ``oed predict`` on the validation record (its error against the one each verb reported) and on the test
+    record (:func:`tests.test_unseen_robot_realities.scored_on_test`, its time stamps mapped by ``seconds``):
+    ``mse`` (each verb's and the plain fit's on its samples), ``exits`` (a command's message where one exited),
+    ``effects``, ``selections`` and ``reproduced`` (relative) per verb."""
     mse, exits, effects, selections, reproduced = {}, {}, {}, {}, {}
     for label, verb, more in (("default", "identify", ["--friction", FRICTION]), ("diagnose", "diagnose", [])):
         result = folder / f"{label}.json"
         code, message = quiet([verb, "--urdf", str(urdf), "--data", str(files["train"]), "--validate",
-                               str(files["validate"]), *more, "--out", str(result)])
+                               str(files["validate"]), *options, *reading, *more, "--out", str(result)])
         if code != 0:
             exits[label] = message
             continue
         summary = json.loads(result.read_text())
         effects[label], selections[label] = named_and_chosen(summary)
         metrics = folder / f"{label}_validate.json"
-        code, message = quiet(["predict", "--model", str(result), "--data", str(files["validate"]), "--metrics",
-                               str(metrics), "--out", str(folder / f"{label}_validate.csv")])
+        code, message = quiet(["predict", "--model", str(result), "--data", str(files["validate"]), *reading,
+                               "--metrics", str(metrics), "--out", str(folder / f"{label}_validate.csv")])
         if code != 0:
             exits[label] = message
             continue
         _, reported, _ = reported_models(summary)
         reproduced[label] = relative(json.loads(metrics.read_text())["mse"], reported)
-        scored = scored_on_test(result, files["test"], folder / f"{label}_test.csv", test, kept, predicted_plain)
+        scored = scored_on_test(result, files["test"], folder / f"{label}_test.csv", test, kept, predicted_plain,
+                                reading=reading, seconds=seconds)
         if isinstance(scored, str):
             exits[label] = scored
             continue
         mse[label], mse[f"plain OLS ({label}'s samples)"] = scored
-    return {"mse": mse, "exits": exits, "cutoff": cutoff, "floor": (NOISE * spread) ** 2, "effects": effects,
-            "selections": selections, "reproduced": reproduced}
+    return {"mse": mse, "exits": exits, "effects": effects, "selections": selections, "reproduced": reproduced}
 
 
 LABS = (

@@ -18,10 +18,9 @@ import pytest
 from dynamics.models import build_model
 from dynamics.robots import load_robot
 from dynamics.urdf_export import robot_urdf
-from tests.test_one_answer_audit import RELATIVE, relative, reported_models
+from tests.test_one_answer_audit import RELATIVE
 from tests.test_unseen_robot_kinds import as_well_as_the_plain_fit, marks, quiet
-from tests.test_unseen_robot_labs import Lab, puma, write_records
-from tests.test_unseen_robot_realities import named_and_chosen
+from tests.test_unseen_robot_labs import Lab, puma, verbs_against_the_plain_fit, write_records
 from tests.test_unseen_robots import FRICTION, Log, truth
 
 Rewrite = Callable[[pd.DataFrame, str], pd.DataFrame]
@@ -38,25 +37,6 @@ class LoggedAs:
     xfail: str = ""
     urdf: Callable[[str], str] | None = None  # the lab's description as given (the simulation's rewritten)
     seconds: Callable[[np.ndarray], np.ndarray] = lambda t: t  # the predictions' time stamps, as the simulation's
-
-
-def scored(case: LoggedAs, result: Path, test_file: Path, out: Path, test, kept: np.ndarray,
-           predicted_plain: np.ndarray) -> tuple[np.ndarray, np.ndarray] | str:
-    """``oed predict`` on the test record (the case's options declared): the MSE per channel of its predictions and
-    of the plain fit's at the recorded samples; the command's message when it exits."""
-    from benchmarks.bench_real_robots import at_recorded, resent
-
-    code, message = quiet(["predict", "--model", str(result), "--data", str(test_file), *case.reading, "--out",
-                           str(out)])
-    if code != 0:
-        return message
-    table = pd.read_csv(out)
-    channels = [column for column in table.columns if column.startswith("tau") and column[3:].isdigit()]
-    rows, values = at_recorded(test.t, case.seconds(table["t"].to_numpy()), table[channels].to_numpy())
-    use = kept[rows] & ~resent(test)[rows]
-    rows, values = rows[use], values[use]
-    return (np.mean((test.tau[rows] - values) ** 2, axis=0),
-            np.mean((test.tau[rows] - predicted_plain[rows]) ** 2, axis=0))
 
 
 def run_logged(case: LoggedAs, folder: Path) -> dict:
@@ -83,31 +63,9 @@ def run_logged(case: LoggedAs, folder: Path) -> dict:
     written = pd.read_csv(files["test"])
     if len(written) == kept.shape[0]:  # scored where the test file holds torques (a channel at a lower rate)
         kept = kept & written[[name for name in written.columns if name.startswith("tau")]].notna().all(axis=1).to_numpy()
-    mse, exits, effects, selections, reproduced = {}, {}, {}, {}, {}
-    for label, verb, more in (("default", "identify", ["--friction", FRICTION]), ("diagnose", "diagnose", [])):
-        result = folder / f"{label}.json"
-        code, message = quiet([verb, "--urdf", str(urdf), "--data", str(files["train"]), "--validate",
-                               str(files["validate"]), *case.options, *case.reading, *more, "--out", str(result)])
-        if code != 0:
-            exits[label] = message
-            continue
-        summary = json.loads(result.read_text())
-        effects[label], selections[label] = named_and_chosen(summary)
-        metrics = folder / f"{label}_validate.json"
-        code, message = quiet(["predict", "--model", str(result), "--data", str(files["validate"]),
-                               *case.reading, "--metrics", str(metrics), "--out", str(folder / f"{label}_v.csv")])
-        if code != 0:
-            exits[label] = message
-            continue
-        _, reported, _ = reported_models(summary)
-        reproduced[label] = relative(json.loads(metrics.read_text())["mse"], reported)
-        outcome = scored(case, result, files["test"], folder / f"{label}_test.csv", test, kept, predicted_plain)
-        if isinstance(outcome, str):
-            exits[label] = outcome
-            continue
-        mse[label], mse[f"plain OLS ({label}'s samples)"] = outcome
-    return {"mse": mse, "exits": exits, "cutoff": cutoff, "floor": (0.02 * spread) ** 2, "effects": effects,
-            "selections": selections, "reproduced": reproduced}
+    outcome = verbs_against_the_plain_fit(urdf, files, test, kept, predicted_plain, folder, options=case.options,
+                                          reading=case.reading, seconds=case.seconds)
+    return {**outcome, "cutoff": cutoff, "floor": (0.02 * spread) ** 2}
 
 
 def lab(name: str, train: float = 8.0) -> Lab:

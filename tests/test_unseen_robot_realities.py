@@ -258,18 +258,21 @@ def named_and_chosen(summary: dict) -> tuple[list[str], tuple]:
 
 
 def scored_on_test(result: Path, test_file: Path, out: Path, test, kept: np.ndarray,
-                   predicted_plain: np.ndarray) -> tuple[np.ndarray, np.ndarray] | str:
-    """``oed predict`` of the model file ``result`` on ``test_file`` (written to ``out``): the MSE per channel of its
-    predictions and of the plain fit's (``predicted_plain``) at the recorded samples of ``test`` that ``kept`` keeps
-    and that were not written twice; the command's message when it exits."""
+                   predicted_plain: np.ndarray, *, reading: tuple[str, ...] = (),
+                   seconds: Callable[[np.ndarray], np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray] | str:
+    """``oed predict`` of the model file ``result`` on ``test_file`` (written to ``out``, ``reading`` the options
+    that say how the log reads): the MSE per channel of its predictions and of the plain fit's
+    (``predicted_plain``) at the recorded samples of ``test`` that ``kept`` keeps and that were not written twice,
+    the predictions' time stamps mapped by ``seconds`` to the simulation's; the command's message when it exits."""
     from benchmarks.bench_real_robots import at_recorded, resent
 
-    code, message = quiet(["predict", "--model", str(result), "--data", str(test_file), "--out", str(out)])
+    code, message = quiet(["predict", "--model", str(result), "--data", str(test_file), *reading, "--out", str(out)])
     if code != 0:
         return message
     table = pd.read_csv(out)
     channels = [column for column in table.columns if column.startswith("tau") and column[3:].isdigit()]
-    rows, values = at_recorded(test.t, table["t"].to_numpy(), table[channels].to_numpy())
+    stamps = table["t"].to_numpy()
+    rows, values = at_recorded(test.t, stamps if seconds is None else seconds(stamps), table[channels].to_numpy())
     use = kept[rows] & ~resent(test)[rows]
     rows, values = rows[use], values[use]
     return (np.mean((test.tau[rows] - values) ** 2, axis=0),

@@ -138,6 +138,11 @@ class CoarseStampsWarning(MeasurementWarning):
     the samples' instants are lost."""
 
 
+class HoldWarning(MeasurementWarning):
+    """A training record's holds (every joint's position unchanged for longer than ``max_gap``: the robot stopped)
+    were cut out of the fit: the record split there, as at a gap (:func:`estimation.data.rest.holds`)."""
+
+
 class UnwrappedAngleWarning(MeasurementWarning):
     """A revolute joint's angle logged wrapped to ±π (or to a turn) was unwrapped on reading: which joint, how many wraps."""
 

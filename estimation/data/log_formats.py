@@ -35,7 +35,7 @@ from dynamics.effects.linear import WRENCH_CHANNELS
 from estimation.data.loading import MeasurementError, MeasurementWarning, MissingColumnError
 
 __all__ = ["BAG_SUFFIXES", "DEFAULT_TOPIC", "DroppedStampsWarning", "LogSource", "RosSupportError", "UnknownTopicError",
-           "apply_column_map", "is_log_file", "parse_column_map", "read_log_frame"]
+           "JointStateTableWarning", "apply_column_map", "is_log_file", "joint_state_echo", "logged_joints", "parse_column_map", "read_log_frame"]
 
 #: the topic of ``sensor_msgs/JointState`` read by default
 DEFAULT_TOPIC = "/joint_states"
@@ -58,6 +58,33 @@ class UnknownTopicError(MeasurementError):
 
 class DroppedStampsWarning(MeasurementWarning):
     """Stamps at which a named joint was missing from every message were dropped."""
+
+
+class JointStateTableWarning(MeasurementWarning):
+    """A table with no ``t, q1..`` columns was read as ``rostopic echo -p`` of ``JointState`` messages; the message
+    gives the column map that reads it so."""
+
+
+#: the columns of ``rostopic echo -p`` of ``sensor_msgs/JointState`` messages, by group: index k of each array
+JOINT_STATE_ECHO = {"q": "field.position", "dq": "field.velocity", "tau": "field.effort"}
+
+
+def joint_state_echo(frame: pd.DataFrame) -> dict[str, str] | None:
+    """The column map of a table of ``JointState`` messages as ``rostopic echo -p`` writes them (``%time`` and
+    ``field.header.stamp`` in ns, ``field.name0..``, ``field.position0..`` [, ``field.velocity0..``,
+    ``field.effort0..``]), for a table without ``t`` and ``q1``: ``t`` from the messages' stamps (the time the
+    topic was logged, ``%time``, where every stamp is 0), each array present as its group; ``None`` otherwise.
+    The joints are matched by the names (:func:`logged_joints`)."""
+    if {"t", "q1"} & set(frame.columns) or not {"field.position0", "field.name0"} <= set(frame.columns):
+        return None
+    stamps = "field.header.stamp"
+    if stamps not in frame.columns or not (pd.to_numeric(frame[stamps], errors="coerce").fillna(0) != 0).any():
+        stamps = "%time"
+    if stamps not in frame.columns:
+        return None
+    groups = {group: prefix for group, prefix in JOINT_STATE_ECHO.items()
+              if f"{prefix}0" in frame.columns and pd.to_numeric(frame[f"{prefix}0"], errors="coerce").notna().all()}
+    return {"t": f"1e-9*{stamps}", **groups}
 
 
 @dataclass(frozen=True)
@@ -178,7 +205,7 @@ def read_log_frame(source: str | os.PathLike[str], *, joint_names: Sequence[str]
         frame = pd.read_parquet(path) if suffix == ".parquet" else pd.read_csv(path)
     except (ValueError, OSError, ImportError, pd.errors.ParserError) as error:
         raise MeasurementError(f"cannot read {path}: {str(error).strip()}") from None
-    return apply_column_map(frame, log.columns, str(path))
+    return apply_column_map(frame, log.columns, str(path), joint_names=joint_names)
 
 
 def _scaled(value: str) -> tuple[float, str]:
@@ -187,8 +214,13 @@ def _scaled(value: str) -> tuple[float, str]:
     return (float(found.group(1)), found.group(2)) if found else (1.0, value)
 
 
-def apply_column_map(frame: pd.DataFrame, columns: Mapping[str, str], source: str) -> pd.DataFrame:
-    """``frame`` with the mapped columns under the names of :mod:`dynamics.measurements` (module docstring)."""
+def apply_column_map(frame: pd.DataFrame, columns: Mapping[str, str], source: str, *,
+                     joint_names: Sequence[str] | None = None) -> pd.DataFrame:
+    """``frame`` with the mapped columns under the names of :mod:`dynamics.measurements` (module docstring).
+
+    A group mapped by its prefix (``q=field.position``) beside columns that name the joint of each index
+    (``field.name0..``, as ``rostopic echo -p`` writes a ``JointState``) is matched to ``joint_names`` (the robot's,
+    in its order) by those names, as a bag's messages are (:func:`logged_joints`)."""
     if not columns:
         return frame
     renamed: dict[str, Any] = {}
@@ -203,15 +235,49 @@ def apply_column_map(frame: pd.DataFrame, columns: Mapping[str, str], source: st
                           key=lambda column: int(str(column)[len(name):]))
         if key in JOINT_GROUPS and prefixed:
             first = int(str(prefixed[0])[len(name):])  # numbered from 0 (a ROS array, Python): joint 1 is name0
+            named = logged_joints(frame, name, prefixed, joint_names, source)
             for column in prefixed:
-                joint = int(str(column)[len(name):]) + (1 if first == 0 else 0)
-                renamed[f"{key}{joint}"] = factor * frame[column] if factor != 1.0 else frame[column]
+                index = int(str(column)[len(name):])
+                joint = index + (1 if first == 0 else 0) if named is None else named.get(index)
+                if joint is not None:  # a joint the robot does not have (a gripper's finger) is left out
+                    renamed[f"{key}{joint}"] = factor * frame[column] if factor != 1.0 else frame[column]
             used.update(prefixed)
             continue
         raise MissingColumnError(f"{source}: column map {key}={value}: no column {name!r} (columns: "
                                  + ", ".join(map(str, frame.columns)) + ")")
     kept = frame[[column for column in frame.columns if column not in used and column not in renamed]]
     return pd.concat([pd.DataFrame(renamed, index=frame.index), kept], axis=1)
+
+
+def logged_joints(frame: pd.DataFrame, prefix: str, prefixed: Sequence[str], joint_names: Sequence[str] | None,
+                  source: str) -> dict[int, int] | None:
+    """For a group ``prefix0..`` whose table also holds the joints' names by index (``field.name0..`` beside
+    ``field.position0..``: the prefix's last word replaced by ``name``), the robot's joint (1-based, in
+    ``joint_names``) of each index the names give; ``None`` without such names or without ``joint_names``.
+
+    A ``JointState`` lists its joints in the publisher's order (a UR driver's: elbow first), not the
+    description's: taking index ``k`` as joint ``k + 1`` would fit one joint's torque with another's motion.
+
+    Raises
+    ------
+    MissingColumnError
+        A joint of the robot that no index names, or names that change from row to row."""
+    names_prefix = re.sub(r"[A-Za-z]+(_?)$", r"name\1", prefix)
+    indices = [int(str(column)[len(prefix):]) for column in prefixed]
+    name_columns = [f"{names_prefix}{index}" for index in indices]
+    if joint_names is None or names_prefix == prefix or not all(column in frame.columns for column in name_columns):
+        return None
+    names = frame[name_columns].astype(str)
+    if len(names) and not (names == names.iloc[0]).all().all():
+        changing = [column for column in name_columns if names[column].nunique() > 1]
+        raise MissingColumnError(f"{source}: the joint names {', '.join(changing)} change from row to row: the "
+                                 "joints cannot be matched to the robot's by name (write one joint order per file)")
+    logged = [str(value).strip() for value in names.iloc[0]] if len(names) else []
+    missing = [name for name in joint_names if name not in logged]
+    if missing:
+        raise MissingColumnError(f"{source}: the robot's joint(s) {', '.join(missing)} are not among the joints "
+                                 f"{names_prefix}0.. name ({', '.join(logged)})")
+    return {index: list(joint_names).index(name) + 1 for index, name in zip(indices, logged) if name in joint_names}
 
 
 def _arrays(path: Path) -> dict[str, np.ndarray]:

@@ -55,7 +55,13 @@ from estimation.data.loading import (
     required_groups,
     uniform_grid,
 )
-from estimation.data.log_formats import is_log_file, read_log_frame
+from estimation.data.log_formats import (
+    JointStateTableWarning,
+    apply_column_map,
+    is_log_file,
+    joint_state_echo,
+    read_log_frame,
+)
 from estimation.data.log_cleaning import DEFAULT_MAX_GAP, blank_rows, describe, find_gaps, repeated_rows, split_rows, time_stamps_jump
 from dynamics.measurements import Measurements, joint_columns
 
@@ -163,6 +169,13 @@ def read_record(
         raise
     except (ValueError, OSError, pd.errors.ParserError) as error:
         raise MeasurementError(f"cannot read {path}: {str(error).strip()}{_delimiter_note(path)}") from None
+    echo = joint_state_echo(frame)
+    if echo is not None:  # rostopic echo -p of JointState messages: read as the column map that reads it
+        robot = model.robot if isinstance(model, IdentificationModel) else None
+        frame = apply_column_map(frame, echo, str(path), joint_names=None if robot is None else robot.joint_names)
+        warnings.warn(JointStateTableWarning(
+            f"{path}: read as `rostopic echo -p` of JointState messages, the joints matched by field.name0.. "
+            f"(--columns {','.join(f'{key}={value}' for key, value in echo.items())})"), stacklevel=2)
     return segments_from_frame(frame, n_joints=n_joints, model=model, require=require, resample=resample,
                                source=str(path), max_gap=max_gap, split=split)
 

@@ -108,3 +108,49 @@ def smooth_coulomb(effects: tuple[Any, ...], min_speed: float) -> tuple[Any, ...
             effect = dataclasses.replace(effect, smoothing=speed * scale)
         smoothed.append(effect)
     return tuple(smoothed)
+
+
+def holds(t: NDArray[np.float64], q: NDArray[np.float64], longer_than: float) -> list[tuple[int, int]]:
+    """The holds of a record: row ranges ``[start, stop)`` over which every joint's position stays exactly what it
+    was on the range's first row (the robot stopped: a brake, or a controller holding a pose), lasting more than
+    ``longer_than`` seconds from the first row to the last.
+
+    Why: at a hold the true velocity is zero and the torque holds whatever static friction or a brake takes, any
+    share of ``[−fc, fc]``; the velocity derived from the held positions is the filter's transient and noise,
+    whose sign switches the Coulomb columns between ``+fc`` and ``−fc`` on every row of the hold. A robot that
+    moves, even slowly, changes some joint's position within ``longer_than`` (quantised encoders included): runs
+    of a few repeated positions (the TX40's longest is 7.6 ms at 5 kHz) are not holds at the reader's
+    ``max_gap`` of 50 ms.
+    """
+    if q.shape[0] < 2:
+        return []
+    same = np.r_[False, np.all(q[1:] == q[:-1], axis=1)]  # row i holds row i-1's position
+    edges = np.flatnonzero(np.diff(np.r_[0, same.astype(np.int8), 0]))
+    found = []
+    for first, last in zip(edges[::2], edges[1::2]):  # rows first..last-1 repeat row first-1's position
+        start, stop = first - 1, last
+        if t[stop - 1] - t[start] > longer_than:
+            found.append((int(start), int(stop)))
+    return found
+
+
+def without_holds(segment: Measurements, longer_than: float) -> tuple[tuple[Measurements, ...], int]:
+    """``segment`` cut at its :func:`holds`: the parts between them (of two rows or more), and the number of rows
+    left out (the holds' and those of parts too short to keep)."""
+    found = holds(segment.t, segment.q, longer_than)
+    if not found:
+        return (segment,), 0
+    parts, begin = [], 0
+    for start, stop in [*found, (segment.n_samples, segment.n_samples)]:
+        if start - begin >= 2:
+            parts.append(segment.select(slice(begin, start)))
+        begin = stop
+    return tuple(parts), segment.n_samples - sum(part.n_samples for part in parts)
+
+
+def held_rows(t: NDArray[np.float64], q: NDArray[np.float64], longer_than: float) -> NDArray[np.bool_]:
+    """Rows within the :func:`holds` of a record: the robot still, its velocity and acceleration exactly zero."""
+    held = np.zeros(t.shape[0], dtype=bool)
+    for start, stop in holds(t, q, longer_than):
+        held[start:stop] = True
+    return held

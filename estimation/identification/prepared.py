@@ -35,6 +35,7 @@ from dynamics.runtime.memory import check_allocation
 from dynamics.runtime.progress import step
 from dynamics.transmission import JointDirections, Transmission
 from estimation.data.input_findings import reading_findings
+from estimation.data.loading import HoldWarning
 from estimation.data.log_cleaning import DEFAULT_MAX_GAP
 from estimation.data.motor_side import read_record_with_transmission
 from estimation.data.segments import check_varying_channels
@@ -43,6 +44,7 @@ from estimation.data.rest import (
     RestSelection,
     coulomb_combinations,
     drop_rest,
+    without_holds,
 )
 from estimation.identification.preprocessing_choice import PreprocessingChoice, choose_by_evidence, scored_window
 from estimation.identification.preprocessing_on_validation import FITS, another_motion, on_validation, window
@@ -303,6 +305,8 @@ def prepare_records(model: IdentificationModel, train: Sequence[str | Path], val
                     for role, paths in (("validation", validation), ("test", test))}
     check_no_shared_samples({"training": train_files, **held_out})
     train_files, held_out = logged_derivatives_alike(train_files, held_out)
+    if settings.min_speed is None:  # rows at rest not handled by the user: the holds cut out of the fit
+        train_files = training_without_holds(train_files, settings.max_gap)
     for role, files in (("training", train_files), *held_out.items()):
         if files is not None:
             check_varying_channels([segment for file in files for segment in file.segments], model.channels,
@@ -340,6 +344,30 @@ def prepare_records(model: IdentificationModel, train: Sequence[str | Path], val
     records = {role: None if record is None else _without_rest(record, model, settings, role)
                for role, record in prepared.items()}
     return PreparedRecords(preprocessing, records["train"], records["validation"], records["test"])
+
+
+def training_without_holds(files: Sequence[RecordedFile], max_gap: float) -> tuple[RecordedFile, ...]:
+    """The training files with each hold longer than ``max_gap`` cut out, the segment split there as at a gap
+    (:func:`estimation.data.rest.without_holds`: at a hold static friction or a brake takes any share of the
+    torque, and the derived velocity's sign is noise), said in a :class:`~estimation.data.loading.HoldWarning`.
+    Validation and test records are scored as recorded."""
+    out = []
+    for file in files:
+        parts, dropped = [], 0
+        for segment in file.segments:
+            kept, left = without_holds(segment, max_gap)
+            parts.extend(kept)
+            dropped += left
+        if dropped and parts:  # a record held still throughout is left to the checks that name it
+            total = sum(segment.n_samples for segment in file.segments)
+            warnings.warn(HoldWarning(
+                f"{file.path}: the robot is held still (every joint's position unchanged for more than {max_gap:g} "
+                f"s) on {dropped} of {total} rows: left out of the fit, the record split there (at rest the torque "
+                "holds any share of the static friction, and the sign of the derived velocity is noise); "
+                "--min-speed V drops rows slower than V instead"), stacklevel=3)
+            file = replace(file, segments=tuple(parts))
+        out.append(file)
+    return tuple(out)
 
 
 def logged_derivatives_alike(train: Sequence[RecordedFile], held_out: dict[str, Sequence[RecordedFile] | None]

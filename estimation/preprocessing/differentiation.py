@@ -40,6 +40,8 @@ import scipy.signal
 from numpy.typing import NDArray
 
 from dynamics.measurements import Measurements
+from estimation.data.log_cleaning import DEFAULT_MAX_GAP
+from estimation.data.rest import held_rows
 from estimation.preprocessing.fourier_series import FourierSeries, fit_series
 
 #: period averaging: ``auto`` averages when there are two or more whole periods of a whole number of samples
@@ -306,6 +308,9 @@ class ButterworthDifferentiation:
         else:
             dq, ddq = spline_derivatives(q, step, 2)  # one spline of the positions for both (its derivatives)
         q, dq, ddq = q[inside], dq[inside], ddq[inside]
+        held = held_rows(measurements.t, measurements.q, DEFAULT_MAX_GAP)
+        if held.any():  # the robot held still: its velocity is zero, not the filter's transient (whose sign is noise)
+            dq, ddq = np.where(held[:, None], 0.0, dq), np.where(held[:, None], 0.0, ddq)
         if self.torques == "recorded":
             tau, wrench = measurements.tau, measurements.wrench
         else:

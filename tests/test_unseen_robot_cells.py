@@ -1,0 +1,223 @@
+"""Work cells the project has not seen (issue 34), beside the other unseen-robot modules
+(:mod:`tests.test_unseen_robots`, ``_kinds``, ``_realities``, ``_labs``, ``_logs``), run by the same harness
+(:func:`tests.test_unseen_robot_logs.run_logged`):
+
+- a SCARA described by a hand-written URDF: two revolute joints about the vertical (no gravity on them), a
+  prismatic quill moving along the vertical (its gravity load a constant, the same column as its offset) and a
+  roll joint carrying a tool off its axis;
+- a URDF whose inertials are placeholders (every link 1 kg at its frame's origin, identity inertia), so the
+  description's prior is far from the truth;
+- a training record at rest for half its length (the robot stopped in the middle of the excitation);
+- torque sensors whose bias drifts as they warm up (different in each record).
+
+No data are copied; every record is simulated (the plain fit's model class, :func:`tests.test_unseen_robots.truth`,
+white torque noise of 2 % of each channel's spread). Each case runs the default ``oed identify`` (told the plain
+fit's model class) and ``oed diagnose`` (its own defaults), then ``oed predict`` on a test record no choice saw,
+against the plain Pinocchio least-squares fit of ``benchmarks/bench_real_robots.py`` (its cut-off chosen on the
+validation record) on the same recorded samples: per joint within 1.3x, in total at most 1.0x, each figure allowed
+its noise floor's sampling spread; and ``oed predict`` on the validation record reproduces the validation error each
+verb reported (relative 1e-6)."""
+
+from __future__ import annotations
+
+import re
+import tempfile
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from dynamics.robots import load_robot
+from tests.test_one_answer_audit import RELATIVE
+from tests.test_unseen_robot_kinds import as_well_as_the_plain_fit, marks, ur10e
+from tests.test_unseen_robot_labs import Lab, puma
+from tests.test_unseen_robot_logs import EPOCH_NS, LoggedAs, run_logged
+from tests.test_unseen_robots import Log
+
+#: a SCARA of a 0.6 m reach (the published lengths of a mid-size one: 0.325 + 0.275 m, a 0.2 m quill), link masses
+#: split by hand; the roll joint carries a 1 kg tool off its axis
+SCARA = """<?xml version="1.0"?>
+<robot name="scara">
+  <link name="world"/>
+  <joint name="pedestal" type="fixed"><origin xyz="0 0 0.2"/><parent link="world"/><child link="base"/></joint>
+  <link name="base"><inertial><origin xyz="0 0 0.1"/><mass value="15"/><inertia ixx="0.2" ixy="0" ixz="0" iyy="0.2" iyz="0" izz="0.1"/></inertial></link>
+  <joint name="shoulder" type="revolute"><origin xyz="0 0 0.25"/><axis xyz="0 0 1"/><parent link="base"/><child link="arm1"/>
+    <limit lower="-2.6" upper="2.6" velocity="3.0" effort="200"/></joint>
+  <link name="arm1"><inertial><origin xyz="0.16 0 0.03"/><mass value="7.5"/><inertia ixx="0.02" ixy="0" ixz="0.001" iyy="0.09" iyz="0" izz="0.085"/></inertial></link>
+  <joint name="elbow" type="revolute"><origin xyz="0.325 0 0.05"/><axis xyz="0 0 1"/><parent link="arm1"/><child link="arm2"/>
+    <limit lower="-2.5" upper="2.5" velocity="4.0" effort="100"/></joint>
+  <link name="arm2"><inertial><origin xyz="0.14 0.01 -0.02"/><mass value="5.0"/><inertia ixx="0.01" ixy="0.001" ixz="0" iyy="0.045" iyz="0" izz="0.042"/></inertial></link>
+  <joint name="quill" type="prismatic"><origin xyz="0.275 0 0"/><axis xyz="0 0 -1"/><parent link="arm2"/><child link="spline"/>
+    <limit lower="0" upper="0.2" velocity="0.5" effort="300"/></joint>
+  <link name="spline"><inertial><origin xyz="0 0 0.1"/><mass value="1.2"/><inertia ixx="0.005" ixy="0" ixz="0" iyy="0.005" iyz="0" izz="0.0003"/></inertial></link>
+  <joint name="roll" type="revolute"><origin xyz="0 0 -0.05"/><axis xyz="0 0 1"/><parent link="spline"/><child link="flange"/>
+    <limit lower="-3.0" upper="3.0" velocity="6.0" effort="12"/></joint>
+  <link name="flange"><inertial><origin xyz="0 0 -0.01"/><mass value="0.3"/><inertia ixx="0.0002" ixy="0" ixz="0" iyy="0.0002" iyz="0" izz="0.0002"/></inertial></link>
+  <joint name="tool_mount" type="fixed"><origin xyz="0.04 0.01 -0.03"/><parent link="flange"/><child link="tool"/></joint>
+  <link name="tool"><inertial><origin xyz="0 0 -0.02"/><mass value="1.0"/><inertia ixx="0.001" ixy="0" ixz="0" iyy="0.001" iyz="0" izz="0.0008"/></inertial></link>
+</robot>
+"""
+
+
+def scara() -> object:
+    """The SCARA as the simulation's robot (read from :data:`SCARA`)."""
+    with tempfile.TemporaryDirectory() as folder:
+        path = Path(folder) / "scara.urdf"
+        path.write_text(SCARA)
+        return load_robot(urdf=path)
+
+
+def as_written(text: str) -> str:
+    """The description the lab hands over: :data:`SCARA` as written (a world link, fixed pedestal and tool)."""
+    del text
+    return SCARA
+
+
+def placeholders(text: str) -> str:
+    """Every link's inertial a placeholder: 1 kg at the link frame's origin, identity inertia."""
+    text = re.sub(r'<mass value="[^"]*"\s*/>', '<mass value="1.0" />', text)
+    text = re.sub(r'(<inertial>\s*<origin xyz=")[^"]*(")', r"\g<1>0 0 0\2", text)
+    return re.sub(r"<inertia [^>]*/>", '<inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="1" />', text)
+
+
+#: the UR10e's joints as Universal Robots' driver names them, and the order its /joint_states messages list them
+UR_NAMES = ("shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint", "wrist_1_joint", "wrist_2_joint",
+            "wrist_3_joint")
+PUBLISHED = (2, 1, 0, 3, 4, 5)  # elbow, shoulder lift, shoulder pan, wrist 1-3: the driver's alphabetical order
+
+
+def ur_names(text: str) -> str:
+    """The description with the driver's joint names."""
+    for index, name in enumerate(UR_NAMES):
+        text = text.replace(f'"ur_joint{index + 1}"', f'"{name}"')
+    return text
+
+
+def rostopic_echo(frame: pd.DataFrame, role: str) -> pd.DataFrame:
+    """``rostopic echo -p /joint_states`` of a UR driver's messages: ``%time`` (ns since 1970, when the topic was
+    logged: 2 ms after the stamp), the header (its stamp the sampling time), the names
+    ``field.name0..`` and ``field.position0..``, ``field.velocity0..``, ``field.effort0..`` in the order the
+    messages list the joints (:data:`PUBLISHED`), not the description's."""
+    n = len(PUBLISHED)
+    stamps = np.round(frame["t"].to_numpy() * 1e9).astype(np.int64) + EPOCH_NS
+    out = {"%time": stamps + 2_000_000, "field.header.seq": np.arange(len(frame)), "field.header.stamp": stamps,
+           "field.header.frame_id": ""}
+    out.update({f"field.name{k}": UR_NAMES[PUBLISHED[k]] for k in range(n)})
+    for group, prefix in (("q", "field.position"), ("dq", "field.velocity"), ("tau", "field.effort")):
+        if f"{group}1" in frame.columns:
+            out.update({f"{prefix}{k}": frame[f"{group}{PUBLISHED[k] + 1}"].to_numpy() for k in range(n)})
+    return pd.DataFrame(out)
+
+
+CELLS = (
+    LoggedAs("SCARA from a hand-written URDF (vertical prismatic quill, a 1 kg tool on the roll joint), 10 s / 4 s / "
+             "6 s at 250 Hz, no dq", Lab("scara", scara, *(Log(seconds, 250.0, velocity=False)
+                                                          for seconds in (10.0, 4.0, 6.0))), urdf=as_written,
+             slow=True),
+    LoggedAs("UR10e-like, the URDF's inertials placeholders (1 kg at each frame, identity inertia), 10 s / 4 s / 6 s "
+             "at 500 Hz, logged dq", Lab("placeholders", ur10e, *(Log(seconds, 500.0, motion_hz=0.1)
+                                                                   for seconds in (10.0, 4.0, 6.0))),
+             urdf=placeholders, slow=True),
+    # (the case below at 35f0061, the holds cut from training only: diagnose 0.063/0.037/0.006/2.319/3.126/0.029x,
+    # 1.057 total, no Coulomb law adopted on joints 4 and 5, the validation record's holds scored with the filter's
+    # sign; now a hold's derivatives are zero wherever a record is derived)
+    # a strict xfail at ad08589: identify 2.15/5.11/6.02/4.01/3.76/4.59x the plain fit, 4.11 total (20-198x the
+    # noise floor), diagnose 4.14 total, the held positions' derived velocity switching the Coulomb columns; the
+    # explicit --min-speed 0.02 gave the floor (identify and diagnose 0.96-1.09x it). Now the hold is cut out of the
+    # training record (estimation.data.rest.holds, a HoldWarning)
+    LoggedAs("PUMA 6 joints, the training record at rest for half its length (stopped mid-excitation), 16 s / 4 s / "
+             "6 s at 250 Hz, no dq", Lab("halted", puma(6), *(Log(seconds, 250.0, velocity=False)
+                                                             for seconds in (16.0, 4.0, 6.0)), halted=0.5),
+             slow=True),
+    LoggedAs("PUMA 6 joints, the training and validation records at rest for half their length, 16 s / 8 s / 6 s at "
+             "250 Hz, no dq", Lab("halted twice", puma(6), *(Log(seconds, 250.0, velocity=False)
+                                                            for seconds in (16.0, 8.0, 6.0)), halted=0.5,
+                                   halted_in=("train", "validate")), slow=True),
+    LoggedAs("PUMA 6 joints, torque sensors whose bias drifts as they warm (10 % of spread, 30 s time constant), "
+             "12 s / 4 s / 6 s at 250 Hz, no dq", Lab("drift", puma(6), *(Log(seconds, 250.0, velocity=False)
+                                                                         for seconds in (12.0, 4.0, 6.0)),
+                                                    drift=0.1), slow=True),
+    LoggedAs("UR10e-like logged by `rostopic echo -p /joint_states`: the driver's joint order (elbow first), the "
+             "names in field.name0.., declared by --columns", Lab("rostopic", ur10e, *(Log(seconds, 500.0, motion_hz=0.1)
+                                                                                      for seconds in (10.0, 4.0, 6.0))),
+             rostopic_echo, urdf=ur_names, reading=("--columns", "t=1e-9*field.header.stamp,q=field.position,"
+                                                                "dq=field.velocity,tau=field.effort"),
+             seconds=lambda t: t - EPOCH_NS * 1e-9, slow=True),
+    # at 4093904 both verbs exited on this table (missing column(s) t, q1..) where the --columns above worked
+    LoggedAs("the same `rostopic echo -p` table on the defaults", Lab("rostopic", ur10e, *(
+        Log(seconds, 500.0, motion_hz=0.1) for seconds in (10.0, 4.0, 6.0))), rostopic_echo, urdf=ur_names,
+        seconds=lambda t: t - EPOCH_NS * 1e-9, slow=True),
+)
+
+
+@pytest.mark.parametrize("case", [pytest.param(case, id=case.name, marks=marks(case)) for case in CELLS])
+def test_the_defaults_run_and_predict_a_cells_log_as_well_as_a_plain_fit(case, tmp_path):
+    outcome = run_logged(case, tmp_path)
+    print(f"\nreproduced validation error (relative): {outcome['reproduced']}")
+    as_well_as_the_plain_fit(case.name, outcome, f"chosen {outcome['selections']}; ")
+    for label, error in outcome["reproduced"].items():
+        assert error <= RELATIVE, (label, error)
+
+
+def test_a_hold_is_cut_out_of_the_training_record_and_said(tmp_path):
+    """Every joint's position unchanged for longer than ``max_gap`` (50 ms): a hold, cut out of the training record
+    (the segment split there) with a :class:`HoldWarning`, its velocity and acceleration zero where a record is
+    derived; runs of repeated positions shorter than that (a slow
+    joint's quantised encoder, the TX40's 7.6 ms at 5 kHz) and a hold of one joint alone are not holds; with
+    ``--min-speed`` the user's rule applies instead."""
+    from dynamics.measurements import Measurements
+    from estimation.data import HoldWarning
+    from estimation.data.rest import holds, without_holds
+    from estimation.identification.prepared import RecordedFile, training_without_holds
+
+    t = np.arange(0.0, 2.0, 0.004)
+    q = np.column_stack([np.sin(t), np.cos(2 * t)])
+    q[100:150] = q[100]  # 0.196 s held: a hold (rows 100..149)
+    q[300:310] = q[300]  # 36 ms: not one
+    q[400:480, 0] = q[400, 0]  # one joint still, the other moving: not one
+    assert holds(t, q, 0.05) == [(100, 150)]
+    segment = Measurements(t, q, None, None, np.zeros_like(q), None, {})
+    parts, dropped = without_holds(segment, 0.05)
+    assert [part.n_samples for part in parts] == [100, 350] and dropped == 50
+    assert parts[1].t[0] == t[150]
+    with pytest.warns(HoldWarning, match="held still .* on 50 of 500 rows"):
+        (file,) = training_without_holds([RecordedFile(tmp_path / "train.csv", (segment,))], 0.05)
+    assert len(file.segments) == 2
+    assert holds(t, q, 0.2) == []
+    from estimation.preprocessing.differentiation import ButterworthDifferentiation
+
+    derived = ButterworthDifferentiation(cutoff_hz=10.0).apply(segment)  # a hold's derivatives: zero, not the filter's
+    assert np.all(derived.dq[100:150] == 0.0) and np.all(derived.ddq[100:150] == 0.0)
+    assert np.all(derived.dq[300:310] != 0.0) and np.all(derived.dq[400:480, 1] != 0.0)
+
+
+
+def test_a_joint_state_table_is_matched_to_the_robot_by_its_names(tmp_path):
+    """``rostopic echo -p``'s table read through a column map: each index's joint taken from ``field.name<k>`` (at
+    35f0061 index k was joint k + 1: the UR case above predicted 1322x worse than the plain fit, both verbs running),
+    a joint of the log the robot lacks left out; a robot's joint no index names, or names changing between rows,
+    refused naming them."""
+    from estimation.data import MissingColumnError
+    from estimation.data.log_formats import LogSource, joint_state_echo, parse_column_map, read_log_frame
+
+    t = np.arange(0.0, 0.1, 0.01)
+    frame = pd.DataFrame({f"q{j + 1}": (j + 1) * np.ones_like(t) for j in range(6)} | {"t": t}
+                         | {f"tau{j + 1}": -(j + 1) * np.ones_like(t) for j in range(6)})
+    table = rostopic_echo(frame, "train")
+    table["field.name6"], table["field.position6"], table["field.effort6"] = "gripper_joint", 7.0, -7.0
+    table.to_csv(tmp_path / "echo.csv", index=False)
+    columns = parse_column_map("t=1e-9*field.header.stamp,q=field.position,tau=field.effort")
+    read = read_log_frame(LogSource(tmp_path / "echo.csv", columns=columns), joint_names=UR_NAMES)
+    assert joint_state_echo(table) == {"t": "1e-9*field.header.stamp", "q": "field.position", "tau": "field.effort"}
+    assert joint_state_echo(frame) is None
+    assert joint_state_echo(table.assign(**{"field.header.stamp": 0}))["t"] == "1e-9*%time"
+    for j in range(6):
+        assert np.all(read[f"q{j + 1}"] == j + 1) and np.all(read[f"tau{j + 1}"] == -(j + 1)), j
+    assert "q7" not in read.columns
+    with pytest.raises(MissingColumnError, match="joint\\(s\\) tool_joint are not among"):
+        read_log_frame(LogSource(tmp_path / "echo.csv", columns=columns), joint_names=(*UR_NAMES, "tool_joint"))
+    table.loc[3, "field.name0"] = "shoulder_pan_joint"
+    table.to_csv(tmp_path / "changing.csv", index=False)
+    with pytest.raises(MissingColumnError, match="field.name0 change from row to row"):
+        read_log_frame(LogSource(tmp_path / "changing.csv", columns=columns), joint_names=UR_NAMES)
