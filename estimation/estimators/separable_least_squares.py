@@ -28,7 +28,8 @@ import numpy as np
 import scipy.linalg
 from numpy.typing import NDArray
 
-from estimation.estimators.bordered_normal import RANK_THRESHOLD, BorderedFactor, FixedFactor, solve_bordered
+from estimation.estimators.bordered_normal import (RANK_THRESHOLD, BorderedFactor, FixedFactor, cholesky_solve,
+                                                  solve_bordered, symmetric_upper)
 from estimation.estimators.effect_blocks import Block, States
 from estimation.estimators.identification_problem import ResidualBand
 
@@ -220,7 +221,7 @@ def solve_linear(fixed: FixedPart, blocks: Sequence[Block], states: States, shap
             for other, other_values, other_where in zip(blocks[index + 1:], columns[index + 1:], slices[index + 1:]):
                 if row in other.rows:
                     normal[where, other_where] += w * (C.T @ other_values[:, other.rows.index(row), :])
-    normal = np.triu(normal) + np.triu(normal, 1).T
+    normal = symmetric_upper(normal)
     solved = None if factored is None else solve_bordered(normal, right, factored)
     theta, factor = (solve_normal(normal, right), None) if solved is None else solved
     rss = float(weights @ fixed.power - 2 * theta @ right + theta @ normal @ theta)
@@ -242,8 +243,13 @@ def solve_normal(normal: NDArray[np.float64], right: NDArray[np.float64]) -> NDA
     eigenvalues = np.linalg.eigvalsh(equilibrated)
     if eigenvalues[0] < RANK_THRESHOLD * eigenvalues[-1]:
         raise np.linalg.LinAlgError("rank-deficient columns")
-    factor = scipy.linalg.cho_factor(equilibrated, check_finite=False)
-    return scipy.linalg.cho_solve(factor, right / scale, check_finite=False) / scale
+    # scipy.linalg.cho_factor and cho_solve's LAPACK calls, without their wrappers (the search's thousands of solves)
+    factor, info = scipy.linalg.lapack.dpotrf(equilibrated, lower=False, clean=False)
+    if info > 0:
+        raise np.linalg.LinAlgError(f"{info}-th leading minor of the array is not positive definite")
+    if info < 0:
+        raise ValueError(f'LAPACK reported an illegal value in {-info}-th argument on entry to "POTRF".')
+    return cholesky_solve(factor, right / scale) / scale
 
 
 def residuals(fixed: FixedPart, blocks: Sequence[Block], solution: LinearSolution,
@@ -295,7 +301,7 @@ def full_information(fixed: FixedPart, blocks: Sequence[Block], solution: Linear
             for i, (other_rows, other) in enumerate(directions[: j + 1]):
                 if row in other_rows:
                     information[p + i, p + j] += w * (other[:, other_rows.index(row)] @ d)
-    information = np.triu(information) + np.triu(information, 1).T
+    information = symmetric_upper(information)
     return information, gradient
 
 
