@@ -87,6 +87,20 @@ class FixedPart:
         result[where[kept]] = products[kept]
         return result
 
+    def weighted(self, weights: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64], float]:
+        """``(Σ_c w_c A_cᵀA_c, Σ_c w_c A_cᵀy_c, Σ_c w_c y_cᵀy_c)`` at the channel weights ``weights`` (upper
+        triangle and all); the latest kept, read-only: the solves of a search, or a round's screens, share their part
+        and weights (:func:`solve_linear`)."""
+        values = np.asarray(weights)
+        key = (values.dtype.str, values.shape, values.tobytes())
+        latest = self.__dict__.get("_weighted")
+        if latest is None or latest[0] != key:
+            normal, right = np.tensordot(weights, self.gram, axes=1), weights @ self.moment
+            normal.flags.writeable = right.flags.writeable = False
+            latest = (key, (normal, right, weights @ self.power))
+            self.__dict__["_weighted"] = latest  # a cache beside the frozen fields (as functools.cached_property)
+        return latest[1]
+
     def predict(self, theta: NDArray[np.float64], channel: int | None = None) -> NDArray[np.float64]:
         """``A_c θ`` on ``channel`` ``(N,)``, or on every channel ``(m, N)``."""
         padded = np.append(theta, 0.0)  # where = −1 reads the appended zero
@@ -198,8 +212,7 @@ def solve_linear(fixed: FixedPart, blocks: Sequence[Block], states: States, shap
     p = slices[-1].stop if slices else p0
     normal = np.zeros((p, p))
     right = np.zeros(p)
-    normal[:p0, :p0] = np.tensordot(weights, fixed.gram, axes=1)
-    right[:p0] = weights @ fixed.moment
+    normal[:p0, :p0], right[:p0], power = fixed.weighted(weights)
     columns, derivatives = [], [] if jacobian else None
     for index, (block, shape) in enumerate(zip(blocks, shapes)):
         if evaluated is not None:
@@ -224,7 +237,7 @@ def solve_linear(fixed: FixedPart, blocks: Sequence[Block], states: States, shap
     normal = symmetric_upper(normal)
     solved = None if factored is None else solve_bordered(normal, right, factored)
     theta, factor = (solve_normal(normal, right), None) if solved is None else solved
-    rss = float(weights @ fixed.power - 2 * theta @ right + theta @ normal @ theta)
+    rss = float(power - 2 * theta @ right + theta @ normal @ theta)
     return LinearSolution(theta, max(rss, 0.0), normal, columns, derivatives, factor)
 
 
