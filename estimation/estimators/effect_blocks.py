@@ -169,8 +169,9 @@ class Block:
                               "(its columns are zero on every channel)")
         self.columns_function, self.jacobian_function = effect_block_functions(kind, robot, effect)
         self.n_channels = n_channels
-        # the latest evaluation: (states, shape's bytes, columns, derivatives or None) (:meth:`evaluate`)
-        self._latest: tuple[States, bytes, NDArray[np.float64], NDArray[np.float64] | None] | None = None
+        # the latest evaluation: (states, shape's bytes, columns, derivatives or None, products) (:meth:`evaluate`,
+        # :meth:`products`)
+        self._latest: tuple[States, bytes, NDArray[np.float64], NDArray[np.float64] | None, dict] | None = None
 
     def __getstate__(self) -> dict[str, object]:
         return {**self.__dict__, "_latest": None}  # the kept evaluation is a cache: not sent with the block
@@ -208,5 +209,13 @@ class Block:
             for array in (columns, derivative):
                 if array is not None:
                     array.flags.writeable = False
-            self._latest = (states, key, columns, derivative)
+            self._latest = (states, key, columns, derivative, {})
         return (columns, derivative) if jacobian else columns
+
+    def products(self, columns: NDArray[np.float64]) -> dict | None:
+        """A store that lives as long as the kept evaluation ``columns`` (:meth:`evaluate`), for what callers compute
+        from these columns alone and other fixed arrays (:func:`estimation.estimators.separable_least_squares.solve_linear`
+        keeps the products with each record's fixed columns there); ``None`` when ``columns`` are not the block's kept
+        evaluation."""
+        latest = self._latest
+        return latest[4] if latest is not None and latest[2] is columns else None

@@ -21,6 +21,7 @@ the per-sample scores of a sandwich covariance (:func:`sample_scores`).
 from __future__ import annotations
 
 import functools
+import weakref
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
 
@@ -78,9 +79,11 @@ class FixedPart:
             where.append(columns)
         return cls(tuple(own), tuple(where), values, gram, moment, np.sum(values**2, axis=1))
 
-    def cross(self, channel: int, columns: NDArray[np.float64]) -> NDArray[np.float64]:
-        """``A_cᵀ C``, ``(p0, k)``, of columns ``C (N, k)`` on ``channel``."""
-        products = self.own[channel].T @ columns
+    def cross(self, channel: int, columns: NDArray[np.float64], products: NDArray[np.float64] | None = None
+              ) -> NDArray[np.float64]:
+        """``A_cᵀ C``, ``(p0, k)``, of columns ``C (N, k)`` on ``channel``; ``products``: the stored columns' products
+        ``own[channel]ᵀ C`` when the caller has them (:func:`solve_linear`)."""
+        products = self.own[channel].T @ columns if products is None else products
         where = self.where[channel]
         result = np.zeros((self.n_fixed, columns.shape[1]))
         kept = where >= 0
@@ -226,9 +229,11 @@ def solve_linear(fixed: FixedPart, blocks: Sequence[Block], states: States, shap
             values = block.evaluate(states, shape)
         columns.append(values)
     for index, (block, values, where) in enumerate(zip(blocks, columns, slices)):
+        kept = block.products(values)
         for position, row in enumerate(block.rows):
             w, C = weights[row], values[:, position, :]
-            normal[:p0, where] += w * fixed.cross(row, C)
+            normal[:p0, where] += w * fixed.cross(row, C, None if kept is None else _stored_products(fixed, row, C,
+                                                                                                    kept, position))
             normal[where, where] += w * (C.T @ C)
             right[where] += w * (C.T @ fixed.y[row])
             for other, other_values, other_where in zip(blocks[index + 1:], columns[index + 1:], slices[index + 1:]):
@@ -239,6 +244,21 @@ def solve_linear(fixed: FixedPart, blocks: Sequence[Block], states: States, shap
     theta, factor = (solve_normal(normal, right), None) if solved is None else solved
     rss = float(power - 2 * theta @ right + theta @ normal @ theta)
     return LinearSolution(theta, max(rss, 0.0), normal, columns, derivatives, factor)
+
+
+def _stored_products(fixed: FixedPart, row: int, C: NDArray[np.float64], kept: dict,
+                     position: int) -> NDArray[np.float64]:
+    """``own[row]ᵀ C`` of a block's kept evaluation (:meth:`Block.products`: ``kept``), computed once for each stored
+    array: the parts of a diagnosis's rounds share the stored columns of every channel the effects adopted since do
+    not reach (:meth:`FixedPart.extended`, :meth:`FixedPart.kept`), so a candidate screened at its last optimum, or
+    refitted at other weights, reads them once, not at every solve. The same product of the same arrays."""
+    own = fixed.own[row]
+    known = kept.get((id(own), position))
+    if known is not None and known[0]() is own:
+        return known[1]
+    products = own.T @ C
+    kept[(id(own), position)] = (weakref.ref(own), products)
+    return products
 
 
 def solve_normal(normal: NDArray[np.float64], right: NDArray[np.float64]) -> NDArray[np.float64]:
