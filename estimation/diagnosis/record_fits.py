@@ -113,8 +113,10 @@ class RecordFits:
     def _move(self, train: Measurements, recorded: Measurements) -> None:
         """The records (moved by an adopted delay) and the declared model's columns along them."""
         self.train, self.recorded = train, recorded
-        self.states_train = States(train.q, train.dq, train.ddq)
-        self.states_validate = States(recorded.q, recorded.dq, recorded.ddq)
+        # each candidate's block keeps its latest columns along them: a plain candidate's, or one screened at its last
+        # optimum, are the same round after round
+        self.states_train = States(train.q, train.dq, train.ddq, kept=True)
+        self.states_validate = States(recorded.q, recorded.dq, recorded.ddq, kept=True)
         self.declared = FixedPart.from_arrays(self.regressor(train), train.channels(self.model.channels),
                                               ResidualBand.of(train))  # the weights from the residual in the band
         self.declared_validate = FixedPart.from_arrays(self.regressor(recorded), recorded.channels(self.model.channels))

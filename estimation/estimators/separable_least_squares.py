@@ -21,6 +21,7 @@ the per-sample scores of a sandwich covariance (:func:`sample_scores`).
 from __future__ import annotations
 
 import functools
+import weakref
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
 
@@ -28,7 +29,8 @@ import numpy as np
 import scipy.linalg
 from numpy.typing import NDArray
 
-from estimation.estimators.bordered_normal import RANK_THRESHOLD, BorderedFactor, FixedFactor, solve_bordered
+from estimation.estimators.bordered_normal import (RANK_THRESHOLD, BorderedFactor, FixedFactor, cholesky_solve,
+                                                  solve_bordered, symmetric_upper)
 from estimation.estimators.effect_blocks import Block, States
 from estimation.estimators.identification_problem import ResidualBand
 
@@ -77,14 +79,30 @@ class FixedPart:
             where.append(columns)
         return cls(tuple(own), tuple(where), values, gram, moment, np.sum(values**2, axis=1))
 
-    def cross(self, channel: int, columns: NDArray[np.float64]) -> NDArray[np.float64]:
-        """``A_cᵀ C``, ``(p0, k)``, of columns ``C (N, k)`` on ``channel``."""
-        products = self.own[channel].T @ columns
+    def cross(self, channel: int, columns: NDArray[np.float64], products: NDArray[np.float64] | None = None
+              ) -> NDArray[np.float64]:
+        """``A_cᵀ C``, ``(p0, k)``, of columns ``C (N, k)`` on ``channel``; ``products``: the stored columns' products
+        ``own[channel]ᵀ C`` when the caller has them (:func:`solve_linear`)."""
+        products = self.own[channel].T @ columns if products is None else products
         where = self.where[channel]
         result = np.zeros((self.n_fixed, columns.shape[1]))
         kept = where >= 0
         result[where[kept]] = products[kept]
         return result
+
+    def weighted(self, weights: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64], float]:
+        """``(Σ_c w_c A_cᵀA_c, Σ_c w_c A_cᵀy_c, Σ_c w_c y_cᵀy_c)`` at the channel weights ``weights`` (upper
+        triangle and all); the latest kept, read-only: the solves of a search, or a round's screens, share their part
+        and weights (:func:`solve_linear`)."""
+        values = np.asarray(weights)
+        key = (values.dtype.str, values.shape, values.tobytes())
+        latest = self.__dict__.get("_weighted")
+        if latest is None or latest[0] != key:
+            normal, right = np.tensordot(weights, self.gram, axes=1), weights @ self.moment
+            normal.flags.writeable = right.flags.writeable = False
+            latest = (key, (normal, right, weights @ self.power))
+            self.__dict__["_weighted"] = latest  # a cache beside the frozen fields (as functools.cached_property)
+        return latest[1]
 
     def predict(self, theta: NDArray[np.float64], channel: int | None = None) -> NDArray[np.float64]:
         """``A_c θ`` on ``channel`` ``(N,)``, or on every channel ``(m, N)``."""
@@ -197,8 +215,7 @@ def solve_linear(fixed: FixedPart, blocks: Sequence[Block], states: States, shap
     p = slices[-1].stop if slices else p0
     normal = np.zeros((p, p))
     right = np.zeros(p)
-    normal[:p0, :p0] = np.tensordot(weights, fixed.gram, axes=1)
-    right[:p0] = weights @ fixed.moment
+    normal[:p0, :p0], right[:p0], power = fixed.weighted(weights)
     columns, derivatives = [], [] if jacobian else None
     for index, (block, shape) in enumerate(zip(blocks, shapes)):
         if evaluated is not None:
@@ -212,19 +229,36 @@ def solve_linear(fixed: FixedPart, blocks: Sequence[Block], states: States, shap
             values = block.evaluate(states, shape)
         columns.append(values)
     for index, (block, values, where) in enumerate(zip(blocks, columns, slices)):
+        kept = block.products(values)
         for position, row in enumerate(block.rows):
             w, C = weights[row], values[:, position, :]
-            normal[:p0, where] += w * fixed.cross(row, C)
+            normal[:p0, where] += w * fixed.cross(row, C, None if kept is None else _stored_products(fixed, row, C,
+                                                                                                    kept, position))
             normal[where, where] += w * (C.T @ C)
             right[where] += w * (C.T @ fixed.y[row])
             for other, other_values, other_where in zip(blocks[index + 1:], columns[index + 1:], slices[index + 1:]):
                 if row in other.rows:
                     normal[where, other_where] += w * (C.T @ other_values[:, other.rows.index(row), :])
-    normal = np.triu(normal) + np.triu(normal, 1).T
+    normal = symmetric_upper(normal)
     solved = None if factored is None else solve_bordered(normal, right, factored)
     theta, factor = (solve_normal(normal, right), None) if solved is None else solved
-    rss = float(weights @ fixed.power - 2 * theta @ right + theta @ normal @ theta)
+    rss = float(power - 2 * theta @ right + theta @ normal @ theta)
     return LinearSolution(theta, max(rss, 0.0), normal, columns, derivatives, factor)
+
+
+def _stored_products(fixed: FixedPart, row: int, C: NDArray[np.float64], kept: dict,
+                     position: int) -> NDArray[np.float64]:
+    """``own[row]ᵀ C`` of a block's kept evaluation (:meth:`Block.products`: ``kept``), computed once for each stored
+    array: the parts of a diagnosis's rounds share the stored columns of every channel the effects adopted since do
+    not reach (:meth:`FixedPart.extended`, :meth:`FixedPart.kept`), so a candidate screened at its last optimum, or
+    refitted at other weights, reads them once, not at every solve. The same product of the same arrays."""
+    own = fixed.own[row]
+    known = kept.get((id(own), position))
+    if known is not None and known[0]() is own:
+        return known[1]
+    products = own.T @ C
+    kept[(id(own), position)] = (weakref.ref(own), products)
+    return products
 
 
 def solve_normal(normal: NDArray[np.float64], right: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -242,8 +276,13 @@ def solve_normal(normal: NDArray[np.float64], right: NDArray[np.float64]) -> NDA
     eigenvalues = np.linalg.eigvalsh(equilibrated)
     if eigenvalues[0] < RANK_THRESHOLD * eigenvalues[-1]:
         raise np.linalg.LinAlgError("rank-deficient columns")
-    factor = scipy.linalg.cho_factor(equilibrated, check_finite=False)
-    return scipy.linalg.cho_solve(factor, right / scale, check_finite=False) / scale
+    # scipy.linalg.cho_factor and cho_solve's LAPACK calls, without their wrappers (the search's thousands of solves)
+    factor, info = scipy.linalg.lapack.dpotrf(equilibrated, lower=False, clean=False)
+    if info > 0:
+        raise np.linalg.LinAlgError(f"{info}-th leading minor of the array is not positive definite")
+    if info < 0:
+        raise ValueError(f'LAPACK reported an illegal value in {-info}-th argument on entry to "POTRF".')
+    return cholesky_solve(factor, right / scale) / scale
 
 
 def residuals(fixed: FixedPart, blocks: Sequence[Block], solution: LinearSolution,
@@ -295,7 +334,7 @@ def full_information(fixed: FixedPart, blocks: Sequence[Block], solution: Linear
             for i, (other_rows, other) in enumerate(directions[: j + 1]):
                 if row in other_rows:
                     information[p + i, p + j] += w * (other[:, other_rows.index(row)] @ d)
-    information = np.triu(information) + np.triu(information, 1).T
+    information = symmetric_upper(information)
     return information, gradient
 
 
