@@ -201,24 +201,31 @@ def streamed_candidates(model: IdentificationModel, candidates: Sequence[Effect]
     searched on the ``sample`` (``lap``: called with the name of each stage done); with a ``validation`` sample
     and the ``search`` settings, the in-memory search and final refit on the samples (:func:`subsample_search`):
     the shapes as it leaves them, its outcome kept (:attr:`StreamedCandidates.outcome`)."""
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # the subsample's own fit: its warnings are not the record's
-        reference = identify(model, sample).estimate
-    weights = reference.weights if reference.method == "wls" else 1.0 / reference.channel_variance
-    candidates = tuple(default_candidates(model) + coupling_candidates(model, transmission, train=sample)
+    searching = validation is not None and search is not None
+    candidates = tuple(default_candidates(model) + coupling_candidates(
+        model, transmission, train=sample, held_out=validation if searching else None)  # as in memory
                        if candidates is None else candidates)
     blocks, rejected = candidate_blocks(model, candidates)
     lap("subsample_pass")
-    shapes, failed = shape_search(model, blocks, sample, weights)
-    lap("shape_search")
-    blocks = {index: block for index, block in blocks.items() if index not in failed}
-    outcome = None
-    if validation is not None and search is not None:
+    outcome, failed = None, {}
+    if searching:
+        # the search's first round searches every shape from its grid, as in memory (a law whose search fails there
+        # is tried again in later rounds); a law it never fitted keeps its parameters' starts
+        starts = {index: np.array([parameter.starts[0] for parameter in block.parameters], dtype=float)
+                  for index, block in blocks.items()}
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # the subsample's own search: its warnings are not the record's
-            shapes, outcome = subsample_search(model, blocks, {**rejected, **failed}, shapes, sample, validation,
+            shapes, outcome = subsample_search(model, blocks, rejected, starts, sample, validation,
                                                replace(search, n_tests=len(candidates)))
         lap("subsample_search")
+    else:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # the subsample's own fit: its warnings are not the record's
+            reference = identify(model, sample).estimate
+        weights = reference.weights if reference.method == "wls" else 1.0 / reference.channel_variance
+        shapes, failed = shape_search(model, blocks, sample, weights)
+        lap("shape_search")
+        blocks = {index: block for index, block in blocks.items() if index not in failed}
     order = sorted(blocks)
     plan = pickle.dumps(([blocks[i].effect for i in order], [shapes[i] for i in order]))
     return StreamedCandidates({i: blocks[i] for i in order}, shapes, {**rejected, **failed}, len(candidates),
