@@ -138,3 +138,50 @@ def test_the_default_answer_takes_the_gains_only_when_the_validation_record_meas
     tested = oed.predict(model=tmp_path / "result.json", data=tmp_path / "test.csv")
     mse = np.array(list(tested.evaluation.prediction.mse.values()))
     assert np.all(mse < 1.5 * (NOISE * spread) ** 2), (mse / (NOISE * spread) ** 2).round(3)
+
+
+def _puma3_files(tmp_path, gains):
+    urdf = urdf_of("puma560:3", tmp_path)
+    model = build_model(load_robot(urdf=urdf), "internal", FRICTION)
+    theta = truth(model)
+    spread = None
+    for role, seed, seconds in (("train", 11, 10.0), ("validate", 12, 4.0), ("test", 13, 5.0)):
+        record, spread = simulated(model, theta, gains, seed, seconds, spread)
+        frame = {"t": record.t, **{f"q{j + 1}": record.q[:, j] for j in range(3)},
+                 **{f"tau{j + 1}": record.tau[:, j] for j in range(3)}}
+        pd.DataFrame(frame).to_csv(tmp_path / f"{role}.csv", index=False, float_format="%.12g")
+    return urdf
+
+
+@pytest.mark.parametrize("with_gains", [True, False], ids=["gains", "none"])
+def test_the_streamed_identify_tries_the_gains_as_in_memory(with_gains, tmp_path):
+    """The streamed ``oed identify`` (``--chunk-size``) fits the gains from its training sums, checks them on the
+    validation files in one pass by the in-memory rule and, when taken, chooses the answer again from the sums of the
+    torques divided by them: the same gains, verdict and answer as in memory; ``oed predict`` reproduces the error it
+    reports; ``not_computed`` no longer names the gains."""
+    import oed
+
+    gains = np.array([1.2, 0.8, 1.1]) if with_gains else np.ones(3)
+    urdf = _puma3_files(tmp_path, gains)
+    documents = {}
+    for name, options in (("memory", {}), ("streamed", {"chunk_size": 500})):
+        run = oed.identify(urdf=urdf, data=tmp_path / "train.csv", validate=tmp_path / "validate.csv",
+                           friction=FRICTION, **options)
+        run.write(tmp_path / f"{name}.json")
+        documents[name] = json.loads((tmp_path / f"{name}.json").read_text())
+    memory, streamed = documents["memory"], documents["streamed"]
+    assert memory["identification_path"] == "in-memory" and streamed["identification_path"] == "streamed"
+    assert "torque_gains" not in (streamed.get("not_computed") or {})
+    fitted = {name: document["torque_gains"] for name, document in documents.items()}
+    assert fitted["streamed"] is not None and fitted["streamed"]["taken"] == fitted["memory"]["taken"] == with_gains
+    for channel, entry in fitted["memory"]["channels"].items():
+        other = fitted["streamed"]["channels"][channel]
+        assert other["value"] == pytest.approx(entry["value"], rel=1e-5), (channel, other, entry)
+        assert other["determined"] == entry["determined"]
+    assert memory["model_selection"]["chosen"] == streamed["model_selection"]["chosen"]
+    assert ("torque_gains" in streamed["model_file"]) == with_gains
+    for channel, value in memory["validation"]["mse"].items():
+        assert streamed["validation"]["mse"][channel] == pytest.approx(value, rel=1e-4), channel
+    predicted = oed.predict(model=tmp_path / "streamed.json", data=tmp_path / "validate.csv")
+    reported, measured = streamed["validation"]["mse"], predicted.evaluation.prediction.mse
+    assert all(abs(measured[c] / reported[c] - 1.0) < 1e-6 for c in reported), (measured, reported)

@@ -40,7 +40,8 @@ from estimation.identification.repeated_motion import REPEAT_FRACTION, repeated_
 from estimation.identification.validation import Comparison
 
 __all__ = ["DETERMINED_RELATIVE_STD", "SIGNIFICANCE_BLOCKS", "SIGNIFICANCE_Z", "TORQUE_GAINS_TOLERANCE", "TorqueGains", "channel_factors", "channel_sums", "description_scale",
-           "divided_records", "divided_torques", "fit_torque_gains", "gains_for_records", "gains_on_validation", "in_recorded_units", "torque_gains_answer"]
+           "block_labels", "divided_records", "divided_torques", "fit_torque_gains", "gains_checked", "gains_for_records",
+           "gains_from_sums", "gains_on_validation", "in_recorded_units", "torque_gains_answer"]
 
 #: the relative score by which the model with the gains must beat the declared one (a tie keeps the declared)
 TORQUE_GAINS_TOLERANCE = 0.01
@@ -153,24 +154,56 @@ def gains_on_validation(model: IdentificationModel, train: Measurements, validat
     :data:`TORQUE_GAINS_TOLERANCE`) and by more than :data:`SIGNIFICANCE_Z` standard errors (the log ratio of the two
     scores over each of :data:`SIGNIFICANCE_BLOCKS` contiguous blocks, at every count): ``(gains, taken, sentence)``. A cheap check (sums, no sample held) before the
     answer's candidates are fitted again to the torques divided by the gains."""
+    fitted = gains_from_sums(model, channel_sums(model, train), train.n_samples)
+    if isinstance(fitted[1], str):
+        return fitted[0], False, fitted[1]
+    gains, theta, plain = fitted
+    record = validation.as_recorded
+    measured = record.channels(model.channels)
+    squared = ((measured - _predicted(model, plain, record)) ** 2,
+               (measured - gains.values * _predicted(model, theta, record)) ** 2)
+    blocks = {count: tuple(np.array([values[part].sum(axis=0) for part in parts]) for values in squared)
+              + (np.array([part.size for part in parts]),)
+              for count in SIGNIFICANCE_BLOCKS
+              for parts in ([part for part in np.array_split(np.arange(measured.shape[0]), count) if part.size],)}
+    return (gains, *gains_checked(gains, model.channels, blocks))
+
+
+def gains_from_sums(model: IdentificationModel, sums: tuple[NDArray, NDArray, NDArray], n_samples: int
+                    ) -> tuple[TorqueGains, NDArray, NDArray] | tuple[TorqueGains, str]:
+    """The gains fitted from the training record's :func:`channel_sums` (``n_samples`` summed) with ``model``
+    (:func:`fit_torque_gains`, the description's scale; those the record does not determine held at the first
+    channel's): ``(gains, theta, plain)``, ``plain`` the channel-weighted fit without gains; or ``(gains, sentence)``
+    when fewer than two gains are determined (nothing to take)."""
     channels = model.channels
-    G, b, c = channel_sums(model, train)
     names = {name for effect in model.effects for name in effect.parameter_names(model.robot)}
     rigid = np.array([name not in names for name in model.base.names])
     description = model.base.to_base(model.nominal_parameters())
-    gains, theta = fit_torque_gains((G, b, c), train.n_samples, channels, rigid=rigid, description=description)
+    gains, theta = fit_torque_gains(sums, n_samples, channels, rigid=rigid, description=description)
     if gains.determined.sum() < 2:  # no gain relative to another measured: nothing to take
-        return gains, False, (f"an unknown gain on each joint's recorded torque ({gains.said()}): the training "
-                              "record determines fewer than two of them, not taken")
+        return gains, (f"an unknown gain on each joint's recorded torque ({gains.said()}): the training "
+                       "record determines fewer than two of them, not taken")
     if not gains.determined.all():  # those the record does not determine held at the first channel's
-        gains, theta = fit_torque_gains((G, b, c), train.n_samples, channels, rigid=rigid, description=description,
+        gains, theta = fit_torque_gains(sums, n_samples, channels, rigid=rigid, description=description,
                                         held=~gains.determined)
-    plain = _weighted_fit(G, b, c, train.n_samples)
-    record = validation.as_recorded
-    measured = record.channels(channels)
-    squared = {"declared": (measured - _predicted(model, plain, record)) ** 2,
-               "gains": (measured - gains.values * _predicted(model, theta, record)) ** 2}
-    errors = {name: values.mean(axis=0) for name, values in squared.items()}
+    return gains, theta, _weighted_fit(*sums, n_samples)
+
+
+def block_labels(n_samples: int, count: int) -> NDArray[np.int64]:
+    """Each sample's block among ``count`` contiguous blocks of a record of ``n_samples`` (``numpy.array_split``'s)."""
+    sizes = np.full(count, n_samples // count) + (np.arange(count) < n_samples % count)
+    return np.repeat(np.arange(count), sizes)
+
+
+def gains_checked(gains: TorqueGains, channels: Sequence[str], blocks: dict[int, tuple[NDArray, NDArray, NDArray]]
+                  ) -> tuple[bool, str]:
+    """Whether the gains are taken, and the sentence (:func:`gains_on_validation`'s rule), from the validation
+    record's squared errors summed over contiguous blocks: ``blocks[count] = (declared, gains, sizes)``, the sums per
+    block and channel ``(count, m)`` of the channel-weighted fit without gains and with them, and each block's
+    samples (:data:`SIGNIFICANCE_BLOCKS`; empty blocks left out). Sums, so a record read in blocks gives them in one
+    pass."""
+    first = blocks[SIGNIFICANCE_BLOCKS[0]]
+    errors = {"declared": first[0].sum(axis=0) / first[2].sum(), "gains": first[1].sum(axis=0) / first[2].sum()}
     scored = relative_scores({name: dict(zip(channels, mse.tolist())) for name, mse in errors.items()}, channels)
     # the lowering, block by block: the log of the ratio of the two models' scores over each contiguous block (each
     # channel's MSE over the same normaliser as the whole record's score), its standard error from the blocks' spread
@@ -180,12 +213,14 @@ def gains_on_validation(model: IdentificationModel, train: Measurements, validat
     normaliser = np.where(normaliser > 0.0, normaliser, 1.0)
     weakest = (np.inf, 0.0, 0.0, 0)
     for count in SIGNIFICANCE_BLOCKS:
-        parts = [part for part in np.array_split(np.arange(measured.shape[0]), count) if part.size]
-        if len(parts) < 2:
+        declared, with_gains, sizes = blocks[count]
+        keep = sizes > 0
+        if keep.sum() < 2:
             continue
-        ratios = np.array([np.log(max(float((squared["declared"][part].mean(axis=0) / normaliser).mean()), TINY)
-                                  / max(float((squared["gains"][part].mean(axis=0) / normaliser).mean()), TINY))
-                           for part in parts])
+        declared, with_gains, sizes = declared[keep], with_gains[keep], sizes[keep]
+        ratios = np.array([np.log(max(float((d / n / normaliser).mean()), TINY) / max(float((g / n / normaliser).mean()),
+                                                                                    TINY))
+                           for d, g, n in zip(declared, with_gains, sizes)])
         mean, spread = float(ratios.mean()), float(ratios.std(ddof=1) / np.sqrt(ratios.size))
         standing = mean / spread if spread > 0.0 else (np.inf if mean > 0.0 else -np.inf)
         weakest = min(weakest, (standing, mean, spread, ratios.size))
@@ -196,7 +231,7 @@ def gains_on_validation(model: IdentificationModel, train: Measurements, validat
                 f"channel-weighted fit with them validates {scored['gains']:.4g} against {scored['declared']:.4g} "
                 f"without (the mean relative validation error; the log ratio of the two scores over {count} blocks "
                 f"{mean:.3g} ± {spread:.2g}), " + ("taken" if taken else "not taken"))
-    return gains, taken, sentence
+    return taken, sentence
 
 
 def _solve_theta(G: NDArray, b: NDArray, s: NDArray, w: NDArray) -> NDArray:

@@ -37,16 +37,15 @@ __all__ = ["NOT_ON_THIS_PATH", "StreamedRun", "StreamedSettings", "file_record",
 NOT_ON_THIS_PATH = (
     "residual tracing, whiteness and residual statistics (need the residuals sample by sample)",
     "the declared model's HAC standard deviations (classical there; the augmented model's are batch means)",
-    "shapes refined round by round and refitted jointly at the end (fixed at the subsample's optimum)",
+    "the search over the whole record: the in-memory search (its shapes refined round by round, its HAC Wald tests, "
+    "its final joint refit) runs on an evenly spread subsample of each record, the whole record's sums give the "
+    "estimate at its shapes, the covariance and the errors",
     "shape standard deviations",
-    "a law paired with its offset searched jointly (the pair uses the law's own shape)",
     "user stopping rules (the noise floor is the rule)",
     "model_parameters (the physical reading of the estimate)",
     "a delay between torques and motion as a candidate (it moves the records)",
-    "the search's Wald tests from the prewhitened Newey-West covariance with the shape directions (here the "
-    "batch-means covariance of the linear coefficients at the fixed shapes, from the sums of stretches of the record)",
-    "a pair's Coulomb and viscous laws tried as one candidate, limit laws, negative friction held at zero "
-    "(pinned), the traced shape refinement",
+    "limit laws and negative friction held at zero (pinned) in the final estimate (the subsample's final refit "
+    "applies them to choose the findings)",
 )
 
 

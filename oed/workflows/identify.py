@@ -55,6 +55,7 @@ from estimation.streaming.chunks import source_files
 from estimation.streaming.cutoff_choice import streamed_window
 from estimation.streaming.identification import SummedFits, identify_files_candidates
 from estimation.streaming.model_selection import streamed_repeated_motion, summed_selection, warned_still_motion
+from estimation.streaming.torque_gains import GainsScorer, divided_sums, streamed_gains_check
 from estimation.streaming.periods import plan_options
 from estimation.streaming.diagnosis_passes import window_floor
 from estimation.streaming.recorded_errors import (
@@ -439,7 +440,7 @@ def identification_streamed(args: IdentifyOptions, model: IdentificationModel, t
     (:func:`recorded_validation`). ``findings``: what the path decision said of the files (not said again)."""
     chunk_size = DEFAULT_CHUNK_SIZE if args.chunk_size is None else args.chunk_size
     args = streamed_records(args, model)  # a file with holes: its segments, each on its own as in memory
-    selection = None
+    selection, gains = None, None
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         if plan is None:
@@ -473,6 +474,9 @@ def identification_streamed(args: IdentifyOptions, model: IdentificationModel, t
                 options=options, ratio=ratio, still=still, sums=sums, scores=scores)
             if motor is not None:  # the selection with the candidate compared, and the sums of the model it holds
                 selection, sums, scores = motor
+            selection, gains = streamed_torque_gains_selection(
+                args, selection, base=base, methods=methods, chunk_size=chunk_size, options=options, ratio=ratio,
+                still=still, sums=sums)
             result = selection.unconstrained
     # a line per finding across files; those said when the path was decided (``findings``) not again
     messages = grouped_messages(caught, source_files([*args.data, *(args.validate or ())])) if findings is None \
@@ -539,16 +543,61 @@ def identification_streamed(args: IdentifyOptions, model: IdentificationModel, t
     if untried is not None:  # the Fourier path (its sums hold averaged periods): no selection, no candidate
         not_computed["motor_friction"] = untried
         notes = (*notes, untried)
-    if args.method == "auto" and not args.consistent and args.validate and not model_has_shapes(model) \
-            and len(model.channels) > 1 and all(channel.startswith("tau") for channel in model.channels):
+    if selection is None and args.method == "auto" and not args.consistent and args.validate \
+            and not model_has_shapes(model) and len(model.channels) > 1 \
+            and all(channel.startswith("tau") for channel in model.channels):
         not_computed["torque_gains"] = ("an unknown gain on each joint's recorded torque is a candidate of the "
-                                        "in-memory default answer (estimation.consistent.torque_gains), not tried on "
-                                        "the streamed path")
+                                        "default answer (estimation.consistent.torque_gains), not tried on the "
+                                        "Fourier path (its sums hold averaged periods: no answer is chosen there)")
     validation_mse = None if result.validation is None else result.validation.mse
     return Identified(result, chosen, plan.to_dict(), plan.describe(),
                       (*messages, *notes), notes, trivial, floor, floor_note, not_computed, selection=selection,
                       consistent=None if selection is None else selection.consistent, weighting=weighting,
-                      transmission=transmission, chunk_size=chunk_size, model_file=(model_plan, validation_mse))
+                      transmission=transmission, chunk_size=chunk_size, model_file=(model_plan, validation_mse),
+                      torque_gains=gains)
+
+
+def streamed_torque_gains_selection(args: IdentifyOptions, selection: ModelSelection, *, base: str,
+                                    methods: tuple[str, ...], chunk_size: int, options: Mapping[str, Any],
+                                    ratio: float | None, still: bool, sums: SummedFits
+                                    ) -> tuple[ModelSelection, tuple[TorqueGains, bool, str] | None]:
+    """:func:`torque_gains_selection` of files read in blocks, under the same conditions: the gains fitted from the
+    training sums and checked on the validation files in one pass
+    (:func:`estimation.streaming.torque_gains.streamed_gains_check`, the in-memory rule); when the check takes them,
+    the answer's candidates chosen again from the sums of the torques divided by them
+    (:func:`~estimation.streaming.torque_gains.divided_sums`, no pass) and scored in the log's units
+    (:class:`~estimation.streaming.torque_gains.GainsScorer`), then compared with the declared model's answer by
+    :func:`~estimation.consistent.torque_gains.torque_gains_answer`. ``sums``: those of the model ``selection``
+    holds."""
+    model = selection.unconstrained.model
+    channels = model.channels
+    if args.method != "auto" or args.consistent or model_has_shapes(model) or not args.validate \
+            or sums.validation is None or selection.selection != "validation" or len(channels) < 2 \
+            or not all(channel.startswith("tau") and channel[3:].isdigit() for channel in channels):
+        return selection, None
+    reading = {"chunk_size": chunk_size, "cutoff_hz": options["cutoff_hz"], "decimation": options["decimation"],
+               "held_torques": options["held_torques"]}
+    with step("an unknown gain on each joint's torque fitted and checked on the validation record"):
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")  # the files' findings were said on the first pass
+                checked = streamed_gains_check(model, sums.train, args.validate, int(sums.validation.n_samples),
+                                               reading)
+        except (ValueError, np.linalg.LinAlgError):
+            return selection, None
+    if checked is None:
+        return selection, None
+    gains, promising, sentence = checked
+    if not promising:
+        return selection, (gains, False, sentence)
+    with step("the answer's candidates fitted to the torques divided by the gains and compared"):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            other = summed_selection(divided_sums(sums, gains, methods), base=base,
+                                     consistent=consistent_settings(args, model.robot),
+                                     score=GainsScorer(model, gains, args.validate, reading), ratio=ratio, still=still)
+    answer, taken, compared = torque_gains_answer(selection, other, gains)
+    return answer, (gains, taken, f"{sentence}; then {compared}" if compared else sentence)
 
 
 def streamed_motor_friction_selection(args: IdentifyOptions, selection: ModelSelection, model: IdentificationModel,
