@@ -79,3 +79,26 @@ def test_diagnose_told_coulomb_and_offset_merges_them_in_memory(tmp_path):
     document = run.to_dict()
     assert [(item["parameter"], item["merged_into"]) for item in document["not_determined"]] == [("fc2", "off2")]
     assert any("joint 2 (joint2) does not reverse" in text for text in run.warnings)
+
+
+@pytest.mark.slow
+def test_the_streamed_diagnose_told_coulomb_and_offset_merges_them_as_in_memory(tmp_path):
+    """The streamed ``oed diagnose`` (``--chunk-size 100``) exited on the rank deficiency at 7f2677d; now it merges
+    fc2 into off2 as in memory: the same warning, ``not_determined``, model and validation errors."""
+    import oed
+    from tests.test_unseen_robot_labs import write_records
+
+    _, _, files, _ = write_records(ONE_WAY.lab, tmp_path)
+    documents = {}
+    for label, chunk in (("memory", {}), ("streamed", {"chunk_size": 100})):
+        run = oed.diagnose(urdf=tmp_path / "robot.urdf", data=files["train"], validate=files["validate"],
+                           friction="viscous,coulomb,offset", **chunk)
+        assert any("joint 2 (joint2) does not reverse" in text for text in run.warnings), label
+        documents[label] = run.to_dict()
+    memory, streamed = documents["memory"], documents["streamed"]
+    assert streamed["diagnosis_path"] != memory["diagnosis_path"]
+    assert streamed["not_determined"] == memory["not_determined"]
+    assert [(item["parameter"], item["merged_into"]) for item in streamed["not_determined"]] == [("fc2", "off2")]
+    assert streamed["model_file"]["effects"] == memory["model_file"]["effects"] == "viscous,coulomb@1+3,offset"
+    for channel, error in memory["validation"]["after"]["mse"].items():
+        assert streamed["validation"]["after"]["mse"][channel] == pytest.approx(error, rel=1e-6), channel

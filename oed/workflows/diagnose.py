@@ -312,15 +312,17 @@ def run_diagnose(args: DiagnoseOptions, *, say: Callable[[str], None]) -> Diagno
             args, model, transmission, bytes_per_value=IN_MEMORY.bytes_per_value,
             in_memory_only=lambda: in_memory_only(args, model, delay)))
         merged: tuple[MergedColumn, ...] = ()
-        while True:  # in memory, a declared Coulomb column the record cannot tell from the offset: merged, said
+        while True:  # a declared Coulomb column the record cannot tell from the offset: merged, said (both paths)
             try:
-                diagnosed = diagnosis_by_path(read, friction, effects, model, transmission, delay, say)
+                diagnosed = diagnosis_by_path(read, friction, effects, model, transmission, delay, say,
+                                              merged=bool(merged))
                 break
             except IdentifiabilityError as error:
-                change = None if streaming_requested(read) else merged_one_way(model, error.parameters)
+                change = merged_one_way(model, error.parameters)
                 if change is None:
                     raise
-                model, merged = build_model(robot, args.model, change[0]), (*merged, *change[1])
+                effects = change[0]
+                model, merged = build_model(robot, args.model, effects), (*merged, *change[1])
         if merged:
             said = tuple(column.statement() for column in merged)
             diagnosed = replace(diagnosed, messages=(*said, *diagnosed.messages), notes=(*said, *diagnosed.notes))
@@ -337,16 +339,19 @@ def run_diagnose(args: DiagnoseOptions, *, say: Callable[[str], None]) -> Diagno
 
 def diagnosis_by_path(read: DiagnoseOptions, friction: str | None, effects: tuple[Any, ...],
                       model: IdentificationModel, transmission: Transmission | None, delay: DelayBounds | None,
-                      say: Callable[[str], None]) -> Diagnosed:
+                      say: Callable[[str], None], *, merged: bool = False) -> Diagnosed:
     """The diagnosis of the records ``read``, streamed when asked for or when they exceed the memory budget
-    (:func:`decide_path`), else in memory."""
+    (:func:`decide_path`), else in memory. ``merged``: ``effects`` are the declared ones with a Coulomb column
+    merged into its offset (:func:`~estimation.identification.undetermined.merged_one_way`), which the streamed
+    path then takes as they are instead of building them again from ``friction``."""
+    declared = effects if merged else None
     if streaming_requested(read):
-        return diagnosis_streamed(read, friction)
+        return diagnosis_streamed(read, friction, effects=declared)
     check_shaped_effects_kept(effects, model)
     decision = decide_path(read, model, task="diagnosing", bytes_per_value=IN_MEMORY.bytes_per_value,
                            in_memory_only=lambda: in_memory_only(read, model, delay), say=say,
                            **derivatives_on_validation(model, delay))
-    return (diagnosis_streamed(read, friction, decision.plan, decision.findings) if decision.stream
+    return (diagnosis_streamed(read, friction, decision.plan, decision.findings, effects=declared) if decision.stream
             else diagnosis_in_memory(read, model, transmission, delay, decision.plan))
 
 
@@ -870,9 +875,11 @@ def check_streamed_arguments(args: DiagnoseOptions, model: IdentificationModel) 
 
 
 def diagnosis_streamed(args: DiagnoseOptions, friction: str, plan: Preprocessing | None = None,
-                       findings: FindingsSaid | None = None) -> Diagnosed:
+                       findings: FindingsSaid | None = None, *, effects: tuple[Any, ...] | None = None) -> Diagnosed:
     """Diagnose the files read in blocks (:func:`estimation.streaming.diagnosis.diagnose_files`), their
-    derivatives chosen as in memory (``plan``: already chosen); ``friction``: the declared effects without the delay.
+    derivatives chosen as in memory (``plan``: already chosen); ``friction``: the declared effects without the delay
+    (``effects``: those effects as built already, a Coulomb column merged into its offset; ``None``: from
+    ``friction``).
     The findings about the files are said as each pass ends, each once (``findings``: what the path decision said
     already)."""
     from estimation.streaming.diagnosis import diagnose_files_run
@@ -881,7 +888,8 @@ def diagnosis_streamed(args: DiagnoseOptions, friction: str, plan: Preprocessing
 
     robot = robot_of(args)
     transmission = resolve_transmission(args, robot)  # its motor laws; motor-side records read as joint-side copies
-    effects = model_effects(args, friction, robot, transmission)
+    if effects is None:
+        effects = model_effects(args, friction, robot, transmission)
     model = build_model(robot, args.model, effects)
     check_shaped_effects_kept(effects, model)
     check_streamed_arguments(args, model)
