@@ -124,8 +124,13 @@ def holds(t: NDArray[np.float64], q: NDArray[np.float64], longer_than: float) ->
     """
     if q.shape[0] < 2:
         return []
-    same = np.r_[False, np.all(q[1:] == q[:-1], axis=1)]  # row i holds row i-1's position
-    edges = np.flatnonzero(np.diff(np.r_[0, same.astype(np.int8), 0]))
+    return held_runs(t, np.r_[False, np.all(q[1:] == q[:-1], axis=1)], longer_than)
+
+
+def held_runs(t: NDArray[np.float64], same: NDArray[np.bool_], longer_than: float) -> list[tuple[int, int]]:
+    """:func:`holds` from ``same``: whether each row holds the position of the row before (the first row: ``False``),
+    as a pass over a record too long for memory has them (:mod:`estimation.streaming.time_base`)."""
+    edges = np.flatnonzero(np.diff(np.r_[0, np.asarray(same).astype(np.int8), 0]))
     found = []
     for first, last in zip(edges[::2], edges[1::2]):  # rows first..last-1 repeat row first-1's position
         start, stop = first - 1, last
@@ -140,12 +145,19 @@ def without_holds(segment: Measurements, longer_than: float) -> tuple[tuple[Meas
     found = holds(segment.t, segment.q, longer_than)
     if not found:
         return (segment,), 0
-    parts, begin = [], 0
-    for start, stop in [*found, (segment.n_samples, segment.n_samples)]:
-        if start - begin >= 2:
-            parts.append(segment.select(slice(begin, start)))
-        begin = stop
+    parts = [segment.select(rows) for rows in between_holds(segment.n_samples, found)]
     return tuple(parts), segment.n_samples - sum(part.n_samples for part in parts)
+
+
+def between_holds(n_samples: int, found: list[tuple[int, int]]) -> list[slice]:
+    """The row ranges of a record of ``n_samples`` rows between its holds ``found`` (:func:`holds`), each of two
+    rows or more."""
+    parts, begin = [], 0
+    for start, stop in [*found, (n_samples, n_samples)]:
+        if start - begin >= 2:
+            parts.append(slice(begin, start))
+        begin = stop
+    return parts
 
 
 def held_rows(t: NDArray[np.float64], q: NDArray[np.float64], longer_than: float) -> NDArray[np.bool_]:

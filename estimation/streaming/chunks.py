@@ -50,7 +50,9 @@ from dynamics.runtime.threads import single_threaded_blas
 from dynamics.effects.linear import WRENCH_CHANNELS
 from estimation.data.log_formats import LogSource, is_log_file
 from estimation.data.memory_budget import count_rows
+from estimation.data.log_cleaning import DEFAULT_MAX_GAP
 from estimation.data.loading import (
+    HoldWarning,
     MeasurementError,
     MeasurementWarning,
     TimeBaseError,
@@ -61,7 +63,7 @@ from dynamics.measurements import Measurements, joint_columns
 from estimation.estimators.identification_problem import BandWindow, ResidualBand, decay_length
 from estimation.estimators.normal_equations import DEFAULT_CHUNK_SIZE, NormalEquations, accumulate, check_chunk_size
 from estimation.preprocessing.differentiation import ButterworthDifferentiation, compensate_hold, decimate
-from estimation.streaming.time_base import Resampler, TimeScan, file_segments, scan_time
+from estimation.streaming.time_base import Part, Resampler, TimeScan, file_parts, file_segments, scan_time
 
 __all__ = [
     "FileSums", "MARGIN_TOLERANCE", "StreamingUnsupportedError", "automatic_cutoff", "file_sums", "filter_margin",
@@ -139,32 +141,50 @@ def _raw_frames(path: Path, chunk_size: int, only_time: bool = False) -> Iterato
         raise
 
 
-#: a streamed source naming one segment of a file split at its holes, as the loader names it
-_SEGMENT = re.compile(r"^(?P<file>.*) \(segment (?P<index>[0-9]+)\)$")
+#: a streamed source naming one segment of a file split at its holes, as the loader names it, or one part of a
+#: training file cut at its holes and holds (:class:`~estimation.streaming.time_base.Part`)
+_SEGMENT = re.compile(r"^(?P<file>.*) \((?P<kind>segment|part) (?P<index>[0-9]+)\)$")
 
 
-def source_file(path: str | Path) -> tuple[Path, int | None]:
+def source_file(path: str | Path) -> tuple[Path, int | Part | None]:
     """The file and segment (1-based; ``None``: the whole file) of a streamed source: ``run.csv (segment 2)`` (the
     name the loader gives the second segment of a file split at a hole longer than ``max_gap``,
-    :func:`segment_sources`) is the second segment of ``run.csv``."""
+    :func:`segment_sources`) is the second segment of ``run.csv``; ``run.csv (part 2)`` its second part between its
+    holes and holds (a :class:`~estimation.streaming.time_base.Part`, training files only)."""
     file = Path(path)
     if not file.exists():
         match = _SEGMENT.match(str(path))
         if match is not None and Path(match["file"]).is_file():
-            return Path(match["file"]), int(match["index"])
+            index = int(match["index"])
+            return Path(match["file"]), Part(index) if match["kind"] == "part" else index
     return file, None
 
 
-def segment_sources(paths, model: IdentificationModel, *, chunk_size: int = DEFAULT_CHUNK_SIZE) -> list:
+def segment_sources(paths, model: IdentificationModel, *, chunk_size: int = DEFAULT_CHUNK_SIZE,
+                    holds_cut: bool = False) -> list:
     """``paths`` with each file the loader splits at its holes (longer than ``max_gap``,
     :func:`estimation.data.records.read_record`) replaced by its segments' sources (``run.csv (segment 1)``…,
     :func:`source_file`), in order, each read and preprocessed on its own as in memory; a source already a segment,
-    or a file that is not a .csv or .parquet one, is kept (the reader names its fault)."""
+    or a file that is not a .csv or .parquet one, is kept (the reader names its fault). ``holds_cut`` (training
+    files, rows at rest not handled by the user): a file with holds (every joint's position unchanged for longer
+    than ``max_gap``) is replaced by its parts between its holes and holds instead (``run.csv (part 1)``…), said in
+    a :class:`~estimation.data.loading.HoldWarning`, as the in-memory path cuts a training record
+    (:func:`estimation.identification.prepared.training_without_holds`)."""
     sources = []
     for path in paths:
         file, segment = source_file(path)
         if segment is not None or file.suffix.lower() not in (".csv", ".parquet") or not file.is_file():
             sources.append(path)
+            continue
+        held = file_parts(_raw_frames(file, max(int(chunk_size), 1)), file, model) if holds_cut else None
+        if held is not None and held.parts:
+            warnings.warn(HoldWarning(
+                f"{path}: the robot is held still (every joint's position unchanged for more than "
+                f"{DEFAULT_MAX_GAP:g} s) on {held.dropped} of {held.rows} rows: left out of the fit, the record split "
+                "there (at rest the torque holds any share of the static friction, and the sign of the derived "
+                "velocity is noise); --min-speed V drops rows slower than V instead"), stacklevel=2)
+            sources.extend(type(path)(f"{path} (part {index})") if isinstance(path, Path) else f"{path} (part {index})"
+                           for index in range(1, len(held.parts) + 1))
             continue
         count = file_segments(_raw_frames(file, max(int(chunk_size), 1)), file, model)
         sources.extend([path] if count == 1 else [type(path)(f"{path} (segment {index})") if isinstance(path, Path)

@@ -33,6 +33,7 @@ from estimation.identification.preprocessing_choice import (
 from estimation.identification.preprocessing_on_validation import on_validation
 from estimation.preprocessing.plan import Preprocessing, PreprocessingWarning
 from estimation.streaming.chunks import read_chunks, source_file, source_rows
+from estimation.streaming.time_base import Part
 from estimation.data.records import read_record
 
 __all__ = ["choose_streamed_cutoff", "choose_streamed_preprocessing", "first_rows", "streamed_window"]
@@ -45,7 +46,8 @@ def first_rows(path: str | Path, model: IdentificationModel, rows: int) -> Measu
     with its samples as recorded beside (:attr:`Measurements.recorded`: errors are taken on them), as the
     in-memory choice scores it."""
     first = next(read_chunks(path, model, chunk_size=max(int(rows), model.n_base + 1)))
-    if first.metadata.get("resampled_from") is not None and source_rows(path, model) <= rows:
+    if first.metadata.get("resampled_from") is not None and source_rows(path, model) <= rows \
+            and not isinstance(source_file(path)[1], Part):  # a part between holds: read as streamed
         file, segment = source_file(path)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # said by read_chunks

@@ -30,8 +30,28 @@ from dynamics.runtime.memory import check_allocation
 from estimation.data.loading import SegmentTooShortError, resampling_grid
 from estimation.data.log_cleaning import DEFAULT_MAX_GAP, repeated_rows, split_rows
 from estimation.data.records import clean_time_base, dropouts, said_dropouts
+from estimation.data.rest import between_holds, held_runs
 
-__all__ = ["Resampler", "TimeScan", "file_segments", "scan_time"]
+__all__ = ["HeldParts", "Part", "Resampler", "TimeScan", "file_parts", "file_segments", "scan_time"]
+
+
+@dataclass(frozen=True)
+class Part:
+    """The ``index``-th part (1-based) of a training file cut at its holes and at its holds (every joint's position
+    unchanged for longer than ``max_gap``, :func:`estimation.data.rest.holds`), as the in-memory path cuts a training
+    record (:func:`estimation.identification.prepared.training_without_holds`)."""
+
+    index: int
+
+
+@dataclass(frozen=True)
+class HeldParts:
+    """A file's parts between its holes and holds (:func:`file_parts`): their rows among the rows the loader keeps,
+    the rows kept, and those left out at the holds."""
+
+    parts: tuple[NDArray[np.int64], ...]
+    rows: int
+    dropped: int
 
 
 @dataclass(frozen=True)
@@ -65,11 +85,25 @@ def scan_time(frames, path: str | Path, model: IdentificationModel, *, max_gap: 
     (its rows alone kept, its own grid); without one, a hole is a :class:`~estimation.data.loading.HoleError`
     (:func:`file_segments` names the segments). ``None`` when column ``t`` is absent or not numeric (the per-chunk
     checks then name the fault)."""
-    times = _cleaned(frames, path, model, max_gap=max_gap, split=segment is not None)
+    positions: list[NDArray[np.uint64]] = []
+    times = _cleaned(frames, path, model, max_gap=max_gap, split=segment is not None, positions=positions)
     if times is None:
         return None
     keep, kept, name = times.keep, times.t, str(path)
-    if segment is not None:
+    if isinstance(segment, Part):  # a training file's part between its holes and holds
+        found = _held_parts(times, positions, max_gap)
+        if found is None or not 1 <= segment.index <= len(found.parts):
+            raise ValueError(f"{path} holds {0 if found is None else len(found.parts)} part(s) between its holds, "
+                             f"not a part {segment.index}")
+        rows = np.flatnonzero(keep)[found.parts[segment.index - 1]]
+        keep = np.zeros_like(keep)
+        keep[rows] = True
+        kept = kept[found.parts[segment.index - 1]]
+        name = f"{path} (part {segment.index})"
+        if kept.shape[0] < 3:
+            raise SegmentTooShortError(f"{name}: {kept.shape[0]} sample(s) between holds (t = {kept[0]:.6g} s): "
+                                       "too few for a time series; cut them from the file")
+    elif segment is not None:
         pieces = split_rows(kept.shape[0], times.holes)
         if not 1 <= segment <= len(pieces):
             raise ValueError(f"{path} holds {len(pieces)} segment(s), not a segment {segment}")
@@ -99,9 +133,55 @@ def file_segments(frames, path: str | Path, model: IdentificationModel, *, max_g
     return 1 if times is None else len(times.holes) + 1
 
 
-def _cleaned(frames, path: str | Path, model: IdentificationModel, *, max_gap: float, split: bool):
+def file_parts(frames, path: str | Path, model: IdentificationModel, *,
+               max_gap: float = DEFAULT_MAX_GAP) -> HeldParts | None:
+    """The parts of the file of ``frames`` between its holes and its holds longer than ``max_gap`` (the in-memory
+    training record's segments, :func:`estimation.identification.prepared.training_without_holds`): one pass keeping
+    the time and a 64-bit fingerprint of each row's positions (16 bytes a row, as the time scan's 9); ``None`` when
+    its time column cannot be read or it holds no hold."""
+    positions: list[NDArray[np.uint64]] = []
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # said when each part is read
+        times = _cleaned(frames, path, model, max_gap=max_gap, split=True, positions=positions)
+    return None if times is None else _held_parts(times, positions, max_gap)
+
+
+def _held_parts(times, positions: list[NDArray[np.uint64]], max_gap: float) -> HeldParts | None:
+    """The parts between the holes and holds of the rows ``times`` keeps (``positions``: their fingerprints, the
+    one item :func:`_cleaned` appended); ``None`` without a hold (or without positions)."""
+    if not positions or positions[0].shape[0] != times.t.shape[0]:
+        return None
+    prints, parts, held = positions[0], [], False
+    for piece in split_rows(times.t.shape[0], times.holes):
+        rows = np.arange(times.t.shape[0])[piece]
+        same = np.r_[False, prints[rows][1:] == prints[rows][:-1]]
+        found = held_runs(times.t[rows], same, max_gap)
+        held = held or bool(found)
+        parts.extend(rows[between] for between in between_holds(rows.shape[0], found))
+    if not held:
+        return None
+    kept = sum(part.shape[0] for part in parts)
+    return HeldParts(tuple(parts), times.t.shape[0], times.t.shape[0] - kept)
+
+
+def _fingerprints(q: NDArray[np.float64]) -> NDArray[np.uint64]:
+    """A 64-bit fingerprint of each row of positions: equal rows give equal fingerprints (``-0.0`` as ``0.0``),
+    different ones differ but with probability about 2⁻⁶⁴ (the bits of each joint's value times an odd constant of
+    its own, summed modulo 2⁶⁴)."""
+    bits = np.ascontiguousarray(q + 0.0, dtype=np.float64).view(np.uint64)
+    odd = (np.uint64(0x9E3779B97F4A7C15) * (2 * np.arange(1, q.shape[1] + 1, dtype=np.uint64) + np.uint64(1))
+           | np.uint64(1))
+    with np.errstate(over="ignore"):
+        mixed = bits * odd
+        return (mixed ^ (mixed >> np.uint64(29))).sum(axis=1, dtype=np.uint64)
+
+
+def _cleaned(frames, path: str | Path, model: IdentificationModel, *, max_gap: float, split: bool,
+             positions: list[NDArray[np.uint64]] | None = None):
     """The rows the loader keeps of the file of ``frames`` (:func:`estimation.data.records.clean_time_base`), or
-    ``None`` when its time column cannot be read."""
+    ``None`` when its time column cannot be read. ``positions``: a list the fingerprints of the kept rows' positions
+    are appended to (:func:`_fingerprints`; nothing when the file has no positions)."""
+    prints: list[NDArray[np.uint64]] = []
     parts: list[NDArray[np.float64]] = []
     repeated: list[NDArray[np.bool_]] = []
     present: list[NDArray[np.bool_]] = []  # the rows not dropouts (:func:`estimation.data.records.dropouts`)
@@ -124,8 +204,10 @@ def _cleaned(frames, path: str | Path, model: IdentificationModel, *, max_gap: f
         data = np.column_stack([pd.to_numeric(frame[name], errors="coerce").to_numpy(dtype=float)
                                 for column in columns for name in column]) if columns else np.zeros((len(frame), 0))
         count += t.shape[0]
-        check_allocation(8.0 * 3 * count, f"the time column of {path} ({count} samples)")
+        check_allocation(8.0 * (3 if positions is None else 5) * count, f"the time column of {path} ({count} samples)")
         parts.append(t)
+        if positions is not None and columns and columns[0] == _columns("q", n_joints):
+            prints.append(_fingerprints(data[:, :n_joints]))
         if previous is not None and previous.shape[1] == data.shape[1] and data.shape[0]:
             data = np.vstack([previous, data])
             repeated.append(repeated_rows(data)[1:])
@@ -144,6 +226,8 @@ def _cleaned(frames, path: str | Path, model: IdentificationModel, *, max_gap: f
     if first_blank is not None:
         said_dropouts(int(np.count_nonzero(~rows)), *first_blank, str(path))
     times = clean_time_base(t, same, str(path), max_gap=max_gap, split=split)
+    if positions is not None and prints and sum(part.shape[0] for part in prints) == t.shape[0]:
+        positions.append(np.concatenate(prints)[times.keep])
     if rows.all():
         return times
     keep = np.zeros(rows.shape[0], dtype=bool)

@@ -896,9 +896,9 @@ def diagnosis_streamed(args: DiagnoseOptions, friction: str, plan: Preprocessing
     chunk_size = DEFAULT_CHUNK_SIZE if args.chunk_size is None else args.chunk_size
     if findings is None:  # each pass's findings said as it ends, each once
         findings = FindingsSaid([*args.data, *args.validate])
-    args = streamed_records(args, model)  # a file with holes: its segments, each on its own as in memory
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
+        args = streamed_records(args, model)  # a file with holes: its segments, each on its own as in memory
         if plan is None:
             with findings.reading():
                 plan = streamed_choice(args, model, **derivatives_on_validation(model, None)).chosen

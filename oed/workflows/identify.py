@@ -439,10 +439,10 @@ def identification_streamed(args: IdentifyOptions, model: IdentificationModel, t
     the errors against the channels as recorded, the trivial predictors' and the noise floor of their first rows
     (:func:`recorded_validation`). ``findings``: what the path decision said of the files (not said again)."""
     chunk_size = DEFAULT_CHUNK_SIZE if args.chunk_size is None else args.chunk_size
-    args = streamed_records(args, model)  # a file with holes: its segments, each on its own as in memory
     selection, gains = None, None
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
+        args = streamed_records(args, model)  # a file with holes: its segments, each on its own as in memory
         if plan is None:
             plan = streamed_choice(args, model, validation_fits=validation_fits(args, model, None)).chosen
         options = plan_options(plan)

@@ -21,6 +21,7 @@ from estimation.identification.preprocessing_choice import SCORED_SAMPLES, Prepr
 from estimation.preprocessing.differentiation import whole_periods
 from estimation.preprocessing.plan import Preprocessing
 from estimation.data.input_findings import FindingsSaid, grouped_messages
+from estimation.data.loading import HoldWarning
 from estimation.data.memory_budget import (
     InMemoryNeed,
     count_rows,
@@ -76,7 +77,9 @@ def streamed_choice(args: RecordOptions, model: IdentificationModel,
     from estimation.streaming.chunks import segment_sources
     from estimation.streaming.cutoff_choice import choose_streamed_preprocessing
 
-    data = segment_sources(args.data, model)  # a file split at its holes, as in memory
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", category=HoldWarning)  # said when the parts are read (streamed_records)
+        data = segment_sources(args.data, model, holds_cut=holds_cut(args))  # a file split at its holes, as in memory
     validation = segment_sources(getattr(args, "validate", None) or (), model)
     rows = rows if len(data) == len(args.data) else None
     return choose_streamed_preprocessing(data, model, frequency_hz=args.frequency, harmonics=args.harmonics,
@@ -106,12 +109,19 @@ def averaged_rows(plan: Preprocessing, args: RecordOptions, model: Identificatio
 def streamed_records(args, model: IdentificationModel):
     """``args`` with the files of ``--data``, ``--validate`` and ``--test`` that hold holes longer than ``--max-gap``
     replaced by their segments (:func:`estimation.streaming.chunks.segment_sources`): the streamed path reads and
-    preprocesses each on its own, as the in-memory path splits such a file."""
+    preprocesses each on its own, as the in-memory path splits such a file; the training files with holds by their
+    parts between them (:func:`holds_cut`), said in a :class:`~estimation.data.loading.HoldWarning`."""
     from estimation.streaming.chunks import segment_sources
 
-    changes = {name: segment_sources(getattr(args, name), model) for name in ("data", "validate", "test")
-               if getattr(args, name, None)}
+    changes = {name: segment_sources(getattr(args, name), model, holds_cut=name == "data" and holds_cut(args))
+               for name in ("data", "validate", "test") if getattr(args, name, None)}
     return replace(args, **changes) if changes else args
+
+
+def holds_cut(args) -> bool:
+    """The training files' holds are cut out of the fit, as in memory: rows at rest not handled by the user
+    (no ``--min-speed``; :func:`estimation.identification.prepared.training_without_holds`)."""
+    return getattr(args, "min_speed", None) is None
 
 
 def decide_path(args: RecordOptions, model: IdentificationModel, *, task: str, bytes_per_value: float,
