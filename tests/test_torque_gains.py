@@ -185,3 +185,35 @@ def test_the_streamed_identify_tries_the_gains_as_in_memory(with_gains, tmp_path
     predicted = oed.predict(model=tmp_path / "streamed.json", data=tmp_path / "validate.csv")
     reported, measured = streamed["validation"]["mse"], predicted.evaluation.prediction.mse
     assert all(abs(measured[c] / reported[c] - 1.0) < 1e-6 for c in reported), (measured, reported)
+
+
+@pytest.mark.parametrize("with_gains", [True, False], ids=["gains", "none"])
+def test_the_streamed_diagnose_checks_the_gains_as_in_memory_and_says_it_does_not_apply_them(with_gains, tmp_path):
+    """The streamed ``oed diagnose`` (``--chunk-size 500``) fits the gains from the training files' sums of the plain
+    model and checks them on the validation files by the in-memory rule (at 7f2677d it did not try them and said
+    nothing): the same gains (1e-6) and verdict as in memory; when taken, ``not_computed.torque_gains`` and a warning
+    say so and that the streamed diagnosis does not divide the records by them (in memory it does); without gains,
+    nothing is said, as in memory."""
+    import oed
+
+    gains = np.array([1.2, 0.8, 1.1]) if with_gains else np.ones(3)
+    urdf = _puma3_files(tmp_path, gains)
+    documents, warned = {}, {}
+    for name, options in (("memory", {}), ("streamed", {"chunk_size": 500})):
+        run = oed.diagnose(urdf=urdf, data=tmp_path / "train.csv", validate=tmp_path / "validate.csv",
+                           friction=FRICTION, **options)
+        documents[name], warned[name] = run.to_dict(), run.warnings
+    memory, streamed = documents["memory"], documents["streamed"]
+    assert memory["diagnosis_path"] != streamed["diagnosis_path"]
+    said = (streamed.get("not_computed") or {}).get("torque_gains")
+    assert streamed["torque_gains"] is None
+    if not with_gains:
+        assert memory["torque_gains"] is None and said is None
+        assert not any("the streamed diagnosis does not divide the records" in text for text in warned["streamed"])
+        return
+    assert memory["torque_gains"] is not None and said is not None and "taken" in said  # in memory: when taken
+    assert "the streamed diagnosis does not divide the records by these gains" in said
+    assert said in warned["streamed"]
+    for channel, entry in memory["torque_gains"]["channels"].items():
+        value = float(said.split(f"{channel} ")[1].split(" ")[0])  # as said, 4 digits
+        assert value == pytest.approx(entry["value"], rel=1e-3), (channel, said)

@@ -30,11 +30,12 @@ from estimation.consistent.torque_gains import (SIGNIFICANCE_BLOCKS, TorqueGains
 from estimation.estimators.normal_equations import NormalEquations
 from estimation.estimators.summed_least_squares import SummedLeastSquares
 from estimation.identification.validation import ChannelErrors
+from estimation.streaming.cluster import sum_files
 from estimation.streaming.identification import SummedFits
 from estimation.streaming.periods import plan_chunks
 from estimation.streaming.recorded_errors import counted_predicted_errors
 
-__all__ = ["GainsScorer", "divided_sums", "streamed_gains_check"]
+__all__ = ["GainsScorer", "divided_sums", "files_gains_check", "streamed_gains_check"]
 
 
 def streamed_gains_check(model: IdentificationModel, train: NormalEquations, paths: Sequence[str | Path],
@@ -69,6 +70,19 @@ def streamed_gains_check(model: IdentificationModel, train: NormalEquations, pat
         return None
     blocks = {count: (*sums[count], np.bincount(labels[count], minlength=count)) for count in SIGNIFICANCE_BLOCKS}
     return (gains, *gains_checked(gains, model.channels, blocks))
+
+
+def files_gains_check(model: IdentificationModel, paths: Sequence[str | Path], validate: Sequence[str | Path],
+                      options: Mapping[str, Any], executor: Any = None) -> tuple[TorqueGains, bool, str] | None:
+    """:func:`streamed_gains_check` of ``model`` on training files ``paths`` and validation files ``validate``, read
+    with ``options`` (:func:`~estimation.streaming.cluster.sum_files`'s: ``chunk_size``, ``cutoff_hz``,
+    ``decimation``, ``held_torques``): the sums of the training files and the count of the validation files' samples
+    in one pass each, then the check's pass (as the in-memory diagnosis measures them on the prepared records,
+    :func:`~estimation.consistent.torque_gains.gains_for_records`, of the plain model it passes). Memory: the sums
+    (``m p²`` floats) and one chunk."""
+    train, _ = sum_files(model, paths, executor=executor, **options)
+    validation, _ = sum_files(model, validate, executor=executor, **options)
+    return streamed_gains_check(model, train, validate, int(validation.n_samples), options)
 
 
 def _divided(sums: NormalEquations | None, factors: NDArray[np.float64]) -> NormalEquations | None:

@@ -934,6 +934,13 @@ def diagnosis_streamed(args: DiagnoseOptions, friction: str, plan: Preprocessing
     messages = (*messages, *notes)
     diagnosis = replace(diagnosis, not_computed={key: reason for key, reason in diagnosis.not_computed.items()
                                                  if key not in SELECTION_KEYS})  # computed now
+    if plan.method != "fourier":  # the per-joint torque gains, checked as in memory; not applied here: said
+        gains_note = streamed_gains_note(args, model, {"chunk_size": chunk_size, "cutoff_hz": cutoff_hz,
+                                                       "decimation": plan.decimation,
+                                                       "held_torques": plan.held_torques}, ratio=ratio, still=still)
+        if gains_note is not None:
+            messages, notes = (*messages, gains_note), (*notes, gains_note)
+            diagnosis = replace(diagnosis, not_computed={**diagnosis.not_computed, "torque_gains": gains_note})
     # the training errors against the recording where the sums hold averaged periods or a resampled grid
     diagnosis, selection, averaged = recorded_training(args, diagnosis, selection, model_file[0], chunk_size)
     if still_search:
@@ -941,6 +948,40 @@ def diagnosis_streamed(args: DiagnoseOptions, friction: str, plan: Preprocessing
     return Diagnosed(diagnosis, {"cutoff_hz": cutoff_hz, **plan.to_dict()}, plan.describe(), messages,
                      selection=selection, chunk_size=chunk_size, model_file=model_file, averaged_train=averaged,
                      notes=notes, transmission=transmission)
+
+
+def streamed_gains_note(args: DiagnoseOptions, model: IdentificationModel, reading: dict[str, Any], *,
+                        ratio: float | None, still: bool) -> str | None:
+    """The per-joint torque gains of a streamed diagnosis, under the in-memory conditions
+    (:func:`~estimation.consistent.torque_gains.gains_for_records`: joint torques only, no ``--consistent``, no
+    shaped law declared, a validation record of another motion that moves): fitted from the training files' sums of
+    the plain model and checked on the validation files by the in-memory rule
+    (:func:`estimation.streaming.torque_gains.files_gains_check`, three passes in bounded memory). When the check
+    takes them, the sentence saying so and that the streamed diagnosis does not divide the records by them (in
+    memory it does): ``result.json``'s ``not_computed.torque_gains`` and a warning; else ``None`` (as in memory,
+    ``torque_gains`` stays ``null``)."""
+    from estimation.identification.repeated_motion import REPEAT_FRACTION
+    import numpy as np
+
+    from estimation.streaming.torque_gains import files_gains_check
+
+    channels = model.channels
+    if args.consistent or model_has_shapes(model) or not args.validate or still or ratio is None \
+            or ratio <= REPEAT_FRACTION or len(channels) < 2 \
+            or not all(channel.startswith("tau") and channel[3:].isdigit() for channel in channels):
+        return None
+    with step("an unknown gain on each joint's torque fitted and checked on the validation record"):
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")  # the files' findings were said on the diagnosis's passes
+                checked = files_gains_check(plain_model(model), args.data, args.validate, reading)
+        except (ValueError, np.linalg.LinAlgError):
+            return None
+    if checked is None or not checked[1]:
+        return None
+    return (f"{checked[2]}; the streamed diagnosis does not divide the records by these gains (in memory it does, "
+            "and diagnoses the torques so divided): its effects and errors are those of the torques as logged; run "
+            "`oed diagnose` in memory (a larger --memory-budget, without --chunk-size) to diagnose with them")
 
 
 #: what the streamed diagnosis says of a validation record at rest when its effect search compares the candidates
