@@ -110,6 +110,17 @@ def rostopic_echo(frame: pd.DataFrame, role: str) -> pd.DataFrame:
     return pd.DataFrame(out)
 
 
+def named_by_joint(frame: pd.DataFrame, role: str) -> pd.DataFrame:
+    """A lab's own CSV export: ``t``, then per joint ``<joint>_position``, ``_velocity``, ``_effort`` (the driver's
+    joint names, :data:`UR_NAMES`), the joints in the driver's order (:data:`PUBLISHED`), no ``q1..``/``tau1..``."""
+    out = {"t": frame["t"].to_numpy()}
+    for group, word in (("q", "position"), ("dq", "velocity"), ("tau", "effort")):
+        for k in PUBLISHED:
+            if f"{group}{k + 1}" in frame.columns:
+                out[f"{UR_NAMES[k]}_{word}"] = frame[f"{group}{k + 1}"].to_numpy()
+    return pd.DataFrame(out)
+
+
 CELLS = (
     LoggedAs("SCARA from a hand-written URDF (vertical prismatic quill, a 1 kg tool on the roll joint), 10 s / 4 s / "
              "6 s at 250 Hz, no dq", Lab("scara", scara, *(Log(seconds, 250.0, velocity=False)
@@ -148,6 +159,20 @@ CELLS = (
     LoggedAs("the same `rostopic echo -p` table on the defaults", Lab("rostopic", ur10e, *(
         Log(seconds, 500.0, motion_hz=0.1) for seconds in (10.0, 4.0, 6.0))), rostopic_echo, urdf=ur_names,
         seconds=lambda t: t - EPOCH_NS * 1e-9, slow=True),
+    # at 7f2677d both verbs exited on this table (missing column(s) q1..) where --columns q1=shoulder_pan_joint_position,..
+    # read it; now its columns are read by the robot's joint names (a JointNamedColumnsWarning gives the map)
+    LoggedAs("UR10e-like, a lab's CSV whose columns are named by joint (shoulder_pan_joint_effort, ..., the driver's "
+             "order), on the defaults", Lab("named", ur10e, *(Log(seconds, 500.0, motion_hz=0.1)
+                                                              for seconds in (10.0, 4.0, 6.0))),
+             named_by_joint, urdf=ur_names, slow=True),
+    LoggedAs("PUMA 6 joints, torque sensors of equal absolute noise (2 % of the channels' mean spread: the wrist's "
+             "signal-to-noise far below the shoulder's), 10 s / 4 s / 6 s at 250 Hz, no dq",
+             Lab("equal noise", puma(6), *(Log(seconds, 250.0, velocity=False) for seconds in (10.0, 4.0, 6.0)),
+                 equal_noise=True), slow=True),
+    LoggedAs("PUMA 6 joints, training and validation over the lowest 35 % of the shoulder's range, the test over "
+             "all of it, 10 s / 4 s / 6 s at 250 Hz, no dq",
+             Lab("outside", puma(6), *(Log(seconds, 250.0, velocity=False) for seconds in (10.0, 4.0, 6.0)),
+                 trained_range=(1, 0.35)), slow=True),
 )
 
 
@@ -221,3 +246,41 @@ def test_a_joint_state_table_is_matched_to_the_robot_by_its_names(tmp_path):
     table.to_csv(tmp_path / "changing.csv", index=False)
     with pytest.raises(MissingColumnError, match="field.name0 change from row to row"):
         read_log_frame(LogSource(tmp_path / "changing.csv", columns=columns), joint_names=UR_NAMES)
+
+
+def test_joint_columns_named_by_the_robots_joints_are_read_by_name(tmp_path):
+    """``<joint>_effort`` (and ``_position``, ``_velocity``; or ``effort.<joint>``...) read as ``tau<j>`` in the
+    robot's order, said in a :class:`JointNamedColumnsWarning` that gives the map; a group is mapped only when every
+    joint has exactly one such column, and a table with numbered columns is read as before."""
+    from estimation.data.log_formats import JointNamedColumnsWarning, joint_named_columns
+    from estimation.data.records import read_record
+    from dynamics.models import build_model
+
+    t = np.arange(0.0, 1.0, 0.01)
+    frame = pd.DataFrame({f"q{j + 1}": (j + 1) * np.sin(t) for j in range(6)} | {"t": t}
+                         | {f"tau{j + 1}": -(j + 1) * np.ones_like(t) for j in range(6)})
+    table = named_by_joint(frame, "train")
+    assert joint_named_columns(table, UR_NAMES) == {
+        **{f"q{j + 1}": f"{UR_NAMES[j]}_position" for j in range(6)},
+        **{f"tau{j + 1}": f"{UR_NAMES[j]}_effort" for j in range(6)}}
+    assert joint_named_columns(frame, UR_NAMES) is None
+    assert joint_named_columns(table, None) is None
+    assert joint_named_columns(table.rename(columns={"elbow_joint_effort": "Effort.elbow_joint"}), UR_NAMES)[
+        "tau3"] == "Effort.elbow_joint"
+    ambiguous = table.assign(elbow_joint_torque=0.0)  # two torque columns for one joint: nothing guessed
+    assert "tau1" not in joint_named_columns(ambiguous, UR_NAMES)
+    assert "tau1" not in joint_named_columns(table.drop(columns="wrist_3_joint_effort"), UR_NAMES)
+    table.to_csv(tmp_path / "named.csv", index=False)
+    robot = load_robot(urdf=_written(tmp_path, ur_names(__import__("dynamics.urdf_export", fromlist=["robot_urdf"])
+                                                        .robot_urdf(ur10e()))))
+    model = build_model(robot, "internal")
+    with pytest.warns(JointNamedColumnsWarning, match="tau3=elbow_joint_effort"):
+        (segment,) = read_record(tmp_path / "named.csv", model=model, require=("tau",))
+    for j in range(6):
+        assert np.allclose(segment.q[:, j], (j + 1) * np.sin(t)) and np.all(segment.tau[:, j] == -(j + 1)), j
+
+
+def _written(folder: Path, text: str) -> Path:
+    path = folder / "robot.urdf"
+    path.write_text(text)
+    return path

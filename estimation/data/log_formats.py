@@ -35,7 +35,7 @@ from dynamics.effects.linear import WRENCH_CHANNELS
 from estimation.data.loading import MeasurementError, MeasurementWarning, MissingColumnError
 
 __all__ = ["BAG_SUFFIXES", "DEFAULT_TOPIC", "DroppedStampsWarning", "LogSource", "RosSupportError", "UnknownTopicError",
-           "JointStateTableWarning", "apply_column_map", "is_log_file", "joint_state_echo", "logged_joints", "parse_column_map", "read_log_frame"]
+           "JointStateTableWarning", "JointNamedColumnsWarning", "apply_column_map", "is_log_file", "joint_state_echo", "logged_joints", "parse_column_map", "read_log_frame"]
 
 #: the topic of ``sensor_msgs/JointState`` read by default
 DEFAULT_TOPIC = "/joint_states"
@@ -85,6 +85,45 @@ def joint_state_echo(frame: pd.DataFrame) -> dict[str, str] | None:
     groups = {group: prefix for group, prefix in JOINT_STATE_ECHO.items()
               if f"{prefix}0" in frame.columns and pd.to_numeric(frame[f"{prefix}0"], errors="coerce").notna().all()}
     return {"t": f"1e-9*{stamps}", **groups}
+
+
+class JointNamedColumnsWarning(MeasurementWarning):
+    """A table whose joint columns are named by the robot's joint names (``shoulder_pan_joint_effort``) rather than
+    numbered (``tau1``) was read by those names; the message gives the column map that reads it so."""
+
+
+#: the words that name a joint column's quantity beside the joint's name, by group (lower case)
+JOINT_COLUMN_WORDS = {"q": ("position", "pos", "angle", "q"), "dq": ("velocity", "vel", "dq"),
+                      "ddq": ("acceleration", "acc", "ddq"), "tau": ("effort", "torque", "tau", "trq")}
+_JOINT_COLUMN_SEPARATORS = ("_", ".", "/", ":", " ")
+
+
+def joint_named_columns(frame: pd.DataFrame, joint_names: Sequence[str] | None) -> dict[str, str] | None:
+    """The column map of a table whose joint columns are named by the robot's joints: for each group without its
+    numbered columns (no ``tau1``), the column ``<joint><sep><word>`` or ``<word><sep><joint>`` of each joint of
+    ``joint_names`` (in the robot's order; ``sep`` one of ``_ . / :`` or a space, ``word`` one of
+    :data:`JOINT_COLUMN_WORDS`, case ignored), as ``{"tau1": "shoulder_pan_joint_effort", ...}``. A group is mapped
+    only when every joint has exactly one such column (otherwise nothing is guessed and the numbered columns are
+    missing as before); ``None`` when no group is mapped or the robot's joint names are not known."""
+    if not joint_names:
+        return None
+    columns = {str(column).strip().lower(): str(column) for column in frame.columns}
+    found: dict[str, str] = {}
+    for group, words in JOINT_COLUMN_WORDS.items():
+        if f"{group}1" in frame.columns:
+            continue
+        mapped = {}
+        for index, joint in enumerate(joint_names, start=1):
+            name = str(joint).strip().lower()
+            matches = {columns[candidate] for word in words for sep in _JOINT_COLUMN_SEPARATORS
+                       for candidate in (f"{name}{sep}{word}", f"{word}{sep}{name}") if candidate in columns}
+            if len(matches) != 1:
+                break
+            mapped[f"{group}{index}"] = matches.pop()
+        else:
+            if len(set(mapped.values())) == len(mapped):
+                found.update(mapped)
+    return found or None
 
 
 @dataclass(frozen=True)

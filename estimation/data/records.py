@@ -56,9 +56,11 @@ from estimation.data.loading import (
     uniform_grid,
 )
 from estimation.data.log_formats import (
+    JointNamedColumnsWarning,
     JointStateTableWarning,
     apply_column_map,
     is_log_file,
+    joint_named_columns,
     joint_state_echo,
     read_log_frame,
 )
@@ -176,6 +178,13 @@ def read_record(
         warnings.warn(JointStateTableWarning(
             f"{path}: read as `rostopic echo -p` of JointState messages, the joints matched by field.name0.. "
             f"(--columns {','.join(f'{key}={value}' for key, value in echo.items())})"), stacklevel=2)
+    robot = model.robot if isinstance(model, IdentificationModel) else None
+    named = None if echo is not None or robot is None else joint_named_columns(frame, robot.joint_names)
+    if named is not None:  # joint columns named by the robot's joints (shoulder_pan_joint_effort), not tau1..
+        frame = apply_column_map(frame, named, str(path))
+        warnings.warn(JointNamedColumnsWarning(
+            f"{path}: the joint columns read by the robot's joint names "
+            f"(--columns {','.join(f'{key}={value}' for key, value in named.items())})"), stacklevel=2)
     return segments_from_frame(frame, n_joints=n_joints, model=model, require=require, resample=resample,
                                source=str(path), max_gap=max_gap, split=split)
 
