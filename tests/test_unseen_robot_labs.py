@@ -77,6 +77,8 @@ class Lab:
     drift: float = 0.0  # a torque sensor's bias warming up (:func:`warming`), of each channel's spread
     friction_scale: tuple[float, ...] = ()  # each joint's true friction and offset scaled (a light wrist's small)
     equal_noise: bool = False  # the torque sensors' noise alike on every joint (2 % of the channels' mean spread)
+    trained_range: tuple[int, float] = ()  # (joint, share): training and validation confined to that share of the
+    # joint's range from its lower limit, the test record over the whole range
     slow: bool = False
     xfail: str = ""
 
@@ -163,6 +165,14 @@ def extra_torque(case: Lab, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
     return out
 
 
+def confined(limits, joint: int, share: float) -> SimpleNamespace:
+    """``limits`` with joint ``joint``'s range cut to its lower ``share`` (its speed limit scaled alike)."""
+    lower, upper, velocity = limits.lower.copy(), limits.upper.copy(), limits.velocity_limit.copy()
+    upper[joint] = lower[joint] + share * (upper[joint] - lower[joint])
+    velocity[joint] *= share
+    return SimpleNamespace(n_joints=limits.n_joints, lower=lower, upper=upper, velocity_limit=velocity)
+
+
 def write_records(case: Lab, folder: Path) -> tuple[Path, dict, dict, np.ndarray]:
     """The description and the records of each role as the lab's logger writes them: ``(urdf, records, files,
     spread)``; the plain fit's records are what a user reading the file keeps (blank rows and repeated stamps left
@@ -187,7 +197,7 @@ def write_records(case: Lab, folder: Path) -> tuple[Path, dict, dict, np.ndarray
         generator = np.random.default_rng(1000 + seed)
         t = times(log, generator)
         motion = case.test_motion if role == "test" else "fourier"
-        within = limits
+        within = confined(limits, *case.trained_range) if case.trained_range and role != "test" else limits
         if motion == "point-to-point":
             q, dq, ddq = point_to_point(limits, seed, t)
         elif motion == "jog":
