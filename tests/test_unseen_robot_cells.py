@@ -306,3 +306,62 @@ def _written(folder: Path, text: str) -> Path:
     path.write_text(text)
     return path
 
+
+def spreadsheet_export(files: dict) -> None:
+    """Each file rewritten as a European spreadsheet exports it: ``;`` between the columns, ``,`` the decimal mark."""
+    for path in files.values():
+        pd.read_csv(path).to_csv(path, sep=";", decimal=",", index=False, float_format="%.17g")
+
+
+@pytest.mark.slow
+def test_the_defaults_read_a_semicolon_separated_log_with_decimal_commas(tmp_path):
+    """At 7f2677d every verb refused such a file (its message naming the separator); now it is read so, with a
+    :class:`DelimiterWarning`, and predicted as the comma-separated file is (against the plain fit)."""
+    from benchmarks.bench_real_robots import PlainFit
+    from tests.test_unseen_robot_labs import verbs_against_the_plain_fit, write_records
+
+    case = Lab("PUMA 3 joints, `;` separators and `,` decimals, 8 s / 3 s / 5 s at 250 Hz, no dq", puma(3),
+               *(Log(seconds, 250.0, velocity=False) for seconds in (8.0, 3.0, 5.0)))
+    urdf, records, files, spread = write_records(case, tmp_path)
+    spreadsheet_export(files)
+    assert ";" in files["train"].read_text().splitlines()[1]
+    plain = PlainFit(["--urdf", str(urdf)])
+    cutoff, theta = plain.fit(records["train"], records["validate"], rate_hz=250.0)
+    predicted_plain, kept = plain.predict(records["test"], cutoff, theta)
+    outcome = verbs_against_the_plain_fit(urdf, files, records["test"], kept, predicted_plain, tmp_path)
+    outcome = {**outcome, "cutoff": cutoff, "floor": (0.02 * spread) ** 2}
+    print(f"\nreproduced validation error (relative): {outcome['reproduced']}")
+    as_well_as_the_plain_fit(case.name, outcome, f"chosen {outcome['selections']}; ")
+    for label, error in outcome["reproduced"].items():
+        assert error <= RELATIVE, (label, error)
+
+
+def test_a_csv_dialect_is_read_where_header_and_rows_agree(tmp_path):
+    """``;`` with ``,`` decimals, a tab with ``.`` decimals: read so, said; a row that does not split as the header,
+    or a value with two commas (thousands) or both marks: nothing guessed (the message naming the separator as before)."""
+    from estimation.data import DelimiterWarning, MeasurementError
+    from estimation.data.loading import csv_dialect
+    from estimation.data.records import read_record
+
+    assert csv_dialect("t;q1;tau1\n", ["0;0;1\n", "0,004;1,5;-2\n"]) == (";", ",")
+    assert csv_dialect("t\tq1\ttau1\n", ["0.004\t1.5\t-2\n", ""]) == ("\t", ".")
+    assert csv_dialect("t,q1,tau1\n", ["0.004,1.5,-2\n"]) is None
+    assert csv_dialect("t;q1;tau1\n", ["0;0;1\n", "0,004;1,5\n"]) is None
+    assert csv_dialect("t;q1;tau1\n", ["0,004;1.500,5;2\n"]) is None
+    assert csv_dialect("t;q1;tau1\n", ["0,004;1,500,5;2\n"]) is None
+    t = np.arange(0.0, 1.0, 0.01)
+    frame = pd.DataFrame({"t": t, "q1": np.sin(t), "tau1": np.cos(t)})
+    frame.to_csv(tmp_path / "semicolon.csv", sep=";", decimal=",", index=False, float_format="%.17g")
+    with pytest.warns(DelimiterWarning, match="separated by ';', ',' the decimal mark"):
+        (segment,) = read_record(tmp_path / "semicolon.csv", require=("tau",))
+    assert np.array_equal(segment.q[:, 0], frame["q1"].to_numpy()) and np.array_equal(segment.tau[:, 0], np.cos(t))
+    from dynamics.models import build_model
+    from estimation.streaming.chunks import read_chunks
+
+    model = build_model(load_robot("puma560", joints=1), "internal")
+    with pytest.warns(DelimiterWarning):
+        chunks = list(read_chunks(tmp_path / "semicolon.csv", model, chunk_size=30))
+    assert np.array_equal(np.concatenate([chunk.tau[:, 0] for chunk in chunks]), np.cos(t))  # streamed alike
+    (tmp_path / "uneven.csv").write_text("t;q1;tau1\n0,0;1,0\n0,1;1,1;2,0\n")
+    with pytest.raises(MeasurementError, match="separated by ';'"):
+        read_record(tmp_path / "uneven.csv", require=("tau",))

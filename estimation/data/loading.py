@@ -143,6 +143,11 @@ class HoldWarning(MeasurementWarning):
     were cut out of the fit: the record split there, as at a gap (:func:`estimation.data.rest.holds`)."""
 
 
+class DelimiterWarning(MeasurementWarning):
+    """A CSV file whose columns are separated by another delimiter than the comma (``;``, a tab, ``|``), its decimal
+    mark perhaps a comma (a European spreadsheet's export), was read so: the message says how."""
+
+
 class UnwrappedAngleWarning(MeasurementWarning):
     """A revolute joint's angle logged wrapped to ±π (or to a turn) was unwrapped on reading: which joint, how many wraps."""
 
@@ -243,6 +248,24 @@ def other_delimiter(header: str) -> str | None:
     if "," in header:
         return None
     return next((delimiter for delimiter in OTHER_DELIMITERS if delimiter in header), None)
+
+
+def csv_dialect(header: str, rows: Sequence[str]) -> tuple[str, str] | None:
+    """``(separator, decimal mark)`` of a CSV file whose header holds no comma but another delimiter
+    (:func:`other_delimiter`) that also splits each of its first data ``rows`` into as many fields; the decimal mark is
+    the comma where those rows hold one (it separates nothing else there), else the point. ``None`` for a
+    comma-separated file, or where the rows do not agree with the header (nothing is guessed)."""
+    delimiter = other_delimiter(header)
+    if delimiter is None:
+        return None
+    count = len(header.rstrip("\r\n").split(delimiter))
+    values = [value for row in rows if row.strip() for value in row.rstrip("\r\n").split(delimiter)]
+    if count < 2 or any(len(row.rstrip("\r\n").split(delimiter)) != count for row in rows if row.strip()):
+        return None
+    decimal = "," if any("," in value for value in values) else "."
+    if decimal == "," and any(value.count(",") > 1 or "." in value for value in values):
+        return None  # a thousands separator or both marks: ambiguous
+    return delimiter, decimal
 
 
 def numeric_columns(frame: pd.DataFrame, columns: list[str], source: str) -> NDArray[np.float64]:

@@ -30,6 +30,7 @@ from estimation.data.loading import (
     AbsurdValueError,
     BlankRowsWarning,
     COLUMN_GROUPS,
+    DelimiterWarning,
     DuplicatedTimesWarning,
     GROUP_MEANING,
     HoleError,
@@ -49,6 +50,7 @@ from estimation.data.loading import (
     check_sample_count,
     check_time,
     count_joint_columns,
+    csv_dialect,
     numeric_columns,
     require_columns,
     other_delimiter,
@@ -166,7 +168,7 @@ def read_record(
     if not path.is_file():
         raise FileNotFoundError(f"data file not found: {path}")
     try:
-        frame = read_parquet_frame(path) if suffix == ".parquet" else pd.read_csv(path)
+        frame = read_parquet_frame(path) if suffix == ".parquet" else read_csv_frame(path)
     except ParquetSupportError:
         raise
     except (ValueError, OSError, pd.errors.ParserError) as error:
@@ -187,6 +189,35 @@ def read_record(
             f"(--columns {','.join(f'{key}={value}' for key, value in named.items())})"), stacklevel=2)
     return segments_from_frame(frame, n_joints=n_joints, model=model, require=require, resample=resample,
                                source=str(path), max_gap=max_gap, split=split)
+
+
+#: the data rows read to tell a CSV file's separator and decimal mark
+DIALECT_ROWS = 20
+
+
+def read_csv_frame(path: Path) -> pd.DataFrame:
+    """The CSV file as a table: comma-separated with ``.`` decimals, or as :func:`csv_options` says."""
+    return pd.read_csv(path, **csv_options(path))
+
+
+def csv_options(path: Path) -> dict[str, str]:
+    """``pandas.read_csv``'s ``sep`` and ``decimal`` for a CSV file whose header and first rows agree on another
+    delimiter than the comma (:func:`~estimation.data.loading.csv_dialect`: ``;`` with ``,`` decimals, a
+    spreadsheet's European export), said in a :class:`DelimiterWarning`; ``{}`` for a comma-separated file or where
+    nothing can be told (the reader's error then names the separator)."""
+    try:
+        with open(path, errors="replace") as stream:
+            header, rows = stream.readline(), [stream.readline() for _ in range(DIALECT_ROWS)]
+    except OSError:
+        return {}
+    dialect = csv_dialect(header, rows)
+    if dialect is None:
+        return {}
+    separator, decimal = dialect
+    warnings.warn(DelimiterWarning(
+        f"{path}: columns separated by {separator!r}" + (", ',' the decimal mark" if decimal == "," else "")
+        + ": read so"), stacklevel=3)
+    return {"sep": separator, "decimal": decimal}
 
 
 def _delimiter_note(path: Path) -> str:
