@@ -313,18 +313,31 @@ def spreadsheet_export(files: dict) -> None:
         pd.read_csv(path).to_csv(path, sep=";", decimal=",", index=False, float_format="%.17g")
 
 
+def units_row(files: dict) -> None:
+    """Each file with a units row beneath its header, the format's SI units as a lab writes them."""
+    for path in files.values():
+        lines = path.read_text().splitlines()
+        units = {"t": "[s]", "q": "[rad]", "dq": "[rad/s]", "tau": "[N·m]"}
+        lines.insert(1, ",".join(units[name.rstrip("0123456789")] for name in lines[0].split(",")))
+        path.write_text("\n".join(lines) + "\n")
+
+
 @pytest.mark.slow
-def test_the_defaults_read_a_semicolon_separated_log_with_decimal_commas(tmp_path):
-    """At 7f2677d every verb refused such a file (its message naming the separator); now it is read so, with a
-    :class:`DelimiterWarning`, and predicted as the comma-separated file is (against the plain fit)."""
+@pytest.mark.parametrize("export, written", [(spreadsheet_export, "`;` separators and `,` decimals"),
+                                             (units_row, "a units row beneath the names ([s], [rad], [N·m])")],
+                         ids=["semicolons", "units row"])
+def test_the_defaults_read_a_spreadsheets_export_and_a_units_row(export, written, tmp_path):
+    """At 7f2677d every verb refused such files (naming the separator, or the text beneath the names); now they are
+    read so, said in a :class:`DelimiterWarning` or :class:`UnitsRowWarning`, and predicted as the plain
+    comma-separated file is (against the plain fit)."""
     from benchmarks.bench_real_robots import PlainFit
     from tests.test_unseen_robot_labs import verbs_against_the_plain_fit, write_records
 
-    case = Lab("PUMA 3 joints, `;` separators and `,` decimals, 8 s / 3 s / 5 s at 250 Hz, no dq", puma(3),
+    case = Lab(f"PUMA 3 joints, {written}, 8 s / 3 s / 5 s at 250 Hz, no dq", puma(3),
                *(Log(seconds, 250.0, velocity=False) for seconds in (8.0, 3.0, 5.0)))
     urdf, records, files, spread = write_records(case, tmp_path)
-    spreadsheet_export(files)
-    assert ";" in files["train"].read_text().splitlines()[1]
+    export(files)
+    assert not files["train"].read_text().splitlines()[1].startswith("0,") or ";" in files["train"].read_text()
     plain = PlainFit(["--urdf", str(urdf)])
     cutoff, theta = plain.fit(records["train"], records["validate"], rate_hz=250.0)
     predicted_plain, kept = plain.predict(records["test"], cutoff, theta)
@@ -365,3 +378,44 @@ def test_a_csv_dialect_is_read_where_header_and_rows_agree(tmp_path):
     (tmp_path / "uneven.csv").write_text("t;q1;tau1\n0,0;1,0\n0,1;1,1;2,0\n")
     with pytest.raises(MeasurementError, match="separated by ';'"):
         read_record(tmp_path / "uneven.csv", require=("tau",))
+
+
+def test_a_units_row_of_si_units_is_skipped_and_said(tmp_path):
+    """``[s], [rad], [N m]`` beneath the names: skipped (in memory and streamed) with a :class:`UnitsRowWarning`;
+    a row naming other units (``deg``) or holding a number is not skipped (the text refused as before)."""
+    from dynamics.models import build_model
+    from estimation.data import DelimiterWarning, NonFiniteError, UnitsRowWarning
+    from estimation.data.loading import si_units_row
+    from estimation.data.records import read_record
+    from estimation.streaming.chunks import read_chunks
+
+    names = ["t", "q1", "q2", "dq1", "tau1", "tau2", "note"]
+    assert si_units_row(names, ["s", "[rad]", "(m)", "rad/s", "N·m", "N", "free text"])
+    assert si_units_row(names, ["sec", "rad", "m", "[rad/s]", "Nm", "N.m", ""])
+    assert not si_units_row(names, ["s", "deg", "m", "rad/s", "Nm", "N", ""])
+    assert not si_units_row(names, ["s", "rad", "m", "rad/s", "mNm", "N", ""])
+    assert not si_units_row(names, ["0", "rad", "m", "rad/s", "Nm", "N", ""])
+    assert not si_units_row(names, ["s", "rad"])
+    t = np.arange(0.0, 1.0, 0.01)
+    frame = pd.DataFrame({"t": t, "q1": np.sin(t), "tau1": np.cos(t)})
+    files = {"a": tmp_path / "units.csv"}
+    frame.to_csv(files["a"], index=False, float_format="%.17g")
+    units_row(files)
+    with pytest.warns(UnitsRowWarning, match=r"\[s\],\[rad\],\[N·m\]"):
+        (segment,) = read_record(files["a"], require=("tau",))
+    assert np.array_equal(segment.tau[:, 0], np.cos(t))
+    model = build_model(load_robot("puma560", joints=1), "internal")
+    with pytest.warns(UnitsRowWarning):
+        chunks = list(read_chunks(files["a"], model, chunk_size=30))
+    assert np.array_equal(np.concatenate([chunk.tau[:, 0] for chunk in chunks]), np.cos(t))
+    spreadsheet = {"b": tmp_path / "both.csv"}
+    spreadsheet["b"].write_text(files["a"].read_text())
+    spreadsheet_export(spreadsheet)  # ';' between the columns (the numbers read as text: '.' kept)
+    with pytest.warns((UnitsRowWarning, DelimiterWarning)) as said:
+        (segment,) = read_record(spreadsheet["b"], require=("tau",))
+    assert {type(item.message) for item in said} == {UnitsRowWarning, DelimiterWarning}
+    assert np.array_equal(segment.tau[:, 0], np.cos(t))
+    text = files["a"].read_text().replace("[rad]", "[deg]")
+    (tmp_path / "degrees.csv").write_text(text)
+    with pytest.raises(NonFiniteError, match="units"):
+        read_record(tmp_path / "degrees.csv", require=("tau",))

@@ -32,6 +32,7 @@ from estimation.data.loading import (
     COLUMN_GROUPS,
     DelimiterWarning,
     DuplicatedTimesWarning,
+    UnitsRowWarning,
     GROUP_MEANING,
     HoleError,
     MeasurementError,
@@ -51,6 +52,7 @@ from estimation.data.loading import (
     check_time,
     count_joint_columns,
     csv_dialect,
+    si_units_row,
     numeric_columns,
     require_columns,
     other_delimiter,
@@ -200,24 +202,33 @@ def read_csv_frame(path: Path) -> pd.DataFrame:
     return pd.read_csv(path, **csv_options(path))
 
 
-def csv_options(path: Path) -> dict[str, str]:
+def csv_options(path: Path) -> dict[str, object]:
     """``pandas.read_csv``'s ``sep`` and ``decimal`` for a CSV file whose header and first rows agree on another
     delimiter than the comma (:func:`~estimation.data.loading.csv_dialect`: ``;`` with ``,`` decimals, a
-    spreadsheet's European export), said in a :class:`DelimiterWarning`; ``{}`` for a comma-separated file or where
-    nothing can be told (the reader's error then names the separator)."""
+    spreadsheet's European export), said in a :class:`DelimiterWarning`, and ``skiprows`` for a units row beneath
+    the header naming the format's SI units (:func:`~estimation.data.loading.si_units_row`), said in a
+    :class:`UnitsRowWarning`; ``{}`` for a plain file or where nothing can be told (the reader's error then names
+    the separator, or the text beneath the names)."""
     try:
         with open(path, errors="replace") as stream:
-            header, rows = stream.readline(), [stream.readline() for _ in range(DIALECT_ROWS)]
+            header, rows = stream.readline(), [stream.readline() for _ in range(DIALECT_ROWS + 1)]
     except OSError:
         return {}
-    dialect = csv_dialect(header, rows)
+    options: dict[str, object] = {}
+    delimiter = other_delimiter(header) or ","
+    if rows and si_units_row(header.rstrip("\r\n").split(delimiter), rows[0].rstrip("\r\n").split(delimiter)):
+        options["skiprows"] = [1]
+        warnings.warn(UnitsRowWarning(f"{path}: its second line names the columns' units ({rows[0].strip()}), the "
+                                      "format's SI units: skipped"), stacklevel=3)
+        rows = rows[1:]
+    dialect = csv_dialect(header, rows[:DIALECT_ROWS])
     if dialect is None:
-        return {}
+        return options
     separator, decimal = dialect
     warnings.warn(DelimiterWarning(
         f"{path}: columns separated by {separator!r}" + (", ',' the decimal mark" if decimal == "," else "")
         + ": read so"), stacklevel=3)
-    return {"sep": separator, "decimal": decimal}
+    return {**options, "sep": separator, "decimal": decimal}
 
 
 def _delimiter_note(path: Path) -> str:
