@@ -110,6 +110,30 @@ def rostopic_echo(frame: pd.DataFrame, role: str) -> pd.DataFrame:
     return pd.DataFrame(out)
 
 
+def fixed_between(text: str) -> str:
+    """The description as a vendor's URDF writes it: each moving joint's placement on a fixed joint to a frame link
+    of its own (``<parent>_mount``, no inertial), the moving joint at that frame's origin; a massless ``flange`` and
+    ``tool0`` on fixed joints after the last link (the same kinematics and bodies)."""
+    pattern = re.compile(r'<joint name="(?P<name>[^"]+)" type="(?P<type>revolute|prismatic|continuous)">\s*'
+                         r'<origin (?P<origin>[^/]*)/>\s*<parent link="(?P<parent>[^"]+)" />')
+
+    def mounted(found: re.Match) -> str:
+        name, parent = found["name"], found["parent"]
+        return (f'<joint name="{name}_mount_fixed" type="fixed"><origin {found["origin"]}/><parent link="{parent}" />'
+                f'<child link="{name}_mount" /></joint>\n  <link name="{name}_mount" />\n  '
+                f'<joint name="{name}" type="{found["type"]}">\n    <origin xyz="0 0 0" rpy="0 0 0" />\n    '
+                f'<parent link="{name}_mount" />')
+
+    text, count = pattern.subn(mounted, text)
+    assert count == 6, count
+    last = re.findall(r'<child link="([^"]+)" />', text)[-1]
+    tool = (f'<joint name="flange_fixed" type="fixed"><origin xyz="0 0 0.1" rpy="0 -1.5708 0" /><parent link="{last}" />'
+            '<child link="flange" /></joint>\n  <link name="flange" />\n  <joint name="tool0_fixed" type="fixed">'
+            '<origin xyz="0 0 0.05" rpy="0 0 0.7854" /><parent link="flange" /><child link="tool0" /></joint>\n  '
+            '<link name="tool0" />\n</robot>')
+    return text.replace("</robot>", tool)
+
+
 def named_by_joint(frame: pd.DataFrame, role: str) -> pd.DataFrame:
     """A lab's own CSV export: ``t``, then per joint ``<joint>_position``, ``_velocity``, ``_effort`` (the driver's
     joint names, :data:`UR_NAMES`), the joints in the driver's order (:data:`PUBLISHED`), no ``q1..``/``tau1..``."""
@@ -175,6 +199,10 @@ CELLS = (
              "order), on the defaults", Lab("named", ur10e, *(Log(seconds, 500.0, motion_hz=0.1)
                                                               for seconds in (10.0, 4.0, 6.0))),
              named_by_joint, urdf=ur_names, slow=True),
+    LoggedAs("UR10e-like from a vendor-style URDF: a fixed joint and a frame link before each moving joint, a "
+             "massless flange and tool0 on fixed joints, 10 s / 4 s / 6 s at 500 Hz, logged dq",
+             Lab("fixed", ur10e, *(Log(seconds, 500.0, motion_hz=0.1) for seconds in (10.0, 4.0, 6.0))),
+             urdf=fixed_between, slow=True),
     LoggedAs("PUMA 6 joints, a light wrist (its friction at 2 %: 0.2-0.3 N m against 4-9 N m), torque sensors of equal absolute noise (2 % of the channels' mean spread: the wrist's "
              "signal-to-noise far below the shoulder's), 10 s / 4 s / 6 s at 250 Hz, no dq",
              Lab("equal noise", puma(6), *(Log(seconds, 250.0, velocity=False) for seconds in (10.0, 4.0, 6.0)),
