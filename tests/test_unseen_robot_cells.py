@@ -203,6 +203,8 @@ CELLS = (
              "massless flange and tool0 on fixed joints, 10 s / 4 s / 6 s at 500 Hz, logged dq",
              Lab("fixed", ur10e, *(Log(seconds, 500.0, motion_hz=0.1) for seconds in (10.0, 4.0, 6.0))),
              urdf=fixed_between, slow=True),
+    LoggedAs("UR10e-like logged at 100 Hz only (a ROS bag's rate), logged dq, 12 s / 4 s / 6 s",
+             Lab("100 Hz", ur10e, *(Log(seconds, 100.0, motion_hz=0.1) for seconds in (12.0, 4.0, 6.0))), slow=True),
     LoggedAs("PUMA 6 joints, a light wrist (its friction at 2 %: 0.2-0.3 N m against 4-9 N m), torque sensors of equal absolute noise (2 % of the channels' mean spread: the wrist's "
              "signal-to-noise far below the shoulder's), 10 s / 4 s / 6 s at 250 Hz, no dq",
              Lab("equal noise", puma(6), *(Log(seconds, 250.0, velocity=False) for seconds in (10.0, 4.0, 6.0)),
