@@ -110,6 +110,13 @@ def rostopic_echo(frame: pd.DataFrame, role: str) -> pd.DataFrame:
     return pd.DataFrame(out)
 
 
+def named_by_joint_in_ms(frame: pd.DataFrame, role: str) -> pd.DataFrame:
+    """:func:`named_by_joint` with its time as ``time [ms]`` (milliseconds), no ``t`` column."""
+    out = named_by_joint(frame, role)
+    return out.drop(columns="t").assign(**{"time [ms]": 1e3 * frame["t"].to_numpy()})[
+        ["time [ms]", *[name for name in out.columns if name != "t"]]]
+
+
 def fixed_between(text: str) -> str:
     """The description as a vendor's URDF writes it: each moving joint's placement on a fixed joint to a frame link
     of its own (``<parent>_mount``, no inertial), the moving joint at that frame's origin; a massless ``flange`` and
@@ -199,6 +206,10 @@ CELLS = (
              "order), on the defaults", Lab("named", ur10e, *(Log(seconds, 500.0, motion_hz=0.1)
                                                               for seconds in (10.0, 4.0, 6.0))),
              named_by_joint, urdf=ur_names, slow=True),
+    # at 7f2677d both verbs exited on it (missing column(s) t) where --columns t=0.001*time [ms],... read it
+    LoggedAs("the same CSV with its time as `time [ms]`, on the defaults", Lab("named", ur10e, *(
+        Log(seconds, 500.0, motion_hz=0.1) for seconds in (10.0, 4.0, 6.0))), named_by_joint_in_ms, urdf=ur_names,
+        slow=True),
     LoggedAs("UR10e-like from a vendor-style URDF: a fixed joint and a frame link before each moving joint, a "
              "massless flange and tool0 on fixed joints, 10 s / 4 s / 6 s at 500 Hz, logged dq",
              Lab("fixed", ur10e, *(Log(seconds, 500.0, motion_hz=0.1) for seconds in (10.0, 4.0, 6.0))),
@@ -449,3 +460,22 @@ def test_a_units_row_of_si_units_is_skipped_and_said(tmp_path):
     (tmp_path / "degrees.csv").write_text(text)
     with pytest.raises(NonFiniteError, match="units"):
         read_record(tmp_path / "degrees.csv", require=("tau",))
+
+
+def test_a_time_column_under_another_name_is_read_where_its_unit_is_plain():
+    """``time``, ``Timestamp``, ``time [s]`` in seconds, ``time_ms``, ``stamp_ns`` scaled; a name without a unit
+    whose steps are not seconds (ns since 1970), two time columns, or a ``t`` column: nothing guessed."""
+    from estimation.data.log_formats import time_column
+
+    t = np.arange(0.0, 1.0, 0.004)
+    frame = pd.DataFrame({"q1": np.sin(t)})
+    assert time_column(frame.assign(time=t)) == "time"
+    assert time_column(frame.assign(Timestamp=t)) == "Timestamp"
+    assert time_column(frame.assign(**{"time [s]": t})) == "time [s]"
+    assert time_column(frame.assign(time_ms=1e3 * t)) == "0.001*time_ms"
+    assert time_column(frame.assign(stamp_ns=np.round(1e9 * t).astype(np.int64) + EPOCH_NS)) == "1e-09*stamp_ns"
+    assert time_column(frame.assign(time=np.round(1e9 * t).astype(np.int64) + EPOCH_NS)) is None
+    assert time_column(frame.assign(time=1e3 * t)) is None  # ms without a unit in the name: not seconds' steps
+    assert time_column(frame.assign(time=t, timestamp=t)) is None
+    assert time_column(frame.assign(t=t, time=t)) is None
+    assert time_column(frame.assign(runtime=t)) is None

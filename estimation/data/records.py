@@ -62,11 +62,13 @@ from estimation.data.loading import (
 from estimation.data.log_formats import (
     JointNamedColumnsWarning,
     JointStateTableWarning,
+    TimeColumnWarning,
     apply_column_map,
     is_log_file,
     joint_named_columns,
     joint_state_echo,
     read_log_frame,
+    time_column,
 )
 from estimation.data.log_cleaning import DEFAULT_MAX_GAP, blank_rows, describe, find_gaps, repeated_rows, split_rows, time_stamps_jump
 from dynamics.measurements import Measurements, joint_columns
@@ -182,6 +184,11 @@ def read_record(
         warnings.warn(JointStateTableWarning(
             f"{path}: read as `rostopic echo -p` of JointState messages, the joints matched by field.name0.. "
             f"(--columns {','.join(f'{key}={value}' for key, value in echo.items())})"), stacklevel=2)
+    time = None if echo is not None else time_column(frame)
+    if time is not None:  # the time under another name (time, timestamp_ns, time [ms]), not t
+        frame = apply_column_map(frame, {"t": time}, str(path))
+        warnings.warn(TimeColumnWarning(f"{path}: no column t; the time read as --columns t={time}"),
+                      stacklevel=2)
     robot = model.robot if isinstance(model, IdentificationModel) else None
     named = None if echo is not None or robot is None else joint_named_columns(frame, robot.joint_names)
     if named is not None:  # joint columns named by the robot's joints (shoulder_pan_joint_effort), not tau1..
