@@ -8,7 +8,11 @@
 - a URDF whose inertials are placeholders (every link 1 kg at its frame's origin, identity inertia), so the
   description's prior is far from the truth;
 - a training record at rest for half its length (the robot stopped in the middle of the excitation);
-- torque sensors whose bias drifts as they warm up (different in each record).
+- torque sensors whose bias drifts as they warm up (different in each record);
+- logs as labs write them (h-unseen7): columns named by joint (``shoulder_pan_joint_effort``), the time as
+  ``time [ms]``, ``;`` separators with ``,`` decimals, a units row, repeated time stamps, 100 Hz only; a vendor-style
+  URDF (fixed joints and frame links between the moving ones, a tool frame); a light wrist under sensors of equal
+  absolute noise; a test record far outside one joint's training range (a strict xfail).
 
 No data are copied; every record is simulated (the plain fit's model class, :func:`tests.test_unseen_robots.truth`,
 white torque noise of 2 % of each channel's spread). Each case runs the default ``oed identify`` (told the plain
