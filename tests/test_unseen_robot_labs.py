@@ -75,6 +75,10 @@ class Lab:
     halted: float = 0.0  # the share at rest, in its middle, of the records of ``halted_in`` (:func:`halt`)
     halted_in: tuple[str, ...] = ("train",)
     drift: float = 0.0  # a torque sensor's bias warming up (:func:`warming`), of each channel's spread
+    friction_scale: tuple[float, ...] = ()  # each joint's true friction and offset scaled (a light wrist's small)
+    equal_noise: bool = False  # the torque sensors' noise alike on every joint (2 % of the channels' mean spread)
+    trained_range: tuple[int, float] = ()  # (joint, share): training and validation confined to that share of the
+    # joint's range from its lower limit, the test record over the whole range
     slow: bool = False
     xfail: str = ""
 
@@ -161,6 +165,14 @@ def extra_torque(case: Lab, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
     return out
 
 
+def confined(limits, joint: int, share: float) -> SimpleNamespace:
+    """``limits`` with joint ``joint``'s range cut to its lower ``share`` (its speed limit scaled alike)."""
+    lower, upper, velocity = limits.lower.copy(), limits.upper.copy(), limits.velocity_limit.copy()
+    upper[joint] = lower[joint] + share * (upper[joint] - lower[joint])
+    velocity[joint] *= share
+    return SimpleNamespace(n_joints=limits.n_joints, lower=lower, upper=upper, velocity_limit=velocity)
+
+
 def write_records(case: Lab, folder: Path) -> tuple[Path, dict, dict, np.ndarray]:
     """The description and the records of each role as the lab's logger writes them: ``(urdf, records, files,
     spread)``; the plain fit's records are what a user reading the file keeps (blank rows and repeated stamps left
@@ -172,7 +184,11 @@ def write_records(case: Lab, folder: Path) -> tuple[Path, dict, dict, np.ndarray
     urdf = folder / "robot.urdf"
     urdf.write_text(robot_urdf(described))
     model = build_model(load_robot(urdf=urdf), "internal", FRICTION)  # the regressor: the same kinematics
-    theta = truth(build_model(robot, "internal", FRICTION))  # the true bodies, ±20 %
+    truth_model = build_model(robot, "internal", FRICTION)
+    theta = truth(truth_model)  # the true bodies, ±20 %
+    for index, name in enumerate(truth_model.parameter_names):
+        if case.friction_scale and name.startswith(("fv", "fc", "off")):
+            theta[index] *= case.friction_scale[int("".join(filter(str.isdigit, name))) - 1]
     limits = SimpleNamespace(n_joints=robot.n_joints, lower=np.asarray(robot.lower, float),
                              upper=np.asarray(robot.upper, float), velocity_limit=np.asarray(robot.velocity_limit, float))
     gains = np.asarray(case.gains) if case.gains else np.ones(robot.n_joints)
@@ -181,17 +197,20 @@ def write_records(case: Lab, folder: Path) -> tuple[Path, dict, dict, np.ndarray
         generator = np.random.default_rng(1000 + seed)
         t = times(log, generator)
         motion = case.test_motion if role == "test" else "fourier"
+        within = confined(limits, *case.trained_range) if case.trained_range and role != "test" else limits
         if motion == "point-to-point":
             q, dq, ddq = point_to_point(limits, seed, t)
         elif motion == "jog":
             q, dq, ddq = jog(limits, seed, t)
         elif case.halted and role in case.halted_in:
-            q, dq, ddq = halt(random_fourier(limits, seed=seed, frequency_hz=log.motion_hz), t, case.halted)
+            q, dq, ddq = halt(random_fourier(within, seed=seed, frequency_hz=log.motion_hz), t, case.halted)
         else:
-            q, dq, ddq = random_fourier(limits, seed=seed, frequency_hz=log.motion_hz).evaluate(t)
+            q, dq, ddq = random_fourier(within, seed=seed, frequency_hz=log.motion_hz).evaluate(t)
         tau = (model.predict(theta, q, dq, ddq) + extra_torque(case, q, dq)) / gains
         if spread is None:
             spread = tau.std(axis=0)
+            if case.equal_noise:  # a sensor's noise in N m, whatever the joint's load
+                spread = np.full_like(spread, spread.mean())
         tau = tau + generator.normal(0.0, 1.0, tau.shape) * NOISE * spread
         if case.drift:
             tau = tau + case.drift * spread * warming(t, role, tau.shape[1])

@@ -21,6 +21,8 @@ _EXPORTS: dict[str, str] = {
     "DEGREES_THRESHOLD": "estimation.data.loading",
     "GAP_FACTOR": "estimation.data.loading",
     "DuplicatedTimesWarning": "estimation.data.loading",
+    "DelimiterWarning": "estimation.data.loading",
+    "UnitsRowWarning": "estimation.data.loading",
     "HoleError": "estimation.data.loading",
     "IRREGULAR_TOLERANCE": "estimation.data.loading",
     "InMemoryNeed": "estimation.data.memory_budget",

@@ -143,6 +143,15 @@ class HoldWarning(MeasurementWarning):
     were cut out of the fit: the record split there, as at a gap (:func:`estimation.data.rest.holds`)."""
 
 
+class DelimiterWarning(MeasurementWarning):
+    """A CSV file whose columns are separated by another delimiter than the comma (``;``, a tab, ``|``), its decimal
+    mark perhaps a comma (a European spreadsheet's export), was read so: the message says how."""
+
+
+class UnitsRowWarning(MeasurementWarning):
+    """A CSV file's second line named each column's unit, all of them the format's SI units: it was skipped."""
+
+
 class UnwrappedAngleWarning(MeasurementWarning):
     """A revolute joint's angle logged wrapped to ±π (or to a turn) was unwrapped on reading: which joint, how many wraps."""
 
@@ -243,6 +252,61 @@ def other_delimiter(header: str) -> str | None:
     if "," in header:
         return None
     return next((delimiter for delimiter in OTHER_DELIMITERS if delimiter in header), None)
+
+
+def csv_dialect(header: str, rows: Sequence[str]) -> tuple[str, str] | None:
+    """``(separator, decimal mark)`` of a CSV file whose header holds no comma but another delimiter
+    (:func:`other_delimiter`) that also splits each of its first data ``rows`` into as many fields; the decimal mark is
+    the comma where those rows hold one (it separates nothing else there), else the point. ``None`` for a
+    comma-separated file, or where the rows do not agree with the header (nothing is guessed)."""
+    delimiter = other_delimiter(header)
+    if delimiter is None:
+        return None
+    count = len(header.rstrip("\r\n").split(delimiter))
+    values = [value for row in rows if row.strip() for value in row.rstrip("\r\n").split(delimiter)]
+    if count < 2 or any(len(row.rstrip("\r\n").split(delimiter)) != count for row in rows if row.strip()):
+        return None
+    decimal = "," if any("," in value for value in values) else "."
+    if decimal == "," and any(value.count(",") > 1 or "." in value for value in values):
+        return None  # a thousands separator or both marks: ambiguous
+    return delimiter, decimal
+
+
+#: the SI units of each column group as a units row may write them (lower case, without spaces, brackets, ``·``, ``.``,
+#: ``*`` and ``^``): a revolute joint's or a prismatic joint's
+SI_UNITS = {"t": ("s", "sec", "secs", "second", "seconds"), "q": ("rad", "m"), "dq": ("rad/s", "m/s"),
+            "ddq": ("rad/s2", "rad/s²", "m/s2", "m/s²"), "tau": ("nm", "n")}
+_COLUMN_GROUP = re.compile(r"^(t|q|dq|ddq|tau)\d*$")
+
+
+def si_units_row(names: Sequence[str], row: Sequence[str]) -> bool:
+    """Whether ``row`` (the line beneath the header ``names``, split alike) is a units row naming the format's SI
+    units: no field a number, and every column of ``t, q.., dq.., ddq.., tau..`` in :data:`SI_UNITS` (``s``,
+    ``[rad]``, ``(N m)``, ``N·m``...); other columns' fields are not looked at. A row naming another unit (``deg``,
+    ``ms``, ``mNm``) is not one: converting is the user's (the reader then refuses the text, as before)."""
+    if len(row) != len(names):
+        return False
+    fields = [field.strip().strip('"\'') for field in row]
+    if any(_is_number(field) for field in fields):
+        return False
+    known = 0
+    for name, field in zip(names, fields):
+        group = _COLUMN_GROUP.match(str(name).strip().strip('"\''))
+        if group is None:
+            continue
+        unit = re.sub(r"[\s\[\]()·.*^]", "", field).lower()
+        if unit not in SI_UNITS[group.group(1)]:
+            return False
+        known += 1
+    return known > 0
+
+
+def _is_number(text: str) -> bool:
+    try:
+        float(text.replace(",", "."))
+    except ValueError:
+        return False
+    return True
 
 
 def numeric_columns(frame: pd.DataFrame, columns: list[str], source: str) -> NDArray[np.float64]:

@@ -35,7 +35,7 @@ from dynamics.effects.linear import WRENCH_CHANNELS
 from estimation.data.loading import MeasurementError, MeasurementWarning, MissingColumnError
 
 __all__ = ["BAG_SUFFIXES", "DEFAULT_TOPIC", "DroppedStampsWarning", "LogSource", "RosSupportError", "UnknownTopicError",
-           "JointStateTableWarning", "apply_column_map", "is_log_file", "joint_state_echo", "logged_joints", "parse_column_map", "read_log_frame"]
+           "JointStateTableWarning", "JointNamedColumnsWarning", "TimeColumnWarning", "apply_column_map", "is_log_file", "joint_state_echo", "logged_joints", "parse_column_map", "read_log_frame"]
 
 #: the topic of ``sensor_msgs/JointState`` read by default
 DEFAULT_TOPIC = "/joint_states"
@@ -85,6 +85,85 @@ def joint_state_echo(frame: pd.DataFrame) -> dict[str, str] | None:
     groups = {group: prefix for group, prefix in JOINT_STATE_ECHO.items()
               if f"{prefix}0" in frame.columns and pd.to_numeric(frame[f"{prefix}0"], errors="coerce").notna().all()}
     return {"t": f"1e-9*{stamps}", **groups}
+
+
+class JointNamedColumnsWarning(MeasurementWarning):
+    """A table whose joint columns are named by the robot's joint names (``shoulder_pan_joint_effort``) rather than
+    numbered (``tau1``) was read by those names; the message gives the column map that reads it so."""
+
+
+#: the words that name a joint column's quantity beside the joint's name, by group (lower case)
+JOINT_COLUMN_WORDS = {"q": ("position", "pos", "angle", "q"), "dq": ("velocity", "vel", "dq"),
+                      "ddq": ("acceleration", "acc", "ddq"), "tau": ("effort", "torque", "tau", "trq")}
+_JOINT_COLUMN_SEPARATORS = ("_", ".", "/", ":", " ")
+
+
+def joint_named_columns(frame: pd.DataFrame, joint_names: Sequence[str] | None) -> dict[str, str] | None:
+    """The column map of a table whose joint columns are named by the robot's joints: for each group without its
+    numbered columns (no ``tau1``), the column ``<joint><sep><word>`` or ``<word><sep><joint>`` of each joint of
+    ``joint_names`` (in the robot's order; ``sep`` one of ``_ . / :`` or a space, ``word`` one of
+    :data:`JOINT_COLUMN_WORDS`, case ignored), as ``{"tau1": "shoulder_pan_joint_effort", ...}``. A group is mapped
+    only when every joint has exactly one such column (otherwise nothing is guessed and the numbered columns are
+    missing as before); ``None`` when no group is mapped or the robot's joint names are not known."""
+    if not joint_names:
+        return None
+    columns = {str(column).strip().lower(): str(column) for column in frame.columns}
+    found: dict[str, str] = {}
+    for group, words in JOINT_COLUMN_WORDS.items():
+        if f"{group}1" in frame.columns:
+            continue
+        mapped = {}
+        for index, joint in enumerate(joint_names, start=1):
+            name = str(joint).strip().lower()
+            matches = {columns[candidate] for word in words for sep in _JOINT_COLUMN_SEPARATORS
+                       for candidate in (f"{name}{sep}{word}", f"{word}{sep}{name}") if candidate in columns}
+            if len(matches) != 1:
+                break
+            mapped[f"{group}{index}"] = matches.pop()
+        else:
+            if len(set(mapped.values())) == len(mapped):
+                found.update(mapped)
+    return found or None
+
+
+class TimeColumnWarning(MeasurementWarning):
+    """A table without a ``t`` column was read with its time column under another name (``time``, ``timestamp``,
+    ``time_ms``...); the message gives the column map that reads it so."""
+
+
+#: a time column's name without its unit (lower case, spaces, brackets and ``_`` removed) and the units a name may
+#: carry, with their factor to seconds
+TIME_NAMES = ("time", "timestamp", "stamp", "times")
+TIME_UNITS = {"": 1.0, "s": 1.0, "sec": 1.0, "ms": 1e-3, "us": 1e-6, "µs": 1e-6, "ns": 1e-9}
+#: the sampling steps (s) a robot's log plausibly has: a name without a unit is read as seconds only within them
+PLAUSIBLE_STEP = (1e-5, 0.5)
+
+
+def time_column(frame: pd.DataFrame) -> str | None:
+    """For a table without a ``t`` column, its time column as a column map's entry (``"time"``, ``"0.001*time_ms"``):
+    the one column named ``time``, ``timestamp``, ``stamp`` (case, spaces, brackets and ``_`` ignored), perhaps with
+    a unit (``time_ms``, ``time [s]``, ``timestamp_ns``: :data:`TIME_UNITS`), whose median step in seconds is that of
+    a robot's log (:data:`PLAUSIBLE_STEP`: a name without a unit is read as seconds only then; ns since 1970 are
+    not); ``None`` otherwise (the missing ``t`` refused as before)."""
+    if "t" in frame.columns:
+        return None
+    found = []
+    for column in frame.columns:
+        plain = re.sub(r"[\s\[\]()_]", "", str(column).lower())
+        for name in TIME_NAMES:
+            unit = plain[len(name):] if plain.startswith(name) else None
+            if unit is not None and unit in TIME_UNITS:
+                found.append((str(column), TIME_UNITS[unit]))
+                break
+    if len(found) != 1:
+        return None
+    column, factor = found[0]
+    values = pd.to_numeric(frame[column], errors="coerce").to_numpy(dtype=float) * factor
+    steps = np.diff(values[np.isfinite(values)])
+    steps = steps[steps > 0]
+    if steps.size == 0 or not PLAUSIBLE_STEP[0] <= float(np.median(steps)) < PLAUSIBLE_STEP[1]:
+        return None
+    return column if factor == 1.0 else f"{factor:g}*{column}"
 
 
 @dataclass(frozen=True)

@@ -30,7 +30,9 @@ from estimation.data.loading import (
     AbsurdValueError,
     BlankRowsWarning,
     COLUMN_GROUPS,
+    DelimiterWarning,
     DuplicatedTimesWarning,
+    UnitsRowWarning,
     GROUP_MEANING,
     HoleError,
     MeasurementError,
@@ -49,6 +51,8 @@ from estimation.data.loading import (
     check_sample_count,
     check_time,
     count_joint_columns,
+    csv_dialect,
+    si_units_row,
     numeric_columns,
     require_columns,
     other_delimiter,
@@ -56,11 +60,15 @@ from estimation.data.loading import (
     uniform_grid,
 )
 from estimation.data.log_formats import (
+    JointNamedColumnsWarning,
     JointStateTableWarning,
+    TimeColumnWarning,
     apply_column_map,
     is_log_file,
+    joint_named_columns,
     joint_state_echo,
     read_log_frame,
+    time_column,
 )
 from estimation.data.log_cleaning import DEFAULT_MAX_GAP, blank_rows, describe, find_gaps, repeated_rows, split_rows, time_stamps_jump
 from dynamics.measurements import Measurements, joint_columns
@@ -164,7 +172,7 @@ def read_record(
     if not path.is_file():
         raise FileNotFoundError(f"data file not found: {path}")
     try:
-        frame = read_parquet_frame(path) if suffix == ".parquet" else pd.read_csv(path)
+        frame = read_parquet_frame(path) if suffix == ".parquet" else read_csv_frame(path)
     except ParquetSupportError:
         raise
     except (ValueError, OSError, pd.errors.ParserError) as error:
@@ -176,8 +184,58 @@ def read_record(
         warnings.warn(JointStateTableWarning(
             f"{path}: read as `rostopic echo -p` of JointState messages, the joints matched by field.name0.. "
             f"(--columns {','.join(f'{key}={value}' for key, value in echo.items())})"), stacklevel=2)
+    time = None if echo is not None else time_column(frame)
+    if time is not None:  # the time under another name (time, timestamp_ns, time [ms]), not t
+        frame = apply_column_map(frame, {"t": time}, str(path))
+        warnings.warn(TimeColumnWarning(f"{path}: no column t; the time read as --columns t={time}"),
+                      stacklevel=2)
+    robot = model.robot if isinstance(model, IdentificationModel) else None
+    named = None if echo is not None or robot is None else joint_named_columns(frame, robot.joint_names)
+    if named is not None:  # joint columns named by the robot's joints (shoulder_pan_joint_effort), not tau1..
+        frame = apply_column_map(frame, named, str(path))
+        warnings.warn(JointNamedColumnsWarning(
+            f"{path}: the joint columns read by the robot's joint names "
+            f"(--columns {','.join(f'{key}={value}' for key, value in named.items())})"), stacklevel=2)
     return segments_from_frame(frame, n_joints=n_joints, model=model, require=require, resample=resample,
                                source=str(path), max_gap=max_gap, split=split)
+
+
+#: the data rows read to tell a CSV file's separator and decimal mark
+DIALECT_ROWS = 20
+
+
+def read_csv_frame(path: Path) -> pd.DataFrame:
+    """The CSV file as a table: comma-separated with ``.`` decimals, or as :func:`csv_options` says."""
+    return pd.read_csv(path, **csv_options(path))
+
+
+def csv_options(path: Path) -> dict[str, object]:
+    """``pandas.read_csv``'s ``sep`` and ``decimal`` for a CSV file whose header and first rows agree on another
+    delimiter than the comma (:func:`~estimation.data.loading.csv_dialect`: ``;`` with ``,`` decimals, a
+    spreadsheet's European export), said in a :class:`DelimiterWarning`, and ``skiprows`` for a units row beneath
+    the header naming the format's SI units (:func:`~estimation.data.loading.si_units_row`), said in a
+    :class:`UnitsRowWarning`; ``{}`` for a plain file or where nothing can be told (the reader's error then names
+    the separator, or the text beneath the names)."""
+    try:
+        with open(path, errors="replace") as stream:
+            header, rows = stream.readline(), [stream.readline() for _ in range(DIALECT_ROWS + 1)]
+    except OSError:
+        return {}
+    options: dict[str, object] = {}
+    delimiter = other_delimiter(header) or ","
+    if rows and si_units_row(header.rstrip("\r\n").split(delimiter), rows[0].rstrip("\r\n").split(delimiter)):
+        options["skiprows"] = [1]
+        warnings.warn(UnitsRowWarning(f"{path}: its second line names the columns' units ({rows[0].strip()}), the "
+                                      "format's SI units: skipped"), stacklevel=3)
+        rows = rows[1:]
+    dialect = csv_dialect(header, rows[:DIALECT_ROWS])
+    if dialect is None:
+        return options
+    separator, decimal = dialect
+    warnings.warn(DelimiterWarning(
+        f"{path}: columns separated by {separator!r}" + (", ',' the decimal mark" if decimal == "," else "")
+        + ": read so"), stacklevel=3)
+    return {**options, "sep": separator, "decimal": decimal}
 
 
 def _delimiter_note(path: Path) -> str:

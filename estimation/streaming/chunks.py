@@ -58,7 +58,7 @@ from estimation.data.loading import (
     TimeBaseError,
     TooFewSamplesError,
 )
-from estimation.data.records import AngleTurns, measurements_from_frame, said_unwrapped, unwrap_angles
+from estimation.data.records import AngleTurns, csv_options, measurements_from_frame, said_unwrapped, unwrap_angles
 from dynamics.measurements import Measurements, joint_columns
 from estimation.estimators.identification_problem import BandWindow, ResidualBand, decay_length
 from estimation.estimators.normal_equations import DEFAULT_CHUNK_SIZE, NormalEquations, accumulate, check_chunk_size
@@ -119,7 +119,7 @@ def _raw_frames(path: Path, chunk_size: int, only_time: bool = False) -> Iterato
     try:
         if suffix == ".csv":
             usecols = (lambda name: str(name).strip() == "t") if only_time else None
-            with pd.read_csv(path, chunksize=chunk_size, usecols=usecols) as reader:
+            with pd.read_csv(path, chunksize=chunk_size, usecols=usecols, **csv_options(path)) as reader:
                 yield from reader
         else:
             try:
