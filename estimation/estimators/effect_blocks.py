@@ -9,8 +9,10 @@ evaluated over the samples by the compiled sample loop (:class:`dynamics.codegen
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import re
+from collections.abc import Iterator
 from dataclasses import dataclass
 
 import casadi
@@ -172,9 +174,28 @@ class Block:
         # the latest evaluation: (states, shape's bytes, columns, derivatives or None, products) (:meth:`evaluate`,
         # :meth:`products`)
         self._latest: tuple[States, bytes, NDArray[np.float64], NDArray[np.float64] | None, dict] | None = None
+        # the columns of every shape evaluated along one kept states object while :meth:`keeping_shapes` holds
+        self._shapes: tuple[States, dict[bytes, NDArray[np.float64]]] | None = None
 
     def __getstate__(self) -> dict[str, object]:
-        return {**self.__dict__, "_latest": None}  # the kept evaluation is a cache: not sent with the block
+        # the kept evaluations are caches: not sent with the block
+        return {**self.__dict__, "_latest": None, "_shapes": None}
+
+    @contextlib.contextmanager
+    def keeping_shapes(self, states: States) -> Iterator[None]:
+        """While held, the columns of every shape evaluated along ``states`` (kept states only) are kept, and asked
+        again at the same shape (the same states object) are returned, not evaluated again: the columns of a shape
+        grid's points, costed by the search and screened again by the linear solve
+        (:func:`estimation.diagnosis.candidates.trials.better_physical_optimum`). The same arrays as an evaluation
+        gives (read-only), so the same solves; released on exit."""
+        if not states.kept or self._shapes is not None:
+            yield
+            return
+        self._shapes = (states, {})
+        try:
+            yield
+        finally:
+            self._shapes = None
 
     @property
     def n_shape(self) -> int:
@@ -197,6 +218,11 @@ class Block:
         latest = self._latest
         if latest is not None and latest[0] is states and latest[1] == key and (latest[3] is not None or not jacobian):
             return (latest[2], latest[3]) if jacobian else latest[2]
+        shapes = self._shapes if self._shapes is not None and self._shapes[0] is states else None
+        if shapes is not None and not jacobian and key in shapes[1]:
+            columns = shapes[1][key]
+            self._latest = (states, key, columns, None, {})  # as an evaluation leaves it (states are kept)
+            return columns
         n_samples, m, k = states.n_samples, self.n_channels, self.n_linear
         function = self.jacobian_function if jacobian else self.columns_function
         values = _evaluate(function, states.q, states.dq, states.ddq, shape)  # (N, m·k [+ m·k·n_s])
@@ -210,6 +236,8 @@ class Block:
                 if array is not None:
                     array.flags.writeable = False
             self._latest = (states, key, columns, derivative, {})
+            if shapes is not None and not jacobian:
+                shapes[1][key] = columns
         return (columns, derivative) if jacobian else columns
 
     def products(self, columns: NDArray[np.float64]) -> dict | None:
