@@ -65,7 +65,7 @@ def test_a_trial_with_the_grid_kept_is_the_trial_evaluated_afresh(problem, spec,
     def trial_of(joint: int, kept: bool):
         block = Block(ModelKind.INTERNAL, robot, type(effect)(joints=(joint,)), len(model.channels))
         calls = [0]
-        for name in ("columns_function", "jacobian_function"):
+        for name in ("row_columns_function", "row_jacobian_function"):
             function = getattr(block, name)
 
             def counted(*arguments, function=function):
