@@ -123,10 +123,51 @@ def _batch(fixed: FixedPart, block: Block, states: States, points: NDArray[np.fl
     complement = corner - np.einsum("pgk,pgl->gkl", border, eliminated)
     complement = (complement + np.transpose(complement, (0, 2, 1))) / 2
     v = right / scale - np.einsum("pgk,p->gk", border, solved)
-    costs = np.full(n_points, np.nan)
-    for point in np.flatnonzero(usable):
-        costs[point] = _point_cost(complement[point], eliminated[:, point], border[:, point], corner[point], v[point],
-                                   factored, rest)
+    return _points_costs(complement, eliminated, border, corner, v, factored, rest, usable)
+
+
+def _points_costs(complement: NDArray[np.float64], eliminated: NDArray[np.float64], border: NDArray[np.float64],
+                  corner: NDArray[np.float64], v: NDArray[np.float64], factored: FixedFactor, rest: float,
+                  usable: NDArray[np.bool_]) -> NDArray[np.float64]:
+    """:func:`_point_cost` of every usable point of a batch (``complement (G, k, k)``, ``eliminated`` and ``border``
+    ``(p0, G, k)``, ``corner (G, k, k)``, ``v (G, k)``) with each step stacked: the same LAPACK and BLAS calls on
+    each point's matrices, and the same sums in the same order, so the same values bit for bit (a point whose
+    Cholesky factor fails is NaN, the batch then factored a point at a time)."""
+    costs = np.full(usable.shape[0], np.nan)
+    points = np.flatnonzero(usable)
+    if points.size == 0:
+        return costs
+    stack = complement[points]
+    try:
+        lower = np.linalg.cholesky(stack)
+    except np.linalg.LinAlgError:  # some point is not positive definite: the others factored one at a time
+        factors = []
+        kept = []
+        for position, matrix in enumerate(stack):
+            try:
+                factors.append(np.linalg.cholesky(matrix))
+                kept.append(position)
+            except np.linalg.LinAlgError:
+                continue
+        if not kept:
+            return costs
+        points, lower = points[kept], np.stack(factors)
+    inverse = np.linalg.inv(lower)
+    complement_inverse = np.matmul(np.swapaxes(inverse, 1, 2), inverse)
+    k = complement.shape[1]
+    taken = eliminated[:, points]  # (p0, g, k)
+    gram = np.matmul(np.transpose(taken, (1, 2, 0)), np.transpose(taken, (1, 0, 2)))
+    product = np.matmul(complement_inverse, np.eye(k) + gram)
+    traces = np.trace(product, axis1=1, axis2=2)
+    borders = np.ascontiguousarray(np.transpose(border[:, points], (1, 0, 2))) ** 2
+    corners = np.ascontiguousarray(corner[points]) ** 2
+    for position, point in enumerate(points):
+        trace_inverse = factored.trace_inverse + float(traces[position])
+        frobenius = np.sqrt(factored.frobenius2 + 2 * np.sum(borders[position]) + np.sum(corners[position]))
+        if not trace_inverse * frobenius * RANK_THRESHOLD * MARGIN <= 1.0:
+            continue  # the bound does not decide the rank
+        value = rest - float(v[point] @ complement_inverse[position] @ v[point])
+        costs[point] = max(value, 0.0) if np.isfinite(value) else np.nan
     return costs
 
 

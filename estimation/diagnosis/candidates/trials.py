@@ -14,7 +14,8 @@ more shape parameters must explain more to win).
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import contextlib
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -94,18 +95,33 @@ def try_candidate(group: tuple[int, ...], blocks: Sequence[Block], fixed: FixedP
         fit = _fitted(blocks, solve_linear(fixed, blocks, states, [np.zeros(0)] * len(blocks), weights), np.zeros(0))
     else:
         fit = None if search or starts is None else _screened(blocks, fixed, states, weights, starts[0])
-    if fit is None:
-        fit = fit_shapes(fixed, blocks, states, weights, starts=starts, refine=3 if starts is None else 1,
-                         max_iter=60 if search else 0, covariance="none")
-    count = sum(block.n_linear + block.n_shape for block in blocks)
-    statistic, p_value, bic = nested_test(rss, fit.rss, count, fixed.n_rows, fixed.n_fixed)
-    trial = Trial(tuple(group), tuple(blocks), fit, fit.rss, statistic, p_value, bic)
-    if search and any(block.n_shape for block in blocks) and _non_physical(trial):
-        better = better_physical_optimum(blocks, fixed, states, weights, fit.rss)
-        if better is not None:
-            statistic, p_value, bic = nested_test(rss, better.rss, count, fixed.n_rows, fixed.n_fixed)
-            return Trial(tuple(group), tuple(blocks), better, better.rss, statistic, p_value, bic)
+    # a search from the grid whose law can end non-physical screens the same grid again (better_physical_optimum):
+    # its points' columns are kept for that while the trial lasts, not evaluated twice
+    with _grid_columns_kept(blocks, states, fit is None and search and starts is None):
+        if fit is None:
+            fit = fit_shapes(fixed, blocks, states, weights, starts=starts, refine=3 if starts is None else 1,
+                             max_iter=60 if search else 0, covariance="none")
+        count = sum(block.n_linear + block.n_shape for block in blocks)
+        statistic, p_value, bic = nested_test(rss, fit.rss, count, fixed.n_rows, fixed.n_fixed)
+        trial = Trial(tuple(group), tuple(blocks), fit, fit.rss, statistic, p_value, bic)
+        if search and any(block.n_shape for block in blocks) and _non_physical(trial):
+            better = better_physical_optimum(blocks, fixed, states, weights, fit.rss)
+            if better is not None:
+                statistic, p_value, bic = nested_test(rss, better.rss, count, fixed.n_rows, fixed.n_fixed)
+                return Trial(tuple(group), tuple(blocks), better, better.rss, statistic, p_value, bic)
     return trial
+
+
+@contextlib.contextmanager
+def _grid_columns_kept(blocks: Sequence[Block], states: States, grid: bool) -> Iterator[None]:
+    """Each block's columns along ``states`` kept by shape (:meth:`Block.keeping_shapes`) when ``grid`` (a search from
+    the blocks' grid) and a block's law can be found non-physical (:func:`_non_physical`), else nothing kept."""
+    physical = any(getattr(block.effect, "physical_kind", block.effect.name) in POSITIVE_EFFECTS for block in blocks)
+    with contextlib.ExitStack() as stack:
+        if grid and physical:
+            for block in blocks:
+                stack.enter_context(block.keeping_shapes(states))
+        yield
 
 
 def _non_physical(trial: Trial) -> bool:
