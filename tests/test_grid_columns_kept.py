@@ -9,27 +9,17 @@ import contextlib
 import numpy as np
 import pytest
 
-from dynamics.effects.linear import CoulombFriction, parse_effects
-from dynamics.models import ModelKind, build_model
-from dynamics.robots import load_robot
-from dynamics.simulation.synthetic import simulate, true_parameters
+from dynamics.effects.linear import parse_effects
+from dynamics.models import ModelKind
 from estimation.diagnosis.candidates import trials
 from estimation.estimators.effect_blocks import Block, States
-from estimation.estimators.separable_least_squares import FixedPart
-from oed.fourier import random_fourier
+from tests.shaped_problem import shaped_problem
 
 
 @pytest.fixture(scope="module")
 def problem():
-    robot = load_robot("puma560", joints=3)
-    truth = build_model(robot, "internal", ("viscous", CoulombFriction(smoothing=0.03)))
-    theta = true_parameters(truth, seed=0, coulomb=[8.0, 5.0, 3.0])
-    record = simulate(truth, theta, random_fourier(robot, seed=3), noise={"tau1": 0.2, "tau2": 0.2, "tau3": 0.1},
-                      seed=3, rate_hz=250, periods=2)
-    model = build_model(robot, "internal", "viscous")
-    fixed = FixedPart.from_arrays(model.evaluate_base(record.q, record.dq, record.ddq), record.channels(model.channels))
-    states = States(record.q, record.dq, record.ddq, kept=True)
-    return robot, model, fixed, states, record
+    shaped = shaped_problem(kept=True)
+    return shaped.robot, shaped.model, shaped.fixed, shaped.states, shaped.record
 
 
 def test_kept_columns_are_the_evaluation_and_released(problem):

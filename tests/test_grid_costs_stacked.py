@@ -7,16 +7,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from dynamics.effects.linear import CoulombFriction, parse_effects
-from dynamics.models import ModelKind, build_model
-from dynamics.robots import load_robot
+from dynamics.effects.linear import parse_effects
+from dynamics.models import ModelKind
 from dynamics.effects.shaped import start_grid
-from dynamics.simulation.synthetic import simulate, true_parameters
 from estimation.estimators import shape_starts
 from estimation.estimators.bordered_normal import FixedFactor
-from estimation.estimators.effect_blocks import Block, States
-from estimation.estimators.separable_least_squares import FixedPart
-from oed.fourier import random_fourier
+from estimation.estimators.effect_blocks import Block
+from tests.shaped_problem import shaped_problem
 
 
 def one_at_a_time(complement, eliminated, border, corner, v, factored, rest, usable):
@@ -30,14 +27,8 @@ def one_at_a_time(complement, eliminated, border, corner, v, factored, rest, usa
 
 @pytest.fixture(scope="module")
 def problem():
-    robot = load_robot("puma560", joints=3)
-    truth = build_model(robot, "internal", ("viscous", CoulombFriction(smoothing=0.03)))
-    theta = true_parameters(truth, seed=0, coulomb=[8.0, 5.0, 3.0])
-    record = simulate(truth, theta, random_fourier(robot, seed=3), noise={"tau1": 0.2, "tau2": 0.2, "tau3": 0.1},
-                      seed=3, rate_hz=250, periods=2)
-    model = build_model(robot, "internal", "viscous")
-    fixed = FixedPart.from_arrays(model.evaluate_base(record.q, record.dq, record.ddq), record.channels(model.channels))
-    return robot, model, fixed, States(record.q, record.dq, record.ddq), np.array([1.0, 2.0, 4.0])
+    shaped = shaped_problem()
+    return shaped.robot, shaped.model, shaped.fixed, shaped.states, np.array([1.0, 2.0, 4.0])
 
 
 @pytest.mark.parametrize("spec", ["coulomb:tanh", "ripple", "stribeck:velocity", "sigmoid"])

@@ -12,15 +12,13 @@ import numpy as np
 import pytest
 
 import estimation.estimators.variable_projection as variable_projection
-from dynamics.effects.linear import CoulombFriction, parse_effects
+from dynamics.effects.linear import parse_effects
 from dynamics.effects.shaped import TanhCoulombFriction, shape_parameters, start_grid
-from dynamics.models import ModelKind, build_model
+from dynamics.models import ModelKind
 from dynamics.robots import load_robot
-from dynamics.simulation.synthetic import simulate, true_parameters
-from estimation.estimators.effect_blocks import Block, States
-from estimation.estimators.separable_least_squares import FixedPart
+from estimation.estimators.effect_blocks import Block
 from estimation.estimators.variable_projection import fit_shapes
-from oed.fourier import random_fourier
+from tests.shaped_problem import shaped_problem
 
 
 @pytest.fixture(scope="module")
@@ -30,14 +28,8 @@ def robot():
 
 @pytest.fixture(scope="module")
 def problem(robot):
-    truth = build_model(robot, "internal", ("viscous", CoulombFriction(smoothing=0.03)))
-    theta = true_parameters(truth, seed=0, coulomb=[8.0, 5.0, 3.0])
-    record = simulate(truth, theta, random_fourier(robot, seed=3), noise={"tau1": 0.2, "tau2": 0.2, "tau3": 0.1},
-                      seed=3, rate_hz=250, periods=2)
-    model = build_model(robot, "internal", "viscous")
-    fixed = FixedPart.from_arrays(model.evaluate_base(record.q, record.dq, record.ddq), record.channels(model.channels))
-    states = States(record.q, record.dq, record.ddq)
-    return fixed, states, np.array([1.0, 0.7, 1.3])
+    shaped = shaped_problem()
+    return shaped.fixed, shaped.states, np.array([1.0, 0.7, 1.3])
 
 
 def _anew(monkeypatch, counter=None):
