@@ -14,7 +14,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-from benchmarks.bench_real_robots import _quiet, emps
+from benchmarks.bench_real_robots import emps, run_quiet
 
 LAWS = ("viscous", "viscous,coulomb,offset", "viscous,sigmoid", "viscous,sigmoid,offset", "viscous,coulomb:tanh,offset",
         "viscous,coulomb,offset,delay", "viscous,sigmoid,delay")
@@ -27,13 +27,13 @@ def main(laws: list[str]) -> None:
         print("| declared (`--friction`) | chosen | validation MSE | test MSE |\n|---|---|---|---|")
         for friction in laws:
             result, metrics = folder / "result.json", folder / "metrics.json"
-            code, _ = _quiet(["identify", *case.robot, "--data", str(case.files["train"]), "--validate",
+            code, _ = run_quiet(["identify", *case.robot, "--data", str(case.files["train"]), "--validate",
                               str(case.files["validate"]), "--friction", friction, "--out", str(result)])
             if code:
                 print(f"| {friction} | exit {code} | | |")
                 continue
             document = json.loads(result.read_text())
-            code, _ = _quiet(["predict", "--model", str(result), "--data", str(case.files["test"]), "--metrics",
+            code, _ = run_quiet(["predict", "--model", str(result), "--data", str(case.files["test"]), "--metrics",
                               str(metrics), "--out", str(folder / "predicted.csv")])
             test = json.loads(metrics.read_text())["mse"]["tau1"] if code == 0 else float("nan")
             print(f"| {friction} | {document['chosen']} | {document['validation']['mse']['tau1']:.3f} | {test:.3f} |",

@@ -62,11 +62,11 @@ def identify(arguments: list[str], files: dict[str, Path], options: list[str], f
     """``oed identify`` with ``options``, then ``oed predict`` on the test record: ``{t, predicted, result}``."""
     result, predictions = folder / f"{label}.json", folder / f"{label}.csv"
     validate = ["--validate", str(files["validate"])] if "validate" in files else []
-    code, _ = real._quiet(["identify", *arguments, "--data", str(files["train"]), *validate, "--friction",
+    code, _ = real.run_quiet(["identify", *arguments, "--data", str(files["train"]), *validate, "--friction",
                            real.FRICTION, *options, "--out", str(result)])
     if code != 0:
         return None
-    code, _ = real._quiet(["predict", "--model", str(result), "--data", str(files["test"]), "--out", str(predictions)])
+    code, _ = real.run_quiet(["predict", "--model", str(result), "--data", str(files["test"]), "--out", str(predictions)])
     if code != 0:
         return None
     table = pd.read_csv(predictions)

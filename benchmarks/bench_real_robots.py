@@ -287,7 +287,9 @@ class PlainFit:
         return self.regressor(record, cutoff_hz) @ theta, self.kept(record, cutoff_hz)
 
 
-def _quiet(arguments: list[str]) -> int:
+def run_quiet(arguments: list[str]) -> tuple[int, str]:
+    """``oed ARGUMENTS`` in this process with its output held: ``(exit code, stdout)``; a failure's last lines of
+    stderr printed."""
     with contextlib.redirect_stdout(io.StringIO()) as out, contextlib.redirect_stderr(io.StringIO()) as err:
         code = main(arguments)
     if code != 0:
@@ -301,12 +303,12 @@ def toolkit(case: Case, folder: Path, label: str, options: list[str], verb: str 
     result, predictions = folder / f"{label}.json", folder / f"{label}.csv"
     started = time.perf_counter()
     friction = ["--friction", FRICTION] if verb == "identify" else []
-    code, _ = _quiet([verb, *case.robot, *case.options, "--data", str(case.files["train"]), "--validate",
+    code, _ = run_quiet([verb, *case.robot, *case.options, "--data", str(case.files["train"]), "--validate",
                       str(case.files["validate"]), *friction, *options, "--out", str(result)])
     seconds = time.perf_counter() - started
     if code != 0:
         return None
-    code, _ = _quiet(["predict", "--model", str(result), "--data", str(case.files["test"]), "--out", str(predictions)])
+    code, _ = run_quiet(["predict", "--model", str(result), "--data", str(case.files["test"]), "--out", str(predictions)])
     if code != 0:
         return None
     table = pd.read_csv(predictions)
