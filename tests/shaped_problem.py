@@ -6,6 +6,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from dynamics.effects.linear import CoulombFriction
+from dynamics.measurements import Measurements
 from dynamics.models import IdentificationModel, build_model
 from dynamics.robot import RobotModel
 from dynamics.robots import load_robot
@@ -25,7 +26,7 @@ class ShapedProblem:
     model: IdentificationModel
     fixed: FixedPart
     states: States
-    record: object
+    record: Measurements
 
 
 def shaped_problem(*, kept: bool = False) -> ShapedProblem:

@@ -14,34 +14,33 @@ import numpy as np
 import pytest
 import scipy.linalg
 
-from dynamics.effects.linear import CoulombFriction, parse_effects
-from dynamics.models import ModelKind, build_model
-from dynamics.robots import load_robot
-from dynamics.simulation.synthetic import simulate, true_parameters
+from dynamics.effects.linear import parse_effects
+from dynamics.models import ModelKind
 from estimation.estimators.bordered_normal import cholesky_solve, symmetric_upper
 from estimation.estimators.effect_blocks import Block, States
-from estimation.estimators.separable_least_squares import FixedPart, solve_linear, solve_normal
+from estimation.estimators.separable_least_squares import solve_linear, solve_normal
 from estimation.estimators.variable_projection import fit_shapes
-from oed.fourier import random_fourier
+from tests.shaped_problem import shaped_problem
 
 
 @pytest.fixture(scope="module")
-def robot():
-    return load_robot("puma560", joints=3)
+def problem():
+    return shaped_problem()
 
 
 @pytest.fixture(scope="module")
-def record(robot):
-    truth = build_model(robot, "internal", ("viscous", CoulombFriction(smoothing=0.03)))
-    theta = true_parameters(truth, seed=0, coulomb=[8.0, 5.0, 3.0])
-    return simulate(truth, theta, random_fourier(robot, seed=3), noise={"tau1": 0.2, "tau2": 0.2, "tau3": 0.1},
-                    seed=3, rate_hz=250, periods=2)
+def robot(problem):
+    return problem.robot
 
 
 @pytest.fixture(scope="module")
-def declared(robot, record):
-    model = build_model(robot, "internal", "viscous")
-    return FixedPart.from_arrays(model.evaluate_base(record.q, record.dq, record.ddq), record.channels(model.channels))
+def record(problem):
+    return problem.record
+
+
+@pytest.fixture(scope="module")
+def declared(problem):
+    return problem.fixed
 
 
 def _states(record, kept):
