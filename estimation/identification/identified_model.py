@@ -43,6 +43,7 @@ from estimation.data.rest import coulomb_combinations, drop_rest
 from estimation.estimators.effect_blocks import States
 from estimation.identification.model_file import ModelFile, ModelFileError, read_model_file
 from estimation.identification.shaped import shaped_blocks
+from estimation.identification.training_range import UNKNOWN_RANGE, ExtrapolationWarning, RangeCheck
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -209,6 +210,9 @@ class Evaluation:
     reported_validation_mse: dict[str, float] | None
     #: the name of the model that predicted (the chosen one's, or an alternative's)
     model: str | None = None
+    #: the record against each joint's training range (:mod:`estimation.identification.training_range`); ``None``:
+    #: the model file holds none (an earlier release's), the check cannot tell
+    range_check: RangeCheck | None = None
 
     @property
     def mse_over_floor(self) -> dict[str, float] | None:
@@ -221,7 +225,9 @@ class Evaluation:
         return {"mse": self.prediction.mse, "mse_over_floor": self.mse_over_floor,
                 "n_samples": int(self.prediction.t.shape[0]), "zero_mse": self.zero_mse,
                 "nominal_mse": self.nominal_mse, "noise_floor_mse": self.floor_mse,
-                "reported_validation_mse": self.reported_validation_mse, "model": self.model}
+                "reported_validation_mse": self.reported_validation_mse, "model": self.model,
+                "outside_training_range": None if self.range_check is None else self.range_check.to_dict(),
+                "training_range_note": UNKNOWN_RANGE if self.range_check is None else None}
 
 
 class IdentifiedModel:
@@ -420,11 +426,27 @@ class IdentifiedModel:
         pooled = pooled_floor(floors)
         return None if pooled is None else dict(pooled.mse())
 
+    def check_range(self, measurements: Measurements, *, record: str = "the record",
+                    warn: bool = True) -> RangeCheck | None:
+        """The prepared record ``measurements`` against each joint's training range the file holds
+        (:mod:`estimation.identification.training_range`; ``None``: the file holds none, the check cannot tell);
+        with ``warn``, an :class:`ExtrapolationWarning` naming each joint the record leaves it on, by how much and
+        on what fraction of the samples."""
+        ranges = self.file.training_range
+        if ranges is None:
+            return None
+        check = ranges.check(measurements.q, measurements.dq)
+        for message in check.messages(record) if warn else ():
+            warnings.warn(message, ExtrapolationWarning, stacklevel=2)
+        return check
+
     def evaluate(self, paths: Sequence[str | Path]) -> Evaluation:
-        """Read ``paths`` (the segments of one record), prepare them, predict and compare (``oed predict``)."""
+        """Read ``paths`` (the segments of one record), prepare them, predict and compare (``oed predict``); a
+        record that leaves the joints' training range is said (:meth:`check_range`)."""
         segments = self.read(paths)
         prepared = self.prepare(segments)
         trivial = trivial_mse(self.model, prepared)
+        check = self.check_range(prepared)
         return Evaluation(self.predict_record(prepared), trivial["zero_mse"], trivial["nominal_mse"],
                           self.floor(segments),
-                          self.reported_validation_mse, self.estimate)
+                          self.reported_validation_mse, self.estimate, check)

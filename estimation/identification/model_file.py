@@ -31,7 +31,9 @@
                     "parameters": [m, mx, …, Izz], "cov": [[…]]},            # to that link (absent: none)
         "joint_offsets": [0, -1.5708, …],                   # --joint-offsets: added to q as read (absent: none)
         "joint_directions": {"signs": [1, -1, …],            # --joint-offsets' signs: q, dq, ddq and tau times
-                             "torque_signs": [1, -1, …]}}   # them as read, before the offsets (absent: none)
+                             "torque_signs": [1, -1, …]},   # them as read, before the offsets (absent: none)
+        "training_range": {"joints": {"joint1": {"q_min", "q_max", "dq_max"}, …},   # the samples the fit used
+                           "n_samples": 9000, "tolerance": {…}}}   # (absent: an earlier release's file)
 
 ``theta``, ``cov`` and the keys beside them are the model the identification chose
 (:mod:`estimation.consistent.model_selection`); the other candidates stay as named ``alternatives``, each
@@ -68,6 +70,7 @@ from dynamics.robot import RobotModel
 from dynamics.robots import load_robot
 from dynamics.transmission import JointDirections
 from estimation.identification.fit import IdentificationResult
+from estimation.identification.training_range import TrainingRange
 
 __all__ = ["FORMAT", "MAX_EMBEDDED_URDF_BYTES", "MODEL_KEYS", "ModelFile", "ModelFileError", "RobotSource",
            "alternative_entry", "effect_entries", "model_file_document", "read_model_file", "summed_model_file_document",
@@ -198,6 +201,9 @@ class ModelFile:
     #: ``{channels: {tau1: {value, std}, …}, scale}``: each channel's recorded torque is its gain times the model's
     #: (:mod:`estimation.consistent.torque_gains`); ``None``: none
     torque_gains: Mapping[str, Any] | None = None
+    #: each joint's position range and largest speed on the samples the fit used
+    #: (:mod:`estimation.identification.training_range`); ``None``: a file of an earlier release
+    training_range: TrainingRange | None = None
 
     @property
     def band_variance(self) -> NDArray[np.float64]:
@@ -244,6 +250,8 @@ class ModelFile:
             document["joint_directions"] = self.joint_directions.to_dict()
         if self.torque_gains is not None:  # the recorded torques over the model's, per channel
             document["torque_gains"] = dict(self.torque_gains)
+        if self.training_range is not None:  # the samples the fit used: where the model does not extrapolate
+            document["training_range"] = self.training_range.to_dict()
         return document
 
     def channel_gains(self) -> NDArray[np.float64]:
@@ -293,9 +301,24 @@ class ModelFile:
                 joint_offsets=_joint_offsets(document.get("joint_offsets"), len(document["joint_names"])),
                 joint_directions=_joint_directions(document.get("joint_directions"), len(document["joint_names"])),
                 torque_gains=_torque_gains(document.get("torque_gains"), channels),
+                training_range=_training_range(document.get("training_range"), document["joint_names"]),
             )
         except (KeyError, TypeError) as error:
             raise ModelFileError(f"the model file lacks or garbles {error}") from None
+
+
+def _training_range(values: Any, joint_names: Sequence[str]) -> TrainingRange | None:
+    """The ``training_range`` entry, checked: a range for each of the model's joints (absent: ``None``)."""
+    if values is None:
+        return None
+    try:
+        ranges = TrainingRange.from_dict(values)
+    except ValueError as error:
+        raise ModelFileError(str(error)) from None
+    if list(ranges.joint_names) != list(joint_names):
+        raise ModelFileError(f"the training range's joints {list(ranges.joint_names)} are not the model's "
+                             f"{list(joint_names)}")
+    return ranges
 
 
 def _torque_gains(values: Any, channels: tuple[str, ...]) -> Mapping[str, Any] | None:

@@ -62,6 +62,7 @@ from estimation.data.records import AngleTurns, csv_options, measurements_from_f
 from dynamics.measurements import Measurements, joint_columns
 from estimation.estimators.identification_problem import BandWindow, ResidualBand, decay_length
 from estimation.estimators.normal_equations import DEFAULT_CHUNK_SIZE, NormalEquations, accumulate, check_chunk_size
+from estimation.identification.training_range import TrainingRange
 from estimation.preprocessing.differentiation import ButterworthDifferentiation, compensate_hold, decimate
 from estimation.streaming.time_base import Part, Resampler, TimeScan, file_parts, file_segments, scan_time
 
@@ -87,13 +88,15 @@ class StreamingUnsupportedError(MeasurementError):
 
 @dataclass(frozen=True)
 class FileSums:
-    """The sums of one file with what a reducer checks: rows read, samples summed, columns."""
+    """The sums of one file with what a reducer checks: rows read, samples summed, columns; and each joint's range
+    on the samples summed (:class:`~estimation.identification.training_range.TrainingRange`, taken in the same pass)."""
 
     path: str
     sums: NormalEquations
     rows: int
     columns: tuple[str, ...]
     metadata: dict
+    joint_range: TrainingRange | None = None
 
     @property
     def expected_samples(self) -> int:
@@ -615,8 +618,11 @@ def file_sums(path: str | Path, model: IdentificationModel, *, chunk_size: int =
     """
     sums = NormalEquations.empty(model.channels, model.base.names, model.base.expressions)
     record: dict = {}
+    joint_range = None
     for kept in preprocessed_chunks(path, model, chunk_size=chunk_size, cutoff_hz=cutoff_hz, order=order,
                                     decimation=decimation, held_torques=held_torques, record=record, band=True):
         sums = accumulate(model, kept, chunk_size=record["chunk_size"], sums=sums)
+        if kept.n_samples:  # the samples summed: the training range, in the same pass
+            joint_range = TrainingRange.of(kept.q, kept.dq, model.robot.joint_names).merged(joint_range)
     sums = replace(sums, sources=(str(path),))
-    return FileSums(str(path), sums, record["rows"], record["columns"], record["metadata"])
+    return FileSums(str(path), sums, record["rows"], record["columns"], record["metadata"], joint_range)

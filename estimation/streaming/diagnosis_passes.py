@@ -39,6 +39,7 @@ from estimation.streaming.periods import plan_chunks
 from estimation.streaming.covariance import BatchScores, chunk_scores
 from estimation.streaming.settings import FLOOR_WINDOW
 from estimation.estimators.effect_blocks import Block, States
+from estimation.identification.training_range import TrainingRange
 
 __all__ = ["FLOOR_WINDOW", "LagSums", "SubsamplePass", "SumsPass", "map_files", "scores_pass", "scores_task", "subsample_pass",
            "subsample_task", "stretch_pass", "stretch_task", "sums_pass", "sums_task", "window_floor"]
@@ -71,11 +72,15 @@ def _sums(path: str, model: IdentificationModel, payload: bytes, plan: bytes, op
     layout, blocks, shapes = _plan(payload, plan)
     record: dict = {}
     sums = ChannelSums.empty(layout)
+    joint_range = None  # each joint's range on the samples summed (estimation.identification.training_range)
     for chunk in plan_chunks(path, model, record=record, **options):
         try:
             sums = chunk_sums(model, layout, blocks, shapes, chunk, sums)
         except ValueError as error:
             raise MeasurementError(f"{path} (near sample {sums.n_samples}): {error}") from None
+        if chunk.n_samples:
+            joint_range = TrainingRange.of(chunk.q, chunk.dq, model.robot.joint_names).merged(joint_range)
+    record["joint_range"] = joint_range
     return sums, record
 
 

@@ -27,6 +27,7 @@ from dynamics.runtime.memory import check_allocation
 from dynamics.models import IdentificationModel
 from dynamics.measurements import Measurements
 from estimation.estimators.normal_equations import DEFAULT_CHUNK_SIZE, accumulate
+from estimation.identification.training_range import TrainingRange
 from estimation.preprocessing.differentiation import FourierDifferentiation, fill_derivatives, fit_fourier
 from estimation.preprocessing.plan import Preprocessing
 from estimation.streaming.chunks import FileSums, StreamingUnsupportedError, preprocessed_chunks, read_chunks
@@ -113,7 +114,8 @@ def periodic_file_sums(path: str | Path, model: IdentificationModel, *, frequenc
     if "resampled_from" in averaged.metadata:
         metadata["resampled_from"] = int(averaged.metadata["resampled_from"])
     columns = tuple(name for name in ("dq", "ddq", "tau", "wrench") if getattr(averaged, name) is not None)
-    return FileSums(str(path), sums, rows, columns, metadata)
+    joint_range = TrainingRange.of(prepared.q, prepared.dq, model.robot.joint_names) if prepared.n_samples else None
+    return FileSums(str(path), sums, rows, columns, metadata, joint_range)
 
 
 def periodic_chunks(path: str | Path, model: IdentificationModel, *, frequency_hz: float, harmonics: int = 5,

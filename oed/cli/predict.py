@@ -39,7 +39,8 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     parser.add_argument("--plot", type=Path, help="figure of measured against predicted per channel, with the 95 %% "
                         "band and the residual (.png, .pdf, .svg)")
     parser.add_argument("--metrics", type=Path, help="metrics JSON: mse, mse_over_floor, n_samples, zero_mse, "
-                                                     "nominal_mse, noise_floor_mse, reported_validation_mse")
+                                                     "nominal_mse, noise_floor_mse, reported_validation_mse, "
+                                                     "outside_training_range (per joint)")
     return parser
 
 

@@ -54,6 +54,7 @@ from estimation.preprocessing.delay import DelayBounds, split_delay
 from estimation.preprocessing.plan import Preprocessing
 from estimation.streaming.settings import DEFAULT_SUBSAMPLE, FLOOR_WINDOW
 from estimation.identification.model_file import summed_model_file_document
+from estimation.identification.training_range import RangeCheck, TrainingRange, merged_ranges
 from estimation.estimators.normal_equations import DEFAULT_CHUNK_SIZE
 from estimation.data.input_findings import FindingsSaid
 from estimation.data.log_cleaning import DEFAULT_MAX_GAP
@@ -81,6 +82,8 @@ from oed.workflows.model_files import (
     add_runner_up_model_file,
     add_summed_model_file,
     add_summed_runner_up_model_file,
+    add_training_range,
+    range_lines,
     recorded_validation_errors,
     recorded_validation_counted,
     recorded_validation_mse,
@@ -395,6 +398,10 @@ class Diagnosed:
     averaged_train: dict[str, Any] | None = None
     #: in memory: the per-joint torque gains the records were divided by (the validation record measured them)
     torque_gains: TorqueGains | None = None
+    #: each joint's range on the samples fitted (:mod:`estimation.identification.training_range`; ``None``: not
+    #: taken), and the held-out records against it by the report's key (``validation``, ``test``)
+    training_range: TrainingRange | None = None
+    range_checks: dict[str, RangeCheck | None] = field(default_factory=dict)
 
 
 def check_streamed_request(args: DiagnoseOptions, delay: DelayBounds | None) -> None:
@@ -461,9 +468,14 @@ def diagnosis_in_memory(args: DiagnoseOptions, model: IdentificationModel, trans
                 selection = in_recorded_units(selection, gains[0])
                 notes += (gains[2],)
             notes += zero_notes()
+    train = records.train.measurements  # the samples fitted: the training range, and the held-out records against it
+    ranges = TrainingRange.of(train.q, train.dq, model.robot.joint_names)
+    checks = {key: ranges.check(held.measurements.q, held.measurements.dq)
+              for key, held in (("validation", records.validation), ("test", records.test)) if held is not None}
     return Diagnosed(diagnosis, records.preprocessing.to_dict(), records.preprocessing.describe(),
                      (*caught_messages(caught), *notes), records=records, untouched=untouched, selection=selection,
-                     transmission=transmission, notes=notes, torque_gains=None if gains is None else gains[0])
+                     transmission=transmission, notes=notes, torque_gains=None if gains is None else gains[0],
+                     training_range=ranges, range_checks=checks)
 
 
 def derivatives_on_validation(model: IdentificationModel, delay: DelayBounds | None) -> dict[str, Any]:
@@ -554,6 +566,10 @@ def diagnose_document(args: DiagnoseOptions, diagnosed: Diagnosed) -> tuple[dict
             averaged_errors(document, diagnosed.averaged_train)
         elif diagnosis.streaming.get("frequency_hz") is not None:
             averaged_training_errors(document)
+    said = add_training_range(document, diagnosed.training_range, diagnosed.range_checks)
+    if said:  # a held-out record beyond the training range: what was measured on it is some extrapolation
+        files = (*files, *said)
+        document["warnings"]["after"] = [*document["warnings"].get("after", []), *said]
     document["diagnosis_path"] = diagnosis.path
     document["max_effects"] = args.max_effects
     document["max_effects_reached"] = len(diagnosis.effects) >= args.max_effects
@@ -818,6 +834,7 @@ def summary_lines(args: DiagnoseOptions, diagnosed: Diagnosed, document: dict[st
         lines += selection.lines() + chosen_lines(document["validation"]) + chosen_test_lines(document.get("test"))
     else:  # the one model its model file holds
         lines += chosen_lines(document["validation"])
+    lines += range_lines(diagnosed.range_checks)
     if len(diagnosis.effects) >= args.max_effects:
         untested = sum(rejected.reason.startswith("not tested") for rejected in diagnosis.rejected)
         lines.append(f"stopped at --max-effects {args.max_effects}: {untested} candidate(s) not tested; raise "
@@ -945,9 +962,13 @@ def diagnosis_streamed(args: DiagnoseOptions, friction: str, plan: Preprocessing
     diagnosis, selection, averaged = recorded_training(args, diagnosis, selection, model_file[0], chunk_size)
     if still_search:
         diagnosis = replace(diagnosis, streaming={**diagnosis.streaming, "effect_search_on_still_validation": STILL_SEARCH})
+    ranges = merged_ranges([record.get("joint_range") for _, record in run.sums.train_parts])  # the sums pass's
+    validation_range = merged_ranges([record.get("joint_range") for _, record in run.sums.validate_parts])
     return Diagnosed(diagnosis, {"cutoff_hz": cutoff_hz, **plan.to_dict()}, plan.describe(), messages,
                      selection=selection, chunk_size=chunk_size, model_file=model_file, averaged_train=averaged,
-                     notes=notes, transmission=transmission)
+                     notes=notes, transmission=transmission, training_range=ranges,
+                     range_checks={"validation": None if ranges is None or validation_range is None
+                                   else ranges.check_range(validation_range)})
 
 
 def streamed_gains_note(args: DiagnoseOptions, model: IdentificationModel, reading: dict[str, Any], *,

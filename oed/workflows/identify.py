@@ -45,6 +45,7 @@ from estimation.identification.preprocessing_choice import ChoiceWindow
 from estimation.identification.repeated_motion import repeat_note, repeated_motion_note
 from estimation.identification.model_file import summed_model_file_document
 from estimation.identification.report import identification_report
+from estimation.identification.training_range import RangeCheck, TrainingRange, merged_ranges
 from estimation.identification.trivial_predictors import trivial_warnings
 from estimation.identification.undetermined import MergedColumn, merged_one_way
 from estimation.identification.validation import ChannelErrors, plot_comparison
@@ -94,6 +95,8 @@ from oed.workflows.memory_path import IN_MEMORY_ROUTE, decide_path, streamed_cho
 from oed.workflows.model_files import (
     add_model_file,
     add_summed_model_file,
+    add_training_range,
+    range_lines,
     recorded_validation_errors,
     recorded_validation_counted,
     resampled_validation,
@@ -373,6 +376,10 @@ class Identified:
     n_samples: int | None = None
     #: the per-joint torque gains fitted (:func:`torque_gains_selection`) and whether the answer holds them
     torque_gains: tuple[TorqueGains, bool, str] | None = None
+    #: each joint's range on the samples fitted (:mod:`estimation.identification.training_range`), and the held-out
+    #: records against it by the document's key (``validation``)
+    training_range: TrainingRange | None = None
+    range_checks: dict[str, RangeCheck | None] = field(default_factory=dict)
 
     @property
     def rest(self) -> dict[str, dict | None]:
@@ -416,6 +423,10 @@ def identify_document(args: IdentifyOptions, identified: Identified) -> tuple[di
     document["torque_gains"] = None if gains is None else {**gains[0].to_dict(), "taken": gains[1], "reason": gains[2]}
     if gains is not None and gains[1]:  # oed predict multiplies the model's torques by them
         document["model_file"]["torque_gains"] = gains[0].to_dict()
+    said = add_training_range(document, identified.training_range, identified.range_checks)
+    if said:  # a validation record beyond the training range: the choice measured some extrapolation
+        messages += said
+        document["warnings"] = [*document.get("warnings", []), *said]
     floor, floor_report = identified.floor, identified.floor_report
     if document.get("validation") is not None:
         if floor_report is not None:
@@ -550,11 +561,15 @@ def identification_streamed(args: IdentifyOptions, model: IdentificationModel, t
                                         "default answer (estimation.consistent.torque_gains), not tried on the "
                                         "Fourier path (its sums hold averaged periods: no answer is chosen there)")
     validation_mse = None if result.validation is None else result.validation.mse
+    ranges = merged_ranges([part.joint_range for part in sums.files])  # taken in the sums pass
+    validation_range = merged_ranges([part.joint_range for part in sums.validation_files])
     return Identified(result, chosen, plan.to_dict(), plan.describe(),
                       (*messages, *notes), notes, trivial, floor, floor_note, not_computed, selection=selection,
                       consistent=None if selection is None else selection.consistent, weighting=weighting,
                       transmission=transmission, chunk_size=chunk_size, model_file=(model_plan, validation_mse),
-                      torque_gains=gains)
+                      torque_gains=gains, training_range=ranges,
+                      range_checks={"validation": None if ranges is None or validation_range is None
+                                    else ranges.check_range(validation_range)})
 
 
 def streamed_torque_gains_selection(args: IdentifyOptions, selection: ModelSelection, *, base: str,
@@ -864,12 +879,15 @@ def identification_in_memory(args: IdentifyOptions, robot: RobotModel, model: Id
         repeat = None if validation is None else repeated_motion_note(train, validation)
         notes = notes if repeat is None else (*notes, repeat)
         notes = (*notes, *joint_zero_notes(model, train, validation, delay=delay))
+    ranges = TrainingRange.of(train.q, train.dq, model.robot.joint_names)  # the samples fitted
     return Identified(result, chosen, records.preprocessing.to_dict(), records.preprocessing.describe(),
                       (*chosen_messages(caught_messages(caught), selection), *notes), notes, trivial,
                       None if floor_report is None else floor_report.floor,
                       None if floor_report is None else floor_report.floor_note, records=records, selection=selection,
                       consistent=consistent, floor_report=floor_report, weighting=weighting, transmission=transmission,
-                      n_samples=train.n_samples, torque_gains=gains)
+                      n_samples=train.n_samples, torque_gains=gains, training_range=ranges,
+                      range_checks={"validation": None if validation is None else ranges.check(validation.q,
+                                                                                               validation.dq)})
 
 
 def motor_friction_selection(args: IdentifyOptions, selection: ModelSelection, model: IdentificationModel,
@@ -1010,4 +1028,4 @@ def summary_lines(args: IdentifyOptions, identified: Identified) -> list[str]:
         lines += consistent_lines(consistent)
     if selection is not None:
         lines += selection.lines()
-    return lines
+    return lines + range_lines(identified.range_checks)

@@ -19,11 +19,46 @@ from estimation.identification.model_file import (
     model_file_document,
     summed_model_file_document,
 )
+from estimation.identification.training_range import RangeCheck, TrainingRange
 from estimation.identification.validation import channel_mse
 from estimation.identification.plausibility import assess_plausibility, link_findings
 from oed.workflows.asbuilt import resolve_joint_directions, resolve_joint_offsets
 from oed.workflows.chosen_model import ChosenModel
 from oed.workflows.options import RecordOptions
+
+
+def add_training_range(document: dict[str, Any], training_range: TrainingRange | None,
+                       checks: Mapping[str, RangeCheck | None]) -> list[str]:
+    """Put each joint's training range (:mod:`estimation.identification.training_range`) into the model files of
+    ``document`` (``model_file``, the runner-up's), and each held-out record's check against it
+    (``checks``: by the document's key, ``validation`` or ``test``) as ``outside_training_range`` under that key, in
+    place; return the warnings (a record that leaves the range: the errors measured on it measure extrapolation)."""
+    if training_range is None:
+        return []
+    for model_file in (document.get("model_file"), (document.get("runner_up") or {}).get("model_file")):
+        if isinstance(model_file, dict):
+            model_file["training_range"] = training_range.to_dict()
+    messages: list[str] = []
+    for key, check in checks.items():
+        if check is None or not isinstance(document.get(key), dict):
+            continue
+        document[key]["outside_training_range"] = check.to_dict()
+        messages += check.messages(f"the {key} record")
+    return messages
+
+
+def range_lines(checks: Mapping[str, RangeCheck | None]) -> list[str]:
+    """The summary's line per held-out record against the training range (none when there is no check)."""
+    lines = []
+    for key, check in checks.items():
+        if check is None:
+            continue
+        if not check.outside:
+            lines.append(f"training range: the {key} record stays within every joint's training positions and speeds")
+        else:
+            lines.append(f"training range: the {key} record leaves it on "
+                         + "; ".join(joint.statement() for joint in check.outside))
+    return lines
 
 
 def robot_source(robot: Any, args: RecordOptions) -> RobotSource:

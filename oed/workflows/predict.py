@@ -16,6 +16,7 @@ import pandas as pd
 
 from dynamics.runtime.output_files import OutputFiles, check_figure_path, json_text
 from estimation.identification.identified_model import IdentifiedModel
+from estimation.identification.training_range import UNKNOWN_RANGE
 from estimation.identification.trivial_predictors import trivial_warnings
 from estimation.data.input_findings import grouped_messages
 from estimation.data.log_formats import DEFAULT_TOPIC
@@ -90,8 +91,18 @@ def predict(*, model: str | Path, data: Any, consistent: bool = False, alternati
              + (f", delay {1e3 * identified.delay:.3g} ms" if identified.delay is not None else "")
              + f"), {prediction.t.shape[0]} samples; "
              f"{identified.preprocessing.describe().removeprefix('preprocessing: ')}",
-             *table_lines(evaluation)]
+             *table_lines(evaluation), range_line(evaluation)]
     return PredictRun(evaluation, tuple(lines), messages)
+
+
+def range_line(evaluation: Any) -> str:
+    """The record against each joint's training range (:mod:`estimation.identification.training_range`)."""
+    check = evaluation.range_check
+    if check is None:
+        return f"training range: {UNKNOWN_RANGE}"
+    if not check.outside:
+        return "training range: the record stays within every joint's training positions and speeds"
+    return "training range: outside on " + "; ".join(joint.statement() for joint in check.outside)
 
 
 def table_lines(evaluation: Any) -> list[str]:
