@@ -423,10 +423,6 @@ def identify_document(args: IdentifyOptions, identified: Identified) -> tuple[di
     document["torque_gains"] = None if gains is None else {**gains[0].to_dict(), "taken": gains[1], "reason": gains[2]}
     if gains is not None and gains[1]:  # oed predict multiplies the model's torques by them
         document["model_file"]["torque_gains"] = gains[0].to_dict()
-    said = add_training_range(document, identified.training_range, identified.range_checks)
-    if said:  # a validation record beyond the training range: the choice measured some extrapolation
-        messages += said
-        document["warnings"] = [*document.get("warnings", []), *said]
     floor, floor_report = identified.floor, identified.floor_report
     if document.get("validation") is not None:
         if floor_report is not None:
@@ -437,6 +433,10 @@ def identify_document(args: IdentifyOptions, identified: Identified) -> tuple[di
     answer_identification(document, identified.chosen, floor=floor if answered else None, fitted=result)
     if document.get("validation") is not None and "mse_over_floor" not in document["validation"]:
         document["validation"]["mse_over_floor"] = None  # no floor, or no error against the recording
+    said = add_training_range(document, identified.training_range, identified.range_checks)
+    if said:  # a validation record beyond the training range: the choice measured some extrapolation
+        messages += said
+        document["warnings"] = [*document.get("warnings", []), *said]
     return document, tuple(messages)
 
 
