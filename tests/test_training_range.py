@@ -157,3 +157,20 @@ def test_the_streamed_path_stores_the_same_ranges_as_in_memory(records):
     diagnosed = oed.diagnose(joints=3, data=folder / "train.csv", validate=folder / "val.csv", chunk_size=300)
     assert diagnosed.to_dict()["diagnosis_path"] == "streamed"
     assert diagnosed.to_dict()["model_file"]["training_range"] == memory["model_file"]["training_range"]
+
+
+def test_on_the_filter_path_streamed_and_memory_agree_on_the_ranges(records, tmp_path):
+    """Records without ``dq``, ``ddq``: the derivatives filtered whole in memory and chunk by chunk streamed."""
+    import pandas as pd
+
+    folder, _, _ = records
+    for name in ("train", "val"):
+        frame = pd.read_csv(folder / f"{name}.csv")
+        frame[[c for c in frame.columns if not c.startswith(("dq", "ddq"))]].to_csv(tmp_path / f"{name}.csv", index=False)
+    options = dict(joints=3, data=tmp_path / "train.csv", validate=tmp_path / "val.csv", method="ols", cutoff=10.0)
+    memory = oed.identify(**options).to_dict()["model_file"]["training_range"]
+    streamed = oed.identify(**options, chunk_size=300).to_dict()["model_file"]["training_range"]
+    assert streamed["n_samples"] == memory["n_samples"]
+    for name, entry in memory["joints"].items():
+        for key, value in entry.items():
+            assert streamed["joints"][name][key] == pytest.approx(value, rel=1e-9), (name, key)
