@@ -10,8 +10,8 @@ used (after holds, trims and rows at rest were dropped)::
 stored in the model file (``model_file["training_range"]``). A record leaves joint ``j``'s range where
 ``q_j < q_min_j − ε_q`` or ``q_j > q_max_j + ε_q`` or ``|q̇_j| > dq_max_j + ε_v`` with the tolerances
 ``ε_q = max(2 % (q_max_j − q_min_j), 10⁻³)`` and ``ε_v = max(5 % dq_max_j, 10⁻³)`` (a repeat of the training motion,
-its noise and filter edges, stays inside). The check reports, per joint, how far beyond (position below, above;
-speed above) and on what fraction of the samples; :class:`ExtrapolationWarning` names each joint that leaves it.
+its noise and filter edges, stays inside). The check reports, per joint, how far beyond the range (position below,
+above; speed above) and on what fraction of the samples it is beyond the range and its tolerance; :class:`ExtrapolationWarning` names each joint that leaves it.
 
 ::
 
@@ -78,10 +78,14 @@ class JointExcursion:
     speed_above
         How far the record's ``|q̇|`` goes above ``dq_max`` (``0``: not; ``None``: the record holds no speed).
     fraction
-        The fraction of the record's samples beyond the range (position or speed); ``None`` when the record's own
-        range alone was compared (:meth:`TrainingRange.check_range`: the streamed path, which holds no samples).
+        The fraction of the record's samples beyond the range and its tolerance (position or speed); ``None`` when
+        the record's own range alone was compared (:meth:`TrainingRange.check_range`: the streamed path, which
+        holds no samples).
     outside
         Whether the record leaves the range beyond the tolerances (module docstring).
+    training, tolerance
+        The joint's training range (``q_min``, ``q_max``, ``dq_max``) and the tolerances (``position``,
+        ``speed``) the check allowed beyond it.
     """
 
     joint: str
@@ -91,20 +95,22 @@ class JointExcursion:
     fraction: float | None
     outside: bool
     training: Mapping[str, float]
+    tolerance: Mapping[str, float]
 
     def to_dict(self) -> dict[str, Any]:
         return {"outside": self.outside, "fraction": self.fraction, "position_below": self.below,
-                "position_above": self.above, "speed_above": self.speed_above, "training": dict(self.training)}
+                "position_above": self.above, "speed_above": self.speed_above, "training": dict(self.training),
+                "tolerance": dict(self.tolerance)}
 
     def statement(self) -> str:
-        """The joint, by how much and on what fraction of the samples."""
+        """The joint, by how much (each excursion beyond its tolerance) and on what fraction of the samples."""
         beyond = []
         low, high = self.training["q_min"], self.training["q_max"]
-        if self.below > 0:
+        if self.below > self.tolerance["position"]:
             beyond.append(f"positions down to {low - self.below:.4g} (training {low:.4g}, {self.below:.3g} below)")
-        if self.above > 0:
+        if self.above > self.tolerance["position"]:
             beyond.append(f"positions up to {high + self.above:.4g} (training {high:.4g}, {self.above:.3g} above)")
-        if self.speed_above:
+        if self.speed_above is not None and self.speed_above > self.tolerance.get("speed", np.inf):
             top = self.training["dq_max"]
             beyond.append(f"speeds up to {top + self.speed_above:.4g}/s (training {top:.4g}/s)")
         share = "" if self.fraction is None else f", on {100 * self.fraction:.3g} % of the samples"
@@ -206,14 +212,14 @@ class TrainingRange:
         n = q.shape[0]
         span = self.q_max - self.q_min
         position_tolerance = np.maximum(POSITION_TOLERANCE * span, ABSOLUTE_TOLERANCE)
-        below = np.clip(self.q_min[None, :] - q, 0.0, None) if n else np.zeros((0, q.shape[1]))
-        above = np.clip(q - self.q_max[None, :], 0.0, None) if n else np.zeros((0, q.shape[1]))
-        beyond = (below > 0) | (above > 0)
-        faster = None
+        below = np.clip(self.q_min[None, :] - q, 0.0, None)
+        above = np.clip(q - self.q_max[None, :], 0.0, None)
+        beyond = (below > position_tolerance[None, :]) | (above > position_tolerance[None, :])
+        faster, speed_tolerance = None, None
         if dq is not None and self.dq_max is not None:
             speed_tolerance = np.maximum(SPEED_TOLERANCE * self.dq_max, ABSOLUTE_TOLERANCE)
             faster = np.clip(np.abs(dq) - self.dq_max[None, :], 0.0, None)
-            beyond = beyond | (faster > 0)
+            beyond = beyond | (faster > speed_tolerance[None, :])
         joints = []
         for j, name in enumerate(self.joint_names):
             low = float(below[:, j].max()) if n else 0.0
@@ -222,10 +228,13 @@ class TrainingRange:
             outside = low > position_tolerance[j] or high > position_tolerance[j] or \
                 (speed is not None and speed > speed_tolerance[j])
             training = {"q_min": float(self.q_min[j]), "q_max": float(self.q_max[j])}
+            tolerance = {"position": float(position_tolerance[j])}
             if self.dq_max is not None:
                 training["dq_max"] = float(self.dq_max[j])
+            if speed_tolerance is not None:
+                tolerance["speed"] = float(speed_tolerance[j])
             joints.append(JointExcursion(name, low, high, speed, float(beyond[:, j].mean()) if n else 0.0,
-                                         bool(outside), training))
+                                         bool(outside), training, tolerance))
         return RangeCheck(tuple(joints), int(n))
 
 
