@@ -102,8 +102,9 @@ class JointExcursion:
                 "position_above": self.above, "speed_above": self.speed_above, "training": dict(self.training),
                 "tolerance": dict(self.tolerance)}
 
-    def statement(self) -> str:
-        """The joint, by how much (each excursion beyond its tolerance) and on what fraction of the samples."""
+    def statement(self, *, fraction: bool = True) -> str:
+        """The joint, by how much (each excursion beyond its tolerance) and on what fraction of the samples (with
+        ``fraction`` and when known)."""
         beyond = []
         low, high = self.training["q_min"], self.training["q_max"]
         if self.below > self.tolerance["position"]:
@@ -113,7 +114,7 @@ class JointExcursion:
         if self.speed_above is not None and self.speed_above > self.tolerance.get("speed", np.inf):
             top = self.training["dq_max"]
             beyond.append(f"speeds up to {top + self.speed_above:.4g}/s (training {top:.4g}/s)")
-        share = "" if self.fraction is None else f", on {100 * self.fraction:.3g} % of the samples"
+        share = "" if self.fraction is None or not fraction else f", on {100 * self.fraction:.3g} % of the samples"
         return f"{self.joint}: {'; '.join(beyond)}{share}"
 
 
@@ -133,12 +134,14 @@ class RangeCheck:
         """``{joint: {outside, fraction, position_below, position_above, speed_above, training}}``."""
         return {joint.joint: joint.to_dict() for joint in self.joints}
 
-    def messages(self, record: str = "the record") -> list[str]:
-        """One line naming the joints that leave the range (none when the record stays inside)."""
+    def messages(self, record: str = "the record", *, fraction: bool = True) -> list[str]:
+        """One line naming the joints that leave the range (none when the record stays inside); ``fraction``: with
+        the fraction of the samples beyond it."""
         if not self.outside:
             return []
         return [f"{record} leaves the training range of {len(self.outside)} joint(s), where the model extrapolates "
-                f"(the friction and velocity terms most): " + "; ".join(joint.statement() for joint in self.outside)]
+                f"(the friction and velocity terms most): "
+                + "; ".join(joint.statement(fraction=fraction) for joint in self.outside)]
 
 
 @dataclass(frozen=True)
