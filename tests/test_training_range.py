@@ -25,6 +25,7 @@ from estimation.identification.training_range import (
     ExtrapolationWarning,
     TrainingRange,
 )
+from oed.cli import main
 from oed.fourier import random_fourier
 
 NOISE = {"tau1": 0.2, "tau2": 0.2, "tau3": 0.2}
@@ -83,7 +84,8 @@ def test_the_range_is_the_samples_and_a_record_inside_is_not_warned_of():
         TrainingRange.from_dict({"joints": {"a": {"q_min": 1.0}}})
 
 
-def test_the_result_file_holds_the_training_range_and_predict_names_the_joint_that_leaves_it(records, tmp_path):
+def test_the_result_file_holds_the_training_range_and_predict_names_the_joint_that_leaves_it(records, tmp_path,
+                                                                                             capsys):
     folder, sampled, robot = records
     run = oed.identify(joints=3, data=folder / "train.csv", validate=folder / "val.csv", method="ols")
     document = run.to_dict()
@@ -114,6 +116,13 @@ def test_the_result_file_holds_the_training_range_and_predict_names_the_joint_th
     assert metrics[names[1]]["position_above"] > 0 and metrics[names[1]]["speed_above"] > 0
     assert any(names[1] in line for line in prediction.warnings)
     assert any(line.startswith("training range: outside on") for line in prediction.summary())
+    metrics_file = tmp_path / "metrics.json"  # the command line: the warning on stderr, the line, the metrics
+    capsys.readouterr()
+    assert main(["predict", "--model", str(model), "--data", str(folder / "test.csv"), "--metrics",
+                 str(metrics_file)]) == 0
+    printed = capsys.readouterr()
+    assert "leaves the training range of 1 joint(s)" in printed.err and "training range: outside on" in printed.out
+    assert json.loads(metrics_file.read_text())["outside_training_range"] == metrics
     with warnings.catch_warnings():  # a record inside the range: no warning
         warnings.simplefilter("error", ExtrapolationWarning)
         IdentifiedModel.load(model).evaluate([folder / "val.csv"])
