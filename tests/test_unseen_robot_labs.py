@@ -184,8 +184,11 @@ def write_records(case: Lab, folder: Path) -> tuple[Path, dict, dict, np.ndarray
     urdf = folder / "robot.urdf"
     urdf.write_text(robot_urdf(described))
     model = build_model(load_robot(urdf=urdf), "internal", FRICTION)  # the regressor: the same kinematics
-    truth_model = build_model(robot, "internal", FRICTION)
-    theta = truth(truth_model)  # the true bodies, ±20 %
+    # the true bodies, ±20 %, in the frames of the regressor's links (the URDF's, not the DH table's)
+    true_urdf = folder / "true_bodies.urdf"
+    true_urdf.write_text(robot_urdf(robot))
+    truth_model = build_model(load_robot(urdf=true_urdf), "internal", FRICTION)
+    theta = truth(truth_model)
     for index, name in enumerate(truth_model.parameter_names):
         if case.friction_scale and name.startswith(("fv", "fc", "off")):
             theta[index] *= case.friction_scale[int("".join(filter(str.isdigit, name))) - 1]
