@@ -12,7 +12,8 @@
 - logs as labs write them (h-unseen7): columns named by joint (``shoulder_pan_joint_effort``), the time as
   ``time [ms]``, ``;`` separators with ``,`` decimals, a units row, repeated time stamps, 100 Hz only; a vendor-style
   URDF (fixed joints and frame links between the moving ones, a tool frame); a light wrist under sensors of equal
-  absolute noise; a test record far outside one joint's training range (a strict xfail).
+  absolute noise; a test record far outside one joint's training range, with the description's bodies 20 % off or
+  from CAD without motors (h-extrap; a strict xfail until the simulated truth was drawn in the URDF's frames).
 
 No data are copied; every record is simulated (the plain fit's model class, :func:`tests.test_unseen_robots.truth`,
 white torque noise of 2 % of each channel's spread). Each case runs the default ``oed identify`` (told the plain
