@@ -120,3 +120,20 @@ def test_the_motion_of_averaged_periods_is_repeated_only_where_the_time_stamps_r
     direct = FourierSeries(fit["frequency_hz"], np.array(fit["q0"]), np.array(fit["a"]), np.array(fit["b"])).evaluate(t)
     for repeated, evaluated in zip((derived.recorded.q, derived.recorded.dq, derived.recorded.ddq), direct):
         np.testing.assert_allclose(repeated, evaluated, rtol=0, atol=1e-12 * np.max(np.abs(evaluated)))
+
+
+def test_a_joint_whose_positions_do_not_change_has_zero_derived_velocity():
+    """A joint held still while another moves (a teach pendant's jog): filtered and spline-differentiated, its
+    velocity was rounding noise (±6e-14 rad/s at 0.52 rad), whose sign switched its Coulomb column between +fc and
+    -fc on every row (h-extrap: the jog test's joint 4 56x the plain fit); now exactly zero, as is its
+    acceleration. A slow motion (1e-6 rad/s, far below any friction's interest but resolved) keeps its sign, and
+    the moving joint's derivatives are unchanged."""
+    t = np.arange(0.0, 4.0, 0.004)
+    q = np.column_stack([np.full_like(t, np.pi / 6), np.sin(2 * np.pi * 0.5 * t), 1.0 + 1e-6 * t])
+    derived = ButterworthDifferentiation(cutoff_hz=21.25, logged_velocity=False).apply(
+        Measurements(t, q, None, None, np.zeros_like(q), None, {}))
+    assert np.all(derived.dq[:, 0] == 0.0) and np.all(derived.ddq[:, 0] == 0.0)
+    assert np.all(derived.dq[:, 2] > 0.0)
+    assert np.abs(derived.dq[:, 2] - 1e-6).max() < 1e-8
+    inside = slice(50, -50)
+    assert np.abs(derived.dq[inside, 1] - np.pi * np.cos(np.pi * t[inside])).max() < 1e-3
