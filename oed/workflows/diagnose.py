@@ -346,12 +346,13 @@ def diagnosis_by_path(read: DiagnoseOptions, friction: str | None, effects: tupl
     path then takes as they are instead of building them again from ``friction``."""
     declared = effects if merged else None
     if streaming_requested(read):
-        return diagnosis_streamed(read, friction, effects=declared)
+        return diagnosis_streamed(read, friction, effects=declared, delay=delay)
     check_shaped_effects_kept(effects, model)
     decision = decide_path(read, model, task="diagnosing", bytes_per_value=IN_MEMORY.bytes_per_value,
                            in_memory_only=lambda: in_memory_only(read, model, delay), say=say,
                            **derivatives_on_validation(model, delay))
-    return (diagnosis_streamed(read, friction, decision.plan, decision.findings, effects=declared) if decision.stream
+    return (diagnosis_streamed(read, friction, decision.plan, decision.findings, effects=declared, delay=delay)
+            if decision.stream
             else diagnosis_in_memory(read, model, transmission, delay, decision.plan))
 
 
@@ -398,13 +399,11 @@ class Diagnosed:
 
 
 def check_streamed_request(args: DiagnoseOptions, delay: DelayBounds | None) -> None:
-    """``--test`` and a delay are in-memory only: an error when the streamed path was asked for."""
+    """``--test`` is in-memory only: an error when the streamed path was asked for (a delay, ``delay``, is searched on
+    both paths)."""
     if args.test:
         raise ValueError("--test is read in memory: not with the streamed path (--chunk-size, --scheduler or "
                          "--workers)")
-    if delay is not None:
-        raise ValueError("the delay between torques and motion is searched in memory: not with the streamed path "
-                         "(--chunk-size, --scheduler or --workers), which does not try it")
 
 
 def in_memory_only(args: DiagnoseOptions, model: IdentificationModel, delay: DelayBounds | None) -> str | None:
@@ -875,11 +874,13 @@ def check_streamed_arguments(args: DiagnoseOptions, model: IdentificationModel) 
 
 
 def diagnosis_streamed(args: DiagnoseOptions, friction: str, plan: Preprocessing | None = None,
-                       findings: FindingsSaid | None = None, *, effects: tuple[Any, ...] | None = None) -> Diagnosed:
+                       findings: FindingsSaid | None = None, *, effects: tuple[Any, ...] | None = None,
+                       delay: DelayBounds | None = None) -> Diagnosed:
     """Diagnose the files read in blocks (:func:`estimation.streaming.diagnosis.diagnose_files`), their
     derivatives chosen as in memory (``plan``: already chosen); ``friction``: the declared effects without the delay
     (``effects``: those effects as built already, a Coulomb column merged into its offset; ``None``: from
-    ``friction``).
+    ``friction``); ``delay``: the declared delay's bounds (``delay:S``), else the default ones: the delay between
+    torques and motion is a candidate as in memory.
     The findings about the files are said as each pass ends, each once (``findings``: what the path decision said
     already)."""
     from estimation.streaming.diagnosis import diagnose_files_run
@@ -907,7 +908,8 @@ def diagnosis_streamed(args: DiagnoseOptions, friction: str, plan: Preprocessing
             diagnosis, run = diagnose_files_run(model, args.data, args.validate, chunk_size=chunk_size, alpha=args.alpha,
                                        max_effects=args.max_effects, subsample=args.subsample,
                                        floor_window=args.floor_window, executor=executor, preprocessing=plan,
-                                       findings=findings, still=still, transmission=transmission)
+                                       findings=findings, still=still, transmission=transmission,
+                                       delay=delay or DelayBounds())  # a candidate in every diagnosis, as in memory
         still_search = diagnosis.streaming.get("still_search") == "on the record at rest"
         if still_search:  # the choices below ignore it, as in memory; the effect search above did not (Fourier path)
             warnings.warn(STILL_SEARCH, stacklevel=2)
