@@ -21,6 +21,7 @@ from estimation.identification.model_file import (
 )
 from estimation.identification.validation import channel_mse
 from estimation.identification.plausibility import assess_plausibility, link_findings
+from estimation.preprocessing.delay import delayed
 from oed.workflows.asbuilt import resolve_joint_directions, resolve_joint_offsets
 from oed.workflows.chosen_model import ChosenModel
 from oed.workflows.options import RecordOptions
@@ -192,17 +193,18 @@ def recorded_validation_errors(model_file: dict[str, Any], thetas: Mapping[Any, 
                                validate: Sequence[str | Path]) -> dict[Any, dict[str, float]] | None:
     """:func:`recorded_validation_mse` of several base-parameter vectors of the model of ``model_file`` (by key, in
     the file's base order), on the same samples: at the recorded time stamps, against the torques as recorded, as
-    ``oed predict`` measures each (shaped laws at the file's shapes); ``None`` when every record is read as it was
+    ``oed predict`` measures each (shaped laws at the file's shapes, the motion moved by its delay); ``None`` when every record is read as it was
     recorded."""
     model = IdentifiedModel(ModelFile.from_dict(model_file))
-    if model.delay is not None or model.payload_link is not None:
-        raise ValueError("the errors of other parameter vectors are measured for a model without delay or payload")
+    if model.payload_link is not None:
+        raise ValueError("the errors of other parameter vectors are measured for a model without payload")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # the records' findings were said when the verb read them
         segments = model.read(list(validate))
         if all(segment.recorded is None for segment in segments):
             return None
-        record = model.prepare(segments).as_recorded
+        prepared = model.prepare(segments)
+        record = (prepared if model.delay is None else delayed(prepared, model.delay)).as_recorded  # as predict
     measured = record.channels(model.channels)
     if any(model.shape.values()):  # the shaped columns at the file's shapes, as predict evaluates them
         Y = model.regressor(record.q, record.dq, record.ddq)
