@@ -110,24 +110,45 @@ def test_without_a_delay_the_streamed_diagnosis_says_why_as_in_memory(robot, tmp
     assert streamed.after.delay is None and "delay" not in [e.spec for e in streamed.effects]
 
 
-def test_the_streamed_cli_writes_the_delay_that_predict_uses(files, tmp_path, capsys):
+@pytest.mark.parametrize("jittered", [False, True])
+def test_the_streamed_cli_writes_the_delay_that_predict_uses(files, tmp_path, capsys, jittered):
+    """The model file holds the adopted delay (memory's, to 1e-9: the records are their own subsamples), and ``oed
+    predict`` of the chosen model and of every alternative measures the errors the run reported; on a jittered
+    validation log (resampled by the loader) too, at its recorded samples."""
+    import pandas as pd
+
+    from tests.test_recorded_stamps import logger_faults
+
     model, paths = files
+    validate = paths[1]
+    if jittered:
+        validate = tmp_path / "jittered_validate.csv"
+        logger_faults(pd.read_csv(paths[1]), 2).to_csv(validate, index=False, float_format="%.10g")
     out = tmp_path / "streamed.json"
     base = ["diagnose", "--robot", "puma560", "--joints", "3", "--friction", "viscous", "--data", str(paths[0]),
-            "--validate", str(paths[1])]
+            "--validate", str(validate)]
     assert main(base + ["--chunk-size", "128", "--out", str(out)]) == 0
     document = json.loads(out.read_text())
     assert document["diagnosis_path"] == "streamed"
+    if jittered:
+        assert any(entry["resampled_from"] for entry in document["streaming"]["validation_files"])
     assert "delay" in [effect["spec"] for effect in document["effects"]]
     delay = document["model_file"]["delay"]["value"]
     assert abs(delay - TRUE_DELAY) < 5e-4
-    memory_out = tmp_path / "memory.json"
-    assert main(base + ["--out", str(memory_out)]) == 0
-    memory = json.loads(memory_out.read_text())
-    assert delay == pytest.approx(memory["model_file"]["delay"]["value"], rel=1e-9)
+    if not jittered:
+        memory_out = tmp_path / "memory.json"
+        assert main(base + ["--out", str(memory_out)]) == 0
+        memory = json.loads(memory_out.read_text())
+        assert delay == pytest.approx(memory["model_file"]["delay"]["value"], rel=1e-9)
     capsys.readouterr()
     metrics = tmp_path / "metrics.json"
-    assert main(["predict", "--model", str(out), "--data", str(paths[1]), "--metrics", str(metrics)]) == 0
+    assert main(["predict", "--model", str(out), "--data", str(validate), "--metrics", str(metrics)]) == 0
     measured = json.loads(metrics.read_text())["mse"]
     reported = document["model_file"]["reported"]["validation_mse"]
     assert measured == pytest.approx(reported, rel=1e-6)
+    for name, entry in (document["model_file"].get("alternatives") or {}).items():
+        if entry.get("validation_mse") is None:
+            continue
+        assert main(["predict", "--model", str(out), "--data", str(validate), "--metrics", str(metrics),
+                     "--alternative", name]) == 0
+        assert json.loads(metrics.read_text())["mse"] == pytest.approx(entry["validation_mse"], rel=1e-6), name
