@@ -281,6 +281,7 @@ def diagnose_files_run(
     still: bool = False,
     transmission: Transmission | None = None,
     delay: DelayBounds | None = DelayBounds(),
+    jobs: int | None = 1,
 ) -> tuple[Diagnosis, StreamedRun]:
     """Diagnose ``model`` on the training ``paths``, confirmed on the ``validate`` files, in bounded memory; the
     diagnosis and the :class:`~estimation.streaming.diagnosis_result.StreamedRun` behind it (its sums: what the
@@ -304,7 +305,8 @@ def diagnose_files_run(
     torques and motion is searched, as in memory (on the subsamples, with the search: its grid, trials and adoption
     rule; ``None``: not tried); an adopted delay moves the motion of every file in the passes after the search
     (:func:`~estimation.streaming.delayed_chunks.moved_chunks`), the declared model's fit staying along the motion as
-    read, as in memory.
+    read, as in memory. ``jobs``: the processes the search's rounds fit their candidates in, as in memory's
+    (``None``: the available cores; the same answer at any count).
     """
     paths, validate = [str(path) for path in paths], [str(path) for path in validate]
     findings = FindingsSaid([*paths, *validate]) if findings is None else findings
@@ -321,7 +323,7 @@ def diagnose_files_run(
     with step(f"shape search, refinement and coupling tracing on {first.sample.n_samples} samples"):
         found = streamed_candidates(model, candidates, first.sample, clock.lap, transmission, held.sample,
                                     SearchSettings(alpha, min_improvement, max_effects, 0, same_effect_adopted=True),
-                                    delay)
+                                    delay, jobs)
     if found.delay.value is not None:  # the passes along the motion moved by the adopted delay
         options = dict(options, delay=float(found.delay.value.value))
     with step(f"second pass over {len(paths) + len(validate)} file(s) (sums of {len(found.blocks)} candidates)"), \

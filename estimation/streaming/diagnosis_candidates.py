@@ -86,7 +86,7 @@ class SearchedDelay:
 
 def subsample_search(model: IdentificationModel, blocks: dict[int, Block], rejected: dict[int, RejectedEffect],
                      shapes: dict[int, np.ndarray], sample: Measurements, validation: Measurements,
-                     search: SearchSettings, delay: DelayBounds | None = None
+                     search: SearchSettings, delay: DelayBounds | None = None, jobs: int | None = 1
                      ) -> tuple[dict[int, np.ndarray], SearchOutcome, SearchedDelay]:
     """The in-memory diagnosis's search (:class:`~estimation.diagnosis.runner_up.RunnerUpSearch` on
     :class:`~estimation.diagnosis.record_fits.RecordFits`) and its final refit
@@ -105,12 +105,13 @@ def subsample_search(model: IdentificationModel, blocks: dict[int, Block], rejec
     else the one it was adopted at), any other law's its last optimum. The search's Wald tests are those of memory
     (HAC, the shape directions included), on the subsample. ``delay``: where the delay between torques and motion is
     searched, as in memory (its grid, its trials and adoption rule in the rounds, searched again by the final refit;
-    ``None``: not tried): the :class:`SearchedDelay` the refit (or the mixed model) holds. When both samples hold their
-    whole records, this is the in-memory search and refit."""
+    ``None``: not tried): the :class:`SearchedDelay` the refit (or the mixed model) holds. ``jobs``: the processes a
+    round's candidate fits run in, as in memory (:class:`~estimation.diagnosis.record_fits.RecordFits`; the same
+    answer at any count). When both samples hold their whole records, this is the in-memory search and refit."""
     before = identify(model, sample, validation)
     weights = before.estimate.weights if before.estimate.method == "wls" else 1.0 / before.estimate.channel_variance
     fits = RecordFits(model, declared_regressor(model, before), sample, validation.as_recorded, delay,
-                      provisional_stopping_rule)
+                      provisional_stopping_rule, shaped=before.shaped_fit is not None, jobs=jobs)
     outcome = RunnerUpSearch(model, blocks, rejected, fits, weights, search).run()
     refined = dict(shapes)
     for group, fit in fits.previous.items():
@@ -216,13 +217,14 @@ class StreamedCandidates:
 def streamed_candidates(model: IdentificationModel, candidates: Sequence[Effect] | None, sample: Measurements,
                         lap: Callable[[str], None], transmission: Transmission | None = None,
                         validation: Measurements | None = None, search: SearchSettings | None = None,
-                        delay: DelayBounds | None = None) -> StreamedCandidates:
+                        delay: DelayBounds | None = None, jobs: int | None = 1) -> StreamedCandidates:
     """The candidates (default: :func:`~estimation.diagnosis.search.default_candidates`, the pairs
     traced on the subsample and the coupled motors' laws of ``transmission``, as in memory) and their shapes
     searched on the ``sample`` (``lap``: called with the name of each stage done); with a ``validation`` sample
     and the ``search`` settings, the in-memory search and final refit on the samples (:func:`subsample_search`):
     the shapes as it leaves them, its outcome kept (:attr:`StreamedCandidates.outcome`), and there the delay searched
-    in ``delay`` as in memory (:attr:`StreamedCandidates.delay`; counted among the tests)."""
+    in ``delay`` as in memory (:attr:`StreamedCandidates.delay`; counted among the tests), its rounds' fits in ``jobs``
+    processes."""
     searching = validation is not None and search is not None
     candidates = tuple(default_candidates(model) + coupling_candidates(
         model, transmission, train=sample, held_out=validation if searching else None)  # as in memory
@@ -239,7 +241,7 @@ def streamed_candidates(model: IdentificationModel, candidates: Sequence[Effect]
             warnings.simplefilter("ignore")  # the subsample's own search: its warnings are not the record's
             shapes, outcome, searched = subsample_search(
                 model, blocks, rejected, starts, sample, validation,
-                replace(search, n_tests=len(candidates) + (delay is not None)), delay)  # the delay too, as in memory
+                replace(search, n_tests=len(candidates) + (delay is not None)), delay, jobs)  # the delay too
         lap("subsample_search")
     else:
         with warnings.catch_warnings():

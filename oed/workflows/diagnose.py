@@ -909,7 +909,8 @@ def diagnosis_streamed(args: DiagnoseOptions, friction: str, plan: Preprocessing
                                        max_effects=args.max_effects, subsample=args.subsample,
                                        floor_window=args.floor_window, executor=executor, preprocessing=plan,
                                        findings=findings, still=still, transmission=transmission,
-                                       delay=delay or DelayBounds())  # a candidate in every diagnosis, as in memory
+                                       delay=delay or DelayBounds(),  # a candidate in every diagnosis, as in memory
+                                       jobs=args.jobs)  # the search's rounds side by side, as in memory
         still_search = diagnosis.streaming.get("still_search") == "on the record at rest"
         if still_search:  # the choices below ignore it, as in memory; the effect search above did not (Fourier path)
             warnings.warn(STILL_SEARCH, stacklevel=2)
