@@ -82,8 +82,8 @@ from oed.workflows.model_files import (
     add_summed_model_file,
     add_summed_runner_up_model_file,
     recorded_validation_errors,
-    recorded_validation_counted,
     recorded_validation_mse,
+    recorded_validations_counted,
     resampled_validation,
     robot_source,
 )
@@ -1078,13 +1078,14 @@ def recorded_errors(diagnosis: Diagnosis, args: DiagnoseOptions, plan: dict[str,
     after_file = summed_model_file_document(diagnosis.final_model(), diagnosis.after.estimate, robot=robot,
                                             preprocessing=plan, shape=diagnosis.final_shape(),
                                             recorded_mse=diagnosis.after.train.mse)
-    counted = recorded_validation_counted(after_file, source_files(args.validate))
+    declared = summed_model_file_document(diagnosis.model, diagnosis.before.estimate, robot=robot,
+                                          preprocessing=plan, recorded_mse=diagnosis.before.train.mse)
+    # both models' errors on the validation files read and prepared once
+    counted, counted_before = recorded_validations_counted([after_file, declared], source_files(args.validate))
     if counted is None:
         return diagnosis
     after, n_samples = counted  # the recorded samples, as in memory (the floor's test and the summary count them)
-    declared = summed_model_file_document(diagnosis.model, diagnosis.before.estimate, robot=robot,
-                                          preprocessing=plan, recorded_mse=diagnosis.before.train.mse)
-    before = recorded_validation_mse(declared, source_files(args.validate))
+    before = None if counted_before is None else counted_before[0]
     fits = {which: replace(fit, validation=replace(fit.validation, mse=mse, n_samples=n_samples))
             for which, fit, mse in (("before", diagnosis.before, before), ("after", diagnosis.after, after))}
     statistics = diagnosis.statistics
