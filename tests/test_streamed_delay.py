@@ -152,3 +152,19 @@ def test_the_streamed_cli_writes_the_delay_that_predict_uses(files, tmp_path, ca
         assert main(["predict", "--model", str(out), "--data", str(validate), "--metrics", str(metrics),
                      "--alternative", name]) == 0
         assert json.loads(metrics.read_text())["mse"] == pytest.approx(entry["validation_mse"], rel=1e-6), name
+
+
+def test_a_declared_delay_bound_is_searched_streamed_as_in_memory(files, tmp_path):
+    """``--friction viscous,delay:S`` on the streamed path (refused there before): the delay searched in ±S, as in
+    memory, to 1e-9; the joint-zero check and the torque gains skipped, as in memory with a declared delay."""
+    _, paths = files
+    documents = {}
+    for name, extra in (("streamed", ["--chunk-size", "200"]), ("memory", [])):
+        out = tmp_path / f"{name}.json"
+        assert main(["diagnose", "--robot", "puma560", "--joints", "3", "--friction", "viscous,delay:0.02", "--data",
+                     str(paths[0]), "--validate", str(paths[1]), "--out", str(out), *extra]) == 0
+        documents[name] = json.loads(out.read_text())
+    assert documents["streamed"]["diagnosis_path"] == "streamed"
+    delays = {name: document["model_file"]["delay"]["value"] for name, document in documents.items()}
+    assert delays["streamed"] == pytest.approx(delays["memory"], rel=1e-9)
+    assert abs(delays["streamed"] - TRUE_DELAY) < 5e-4

@@ -931,13 +931,15 @@ def diagnosis_streamed(args: DiagnoseOptions, friction: str, plan: Preprocessing
         selection = streamed_selection(args, diagnosis, run, model_file[0], chunk_size, still=still, ratio=ratio)
     # the notes said in memory: a channel made worse, a repeat of the training motion, the joint zeros
     repeat = repeat_note(ratio)
-    notes = worse_after(diagnosis) + (() if repeat is None else (repeat,)) + streamed_joint_zero_notes(
+    notes = worse_after(diagnosis) + (() if repeat is None else (repeat,)) + (streamed_joint_zero_notes(
         model, run.paths, sum(part.n_samples for part, _ in run.sums.train_parts), run.validate,
         sum(part.n_samples for part, _ in run.sums.validate_parts), options=run.settings.reading())
+        if delay is None else ())  # none with a declared delay, as in memory
     messages = (*messages, *notes)
     diagnosis = replace(diagnosis, not_computed={key: reason for key, reason in diagnosis.not_computed.items()
                                                  if key not in SELECTION_KEYS})  # computed now
-    if plan.method != "fourier":  # the per-joint torque gains, checked as in memory; not applied here: said
+    # the per-joint torque gains, checked as in memory (not with a declared delay); not applied here: said
+    if plan.method != "fourier" and delay is None:
         gains_note = streamed_gains_note(args, model, {"chunk_size": chunk_size, "cutoff_hz": cutoff_hz,
                                                        "decimation": plan.decimation,
                                                        "held_torques": plan.held_torques}, ratio=ratio, still=still)
