@@ -168,3 +168,31 @@ def test_a_declared_delay_bound_is_searched_streamed_as_in_memory(files, tmp_pat
     delays = {name: document["model_file"]["delay"]["value"] for name, document in documents.items()}
     assert delays["streamed"] == pytest.approx(delays["memory"], rel=1e-9)
     assert abs(delays["streamed"] - TRUE_DELAY) < 5e-4
+
+
+def test_the_delay_moves_each_training_file_on_its_own_streamed_as_in_memory(files, tmp_path):
+    """The training record as two files (each a piece of motion, moved on its own in memory), read by a pool of two
+    workers in chunks of 150: memory's delay and validation errors."""
+    import pandas as pd
+
+    _, paths = files
+    frame = pd.read_csv(paths[0])
+    halves = [tmp_path / "first.csv", tmp_path / "second.csv"]
+    frame.iloc[:520].to_csv(halves[0], index=False, float_format="%.12g")
+    frame.iloc[520:].to_csv(halves[1], index=False, float_format="%.12g")
+    documents = {}
+    for name, extra in (("streamed", ["--chunk-size", "150", "--workers", "2"]), ("memory", [])):
+        out = tmp_path / f"{name}.json"
+        assert main(["diagnose", "--robot", "puma560", "--joints", "3", "--friction", "viscous",
+                     "--data", str(halves[0]), "--data", str(halves[1]), "--validate", str(paths[1]),
+                     "--out", str(out), *extra]) == 0
+        documents[name] = json.loads(out.read_text())
+    assert documents["streamed"]["diagnosis_path"] == "streamed"
+    assert [e["spec"] for e in documents["streamed"]["effects"]] == [e["spec"] for e in documents["memory"]["effects"]]
+    delays = {name: document["model_file"]["delay"]["value"] for name, document in documents.items()}
+    # Brent's search stops at 1e-3 of the sampling step (4 µs here): the two paths' sums, equal to rounding, agree
+    # far within it
+    assert delays["streamed"] == pytest.approx(delays["memory"], abs=1e-8)
+    streamed, memory = (document["validation"]["after"]["mse"] for document in (documents["streamed"],
+                                                                               documents["memory"]))
+    assert streamed == pytest.approx(memory, rel=1e-6)
