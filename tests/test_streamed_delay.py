@@ -196,3 +196,13 @@ def test_the_delay_moves_each_training_file_on_its_own_streamed_as_in_memory(fil
     streamed, memory = (document["validation"]["after"]["mse"] for document in (documents["streamed"],
                                                                                documents["memory"]))
     assert streamed == pytest.approx(memory, rel=1e-6)
+
+
+def test_the_streamed_search_gives_the_same_answer_in_any_number_of_processes(files):
+    """The subsample search's rounds fit their candidates in ``jobs`` processes, as memory's: the same diagnosis."""
+    model, paths = files
+    serial, parallel = (diagnose_files(model, paths[:1], paths[1:], chunk_size=300, jobs=jobs) for jobs in (1, 2))
+    assert [(e.spec, e.channels, e.shape) for e in parallel.effects] == \
+        [(e.spec, e.channels, e.shape) for e in serial.effects]
+    assert [(r.spec, r.reason) for r in parallel.rejected] == [(r.spec, r.reason) for r in serial.rejected]
+    np.testing.assert_array_equal(parallel.after.estimate.values, serial.after.estimate.values)
