@@ -121,7 +121,7 @@ class SummedFit:
     warnings: tuple[str, ...] = ()
     cov_method: str = "classical"
     shapes: tuple[Any, ...] = ()
-    delay: None = None
+    delay: Any = None  # the adopted delay (a ShapeValue; the streamed diagnosis's), else None
 
 
 #: what the streamed diagnosis cannot compute, by the document's key (``Diagnosis.not_computed``)

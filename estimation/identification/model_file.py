@@ -414,7 +414,8 @@ def summed_model_file_document(model: Any, estimate: Any, *, robot: RobotSource,
     """The ``model_file`` document of an estimate from sums (the streamed path,
     :class:`estimation.estimators.summed_least_squares.SummedEstimate`) of ``model``.
 
-    ``shape``: the fixed shapes of its shaped laws; ``recorded_mse``: the training MSE against the channels
+    ``shape``: the fixed shapes of its shaped laws (and the adopted delay, :data:`DELAY_NAME`: the file's ``delay``,
+    its standard deviation not held); ``recorded_mse``: the training MSE against the channels
     as recorded (the prediction band's noise; ``None``: the fit's residual variance serves);
     ``validation_mse``: the validation MSE against the channels as recorded, as ``oed predict`` measures it;
     ``consistent``: the :class:`estimation.consistent.least_squares.ConsistentEstimate` of a physically consistent
@@ -428,6 +429,7 @@ def summed_model_file_document(model: Any, estimate: Any, *, robot: RobotSource,
     theta = np.asarray(estimate.values, dtype=float)[order]
     channels = tuple(model.channels)
     shape = {} if shape is None else {name: float(value) for name, value in shape.items()}
+    delay = shape.pop(DELAY_NAME, None)  # a diagnosis's adopted delay among its shapes: the file's ``delay``
     document = ModelFile(
         robot=robot, model=model.kind.value, channels=channels, joint_names=tuple(model.robot.joint_names),
         effects=",".join(effect_spec(effect) for effect in model.effects) or "none",
@@ -435,7 +437,7 @@ def summed_model_file_document(model: Any, estimate: Any, *, robot: RobotSource,
         theta=theta, cov=np.asarray(estimate.cov, dtype=float)[np.ix_(order, order)],
         channel_variance=np.asarray(estimate.channel_variance, dtype=float),
         weights=np.broadcast_to(np.asarray(estimate.weights, dtype=float), (len(channels),)).copy(),
-        method=estimate.method, shape=shape, preprocessing=dict(preprocessing),
+        method=estimate.method, shape=shape, preprocessing=dict(preprocessing), delay=delay,
         reported_validation_mse=None if validation_mse is None else dict(validation_mse),
         effect_values=effect_entries(model, names, model.base.expressions, theta, shape),
         recorded_variance=None if recorded_mse is None else np.array([recorded_mse[c] for c in channels], dtype=float),

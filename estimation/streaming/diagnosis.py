@@ -65,6 +65,7 @@ from dynamics.transmission import Transmission
 from estimation.data.input_findings import FindingsSaid
 from estimation.diagnosis.forward_selection import SearchOutcome, SearchSettings
 from estimation.estimators.summed_least_squares import SummedEstimate, SummedLeastSquares
+from estimation.preprocessing.delay import DelayBounds
 from estimation.preprocessing.plan import Preprocessing
 from estimation.streaming.chunks import automatic_cutoff, read_chunks
 from estimation.streaming.cluster import model_payload
@@ -279,6 +280,8 @@ def diagnose_files_run(
     findings: FindingsSaid | None = None,
     still: bool = False,
     transmission: Transmission | None = None,
+    delay: DelayBounds | None = DelayBounds(),
+    jobs: int | None = 1,
 ) -> tuple[Diagnosis, StreamedRun]:
     """Diagnose ``model`` on the training ``paths``, confirmed on the ``validate`` files, in bounded memory; the
     diagnosis and the :class:`~estimation.streaming.diagnosis_result.StreamedRun` behind it (its sums: what the
@@ -298,7 +301,12 @@ def diagnose_files_run(
     compared on the stretches of the training record their fits did not see, as in memory (one more pass over the
     training files, :func:`~estimation.streaming.diagnosis_passes.stretch_pass`; not on the Fourier path, whose
     sums hold averaged periods: there they are compared on the record at rest, ``streaming.still_search``).
-    ``transmission``: its coupled motors' friction laws are candidates, as in memory.
+    ``transmission``: its coupled motors' friction laws are candidates, as in memory. ``delay``: where a delay between
+    torques and motion is searched, as in memory (on the subsamples, with the search: its grid, trials and adoption
+    rule; ``None``: not tried); an adopted delay moves the motion of every file in the passes after the search
+    (:func:`~estimation.streaming.delayed_chunks.moved_chunks`), the declared model's fit staying along the motion as
+    read, as in memory. ``jobs``: the processes the search's rounds fit their candidates in, as in memory's
+    (``None``: the available cores; the same answer at any count).
     """
     paths, validate = [str(path) for path in paths], [str(path) for path in validate]
     findings = FindingsSaid([*paths, *validate]) if findings is None else findings
@@ -314,7 +322,10 @@ def diagnose_files_run(
         held = subsample_pass(executor, payload, validate, dict(options, as_recorded=True), settings.subsample)
     with step(f"shape search, refinement and coupling tracing on {first.sample.n_samples} samples"):
         found = streamed_candidates(model, candidates, first.sample, clock.lap, transmission, held.sample,
-                                    SearchSettings(alpha, min_improvement, max_effects, 0, same_effect_adopted=True))
+                                    SearchSettings(alpha, min_improvement, max_effects, 0, same_effect_adopted=True),
+                                    delay, jobs)
+    if found.delay.value is not None:  # the passes along the motion moved by the adopted delay
+        options = dict(options, delay=float(found.delay.value.value))
     with step(f"second pass over {len(paths) + len(validate)} file(s) (sums of {len(found.blocks)} candidates)"), \
             findings.reading():
         sums = sums_pass(executor, payload, found.plan, paths, validate, options, first)  # pass 2 (all files)
@@ -325,10 +336,10 @@ def diagnose_files_run(
     else:
         floor, floor_note = noise_floor, f"given ({noise_floor.method})"
     with step("the declared model from the sums"):
-        before = _declared(model, sums)
+        before = _declared(model, sums if sums.declared is None else replace(sums, train=sums.declared[0]))
     outcome = found.outcome  # the search of the subsample (streamed_candidates)
     clock.lap("selection_and_estimates")
-    threshold = settings.alpha / max(found.n_candidates, 1)  # the search's (SearchSettings.threshold)
+    threshold = settings.alpha / max(found.n_candidates + (delay is not None), 1)  # the search's (SearchSettings.threshold)
     while True:  # the final fit; a finding within its noise there is dropped and the rest refitted, as in memory
         chosen, columns, after = _final_estimate(model, sums, found, outcome, min_improvement)
         with step(f"third pass over {len(paths)} training file(s) (covariance)"), findings.reading():  # batch means

@@ -40,9 +40,11 @@ from estimation.diagnosis.search import default_candidates
 from estimation.estimators.effect_blocks import Block, States
 from estimation.estimators.separable_least_squares import FixedPart, solve_linear
 from estimation.identification.fit import identify
+from estimation.identification.shaped import ShapeValue
+from estimation.preprocessing.delay import DelayBounds
 from estimation.streaming.diagnosis_sums import ColumnLayout
 
-__all__ = ["StreamedCandidates", "shape_search", "streamed_candidates", "subsample_search"]
+__all__ = ["SearchedDelay", "StreamedCandidates", "shape_search", "streamed_candidates", "subsample_search"]
 
 
 def shape_search(model: IdentificationModel, blocks: dict[int, Block], subsample: Measurements,
@@ -72,9 +74,20 @@ def shape_search(model: IdentificationModel, blocks: dict[int, Block], subsample
     return shapes, failed
 
 
+@dataclass(frozen=True)
+class SearchedDelay:
+    """The delay candidate of the subsample's search (:class:`~estimation.diagnosis.candidates.delay_search.DelaySearch`
+    on the subsample, as in memory): the delay its final refit holds (``None``: none adopted) and, when none is, why
+    (``None`` too when no delay was searched)."""
+
+    value: ShapeValue | None = None
+    reason: str | None = None
+
+
 def subsample_search(model: IdentificationModel, blocks: dict[int, Block], rejected: dict[int, RejectedEffect],
                      shapes: dict[int, np.ndarray], sample: Measurements, validation: Measurements,
-                     search: SearchSettings) -> tuple[dict[int, np.ndarray], SearchOutcome]:
+                     search: SearchSettings, delay: DelayBounds | None = None, jobs: int | None = 1
+                     ) -> tuple[dict[int, np.ndarray], SearchOutcome, SearchedDelay]:
     """The in-memory diagnosis's search (:class:`~estimation.diagnosis.runner_up.RunnerUpSearch` on
     :class:`~estimation.diagnosis.record_fits.RecordFits`) and its final refit
     (:func:`~estimation.diagnosis.final_refit.refit_significant`) on the training ``sample`` confirmed on the
@@ -90,12 +103,15 @@ def subsample_search(model: IdentificationModel, blocks: dict[int, Block], rejec
     a law's shape is that of the model it joins, not the declared model's (``shapes``: the first round's, kept where
     the search never fitted the law again). A found law's shape is the final refit's (where the refit kept the law;
     else the one it was adopted at), any other law's its last optimum. The search's Wald tests are those of memory
-    (HAC, the shape directions included), on the subsample. No delay candidate (the streamed path has none). When both
-    samples hold their whole records, this is the in-memory search and refit."""
+    (HAC, the shape directions included), on the subsample. ``delay``: where the delay between torques and motion is
+    searched, as in memory (its grid, its trials and adoption rule in the rounds, searched again by the final refit;
+    ``None``: not tried): the :class:`SearchedDelay` the refit (or the mixed model) holds. ``jobs``: the processes a
+    round's candidate fits run in, as in memory (:class:`~estimation.diagnosis.record_fits.RecordFits`; the same
+    answer at any count). When both samples hold their whole records, this is the in-memory search and refit."""
     before = identify(model, sample, validation)
     weights = before.estimate.weights if before.estimate.method == "wls" else 1.0 / before.estimate.channel_variance
-    fits = RecordFits(model, declared_regressor(model, before), sample, validation.as_recorded, None,
-                      provisional_stopping_rule)
+    fits = RecordFits(model, declared_regressor(model, before), sample, validation.as_recorded, delay,
+                      provisional_stopping_rule, shaped=before.shaped_fit is not None, jobs=jobs)
     outcome = RunnerUpSearch(model, blocks, rejected, fits, weights, search).run()
     refined = dict(shapes)
     for group, fit in fits.previous.items():
@@ -126,7 +142,12 @@ def subsample_search(model: IdentificationModel, blocks: dict[int, Block], rejec
             refined[item.index] = np.array([fitted[name] for name in names])
     rejected_now = {index: reason for index, reason in rejected_now.items()
                     if index not in {item.index for item in found}}
-    return refined, replace(outcome, adopted=tuple(found), rejected=rejected_now)
+    untested = outcome.untested
+    reason = fits.delay.not_adopted_reason(untested=untested if untested.startswith("not tested") else
+                                           "not tested: the search ended before a round tried it")  # as in memory
+    searched = SearchedDelay(after.delay if fits.delay.adopted is not None else None,
+                             reason)
+    return refined, replace(outcome, adopted=tuple(found), rejected=rejected_now), searched
 
 
 def _rejected(model: IdentificationModel, item: AdoptedEffect, reason: str) -> RejectedEffect:
@@ -183,6 +204,7 @@ class StreamedCandidates:
     layout: ColumnLayout
     plan: bytes  # the pickled effects and shapes the workers evaluate
     outcome: SearchOutcome | None = None  # the search on the subsample (:func:`subsample_search`)
+    delay: SearchedDelay = SearchedDelay()  # its delay candidate
 
     @property
     def columns(self) -> dict[int, tuple[int, ...]]:
@@ -194,20 +216,22 @@ class StreamedCandidates:
 
 def streamed_candidates(model: IdentificationModel, candidates: Sequence[Effect] | None, sample: Measurements,
                         lap: Callable[[str], None], transmission: Transmission | None = None,
-                        validation: Measurements | None = None, search: SearchSettings | None = None
-                        ) -> StreamedCandidates:
+                        validation: Measurements | None = None, search: SearchSettings | None = None,
+                        delay: DelayBounds | None = None, jobs: int | None = 1) -> StreamedCandidates:
     """The candidates (default: :func:`~estimation.diagnosis.search.default_candidates`, the pairs
     traced on the subsample and the coupled motors' laws of ``transmission``, as in memory) and their shapes
     searched on the ``sample`` (``lap``: called with the name of each stage done); with a ``validation`` sample
     and the ``search`` settings, the in-memory search and final refit on the samples (:func:`subsample_search`):
-    the shapes as it leaves them, its outcome kept (:attr:`StreamedCandidates.outcome`)."""
+    the shapes as it leaves them, its outcome kept (:attr:`StreamedCandidates.outcome`), and there the delay searched
+    in ``delay`` as in memory (:attr:`StreamedCandidates.delay`; counted among the tests), its rounds' fits in ``jobs``
+    processes."""
     searching = validation is not None and search is not None
     candidates = tuple(default_candidates(model) + coupling_candidates(
         model, transmission, train=sample, held_out=validation if searching else None)  # as in memory
                        if candidates is None else candidates)
     blocks, rejected = candidate_blocks(model, candidates)
     lap("subsample_pass")
-    outcome, failed = None, {}
+    outcome, failed, searched = None, {}, SearchedDelay()
     if searching:
         # the search's first round searches every shape from its grid, as in memory (a law whose search fails there
         # is tried again in later rounds); a law it never fitted keeps its parameters' starts
@@ -215,8 +239,9 @@ def streamed_candidates(model: IdentificationModel, candidates: Sequence[Effect]
                   for index, block in blocks.items()}
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # the subsample's own search: its warnings are not the record's
-            shapes, outcome = subsample_search(model, blocks, rejected, starts, sample, validation,
-                                               replace(search, n_tests=len(candidates)))
+            shapes, outcome, searched = subsample_search(
+                model, blocks, rejected, starts, sample, validation,
+                replace(search, n_tests=len(candidates) + (delay is not None)), delay, jobs)  # the delay too
         lap("subsample_search")
     else:
         with warnings.catch_warnings():
@@ -229,4 +254,4 @@ def streamed_candidates(model: IdentificationModel, candidates: Sequence[Effect]
     order = sorted(blocks)
     plan = pickle.dumps(([blocks[i].effect for i in order], [shapes[i] for i in order]))
     return StreamedCandidates({i: blocks[i] for i in order}, shapes, {**rejected, **failed}, len(candidates),
-                       ColumnLayout.build(model, [blocks[i] for i in order]), plan, outcome)
+                       ColumnLayout.build(model, [blocks[i] for i in order]), plan, outcome, searched)

@@ -37,6 +37,7 @@ from estimation.uncertainty.noise_floor import NoiseFloor, NoiseFloorError, nois
 from estimation.streaming.chunks import logged_chunks
 from estimation.streaming.periods import plan_chunks
 from estimation.streaming.covariance import BatchScores, chunk_scores
+from estimation.streaming.delayed_chunks import moved_chunks
 from estimation.streaming.settings import FLOOR_WINDOW
 from estimation.estimators.effect_blocks import Block, States
 from estimation.identification.training_range import TrainingRange
@@ -59,6 +60,17 @@ def subsample_task(payload: bytes, path: str, options: dict[str, Any], cap: int,
     return caught_warnings(_subsample, path, model_from_payload(payload), options, cap)
 
 
+def _chunks(path: str, model: IdentificationModel, options: dict[str, Any], record: dict | None = None,
+            pairs: bool = False):
+    """The file's prepared chunks (:func:`~estimation.streaming.periods.plan_chunks`), moved by ``options["delay"]``
+    when it is given (:func:`~estimation.streaming.delayed_chunks.moved_chunks`, the diagnosis's adopted delay;
+    ``pairs``: each beside the chunk as read)."""
+    options = dict(options)
+    delay = options.pop("delay", None)
+    extra = {} if record is None else {"record": record}
+    return moved_chunks(plan_chunks(path, model, **extra, **options), delay, pairs=pairs)
+
+
 @functools.lru_cache(maxsize=4)
 def _plan(payload: bytes, plan: bytes) -> tuple[ColumnLayout, tuple[Block, ...], tuple[np.ndarray, ...]]:
     model = model_from_payload(payload)
@@ -73,15 +85,26 @@ def _sums(path: str, model: IdentificationModel, payload: bytes, plan: bytes, op
     record: dict = {}
     sums = ChannelSums.empty(layout)
     joint_range = None  # each joint's range on the samples summed (estimation.identification.training_range)
-    for chunk in plan_chunks(path, model, record=record, **options):
+    moving = options.get("delay") is not None
+    declared = ChannelSums.empty(ColumnLayout.build(model, [])) if moving else None
+    for read, chunk in _chunks(path, model, options, record, pairs=True):
         try:
             sums = chunk_sums(model, layout, blocks, shapes, chunk, sums)
+            if declared is not None:  # the declared model along the motion as read (the diagnosis's "before")
+                declared = chunk_sums(model, declared.layout, (), (), read, declared)
         except ValueError as error:
             raise MeasurementError(f"{path} (near sample {sums.n_samples}): {error}") from None
         if chunk.n_samples:
             joint_range = TrainingRange.of(chunk.q, chunk.dq, model.robot.joint_names).merged(joint_range)
     record["joint_range"] = joint_range
+    if declared is not None:
+        record[DECLARED_AS_READ] = declared
     return sums, record
+
+
+#: the key of a file's reading record holding, on a pass along a moved motion, the declared model's sums along the
+#: motion as read (:func:`sums_pass` takes it out: :attr:`SumsPass.declared`)
+DECLARED_AS_READ = "declared_as_read"
 
 
 @dataclass
@@ -175,7 +198,7 @@ def _stretch_sums(path: str, model: IdentificationModel, payload: bytes, plan: b
     sums = [ChannelSums.empty(layout) for _ in range(n_blocks)]
     lag, previous = (LagSums.empty(layout), None) if lags else (None, None)
     seen = start
-    for chunk in plan_chunks(path, model, **options):
+    for chunk in _chunks(path, model, options):
         labels = np.minimum((n_blocks * (seen + np.arange(chunk.n_samples))) // max(total, 1), n_blocks - 1)
         seen += chunk.n_samples
         for block in np.unique(labels):
@@ -228,7 +251,7 @@ def _scores(path: str, model: IdentificationModel, payload: bytes, plan: bytes, 
             theta: np.ndarray, weights: np.ndarray) -> BatchScores:
     layout, blocks, shapes = _plan(payload, plan)
     scores = BatchScores.empty(len(layout.names), layout.n_channels)
-    for chunk in plan_chunks(path, model, **options):
+    for chunk in _chunks(path, model, options):
         scores.add(*chunk_scores(model, layout, blocks, shapes, chunk, theta, weights))
     return scores.closed()
 
@@ -282,6 +305,9 @@ class SumsPass:
     validation: ChannelSums
     train_parts: tuple[tuple[ChannelSums, dict], ...]
     validate_parts: tuple[tuple[ChannelSums, dict], ...]
+    #: with an adopted delay (the sums along the moved motion), the declared model's training and validation sums
+    #: along the motion as read (what the in-memory diagnosis's declared fit sees); ``None``: no delay
+    declared: tuple[ChannelSums, ChannelSums] | None = None
 
 
 def _same_columns(paths: Sequence[str], records: Sequence[dict], reference: str, expected: dict) -> None:
@@ -329,9 +355,15 @@ def sums_pass(executor, payload: bytes, plan: bytes, paths: Sequence[str], valid
             raise MeasurementError(f"{path}: {sums.n_samples} samples summed, {count} read in the first pass (did the "
                                    "file change while it was read?)")
     _same_columns(validate, [record for _, record in validate_parts], paths[0], first.records[0])
+    declared = None
+    if options.get("delay") is not None:
+        train_declared = [record.pop(DECLARED_AS_READ) for _, record in train_parts]
+        validate_declared = [record.pop(DECLARED_AS_READ) for _, record in validate_parts]
+        declared = (functools.reduce(lambda a, b: a + b, train_declared),
+                    functools.reduce(lambda a, b: a + b, validate_declared))
     return SumsPass(functools.reduce(lambda a, b: a + b, [sums for sums, _ in train_parts]),
                     functools.reduce(lambda a, b: a + b, [sums for sums, _ in validate_parts]),
-                    tuple(train_parts), tuple(validate_parts))
+                    tuple(train_parts), tuple(validate_parts), declared)
 
 
 def scores_pass(executor, payload: bytes, plan: bytes, paths: Sequence[str], options: dict[str, Any],

@@ -6,7 +6,7 @@ saying how the files were read, summed and estimated, and what the sums cannot g
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -20,7 +20,9 @@ from estimation.diagnosis.results import (
     ChannelErrors,
     Diagnosis,
     FoundEffect,
+    RejectedEffect,
     SummedFit,
+    found_delay,
 )
 from estimation.diagnosis.statistics import FLOOR_ALPHA, ResidualReport
 from estimation.estimators.summed_least_squares import SummedEstimate
@@ -43,7 +45,7 @@ NOT_ON_THIS_PATH = (
     "shape standard deviations",
     "user stopping rules (the noise floor is the rule)",
     "model_parameters (the physical reading of the estimate)",
-    "a delay between torques and motion as a candidate (it moves the records)",
+    "the delay's standard deviation over the whole record (the subsample's final refit gives it)",
     "limit laws and negative friction held at zero (pinned) in the final estimate (the subsample's final refit "
     "applies them to choose the findings)",
 )
@@ -146,13 +148,21 @@ def streamed_result(model: IdentificationModel, run: StreamedRun, before: Summed
     from the sums): errors before and after against the recording, the floor comparison, the trivial predictors,
     warnings; what the sums cannot give is ``None`` with its reason (``not_computed``)."""
     train, validation, base = run.sums.train, run.sums.validation, list(range(model.n_base))
+    # the declared model along the motion as read (an adopted delay moved the passes' sums; in memory too, the
+    # declared fit and the trivial predictors are along the records as read)
+    as_read = {"train": train, "validation": validation} if run.sums.declared is None else \
+        dict(zip(("train", "validation"), run.sums.declared))
     nominal = model.base.K @ model.nominal_parameters()
     trivial = {"zero_mse": dict(zip(model.channels, map(float, validation.power[:, 1] / validation.n_samples))),
-               "nominal_mse": dict(zip(model.channels, map(float, validation.channel_mse(base, nominal))))}
-    mse = {(name, which): dict(zip(model.channels, map(float, part.channel_mse(selection, theta))))
+               "nominal_mse": dict(zip(model.channels, map(float, as_read["validation"].channel_mse(base, nominal))))}
+    mse = {(name, which): dict(zip(model.channels, map(float, (part if which == "after" else as_read[name])
+                                                        .channel_mse(selection, theta))))
            for name, part in (("train", train), ("validation", validation))
            for which, selection, theta in (("before", base, before.values), ("after", run.columns, after.values))}
-    rejected = run.outcome.rejected
+    rejected = dict(run.outcome.rejected)
+    delay = run.found.delay
+    if delay.reason is not None:  # the delay not adopted, with the rejected candidates, as in memory
+        rejected[run.found.n_candidates] = RejectedEffect("delay", tuple(model.channels), delay.reason, "delay")
     found = tuple(run.found.blocks[index].effect for index in run.chosen)
     final = build_model(model.robot, model.kind, tuple(model.effects) + found)
     fits = {which: SummedFit(
@@ -163,8 +173,11 @@ def streamed_result(model: IdentificationModel, run: StreamedRun, before: Summed
             trivial_warnings(mse["validation", "after"], trivial) if which == "after" else ()),
         cov_method="classical" if which == "before" else "batch_means")  # batch means: estimation.streaming.covariance
         for which, estimate in (("before", before), ("after", after))}
+    if delay.value is not None:  # the adopted delay: the model's, as its shapes (the model file's ``delay``)
+        fits["after"] = replace(fits["after"], shapes=(delay.value,), delay=delay.value)
     return Diagnosis(
-        effects=found_effects(model, run, after), rejected=tuple(rejected[i] for i in sorted(rejected)),
+        effects=found_effects(model, run, after) + found_delay(fits["after"], delay.value, model),
+        rejected=tuple(rejected[i] for i in sorted(rejected)),
         before=fits["before"], after=fits["after"], residuals=None,
         statistics=floor_report(fits["before"], fits["after"], floor, floor_note),
         path="streamed", not_computed=dict(STREAMED_NOT_COMPUTED), trivial=trivial, streaming=streaming)

@@ -85,8 +85,8 @@ from oed.workflows.model_files import (
     add_training_range,
     range_lines,
     recorded_validation_errors,
-    recorded_validation_counted,
     recorded_validation_mse,
+    recorded_validations_counted,
     resampled_validation,
     robot_source,
 )
@@ -349,12 +349,13 @@ def diagnosis_by_path(read: DiagnoseOptions, friction: str | None, effects: tupl
     path then takes as they are instead of building them again from ``friction``."""
     declared = effects if merged else None
     if streaming_requested(read):
-        return diagnosis_streamed(read, friction, effects=declared)
+        return diagnosis_streamed(read, friction, effects=declared, delay=delay)
     check_shaped_effects_kept(effects, model)
     decision = decide_path(read, model, task="diagnosing", bytes_per_value=IN_MEMORY.bytes_per_value,
                            in_memory_only=lambda: in_memory_only(read, model, delay), say=say,
                            **derivatives_on_validation(model, delay))
-    return (diagnosis_streamed(read, friction, decision.plan, decision.findings, effects=declared) if decision.stream
+    return (diagnosis_streamed(read, friction, decision.plan, decision.findings, effects=declared, delay=delay)
+            if decision.stream
             else diagnosis_in_memory(read, model, transmission, delay, decision.plan))
 
 
@@ -405,13 +406,11 @@ class Diagnosed:
 
 
 def check_streamed_request(args: DiagnoseOptions, delay: DelayBounds | None) -> None:
-    """``--test`` and a delay are in-memory only: an error when the streamed path was asked for."""
+    """``--test`` is in-memory only: an error when the streamed path was asked for (a delay, ``delay``, is searched on
+    both paths)."""
     if args.test:
         raise ValueError("--test is read in memory: not with the streamed path (--chunk-size, --scheduler or "
                          "--workers)")
-    if delay is not None:
-        raise ValueError("the delay between torques and motion is searched in memory: not with the streamed path "
-                         "(--chunk-size, --scheduler or --workers), which does not try it")
 
 
 def in_memory_only(args: DiagnoseOptions, model: IdentificationModel, delay: DelayBounds | None) -> str | None:
@@ -892,11 +891,13 @@ def check_streamed_arguments(args: DiagnoseOptions, model: IdentificationModel) 
 
 
 def diagnosis_streamed(args: DiagnoseOptions, friction: str, plan: Preprocessing | None = None,
-                       findings: FindingsSaid | None = None, *, effects: tuple[Any, ...] | None = None) -> Diagnosed:
+                       findings: FindingsSaid | None = None, *, effects: tuple[Any, ...] | None = None,
+                       delay: DelayBounds | None = None) -> Diagnosed:
     """Diagnose the files read in blocks (:func:`estimation.streaming.diagnosis.diagnose_files`), their
     derivatives chosen as in memory (``plan``: already chosen); ``friction``: the declared effects without the delay
     (``effects``: those effects as built already, a Coulomb column merged into its offset; ``None``: from
-    ``friction``).
+    ``friction``); ``delay``: the declared delay's bounds (``delay:S``), else the default ones: the delay between
+    torques and motion is a candidate as in memory.
     The findings about the files are said as each pass ends, each once (``findings``: what the path decision said
     already)."""
     from estimation.streaming.diagnosis import diagnose_files_run
@@ -924,7 +925,9 @@ def diagnosis_streamed(args: DiagnoseOptions, friction: str, plan: Preprocessing
             diagnosis, run = diagnose_files_run(model, args.data, args.validate, chunk_size=chunk_size, alpha=args.alpha,
                                        max_effects=args.max_effects, subsample=args.subsample,
                                        floor_window=args.floor_window, executor=executor, preprocessing=plan,
-                                       findings=findings, still=still, transmission=transmission)
+                                       findings=findings, still=still, transmission=transmission,
+                                       delay=delay or DelayBounds(),  # a candidate in every diagnosis, as in memory
+                                       jobs=args.jobs)  # the search's rounds side by side, as in memory
         still_search = diagnosis.streaming.get("still_search") == "on the record at rest"
         if still_search:  # the choices below ignore it, as in memory; the effect search above did not (Fourier path)
             warnings.warn(STILL_SEARCH, stacklevel=2)
@@ -945,13 +948,15 @@ def diagnosis_streamed(args: DiagnoseOptions, friction: str, plan: Preprocessing
         selection = streamed_selection(args, diagnosis, run, model_file[0], chunk_size, still=still, ratio=ratio)
     # the notes said in memory: a channel made worse, a repeat of the training motion, the joint zeros
     repeat = repeat_note(ratio)
-    notes = worse_after(diagnosis) + (() if repeat is None else (repeat,)) + streamed_joint_zero_notes(
+    notes = worse_after(diagnosis) + (() if repeat is None else (repeat,)) + (streamed_joint_zero_notes(
         model, run.paths, sum(part.n_samples for part, _ in run.sums.train_parts), run.validate,
         sum(part.n_samples for part, _ in run.sums.validate_parts), options=run.settings.reading())
+        if delay is None else ())  # none with a declared delay, as in memory
     messages = (*messages, *notes)
     diagnosis = replace(diagnosis, not_computed={key: reason for key, reason in diagnosis.not_computed.items()
                                                  if key not in SELECTION_KEYS})  # computed now
-    if plan.method != "fourier":  # the per-joint torque gains, checked as in memory; not applied here: said
+    # the per-joint torque gains, checked as in memory (not with a declared delay); not applied here: said
+    if plan.method != "fourier" and delay is None:
         gains_note = streamed_gains_note(args, model, {"chunk_size": chunk_size, "cutoff_hz": cutoff_hz,
                                                        "decimation": plan.decimation,
                                                        "held_torques": plan.held_torques}, ratio=ratio, still=still)
@@ -1096,13 +1101,14 @@ def recorded_errors(diagnosis: Diagnosis, args: DiagnoseOptions, plan: dict[str,
     after_file = summed_model_file_document(diagnosis.final_model(), diagnosis.after.estimate, robot=robot,
                                             preprocessing=plan, shape=diagnosis.final_shape(),
                                             recorded_mse=diagnosis.after.train.mse)
-    counted = recorded_validation_counted(after_file, source_files(args.validate))
+    declared = summed_model_file_document(diagnosis.model, diagnosis.before.estimate, robot=robot,
+                                          preprocessing=plan, recorded_mse=diagnosis.before.train.mse)
+    # both models' errors on the validation files read and prepared once
+    counted, counted_before = recorded_validations_counted([after_file, declared], source_files(args.validate))
     if counted is None:
         return diagnosis
     after, n_samples = counted  # the recorded samples, as in memory (the floor's test and the summary count them)
-    declared = summed_model_file_document(diagnosis.model, diagnosis.before.estimate, robot=robot,
-                                          preprocessing=plan, recorded_mse=diagnosis.before.train.mse)
-    before = recorded_validation_mse(declared, source_files(args.validate))
+    before = None if counted_before is None else counted_before[0]
     fits = {which: replace(fit, validation=replace(fit.validation, mse=mse, n_samples=n_samples))
             for which, fit, mse in (("before", diagnosis.before, before), ("after", diagnosis.after, after))}
     statistics = diagnosis.statistics

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import warnings
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -22,6 +23,7 @@ from estimation.identification.model_file import (
 from estimation.identification.training_range import RangeCheck, TrainingRange
 from estimation.identification.validation import channel_mse
 from estimation.identification.plausibility import assess_plausibility, link_findings
+from estimation.preprocessing.delay import delayed
 from oed.workflows.asbuilt import resolve_joint_directions, resolve_joint_offsets
 from oed.workflows.chosen_model import ChosenModel
 from oed.workflows.options import RecordOptions
@@ -215,31 +217,64 @@ def recorded_validation_counted(model_file: dict[str, Any], validate: Sequence[s
                                 ) -> tuple[dict[str, float], int] | None:
     """:func:`recorded_validation_mse` with the number of recorded samples it is measured on (those ``oed predict``
     measures: the validation errors' sample count, not the uniform grid's)."""
-    model = IdentifiedModel(ModelFile.from_dict(model_file))
+    return recorded_validations_counted([model_file], validate)[0]
+
+
+#: the keys of a model file that hold its model, not how a record is read and prepared for it
+#: (:meth:`~estimation.identification.identified_model.IdentifiedModel.read`, ``prepare``; its delay moves the
+#: prepared record at prediction): files alike in every other key read a record alike
+_MODEL_ONLY_KEYS = frozenset({"effects", "effect_values", "shape", "shape_std", "smoothing", "delay", "base", "theta",
+                              "cov", "channel_variance", "weights", "method", "recorded_variance", "reported",
+                              "consistent", "chosen", "alternatives"})
+
+
+def _reading_key(model_file: dict[str, Any]) -> str:
+    """What the record as read and prepared for ``model_file`` depends on, as one string (its effects too when rows at
+    rest are dropped: by its Coulomb laws' joint combinations)."""
+    kept = {key: value for key, value in model_file.items()
+            if key not in _MODEL_ONLY_KEYS or (key == "effects" and model_file.get("rest"))}
+    return json.dumps(kept, sort_keys=True, default=str)
+
+
+def recorded_validations_counted(model_files: Sequence[dict[str, Any]], validate: Sequence[str | Path]
+                                 ) -> list[tuple[dict[str, float], int] | None]:
+    """:func:`recorded_validation_counted` of each of ``model_files``, the records read and prepared once for the files
+    that read them alike (:func:`_reading_key`: the same robot, preprocessing, transmission, joint zeros...)."""
+    prepared: dict[str, Any] = {}
+    counted: list[tuple[dict[str, float], int] | None] = []
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # the records' findings were said when the verb read them
-        segments = model.read(list(validate))
-        if all(segment.recorded is None for segment in segments):
-            return None
-        prediction = model.predict_record(model.prepare(segments))
-        return dict(prediction.mse), int(np.asarray(prediction.t).shape[0])
+        for model_file in model_files:
+            model = IdentifiedModel(ModelFile.from_dict(model_file))
+            key = _reading_key(model_file)
+            if key not in prepared:
+                segments = model.read(list(validate))
+                prepared[key] = None if all(segment.recorded is None for segment in segments) else \
+                    model.prepare(segments)
+            if prepared[key] is None:
+                counted.append(None)
+                continue
+            prediction = model.predict_record(prepared[key])
+            counted.append((dict(prediction.mse), int(np.asarray(prediction.t).shape[0])))
+    return counted
 
 
 def recorded_validation_errors(model_file: dict[str, Any], thetas: Mapping[Any, Any],
                                validate: Sequence[str | Path]) -> dict[Any, dict[str, float]] | None:
     """:func:`recorded_validation_mse` of several base-parameter vectors of the model of ``model_file`` (by key, in
     the file's base order), on the same samples: at the recorded time stamps, against the torques as recorded, as
-    ``oed predict`` measures each (shaped laws at the file's shapes); ``None`` when every record is read as it was
+    ``oed predict`` measures each (shaped laws at the file's shapes, the motion moved by its delay); ``None`` when every record is read as it was
     recorded."""
     model = IdentifiedModel(ModelFile.from_dict(model_file))
-    if model.delay is not None or model.payload_link is not None:
-        raise ValueError("the errors of other parameter vectors are measured for a model without delay or payload")
+    if model.payload_link is not None:
+        raise ValueError("the errors of other parameter vectors are measured for a model without payload")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # the records' findings were said when the verb read them
         segments = model.read(list(validate))
         if all(segment.recorded is None for segment in segments):
             return None
-        record = model.prepare(segments).as_recorded
+        prepared = model.prepare(segments)
+        record = (prepared if model.delay is None else delayed(prepared, model.delay)).as_recorded  # as predict
     measured = record.channels(model.channels)
     if any(model.shape.values()):  # the shaped columns at the file's shapes, as predict evaluates them
         Y = model.regressor(record.q, record.dq, record.ddq)
