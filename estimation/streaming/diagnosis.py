@@ -63,12 +63,14 @@ from dynamics.runtime.progress import step
 from dynamics.models import IdentificationModel
 from dynamics.transmission import Transmission
 from estimation.data.input_findings import FindingsSaid
+from dynamics.models import build_model
 from estimation.diagnosis.forward_selection import SearchOutcome, SearchSettings
+from estimation.diagnosis.sign_constraints import PASSES, PinnedTerm, negative_estimates, pinned_terms
 from estimation.estimators.summed_least_squares import SummedEstimate, SummedLeastSquares
 from estimation.preprocessing.plan import Preprocessing
 from estimation.streaming.chunks import automatic_cutoff, read_chunks
 from estimation.streaming.cluster import model_payload
-from estimation.streaming.covariance import sandwich
+from estimation.streaming.covariance import BatchScores, sandwich
 from estimation.streaming.diagnosis_passes import (FLOOR_WINDOW, LagSums, SumsPass, scores_pass, subsample_pass,
                                                   sums_pass, window_floor)
 from estimation.streaming.diagnosis_candidates import StreamedCandidates, streamed_candidates
@@ -128,20 +130,53 @@ def _checked_settings(model: IdentificationModel, paths: list[str], validate: li
     return settings
 
 
-def _refit(model: IdentificationModel, train: ChannelSums, found: StreamedCandidates, indices: Sequence[int]
-           ) -> tuple[list[int], SummedEstimate]:
-    """The declared model with the candidates ``indices``, estimated from the training sums."""
-    columns = list(range(model.n_base)) + [column for index in indices for column in found.columns[index]]
-    names = list(model.base.names) + [name for index in indices for name in found.blocks[index].names]
-    expressions = list(model.base.expressions) + names[model.n_base:]
+def _refit(model: IdentificationModel, train: ChannelSums, found: StreamedCandidates, indices: Sequence[int],
+           declared: IdentificationModel | None = None) -> tuple[list[int], SummedEstimate]:
+    """The declared model with the candidates ``indices``, estimated from the training sums (``declared``: the
+    declared model with terms held at zero, :func:`_held_signs`, its base columns among ``model``'s)."""
+    declared = model if declared is None else declared
+    names = list(model.base.names)
+    columns = [names.index(name) for name in declared.base.names] + [
+        column for index in indices for column in found.columns[index]]
+    names = list(declared.base.names) + [name for index in indices for name in found.blocks[index].names]
+    expressions = list(declared.base.expressions) + names[declared.n_base:]
     return columns, SummedLeastSquares(method="wls").fit(normal_equations(train, columns, names, expressions)).estimate_
 
 
+def _held_signs(model: IdentificationModel, train: ChannelSums, found: StreamedCandidates, chosen: list[int],
+                columns: list[int], after: SummedEstimate
+                ) -> tuple[IdentificationModel, list[int], list[int], SummedEstimate, tuple[PinnedTerm, ...]]:
+    """The in-memory sign step (:func:`estimation.diagnosis.sign_constraints.pin_wrong_signs`) on the sums: while a
+    positive-by-physics term (viscous, Coulomb, rotor inertia) is estimated below zero, it is held at zero (a
+    declared effect loses that joint, a finding holding it is dropped) and the model refitted from the training
+    sums, at most :data:`~estimation.diagnosis.sign_constraints.PASSES` times. ``(declared model kept, chosen,
+    columns, after, pinned)``; a declared model whose base is not among the sums' columns is not reduced."""
+    declared, pinned = model, []
+    for _ in range(PASSES):
+        final = build_model(model.robot, model.kind, tuple(declared.effects) + tuple(
+            found.blocks[index].effect for index in chosen))
+        negative = negative_estimates(final, after)
+        if not negative:
+            break
+        by_effect = {id(found.blocks[index].effect): index for index in chosen}
+        effects, kept, held = pinned_terms(list(declared.effects), [found.blocks[index].effect for index in chosen],
+                                           negative, model)
+        reduced = build_model(model.robot, model.kind, tuple(effects))
+        if not set(reduced.base.names) <= set(model.base.names):
+            break
+        declared, chosen, pinned = reduced, [by_effect[id(effect)] for effect in kept], pinned + held
+        columns, after = _refit(model, train, found, chosen, declared)
+    return declared, chosen, columns, after, tuple(pinned)
+
+
 def _final_estimate(model: IdentificationModel, sums: SumsPass, found: StreamedCandidates, outcome: SearchOutcome,
-                    min_improvement: float) -> tuple[list[int], list[int], SummedEstimate]:
-    """``(chosen, columns, after)``: the augmented model refitted on all samples at the shapes as
+                    min_improvement: float
+                    ) -> tuple[list[int], list[int], SummedEstimate, IdentificationModel, tuple[PinnedTerm, ...]]:
+    """``(chosen, columns, after, declared, pinned)``: the augmented model refitted on all samples at the shapes as
     selected; a found Stribeck law the fit does not support becomes Coulomb friction when the
-    weighted validation error does not grow by more than ``min_improvement`` (:func:`simpler_laws`)."""
+    weighted validation error does not grow by more than ``min_improvement`` (:func:`simpler_laws`); then a
+    positive-by-physics term below zero held at zero as in memory (:func:`_held_signs`: ``declared`` the declared
+    model without the joints so held, ``pinned`` the terms)."""
     chosen = [item.index for item in outcome.adopted]
     columns, after = _refit(model, sums.train, found, chosen)
     weights = outcome.weights  # the search's last weights (the declared model's unless it reweights)
@@ -152,7 +187,34 @@ def _final_estimate(model: IdentificationModel, sums: SumsPass, found: StreamedC
         columns_s, after_s = _refit(model, sums.train, found, simpler)
         if float(weights @ sums.validation.channel_mse(columns_s, after_s.values)) <= (1.0 + min_improvement) * error:
             chosen, columns, after = simpler, columns_s, after_s
-    return chosen, columns, after
+    declared, chosen, columns, after, pinned = _held_signs(model, sums.train, found, chosen, columns, after)
+    return chosen, columns, after, declared, pinned
+
+
+def _full_columns(model: IdentificationModel, chosen: Sequence[int], found: StreamedCandidates) -> list[int]:
+    """The columns the covariance pass evaluates: the declared model's and the candidates ``chosen``."""
+    return list(range(model.n_base)) + [column for index in chosen for column in found.columns[index]]
+
+
+def _kept_scores(parts_scores: Sequence[BatchScores], model: IdentificationModel, chosen: Sequence[int],
+                 found: StreamedCandidates, columns: Sequence[int]) -> list[BatchScores]:
+    """The covariance pass's batch scores (on :func:`_full_columns`, at the estimate with a term held at zero
+    there) on the ``columns`` fitted: the rows and columns of the held terms dropped."""
+    full = _full_columns(model, chosen, found)
+    if list(columns) == full:
+        return list(parts_scores)
+    keep = [full.index(column) for column in columns]
+    return [replace(part, meat=part.meat[:, keep][:, :, keep], partial=part.partial[:, keep])
+            for part in parts_scores]
+
+
+def _full_theta(model: IdentificationModel, chosen: Sequence[int], found: StreamedCandidates,
+                columns: Sequence[int], values: np.ndarray) -> np.ndarray:
+    """``values`` (on ``columns``) on :func:`_full_columns`: a term held at zero is zero."""
+    full = _full_columns(model, chosen, found)
+    theta = np.zeros(len(full))
+    theta[[full.index(column) for column in columns]] = values
+    return theta
 
 
 def _batch_means(model: IdentificationModel, after: SummedEstimate, parts_scores, normal: np.ndarray
@@ -330,16 +392,18 @@ def diagnose_files_run(
     clock.lap("selection_and_estimates")
     threshold = settings.alpha / max(found.n_candidates, 1)  # the search's (SearchSettings.threshold)
     while True:  # the final fit; a finding within its noise there is dropped and the rest refitted, as in memory
-        chosen, columns, after = _final_estimate(model, sums, found, outcome, min_improvement)
+        chosen, columns, after, declared, pinned = _final_estimate(model, sums, found, outcome, min_improvement)
         with step(f"third pass over {len(paths)} training file(s) (covariance)"), findings.reading():  # batch means
-            parts_scores = scores_pass(executor, payload, found.final_plan(chosen), paths, options, after.values,
-                                       after.weights)
-        after, covariance = _batch_means(model, after, parts_scores,
+            parts_scores = scores_pass(executor, payload, found.final_plan(chosen), paths, options,
+                                       _full_theta(model, chosen, found, columns, after.values), after.weights)
+        after, covariance = _batch_means(declared, after, _kept_scores(parts_scores, model, chosen, found, columns),
                                          sums.train.normal_system(columns, after.weights)[0])
         weak = _weakest(model, found, chosen, after, threshold)
         if weak is None:
             break
-        item = outcome.adopted[weak[0]]
+        item = outcome.adopted[weak[0]] if len(chosen) == len(outcome.adopted) else next(
+            other for other in outcome.adopted  # a finding held at zero is not in chosen: by its parameters
+            if set(other.block.names) & set(found.blocks[chosen[weak[0]]].names))
         block = found.blocks[item.index]
         rejected = {**outcome.rejected, item.index: RejectedEffect(
             block.effect.name, tuple(model.channels[row] for row in block.rows), weak[1], candidate_label(block.effect))}
@@ -347,7 +411,8 @@ def diagnose_files_run(
                           rejected=rejected)
     runner_up = summed_runner_up(model, sums.train, sums.validation, found, outcome, chosen, after)
     clock.lap("covariance_pass")
-    run = StreamedRun(paths, validate, settings, first, sums, found, outcome, chosen, columns)
+    run = StreamedRun(paths, validate, settings, first, sums, found, outcome, chosen, columns,
+                      declared=tuple(declared.effects), pinned=pinned)
     result = streamed_result(model, run, before, after, floor, floor_note, streaming_record(run, covariance, clock.seconds))
     if still:
         result = replace(result, streaming={**result.streaming, "still_search": STILL_HELD_OUT
