@@ -66,7 +66,7 @@ from estimation.data.input_findings import FindingsSaid
 from dynamics.models import build_model
 from estimation.diagnosis.forward_selection import SearchOutcome, SearchSettings
 from estimation.diagnosis.sign_constraints import PASSES, PinnedTerm, negative_estimates, pinned_terms
-from estimation.estimators.summed_least_squares import SummedEstimate, SummedLeastSquares
+from estimation.estimators.summed_least_squares import SummedEstimate, SummedLeastSquares, summed_estimator
 from estimation.preprocessing.plan import Preprocessing
 from estimation.streaming.chunks import automatic_cutoff, read_chunks
 from estimation.streaming.cluster import model_payload
@@ -140,7 +140,8 @@ def _refit(model: IdentificationModel, train: ChannelSums, found: StreamedCandid
         column for index in indices for column in found.columns[index]]
     names = list(declared.base.names) + [name for index in indices for name in found.blocks[index].names]
     expressions = list(declared.base.expressions) + names[declared.n_base:]
-    return columns, SummedLeastSquares(method="wls").fit(normal_equations(train, columns, names, expressions)).estimate_
+    n_shape = sum(found.blocks[index].n_shape for index in indices)  # weighted as in memory (summed_estimator)
+    return columns, summed_estimator("wls", n_shape).fit(normal_equations(train, columns, names, expressions)).estimate_
 
 
 def _held_signs(model: IdentificationModel, train: ChannelSums, found: StreamedCandidates, chosen: list[int],
