@@ -64,6 +64,22 @@ def test_the_streamed_diagnosis_of_the_kuka_names_the_in_memory_effects(tmp_path
             for parameter, value in entry["shape"].items():
                 assert shapes[(entry["spec"], tuple(entry["channels"]))][parameter] == pytest.approx(value, rel=1e-6)
     assert _effects(runs["chunked"]) == _effects(runs["budget"])
+    # the default answer after the diagnosis is memory's: the same final model (memory holds fv2, fv3, fv5, fv7 at
+    # zero; at 1a8e964 the streamed fit did not, and weighted its channels otherwise), prior weight (10; was 1) and
+    # plain-law completion (taken at 1.002 against 1.012; was not taken at 1.021 against 1.019)
+    selection = memory["model_selection"]
+    weight = memory["consistent"]["prior_weight"]
+    for name in ("chunked", "budget"):
+        streamed = runs[name]
+        assert [term["parameter"] for term in streamed["pinned"]] == [term["parameter"] for term in memory["pinned"]]
+        assert streamed["model_file"]["effects"] == memory["model_file"]["effects"], name
+        assert streamed["model_selection"]["chosen"] == selection["chosen"], name
+        assert streamed["model_selection"]["reason"].endswith("taken") == selection["reason"].endswith("taken")
+        assert streamed["consistent"]["prior_weight"] == weight, (name, streamed["consistent"]["prior_weight"])
+        for candidate, expected in zip(streamed["model_selection"]["candidates"], selection["candidates"]):
+            assert candidate["name"] == expected["name"]
+            for channel, value in expected["validation_mse"].items():
+                assert candidate["validation_mse"][channel] == pytest.approx(value, rel=1e-6), (name, channel)
 
 
 def test_the_search_s_robust_covariance_from_sums_is_the_batch_means_of_the_residuals(tmp_path):
