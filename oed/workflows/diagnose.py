@@ -915,9 +915,12 @@ def diagnosis_streamed(args: DiagnoseOptions, friction: str, plan: Preprocessing
             with findings.reading():
                 plan = streamed_choice(args, model, **derivatives_on_validation(model, None)).chosen
         still = warned_still_motion(model, args.data, args.validate, chunk_size=chunk_size)  # said as in memory
-        checked = None
+        checked, ratio = None, None
         if gains is None and plan.method != "fourier":  # the per-joint torque gains, checked first as in memory
-            checked = streamed_gains(args, model, plan, chunk_size, still=still)
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")  # the files' findings are said on the diagnosis's passes
+                ratio = streamed_repeated_motion(model, args.data, args.validate, chunk_size=chunk_size)
+            checked = streamed_gains(args, model, plan, chunk_size, ratio=ratio, still=still)
             if checked is not None and checked[1]:
                 divided = divided_diagnosis(given, friction, plan, effects, checked)
                 if divided is not None:
@@ -941,9 +944,10 @@ def diagnosis_streamed(args: DiagnoseOptions, friction: str, plan: Preprocessing
         if resampled_validation({"streaming": diagnosis.streaming}):  # the errors on the samples as recorded
             diagnosis = recorded_errors(diagnosis, args, model_plan)
         model_file = model_plan, diagnosis.after.validation.mse
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # the files' findings were said on the diagnosis's passes
-        ratio = streamed_repeated_motion(model, args.data, args.validate, chunk_size=chunk_size)
+    if ratio is None:  # else measured before the gains' check
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # the files' findings were said on the diagnosis's passes
+            ratio = streamed_repeated_motion(model, args.data, args.validate, chunk_size=chunk_size)
     with step("the default answer: the adopted model or its consistent refit (from the sums)"):
         selection = streamed_selection(args, diagnosis, run, model_file[0], chunk_size, still=still, ratio=ratio)
     # the notes said in memory: a channel made worse, a repeat of the training motion, the joint zeros
@@ -969,15 +973,11 @@ def diagnosis_streamed(args: DiagnoseOptions, friction: str, plan: Preprocessing
 
 
 def streamed_gains(args: DiagnoseOptions, model: IdentificationModel, plan: Preprocessing, chunk_size: int, *,
-                   still: bool) -> tuple[TorqueGains, bool, str] | None:
+                   ratio: float | None, still: bool) -> tuple[TorqueGains, bool, str] | None:
     """The per-joint torque gains of a streamed diagnosis, fitted from the training files' sums of the plain model
     and checked on the validation files by the in-memory rule (:func:`streamed_gains_note`'s conditions and passes),
-    before the diagnosis as in memory (:func:`diagnosis_in_memory`), or ``None`` when they are not tried."""
-    from estimation.streaming.model_selection import streamed_repeated_motion
-
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # the files' findings are said by the diagnosis's passes
-        ratio = streamed_repeated_motion(model, args.data, args.validate, chunk_size=chunk_size)
+    before the diagnosis as in memory (:func:`diagnosis_in_memory`), or ``None`` when they are not tried. ``ratio``:
+    the validation record's repeated-motion ratio."""
     reading = {"chunk_size": chunk_size, "cutoff_hz": plan.cutoff_hz if plan.method == "butterworth" else None,
                "decimation": plan.decimation, "held_torques": plan.held_torques}
     return streamed_gains_check(args, model, reading, ratio=ratio, still=still)
