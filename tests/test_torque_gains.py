@@ -188,12 +188,14 @@ def test_the_streamed_identify_tries_the_gains_as_in_memory(with_gains, tmp_path
 
 
 @pytest.mark.parametrize("with_gains", [True, False], ids=["gains", "none"])
-def test_the_streamed_diagnose_checks_the_gains_as_in_memory_and_says_it_does_not_apply_them(with_gains, tmp_path):
+def test_the_streamed_diagnose_applies_the_gains_as_in_memory(with_gains, tmp_path):
     """The streamed ``oed diagnose`` (``--chunk-size 500``) fits the gains from the training files' sums of the plain
-    model and checks them on the validation files by the in-memory rule (at 7f2677d it did not try them and said
-    nothing): the same gains (1e-6) and verdict as in memory; when taken, ``not_computed.torque_gains`` and a warning
-    say so and that the streamed diagnosis does not divide the records by them (in memory it does); without gains,
-    nothing is said, as in memory."""
+    model and checks them on the validation files by the in-memory rule, first, as in memory; when taken it diagnoses
+    the files with their torques divided by the gains (copies written block by block) and answers in the log's units
+    (at 1a8e964 it said the gains and did not apply them: its chosen model validated 0.0287 / 0.1154 / 0.0127 N²m²
+    against memory's 0.0250 / 0.0085 / 0.0127). The same gains (1e-6), effects, chosen model and validation errors
+    as in memory; the model file holds the gains, and ``oed predict`` reproduces the error the run reports; without
+    gains, nothing is said nor applied, as in memory."""
     import oed
 
     gains = np.array([1.2, 0.8, 1.1]) if with_gains else np.ones(3)
@@ -202,18 +204,27 @@ def test_the_streamed_diagnose_checks_the_gains_as_in_memory_and_says_it_does_no
     for name, options in (("memory", {}), ("streamed", {"chunk_size": 500})):
         run = oed.diagnose(urdf=urdf, data=tmp_path / "train.csv", validate=tmp_path / "validate.csv",
                            friction=FRICTION, **options)
-        documents[name], warned[name] = run.to_dict(), run.warnings
+        run.write(tmp_path / f"{name}.json")
+        documents[name], warned[name] = json.loads((tmp_path / f"{name}.json").read_text()), run.warnings
     memory, streamed = documents["memory"], documents["streamed"]
-    assert memory["diagnosis_path"] != streamed["diagnosis_path"]
-    said = (streamed.get("not_computed") or {}).get("torque_gains")
-    assert streamed["torque_gains"] is None
+    assert memory["diagnosis_path"] != streamed["diagnosis_path"] == "streamed"
+    assert "torque_gains" not in (streamed.get("not_computed") or {})
+    assert not any("does not divide the records" in text for text in warned["streamed"])
+    assert not any("oed-divided-torques" in text for text in warned["streamed"])  # the files named as given
+    assert "oed-divided-torques" not in json.dumps(streamed)
     if not with_gains:
-        assert memory["torque_gains"] is None and said is None
-        assert not any("the streamed diagnosis does not divide the records" in text for text in warned["streamed"])
+        assert memory["torque_gains"] is None and streamed["torque_gains"] is None
+        assert "torque_gains" not in streamed["model_file"]
         return
-    assert memory["torque_gains"] is not None and said is not None and "taken" in said  # in memory: when taken
-    assert "the streamed diagnosis does not divide the records by these gains" in said
-    assert said in warned["streamed"]
+    assert memory["torque_gains"] is not None and streamed["torque_gains"] is not None
     for channel, entry in memory["torque_gains"]["channels"].items():
-        value = float(said.split(f"{channel} ")[1].split(" ")[0])  # as said, 4 digits
-        assert value == pytest.approx(entry["value"], rel=1e-3), (channel, said)
+        other = streamed["torque_gains"]["channels"][channel]
+        assert other["value"] == pytest.approx(entry["value"], rel=1e-6), (channel, other, entry)
+    assert streamed["model_file"]["torque_gains"] == streamed["torque_gains"]
+    assert sorted(e["spec"] for e in streamed["effects"]) == sorted(e["spec"] for e in memory["effects"])
+    assert streamed["model_selection"]["chosen"] == memory["model_selection"]["chosen"]
+    for channel, value in memory["validation"]["chosen"]["mse"].items():
+        assert streamed["validation"]["chosen"]["mse"][channel] == pytest.approx(value, rel=1e-5), channel
+    predicted = oed.predict(model=tmp_path / "streamed.json", data=tmp_path / "validate.csv")
+    reported, measured = streamed["validation"]["chosen"]["mse"], predicted.evaluation.prediction.mse
+    assert all(abs(measured[c] / reported[c] - 1.0) < 1e-6 for c in reported), (measured, reported)

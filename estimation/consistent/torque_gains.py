@@ -23,7 +23,7 @@ validation record, nothing measured them: the declared model is kept).
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
 from typing import Any
 
@@ -37,7 +37,7 @@ from estimation.consistent.model_selection import ModelSelection, answers_scored
 from estimation.identification.prepared import PreparedRecord, PreparedRecords
 from estimation.identification.relative_error import relative_scores
 from estimation.identification.repeated_motion import REPEAT_FRACTION, repeated_motion, still_motion
-from estimation.identification.validation import Comparison
+from estimation.identification.validation import ChannelErrors, Comparison
 
 __all__ = ["DETERMINED_RELATIVE_STD", "SIGNIFICANCE_BLOCKS", "SIGNIFICANCE_Z", "TORQUE_GAINS_TOLERANCE", "TorqueGains", "channel_factors", "channel_sums", "description_scale",
            "block_labels", "divided_records", "divided_torques", "fit_torque_gains", "gains_checked", "gains_for_records",
@@ -378,30 +378,40 @@ def channel_factors(gains: TorqueGains | None, channels: Sequence[str]) -> NDArr
     return np.array([held.get(channel, 1.0) for channel in channels])
 
 
-def _recorded_comparison(comparison: Any, factors: NDArray[np.float64]) -> Any:
+def _recorded_comparison(comparison: Any, factors: NDArray[np.float64],
+                         channels: Sequence[str] = ()) -> Any:
+    if isinstance(comparison, ChannelErrors):  # errors from sums (the streamed path): each channel's MSE times g²
+        squared = dict(zip(channels, factors**2))
+
+        def scaled(mse: Mapping[str, float] | None) -> dict[str, float] | None:
+            return None if mse is None else {channel: float(value * squared.get(channel, 1.0)) for channel, value in
+                                             mse.items()}
+        return replace(comparison, mse=scaled(comparison.mse), mse_filtered=scaled(comparison.mse_filtered))
     if comparison is None or not isinstance(comparison, Comparison):
         return comparison
     return replace(comparison, measured=comparison.measured * factors, predicted=comparison.predicted * factors,
                    filtered=_recorded_comparison(comparison.filtered, factors))
 
 
-def _recorded_fit(fit: Any, factors: NDArray[np.float64]) -> Any:
+def _recorded_fit(fit: Any, factors: NDArray[np.float64], channels: Sequence[str] = ()) -> Any:
     if fit is None:
         return None
-    changes = {"train": _recorded_comparison(fit.train, factors),
-               "validation": _recorded_comparison(fit.validation, factors)}
+    changes = {"train": _recorded_comparison(fit.train, factors, channels),
+               "validation": _recorded_comparison(fit.validation, factors, channels)}
     if isinstance(fit, ConsistentResult):
-        changes["unconstrained"] = _recorded_fit(fit.unconstrained, factors)
+        changes["unconstrained"] = _recorded_fit(fit.unconstrained, factors, channels)
     return replace(fit, **changes)
 
 
 def in_recorded_units(selection: ModelSelection, gains: TorqueGains) -> ModelSelection:
     """``selection`` (fitted to the torques divided by ``gains``) with every candidate's training and validation
     comparison back in the recorded units (measured and predicted torques times the gains): its errors are then
-    those ``oed predict`` measures against the records as logged."""
+    those ``oed predict`` measures against the records as logged (errors from sums, the streamed path's
+    :class:`~estimation.identification.validation.ChannelErrors`: each channel's MSE times its gain squared, exact)."""
     first = next(c.fit for c in selection.candidates if c.fit is not None)
-    factors = channel_factors(gains, first.train.channels)
-    return replace(selection, candidates=tuple(replace(candidate, fit=_recorded_fit(candidate.fit, factors))
+    channels = tuple(getattr(first.train, "channels", None) or first.model.channels)  # errors from sums: the model's
+    factors = channel_factors(gains, channels)
+    return replace(selection, candidates=tuple(replace(candidate, fit=_recorded_fit(candidate.fit, factors, channels))
                                                for candidate in selection.candidates))
 
 

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import os
 import re
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -310,6 +310,44 @@ def joint_side_copies(paths: Sequence[str | Path], folder: str | Path, *, n_join
             if writer is not None:
                 writer.close()
         power.check(transmission, str(path))
+        copies.append(target)
+    return copies
+
+
+def divided_torque_copies(paths: Sequence[str | Path], folder: str | Path, gains: Mapping[str, float], *,
+                          chunk_size: int = 100_000) -> list[Path]:
+    """Copies of ``paths`` in ``folder``, one a file, in order, with each torque column named in ``gains``
+    (``{"tau1": g_1, …}``) divided by its gain (the per-joint torque gains of :mod:`estimation.consistent.torque_gains`,
+    which the in-memory diagnosis divides its records by): written as Parquet (float64: exact) under
+    ``folder/<index>/<the file's name>.parquet``, read and written ``chunk_size`` rows at a time, so that the streamed
+    diagnosis reads the divided torques in bounded memory. Every other column is copied as it is.
+
+    Raises
+    ------
+    ValueError
+        A file that is not a .csv or .parquet file, or lacks a torque column of ``gains``.
+    """
+    folder = Path(folder)
+    copies: list[Path] = []
+    for index, source in enumerate(paths):
+        path = Path(os.fspath(source))
+        if path.suffix.lower() not in (".csv", ".parquet") or not path.is_file() or is_log_file(source):
+            raise ValueError(f"{source}: only .csv and .parquet files are copied with their torques divided")
+        target = folder / str(index) / f"{path.stem}.parquet"
+        target.parent.mkdir(parents=True, exist_ok=True)
+        writer = None
+        try:
+            for frame in _frames(path, chunk_size):
+                missing = [column for column in gains if column not in frame.columns]
+                if missing:
+                    raise ValueError(f"{source}: no column {', '.join(missing)} to divide by its gain")
+                frame = frame.copy()
+                for column, gain in gains.items():
+                    frame[column] = pd.to_numeric(frame[column], errors="coerce").astype("float64") / float(gain)
+                writer = _written(frame, target, writer)
+        finally:
+            if writer is not None:
+                writer.close()
         copies.append(target)
     return copies
 

@@ -59,10 +59,14 @@ def _positive(effect: Effect) -> bool:
 
 def negative_terms(result: IdentificationResult) -> dict[str, tuple[float, float]]:
     """Lone base parameters of positive-by-physics effects estimated below zero: name -> (value, std)."""
-    model = result.model
+    return negative_estimates(result.model, result.estimate)
+
+
+def negative_estimates(model: IdentificationModel, estimate: Any) -> dict[str, tuple[float, float]]:
+    """:func:`negative_terms` of ``estimate`` (any estimate with ``records()``: a fit from sums too) of ``model``."""
     positive = {name for effect in model.effects if _positive(effect) for name in effect.parameter_names(model.robot)}
     negative = {}
-    for record in result.estimate.records():
+    for record in estimate.records():
         expression = record["expression"].strip()
         if expression in positive and record["value"] < 0:
             negative[expression] = (float(record["value"]), float(record["std"]))
@@ -82,6 +86,21 @@ def _without(effect: Effect, parameters: set[str], model: IdentificationModel) -
     kept = tuple(joint for position, joint in enumerate(joints)
                  if not set(names[position * per_joint:(position + 1) * per_joint]) & parameters)
     return dataclasses.replace(effect, joints=kept) if kept else None
+
+
+def pinned_terms(effects: list[Effect], found: list[Effect], negative: dict[str, tuple[float, float]],
+                 declared: IdentificationModel) -> tuple[list[Effect], list[Effect], list[PinnedTerm]]:
+    """One pass of :func:`pin_wrong_signs` on effects: ``(declared effects kept, findings kept, terms held)``, the
+    declared ``effects`` without the joints of the ``negative`` terms, the ``found`` effects without those holding
+    one (dropped from the findings), each term held reported (in the effects' order: the report must not depend on
+    the hash seed). The streamed diagnosis takes the same step on its sums (:mod:`estimation.streaming.diagnosis`)."""
+    names, found_ids, pinned = set(negative), {id(effect) for effect in found}, []
+    for effect in list(effects) + list(found):
+        for name in (name for name in effect.parameter_names(declared.robot) if name in names):
+            value, std = negative[name]
+            pinned.append(PinnedTerm(name, getattr(effect, "spec", effect.name), value, std, id(effect) in found_ids))
+    kept = [held for held in (_without(effect, names, declared) for effect in effects) if held is not None]
+    return kept, [effect for effect in found if _without(effect, names, declared) is effect], pinned
 
 
 def pin_wrong_signs(selected: list, after: IdentificationResult, declared: IdentificationModel, train: Measurements,

@@ -20,7 +20,7 @@ from estimation.estimators.estimator import Estimator
 from estimation.estimators.least_squares import IDENTIFIABILITY_TOLERANCE, IdentifiabilityError, ParameterRecords, freeze_arrays
 from estimation.estimators.normal_equations import NormalEquations, stacked_factor
 
-__all__ = ["SummedEstimate", "SummedLeastSquares", "solve_sums"]
+__all__ = ["SHAPED_ROUNDS", "SHAPED_TOL", "SummedEstimate", "SummedLeastSquares", "solve_sums", "summed_estimator"]
 
 
 def solve_sums(sums: NormalEquations, weights: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64], float]:
@@ -104,15 +104,20 @@ class SummedLeastSquares(Estimator):
     ``variance_floor`` times the channel's mean square) or, with ``method="ols"``,
     :class:`estimation.estimators.least_squares.LeastSquares`; only the data come as sums. The variances are those
     of the residual in the motion's band when the sums hold its sums (:attr:`NormalEquations.band`), as in memory.
+    ``n_shape``: parameters fitted beside the columns (shaped laws' shape parameters, the columns summed at their
+    fitted values) counted in each channel's degrees of freedom, ``N − (r + n_shape)/m``, as the in-memory
+    variable-projection fit counts them (:func:`estimation.identification.shaped.fit_shaped_model`; with the
+    weights iterated as there: :func:`summed_estimator`).
     ``fit(sums)`` returns ``self``; fitted attributes ``estimate_``, ``theta_``, ``cov_``, ``std_``.
     """
 
     def __init__(self, *, method: Literal["ols", "wls"] = "wls", max_iter: int = 20, tol: float = 1e-6,
-                 variance_floor: float = 1e-14) -> None:
+                 variance_floor: float = 1e-14, n_shape: int = 0) -> None:
         self.method = method
         self.max_iter = max_iter
         self.tol = tol
         self.variance_floor = variance_floor
+        self.n_shape = n_shape
 
     @single_threaded_blas()
     def fit(self, sums: NormalEquations) -> SummedLeastSquares:
@@ -126,7 +131,10 @@ class SummedLeastSquares(Estimator):
         N, m, r = sums.n_samples, sums.n_channels, sums.n_columns
         if N * m <= r:
             raise ValueError(f"{N * m} equations for {r} parameters: need more samples")
-        dof_channel = N - r / m
+        n_shape = int(getattr(self, "n_shape", 0))
+        if n_shape < 0:
+            raise ValueError(f"n_shape must be a non-negative integer, got {self.n_shape}")
+        dof_channel = N - (r + n_shape) / m  # a shaped law's shape parameters counted, as in memory
         weights = np.ones(m)
         iterations = 1
         if self.method == "wls":
@@ -168,3 +176,21 @@ class SummedLeastSquares(Estimator):
     theta_ = property(lambda self: self._fitted().values, doc="Estimated parameters.")
     cov_ = property(lambda self: self._fitted().cov, doc="Covariance of the estimates.")
     std_ = property(lambda self: self._fitted().std, doc="Standard deviations.")
+
+
+#: the in-memory fit of a model with shaped laws iterates its channel weights this many rounds at most, stopping when
+#: no weight moves by more than :data:`SHAPED_TOL` (:func:`estimation.identification.shaped.fit_shaped_model`)
+SHAPED_ROUNDS = 4
+SHAPED_TOL = 1e-4
+
+
+def summed_estimator(method: Literal["ols", "wls"], n_shape: int = 0) -> SummedLeastSquares:
+    """The estimator from sums that fits as the in-memory ``identify`` fits the same model: without shaped laws
+    (``n_shape == 0``) :class:`SummedLeastSquares` as :class:`~estimation.estimators.least_squares.
+    WeightedLeastSquares`; with ``n_shape`` shape parameters held at their fitted values (the sums' columns at those
+    shapes), the variable-projection fit's weighting (:data:`SHAPED_ROUNDS` rounds at most, :data:`SHAPED_TOL`, the
+    shape parameters counted in the degrees of freedom), whose weights at the final solve may not have settled:
+    the same estimate on the same samples."""
+    if n_shape:
+        return SummedLeastSquares(method=method, max_iter=SHAPED_ROUNDS - 1, tol=SHAPED_TOL, n_shape=n_shape)
+    return SummedLeastSquares(method=method)

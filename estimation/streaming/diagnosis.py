@@ -31,7 +31,10 @@ The declared and augmented models are estimated from the whole records' sums by
 gives the augmented estimate's batch-means covariance (:mod:`estimation.streaming.covariance`; residuals
 correlated in time, as on the filter path, make the classical standard deviations far too small;
 the declared model's stay classical); a finding within its noise there (Wald p not below the search's threshold) is
-dropped and the rest refitted, the weakest first, as the in-memory final refit drops it. Every validation and
+dropped and the rest refitted, the weakest first, as the in-memory final refit drops it (not when both subsamples
+hold their whole records: the subsample's final refit then made memory's own test on the same samples, and a second
+test with another covariance estimator, its batch length on a grid of powers of two, dropped at the margin a law
+memory keeps: the Panda's joint-2 offset, Wald p = 9.6e-6 in memory, 2.4e-5 from the sums, threshold 1.05e-5). Every validation and
 training MSE is against the channels **as recorded** (the recorded torques, along the derived motion), as the
 in-memory diagnosis measures them. :func:`robust_covariance` and :class:`~estimation.streaming.selection.SummedFits`
 are the search from sums alone (every sample of the record in each test, the shapes fixed where the subsample's
@@ -63,13 +66,17 @@ from dynamics.runtime.progress import step
 from dynamics.models import IdentificationModel
 from dynamics.transmission import Transmission
 from estimation.data.input_findings import FindingsSaid
+from dynamics.models import build_model
 from estimation.diagnosis.forward_selection import SearchOutcome, SearchSettings
-from estimation.estimators.summed_least_squares import SummedEstimate, SummedLeastSquares
+from estimation.diagnosis.sign_constraints import PASSES, PinnedTerm, negative_estimates, pinned_terms
+from estimation.estimators.summed_least_squares import SummedEstimate, SummedLeastSquares, summed_estimator
 from estimation.preprocessing.delay import DelayBounds
 from estimation.preprocessing.plan import Preprocessing
-from estimation.streaming.chunks import automatic_cutoff, read_chunks
+from dynamics.measurements import Measurements
+from estimation.preprocessing.plan import at_recorded_stamps
+from estimation.streaming.chunks import automatic_cutoff, logged_chunks, read_chunks
 from estimation.streaming.cluster import model_payload
-from estimation.streaming.covariance import sandwich
+from estimation.streaming.covariance import BatchScores, sandwich
 from estimation.streaming.diagnosis_passes import (FLOOR_WINDOW, LagSums, SumsPass, scores_pass, subsample_pass,
                                                   sums_pass, window_floor)
 from estimation.streaming.diagnosis_candidates import StreamedCandidates, streamed_candidates
@@ -77,7 +84,7 @@ from estimation.diagnosis.results import Diagnosis, RejectedEffect
 from estimation.diagnosis.candidates.trials import candidate_label
 from estimation.diagnosis.rules.robust_test import estimate_test
 from estimation.streaming.diagnosis_result import StreamedRun, StreamedSettings, streamed_result, streaming_record
-from estimation.streaming.diagnosis_sums import ChannelSums, normal_equations
+from estimation.streaming.diagnosis_sums import ChannelSums, concatenate, normal_equations
 from estimation.streaming.periods import plan_options
 from estimation.streaming.selection import STILL_HELD_OUT, simpler_laws, summed_runner_up
 from estimation.streaming.settings import DEFAULT_SUBSAMPLE
@@ -129,20 +136,65 @@ def _checked_settings(model: IdentificationModel, paths: list[str], validate: li
     return settings
 
 
-def _refit(model: IdentificationModel, train: ChannelSums, found: StreamedCandidates, indices: Sequence[int]
-           ) -> tuple[list[int], SummedEstimate]:
-    """The declared model with the candidates ``indices``, estimated from the training sums."""
-    columns = list(range(model.n_base)) + [column for index in indices for column in found.columns[index]]
-    names = list(model.base.names) + [name for index in indices for name in found.blocks[index].names]
-    expressions = list(model.base.expressions) + names[model.n_base:]
-    return columns, SummedLeastSquares(method="wls").fit(normal_equations(train, columns, names, expressions)).estimate_
+def _refit(model: IdentificationModel, train: ChannelSums, found: StreamedCandidates, indices: Sequence[int],
+           declared: IdentificationModel | None = None) -> tuple[list[int], SummedEstimate]:
+    """The declared model with the candidates ``indices``, estimated from the training sums (``declared``: the
+    declared model with terms held at zero, :func:`_held_signs`, its base columns among ``model``'s)."""
+    declared = model if declared is None else declared
+    names = list(model.base.names)
+    columns = [names.index(name) for name in declared.base.names] + [
+        column for index in indices for column in found.columns[index]]
+    names = list(declared.base.names) + [name for index in indices for name in found.blocks[index].names]
+    expressions = list(declared.base.expressions) + names[declared.n_base:]
+    n_shape = sum(found.blocks[index].n_shape for index in indices)  # weighted as in memory (summed_estimator)
+    return columns, summed_estimator("wls", n_shape).fit(normal_equations(train, columns, names, expressions)).estimate_
+
+
+def _held_signs(model: IdentificationModel, train: ChannelSums, found: StreamedCandidates, chosen: list[int],
+                columns: list[int], after: SummedEstimate
+                ) -> tuple[IdentificationModel, list[int], list[int], SummedEstimate, tuple[PinnedTerm, ...]]:
+    """The in-memory sign step (:func:`estimation.diagnosis.sign_constraints.pin_wrong_signs`) on the sums: while a
+    positive-by-physics term (viscous, Coulomb, rotor inertia) is estimated below zero, it is held at zero (a
+    declared effect loses that joint, a finding holding it is dropped) and the model refitted from the training
+    sums, at most :data:`~estimation.diagnosis.sign_constraints.PASSES` times, from the declared model without the
+    terms the subsample's final refit held at zero (``found.pinned``: on a record taken whole, memory's). ``(declared
+    model kept, chosen, columns, after, pinned)``; a declared model whose base is not among the sums' columns is not
+    reduced."""
+    declared, pinned = model, list(found.pinned)
+    if pinned:  # the declared terms the subsample's final refit held at zero, as memory's mixed model inherits them
+        effects, _, _ = pinned_terms(list(model.effects), [], {term.parameter: (term.value, term.std)
+                                                              for term in pinned}, model)
+        reduced = build_model(model.robot, model.kind, tuple(effects))
+        if set(reduced.base.names) <= set(model.base.names):
+            declared = reduced
+            columns, after = _refit(model, train, found, chosen, declared)
+        else:
+            pinned = []
+    for _ in range(PASSES):
+        final = build_model(model.robot, model.kind, tuple(declared.effects) + tuple(
+            found.blocks[index].effect for index in chosen))
+        negative = negative_estimates(final, after)
+        if not negative:
+            break
+        by_effect = {id(found.blocks[index].effect): index for index in chosen}
+        effects, kept, held = pinned_terms(list(declared.effects), [found.blocks[index].effect for index in chosen],
+                                           negative, model)
+        reduced = build_model(model.robot, model.kind, tuple(effects))
+        if not set(reduced.base.names) <= set(model.base.names):
+            break
+        declared, chosen, pinned = reduced, [by_effect[id(effect)] for effect in kept], pinned + held
+        columns, after = _refit(model, train, found, chosen, declared)
+    return declared, chosen, columns, after, tuple(pinned)
 
 
 def _final_estimate(model: IdentificationModel, sums: SumsPass, found: StreamedCandidates, outcome: SearchOutcome,
-                    min_improvement: float) -> tuple[list[int], list[int], SummedEstimate]:
-    """``(chosen, columns, after)``: the augmented model refitted on all samples at the shapes as
+                    min_improvement: float
+                    ) -> tuple[list[int], list[int], SummedEstimate, IdentificationModel, tuple[PinnedTerm, ...]]:
+    """``(chosen, columns, after, declared, pinned)``: the augmented model refitted on all samples at the shapes as
     selected; a found Stribeck law the fit does not support becomes Coulomb friction when the
-    weighted validation error does not grow by more than ``min_improvement`` (:func:`simpler_laws`)."""
+    weighted validation error does not grow by more than ``min_improvement`` (:func:`simpler_laws`); then a
+    positive-by-physics term below zero held at zero as in memory (:func:`_held_signs`: ``declared`` the declared
+    model without the joints so held, ``pinned`` the terms)."""
     chosen = [item.index for item in outcome.adopted]
     columns, after = _refit(model, sums.train, found, chosen)
     weights = outcome.weights  # the search's last weights (the declared model's unless it reweights)
@@ -153,7 +205,34 @@ def _final_estimate(model: IdentificationModel, sums: SumsPass, found: StreamedC
         columns_s, after_s = _refit(model, sums.train, found, simpler)
         if float(weights @ sums.validation.channel_mse(columns_s, after_s.values)) <= (1.0 + min_improvement) * error:
             chosen, columns, after = simpler, columns_s, after_s
-    return chosen, columns, after
+    declared, chosen, columns, after, pinned = _held_signs(model, sums.train, found, chosen, columns, after)
+    return chosen, columns, after, declared, pinned
+
+
+def _full_columns(model: IdentificationModel, chosen: Sequence[int], found: StreamedCandidates) -> list[int]:
+    """The columns the covariance pass evaluates: the declared model's and the candidates ``chosen``."""
+    return list(range(model.n_base)) + [column for index in chosen for column in found.columns[index]]
+
+
+def _kept_scores(parts_scores: Sequence[BatchScores], model: IdentificationModel, chosen: Sequence[int],
+                 found: StreamedCandidates, columns: Sequence[int]) -> list[BatchScores]:
+    """The covariance pass's batch scores (on :func:`_full_columns`, at the estimate with a term held at zero
+    there) on the ``columns`` fitted: the rows and columns of the held terms dropped."""
+    full = _full_columns(model, chosen, found)
+    if list(columns) == full:
+        return list(parts_scores)
+    keep = [full.index(column) for column in columns]
+    return [replace(part, meat=part.meat[:, keep][:, :, keep], partial=part.partial[:, keep])
+            for part in parts_scores]
+
+
+def _full_theta(model: IdentificationModel, chosen: Sequence[int], found: StreamedCandidates,
+                columns: Sequence[int], values: np.ndarray) -> np.ndarray:
+    """``values`` (on ``columns``) on :func:`_full_columns`: a term held at zero is zero."""
+    full = _full_columns(model, chosen, found)
+    theta = np.zeros(len(full))
+    theta[[full.index(column) for column in columns]] = values
+    return theta
 
 
 def _batch_means(model: IdentificationModel, after: SummedEstimate, parts_scores, normal: np.ndarray
@@ -222,6 +301,27 @@ def robust_covariance(model: IdentificationModel, sums: SumsPass, found: Streame
         return theta, classical * np.outer(ratio, ratio)
 
     return robust
+
+
+def _at_recorded_stamps(sample: Measurements, validate: Sequence[str], model: IdentificationModel,
+                        settings: StreamedSettings) -> Measurements:
+    """The validation subsample with its channels as recorded those of the samples as logged, as in memory
+    (:func:`estimation.preprocessing.plan.at_recorded_stamps`: the torques at their own time stamps, the derived
+    motion interpolated there), when it holds the whole of one validation file the reader resampled onto a grid
+    (a jittered log): the search then confirms its candidates on the samples memory confirms them on (on the Panda's
+    jittered validation record the grid's 3 360 samples against its 3 110 rows as logged). Else ``sample``."""
+    recorded = sample.recorded
+    if len(validate) != 1 or recorded is None or settings.frequency_hz is not None \
+            or sample.metadata.get("resampled_from") is None or sample.metadata.get("segments_in_file", 1) != 1:
+        return sample
+    chunks = list(logged_chunks(validate[0], model, chunk_size=settings.chunk_size))
+    if not chunks:
+        return sample
+    stamps = concatenate(chunks) if len(chunks) > 1 else chunks[0]
+    if stamps.n_samples != int(sample.metadata["resampled_from"]) or recorded.t[0] > stamps.t[0] \
+            or recorded.t[-1] < stamps.t[-1]:  # not the whole file as logged
+        return sample
+    return at_recorded_stamps(sample, stamps)
 
 
 def _declared(model: IdentificationModel, sums: SumsPass) -> SummedEstimate:
@@ -320,6 +420,7 @@ def diagnose_files_run(
         first = subsample_pass(executor, payload, paths, options, settings.subsample)  # pass 1 (training files)
     with step(f"a pass over {len(validate)} validation file(s) (subsample)"), findings.reading():
         held = subsample_pass(executor, payload, validate, dict(options, as_recorded=True), settings.subsample)
+        held = replace(held, sample=_at_recorded_stamps(held.sample, validate, model, settings))
     with step(f"shape search, refinement and coupling tracing on {first.sample.n_samples} samples"):
         found = streamed_candidates(model, candidates, first.sample, clock.lap, transmission, held.sample,
                                     SearchSettings(alpha, min_improvement, max_effects, 0, same_effect_adopted=True),
@@ -340,17 +441,21 @@ def diagnose_files_run(
     outcome = found.outcome  # the search of the subsample (streamed_candidates)
     clock.lap("selection_and_estimates")
     threshold = settings.alpha / max(found.n_candidates + (delay is not None), 1)  # the search's (SearchSettings.threshold)
+    whole = first.sample.n_samples == first.seen and held.sample.n_samples == held.seen and outcome is not None
     while True:  # the final fit; a finding within its noise there is dropped and the rest refitted, as in memory
-        chosen, columns, after = _final_estimate(model, sums, found, outcome, min_improvement)
+        chosen, columns, after, declared, pinned = _final_estimate(model, sums, found, outcome, min_improvement)
         with step(f"third pass over {len(paths)} training file(s) (covariance)"), findings.reading():  # batch means
-            parts_scores = scores_pass(executor, payload, found.final_plan(chosen), paths, options, after.values,
-                                       after.weights)
-        after, covariance = _batch_means(model, after, parts_scores,
+            parts_scores = scores_pass(executor, payload, found.final_plan(chosen), paths, options,
+                                       _full_theta(model, chosen, found, columns, after.values), after.weights)
+        after, covariance = _batch_means(declared, after, _kept_scores(parts_scores, model, chosen, found, columns),
                                          sums.train.normal_system(columns, after.weights)[0])
-        weak = _weakest(model, found, chosen, after, threshold)
+        # on records taken whole the subsample's final refit made memory's test on the same samples: not again
+        weak = None if whole else _weakest(model, found, chosen, after, threshold)
         if weak is None:
             break
-        item = outcome.adopted[weak[0]]
+        item = outcome.adopted[weak[0]] if len(chosen) == len(outcome.adopted) else next(
+            other for other in outcome.adopted  # a finding held at zero is not in chosen: by its parameters
+            if set(other.block.names) & set(found.blocks[chosen[weak[0]]].names))
         block = found.blocks[item.index]
         rejected = {**outcome.rejected, item.index: RejectedEffect(
             block.effect.name, tuple(model.channels[row] for row in block.rows), weak[1], candidate_label(block.effect))}
@@ -358,7 +463,8 @@ def diagnose_files_run(
                           rejected=rejected)
     runner_up = summed_runner_up(model, sums.train, sums.validation, found, outcome, chosen, after)
     clock.lap("covariance_pass")
-    run = StreamedRun(paths, validate, settings, first, sums, found, outcome, chosen, columns)
+    run = StreamedRun(paths, validate, settings, first, sums, found, outcome, chosen, columns,
+                      declared=tuple(declared.effects), pinned=pinned)
     result = streamed_result(model, run, before, after, floor, floor_note, streaming_record(run, covariance, clock.seconds))
     if still:
         result = replace(result, streaming={**result.streaming, "still_search": STILL_HELD_OUT

@@ -30,6 +30,7 @@ from estimation.diagnosis.forward_selection import (SearchOutcome, SearchSetting
                                                     declared_friction_joints)
 from estimation.diagnosis.runner_up import RunnerUpSearch
 from estimation.diagnosis.final_refit import refit_significant
+from estimation.diagnosis.sign_constraints import PinnedTerm
 from estimation.diagnosis.plain_laws import PlainLawChoice, plain_law_choice
 from estimation.diagnosis.record_fits import RecordFits, declared_regressor
 from estimation.diagnosis.rules.robust_test import estimate_test
@@ -87,11 +88,11 @@ class SearchedDelay:
 def subsample_search(model: IdentificationModel, blocks: dict[int, Block], rejected: dict[int, RejectedEffect],
                      shapes: dict[int, np.ndarray], sample: Measurements, validation: Measurements,
                      search: SearchSettings, delay: DelayBounds | None = None, jobs: int | None = 1
-                     ) -> tuple[dict[int, np.ndarray], SearchOutcome, SearchedDelay]:
+                     ) -> tuple[dict[int, np.ndarray], SearchOutcome, SearchedDelay, tuple[PinnedTerm, ...]]:
     """The in-memory diagnosis's search (:class:`~estimation.diagnosis.runner_up.RunnerUpSearch` on
     :class:`~estimation.diagnosis.record_fits.RecordFits`) and its final refit
     (:func:`~estimation.diagnosis.final_refit.refit_significant`) on the training ``sample`` confirmed on the
-    ``validation`` sample (prepared; its channels as recorded for the errors): ``(shapes, outcome)``, each shaped
+    ``validation`` sample (prepared; its channels as recorded for the errors): ``(shapes, outcome, pinned)``, each shaped
     law's shape as that search leaves it and its outcome as the in-memory diagnosis ends it: the findings the final
     refit drops as within their noise moved to the rejected ones, a law it replaces by its simpler law (the sign law
     of a smoothed Coulomb law, Coulomb's of an unsupported Stribeck law) replaced by that law's candidate, and the
@@ -107,7 +108,9 @@ def subsample_search(model: IdentificationModel, blocks: dict[int, Block], rejec
     searched, as in memory (its grid, its trials and adoption rule in the rounds, searched again by the final refit;
     ``None``: not tried): the :class:`SearchedDelay` the refit (or the mixed model) holds. ``jobs``: the processes a
     round's candidate fits run in, as in memory (:class:`~estimation.diagnosis.record_fits.RecordFits`; the same
-    answer at any count). When both samples hold their whole records, this is the in-memory search and refit."""
+    answer at any count). When both samples hold their whole records, this is the in-memory search and refit.
+    ``pinned``: the declared model's terms the final refit held at zero (a negative friction,
+    :func:`~estimation.diagnosis.sign_constraints.pin_wrong_signs`), which the mixed model inherits in memory."""
     before = identify(model, sample, validation)
     weights = before.estimate.weights if before.estimate.method == "wls" else 1.0 / before.estimate.channel_variance
     fits = RecordFits(model, declared_regressor(model, before), sample, validation.as_recorded, delay,
@@ -117,7 +120,7 @@ def subsample_search(model: IdentificationModel, blocks: dict[int, Block], rejec
     for group, fit in fits.previous.items():
         if len(group) == 1 and group[0] in refined and blocks[group[0]].n_shape:
             refined[group[0]] = np.asarray(fit.shape, dtype=float)[:blocks[group[0]].n_shape]
-    selected, after, _, dropped = refit_significant(model, before, outcome.adopted, fits.delay, sample, validation,
+    selected, after, pinned, dropped = refit_significant(model, before, outcome.adopted, fits.delay, sample, validation,
                                                     outcome.weights, outcome.current.validation_error,
                                                     search.min_improvement, search.threshold)
     gone = {id(item): reason for item, reason in dropped}
@@ -147,7 +150,8 @@ def subsample_search(model: IdentificationModel, blocks: dict[int, Block], rejec
                                            "not tested: the search ended before a round tried it")  # as in memory
     searched = SearchedDelay(after.delay if fits.delay.adopted is not None else None,
                              reason)
-    return refined, replace(outcome, adopted=tuple(found), rejected=rejected_now), searched
+    return refined, replace(outcome, adopted=tuple(found), rejected=rejected_now), searched, tuple(
+        term for term in pinned if not term.found)
 
 
 def _rejected(model: IdentificationModel, item: AdoptedEffect, reason: str) -> RejectedEffect:
@@ -205,6 +209,7 @@ class StreamedCandidates:
     plan: bytes  # the pickled effects and shapes the workers evaluate
     outcome: SearchOutcome | None = None  # the search on the subsample (:func:`subsample_search`)
     delay: SearchedDelay = SearchedDelay()  # its delay candidate
+    pinned: tuple[PinnedTerm, ...] = ()  # the declared terms its final refit held at zero (:func:`subsample_search`)
 
     @property
     def columns(self) -> dict[int, tuple[int, ...]]:
@@ -231,7 +236,7 @@ def streamed_candidates(model: IdentificationModel, candidates: Sequence[Effect]
                        if candidates is None else candidates)
     blocks, rejected = candidate_blocks(model, candidates)
     lap("subsample_pass")
-    outcome, failed, searched = None, {}, SearchedDelay()
+    outcome, failed, searched, pinned = None, {}, SearchedDelay(), ()
     if searching:
         # the search's first round searches every shape from its grid, as in memory (a law whose search fails there
         # is tried again in later rounds); a law it never fitted keeps its parameters' starts
@@ -239,7 +244,7 @@ def streamed_candidates(model: IdentificationModel, candidates: Sequence[Effect]
                   for index, block in blocks.items()}
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # the subsample's own search: its warnings are not the record's
-            shapes, outcome, searched = subsample_search(
+            shapes, outcome, searched, pinned = subsample_search(
                 model, blocks, rejected, starts, sample, validation,
                 replace(search, n_tests=len(candidates) + (delay is not None)), delay, jobs)  # the delay too
         lap("subsample_search")
@@ -254,4 +259,4 @@ def streamed_candidates(model: IdentificationModel, candidates: Sequence[Effect]
     order = sorted(blocks)
     plan = pickle.dumps(([blocks[i].effect for i in order], [shapes[i] for i in order]))
     return StreamedCandidates({i: blocks[i] for i in order}, shapes, {**rejected, **failed}, len(candidates),
-                       ColumnLayout.build(model, [blocks[i] for i in order]), plan, outcome, searched)
+                       ColumnLayout.build(model, [blocks[i] for i in order]), plan, outcome, searched, pinned)

@@ -11,6 +11,7 @@ from typing import Any
 
 import numpy as np
 
+from dynamics.effects.linear import Effect
 from dynamics.models import IdentificationModel, build_model
 from estimation.diagnosis.candidates.trials import candidate_label
 from estimation.diagnosis.forward_selection import SearchOutcome
@@ -24,6 +25,7 @@ from estimation.diagnosis.results import (
     SummedFit,
     found_delay,
 )
+from estimation.diagnosis.sign_constraints import PinnedTerm
 from estimation.diagnosis.statistics import FLOOR_ALPHA, ResidualReport
 from estimation.estimators.summed_least_squares import SummedEstimate
 from estimation.identification.fit import implausible_estimates
@@ -46,8 +48,8 @@ NOT_ON_THIS_PATH = (
     "user stopping rules (the noise floor is the rule)",
     "model_parameters (the physical reading of the estimate)",
     "the delay's standard deviation over the whole record (the subsample's final refit gives it)",
-    "limit laws and negative friction held at zero (pinned) in the final estimate (the subsample's final refit "
-    "applies them to choose the findings)",
+    "limit laws in the final estimate (the subsample's final refit applies them to choose the findings; negative "
+    "friction is held at zero on the whole record's sums, as in memory)",
 )
 
 
@@ -93,6 +95,10 @@ class StreamedRun:
     outcome: SearchOutcome
     chosen: list[int]
     columns: list[int]
+    #: the declared effects the final estimate holds (a positive-by-physics term below zero held at zero: that
+    #: joint removed, as in memory; ``None``: all of them), and the terms so held
+    declared: tuple[Effect, ...] | None = None
+    pinned: tuple[PinnedTerm, ...] = ()
 
 
 def file_record(path: str, sums, record: dict) -> dict[str, Any]:
@@ -163,13 +169,22 @@ def streamed_result(model: IdentificationModel, run: StreamedRun, before: Summed
     delay = run.found.delay
     if delay.reason is not None:  # the delay not adopted, with the rejected candidates, as in memory
         rejected[run.found.n_candidates] = RejectedEffect("delay", tuple(model.channels), delay.reason, "delay")
+    for term in (term for term in run.pinned if term.found):  # a finding held at zero: dropped, as in memory
+        index = next((index for index, block in run.found.blocks.items() if term.parameter in block.names
+                      and candidate_label(block.effect) == term.effect), None)
+        if index is not None:
+            block = run.found.blocks[index]
+            rejected[index] = RejectedEffect(
+                block.effect.name, tuple(model.channels[row] for row in block.rows),
+                f"added, but its estimate turned negative in the final fit ({term.parameter} = {term.value:.4g} ± "
+                f"{term.std:.2g}): dropped", term.effect)
     found = tuple(run.found.blocks[index].effect for index in run.chosen)
-    final = build_model(model.robot, model.kind, tuple(model.effects) + found)
+    final = build_model(model.robot, model.kind, tuple(model.effects if run.declared is None else run.declared) + found)
     fits = {which: SummedFit(
         model=model if which == "before" else final, estimate=estimate,
         train=ChannelErrors(mse["train", which], train.n_samples),
         validation=ChannelErrors(mse["validation", which], validation.n_samples),
-        warnings=implausible_estimates(model, estimate) + (
+        warnings=implausible_estimates(model if which == "before" else final, estimate) + (
             trivial_warnings(mse["validation", "after"], trivial) if which == "after" else ()),
         cov_method="classical" if which == "before" else "batch_means")  # batch means: estimation.streaming.covariance
         for which, estimate in (("before", before), ("after", after))}
@@ -180,7 +195,8 @@ def streamed_result(model: IdentificationModel, run: StreamedRun, before: Summed
         rejected=tuple(rejected[i] for i in sorted(rejected)),
         before=fits["before"], after=fits["after"], residuals=None,
         statistics=floor_report(fits["before"], fits["after"], floor, floor_note),
-        path="streamed", not_computed=dict(STREAMED_NOT_COMPUTED), trivial=trivial, streaming=streaming)
+        path="streamed", not_computed=dict(STREAMED_NOT_COMPUTED), trivial=trivial, streaming=streaming,
+        pinned=run.pinned)
 
 
 def floor_report(before: SummedFit, after: SummedFit, floor: NoiseFloor | None, floor_note: str) -> ResidualReport:

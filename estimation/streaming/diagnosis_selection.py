@@ -48,7 +48,7 @@ from estimation.consistent.model_selection import (
 )
 from estimation.diagnosis.plain_laws import completion_laws
 from estimation.diagnosis.results import Diagnosis, SummedFit
-from estimation.estimators.summed_least_squares import SummedLeastSquares
+from estimation.estimators.summed_least_squares import summed_estimator
 from estimation.identification.fit import implausible_estimates
 from estimation.identification.validation import ChannelErrors
 from estimation.streaming.diagnosis_result import StreamedRun
@@ -166,7 +166,8 @@ def streamed_completion(diagnosis: Diagnosis, run: StreamedRun, score: Scorer | 
     expressions = list(after.estimate.expressions) + names[len(after.estimate.names):]
     sums = run.sums
     try:
-        estimate = SummedLeastSquares(method=after.estimate.method).fit(
+        n_shape = sum(run.found.blocks[index].n_shape for index in run.chosen)  # weighted as in memory
+        estimate = summed_estimator(after.estimate.method, n_shape).fit(
             normal_equations(sums.train, columns, names, expressions)).estimate_
     except (ValueError, np.linalg.LinAlgError):
         return None

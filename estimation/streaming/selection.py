@@ -51,7 +51,7 @@ from estimation.diagnosis.runner_up import RivalFit, RivalFitter, RunnerUpOutcom
 from estimation.diagnosis.statistics import FLOOR_ALPHA
 from estimation.estimators.effect_blocks import Block
 from estimation.estimators.variable_projection import ShapeFit
-from estimation.estimators.summed_least_squares import SummedLeastSquares
+from estimation.estimators.summed_least_squares import summed_estimator
 from estimation.identification.fit import implausible_estimates
 from estimation.streaming.diagnosis_sums import ChannelSums, normal_equations
 from estimation.uncertainty.noise_floor import NoiseFloor
@@ -308,7 +308,8 @@ def summed_rival_fitter(model: IdentificationModel, train: ChannelSums, validati
         selection = list(range(model.n_base)) + [column for index in indices for column in columns[index]]
         names = list(model.base.names) + [name for index in indices for name in blocks[index].names]
         expressions = list(model.base.expressions) + names[model.n_base:]
-        estimate = SummedLeastSquares(method="wls").fit(normal_equations(train, selection, names, expressions)).estimate_
+        n_shape = sum(blocks[index].n_shape for index in indices)  # weighted as the in-memory fit of shaped laws
+        estimate = summed_estimator("wls", n_shape).fit(normal_equations(train, selection, names, expressions)).estimate_
         fixed = {parameter.name: float(value) for index in indices
                  for parameter, value in zip(blocks[index].parameters, shapes[index])}
         return RivalFit(estimate, dict(zip(model.channels, map(float, train.channel_mse(selection, estimate.values)))),

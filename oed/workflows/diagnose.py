@@ -561,6 +561,12 @@ def diagnose_document(args: DiagnoseOptions, diagnosed: Diagnosed) -> tuple[dict
         document["warnings"]["after"] = list(document["warnings"].get("after", [])) + list(diagnosed.notes)
         add_summed_runner_up_model_file(document, runner_up, args, model_plan, None if validation_mse is None or
                                         runner_up is None else runner_up.validation_mse, diagnosed.transmission)
+        if diagnosed.torque_gains is not None:  # the files divided by them (divided_diagnosis): as in memory
+            gains = diagnosed.torque_gains.to_dict()
+            document["torque_gains"] = gains
+            for entry in (document, document.get("runner_up") or {}):
+                if entry.get("model_file") is not None:  # oed predict multiplies the model's torques by them
+                    entry["model_file"]["torque_gains"] = gains
         if diagnosed.averaged_train is not None:  # measured against the recording, the sums' errors beside
             averaged_errors(document, diagnosed.averaged_train)
         elif diagnosis.streaming.get("frequency_hz") is not None:
@@ -892,14 +898,19 @@ def check_streamed_arguments(args: DiagnoseOptions, model: IdentificationModel) 
 
 def diagnosis_streamed(args: DiagnoseOptions, friction: str, plan: Preprocessing | None = None,
                        findings: FindingsSaid | None = None, *, effects: tuple[Any, ...] | None = None,
-                       delay: DelayBounds | None = None) -> Diagnosed:
+                       delay: DelayBounds | None = None,
+                       gains: tuple[TorqueGains, bool, str] | None = None) -> Diagnosed:
     """Diagnose the files read in blocks (:func:`estimation.streaming.diagnosis.diagnose_files`), their
     derivatives chosen as in memory (``plan``: already chosen); ``friction``: the declared effects without the delay
     (``effects``: those effects as built already, a Coulomb column merged into its offset; ``None``: from
     ``friction``); ``delay``: the declared delay's bounds (``delay:S``), else the default ones: the delay between
     torques and motion is a candidate as in memory.
     The findings about the files are said as each pass ends, each once (``findings``: what the path decision said
-    already)."""
+    already).
+
+    The per-joint torque gains are fitted and checked first, as in memory (:func:`streamed_gains`); when the check
+    takes them the files are diagnosed with their torques divided by the gains (:func:`divided_diagnosis`: copies
+    written block by block), ``gains`` then the check's outcome, and the answer's errors are in the log's units."""
     from estimation.streaming.diagnosis import diagnose_files_run
     from estimation.streaming.model_selection import streamed_repeated_motion, warned_still_motion
     from estimation.streaming.recorded_errors import streamed_plan
@@ -916,11 +927,24 @@ def diagnosis_streamed(args: DiagnoseOptions, friction: str, plan: Preprocessing
         findings = FindingsSaid([*args.data, *args.validate])
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
+        given = args
         args = streamed_records(args, model)  # a file with holes: its segments, each on its own as in memory
         if plan is None:
             with findings.reading():
                 plan = streamed_choice(args, model, **derivatives_on_validation(model, None)).chosen
         still = warned_still_motion(model, args.data, args.validate, chunk_size=chunk_size)  # said as in memory
+        checked, ratio = None, None
+        if gains is None and plan.method != "fourier" and delay is None:  # the torque gains checked first, as in
+            # memory (not with a declared delay)
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")  # the files' findings are said on the diagnosis's passes
+                ratio = streamed_repeated_motion(model, args.data, args.validate, chunk_size=chunk_size)
+            checked = streamed_gains(args, model, plan, chunk_size, ratio=ratio, still=still)
+            if checked is not None and checked[1]:
+                divided = divided_diagnosis(given, friction, plan, effects, checked)
+                if divided is not None:
+                    said = tuple(text for text in caught_messages(caught) if text not in divided.messages)
+                    return replace(divided, messages=(*said, *divided.messages))
         with executor_for(args) as executor:
             diagnosis, run = diagnose_files_run(model, args.data, args.validate, chunk_size=chunk_size, alpha=args.alpha,
                                        max_effects=args.max_effects, subsample=args.subsample,
@@ -941,9 +965,10 @@ def diagnosis_streamed(args: DiagnoseOptions, friction: str, plan: Preprocessing
         if resampled_validation({"streaming": diagnosis.streaming}):  # the errors on the samples as recorded
             diagnosis = recorded_errors(diagnosis, args, model_plan)
         model_file = model_plan, diagnosis.after.validation.mse
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # the files' findings were said on the diagnosis's passes
-        ratio = streamed_repeated_motion(model, args.data, args.validate, chunk_size=chunk_size)
+    if ratio is None:  # else measured before the gains' check
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # the files' findings were said on the diagnosis's passes
+            ratio = streamed_repeated_motion(model, args.data, args.validate, chunk_size=chunk_size)
     with step("the default answer: the adopted model or its consistent refit (from the sums)"):
         selection = streamed_selection(args, diagnosis, run, model_file[0], chunk_size, still=still, ratio=ratio)
     # the notes said in memory: a channel made worse, a repeat of the training motion, the joint zeros
@@ -955,11 +980,8 @@ def diagnosis_streamed(args: DiagnoseOptions, friction: str, plan: Preprocessing
     messages = (*messages, *notes)
     diagnosis = replace(diagnosis, not_computed={key: reason for key, reason in diagnosis.not_computed.items()
                                                  if key not in SELECTION_KEYS})  # computed now
-    # the per-joint torque gains, checked as in memory (not with a declared delay); not applied here: said
-    if plan.method != "fourier" and delay is None:
-        gains_note = streamed_gains_note(args, model, {"chunk_size": chunk_size, "cutoff_hz": cutoff_hz,
-                                                       "decimation": plan.decimation,
-                                                       "held_torques": plan.held_torques}, ratio=ratio, still=still)
+    if checked is not None and checked[1]:  # the gains taken, not applied (divided_diagnosis could not): said
+        gains_note = streamed_gains_note(checked)
         if gains_note is not None:
             messages, notes = (*messages, gains_note), (*notes, gains_note)
             diagnosis = replace(diagnosis, not_computed={**diagnosis.not_computed, "torque_gains": gains_note})
@@ -976,16 +998,63 @@ def diagnosis_streamed(args: DiagnoseOptions, friction: str, plan: Preprocessing
                                    else ranges.check_range(validation_range)})
 
 
-def streamed_gains_note(args: DiagnoseOptions, model: IdentificationModel, reading: dict[str, Any], *,
-                        ratio: float | None, still: bool) -> str | None:
+def streamed_gains(args: DiagnoseOptions, model: IdentificationModel, plan: Preprocessing, chunk_size: int, *,
+                   ratio: float | None, still: bool) -> tuple[TorqueGains, bool, str] | None:
+    """The per-joint torque gains of a streamed diagnosis, fitted from the training files' sums of the plain model
+    and checked on the validation files by the in-memory rule (:func:`streamed_gains_note`'s conditions and passes),
+    before the diagnosis as in memory (:func:`diagnosis_in_memory`), or ``None`` when they are not tried. ``ratio``:
+    the validation record's repeated-motion ratio."""
+    reading = {"chunk_size": chunk_size, "cutoff_hz": plan.cutoff_hz if plan.method == "butterworth" else None,
+               "decimation": plan.decimation, "held_torques": plan.held_torques}
+    return streamed_gains_check(args, model, reading, ratio=ratio, still=still)
+
+
+def divided_diagnosis(args: DiagnoseOptions, friction: str, plan: Preprocessing, effects: tuple[Any, ...] | None,
+                      gains: tuple[TorqueGains, bool, str]) -> Diagnosed | None:
+    """The streamed diagnosis of the files with their torques divided by ``gains`` (taken by the check,
+    :func:`streamed_gains`), as the in-memory diagnosis divides its records (:func:`diagnosis_in_memory`): copies
+    written block by block in a temporary folder (:func:`estimation.data.motor_side.divided_torque_copies`, removed
+    on return), diagnosed by :func:`diagnosis_streamed`, its default answer's errors put back in the log's units
+    (:func:`~estimation.consistent.torque_gains.in_recorded_units`: each channel's MSE times its gain squared, what
+    ``oed predict`` measures with the model file's ``torque_gains``), the copies' names replaced by the files' as
+    given. ``None`` when a file cannot be copied so (then the gains are said, not applied)."""
+    import shutil
+    import tempfile
+
+    from estimation.data.motor_side import divided_torque_copies
+
+    folder = Path(tempfile.mkdtemp(prefix="oed-divided-torques-"))
+    try:
+        factors = dict(zip(gains[0].channels, map(float, gains[0].values)))
+        names: dict[str, str] = {}
+        changes: dict[str, Any] = {}
+        for role in ("data", "validate"):
+            paths = getattr(args, role)
+            try:
+                copies = divided_torque_copies(paths, folder / role, factors)
+            except (ValueError, OSError):  # a MeasurementError is a ValueError
+                return None
+            names.update({str(copy): str(path) for copy, path in zip(copies, paths)})
+            changes[role] = [str(copy) for copy in copies]
+        diagnosed = diagnosis_streamed(replace(args, **changes), friction, plan, effects=effects, gains=gains)
+    finally:
+        shutil.rmtree(folder, ignore_errors=True)
+    selection = None if diagnosed.selection is None else in_recorded_units(diagnosed.selection, gains[0])
+    diagnosis = replace(diagnosed.diagnosis, streaming=named_as_given(diagnosed.diagnosis.streaming, names))
+    model_file = None if diagnosed.model_file is None else named_as_given(diagnosed.model_file, names)
+    return replace(diagnosed, diagnosis=diagnosis, selection=selection, model_file=model_file,
+                   messages=(*named_as_given(diagnosed.messages, names), gains[2]),
+                   notes=(*named_as_given(diagnosed.notes, names), gains[2]), torque_gains=gains[0])
+
+
+def streamed_gains_check(args: DiagnoseOptions, model: IdentificationModel, reading: dict[str, Any], *,
+                         ratio: float | None, still: bool) -> tuple[TorqueGains, bool, str] | None:
     """The per-joint torque gains of a streamed diagnosis, under the in-memory conditions
     (:func:`~estimation.consistent.torque_gains.gains_for_records`: joint torques only, no ``--consistent``, no
     shaped law declared, a validation record of another motion that moves): fitted from the training files' sums of
     the plain model and checked on the validation files by the in-memory rule
-    (:func:`estimation.streaming.torque_gains.files_gains_check`, three passes in bounded memory). When the check
-    takes them, the sentence saying so and that the streamed diagnosis does not divide the records by them (in
-    memory it does): ``result.json``'s ``not_computed.torque_gains`` and a warning; else ``None`` (as in memory,
-    ``torque_gains`` stays ``null``)."""
+    (:func:`estimation.streaming.torque_gains.files_gains_check`, three passes in bounded memory): ``(gains, taken,
+    sentence)``, or ``None`` when they are not tried or cannot be fitted."""
     from estimation.identification.repeated_motion import REPEAT_FRACTION
     import numpy as np
 
@@ -999,11 +1068,19 @@ def streamed_gains_note(args: DiagnoseOptions, model: IdentificationModel, readi
     with step("an unknown gain on each joint's torque fitted and checked on the validation record"):
         try:
             with warnings.catch_warnings():
-                warnings.simplefilter("ignore")  # the files' findings were said on the diagnosis's passes
-                checked = files_gains_check(plain_model(model), args.data, args.validate, reading)
+                warnings.simplefilter("ignore")  # the files' findings are said on the diagnosis's passes
+                return files_gains_check(plain_model(model), args.data, args.validate, reading)
         except (ValueError, np.linalg.LinAlgError):
             return None
-    if checked is None or not checked[1]:
+
+
+def streamed_gains_note(checked: tuple[TorqueGains, bool, str]) -> str | None:
+    """When the per-joint torque gains are taken by the check (``checked``: :func:`streamed_gains_check`'s) but the
+    files could not be divided by them (:func:`divided_diagnosis`: a file neither .csv nor .parquet), the sentence
+    saying so and that the streamed diagnosis does not divide the records by them (in memory it does):
+    ``result.json``'s ``not_computed.torque_gains`` and a warning; else ``None`` (as in memory, ``torque_gains``
+    stays ``null``)."""
+    if not checked[1]:
         return None
     return (f"{checked[2]}; the streamed diagnosis does not divide the records by these gains (in memory it does, "
             "and diagnoses the torques so divided): its effects and errors are those of the torques as logged; run "
