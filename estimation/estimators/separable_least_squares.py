@@ -34,7 +34,8 @@ from estimation.estimators.bordered_normal import (RANK_THRESHOLD, BorderedFacto
 from estimation.estimators.effect_blocks import Block, States
 from estimation.estimators.identification_problem import ResidualBand
 
-__all__ = ["FixedPart", "LinearSolution", "full_information", "residuals", "sample_scores", "solve_linear", "solve_normal"]
+__all__ = ["FixedPart", "LinearSolution", "consecutive_runs", "full_information", "residuals", "sample_scores", "solve_linear",
+           "solve_normal"]
 
 
 @dataclass(frozen=True)
