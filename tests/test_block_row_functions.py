@@ -9,18 +9,18 @@ import pytest
 from dynamics.effects.linear import parse_effects
 from dynamics.models import ModelKind
 from dynamics.robots import load_robot
-from estimation.estimators.effect_blocks import Block, States, _evaluate, _rows_taken
+from estimation.estimators.effect_blocks import Block, States, evaluate_at_shape, rows_taken
 
 
 def whole(block: Block, states: States, shape, jacobian: bool):
     """The block's columns (and derivatives) as taken from every channel's evaluation (the former way)."""
     n, m, k = states.n_samples, block.n_channels, block.n_linear
     function = block.jacobian_function if jacobian else block.columns_function
-    values = _evaluate(function, states.q, states.dq, states.ddq, shape)
-    columns = _rows_taken(values[:, : m * k].reshape(n, m, k), block.rows)
+    values = evaluate_at_shape(function, states.q, states.dq, states.ddq, shape)
+    columns = rows_taken(values[:, : m * k].reshape(n, m, k), block.rows)
     if not jacobian:
         return columns, None
-    derivative = _rows_taken(values[:, m * k:].reshape(n, block.n_shape, m, k), block.rows).transpose(1, 0, 2, 3)
+    derivative = rows_taken(values[:, m * k:].reshape(n, block.n_shape, m, k), block.rows).transpose(1, 0, 2, 3)
     return columns, derivative
 
 

@@ -97,12 +97,12 @@ def test_the_search_with_its_evaluations_kept_fits_as_the_search_that_evaluates_
 def test_a_blocks_rows_are_taken_as_advanced_indexing_takes_them_strides_included(m, k, n_shape, rows):
     """``Block.evaluate`` copies its rows a row at a time: the arrays advanced indexing gave, values and layout (the
     products formed from them then read the same memory in the same order)."""
-    from estimation.estimators.effect_blocks import _rows_taken
+    from estimation.estimators.effect_blocks import rows_taken
 
     n = 40
     values = np.random.default_rng(0).random((n, m * k * (1 + n_shape)))
-    columns = _rows_taken(values[:, :m * k].reshape(n, m, k), rows)
-    derivative = _rows_taken(values[:, m * k:].reshape(n, n_shape, m, k), rows).transpose(1, 0, 2, 3)
+    columns = rows_taken(values[:, :m * k].reshape(n, m, k), rows)
+    derivative = rows_taken(values[:, m * k:].reshape(n, n_shape, m, k), rows).transpose(1, 0, 2, 3)
     indexed_columns = values[:, :m * k].reshape(n, m, k)[:, list(rows), :]
     indexed_derivative = values[:, m * k:].reshape(n, n_shape, m, k)[:, :, list(rows), :].transpose(1, 0, 2, 3)
     for new, old in ((columns, indexed_columns), (derivative, indexed_derivative)):

@@ -105,7 +105,9 @@ def effect_row_functions(kind: ModelKind, robot: RobotModel, effect: Effect, row
     return selected[0], selected[1]
 
 
-def _evaluate(evaluator: SampleEvaluator, q, dq, ddq, shape: NDArray[np.float64] | None) -> NDArray[np.float64]:
+def evaluate_at_shape(evaluator: SampleEvaluator, q, dq, ddq, shape: NDArray[np.float64] | None) -> NDArray[np.float64]:
+    """An effect's function (its columns, or its columns and their shape derivatives) at the samples ``q, dq, ddq``
+    ``(N, n)``, the ``shape`` the same on every sample (none for a plain effect): ``(N, outputs)``."""
     inputs = [q, dq, ddq]
     if shape is not None and np.size(shape):
         # the shape on every sample, C-contiguous: np.tile writes it whole (a broadcast view copied by
@@ -115,7 +117,7 @@ def _evaluate(evaluator: SampleEvaluator, q, dq, ddq, shape: NDArray[np.float64]
     return evaluator(*inputs)
 
 
-def _rows_taken(values: NDArray[np.float64], rows: tuple[int, ...]) -> NDArray[np.float64]:
+def rows_taken(values: NDArray[np.float64], rows: tuple[int, ...]) -> NDArray[np.float64]:
     """``values[..., rows, :]`` of ``values (N, …, m, k)``, laid out as numpy's advanced indexing lays it out (the
     indexed axis outermost in memory), copied a row at a time: the same array, strides included, several times
     faster than the indexing's general loop."""
@@ -134,7 +136,7 @@ def effect_columns(kind: ModelKind, robot: RobotModel, effect: Effect, n_channel
     if shape is None:
         shape = np.array([parameter.starts[0] for parameter in shape_parameters(effect, robot)], dtype=float)
     columns, _ = effect_block_functions(kind, robot, effect)
-    values = _evaluate(columns, states.q, states.dq, states.ddq, shape)
+    values = evaluate_at_shape(columns, states.q, states.dq, states.ddq, shape)
     return values.reshape(states.n_samples, n_channels, len(effect.parameter_names(robot)))
 
 
@@ -252,13 +254,13 @@ class Block:
             return columns
         n_samples, k = states.n_samples, self.n_linear
         function = self.row_jacobian_function if jacobian else self.row_columns_function
-        values = _evaluate(function, states.q, states.dq, states.ddq, shape)  # (N, r·k [+ r·k·n_s]), r = len(rows)
+        values = evaluate_at_shape(function, states.q, states.dq, states.ddq, shape)  # (N, r·k [+ r·k·n_s]), r = len(rows)
         r = len(self.rows)
-        every = tuple(range(r))  # laid out as the rows taken from every channel's evaluation are (_rows_taken)
-        columns = _rows_taken(values[:, : r * k].reshape(n_samples, r, k), every)
+        every = tuple(range(r))  # laid out as the rows taken from every channel's evaluation are (rows_taken)
+        columns = rows_taken(values[:, : r * k].reshape(n_samples, r, k), every)
         derivative = None
         if jacobian:
-            derivative = _rows_taken(values[:, r * k:].reshape(n_samples, self.n_shape, r, k), every)
+            derivative = rows_taken(values[:, r * k:].reshape(n_samples, self.n_shape, r, k), every)
             derivative = derivative.transpose(1, 0, 2, 3)
         if states.kept:  # read-only: shared by every caller that asks for them again
             for array in (columns, derivative):

@@ -47,15 +47,45 @@ class DelayFit:
 
 
 def _fixed(columns: Columns, record: Measurements, delay: float, channels: tuple[str, ...]) -> FixedPart:
-    moved = delayed(record, delay)
+    # the columns and the channels of the moved record are all a fixed part reads: its recorded samples
+    # (``Measurements.recorded``, moved too by ``delayed``, piece by piece) are left out, not moved for nothing
+    moved = delayed(dataclasses.replace(record, recorded=None), delay)
     return FixedPart.from_arrays(np.asarray(columns(moved)), moved.channels(list(channels)))
 
 
-def _rss(columns: Columns, record: Measurements, delay: float, channels, weights) -> float:
-    try:
-        return solve_linear(_fixed(columns, record, delay, channels), [], None, [], weights).rss
-    except (np.linalg.LinAlgError, FloatingPointError):
-        return np.inf
+@dataclass
+class _Profile:
+    """The projected residual ``f(d)`` of :func:`fit_delay`, remembering the fixed part at the lowest value met
+    (where the search ends, formed once) and the value at ``d = 0`` when met (the grid holds it)."""
+
+    columns: Columns
+    record: Measurements
+    channels: tuple[str, ...]
+    weights: NDArray[np.float64]
+    best: tuple[float, float, FixedPart] | None = None
+    zero: float | None = None
+
+    def __call__(self, delay: float) -> float:
+        try:
+            fixed = _fixed(self.columns, self.record, delay, self.channels)
+            rss = solve_linear(fixed, [], None, [], self.weights).rss
+        except (np.linalg.LinAlgError, FloatingPointError):
+            rss = np.inf
+            fixed = None
+        if delay == 0.0:
+            self.zero = rss
+        if fixed is not None and (self.best is None or rss < self.best[1]):
+            self.best = (float(delay), rss, fixed)
+        return rss
+
+    def fixed(self, delay: float) -> FixedPart:
+        """The fixed part at ``delay``: the one kept when it is the lowest met there, else formed."""
+        if self.best is not None and self.best[0] == delay:
+            return self.best[2]
+        return _fixed(self.columns, self.record, delay, self.channels)
+
+    def at_zero(self) -> float:
+        return self(0.0) if self.zero is None else self.zero
 
 
 def fit_delay(columns: Columns, train: Measurements, channels: tuple[str, ...], weights: NDArray[np.float64],
@@ -64,17 +94,17 @@ def fit_delay(columns: Columns, train: Measurements, channels: tuple[str, ...], 
     (``(N, m, p)``, at fixed shapes) on ``train``, with its standard deviation (module docstring)."""
     bounds = bounds.within(longest_piece(train))
     grid = bounds.grid()
-    profile = np.array([_rss(columns, train, value, channels, weights) for value in grid])
+    rss = _Profile(columns, train, channels, weights)
+    profile = np.array([rss(value) for value in grid])
     if not np.any(np.isfinite(profile)):
         raise np.linalg.LinAlgError("the columns are singular at every delay of the grid")
     best = int(np.nanargmin(np.where(np.isfinite(profile), profile, np.nan)))
     step = grid[1] - grid[0]
     low, high = max(grid[best] - step, bounds.lower), min(grid[best] + step, bounds.upper)
     resolution = 1e-3 * float(np.median(np.diff(train.t)))
-    search = scipy.optimize.minimize_scalar(lambda value: _rss(columns, train, value, channels, weights),
-                                            bounds=(low, high), method="bounded", options={"xatol": resolution})
+    search = scipy.optimize.minimize_scalar(rss, bounds=(low, high), method="bounded", options={"xatol": resolution})
     delay = float(search.x) if search.fun <= profile[best] else float(grid[best])
-    fixed = _fixed(columns, train, delay, channels)
+    fixed = rss.fixed(delay)
     solution = solve_linear(fixed, [], None, [], weights)
     residual = residuals(fixed, [], solution)
     h = max(0.5 * float(np.median(np.diff(train.t))), 1e-6)
@@ -92,7 +122,7 @@ def fit_delay(columns: Columns, train: Measurements, channels: tuple[str, ...], 
     hac = float(batch_means(scores, batch_length(residual, weights))[0, 0]) / information**2 if information > 0 else np.inf
     variance = max(white, hac)
     theta_slope = (solve_linear(plus, [], None, [], weights).theta - solve_linear(minus, [], None, [], weights).theta) / (2 * h)
-    return DelayFit(delay, float(np.sqrt(variance)), float(solution.rss), _rss(columns, train, 0.0, channels, weights),
+    return DelayFit(delay, float(np.sqrt(variance)), float(solution.rss), rss.at_zero(),
                     theta_slope, grid, profile)
 
 
