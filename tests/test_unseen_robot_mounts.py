@@ -224,3 +224,36 @@ def test_a_mount_in_the_urdf_turns_gravity_as_pinocchio_does(tmp_path):
         expected = np.array([pin.rnea(reference, data, *state) for state in zip(q, dq, ddq)])
         assert np.allclose(turned.predict(theta, q, dq, ddq), expected, atol=1e-8), mount
         assert np.allclose(read.predict(read.robot.standard_parameters, q, dq, ddq), expected, atol=1e-8), mount
+
+
+def test_a_clock_that_starts_again_splits_the_record_in_memory_and_streamed(tmp_path):
+    """Two sessions logged into one file, the clock from zero again (or from any earlier time, more than ``max_gap``
+    back): read as two segments, each with its own time stamps as recorded, said in a :class:`SplitWarning`, in
+    memory and by the streamed reader's segments alike; a small step back (two rows out of order) stays the error
+    naming it, and :func:`read_measurements` (one segment) still refuses the restart naming the segments."""
+    from estimation.data import TimeBaseError
+    from estimation.data.loading import SplitWarning
+    from estimation.data.records import read_measurements, read_record
+    from estimation.streaming.chunks import segment_sources
+    from tests.test_unseen_robots import urdf_of, write_record
+
+    urdf = urdf_of("puma560:3", tmp_path)
+    model = build_model(load_robot(urdf=urdf), "internal", FRICTION)
+    write_record(model, truth(model), Log(2.0, 250.0, velocity=False), 11, tmp_path / "clean.csv")
+    table = pd.read_csv(tmp_path / "clean.csv")
+    table.loc[300:, "t"] -= table["t"].iloc[300] - 0.5  # the second session's clock from 0.5 s
+    table.to_csv(tmp_path / "sessions.csv", index=False)
+    with pytest.warns(SplitWarning, match=r"clock starts again at row\(s\) 300 \(t = 1\.196 -> 0\.5 s\).*2 segments"):
+        first, second = read_record(tmp_path / "sessions.csv", model=model)
+    assert np.array_equal(first.t, table["t"].to_numpy()[:300])
+    assert np.array_equal(second.t, table["t"].to_numpy()[300:])
+    assert np.array_equal(second.tau, table[["tau1", "tau2", "tau3"]].to_numpy()[300:])
+    streamed = segment_sources([tmp_path / "sessions.csv"], model, chunk_size=250)  # (said when each is read)
+    assert [str(path) for path in streamed] == [f"{tmp_path / 'sessions.csv'} (segment {k})" for k in (1, 2)]
+    with pytest.raises(TimeBaseError, match="clock restarted"):
+        read_measurements(tmp_path / "sessions.csv", model=model)
+    swapped = pd.read_csv(tmp_path / "clean.csv")
+    swapped.iloc[[100, 101]] = swapped.iloc[[101, 100]].to_numpy()
+    swapped.to_csv(tmp_path / "swapped.csv", index=False)
+    with pytest.raises(TimeBaseError, match="decreases at row 101"):
+        read_record(tmp_path / "swapped.csv", model=model)
