@@ -80,6 +80,7 @@ from oed.workflows.asbuilt import (
 from estimation.consistent.identification import ConsistentResult
 from estimation.consistent.model_selection import ModelSelection, select_model
 from estimation.consistent.motor_friction import motor_friction_answer, motor_friction_laws
+from estimation.consistent.armature import armature_answer, armature_laws
 from estimation.consistent.torque_gains import (
     TorqueGains,
     divided_torques,
@@ -853,6 +854,7 @@ def identification_in_memory(args: IdentifyOptions, robot: RobotModel, model: Id
                                      consistent=consistent_settings(args, robot))
         selection = motor_friction_selection(args, selection, model, transmission, train, validation,
                                              base=base, given=given, delay=delay)
+        selection = armature_selection(args, selection, train, validation, base=base, given=given, delay=delay)
         selection, gains = torque_gains_selection(args, selection, train, validation, base=base, given=given,
                                                   delay=delay)
         result, consistent = selection.unconstrained, selection.consistent
@@ -890,6 +892,26 @@ def motor_friction_selection(args: IdentifyOptions, selection: ModelSelection, m
         other = select_model(build_model(model.robot, model.kind, (*model.effects, *laws)), train, validation,
                              base=base, consistent=consistent_settings(args, model.robot))
     return motor_friction_answer(selection, other, ",".join(effect_spec(effect) for effect in laws))
+
+
+def armature_selection(args: IdentifyOptions, selection: ModelSelection, train: Measurements,
+                       validation: Measurements | None, *, base: str, given: str | None,
+                       delay: DelayBounds | None) -> ModelSelection:
+    """The default answer with the rotors' reflected inertia (armature on every joint) a candidate
+    (:mod:`estimation.consistent.armature`): the model ``selection`` holds (the declared one, with the motor laws when
+    they were taken) with ``armature`` added, chosen among its candidates as the declared model's were, on the same
+    records, and taken when its answer validates better. ``selection`` unchanged when the user chose the estimator
+    (``--method``, ``--consistent``), with a delay search or shaped laws, without a validation record of another
+    motion, or when the model declares an armature or models no joint torque."""
+    model = selection.unconstrained.model
+    laws = armature_laws(model)
+    if not laws or given is not None or delay is not None or model_has_shapes(model) or validation is None \
+            or selection.selection != "validation":
+        return selection
+    with step("the rotors' reflected inertia (armature) fitted and compared"):
+        other = select_model(build_model(model.robot, model.kind, (*model.effects, *laws)), train, validation,
+                             base=base, consistent=consistent_settings(args, model.robot))
+    return armature_answer(selection, other)
 
 
 def torque_gains_selection(args: IdentifyOptions, selection: ModelSelection, train: Measurements,
