@@ -40,6 +40,7 @@ from dynamics.models import IdentificationModel
 from dynamics.runtime.progress import step
 from estimation.identification.fit import IdentificationResult
 from estimation.identification.joint_zeros import check_joint_zeros
+from estimation.identification.mount import check_mount
 from estimation.identification.model_parameters import model_parameters
 from estimation.identification.prepared import PreparedRecords
 from estimation.identification.trivial_predictors import trivial_mse, trivial_warnings
@@ -165,6 +166,20 @@ def joint_zero_notes(model: IdentificationModel, train: Measurements, validation
     with step("joint zeros checked against the description's"):
         check = check_joint_zeros(model, train, validation, warn=False)
     return () if check is None or not check.marked else (check.message(model.robot.joint_names),)
+
+
+def mount_notes(model: IdentificationModel, train: Measurements, validation: Measurements | None, *,
+                delay: Any = None) -> tuple[str, ...]:
+    """The warning that the torques' gravity load points elsewhere than the description says (a robot on a wall,
+    on the ceiling, off level, whose URDF gives no mount), when another direction of gravity predicts the validation
+    record with at most half the error (:func:`estimation.identification.mount.check_mount`); none without a
+    validation record, with a delay search or shaped laws (fitted by a search each: the check refits the plain
+    columns only)."""
+    if delay is not None or model_has_shapes(model) or validation is None:
+        return ()
+    with step("gravity's direction checked against the description's"):
+        check = check_mount(model, train, validation)
+    return () if check is None or not check.marked else (check.message(),)
 
 
 def streamed_joint_zero_notes(model: IdentificationModel, train: Sequence[str | Path], train_samples: int,
