@@ -22,6 +22,8 @@ validation record reproduces the validation error each verb reported (relative 1
 
 from __future__ import annotations
 
+import json
+import re
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -67,6 +69,7 @@ class Mounted:
     armature: tuple[float, ...] = ()  # the reflected rotor inertia of each joint, not in the URDF
     flipped: int = 0  # a joint (1-based) whose torque is logged with the opposite sign
     sessions: str = ""  # the training record two sessions: "restart" (t from 0 again) or "jump" (3 min later)
+    said: str = ""  # a pattern one of `oed identify`'s warnings must match (what the user is told to do)
     slow: bool = False
     xfail: str = ""
 
@@ -178,16 +181,26 @@ CASES = (
             "no dq", puma(6), *six(), mount="wall", described="wall", slow=True),
     Mounted("PUMA 3 joints on the ceiling (the URDF's world->base_link joint rolled 180°), 8 s / 3 s / 5 s at "
             "250 Hz, no dq", puma(3), *six((8.0, 3.0, 5.0)), mount="ceiling", described="ceiling"),
+    # both verbs and the plain fit predict joint 1 at 4500x the noise floor (the ratios pass: 1.02 and 0.016 of the
+    # plain fit), and diagnose names a spring on joint 1 where gravity acts; identify now says the mount to write
     Mounted("PUMA 6 joints on a wall, the URDF without the mount (gravity taken along the base's -z)", puma(6), *six(),
-            mount="wall", described="floor", slow=True),
+            mount="wall", described="floor", said=r'rpy="[-.\d]+ 1\.5\d+ 0\.0000"', slow=True),
     Mounted("PUMA 6 joints on a pedestal 5° off level, the URDF level", puma(6), *six(), mount="tilted",
             described="floor", slow=True),
     Mounted("PUMA 6 joints, friction 30 % lower once warm (T = 2 min): training cold, validation at 2 min, test at "
-            "10 min", puma(6), *six(), warming=0.3, slow=True),
+            "10 min", puma(6), *six(), warming=0.3, slow=True,
+            xfail="identify 0.979/1.123/1.072/1.057/1.002/1.023 of the plain fit, 1.034 in total; diagnose 1.026 "
+                  "(joint 2 1.136); every model 11-170x the noise floor: no model of either side holds friction that "
+                  "changes with the temperature. The toolkit fits the training record's cold friction (fc1..6 0.986, "
+                  "1.389, 1.770, 2.212, 2.572, 2.960 against the truth's 1.0-3.0, torques fitted as recorded), the "
+                  "plain fit 14-21 % lower (0.792 ... 2.592: its filtered torques smear the Coulomb steps, h-unseen3), "
+                  "which is nearer the warm test's (0.70 of cold): the plain fit wins by its bias"),
     Mounted("PUMA 6 joints, the reflected rotor inertias (armature) not in the URDF", puma(6), *six(),
             armature=PUMA_ARMATURE, slow=True),
+    # both verbs run within the margins (identify 0.375 of the plain fit in total, diagnose 0.893) but joint 2 stays
+    # 89x and 215x its noise floor: the joint-direction check says the convention and the file that declares it
     Mounted("PUMA 3 joints, joint 2's torque logged with the opposite sign", puma(3), *six((8.0, 3.0, 5.0)),
-            flipped=2, slow=True),
+            flipped=2, said=r'"torque_signs": \{"joint2": -1\}', slow=True),
     Mounted("PUMA 3 joints, the training log two sessions, the clock restarting at zero in the middle", puma(3),
             *six((10.0, 3.0, 5.0)), sessions="restart", slow=True),
     Mounted("PUMA 3 joints, the training log two sessions, the clock jumping 3 minutes forward in the middle",
@@ -203,6 +216,11 @@ def test_the_defaults_run_and_predict_a_mounted_or_warming_robot_as_well_as_a_pl
     as_well_as_the_plain_fit(case.name, outcome, f"chosen {outcome['selections']}; ")
     for label, error in outcome["reproduced"].items():
         assert error < RELATIVE, (label, error)
+    said = json.loads((tmp_path / "default.json").read_text())["warnings"]
+    mounts = [text for text in said if "gravity load points elsewhere" in text]
+    assert bool(mounts) == (case.mount != case.described), mounts
+    if case.said:
+        assert any(re.search(case.said, text) for text in said), said
 
 
 def test_a_mount_in_the_urdf_turns_gravity_as_pinocchio_does(tmp_path):

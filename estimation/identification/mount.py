@@ -75,27 +75,16 @@ class MountCheck:
                 f"({shown}) m/s² in the base frame ({self.angle_deg:.0f}° from the description's) predicts the "
                 f"validation record with {1.0 - self.found_mse / self.declared_mse:.0%} less error. A robot on a "
                 "wall, on the ceiling or off level? Give the mount in the URDF: a link \"world\" and a fixed joint "
-                f"from it to the base link, <origin xyz=\"0 0 0\" rpy=\"{roll:.4f} {pitch:.4f} {yaw:.4f}\"/> (the "
-                "base's yaw about gravity is free: any yaw gives the same loads); this fit keeps the description's "
-                "gravity")
+                f"from it to the base link, <origin xyz=\"0 0 0\" rpy=\"{roll:.4f} {pitch:.4f} {yaw:.4f}\"/> (a yaw "
+                "about gravity is free: any gives the same loads); this fit keeps the description's gravity")
 
 
 def mount_rpy(gravity: NDArray[np.float64]) -> tuple[float, float, float]:
-    """The URDF ``rpy`` of a fixed ``world -> base`` joint under which gravity ``(0, 0, −|g|)`` in the world is
-    ``gravity`` in the base frame: the rotation ``R`` (world from base) with ``Rᵀ (0, 0, −1) = ĝ``, the shortest
-    one (no yaw of its own)."""
+    """The URDF ``rpy`` (no yaw: a yaw about gravity changes no load) of a fixed ``world -> base`` joint under which
+    gravity ``(0, 0, −|g|)`` in the world is ``gravity`` in the base frame: ``R = Ry(pitch) Rx(roll)`` with
+    ``Rᵀ (0, 0, −1) = ĝ = (sin p, −cos p sin r, −cos p cos r)``."""
     u = np.asarray(gravity, dtype=float) / np.linalg.norm(gravity)
-    down = np.array([0.0, 0.0, -1.0])
-    axis = np.cross(u, down)
-    sine, cosine = float(np.linalg.norm(axis)), float(u @ down)
-    if sine < 1e-12:
-        R = np.eye(3) if cosine > 0 else np.diag([1.0, -1.0, -1.0])  # on the floor, or on the ceiling (a roll of π)
-    else:
-        k = axis / sine
-        K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
-        R = np.eye(3) + sine * K + (1.0 - cosine) * K @ K  # Rodrigues: R u = down
-    return (float(np.arctan2(R[2, 1], R[2, 2])), float(np.arcsin(np.clip(-R[2, 0], -1.0, 1.0))),
-            float(np.arctan2(R[1, 0], R[0, 0])))
+    return float(np.arctan2(-u[1], -u[2])), float(np.arcsin(np.clip(u[0], -1.0, 1.0))), 0.0
 
 
 def _sphere(count: int) -> NDArray[np.float64]:
