@@ -67,8 +67,7 @@ from estimation.streaming.recorded_errors import (
 )
 from oed.workflows.asbuilt import (
     finish_document,
-    joint_zero_notes,
-    mount_notes,
+    description_notes,
     streamed_joint_zero_notes,
     model_effects,
     resolve_joint_directions,
@@ -903,9 +902,7 @@ def identification_in_memory(args: IdentifyOptions, robot: RobotModel, model: Id
         notes = (*notes, *above_floor_notes(floor_report, chosen, None if validation is None else validation.n_samples))
         repeat = None if validation is None else repeated_motion_note(train, validation)
         notes = notes if repeat is None else (*notes, repeat)
-        zeros = joint_zero_notes(model, train, validation, delay=delay)
-        # a reversed or offset joint moves its gravity load too: the mount is checked in the log's conventions only
-        notes = (*notes, *zeros, *(() if zeros else mount_notes(model, train, validation, delay=delay)))
+        notes = (*notes, *description_notes(model, train, validation, delay=delay))
     return Identified(result, chosen, records.preprocessing.to_dict(), records.preprocessing.describe(),
                       (*chosen_messages(caught_messages(caught), selection), *notes), notes, trivial,
                       None if floor_report is None else floor_report.floor,
