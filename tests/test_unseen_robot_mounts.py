@@ -306,3 +306,26 @@ def test_the_mount_check_finds_gravity_where_the_torques_put_it(mount):
         assert "rpy=" in check.message()
         turned = rotation(*mount_rpy(check.found)).T @ np.array([0.0, 0.0, -9.81])
         assert np.allclose(turned, check.found, atol=1e-9)
+
+
+@pytest.mark.slow
+def test_the_armature_candidate_is_taken_alike_in_memory_and_streamed(tmp_path):
+    """The armature case's records: the default ``oed identify`` takes the armature (said in the reason) in memory and
+    streamed (``--chunk-size``) alike, the same answer and validation errors (relative 1e-6)."""
+    from tests.test_unseen_robot_kinds import quiet
+
+    case = next(case for case in CASES if case.armature)
+    urdf, _, files, _ = write_records(case, tmp_path)
+    documents = []
+    for label, more in (("memory", []), ("streamed", ["--chunk-size", "1000"])):
+        out = tmp_path / f"{label}.json"
+        code, message = quiet(["identify", "--urdf", str(urdf), "--data", str(files["train"]), "--validate",
+                               str(files["validate"]), "--friction", FRICTION, *more, "--out", str(out)])
+        assert code == 0, message
+        documents.append(json.loads(out.read_text()))
+    memory, streamed = documents
+    assert "armature" in memory["effects"] and memory["effects"] == streamed["effects"]
+    assert "the rotors' reflected inertia" in memory["model_selection"]["reason"] and "taken" in memory["model_selection"]["reason"]
+    assert memory["chosen"] == streamed["chosen"]
+    np.testing.assert_allclose(list(streamed["validation"]["mse"].values()), list(memory["validation"]["mse"].values()),
+                               rtol=1e-6)
