@@ -277,7 +277,8 @@ def test_a_clock_that_starts_again_splits_the_record_in_memory_and_streamed(tmp_
         read_record(tmp_path / "swapped.csv", model=model)
 
 
-@pytest.mark.parametrize("mount", ["floor", "wall", "ceiling", "tilted"])
+@pytest.mark.parametrize("mount", ["floor", "wall", pytest.param("ceiling", marks=pytest.mark.slow),
+                                   pytest.param("tilted", marks=pytest.mark.slow)])
 def test_the_mount_check_finds_gravity_where_the_torques_put_it(mount):
     """A PUMA 6 on ``mount`` with a description on the floor (exact derivatives, 2 % torque noise): the check finds
     gravity in the base frame within 2° of the truth, and marks it unless the robot stands on the floor (a 5° tilt
