@@ -70,7 +70,7 @@ from estimation.data.log_formats import (
     read_log_frame,
     time_column,
 )
-from estimation.data.log_cleaning import DEFAULT_MAX_GAP, blank_rows, describe, find_gaps, repeated_rows, split_rows, time_stamps_jump
+from estimation.data.log_cleaning import DEFAULT_MAX_GAP, Gap, blank_rows, describe, find_gaps, repeated_rows, split_rows, time_stamps_jump
 from dynamics.measurements import Measurements, joint_columns
 
 
@@ -477,19 +477,57 @@ def clean_time_base(t: NDArray[np.float64], repeated: NDArray[np.bool_], source:
     channel are ``repeated`` (:func:`estimation.data.log_cleaning.repeated_rows`), with the loader's warnings and
     errors: re-sent rows dropped (:class:`RepeatedRowsWarning`), then a few rows stamped with the previous row's
     time (:class:`DuplicatedTimesWarning`), the time base checked (:func:`check_time`), ``check`` called with the
-    mask of the rows kept (the units of the angles), and the gaps found (:func:`_holes_and_stalls`)."""
+    mask of the rows kept (the units of the angles), and the gaps found (:func:`_holes_and_stalls`); with ``split``,
+    a clock that starts again (:func:`clock_restarts`) splits the record there as a hole does (a
+    :class:`SplitWarning`)."""
     recorded = t
     keep = _unrepeated(t, repeated, source)
     dropped = int(t.shape[0] - np.count_nonzero(keep))
     kept_rows = np.flatnonzero(keep)
-    later = _duplicated_times(t[kept_rows], source)
+    later = _duplicated_times(t[kept_rows], source, max_gap if split else None)
     keep[kept_rows[later]] = False
     t = t[keep]
-    step = check_time(t, source)
+    restarts = clock_restarts(t, max_gap) if split else []
+    step = check_time(_continued(t, restarts), source)
     if check is not None:
         check(keep)
-    holes, stalls = _holes_and_stalls(t, step, max_gap, split, source, recorded if dropped or later.size else None)
+    holes, stalls = _holes_and_stalls(t, step, max_gap, split, source,
+                                      recorded if (dropped or later.size) and not restarts else None)
+    if restarts:
+        rows = [gap.row for gap in restarts]
+        warnings.warn(
+            f"{source}: the clock starts again at row(s) {', '.join(str(row + 1) for row in rows)} "
+            f"({'; '.join(f't = {gap.t:.6g} -> {gap.t + gap.duration:.6g} s' for gap in restarts)}): sessions logged "
+            f"one after the other into one file, read as {len(restarts) + 1} segments (split there, each preprocessed "
+            "on its own and each keeping its own time stamps)", SplitWarning, stacklevel=4)
+        holes = sorted([*holes, *restarts], key=lambda gap: gap.row)
     return CleanedTimes(keep, t, step, holes, stalls, dropped, int(later.size))
+
+
+def clock_restarts(t: NDArray[np.float64], max_gap: float) -> list[Gap]:
+    """The rows after which the time stamps ``t`` step back by more than ``max_gap`` seconds while every other step
+    goes forward: a logger whose clock started again (sessions logged one after the other into one file, the clock
+    from zero or from another origin each time); each a :class:`~estimation.data.log_cleaning.Gap` of negative
+    duration (no sample missing), where the record is split as at a hole. A step back of less than ``max_gap``, or
+    any other step back, is rows out of order: none (:func:`~estimation.data.loading.check_time` names them)."""
+    steps = np.diff(t)
+    back = np.flatnonzero(steps < 0)
+    if back.size == 0 or np.any(steps[back] >= -max_gap):
+        return []
+    return [Gap(int(row), float(t[row]), float(steps[row]), 0.0) for row in back]
+
+
+def _continued(t: NDArray[np.float64], restarts: list[Gap]) -> NDArray[np.float64]:
+    """``t`` with each part after a clock restart moved to follow the part before it by that part's median step:
+    one time base to check (:func:`~estimation.data.loading.check_time`); the stamps read stay ``t``."""
+    if not restarts:
+        return t
+    out = t.copy()
+    for gap in restarts:
+        before = out[: gap.row + 1]
+        step = float(np.median(np.diff(before))) if before.shape[0] > 1 else 0.0
+        out[gap.row + 1:] += out[gap.row] + step - out[gap.row + 1]
+    return out
 
 
 def _unrepeated(t, repeated, source: str):
@@ -515,14 +553,15 @@ def _unrepeated(t, repeated, source: str):
 MAX_DUPLICATED_TIMES = 0.01
 
 
-def _duplicated_times(t, source: str):
+def _duplicated_times(t, source: str, max_gap: float | None = None):
     """Rows stamped with the previous row's time but holding new values: a few (at most :data:`MAX_DUPLICATED_TIMES`
     of the rows, and the time base otherwise increasing) are dropped, the first row at each time stamp kept, with
     one warning counting them (their instant is unknown: placing them would invent a time; the errors are taken on
     the rows kept); their rows. More are left to :func:`~estimation.data.loading.check_time`, which refuses them."""
     steps = np.diff(t)
     later = np.flatnonzero(steps == 0) + 1
-    if later.size == 0 or later.size > MAX_DUPLICATED_TIMES * t.shape[0] or np.any(steps < 0):
+    back = steps < 0 if max_gap is None else (steps < 0) & (steps >= -max_gap)  # not a clock restart
+    if later.size == 0 or later.size > MAX_DUPLICATED_TIMES * t.shape[0] or np.any(back):
         return np.zeros(0, dtype=np.int_)
     warnings.warn(
         f"{source}: dropped {later.size} row(s) stamped with the previous row's time but holding new values (a "

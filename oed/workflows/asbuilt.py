@@ -40,6 +40,7 @@ from dynamics.models import IdentificationModel
 from dynamics.runtime.progress import step
 from estimation.identification.fit import IdentificationResult
 from estimation.identification.joint_zeros import check_joint_zeros
+from estimation.identification.mount import check_mount
 from estimation.identification.model_parameters import model_parameters
 from estimation.identification.prepared import PreparedRecords
 from estimation.identification.trivial_predictors import trivial_mse, trivial_warnings
@@ -165,6 +166,33 @@ def joint_zero_notes(model: IdentificationModel, train: Measurements, validation
     with step("joint zeros checked against the description's"):
         check = check_joint_zeros(model, train, validation, warn=False)
     return () if check is None or not check.marked else (check.message(model.robot.joint_names),)
+
+
+def description_notes(model: IdentificationModel, train: Measurements, validation: Measurements | None, *,
+                      delay: Any = None) -> tuple[str, ...]:
+    """:func:`joint_zero_notes` and the warning that the torques' gravity load points elsewhere than the description
+    says (a robot on a wall, on the ceiling, off level, whose URDF gives no mount: another direction of gravity
+    predicts the validation record with at most half the error, :func:`estimation.identification.mount.check_mount`).
+    A reversed torque flips its joint's gravity load, and a turned gravity moves every joint's as an offset would, so
+    each check can take up the other's fault: when both mark, the one that predicts the validation record with the
+    less error is said. The mount is not checked without a validation record, with a delay search or shaped laws."""
+    if delay is not None or model_has_shapes(model):
+        return ()
+    with step("joint zeros checked against the description's"):
+        zeros = check_joint_zeros(model, train, validation, warn=False)
+    zeros = None if zeros is None or not zeros.marked else zeros
+    mount = None
+    if validation is not None:
+        with step("gravity's direction checked against the description's"):
+            mount = check_mount(model, train, validation)
+    mount = None if mount is None or not mount.marked else mount
+    if zeros is not None and mount is not None:
+        if mount.found_mse / mount.declared_mse < zeros.total_ratio:
+            zeros = None
+        else:
+            mount = None
+    return ((() if zeros is None else (zeros.message(model.robot.joint_names),))
+            + (() if mount is None else (mount.message(),)))
 
 
 def streamed_joint_zero_notes(model: IdentificationModel, train: Sequence[str | Path], train_samples: int,

@@ -68,7 +68,7 @@ from estimation.streaming.recorded_errors import (
 )
 from oed.workflows.asbuilt import (
     finish_document,
-    joint_zero_notes,
+    description_notes,
     streamed_joint_zero_notes,
     model_effects,
     resolve_joint_directions,
@@ -81,6 +81,7 @@ from oed.workflows.asbuilt import (
 from estimation.consistent.identification import ConsistentResult
 from estimation.consistent.model_selection import ModelSelection, select_model
 from estimation.consistent.motor_friction import motor_friction_answer, motor_friction_laws
+from estimation.consistent.armature import armature_answer, armature_laws
 from estimation.consistent.torque_gains import (
     TorqueGains,
     divided_torques,
@@ -485,6 +486,9 @@ def identification_streamed(args: IdentifyOptions, model: IdentificationModel, t
                 options=options, ratio=ratio, still=still, sums=sums, scores=scores)
             if motor is not None:  # the selection with the candidate compared, and the sums of the model it holds
                 selection, sums, scores = motor
+            selection, sums, scores = streamed_armature_selection(
+                args, selection, base=base, methods=methods, chunk_size=chunk_size, options=options, ratio=ratio,
+                still=still, sums=sums, scores=scores)
             selection, gains = streamed_torque_gains_selection(
                 args, selection, base=base, methods=methods, chunk_size=chunk_size, options=options, ratio=ratio,
                 still=still, sums=sums)
@@ -611,7 +615,7 @@ def streamed_torque_gains_selection(args: IdentifyOptions, selection: ModelSelec
             other = summed_selection(divided_sums(sums, gains, methods), base=base,
                                      consistent=consistent_settings(args, model.robot),
                                      score=GainsScorer(model, gains, args.validate, reading), ratio=ratio, still=still)
-    answer, taken, compared = torque_gains_answer(selection, other, gains)
+    answer, taken, compared = torque_gains_answer(selection, carried_reasons(selection, other), gains)
     return answer, (gains, taken, f"{sentence}; then {compared}" if compared else sentence)
 
 
@@ -634,15 +638,49 @@ def streamed_motor_friction_selection(args: IdentifyOptions, selection: ModelSel
         return None
     other_model = build_model(model.robot, model.kind, (*model.effects, *laws))
     with step("motor-side friction on the coupled motors fitted and compared"):
-        with executor_for(args) as executor:
-            other_sums = identify_files_candidates(
-                other_model, args.data, args.validate, methods=methods, chunk_size=chunk_size,
-                cutoff_hz=options["cutoff_hz"], frequency_hz=options["frequency_hz"], harmonics=options["harmonics"],
-                decimation=options["decimation"], held_torques=options["held_torques"], executor=executor)
-        other_scores = ValidationScores(args, other_sums, other_sums.fits[base], chunk_size, dict(options))
-        other = summed_selection(other_sums, base=base, consistent=consistent_settings(args, model.robot),
-                                 score=other_scores, ratio=ratio, still=still)
+        other, other_sums, other_scores = summed_candidate(args, other_model, base=base, methods=methods,
+                                                           chunk_size=chunk_size, options=options, ratio=ratio,
+                                                           still=still)
     answer = motor_friction_answer(selection, other, ",".join(effect_spec(effect) for effect in laws))
+    return (answer, other_sums, other_scores) if answer.unconstrained.model is other_model else (answer, sums, scores)
+
+
+def summed_candidate(args: IdentifyOptions, other_model: IdentificationModel, *, base: str, methods: tuple[str, ...],
+                     chunk_size: int, options: Mapping[str, Any], ratio: float | None, still: bool
+                     ) -> tuple[ModelSelection, SummedFits, ValidationScores]:
+    """A candidate model of the streamed default answer (motor-side friction, armature) summed over the same files
+    with the same derivatives, weightings and options as the declared model, and chosen among its candidates from
+    its sums as the declared model's were (scored on the same validation samples): ``(selection, sums, scores)``."""
+    with executor_for(args) as executor:
+        other_sums = identify_files_candidates(
+            other_model, args.data, args.validate, methods=methods, chunk_size=chunk_size,
+            cutoff_hz=options["cutoff_hz"], frequency_hz=options["frequency_hz"], harmonics=options["harmonics"],
+            decimation=options["decimation"], held_torques=options["held_torques"], executor=executor)
+    other_scores = ValidationScores(args, other_sums, other_sums.fits[base], chunk_size, dict(options))
+    other = summed_selection(other_sums, base=base, consistent=consistent_settings(args, other_model.robot),
+                             score=other_scores, ratio=ratio, still=still)
+    return other, other_sums, other_scores
+
+
+def streamed_armature_selection(args: IdentifyOptions, selection: ModelSelection, *, base: str,
+                                methods: tuple[str, ...], chunk_size: int, options: Mapping[str, Any],
+                                ratio: float | None, still: bool, sums: SummedFits, scores: ValidationScores | None
+                                ) -> tuple[ModelSelection, SummedFits, ValidationScores | None]:
+    """:func:`armature_selection` of files read in blocks: the model ``selection`` holds with ``armature`` added,
+    summed and chosen among its candidates as the declared model's were (:func:`summed_candidate`) and compared by
+    the same rule (:func:`estimation.consistent.armature.armature_answer`); ``(selection, sums, scores)`` unchanged
+    when the in-memory path would not try it (the same conditions), else those of the answer."""
+    model = selection.unconstrained.model
+    laws = armature_laws(model)
+    if not laws or args.method != "auto" or args.consistent or not args.validate or model_has_shapes(model) \
+            or selection.selection != "validation":
+        return selection, sums, scores
+    other_model = build_model(model.robot, model.kind, (*model.effects, *laws))
+    with step("the rotors' reflected inertia (armature) fitted and compared"):
+        other, other_sums, other_scores = summed_candidate(args, other_model, base=base, methods=methods,
+                                                           chunk_size=chunk_size, options=options, ratio=ratio,
+                                                           still=still)
+    answer = armature_answer(selection, other)
     return (answer, other_sums, other_scores) if answer.unconstrained.model is other_model else (answer, sums, scores)
 
 
@@ -868,6 +906,7 @@ def identification_in_memory(args: IdentifyOptions, robot: RobotModel, model: Id
                                      consistent=consistent_settings(args, robot))
         selection = motor_friction_selection(args, selection, model, transmission, train, validation,
                                              base=base, given=given, delay=delay)
+        selection = armature_selection(args, selection, train, validation, base=base, given=given, delay=delay)
         selection, gains = torque_gains_selection(args, selection, train, validation, base=base, given=given,
                                                   delay=delay)
         result, consistent = selection.unconstrained, selection.consistent
@@ -878,7 +917,7 @@ def identification_in_memory(args: IdentifyOptions, robot: RobotModel, model: Id
         notes = (*notes, *above_floor_notes(floor_report, chosen, None if validation is None else validation.n_samples))
         repeat = None if validation is None else repeated_motion_note(train, validation)
         notes = notes if repeat is None else (*notes, repeat)
-        notes = (*notes, *joint_zero_notes(model, train, validation, delay=delay))
+        notes = (*notes, *description_notes(model, train, validation, delay=delay))
     ranges = TrainingRange.of(train.q, train.dq, model.robot.joint_names)  # the samples fitted
     return Identified(result, chosen, records.preprocessing.to_dict(), records.preprocessing.describe(),
                       (*chosen_messages(caught_messages(caught), selection), *notes), notes, trivial,
@@ -910,6 +949,26 @@ def motor_friction_selection(args: IdentifyOptions, selection: ModelSelection, m
     return motor_friction_answer(selection, other, ",".join(effect_spec(effect) for effect in laws))
 
 
+def armature_selection(args: IdentifyOptions, selection: ModelSelection, train: Measurements,
+                       validation: Measurements | None, *, base: str, given: str | None,
+                       delay: DelayBounds | None) -> ModelSelection:
+    """The default answer with the rotors' reflected inertia (armature on every joint) a candidate
+    (:mod:`estimation.consistent.armature`): the model ``selection`` holds (the declared one, with the motor laws when
+    they were taken) with ``armature`` added, chosen among its candidates as the declared model's were, on the same
+    records, and taken when its answer validates better. ``selection`` unchanged when the user chose the estimator
+    (``--method``, ``--consistent``), with a delay search or shaped laws, without a validation record of another
+    motion, or when the model declares an armature or models no joint torque."""
+    model = selection.unconstrained.model
+    laws = armature_laws(model)
+    if not laws or given is not None or delay is not None or model_has_shapes(model) or validation is None \
+            or selection.selection != "validation":
+        return selection
+    with step("the rotors' reflected inertia (armature) fitted and compared"):
+        other = select_model(build_model(model.robot, model.kind, (*model.effects, *laws)), train, validation,
+                             base=base, consistent=consistent_settings(args, model.robot))
+    return armature_answer(selection, other)
+
+
 def torque_gains_selection(args: IdentifyOptions, selection: ModelSelection, train: Measurements,
                            validation: Measurements | None, *, base: str, given: str | None,
                            delay: DelayBounds | None) -> tuple[ModelSelection, tuple[TorqueGains, bool, str] | None]:
@@ -938,8 +997,21 @@ def torque_gains_selection(args: IdentifyOptions, selection: ModelSelection, tra
     with step("the answer's candidates fitted to the torques divided by the gains and compared"):
         other = select_model(model, divided_torques(train, gains), divided_torques(validation, gains), base=base,
                              consistent=consistent_settings(args, model.robot))
-    answer, taken, compared = torque_gains_answer(selection, in_recorded_units(other, gains), gains)
+    answer, taken, compared = torque_gains_answer(selection, carried_reasons(selection, in_recorded_units(other, gains)),
+                                                  gains)
     return answer, (gains, taken, f"{checked}; then {compared}" if compared else checked)
+
+
+#: the sentences the candidates of the default answer append to its reason (motor-side friction, the armature)
+CANDIDATE_SENTENCES = ("; motor-side friction on the coupled motors", "; the rotors' reflected inertia")
+
+
+def carried_reasons(selection: ModelSelection, other: ModelSelection) -> ModelSelection:
+    """``other`` (the model ``selection`` holds, fitted again to the torques divided by the gains) with the
+    sentences that said how that model was chosen (motor-side friction, the armature: :data:`CANDIDATE_SENTENCES`)
+    appended to its reason, so that an answer taken with the gains still says them."""
+    starts = [selection.reason.find(mark) for mark in CANDIDATE_SENTENCES if mark in selection.reason]
+    return other if not starts else replace(other, reason=other.reason + selection.reason[min(starts):])
 
 
 def validation_fits(args: IdentifyOptions, model: IdentificationModel, delay: DelayBounds | None) -> tuple[str, ...]:
