@@ -21,12 +21,11 @@ kept), as motor-side friction is (:mod:`estimation.consistent.motor_friction`).
 
 from __future__ import annotations
 
-from dataclasses import replace
 from typing import Any
 
 from dynamics.effects.linear import Armature
 from dynamics.models import IdentificationModel, ModelKind
-from estimation.consistent.model_selection import ModelSelection, answers_scored
+from estimation.consistent.model_selection import ModelSelection, candidate_answer
 
 __all__ = ["ARMATURE_TOLERANCE", "armature_answer", "armature_laws"]
 
@@ -49,12 +48,5 @@ def armature_answer(selection: ModelSelection, other: ModelSelection) -> ModelSe
     with ``armature`` added) when its answer scores lower on the validation record than the declared model's
     (``selection``) by more than :data:`ARMATURE_TOLERANCE`, else ``selection``; the reason gives both scores.
     Compared only when both selections were made on a validation record of another motion."""
-    scored = answers_scored(selection, other)
-    if scored is None:
-        return selection
-    declared, armature = scored
-    taken = (1.0 + ARMATURE_TOLERANCE) * armature < declared
-    why = (f"; the rotors' reflected inertia (armature on every joint): its answer ({other.chosen}) validates "
-           f"{armature:.4g} against {declared:.4g} for the declared model's ({selection.chosen}; the mean relative "
-           "validation error), " + ("taken" if taken else "not taken"))
-    return replace(other, reason=other.reason + why) if taken else replace(selection, reason=selection.reason + why)
+    return candidate_answer(selection, other, tolerance=ARMATURE_TOLERANCE,
+                            added="the rotors' reflected inertia (armature on every joint)")

@@ -39,7 +39,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any, Literal
 
 import numpy as np
@@ -63,7 +63,7 @@ from estimation.identification.repeated_motion import REPEAT_FRACTION, repeated_
 from estimation.identification.validation import ChannelErrors, Comparison
 
 __all__ = ["CANDIDATES", "CONSISTENT_FAILURES", "DEFAULT_PRIOR_WEIGHT", "PREFERENCE", "PRIOR_WEIGHT_GRID", "PRIOR_WEIGHT_TOLERANCE",
-           "Candidate", "ConsistentSettings", "ModelSelection", "answers_scored", "choose_prior_weight", "consistent_entry",
+           "Candidate", "ConsistentSettings", "ModelSelection", "answers_scored", "candidate_answer", "choose_prior_weight", "consistent_entry",
            "prior_weight_choice", "select_fitted", "select_model", "select_refit", "select_scored",
            "selection_model_file"]
 
@@ -405,6 +405,23 @@ def answers_scored(selection: ModelSelection, other: ModelSelection) -> tuple[fl
     scored = relative_scores({index: answer.validation.mse for index, answer in enumerate(answers)},
                              _channels(answers[0].validation))
     return scored[0], scored[1]
+
+
+def candidate_answer(selection: ModelSelection, other: ModelSelection, *, tolerance: float, added: str
+                     ) -> ModelSelection:
+    """The default answer with a model of added laws a candidate: ``other`` (the selection of the declared model with
+    the laws ``added`` describes) when its answer scores lower on the validation record than the declared model's
+    (``selection``, :func:`answers_scored`) by more than ``tolerance`` (relative; a tie keeps the declared model),
+    else ``selection``; its reason gives both scores. ``selection`` unchanged unless both were chosen on a
+    validation record of another motion (nothing measured how the added laws extrapolate)."""
+    scored = answers_scored(selection, other)
+    if scored is None:
+        return selection
+    declared, candidate = scored
+    taken = (1.0 + tolerance) * candidate < declared
+    why = (f"; {added}: its answer ({other.chosen}) validates {candidate:.4g} against {declared:.4g} for the declared "
+           f"model's ({selection.chosen}; the mean relative validation error), " + ("taken" if taken else "not taken"))
+    return replace(other, reason=other.reason + why) if taken else replace(selection, reason=selection.reason + why)
 
 
 def _channels(errors: Comparison | ChannelErrors) -> tuple[str, ...]:

@@ -21,14 +21,13 @@ nothing is added and nothing changes.
 
 from __future__ import annotations
 
-from dataclasses import replace
 from typing import Any
 
 
 from dynamics.effects.motor import motor_effects
 from dynamics.models import IdentificationModel, ModelKind
 from dynamics.transmission import Transmission
-from estimation.consistent.model_selection import ModelSelection, answers_scored
+from estimation.consistent.model_selection import ModelSelection, candidate_answer
 
 __all__ = ["MOTOR_FRICTION_TOLERANCE", "motor_friction_answer", "motor_friction_laws"]
 
@@ -54,12 +53,5 @@ def motor_friction_answer(selection: ModelSelection, other: ModelSelection, laws
     model with the motor laws ``laws`` added) when its answer scores lower on the validation record than the
     declared model's (``selection``) by more than :data:`MOTOR_FRICTION_TOLERANCE`, else ``selection``; the reason
     gives both scores. Compared only when both selections were made on a validation record of another motion."""
-    scored = answers_scored(selection, other)
-    if scored is None:
-        return selection
-    declared, motor = scored
-    taken = (1.0 + MOTOR_FRICTION_TOLERANCE) * motor < declared
-    why = (f"; motor-side friction on the coupled motors ({laws}): its answer ({other.chosen}) validates "
-           f"{motor:.4g} against {declared:.4g} for the declared model's ({selection.chosen}; "
-           "the mean relative validation error), " + ("taken" if taken else "not taken"))
-    return replace(other, reason=other.reason + why) if taken else replace(selection, reason=selection.reason + why)
+    return candidate_answer(selection, other, tolerance=MOTOR_FRICTION_TOLERANCE,
+                            added=f"motor-side friction on the coupled motors ({laws})")
