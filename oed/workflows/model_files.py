@@ -34,9 +34,10 @@ def add_training_range(document: dict[str, Any], training_range: TrainingRange |
     """Put each joint's training range (:mod:`estimation.identification.training_range`) into the model files of
     ``document`` (``model_file``, the runner-up's), and each held-out record's check against it
     (``checks``: by the document's key, ``validation`` or ``test``) as ``outside_training_range`` under that key, in
-    place; return the warnings (a record that leaves the range: the errors measured on it measure extrapolation),
-    the same words on both paths (the fraction of the samples, which the streamed path does not count, in
-    ``outside_training_range`` and the summary)."""
+    place; return the warnings: a test record that leaves the range (the errors measured on it measure
+    extrapolation), the same words on both paths (the fraction of the samples, which the streamed path does not
+    count, in ``outside_training_range`` and the summary). A validation record that leaves it is no fault of the
+    user's records (the choices then measured some extrapolation): said in the summary and the document, not warned."""
     if training_range is None:
         return []
     for model_file in (document.get("model_file"), (document.get("runner_up") or {}).get("model_file")):
@@ -47,7 +48,8 @@ def add_training_range(document: dict[str, Any], training_range: TrainingRange |
         if check is None or not isinstance(document.get(key), dict):
             continue
         document[key]["outside_training_range"] = check.to_dict()
-        messages += check.messages(f"the {key} record", fraction=False)
+        if key != "validation":
+            messages += check.messages(f"the {key} record", fraction=False)
     return messages
 
 
