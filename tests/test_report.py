@@ -202,3 +202,31 @@ def test_the_tracing_figure_shows_only_the_channel_whose_residual_follows_a_vari
     titles = [axis.get_title() for axis in drawn.axes if axis.get_title()]
     assert titles and all(title.startswith("tau2: ") and not title.startswith("tau2: 0 %") for title in titles)
     assert len(set(titles)) == len(titles)  # no panel twice
+
+
+def test_the_tracing_figure_of_a_jittered_validation_record_is_drawn_on_its_recorded_samples(records, tmp_path):
+    """A jittered log is prepared on a uniform grid, but its validation errors are taken on the samples as recorded
+    (2000 here, against 2010 grid samples): the tracing figure plots those residuals against the recorded samples'
+    motion. It raised ``cannot reshape array`` and `oed diagnose --report` exited on the Panda's real log."""
+    import pandas as pd
+
+    from estimation.data.loading import ResampledWarning
+    from estimation.data.records import read_measurements
+    from estimation.diagnosis.report import diagnosis_report
+    from estimation.diagnosis.search import diagnose
+
+    frame = pd.read_csv(records / "validate.csv")
+    step = float(np.diff(frame["t"]).mean())
+    frame["t"] = frame["t"] + np.random.default_rng(0).uniform(-0.2, 0.2, len(frame)) * step
+    frame.to_csv(tmp_path / "validate_jittered.csv", index=False)
+    robot = load_robot("puma560", joints=3)
+    train = read_measurements(records / "train.csv", n_joints=3)
+    with pytest.warns(ResampledWarning, match="irregular sampling"):
+        validate = read_measurements(tmp_path / "validate_jittered.csv", n_joints=3)
+    assert validate.recorded is not None and validate.recorded.n_samples == len(frame) != validate.n_samples
+    diagnosis = diagnose(build_model(robot, "internal", "viscous"), train, validate, candidates=[])  # Coulomb missed
+    assert np.asarray(diagnosis.after.validation.residuals).shape == (len(frame), 3)
+    report = diagnosis_report(diagnosis, train=train, validate=validate)
+    assert [figure.name for figure in report.figures()][0] == "trace"
+    drawn = report.figures()[0].draw()
+    assert any(axis.get_title().startswith("tau2: ") for axis in drawn.axes)

@@ -339,7 +339,13 @@ def plot_trace(diagnosis: Diagnosis, validate: Measurements, path: str | Path | 
         return None
     channels = diagnosis.after.estimate.channels
     rows = tuple(row for channel in channels for row in kept.get(channel, ()))
-    residuals = np.asarray(diagnosis.after.validation.residuals, dtype=float).reshape(validate.n_samples, -1)
+    residuals = np.asarray(diagnosis.after.validation.residuals, dtype=float).reshape(-1, len(channels))
+    if residuals.shape[0] != validate.n_samples:
+        # errors against the record as recorded: a jittered or stalled log's residuals are on its recorded samples,
+        # not on the uniform grid it was prepared on (the Panda's validation record: 3110 against 3360)
+        validate = validate.as_recorded
+    if residuals.shape[0] != validate.n_samples:
+        raise ValueError(f"the validation residual holds {residuals.shape[0]} samples, the record {validate.n_samples}")
     columns = [channels.index(channel) for channel in kept]
     return plot_residual_trace(replace(trace, rows=rows), residuals[:, columns], validate, tuple(kept), path,
                                count=max(len(value) for value in kept.values()),
