@@ -491,7 +491,10 @@ def choose_by_evidence(
     selection = "given" if given is not None else "held-out"
     attached = replace(chosen, evidence=Evidence(selection, folds, evidence))
     if time.perf_counter() - started >= PROGRESS_SECONDS:
-        report("derivatives: %s chosen among %d candidates scored on %d samples (%.1f s)", attached.describe_method(),
+        # a --validate record may then decide among the same candidates: this line says what the training record's
+        # blocks preferred, the summary's ``preprocessing:`` line what was used
+        report("derivatives, on held-out blocks of the training record: %s best among %d candidates scored on %d "
+               "samples (%.1f s)", attached.describe_method(),
                len(evidence), sum(segment.n_samples for segment in segments), time.perf_counter() - started)
     if given is not None:
         warn_if_clearly_better(attached)
@@ -573,7 +576,9 @@ def say_what_was_chosen(chosen: Preprocessing, segments: Sequence[Measurements])
     warnings.warn(
         f"the positions repeat every {1 / found:.6g} s: periodic excitation of {found:.6g} Hz detected; derivatives "
         f"from {chosen.describe_method()}, chosen by held-out error among {len(chosen.evidence.candidates)} candidates "
-        "(give --frequency or --cutoff to decide)", PreprocessingWarning, stacklevel=3)
+        "on the training record, unless a --validate record then decides among them (the summary's preprocessing line "
+        "and the result's `preprocessing` say what was used; give --frequency or --cutoff to decide)",
+        PreprocessingWarning, stacklevel=3)
 
 
 def scored_window(segments: Sequence[Measurements]) -> tuple[Measurements, ...]:

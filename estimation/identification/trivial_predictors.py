@@ -43,9 +43,9 @@ def trivial_mse(model: IdentificationModel, measurements: Measurements) -> dict[
 
 
 def trivial_warnings(mse: Mapping[str, float], trivial: Mapping[str, Mapping[str, float]], *,
-                     label: str = "identified model") -> tuple[str, ...]:
-    """One message per channel where ``mse`` (the identified model's validation MSE) exceeds the
-    zero predictor's or the nominal model's."""
+                     label: str = "identified model", record: str = "the validation data") -> tuple[str, ...]:
+    """One message per channel where ``mse`` (the identified model's validation MSE, or its MSE on ``record``)
+    exceeds the zero predictor's or the nominal model's."""
     messages = []
     for channel, value in mse.items():
         worse = [(name, trivial[key][channel]) for key, name in (("zero_mse", "a zero prediction"),
@@ -54,7 +54,7 @@ def trivial_warnings(mse: Mapping[str, float], trivial: Mapping[str, Mapping[str
         if worse:
             against = " and ".join(f"{name} ({reference:.4g})" for name, reference in worse)
             messages.append(
-                f"{channel}: the {label} predicts the validation data worse (MSE {value:.4g}) than {against}: "
+                f"{channel}: the {label} predicts {record} worse (MSE {value:.4g}) than {against}: "
                 "a sign or unit, an undeclared transmission (friction on a coupled motor fitted per joint; "
                 "try --transmission, or `oed diagnose`) or a missing effect")
     return tuple(messages)

@@ -266,8 +266,9 @@ class Preprocessing:
                                                                         if self.velocity_from_positions else "")
         return "measured dq, ddq"
 
-    def describe(self) -> str:
-        """One line for the user."""
+    def describe(self, *, applied: bool = False) -> str:
+        """One line for the user; ``applied``: the preprocessing of a model file applied to another record (``oed
+        predict``), which says so rather than how a run chose it."""
         if self.method == "fourier":
             text = (f"Fourier fit, {self.frequency_hz:.6g} Hz ({self.frequency_source}), {self.harmonics} harmonics, "
                     f"period averaging {self.average_periods}")
@@ -279,7 +280,9 @@ class Preprocessing:
             text = "measured dq, ddq"
         extras = ([f"decimated by {self.decimation}"] if self.decimation > 1 else []) + \
             (["held torques"] if self.held_torques else [])
-        if self.evidence is not None and self.evidence.selection in ("validation", "repeat"):
+        if applied:
+            how = "the model file's preprocessing, applied to this record"
+        elif self.evidence is not None and self.evidence.selection in ("validation", "repeat"):
             how = (f"chosen among {len(self.evidence.validation)} candidates by the validation error of the model "
                    "fitted with each, the validation record being another motion"
                    if self.evidence.selection == "validation" else

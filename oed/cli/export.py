@@ -15,13 +15,16 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     parser = subparsers.add_parser(
         "export",
         help=verb_summary("export"),
-        description="From a result.json of `oed identify --consistent`: the robot's URDF with every moving link's "
+        description="From a result.json (oed identify) or report.json (oed diagnose) whose chosen model is physically "
+        "consistent, else from its consistent alternative (the default answer keeps one; `oed identify --consistent` "
+        "chooses it): the robot's URDF with every moving link's "
         "<inertial> replaced by the identified mass, centre of mass and inertia (the same joint and link names; a "
         "built-in robot is written from its description), and the joints' friction, offsets and armature as JSON. "
         "A body that is not plausible (degenerate, a mass ten times the description's or a tenth of it, a centre of "
         "mass beyond twice the link's reach) is refused unless --allow-implausible.",
     )
-    parser.add_argument("--model", type=Path, required=True, help="result.json of oed identify --consistent")
+    parser.add_argument("--model", type=Path, required=True, help="result.json (oed identify) or report.json (oed diagnose) holding a physically consistent "
+                             "model, chosen or as the alternative 'consistent'")
     parser.add_argument("--urdf", dest="urdf_out", type=Path, metavar="URDF", help="URDF file to write")
     parser.add_argument("--mjcf", dest="mjcf_out", type=Path, metavar="XML",
                         help="MuJoCo MJCF file to write: the bodies, joint armature, damping (viscous), frictionloss "

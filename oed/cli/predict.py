@@ -18,7 +18,7 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
         "predict",
         help=verb_summary("predict"),
         description="Load the model of a result.json (oed identify) or report.json (oed diagnose), derive the "
-        "motion of the record as the model's preprocessing says, predict its channels with 95 %% prediction bands "
+        "motion of the record as the model's preprocessing says, predict its channels with 95 % prediction bands "
         "and compare them with the channels as recorded (MSE per channel, beside a zero prediction and the "
         "nominal description).",
     )

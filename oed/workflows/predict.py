@@ -84,13 +84,13 @@ def predict(*, model: str | Path, data: Any, consistent: bool = False, alternati
         evaluation = identified.evaluate(list(log_sources(paths(data), topic, columns)))
     prediction = evaluation.prediction
     notes = trivial_warnings(prediction.mse, {"zero_mse": evaluation.zero_mse, "nominal_mse": evaluation.nominal_mse},
-                             label="model")
+                             label="model", record="this record")
     messages = tuple(dict.fromkeys(grouped_messages(caught, paths(data)) + list(notes)))  # a line per finding
     lines = [f"{identified.robot.name}: {identified.file.model} model ({identified.file.effects}, {identified.estimate}"
              + ("" if identified.estimate == (identified.file.chosen or "unconstrained") else ": an alternative")
              + (f", delay {1e3 * identified.delay:.3g} ms" if identified.delay is not None else "")
              + f"), {prediction.t.shape[0]} samples; "
-             f"{identified.preprocessing.describe().removeprefix('preprocessing: ')}",
+             f"{identified.preprocessing.describe(applied=True).removeprefix('preprocessing: ')}",
              *table_lines(evaluation), range_line(evaluation)]
     return PredictRun(evaluation, tuple(lines), messages)
 
