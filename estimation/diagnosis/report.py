@@ -162,6 +162,10 @@ def choice_blocks(diagnosis: Diagnosis, document: dict[str, Any], preprocessing:
     blocks: list[Block] = [Heading("Choices made"), Bullets(tuple(items))]
     if document["rejected"]:
         blocks += [Heading("Candidates rejected", 3),
+                   Paragraph("A reason's validation error (a -> b) is the one the search compares: the sum over the "
+                             "channels of each channel's validation MSE times its channel weight (the inverse "
+                             "variance of its training residual), without the candidate and with it; not the MSE "
+                             "of the tables below."),
                    Table(("candidate", "channels", "reason"),
                          tuple((r["spec"], ", ".join(r["channels"]), r["reason"]) for r in document["rejected"]))]
     return blocks

@@ -155,16 +155,16 @@ def link_findings(robot: RobotModel, links: np.ndarray) -> tuple[str, ...]:
         if margin < DEGENERATE_MARGIN:
             messages.append(f"link of {joint.name}: mass {link[0]:.4g} kg, consistency margin {margin:.2g}: a "
                             "degenerate body, set by the bounds of consistency rather than by the data (a richer "
-                            "excitation, a prior (--prior-weight) or link bounds (--link-bounds) determine it)")
+                            "excitation, a larger prior weight or link bounds (--consistent --prior-weight W, --link-bounds FILE) determine it)")
             continue
         if nominal > 0 and not nominal / MASS_FACTOR <= link[0] <= MASS_FACTOR * nominal:
             messages.append(f"link of {joint.name}: mass {link[0]:.4g} kg against {nominal:.4g} kg in the description: "
-                            "the data hardly determine it (a prior (--prior-weight) or link bounds (--link-bounds) "
+                            "the data hardly determine it (a larger prior weight or link bounds (--consistent --prior-weight W, --link-bounds FILE) "
                             "keep it near the description)")
         distance = float(np.linalg.norm(link[1:4] / link[0])) if link[0] > 0 else 0.0
         if distance > limit:
             messages.append(f"link of {joint.name}: centre of mass {distance:.3g} m from the link frame's origin, "
                             f"beyond {COM_REACH_FACTOR:g} x the link's reach ({limit / COM_REACH_FACTOR:.3g} m): the "
-                            "data hardly determine it (a prior (--prior-weight) or link bounds (--link-bounds) keep it "
+                            "data hardly determine it (a larger prior weight or link bounds (--consistent --prior-weight W, --link-bounds FILE) keep it "
                             "on the link)")
     return tuple(messages)

@@ -8,6 +8,7 @@ the friction JSON (``to_dict()``), ``summary()`` the lines ``oed export`` prints
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -84,6 +85,16 @@ def check_outputs(urdf: str | Path | None = None, *, mjcf: str | Path | None = N
         check_json_path(friction, "--friction")
 
 
+def chosen_prior_weight(path: Path) -> str:
+    """``": this one was chosen at W"`` from a result's ``consistent.prior_weight``, or ``""`` when the file does not
+    say (for the message refusing an implausible body: ``--prior-weight`` is an option of ``--consistent`` only)."""
+    try:
+        weight = json.loads(path.read_text(encoding="utf-8"))["consistent"]["prior_weight"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return ""
+    return f": this one was fitted at {weight:g}" if isinstance(weight, (int, float)) else ""
+
+
 def export(*, model: str | Path, allow_implausible: bool = False, mjcf: bool = False,
            alternative: str | None = None) -> ExportRun:
     """``oed export``: the consistent estimate of ``model`` (a result.json of ``oed identify --consistent``) as the
@@ -96,9 +107,10 @@ def export(*, model: str | Path, allow_implausible: bool = False, mjcf: bool = F
     findings = implausible_links(identified)
     if findings and not allow_implausible:
         raise ValueError("not exported: the consistent estimate holds bodies that are not plausible:\n  "
-                         + "\n  ".join(findings) + "\nidentify again with a prior (--prior-weight, the default with "
-                         "--validate chooses it) or link bounds (--link-bounds), or export them anyway with "
-                         "--allow-implausible")
+                         + "\n  ".join(findings) + "\nidentify again with `--consistent` and a larger --prior-weight "
+                         f"(the weight toward the description's bodies{chosen_prior_weight(Path(model))}; 100 holds "
+                         "them closer where the data say little) or link bounds (--consistent --link-bounds FILE), or "
+                         "export them anyway with --allow-implausible")
     masses = ", ".join(f"{link[0]:.4g}" for link in identified.file.consistent_links)
     line = f"{identified.robot.name}: {identified.robot.n_joints} bodies of the consistent estimate (masses {masses} kg)"
     mujoco = exported_mjcf(identified) if mjcf else None
