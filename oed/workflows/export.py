@@ -86,13 +86,13 @@ def check_outputs(urdf: str | Path | None = None, *, mjcf: str | Path | None = N
 
 
 def chosen_prior_weight(path: Path) -> str:
-    """``": this one was chosen at W"`` from a result's ``consistent.prior_weight``, or ``""`` when the file does not
+    """``"; this estimate was fitted at W"`` from a result's ``consistent.prior_weight``, or ``""`` when the file does not
     say (for the message refusing an implausible body: ``--prior-weight`` is an option of ``--consistent`` only)."""
     try:
         weight = json.loads(path.read_text(encoding="utf-8"))["consistent"]["prior_weight"]
     except (OSError, ValueError, KeyError, TypeError):
         return ""
-    return f": this one was fitted at {weight:g}" if isinstance(weight, (int, float)) else ""
+    return f"; this estimate was fitted at {weight:g}" if isinstance(weight, (int, float)) else ""
 
 
 def export(*, model: str | Path, allow_implausible: bool = False, mjcf: bool = False,
@@ -108,9 +108,9 @@ def export(*, model: str | Path, allow_implausible: bool = False, mjcf: bool = F
     if findings and not allow_implausible:
         raise ValueError("not exported: the consistent estimate holds bodies that are not plausible:\n  "
                          + "\n  ".join(findings) + "\nidentify again with `--consistent` and a larger --prior-weight "
-                         f"(the weight toward the description's bodies{chosen_prior_weight(Path(model))}; 100 holds "
-                         "them closer where the data say little) or link bounds (--consistent --link-bounds FILE), or "
-                         "export them anyway with --allow-implausible")
+                         f"(the weight toward the description's bodies where the data say little{chosen_prior_weight(Path(model))}) "
+                         "or link bounds (--consistent --link-bounds FILE), or export them anyway with "
+                         "--allow-implausible")
     masses = ", ".join(f"{link[0]:.4g}" for link in identified.file.consistent_links)
     line = f"{identified.robot.name}: {identified.robot.n_joints} bodies of the consistent estimate (masses {masses} kg)"
     mujoco = exported_mjcf(identified) if mjcf else None
