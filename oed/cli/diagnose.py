@@ -44,8 +44,10 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     add_asbuilt_arguments(parser)
     add_data_arguments(parser, validate_required=True)
     parser.add_argument("--test", type=Path, action="append", default=None,
-                        help="test data from a third experiment, never used for a decision: the error before and after "
-                             "on it is the one to quote (test{before,after} in the report); repeatable like --data")
+                        help="test data from a third experiment, never used for a decision: the chosen model's error "
+                             "on it is the one to quote (test.chosen in the report, what oed predict gives; "
+                             "test{before,after}: the declared and the diagnosed model as fitted); repeatable like "
+                             "--data")
     parser.add_argument("--out", type=Path, required=True, help="report JSON")
     parser.add_argument("--report", type=Path, help="the report a person reads: report.html (one self-contained "
                         "page, figures inline) or report.md (Markdown, its figures as PNG files beside it)")

@@ -33,7 +33,9 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
         help=verb_summary("identify"),
         description="Least-squares identification of the base parameters of the internal, external or combined "
         "model (PUMA paper, section IV) from a CSV/Parquet file (columns t, q1..qn [, dq.., ddq..], tau1..taun, "
-        "fx fy fz mx my mz), with validation on another experiment.",
+        "fx fy fz mx my mz; .npz, .mat and ROS bags with --columns and --topic), with validation on another "
+        "experiment. The answer is chosen by the --validate record's error (model_selection in the result): oed "
+        "predict and oed export use it.",
     )
     add_robot_arguments(parser)
     parser.add_argument("--model", choices=[kind.value for kind in ModelKind], default="internal", help="which model (default: internal)")
