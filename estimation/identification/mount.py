@@ -125,13 +125,12 @@ def _scored(u: NDArray, train: tuple, held_out: tuple) -> float:
     magnitude the axes' regressors were built with)."""
     weights = np.r_[1.0, u / np.linalg.norm(u)]  # u in the frame of the three gravity regressors
     A = np.einsum("a,b,abrs->rs", weights, weights, train[0])
-    theta = np.linalg.lstsq(A, weights @ train[1], rcond=1e-10)[0]
-    G, h, c = held_out
-    return float(c - 2.0 * theta @ (weights @ h) + theta @ np.einsum("a,b,abrs->rs", weights, weights, G) @ theta)
+    return _held_out_rss(u, np.linalg.lstsq(A, weights @ train[1], rcond=1e-10)[0], held_out)
 
 
-def _nominal_scored(u: NDArray, theta: NDArray, held_out: tuple) -> float:
-    """The validation RSS of the description's parameters ``theta`` with gravity along ``u``."""
+def _held_out_rss(u: NDArray, theta: NDArray, held_out: tuple) -> float:
+    """The validation RSS of the parameters ``theta`` with gravity along ``u`` (the fitted ones, or the description's
+    nominal ones)."""
     weights = np.r_[1.0, u / np.linalg.norm(u)]
     G, h, c = held_out
     return float(c - 2.0 * theta @ (weights @ h) + theta @ np.einsum("a,b,abrs->rs", weights, weights, G) @ theta)
@@ -171,5 +170,5 @@ def check_mount(model: IdentificationModel, train: Measurements, validation: Mea
     return MountCheck(magnitude * declared, magnitude * (best @ frame),
                       _scored(np.eye(3)[0], train_sums, held_sums) / count,
                       min(float(refined.fun), float(scores.min())) / count,
-                      _nominal_scored(np.eye(3)[0], nominal, held_sums) / count,
-                      _nominal_scored(best, nominal, held_sums) / count)
+                      _held_out_rss(np.eye(3)[0], nominal, held_sums) / count,
+                      _held_out_rss(best, nominal, held_sums) / count)

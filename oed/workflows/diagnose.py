@@ -787,8 +787,8 @@ def test_lines(untouched: UntouchedErrors | None) -> list[str]:
     if untouched is None:
         return ["note: the 'after' error above is on the --validate record, which chose the effects: it is optimistic; "
                 "give --test FILE (a third record) for an error no choice saw"]
-    lines = ["test MSE vs recorded (a record no choice used; before: the declared model, after: the diagnosed model as "
-             "fitted; the chosen model's, what `oed predict` gives, on its own line below)",
+    lines = ["test MSE vs recorded (a record no choice used): before, the declared model; after, the diagnosed model as "
+             "fitted; the chosen model's, what `oed predict` gives, on its own line below",
              "  before         " + "  ".join(f"{value:9.4g}" for value in untouched.before.values()),
              "  after          " + "  ".join(f"{value:9.4g}" for value in untouched.after.values())]
     ratios = untouched.over_floor("after")
