@@ -147,3 +147,18 @@ def test_a_filter_settles_where_its_impulse_response_autocorrelation_falls_below
     response = np.abs(np.correlate(forward, forward, mode="full")[length - 1:])  # the direct sum
     expected = int(np.flatnonzero(response > 1e-2 * response.max())[-1]) + 1
     assert ButterworthDifferentiation(order=order).settling_samples(rate, cutoff) == expected
+
+
+def test_the_summary_says_what_the_training_blocks_preferred_when_only_the_hold_differs():
+    """On the TX40 the validation record chose an 85 Hz filter with held torques where the training record's blocks
+    preferred the same filter without: the line said the blocks "preferred a 85 Hz Butterworth filter", the chosen
+    one's own words."""
+    from estimation.preprocessing.plan import Evidence, Preprocessing
+
+    trained = Preprocessing("butterworth", cutoff_hz=85.0)
+    chosen = replace(trained, held_torques=True, evidence=Evidence("validation", 5, (), (), trained))
+    line = chosen.describe()
+    assert ", held torques (chosen among" in line
+    assert line.endswith("preferred a 85 Hz Butterworth filter without held torques)")
+    other = replace(chosen, cutoff_hz=20.0)  # another filter: its own words suffice
+    assert other.describe().endswith("preferred a 85 Hz Butterworth filter)")

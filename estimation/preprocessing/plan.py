@@ -294,7 +294,11 @@ class Preprocessing:
                 how += (f"; {tied - 1} other(s) within {TIED_SE:g} standard errors of its score: the validation "
                         "record does not tell them apart")
             if held_out is not None and held_out != self.without_evidence():
-                how += f"; blocked cross-validation on the training data preferred {held_out.describe_method()}"
+                preferred = held_out.describe_method()
+                if preferred == self.describe_method() and held_out.held_torques != self.held_torques:
+                    # the same derivatives, the torques' hold differing: say it, or the sentence names this choice
+                    preferred += " with held torques" if held_out.held_torques else " without held torques"
+                how += f"; blocked cross-validation on the training data preferred {preferred}"
         elif self.evidence is not None and self.evidence.selection == "held-out":
             how = (f"chosen among {len(self.evidence.candidates)} candidates by held-out error on the training data, "
                    "used for validation")
