@@ -72,3 +72,17 @@ def test_a_staged_measurement_file_is_written_once(record, tmp_path, monkeypatch
         data.write(outputs.stage(folder / "s.csv"), staged=False)
     assert len(seen) == 1 and len(seen[0]) == 1, seen
     assert [path.name for path in folder.iterdir()] == ["s.csv"]
+
+
+def test_an_npz_without_a_map_names_its_arrays_and_the_option(tmp_path, capsys):
+    """The KUKA LWR4+ runs as a user first gives them (no --columns): the message named only the missing ``t``, not
+    what the file holds nor the option that reads it (its 2-D arrays were no column, so not even listed)."""
+    samples = 200
+    generator = np.random.default_rng(0)
+    path = tmp_path / "run.npz"
+    np.savez(path, times=np.arange(samples) * 0.005, positions=generator.normal(size=(samples, 3)),
+             torques=generator.normal(size=(samples, 3)))
+    code = main(["identify", "--joints", "3", "--data", str(path), "--out", str(tmp_path / "result.json")])
+    error = capsys.readouterr().err
+    assert code == 2 and "missing column(s) t (the time)" in error
+    assert "the file holds times, positions (200 x 3), torques (200 x 3)" in error and "--columns" in error

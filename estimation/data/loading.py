@@ -240,7 +240,12 @@ def require_columns(frame: pd.DataFrame, columns: list[str], meaning: str, sourc
                 f"{source}: missing column(s) {', '.join(missing)} ({meaning}); the file numbers its joints from 0 "
                 f"({', '.join(f'{group}0' for group in zero)}), the format from 1: --columns {mapped} reads them as "
                 "joints 1 to n (or rename the columns)")
-        raise MissingColumnError(f"{source}: missing column(s) {', '.join(missing)} ({meaning})")
+        held = [str(column) for column in frame.columns] + list(frame.attrs.get("unmapped_arrays", ()))
+        shown = ", ".join(held[:12]) + (f" and {len(held) - 12} more" if len(held) > 12 else "")
+        raise MissingColumnError(
+            f"{source}: missing column(s) {', '.join(missing)} ({meaning}); the file holds {shown}: name yours with "
+            "--columns (t=NAME for the time, q=NAME, dq=NAME, tau=NAME for a group: an .npz's or .mat's array, or a "
+            "table's columns NAME1..NAMEn; docs/guides/robots-and-logs.md)")
 
 
 #: delimiters of files written as "CSV" by spreadsheets and loggers of other locales

@@ -379,6 +379,7 @@ def _array_frame(arrays: Mapping[str, np.ndarray], columns: Mapping[str, str], s
     """The table of named arrays: each mapped (or, without a map, each array) as its column or group."""
     wanted = dict(columns) if columns else {name: name for name in arrays}
     table: dict[str, np.ndarray] = {}
+    unmapped: list[str] = []  # arrays without a map that are no column (2-D, not named as a group)
     for key, value in wanted.items():
         factor, name = _scaled(value)
         if name not in arrays:
@@ -407,11 +408,16 @@ def _array_frame(arrays: Mapping[str, np.ndarray], columns: Mapping[str, str], s
         elif columns:
             raise MeasurementError(f"{source}: array {name!r} has shape {array.shape}: map a 1-D array to a column "
                                    f"or a 2-D one (samples x joints) to a group ({', '.join(JOINT_GROUPS)})")
+        else:
+            unmapped.append(f"{name} ({' x '.join(str(size) for size in array.shape)})")
     lengths = {name: len(values) for name, values in table.items()}
     if len(set(lengths.values())) > 1:
         raise MeasurementError(f"{source}: the arrays have different lengths ({lengths}); map the ones of one record "
                                "(--columns t=...,q=...)")
-    return pd.DataFrame(table)
+    frame = pd.DataFrame(table)
+    if unmapped:  # named by a missing column's message (estimation.data.loading.require_columns)
+        frame.attrs["unmapped_arrays"] = tuple(unmapped)
+    return frame
 
 
 def _ros_reader() -> tuple[Any, Any, Any]:
