@@ -79,5 +79,5 @@ def consistent_lines(consistent: ConsistentResult | None) -> list[str]:
             lines.append(line)
     for label, comparison in (("train", consistent.train), ("validation", consistent.validation)):
         if comparison is not None and comparison.mse is not None:  # sums of filtered channels: not the recording
-            lines.append(f"consistent {label} MSE: " + "  ".join(f"{c} {v:.4g}" for c, v in comparison.mse.items()))
+            lines.append(f"consistent {label} MSE (vs recorded): " + "  ".join(f"{c} {v:.4g}" for c, v in comparison.mse.items()))
     return lines
