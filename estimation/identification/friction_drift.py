@@ -76,6 +76,10 @@ class FrictionDrift:
     friction_rms: NDArray[np.float64]
     sampling: NDArray[np.float64] | None = None  # the joint fit's batch-means standard error
     between: NDArray[np.float64] | None = None  # the scale's spread between the training record's blocks
+    #: the validation MSE per joint of the training fit, and of it with the friction scaled to the validation record's
+    #: (cross-fitted halves: each sample predicted by the scale fitted on the other half)
+    held_mse: NDArray[np.float64] | None = None
+    refitted_mse: NDArray[np.float64] | None = None
 
     @property
     def z(self) -> NDArray[np.float64]:
@@ -95,10 +99,14 @@ class FrictionDrift:
                 "alpha": DRIFT_ALPHA, "z_limit": drift_z(len(self.joints)),
                 "joints": {name: {"scale": float(s), "std": float(e), "std_sampling": float(a),
                                   "std_between_motions": float(b), "z": float(z), "marked": bool(m),
-                                  "friction_rms": float(r)}
-                           for name, s, e, a, b, z, m, r in zip(self.joints, self.scale, self.std, self._sampling,
-                                                                self._between, self.z, self.marked,
-                                                                self.friction_rms)}}
+                                  "friction_rms": float(r), "validation_mse_training_friction": float(h),
+                                  "validation_mse_validation_friction": float(v)}
+                           for name, s, e, a, b, z, m, r, h, v in zip(
+                               self.joints, self.scale, self.std, self._sampling, self._between, self.z, self.marked,
+                               self.friction_rms, self._mse(self.held_mse), self._mse(self.refitted_mse))}}
+
+    def _mse(self, values: NDArray[np.float64] | None) -> NDArray[np.float64]:
+        return np.full(len(self.joints), np.nan) if values is None else values
 
     @property
     def _sampling(self) -> NDArray[np.float64]:
@@ -118,10 +126,15 @@ class FrictionDrift:
             change = "lower" if scale < 1.0 else "higher"
             parts.append(f"{name} {abs(1.0 - scale):.0%} {change} (scale {scale:.3f} ± {std:.2g})")
         lower = bool(np.all(self.scale[self.marked] < 1.0))
+        saved = ""
+        if self.held_mse is not None and self.refitted_mse is not None:
+            held, refitted = self.held_mse[self.marked].sum(), self.refitted_mse[self.marked].sum()
+            saved = (f" (the validation record's own friction predicts its other half with "
+                     f"{1.0 - refitted / held:.0%} less error on these joints)") if held > 0 else ""
         cause = ("a gearbox warming up between the records?" if lower else
                  "a gearbox cooling down, or a load or lubrication change between the records?")
         return (f"friction differs between the training and the validation record beyond its standard error: "
-                f"{', '.join(parts)}; {cause} The model holds the training record's friction, and a test record "
+                f"{', '.join(parts)}{saved}; {cause} The model holds the training record's friction, and a test record "
                 "taken at another time may differ again: record the training motion after the robot has warmed up "
                 "(a few minutes of motion), or take the records back to back")
 
@@ -207,9 +220,30 @@ def check_friction_drift(model: IdentificationModel, train: Measurements, valida
     between = np.array([_between_blocks(Y_train[:, channels.index(f"tau{joint + 1}")], torques[0][:, channels.index(
         f"tau{joint + 1}")], theta, columns[joint], length) for joint in joints])
     usable = friction_rms > 0
+    held, refitted = _cross_fitted(Y_valid, torques[1], theta, [channels.index(f"tau{joint + 1}") for joint in joints],
+                                   [columns[joint] for joint in joints])
     return FrictionDrift(tuple(model.robot.joint_names[joint] for joint in np.asarray(joints)[usable]),
                          1.0 + drift[usable], np.sqrt(std**2 + between**2)[usable], friction_rms[usable],
-                         std[usable], between[usable])
+                         std[usable], between[usable], held[usable], refitted[usable])
+
+
+def _cross_fitted(Y: NDArray, tau: NDArray, theta: NDArray, channels: list[int], columns: list[list[int]]
+                  ) -> tuple[NDArray, NDArray]:
+    """Per joint, the validation MSE of the training fit (``θ``) and of the same fit with its friction scaled to
+    the validation record's, each sample predicted by the scale fitted on the record's other half (two halves in
+    time, cross-fitted): the friction drift as a candidate model, judged on samples its scale did not see."""
+    halves = np.array_split(np.arange(tau.shape[0]), 2)
+    held, refitted = np.empty(len(channels)), np.empty(len(channels))
+    for k, (channel, found) in enumerate(zip(channels, columns)):
+        friction = Y[:, channel, found] @ theta[found]
+        residual = tau[:, channel] - Y[:, channel] @ theta
+        scaled = np.empty_like(residual)
+        for fitted, scored in ((halves[0], halves[1]), (halves[1], halves[0])):
+            energy = float(friction[fitted] @ friction[fitted])
+            drift = float(friction[fitted] @ residual[fitted]) / energy if energy > 0 else 0.0
+            scaled[scored] = residual[scored] - drift * friction[scored]
+        held[k], refitted[k] = float(np.mean(residual**2)), float(np.mean(scaled**2))
+    return held, refitted
 
 
 def _between_blocks(Y: NDArray, tau: NDArray, theta: NDArray, columns: list[int], length: int) -> float:
