@@ -531,8 +531,6 @@ def diagnose_document(args: DiagnoseOptions, diagnosed: Diagnosed) -> tuple[dict
     document["preprocessing"] = diagnosed.preprocessing
     drift = diagnosed.friction_drift
     document["friction_drift"] = None if drift is None else drift.to_dict()
-    if records is None and isinstance(document.get("not_computed"), dict):
-        document["not_computed"]["friction_drift"] = STREAMED_DRIFT
     if records is None:  # streamed: the transmission read, as in memory
         transmission = diagnosed.transmission
         document["transmission"] = None if transmission is None else {**transmission.to_dict(),
@@ -1006,8 +1004,9 @@ def diagnosis_streamed(args: DiagnoseOptions, friction: str, plan: Preprocessing
         sum(part.n_samples for part, _ in run.sums.validate_parts), options=run.settings.reading())
         if delay is None else ())  # none with a declared delay, as in memory
     messages = (*messages, *notes)
-    diagnosis = replace(diagnosis, not_computed={key: reason for key, reason in diagnosis.not_computed.items()
-                                                 if key not in SELECTION_KEYS})  # computed now
+    diagnosis = replace(diagnosis, not_computed={**{key: reason for key, reason in diagnosis.not_computed.items()
+                                                    if key not in SELECTION_KEYS},  # computed now
+                                                 "friction_drift": STREAMED_DRIFT})  # in memory only
     if checked is not None and checked[1]:  # the gains taken, not applied (divided_diagnosis could not): said
         gains_note = streamed_gains_note(checked)
         if gains_note is not None:
