@@ -197,7 +197,7 @@ def check_friction_drift(model: IdentificationModel, train: Measurements, valida
     scale = np.std(torques[0], axis=0)
     weights = 1.0 / np.where(scale > 0, scale, 1.0) ** 2  # each channel in its own units: no joint dominates
     n_params = Y_train.shape[2]
-    theta = _weighted_lstsq(Y_train, torques[0], weights)
+    theta = _weighted_lstsq(Y_train, torques[0], weights)[0]
     n_train = Y_train.shape[0]
     extra = np.zeros((n_train + Y_valid.shape[0], len(channels), len(joints)))
     friction_rms = np.empty(len(joints))
@@ -208,11 +208,9 @@ def check_friction_drift(model: IdentificationModel, train: Measurements, valida
         friction_rms[k] = float(np.sqrt(np.mean(friction**2)))
     X = np.concatenate([np.concatenate([Y_train, Y_valid], axis=0), extra], axis=2)
     tau = np.concatenate(torques, axis=0)
-    estimate = _weighted_lstsq(X, tau, weights)
+    estimate, normal = _weighted_lstsq(X, tau, weights)
     residual = tau - np.einsum("ncp,p->nc", X, estimate)
-    root = np.sqrt(weights)
-    A = (X * root[None, :, None]).reshape(-1, X.shape[2])
-    inverse = np.linalg.pinv(A.T @ A, rcond=1e-12)
+    inverse = np.linalg.pinv(normal, rcond=1e-12)
     score_rows = np.einsum("ncp,nc->np", X, residual * weights[None, :])  # per sample: Σ_c w_c r_c X_c
     length = batch_length(residual.T, weights, segments)
     middle = batch_means(score_rows, length, segments)
@@ -276,11 +274,13 @@ def _between_blocks(Y: NDArray, tau: NDArray, theta: NDArray, columns: list[int]
     return float(np.sqrt(max(0.0, (q - (len(scales) - 1)) / denominator))) if denominator > 0 else 0.0
 
 
-def _weighted_lstsq(Y: NDArray, tau: NDArray, weights: NDArray) -> NDArray:
-    """The channel-weighted least-squares estimate of ``tau ≈ Y θ`` (``Y``: samples × channels × parameters)."""
+def _weighted_lstsq(Y: NDArray, tau: NDArray, weights: NDArray) -> tuple[NDArray, NDArray]:
+    """The channel-weighted least-squares estimate of ``tau ≈ Y θ`` (``Y``: samples × channels × parameters) from
+    its normal equations, and their matrix ``Yᵀ W Y``."""
     root = np.sqrt(weights)
     A = (Y * root[None, :, None]).reshape(-1, Y.shape[2])
-    return np.linalg.lstsq(A, (tau * root[None, :]).reshape(-1), rcond=1e-10)[0]
+    normal = A.T @ A
+    return np.linalg.lstsq(normal, A.T @ (tau * root[None, :]).reshape(-1), rcond=1e-12)[0], normal
 
 
 def marked_joints(drift: FrictionDrift | None) -> Sequence[str]:
