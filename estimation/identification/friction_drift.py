@@ -1,9 +1,7 @@
 """Does each joint's friction hold from the training record to the validation record? A drift check.
 
-Gearbox friction changes with temperature: a harmonic drive or a planetary gear loses a quarter or more of its
-viscous and Coulomb friction as its grease warms up in the first minutes of motion (Wolf, Iskandar and Albu-Schäffer,
-ICRA 2018; Hamon, Gautier and Garrec, IROS 2010), and a user's training, validation and test records are often
-taken minutes apart. A model fitted on a cold training record then predicts a warm record with friction that is no
+Gearbox friction changes with temperature: a gear's viscous and Coulomb friction fall as its grease warms up in
+the first minutes of motion, and a user's training, validation and test records are often taken minutes apart. A model fitted on a cold training record then predicts a warm record with friction that is no
 longer there, and no choice made on the training record can see it.
 
 The check measures it on the validation record, with the rigid body held. With ``θ`` the least-squares fit of the
@@ -24,7 +22,6 @@ joints): the change's own uncertainty, no threshold on its size. The verbs say i
 from __future__ import annotations
 
 import re
-from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -281,8 +278,3 @@ def _weighted_lstsq(Y: NDArray, tau: NDArray, weights: NDArray) -> tuple[NDArray
     A = (Y * root[None, :, None]).reshape(-1, Y.shape[2])
     normal = A.T @ A
     return np.linalg.lstsq(normal, A.T @ (tau * root[None, :]).reshape(-1), rcond=1e-12)[0], normal
-
-
-def marked_joints(drift: FrictionDrift | None) -> Sequence[str]:
-    """The joints whose friction drifted (none when not checked)."""
-    return () if drift is None else tuple(np.asarray(drift.joints)[drift.marked])
