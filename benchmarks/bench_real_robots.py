@@ -313,8 +313,14 @@ def toolkit(case: Case, folder: Path, label: str, options: list[str], verb: str 
         return None
     table = pd.read_csv(predictions)
     channels = [column for column in table.columns if column.startswith("tau") and column[3:].isdigit()]
-    return {"t": table["t"].to_numpy(), "predicted": table[channels].to_numpy(),
-            "result": json.loads(result.read_text()), "seconds": seconds}
+    document = json.loads(result.read_text())
+    drift = document.get("friction_drift")
+    if drift:  # the friction drift check (h-drift): each joint's scale on the validation record, marked ones starred
+        print(f"  {label}: friction scale on the validation record: " + ", ".join(
+            f"{name} {entry['scale']:.3f} ± {entry['std']:.2g}{' *' if entry['marked'] else ''}"
+            for name, entry in drift["joints"].items()), flush=True)
+    return {"t": table["t"].to_numpy(), "predicted": table[channels].to_numpy(), "result": document,
+            "seconds": seconds}
 
 
 def at_recorded(t_record: np.ndarray, t_predicted: np.ndarray, predicted: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -23,6 +23,8 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from dynamics.effects.linear import ViscousFriction
+from dynamics.measurements import Measurements
 from dynamics.models import IdentificationModel, build_model
 from dynamics.runtime.output_files import OutputFiles, json_text
 from dynamics.runtime.processes import beside, run_tasks, worker_count
@@ -54,6 +56,7 @@ from estimation.preprocessing.delay import DelayBounds, split_delay
 from estimation.preprocessing.plan import Preprocessing
 from estimation.streaming.settings import DEFAULT_SUBSAMPLE, FLOOR_WINDOW
 from estimation.identification.model_file import summed_model_file_document
+from estimation.identification.friction_drift import STREAMED_DRIFT, FrictionDrift, check_friction_drift
 from estimation.identification.training_range import RangeCheck, TrainingRange, merged_ranges
 from estimation.estimators.normal_equations import DEFAULT_CHUNK_SIZE
 from estimation.data.input_findings import FindingsSaid
@@ -403,6 +406,9 @@ class Diagnosed:
     #: taken), and the held-out records against it by the report's key (``validation``, ``test``)
     training_range: TrainingRange | None = None
     range_checks: dict[str, RangeCheck | None] = field(default_factory=dict)
+    #: in memory: each joint's friction on the validation record against the training record's
+    #: (:mod:`estimation.identification.friction_drift`; ``None``: not checked)
+    friction_drift: FrictionDrift | None = None
 
 
 def check_streamed_request(args: DiagnoseOptions, delay: DelayBounds | None) -> None:
@@ -443,9 +449,9 @@ def diagnosis_in_memory(args: DiagnoseOptions, model: IdentificationModel, trans
             records = divided_records(records, gains[0])
         # the joint-zero check reads the prepared records only: it runs beside the diagnosis and the default answer,
         # in the cores they leave idle (their serial steps, the slower worker of a pool), and is said where it was
-        zeros = functools.partial(joint_zero_notes, model, records.train.measurements, records.validation.measurements,
+        zeros = functools.partial(checks_beside, model, records.train.measurements, records.validation.measurements,
                                   delay=delay)
-        with beside(zeros, worker_count(args.jobs, 2)) as zero_notes:
+        with beside(zeros, worker_count(args.jobs, 2)) as beside_notes:
             with step("noise floors of the held-out records"):
                 validation_floor, test_floor = record_floors(records, model, args.frequency, args.jobs)
             with step("diagnosis in memory"):
@@ -466,7 +472,8 @@ def diagnosis_in_memory(args: DiagnoseOptions, model: IdentificationModel, trans
             if gains is not None:
                 selection = in_recorded_units(selection, gains[0])
                 notes += (gains[2],)
-            notes += zero_notes()
+            zero_notes, drift = beside_notes()
+            notes += zero_notes + (() if drift is None or drift.message() is None else (drift.message(),))
     train = records.train.measurements  # the samples fitted: the training range, and the held-out records against it
     ranges = TrainingRange.of(train.q, train.dq, model.robot.joint_names)
     checks = {key: ranges.check(held.measurements.q, held.measurements.dq)
@@ -474,7 +481,23 @@ def diagnosis_in_memory(args: DiagnoseOptions, model: IdentificationModel, trans
     return Diagnosed(diagnosis, records.preprocessing.to_dict(), records.preprocessing.describe(),
                      (*caught_messages(caught), *notes), records=records, untouched=untouched, selection=selection,
                      transmission=transmission, notes=notes, torque_gains=None if gains is None else gains[0],
-                     training_range=ranges, range_checks=checks)
+                     training_range=ranges, range_checks=checks, friction_drift=drift)
+
+
+def checks_beside(model: IdentificationModel, train: Measurements, validation: Measurements | None, *,
+                  delay: DelayBounds | None) -> tuple[tuple[str, ...], FrictionDrift | None]:
+    """What runs beside the diagnosis on the prepared records: the joint zeros' warning
+    (:func:`~oed.workflows.asbuilt.joint_zero_notes`) and each joint's friction on the validation record against
+    the training record's (:func:`~estimation.identification.friction_drift.check_friction_drift`, the plain model
+    with viscous friction: the plain fit's class of issue 34; none with a delay search or shaped laws)."""
+    zeros = joint_zero_notes(model, train, validation, delay=delay)
+    if delay is not None or model_has_shapes(model):
+        return zeros, None
+    plain = plain_model(model)
+    if not any(effect.name == "viscous" for effect in plain.effects):
+        plain = build_model(plain.robot, plain.kind, (*plain.effects, ViscousFriction()))
+    with step("friction checked on the validation record against the training record's"):
+        return zeros, check_friction_drift(plain, train, validation)
 
 
 def derivatives_on_validation(model: IdentificationModel, delay: DelayBounds | None) -> dict[str, Any]:
@@ -506,6 +529,8 @@ def diagnose_document(args: DiagnoseOptions, diagnosed: Diagnosed) -> tuple[dict
         finish_document(document, answered, trivial=None, warnings=diagnosed.notes, rest=rest_records(records),
                         transmission=diagnosed.transmission, warnings_key=("warnings", "after"))
     document["preprocessing"] = diagnosed.preprocessing
+    drift = diagnosed.friction_drift
+    document["friction_drift"] = None if drift is None else drift.to_dict()
     if records is None:  # streamed: the transmission read, as in memory
         transmission = diagnosed.transmission
         document["transmission"] = None if transmission is None else {**transmission.to_dict(),
@@ -841,6 +866,7 @@ def summary_lines(args: DiagnoseOptions, diagnosed: Diagnosed, document: dict[st
     else:  # the one model its model file holds
         lines += chosen_lines(document["validation"])
     lines += range_lines(diagnosed.range_checks)
+    lines += [] if diagnosed.friction_drift is None else diagnosed.friction_drift.lines()
     if len(diagnosis.effects) >= args.max_effects:
         untested = sum(rejected.reason.startswith("not tested") for rejected in diagnosis.rejected)
         lines.append(f"stopped at --max-effects {args.max_effects}: {untested} candidate(s) not tested; raise "
@@ -979,8 +1005,9 @@ def diagnosis_streamed(args: DiagnoseOptions, friction: str, plan: Preprocessing
         sum(part.n_samples for part, _ in run.sums.validate_parts), options=run.settings.reading())
         if delay is None else ())  # none with a declared delay, as in memory
     messages = (*messages, *notes)
-    diagnosis = replace(diagnosis, not_computed={key: reason for key, reason in diagnosis.not_computed.items()
-                                                 if key not in SELECTION_KEYS})  # computed now
+    diagnosis = replace(diagnosis, not_computed={**{key: reason for key, reason in diagnosis.not_computed.items()
+                                                    if key not in SELECTION_KEYS},  # computed now
+                                                 "friction_drift": STREAMED_DRIFT})  # in memory only
     if checked is not None and checked[1]:  # the gains taken, not applied (divided_diagnosis could not): said
         gains_note = streamed_gains_note(checked)
         if gains_note is not None:

@@ -45,6 +45,7 @@ from estimation.identification.preprocessing_choice import ChoiceWindow
 from estimation.identification.repeated_motion import repeat_note, repeated_motion_note
 from estimation.identification.model_file import summed_model_file_document
 from estimation.identification.report import identification_report
+from estimation.identification.friction_drift import STREAMED_DRIFT, FrictionDrift, check_friction_drift
 from estimation.identification.training_range import RangeCheck, TrainingRange, merged_ranges
 from estimation.identification.trivial_predictors import trivial_warnings
 from estimation.identification.undetermined import MergedColumn, merged_one_way
@@ -381,6 +382,9 @@ class Identified:
     #: records against it by the document's key (``validation``)
     training_range: TrainingRange | None = None
     range_checks: dict[str, RangeCheck | None] = field(default_factory=dict)
+    #: each joint's friction on the validation record against the training record's
+    #: (:mod:`estimation.identification.friction_drift`; ``None``: not checked)
+    friction_drift: FrictionDrift | None = None
 
     @property
     def rest(self) -> dict[str, dict | None]:
@@ -434,6 +438,10 @@ def identify_document(args: IdentifyOptions, identified: Identified) -> tuple[di
     answer_identification(document, identified.chosen, floor=floor if answered else None, fitted=result)
     if document.get("validation") is not None and "mse_over_floor" not in document["validation"]:
         document["validation"]["mse_over_floor"] = None  # no floor, or no error against the recording
+    drift = identified.friction_drift
+    document["friction_drift"] = None if drift is None else drift.to_dict()
+    if result.path == "streamed" and args.validate:
+        document["not_computed"]["friction_drift"] = STREAMED_DRIFT
     said = add_training_range(document, identified.training_range, identified.range_checks)
     if said:  # a validation record beyond the training range: the choice measured some extrapolation
         messages += said
@@ -918,6 +926,8 @@ def identification_in_memory(args: IdentifyOptions, robot: RobotModel, model: Id
         repeat = None if validation is None else repeated_motion_note(train, validation)
         notes = notes if repeat is None else (*notes, repeat)
         notes = (*notes, *description_notes(model, train, validation, delay=delay))
+        drift = None if delay is not None or model_has_shapes(model) else check_friction_drift(model, train, validation)
+        notes = notes if drift is None or drift.message() is None else (*notes, drift.message())
     ranges = TrainingRange.of(train.q, train.dq, model.robot.joint_names)  # the samples fitted
     return Identified(result, chosen, records.preprocessing.to_dict(), records.preprocessing.describe(),
                       (*chosen_messages(caught_messages(caught), selection), *notes), notes, trivial,
@@ -926,7 +936,8 @@ def identification_in_memory(args: IdentifyOptions, robot: RobotModel, model: Id
                       consistent=consistent, floor_report=floor_report, weighting=weighting, transmission=transmission,
                       n_samples=train.n_samples, torque_gains=gains, training_range=ranges,
                       range_checks={"validation": None if validation is None else ranges.check(validation.q,
-                                                                                               validation.dq)})
+                                                                                               validation.dq)},
+                      friction_drift=drift)
 
 
 def motor_friction_selection(args: IdentifyOptions, selection: ModelSelection, model: IdentificationModel,
@@ -1100,4 +1111,5 @@ def summary_lines(args: IdentifyOptions, identified: Identified) -> list[str]:
         lines += consistent_lines(consistent)
     if selection is not None:
         lines += selection.lines()
-    return lines + range_lines(identified.range_checks)
+    drift = [] if identified.friction_drift is None else identified.friction_drift.lines()
+    return lines + range_lines(identified.range_checks) + drift
