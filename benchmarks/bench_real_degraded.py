@@ -320,7 +320,8 @@ def line(robot: str, degradation: str, outcome: dict) -> list[str]:
     rows = []
     for verb, run in outcome["verbs"].items():
         if run["exit"] != 0:
-            message = " ".join(run["message"].split())[-160:].replace("|", "/")
+            last = [text for text in run["message"].splitlines() if text.strip()][-1:] or [""]
+            message = " ".join(last[0].split())[-200:].replace("|", "/")
             rows.append(f"| {robot} | {degradation} | {verb} | **exit {run['exit']}** | – | – | – | – | {message} |")
             continue
         ratio = run["mse"] / run["plain"]

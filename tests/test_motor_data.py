@@ -8,6 +8,7 @@ import pandas as pd
 import pytest
 
 from dynamics.transmission import Transmission, TransmissionSignError
+from estimation.data.loading import MeasurementError
 from estimation.data.motor_side import joint_side_frame
 
 RATIOS = np.array([50.0, -30.0])
@@ -37,3 +38,30 @@ def test_a_ratio_of_the_wrong_sign_for_the_data_is_named(stamps, with_dq):
     wrong = Transmission(np.diag(RATIOS * np.array([1.0, -1.0])))
     with pytest.raises(TransmissionSignError, match="joint 2"):
         joint_side_frame(frame, wrong, 2)
+
+
+def test_blank_motor_rows_are_a_loggers_dropouts_as_on_the_joint_side():
+    """A row whose motor cells are all empty maps to an empty joint-side row, which the reader drops as a dropout
+    (the real TX40's motor-side log with 0.5 % blank rows exited before); an empty cell beside written ones, text
+    or inf is still refused."""
+    from estimation.data.records import segments_from_frame
+
+    frame = _frame()
+    blank = [5, 200, 733]
+    holed = frame.copy()
+    holed.loc[blank, ["q1", "q2", "taum1", "taum2"]] = np.nan
+    coupled = Transmission(np.array([[50.0, 0.0], [-30.0, -30.0]]))  # the second motor turns with both joints
+    converted = joint_side_frame(holed, coupled, 2)
+    assert converted.loc[blank, ["tau1", "tau2"]].isna().all().all()
+    assert converted.drop(index=blank)[["tau1", "tau2"]].notna().all().all()
+    expected = joint_side_frame(frame.drop(index=blank).reset_index(drop=True), coupled, 2)
+    np.testing.assert_allclose(converted.drop(index=blank)[["tau1", "tau2"]].to_numpy(),
+                               expected[["tau1", "tau2"]].to_numpy(), rtol=1e-12)
+    with pytest.warns(UserWarning):
+        (segment,) = segments_from_frame(converted, n_joints=2, model="internal", require=("q", "tau"))
+    assert segment.metadata.get("resampled_from", segment.t.shape[0]) == frame.shape[0] - len(blank)
+    for bad in (np.nan, np.inf, "n/a"):
+        partial = frame.astype({"taum2": object}).copy()
+        partial.loc[200, "taum2"] = bad
+        with pytest.raises(MeasurementError, match="motor columns taum1..taum2 hold NaN/inf or text"):
+            joint_side_frame(partial, coupled, 2)

@@ -92,8 +92,13 @@ def joint_side_frame(frame: pd.DataFrame, transmission: Transmission | None, n_j
                                    f"{(clash or [torque_source + '1'])[0]}…: give the joint-side or the motor-side "
                                    "columns, not both")
         values = frame[columns].apply(pd.to_numeric, errors="coerce").to_numpy(dtype=float)
-        if not np.all(np.isfinite(values)):
+        # a row whose motor cells are all empty stays empty on the joint side: a logger's dropout, dropped by the
+        # reader as on the joint side (estimation.data.records.dropouts); an empty cell beside others, text or inf
+        # stays an error
+        empty = np.all(frame[columns].isna().to_numpy(), axis=1)
+        if not np.all(np.isfinite(values[~empty])):
             raise MeasurementError(f"{source}: motor columns {prefix}1..{prefix}{n_joints} hold NaN/inf or text")
+        values = np.where(empty[:, None], 0.0, values)
         if prefix in ("taum", "im"):
             torque_m = values if prefix == "taum" else transmission.torques_from_currents(values)
             joint = transmission.joint_torques(torque_m)
@@ -102,6 +107,7 @@ def joint_side_frame(frame: pd.DataFrame, transmission: Transmission | None, n_j
             joint = transmission.joint_positions(values)  # with the joint offsets
         else:
             joint = transmission.joint_rates(values)
+        joint = np.where(empty[:, None], np.nan, joint)
         converted = converted.drop(columns=columns)
         for index, column in enumerate(targets):
             converted[column] = joint[:, index]
