@@ -65,3 +65,31 @@ def test_blank_motor_rows_are_a_loggers_dropouts_as_on_the_joint_side():
         partial.loc[200, "taum2"] = bad
         with pytest.raises(MeasurementError, match="motor columns taum1..taum2 hold NaN/inf or text"):
             joint_side_frame(partial, coupled, 2)
+
+
+def test_a_units_row_beneath_a_motor_side_header_is_read_as_on_the_joint_side(tmp_path):
+    """A second line naming the SI units under a motor-side file's header is skipped, as under a joint-side one
+    (the real TX40's log with such a line exited before: its text was read as motor values), in memory and in the
+    streamed path's joint-side copies."""
+    from dynamics.models import build_model
+    from dynamics.robots import load_robot
+    from estimation.data.loading import UnitsRowWarning
+    from estimation.data.motor_side import joint_side_copies, read_record_with_transmission
+
+    frame = _frame()
+    plain, with_units = tmp_path / "plain.csv", tmp_path / "units.csv"
+    frame.to_csv(plain, index=False)
+    with with_units.open("w") as stream:
+        stream.write(",".join(frame.columns) + "\ns,rad,rad,N m,N m\n")
+        frame.to_csv(stream, index=False, header=False)
+    model = build_model(load_robot("puma560", joints=2), "internal", "viscous")
+    transmission = Transmission(np.diag(RATIOS))
+    (expected,) = read_record_with_transmission(plain, model=model, transmission=transmission)
+    with pytest.warns(UnitsRowWarning):
+        (segment,) = read_record_with_transmission(with_units, model=model, transmission=transmission)
+    np.testing.assert_array_equal(segment.tau, expected.tau)
+    np.testing.assert_array_equal(segment.q, expected.q)
+    with pytest.warns(UnitsRowWarning):
+        (copy,) = joint_side_copies([with_units], tmp_path / "copies", n_joints=2, transmission=transmission)
+    (reference,) = joint_side_copies([plain], tmp_path / "reference", n_joints=2, transmission=transmission)
+    pd.testing.assert_frame_equal(pd.read_parquet(copy), pd.read_parquet(reference))

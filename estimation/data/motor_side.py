@@ -40,7 +40,7 @@ from dynamics.transmission import (
 from estimation.data.loading import MeasurementError, MissingColumnError
 from estimation.data.log_cleaning import DEFAULT_MAX_GAP
 from estimation.data.log_formats import is_log_file
-from estimation.data.records import read_parquet_frame, read_record, segments_from_frame
+from estimation.data.records import csv_options, read_csv_frame, read_parquet_frame, read_record, segments_from_frame
 from dynamics.measurements import Measurements
 
 #: motor-side column prefix -> the joint-side prefix it converts to
@@ -54,7 +54,7 @@ def motor_columns(columns) -> list[str]:
 
 def _read_frame(path: Path) -> pd.DataFrame:
     try:
-        return read_parquet_frame(path) if path.suffix.lower() == ".parquet" else pd.read_csv(path)
+        return read_parquet_frame(path) if path.suffix.lower() == ".parquet" else read_csv_frame(path)
     except (ValueError, OSError, pd.errors.ParserError) as error:
         raise MeasurementError(f"cannot read {path}: {error}") from None
 
@@ -215,7 +215,7 @@ def _frames(path: Path, chunk_size: int) -> Iterator[pd.DataFrame]:
     """The rows of a .csv or .parquet file as frames of ``chunk_size`` rows."""
     try:
         if path.suffix.lower() == ".csv":
-            with pd.read_csv(path, chunksize=chunk_size) as reader:
+            with pd.read_csv(path, chunksize=chunk_size, **csv_options(path)) as reader:  # a units row, ';' as the joint side
                 yield from reader
             return
         try:
