@@ -93,3 +93,27 @@ def test_a_units_row_beneath_a_motor_side_header_is_read_as_on_the_joint_side(tm
         (copy,) = joint_side_copies([with_units], tmp_path / "copies", n_joints=2, transmission=transmission)
     (reference,) = joint_side_copies([plain], tmp_path / "reference", n_joints=2, transmission=transmission)
     pd.testing.assert_frame_equal(pd.read_parquet(copy), pd.read_parquet(reference))
+
+
+def test_a_semicolon_separated_motor_side_file_is_read_as_a_joint_side_one(tmp_path):
+    """A spreadsheet's European export (';' between columns, ',' the decimal mark) with motor-side columns: its
+    motor columns found and converted, in memory and in the streamed path's copies, as the comma-separated file."""
+    from dynamics.models import build_model
+    from dynamics.robots import load_robot
+    from estimation.data.loading import DelimiterWarning
+    from estimation.data.motor_side import joint_side_copies, read_record_with_transmission
+
+    frame = _frame()
+    plain, european = tmp_path / "plain.csv", tmp_path / "european.csv"
+    frame.to_csv(plain, index=False, float_format="%.12g")
+    frame.to_csv(european, index=False, sep=";", decimal=",", float_format="%.12g")
+    model = build_model(load_robot("puma560", joints=2), "internal", "viscous")
+    transmission = Transmission(np.diag(RATIOS))
+    (expected,) = read_record_with_transmission(plain, model=model, transmission=transmission)
+    with pytest.warns(DelimiterWarning):
+        (segment,) = read_record_with_transmission(european, model=model, transmission=transmission)
+    np.testing.assert_array_equal(segment.tau, expected.tau)
+    with pytest.warns(DelimiterWarning):
+        (copy,) = joint_side_copies([european], tmp_path / "copies", n_joints=2, transmission=transmission)
+    (reference,) = joint_side_copies([plain], tmp_path / "reference", n_joints=2, transmission=transmission)
+    pd.testing.assert_frame_equal(pd.read_parquet(copy), pd.read_parquet(reference))

@@ -37,7 +37,7 @@ from dynamics.transmission import (
     check_mean_power,
     check_power_signs,
 )
-from estimation.data.loading import MeasurementError, MissingColumnError
+from estimation.data.loading import MeasurementError, MissingColumnError, other_delimiter
 from estimation.data.log_cleaning import DEFAULT_MAX_GAP
 from estimation.data.log_formats import is_log_file
 from estimation.data.records import csv_options, read_csv_frame, read_parquet_frame, read_record, segments_from_frame
@@ -50,6 +50,17 @@ _MOTOR_COLUMN = re.compile(r"^(qm|dqm|ddqm|taum|im)(\d+)$")
 
 def motor_columns(columns) -> list[str]:
     return [str(column).strip() for column in columns if _MOTOR_COLUMN.match(str(column).strip())]
+
+
+def _csv_header(path: Path) -> list[str]:
+    """The column names of a CSV file, split by its delimiter (a comma, or the other one a header without commas
+    holds: :func:`estimation.data.loading.other_delimiter`), as :func:`read_csv_frame` reads them."""
+    try:
+        with open(path, errors="replace") as stream:
+            header = stream.readline().rstrip("\r\n")
+    except OSError as error:
+        raise MeasurementError(f"cannot read {path}: {error}") from None
+    return [name.strip().strip('"\'') for name in header.split(other_delimiter(header) or ",")]
 
 
 def _read_frame(path: Path) -> pd.DataFrame:
@@ -194,7 +205,7 @@ def _read_record(path: str | Path, *, model: IdentificationModel, transmission: 
     source, path = path, Path(os.fspath(path))
     if path.suffix.lower() not in (".csv", ".parquet") or not path.is_file() or is_log_file(source):
         return read_record(source, model=model, max_gap=max_gap, split=split)  # its messages for a folder, a format
-    header = pd.read_csv(path, nrows=0).columns if path.suffix.lower() == ".csv" else _read_frame(path).columns
+    header = _csv_header(path) if path.suffix.lower() == ".csv" else _read_frame(path).columns
     if not motor_columns(header):
         return read_record(path, model=model, max_gap=max_gap, split=split)
     frame = joint_side_frame(_read_frame(path), transmission, model.robot.n_joints, source=str(path))
@@ -296,7 +307,7 @@ def joint_side_copies(paths: Sequence[str | Path], folder: str | Path, *, n_join
         if path.suffix.lower() not in (".csv", ".parquet") or not path.is_file() or is_log_file(source):
             copies.append(source)  # the streamed reader names what it cannot read
             continue
-        header = pd.read_csv(path, nrows=0).columns if path.suffix.lower() == ".csv" else \
+        header = _csv_header(path) if path.suffix.lower() == ".csv" else \
             next(_frames(path, 1)).columns
         if not motor_columns(header) and not directed:
             copies.append(source)
