@@ -67,14 +67,32 @@ def test_blank_motor_rows_are_a_loggers_dropouts_as_on_the_joint_side():
             joint_side_frame(partial, coupled, 2)
 
 
+
+def _read_alike(plain, other, warning, folder) -> None:
+    """``other`` (the same motor-side record written otherwise) reads as ``plain``, with ``warning`` saying how,
+    in memory and in the streamed path's joint-side copies."""
+    from dynamics.models import build_model
+    from dynamics.robots import load_robot
+    from estimation.data.motor_side import joint_side_copies, read_record_with_transmission
+
+    model = build_model(load_robot("puma560", joints=2), "internal", "viscous")
+    transmission = Transmission(np.diag(RATIOS))
+    (expected,) = read_record_with_transmission(plain, model=model, transmission=transmission)
+    with pytest.warns(warning):
+        (segment,) = read_record_with_transmission(other, model=model, transmission=transmission)
+    np.testing.assert_array_equal(segment.tau, expected.tau)
+    np.testing.assert_array_equal(segment.q, expected.q)
+    with pytest.warns(warning):
+        (copy,) = joint_side_copies([other], folder / "copies", n_joints=2, transmission=transmission)
+    (reference,) = joint_side_copies([plain], folder / "reference", n_joints=2, transmission=transmission)
+    pd.testing.assert_frame_equal(pd.read_parquet(copy), pd.read_parquet(reference))
+
+
 def test_a_units_row_beneath_a_motor_side_header_is_read_as_on_the_joint_side(tmp_path):
     """A second line naming the SI units under a motor-side file's header is skipped, as under a joint-side one
     (the real TX40's log with such a line exited before: its text was read as motor values), in memory and in the
     streamed path's joint-side copies."""
-    from dynamics.models import build_model
-    from dynamics.robots import load_robot
     from estimation.data.loading import UnitsRowWarning
-    from estimation.data.motor_side import joint_side_copies, read_record_with_transmission
 
     frame = _frame()
     plain, with_units = tmp_path / "plain.csv", tmp_path / "units.csv"
@@ -82,38 +100,16 @@ def test_a_units_row_beneath_a_motor_side_header_is_read_as_on_the_joint_side(tm
     with with_units.open("w") as stream:
         stream.write(",".join(frame.columns) + "\ns,rad,rad,N m,N m\n")
         frame.to_csv(stream, index=False, header=False)
-    model = build_model(load_robot("puma560", joints=2), "internal", "viscous")
-    transmission = Transmission(np.diag(RATIOS))
-    (expected,) = read_record_with_transmission(plain, model=model, transmission=transmission)
-    with pytest.warns(UnitsRowWarning):
-        (segment,) = read_record_with_transmission(with_units, model=model, transmission=transmission)
-    np.testing.assert_array_equal(segment.tau, expected.tau)
-    np.testing.assert_array_equal(segment.q, expected.q)
-    with pytest.warns(UnitsRowWarning):
-        (copy,) = joint_side_copies([with_units], tmp_path / "copies", n_joints=2, transmission=transmission)
-    (reference,) = joint_side_copies([plain], tmp_path / "reference", n_joints=2, transmission=transmission)
-    pd.testing.assert_frame_equal(pd.read_parquet(copy), pd.read_parquet(reference))
+    _read_alike(plain, with_units, UnitsRowWarning, tmp_path)
 
 
 def test_a_semicolon_separated_motor_side_file_is_read_as_a_joint_side_one(tmp_path):
     """A spreadsheet's European export (';' between columns, ',' the decimal mark) with motor-side columns: its
     motor columns found and converted, in memory and in the streamed path's copies, as the comma-separated file."""
-    from dynamics.models import build_model
-    from dynamics.robots import load_robot
     from estimation.data.loading import DelimiterWarning
-    from estimation.data.motor_side import joint_side_copies, read_record_with_transmission
 
     frame = _frame()
     plain, european = tmp_path / "plain.csv", tmp_path / "european.csv"
     frame.to_csv(plain, index=False, float_format="%.12g")
     frame.to_csv(european, index=False, sep=";", decimal=",", float_format="%.12g")
-    model = build_model(load_robot("puma560", joints=2), "internal", "viscous")
-    transmission = Transmission(np.diag(RATIOS))
-    (expected,) = read_record_with_transmission(plain, model=model, transmission=transmission)
-    with pytest.warns(DelimiterWarning):
-        (segment,) = read_record_with_transmission(european, model=model, transmission=transmission)
-    np.testing.assert_array_equal(segment.tau, expected.tau)
-    with pytest.warns(DelimiterWarning):
-        (copy,) = joint_side_copies([european], tmp_path / "copies", n_joints=2, transmission=transmission)
-    (reference,) = joint_side_copies([plain], tmp_path / "reference", n_joints=2, transmission=transmission)
-    pd.testing.assert_frame_equal(pd.read_parquet(copy), pd.read_parquet(reference))
+    _read_alike(plain, european, DelimiterWarning, tmp_path)
