@@ -48,5 +48,7 @@ def test_identify_refuses_a_validation_file_that_is_the_training_file(record, tm
     code = main(["identify", "--robot", "puma560", "--joints", "2", "--data", str(record),
                  "--validate", str(tmp_path / "." / record.name), "--out", str(out)])
     assert code == 2
-    assert "is also a --data file" in capsys.readouterr().err
+    message = capsys.readouterr().err
+    assert "is also a --data file" in message
+    assert "or leave out --validate: the choices are then made on held-out blocks of the training record" in message
     assert not out.exists()

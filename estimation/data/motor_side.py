@@ -37,10 +37,10 @@ from dynamics.transmission import (
     check_mean_power,
     check_power_signs,
 )
-from estimation.data.loading import MeasurementError, MissingColumnError
+from estimation.data.loading import MeasurementError, MissingColumnError, other_delimiter
 from estimation.data.log_cleaning import DEFAULT_MAX_GAP
 from estimation.data.log_formats import is_log_file
-from estimation.data.records import read_parquet_frame, read_record, segments_from_frame
+from estimation.data.records import csv_options, read_csv_frame, read_parquet_frame, read_record, segments_from_frame
 from dynamics.measurements import Measurements
 
 #: motor-side column prefix -> the joint-side prefix it converts to
@@ -52,9 +52,20 @@ def motor_columns(columns) -> list[str]:
     return [str(column).strip() for column in columns if _MOTOR_COLUMN.match(str(column).strip())]
 
 
+def _csv_header(path: Path) -> list[str]:
+    """The column names of a CSV file, split by its delimiter (a comma, or the other one a header without commas
+    holds: :func:`estimation.data.loading.other_delimiter`), as :func:`read_csv_frame` reads them."""
+    try:
+        with open(path, errors="replace") as stream:
+            header = stream.readline().rstrip("\r\n")
+    except OSError as error:
+        raise MeasurementError(f"cannot read {path}: {error}") from None
+    return [name.strip().strip('"\'') for name in header.split(other_delimiter(header) or ",")]
+
+
 def _read_frame(path: Path) -> pd.DataFrame:
     try:
-        return read_parquet_frame(path) if path.suffix.lower() == ".parquet" else pd.read_csv(path)
+        return read_parquet_frame(path) if path.suffix.lower() == ".parquet" else read_csv_frame(path)
     except (ValueError, OSError, pd.errors.ParserError) as error:
         raise MeasurementError(f"cannot read {path}: {error}") from None
 
@@ -92,8 +103,13 @@ def joint_side_frame(frame: pd.DataFrame, transmission: Transmission | None, n_j
                                    f"{(clash or [torque_source + '1'])[0]}…: give the joint-side or the motor-side "
                                    "columns, not both")
         values = frame[columns].apply(pd.to_numeric, errors="coerce").to_numpy(dtype=float)
-        if not np.all(np.isfinite(values)):
+        # a row whose motor cells are all empty stays empty on the joint side: a logger's dropout, dropped by the
+        # reader as on the joint side (estimation.data.records.dropouts); an empty cell beside others, text or inf
+        # stays an error
+        empty = np.all(frame[columns].isna().to_numpy(), axis=1)
+        if not np.all(np.isfinite(values[~empty])):
             raise MeasurementError(f"{source}: motor columns {prefix}1..{prefix}{n_joints} hold NaN/inf or text")
+        values = np.where(empty[:, None], 0.0, values)
         if prefix in ("taum", "im"):
             torque_m = values if prefix == "taum" else transmission.torques_from_currents(values)
             joint = transmission.joint_torques(torque_m)
@@ -102,6 +118,7 @@ def joint_side_frame(frame: pd.DataFrame, transmission: Transmission | None, n_j
             joint = transmission.joint_positions(values)  # with the joint offsets
         else:
             joint = transmission.joint_rates(values)
+        joint = np.where(empty[:, None], np.nan, joint)
         converted = converted.drop(columns=columns)
         for index, column in enumerate(targets):
             converted[column] = joint[:, index]
@@ -188,7 +205,7 @@ def _read_record(path: str | Path, *, model: IdentificationModel, transmission: 
     source, path = path, Path(os.fspath(path))
     if path.suffix.lower() not in (".csv", ".parquet") or not path.is_file() or is_log_file(source):
         return read_record(source, model=model, max_gap=max_gap, split=split)  # its messages for a folder, a format
-    header = pd.read_csv(path, nrows=0).columns if path.suffix.lower() == ".csv" else _read_frame(path).columns
+    header = _csv_header(path) if path.suffix.lower() == ".csv" else _read_frame(path).columns
     if not motor_columns(header):
         return read_record(path, model=model, max_gap=max_gap, split=split)
     frame = joint_side_frame(_read_frame(path), transmission, model.robot.n_joints, source=str(path))
@@ -209,7 +226,7 @@ def _frames(path: Path, chunk_size: int) -> Iterator[pd.DataFrame]:
     """The rows of a .csv or .parquet file as frames of ``chunk_size`` rows."""
     try:
         if path.suffix.lower() == ".csv":
-            with pd.read_csv(path, chunksize=chunk_size) as reader:
+            with pd.read_csv(path, chunksize=chunk_size, **csv_options(path)) as reader:  # a units row, ';' as the joint side
                 yield from reader
             return
         try:
@@ -290,7 +307,7 @@ def joint_side_copies(paths: Sequence[str | Path], folder: str | Path, *, n_join
         if path.suffix.lower() not in (".csv", ".parquet") or not path.is_file() or is_log_file(source):
             copies.append(source)  # the streamed reader names what it cannot read
             continue
-        header = pd.read_csv(path, nrows=0).columns if path.suffix.lower() == ".csv" else \
+        header = _csv_header(path) if path.suffix.lower() == ".csv" else \
             next(_frames(path, 1)).columns
         if not motor_columns(header) and not directed:
             copies.append(source)

@@ -420,8 +420,10 @@ def check_distinct_records(records: dict[str, Sequence[str | Path]]) -> None:
             resolved = path.expanduser().resolve()
             if resolved in seen and seen[resolved][0] != option:
                 first_option, first_path = seen[resolved]
+                instead = ("; or leave out --validate: the choices are then made on held-out blocks of the training "
+                           "record" if option == "--validate" and first_option == "--data" else "")
                 raise ValueError(f"{option} {path} is also a {first_option} file ({first_path}): each record must come "
-                                 "from another experiment (another run or seed)")
+                                 f"from another experiment (another run or seed){instead}")
             seen.setdefault(resolved, (option, path))
 
 
