@@ -221,6 +221,16 @@ def test_the_defaults_run_and_predict_a_mounted_or_warming_robot_as_well_as_a_pl
     assert bool(mounts) == (case.mount != case.described), mounts
     if case.said:
         assert any(re.search(case.said, text) for text in said), said
+    # `oed diagnose` checks the mount too (h-mountdiag): said where the URDF lacks it, nowhere else (not for a
+    # reversed torque either), and no spring where the turned gravity acts (before, a spring on tau1: 57 N m/rad on
+    # the wall, 5 on the 5° pedestal)
+    diagnosed = json.loads((tmp_path / "diagnose.json").read_text())
+    said = [text for part in diagnosed["warnings"].values() for text in part]
+    mounts = [text for text in said if "gravity load points elsewhere" in text]
+    assert bool(mounts) == (case.mount != case.described), mounts
+    if mounts:
+        assert "tries no spring or position ripple on tau1" in mounts[0], mounts
+        assert not [effect for effect in diagnosed["effects"] if effect["name"] == "spring" and "tau1" in effect["channels"]]
 
 
 def test_a_mount_in_the_urdf_turns_gravity_as_pinocchio_does(tmp_path):
