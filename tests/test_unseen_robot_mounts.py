@@ -238,6 +238,16 @@ def test_the_defaults_run_and_predict_a_mounted_or_warming_robot_as_well_as_a_pl
     assert bool(mounts) == (case.mount != case.described), mounts
     if case.said:
         assert any(re.search(case.said, text) for text in said), said
+    # `oed diagnose` checks the mount too (h-mountdiag): said where the URDF lacks it, nowhere else (not for a
+    # reversed torque either), and no spring where the turned gravity acts (before, a spring on tau1: 57 N m/rad on
+    # the wall, 5 on the 5° pedestal)
+    diagnosed = json.loads((tmp_path / "diagnose.json").read_text())
+    said = [text for part in diagnosed["warnings"].values() for text in part]
+    mounts = [text for text in said if "gravity load points elsewhere" in text]
+    assert bool(mounts) == (case.mount != case.described), mounts
+    if mounts:
+        assert "tries no spring or position ripple on tau1" in mounts[0], mounts
+        assert not [effect for effect in diagnosed["effects"] if effect["name"] == "spring" and "tau1" in effect["channels"]]
 
 
 def test_a_mount_in_the_urdf_turns_gravity_as_pinocchio_does(tmp_path):
@@ -294,14 +304,11 @@ def test_a_clock_that_starts_again_splits_the_record_in_memory_and_streamed(tmp_
         read_record(tmp_path / "swapped.csv", model=model)
 
 
-@pytest.mark.parametrize("mount", ["floor", "wall", pytest.param("ceiling", marks=pytest.mark.slow),
-                                   pytest.param("tilted", marks=pytest.mark.slow)])
-def test_the_mount_check_finds_gravity_where_the_torques_put_it(mount):
-    """A PUMA 6 on ``mount`` with a description on the floor (exact derivatives, 2 % torque noise): the check finds
-    gravity in the base frame within 2° of the truth, and marks it unless the robot stands on the floor (a 5° tilt
-    too: the gravity loads it leaves out stay far above the noise)."""
+def mount_records(mount: str, flipped: int | None = None) -> tuple[object, list]:
+    """A PUMA 6 on ``mount`` with a description on the floor, 10 s of training and 4 s of validation (exact
+    derivatives, 2 % torque noise; ``flipped``: a joint, 0-based, whose torque is logged with the opposite sign):
+    the described model (the plain class) and the two records."""
     from dynamics.measurements import Measurements
-    from estimation.identification.mount import check_mount, mount_rpy
 
     robot = load_robot("puma560", joints=6)
     model = build_model(robot, "internal", FRICTION)
@@ -313,7 +320,21 @@ def test_the_mount_check_finds_gravity_where_the_torques_put_it(mount):
         q, dq, ddq = random_fourier(robot, seed=seed, frequency_hz=0.2).evaluate(t)
         tau = truth_model.predict(theta, q, dq, ddq)
         tau = tau + np.random.default_rng(seed).normal(0.0, 1.0, tau.shape) * NOISE * tau.std(axis=0)
+        if flipped is not None:
+            tau[:, flipped] *= -1.0
         records.append(Measurements(t, q, dq, ddq, tau, None, {}))
+    return model, records
+
+
+@pytest.mark.parametrize("mount", ["floor", "wall", pytest.param("ceiling", marks=pytest.mark.slow),
+                                   pytest.param("tilted", marks=pytest.mark.slow)])
+def test_the_mount_check_finds_gravity_where_the_torques_put_it(mount):
+    """A PUMA 6 on ``mount`` with a description on the floor (exact derivatives, 2 % torque noise): the check finds
+    gravity in the base frame within 2° of the truth, and marks it unless the robot stands on the floor (a 5° tilt
+    too: the gravity loads it leaves out stay far above the noise)."""
+    from estimation.identification.mount import check_mount, mount_rpy
+
+    model, records = mount_records(mount)
     check = check_mount(model, *records)
     expected = gravity_in_base(mount)
     found = np.degrees(np.arccos(np.clip(check.found @ expected / 9.81**2, -1.0, 1.0)))
@@ -370,3 +391,23 @@ def test_the_armature_candidate_is_taken_alike_in_memory_and_streamed(tmp_path):
     assert memory["chosen"] == streamed["chosen"]
     np.testing.assert_allclose(list(streamed["validation"]["mse"].values()), list(memory["validation"]["mse"].values()),
                                rtol=1e-6)
+
+
+def test_a_reversed_torque_is_not_said_to_be_a_mount():
+    """A PUMA 6 on the floor whose joint 2 torque is logged with the opposite sign: another direction of gravity
+    lowers the total validation error (it serves joint 2), but makes another joint's worse: a turned gravity is the
+    whole robot's, so the check does not mark it (h-mountdiag: before, `oed diagnose` said a mount 171° off), while
+    the wall's found gravity explains every joint (:meth:`MountCheck.explained_channels`)."""
+    from estimation.identification.mount import WORSE_LIMIT, check_mount
+
+    for mount, flipped in (("floor", 1), ("wall", None)):
+        model, records = mount_records(mount, flipped)
+        check = check_mount(model, *records)
+        ratios = np.array(check.found_channel_mse) / np.array(check.declared_channel_mse)
+        print(f"\n{mount}, torque {flipped} reversed: total {check.found_mse / check.declared_mse:.3f}, "
+              f"channels {ratios.round(3)}")
+        if flipped is not None:
+            assert check.found_mse < check.declared_mse and ratios.max() > WORSE_LIMIT
+            assert not check.marked and check.explained_channels() == ()
+        else:
+            assert check.marked and check.explained_channels() == tuple(range(6))

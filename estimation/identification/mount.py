@@ -26,21 +26,27 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.optimize import minimize
 
 from dynamics.measurements import Measurements
 from dynamics.models import IdentificationModel, ModelKind, build_model
 
-__all__ = ["MIN_ANGLE_DEG", "MOUNT_MARK", "MountCheck", "check_mount", "mount_rpy"]
+__all__ = ["MIN_ANGLE_DEG", "MOUNT_MARK", "WORSE_LIMIT", "MountCheck", "check_mount", "mount_rpy"]
 
 #: the share of the validation error with the description's gravity at or below which another direction is said
 MOUNT_MARK = 0.5
+#: a channel whose validation error the found direction makes more than this many times the description's keeps it
+#: from being said (:attr:`MountCheck.marked`)
+WORSE_LIMIT = 1.05
 #: a direction closer than this (degrees) to the description's is not said (a model that fits to the rounding)
 MIN_ANGLE_DEG = 2.0
 #: at most this many samples of each record enter the sums (evenly spaced rows: the check is about the gravity load)
 MAX_SAMPLES = 3000
-#: directions of the grid over the sphere (a Fibonacci lattice: about 12° apart; the best refined)
-GRID = 300
+#: directions of the grid over the sphere (a Fibonacci lattice: about 17° apart; the best refined)
+GRID = 150
+#: the refinement: caps about the best direction so far, of these radii (degrees), :data:`CAP` directions each (about
+#: a quarter of the radius apart: each cap holds the last one's spacing)
+REFINEMENT = (15.0, 4.0, 1.0, 0.25, 0.06, 0.015)
+CAP = 60
 
 
 @dataclass(frozen=True)
@@ -64,15 +70,31 @@ class MountCheck:
     found_mse: float
     nominal_declared_mse: float = float("nan")
     nominal_found_mse: float = float("nan")
+    #: each channel's validation MSE with the description's gravity and with the found (the fit's channels, in order)
+    declared_channel_mse: tuple[float, ...] = ()
+    found_channel_mse: tuple[float, ...] = ()
+
+    def explained_channels(self) -> tuple[int, ...]:
+        """The channels (indices in the fit's order) whose validation error the found gravity brings to at most
+        :data:`MOUNT_MARK` of the description's: the loads the mount explains (none unless :attr:`marked`)."""
+        if not self.marked:
+            return ()
+        return tuple(index for index, (declared, found) in enumerate(zip(self.declared_channel_mse,
+                                                                          self.found_channel_mse))
+                     if found <= MOUNT_MARK * declared)
 
     @property
     def marked(self) -> bool:
         """Whether the found direction predicts the validation record with at most :data:`MOUNT_MARK` of the error,
-        at least :data:`MIN_ANGLE_DEG` from the description's, and the description's bodies do not contradict it
-        (they predict the validation record no worse with it)."""
+        at least :data:`MIN_ANGLE_DEG` from the description's, no channel's error more than :data:`WORSE_LIMIT`
+        times the description's (a turned gravity is the whole robot's, and a fault of one joint, a torque logged
+        with the opposite sign, found a direction that serves that joint at the others' expense: h-mountdiag), and the
+        description's bodies do not contradict it (they predict the validation record no worse with it: h-newuser)."""
+        worse = any(found > WORSE_LIMIT * declared
+                    for declared, found in zip(self.declared_channel_mse, self.found_channel_mse))
         contradicted = bool(self.nominal_found_mse > self.nominal_declared_mse)  # False when either is nan
         return bool(self.found_mse <= MOUNT_MARK * self.declared_mse and self.angle_deg >= MIN_ANGLE_DEG
-                    and not contradicted)
+                    and not worse and not contradicted)
 
     @property
     def angle_deg(self) -> float:
@@ -107,68 +129,124 @@ def _sphere(count: int) -> NDArray[np.float64]:
     return np.column_stack([np.cos(azimuth) * np.sin(polar), np.sin(azimuth) * np.sin(polar), np.cos(polar)])
 
 
-def _grams(models, record: Measurements) -> tuple[NDArray, NDArray, float]:
-    """``(G, h, c)``: the Gram sums of the four regressors ``[Y_0, Y_x, Y_y, Y_z]`` (``G[a, b] = Y_aᵀ Y_b``,
-    ``h[a] = Y_aᵀ τ``, ``c = τᵀ τ``) over at most :data:`MAX_SAMPLES` evenly spaced samples of ``record``."""
-    rows = np.unique(np.linspace(0, record.n_samples - 1, min(record.n_samples, MAX_SAMPLES)).astype(int))
+def _cap(centre: NDArray, radius: float) -> NDArray[np.float64]:
+    """:data:`CAP` directions evenly spread over the cap of angular ``radius`` about the unit vector ``centre`` (a
+    Fibonacci lattice on the cap, turned onto ``centre``), ``centre`` the first."""
+    index = np.arange(CAP)
+    polar = np.arccos(1.0 - (1.0 - np.cos(radius)) * index / (CAP - 1))
+    azimuth = np.pi * (1.0 + 5.0**0.5) * index
+    local = np.column_stack([np.cos(azimuth) * np.sin(polar), np.sin(azimuth) * np.sin(polar), np.cos(polar)])
+    frame = np.linalg.svd(centre[None, :])[2]  # rows: centre (up to sign) and two directions square to it
+    frame = np.vstack([frame[1:], frame[0] * np.sign(frame[0] @ centre)])
+    return local @ frame
+
+
+def _grams(model: IdentificationModel, others, record: Measurements, samples: int
+           ) -> tuple[NDArray, NDArray, NDArray]:
+    """``(G, h, c)``: each channel's Gram sums of the four regressors ``[Y_0, Y_x, Y_y, Y_z]`` (``G[k, a, b] =
+    Y_{a,k}ᵀ Y_{b,k}``, ``h[k, a] = Y_{a,k}ᵀ τ_k``, ``c[k] = τ_kᵀ τ_k`` on channel ``k``) over at most
+    ``samples`` evenly spaced samples of ``record``; their sums over ``k`` are the whole record's. ``Y_0``: the
+    declared ``model`` without gravity; ``Y_x``: its rigid-body columns at rest (the gravity load along the declared
+    direction), ``Y_y``, ``Y_z``: those of ``others`` (the rigid body alone, gravity along two directions square to
+    it); the other columns' gravity terms are zero (no effect depends on gravity)."""
+    rows = np.unique(np.linspace(0, record.n_samples - 1, min(record.n_samples, samples)).astype(int))
     q, dq, ddq = record.q[rows], record.dq[rows], record.ddq[rows]
-    tau = record.channels(models[0].channels)[rows].reshape(-1)
-    zero = models[0].evaluate(q, dq, ddq)
-    blocks = [zero.reshape(-1, zero.shape[2])] + [(model.evaluate(q, dq, ddq) - zero).reshape(-1, zero.shape[2])
-                                                  for model in models[1:]]
-    G = np.array([[a.T @ b for b in blocks] for a in blocks])
-    return G, np.array([a.T @ tau for a in blocks]), float(tau @ tau)
+    tau = record.channels(model.channels)[rows]
+    rest = np.zeros_like(q)
+    rigid = others[0].n_parameters  # the standard parameters come first in every model's columns
+    blocks = np.zeros((4,) + (q.shape[0], model.n_channels, model.n_parameters))
+    blocks[1, :, :, :rigid] = model.evaluate(q, rest, rest)[:, :, :rigid]
+    blocks[0] = model.evaluate(q, dq, ddq)
+    blocks[0, :, :, :rigid] -= blocks[1, :, :, :rigid]
+    for index, other in enumerate(others, start=2):
+        blocks[index, :, :, :rigid] = other.evaluate(q, rest, rest)
+    count, samples, channels, width = blocks.shape
+    stacked = np.ascontiguousarray(blocks.transpose(2, 1, 0, 3)).reshape(channels, samples, count * width)
+    G = np.matmul(stacked.transpose(0, 2, 1), stacked).reshape(channels, count, width, count, width)
+    h = np.einsum("knc,nk->kc", stacked, tau).reshape(channels, count, width)
+    return G.transpose(0, 1, 3, 2, 4), h, np.einsum("nk,nk->k", tau, tau)
 
 
-def _scored(u: NDArray, train: tuple, held_out: tuple) -> float:
-    """The validation RSS of the least-squares fit on the training sums with gravity along ``u`` (at the
-    magnitude the axes' regressors were built with)."""
-    weights = np.r_[1.0, u / np.linalg.norm(u)]  # u in the frame of the three gravity regressors
-    A = np.einsum("a,b,abrs->rs", weights, weights, train[0])
-    return _held_out_rss(u, np.linalg.lstsq(A, weights @ train[1], rcond=1e-10)[0], held_out)
+def _solve(A: NDArray, b: NDArray) -> NDArray:
+    """The least-squares parameters of the normal equations ``A θ = b`` (one or a stack): a ridge of ``1e-10`` of the
+    largest diagonal term keeps the parameters gravity leaves unidentified at zero (the standard parameters hold
+    combinations no record separates), as a truncated pseudo-inverse would, at a solve's cost."""
+    ridge = 1e-10 * np.max(np.diagonal(A, axis1=-2, axis2=-1), axis=-1)
+    return np.linalg.solve(A + ridge[..., None, None] * np.eye(A.shape[-1]), b[..., None])[..., 0]
 
 
-def _held_out_rss(u: NDArray, theta: NDArray, held_out: tuple) -> float:
-    """The validation RSS of the parameters ``theta`` with gravity along ``u`` (the fitted ones, or the description's
-    nominal ones)."""
-    weights = np.r_[1.0, u / np.linalg.norm(u)]
+def _scored(u: NDArray, train: tuple, held_out: tuple) -> NDArray:
+    """The validation RSS of the least-squares fit on the training sums with gravity along each row of ``u`` (unit
+    vectors in the frame of the three gravity regressors, at the magnitude they were built with; or one)."""
+    weights = np.concatenate([np.ones(np.shape(u)[:-1] + (1,)), u], axis=-1)
+    pairs = np.einsum("...a,...b->...ab", weights, weights)
+    A = np.tensordot(pairs, train[0], axes=([-2, -1], [0, 1]))
+    theta = _solve(A, np.tensordot(weights, train[1], axes=([-1], [0])))
+    G, h, c = held_out
+    return (c - 2.0 * np.einsum("...r,...a,ar->...", theta, weights, h)
+            + np.einsum("...r,...rs,...s->...", theta, np.tensordot(pairs, G, axes=([-2, -1], [0, 1])), theta))
+
+
+def _rss_of(u: NDArray, theta: NDArray, held_out: tuple) -> float:
+    """The validation RSS of the given parameters ``theta`` (the description's nominal ones) with gravity along the
+    unit vector ``u`` (``held_out``: the record's sums over the channels, in the model's own columns)."""
+    weights = np.r_[1.0, u]
     G, h, c = held_out
     return float(c - 2.0 * theta @ (weights @ h) + theta @ np.einsum("a,b,abrs->rs", weights, weights, G) @ theta)
 
 
-def check_mount(model: IdentificationModel, train: Measurements, validation: Measurements | None
-                ) -> MountCheck | None:
+def _channel_scores(u: NDArray, train: tuple, held_out: tuple) -> NDArray:
+    """Each channel's validation RSS of the fit of :func:`_scored` with gravity along ``u`` (``held_out``: each
+    channel's sums)."""
+    weights = np.r_[1.0, u]
+    theta = _solve(np.einsum("a,b,abrs->rs", weights, weights, train[0]), weights @ train[1])
+    G, h, c = held_out
+    return (c - 2.0 * np.einsum("kar,a,r->k", h, weights, theta)
+            + np.einsum("r,a,b,kabrs,s->k", theta, weights, weights, G, theta))
+
+
+def check_mount(model: IdentificationModel, train: Measurements, validation: Measurements | None, *,
+                samples: int = MAX_SAMPLES) -> MountCheck | None:
     """Gravity's direction that predicts ``validation`` best (module docstring), or ``None`` when there is nothing to
     check: no validation record, a model of the base wrench (its rows hold gravity's direction through the whole
-    robot's weight, not the joints' loads), or a description without gravity."""
+    robot's weight, not the joints' loads), or a description without gravity. ``samples``: at most this many evenly
+    spaced samples of each record enter the sums."""
     robot = model.robot
     magnitude = float(np.linalg.norm(robot.gravity))
     if validation is None or model.kind is ModelKind.EXTERNAL or magnitude == 0.0:
         return None
     declared = np.asarray(robot.gravity, dtype=float) / magnitude
-    # the declared model is gravity along ``declared``; with the one without gravity and those along two directions
-    # square to it, the regressors along any direction follow (three models built, not four)
+    # the regressors along the declared direction and two square to it: the declared model's rigid-body columns at
+    # rest are its gravity load's (no motion, no other load), and two models of the rigid body alone give the others
     across = np.linalg.svd(declared[None, :])[2][1:]
-    zero = build_model(robot.with_gravity(np.zeros(3)), model.kind, model.effects)
-    others = [build_model(robot.with_gravity(magnitude * axis), model.kind, model.effects) for axis in across]
+    others = [build_model(robot.with_gravity(magnitude * axis), model.kind, ()) for axis in across]
     frame = np.vstack([declared, across])  # rows: the directions of the three gravity regressors (orthonormal)
-    train_sums, held_sums = (_grams([zero, model, *others], record) for record in (train, validation))
+    train_sums = tuple(np.sum(part, axis=0) for part in _grams(model, others, train, samples))  # the whole record
+    held_sums = _grams(model, others, validation, samples)
+    held_full = tuple(np.sum(part, axis=0) for part in held_sums)  # in the model's columns: the nominal bodies' RSS
+    # the parameters no gravity direction identifies (every regressor's columns null on them) left out: the sums
+    # projected onto the range of the training record's (the fits' solves then the size of what the data identify)
+    values, vectors = np.linalg.eigh(np.einsum("aars->rs", train_sums[0]))
+    kept = vectors[:, values > 1e-10 * values.max()]
+    train_sums = (kept.T @ train_sums[0] @ kept, train_sums[1] @ kept)
+    held_sums = (kept.T @ held_sums[0] @ kept, held_sums[1] @ kept, held_sums[2])
+    held_totals = tuple(np.sum(part, axis=0) for part in held_sums)
     directions = _sphere(GRID)  # in that frame: the declared direction is (1, 0, 0)
-    scores = np.array([_scored(u, train_sums, held_sums) for u in directions])
-    start = directions[int(np.argmin(scores))]
-    polar, azimuth = np.arccos(np.clip(start[2], -1.0, 1.0)), np.arctan2(start[1], start[0])
-
-    def unit(angles: NDArray) -> NDArray:
-        return np.array([np.cos(angles[1]) * np.sin(angles[0]), np.sin(angles[1]) * np.sin(angles[0]),
-                         np.cos(angles[0])])
-
-    refined = minimize(lambda angles: _scored(unit(angles), train_sums, held_sums), [polar, azimuth],
-                       method="Nelder-Mead", options={"xatol": 1e-4, "fatol": 1e-12, "maxiter": 400})
-    best = unit(refined.x) if refined.fun <= scores.min() else start
-    count = min(validation.n_samples, MAX_SAMPLES)
+    scores = _scored(directions, train_sums, held_totals)
+    best, best_score = directions[int(np.argmin(scores))], float(scores.min())
+    for radius in REFINEMENT:  # caps about the best so far
+        cap = _cap(best, np.radians(radius))
+        cap_scores = _scored(cap, train_sums, held_totals)
+        if cap_scores.min() < best_score:
+            best, best_score = cap[int(np.argmin(cap_scores))], float(cap_scores.min())
+    count = min(validation.n_samples, samples)
     nominal = model.nominal_parameters()
+    declared_channels = _channel_scores(np.eye(3)[0], train_sums, held_sums) / count
+    found_channels = _channel_scores(best, train_sums, held_sums) / count
     return MountCheck(magnitude * declared, magnitude * (best @ frame),
-                      _scored(np.eye(3)[0], train_sums, held_sums) / count,
-                      min(float(refined.fun), float(scores.min())) / count,
-                      _held_out_rss(np.eye(3)[0], nominal, held_sums) / count,
-                      _held_out_rss(best, nominal, held_sums) / count)
+                      float(_scored(np.eye(3)[0], train_sums, held_totals)) / count,
+                      best_score / count,
+                      declared_channel_mse=tuple(float(value) for value in declared_channels),
+                      found_channel_mse=tuple(float(value) for value in found_channels),
+                      nominal_declared_mse=_rss_of(np.eye(3)[0], nominal, held_full) / count,
+                      nominal_found_mse=_rss_of(best, nominal, held_full) / count)

@@ -36,11 +36,14 @@ from dynamics.transmission_files import (
     transmission_from_urdf,
 )
 from estimation.data.rest import check_min_speed, smooth_coulomb
+from estimation.diagnosis.plain_laws import plain_model
+from estimation.diagnosis.search import effect_channels
+from dynamics.effects import Effect
 from dynamics.models import IdentificationModel
 from dynamics.runtime.progress import step
 from estimation.identification.fit import IdentificationResult
-from estimation.identification.joint_zeros import check_joint_zeros
-from estimation.identification.mount import check_mount
+from estimation.identification.joint_zeros import JointZeroCheck, check_joint_zeros
+from estimation.identification.mount import MOUNT_MARK, MountCheck, check_mount
 from estimation.identification.model_parameters import model_parameters
 from estimation.identification.prepared import PreparedRecords
 from estimation.identification.trivial_predictors import trivial_mse, trivial_warnings
@@ -178,21 +181,99 @@ def description_notes(model: IdentificationModel, train: Measurements, validatio
     less error is said. The mount is not checked without a validation record, with a delay search or shaped laws."""
     if delay is not None or model_has_shapes(model):
         return ()
-    with step("joint zeros checked against the description's"):
-        zeros = check_joint_zeros(model, train, validation, warn=False)
-    zeros = None if zeros is None or not zeros.marked else zeros
+    zeros = marked_joint_zeros(model, train, validation)
     mount = None
     if validation is not None:
         with step("gravity's direction checked against the description's"):
             mount = check_mount(model, train, validation)
     mount = None if mount is None or not mount.marked else mount
+    return said_description(model, zeros, mount, None if mount is None else mount.message())
+
+
+def marked_joint_zeros(model: IdentificationModel, train: Measurements, validation: Measurements | None, *,
+                       delay: Any = None) -> JointZeroCheck | None:
+    """The joint-zero check (:func:`estimation.identification.joint_zeros.check_joint_zeros`) when it marks, else
+    ``None``; not checked with a delay search or shaped laws (:func:`joint_zero_notes`)."""
+    if delay is not None or model_has_shapes(model):
+        return None
+    with step("joint zeros checked against the description's"):
+        zeros = check_joint_zeros(model, train, validation, warn=False)
+    return None if zeros is None or not zeros.marked else zeros
+
+
+def said_description(model: IdentificationModel, zeros: JointZeroCheck | None, mount: MountCheck | None,
+                     mount_said: str | None) -> tuple[str, ...]:
+    """The warnings of the marked joint-zero and mount checks (``mount_said``: the mount's sentence): a reversed
+    torque flips its joint's gravity load, and a turned gravity moves every joint's as an offset would, so each check
+    can take up the other's fault: when both mark, the one that predicts the validation record with the less error
+    is said (the other's sentence not)."""
     if zeros is not None and mount is not None:
         if mount.found_mse / mount.declared_mse < zeros.total_ratio:
             zeros = None
         else:
-            mount = None
+            mount, mount_said = None, None
     return ((() if zeros is None else (zeros.message(model.robot.joint_names),))
-            + (() if mount is None else (mount.message(),)))
+            + (() if mount_said is None else (mount_said,)))
+
+
+#: the candidates of the diagnosis that a load of the joint's position alone can pass for, as a turned gravity's
+POSITION_LAWS = ("spring", "ripple")
+#: the samples of each record the diagnosis's mount check sums (evenly spaced: a gravity load changes with the
+#: positions only, slowly; ``oed identify`` takes :data:`estimation.identification.mount.MAX_SAMPLES`)
+DIAGNOSIS_MOUNT_SAMPLES = 1000
+
+
+def diagnosis_mount(model: IdentificationModel, train: Measurements, validation: Measurements | None, *,
+                    delay: Any = None) -> MountCheck | None:
+    """The mount check of ``oed diagnose``, run before its search (:func:`estimation.identification.mount.check_mount`
+    on the plain model of the declared one, :func:`estimation.diagnosis.plain_laws.plain_model`: the diagnosis's
+    declared model often lacks the friction laws and offsets the search then adds, whose absence would hide the
+    gravity load): the check when it marks, else ``None``; not checked without a validation record, with a delay
+    search or shaped laws (as :func:`description_notes`)."""
+    if validation is None or delay is not None or model_has_shapes(model):
+        return None
+    with step("gravity's direction checked against the description's"):
+        check = check_mount(plain_model(model), train, validation, samples=DIAGNOSIS_MOUNT_SAMPLES)
+    return check if check is not None and check.marked else None
+
+
+def mount_candidates(model: IdentificationModel, candidates: Sequence[Effect], mount: MountCheck | None
+                     ) -> tuple[Effect, ...]:
+    """The diagnosis's candidates without the laws of a joint's position alone (:data:`POSITION_LAWS`: a spring, a
+    position ripple) on the channels whose load the found gravity explains (their validation error with it at most
+    :data:`estimation.identification.mount.MOUNT_MARK` of the description's,
+    :meth:`~estimation.identification.mount.MountCheck.explained_channels`); ``candidates`` when ``mount`` is
+    ``None``. The description's gravity is kept (the description is the user's): the turned gravity's load stays in
+    the residual, and a spring there would name an effect the robot does not have (h-mountdiag,
+    ``benchmarks/README.md``)."""
+    if mount is None:
+        return tuple(candidates)
+    explained = {model.channels[index] for index in mount.explained_channels()}  # the plain model's channels
+    return tuple(effect for effect in candidates
+                 if effect.name not in POSITION_LAWS or not set(effect_channels(effect, model)) <= explained)
+
+
+def diagnosis_mount_notes(model: IdentificationModel, zeros: JointZeroCheck | None, mount: MountCheck | None
+                          ) -> tuple[str, ...]:
+    """The diagnosis's warnings of the marked joint-zero and mount checks (:func:`said_description`: the one that
+    predicts the validation record better when both mark), the mount's saying which joints the search tried without
+    the laws of their position (:func:`mount_candidates`); when the joints' zeros or directions are said instead,
+    a sentence still says what the search left out."""
+    channels = () if mount is None else mount.explained_channels()
+    names = ", ".join(model.channels[index] for index in channels)
+    shares = ", ".join(f"{model.channels[index]} "
+                       f"{1.0 - mount.found_channel_mse[index] / mount.declared_channel_mse[index]:.0%}"
+                       for index in channels)
+    said = None if mount is None else mount.message() if not channels else (
+        f"{mount.message()}; the diagnosis keeps it too, and tries no spring or position ripple on {names}, whose "
+        f"validation error the found gravity lowers by {1.0 - MOUNT_MARK:.0%} or more ({shares}): their "
+        "position-dependent load is the turned gravity's")
+    notes = said_description(model, zeros, mount, said)
+    if said is not None and said not in notes and channels:
+        notes += (f"the diagnosis tried no spring or position ripple on {names}: another direction of gravity "
+                  f"explains their load as well ({shares} less validation error), though the joints' zeros or "
+                  "directions said explain the records better",)
+    return notes
 
 
 def streamed_joint_zero_notes(model: IdentificationModel, train: Sequence[str | Path], train_samples: int,

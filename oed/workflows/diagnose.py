@@ -38,6 +38,7 @@ from estimation.consistent.torque_gains import (
     gains_for_records,
     in_recorded_units,
 )
+from estimation.identification.mount import MountCheck
 from estimation.identification.relative_error import relative_scores
 from estimation.identification.validation import ChannelErrors
 from estimation.consistent.completion import completed_laws, completed_note, completion_repeat, held_completion
@@ -57,14 +58,18 @@ from estimation.preprocessing.plan import Preprocessing
 from estimation.streaming.settings import DEFAULT_SUBSAMPLE, FLOOR_WINDOW
 from estimation.identification.model_file import summed_model_file_document
 from estimation.identification.friction_drift import STREAMED_DRIFT, FrictionDrift, check_friction_drift
+from estimation.identification.joint_zeros import JointZeroCheck
 from estimation.identification.training_range import RangeCheck, TrainingRange, merged_ranges
 from estimation.estimators.normal_equations import DEFAULT_CHUNK_SIZE
 from estimation.data.input_findings import FindingsSaid
 from estimation.data.log_cleaning import DEFAULT_MAX_GAP
 from estimation.uncertainty.noise_floor import NoiseFloor
 from oed.workflows.asbuilt import (
+    diagnosis_mount,
+    diagnosis_mount_notes,
     finish_document,
-    joint_zero_notes,
+    marked_joint_zeros,
+    mount_candidates,
     streamed_joint_zero_notes,
     model_effects,
     resolve_joint_directions,
@@ -449,13 +454,16 @@ def diagnosis_in_memory(args: DiagnoseOptions, model: IdentificationModel, trans
             records = divided_records(records, gains[0])
         # the joint-zero check reads the prepared records only: it runs beside the diagnosis and the default answer,
         # in the cores they leave idle (their serial steps, the slower worker of a pool), and is said where it was
-        zeros = functools.partial(checks_beside, model, records.train.measurements, records.validation.measurements,
-                                  delay=delay)
-        with beside(zeros, worker_count(args.jobs, 2)) as beside_notes:
+        checks = functools.partial(checks_beside, model, records.train.measurements, records.validation.measurements,
+                                   delay=delay)
+        with beside(checks, worker_count(args.jobs, 2)) as beside_checks:
+            # gravity's direction against the description's, before the search: the laws of a joint's position
+            # alone are not tried where the found gravity explains the load (oed.workflows.asbuilt.mount_candidates)
+            mount = diagnosis_mount(model, records.train.measurements, records.validation.measurements, delay=delay)
             with step("noise floors of the held-out records"):
                 validation_floor, test_floor = record_floors(records, model, args.frequency, args.jobs)
             with step("diagnosis in memory"):
-                diagnosis = diagnose_records(args, model, transmission, records, delay, validation_floor)
+                diagnosis = diagnose_records(args, model, transmission, records, delay, validation_floor, mount=mount)
             selection, swap_note = None, None
             if diagnosis.swap is not None:
                 with step("the plain-law swap judged on the default answer's candidates"):
@@ -472,8 +480,9 @@ def diagnosis_in_memory(args: DiagnoseOptions, model: IdentificationModel, trans
             if gains is not None:
                 selection = in_recorded_units(selection, gains[0])
                 notes += (gains[2],)
-            zero_notes, drift = beside_notes()
-            notes += zero_notes + (() if drift is None or drift.message() is None else (drift.message(),))
+            zeros, drift = beside_checks()
+            notes += diagnosis_mount_notes(model, zeros, mount)
+            notes += () if drift is None or drift.message() is None else (drift.message(),)
     train = records.train.measurements  # the samples fitted: the training range, and the held-out records against it
     ranges = TrainingRange.of(train.q, train.dq, model.robot.joint_names)
     checks = {key: ranges.check(held.measurements.q, held.measurements.dq)
@@ -485,12 +494,13 @@ def diagnosis_in_memory(args: DiagnoseOptions, model: IdentificationModel, trans
 
 
 def checks_beside(model: IdentificationModel, train: Measurements, validation: Measurements | None, *,
-                  delay: DelayBounds | None) -> tuple[tuple[str, ...], FrictionDrift | None]:
-    """What runs beside the diagnosis on the prepared records: the joint zeros' warning
-    (:func:`~oed.workflows.asbuilt.joint_zero_notes`) and each joint's friction on the validation record against
+                  delay: DelayBounds | None) -> tuple[JointZeroCheck | None, FrictionDrift | None]:
+    """What runs beside the diagnosis on the prepared records: the joint-zero check when it marks
+    (:func:`~oed.workflows.asbuilt.marked_joint_zeros`, said with the mount's by
+    :func:`~oed.workflows.asbuilt.diagnosis_mount_notes`) and each joint's friction on the validation record against
     the training record's (:func:`~estimation.identification.friction_drift.check_friction_drift`, the plain model
     with viscous friction: the plain fit's class of issue 34; none with a delay search or shaped laws)."""
-    zeros = joint_zero_notes(model, train, validation, delay=delay)
+    zeros = marked_joint_zeros(model, train, validation, delay=delay)
     if delay is not None or model_has_shapes(model):
         return zeros, None
     plain = plain_model(model)
@@ -790,11 +800,14 @@ def record_floors(records: PreparedRecords, model: IdentificationModel, frequenc
 
 
 def diagnose_records(args: DiagnoseOptions, model: IdentificationModel, transmission: Transmission | None,
-                     records: PreparedRecords, delay: DelayBounds | None, floor: NoiseFloor | None) -> Diagnosis:
-    """The diagnosis of the prepared records; ``floor``: the validation record's as recorded (:func:`record_floors`)."""
+                     records: PreparedRecords, delay: DelayBounds | None, floor: NoiseFloor | None, *,
+                     mount: MountCheck | None = None) -> Diagnosis:
+    """The diagnosis of the prepared records; ``floor``: the validation record's as recorded (:func:`record_floors`);
+    ``mount``: a marked mount check (:func:`oed.workflows.asbuilt.diagnosis_mount`), whose explained joints are
+    tried without the laws of their position alone (:func:`oed.workflows.asbuilt.mount_candidates`)."""
     train, validation = records.train.measurements, records.validation.measurements
     candidates = default_candidates(model) + coupling_candidates(model, transmission, train=train, held_out=validation)
-    return diagnose_model(model, train, validation, alpha=args.alpha, candidates=candidates,
+    return diagnose_model(model, train, validation, alpha=args.alpha, candidates=mount_candidates(model, candidates, mount),
                           max_effects=args.max_effects, noise_floor=floor, delay=delay or DelayBounds(), jobs=args.jobs,
                           unseen_stretches=args.unseen_stretches)
 
