@@ -27,7 +27,8 @@ Procedure (a search over nested linear models: additions, replacements, removals
    A move adds a candidate, or replaces the Coulomb-like law the search adopted on a joint by another
    (a law on a joint whose law was declared is refused); before each round an adopted effect is
    removed when its coefficients are within their noise in the current model
-   (:mod:`estimation.diagnosis.search_moves`); a candidate that left the model does not return. The search repeats until no move
+   (:mod:`estimation.diagnosis.search_moves`); a law another law replaced does not return, an effect removed returns at most once,
+   after the model gained another effect. The search repeats until no move
    is confirmed (or a user's stopping rule, :func:`provisional_stopping_rule` by default, ends it).
 5. Re-identify the augmented model (all shapes refit jointly, :mod:`estimation.diagnosis.final_refit`),
    each finding's p-value the Wald test from the covariance its standard deviations come from (a
