@@ -11,7 +11,7 @@ import pytest
 
 from estimation.data import MeasurementWarning, ReceiveTimesWarning, ResampledWarning, clock_roughness
 from estimation.data.records import read_measurements
-from estimation.data.sampling_clock import RECEIVE_TIMES_RATIO
+from estimation.data.sampling_clock import RECEIVE_TIMES_RATIO, ClockSums
 from tests.conftest import shared_data
 
 RATE = 500.0
@@ -90,3 +90,20 @@ def test_the_real_logs_clocks():
     fresh = np.r_[True, np.any(np.diff(q, axis=0) != 0, axis=1)]  # re-sent rows dropped, as the reader does
     ratio = clock_roughness(t[fresh], q[fresh])
     assert ratio is not None and ratio < 1.2
+
+
+def test_the_sums_of_blocks_carrying_two_rows_give_the_whole_records_ratio():
+    """The streamed reader's way (estimation.streaming.chunks): blocks of rows, the last two of each carried."""
+    regular = np.arange(5000) / RATE
+    stamps, q = moved(regular, 0.3, seed=2), motion(regular)
+    whole = ClockSums.of(stamps, q, 1 / RATE)
+    total, carry = None, None
+    for start in range(0, 5000, 700):
+        t, values = stamps[start:start + 700], q[start:start + 700]
+        if carry is not None:
+            t, values = np.r_[carry[0], t], np.vstack([carry[1], values])
+        carry = (t[-2:], values[-2:])
+        total = ClockSums.of(t, values, 1 / RATE) if total is None else total + ClockSums.of(t, values, 1 / RATE)
+    assert total.compared == whole.compared
+    assert total.ratio == pytest.approx(whole.ratio, rel=1e-12)
+    assert whole.ratio == pytest.approx(clock_roughness(stamps, q, 1 / RATE))

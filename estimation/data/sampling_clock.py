@@ -27,6 +27,7 @@ are wrong) does not count against the regular clock.
 from __future__ import annotations
 
 import warnings
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
@@ -34,7 +35,7 @@ from numpy.typing import NDArray
 from estimation.data.loading import ReceiveTimesWarning
 from estimation.data.log_cleaning import STALL_FACTOR
 
-__all__ = ["RECEIVE_TIMES_RATIO", "clock_roughness", "said_receive_times"]
+__all__ = ["RECEIVE_TIMES_RATIO", "ClockSums", "clock_roughness", "said_receive_times"]
 
 #: the positions are said to follow a regular clock rather than the stamps when their interpolation residuals at
 #: the stamps are at least this many times those on a regular clock (root mean square, median over the joints)
@@ -45,7 +46,64 @@ MIN_COMPARED = 100
 ROUNDING = 1e-12
 
 
-def clock_roughness(t: NDArray[np.float64], q: NDArray[np.float64]) -> float | None:
+@dataclass(frozen=True)
+class ClockSums:
+    """Sums of the interpolation residuals of a record's positions, at its stamps and on a regular clock, over its
+    interior samples with regular gaps (module docstring): added block by block, they give the whole record's
+    :attr:`ratio` (the streamed reader's blocks, :mod:`estimation.streaming.chunks`).
+
+    Attributes
+    ----------
+    at_stamps, on_clock
+        ``(n,)`` each joint's sum of squared residuals, at the stamps and with equal weights.
+    compared
+        Samples summed.
+    low, high
+        ``(n,)`` each joint's smallest and largest position seen (the rounding's scale).
+    """
+
+    at_stamps: NDArray[np.float64]
+    on_clock: NDArray[np.float64]
+    compared: int
+    low: NDArray[np.float64]
+    high: NDArray[np.float64]
+
+    @classmethod
+    def of(cls, t: NDArray[np.float64], q: NDArray[np.float64], step: float) -> ClockSums:
+        """The sums over the interior rows of ``t`` (stamps, increasing) and ``q`` (``(N, n)`` positions) whose two
+        gaps lie between half and :data:`~estimation.data.log_cleaning.STALL_FACTOR` times ``step`` (the record's
+        grid step)."""
+        gaps = np.diff(t)
+        regular = (gaps >= 0.5 * step) & (gaps <= STALL_FACTOR * step)
+        rows = np.flatnonzero(regular[:-1] & regular[1:]) + 1
+        before = (t[rows + 1] - t[rows]) / (t[rows + 1] - t[rows - 1])
+        at_stamps = q[rows] - (before[:, None] * q[rows - 1] + (1.0 - before)[:, None] * q[rows + 1])
+        on_clock = q[rows] - 0.5 * (q[rows - 1] + q[rows + 1])
+        return cls(np.sum(at_stamps**2, axis=0), np.sum(on_clock**2, axis=0), int(rows.shape[0]),
+                   np.min(q, axis=0), np.max(q, axis=0))
+
+    def __add__(self, other: ClockSums) -> ClockSums:
+        return ClockSums(self.at_stamps + other.at_stamps, self.on_clock + other.on_clock,
+                         self.compared + other.compared, np.minimum(self.low, other.low),
+                         np.maximum(self.high, other.high))
+
+    @property
+    def ratio(self) -> float | None:
+        """The root mean square of the residuals at the stamps over that on a regular clock, median over the
+        joints that move; ``None`` with fewer than :data:`MIN_COMPARED` samples or no joint moving."""
+        if self.compared < MIN_COMPARED:
+            return None
+        stamps_rms = np.sqrt(self.at_stamps / self.compared)
+        clock_rms = np.sqrt(self.on_clock / self.compared)
+        rounding = ROUNDING * np.maximum(self.high - self.low, 1.0)  # residuals below it are the arithmetic's
+        moving = np.maximum(stamps_rms, clock_rms) > rounding
+        if not moving.any():
+            return None
+        return float(np.median(np.maximum(stamps_rms[moving], rounding[moving])
+                               / np.maximum(clock_rms[moving], rounding[moving])))
+
+
+def clock_roughness(t: NDArray[np.float64], q: NDArray[np.float64], step: float | None = None) -> float | None:
     """The root mean square of each interior position's residual against the linear interpolation of its
     neighbours at the stamps ``t``, over the same on a regular clock (equal weights), median over the joints
     (module docstring); ``None`` when fewer than :data:`MIN_COMPARED` samples have regular gaps or no joint moves.
@@ -56,39 +114,27 @@ def clock_roughness(t: NDArray[np.float64], q: NDArray[np.float64]) -> float | N
         ``(N,)`` the stamps as recorded (increasing).
     q
         ``(N, n)`` the positions at those rows.
+    step
+        The record's step (its resampling grid's); by default the median of the gaps.
     """
     if t.shape[0] < 3:
         return None
-    gaps = np.diff(t)
-    step = float(np.median(gaps))
+    step = float(np.median(np.diff(t))) if step is None else step
     if step <= 0:
         return None
-    regular = (gaps >= 0.5 * step) & (gaps <= STALL_FACTOR * step)
-    rows = np.flatnonzero(regular[:-1] & regular[1:]) + 1
-    if rows.shape[0] < MIN_COMPARED:
-        return None
-    before = (t[rows + 1] - t[rows]) / (t[rows + 1] - t[rows - 1])
-    at_stamps = q[rows] - (before[:, None] * q[rows - 1] + (1.0 - before)[:, None] * q[rows + 1])
-    on_clock = q[rows] - 0.5 * (q[rows - 1] + q[rows + 1])
-    stamps_rms = np.sqrt(np.mean(at_stamps**2, axis=0))
-    clock_rms = np.sqrt(np.mean(on_clock**2, axis=0))
-    rounding = ROUNDING * np.maximum(np.ptp(q, axis=0), 1.0)  # residuals below it are the arithmetic's
-    moving = np.maximum(stamps_rms, clock_rms) > rounding
-    if not moving.any():
-        return None
-    return float(np.median(np.maximum(stamps_rms[moving], rounding[moving])
-                           / np.maximum(clock_rms[moving], rounding[moving])))
+    return ClockSums.of(t, q, step).ratio
 
 
-def said_receive_times(t: NDArray[np.float64], q: NDArray[np.float64], source: str, *, stacklevel: int = 4) -> None:
+def said_receive_times(ratio: float | None, first: float, last: float, samples: int, source: str, *,
+                       stacklevel: int = 4) -> None:
     """A :class:`~estimation.data.loading.ReceiveTimesWarning` when the positions of a resampled record follow a
-    regular clock rather than its stamps (:func:`clock_roughness` at least :data:`RECEIVE_TIMES_RATIO`): the
-    resampling by the stamps then adds noise in proportion to the speed. Nothing is changed: which clock the
-    samples were taken on is the logger's to say."""
-    ratio = clock_roughness(t, q)
+    regular clock rather than its stamps (``ratio``, :func:`clock_roughness` or :attr:`ClockSums.ratio`, at least
+    :data:`RECEIVE_TIMES_RATIO`): the resampling by the stamps then adds noise in proportion to the speed. Nothing
+    is changed: which clock the samples were taken on is the logger's to say. ``first``, ``last``, ``samples``:
+    the record's first and last stamps and its count of samples (the regular clock through them is named)."""
     if ratio is None or ratio < RECEIVE_TIMES_RATIO:
         return
-    step = float(t[-1] - t[0]) / (t.shape[0] - 1)  # the regular clock through the first and last stamps
+    step = (last - first) / max(samples - 1, 1)
     warnings.warn(
         f"{source}: the positions are {ratio:.3g} times smoother on a regular clock (a sample every {step:.6g} s) "
         "than at the stamps of column t: the stamps look like a logger's receive times, not the instants the "
