@@ -14,13 +14,13 @@ interpolation of its two neighbours at the instants the samples were taken: at t
 stamps' gaps) if the stamps are the sampling instants, at equal weights if the samples were taken on a regular
 clock. The interpolation residuals on the right clock are those of the motion's curvature and the sensor's
 noise; on the wrong clock they gain the speed times the stamps' error. The ratio of their root mean squares
-(median over the joints) is the evidence: on the EMPS records with moved stamps 126; on the real KUKA LWR4+ logs
-2.8 (the stamps jitter 3.4–6.5 ms around 5 ms, the positions smoother on a regular clock); on the real Franka
-Panda 0.93 (its stamps are its samples' instants); on the simulated corpus's jittered logs (samples taken at
-their stamps) below 1.
+(median over the joints) is the evidence: on the EMPS records with moved stamps 79 to 91; on the real KUKA
+LWR4+ logs 2.8 to 4.7 (the stamps jitter 3.4–6.5 ms around 5 ms, the positions smoother on a regular clock); on
+the real Franka Panda 0.97 to 1.03 (its stamps are its samples' instants); on the simulated corpus's jittered
+logs (samples taken at their stamps) below 1.
 
 Only interior samples whose two gaps are regular steps (between half and :data:`~estimation.data.log_cleaning.STALL_FACTOR`
-times the median) are compared, so that a dropped row or a stall (a gap of several steps, where equal weights
+times the record's grid step) are compared, so that a dropped row or a stall (a gap of several steps, where equal weights
 are wrong) does not count against the regular clock.
 """
 
