@@ -210,7 +210,7 @@ def test_the_tracing_figure_of_a_jittered_validation_record_is_drawn_on_its_reco
     motion. It raised ``cannot reshape array`` and `oed diagnose --report` exited on the Panda's real log."""
     import pandas as pd
 
-    from estimation.data.loading import ResampledWarning
+    from estimation.data.loading import ReceiveTimesWarning, ResampledWarning
     from estimation.data.records import read_measurements
     from estimation.diagnosis.report import diagnosis_report
     from estimation.diagnosis.search import diagnose
@@ -221,7 +221,8 @@ def test_the_tracing_figure_of_a_jittered_validation_record_is_drawn_on_its_reco
     frame.to_csv(tmp_path / "validate_jittered.csv", index=False)
     robot = load_robot("puma560", joints=3)
     train = read_measurements(records / "train.csv", n_joints=3)
-    with pytest.warns(ResampledWarning, match="irregular sampling"):
+    # the samples where they were, the stamps moved: the reader also says they look like receive times
+    with pytest.warns(ReceiveTimesWarning), pytest.warns(ResampledWarning, match="irregular sampling"):
         validate = read_measurements(tmp_path / "validate_jittered.csv", n_joints=3)
     assert validate.recorded is not None and validate.recorded.n_samples == len(frame) != validate.n_samples
     diagnosis = diagnose(build_model(robot, "internal", "viscous"), train, validate, candidates=[])  # Coulomb missed

@@ -16,7 +16,7 @@ from dynamics.robots import load_robot
 from estimation.streaming.cluster import IncompleteSumError, WorkerLostError, check_parts, sum_files
 from estimation.estimators.identification_problem import IdentificationProblem, ResidualBand
 from estimation.estimators.least_squares import WeightedLeastSquares, stack
-from estimation.data.loading import (MeasurementError, MissingColumnError, ResampledWarning, StallWarning,
+from estimation.data.loading import (MeasurementError, MissingColumnError, ReceiveTimesWarning, ResampledWarning, StallWarning,
                                      TimeBaseError)
 from estimation.data.records import read_measurements
 from dynamics.measurements import Measurements
@@ -372,10 +372,13 @@ def test_jittered_time_is_resampled_onto_the_whole_files_grid(model, files, tmp_
     jittered = replace(data, t=t) if cutoff is None else Measurements(t, data.q, tau=data.tau)
     path = tmp_path / "jittered.csv"
     jittered.write(path)
-    with pytest.warns(StallWarning, match="jittered.csv: the logger stalled 24 time"), pytest.warns(ResampledWarning):
+    # the samples where they were, the stamps moved: the reader says they look like receive times
+    with pytest.warns(StallWarning, match="jittered.csv: the logger stalled 24 time"), pytest.warns(ResampledWarning), \
+            pytest.warns(ReceiveTimesWarning):
         reference = in_memory(model, [path], None if cutoff is None else ButterworthDifferentiation(cutoff))
     with pytest.warns(StallWarning, match="jittered.csv: the logger stalled 24 time") as stalls, \
-            pytest.warns(ResampledWarning, match="jittered.csv: irregular sampling"):
+            pytest.warns(ResampledWarning, match="jittered.csv: irregular sampling"), \
+            pytest.warns(ReceiveTimesWarning, match="jittered.csv: the positions are"):  # as in memory
         result = identify_files(model, [path], chunk_size=chunk_size, cutoff_hz=cutoff)
     assert not [warning for warning in stalls if "(rows" in str(warning.message)]  # said for the file, not by block
     assert relative(result.estimate.values, reference.values) < 1e-10
@@ -390,7 +393,8 @@ def test_warnings_of_a_worker_reach_the_caller(model, files, tmp_path):
     replace(data, t=t).write(path)
     with ThreadPoolExecutor(1) as executor, \
             pytest.warns(StallWarning, match="jittered.csv: the logger stalled 24 time") as stalls, \
-            pytest.warns(ResampledWarning, match="jittered.csv: irregular sampling"):
+            pytest.warns(ResampledWarning, match="jittered.csv: irregular sampling"), \
+            pytest.warns(ReceiveTimesWarning, match="jittered.csv: the positions are"):
         sum_files(model, [path], executor=executor, chunk_size=2000)
     assert not [warning for warning in stalls if re.search(r"\(rows [\d-]+\)", str(warning.message))]  # the file's
 

@@ -37,6 +37,8 @@ _EXPORTS: dict[str, str] = {
     "RepeatedRowsWarning": "estimation.data.loading",
     "BlankRowsWarning": "estimation.data.loading",
     "ResampledWarning": "estimation.data.loading",
+    "ReceiveTimesWarning": "estimation.data.loading",
+    "clock_roughness": "estimation.data.sampling_clock",
     "RestHandling": "estimation.data.rest",
     "RestSelection": "estimation.data.rest",
     "RosSupportError": "estimation.data.log_formats",

@@ -110,6 +110,11 @@ class ResampledWarning(MeasurementWarning):
     """Irregular sampling: the data were interpolated onto a uniform grid."""
 
 
+class ReceiveTimesWarning(MeasurementWarning):
+    """The positions of a resampled record follow a regular clock rather than its stamps: the stamps look like a
+    logger's receive times, and resampling by them adds noise (:mod:`estimation.data.sampling_clock`)."""
+
+
 class RepeatedRowsWarning(MeasurementWarning):
     """Rows repeating the previous one on every channel (a re-sent packet) were dropped."""
 

@@ -70,6 +70,7 @@ from estimation.data.log_formats import (
     read_log_frame,
     time_column,
 )
+from estimation.data.sampling_clock import clock_roughness, said_receive_times
 from estimation.data.log_cleaning import DEFAULT_MAX_GAP, Gap, blank_rows, describe, find_gaps, repeated_rows, split_rows, time_stamps_jump
 from dynamics.measurements import Measurements, joint_columns
 
@@ -317,6 +318,9 @@ def segments_from_frame(
                                        "repeated_rows_dropped": dropped, "duplicated_times_dropped": duplicated}
         stamps = t[rows]
         segment_t, grid = uniform_grid(stamps, piece, resample, name, metadata, bridged=times.bridged)
+        if "resampled_from" in metadata:  # resampled by its stamps: were they the samples' instants?
+            said_receive_times(clock_roughness(stamps, piece["q"], (stamps[-1] - stamps[0]) / (segment_t.shape[0] - 1)),
+                               float(stamps[0]), float(stamps[-1]), stamps.shape[0], name)
         segments.append(Measurements(segment_t, grid["q"], grid["dq"], grid["ddq"], grid["tau"], grid["wrench"],
                                      metadata, *_as_recorded(stamps, piece, segment_t, metadata)))
     if isinstance(model, IdentificationModel):

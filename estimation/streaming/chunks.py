@@ -59,6 +59,7 @@ from estimation.data.loading import (
     TooFewSamplesError,
 )
 from estimation.data.records import AngleTurns, csv_options, measurements_from_frame, said_unwrapped, unwrap_angles
+from estimation.data.sampling_clock import ClockSums, said_receive_times
 from dynamics.measurements import Measurements, joint_columns
 from estimation.estimators.identification_problem import BandWindow, ResidualBand, decay_length
 from estimation.estimators.normal_equations import DEFAULT_CHUNK_SIZE, NormalEquations, accumulate, check_chunk_size
@@ -266,6 +267,41 @@ def _unwrapped(frame: pd.DataFrame, model: IdentificationModel, source: str, bef
     return frame, after, wraps
 
 
+class _ClockEvidence:
+    """The whole record's :class:`~estimation.data.sampling_clock.ClockSums`, block by block (the rows kept, as
+    logged; the last two rows of a block carried, so that each interior row is summed once, as in memory)."""
+
+    def __init__(self, model: IdentificationModel, scan) -> None:
+        self.columns = _group_columns("q", model.robot.n_joints)
+        self.scan = scan
+        self.sums: ClockSums | None = None
+        self.carry: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None
+        self.samples = 0
+        self.first = self.last = 0.0
+
+    def add(self, frame: pd.DataFrame) -> None:
+        frame = frame.rename(columns=lambda name: str(name).strip())
+        if not set(self.columns) | {"t"} <= set(frame.columns) or not len(frame):
+            return
+        t = pd.to_numeric(frame["t"], errors="coerce").to_numpy(dtype=float)
+        q = np.column_stack([pd.to_numeric(frame[column], errors="coerce").to_numpy(dtype=float)
+                             for column in self.columns])
+        if not self.samples:
+            self.first = float(t[0])
+        self.samples += t.shape[0]
+        self.last = float(t[-1])
+        if self.carry is not None:
+            t, q = np.concatenate([self.carry[0], t]), np.vstack([self.carry[1], q])
+        self.carry = (t[-2:], q[-2:])
+        if t.shape[0] >= 3:
+            sums = ClockSums.of(t, q, self.scan.step)
+            self.sums = sums if self.sums is None else self.sums + sums
+
+    def say(self, source: str) -> None:
+        said_receive_times(None if self.sums is None else self.sums.ratio, self.first, self.last, self.samples,
+                           source, stacklevel=5)
+
+
 def read_chunks(path: str | Path, model: IdentificationModel, *, chunk_size: int = DEFAULT_CHUNK_SIZE
                 ) -> Iterator[Measurements]:
     """The checked measurements of ``path``, ``chunk_size`` rows at a time (a short last chunk is
@@ -283,7 +319,10 @@ def read_chunks(path: str | Path, model: IdentificationModel, *, chunk_size: int
     resampler = Resampler(scan) if scan is not None and scan.irregular else None
     checked = _ChunkChecks(path, model, scan, resampler)
     emitted = 0
+    clock = _ClockEvidence(model, scan) if resampler is not None else None
     for frame in _kept_frames(file, chunk_size, None if scan is None else scan.keep):
+        if clock is not None:
+            clock.add(frame)
         if pending is not None and len(frame) < least:
             pending = pd.concat([pending, frame], ignore_index=True)
             continue
@@ -298,6 +337,8 @@ def read_chunks(path: str | Path, model: IdentificationModel, *, chunk_size: int
     chunk = checked(pending)
     emitted += chunk.n_samples
     said_unwrapped(checked.wraps, model, str(path))
+    if clock is not None:
+        clock.say(str(path))
     if resampler is not None and emitted != scan.grid_count:
         raise TimeBaseError(f"{path}: {emitted} samples resampled of the {scan.grid_count} of the grid (did the file "
                             "change while it was read?)")

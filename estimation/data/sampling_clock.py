@@ -1,0 +1,143 @@
+"""Which clock the samples follow: the time stamps, or a regular clock the stamps only approximate.
+
+A log with irregular stamps is resampled by them onto a uniform grid (:func:`estimation.data.loading.uniform_grid`),
+which is right when each sample was taken at its stamp. Many loggers stamp a sample when it *arrives* (a
+non-real-time process reading a real-time controller's samples): the samples were taken on the controller's
+regular clock and the stamps jitter around it. Interpolating by such stamps moves each position by about its speed
+times its stamp's error, a noise in proportion to the speed that every derivative, fit and error then carries and
+that no filter removes without blurring the motion (``benchmarks/README.md``, h-jitter: the EMPS records with
+stamps moved by up to 40 % of a step, the samples where they were: the best validation error six times the clean
+records' (37 against 5.8 N²), and the cut-off the validation record prefers no longer the test record's).
+
+The positions tell the two apart (:func:`clock_roughness`). A smooth motion's sample is close to the linear
+interpolation of its two neighbours at the instants the samples were taken: at the stamps (weights from the
+stamps' gaps) if the stamps are the sampling instants, at equal weights if the samples were taken on a regular
+clock. The interpolation residuals on the right clock are those of the motion's curvature and the sensor's
+noise; on the wrong clock they gain the speed times the stamps' error. The ratio of their root mean squares
+(median over the joints) is the evidence: on the EMPS records with moved stamps 79 to 91; on the real KUKA
+LWR4+ logs 2.8 to 4.7 (the stamps jitter 3.4–6.5 ms around 5 ms, the positions smoother on a regular clock); on
+the real Franka Panda 0.97 to 1.03 (its stamps are its samples' instants); on the simulated corpus's jittered
+logs (samples taken at their stamps) below 1.
+
+Only interior samples whose two gaps are regular steps (between half and :data:`~estimation.data.log_cleaning.STALL_FACTOR`
+times the record's grid step) are compared, so that a dropped row or a stall (a gap of several steps, where equal weights
+are wrong) does not count against the regular clock.
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from estimation.data.loading import ReceiveTimesWarning
+from estimation.data.log_cleaning import STALL_FACTOR
+
+__all__ = ["RECEIVE_TIMES_RATIO", "ClockSums", "clock_roughness", "said_receive_times"]
+
+#: the positions are said to follow a regular clock rather than the stamps when their interpolation residuals at
+#: the stamps are at least this many times those on a regular clock (root mean square, median over the joints)
+RECEIVE_TIMES_RATIO = 2.0
+#: fewest interior samples with regular gaps the evidence is taken on
+MIN_COMPARED = 100
+#: interpolation residuals below this fraction of a joint's range are rounding (a joint at constant speed)
+ROUNDING = 1e-12
+
+
+@dataclass(frozen=True)
+class ClockSums:
+    """Sums of the interpolation residuals of a record's positions, at its stamps and on a regular clock, over its
+    interior samples with regular gaps (module docstring): added block by block, they give the whole record's
+    :attr:`ratio` (the streamed reader's blocks, :mod:`estimation.streaming.chunks`).
+
+    Attributes
+    ----------
+    at_stamps, on_clock
+        ``(n,)`` each joint's sum of squared residuals, at the stamps and with equal weights.
+    compared
+        Samples summed.
+    low, high
+        ``(n,)`` each joint's smallest and largest position seen (the rounding's scale).
+    """
+
+    at_stamps: NDArray[np.float64]
+    on_clock: NDArray[np.float64]
+    compared: int
+    low: NDArray[np.float64]
+    high: NDArray[np.float64]
+
+    @classmethod
+    def of(cls, t: NDArray[np.float64], q: NDArray[np.float64], step: float) -> ClockSums:
+        """The sums over the interior rows of ``t`` (stamps, increasing) and ``q`` (``(N, n)`` positions) whose two
+        gaps lie between half and :data:`~estimation.data.log_cleaning.STALL_FACTOR` times ``step`` (the record's
+        grid step)."""
+        gaps = np.diff(t)
+        regular = (gaps >= 0.5 * step) & (gaps <= STALL_FACTOR * step)
+        rows = np.flatnonzero(regular[:-1] & regular[1:]) + 1
+        before = (t[rows + 1] - t[rows]) / (t[rows + 1] - t[rows - 1])
+        at_stamps = q[rows] - (before[:, None] * q[rows - 1] + (1.0 - before)[:, None] * q[rows + 1])
+        on_clock = q[rows] - 0.5 * (q[rows - 1] + q[rows + 1])
+        return cls(np.sum(at_stamps**2, axis=0), np.sum(on_clock**2, axis=0), int(rows.shape[0]),
+                   np.min(q, axis=0), np.max(q, axis=0))
+
+    def __add__(self, other: ClockSums) -> ClockSums:
+        return ClockSums(self.at_stamps + other.at_stamps, self.on_clock + other.on_clock,
+                         self.compared + other.compared, np.minimum(self.low, other.low),
+                         np.maximum(self.high, other.high))
+
+    @property
+    def ratio(self) -> float | None:
+        """The root mean square of the residuals at the stamps over that on a regular clock, median over the
+        joints that move; ``None`` with fewer than :data:`MIN_COMPARED` samples or no joint moving."""
+        if self.compared < MIN_COMPARED:
+            return None
+        stamps_rms = np.sqrt(self.at_stamps / self.compared)
+        clock_rms = np.sqrt(self.on_clock / self.compared)
+        rounding = ROUNDING * np.maximum(self.high - self.low, 1.0)  # residuals below it are the arithmetic's
+        moving = np.maximum(stamps_rms, clock_rms) > rounding
+        if not moving.any():
+            return None
+        return float(np.median(np.maximum(stamps_rms[moving], rounding[moving])
+                               / np.maximum(clock_rms[moving], rounding[moving])))
+
+
+def clock_roughness(t: NDArray[np.float64], q: NDArray[np.float64], step: float | None = None) -> float | None:
+    """The root mean square of each interior position's residual against the linear interpolation of its
+    neighbours at the stamps ``t``, over the same on a regular clock (equal weights), median over the joints
+    (module docstring); ``None`` when fewer than :data:`MIN_COMPARED` samples have regular gaps or no joint moves.
+
+    Parameters
+    ----------
+    t
+        ``(N,)`` the stamps as recorded (increasing).
+    q
+        ``(N, n)`` the positions at those rows.
+    step
+        The record's step (its resampling grid's); by default the median of the gaps.
+    """
+    if t.shape[0] < 3:
+        return None
+    step = float(np.median(np.diff(t))) if step is None else step
+    if step <= 0:
+        return None
+    return ClockSums.of(t, q, step).ratio
+
+
+def said_receive_times(ratio: float | None, first: float, last: float, samples: int, source: str, *,
+                       stacklevel: int = 4) -> None:
+    """A :class:`~estimation.data.loading.ReceiveTimesWarning` when the positions of a resampled record follow a
+    regular clock rather than its stamps (``ratio``, :func:`clock_roughness` or :attr:`ClockSums.ratio`, at least
+    :data:`RECEIVE_TIMES_RATIO`): the resampling by the stamps then adds noise in proportion to the speed. Nothing
+    is changed: which clock the samples were taken on is the logger's to say. ``first``, ``last``, ``samples``:
+    the record's first and last stamps and its count of samples (the regular clock through them is named)."""
+    if ratio is None or ratio < RECEIVE_TIMES_RATIO:
+        return
+    step = (last - first) / max(samples - 1, 1)
+    warnings.warn(
+        f"{source}: the positions are {ratio:.3g} times smoother on a regular clock (a sample every {step:.6g} s) "
+        "than at the stamps of column t: the stamps look like a logger's receive times, not the instants the "
+        "samples were taken; resampling by them adds noise in proportion to the speed to the derivatives and to "
+        "every error. If the samples were taken on a regular clock, write t as that clock (t0 + k * step, k the "
+        "sample's index)", ReceiveTimesWarning, stacklevel=stacklevel)
