@@ -182,18 +182,17 @@ def _scored(u: NDArray, train: tuple, held_out: tuple) -> NDArray:
     weights = np.concatenate([np.ones(np.shape(u)[:-1] + (1,)), u], axis=-1)
     pairs = np.einsum("...a,...b->...ab", weights, weights)
     A = np.tensordot(pairs, train[0], axes=([-2, -1], [0, 1]))
-    theta = _solve(A, np.tensordot(weights, train[1], axes=([-1], [0])))
+    return _rss(weights, _solve(A, np.tensordot(weights, train[1], axes=([-1], [0]))), held_out)
+
+
+def _rss(weights: NDArray, theta: NDArray, held_out: tuple) -> NDArray:
+    """The RSS on the record of ``held_out`` (its sums over the channels) of the parameters ``theta`` with the
+    regressors weighted by ``weights`` (``(1, u)``, ``u`` a unit vector of gravity in the frame of the three gravity
+    regressors; one or a stack of each)."""
     G, h, c = held_out
+    pairs = np.einsum("...a,...b->...ab", weights, weights)
     return (c - 2.0 * np.einsum("...r,...a,ar->...", theta, weights, h)
             + np.einsum("...r,...rs,...s->...", theta, np.tensordot(pairs, G, axes=([-2, -1], [0, 1])), theta))
-
-
-def _rss_of(u: NDArray, theta: NDArray, held_out: tuple) -> float:
-    """The validation RSS of the given parameters ``theta`` (the description's nominal ones) with gravity along the
-    unit vector ``u`` (``held_out``: the record's sums over the channels, in the model's own columns)."""
-    weights = np.r_[1.0, u]
-    G, h, c = held_out
-    return float(c - 2.0 * theta @ (weights @ h) + theta @ np.einsum("a,b,abrs->rs", weights, weights, G) @ theta)
 
 
 def _channel_scores(u: NDArray, train: tuple, held_out: tuple) -> NDArray:
@@ -249,5 +248,5 @@ def check_mount(model: IdentificationModel, train: Measurements, validation: Mea
                       best_score / count,
                       declared_channel_mse=tuple(float(value) for value in declared_channels),
                       found_channel_mse=tuple(float(value) for value in found_channels),
-                      nominal_declared_mse=_rss_of(np.eye(3)[0], nominal, held_full) / count,
-                      nominal_found_mse=_rss_of(best, nominal, held_full) / count)
+                      nominal_declared_mse=float(_rss(np.r_[1.0, np.eye(3)[0]], nominal, held_full)) / count,
+                      nominal_found_mse=float(_rss(np.r_[1.0, best], nominal, held_full)) / count)
