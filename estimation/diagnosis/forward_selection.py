@@ -42,7 +42,8 @@ without an offset, a candidate the current columns absorbed). The fits themselve
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Mapping, Sequence
+import functools
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -66,6 +67,9 @@ from estimation.diagnosis.rules.selection_rules import candidate_groups, offsets
 from estimation.estimators.effect_blocks import Block, NoRowsError
 
 __all__ = ["DiagnosisSearch", "SearchOutcome", "SearchSettings", "candidate_blocks"]
+
+#: trials a round's first batch of confirmations worked out side by side holds (:meth:`DiagnosisSearch.confirmed_ahead`)
+FIRST_BATCH = 8
 
 STOPPED_AT_FLOOR = "not tested: the stopping rule ended the search (no channel significantly above its noise floor)"
 
@@ -286,10 +290,12 @@ class DiagnosisSearch:
         also against the law it replaces refitted in its place: :meth:`refreshed`)."""
         self.baselines = {trial.group: trial for trial in trials
                           if not isinstance(trial, DelayTrial) and trial.without and trial.group == trial.without}
-        for trial in sorted(trials, key=self.rank):
-            if trial.p_value >= self.settings.threshold or (not isinstance(trial, DelayTrial)
-                                                            and trial.group in self.baselines):
-                continue
+        ranked = [trial for trial in sorted(trials, key=self.rank)  # a p-value of NaN is tried (as it always was)
+                  if not (trial.p_value >= self.settings.threshold or (not isinstance(trial, DelayTrial)
+                                                                       and trial.group in self.baselines))]
+        ahead: dict[int, tuple[Any, Exception | None]] = {}  # confirm's verdicts worked out side by side, by place
+        batch = FIRST_BATCH  # the next batch's size: doubled at each
+        for place, trial in enumerate(ranked):
             if isinstance(trial, DelayTrial):
                 if self.n_effects + 1 > self.settings.max_effects:
                     continue
@@ -297,13 +303,33 @@ class DiagnosisSearch:
                 if outcome is not None:
                     return trial, outcome
                 continue
-            verdict = self.confirm(trial, springs_beaten)
-            if isinstance(verdict, str):
-                if len(trial.group) == 1:
-                    self.verdicts[trial.group[0]] = verdict
-                continue
-            return trial, verdict
+            if place in ahead:
+                verdict, error = ahead.pop(place)
+                if error is not None:
+                    raise error
+            else:
+                verdict = self.confirm(trial, springs_beaten)
+            if not isinstance(verdict, str):
+                return trial, verdict
+            if len(trial.group) == 1:
+                self.verdicts[trial.group[0]] = verdict
+            if not ahead and self.screened(trial, springs_beaten) is None:  # compared on validation, and refused
+                ahead, batch = self.confirmed_ahead(ranked, place + 1, springs_beaten, batch), 2 * batch
         return None
+
+    def confirmed_ahead(self, ranked: Sequence[Trial | DelayTrial], start: int,
+                        springs_beaten: dict[tuple[int, ...], str], count: int) -> dict[int, tuple[Any, Exception | None]]:
+        """:meth:`confirm`'s verdicts (or the exception it raised) of the next ``count`` trials from ``start`` that
+        are compared on validation (:meth:`screened` passes), worked out side by side (:meth:`Fits.side_by_side`), by
+        place: once a round has refused one trial on its comparison, the next ones are likely refused too (the
+        search's last round refuses every one), and each verdict depends on the model of the moment alone, never on
+        another trial's, so the same verdicts as one after another. The batches double (:data:`FIRST_BATCH`, then
+        twice as many): a trial confirmed early in a batch wastes at most as much work as was done before it."""
+        places = [place for place in range(start, len(ranked)) if not isinstance(ranked[place], DelayTrial)
+                  and self.screened(ranked[place], springs_beaten) is None][:count]
+        outcomes = self.fits.side_by_side([functools.partial(_verdict, self.confirm, ranked[place], springs_beaten)
+                                           for place in places])
+        return dict(zip(places, outcomes))
 
     def confirm(self, trial: Trial, springs_beaten: dict[tuple[int, ...], str]
                 ) -> tuple[CandidateComparison, WaldTest] | str:
@@ -311,7 +337,7 @@ class DiagnosisSearch:
         give) and the robust test when the trial is physical, confirmed and significant by that test, else
         why not (the robust test, the costliest, last)."""
         text = f"significant on training (p = {trial.p_value:.2g}) but "
-        reason = wrong_sign(trial) or springs_beaten.get(trial.group)
+        reason = self.screened(trial, springs_beaten)
         if reason is not None:
             return text + reason
         comparison = self.fits.compare(trial, self.weights)
@@ -342,6 +368,12 @@ class DiagnosisSearch:
         if reason is not None:
             return text + reason
         return comparison, tested.wald
+
+    @staticmethod
+    def screened(trial: Trial, springs_beaten: dict[tuple[int, ...], str]) -> str | None:
+        """Why a trial is refused before any comparison (a non-physical estimate, a spring an offset beats), or
+        ``None``."""
+        return wrong_sign(trial) or springs_beaten.get(trial.group)
 
     def beaten_by_baseline(self, trial: Trial, ratio: float) -> str | None:
         """Why a replacement is not confirmed against the law it replaces refitted in its place (its
@@ -441,3 +473,13 @@ class DiagnosisSearch:
                             self.verdicts.get(index, untested))
         return SearchOutcome(tuple(self.adopted), dict(self.rejected), self.stopped_at_floor, self.weights,
                              self.current, untested)
+
+
+def _verdict(confirm: Callable[..., Any], trial: Trial, springs_beaten: dict[tuple[int, ...], str]
+             ) -> tuple[Any, Exception | None]:
+    """``(confirm(trial, springs_beaten), None)``, or ``(None, the exception it raised)``: raised again only where the
+    search reaches the trial, as when the verdicts are worked out one after another."""
+    try:
+        return confirm(trial, springs_beaten), None
+    except Exception as error:  # noqa: BLE001 (raised again in DiagnosisSearch.choose)
+        return None, error

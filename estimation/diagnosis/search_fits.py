@@ -5,9 +5,9 @@ its fits: an effect of the current model, the current model's fit, the robust te
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Any, Protocol
+from typing import Any, Protocol, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -20,6 +20,8 @@ from estimation.diagnosis.rules.robust_test import WaldTest
 from estimation.estimators.effect_blocks import Block
 
 __all__ = ["AdoptedEffect", "CurrentFit", "Fits", "TrialRequest", "TrialTest"]
+
+T = TypeVar("T")
 
 
 @dataclass(frozen=True)
@@ -109,3 +111,8 @@ class Fits(Protocol):
                       min_improvement: float) -> Any: ...
 
     def adopt_delay(self, trial: DelayTrial, outcome: Any) -> CandidateComparison: ...
+
+    def side_by_side(self, tasks: Sequence[Callable[[], T]]) -> list[T]:
+        """``[task() for task in tasks]``, side by side where the fits may use several processes (the same results,
+        in order)."""
+        ...

@@ -33,7 +33,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -61,6 +61,8 @@ from estimation.uncertainty.floor_comparison import above_floor
 STILL_HELD_OUT = "the stretches of the training record its fit did not see (the validation record hardly moves)"
 
 __all__ = ["STILL_HELD_OUT", "SummedFit", "SummedFits", "simpler_laws", "summed_rival_fitter", "summed_runner_up"]
+
+T = TypeVar("T")
 
 
 @dataclass(frozen=True)
@@ -257,6 +259,10 @@ class SummedFits:
     def removal(self, without: tuple[int, ...], weights: NDArray[np.float64]) -> CandidateComparison:
         columns = self._selection(without)
         return self._comparison(columns, len(columns), weights)
+
+    def side_by_side(self, tasks: Sequence[Callable[[], T]]) -> list[T]:
+        """``[task() for task in tasks]``, in turn: a comparison from sums is a few small solves."""
+        return [task() for task in tasks]
 
     def set_model(self, adopted: Sequence[AdoptedEffect]) -> None:
         self.adopted = tuple(item.index for item in adopted)
