@@ -209,3 +209,29 @@ def test_worker_count_is_serial_for_few_tasks_and_refuses_a_bad_number():
     with pytest.raises(ValueError, match="jobs"):
         worker_count(0, 10)
     assert TaskError.__mro__[1] is RuntimeError
+
+
+def test_the_confirmations_worked_out_ahead_are_those_made_one_after_another(monkeypatch):
+    """A round's confirmations on the validation record, worked out in batches side by side once one trial was
+    refused on its comparison (forward_selection.DiagnosisSearch.confirmed_ahead), give the report of the same
+    confirmations made one after another, in rank order: the same verdicts, the same effects, number for number."""
+    from estimation.diagnosis import forward_selection
+
+    (case,) = [case for case in CASES if case.name == "coulomb on every joint"]
+    model = declared_model()
+    train, validate = records(case)
+    original = forward_selection.DiagnosisSearch.confirmed_ahead
+    batches = []
+
+    def counted(self, ranked, start, springs_beaten, count):
+        ahead = original(self, ranked, start, springs_beaten, count)
+        batches.append((count, len(ahead)))
+        return ahead
+
+    monkeypatch.setattr(forward_selection.DiagnosisSearch, "confirmed_ahead", counted)
+    pooled = diagnose(model, train, validate, jobs=2)
+    monkeypatch.setattr(forward_selection.DiagnosisSearch, "confirmed_ahead", lambda *args: {})
+    one_after_another = diagnose(model, train, validate, jobs=2)
+    # the last round refuses every trial: a batch of 8, then one of 16 (the 10 left)
+    assert pooled.effects and batches[:2] == [(8, 8), (16, 2)], batches
+    assert report(pooled) == report(one_after_another)

@@ -327,6 +327,8 @@ class DiagnosisSearch:
         twice as many): a trial confirmed early in a batch wastes at most as much work as was done before it."""
         places = [place for place in range(start, len(ranked)) if not isinstance(ranked[place], DelayTrial)
                   and self.screened(ranked[place], springs_beaten) is None][:count]
+        if not places:
+            return {}
         outcomes = self.fits.side_by_side([functools.partial(_verdict, self.confirm, ranked[place], springs_beaten)
                                            for place in places])
         return dict(zip(places, outcomes))
