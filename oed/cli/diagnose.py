@@ -55,7 +55,7 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     parser.add_argument("--max-effects", type=int, default=20, metavar="N",
                         help="add at most N effects (default 20); the output says when the cap stopped the search")
     add_derivative_arguments(parser)
-    add_jobs_argument(parser, "the derivative candidates' scores and each round's candidate fits")
+    add_jobs_argument(parser, "the derivative candidates' scores, each round's candidate fits and its confirmations on the validation record")
     add_streaming_arguments(parser)
     add_streamed_diagnosis_arguments(parser)
     parser.add_argument("--unseen-stretches", action="store_true",
