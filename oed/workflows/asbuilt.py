@@ -14,7 +14,7 @@ from __future__ import annotations
 import warnings
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from dynamics.effects.specs import build_effects
 from dynamics.measurements import Measurements
@@ -42,6 +42,7 @@ from dynamics.effects import Effect
 from dynamics.models import IdentificationModel
 from dynamics.runtime.progress import step
 from estimation.identification.fit import IdentificationResult
+from estimation.identification.friction_drift import FrictionDrift
 from estimation.identification.joint_zeros import JointZeroCheck, check_joint_zeros
 from estimation.identification.mount import MAX_SAMPLES as MOUNT_SAMPLES
 from estimation.identification.mount import MOUNT_MARK, MountCheck, check_mount
@@ -49,6 +50,9 @@ from estimation.identification.model_parameters import model_parameters
 from estimation.identification.prepared import PreparedRecords
 from estimation.identification.trivial_predictors import trivial_mse, trivial_warnings
 from oed.workflows.options import RecordOptions, model_has_shapes
+
+if TYPE_CHECKING:  # the streamed path's, imported when it runs
+    from estimation.streaming.description_checks import StreamedChecks
 
 
 def resolve_transmission(args: RecordOptions, robot: RobotModel) -> Transmission | None:
@@ -313,12 +317,12 @@ FOURIER_CHECKS = ("not checked on averaged periods (the Fourier path: its prepar
 def streamed_checks(model: IdentificationModel, train: Sequence[str | Path], train_samples: int,
                     validate: Sequence[str | Path], validate_samples: int, *, options: Mapping[str, Any],
                     mount_model: IdentificationModel | None, mount_samples: int,
-                    drift_model: IdentificationModel | None) -> Any:
+                    drift_model: IdentificationModel | None) -> StreamedChecks:
     """The mount check of ``mount_model`` and the friction-drift check of ``drift_model`` (each when given) of
     records read in blocks, on the samples the in-memory checks keep
     (:func:`estimation.streaming.description_checks.streamed_description_checks`: one more pass over the files);
     nothing checked on the Fourier path (its prepared samples are averaged periods, not the records)."""
-    from estimation.streaming.description_checks import StreamedChecks, streamed_description_checks
+    from estimation.streaming.description_checks import StreamedChecks, streamed_description_checks  # when it runs
 
     if options.get("frequency_hz") is not None or not validate or (mount_model is None and drift_model is None):
         return StreamedChecks()
@@ -332,7 +336,7 @@ def streamed_checks(model: IdentificationModel, train: Sequence[str | Path], tra
 
 def streamed_description_notes(model: IdentificationModel, train: Sequence[str | Path], train_samples: int,
                                validate: Sequence[str | Path], validate_samples: int, *,
-                               options: Mapping[str, Any]) -> tuple[tuple[str, ...], Any]:
+                               options: Mapping[str, Any]) -> tuple[tuple[str, ...], FrictionDrift | None]:
     """``oed identify``'s :func:`description_notes` and friction-drift check of records read in blocks: the
     joint-zero check (:func:`streamed_marked_joint_zeros`), the mount check and the friction drift of the declared
     model (:func:`streamed_checks`), said as in memory (:func:`said_description`, then the drift's warning); and the
