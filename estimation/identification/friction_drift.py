@@ -35,7 +35,8 @@ from estimation.uncertainty.batch_means import batch_length, batch_means
 
 __all__ = ["DRIFT_ALPHA", "STREAMED_DRIFT", "FRICTION_SYMBOLS", "FrictionDrift", "check_friction_drift", "drift_z"]
 
-#: why the streamed path has no ``friction_drift`` (``result.json``'s ``not_computed``)
+#: why the streamed path had no ``friction_drift`` (``result.json``'s ``not_computed``) until it checked the drift on
+#: the samples memory keeps (:mod:`estimation.streaming.description_checks`); no verb says it now, the name stays
 STREAMED_DRIFT = "checked in memory only: the records read in blocks are not held to fit the two together"
 #: the family-wise level of the check over a robot's joints (two-sided; Bonferroni)
 DRIFT_ALPHA = 0.01

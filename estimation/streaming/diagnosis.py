@@ -54,7 +54,7 @@ subsamples), shape standard deviations, a Fourier fit of every sample (periods a
 from __future__ import annotations
 
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -382,6 +382,7 @@ def diagnose_files_run(
     transmission: Transmission | None = None,
     delay: DelayBounds | None = DelayBounds(),
     jobs: int | None = 1,
+    screen: Callable[[tuple[Effect, ...], Measurements, Measurements | None], tuple[Effect, ...]] | None = None,
 ) -> tuple[Diagnosis, StreamedRun]:
     """Diagnose ``model`` on the training ``paths``, confirmed on the ``validate`` files, in bounded memory; the
     diagnosis and the :class:`~estimation.streaming.diagnosis_result.StreamedRun` behind it (its sums: what the
@@ -406,7 +407,9 @@ def diagnose_files_run(
     rule; ``None``: not tried); an adopted delay moves the motion of every file in the passes after the search
     (:func:`~estimation.streaming.delayed_chunks.moved_chunks`), the declared model's fit staying along the motion as
     read, as in memory. ``jobs``: the processes the search's rounds fit their candidates in, as in memory's
-    (``None``: the available cores; the same answer at any count).
+    (``None``: the available cores; the same answer at any count). ``screen``: given the candidates and the training
+    and validation subsamples, the candidates tried
+    (:func:`~estimation.streaming.diagnosis_candidates.streamed_candidates`).
     """
     paths, validate = [str(path) for path in paths], [str(path) for path in validate]
     findings = FindingsSaid([*paths, *validate]) if findings is None else findings
@@ -424,7 +427,7 @@ def diagnose_files_run(
     with step(f"shape search, refinement and coupling tracing on {first.sample.n_samples} samples"):
         found = streamed_candidates(model, candidates, first.sample, clock.lap, transmission, held.sample,
                                     SearchSettings(alpha, min_improvement, max_effects, 0, same_effect_adopted=True),
-                                    delay, jobs)
+                                    delay, jobs, screen)
     if found.delay.value is not None:  # the passes along the motion moved by the adopted delay
         options = dict(options, delay=float(found.delay.value.value))
     with step(f"second pass over {len(paths) + len(validate)} file(s) (sums of {len(found.blocks)} candidates)"), \

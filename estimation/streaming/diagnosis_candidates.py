@@ -222,18 +222,24 @@ class StreamedCandidates:
 def streamed_candidates(model: IdentificationModel, candidates: Sequence[Effect] | None, sample: Measurements,
                         lap: Callable[[str], None], transmission: Transmission | None = None,
                         validation: Measurements | None = None, search: SearchSettings | None = None,
-                        delay: DelayBounds | None = None, jobs: int | None = 1) -> StreamedCandidates:
+                        delay: DelayBounds | None = None, jobs: int | None = 1,
+                        screen: Callable[[tuple[Effect, ...], Measurements, Measurements | None],
+                                         tuple[Effect, ...]] | None = None) -> StreamedCandidates:
     """The candidates (default: :func:`~estimation.diagnosis.search.default_candidates`, the pairs
     traced on the subsample and the coupled motors' laws of ``transmission``, as in memory) and their shapes
     searched on the ``sample`` (``lap``: called with the name of each stage done); with a ``validation`` sample
     and the ``search`` settings, the in-memory search and final refit on the samples (:func:`subsample_search`):
     the shapes as it leaves them, its outcome kept (:attr:`StreamedCandidates.outcome`), and there the delay searched
     in ``delay`` as in memory (:attr:`StreamedCandidates.delay`; counted among the tests), its rounds' fits in ``jobs``
-    processes."""
+    processes. ``screen``: given the candidates and the training and validation samples, the candidates tried (the
+    caller's checks on the samples, such as the mount's: ``oed diagnose`` tries no law of a joint's position alone
+    where a turned gravity explains the load)."""
     searching = validation is not None and search is not None
     candidates = tuple(default_candidates(model) + coupling_candidates(
         model, transmission, train=sample, held_out=validation if searching else None)  # as in memory
                        if candidates is None else candidates)
+    if screen is not None:
+        candidates = tuple(screen(candidates, sample, validation))
     blocks, rejected = candidate_blocks(model, candidates)
     lap("subsample_pass")
     outcome, failed, searched, pinned = None, {}, SearchedDelay(), ()

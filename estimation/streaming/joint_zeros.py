@@ -22,7 +22,7 @@ from dynamics.models import IdentificationModel
 from estimation.identification.joint_zeros import MAX_SAMPLES, JointZeroCheck, check_joint_zeros
 from estimation.streaming.periods import plan_chunks
 
-__all__ = ["streamed_joint_zeros", "thinned_rows"]
+__all__ = ["kept_samples", "streamed_joint_zeros", "thinned_rows"]
 
 
 def thinned_rows(n_samples: int, max_samples: int = MAX_SAMPLES) -> NDArray[np.int64]:
@@ -34,20 +34,26 @@ def thinned_rows(n_samples: int, max_samples: int = MAX_SAMPLES) -> NDArray[np.i
     return rows
 
 
-def _kept(model: IdentificationModel, paths: Sequence[str | Path], rows: Iterable[int],
-          options: Mapping[str, Any]) -> Measurements | None:
+def kept_samples(model: IdentificationModel, paths: Sequence[str | Path], rows: Iterable[int],
+                 options: Mapping[str, Any], *, segments: bool = False) -> Measurements | None:
     """The prepared samples ``rows`` (indices in the records' samples, the files one after the other) of ``paths``,
-    read in blocks; ``None`` when the files hold fewer samples."""
+    read in blocks; ``None`` when the files hold fewer samples. ``segments``: the samples kept of each file a segment
+    (``metadata["segments"]``, as the in-memory record of several files holds them,
+    :func:`estimation.data.segments.concatenate`)."""
     wanted = np.asarray(sorted(set(int(row) for row in rows)), dtype=int)
     pieces: list[Measurements] = []
+    bounds: list[dict[str, Any]] = []
     start = 0
     for path in paths:
+        first = start
         for chunk in plan_chunks(path, model, **options):
             stop = start + chunk.n_samples
             inside = wanted[(wanted >= start) & (wanted < stop)] - start
             if inside.size:
                 pieces.append(chunk.select(inside))
             start = stop
+        bounds.append({"source": str(path), "start": int(np.searchsorted(wanted, first)),
+                       "stop": int(np.searchsorted(wanted, start))})
     if sum(piece.n_samples for piece in pieces) != wanted.size or any(piece.dq is None or piece.ddq is None
                                                                        for piece in pieces):
         return None
@@ -57,7 +63,9 @@ def _kept(model: IdentificationModel, paths: Sequence[str | Path], rows: Iterabl
         return None if any(value is None for value in values) else np.vstack(values)
 
     return Measurements(t=np.arange(wanted.size, dtype=float), q=stacked("q"), dq=stacked("dq"), ddq=stacked("ddq"),
-                        tau=stacked("tau"), wrench=stacked("wrench"))
+                        tau=stacked("tau"), wrench=stacked("wrench"),
+                        metadata={"segments": [entry for entry in bounds if entry["stop"] > entry["start"]]}
+                        if segments and len(bounds) > 1 else {})
 
 
 def streamed_joint_zeros(model: IdentificationModel, train: Sequence[str | Path], train_samples: int,
@@ -69,8 +77,8 @@ def streamed_joint_zeros(model: IdentificationModel, train: Sequence[str | Path]
     (:func:`~estimation.streaming.periods.plan_chunks`' keywords), on the samples the in-memory check thins them to
     (module docstring). No warning is issued (the caller says the check's message)."""
     if held_out:
-        fitted = _kept(model, train, thinned_rows(train_samples, max_samples), options)
-        scored = _kept(model, held_out, thinned_rows(held_out_samples, max_samples), options)
+        fitted = kept_samples(model, train, thinned_rows(train_samples, max_samples), options)
+        scored = kept_samples(model, held_out, thinned_rows(held_out_samples, max_samples), options)
         if fitted is None or scored is None:
             return None
         return check_joint_zeros(model, fitted, scored, max_samples=max_samples, warn=False)
@@ -78,7 +86,7 @@ def streamed_joint_zeros(model: IdentificationModel, train: Sequence[str | Path]
     if half < 20:
         return None
     first, second = thinned_rows(half, max_samples), half + thinned_rows(train_samples - half, max_samples)
-    kept = _kept(model, train, np.concatenate([first, second]), options)
+    kept = kept_samples(model, train, np.concatenate([first, second]), options)
     if kept is None:
         return None
     fitted, scored = kept.select(np.arange(first.size)), kept.select(np.arange(first.size, kept.n_samples))

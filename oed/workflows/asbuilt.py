@@ -14,7 +14,7 @@ from __future__ import annotations
 import warnings
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from dynamics.effects.specs import build_effects
 from dynamics.measurements import Measurements
@@ -42,12 +42,17 @@ from dynamics.effects import Effect
 from dynamics.models import IdentificationModel
 from dynamics.runtime.progress import step
 from estimation.identification.fit import IdentificationResult
+from estimation.identification.friction_drift import FrictionDrift
 from estimation.identification.joint_zeros import JointZeroCheck, check_joint_zeros
+from estimation.identification.mount import MAX_SAMPLES as MOUNT_SAMPLES
 from estimation.identification.mount import MOUNT_MARK, MountCheck, check_mount
 from estimation.identification.model_parameters import model_parameters
 from estimation.identification.prepared import PreparedRecords
 from estimation.identification.trivial_predictors import trivial_mse, trivial_warnings
 from oed.workflows.options import RecordOptions, model_has_shapes
+
+if TYPE_CHECKING:  # the streamed path's, imported when it runs
+    from estimation.streaming.description_checks import StreamedChecks
 
 
 def resolve_transmission(args: RecordOptions, robot: RobotModel) -> Transmission | None:
@@ -284,11 +289,65 @@ def streamed_joint_zero_notes(model: IdentificationModel, train: Sequence[str | 
     :func:`estimation.streaming.periods.plan_chunks`' keywords), on the samples the in-memory check keeps
     (:func:`estimation.streaming.joint_zeros.streamed_joint_zeros`): one more pass over the files. None with shaped
     laws, nor on the Fourier path (its prepared samples are averaged periods, not the record)."""
+    zeros = streamed_marked_joint_zeros(model, train, train_samples, held_out, held_out_samples, options=options)
+    return () if zeros is None else (zeros.message(model.robot.joint_names),)
+
+
+def streamed_marked_joint_zeros(model: IdentificationModel, train: Sequence[str | Path], train_samples: int,
+                                held_out: Sequence[str | Path], held_out_samples: int, *,
+                                options: Mapping[str, Any]) -> JointZeroCheck | None:
+    """The joint-zero check of records read in blocks (:func:`streamed_joint_zero_notes`) when it marks, else
+    ``None``."""
     if model_has_shapes(model) or options.get("frequency_hz") is not None:
-        return ()
+        return None
     from estimation.streaming.joint_zeros import streamed_joint_zeros  # the streamed path's: imported when it runs
 
     with step("joint zeros checked against the description's (a pass over the files)"), warnings.catch_warnings():
         warnings.simplefilter("ignore")  # the files' findings were said when the fit read them
         check = streamed_joint_zeros(model, train, train_samples, held_out, held_out_samples, options=options)
-    return () if check is None or not check.marked else (check.message(model.robot.joint_names),)
+    return None if check is None or not check.marked else check
+
+
+#: why a streamed run has no ``friction_drift`` though it has a validation record (``result.json``'s
+#: ``not_computed``): the Fourier path's prepared samples are averaged periods
+FOURIER_CHECKS = ("not checked on averaged periods (the Fourier path: its prepared samples are one period per file, "
+                  "not the records the check fits together)")
+
+
+def streamed_checks(model: IdentificationModel, train: Sequence[str | Path], train_samples: int,
+                    validate: Sequence[str | Path], validate_samples: int, *, options: Mapping[str, Any],
+                    mount_model: IdentificationModel | None, mount_samples: int,
+                    drift_model: IdentificationModel | None) -> StreamedChecks:
+    """The mount check of ``mount_model`` and the friction-drift check of ``drift_model`` (each when given) of
+    records read in blocks, on the samples the in-memory checks keep
+    (:func:`estimation.streaming.description_checks.streamed_description_checks`: one more pass over the files);
+    nothing checked on the Fourier path (its prepared samples are averaged periods, not the records)."""
+    from estimation.streaming.description_checks import StreamedChecks, streamed_description_checks  # when it runs
+
+    if options.get("frequency_hz") is not None or not validate or (mount_model is None and drift_model is None):
+        return StreamedChecks()
+    with step("gravity's direction and the friction checked against the description's and the training record's "
+              "(a pass over the files)"), warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # the files' findings were said when the fit read them
+        return streamed_description_checks(model, train, train_samples, validate, validate_samples, options=options,
+                                           mount_model=mount_model, mount_samples=mount_samples,
+                                           drift_model=drift_model)
+
+
+def streamed_description_notes(model: IdentificationModel, train: Sequence[str | Path], train_samples: int,
+                               validate: Sequence[str | Path], validate_samples: int, *,
+                               options: Mapping[str, Any]) -> tuple[tuple[str, ...], FrictionDrift | None]:
+    """``oed identify``'s :func:`description_notes` and friction-drift check of records read in blocks: the
+    joint-zero check (:func:`streamed_marked_joint_zeros`), the mount check and the friction drift of the declared
+    model (:func:`streamed_checks`), said as in memory (:func:`said_description`, then the drift's warning); and the
+    drift check (``None``: not checked). None with shaped laws, nor on the Fourier path."""
+    zeros = streamed_marked_joint_zeros(model, train, train_samples, validate, validate_samples, options=options)
+    if model_has_shapes(model):
+        return said_description(model, zeros, None, None), None
+    checks = streamed_checks(model, train, train_samples, validate, validate_samples, options=options,
+                             mount_model=model, mount_samples=MOUNT_SAMPLES, drift_model=model)
+    mount = None if checks.mount is None or not checks.mount.marked else checks.mount
+    notes = said_description(model, zeros, mount, None if mount is None else mount.message())
+    drift = checks.friction_drift
+    said = None if drift is None else drift.message()
+    return (notes if said is None else (*notes, said)), drift

@@ -57,7 +57,7 @@ from estimation.preprocessing.delay import DelayBounds, split_delay
 from estimation.preprocessing.plan import Preprocessing
 from estimation.streaming.settings import DEFAULT_SUBSAMPLE, FLOOR_WINDOW
 from estimation.identification.model_file import summed_model_file_document
-from estimation.identification.friction_drift import STREAMED_DRIFT, FrictionDrift, check_friction_drift
+from estimation.identification.friction_drift import FrictionDrift, check_friction_drift
 from estimation.identification.joint_zeros import JointZeroCheck
 from estimation.identification.training_range import RangeCheck, TrainingRange, merged_ranges
 from estimation.estimators.normal_equations import DEFAULT_CHUNK_SIZE
@@ -70,7 +70,10 @@ from oed.workflows.asbuilt import (
     finish_document,
     marked_joint_zeros,
     mount_candidates,
-    streamed_joint_zero_notes,
+    DIAGNOSIS_MOUNT_SAMPLES,
+    FOURIER_CHECKS,
+    streamed_checks,
+    streamed_marked_joint_zeros,
     model_effects,
     resolve_joint_directions,
     resolve_joint_offsets,
@@ -503,11 +506,17 @@ def checks_beside(model: IdentificationModel, train: Measurements, validation: M
     zeros = marked_joint_zeros(model, train, validation, delay=delay)
     if delay is not None or model_has_shapes(model):
         return zeros, None
+    with step("friction checked on the validation record against the training record's"):
+        return zeros, check_friction_drift(drift_model(model), train, validation)
+
+
+def drift_model(model: IdentificationModel) -> IdentificationModel:
+    """The model whose friction the diagnosis's drift check scales (:func:`checks_beside`, on both paths): the plain
+    model of the declared one, with viscous friction on every joint."""
     plain = plain_model(model)
     if not any(effect.name == "viscous" for effect in plain.effects):
         plain = build_model(plain.robot, plain.kind, (*plain.effects, ViscousFriction()))
-    with step("friction checked on the validation record against the training record's"):
-        return zeros, check_friction_drift(plain, train, validation)
+    return plain
 
 
 def derivatives_on_validation(model: IdentificationModel, delay: DelayBounds | None) -> dict[str, Any]:
@@ -985,13 +994,23 @@ def diagnosis_streamed(args: DiagnoseOptions, friction: str, plan: Preprocessing
                 if divided is not None:
                     said = tuple(text for text in caught_messages(caught) if text not in divided.messages)
                     return replace(divided, messages=(*said, *divided.messages))
+        mounts: list[MountCheck | None] = []  # the mount check of the search's subsamples (screened below)
+
+        def screened(candidates: tuple[Any, ...], sample: Measurements, held: Measurements | None) -> tuple[Any, ...]:
+            """The candidates without the laws of a joint's position where a turned gravity explains the load, the
+            mount checked on the search's subsamples as in memory on the records (before the search)."""
+            mount = None if held is None else diagnosis_mount(model, sample, held, delay=delay)
+            mounts.append(mount)
+            return mount_candidates(model, candidates, mount)
+
         with executor_for(args) as executor:
             diagnosis, run = diagnose_files_run(model, args.data, args.validate, chunk_size=chunk_size, alpha=args.alpha,
                                        max_effects=args.max_effects, subsample=args.subsample,
                                        floor_window=args.floor_window, executor=executor, preprocessing=plan,
                                        findings=findings, still=still, transmission=transmission,
                                        delay=delay or DelayBounds(),  # a candidate in every diagnosis, as in memory
-                                       jobs=args.jobs)  # the search's rounds side by side, as in memory
+                                       jobs=args.jobs,  # the search's rounds side by side, as in memory
+                                       screen=screened)
         still_search = diagnosis.streaming.get("still_search") == "on the record at rest"
         if still_search:  # the choices below ignore it, as in memory; the effect search above did not (Fourier path)
             warnings.warn(STILL_SEARCH, stacklevel=2)
@@ -1013,14 +1032,23 @@ def diagnosis_streamed(args: DiagnoseOptions, friction: str, plan: Preprocessing
         selection = streamed_selection(args, diagnosis, run, model_file[0], chunk_size, still=still, ratio=ratio)
     # the notes said in memory: a channel made worse, a repeat of the training motion, the joint zeros
     repeat = repeat_note(ratio)
-    notes = worse_after(diagnosis) + (() if repeat is None else (repeat,)) + (streamed_joint_zero_notes(
-        model, run.paths, sum(part.n_samples for part, _ in run.sums.train_parts), run.validate,
-        sum(part.n_samples for part, _ in run.sums.validate_parts), options=run.settings.reading())
-        if delay is None else ())  # none with a declared delay, as in memory
+    notes = worse_after(diagnosis) + (() if repeat is None else (repeat,))
+    # the joint zeros, the mount (checked before the search) and the friction drift, said as in memory; none with a
+    # declared delay, as in memory
+    counts = (sum(part.n_samples for part, _ in run.sums.train_parts),
+              sum(part.n_samples for part, _ in run.sums.validate_parts))
+    zeros = None if delay is not None else streamed_marked_joint_zeros(
+        model, run.paths, counts[0], run.validate, counts[1], options=run.settings.reading())
+    notes += diagnosis_mount_notes(model, zeros, next((mount for mount in mounts if mount is not None), None))
+    drift = None if delay is not None or model_has_shapes(model) else streamed_checks(
+        model, run.paths, counts[0], run.validate, counts[1], options=run.settings.reading(), mount_model=None,
+        mount_samples=DIAGNOSIS_MOUNT_SAMPLES, drift_model=drift_model(model)).friction_drift
+    notes += () if drift is None or drift.message() is None else (drift.message(),)
     messages = (*messages, *notes)
+    fourier = plan.method == "fourier" and delay is None and not model_has_shapes(model)
     diagnosis = replace(diagnosis, not_computed={**{key: reason for key, reason in diagnosis.not_computed.items()
                                                     if key not in SELECTION_KEYS},  # computed now
-                                                 "friction_drift": STREAMED_DRIFT})  # in memory only
+                                                 **({"friction_drift": FOURIER_CHECKS} if fourier else {})})
     if checked is not None and checked[1]:  # the gains taken, not applied (divided_diagnosis could not): said
         gains_note = streamed_gains_note(checked)
         if gains_note is not None:
@@ -1034,7 +1062,7 @@ def diagnosis_streamed(args: DiagnoseOptions, friction: str, plan: Preprocessing
     validation_range = merged_ranges([record.get("joint_range") for _, record in run.sums.validate_parts])
     return Diagnosed(diagnosis, {"cutoff_hz": cutoff_hz, **plan.to_dict()}, plan.describe(), messages,
                      selection=selection, chunk_size=chunk_size, model_file=model_file, averaged_train=averaged,
-                     notes=notes, transmission=transmission, training_range=ranges,
+                     notes=notes, transmission=transmission, training_range=ranges, friction_drift=drift,
                      range_checks={"validation": None if ranges is None or validation_range is None
                                    else ranges.check_range(validation_range)})
 

@@ -45,7 +45,7 @@ from estimation.identification.preprocessing_choice import ChoiceWindow
 from estimation.identification.repeated_motion import repeat_note, repeated_motion_note
 from estimation.identification.model_file import summed_model_file_document
 from estimation.identification.report import identification_report
-from estimation.identification.friction_drift import STREAMED_DRIFT, FrictionDrift, check_friction_drift
+from estimation.identification.friction_drift import FrictionDrift, check_friction_drift
 from estimation.identification.training_range import RangeCheck, TrainingRange, merged_ranges
 from estimation.identification.trivial_predictors import trivial_warnings
 from estimation.identification.undetermined import MergedColumn, merged_one_way
@@ -70,7 +70,8 @@ from estimation.streaming.recorded_errors import (
 from oed.workflows.asbuilt import (
     finish_document,
     description_notes,
-    streamed_joint_zero_notes,
+    FOURIER_CHECKS,
+    streamed_description_notes,
     model_effects,
     resolve_joint_directions,
     resolve_joint_offsets,
@@ -440,8 +441,6 @@ def identify_document(args: IdentifyOptions, identified: Identified) -> tuple[di
         document["validation"]["mse_over_floor"] = None  # no floor, or no error against the recording
     drift = identified.friction_drift
     document["friction_drift"] = None if drift is None else drift.to_dict()
-    if result.path == "streamed" and args.validate:
-        document["not_computed"]["friction_drift"] = STREAMED_DRIFT
     said = add_training_range(document, identified.training_range, identified.range_checks)
     if said:  # a validation record beyond the training range: the choice measured some extrapolation
         messages += said
@@ -555,12 +554,16 @@ def identification_streamed(args: IdentifyOptions, model: IdentificationModel, t
             ratio = streamed_repeated_motion(model, args.data, args.validate, chunk_size=chunk_size)
     repeat = None if ratio is None else repeat_note(ratio)  # the notes said in memory after the floor's
     notes = notes if repeat is None else (*notes, repeat)
-    notes = (*notes, *streamed_joint_zero_notes(
+    # the joint zeros, the mount and the friction drift checked as in memory, on the samples memory checks
+    said, drift = streamed_description_notes(
         model, args.data, int(sums.train.n_samples), args.validate or [],
         0 if sums.validation is None else int(sums.validation.n_samples),
         options={"chunk_size": chunk_size, "cutoff_hz": options["cutoff_hz"], "frequency_hz": options["frequency_hz"],
                  "harmonics": options["harmonics"], "decimation": options["decimation"],
-                 "held_torques": options["held_torques"]}))
+                 "held_torques": options["held_torques"]})
+    notes = (*notes, *said)
+    if args.validate and options["frequency_hz"] is not None and not model_has_shapes(model):
+        not_computed["friction_drift"] = FOURIER_CHECKS
     result, chosen, selection = recorded_training(args, result, chosen, selection, chunk_size, options)
     untried = None if selection is not None else streamed_motor_friction(args, model, transmission)
     if untried is not None:  # the Fourier path (its sums hold averaged periods): no selection, no candidate
@@ -581,7 +584,7 @@ def identification_streamed(args: IdentifyOptions, model: IdentificationModel, t
                       transmission=transmission, chunk_size=chunk_size, model_file=(model_plan, validation_mse),
                       torque_gains=gains, training_range=ranges,
                       range_checks={"validation": None if ranges is None or validation_range is None
-                                    else ranges.check_range(validation_range)})
+                                    else ranges.check_range(validation_range)}, friction_drift=drift)
 
 
 def streamed_torque_gains_selection(args: IdentifyOptions, selection: ModelSelection, *, base: str,

@@ -1,0 +1,119 @@
+"""The streamed ``oed identify`` and ``oed diagnose`` (``--chunk-size``) check the mount and the friction drift as the
+in-memory verbs do (h-streamchecks): the same ``friction_drift`` figures and the same warnings, on simulated PUMA 560
+records whose truth holds what the check is for (:mod:`tests.test_unseen_robot_mounts`): the friction 30 % lower
+once warm (training cold, validation at 2 min), and the arm on a wall whose URDF gives no mount.
+
+The streamed path reads the files in blocks and keeps, in one more pass, the samples the in-memory checks keep (their
+evenly spaced rows of each prepared record, :mod:`estimation.streaming.description_checks`); the checks then run on
+them. The drift's figures equal the in-memory ones within :data:`DRIFT_TOLERANCE` (the blocks' filter is the
+in-memory one up to its edges). The streamed diagnosis checks the mount before its search on the search's subsamples
+(the whole record when it holds fewer than 10 000 samples, as here), as in memory.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+
+import numpy as np
+import pytest
+
+from tests.test_unseen_robot_kinds import quiet
+from tests.test_unseen_robot_labs import puma
+from tests.test_unseen_robot_mounts import Mounted, six, write_records
+
+#: the largest difference allowed between the streamed and the in-memory friction scales and standard errors
+#: (relative; measured: below 1e-9 on these records, whose filter the blocks reproduce)
+DRIFT_TOLERANCE = 1e-6
+#: the streamed reader's block (samples): each 3 s record is read in several blocks
+CHUNK = "300"
+
+WARMING = Mounted("PUMA 3 joints, friction 30 % lower once warm", puma(3), *six((8.0, 3.0, 5.0)), warming=0.3)
+WALL = Mounted("PUMA 3 joints on a wall, the URDF without the mount", puma(3), *six((8.0, 3.0, 5.0)), mount="wall",
+               described="floor")
+
+
+def _run(verb: str, case: Mounted, folder, *options: str) -> dict:
+    urdf, _, files, _ = write_records(case, folder)
+    out = folder / f"{verb}{'-streamed' if options else ''}.json"
+    more = ["--friction", "viscous,coulomb,offset"] if verb == "identify" else []
+    code, message = quiet([verb, "--urdf", str(urdf), "--data", str(files["train"]), "--validate",
+                           str(files["validate"]), *more, *options, "--out", str(out)])
+    assert code == 0, message
+    return json.loads(out.read_text())
+
+
+def _said(document: dict) -> list[str]:
+    warnings = document["warnings"]
+    return warnings if isinstance(warnings, list) else [text for part in warnings.values() for text in part]
+
+
+def _numbers_apart(first: str, second: str) -> float:
+    """The largest relative difference between the numbers of two sentences that are otherwise the same."""
+    pattern = r"-?\d+(?:\.\d+)?(?:e-?\d+)?"
+    assert re.sub(pattern, "#", first) == re.sub(pattern, "#", second), (first, second)
+    pairs = [(float(a), float(b)) for a, b in zip(re.findall(pattern, first), re.findall(pattern, second))]
+    return max((abs(a - b) / max(abs(a), abs(b), 1e-12) for a, b in pairs), default=0.0)
+
+
+def _same_drift(memory: dict, streamed: dict) -> None:
+    assert streamed["not_computed"].get("friction_drift") is None
+    drift, expected = streamed["friction_drift"], memory["friction_drift"]
+    assert drift is not None and set(drift) == set(expected) and set(drift["joints"]) == set(expected["joints"])
+    for name, joint in expected["joints"].items():
+        for key, value in joint.items():
+            if isinstance(value, bool):
+                assert drift["joints"][name][key] is value, (name, key)
+            else:
+                assert drift["joints"][name][key] == pytest.approx(value, rel=DRIFT_TOLERANCE, abs=1e-12), (name, key)
+
+
+def _same_words(memory: dict, streamed: dict, start: str) -> list[str]:
+    said = [text for text in _said(memory) if start in text]
+    streamed_said = [text for text in _said(streamed) if start in text]
+    assert len(said) == len(streamed_said), (said, streamed_said)
+    for first, second in zip(said, streamed_said):
+        assert first == second or _numbers_apart(first, second) < 0.01, (first, second)
+    return said
+
+
+@pytest.mark.parametrize("case", [WARMING, WALL], ids=["warming", "wall"])
+def test_the_streamed_identify_checks_the_drift_and_the_mount_as_in_memory(case, tmp_path):
+    memory = _run("identify", case, tmp_path)
+    streamed = _run("identify", case, tmp_path, "--chunk-size", CHUNK)
+    assert streamed["identification_path"] == "streamed" and memory["identification_path"] == "in-memory"
+    _same_drift(memory, streamed)
+    drifted = _same_words(memory, streamed, "friction differs between the training and the validation record")
+    mounts = _same_words(memory, streamed, "gravity load points elsewhere")
+    assert bool(drifted) == bool(case.warming) and bool(mounts) == (case.mount != case.described), (drifted, mounts)
+    marked = [joint["marked"] for joint in streamed["friction_drift"]["joints"].values()]
+    assert all(marked) if case.warming else not any(marked)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("case", [WARMING, WALL], ids=["warming", "wall"])
+def test_the_streamed_diagnose_checks_the_drift_and_the_mount_as_in_memory(case, tmp_path):
+    memory = _run("diagnose", case, tmp_path)
+    streamed = _run("diagnose", case, tmp_path, "--chunk-size", CHUNK)
+    assert streamed["diagnosis_path"] == "streamed"
+    _same_drift(memory, streamed)
+    drifted = _same_words(memory, streamed, "friction differs between the training and the validation record")
+    mounts = _same_words(memory, streamed, "gravity load points elsewhere")
+    assert bool(drifted) == bool(case.warming) and bool(mounts) == (case.mount != case.described), (drifted, mounts)
+    if mounts:  # the search tried no spring where the turned gravity acts, as in memory
+        assert "tries no spring or position ripple on tau1" in mounts[0], mounts
+        assert not [effect for effect in streamed["effects"]
+                    if effect["name"] == "spring" and "tau1" in effect["channels"]]
+
+
+def test_the_streamed_checks_keep_the_in_memory_rows():
+    """The rows the streamed pass keeps are those the in-memory checks keep (their rule: evenly spaced, rounded
+    down), and a record thinned so is kept whole by the checks (the checks then see the same rows)."""
+    from estimation.streaming.description_checks import evenly_spaced_rows
+
+    for n in (5, 2999, 3000, 3001, 14_000, 123_457):
+        for count in (1000, 3000, 6000):
+            rows = evenly_spaced_rows(n, count)
+            assert np.array_equal(rows, np.unique(np.linspace(0, n - 1, min(n, count)).astype(int)))
+            assert rows.size == min(n, count)
+            assert np.array_equal(evenly_spaced_rows(rows.size, count), np.arange(rows.size))
