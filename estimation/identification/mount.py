@@ -18,7 +18,9 @@ or the ceiling is predicted better by its description turned there; the least-sq
 gravity for other reasons (on the real KUKA LWR4+, standing on the floor, gravity turned 179° fitted the repeated
 motion with 55 % less error while the description's bodies then predicted it 34 times worse, with the search of
 the day; the batched search now prefers a 2.5° tilt there, which :data:`WORSE_LIMIT` refuses). The
-verbs say it (the mount to write into the URDF); nothing is changed in the fit: the description is the user's.
+verbs say it (the mount to write into the URDF), and try the model with the found gravity as a candidate of their
+default answer, taken only when it predicts the validation record better
+(:mod:`estimation.consistent.mounted_gravity`); the result file then holds that gravity.
 """
 
 from __future__ import annotations
@@ -103,8 +105,10 @@ class MountCheck:
         cosine = float(self.found @ self.declared / (np.linalg.norm(self.found) * np.linalg.norm(self.declared)))
         return float(np.degrees(np.arccos(np.clip(cosine, -1.0, 1.0))))
 
-    def message(self) -> str:
-        """The warning: the direction found, the error it saves, and the mount to write into the URDF."""
+    def message(self, *, taken: bool = False) -> str:
+        """The warning: the direction found, the error it saves, and the mount to write into the URDF; ``taken``: the
+        answer was fitted with the found gravity (it validated better, :mod:`estimation.consistent.mounted_gravity`),
+        else it keeps the description's."""
         roll, pitch, yaw = mount_rpy(self.found)
         shown = ", ".join(f"{value:.3g}" for value in self.found)
         return (f"the torques' gravity load points elsewhere than the robot description says: gravity along "
@@ -112,7 +116,10 @@ class MountCheck:
                 f"validation record with {1.0 - self.found_mse / self.declared_mse:.0%} less error. A robot on a "
                 "wall, on the ceiling or off level? Give the mount in the URDF: a link \"world\" and a fixed joint "
                 f"from it to the base link, <origin xyz=\"0 0 0\" rpy=\"{roll:.4f} {pitch:.4f} {yaw:.4f}\"/> (a yaw "
-                "about gravity is free: any gives the same loads); this fit keeps the description's gravity")
+                "about gravity is free: any gives the same loads); "
+                + ("the answer is fitted with the found gravity (it predicts the validation record better: the "
+                   "model selection's reason gives the scores), which the result file holds for predict and export"
+                   if taken else "this fit keeps the description's gravity"))
 
 
 def mount_rpy(gravity: NDArray[np.float64]) -> tuple[float, float, float]:
