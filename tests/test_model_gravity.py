@@ -105,3 +105,38 @@ def test_a_mount_found_is_taken_when_it_validates_better_and_predict_uses_it(tmp
     # measured: tau1 2.38 against 2819 N²m², tau2 0.67 against 1.40, tau3 0.078 against 0.102
     assert all(test_mse["found"][channel] < test_mse["described"][channel] for channel in NOISE), test_mse
     assert test_mse["found"]["tau1"] < 0.01 * test_mse["described"]["tau1"], test_mse
+
+
+def test_torques_without_the_descriptions_gravity_are_said_to_hold_none():
+    """A PUMA 6 whose logged torque is the motor torque minus the description's gravity torque (an arm in
+    gravity-compensation mode), its true friction and bodies: the check finds that the fit without gravity predicts
+    the validation record far better than with the description's (and better than any turned direction), and says
+    gravity (0, 0, 0); the same arm logged with gravity is not said to hold none."""
+    from dynamics.measurements import Measurements
+    from estimation.identification.mount import check_mount
+    from tests.test_unseen_robots import FRICTION
+    from tests.test_unseen_robots import NOISE as SPREAD
+    from tests.test_unseen_robots import truth
+
+    robot = load_robot("puma560", joints=6)
+    model = build_model(robot, "internal", FRICTION)
+    theta, described = truth(model), model.nominal_parameters()
+    described[robot.standard_parameters.shape[0]:] = 0.0  # the controller's gravity model: the bodies only
+    for compensated in (True, False):
+        records = []
+        for seed, seconds in ((11, 10.0), (12, 4.0)):
+            t = np.arange(0.0, seconds, 0.004)
+            q, dq, ddq = random_fourier(robot, seed=seed, frequency_hz=0.2).evaluate(t)
+            tau = model.predict(theta, q, dq, ddq) - (model.predict(described, q, 0 * q, 0 * q) if compensated else 0)
+            tau = tau + np.random.default_rng(seed).normal(0.0, 1.0, tau.shape) * SPREAD * tau.std(axis=0)
+            records.append(Measurements(t, q, dq, ddq, tau, None, {}))
+        check = check_mount(model, *records)
+        print(f"\ncompensated {compensated}: validation MSE without gravity {check.zero_mse:.4g}, turned "
+              f"{check.found_mse:.4g} ({check.angle_deg:.0f}°), the description's {check.declared_mse:.4g}")
+        if compensated:  # measured: 0.300, 0.733 (57° off) and 3.30 N²m²
+            assert check.absent and check.marked and not np.any(check.gravity)
+            assert check.zero_mse < 0.2 * check.declared_mse and check.zero_mse < check.found_mse
+            assert "hold no gravity load" in check.message()
+        else:
+            assert not check.absent and not check.marked
+            assert check.zero_mse > 10.0 * check.declared_mse

@@ -7,8 +7,10 @@ fit predicted joint 1 at 4500 times the noise floor: ``benchmarks/README.md``, h
 the validation record best, and marks it only under conditions that keep a floor-standing robot from being told
 otherwise (half the validation error or less, no channel worse, the description's own bodies no worse with it).
 
-The regressor is linear in gravity, so the model with the found gravity is the same model of a robot whose
-description says that mount: :func:`turned_model` builds it (the description's robot with that gravity vector). The
+The check also scores the fit without gravity: a log whose torques hold no gravity load (a controller that
+subtracts its gravity model before logging, a logger of torques without gravity) is predicted better by it, and it
+is said and tried as the mount is, as gravity ``(0, 0, 0)``. The regressor is linear in gravity, so the model with
+the found gravity is the same model of a robot whose description says that mount: :func:`turned_model` builds it (the description's robot with that gravity vector). The
 verbs then choose that model's answer among its own candidates as they choose the declared model's
 (:func:`estimation.consistent.model_selection.select_model`, ``select_refit``), and :func:`gravity_answer` compares
 the two answers on the same validation samples by the default answer's criterion: the found gravity is taken only
@@ -43,7 +45,9 @@ def turned_model(model: IdentificationModel, gravity: ArrayLike) -> Identificati
 
 
 def gravity_words(gravity: Sequence[float]) -> str:
-    """``(gx, gy, gz) m/s² in the base frame``, four significant digits each."""
+    """``(gx, gy, gz) m/s² in the base frame``, four significant digits each (``none`` when zero)."""
+    if not np.any(np.asarray(gravity, dtype=float)):
+        return "none (the torques hold no gravity load)"
     return f"({', '.join(f'{float(value):.4g}' for value in gravity)}) m/s² in the base frame"
 
 

@@ -204,7 +204,7 @@ def competing_checks(zeros: JointZeroCheck | None, mount: MountCheck | None
     when both mark (the other ``None``): a reversed torque flips its joint's gravity load, and a turned gravity moves
     every joint's as an offset would, so each check can take up the other's fault."""
     if zeros is not None and mount is not None:
-        if mount.found_mse / mount.declared_mse < zeros.total_ratio:
+        if mount.said_mse / mount.declared_mse < zeros.total_ratio:
             return None, mount
         return zeros, None
     return zeros, mount
@@ -280,12 +280,12 @@ def diagnosis_mount_notes(model: IdentificationModel, zeros: JointZeroCheck | No
     channels = () if mount is None else mount.explained_channels()
     names = ", ".join(model.channels[index] for index in channels)
     shares = ", ".join(f"{model.channels[index]} "
-                       f"{1.0 - mount.found_channel_mse[index] / mount.declared_channel_mse[index]:.0%}"
+                       f"{1.0 - mount.said_channel_mse[index] / mount.declared_channel_mse[index]:.0%}"
                        for index in channels)
     said = None if mount is None else mount.message(taken=gravity_taken) if not channels or gravity_taken else (
         f"{mount.message()}; the diagnosis keeps it too, and tries no spring or position ripple on {names}, whose "
         f"validation error the found gravity lowers by {1.0 - MOUNT_MARK:.0%} or more ({shares}): their "
-        "position-dependent load is the turned gravity's")
+        "position-dependent load is gravity's (turned, or absent from the torques)")
     notes = said_description(model, zeros, mount, said)
     if said is not None and said not in notes and channels and not gravity_taken:
         notes += (f"the diagnosis tried no spring or position ripple on {names}: another direction of gravity "

@@ -472,11 +472,11 @@ def diagnosis_in_memory(args: DiagnoseOptions, model: IdentificationModel, trans
                 # (estimation.consistent.mounted_gravity): taken only when it predicts the validation record better,
                 # and only when the mount is what is said (not the joints' zeros or directions)
                 with step("the diagnosis with the gravity the mount check found, compared"):
-                    turned = answered_diagnosis(args, turned_model(model, mount.found), transmission, records, delay,
+                    turned = answered_diagnosis(args, turned_model(model, mount.gravity), transmission, records, delay,
                                                 validation_floor)
                     checked = beside_checks()
                     if competing_checks(checked[0], mount)[1] is not None:
-                        selection, gravity_taken = gravity_answer(selection, turned[1], mount.found)
+                        selection, gravity_taken = gravity_answer(selection, turned[1], mount.gravity)
                 if gravity_taken:
                     diagnosis, swap_note = turned[0], turned[2]
             untouched = test_errors(records, diagnosis, test_floor)

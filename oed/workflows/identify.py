@@ -1001,9 +1001,9 @@ def gravity_selection(args: IdentifyOptions, selection: ModelSelection, mount: M
             or selection.selection != "validation":
         return selection, False
     with step("the model with the gravity the mount check found fitted and compared"):
-        turned = turned_model(model, mount.found)
+        turned = turned_model(model, mount.gravity)
         other = select_model(turned, train, validation, base=base, consistent=consistent_settings(args, turned.robot))
-    return gravity_answer(selection, other, mount.found)
+    return gravity_answer(selection, other, mount.gravity)
 
 
 def torque_gains_selection(args: IdentifyOptions, selection: ModelSelection, train: Measurements,
