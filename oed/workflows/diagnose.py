@@ -472,8 +472,10 @@ def diagnosis_in_memory(args: DiagnoseOptions, model: IdentificationModel, trans
                 # (estimation.consistent.mounted_gravity): taken only when it predicts the validation record better,
                 # and only when the mount is what is said (not the joints' zeros or directions)
                 with step("the diagnosis with the gravity the mount check found, compared"):
+                    # torques without gravity (mount.absent): the error of the gravity model the logger subtracted
+                    # stays a load of the positions, which a spring or a ripple would stand in for: not tried there
                     turned = answered_diagnosis(args, turned_model(model, mount.gravity), transmission, records, delay,
-                                                validation_floor)
+                                                validation_floor, mount=mount if mount.absent else None)
                     checked = beside_checks()
                     if competing_checks(checked[0], mount)[1] is not None:
                         selection, gravity_taken = gravity_answer(selection, turned[1], mount.gravity)

@@ -1039,8 +1039,10 @@ def torque_gains_selection(args: IdentifyOptions, selection: ModelSelection, tra
     return answer, (gains, taken, f"{checked}; then {compared}" if compared else checked)
 
 
-#: the sentences the candidates of the default answer append to its reason (motor-side friction, the armature)
-CANDIDATE_SENTENCES = ("; motor-side friction on the coupled motors", "; the rotors' reflected inertia")
+#: the sentences the candidates of the default answer append to its reason (motor-side friction, the armature, the
+#: gravity found)
+CANDIDATE_SENTENCES = ("; motor-side friction on the coupled motors", "; the rotors' reflected inertia",
+                       "; the gravity the mount check found")
 
 
 def carried_reasons(selection: ModelSelection, other: ModelSelection) -> ModelSelection:
