@@ -71,6 +71,7 @@ def test_the_model_file_holds_the_gravity_it_was_fitted_with(tmp_path):
         ModelFile.from_dict({**plain, "gravity": [0.0, "up"]})
 
 
+@pytest.mark.slow  # three identify runs (about 20 s quiet): the fast suite's budget is spent
 def test_a_mount_found_is_taken_when_it_validates_better_and_predict_uses_it(tmp_path, capsys):
     """A PUMA 3 on a wall, its description on the floor: `oed identify` finds the mount, fits the model with it, takes
     it on the validation record, and the result file holds it; `oed predict` on the validation record gives the
@@ -107,6 +108,7 @@ def test_a_mount_found_is_taken_when_it_validates_better_and_predict_uses_it(tmp
     assert test_mse["found"]["tau1"] < 0.01 * test_mse["described"]["tau1"], test_mse
 
 
+@pytest.mark.slow  # the 6-joint models of the check built (about 20 s quiet)
 def test_torques_without_the_descriptions_gravity_are_said_to_hold_none():
     """A PUMA 6 whose logged torque is the motor torque minus the description's gravity torque (an arm in
     gravity-compensation mode), its true friction and bodies: the check finds that the fit without gravity predicts
