@@ -23,6 +23,9 @@ The shaped laws (:mod:`dynamics.effects.shaped`) are written at their fitted sha
 velocity, ``sigmoid`` and ``ripple`` with their shape parameters.
 A payload the model file carries (``oed payload``) is added to its link's body (the sum of two rigid bodies in
 one frame is the sum of their standard parameters), in the URDF and the MJCF.
+The gravity the model was fitted with (the model file's ``gravity``: the description's, or a mount the verbs found
+and chose on the validation record) is the MJCF's ``<option gravity>`` and ``friction.json``'s ``gravity``; a URDF
+holds no gravity, so when it is not the description's :func:`gravity_note` says the mount to write.
 Only a consistent estimate is exported (:func:`exported_model`: the chosen model when it is one, else the
 file's consistent alternative, named): base parameters alone do not determine the bodies (a base
 parameter is a sum of standard ones, and a body of unconstrained values need not be a real one).
@@ -42,10 +45,11 @@ from dynamics.mjcf_export import robot_mjcf
 from dynamics.urdf_export import robot_urdf, urdf_with_inertials
 from estimation.identification.identified_model import IdentifiedModel
 from estimation.identification.model_file import read_model_file
+from estimation.identification.mount import mount_rpy
 from estimation.identification.plausibility import link_findings
 
 __all__ = ["LAWS", "SHAPED_ENTRIES", "ExportError", "MjcfExport", "exported_mjcf", "exported_model", "exported_urdf",
-           "friction_document", "implausible_links"]
+           "friction_document", "gravity_note", "implausible_links"]
 
 #: the per-joint laws friction.json names, as formulas of the joint's motion
 LAWS = {
@@ -195,6 +199,27 @@ def friction_document(model: IdentifiedModel) -> dict[str, Any]:
     return {"joints": joints, "effects": others, "laws": dict(LAWS),
             "delay": model.delay, "gravity": np.asarray(robot.gravity, dtype=float).tolist(),
             "channels": list(model.channels)}
+
+
+def gravity_note(model: IdentifiedModel) -> str | None:
+    """The sentence that the model was fitted with another gravity than its description's (the model file's
+    ``gravity``, a mount found and chosen on the validation record), with the ``<origin rpy>`` of the fixed ``world ->
+    base`` joint that gives it (:func:`estimation.identification.mount.mount_rpy`): a URDF holds no gravity, and the
+    one written keeps the description's mount. ``None`` when the gravity is the description's."""
+    fitted, described = np.asarray(model.robot.gravity, dtype=float), model.description_gravity
+    if np.allclose(fitted, described, rtol=0.0, atol=1e-9):
+        return None
+    shown = ", ".join(f"{value:.4g}" for value in fitted)
+    described_shown = ", ".join(f"{value:.4g}" for value in described)
+    if not np.any(fitted):
+        return (f"the model was fitted without gravity (the torques hold no gravity load), not with the description's "
+                f"({described_shown}) m/s²: a URDF holds no gravity, so a simulator of the URDF written adds a gravity "
+                "load this model does not have (the MJCF and friction.json say gravity 0)")
+    roll, pitch, yaw = mount_rpy(fitted)
+    return (f"the model was fitted with gravity ({shown}) m/s² in the base frame, not the description's "
+            f"({described_shown}): a URDF holds no gravity and the one written keeps the description's mount; give "
+            "it the mount found: a link \"world\" and a fixed joint from it to the base link, <origin xyz=\"0 0 0\" "
+            f"rpy=\"{roll:.4f} {pitch:.4f} {yaw:.4f}\"/> (the MJCF and friction.json hold the fitted gravity)")
 
 
 #: friction.json's per-joint laws as MuJoCo joint attributes (a spring as two)

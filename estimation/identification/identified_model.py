@@ -241,6 +241,9 @@ class IdentifiedModel:
         self.file = model_file
         self.estimate, entry = _selected(model_file, estimate)
         self.robot = model_file.robot.load()
+        self.description_gravity = np.asarray(self.robot.gravity, dtype=float)  # the description's, as loaded
+        if model_file.gravity is not None and not np.array_equal(model_file.gravity, self.robot.gravity):
+            self.robot = self.robot.with_gravity(model_file.gravity)  # the gravity the model was fitted with
         if list(self.robot.joint_names) != list(model_file.joint_names):
             raise ModelFileError(f"the robot's joints {self.robot.joint_names} are not the model's "
                                  f"{list(model_file.joint_names)}")
@@ -280,6 +283,15 @@ class IdentifiedModel:
         verb chose, or the alternative named ``estimate`` (``ols``, ``wls``, ``consistent``; ``unconstrained``:
         the unconstrained fit behind the choice; :func:`alternative_names` lists them)."""
         return cls(read_model_file(path), estimate=estimate)
+
+    @property
+    def fitted_gravity(self) -> str | None:
+        """``"gravity (gx, gy, gz) m/s², not the description's"`` when the model was fitted with another gravity than
+        its description's (the model file's ``gravity``: a mount found and chosen on the validation record), else
+        ``None``."""
+        if np.allclose(self.robot.gravity, self.description_gravity, rtol=0.0, atol=1e-9):
+            return None
+        return f"gravity ({', '.join(f'{value:.4g}' for value in self.robot.gravity)}) m/s², not the description's"
 
     @property
     def reported_validation_mse(self) -> dict[str, float] | None:

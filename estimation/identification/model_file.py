@@ -30,6 +30,8 @@
         "payload": {"link": "joint6", "link_index": 6,                        # oed payload: a rigid body fixed
                     "parameters": [m, mx, …, Izz], "cov": [[…]]},            # to that link (absent: none)
         "joint_offsets": [0, -1.5708, …],                   # --joint-offsets: added to q as read (absent: none)
+        "gravity": [0.0, 0.0, -9.81],                        # m/s², base frame: the gravity the model was fitted
+                                                             # with (absent: an earlier release's file, the robot's)
         "joint_directions": {"signs": [1, -1, …],            # --joint-offsets' signs: q, dq, ddq and tau times
                              "torque_signs": [1, -1, …]},   # them as read, before the offsets (absent: none)
         "training_range": {"joints": {"joint1": {"q_min", "q_max", "dq_max"}, …},   # the samples the fit used
@@ -204,6 +206,10 @@ class ModelFile:
     #: each joint's position range and largest speed on the samples the fit used
     #: (:mod:`estimation.identification.training_range`); ``None``: a file of an earlier release
     training_range: TrainingRange | None = None
+    #: the gravity vector in the base frame (m/s²) the model was fitted with: the description's, or the one the
+    #: mount check found when that candidate won on the validation record; ``None``: a file of an earlier release
+    #: (the robot description's gravity)
+    gravity: NDArray[np.float64] | None = None
 
     @property
     def band_variance(self) -> NDArray[np.float64]:
@@ -252,6 +258,8 @@ class ModelFile:
             document["torque_gains"] = dict(self.torque_gains)
         if self.training_range is not None:  # the samples the fit used: where the model does not extrapolate
             document["training_range"] = self.training_range.to_dict()
+        if self.gravity is not None:  # the gravity the model was fitted with, in the base frame
+            document["gravity"] = [float(value) for value in self.gravity]
         return document
 
     def channel_gains(self) -> NDArray[np.float64]:
@@ -302,9 +310,23 @@ class ModelFile:
                 joint_directions=_joint_directions(document.get("joint_directions"), len(document["joint_names"])),
                 torque_gains=_torque_gains(document.get("torque_gains"), channels),
                 training_range=_training_range(document.get("training_range"), document["joint_names"]),
+                gravity=_gravity(document.get("gravity")),
             )
         except (KeyError, TypeError) as error:
             raise ModelFileError(f"the model file lacks or garbles {error}") from None
+
+
+def _gravity(values: Any) -> NDArray[np.float64] | None:
+    """The ``gravity`` entry, checked: three finite numbers, m/s² in the base frame (absent: ``None``)."""
+    if values is None:
+        return None
+    try:
+        gravity = np.asarray(values, dtype=float).reshape(-1)
+    except (TypeError, ValueError):
+        gravity = np.empty(0)
+    if gravity.shape != (3,) or not np.all(np.isfinite(gravity)):
+        raise ModelFileError(f"gravity must be three finite numbers (m/s² in the base frame), got {values!r}")
+    return gravity
 
 
 def _training_range(values: Any, joint_names: Sequence[str]) -> TrainingRange | None:
@@ -446,6 +468,7 @@ def summed_model_file_document(model: Any, estimate: Any, *, robot: RobotSource,
         consistent_theta=None if consistent is None else np.asarray(consistent.values, dtype=float),
         consistent_cov=None if consistent is None else np.asarray(consistent.cov, dtype=float),
         consistent_validation_mse=None if consistent_validation_mse is None else dict(consistent_validation_mse),
+        gravity=np.asarray(model.robot.gravity, dtype=float),
     )
     return document.to_dict()
 
@@ -489,6 +512,7 @@ def model_file_document(result: IdentificationResult, *, robot: RobotSource, pre
         consistent_cov=None if consistent is None else np.asarray(consistent.cov, dtype=float),
         consistent_validation_mse=None if consistent_validation_mse is None else dict(consistent_validation_mse),
         recorded_variance=np.array([result.train.mse[channel] for channel in model.channels]),
+        gravity=np.asarray(model.robot.gravity, dtype=float),
     )
     return document.to_dict()
 

@@ -18,7 +18,9 @@ or the ceiling is predicted better by its description turned there; the least-sq
 gravity for other reasons (on the real KUKA LWR4+, standing on the floor, gravity turned 179° fitted the repeated
 motion with 55 % less error while the description's bodies then predicted it 34 times worse, with the search of
 the day; the batched search now prefers a 2.5° tilt there, which :data:`WORSE_LIMIT` refuses). The
-verbs say it (the mount to write into the URDF); nothing is changed in the fit: the description is the user's.
+verbs say it (the mount to write into the URDF), and try the model with the found gravity as a candidate of their
+default answer, taken only when it predicts the validation record better
+(:mod:`estimation.consistent.mounted_gravity`); the result file then holds that gravity.
 """
 
 from __future__ import annotations
@@ -74,28 +76,72 @@ class MountCheck:
     #: each channel's validation MSE with the description's gravity and with the found (the fit's channels, in order)
     declared_channel_mse: tuple[float, ...] = ()
     found_channel_mse: tuple[float, ...] = ()
+    #: the same without gravity (the torques hold no gravity load: a log of a controller that subtracts its gravity
+    #: model, or of torques without gravity): the fit's total and channels' validation MSE, the description's bodies'
+    #: (``nan``, ``()``: not computed)
+    zero_mse: float = float("nan")
+    zero_channel_mse: tuple[float, ...] = ()
+    nominal_zero_mse: float = float("nan")
 
     def explained_channels(self) -> tuple[int, ...]:
-        """The channels (indices in the fit's order) whose validation error the found gravity brings to at most
-        :data:`MOUNT_MARK` of the description's: the loads the mount explains (none unless :attr:`marked`)."""
+        """The channels (indices in the fit's order) whose validation error the gravity said (:attr:`gravity`) brings
+        to at most :data:`MOUNT_MARK` of the description's: the loads the mount explains (none unless
+        :attr:`marked`)."""
         if not self.marked:
             return ()
-        return tuple(index for index, (declared, found) in enumerate(zip(self.declared_channel_mse,
-                                                                          self.found_channel_mse))
-                     if found <= MOUNT_MARK * declared)
+        return tuple(index for index, (declared, said) in enumerate(zip(self.declared_channel_mse,
+                                                                         self.said_channel_mse))
+                     if said <= MOUNT_MARK * declared)
+
+    @staticmethod
+    def _holds(mse: float, declared_mse: float, channels: tuple[float, ...], declared_channels: tuple[float, ...],
+               nominal: float, nominal_declared: float) -> bool:
+        """At most :data:`MOUNT_MARK` of the description's validation error, no channel's more than
+        :data:`WORSE_LIMIT` times the description's, and the description's bodies no worse (``nan``: no condition)."""
+        worse = any(value > WORSE_LIMIT * declared for declared, value in zip(declared_channels, channels))
+        contradicted = bool(nominal > nominal_declared)  # False when either is nan
+        return bool(mse <= MOUNT_MARK * declared_mse and not worse and not contradicted)
 
     @property
-    def marked(self) -> bool:
+    def turned(self) -> bool:
         """Whether the found direction predicts the validation record with at most :data:`MOUNT_MARK` of the error,
         at least :data:`MIN_ANGLE_DEG` from the description's, no channel's error more than :data:`WORSE_LIMIT`
         times the description's (a turned gravity is the whole robot's, and a fault of one joint, a torque logged
         with the opposite sign, found a direction that serves that joint at the others' expense: h-mountdiag), and the
         description's bodies do not contradict it (they predict the validation record no worse with it: h-newuser)."""
-        worse = any(found > WORSE_LIMIT * declared
-                    for declared, found in zip(self.declared_channel_mse, self.found_channel_mse))
-        contradicted = bool(self.nominal_found_mse > self.nominal_declared_mse)  # False when either is nan
-        return bool(self.found_mse <= MOUNT_MARK * self.declared_mse and self.angle_deg >= MIN_ANGLE_DEG
-                    and not worse and not contradicted)
+        return self.angle_deg >= MIN_ANGLE_DEG and self._holds(
+            self.found_mse, self.declared_mse, self.found_channel_mse, self.declared_channel_mse,
+            self.nominal_found_mse, self.nominal_declared_mse)
+
+    @property
+    def absent(self) -> bool:
+        """Whether the torques hold no gravity load: the fit without gravity marked as a direction is (:attr:`turned`:
+        half the error or less, no channel worse, the description's bodies no worse without gravity) and, when a
+        direction is marked too, predicting the validation record with less error than it."""
+        holds = self._holds(self.zero_mse, self.declared_mse, self.zero_channel_mse, self.declared_channel_mse,
+                            self.nominal_zero_mse, self.nominal_declared_mse)
+        return bool(holds and (not self.turned or self.zero_mse < self.found_mse))
+
+    @property
+    def marked(self) -> bool:
+        """Whether the check says another gravity than the description's: a turned direction (:attr:`turned`) or none
+        (:attr:`absent`)."""
+        return self.absent or self.turned
+
+    @property
+    def gravity(self) -> NDArray[np.float64]:
+        """The gravity said (m/s², base frame): zero when :attr:`absent`, else the found direction."""
+        return np.zeros(3) if self.absent else self.found
+
+    @property
+    def said_mse(self) -> float:
+        """The total validation MSE of the fit with :attr:`gravity`."""
+        return self.zero_mse if self.absent else self.found_mse
+
+    @property
+    def said_channel_mse(self) -> tuple[float, ...]:
+        """Each channel's validation MSE of the fit with :attr:`gravity`."""
+        return self.zero_channel_mse if self.absent else self.found_channel_mse
 
     @property
     def angle_deg(self) -> float:
@@ -103,8 +149,18 @@ class MountCheck:
         cosine = float(self.found @ self.declared / (np.linalg.norm(self.found) * np.linalg.norm(self.declared)))
         return float(np.degrees(np.arccos(np.clip(cosine, -1.0, 1.0))))
 
-    def message(self) -> str:
-        """The warning: the direction found, the error it saves, and the mount to write into the URDF."""
+    def message(self, *, taken: bool = False) -> str:
+        """The warning: the direction found, the error it saves, and the mount to write into the URDF; ``taken``: the
+        answer was fitted with the found gravity (it validated better, :mod:`estimation.consistent.mounted_gravity`),
+        else it keeps the description's."""
+        taken_words = ("the answer is fitted with the found gravity (it predicts the validation record better: the "
+                       "model selection's reason gives the scores), which the result file holds for predict and export"
+                       if taken else "this fit keeps the description's gravity")
+        if self.absent:
+            return (f"the torques hold no gravity load: the fit without gravity predicts the validation record with "
+                    f"{1.0 - self.zero_mse / self.declared_mse:.0%} less error than with the description's. A "
+                    "controller that subtracts its gravity model before logging, or a logger of the torques without "
+                    "gravity? Log the torques with gravity to identify the bodies' gravity load; " + taken_words)
         roll, pitch, yaw = mount_rpy(self.found)
         shown = ", ".join(f"{value:.3g}" for value in self.found)
         return (f"the torques' gravity load points elsewhere than the robot description says: gravity along "
@@ -112,7 +168,7 @@ class MountCheck:
                 f"validation record with {1.0 - self.found_mse / self.declared_mse:.0%} less error. A robot on a "
                 "wall, on the ceiling or off level? Give the mount in the URDF: a link \"world\" and a fixed joint "
                 f"from it to the base link, <origin xyz=\"0 0 0\" rpy=\"{roll:.4f} {pitch:.4f} {yaw:.4f}\"/> (a yaw "
-                "about gravity is free: any gives the same loads); this fit keeps the description's gravity")
+                "about gravity is free: any gives the same loads); " + taken_words)
 
 
 def mount_rpy(gravity: NDArray[np.float64]) -> tuple[float, float, float]:
@@ -249,4 +305,8 @@ def check_mount(model: IdentificationModel, train: Measurements, validation: Mea
                       declared_channel_mse=tuple(float(value) for value in declared_channels),
                       found_channel_mse=tuple(float(value) for value in found_channels),
                       nominal_declared_mse=float(_rss(np.r_[1.0, np.eye(3)[0]], nominal, held_full)) / count,
-                      nominal_found_mse=float(_rss(np.r_[1.0, best], nominal, held_full)) / count)
+                      nominal_found_mse=float(_rss(np.r_[1.0, best], nominal, held_full)) / count,
+                      zero_mse=float(_scored(np.zeros(3), train_sums, held_totals)) / count,
+                      zero_channel_mse=tuple(float(value) for value in
+                                             _channel_scores(np.zeros(3), train_sums, held_sums) / count),
+                      nominal_zero_mse=float(_rss(np.r_[1.0, np.zeros(3)], nominal, held_full)) / count)

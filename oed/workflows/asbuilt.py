@@ -176,23 +176,43 @@ def joint_zero_notes(model: IdentificationModel, train: Measurements, validation
     return () if check is None or not check.marked else (check.message(model.robot.joint_names),)
 
 
-def description_notes(model: IdentificationModel, train: Measurements, validation: Measurements | None, *,
-                      delay: Any = None) -> tuple[str, ...]:
-    """:func:`joint_zero_notes` and the warning that the torques' gravity load points elsewhere than the description
-    says (a robot on a wall, on the ceiling, off level, whose URDF gives no mount: another direction of gravity
-    predicts the validation record with at most half the error, :func:`estimation.identification.mount.check_mount`).
-    A reversed torque flips its joint's gravity load, and a turned gravity moves every joint's as an offset would, so
-    each check can take up the other's fault: when both mark, the one that predicts the validation record with the
-    less error is said. The mount is not checked without a validation record, with a delay search or shaped laws."""
+def description_checks(model: IdentificationModel, train: Measurements, validation: Measurements | None, *,
+                       delay: Any = None) -> tuple[JointZeroCheck | None, MountCheck | None]:
+    """The joint-zero check and the mount check of ``oed identify``, each when it marks and is the one said
+    (:func:`competing_checks`): a robot on a wall, on the ceiling, off level, whose URDF gives no mount has another
+    direction of gravity predict the validation record with at most half the error
+    (:func:`estimation.identification.mount.check_mount`). The mount is not checked without a validation record, with
+    a delay search or shaped laws."""
     if delay is not None or model_has_shapes(model):
-        return ()
+        return None, None
     zeros = marked_joint_zeros(model, train, validation)
     mount = None
     if validation is not None:
         with step("gravity's direction checked against the description's"):
             mount = check_mount(model, train, validation)
     mount = None if mount is None or not mount.marked else mount
-    return said_description(model, zeros, mount, None if mount is None else mount.message())
+    return competing_checks(zeros, mount)
+
+
+def description_notes(model: IdentificationModel, checks: tuple[JointZeroCheck | None, MountCheck | None], *,
+                      gravity_taken: bool = False) -> tuple[str, ...]:
+    """The warnings of :func:`description_checks` (``checks``): the joints' zeros or directions, the torques' gravity
+    load pointing elsewhere than the description says (``gravity_taken``: the answer was fitted with the found
+    gravity, :mod:`estimation.consistent.mounted_gravity`)."""
+    zeros, mount = checks
+    return said_description(model, zeros, mount, None if mount is None else mount.message(taken=gravity_taken))
+
+
+def competing_checks(zeros: JointZeroCheck | None, mount: MountCheck | None
+                     ) -> tuple[JointZeroCheck | None, MountCheck | None]:
+    """The marked joint-zero and mount checks, the one that predicts the validation record with the less error kept
+    when both mark (the other ``None``): a reversed torque flips its joint's gravity load, and a turned gravity moves
+    every joint's as an offset would, so each check can take up the other's fault."""
+    if zeros is not None and mount is not None:
+        if mount.said_mse / mount.declared_mse < zeros.total_ratio:
+            return None, mount
+        return zeros, None
+    return zeros, mount
 
 
 def marked_joint_zeros(model: IdentificationModel, train: Measurements, validation: Measurements | None, *,
@@ -212,11 +232,8 @@ def said_description(model: IdentificationModel, zeros: JointZeroCheck | None, m
     torque flips its joint's gravity load, and a turned gravity moves every joint's as an offset would, so each check
     can take up the other's fault: when both mark, the one that predicts the validation record with the less error
     is said (the other's sentence not)."""
-    if zeros is not None and mount is not None:
-        if mount.found_mse / mount.declared_mse < zeros.total_ratio:
-            zeros = None
-        else:
-            mount, mount_said = None, None
+    zeros, kept = competing_checks(zeros, mount)
+    mount_said = None if kept is None else mount_said
     return ((() if zeros is None else (zeros.message(model.robot.joint_names),))
             + (() if mount_said is None else (mount_said,)))
 
@@ -258,23 +275,24 @@ def mount_candidates(model: IdentificationModel, candidates: Sequence[Effect], m
                  if effect.name not in POSITION_LAWS or not set(effect_channels(effect, model)) <= explained)
 
 
-def diagnosis_mount_notes(model: IdentificationModel, zeros: JointZeroCheck | None, mount: MountCheck | None
-                          ) -> tuple[str, ...]:
+def diagnosis_mount_notes(model: IdentificationModel, zeros: JointZeroCheck | None, mount: MountCheck | None, *,
+                          gravity_taken: bool = False) -> tuple[str, ...]:
     """The diagnosis's warnings of the marked joint-zero and mount checks (:func:`said_description`: the one that
     predicts the validation record better when both mark), the mount's saying which joints the search tried without
     the laws of their position (:func:`mount_candidates`); when the joints' zeros or directions are said instead,
-    a sentence still says what the search left out."""
+    a sentence still says what the search left out. ``gravity_taken``: the answer is the diagnosis with the found
+    gravity (:mod:`estimation.consistent.mounted_gravity`), whose search tried every law."""
     channels = () if mount is None else mount.explained_channels()
     names = ", ".join(model.channels[index] for index in channels)
     shares = ", ".join(f"{model.channels[index]} "
-                       f"{1.0 - mount.found_channel_mse[index] / mount.declared_channel_mse[index]:.0%}"
+                       f"{1.0 - mount.said_channel_mse[index] / mount.declared_channel_mse[index]:.0%}"
                        for index in channels)
-    said = None if mount is None else mount.message() if not channels else (
+    said = None if mount is None else mount.message(taken=gravity_taken) if not channels or gravity_taken else (
         f"{mount.message()}; the diagnosis keeps it too, and tries no spring or position ripple on {names}, whose "
         f"validation error the found gravity lowers by {1.0 - MOUNT_MARK:.0%} or more ({shares}): their "
-        "position-dependent load is the turned gravity's")
+        "position-dependent load is gravity's (turned, or absent from the torques)")
     notes = said_description(model, zeros, mount, said)
-    if said is not None and said not in notes and channels:
+    if said is not None and said not in notes and channels and not gravity_taken:
         notes += (f"the diagnosis tried no spring or position ripple on {names}: another direction of gravity "
                   f"explains their load as well ({shares} less validation error), though the joints' zeros or "
                   "directions said explain the records better",)

@@ -39,6 +39,7 @@ from estimation.consistent.torque_gains import (
     in_recorded_units,
 )
 from estimation.identification.mount import MountCheck
+from estimation.consistent.mounted_gravity import gravity_answer, turned_model
 from estimation.identification.relative_error import relative_scores
 from estimation.identification.validation import ChannelErrors
 from estimation.consistent.completion import completed_laws, completed_note, completion_repeat, held_completion
@@ -65,6 +66,7 @@ from estimation.data.input_findings import FindingsSaid
 from estimation.data.log_cleaning import DEFAULT_MAX_GAP
 from estimation.uncertainty.noise_floor import NoiseFloor
 from oed.workflows.asbuilt import (
+    competing_checks,
     diagnosis_mount,
     diagnosis_mount_notes,
     finish_document,
@@ -465,26 +467,34 @@ def diagnosis_in_memory(args: DiagnoseOptions, model: IdentificationModel, trans
             mount = diagnosis_mount(model, records.train.measurements, records.validation.measurements, delay=delay)
             with step("noise floors of the held-out records"):
                 validation_floor, test_floor = record_floors(records, model, args.frequency, args.jobs)
-            with step("diagnosis in memory"):
-                diagnosis = diagnose_records(args, model, transmission, records, delay, validation_floor, mount=mount)
-            selection, swap_note = None, None
-            if diagnosis.swap is not None:
-                with step("the plain-law swap judged on the default answer's candidates"):
-                    diagnosis, selection, swap_note = judged_swap(args, diagnosis, records)
+            diagnosis, selection, swap_note = answered_diagnosis(args, model, transmission, records, delay,
+                                                                 validation_floor, mount=mount)
+            gravity_taken, checked = False, None
+            if mount is not None and not args.consistent and selection.selection == "validation":
+                # the model with the found gravity diagnosed as the declared one was, its answer a candidate
+                # (estimation.consistent.mounted_gravity): taken only when it predicts the validation record better,
+                # and only when the mount is what is said (not the joints' zeros or directions)
+                with step("the diagnosis with the gravity the mount check found, compared"):
+                    # torques without gravity (mount.absent): the error of the gravity model the logger subtracted
+                    # stays a load of the positions, which a spring or a ripple would stand in for: not tried there
+                    turned = answered_diagnosis(args, turned_model(model, mount.gravity), transmission, records, delay,
+                                                validation_floor, mount=mount if mount.absent else None)
+                    checked = beside_checks()
+                    if competing_checks(checked[0], mount)[1] is not None:
+                        selection, gravity_taken = gravity_answer(selection, turned[1], mount.gravity)
+                if gravity_taken:
+                    diagnosis, swap_note = turned[0], turned[2]
             untouched = test_errors(records, diagnosis, test_floor)
             trivial, notes = trivial_predictors(diagnosis.after, records.validation.measurements)
             diagnosis = replace(diagnosis, trivial=trivial)
             notes += worse_after(diagnosis) + (() if swap_note is None else (swap_note,))
             repeat = repeated_motion_note(records.train.measurements, records.validation.measurements)
             notes += () if repeat is None else (repeat,)
-            with step("the default answer: the adopted model or its consistent refit"):
-                if selection is None:
-                    selection = diagnosis_selection(args, diagnosis, records)
             if gains is not None:
                 selection = in_recorded_units(selection, gains[0])
                 notes += (gains[2],)
-            zeros, drift = beside_checks()
-            notes += diagnosis_mount_notes(model, zeros, mount)
+            zeros, drift = beside_checks() if checked is None else checked
+            notes += diagnosis_mount_notes(model, zeros, mount, gravity_taken=gravity_taken)
             notes += () if drift is None or drift.message() is None else (drift.message(),)
     train = records.train.measurements  # the samples fitted: the training range, and the held-out records against it
     ranges = TrainingRange.of(train.q, train.dq, model.robot.joint_names)
@@ -494,6 +504,21 @@ def diagnosis_in_memory(args: DiagnoseOptions, model: IdentificationModel, trans
                      (*caught_messages(caught), *notes), records=records, untouched=untouched, selection=selection,
                      transmission=transmission, notes=notes, torque_gains=None if gains is None else gains[0],
                      training_range=ranges, range_checks=checks, friction_drift=drift)
+
+
+def answered_diagnosis(args: DiagnoseOptions, model: IdentificationModel, transmission: Transmission | None,
+                       records: PreparedRecords, delay: DelayBounds | None, floor: NoiseFloor | None, *,
+                       mount: MountCheck | None = None) -> tuple[Diagnosis, ModelSelection, str | None]:
+    """The diagnosis of ``model`` on the prepared records (:func:`diagnose_records`; ``mount``: its positional laws
+    left out where a marked mount explains the load), the plain-law swap judged (:func:`judged_swap`), and its
+    default answer (:func:`diagnosis_selection`): ``(diagnosis, selection, the swap's note or None)``."""
+    with step("diagnosis in memory"):
+        diagnosis = diagnose_records(args, model, transmission, records, delay, floor, mount=mount)
+    if diagnosis.swap is not None:
+        with step("the plain-law swap judged on the default answer's candidates"):
+            return judged_swap(args, diagnosis, records)
+    with step("the default answer: the adopted model or its consistent refit"):
+        return diagnosis, diagnosis_selection(args, diagnosis, records), None
 
 
 def checks_beside(model: IdentificationModel, train: Measurements, validation: Measurements | None, *,

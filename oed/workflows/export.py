@@ -20,6 +20,7 @@ from estimation.identification.export import (
     exported_model,
     exported_urdf,
     friction_document,
+    gravity_note,
     implausible_links,
 )
 from oed.workflows.options import check_json_path, check_mjcf_path, check_urdf_path
@@ -38,12 +39,16 @@ class ExportRun:
     lines: tuple[str, ...]
     mjcf: MjcfExport | None = field(default=None, repr=False)
     note: str | None = None
+    #: the model was fitted with another gravity than its description's: the mount to write into the URDF
+    #: (:func:`estimation.identification.export.gravity_note`); ``None``: the description's gravity
+    gravity: str | None = None
 
     @property
     def warnings(self) -> tuple[str, ...]:
-        """The warnings ``oed export`` prints: the model written when it is not the chosen one (``note``), and each
-        implausible body exported as asked."""
-        return (*(() if self.note is None else (self.note,)),
+        """The warnings ``oed export`` prints: the model written when it is not the chosen one (``note``), a gravity
+        that is not the description's (``gravity``: the URDF holds none), and each implausible body exported as
+        asked."""
+        return (*(() if self.note is None else (self.note,)), *(() if self.gravity is None else (self.gravity,)),
                 *(f"exported as asked (--allow-implausible), not plausible: {message}" for message in self.findings))
 
     def to_dict(self) -> dict[str, Any]:
@@ -119,4 +124,4 @@ def export(*, model: str | Path, allow_implausible: bool = False, mjcf: bool = F
     if gains:  # a property of the log's sensors, not of the bodies: the URDF holds the description's units
         lines = (*lines, "the log's torques are these gains times the model's (torque_gains, not in the URDF): "
                  + ", ".join(f"{channel} {entry['value']:.4g}" for channel, entry in gains.items()))
-    return ExportRun(text, identified, tuple(findings), lines, mujoco, note)
+    return ExportRun(text, identified, tuple(findings), lines, mujoco, note, gravity_note(identified))

@@ -44,6 +44,7 @@ from estimation.identification.prepared import InMemoryBudget, PreparedRecords, 
 from estimation.identification.preprocessing_choice import ChoiceWindow
 from estimation.identification.repeated_motion import repeat_note, repeated_motion_note
 from estimation.identification.model_file import summed_model_file_document
+from estimation.identification.mount import MountCheck
 from estimation.identification.report import identification_report
 from estimation.identification.friction_drift import FrictionDrift, check_friction_drift
 from estimation.identification.training_range import RangeCheck, TrainingRange, merged_ranges
@@ -69,6 +70,7 @@ from estimation.streaming.recorded_errors import (
 )
 from oed.workflows.asbuilt import (
     finish_document,
+    description_checks,
     description_notes,
     FOURIER_CHECKS,
     streamed_description_notes,
@@ -84,6 +86,7 @@ from estimation.consistent.identification import ConsistentResult
 from estimation.consistent.model_selection import ModelSelection, select_model
 from estimation.consistent.motor_friction import motor_friction_answer, motor_friction_laws
 from estimation.consistent.armature import armature_answer, armature_laws
+from estimation.consistent.mounted_gravity import gravity_answer, turned_model
 from estimation.consistent.torque_gains import (
     TorqueGains,
     divided_torques,
@@ -918,6 +921,10 @@ def identification_in_memory(args: IdentifyOptions, robot: RobotModel, model: Id
         selection = motor_friction_selection(args, selection, model, transmission, train, validation,
                                              base=base, given=given, delay=delay)
         selection = armature_selection(args, selection, train, validation, base=base, given=given, delay=delay)
+        # the joints' zeros and gravity's direction against the description's; a mount found is a candidate
+        checks = description_checks(model, train, validation, delay=delay)
+        selection, gravity_taken = gravity_selection(args, selection, checks[1], train, validation, base=base,
+                                                     given=given, delay=delay)
         selection, gains = torque_gains_selection(args, selection, train, validation, base=base, given=given,
                                                   delay=delay)
         result, consistent = selection.unconstrained, selection.consistent
@@ -928,7 +935,7 @@ def identification_in_memory(args: IdentifyOptions, robot: RobotModel, model: Id
         notes = (*notes, *above_floor_notes(floor_report, chosen, None if validation is None else validation.n_samples))
         repeat = None if validation is None else repeated_motion_note(train, validation)
         notes = notes if repeat is None else (*notes, repeat)
-        notes = (*notes, *description_notes(model, train, validation, delay=delay))
+        notes = (*notes, *description_notes(model, checks, gravity_taken=gravity_taken))
         drift = None if delay is not None or model_has_shapes(model) else check_friction_drift(model, train, validation)
         notes = notes if drift is None or drift.message() is None else (*notes, drift.message())
     ranges = TrainingRange.of(train.q, train.dq, model.robot.joint_names)  # the samples fitted
@@ -983,6 +990,25 @@ def armature_selection(args: IdentifyOptions, selection: ModelSelection, train: 
     return armature_answer(selection, other)
 
 
+def gravity_selection(args: IdentifyOptions, selection: ModelSelection, mount: MountCheck | None,
+                      train: Measurements, validation: Measurements | None, *, base: str, given: str | None,
+                      delay: DelayBounds | None) -> tuple[ModelSelection, bool]:
+    """The default answer with the gravity the mount check found a candidate
+    (:mod:`estimation.consistent.mounted_gravity`): the model ``selection`` holds (with the motor laws or the
+    armature when they were taken) with that gravity, chosen among its candidates as the declared model's were, on
+    the same records, and taken when its answer validates better; ``(answer, taken)``. ``(selection, False)`` when no
+    mount is said (``mount`` ``None``: not marked, or the joints' zeros said instead), when the user chose the
+    estimator, with a delay search or shaped laws, or without a validation record of another motion."""
+    model = selection.unconstrained.model
+    if mount is None or given is not None or delay is not None or model_has_shapes(model) or validation is None \
+            or selection.selection != "validation":
+        return selection, False
+    with step("the model with the gravity the mount check found fitted and compared"):
+        turned = turned_model(model, mount.gravity)
+        other = select_model(turned, train, validation, base=base, consistent=consistent_settings(args, turned.robot))
+    return gravity_answer(selection, other, mount.gravity)
+
+
 def torque_gains_selection(args: IdentifyOptions, selection: ModelSelection, train: Measurements,
                            validation: Measurements | None, *, base: str, given: str | None,
                            delay: DelayBounds | None) -> tuple[ModelSelection, tuple[TorqueGains, bool, str] | None]:
@@ -1016,8 +1042,10 @@ def torque_gains_selection(args: IdentifyOptions, selection: ModelSelection, tra
     return answer, (gains, taken, f"{checked}; then {compared}" if compared else checked)
 
 
-#: the sentences the candidates of the default answer append to its reason (motor-side friction, the armature)
-CANDIDATE_SENTENCES = ("; motor-side friction on the coupled motors", "; the rotors' reflected inertia")
+#: the sentences the candidates of the default answer append to its reason (motor-side friction, the armature, the
+#: gravity found)
+CANDIDATE_SENTENCES = ("; motor-side friction on the coupled motors", "; the rotors' reflected inertia",
+                       "; the gravity the mount check found")
 
 
 def carried_reasons(selection: ModelSelection, other: ModelSelection) -> ModelSelection:
