@@ -33,8 +33,8 @@ contiguous blocks of the validation record (the residuals are correlated in time
 candidates' common error cancels, so the difference is known far better than either score). When the difference is
 not above :data:`NOISE_QUANTILE` standard errors (a one-sided test at :data:`NOISE_LEVEL`: Student's t with
 ``BLOCKS - 1`` degrees of freedom, since the standard error is estimated from that many blocks), the validation
-record does not tell the candidates apart. This is **reported** (``paired_difference`` in ``result.json``, the
-reason); the smallest score is still chosen. Choosing the consistent candidate then (the toolkit's preference when
+record does not tell the candidates apart. This is **reported** (``paired_difference`` in ``result.json``, a line
+of the summary; not the reason, which the streamed path gives alike); the smallest score is still chosen. Choosing the consistent candidate then (the toolkit's preference when
 nothing measured extrapolation) fixed the Panda's identify on the short records, but the streamed path holds no
 samples (errors from sums of the regressor's products: no blocks), so the same records would get another answer
 there (``benchmarks/README.md``, h-shortval: the rule is kept on a side branch until the streamed sums carry the
@@ -153,7 +153,7 @@ class PairedDifference:
                 "quantile": NOISE_QUANTILE, "within_noise": self.within_noise}
 
     def sentence(self) -> str:
-        """What the comparison found, for the reason."""
+        """What the comparison found, for the summary."""
         told = ("within its sampling error: the validation record does not tell them apart" if self.within_noise
                 else "beyond its sampling error")
         return (f"{self.regularised} {self.difference:.3g} above {self.best}, {self.ratio:.3g} standard errors of the "
@@ -350,6 +350,8 @@ class ModelSelection:
                              + f"  {scored.get(candidate.name, float('inf')):10.4g}")
             else:
                 lines.append(f"  {mark} {candidate.name:<27s} (no validation record)")
+        if self.paired is not None:  # in memory only (the streamed path holds no samples): not in the reason
+            lines.append(f"  paired difference: {self.paired.sentence()}")
         return lines
 
 
@@ -479,9 +481,7 @@ def select_scored(candidates: Sequence[Candidate], *, base: Literal["ols", "wls"
         raise ValueError(f"the base candidate {base!r} must be among the fitted candidates {sorted(by_name)}")
     ordered = tuple(by_name[name] for name in CANDIDATES if name in by_name)
     chosen, selection, reason = _choose(ordered, given, base, ratio, still)
-    paired = paired_difference(ordered, chosen) if selection == "validation" else None
-    if paired is not None:  # reported; the smallest score is still chosen (module docstring)
-        reason = f"{reason}; {paired.sentence()}"
+    paired = paired_difference(ordered, chosen) if selection == "validation" else None  # reported, not acted on
     return ModelSelection(chosen, selection, reason, ordered, base, ratio, paired)
 
 
