@@ -267,9 +267,19 @@ def run_verb(case: Case, validation: str, verb: str, folder: Path) -> dict:
     table = pd.read_csv(out)
     channels = [column for column in table.columns if column.startswith("tau") and column[3:].isdigit()]
     return {"exit": 0, "message": "", "t": table["t"].to_numpy(), "predicted": table[channels].to_numpy(),
-            "reproduced": reproduced, "chosen": (document.get("model_selection") or {}).get("chosen"),
+            "reproduced": reproduced, "chosen": chosen_text(document.get("model_selection") or {}),
             "effects": [f"{e['spec']} on {','.join(e['channels'])}" for e in document.get("effects", [])
                         if isinstance(e, dict)], "seconds": seconds}
+
+
+def chosen_text(selection: dict) -> str | None:
+    """The chosen model, and when the best-scoring one was compared with the consistent one on the same validation
+    samples (``paired_difference``), that difference ± its standard error."""
+    paired = selection.get("paired_difference")
+    if not paired:
+        return selection.get("chosen")
+    return (f"{selection.get('chosen')} ({paired['regularised']} − {paired['best']} {paired['difference']:.3g} ± "
+            f"{paired['standard_error']:.2g})")
 
 
 def run_logged(arguments: list[str]) -> tuple[int, str, str]:

@@ -401,14 +401,25 @@ def table(name: str, outcome: dict) -> list[str]:
     if selection is not None:
         scores = ", ".join(f"{c['name']} {c['score']:.4g}" for c in selection["candidates"] if c["score"] is not None)
         lines += ["", f"default chose **{selection['chosen']}** ({selection['selection']}; validation scores: "
-                      f"{scores or 'none'}); derivatives: {derivatives(outcome['preprocessing'])}"]
+                      f"{scores or 'none'}{paired_text(selection)}); derivatives: "
+                      f"{derivatives(outcome['preprocessing'])}"]
     selection = outcome.get("diagnose_selection")
     if selection is not None:
         scores = ", ".join(f"{c['name']} {c['score']:.4g}" if c["score"] is not None else f"{c['name']} (none)"
                            for c in selection["candidates"])
         lines += ["", f"diagnose chose **{selection['chosen']}** ({selection['selection']}; validation scores: "
-                      f"{scores}); effects adopted: {', '.join(outcome['effects']) or 'none'}"]
+                      f"{scores}{paired_text(selection)}); effects adopted: {', '.join(outcome['effects']) or 'none'}"]
     return lines
+
+
+def paired_text(selection: dict) -> str:
+    """The paired difference of the consistent candidate's validation score to the best's, ± its standard error,
+    when it was compared (``model_selection.paired_difference``), and whether it decided."""
+    paired = selection.get("paired_difference")
+    if not paired:
+        return ""
+    return (f"; {paired['regularised']} − {paired['best']} {paired['difference']:.3g} ± {paired['standard_error']:.2g}"
+            + (", within the sampling error" if paired["within_noise"] else ", beyond the sampling error"))
 
 
 def derivatives(plan: dict) -> str:
