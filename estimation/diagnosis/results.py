@@ -140,6 +140,8 @@ STREAMED_NOT_COMPUTED = {
              "(estimation.streaming.diagnosis_selection), not by diagnose_files",
     "model_selection": "the choice between the adopted model and its consistent refit is made from the sums by oed "
                        "diagnose (estimation.streaming.diagnosis_selection), not by diagnose_files",
+    "gravity": "a mount found is said, not tried: the diagnosis with the found gravity (or none) is a candidate in "
+               "memory (estimation.consistent.mounted_gravity); streamed, the model keeps the description's gravity",
 }
 
 

@@ -73,6 +73,8 @@ STREAMED_NOT_COMPUTED = {
     "model_selection": "the choice among ols, wls and the consistent refit by their validation errors is made in "
                        "memory; streamed, the model is the weighting asked for or chosen on held-out blocks "
                        "(method_selection)",
+    "gravity": "a mount found is said, not tried: the fit with the found gravity (or none) is a candidate in memory "
+               "(estimation.consistent.mounted_gravity); streamed, the model keeps the description's gravity",
 }
 
 
