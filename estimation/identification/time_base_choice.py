@@ -43,7 +43,12 @@ from estimation.data.sampling_clock import RECEIVE_TIMES_RATIO, on_regular_clock
 from estimation.identification.preprocessing_on_validation import TIE_DIGITS, rescored
 from estimation.preprocessing.plan import Preprocessing
 
-__all__ = ["choose_time_base", "receive_times_evidence", "regular_segments"]
+__all__ = ["STREAMED_TIME_BASE", "choose_time_base", "receive_times_evidence", "regular_segments"]
+
+#: what the streamed path (files read in blocks) says of the time base (``not_computed.time_base``)
+STREAMED_TIME_BASE = ("the samples at their stamps: the regular clock is scored in memory only (where the stamps "
+                      "look like receive times, said by a ReceiveTimesWarning; the streamed reader fixes its grid "
+                      "from the stamps before the blocks are read)")
 
 
 def receive_times_evidence(segments: Sequence[Measurements]) -> float | None:
