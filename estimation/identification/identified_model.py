@@ -173,9 +173,9 @@ class Prediction:
     def columns(self) -> dict[str, NDArray[np.float64]]:
         """``t``, then per channel its prediction, ``_lo`` and ``_hi``, then (when the record holds the channels)
         per channel ``_measured`` (as recorded) and ``_residual`` (measured minus predicted): the CSV of
-        ``oed predict``. ``t`` holds the stamps as recorded; on a regular clock (:attr:`stamps`) its instants follow
-        as ``t_clock``."""
-        table = {"t": self.t} if self.stamps is None else {"t": self.stamps, "t_clock": self.t}
+        ``oed predict``. ``t`` holds the stamps as recorded; on a regular clock (:attr:`stamps`) its instants
+        come last, as ``t_clock`` (a reader of the other columns unchanged)."""
+        table = {"t": self.t if self.stamps is None else self.stamps}
         for index, channel in enumerate(self.channels):
             table[channel] = self.predicted[:, index]
             table[f"{channel}_lo"] = self.lower[:, index]
@@ -184,6 +184,8 @@ class Prediction:
             for index, channel in enumerate(self.channels):
                 table[f"{channel}_measured"] = self.measured[:, index]
                 table[f"{channel}_residual"] = self.measured[:, index] - self.predicted[:, index]
+        if self.stamps is not None:
+            table["t_clock"] = self.t
         return table
 
     def plot(self, path: str | Path | None = None, *, title: str = "", max_points: int = 4000) -> Figure:
