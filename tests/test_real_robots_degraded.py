@@ -39,11 +39,6 @@ MISSES = {
     ("panda", "short"): "training cut to 4.6 s, validation to 2 s: identify joint 4 1.64x the plain fit; diagnose "
                         "mean of the joints 1.45x, joint 1 4.61x (both chose WLS, within the 2 s validation "
                         "record's sampling error of the consistent fit: 0.042 +- 0.031 and 0.031 +- 0.024, reported)",
-    ("emps", "jitter"): "stamps off by up to 40 % of a step, the samples where they were: identify 1.22x, diagnose "
-                        "1.20x the plain fit (both resample by the stamps, which adds noise in proportion to the "
-                        "speed; both choose on the validation record, whose error is least near 23 Hz: the "
-                        "toolkit's 17 and 30 Hz tie there (57 and 59 N2, 0.2 standard errors apart) and the "
-                        "smaller wins, the plain fit's grid holds 20 Hz; the test record prefers 30 Hz, 0.65x)",
 }
 
 CASES = ([("emps", degradation) for degradation in (

@@ -46,9 +46,9 @@ def with_defect(frame: pd.DataFrame, kind: str, seed: int) -> pd.DataFrame:
         rows = np.array(BOUNDARIES + [333, 1666])
         frame = pd.concat([frame, frame.loc[rows - 1]]).sort_index(kind="stable").reset_index(drop=True)
         return frame
-    if kind == "jitter":
-        frame["t"] = frame.t + generator.uniform(-0.3, 0.3, len(frame)) * step
-        return frame
+    if kind == "jitter":  # the samples taken at their irregular stamps (receive times: the regular clock, scored
+        # in memory only, test_time_base_choice.py)
+        return at_stamps(frame, frame.t + generator.uniform(-0.3, 0.3, len(frame)) * step)
     if kind == "stall":  # 30 and 20 ms without samples, the first across the boundary at row 500
         return frame.drop(index=[*range(497, 503), *range(1200, 1204)]).reset_index(drop=True)
     if kind == "epoch":  # Unix time stamps
@@ -57,10 +57,25 @@ def with_defect(frame: pd.DataFrame, kind: str, seed: int) -> pd.DataFrame:
     if kind == "columns":  # reordered, with a column the toolkit does not read
         frame["temperature"] = 35.0
         return frame[list(reversed(frame.columns))]
-    if kind == "hole_and_jitter":  # each segment resampled onto its own grid
+    if kind == "received":  # receive times: the samples where they were, the stamps moved
         frame["t"] = frame.t + generator.uniform(-0.3, 0.3, len(frame)) * step
+        return frame
+    if kind == "hole_and_jitter":  # each segment resampled onto its own grid
+        frame = at_stamps(frame, frame.t + generator.uniform(-0.3, 0.3, len(frame)) * step)
         return frame.drop(index=range(1240, 1300)).reset_index(drop=True)
     raise ValueError(kind)
+
+
+def at_stamps(frame: pd.DataFrame, stamps: pd.Series) -> pd.DataFrame:
+    """``frame`` with its positions taken at the irregular ``stamps`` (the smooth motion interpolated there; the
+    torques as simulated, whose noise an interpolation would smooth): a logger whose stamps are its samples'
+    instants, which both readers resample by them."""
+    moved = frame.copy()
+    for column in frame.columns:
+        if column.startswith("q"):
+            moved[column] = np.interp(stamps.to_numpy(), frame.t.to_numpy(), frame[column].to_numpy())
+    moved["t"] = stamps
+    return moved
 
 
 KINDS = ["hole", "duplicated", "resent", "resent_same_stamp", "jitter", "stall", "epoch", "columns", "hole_and_jitter"]
@@ -78,7 +93,7 @@ def logs(tmp_path_factory):
         frame = simulator.run(random_fourier(robot, seed, frequency_hz=0.1), duration=10.0, warmup_periods=1,
                               seed=seed).measurements.to_frame()
         clean[name] = frame[[column for column in frame.columns if not column.startswith(("dq", "ddq"))]]
-    for kind in [*KINDS, "many_duplicated"]:
+    for kind in [*KINDS, "many_duplicated", "received"]:
         for name, seed in (("train", 5), ("val", 6)):
             frame = clean[name] if kind == "many_duplicated" and name == "train" else with_defect(clean[name], kind, seed)
             frame.to_csv(folder / f"{name}_{kind}.csv", index=False, float_format="%.17g")
@@ -132,6 +147,25 @@ def test_identify_streamed_reads_a_defective_log_as_in_memory(logs, kind, tmp_pa
     assert main(["predict", "--model", str(tmp_path / "streamed.json"), "--data", str(logs / f"val_{kind}.csv"),
                  "--metrics", str(metrics)]) == 0
     _close(streamed["validation"]["mse"], json.loads(metrics.read_text())["mse"], "predict", tolerance)
+
+
+@pytest.mark.slow
+def test_receive_time_stamps_the_regular_clock_in_memory_the_stamps_streamed_and_said(logs, tmp_path, capsys):
+    """Where the stamps are receive times, the in-memory path scores the regular clock on the validation record and
+    takes it (tests/test_time_base_choice.py); the streamed path keeps the stamps and says so
+    (``not_computed.time_base``): the one known difference of the two readers, written in the result. Both say the
+    same findings, the receive-times warning among them."""
+    documents, said = {}, {}
+    for mode, options in (("memory", ()), ("streamed", ("--chunk-size", CHUNK))):
+        out = tmp_path / f"{mode}.json"
+        code, said[mode], error = _run("identify", logs, "received", out, capsys, *options)
+        assert code == 0, error
+        documents[mode] = json.loads(out.read_text())
+    assert said["streamed"] == said["memory"] and any("look like a logger's receive times" in line
+                                                      for line in said["memory"])
+    assert documents["memory"]["preprocessing"]["time_base"] == "regular"
+    assert "time_base" not in documents["streamed"]["preprocessing"]
+    assert "regular clock is scored in memory only" in documents["streamed"]["not_computed"]["time_base"]
 
 
 @pytest.mark.parametrize("kind", ["hole", "duplicated", "jitter"])

@@ -32,10 +32,12 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from dynamics.measurements import Measurements
 from estimation.data.loading import ReceiveTimesWarning
 from estimation.data.log_cleaning import STALL_FACTOR
 
-__all__ = ["RECEIVE_TIMES_RATIO", "ClockSums", "clock_roughness", "said_receive_times"]
+__all__ = ["CLOCK_TOLERANCE", "RECEIVE_TIMES_RATIO", "ClockSums", "clock_roughness", "on_regular_clock",
+           "receive_times_ratio", "regular_clock", "said_receive_times"]
 
 #: the positions are said to follow a regular clock rather than the stamps when their interpolation residuals at
 #: the stamps are at least this many times those on a regular clock (root mean square, median over the joints)
@@ -141,3 +143,53 @@ def said_receive_times(ratio: float | None, first: float, last: float, samples: 
         "samples were taken; resampling by them adds noise in proportion to the speed to the derivatives and to "
         "every error. If the samples were taken on a regular clock, write t as that clock (t0 + k * step, k the "
         "sample's index)", ReceiveTimesWarning, stacklevel=stacklevel)
+
+
+#: a stamp farther than this fraction of a step from its instant on the regular clock could be another
+#: sample's: the regular clock is then not identified from the stamps (a dropped row, a stall)
+CLOCK_TOLERANCE = 0.5
+
+
+def regular_clock(t: NDArray[np.float64]) -> NDArray[np.float64] | None:
+    """The regular clock the samples of stamps ``t`` were taken on, one sample a step: ``t0 + k * step``, ``k``
+    the sample's index, ``t0`` and ``step`` the least-squares fit of the stamps on ``k`` (the clock the
+    :class:`~estimation.data.loading.ReceiveTimesWarning` names, through the stamps rather than through the first
+    and last alone, whose own errors would tilt it). ``None`` when a stamp lies :data:`CLOCK_TOLERANCE` of a step
+    or more from its instant (a row dropped or a stall inside the segment: the sample's index is then not its
+    instant) or the fit's step is not positive."""
+    count = t.shape[0]
+    if count < 3:
+        return None
+    k = np.arange(count, dtype=float)
+    step, t0 = np.polyfit(k, t, 1)
+    if not step > 0:
+        return None
+    clock = t0 + step * k
+    if np.max(np.abs(t - clock)) >= CLOCK_TOLERANCE * step:
+        return None
+    return clock
+
+
+def receive_times_ratio(segment: Measurements) -> float | None:
+    """:func:`clock_roughness` of a segment as read, on its samples as recorded; ``None`` when it was not resampled
+    by its stamps (their gaps regular: nothing to tell apart) or the evidence is too thin."""
+    if segment.recorded is None:
+        return None
+    recorded = segment.recorded
+    step = (segment.t[-1] - segment.t[0]) / max(segment.t.shape[0] - 1, 1)
+    return clock_roughness(recorded.t, recorded.q, step)
+
+
+def on_regular_clock(segment: Measurements) -> Measurements | None:
+    """A segment as read with its samples as recorded placed on :func:`regular_clock` instead of their stamps:
+    nothing is interpolated (the clock is the segment's grid, one sample a step); the segment itself when it was
+    not resampled (its stamps already regular); ``None`` when its stamps give no regular clock."""
+    if segment.recorded is None:
+        return segment
+    recorded = segment.recorded
+    clock = regular_clock(recorded.t)
+    if clock is None:
+        return None
+    metadata = {key: value for key, value in segment.metadata.items() if key not in ("resampled_from", "recorded_stamps")}
+    metadata["time_base"] = "regular"
+    return Measurements(clock, recorded.q, recorded.dq, recorded.ddq, recorded.tau, recorded.wrench, metadata)

@@ -40,6 +40,7 @@ from dynamics.transmission_files import transmission_from_json
 from estimation.data.log_cleaning import DEFAULT_MAX_GAP
 from estimation.data.motor_side import read_record_with_transmission
 from estimation.data.rest import coulomb_combinations, drop_rest
+from estimation.data.sampling_clock import on_regular_clock
 from estimation.estimators.effect_blocks import States
 from estimation.identification.model_file import ModelFile, ModelFileError, read_model_file
 from estimation.identification.shaped import shaped_blocks
@@ -70,7 +71,20 @@ def preprocessing_from_dict(document: dict[str, Any] | None) -> Preprocessing:
         fields["order"] = int(document["filter_order"])
     if "velocity_from_positions" in document:
         fields["velocity_from_positions"] = bool(document["velocity_from_positions"])
+    if document.get("time_base") == "regular":
+        fields["time_base"] = "regular"
     return Preprocessing(**fields)
+
+
+def recorded_stamps(t: NDArray[np.float64], segments: Sequence[Measurements],
+                    stamped: Sequence[Measurements]) -> NDArray[np.float64]:
+    """For each instant of ``t`` (of ``segments``, some on their regular clock), the stamp its sample was recorded
+    with (``stamped``: the same segments at their stamps, row for row)."""
+    stamp_of: dict[float, float] = {}
+    for segment, original in zip(segments, stamped):
+        if segment is not original:  # on its regular clock: one row of it a recorded row
+            stamp_of.update(zip(segment.t.tolist(), original.as_recorded.t.tolist()))
+    return np.array([stamp_of.get(instant, instant) for instant in t.tolist()])
 
 
 @dataclass(frozen=True)
@@ -136,6 +150,9 @@ class Prediction:
         ``(N, m)`` the channels as recorded on those samples (``None`` when the record has none).
     channels
         Channel names.
+    stamps
+        ``(N,)`` the samples' time stamps as recorded when :attr:`t` is another time base (the regular clock of a
+        model file whose preprocessing says ``time_base: regular``); ``None``: :attr:`t` is the stamps.
     """
 
     t: NDArray[np.float64]
@@ -144,6 +161,7 @@ class Prediction:
     upper: NDArray[np.float64]
     measured: NDArray[np.float64] | None
     channels: tuple[str, ...]
+    stamps: NDArray[np.float64] | None = None
 
     @property
     def mse(self) -> dict[str, float]:
@@ -155,8 +173,9 @@ class Prediction:
     def columns(self) -> dict[str, NDArray[np.float64]]:
         """``t``, then per channel its prediction, ``_lo`` and ``_hi``, then (when the record holds the channels)
         per channel ``_measured`` (as recorded) and ``_residual`` (measured minus predicted): the CSV of
-        ``oed predict``."""
-        table = {"t": self.t}
+        ``oed predict``. ``t`` holds the stamps as recorded; on a regular clock (:attr:`stamps`) its instants
+        come last, as ``t_clock`` (a reader of the other columns unchanged)."""
+        table = {"t": self.t if self.stamps is None else self.stamps}
         for index, channel in enumerate(self.channels):
             table[channel] = self.predicted[:, index]
             table[f"{channel}_lo"] = self.lower[:, index]
@@ -165,6 +184,8 @@ class Prediction:
             for index, channel in enumerate(self.channels):
                 table[f"{channel}_measured"] = self.measured[:, index]
                 table[f"{channel}_residual"] = self.measured[:, index] - self.predicted[:, index]
+        if self.stamps is not None:
+            table["t_clock"] = self.t
         return table
 
     def plot(self, path: str | Path | None = None, *, title: str = "", max_points: int = 4000) -> Figure:
@@ -401,6 +422,10 @@ class IdentifiedModel:
     def read(self, paths: Sequence[str | Path]) -> tuple[Measurements, ...]:
         """The segments of the files, motor-side columns converted by the model's transmission, the model file's
         ``joint_offsets`` added to the joint positions."""
+        return self.on_time_base(self.read_as_stamped(paths))
+
+    def read_as_stamped(self, paths: Sequence[str | Path]) -> tuple[Measurements, ...]:
+        """The segments of the files at their stamps, whatever the model file's time base (:meth:`read`)."""
         max_gap = DEFAULT_MAX_GAP if self.file.max_gap is None else float(self.file.max_gap)
         segments: list[Measurements] = []
         for path in paths:
@@ -409,6 +434,22 @@ class IdentifiedModel:
                                                           joint_offsets=self.file.joint_offsets,
                                                           joint_directions=self.file.joint_directions))
         return tuple(segments)
+
+    def on_time_base(self, segments: Sequence[Measurements]) -> tuple[Measurements, ...]:
+        """``segments`` on the model file's time base: as they are for ``stamps``; each resampled one on its regular
+        clock for ``regular`` (:func:`estimation.data.sampling_clock.on_regular_clock`), one whose stamps give no
+        regular clock kept at its stamps, said."""
+        if self.preprocessing.time_base != "regular":
+            return tuple(segments)
+        moved = []
+        for segment in segments:
+            clocked = on_regular_clock(segment)
+            if clocked is None:
+                warnings.warn(f"{segment.metadata.get('source', 'the record')}: the model was identified with the "
+                              "samples on a regular clock, but this record's stamps give none (a dropped row or a "
+                              "stall inside a segment): its samples are taken at their stamps", stacklevel=3)
+            moved.append(segment if clocked is None else clocked)
+        return tuple(moved)
 
     def prepare(self, segments: Sequence[Measurements]) -> Measurements:
         """Derive the motion as the model's preprocessing says and drop the rows at rest as it did."""
@@ -455,10 +496,14 @@ class IdentifiedModel:
     def evaluate(self, paths: Sequence[str | Path]) -> Evaluation:
         """Read ``paths`` (the segments of one record), prepare them, predict and compare (``oed predict``); a
         record that leaves the joints' training range is said (:meth:`check_range`)."""
-        segments = self.read(paths)
+        stamped = self.read_as_stamped(paths)
+        segments = self.on_time_base(stamped)
         prepared = self.prepare(segments)
         trivial = trivial_mse(self.model, prepared)
         check = self.check_range(prepared)
-        return Evaluation(self.predict_record(prepared), trivial["zero_mse"], trivial["nominal_mse"],
+        prediction = self.predict_record(prepared)
+        if any(segment is not original for segment, original in zip(segments, stamped)):
+            prediction = dataclasses.replace(prediction, stamps=recorded_stamps(prediction.t, segments, stamped))
+        return Evaluation(prediction, trivial["zero_mse"], trivial["nominal_mse"],
                           self.floor(segments),
                           self.reported_validation_mse, self.estimate, check)

@@ -49,6 +49,7 @@ from estimation.data.rest import (
 from estimation.identification.preprocessing_choice import PreprocessingChoice, choose_by_evidence, scored_window
 from estimation.identification.preprocessing_on_validation import FITS, another_motion, on_validation, window
 from estimation.identification.repeated_motion import still_spans_note
+from estimation.identification.time_base_choice import choose_time_base, receive_times_evidence, regular_segments
 from estimation.preprocessing.differentiation import AverageChoice
 from estimation.uncertainty.noise_floor import NoiseFloor, NoiseFloorError, noise_floor, pooled_floor
 from estimation.preprocessing.plan import (
@@ -316,23 +317,27 @@ def prepare_records(model: IdentificationModel, train: Sequence[str | Path], val
         if note is not None:
             warnings.warn(note, stacklevel=2)
     with step("preprocessing chosen"):
-        train_segments = [segment for file in train_files for segment in file.segments]
         chooser = None
         if settings.validation_fits and held_out["validation"] and settings.plan is None and not settings.drops_rest():
             chooser = model if settings.validation_model is None else settings.validation_model
             if tuple(chooser.channels) != tuple(model.channels):
                 raise ValueError(f"validation_model has channels {chooser.channels}, the records {model.channels}")
-        validation_segments = [segment for file in held_out["validation"] or () for segment in file.segments]
-        choice = choose_plan(model, train_segments, settings,
-                             [segment for files in held_out.values() if files for file in files
-                              for segment in file.segments],
-                             sums_model=chooser if chooser is not None and shares_training_sums(
-                                 settings, train_segments, validation_segments) else None)
-        preprocessing = choice.chosen
-        if chooser is not None:
-            preprocessing = on_validation(preprocessing, chooser, train_segments, validation_segments,
-                                          fits=settings.validation_fits, jobs=settings.jobs,
-                                          training_sums=choice.training_sums)
+        preprocessing = chosen_preprocessing(model, train_files, held_out, settings, chooser)
+        ratio = None if chooser is None else receive_times_evidence(
+            [segment for files in (train_files, held_out["validation"]) for file in files or ()
+             for segment in file.segments])
+        if ratio is not None and preprocessing.evidence is not None \
+                and preprocessing.evidence.selection == "validation":  # the stamps may be receive times
+            on_clock = {role: on_regular_clock_files(files) for role, files in
+                        (("training", train_files), *held_out.items())}
+            if all(on_clock[role] is not None for role, files in
+                   (("training", train_files), *held_out.items()) if files is not None):
+                clock_plan = chosen_preprocessing(model, on_clock["training"] or (), {
+                    role: on_clock[role] for role in held_out}, settings, chooser)
+                preprocessing = choose_time_base(preprocessing, clock_plan, chooser.channels, ratio)
+                if preprocessing.time_base == "regular":
+                    train_files = on_clock["training"] or ()
+                    held_out = {role: on_clock[role] for role in held_out}
     if preprocessing.method == "measured" and settings.held_torques:
         warnings.warn("held torques: nothing to align, the data hold measured dq and ddq", stacklevel=2)
     with step("records prepared"):
@@ -344,6 +349,36 @@ def prepare_records(model: IdentificationModel, train: Sequence[str | Path], val
     records = {role: None if record is None else _without_rest(record, model, settings, role)
                for role, record in prepared.items()}
     return PreparedRecords(preprocessing, records["train"], records["validation"], records["test"])
+
+
+def chosen_preprocessing(model: IdentificationModel, train_files: Sequence[RecordedFile],
+                         held_out: dict[str, Sequence[RecordedFile] | None], settings: PreparationSettings,
+                         chooser: IdentificationModel | None) -> Preprocessing:
+    """The preprocessing of the training files (:func:`choose_plan`), chosen again on the validation record by
+    ``chooser``'s fits when it is given (:func:`~estimation.identification.preprocessing_on_validation.on_validation`)."""
+    train_segments = [segment for file in train_files for segment in file.segments]
+    validation_segments = [segment for file in held_out["validation"] or () for segment in file.segments]
+    choice = choose_plan(model, train_segments, settings,
+                         [segment for files in held_out.values() if files for file in files
+                          for segment in file.segments],
+                         sums_model=chooser if chooser is not None and shares_training_sums(
+                             settings, train_segments, validation_segments) else None)
+    if chooser is None:
+        return choice.chosen
+    return on_validation(choice.chosen, chooser, train_segments, validation_segments, fits=settings.validation_fits,
+                         jobs=settings.jobs, training_sums=choice.training_sums)
+
+
+def on_regular_clock_files(files: Sequence[RecordedFile] | None) -> tuple[RecordedFile, ...] | None:
+    """``files`` with every segment on its regular clock
+    (:func:`~estimation.identification.time_base_choice.regular_segments`); ``None`` when one segment gives none
+    (or no files)."""
+    if files is None:
+        return None
+    moved = [(file, regular_segments(file.segments)) for file in files]
+    if any(segments is None for _, segments in moved):
+        return None
+    return tuple(RecordedFile(file.path, segments) for file, segments in moved if segments is not None)
 
 
 def training_without_holds(files: Sequence[RecordedFile], max_gap: float) -> tuple[RecordedFile, ...]:

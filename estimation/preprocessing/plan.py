@@ -42,6 +42,9 @@ from estimation.preprocessing.differentiation import (
 from estimation.data.segments import as_segments, check_same_columns, column_set, concatenate
 
 Method = Literal["measured", "fourier", "butterworth"]
+#: the instants the samples are placed at: their stamps as recorded, or the regular clock the stamps jitter around
+#: (:func:`estimation.data.sampling_clock.regular_clock`; :mod:`estimation.identification.time_base_choice`)
+TimeBase = Literal["stamps", "regular"]
 
 #: harmonics of the fit for a given frequency, unless told (the PUMA paper's 5)
 GIVEN_HARMONICS = 5
@@ -217,6 +220,13 @@ class Preprocessing:
     evidence
         The candidates scored when the choice was made on held-out data (``None`` for a fixed rule); not part
         of the plan's identity.
+    time_base
+        ``stamps`` (default): the samples at their time stamps; ``regular``: on the regular clock the stamps
+        jitter around, one sample a step (:mod:`estimation.identification.time_base_choice`: a logger's receive
+        times), every record read alike (training, validation, test, ``oed predict``'s).
+    time_base_evidence
+        When both time bases were scored on the validation record: each one's score (``stamps``, ``regular``)
+        and the receive-times ratio that called for it (``ratio``); not part of the plan's identity.
     """
 
     method: Method
@@ -231,10 +241,12 @@ class Preprocessing:
     held_torques: bool = False
     velocity_from_positions: bool = False
     evidence: Evidence | None = field(default=None, compare=False, repr=False)
+    time_base: TimeBase = "stamps"
+    time_base_evidence: Mapping[str, float] | None = field(default=None, compare=False, repr=False)
 
     def without_evidence(self) -> Preprocessing:
         """The plan alone."""
-        return replace(self, evidence=None)
+        return replace(self, evidence=None, time_base_evidence=None)
 
     def to_dict(self) -> dict[str, Any]:
         """``{method, frequency_hz, harmonics, frequency_source, average_periods | cutoff_hz, filter_order,
@@ -255,7 +267,24 @@ class Preprocessing:
                 document["validation_candidates"] = [candidate.to_dict() for candidate in self.evidence.validation]
             if self.evidence.held_out_choice is not None:
                 document["held_out_choice"] = self.evidence.held_out_choice.describe_method()
+        if self.time_base != "stamps" or self.time_base_evidence is not None:
+            document["time_base"] = self.time_base
+        if self.time_base_evidence is not None:
+            document["time_base_scores"] = {key: float(value) for key, value in self.time_base_evidence.items()
+                                            if key in ("stamps", "regular")}
+            document["receive_times_ratio"] = float(self.time_base_evidence["ratio"])
         return document
+
+    def describe_time_base(self) -> str:
+        """The time base in a few words, with both clocks' validation scores when they were compared; empty for the
+        stamps when nothing was compared."""
+        evidence = self.time_base_evidence
+        if evidence is None:
+            return "" if self.time_base == "stamps" else "samples on a regular clock"
+        chosen = "samples on a regular clock" if self.time_base == "regular" else "samples at their stamps"
+        return (f"{chosen}, chosen on the validation record (the stamps look like receive times: the positions "
+                f"{evidence['ratio']:.3g} times smoother on a regular clock; score {evidence['regular']:.4g} on a "
+                f"regular clock, {evidence['stamps']:.4g} at the stamps)")
 
     def describe_method(self) -> str:
         """The derivative method in a few words."""
@@ -279,7 +308,8 @@ class Preprocessing:
         else:
             text = "measured dq, ddq"
         extras = ([f"decimated by {self.decimation}"] if self.decimation > 1 else []) + \
-            (["held torques"] if self.held_torques else [])
+            (["held torques"] if self.held_torques else []) + \
+            ([self.describe_time_base()] if self.describe_time_base() else [])
         if applied:
             how = "the model file's preprocessing, applied to this record"
         elif self.evidence is not None and self.evidence.selection in ("validation", "repeat"):

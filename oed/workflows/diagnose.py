@@ -59,6 +59,7 @@ from estimation.preprocessing.plan import Preprocessing
 from estimation.streaming.settings import DEFAULT_SUBSAMPLE, FLOOR_WINDOW
 from estimation.identification.model_file import summed_model_file_document
 from estimation.identification.friction_drift import FrictionDrift, check_friction_drift
+from estimation.identification.time_base_choice import STREAMED_TIME_BASE
 from estimation.identification.joint_zeros import JointZeroCheck
 from estimation.identification.training_range import RangeCheck, TrainingRange, merged_ranges
 from estimation.estimators.normal_equations import DEFAULT_CHUNK_SIZE
@@ -1073,7 +1074,8 @@ def diagnosis_streamed(args: DiagnoseOptions, friction: str, plan: Preprocessing
     fourier = plan.method == "fourier" and delay is None and not model_has_shapes(model)
     diagnosis = replace(diagnosis, not_computed={**{key: reason for key, reason in diagnosis.not_computed.items()
                                                     if key not in SELECTION_KEYS},  # computed now
-                                                 **({"friction_drift": FOURIER_CHECKS} if fourier else {})})
+                                                 **({"friction_drift": FOURIER_CHECKS} if fourier else {}),
+                                                 "time_base": STREAMED_TIME_BASE})
     if checked is not None and checked[1]:  # the gains taken, not applied (divided_diagnosis could not): said
         gains_note = streamed_gains_note(checked)
         if gains_note is not None:

@@ -47,6 +47,7 @@ from estimation.identification.model_file import summed_model_file_document
 from estimation.identification.mount import MountCheck
 from estimation.identification.report import identification_report
 from estimation.identification.friction_drift import FrictionDrift, check_friction_drift
+from estimation.identification.time_base_choice import STREAMED_TIME_BASE
 from estimation.identification.training_range import RangeCheck, TrainingRange, merged_ranges
 from estimation.identification.trivial_predictors import trivial_warnings
 from estimation.identification.undetermined import MergedColumn, merged_one_way
@@ -444,6 +445,8 @@ def identify_document(args: IdentifyOptions, identified: Identified) -> tuple[di
         document["validation"]["mse_over_floor"] = None  # no floor, or no error against the recording
     drift = identified.friction_drift
     document["friction_drift"] = None if drift is None else drift.to_dict()
+    if result.path == "streamed" and args.validate:
+        document["not_computed"]["time_base"] = STREAMED_TIME_BASE
     said = add_training_range(document, identified.training_range, identified.range_checks)
     if said:  # a validation record beyond the training range: the choice measured some extrapolation
         messages += said
