@@ -33,11 +33,8 @@ from dynamics.models import IdentificationModel, ModelKind
 from estimation.data.segments import segment_slices
 from estimation.uncertainty.batch_means import batch_length, batch_means
 
-__all__ = ["DRIFT_ALPHA", "STREAMED_DRIFT", "FRICTION_SYMBOLS", "FrictionDrift", "check_friction_drift", "drift_z"]
+__all__ = ["DRIFT_ALPHA", "FRICTION_SYMBOLS", "FrictionDrift", "check_friction_drift", "drift_z"]
 
-#: why the streamed path had no ``friction_drift`` (``result.json``'s ``not_computed``) until it checked the drift on
-#: the samples memory keeps (:mod:`estimation.streaming.description_checks`); no verb says it now, the name stays
-STREAMED_DRIFT = "checked in memory only: the records read in blocks are not held to fit the two together"
 #: the family-wise level of the check over a robot's joints (two-sided; Bonferroni)
 DRIFT_ALPHA = 0.01
 #: the parameter symbols of a joint's friction (viscous, Coulomb, Stribeck) whose scale the check measures
