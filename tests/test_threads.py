@@ -21,8 +21,9 @@ def _blas_threads() -> list[int]:
 
 
 @pytest.fixture
-def two_blas_threads():
-    """The BLAS thread counts before the test, when a limit to one can be seen in them.
+def two_blas_threads(default_blas_threads):
+    """The BLAS thread counts before the test, when a limit to one can be seen in them (the xdist worker's own
+    limit to one lifted: ``default_blas_threads`` of ``tests/conftest.py``).
 
     (Not set with ``threadpool_limits(2)`` here: OpenBLAS keeps a count set from the main thread
     against later changes from other threads.)

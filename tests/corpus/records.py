@@ -13,7 +13,7 @@ import dataclasses
 import warnings
 from collections.abc import Iterable
 from dataclasses import dataclass
-from functools import lru_cache
+from functools import cache, lru_cache
 from typing import Any
 
 import numpy as np
@@ -154,7 +154,24 @@ def validation_floor(case: Case) -> NoiseFloor | None:
 
 
 def run(case: Case, *, candidates: Iterable | None = None, **options: Any) -> tuple[Diagnosis, Outcome]:
-    """The case diagnosed (``options``: more keywords of :func:`~estimation.diagnosis.search.diagnose`)."""
+    """The case diagnosed (``options``: more keywords of :func:`~estimation.diagnosis.search.diagnose`).
+
+    With the default candidates and options the run is deterministic and read-only for its callers (frozen results),
+    so it is made once per test process and shared: ``test_library_cases`` and ``test_one_statistic`` check the same
+    diagnoses of the same cases."""
+    if candidates is None and not options:
+        return default_run(case)
+    return diagnosed(case, candidates=candidates, **options)
+
+
+@cache
+def default_run(case: Case) -> tuple[Diagnosis, Outcome]:
+    """:func:`run` with the default candidates and options, once per case and process (about 1.4 MB each)."""
+    return diagnosed(case)
+
+
+def diagnosed(case: Case, *, candidates: Iterable | None = None, **options: Any) -> tuple[Diagnosis, Outcome]:
+    """The case simulated and diagnosed anew (:func:`run` without the cache)."""
     train, validate = records(case)
     diagnosis = diagnose(declared_model(), train, validate, candidates=candidates, noise_floor=validation_floor(case),
                          **options)
