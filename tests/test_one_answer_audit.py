@@ -331,7 +331,14 @@ OPTION_CASES = {
 }
 
 
-@pytest.mark.parametrize("case", list(OPTION_CASES))
+#: the costliest option cases (a jittered log read in blocks with --held-torques: 13-16 s each, quiet), run by
+#: ``make test-slow``; the default suite keeps the same options streamed on the periodic record, the jittered record
+#: in memory with --held-torques, and the jittered record streamed without it (``test_every_model_a_verb_reports...``)
+SLOW_OPTION_CASES = ("jittered identify streamed --held-torques", "jittered diagnose streamed --held-torques")
+
+
+@pytest.mark.parametrize("case", [pytest.param(case, marks=pytest.mark.slow) if case in SLOW_OPTION_CASES else case
+                                  for case in OPTION_CASES])
 def test_derivative_options_and_two_validation_records_keep_one_answer(records, case, capsys):
     """With ``--held-torques`` or ``--decimate`` and two validation records (``--validate`` twice), the validation
     error reported for the chosen model is what ``oed predict`` measures on both records (given as segments)."""
