@@ -86,15 +86,21 @@ def simulated(folder, at_stamps: bool) -> dict[str, str]:
     return paths
 
 
-@pytest.mark.slow
-def test_receive_time_stamps_choose_the_regular_clock_and_predict_follows_it(tmp_path):
-    paths = simulated(tmp_path, at_stamps=False)
+def _identified(tmp_path, paths):
+    """The default ``oed identify`` (viscous friction) on the simulated training and validation records: the result
+    file's path and its document."""
     result = tmp_path / "result.json"
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         assert main(["identify", "--joints", "3", "--friction", "viscous", "--data", paths["train"],
                      "--validate", paths["validate"], "--out", str(result), "--quiet"]) == 0
-    document = json.loads(result.read_text())
+    return result, json.loads(result.read_text())
+
+
+@pytest.mark.slow
+def test_receive_time_stamps_choose_the_regular_clock_and_predict_follows_it(tmp_path):
+    paths = simulated(tmp_path, at_stamps=False)
+    result, document = _identified(tmp_path, paths)
     preprocessing = document["preprocessing"]
     assert preprocessing["time_base"] == "regular"
     scores = preprocessing["time_base_scores"]
@@ -123,10 +129,6 @@ def test_receive_time_stamps_choose_the_regular_clock_and_predict_follows_it(tmp
 @pytest.mark.slow
 def test_samples_taken_at_their_stamps_keep_the_stamps_and_score_nothing_twice(tmp_path):
     paths = simulated(tmp_path, at_stamps=True)
-    result = tmp_path / "result.json"
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        assert main(["identify", "--joints", "3", "--friction", "viscous", "--data", paths["train"],
-                     "--validate", paths["validate"], "--out", str(result), "--quiet"]) == 0
-    preprocessing = json.loads(result.read_text())["preprocessing"]
+    _, document = _identified(tmp_path, paths)
+    preprocessing = document["preprocessing"]
     assert "time_base" not in preprocessing and "time_base_scores" not in preprocessing
