@@ -14,7 +14,9 @@ a regular log (derivatives logged), a periodic one (a Fourier fit of averaged pe
 * ``oed export`` writes the chosen model, or names the consistent alternative it writes instead, or refuses a file
   without bodies (exit 2, nothing written);
 * the printed summary and the report (``--report``, on the streamed path too: no figures, what the path did not
-  compute) give the chosen model's validation error.
+  compute) give the chosen model's validation error; the errors over the noise floor are those errors', and the
+  standard deviations of identify's parameters its covariance's (the checks of ``tests/test_one_model.py``, whose
+  runs on the same records are these cases': that file runs in ``make test-slow``).
 
 Beside: ``--held-torques``, ``--decimate`` and two validation records; and, on a record whose third joint's viscous
 coefficient is negative, that ``identify --consistent`` says the consistent model's warning and deviations, the
@@ -25,6 +27,7 @@ Small simulated 3-joint PUMA records (a few seconds each case)."""
 from __future__ import annotations
 
 import json
+import re
 import xml.etree.ElementTree as ElementTree
 
 import numpy as np
@@ -56,7 +59,12 @@ PATHS = {"in-memory": [], "chunks": ["--chunk-size", "250"], "budget": ["--memor
 IN_MEMORY_ONLY = ("identify --consistent", "diagnose --test")
 #: the options a record needs: the period of the periodic one
 RECORD_OPTIONS = {"periodic": ["--frequency", "0.2"]}
-CASES = [pytest.param(verb, path, record, id=f"{record}-{verb}-{path}")
+#: ``--memory-budget`` is the defaults' own route to the streamed path, the reading and the result as with
+#: ``--chunk-size``: ``make test`` takes that route on the jittered record (every verb it streams); on the arm and the
+#: periodic records, whose streamed path the chunks cases take, it runs in ``make test-slow``
+SLOW_BUDGET_RECORDS = ("arm", "periodic")
+CASES = [pytest.param(verb, path, record, id=f"{record}-{verb}-{path}",
+                      marks=[pytest.mark.slow] if path == "budget" and record in SLOW_BUDGET_RECORDS else [])
          for record in ("arm", "periodic", "jittered") for verb in VERBS for path in PATHS
          if path == "in-memory" or verb not in IN_MEMORY_ONLY]
 
@@ -162,8 +170,17 @@ def test_every_model_a_verb_reports_is_the_one_predict_measures(records, verb, p
         assert chosen == "consistent"
     elif verb.endswith("ols"):
         assert chosen == "ols"
-    # the summary and the report give the chosen model's validation error
+    # the summary and the report give the chosen model's validation error (the diagnosis's line naming its model)
     assert "  ".join(f"{channel} {value:.4g}" for channel, value in reported.items()) in printed, printed
+    assert re.search(rf"validation MSE.*\({chosen}\)" if verb.startswith("diagnose") else "validation MSE",
+                     printed), printed
+    # the errors over the noise floor are those errors' (on a jittered log too)
+    floor = (document.get("noise_floor") or {}).get("mse")
+    for errors in ([document["validation"]["after"], document["validation"]["chosen"]] if verb.startswith("diagnose")
+                   else [document["validation"]]):
+        if floor and errors.get("mse_over_floor"):
+            assert errors["mse_over_floor"] == pytest.approx({c: v / floor[c] for c, v in errors["mse"].items()},
+                                                             rel=1e-12)
     if report_option:
         text = report.read_text()
         assert ("<img" not in text and "Not computed on this path" in text) if streamed else "<img" in text
@@ -177,7 +194,7 @@ def test_every_model_a_verb_reports_is_the_one_predict_measures(records, verb, p
 
     # the chosen model: predict on the validation record reproduces its reported error, at the recorded samples
     metrics, predictions = predicted(folder, out, paths[record, "validate"])
-    assert metrics["model"] == chosen
+    assert metrics["model"] == chosen and metrics["reported_validation_mse"] == reported
     assert relative(metrics["mse"], reported) < RELATIVE, (metrics["mse"], reported)
     if record == "jittered":
         check_recorded_rows(predictions, paths[record, "validate"], metrics)
@@ -203,6 +220,9 @@ def test_every_model_a_verb_reports_is_the_one_predict_measures(records, verb, p
             [values[name] for name in document["model_parameters"]["names"]], rel=1e-12)
         assert document["validation"]["model"] == document["train"]["model"] == chosen
         assert document.get("shape_std", {}) == (model_file.get("shape_std") or {})
+        if not streamed:  # the standard deviations are the chosen model's covariance's
+            assert [p["std"] for p in document["parameters"]] == pytest.approx(np.sqrt(np.diag(model_file["cov"])),
+                                                                               rel=1e-12)
     else:
         # the runner-up's model file: its reported validation error is what predict measures with it
         runner_up = document.get("runner_up")

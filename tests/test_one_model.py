@@ -2,7 +2,12 @@
 top-level ``validation``, report.json's ``validation.chosen``, the printed summary) is what ``oed predict`` measures
 on the same record (relative 1e-6), with the model the file holds by default; ``oed export`` writes that model, or
 names the consistent alternative it writes instead, or refuses a file without bodies. On a simulated 3-joint PUMA
-(logged q, dq, ddq) and on a jittered log (stamps moved, rows re-sent, a stall; positions and torques only)."""
+(logged q, dq, ddq) and on a jittered log (stamps moved, rows re-sent, a stall; positions and torques only).
+
+Run by ``make test-slow``: its records are ``tests/test_one_answer_audit.py``'s arm and jittered records (the same
+simulations, seeds and faults) and its twelve runs are among that audit's cases, which make every check this file
+makes; ``make test`` takes them all but the arm record's runs past ``--memory-budget`` (its jittered record's are
+taken)."""
 
 from __future__ import annotations
 
@@ -24,6 +29,8 @@ from tests.test_recorded_stamps import logger_faults
 NOISE = {"tau1": 0.2, "tau2": 0.2, "tau3": 0.1}
 EFFECTS = "viscous,coulomb,offset"
 RELATIVE = 1e-6
+
+pytestmark = pytest.mark.slow
 
 VERBS = {
     "identify": ["identify", "--friction", EFFECTS],
