@@ -117,14 +117,32 @@ def _close(memory: dict[str, float], streamed: dict[str, float], what: str, tole
         assert streamed[channel] == pytest.approx(value, rel=tolerance), f"{what}: {channel}"
 
 
+@pytest.fixture(scope="module")
+def in_memory(logs, tmp_path_factory):
+    """``oed identify`` in memory on a defective log, run once a module (the identify and the memory-budget tests
+    compare their streamed runs with the same one; the runs are deterministic, their results read only): the
+    document, the warnings said and the error output, by defect."""
+    folder, runs = tmp_path_factory.mktemp("parity_in_memory"), {}
+
+    def run(kind: str, capsys) -> tuple[dict, list[str]]:
+        if kind not in runs:
+            out = folder / f"{kind}.json"
+            code, said, error = _run("identify", logs, kind, out, capsys)
+            assert code == 0, error
+            runs[kind] = json.loads(out.read_text()), said
+        return runs[kind]
+
+    return run
+
+
 @pytest.mark.parametrize("kind", KINDS)
-def test_identify_streamed_reads_a_defective_log_as_in_memory(logs, kind, tmp_path, capsys):
+def test_identify_streamed_reads_a_defective_log_as_in_memory(logs, in_memory, kind, tmp_path, capsys):
     documents, said = {}, {}
-    for mode, options in (("memory", ()), ("streamed", ("--chunk-size", CHUNK))):
-        out = tmp_path / f"{mode}.json"
-        code, said[mode], error = _run("identify", logs, kind, out, capsys, *options)
-        assert code == 0, error
-        documents[mode] = json.loads(out.read_text())
+    documents["memory"], said["memory"] = in_memory(kind, capsys)
+    out = tmp_path / "streamed.json"
+    code, said["streamed"], error = _run("identify", logs, kind, out, capsys, "--chunk-size", CHUNK)
+    assert code == 0, error
+    documents["streamed"] = json.loads(out.read_text())
     memory, streamed = documents["memory"], documents["streamed"]
     assert streamed["identification_path"] == "streamed" and memory["identification_path"] != "streamed"
     assert said["streamed"] == said["memory"]
@@ -147,6 +165,10 @@ def test_identify_streamed_reads_a_defective_log_as_in_memory(logs, kind, tmp_pa
     assert main(["predict", "--model", str(tmp_path / "streamed.json"), "--data", str(logs / f"val_{kind}.csv"),
                  "--metrics", str(metrics)]) == 0
     _close(streamed["validation"]["mse"], json.loads(metrics.read_text())["mse"], "predict", tolerance)
+    if kind in ("jitter", "stall"):  # tests/test_streamed_training_errors.py's logs and runs: its checks, here
+        from tests.test_streamed_training_errors import assert_training_errors_alike
+
+        assert_training_errors_alike(memory, streamed, kind)
 
 
 @pytest.mark.slow
@@ -169,15 +191,15 @@ def test_receive_time_stamps_the_regular_clock_in_memory_the_stamps_streamed_and
 
 
 @pytest.mark.parametrize("kind", ["hole", "duplicated", "jitter"])
-def test_past_the_memory_budget_the_defaults_read_as_in_memory(logs, kind, tmp_path, capsys):
+def test_past_the_memory_budget_the_defaults_read_as_in_memory(logs, in_memory, kind, tmp_path, capsys):
     """The defaults' own route to the streamed path (the record past ``--memory-budget``): the same answer, and each
     finding said once (when the path is decided), as in memory."""
     documents, said = {}, {}
-    for mode, options in (("memory", ()), ("streamed", ("--memory-budget", "1KB"))):
-        out = tmp_path / f"{mode}.json"
-        code, said[mode], error = _run("identify", logs, kind, out, capsys, *options)
-        assert code == 0, error
-        documents[mode] = json.loads(out.read_text())
+    documents["memory"], said["memory"] = in_memory(kind, capsys)
+    out = tmp_path / "streamed.json"
+    code, said["streamed"], error = _run("identify", logs, kind, out, capsys, "--memory-budget", "1KB")
+    assert code == 0, error
+    documents["streamed"] = json.loads(out.read_text())
     assert documents["streamed"]["identification_path"] == "streamed"
     assert said["streamed"] == said["memory"]
     _close(documents["memory"]["validation"]["mse"], documents["streamed"]["validation"]["mse"], "validation")

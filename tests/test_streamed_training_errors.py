@@ -59,14 +59,9 @@ def _close(memory: dict[str, float], streamed: dict[str, float], what: str) -> N
         assert streamed[channel] == pytest.approx(value, rel=1e-6), f"{what}: {channel}"
 
 
-@pytest.mark.parametrize(("kind", "options"), [
-    ("jitter", ()), ("stall", ()), ("jitter", ("--decimate", "2")), ("clean", ()),
-    ("periodic_clean", ("--frequency", "0.25", "--method", "wls")),
-    ("periodic_stall", ("--frequency", "0.25", "--method", "wls"))])
-def test_streamed_training_errors_and_sample_count_are_the_in_memory_ones(logs, tmp_path, capsys, kind, options):
-    memory = _identify(logs, kind, tmp_path / "memory.json", *options)
-    streamed = _identify(logs, kind, tmp_path / "streamed.json", "--chunk-size", CHUNK, *options)
-    capsys.readouterr()
+def assert_training_errors_alike(memory: dict, streamed: dict, kind: str) -> None:
+    """The streamed identification's sample count and training errors are the in-memory one's (``kind``: the log's
+    defect, a grid of another length for a jittered or stalled log)."""
     assert streamed["identification_path"] == "streamed" and memory["identification_path"] != "streamed"
     assert streamed["chosen"] == memory["chosen"]
     assert streamed["n_samples"] == memory["n_samples"]  # the recorded samples, not the grid's
@@ -75,16 +70,32 @@ def test_streamed_training_errors_and_sample_count_are_the_in_memory_ones(logs, 
         assert files[0]["samples"] != memory["n_samples"]
     if kind.startswith("periodic"):  # the sums hold one averaged period, the error every sample of the periods
         assert files[0]["samples"] < memory["n_samples"]
-        metrics = tmp_path / "metrics.json"  # a stalled validation log on this path: measured as predict measures it
-        assert main(["predict", "--model", str(tmp_path / "streamed.json"), "--data", str(logs / f"val_{kind}.csv"),
-                     "--metrics", str(metrics)]) == 0
-        _close(json.loads(metrics.read_text())["mse"], streamed["validation"]["mse"], "validation (predict)")
     assert streamed["train"]["mse"] is not None
     _close(memory["train"]["mse"], streamed["train"]["mse"], "train mse (vs recorded)")
     _close(memory["train"]["mse_filtered"], streamed["train"]["mse_filtered"], "train mse_filtered")
     _close(memory["validation"]["mse"], streamed["validation"]["mse"], "validation")
     # the model file's prediction band: the training error against the recording, as in memory
     _close(memory["model_file"]["recorded_variance"], streamed["model_file"]["recorded_variance"], "recorded_variance")
+
+
+#: the jittered and the stalled log with the default options are tests/test_streamed_reader_parity.py's ``jitter`` and
+#: ``stall`` logs and runs (the same simulations, defects and seeds), which check them with
+#: :func:`assert_training_errors_alike` in ``make test``; here they run in ``make test-slow``
+@pytest.mark.parametrize(("kind", "options"), [
+    pytest.param("jitter", (), marks=pytest.mark.slow), pytest.param("stall", (), marks=pytest.mark.slow),
+    ("jitter", ("--decimate", "2")), ("clean", ()),
+    ("periodic_clean", ("--frequency", "0.25", "--method", "wls")),
+    ("periodic_stall", ("--frequency", "0.25", "--method", "wls"))])
+def test_streamed_training_errors_and_sample_count_are_the_in_memory_ones(logs, tmp_path, capsys, kind, options):
+    memory = _identify(logs, kind, tmp_path / "memory.json", *options)
+    streamed = _identify(logs, kind, tmp_path / "streamed.json", "--chunk-size", CHUNK, *options)
+    capsys.readouterr()
+    assert_training_errors_alike(memory, streamed, kind)
+    if kind.startswith("periodic"):  # a stalled validation log on this path: measured as predict measures it
+        metrics = tmp_path / "metrics.json"
+        assert main(["predict", "--model", str(tmp_path / "streamed.json"), "--data", str(logs / f"val_{kind}.csv"),
+                     "--metrics", str(metrics)]) == 0
+        _close(json.loads(metrics.read_text())["mse"], streamed["validation"]["mse"], "validation (predict)")
 
 
 def _peak(run) -> int:
