@@ -69,14 +69,22 @@ def test_chunks_moved_across_their_boundaries_equal_the_record_moved_whole(robot
     assert all(read is chunk for (read, _), chunk in zip(pairs, chunks))
 
 
-@pytest.mark.parametrize("chunk_size", [97, 1000])
-def test_the_streamed_diagnosis_finds_the_delay_of_memory(files, chunk_size):
-    """The records (1 000 samples) are their own subsamples: the search is memory's, the delay and the effects
-    its own; the sums along the motion moved chunk by chunk give memory's estimate and errors."""
+@pytest.fixture(scope="module")
+def in_memory(files):
+    """The in-memory diagnosis of the records, and the validation record's noise floor it was given: made once for
+    the chunk sizes compared with it (deterministic, read only)."""
     model, paths = files
     train, validate = (read_measurements(path, model=model) for path in paths)
     floor = noise_floor(validate, model.channels)
-    memory = diagnose(model, train, validate, noise_floor=floor)
+    return diagnose(model, train, validate, noise_floor=floor), floor
+
+
+@pytest.mark.parametrize("chunk_size", [97, 1000])
+def test_the_streamed_diagnosis_finds_the_delay_of_memory(files, in_memory, chunk_size):
+    """The records (1 000 samples) are their own subsamples: the search is memory's, the delay and the effects
+    its own; the sums along the motion moved chunk by chunk give memory's estimate and errors."""
+    model, paths = files
+    memory, floor = in_memory
     streamed = diagnose_files(model, paths[:1], paths[1:], chunk_size=chunk_size, noise_floor=floor,
                               delay=DelayBounds())
     assert [(e.spec, e.channels) for e in streamed.effects] == [(e.spec, e.channels) for e in memory.effects]
