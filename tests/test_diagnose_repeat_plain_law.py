@@ -127,7 +127,10 @@ def capped_in_memory(friction):
     return json.loads(out.read_text())
 
 
-@pytest.mark.parametrize("options", [("--chunk-size", "250"), ("--memory-budget", "1KB"), ("jittered",)],
+#: past ``--memory-budget`` the run streams as with ``--chunk-size`` (that route's own findings and answers are checked in
+#: ``make test`` by tests/test_streamed_reader_parity.py and tests/test_one_answer_audit.py's jittered budget cases):
+#: the budget case runs in ``make test-slow``
+@pytest.mark.parametrize("options", [("--chunk-size", "250"), pytest.param(("--memory-budget", "1KB"), marks=pytest.mark.slow), ("jittered",)],
                          ids=["chunk-size", "memory-budget", "jittered-validation"])
 def test_the_streamed_diagnosis_completes_the_plain_law_as_in_memory(friction, capped_in_memory, tmp_path, options):
     """A log streamed (``--chunk-size``, or past ``--memory-budget``) answers the repeat as in memory: the same
