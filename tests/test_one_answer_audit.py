@@ -63,8 +63,17 @@ RECORD_OPTIONS = {"periodic": ["--frequency", "0.2"]}
 #: ``--chunk-size``: ``make test`` takes that route on the jittered record (every verb it streams); on the arm and the
 #: periodic records, whose streamed path the chunks cases take, it runs in ``make test-slow``
 SLOW_BUDGET_RECORDS = ("arm", "periodic")
+
+
+def slow_case(verb: str, path: str, record: str) -> bool:
+    """The cases ``make test-slow`` runs: the budget route on the arm and periodic records, and the in-memory
+    ``diagnose`` without ``--test`` (``diagnose --test`` makes the same diagnosis, every check of this case on it,
+    and scores the test record beside)."""
+    return (path == "budget" and record in SLOW_BUDGET_RECORDS) or (verb == "diagnose" and path == "in-memory")
+
+
 CASES = [pytest.param(verb, path, record, id=f"{record}-{verb}-{path}",
-                      marks=[pytest.mark.slow] if path == "budget" and record in SLOW_BUDGET_RECORDS else [])
+                      marks=[pytest.mark.slow] if slow_case(verb, path, record) else [])
          for record in ("arm", "periodic", "jittered") for verb in VERBS for path in PATHS
          if path == "in-memory" or verb not in IN_MEMORY_ONLY]
 
