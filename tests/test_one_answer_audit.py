@@ -158,6 +158,16 @@ def reported_models(document: dict) -> tuple[str, dict[str, float], dict[str, di
     return chosen, reported, alternatives
 
 
+def check_errors_over_floor(document: dict, diagnosis: bool) -> None:
+    """The validation errors over the noise floor a result reports are those errors' (on a jittered log too)."""
+    floor = (document.get("noise_floor") or {}).get("mse")
+    for errors in ([document["validation"]["after"], document["validation"]["chosen"]] if diagnosis
+                   else [document["validation"]]):
+        if floor and errors.get("mse_over_floor"):
+            assert errors["mse_over_floor"] == pytest.approx({c: v / floor[c] for c, v in errors["mse"].items()},
+                                                             rel=1e-12)
+
+
 @pytest.mark.parametrize(("verb", "path", "record"), CASES)
 def test_every_model_a_verb_reports_is_the_one_predict_measures(records, verb, path, record, capsys):
     folder, paths = records
@@ -183,13 +193,7 @@ def test_every_model_a_verb_reports_is_the_one_predict_measures(records, verb, p
     assert "  ".join(f"{channel} {value:.4g}" for channel, value in reported.items()) in printed, printed
     assert re.search(rf"validation MSE.*\({chosen}\)" if verb.startswith("diagnose") else "validation MSE",
                      printed), printed
-    # the errors over the noise floor are those errors' (on a jittered log too)
-    floor = (document.get("noise_floor") or {}).get("mse")
-    for errors in ([document["validation"]["after"], document["validation"]["chosen"]] if verb.startswith("diagnose")
-                   else [document["validation"]]):
-        if floor and errors.get("mse_over_floor"):
-            assert errors["mse_over_floor"] == pytest.approx({c: v / floor[c] for c, v in errors["mse"].items()},
-                                                             rel=1e-12)
+    check_errors_over_floor(document, verb.startswith("diagnose"))
     if report_option:
         text = report.read_text()
         assert ("<img" not in text and "Not computed on this path" in text) if streamed else "<img" in text

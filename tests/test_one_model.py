@@ -24,6 +24,7 @@ from dynamics.simulation.simulator import Simulator
 from dynamics.simulation.synthetic import simulate, true_parameters
 from oed.cli import main
 from oed.fourier import random_fourier
+from tests.test_one_answer_audit import check_errors_over_floor
 from tests.test_recorded_stamps import logger_faults
 
 NOISE = {"tau1": 0.2, "tau2": 0.2, "tau3": 0.1}
@@ -109,13 +110,7 @@ def test_predict_reproduces_the_reported_error_of_the_chosen_model_and_export_wr
         assert theta == model_file["theta"] and document["model_parameters"]["values"] == theta
         assert [p["std"] for p in document["parameters"]] == pytest.approx(np.sqrt(np.diag(model_file["cov"])),
                                                                            rel=1e-12)
-    # the errors over the noise floor are those errors' (on a jittered log too)
-    floor = (document.get("noise_floor") or {}).get("mse")
-    for errors in ([document["validation"]["after"], document["validation"]["chosen"]] if verb.startswith("diagnose")
-                   else [document["validation"]]):
-        if floor and errors.get("mse_over_floor"):
-            assert errors["mse_over_floor"] == pytest.approx({c: v / floor[c] for c, v in errors["mse"].items()},
-                                                             rel=1e-12)
+    check_errors_over_floor(document, verb.startswith("diagnose"))
     # the summary prints the chosen model's validation error
     numbers = "  ".join(f"{channel} {value:.4g}" for channel, value in reported.items())
     assert re.search(rf"validation MSE.*\({chosen}\)" if verb.startswith("diagnose") else "validation MSE",
