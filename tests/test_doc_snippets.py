@@ -5,7 +5,10 @@ Fenced blocks are taken by their language:
 - ``python``: executed with this interpreter; the blocks of one page run in order in one namespace, so a
   later block may use the names an earlier one defined;
 - ``bash``, ``sh``, ``console``: each line (``\\`` continues it, ``#`` starts a comment, a ``$ `` prompt
-  is dropped) must be an ``oed …`` command and runs as ``python -m oed …``;
+  is dropped) must be an ``oed …`` command. The first documented command of each verb (pages in the order
+  of :func:`documentation_pages`) runs as ``python -m oed …`` in a fresh interpreter, as a user types it;
+  the later ones call ``oed.cli.main`` in this process with the same arguments (the same parser, the same
+  exit codes, without an interpreter's start-up and imports a command);
 - ``text``, ``json``, ``yaml``, ``toml``, ``csv``, ``markdown``: output or file contents, not executed.
 
 Each page runs in a temporary folder of its own, its blocks in document order, so the files one command
@@ -20,7 +23,10 @@ import shlex
 import subprocess
 import sys
 import traceback
+from contextlib import redirect_stderr, redirect_stdout
 from dataclasses import dataclass
+from functools import cache
+from io import StringIO
 from pathlib import Path
 
 import pytest
@@ -117,24 +123,75 @@ def run_python(block: Block, namespace: dict) -> None:
         raise SnippetError(f"{block.where}: python block failed:\n{traceback.format_exc()}") from error
 
 
-def run_shell(block: Block, folder: Path) -> None:
-    """Run each ``oed`` command of a shell block as ``python -m oed`` in ``folder``; a non-zero exit fails."""
+def verb_of(arguments: list[str]) -> str | None:
+    """The verb of an ``oed`` command line (its first word that is not an option)."""
+    return next((word for word in arguments if not word.startswith("-")), None)
+
+
+@cache
+def first_commands() -> frozenset[tuple[str, int]]:
+    """``(page, line)`` of the first documented command of each verb: these run in a fresh interpreter."""
+    first: dict[str | None, tuple[str, int]] = {}
+    for page in documentation_pages():
+        for block in fenced_blocks(page):
+            if block.language in SHELL_LANGUAGES:
+                for line, arguments in shell_commands(block):
+                    first.setdefault(verb_of(arguments), (str(page), line))
+    return frozenset(first.values())
+
+
+def run_subprocess(arguments: list[str], folder: Path) -> tuple[int, str]:
+    """``python -m oed …`` in ``folder``: its exit code and standard error."""
     environment = dict(os.environ, MPLBACKEND="Agg")
     environment["PYTHONPATH"] = os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")]))
+    completed = subprocess.run(
+        [sys.executable, "-m", "oed", *arguments], cwd=folder, env=environment,
+        capture_output=True, text=True, timeout=COMMAND_TIMEOUT,
+    )
+    return completed.returncode, completed.stderr
+
+
+def run_in_process(arguments: list[str], folder: Path) -> tuple[int, str]:
+    """``oed.cli.main(arguments)`` with ``folder`` as working directory: its exit code and standard error."""
+    from oed.cli import main
+
+    previous, stdout, stderr = Path.cwd(), StringIO(), StringIO()
+    os.chdir(folder)
+    try:
+        with redirect_stdout(stdout), redirect_stderr(stderr):
+            try:
+                code = main(arguments)
+            except SystemExit as exit_:  # argparse's usage errors
+                code = exit_.code if isinstance(exit_.code, int) else int(exit_.code is not None)
+    finally:
+        os.chdir(previous)
+    return code, stderr.getvalue()
+
+
+def run_shell(block: Block, folder: Path, subprocess_lines: frozenset[int] | None = None) -> None:
+    """Run each ``oed`` command of a shell block in ``folder``; a non-zero exit fails.
+
+    Commands whose line is in ``subprocess_lines`` (all of them when it is ``None``) run as ``python -m oed``,
+    the others in this process (:func:`run_in_process`).
+    """
     for line, arguments in shell_commands(block):
-        completed = subprocess.run(
-            [sys.executable, "-m", "oed", *arguments], cwd=folder, env=environment,
-            capture_output=True, text=True, timeout=COMMAND_TIMEOUT,
-        )
-        if completed.returncode != 0:
+        fresh = subprocess_lines is None or line in subprocess_lines
+        code, stderr = (run_subprocess if fresh else run_in_process)(arguments, folder)
+        if code != 0:
             raise SnippetError(
                 f"{block.page.name}:{line} ({block.where}): `oed {shlex.join(arguments)}` exited with "
-                f"{completed.returncode}:\n{completed.stderr[-3000:]}"
+                f"{code}:\n{stderr[-3000:]}"
             )
 
 
-def run_page(page: Path, folder: Path) -> int:
-    """Run every executable block of ``page`` in order inside ``folder``; return how many ran."""
+def run_page(page: Path, folder: Path, in_process: bool = False) -> int:
+    """Run every executable block of ``page`` in order inside ``folder``; return how many ran.
+
+    With ``in_process``, the ``oed`` commands run in this process except the first documented one of each
+    verb (:func:`first_commands`); without, every command runs as ``python -m oed``.
+    """
+    subprocess_lines = (frozenset(line for where, line in first_commands() if where == str(page))
+                        if in_process else None)
     namespace: dict = {"__name__": "__doc_snippet__"}
     executed = 0
     previous = Path.cwd()
@@ -144,7 +201,7 @@ def run_page(page: Path, folder: Path) -> int:
             if block.language in PYTHON_LANGUAGES:
                 run_python(block, namespace)
             elif block.language in SHELL_LANGUAGES:
-                run_shell(block, folder)
+                run_shell(block, folder, subprocess_lines)
             elif block.language in SHOWN_LANGUAGES:
                 continue
             else:
@@ -165,7 +222,7 @@ def documentation_pages() -> list[Path]:
 
 @pytest.mark.parametrize("page", documentation_pages(), ids=lambda page: str(page.relative_to(ROOT)))
 def test_page_snippets_run(page: Path, tmp_path: Path) -> None:
-    run_page(page, tmp_path)
+    run_page(page, tmp_path, in_process=True)
 
 
 def test_readme_has_snippets() -> None:
@@ -187,6 +244,19 @@ def test_a_failing_command_fails_with_its_place(tmp_path: Path) -> None:
     page.write_text("Text\n\n```bash\noed model --robot no_such_robot \\\n    --joints 3\n```\n")
     with pytest.raises(SnippetError, match=r"broken\.md:4 .*exited with 2"):
         run_page(page, tmp_path)
+    with pytest.raises(SnippetError, match=r"broken\.md:4 .*exited with 2(.|\n)*no_such_robot"):
+        run_page(page, tmp_path, in_process=True)  # the command in this process fails alike, its message kept
+    page.write_text("```bash\noed simulate --robot puma560 --joints 3 --trajectory missing.json --out r.csv\n```\n")
+    with pytest.raises(SnippetError, match=r"broken\.md:2 .*exited with 2(.|\n)*not found: missing\.json"):
+        run_page(page, tmp_path, in_process=True)
+
+
+def test_the_first_command_of_each_verb_runs_in_a_fresh_interpreter() -> None:
+    """Every documented verb keeps one real ``python -m oed`` run (start-up, imports, exit code)."""
+    verbs = {verb_of(arguments) for page in documentation_pages() for block in fenced_blocks(page)
+             if block.language in SHELL_LANGUAGES for _, arguments in shell_commands(block)}
+    assert len(first_commands()) == len(verbs) >= 10
+    assert (str(ROOT / "README.md"), 64) in first_commands()  # `oed model`, the README's first command
 
 
 def test_a_shell_block_holds_only_oed_commands(tmp_path: Path) -> None:

@@ -112,7 +112,7 @@ def test_designed_period_beats_random_excitations(robot_json, capsys):
     axis of the centre of mass stays at most their median (the bound a design for the record's noise alone breaks)."""
     folder, path, bounds = robot_json
     out, csv = folder / "d.json", folder / "d.csv"
-    assert main(["design", "--payload", "--from", str(path), "--bounds", str(bounds), "--starts", "2",
+    assert main(["design", "--payload", "--from", str(path), "--bounds", str(bounds), "--starts", "1",
                  "--samples", "200", "--out", str(out), "--csv", str(csv)]) == 0
     document = json.loads(out.read_text())
     assert document["frequency_hz"] == 0.1 and len(document["a"][0]) == 10
@@ -151,7 +151,7 @@ def test_noise_only_design_halves_the_record_noise_and_warns_of_the_robot_share(
     excitations' (issue 37's target), and a warning whenever the total is worse than theirs."""
     folder, path, bounds = robot_json
     out = folder / "noise_only.json"
-    assert main(["design", "--payload", "--from", str(path), "--bounds", str(bounds), "--starts", "2",
+    assert main(["design", "--payload", "--from", str(path), "--bounds", str(bounds), "--starts", "1",
                  "--samples", "200", "--payload-noise-only", "--out", str(out)]) == 0
     design = json.loads(out.read_text())["payload_design"]
     assert design["criterion"]["robot_share"] == "ignored" and design["robot_share_bound"] is None

@@ -97,25 +97,15 @@ def test_a_robot_without_gains_keeps_the_declared_model():
 
 
 @pytest.mark.parametrize("with_gains", [True, False], ids=["gains", "none"])
-def test_the_default_answer_takes_the_gains_only_when_the_validation_record_measures_them(with_gains, tmp_path):
+def test_the_default_answer_takes_the_gains_only_when_the_validation_record_measures_them(with_gains, puma3):
     """``oed identify`` on a PUMA 3 whose torques carry a gain each: the answer holds the gains (result.json and
     the model file), ``oed predict`` multiplies by them and reproduces the validation error the verb reported, and
     predicts another motion at the noise floor; the same robot without gains: nothing taken, no gains in the file."""
     import oed
 
-    urdf = urdf_of("puma560:3", tmp_path)
-    model = build_model(load_robot(urdf=urdf), "internal", FRICTION)
-    theta = truth(model)
-    gains = np.array([1.2, 0.8, 1.1]) if with_gains else np.ones(3)
-    spread = None
-    for role, seed, seconds in (("train", 11, 10.0), ("validate", 12, 4.0), ("test", 13, 5.0)):
-        record, spread = simulated(model, theta, gains, seed, seconds, spread)
-        frame = {"t": record.t, **{f"q{j + 1}": record.q[:, j] for j in range(3)},
-                 **{f"tau{j + 1}": record.tau[:, j] for j in range(3)}}
-        pd.DataFrame(frame).to_csv(tmp_path / f"{role}.csv", index=False, float_format="%.12g")
-    run = oed.identify(urdf=urdf, data=tmp_path / "train.csv", validate=tmp_path / "validate.csv", friction=FRICTION)
-    run.write(tmp_path / "result.json")
-    document = json.loads((tmp_path / "result.json").read_text())
+    gains = PUMA3_GAINS if with_gains else np.ones(3)
+    folder, _, spread = puma3(with_gains)
+    document = json.loads((folder / "memory.json").read_text())
     fitted = document["torque_gains"]
     assert fitted is not None and fitted["taken"] == with_gains, fitted
     assert ("torque_gains" in document["model_file"]) == with_gains
@@ -123,25 +113,30 @@ def test_the_default_answer_takes_the_gains_only_when_the_validation_record_meas
         values = np.array([fitted["channels"][f"tau{j + 1}"]["value"] for j in range(3)])
         assert np.allclose(values / values[0], gains / gains[0], rtol=0.02), values
         assert "an unknown gain on each joint's recorded torque" in document["model_selection"]["reason"]
-    predicted = oed.predict(model=tmp_path / "result.json", data=tmp_path / "validate.csv")
+    predicted = oed.predict(model=folder / "memory.json", data=folder / "validate.csv")
     reported = document["validation"]["mse"]
     measured = predicted.evaluation.prediction.mse
     assert all(abs(measured[c] / reported[c] - 1.0) < 1e-6 for c in reported), (measured, reported)
     # the library's model predicts in the log's units too (the gains applied), as the verb scored it
-    identified = IdentifiedModel.load(tmp_path / "result.json")
+    identified = IdentifiedModel.load(folder / "memory.json")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        grid = identified.prepare(identified.read([tmp_path / "validate.csv"])).as_recorded
+        grid = identified.prepare(identified.read([folder / "validate.csv"])).as_recorded
     residual = grid.channels(identified.channels) - identified.predict(grid.q, grid.dq, grid.ddq)
     direct = dict(zip(identified.channels, np.mean(residual**2, axis=0)))
     assert all(abs(direct[c] / reported[c] - 1.0) < 1e-6 for c in reported), (direct, reported)
-    tested = oed.predict(model=tmp_path / "result.json", data=tmp_path / "test.csv")
+    tested = oed.predict(model=folder / "memory.json", data=folder / "test.csv")
     mse = np.array(list(tested.evaluation.prediction.mse.values()))
     assert np.all(mse < 1.5 * (NOISE * spread) ** 2), (mse / (NOISE * spread) ** 2).round(3)
 
 
-def _puma3_files(tmp_path, gains):
-    urdf = urdf_of("puma560:3", tmp_path)
+PUMA3_GAINS = np.array([1.2, 0.8, 1.1])
+
+
+def _puma3_files(folder, gains):
+    """The PUMA 3's URDF and its train (10 s), validate (4 s) and test (5 s) logs in ``folder``, the torques times
+    ``gains``: the URDF's path and the training torques' spread."""
+    urdf = urdf_of("puma560:3", folder)
     model = build_model(load_robot(urdf=urdf), "internal", FRICTION)
     theta = truth(model)
     spread = None
@@ -149,26 +144,45 @@ def _puma3_files(tmp_path, gains):
         record, spread = simulated(model, theta, gains, seed, seconds, spread)
         frame = {"t": record.t, **{f"q{j + 1}": record.q[:, j] for j in range(3)},
                  **{f"tau{j + 1}": record.tau[:, j] for j in range(3)}}
-        pd.DataFrame(frame).to_csv(tmp_path / f"{role}.csv", index=False, float_format="%.12g")
-    return urdf
+        pd.DataFrame(frame).to_csv(folder / f"{role}.csv", index=False, float_format="%.12g")
+    return urdf, spread
+
+
+@pytest.fixture(scope="module")
+def puma3(tmp_path_factory):
+    """``with_gains -> (folder, urdf, spread)``: the PUMA 3's logs with the gains (or none), made once a module, and
+    the in-memory ``oed identify`` on them on the defaults written to ``folder / "memory.json"`` (read only: the tests
+    write their own outputs to their own folders)."""
+    import oed
+
+    made = {}
+
+    def files(with_gains: bool):
+        if with_gains not in made:
+            folder = tmp_path_factory.mktemp("gains" if with_gains else "no_gains")
+            urdf, spread = _puma3_files(folder, PUMA3_GAINS if with_gains else np.ones(3))
+            oed.identify(urdf=urdf, data=folder / "train.csv", validate=folder / "validate.csv",
+                         friction=FRICTION).write(folder / "memory.json")
+            made[with_gains] = folder, urdf, spread
+        return made[with_gains]
+
+    return files
 
 
 @pytest.mark.parametrize("with_gains", [True, False], ids=["gains", "none"])
-def test_the_streamed_identify_tries_the_gains_as_in_memory(with_gains, tmp_path):
+def test_the_streamed_identify_tries_the_gains_as_in_memory(with_gains, tmp_path, puma3):
     """The streamed ``oed identify`` (``--chunk-size``) fits the gains from its training sums, checks them on the
     validation files in one pass by the in-memory rule and, when taken, chooses the answer again from the sums of the
     torques divided by them: the same gains, verdict and answer as in memory; ``oed predict`` reproduces the error it
     reports; ``not_computed`` no longer names the gains."""
     import oed
 
-    gains = np.array([1.2, 0.8, 1.1]) if with_gains else np.ones(3)
-    urdf = _puma3_files(tmp_path, gains)
-    documents = {}
-    for name, options in (("memory", {}), ("streamed", {"chunk_size": 500})):
-        run = oed.identify(urdf=urdf, data=tmp_path / "train.csv", validate=tmp_path / "validate.csv",
-                           friction=FRICTION, **options)
-        run.write(tmp_path / f"{name}.json")
-        documents[name] = json.loads((tmp_path / f"{name}.json").read_text())
+    folder, urdf, _ = puma3(with_gains)
+    run = oed.identify(urdf=urdf, data=folder / "train.csv", validate=folder / "validate.csv", friction=FRICTION,
+                       chunk_size=500)
+    run.write(tmp_path / "streamed.json")
+    documents = {name: json.loads(path.read_text())
+                 for name, path in (("memory", folder / "memory.json"), ("streamed", tmp_path / "streamed.json"))}
     memory, streamed = documents["memory"], documents["streamed"]
     assert memory["identification_path"] == "in-memory" and streamed["identification_path"] == "streamed"
     assert "torque_gains" not in (streamed.get("not_computed") or {})
@@ -182,13 +196,13 @@ def test_the_streamed_identify_tries_the_gains_as_in_memory(with_gains, tmp_path
     assert ("torque_gains" in streamed["model_file"]) == with_gains
     for channel, value in memory["validation"]["mse"].items():
         assert streamed["validation"]["mse"][channel] == pytest.approx(value, rel=1e-4), channel
-    predicted = oed.predict(model=tmp_path / "streamed.json", data=tmp_path / "validate.csv")
+    predicted = oed.predict(model=tmp_path / "streamed.json", data=folder / "validate.csv")
     reported, measured = streamed["validation"]["mse"], predicted.evaluation.prediction.mse
     assert all(abs(measured[c] / reported[c] - 1.0) < 1e-6 for c in reported), (measured, reported)
 
 
 @pytest.mark.parametrize("with_gains", [True, False], ids=["gains", "none"])
-def test_the_streamed_diagnose_applies_the_gains_as_in_memory(with_gains, tmp_path):
+def test_the_streamed_diagnose_applies_the_gains_as_in_memory(with_gains, tmp_path, puma3):
     """The streamed ``oed diagnose`` (``--chunk-size 500``) fits the gains from the training files' sums of the plain
     model and checks them on the validation files by the in-memory rule, first, as in memory; when taken it diagnoses
     the files with their torques divided by the gains (copies written block by block) and answers in the log's units
@@ -198,11 +212,10 @@ def test_the_streamed_diagnose_applies_the_gains_as_in_memory(with_gains, tmp_pa
     gains, nothing is said nor applied, as in memory."""
     import oed
 
-    gains = np.array([1.2, 0.8, 1.1]) if with_gains else np.ones(3)
-    urdf = _puma3_files(tmp_path, gains)
+    folder, urdf, _ = puma3(with_gains)
     documents, warned = {}, {}
     for name, options in (("memory", {}), ("streamed", {"chunk_size": 500})):
-        run = oed.diagnose(urdf=urdf, data=tmp_path / "train.csv", validate=tmp_path / "validate.csv",
+        run = oed.diagnose(urdf=urdf, data=folder / "train.csv", validate=folder / "validate.csv",
                            friction=FRICTION, **options)
         run.write(tmp_path / f"{name}.json")
         documents[name], warned[name] = json.loads((tmp_path / f"{name}.json").read_text()), run.warnings
@@ -225,6 +238,6 @@ def test_the_streamed_diagnose_applies_the_gains_as_in_memory(with_gains, tmp_pa
     assert streamed["model_selection"]["chosen"] == memory["model_selection"]["chosen"]
     for channel, value in memory["validation"]["chosen"]["mse"].items():
         assert streamed["validation"]["chosen"]["mse"][channel] == pytest.approx(value, rel=1e-5), channel
-    predicted = oed.predict(model=tmp_path / "streamed.json", data=tmp_path / "validate.csv")
+    predicted = oed.predict(model=tmp_path / "streamed.json", data=folder / "validate.csv")
     reported, measured = streamed["validation"]["chosen"]["mse"], predicted.evaluation.prediction.mse
     assert all(abs(measured[c] / reported[c] - 1.0) < 1e-6 for c in reported), (measured, reported)

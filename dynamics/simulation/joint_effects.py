@@ -87,11 +87,15 @@ class SimulatedPerJoint:
         if self.non_negative and any(value < 0 for value in self.values):
             raise ValueError(f"{self.name} values must be non-negative, got {list(self.values)}: a negative "
                              f"{self.name} term would push the joint, which no {self.name} does")
+        # the values as a read-only array, made once: the plant asks for them at every RK4 stage
+        array = np.array(self.values)
+        array.flags.writeable = False
+        object.__setattr__(self, "_array", array)
 
     def _check(self, robot: RobotModel) -> NDArray[np.float64]:
         if len(self.values) != robot.n_joints:
             raise ValueError(f"effect {self.name!r} has {len(self.values)} values for a robot of {robot.n_joints} joints")
-        return np.array(self.values)
+        return self._array
 
     def channels(self, robot: RobotModel) -> tuple[str, ...]:
         return tuple(f"tau{index}" for index in range(1, robot.n_joints + 1))

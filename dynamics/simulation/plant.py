@@ -80,7 +80,7 @@ class Plant:
             a1 = self.acceleration(q, dq, tau)
             Q[k], DQ[k], DDQ[k], TAU[k] = q, dq, a1, tau
             q, dq = self.held_step(q, dq, tau, a1, h, substeps)
-            if not (np.all(np.isfinite(q)) and np.all(np.isfinite(dq)) and np.all(np.abs(dq) < 1e4)):
+            if not (np.isfinite(q).all() and np.isfinite(dq).all() and (np.abs(dq) < 1e4).all()):  # methods: a step's cost
                 with np.errstate(all="ignore"):
                     peak = np.max(np.abs(np.nan_to_num(dq_d, nan=np.inf)), axis=0)
                 raise RuntimeError(
