@@ -213,8 +213,9 @@ def said_option(message: str) -> tuple[str, str]:
     return found.group(1), found.group(2)
 
 
+@pytest.mark.slow
 def test_angles_in_degrees_exit_naming_the_option_that_reads_them(tmp_path):
-    """Cheap: the default ``oed identify`` on the servo arm's log in degrees exits (code 2, no traceback) naming
+    """The default ``oed identify`` on the servo arm's log in degrees exits (code 2, no traceback) naming
     the ``--columns`` factor that reads it."""
     urdf, _, files, _ = write_records(BENCHES[2].lab, tmp_path)
     in_degrees(files["train"])
@@ -239,3 +240,20 @@ def test_with_the_option_the_error_names_a_log_in_degrees_predicts_as_well_as_a_
     as_well_as_the_plain_fit(f"{lab.name}, in degrees", outcome, f"chosen {outcome['selections']}; ")
     for label, error in outcome["reproduced"].items():
         assert error < RELATIVE, (label, error)
+
+
+def test_the_degrees_option_is_named_only_where_it_reads_every_joint_right():
+    """On a robot with a prismatic joint the group factor would scale its metres too: the message then names only
+    the conversion; on one whose joints all turn it names the option."""
+    from dynamics.models import build_model
+    from estimation.data.loading import AngleUnitError, check_angles
+
+    here = Path(__file__).resolve().parent
+    mixed = build_model(load_robot(urdf=here / "data" / "prismatic_arm.urdf"), "internal", "viscous")
+    turning = build_model(servo_arm(), "internal", "viscous")
+    angles = np.degrees(np.linspace(-1.0, 1.0, 50))
+    for model, named in ((mixed, False), (turning, True)):
+        q = np.column_stack([angles] + [np.zeros_like(angles)] * (model.robot.n_joints - 1))
+        with pytest.raises(AngleUnitError, match="look like degrees") as raised:
+            check_angles(q, model, "log.csv")
+        assert ("--columns" in str(raised.value)) is named, str(raised.value)
