@@ -152,7 +152,8 @@ BENCHES = (
                     "'not significant' and left out; its 0.5 N m goes into the first moments (mz1 -0.523 against "
                     "the description's -0.712), which extrapolate it; the plain law completed validates 1.000 "
                     "against 1.008 (within the 1 % tie, kept by the model with fewer laws); the validation "
-                    "record, on the same side, cannot see the extrapolation")),
+                    "record, on the same side, cannot see the extrapolation (diagnose --friction "
+                    "viscous,coulomb,offset: 1.045)")),
     Bench(Lab("the four-joint servo arm logged at 25 Hz, 0.3° encoders, no dq, 16 s / 6 s / 8 s, point-to-point "
               "test", servo_arm, *no_servo((16.0, 6.0, 8.0), 25.0, quantum=SERVO_QUANTUM),
               test_motion="point-to-point", slow=True)),
