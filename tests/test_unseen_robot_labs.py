@@ -67,7 +67,10 @@ class Lab:
     validate: Log
     test: Log
     test_motion: str = "fourier"  # "point-to-point", or "jog": a teach pendant's slow moves, one joint at a time
-    extra: str = ""  # "position coulomb", "spring"
+    extra: str | Callable[[np.ndarray, np.ndarray], np.ndarray] = ""  # "position coulomb", "spring", or a law
+    # ``(q, dq) -> torque`` of its own (joint side, the samples in time order)
+    sensed: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None  # what the torque sensor reads of the
+    # true torque ``(tau, spread) -> tau`` (before its white noise), e.g. a sensor's hysteresis
     wrong_bodies: bool = False  # the description's inertials: CAD without motors
     gains: tuple[float, ...] = ()  # torques logged in motor units: tau_j / gain_j
     dropouts: int = 0  # rows whose values are blank (the time stamp kept)
@@ -154,6 +157,8 @@ def warming(t: np.ndarray, role: str, n: int, minutes: float = 0.5) -> np.ndarra
 
 def extra_torque(case: Lab, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
     """The truth's torque beyond the plain class, joint side."""
+    if callable(case.extra):
+        return case.extra(q, dq)
     n = q.shape[1]
     out = np.zeros_like(q)
     if case.extra == "position coulomb":  # an eccentric gear: Coulomb friction ±50 % of its level over a turn
@@ -223,6 +228,8 @@ def write_records(case: Lab, folder: Path) -> tuple[Path, dict, dict, np.ndarray
             spread = tau.std(axis=0)
             if case.equal_noise:  # a sensor's noise in N m, whatever the joint's load
                 spread = np.full_like(spread, spread.mean())
+        if case.sensed is not None:
+            tau = case.sensed(tau, spread)
         tau = tau + generator.normal(0.0, 1.0, tau.shape) * NOISE * spread
         if case.drift:
             tau = tau + case.drift * spread * warming(t, role, tau.shape[1])
@@ -242,17 +249,23 @@ def write_records(case: Lab, folder: Path) -> tuple[Path, dict, dict, np.ndarray
     return urdf, records, files, spread
 
 
-def run_lab(case: Lab, folder: Path) -> dict:
+def run_lab(case: Lab, folder: Path, *, rewritten: Callable[[Path], None] | None = None,
+            reading: tuple[str, ...] = ()) -> dict:
     """Write the records, run the verbs and the plain fit: per joint test MSE of each on the same samples; check
-    that ``oed predict`` reproduces each verb's reported validation error."""
+    that ``oed predict`` reproduces each verb's reported validation error. ``rewritten``: what a logger does to
+    each file after the plain fit's records are kept (e.g. angles written in degrees), ``reading`` the options
+    every verb is given to read the files so written."""
     from benchmarks.bench_real_robots import PlainFit
 
     urdf, records, files, spread = write_records(case, folder)
+    for path in files.values() if rewritten is not None else ():
+        rewritten(path)
     plain = PlainFit(["--urdf", str(urdf)])
     rate = min(log.rate_hz for log in (case.train, case.validate, case.test))  # a cut-off every record can take
     cutoff, plain_theta = plain.fit(records["train"], records["validate"], rate_hz=rate)
     predicted_plain, kept = plain.predict(records["test"], cutoff, plain_theta)
-    outcome = verbs_against_the_plain_fit(urdf, files, records["test"], kept, predicted_plain, folder)
+    outcome = verbs_against_the_plain_fit(urdf, files, records["test"], kept, predicted_plain, folder,
+                                          reading=reading)
     return {**outcome, "cutoff": cutoff, "floor": (NOISE * spread) ** 2}
 
 

@@ -418,8 +418,19 @@ def check_angles(q: NDArray[np.float64], model, source: str) -> None:
         if revolute[index] and peak > DEGREES_THRESHOLD:
             raise AngleUnitError(
                 f"{source}: column q{index + 1} reaches {peak:.4g}, beyond ±2π rad: the angles look like degrees "
-                "(the format is SI: convert with numpy.deg2rad)"
+                f"(the format is SI: convert with numpy.deg2rad{degrees_option(revolute)})"
             )
+
+
+def degrees_option(revolute: Sequence[bool]) -> str:
+    """The command line's way to read angles logged in degrees as they are, for the :class:`AngleUnitError`
+    message: the column map's factor on the ``q`` group (``--columns q=0.0174...*q``, which scales every joint's
+    column alike, :func:`estimation.data.log_formats.apply_column_map`), named only when every joint is revolute
+    (a prismatic joint's metres would be scaled too); empty otherwise."""
+    if not all(revolute):
+        return ""
+    factor = repr(float(np.pi / 180.0))
+    return f", or read the log as it is: --columns q={factor}*q, a logged dq and ddq alike"
 
 
 def resampling_grid(t, resample: bool, source: str, *, bridged: bool = False, stacklevel: int = 5):
