@@ -139,6 +139,10 @@ def test_identify_takes_the_model_of_a_compensated_log_and_predict_and_export_fo
     reported = document["model_file"]["reported"]["validation_mse"]
     assert max(abs(measured[channel] / reported[channel] - 1.0) for channel in reported) < 1e-6
     assert "the log less the description's gravity torque" in capsys.readouterr().out
+    yardsticks = json.loads(metrics.read_text())  # on the torques the model holds, as identify reported them
+    for key in ("zero_mse", "nominal_mse"):
+        assert max(abs(yardsticks[key][channel] / document["validation"][key][channel] - 1.0)
+                   for channel in reported) < 1e-6, key
     urdf = tmp_path / "exported.urdf"
     if document["model_file"].get("consistent") is not None:  # the bodies written, the log's load said
         assert main(["export", "--model", str(result), "--urdf", str(urdf), "--allow-implausible"]) == 0

@@ -44,7 +44,7 @@ from estimation.data.sampling_clock import on_regular_clock
 from estimation.estimators.effect_blocks import States
 from estimation.identification.model_file import ModelFile, ModelFileError, read_model_file
 from estimation.identification.shaped import shaped_blocks
-from estimation.identification.subtracted_load import load_channels, subtracted_torque
+from estimation.identification.subtracted_load import added_back, load_channels, subtracted_torque
 from estimation.identification.training_range import UNKNOWN_RANGE, ExtrapolationWarning, RangeCheck
 
 if TYPE_CHECKING:
@@ -522,7 +522,10 @@ class IdentifiedModel:
         stamped = self.read_as_stamped(paths)
         segments = self.on_time_base(stamped)
         prepared = self.prepare(segments)
-        trivial = trivial_mse(self.model, prepared)
+        # the yardsticks on the torques the model holds (the log with the load it lacks added back), as the verb that
+        # took that model reported them
+        trivial = trivial_mse(self.model, prepared if self.file.subtracted is None
+                              else added_back(prepared, self.file.subtracted, self.description_robot))
         check = self.check_range(prepared)
         prediction = self.predict_record(prepared)
         if any(segment is not original for segment, original in zip(segments, stamped)):
