@@ -106,6 +106,7 @@ def test_the_streamed_identify_checks_the_drift_and_the_mount_as_in_memory(case,
     if mounts:  # memory takes the found gravity (it validates better on the wall); streamed says it keeps its own
         assert any(TAKEN in text for text in _said(memory)), _said(memory)
         assert any(KEPT in text for text in _said(streamed)) and "gravity" in streamed["not_computed"]
+        assert "subtracted" in streamed["not_computed"] and "subtracted" not in streamed["model_file"]  # h-subtracted
     marked = [joint["marked"] for joint in streamed["friction_drift"]["joints"].values()]
     assert all(marked) if case.warming else not any(marked)
 

@@ -256,7 +256,9 @@ RIGS = (
     # (0, 0, 0), taken on the validation record): identify 0.133/0.037/0.238/0.526/0.161/0.531 of the plain fit, 0.142
     # in total (0.475 with the description's gravity), diagnose the same (0.553), no armature named. Joints 2 and 3
     # stay 3.6x and 5.5x their floor: the error of the controller's gravity model (the description's bodies, ±20 % off
-    # the truth) is a load of the positions no model without gravity holds
+    # the truth) is a load of the positions no model without gravity holds. h-subtracted: both verbs take the
+    # model of a log less the description's gravity torque (the torques with it added back), every joint at its
+    # floor (0.99-1.08x), 0.108 of the plain fit in total
     Rig("PUMA 6 joints, torques logged 8 ms after the positions, 10 s / 4 s / 6 s at 500 Hz, logged dq",
         puma_urdf(6), *logs(rate=500.0, velocity=True), delay=0.008, named=r"delay.*", slow=True),
     Rig("PUMA 6 joints as a parallelogram arm (motor 3 turns q2 + q3), motor side, --transmission, motor 3's "
@@ -283,13 +285,18 @@ def test_the_defaults_run_and_predict_a_rigs_log_as_well_as_a_plain_fit(case, tm
     said = json.loads((tmp_path / "default.json").read_text())["warnings"]
     assert not [text for text in said if "gravity load points elsewhere" in text], said  # every rig on the floor
     # torques logged without gravity (the controller's model subtracted): both verbs say the torques hold none and
-    # fit without gravity, which the result files hold (h-gravity); every other rig keeps the description's
+    # take the exact model of that log, the description's gravity torque subtracted (h-subtracted: the result files
+    # hold `subtracted`, the description's gravity, and `oed predict` reproduced the reported error above); every
+    # other rig keeps the description's gravity and subtracts nothing
     for label in ("default", "diagnose"):
         document = json.loads((tmp_path / f"{label}.json").read_text())
         warned = document["warnings"] if isinstance(document["warnings"], list) else \
             [text for part in document["warnings"].values() for text in part]
         assert bool([text for text in warned if "hold no gravity load" in text]) == case.compensated, (label, warned)
-        assert np.any(document["model_file"]["gravity"]) != case.compensated, (label, document["model_file"]["gravity"])
+        assert np.any(document["model_file"]["gravity"]), (label, document["model_file"]["gravity"])
+        subtracted = document["model_file"].get("subtracted")
+        assert (subtracted or {}).get("kind") == ("description_gravity" if case.compensated else None), (label,
+                                                                                                          subtracted)
     allowed = PLAIN + (f"|{case.named}" if case.named else "")
     named = outcome["effects"].get("diagnose", [])
     assert all(re.fullmatch(allowed, effect) for effect in named), named

@@ -142,6 +142,9 @@ STREAMED_NOT_COMPUTED = {
                        "diagnose (estimation.streaming.diagnosis_selection), not by diagnose_files",
     "gravity": "a mount found is said, not tried: the diagnosis with the found gravity (or none) is a candidate in "
                "memory (estimation.consistent.mounted_gravity); streamed, the model keeps the description's gravity",
+    "subtracted": "torques that hold no gravity load are said, not tried as a log less the description's gravity "
+                  "torque: the diagnosis to the torques with it added back is a candidate in memory "
+                  "(estimation.consistent.mounted_gravity); streamed, the model file subtracts nothing",
 }
 
 

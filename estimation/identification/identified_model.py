@@ -44,6 +44,7 @@ from estimation.data.sampling_clock import on_regular_clock
 from estimation.estimators.effect_blocks import States
 from estimation.identification.model_file import ModelFile, ModelFileError, read_model_file
 from estimation.identification.shaped import shaped_blocks
+from estimation.identification.subtracted_load import added_back, load_channels, subtracted_torque
 from estimation.identification.training_range import UNKNOWN_RANGE, ExtrapolationWarning, RangeCheck
 
 if TYPE_CHECKING:
@@ -263,6 +264,7 @@ class IdentifiedModel:
         self.estimate, entry = _selected(model_file, estimate)
         self.robot = model_file.robot.load()
         self.description_gravity = np.asarray(self.robot.gravity, dtype=float)  # the description's, as loaded
+        self.description_robot = self.robot  # the description as given: the load a log subtracted is its
         if model_file.gravity is not None and not np.array_equal(model_file.gravity, self.robot.gravity):
             self.robot = self.robot.with_gravity(model_file.gravity)  # the gravity the model was fitted with
         if list(self.robot.joint_names) != list(model_file.joint_names):
@@ -276,6 +278,9 @@ class IdentifiedModel:
         if tuple(self.model.base.names) != tuple(model_file.names):
             raise ModelFileError("the model rebuilt from the file has other base parameters than it was identified "
                                  f"with ({list(self.model.base.names)[:5]}… against {list(model_file.names)[:5]}…)")
+        if model_file.subtracted is not None and not load_channels(self.model):
+            raise ModelFileError("the model file says the log subtracts a load from the joint torques, but its "
+                                 f"channels {list(self.model.channels)} are not joint torques")
         self.theta = np.asarray(entry.theta, dtype=float)
         self.cov = np.asarray(entry.cov, dtype=float).reshape(self.theta.shape[0], -1)
         self.shape: dict[str, float] = dict(entry.shape)
@@ -313,6 +318,14 @@ class IdentifiedModel:
         if np.allclose(self.robot.gravity, self.description_gravity, rtol=0.0, atol=1e-9):
             return None
         return f"gravity ({', '.join(f'{value:.4g}' for value in self.robot.gravity)}) m/s², not the description's"
+
+    @property
+    def subtracted_words(self) -> str | None:
+        """``"the log less the description's gravity torque …"`` when the model file says the logged torques lack a
+        load of the description (``subtracted``: :meth:`predict` subtracts it), else ``None``."""
+        if self.file.subtracted is None:
+            return None
+        return f"the log less {self.file.subtracted.words().removesuffix(' subtracted by the logger')}"
 
     @property
     def reported_validation_mse(self) -> dict[str, float] | None:
@@ -377,9 +390,19 @@ class IdentifiedModel:
         predicted = self.robot_prediction(q, dq, ddq)
         if self.payload_link is not None:
             predicted = predicted + self.link_columns(self.payload_link, q, dq, ddq) @ self.payload_theta
+        if self.file.subtracted is not None:  # what the log records: the model's torques less the load it lacks
+            predicted = predicted - self.subtracted_load(q)
         if self.file.torque_gains is not None:  # the torques in the log's units: the model's times each gain
             predicted = predicted * self.file.channel_gains()
         return predicted
+
+    def subtracted_load(self, q: ArrayLike) -> NDArray[np.float64]:
+        """``(N, m)``: the load the logged torques lack on each channel at the positions ``q`` (the model file's
+        ``subtracted``, :mod:`estimation.identification.subtracted_load`; zero without one)."""
+        q = np.atleast_2d(np.asarray(q, dtype=float))
+        if self.file.subtracted is None:
+            return np.zeros((q.shape[0], len(self.channels)))
+        return subtracted_torque(self.file.subtracted, self.description_robot, q)[:, list(load_channels(self.model))]
 
     def interval(self, q: ArrayLike, dq: ArrayLike, ddq: ArrayLike, *, z: float = Z_95) -> NDArray[np.float64]:
         """``(N, m)`` half-widths ``z √(y_bᵀ Σ_θ y_b + σ_c²)`` of the prediction band (module docstring), in the
@@ -499,7 +522,10 @@ class IdentifiedModel:
         stamped = self.read_as_stamped(paths)
         segments = self.on_time_base(stamped)
         prepared = self.prepare(segments)
-        trivial = trivial_mse(self.model, prepared)
+        # the yardsticks on the torques the model holds (the log with the load it lacks added back), as the verb that
+        # took that model reported them
+        trivial = trivial_mse(self.model, prepared if self.file.subtracted is None
+                              else added_back(prepared, self.file.subtracted, self.description_robot))
         check = self.check_range(prepared)
         prediction = self.predict_record(prepared)
         if any(segment is not original for segment, original in zip(segments, stamped)):

@@ -32,6 +32,8 @@
         "joint_offsets": [0, -1.5708, …],                   # --joint-offsets: added to q as read (absent: none)
         "gravity": [0.0, 0.0, -9.81],                        # m/s², base frame: the gravity the model was fitted
                                                              # with (absent: an earlier release's file, the robot's)
+        "subtracted": {"kind": "description_gravity", …},   # a load of the description the logged torques
+                                                             # lack: predict subtracts it (absent: none)
         "joint_directions": {"signs": [1, -1, …],            # --joint-offsets' signs: q, dq, ddq and tau times
                              "torque_signs": [1, -1, …]},   # them as read, before the offsets (absent: none)
         "training_range": {"joints": {"joint1": {"q_min", "q_max", "dq_max"}, …},   # the samples the fit used
@@ -73,6 +75,7 @@ from dynamics.robots import load_robot
 from dynamics.transmission import JointDirections
 from estimation.identification.fit import IdentificationResult
 from estimation.identification.training_range import TrainingRange
+from estimation.identification.subtracted_load import SubtractedLoad
 
 __all__ = ["FORMAT", "MAX_EMBEDDED_URDF_BYTES", "MODEL_KEYS", "ModelFile", "ModelFileError", "RobotSource",
            "alternative_entry", "effect_entries", "model_file_document", "read_model_file", "summed_model_file_document",
@@ -210,6 +213,10 @@ class ModelFile:
     #: mount check found when that candidate won on the validation record; ``None``: a file of an earlier release
     #: (the robot description's gravity)
     gravity: NDArray[np.float64] | None = None
+    #: a known load of the description the logged torques have subtracted
+    #: (:class:`~estimation.identification.subtracted_load.SubtractedLoad`: ``oed predict`` subtracts it from the
+    #: model's torques, as the log did); ``None``: nothing subtracted (and a file of an earlier release)
+    subtracted: SubtractedLoad | None = None
 
     @property
     def band_variance(self) -> NDArray[np.float64]:
@@ -260,6 +267,8 @@ class ModelFile:
             document["training_range"] = self.training_range.to_dict()
         if self.gravity is not None:  # the gravity the model was fitted with, in the base frame
             document["gravity"] = [float(value) for value in self.gravity]
+        if self.subtracted is not None:  # the load the log lacks: the model's torques less it are the log's
+            document["subtracted"] = self.subtracted.to_dict()
         return document
 
     def channel_gains(self) -> NDArray[np.float64]:
@@ -311,9 +320,20 @@ class ModelFile:
                 torque_gains=_torque_gains(document.get("torque_gains"), channels),
                 training_range=_training_range(document.get("training_range"), document["joint_names"]),
                 gravity=_gravity(document.get("gravity")),
+                subtracted=_subtracted(document.get("subtracted")),
             )
         except (KeyError, TypeError) as error:
             raise ModelFileError(f"the model file lacks or garbles {error}") from None
+
+
+def _subtracted(values: Any) -> SubtractedLoad | None:
+    """The ``subtracted`` entry, checked: a load of a known kind (absent or ``null``: nothing subtracted)."""
+    if values is None:
+        return None
+    try:
+        return SubtractedLoad.from_dict(values)
+    except (TypeError, ValueError) as error:
+        raise ModelFileError(f"the model file's subtracted load is garbled: {error}") from None
 
 
 def _gravity(values: Any) -> NDArray[np.float64] | None:

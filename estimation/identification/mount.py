@@ -149,13 +149,19 @@ class MountCheck:
         cosine = float(self.found @ self.declared / (np.linalg.norm(self.found) * np.linalg.norm(self.declared)))
         return float(np.degrees(np.arccos(np.clip(cosine, -1.0, 1.0))))
 
-    def message(self, *, taken: bool = False) -> str:
+    def message(self, *, taken: bool = False, subtracted: bool = False) -> str:
         """The warning: the direction found, the error it saves, and the mount to write into the URDF; ``taken``: the
         answer was fitted with the found gravity (it validated better, :mod:`estimation.consistent.mounted_gravity`),
-        else it keeps the description's."""
+        else it keeps the description's; ``subtracted``: the answer is the model of a log that subtracts the
+        description's gravity torque (:mod:`estimation.identification.subtracted_load`)."""
         taken_words = ("the answer is fitted with the found gravity (it predicts the validation record better: the "
                        "model selection's reason gives the scores), which the result file holds for predict and export"
                        if taken else "this fit keeps the description's gravity")
+        if subtracted:
+            taken_words = ("the answer is the model of a log less the description's gravity torque (fitted to the "
+                           "torques with it added back; it predicts the validation record better: the model "
+                           "selection's reason gives the scores), which the result file's subtracted holds for "
+                           "predict and export")
         if self.absent:
             return (f"the torques hold no gravity load: the fit without gravity predicts the validation record with "
                     f"{1.0 - self.zero_mse / self.declared_mse:.0%} less error than with the description's. A "

@@ -195,12 +195,14 @@ def description_checks(model: IdentificationModel, train: Measurements, validati
 
 
 def description_notes(model: IdentificationModel, checks: tuple[JointZeroCheck | None, MountCheck | None], *,
-                      gravity_taken: bool = False) -> tuple[str, ...]:
+                      gravity_taken: bool = False, subtracted: bool = False) -> tuple[str, ...]:
     """The warnings of :func:`description_checks` (``checks``): the joints' zeros or directions, the torques' gravity
     load pointing elsewhere than the description says (``gravity_taken``: the answer was fitted with the found
-    gravity, :mod:`estimation.consistent.mounted_gravity`)."""
+    gravity, ``subtracted``: to the torques with the description's gravity torque added back,
+    :mod:`estimation.consistent.mounted_gravity`)."""
     zeros, mount = checks
-    return said_description(model, zeros, mount, None if mount is None else mount.message(taken=gravity_taken))
+    return said_description(model, zeros, mount, None if mount is None
+                            else mount.message(taken=gravity_taken, subtracted=subtracted))
 
 
 def competing_checks(zeros: JointZeroCheck | None, mount: MountCheck | None
@@ -276,7 +278,7 @@ def mount_candidates(model: IdentificationModel, candidates: Sequence[Effect], m
 
 
 def diagnosis_mount_notes(model: IdentificationModel, zeros: JointZeroCheck | None, mount: MountCheck | None, *,
-                          gravity_taken: bool = False) -> tuple[str, ...]:
+                          gravity_taken: bool = False, subtracted: bool = False) -> tuple[str, ...]:
     """The diagnosis's warnings of the marked joint-zero and mount checks (:func:`said_description`: the one that
     predicts the validation record better when both mark), the mount's saying which joints the search tried without
     the laws of their position (:func:`mount_candidates`); when the joints' zeros or directions are said instead,
@@ -287,12 +289,13 @@ def diagnosis_mount_notes(model: IdentificationModel, zeros: JointZeroCheck | No
     shares = ", ".join(f"{model.channels[index]} "
                        f"{1.0 - mount.said_channel_mse[index] / mount.declared_channel_mse[index]:.0%}"
                        for index in channels)
-    said = None if mount is None else mount.message(taken=gravity_taken) if not channels or gravity_taken else (
+    said = None if mount is None else mount.message(taken=gravity_taken, subtracted=subtracted) \
+        if not channels or gravity_taken or subtracted else (
         f"{mount.message()}; the diagnosis keeps it too, and tries no spring or position ripple on {names}, whose "
         f"validation error the found gravity lowers by {1.0 - MOUNT_MARK:.0%} or more ({shares}): their "
         "position-dependent load is gravity's (turned, or absent from the torques)")
     notes = said_description(model, zeros, mount, said)
-    if said is not None and said not in notes and channels and not gravity_taken:
+    if said is not None and said not in notes and channels and not gravity_taken and not subtracted:
         notes += (f"the diagnosis tried no spring or position ripple on {names}: another direction of gravity "
                   f"explains their load as well ({shares} less validation error), though the joints' zeros or "
                   "directions said explain the records better",)

@@ -39,7 +39,8 @@ from estimation.consistent.torque_gains import (
     in_recorded_units,
 )
 from estimation.identification.mount import MountCheck
-from estimation.consistent.mounted_gravity import gravity_answer, turned_model
+from estimation.identification.subtracted_load import SubtractedLoad, added_back_records, load_channels
+from estimation.consistent.mounted_gravity import gravity_answer, subtracted_answer, turned_model
 from estimation.identification.relative_error import relative_scores
 from estimation.identification.validation import ChannelErrors
 from estimation.consistent.completion import completed_laws, completed_note, completion_repeat, held_completion
@@ -420,6 +421,9 @@ class Diagnosed:
     #: in memory: each joint's friction on the validation record against the training record's
     #: (:mod:`estimation.identification.friction_drift`; ``None``: not checked)
     friction_drift: FrictionDrift | None = None
+    #: the load the logged torques lack, when the answer is the diagnosis of such a log (the result file's
+    #: ``model_file.subtracted``: :mod:`estimation.identification.subtracted_load`), else ``None``
+    subtracted: SubtractedLoad | None = None
 
 
 def check_streamed_request(args: DiagnoseOptions, delay: DelayBounds | None) -> None:
@@ -470,7 +474,7 @@ def diagnosis_in_memory(args: DiagnoseOptions, model: IdentificationModel, trans
                 validation_floor, test_floor = record_floors(records, model, args.frequency, args.jobs)
             diagnosis, selection, swap_note = answered_diagnosis(args, model, transmission, records, delay,
                                                                  validation_floor, mount=mount)
-            gravity_taken, checked = False, None
+            gravity_taken, checked, subtracted = False, None, None
             if mount is not None and not args.consistent and selection.selection == "validation":
                 # the model with the found gravity diagnosed as the declared one was, its answer a candidate
                 # (estimation.consistent.mounted_gravity): taken only when it predicts the validation record better,
@@ -485,6 +489,19 @@ def diagnosis_in_memory(args: DiagnoseOptions, model: IdentificationModel, trans
                         selection, gravity_taken = gravity_answer(selection, turned[1], mount.gravity)
                 if gravity_taken:
                     diagnosis, swap_note = turned[0], turned[2]
+                if mount.absent and gains is None and load_channels(model) \
+                        and competing_checks(checked[0], mount)[1] is not None:
+                    # the exact model of a log less the description's gravity torque: the diagnosis of the torques
+                    # with it added back (every law a candidate: the load is modelled), its answer a third candidate
+                    # (estimation.consistent.mounted_gravity.subtracted_answer)
+                    with step("the diagnosis of the log less the description's gravity torque, compared"):
+                        added = added_back_records(records, SubtractedLoad(), model.robot)
+                        floors = record_floors(added, model, args.frequency, args.jobs)
+                        answered = answered_diagnosis(args, model, transmission, added, delay, floors[0])
+                        selection, taken = subtracted_answer(selection, answered[1])
+                    if taken:
+                        diagnosis, swap_note, subtracted = answered[0], answered[2], SubtractedLoad()
+                        records, (validation_floor, test_floor), gravity_taken = added, floors, False
             untouched = test_errors(records, diagnosis, test_floor)
             trivial, notes = trivial_predictors(diagnosis.after, records.validation.measurements)
             diagnosis = replace(diagnosis, trivial=trivial)
@@ -495,7 +512,8 @@ def diagnosis_in_memory(args: DiagnoseOptions, model: IdentificationModel, trans
                 selection = in_recorded_units(selection, gains[0])
                 notes += (gains[2],)
             zeros, drift = beside_checks() if checked is None else checked
-            notes += diagnosis_mount_notes(model, zeros, mount, gravity_taken=gravity_taken)
+            notes += diagnosis_mount_notes(model, zeros, mount, gravity_taken=gravity_taken,
+                                           subtracted=subtracted is not None)
             notes += () if drift is None or drift.message() is None else (drift.message(),)
     train = records.train.measurements  # the samples fitted: the training range, and the held-out records against it
     ranges = TrainingRange.of(train.q, train.dq, model.robot.joint_names)
@@ -504,7 +522,7 @@ def diagnosis_in_memory(args: DiagnoseOptions, model: IdentificationModel, trans
     return Diagnosed(diagnosis, records.preprocessing.to_dict(), records.preprocessing.describe(),
                      (*caught_messages(caught), *notes), records=records, untouched=untouched, selection=selection,
                      transmission=transmission, notes=notes, torque_gains=None if gains is None else gains[0],
-                     training_range=ranges, range_checks=checks, friction_drift=drift)
+                     training_range=ranges, range_checks=checks, friction_drift=drift, subtracted=subtracted)
 
 
 def answered_diagnosis(args: DiagnoseOptions, model: IdentificationModel, transmission: Transmission | None,
@@ -610,6 +628,10 @@ def diagnose_document(args: DiagnoseOptions, diagnosed: Diagnosed) -> tuple[dict
         runner_up = document.get("runner_up") or {}
         if diagnosed.torque_gains is not None and runner_up.get("model_file") is not None:  # fitted alike
             runner_up["model_file"]["torque_gains"] = diagnosed.torque_gains.to_dict()
+        if diagnosed.subtracted is not None:  # oed predict subtracts the load the log lacks from the model's torques
+            for entry in (document, runner_up):  # both fitted to the torques with it added back
+                if entry.get("model_file") is not None:
+                    entry["model_file"]["subtracted"] = diagnosed.subtracted.to_dict()
     else:
         # the model file: the final model's estimate from the sums; its validation error is against the channels
         # as recorded, on the samples the in-memory preprocessing keeps (on the Fourier path every sample of the

@@ -124,4 +124,8 @@ def export(*, model: str | Path, allow_implausible: bool = False, mjcf: bool = F
     if gains:  # a property of the log's sensors, not of the bodies: the URDF holds the description's units
         lines = (*lines, "the log's torques are these gains times the model's (torque_gains, not in the URDF): "
                  + ", ".join(f"{channel} {entry['value']:.4g}" for channel, entry in gains.items()))
+    if identified.file.subtracted is not None:  # a property of the log, not of the bodies: the URDF holds the robot's
+        lines = (*lines, f"the log's torques lack a load (subtracted, not in the URDF): "
+                 f"{identified.file.subtracted.words()}; these bodies are the robot's, predict less that load to "
+                 "compare with such a log")
     return ExportRun(text, identified, tuple(findings), lines, mujoco, note, gravity_note(identified))

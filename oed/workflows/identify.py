@@ -45,6 +45,7 @@ from estimation.identification.preprocessing_choice import ChoiceWindow
 from estimation.identification.repeated_motion import repeat_note, repeated_motion_note
 from estimation.identification.model_file import summed_model_file_document
 from estimation.identification.mount import MountCheck
+from estimation.identification.subtracted_load import SubtractedLoad, added_back_records, load_channels
 from estimation.identification.report import identification_report
 from estimation.identification.friction_drift import FrictionDrift, check_friction_drift
 from estimation.identification.time_base_choice import STREAMED_TIME_BASE
@@ -87,7 +88,7 @@ from estimation.consistent.identification import ConsistentResult
 from estimation.consistent.model_selection import ModelSelection, select_model
 from estimation.consistent.motor_friction import motor_friction_answer, motor_friction_laws
 from estimation.consistent.armature import armature_answer, armature_laws
-from estimation.consistent.mounted_gravity import gravity_answer, turned_model
+from estimation.consistent.mounted_gravity import gravity_answer, subtracted_answer, turned_model
 from estimation.consistent.torque_gains import (
     TorqueGains,
     divided_torques,
@@ -390,6 +391,9 @@ class Identified:
     #: each joint's friction on the validation record against the training record's
     #: (:mod:`estimation.identification.friction_drift`; ``None``: not checked)
     friction_drift: FrictionDrift | None = None
+    #: the load the logged torques lack, when the answer is the model of such a log (:func:`subtracted_selection`;
+    #: the result file's ``model_file.subtracted``), else ``None``
+    subtracted: SubtractedLoad | None = None
 
     @property
     def rest(self) -> dict[str, dict | None]:
@@ -433,6 +437,8 @@ def identify_document(args: IdentifyOptions, identified: Identified) -> tuple[di
     document["torque_gains"] = None if gains is None else {**gains[0].to_dict(), "taken": gains[1], "reason": gains[2]}
     if gains is not None and gains[1]:  # oed predict multiplies the model's torques by them
         document["model_file"]["torque_gains"] = gains[0].to_dict()
+    if identified.subtracted is not None:  # oed predict subtracts it from the model's torques, as the log did
+        document["model_file"]["subtracted"] = identified.subtracted.to_dict()
     floor, floor_report = identified.floor, identified.floor_report
     if document.get("validation") is not None:
         if floor_report is not None:
@@ -926,10 +932,19 @@ def identification_in_memory(args: IdentifyOptions, robot: RobotModel, model: Id
         selection = armature_selection(args, selection, train, validation, base=base, given=given, delay=delay)
         # the joints' zeros and gravity's direction against the description's; a mount found is a candidate
         checks = description_checks(model, train, validation, delay=delay)
+        declared = selection.unconstrained.model  # the answer's model with the description's gravity
         selection, gravity_taken = gravity_selection(args, selection, checks[1], train, validation, base=base,
                                                      given=given, delay=delay)
-        selection, gains = torque_gains_selection(args, selection, train, validation, base=base, given=given,
-                                                  delay=delay)
+        selection, subtracted = subtracted_selection(args, selection, declared, checks[1], records, base=base,
+                                                     given=given, delay=delay)
+        if subtracted is not None:  # the answer's records: the torques with the load added back (its errors alike)
+            records, gravity_taken = subtracted, False
+            train = records.train.measurements
+            validation = None if records.validation is None else records.validation.measurements
+            gains = None  # one known load at a time: the gains are not tried on a log that lacks one
+        else:
+            selection, gains = torque_gains_selection(args, selection, train, validation, base=base, given=given,
+                                                      delay=delay)
         result, consistent = selection.unconstrained, selection.consistent
         chosen = ChosenModel.of(selection)  # the answer: what the summary, result.json, predict and export hold
         trivial, notes = trivial_predictors(result, validation, chosen.validation)
@@ -938,7 +953,8 @@ def identification_in_memory(args: IdentifyOptions, robot: RobotModel, model: Id
         notes = (*notes, *above_floor_notes(floor_report, chosen, None if validation is None else validation.n_samples))
         repeat = None if validation is None else repeated_motion_note(train, validation)
         notes = notes if repeat is None else (*notes, repeat)
-        notes = (*notes, *description_notes(model, checks, gravity_taken=gravity_taken))
+        notes = (*notes, *description_notes(model, checks, gravity_taken=gravity_taken,
+                                            subtracted=subtracted is not None))
         drift = None if delay is not None or model_has_shapes(model) else check_friction_drift(model, train, validation)
         notes = notes if drift is None or drift.message() is None else (*notes, drift.message())
     ranges = TrainingRange.of(train.q, train.dq, model.robot.joint_names)  # the samples fitted
@@ -950,7 +966,7 @@ def identification_in_memory(args: IdentifyOptions, robot: RobotModel, model: Id
                       n_samples=train.n_samples, torque_gains=gains, training_range=ranges,
                       range_checks={"validation": None if validation is None else ranges.check(validation.q,
                                                                                                validation.dq)},
-                      friction_drift=drift)
+                      friction_drift=drift, subtracted=None if subtracted is None else SubtractedLoad())
 
 
 def motor_friction_selection(args: IdentifyOptions, selection: ModelSelection, model: IdentificationModel,
@@ -1010,6 +1026,27 @@ def gravity_selection(args: IdentifyOptions, selection: ModelSelection, mount: M
         turned = turned_model(model, mount.gravity)
         other = select_model(turned, train, validation, base=base, consistent=consistent_settings(args, turned.robot))
     return gravity_answer(selection, other, mount.gravity)
+
+
+def subtracted_selection(args: IdentifyOptions, selection: ModelSelection, declared: IdentificationModel,
+                         mount: MountCheck | None, records: PreparedRecords, *, base: str, given: str | None,
+                         delay: DelayBounds | None) -> tuple[ModelSelection, PreparedRecords | None]:
+    """The default answer with the description's gravity torque subtracted by the logger a candidate
+    (:func:`estimation.consistent.mounted_gravity.subtracted_answer`): where the mount check says the torques hold no
+    gravity load, ``declared`` (the answer's model with the description's gravity) chosen among its candidates on the
+    records with that load added back (:func:`~estimation.identification.subtracted_load.added_back_records`), and
+    taken when its answer validates better than ``selection``'s; ``(answer, the records added back)`` then, else
+    ``(selection, None)``: under :func:`gravity_selection`'s conditions, and for a model of the joint torques only."""
+    validation = records.validation
+    if mount is None or not mount.absent or given is not None or delay is not None or model_has_shapes(declared) \
+            or validation is None or selection.selection != "validation" or not load_channels(declared):
+        return selection, None
+    with step("the model of a log less the description's gravity torque fitted and compared"):
+        added = added_back_records(records, SubtractedLoad(), declared.robot)
+        other = select_model(declared, added.train.measurements, added.validation.measurements, base=base,
+                             consistent=consistent_settings(args, declared.robot))
+    answer, taken = subtracted_answer(selection, other)
+    return answer, added if taken else None
 
 
 def torque_gains_selection(args: IdentifyOptions, selection: ModelSelection, train: Measurements,

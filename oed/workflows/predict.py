@@ -90,6 +90,7 @@ def predict(*, model: str | Path, data: Any, consistent: bool = False, alternati
              + ("" if identified.estimate == (identified.file.chosen or "unconstrained") else ": an alternative")
              + (f", delay {1e3 * identified.delay:.3g} ms" if identified.delay is not None else "")
              + ("" if identified.fitted_gravity is None else f", {identified.fitted_gravity}")
+             + ("" if identified.subtracted_words is None else f", {identified.subtracted_words}")
              + f"), {prediction.t.shape[0]} samples; "
              f"{identified.preprocessing.describe(applied=True).removeprefix('preprocessing: ')}",
              *table_lines(evaluation), range_line(evaluation)]
