@@ -26,6 +26,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from dynamics.models import IdentificationModel
 from estimation.preprocessing.differentiation import ButterworthDifferentiation
+from estimation.streaming.block_errors import BlockSquares
 from estimation.streaming.chunks import logged_chunks
 from estimation.streaming.periods import plan_chunks
 
@@ -95,9 +96,11 @@ def theta_predictors(model: IdentificationModel, thetas: Mapping[Any, ArrayLike]
 def counted_predicted_errors(model: IdentificationModel, predictors: Mapping[Any, Predictor],
                              paths: Sequence[str | Path], *, chunk_size: int, cutoff_hz: float | None = None,
                              decimation: int = 1, held_torques: bool = False, frequency_hz: float | None = None,
-                             harmonics: int = 5) -> tuple[dict[Any, dict[str, float]], int]:
+                             harmonics: int = 5, blocks: Mapping[Any, BlockSquares] | None = None
+                             ) -> tuple[dict[Any, dict[str, float]], int]:
     """:func:`counted_recorded_errors` of any predictions (``predictors``: e.g. a model file's, shaped laws at its
-    shapes); ``model`` reads the files (its joints and channels)."""
+    shapes); ``model`` reads the files (its joints and channels). ``blocks``: by predictor name, the accumulators
+    of each validation block's squared residuals, filled as the rows pass (:mod:`estimation.streaming.block_errors`)."""
     if not paths:
         raise ValueError("no files to measure the error on")
     squares = {name: np.zeros(model.n_channels) for name in predictors}
@@ -109,7 +112,10 @@ def counted_predicted_errors(model: IdentificationModel, predictors: Mapping[Any
             record = chunk.as_recorded
             measured = record.channels(model.channels)
             for name, predict in predictors.items():
-                squares[name] += np.sum((measured - predict(record.q, record.dq, record.ddq)) ** 2, axis=0)
+                squared = (measured - predict(record.q, record.dq, record.ddq)) ** 2
+                squares[name] += np.sum(squared, axis=0)
+                if blocks is not None and name in blocks:
+                    blocks[name].add(squared)
             count += measured.shape[0]
     if count == 0:
         raise ValueError("the files hold no samples once preprocessed")

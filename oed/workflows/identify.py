@@ -38,7 +38,7 @@ from estimation.diagnosis.statistics import FLOOR_ALPHA, ResidualReport, residua
 from estimation.uncertainty.floor_comparison import compare_with_floor
 from estimation.uncertainty.noise_floor import NoiseFloor
 from estimation.estimators.least_squares import IdentifiabilityError
-from estimation.estimators.normal_equations import DEFAULT_CHUNK_SIZE
+from estimation.estimators.normal_equations import DEFAULT_CHUNK_SIZE, NormalEquations
 from estimation.identification.fit import IdentificationResult
 from estimation.identification.prepared import InMemoryBudget, PreparedRecords, prepare_records
 from estimation.identification.preprocessing_choice import ChoiceWindow
@@ -57,12 +57,14 @@ from estimation.preprocessing.delay import DelayBounds, split_delay
 from estimation.preprocessing.plan import Preprocessing
 from estimation.streaming.chunks import source_files
 from estimation.streaming.cutoff_choice import streamed_window
-from estimation.streaming.identification import SummedFits, identify_files_candidates
+from estimation.streaming.identification import SummedFits, identify_files_candidates, prepared_chunks
 from estimation.streaming.model_selection import streamed_repeated_motion, summed_selection, warned_still_motion
 from estimation.streaming.torque_gains import GainsScorer, divided_sums, streamed_gains_check
 from estimation.streaming.periods import plan_options
 from estimation.streaming.diagnosis_passes import window_floor
+from estimation.streaming.block_errors import BlockSquares, block_channel_mse, block_normal_equations
 from estimation.streaming.recorded_errors import (
+    counted_predicted_errors,
     recorded_training_errors,
     streamed_errors_at_stamps,
     streamed_plan,
@@ -772,7 +774,14 @@ class ValidationScores:
     (:func:`estimation.streaming.recorded_errors.streamed_recorded_errors`; the sums give the errors against the
     filtered channels beside them), and on a file resampled onto a uniform grid at the recorded samples
     (:func:`~oed.workflows.model_files.recorded_validation_mse`'s measurement, what ``oed predict`` measures). The
-    first call scores the trivial predictors too (:attr:`trivial`: zero and nominal parameters)."""
+    first call scores the trivial predictors too (:attr:`trivial`: zero and nominal parameters).
+
+    Each error carries the MSE of each validation block (``ChannelErrors.block_mse``: the blocks memory cuts its
+    samples into, :mod:`estimation.streaming.block_errors`), for the paired difference of the default answer's
+    candidates (:func:`estimation.consistent.model_selection.paired_difference`): summed on the pass against the
+    recording, or, where the sums hold the recording, from each block's normal equations summed once on a pass
+    of their own (:meth:`block_sums`). Not on a file resampled onto a uniform grid (the errors at its stamps):
+    ``None`` there."""
 
     def __init__(self, args: IdentifyOptions, sums: SummedFits, result: IdentificationResult, chunk_size: int,
                  options: dict[str, Any]) -> None:
@@ -780,6 +789,21 @@ class ValidationScores:
         #: the derivatives as the files were summed (:func:`estimation.streaming.periods.plan_options`)
         self.decimation, self.held_torques = int(options["decimation"]), bool(options["held_torques"])
         self.trivial: dict[str, dict[str, float]] | None = None
+        self._block_sums: list[NormalEquations] | None = None
+        self._block_sums_made = False
+
+    def block_sums(self) -> list[NormalEquations] | None:
+        """Each validation block's normal equations, summed on one pass the first time they are asked for
+        (:func:`estimation.streaming.block_errors.block_normal_equations`, the chunks as the sums took them)."""
+        if not self._block_sums_made:
+            self._block_sums_made = True
+            model, streaming = self.result.model, self.result.streaming
+            options = {"chunk_size": self.chunk_size, "cutoff_hz": streaming["cutoff_hz"],
+                       "decimation": self.decimation, "held_torques": self.held_torques}
+            chunks = (chunk for path in self.args.validate for chunk in prepared_chunks(str(path), model, **options))
+            with step("the validation record's blocks summed (the paired difference of the candidates)"):
+                self._block_sums = block_normal_equations(model, chunks, int(self.sums.validation.n_samples))
+        return self._block_sums
 
     def __call__(self, thetas: Mapping[Any, np.ndarray]) -> dict[Any, ChannelErrors]:
         model, args, streaming = self.result.model, self.args, self.result.streaming
@@ -802,18 +826,28 @@ class ValidationScores:
                                                 decimation=self.decimation, held_torques=self.held_torques,
                                                 chunk_size=self.chunk_size))
                 recorded = recorded_validation_errors(document, vectors, source_files(args.validate))  # None: as recorded
+            blocks: dict[Any, dict[str, tuple[float, ...]] | None] = {}
             if recorded is not None:
                 pass
             elif next(iter(summed.values())).mse is not None:  # the sums hold the recording
                 recorded = {key: errors.mse for key, errors in summed.items()}
+                block_sums = self.block_sums()
+                if block_sums is not None:
+                    blocks = {("theta", key): block_channel_mse(block_sums, np.asarray(theta, dtype=float))
+                              for key, theta in thetas.items()}
             else:
-                recorded = streamed_recorded_errors(model, vectors, args.validate, chunk_size=self.chunk_size,
-                                                    cutoff_hz=streaming["cutoff_hz"], decimation=self.decimation,
-                                                    held_torques=self.held_torques)
+                count = int(self.sums.validation.n_samples)
+                squares = {("theta", key): BlockSquares(count, model.n_channels) for key in thetas}
+                recorded, _ = counted_predicted_errors(
+                    model, theta_predictors(model, vectors), args.validate, chunk_size=self.chunk_size,
+                    cutoff_hz=streaming["cutoff_hz"], decimation=self.decimation, held_torques=self.held_torques,
+                    blocks=squares)
+                blocks = {key: accumulated.block_mse(model.channels) for key, accumulated in squares.items()}
         if self.trivial is None:
             self.trivial = {name: dict(recorded[("trivial", name)]) for name in ("zero_mse", "nominal_mse")}
         return {key: ChannelErrors(dict(recorded[("theta", key)]), summed[("theta", key)].n_samples,
-                                   mse_filtered=summed[("theta", key)].mse_filtered)
+                                   mse_filtered=summed[("theta", key)].mse_filtered,
+                                   block_mse=blocks.get(("theta", key)))
                 for key in thetas}
 
 
