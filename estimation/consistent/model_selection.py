@@ -35,10 +35,11 @@ not above :data:`NOISE_QUANTILE` standard errors (a one-sided test at :data:`NOI
 ``BLOCKS - 1`` degrees of freedom, since the standard error is estimated from that many blocks), the validation
 record does not tell the candidates apart. This is **reported** (``paired_difference`` in ``result.json``, a line
 of the summary; not the reason, which the streamed path gives alike); the smallest score is still chosen. Choosing the consistent candidate then (the toolkit's preference when
-nothing measured extrapolation) fixed the Panda's identify on the short records, but the streamed path holds no
-samples (errors from sums of the regressor's products: no blocks), so the same records would get another answer
-there (``benchmarks/README.md``, h-shortval: the rule is kept on a side branch until the streamed sums carry the
-blocks).
+nothing measured extrapolation) fixed the Panda's identify on the short records but made the Panda at 100 Hz
+worse (``benchmarks/README.md``, h-shortval: the rule is kept on a side branch). The streamed path holds no samples,
+but it sums each block's squared errors on its validation pass (:mod:`estimation.streaming.block_errors`, the
+blocks cut as here), so it reports the same figures (``benchmarks/README.md``, h-streamsel); not on a validation
+file it resampled onto a uniform grid (its errors at the recorded stamps: ``null`` there).
 
 **No comparison.** When there is no validation record, or it repeats the training motion
 (:func:`estimation.identification.repeated_motion.repeated_motion`), nothing measured how a candidate extrapolates

@@ -76,6 +76,7 @@ from oed.workflows.asbuilt import (
     description_checks,
     description_notes,
     FOURIER_CHECKS,
+    streamed_description_findings,
     streamed_description_notes,
     model_effects,
     resolve_joint_directions,
@@ -485,7 +486,10 @@ def identification_streamed(args: IdentifyOptions, model: IdentificationModel, t
                                              executor=executor)
         result = sums.fits[base]
         cutoff_hz, frequency_hz = result.streaming["cutoff_hz"], result.streaming["frequency_hz"]
-        scores, ratio = None, None
+        scores, ratio, checked, gravity_taken = None, None, None, False
+        reading_options = {"chunk_size": chunk_size, "cutoff_hz": options["cutoff_hz"],
+                           "frequency_hz": options["frequency_hz"], "harmonics": options["harmonics"],
+                           "decimation": options["decimation"], "held_torques": options["held_torques"]}
         if frequency_hz is None:  # the answer chosen as in memory (a Fourier fit: the sums hold averaged periods)
             scores = None if result.validation is None else ValidationScores(args, sums, result, chunk_size, options)
             ratio = None if not args.validate else streamed_repeated_motion(model, args.data, args.validate,
@@ -504,6 +508,13 @@ def identification_streamed(args: IdentifyOptions, model: IdentificationModel, t
             selection, sums, scores = streamed_armature_selection(
                 args, selection, base=base, methods=methods, chunk_size=chunk_size, options=options, ratio=ratio,
                 still=still, sums=sums, scores=scores)
+            # the joints' zeros and gravity's direction against the description's; a mount found is a candidate
+            checked = streamed_description_findings(
+                model, args.data, int(sums.train.n_samples), args.validate or [],
+                0 if sums.validation is None else int(sums.validation.n_samples), options=reading_options)
+            selection, sums, scores, gravity_taken = streamed_gravity_selection(
+                args, selection, checked.said_mount, base=base, methods=methods, chunk_size=chunk_size,
+                options=options, ratio=ratio, still=still, sums=sums, scores=scores)
             selection, gains = streamed_torque_gains_selection(
                 args, selection, base=base, methods=methods, chunk_size=chunk_size, options=options, ratio=ratio,
                 still=still, sums=sums)
@@ -517,6 +528,7 @@ def identification_streamed(args: IdentifyOptions, model: IdentificationModel, t
             not_computed.pop(key, None)
     if selection is not None:
         not_computed.pop("model_selection", None)
+        not_computed.pop("gravity", None)  # a mount found is a candidate, as in memory
         if selection.consistent is not None or args.method != "auto":
             not_computed.pop("consistent", None)
             not_computed.pop("links", None)
@@ -565,10 +577,8 @@ def identification_streamed(args: IdentifyOptions, model: IdentificationModel, t
     # the joint zeros, the mount and the friction drift checked as in memory, on the samples memory checks
     said, drift = streamed_description_notes(
         model, args.data, int(sums.train.n_samples), args.validate or [],
-        0 if sums.validation is None else int(sums.validation.n_samples),
-        options={"chunk_size": chunk_size, "cutoff_hz": options["cutoff_hz"], "frequency_hz": options["frequency_hz"],
-                 "harmonics": options["harmonics"], "decimation": options["decimation"],
-                 "held_torques": options["held_torques"]})
+        0 if sums.validation is None else int(sums.validation.n_samples), options=reading_options,
+        findings=checked, gravity_taken=gravity_taken)
     notes = (*notes, *said)
     if args.validate and options["frequency_hz"] is not None and not model_has_shapes(model):
         not_computed["friction_drift"] = FOURIER_CHECKS
@@ -701,6 +711,32 @@ def streamed_armature_selection(args: IdentifyOptions, selection: ModelSelection
                                                            still=still)
     answer = armature_answer(selection, other)
     return (answer, other_sums, other_scores) if answer.unconstrained.model is other_model else (answer, sums, scores)
+
+
+def streamed_gravity_selection(args: IdentifyOptions, selection: ModelSelection, mount: MountCheck | None, *,
+                               base: str, methods: tuple[str, ...], chunk_size: int, options: Mapping[str, Any],
+                               ratio: float | None, still: bool, sums: SummedFits, scores: ValidationScores | None
+                               ) -> tuple[ModelSelection, SummedFits, ValidationScores | None, bool]:
+    """:func:`gravity_selection` of files read in blocks: the model ``selection`` holds with the gravity the mount
+    check found (:func:`~estimation.consistent.mounted_gravity.turned_model`), summed over the same files with the
+    same derivatives (a pass of its own: the regressor changes with gravity), chosen among its candidates from its
+    sums as the declared model's were (:func:`summed_candidate`, scored on the same validation samples) and compared
+    by the same rule (:func:`~estimation.consistent.mounted_gravity.gravity_answer`); ``(selection, sums, scores,
+    taken)``, unchanged (``taken`` false) under the conditions memory tries nothing (no mount said, the estimator
+    given, shaped laws, no validation record of another motion)."""
+    model = selection.unconstrained.model
+    if mount is None or args.method != "auto" or args.consistent or not args.validate or model_has_shapes(model) \
+            or selection.selection != "validation":
+        return selection, sums, scores, False
+    turned = turned_model(model, mount.gravity)
+    with step("the model with the gravity the mount check found fitted and compared"):
+        other, other_sums, other_scores = summed_candidate(args, turned, base=base, methods=methods,
+                                                           chunk_size=chunk_size, options=options, ratio=ratio,
+                                                           still=still)
+    answer, taken = gravity_answer(selection, other, mount.gravity)
+    if answer.unconstrained.model is turned:
+        return answer, other_sums, other_scores, taken
+    return answer, sums, scores, taken
 
 
 def streamed_motor_friction(args: IdentifyOptions, model: IdentificationModel,
