@@ -643,7 +643,9 @@ def streamed_torque_gains_selection(args: IdentifyOptions, selection: ModelSelec
             warnings.simplefilter("ignore")
             other = summed_selection(divided_sums(sums, gains, methods), base=base,
                                      consistent=consistent_settings(args, model.robot),
-                                     score=GainsScorer(model, gains, args.validate, reading), ratio=ratio, still=still)
+                                     score=GainsScorer(model, gains, args.validate, reading,
+                                                       n_samples=int(sums.validation.n_samples)),
+                                     ratio=ratio, still=still)
     answer, taken, compared = torque_gains_answer(selection, carried_reasons(selection, other), gains)
     return answer, (gains, taken, f"{sentence}; then {compared}" if compared else sentence)
 
