@@ -60,6 +60,10 @@ def test_squares_summed_as_the_rows_pass_give_memorys_block_errors(samples):
     short.add(comparison.residuals ** 2)
     assert short.block_mse(CHANNELS) is None
     assert BlockSquares(3, len(CHANNELS)).block_mse(CHANNELS) is None  # fewer rows than blocks
+    spoiled = BlockSquares(samples, len(CHANNELS))  # rows out of their order (stamps before a grid's start)
+    spoiled.add(comparison.residuals ** 2)
+    spoiled.spoil()
+    assert spoiled.block_mse(CHANNELS) is None
 
 
 def test_the_blocks_normal_equations_give_each_blocks_error_of_any_parameters():
@@ -92,7 +96,7 @@ def _summed(name, comparison, blocks=True):
 
 
 def test_the_paired_difference_from_block_sums_is_memorys():
-    first, second = _comparison(4, 1500), _comparison(5, 1500)
+    first, second = _comparison(4, 1503), _comparison(5, 1503)  # blocks of 301 and 300 samples
     held = [Candidate(name, SimpleNamespace(validation=item, train=None))
             for name, item in (("wls", first), ("consistent", second))]
     memory = paired_difference(held, "wls")
@@ -100,7 +104,54 @@ def test_the_paired_difference_from_block_sums_is_memorys():
     assert memory is not None and streamed is not None
     assert streamed.difference == pytest.approx(memory.difference, rel=1e-12)
     assert streamed.standard_error == pytest.approx(memory.standard_error, rel=1e-12)
+    # the blocks of a resampled file's recorded samples, whose sums count the grid's: cut from the recorded count
+    gridded = [Candidate(name, SimpleNamespace(validation=ChannelErrors(
+        dict(item.mse), 2 * item.n_samples, block_mse=block_mse(item), block_samples=item.n_samples), train=None))
+        for name, item in (("wls", first), ("consistent", second))]
+    assert paired_difference(gridded, "wls").standard_error == pytest.approx(memory.standard_error, rel=1e-12)
     # no blocks summed, other samples, or one held and one summed: nothing compared
     assert paired_difference([_summed("wls", first, blocks=False), _summed("consistent", second)], "wls") is None
-    assert paired_difference([_summed("wls", first), _summed("consistent", _comparison(5, 1499))], "wls") is None
+    assert paired_difference([_summed("wls", first), _summed("consistent", _comparison(5, 1502))], "wls") is None
     assert paired_difference([held[0], _summed("consistent", second)], "wls") is None
+
+
+@pytest.mark.slow
+def test_a_jittered_validation_record_gives_memorys_paired_difference_streamed(tmp_path):
+    """A log whose stamps jitter by 20 % of a step (the streamed reader resamples it onto a grid and scores the
+    candidates at the recorded stamps): the streamed ``oed identify`` learns the recorded samples' count on its first
+    pass and sums the blocks on one more, and reports memory's paired difference (measured 3e-12 apart; ``null``
+    before, h-shortval)."""
+    import json
+
+    from dynamics.effects.linear import CoulombFriction, JointOffset
+    from dynamics.simulation.synthetic import simulate, true_parameters
+    from oed.cli import main
+    from oed.fourier import random_fourier
+
+    model = build_model(load_robot("puma560", joints=3), "internal", "viscous")
+    truth = build_model(model.robot, "internal", ("viscous", CoulombFriction(joints=(1,)), JointOffset(joints=(0,))))
+    theta = true_parameters(truth, seed=0, coulomb=[8.0], offset=[3.0])
+    generator = np.random.default_rng(5)
+    paths = []
+    for seed, trajectory in ((1, 3), (2, 4)):
+        data = simulate(truth, theta, random_fourier(model.robot, seed=trajectory),
+                        noise={c: 0.2 for c in truth.channels}, seed=seed, rate_hz=200.0, periods=3)
+        t = data.t + generator.uniform(-0.2, 0.2, data.t.shape) / 200.0
+        Measurements(t, data.q + 1e-4 * generator.standard_normal(data.q.shape), tau=data.tau).write(
+            tmp_path / f"jittered{seed}.csv")
+        paths.append(tmp_path / f"jittered{seed}.csv")
+    documents = {}
+    for name, options in (("memory", ()), ("streamed", ("--chunk-size", "250"))):
+        out = tmp_path / f"{name}.json"
+        assert main(["identify", "--joints", "3", "--model", "internal", "--friction", "viscous,coulomb,offset",
+                     "--data", str(paths[0]), "--validate", str(paths[1]), "--out", str(out), "--cutoff", "6",
+                     "--quiet", *options]) == 0
+        documents[name] = json.loads(out.read_text())
+    memory, streamed = documents["memory"], documents["streamed"]
+    assert streamed["streaming"]["validation_files"][0]["resampled_from"] is not None  # scored at the stamps
+    assert streamed["chosen"] == memory["chosen"] != "consistent"
+    paired = {name: document["model_selection"]["paired_difference"] for name, document in documents.items()}
+    assert paired["memory"] is not None and paired["streamed"] is not None
+    assert paired["streamed"]["best"] == paired["memory"]["best"]
+    for key in ("difference", "standard_error"):
+        assert paired["streamed"][key] == pytest.approx(paired["memory"][key], rel=1e-8), key

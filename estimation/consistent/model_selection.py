@@ -38,8 +38,8 @@ of the summary; not the reason, which the streamed path gives alike); the smalle
 nothing measured extrapolation) fixed the Panda's identify on the short records but made the Panda at 100 Hz
 worse (``benchmarks/README.md``, h-shortval: the rule is kept on a side branch). The streamed path holds no samples,
 but it sums each block's squared errors on its validation pass (:mod:`estimation.streaming.block_errors`, the
-blocks cut as here), so it reports the same figures (``benchmarks/README.md``, h-streamsel); not on a validation
-file it resampled onto a uniform grid (its errors at the recorded stamps: ``null`` there).
+blocks cut as here), so it reports the same figures (``benchmarks/README.md``, h-streamsel), a validation file it
+resampled onto a uniform grid at its recorded stamps as here.
 
 **No comparison.** When there is no validation record, or it repeats the training motion
 (:func:`estimation.identification.repeated_motion.repeated_motion`), nothing measured how a candidate extrapolates
@@ -501,8 +501,8 @@ def paired_difference(candidates: Sequence[Candidate], best: str, regularised: C
     if best == regularised or best not in by_name or regularised not in by_name:
         return None
     pair = (by_name[best].validation, by_name[regularised].validation)
-    if any(item is None or item.mse is None or item.n_samples is None for item in pair) \
-            or not _same_samples(pair[0], pair[1]) or pair[0].n_samples < BLOCKS:
+    if any(item is None or item.mse is None or _blocked_samples(item) is None for item in pair) \
+            or not _same_samples(pair[0], pair[1]) or _blocked_samples(pair[0]) < BLOCKS:
         return None
     blocks = [_blocks(item) for item in pair]
     if any(not block for block in blocks):
@@ -515,7 +515,8 @@ def paired_difference(candidates: Sequence[Candidate], best: str, regularised: C
     floors = table[finite].min(axis=0) if np.any(finite) else np.zeros(len(channels))
     if not np.all(floors > 0):
         return None
-    sizes = np.array([part.shape[0] for part in np.array_split(np.empty(pair[0].n_samples), BLOCKS)], dtype=float)
+    sizes = np.array([part.shape[0] for part in np.array_split(np.empty(_blocked_samples(pair[0])), BLOCKS)],
+                     dtype=float)
     difference, error = blocks_difference(blocks[1], blocks[0], floors, channels, sizes)
     if not (math.isfinite(difference) and math.isfinite(error)):
         return None
@@ -530,7 +531,14 @@ def _same_samples(first: Comparison | ChannelErrors, second: Comparison | Channe
         return first.t.shape == second.t.shape and bool(np.array_equal(first.t, second.t))
     if isinstance(first, Comparison) or isinstance(second, Comparison):
         return False
-    return first.n_samples == second.n_samples
+    return _blocked_samples(first) == _blocked_samples(second)
+
+
+def _blocked_samples(errors: Comparison | ChannelErrors) -> int | None:
+    """How many samples the validation blocks are cut from: a comparison's, or those summed by block."""
+    if isinstance(errors, ChannelErrors) and errors.block_samples is not None:
+        return errors.block_samples
+    return errors.n_samples
 
 
 def _blocks(errors: Comparison | ChannelErrors) -> dict[str, tuple[float, ...]]:

@@ -70,6 +70,11 @@ class BlockSquares:
         self.bounds = block_bounds(self.n_samples, blocks)
         self.squares = np.zeros((blocks, int(n_channels)))
         self.count = 0
+        self.spoiled = False
+
+    def spoil(self) -> None:
+        """Rows came out of their order: :meth:`block_mse` is ``None``."""
+        self.spoiled = True
 
     def add(self, squares: NDArray[np.float64]) -> None:
         """The squared residuals ``(N, m)`` of the next ``N`` rows."""
@@ -82,7 +87,7 @@ class BlockSquares:
         """Per channel, each block's MSE; ``None`` when the pass gave another count of rows than announced or fewer
         rows than blocks (memory cuts no blocks then)."""
         sizes = np.diff(self.bounds)
-        if self.count != self.n_samples or np.any(sizes == 0):
+        if self.spoiled or self.count != self.n_samples or np.any(sizes == 0):
             return None
         mse = self.squares / sizes[:, None]
         return {channel: tuple(float(value) for value in mse[:, column]) for column, channel in enumerate(channels)}

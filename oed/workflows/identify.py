@@ -64,9 +64,9 @@ from estimation.streaming.periods import plan_options
 from estimation.streaming.diagnosis_passes import window_floor
 from estimation.streaming.block_errors import BlockSquares, block_channel_mse, block_normal_equations
 from estimation.streaming.recorded_errors import (
+    counted_errors_at_stamps,
     counted_predicted_errors,
     recorded_training_errors,
-    streamed_errors_at_stamps,
     streamed_plan,
     streamed_recorded_errors,
     theta_predictors,
@@ -818,8 +818,9 @@ class ValidationScores:
     samples into, :mod:`estimation.streaming.block_errors`), for the paired difference of the default answer's
     candidates (:func:`estimation.consistent.model_selection.paired_difference`): summed on the pass against the
     recording, or, where the sums hold the recording, from each block's normal equations summed once on a pass
-    of their own (:meth:`block_sums`). Not on a file resampled onto a uniform grid (the errors at its stamps):
-    ``None`` there."""
+    of their own (:meth:`block_sums`); on a file resampled onto a uniform grid at its recorded stamps, once their
+    count is known (:meth:`at_stamps`). Not where the loader drops rows the grid interpolates (the files measured
+    whole): ``None`` there."""
 
     def __init__(self, args: IdentifyOptions, sums: SummedFits, result: IdentificationResult, chunk_size: int,
                  options: dict[str, Any]) -> None:
@@ -829,6 +830,7 @@ class ValidationScores:
         self.trivial: dict[str, dict[str, float]] | None = None
         self._block_sums: list[NormalEquations] | None = None
         self._block_sums_made = False
+        self._stamp_count: int | None = None  # the recorded samples of a resampled validation file
 
     def block_sums(self) -> list[NormalEquations] | None:
         """Each validation block's normal equations, summed on one pass the first time they are asked for
@@ -853,10 +855,10 @@ class ValidationScores:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # the files' findings were said on the first pass
             recorded = None
+            blocks: dict[Any, dict[str, tuple[float, ...]] | None] = {}
+            block_samples = None
             if resampled_validation({"streaming": streaming}):  # jittered or cleaned: at the recorded samples
-                recorded = streamed_errors_at_stamps(model, vectors, args.validate, chunk_size=self.chunk_size,
-                                                     cutoff_hz=streaming["cutoff_hz"], decimation=self.decimation,
-                                                     held_torques=self.held_torques)  # block by block
+                recorded, blocks, block_samples = self.at_stamps(vectors, thetas)  # block by block
             if recorded is None and resampled_validation({"streaming": streaming}):  # rows the loader drops: whole
                 document = summed_model_file_document(
                     model, self.result.estimate, robot=robot_source(model.robot, args),
@@ -864,7 +866,6 @@ class ValidationScores:
                                                 decimation=self.decimation, held_torques=self.held_torques,
                                                 chunk_size=self.chunk_size))
                 recorded = recorded_validation_errors(document, vectors, source_files(args.validate))  # None: as recorded
-            blocks: dict[Any, dict[str, tuple[float, ...]] | None] = {}
             if recorded is not None:
                 pass
             elif next(iter(summed.values())).mse is not None:  # the sums hold the recording
@@ -885,8 +886,37 @@ class ValidationScores:
             self.trivial = {name: dict(recorded[("trivial", name)]) for name in ("zero_mse", "nominal_mse")}
         return {key: ChannelErrors(dict(recorded[("theta", key)]), summed[("theta", key)].n_samples,
                                    mse_filtered=summed[("theta", key)].mse_filtered,
-                                   block_mse=blocks.get(("theta", key)))
+                                   block_mse=blocks.get(("theta", key)), block_samples=block_samples)
                 for key in thetas}
+
+    def at_stamps(self, vectors: Mapping[Any, np.ndarray], thetas: Mapping[Any, np.ndarray]
+                  ) -> tuple[dict[Any, dict[str, float]] | None, dict[Any, Any], int | None]:
+        """The errors of ``vectors`` at the recorded stamps of a validation file resampled onto a grid
+        (:func:`~estimation.streaming.recorded_errors.counted_errors_at_stamps`), each block's of the ``thetas``
+        among them, and how many samples the blocks cut: the first call learns that count, then scores the
+        ``thetas`` once more with the blocks (one more pass, once a scorer); ``(None, {}, None)`` when the loader
+        drops rows the grid interpolates."""
+        model, streaming = self.result.model, self.result.streaming
+        reading = {"chunk_size": self.chunk_size, "cutoff_hz": streaming["cutoff_hz"], "decimation": self.decimation,
+                   "held_torques": self.held_torques}
+        keys = [("theta", key) for key in thetas]
+
+        def squares(count: int | None) -> dict[Any, BlockSquares] | None:
+            return None if count is None else {key: BlockSquares(count, model.n_channels) for key in keys}
+
+        accumulated = squares(self._stamp_count)
+        counted = counted_errors_at_stamps(model, vectors, self.args.validate, blocks=accumulated, **reading)
+        if counted is None:
+            return None, {}, None
+        recorded, count = counted
+        if accumulated is None:  # the count learnt: the blocks of the thetas from one more pass
+            self._stamp_count = count
+            accumulated = squares(count)
+            again = counted_errors_at_stamps(model, {key: vectors[key] for key in keys}, self.args.validate,
+                                             blocks=accumulated, **reading)
+            if again is None or accumulated is None:
+                return recorded, {}, None
+        return recorded, {key: item.block_mse(model.channels) for key, item in accumulated.items()}, count
 
 
 def recorded_validation(args: IdentifyOptions, result: IdentificationResult, chunk_size: int, *, harmonics: int = 5
