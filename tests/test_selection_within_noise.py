@@ -80,7 +80,7 @@ def test_no_comparison_without_samples_or_when_the_consistent_fit_is_best():
     assert selection.chosen == "consistent" and selection.paired is None
     assert selection.to_dict()["paired_difference"] is None
     summed = [Candidate(name, SimpleNamespace(validation=ChannelErrors({"tau1": value, "tau2": value}), train=None))
-              for name, value in (("wls", 1.0), ("consistent", 1.001))]  # the streamed path: errors from sums
+              for name, value in (("wls", 1.0), ("consistent", 1.001))]  # errors from sums without block sums
     streamed = select_scored(summed, base="wls", ratio=1.0)
     assert streamed.chosen == "wls" and streamed.paired is None
     other_samples = candidate("consistent", t + 1.0, measured, measured)

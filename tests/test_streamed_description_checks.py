@@ -1,6 +1,7 @@
 """The streamed ``oed identify`` and ``oed diagnose`` (``--chunk-size``) check the mount and the friction drift as the
 in-memory verbs do (h-streamchecks): the same ``friction_drift`` figures and the same warnings (but for what
-each path does with a found gravity: memory tries it as a candidate, the streamed paths keep the description's), on simulated PUMA 560
+each path does with a found gravity: ``oed identify`` tries it as a candidate on both paths (h-streamsel), memory's
+``oed diagnose`` too, the streamed diagnosis keeps the description's), on simulated PUMA 560
 records whose truth holds what the check is for (:mod:`tests.test_unseen_robot_mounts`): the friction 30 % lower
 once warm (training cold, validation at 2 min), and the arm on a wall whose URDF gives no mount.
 
@@ -69,9 +70,10 @@ def _same_drift(memory: dict, streamed: dict) -> None:
                 assert drift["joints"][name][key] == pytest.approx(value, rel=DRIFT_TOLERANCE, abs=1e-12), (name, key)
 
 
-#: how the mount's warning ends on each path: memory tries the found gravity as a candidate of the answer
-#: (:mod:`estimation.consistent.mounted_gravity`; taken on the wall, where it validates better), the streamed path
-#: says the mount and keeps the description's gravity (its ``not_computed["gravity"]``)
+#: how the mount's warning ends on each path: ``oed identify`` tries the found gravity as a candidate of the answer
+#: on both paths (:mod:`estimation.consistent.mounted_gravity`; taken on the wall, where it validates better), as
+#: memory's ``oed diagnose``; the streamed diagnosis says the mount and keeps the description's gravity (its
+#: ``not_computed["gravity"]``)
 TAKEN = ("; the answer is fitted with the found gravity (it predicts the validation record better: the model "
          "selection's reason gives the scores), which the result file holds for predict and export")
 KEPT = "; this fit keeps the description's gravity"
@@ -103,10 +105,18 @@ def test_the_streamed_identify_checks_the_drift_and_the_mount_as_in_memory(case,
     drifted = _same_words(memory, streamed, "friction differs between the training and the validation record")
     mounts = _same_words(memory, streamed, "gravity load points elsewhere")
     assert bool(drifted) == bool(case.warming) and bool(mounts) == (case.mount != case.described), (drifted, mounts)
-    if mounts:  # memory takes the found gravity (it validates better on the wall); streamed says it keeps its own
+    assert "gravity" not in streamed["not_computed"]  # a mount found is a candidate streamed too (h-streamsel)
+    if mounts:  # both take the found gravity (it validates better on the wall): the same answer, the same gravity
         assert any(TAKEN in text for text in _said(memory)), _said(memory)
-        assert any(KEPT in text for text in _said(streamed)) and "gravity" in streamed["not_computed"]
+        assert any(TAKEN in text for text in _said(streamed)), _said(streamed)
+        assert "the gravity the mount check found" in streamed["model_selection"]["reason"]
         assert "subtracted" in streamed["not_computed"] and "subtracted" not in streamed["model_file"]  # h-subtracted
+    assert streamed["chosen"] == memory["chosen"]
+    np.testing.assert_allclose(streamed["model_file"]["gravity"], memory["model_file"]["gravity"], rtol=1e-6)
+    values = {name: np.array([p["value"] for p in document["parameters"]])
+              for name, document in (("memory", memory), ("streamed", streamed))}
+    np.testing.assert_allclose(values["streamed"], values["memory"], rtol=1e-4,
+                               atol=1e-4 * np.abs(values["memory"]).max())
     marked = [joint["marked"] for joint in streamed["friction_drift"]["joints"].values()]
     assert all(marked) if case.warming else not any(marked)
 

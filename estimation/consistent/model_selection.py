@@ -35,10 +35,11 @@ not above :data:`NOISE_QUANTILE` standard errors (a one-sided test at :data:`NOI
 ``BLOCKS - 1`` degrees of freedom, since the standard error is estimated from that many blocks), the validation
 record does not tell the candidates apart. This is **reported** (``paired_difference`` in ``result.json``, a line
 of the summary; not the reason, which the streamed path gives alike); the smallest score is still chosen. Choosing the consistent candidate then (the toolkit's preference when
-nothing measured extrapolation) fixed the Panda's identify on the short records, but the streamed path holds no
-samples (errors from sums of the regressor's products: no blocks), so the same records would get another answer
-there (``benchmarks/README.md``, h-shortval: the rule is kept on a side branch until the streamed sums carry the
-blocks).
+nothing measured extrapolation) fixed the Panda's identify on the short records but made the Panda at 100 Hz
+worse (``benchmarks/README.md``, h-shortval: the rule is kept on a side branch). The streamed path holds no samples,
+but it sums each block's squared errors on its validation pass (:mod:`estimation.streaming.block_errors`, the
+blocks cut as here), so it reports the same figures (``benchmarks/README.md``, h-streamsel), a validation file it
+resampled onto a uniform grid at its recorded stamps as here.
 
 **No comparison.** When there is no validation record, or it repeats the training motion
 (:func:`estimation.identification.repeated_motion.repeated_motion`), nothing measured how a candidate extrapolates
@@ -489,30 +490,62 @@ def paired_difference(candidates: Sequence[Candidate], best: str, regularised: C
                       ) -> PairedDifference | None:
     """The difference of the validation scores of ``regularised`` and ``best`` (the smallest score) among the
     fitted ``candidates``, with its batch-means standard error (module docstring: *Within the validation record's
-    sampling error*); ``None`` when ``best`` is ``regularised``, either is missing or has no validation samples held
-    (a :class:`~estimation.identification.validation.ChannelErrors` of sums), they were compared on other samples,
-    or the record has fewer samples than blocks."""
+    sampling error*); ``None`` when ``best`` is ``regularised``, either is missing or has neither its validation
+    samples held nor their per-block sums (a :class:`~estimation.identification.validation.ChannelErrors` of sums
+    without ``block_mse``), they were compared on other samples, or the record has fewer samples than blocks.
+
+    The streamed path's errors come from sums: each block's squared errors summed on its validation pass, the blocks
+    cut by sample count as memory cuts the samples it holds (:mod:`estimation.streaming.block_errors`), so the same
+    record gives the same figures either way."""
     by_name = {candidate.name: candidate for candidate in candidates}
     if best == regularised or best not in by_name or regularised not in by_name:
         return None
     pair = (by_name[best].validation, by_name[regularised].validation)
-    if any(not isinstance(item, Comparison) or item.mse is None for item in pair) \
-            or pair[0].t.shape != pair[1].t.shape or not np.array_equal(pair[0].t, pair[1].t) \
-            or pair[0].n_samples < BLOCKS:
+    if any(item is None or item.mse is None or _blocked_samples(item) is None for item in pair) \
+            or not _same_samples(pair[0], pair[1]) or _blocked_samples(pair[0]) < BLOCKS:
+        return None
+    blocks = [_blocks(item) for item in pair]
+    if any(not block for block in blocks):
         return None
     channels = _channels(pair[0])
     errors = {c.name: c.validation.mse for c in candidates
-              if c.fit is not None and isinstance(c.validation, Comparison) and c.validation.mse is not None}
+              if c.fit is not None and c.validation is not None and c.validation.mse is not None}
     table = np.array([[mse[channel] for channel in channels] for mse in errors.values()], dtype=float)
     finite = np.all(np.isfinite(table), axis=1)
     floors = table[finite].min(axis=0) if np.any(finite) else np.zeros(len(channels))
     if not np.all(floors > 0):
         return None
-    sizes = np.array([part.shape[0] for part in np.array_split(np.empty(pair[0].n_samples), BLOCKS)], dtype=float)
-    difference, error = blocks_difference(block_mse(pair[1]), block_mse(pair[0]), floors, channels, sizes)
+    sizes = np.array([part.shape[0] for part in np.array_split(np.empty(_blocked_samples(pair[0])), BLOCKS)],
+                     dtype=float)
+    difference, error = blocks_difference(blocks[1], blocks[0], floors, channels, sizes)
     if not (math.isfinite(difference) and math.isfinite(error)):
         return None
     return PairedDifference(best, regularised, difference, error)  # type: ignore[arg-type]
+
+
+def _same_samples(first: Comparison | ChannelErrors, second: Comparison | ChannelErrors) -> bool:
+    """Whether two validation errors were measured on the same samples: the same time stamps of two held
+    comparisons, or the same count of two from sums of one validation pass (a scorer of several parameter
+    vectors scores them all on its samples)."""
+    if isinstance(first, Comparison) and isinstance(second, Comparison):
+        return first.t.shape == second.t.shape and bool(np.array_equal(first.t, second.t))
+    if isinstance(first, Comparison) or isinstance(second, Comparison):
+        return False
+    return _blocked_samples(first) == _blocked_samples(second)
+
+
+def _blocked_samples(errors: Comparison | ChannelErrors) -> int | None:
+    """How many samples the validation blocks are cut from: a comparison's, or those summed by block."""
+    if isinstance(errors, ChannelErrors) and errors.block_samples is not None:
+        return errors.block_samples
+    return errors.n_samples
+
+
+def _blocks(errors: Comparison | ChannelErrors) -> dict[str, tuple[float, ...]]:
+    """Per channel, the MSE of each validation block: of the samples held, or summed by block (empty: none)."""
+    if isinstance(errors, Comparison):
+        return block_mse(errors)
+    return dict(errors.block_mse or {})
 
 
 def answers_scored(selection: ModelSelection, other: ModelSelection) -> tuple[float, float] | None:

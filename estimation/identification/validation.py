@@ -206,11 +206,18 @@ def subsample_step(n_samples: int, max_points: int = MAX_POINTS) -> int:
 class ChannelErrors:
     """The errors of a fit on a record whose samples are not held (read in blocks and summed): what a
     :class:`Comparison` gives, ``mse`` against the channels as recorded (``None`` when the sums hold filtered or
-    period-averaged channels only) and ``mse_filtered`` against those (``None`` when the sums hold the recording)."""
+    period-averaged channels only) and ``mse_filtered`` against those (``None`` when the sums hold the recording);
+    ``block_mse``: per channel, the MSE against the recording on each of the contiguous blocks
+    :func:`estimation.identification.preprocessing_on_validation.block_mse` cuts a :class:`Comparison` of the same
+    samples into (from per-block sums of the streamed validation pass, :mod:`estimation.streaming.block_errors`;
+    ``None``: not summed by block), cut from ``block_samples`` samples (``None``: ``n_samples``; the recorded samples
+    of a file the streamed path resampled onto a grid, whose sums count the grid's)."""
 
     mse: dict[str, float] | None
     n_samples: int | None = None
     mse_filtered: dict[str, float] | None = None
+    block_mse: dict[str, tuple[float, ...]] | None = None
+    block_samples: int | None = None
 
     def to_dict(self) -> dict[str, dict[str, float] | None]:
         """``{mse}`` and, when there is one, ``{mse_filtered}`` (:meth:`Comparison.to_dict`)."""

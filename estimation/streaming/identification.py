@@ -73,8 +73,9 @@ STREAMED_NOT_COMPUTED = {
     "model_selection": "the choice among ols, wls and the consistent refit by their validation errors is made in "
                        "memory; streamed, the model is the weighting asked for or chosen on held-out blocks "
                        "(method_selection)",
-    "gravity": "a mount found is said, not tried: the fit with the found gravity (or none) is a candidate in memory "
-               "(estimation.consistent.mounted_gravity); streamed, the model keeps the description's gravity",
+    "gravity": "the fit with the found gravity (or none) is a candidate of the answer chosen from sums "
+               "(estimation.consistent.mounted_gravity), as in memory; where no answer is chosen streamed (the "
+               "Fourier path of averaged periods), no mount is checked and the model keeps the description's gravity",
     "subtracted": "torques that hold no gravity load are said, not tried as a log less the description's gravity "
                   "torque: the fit to the torques with it added back is a candidate in memory "
                   "(estimation.consistent.mounted_gravity); streamed, the model file subtracts nothing",

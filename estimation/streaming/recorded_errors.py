@@ -26,6 +26,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from dynamics.models import IdentificationModel
 from estimation.preprocessing.differentiation import ButterworthDifferentiation
+from estimation.streaming.block_errors import BlockSquares
 from estimation.streaming.chunks import logged_chunks
 from estimation.streaming.periods import plan_chunks
 
@@ -95,9 +96,11 @@ def theta_predictors(model: IdentificationModel, thetas: Mapping[Any, ArrayLike]
 def counted_predicted_errors(model: IdentificationModel, predictors: Mapping[Any, Predictor],
                              paths: Sequence[str | Path], *, chunk_size: int, cutoff_hz: float | None = None,
                              decimation: int = 1, held_torques: bool = False, frequency_hz: float | None = None,
-                             harmonics: int = 5) -> tuple[dict[Any, dict[str, float]], int]:
+                             harmonics: int = 5, blocks: Mapping[Any, BlockSquares] | None = None
+                             ) -> tuple[dict[Any, dict[str, float]], int]:
     """:func:`counted_recorded_errors` of any predictions (``predictors``: e.g. a model file's, shaped laws at its
-    shapes); ``model`` reads the files (its joints and channels)."""
+    shapes); ``model`` reads the files (its joints and channels). ``blocks``: by predictor name, the accumulators
+    of each validation block's squared residuals, filled as the rows pass (:mod:`estimation.streaming.block_errors`)."""
     if not paths:
         raise ValueError("no files to measure the error on")
     squares = {name: np.zeros(model.n_channels) for name in predictors}
@@ -109,7 +112,10 @@ def counted_predicted_errors(model: IdentificationModel, predictors: Mapping[Any
             record = chunk.as_recorded
             measured = record.channels(model.channels)
             for name, predict in predictors.items():
-                squares[name] += np.sum((measured - predict(record.q, record.dq, record.ddq)) ** 2, axis=0)
+                squared = (measured - predict(record.q, record.dq, record.ddq)) ** 2
+                squares[name] += np.sum(squared, axis=0)
+                if blocks is not None and name in blocks:
+                    blocks[name].add(squared)
             count += measured.shape[0]
     if count == 0:
         raise ValueError("the files hold no samples once preprocessed")
@@ -128,7 +134,8 @@ def streamed_errors_at_stamps(model: IdentificationModel, thetas: Mapping[Any, A
 def counted_errors_at_stamps(model: IdentificationModel, thetas: Mapping[Any, ArrayLike], paths: Sequence[str | Path],
                              *, chunk_size: int, cutoff_hz: float | None = None, decimation: int = 1,
                              held_torques: bool = False, predictors: Mapping[Any, Predictor] | None = None,
-                             frequency_hz: float | None = None, harmonics: int = 5
+                             frequency_hz: float | None = None, harmonics: int = 5,
+                             blocks: Mapping[Any, BlockSquares] | None = None
                              ) -> tuple[dict[Any, dict[str, float]], int] | None:
     """:func:`streamed_recorded_errors` at the samples as logged, block by block: on a file the streamed path
     resampled onto a uniform grid (jittered stamps), the derived motion of its grid blocks
@@ -144,7 +151,10 @@ def counted_errors_at_stamps(model: IdentificationModel, thetas: Mapping[Any, Ar
     ``None`` when the loader resamples a file from other samples than the streamed path interpolates (rows it drops:
     a logger's re-sent rows, :func:`estimation.data.records.segments_from_frame`): its grid is then another, and the
     caller measures the files whole. A stall shorter than ``max_gap`` is bridged alike on both paths (the same grid
-    over the same samples)."""
+    over the same samples). ``blocks``: by name, the accumulators of each validation block's squared residuals
+    (:mod:`estimation.streaming.block_errors`), filled as the samples pass in their order; spoiled
+    (:meth:`~estimation.streaming.block_errors.BlockSquares.spoil`) when stamps before a grid's start are scored,
+    which come last."""
     if predictors is None:
         predictors = {name: functools.partial(model.predict, np.asarray(theta, dtype=float))
                       for name, theta in thetas.items()}
@@ -153,10 +163,15 @@ def counted_errors_at_stamps(model: IdentificationModel, thetas: Mapping[Any, Ar
     squares = {name: np.zeros(model.n_channels) for name in predictors}
     count = 0
 
-    def add(q, dq, ddq, measured) -> None:
+    def add(q, dq, ddq, measured, late: bool = False) -> None:
         nonlocal count
         for name, predict in predictors.items():
-            squares[name] += np.sum((measured - predict(q, dq, ddq)) ** 2, axis=0)
+            squared = (measured - predict(q, dq, ddq)) ** 2
+            squares[name] += np.sum(squared, axis=0)
+            if blocks is not None and name in blocks:
+                if late:  # out of the samples' order: no blocks
+                    blocks[name].spoil()
+                blocks[name].add(squared)
         count += measured.shape[0]
 
     for path in paths:
@@ -225,7 +240,7 @@ def _at_stamps(model: IdentificationModel, first: Any, grid: Any, logged: Any, *
             q, dq, ddq = (np.repeat(values, t.size, axis=0) for values in opening)
         else:
             q, dq, ddq = (np.column_stack([np.interp(t, t_grid, column) for column in values.T]) for values in motion)
-        add(q, dq, ddq, stamps.channels(model.channels)[keep])
+        add(q, dq, ddq, stamps.channels(model.channels)[keep], late=clamped)
 
     for stamps in logged:
         while not done and t_grid[-1] < stamps.t[-1]:

@@ -33,6 +33,7 @@ from estimation.identification.validation import ChannelErrors
 from estimation.streaming.cluster import sum_files
 from estimation.streaming.identification import SummedFits
 from estimation.streaming.periods import plan_chunks
+from estimation.streaming.block_errors import BlockSquares
 from estimation.streaming.recorded_errors import counted_predicted_errors
 
 __all__ = ["GainsScorer", "divided_sums", "files_gains_check", "streamed_gains_check"]
@@ -122,15 +123,23 @@ def _scaled_prediction(model: IdentificationModel, theta: NDArray[np.float64], f
 class GainsScorer:
     """The validation errors of base-parameter vectors of the model fitted to the torques divided by ``gains``, in
     the log's units: the gains times its torques against the channels as recorded, one pass over the validation files
-    ``paths`` (read with ``options``) a call (:data:`estimation.consistent.identification.Scorer`)."""
+    ``paths`` (read with ``options``) a call (:data:`estimation.consistent.identification.Scorer`). ``n_samples``:
+    the samples that pass gives (the validation sums'), when known: each error then carries the MSE of each
+    validation block (:class:`estimation.streaming.block_errors.BlockSquares`, for the paired difference of the
+    answer's candidates, as memory reports it)."""
 
     def __init__(self, model: IdentificationModel, gains: TorqueGains, paths: Sequence[str | Path],
-                 options: Mapping[str, Any]) -> None:
+                 options: Mapping[str, Any], n_samples: int | None = None) -> None:
         self.model, self.paths, self.options = model, [str(path) for path in paths], dict(options)
         self.factors = channel_factors(gains, model.channels)
+        self.n_samples = n_samples
 
     def __call__(self, thetas: Mapping[Any, NDArray[np.float64]]) -> dict[Any, ChannelErrors]:
         predictors = {key: functools.partial(_scaled_prediction, self.model, np.asarray(theta, dtype=float),
                                              self.factors) for key, theta in thetas.items()}
-        errors, count = counted_predicted_errors(self.model, predictors, self.paths, **self.options)
-        return {key: ChannelErrors(errors[key], count) for key in thetas}
+        blocks = None if self.n_samples is None else {key: BlockSquares(self.n_samples, self.model.n_channels)
+                                                      for key in thetas}
+        errors, count = counted_predicted_errors(self.model, predictors, self.paths, blocks=blocks, **self.options)
+        return {key: ChannelErrors(errors[key], count,
+                                   block_mse=None if blocks is None else blocks[key].block_mse(self.model.channels))
+                for key in thetas}

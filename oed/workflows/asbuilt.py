@@ -12,6 +12,7 @@ tanh(v / V)).
 from __future__ import annotations
 
 import warnings
+from dataclasses import dataclass
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -355,20 +356,52 @@ def streamed_checks(model: IdentificationModel, train: Sequence[str | Path], tra
                                            drift_model=drift_model)
 
 
-def streamed_description_notes(model: IdentificationModel, train: Sequence[str | Path], train_samples: int,
-                               validate: Sequence[str | Path], validate_samples: int, *,
-                               options: Mapping[str, Any]) -> tuple[tuple[str, ...], FrictionDrift | None]:
-    """``oed identify``'s :func:`description_notes` and friction-drift check of records read in blocks: the
-    joint-zero check (:func:`streamed_marked_joint_zeros`), the mount check and the friction drift of the declared
-    model (:func:`streamed_checks`), said as in memory (:func:`said_description`, then the drift's warning); and the
-    drift check (``None``: not checked). None with shaped laws, nor on the Fourier path."""
+@dataclass(frozen=True)
+class StreamedFindings:
+    """What ``oed identify``'s checks of the description and of the friction found on records read in blocks
+    (:func:`streamed_description_findings`): the joint-zero and mount checks when they mark (``None`` else), the
+    friction-drift check (``None``: not checked)."""
+
+    zeros: JointZeroCheck | None = None
+    mount: MountCheck | None = None
+    friction_drift: FrictionDrift | None = None
+
+    @property
+    def said_mount(self) -> MountCheck | None:
+        """The mount when it is the check said (:func:`competing_checks`): the gravity candidate of the answer, as
+        :func:`description_checks`' in memory."""
+        return competing_checks(self.zeros, self.mount)[1]
+
+
+def streamed_description_findings(model: IdentificationModel, train: Sequence[str | Path], train_samples: int,
+                                  validate: Sequence[str | Path], validate_samples: int, *,
+                                  options: Mapping[str, Any]) -> StreamedFindings:
+    """The joint-zero check (:func:`streamed_marked_joint_zeros`), the mount check and the friction drift of the
+    declared model (:func:`streamed_checks`) of records read in blocks, on the samples memory checks. None with
+    shaped laws, nor on the Fourier path."""
     zeros = streamed_marked_joint_zeros(model, train, train_samples, validate, validate_samples, options=options)
     if model_has_shapes(model):
-        return said_description(model, zeros, None, None), None
+        return StreamedFindings(zeros)
     checks = streamed_checks(model, train, train_samples, validate, validate_samples, options=options,
                              mount_model=model, mount_samples=MOUNT_SAMPLES, drift_model=model)
     mount = None if checks.mount is None or not checks.mount.marked else checks.mount
-    notes = said_description(model, zeros, mount, None if mount is None else mount.message())
-    drift = checks.friction_drift
+    return StreamedFindings(zeros, mount, checks.friction_drift)
+
+
+def streamed_description_notes(model: IdentificationModel, train: Sequence[str | Path], train_samples: int,
+                               validate: Sequence[str | Path], validate_samples: int, *,
+                               options: Mapping[str, Any], findings: StreamedFindings | None = None,
+                               gravity_taken: bool = False) -> tuple[tuple[str, ...], FrictionDrift | None]:
+    """``oed identify``'s :func:`description_notes` and friction-drift check of records read in blocks
+    (:func:`streamed_description_findings`, or its ``findings`` already made), said as in memory
+    (:func:`said_description`, then the drift's warning; ``gravity_taken``: the answer was fitted with the found
+    gravity); and the drift check (``None``: not checked). None with shaped laws, nor on the Fourier path."""
+    if findings is None:
+        findings = streamed_description_findings(model, train, train_samples, validate, validate_samples,
+                                                 options=options)
+    mount = findings.mount
+    notes = said_description(model, findings.zeros, mount,
+                             None if mount is None else mount.message(taken=gravity_taken))
+    drift = findings.friction_drift
     said = None if drift is None else drift.message()
     return (notes if said is None else (*notes, said)), drift

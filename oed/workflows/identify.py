@@ -38,7 +38,7 @@ from estimation.diagnosis.statistics import FLOOR_ALPHA, ResidualReport, residua
 from estimation.uncertainty.floor_comparison import compare_with_floor
 from estimation.uncertainty.noise_floor import NoiseFloor
 from estimation.estimators.least_squares import IdentifiabilityError
-from estimation.estimators.normal_equations import DEFAULT_CHUNK_SIZE
+from estimation.estimators.normal_equations import DEFAULT_CHUNK_SIZE, NormalEquations
 from estimation.identification.fit import IdentificationResult
 from estimation.identification.prepared import InMemoryBudget, PreparedRecords, prepare_records
 from estimation.identification.preprocessing_choice import ChoiceWindow
@@ -58,14 +58,16 @@ from estimation.preprocessing.delay import DelayBounds, split_delay
 from estimation.preprocessing.plan import Preprocessing
 from estimation.streaming.chunks import source_files
 from estimation.streaming.cutoff_choice import streamed_window
-from estimation.streaming.identification import SummedFits, identify_files_candidates
+from estimation.streaming.identification import SummedFits, identify_files_candidates, prepared_chunks
 from estimation.streaming.model_selection import streamed_repeated_motion, summed_selection, warned_still_motion
 from estimation.streaming.torque_gains import GainsScorer, divided_sums, streamed_gains_check
 from estimation.streaming.periods import plan_options
 from estimation.streaming.diagnosis_passes import window_floor
+from estimation.streaming.block_errors import BlockSquares, block_channel_mse, block_normal_equations
 from estimation.streaming.recorded_errors import (
+    counted_errors_at_stamps,
+    counted_predicted_errors,
     recorded_training_errors,
-    streamed_errors_at_stamps,
     streamed_plan,
     streamed_recorded_errors,
     theta_predictors,
@@ -75,6 +77,7 @@ from oed.workflows.asbuilt import (
     description_checks,
     description_notes,
     FOURIER_CHECKS,
+    streamed_description_findings,
     streamed_description_notes,
     model_effects,
     resolve_joint_directions,
@@ -489,7 +492,10 @@ def identification_streamed(args: IdentifyOptions, model: IdentificationModel, t
                                              executor=executor)
         result = sums.fits[base]
         cutoff_hz, frequency_hz = result.streaming["cutoff_hz"], result.streaming["frequency_hz"]
-        scores, ratio = None, None
+        scores, ratio, checked, gravity_taken = None, None, None, False
+        reading_options = {"chunk_size": chunk_size, "cutoff_hz": options["cutoff_hz"],
+                           "frequency_hz": options["frequency_hz"], "harmonics": options["harmonics"],
+                           "decimation": options["decimation"], "held_torques": options["held_torques"]}
         if frequency_hz is None:  # the answer chosen as in memory (a Fourier fit: the sums hold averaged periods)
             scores = None if result.validation is None else ValidationScores(args, sums, result, chunk_size, options)
             ratio = None if not args.validate else streamed_repeated_motion(model, args.data, args.validate,
@@ -508,6 +514,13 @@ def identification_streamed(args: IdentifyOptions, model: IdentificationModel, t
             selection, sums, scores = streamed_armature_selection(
                 args, selection, base=base, methods=methods, chunk_size=chunk_size, options=options, ratio=ratio,
                 still=still, sums=sums, scores=scores)
+            # the joints' zeros and gravity's direction against the description's; a mount found is a candidate
+            checked = streamed_description_findings(
+                model, args.data, int(sums.train.n_samples), args.validate or [],
+                0 if sums.validation is None else int(sums.validation.n_samples), options=reading_options)
+            selection, sums, scores, gravity_taken = streamed_gravity_selection(
+                args, selection, checked.said_mount, base=base, methods=methods, chunk_size=chunk_size,
+                options=options, ratio=ratio, still=still, sums=sums, scores=scores)
             selection, gains = streamed_torque_gains_selection(
                 args, selection, base=base, methods=methods, chunk_size=chunk_size, options=options, ratio=ratio,
                 still=still, sums=sums)
@@ -521,6 +534,7 @@ def identification_streamed(args: IdentifyOptions, model: IdentificationModel, t
             not_computed.pop(key, None)
     if selection is not None:
         not_computed.pop("model_selection", None)
+        not_computed.pop("gravity", None)  # a mount found is a candidate, as in memory
         if selection.consistent is not None or args.method != "auto":
             not_computed.pop("consistent", None)
             not_computed.pop("links", None)
@@ -569,10 +583,8 @@ def identification_streamed(args: IdentifyOptions, model: IdentificationModel, t
     # the joint zeros, the mount and the friction drift checked as in memory, on the samples memory checks
     said, drift = streamed_description_notes(
         model, args.data, int(sums.train.n_samples), args.validate or [],
-        0 if sums.validation is None else int(sums.validation.n_samples),
-        options={"chunk_size": chunk_size, "cutoff_hz": options["cutoff_hz"], "frequency_hz": options["frequency_hz"],
-                 "harmonics": options["harmonics"], "decimation": options["decimation"],
-                 "held_torques": options["held_torques"]})
+        0 if sums.validation is None else int(sums.validation.n_samples), options=reading_options,
+        findings=checked, gravity_taken=gravity_taken)
     notes = (*notes, *said)
     if args.validate and options["frequency_hz"] is not None and not model_has_shapes(model):
         not_computed["friction_drift"] = FOURIER_CHECKS
@@ -637,7 +649,9 @@ def streamed_torque_gains_selection(args: IdentifyOptions, selection: ModelSelec
             warnings.simplefilter("ignore")
             other = summed_selection(divided_sums(sums, gains, methods), base=base,
                                      consistent=consistent_settings(args, model.robot),
-                                     score=GainsScorer(model, gains, args.validate, reading), ratio=ratio, still=still)
+                                     score=GainsScorer(model, gains, args.validate, reading,
+                                                       n_samples=int(sums.validation.n_samples)),
+                                     ratio=ratio, still=still)
     answer, taken, compared = torque_gains_answer(selection, carried_reasons(selection, other), gains)
     return answer, (gains, taken, f"{sentence}; then {compared}" if compared else sentence)
 
@@ -705,6 +719,32 @@ def streamed_armature_selection(args: IdentifyOptions, selection: ModelSelection
                                                            still=still)
     answer = armature_answer(selection, other)
     return (answer, other_sums, other_scores) if answer.unconstrained.model is other_model else (answer, sums, scores)
+
+
+def streamed_gravity_selection(args: IdentifyOptions, selection: ModelSelection, mount: MountCheck | None, *,
+                               base: str, methods: tuple[str, ...], chunk_size: int, options: Mapping[str, Any],
+                               ratio: float | None, still: bool, sums: SummedFits, scores: ValidationScores | None
+                               ) -> tuple[ModelSelection, SummedFits, ValidationScores | None, bool]:
+    """:func:`gravity_selection` of files read in blocks: the model ``selection`` holds with the gravity the mount
+    check found (:func:`~estimation.consistent.mounted_gravity.turned_model`), summed over the same files with the
+    same derivatives (a pass of its own: the regressor changes with gravity), chosen among its candidates from its
+    sums as the declared model's were (:func:`summed_candidate`, scored on the same validation samples) and compared
+    by the same rule (:func:`~estimation.consistent.mounted_gravity.gravity_answer`); ``(selection, sums, scores,
+    taken)``, unchanged (``taken`` false) under the conditions memory tries nothing (no mount said, the estimator
+    given, shaped laws, no validation record of another motion)."""
+    model = selection.unconstrained.model
+    if mount is None or args.method != "auto" or args.consistent or not args.validate or model_has_shapes(model) \
+            or selection.selection != "validation":
+        return selection, sums, scores, False
+    turned = turned_model(model, mount.gravity)
+    with step("the model with the gravity the mount check found fitted and compared"):
+        other, other_sums, other_scores = summed_candidate(args, turned, base=base, methods=methods,
+                                                           chunk_size=chunk_size, options=options, ratio=ratio,
+                                                           still=still)
+    answer, taken = gravity_answer(selection, other, mount.gravity)
+    if answer.unconstrained.model is turned:
+        return answer, other_sums, other_scores, taken
+    return answer, sums, scores, taken
 
 
 def streamed_motor_friction(args: IdentifyOptions, model: IdentificationModel,
@@ -778,7 +818,15 @@ class ValidationScores:
     (:func:`estimation.streaming.recorded_errors.streamed_recorded_errors`; the sums give the errors against the
     filtered channels beside them), and on a file resampled onto a uniform grid at the recorded samples
     (:func:`~oed.workflows.model_files.recorded_validation_mse`'s measurement, what ``oed predict`` measures). The
-    first call scores the trivial predictors too (:attr:`trivial`: zero and nominal parameters)."""
+    first call scores the trivial predictors too (:attr:`trivial`: zero and nominal parameters).
+
+    Each error carries the MSE of each validation block (``ChannelErrors.block_mse``: the blocks memory cuts its
+    samples into, :mod:`estimation.streaming.block_errors`), for the paired difference of the default answer's
+    candidates (:func:`estimation.consistent.model_selection.paired_difference`): summed on the pass against the
+    recording, or, where the sums hold the recording, from each block's normal equations summed once on a pass
+    of their own (:meth:`block_sums`); on a file resampled onto a uniform grid at its recorded stamps, once their
+    count is known (:meth:`at_stamps`). Not where the loader drops rows the grid interpolates (the files measured
+    whole): ``None`` there."""
 
     def __init__(self, args: IdentifyOptions, sums: SummedFits, result: IdentificationResult, chunk_size: int,
                  options: dict[str, Any]) -> None:
@@ -786,6 +834,22 @@ class ValidationScores:
         #: the derivatives as the files were summed (:func:`estimation.streaming.periods.plan_options`)
         self.decimation, self.held_torques = int(options["decimation"]), bool(options["held_torques"])
         self.trivial: dict[str, dict[str, float]] | None = None
+        self._block_sums: list[NormalEquations] | None = None
+        self._block_sums_made = False
+        self._stamp_count: int | None = None  # the recorded samples of a resampled validation file
+
+    def block_sums(self) -> list[NormalEquations] | None:
+        """Each validation block's normal equations, summed on one pass the first time they are asked for
+        (:func:`estimation.streaming.block_errors.block_normal_equations`, the chunks as the sums took them)."""
+        if not self._block_sums_made:
+            self._block_sums_made = True
+            model, streaming = self.result.model, self.result.streaming
+            options = {"chunk_size": self.chunk_size, "cutoff_hz": streaming["cutoff_hz"],
+                       "decimation": self.decimation, "held_torques": self.held_torques}
+            chunks = (chunk for path in self.args.validate for chunk in prepared_chunks(str(path), model, **options))
+            with step("the validation record's blocks summed (the paired difference of the candidates)"):
+                self._block_sums = block_normal_equations(model, chunks, int(self.sums.validation.n_samples))
+        return self._block_sums
 
     def __call__(self, thetas: Mapping[Any, np.ndarray]) -> dict[Any, ChannelErrors]:
         model, args, streaming = self.result.model, self.args, self.result.streaming
@@ -797,10 +861,10 @@ class ValidationScores:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # the files' findings were said on the first pass
             recorded = None
+            blocks: dict[Any, dict[str, tuple[float, ...]] | None] = {}
+            block_samples = None
             if resampled_validation({"streaming": streaming}):  # jittered or cleaned: at the recorded samples
-                recorded = streamed_errors_at_stamps(model, vectors, args.validate, chunk_size=self.chunk_size,
-                                                     cutoff_hz=streaming["cutoff_hz"], decimation=self.decimation,
-                                                     held_torques=self.held_torques)  # block by block
+                recorded, blocks, block_samples = self.at_stamps(vectors, thetas)  # block by block
             if recorded is None and resampled_validation({"streaming": streaming}):  # rows the loader drops: whole
                 document = summed_model_file_document(
                     model, self.result.estimate, robot=robot_source(model.robot, args),
@@ -812,15 +876,53 @@ class ValidationScores:
                 pass
             elif next(iter(summed.values())).mse is not None:  # the sums hold the recording
                 recorded = {key: errors.mse for key, errors in summed.items()}
+                block_sums = self.block_sums()
+                if block_sums is not None:
+                    blocks = {("theta", key): block_channel_mse(block_sums, np.asarray(theta, dtype=float))
+                              for key, theta in thetas.items()}
             else:
-                recorded = streamed_recorded_errors(model, vectors, args.validate, chunk_size=self.chunk_size,
-                                                    cutoff_hz=streaming["cutoff_hz"], decimation=self.decimation,
-                                                    held_torques=self.held_torques)
+                count = int(self.sums.validation.n_samples)
+                squares = {("theta", key): BlockSquares(count, model.n_channels) for key in thetas}
+                recorded, _ = counted_predicted_errors(
+                    model, theta_predictors(model, vectors), args.validate, chunk_size=self.chunk_size,
+                    cutoff_hz=streaming["cutoff_hz"], decimation=self.decimation, held_torques=self.held_torques,
+                    blocks=squares)
+                blocks = {key: accumulated.block_mse(model.channels) for key, accumulated in squares.items()}
         if self.trivial is None:
             self.trivial = {name: dict(recorded[("trivial", name)]) for name in ("zero_mse", "nominal_mse")}
         return {key: ChannelErrors(dict(recorded[("theta", key)]), summed[("theta", key)].n_samples,
-                                   mse_filtered=summed[("theta", key)].mse_filtered)
+                                   mse_filtered=summed[("theta", key)].mse_filtered,
+                                   block_mse=blocks.get(("theta", key)), block_samples=block_samples)
                 for key in thetas}
+
+    def at_stamps(self, vectors: Mapping[Any, np.ndarray], thetas: Mapping[Any, np.ndarray]
+                  ) -> tuple[dict[Any, dict[str, float]] | None, dict[Any, Any], int | None]:
+        """The errors of ``vectors`` at the recorded stamps of a validation file resampled onto a grid
+        (:func:`~estimation.streaming.recorded_errors.counted_errors_at_stamps`), each block's of the ``thetas``
+        among them, and how many samples the blocks cut: the first call learns that count, then scores the
+        ``thetas`` once more with the blocks (one more pass, once a scorer); ``(None, {}, None)`` when the loader
+        drops rows the grid interpolates."""
+        model, streaming = self.result.model, self.result.streaming
+        reading = {"chunk_size": self.chunk_size, "cutoff_hz": streaming["cutoff_hz"], "decimation": self.decimation,
+                   "held_torques": self.held_torques}
+        keys = [("theta", key) for key in thetas]
+
+        def squares(count: int | None) -> dict[Any, BlockSquares] | None:
+            return None if count is None else {key: BlockSquares(count, model.n_channels) for key in keys}
+
+        accumulated = squares(self._stamp_count)
+        counted = counted_errors_at_stamps(model, vectors, self.args.validate, blocks=accumulated, **reading)
+        if counted is None:
+            return None, {}, None
+        recorded, count = counted
+        if accumulated is None:  # the count learnt: the blocks of the thetas from one more pass
+            self._stamp_count = count
+            accumulated = squares(count)
+            again = counted_errors_at_stamps(model, {key: vectors[key] for key in keys}, self.args.validate,
+                                             blocks=accumulated, **reading)
+            if again is None or accumulated is None:
+                return recorded, {}, None
+        return recorded, {key: item.block_mse(model.channels) for key, item in accumulated.items()}, count
 
 
 def recorded_validation(args: IdentifyOptions, result: IdentificationResult, chunk_size: int, *, harmonics: int = 5

@@ -1,0 +1,157 @@
+"""The validation record's blocks summed on the streamed path (:mod:`estimation.streaming.block_errors`): the blocks
+memory cuts its samples into (:func:`numpy.array_split`), their squared errors summed as the rows pass or from each
+block's normal equations, and the paired difference of two candidates from them equal to memory's
+(:func:`estimation.consistent.model_selection.paired_difference`). The verbs' parity, in memory against streamed:
+``tests/test_memory_path.py::test_identify_chooses_the_same_model_in_memory_and_streamed``."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from dynamics.measurements import Measurements
+from dynamics.models import build_model
+from dynamics.robots import load_robot
+from estimation.consistent.model_selection import Candidate, paired_difference
+from estimation.identification.preprocessing_on_validation import BLOCKS, block_mse
+from estimation.identification.validation import ChannelErrors, Comparison
+from estimation.streaming.block_errors import (
+    BlockSquares,
+    block_channel_mse,
+    block_normal_equations,
+    block_sizes,
+)
+
+CHANNELS = ("tau1", "tau2")
+
+
+@pytest.mark.parametrize("n_samples", [5, 6, 9, 10, 11, 1003, 2000])
+def test_the_blocks_are_those_numpy_array_split_cuts(n_samples):
+    expected = [part.shape[0] for part in np.array_split(np.empty(n_samples), BLOCKS)]
+    assert block_sizes(n_samples).tolist() == expected
+
+
+def _comparison(seed, samples):
+    generator = np.random.default_rng(seed)
+    t = np.arange(samples) / 500.0
+    measured = np.column_stack([np.sin(2 * np.pi * 0.5 * t), 0.1 * np.cos(2 * np.pi * 0.7 * t)])
+    predicted = measured + generator.normal(0, [0.05, 0.005], measured.shape) + 0.02 * np.sin(3 * t)[:, None]
+    return Comparison(t, measured, predicted, CHANNELS)
+
+
+@pytest.mark.parametrize("samples", [1003, 1500])
+def test_squares_summed_as_the_rows_pass_give_memorys_block_errors(samples):
+    comparison = _comparison(1, samples)
+    squares = BlockSquares(samples, len(CHANNELS))
+    generator = np.random.default_rng(2)
+    start = 0
+    while start < samples:  # chunks of any size, across the blocks' bounds
+        stop = min(samples, start + int(generator.integers(1, 400)))
+        squares.add(comparison.residuals[start:stop] ** 2)
+        start = stop
+    expected = block_mse(comparison)
+    summed = squares.block_mse(CHANNELS)
+    assert summed.keys() == expected.keys()
+    for channel in CHANNELS:
+        np.testing.assert_allclose(summed[channel], expected[channel], rtol=1e-12)
+    short = BlockSquares(samples + 1, len(CHANNELS))  # a pass that gave other rows than announced: no blocks
+    short.add(comparison.residuals ** 2)
+    assert short.block_mse(CHANNELS) is None
+    assert BlockSquares(3, len(CHANNELS)).block_mse(CHANNELS) is None  # fewer rows than blocks
+    spoiled = BlockSquares(samples, len(CHANNELS))  # rows out of their order (stamps before a grid's start)
+    spoiled.add(comparison.residuals ** 2)
+    spoiled.spoil()
+    assert spoiled.block_mse(CHANNELS) is None
+
+
+def test_the_blocks_normal_equations_give_each_blocks_error_of_any_parameters():
+    model = build_model(load_robot("puma560", joints=3), "internal", "viscous")
+    generator = np.random.default_rng(3)
+    samples = 1203
+    t = np.arange(samples) / 200.0
+    q = np.column_stack([np.sin(0.7 * t + phase) for phase in (0.0, 1.0, 2.0)])
+    dq = np.column_stack([0.7 * np.cos(0.7 * t + phase) for phase in (0.0, 1.0, 2.0)])
+    ddq = -0.49 * q
+    tau = generator.normal(0, 1.0, (samples, 3))
+    record = Measurements(t, q, dq=dq, ddq=ddq, tau=tau)
+    chunks = [record.select(slice(start, start + 250)) for start in range(0, samples, 250)]
+    sums = block_normal_equations(model, chunks, samples)
+    assert sums is not None and [part.n_samples for part in sums] == block_sizes(samples).tolist()
+    assert block_normal_equations(model, chunks, samples - 1) is None
+    Y = model.evaluate_base(q, dq, ddq)
+    for theta in (np.zeros(model.n_base), generator.normal(0, 1.0, model.n_base)):
+        predicted = np.einsum("nck,k->nc", Y, theta)
+        expected = block_mse(Comparison(t, tau, predicted, model.channels))
+        got = block_channel_mse(sums, theta)
+        for channel in model.channels:
+            np.testing.assert_allclose(got[channel], expected[channel], rtol=1e-9)
+
+
+def _summed(name, comparison, blocks=True):
+    errors = ChannelErrors(dict(comparison.mse), comparison.n_samples,
+                           block_mse=block_mse(comparison) if blocks else None)
+    return Candidate(name, SimpleNamespace(validation=errors, train=None))
+
+
+def test_the_paired_difference_from_block_sums_is_memorys():
+    first, second = _comparison(4, 1503), _comparison(5, 1503)  # blocks of 301 and 300 samples
+    held = [Candidate(name, SimpleNamespace(validation=item, train=None))
+            for name, item in (("wls", first), ("consistent", second))]
+    memory = paired_difference(held, "wls")
+    streamed = paired_difference([_summed("wls", first), _summed("consistent", second)], "wls")
+    assert memory is not None and streamed is not None
+    assert streamed.difference == pytest.approx(memory.difference, rel=1e-12)
+    assert streamed.standard_error == pytest.approx(memory.standard_error, rel=1e-12)
+    # the blocks of a resampled file's recorded samples, whose sums count the grid's: cut from the recorded count
+    gridded = [Candidate(name, SimpleNamespace(validation=ChannelErrors(
+        dict(item.mse), 2 * item.n_samples, block_mse=block_mse(item), block_samples=item.n_samples), train=None))
+        for name, item in (("wls", first), ("consistent", second))]
+    assert paired_difference(gridded, "wls").standard_error == pytest.approx(memory.standard_error, rel=1e-12)
+    # no blocks summed, other samples, or one held and one summed: nothing compared
+    assert paired_difference([_summed("wls", first, blocks=False), _summed("consistent", second)], "wls") is None
+    assert paired_difference([_summed("wls", first), _summed("consistent", _comparison(5, 1502))], "wls") is None
+    assert paired_difference([held[0], _summed("consistent", second)], "wls") is None
+
+
+@pytest.mark.slow
+def test_a_jittered_validation_record_gives_memorys_paired_difference_streamed(tmp_path):
+    """A log whose stamps jitter by 20 % of a step (the streamed reader resamples it onto a grid and scores the
+    candidates at the recorded stamps): the streamed ``oed identify`` learns the recorded samples' count on its first
+    pass and sums the blocks on one more, and reports memory's paired difference (measured 3e-12 apart; ``null``
+    before, h-shortval)."""
+    import json
+
+    from dynamics.effects.linear import CoulombFriction, JointOffset
+    from dynamics.simulation.synthetic import simulate, true_parameters
+    from oed.cli import main
+    from oed.fourier import random_fourier
+
+    model = build_model(load_robot("puma560", joints=3), "internal", "viscous")
+    truth = build_model(model.robot, "internal", ("viscous", CoulombFriction(joints=(1,)), JointOffset(joints=(0,))))
+    theta = true_parameters(truth, seed=0, coulomb=[8.0], offset=[3.0])
+    generator = np.random.default_rng(5)
+    paths = []
+    for seed, trajectory in ((1, 3), (2, 4)):
+        data = simulate(truth, theta, random_fourier(model.robot, seed=trajectory),
+                        noise={c: 0.2 for c in truth.channels}, seed=seed, rate_hz=200.0, periods=3)
+        t = data.t + generator.uniform(-0.2, 0.2, data.t.shape) / 200.0
+        Measurements(t, data.q + 1e-4 * generator.standard_normal(data.q.shape), tau=data.tau).write(
+            tmp_path / f"jittered{seed}.csv")
+        paths.append(tmp_path / f"jittered{seed}.csv")
+    documents = {}
+    for name, options in (("memory", ()), ("streamed", ("--chunk-size", "250"))):
+        out = tmp_path / f"{name}.json"
+        assert main(["identify", "--joints", "3", "--model", "internal", "--friction", "viscous,coulomb,offset",
+                     "--data", str(paths[0]), "--validate", str(paths[1]), "--out", str(out), "--cutoff", "6",
+                     "--quiet", *options]) == 0
+        documents[name] = json.loads(out.read_text())
+    memory, streamed = documents["memory"], documents["streamed"]
+    assert streamed["streaming"]["validation_files"][0]["resampled_from"] is not None  # scored at the stamps
+    assert streamed["chosen"] == memory["chosen"] != "consistent"
+    paired = {name: document["model_selection"]["paired_difference"] for name, document in documents.items()}
+    assert paired["memory"] is not None and paired["streamed"] is not None
+    assert paired["streamed"]["best"] == paired["memory"]["best"]
+    for key in ("difference", "standard_error"):
+        assert paired["streamed"][key] == pytest.approx(paired["memory"][key], rel=1e-8), key
