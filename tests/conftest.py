@@ -54,14 +54,31 @@ def prismatic_urdf() -> Path:
     return TESTS / "data" / "prismatic_arm.urdf"
 
 
+CHILD_THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
+
+
 class WorkerBlasLimit:
     """One BLAS thread in a pytest-xdist worker, as :mod:`dynamics.runtime.threads` asks of any unit of work run
     beside others in separate processes: ``make test`` runs two workers on two cores, and OpenBLAS's idle threads
     spin. Measured on the shared 2-core machine: a 3000-sample Fourier noise floor took 6.6 s with the default BLAS
-    threads against 0.21 s with one (a 333 x 333 Cholesky factorisation 0.096 s against 0.0008 s)."""
+    threads against 0.21 s with one (a 333 x 333 Cholesky factorisation 0.096 s against 0.0008 s).
+
+    The processes a worker starts (``python -m oed`` in the CLI and documentation tests, the notebooks' kernels)
+    inherit one thread through the environment (:data:`CHILD_THREAD_VARIABLES`, where the user set none): measured,
+    the documentation snippets and notebooks took 90.6 s with their children's default threads and 81.9 s with one."""
 
     def __init__(self) -> None:
         self.limiter: threadpool_limits | None = None
+        self.children_set: list[str] = []
+
+    def hold_children(self) -> None:
+        self.children_set = [name for name in CHILD_THREAD_VARIABLES if name not in os.environ]
+        os.environ.update({name: "1" for name in self.children_set})
+
+    def lift_children(self) -> None:
+        for name in self.children_set:
+            os.environ.pop(name, None)
+        self.children_set = []
 
     def hold(self) -> None:
         if self.limiter is None:
@@ -80,10 +97,12 @@ def worker_blas_limit() -> Iterator[WorkerBlasLimit]:
     limit = WorkerBlasLimit()
     if os.environ.get("PYTEST_XDIST_WORKER"):
         limit.hold()
+        limit.hold_children()
     try:
         yield limit
     finally:
         limit.lift()
+        limit.lift_children()
 
 
 @pytest.fixture
