@@ -148,23 +148,8 @@ def _diagnose(folder, kind: str, out, *options: str) -> dict:
     return json.loads(out.read_text())
 
 
-#: the streamed diagnosis's training errors against the recording ignore an adopted delay (found by the merge of the
-#: eleventh round; failing since 267c604, which brought the delay search to the streamed diagnosis):
-#: the pass of ``recorded_training_errors`` predicts each block without moving the motion by the file's delay (the
-#: file's delay is not among its shapes, so ``oed.workflows.diagnosis_training._Prediction.at`` takes the model's
-#: own prediction), where ``oed predict`` applies it. Here a delay of -2.1 ms is adopted: ``oed predict`` on the
-#: training file gives tau1 0.0423 N²m² (memory's figure), the streamed report 0.0718. The model file is right; the
-#: reported training error is not. Not mended this round: the pass would read the blocks delayed
-#: (``estimation.streaming.delayed_chunks``, as the streamed diagnosis's own passes do).
-DELAY_IGNORED = ("the streamed diagnosis's training errors against the recording (Fourier path, resampled files) are "
-                 "computed without the adopted delay: tau1 0.0718 reported against 0.0423 measured by oed predict")
-
-
 @pytest.mark.slow  # about 40 s: two diagnoses in memory and streamed
-@pytest.mark.parametrize(("kind", "options"), [
-    ("stall", ()),
-    pytest.param("periodic_clean", ("--frequency", "0.25"), marks=pytest.mark.xfail(strict=True, reason=DELAY_IGNORED)),
-])
+@pytest.mark.parametrize(("kind", "options"), [("stall", ()), ("periodic_clean", ("--frequency", "0.25"))])
 def test_streamed_diagnosis_training_errors_are_against_the_recording(logs, tmp_path, capsys, kind, options):
     """The streamed diagnosis's training errors: on a stalled log at its recorded samples (not the grid's interpolated
     torques), on the Fourier path on every sample of the whole periods (the averaged period's error kept as

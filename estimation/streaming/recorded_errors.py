@@ -28,6 +28,7 @@ from dynamics.models import IdentificationModel
 from estimation.preprocessing.differentiation import ButterworthDifferentiation
 from estimation.streaming.block_errors import BlockSquares
 from estimation.streaming.chunks import logged_chunks
+from estimation.streaming.delayed_chunks import moved_chunks
 from estimation.streaming.periods import plan_chunks
 
 __all__ = ["Predictor", "counted_errors_at_stamps", "counted_predicted_errors", "counted_recorded_errors",
@@ -96,27 +97,38 @@ def theta_predictors(model: IdentificationModel, thetas: Mapping[Any, ArrayLike]
 def counted_predicted_errors(model: IdentificationModel, predictors: Mapping[Any, Predictor],
                              paths: Sequence[str | Path], *, chunk_size: int, cutoff_hz: float | None = None,
                              decimation: int = 1, held_torques: bool = False, frequency_hz: float | None = None,
-                             harmonics: int = 5, blocks: Mapping[Any, BlockSquares] | None = None
+                             harmonics: int = 5, blocks: Mapping[Any, BlockSquares] | None = None,
+                             delays: Mapping[Any, float | None] | None = None
                              ) -> tuple[dict[Any, dict[str, float]], int]:
     """:func:`counted_recorded_errors` of any predictions (``predictors``: e.g. a model file's, shaped laws at its
     shapes); ``model`` reads the files (its joints and channels). ``blocks``: by predictor name, the accumulators
-    of each validation block's squared residuals, filled as the rows pass (:mod:`estimation.streaming.block_errors`)."""
+    of each validation block's squared residuals, filled as the rows pass (:mod:`estimation.streaming.block_errors`).
+    ``delays``: by predictor name, the delay between torques and motion its model file holds (absent or ``None``:
+    none); the motion of the samples as recorded is then moved to ``t − delay`` block by block
+    (:func:`~estimation.streaming.delayed_chunks.moved_chunks`), as ``oed predict`` moves the whole record, the
+    channels untouched: one pass for each delay."""
     if not paths:
         raise ValueError("no files to measure the error on")
+    delays = {} if delays is None else delays
     squares = {name: np.zeros(model.n_channels) for name in predictors}
-    count = 0
-    for path in paths:
-        for chunk in plan_chunks(path, model, frequency_hz=frequency_hz, harmonics=harmonics, as_recorded=True,
-                                 chunk_size=chunk_size, cutoff_hz=cutoff_hz, decimation=decimation,
-                                 held_torques=held_torques):
-            record = chunk.as_recorded
-            measured = record.channels(model.channels)
-            for name, predict in predictors.items():
-                squared = (measured - predict(record.q, record.dq, record.ddq)) ** 2
-                squares[name] += np.sum(squared, axis=0)
-                if blocks is not None and name in blocks:
-                    blocks[name].add(squared)
-            count += measured.shape[0]
+    counts: dict[float | None, int] = {}
+    for delay in sorted({delays.get(name) for name in predictors}, key=lambda value: (value is not None, value or 0.0)):
+        named = {name: predict for name, predict in predictors.items() if delays.get(name) == delay}
+        count = 0
+        for path in paths:
+            records = (chunk.as_recorded for chunk in plan_chunks(
+                path, model, frequency_hz=frequency_hz, harmonics=harmonics, as_recorded=True, chunk_size=chunk_size,
+                cutoff_hz=cutoff_hz, decimation=decimation, held_torques=held_torques))
+            for record in moved_chunks(records, delay):
+                measured = record.channels(model.channels)
+                for name, predict in named.items():
+                    squared = (measured - predict(record.q, record.dq, record.ddq)) ** 2
+                    squares[name] += np.sum(squared, axis=0)
+                    if blocks is not None and name in blocks:
+                        blocks[name].add(squared)
+                count += measured.shape[0]
+        counts[delay] = count
+    count = next(iter(counts.values()), 0)
     if count == 0:
         raise ValueError("the files hold no samples once preprocessed")
     return {name: dict(zip(model.channels, map(float, total / count))) for name, total in squares.items()}, count
@@ -267,7 +279,8 @@ def _at_stamps(model: IdentificationModel, first: Any, grid: Any, logged: Any, *
 def recorded_training_errors(model: IdentificationModel, predictors: Mapping[Any, Predictor], paths: Sequence[str | Path],
                              files: Sequence[Mapping[str, Any]], *, chunk_size: int, cutoff_hz: float | None = None,
                              decimation: int = 1, held_torques: bool = False, frequency_hz: float | None = None,
-                             harmonics: int = 5) -> tuple[dict[Any, dict[str, float]], int] | None:
+                             harmonics: int = 5, delays: Mapping[Any, float | None] | None = None
+                             ) -> tuple[dict[Any, dict[str, float]], int] | None:
     """The training errors of ``predictors`` (:func:`theta_predictors`, or a model file's) against the channels as recorded, on the samples the in-memory fit measures
     them on, and how many those are, from one more pass over the training ``paths`` block by block (memory: a few
     blocks; a resampled file's time stamps): on the filter path the derived motion against the recorded channels
@@ -276,11 +289,12 @@ def recorded_training_errors(model: IdentificationModel, predictors: Mapping[Any
     fit of their averaged period at its instant, as the in-memory Fourier fit compares them. ``files``: the
     streamed record of each training file (``streaming.files``: ``resampled_from``). ``None`` where the loader
     drops rows the streamed grid interpolates (:func:`counted_errors_at_stamps`): the caller keeps the errors it
-    has."""
+    has. ``delays``: by predictor name, its model file's delay, applied on the filter and Fourier paths
+    (:func:`counted_predicted_errors`); at a resampled file's stamps the motion is not moved."""
     if any(record.get("resampled_from") is not None for record in files):
         return counted_errors_at_stamps(model, {}, paths, chunk_size=chunk_size, cutoff_hz=cutoff_hz,
                                         decimation=decimation, held_torques=held_torques, predictors=predictors,
                                         frequency_hz=frequency_hz, harmonics=harmonics)
     return counted_predicted_errors(model, predictors, paths, chunk_size=chunk_size, cutoff_hz=cutoff_hz,
                                     decimation=decimation, held_torques=held_torques, frequency_hz=frequency_hz,
-                                    harmonics=harmonics)
+                                    harmonics=harmonics, delays=delays)

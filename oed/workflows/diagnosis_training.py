@@ -107,6 +107,11 @@ def recorded_training(args: RecordOptions, diagnosis: Diagnosis, selection: Mode
         rival = _Prediction(summed_model_file_document(runner_up.model, runner_up.fit, robot=robot,
                                                        preprocessing=dict(plan), shape=runner_up.shape()), slot)
         predictors["runner_up"] = rival.at(runner_up.fit.values)
+    # each prediction's delay between torques and motion, as its model file holds it (oed predict moves the motion by it)
+    delays = {"before": declared.model.delay, "after": final.model.delay,
+              **{("candidate", candidate.name): answered.model.delay for candidate in fitted}}
+    if runner_up is not None:
+        delays["runner_up"] = rival.model.delay
     clock = time.perf_counter()
     with step(f"training errors against the recording: a pass over {len(args.data)} training file(s)"), \
             warnings.catch_warnings():
@@ -114,7 +119,7 @@ def recorded_training(args: RecordOptions, diagnosis: Diagnosis, selection: Mode
         counted = recorded_training_errors(
             diagnosis.model, predictors, args.data, files, chunk_size=chunk_size, cutoff_hz=streaming.get("cutoff_hz"),
             decimation=int(plan.get("decimation", 1)), held_torques=bool(plan.get("held_torques", False)),
-            frequency_hz=streaming.get("frequency_hz"), harmonics=int(streaming.get("harmonics") or 5))
+            frequency_hz=streaming.get("frequency_hz"), harmonics=int(streaming.get("harmonics") or 5), delays=delays)
     if counted is None:
         return diagnosis, selection, None
     errors, count = counted
