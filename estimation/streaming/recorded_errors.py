@@ -111,7 +111,7 @@ def counted_predicted_errors(model: IdentificationModel, predictors: Mapping[Any
         raise ValueError("no files to measure the error on")
     delays = {} if delays is None else delays
     squares = {name: np.zeros(model.n_channels) for name in predictors}
-    counts: dict[float | None, int] = {}
+    count = 0  # the samples of one pass: every pass reads the same (moving the motion drops none)
     for delay in sorted({delays.get(name) for name in predictors}, key=lambda value: (value is not None, value or 0.0)):
         named = {name: predict for name, predict in predictors.items() if delays.get(name) == delay}
         count = 0
@@ -127,8 +127,6 @@ def counted_predicted_errors(model: IdentificationModel, predictors: Mapping[Any
                     if blocks is not None and name in blocks:
                         blocks[name].add(squared)
                 count += measured.shape[0]
-        counts[delay] = count
-    count = next(iter(counts.values()), 0)
     if count == 0:
         raise ValueError("the files hold no samples once preprocessed")
     return {name: dict(zip(model.channels, map(float, total / count))) for name, total in squares.items()}, count
