@@ -38,8 +38,9 @@ def band_variance(table: pd.DataFrame, channels: list[str]) -> float:
     return float(sum(np.mean(((table[f"{c}_hi"] - table[f"{c}_lo"]) / (2 * Z95)) ** 2) for c in channels))
 
 
-def candidates_on_records(robot: str, degradation: str, folder: Path) -> list[str]:
-    """The table's lines: per candidate, its test ratios to the plain fit and its band variance per record."""
+def case_with_plain_fit(robot: str, degradation: str, folder: Path):
+    """``(case, validation, predicted_plain, kept)``: the robot's records degraded (``none``: as they are), how
+    the validation is given, and the plain least-squares fit's prediction of the test record with the rows it kept."""
     if degradation == "none":
         folder.mkdir(parents=True, exist_ok=True)
         case, validation = ROBOTS[robot](folder), "given"
@@ -47,8 +48,14 @@ def candidates_on_records(robot: str, degradation: str, folder: Path) -> list[st
         case, validation = degraded_case(robot, degradation, folder)
     plain = PlainFit(case.robot)
     cutoff, theta = plain.fit(case.records["train"], case.records["validate"])
+    predicted_plain, kept = plain.predict(case.records["test"], cutoff, theta)
+    return case, validation, predicted_plain, kept
+
+
+def candidates_on_records(robot: str, degradation: str, folder: Path) -> list[str]:
+    """The table's lines: per candidate, its test ratios to the plain fit and its band variance per record."""
+    case, validation, predicted_plain, kept = case_with_plain_fit(robot, degradation, folder)
     test = case.records["test"]
-    predicted_plain, kept = plain.predict(test, cutoff, theta)
     run = run_verb(case, validation, "identify", folder)
     if run["exit"] != 0:
         return [f"identify exits {run['exit']}: {run['message']}"]
