@@ -23,7 +23,9 @@ training range; ``COPIES`` copies, seeded). Per candidate:
 Run: ``python benchmarks/bench_reach.py [--robot panda] [--degradation short|"100 Hz"|none] [--verb identify|diagnose]``;
 ``python benchmarks/bench_reach.py --records FOLDER [--friction viscous,coulomb,offset]``: two answers of
 ``oed diagnose`` on one joint's records (the one-sided pendulum's: run its case of
-``tests/test_unseen_robot_benches.py`` with ``--basetemp DIR``, the records are in its folder under ``DIR``).
+``tests/test_unseen_robot_benches.py`` with ``--basetemp DIR``, the records are in its folder under ``DIR``);
+``python benchmarks/bench_reach.py --results FOLDER...``: the candidates of the result files a lab's case left in its
+folder (``default.json``, ``diagnose.json``).
 """
 
 from __future__ import annotations
@@ -207,6 +209,61 @@ def answers_lines(records_folder: Path, friction: str, folder: Path) -> list[str
     return lines
 
 
+def result_folder_lines(folder: Path) -> list[str]:
+    """A folder that holds a lab's records and its verbs' result files (``robot.urdf``, ``train.csv``,
+    ``validate.csv``, ``test.csv``, ``default.json`` from ``oed identify``, ``diagnose.json``; what
+    ``tests/test_unseen_robot_benches.py`` leaves in each case's folder): per verb, each candidate's disagreement with
+    the chosen one on the validation record and on the reference motion, and its test MSE over the best candidate's
+    (no plain fit here), both in the criterion's units."""
+    robot = load_robot(urdf=folder / "robot.urdf")
+    frame = pd.read_csv(folder / "train.csv")
+    columns = [f"q{joint + 1}" for joint in range(robot.n_joints)]
+    q = frame[columns].to_numpy(float)
+    references = []
+    for copy, shift in enumerate(shifts(robot.lower, robot.upper, q, COPIES)):
+        shifted = frame.copy()
+        shifted[columns] = q + shift
+        references.append(folder / f"reference_{copy}.csv")
+        shifted.to_csv(references[-1], index=False, float_format="%.10g")
+    records = {role: pd.read_csv(folder / f"{role}.csv") for role in ("validate", "test")}
+    lines = []
+    for verb, name in (("identify", "default.json"), ("diagnose", "diagnose.json")):
+        result = folder / name
+        if not result.exists():
+            continue
+        selection = json.loads(result.read_text()).get("model_selection") or {}
+        names, chosen = [c["name"] for c in selection.get("candidates", []) if c.get("available")], selection.get("chosen")
+        if len(names) < 2 or chosen not in names:
+            continue
+        tables = {candidate: {role: predicted(result, candidate, folder / f"{role}.csv",
+                                              folder / f"{verb}_{candidate}_{role}.csv") for role in records}
+                  for candidate in names}
+        reference = {candidate: [predicted(result, candidate, path, folder / f"{verb}_{candidate}_{path.stem}.csv")
+                                 for path in references] for candidate in names}
+        channels = [c for c in tables[chosen]["validate"].columns if c.startswith("tau") and c[3:].isdigit()]
+        errors = {role: {} for role in records}
+        for candidate in names:
+            for role, recorded in records.items():
+                rows, values = at_recorded(recorded["t"].to_numpy(), tables[candidate][role]["t"].to_numpy(),
+                                           tables[candidate][role][channels].to_numpy())
+                errors[role][candidate] = np.mean((recorded[channels].to_numpy()[rows] - values) ** 2, axis=0)
+        smallest = {role: np.min(list(errors[role].values()), axis=0) for role in records}
+        parts = []
+        for candidate in (c for c in names if c != chosen):
+            apart_validate = float(np.mean(np.mean((tables[candidate]["validate"][channels].to_numpy() - tables[
+                chosen]["validate"][channels].to_numpy()) ** 2, axis=0) / smallest["validate"]))
+            apart_reference = float(np.mean(np.mean([np.mean((mine[channels].to_numpy() - theirs[channels].to_numpy())
+                                                             ** 2, axis=0) for mine, theirs in
+                                                     zip(reference[candidate], reference[chosen])], axis=0)
+                                            / smallest["validate"]))
+            parts.append(f"{candidate} {apart_validate:.3f} -> {apart_reference:.3f} ("
+                         f"{apart_reference / apart_validate if apart_validate > 0 else float('inf'):.1f}x), test "
+                         f"{np.mean(errors['test'][candidate] / smallest['test']):.3f}")
+        lines.append(f"{robot.name}, {folder.name}: {verb} chose {chosen} (test "
+                     f"{np.mean(errors['test'][chosen] / smallest['test']):.3f}); {'; '.join(parts)}")
+    return lines
+
+
 def predicted_on(result: Path, data: Path, out: Path) -> pd.DataFrame:
     code, _, message = run_logged(["predict", "--model", str(result), "--data", str(data), "--out", str(out)])
     if code != 0:
@@ -221,8 +278,12 @@ def main() -> None:
     parser.add_argument("--verb", default="identify", choices=["identify", "diagnose"])
     parser.add_argument("--records", type=Path, help="a folder of one joint's records: two diagnose answers instead")
     parser.add_argument("--friction", default="viscous,coulomb,offset", help="the declared answer's laws (--records)")
+    parser.add_argument("--results", type=Path, nargs="+", help="folders of records and result files instead")
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as folder:
+        if args.results:
+            print("\n".join(line for path in args.results for line in result_folder_lines(path)), flush=True)
+            return
         if args.records is not None:
             print("\n".join(answers_lines(args.records, args.friction, Path(folder))), flush=True)
             return
