@@ -156,10 +156,10 @@ BENCHES = (
                     "viscous,coulomb,offset: 1.045). Beyond the reach (h-reach: the training swing replayed over "
                     "the joint limits) the two answers differ 3000x more than on validation (0.016 -> 48.4 in the "
                     "criterion's units), yet the band variance favours the default (+0.014 against +7.19: the "
-                    "offset's collinearity, not the default's bias); the description's first moment is nearer the "
-                    "right answer (mz1 -0.523 without the offset, -0.579 +- 0.021 with it, the description's "
-                    "-0.712), yet identify's consistent fit here, 2708x farther apart on the reference than on "
-                    "validation, predicts the test 2.62x worse than its ols: no referee found")),
+                    "offset's collinearity, not the default's bias); nor does the description (mz1 -0.712; the lab's "
+                    "truth -0.574, its bodies drawn +-20 %; with the offset -0.579 +- 0.021): identify's consistent "
+                    "fit, pulled towards it, predicts the test 2.62x worse than its ols (prior weight 100: 20x), "
+                    "the offset taking what the prior moves (0.54 -> 0.90 N m)")),
     Bench(Lab("the four-joint servo arm logged at 25 Hz, 0.3° encoders, no dq, 16 s / 6 s / 8 s, point-to-point "
               "test", servo_arm, *no_servo((16.0, 6.0, 8.0), 25.0, quantum=SERVO_QUANTUM),
               test_motion="point-to-point", slow=True)),
