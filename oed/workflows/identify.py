@@ -713,11 +713,13 @@ def streamed_armature_selection(args: IdentifyOptions, selection: ModelSelection
     if not laws or args.method != "auto" or args.consistent or not args.validate or model_has_shapes(model) \
             or selection.selection != "validation":
         return selection, sums, scores
-    other_model = build_model(model.robot, model.kind, (*model.effects, *laws))
     with step("the rotors' reflected inertia (armature) fitted and compared"):
-        other, other_sums, other_scores = summed_candidate(args, other_model, base=base, methods=methods,
-                                                           chunk_size=chunk_size, options=options, ratio=ratio,
-                                                           still=still)
+        fitted = armature_candidate(model, laws, lambda candidate: summed_candidate(
+            args, candidate, base=base, methods=methods, chunk_size=chunk_size, options=options, ratio=ratio,
+            still=still))
+    if fitted is None:
+        return selection, sums, scores
+    other_model, (other, other_sums, other_scores) = fitted
     answer = armature_answer(selection, other)
     return (answer, other_sums, other_scores) if answer.unconstrained.model is other_model else (answer, sums, scores)
 
@@ -1106,19 +1108,27 @@ def armature_selection(args: IdentifyOptions, selection: ModelSelection, train: 
     if not laws or given is not None or delay is not None or model_has_shapes(model) or validation is None \
             or selection.selection != "validation":
         return selection
-    candidate = build_model(model.robot, model.kind, (*model.effects, *laws))
     with step("the rotors' reflected inertia (armature) fitted and compared"):
-        try:
-            other = select_model(candidate, train, validation, base=base,
-                                 consistent=consistent_settings(args, model.robot))
-        except IdentifiabilityError as error:  # a joint the records never accelerate: its armature left out
-            change = left_out_unexcited(candidate, error.parameters) if error.unexcited else None
-            if change is None or not any(getattr(effect, "name", "") == "armature" for effect in change[0]):
-                return selection  # no armature the records determine: not a candidate
-            candidate = build_model(model.robot, model.kind, change[0])
-            other = select_model(candidate, train, validation, base=base,
-                                 consistent=consistent_settings(args, model.robot))
-    return armature_answer(selection, other)
+        fitted = armature_candidate(model, laws, lambda candidate: select_model(
+            candidate, train, validation, base=base, consistent=consistent_settings(args, model.robot)))
+    return selection if fitted is None else armature_answer(selection, fitted[1])
+
+
+def armature_candidate(model: IdentificationModel, laws: tuple[Any, ...],
+                       fit: Callable[[IdentificationModel], Any]) -> tuple[IdentificationModel, Any] | None:
+    """``model`` with the armature ``laws`` added, and ``fit`` of it; where the records never accelerate a joint
+    (its armature column zero on every training sample) that joint's armature is left out
+    (:func:`~estimation.identification.undetermined.left_out_unexcited`) and the rest fitted; ``None`` when no
+    joint's armature is determined (no candidate)."""
+    candidate = build_model(model.robot, model.kind, (*model.effects, *laws))
+    try:
+        return candidate, fit(candidate)
+    except IdentifiabilityError as error:
+        change = left_out_unexcited(candidate, error.parameters) if error.unexcited else None
+        if change is None or not any(getattr(effect, "name", "") == "armature" for effect in change[0]):
+            return None
+        candidate = build_model(model.robot, model.kind, change[0])
+        return candidate, fit(candidate)
 
 
 def gravity_selection(args: IdentifyOptions, selection: ModelSelection, mount: MountCheck | None,
