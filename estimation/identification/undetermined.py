@@ -103,19 +103,9 @@ def merged_one_way(model: IdentificationModel,
 
 @dataclass(frozen=True)
 class UnexcitedColumn:
-    """A per-joint parameter left out because its column is zero on every training sample.
-
-    Attributes
-    ----------
-    joint
-        The joint, counted from 1.
-    joint_name
-        Its name in the robot description.
-    parameter
-        The parameter left out (``fv_i``, ``fc_i``, ``Ia_i``, ...).
-    effect
-        The effect it belongs to (``viscous``, ``coulomb``, ``armature``, ...).
-    """
+    """A per-joint parameter (``fv_i``, ``fc_i``, ``Ia_i``, ...) left out because its column is zero on every
+    training sample: ``joint`` (from 1) and ``joint_name`` as :class:`MergedColumn`'s, ``effect`` the effect it
+    belongs to (``viscous``, ``coulomb``, ``armature``, ...)."""
 
     joint: int
     joint_name: str
