@@ -48,5 +48,9 @@ def armature_answer(selection: ModelSelection, other: ModelSelection) -> ModelSe
     with ``armature`` added) when its answer scores lower on the validation record than the declared model's
     (``selection``) by more than :data:`ARMATURE_TOLERANCE`, else ``selection``; the reason gives both scores.
     Compared only when both selections were made on a validation record of another motion."""
+    joints = [effect.joints for effect in other.unconstrained.model.effects
+              if getattr(effect, "name", "") == "armature"]
+    where = ("every joint" if not joints or joints[0] is None
+             else "joints " + ", ".join(str(joint + 1) for joint in joints[0]))  # a still joint's left out
     return candidate_answer(selection, other, tolerance=ARMATURE_TOLERANCE,
-                            added="the rotors' reflected inertia (armature on every joint)")
+                            added=f"the rotors' reflected inertia (armature on {where})")

@@ -44,11 +44,13 @@ IDENTIFIABILITY_TOLERANCE = 1e-13
 
 class IdentifiabilityError(ValueError):
     """The data do not determine every parameter (rank-deficient regressor); ``parameters``: those it names
-    (empty when it names none)."""
+    (empty when it names none); ``unexcited``: they are all-zero columns (the data hold nothing of them, e.g. the
+    friction of a joint that never moves), not a combination of other columns."""
 
-    def __init__(self, message: str, parameters: tuple[str, ...] = ()) -> None:
+    def __init__(self, message: str, parameters: tuple[str, ...] = (), *, unexcited: bool = False) -> None:
         super().__init__(message)
         self.parameters = tuple(parameters)
+        self.unexcited = unexcited
 
 
 
@@ -157,9 +159,9 @@ def solve(
     scale = np.sqrt(np.diag(normal))
     zero = np.flatnonzero(scale == 0)
     if zero.size:
+        names = tuple(problem.names[i] for i in zero)
         raise IdentifiabilityError(
-            f"parameter(s) {[problem.names[i] for i in zero]} have all-zero columns: these data do not excite them"
-        )
+            f"parameter(s) {list(names)} have all-zero columns: these data do not excite them", names, unexcited=True)
     equilibrated = normal / np.outer(scale, scale)
     eigenvalues, eigenvectors = np.linalg.eigh(equilibrated)
     if eigenvalues[0] < IDENTIFIABILITY_TOLERANCE * eigenvalues[-1]:
@@ -322,7 +324,7 @@ class WeightedLeastSquares(LeastSquares):
         variance = None
         iterations = 0
         for _ in range(int(self.max_iter) + 1):
-            theta = _normal_solve(np.tensordot(weights, gram, axes=1), weights @ moment)
+            theta = _normal_solve(np.tensordot(weights, gram, axes=1), weights @ moment, problem.names)
             iterations += 1
             if problem.band is None:
                 in_band = (power - 2 * moment @ theta + np.einsum("r,mrs,s->m", theta, gram, theta)) / dof
@@ -345,11 +347,16 @@ class WeightedLeastSquares(LeastSquares):
         return self
 
 
-def _normal_solve(normal: NDArray[np.float64], right: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Solve the (symmetrically equilibrated) normal equations; used only to iterate weights."""
+def _normal_solve(normal: NDArray[np.float64], right: NDArray[np.float64],
+                  names: tuple[str, ...] = ()) -> NDArray[np.float64]:
+    """Solve the (symmetrically equilibrated) normal equations; used only to iterate weights. ``names``: the
+    parameters' (an all-zero column's named in the error)."""
     scale = np.sqrt(np.diag(normal))
     if np.any(scale == 0):
-        raise IdentifiabilityError("a parameter has an all-zero column: these data do not excite it")
+        zero = tuple(names[i] for i in np.flatnonzero(scale == 0)) if names else ()
+        raise IdentifiabilityError(f"parameter(s) {list(zero)} have all-zero columns: these data do not excite them"
+                                   if zero else "a parameter has an all-zero column: these data do not excite it",
+                                   zero, unexcited=True)
     return np.linalg.lstsq(normal / np.outer(scale, scale), right / scale, rcond=None)[0] / scale
 
 

@@ -52,8 +52,9 @@ def _solved(sums: NormalEquations, weights: NDArray[np.float64]) -> tuple[NDArra
     scale = np.linalg.norm(R_theta, axis=0)
     zero = np.flatnonzero(scale == 0)
     if zero.size:
+        names = tuple(sums.names[i] for i in zero)
         raise IdentifiabilityError(
-            f"parameter(s) {[sums.names[i] for i in zero]} have all-zero columns: these data do not excite them")
+            f"parameter(s) {list(names)} have all-zero columns: these data do not excite them", names, unexcited=True)
     singular, right = np.linalg.svd(R_theta / scale, full_matrices=False)[1:]
     if singular[-1] ** 2 < IDENTIFIABILITY_TOLERANCE * singular[0] ** 2:
         direction = np.abs(right[-1])

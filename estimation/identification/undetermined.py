@@ -10,8 +10,15 @@ joint, and ``not_determined`` in ``result.json``). The offset, not the Coulomb t
 the law that asserts nothing about a reversal the record never showed (issue 34: "adding nothing and saying what
 remains beats naming the wrong effect"). A record in which the joint reverses determines both.
 
-Only that pair is merged: any other parameter the data do not determine stays the error it is (a rigid-body
-direction, a spring on a joint at rest: the remedy is the user's).
+A per-joint parameter whose column is zero on every training sample (the viscous and Coulomb friction, the
+armature of a joint held still through the training records) is not determined either: the records hold nothing of
+it, so the identification goes on without it (the effect kept on the other joints), said in a warning naming the
+joint, and ``not_determined`` in ``result.json``. It is left at zero, as a minimum-norm least-squares fit leaves it:
+nothing is invented for a motion the records never showed, and the prediction of a record where that joint moves
+says the record leaves the training range.
+
+Any other parameter the data do not determine stays the error it is (a rigid-body direction, a spring on a joint at
+rest: the remedy is the user's).
 """
 
 from __future__ import annotations
@@ -22,7 +29,7 @@ from typing import Any
 from dynamics.effects.linear import CoulombFriction, JointOffset
 from dynamics.models import IdentificationModel
 
-__all__ = ["MergedColumn", "merged_one_way"]
+__all__ = ["MergedColumn", "UnexcitedColumn", "left_out_unexcited", "merged_one_way", "not_determined"]
 
 
 @dataclass(frozen=True)
@@ -92,3 +99,79 @@ def merged_one_way(model: IdentificationModel,
     effects = tuple(effect for effect in model.effects if effect is not coulomb[0] or kept)
     effects = tuple(replace(effect, joints=kept) if effect is coulomb[0] else effect for effect in effects)
     return effects, tuple(merged)
+
+
+@dataclass(frozen=True)
+class UnexcitedColumn:
+    """A per-joint parameter (``fv_i``, ``fc_i``, ``Ia_i``, ...) left out because its column is zero on every
+    training sample: ``joint`` (from 1) and ``joint_name`` as :class:`MergedColumn`'s, ``effect`` the effect it
+    belongs to (``viscous``, ``coulomb``, ``armature``, ...)."""
+
+    joint: int
+    joint_name: str
+    parameter: str
+    effect: str
+
+    def statement(self) -> str:
+        """The warning: what is not determined, why, and what determines it."""
+        return (f"joint {self.joint} ({self.joint_name}): the {self.effect} column ({self.parameter}) is zero on "
+                f"every training sample (the joint does not move there): the data do not determine "
+                f"{self.parameter}; it is left out (zero in the model, not determined); a record in which joint "
+                f"{self.joint} moves determines it")
+
+    def to_dict(self) -> dict[str, Any]:
+        """``{effect, joint, joint_name, parameter, merged_into, reason}`` (``result.json``'s ``not_determined``;
+        ``merged_into`` ``None``: nothing holds it)."""
+        return {"effect": self.effect, "joint": self.joint, "joint_name": self.joint_name,
+                "parameter": self.parameter, "merged_into": None, "reason": self.statement()}
+
+
+def left_out_unexcited(model: IdentificationModel,
+                       parameters: tuple[str, ...]) -> tuple[tuple[Any, ...], tuple[UnexcitedColumn, ...]] | None:
+    """The model's effects with each per-joint parameter of ``parameters`` (all-zero columns on the training
+    records) left out of its effect's joints, and what was left out; ``None`` when ``parameters`` hold anything
+    else (a rigid-body parameter, an effect not of one parameter per joint) or nothing.
+
+    Parameters
+    ----------
+    model
+        The declared model.
+    parameters
+        The parameters whose columns are zero on every training sample, as the error names them
+        (:class:`~estimation.estimators.least_squares.IdentifiabilityError` with ``unexcited``).
+    """
+    robot = model.robot
+    weak = set(parameters)
+    if not weak:
+        return None
+    effects, left = [], []
+    for effect in model.effects:
+        symbol, joints = getattr(effect, "symbol", ""), getattr(effect, "joints", ())
+        names = effect.parameter_names(robot)
+        indices = tuple(range(robot.n_joints)) if joints is None else tuple(joints)
+        if not symbol or not isinstance(joints, tuple | type(None)) \
+                or names != [f"{symbol}{index + 1}" for index in indices] or not weak & set(names):
+            effects.append(effect)
+            continue
+        gone = [index for index in indices if f"{symbol}{index + 1}" in weak]
+        left.extend(UnexcitedColumn(index + 1, robot.joints[index].name, f"{symbol}{index + 1}", effect.name)
+                    for index in gone)
+        weak -= {f"{symbol}{index + 1}" for index in gone}
+        kept = tuple(index for index in indices if index not in gone)
+        if kept:
+            effects.append(replace(effect, joints=kept))
+    if weak or not left:
+        return None
+    return tuple(effects), tuple(left)
+
+
+def not_determined(model: IdentificationModel, error: Exception
+                   ) -> tuple[tuple[Any, ...], tuple[MergedColumn | UnexcitedColumn, ...]] | None:
+    """What the identification goes on without after ``error`` (an
+    :class:`~estimation.estimators.least_squares.IdentifiabilityError`): the columns of joints the training records
+    never move (:func:`left_out_unexcited`) or a Coulomb column one with the offset (:func:`merged_one_way`); the
+    model's effects then and what was left out, or ``None`` (the error stands)."""
+    parameters = tuple(getattr(error, "parameters", ()))
+    if getattr(error, "unexcited", False):
+        return left_out_unexcited(model, parameters)
+    return merged_one_way(model, parameters)

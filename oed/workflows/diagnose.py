@@ -53,7 +53,7 @@ from estimation.diagnosis.search import diagnose as diagnose_model
 from estimation.diagnosis.untouched import UntouchedErrors, recorded_comparison, recorded_mse, untouched_errors
 from estimation.identification.prepared import InMemoryBudget, PreparedRecords, prepare_records
 from estimation.identification.repeated_motion import repeat_note, repeated_motion_note
-from estimation.identification.undetermined import MergedColumn, merged_one_way
+from estimation.identification.undetermined import MergedColumn, UnexcitedColumn, not_determined
 from estimation.estimators.least_squares import IdentifiabilityError
 from estimation.preprocessing.delay import DelayBounds, split_delay
 from estimation.preprocessing.plan import Preprocessing
@@ -329,14 +329,14 @@ def run_diagnose(args: DiagnoseOptions, *, say: Callable[[str], None]) -> Diagno
         read, names = copies.enter_context(records_to_read(  # joint-side copies of motor-side, zeroed records
             args, model, transmission, bytes_per_value=IN_MEMORY.bytes_per_value,
             in_memory_only=lambda: in_memory_only(args, model, delay)))
-        merged: tuple[MergedColumn, ...] = ()
-        while True:  # a declared Coulomb column the record cannot tell from the offset: merged, said (both paths)
+        merged: tuple[MergedColumn | UnexcitedColumn, ...] = ()
+        while True:  # a Coulomb column one with the offset merged, a still joint's left out: said (both paths)
             try:
                 diagnosed = diagnosis_by_path(read, friction, effects, model, transmission, delay, say,
                                               merged=bool(merged))
                 break
             except IdentifiabilityError as error:
-                change = merged_one_way(model, error.parameters)
+                change = not_determined(model, error)
                 if change is None:
                     raise
                 effects = change[0]
@@ -360,8 +360,9 @@ def diagnosis_by_path(read: DiagnoseOptions, friction: str | None, effects: tupl
                       say: Callable[[str], None], *, merged: bool = False) -> Diagnosed:
     """The diagnosis of the records ``read``, streamed when asked for or when they exceed the memory budget
     (:func:`decide_path`), else in memory. ``merged``: ``effects`` are the declared ones with a Coulomb column
-    merged into its offset (:func:`~estimation.identification.undetermined.merged_one_way`), which the streamed
-    path then takes as they are instead of building them again from ``friction``."""
+    merged into its offset or a still joint's columns left out
+    (:func:`~estimation.identification.undetermined.not_determined`), which the streamed path then takes as they are
+    instead of building them again from ``friction``."""
     declared = effects if merged else None
     if streaming_requested(read):
         return diagnosis_streamed(read, friction, effects=declared, delay=delay)

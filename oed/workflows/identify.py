@@ -51,7 +51,8 @@ from estimation.identification.friction_drift import FrictionDrift, check_fricti
 from estimation.identification.time_base_choice import STREAMED_TIME_BASE
 from estimation.identification.training_range import RangeCheck, TrainingRange, merged_ranges
 from estimation.identification.trivial_predictors import trivial_warnings
-from estimation.identification.undetermined import MergedColumn, merged_one_way
+from estimation.identification.undetermined import (MergedColumn, UnexcitedColumn, left_out_unexcited,
+                                                     not_determined)
 from estimation.identification.validation import ChannelErrors, plot_comparison
 from estimation.identification.weighting_choice import choose_weighting, weighting_samples
 from estimation.preprocessing.delay import DelayBounds, split_delay
@@ -278,13 +279,13 @@ def run_identify(args: IdentifyOptions, *, say: Callable[[str], None]) -> Identi
         read, names = copies.enter_context(records_to_read(  # joint-side copies of motor-side, zeroed records
             args, model, transmission, bytes_per_value=IN_MEMORY.bytes_per_value,
             in_memory_only=lambda: in_memory_only(args, model, delay)))
-        merged: tuple[MergedColumn, ...] = ()
-        while True:  # a declared Coulomb column the record cannot tell from the offset: merged, said (issue 34)
+        merged: tuple[MergedColumn | UnexcitedColumn, ...] = ()
+        while True:  # a Coulomb column the record cannot tell from the offset merged, a still joint's left out: said
             try:
                 identified = identification_by_path(read, robot, model, transmission, delay, say)
                 break
             except IdentifiabilityError as error:
-                change = merged_one_way(model, error.parameters)
+                change = not_determined(model, error)
                 if change is None:
                     raise
                 model, merged = build_model(robot, args.model, change[0]), (*merged, *change[1])
@@ -712,11 +713,13 @@ def streamed_armature_selection(args: IdentifyOptions, selection: ModelSelection
     if not laws or args.method != "auto" or args.consistent or not args.validate or model_has_shapes(model) \
             or selection.selection != "validation":
         return selection, sums, scores
-    other_model = build_model(model.robot, model.kind, (*model.effects, *laws))
     with step("the rotors' reflected inertia (armature) fitted and compared"):
-        other, other_sums, other_scores = summed_candidate(args, other_model, base=base, methods=methods,
-                                                           chunk_size=chunk_size, options=options, ratio=ratio,
-                                                           still=still)
+        fitted = armature_candidate(model, laws, lambda candidate: summed_candidate(
+            args, candidate, base=base, methods=methods, chunk_size=chunk_size, options=options, ratio=ratio,
+            still=still))
+    if fitted is None:
+        return selection, sums, scores
+    other_model, (other, other_sums, other_scores) = fitted
     answer = armature_answer(selection, other)
     return (answer, other_sums, other_scores) if answer.unconstrained.model is other_model else (answer, sums, scores)
 
@@ -1106,9 +1109,26 @@ def armature_selection(args: IdentifyOptions, selection: ModelSelection, train: 
             or selection.selection != "validation":
         return selection
     with step("the rotors' reflected inertia (armature) fitted and compared"):
-        other = select_model(build_model(model.robot, model.kind, (*model.effects, *laws)), train, validation,
-                             base=base, consistent=consistent_settings(args, model.robot))
-    return armature_answer(selection, other)
+        fitted = armature_candidate(model, laws, lambda candidate: select_model(
+            candidate, train, validation, base=base, consistent=consistent_settings(args, model.robot)))
+    return selection if fitted is None else armature_answer(selection, fitted[1])
+
+
+def armature_candidate(model: IdentificationModel, laws: tuple[Any, ...],
+                       fit: Callable[[IdentificationModel], Any]) -> tuple[IdentificationModel, Any] | None:
+    """``model`` with the armature ``laws`` added, and ``fit`` of it; where the records never accelerate a joint
+    (its armature column zero on every training sample) that joint's armature is left out
+    (:func:`~estimation.identification.undetermined.left_out_unexcited`) and the rest fitted; ``None`` when no
+    joint's armature is determined (no candidate)."""
+    candidate = build_model(model.robot, model.kind, (*model.effects, *laws))
+    try:
+        return candidate, fit(candidate)
+    except IdentifiabilityError as error:
+        change = left_out_unexcited(candidate, error.parameters) if error.unexcited else None
+        if change is None or not any(getattr(effect, "name", "") == "armature" for effect in change[0]):
+            return None
+        candidate = build_model(model.robot, model.kind, change[0])
+        return candidate, fit(candidate)
 
 
 def gravity_selection(args: IdentifyOptions, selection: ModelSelection, mount: MountCheck | None,
