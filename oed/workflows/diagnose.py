@@ -99,7 +99,7 @@ from oed.workflows.model_files import (
     add_summed_runner_up_model_file,
     add_training_range,
     range_lines,
-    recorded_validation_errors,
+    recorded_validation_scores,
     recorded_validation_mse,
     recorded_validations_counted,
     resampled_validation,
@@ -1287,7 +1287,13 @@ def streamed_selection(args: DiagnoseOptions, diagnosis: Diagnosis, run: Streame
     as in memory (:func:`completed_selection`: on a repeat of the training motion, and on another motion with the
     prior weight chosen for the adopted model held, :func:`~estimation.consistent.completion.held_completion`) from
     the same sums (:func:`estimation.streaming.diagnosis_selection.streamed_completion`)."""
-    from estimation.streaming.diagnosis_selection import refit_selection, streamed_completion, streamed_refit_selection
+    from estimation.identification.repeated_motion import REPEAT_FRACTION
+    from estimation.streaming.diagnosis_selection import (
+        refit_selection,
+        streamed_completion,
+        streamed_refit_selection,
+        validation_blocks,
+    )
     from estimation.streaming.model_selection import streamed_repeated_motion
 
     model = diagnosis.model
@@ -1295,12 +1301,18 @@ def streamed_selection(args: DiagnoseOptions, diagnosis: Diagnosis, run: Streame
         warnings.simplefilter("ignore")  # the files' findings were said on the diagnosis's passes
         if ratio is None:
             ratio = streamed_repeated_motion(model, args.data, args.validate, chunk_size=chunk_size)
-        score = None
+        score, blocks = None, None
         if resampled_validation({"streaming": diagnosis.streaming}):
             score = resampled_scorer(args, diagnosis, plan)
+        elif not args.consistent and not still and ratio is not None and ratio > REPEAT_FRACTION:
+            # chosen on a validation record of another motion: the paired difference of the candidates' scores is
+            # reported, as in memory, from the validation sums on each block (one more pass over the files)
+            with step("the validation files summed by block (the paired difference of the candidates)"):
+                blocks = validation_blocks(diagnosis, run)
         settings = consistent_settings(args, model.robot)
         selection = streamed_refit_selection(diagnosis, run, given="consistent" if args.consistent else None,
-                                             consistent=settings, score=score, ratio=ratio, still=still)
+                                             consistent=settings, score=score, ratio=ratio, still=still,
+                                             blocks=blocks)
         repeat = completion_repeat(selection, consistent=args.consistent)
         if repeat is None:
             return selection
@@ -1315,7 +1327,7 @@ def streamed_selection(args: DiagnoseOptions, diagnosis: Diagnosis, run: Streame
         return held_completion(selection, settings, laws, repeat=repeat,
                                select=lambda held: refit_selection(completed, columns, run, consistent=held,
                                                                    score=score, ratio=ratio, still=still,
-                                                                   note=completed_note(laws)))
+                                                                   note=completed_note(laws), blocks=blocks))
 
 
 def resampled_scorer(args: DiagnoseOptions, diagnosis: Diagnosis, plan: dict[str, Any], *,
@@ -1324,7 +1336,8 @@ def resampled_scorer(args: DiagnoseOptions, diagnosis: Diagnosis, plan: dict[str
     fit's model instead, the adopted model completed with the plain law), on a validation
     file the loader resampled: at its recorded samples, against the torques as recorded, as ``oed predict``
     measures the model file holding each (:func:`~oed.workflows.model_files.recorded_validation_errors`, shaped
-    laws at their fixed shapes; the record read once for all the vectors)."""
+    laws at their fixed shapes; the record read once for all the vectors), each also on the blocks of those samples
+    (:func:`~oed.workflows.model_files.recorded_validation_scores`)."""
     from estimation.streaming.chunks import source_files
 
     model, estimate = (diagnosis.final_model(), diagnosis.after.estimate) if fit is None else (fit.model, fit.estimate)
@@ -1333,10 +1346,13 @@ def resampled_scorer(args: DiagnoseOptions, diagnosis: Diagnosis, plan: dict[str
     n_samples = diagnosis.after.validation.n_samples
 
     def score(thetas: Any) -> dict[Any, ChannelErrors]:
-        errors = recorded_validation_errors(document, thetas, source_files(args.validate))
+        errors = recorded_validation_scores(document, thetas, source_files(args.validate))
         if errors is None:
             raise ValueError("the validation files were read as recorded: score them from the sums")
-        return {key: ChannelErrors(dict(errors[key]), n_samples) for key in thetas}
+        # each vector's MSE on each block of the recorded samples too (the paired difference of two candidates)
+        return {key: ChannelErrors(dict(errors[key].mse), n_samples, block_mse=errors[key].block_mse,
+                                   block_samples=None if errors[key].n_samples == n_samples
+                                   else errors[key].n_samples) for key in thetas}
     return score
 
 
