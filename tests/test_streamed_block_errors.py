@@ -115,17 +115,11 @@ def test_the_paired_difference_from_block_sums_is_memorys():
     assert paired_difference([held[0], _summed("consistent", second)], "wls") is None
 
 
-@pytest.mark.slow
-def test_a_jittered_validation_record_gives_memorys_paired_difference_streamed(tmp_path):
-    """A log whose stamps jitter by 20 % of a step (the streamed reader resamples it onto a grid and scores the
-    candidates at the recorded stamps): the streamed ``oed identify`` learns the recorded samples' count on its first
-    pass and sums the blocks on one more, and reports memory's paired difference (measured 3e-12 apart; ``null``
-    before, h-shortval)."""
-    import json
-
+def _jittered_records(folder) -> list:
+    """Training and validation logs of a 3-joint PUMA (3 periods at 200 Hz each, another motion each; Coulomb
+    friction on joint 2 and an offset on joint 1 beside viscous friction) whose stamps jitter by 20 % of a step."""
     from dynamics.effects.linear import CoulombFriction, JointOffset
     from dynamics.simulation.synthetic import simulate, true_parameters
-    from oed.cli import main
     from oed.fourier import random_fourier
 
     model = build_model(load_robot("puma560", joints=3), "internal", "viscous")
@@ -138,8 +132,22 @@ def test_a_jittered_validation_record_gives_memorys_paired_difference_streamed(t
                         noise={c: 0.2 for c in truth.channels}, seed=seed, rate_hz=200.0, periods=3)
         t = data.t + generator.uniform(-0.2, 0.2, data.t.shape) / 200.0
         Measurements(t, data.q + 1e-4 * generator.standard_normal(data.q.shape), tau=data.tau).write(
-            tmp_path / f"jittered{seed}.csv")
-        paths.append(tmp_path / f"jittered{seed}.csv")
+            folder / f"jittered{seed}.csv")
+        paths.append(folder / f"jittered{seed}.csv")
+    return paths
+
+
+@pytest.mark.slow
+def test_a_jittered_validation_record_gives_memorys_paired_difference_streamed(tmp_path):
+    """A log whose stamps jitter by 20 % of a step (the streamed reader resamples it onto a grid and scores the
+    candidates at the recorded stamps): the streamed ``oed identify`` learns the recorded samples' count on its first
+    pass and sums the blocks on one more, and reports memory's paired difference (measured 3e-12 apart; ``null``
+    before, h-shortval)."""
+    import json
+
+    from oed.cli import main
+
+    paths = _jittered_records(tmp_path)
     documents = {}
     for name, options in (("memory", ()), ("streamed", ("--chunk-size", "250"))):
         out = tmp_path / f"{name}.json"
@@ -167,24 +175,11 @@ def test_the_streamed_diagnosis_reports_the_paired_difference_predict_measures_a
 
     import pandas as pd
 
-    from dynamics.effects.linear import CoulombFriction, JointOffset
-    from dynamics.simulation.synthetic import simulate, true_parameters
     from estimation.identification.preprocessing_on_validation import paired_difference as blocks_difference
     from oed.cli import main
-    from oed.fourier import random_fourier
 
     model = build_model(load_robot("puma560", joints=3), "internal", "viscous")
-    truth = build_model(model.robot, "internal", ("viscous", CoulombFriction(joints=(1,)), JointOffset(joints=(0,))))
-    theta = true_parameters(truth, seed=0, coulomb=[8.0], offset=[3.0])
-    generator = np.random.default_rng(5)
-    paths = []
-    for seed, trajectory in ((1, 3), (2, 4)):
-        data = simulate(truth, theta, random_fourier(model.robot, seed=trajectory),
-                        noise={c: 0.2 for c in truth.channels}, seed=seed, rate_hz=200.0, periods=3)
-        t = data.t + generator.uniform(-0.2, 0.2, data.t.shape) / 200.0
-        Measurements(t, data.q + 1e-4 * generator.standard_normal(data.q.shape), tau=data.tau).write(
-            tmp_path / f"jittered{seed}.csv")
-        paths.append(tmp_path / f"jittered{seed}.csv")
+    paths = _jittered_records(tmp_path)
     out = tmp_path / "streamed.json"
     assert main(["diagnose", "--joints", "3", "--model", "internal", "--friction", "viscous", "--data", str(paths[0]),
                  "--validate", str(paths[1]), "--out", str(out), "--cutoff", "6", "--quiet", "--chunk-size",
