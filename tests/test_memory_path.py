@@ -178,6 +178,14 @@ def test_in_memory_and_streamed_make_the_same_choices(tmp_path, records, capsys,
             assert "averaged period" in streamed["train"]["against"]
         else:
             assert all(streamed["train"][which]["mse"] for which in ("before", "after", "chosen"))
+        # the paired difference of the best candidate and the consistent one, reported on both paths (streamed: from
+        # the validation sums of each block, h-streamdiag; measured: 2e-9 apart on both derivative paths)
+        paired = [document["model_selection"]["paired_difference"] for document in (memory, streamed)]
+        assert (paired[1] is None) == (paired[0] is None)
+        if paired[0] is not None:
+            assert paired[1]["best"] == paired[0]["best"] and paired[1]["blocks"] == paired[0]["blocks"]
+            for key in ("difference", "standard_error"):
+                assert paired[1][key] == pytest.approx(paired[0][key], rel=1e-6), key
 
 
 def test_one_result_type_whichever_the_path(records, tmp_path):

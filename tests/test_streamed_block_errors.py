@@ -115,17 +115,11 @@ def test_the_paired_difference_from_block_sums_is_memorys():
     assert paired_difference([held[0], _summed("consistent", second)], "wls") is None
 
 
-@pytest.mark.slow
-def test_a_jittered_validation_record_gives_memorys_paired_difference_streamed(tmp_path):
-    """A log whose stamps jitter by 20 % of a step (the streamed reader resamples it onto a grid and scores the
-    candidates at the recorded stamps): the streamed ``oed identify`` learns the recorded samples' count on its first
-    pass and sums the blocks on one more, and reports memory's paired difference (measured 3e-12 apart; ``null``
-    before, h-shortval)."""
-    import json
-
+def _jittered_records(folder) -> list:
+    """Training and validation logs of a 3-joint PUMA (3 periods at 200 Hz each, another motion each; Coulomb
+    friction on joint 2 and an offset on joint 1 beside viscous friction) whose stamps jitter by 20 % of a step."""
     from dynamics.effects.linear import CoulombFriction, JointOffset
     from dynamics.simulation.synthetic import simulate, true_parameters
-    from oed.cli import main
     from oed.fourier import random_fourier
 
     model = build_model(load_robot("puma560", joints=3), "internal", "viscous")
@@ -138,8 +132,22 @@ def test_a_jittered_validation_record_gives_memorys_paired_difference_streamed(t
                         noise={c: 0.2 for c in truth.channels}, seed=seed, rate_hz=200.0, periods=3)
         t = data.t + generator.uniform(-0.2, 0.2, data.t.shape) / 200.0
         Measurements(t, data.q + 1e-4 * generator.standard_normal(data.q.shape), tau=data.tau).write(
-            tmp_path / f"jittered{seed}.csv")
-        paths.append(tmp_path / f"jittered{seed}.csv")
+            folder / f"jittered{seed}.csv")
+        paths.append(folder / f"jittered{seed}.csv")
+    return paths
+
+
+@pytest.mark.slow
+def test_a_jittered_validation_record_gives_memorys_paired_difference_streamed(tmp_path):
+    """A log whose stamps jitter by 20 % of a step (the streamed reader resamples it onto a grid and scores the
+    candidates at the recorded stamps): the streamed ``oed identify`` learns the recorded samples' count on its first
+    pass and sums the blocks on one more, and reports memory's paired difference (measured 3e-12 apart; ``null``
+    before, h-shortval)."""
+    import json
+
+    from oed.cli import main
+
+    paths = _jittered_records(tmp_path)
     documents = {}
     for name, options in (("memory", ()), ("streamed", ("--chunk-size", "250"))):
         out = tmp_path / f"{name}.json"
@@ -155,3 +163,47 @@ def test_a_jittered_validation_record_gives_memorys_paired_difference_streamed(t
     assert paired["streamed"]["best"] == paired["memory"]["best"]
     for key in ("difference", "standard_error"):
         assert paired["streamed"][key] == pytest.approx(paired["memory"][key], rel=1e-8), key
+
+
+@pytest.mark.slow
+def test_the_streamed_diagnosis_reports_the_paired_difference_predict_measures_at_the_stamps(tmp_path):
+    """The streamed ``oed diagnose`` on a validation log whose stamps jitter (resampled onto a grid by the streamed
+    reader; its candidates scored at the recorded stamps, as ``oed predict`` measures them) reports the paired
+    difference of its answer and the consistent refit (``null`` before, h-streamdiag), equal to the one recomputed
+    from ``oed predict``'s residuals of each model at those stamps, cut into memory's blocks (measured: 1e-9 apart)."""
+    import json
+
+    import pandas as pd
+
+    from estimation.identification.preprocessing_on_validation import paired_difference as blocks_difference
+    from oed.cli import main
+
+    model = build_model(load_robot("puma560", joints=3), "internal", "viscous")
+    paths = _jittered_records(tmp_path)
+    out = tmp_path / "streamed.json"
+    assert main(["diagnose", "--joints", "3", "--model", "internal", "--friction", "viscous", "--data", str(paths[0]),
+                 "--validate", str(paths[1]), "--out", str(out), "--cutoff", "6", "--quiet", "--chunk-size",
+                 "250"]) == 0
+    document = json.loads(out.read_text())
+    assert document["streaming"]["validation_files"][0]["resampled_from"] is not None  # scored at the stamps
+    selection = document["model_selection"]
+    paired = selection["paired_difference"]
+    assert paired is not None and paired["regularised"] == "consistent" and paired["best"] == selection["chosen"]
+    residuals = {}
+    for name in (paired["best"], "consistent"):
+        predictions = tmp_path / f"{name}.csv"
+        assert main(["predict", "--model", str(out), "--data", str(paths[1]), "--alternative", name, "--out",
+                     str(predictions)]) == 0
+        table = pd.read_csv(predictions)
+        residuals[name] = table[[f"{channel}_residual" for channel in model.channels]].to_numpy()
+    validation = {candidate["name"]: candidate["validation_mse"] for candidate in selection["candidates"]}
+    for name, residual in residuals.items():  # each candidate's score is predict's error at the stamps
+        np.testing.assert_allclose(np.mean(residual ** 2, axis=0), [validation[name][c] for c in model.channels],
+                                   rtol=1e-8)
+    floors = np.min([[mse[c] for c in model.channels] for mse in validation.values()], axis=0)
+    blocks = {name: {c: tuple(float(part[:, j].mean()) for part in np.array_split(residual ** 2, BLOCKS))
+                     for j, c in enumerate(model.channels)} for name, residual in residuals.items()}
+    sizes = np.array([part.shape[0] for part in np.array_split(residuals["consistent"], BLOCKS)], dtype=float)
+    difference, error = blocks_difference(blocks["consistent"], blocks[paired["best"]], floors, model.channels, sizes)
+    assert paired["difference"] == pytest.approx(difference, rel=1e-6)
+    assert paired["standard_error"] == pytest.approx(error, rel=1e-6)

@@ -140,8 +140,8 @@ STREAMED_NOT_COMPUTED = {
              "(estimation.streaming.diagnosis_selection), not by diagnose_files",
     "model_selection": "the choice between the adopted model and its consistent refit is made from the sums by oed "
                        "diagnose (estimation.streaming.diagnosis_selection), not by diagnose_files",
-    "gravity": "a mount found is said, not tried: the diagnosis with the found gravity (or none) is a candidate in "
-               "memory (estimation.consistent.mounted_gravity); streamed, the model keeps the description's gravity",
+    "gravity": "the diagnosis with the gravity a mount check found (or none) is a candidate of the default answer "
+               "(estimation.consistent.mounted_gravity) made by oed diagnose, not by diagnose_files",
     "subtracted": "torques that hold no gravity load are said, not tried as a log less the description's gravity "
                   "torque: the diagnosis to the torques with it added back is a candidate in memory "
                   "(estimation.consistent.mounted_gravity); streamed, the model file subtracts nothing",

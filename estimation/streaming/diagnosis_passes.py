@@ -42,8 +42,9 @@ from estimation.streaming.settings import FLOOR_WINDOW
 from estimation.estimators.effect_blocks import Block, States
 from estimation.identification.training_range import TrainingRange
 
-__all__ = ["FLOOR_WINDOW", "LagSums", "SubsamplePass", "SumsPass", "map_files", "scores_pass", "scores_task", "subsample_pass",
-           "subsample_task", "stretch_pass", "stretch_task", "sums_pass", "sums_task", "window_floor"]
+__all__ = ["FLOOR_WINDOW", "LagSums", "SubsamplePass", "SumsPass", "block_sums_task", "map_files", "scores_pass",
+           "scores_task", "subsample_pass", "subsample_task", "stretch_pass", "stretch_task", "sums_pass", "sums_task",
+           "validation_blocks_pass", "window_floor"]
 
 
 
@@ -221,6 +222,47 @@ def stretch_task(payload: bytes, plan: bytes, path: str, options: dict[str, Any]
     (sample ``i`` of the record, ``start`` the file's first, in stretch ``⌊n_blocks i / total⌋``)."""
     return caught_warnings(_stretch_sums, path, model_from_payload(payload), payload, plan, options, start, total,
                            n_blocks, lags)
+
+
+@single_threaded_blas()
+def _block_sums(path: str, model: IdentificationModel, payload: bytes, plan: bytes, options: dict[str, Any],
+                start: int, bounds: tuple[int, ...]) -> list[ChannelSums]:
+    layout, blocks, shapes = _plan(payload, plan)
+    edges = np.asarray(bounds, dtype=np.int64)
+    sums = [ChannelSums.empty(layout) for _ in range(edges.size - 1)]
+    seen = start
+    for chunk in _chunks(path, model, options):
+        labels = np.searchsorted(edges, seen + np.arange(chunk.n_samples), side="right") - 1
+        seen += chunk.n_samples
+        for block in np.unique(labels):
+            if not 0 <= block < len(sums):
+                raise MeasurementError(f"{path}: more samples than the validation sums counted (did the file change "
+                                       "while it was read?)")
+            sums[block] = chunk_sums(model, layout, blocks, shapes, chunk.select(np.flatnonzero(labels == block)),
+                                     sums[block])
+    return sums
+
+
+def block_sums_task(payload: bytes, plan: bytes, path: str, options: dict[str, Any], start: int,
+                    bounds: tuple[int, ...], stamp=None):
+    """Picklable: one validation file's :class:`ChannelSums` on each block of the validation record (its rows
+    ``bounds[b] .. bounds[b + 1]``, ``start`` the file's first row in the record)."""
+    return caught_warnings(_block_sums, path, model_from_payload(payload), payload, plan, options, start, bounds)
+
+
+def validation_blocks_pass(executor, payload: bytes, plan: bytes, paths: Sequence[str], options: dict[str, Any],
+                           counts: Sequence[int], bounds: Sequence[int]) -> list[ChannelSums]:
+    """The validation sums (the second pass's, :func:`sums_pass`: the files as recorded, in order, ``counts`` their
+    samples) on each contiguous block of the record, the rows ``bounds[b] .. bounds[b + 1]``
+    (:func:`estimation.streaming.block_errors.block_bounds`: the blocks memory cuts its validation samples into):
+    any parameter vector's errors on each block follow without another pass."""
+    starts = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(int)
+    start_of = dict(zip(paths, map(int, starts)))
+    edges = tuple(int(bound) for bound in bounds)
+    recorded = dict(options, as_recorded=True)
+    parts = map_files(executor, block_sums_task, paths, lambda path: (payload, plan, path, recorded, start_of[path],
+                                                                     edges, file_stamp(path)))
+    return [functools.reduce(lambda a, b: a + b, [part[block] for part in parts]) for block in range(len(edges) - 1)]
 
 
 def stretch_pass(executor, payload: bytes, plan: bytes, paths: Sequence[str], options: dict[str, Any],

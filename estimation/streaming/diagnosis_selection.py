@@ -19,7 +19,13 @@ record over the memory budget is diagnosed from sums (:mod:`estimation.streaming
   against the channels as recorded: from the validation sums (:func:`sums_scorer`), or by the caller's scorer (a
   validation file the loader resampled is measured at its recorded samples);
 * the choice is the in-memory one (:func:`~estimation.consistent.model_selection.select_scored`), ``ratio`` the
-  validation record's :func:`~estimation.streaming.model_selection.streamed_repeated_motion`.
+  validation record's :func:`~estimation.streaming.model_selection.streamed_repeated_motion`;
+* whether the validation record tells the best candidate from the consistent one
+  (:func:`~estimation.consistent.model_selection.paired_difference`, reported as in memory) needs each candidate's
+  errors on the contiguous blocks memory cuts the validation samples into: one more pass over the validation files
+  sums the same columns on each block (:func:`validation_blocks`,
+  :func:`~estimation.streaming.diagnosis_passes.validation_blocks_pass`), and every parameter vector scored from the
+  validation sums gets its block errors from them (:func:`sums_scorer`, ``blocks``).
 
 On a validation record that repeats the training motion or is another motion, the in-memory answer also weighs the
 adopted model with the plain law completed (:func:`estimation.diagnosis.plain_laws.plain_completion`: Coulomb
@@ -54,7 +60,8 @@ from estimation.identification.validation import ChannelErrors
 from estimation.streaming.diagnosis_result import StreamedRun
 from estimation.streaming.diagnosis_sums import ChannelSums, normal_equations
 
-__all__ = ["model_order", "refit_selection", "streamed_completion", "streamed_refit_selection", "sums_scorer"]
+__all__ = ["model_order", "refit_selection", "streamed_completion", "streamed_refit_selection", "sums_scorer",
+           "scored_blocks", "validation_blocks", "with_blocks"]
 
 
 def model_order(fit: SummedFit, columns: Sequence[int]) -> tuple[SummedFit, list[int]]:
@@ -79,45 +86,107 @@ def _errors(sums: ChannelSums, columns: Sequence[int], theta: np.ndarray) -> Cha
                          int(sums.n_samples))
 
 
-def sums_scorer(validation: ChannelSums, columns: Sequence[int]) -> Scorer:
+def with_blocks(errors: ChannelErrors, blocks: Sequence[ChannelSums] | None, columns: Sequence[int],
+                theta: np.ndarray) -> ChannelErrors:
+    """``errors`` (of ``theta`` on ``columns``, from the validation sums) with its MSE on each block of the
+    validation record (``blocks``: :func:`validation_blocks`), as memory's
+    :func:`~estimation.identification.preprocessing_on_validation.block_mse` cuts the samples it holds; unchanged
+    without blocks, or when they do not hold the samples ``errors`` counts."""
+    if not blocks or sum(block.n_samples for block in blocks) != errors.n_samples \
+            or any(block.n_samples == 0 for block in blocks):
+        return errors
+    theta = np.asarray(theta, dtype=float)
+    table = np.array([block.channel_mse(columns, theta, target=1) for block in blocks])  # (blocks, channels)
+    channels = blocks[0].layout.channels
+    return replace(errors, block_mse={channel: tuple(map(float, table[:, c])) for c, channel in enumerate(channels)})
+
+
+def scored_blocks(errors: ChannelErrors, score: Scorer, theta: np.ndarray) -> ChannelErrors:
+    """``errors`` (a fit's own validation errors) with the per-block errors ``score`` gives for ``theta`` on the
+    same samples (a caller's scorer: a resampled validation file measured at its recorded samples); unchanged when
+    it gives none or counts other samples."""
+    scored = score({"fit": np.asarray(theta, dtype=float)})["fit"]
+    if not scored.block_mse or scored.n_samples != errors.n_samples:
+        return errors
+    return replace(errors, block_mse=scored.block_mse, block_samples=scored.block_samples)
+
+
+def sums_scorer(validation: ChannelSums, columns: Sequence[int], blocks: Sequence[ChannelSums] | None = None
+                ) -> Scorer:
     """The validation errors of several base-parameter vectors (on ``columns``, in that order) against the channels
-    as recorded, from the validation sums: every vector on the same samples."""
+    as recorded, from the validation sums: every vector on the same samples; with ``blocks``
+    (:func:`validation_blocks`), each also on every block of the record (:func:`with_blocks`)."""
     def score(thetas: Mapping[Any, np.ndarray]) -> dict[Any, ChannelErrors]:
-        return {key: _errors(validation, columns, np.asarray(theta, dtype=float)) for key, theta in thetas.items()}
+        return {key: with_blocks(_errors(validation, columns, np.asarray(theta, dtype=float)), blocks, columns, theta)
+                for key, theta in thetas.items()}
     return score
+
+
+def validation_blocks(diagnosis: Diagnosis, run: StreamedRun, executor: Any = None) -> tuple[ChannelSums, ...] | None:
+    """The validation sums of a streamed diagnosis (``run.sums.validation``: every candidate's columns, against the
+    channels as recorded, along the motion its adopted delay moved) on each of the
+    :data:`~estimation.identification.preprocessing_on_validation.BLOCKS` contiguous blocks memory cuts the
+    validation samples into (:func:`~estimation.streaming.block_errors.block_bounds`): one more pass over the
+    validation files (:func:`~estimation.streaming.diagnosis_passes.validation_blocks_pass`). ``None`` without
+    validation files, with fewer samples than blocks, or when the pass does not count the sums' samples."""
+    from estimation.streaming.block_errors import block_bounds
+    from estimation.streaming.cluster import model_payload
+    from estimation.streaming.diagnosis_passes import validation_blocks_pass
+    from estimation.identification.preprocessing_on_validation import BLOCKS
+
+    counts = [part.n_samples for part, _ in run.sums.validate_parts]
+    total = sum(counts)
+    if not run.validate or total < BLOCKS:
+        return None
+    options = run.settings.reading()
+    if run.found.delay.value is not None:  # the passes after the search along the moved motion
+        options = dict(options, delay=float(run.found.delay.value.value))
+    blocks = validation_blocks_pass(executor, model_payload(diagnosis.model), run.found.plan, run.validate, options,
+                                    counts, block_bounds(total))
+    if sum(block.n_samples for block in blocks) != run.sums.validation.n_samples:
+        return None
+    return tuple(blocks)
 
 
 def streamed_refit_selection(diagnosis: Diagnosis, run: StreamedRun, *, given: Literal["consistent"] | None = None,
                              consistent: ConsistentSettings | None = None, score: Scorer | None = None,
                              ratio: float | None = None, still: bool = False,
-                             note: str = "with the diagnosed effects") -> ModelSelection:
+                             note: str = "with the diagnosed effects",
+                             blocks: Sequence[ChannelSums] | None = None) -> ModelSelection:
     """:func:`~estimation.consistent.model_selection.select_refit` of a streamed diagnosis (module docstring): its
     adopted model as fitted (``diagnosis.after``, its validation error as the diagnosis measured it) or its
     consistent refit from the sums of ``run``. ``score``: the validation errors of several base-parameter vectors in
     the model's base order (default :func:`sums_scorer`); ``ratio``: the validation record's repeated-motion ratio
     (``None``: no comparison on another motion); ``still``: the validation record is at rest
     (:func:`~estimation.streaming.model_selection.streamed_still_motion`) and chooses nothing, as in memory. A refit that fails is no candidate (listed with the reason), unless
-    ``given="consistent"`` asked for it."""
+    ``given="consistent"`` asked for it. ``blocks``: the validation sums by block (:func:`validation_blocks`), for
+    the paired difference of the candidates' scores, when they are scored from the validation sums."""
     if given not in (None, "consistent"):
         raise ValueError(f"given must be None or 'consistent', got {given!r}")
     if diagnosis.path != "streamed":
         raise ValueError("a streamed diagnosis is needed (diagnosis.path == 'streamed')")
     fit, columns = model_order(diagnosis.after, run.columns)
     return refit_selection(fit, columns, run, given=given, consistent=consistent, score=score, ratio=ratio,
-                           still=still, note=note)
+                           still=still, note=note, blocks=blocks)
 
 
 def refit_selection(fit: SummedFit, columns: Sequence[int], run: StreamedRun, *,
                     given: Literal["consistent"] | None = None, consistent: ConsistentSettings | None = None,
                     score: Scorer | None = None, ratio: float | None = None, still: bool = False,
-                    note: str = "with the diagnosed effects") -> ModelSelection:
+                    note: str = "with the diagnosed effects",
+                    blocks: Sequence[ChannelSums] | None = None) -> ModelSelection:
     """:func:`streamed_refit_selection` of an unconstrained fit ``fit`` from the sums of ``run``, its estimate in its
-    model's base order on the summed ``columns`` (the adopted model's, or :func:`streamed_completion`'s)."""
+    model's base order on the summed ``columns`` (the adopted model's, or :func:`streamed_completion`'s); ``blocks``
+    (:func:`validation_blocks`): every candidate scored from the validation sums also on each block."""
     if given not in (None, "consistent"):
         raise ValueError(f"given must be None or 'consistent', got {given!r}")
     base = fit.estimate.method
     sums = run.sums
-    score = sums_scorer(sums.validation, columns) if score is None else score
+    if score is None:  # from the validation sums: the fit's own errors with their blocks too
+        score = sums_scorer(sums.validation, columns, blocks)
+        fit = replace(fit, validation=with_blocks(fit.validation, blocks, columns, fit.estimate.values))
+    elif fit.validation.block_mse is None:  # the caller's scorer: the fit's own errors with the blocks it gives
+        fit = replace(fit, validation=scored_blocks(fit.validation, score, fit.estimate.values))
     settings = ConsistentSettings() if consistent is None else consistent
     names, expressions = fit.estimate.names, fit.estimate.expressions
     try:

@@ -99,7 +99,7 @@ from oed.workflows.model_files import (
     add_summed_runner_up_model_file,
     add_training_range,
     range_lines,
-    recorded_validation_errors,
+    recorded_validation_scores,
     recorded_validation_mse,
     recorded_validations_counted,
     resampled_validation,
@@ -997,7 +997,8 @@ def check_streamed_arguments(args: DiagnoseOptions, model: IdentificationModel) 
 def diagnosis_streamed(args: DiagnoseOptions, friction: str, plan: Preprocessing | None = None,
                        findings: FindingsSaid | None = None, *, effects: tuple[Any, ...] | None = None,
                        delay: DelayBounds | None = None,
-                       gains: tuple[TorqueGains, bool, str] | None = None) -> Diagnosed:
+                       gains: tuple[TorqueGains, bool, str] | None = None,
+                       turned: MountCheck | None = None) -> Diagnosed:
     """Diagnose the files read in blocks (:func:`estimation.streaming.diagnosis.diagnose_files`), their
     derivatives chosen as in memory (``plan``: already chosen); ``friction``: the declared effects without the delay
     (``effects``: those effects as built already, a Coulomb column merged into its offset; ``None``: from
@@ -1008,7 +1009,12 @@ def diagnosis_streamed(args: DiagnoseOptions, friction: str, plan: Preprocessing
 
     The per-joint torque gains are fitted and checked first, as in memory (:func:`streamed_gains`); when the check
     takes them the files are diagnosed with their torques divided by the gains (:func:`divided_diagnosis`: copies
-    written block by block), ``gains`` then the check's outcome, and the answer's errors are in the log's units."""
+    written block by block), ``gains`` then the check's outcome, and the answer's errors are in the log's units.
+
+    When the mount check (on the search's subsamples, before the search) marks, the whole diagnosis is run again
+    with the found gravity and its default answer compared with the description's, as in memory
+    (:func:`streamed_gravity_diagnosis`); ``turned``: the mount whose gravity this run's model takes (that run
+    checks no mount, gains or joint zeros of its own: the caller's are said)."""
     from estimation.streaming.diagnosis import diagnose_files_run
     from estimation.streaming.model_selection import streamed_repeated_motion, warned_still_motion
     from estimation.streaming.recorded_errors import streamed_plan
@@ -1020,6 +1026,9 @@ def diagnosis_streamed(args: DiagnoseOptions, friction: str, plan: Preprocessing
     model = build_model(robot, args.model, effects)
     check_shaped_effects_kept(effects, model)
     check_streamed_arguments(args, model)
+    declared = model  # the model the checks are said of (the description's gravity)
+    if turned is not None:  # the diagnosis with the gravity the mount check found (streamed_gravity_diagnosis)
+        model = turned_model(model, turned.gravity)
     chunk_size = DEFAULT_CHUNK_SIZE if args.chunk_size is None else args.chunk_size
     if findings is None:  # each pass's findings said as it ends, each once
         findings = FindingsSaid([*args.data, *args.validate])
@@ -1032,7 +1041,8 @@ def diagnosis_streamed(args: DiagnoseOptions, friction: str, plan: Preprocessing
                 plan = streamed_choice(args, model, **derivatives_on_validation(model, None)).chosen
         still = warned_still_motion(model, args.data, args.validate, chunk_size=chunk_size)  # said as in memory
         checked, ratio = None, None
-        if gains is None and plan.method != "fourier" and delay is None:  # the torque gains checked first, as in
+        if gains is None and turned is None and plan.method != "fourier" and delay is None:  # the torque gains
+            # checked first, as in
             # memory (not with a declared delay)
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")  # the files' findings are said on the diagnosis's passes
@@ -1048,6 +1058,10 @@ def diagnosis_streamed(args: DiagnoseOptions, friction: str, plan: Preprocessing
         def screened(candidates: tuple[Any, ...], sample: Measurements, held: Measurements | None) -> tuple[Any, ...]:
             """The candidates without the laws of a joint's position where a turned gravity explains the load, the
             mount checked on the search's subsamples as in memory on the records (before the search)."""
+            if turned is not None:  # as in memory: every law a candidate (gravity is modelled), but where the
+                # torques hold no gravity load (the error of the gravity model the logger subtracted is a load of the
+                # positions, which a spring or a ripple would stand in for)
+                return mount_candidates(model, candidates, turned if turned.absent else None)
             mount = None if held is None else diagnosis_mount(model, sample, held, delay=delay)
             mounts.append(mount)
             return mount_candidates(model, candidates, mount)
@@ -1083,27 +1097,50 @@ def diagnosis_streamed(args: DiagnoseOptions, friction: str, plan: Preprocessing
     repeat = repeat_note(ratio)
     notes = worse_after(diagnosis) + (() if repeat is None else (repeat,))
     # the joint zeros, the mount (checked before the search) and the friction drift, said as in memory; none with a
-    # declared delay, as in memory
+    # declared delay, as in memory (the run with a found gravity says none: its caller does)
     counts = (sum(part.n_samples for part, _ in run.sums.train_parts),
               sum(part.n_samples for part, _ in run.sums.validate_parts))
-    zeros = None if delay is not None else streamed_marked_joint_zeros(
+    zeros = None if delay is not None or turned is not None else streamed_marked_joint_zeros(
         model, run.paths, counts[0], run.validate, counts[1], options=run.settings.reading())
-    notes += diagnosis_mount_notes(model, zeros, next((mount for mount in mounts if mount is not None), None))
-    drift = None if delay is not None or model_has_shapes(model) else streamed_checks(
-        model, run.paths, counts[0], run.validate, counts[1], options=run.settings.reading(), mount_model=None,
-        mount_samples=DIAGNOSIS_MOUNT_SAMPLES, drift_model=drift_model(model)).friction_drift
+    mount = next((mount for mount in mounts if mount is not None), None)
+    gravity_run = None
+    if mount is not None and not args.consistent and selection.selection == "validation" \
+            and competing_checks(zeros, mount)[1] is not None:  # the found gravity a candidate, as in memory
+        gravity_run = streamed_gravity_diagnosis(given, friction, plan, findings, mount, selection, effects=effects,
+                                                 delay=delay, gains=gains)
+        if gravity_run is not None:
+            selection = gravity_run[1]
+    taken = gravity_run is not None and gravity_run[2]
+    if taken:  # the answer is the diagnosis with the found gravity: its notes (a channel made worse, a repeat)
+        notes = tuple(gravity_run[0].notes)
+    if turned is None:
+        notes += diagnosis_mount_notes(declared, zeros, mount, gravity_taken=taken)
+    drift = None if delay is not None or model_has_shapes(model) or turned is not None else streamed_checks(
+        declared, run.paths, counts[0], run.validate, counts[1], options=run.settings.reading(), mount_model=None,
+        mount_samples=DIAGNOSIS_MOUNT_SAMPLES, drift_model=drift_model(declared)).friction_drift
     notes += () if drift is None or drift.message() is None else (drift.message(),)
-    messages = (*messages, *notes)
-    fourier = plan.method == "fourier" and delay is None and not model_has_shapes(model)
-    diagnosis = replace(diagnosis, not_computed={**{key: reason for key, reason in diagnosis.not_computed.items()
-                                                    if key not in SELECTION_KEYS},  # computed now
-                                                 **({"friction_drift": FOURIER_CHECKS} if fourier else {}),
-                                                 "time_base": STREAMED_TIME_BASE})
+    if gravity_run is not None:  # what the run with the found gravity said, as memory's catches it
+        messages = (*messages, *(text for text in gravity_run[0].messages
+                                 if text not in messages and text not in gravity_run[0].notes))
+    gains_note = None
     if checked is not None and checked[1]:  # the gains taken, not applied (divided_diagnosis could not): said
         gains_note = streamed_gains_note(checked)
-        if gains_note is not None:
-            messages, notes = (*messages, gains_note), (*notes, gains_note)
-            diagnosis = replace(diagnosis, not_computed={**diagnosis.not_computed, "torque_gains": gains_note})
+        notes += () if gains_note is None else (gains_note,)
+    messages = (*messages, *notes)
+    if taken:  # the run with the found gravity made its training errors against the recording, its ranges
+        other = gravity_run[0]
+        diagnosis = other.diagnosis if gains_note is None else replace(
+            other.diagnosis, not_computed={**other.diagnosis.not_computed, "torque_gains": gains_note})
+        return replace(other, diagnosis=diagnosis, messages=messages, notes=notes, friction_drift=drift,
+                       selection=selection)
+    fourier = plan.method == "fourier" and delay is None and not model_has_shapes(model)
+    diagnosis = replace(diagnosis, not_computed={**{key: reason for key, reason in diagnosis.not_computed.items()
+                                                    if key not in (*SELECTION_KEYS, "gravity")},  # computed now
+                                                    # (a mount found is tried: streamed_gravity_diagnosis)
+                                                 **({"friction_drift": FOURIER_CHECKS} if fourier else {}),
+                                                 "time_base": STREAMED_TIME_BASE})
+    if gains_note is not None:  # said above
+        diagnosis = replace(diagnosis, not_computed={**diagnosis.not_computed, "torque_gains": gains_note})
     # the training errors against the recording where the sums hold averaged periods or a resampled grid
     diagnosis, selection, averaged = recorded_training(args, diagnosis, selection, model_file[0], chunk_size)
     if still_search:
@@ -1115,6 +1152,27 @@ def diagnosis_streamed(args: DiagnoseOptions, friction: str, plan: Preprocessing
                      notes=notes, transmission=transmission, training_range=ranges, friction_drift=drift,
                      range_checks={"validation": None if ranges is None or validation_range is None
                                    else ranges.check_range(validation_range)})
+
+
+def streamed_gravity_diagnosis(args: DiagnoseOptions, friction: str, plan: Preprocessing, findings: FindingsSaid,
+                               mount: MountCheck, selection: ModelSelection, *, effects: tuple[Any, ...] | None,
+                               delay: DelayBounds | None, gains: tuple[TorqueGains, bool, str] | None
+                               ) -> tuple[Diagnosed, ModelSelection, bool] | None:
+    """The found gravity a candidate of a streamed diagnosis's default answer, as in memory
+    (:func:`diagnosis_in_memory`): the whole diagnosis run again on the same files with the same derivatives, its
+    model of the gravity the mount check found (:func:`~estimation.consistent.mounted_gravity.turned_model`; every
+    law a candidate, but the laws of a joint's position where the torques hold no gravity load), its default answer
+    chosen from its own sums and compared with ``selection`` (the description's gravity) on the same validation
+    samples by :func:`~estimation.consistent.mounted_gravity.gravity_answer`: ``(that run, the answer, taken)``, or
+    ``None`` when the run with the found gravity chooses no answer. ``gains``: the torque gains'
+    outcome of the declared model's run (the files already divided by them when taken)."""
+    with step("the diagnosis with the gravity the mount check found, compared (streamed)"):
+        other = diagnosis_streamed(args, friction, plan, findings, effects=effects, delay=delay, gains=gains,
+                                   turned=mount)
+    if other.selection is None:
+        return None
+    answer, taken = gravity_answer(selection, other.selection, mount.gravity)
+    return other, answer, taken
 
 
 def streamed_gains(args: DiagnoseOptions, model: IdentificationModel, plan: Preprocessing, chunk_size: int, *,
@@ -1230,7 +1288,13 @@ def streamed_selection(args: DiagnoseOptions, diagnosis: Diagnosis, run: Streame
     as in memory (:func:`completed_selection`: on a repeat of the training motion, and on another motion with the
     prior weight chosen for the adopted model held, :func:`~estimation.consistent.completion.held_completion`) from
     the same sums (:func:`estimation.streaming.diagnosis_selection.streamed_completion`)."""
-    from estimation.streaming.diagnosis_selection import refit_selection, streamed_completion, streamed_refit_selection
+    from estimation.identification.repeated_motion import REPEAT_FRACTION
+    from estimation.streaming.diagnosis_selection import (
+        refit_selection,
+        streamed_completion,
+        streamed_refit_selection,
+        validation_blocks,
+    )
     from estimation.streaming.model_selection import streamed_repeated_motion
 
     model = diagnosis.model
@@ -1238,12 +1302,18 @@ def streamed_selection(args: DiagnoseOptions, diagnosis: Diagnosis, run: Streame
         warnings.simplefilter("ignore")  # the files' findings were said on the diagnosis's passes
         if ratio is None:
             ratio = streamed_repeated_motion(model, args.data, args.validate, chunk_size=chunk_size)
-        score = None
+        score, blocks = None, None
         if resampled_validation({"streaming": diagnosis.streaming}):
             score = resampled_scorer(args, diagnosis, plan)
+        elif not args.consistent and not still and ratio is not None and ratio > REPEAT_FRACTION:
+            # chosen on a validation record of another motion: the paired difference of the candidates' scores is
+            # reported, as in memory, from the validation sums on each block (one more pass over the files)
+            with step("the validation files summed by block (the paired difference of the candidates)"):
+                blocks = validation_blocks(diagnosis, run)
         settings = consistent_settings(args, model.robot)
         selection = streamed_refit_selection(diagnosis, run, given="consistent" if args.consistent else None,
-                                             consistent=settings, score=score, ratio=ratio, still=still)
+                                             consistent=settings, score=score, ratio=ratio, still=still,
+                                             blocks=blocks)
         repeat = completion_repeat(selection, consistent=args.consistent)
         if repeat is None:
             return selection
@@ -1258,7 +1328,7 @@ def streamed_selection(args: DiagnoseOptions, diagnosis: Diagnosis, run: Streame
         return held_completion(selection, settings, laws, repeat=repeat,
                                select=lambda held: refit_selection(completed, columns, run, consistent=held,
                                                                    score=score, ratio=ratio, still=still,
-                                                                   note=completed_note(laws)))
+                                                                   note=completed_note(laws), blocks=blocks))
 
 
 def resampled_scorer(args: DiagnoseOptions, diagnosis: Diagnosis, plan: dict[str, Any], *,
@@ -1267,7 +1337,8 @@ def resampled_scorer(args: DiagnoseOptions, diagnosis: Diagnosis, plan: dict[str
     fit's model instead, the adopted model completed with the plain law), on a validation
     file the loader resampled: at its recorded samples, against the torques as recorded, as ``oed predict``
     measures the model file holding each (:func:`~oed.workflows.model_files.recorded_validation_errors`, shaped
-    laws at their fixed shapes; the record read once for all the vectors)."""
+    laws at their fixed shapes; the record read once for all the vectors), each also on the blocks of those samples
+    (:func:`~oed.workflows.model_files.recorded_validation_scores`)."""
     from estimation.streaming.chunks import source_files
 
     model, estimate = (diagnosis.final_model(), diagnosis.after.estimate) if fit is None else (fit.model, fit.estimate)
@@ -1276,10 +1347,13 @@ def resampled_scorer(args: DiagnoseOptions, diagnosis: Diagnosis, plan: dict[str
     n_samples = diagnosis.after.validation.n_samples
 
     def score(thetas: Any) -> dict[Any, ChannelErrors]:
-        errors = recorded_validation_errors(document, thetas, source_files(args.validate))
+        errors = recorded_validation_scores(document, thetas, source_files(args.validate))
         if errors is None:
             raise ValueError("the validation files were read as recorded: score them from the sums")
-        return {key: ChannelErrors(dict(errors[key]), n_samples) for key in thetas}
+        # each vector's MSE on each block of the recorded samples too (the paired difference of two candidates)
+        return {key: ChannelErrors(dict(errors[key].mse), n_samples, block_mse=errors[key].block_mse,
+                                   block_samples=None if errors[key].n_samples == n_samples
+                                   else errors[key].n_samples) for key in thetas}
     return score
 
 

@@ -21,7 +21,8 @@ from estimation.identification.model_file import (
     summed_model_file_document,
 )
 from estimation.identification.training_range import RangeCheck, TrainingRange
-from estimation.identification.validation import channel_mse
+from estimation.identification.preprocessing_on_validation import block_mse
+from estimation.identification.validation import ChannelErrors, Comparison, channel_mse
 from estimation.identification.plausibility import assess_plausibility, link_findings
 from estimation.preprocessing.delay import delayed
 from oed.workflows.asbuilt import resolve_joint_directions, resolve_joint_offsets
@@ -267,6 +268,16 @@ def recorded_validation_errors(model_file: dict[str, Any], thetas: Mapping[Any, 
     the file's base order), on the same samples: at the recorded time stamps, against the torques as recorded, as
     ``oed predict`` measures each (shaped laws at the file's shapes, the motion moved by its delay); ``None`` when every record is read as it was
     recorded."""
+    scored = recorded_validation_scores(model_file, thetas, validate)
+    return None if scored is None else {key: errors.mse for key, errors in scored.items()}
+
+
+def recorded_validation_scores(model_file: dict[str, Any], thetas: Mapping[Any, Any],
+                               validate: Sequence[str | Path]) -> dict[Any, ChannelErrors] | None:
+    """:func:`recorded_validation_errors` as :class:`~estimation.identification.validation.ChannelErrors`: each
+    vector's MSE, the recorded samples counted, and its MSE on each contiguous block of them as memory cuts the
+    samples it holds (:func:`~estimation.identification.preprocessing_on_validation.block_mse`, for the paired
+    difference of two candidates' scores); ``None`` when every record is read as it was recorded."""
     model = IdentifiedModel(ModelFile.from_dict(model_file))
     if model.payload_link is not None:
         raise ValueError("the errors of other parameter vectors are measured for a model without payload")
@@ -278,13 +289,16 @@ def recorded_validation_errors(model_file: dict[str, Any], thetas: Mapping[Any, 
         prepared = model.prepare(segments)
         record = (prepared if model.delay is None else delayed(prepared, model.delay)).as_recorded  # as predict
     measured = record.channels(model.channels)
-    if any(model.shape.values()):  # the shaped columns at the file's shapes, as predict evaluates them
-        Y = model.regressor(record.q, record.dq, record.ddq)
-        return {key: channel_mse(measured, Y @ np.asarray(theta, dtype=float), model.channels)
-                for key, theta in thetas.items()}
-    return {key: channel_mse(measured, model.model.predict(np.asarray(theta, dtype=float), record.q, record.dq,
-                                                           record.ddq), model.channels)
-            for key, theta in thetas.items()}
+    shaped = any(model.shape.values())
+    Y = model.regressor(record.q, record.dq, record.ddq) if shaped else None  # at the file's shapes, as predict
+
+    def scored(theta: Any) -> ChannelErrors:
+        theta = np.asarray(theta, dtype=float)
+        predicted = Y @ theta if Y is not None else model.model.predict(theta, record.q, record.dq, record.ddq)
+        blocks = block_mse(Comparison(record.t, measured, predicted, tuple(model.channels)))
+        return ChannelErrors(channel_mse(measured, predicted, model.channels), int(measured.shape[0]),
+                             block_mse=blocks or None)
+    return {key: scored(theta) for key, theta in thetas.items()}
 
 
 def resampled_validation(document: dict[str, Any]) -> bool:
