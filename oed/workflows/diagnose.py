@@ -23,6 +23,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from dynamics.channels import is_joint_torque
 from dynamics.effects.linear import ViscousFriction
 from dynamics.measurements import Measurements
 from dynamics.models import IdentificationModel, build_model
@@ -1181,7 +1182,7 @@ def streamed_gains_check(args: DiagnoseOptions, model: IdentificationModel, read
     channels = model.channels
     if args.consistent or model_has_shapes(model) or not args.validate or still or ratio is None \
             or ratio <= REPEAT_FRACTION or len(channels) < 2 \
-            or not all(channel.startswith("tau") and channel[3:].isdigit() for channel in channels):
+            or not all(map(is_joint_torque, channels)):
         return None
     with step("an unknown gain on each joint's torque fitted and checked on the validation record"):
         try:

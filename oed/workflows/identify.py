@@ -23,6 +23,7 @@ from typing import Any
 
 import numpy as np
 
+from dynamics.channels import is_joint_torque
 from dynamics.effects.specs import effect_spec
 from dynamics.measurements import Measurements
 from dynamics.models import IdentificationModel, build_model
@@ -595,7 +596,7 @@ def identification_streamed(args: IdentifyOptions, model: IdentificationModel, t
         notes = (*notes, untried)
     if selection is None and args.method == "auto" and not args.consistent and args.validate \
             and not model_has_shapes(model) and len(model.channels) > 1 \
-            and all(channel.startswith("tau") for channel in model.channels):
+            and all(map(is_joint_torque, model.channels)):
         not_computed["torque_gains"] = ("an unknown gain on each joint's recorded torque is a candidate of the "
                                         "default answer (estimation.consistent.torque_gains), not tried on the "
                                         "Fourier path (its sums hold averaged periods: no answer is chosen there)")
@@ -627,7 +628,7 @@ def streamed_torque_gains_selection(args: IdentifyOptions, selection: ModelSelec
     channels = model.channels
     if args.method != "auto" or args.consistent or model_has_shapes(model) or not args.validate \
             or sums.validation is None or selection.selection != "validation" or len(channels) < 2 \
-            or not all(channel.startswith("tau") and channel[3:].isdigit() for channel in channels):
+            or not all(map(is_joint_torque, channels)):
         return selection, None
     reading = {"chunk_size": chunk_size, "cutoff_hz": options["cutoff_hz"], "decimation": options["decimation"],
                "held_torques": options["held_torques"]}
@@ -1167,7 +1168,7 @@ def torque_gains_selection(args: IdentifyOptions, selection: ModelSelection, tra
     channels = model.channels
     if given is not None or delay is not None or model_has_shapes(model) or validation is None \
             or selection.selection != "validation" or len(channels) < 2 \
-            or not all(channel.startswith("tau") and channel[3:].isdigit() for channel in channels):
+            or not all(map(is_joint_torque, channels)):
         return selection, None
     with step("an unknown gain on each joint's torque fitted and checked on the validation record"):
         try:
