@@ -16,13 +16,17 @@ direction, a spring on a joint at rest: the remedy is the user's).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, replace
-from typing import Any
+from typing import Any, TypeVar
 
 from dynamics.effects.linear import CoulombFriction, JointOffset
 from dynamics.models import IdentificationModel
+from estimation.estimators.least_squares import IdentifiabilityError
 
-__all__ = ["MergedColumn", "merged_one_way"]
+__all__ = ["MergedColumn", "fitted_merging_one_way", "merged_one_way"]
+
+Fit = TypeVar("Fit")
 
 
 @dataclass(frozen=True)
@@ -92,3 +96,34 @@ def merged_one_way(model: IdentificationModel,
     effects = tuple(effect for effect in model.effects if effect is not coulomb[0] or kept)
     effects = tuple(replace(effect, joints=kept) if effect is coulomb[0] else effect for effect in effects)
     return effects, tuple(merged)
+
+
+def fitted_merging_one_way(fit: Callable[[tuple[Any, ...], IdentificationModel, tuple[MergedColumn, ...]], Fit],
+                           effects: tuple[Any, ...], model: IdentificationModel,
+                           rebuild: Callable[[tuple[Any, ...]], IdentificationModel]
+                           ) -> tuple[Fit, tuple[MergedColumn, ...]]:
+    """``fit(effects, model, ())``, the declared model's fit, and while it stops on a rank-deficient regressor whose
+    undetermined parameters are Coulomb and offset pairs of joints that never reverse (:func:`merged_one_way`), the
+    same fit of the model with those Coulomb columns left out (``rebuild(effects)``): the fit and the columns left
+    out, in the order they were (``()`` when none). Any other rank deficiency is raised as it is.
+
+    Parameters
+    ----------
+    fit
+        The verb's fit of a model built from the effects given (both given: the fit may need either), and the
+        columns left out so far.
+    effects, model
+        The declared effects and the model built from them.
+    rebuild
+        The model of other effects, built as ``model`` was.
+    """
+    merged: tuple[MergedColumn, ...] = ()
+    while True:
+        try:
+            return fit(effects, model, merged), merged
+        except IdentifiabilityError as error:
+            change = merged_one_way(model, error.parameters)
+            if change is None:
+                raise
+            effects = change[0]
+            model, merged = rebuild(effects), (*merged, *change[1])

@@ -54,8 +54,7 @@ from estimation.diagnosis.search import diagnose as diagnose_model
 from estimation.diagnosis.untouched import UntouchedErrors, recorded_comparison, recorded_mse, untouched_errors
 from estimation.identification.prepared import InMemoryBudget, PreparedRecords, prepare_records
 from estimation.identification.repeated_motion import repeat_note, repeated_motion_note
-from estimation.identification.undetermined import MergedColumn, merged_one_way
-from estimation.estimators.least_squares import IdentifiabilityError
+from estimation.identification.undetermined import fitted_merging_one_way
 from estimation.preprocessing.delay import DelayBounds, split_delay
 from estimation.preprocessing.plan import Preprocessing
 from estimation.streaming.settings import DEFAULT_SUBSAMPLE, FLOOR_WINDOW
@@ -330,18 +329,11 @@ def run_diagnose(args: DiagnoseOptions, *, say: Callable[[str], None]) -> Diagno
         read, names = copies.enter_context(records_to_read(  # joint-side copies of motor-side, zeroed records
             args, model, transmission, bytes_per_value=IN_MEMORY.bytes_per_value,
             in_memory_only=lambda: in_memory_only(args, model, delay)))
-        merged: tuple[MergedColumn, ...] = ()
-        while True:  # a declared Coulomb column the record cannot tell from the offset: merged, said (both paths)
-            try:
-                diagnosed = diagnosis_by_path(read, friction, effects, model, transmission, delay, say,
-                                              merged=bool(merged))
-                break
-            except IdentifiabilityError as error:
-                change = merged_one_way(model, error.parameters)
-                if change is None:
-                    raise
-                effects = change[0]
-                model, merged = build_model(robot, args.model, effects), (*merged, *change[1])
+        # a declared Coulomb column the record cannot tell from the offset: merged, said (both paths)
+        diagnosed, merged = fitted_merging_one_way(
+            lambda effects, model, merged: diagnosis_by_path(read, friction, effects, model, transmission, delay, say,
+                                                             merged=bool(merged)),
+            effects, model, lambda effects: build_model(robot, args.model, effects))
         if merged:
             said = tuple(column.statement() for column in merged)
             diagnosed = replace(diagnosed, messages=(*said, *diagnosed.messages), notes=(*said, *diagnosed.notes))

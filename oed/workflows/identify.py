@@ -38,7 +38,6 @@ from estimation.data.rest import smooth_coulomb
 from estimation.diagnosis.statistics import FLOOR_ALPHA, ResidualReport, residual_report
 from estimation.uncertainty.floor_comparison import compare_with_floor
 from estimation.uncertainty.noise_floor import NoiseFloor
-from estimation.estimators.least_squares import IdentifiabilityError
 from estimation.estimators.normal_equations import DEFAULT_CHUNK_SIZE, NormalEquations
 from estimation.identification.fit import IdentificationResult
 from estimation.identification.prepared import InMemoryBudget, PreparedRecords, prepare_records
@@ -52,7 +51,7 @@ from estimation.identification.friction_drift import FrictionDrift, check_fricti
 from estimation.identification.time_base_choice import STREAMED_TIME_BASE
 from estimation.identification.training_range import RangeCheck, TrainingRange, merged_ranges
 from estimation.identification.trivial_predictors import trivial_warnings
-from estimation.identification.undetermined import MergedColumn, merged_one_way
+from estimation.identification.undetermined import fitted_merging_one_way
 from estimation.identification.validation import ChannelErrors, plot_comparison
 from estimation.identification.weighting_choice import choose_weighting, weighting_samples
 from estimation.preprocessing.delay import DelayBounds, split_delay
@@ -279,16 +278,10 @@ def run_identify(args: IdentifyOptions, *, say: Callable[[str], None]) -> Identi
         read, names = copies.enter_context(records_to_read(  # joint-side copies of motor-side, zeroed records
             args, model, transmission, bytes_per_value=IN_MEMORY.bytes_per_value,
             in_memory_only=lambda: in_memory_only(args, model, delay)))
-        merged: tuple[MergedColumn, ...] = ()
-        while True:  # a declared Coulomb column the record cannot tell from the offset: merged, said (issue 34)
-            try:
-                identified = identification_by_path(read, robot, model, transmission, delay, say)
-                break
-            except IdentifiabilityError as error:
-                change = merged_one_way(model, error.parameters)
-                if change is None:
-                    raise
-                model, merged = build_model(robot, args.model, change[0]), (*merged, *change[1])
+        # a declared Coulomb column the record cannot tell from the offset: merged, said (issue 34)
+        identified, merged = fitted_merging_one_way(
+            lambda effects, model, merged: identification_by_path(read, robot, model, transmission, delay, say),
+            effects, model, lambda effects: build_model(robot, args.model, effects))
         if merged:
             said = tuple(column.statement() for column in merged)
             identified = replace(identified, messages=(*said, *identified.messages), notes=(*said, *identified.notes))
