@@ -21,7 +21,7 @@ import numpy as np
 import pandas as pd
 from numpy.typing import NDArray
 
-from dynamics.effects.linear import WRENCH_CHANNELS
+from dynamics.channels import WRENCH_CHANNELS, is_joint_torque, torque_joint
 from dynamics.runtime.output_files import atomic_output
 
 
@@ -133,10 +133,10 @@ class Measurements:
                 if self.wrench is None:
                     raise ValueError(f"channel {name!r} needs the base wrench, which these measurements lack")
                 columns.append(self.wrench[:, WRENCH_CHANNELS.index(name)])
-            elif name.startswith("tau") and name[3:].isdigit():
+            elif is_joint_torque(name):
                 if self.tau is None:
                     raise ValueError(f"channel {name!r} needs joint torques, which these measurements lack")
-                index = int(name[3:]) - 1
+                index = torque_joint(name)
                 if not 0 <= index < self.n_joints:
                     raise ValueError(f"channel {name!r}: the data have {self.n_joints} joints")
                 columns.append(self.tau[:, index])

@@ -26,7 +26,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from dynamics.base_parameters import BaseParameters, random_states, reduce_to_base
 from dynamics.codegen.compiled import SampleEvaluator
-from dynamics.effects.linear import WRENCH_CHANNELS, Effect, parse_effects
+from dynamics.channels import WRENCH_CHANNELS
+from dynamics.effects.linear import Effect, parse_effects
 from dynamics.errors import SampleShapeError
 from dynamics.newton_euler import RigidBodyRegressors, rigid_body_regressors
 from dynamics.robot import JointType, RobotModel

@@ -16,11 +16,11 @@ from typing import ClassVar, Protocol, runtime_checkable
 
 import casadi
 
+from dynamics.channels import WRENCH_CHANNELS
 from dynamics.effects.joint_lists import restricted, split_joints
 from dynamics.effects.shaped import SHAPED_EFFECTS
 from dynamics.robot import RobotModel
 
-WRENCH_CHANNELS: tuple[str, ...] = ("fx", "fy", "fz", "mx", "my", "mz")
 #: effects whose parameters are positive by physics (dissipation, inertia): an estimate of the
 #: other sign is not that effect
 POSITIVE_EFFECTS: frozenset[str] = frozenset({"viscous", "coulomb", "stribeck", "armature", "sigmoid"})

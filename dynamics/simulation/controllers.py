@@ -24,6 +24,7 @@ import casadi
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from dynamics.channels import is_joint_torque
 from dynamics.models import IdentificationModel
 from dynamics.robot import RobotModel
 
@@ -49,7 +50,7 @@ def _gains(values: ArrayLike, what: str) -> tuple[float, ...]:
 @functools.lru_cache(maxsize=32)
 def _inverse_dynamics_function(model: IdentificationModel, base: bool) -> casadi.Function:
     """``inverse_dynamics(q, dq, ddq, theta) -> tau``: the joint rows of ``Y θ`` (standard or base θ)."""
-    rows = [index for index, channel in enumerate(model.channels) if channel.startswith("tau")]
+    rows = [index for index, channel in enumerate(model.channels) if is_joint_torque(channel)]
     if not rows:
         raise ValueError(f"the {model.kind.value} model has no joint-torque rows; use the internal or combined model")
     n = model.robot.n_joints

@@ -19,7 +19,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from dynamics.effects import linear as model_effects
-from dynamics.effects.linear import WRENCH_CHANNELS
+from dynamics.channels import WRENCH_CHANNELS
 from dynamics.robot import RobotModel
 from dynamics.simulation.joint_effects import finite_floats
 

@@ -32,7 +32,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from dynamics.simulation.controllers import Controller, PDController, pd_gains
 from dynamics.simulation.plant import Plant
-from dynamics.effects.linear import WRENCH_CHANNELS
+from dynamics.channels import WRENCH_CHANNELS
 from dynamics.runtime.memory import check_allocation
 from dynamics.pinocchio_bridge import to_pinocchio
 from dynamics.robot import RobotModel

@@ -18,6 +18,7 @@ from typing import Any, Protocol
 import numpy as np
 from numpy.typing import NDArray
 
+from dynamics.channels import is_joint_torque
 from dynamics.measurements import Measurements
 from dynamics.models import IdentificationModel
 
@@ -77,7 +78,7 @@ def simulate(model: IdentificationModel, theta: NDArray[np.float64], trajectory:
         values[:, index] += generator.normal(0.0, (noise or {}).get(channel, 0.0), t.shape[0])
     n = model.robot.n_joints
     tau = wrench = None
-    if any(channel.startswith("tau") for channel in model.channels):
+    if any(map(is_joint_torque, model.channels)):
         tau = values[:, [model.channels.index(f"tau{j}") for j in range(1, n + 1)]]
     if "fx" in model.channels:
         wrench = values[:, [model.channels.index(c) for c in ("fx", "fy", "fz", "mx", "my", "mz")]]

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from dynamics.channels import is_joint_torque
 from dynamics.effects.linear import Armature
 from dynamics.models import IdentificationModel, ModelKind
 from estimation.consistent.model_selection import ModelSelection, candidate_answer
@@ -38,7 +39,7 @@ def armature_laws(model: IdentificationModel) -> tuple[Any, ...]:
     external model: the base reaction holds no rotor term of its own) and declares no armature on any joint; else
     none."""
     if model.kind is ModelKind.EXTERNAL or any(getattr(effect, "name", "") == "armature" for effect in model.effects) \
-            or not any(channel.startswith("tau") for channel in model.channels):
+            or not any(map(is_joint_torque, model.channels)):
         return ()
     return (Armature(),)
 

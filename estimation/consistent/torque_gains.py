@@ -30,6 +30,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from dynamics.channels import is_joint_torque, torque_joint
 from dynamics.measurements import Measurements
 from dynamics.models import IdentificationModel
 from estimation.consistent.identification import ConsistentResult
@@ -368,7 +369,7 @@ def divided_torques(measurements: Measurements, gains: TorqueGains) -> Measureme
 def _joint_factors(gains: TorqueGains, n_joints: int) -> NDArray[np.float64]:
     factor = np.ones(n_joints)
     for channel, value in zip(gains.channels, gains.values):
-        factor[int(channel[3:]) - 1] = value
+        factor[torque_joint(channel)] = value
     return factor
 
 
@@ -436,7 +437,7 @@ def gains_for_records(model: IdentificationModel, records: PreparedRecords) -> t
     validation = None if records.validation is None else records.validation.measurements
     train = records.train.measurements
     if validation is None or len(channels) < 2 \
-            or not all(channel.startswith("tau") and channel[3:].isdigit() for channel in channels) \
+            or not all(map(is_joint_torque, channels)) \
             or repeated_motion(train, validation) <= REPEAT_FRACTION or still_motion(train, validation):
         return None
     try:

@@ -22,7 +22,7 @@ import numpy as np
 import pandas as pd
 from numpy.typing import NDArray
 
-from dynamics.effects.linear import WRENCH_CHANNELS
+from dynamics.channels import WRENCH_CHANNELS
 from dynamics.models import IdentificationModel, ModelKind
 from dynamics.robot import JointType
 from estimation.data.loading import (

@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from estimation.diagnosis.search import Diagnosis
+from dynamics.channels import is_joint_torque, torque_joint
 from dynamics.measurements import Measurements
 from dynamics.runtime.output_files import save_figure
 from dynamics.runtime.report_document import Block, Bullets, Figure as ReportFigure, Heading, Paragraph, Report, Table
@@ -36,7 +37,7 @@ def plot_residuals(diagnosis: Diagnosis, train: Measurements, path: str | Path |
     axes = figure.subplots(len(shown), 4, squeeze=False)
     for row, channel in enumerate(shown):
         residual = estimate.residuals[:, list(estimate.channels).index(channel)]
-        joint = int(channel[3:]) - 1 if channel.startswith("tau") else 0
+        joint = torque_joint(channel) if is_joint_torque(channel) else 0
         for column, (label, values) in enumerate(
             (("q", train.q[:, joint]), ("dq", train.dq[:, joint]), ("ddq", train.ddq[:, joint]), ("t", train.t))
         ):

@@ -28,6 +28,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.stats import norm
 
+from dynamics.channels import is_joint_torque
 from dynamics.measurements import Measurements
 from dynamics.models import IdentificationModel, ModelKind
 from estimation.data.segments import segment_slices
@@ -174,7 +175,7 @@ def check_friction_drift(model: IdentificationModel, train: Measurements, valida
     no friction columns."""
     channels = model.channels
     if validation is None or model.kind is ModelKind.EXTERNAL \
-            or not all(channel.startswith("tau") and channel[3:].isdigit() for channel in channels):
+            or not all(map(is_joint_torque, channels)):
         return None
     columns = {joint: found for joint, found in friction_columns(model).items() if f"tau{joint + 1}" in channels}
     if not columns:

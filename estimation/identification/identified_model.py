@@ -31,6 +31,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from dynamics.channels import is_joint_torque, torque_joint
 from dynamics.effects.shaped import is_shaped
 from dynamics.effects.specs import build_effects, effect_spec
 from dynamics.measurements import Measurements
@@ -435,8 +436,7 @@ class IdentifiedModel:
             measured = None
         directions = self.file.joint_directions
         if directions is not None and directions.reversed:  # the torques back in the log's directions (read flipped)
-            signs = np.array([directions.torque_signs[int(channel[3:]) - 1]
-                              if channel.startswith("tau") and channel[3:].isdigit() else 1.0
+            signs = np.array([directions.torque_signs[torque_joint(channel)] if is_joint_torque(channel) else 1.0
                               for channel in self.channels])
             predicted = predicted * signs
             measured = None if measured is None else measured * signs

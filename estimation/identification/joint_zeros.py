@@ -38,6 +38,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from dynamics.channels import is_joint_torque, torque_joint
 from dynamics.measurements import Measurements
 from dynamics.effects.linear import parse_effects
 from dynamics.models import IdentificationModel, ModelKind, build_model
@@ -276,8 +277,8 @@ def channel_signs(model: IdentificationModel, torque_signs: NDArray) -> NDArray:
     """One sign a channel of ``model``: joint ``j``'s in channel ``tau{j}``, 1 on the others (the base wrench)."""
     signs = np.ones(model.n_channels)
     for index, channel in enumerate(model.channels):
-        if channel.startswith("tau") and channel[3:].isdigit() and int(channel[3:]) <= len(torque_signs):
-            signs[index] = torque_signs[int(channel[3:]) - 1]
+        if is_joint_torque(channel) and torque_joint(channel) < len(torque_signs):
+            signs[index] = torque_signs[torque_joint(channel)]
     return signs
 
 

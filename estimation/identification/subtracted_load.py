@@ -27,6 +27,7 @@ from typing import Any, Literal
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from dynamics.channels import is_joint_torque, torque_joint
 from dynamics.measurements import Measurements
 from dynamics.models import IdentificationModel, ModelKind, build_model
 from dynamics.robot import RobotModel
@@ -91,9 +92,9 @@ def load_channels(model: IdentificationModel) -> tuple[int, ...]:
     (``tau<k>``): only a model of the joint torques can carry a subtracted load."""
     indices = []
     for channel in model.channels:
-        if not (channel.startswith("tau") and channel[3:].isdigit()):
+        if not is_joint_torque(channel):
             return ()
-        indices.append(int(channel[3:]) - 1)
+        indices.append(torque_joint(channel))
     return tuple(indices)
 
 

@@ -23,13 +23,18 @@ rest: the remedy is the user's).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, replace
-from typing import Any
+from typing import Any, TypeVar
 
 from dynamics.effects.linear import CoulombFriction, JointOffset
 from dynamics.models import IdentificationModel
+from estimation.estimators.least_squares import IdentifiabilityError
 
-__all__ = ["MergedColumn", "UnexcitedColumn", "left_out_unexcited", "merged_one_way", "not_determined"]
+__all__ = ["MergedColumn", "UnexcitedColumn", "fitted_without_undetermined", "left_out_unexcited",
+           "merged_one_way", "not_determined"]
+
+Fit = TypeVar("Fit")
 
 
 @dataclass(frozen=True)
@@ -175,3 +180,36 @@ def not_determined(model: IdentificationModel, error: Exception
     if getattr(error, "unexcited", False):
         return left_out_unexcited(model, parameters)
     return merged_one_way(model, parameters)
+
+
+def fitted_without_undetermined(
+        fit: Callable[[tuple[Any, ...], IdentificationModel, tuple[MergedColumn | UnexcitedColumn, ...]], Fit],
+                           effects: tuple[Any, ...], model: IdentificationModel,
+                           rebuild: Callable[[tuple[Any, ...]], IdentificationModel]
+                           ) -> tuple[Fit, tuple[MergedColumn | UnexcitedColumn, ...]]:
+    """``fit(effects, model, ())``, the declared model's fit, and while it stops on a rank-deficient regressor whose
+    undetermined parameters are Coulomb and offset pairs of joints that never reverse, or per-joint columns of joints
+    the training records never move (:func:`not_determined`), the same fit of the model with those columns left out
+    (``rebuild(effects)``): the fit and the columns left out, in the order they were (``()`` when none). Any other
+    rank deficiency is raised as it is.
+
+    Parameters
+    ----------
+    fit
+        The verb's fit of a model built from the effects given (both given: the fit may need either), and the
+        columns left out so far.
+    effects, model
+        The declared effects and the model built from them.
+    rebuild
+        The model of other effects, built as ``model`` was.
+    """
+    merged: tuple[MergedColumn | UnexcitedColumn, ...] = ()
+    while True:
+        try:
+            return fit(effects, model, merged), merged
+        except IdentifiabilityError as error:
+            change = not_determined(model, error)
+            if change is None:
+                raise
+            effects = change[0]
+            model, merged = rebuild(effects), (*merged, *change[1])

@@ -47,7 +47,7 @@ from numpy.typing import NDArray
 
 from dynamics.models import IdentificationModel
 from dynamics.runtime.threads import single_threaded_blas
-from dynamics.effects.linear import WRENCH_CHANNELS
+from dynamics.channels import WRENCH_CHANNELS
 from estimation.data.log_formats import LogSource, is_log_file
 from estimation.data.memory_budget import count_rows
 from estimation.data.log_cleaning import DEFAULT_MAX_GAP

@@ -19,6 +19,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from dynamics.channels import is_joint_torque, torque_joint
 from dynamics.effects.linear import Effect
 from dynamics.effects.shaped import FRICTION_LAWS, shape_parameters
 from dynamics.measurements import Measurements
@@ -62,7 +63,7 @@ def shape_search(model: IdentificationModel, blocks: dict[int, Block], subsample
         if block.n_shape == 0:
             shapes[index] = np.zeros(0)
             continue
-        joints = {int(model.channels[row][3:]) - 1 for row in block.rows if model.channels[row].startswith("tau")}
+        joints = {torque_joint(model.channels[row]) for row in block.rows if is_joint_torque(model.channels[row])}
         if block.effect.name in FRICTION_LAWS and joints & declared:
             shapes[index] = np.array([p.starts[0] for p in block.parameters], dtype=float)  # rejected in the loop
             continue

@@ -23,7 +23,7 @@ import numpy as np
 import pandas as pd
 from numpy.typing import NDArray
 
-from dynamics.effects.linear import WRENCH_CHANNELS
+from dynamics.channels import WRENCH_CHANNELS
 from dynamics.measurements import joint_columns
 from dynamics.models import IdentificationModel
 from dynamics.runtime.memory import check_allocation

@@ -23,6 +23,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from dynamics.channels import is_joint_torque
 from dynamics.effects.linear import ViscousFriction
 from dynamics.measurements import Measurements
 from dynamics.models import IdentificationModel, build_model
@@ -53,8 +54,7 @@ from estimation.diagnosis.search import diagnose as diagnose_model
 from estimation.diagnosis.untouched import UntouchedErrors, recorded_comparison, recorded_mse, untouched_errors
 from estimation.identification.prepared import InMemoryBudget, PreparedRecords, prepare_records
 from estimation.identification.repeated_motion import repeat_note, repeated_motion_note
-from estimation.identification.undetermined import MergedColumn, UnexcitedColumn, not_determined
-from estimation.estimators.least_squares import IdentifiabilityError
+from estimation.identification.undetermined import fitted_without_undetermined
 from estimation.preprocessing.delay import DelayBounds, split_delay
 from estimation.preprocessing.plan import Preprocessing
 from estimation.streaming.settings import DEFAULT_SUBSAMPLE, FLOOR_WINDOW
@@ -329,18 +329,11 @@ def run_diagnose(args: DiagnoseOptions, *, say: Callable[[str], None]) -> Diagno
         read, names = copies.enter_context(records_to_read(  # joint-side copies of motor-side, zeroed records
             args, model, transmission, bytes_per_value=IN_MEMORY.bytes_per_value,
             in_memory_only=lambda: in_memory_only(args, model, delay)))
-        merged: tuple[MergedColumn | UnexcitedColumn, ...] = ()
-        while True:  # a Coulomb column one with the offset merged, a still joint's left out: said (both paths)
-            try:
-                diagnosed = diagnosis_by_path(read, friction, effects, model, transmission, delay, say,
-                                              merged=bool(merged))
-                break
-            except IdentifiabilityError as error:
-                change = not_determined(model, error)
-                if change is None:
-                    raise
-                effects = change[0]
-                model, merged = build_model(robot, args.model, effects), (*merged, *change[1])
+        # a Coulomb column one with the offset merged, a still joint's left out: said (both paths)
+        diagnosed, merged = fitted_without_undetermined(
+            lambda effects, model, merged: diagnosis_by_path(read, friction, effects, model, transmission, delay, say,
+                                                             merged=bool(merged)),
+            effects, model, lambda effects: build_model(robot, args.model, effects))
         if merged:
             said = tuple(column.statement() for column in merged)
             diagnosed = replace(diagnosed, messages=(*said, *diagnosed.messages), notes=(*said, *diagnosed.notes))
@@ -1240,7 +1233,7 @@ def streamed_gains_check(args: DiagnoseOptions, model: IdentificationModel, read
     channels = model.channels
     if args.consistent or model_has_shapes(model) or not args.validate or still or ratio is None \
             or ratio <= REPEAT_FRACTION or len(channels) < 2 \
-            or not all(channel.startswith("tau") and channel[3:].isdigit() for channel in channels):
+            or not all(map(is_joint_torque, channels)):
         return None
     with step("an unknown gain on each joint's torque fitted and checked on the validation record"):
         try:

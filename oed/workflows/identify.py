@@ -23,6 +23,7 @@ from typing import Any
 
 import numpy as np
 
+from dynamics.channels import is_joint_torque
 from dynamics.effects.specs import effect_spec
 from dynamics.measurements import Measurements
 from dynamics.models import IdentificationModel, build_model
@@ -51,8 +52,7 @@ from estimation.identification.friction_drift import FrictionDrift, check_fricti
 from estimation.identification.time_base_choice import STREAMED_TIME_BASE
 from estimation.identification.training_range import RangeCheck, TrainingRange, merged_ranges
 from estimation.identification.trivial_predictors import trivial_warnings
-from estimation.identification.undetermined import (MergedColumn, UnexcitedColumn, left_out_unexcited,
-                                                     not_determined)
+from estimation.identification.undetermined import fitted_without_undetermined, left_out_unexcited
 from estimation.identification.validation import ChannelErrors, plot_comparison
 from estimation.identification.weighting_choice import choose_weighting, weighting_samples
 from estimation.preprocessing.delay import DelayBounds, split_delay
@@ -279,16 +279,10 @@ def run_identify(args: IdentifyOptions, *, say: Callable[[str], None]) -> Identi
         read, names = copies.enter_context(records_to_read(  # joint-side copies of motor-side, zeroed records
             args, model, transmission, bytes_per_value=IN_MEMORY.bytes_per_value,
             in_memory_only=lambda: in_memory_only(args, model, delay)))
-        merged: tuple[MergedColumn | UnexcitedColumn, ...] = ()
-        while True:  # a Coulomb column the record cannot tell from the offset merged, a still joint's left out: said
-            try:
-                identified = identification_by_path(read, robot, model, transmission, delay, say)
-                break
-            except IdentifiabilityError as error:
-                change = not_determined(model, error)
-                if change is None:
-                    raise
-                model, merged = build_model(robot, args.model, change[0]), (*merged, *change[1])
+        # a Coulomb column the record cannot tell from the offset merged, a still joint's left out: said
+        identified, merged = fitted_without_undetermined(
+            lambda effects, model, merged: identification_by_path(read, robot, model, transmission, delay, say),
+            effects, model, lambda effects: build_model(robot, args.model, effects))
         if merged:
             said = tuple(column.statement() for column in merged)
             identified = replace(identified, messages=(*said, *identified.messages), notes=(*said, *identified.notes))
@@ -596,7 +590,7 @@ def identification_streamed(args: IdentifyOptions, model: IdentificationModel, t
         notes = (*notes, untried)
     if selection is None and args.method == "auto" and not args.consistent and args.validate \
             and not model_has_shapes(model) and len(model.channels) > 1 \
-            and all(channel.startswith("tau") for channel in model.channels):
+            and all(map(is_joint_torque, model.channels)):
         not_computed["torque_gains"] = ("an unknown gain on each joint's recorded torque is a candidate of the "
                                         "default answer (estimation.consistent.torque_gains), not tried on the "
                                         "Fourier path (its sums hold averaged periods: no answer is chosen there)")
@@ -628,7 +622,7 @@ def streamed_torque_gains_selection(args: IdentifyOptions, selection: ModelSelec
     channels = model.channels
     if args.method != "auto" or args.consistent or model_has_shapes(model) or not args.validate \
             or sums.validation is None or selection.selection != "validation" or len(channels) < 2 \
-            or not all(channel.startswith("tau") and channel[3:].isdigit() for channel in channels):
+            or not all(map(is_joint_torque, channels)):
         return selection, None
     reading = {"chunk_size": chunk_size, "cutoff_hz": options["cutoff_hz"], "decimation": options["decimation"],
                "held_torques": options["held_torques"]}
@@ -1187,7 +1181,7 @@ def torque_gains_selection(args: IdentifyOptions, selection: ModelSelection, tra
     channels = model.channels
     if given is not None or delay is not None or model_has_shapes(model) or validation is None \
             or selection.selection != "validation" or len(channels) < 2 \
-            or not all(channel.startswith("tau") and channel[3:].isdigit() for channel in channels):
+            or not all(map(is_joint_torque, channels)):
         return selection, None
     with step("an unknown gain on each joint's torque fitted and checked on the validation record"):
         try:

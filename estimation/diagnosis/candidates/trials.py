@@ -22,6 +22,7 @@ import numpy as np
 import scipy.special
 from numpy.typing import NDArray
 
+from dynamics.channels import is_joint_torque, torque_joint
 from dynamics.effects.linear import POSITIVE_EFFECTS, Effect
 from dynamics.models import IdentificationModel
 from estimation.estimators.effect_blocks import Block, ShapeSearchError, States
@@ -231,8 +232,8 @@ def joints_of(block: Block, model: IdentificationModel) -> tuple[int, ...]:
     joints = []
     for row in block.rows:
         channel = model.channels[row]
-        if channel.startswith("tau"):
-            joints.append(int(channel[3:]) - 1)
+        if is_joint_torque(channel):
+            joints.append(torque_joint(channel))
     return tuple(joints)
 
 
