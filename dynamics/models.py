@@ -281,7 +281,9 @@ def _build_model(
                          "value, is outside its domain)")
     base = reduce_to_base(stacked, names, geometry=robot.geometry)
 
-    Y_base = casadi.cse(Y[:, list(base.independent)])
+    # a column slice of the shared expressions has no common subexpression left to find (casadi.cse of it gives
+    # the same graph: the same generated code, tests/test_model_build_cost.py)
+    Y_base = Y[:, list(base.independent)]
     base_regressor = casadi.Function(f"{label}_base_regressor", [q, dq, ddq], [Y_base], list(STATE_NAMES), ["Y_base"])
     transposed_base = casadi.Function(
         f"{label}_base_regressor_t", [q, dq, ddq], [Y_base.T], list(STATE_NAMES), ["Y_base_t"]

@@ -110,7 +110,11 @@ class FixedPart:
         padded = np.append(theta, 0.0)  # where = −1 reads the appended zero
         if channel is not None:
             return self.own[channel] @ padded[self.where[channel]]
-        return np.stack([own @ padded[where] for own, where in zip(self.own, self.where)])
+        # each channel's product written in its row: the same products as stacked, without the copy
+        predicted = np.empty(self.y.shape)
+        for row, (own, where) in enumerate(zip(self.own, self.where)):
+            np.matmul(own, padded[where], out=predicted[row])
+        return predicted
 
     def moments(self, values: NDArray[np.float64]) -> NDArray[np.float64]:
         """``A_cᵀ v_c`` of other values ``(m, N)`` on each channel, ``(m, p0)``."""
@@ -292,7 +296,7 @@ def residuals(fixed: FixedPart, blocks: Sequence[Block], solution: LinearSolutio
     theta = solution.theta
     p0 = fixed.n_fixed
     if rows is None:
-        values = fixed.y - fixed.predict(theta[:p0])
+        values = np.subtract(fixed.y, (predicted := fixed.predict(theta[:p0])), out=predicted)  # in its own array
     else:
         values = np.zeros_like(fixed.y)
         for row in rows:
