@@ -111,20 +111,3 @@ def test_no_coupled_transmission_adds_nothing():
     declared = build_model(robot, "internal", (*model.effects, laws[0]))
     assert [(law.kind, law.labels) for law in motor_friction_laws(declared, coupled)] == [("coulomb", ("m6",))]
     assert motor_friction_laws(build_model(robot, "external", ()), coupled) == ()
-
-
-def test_the_streamed_path_says_the_candidate_it_does_not_try():
-    """The streamed default does not fit the motor-side candidate: it says so, naming the laws to declare, where the
-    in-memory default would have tried them, and says nothing otherwise."""
-    robot = load_robot("puma560", joints=6)
-    model = build_model(robot, "internal", FRICTION)
-    coupled = Transmission(transmission_matrix())
-
-    def args(**options):
-        return identify_workflow.IdentifyOptions(**{"data": ("train.csv",), "validate": ("validate.csv",), **options})
-
-    note = identify_workflow.streamed_motor_friction(args(), model, coupled)
-    assert note is not None and "not tried on the streamed path" in note and "motor_viscous@6" in note
-    assert identify_workflow.streamed_motor_friction(args(), model, None) is None
-    assert identify_workflow.streamed_motor_friction(args(method="ols"), model, coupled) is None
-    assert identify_workflow.streamed_motor_friction(args(validate=()), model, coupled) is None

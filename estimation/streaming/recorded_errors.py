@@ -17,13 +17,15 @@ from __future__ import annotations
 
 import functools
 import itertools
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from dynamics.measurements import Measurements
 from dynamics.models import IdentificationModel
 from estimation.preprocessing.differentiation import ButterworthDifferentiation
 from estimation.streaming.block_errors import BlockSquares
@@ -32,7 +34,7 @@ from estimation.streaming.delayed_chunks import moved_chunks
 from estimation.streaming.periods import plan_chunks
 
 __all__ = ["Predictor", "counted_errors_at_stamps", "counted_predicted_errors", "counted_recorded_errors",
-           "recorded_training_errors", "streamed_errors_at_stamps", "streamed_plan", "streamed_recorded_errors",
+           "delay_groups", "recorded_training_errors", "streamed_errors_at_stamps", "streamed_plan", "streamed_recorded_errors",
            "streamed_recorded_mse", "theta_predictors"]
 
 
@@ -94,6 +96,16 @@ def theta_predictors(model: IdentificationModel, thetas: Mapping[Any, ArrayLike]
     return predictors
 
 
+def delay_groups(predictors: Mapping[Any, Predictor], delays: Mapping[Any, float | None] | None
+                 ) -> list[tuple[float | None, dict[Any, Predictor]]]:
+    """``predictors`` grouped by the delay of their model files (``delays`` by name; absent or ``None``: none), one
+    pass over the files for each group: no delay first, then the delays in increasing order."""
+    delays = {} if delays is None else delays
+    order = sorted({delays.get(name) for name in predictors}, key=lambda value: (value is not None, value or 0.0))
+    return [(delay, {name: predict for name, predict in predictors.items() if delays.get(name) == delay})
+            for delay in order]
+
+
 def counted_predicted_errors(model: IdentificationModel, predictors: Mapping[Any, Predictor],
                              paths: Sequence[str | Path], *, chunk_size: int, cutoff_hz: float | None = None,
                              decimation: int = 1, held_torques: bool = False, frequency_hz: float | None = None,
@@ -109,11 +121,9 @@ def counted_predicted_errors(model: IdentificationModel, predictors: Mapping[Any
     channels untouched: one pass for each delay."""
     if not paths:
         raise ValueError("no files to measure the error on")
-    delays = {} if delays is None else delays
     squares = {name: np.zeros(model.n_channels) for name in predictors}
     count = 0  # the samples of one pass: every pass reads the same (moving the motion drops none)
-    for delay in sorted({delays.get(name) for name in predictors}, key=lambda value: (value is not None, value or 0.0)):
-        named = {name: predict for name, predict in predictors.items() if delays.get(name) == delay}
+    for delay, named in delay_groups(predictors, delays):
         count = 0
         for path in paths:
             records = (chunk.as_recorded for chunk in plan_chunks(
@@ -145,7 +155,8 @@ def counted_errors_at_stamps(model: IdentificationModel, thetas: Mapping[Any, Ar
                              *, chunk_size: int, cutoff_hz: float | None = None, decimation: int = 1,
                              held_torques: bool = False, predictors: Mapping[Any, Predictor] | None = None,
                              frequency_hz: float | None = None, harmonics: int = 5,
-                             blocks: Mapping[Any, BlockSquares] | None = None
+                             blocks: Mapping[Any, BlockSquares] | None = None,
+                             delays: Mapping[Any, float | None] | None = None
                              ) -> tuple[dict[Any, dict[str, float]], int] | None:
     """:func:`streamed_recorded_errors` at the samples as logged, block by block: on a file the streamed path
     resampled onto a uniform grid (jittered stamps), the derived motion of its grid blocks
@@ -164,49 +175,93 @@ def counted_errors_at_stamps(model: IdentificationModel, thetas: Mapping[Any, Ar
     over the same samples). ``blocks``: by name, the accumulators of each validation block's squared residuals
     (:mod:`estimation.streaming.block_errors`), filled as the samples pass in their order; spoiled
     (:meth:`~estimation.streaming.block_errors.BlockSquares.spoil`) when stamps before a grid's start are scored,
-    which come last."""
+    which come last.
+
+    ``delays``: by predictor name, the delay between torques and motion its model file holds (absent or ``None``:
+    none), one pass for each delay (:func:`delay_groups`): the motion at the scored samples (interpolated at the
+    recorded stamps, or as logged) is moved to ``t − delay`` among those samples block by block
+    (:func:`~estimation.streaming.delayed_chunks.moved_chunks`), as ``oed predict`` moves the record it scores
+    (:func:`estimation.preprocessing.delay.delayed` of the prepared record moves its samples at the recorded stamps
+    among themselves), the channels untouched. ``None`` too when stamps before a grid's start would be scored on a
+    pass with a delay (never met: a grid starts at the first sample kept): they come last, out of the order a move
+    needs."""
     if predictors is None:
         predictors = {name: functools.partial(model.predict, np.asarray(theta, dtype=float))
                       for name, theta in thetas.items()}
     if not paths:
         raise ValueError("no files to measure the error on")
     squares = {name: np.zeros(model.n_channels) for name in predictors}
-    count = 0
-
-    def add(q, dq, ddq, measured, late: bool = False) -> None:
-        nonlocal count
-        for name, predict in predictors.items():
-            squared = (measured - predict(q, dq, ddq)) ** 2
-            squares[name] += np.sum(squared, axis=0)
-            if blocks is not None and name in blocks:
-                if late:  # out of the samples' order: no blocks
-                    blocks[name].spoil()
-                blocks[name].add(squared)
-        count += measured.shape[0]
-
-    for path in paths:
-        grid = (chunk.as_recorded for chunk in plan_chunks(
-            path, model, frequency_hz=frequency_hz, harmonics=harmonics, as_recorded=True, chunk_size=chunk_size,
-            cutoff_hz=cutoff_hz, decimation=decimation, held_torques=held_torques))
-        first = next(grid, None)
-        if first is None:
-            continue
-        if first.metadata.get("resampled_from") is None:  # read as logged: its own samples
-            for chunk in (first, *grid):
-                add(chunk.q, chunk.dq, chunk.ddq, chunk.channels(model.channels))
-            continue
-        stamps: list[NDArray[np.float64]] = []
-        logged = _watched(logged_chunks(path, model, chunk_size=chunk_size), model, stamps)
-        opening = next(logged)
-        # the logged derivatives where the path uses them (no filter, no Fourier fit of the file's positions)
-        measured = cutoff_hz is None and decimation == 1 and opening.dq is not None and opening.ddq is not None
-        _at_stamps(model, first, grid, itertools.chain([opening], logged), measured=measured, add=add)
-        t = np.concatenate(stamps)
-        if t.shape[0] != first.metadata["resampled_from"] or not np.all(np.isfinite(t)):
-            return None  # rows the loader drops: its grid interpolates other samples than the streamed one
+    count = 0  # the samples of one pass: every pass scores the same (moving the motion drops none)
+    for delay, named in delay_groups(predictors, delays):
+        count = 0
+        for path in paths:
+            scored = _scored_samples(model, path, chunk_size=chunk_size, cutoff_hz=cutoff_hz, decimation=decimation,
+                                     held_torques=held_torques, frequency_hz=frequency_hz, harmonics=harmonics)
+            if delay is not None and delay != 0.0:
+                scored = _moved(scored, delay)
+            for record, late in scored:
+                if record is None:
+                    return None
+                measured = record.channels(model.channels)
+                for name, predict in named.items():
+                    squared = (measured - predict(record.q, record.dq, record.ddq)) ** 2
+                    squares[name] += np.sum(squared, axis=0)
+                    if blocks is not None and name in blocks:
+                        if late:  # out of the samples' order: no blocks
+                            blocks[name].spoil()
+                        blocks[name].add(squared)
+                count += measured.shape[0]
     if count == 0:
         raise ValueError("the files hold no samples once preprocessed")
     return {name: dict(zip(model.channels, map(float, total / count))) for name, total in squares.items()}, count
+
+
+#: the samples one file is scored on, block by block: each with whether it comes out of the samples' order (stamps
+#: before the grid's start, scored last); ``None`` ends a file whose rows the loader drops
+_Scored = Iterator[tuple[Measurements | None, bool]]
+
+
+def _scored_samples(model: IdentificationModel, path: str | Path, *, chunk_size: int, cutoff_hz: float | None,
+                    decimation: int, held_torques: bool, frequency_hz: float | None, harmonics: int) -> _Scored:
+    """The samples of one file :func:`counted_errors_at_stamps` scores, block by block: the motion there beside the
+    channels as recorded."""
+    grid = (chunk.as_recorded for chunk in plan_chunks(
+        path, model, frequency_hz=frequency_hz, harmonics=harmonics, as_recorded=True, chunk_size=chunk_size,
+        cutoff_hz=cutoff_hz, decimation=decimation, held_torques=held_torques))
+    first = next(grid, None)
+    if first is None:
+        return
+    if first.metadata.get("resampled_from") is None:  # read as logged: its own samples
+        for chunk in (first, *grid):
+            yield chunk, False
+        return
+    stamps: list[NDArray[np.float64]] = []
+    logged = _watched(logged_chunks(path, model, chunk_size=chunk_size), model, stamps)
+    opening = next(logged)
+    # the logged derivatives where the path uses them (no filter, no Fourier fit of the file's positions)
+    measured = cutoff_hz is None and decimation == 1 and opening.dq is not None and opening.ddq is not None
+    yield from _at_stamps(model, first, grid, itertools.chain([opening], logged), measured=measured)
+    t = np.concatenate(stamps)
+    if t.shape[0] != first.metadata["resampled_from"] or not np.all(np.isfinite(t)):
+        yield None, False  # rows the loader drops: its grid interpolates other samples than the streamed one
+
+
+def _moved(scored: _Scored, delay: float) -> _Scored:
+    """``scored`` with the motion moved to ``t − delay`` among the scored samples (:func:`counted_errors_at_stamps`);
+    ``None`` in place of samples out of their order, or of a file whose rows the loader drops."""
+    ended: list[bool] = []
+
+    def in_order() -> Iterator[Measurements]:
+        for record, late in scored:
+            if record is None or late:
+                ended.append(True)
+                return
+            yield record
+
+    for record in moved_chunks(in_order(), delay):
+        yield record, False
+    if ended:
+        yield None, False
 
 
 def _watched(chunks: Any, model: IdentificationModel, stamps: list[NDArray[np.float64]]) -> Any:
@@ -222,9 +277,9 @@ def _watched(chunks: Any, model: IdentificationModel, stamps: list[NDArray[np.fl
         yield chunk
 
 
-def _at_stamps(model: IdentificationModel, first: Any, grid: Any, logged: Any, *, measured: bool, add: Any) -> None:
-    """The logged samples of one resampled file against the motion of its grid blocks (``first``, then ``grid``),
-    each stamp interpolated between the two grid samples around it (:func:`streamed_errors_at_stamps`)."""
+def _at_stamps(model: IdentificationModel, first: Any, grid: Any, logged: Any, *, measured: bool) -> _Scored:
+    """The logged samples of one resampled file with the motion of its grid blocks (``first``, then ``grid``) at
+    their stamps, each interpolated between the two grid samples around it (:func:`counted_errors_at_stamps`)."""
     t_grid, motion = first.t, [first.q, first.dq, first.ddq]
     start, done = float(first.t[0]), False
     opening = [values[:1] for values in motion]  # what a stamp before the grid's start is interpolated to
@@ -240,17 +295,18 @@ def _at_stamps(model: IdentificationModel, first: Any, grid: Any, logged: Any, *
         motion = [np.vstack([old, new]) for old, new in zip(motion, (chunk.q, chunk.dq, chunk.ddq))]
         return True
 
-    def score(stamps: Any, keep: Any, clamped: bool = False) -> None:
-        t = stamps.t[keep]
-        if t.size == 0:
-            return
+    def scored(stamps: Any, keep: Any, clamped: bool = False) -> Measurements | None:
+        kept = np.flatnonzero(keep)
+        if kept.size == 0:
+            return None
+        t = stamps.t[kept]
         if measured:
-            q, dq, ddq = stamps.q[keep], stamps.dq[keep], stamps.ddq[keep]
+            q, dq, ddq = stamps.q[kept], stamps.dq[kept], stamps.ddq[kept]
         elif clamped:  # np.interp's value before the first sample
             q, dq, ddq = (np.repeat(values, t.size, axis=0) for values in opening)
         else:
             q, dq, ddq = (np.column_stack([np.interp(t, t_grid, column) for column in values.T]) for values in motion)
-        add(q, dq, ddq, stamps.channels(model.channels)[keep], late=clamped)
+        return replace(stamps.select(kept), q=q, dq=dq, ddq=ddq)
 
     for stamps in logged:
         while not done and t_grid[-1] < stamps.t[-1]:
@@ -263,7 +319,9 @@ def _at_stamps(model: IdentificationModel, first: Any, grid: Any, logged: Any, *
         inside = ~before
         if span_end is not None:
             inside &= stamps.t <= span_end + 1e-9 * (span_end - start)
-        score(stamps, inside)
+        record = scored(stamps, inside)
+        if record is not None:
+            yield record, False
         keep_from = max(int(np.searchsorted(t_grid, stamps.t[-1])) - 1, 0)  # the grid sample before the last stamp
         t_grid, motion = t_grid[keep_from:], [values[keep_from:] for values in motion]
     while not done:
@@ -271,7 +329,9 @@ def _at_stamps(model: IdentificationModel, first: Any, grid: Any, logged: Any, *
     end = float(t_grid[-1]) if span_end is None else span_end
     tolerance = 1e-9 * (end - start)
     for stamps in held:
-        score(stamps, stamps.t >= start - tolerance, clamped=True)
+        record = scored(stamps, stamps.t >= start - tolerance, clamped=True)
+        if record is not None:
+            yield record, True
 
 
 def recorded_training_errors(model: IdentificationModel, predictors: Mapping[Any, Predictor], paths: Sequence[str | Path],
@@ -287,12 +347,13 @@ def recorded_training_errors(model: IdentificationModel, predictors: Mapping[Any
     fit of their averaged period at its instant, as the in-memory Fourier fit compares them. ``files``: the
     streamed record of each training file (``streaming.files``: ``resampled_from``). ``None`` where the loader
     drops rows the streamed grid interpolates (:func:`counted_errors_at_stamps`): the caller keeps the errors it
-    has. ``delays``: by predictor name, its model file's delay, applied on the filter and Fourier paths
-    (:func:`counted_predicted_errors`); at a resampled file's stamps the motion is not moved."""
+    has. ``delays``: by predictor name, its model file's delay: the motion of the samples scored moved by it, as
+    ``oed predict`` moves the record (:func:`counted_predicted_errors`; at a resampled file's stamps,
+    :func:`counted_errors_at_stamps`)."""
     if any(record.get("resampled_from") is not None for record in files):
         return counted_errors_at_stamps(model, {}, paths, chunk_size=chunk_size, cutoff_hz=cutoff_hz,
                                         decimation=decimation, held_torques=held_torques, predictors=predictors,
-                                        frequency_hz=frequency_hz, harmonics=harmonics)
+                                        frequency_hz=frequency_hz, harmonics=harmonics, delays=delays)
     return counted_predicted_errors(model, predictors, paths, chunk_size=chunk_size, cutoff_hz=cutoff_hz,
                                     decimation=decimation, held_torques=held_torques, frequency_hz=frequency_hz,
                                     harmonics=harmonics, delays=delays)

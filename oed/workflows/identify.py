@@ -464,7 +464,8 @@ def identification_streamed(args: IdentifyOptions, model: IdentificationModel, t
     their derivatives chosen as in memory (``plan``: already chosen), and choose the answer as in memory among the
     unconstrained fits and the consistent refit (:func:`estimation.streaming.model_selection.summed_selection`: from
     the sums, every candidate scored on the same validation samples against the channels as recorded,
-    :class:`ValidationScores`; not on the Fourier path, whose sums hold averaged periods); on the validation files,
+    :class:`ValidationScores`; on the Fourier path, whose sums hold averaged periods, every sample of the validation
+    files' whole periods scored, the mount and the torque gains not tried); on the validation files,
     the errors against the channels as recorded, the trivial predictors' and the noise floor of their first rows
     (:func:`recorded_validation`). ``findings``: what the path decision said of the files (not said again)."""
     chunk_size = DEFAULT_CHUNK_SIZE if args.chunk_size is None else args.chunk_size
@@ -491,24 +492,26 @@ def identification_streamed(args: IdentifyOptions, model: IdentificationModel, t
         reading_options = {"chunk_size": chunk_size, "cutoff_hz": options["cutoff_hz"],
                            "frequency_hz": options["frequency_hz"], "harmonics": options["harmonics"],
                            "decimation": options["decimation"], "held_torques": options["held_torques"]}
-        if frequency_hz is None:  # the answer chosen as in memory (a Fourier fit: the sums hold averaged periods)
-            scores = None if result.validation is None else ValidationScores(args, sums, result, chunk_size, options)
-            ratio = None if not args.validate else streamed_repeated_motion(model, args.data, args.validate,
-                                                                            chunk_size=chunk_size)
-            still = bool(args.validate) and warned_still_motion(model, args.data, args.validate,
-                                                                chunk_size=chunk_size)
-            with step("identified (the candidate models fitted and compared)"):
-                selection = summed_selection(sums, base=base, given=None if args.method == "auto" else args.method,
-                                             consistent=consistent_settings(args, model.robot), score=scores,
-                                             ratio=ratio, still=still)
-            motor = streamed_motor_friction_selection(
-                args, selection, model, transmission, base=base, methods=methods, chunk_size=chunk_size,
-                options=options, ratio=ratio, still=still, sums=sums, scores=scores)
-            if motor is not None:  # the selection with the candidate compared, and the sums of the model it holds
-                selection, sums, scores = motor
-            selection, sums, scores = streamed_armature_selection(
-                args, selection, base=base, methods=methods, chunk_size=chunk_size, options=options, ratio=ratio,
-                still=still, sums=sums, scores=scores)
+        # the answer chosen as in memory (on the Fourier path scored on every sample of the validation files' whole
+        # periods, ValidationScores)
+        scores = None if result.validation is None else ValidationScores(args, sums, result, chunk_size, options)
+        ratio = None if not args.validate else streamed_repeated_motion(model, args.data, args.validate,
+                                                                        chunk_size=chunk_size)
+        still = bool(args.validate) and warned_still_motion(model, args.data, args.validate,
+                                                            chunk_size=chunk_size)
+        with step("identified (the candidate models fitted and compared)"):
+            selection = summed_selection(sums, base=base, given=None if args.method == "auto" else args.method,
+                                         consistent=consistent_settings(args, model.robot), score=scores,
+                                         ratio=ratio, still=still)
+        motor = streamed_motor_friction_selection(
+            args, selection, model, transmission, base=base, methods=methods, chunk_size=chunk_size,
+            options=options, ratio=ratio, still=still, sums=sums, scores=scores)
+        if motor is not None:  # the selection with the candidate compared, and the sums of the model it holds
+            selection, sums, scores = motor
+        selection, sums, scores = streamed_armature_selection(
+            args, selection, base=base, methods=methods, chunk_size=chunk_size, options=options, ratio=ratio,
+            still=still, sums=sums, scores=scores)
+        if frequency_hz is None:  # the checks of the description and the gains: not on averaged periods (FOURIER_CHECKS)
             # the joints' zeros and gravity's direction against the description's; a mount found is a candidate
             checked = streamed_description_findings(
                 model, args.data, int(sums.train.n_samples), args.validate or [],
@@ -519,7 +522,7 @@ def identification_streamed(args: IdentifyOptions, model: IdentificationModel, t
             selection, gains = streamed_torque_gains_selection(
                 args, selection, base=base, methods=methods, chunk_size=chunk_size, options=options, ratio=ratio,
                 still=still, sums=sums)
-            result = selection.unconstrained
+        result = selection.unconstrained
     # a line per finding across files; those said when the path was decided (``findings``) not again
     messages = grouped_messages(caught, source_files([*args.data, *(args.validate or ())])) if findings is None \
         else findings.mark(caught)
@@ -529,7 +532,8 @@ def identification_streamed(args: IdentifyOptions, model: IdentificationModel, t
             not_computed.pop(key, None)
     if selection is not None:
         not_computed.pop("model_selection", None)
-        not_computed.pop("gravity", None)  # a mount found is a candidate, as in memory
+        if frequency_hz is None:
+            not_computed.pop("gravity", None)  # a mount found is a candidate, as in memory
         if selection.consistent is not None or args.method != "auto":
             not_computed.pop("consistent", None)
             not_computed.pop("links", None)
@@ -538,10 +542,6 @@ def identification_streamed(args: IdentifyOptions, model: IdentificationModel, t
             not_computed.update({key: reason for key in ("consistent", "links") if reason})
         result = replace(result, not_computed={key: value for key, value in result.not_computed.items()
                                                if key in not_computed})  # what the selection computed
-    elif frequency_hz is not None:
-        not_computed["model_selection"] = (
-            "a Fourier fit of averaged periods: the sums hold the averaged channels, not the recording the candidates "
-            "are compared on; the model is the weighting asked for or chosen on held-out blocks (method_selection)")
     if frequency_hz is not None:  # a Fourier fit of averaged periods: `oed predict` fits a record's periods alike
         model_plan = fourier_plan(args, frequency_hz, options["harmonics"])
     else:
@@ -569,10 +569,6 @@ def identification_streamed(args: IdentifyOptions, model: IdentificationModel, t
             comparisons = compare_with_floor(mse, floor, result.validation.n_samples, alpha=FLOOR_ALPHA)
             notes += tuple(f"{comparison.statement()}: the model lacks something there; `oed diagnose` searches for it"
                            for comparison in comparisons.values() if comparison.above)
-    if ratio is None and args.validate:  # the Fourier path: not computed for a selection
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")  # the files' findings were said on the first pass
-            ratio = streamed_repeated_motion(model, args.data, args.validate, chunk_size=chunk_size)
     repeat = None if ratio is None else repeat_note(ratio)  # the notes said in memory after the floor's
     notes = notes if repeat is None else (*notes, repeat)
     # the joint zeros, the mount and the friction drift checked as in memory, on the samples memory checks
@@ -584,16 +580,12 @@ def identification_streamed(args: IdentifyOptions, model: IdentificationModel, t
     if args.validate and options["frequency_hz"] is not None and not model_has_shapes(model):
         not_computed["friction_drift"] = FOURIER_CHECKS
     result, chosen, selection = recorded_training(args, result, chosen, selection, chunk_size, options)
-    untried = None if selection is not None else streamed_motor_friction(args, model, transmission)
-    if untried is not None:  # the Fourier path (its sums hold averaged periods): no selection, no candidate
-        not_computed["motor_friction"] = untried
-        notes = (*notes, untried)
-    if selection is None and args.method == "auto" and not args.consistent and args.validate \
+    if frequency_hz is not None and args.method == "auto" and not args.consistent and args.validate \
             and not model_has_shapes(model) and len(model.channels) > 1 \
             and all(map(is_joint_torque, model.channels)):
         not_computed["torque_gains"] = ("an unknown gain on each joint's recorded torque is a candidate of the "
                                         "default answer (estimation.consistent.torque_gains), not tried on the "
-                                        "Fourier path (its sums hold averaged periods: no answer is chosen there)")
+                                        "Fourier path (its check fits the records, not their averaged periods)")
     validation_mse = None if result.validation is None else result.validation.mse
     ranges = merged_ranges([part.joint_range for part in sums.files])  # taken in the sums pass
     validation_range = merged_ranges([part.joint_range for part in sums.validation_files])
@@ -744,22 +736,6 @@ def streamed_gravity_selection(args: IdentifyOptions, selection: ModelSelection,
     return answer, sums, scores, taken
 
 
-def streamed_motor_friction(args: IdentifyOptions, model: IdentificationModel,
-                            transmission: Transmission | None) -> str | None:
-    """What the streamed path says on its Fourier path (averaged periods: no candidates compared) when the in-memory
-    default would also have tried motor-side friction on the coupled motors of the transmission
-    (:func:`motor_friction_selection`; elsewhere the streamed path tries it too:
-    :func:`streamed_motor_friction_selection`): the answer may then differ from the in-memory one, and the laws can
-    be declared. ``None`` when the in-memory path would not try it."""
-    laws = motor_friction_laws(model, transmission)
-    if not laws or args.method != "auto" or args.consistent or not args.validate or model_has_shapes(model):
-        return None
-    specs = ",".join(effect_spec(effect) for effect in laws)
-    return (f"motor-side friction on the coupled motors ({specs}) is a candidate of the in-memory default answer, not "
-            f"tried on the streamed path when it fits averaged periods (--frequency: no candidates compared): this "
-            f"answer may differ from the in-memory one; declare it with --friction ...,{specs} to fit it here")
-
-
 def recorded_training(args: IdentifyOptions, result: IdentificationResult, chosen: ChosenModel,
                       selection: ModelSelection | None, chunk_size: int, options: Mapping[str, Any]
                       ) -> tuple[IdentificationResult, ChosenModel, ModelSelection | None]:
@@ -823,13 +799,16 @@ class ValidationScores:
     recording, or, where the sums hold the recording, from each block's normal equations summed once on a pass
     of their own (:meth:`block_sums`); on a file resampled onto a uniform grid at its recorded stamps, once their
     count is known (:meth:`at_stamps`). Not where the loader drops rows the grid interpolates (the files measured
-    whole): ``None`` there."""
+    whole): ``None`` there. On the Fourier path (the sums hold one averaged period a file) every sample of the
+    validation files' whole periods is scored with the fit of their averaged period at its instant, as memory scores
+    its validation record, ``n_samples`` those samples; no blocks, as memory holds none there."""
 
     def __init__(self, args: IdentifyOptions, sums: SummedFits, result: IdentificationResult, chunk_size: int,
                  options: dict[str, Any]) -> None:
         self.args, self.sums, self.result, self.chunk_size = args, sums, result, chunk_size
         #: the derivatives as the files were summed (:func:`estimation.streaming.periods.plan_options`)
         self.decimation, self.held_torques = int(options["decimation"]), bool(options["held_torques"])
+        self.harmonics = int(options.get("harmonics") or 5)  # the Fourier fit's, on the Fourier path
         self.trivial: dict[str, dict[str, float]] | None = None
         self._block_sums: list[NormalEquations] | None = None
         self._block_sums_made = False
@@ -860,14 +839,18 @@ class ValidationScores:
             recorded = None
             blocks: dict[Any, dict[str, tuple[float, ...]] | None] = {}
             block_samples = None
+            fourier = streaming.get("frequency_hz") is not None
             if resampled_validation({"streaming": streaming}):  # jittered or cleaned: at the recorded samples
                 recorded, blocks, block_samples = self.at_stamps(vectors, thetas)  # block by block
+                if fourier and recorded is not None:  # the recorded samples counted (no blocks: none in memory there)
+                    summed = {key: replace(errors, n_samples=block_samples) for key, errors in summed.items()}
+                    block_samples = None
             if recorded is None and resampled_validation({"streaming": streaming}):  # rows the loader drops: whole
-                document = summed_model_file_document(
-                    model, self.result.estimate, robot=robot_source(model.robot, args),
-                    preprocessing=streamed_plan(args.data[0], model, cutoff_hz=streaming["cutoff_hz"],
-                                                decimation=self.decimation, held_torques=self.held_torques,
-                                                chunk_size=self.chunk_size))
+                plan = fourier_plan(args, streaming["frequency_hz"], self.harmonics) if fourier else \
+                    streamed_plan(args.data[0], model, cutoff_hz=streaming["cutoff_hz"], decimation=self.decimation,
+                                  held_torques=self.held_torques, chunk_size=self.chunk_size)
+                document = summed_model_file_document(model, self.result.estimate,
+                                                      robot=robot_source(model.robot, args), preprocessing=plan)
                 recorded = recorded_validation_errors(document, vectors, source_files(args.validate))  # None: as recorded
             if recorded is not None:
                 pass
@@ -877,6 +860,13 @@ class ValidationScores:
                 if block_sums is not None:
                     blocks = {("theta", key): block_channel_mse(block_sums, np.asarray(theta, dtype=float))
                               for key, theta in thetas.items()}
+            elif fourier:  # averaged periods summed: every sample of the whole periods, the fit's motion there
+                recorded, counted = counted_predicted_errors(
+                    model, theta_predictors(model, vectors), args.validate, chunk_size=self.chunk_size,
+                    decimation=self.decimation, held_torques=self.held_torques,
+                    frequency_hz=streaming["frequency_hz"], harmonics=self.harmonics)
+                # the samples scored, as memory counts its validation record (no blocks: memory holds none there)
+                summed = {key: replace(errors, n_samples=counted) for key, errors in summed.items()}
             else:
                 count = int(self.sums.validation.n_samples)
                 squares = {("theta", key): BlockSquares(count, model.n_channels) for key in thetas}
@@ -901,7 +891,8 @@ class ValidationScores:
         drops rows the grid interpolates."""
         model, streaming = self.result.model, self.result.streaming
         reading = {"chunk_size": self.chunk_size, "cutoff_hz": streaming["cutoff_hz"], "decimation": self.decimation,
-                   "held_torques": self.held_torques}
+                   "held_torques": self.held_torques, "frequency_hz": streaming.get("frequency_hz"),
+                   "harmonics": self.harmonics}
         keys = [("theta", key) for key in thetas]
 
         def squares(count: int | None) -> dict[Any, BlockSquares] | None:
@@ -912,6 +903,8 @@ class ValidationScores:
         if counted is None:
             return None, {}, None
         recorded, count = counted
+        if reading["frequency_hz"] is not None:  # the Fourier path: no blocks (memory holds none there)
+            return recorded, {}, count
         if accumulated is None:  # the count learnt: the blocks of the thetas from one more pass
             self._stamp_count = count
             accumulated = squares(count)
