@@ -184,9 +184,8 @@ def not_determined(model: IdentificationModel, error: Exception
 
 def fitted_without_undetermined(
         fit: Callable[[tuple[Any, ...], IdentificationModel, tuple[MergedColumn | UnexcitedColumn, ...]], Fit],
-                           effects: tuple[Any, ...], model: IdentificationModel,
-                           rebuild: Callable[[tuple[Any, ...]], IdentificationModel]
-                           ) -> tuple[Fit, tuple[MergedColumn | UnexcitedColumn, ...]]:
+        effects: tuple[Any, ...], model: IdentificationModel, rebuild: Callable[[tuple[Any, ...]], IdentificationModel]
+) -> tuple[Fit, tuple[MergedColumn | UnexcitedColumn, ...]]:
     """``fit(effects, model, ())``, the declared model's fit, and while it stops on a rank-deficient regressor whose
     undetermined parameters are Coulomb and offset pairs of joints that never reverse, or per-joint columns of joints
     the training records never move (:func:`not_determined`), the same fit of the model with those columns left out
