@@ -1034,9 +1034,9 @@ def diagnosis_streamed(args: DiagnoseOptions, friction: str, plan: Preprocessing
                 plan = streamed_choice(args, model, **derivatives_on_validation(model, None)).chosen
         still = warned_still_motion(model, args.data, args.validate, chunk_size=chunk_size)  # said as in memory
         checked, ratio = None, None
-        if gains is None and turned is None and plan.method != "fourier" and delay is None:  # the torque gains
-            # checked first, as in
-            # memory (not with a declared delay)
+        if gains is None and turned is None and plan.method != "fourier" and delay is None:
+            # the torque gains checked first, as in memory (not with a declared delay; the run with a found gravity
+            # takes its caller's)
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")  # the files' findings are said on the diagnosis's passes
                 ratio = streamed_repeated_motion(model, args.data, args.validate, chunk_size=chunk_size)
