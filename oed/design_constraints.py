@@ -35,6 +35,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from dynamics.collision import CollisionGeometry, read_collision_geometry
 from dynamics.kinematics import joint_frames
+from dynamics.mjcf import is_mjcf, mjcf_joint_terms
 from dynamics.newton_euler import rigid_body_regressors
 from dynamics.robot import RobotModel
 
@@ -54,8 +55,14 @@ def _smooth_floor(clearances: casadi.SX) -> casadi.SX:
 
 
 def declared_friction(path: str | Path, robot: RobotModel) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Viscous (``damping``) and Coulomb (``friction``) coefficients of the URDF's ``<dynamics>``, per joint."""
+    """Viscous (``damping``) and Coulomb (``friction``) coefficients of the URDF's ``<dynamics>``, per joint; of an
+    MJCF model's joints, ``damping`` and ``frictionloss`` (:func:`dynamics.mjcf.mjcf_joint_terms`)."""
     import pinocchio as pin
+
+    if is_mjcf(path):
+        terms = mjcf_joint_terms(path, robot)
+        return (np.array([terms[name]["viscous"] for name in robot.joint_names]),
+                np.array([terms[name]["coulomb"] for name in robot.joint_names]))
 
     model = pin.buildModelFromUrdf(str(path))
     return np.asarray(model.damping, dtype=float)[: robot.n_joints], np.asarray(model.friction, dtype=float)[: robot.n_joints]
@@ -351,6 +358,9 @@ def constraints_from_options(robot: RobotModel, urdf: str | Path | None, *, torq
         constraints.append(TorqueLimits.from_urdf(urdf, robot) if urdf is not None else TorqueLimits(robot))
     if (floor is not None or self_collision) and urdf is None:
         raise ConstraintError("--floor and --self-collision need the robot's collision geometry: give --urdf")
+    if (floor is not None or self_collision) and is_mjcf(urdf):
+        raise ConstraintError(f"--floor and --self-collision need the robot's collision geometry, read from a URDF: the "
+                              f"geoms of the MJCF model {urdf} are not read (give the robot as --urdf)")
     geometry = read_collision_geometry(urdf, robot) if (floor is not None or self_collision) else None
     if floor is not None:
         constraints.append(Floor(robot, geometry, height=float(floor)))

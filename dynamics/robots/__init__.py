@@ -13,6 +13,7 @@ from importlib import resources
 
 from dynamics.robots.puma560 import puma560
 from dynamics.robots.servo_arm import servo_arm
+from dynamics.mjcf import is_mjcf, robot_from_mjcf
 from dynamics.urdf import robot_from_urdf
 
 __all__ = ["BUILT_IN_ROBOTS", "emps", "load_robot", "truncate"]
@@ -48,24 +49,34 @@ def truncate(robot: RobotModel, joints: int) -> RobotModel:
 
 
 def load_robot(name: str | None = None, *, urdf: str | Path | None = None, joints: int | None = None,
-               joint_names: Sequence[str] | None = None, locked_at: Mapping[str, float] | None = None) -> RobotModel:
-    """Return a built-in robot by name, or one read from a URDF file.
+               joint_names: Sequence[str] | None = None, locked_at: Mapping[str, float] | None = None,
+               mjcf: str | Path | None = None) -> RobotModel:
+    """Return a built-in robot by name, or one read from a URDF or MuJoCo MJCF file.
 
     Parameters
     ----------
     name
         One of :data:`BUILT_IN_ROBOTS` (``puma560``, ``servo_arm``, ``emps``). Ignored when ``urdf`` is given.
     urdf
-        Path of a URDF file describing a serial chain.
+        Path of a URDF file describing a serial chain; a file whose root element is ``<mujoco>`` is read as
+        MJCF (:func:`dynamics.mjcf.robot_from_mjcf`), so that a robot's source is one path whatever its format.
     joints
         Keep only the first ``joints`` joints (the PUMA paper uses 3); default all.
     joint_names, locked_at
         With ``urdf``: the logged joints (base to tip) of any URDF, every other joint locked at
         ``locked_at`` (default 0), see :func:`dynamics.urdf.robot_from_urdf`.
+    mjcf
+        Path of a MuJoCo MJCF file (:func:`dynamics.mjcf.robot_from_mjcf`); not with ``urdf``.
     """
-    if urdf is None and (joint_names is not None or locked_at):
+    if urdf is not None and mjcf is not None:
+        raise RobotDescriptionError("give a URDF or an MJCF file, not both")
+    if urdf is None and mjcf is None and (joint_names is not None or locked_at):
         raise RobotDescriptionError("joint names and locked joints select joints of a URDF: give the URDF file")
-    if urdf is not None:
+    if mjcf is not None:
+        robot = robot_from_mjcf(mjcf, joint_names=joint_names, locked_at=locked_at)
+    elif urdf is not None and is_mjcf(urdf):
+        robot = robot_from_mjcf(urdf, joint_names=joint_names, locked_at=locked_at)
+    elif urdf is not None:
         robot = robot_from_urdf(urdf, joint_names=joint_names, locked_at=locked_at)
     elif name is None:
         raise RobotDescriptionError("name a robot (one of " + ", ".join(sorted(BUILT_IN_ROBOTS)) + ") or a URDF file")

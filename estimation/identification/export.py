@@ -41,6 +41,7 @@ import numpy as np
 
 from dynamics.effects.shaped import shape_parameters
 from dynamics.effects.specs import effect_spec
+from dynamics.mjcf import is_mjcf_text
 from dynamics.mjcf_export import robot_mjcf
 from dynamics.urdf_export import robot_urdf, urdf_with_inertials
 from estimation.identification.identified_model import IdentifiedModel
@@ -127,16 +128,17 @@ def exported_links(model: IdentifiedModel) -> np.ndarray:
 
 def exported_urdf(model: IdentifiedModel) -> str:
     """The URDF of the identified bodies: the model's own URDF with its inertials replaced, or one
-    written from a built-in robot's description."""
+    written from the chain (a built-in robot's description, or a robot read from an MJCF model)."""
     _check_consistent(model)
     links = exported_links(model)
     source = model.file.robot
     merged = source.joint_names is not None  # the locked joints' bodies are in the named joints' ones
-    if source.urdf_text is not None:
-        return urdf_with_inertials(source.urdf_text, model.robot, links, merge_locked=merged)
-    if source.urdf_path is not None:
+    text = source.urdf_text
+    if text is None and source.urdf_path is not None:
         with open(source.urdf_path) as stream:  # the hash was checked when the model was loaded
-            return urdf_with_inertials(stream.read(), model.robot, links, merge_locked=merged)
+            text = stream.read()
+    if text is not None and not is_mjcf_text(text):
+        return urdf_with_inertials(text, model.robot, links, merge_locked=merged)
     return robot_urdf(model.robot, links)
 
 

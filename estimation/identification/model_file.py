@@ -70,6 +70,7 @@ from numpy.typing import ArrayLike, NDArray
 from dynamics.effects.shaped import shape_parameters
 from dynamics.effects.specs import effect_spec
 from dynamics.errors import RobotDescriptionError
+from dynamics.mjcf import is_mjcf, mjcf_text
 from dynamics.robot import RobotModel
 from dynamics.robots import load_robot
 from dynamics.transmission import JointDirections
@@ -95,7 +96,8 @@ class ModelFileError(ValueError):
 
 @dataclass(frozen=True)
 class RobotSource:
-    """Where the robot came from: a built-in name, or a URDF (path, content hash and, if small, text)."""
+    """Where the robot came from: a built-in name, or a URDF or MuJoCo MJCF file (path, content hash and, if small,
+    text; an MJCF's with its ``<include>`` files in place), read again by :func:`dynamics.robots.load_robot`."""
 
     name: str
     builtin: str | None = None
@@ -117,6 +119,9 @@ class RobotSource:
         path = Path(urdf).expanduser().resolve()
         data = path.read_bytes()
         text = data.decode("utf-8", errors="replace") if len(data) <= MAX_EMBEDDED_URDF_BYTES else None
+        if text is not None and is_mjcf(path):  # an MJCF model: its <include> files in place, read alone again
+            text = mjcf_text(path)
+            text = text if len(text.encode()) <= MAX_EMBEDDED_URDF_BYTES else None
         return cls(robot.name, None, joints, str(path), hashlib.sha256(data).hexdigest(), text,
                    None if joint_names is None else tuple(joint_names),
                    None if not locked_at else {name: float(value) for name, value in locked_at.items()})

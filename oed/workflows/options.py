@@ -26,6 +26,7 @@ from dynamics.effects.shaped import is_shaped
 from dynamics.models import IdentificationModel, ModelKind
 from dynamics.robot import RobotModel
 from dynamics.robots import load_robot
+from dynamics.mjcf import is_mjcf, mjcf_logged_chain
 from dynamics.urdf import logged_chain
 from dynamics.transmission import Transmission
 from dynamics.runtime.report_document import HTML_SUFFIXES, MARKDOWN_SUFFIXES
@@ -193,14 +194,18 @@ def with_logged_chain(args: Any) -> tuple[Any, dict[str, Any] | None]:
     n_logged = logged_joint_count(args.data[0])
     if n_logged is None:
         return args, None
-    found = logged_chain(args.urdf, n_logged)
+    mjcf = is_mjcf(args.urdf)
+    found = (mjcf_logged_chain if mjcf else logged_chain)(args.urdf, n_logged)
     if found is None:
         return args, None
     chain, held = found
-    reason = (f"URDF {args.urdf} branches or holds <mimic> joints and the log holds {n_logged} joint(s): read as "
+    reason = ((f"MJCF {args.urdf} branches or holds coupled joints" if mjcf else
+               f"URDF {args.urdf} branches or holds <mimic> joints")
+              + f" and the log holds {n_logged} joint(s): read as "
               f"the chain {','.join(chain)} (--joint-names {','.join(chain)}), "
-              + (f"{', '.join(held)} held fixed at 0 (a <mimic> joint, if any, following its driver) and the "
-                 "bodies they carry merged into the link they hang from" if held else "no joint held fixed"))
+              + (f"{', '.join(held)} held fixed at 0 "
+                 + ("" if mjcf else "(a <mimic> joint, if any, following its driver) ")
+                 + "and the bodies they carry merged into the link they hang from" if held else "no joint held fixed"))
     warnings.warn(reason, LoggedChainWarning, stacklevel=2)
     return dataclasses.replace(args, joint_names=chain), {"joint_names": list(chain), "held_fixed": list(held),
                                                           "reason": reason}

@@ -11,6 +11,7 @@ from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import Any
 
+from dynamics.mjcf import is_mjcf
 from dynamics.robots import BUILT_IN_ROBOTS
 from estimation.data.log_cleaning import DEFAULT_MAX_GAP
 from estimation.data.log_formats import DEFAULT_TOPIC, parse_column_map
@@ -24,21 +25,39 @@ __all__ = [
 
 
 def add_robot_arguments(parser: argparse.ArgumentParser, *, default: str | None = "puma560") -> None:
-    """``--robot NAME``, ``--urdf FILE`` (which wins) and ``--joints N``."""
+    """``--robot NAME``, ``--urdf FILE`` or ``--mjcf FILE`` (which win) and ``--joints N``.
+
+    ``--mjcf`` fills the same option as ``--urdf`` (the robot's description file: the verbs, the model file and
+    ``oed predict`` read either by its root element, :func:`dynamics.robots.load_robot`); the two exclude each other.
+    """
     group = parser.add_argument_group("robot")
     group.add_argument(
         "--robot", default=default, help=f"built-in robot: {', '.join(sorted(BUILT_IN_ROBOTS))} (default: {default})"
     )
-    group.add_argument("--urdf", type=Path, help="URDF file of a serial chain (stands in for --robot)")
+    files = group.add_mutually_exclusive_group()
+    files.add_argument("--urdf", type=Path, help="URDF file of a serial chain (stands in for --robot)")
+    files.add_argument("--mjcf", dest="urdf", type=mjcf_file, metavar="MJCF",
+                       help="MuJoCo MJCF model (<mujoco> file, e.g. from MuJoCo Menagerie) of a serial chain, read as "
+                            "--urdf is (stands in for --robot)")
     group.add_argument("--joints", type=int, help="keep only the first N joints (the PUMA paper uses 3)")
     add_joint_selection_arguments(group)
+
+
+def mjcf_file(text: str) -> Path:
+    """``--mjcf`` values: a file that exists and is not MJCF (a URDF) is refused by argparse, naming ``--urdf``
+    (one that is missing or unreadable is named by the reader)."""
+    path = Path(text)
+    if path.is_file() and not is_mjcf(path):
+        raise argparse.ArgumentTypeError(f"{text} is not a MuJoCo MJCF model (its root element is not <mujoco>)"
+                                         + ("; a URDF goes to --urdf" if path.suffix.lower() == ".urdf" else ""))
+    return path
 
 
 def add_joint_selection_arguments(group: Any) -> None:
     """``--joint-names a,b,c`` and ``--locked-at name=value,...`` (the logged joints of any URDF)."""
     group.add_argument("--joint-names", type=joint_name_list, metavar="A,B,C",
-                       help="with --urdf: the logged joints, base to tip (columns q1..qN and tau1..tauN follow this "
-                            "order); every other joint of the URDF is locked")
+                       help="with --urdf or --mjcf: the logged joints, base to tip (columns q1..qN and tau1..tauN follow this "
+                            "order); every other joint of the file is locked")
     group.add_argument("--locked-at", type=locked_positions, default=None, metavar="NAME=VALUE,...",
                        help="with --joint-names: positions of locked joints, rad or m (default 0)")
 
