@@ -95,7 +95,7 @@ class Record:
 @dataclass
 class Case:
     name: str
-    robot: list[str]  # --urdf FILE or --robot NAME
+    robot: list[str]  # --urdf FILE, --mjcf FILE (and --joint-names A,B,C) or --robot NAME
     records: dict[str, Record]  # train, validate, test
     files: dict[str, Path] = field(default_factory=dict)  # what the toolkit reads
     options: list[str] = field(default_factory=list)
@@ -220,7 +220,10 @@ class PlainFit:
     """The plain least-squares fit (module docstring) of one robot."""
 
     def __init__(self, robot_arguments: list[str]) -> None:
-        robot = load_robot(urdf=robot_arguments[1]) if robot_arguments[0] == "--urdf" else load_robot(robot_arguments[1])
+        options = dict(zip(robot_arguments[::2], robot_arguments[1::2]))
+        path, names = options.get("--urdf", options.get("--mjcf")), options.get("--joint-names")
+        robot = (load_robot(urdf=path, joint_names=None if names is None else names.split(",")) if path is not None
+                 else load_robot(options["--robot"]))
         self.model = to_pinocchio(robot)
         self.data = self.model.createData()
         self.n = robot.n_joints

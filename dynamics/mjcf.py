@@ -63,6 +63,9 @@ READ_JOINT_TERMS: dict[str, str] = {"damping": "viscous", "frictionloss": "coulo
 IGNORED_JOINT_TERMS: tuple[str, ...] = ("armature", "stiffness")
 _MOVABLE = ("hinge", "slide")
 _ORIENTATIONS = ("quat", "axisangle", "euler", "xyaxes", "zaxis")
+#: worldbody elements that make bodies this reader does not build
+_NOT_READ = {"replicate": "repeated bodies", "attach": "a model attached from another file",
+             "composite": "generated bodies", "flexcomp": "a deformable body"}
 _FLOAT = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?")
 
 
@@ -312,6 +315,14 @@ def _read(path: Path) -> _Model:
     worldbody = root.find("worldbody")
     if worldbody is None:
         raise model.error("no <worldbody>")
+    for element in root.findall("compiler"):
+        if float(element.get("settotalmass", "-1")) > 0:
+            raise model.error(f"<compiler settotalmass={element.get('settotalmass')!r}> rescales the bodies' masses, "
+                              "which this reader does not: remove it, or write the scaled masses")
+    for element in worldbody.iter():
+        if element.tag in _NOT_READ:
+            raise model.error(f"<{element.tag}> in the worldbody ({_NOT_READ[element.tag]}) is not read: write its "
+                              "bodies out (MuJoCo's compiled model, saved with mj_saveLastXML, holds them)")
     unnamed = iter(range(1_000_000))
 
     def attributes(element: ElementTree.Element, childclass: str) -> dict[str, str]:
@@ -622,8 +633,8 @@ def robot_from_mjcf(path: str | Path, *, gravity: np.ndarray | None = None, join
     ignored = sorted({term for name in chain for term, value in model.joints[name].terms.items()
                       if term in IGNORED_JOINT_TERMS and value != 0})
     if ignored:
-        warnings.warn(f"MJCF {path}: joint attributes {', '.join(ignored)} are not read (the identification fits its own "
-                      "armature and spring effects when asked: --friction ...,armature)", MjcfIgnoredWarning,
+        warnings.warn(f"MJCF {path}: the joints' {' and '.join(ignored)} values are not read (the identification fits "
+                      "its own armature and spring effects when asked: --friction ...,armature)", MjcfIgnoredWarning,
                       stacklevel=2)
     return _chain_model(model, chain, dict(locked_at or {}), gravity)
 

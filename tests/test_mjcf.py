@@ -300,6 +300,9 @@ def test_includes_are_read_and_the_model_file_embeds_them(menagerie, tmp_path):
     ('<body name="link2" quat="0.707107 -0.707107 0 0">', '<body name="link2" quat="0.707107 -0.707107 0 0" '
      'euler="0 0 1">', "several orientations"),
     ('range="-3.0718 -0.0698"', 'range="0.1 -0.1"', "joint 'wrist': range '0.1 -0.1': lower above upper"),
+    ('<compiler angle="radian"', '<compiler settotalmass="10" angle="radian"', "settotalmass='10'> rescales"),
+    ("<geom/>\n            <frame", '<geom/>\n            <replicate count="2" offset="0 0 0.1"><body/></replicate>'
+     "\n            <frame", "<replicate> in the worldbody"),
 ])
 def test_what_a_serial_chain_cannot_take_is_refused_by_name(tmp_path, old, new, message):
     assert old in MENAGERIE_STYLE
