@@ -387,3 +387,20 @@ def test_cli_identify_from_the_mjcf_equals_the_urdf_and_predict_and_export_read_
     exported = tmp_path / "exported.urdf"
     assert main(["export", "--model", str(tmp_path / "xml.json"), "--urdf", str(exported)]) == 0
     assert robot_from_urdf(exported).joint_names == robot.joint_names
+
+
+def test_design_reads_the_mjcf_friction_and_refuses_its_geometry(menagerie):
+    """``oed design --torque-limits``: damping and frictionloss are the description's viscous and Coulomb friction;
+    ``--floor`` needs a URDF's collision geometry, refused naming the MJCF file."""
+    from oed.design_constraints import ConstraintError, constraints_from_options, declared_friction
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", MjcfIgnoredWarning)
+        robot = robot_from_mjcf(menagerie, joint_names=ARM)
+    viscous, coulomb = declared_friction(menagerie, robot)
+    np.testing.assert_allclose(viscous, [0.5] * 4)
+    np.testing.assert_allclose(coulomb, [0.2] * 4)
+    (limits,) = constraints_from_options(robot, menagerie, torque_limits=True)
+    np.testing.assert_allclose(limits.effort, [87, 87, 12, 12])
+    with pytest.raises(ConstraintError, match="geoms of the MJCF model .* are not read"):
+        constraints_from_options(robot, menagerie, floor=0.0)
