@@ -445,6 +445,13 @@ def _chain_ancestry(model: _Model, joint: str) -> list[str]:
     return chain[::-1]
 
 
+def _unsupported_joint(model: _Model, joint: _JointElement) -> RobotDescriptionError:
+    return model.error(f"joint {joint.name!r} of body {joint.body!r} is a {joint.kind} joint ("
+                       + ("a floating body" if joint.kind == "free" else "three degrees of freedom")
+                       + "): serial chains of hinge and slide joints only; name the logged joints "
+                       "(joint_names, --joint-names) and the others are locked")
+
+
 def _check_constraints(model: _Model, chain: Sequence[str], named: bool) -> None:
     """Refuse what a serial chain of ``chain`` cannot take (module docstring)."""
     for name in chain:
@@ -457,10 +464,7 @@ def _check_constraints(model: _Model, chain: Sequence[str], named: bool) -> None
     others = [joint for joint in model.joints.values() if joint.name not in chain]
     for joint in others:
         if joint.kind in ("free", "ball") and not named:
-            raise model.error(f"joint {joint.name!r} of body {joint.body!r} is a {joint.kind} joint ("
-                              + ("a floating body" if joint.kind == "free" else "three degrees of freedom")
-                              + "): serial chains of hinge and slide joints only; name the logged joints "
-                              "(joint_names, --joint-names) and the others are locked")
+            raise _unsupported_joint(model, joint)
     for label, joints in [*model.tendons, *model.equalities]:
         if joints is None:
             if label.startswith("tendon"):
@@ -482,7 +486,7 @@ def _serial_chain(model: _Model) -> list[str]:
     for index, name in enumerate(names):
         joint = model.joints[name]
         if joint.kind not in _MOVABLE:
-            continue  # refused by _check_constraints with the element named
+            raise _unsupported_joint(model, joint)
         expected = names[index - 1] if index else None
         if joint.parent != expected:
             base = _chain_ancestry(model, joint.parent) if joint.parent is not None else []

@@ -327,6 +327,12 @@ def test_bad_joint_selections_are_refused_by_name(menagerie, names, locked, mess
         robot_from_mjcf(menagerie, joint_names=names, locked_at=locked)
 
 
+def test_a_ball_joint_in_a_chain_without_names_is_refused(tmp_path):
+    path = _write(tmp_path, DEGREES.replace('<joint name="q3" type="slide"', '<joint name="q3" type="ball"'))
+    with pytest.raises(RobotDescriptionError, match="joint 'q3' of body 'b' is a ball joint"):
+        robot_from_mjcf(path)
+
+
 def test_a_urdf_is_not_read_as_mjcf_and_the_reverse(tmp_path):
     robot = load_robot("puma560")
     urdf = _write(tmp_path, robot_urdf(robot), "robot.urdf")
