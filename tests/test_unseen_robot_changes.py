@@ -240,10 +240,34 @@ def test_the_defaults_run_and_predict_a_changed_robot_as_well_as_a_plain_fit(cas
     said = json.loads((tmp_path / "default.json").read_text())["warnings"]
     if case.said:
         assert any(re.search(case.said, text) for text in said), said
+    said_changes(case, tmp_path)
     for label in ("default", "diagnose"):  # a still joint's declared friction left out and said, nowhere else
         left = json.loads((tmp_path / f"{label}.json").read_text()).get("not_determined", [])
         left_out = {item["parameter"] for item in left}  # diagnose declares viscous and offset, the rest candidates
         assert bool(left_out) == bool(case.held) and left_out <= {f"fv{case.held}", f"fc{case.held}"}, (label, left)
+
+
+def said_changes(case: Changed, folder: Path) -> None:
+    """``oed predict`` on the test record after each verb says the payload or the tilt the test holds, its estimate
+    within three standard deviations of the truth, and nothing on the other cases
+    (:mod:`estimation.identification.record_changes`)."""
+    from oed.workflows.predict import predict
+
+    expected = ["payload"] if case.payload else ["gravity"] if case.tilt else []
+    for label in ("default", "diagnose"):
+        result = folder / f"{label}.json"
+        if not result.is_file():
+            continue
+        changed = predict(model=result, data=[folder / "test.csv"]).to_dict()["changed"]
+        said = [entry["change"] for entry in changed["said"]]
+        assert said == expected, (label, changed["summary"])
+        if case.payload:
+            entry = changed["said"][0]
+            assert abs(entry["mass"] - case.payload) <= 3 * entry["mass_std"], (label, changed["summary"])
+            assert abs(entry["com"][2] - 0.1) <= 3 * entry["com_std"][2] + 1e-3, (label, changed["summary"])
+        if case.tilt:
+            entry = changed["said"][0]
+            assert abs(entry["tilt_deg"] - case.tilt) <= 3 * entry["tilt_std_deg"], (label, changed["summary"])
 
 
 def test_a_still_joints_unexcited_columns_are_left_out_and_nothing_else():
