@@ -51,12 +51,15 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
+import casadi
 import numpy as np
 from numpy.typing import NDArray
 
 from dynamics.channels import is_joint_torque
 from dynamics.measurements import Measurements
-from dynamics.models import ModelKind, build_model
+from dynamics.codegen.compiled import SampleEvaluator
+from dynamics.models import ModelKind
+from dynamics.newton_euler import rigid_body_regressors
 from estimation.data.segments import segment_slices
 from estimation.uncertainty.wald import wald_test
 from estimation.identification.mount import mount_rpy
@@ -281,20 +284,22 @@ class _Gravity(_Family):
         self.declared = np.asarray(robot.gravity, dtype=float) / self.magnitude
         self.across = np.linalg.svd(self.declared[None, :])[2][1:]
         model = identified.model
-        self.others = [build_model(robot.with_gravity(self.magnitude * axis), model.kind, ()) for axis in self.across]
-        self.rigid = self.others[0].n_parameters  # the standard parameters come first in every model's columns
+        self.rigid = 10 * robot.n_joints  # the standard parameters come first in every model's columns
+        self.evaluator = rest_regressors(robot, np.vstack([self.declared, self.across]) * self.magnitude)
+        self.evaluated: dict[int, NDArray[np.float64]] = {}
         K = model.base.K
         nominal = model.nominal_parameters()
         theta = np.asarray(identified.theta, dtype=float)
         # the model's bodies: its base parameters, completed by the description's where the training saw nothing
-        self.standard = (nominal + np.linalg.pinv(K) @ (theta - K @ nominal))[:self.rigid]
+        inverse = np.linalg.pinv(K)
+        self.standard = (nominal + inverse @ (theta - K @ nominal))[:self.rigid]
         # how far the description is off where the training saw it (the base parameters of the bodies alone): the
         # relative error given to its share, the directions the training did not determine
         bodies = np.all(K[:, self.rigid:] == 0.0, axis=1)
         described = K[bodies] @ nominal
         self.description_error = float(np.linalg.norm(theta[bodies] - described)
                                        / max(np.linalg.norm(described), np.finfo(float).tiny)) if bodies.any() else 1.0
-        unseen = (np.eye(K.shape[1]) - np.linalg.pinv(K) @ K)[:self.rigid, :self.rigid]
+        unseen = (np.eye(K.shape[1]) - inverse @ K)[:self.rigid, :self.rigid]
         share = unseen * (self.description_error * nominal[:self.rigid])[None, :]
         self.description_cov = share @ share.T  # the description's share of the bodies: its covariance
 
@@ -305,10 +310,13 @@ class _Gravity(_Family):
 
     def rest_regressors(self, q: NDArray) -> NDArray[np.float64]:
         """``(3, N, m, p)``: the bodies' regressor at rest with gravity along ``ĝ, e_1, e_2`` (the log's units)."""
-        rest = np.zeros_like(q)
-        regressors = [self.identified.model.evaluate(q, rest, rest)[:, :, :self.rigid]]
-        regressors += [other.evaluate(q, rest, rest) for other in self.others]
-        return np.stack(regressors) * self.factors[None, None, :, None]
+        q = np.ascontiguousarray(q, dtype=float)
+        key = hash(q.tobytes())
+        if key not in self.evaluated:  # the same rows are asked for by the fit, its covariance and its scores
+            regressors = self.evaluator(q)  # (N, 3 n p): Yᵀ of each gravity, column-major
+            regressors = regressors.reshape(q.shape[0], 3, q.shape[1], self.rigid).transpose(1, 0, 2, 3)
+            self.evaluated = {key: regressors * self.factors[None, None, :, None]}  # the last rows only
+        return self.evaluated[key]
 
     def bodies_cov(self, beta: NDArray, columns: NDArray, weights: NDArray, inverse: NDArray, q: NDArray
                    ) -> NDArray[np.float64]:
@@ -355,6 +363,24 @@ class _Gravity(_Family):
                 "coefficients_std": np.sqrt(np.clip(np.diag(cov), 0.0, None)).tolist()}
 
 
+def rest_regressors(robot: Any, gravities: NDArray[np.float64]) -> SampleEvaluator:
+    """The bodies' joint-torque regressor at rest (``q̇ = q̈ = 0``: the gravity load per standard parameter) with
+    gravity along each row of ``gravities`` (m/s², base frame), stacked: per sample ``[Y_1ᵀ, Y_2ᵀ, …]`` (``10 n`` by
+    ``n`` each), one compiled function (:class:`~dynamics.codegen.compiled.SampleEvaluator`, cached on disk) and no
+    base-parameter reduction, which a model of each gravity would cost (:func:`dynamics.models.build_model`)."""
+    blocks, q = [], None
+    for gravity in np.atleast_2d(gravities):
+        rigid = rigid_body_regressors(robot.with_gravity(np.asarray(gravity, dtype=float)))
+        joint = casadi.substitute(rigid.joint, casadi.vertcat(rigid.dq, rigid.ddq), casadi.SX.zeros(2 * robot.n_joints))
+        if q is None:
+            q = rigid.q
+        else:
+            joint = casadi.substitute(joint, rigid.q, q)
+        blocks.append(joint.T)
+    function = casadi.Function("rest_regressors", [q], [casadi.cse(casadi.horzcat(*blocks))], ["q"], ["Yt"])
+    return SampleEvaluator(function)
+
+
 def check_record_changes(identified: IdentifiedModel, prepared: Measurements, prediction: Prediction,
                          floor: dict[str, float] | None) -> RecordChanges | None:
     """Test the residual of ``prediction`` (the model's along the prepared record ``prepared``) against a payload on
@@ -382,7 +408,8 @@ def check_record_changes(identified: IdentifiedModel, prepared: Measurements, pr
     if not np.all(floors > 0):
         return None
     families: list[_Family] = [_Payload(identified, factors)]
-    if np.linalg.norm(identified.robot.gravity) > 0:
+    if np.linalg.norm(identified.robot.gravity) > 0 and identified.model.kind is ModelKind.INTERNAL \
+            and len(channels) == identified.robot.n_joints:  # each joint's torque, in order: the bodies' rows
         families.append(_Gravity(identified, factors))
     rows = _rows(record.n_samples)
     q, dq, ddq = record.q[rows], record.dq[rows], record.ddq[rows]
