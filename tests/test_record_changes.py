@@ -87,7 +87,7 @@ def test_gravity_turned_is_said_with_its_angle(puma):
     assert found["gravity"][0] > 0.3  # turned about y: gravity gains +x
 
 
-@pytest.mark.slow  # 12 draws, about 80 s (each builds the turned gravity's two models)
+@pytest.mark.slow  # 12 draws, about 30 s at load 15 (each predicts, fits both families and their halves)
 def test_unchanged_records_say_nothing_and_the_test_is_calibrated(puma):
     p_values, said = [], []
     for seed in range(DRAWS):

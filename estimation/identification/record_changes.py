@@ -70,7 +70,7 @@ if TYPE_CHECKING:
     from estimation.identification.identified_model import IdentifiedModel, Prediction
 
 __all__ = ["ALPHA", "FITTED_LABEL", "MARK", "MIN_FLOORS", "WORSE_FLOORS", "WORSE_LIMIT", "FamilyFit", "RecordChanges",
-           "check_record_changes"]
+           "check_record_changes", "rest_regressors"]
 
 #: the family-wise level of the test over the families (Bonferroni)
 ALPHA = 1e-3
