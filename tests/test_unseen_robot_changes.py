@@ -75,6 +75,9 @@ class Changed:
     # family of the truth's own law at another shape
     slow: bool = True
     xfail: str = ""
+    #: the verbs whose model's estimate of the change `oed predict` gives more than three standard deviations off the
+    #: truth (held as measured: the test fails when it comes within them)
+    estimate_missed: tuple[str, ...] = ()
 
 
 def motion_limits(robot) -> SimpleNamespace:
@@ -218,7 +221,10 @@ CASES = (
             "10 s / 4 s / 6 s at 250 Hz, no dq", puma_urdf(6), *logs(),
             gains=(0.8, -0.5, 1.2, 1.8, 1.5, 0.3), said=r'"torque_signs": \{"joint2": -1\}'),
     Changed("PUMA 6 joints, a 2 kg payload picked up before the test (not in the training, nothing says so), "
-            "10 s / 4 s / 6 s at 250 Hz, no dq", puma_urdf(6), *logs(), payload=2.0),
+            "10 s / 4 s / 6 s at 250 Hz, no dq", puma_urdf(6), *logs(), payload=2.0,
+            # measured: after diagnose 1.9855 ± 0.0033 kg (4.3 standard deviations low; after identify 1.985 ± 0.0097,
+            # 1.5): the halves of the record agree (1.985, 1.986), a bias the model's covariance does not hold
+            estimate_missed=("diagnose",)),
     Changed("PUMA 3 joints, the tool pressed on a table for 1 s of the training record (40 N up on the last "
             "frame), 10 s / 4 s / 6 s at 250 Hz, no dq", puma_urdf(3), *logs(), contact=40.0),
     Changed("PUMA 6 joints on a mobile base, level while trained, 2° off level in the test, 10 s / 4 s / 6 s at "
@@ -240,10 +246,38 @@ def test_the_defaults_run_and_predict_a_changed_robot_as_well_as_a_plain_fit(cas
     said = json.loads((tmp_path / "default.json").read_text())["warnings"]
     if case.said:
         assert any(re.search(case.said, text) for text in said), said
+    missed = said_changes(case, tmp_path)
     for label in ("default", "diagnose"):  # a still joint's declared friction left out and said, nowhere else
         left = json.loads((tmp_path / f"{label}.json").read_text()).get("not_determined", [])
         left_out = {item["parameter"] for item in left}  # diagnose declares viscous and offset, the rest candidates
         assert bool(left_out) == bool(case.held) and left_out <= {f"fv{case.held}", f"fc{case.held}"}, (label, left)
+    assert tuple(missed) == case.estimate_missed, missed
+    if missed:  # held as measured: a strict xfail by hand (the rest of the case asserted above)
+        pytest.xfail(f"the change's estimate more than 3 standard deviations off the truth: {missed}")
+
+
+def said_changes(case: Changed, folder: Path) -> dict[str, str]:
+    """``oed predict`` on the test record after each verb says the payload or the tilt the test holds and nothing on
+    the other cases (:mod:`estimation.identification.record_changes`); the verbs after which its estimate is more
+    than three standard deviations off the truth, with the figures."""
+    from oed.workflows.predict import predict
+
+    expected = ["payload"] if case.payload else ["gravity"] if case.tilt else []
+    missed = {}
+    for label in ("default", "diagnose"):
+        result = folder / f"{label}.json"
+        if not result.is_file():
+            continue
+        changed = predict(model=result, data=[folder / "test.csv"]).to_dict()["changed"]
+        said = [entry["change"] for entry in changed["said"]]
+        assert said == expected, (label, changed["summary"])
+        entry = changed["said"][0] if said else {}
+        if case.payload and not (abs(entry["mass"] - case.payload) <= 3 * entry["mass_std"]
+                                 and abs(entry["com"][2] - 0.1) <= 3 * entry["com_std"][2] + 1e-3):
+            missed[label] = f"mass {entry['mass']:.4f} ± {entry['mass_std']:.2g} kg, z {entry['com'][2]:.4f} m"
+        if case.tilt and not abs(entry["tilt_deg"] - case.tilt) <= 3 * entry["tilt_std_deg"]:
+            missed[label] = f"tilt {entry['tilt_deg']:.3f} ± {entry['tilt_std_deg']:.2g}°"
+    return missed
 
 
 def test_a_still_joints_unexcited_columns_are_left_out_and_nothing_else():

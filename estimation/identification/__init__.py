@@ -2,7 +2,7 @@
 (the derivatives chosen by held-out evidence, on another motion when a validation record holds one), plain, shaped and delayed fits, the model's parameter vector as JSON,
 trivial predictors.
 
-Modules: :mod:`~estimation.identification.delayed`, :mod:`~estimation.identification.fit`, :mod:`~estimation.identification.joint_zeros`, :mod:`~estimation.identification.model_parameters`, :mod:`~estimation.identification.prepared`, :mod:`~estimation.identification.preprocessing_choice`, :mod:`~estimation.identification.preprocessing_on_validation`, :mod:`~estimation.identification.shaped`, :mod:`~estimation.identification.training_range`, :mod:`~estimation.identification.trivial_predictors`, :mod:`~estimation.identification.validation`.
+Modules: :mod:`~estimation.identification.delayed`, :mod:`~estimation.identification.fit`, :mod:`~estimation.identification.joint_zeros`, :mod:`~estimation.identification.model_parameters`, :mod:`~estimation.identification.prepared`, :mod:`~estimation.identification.preprocessing_choice`, :mod:`~estimation.identification.preprocessing_on_validation`, :mod:`~estimation.identification.record_changes`, :mod:`~estimation.identification.shaped`, :mod:`~estimation.identification.training_range`, :mod:`~estimation.identification.trivial_predictors`, :mod:`~estimation.identification.validation`.
 """
 
 from __future__ import annotations
@@ -33,11 +33,13 @@ _EXPORTS: dict[str, str] = {
     "PreprocessingChoice": "estimation.identification.preprocessing_choice",
     "REPEAT_FRACTION": "estimation.identification.repeated_motion",
     "RangeCheck": "estimation.identification.training_range",
+    "RecordChanges": "estimation.identification.record_changes",
     "RobotSource": "estimation.identification.model_file",
     "SCORED_SAMPLES": "estimation.identification.preprocessing_choice",
     "TrainingRange": "estimation.identification.training_range",
     "ShapeValue": "estimation.identification.shaped",
     "assess_plausibility": "estimation.identification.plausibility",
+    "check_record_changes": "estimation.identification.record_changes",
     "check_joint_zeros": "estimation.identification.joint_zeros",
     "choose_by_evidence": "estimation.identification.preprocessing_choice",
     "choose_on_validation": "estimation.identification.preprocessing_on_validation",

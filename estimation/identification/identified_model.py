@@ -44,6 +44,7 @@ from estimation.data.rest import coulomb_combinations, drop_rest
 from estimation.data.sampling_clock import on_regular_clock
 from estimation.estimators.effect_blocks import States
 from estimation.identification.model_file import ModelFile, ModelFileError, read_model_file
+from estimation.identification.record_changes import RecordChanges, check_record_changes
 from estimation.identification.shaped import shaped_blocks
 from estimation.identification.subtracted_load import added_back, load_channels, subtracted_torque
 from estimation.identification.training_range import UNKNOWN_RANGE, ExtrapolationWarning, RangeCheck
@@ -236,6 +237,9 @@ class Evaluation:
     #: the record against each joint's training range (:mod:`estimation.identification.training_range`); ``None``:
     #: the model file holds none (an earlier release's), the check cannot tell
     range_check: RangeCheck | None = None
+    #: whether the load or the mount changed since the training, tested on this record
+    #: (:mod:`estimation.identification.record_changes`); ``None``: not checked
+    changes: RecordChanges | None = None
 
     @property
     def mse_over_floor(self) -> dict[str, float] | None:
@@ -250,7 +254,8 @@ class Evaluation:
                 "nominal_mse": self.nominal_mse, "noise_floor_mse": self.floor_mse,
                 "reported_validation_mse": self.reported_validation_mse, "model": self.model,
                 "outside_training_range": None if self.range_check is None else self.range_check.to_dict(),
-                "training_range_note": UNKNOWN_RANGE if self.range_check is None else None}
+                "training_range_note": UNKNOWN_RANGE if self.range_check is None else None,
+                "changed": None if self.changes is None else self.changes.to_dict()}
 
 
 class IdentifiedModel:
@@ -436,11 +441,19 @@ class IdentifiedModel:
             measured = None
         directions = self.file.joint_directions
         if directions is not None and directions.reversed:  # the torques back in the log's directions (read flipped)
-            signs = np.array([directions.torque_signs[torque_joint(channel)] if is_joint_torque(channel) else 1.0
-                              for channel in self.channels])
+            signs = self.channel_signs()
             predicted = predicted * signs
             measured = None if measured is None else measured * signs
         return Prediction(record.t, predicted, predicted - half, predicted + half, measured, self.channels)
+
+    def channel_signs(self) -> NDArray[np.float64]:
+        """Each channel's sign in the log against the model's (``-1``: a joint whose torque the log records reversed,
+        the model file's ``joint_directions``; ``1`` elsewhere)."""
+        directions = self.file.joint_directions
+        if directions is None or not directions.reversed:
+            return np.ones(len(self.channels))
+        return np.array([directions.torque_signs[torque_joint(channel)] if is_joint_torque(channel) else 1.0
+                         for channel in self.channels])
 
     def read(self, paths: Sequence[str | Path]) -> tuple[Measurements, ...]:
         """The segments of the files, motor-side columns converted by the model's transmission, the model file's
@@ -516,9 +529,11 @@ class IdentifiedModel:
             warnings.warn(message, ExtrapolationWarning, stacklevel=2)
         return check
 
-    def evaluate(self, paths: Sequence[str | Path]) -> Evaluation:
+    def evaluate(self, paths: Sequence[str | Path], *, changes: bool = True) -> Evaluation:
         """Read ``paths`` (the segments of one record), prepare them, predict and compare (``oed predict``); a
-        record that leaves the joints' training range is said (:meth:`check_range`)."""
+        record that leaves the joints' training range is said (:meth:`check_range`); ``changes``: the residual tested
+        for a load or a mount changed since the training (:mod:`estimation.identification.record_changes`; the
+        prediction unchanged)."""
         stamped = self.read_as_stamped(paths)
         segments = self.on_time_base(stamped)
         prepared = self.prepare(segments)
@@ -530,6 +545,7 @@ class IdentifiedModel:
         prediction = self.predict_record(prepared)
         if any(segment is not original for segment, original in zip(segments, stamped)):
             prediction = dataclasses.replace(prediction, stamps=recorded_stamps(prediction.t, segments, stamped))
-        return Evaluation(prediction, trivial["zero_mse"], trivial["nominal_mse"],
-                          self.floor(segments),
-                          self.reported_validation_mse, self.estimate, check)
+        floor = self.floor(segments)
+        found = check_record_changes(self, prepared, prediction, floor) if changes else None
+        return Evaluation(prediction, trivial["zero_mse"], trivial["nominal_mse"], floor,
+                          self.reported_validation_mse, self.estimate, check, found)

@@ -1,6 +1,6 @@
 """How far to trust an estimate: covariance that holds for correlated residuals (batch means), Monte-Carlo coverage, residual whiteness, the noise floor, residual tracing.
 
-Modules: :mod:`~estimation.uncertainty.batch_means`, :mod:`~estimation.uncertainty.covariance`, :mod:`~estimation.uncertainty.coverage`, :mod:`~estimation.uncertainty.noise_floor`, :mod:`~estimation.uncertainty.residual_tracing`, :mod:`~estimation.uncertainty.whiteness`.
+Modules: :mod:`~estimation.uncertainty.batch_means`, :mod:`~estimation.uncertainty.covariance`, :mod:`~estimation.uncertainty.coverage`, :mod:`~estimation.uncertainty.noise_floor`, :mod:`~estimation.uncertainty.residual_tracing`, :mod:`~estimation.uncertainty.wald`, :mod:`~estimation.uncertainty.whiteness`.
 """
 
 from __future__ import annotations
@@ -27,6 +27,8 @@ _EXPORTS: dict[str, str] = {
     "check_method": "estimation.uncertainty.covariance",
     "compare_with_floor": "estimation.uncertainty.floor_comparison",
     "cross_correlation": "estimation.uncertainty.whiteness",
+    "WaldTest": "estimation.uncertainty.wald",
+    "wald_test": "estimation.uncertainty.wald",
     "difference_variance": "estimation.uncertainty.noise_floor",
     "fourier_residual_variance": "estimation.uncertainty.noise_floor",
     "hac_covariance": "estimation.uncertainty.covariance",

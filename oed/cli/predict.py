@@ -40,7 +40,8 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
                         "band and the residual (.png, .pdf, .svg)")
     parser.add_argument("--metrics", type=Path, help="metrics JSON: mse, mse_over_floor, n_samples, zero_mse, "
                                                      "nominal_mse, noise_floor_mse, reported_validation_mse, "
-                                                     "outside_training_range (per joint)")
+                                                     "outside_training_range (per joint), changed (a payload on the "
+                                                     "last link or gravity turned, tested on this record)")
     return parser
 
 

@@ -94,6 +94,8 @@ def predict(*, model: str | Path, data: Any, consistent: bool = False, alternati
              + f"), {prediction.t.shape[0]} samples; "
              f"{identified.preprocessing.describe(applied=True).removeprefix('preprocessing: ')}",
              *table_lines(evaluation), range_line(evaluation)]
+    if evaluation.changes is not None:  # a load or a mount changed since the training (the prediction unchanged)
+        lines.append(evaluation.changes.line())
     return PredictRun(evaluation, tuple(lines), messages)
 
 

@@ -25,10 +25,8 @@ candidate fitted against fixed columns (:class:`~estimation.estimators.separable
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
 
 import numpy as np
-import scipy.stats
 from numpy.typing import NDArray
 
 from estimation.estimators.effect_blocks import Block, States
@@ -42,38 +40,9 @@ from estimation.estimators.separable_least_squares import (
 )
 from estimation.uncertainty.batch_means import batch_length, batch_means
 from estimation.uncertainty.covariance import prewhitened_long_run_covariance
+from estimation.uncertainty.wald import WaldTest, wald_test
 
 __all__ = ["WaldTest", "estimate_test", "fit_covariance", "wald_test"]
-
-
-@dataclass(frozen=True)
-class WaldTest:
-    """``W = θ_bᵀ C_bb⁻¹ θ_b`` of ``dof`` coefficients and its χ² p-value (module docstring)."""
-
-    statistic: float
-    p_value: float
-    dof: int
-
-    @property
-    def f_statistic(self) -> float:
-        """``W / k``: the F statistic of the test made robust."""
-        return self.statistic / max(self.dof, 1)
-
-
-def wald_test(theta: NDArray[np.float64], cov: NDArray[np.float64]) -> WaldTest:
-    """The Wald test of ``θ = 0`` with covariance ``cov`` (a pseudo-inverse: a direction without
-    variance carries no evidence)."""
-    theta = np.atleast_1d(np.asarray(theta, dtype=float))
-    cov = np.atleast_2d(np.asarray(cov, dtype=float))
-    if theta.size == 0:
-        return WaldTest(0.0, 1.0, 0)
-    if not (np.all(np.isfinite(theta)) and np.all(np.isfinite(cov))):
-        return WaldTest(float("nan"), 1.0, theta.size)
-    scale = np.sqrt(np.clip(np.diag(cov), 0.0, None))
-    scale = np.where(scale > 0, scale, 1.0)
-    statistic = float(max((theta / scale) @ np.linalg.pinv(cov / np.outer(scale, scale), hermitian=True)
-                          @ (theta / scale), 0.0))
-    return WaldTest(statistic, float(scipy.stats.chi2.sf(statistic, theta.size)), int(theta.size))
 
 
 def _inverse(matrix: NDArray[np.float64]) -> NDArray[np.float64]:
