@@ -12,7 +12,9 @@
 - a 1 kHz logger with 30 s records (30 000 samples of six joints a training record);
 - torques logged in mN·m with a units row saying so;
 - ROS 2 bags of ``sensor_msgs/JointState`` (two publishers, the joints in another order among others that are not
-  the robot's) for every record.
+  the robot's) for every record;
+- a light 7-joint arm behind gears of high ratio: the motors' reflected inertia (armature) up to 30 times the
+  links' own about the joint (at the zero pose), not in the URDF.
 
 No data are copied; every record is simulated here: the plain fit's model class (the description's bodies ±20 %,
 :func:`tests.test_unseen_robots.truth`), white torque noise of 2 % of each channel's spread. Training and validation
@@ -44,6 +46,7 @@ from tests.test_unseen_robot_changes import motion_limits
 from tests.test_unseen_robot_kinds import as_well_as_the_plain_fit, marks, point_to_point
 from tests.test_unseen_robot_labs import verbs_against_the_plain_fit
 from tests.test_unseen_robot_mounts import rotation
+from tests.test_unseen_robot_rigs import seven_joint_urdf
 from tests.test_unseen_robots import FRICTION, NOISE, Log, logged, times, truth
 
 PI = np.pi
@@ -142,6 +145,7 @@ class Site:
     units: str = ""  # the torques written in this unit (a units row beneath the header says it): "mN·m"
     bag: bool = False  # every record a ROS 2 bag of JointState messages
     reading: tuple[str, ...] = ()  # options every verb is given to read the log
+    armature: tuple[float, ...] = ()  # kg m²: each joint's reflected rotor inertia, not in the URDF
     slow: bool = True
     xfail: str = ""
 
@@ -212,6 +216,8 @@ def write_records(case: Site, folder: Path) -> tuple[Path, dict, dict, np.ndarra
         t = times(log, generator)
         q, dq, ddq = motion(case, role, limits, seed, t)
         tau = model.predict(theta, q, dq, ddq)
+        if case.armature:
+            tau = tau + np.asarray(case.armature) * ddq
         if spread is None:
             spread = tau.std(axis=0)
         tau = tau + generator.normal(0.0, 1.0, tau.shape) * NOISE * spread
@@ -262,6 +268,9 @@ SITES = (
     Site("PUMA 6 joints, every record a ROS 2 bag of JointState (two publishers, the joints reversed among a "
          "gripper's and a head's), 10 s / 4 s / 6 s at 100 Hz, no velocity", puma_urdf(6), *logs(rate=100.0),
          bag=True),
+    Site("a light 7-joint arm behind high-ratio gears (armature 0.006-0.4 kg m², up to 30x the links' own inertia "
+         "about the joint), 10 s / 4 s / 6 s at 500 Hz, no dq", seven_joint_urdf, *logs(rate=500.0),
+         armature=(0.2, 0.4, 0.1, 0.3, 0.04, 0.05, 0.006)),
 )
 
 
@@ -277,7 +286,8 @@ def test_the_defaults_run_and_predict_a_sites_robot_as_well_as_a_plain_fit(case,
     for label, error in outcome["reproduced"].items():
         assert error < RELATIVE, (label, error)
     plain_class = ("viscous on", "coulomb on", "offset on")  # the truth's own laws; nothing else named
-    named = [effect for effect in outcome["effects"]["diagnose"] if not effect.startswith(plain_class)]
+    truth_class = plain_class + (("armature on",) if case.armature else ())
+    named = [effect for effect in outcome["effects"]["diagnose"] if not effect.startswith(truth_class)]
     assert not named, named
 
 
