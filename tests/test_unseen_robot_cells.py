@@ -433,7 +433,8 @@ def test_a_csv_dialect_is_read_where_header_and_rows_agree(tmp_path):
 
 def test_a_units_row_of_si_units_is_skipped_and_said(tmp_path):
     """``[s], [rad], [N m]`` beneath the names: skipped (in memory and streamed) with a :class:`UnitsRowWarning`;
-    a row naming other units (``deg``) or holding a number is not skipped (the text refused as before)."""
+    a row naming another unit of an angle (``deg``) is skipped and the angle converted; one naming a unit of
+    another quantity (``mA`` for a torque) or holding a number is not skipped (the text refused as before)."""
     from dynamics.models import build_model
     from estimation.data import DelimiterWarning, NonFiniteError, UnitsRowWarning
     from estimation.data.loading import si_units_row
@@ -466,10 +467,15 @@ def test_a_units_row_of_si_units_is_skipped_and_said(tmp_path):
         (segment,) = read_record(spreadsheet["b"], require=("tau",))
     assert {type(item.message) for item in said} == {UnitsRowWarning, DelimiterWarning}
     assert np.array_equal(segment.tau[:, 0], np.cos(t))
-    text = files["a"].read_text().replace("[rad]", "[deg]")
+    text = files["a"].read_text().replace("[rad]", "[deg]")  # another unit of an angle: converted (h-unseen12)
     (tmp_path / "degrees.csv").write_text(text)
+    with pytest.warns(UnitsRowWarning, match="q1 read as SI units"):
+        (segment,) = read_record(tmp_path / "degrees.csv", require=("tau",))
+    assert np.allclose(segment.q[:, 0], np.radians(np.sin(t)), rtol=1e-15, atol=0.0)
+    text = files["a"].read_text().replace("[N·m]", "[mA]")  # a current: its factor is the robot's, refused
+    (tmp_path / "current.csv").write_text(text)
     with pytest.raises(NonFiniteError, match="units"):
-        read_record(tmp_path / "degrees.csv", require=("tau",))
+        read_record(tmp_path / "current.csv", require=("tau",))
 
 
 def test_a_time_column_under_another_name_is_read_where_its_unit_is_plain():

@@ -427,10 +427,10 @@ def test_a_units_row_and_a_comment_line_are_named(tmp_path):
     pd.concat([units, clean]).to_csv(tmp_path / "units.csv", index=False)
     with pytest.warns(UnitsRowWarning, match="s,rad,rad,rad,N m,N m,N m"):
         read_measurements(tmp_path / "units.csv", model=model)
-    units = pd.DataFrame([["s", "deg", "deg", "deg", "N m", "N m", "N m"]], columns=clean.columns)
-    pd.concat([units, clean]).to_csv(tmp_path / "degrees.csv", index=False)
+    units = pd.DataFrame([["s", "rad", "rad", "rad", "A", "A", "A"]], columns=clean.columns)  # currents (h-unseen12:
+    pd.concat([units, clean]).to_csv(tmp_path / "currents.csv", index=False)  # deg, mN·m are converted)
     with pytest.raises(NonFiniteError, match=r"a second header line \(units\?\) beneath the names"):
-        read_measurements(tmp_path / "degrees.csv", model=model)
+        read_measurements(tmp_path / "currents.csv", model=model)
     (tmp_path / "comment.csv").write_text("# rig 3, 27 Nov\n" + (tmp_path / "clean.csv").read_text())
     with pytest.raises(MissingColumnError, match="a comment .*remove the comment lines above the header"):
         read_measurements(tmp_path / "comment.csv", model=model)

@@ -154,7 +154,8 @@ class DelimiterWarning(MeasurementWarning):
 
 
 class UnitsRowWarning(MeasurementWarning):
-    """A CSV file's second line named each column's unit, all of them the format's SI units: it was skipped."""
+    """A CSV file's second line named each column's unit: it was skipped, and the columns in other units of the same
+    quantity (``ms``, ``deg``, ``mN·m``) were turned into the format's SI units (the message says which, by what)."""
 
 
 class UnwrappedAngleWarning(MeasurementWarning):
@@ -286,29 +287,65 @@ def csv_dialect(header: str, rows: Sequence[str]) -> tuple[str, str] | None:
 #: ``*`` and ``^``): a revolute joint's or a prismatic joint's
 SI_UNITS = {"t": ("s", "sec", "secs", "second", "seconds"), "q": ("rad", "m"), "dq": ("rad/s", "m/s"),
             "ddq": ("rad/s2", "rad/s²", "m/s2", "m/s²"), "tau": ("nm", "n")}
+#: other units of the same quantities a units row may name (written as :data:`SI_UNITS`), with the factor that turns a
+#: value in them into the format's SI unit: a decimal prefix, or degrees for radians; a unit of another quantity (a
+#: current, ``mA``) is not one (its factor to N m is the robot's, not the unit's)
+CONVERTED_UNITS = {
+    "t": {"ms": 1e-3, "msec": 1e-3, "us": 1e-6, "µs": 1e-6, "μs": 1e-6, "ns": 1e-9},
+    "q": {"deg": np.pi / 180.0, "degree": np.pi / 180.0, "degrees": np.pi / 180.0, "°": np.pi / 180.0,
+          "mrad": 1e-3, "mm": 1e-3, "cm": 1e-2},
+    "dq": {"deg/s": np.pi / 180.0, "°/s": np.pi / 180.0, "mrad/s": 1e-3, "mm/s": 1e-3},
+    "ddq": {"deg/s2": np.pi / 180.0, "deg/s²": np.pi / 180.0, "°/s2": np.pi / 180.0, "°/s²": np.pi / 180.0,
+            "mm/s2": 1e-3, "mm/s²": 1e-3},
+    "tau": {"mnm": 1e-3, "nmm": 1e-3, "ncm": 1e-2, "knm": 1e3, "mn": 1e-3, "kn": 1e3},
+}
 _COLUMN_GROUP = re.compile(r"^(t|q|dq|ddq|tau)\d*$")
+
+
+def units_row_factors(names: Sequence[str], row: Sequence[str]) -> dict[str, float] | None:
+    """The factors that turn each column named in ``row`` (the line beneath the header ``names``, split alike) into
+    the format's SI unit, where ``row`` is a units row: no field a number, and every column of ``t, q.., dq.., ddq..,
+    tau..`` in :data:`SI_UNITS` (``s``, ``[rad]``, ``(N m)``, ``N·m``...) or :data:`CONVERTED_UNITS` (``ms``,
+    ``deg``, ``mN·m``, ``N·mm``...); other columns' fields are not looked at. ``{column: factor}`` for the columns
+    not in SI units (``{}`` where all are), ``None`` where ``row`` is not such a units row (a unit of another
+    quantity, ``mA``, is the user's to convert: the reader then refuses the text, as before)."""
+    if len(row) != len(names):
+        return None
+    fields = [field.strip().strip('"\'') for field in row]
+    if any(_is_number(field) for field in fields):
+        return None
+    known, factors = 0, {}
+    for name, field in zip(names, fields):
+        column = str(name).strip().strip('"\'')
+        group = _COLUMN_GROUP.match(column)
+        if group is None:
+            continue
+        unit = re.sub(r"[\s\[\]()·.*^]", "", field).lower()
+        if unit in CONVERTED_UNITS[group.group(1)]:
+            factors[column] = CONVERTED_UNITS[group.group(1)][unit]
+        elif unit not in SI_UNITS[group.group(1)]:
+            return None
+        known += 1
+    return factors if known > 0 else None
 
 
 def si_units_row(names: Sequence[str], row: Sequence[str]) -> bool:
     """Whether ``row`` (the line beneath the header ``names``, split alike) is a units row naming the format's SI
-    units: no field a number, and every column of ``t, q.., dq.., ddq.., tau..`` in :data:`SI_UNITS` (``s``,
-    ``[rad]``, ``(N m)``, ``N·m``...); other columns' fields are not looked at. A row naming another unit (``deg``,
-    ``ms``, ``mNm``) is not one: converting is the user's (the reader then refuses the text, as before)."""
-    if len(row) != len(names):
-        return False
-    fields = [field.strip().strip('"\'') for field in row]
-    if any(_is_number(field) for field in fields):
-        return False
-    known = 0
-    for name, field in zip(names, fields):
-        group = _COLUMN_GROUP.match(str(name).strip().strip('"\''))
-        if group is None:
-            continue
-        unit = re.sub(r"[\s\[\]()·.*^]", "", field).lower()
-        if unit not in SI_UNITS[group.group(1)]:
-            return False
-        known += 1
-    return known > 0
+    units only (:func:`units_row_factors` with nothing to convert)."""
+    return units_row_factors(names, row) == {}
+
+
+def in_si_units(frame: pd.DataFrame, factors: dict[str, float]) -> pd.DataFrame:
+    """``frame`` with each column of ``factors`` multiplied by its factor (a units row's other units turned into
+    the format's SI units); a column holding text is left as read (the reader's error names the text)."""
+    if not factors:
+        return frame
+    frame = frame.copy() if any(str(name).strip() in factors for name in frame.columns) else frame
+    for name in frame.columns:
+        factor = factors.get(str(name).strip())
+        if factor is not None and pd.api.types.is_numeric_dtype(frame[name]):
+            frame[name] = frame[name] * factor
+    return frame
 
 
 def _is_number(text: str) -> bool:

@@ -52,7 +52,8 @@ from estimation.data.loading import (
     check_time,
     count_joint_columns,
     csv_dialect,
-    si_units_row,
+    in_si_units,
+    units_row_factors,
     numeric_columns,
     require_columns,
     other_delimiter,
@@ -206,16 +207,39 @@ DIALECT_ROWS = 20
 
 
 def read_csv_frame(path: Path) -> pd.DataFrame:
-    """The CSV file as a table: comma-separated with ``.`` decimals, or as :func:`csv_options` says."""
-    return pd.read_csv(path, **csv_options(path))
+    """The CSV file as a table: comma-separated with ``.`` decimals, or as :func:`csv_options` says, its columns in
+    the format's SI units (:func:`csv_units`)."""
+    return in_si_units(pd.read_csv(path, **csv_options(path)), csv_units(path))
+
+
+def _units_row(path: Path) -> tuple[str, list[str], list[str]] | None:
+    """``(delimiter, header fields, second line's fields)`` of a CSV file (``None`` where it cannot be read)."""
+    try:
+        with open(path, errors="replace") as stream:
+            header, row = stream.readline(), stream.readline()
+    except OSError:
+        return None
+    delimiter = other_delimiter(header) or ","
+    return delimiter, header.rstrip("\r\n").split(delimiter), row.rstrip("\r\n").split(delimiter)
+
+
+def csv_units(path: Path) -> dict[str, float]:
+    """The factors that turn a CSV file's columns into the format's SI units, as its units row names them
+    (:func:`~estimation.data.loading.units_row_factors`: ``{"tau1": 0.001}`` for ``mN·m``); ``{}`` without a units
+    row or where it names SI units only. Every reader of a CSV file (in memory, streamed, motor side) multiplies
+    by them (:func:`~estimation.data.loading.in_si_units`)."""
+    read = _units_row(path)
+    if read is None:
+        return {}
+    return units_row_factors(read[1], read[2]) or {}
 
 
 def csv_options(path: Path) -> dict[str, object]:
     """``pandas.read_csv``'s ``sep`` and ``decimal`` for a CSV file whose header and first rows agree on another
     delimiter than the comma (:func:`~estimation.data.loading.csv_dialect`: ``;`` with ``,`` decimals, a
     spreadsheet's European export), said in a :class:`DelimiterWarning`, and ``skiprows`` for a units row beneath
-    the header naming the format's SI units (:func:`~estimation.data.loading.si_units_row`), said in a
-    :class:`UnitsRowWarning`; ``{}`` for a plain file or where nothing can be told (the reader's error then names
+    the header naming each column's unit (:func:`~estimation.data.loading.units_row_factors`; other units than
+    the format's are converted by the reader, :func:`csv_units`), said in a :class:`UnitsRowWarning`; ``{}`` for a plain file or where nothing can be told (the reader's error then names
     the separator, or the text beneath the names)."""
     try:
         with open(path, errors="replace") as stream:
@@ -224,10 +248,14 @@ def csv_options(path: Path) -> dict[str, object]:
         return {}
     options: dict[str, object] = {}
     delimiter = other_delimiter(header) or ","
-    if rows and si_units_row(header.rstrip("\r\n").split(delimiter), rows[0].rstrip("\r\n").split(delimiter)):
+    factors = units_row_factors(header.rstrip("\r\n").split(delimiter), rows[0].rstrip("\r\n").split(delimiter)) \
+        if rows else None
+    if factors is not None:
         options["skiprows"] = [1]
-        warnings.warn(UnitsRowWarning(f"{path}: its second line names the columns' units ({rows[0].strip()}), the "
-                                      "format's SI units: skipped"), stacklevel=3)
+        converted = "".join(f"; {name} read as SI units (x{factor:g})" for name, factor in factors.items())
+        warnings.warn(UnitsRowWarning(f"{path}: its second line names the columns' units ({rows[0].strip()})"
+                                      + (converted if factors else ", the format's SI units") + ": skipped"),
+                      stacklevel=3)
         rows = rows[1:]
     dialect = csv_dialect(header, rows[:DIALECT_ROWS])
     if dialect is None:

@@ -57,8 +57,9 @@ from estimation.data.loading import (
     MeasurementWarning,
     TimeBaseError,
     TooFewSamplesError,
+    in_si_units,
 )
-from estimation.data.records import AngleTurns, csv_options, measurements_from_frame, said_unwrapped, unwrap_angles
+from estimation.data.records import AngleTurns, csv_options, csv_units, measurements_from_frame, said_unwrapped, unwrap_angles
 from estimation.data.sampling_clock import ClockSums, said_receive_times
 from dynamics.measurements import Measurements, joint_columns
 from estimation.estimators.identification_problem import BandWindow, ResidualBand, decay_length
@@ -123,8 +124,10 @@ def _raw_frames(path: Path, chunk_size: int, only_time: bool = False) -> Iterato
     try:
         if suffix == ".csv":
             usecols = (lambda name: str(name).strip() == "t") if only_time else None
+            factors = csv_units(path)  # a units row's other units turned into SI, as in memory
             with pd.read_csv(path, chunksize=chunk_size, usecols=usecols, **csv_options(path)) as reader:
-                yield from reader
+                for frame in reader:
+                    yield in_si_units(frame, factors)
         else:
             try:
                 import pyarrow.parquet

@@ -1,5 +1,6 @@
 """Rules of the search shared by the in-memory and the streamed diagnosis: which candidates
-compete together, which screened shapes are searched again, and when a spring is an offset in disguise."""
+compete together, which screened shapes are searched again, and when a spring or an armature is an offset in
+disguise."""
 
 from __future__ import annotations
 
@@ -48,20 +49,32 @@ def candidate_groups(blocks: dict[int, Block], model: IdentificationModel) -> li
     return groups
 
 
+#: relative difference of two weighted RSS within which they are one (rounding: two candidates whose columns span
+#: the same space with the current model's fit alike to ~1e-15; a statistical tie is not one)
+SAME_RSS = 1e-9
+
+
 def offsets_beat_springs(trials, model, offset_joints=frozenset()) -> dict[tuple[int, ...], str]:
-    """Springs whose joint's offset explains as much: a stiffness that is an offset in disguise
-    (``k·mean(q)`` equal to the offset) is not a spring. A spring on a joint whose offset the current
-    model holds (``offset_joints``) is tested beside it: nothing to compare."""
+    """Springs and armatures whose joint's offset explains as much: a stiffness that is an offset in disguise
+    (``k·mean(q)`` equal to the offset) is not a spring, nor an armature one whose column is the offset's with the
+    current model (a vertical linear axis: its carried mass's column ``ddq + g`` less the armature's ``ddq`` is a
+    constant, so either completes the model alike on every motion, and the constant is the simpler law). A spring
+    or an armature on a joint whose offset the current model holds (``offset_joints``) is tested beside it: nothing
+    to compare. "As much" is within rounding (:data:`SAME_RSS`)."""
     offsets = {joints_of(t.blocks[0], model): t for t in trials if len(t.blocks) == 1 and t.blocks[0].effect.name == "offset"}
     reasons = {}
     for trial in trials:
-        if len(trial.blocks) != 1 or trial.blocks[0].effect.name != "spring":
+        if len(trial.blocks) != 1 or trial.blocks[0].effect.name not in ("spring", "armature"):
             continue
         if joints_of(trial.blocks[0], model) in offset_joints:
             continue
         offset = offsets.get(joints_of(trial.blocks[0], model))
+        spring = trial.blocks[0].effect.name == "spring"
         if offset is None:
-            reasons[trial.group] = "no offset on its joint to compare it with (a spring must explain more than an offset)"
-        elif offset.rss <= trial.rss:
-            reasons[trial.group] = "an offset explains as much (a stiffness that is an offset in disguise)"
+            if spring:
+                reasons[trial.group] = "no offset on its joint to compare it with (a spring must explain more than an offset)"
+        elif offset.rss <= trial.rss * (1.0 + SAME_RSS):
+            reasons[trial.group] = ("an offset explains as much (a stiffness that is an offset in disguise)" if spring
+                                   else "an offset explains as much (an armature that is an offset in disguise: its "
+                                        "column is the offset's beside the joint's constant gravity)")
     return reasons
