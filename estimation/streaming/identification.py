@@ -77,9 +77,10 @@ STREAMED_NOT_COMPUTED = {
     "gravity": "the fit with the found gravity (or none) is a candidate of the answer chosen from sums "
                "(estimation.consistent.mounted_gravity), as in memory; where no answer is chosen streamed (the "
                "Fourier path of averaged periods), no mount is checked and the model keeps the description's gravity",
-    "subtracted": "torques that hold no gravity load are said, not tried as a log less the description's gravity "
-                  "torque: the fit to the torques with it added back is a candidate in memory "
-                  "(estimation.consistent.mounted_gravity); streamed, the model file subtracts nothing",
+    "subtracted": "the fit to the torques with the description's gravity torque added back (a log less that load) "
+                  "is a candidate of the answer chosen from sums (estimation.consistent.mounted_gravity), as in "
+                  "memory; where no answer is chosen streamed (the Fourier path of averaged periods), no mount is "
+                  "checked and the model file subtracts nothing",
 }
 
 
