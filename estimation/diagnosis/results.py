@@ -142,9 +142,11 @@ STREAMED_NOT_COMPUTED = {
                        "diagnose (estimation.streaming.diagnosis_selection), not by diagnose_files",
     "gravity": "the diagnosis with the gravity a mount check found (or none) is a candidate of the default answer "
                "(estimation.consistent.mounted_gravity) made by oed diagnose, not by diagnose_files",
-    "subtracted": "torques that hold no gravity load are said, not tried as a log less the description's gravity "
-                  "torque: the diagnosis to the torques with it added back is a candidate in memory "
-                  "(estimation.consistent.mounted_gravity); streamed, the model file subtracts nothing",
+    "subtracted": "the diagnosis of the torques with the description's gravity torque added back (a log less that "
+                  "load) is a candidate of the default answer (estimation.consistent.mounted_gravity) made by oed "
+                  "diagnose, not by diagnose_files, and not on the Fourier path of averaged periods (the load is "
+                  "added back to the chunks of the filter path or of measured derivatives): there the model file "
+                  "subtracts nothing",
 }
 
 

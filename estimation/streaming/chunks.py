@@ -64,13 +64,14 @@ from estimation.data.sampling_clock import ClockSums, said_receive_times
 from dynamics.measurements import Measurements, joint_columns
 from estimation.estimators.identification_problem import BandWindow, ResidualBand, decay_length
 from estimation.estimators.normal_equations import DEFAULT_CHUNK_SIZE, NormalEquations, accumulate, check_chunk_size
+from estimation.identification.subtracted_load import SubtractedLoad, added_back
 from estimation.identification.training_range import TrainingRange
 from estimation.preprocessing.differentiation import ButterworthDifferentiation, compensate_hold, decimate
 from estimation.streaming.time_base import Part, Resampler, TimeScan, file_parts, file_segments, scan_time
 
 __all__ = [
     "FileSums", "MARGIN_TOLERANCE", "StreamingUnsupportedError", "automatic_cutoff", "file_sums", "filter_margin",
-    "logged_chunks", "preprocessed_chunks", "read_chunks", "segment_sources", "source_file", "source_files", "source_rows",
+    "loaded_chunk", "logged_chunks", "preprocessed_chunks", "read_chunks", "segment_sources", "source_file", "source_files", "source_rows",
     "source_step",
 ]
 
@@ -349,11 +350,12 @@ def read_chunks(path: str | Path, model: IdentificationModel, *, chunk_size: int
         yield chunk
 
 
-def logged_chunks(path: str | Path, model: IdentificationModel, *, chunk_size: int = DEFAULT_CHUNK_SIZE
-                  ) -> Iterator[Measurements]:
+def logged_chunks(path: str | Path, model: IdentificationModel, *, chunk_size: int = DEFAULT_CHUNK_SIZE,
+                  load: SubtractedLoad | None = None) -> Iterator[Measurements]:
     """The samples of ``path`` as logged, ``chunk_size`` rows at a time, before any resampling (rows repeating the
     previous one dropped, as the loader drops them): the recorded time stamps and channels a resampled file's errors
-    are measured at (:func:`estimation.streaming.recorded_errors.streamed_errors_at_stamps`)."""
+    are measured at (:func:`estimation.streaming.recorded_errors.streamed_errors_at_stamps`). ``load``: a load the
+    logged torques lack, added back at the logged positions (:func:`loaded_chunk`)."""
     least = model.n_base + 1  # a short last block is joined to the one before, as read_chunks joins it
     pending: pd.DataFrame | None = None
     file, segment = source_file(path)
@@ -372,7 +374,7 @@ def logged_chunks(path: str | Path, model: IdentificationModel, *, chunk_size: i
                 warnings.simplefilter("ignore")  # said when the file was read for its sums
                 chunk = measurements_from_frame(pending, model=model, resample=True, source=str(path)).as_recorded
             if chunk.n_samples:  # the samples kept as logged, when the block was resampled
-                yield chunk
+                yield chunk if load is None else loaded_chunk(chunk, load, model)
         pending = frame
 
 
@@ -488,10 +490,25 @@ def _preprocessed(window: Measurements, method: ButterworthDifferentiation | Non
     return decimate(derived, decimation)
 
 
+def loaded_chunk(chunk: Measurements, load: SubtractedLoad, model: IdentificationModel) -> Measurements:
+    """A prepared chunk with ``load`` (a load of ``model``'s description the logged torques lack,
+    :mod:`estimation.identification.subtracted_load`) added back as memory adds it to a prepared record
+    (:func:`~estimation.identification.subtracted_load.added_back`): at the prepared positions to the prepared
+    torques, at the recorded positions to the torques as recorded beside them, and to the samples of the chunk's
+    in-band window (``metadata["band_window"]``) at theirs; never to the logged torques before the filter (that
+    would filter the load, where memory adds it after)."""
+    loaded = added_back(chunk, load, model.robot)
+    window = chunk.metadata.get("band_window")
+    if window is not None:
+        window = replace(window, samples=added_back(window.samples, load, model.robot))
+        loaded = replace(loaded, metadata=dict(loaded.metadata, band_window=window))
+    return loaded
+
+
 def preprocessed_chunks(path: str | Path, model: IdentificationModel, *, chunk_size: int = DEFAULT_CHUNK_SIZE,
                         cutoff_hz: float | None = None, order: int = 4, decimation: int = 1,
                         held_torques: bool = False, trim: bool = False, record: dict | None = None,
-                        band: bool = False) -> Iterator[Measurements]:
+                        band: bool = False, load: SubtractedLoad | None = None) -> Iterator[Measurements]:
     """The preprocessed samples of one file, chunk by chunk (overlapping windows: module docstring).
 
     The arguments are those of :func:`file_sums`. ``trim``: on the filter path without decimation,
@@ -505,7 +522,9 @@ def preprocessed_chunks(path: str | Path, model: IdentificationModel, *, chunk_s
     the band filter's margin, ``metadata["band_window"]`` (:class:`~estimation.estimators.identification_problem.BandWindow`:
     the windows reach that much further), from which the in-band problem of the chunk equals the whole record's
     (:func:`~estimation.estimators.identification_problem.in_band_blocks`); without, or when there is no band, it is
-    ``None`` on the filter path (no chunk is low-passed on its own).
+    ``None`` on the filter path (no chunk is low-passed on its own). ``load``: a load of the description the logged
+    torques lack (:class:`~estimation.identification.subtracted_load.SubtractedLoad`), added back to each prepared
+    chunk as memory adds it to the prepared record (:func:`loaded_chunk`); ``None``: the torques as logged.
     """
     path = Path(path)
     chunk_size = check_chunk_size(chunk_size, model)
@@ -518,7 +537,11 @@ def preprocessed_chunks(path: str | Path, model: IdentificationModel, *, chunk_s
     first = next(chunks)  # here, so that a warning of read_chunks points at the caller
     windows = _OverlappingWindows(path, first, chunks, chunk_size, cutoff_hz, order, decimation, held_torques, trim,
                                   band)
-    yield from windows.kept_chunks()
+    if load is None:
+        yield from windows.kept_chunks()
+    else:
+        for kept in windows.kept_chunks():
+            yield loaded_chunk(kept, load, model)
     if record is not None:
         record.update(rows=windows.rows, columns=windows.columns, metadata=windows.metadata())
 
@@ -643,7 +666,7 @@ class _OverlappingWindows:
 @single_threaded_blas()  # threaded OpenBLAS takes 30x longer on tall, thin QR (0.7 against 0.024 s, 10 051 x 51)
 def file_sums(path: str | Path, model: IdentificationModel, *, chunk_size: int = DEFAULT_CHUNK_SIZE,
               cutoff_hz: float | None = None, order: int = 4, decimation: int = 1,
-              held_torques: bool = False) -> FileSums:
+              held_torques: bool = False, load: SubtractedLoad | None = None) -> FileSums:
     """Read, preprocess and sum one file chunk by chunk.
 
     Parameters
@@ -659,12 +682,16 @@ def file_sums(path: str | Path, model: IdentificationModel, *, chunk_size: int =
         required: see :func:`automatic_cutoff`). Ignored when the file holds both.
     decimation, held_torques
         As :func:`estimation.preprocessing.differentiation.fill_derivatives`.
+    load
+        A load of the description the logged torques lack, added back to each prepared chunk
+        (:func:`loaded_chunk`); ``None``: the torques as logged.
     """
     sums = NormalEquations.empty(model.channels, model.base.names, model.base.expressions)
     record: dict = {}
     joint_range = None
     for kept in preprocessed_chunks(path, model, chunk_size=chunk_size, cutoff_hz=cutoff_hz, order=order,
-                                    decimation=decimation, held_torques=held_torques, record=record, band=True):
+                                    decimation=decimation, held_torques=held_torques, record=record, band=True,
+                                    load=load):
         sums = accumulate(model, kept, chunk_size=record["chunk_size"], sums=sums)
         if kept.n_samples:  # the samples summed: the training range, in the same pass
             joint_range = TrainingRange.of(kept.q, kept.dq, model.robot.joint_names).merged(joint_range)

@@ -74,7 +74,8 @@ from estimation.preprocessing.delay import DelayBounds
 from estimation.preprocessing.plan import Preprocessing
 from dynamics.measurements import Measurements
 from estimation.preprocessing.plan import at_recorded_stamps
-from estimation.streaming.chunks import automatic_cutoff, logged_chunks, read_chunks
+from estimation.identification.subtracted_load import SubtractedLoad
+from estimation.streaming.chunks import StreamingUnsupportedError, automatic_cutoff, logged_chunks, read_chunks
 from estimation.streaming.cluster import model_payload
 from estimation.streaming.covariance import BatchScores, sandwich
 from estimation.streaming.diagnosis_passes import (FLOOR_WINDOW, LagSums, SumsPass, scores_pass, subsample_pass,
@@ -314,7 +315,7 @@ def _at_recorded_stamps(sample: Measurements, validate: Sequence[str], model: Id
     if len(validate) != 1 or recorded is None or settings.frequency_hz is not None \
             or sample.metadata.get("resampled_from") is None or sample.metadata.get("segments_in_file", 1) != 1:
         return sample
-    chunks = list(logged_chunks(validate[0], model, chunk_size=settings.chunk_size))
+    chunks = list(logged_chunks(validate[0], model, chunk_size=settings.chunk_size, load=settings.load))
     if not chunks:
         return sample
     stamps = concatenate(chunks) if len(chunks) > 1 else chunks[0]
@@ -383,6 +384,7 @@ def diagnose_files_run(
     delay: DelayBounds | None = DelayBounds(),
     jobs: int | None = 1,
     screen: Callable[[tuple[Effect, ...], Measurements, Measurements | None], tuple[Effect, ...]] | None = None,
+    load: SubtractedLoad | None = None,
 ) -> tuple[Diagnosis, StreamedRun]:
     """Diagnose ``model`` on the training ``paths``, confirmed on the ``validate`` files, in bounded memory; the
     diagnosis and the :class:`~estimation.streaming.diagnosis_result.StreamedRun` behind it (its sums: what the
@@ -409,15 +411,21 @@ def diagnose_files_run(
     read, as in memory. ``jobs``: the processes the search's rounds fit their candidates in, as in memory's
     (``None``: the available cores; the same answer at any count). ``screen``: given the candidates and the training
     and validation subsamples, the candidates tried
-    (:func:`~estimation.streaming.diagnosis_candidates.streamed_candidates`).
+    (:func:`~estimation.streaming.diagnosis_candidates.streamed_candidates`). ``load``: a load of the description
+    the logged torques lack (:mod:`estimation.identification.subtracted_load`), added back to every prepared chunk
+    of every pass and to the noise floor's rows (:func:`estimation.streaming.chunks.loaded_chunk`), as memory adds it
+    to its prepared records: the diagnosis of the robot's torques; not on the Fourier path.
     """
     paths, validate = [str(path) for path in paths], [str(path) for path in validate]
     findings = FindingsSaid([*paths, *validate]) if findings is None else findings
     settings = StreamedSettings(chunk_size, cutoff_hz, decimation, held_torques, alpha, min_improvement, max_effects,
-                                noise_floor, subsample, floor_window)
+                                noise_floor, subsample, floor_window, load=load)
     with findings.reading():
         settings = _checked_settings(model, paths, validate, settings if preprocessing is None else
                                      replace(settings, **plan_options(preprocessing)))
+    if load is not None and settings.frequency_hz is not None:
+        raise StreamingUnsupportedError("a load the torques lack is added back on the filter path and with measured "
+                                        "derivatives, not to averaged periods")
     options, payload, clock = settings.reading(), model_payload(model), Stopwatch()
     with step(f"first pass over {len(paths)} training file(s) (subsample)"), findings.reading():
         first = subsample_pass(executor, payload, paths, options, settings.subsample)  # pass 1 (training files)
@@ -436,7 +444,8 @@ def diagnose_files_run(
     clock.lap("sums_pass")
     if noise_floor is None:
         with findings.reading():
-            floor, floor_note = window_floor(validate, model, window=floor_window, frequency_hz=settings.frequency_hz)
+            floor, floor_note = window_floor(validate, model, window=floor_window, frequency_hz=settings.frequency_hz,
+                                             load=load)
     else:
         floor, floor_note = noise_floor, f"given ({noise_floor.method})"
     with step("the declared model from the sums"):

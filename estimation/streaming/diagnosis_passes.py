@@ -40,6 +40,7 @@ from estimation.streaming.covariance import BatchScores, chunk_scores
 from estimation.streaming.delayed_chunks import moved_chunks
 from estimation.streaming.settings import FLOOR_WINDOW
 from estimation.estimators.effect_blocks import Block, States
+from estimation.identification.subtracted_load import SubtractedLoad
 from estimation.identification.training_range import TrainingRange
 
 __all__ = ["FLOOR_WINDOW", "LagSums", "SubsamplePass", "SumsPass", "block_sums_task", "map_files", "scores_pass",
@@ -416,13 +417,15 @@ def scores_pass(executor, payload: bytes, plan: bytes, paths: Sequence[str], opt
 
 
 def window_floor(paths: Sequence[str | Path], model: IdentificationModel, *, window: int = FLOOR_WINDOW,
-                 frequency_hz: float | None = None) -> tuple[NoiseFloor | None, str]:
+                 frequency_hz: float | None = None, load: SubtractedLoad | None = None
+                 ) -> tuple[NoiseFloor | None, str]:
     """The noise floor of the first ``window`` rows of each file as recorded (no filtering), pooled
-    over the files; ``None`` and why when none can be had."""
+    over the files; ``None`` and why when none can be had. ``load``: a load the logged torques lack, added back at
+    the logged positions (the torques the model holds, as memory's floor takes them)."""
     floors, failures = [], []
     for path in paths:
         # as logged: a resampled file's own samples, as the in-memory floor takes them (interpolation smooths noise)
-        first = next(logged_chunks(path, model, chunk_size=max(int(window), model.n_base + 1)))
+        first = next(logged_chunks(path, model, chunk_size=max(int(window), model.n_base + 1), load=load))
         try:
             floors.append(noise_floor(first, model.channels, frequency_hz=frequency_hz))
         except NoiseFloorError as error:

@@ -29,6 +29,7 @@ from estimation.diagnosis.sign_constraints import PinnedTerm
 from estimation.diagnosis.statistics import FLOOR_ALPHA, ResidualReport
 from estimation.estimators.summed_least_squares import SummedEstimate
 from estimation.identification.fit import implausible_estimates
+from estimation.identification.subtracted_load import SubtractedLoad
 from estimation.identification.trivial_predictors import trivial_warnings
 from estimation.uncertainty.noise_floor import NoiseFloor
 from estimation.uncertainty.floor_comparison import compare_with_floor
@@ -70,14 +71,21 @@ class StreamedSettings:
     frequency_hz: float | None = None
     harmonics: int = 5
     order: int = 4
+    #: a load of the description the logged torques lack (:mod:`estimation.identification.subtracted_load`), added
+    #: back to every prepared chunk of every pass (:func:`estimation.streaming.chunks.loaded_chunk`); ``None``: the
+    #: torques as logged
+    load: SubtractedLoad | None = None
 
     def reading(self) -> dict[str, Any]:
         """How each file is read and prepared (:func:`estimation.streaming.periods.plan_chunks`): the filter's
-        filter covering the record's ends (nothing trimmed), as the in-memory preprocessing does; or the Fourier path."""
+        filter covering the record's ends (nothing trimmed), as the in-memory preprocessing does; or the Fourier path;
+        the load the torques lack added back (``load``, when there is one)."""
         options = {"chunk_size": self.chunk_size, "cutoff_hz": self.cutoff_hz, "decimation": self.decimation,
                    "held_torques": self.held_torques, "trim": False, "order": self.order}
         if self.frequency_hz is not None:
             options.update(frequency_hz=self.frequency_hz, harmonics=self.harmonics)
+        if self.load is not None:
+            options["load"] = self.load
         return options
 
 

@@ -49,6 +49,7 @@ from dynamics.runtime.threads import single_threaded_blas
 from estimation.estimators.normal_equations import DEFAULT_CHUNK_SIZE, NormalEquations
 from estimation.estimators.summed_least_squares import SummedLeastSquares
 from estimation.identification.fit import IdentificationResult, ImplausibleEstimateWarning, implausible_estimates
+from estimation.identification.subtracted_load import SubtractedLoad
 from estimation.identification.validation import ChannelErrors
 from estimation.streaming.chunks import (FileSums, StreamingUnsupportedError, automatic_cutoff, preprocessed_chunks,
                                          read_chunks)
@@ -76,9 +77,10 @@ STREAMED_NOT_COMPUTED = {
     "gravity": "the fit with the found gravity (or none) is a candidate of the answer chosen from sums "
                "(estimation.consistent.mounted_gravity), as in memory; where no answer is chosen streamed (the "
                "Fourier path of averaged periods), no mount is checked and the model keeps the description's gravity",
-    "subtracted": "torques that hold no gravity load are said, not tried as a log less the description's gravity "
-                  "torque: the fit to the torques with it added back is a candidate in memory "
-                  "(estimation.consistent.mounted_gravity); streamed, the model file subtracts nothing",
+    "subtracted": "the fit to the torques with the description's gravity torque added back (a log less that load) "
+                  "is a candidate of the answer chosen from sums (estimation.consistent.mounted_gravity), as in "
+                  "memory; where no answer is chosen streamed (the Fourier path of averaged periods), no mount is "
+                  "checked and the model file subtracts nothing",
 }
 
 
@@ -199,12 +201,19 @@ def identify_files_candidates(
     held_torques: bool = False,
     executor: Any = None,
     covariance: StreamedCovariance = "hac",
+    load: SubtractedLoad | None = None,
 ) -> SummedFits:
     """:func:`identify_files` of several weightings at once (``methods``, the first the one whose implausible values
     are warned of): the same sums solved with each, their batch-means standard deviations from the same third
-    pass (one reading and one regressor a chunk for all), and the sums kept (:class:`SummedFits`)."""
+    pass (one reading and one regressor a chunk for all), and the sums kept (:class:`SummedFits`). ``load``: a load
+    of the description the logged torques lack (:mod:`estimation.identification.subtracted_load`), added back to
+    every prepared chunk of every pass (:func:`estimation.streaming.chunks.loaded_chunk`: the robot's torques, as
+    memory fits them); not with ``frequency_hz`` (averaged periods)."""
     if covariance not in ("hac", "classical"):
         raise ValueError(f"covariance must be 'hac' or 'classical', got {covariance!r}")
+    if load is not None and frequency_hz is not None:
+        raise StreamingUnsupportedError("a load the torques lack is added back on the filter path and with measured "
+                                        "derivatives, not to averaged periods (frequency_hz)")
     methods = tuple(dict.fromkeys(methods))
     if not methods or not set(methods) <= {"ols", "wls"}:
         raise ValueError(f"methods must be among 'ols' and 'wls', got {methods!r}")
@@ -222,6 +231,8 @@ def identify_files_candidates(
     options = dict(chunk_size=chunk_size, cutoff_hz=cutoff_hz, decimation=decimation, held_torques=held_torques)
     if frequency_hz is not None:
         options.update(frequency_hz=frequency_hz, harmonics=harmonics)
+    if load is not None:  # every pass below reads through these options (the sums, the covariance's)
+        options["load"] = load
     clock = time.perf_counter()
     with step(f"sums pass over {len(paths)} training file(s)"):
         train, files = sum_files(model, paths, executor=executor, **options)

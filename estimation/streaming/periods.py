@@ -166,11 +166,14 @@ def plan_chunks(path: str | Path, model: IdentificationModel, *, frequency_hz: f
                 **options: Any) -> Iterator[Measurements]:
     """One file's prepared chunks: on the Fourier path (:func:`periodic_chunks`) when ``frequency_hz`` is given
     and the file lacks ``dq``/``ddq``, else :func:`estimation.streaming.chunks.preprocessed_chunks` (``options``:
-    its keyword arguments)."""
+    its keyword arguments; its ``load``, a load the logged torques lack added back, on that path only)."""
     if frequency_hz is not None:
         chunk_size = options.get("chunk_size", DEFAULT_CHUNK_SIZE)
         first = next(read_chunks(path, model, chunk_size=chunk_size))
         if first.dq is None or first.ddq is None:
+            if options.get("load") is not None:
+                raise StreamingUnsupportedError(f"{path}: a load the torques lack is added back on the filter path "
+                                                "and with measured derivatives, not to averaged periods")
             yield from periodic_chunks(path, model, frequency_hz=frequency_hz, harmonics=harmonics,
                                        chunk_size=chunk_size, decimation=options.get("decimation", 1),
                                        held_torques=options.get("held_torques", False), as_recorded=as_recorded,

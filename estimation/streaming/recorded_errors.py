@@ -27,6 +27,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from dynamics.measurements import Measurements
 from dynamics.models import IdentificationModel
+from estimation.identification.subtracted_load import SubtractedLoad, load_channels, subtracted_torque
 from estimation.preprocessing.differentiation import ButterworthDifferentiation
 from estimation.streaming.block_errors import BlockSquares
 from estimation.streaming.chunks import logged_chunks
@@ -34,7 +35,7 @@ from estimation.streaming.delayed_chunks import moved_chunks
 from estimation.streaming.periods import plan_chunks
 
 __all__ = ["Predictor", "counted_errors_at_stamps", "counted_predicted_errors", "counted_recorded_errors",
-           "delay_groups", "recorded_training_errors", "streamed_errors_at_stamps", "streamed_plan", "streamed_recorded_errors",
+           "delay_groups", "less_load", "recorded_training_errors", "streamed_errors_at_stamps", "streamed_plan", "streamed_recorded_errors",
            "streamed_recorded_mse", "theta_predictors"]
 
 
@@ -94,6 +95,27 @@ def theta_predictors(model: IdentificationModel, thetas: Mapping[Any, ArrayLike]
             raise ValueError(f"theta must hold the model's {model.n_base} base parameters, got shape {vector.shape}")
         predictors[name] = functools.partial(model.predict, vector)
     return predictors
+
+
+def less_load(model: IdentificationModel, predictors: Mapping[Any, Predictor], load: SubtractedLoad | None
+              ) -> dict[Any, Predictor]:
+    """``predictors`` as the log records their torques when it lacks ``load`` (a load of ``model``'s description,
+    :mod:`estimation.identification.subtracted_load`): each prediction less the load at the positions it predicts
+    at, as ``oed predict`` subtracts it (:meth:`~estimation.identification.identified_model.IdentifiedModel.predict`);
+    scored against the channels as recorded, the errors of the model against the torques with the load added back,
+    sample by sample, as memory measures them. ``load`` ``None``: ``predictors`` unchanged."""
+    if load is None:
+        return dict(predictors)
+    channels = list(load_channels(model))
+    if not channels:
+        raise ValueError("a subtracted load needs a model of the joint torques (tau<k> channels)")
+
+    def less(predict: Predictor) -> Predictor:
+        def predicted(q: NDArray[np.float64], dq: NDArray[np.float64], ddq: NDArray[np.float64]) -> NDArray[np.float64]:
+            return predict(q, dq, ddq) - subtracted_torque(load, model.robot, q)[:, channels]
+        return predicted
+
+    return {name: less(predict) for name, predict in predictors.items()}
 
 
 def delay_groups(predictors: Mapping[Any, Predictor], delays: Mapping[Any, float | None] | None

@@ -391,17 +391,23 @@ def streamed_description_findings(model: IdentificationModel, train: Sequence[st
 def streamed_description_notes(model: IdentificationModel, train: Sequence[str | Path], train_samples: int,
                                validate: Sequence[str | Path], validate_samples: int, *,
                                options: Mapping[str, Any], findings: StreamedFindings | None = None,
-                               gravity_taken: bool = False) -> tuple[tuple[str, ...], FrictionDrift | None]:
+                               gravity_taken: bool = False, subtracted: bool = False
+                               ) -> tuple[tuple[str, ...], FrictionDrift | None]:
     """``oed identify``'s :func:`description_notes` and friction-drift check of records read in blocks
     (:func:`streamed_description_findings`, or its ``findings`` already made), said as in memory
     (:func:`said_description`, then the drift's warning; ``gravity_taken``: the answer was fitted with the found
-    gravity); and the drift check (``None``: not checked). None with shaped laws, nor on the Fourier path."""
+    gravity; ``subtracted``: to the torques with the description's gravity torque added back, ``options["load"]``,
+    on which the drift is then checked again, as memory checks it on the answer's records); and the drift check
+    (``None``: not checked). None with shaped laws, nor on the Fourier path."""
     if findings is None:
         findings = streamed_description_findings(model, train, train_samples, validate, validate_samples,
                                                  options=options)
     mount = findings.mount
     notes = said_description(model, findings.zeros, mount,
-                             None if mount is None else mount.message(taken=gravity_taken))
+                             None if mount is None else mount.message(taken=gravity_taken, subtracted=subtracted))
     drift = findings.friction_drift
+    if subtracted and drift is not None:  # on the records the answer holds: the log with the load added back
+        drift = streamed_checks(model, train, train_samples, validate, validate_samples, options=options,
+                                mount_model=None, mount_samples=MOUNT_SAMPLES, drift_model=model).friction_drift
     said = None if drift is None else drift.message()
     return (notes if said is None else (*notes, said)), drift

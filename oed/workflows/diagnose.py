@@ -653,6 +653,10 @@ def diagnose_document(args: DiagnoseOptions, diagnosed: Diagnosed) -> tuple[dict
             for entry in (document, document.get("runner_up") or {}):
                 if entry.get("model_file") is not None:  # oed predict multiplies the model's torques by them
                     entry["model_file"]["torque_gains"] = gains
+        if diagnosed.subtracted is not None:  # oed predict subtracts the load the log lacks from the model's torques
+            for entry in (document, document.get("runner_up") or {}):  # both fitted to the torques with it added back
+                if entry.get("model_file") is not None:
+                    entry["model_file"]["subtracted"] = diagnosed.subtracted.to_dict()
         if diagnosed.averaged_train is not None:  # measured against the recording, the sums' errors beside
             averaged_errors(document, diagnosed.averaged_train)
         elif diagnosis.streaming.get("frequency_hz") is not None:
@@ -991,7 +995,7 @@ def diagnosis_streamed(args: DiagnoseOptions, friction: str, plan: Preprocessing
                        findings: FindingsSaid | None = None, *, effects: tuple[Any, ...] | None = None,
                        delay: DelayBounds | None = None,
                        gains: tuple[TorqueGains, bool, str] | None = None,
-                       turned: MountCheck | None = None) -> Diagnosed:
+                       turned: MountCheck | None = None, subtracted: SubtractedLoad | None = None) -> Diagnosed:
     """Diagnose the files read in blocks (:func:`estimation.streaming.diagnosis.diagnose_files`), their
     derivatives chosen as in memory (``plan``: already chosen); ``friction``: the declared effects without the delay
     (``effects``: those effects as built already, a Coulomb column merged into its offset; ``None``: from
@@ -1007,7 +1011,12 @@ def diagnosis_streamed(args: DiagnoseOptions, friction: str, plan: Preprocessing
     When the mount check (on the search's subsamples, before the search) marks, the whole diagnosis is run again
     with the found gravity and its default answer compared with the description's, as in memory
     (:func:`streamed_gravity_diagnosis`); ``turned``: the mount whose gravity this run's model takes (that run
-    checks no mount, gains or joint zeros of its own: the caller's are said)."""
+    checks no mount, gains or joint zeros of its own: the caller's are said).
+
+    Where the torques hold no gravity load (the mount check's ``absent``), the whole diagnosis is run once more on
+    the files with the description's gravity torque added back to every prepared chunk, every law a candidate, and
+    its default answer compared with the answer chosen so far, as in memory (:func:`streamed_subtracted_diagnosis`);
+    ``subtracted``: the load this run adds back (that run checks no mount, gains or joint zeros of its own)."""
     from estimation.streaming.diagnosis import diagnose_files_run
     from estimation.streaming.model_selection import streamed_repeated_motion, warned_still_motion
     from estimation.streaming.recorded_errors import streamed_plan
@@ -1034,7 +1043,7 @@ def diagnosis_streamed(args: DiagnoseOptions, friction: str, plan: Preprocessing
                 plan = streamed_choice(args, model, **derivatives_on_validation(model, None)).chosen
         still = warned_still_motion(model, args.data, args.validate, chunk_size=chunk_size)  # said as in memory
         checked, ratio = None, None
-        if gains is None and turned is None and plan.method != "fourier" and delay is None:
+        if gains is None and turned is None and subtracted is None and plan.method != "fourier" and delay is None:
             # the torque gains checked first, as in memory (not with a declared delay; the run with a found gravity
             # takes its caller's)
             with warnings.catch_warnings():
@@ -1055,6 +1064,8 @@ def diagnosis_streamed(args: DiagnoseOptions, friction: str, plan: Preprocessing
                 # torques hold no gravity load (the error of the gravity model the logger subtracted is a load of the
                 # positions, which a spring or a ripple would stand in for)
                 return mount_candidates(model, candidates, turned if turned.absent else None)
+            if subtracted is not None:  # as in memory: every law a candidate (the load is modelled)
+                return tuple(candidates)
             mount = None if held is None else diagnosis_mount(model, sample, held, delay=delay)
             mounts.append(mount)
             return mount_candidates(model, candidates, mount)
@@ -1066,7 +1077,7 @@ def diagnosis_streamed(args: DiagnoseOptions, friction: str, plan: Preprocessing
                                        findings=findings, still=still, transmission=transmission,
                                        delay=delay or DelayBounds(),  # a candidate in every diagnosis, as in memory
                                        jobs=args.jobs,  # the search's rounds side by side, as in memory
-                                       screen=screened)
+                                       screen=screened, load=subtracted)
         still_search = diagnosis.streaming.get("still_search") == "on the record at rest"
         if still_search:  # the choices below ignore it, as in memory; the effect search above did not (Fourier path)
             warnings.warn(STILL_SEARCH, stacklevel=2)
@@ -1078,14 +1089,15 @@ def diagnosis_streamed(args: DiagnoseOptions, friction: str, plan: Preprocessing
         model_plan = streamed_plan(args.data[0], model, cutoff_hz=cutoff_hz, decimation=plan.decimation,
                                    held_torques=plan.held_torques, chunk_size=chunk_size)
         if resampled_validation({"streaming": diagnosis.streaming}):  # the errors on the samples as recorded
-            diagnosis = recorded_errors(diagnosis, args, model_plan)
+            diagnosis = recorded_errors(diagnosis, args, model_plan, load=subtracted)
         model_file = model_plan, diagnosis.after.validation.mse
     if ratio is None:  # else measured before the gains' check
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # the files' findings were said on the diagnosis's passes
             ratio = streamed_repeated_motion(model, args.data, args.validate, chunk_size=chunk_size)
     with step("the default answer: the adopted model or its consistent refit (from the sums)"):
-        selection = streamed_selection(args, diagnosis, run, model_file[0], chunk_size, still=still, ratio=ratio)
+        selection = streamed_selection(args, diagnosis, run, model_file[0], chunk_size, still=still, ratio=ratio,
+                                       load=subtracted)
     # the notes said in memory: a channel made worse, a repeat of the training motion, the joint zeros
     repeat = repeat_note(ratio)
     notes = worse_after(diagnosis) + (() if repeat is None else (repeat,))
@@ -1093,49 +1105,64 @@ def diagnosis_streamed(args: DiagnoseOptions, friction: str, plan: Preprocessing
     # declared delay, as in memory (the run with a found gravity says none: its caller does)
     counts = (sum(part.n_samples for part, _ in run.sums.train_parts),
               sum(part.n_samples for part, _ in run.sums.validate_parts))
-    zeros = None if delay is not None or turned is not None else streamed_marked_joint_zeros(
+    aside = turned is not None or subtracted is not None  # a candidate's run: its caller's checks are said
+    zeros = None if delay is not None or aside else streamed_marked_joint_zeros(
         model, run.paths, counts[0], run.validate, counts[1], options=run.settings.reading())
     mount = next((mount for mount in mounts if mount is not None), None)
-    gravity_run = None
+    runs: list[Diagnosed] = []  # the candidates' runs (the found gravity, the log less the load): what they said
+    answer_run, taken, subtracted_taken = None, False, False  # the run whose answer is taken, if another one
     if mount is not None and not args.consistent and selection.selection == "validation" \
             and competing_checks(zeros, mount)[1] is not None:  # the found gravity a candidate, as in memory
         gravity_run = streamed_gravity_diagnosis(given, friction, plan, findings, mount, selection, effects=effects,
                                                  delay=delay, gains=gains)
         if gravity_run is not None:
-            selection = gravity_run[1]
-    taken = gravity_run is not None and gravity_run[2]
-    if taken:  # the answer is the diagnosis with the found gravity: its notes (a channel made worse, a repeat)
-        notes = tuple(gravity_run[0].notes)
-    if turned is None:
-        notes += diagnosis_mount_notes(declared, zeros, mount, gravity_taken=taken)
-    drift = None if delay is not None or model_has_shapes(model) or turned is not None else streamed_checks(
+            runs.append(gravity_run[0])
+            selection, taken = gravity_run[1], gravity_run[2]
+            answer_run = gravity_run[0] if taken else None
+        if mount.absent and gains is None and not (checked is not None and checked[1]) and load_channels(model) \
+                and plan.method != "fourier":
+            # the exact model of a log less the description's gravity torque, a third candidate, as in memory
+            subtracted_run = streamed_subtracted_diagnosis(given, friction, plan, findings, selection,
+                                                           effects=effects, delay=delay)
+            if subtracted_run is not None:
+                runs.append(subtracted_run[0])
+                selection, subtracted_taken = subtracted_run[1], subtracted_run[2]
+                if subtracted_taken:  # the answer is that run's, the found gravity's no more
+                    answer_run, taken = subtracted_run[0], False
+    if answer_run is not None:  # the answer is another run's: its notes (a channel made worse, a repeat)
+        notes = tuple(answer_run.notes)
+    if not aside:
+        notes += diagnosis_mount_notes(declared, zeros, mount, gravity_taken=taken, subtracted=subtracted_taken)
+    drift = None if delay is not None or model_has_shapes(model) or aside else streamed_checks(
         declared, run.paths, counts[0], run.validate, counts[1], options=run.settings.reading(), mount_model=None,
         mount_samples=DIAGNOSIS_MOUNT_SAMPLES, drift_model=drift_model(declared)).friction_drift
     notes += () if drift is None or drift.message() is None else (drift.message(),)
-    if gravity_run is not None:  # what the run with the found gravity said, as memory's catches it
-        messages = (*messages, *(text for text in gravity_run[0].messages
-                                 if text not in messages and text not in gravity_run[0].notes))
+    for other in runs:  # what the candidates' runs said, as memory's catches it
+        messages = (*messages, *(text for text in other.messages if text not in messages and text not in other.notes))
     gains_note = None
     if checked is not None and checked[1]:  # the gains taken, not applied (divided_diagnosis could not): said
         gains_note = streamed_gains_note(checked)
         notes += () if gains_note is None else (gains_note,)
     messages = (*messages, *notes)
-    if taken:  # the run with the found gravity made its training errors against the recording, its ranges
-        other = gravity_run[0]
-        diagnosis = other.diagnosis if gains_note is None else replace(
-            other.diagnosis, not_computed={**other.diagnosis.not_computed, "torque_gains": gains_note})
-        return replace(other, diagnosis=diagnosis, messages=messages, notes=notes, friction_drift=drift,
+    if answer_run is not None:  # the run taken made its training errors against the recording, its ranges
+        diagnosis = answer_run.diagnosis if gains_note is None else replace(
+            answer_run.diagnosis, not_computed={**answer_run.diagnosis.not_computed, "torque_gains": gains_note})
+        return replace(answer_run, diagnosis=diagnosis, messages=messages, notes=notes, friction_drift=drift,
                        selection=selection)
     fourier = plan.method == "fourier" and delay is None and not model_has_shapes(model)
     diagnosis = replace(diagnosis, not_computed={**{key: reason for key, reason in diagnosis.not_computed.items()
-                                                    if key not in (*SELECTION_KEYS, "gravity")},  # computed now
-                                                    # (a mount found is tried: streamed_gravity_diagnosis)
+                                                    if key not in (*SELECTION_KEYS, "gravity")
+                                                    and (key != "subtracted" or plan.method == "fourier")},
+                                                    # computed now (a mount found is tried:
+                                                    # streamed_gravity_diagnosis; the log less the description's
+                                                    # gravity torque: streamed_subtracted_diagnosis)
                                                  **({"friction_drift": FOURIER_CHECKS} if fourier else {}),
                                                  "time_base": STREAMED_TIME_BASE})
     if gains_note is not None:  # said above
         diagnosis = replace(diagnosis, not_computed={**diagnosis.not_computed, "torque_gains": gains_note})
     # the training errors against the recording where the sums hold averaged periods or a resampled grid
-    diagnosis, selection, averaged = recorded_training(args, diagnosis, selection, model_file[0], chunk_size)
+    diagnosis, selection, averaged = recorded_training(args, diagnosis, selection, model_file[0], chunk_size,
+                                                       load=subtracted)
     if still_search:
         diagnosis = replace(diagnosis, streaming={**diagnosis.streaming, "effect_search_on_still_validation": STILL_SEARCH})
     ranges = merged_ranges([record.get("joint_range") for _, record in run.sums.train_parts])  # the sums pass's
@@ -1144,7 +1171,7 @@ def diagnosis_streamed(args: DiagnoseOptions, friction: str, plan: Preprocessing
                      selection=selection, chunk_size=chunk_size, model_file=model_file, averaged_train=averaged,
                      notes=notes, transmission=transmission, training_range=ranges, friction_drift=drift,
                      range_checks={"validation": None if ranges is None or validation_range is None
-                                   else ranges.check_range(validation_range)})
+                                   else ranges.check_range(validation_range)}, subtracted=subtracted)
 
 
 def streamed_gravity_diagnosis(args: DiagnoseOptions, friction: str, plan: Preprocessing, findings: FindingsSaid,
@@ -1165,6 +1192,26 @@ def streamed_gravity_diagnosis(args: DiagnoseOptions, friction: str, plan: Prepr
     if other.selection is None:
         return None
     answer, taken = gravity_answer(selection, other.selection, mount.gravity)
+    return other, answer, taken
+
+
+def streamed_subtracted_diagnosis(args: DiagnoseOptions, friction: str, plan: Preprocessing, findings: FindingsSaid,
+                                  selection: ModelSelection, *, effects: tuple[Any, ...] | None,
+                                  delay: DelayBounds | None) -> tuple[Diagnosed, ModelSelection, bool] | None:
+    """The log less the description's gravity torque a candidate of a streamed diagnosis's default answer, as in
+    memory (:func:`diagnosis_in_memory`): the whole diagnosis run again on the same files with the same derivatives,
+    the declared model, the description's gravity torque added back to every prepared chunk of every pass
+    (:func:`estimation.streaming.chunks.loaded_chunk`; every law a candidate: the load is modelled), its default
+    answer chosen from its own sums and compared with ``selection`` (the answer chosen between the description's
+    gravity and the found one) on the same validation samples by
+    :func:`~estimation.consistent.mounted_gravity.subtracted_answer`: ``(that run, the answer, taken)``, or ``None``
+    when that run chooses no answer."""
+    with step("the diagnosis of the log less the description's gravity torque, compared (streamed)"):
+        other = diagnosis_streamed(args, friction, plan, findings, effects=effects, delay=delay,
+                                   subtracted=SubtractedLoad())
+    if other.selection is None:
+        return None
+    answer, taken = subtracted_answer(selection, other.selection)
     return other, answer, taken
 
 
@@ -1269,7 +1316,8 @@ SELECTION_KEYS = ("consistent", "links", "model_selection")
 
 
 def streamed_selection(args: DiagnoseOptions, diagnosis: Diagnosis, run: StreamedRun, plan: dict[str, Any],
-                       chunk_size: int, *, still: bool = False, ratio: float | None = None) -> ModelSelection:
+                       chunk_size: int, *, still: bool = False, ratio: float | None = None,
+                       load: SubtractedLoad | None = None) -> ModelSelection:
     """The default answer of a streamed diagnosis, chosen as in memory (:func:`diagnosis_selection`) from its sums
     (:func:`estimation.streaming.diagnosis_selection.streamed_refit_selection`): the adopted model or its consistent
     refit, every candidate (every weight of the prior's search) scored on the same validation samples against the
@@ -1280,7 +1328,8 @@ def streamed_selection(args: DiagnoseOptions, diagnosis: Diagnosis, run: Streame
     ``ratio``: the validation record's repeated-motion ratio (``None``: computed here). The plain law is completed
     as in memory (:func:`completed_selection`: on a repeat of the training motion, and on another motion with the
     prior weight chosen for the adopted model held, :func:`~estimation.consistent.completion.held_completion`) from
-    the same sums (:func:`estimation.streaming.diagnosis_selection.streamed_completion`)."""
+    the same sums (:func:`estimation.streaming.diagnosis_selection.streamed_completion`). ``load``: the load the
+    logged torques lack, which the run added back (:func:`resampled_scorer`'s model files subtract it)."""
     from estimation.identification.repeated_motion import REPEAT_FRACTION
     from estimation.streaming.diagnosis_selection import (
         refit_selection,
@@ -1297,7 +1346,7 @@ def streamed_selection(args: DiagnoseOptions, diagnosis: Diagnosis, run: Streame
             ratio = streamed_repeated_motion(model, args.data, args.validate, chunk_size=chunk_size)
         score, blocks = None, None
         if resampled_validation({"streaming": diagnosis.streaming}):
-            score = resampled_scorer(args, diagnosis, plan)
+            score = resampled_scorer(args, diagnosis, plan, load=load)
         elif not args.consistent and not still and ratio is not None and ratio > REPEAT_FRACTION:
             # chosen on a validation record of another motion: the paired difference of the candidates' scores is
             # reported, as in memory, from the validation sums on each block (one more pass over the files)
@@ -1315,7 +1364,7 @@ def streamed_selection(args: DiagnoseOptions, diagnosis: Diagnosis, run: Streame
             return selection
         completed, columns, added = completion
         if score is not None:  # every candidate on the validation file's recorded samples
-            score = resampled_scorer(args, diagnosis, plan, fit=completed)
+            score = resampled_scorer(args, diagnosis, plan, fit=completed, load=load)
             completed = replace(completed, validation=score({"completed": completed.estimate.values})["completed"])
         laws = completed_laws(completed.model, added)
         return held_completion(selection, settings, laws, repeat=repeat,
@@ -1325,18 +1374,20 @@ def streamed_selection(args: DiagnoseOptions, diagnosis: Diagnosis, run: Streame
 
 
 def resampled_scorer(args: DiagnoseOptions, diagnosis: Diagnosis, plan: dict[str, Any], *,
-                     fit: SummedFit | None = None) -> Callable[[Any], dict[Any, ChannelErrors]]:
+                     fit: SummedFit | None = None, load: SubtractedLoad | None = None
+                     ) -> Callable[[Any], dict[Any, ChannelErrors]]:
     """The validation errors of base-parameter vectors of the adopted model (in its base order; ``fit``: of that
     fit's model instead, the adopted model completed with the plain law), on a validation
     file the loader resampled: at its recorded samples, against the torques as recorded, as ``oed predict``
     measures the model file holding each (:func:`~oed.workflows.model_files.recorded_validation_errors`, shaped
     laws at their fixed shapes; the record read once for all the vectors), each also on the blocks of those samples
-    (:func:`~oed.workflows.model_files.recorded_validation_scores`)."""
+    (:func:`~oed.workflows.model_files.recorded_validation_scores`). ``load``: the load the logged torques lack
+    (the model file's ``subtracted``: each prediction less it, as ``oed predict`` makes it)."""
     from estimation.streaming.chunks import source_files
 
     model, estimate = (diagnosis.final_model(), diagnosis.after.estimate) if fit is None else (fit.model, fit.estimate)
-    document = summed_model_file_document(model, estimate, robot=robot_source(diagnosis.model.robot, args),
-                                          preprocessing=plan, shape=diagnosis.final_shape())
+    document = with_load(summed_model_file_document(model, estimate, robot=robot_source(diagnosis.model.robot, args),
+                                                    preprocessing=plan, shape=diagnosis.final_shape()), load)
     n_samples = diagnosis.after.validation.n_samples
 
     def score(thetas: Any) -> dict[Any, ChannelErrors]:
@@ -1350,22 +1401,30 @@ def resampled_scorer(args: DiagnoseOptions, diagnosis: Diagnosis, plan: dict[str
     return score
 
 
-def recorded_errors(diagnosis: Diagnosis, args: DiagnoseOptions, plan: dict[str, Any]) -> Diagnosis:
+def with_load(document: dict[str, Any], load: SubtractedLoad | None) -> dict[str, Any]:
+    """A model file ``document`` with ``subtracted`` (``load``, the load the logged torques lack: ``oed predict``
+    subtracts it from the model's torques), or unchanged without one."""
+    return document if load is None else {**document, "subtracted": load.to_dict()}
+
+
+def recorded_errors(diagnosis: Diagnosis, args: DiagnoseOptions, plan: dict[str, Any], *,
+                    load: SubtractedLoad | None = None) -> Diagnosis:
     """When the loader cleaned or resampled a validation record (jitter, re-sent rows, stalls), ``diagnosis`` with
     its validation MSE before and after measured on the record's samples as recorded
     (:func:`oed.workflows.model_files.recorded_validation_mse`, what ``oed predict`` measures) and the floor's
     comparisons of those errors; the streamed passes scored the record on the uniform grid. Unchanged when the
     records were read as recorded. ``plan``: the model files' preprocessing. The runner-up's validation MSE is
-    measured again alike (its model file's, :func:`~oed.workflows.model_files.add_summed_runner_up_model_file`)."""
+    measured again alike (its model file's, :func:`~oed.workflows.model_files.add_summed_runner_up_model_file`).
+    ``load``: the load the logged torques lack, which the run added back (every model file subtracts it)."""
     from estimation.streaming.chunks import source_files
     from estimation.streaming.diagnosis_result import floor_report
 
     robot = robot_source(diagnosis.model.robot, args)
-    after_file = summed_model_file_document(diagnosis.final_model(), diagnosis.after.estimate, robot=robot,
-                                            preprocessing=plan, shape=diagnosis.final_shape(),
-                                            recorded_mse=diagnosis.after.train.mse)
-    declared = summed_model_file_document(diagnosis.model, diagnosis.before.estimate, robot=robot,
-                                          preprocessing=plan, recorded_mse=diagnosis.before.train.mse)
+    after_file = with_load(summed_model_file_document(diagnosis.final_model(), diagnosis.after.estimate, robot=robot,
+                                                      preprocessing=plan, shape=diagnosis.final_shape(),
+                                                      recorded_mse=diagnosis.after.train.mse), load)
+    declared = with_load(summed_model_file_document(diagnosis.model, diagnosis.before.estimate, robot=robot,
+                                                    preprocessing=plan, recorded_mse=diagnosis.before.train.mse), load)
     # both models' errors on the validation files read and prepared once
     counted, counted_before = recorded_validations_counted([after_file, declared], source_files(args.validate))
     if counted is None:
@@ -1379,7 +1438,7 @@ def recorded_errors(diagnosis: Diagnosis, args: DiagnoseOptions, plan: dict[str,
         statistics = floor_report(fits["before"], fits["after"], statistics.floor, statistics.floor_note)
     runner_up = diagnosis.runner_up
     if runner_up is not None and runner_up.validation_mse is not None:
-        rival = summed_model_file_document(runner_up.model, runner_up.fit, robot=robot, preprocessing=plan,
-                                           shape=runner_up.shape(), recorded_mse=runner_up.train_mse)
+        rival = with_load(summed_model_file_document(runner_up.model, runner_up.fit, robot=robot, preprocessing=plan,
+                                                     shape=runner_up.shape(), recorded_mse=runner_up.train_mse), load)
         runner_up = replace(runner_up, validation_mse=recorded_validation_mse(rival, args.validate))
     return replace(diagnosis, before=fits["before"], after=fits["after"], statistics=statistics, runner_up=runner_up)

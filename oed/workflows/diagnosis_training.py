@@ -28,6 +28,7 @@ from estimation.consistent.model_selection import ModelSelection
 from estimation.diagnosis.results import Diagnosis
 from estimation.identification.identified_model import IdentifiedModel
 from estimation.identification.model_file import ModelFile, summed_model_file_document
+from estimation.identification.subtracted_load import SubtractedLoad
 from estimation.identification.validation import ChannelErrors
 from oed.workflows.model_files import robot_source
 from oed.workflows.options import RecordOptions
@@ -70,20 +71,21 @@ def summed_unconstrained(selection: ModelSelection) -> Any:
 
 
 def recorded_training(args: RecordOptions, diagnosis: Diagnosis, selection: ModelSelection | None,
-                      plan: Mapping[str, Any], chunk_size: int
+                      plan: Mapping[str, Any], chunk_size: int, *, load: SubtractedLoad | None = None
                       ) -> tuple[Diagnosis, ModelSelection | None, dict[str, Any] | None]:
     """``diagnosis`` and ``selection`` (the streamed ones) with their training errors against the channels as
     recorded and ``n_samples`` the recorded samples (module docstring), where the training sums do not hold the
     recording (the Fourier path) or a training file was resampled; unchanged otherwise, or where the loader drops
     rows the streamed grid interpolates. ``plan``: the model files' preprocessing. The third item: on the Fourier
     path, the sums' errors against the averaged period by the report's entry (:func:`averaged_errors`), else
-    ``None``."""
+    ``None``. ``load``: the load the logged torques lack, which the run added back: each prediction less it, as
+    ``oed predict`` makes it (:func:`estimation.streaming.recorded_errors.less_load`)."""
     streaming = diagnosis.streaming or {}
     files = streaming.get("files") or []
     fourier = streaming.get("frequency_hz") is not None
     if not fourier and not any(record.get("resampled_from") is not None for record in files):
         return diagnosis, selection, None
-    from estimation.streaming.recorded_errors import recorded_training_errors
+    from estimation.streaming.recorded_errors import less_load, recorded_training_errors
 
     robot = robot_source(diagnosis.model.robot, args)
     slot: dict[str, Any] = {}  # the predictors asked in order, model by model: each regressor once a block
@@ -117,7 +119,7 @@ def recorded_training(args: RecordOptions, diagnosis: Diagnosis, selection: Mode
             warnings.catch_warnings():
         warnings.simplefilter("ignore")  # the files' findings were said on the first pass
         counted = recorded_training_errors(
-            diagnosis.model, predictors, args.data, files, chunk_size=chunk_size, cutoff_hz=streaming.get("cutoff_hz"),
+            diagnosis.model, less_load(diagnosis.model, predictors, load), args.data, files, chunk_size=chunk_size, cutoff_hz=streaming.get("cutoff_hz"),
             decimation=int(plan.get("decimation", 1)), held_torques=bool(plan.get("held_torques", False)),
             frequency_hz=streaming.get("frequency_hz"), harmonics=int(streaming.get("harmonics") or 5), delays=delays)
     if counted is None:

@@ -68,6 +68,7 @@ from estimation.streaming.block_errors import BlockSquares, block_channel_mse, b
 from estimation.streaming.recorded_errors import (
     counted_errors_at_stamps,
     counted_predicted_errors,
+    less_load,
     recorded_training_errors,
     streamed_plan,
     streamed_recorded_errors,
@@ -469,7 +470,7 @@ def identification_streamed(args: IdentifyOptions, model: IdentificationModel, t
     the errors against the channels as recorded, the trivial predictors' and the noise floor of their first rows
     (:func:`recorded_validation`). ``findings``: what the path decision said of the files (not said again)."""
     chunk_size = DEFAULT_CHUNK_SIZE if args.chunk_size is None else args.chunk_size
-    selection, gains = None, None
+    selection, gains, subtracted = None, None, None
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         args = streamed_records(args, model)  # a file with holes: its segments, each on its own as in memory
@@ -516,12 +517,20 @@ def identification_streamed(args: IdentifyOptions, model: IdentificationModel, t
             checked = streamed_description_findings(
                 model, args.data, int(sums.train.n_samples), args.validate or [],
                 0 if sums.validation is None else int(sums.validation.n_samples), options=reading_options)
+            declared = selection.unconstrained.model  # the answer's model with the description's gravity
             selection, sums, scores, gravity_taken = streamed_gravity_selection(
                 args, selection, checked.said_mount, base=base, methods=methods, chunk_size=chunk_size,
                 options=options, ratio=ratio, still=still, sums=sums, scores=scores)
-            selection, gains = streamed_torque_gains_selection(
-                args, selection, base=base, methods=methods, chunk_size=chunk_size, options=options, ratio=ratio,
-                still=still, sums=sums)
+            selection, sums, scores, subtracted = streamed_subtracted_selection(
+                args, selection, declared, checked.said_mount, base=base, methods=methods, chunk_size=chunk_size,
+                options=options, ratio=ratio, still=still, sums=sums, scores=scores)
+            if subtracted is not None:  # every pass after reads the torques with the load added back, as memory's
+                options, gravity_taken = {**options, "load": subtracted}, False
+                reading_options = {**reading_options, "load": subtracted}
+            else:  # one known load at a time: the gains are not tried on a log that lacks one
+                selection, gains = streamed_torque_gains_selection(
+                    args, selection, base=base, methods=methods, chunk_size=chunk_size, options=options,
+                    ratio=ratio, still=still, sums=sums)
         result = selection.unconstrained
     # a line per finding across files; those said when the path was decided (``findings``) not again
     messages = grouped_messages(caught, source_files([*args.data, *(args.validate or ())])) if findings is None \
@@ -534,6 +543,7 @@ def identification_streamed(args: IdentifyOptions, model: IdentificationModel, t
         not_computed.pop("model_selection", None)
         if frequency_hz is None:
             not_computed.pop("gravity", None)  # a mount found is a candidate, as in memory
+            not_computed.pop("subtracted", None)  # and the log less the description's gravity torque
         if selection.consistent is not None or args.method != "auto":
             not_computed.pop("consistent", None)
             not_computed.pop("links", None)
@@ -559,7 +569,7 @@ def identification_streamed(args: IdentifyOptions, model: IdentificationModel, t
         frequency = plan.frequency_hz if plan.method == "fourier" else args.frequency
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # the files' findings were said on the first pass
-            floor, floor_note = window_floor(args.validate, model, frequency_hz=frequency)
+            floor, floor_note = window_floor(args.validate, model, frequency_hz=frequency, load=subtracted)
         if floor is None:
             not_computed["noise_floor"] = floor_note
         mse = chosen.validation.mse
@@ -575,7 +585,7 @@ def identification_streamed(args: IdentifyOptions, model: IdentificationModel, t
     said, drift = streamed_description_notes(
         model, args.data, int(sums.train.n_samples), args.validate or [],
         0 if sums.validation is None else int(sums.validation.n_samples), options=reading_options,
-        findings=checked, gravity_taken=gravity_taken)
+        findings=checked, gravity_taken=gravity_taken, subtracted=subtracted is not None)
     notes = (*notes, *said)
     if args.validate and options["frequency_hz"] is not None and not model_has_shapes(model):
         not_computed["friction_drift"] = FOURIER_CHECKS
@@ -595,7 +605,8 @@ def identification_streamed(args: IdentifyOptions, model: IdentificationModel, t
                       transmission=transmission, chunk_size=chunk_size, model_file=(model_plan, validation_mse),
                       torque_gains=gains, training_range=ranges,
                       range_checks={"validation": None if ranges is None or validation_range is None
-                                    else ranges.check_range(validation_range)}, friction_drift=drift)
+                                    else ranges.check_range(validation_range)}, friction_drift=drift,
+                      subtracted=subtracted)
 
 
 def streamed_torque_gains_selection(args: IdentifyOptions, selection: ModelSelection, *, base: str,
@@ -679,7 +690,8 @@ def summed_candidate(args: IdentifyOptions, other_model: IdentificationModel, *,
         other_sums = identify_files_candidates(
             other_model, args.data, args.validate, methods=methods, chunk_size=chunk_size,
             cutoff_hz=options["cutoff_hz"], frequency_hz=options["frequency_hz"], harmonics=options["harmonics"],
-            decimation=options["decimation"], held_torques=options["held_torques"], executor=executor)
+            decimation=options["decimation"], held_torques=options["held_torques"], executor=executor,
+            load=options.get("load"))
     other_scores = ValidationScores(args, other_sums, other_sums.fits[base], chunk_size, dict(options))
     other = summed_selection(other_sums, base=base, consistent=consistent_settings(args, other_model.robot),
                              score=other_scores, ratio=ratio, still=still)
@@ -736,6 +748,33 @@ def streamed_gravity_selection(args: IdentifyOptions, selection: ModelSelection,
     return answer, sums, scores, taken
 
 
+def streamed_subtracted_selection(args: IdentifyOptions, selection: ModelSelection, declared: IdentificationModel,
+                                  mount: MountCheck | None, *, base: str, methods: tuple[str, ...], chunk_size: int,
+                                  options: Mapping[str, Any], ratio: float | None, still: bool, sums: SummedFits,
+                                  scores: ValidationScores | None
+                                  ) -> tuple[ModelSelection, SummedFits, ValidationScores | None,
+                                             SubtractedLoad | None]:
+    """:func:`subtracted_selection` of files read in blocks: where the mount check says the torques hold no gravity
+    load, ``declared`` (the answer's model with the description's gravity) summed over the same files with the same
+    derivatives, the description's gravity torque added back to every prepared chunk of every pass
+    (:func:`estimation.streaming.chunks.loaded_chunk`, as memory adds it to the prepared records), chosen among its
+    candidates from its sums as the declared model's were (:func:`summed_candidate`; scored on the same validation
+    samples, each prediction less the load against the torques as recorded, what ``oed predict`` measures) and
+    compared by the same rule (:func:`~estimation.consistent.mounted_gravity.subtracted_answer`); ``(selection, sums,
+    scores, the load)`` of the answer when taken, else ``(selection, sums, scores, None)`` unchanged, under the
+    conditions memory tries nothing (:func:`streamed_gravity_selection`'s, and a model of the joint torques)."""
+    if mount is None or not mount.absent or args.method != "auto" or args.consistent or not args.validate \
+            or model_has_shapes(declared) or selection.selection != "validation" or not load_channels(declared):
+        return selection, sums, scores, None
+    load = SubtractedLoad()
+    with step("the model of a log less the description's gravity torque fitted and compared"):
+        other, other_sums, other_scores = summed_candidate(args, declared, base=base, methods=methods,
+                                                           chunk_size=chunk_size, options={**options, "load": load},
+                                                           ratio=ratio, still=still)
+    answer, taken = subtracted_answer(selection, other)
+    return (answer, other_sums, other_scores, load) if taken else (answer, sums, scores, None)
+
+
 def recorded_training(args: IdentifyOptions, result: IdentificationResult, chosen: ChosenModel,
                       selection: ModelSelection | None, chunk_size: int, options: Mapping[str, Any]
                       ) -> tuple[IdentificationResult, ChosenModel, ModelSelection | None]:
@@ -759,7 +798,8 @@ def recorded_training(args: IdentifyOptions, result: IdentificationResult, chose
             warnings.catch_warnings():
         warnings.simplefilter("ignore")  # the files' findings were said on the first pass
         counted = recorded_training_errors(
-            result.model, theta_predictors(result.model, {key: fit.estimate.values for key, fit in fits.items()}),
+            result.model, less_load(result.model, theta_predictors(
+                result.model, {key: fit.estimate.values for key, fit in fits.items()}), options.get("load")),
             args.data, files,
             chunk_size=chunk_size, cutoff_hz=streaming.get("cutoff_hz"), decimation=int(options["decimation"]),
             held_torques=bool(options["held_torques"]), frequency_hz=streaming.get("frequency_hz"),
@@ -809,6 +849,9 @@ class ValidationScores:
         #: the derivatives as the files were summed (:func:`estimation.streaming.periods.plan_options`)
         self.decimation, self.held_torques = int(options["decimation"]), bool(options["held_torques"])
         self.harmonics = int(options.get("harmonics") or 5)  # the Fourier fit's, on the Fourier path
+        #: a load the logged torques lack (the subtracted load's candidate): added back to every chunk the sums and
+        #: the blocks read, subtracted from every prediction scored against the torques as recorded
+        self.load: SubtractedLoad | None = options.get("load")
         self.trivial: dict[str, dict[str, float]] | None = None
         self._block_sums: list[NormalEquations] | None = None
         self._block_sums_made = False
@@ -821,7 +864,7 @@ class ValidationScores:
             self._block_sums_made = True
             model, streaming = self.result.model, self.result.streaming
             options = {"chunk_size": self.chunk_size, "cutoff_hz": streaming["cutoff_hz"],
-                       "decimation": self.decimation, "held_torques": self.held_torques}
+                       "decimation": self.decimation, "held_torques": self.held_torques, "load": self.load}
             chunks = (chunk for path in self.args.validate for chunk in prepared_chunks(str(path), model, **options))
             with step("the validation record's blocks summed (the paired difference of the candidates)"):
                 self._block_sums = block_normal_equations(model, chunks, int(self.sums.validation.n_samples))
@@ -851,6 +894,8 @@ class ValidationScores:
                                   held_torques=self.held_torques, chunk_size=self.chunk_size)
                 document = summed_model_file_document(model, self.result.estimate,
                                                       robot=robot_source(model.robot, args), preprocessing=plan)
+                if self.load is not None:  # oed predict subtracts it from the model's torques
+                    document["subtracted"] = self.load.to_dict()
                 recorded = recorded_validation_errors(document, vectors, source_files(args.validate))  # None: as recorded
             if recorded is not None:
                 pass
@@ -871,9 +916,9 @@ class ValidationScores:
                 count = int(self.sums.validation.n_samples)
                 squares = {("theta", key): BlockSquares(count, model.n_channels) for key in thetas}
                 recorded, _ = counted_predicted_errors(
-                    model, theta_predictors(model, vectors), args.validate, chunk_size=self.chunk_size,
-                    cutoff_hz=streaming["cutoff_hz"], decimation=self.decimation, held_torques=self.held_torques,
-                    blocks=squares)
+                    model, less_load(model, theta_predictors(model, vectors), self.load), args.validate,
+                    chunk_size=self.chunk_size, cutoff_hz=streaming["cutoff_hz"], decimation=self.decimation,
+                    held_torques=self.held_torques, blocks=squares)
                 blocks = {key: accumulated.block_mse(model.channels) for key, accumulated in squares.items()}
         if self.trivial is None:
             self.trivial = {name: dict(recorded[("trivial", name)]) for name in ("zero_mse", "nominal_mse")}
@@ -899,7 +944,9 @@ class ValidationScores:
             return None if count is None else {key: BlockSquares(count, model.n_channels) for key in keys}
 
         accumulated = squares(self._stamp_count)
-        counted = counted_errors_at_stamps(model, vectors, self.args.validate, blocks=accumulated, **reading)
+        predictors = less_load(model, theta_predictors(model, vectors), self.load)
+        counted = counted_errors_at_stamps(model, {}, self.args.validate, blocks=accumulated, predictors=predictors,
+                                           **reading)
         if counted is None:
             return None, {}, None
         recorded, count = counted
@@ -908,8 +955,8 @@ class ValidationScores:
         if accumulated is None:  # the count learnt: the blocks of the thetas from one more pass
             self._stamp_count = count
             accumulated = squares(count)
-            again = counted_errors_at_stamps(model, {key: vectors[key] for key in keys}, self.args.validate,
-                                             blocks=accumulated, **reading)
+            again = counted_errors_at_stamps(model, {}, self.args.validate, blocks=accumulated,
+                                             predictors={key: predictors[key] for key in keys}, **reading)
             if again is None or accumulated is None:
                 return recorded, {}, None
         return recorded, {key: item.block_mse(model.channels) for key, item in accumulated.items()}, count
