@@ -139,13 +139,13 @@ def test_filter_and_fourier_paths_score_the_samples_they_summed(model, files, tm
 def test_a_file_changed_between_the_passes_is_refused(model, files, monkeypatch):
     import estimation.streaming.identification as passes
 
-    original = passes.preprocessed_chunks
+    original = passes.plan_chunks  # what the covariance pass reads the files with
 
     def shorter(*args, **kwargs):
         chunks = list(original(*args, **kwargs))
         yield from chunks[:-1]
 
-    monkeypatch.setattr(passes, "preprocessed_chunks", shorter)
+    monkeypatch.setattr(passes, "plan_chunks", shorter)
     with pytest.raises(IncompleteSumError, match="white0.csv.*scored"):
         identify_files(model, files["white"], chunk_size=300)
 

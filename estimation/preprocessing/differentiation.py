@@ -111,12 +111,30 @@ def fit_fourier(t: NDArray[np.float64], q: NDArray[np.float64], frequency_hz: fl
 
 def whole_periods(measurements: Measurements, frequency_hz: float) -> tuple[int, int] | None:
     """``(periods, samples per period)`` when a period is a whole number of samples (to 1e-6), else ``None``."""
-    rate = sampling_rate(measurements.t)
+    return periods_at_rate(sampling_rate(measurements.t), measurements.n_samples, frequency_hz)
+
+
+def periods_at_rate(rate: float, n_samples: int, frequency_hz: float) -> tuple[int, int] | None:
+    """:func:`whole_periods` of ``n_samples`` samples at ``rate`` Hz (a record read in chunks knows both without
+    holding its stamps)."""
     per_period = rate / frequency_hz
     samples = int(round(per_period))
     if samples < 1 or abs(per_period - samples) > 1e-6 * per_period:
         return None
-    return measurements.n_samples // samples, samples
+    return n_samples // samples, samples
+
+
+def averages_periods(average: AverageChoice | bool, periods: tuple[int, int] | None) -> bool:
+    """Whether a record whose :func:`whole_periods` are ``periods`` has them averaged under the choice ``average``
+    (:class:`FourierDifferentiation`'s): ``auto`` when they are two or more whole periods of a whole number of
+    samples, ``yes`` whenever a period is a whole number of samples, ``no`` never. ``ValueError`` for ``yes`` when
+    a period is not a whole number of samples is the caller's (it names the rate)."""
+    choice = {True: "yes", False: "no"}.get(average, average) if isinstance(average, bool) else average
+    if choice == "no":
+        return False
+    if choice == "yes":
+        return True
+    return periods is not None and periods[0] >= 2
 
 
 def repeats_exactly(t: NDArray[np.float64], periods: int, frequency_hz: float) -> bool:
@@ -160,16 +178,12 @@ class FourierDifferentiation:
 
     def averages(self, measurements: Measurements) -> bool:
         """Whether the periods of ``measurements`` are averaged (``ValueError`` for ``yes`` when they cannot be)."""
-        choice = {True: "yes", False: "no"}.get(self.average, self.average) if isinstance(self.average, bool) \
-            else self.average
-        if choice == "no":
+        if self.average in ("no", False):
             return False
         periods = whole_periods(measurements, self.frequency_hz)
-        if choice == "yes":
-            if periods is None:
-                average_periods(measurements, self.frequency_hz)  # raises, naming the rate
-            return True
-        return periods is not None and periods[0] >= 2
+        if self.average in ("yes", True) and periods is None:
+            average_periods(measurements, self.frequency_hz)  # raises, naming the rate
+        return averages_periods(self.average, periods)
 
     def apply(self, measurements: Measurements) -> Measurements:
         duration = measurements.t[-1] - measurements.t[0] + (measurements.t[1] - measurements.t[0])

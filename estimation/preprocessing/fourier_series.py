@@ -128,9 +128,7 @@ def fit_series(t: ArrayLike, q: ArrayLike, frequency_hz: float, harmonics: int, 
     q = np.asarray(q, dtype=float).reshape(t.shape[0], -1)
     if int(harmonics) != harmonics or harmonics < 1:
         raise ValueError(f"harmonics must be at least 1, got {harmonics}")
-    if t.shape[0] < 2 * harmonics + 1:
-        raise ValueError(f"{t.shape[0]} samples cannot determine {2 * harmonics + 1} Fourier coefficients per joint")
-    omega = 2 * np.pi * frequency_hz * np.arange(1, harmonics + 1)
+    check_determined(t.shape[0], harmonics)
     fitted = uniform_fit(t, q, frequency_hz, harmonics) if solver == "normal" else None
     if fitted is None:
         design = design_matrix(t - t[0], frequency_hz, harmonics)  # phases from the record's start: well scaled
@@ -140,13 +138,84 @@ def fit_series(t: ArrayLike, q: ArrayLike, frequency_hz: float, harmonics: int, 
         residual = float(np.sum((q - design @ coefficients) ** 2))
     else:
         coefficients, residual = fitted
-    # back to absolute time: a phase shift ω_l t0 rotates (a_l, b_l)
-    sine, cosine = coefficients[1:1 + harmonics].T, coefficients[1 + harmonics:].T  # coefficients at t - t0
-    c, s = np.cos(omega * t[0]), np.sin(omega * t[0])
+    return series_at_origin(coefficients, float(t[0]), frequency_hz, harmonics), residual
+
+
+def series_at_origin(coefficients: NDArray[np.float64], origin: float, frequency_hz: float,
+                     harmonics: int) -> FourierSeries:
+    """The series of the coefficients ``(2N+1, n)`` of :func:`design_matrix` ``(t − origin)``, in absolute time: a
+    phase shift ``ω_l origin`` rotates ``(a_l, b_l)``."""
+    omega = 2 * np.pi * frequency_hz * np.arange(1, harmonics + 1)
+    sine, cosine = coefficients[1:1 + harmonics].T, coefficients[1 + harmonics:].T  # coefficients at t - origin
+    c, s = np.cos(omega * origin), np.sin(omega * origin)
     # sin(ω(t−t0)) = sin ωt cos ωt0 − cos ωt sin ωt0 ; −cos(ω(t−t0)) = −cos ωt cos ωt0 − sin ωt sin ωt0
     a = sine * c - cosine * s
     b = sine * s + cosine * c
-    return FourierSeries(float(frequency_hz), coefficients[0], a, b), residual
+    return FourierSeries(float(frequency_hz), coefficients[0], a, b)
+
+
+class SummedFourierFit:
+    """The least-squares fit of eq. 18 to positions given block by block (a record read in chunks, never held
+    whole): the normal equations of :func:`design_matrix` ``(t − origin)`` summed over the blocks
+    (:meth:`add`), solved as :func:`fit_series` ``(solver="normal")`` solves them (:func:`gram_solution`), with
+    ``origin`` the record's first time stamp as there. Their sums are those of the whole record, so the series is
+    :func:`fit_series`'s to rounding, on any time stamps. When they are not well conditioned (:meth:`series` gives
+    ``None``), :class:`TriangularFourierFit` over a second pass is the SVD's answer. Memory: ``(2N+1)²`` floats."""
+
+    def __init__(self, frequency_hz: float, harmonics: int, origin: float, n_joints: int) -> None:
+        if int(harmonics) != harmonics or harmonics < 1:
+            raise ValueError(f"harmonics must be at least 1, got {harmonics}")
+        width = 2 * int(harmonics) + 1
+        self.frequency_hz, self.harmonics, self.origin = float(frequency_hz), int(harmonics), float(origin)
+        self.gram, self.moment, self.n_samples = np.zeros((width, width)), np.zeros((width, n_joints)), 0
+
+    def add(self, t: ArrayLike, q: ArrayLike) -> None:
+        """Add the samples ``q (T, n)`` at ``t``."""
+        t = np.asarray(t, dtype=float).reshape(-1)
+        design = design_matrix(t - self.origin, self.frequency_hz, self.harmonics)
+        self.gram += design.T @ design
+        self.moment += design.T @ np.asarray(q, dtype=float).reshape(t.shape[0], -1)
+        self.n_samples += t.shape[0]
+
+    def series(self) -> FourierSeries | None:
+        """The fitted series, or ``None`` when the normal equations are not well conditioned."""
+        check_determined(self.n_samples, self.harmonics)
+        coefficients = gram_solution(self.gram, self.moment)
+        return None if coefficients is None else series_at_origin(coefficients, self.origin, self.frequency_hz,
+                                                                  self.harmonics)
+
+
+class TriangularFourierFit:
+    """:class:`SummedFourierFit` by the triangular factor of ``[D | q]`` updated block by block (Householder QR of
+    the factor so far stacked on each block, Golub & Van Loan, *Matrix Computations*, section 5.3): ``min ‖D x −
+    q‖`` is ``min ‖R₁₁ x − R₁₂‖`` whatever the conditioning, whose least-squares solution of least norm is the
+    SVD's on the record (:func:`numpy.linalg.lstsq`, :func:`fit_series`'s fallback). Memory: ``(2N+1+n)²``
+    floats."""
+
+    def __init__(self, frequency_hz: float, harmonics: int, origin: float, n_joints: int) -> None:
+        self.frequency_hz, self.harmonics, self.origin = float(frequency_hz), int(harmonics), float(origin)
+        self.factor, self.n_samples = np.zeros((0, 2 * self.harmonics + 1 + n_joints)), 0
+
+    def add(self, t: ArrayLike, q: ArrayLike) -> None:
+        """Add the samples ``q (T, n)`` at ``t``."""
+        t = np.asarray(t, dtype=float).reshape(-1)
+        design = design_matrix(t - self.origin, self.frequency_hz, self.harmonics)
+        block = np.hstack([design, np.asarray(q, dtype=float).reshape(t.shape[0], -1)])
+        self.factor = scipy.linalg.qr(np.vstack([self.factor, block]), mode="r")[0][:block.shape[1]]
+        self.n_samples += t.shape[0]
+
+    def series(self) -> FourierSeries:
+        """The fitted series."""
+        check_determined(self.n_samples, self.harmonics)
+        width = 2 * self.harmonics + 1
+        coefficients = np.linalg.lstsq(self.factor[:width, :width], self.factor[:width, width:], rcond=None)[0]
+        return series_at_origin(coefficients, self.origin, self.frequency_hz, self.harmonics)
+
+
+def check_determined(n_samples: int, harmonics: int) -> None:
+    """``ValueError`` when ``n_samples`` cannot determine the ``2 harmonics + 1`` coefficients of a joint."""
+    if n_samples < 2 * harmonics + 1:
+        raise ValueError(f"{n_samples} samples cannot determine {2 * harmonics + 1} Fourier coefficients per joint")
 
 
 def uniform_fit(t: NDArray[np.float64], q: NDArray[np.float64], frequency_hz: float,

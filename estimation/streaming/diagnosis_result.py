@@ -112,7 +112,10 @@ class StreamedRun:
 def file_record(path: str, sums, record: dict) -> dict[str, Any]:
     return {"path": path, "rows": record["rows"], "samples": sums.n_samples,
             "trimmed_samples": record["metadata"].get("trimmed_samples", 0),
-            "resampled_from": record["metadata"].get("resampled_from")}  # rows of a file resampled onto a grid
+            "resampled_from": record["metadata"].get("resampled_from"),  # rows of a file resampled onto a grid
+            # on the Fourier path: the periods its sums average (0: every sample fitted), else absent
+            **({"periods_averaged": int(record["metadata"]["periods_averaged"])}
+               if record["metadata"].get("periods_averaged") is not None else {})}
 
 
 def found_effects(model: IdentificationModel, run: StreamedRun, after: SummedEstimate) -> tuple[FoundEffect, ...]:

@@ -51,14 +51,13 @@ from estimation.estimators.summed_least_squares import SummedLeastSquares
 from estimation.identification.fit import IdentificationResult, ImplausibleEstimateWarning, implausible_estimates
 from estimation.identification.subtracted_load import SubtractedLoad
 from estimation.identification.validation import ChannelErrors
-from estimation.streaming.chunks import (FileSums, StreamingUnsupportedError, automatic_cutoff, preprocessed_chunks,
-                                         read_chunks)
+from estimation.streaming.chunks import (FileSums, StreamingUnsupportedError, automatic_cutoff, read_chunks)
 from estimation.streaming.cluster import (IncompleteSumError, caught_warnings, file_stamp, model_from_payload,
                                           model_payload, sum_files)
 from estimation.streaming.covariance import BatchScores, chunk_scores, sandwich
 from estimation.streaming.diagnosis_passes import map_files
 from estimation.streaming.diagnosis_sums import ColumnLayout
-from estimation.streaming.periods import periodic_prepared
+from estimation.streaming.periods import plan_chunks
 
 #: the standard deviations: batch means from a third pass (``"hac"``) or white residuals assumed
 StreamedCovariance = Literal["hac", "classical"]
@@ -309,17 +308,11 @@ def _has_derivatives(path: str, model: IdentificationModel, chunk_size: int) -> 
 
 def prepared_chunks(path: str, model: IdentificationModel, *, frequency_hz: float | None = None, harmonics: int = 5,
                     chunk_size: int = DEFAULT_CHUNK_SIZE, **options: Any) -> Iterator[Measurements]:
-    """The prepared samples of one file, chunk by chunk, as :func:`estimation.streaming.cluster.sums_of_file` sums them."""
-    if frequency_hz is not None:
-        first = next(read_chunks(path, model, chunk_size=chunk_size))
-        if first.dq is None or first.ddq is None:
-            prepared = periodic_prepared(path, model, frequency_hz=frequency_hz, harmonics=harmonics,
-                                         chunk_size=chunk_size, **{key: options[key] for key in
-                                                                   ("decimation", "held_torques") if key in options})[0]
-            for start in range(0, prepared.n_samples, chunk_size):
-                yield prepared.select(slice(start, start + chunk_size))
-            return
-    yield from preprocessed_chunks(path, model, chunk_size=chunk_size, **options)
+    """The prepared samples of one file, chunk by chunk, as :func:`estimation.streaming.cluster.sums_of_file` sums them
+    (:func:`estimation.streaming.periods.plan_chunks`: on the Fourier path its averaged period, or its every sample
+    with the fit's motion)."""
+    yield from plan_chunks(path, model, frequency_hz=frequency_hz, harmonics=harmonics, chunk_size=chunk_size,
+                           **options)
 
 
 @single_threaded_blas()

@@ -88,7 +88,7 @@ from oed.workflows.asbuilt import (
     worse_after,
 )
 from oed.workflows.chosen_model import ChosenModel, answer_diagnosis, mse_line
-from oed.workflows.diagnosis_training import averaged_errors, recorded_training, summed_unconstrained
+from oed.workflows.diagnosis_training import averaged_errors, averaged_sums, recorded_training, summed_unconstrained
 from oed.workflows.joint_side import named_as_given, records_to_read
 from oed.workflows.memory_path import IN_MEMORY_ROUTE, decide_path, streamed_choice, streamed_records
 from oed.workflows.consistent import check_consistent_arguments, consistent_lines, consistent_settings
@@ -659,7 +659,7 @@ def diagnose_document(args: DiagnoseOptions, diagnosed: Diagnosed) -> tuple[dict
                     entry["model_file"]["subtracted"] = diagnosed.subtracted.to_dict()
         if diagnosed.averaged_train is not None:  # measured against the recording, the sums' errors beside
             averaged_errors(document, diagnosed.averaged_train)
-        elif diagnosis.streaming.get("frequency_hz") is not None:
+        elif averaged_sums(diagnosis.streaming):
             averaged_training_errors(document)
     said = add_training_range(document, diagnosed.training_range, diagnosed.range_checks)
     if said:  # a held-out record beyond the training range: what was measured on it is some extrapolation
@@ -980,8 +980,8 @@ def check_streamed_arguments(args: DiagnoseOptions, model: IdentificationModel) 
         ("--max-gap", args.max_gap != DEFAULT_MAX_GAP)) if given]
     if unsupported:
         raise ValueError(f"{', '.join(unsupported)}: not with {STREAMED}, which reads whole files without holes "
-                         "on the filter path, the files' dq, ddq or a Fourier fit of averaged "
-                         f"periods; {IN_MEMORY_ROUTE}")
+                         "on the filter path, the files' dq, ddq or a Fourier fit of averaged periods (of every "
+                         f"sample where --average-periods auto fits every sample); {IN_MEMORY_ROUTE}")
     if model_has_shapes(model):
         raise ValueError(f"declared laws with shape parameters (coulomb:tanh, sigmoid…) are fitted in memory: not with "
                          f"{STREAMED}; declare their plain forms, or let the diagnosis find them")
@@ -1020,6 +1020,7 @@ def diagnosis_streamed(args: DiagnoseOptions, friction: str, plan: Preprocessing
     from estimation.streaming.diagnosis import diagnose_files_run
     from estimation.streaming.model_selection import streamed_repeated_motion, warned_still_motion
     from estimation.streaming.recorded_errors import streamed_plan
+    from estimation.streaming.periods import check_averaged
 
     robot = robot_of(args)
     transmission = resolve_transmission(args, robot)  # its motor laws; motor-side records read as joint-side copies
@@ -1041,6 +1042,7 @@ def diagnosis_streamed(args: DiagnoseOptions, friction: str, plan: Preprocessing
         if plan is None:
             with findings.reading():
                 plan = streamed_choice(args, model, **derivatives_on_validation(model, None)).chosen
+        check_averaged(plan, [*args.data, *args.validate], model, chunk_size=chunk_size)  # "yes" stops as in memory
         still = warned_still_motion(model, args.data, args.validate, chunk_size=chunk_size)  # said as in memory
         checked, ratio = None, None
         if gains is None and turned is None and subtracted is None and plan.method != "fourier" and delay is None:

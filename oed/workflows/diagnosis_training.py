@@ -36,7 +36,7 @@ from oed.workflows.options import RecordOptions
 if TYPE_CHECKING:  # the streamed path's modules: imported when it runs
     from estimation.streaming.recorded_errors import Predictor
 
-__all__ = ["averaged_errors", "recorded_training", "summed_unconstrained"]
+__all__ = ["averaged_errors", "averaged_sums", "recorded_training", "summed_unconstrained"]
 
 
 class _Prediction:
@@ -82,7 +82,7 @@ def recorded_training(args: RecordOptions, diagnosis: Diagnosis, selection: Mode
     ``oed predict`` makes it (:func:`estimation.streaming.recorded_errors.less_load`)."""
     streaming = diagnosis.streaming or {}
     files = streaming.get("files") or []
-    fourier = streaming.get("frequency_hz") is not None
+    fourier = averaged_sums(streaming)
     if not fourier and not any(record.get("resampled_from") is not None for record in files):
         return diagnosis, selection, None
     from estimation.streaming.recorded_errors import less_load, recorded_training_errors
@@ -137,11 +137,26 @@ def recorded_training(args: RecordOptions, diagnosis: Diagnosis, selection: Mode
     diagnosis = replace(diagnosis, before=before, after=after, runner_up=runner_up,
                         streaming={**streaming, "seconds": seconds})
     if selection is not None:
+        measured = {candidate.name: replace(candidate.fit, train=ChannelErrors(errors["candidate", candidate.name],
+                                                                                count))
+                    for candidate in selection.candidates if candidate.fit is not None}
+        refit = selection.consistent
+        if refit is not None and selection.base in measured \
+                and refit.unconstrained is selection.candidate(selection.base).fit:  # its price against the same errors
+            measured["consistent"] = replace(measured["consistent"], unconstrained=measured[selection.base])
         selection = replace(selection, candidates=tuple(
-            candidate if candidate.fit is None else replace(candidate, fit=replace(
-                candidate.fit, train=ChannelErrors(errors["candidate", candidate.name], count)))
+            replace(candidate, fit=measured[candidate.name]) if candidate.name in measured else candidate
             for candidate in selection.candidates))
     return diagnosis, selection, averaged
+
+
+def averaged_sums(streaming: Mapping[str, Any]) -> bool:
+    """Whether a streamed diagnosis's training sums (``streaming``, its document's) hold averaged periods: the
+    Fourier path, and a file whose periods were averaged (a file of the Fourier path fitted at its every sample,
+    ``periods_averaged`` 0, sums the samples read, as the filter path does)."""
+    if streaming.get("frequency_hz") is None:
+        return False
+    return any(record.get("periods_averaged", 1) != 0 for record in streaming.get("files") or [{}])
 
 
 def averaged_errors(document: dict[str, Any], averaged: Mapping[str, Any]) -> None:

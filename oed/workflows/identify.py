@@ -1039,7 +1039,8 @@ def check_streamed_request(args: IdentifyOptions, model: IdentificationModel) ->
         ("--max-gap", args.max_gap != DEFAULT_MAX_GAP)) if given]
     if unsupported:
         raise ValueError(f"{', '.join(unsupported)}: not with {STREAMED}, which reads whole files without holes "
-                         f"and averages periods whenever --frequency is given; {IN_MEMORY_ROUTE}")
+                         f"and with --frequency averages periods or fits every sample as --average-periods auto says; "
+                         f"{IN_MEMORY_ROUTE}")
 
 
 def identification_in_memory(args: IdentifyOptions, robot: RobotModel, model: IdentificationModel,

@@ -163,9 +163,6 @@ def decide_path(args: RecordOptions, model: IdentificationModel, *, task: str, b
         if not need.stream:
             say(f"{need.describe(task)} ({plan.describe_method()} of averaged periods)")
             return PathDecision(False, plan, need)
-    if plan.method == "fourier" and kept is None:
-        say(f"{need.describe(task)}, but {plan.describe_method()} of every sample is made in memory: in memory")
-        return PathDecision(False, plan, need)
     say(need.describe(task) + " (--memory-budget to change it, --chunk-size to set the chunks)")
     return PathDecision(True, plan, need, findings)
 
