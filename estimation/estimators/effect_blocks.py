@@ -38,6 +38,11 @@ class NoRowsError(ValueError):
 #: column underflows to zero at |dq| = 2.3 with a small Stribeck velocity, and tanh(dq/v) is ±1 far out)
 ROW_CHECK_STATES = 16
 
+#: the latest evaluations a block keeps along each kept states object (:meth:`Block.evaluate`): the searches of a
+#: diagnosis come back to a shape a block left a few evaluations before (a candidate refitted from its last optimum
+#: after another start, its screen beside the other record's), ~900 evaluations of ~5 000 on the Panda
+KEPT_EVALUATIONS = 4
+
 
 @functools.lru_cache(maxsize=512)
 def effect_block_functions(kind: ModelKind, robot: RobotModel, effect: Effect) -> tuple[SampleEvaluator, SampleEvaluator]:
@@ -203,12 +208,15 @@ class Block:
         # the latest evaluation: (states, shape's bytes, columns, derivatives or None, products) (:meth:`evaluate`,
         # :meth:`products`)
         self._latest: tuple[States, bytes, NDArray[np.float64], NDArray[np.float64] | None, dict] | None = None
+        # the :data:`KEPT_EVALUATIONS` latest along each kept states object, by (id(states), shape's bytes), the latest
+        # last: (states, columns, derivatives or None, products) (:meth:`evaluate`)
+        self._kept: dict[tuple[int, bytes], tuple[States, NDArray[np.float64], NDArray[np.float64] | None, dict]] = {}
         # the columns of every shape evaluated along one kept states object while :meth:`keeping_shapes` holds
         self._shapes: tuple[States, dict[bytes, NDArray[np.float64]]] | None = None
 
     def __getstate__(self) -> dict[str, object]:
         # the kept evaluations are caches: not sent with the block
-        return {**self.__dict__, "_latest": None, "_shapes": None}
+        return {**self.__dict__, "_latest": None, "_shapes": None, "_kept": {}}
 
     @contextlib.contextmanager
     def keeping_shapes(self, states: States) -> Iterator[None]:
@@ -252,6 +260,12 @@ class Block:
             columns = shapes[1][key]
             self._latest = (states, key, columns, None, {})  # as an evaluation leaves it (states are kept)
             return columns
+        known = self._kept.pop((id(states), key), None) if states.kept else None
+        if known is not None and known[0] is states and (known[2] is not None or not jacobian):
+            # an evaluation kept: the same arrays (read-only) as that evaluation gave, with its products' store
+            self._kept[(id(states), key)] = known
+            self._latest = (states, key, known[1], known[2], known[3])
+            return (known[1], known[2]) if jacobian else known[1]
         n_samples, k = states.n_samples, self.n_linear
         function = self.row_jacobian_function if jacobian else self.row_columns_function
         values = evaluate_at_shape(function, states.q, states.dq, states.ddq, shape)  # (N, r·k [+ r·k·n_s]), r = len(rows)
@@ -267,6 +281,9 @@ class Block:
                 if array is not None:
                     array.flags.writeable = False
             self._latest = (states, key, columns, derivative, {})
+            self._kept[(id(states), key)] = (states, columns, derivative, self._latest[4])
+            for old in list(self._kept)[:-KEPT_EVALUATIONS]:
+                del self._kept[old]
             if shapes is not None and not jacobian:
                 shapes[1][key] = columns
         return (columns, derivative) if jacobian else columns
