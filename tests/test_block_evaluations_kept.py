@@ -13,7 +13,7 @@ from dynamics.models import ModelKind
 from estimation.diagnosis.candidates import trials
 from estimation.estimators import effect_blocks
 from estimation.estimators.effect_blocks import Block, States
-from tests.shaped_problem import shaped_problem
+from tests.shaped_problem import counting_evaluations, shaped_problem
 
 
 @pytest.fixture(scope="module")
@@ -25,15 +25,7 @@ def counted_block(problem, spec: str = "coulomb:tanh", joint: int = 1) -> tuple[
     """A block on ``joint`` whose row functions count their evaluations."""
     effect = parse_effects(spec)[0]
     block = Block(ModelKind.INTERNAL, problem.robot, type(effect)(joints=(joint,)), len(problem.model.channels))
-    calls = [0]
-    for name in ("row_columns_function", "row_jacobian_function"):
-        function = getattr(block, name)
-
-        def counted(*arguments, function=function):
-            calls[0] += 1
-            return function(*arguments)
-        setattr(block, name, counted)
-    return block, calls
+    return block, counting_evaluations(block)
 
 
 def test_a_shape_asked_again_is_the_kept_evaluation(problem):
