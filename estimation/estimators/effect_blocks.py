@@ -38,10 +38,11 @@ class NoRowsError(ValueError):
 #: column underflows to zero at |dq| = 2.3 with a small Stribeck velocity, and tanh(dq/v) is ±1 far out)
 ROW_CHECK_STATES = 16
 
-#: the latest evaluations a block keeps along each kept states object (:meth:`Block.evaluate`): the searches of a
-#: diagnosis come back to a shape a block left a few evaluations before (a candidate refitted from its last optimum
-#: after another start, its screen beside the other record's), ~900 evaluations of ~5 000 on the Panda
-KEPT_EVALUATIONS = 4
+#: the latest evaluations a block keeps along kept states (:meth:`Block.evaluate`): the searches of a diagnosis come
+#: back to a shape a block left an evaluation or two before (a candidate refitted from its last optimum after another
+#: start, its screen on the other record in between): ~390 evaluations of ~4 900 on the Panda with 2, ~440 with 4 (and
+#: twice the memory: a shaped block's columns and derivatives, ~0.1-1 MB an evaluation of 13 840 samples)
+KEPT_EVALUATIONS = 2
 
 
 @functools.lru_cache(maxsize=512)
@@ -208,8 +209,8 @@ class Block:
         # the latest evaluation: (states, shape's bytes, columns, derivatives or None, products) (:meth:`evaluate`,
         # :meth:`products`)
         self._latest: tuple[States, bytes, NDArray[np.float64], NDArray[np.float64] | None, dict] | None = None
-        # the :data:`KEPT_EVALUATIONS` latest along each kept states object, by (id(states), shape's bytes), the latest
-        # last: (states, columns, derivatives or None, products) (:meth:`evaluate`)
+        # the :data:`KEPT_EVALUATIONS` latest along kept states, by (id(states), shape's bytes), the latest last:
+        # (states, columns, derivatives or None, products) (:meth:`evaluate`)
         self._kept: dict[tuple[int, bytes], tuple[States, NDArray[np.float64], NDArray[np.float64] | None, dict]] = {}
         # the columns of every shape evaluated along one kept states object while :meth:`keeping_shapes` holds
         self._shapes: tuple[States, dict[bytes, NDArray[np.float64]]] | None = None
