@@ -11,11 +11,11 @@ from dynamics.models import IdentificationModel, build_model
 from dynamics.robot import RobotModel
 from dynamics.robots import load_robot
 from dynamics.simulation.synthetic import simulate, true_parameters
-from estimation.estimators.effect_blocks import States
+from estimation.estimators.effect_blocks import Block, States
 from estimation.estimators.separable_least_squares import FixedPart
 from oed.fourier import random_fourier
 
-__all__ = ["ShapedProblem", "shaped_problem"]
+__all__ = ["ShapedProblem", "counting_evaluations", "shaped_problem"]
 
 
 @dataclass(frozen=True)
@@ -40,3 +40,16 @@ def shaped_problem(*, kept: bool = False) -> ShapedProblem:
     fixed = FixedPart.from_arrays(model.evaluate_base(record.q, record.dq, record.ddq), record.channels(model.channels))
     states = States(record.q, record.dq, record.ddq, kept=kept)
     return ShapedProblem(robot, model, fixed, states, record)
+
+
+def counting_evaluations(block: Block) -> list[int]:
+    """``block`` with its row functions counting their evaluations: the count, ``[n]``, updated as they run."""
+    calls = [0]
+    for name in ("row_columns_function", "row_jacobian_function"):
+        function = getattr(block, name)
+
+        def counted(*arguments, function=function):
+            calls[0] += 1
+            return function(*arguments)
+        setattr(block, name, counted)
+    return calls

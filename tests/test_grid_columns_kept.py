@@ -13,7 +13,7 @@ from dynamics.effects.linear import parse_effects
 from dynamics.models import ModelKind
 from estimation.diagnosis.candidates import trials
 from estimation.estimators.effect_blocks import Block, States
-from tests.shaped_problem import shaped_problem
+from tests.shaped_problem import counting_evaluations, shaped_problem
 
 
 @pytest.fixture(scope="module")
@@ -54,14 +54,7 @@ def test_a_trial_with_the_grid_kept_is_the_trial_evaluated_afresh(problem, spec,
 
     def trial_of(joint: int, kept: bool):
         block = Block(ModelKind.INTERNAL, robot, type(effect)(joints=(joint,)), len(model.channels))
-        calls = [0]
-        for name in ("row_columns_function", "row_jacobian_function"):
-            function = getattr(block, name)
-
-            def counted(*arguments, function=function):
-                calls[0] += 1
-                return function(*arguments)
-            setattr(block, name, counted)
+        calls = counting_evaluations(block)
         if not kept:
             monkeypatch.setattr(trials, "_grid_columns_kept", lambda *arguments: contextlib.nullcontext())
         try:

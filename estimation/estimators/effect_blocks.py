@@ -38,6 +38,12 @@ class NoRowsError(ValueError):
 #: column underflows to zero at |dq| = 2.3 with a small Stribeck velocity, and tanh(dq/v) is ±1 far out)
 ROW_CHECK_STATES = 16
 
+#: the latest evaluations a block keeps along kept states (:meth:`Block.evaluate`): the searches of a diagnosis come
+#: back to a shape a block left an evaluation or two before (a candidate refitted from its last optimum after another
+#: start, its screen on the other record in between): ~390 evaluations of ~4 900 on the Panda with 2, ~440 with 4 (and
+#: twice the memory: a shaped block's columns and derivatives, ~0.1-1 MB an evaluation of 13 840 samples)
+KEPT_EVALUATIONS = 2
+
 
 @functools.lru_cache(maxsize=512)
 def effect_block_functions(kind: ModelKind, robot: RobotModel, effect: Effect) -> tuple[SampleEvaluator, SampleEvaluator]:
@@ -203,12 +209,15 @@ class Block:
         # the latest evaluation: (states, shape's bytes, columns, derivatives or None, products) (:meth:`evaluate`,
         # :meth:`products`)
         self._latest: tuple[States, bytes, NDArray[np.float64], NDArray[np.float64] | None, dict] | None = None
+        # the :data:`KEPT_EVALUATIONS` latest along kept states, by (id(states), shape's bytes), the latest last:
+        # (states, columns, derivatives or None, products) (:meth:`evaluate`)
+        self._kept: dict[tuple[int, bytes], tuple[States, NDArray[np.float64], NDArray[np.float64] | None, dict]] = {}
         # the columns of every shape evaluated along one kept states object while :meth:`keeping_shapes` holds
         self._shapes: tuple[States, dict[bytes, NDArray[np.float64]]] | None = None
 
     def __getstate__(self) -> dict[str, object]:
         # the kept evaluations are caches: not sent with the block
-        return {**self.__dict__, "_latest": None, "_shapes": None}
+        return {**self.__dict__, "_latest": None, "_shapes": None, "_kept": {}}
 
     @contextlib.contextmanager
     def keeping_shapes(self, states: States) -> Iterator[None]:
@@ -252,6 +261,12 @@ class Block:
             columns = shapes[1][key]
             self._latest = (states, key, columns, None, {})  # as an evaluation leaves it (states are kept)
             return columns
+        known = self._kept.pop((id(states), key), None) if states.kept else None
+        if known is not None and known[0] is states and (known[2] is not None or not jacobian):
+            # an evaluation kept: the same arrays (read-only) as that evaluation gave, with its products' store
+            self._kept[(id(states), key)] = known
+            self._latest = (states, key, known[1], known[2], known[3])
+            return (known[1], known[2]) if jacobian else known[1]
         n_samples, k = states.n_samples, self.n_linear
         function = self.row_jacobian_function if jacobian else self.row_columns_function
         values = evaluate_at_shape(function, states.q, states.dq, states.ddq, shape)  # (N, r·k [+ r·k·n_s]), r = len(rows)
@@ -267,6 +282,9 @@ class Block:
                 if array is not None:
                     array.flags.writeable = False
             self._latest = (states, key, columns, derivative, {})
+            self._kept[(id(states), key)] = (states, columns, derivative, self._latest[4])
+            for old in list(self._kept)[:-KEPT_EVALUATIONS]:
+                del self._kept[old]
             if shapes is not None and not jacobian:
                 shapes[1][key] = columns
         return (columns, derivative) if jacobian else columns
