@@ -73,15 +73,18 @@ def fit_channel_gains(Y: NDArray, target: NDArray, weights: NDArray, gained: NDA
     """
     N, m, r = Y.shape
     w2 = np.asarray(weights, dtype=float) ** 2
-    G = np.einsum("nmr,nms->mrs", Y, Y, optimize=True) * w2[:, None, None]
-    b = np.einsum("nmr,nm->mr", Y, target, optimize=True) * w2[:, None]
+    by_channel = np.ascontiguousarray(Y.transpose(1, 0, 2))  # (m, N, r)
+    G = (by_channel.transpose(0, 2, 1) @ by_channel) * w2[:, None, None]
+    b = np.einsum("mnr,nm->mr", by_channel, target, optimize=True) * w2[:, None]
     c = np.einsum("nm,nm->m", target, target) * w2
     free = np.flatnonzero(gained)[1:]  # the first gained channel holds the scale
-    s = np.ones(m)
+    s = _divided_start(G, b, c, gained, free)
     theta = _theta(G, b, s)
     cost = _cost(G, b, c, s, theta)
     damping = 1e-3
     for _ in range(MAX_ITERATIONS if free.size else 0):
+        if cost <= 0.0:  # the model holds exactly
+            break
         Gt = np.einsum("mrs,s->mr", G, theta)  # G_j θ
         # residual e_j = τ_j − s_j Y_j θ: d/dθ = −s_j Y_j, d/ds_j = −Y_j θ; H = JᵀJ, g = −Jᵀe
         H_tt = np.einsum("m,mrs->rs", s**2, G)
@@ -109,6 +112,30 @@ def fit_channel_gains(Y: NDArray, target: NDArray, weights: NDArray, gained: NDA
         if done:
             break
     return ChannelGains(theta, s, float(cost / (N * m)))
+
+
+def _divided_start(G: NDArray, b: NDArray, c: NDArray, gained: NDArray[np.bool_], free: NDArray) -> NDArray:
+    """The gains of the linear fit of the divided torques, ``h_j τ_j = Y_j θ`` with ``h_j = 1 / s_j`` (the first
+    gained channel's ``h`` and the others' held at 1): one least-squares solve in ``(θ, h)`` whose residual is
+    in the model's units rather than the recorded ones; exact when the model holds exactly, so the start from which
+    Levenberg–Marquardt takes the recorded units' least squares in a few steps (from ``s = 1`` it creeps along the
+    valley of the gains the rigid body hardly determines, and cannot reach a gain of the other sign)."""
+    m, r = b.shape
+    s = np.ones(m)
+    if free.size == 0:
+        return s
+    held = np.setdiff1d(np.arange(m), free)
+    A = np.zeros((r + free.size, r + free.size))
+    A[:r, :r] = G.sum(axis=0)
+    A[:r, r:] = -b[free].T
+    A[r:, :r] = -b[free]
+    A[r:, r:] = np.diag(c[free])
+    rhs = np.r_[b[held].sum(axis=0), np.zeros(free.size)]
+    scale = np.sqrt(np.maximum(np.diag(A), 1e-300))
+    h = (np.linalg.lstsq(A / np.outer(scale, scale), rhs / scale, rcond=1e-12)[0] / scale)[r:]
+    usable = np.isfinite(h) & (np.abs(h) > 1e-6 * np.max(np.abs(h), initial=0.0))
+    s[free[usable]] = 1.0 / h[usable]
+    return s
 
 
 def _theta(G: NDArray, b: NDArray, s: NDArray) -> NDArray:

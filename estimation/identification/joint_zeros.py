@@ -515,39 +515,96 @@ def check_joint_zeros(model: IdentificationModel, train: Measurements, held_out:
 
 def _apart_from_gains(model: IdentificationModel, found: _Problem, held: _Problem, offsets: NDArray,
                       named: list[int]) -> list[int]:
-    """The joints of ``named`` whose offset each lowers, by itself, the held-out error, and the training and the
-    held-out error with a free gain on each joint's torque (:func:`~estimation.identification.channel_gains.fit_channel_gains`)
-    by :data:`MIN_JOINT_GAIN`: ``θ`` (and the gains) fitted on the training samples ``found`` at ``offsets`` and at
-    ``offsets`` less the joint's, the held-out samples ``held`` (in the same directions) scored with the training's
-    channel weights.
+    """The joints of ``named`` whose offset a free gain on each joint's torque cannot explain as well.
 
     Torques logged as currents with an unknown gain per joint are a fault a linear fit of ``θ`` cannot take up, and a
-    joint's zero moved away from the description's takes part of it up on every record alike (a 6-joint PUMA whose
+    joint's zero moved away from the description's takes part of it up, on every record alike (a 6-joint PUMA whose
     torques were logged with gains 0.3–1.8, one flipped: joint 2 found 38° off on the training record, 21° on the
-    validation record alone, the validation error 18 % lower with it; with the gains free the offset raises both
-    errors, ``benchmarks/README.md``). An offset is the log's fault only if the gains cannot explain it as well."""
+    validation record alone, and the validation error 18 % lower with it; ``benchmarks/README.md``). A joint is kept
+    when, by :data:`MIN_JOINT_GAIN` each:
+
+    - its offset alone lowers the held-out error (``θ`` fitted on the training samples ``found`` at ``offsets`` and at
+      ``offsets`` less the joint's, the held-out samples ``held``, in the same directions, scored with the training's
+      channel weights): an offset is the log's fault only if data its choice did not see confirm it;
+    - with the gains free (:func:`~estimation.identification.channel_gains.fit_channel_gains`) and the named joints'
+      offsets estimated with them (:func:`_gained_offsets`, from ``offsets``), its offset alone lowers the training
+      and the held-out error: the gains alone do not explain what it does.
+    """
     if not named:
         return named
     gained = np.array([is_joint_torque(channel) for channel in model.channels])
     weights = found.weights
 
-    def errors(at: NDArray) -> tuple[float, float, float]:
-        Y = found.regressor(at)
-        held_Y = model.evaluate_base(held.q + at, held.dq, held.ddq)
-        theta, _ = found.fit(at, Y)
-        gains = fit_channel_gains(Y, found.target, weights, gained)
-        return (float(np.mean(((held.target - held_Y @ theta) * weights) ** 2)), gains.cost,
-                float(np.mean(((held.target - gains.predicted(held_Y)) * weights) ** 2)))
+    def plain_held(at: NDArray) -> float:
+        theta, _ = found.fit(at)
+        return _weighted_mse(model, held, at, lambda Y: Y @ theta, weights)
+
+    def with_gains(at: NDArray) -> tuple[float, float]:
+        gains = fit_channel_gains(found.regressor(at), found.target, weights, gained)
+        return gains.cost, _weighted_mse(model, held, at, gains.predicted, weights)
 
     with np.errstate(all="ignore"):
-        at_offsets = errors(offsets)
+        refitted = _gained_offsets(found, offsets, np.array(named), gained)
+        plain_at, gains_at = plain_held(offsets), with_gains(refitted)
         kept = []
         for joint in named:
-            without = offsets.copy()
-            without[joint] = 0.0
-            if all(other > (1 + MIN_JOINT_GAIN) * value for other, value in zip(errors(without), at_offsets)):
+            without, refitted_without = offsets.copy(), refitted.copy()
+            without[joint] = refitted_without[joint] = 0.0
+            if plain_held(without) > (1 + MIN_JOINT_GAIN) * plain_at and \
+                    all(other > (1 + MIN_JOINT_GAIN) * value for other, value in zip(with_gains(refitted_without),
+                                                                                   gains_at)):
                 kept.append(joint)
     return kept
+
+
+def _weighted_mse(model: IdentificationModel, held: _Problem, offsets: NDArray, predict, weights: NDArray) -> float:
+    """The mean weighted squared error of ``predict(Y)`` on ``held``'s samples at ``offsets``."""
+    Y = model.evaluate_base(held.q + offsets, held.dq, held.ddq)
+    return float(np.mean(((held.target - predict(Y)) * weights) ** 2))
+
+
+def _gained_offsets(problem: _Problem, offsets: NDArray, joints: NDArray, gained: NDArray) -> NDArray:
+    """The offsets of ``joints`` minimising the training cost with a free gain on each ``gained`` channel:
+    Gauss–Newton on ``(θ, s, δ_joints)`` from ``offsets`` (:func:`_gauss_newton` with the gains), the residual
+    ``τ_j − s_j Y_j(q + δ) θ`` linearised in all three, the first gained channel's gain held (the scale)."""
+    free = np.flatnonzero(gained)[1:]
+    revolute = np.array([joint.joint_type == JointType.REVOLUTE for joint in problem.model.robot.joints])
+    weights = problem.weights
+
+    def fitted(at: NDArray):
+        return fit_channel_gains(problem.regressor(at), problem.target, weights, gained)
+
+    current = fitted(offsets)
+    for _ in range(ITERATIONS):
+        Y = problem.regressor(offsets)
+        predicted = Y @ current.theta
+        residual = problem.target - current.gains * predicted
+        gain_columns = np.zeros((*predicted.shape, free.size))
+        gain_columns[:, free, np.arange(free.size)] = predicted[:, free]
+        columns = []
+        for joint in joints:
+            shifted = offsets.copy()
+            shifted[joint] += STEP
+            columns.append(current.gains * (problem.regressor(shifted) @ current.theta - predicted) / STEP)
+        J = np.concatenate([Y * current.gains[None, :, None], gain_columns, np.stack(columns, axis=2)], axis=2)
+        delta = _least_squares(J * weights[None, :, None], residual * weights)[-joints.size:]
+        improved = False
+        for _ in range(5):
+            trial = offsets.copy()
+            trial[joints] += delta
+            trial = _wrapped(trial, revolute)
+            trial_fit = fitted(trial)
+            if trial_fit.cost < current.cost:
+                improved = True
+                break
+            delta = delta / 2
+        if not improved:
+            break
+        converged = np.max(np.abs(trial - offsets)) < 1e-6
+        offsets, current = trial, trial_fit
+        if converged:
+            break
+    return offsets
 
 
 def _checked(model: IdentificationModel, train: Measurements, held_out: Measurements | None, max_samples: int,
