@@ -33,6 +33,7 @@ joints beyond Gauss–Newton's reach are left as they are; only revolute joints 
 from __future__ import annotations
 
 import warnings
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -43,7 +44,7 @@ from dynamics.measurements import Measurements
 from dynamics.effects.linear import parse_effects
 from dynamics.models import IdentificationModel, ModelKind, build_model
 from dynamics.robot import JointType
-from estimation.identification.channel_gains import fit_channel_gains
+from estimation.identification.channel_gains import ChannelGains, fit_channel_gains
 
 #: the held-out error must fall by at least this fraction (mean of the channels' ratios and total) to be reported
 MARKED_GAIN = 0.10
@@ -330,24 +331,31 @@ def _gauss_newton(problem: _Problem, offsets: NDArray, free: NDArray, revolute: 
             columns.append((problem.regressor(shifted) @ theta - predicted) / STEP)
         J = np.concatenate([Y, np.stack(columns, axis=2)], axis=2) * problem.weights[None, :, None]
         step = _least_squares(J, residual * problem.weights)
-        delta = step[Y.shape[2]:]
-        improved = False
-        for _ in range(5):
-            trial = offsets.copy()
-            trial[joints] += delta
-            trial = _wrapped(trial, revolute)
-            trial_cost = problem.cost(trial)
-            if trial_cost < cost:
-                improved = True
-                break
-            delta = delta / 2
-        if not improved:
+        searched = _line_search(offsets, joints, step[Y.shape[2]:], revolute, lambda trial: (problem.cost(trial),),
+                                cost)
+        if searched is None:
             break
+        trial, (trial_cost,) = searched
         converged = np.max(np.abs(trial - offsets)) < 1e-6
         offsets, cost = trial, trial_cost
         if converged:
             break
     return offsets
+
+
+def _line_search(offsets: NDArray, joints: NDArray, delta: NDArray, revolute: NDArray, evaluate: Callable,
+                 cost: float) -> tuple[NDArray, tuple] | None:
+    """The step ``delta`` on ``joints`` from ``offsets`` (wrapped), halved (at most 4 times) until the cost
+    ``evaluate(trial)[0]`` falls below ``cost``: ``(trial, evaluate(trial))``, or ``None``."""
+    for _ in range(5):
+        trial = offsets.copy()
+        trial[joints] += delta
+        trial = _wrapped(trial, revolute)
+        evaluated = evaluate(trial)
+        if evaluated[0] < cost:
+            return trial, evaluated
+        delta = delta / 2
+    return None
 
 
 def estimate_offsets(model: IdentificationModel, problem: _Problem) -> NDArray[np.float64]:
@@ -571,10 +579,11 @@ def _gained_offsets(problem: _Problem, offsets: NDArray, joints: NDArray, gained
     revolute = np.array([joint.joint_type == JointType.REVOLUTE for joint in problem.model.robot.joints])
     weights = problem.weights
 
-    def fitted(at: NDArray):
-        return fit_channel_gains(problem.regressor(at), problem.target, weights, gained)
+    def scored(at: NDArray) -> tuple[float, ChannelGains]:
+        fitted = fit_channel_gains(problem.regressor(at), problem.target, weights, gained)
+        return fitted.cost, fitted
 
-    current = fitted(offsets)
+    _, current = scored(offsets)
     for _ in range(ITERATIONS):
         Y = problem.regressor(offsets)
         predicted = Y @ current.theta
@@ -588,18 +597,10 @@ def _gained_offsets(problem: _Problem, offsets: NDArray, joints: NDArray, gained
             columns.append(current.gains * (problem.regressor(shifted) @ current.theta - predicted) / STEP)
         J = np.concatenate([Y * current.gains[None, :, None], gain_columns, np.stack(columns, axis=2)], axis=2)
         delta = _least_squares(J * weights[None, :, None], residual * weights)[-joints.size:]
-        improved = False
-        for _ in range(5):
-            trial = offsets.copy()
-            trial[joints] += delta
-            trial = _wrapped(trial, revolute)
-            trial_fit = fitted(trial)
-            if trial_fit.cost < current.cost:
-                improved = True
-                break
-            delta = delta / 2
-        if not improved:
+        searched = _line_search(offsets, joints, delta, revolute, scored, current.cost)
+        if searched is None:
             break
+        trial, (_, trial_fit) = searched
         converged = np.max(np.abs(trial - offsets)) < 1e-6
         offsets, current = trial, trial_fit
         if converged:
