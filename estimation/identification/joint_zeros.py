@@ -531,12 +531,13 @@ def _apart_from_gains(model: IdentificationModel, found: _Problem, held: _Proble
     validation record alone, and the validation error 18 % lower with it; ``benchmarks/README.md``). A joint is kept
     when, by :data:`MIN_JOINT_GAIN` each:
 
-    - its offset alone lowers the held-out error (``θ`` fitted on the training samples ``found`` at ``offsets`` and at
-      ``offsets`` less the joint's, the held-out samples ``held``, in the same directions, scored with the training's
-      channel weights): an offset is the log's fault only if data its choice did not see confirm it;
+    - its offset alone lowers the held-out error (``θ`` fitted on the training samples ``found`` at the named
+      joints' ``offsets``, the others' zero, and at those less the joint's; the held-out samples ``held``, in the same
+      directions, scored with the training's channel weights): an offset is the log's fault only if data its choice
+      did not see confirm it;
     - with the gains free (:func:`~estimation.identification.channel_gains.fit_channel_gains`) and the named joints'
-      offsets estimated with them (:func:`_gained_offsets`, from ``offsets``), its offset alone lowers the training
-      and the held-out error: the gains alone do not explain what it does.
+      offsets estimated again with them (:func:`_gained_offsets`), its offset alone lowers the training and the
+      held-out error: the gains alone do not explain what it does.
     """
     if not named:
         return named
@@ -551,12 +552,14 @@ def _apart_from_gains(model: IdentificationModel, found: _Problem, held: _Proble
         gains = fit_channel_gains(found.regressor(at), found.target, weights, gained)
         return gains.cost, _weighted_mse(model, held, at, gains.predicted, weights)
 
+    said = np.zeros_like(offsets)  # the offsets said: the named joints' (the others' as recorded)
+    said[named] = offsets[named]
     with np.errstate(all="ignore"):
-        refitted = _gained_offsets(found, offsets, np.array(named), gained)
-        plain_at, gains_at = plain_held(offsets), with_gains(refitted)
+        refitted = _gained_offsets(found, said, np.array(named), gained)
+        plain_at, gains_at = plain_held(said), with_gains(refitted)
         kept = []
         for joint in named:
-            without, refitted_without = offsets.copy(), refitted.copy()
+            without, refitted_without = said.copy(), refitted.copy()
             without[joint] = refitted_without[joint] = 0.0
             if plain_held(without) > (1 + MIN_JOINT_GAIN) * plain_at and \
                     all(other > (1 + MIN_JOINT_GAIN) * value for other, value in zip(with_gains(refitted_without),
