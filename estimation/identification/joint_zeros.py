@@ -20,7 +20,9 @@ description's zeros, ``benchmarks/README.md``).
 Only joints whose offset the held-out samples, estimated alone (steps 1–2), confirm (:data:`AGREEMENT`) and that
 matter by themselves (:data:`MIN_OFFSET`, and removing the offset alone raises the training error by
 :data:`MIN_JOINT_GAIN`) are named, and only for a marked gain (:data:`MARKED_GAIN`: the mean over channels of the
-held-out MSE ratio, and the total held-out MSE, both at most ``1 −`` it). A correctly zeroed log whose model lacks
+held-out MSE ratio, and the total held-out MSE, both at most ``1 −`` it). A named joint's offset must also lower
+by itself the held-out error, and, with a free gain on each joint's torque, the training and held-out errors
+(:func:`_apart_from_gains`): torques logged with an unknown gain per joint are otherwise read as joint zeros. A correctly zeroed log whose model lacks
 something (a spring, a cable, a joint's friction the laws miss) must not be told its zeros are wrong: on such logs
 (the KUKA LWR4+, the Panda, the TX40 of ``benchmarks/bench_real_robots.py``) the steps find offsets up to a half turn
 that lower the held-out error by up to 17 %, but they differ from one record to the other. When the training
