@@ -71,6 +71,7 @@ class Changed:
     contact: float = 0.0  # N: the table pushing up on the last joint's frame for 1 s in the training record
     tilt: float = 0.0  # degrees: the base off level in the test record only
     said: str = ""  # a pattern one of `oed identify`'s warnings must match (what the user is told)
+    unsaid: str = ""  # a pattern none of either verb's warnings may match (what the truth does not hold)
     shaped: tuple[str, ...] = ()  # effects beyond the plain class the diagnosis may name ("sigmoid on tau1"): a
     # family of the truth's own law at another shape
     slow: bool = True
@@ -219,7 +220,8 @@ CASES = (
             *logs(rate=1000.0, motion_hz=0.5), belt=(1, 8.0), shaped=("sigmoid on tau1",)),
     Changed("PUMA 6 joints, torques logged as currents (unknown gains 0.3-1.8 A per N m, joint 2's sign flipped), "
             "10 s / 4 s / 6 s at 250 Hz, no dq", puma_urdf(6), *logs(),
-            gains=(0.8, -0.5, 1.2, 1.8, 1.5, 0.3), said=r'"torque_signs": \{"joint2": -1\}'),
+            gains=(0.8, -0.5, 1.2, 1.8, 1.5, 0.3), said=r'"torque_signs": \{"joint2": -1\}',
+            unsaid=r'offset from (its|the robot description\'s) zeros|"offsets"'),  # before h-zeros: joint 2 -38°
     Changed("PUMA 6 joints, a 2 kg payload picked up before the test (not in the training, nothing says so), "
             "10 s / 4 s / 6 s at 250 Hz, no dq", puma_urdf(6), *logs(), payload=2.0,
             # measured: after diagnose 1.9855 ± 0.0033 kg (4.3 standard deviations low; after identify 1.985 ± 0.0097,
@@ -246,6 +248,9 @@ def test_the_defaults_run_and_predict_a_changed_robot_as_well_as_a_plain_fit(cas
     said = json.loads((tmp_path / "default.json").read_text())["warnings"]
     if case.said:
         assert any(re.search(case.said, text) for text in said), said
+    for label in ("default", "diagnose") if case.unsaid else ():
+        warned = json.loads((tmp_path / f"{label}.json").read_text())["warnings"]
+        assert not [text for text in warned if re.search(case.unsaid, text)], (label, warned)
     missed = said_changes(case, tmp_path)
     for label in ("default", "diagnose"):  # a still joint's declared friction left out and said, nowhere else
         left = json.loads((tmp_path / f"{label}.json").read_text()).get("not_determined", [])

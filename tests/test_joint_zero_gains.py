@@ -1,0 +1,83 @@
+"""Torques logged with an unknown gain per joint are not read as joint zeros off the description's (h-zeros).
+
+:mod:`estimation.identification.channel_gains` fits ``τ_j = s_j Y_j θ`` (checked against the gains a simulation
+applied), and :func:`estimation.identification.joint_zeros.check_joint_zeros` names a joint's offset only when the
+gains cannot explain it as well. Before, on a 6-joint PUMA whose torques were logged as currents (gains 0.3–1.8, one
+joint's sign flipped, no offset), the check named a zero offset on 2 of 12 such simulated logs (63° on joint 3, 15°
+on joint 2), and `oed identify` 38° on joint 2 in ``tests/test_unseen_robot_changes.py``'s case."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from dynamics.models import build_model
+from dynamics.robots import load_robot
+from dynamics.simulation.synthetic import simulate, true_parameters
+from estimation.identification.channel_gains import fit_channel_gains
+from estimation.identification.joint_zeros import check_joint_zeros
+from oed.fourier import random_fourier
+
+GAINS = np.array([0.8, -0.5, 1.2, 1.8, 1.5, 0.3])
+
+
+@pytest.fixture(scope="module")
+def puma6():
+    robot = load_robot("puma560")
+    return robot, build_model(robot, "internal", "viscous,coulomb,offset")
+
+
+def test_the_gains_a_simulation_applied_are_recovered(puma6):
+    """Exact torques times a gain per joint (one negative): the gains relative to the first, and the torques, as
+    applied; one gained channel only (the scale): the plain least-squares fit."""
+    robot, model = puma6
+    record = simulate(model, true_parameters(model, seed=1), random_fourier(robot, 7))
+    Y = model.evaluate_base(record.q[::4], record.dq[::4], record.ddq[::4])
+    tau = record.tau[::4] * GAINS
+    weights = 1.0 / tau.std(axis=0)
+    fitted = fit_channel_gains(Y, tau, weights, np.ones(6, dtype=bool))
+    np.testing.assert_allclose(fitted.gains / fitted.gains[0], GAINS / GAINS[0], rtol=1e-5)
+    np.testing.assert_allclose(fitted.predicted(Y), tau, atol=1e-6 * np.abs(tau).max())
+    alone = fit_channel_gains(Y, tau, weights, np.eye(6, dtype=bool)[0])
+    np.testing.assert_array_equal(alone.gains, np.ones(6))
+    plain = np.linalg.lstsq((Y * weights[None, :, None]).reshape(-1, Y.shape[2]), (tau * weights).reshape(-1),
+                            rcond=None)[0]
+    assert alone.cost == pytest.approx(np.mean(((tau - Y @ plain) * weights) ** 2), rel=1e-6)
+
+
+def logs(model, robot, seed: int) -> tuple[list, np.ndarray]:
+    """A training and a validation record (Fourier motions of different seeds, 2 % white torque noise) and the
+    per-joint gains of the seed (0.3–1.8, joint 2's or 3's sign flipped)."""
+    generator = np.random.default_rng(seed)
+    gains = generator.uniform(0.3, 1.8, 6)
+    gains[generator.integers(1, 3)] *= -1
+    theta = true_parameters(model, seed=seed)
+    records = []
+    for k in range(2):
+        record = simulate(model, theta, random_fourier(robot, 50 + 2 * seed + k), seed=500 + 2 * seed + k)
+        records.append(replace(record, tau=record.tau + generator.normal(size=record.tau.shape) * 0.02
+                               * record.tau.std(axis=0)))
+    return records, gains
+
+
+@pytest.mark.slow
+def test_per_joint_gains_name_no_offset_and_a_true_offset_is_found(puma6):
+    """Monte Carlo over ten seeds (other parameters, motions, noise and gains each): with the torques logged with
+    gains and no offset, no offset is named (at least 95 %: none of ten); with joint 2's zero 0.8 rad off and the
+    torques as they are, the offset is named, within 0.1 rad, on every seed."""
+    robot, model = puma6
+    named, found = [], []
+    for seed in range(10):
+        (train, validate), gains = logs(model, robot, seed)
+        check = check_joint_zeros(model, replace(train, tau=train.tau * gains),
+                                  replace(validate, tau=validate.tau * gains), warn=False)
+        if check is not None and check.marked and check.joints:
+            named.append((seed, check.joints, np.rad2deg(check.offsets).round(1)))
+        offsets = np.array([0.0, 0.8, 0.0, 0.0, 0.0, 0.0])
+        check = check_joint_zeros(model, replace(train, q=train.q - offsets), replace(validate, q=validate.q - offsets),
+                                  warn=False)
+        found.append(check.marked and check.joints == (1,) and abs(check.offsets[1] - 0.8) < 0.1)
+    assert not named, named
+    assert all(found), found
