@@ -59,6 +59,7 @@ _EXPORTS: dict[str, str] = {
     "rank_deficiency_message": "dynamics.signal_checks",
     "robot_from_dh": "dynamics.dh",
     "robot_from_mjcf": "dynamics.mjcf",
+    "transmission_from_mjcf": "dynamics.mjcf",
     "robot_from_urdf": "dynamics.urdf",
     "robot_mjcf": "dynamics.mjcf_export",
     "robot_urdf": "dynamics.urdf_export",

@@ -54,13 +54,20 @@ from numpy.typing import NDArray
 
 from dynamics.errors import RobotDescriptionError
 from dynamics.robot import DEFAULT_GRAVITY, Joint, JointType, RobotModel, inertial_parameters
+from dynamics.transmission import Transmission, TransmissionError
 
-__all__ = ["MjcfIgnoredWarning", "is_mjcf", "is_mjcf_text", "mjcf_text", "mjcf_joint_terms", "mjcf_logged_chain", "robot_from_mjcf"]
+__all__ = ["MjcfIgnoredWarning", "MjcfLayout", "is_mjcf", "is_mjcf_text", "mjcf_text", "mjcf_joint_terms", "mjcf_logged_chain",
+           "mjcf_layout", "robot_from_mjcf", "transmission_from_mjcf"]
 
 #: the joint terms read (MuJoCo's names) and the toolkit's names of what they are
 READ_JOINT_TERMS: dict[str, str] = {"damping": "viscous", "frictionloss": "coulomb"}
 #: joint attributes MuJoCo simulates that are not read (said when not zero)
 IGNORED_JOINT_TERMS: tuple[str, ...] = ("armature", "stiffness")
+#: the elements of ``<actuator>`` (MuJoCo XML reference, "actuator"): each acts through one transmission
+ACTUATOR_TAGS = ("general", "motor", "position", "velocity", "intvelocity", "damper", "cylinder", "muscle",
+                 "adhesion", "plugin")
+#: an actuator's transmission attributes, in MuJoCo's order (``refsite`` goes with ``site``)
+ACTUATOR_TRANSMISSIONS = ("joint", "jointinparent", "tendon", "site", "body", "cranksite")
 _MOVABLE = ("hinge", "slide")
 _ORIENTATIONS = ("quat", "axisangle", "euler", "xyaxes", "zaxis")
 #: worldbody elements that make bodies this reader does not build
@@ -125,6 +132,17 @@ class _BodyElement:
     gravity_compensation: float
 
 
+@dataclass(frozen=True)
+class _ActuatorElement:
+    """One ``<actuator>`` child with its class's attributes resolved: how its force reaches the joints."""
+
+    label: str  # ``<motor name='a1'>``
+    name: str | None
+    kind: str  # joint, jointinparent, tendon, site, body, slidercrank
+    target: str  # the joint, tendon, site, body or crank site it acts through
+    gear: float  # the first number of ``gear``: a joint's torque per unit of actuator force
+
+
 @dataclass
 class _Model:
     """The file as read: bodies in document order, joints, and what a chain cannot take."""
@@ -137,6 +155,11 @@ class _Model:
     tendons: list[tuple[str, tuple[str, ...] | None]] = field(default_factory=list)  # (label, joints or None: spatial)
     equalities: list[tuple[str, tuple[str, ...] | None]] = field(default_factory=list)  # (label, joints or None: loop)
     inertia_from_geoms: bool = False
+    actuators: list[_ActuatorElement] = field(default_factory=list)
+    sites: dict[str, str] = field(default_factory=dict)  # site name -> the body that holds it
+    body_elements: dict[str, ElementTree.Element] = field(default_factory=dict)
+    joint_elements: dict[str, ElementTree.Element] = field(default_factory=dict)
+    root: ElementTree.Element | None = None
 
     def error(self, text: str) -> RobotDescriptionError:
         return RobotDescriptionError(f"MJCF {self.path}: {text}")
@@ -282,8 +305,9 @@ def _default_classes(root: ElementTree.Element) -> dict[str, dict[str, dict[str,
         name = element.get("class", "main" if top else "")
         own = {tag: dict(values) for tag, values in inherited.items()}
         for child in element:
-            if child.tag != "default":
-                own[child.tag] = {**own.get(child.tag, {}), **child.attrib}
+            if child.tag != "default":  # MuJoCo keeps one actuator default a class: its shortcuts all set it
+                tag = "actuator" if child.tag in ACTUATOR_TAGS else child.tag
+                own[tag] = {**own.get(tag, {}), **child.attrib}
         classes[name] = own
         for child in element.findall("default"):
             visit(child, own, False)
@@ -310,7 +334,7 @@ def _read(path: Path) -> _Model:
     classes = _default_classes(root)
     option = root.find("option")
     gravity = None if option is None else _floats(path, option, "gravity", 3)
-    model = _Model(path, root.get("model") or path.stem, gravity,
+    model = _Model(path, root.get("model") or path.stem, gravity, root=root,
                    inertia_from_geoms=any(element.get("inertiafromgeom") == "true" for element in root.findall("compiler")))
     worldbody = root.find("worldbody")
     if worldbody is None:
@@ -398,7 +422,9 @@ def _read(path: Path) -> _Model:
             if child.tag in ("joint", "freejoint"):
                 read = joint(child, name, childclass, joints[-1] if joints else last_joint)
                 model.joints[read.name] = read
+                model.joint_elements[read.name] = child
                 joints.append(read.name)
+        model.body_elements[name] = element
         model.bodies[name] = _BodyElement(
             name, parent, offset @ _pose(path, element, compiler), mass, com, inertia, tuple(joints),
             inertial is not None, any(child.tag == "geom" for child in element),
@@ -408,6 +434,8 @@ def _read(path: Path) -> _Model:
     def children(element: ElementTree.Element, parent: str | None, offset: NDArray[np.float64], childclass: str,
                  last_joint: str | None) -> None:
         for child in element:
+            if child.tag == "site" and parent is not None:
+                model.sites[child.get("name") or f"site{next(unnamed)}"] = parent
             if child.tag == "body":
                 body(child, parent, offset, childclass, last_joint)
             elif child.tag == "frame":
@@ -420,6 +448,19 @@ def _read(path: Path) -> _Model:
             label = f"<{tendon.tag}" + (f" name={tendon.get('name')!r}" if tendon.get("name") else "") + ">"
             model.tendons.append((f"tendon {label}", tuple(child.get("joint", "") for child in tendon.findall("joint"))
                                   if tendon.tag == "fixed" else None))
+    for section in root.findall("actuator"):
+        for element in section:
+            if element.tag not in ACTUATOR_TAGS:
+                continue
+            values = {**classes.get(element.get("class", "main"), {}).get("actuator", {}), **element.attrib}
+            label = f"<{element.tag}" + (f" name={values['name']!r}" if values.get("name") else "") + ">"
+            given = [kind for kind in ACTUATOR_TRANSMISSIONS if values.get(kind)]
+            if len(given) != 1:
+                raise model.error(f"actuator {label} names " + (f"several transmissions ({', '.join(given)})" if given
+                                                               else "no transmission (joint, tendon, site, body…)"))
+            gear = _floats(path, ElementTree.Element(element.tag, values), "gear", None, (1.0,))
+            model.actuators.append(_ActuatorElement(label, values.get("name"), "slidercrank" if given[0] == "cranksite" else given[0],
+                                                    values[given[0]], float(gear[0])))
     for section in root.findall("equality"):
         for equality in section:
             if equality.get("active", "true") == "false":
@@ -543,8 +584,10 @@ def _motion(joint: _JointElement, value: float) -> NDArray[np.float64]:
     return np.eye(4)  # ball and free joints locked at their reference
 
 
-def _chain_model(model: _Model, chain: list[str], locked_at: Mapping[str, float], gravity) -> RobotModel:
-    """The chain's joints, every other joint locked, each body's inertia in the frame of the joint it moves with."""
+def _chain_frames(model: _Model, chain: Sequence[str], locked_at: Mapping[str, float]) -> tuple[dict, dict, dict, dict]:
+    """``world`` (each body's frame at the chain's zero), ``frames`` (each chain joint's), ``owner`` (the chain joint
+    each body moves with, ``None``: the base) and ``link_frames`` (each link's: its body's frame, for the last chain
+    joint in it)."""
     for name, value in locked_at.items():
         if name in chain:
             raise model.error(f"joint {name!r} is both named (logged) and locked")
@@ -572,21 +615,36 @@ def _chain_model(model: _Model, chain: list[str], locked_at: Mapping[str, float]
             raise model.error(f"body {body.name!r} moves with joint {moved_by!r} and MuJoCo computes its inertia from "
                               "its geoms (" + ("inertiafromgeom=\"true\"" if model.inertia_from_geoms else "no <inertial>")
                               + "), which this reader does not: give the body an <inertial>")
-        if moved_by is not None and body.gravity_compensation != 0:
-            warnings.warn(f"MJCF {model.path}: body {body.name!r} has gravcomp={body.gravity_compensation:g} (MuJoCo "
-                          "cancels its weight); ignored: measured torques hold gravity", MjcfIgnoredWarning, stacklevel=4)
     link_frames = {name: frames[name] for name in chain}  # a body's frame, for the last chain joint in it
     for body in model.bodies.values():
         if body.joints and owner[body.name] in body.joints:
             link_frames[owner[body.name]] = world[body.name]
+    return world, frames, owner, link_frames
+
+
+def _link_sums(model: _Model, chain: Sequence[str], world: dict, owner: dict, link_frames: dict,
+               leave_out: Sequence[str] = ()) -> dict[str, NDArray[np.float64]]:
+    """Each link's standard parameters in its frame: the sum of the bodies that move with its joint (but
+    ``leave_out``)."""
     links = {name: np.zeros(10) for name in chain}
     for body in model.bodies.values():
-        if owner[body.name] is None or (body.mass == 0 and not np.any(body.inertia)):
+        if owner[body.name] is None or body.name in leave_out or (body.mass == 0 and not np.any(body.inertia)):
             continue
         relative = np.linalg.inv(link_frames[owner[body.name]]) @ world[body.name]
         rotation, offset = relative[:3, :3], relative[:3, 3]
         links[owner[body.name]] += inertial_parameters(body.mass, rotation @ body.com + offset,
                                                        rotation @ body.inertia @ rotation.T)
+    return links
+
+
+def _chain_model(model: _Model, chain: list[str], locked_at: Mapping[str, float], gravity) -> RobotModel:
+    """The chain's joints, every other joint locked, each body's inertia in the frame of the joint it moves with."""
+    world, frames, owner, link_frames = _chain_frames(model, chain, locked_at)
+    for body in model.bodies.values():
+        if owner[body.name] is not None and body.gravity_compensation != 0:
+            warnings.warn(f"MJCF {model.path}: body {body.name!r} has gravcomp={body.gravity_compensation:g} (MuJoCo "
+                          "cancels its weight); ignored: measured torques hold gravity", MjcfIgnoredWarning, stacklevel=4)
+    links = _link_sums(model, chain, world, owner, link_frames)
     joints, previous = [], np.eye(4)
     for name in chain:  # at the chain's zero: the bodies' poses hold the turns by -ref, the joints' motions are 1
         joint = model.joints[name]
@@ -643,6 +701,41 @@ def robot_from_mjcf(path: str | Path, *, gravity: np.ndarray | None = None, join
     return _chain_model(model, chain, dict(locked_at or {}), gravity)
 
 
+@dataclass(frozen=True, eq=False)
+class MjcfLayout:
+    """Where the links of a chain read from an MJCF file sit in the file (for a writer that edits the file).
+
+    ``root`` is the file as read (``<include>`` files in place; its comments are not kept), ``bodies`` the
+    ``<body>`` element whose frame is each link's (``None`` for a joint that shares its body with a later joint
+    of the chain: its link has no body of its own), ``joints`` each chain joint's ``<joint>`` element, ``others``
+    the standard parameters, in the link's frame, of the other bodies that move with each link (bodies fixed to it,
+    and those carried by locked joints at their positions), ``terms`` each chain joint's attributes as the file
+    gives them (``armature``, ``damping``, ``frictionloss``, ``stiffness``; its classes resolved) and ``gravity``
+    the file's ``<option gravity>`` (``None``: MuJoCo's default).
+    """
+
+    root: ElementTree.Element
+    bodies: Mapping[str, ElementTree.Element | None]
+    joints: Mapping[str, ElementTree.Element]
+    others: Mapping[str, NDArray[np.float64]]
+    terms: Mapping[str, Mapping[str, float]]
+    gravity: NDArray[np.float64] | None
+
+
+def mjcf_layout(path: str | Path, *, joint_names: Sequence[str] | None = None,
+                locked_at: Mapping[str, float] | None = None) -> MjcfLayout:
+    """The :class:`MjcfLayout` of the chain :func:`robot_from_mjcf` reads from ``path`` with the same arguments."""
+    model = _read(Path(path))
+    chain = _serial_chain(model) if joint_names is None else _named_chain(model, joint_names)
+    world, _, owner, link_frames = _chain_frames(model, chain, dict(locked_at or {}))
+    holders = {name: model.joints[name].body for name in chain if owner[model.joints[name].body] == name}
+    others = _link_sums(model, chain, world, owner, link_frames, leave_out=tuple(holders.values()))
+    return MjcfLayout(model.root, {name: model.body_elements[holders[name]] if name in holders else None
+                                   for name in chain},
+                      {name: model.joint_elements[name] for name in chain}, others,
+                      {name: dict(model.joints[name].terms) for name in chain}, model.gravity)
+
+
 def mjcf_joint_terms(path: str | Path, robot: RobotModel) -> dict[str, dict[str, float]]:
     """``{joint: {"viscous": damping, "coulomb": frictionloss}}`` of ``robot``'s joints in the MJCF file (0 where
     unset): the description's friction, as a URDF's ``<dynamics damping friction>``."""
@@ -652,6 +745,83 @@ def mjcf_joint_terms(path: str | Path, robot: RobotModel) -> dict[str, dict[str,
         raise model.error(f"no joint {', '.join(map(repr, missing))} of {robot.name}")
     return {name: {ours: model.joints[name].terms.get(theirs, 0.0) for theirs, ours in READ_JOINT_TERMS.items()}
             for name in robot.joint_names}
+
+
+def _moving_bodies(model: _Model, chain: Sequence[str]) -> set[str]:
+    """The bodies that move with a joint of ``chain`` (the body holding it and every body below)."""
+    moving: set[str] = set()
+    for body in model.bodies.values():  # parents come first (document order)
+        if (body.parent in moving) or any(name in chain for name in body.joints):
+            moving.add(body.name)
+    return moving
+
+
+def transmission_from_mjcf(path: str | Path, robot: RobotModel) -> Transmission | None:
+    """The transmission the MJCF file's ``<actuator>`` elements declare for ``robot``'s joints, or ``None`` when none
+    of its joints has an actuator.
+
+    An actuator with a joint transmission (``joint`` or ``jointinparent``) and ``gear`` ``g`` pushes its joint with
+    ``τ = g f`` for an actuator force ``f`` (MuJoCo's ``actuator_force``; a ``<motor>``'s is its ``ctrl``), and its
+    length is ``g q``: the motor-side ``θ_m = g q``, ``τ = g τ_m`` of :mod:`dynamics.transmission`, so a log of actuator
+    forces as ``taum1..taumn`` (and actuator lengths as ``qm1..qmn``) identifies as joint torques do. The ratio is
+    ``g`` whatever the actuator's gain and bias (they make ``f`` from ``ctrl``, not ``τ`` from ``f``); a joint without an
+    actuator is direct drive (ratio 1). Actuators of locked joints, and those acting on bodies that do not move
+    with the chain (a free object's), are left out.
+
+    Raises
+    ------
+    TransmissionError
+        Naming the actuator: one whose force is not one joint's torque (a tendon on a joint of the chain, a site,
+        body or slider-crank transmission on a body that moves with it: a wrench, not a ratio), a zero gear, or two
+        actuators with different gears on one joint (which one's forces are logged?).
+    """
+    path = Path(path)
+    model = _read(path)
+    where = f"MJCF {path}"
+    ratios: dict[str, tuple[float, _ActuatorElement]] = {}
+    moving = _moving_bodies(model, robot.joint_names)
+    tendons = {tendon.get("name"): tendon for section in (model.root.findall("tendon") if model.root is not None else [])
+               for tendon in section}
+    for actuator in model.actuators:
+        if actuator.kind in ("joint", "jointinparent"):
+            if actuator.target not in model.joints:
+                raise TransmissionError(f"{where}: actuator {actuator.label} acts on joint {actuator.target!r}, which "
+                                        "is not a joint of the file")
+            if actuator.target not in robot.joint_names:
+                continue  # a locked joint's
+            if actuator.gear == 0:
+                raise TransmissionError(f"{where}: actuator {actuator.label} on joint {actuator.target!r} has gear 0: "
+                                        "its force reaches no joint")
+            previous = ratios.get(actuator.target)
+            if previous is not None and previous[0] != actuator.gear:
+                raise TransmissionError(f"{where}: actuators {previous[1].label} and {actuator.label} drive joint "
+                                        f"{actuator.target!r} with gears {previous[0]:g} and {actuator.gear:g}: which "
+                                        "one's forces does the log hold? Declare the ratio with --transmission FILE")
+            ratios[actuator.target] = (actuator.gear, actuator)
+            continue
+        if actuator.kind == "tendon":
+            tendon = tendons.get(actuator.target)
+            joints = [] if tendon is None else [child.get("joint") for child in tendon.findall("joint")]
+            spatial = tendon is not None and tendon.tag == "spatial"
+            if not spatial and not any(name in robot.joint_names for name in joints):
+                continue  # a locked joint's (a gripper's split tendon)
+            reason = "a spatial tendon" if spatial else f"a tendon over joints {', '.join(joints)}"
+        else:
+            body = actuator.target if actuator.kind == "body" else model.sites.get(actuator.target)
+            if body is not None and body not in moving:
+                continue  # on a body the chain does not move
+            reason = (f"a {actuator.kind} transmission" + (f" (site {actuator.target!r} on body {body!r})"
+                                                          if actuator.kind != "body" else f" (body {body!r})"))
+        raise TransmissionError(f"{where}: actuator {actuator.label} acts through {reason}: its force is not one "
+                                "joint's torque, and only joint transmissions are read as gear ratios; declare the "
+                                "joints' transmission with --transmission FILE (a JSON file; {\"matrix\": [1, 1, …]} "
+                                "when the log holds joint torques)")
+    if not ratios:
+        return None
+    names = tuple((ratios[name][1].name if name in ratios else None) or f"m{index + 1}"
+                  for index, name in enumerate(robot.joint_names))
+    return Transmission(np.array([ratios[name][0] if name in ratios else 1.0 for name in robot.joint_names]), names,
+                        source=f"MJCF {path.name} <actuator> gears")
 
 
 def mjcf_logged_chain(path: str | Path, n_logged: int) -> tuple[tuple[str, ...], tuple[str, ...]] | None:

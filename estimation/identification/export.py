@@ -33,6 +33,7 @@ parameter is a sum of standard ones, and a body of unconstrained values need not
 
 from __future__ import annotations
 
+import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -41,8 +42,8 @@ import numpy as np
 
 from dynamics.effects.shaped import shape_parameters
 from dynamics.effects.specs import effect_spec
-from dynamics.mjcf import is_mjcf_text
-from dynamics.mjcf_export import robot_mjcf
+from dynamics.mjcf import is_mjcf, is_mjcf_text
+from dynamics.mjcf_export import MjcfBodyError, mjcf_with_inertials, robot_mjcf
 from dynamics.urdf_export import robot_urdf, urdf_with_inertials
 from estimation.identification.identified_model import IdentifiedModel
 from estimation.identification.model_file import read_model_file
@@ -230,10 +231,15 @@ _MUJOCO_TERMS = {"viscous": "damping", "coulomb": "frictionloss", "armature": "a
 
 @dataclass(frozen=True)
 class MjcfExport:
-    """The MJCF text of a consistent model and what MuJoCo cannot express of it (one note each)."""
+    """The MJCF text of a consistent model and what MuJoCo cannot express of it (one note each); ``source``: the
+    user's MJCF file it was written into (``None``: the chain written from the bodies and joints), ``changes``: what
+    of that file, besides the bodies and joint terms, the export changed (a term of the file set to 0, the asset
+    folders made absolute)."""
 
     text: str
     notes: tuple[str, ...]
+    source: str | None = None
+    changes: tuple[str, ...] = ()
 
 
 def exported_mjcf(model: IdentifiedModel) -> MjcfExport:
@@ -259,5 +265,30 @@ def exported_mjcf(model: IdentifiedModel) -> MjcfExport:
         notes.append(f"a delay of {document['delay']:g} s between torques and motion")
     header = (f"robot-oed: the physically consistent estimate of {model.robot.name} ({model.file.effects or 'no'} "
               "effects); numbers at full precision")
+    source = model.file.robot
+    if source.urdf_sha256 is not None and source.joints is None and (
+            is_mjcf_text(source.urdf_text) if source.urdf_text is not None else is_mjcf(source.urdf_path or "")):
+        try:
+            return _users_mjcf(model, terms, notes, header)
+        except MjcfBodyError as error:
+            notes.append(f"not written into the user's MJCF ({error}): the chain's bodies and joints are written "
+                         "instead, without its geoms and actuators")
     text = robot_mjcf(model.robot, exported_links(model), terms, notes=notes, header=header)
     return MjcfExport(text, tuple(notes))
+
+
+def _users_mjcf(model: IdentifiedModel, terms: dict[str, dict[str, float]], notes: list[str],
+                header: str) -> MjcfExport:
+    """The user's MJCF (the model file's, its ``<include>`` files in place) with the identified bodies and terms
+    (:func:`dynamics.mjcf_export.mjcf_with_inertials`)."""
+    source = model.file.robot
+    folder = None if source.urdf_path is None else Path(source.urdf_path).parent
+    with tempfile.TemporaryDirectory() as temporary:
+        path = Path(source.urdf_path or "")
+        if source.urdf_text is not None:
+            path = Path(temporary) / "robot.xml"
+            path.write_text(source.urdf_text)
+        text, changes = mjcf_with_inertials(path, model.robot, exported_links(model), terms,
+                                            joint_names=source.joint_names, locked_at=source.locked_at,
+                                            assets=folder, notes=notes, header=header)
+    return MjcfExport(text, tuple(notes), source.urdf_path or "the model file's MJCF", changes)

@@ -18,6 +18,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from dynamics.effects.specs import build_effects
+from dynamics.mjcf import is_mjcf, transmission_from_mjcf
 from dynamics.measurements import Measurements
 from dynamics.robot import RobotModel
 from dynamics.robots import load_robot
@@ -76,8 +77,8 @@ def resolve_transmission(args: RecordOptions, robot: RobotModel) -> Transmission
                 transmission = transmission_from_json(args.transmission, full)
             except TransmissionError:
                 raise error from None
-    elif getattr(args, "urdf", None) is not None:
-        transmission = transmission_from_urdf(args.urdf, full)
+    elif getattr(args, "urdf", None) is not None:  # a URDF's <transmission>, an MJCF's <actuator> gears
+        transmission = (transmission_from_mjcf if is_mjcf(args.urdf) else transmission_from_urdf)(args.urdf, full)
     elif is_puma560(robot):
         transmission = puma560_transmission(robot.n_joints)
     else:

@@ -120,6 +120,9 @@ def export(*, model: str | Path, allow_implausible: bool = False, mjcf: bool = F
     line = f"{identified.robot.name}: {identified.robot.n_joints} bodies of the consistent estimate (masses {masses} kg)"
     mujoco = exported_mjcf(identified) if mjcf else None
     lines = (line, *(f"not expressed in MuJoCo (listed in the MJCF): {note}" for note in (mujoco.notes if mujoco else ())))
+    if mujoco is not None and mujoco.source is not None:
+        lines = (*lines, f"the MJCF is {mujoco.source} with these bodies and joint terms, everything else kept",
+                 *(f"changed from that file (listed in the MJCF): {change}" for change in mujoco.changes))
     gains = (identified.file.torque_gains or {}).get("channels")
     if gains:  # a property of the log's sensors, not of the bodies: the URDF holds the description's units
         lines = (*lines, "the log's torques are these gains times the model's (torque_gains, not in the URDF): "
