@@ -434,8 +434,8 @@ def _read(path: Path) -> _Model:
     def children(element: ElementTree.Element, parent: str | None, offset: NDArray[np.float64], childclass: str,
                  last_joint: str | None) -> None:
         for child in element:
-            if child.tag == "site" and parent is not None:
-                model.sites[child.get("name") or f"site{next(unnamed)}"] = parent
+            if child.tag == "site":
+                model.sites[child.get("name") or f"site{next(unnamed)}"] = parent or "world"
             if child.tag == "body":
                 body(child, parent, offset, childclass, last_joint)
             elif child.tag == "frame":
@@ -455,12 +455,10 @@ def _read(path: Path) -> _Model:
             values = {**classes.get(element.get("class", "main"), {}).get("actuator", {}), **element.attrib}
             label = f"<{element.tag}" + (f" name={values['name']!r}" if values.get("name") else "") + ">"
             given = [kind for kind in ACTUATOR_TRANSMISSIONS if values.get(kind)]
-            if len(given) != 1:
-                raise model.error(f"actuator {label} names " + (f"several transmissions ({', '.join(given)})" if given
-                                                               else "no transmission (joint, tendon, site, body…)"))
             gear = _floats(path, ElementTree.Element(element.tag, values), "gear", None, (1.0,))
-            model.actuators.append(_ActuatorElement(label, values.get("name"), "slidercrank" if given[0] == "cranksite" else given[0],
-                                                    values[given[0]], float(gear[0])))
+            kind = ("slidercrank" if given[0] == "cranksite" else given[0]) if len(given) == 1 else ", ".join(given)
+            model.actuators.append(_ActuatorElement(label, values.get("name"), kind,
+                                                    values[given[0]] if len(given) == 1 else "", float(gear[0])))
     for section in root.findall("equality"):
         for equality in section:
             if equality.get("active", "true") == "false":
@@ -783,6 +781,10 @@ def transmission_from_mjcf(path: str | Path, robot: RobotModel) -> Transmission 
     tendons = {tendon.get("name"): tendon for section in (model.root.findall("tendon") if model.root is not None else [])
                for tendon in section}
     for actuator in model.actuators:
+        if actuator.kind not in (*ACTUATOR_TRANSMISSIONS, "slidercrank"):
+            raise TransmissionError(f"{where}: actuator {actuator.label} names " + (
+                f"several transmissions ({actuator.kind})" if actuator.kind else
+                "no transmission (joint, tendon, site, body…)"))
         if actuator.kind in ("joint", "jointinparent"):
             if actuator.target not in model.joints:
                 raise TransmissionError(f"{where}: actuator {actuator.label} acts on joint {actuator.target!r}, which "
