@@ -35,8 +35,11 @@ one chain.
 
 Joint terms (:func:`mjcf_joint_terms`): ``damping`` (viscous) and ``frictionloss`` (Coulomb) are the
 description's friction where the toolkit reads a URDF's ``<dynamics damping friction>`` (the nominal
-torque of ``oed design --torque-limits``); ``armature``, ``stiffness`` and actuators are not read (the
-identification fits its own ``armature``, ``spring`` effects), said once in a :class:`MjcfIgnoredWarning`.
+torque of ``oed design --torque-limits``); with ``armature`` they are also the joints' ``armature``, ``damping``
+and ``friction`` (:class:`dynamics.robot.Joint`), the consistent fit's prior for those laws
+(:mod:`estimation.consistent.effect_prior`). ``stiffness`` is not read (the identification fits its own
+``spring`` effect), said once in a :class:`MjcfIgnoredWarning`.
+Actuators (:func:`transmission_from_mjcf`): each joint transmission's ``gear`` is its joint's ratio.
 Geometry (``<geom>``, meshes) is not read: ``oed design --floor/--self-collision`` need a URDF.
 """
 
@@ -62,7 +65,7 @@ __all__ = ["MjcfIgnoredWarning", "MjcfLayout", "is_mjcf", "is_mjcf_text", "mjcf_
 #: the joint terms read (MuJoCo's names) and the toolkit's names of what they are
 READ_JOINT_TERMS: dict[str, str] = {"damping": "viscous", "frictionloss": "coulomb"}
 #: joint attributes MuJoCo simulates that are not read (said when not zero)
-IGNORED_JOINT_TERMS: tuple[str, ...] = ("armature", "stiffness")
+IGNORED_JOINT_TERMS: tuple[str, ...] = ("stiffness",)
 #: the elements of ``<actuator>`` (MuJoCo XML reference, "actuator"): each acts through one transmission
 ACTUATOR_TAGS = ("general", "motor", "position", "velocity", "intvelocity", "damper", "cylinder", "muscle",
                  "adhesion", "plugin")
@@ -378,7 +381,7 @@ def _read(path: Path) -> _Model:
         if forces is not None and (force_limited == "true" or (force_limited == "auto" and compiler.autolimits)):
             effort = float(np.max(np.abs(forces))) or np.inf
         terms = {}
-        for term in (*READ_JOINT_TERMS, *IGNORED_JOINT_TERMS):
+        for term in (*READ_JOINT_TERMS, "armature", *IGNORED_JOINT_TERMS):
             number = _floats(path, values, term, 1)
             if number is not None:
                 terms[term] = float(number[0])
@@ -649,7 +652,9 @@ def _chain_model(model: _Model, chain: list[str], locked_at: Mapping[str, float]
         joints.append(Joint(name=name, joint_type=JointType.REVOLUTE if joint.kind == "hinge" else JointType.PRISMATIC,
                             axis=joint.axis, placement=np.linalg.inv(previous) @ frames[name],
                             link_transform=np.linalg.inv(frames[name]) @ link_frames[name], inertial=links[name],
-                            lower=joint.lower, upper=joint.upper, effort=joint.effort))
+                            lower=joint.lower, upper=joint.upper, effort=joint.effort,
+                            armature=joint.terms.get("armature", 0.0), damping=joint.terms.get("damping", 0.0),
+                            friction=joint.terms.get("frictionloss", 0.0)))
         previous = link_frames[name]
     return RobotModel(name=model.name, joints=tuple(joints), gravity=np.asarray(
         (DEFAULT_GRAVITY if model.gravity is None else model.gravity) if gravity is None else gravity, dtype=float))
@@ -694,8 +699,7 @@ def robot_from_mjcf(path: str | Path, *, gravity: np.ndarray | None = None, join
                       if term in IGNORED_JOINT_TERMS and value != 0})
     if ignored:
         warnings.warn(f"MJCF {path}: the joints' {' and '.join(ignored)} values are not read (the identification fits "
-                      "its own armature and spring effects when asked: --friction ...,armature)", MjcfIgnoredWarning,
-                      stacklevel=2)
+                      "its own spring effects when asked: --friction ...,spring)", MjcfIgnoredWarning, stacklevel=2)
     return _chain_model(model, chain, dict(locked_at or {}), gravity)
 
 

@@ -81,6 +81,10 @@ class Joint:
         The ten standard parameters of the link, in ``F_i`` (see module docstring).
     lower, upper, velocity, effort
         Limits (``inf`` where unknown).
+    armature, damping, friction
+        The description's joint terms where it gives them (0: not given): the rotor's reflected inertia
+        (kg·m², ``I_a q̈``), viscous (``f_v q̇``) and Coulomb (``f_c sign q̇``) friction; an MJCF model's ``armature``,
+        ``damping`` and ``frictionloss`` (:mod:`dynamics.mjcf`), the consistent fit's prior for those laws.
     """
 
     name: str
@@ -93,8 +97,16 @@ class Joint:
     upper: float = np.inf
     velocity: float = np.inf
     effort: float = np.inf
+    armature: float = 0.0
+    damping: float = 0.0
+    friction: float = 0.0
 
     def __post_init__(self) -> None:
+        for term in ("armature", "damping", "friction"):
+            value = float(getattr(self, term))
+            if not (np.isfinite(value) and value >= 0):
+                raise RobotDescriptionError(f"joint {self.name!r}: {term} {value} is not a finite number of at least 0")
+            object.__setattr__(self, term, value)
         if not isinstance(self.joint_type, JointType):
             try:
                 object.__setattr__(self, "joint_type", JointType(self.joint_type))
@@ -212,7 +224,7 @@ class RobotModel:
             Joint(
                 joint.name, joint.joint_type, joint.axis, joint.placement, joint.link_transform,
                 theta[N_LINK_PARAMETERS * index : N_LINK_PARAMETERS * (index + 1)],
-                joint.lower, joint.upper, joint.velocity, joint.effort,
+                joint.lower, joint.upper, joint.velocity, joint.effort, joint.armature, joint.damping, joint.friction,
             )
             for index, joint in enumerate(self.joints)
         )

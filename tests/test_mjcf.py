@@ -158,9 +158,12 @@ def _predicted(robot, q, dq, ddq):
 def test_menagerie_style_model_matches_mujoco_inverse_dynamics(menagerie):
     """Default classes, frames, orientations, inertial frames, joint pos and ref as MuJoCo compiles them: the
     torques of the named joints equal MuJoCo's ``mj_rne`` (the fingers locked at 0 merged into the hand)."""
-    with pytest.warns(MjcfIgnoredWarning, match="armature"):
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", MjcfIgnoredWarning)  # armature, damping and frictionloss are read
         robot = robot_from_mjcf(menagerie, joint_names=ARM)
     assert robot.joint_names == list(ARM)
+    assert [(joint.armature, joint.damping, joint.friction) for joint in robot.joints] == [
+        (0.1, 0.5, 0.2), (0.1, 0.5, 0.2), (0.05, 0.5, 0.2), (0.05, 0.5, 0.2)]
     q, dq, ddq = random_states(robot.n_joints, 20, seed=3)
     expected = _mujoco_rne(menagerie, ARM, q, dq, ddq)
     np.testing.assert_allclose(_predicted(robot, q, dq, ddq), expected, rtol=0, atol=1e-9 * np.abs(expected).max())
@@ -257,9 +260,8 @@ def test_the_log_determines_the_chain_and_the_locked_fingers_are_merged(menageri
     assert mjcf_logged_chain(menagerie, 4) == (ARM, ("finger_joint1", "finger_joint2"))
     with pytest.raises(RobotDescriptionError, match="no chain of 6 joint"):
         mjcf_logged_chain(menagerie, 6)
-    with pytest.warns(MjcfIgnoredWarning):
-        closed, open_ = (robot_from_mjcf(menagerie, joint_names=ARM, locked_at=locks)
-                         for locks in ({}, {"finger_joint1": 0.04}))
+    closed, open_ = (robot_from_mjcf(menagerie, joint_names=ARM, locked_at=locks)
+                     for locks in ({}, {"finger_joint1": 0.04}))
     moved = closed.standard_parameters.reshape(-1, 10)[-1] - open_.standard_parameters.reshape(-1, 10)[-1]
     assert np.abs(moved[1:4]).max() > 1e-5  # the fingers' opening moves the hand's first moments
     np.testing.assert_allclose(moved[0], 0.0, atol=1e-15)

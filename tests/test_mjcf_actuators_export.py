@@ -234,3 +234,65 @@ def test_cli_actuator_forces_identify_as_joint_torques_and_export_loads_in_mujoc
                                atol=1e-9 * np.abs(predicted).max())
     from dynamics import robot_from_urdf
     assert robot_from_urdf(as_urdf).joint_names == list(ARM)
+
+
+@pytest.fixture(scope="module")
+def weak_record(tmp_path_factory):
+    """The test arm (armature 0.1/0.05, damping 0.5, frictionloss 0.2 in its classes) with the laws of those terms,
+    one short noisy record of their true values (0.8, 0.3, 0.15/0.075): the stacked problem, its WLS estimate and
+    ``G``."""
+    from dynamics.simulation.synthetic import simulate
+    from estimation.estimators.identification_problem import stack
+    from estimation.estimators.least_squares import WeightedLeastSquares, channel_gram
+    from oed.fourier import random_fourier
+
+    path = tmp_path_factory.mktemp("arm") / "arm.xml"
+    path.write_text(MENAGERIE_STYLE)
+    robot = _robot(path)
+    model = build_model(robot, "internal", "viscous,coulomb,armature")
+    theta = np.concatenate([robot.standard_parameters, [0.8] * 4, [0.3] * 4, [0.15, 0.15, 0.075, 0.075]])
+    data = simulate(model, theta, random_fourier(robot, seed=3), rate_hz=200.0, periods=1,
+                    noise={f"tau{joint}": 0.5 for joint in range(1, 5)}, seed=3)
+    problem = stack(model, data)
+    unconstrained = WeightedLeastSquares().fit(problem).estimate_
+    gram, _ = channel_gram(problem)
+    return model, problem, unconstrained, np.tensordot(unconstrained.weights, gram, axes=1)
+
+
+def test_the_mjcf_joint_terms_are_the_prior_of_armature_viscous_and_coulomb(weak_record):
+    """With a prior weight ``w``, the consistent optimum is stationary for the data term plus ``w ½ Σ ((θ−μ)/μ)²``
+    on the 12 laws (μ the file's armature, damping, frictionloss), checked from ``G`` and ``θ̂`` outside the solver
+    (relative 1e-5 of the data term's gradient), and moves toward μ as ``w`` grows; without a weight, no prior."""
+    from estimation.consistent.least_squares import ConsistentLeastSquares
+
+    model, problem, unconstrained, G = weak_record
+    names = list(model.parameter_names)[40:]
+    described = dict(zip(names, [0.5] * 4 + [0.2] * 4 + [0.1, 0.1, 0.05, 0.05]))
+    distances = []
+    for weight in (0.0, 1.0, 1e4):
+        estimate = ConsistentLeastSquares(prior_weight=weight).fit(model, problem, unconstrained=unconstrained).estimate_
+        assert estimate.effect_prior == ({} if weight == 0 else described)
+        effects = estimate.theta[40:]
+        mean = np.array([described[name] for name in names])
+        gradient = (model.base.K.T @ (G @ (model.base.K @ estimate.theta - unconstrained.values)))[40:]
+        stationarity = gradient + (weight * (effects - mean) / mean**2 if weight else 0.0)
+        assert np.abs(stationarity).max() <= 1e-5 * max(np.abs(gradient).max(), 1.0)
+        distances.append(np.abs((effects - mean) / mean).max())
+    assert distances[0] > 0.4 and distances[2] < 0.5 * distances[0]  # 1e4 pulls the laws toward the file's values
+
+
+def test_stiffness_is_not_read_and_said(tmp_path):
+    path = tmp_path / "spring.xml"
+    path.write_text(MENAGERIE_STYLE.replace('armature="0.1" damping="0.5"', 'armature="0.1" stiffness="3" damping="0.5"'))
+    with pytest.warns(MjcfIgnoredWarning, match="stiffness values are not read"):
+        robot_from_mjcf(path, joint_names=ARM)
+
+
+def test_a_description_without_joint_terms_gives_no_prior(weak_record):
+    from dynamics.robots import load_robot
+    from estimation.consistent.effect_prior import effect_prior
+
+    assert effect_prior(build_model(load_robot("puma560", joints=3), "internal", "viscous,coulomb,armature")) is None
+    model = weak_record[0]
+    prior = effect_prior(build_model(model.robot, "internal", "viscous,offset"))
+    assert prior.values == {f"fv{joint}": 0.5 for joint in range(1, 5)} and prior.precision[4:].tolist() == [0] * 4

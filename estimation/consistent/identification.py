@@ -8,7 +8,7 @@ unconstrained fit's channel weights, and compares both on the same data: the pri
 consistency per channel. Its :meth:`ConsistentResult.to_dict` adds these keys to ``result.json``::
 
     links: [{name, mass, com, inertia, inertia_com, consistency_margin, std}]   # std: with a prior only
-    consistent: {method, uncertainty_method, prior_weight, prior, parameters: [{name, expression, value, std}],
+    consistent: {method, uncertainty_method, prior_weight, prior, effect_prior (when used), parameters: [{name, expression, value, std}],
                  effects: {fv1: ..}, active_bounds: [text], excess_chi2, solver: {...},
                  [shape: {vc1: ..}, delay: s | null, shapes_held: text]   # shaped laws or a delay, held fixed
                  prior_weight_choice: text, prior_weight_search: [{prior_weight, weighted_validation_error}],
@@ -110,6 +110,7 @@ class ConsistentResult:
                 "uncertainty_method": estimate.uncertainty_method,
                 "prior_weight": estimate.prior_weight,
                 "prior": self.prior_source if estimate.prior_weight > 0 else None,
+                **({"effect_prior": dict(estimate.effect_prior)} if estimate.effect_prior else {}),
                 "prior_weight_choice": self.prior_weight_choice,
                 **({"prior_weight_search": [dict(entry) for entry in self.prior_weight_search]}
                    if self.prior_weight_search else {}),

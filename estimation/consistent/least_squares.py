@@ -56,7 +56,7 @@ from __future__ import annotations
 import functools
 import time
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -73,6 +73,7 @@ from estimation.estimators.estimator import Estimator
 from estimation.estimators.identification_problem import IdentificationProblem, stack
 from estimation.estimators.least_squares import Estimate, WeightedLeastSquares, channel_gram
 from estimation.estimators.normal_equations import NormalEquations
+from estimation.consistent.effect_prior import EffectPrior, effect_prior
 from estimation.consistent.reduced_hessian import active_bounds, at_user_bounds, reduced_hessian_covariance
 from estimation.consistent.solver import compiled_problem, escape, inside, variable_scales
 from dynamics.measurements import Measurements
@@ -149,6 +150,9 @@ class ConsistentEstimate:
     prior_weight: float
     excess_chi2: float
     solver: dict[str, Any]
+    #: the description's values the effect parameters were pulled toward (:mod:`estimation.consistent.effect_prior`;
+    #: empty: none)
+    effect_prior: Mapping[str, float] = field(default_factory=dict)
 
     def link_parameters(self) -> NDArray[np.float64]:
         """``(n, 10)`` standard parameters link by link."""
@@ -264,7 +268,7 @@ class ConsistentLeastSquares(Estimator):
                 self.estimate_ = _estimate(solves, best, results, unconstrained, weight, started)
                 return self
         solves = _Solves(model, parametrisation, G, unconstrained.values, prior, int(self.max_iter),
-                         prior_in_certificate=weight > 0)
+                         prior_in_certificate=weight > 0, effects=effect_prior(model) if weight > 0 else None)
         effective = weight if weight > 0 else float(self.regularisation)
         results = []
         if self.warm_start is not None:
@@ -400,14 +404,15 @@ class _Solves:
 
     def __init__(self, model: IdentificationModel, parametrisation: PhysicalParametrisation, G: NDArray[np.float64],
                  target: NDArray[np.float64], prior: NDArray[np.float64], max_iter: int, *,
-                 prior_in_certificate: bool = False) -> None:
+                 prior_in_certificate: bool = False, effects: EffectPrior | None = None) -> None:
         n = model.robot.n_joints
         self.model, self.parametrisation, self.G, self.target = model, parametrisation, G, target
         self.prior_in_certificate = prior_in_certificate
+        self.effects = effects  # the description's prior on the effect parameters (with a prior weight only)
         J0 = [pseudo_inertia(prior[10 * k : 10 * (k + 1)]) for k in range(n)]
         self.inverses = np.concatenate([np.linalg.inv(J).reshape(-1, order="F") for J in J0])
         self.log_dets = np.array([np.linalg.slogdet(J)[1] for J in J0])
-        self.compiled = compiled_problem(model, max_iter)
+        self.compiled = compiled_problem(model, max_iter, effects is not None)
         self.lower, self.upper = parametrisation.psi_bounds()
         self.scales = variable_scales(prior, n, model.n_parameters - 10 * n)
         self.max_iter = max_iter
@@ -415,11 +420,13 @@ class _Solves:
     @functools.cached_property
     def escape_solver(self):
         """The shorter solver run after an escape, built on first use (a certified first solve needs none)."""
-        return compiled_problem(self.model, min(self.max_iter, ESCAPE_ITERATIONS))
+        return compiled_problem(self.model, min(self.max_iter, ESCAPE_ITERATIONS), self.effects is not None)
 
     def parameters(self, prior_weight: float) -> NDArray[np.float64]:
         """The compiled problem's parameter vector at ``prior_weight``."""
-        return np.concatenate([self.G.reshape(-1, order="F"), self.target, [prior_weight], self.inverses, self.log_dets])
+        effects = () if self.effects is None else (self.effects.mean, self.effects.precision)
+        return np.concatenate([self.G.reshape(-1, order="F"), self.target, [prior_weight], self.inverses, self.log_dets,
+                               *effects])
 
     def _prior_terms(self, prior_weight: float) -> dict[str, Any]:
         """The prior's terms of the certificate: with a prior (``prior_weight > 0`` given by the user) the whole
@@ -487,6 +494,7 @@ def _estimate(solves: _Solves, best: dict[str, Any], results: list[dict[str, Any
                 **({"regularisation": best["weight"]} if "weight" in best else {}),
                 "starts": [{key: r[key] for key in ("name", "status", "iterations", "escapes", "certified", "cost")}
                            for r in results]},
+        effect_prior={} if solves.effects is None else dict(solves.effects.values),
     )
 
 

@@ -42,7 +42,8 @@ class ConsistentProblem:
     factor has spurious stationary points (a degenerate body whose factor cannot turn towards the
     optimum): :func:`escape` detects them and restarts (short noisy PUMA records: about one start in
     two needs one to three escapes).
-    NLP parameters: ``G`` (r²), ``θ̂_b`` (r), ``w``, per link ``J₀⁻¹`` (16) and ``log det J₀``.
+    NLP parameters: ``G`` (r²), ``θ̂_b`` (r), ``w``, per link ``J₀⁻¹`` (16) and ``log det J₀``; with the effect prior
+    its means and precisions (``p − 10 n`` each).
     """
 
     solver: casadi.Function
@@ -109,7 +110,9 @@ _DERIVATIVES = {"grad_f": "nlp_grad_f", "jac_g": "nlp_jac_g", "hess_lag": "nlp_h
 
 
 @functools.lru_cache(maxsize=16)
-def _symbolic(model: IdentificationModel) -> _Symbolic:
+def _symbolic(model: IdentificationModel, effect_prior: bool = False) -> _Symbolic:
+    """``effect_prior``: the cost also holds ``w · ½ Σ λ_e (θ_e − μ_e)²`` on the effect parameters, ``μ`` and ``λ``
+    (``p − 10 n`` each) two more NLP parameters (:mod:`estimation.consistent.effect_prior`)."""
     parametrisation = PhysicalParametrisation.of_model(model)
     n, r, p = model.robot.n_joints, model.n_base, parametrisation.n_phi
     G = casadi.SX.sym("G", r, r)
@@ -118,6 +121,13 @@ def _symbolic(model: IdentificationModel) -> _Symbolic:
     prior_inverse = casadi.SX.sym("J0_inv", 16 * n)
     prior_log_det = casadi.SX.sym("log_det_J0", n)
     parameters = casadi.vertcat(casadi.vec(G), target, weight, prior_inverse, prior_log_det)
+    effect_mean = casadi.SX.sym("effect_mean", p - 10 * n)
+    effect_precision = casadi.SX.sym("effect_precision", p - 10 * n)
+    if effect_prior:
+        parameters = casadi.vertcat(parameters, effect_mean, effect_precision)
+
+    def effect_term(effects: casadi.SX) -> casadi.SX:
+        return 0.5 * casadi.dot(effect_precision, (effects - effect_mean) ** 2) if effect_prior else 0
     scale_theta = casadi.SX.sym("scale_theta", p)
     scale_psi = casadi.SX.sym("scale_psi", 10 * n)
     # IPOPT's variables, scaled to order one: θ = s_θ θ̃, ψ = s_ψ ψ̃ (per link: m, m·ℓ, m·ℓ²; √m, ℓ)
@@ -126,7 +136,7 @@ def _symbolic(model: IdentificationModel) -> _Symbolic:
     theta = scale_theta * theta_scaled
     links, divergence = links_and_divergence(scale_psi * psi_scaled, n, prior_inverse, prior_log_det)
     error = casadi.mtimes(casadi.DM(model.base.K), theta) - target
-    cost = 0.5 * casadi.dot(error, casadi.mtimes(G, error)) + weight * divergence
+    cost = 0.5 * casadi.dot(error, casadi.mtimes(G, error)) + weight * (divergence + effect_term(theta[10 * n :]))
     nlp = {"x": casadi.vertcat(theta_scaled, psi_scaled), "p": casadi.vertcat(parameters, scale_theta, scale_psi),
            "f": cost, "g": (theta[: 10 * n] - links) / scale_theta[: 10 * n]}
     psi = casadi.SX.sym("psi", p)
@@ -135,16 +145,18 @@ def _symbolic(model: IdentificationModel) -> _Symbolic:
     mapping = casadi.Function("consistent_theta", [psi], [theta_psi, casadi.jacobian(theta_psi, psi)],
                               ["psi"], ["theta", "dtheta_dpsi"])
     prior_hessian = casadi.Function(
-        "prior_hessian", [psi, parameters], [casadi.hessian(divergence, psi)[0]], ["psi", "p"], ["hessian"])
+        "prior_hessian", [psi, parameters], [casadi.hessian(divergence + effect_term(theta_psi[10 * n :]), psi)[0]],
+        ["psi", "p"], ["hessian"])
     return _Symbolic(nlp, mapping, prior_hessian, n, p, {})
 
 
 @functools.lru_cache(maxsize=16)
-def compiled_problem(model: IdentificationModel, max_iter: int = 3000) -> ConsistentProblem:
-    """The model's :class:`ConsistentProblem` with IPOPT stopped at ``max_iter`` iterations. The solvers of one model
+def compiled_problem(model: IdentificationModel, max_iter: int = 3000, effect_prior: bool = False) -> ConsistentProblem:
+    """The model's :class:`ConsistentProblem` with IPOPT stopped at ``max_iter`` iterations (``effect_prior``: with the
+    description's prior on the effect parameters, :func:`_symbolic`). The solvers of one model
     (the escape's shorter one beside the full one) share their derivative functions: the first built generates them,
     the others are given them (the same functions, so the same iterates bit for bit)."""
-    symbolic = _symbolic(model)
+    symbolic = _symbolic(model, effect_prior)
     solver = cached_nlpsol(
         "consistent_least_squares", "ipopt", symbolic.nlp,
         {"print_time": False, "show_eval_warnings": False, "ipopt.print_level": 0, "ipopt.sb": "yes",

@@ -71,6 +71,9 @@ def consistent_lines(consistent: ConsistentResult | None) -> list[str]:
     lines.append(f"consistent (prior weight {estimate.prior_weight:g}: {how}; {estimate.solver['status']}, "
           f"{estimate.solver['time_s']:.2f} s): excess chi2 {estimate.excess_chi2:.4g}; active: "
           + (", ".join(estimate.active_bounds) or "none"))
+    if estimate.effect_prior:
+        lines.append("  the description's joint terms as prior (armature, damping, frictionloss): " + ", ".join(
+            f"{name} {value:.4g} -> {estimate.effect_values()[name]:.4g}" for name, value in estimate.effect_prior.items()))
     for name, theta, margin in zip(estimate.link_names, estimate.link_parameters(), estimate.margins):
         com = theta[1:4] / theta[0]
         lines.append(f"  {name}: mass {theta[0]:.4g} kg, com [{com[0]:+.4f} {com[1]:+.4f} {com[2]:+.4f}] m, margin {margin:.2g}")
