@@ -126,8 +126,11 @@ def _symbolic(model: IdentificationModel, effect_prior: bool = False) -> _Symbol
     if effect_prior:
         parameters = casadi.vertcat(parameters, effect_mean, effect_precision)
 
-    def effect_term(effects: casadi.SX) -> casadi.SX:
-        return 0.5 * casadi.dot(effect_precision, (effects - effect_mean) ** 2) if effect_prior else 0
+    def with_effect_term(divergence: casadi.SX, effects: casadi.SX) -> casadi.SX:
+        """The prior's divergence, plus the effect prior's term when there is one (else the very expression)."""
+        if not effect_prior:
+            return divergence
+        return divergence + 0.5 * casadi.dot(effect_precision, (effects - effect_mean) ** 2)
     scale_theta = casadi.SX.sym("scale_theta", p)
     scale_psi = casadi.SX.sym("scale_psi", 10 * n)
     # IPOPT's variables, scaled to order one: θ = s_θ θ̃, ψ = s_ψ ψ̃ (per link: m, m·ℓ, m·ℓ²; √m, ℓ)
@@ -136,7 +139,7 @@ def _symbolic(model: IdentificationModel, effect_prior: bool = False) -> _Symbol
     theta = scale_theta * theta_scaled
     links, divergence = links_and_divergence(scale_psi * psi_scaled, n, prior_inverse, prior_log_det)
     error = casadi.mtimes(casadi.DM(model.base.K), theta) - target
-    cost = 0.5 * casadi.dot(error, casadi.mtimes(G, error)) + weight * (divergence + effect_term(theta[10 * n :]))
+    cost = 0.5 * casadi.dot(error, casadi.mtimes(G, error)) + weight * with_effect_term(divergence, theta[10 * n :])
     nlp = {"x": casadi.vertcat(theta_scaled, psi_scaled), "p": casadi.vertcat(parameters, scale_theta, scale_psi),
            "f": cost, "g": (theta[: 10 * n] - links) / scale_theta[: 10 * n]}
     psi = casadi.SX.sym("psi", p)
@@ -145,7 +148,7 @@ def _symbolic(model: IdentificationModel, effect_prior: bool = False) -> _Symbol
     mapping = casadi.Function("consistent_theta", [psi], [theta_psi, casadi.jacobian(theta_psi, psi)],
                               ["psi"], ["theta", "dtheta_dpsi"])
     prior_hessian = casadi.Function(
-        "prior_hessian", [psi, parameters], [casadi.hessian(divergence + effect_term(theta_psi[10 * n :]), psi)[0]],
+        "prior_hessian", [psi, parameters], [casadi.hessian(with_effect_term(divergence, theta_psi[10 * n :]), psi)[0]],
         ["psi", "p"], ["hessian"])
     return _Symbolic(nlp, mapping, prior_hessian, n, p, {})
 
