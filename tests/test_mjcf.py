@@ -130,11 +130,14 @@ def _write(tmp_path, text, name="model.xml"):
     return path
 
 
-def _mujoco_rne(path, names, q, dq, ddq):
+def _mujoco_rne(path, names, q, dq, ddq, *, inverse=False):
     """MuJoCo's rigid-body inverse dynamics (``M q̈ + c``, no armature or passive forces) of the joints ``names``,
-    the file's other joints at 0 and still."""
+    the file's other joints at 0 and still; ``inverse``: ``mj_inverse`` with constraints off instead (no friction
+    loss, no equality), ``M q̈ + c`` with the armature less the passive forces (damping, springs)."""
     mujoco = pytest.importorskip("mujoco")
     model = mujoco.MjModel.from_xml_path(str(path))
+    if inverse:
+        model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONSTRAINT
     data = mujoco.MjData(model)
     index = [model.jnt_dofadr[model.joint(name).id] for name in names]
     address = [model.jnt_qposadr[model.joint(name).id] for name in names]
@@ -142,6 +145,11 @@ def _mujoco_rne(path, names, q, dq, ddq):
     for qi, dqi, ddqi in zip(q, dq, ddq):
         data.qpos[:], data.qvel[:], data.qacc[:] = 0.0, 0.0, 0.0
         data.qpos[address], data.qvel[index] = qi, dqi
+        if inverse:
+            data.qacc[index] = ddqi
+            mujoco.mj_inverse(model, data)
+            torques.append(data.qfrc_inverse[index].copy())
+            continue
         mujoco.mj_forward(model, data)
         data.qacc[:] = 0.0
         data.qacc[index] = ddqi

@@ -112,21 +112,7 @@ def test_a_site_actuator_on_a_body_the_chain_does_not_move_is_left_out(tmp_path)
 
 
 def _mujoco_inverse(path, names, q, dq, ddq):
-    """MuJoCo's ``mj_inverse`` with constraints off (no friction loss, no equality): ``M q̈ + c`` with the
-    armature, less the passive forces (damping, springs), the file's other joints at 0 and still."""
-    mujoco = pytest.importorskip("mujoco")
-    model = mujoco.MjModel.from_xml_path(str(path))
-    model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONSTRAINT
-    data = mujoco.MjData(model)
-    dofs = [model.jnt_dofadr[model.joint(name).id] for name in names]
-    addresses = [model.jnt_qposadr[model.joint(name).id] for name in names]
-    torques = []
-    for position, velocity, acceleration in zip(q, dq, ddq):
-        data.qpos[:], data.qvel[:], data.qacc[:] = 0.0, 0.0, 0.0
-        data.qpos[addresses], data.qvel[dofs], data.qacc[dofs] = position, velocity, acceleration
-        mujoco.mj_inverse(model, data)
-        torques.append(data.qfrc_inverse[dofs].copy())
-    return np.array(torques)
+    return _mujoco_rne(path, names, q, dq, ddq, inverse=True)
 
 
 def test_the_users_mjcf_with_new_bodies_and_terms_is_that_model_in_mujoco(tmp_path):
