@@ -12,7 +12,10 @@ the model, so that Pinocchio's RNEA on the URDF plus these terms is the model's 
      "laws": {"viscous": "fv * dq", …}, "delay": 0.007 | null, "gravity": [0, 0, -9.81], "channels": […]}
 
 ``τ_j = RNEA(q, q̇, q̈)_j + Σ laws of joint j`` (joint rows; the other effects and the delay as named).
-The MJCF (:func:`exported_mjcf`, :mod:`dynamics.mjcf_export`) carries the bodies and the joint terms
+The MJCF (:func:`exported_mjcf`, :mod:`dynamics.mjcf_export`) of a robot read from an MJCF model is the user's file
+with the identified bodies, joint terms and gravity in place of its own, everything else kept
+(:func:`dynamics.mjcf_export.mjcf_with_inertials`; the chain's MJCF, with the reason, when a link cannot be written
+into the file's bodies); of any other robot, the chain's. It carries the bodies and the joint terms
 MuJoCo has: ``armature`` (rotor inertia), ``damping`` (viscous), ``frictionloss`` (Coulomb), ``stiffness``
 and ``springref`` (a spring), gravity; what it cannot express (an offset, a Stribeck law, a smoothed or
 shaped Coulomb law, an effect not on one joint, a motor-side effect, a delay) is listed in a comment and
@@ -266,9 +269,11 @@ def exported_mjcf(model: IdentifiedModel) -> MjcfExport:
     header = (f"robot-oed: the physically consistent estimate of {model.robot.name} ({model.file.effects or 'no'} "
               "effects); numbers at full precision")
     source = model.file.robot
-    if source.urdf_sha256 is not None and source.joints is None and (
+    if source.urdf_sha256 is not None and (
             is_mjcf_text(source.urdf_text) if source.urdf_text is not None else is_mjcf(source.urdf_path or "")):
         try:
+            if source.joints is not None:
+                raise MjcfBodyError(f"the model holds the file's first {source.joints} joints (--joints)")
             return _users_mjcf(model, terms, notes, header)
         except MjcfBodyError as error:
             notes.append(f"not written into the user's MJCF ({error}): the chain's bodies and joints are written "
