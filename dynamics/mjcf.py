@@ -163,6 +163,7 @@ class _Model:
     body_elements: dict[str, ElementTree.Element] = field(default_factory=dict)
     joint_elements: dict[str, ElementTree.Element] = field(default_factory=dict)
     root: ElementTree.Element | None = None
+    degrees: bool = True  # the compiler's angle unit
 
     def error(self, text: str) -> RobotDescriptionError:
         return RobotDescriptionError(f"MJCF {self.path}: {text}")
@@ -337,7 +338,7 @@ def _read(path: Path) -> _Model:
     classes = _default_classes(root)
     option = root.find("option")
     gravity = None if option is None else _floats(path, option, "gravity", 3)
-    model = _Model(path, root.get("model") or path.stem, gravity, root=root,
+    model = _Model(path, root.get("model") or path.stem, gravity, root=root, degrees=compiler.degrees,
                    inertia_from_geoms=any(element.get("inertiafromgeom") == "true" for element in root.findall("compiler")))
     worldbody = root.find("worldbody")
     if worldbody is None:
@@ -712,8 +713,9 @@ class MjcfLayout:
     of the chain: its link has no body of its own), ``joints`` each chain joint's ``<joint>`` element, ``others``
     the standard parameters, in the link's frame, of the other bodies that move with each link (bodies fixed to it,
     and those carried by locked joints at their positions), ``terms`` each chain joint's attributes as the file
-    gives them (``armature``, ``damping``, ``frictionloss``, ``stiffness``; its classes resolved) and ``gravity``
-    the file's ``<option gravity>`` (``None``: MuJoCo's default).
+    gives them (``armature``, ``damping``, ``frictionloss``, ``stiffness``; its classes resolved), ``gravity``
+    the file's ``<option gravity>`` (``None``: MuJoCo's default) and ``degrees`` whether its hinge angles
+    (``range``, ``ref``, ``springref``) are in degrees (``<compiler angle>``).
     """
 
     root: ElementTree.Element
@@ -722,6 +724,7 @@ class MjcfLayout:
     others: Mapping[str, NDArray[np.float64]]
     terms: Mapping[str, Mapping[str, float]]
     gravity: NDArray[np.float64] | None
+    degrees: bool = True
 
 
 def mjcf_layout(path: str | Path, *, joint_names: Sequence[str] | None = None,
@@ -735,7 +738,7 @@ def mjcf_layout(path: str | Path, *, joint_names: Sequence[str] | None = None,
     return MjcfLayout(model.root, {name: model.body_elements[holders[name]] if name in holders else None
                                    for name in chain},
                       {name: model.joint_elements[name] for name in chain}, others,
-                      {name: dict(model.joints[name].terms) for name in chain}, model.gravity)
+                      {name: dict(model.joints[name].terms) for name in chain}, model.gravity, model.degrees)
 
 
 def mjcf_joint_terms(path: str | Path, robot: RobotModel) -> dict[str, dict[str, float]]:

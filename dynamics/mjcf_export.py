@@ -224,6 +224,9 @@ def mjcf_with_inertials(path: str | Path, robot: RobotModel, links: ArrayLike,
                                "holds none)")
             if key == "springref" and value == 0 and element.get(key) is None:
                 continue
+            if key == "springref" and layout.degrees and robot.joints[robot.joint_names.index(name)].joint_type \
+                    is JointType.REVOLUTE:
+                value = np.rad2deg(value)  # the file's angle unit
             element.set(key, _number(value))
     options = layout.root.findall("option") or [ElementTree.Element("option")]
     if options[0] not in list(layout.root):

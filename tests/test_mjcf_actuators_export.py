@@ -115,11 +115,14 @@ def _mujoco_inverse(path, names, q, dq, ddq):
     return _mujoco_rne(path, names, q, dq, ddq, inverse=True)
 
 
-def test_the_users_mjcf_with_new_bodies_and_terms_is_that_model_in_mujoco(tmp_path):
+@pytest.mark.parametrize("unit", ["radian", "degree"])
+def test_the_users_mjcf_with_new_bodies_and_terms_is_that_model_in_mujoco(tmp_path, unit):
     """New links and joint terms written into the user's file (hand and fingers kept, their mass taken out of the
     wrist's link): MuJoCo's ``mj_rne`` of it is the toolkit's rigid body of those links, ``mj_inverse`` adds the
-    armature, damping and spring, at random states (1e-9 relative); geoms, actuators and the gripper are kept."""
+    armature, damping and spring (its reference in the file's angle unit), at random states (1e-9 relative); geoms,
+    actuators and the gripper are kept."""
     path = _arm(tmp_path)
+    path.write_text(path.read_text().replace('angle="radian"', f'angle="{unit}"'))
     robot = _robot(path)
     links = robot.standard_parameters.reshape(-1, 10) * np.random.default_rng(3).uniform(0.9, 1.1, (4, 1))
     terms = {name: {"armature": 0.2 + index, "damping": 1.5 * (index + 1), "stiffness": 0.3, "springref": 0.1}
