@@ -62,6 +62,7 @@ _EXPORTS: dict[str, str] = {
     "transmission_from_mjcf": "dynamics.mjcf",
     "robot_from_urdf": "dynamics.urdf",
     "robot_mjcf": "dynamics.mjcf_export",
+    "mjcf_with_inertials": "dynamics.mjcf_export",
     "robot_urdf": "dynamics.urdf_export",
     "single_channel": "dynamics.signal_checks",
     "to_pinocchio": "dynamics.pinocchio_bridge",

@@ -11,6 +11,9 @@ Joint terms, MuJoCo's names for the identified ones: ``armature`` (reflected rot
 constraint), ``stiffness`` and ``springref`` (a spring ``k (q − q_ref)``). Numbers are written with
 Python's ``repr`` (the shortest text that reads back to the same double): MuJoCo's own XML writer rounds
 to six digits, which moves the inverse dynamics by a few 1e-6.
+
+:func:`robot_mjcf` writes the chain alone (bodies and joints); :func:`mjcf_with_inertials` writes the identified
+bodies and joint terms into the user's own MJCF file, everything else kept (the robot was read from it).
 """
 
 from __future__ import annotations
