@@ -147,7 +147,7 @@ def test_the_users_mjcf_with_new_bodies_and_terms_is_that_model_in_mujoco(tmp_pa
                                atol=1e-9 * np.abs(expected).max())
 
 
-def test_a_link_lighter_than_the_bodies_fixed_to_it_is_refused_and_export_writes_the_chain(tmp_path):
+def test_a_link_lighter_than_the_bodies_fixed_to_it_is_refused(tmp_path):
     path = _arm(tmp_path)
     robot = _robot(path)
     links = robot.standard_parameters.reshape(-1, 10).copy()
@@ -224,6 +224,16 @@ def test_cli_actuator_forces_identify_as_joint_torques_and_export_loads_in_mujoc
                                atol=1e-9 * np.abs(predicted).max())
     from dynamics import robot_from_urdf
     assert robot_from_urdf(as_urdf).joint_names == list(ARM)
+    # a wrist lighter than the hand and fingers fixed to it: the chain's MJCF, the reason in a note
+    import dataclasses
+
+    from estimation.identification.export import exported_mjcf
+    links = np.array(model.file.consistent_links, dtype=float)
+    links[-1] *= 0.05
+    light = IdentifiedModel(dataclasses.replace(model.file, consistent_links=links), estimate="consistent")
+    chain = exported_mjcf(light)
+    assert chain.source is None and "<geom" not in chain.text and "m_wrist" not in chain.text
+    assert any("not written into the user's MJCF (link 'wrist'" in note for note in chain.notes)
 
 
 @pytest.fixture(scope="module")
