@@ -33,6 +33,7 @@ from estimation.data.loading import (
     DelimiterWarning,
     DuplicatedTimesWarning,
     UnitsRowWarning,
+    without_repeated_headers,
     GROUP_MEANING,
     HoleError,
     MeasurementError,
@@ -207,9 +208,9 @@ DIALECT_ROWS = 20
 
 
 def read_csv_frame(path: Path) -> pd.DataFrame:
-    """The CSV file as a table: comma-separated with ``.`` decimals, or as :func:`csv_options` says, its columns in
-    the format's SI units (:func:`csv_units`)."""
-    return in_si_units(pd.read_csv(path, **csv_options(path)), csv_units(path))
+    """The CSV file as a table: comma-separated with ``.`` decimals, or as :func:`csv_options` says, lines repeating
+    its header dropped (:func:`without_repeated_headers`), its columns in the format's SI units (:func:`csv_units`)."""
+    return in_si_units(without_repeated_headers(pd.read_csv(path, **csv_options(path)), str(path)), csv_units(path))
 
 
 def _units_row(path: Path) -> tuple[str, list[str], list[str]] | None:
