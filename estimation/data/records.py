@@ -13,6 +13,7 @@ split into segments there: :class:`~estimation.data.loading.SplitWarning`, or a
 from __future__ import annotations
 
 import os
+import shlex
 import warnings
 from dataclasses import dataclass
 from collections.abc import Iterable
@@ -198,7 +199,7 @@ def read_record(
         frame = apply_column_map(frame, named, str(path))
         warnings.warn(JointNamedColumnsWarning(
             f"{path}: the joint columns read by the robot's joint names "
-            f"(--columns {','.join(f'{key}={value}' for key, value in named.items())})"), stacklevel=2)
+            f"(--columns {shlex.quote(','.join(f'{key}={value}' for key, value in named.items()))})"), stacklevel=2)
     return segments_from_frame(frame, n_joints=n_joints, model=model, require=require, resample=resample,
                                source=str(path), max_gap=max_gap, split=split)
 
