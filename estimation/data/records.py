@@ -74,7 +74,8 @@ from estimation.data.log_formats import (
     time_column,
 )
 from estimation.data.sampling_clock import clock_roughness, said_receive_times
-from estimation.data.log_cleaning import DEFAULT_MAX_GAP, Gap, blank_rows, describe, find_gaps, repeated_rows, split_rows, time_stamps_jump
+from estimation.data.log_cleaning import (DEFAULT_MAX_GAP, ZERO_ROW_JOINTS, Gap, blank_rows, describe, find_gaps,
+                                          repeated_rows, split_rows, time_stamps_jump, zero_rows)
 from dynamics.measurements import Measurements, joint_columns
 
 
@@ -365,13 +366,18 @@ def dropouts(frame: pd.DataFrame, n_joints: int) -> NDArray[np.bool_]:
     lower rate than the others (torques at 125 Hz beside positions at 250 Hz, merged into one table with blanks),
     its rows without a sample of it dropped as dropouts. A group empty on every row is not a dropout (the column
     checks name it). One rule for the in-memory reader and the streamed one (:mod:`estimation.streaming.time_base`,
-    which applies it to each chunk)."""
+    which applies it to each chunk). Rows whose every data cell is exactly zero are dropouts too: a lost frame
+    written as zeros (:func:`estimation.data.log_cleaning.zero_rows`)."""
     groups = [[column for column in (list(WRENCH_CHANNELS) if group == "wrench" else joint_columns(group, n_joints))
                if column in frame.columns] for group in COLUMN_GROUPS]
     groups = [columns for columns in groups if columns]
     if not groups:
         return np.zeros(len(frame), dtype=bool)
-    blank = blank_rows(frame[[column for columns in groups for column in columns]].isna().to_numpy())
+    cells = [column for columns in groups for column in columns]
+    blank = blank_rows(frame[cells].isna().to_numpy())
+    if n_joints >= ZERO_ROW_JOINTS and len(frame):
+        blank |= zero_rows(np.column_stack([pd.to_numeric(frame[column], errors="coerce").to_numpy(dtype=float)
+                                            for column in cells]), n_joints)
     for columns in groups:
         unlogged = blank_rows(frame[columns].isna().to_numpy())
         if not unlogged.all():
@@ -384,7 +390,8 @@ def said_dropouts(count: int, first_row: int, first_stamp: object, source: str) 
     file, stamped ``first_stamp`` (as written)."""
     stamp = pd.to_numeric(pd.Series([first_stamp]), errors="coerce").iloc[0]
     warnings.warn(
-        f"{source}: dropped {count} row(s) whose data cells are all empty (a logger's dropouts), or those of a "
+        f"{source}: dropped {count} row(s) whose data cells are all empty (a logger's dropouts; or all exactly 0: "
+        "a lost frame written as zeros), or those of a "
         "channel (joint positions, velocities, torques: one logged at a lower rate), first at row "
         f"{first_row}" + ("" if not np.isfinite(stamp) else f" (t = {stamp:.6g} s)") + "; the time they leave "
         "without samples is bridged by interpolation up to --max-gap and split beyond, as any gap",
