@@ -376,8 +376,9 @@ def dropouts(frame: pd.DataFrame, n_joints: int) -> NDArray[np.bool_]:
     cells = [column for columns in groups for column in columns]
     blank = blank_rows(frame[cells].isna().to_numpy())
     if n_joints >= ZERO_ROW_JOINTS and len(frame):
-        blank |= zero_rows(np.column_stack([pd.to_numeric(frame[column], errors="coerce").to_numpy(dtype=float)
-                                            for column in cells]), n_joints)
+        blank |= zero_rows(np.column_stack([
+            frame[column].to_numpy(dtype=float) if pd.api.types.is_numeric_dtype(frame[column])
+            else pd.to_numeric(frame[column], errors="coerce").to_numpy(dtype=float) for column in cells]), n_joints)
     for columns in groups:
         unlogged = blank_rows(frame[columns].isna().to_numpy())
         if not unlogged.all():
