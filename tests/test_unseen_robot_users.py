@@ -293,7 +293,8 @@ def test_a_header_written_again_and_a_row_of_zeros_are_dropped_alike_in_memory_a
     line is dropped and said (:class:`RepeatedHeaderWarning`, naming its line), in memory and chunk by chunk alike,
     the rows as without it; a clock going back there splits the record as any restart; a line that is not the
     header stays an error naming its column. A lost frame written as a row of zeros (at 4d50ebf read as a sample,
-    the case above 805x the plain fit) is a dropout, alike in memory and streamed."""
+    the case above 805x the plain fit) is a dropout, alike in memory and streamed; not in a file without torques
+    (a planned trajectory's positions may start at the zero pose)."""
     from dynamics.models import build_model
     from estimation.data import BlankRowsWarning, NonFiniteError, RepeatedHeaderWarning
     from estimation.data.records import read_measurements, read_record
@@ -336,6 +337,14 @@ def test_a_header_written_again_and_a_row_of_zeros_are_dropped_alike_in_memory_a
                                                                                    clean.tau[kept])
     assert np.allclose(np.concatenate([chunk.t for chunk in chunks]), memory.t, rtol=0, atol=1e-12)
     assert np.allclose(np.vstack([chunk.tau for chunk in chunks]), memory.tau, rtol=0, atol=1e-12)
+    positions = tmp_path / "planned.csv"  # a planned trajectory's positions, from the zero pose: nothing dropped
+    table = pd.read_csv(tmp_path / "clean.csv")[["t", "q1", "q2", "q3"]]
+    table.loc[:4, ["q1", "q2", "q3"]] = 0.0
+    table.to_csv(positions, index=False)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        (planned,) = read_record(positions, n_joints=3, require=("q",))
+    assert not [item for item in caught if issubclass(item.category, BlankRowsWarning)] and len(planned.t) == 1000
     other = lines[0].replace("q1", "position")
     (tmp_path / "other.csv").write_text("\n".join([*lines[:401], other, *lines[401:]]) + "\n")
     with pytest.raises(NonFiniteError, match="column q1"), warnings.catch_warnings():

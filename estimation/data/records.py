@@ -366,8 +366,9 @@ def dropouts(frame: pd.DataFrame, n_joints: int) -> NDArray[np.bool_]:
     lower rate than the others (torques at 125 Hz beside positions at 250 Hz, merged into one table with blanks),
     its rows without a sample of it dropped as dropouts. A group empty on every row is not a dropout (the column
     checks name it). One rule for the in-memory reader and the streamed one (:mod:`estimation.streaming.time_base`,
-    which applies it to each chunk). Rows whose every data cell is exactly zero are dropouts too: a lost frame
-    written as zeros (:func:`estimation.data.log_cleaning.zero_rows`)."""
+    which applies it to each chunk). Rows whose every data cell is exactly zero are dropouts too, where the row holds
+    measured torques or a wrench (a planned trajectory's positions may start at the zero pose): a lost frame written
+    as zeros (:func:`lost_frames`)."""
     groups = [[column for column in (list(WRENCH_CHANNELS) if group == "wrench" else joint_columns(group, n_joints))
                if column in frame.columns] for group in COLUMN_GROUPS]
     groups = [columns for columns in groups if columns]
@@ -375,15 +376,24 @@ def dropouts(frame: pd.DataFrame, n_joints: int) -> NDArray[np.bool_]:
         return np.zeros(len(frame), dtype=bool)
     cells = [column for columns in groups for column in columns]
     blank = blank_rows(frame[cells].isna().to_numpy())
-    if n_joints >= ZERO_ROW_JOINTS and len(frame):
-        blank |= zero_rows(np.column_stack([
-            frame[column].to_numpy(dtype=float) if pd.api.types.is_numeric_dtype(frame[column])
-            else pd.to_numeric(frame[column], errors="coerce").to_numpy(dtype=float) for column in cells]), n_joints)
+    blank |= lost_frames(frame, n_joints, cells)
     for columns in groups:
         unlogged = blank_rows(frame[columns].isna().to_numpy())
         if not unlogged.all():
             blank |= unlogged
     return blank
+
+
+def lost_frames(frame: pd.DataFrame, n_joints: int, cells: list[str]) -> NDArray[np.bool_]:
+    """``(N,)`` the rows of ``frame`` whose data ``cells`` are all exactly zero, where they hold measured torques or
+    a wrench, on a robot of :data:`~estimation.data.log_cleaning.ZERO_ROW_JOINTS` joints or more
+    (:func:`estimation.data.log_cleaning.zero_rows`)."""
+    measured = set(joint_columns("tau", n_joints)) | set(WRENCH_CHANNELS)
+    if n_joints < ZERO_ROW_JOINTS or not len(frame) or not measured & set(cells):
+        return np.zeros(len(frame), dtype=bool)
+    return zero_rows(np.column_stack([
+        frame[column].to_numpy(dtype=float) if pd.api.types.is_numeric_dtype(frame[column])
+        else pd.to_numeric(frame[column], errors="coerce").to_numpy(dtype=float) for column in cells]), n_joints)
 
 
 def said_dropouts(count: int, first_row: int, first_stamp: object, source: str) -> None:
