@@ -67,6 +67,9 @@ class Lab:
     validate: Log
     test: Log
     test_motion: str = "fourier"  # "point-to-point", or "jog": a teach pendant's slow moves, one joint at a time
+    validate_motion: str = "fourier"  # the validation record's: "fourier" (the training's kind) or "point-to-point"
+    rest: float = 0.4  # the rests between point-to-point moves (s)
+    armature: tuple[float, ...] = ()  # each joint's reflected rotor inertia (kg m²), not in the description
     extra: str | Callable[[np.ndarray, np.ndarray], np.ndarray] = ""  # "position coulomb", "spring", or a law
     # ``(q, dq) -> torque`` of its own (joint side, the samples in time order)
     sensed: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None  # what the torque sensor reads of the
@@ -213,17 +216,20 @@ def write_records(case: Lab, folder: Path) -> tuple[Path, dict, dict, np.ndarray
     for role, log, seed in (("train", case.train, 11), ("validate", case.validate, 12), ("test", case.test, 13)):
         generator = np.random.default_rng(1000 + seed)
         t = times(log, generator)
-        motion = case.test_motion if role == "test" else "fourier"
+        motion = {"test": case.test_motion, "validate": case.validate_motion}.get(role, "fourier")
         within = confined(limits, *case.trained_range) if case.trained_range and role != "test" else limits
         if motion == "point-to-point":
-            q, dq, ddq = point_to_point(limits, seed, t)
+            q, dq, ddq = point_to_point(limits, seed, t, rest=case.rest)
         elif motion == "jog":
             q, dq, ddq = jog(limits, seed, t)
         elif case.halted and role in case.halted_in:
             q, dq, ddq = halt(random_fourier(within, seed=seed, frequency_hz=log.motion_hz), t, case.halted)
         else:
             q, dq, ddq = random_fourier(within, seed=seed, frequency_hz=log.motion_hz).evaluate(t)
-        tau = (model.predict(theta, q, dq, ddq) + extra_torque(case, q, dq)) / gains
+        tau = model.predict(theta, q, dq, ddq) + extra_torque(case, q, dq)
+        if case.armature:  # the rotors' inertia, reflected through the gears
+            tau = tau + np.asarray(case.armature) * ddq
+        tau = tau / gains
         if spread is None:
             spread = tau.std(axis=0)
             if case.equal_noise:  # a sensor's noise in N m, whatever the joint's load

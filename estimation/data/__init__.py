@@ -35,6 +35,7 @@ _EXPORTS: dict[str, str] = {
     "NonFiniteError": "estimation.data.loading",
     "ParquetSupportError": "estimation.data.loading",
     "RepeatedRowsWarning": "estimation.data.loading",
+    "RepeatedHeaderWarning": "estimation.data.loading",
     "BlankRowsWarning": "estimation.data.loading",
     "ResampledWarning": "estimation.data.loading",
     "ReceiveTimesWarning": "estimation.data.loading",

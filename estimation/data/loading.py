@@ -124,6 +124,12 @@ class DuplicatedTimesWarning(MeasurementWarning):
     dropped."""
 
 
+class RepeatedHeaderWarning(MeasurementWarning):
+    """Lines of a CSV file repeating its header (a logger restarted and appended to the file, writing the column
+    names again) were dropped; the rows around them are read as written (a clock that starts again splits the
+    record, :class:`SplitWarning`)."""
+
+
 class BlankRowsWarning(MeasurementWarning):
     """Rows whose data cells are all empty (a logger's dropouts) were dropped; the time they leave without samples
     is a gap like any other."""
@@ -345,6 +351,42 @@ def in_si_units(frame: pd.DataFrame, factors: dict[str, float]) -> pd.DataFrame:
         factor = factors.get(str(name).strip())
         if factor is not None and pd.api.types.is_numeric_dtype(frame[name]):
             frame[name] = frame[name] * factor
+    return frame
+
+
+def repeated_header_rows(frame: pd.DataFrame) -> NDArray[np.bool_]:
+    """``(N,)`` the rows of ``frame`` that repeat its header: every named column's cell is that column's name (spaces
+    and a byte-order mark aside; the unnamed columns a trailing separator makes may be empty), as a logger that
+    restarts and appends to its file writes the names again. A column read as numbers holds no such row."""
+    named = [name for name in frame.columns if not str(name).startswith("Unnamed:")]
+    if not named or len(frame) == 0 or any(pd.api.types.is_numeric_dtype(frame[name]) for name in named):
+        return np.zeros(len(frame), dtype=bool)
+    found = np.ones(len(frame), dtype=bool)
+    for name in named:
+        cells = frame[name].astype(str).str.strip().str.lstrip("\ufeff").str.strip()
+        found &= (cells == str(name).strip().lstrip("\ufeff").strip()).to_numpy()
+    return found
+
+
+def without_repeated_headers(frame: pd.DataFrame, source: str) -> pd.DataFrame:
+    """``frame`` without the lines repeating its header (:func:`repeated_header_rows`), said in a
+    :class:`RepeatedHeaderWarning` naming the first one's line in the file (the frame's index, which runs on across
+    a streamed reader's chunks); the columns they turned into text read again as numbers where every other cell is
+    one, so the rows read as they would without them. One rule for the in-memory reader and the streamed ones."""
+    header = repeated_header_rows(frame)
+    if not header.any():
+        return frame
+    line = int(frame.index[int(np.flatnonzero(header)[0])]) + 2  # the header is line 1
+    warnings.warn(RepeatedHeaderWarning(
+        f"{source}: {int(header.sum())} line(s) repeat the header, first at line {line} (a logger restarted and "
+        "appended to the file): dropped; a clock that starts again there splits the record"), stacklevel=3)
+    frame = frame[~header].copy()
+    for name in frame.columns:
+        if frame[name].dtype == object:
+            try:
+                frame[name] = pd.to_numeric(frame[name])
+            except (ValueError, TypeError):
+                pass  # text the column checks name
     return frame
 
 

@@ -16,6 +16,9 @@
   did not deliver (:func:`blank_rows`): it is dropped before anything else, and the time it leaves without a
   sample is a gap like any other, bridged up to ``max_gap`` and split beyond. A row with some cells blank and
   others not is no dropout, and stays an error.
+* **Lost frames written as zeros.** A fieldbus logger that misses a frame may write the row with every value ``0``
+  (:func:`zero_rows`): on a robot of two joints or more, every position and torque exactly zero at once is no
+  measurement (rows without torques are not judged: a planned trajectory may start at the zero pose) (the torque sensors' noise alone forbids it), so such a row is a dropout like a blank one.
 
 Pure functions on arrays; :mod:`estimation.data.loading` turns their findings into warnings and errors.
 """
@@ -61,6 +64,20 @@ def blank_rows(empty: NDArray[np.bool_]) -> NDArray[np.bool_]:
     if empty.shape[1] == 0:
         return np.zeros(empty.shape[0], dtype=bool)
     return np.all(empty, axis=1)
+
+
+#: the fewest joints a robot must have for a row of zeros to be a lost frame: one axis at rest at its zero pose,
+#: its encoder and torque quantised, may log zeros
+ZERO_ROW_JOINTS = 2
+
+
+def zero_rows(data: NDArray[np.float64], n_joints: int) -> NDArray[np.bool_]:
+    """``(N,)`` true where every cell of a row of ``data`` (``(N, k)``, the data columns of a robot of ``n_joints``
+    as numbers; text and blanks as NaN) is exactly zero: a lost frame written as zeros. None on a robot of fewer
+    than :data:`ZERO_ROW_JOINTS` joints."""
+    if n_joints < ZERO_ROW_JOINTS or data.shape[1] == 0:
+        return np.zeros(data.shape[0], dtype=bool)
+    return np.all(data == 0.0, axis=1)
 
 
 def repeated_rows(data: NDArray[np.float64]) -> NDArray[np.bool_]:

@@ -32,7 +32,7 @@ import numpy as np
 import pandas as pd
 
 from dynamics.channels import WRENCH_CHANNELS
-from estimation.data.loading import MeasurementError, MeasurementWarning, MissingColumnError
+from estimation.data.loading import MeasurementError, MeasurementWarning, MissingColumnError, without_repeated_headers
 
 __all__ = ["BAG_SUFFIXES", "DEFAULT_TOPIC", "DroppedStampsWarning", "LogSource", "RosSupportError", "UnknownTopicError",
            "JointStateTableWarning", "JointNamedColumnsWarning", "TimeColumnWarning", "apply_column_map", "is_log_file", "joint_state_echo", "logged_joints", "parse_column_map", "read_log_frame"]
@@ -281,7 +281,8 @@ def read_log_frame(source: str | os.PathLike[str], *, joint_names: Sequence[str]
     if suffix in ARRAY_SUFFIXES:
         return _array_frame(_arrays(path), log.columns, str(path), n_joints)
     try:
-        frame = pd.read_parquet(path) if suffix == ".parquet" else pd.read_csv(path)
+        frame = pd.read_parquet(path) if suffix == ".parquet" \
+            else without_repeated_headers(pd.read_csv(path), str(path))
     except (ValueError, OSError, ImportError, pd.errors.ParserError) as error:
         raise MeasurementError(f"cannot read {path}: {str(error).strip()}") from None
     return apply_column_map(frame, log.columns, str(path), joint_names=joint_names)

@@ -37,10 +37,12 @@ from dynamics.transmission import (
     check_mean_power,
     check_power_signs,
 )
-from estimation.data.loading import MeasurementError, MissingColumnError, in_si_units, other_delimiter
+from estimation.data.loading import (MeasurementError, MissingColumnError, in_si_units, other_delimiter,
+                                     without_repeated_headers)
 from estimation.data.log_cleaning import DEFAULT_MAX_GAP
 from estimation.data.log_formats import is_log_file
-from estimation.data.records import csv_options, csv_units, read_csv_frame, read_parquet_frame, read_record, segments_from_frame
+from estimation.data.records import (csv_options, csv_units, read_csv_frame, read_parquet_frame, read_record,
+                                     segments_from_frame)
 from dynamics.measurements import Measurements
 
 #: motor-side column prefix -> the joint-side prefix it converts to
@@ -229,7 +231,7 @@ def _frames(path: Path, chunk_size: int) -> Iterator[pd.DataFrame]:
             factors = csv_units(path)  # a units row (its units converted), ';' as the joint side
             with pd.read_csv(path, chunksize=chunk_size, **csv_options(path)) as reader:
                 for frame in reader:
-                    yield in_si_units(frame, factors)
+                    yield in_si_units(without_repeated_headers(frame, str(path)), factors)
             return
         try:
             import pyarrow.parquet

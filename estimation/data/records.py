@@ -13,6 +13,7 @@ split into segments there: :class:`~estimation.data.loading.SplitWarning`, or a
 from __future__ import annotations
 
 import os
+import shlex
 import warnings
 from dataclasses import dataclass
 from collections.abc import Iterable
@@ -33,6 +34,7 @@ from estimation.data.loading import (
     DelimiterWarning,
     DuplicatedTimesWarning,
     UnitsRowWarning,
+    without_repeated_headers,
     GROUP_MEANING,
     HoleError,
     MeasurementError,
@@ -72,7 +74,8 @@ from estimation.data.log_formats import (
     time_column,
 )
 from estimation.data.sampling_clock import clock_roughness, said_receive_times
-from estimation.data.log_cleaning import DEFAULT_MAX_GAP, Gap, blank_rows, describe, find_gaps, repeated_rows, split_rows, time_stamps_jump
+from estimation.data.log_cleaning import (DEFAULT_MAX_GAP, ZERO_ROW_JOINTS, Gap, blank_rows, describe, find_gaps,
+                                          repeated_rows, split_rows, time_stamps_jump, zero_rows)
 from dynamics.measurements import Measurements, joint_columns
 
 
@@ -197,7 +200,7 @@ def read_record(
         frame = apply_column_map(frame, named, str(path))
         warnings.warn(JointNamedColumnsWarning(
             f"{path}: the joint columns read by the robot's joint names "
-            f"(--columns {','.join(f'{key}={value}' for key, value in named.items())})"), stacklevel=2)
+            f"(--columns {shlex.quote(','.join(f'{key}={value}' for key, value in named.items()))})"), stacklevel=2)
     return segments_from_frame(frame, n_joints=n_joints, model=model, require=require, resample=resample,
                                source=str(path), max_gap=max_gap, split=split)
 
@@ -207,9 +210,9 @@ DIALECT_ROWS = 20
 
 
 def read_csv_frame(path: Path) -> pd.DataFrame:
-    """The CSV file as a table: comma-separated with ``.`` decimals, or as :func:`csv_options` says, its columns in
-    the format's SI units (:func:`csv_units`)."""
-    return in_si_units(pd.read_csv(path, **csv_options(path)), csv_units(path))
+    """The CSV file as a table: comma-separated with ``.`` decimals, or as :func:`csv_options` says, lines repeating
+    its header dropped (:func:`without_repeated_headers`), its columns in the format's SI units (:func:`csv_units`)."""
+    return in_si_units(without_repeated_headers(pd.read_csv(path, **csv_options(path)), str(path)), csv_units(path))
 
 
 def _units_row(path: Path) -> tuple[str, list[str], list[str]] | None:
@@ -363,13 +366,17 @@ def dropouts(frame: pd.DataFrame, n_joints: int) -> NDArray[np.bool_]:
     lower rate than the others (torques at 125 Hz beside positions at 250 Hz, merged into one table with blanks),
     its rows without a sample of it dropped as dropouts. A group empty on every row is not a dropout (the column
     checks name it). One rule for the in-memory reader and the streamed one (:mod:`estimation.streaming.time_base`,
-    which applies it to each chunk)."""
+    which applies it to each chunk). Rows whose every data cell is exactly zero are dropouts too, where the row holds
+    measured torques or a wrench (a planned trajectory's positions may start at the zero pose): a lost frame written
+    as zeros (:func:`lost_frames`)."""
     groups = [[column for column in (list(WRENCH_CHANNELS) if group == "wrench" else joint_columns(group, n_joints))
                if column in frame.columns] for group in COLUMN_GROUPS]
     groups = [columns for columns in groups if columns]
     if not groups:
         return np.zeros(len(frame), dtype=bool)
-    blank = blank_rows(frame[[column for columns in groups for column in columns]].isna().to_numpy())
+    cells = [column for columns in groups for column in columns]
+    blank = blank_rows(frame[cells].isna().to_numpy())
+    blank |= lost_frames(frame, n_joints, cells)
     for columns in groups:
         unlogged = blank_rows(frame[columns].isna().to_numpy())
         if not unlogged.all():
@@ -377,12 +384,25 @@ def dropouts(frame: pd.DataFrame, n_joints: int) -> NDArray[np.bool_]:
     return blank
 
 
+def lost_frames(frame: pd.DataFrame, n_joints: int, cells: list[str]) -> NDArray[np.bool_]:
+    """``(N,)`` the rows of ``frame`` whose data ``cells`` are all exactly zero, where they hold measured torques or
+    a wrench, on a robot of :data:`~estimation.data.log_cleaning.ZERO_ROW_JOINTS` joints or more
+    (:func:`estimation.data.log_cleaning.zero_rows`)."""
+    measured = set(joint_columns("tau", n_joints)) | set(WRENCH_CHANNELS)
+    if n_joints < ZERO_ROW_JOINTS or not len(frame) or not measured & set(cells):
+        return np.zeros(len(frame), dtype=bool)
+    return zero_rows(np.column_stack([
+        frame[column].to_numpy(dtype=float) if pd.api.types.is_numeric_dtype(frame[column])
+        else pd.to_numeric(frame[column], errors="coerce").to_numpy(dtype=float) for column in cells]), n_joints)
+
+
 def said_dropouts(count: int, first_row: int, first_stamp: object, source: str) -> None:
     """The :class:`BlankRowsWarning` for ``count`` rows dropped as dropouts, the first at row ``first_row`` of the
     file, stamped ``first_stamp`` (as written)."""
     stamp = pd.to_numeric(pd.Series([first_stamp]), errors="coerce").iloc[0]
     warnings.warn(
-        f"{source}: dropped {count} row(s) whose data cells are all empty (a logger's dropouts), or those of a "
+        f"{source}: dropped {count} row(s) whose data cells are all empty (a logger's dropouts; or all exactly 0: "
+        "a lost frame written as zeros), or those of a "
         "channel (joint positions, velocities, torques: one logged at a lower rate), first at row "
         f"{first_row}" + ("" if not np.isfinite(stamp) else f" (t = {stamp:.6g} s)") + "; the time they leave "
         "without samples is bridged by interpolation up to --max-gap and split beyond, as any gap",

@@ -58,8 +58,10 @@ from estimation.data.loading import (
     TimeBaseError,
     TooFewSamplesError,
     in_si_units,
+    without_repeated_headers,
 )
-from estimation.data.records import AngleTurns, csv_options, csv_units, measurements_from_frame, said_unwrapped, unwrap_angles
+from estimation.data.records import (AngleTurns, csv_options, csv_units, measurements_from_frame, said_unwrapped,
+                                     unwrap_angles)
 from estimation.data.sampling_clock import ClockSums, said_receive_times
 from dynamics.measurements import Measurements, joint_columns
 from estimation.estimators.identification_problem import BandWindow, ResidualBand, decay_length
@@ -128,7 +130,7 @@ def _raw_frames(path: Path, chunk_size: int, only_time: bool = False) -> Iterato
             factors = csv_units(path)  # a units row's other units turned into SI, as in memory
             with pd.read_csv(path, chunksize=chunk_size, usecols=usecols, **csv_options(path)) as reader:
                 for frame in reader:
-                    yield in_si_units(frame, factors)
+                    yield in_si_units(without_repeated_headers(frame, str(path)), factors)
         else:
             try:
                 import pyarrow.parquet
