@@ -48,6 +48,7 @@ changes: the error the model would have with the change is reported beside it, l
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
@@ -367,10 +368,43 @@ def rest_regressors(robot: Any, gravities: NDArray[np.float64]) -> SampleEvaluat
     """The bodies' joint-torque regressor at rest (``q̇ = q̈ = 0``: the gravity load per standard parameter) with
     gravity along each row of ``gravities`` (m/s², base frame), stacked: per sample ``[Y_1ᵀ, Y_2ᵀ, …]`` (``10 n`` by
     ``n`` each), one compiled function (:class:`~dynamics.codegen.compiled.SampleEvaluator`, cached on disk) and no
-    base-parameter reduction, which a model of each gravity would cost (:func:`dynamics.models.build_model`)."""
-    blocks, q = [], None
-    for gravity in np.atleast_2d(gravities):
-        rigid = rigid_body_regressors(robot.with_gravity(np.asarray(gravity, dtype=float)))
+    base-parameter reduction, which a model of each gravity would cost (:func:`dynamics.models.build_model`).
+
+    Built once per description: the function depends only on the chain's kinematics (each joint's type, axis,
+    placement and link transform; not its inertials: a regressor is linear in them) and on ``gravities``, and is
+    kept per that content (:func:`functools.lru_cache` on a key of their bytes; a robot loaded again from its
+    description, as each ``oed predict`` does, finds it). The cached value is the same function the content
+    builds, so the cache cannot change an answer."""
+    gravities = np.atleast_2d(np.asarray(gravities, dtype=float))
+    return _rest_regressors(_Described(robot, gravities))
+
+
+@dataclass(frozen=True, eq=False)
+class _Described:
+    """A robot's kinematics and the gravities of :func:`rest_regressors`, compared and hashed by their content."""
+
+    robot: Any
+    gravities: NDArray[np.float64]
+
+    @property
+    def key(self) -> tuple[Any, ...]:
+        joints = tuple((joint.joint_type.value, np.asarray(joint.axis, dtype=float).tobytes(),
+                        np.asarray(joint.placement, dtype=float).tobytes(),
+                        np.asarray(joint.link_transform, dtype=float).tobytes()) for joint in self.robot.joints)
+        return joints, self.gravities.shape, self.gravities.tobytes()
+
+    def __hash__(self) -> int:
+        return hash(self.key)
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, _Described) and self.key == other.key
+
+
+@functools.lru_cache(maxsize=16)
+def _rest_regressors(described: _Described) -> SampleEvaluator:
+    robot, blocks, q = described.robot, [], None
+    for gravity in described.gravities:
+        rigid = rigid_body_regressors(robot.with_gravity(gravity))
         joint = casadi.substitute(rigid.joint, casadi.vertcat(rigid.dq, rigid.ddq), casadi.SX.zeros(2 * robot.n_joints))
         if q is None:
             q = rigid.q
