@@ -48,6 +48,7 @@ changes: the error the model would have with the change is reported beside it, l
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
@@ -71,7 +72,7 @@ if TYPE_CHECKING:
     from estimation.identification.identified_model import IdentifiedModel, Prediction
 
 __all__ = ["ALPHA", "FITTED_LABEL", "MARK", "MIN_FLOORS", "WORSE_FLOORS", "WORSE_LIMIT", "FamilyFit", "RecordChanges",
-           "check_record_changes", "rest_regressors"]
+           "check_record_changes", "rest_loads", "rest_regressors"]
 
 #: the family-wise level of the test over the families (Bonferroni)
 ALPHA = 1e-3
@@ -198,16 +199,52 @@ def _segments(record: Measurements, rows: NDArray[np.int64]) -> list[tuple[int, 
     return bounds or [(0, rows.shape[0])]
 
 
+def _gram(left: NDArray, weights: NDArray, right: NDArray) -> NDArray[np.float64]:
+    """``Σ_n Σ_c w_c L_ncᵀ R_nc`` of columns ``(N, m, a)`` and ``(N, m, b)`` (or targets ``(N, m)``), one matrix
+    product."""
+    left = left.reshape(left.shape[0], left.shape[1], -1) * weights[None, :, None]
+    right = right.reshape(right.shape[0], right.shape[1], -1)
+    return left.reshape(-1, left.shape[2]).T @ right.reshape(-1, right.shape[2])
+
+
 def _solve(columns: NDArray, target: NDArray, weights: NDArray, scales: NDArray) -> tuple[NDArray, NDArray]:
     """``(β, A⁺)`` of the weighted least squares of ``target`` on ``columns`` (``(N, m, k)``), in coordinates scaled
     by ``scales``, the directions no sample determines left at zero."""
-    A = np.einsum("nmi,m,nmj->ij", columns, weights, columns, optimize=True)
-    b = np.einsum("nmi,m,nm->i", columns, weights, target, optimize=True)
+    A = _gram(columns, weights, columns)
+    b = _gram(columns, weights, target)[:, 0]
     scaled = A * np.outer(scales, scales)
     values, vectors = np.linalg.eigh(0.5 * (scaled + scaled.T))
     kept = values > STRUCTURAL_TOLERANCE * max(values[-1], np.finfo(float).tiny)
     inverse = (vectors[:, kept] / values[kept]) @ vectors[:, kept].T * np.outer(scales, scales)
     return inverse @ b, inverse
+
+
+def _adds_to(extra: NDArray, extra_scales: NDArray, base: NDArray, base_scales: NDArray, target: NDArray,
+             weights: NDArray, segments: list[tuple[int, int]], jacobian: NDArray, model_cov: NDArray
+             ) -> tuple[float, int]:
+    """``(p, k)``: does ``extra`` (``(N, m, k_e)`` columns) explain what ``base`` leaves of ``target``? The Wald test
+    (HAC plus the model's own uncertainty, as the families') of ``extra``'s coefficients fitted on their part
+    W-orthogonal to ``base`` (a score test of the larger model against ``base``), in the ``k`` directions of that
+    part the samples determine (a direction of ``extra`` that ``base`` holds too carries no evidence either way:
+    ``p = 1`` when none is left)."""
+    beta, inverse = _solve(base, target, weights, base_scales)
+    after_base = target - base @ beta
+    projection = inverse @ _gram(base, weights, extra)
+    orthogonal = extra - base @ projection
+    reference = _gram(extra, weights, extra) * np.outer(extra_scales, extra_scales)
+    scaled = _gram(orthogonal, weights, orthogonal) * np.outer(extra_scales, extra_scales)
+    values, vectors = np.linalg.eigh(0.5 * (scaled + scaled.T))
+    kept = values > STRUCTURAL_TOLERANCE * max(float(np.linalg.eigvalsh(reference)[-1]), np.finfo(float).tiny)
+    if not kept.any():
+        return 1.0, 0
+    directions = orthogonal @ (vectors[:, kept] * extra_scales[:, None])
+    inverse = np.diag(1.0 / values[kept])
+    gamma = inverse @ _gram(directions, weights, after_base)[:, 0]
+    after = after_base - directions @ gamma
+    cov_noise, _ = hac_covariance(directions, after, weights, inverse, segments=segments)
+    sensitivity = inverse @ _gram(directions, weights, jacobian)
+    test = wald_test(gamma, cov_noise + sensitivity @ model_cov @ sensitivity.T)
+    return test.p_value, int(kept.sum())
 
 
 def _mse(residual: NDArray, channels: tuple[str, ...]) -> dict[str, float]:
@@ -236,21 +273,52 @@ class _Family:
         """The estimate's covariance from the robot's bodies the family's columns are built from (none here)."""
         return np.zeros((beta.shape[0], beta.shape[0]))
 
+    def parts(self, beta: NDArray, cov: NDArray) -> dict[str, float]:
+        """The Wald p-value of each part of a family made of several (none here: the family is one change)."""
+        return {}
+
     def describe(self, beta: NDArray, cov: NDArray) -> dict[str, Any]:
         raise NotImplementedError
+
+
+class _StandardColumns:
+    """The bodies' standard-parameter columns along a motion (``(N, m, 10 n)``, the log's units and directions),
+    evaluated once for all the links' payloads (the last few motions kept: the fits, their halves and the
+    record's blocks ask for the same rows again)."""
+
+    KEPT = 4
+
+    def __init__(self, identified: IdentifiedModel, factors: NDArray) -> None:
+        self.identified, self.factors = identified, factors
+        self.rigid = 10 * identified.robot.n_joints
+        self.evaluated: dict[int, NDArray[np.float64]] = {}
+
+    def __call__(self, q: NDArray, dq: NDArray, ddq: NDArray) -> NDArray[np.float64]:
+        arrays = [np.ascontiguousarray(values, dtype=float) for values in (q, dq, ddq)]
+        key = hash(b"".join(values.tobytes() for values in arrays) + str(arrays[0].shape).encode())
+        if key not in self.evaluated:
+            if len(self.evaluated) >= self.KEPT:
+                self.evaluated.pop(next(iter(self.evaluated)))
+            columns = self.identified.model.evaluate(*arrays)[:, :, :self.rigid]
+            self.evaluated[key] = columns * self.factors[None, :, None]
+        return self.evaluated[key]
 
 
 class _Payload(_Family):
     name = "payload"
     scales = np.array([1.0] + [0.1] * 3 + [0.01] * 6)  # a 1 kg body 0.1 m from the frame
 
-    def __init__(self, identified: IdentifiedModel, factors: NDArray) -> None:
-        self.identified, self.factors = identified, factors
-        self.link = identified.robot.n_joints
-        self.joint = identified.robot.joint_names[-1]
+    def __init__(self, identified: IdentifiedModel, link: int, standard: _StandardColumns,
+                 links: dict[str, Any] | None = None) -> None:
+        """A payload on link ``link`` (1-based); ``links``: what the record says of each link (the words name the
+        links it does not tell from this one)."""
+        self.identified, self.link, self.standard = identified, int(link), standard
+        self.joint = identified.robot.joint_names[self.link - 1]
+        self.links = links or {}
 
     def columns(self, q, dq, ddq):
-        return self.identified.link_columns(self.link, q, dq, ddq) * self.factors[None, :, None]
+        start = 10 * (self.link - 1)
+        return self.standard(q, dq, ddq)[:, :, start:start + 10]
 
     def describe(self, beta, cov):
         std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
@@ -263,15 +331,96 @@ class _Payload(_Family):
             jacobian[:, 1:4] = np.eye(3) / mass
         centre_std = np.sqrt(np.clip(np.diag(jacobian @ cov @ jacobian.T), 0.0, None))
         more = "more" if mass >= 0 else "less"
-        words = (f"this record carries {abs(mass):.3g} ± {mass_std:.2g} kg {more} on link {self.link} "
-                 f"({self.joint}) than the training did, its centre of mass at ["
+        candidates = self.links.get("candidates", [self.joint])
+        others = [name for name in candidates if name != self.joint]
+        where = (f"link {self.link} ({self.joint})" if not others else
+                 f"link {self.link} ({self.joint}; the record does not tell it from "
+                 + ", ".join(others) + ": the load may be on any of these, given here in this link's frame)")
+        words = (f"this record carries {abs(mass):.3g} ± {mass_std:.2g} kg {more} on {where} "
+                 f"than the training did, its centre of mass at ["
                  + ", ".join(f"{1e3 * value:.0f} ± {1e3 * s:.0f}" for value, s in zip(centre, centre_std))
                  + "] mm in the link's frame (a payload picked up or put down? `oed payload` identifies it from "
                    "records made with it)")
         return {"words": words, "link": self.joint, "link_index": self.link, "mass": mass, "mass_std": mass_std,
                 "com": centre.tolist(), "com_std": centre_std.tolist(),
                 "parameters": dict(zip(PAYLOAD_NAMES, map(float, beta))),
-                "parameters_std": dict(zip(PAYLOAD_NAMES, map(float, std)))}
+                "parameters_std": dict(zip(PAYLOAD_NAMES, map(float, std))),
+                "link_candidates": list(candidates), "links": self.links.get("links", {})}
+
+
+class _Together(_Family):
+    """A payload and gravity turned on the same record, fitted jointly (the payload's ten coefficients, then the
+    gravity's two): said only when each part is needed beside the other.
+
+    Gravity turns the payload's own load too: with ``R_a`` the payload link's ten columns at rest along ``ĝ, e_1,
+    e_2`` (:meth:`_Gravity.rest_regressors`), ``Δτ = C β_p + Σ_a c_a (G_a + R_a β_p)``, ``c = (u_0 − 1, u_1, u_2)``:
+    bilinear, fitted by Gauss–Newton from level and no payload."""
+
+    name = "payload and gravity"
+
+    def __init__(self, payload: _Payload, gravity: _Gravity) -> None:
+        self.payload, self.gravity = payload, gravity
+        self.scales = np.concatenate([payload.scales, gravity.scales])
+        self.split = payload.scales.shape[0]
+        self.turned: dict[int, NDArray[np.float64]] = {}
+
+    def rest_columns(self, q: NDArray) -> NDArray[np.float64]:
+        """``(N, m, 10, 3)``: the payload link's columns at rest along ``ĝ, e_1, e_2`` (the last few motions')."""
+        q = np.ascontiguousarray(q, dtype=float)
+        key = hash(q.tobytes() + str(q.shape).encode())
+        if key not in self.turned:
+            if len(self.turned) >= _StandardColumns.KEPT:
+                self.turned.pop(next(iter(self.turned)))
+            start = 10 * (self.payload.link - 1)
+            regressors = self.gravity.rest_regressors(q)[:, :, :, start:start + 10]
+            self.turned[key] = np.ascontiguousarray(regressors.transpose(1, 2, 3, 0))
+        return self.turned[key]
+
+    def _coefficients(self, beta: NDArray) -> NDArray[np.float64]:
+        turned = beta[self.split:]
+        return np.concatenate([[np.sqrt(max(1.0 - float(turned @ turned), 0.0)) - 1.0], turned])
+
+    def columns(self, q, dq, ddq):
+        return np.concatenate([self.payload.columns(q, dq, ddq), self.gravity.columns(q, dq, ddq)], axis=2)
+
+    def change(self, beta, q, dq, ddq):
+        load, coefficients = beta[:self.split], self._coefficients(beta)
+        turned_load = np.einsum("nmka,k,a->nm", self.rest_columns(q), load, coefficients, optimize=True)
+        return self.payload.change(load, q, dq, ddq) + self.gravity.change(beta[self.split:], q, dq, ddq) \
+            + turned_load
+
+    def refine(self, beta, target, columns, weights, q):
+        """Gauss–Newton from level and no payload: at each pass the change linearised about the last estimate
+        (the payload's columns turned with gravity, gravity's with the payload's load beside the bodies'), the
+        second-order term moved to the target (four passes: a few degrees and kilograms need two)."""
+        rest = self.rest_columns(q)
+        loads = self.gravity.loads(q)
+        inverse = np.zeros((beta.shape[0], beta.shape[0]))
+        for _ in range(4):
+            load, coefficients = beta[:self.split], self._coefficients(beta)
+            turned = np.einsum("nmka,a->nmk", rest, coefficients, optimize=True)
+            with_load = loads + np.einsum("nmka,k->nma", rest, load, optimize=True)  # (N, m, 3)
+            u0 = coefficients[0] + 1.0
+            turned_terms = beta[self.split:]
+            # ∂Δτ/∂u_a = G'_a − (u_a / u_0) G'_0 (u_0 = √(1 − u_1² − u_2²)), G'_a the loads with the payload's beside
+            gravity_columns = with_load[:, :, 1:] - with_load[:, :, :1] * (turned_terms / max(u0, 1e-9))[None, None, :]
+            linear = np.concatenate([columns[:, :, :self.split] + turned, gravity_columns], axis=2)
+            value = columns[:, :, :self.split] @ load + with_load @ coefficients
+            step, inverse = _solve(linear, target - value, weights, self.scales)
+            beta = beta + step
+        return beta, inverse
+
+    def bodies_cov(self, beta, columns, weights, inverse, q):
+        return self.gravity.bodies_cov(beta[self.split:], columns, weights, inverse, q)
+
+    def parts(self, beta, cov):
+        parts = ((self.payload.name, slice(0, self.split)), (self.gravity.name, slice(self.split, None)))
+        return {name: wald_test(beta[part], cov[part, part]).p_value for name, part in parts}
+
+    def describe(self, beta, cov):
+        load = self.payload.describe(beta[:self.split], cov[:self.split, :self.split])
+        turned = self.gravity.describe(beta[self.split:], cov[self.split:, self.split:])
+        return {**turned, **load, "words": f"{load['words']}; and {turned['words']} (both fitted together)"}
 
 
 class _Gravity(_Family):
@@ -286,8 +435,10 @@ class _Gravity(_Family):
         self.across = np.linalg.svd(self.declared[None, :])[2][1:]
         model = identified.model
         self.rigid = 10 * robot.n_joints  # the standard parameters come first in every model's columns
-        self.evaluator = rest_regressors(robot, np.vstack([self.declared, self.across]) * self.magnitude)
+        gravities = np.vstack([self.declared, self.across]) * self.magnitude
+        self.evaluator, self.load_evaluator = rest_regressors(robot, gravities), rest_loads(robot, gravities)
         self.evaluated: dict[int, NDArray[np.float64]] = {}
+        self.loaded: dict[int, NDArray[np.float64]] = {}
         K = model.base.K
         nominal = model.nominal_parameters()
         theta = np.asarray(identified.theta, dtype=float)
@@ -305,18 +456,26 @@ class _Gravity(_Family):
         self.description_cov = share @ share.T  # the description's share of the bodies: its covariance
 
     def loads(self, q: NDArray) -> NDArray[np.float64]:
-        """``(N, m, 3)``: the gravity load along ``ĝ, e_1, e_2`` (the log's units)."""
-        regressors = self.rest_regressors(q)
-        return np.einsum("anmp,p->nma", regressors, self.standard)
+        """``(N, m, 3)``: the gravity load along ``ĝ, e_1, e_2`` (the log's units); the last few motions' kept (the
+        fits, their halves and the record's blocks ask for the same rows again, alone and beside the payload)."""
+        q = np.ascontiguousarray(q, dtype=float)
+        key = hash(q.tobytes() + str(q.shape).encode())
+        if key not in self.loaded:
+            if len(self.loaded) >= _StandardColumns.KEPT:
+                self.loaded.pop(next(iter(self.loaded)))
+            bodies = np.broadcast_to(self.standard, (q.shape[0], self.rigid))
+            loads = self.load_evaluator(q, bodies).reshape(q.shape[0], 3, q.shape[1]).transpose(0, 2, 1)
+            self.loaded[key] = loads * self.factors[None, :, None]
+        return self.loaded[key]
 
     def rest_regressors(self, q: NDArray) -> NDArray[np.float64]:
         """``(3, N, m, p)``: the bodies' regressor at rest with gravity along ``ĝ, e_1, e_2`` (the log's units)."""
         q = np.ascontiguousarray(q, dtype=float)
-        key = hash(q.tobytes())
-        if key not in self.evaluated:  # the same rows are asked for by the fit, its covariance and its scores
+        key = hash(q.tobytes() + str(q.shape).encode())
+        if key not in self.evaluated:  # the fit's rows are asked for by its loads and its covariance
             regressors = self.evaluator(q)  # (N, 3 n p): Yᵀ of each gravity, column-major
             regressors = regressors.reshape(q.shape[0], 3, q.shape[1], self.rigid).transpose(1, 0, 2, 3)
-            self.evaluated = {key: regressors * self.factors[None, None, :, None]}  # the last rows only
+            self.evaluated = {key: regressors * self.factors[None, None, :, None]}  # the last rows only: (3, N, m, p)
         return self.evaluated[key]
 
     def bodies_cov(self, beta: NDArray, columns: NDArray, weights: NDArray, inverse: NDArray, q: NDArray
@@ -376,7 +535,15 @@ def rest_regressors(robot: Any, gravities: NDArray[np.float64]) -> SampleEvaluat
     description, as each ``oed predict`` does, finds it). The cached value is the same function the content
     builds, so the cache cannot change an answer."""
     gravities = np.atleast_2d(np.asarray(gravities, dtype=float))
-    return _rest_regressors(_Described(robot, gravities))
+    return _rest_functions(_Described(robot, gravities))[0]
+
+
+def rest_loads(robot: Any, gravities: NDArray[np.float64]) -> SampleEvaluator:
+    """The gravity load at rest of bodies ``θ_s`` (``10 n`` standard parameters, an input per sample as ``q``) with
+    gravity along each row of ``gravities``: per sample ``[Y_1 θ_s, Y_2 θ_s, …]`` (``n`` each), the product of
+    :func:`rest_regressors` with ``θ_s`` without its ``10 n`` columns per sample; built and kept alike."""
+    gravities = np.atleast_2d(np.asarray(gravities, dtype=float))
+    return _rest_functions(_Described(robot, gravities))[1]
 
 
 @dataclass(frozen=True, eq=False)
@@ -401,7 +568,7 @@ class _Described:
 
 
 @functools.lru_cache(maxsize=16)
-def _rest_regressors(described: _Described) -> SampleEvaluator:
+def _rest_functions(described: _Described) -> tuple[SampleEvaluator, SampleEvaluator]:
     robot, blocks, q = described.robot, [], None
     for gravity in described.gravities:
         rigid = rigid_body_regressors(robot.with_gravity(gravity))
@@ -410,9 +577,13 @@ def _rest_regressors(described: _Described) -> SampleEvaluator:
             q = rigid.q
         else:
             joint = casadi.substitute(joint, rigid.q, q)
-        blocks.append(joint.T)
-    function = casadi.Function("rest_regressors", [q], [casadi.cse(casadi.horzcat(*blocks))], ["q"], ["Yt"])
-    return SampleEvaluator(function)
+        blocks.append(joint)
+    theta = casadi.SX.sym("theta", 10 * robot.n_joints)
+    regressors = casadi.Function("rest_regressors", [q], [casadi.cse(casadi.horzcat(*(block.T for block in blocks)))],
+                                 ["q"], ["Yt"])
+    loads = casadi.Function("rest_loads", [q, theta], [casadi.cse(casadi.horzcat(*(block @ theta for block in blocks)))],
+                            ["q", "theta"], ["tau"])
+    return SampleEvaluator(regressors), SampleEvaluator(loads)
 
 
 def check_record_changes(identified: IdentifiedModel, prepared: Measurements, prediction: Prediction,
@@ -441,36 +612,31 @@ def check_record_changes(identified: IdentifiedModel, prepared: Measurements, pr
     floors = np.array([float(floor[channel]) for channel in channels])
     if not np.all(floors > 0):
         return None
-    families: list[_Family] = [_Payload(identified, factors)]
-    if np.linalg.norm(identified.robot.gravity) > 0 and identified.model.kind is ModelKind.INTERNAL \
-            and len(channels) == identified.robot.n_joints:  # each joint's torque, in order: the bodies' rows
-        families.append(_Gravity(identified, factors))
     rows = _rows(record.n_samples)
     q, dq, ddq = record.q[rows], record.dq[rows], record.ddq[rows]
     target = residual[rows]
     segments = _segments(record, rows)
     weights = 1.0 / floors
     jacobian = identified.regressor(q, dq, ddq) * factors[None, :, None]  # the prediction's in the model's θ
+    standard = _StandardColumns(identified, factors)
+    payload = _payload_link(identified, standard, q, dq, ddq, target, weights, floors, segments, jacobian)
+    families: list[_Family] = [payload]
+    if np.linalg.norm(identified.robot.gravity) > 0 and identified.model.kind is ModelKind.INTERNAL \
+            and len(channels) == identified.robot.n_joints:  # each joint's torque, in order: the bodies' rows
+        gravity = _Gravity(identified, factors)
+        families += [gravity, _Together(payload, gravity)]
+    searched = {family.name: identified.robot.n_joints if isinstance(family, _Payload) else 1 for family in families}
     fits = [_fitted(family, identified, record, residual, rows, target, weights, segments, jacobian, floors,
-                    channels, len(families)) for family in families]
+                    channels, len(families), searched[family.name]) for family in families]
+    if any(fit.said for fit in fits if fit.name == _Together.name):  # both needed: said together, not each alone
+        fits = [fit if fit.name == _Together.name else dataclasses.replace(fit, said=False) for fit in fits]
     return RecordChanges(tuple(fits), floor_source)
 
 
-def _fitted(family: _Family, identified: IdentifiedModel, record: Measurements, residual: NDArray,
-            rows: NDArray, target: NDArray, weights: NDArray, segments: list[tuple[int, int]], jacobian: NDArray,
-            floors: NDArray, channels: tuple[str, ...], n_families: int) -> FamilyFit:
-    q, dq, ddq = record.q[rows], record.dq[rows], record.ddq[rows]
-    columns = family.columns(q, dq, ddq)
-    beta, inverse = family.refine(np.zeros(columns.shape[-1]), target, columns, weights, q)
-    explained = family.change(beta, q, dq, ddq)
-    after = target - explained
-    # the record's noise, correlated in time (HAC), and the model's own uncertainty through the target
-    cov_noise, _ = hac_covariance(columns, after, weights, inverse, segments=segments)
-    sensitivity = inverse @ np.einsum("nmi,m,nmr->ir", columns, weights, jacobian, optimize=True)
-    cov = cov_noise + sensitivity @ identified.cov @ sensitivity.T + family.bodies_cov(beta, columns, weights,
-                                                                                       inverse, q)
-    test = wald_test(beta, cov)
-    # cross-fitted halves: each half predicted by the coefficients fitted on the other
+def _crossed(family: _Family, target: NDArray, columns: NDArray, weights: NDArray, q: NDArray, dq: NDArray,
+             ddq: NDArray) -> NDArray[np.float64]:
+    """The residual with the change cross-fitted between the record's halves: each half predicted by the
+    coefficients fitted on the other."""
     half = target.shape[0] // 2
     crossed = np.empty_like(target)
     for fit_part, held_part in ((slice(half, None), slice(0, half)), (slice(0, half), slice(half, None))):
@@ -478,6 +644,61 @@ def _fitted(family: _Family, identified: IdentifiedModel, record: Measurements, 
                                      q[fit_part])
         crossed[held_part] = target[held_part] - family.change(part_beta, q[held_part], dq[held_part],
                                                                ddq[held_part])
+    return crossed
+
+
+def _payload_link(identified: IdentifiedModel, standard: _StandardColumns, q: NDArray, dq: NDArray, ddq: NDArray,
+                  target: NDArray, weights: NDArray, floors: NDArray, segments: list[tuple[int, int]],
+                  jacobian: NDArray) -> _Payload:
+    """The payload on the link the record supports best, or on the outermost of those it does not tell apart.
+
+    Each link's payload is cross-fitted between the record's halves (:func:`_crossed`) and scored by its channels'
+    errors over their noise floors; the best scored is compared with every other link ``k``: ``k`` is ruled out when
+    the best link's columns explain, at ``p <`` :data:`ALPHA`, what ``k``'s leave (:func:`_adds_to`). The links not
+    ruled out are those the record cannot tell from the best (a body on a wrist joint's axis loads that joint's link
+    and the one before it alike); the payload is fitted on the outermost of them (a load is most often on the tool)
+    and its words name the others. The order the links are tried in does not change the answer."""
+    links = [_Payload(identified, link, standard) for link in range(1, identified.robot.n_joints + 1)]
+    columns = [link.columns(q, dq, ddq) for link in links]
+    scores = []
+    for link, link_columns in zip(links, columns):
+        crossed = _crossed(link, target, link_columns, weights, q, dq, ddq)
+        scores.append(float(np.sum(np.mean(crossed ** 2, axis=0) / floors)))
+    best = int(np.argmin(scores))
+    evidence, candidates = {}, []
+    for index, link in enumerate(links):
+        p_value, directions = (1.0, 0) if index == best else _adds_to(
+            columns[best], links[best].scales, columns[index], link.scales, target, weights, segments, jacobian,
+            identified.cov)
+        evidence[link.joint] = {"cross_fitted_error_floors": scores[index] / len(floors),
+                                "best_link_adds_p_value": p_value, "directions_tested": directions,
+                                "ruled_out": bool(p_value < ALPHA)}
+        if p_value >= ALPHA:
+            candidates.append(index)
+    chosen = max(candidates)
+    return _Payload(identified, chosen + 1, standard,
+                    {"candidates": [links[index].joint for index in sorted(candidates, reverse=True)],
+                     "best_supported": links[best].joint, "links": evidence})
+
+
+def _fitted(family: _Family, identified: IdentifiedModel, record: Measurements, residual: NDArray,
+            rows: NDArray, target: NDArray, weights: NDArray, segments: list[tuple[int, int]], jacobian: NDArray,
+            floors: NDArray, channels: tuple[str, ...], n_families: int, searched: int = 1) -> FamilyFit:
+    """``family`` fitted and tested (module docstring); ``searched``: how many variants the family was chosen among
+    (a payload's links): its p-value multiplied by it (Bonferroni)."""
+    q, dq, ddq = record.q[rows], record.dq[rows], record.ddq[rows]
+    columns = family.columns(q, dq, ddq)
+    beta, inverse = family.refine(np.zeros(columns.shape[-1]), target, columns, weights, q)
+    explained = family.change(beta, q, dq, ddq)
+    after = target - explained
+    # the record's noise, correlated in time (HAC), and the model's own uncertainty through the target
+    cov_noise, _ = hac_covariance(columns, after, weights, inverse, segments=segments)
+    sensitivity = inverse @ _gram(columns, weights, jacobian)
+    cov = cov_noise + sensitivity @ identified.cov @ sensitivity.T + family.bodies_cov(beta, columns, weights,
+                                                                                       inverse, q)
+    test = wald_test(beta, cov)
+    p_value = min(1.0, test.p_value * searched)
+    crossed = _crossed(family, target, columns, weights, q, dq, ddq)
     model_mse = _mse(target, channels)
     cross_mse = _mse(crossed, channels)
     # the error with the change fitted, on every sample of the record
@@ -491,6 +712,11 @@ def _fitted(family: _Family, identified: IdentifiedModel, record: Measurements, 
     crossed_values = np.array(list(cross_mse.values()))
     explains = np.any((crossed_values <= MARK * model) & (model - crossed_values >= MIN_FLOORS * floors))
     worse = np.any((crossed_values > WORSE_LIMIT * model) & (crossed_values - model > WORSE_FLOORS * floors))
-    said = bool(test.p_value < ALPHA / n_families and explains and not worse)
-    return FamilyFit(family.name, beta, cov, test.statistic, test.p_value, model_mse, cross_mse, fitted_mse,
-                     dict(zip(channels, map(float, floors))), said, family.describe(beta, cov))
+    parts = family.parts(beta, cov)
+    needed = all(value < ALPHA / n_families for value in parts.values())
+    said = bool(p_value < ALPHA / n_families and explains and not worse and needed)
+    details = family.describe(beta, cov)
+    if parts:
+        details["parts_p_value"] = parts
+    return FamilyFit(family.name, beta, cov, test.statistic, p_value, model_mse, cross_mse, fitted_mse,
+                     dict(zip(channels, map(float, floors))), said, details)
