@@ -4,6 +4,9 @@
 - a 1.2 kg payload on the last link of the record predicted only: said, its mass and centre of mass within three
   standard deviations of the body put in; gravity turned not said;
 - the base turned 2° off level in the record only: said, the angle within three standard deviations; no payload said;
+- a payload on link 3: said on link 3 alone; a point mass on joint 6's axis: links 5 and 6 named together (the
+  record cannot tell them apart); a payload and a 2° tilt in the same record: said together, each within three
+  standard deviations;
 - unchanged records (a Monte Carlo of fresh motions and noise): nothing said in any, and the Wald test's p-values no
   more often below 5 % than a calibrated test allows;
 - the prediction and its error are the model's own, the check on or off.
