@@ -226,7 +226,7 @@ CASES = (
             "10 s / 4 s / 6 s at 250 Hz, no dq", puma_urdf(6), *logs(), payload=2.0),
     # before h-payload2: after diagnose 1.9855 ± 0.0033 kg (4.3 standard deviations low; the diagnosis leaves the
     # truth's offset on tau2 out, its torque taken up by the bodies on the training motion); the model's covariance
-    # now scaled by the error the record shows above its noise floor: 1.9855 ± 0.0100 kg
+    # now scaled by the error the record shows above its noise floor: 1.9855 ± 0.0102 kg
     Changed("PUMA 3 joints, the tool pressed on a table for 1 s of the training record (40 N up on the last "
             "frame), 10 s / 4 s / 6 s at 250 Hz, no dq", puma_urdf(3), *logs(), contact=40.0),
     Changed("PUMA 6 joints on a mobile base, level while trained, 2° off level in the test, 10 s / 4 s / 6 s at "

@@ -60,12 +60,12 @@ holds the model's error from the training's noise, not what the model gets wrong
 effect the training left out has its torque taken up by the bodies' parameters there, and on another motion that
 error is smooth, does not average out over the samples, and a change fitted here takes part of it. After
 ``oed diagnose`` (which left the truth's offset on tau2 out: its torque is taken up on the training motion within
-1 % of the noise) a 2 kg payload came out 1.9855 ± 0.0033 kg, 4.3 standard deviations low, and over ten draws of
-the records 3.5 standard deviations low on average. ``Σ_θ`` is therefore scaled by
+1 % of the noise) a 2 kg payload came out 1.9855 ± 0.0033 kg, 4.3 standard deviations low, and over eight draws
+of the records 3.5 standard deviations low on average. ``Σ_θ`` is therefore scaled by
 ``κ = max(1, Σ_c (MSE_c − σ_c²)/σ_c² / Σ_c v_c/σ_c²)``: the error the record shows above its noise floor ``σ_c²``
 once the change is fitted, over the error ``v_c`` the covariance predicts (the band's share of the parameters).
-Over the same ten draws the payload's standardised error has a root mean square of 1.0 after ``oed diagnose``
-(0.5 after ``oed identify``, whose error the covariance held already: the scaled deviation is conservative there). Nothing in the prediction
+Over twelve draws the payload's standardised error has a root mean square of 1.0 after ``oed diagnose`` (0.5
+after ``oed identify``, whose error the covariance held already: the scaled deviation is conservative there). Nothing in the prediction
 changes: the error the model would have with the change is reported beside it, labelled as fitted on this record
 (not a held-out figure).
 """
