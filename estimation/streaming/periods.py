@@ -288,17 +288,29 @@ def check_averaged(plan: Preprocessing, paths: Sequence[str | Path], model: Iden
                    chunk_size: int = DEFAULT_CHUNK_SIZE) -> None:
     """``ValueError`` as memory raises it when ``plan`` averages periods by the user's ``yes`` and a file of
     ``paths`` (in order) is not sampled at a multiple of the excitation frequency: the streamed reading applies
-    ``auto``'s rule (:func:`read_periodic`), which would fit its every sample where memory stops."""
+    ``auto``'s rule (:func:`read_periodic`), which would fit its every sample where memory stops. Also a
+    ``ValueError`` when such a file holds a single whole period: memory averages it alone (its samples past the
+    period left out), the streamed reading fits its every sample (``auto``'s rule): the answers would differ, so the
+    streamed path says so rather than give another one (the rows counted over one more reading of each file)."""
     if plan.method != "fourier" or plan.average_periods != "yes":
         return
     for path in paths:
-        first = next(read_chunks(path, model, chunk_size=chunk_size))
+        chunks = read_chunks(path, model, chunk_size=chunk_size)
+        first = next(chunks)
         if first.dq is not None and first.ddq is not None:
             continue
         rate = 1.0 / float(np.median(np.diff(first.t)))
-        if periods_at_rate(rate, 0, plan.frequency_hz) is None:
+        layout = periods_at_rate(rate, 0, plan.frequency_hz)
+        if layout is None:
             raise ValueError(f"{path}: the sampling rate {rate:.6g} Hz is not a multiple of the excitation frequency "
                              f"{plan.frequency_hz} Hz: periods cannot be averaged sample by sample")
+        rows = first.n_samples + sum(chunk.n_samples for chunk in chunks)
+        if rows // layout[1] == 1:
+            raise ValueError(f"{path}: --average-periods yes on one whole period ({rows} samples, {layout[1]} a "
+                             f"period): memory averages that period alone, the streamed path (--chunk-size, or a "
+                             "record over --memory-budget) fits every sample as --average-periods auto does; leave "
+                             "out --average-periods (auto: every sample fitted on either path), or read in memory "
+                             "(leave out --chunk-size, --scheduler and --workers, and give --memory-budget room)")
 
 
 def plan_options(plan: Preprocessing) -> dict[str, Any]:

@@ -75,7 +75,6 @@ from oed.workflows.asbuilt import (
     marked_joint_zeros,
     mount_candidates,
     DIAGNOSIS_MOUNT_SAMPLES,
-    FOURIER_CHECKS,
     streamed_checks,
     streamed_marked_joint_zeros,
     model_effects,
@@ -1020,6 +1019,7 @@ def diagnosis_streamed(args: DiagnoseOptions, friction: str, plan: Preprocessing
     from estimation.streaming.diagnosis import diagnose_files_run
     from estimation.streaming.model_selection import streamed_repeated_motion, warned_still_motion
     from estimation.streaming.recorded_errors import streamed_plan
+    from estimation.streaming.description_checks import prepared_count
     from estimation.streaming.periods import check_averaged
 
     robot = robot_of(args)
@@ -1105,8 +1105,7 @@ def diagnosis_streamed(args: DiagnoseOptions, friction: str, plan: Preprocessing
     notes = worse_after(diagnosis) + (() if repeat is None else (repeat,))
     # the joint zeros, the mount (checked before the search) and the friction drift, said as in memory; none with a
     # declared delay, as in memory (the run with a found gravity says none: its caller does)
-    counts = (sum(part.n_samples for part, _ in run.sums.train_parts),
-              sum(part.n_samples for part, _ in run.sums.validate_parts))
+    counts = (prepared_count(run.sums.train_parts), prepared_count(run.sums.validate_parts))
     aside = turned is not None or subtracted is not None  # a candidate's run: its caller's checks are said
     zeros = None if delay is not None or aside else streamed_marked_joint_zeros(
         model, run.paths, counts[0], run.validate, counts[1], options=run.settings.reading())
@@ -1151,14 +1150,12 @@ def diagnosis_streamed(args: DiagnoseOptions, friction: str, plan: Preprocessing
             answer_run.diagnosis, not_computed={**answer_run.diagnosis.not_computed, "torque_gains": gains_note})
         return replace(answer_run, diagnosis=diagnosis, messages=messages, notes=notes, friction_drift=drift,
                        selection=selection)
-    fourier = plan.method == "fourier" and delay is None and not model_has_shapes(model)
     diagnosis = replace(diagnosis, not_computed={**{key: reason for key, reason in diagnosis.not_computed.items()
                                                     if key not in (*SELECTION_KEYS, "gravity")
                                                     and (key != "subtracted" or plan.method == "fourier")},
                                                     # computed now (a mount found is tried:
                                                     # streamed_gravity_diagnosis; the log less the description's
                                                     # gravity torque: streamed_subtracted_diagnosis)
-                                                 **({"friction_drift": FOURIER_CHECKS} if fourier else {}),
                                                  "time_base": STREAMED_TIME_BASE})
     if gains_note is not None:  # said above
         diagnosis = replace(diagnosis, not_computed={**diagnosis.not_computed, "torque_gains": gains_note})

@@ -1,0 +1,68 @@
+"""The joint-zero, mount and friction-drift checks on the streamed Fourier path, as memory makes them.
+
+Memory checks the joints' zeros, gravity's direction and the friction on the validation record against the training
+record's on its prepared records whatever the derivatives: on the Fourier path a file's averaged period, or its
+every sample with the fit's motion where its periods are not averaged (a jittered log's grid). The streamed verbs
+(``--chunk-size``) ran none of them there (``not_computed.friction_drift``: "not checked on averaged periods"), so
+on the jittered log of :mod:`tests.test_streamed_every_sample_fourier` memory said joint 2 looks offset by +14.3° and
+the streamed path said nothing. Now the checks' pass reads the same prepared samples
+(:func:`estimation.streaming.periods.plan_chunks`, the counts of :func:`estimation.streaming.description_checks.
+prepared_count`) and says what memory says.
+"""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from tests.test_streamed_every_sample_fourier import records, robot  # noqa: F401  (fixtures)
+
+ZERO_WARNING = "look offset from the robot description's zeros"
+
+
+def _run(main, verb: str, train, validate, out, *options: str) -> dict:
+    friction = ("--friction", "viscous") if verb == "diagnose" else ()
+    assert main([verb, "--robot", "puma560", "--joints", "3", *friction, "--data", str(train), "--validate",
+                 str(validate), "--out", str(out), "--quiet", *options]) == 0
+    return json.loads(out.read_text())
+
+
+def warnings_of(document: dict) -> list[str]:
+    """The warnings of a result document: ``oed identify``'s list, ``oed diagnose``'s by model."""
+    said = document["warnings"]
+    return list(said) if isinstance(said, list) else [text for texts in said.values() for text in texts or ()]
+
+
+@pytest.mark.slow  # two verbs in memory and streamed on two logs: about 80 s
+@pytest.mark.parametrize(("verb", "train"), [("diagnose", "train"), ("identify", "regular")])
+def test_the_streamed_fourier_path_checks_as_memory(records, tmp_path, capsys, verb, train):  # noqa: F811
+    """``diagnose`` on the jittered log (every sample fitted) and ``identify`` on the regular one (periods
+    averaged): the streamed path says memory's joint zero (joint 2, +14.3° / +14.5°) word for word, fills
+    ``friction_drift`` with memory's figures (relative 1e-6; measured 1e-10) and no longer names it in
+    ``not_computed``; the mount marks on neither. On main the streamed document held ``friction_drift: null``
+    and no joint-zero warning."""
+    from oed.cli import main
+
+    documents = {name: _run(main, verb, records[train], records["validate"], tmp_path / f"{name}.json", *options)
+                 for name, options in (("memory", ()), ("streamed", ("--chunk-size", "128")))}
+    capsys.readouterr()
+    memory, streamed = documents["memory"], documents["streamed"]
+    assert streamed["preprocessing"]["method"] == memory["preprocessing"]["method"] == "fourier"
+    averaged = streamed["streaming"]["files"][0]["periods_averaged"]
+    assert averaged == (2 if train == "regular" else 0)
+    said = [[text for text in warnings_of(document) if ZERO_WARNING in text] for document in (memory, streamed)]
+    assert len(said[0]) == 1 and "joint 2 (joint2) +0.2" in said[0][0] and "(+14." in said[0][0]
+    assert said[1] == said[0]
+    assert not any("gravity" in text and "mount" in text for text in warnings_of(streamed))
+    assert "friction_drift" not in streamed["not_computed"]
+    drift = memory["friction_drift"]
+    assert {key: value for key, value in streamed["friction_drift"].items() if key != "joints"} \
+        == {key: value for key, value in drift.items() if key != "joints"}  # the method and its limits
+    assert streamed["friction_drift"]["joints"].keys() == drift["joints"].keys()
+    for name, joint in drift["joints"].items():
+        for key, value in joint.items():
+            if isinstance(value, float):
+                assert streamed["friction_drift"]["joints"][name][key] == pytest.approx(value, rel=1e-6, abs=1e-12)
+            else:
+                assert streamed["friction_drift"]["joints"][name][key] == value
