@@ -645,7 +645,8 @@ def diagnose_document(args: DiagnoseOptions, diagnosed: Diagnosed) -> tuple[dict
                                                 "mse": None if validation_mse is None else dict(validation_mse)}
         document["warnings"]["after"] = list(document["warnings"].get("after", [])) + list(diagnosed.notes)
         add_summed_runner_up_model_file(document, runner_up, args, model_plan, None if validation_mse is None or
-                                        runner_up is None else runner_up.validation_mse, diagnosed.transmission)
+                                        runner_up is None else runner_up.validation_mse, diagnosed.transmission,
+                                        shape=diagnosis.runner_up_shape())  # moved by the chosen delay, as memory
         if diagnosed.torque_gains is not None:  # the files divided by them (divided_diagnosis): as in memory
             gains = diagnosed.torque_gains.to_dict()
             document["torque_gains"] = gains
@@ -1438,6 +1439,7 @@ def recorded_errors(diagnosis: Diagnosis, args: DiagnoseOptions, plan: dict[str,
     runner_up = diagnosis.runner_up
     if runner_up is not None and runner_up.validation_mse is not None:
         rival = with_load(summed_model_file_document(runner_up.model, runner_up.fit, robot=robot, preprocessing=plan,
-                                                     shape=runner_up.shape(), recorded_mse=runner_up.train_mse), load)
+                                                     shape=diagnosis.runner_up_shape(),
+                                                     recorded_mse=runner_up.train_mse), load)
         runner_up = replace(runner_up, validation_mse=recorded_validation_mse(rival, args.validate))
     return replace(diagnosis, before=fits["before"], after=fits["after"], statistics=statistics, runner_up=runner_up)
