@@ -13,6 +13,7 @@ prepared_count`) and says what memory says.
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 
 import pytest
 
@@ -76,3 +77,23 @@ def test_the_streamed_fourier_path_checks_as_memory(records, tmp_path, capsys, v
         for record in ("train", "validation"):
             assert rival[record]["mse"] == pytest.approx(expected[record]["mse"], rel=1e-6)
         assert rival["model_file"]["theta"] == pytest.approx(expected["model_file"]["theta"], rel=1e-6, abs=1e-9)
+
+
+def test_average_periods_yes_on_one_period_is_refused_streamed(records, robot, tmp_path):  # noqa: F811
+    """``--average-periods yes`` on a file of one whole period and a half: memory averages the one period (its
+    last half period left out), the streamed reading fits every sample as ``auto`` does (measured, ``oed diagnose
+    --frequency 0.2``: validation tau2 0.010397 N²m² in memory against 0.010288 with auto). The streamed path says
+    so (a ``ValueError``, exit 2 at the command line) rather than give ``auto``'s answer; two whole periods pass."""
+    from dynamics.models import build_model
+    from estimation.preprocessing.plan import Preprocessing
+    from estimation.streaming.periods import check_averaged
+
+    model = build_model(robot, "internal", "viscous")
+    lines = records["regular"].read_text().splitlines()
+    short = tmp_path / "one_period_and_a_half.csv"
+    short.write_text("\n".join(lines[:1 + 1875]) + "\n")  # the header and 1.5 periods of 1250 samples
+    plan = Preprocessing(method="fourier", frequency_hz=0.2, harmonics=5, average_periods="yes")
+    with pytest.raises(ValueError, match="one whole period"):
+        check_averaged(plan, [records["regular"], short], model, chunk_size=128)
+    check_averaged(plan, [records["regular"], records["validate"]], model, chunk_size=128)
+    check_averaged(replace(plan, average_periods="auto"), [short], model, chunk_size=128)
