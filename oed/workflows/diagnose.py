@@ -976,12 +976,11 @@ def check_streamed_arguments(args: DiagnoseOptions, model: IdentificationModel) 
     """Options the streamed diagnosis does not have: an error naming them, before anything is read."""
     unsupported = [option for option, given in (
         ("--min-speed", args.min_speed is not None),
-        ("--average-periods no", args.average_periods == "no"),
         ("--max-gap", args.max_gap != DEFAULT_MAX_GAP)) if given]
     if unsupported:
         raise ValueError(f"{', '.join(unsupported)}: not with {STREAMED}, which reads whole files without holes "
-                         "on the filter path, the files' dq, ddq or a Fourier fit of averaged periods (of every "
-                         f"sample where --average-periods auto fits every sample); {IN_MEMORY_ROUTE}")
+                         "on the filter path, the files' dq, ddq or a Fourier fit of averaged periods or of every "
+                         f"sample; {IN_MEMORY_ROUTE}")
     if model_has_shapes(model):
         raise ValueError(f"declared laws with shape parameters (coulomb:tanh, sigmoid…) are fitted in memory: not with "
                          f"{STREAMED}; declare their plain forms, or let the diagnosis find them")

@@ -121,7 +121,8 @@ def recorded_training(args: RecordOptions, diagnosis: Diagnosis, selection: Mode
         counted = recorded_training_errors(
             diagnosis.model, less_load(diagnosis.model, predictors, load), args.data, files, chunk_size=chunk_size, cutoff_hz=streaming.get("cutoff_hz"),
             decimation=int(plan.get("decimation", 1)), held_torques=bool(plan.get("held_torques", False)),
-            frequency_hz=streaming.get("frequency_hz"), harmonics=int(streaming.get("harmonics") or 5), delays=delays)
+            frequency_hz=streaming.get("frequency_hz"), harmonics=int(streaming.get("harmonics") or 5), delays=delays,
+            average=streaming.get("average_periods", "auto"))
     if counted is None:
         return diagnosis, selection, None
     errors, count = counted
