@@ -79,7 +79,7 @@ def robot():
 def records(robot, tmp_path_factory):
     """Positions-only logs of a 3-joint PUMA (250 Hz, two periods of 0.2 Hz, torques 7 ms behind the motion, an
     offset on joint 1): the training log's stamps jittered (resampled onto a 249.575 Hz grid), a validation and a
-    test record of other motions."""
+    test record of other motions; ``regular``: the training log's stamps as simulated (its periods averaged)."""
     from tests.test_streamed_reader_parity import with_defect
 
     folder = tmp_path_factory.mktemp("every_sample_fourier")
@@ -93,6 +93,8 @@ def records(robot, tmp_path_factory):
         frame = dataclasses.replace(data, q=q, dq=dq, ddq=ddq).to_frame()
         frame = frame[[column for column in frame.columns if not column.startswith(("dq", "ddq"))]]
         if name == "train":
+            paths["regular"] = folder / "regular.csv"
+            frame.to_csv(paths["regular"], index=False, float_format="%.17g")
             frame = with_defect(frame, "jitter", 3)
         paths[name] = folder / f"{name}.csv"
         frame.to_csv(paths[name], index=False, float_format="%.17g")

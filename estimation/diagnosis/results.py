@@ -23,6 +23,7 @@ from estimation.diagnosis.rules.robust_test import wald_test
 from estimation.diagnosis.statistics import ResidualReport
 from estimation.estimators.summed_least_squares import SummedEstimate
 from estimation.identification.fit import IdentificationResult
+from estimation.identification.model_file import DELAY_NAME
 from estimation.identification.validation import ChannelErrors
 from estimation.diagnosis.sign_constraints import PinnedTerm
 from estimation.estimators.effect_blocks import effect_rows
@@ -214,6 +215,16 @@ class Diagnosis:
     def final_shape(self) -> dict[str, float]:
         """The shapes of the shaped laws found, by parameter name."""
         return {name: float(value) for effect in self.effects for name, value in effect.shape.items()}
+
+    def runner_up_shape(self) -> dict[str, float]:
+        """The runner-up's model file's shapes (:meth:`RunnerUp.shape`) and the chosen model's adopted delay
+        (:data:`~estimation.identification.model_file.DELAY_NAME`), along whose moved motion the runner-up is fitted
+        on both paths (:mod:`estimation.diagnosis.runner_up`; in memory its fit carries that delay, from sums the
+        sums are moved by it): what ``oed predict`` needs to move the motion alike. Empty without a runner-up."""
+        if self.runner_up is None:
+            return {}
+        delay = self.final_shape().get(DELAY_NAME)
+        return {**self.runner_up.shape(), **({} if delay is None else {DELAY_NAME: delay})}
 
     def to_dict(self) -> dict[str, Any]:
         """The JSON document of ``oed diagnose`` (the same keys on both paths; ``None`` where :attr:`not_computed`

@@ -14,7 +14,7 @@ figures up to the streamed preparation's own differences from the in-memory one.
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -30,7 +30,15 @@ from estimation.identification.mount import MAX_SAMPLES as MOUNT_SAMPLES
 from estimation.identification.mount import MountCheck, check_mount
 from estimation.streaming.joint_zeros import kept_samples
 
-__all__ = ["StreamedChecks", "evenly_spaced_rows", "streamed_description_checks"]
+__all__ = ["StreamedChecks", "evenly_spaced_rows", "prepared_count", "streamed_description_checks"]
+
+
+def prepared_count(parts: Iterable[tuple[Any, Mapping[str, Any]]]) -> int:
+    """The prepared samples of the files whose sums ``parts`` hold, each beside its reading record: what the
+    checks' pass (:func:`~estimation.streaming.periods.plan_chunks` without ``as_recorded``) yields of them, the
+    in-memory record's samples. On the Fourier path the reading record's ``samples`` (a file's averaged period, though
+    a validation file's sums hold its whole periods as recorded); elsewhere the samples summed."""
+    return sum(int(record.get("samples", part.n_samples)) for part, record in parts)
 
 
 def evenly_spaced_rows(n_samples: int, max_samples: int) -> NDArray[np.int64]:
@@ -54,7 +62,7 @@ def _record(model: IdentificationModel, paths: Sequence[str | Path], n_samples: 
     ``counts``, in one pass, and where each set lies among them."""
     sets = [evenly_spaced_rows(n_samples, count) for count in counts]
     union = np.unique(np.concatenate(sets)) if sets else np.zeros(0, dtype=int)
-    kept = kept_samples(model, paths, union, options, segments=True)
+    kept = kept_samples(model, paths, union, options, segments=True, n_samples=n_samples)
     return kept, [np.searchsorted(union, rows) for rows in sets]
 
 

@@ -426,7 +426,7 @@ def diagnose_files_run(
                                 noise_floor, subsample, floor_window, load=load)
     with findings.reading():
         settings = _checked_settings(model, paths, validate, settings if preprocessing is None else
-                                     replace(settings, **plan_options(preprocessing)))
+                                     replace(settings, **plan_options(preprocessing, average=True)))
     if load is not None and settings.frequency_hz is not None:
         raise StreamingUnsupportedError("a load the torques lack is added back on the filter path and with measured "
                                         "derivatives, not to averaged periods")

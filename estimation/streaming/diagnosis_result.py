@@ -71,6 +71,9 @@ class StreamedSettings:
     frequency_hz: float | None = None
     harmonics: int = 5
     order: int = 4
+    #: memory's choice of averaging a periodic file's periods on the Fourier path (``--average-periods``:
+    #: :func:`estimation.streaming.periods.read_periodic`'s ``average``)
+    average: str = "auto"
     #: a load of the description the logged torques lack (:mod:`estimation.identification.subtracted_load`), added
     #: back to every prepared chunk of every pass (:func:`estimation.streaming.chunks.loaded_chunk`); ``None``: the
     #: torques as logged
@@ -84,6 +87,8 @@ class StreamedSettings:
                    "held_torques": self.held_torques, "trim": False, "order": self.order}
         if self.frequency_hz is not None:
             options.update(frequency_hz=self.frequency_hz, harmonics=self.harmonics)
+            if self.average != "auto":
+                options["average"] = self.average
         if self.load is not None:
             options["load"] = self.load
         return options
@@ -142,6 +147,7 @@ def streaming_record(run: StreamedRun, covariance: dict[str, Any], seconds: dict
     return {
         "chunk_size": int(settings.chunk_size), "cutoff_hz": settings.cutoff_hz, "decimation": int(settings.decimation),
         "frequency_hz": settings.frequency_hz, "harmonics": settings.harmonics if settings.frequency_hz else None,
+        **({"average_periods": settings.average} if settings.frequency_hz and settings.average != "auto" else {}),
         "files": [file_record(path, part, record) for path, (part, record) in zip(run.paths, sums.train_parts)],
         "validation_files": [file_record(path, part, record)
                              for path, (part, record) in zip(run.validate, sums.validate_parts)],

@@ -74,12 +74,13 @@ STREAMED_NOT_COMPUTED = {
                        "memory; streamed, the model is the weighting asked for or chosen on held-out blocks "
                        "(method_selection)",
     "gravity": "the fit with the found gravity (or none) is a candidate of the answer chosen from sums "
-               "(estimation.consistent.mounted_gravity), as in memory; where no answer is chosen streamed (the "
-               "Fourier path of averaged periods), no mount is checked and the model keeps the description's gravity",
+               "(estimation.consistent.mounted_gravity), as in memory; on the Fourier path (averaged periods, or every "
+               "sample fitted) the mount is checked and said as in memory, but the fit with the found gravity is "
+               "not tried: the model keeps the description's gravity",
     "subtracted": "the fit to the torques with the description's gravity torque added back (a log less that load) "
                   "is a candidate of the answer chosen from sums (estimation.consistent.mounted_gravity), as in "
-                  "memory; where no answer is chosen streamed (the Fourier path of averaged periods), no mount is "
-                  "checked and the model file subtracts nothing",
+                  "memory; on the Fourier path (averaged periods, or every sample fitted) it is not tried, though the "
+                  "mount is checked and said: the model file subtracts nothing",
 }
 
 

@@ -35,11 +35,13 @@ def thinned_rows(n_samples: int, max_samples: int = MAX_SAMPLES) -> NDArray[np.i
 
 
 def kept_samples(model: IdentificationModel, paths: Sequence[str | Path], rows: Iterable[int],
-                 options: Mapping[str, Any], *, segments: bool = False) -> Measurements | None:
+                 options: Mapping[str, Any], *, segments: bool = False,
+                 n_samples: int | None = None) -> Measurements | None:
     """The prepared samples ``rows`` (indices in the records' samples, the files one after the other) of ``paths``,
     read in blocks; ``None`` when the files hold fewer samples. ``segments``: the samples kept of each file a segment
     (``metadata["segments"]``, as the in-memory record of several files holds them,
-    :func:`estimation.data.segments.concatenate`)."""
+    :func:`estimation.data.segments.concatenate`). ``n_samples``: the count of prepared samples the rows were
+    chosen among; ``None`` too when the files yield another count (the rows would not be those memory keeps)."""
     wanted = np.asarray(sorted(set(int(row) for row in rows)), dtype=int)
     pieces: list[Measurements] = []
     bounds: list[dict[str, Any]] = []
@@ -54,6 +56,8 @@ def kept_samples(model: IdentificationModel, paths: Sequence[str | Path], rows: 
             start = stop
         bounds.append({"source": str(path), "start": int(np.searchsorted(wanted, first)),
                        "stop": int(np.searchsorted(wanted, start))})
+    if n_samples is not None and start != int(n_samples):
+        return None
     if sum(piece.n_samples for piece in pieces) != wanted.size or any(piece.dq is None or piece.ddq is None
                                                                        for piece in pieces):
         return None
@@ -77,8 +81,10 @@ def streamed_joint_zeros(model: IdentificationModel, train: Sequence[str | Path]
     (:func:`~estimation.streaming.periods.plan_chunks`' keywords), on the samples the in-memory check thins them to
     (module docstring). No warning is issued (the caller says the check's message)."""
     if held_out:
-        fitted = kept_samples(model, train, thinned_rows(train_samples, max_samples), options)
-        scored = kept_samples(model, held_out, thinned_rows(held_out_samples, max_samples), options)
+        fitted = kept_samples(model, train, thinned_rows(train_samples, max_samples), options,
+                              n_samples=train_samples)
+        scored = kept_samples(model, held_out, thinned_rows(held_out_samples, max_samples), options,
+                              n_samples=held_out_samples)
         if fitted is None or scored is None:
             return None
         return check_joint_zeros(model, fitted, scored, max_samples=max_samples, warn=False)
@@ -86,7 +92,7 @@ def streamed_joint_zeros(model: IdentificationModel, train: Sequence[str | Path]
     if half < 20:
         return None
     first, second = thinned_rows(half, max_samples), half + thinned_rows(train_samples - half, max_samples)
-    kept = kept_samples(model, train, np.concatenate([first, second]), options)
+    kept = kept_samples(model, train, np.concatenate([first, second]), options, n_samples=train_samples)
     if kept is None:
         return None
     fitted, scored = kept.select(np.arange(first.size)), kept.select(np.arange(first.size, kept.n_samples))

@@ -191,14 +191,14 @@ def _prepared(averaged: Measurements, frequency_hz: float, harmonics: int, decim
 
 def periodic_file_sums(path: str | Path, model: IdentificationModel, *, frequency_hz: float, harmonics: int = 5,
                        chunk_size: int = DEFAULT_CHUNK_SIZE, decimation: int = 1, held_torques: bool = False,
-                       **ignored) -> FileSums:
+                       average: str = "auto", **ignored) -> FileSums:
     """Sums of one periodic file on the Fourier path: its averaged period (streamed average, then the in-memory
     fit), or its every sample with the fit's motion (module docstring) (``ignored``: the Butterworth options of
     :func:`estimation.streaming.chunks.file_sums`)."""
     record: dict = {}
     sums, joint_range = NormalEquations.empty(model.channels, model.base.names, model.base.expressions), None
     for chunk in periodic_chunks(path, model, frequency_hz=frequency_hz, harmonics=harmonics, chunk_size=chunk_size,
-                                 decimation=decimation, held_torques=held_torques, record=record):
+                                 decimation=decimation, held_torques=held_torques, record=record, average=average):
         sums = accumulate(model, chunk, chunk_size=chunk_size, sums=sums)
         if chunk.n_samples:  # the samples summed: the training range, in the same pass
             joint_range = TrainingRange.of(chunk.q, chunk.dq, model.robot.joint_names).merged(joint_range)
@@ -212,14 +212,16 @@ def periodic_file_sums(path: str | Path, model: IdentificationModel, *, frequenc
 
 def periodic_chunks(path: str | Path, model: IdentificationModel, *, frequency_hz: float, harmonics: int = 5,
                     chunk_size: int = DEFAULT_CHUNK_SIZE, decimation: int = 1, held_torques: bool = False,
-                    as_recorded: bool = False, record: dict | None = None) -> Iterator[Measurements]:
+                    as_recorded: bool = False, record: dict | None = None,
+                    average: str = "auto") -> Iterator[Measurements]:
     """One periodic file on the Fourier path, chunk by chunk (module docstring): its averaged period prepared,
     or, ``as_recorded``, the rows of its whole periods with the fit's motion at their instants (held torques:
     the motion half a sample later, from the fit itself); a file whose periods are not averaged: its every row with
     the fit's motion at its instant, either way. ``record`` receives ``rows``, ``columns`` and ``metadata`` as
     :func:`estimation.streaming.chunks.preprocessed_chunks` gives them, and ``samples`` (those yielded when not
-    ``as_recorded``) and ``resampled_from``."""
-    read = read_periodic(path, model, frequency_hz, harmonics, chunk_size=chunk_size)
+    ``as_recorded``) and ``resampled_from``. ``average``: memory's choice of averaging the periods
+    (``--average-periods``: :func:`read_periodic`'s)."""
+    read = read_periodic(path, model, frequency_hz, harmonics, chunk_size=chunk_size, average=average)
     averaged = read.averaged
     if decimation != 1 and (as_recorded or averaged is None):
         raise StreamingUnsupportedError(f"{path}: decimation with a Fourier fit is done in memory (leave out "
@@ -242,7 +244,8 @@ def periodic_chunks(path: str | Path, model: IdentificationModel, *, frequency_h
             yield prepared.select(slice(start, start + chunk_size))
         return
     if averaged is not None:
-        fit, kept = fit_fourier(averaged.t, averaged.q, frequency_hz, harmonics), periods * averaged.n_samples
+        # every recorded row, the tail past the last whole period too, as memory scores them (FourierDifferentiation)
+        fit, kept = fit_fourier(averaged.t, averaged.q, frequency_hz, harmonics), read.samples
     else:
         assert read.fit is not None
         fit, kept = read.fit, read.samples
@@ -264,11 +267,12 @@ def periodic_chunks(path: str | Path, model: IdentificationModel, *, frequency_h
 
 
 def plan_chunks(path: str | Path, model: IdentificationModel, *, frequency_hz: float | None = None,
-                harmonics: int = 5, as_recorded: bool = False, record: dict | None = None,
+                harmonics: int = 5, as_recorded: bool = False, record: dict | None = None, average: str = "auto",
                 **options: Any) -> Iterator[Measurements]:
     """One file's prepared chunks: on the Fourier path (:func:`periodic_chunks`) when ``frequency_hz`` is given
-    and the file lacks ``dq``/``ddq``, else :func:`estimation.streaming.chunks.preprocessed_chunks` (``options``:
-    its keyword arguments; its ``load``, a load the logged torques lack added back, on that path only)."""
+    and the file lacks ``dq``/``ddq`` (``average``: ``--average-periods``), else
+    :func:`estimation.streaming.chunks.preprocessed_chunks` (``options``: its keyword arguments; its ``load``, a load
+    the logged torques lack added back, on that path only)."""
     if frequency_hz is not None:
         chunk_size = options.get("chunk_size", DEFAULT_CHUNK_SIZE)
         first = next(read_chunks(path, model, chunk_size=chunk_size))
@@ -279,7 +283,7 @@ def plan_chunks(path: str | Path, model: IdentificationModel, *, frequency_hz: f
             yield from periodic_chunks(path, model, frequency_hz=frequency_hz, harmonics=harmonics,
                                        chunk_size=chunk_size, decimation=options.get("decimation", 1),
                                        held_torques=options.get("held_torques", False), as_recorded=as_recorded,
-                                       record=record)
+                                       record=record, average=average)
             return
     yield from preprocessed_chunks(path, model, record=record, **options)
 
@@ -301,22 +305,25 @@ def check_averaged(plan: Preprocessing, paths: Sequence[str | Path], model: Iden
                              f"{plan.frequency_hz} Hz: periods cannot be averaged sample by sample")
 
 
-def plan_options(plan: Preprocessing) -> dict[str, Any]:
+def plan_options(plan: Preprocessing, *, average: bool = False) -> dict[str, Any]:
     """The reading options of :func:`plan_chunks` that apply ``plan`` (a filter, a Fourier fit of averaged periods,
     measured derivatives): ``cutoff_hz``, ``order``, ``frequency_hz``, ``harmonics``, ``decimation``,
-    ``held_torques``.
+    ``held_torques``; ``average``: and ``average`` (``plan``'s ``average_periods``, any of them: the reader of the
+    caller applies it, :func:`read_periodic`).
 
     Raises
     ------
     StreamingUnsupportedError
-        A Fourier fit of every sample (``average_periods="no"``): made in memory.
+        A Fourier fit of every sample by the user's choice (``average_periods="no"``) without ``average``.
     """
     options: dict[str, Any] = {"cutoff_hz": None, "order": plan.order, "frequency_hz": None, "harmonics": 5,
                                "decimation": plan.decimation, "held_torques": plan.held_torques}
+    if average:
+        options["average"] = plan.average_periods if plan.method == "fourier" else "auto"
     if plan.method == "butterworth":
         options["cutoff_hz"] = plan.cutoff_hz
     elif plan.method == "fourier":
-        if plan.average_periods == "no":
+        if plan.average_periods == "no" and not average:
             raise StreamingUnsupportedError("a Fourier fit of every sample (--average-periods no) is made in memory: "
                                             "not on the streamed path, which averages whole periods")
         options.update(frequency_hz=plan.frequency_hz, harmonics=plan.harmonics)

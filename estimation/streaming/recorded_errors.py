@@ -132,7 +132,7 @@ def counted_predicted_errors(model: IdentificationModel, predictors: Mapping[Any
                              paths: Sequence[str | Path], *, chunk_size: int, cutoff_hz: float | None = None,
                              decimation: int = 1, held_torques: bool = False, frequency_hz: float | None = None,
                              harmonics: int = 5, blocks: Mapping[Any, BlockSquares] | None = None,
-                             delays: Mapping[Any, float | None] | None = None
+                             delays: Mapping[Any, float | None] | None = None, average: str = "auto"
                              ) -> tuple[dict[Any, dict[str, float]], int]:
     """:func:`counted_recorded_errors` of any predictions (``predictors``: e.g. a model file's, shaped laws at its
     shapes); ``model`` reads the files (its joints and channels). ``blocks``: by predictor name, the accumulators
@@ -140,7 +140,7 @@ def counted_predicted_errors(model: IdentificationModel, predictors: Mapping[Any
     ``delays``: by predictor name, the delay between torques and motion its model file holds (absent or ``None``:
     none); the motion of the samples as recorded is then moved to ``t − delay`` block by block
     (:func:`~estimation.streaming.delayed_chunks.moved_chunks`), as ``oed predict`` moves the whole record, the
-    channels untouched: one pass for each delay."""
+    channels untouched: one pass for each delay. ``average``: ``--average-periods`` on the Fourier path."""
     if not paths:
         raise ValueError("no files to measure the error on")
     squares = {name: np.zeros(model.n_channels) for name in predictors}
@@ -150,7 +150,7 @@ def counted_predicted_errors(model: IdentificationModel, predictors: Mapping[Any
         for path in paths:
             records = (chunk.as_recorded for chunk in plan_chunks(
                 path, model, frequency_hz=frequency_hz, harmonics=harmonics, as_recorded=True, chunk_size=chunk_size,
-                cutoff_hz=cutoff_hz, decimation=decimation, held_torques=held_torques))
+                cutoff_hz=cutoff_hz, decimation=decimation, held_torques=held_torques, average=average))
             for record in moved_chunks(records, delay):
                 measured = record.channels(model.channels)
                 for name, predict in named.items():
@@ -178,7 +178,7 @@ def counted_errors_at_stamps(model: IdentificationModel, thetas: Mapping[Any, Ar
                              held_torques: bool = False, predictors: Mapping[Any, Predictor] | None = None,
                              frequency_hz: float | None = None, harmonics: int = 5,
                              blocks: Mapping[Any, BlockSquares] | None = None,
-                             delays: Mapping[Any, float | None] | None = None
+                             delays: Mapping[Any, float | None] | None = None, average: str = "auto"
                              ) -> tuple[dict[Any, dict[str, float]], int] | None:
     """:func:`streamed_recorded_errors` at the samples as logged, block by block: on a file the streamed path
     resampled onto a uniform grid (jittered stamps), the derived motion of its grid blocks
@@ -218,7 +218,8 @@ def counted_errors_at_stamps(model: IdentificationModel, thetas: Mapping[Any, Ar
         count = 0
         for path in paths:
             scored = _scored_samples(model, path, chunk_size=chunk_size, cutoff_hz=cutoff_hz, decimation=decimation,
-                                     held_torques=held_torques, frequency_hz=frequency_hz, harmonics=harmonics)
+                                     held_torques=held_torques, frequency_hz=frequency_hz, harmonics=harmonics,
+                                     average=average)
             if delay is not None and delay != 0.0:
                 scored = _moved(scored, delay)
             for record, late in scored:
@@ -244,12 +245,13 @@ _Scored = Iterator[tuple[Measurements | None, bool]]
 
 
 def _scored_samples(model: IdentificationModel, path: str | Path, *, chunk_size: int, cutoff_hz: float | None,
-                    decimation: int, held_torques: bool, frequency_hz: float | None, harmonics: int) -> _Scored:
+                    decimation: int, held_torques: bool, frequency_hz: float | None, harmonics: int,
+                    average: str = "auto") -> _Scored:
     """The samples of one file :func:`counted_errors_at_stamps` scores, block by block: the motion there beside the
     channels as recorded."""
     grid = (chunk.as_recorded for chunk in plan_chunks(
         path, model, frequency_hz=frequency_hz, harmonics=harmonics, as_recorded=True, chunk_size=chunk_size,
-        cutoff_hz=cutoff_hz, decimation=decimation, held_torques=held_torques))
+        cutoff_hz=cutoff_hz, decimation=decimation, held_torques=held_torques, average=average))
     first = next(grid, None)
     if first is None:
         return
@@ -359,8 +361,8 @@ def _at_stamps(model: IdentificationModel, first: Any, grid: Any, logged: Any, *
 def recorded_training_errors(model: IdentificationModel, predictors: Mapping[Any, Predictor], paths: Sequence[str | Path],
                              files: Sequence[Mapping[str, Any]], *, chunk_size: int, cutoff_hz: float | None = None,
                              decimation: int = 1, held_torques: bool = False, frequency_hz: float | None = None,
-                             harmonics: int = 5, delays: Mapping[Any, float | None] | None = None
-                             ) -> tuple[dict[Any, dict[str, float]], int] | None:
+                             harmonics: int = 5, delays: Mapping[Any, float | None] | None = None,
+                             average: str = "auto") -> tuple[dict[Any, dict[str, float]], int] | None:
     """The training errors of ``predictors`` (:func:`theta_predictors`, or a model file's) against the channels as recorded, on the samples the in-memory fit measures
     them on, and how many those are, from one more pass over the training ``paths`` block by block (memory: a few
     blocks; a resampled file's time stamps): on the filter path the derived motion against the recorded channels
@@ -371,11 +373,12 @@ def recorded_training_errors(model: IdentificationModel, predictors: Mapping[Any
     drops rows the streamed grid interpolates (:func:`counted_errors_at_stamps`): the caller keeps the errors it
     has. ``delays``: by predictor name, its model file's delay: the motion of the samples scored moved by it, as
     ``oed predict`` moves the record (:func:`counted_predicted_errors`; at a resampled file's stamps,
-    :func:`counted_errors_at_stamps`)."""
+    :func:`counted_errors_at_stamps`). ``average``: ``--average-periods`` on the Fourier path."""
     if any(record.get("resampled_from") is not None for record in files):
         return counted_errors_at_stamps(model, {}, paths, chunk_size=chunk_size, cutoff_hz=cutoff_hz,
                                         decimation=decimation, held_torques=held_torques, predictors=predictors,
-                                        frequency_hz=frequency_hz, harmonics=harmonics, delays=delays)
+                                        frequency_hz=frequency_hz, harmonics=harmonics, delays=delays,
+                                        average=average)
     return counted_predicted_errors(model, predictors, paths, chunk_size=chunk_size, cutoff_hz=cutoff_hz,
                                     decimation=decimation, held_torques=held_torques, frequency_hz=frequency_hz,
-                                    harmonics=harmonics, delays=delays)
+                                    harmonics=harmonics, delays=delays, average=average)

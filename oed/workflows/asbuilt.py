@@ -311,7 +311,7 @@ def streamed_joint_zero_notes(model: IdentificationModel, train: Sequence[str | 
     counts of prepared samples; ``options``: how the streamed fit prepared them,
     :func:`estimation.streaming.periods.plan_chunks`' keywords), on the samples the in-memory check keeps
     (:func:`estimation.streaming.joint_zeros.streamed_joint_zeros`): one more pass over the files. None with shaped
-    laws, nor on the Fourier path (its prepared samples are averaged periods, not the record)."""
+    laws."""
     zeros = streamed_marked_joint_zeros(model, train, train_samples, held_out, held_out_samples, options=options)
     return () if zeros is None else (zeros.message(model.robot.joint_names),)
 
@@ -321,7 +321,7 @@ def streamed_marked_joint_zeros(model: IdentificationModel, train: Sequence[str 
                                 options: Mapping[str, Any]) -> JointZeroCheck | None:
     """The joint-zero check of records read in blocks (:func:`streamed_joint_zero_notes`) when it marks, else
     ``None``."""
-    if model_has_shapes(model) or options.get("frequency_hz") is not None:
+    if model_has_shapes(model):
         return None
     from estimation.streaming.joint_zeros import streamed_joint_zeros  # the streamed path's: imported when it runs
 
@@ -331,23 +331,18 @@ def streamed_marked_joint_zeros(model: IdentificationModel, train: Sequence[str 
     return None if check is None or not check.marked else check
 
 
-#: why a streamed run has no ``friction_drift`` though it has a validation record (``result.json``'s
-#: ``not_computed``): the Fourier path's prepared samples are averaged periods
-FOURIER_CHECKS = ("not checked on averaged periods (the Fourier path: its prepared samples are one period per file, "
-                  "not the records the check fits together)")
-
-
 def streamed_checks(model: IdentificationModel, train: Sequence[str | Path], train_samples: int,
                     validate: Sequence[str | Path], validate_samples: int, *, options: Mapping[str, Any],
                     mount_model: IdentificationModel | None, mount_samples: int,
                     drift_model: IdentificationModel | None) -> StreamedChecks:
     """The mount check of ``mount_model`` and the friction-drift check of ``drift_model`` (each when given) of
     records read in blocks, on the samples the in-memory checks keep
-    (:func:`estimation.streaming.description_checks.streamed_description_checks`: one more pass over the files);
-    nothing checked on the Fourier path (its prepared samples are averaged periods, not the records)."""
+    (:func:`estimation.streaming.description_checks.streamed_description_checks`: one more pass over the files; on
+    the Fourier path the samples memory prepares too: a file's averaged period, or its every sample with the fit's
+    motion)."""
     from estimation.streaming.description_checks import StreamedChecks, streamed_description_checks  # when it runs
 
-    if options.get("frequency_hz") is not None or not validate or (mount_model is None and drift_model is None):
+    if not validate or (mount_model is None and drift_model is None):
         return StreamedChecks()
     with step("gravity's direction and the friction checked against the description's and the training record's "
               "(a pass over the files)"), warnings.catch_warnings():
@@ -379,7 +374,7 @@ def streamed_description_findings(model: IdentificationModel, train: Sequence[st
                                   options: Mapping[str, Any]) -> StreamedFindings:
     """The joint-zero check (:func:`streamed_marked_joint_zeros`), the mount check and the friction drift of the
     declared model (:func:`streamed_checks`) of records read in blocks, on the samples memory checks. None with
-    shaped laws, nor on the Fourier path."""
+    shaped laws."""
     zeros = streamed_marked_joint_zeros(model, train, train_samples, validate, validate_samples, options=options)
     if model_has_shapes(model):
         return StreamedFindings(zeros)
@@ -399,7 +394,7 @@ def streamed_description_notes(model: IdentificationModel, train: Sequence[str |
     (:func:`said_description`, then the drift's warning; ``gravity_taken``: the answer was fitted with the found
     gravity; ``subtracted``: to the torques with the description's gravity torque added back, ``options["load"]``,
     on which the drift is then checked again, as memory checks it on the answer's records); and the drift check
-    (``None``: not checked). None with shaped laws, nor on the Fourier path."""
+    (``None``: not checked). None with shaped laws."""
     if findings is None:
         findings = streamed_description_findings(model, train, train_samples, validate, validate_samples,
                                                  options=options)

@@ -75,7 +75,6 @@ from oed.workflows.asbuilt import (
     marked_joint_zeros,
     mount_candidates,
     DIAGNOSIS_MOUNT_SAMPLES,
-    FOURIER_CHECKS,
     streamed_checks,
     streamed_marked_joint_zeros,
     model_effects,
@@ -646,7 +645,8 @@ def diagnose_document(args: DiagnoseOptions, diagnosed: Diagnosed) -> tuple[dict
                                                 "mse": None if validation_mse is None else dict(validation_mse)}
         document["warnings"]["after"] = list(document["warnings"].get("after", [])) + list(diagnosed.notes)
         add_summed_runner_up_model_file(document, runner_up, args, model_plan, None if validation_mse is None or
-                                        runner_up is None else runner_up.validation_mse, diagnosed.transmission)
+                                        runner_up is None else runner_up.validation_mse, diagnosed.transmission,
+                                        shape=diagnosis.runner_up_shape())  # moved by the chosen delay, as memory
         if diagnosed.torque_gains is not None:  # the files divided by them (divided_diagnosis): as in memory
             gains = diagnosed.torque_gains.to_dict()
             document["torque_gains"] = gains
@@ -976,12 +976,11 @@ def check_streamed_arguments(args: DiagnoseOptions, model: IdentificationModel) 
     """Options the streamed diagnosis does not have: an error naming them, before anything is read."""
     unsupported = [option for option, given in (
         ("--min-speed", args.min_speed is not None),
-        ("--average-periods no", args.average_periods == "no"),
         ("--max-gap", args.max_gap != DEFAULT_MAX_GAP)) if given]
     if unsupported:
         raise ValueError(f"{', '.join(unsupported)}: not with {STREAMED}, which reads whole files without holes "
-                         "on the filter path, the files' dq, ddq or a Fourier fit of averaged periods (of every "
-                         f"sample where --average-periods auto fits every sample); {IN_MEMORY_ROUTE}")
+                         "on the filter path, the files' dq, ddq or a Fourier fit of averaged periods or of every "
+                         f"sample; {IN_MEMORY_ROUTE}")
     if model_has_shapes(model):
         raise ValueError(f"declared laws with shape parameters (coulomb:tanh, sigmoid…) are fitted in memory: not with "
                          f"{STREAMED}; declare their plain forms, or let the diagnosis find them")
@@ -1020,6 +1019,7 @@ def diagnosis_streamed(args: DiagnoseOptions, friction: str, plan: Preprocessing
     from estimation.streaming.diagnosis import diagnose_files_run
     from estimation.streaming.model_selection import streamed_repeated_motion, warned_still_motion
     from estimation.streaming.recorded_errors import streamed_plan
+    from estimation.streaming.description_checks import prepared_count
     from estimation.streaming.periods import check_averaged
 
     robot = robot_of(args)
@@ -1105,8 +1105,7 @@ def diagnosis_streamed(args: DiagnoseOptions, friction: str, plan: Preprocessing
     notes = worse_after(diagnosis) + (() if repeat is None else (repeat,))
     # the joint zeros, the mount (checked before the search) and the friction drift, said as in memory; none with a
     # declared delay, as in memory (the run with a found gravity says none: its caller does)
-    counts = (sum(part.n_samples for part, _ in run.sums.train_parts),
-              sum(part.n_samples for part, _ in run.sums.validate_parts))
+    counts = (prepared_count(run.sums.train_parts), prepared_count(run.sums.validate_parts))
     aside = turned is not None or subtracted is not None  # a candidate's run: its caller's checks are said
     zeros = None if delay is not None or aside else streamed_marked_joint_zeros(
         model, run.paths, counts[0], run.validate, counts[1], options=run.settings.reading())
@@ -1151,14 +1150,12 @@ def diagnosis_streamed(args: DiagnoseOptions, friction: str, plan: Preprocessing
             answer_run.diagnosis, not_computed={**answer_run.diagnosis.not_computed, "torque_gains": gains_note})
         return replace(answer_run, diagnosis=diagnosis, messages=messages, notes=notes, friction_drift=drift,
                        selection=selection)
-    fourier = plan.method == "fourier" and delay is None and not model_has_shapes(model)
     diagnosis = replace(diagnosis, not_computed={**{key: reason for key, reason in diagnosis.not_computed.items()
                                                     if key not in (*SELECTION_KEYS, "gravity")
                                                     and (key != "subtracted" or plan.method == "fourier")},
                                                     # computed now (a mount found is tried:
                                                     # streamed_gravity_diagnosis; the log less the description's
                                                     # gravity torque: streamed_subtracted_diagnosis)
-                                                 **({"friction_drift": FOURIER_CHECKS} if fourier else {}),
                                                  "time_base": STREAMED_TIME_BASE})
     if gains_note is not None:  # said above
         diagnosis = replace(diagnosis, not_computed={**diagnosis.not_computed, "torque_gains": gains_note})
@@ -1441,6 +1438,7 @@ def recorded_errors(diagnosis: Diagnosis, args: DiagnoseOptions, plan: dict[str,
     runner_up = diagnosis.runner_up
     if runner_up is not None and runner_up.validation_mse is not None:
         rival = with_load(summed_model_file_document(runner_up.model, runner_up.fit, robot=robot, preprocessing=plan,
-                                                     shape=runner_up.shape(), recorded_mse=runner_up.train_mse), load)
+                                                     shape=diagnosis.runner_up_shape(),
+                                                     recorded_mse=runner_up.train_mse), load)
         runner_up = replace(runner_up, validation_mse=recorded_validation_mse(rival, args.validate))
     return replace(diagnosis, before=fits["before"], after=fits["after"], statistics=statistics, runner_up=runner_up)

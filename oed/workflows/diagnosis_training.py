@@ -107,7 +107,7 @@ def recorded_training(args: RecordOptions, diagnosis: Diagnosis, selection: Mode
     runner_up = diagnosis.runner_up
     if runner_up is not None:
         rival = _Prediction(summed_model_file_document(runner_up.model, runner_up.fit, robot=robot,
-                                                       preprocessing=dict(plan), shape=runner_up.shape()), slot)
+                                                       preprocessing=dict(plan), shape=diagnosis.runner_up_shape()), slot)
         predictors["runner_up"] = rival.at(runner_up.fit.values)
     # each prediction's delay between torques and motion, as its model file holds it (oed predict moves the motion by it)
     delays = {"before": declared.model.delay, "after": final.model.delay,
@@ -121,7 +121,8 @@ def recorded_training(args: RecordOptions, diagnosis: Diagnosis, selection: Mode
         counted = recorded_training_errors(
             diagnosis.model, less_load(diagnosis.model, predictors, load), args.data, files, chunk_size=chunk_size, cutoff_hz=streaming.get("cutoff_hz"),
             decimation=int(plan.get("decimation", 1)), held_torques=bool(plan.get("held_torques", False)),
-            frequency_hz=streaming.get("frequency_hz"), harmonics=int(streaming.get("harmonics") or 5), delays=delays)
+            frequency_hz=streaming.get("frequency_hz"), harmonics=int(streaming.get("harmonics") or 5), delays=delays,
+            average=streaming.get("average_periods", "auto"))
     if counted is None:
         return diagnosis, selection, None
     errors, count = counted

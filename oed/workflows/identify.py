@@ -78,7 +78,6 @@ from oed.workflows.asbuilt import (
     finish_document,
     description_checks,
     description_notes,
-    FOURIER_CHECKS,
     streamed_description_findings,
     streamed_description_notes,
     model_effects,
@@ -512,7 +511,8 @@ def identification_streamed(args: IdentifyOptions, model: IdentificationModel, t
         selection, sums, scores = streamed_armature_selection(
             args, selection, base=base, methods=methods, chunk_size=chunk_size, options=options, ratio=ratio,
             still=still, sums=sums, scores=scores)
-        if frequency_hz is None:  # the checks of the description and the gains: not on averaged periods (FOURIER_CHECKS)
+        if frequency_hz is None:  # the candidates of a found mount, a subtracted load, the gains: not on averaged periods
+            # (the checks themselves are said below on either path, streamed_description_notes)
             # the joints' zeros and gravity's direction against the description's; a mount found is a candidate
             checked = streamed_description_findings(
                 model, args.data, int(sums.train.n_samples), args.validate or [],
@@ -587,8 +587,6 @@ def identification_streamed(args: IdentifyOptions, model: IdentificationModel, t
         0 if sums.validation is None else int(sums.validation.n_samples), options=reading_options,
         findings=checked, gravity_taken=gravity_taken, subtracted=subtracted is not None)
     notes = (*notes, *said)
-    if args.validate and options["frequency_hz"] is not None and not model_has_shapes(model):
-        not_computed["friction_drift"] = FOURIER_CHECKS
     result, chosen, selection = recorded_training(args, result, chosen, selection, chunk_size, options)
     if frequency_hz is not None and args.method == "auto" and not args.consistent and args.validate \
             and not model_has_shapes(model) and len(model.channels) > 1 \

@@ -137,15 +137,17 @@ def add_model_file(document: dict[str, Any], result: IdentificationResult, args:
 
 def add_summed_runner_up_model_file(document: dict[str, Any], runner_up: Any, args: RecordOptions,
                                    preprocessing: dict[str, Any], validation_mse: dict[str, float] | None,
-                                   transmission: Any = None) -> None:
+                                   transmission: Any = None, shape: dict[str, float] | None = None) -> None:
     """The streamed path's :func:`add_runner_up_model_file`: the runner-up's estimate from the sums at its fixed
-    shapes (``validation_mse``: its validation MSE as ``oed predict`` measures it, or ``None``), the transmission
-    and ``--joint-offsets``' zeros and directions as in memory."""
+    shapes (``validation_mse``: its validation MSE as ``oed predict`` measures it, or ``None``; ``shape``: its
+    shapes and the delay its sums were moved by, :meth:`~estimation.diagnosis.results.Diagnosis.runner_up_shape`,
+    ``None``: its own shapes alone), the transmission and ``--joint-offsets``' zeros and directions as in memory."""
     if runner_up is None or document.get("runner_up") is None:
         return
     document["runner_up"]["model_file"] = summed_model_file_document(
         runner_up.model, runner_up.fit, robot=robot_source(runner_up.model.robot, args), preprocessing=preprocessing,
-        shape=runner_up.shape(), recorded_mse=runner_up.train_mse, validation_mse=validation_mse)
+        shape=runner_up.shape() if shape is None else shape, recorded_mse=runner_up.train_mse,
+        validation_mse=validation_mse)
     as_read(document["runner_up"]["model_file"], args, runner_up.model.robot, transmission)
 
 
