@@ -37,7 +37,8 @@ from dynamics.measurements import Measurements
 from dynamics.models import IdentificationModel
 from estimation.consistent.identification import ConsistentResult
 from estimation.consistent.model_selection import ModelSelection, answers_scored
-from estimation.estimators.channel_gains import channel_residuals, fit_channel_gains_on_sums
+from estimation.estimators.channel_gains import (DETERMINED_RELATIVE_STD, channel_residuals, fit_channel_gains_on_sums,
+                                                 gains_normal)
 from estimation.identification.prepared import PreparedRecord, PreparedRecords
 from estimation.identification.relative_error import relative_scores
 from estimation.identification.repeated_motion import REPEAT_FRACTION, repeated_motion, still_motion
@@ -49,10 +50,6 @@ __all__ = ["DETERMINED_RELATIVE_STD", "SIGNIFICANCE_BLOCKS", "SIGNIFICANCE_Z", "
 
 #: the relative score by which the model with the gains must beat the declared one (a tie keeps the declared)
 TORQUE_GAINS_TOLERANCE = 0.01
-#: a gain whose standard error exceeds this fraction of it is not determined by the record (a sensor's calibration
-#: error is of this order: such a value measures nothing; on a PUMA's wrist the spread of the estimates over noise
-#: draws is then up to three times the linearised standard error, tests/test_torque_gains.py)
-DETERMINED_RELATIVE_STD = 0.1
 #: the counts of the validation record's contiguous blocks over which the log ratio of the two models' scores is
 #: taken, and the mean log ratio (in standard errors of the blocks' mean) that measures the gains, at every count (the
 #: residuals are correlated over an unknown time, and a batch-means error grows with the blocks' length until they
@@ -276,9 +273,7 @@ def fit_torque_gains(sums: tuple[NDArray, NDArray, NDArray], n_samples: int, cha
         s, theta, iterations = fitted.gains, fitted.theta, iterations + fitted.iterations
         w = 1.0 / np.maximum(channel_residuals(G, b, c, s, theta) / n, np.finfo(float).tiny)
     # covariance of (θ, the free log s) at the optimum, s_1 held: σ² (JᵀJ)⁻¹ with the weights 1/σ_j²
-    Gt = np.einsum("mrs,s->mr", G, theta)
-    H = np.block([[np.einsum("m,mrs->rs", w * s**2, G), ((w * s**2)[:, None] * Gt)[free].T],
-                  [((w * s**2)[:, None] * Gt)[free], np.diag((w * s**2 * (Gt @ theta))[free])]])
+    H, _ = gains_normal(G * w[:, None, None], b * w[:, None], s, theta, free, "held")
     cov = np.linalg.pinv(H)
     scale, d_log_k = description_scale(theta, cov[:r, :r], rigid, description)
     # the final log-gains log s_j + log k(θ): their covariance by the delta method through the scale's match

@@ -26,8 +26,13 @@ from typing import Literal
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["GainSign", "GainsFit", "channel_residuals", "divided_start", "fit_channel_gains_on_sums", "gains_theta",
-           "weighted_channel_sums"]
+__all__ = ["DETERMINED_RELATIVE_STD", "GainSign", "GainsFit", "channel_residuals", "determined_gains", "divided_start",
+           "fit_channel_gains_on_sums", "gains_normal", "gains_theta", "weighted_channel_sums"]
+
+#: a gain whose standard error exceeds this fraction of it is not determined by the record (a sensor's calibration
+#: error is of this order: such a value measures nothing; on a PUMA's wrist the spread of the estimates over noise
+#: draws is then up to three times the linearised standard error, tests/test_torque_gains.py)
+DETERMINED_RELATIVE_STD = 0.1
 
 #: how a gain moves: ``"free"`` by additive steps (either sign), ``"held"`` by steps in its logarithm (its sign kept)
 GainSign = Literal["free", "held"]
@@ -101,6 +106,37 @@ def divided_start(G: NDArray, b: NDArray, c: NDArray, free: NDArray) -> NDArray:
     return s
 
 
+def gains_normal(G: NDArray, b: NDArray, gains: NDArray, theta: NDArray, free: NDArray, sign: GainSign
+                 ) -> tuple[NDArray, NDArray]:
+    """The Gauss–Newton normal equations ``(JᵀJ, −Jᵀe)`` in ``(θ, s_free)`` (``sign="held"``: in ``log s_free``) of
+    the residuals ``e_j = τ_j − s_j Y_j θ`` from the weighted sums (``d/dθ = −s_j Y_j``, ``d/ds_j = −Y_j θ``,
+    ``d/dlog s_j = s_j d/ds_j``)."""
+    s = gains
+    Gt = np.einsum("mrs,s->mr", G, theta)  # G_j θ
+    H_tt = np.einsum("m,mrs->rs", s**2, G)
+    H_ts = s[:, None] * Gt
+    H_ss = Gt @ theta
+    g_t = s @ b - H_tt @ theta
+    g_s = b @ theta - s * H_ss
+    if sign == "held":
+        H_ts, H_ss, g_s = s[:, None] * H_ts, s**2 * H_ss, s * g_s
+    return (np.block([[H_tt, H_ts[free].T], [H_ts[free], np.diag(H_ss[free])]]), np.r_[g_t, g_s[free]])
+
+
+def determined_gains(sums: tuple[NDArray, NDArray, NDArray], fitted: GainsFit, free: NDArray, n_residuals: int
+                     ) -> NDArray[np.bool_]:
+    """Which gains of ``free`` (at ``fitted``, the least squares of ``sums``) the record determines: the standard
+    error of ``log s_j`` from the Gauss–Newton covariance ``σ² (JᵀJ)⁻¹`` (``σ²`` the weighted residual variance over
+    the ``n_residuals`` residuals less the parameters) within :data:`DETERMINED_RELATIVE_STD`; ``(free.size,)``. A
+    gain that is not wanders along a valley of the cost (a PUMA's wrist, whose torques are at the noise: gains of
+    100 and more for a fall of the cost of a few per cent)."""
+    G, b, _ = sums
+    H, _ = gains_normal(G, b, fitted.gains, fitted.theta, free, "held")
+    variance = fitted.cost / max(n_residuals - H.shape[0], 1)
+    std = np.sqrt(np.clip(np.diag(np.linalg.pinv(H))[b.shape[1]:] * variance, 0.0, None))
+    return std <= DETERMINED_RELATIVE_STD
+
+
 def fit_channel_gains_on_sums(sums: tuple[NDArray, NDArray, NDArray], gains: NDArray, free: NDArray, *,
                               sign: GainSign = "free", max_iterations: int = 100, tolerance: float = 1e-10
                               ) -> GainsFit:
@@ -138,17 +174,7 @@ def fit_channel_gains_on_sums(sums: tuple[NDArray, NDArray, NDArray], gains: NDA
         if cost <= 0.0:  # the model holds exactly
             break
         iterations += 1
-        Gt = np.einsum("mrs,s->mr", G, theta)  # G_j θ
-        # residual e_j = τ_j − s_j Y_j θ: d/dθ = −s_j Y_j, d/ds_j = −Y_j θ; H = JᵀJ, g = −Jᵀe
-        H_tt = np.einsum("m,mrs->rs", s**2, G)
-        H_ts = s[:, None] * Gt
-        H_ss = Gt @ theta
-        g_t = s @ b - H_tt @ theta
-        g_s = b @ theta - s * H_ss
-        if sign == "held":  # in log s_j: d/dlog s_j = s_j d/ds_j
-            H_ts, H_ss, g_s = s[:, None] * H_ts, s**2 * H_ss, s * g_s
-        H = np.block([[H_tt, H_ts[free].T], [H_ts[free], np.diag(H_ss[free])]])
-        g = np.r_[g_t, g_s[free]]
+        H, g = gains_normal(G, b, s, theta, free, sign)
         scale = np.sqrt(np.maximum(np.diag(H), 1e-300))
         while True:
             A = H / np.outer(scale, scale)

@@ -21,9 +21,9 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from estimation.estimators.channel_gains import GainSign, divided_start, fit_channel_gains_on_sums, weighted_channel_sums
+from estimation.estimators.channel_gains import GainSign, GainsFit, determined_gains, divided_start, fit_channel_gains_on_sums, weighted_channel_sums
 
-__all__ = ["ChannelGains", "fit_channel_gains"]
+__all__ = ["ChannelGains", "determined_channels", "fit_channel_gains"]
 
 #: Levenberg–Marquardt iterations at most, and the relative fall of the cost below which it stops
 MAX_ITERATIONS = 100
@@ -54,7 +54,7 @@ class ChannelGains:
 
 
 def fit_channel_gains(Y: NDArray, target: NDArray, weights: NDArray, gained: NDArray[np.bool_], *,
-                      sign: GainSign = "free") -> ChannelGains:
+                      sign: GainSign = "free", max_iterations: int = MAX_ITERATIONS) -> ChannelGains:
     """Fit ``θ`` and a gain on each channel where ``gained`` (module docstring).
 
     Parameters
@@ -71,6 +71,8 @@ def fit_channel_gains(Y: NDArray, target: NDArray, weights: NDArray, gained: NDA
     sign
         ``"free"``: a gain may take either sign (a reversed torque is one); ``"held"``: the gains stay positive (a
         reversed torque is not taken up: the joint-zero check's directions say it).
+    max_iterations
+        Levenberg–Marquardt's iterations at most.
 
     Returns
     -------
@@ -82,5 +84,20 @@ def fit_channel_gains(Y: NDArray, target: NDArray, weights: NDArray, gained: NDA
     free = np.flatnonzero(gained)[1:]  # the first gained channel holds the scale
     start = divided_start(*sums, free)
     fitted = fit_channel_gains_on_sums(sums, start if sign == "free" else np.abs(start), free, sign=sign,
-                                       max_iterations=MAX_ITERATIONS, tolerance=TOLERANCE)
+                                       max_iterations=max_iterations, tolerance=TOLERANCE)
     return ChannelGains(fitted.theta, fitted.gains, float(fitted.cost / (N * m)))
+
+
+def determined_channels(Y: NDArray, target: NDArray, weights: NDArray, gained: NDArray[np.bool_],
+                        fitted: ChannelGains) -> NDArray[np.bool_]:
+    """``gained`` less the channels whose gain ``fitted`` (:func:`fit_channel_gains` of the same arguments) the
+    samples do not determine (:func:`estimation.estimators.channel_gains.determined_gains`; the first gained channel,
+    the scale, kept): a gain left free there wanders along a valley of the cost, and the costs of candidates scored
+    with it differ by how far each fit crept."""
+    N, m, _ = Y.shape
+    sums = weighted_channel_sums(Y, target, np.asarray(weights, dtype=float) ** 2)
+    free = np.flatnonzero(gained)[1:]
+    known = determined_gains(sums, GainsFit(fitted.theta, fitted.gains, fitted.cost * N * m, 0), free, N * m)
+    kept = np.asarray(gained, dtype=bool).copy()
+    kept[free[~known]] = False
+    return kept
