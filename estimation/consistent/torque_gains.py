@@ -8,8 +8,10 @@ model is bilinear, gains times ``Y θ``). The overall scale is not: ``(c s, θ /
 is fixed by the robot description's bodies (:func:`description_scale`: the fitted rigid-body parameters matched to
 the description's, weighted by their marginal precision).
 
-:func:`fit_torque_gains` fits ``(s, θ)`` by Gauss-Newton (Levenberg-Marquardt) on the channels' Gram sums
-``G_j = Y_jᵀ Y_j``, ``b_j = Y_jᵀ τ_j``, ``c_j = τ_jᵀ τ_j`` (no sample held per iteration), each channel weighted by
+:func:`fit_torque_gains` fits ``(s, θ)`` by Gauss-Newton (Levenberg-Marquardt, in ``log s``:
+:func:`estimation.estimators.channel_gains.fit_channel_gains_on_sums`, the loop the joint-zero check's gains test runs
+too) on the channels' Gram sums ``G_j = Y_jᵀ Y_j``, ``b_j = Y_jᵀ τ_j``, ``c_j = τ_jᵀ τ_j`` (no sample held per
+iteration), each channel weighted by
 the inverse of its residual variance (iterated, as WLS, PUMA paper eq. 20); the standard errors are those of the
 Gauss-Newton covariance ``σ² (JᵀJ)⁻¹`` with the scale held at the description's (the relative gains' errors).
 
@@ -35,6 +37,8 @@ from dynamics.measurements import Measurements
 from dynamics.models import IdentificationModel
 from estimation.consistent.identification import ConsistentResult
 from estimation.consistent.model_selection import ModelSelection, answers_scored
+from estimation.estimators.channel_gains import (DETERMINED_RELATIVE_STD, channel_residuals, fit_channel_gains_on_sums,
+                                                 gains_normal)
 from estimation.identification.prepared import PreparedRecord, PreparedRecords
 from estimation.identification.relative_error import relative_scores
 from estimation.identification.repeated_motion import REPEAT_FRACTION, repeated_motion, still_motion
@@ -46,10 +50,6 @@ __all__ = ["DETERMINED_RELATIVE_STD", "SIGNIFICANCE_BLOCKS", "SIGNIFICANCE_Z", "
 
 #: the relative score by which the model with the gains must beat the declared one (a tie keeps the declared)
 TORQUE_GAINS_TOLERANCE = 0.01
-#: a gain whose standard error exceeds this fraction of it is not determined by the record (a sensor's calibration
-#: error is of this order: such a value measures nothing; on a PUMA's wrist the spread of the estimates over noise
-#: draws is then up to three times the linearised standard error, tests/test_torque_gains.py)
-DETERMINED_RELATIVE_STD = 0.1
 #: the counts of the validation record's contiguous blocks over which the log ratio of the two models' scores is
 #: taken, and the mean log ratio (in standard errors of the blocks' mean) that measures the gains, at every count (the
 #: residuals are correlated over an unknown time, and a batch-means error grows with the blocks' length until they
@@ -137,13 +137,18 @@ def _predicted(model: IdentificationModel, theta: NDArray, record: Measurements,
                       for rows in (slice(start, start + block) for start in range(0, record.n_samples, block))])
 
 
+def _solve_theta(G: NDArray, b: NDArray, s: NDArray, w: NDArray) -> NDArray:
+    A = np.einsum("m,mrs->rs", w * s**2, G)
+    return np.linalg.lstsq(A, np.einsum("m,mr->r", w * s, b), rcond=None)[0]
+
+
 def _weighted_fit(G: NDArray, b: NDArray, c: NDArray, n: int, rounds: int = 4) -> NDArray:
     """The channel-weighted least-squares fit without gains (the weights from the residual variances, iterated)."""
     s = np.ones(b.shape[0])
     w = 1.0 / np.maximum(c / n, np.finfo(float).tiny)
     for _ in range(rounds):
         theta = _solve_theta(G, b, s, w)
-        w = 1.0 / np.maximum(_rss(G, b, c, s, theta) / n, np.finfo(float).tiny)
+        w = 1.0 / np.maximum(channel_residuals(G, b, c, s, theta) / n, np.finfo(float).tiny)
     return theta
 
 
@@ -235,15 +240,6 @@ def gains_checked(gains: TorqueGains, channels: Sequence[str], blocks: dict[int,
     return taken, sentence
 
 
-def _solve_theta(G: NDArray, b: NDArray, s: NDArray, w: NDArray) -> NDArray:
-    A = np.einsum("m,mrs->rs", w * s**2, G)
-    return np.linalg.lstsq(A, np.einsum("m,mr->r", w * s, b), rcond=None)[0]
-
-
-def _rss(G: NDArray, b: NDArray, c: NDArray, s: NDArray, theta: NDArray) -> NDArray:
-    return c - 2.0 * s * (b @ theta) + s**2 * np.einsum("r,mrs,s->m", theta, G, theta)
-
-
 def fit_torque_gains(sums: tuple[NDArray, NDArray, NDArray], n_samples: int, channels: Sequence[str], *,
                      rigid: NDArray[np.bool_], description: NDArray[np.float64],
                      held: NDArray[np.bool_] | None = None, rounds: int = 4, max_iterations: int = 100,
@@ -271,43 +267,13 @@ def fit_torque_gains(sums: tuple[NDArray, NDArray, NDArray], n_samples: int, cha
     s = np.ones(m)
     w = 1.0 / np.maximum(c / n, np.finfo(float).tiny)
     iterations = 0
-    for _ in range(rounds):  # weights from the residual variances, as WLS
-        theta = _solve_theta(G, b, s, w)
-        cost = float(w @ _rss(G, b, c, s, theta))
-        damping = 1e-3
-        for _ in range(max_iterations):  # Levenberg-Marquardt on (log s_2.., θ), s_1 held
-            iterations += 1
-            Gt = np.einsum("mrs,s->mr", G, theta)  # G_j θ
-            tGt = Gt @ theta  # θᵀ G_j θ
-            bt = b @ theta
-            # residual e_j = τ_j - s_j Y_j θ; derivatives: d/dθ = -s_j Y_j, d/dlog s_j = -s_j Y_j θ
-            H_tt = np.einsum("m,mrs->rs", w * s**2, G)
-            H_ts = (w * s**2)[:, None] * Gt  # (m, r): d e/d log s_j against d e/d θ
-            H_ss = w * s**2 * tGt
-            g_t = np.einsum("m,mr->r", w * s, b) - H_tt @ theta  # -Jᵀe (θ)
-            g_s = w * s * bt - H_ss  # -Jᵀe (log s)
-            H = np.block([[H_tt, H_ts[free].T], [H_ts[free], np.diag(H_ss[free])]])
-            g = np.r_[g_t, g_s[free]]
-            while True:
-                step = np.linalg.lstsq(H + damping * np.diag(np.diag(H) + 1e-300), g, rcond=None)[0]
-                trial_s = s.copy()
-                trial_s[free] *= np.exp(step[r:])
-                trial_theta = theta + step[:r]
-                trial = float(w @ _rss(G, b, c, trial_s, trial_theta))
-                if trial <= cost or damping > 1e12:
-                    break
-                damping *= 10.0
-            if trial > cost:
-                break
-            done = cost - trial <= tolerance * cost
-            s, theta, cost, damping = trial_s, trial_theta, trial, max(damping / 10.0, 1e-12)
-            if done:
-                break
-        w = 1.0 / np.maximum(_rss(G, b, c, s, theta) / n, np.finfo(float).tiny)
+    for _ in range(rounds):  # weights from the residual variances, as WLS; Levenberg-Marquardt on (log s_2.., θ)
+        fitted = fit_channel_gains_on_sums((G * w[:, None, None], b * w[:, None], c * w), s, free, sign="held",
+                                           max_iterations=max_iterations, tolerance=tolerance)
+        s, theta, iterations = fitted.gains, fitted.theta, iterations + fitted.iterations
+        w = 1.0 / np.maximum(channel_residuals(G, b, c, s, theta) / n, np.finfo(float).tiny)
     # covariance of (θ, the free log s) at the optimum, s_1 held: σ² (JᵀJ)⁻¹ with the weights 1/σ_j²
-    Gt = np.einsum("mrs,s->mr", G, theta)
-    H = np.block([[np.einsum("m,mrs->rs", w * s**2, G), ((w * s**2)[:, None] * Gt)[free].T],
-                  [((w * s**2)[:, None] * Gt)[free], np.diag((w * s**2 * (Gt @ theta))[free])]])
+    H, _ = gains_normal(G * w[:, None, None], b * w[:, None], s, theta, free, "held")
     cov = np.linalg.pinv(H)
     scale, d_log_k = description_scale(theta, cov[:r, :r], rigid, description)
     # the final log-gains log s_j + log k(θ): their covariance by the delta method through the scale's match

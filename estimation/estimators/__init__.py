@@ -1,6 +1,6 @@
 """Estimators after scikit-learn's contract: (weighted) least squares, least squares from summed normal equations, recursive least squares, ARX/ARMAX and order selection, variable projection for shaped effects, fit metrics.
 
-Modules: :mod:`~estimation.estimators.arx`, :mod:`~estimation.estimators.effect_blocks`, :mod:`~estimation.estimators.errors`, :mod:`~estimation.estimators.estimator`, :mod:`~estimation.estimators.identification_problem`, :mod:`~estimation.estimators.least_squares`, :mod:`~estimation.estimators.metrics`, :mod:`~estimation.estimators.normal_equations`, :mod:`~estimation.estimators.order_selection`, :mod:`~estimation.estimators.recursive`, :mod:`~estimation.estimators.separable_least_squares`, :mod:`~estimation.estimators.summed_least_squares`, :mod:`~estimation.estimators.variable_projection`.
+Modules: :mod:`~estimation.estimators.arx`, :mod:`~estimation.estimators.channel_gains`, :mod:`~estimation.estimators.effect_blocks`, :mod:`~estimation.estimators.errors`, :mod:`~estimation.estimators.estimator`, :mod:`~estimation.estimators.identification_problem`, :mod:`~estimation.estimators.least_squares`, :mod:`~estimation.estimators.metrics`, :mod:`~estimation.estimators.normal_equations`, :mod:`~estimation.estimators.order_selection`, :mod:`~estimation.estimators.recursive`, :mod:`~estimation.estimators.separable_least_squares`, :mod:`~estimation.estimators.summed_least_squares`, :mod:`~estimation.estimators.variable_projection`.
 """
 
 from __future__ import annotations
@@ -17,6 +17,8 @@ _EXPORTS: dict[str, str] = {
     "CovarianceBlowUpWarning": "estimation.estimators.recursive",
     "DEFAULT_CHUNK_SIZE": "estimation.estimators.normal_equations",
     "Estimate": "estimation.estimators.least_squares",
+    "GainSign": "estimation.estimators.channel_gains",
+    "GainsFit": "estimation.estimators.channel_gains",
     "Estimator": "estimation.estimators.estimator",
     "ExtendedRecursiveLeastSquares": "estimation.estimators.recursive",
     "FixedFactor": "estimation.estimators.bordered_normal",
@@ -41,12 +43,16 @@ _EXPORTS: dict[str, str] = {
     "WeightedLeastSquares": "estimation.estimators.least_squares",
     "accumulate": "estimation.estimators.normal_equations",
     "channel_gram": "estimation.estimators.least_squares",
+    "channel_residuals": "estimation.estimators.channel_gains",
     "channel_variance": "estimation.estimators.least_squares",
     "check_chunk_size": "estimation.estimators.normal_equations",
     "cost_v": "estimation.estimators.metrics",
+    "divided_start": "estimation.estimators.channel_gains",
     "effect_columns": "estimation.estimators.effect_blocks",
     "effect_rows": "estimation.estimators.effect_blocks",
+    "fit_channel_gains_on_sums": "estimation.estimators.channel_gains",
     "fit_shapes": "estimation.estimators.variable_projection",
+    "gains_theta": "estimation.estimators.channel_gains",
     "full_information": "estimation.estimators.separable_least_squares",
     "grid_costs": "estimation.estimators.shape_starts",
     "r2_adjusted": "estimation.estimators.metrics",
@@ -63,6 +69,7 @@ _EXPORTS: dict[str, str] = {
     "stack": "estimation.estimators.identification_problem",
     "stacked_factor": "estimation.estimators.normal_equations",
     "valley_floors": "estimation.estimators.shape_starts",
+    "weighted_channel_sums": "estimation.estimators.channel_gains",
 }
 
 __all__ = sorted(_EXPORTS)

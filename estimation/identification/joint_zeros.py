@@ -22,7 +22,10 @@ matter by themselves (:data:`MIN_OFFSET`, and removing the offset alone raises t
 :data:`MIN_JOINT_GAIN`) are named, and only for a marked gain (:data:`MARKED_GAIN`: the mean over channels of the
 held-out MSE ratio, and the total held-out MSE, both at most ``1 −`` it). A named joint's offset must also lower
 by itself the held-out error, with and without a free gain on each joint's torque
-(:func:`_apart_from_gains`): torques logged with an unknown gain per joint are otherwise read as joint zeros. A correctly zeroed log whose model lacks
+(:func:`_apart_from_gains`): torques logged with an unknown gain per joint are otherwise read as joint zeros. When
+such gains are in question (:func:`gains_in_question`), steps 1–3 and the tests run with a gain on each joint's torque
+fitted beside ``θ`` (kept positive when the directions are scanned: a reversed torque is theirs to say), so that a true
+offset is found where the records tell it from a gain, and nothing is said where they do not. A correctly zeroed log whose model lacks
 something (a spring, a cable, a joint's friction the laws miss) must not be told its zeros are wrong: on such logs
 (the KUKA LWR4+, the Panda, the TX40 of ``benchmarks/bench_real_robots.py``) the steps find offsets up to a half turn
 that lower the held-out error by up to 17 %, but they differ from one record to the other. When the training
@@ -46,7 +49,8 @@ from dynamics.measurements import Measurements
 from dynamics.effects.linear import parse_effects
 from dynamics.models import IdentificationModel, ModelKind, build_model
 from dynamics.robot import JointType
-from estimation.identification.channel_gains import ChannelGains, fit_channel_gains
+from estimation.estimators.channel_gains import GainSign
+from estimation.identification.channel_gains import ChannelGains, determined_channels, fit_channel_gains
 
 #: the held-out error must fall by at least this fraction (mean of the channels' ratios and total) to be reported
 MARKED_GAIN = 0.10
@@ -73,6 +77,8 @@ REVERSAL_TURNS: tuple[float, ...] = (0.0, *TURNS)
 #: logs with a joint reversed the held-out MSE falls to 0.005–0.32 of it), where a correctly signed log whose model
 #: lacks something finds reversals that lower it by 7–15 % (the KUKA LWR4+ and TX40 logs)
 REVERSAL_MARK = 0.5
+#: Levenberg–Marquardt's steps of the fit with every joint's gain free that tells which gains the samples determine
+SURVEY_ITERATIONS = 20
 #: Gauss–Newton iterations and the forward-difference step (rad, or m)
 ITERATIONS = 8
 STEP = 1e-5
@@ -107,6 +113,9 @@ class JointZeroCheck:
         Per joint, ``-1`` where the recorded ``q`` (with ``q̇``, ``q̈``), or the recorded torque, is reversed against
         the description's axis and both the training and the held-out samples say so (the description's ``q`` is
         ``sign · q_recorded + offset``); empty: none reversed.
+    gains
+        Whether each joint's torque was given a free gain (:func:`gains_in_question`): the offsets scanned, and the
+        ratios taken, with the gains fitted on both sides.
     """
 
     offsets: NDArray[np.float64]
@@ -118,6 +127,7 @@ class JointZeroCheck:
     prismatic: tuple[bool, ...] = ()
     signs: tuple[int, ...] = ()
     torque_signs: tuple[int, ...] = ()
+    gains: bool = False
 
     @property
     def reversed_joints(self) -> tuple[int, ...]:
@@ -144,7 +154,7 @@ class JointZeroCheck:
             as_json = ", ".join(f'"{names[index]}": {self.offsets[index]:.4f}' for index in self.joints)
             return (f"the recorded joint positions look offset from the robot description's zeros: {listed}. With "
                     f"q + offset the {self.held_out} is predicted with {100 * (1 - self.total_ratio):.0f} % less "
-                    f"error (mean of the channels' ratios {self.mean_ratio:.2f}). If the encoders' zeros differ from "
+                    f"error (mean of the channels' ratios {self.mean_ratio:.2f}{self._gains_said()}). If the encoders' zeros differ from "
                     f"the URDF's, declare them, \"offsets\": {{{as_json}}} in a transmission JSON (--transmission FILE) "
                     "for motor-side columns qm (q = R⁻¹ qm + offset), or the same object in a JSON file given to "
                     "--joint-offsets FILE (added to the recorded q), and run again")
@@ -173,10 +183,14 @@ class JointZeroCheck:
         return (f"the recorded joint directions look reversed against the robot description's axes: {listed} "
                 f"(the log's positive direction is the URDF axis's opposite){offsets}. In the description's "
                 f"directions the {self.held_out} is predicted with {100 * (1 - self.total_ratio):.0f} % less error "
-                f"(mean of the channels' ratios {self.mean_ratio:.2f}). If the log's conventions differ from the "
+                f"(mean of the channels' ratios {self.mean_ratio:.2f}{self._gains_said()}). If the log's conventions differ from the "
                 f"URDF's, declare them in a JSON file given to --joint-offsets FILE, {{{', '.join(entries)}}} (the "
                 "description's q = sign · recorded q + offset, dq and ddq times the sign, tau times the torque "
                 f"sign; after a --transmission's conversion){axis}, and run again")
+
+    def _gains_said(self) -> str:
+        return ("; each joint's torque read with a free gain on both sides, as a log of currents with a torque "
+                "constant per joint needs" if self.gains else "")
 
     def _amount(self, index: int) -> str:
         offset, again = self.offsets[index], self.held_out_offsets[index]
@@ -220,12 +234,14 @@ class _Problem:
     step it has just accepted (the same values: nothing is recomputed differently)."""
 
     def __init__(self, model: IdentificationModel, samples: tuple[NDArray, NDArray, NDArray, NDArray],
-                 weights: NDArray | None = None) -> None:
+                 weights: NDArray | None = None, gained: NDArray | None = None, sign: GainSign = "held") -> None:
         self.model = model
         self.q, self.dq, self.ddq, self.target = samples
         self.weights = np.ones(model.n_channels)
+        self.gained, self.sign = gained, sign
         self._last_regressor: tuple[bytes, NDArray] | None = None
         self._last_fit: tuple[bytes, tuple[NDArray, NDArray]] | None = None
+        self._last_gains: tuple[bytes, ChannelGains] | None = None
         if weights is not None:
             self.weights = weights
             return
@@ -254,15 +270,32 @@ class _Problem:
         return found
 
     def cost(self, offsets: NDArray) -> float:
+        """The mean weighted squared residual at ``offsets``: of the least-squares fit of ``θ``, or with a gain on each
+        :attr:`gained` channel fitted too (:meth:`gains_fit`)."""
+        if self.gained is not None:
+            return self.gains_fit(offsets).cost
         _, residual = self.fit(offsets)
         return float(np.mean((residual * self.weights) ** 2))
 
+    def gains_fit(self, offsets: NDArray) -> ChannelGains:
+        """``θ`` and a gain on each :attr:`gained` channel at ``offsets`` (:func:`fit_channel_gains`, :attr:`sign`)."""
+        key = np.asarray(offsets, dtype=float).tobytes()
+        if self._last_gains is None or self._last_gains[0] != key:
+            self._last_gains = key, fit_channel_gains(self.regressor(offsets), self.target, self.weights,
+                                                      self.gained, sign=self.sign)
+        return self._last_gains[1]
+
+    def with_gains(self, gained: NDArray | None, sign: GainSign = "held") -> _Problem:
+        """The same samples and weights scored with a gain on each ``gained`` channel (``None``: without)."""
+        return _Problem(self.model, (self.q, self.dq, self.ddq, self.target), self.weights, gained, sign)
+
     def flipped(self, signs: NDArray, torque_signs: NDArray) -> _Problem:
         """The same samples in the description's directions: ``q``, ``q̇``, ``q̈`` of each joint times ``signs``, the
-        joint's torque channel times ``torque_signs``; the weights kept (every convention scored alike)."""
+        joint's torque channel times ``torque_signs``; the weights and the gains kept (every convention scored
+        alike)."""
         samples = (self.q * signs, self.dq * signs, self.ddq * signs,
                    self.target * channel_signs(self.model, torque_signs))
-        return _Problem(self.model, samples, self.weights)
+        return _Problem(self.model, samples, self.weights, self.gained, self.sign)
 
     def scored(self, Y: NDArray, signs: NDArray, normal: _Normal | None = None) -> float:
         """The cost of the fit of ``Y`` to the target times ``signs`` (one a channel); ``normal``: the normal equations
@@ -387,6 +420,8 @@ def estimate_offsets(model: IdentificationModel, problem: _Problem) -> NDArray[n
         if best is None:
             break
         cost, offsets = best
+    if problem.gained is not None:
+        return _gained_offsets(problem, offsets, np.flatnonzero(free), problem.gained, problem.sign)
     return _gauss_newton(problem, offsets, free, revolute)
 
 
@@ -457,30 +492,95 @@ def check_model(model: IdentificationModel) -> IdentificationModel:
 
 
 def _held_out_mse(model: IdentificationModel, theta: NDArray, samples: tuple[NDArray, NDArray, NDArray, NDArray],
-                  offsets: NDArray, signs: NDArray | None = None, torque_signs: NDArray | None = None) -> NDArray:
-    """Each channel's MSE of the prediction at ``signs q + offsets`` (its torque channels times ``torque_signs``:
-    the errors are those against the recorded channels)."""
+                  offsets: NDArray, signs: NDArray | None = None, torque_signs: NDArray | None = None,
+                  gains: NDArray | None = None) -> NDArray:
+    """Each channel's MSE of the prediction at ``signs q + offsets`` (times ``gains``, one a channel; its torque
+    channels times ``torque_signs``: the errors are those against the recorded channels)."""
     q, dq, ddq, target = samples
     signs = np.ones(q.shape[1]) if signs is None else signs
     predicted = model.evaluate_base(q * signs + offsets, dq * signs, ddq * signs) @ theta
+    if gains is not None:
+        predicted = predicted * gains
     if torque_signs is not None:
         predicted = predicted * channel_signs(model, torque_signs)
     return np.mean((target - predicted) ** 2, axis=0)
 
 
 def _nominal_mse(model: IdentificationModel, nominal: NDArray, samples: tuple[NDArray, NDArray, NDArray, NDArray],
-                 offsets: NDArray, signs: NDArray, torque_signs: NDArray) -> float:
+                 offsets: NDArray, signs: NDArray, torque_signs: NDArray, gained: NDArray | None = None) -> float:
     """The total MSE of the description's own bodies (its inertial values) on ``samples`` in the directions
     ``signs``, ``torque_signs`` at ``offsets``, the effects' parameters (friction, torque offsets) fitted by least
-    squares to what the bodies leave: the errors against the recorded channels."""
+    squares to what the bodies leave: the errors against the recorded channels. With ``gained``, the bodies' torque
+    of each ``gained`` channel times a positive gain fitted with the effects (:func:`_gained_bodies`)."""
     q, dq, ddq, target = samples
     target = target * channel_signs(model, torque_signs)
     Y = model.evaluate(q * signs + offsets, dq * signs, ddq * signs)
     bodies = len(nominal) - sum(len(effect.parameter_names(model.robot)) for effect in model.effects)
+    if gained is not None:
+        return _gained_bodies(Y[:, :, :bodies] @ nominal[:bodies], Y[:, :, bodies:], target, gained)
     residual = target - Y[:, :, :bodies] @ nominal[:bodies]
     if bodies < Y.shape[2]:
         residual = residual - Y[:, :, bodies:] @ _least_squares(Y[:, :, bodies:], residual)
     return float(np.sum(np.mean(residual ** 2, axis=0)))
+
+
+def _gained_bodies(body: NDArray, effects: NDArray, target: NDArray, gained: NDArray) -> float:
+    """The total MSE of ``target (N, m)`` fitted by ``body (N, m)``, the description's bodies' torque, times a gain on
+    each ``gained`` channel (``1`` on the others) and the columns ``effects (N, m, k)``, by least squares; a gain
+    that comes out negative or zero is held at zero (a reversed torque is the directions' to say, not a gain's)."""
+    fixed = np.where(gained, 0.0, 1.0)
+    channels = np.flatnonzero(gained)
+    active = channels
+    for _ in range(channels.size + 1):
+        columns = np.zeros((*body.shape, active.size))
+        columns[:, active, np.arange(active.size)] = body[:, active]
+        A = np.concatenate([effects, columns], axis=2)
+        residual = target - body * fixed
+        coefficients = _least_squares(A, residual) if A.shape[2] else np.zeros(0)
+        gains = coefficients[effects.shape[2]:]
+        if np.all(gains > 0.0):
+            break
+        active = active[gains > 0.0]
+    return float(np.sum(np.mean((residual - (A @ coefficients if A.shape[2] else 0.0)) ** 2, axis=0)))
+
+
+def gains_in_question(model: IdentificationModel, found: _Problem, scored: tuple[NDArray, NDArray, NDArray, NDArray],
+                      signs: NDArray, torque_signs: NDArray, sign: GainSign) -> NDArray | None:
+    """The joint-torque channels to give a free gain, when a gain on each lowers the held-out error markedly.
+
+    Torques logged with an unknown gain per joint (currents and a torque constant nobody gave) are a fault a linear
+    fit of ``θ`` cannot take up, and a joint's zero moved takes part of it up (:func:`_apart_from_gains`); with the
+    gains and a true offset together, a scan without the gains misses the offset or finds another (a 6-joint PUMA, 0.8
+    rad on joint 2: found on 3 of 8 logs, one at −172°). The gains are in question when the fit with them, on the
+    training samples ``found`` at the description's zeros in the directions found, predicts the held-out samples
+    ``scored`` with at most ``1 −`` :data:`MARKED_GAIN` of the weighted error of the fit without (the criterion of
+    the check's own warning): then the scan, the held-out estimate and the tests run with them. Only the gains the
+    training samples determine are freed (:func:`~estimation.identification.channel_gains.determined_channels`, after
+    :data:`SURVEY_ITERATIONS` steps with every gain free): the others wander along a valley of the cost (a PUMA's
+    wrist at the noise: gains of 100 and more for a fall of 2 %, as large as the offsets' tests). Returns the
+    channels' mask, or ``None`` (fewer than two gains determined, or they do not lower the error markedly)."""
+    gained = np.array([is_joint_torque(channel) for channel in model.channels])
+    if gained.sum() < 2:
+        return None
+    q, dq, ddq, target = scored
+    n = q.shape[1]
+    Y = model.evaluate_base(q * signs, dq * signs, ddq * signs)
+    target = target * channel_signs(model, torque_signs)
+    theta, _ = found.fit(np.zeros(n))
+    plain = np.mean(((target - Y @ theta) * found.weights) ** 2)
+
+    def held_out(fitted: ChannelGains) -> float:
+        return float(np.mean(((target - fitted.predicted(Y)) * found.weights) ** 2))
+
+    at_zero = found.regressor(np.zeros(n))
+    survey = fit_channel_gains(at_zero, found.target, found.weights, gained, sign=sign, max_iterations=SURVEY_ITERATIONS)
+    if not held_out(survey) < plain:  # every gain free does not lower it at all (a log without gains: the real robots')
+        return None
+    gained = determined_channels(at_zero, found.target, found.weights, gained, survey)
+    if gained.sum() < 2:
+        return None
+    return gained if held_out(found.with_gains(gained, sign).gains_fit(np.zeros(n))) <= (1 - MARKED_GAIN) * plain \
+        else None
 
 
 def check_joint_zeros(model: IdentificationModel, train: Measurements, held_out: Measurements | None = None, *,
@@ -524,7 +624,7 @@ def check_joint_zeros(model: IdentificationModel, train: Measurements, held_out:
 
 
 def _apart_from_gains(model: IdentificationModel, found: _Problem, held: _Problem, offsets: NDArray,
-                      named: list[int]) -> list[int]:
+                      named: list[int], *, gains: bool = False, sign: GainSign = "free") -> list[int]:
     """The joints of ``named`` whose offset a free gain on each joint's torque cannot explain as well.
 
     Torques logged as currents with an unknown gain per joint are a fault a linear fit of ``θ`` cannot take up, and a
@@ -541,6 +641,9 @@ def _apart_from_gains(model: IdentificationModel, found: _Problem, held: _Proble
       offsets estimated again with them (:func:`_gained_offsets`), its offset alone lowers the held-out error: the
       gains alone do not explain what it does (the training error is no judge: on a 3-joint PUMA the gains' freedom
       takes up a quarter turn of joint 2 on the training samples, not on the held-out ones).
+
+    With ``gains`` (:func:`gains_in_question`: the offsets were scanned with the gains), the second test alone (the
+    fit without gains is not the model of such a log), the gains' ``sign`` as the scan's.
     """
     if not named:
         return named
@@ -552,19 +655,19 @@ def _apart_from_gains(model: IdentificationModel, found: _Problem, held: _Proble
         return _weighted_mse(model, held, at, lambda Y: Y @ theta, weights)
 
     def with_gains(at: NDArray) -> tuple[float, float]:
-        gains = fit_channel_gains(found.regressor(at), found.target, weights, gained)
-        return gains.cost, _weighted_mse(model, held, at, gains.predicted, weights)
+        fitted = fit_channel_gains(found.regressor(at), found.target, weights, gained, sign=sign)
+        return fitted.cost, _weighted_mse(model, held, at, fitted.predicted, weights)
 
     said = np.zeros_like(offsets)  # the offsets said: the named joints' (the others' as recorded)
     said[named] = offsets[named]
     with np.errstate(all="ignore"):
-        refitted = _gained_offsets(found, said, np.array(named), gained)
-        plain_at, gains_at = plain_held(said), with_gains(refitted)
+        refitted = _gained_offsets(found, said, np.array(named), gained, sign)
+        plain_at, gains_at = (np.inf if gains else plain_held(said)), with_gains(refitted)
         kept = []
         for joint in named:
             without, refitted_without = said.copy(), refitted.copy()
             without[joint] = refitted_without[joint] = 0.0
-            if plain_held(without) > (1 + MIN_JOINT_GAIN) * plain_at and \
+            if (gains or plain_held(without) > (1 + MIN_JOINT_GAIN) * plain_at) and \
                     with_gains(refitted_without)[1] > (1 + MIN_JOINT_GAIN) * gains_at[1]:
                 kept.append(joint)
     return kept
@@ -576,16 +679,20 @@ def _weighted_mse(model: IdentificationModel, held: _Problem, offsets: NDArray, 
     return float(np.mean(((held.target - predict(Y)) * weights) ** 2))
 
 
-def _gained_offsets(problem: _Problem, offsets: NDArray, joints: NDArray, gained: NDArray) -> NDArray:
+def _gained_offsets(problem: _Problem, offsets: NDArray, joints: NDArray, gained: NDArray,
+                    sign: GainSign = "free") -> NDArray:
     """The offsets of ``joints`` minimising the training cost with a free gain on each ``gained`` channel:
     Gauss–Newton on ``(θ, s, δ_joints)`` from ``offsets`` (:func:`_gauss_newton` with the gains), the residual
-    ``τ_j − s_j Y_j(q + δ) θ`` linearised in all three, the first gained channel's gain held (the scale)."""
+    ``τ_j − s_j Y_j(q + δ) θ`` linearised in all three, the first gained channel's gain held (the scale); ``sign``:
+    whether the gains may change sign (:func:`fit_channel_gains`)."""
+    if joints.size == 0:
+        return offsets
     free = np.flatnonzero(gained)[1:]
     revolute = np.array([joint.joint_type == JointType.REVOLUTE for joint in problem.model.robot.joints])
     weights = problem.weights
 
     def scored(at: NDArray) -> tuple[float, ChannelGains]:
-        fitted = fit_channel_gains(problem.regressor(at), problem.target, weights, gained)
+        fitted = fit_channel_gains(problem.regressor(at), problem.target, weights, gained, sign=sign)
         return fitted.cost, fitted
 
     _, current = scored(offsets)
@@ -630,10 +737,15 @@ def _checked(model: IdentificationModel, train: Measurements, held_out: Measurem
         return None, False
     problem = _Problem(model, fitted)
     n = model.robot.n_joints
+    # the gains kept positive when the directions are scanned (a reversed torque is theirs to say), else either sign
+    sign: GainSign = "held" if directions else "free"
     with np.errstate(all="ignore"):
         signs, torque = estimate_signs(model, problem) if directions else (np.ones(n), np.ones(n))
         reversed_ = (signs < 0) | (torque < 0)
         found = problem.flipped(signs, torque) if np.any(reversed_) else problem
+        gained = gains_in_question(model, found, scored, signs, torque, sign)
+        if gained is not None:  # every cost from here on with a gain on each joint's torque
+            problem, found = problem.with_gains(gained, sign), found.with_gains(gained, sign)
         offsets = estimate_offsets(model, found)
     large = np.abs(offsets) >= MIN_OFFSET
     if not (np.any(large) or np.any(reversed_)) or \
@@ -642,6 +754,7 @@ def _checked(model: IdentificationModel, train: Measurements, held_out: Measurem
         return (JointZeroCheck(np.zeros(n), (), {channel: 1.0 for channel in model.channels}, 1.0, label, np.zeros(n)),
                 bool(np.any(reversed_)))
     held = _Problem(model, scored)
+    held = held if gained is None else held.with_gains(gained, sign)
     held_found = held.flipped(signs, torque) if np.any(reversed_) else held
     with np.errstate(all="ignore"):  # the held-out record's own estimate: a real offset is the same on both
         again = estimate_offsets(model, held_found)
@@ -662,35 +775,41 @@ def _checked(model: IdentificationModel, train: Measurements, held_out: Measurem
         without[joint] = 0.0
         if found.cost(without) > cost * (1 + MIN_JOINT_GAIN):
             named.append(int(joint))
-    named = _apart_from_gains(model, found, held_found, offsets, named)
+    named = _apart_from_gains(model, found, held_found, offsets, named, gains=gained is not None, sign=sign)
     kept = np.zeros(n)
     kept[named] = offsets[named]
     if np.any(kept_signs < 0) or np.any(kept_torque < 0):  # the description's own bodies must confirm each joint
         nominal = model.nominal_parameters()
-        with_all = _nominal_mse(model, nominal, fitted, kept, kept_signs, kept_torque)
+        with_all = _nominal_mse(model, nominal, fitted, kept, kept_signs, kept_torque, gained)
         confirmed = []
         for joint in np.flatnonzero((kept_signs < 0) | (kept_torque < 0) | (kept != 0)):
             signs_undone, torque_undone, kept_undone = kept_signs.copy(), kept_torque.copy(), kept.copy()
             signs_undone[joint] = torque_undone[joint] = 1.0
             kept_undone[joint] = 0.0
             if with_all <= (1 - MIN_JOINT_GAIN) * _nominal_mse(model, nominal, fitted, kept_undone, signs_undone,
-                                                               torque_undone):
+                                                               torque_undone, gained):
                 confirmed.append(joint)
         unconfirmed = np.setdiff1d(np.arange(n), confirmed)
         kept_signs[unconfirmed] = kept_torque[unconfirmed] = 1.0
         kept[unconfirmed] = 0.0
         named = [joint for joint in named if joint in confirmed]
-        if not _nominal_mse(model, nominal, fitted, kept, kept_signs, kept_torque) <= (1 - MARKED_GAIN) * \
-                _nominal_mse(model, nominal, fitted, np.zeros(n), np.ones(n), np.ones(n)):
+        if not _nominal_mse(model, nominal, fitted, kept, kept_signs, kept_torque, gained) <= (1 - MARKED_GAIN) * \
+                _nominal_mse(model, nominal, fitted, np.zeros(n), np.ones(n), np.ones(n), gained):
             kept_signs, kept_torque = np.ones(n), np.ones(n)
     flips = np.any(kept_signs < 0) or np.any(kept_torque < 0)
-    theta_zero, _ = problem.fit(np.zeros(n))
-    theta_offset, _ = (problem.flipped(kept_signs, kept_torque) if flips else problem).fit(kept)
-    before = _held_out_mse(model, theta_zero, scored, np.zeros(n))
-    after = _held_out_mse(model, theta_offset, scored, kept, kept_signs, kept_torque)
+    if gained is None:
+        theta_zero, _ = problem.fit(np.zeros(n))
+        theta_offset, _ = (problem.flipped(kept_signs, kept_torque) if flips else problem).fit(kept)
+        before = _held_out_mse(model, theta_zero, scored, np.zeros(n))
+        after = _held_out_mse(model, theta_offset, scored, kept, kept_signs, kept_torque)
+    else:  # both with the gains: what the offsets and directions do beside them
+        zero_fit = problem.gains_fit(np.zeros(n))
+        offset_fit = (problem.flipped(kept_signs, kept_torque) if flips else problem).gains_fit(kept)
+        before = _held_out_mse(model, zero_fit.theta, scored, np.zeros(n), gains=zero_fit.gains)
+        after = _held_out_mse(model, offset_fit.theta, scored, kept, kept_signs, kept_torque, gains=offset_fit.gains)
     ratio = {channel: float(a / b) if b > 0 else 1.0 for channel, a, b in zip(model.channels, after, before)}
     total = float(after.sum() / before.sum()) if before.sum() > 0 else 1.0
     check = JointZeroCheck(kept, tuple(named), ratio, total, label, again, tuple(bool(value) for value in ~revolute),
                            tuple(int(value) for value in kept_signs) if flips else (),
-                           tuple(int(value) for value in kept_torque) if flips else ())
+                           tuple(int(value) for value in kept_torque) if flips else (), gained is not None)
     return check, bool(np.any(reversed_))
