@@ -5,10 +5,12 @@ disguise, and which per-joint laws a law on a joint combination must explain mor
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Iterable, Sequence
 
 import numpy as np
 
 from dynamics.models import IdentificationModel
+from dynamics.effects.linear import Effect
 from dynamics.effects.motor import CombinationEffect
 from dynamics.effects.shaped import FRICTION_LAWS
 from estimation.diagnosis.candidates.coupling import PER_JOINT
@@ -84,7 +86,7 @@ def offsets_beat_springs(trials, model, offset_joints=frozenset()) -> dict[tuple
     return reasons
 
 
-def _law_family(effect) -> str | None:
+def _law_family(effect: Effect) -> str | None:
     """The per-joint law family an effect is (``inertia``, ``viscous``, ``coulomb``: the kinds of a joint
     combination's law, :data:`estimation.diagnosis.candidates.coupling.PER_JOINT`), or ``None``."""
     if effect.name in FRICTION_LAWS:
@@ -92,7 +94,8 @@ def _law_family(effect) -> str | None:
     return {law.name: kind for kind, law in PER_JOINT.items()}.get(effect.name)
 
 
-def own_laws_lacking(members, blocks: dict[int, Block], model: IdentificationModel, held) -> tuple[int, ...]:
+def own_laws_lacking(members: Sequence[Block], blocks: dict[int, Block], model: IdentificationModel,
+                     held: Iterable[tuple[Effect, tuple[int, ...]]]) -> tuple[int, ...]:
     """The candidate indices of the per-joint laws a coupled trial must explain more than: for each member that is
     a plain law on a joint combination (:class:`dynamics.effects.motor.CombinationEffect` of joints, not a declared
     transmission's motor), the per-joint law of its kind on each of its joints (an armature for ``inertia[q5+q6]``)
