@@ -17,7 +17,9 @@ and the delay. :class:`DiagnosisSearch` moves between such models (steps 2–4 o
   adopted when the Wald test of its block from the HAC covariance is significant at the same
   threshold (:mod:`estimation.diagnosis.rules.robust_test`: the statistic the reported p-values and
   standard deviations come from), its estimate is physical (:func:`wrong_sign`, a spring that is no
-  offset in disguise) and it lowers the weighted validation error by ``min_improvement``, summed over every
+  offset in disguise), a law on a joint combination explains more than the per-joint laws of its kind on
+  its joints that the model lacks (:meth:`DiagnosisSearch.own_laws_explain`: no ``inertia[q5+q6]`` where
+  the wrist holds two armatures) and it lowers the weighted validation error by ``min_improvement``, summed over every
   channel or over the channels it acts on (:func:`estimation.diagnosis.confirmation.own_rows_gain`: a joint's law
   is not diluted by the other joints) with the sum not rising, without making a channel it acts on worse;
 
@@ -54,7 +56,7 @@ from dynamics.runtime.progress import step
 from dynamics.effects.linear import Effect
 from dynamics.effects.shaped import FRICTION_LAWS
 from dynamics.models import IdentificationModel
-from estimation.diagnosis.candidates.trials import Trial, candidate_label, joints_of, wrong_sign
+from estimation.diagnosis.candidates.trials import Trial, candidate_label, joints_of, nested_test, wrong_sign
 from estimation.diagnosis.confirmation import CandidateComparison, channels_made_worse, own_rows_gain
 from estimation.diagnosis.candidates.coupling import combination_groups
 from estimation.diagnosis.candidates.delay import DelayTrial
@@ -63,7 +65,7 @@ from estimation.diagnosis.rules.robust_test import WaldTest
 from estimation.diagnosis.search_fits import AdoptedEffect, CurrentFit, Fits, TrialRequest
 from estimation.diagnosis.search_moves import (declared_conflict, move_bic, removable, removal_raises, replaced_by,
                                                replaced_in_place, tie_key)
-from estimation.diagnosis.rules.selection_rules import candidate_groups, offsets_beat_springs
+from estimation.diagnosis.rules.selection_rules import candidate_groups, offsets_beat_springs, own_laws_lacking
 from estimation.estimators.effect_blocks import Block, NoRowsError
 
 __all__ = ["DiagnosisSearch", "SearchOutcome", "SearchSettings", "candidate_blocks"]
@@ -339,7 +341,7 @@ class DiagnosisSearch:
         give) and the robust test when the trial is physical, confirmed and significant by that test, else
         why not (the robust test, the costliest, last)."""
         text = f"significant on training (p = {trial.p_value:.2g}) but "
-        reason = self.screened(trial, springs_beaten)
+        reason = self.screened(trial, springs_beaten) or self.own_laws_explain(trial)
         if reason is not None:
             return text + reason
         comparison = self.fits.compare(trial, self.weights)
@@ -370,6 +372,48 @@ class DiagnosisSearch:
         if reason is not None:
             return text + reason
         return comparison, tested.wald
+
+    def held_effects(self) -> list[tuple[Effect, tuple[int, ...]]]:
+        """The current model's effects (declared and adopted), each with the joints it acts on."""
+        n_joints = self.model.robot.n_joints
+        declared = [(effect, tuple(range(n_joints)) if getattr(effect, "joints", None) is None else tuple(effect.joints))
+                    for effect in self.model.effects]
+        return declared + [(item.effect, joints_of(item.block, self.model)) for item in self.adopted]
+
+    def own_laws_explain(self, trial: Trial) -> str | None:
+        """Why a law on a joint combination is refused, or ``None``: fitted beside the per-joint laws of its kind on
+        its joints that the model lacks (:func:`own_laws_lacking`: an armature on each joint of ``inertia[q5+q6]``),
+        its column is not significant (the nested F test at the search's threshold), or lies in their span with the
+        current model (a second coupled law beside a first: ``inertia[q5-q6]`` is ``2 (Ia5 + Ia6) − inertia[q5+q6]``
+        in columns). A coupled law claims what per-joint laws cannot say, so it must explain more than they do together,
+        as a spring must explain more than an offset (:func:`offsets_beat_springs`); on a geared arm whose wrist holds
+        two near-equal armatures, ``inertia[q5+q6]`` explains both at once with one parameter and wins its round by
+        BIC against either alone."""
+        own = [index for index in own_laws_lacking(trial.blocks, self.blocks, self.model, self.held_effects())
+               if index not in self.rejected and (index,) not in self.failed and index not in trial.group]
+        if not own:
+            return None
+        reference = self.fits.fit_current(self.weights, trial.without).rss if trial.without else self.current.rss
+        members = [self.blocks[index] for index in own]
+        alone = self.fits.trial(tuple(own), members, self.weights, reference, trial.without)
+        if isinstance(alone, str):
+            return None  # the per-joint laws themselves cannot be fitted here: nothing to compare with
+        both = self.fits.trial(tuple(own) + trial.group, members + list(trial.blocks), self.weights, reference,
+                               trial.without)
+        own_laws = ", ".join(f"{candidate_label(block.effect)} on {', '.join(self.model.channels[row] for row in block.rows)}"
+                             for block in members)
+        rule = "a law on a joint combination must explain more than the per-joint laws on its joints"
+        if isinstance(both, str):
+            if not both.startswith("not identifiable"):
+                return None
+            return (f"its column is its joints' own laws' ({own_laws}) with the current model: {rule}")
+        count = trial.n_parameters
+        n_fixed = both.fit.theta.shape[0] + both.fit.shape.shape[0] - count
+        _, p_value, _ = nested_test(alone.rss, both.rss, count, self.fits.n_rows, n_fixed)
+        if p_value < self.settings.threshold:
+            return None
+        return (f"explains nothing significant beyond its joints' own laws of its kind ({own_laws}; F test p = "
+                f"{p_value:.2g} at the level {self.settings.threshold:.2g}): {rule}")
 
     @staticmethod
     def screened(trial: Trial, springs_beaten: dict[tuple[int, ...], str]) -> str | None:

@@ -1,13 +1,19 @@
 """Rules of the search shared by the in-memory and the streamed diagnosis: which candidates
-compete together, which screened shapes are searched again, and when a spring or an armature is an offset in
-disguise."""
+compete together, which screened shapes are searched again, when a spring or an armature is an offset in
+disguise, and which per-joint laws a law on a joint combination must explain more than (:func:`own_laws_lacking`)."""
 
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Iterable, Sequence
+
+import numpy as np
 
 from dynamics.models import IdentificationModel
+from dynamics.effects.linear import Effect
+from dynamics.effects.motor import CombinationEffect
 from dynamics.effects.shaped import FRICTION_LAWS
+from estimation.diagnosis.candidates.coupling import PER_JOINT
 from estimation.diagnosis.candidates.trials import fit_or_reason, joints_of
 from estimation.estimators.effect_blocks import Block
 
@@ -78,3 +84,33 @@ def offsets_beat_springs(trials, model, offset_joints=frozenset()) -> dict[tuple
                                    else "an offset explains as much (an armature that is an offset in disguise: its "
                                         "column is the offset's beside the joint's constant gravity)")
     return reasons
+
+
+def _law_family(effect: Effect) -> str | None:
+    """The per-joint law family an effect is (``inertia``, ``viscous``, ``coulomb``: the kinds of a joint
+    combination's law, :data:`estimation.diagnosis.candidates.coupling.PER_JOINT`), or ``None``."""
+    if effect.name in FRICTION_LAWS:
+        return "coulomb"
+    return {law.name: kind for kind, law in PER_JOINT.items()}.get(effect.name)
+
+
+def own_laws_lacking(members: Sequence[Block], blocks: dict[int, Block], model: IdentificationModel,
+                     held: Iterable[tuple[Effect, tuple[int, ...]]]) -> tuple[int, ...]:
+    """The candidate indices of the per-joint laws a coupled trial must explain more than: for each member that is
+    a plain law on a joint combination (:class:`dynamics.effects.motor.CombinationEffect` of joints, not a declared
+    transmission's motor), the per-joint law of its kind on each of its joints (an armature for ``inertia[q5+q6]``)
+    that the model of the moment lacks. ``held``: the current model's effects (declared and adopted), whose
+    per-joint law families on their joints are what the model holds."""
+    holds = {(family, joint) for effect, joints in held for family in [_law_family(effect)] if family
+             for joint in joints}
+    lacking = []
+    for member in members:
+        effect = member.effect
+        if not isinstance(effect, CombinationEffect) or effect.motor or member.n_shape or effect.kind not in PER_JOINT:
+            continue
+        joints = {int(joint) for row in effect.weights for joint in np.flatnonzero(row)}
+        for index, block in blocks.items():
+            if block.effect.name == PER_JOINT[effect.kind].name and len(joints_of(block, model)) == 1 \
+                    and joints_of(block, model)[0] in joints and (effect.kind, joints_of(block, model)[0]) not in holds:
+                lacking.append(index)
+    return tuple(sorted(set(lacking)))
