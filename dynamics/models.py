@@ -29,8 +29,8 @@ from dynamics.codegen.compiled import SampleEvaluator
 from dynamics.channels import WRENCH_CHANNELS
 from dynamics.effects.linear import Effect, parse_effects
 from dynamics.errors import SampleShapeError
-from dynamics.newton_euler import RigidBodyRegressors, rigid_body_regressors
-from dynamics.robot import JointType, RobotModel, description_key
+from dynamics.newton_euler import rigid_body_regressors
+from dynamics.robot import ByDescription, JointType, RobotModel
 from dynamics.runtime.threads import available_cores
 
 STATE_NAMES: tuple[str, str, str] = ("q", "dq", "ddq")
@@ -47,29 +47,6 @@ class ModelKind(str, enum.Enum):
     INTERNAL = "internal"
     EXTERNAL = "external"
     COMBINED = "combined"
-
-
-@dataclass(frozen=True, eq=False)
-class _Described:
-    """A robot as a cache key: equal to another robot of the same description (:func:`description_key`), so that a
-    robot read again (each verb loads its robot anew) finds the regressors and models built on the first reading."""
-
-    robot: RobotModel
-    key: tuple = field(init=False)
-
-    def __post_init__(self) -> None:
-        object.__setattr__(self, "key", description_key(self.robot))
-
-    def __hash__(self) -> int:
-        return hash(self.key)
-
-    def __eq__(self, other: object) -> bool:
-        return isinstance(other, _Described) and other.key == self.key
-
-
-@functools.lru_cache(maxsize=16)
-def _rigid_body(described: _Described) -> RigidBodyRegressors:
-    return rigid_body_regressors(described.robot)
 
 
 @dataclass(frozen=True, eq=False)
@@ -251,15 +228,15 @@ def build_model(
         kind = ModelKind(kind)
     except ValueError:
         raise ValueError(f"unknown model {kind!r}; expected one of {[k.value for k in ModelKind]}") from None
-    return _build_model(_Described(robot), kind, parse_effects(effects), reduction_samples, seed)
+    return _build_model(ByDescription(robot), kind, parse_effects(effects), reduction_samples, seed)
 
 
 @functools.lru_cache(maxsize=64)
 def _build_model(
-    described: _Described, kind: ModelKind, effects: tuple[Effect, ...], reduction_samples: int | None, seed: int
+    described: ByDescription, kind: ModelKind, effects: tuple[Effect, ...], reduction_samples: int | None, seed: int
 ) -> IdentificationModel:
     robot = described.robot
-    rigid = _rigid_body(described)
+    rigid = rigid_body_regressors(robot)
     q, dq, ddq = rigid.q, rigid.dq, rigid.ddq
     joint_blocks, wrench_blocks = [rigid.joint], [rigid.wrench]
     names = list(robot.standard_parameter_names)

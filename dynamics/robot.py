@@ -231,6 +231,25 @@ def description_key(robot: RobotModel) -> tuple:
     return _value_key(robot)
 
 
+@dataclass(frozen=True, eq=False)
+class ByDescription:
+    """A robot as a cache key: equal to (and hashed as) any robot of the same description (:func:`description_key`),
+    so that what is derived from a robot read again (each verb loads its robot anew) is found in the cache of the
+    first reading; ``robot`` is the robot the key was made from."""
+
+    robot: RobotModel
+    key: tuple = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "key", description_key(self.robot))
+
+    def __hash__(self) -> int:
+        return hash(self.key)
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, ByDescription) and other.key == self.key
+
+
 def _value_key(value: object) -> object:
     if isinstance(value, np.ndarray):
         return ("array", value.dtype.str, value.shape, value.tobytes())
