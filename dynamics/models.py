@@ -1,7 +1,7 @@
 """Identification models: the internal, external and combined regressors with their base parameters.
 
 ``build_model(robot, "combined", effects="viscous")`` returns an :class:`IdentificationModel`
-holding named CasADi functions (built once per robot, model and effects, and cached)::
+holding named CasADi functions (built once per robot description, model and effects, and cached)::
 
     model.regressor        # internal_regressor(q, dq, ddq) -> Y        rows x p (standard params)
     model.base_regressor   # internal_base_regressor(q, dq, ddq) -> Y_base  rows x r
@@ -29,8 +29,8 @@ from dynamics.codegen.compiled import SampleEvaluator
 from dynamics.channels import WRENCH_CHANNELS
 from dynamics.effects.linear import Effect, parse_effects
 from dynamics.errors import SampleShapeError
-from dynamics.newton_euler import RigidBodyRegressors, rigid_body_regressors
-from dynamics.robot import JointType, RobotModel
+from dynamics.newton_euler import rigid_body_regressors
+from dynamics.robot import ByDescription, JointType, RobotModel
 from dynamics.runtime.threads import available_cores
 
 STATE_NAMES: tuple[str, str, str] = ("q", "dq", "ddq")
@@ -47,11 +47,6 @@ class ModelKind(str, enum.Enum):
     INTERNAL = "internal"
     EXTERNAL = "external"
     COMBINED = "combined"
-
-
-@functools.lru_cache(maxsize=16)
-def _rigid_body(robot: RobotModel) -> RigidBodyRegressors:
-    return rigid_body_regressors(robot)
 
 
 @dataclass(frozen=True, eq=False)
@@ -233,14 +228,15 @@ def build_model(
         kind = ModelKind(kind)
     except ValueError:
         raise ValueError(f"unknown model {kind!r}; expected one of {[k.value for k in ModelKind]}") from None
-    return _build_model(robot, kind, parse_effects(effects), reduction_samples, seed)
+    return _build_model(ByDescription(robot), kind, parse_effects(effects), reduction_samples, seed)
 
 
 @functools.lru_cache(maxsize=64)
 def _build_model(
-    robot: RobotModel, kind: ModelKind, effects: tuple[Effect, ...], reduction_samples: int | None, seed: int
+    described: ByDescription, kind: ModelKind, effects: tuple[Effect, ...], reduction_samples: int | None, seed: int
 ) -> IdentificationModel:
-    rigid = _rigid_body(robot)
+    robot = described.robot
+    rigid = rigid_body_regressors(robot)
     q, dq, ddq = rigid.q, rigid.dq, rigid.ddq
     joint_blocks, wrench_blocks = [rigid.joint], [rigid.wrench]
     names = list(robot.standard_parameter_names)

@@ -28,12 +28,13 @@ with z up).
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import casadi
 import numpy as np
 
-from dynamics.robot import N_LINK_PARAMETERS, JointType, RobotModel
+from dynamics.robot import N_LINK_PARAMETERS, ByDescription, JointType, RobotModel
 
 
 def _skew(vector: casadi.SX) -> casadi.SX:
@@ -119,7 +120,17 @@ class RigidBodyRegressors:
 
 
 def rigid_body_regressors(robot: RobotModel) -> RigidBodyRegressors:
-    """Build the symbolic internal and external regressors of ``robot`` by recursive Newton–Euler."""
+    """Build the symbolic internal and external regressors of ``robot`` by recursive Newton–Euler.
+
+    Built once per robot description (:class:`~dynamics.robot.ByDescription`, cached): a robot read again, or
+    another robot with the same joints, bodies and gravity, gets the same (immutable) expressions.
+    """
+    return _rigid_body_regressors(ByDescription(robot))
+
+
+@functools.lru_cache(maxsize=32)
+def _rigid_body_regressors(described: ByDescription) -> RigidBodyRegressors:
+    robot = described.robot
     n = robot.n_joints
     q = casadi.SX.sym("q", n)
     dq = casadi.SX.sym("dq", n)

@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import enum
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields, is_dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -229,6 +229,53 @@ class RobotModel:
             for index, joint in enumerate(self.joints)
         )
         return RobotModel(self.name, joints, self.gravity, self.geometry)
+
+
+def description_key(robot: RobotModel) -> tuple:
+    """A hashable key that two robots share exactly when every field of their descriptions is equal, bit for bit.
+
+    :class:`RobotModel` is compared by identity; a robot read again from the same description (a built-in robot
+    loaded by each verb, a URDF read by each ``oed predict``) is another object with the same values. Caches of
+    what is derived from a description alone (its regressors, the identification models built on it) are keyed on
+    this, so that the derived functions are built once per description and not once per reading. Every field of
+    the robot and of its joints enters the key (arrays by dtype, shape and bytes), whatever fields they gain.
+    """
+    return _value_key(robot)
+
+
+@dataclass(frozen=True, eq=False)
+class ByDescription:
+    """A robot as a cache key: equal to (and hashed as) any robot of the same description (:func:`description_key`),
+    so that what is derived from a robot read again (each verb loads its robot anew) is found in the cache of the
+    first reading; ``robot`` is the robot the key was made from."""
+
+    robot: RobotModel
+    key: tuple = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "key", description_key(self.robot))
+
+    def __hash__(self) -> int:
+        return hash(self.key)
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, ByDescription) and other.key == self.key
+
+
+def _value_key(value: object) -> object:
+    if isinstance(value, np.ndarray):
+        return ("array", value.dtype.str, value.shape, value.tobytes())
+    if is_dataclass(value) and not isinstance(value, type):
+        return (type(value).__qualname__, *((item.name, _value_key(getattr(value, item.name))) for item in fields(value)))
+    if isinstance(value, Mapping):
+        return ("mapping", *sorted((str(key), _value_key(item)) for key, item in value.items()))
+    if isinstance(value, (tuple, list)):
+        return (type(value).__name__, *(_value_key(item) for item in value))
+    if isinstance(value, float):
+        return ("float", np.float64(value).tobytes())  # 0.0 and -0.0 apart, NaN equal to itself
+    if isinstance(value, (str, int, bool, enum.Enum)) or value is None:
+        return (type(value).__name__, value)
+    return ("object", value)  # anything else by its own equality (identity unless it defines one)
 
 
 def inertial_parameters(mass: float, com: ArrayLike, inertia_com: ArrayLike) -> NDArray[np.float64]:

@@ -287,16 +287,12 @@ def test_a_bad_memory_budget_is_refused_by_name(tmp_path, records, capsys):
     assert code == 2 and "cannot read the memory size 'lots'" in capsys.readouterr().err
 
 
-def test_identify_chooses_alike_in_memory_and_streamed(tmp_path, records):
+def test_identify_chooses_alike_in_memory_and_streamed(identify_runs, capsys):
     """The same derivatives, channel weighting, answer and estimate, in memory and streamed (a Fourier fit of averaged
     periods: the streamed path chose no answer there before, and kept the weighting, WLS, where memory chose the
     consistent fit)."""
-    documents = {}
-    for name, options in (("memory", ()), ("streamed", ("--chunk-size", "250"))):
-        out = tmp_path / f"{name}.json"
-        assert main(["identify", "--joints", "3", "--model", "internal", "--friction", "viscous,coulomb,offset",
-                     "--data", str(records[0]), "--validate", str(records[1]), "--out", str(out), *options]) == 0
-        documents[name] = json.loads(out.read_text())
+    documents = {name: identify_runs(options, capsys)[0]
+                 for name, options in (("memory", ()), ("streamed", ("--chunk-size", "250")))}
     memory, streamed = documents["memory"], documents["streamed"]
     plan = {key: value for key, value in memory["preprocessing"].items()
             if key not in ("candidates", "validation_candidates")}
@@ -345,25 +341,36 @@ def test_the_path_is_decided_by_the_record_whatever_the_free_memory(model, recor
     assert not generous.stream and generous.need.budget == 10**12
 
 
-def _identify(tmp_path, records, name, *options):
-    out = tmp_path / f"identify_{name}.json"
-    code = main(["identify", "--joints", "3", "--model", "internal", "--friction", "viscous,coulomb,offset", "--data",
-                 str(records[0]), "--validate", str(records[1]), "--out", str(out), *options])
-    assert code == 0
-    return json.loads(out.read_text())
+@pytest.fixture(scope="module")
+def identify_runs(records, tmp_path_factory):
+    """``oed identify`` on the records with some options, each run once a module (the tests that compare the paths
+    on the same options share it; the runs are deterministic, their results read only): the document, and what the
+    run printed on standard output and standard error."""
+    folder, runs = tmp_path_factory.mktemp("identify_runs"), {}
+
+    def run(options: tuple[str, ...], capsys) -> tuple[dict, str, str]:
+        if options not in runs:
+            out = folder / f"identify_{len(runs)}.json"
+            capsys.readouterr()
+            code = main(["identify", "--joints", "3", "--model", "internal", "--friction", "viscous,coulomb,offset",
+                         "--data", str(records[0]), "--validate", str(records[1]), "--out", str(out), *options])
+            printed = capsys.readouterr()
+            assert code == 0, printed.err
+            runs[options] = json.loads(out.read_text()), printed.out, printed.err
+        return runs[options]
+
+    return run
 
 
 @pytest.mark.parametrize("derivatives", [(), ("--cutoff", "6")])
-def test_identify_one_document_whichever_the_path(tmp_path, records, capsys, derivatives):
+def test_identify_one_document_whichever_the_path(identify_runs, capsys, derivatives):
     """``oed identify`` in memory and streamed (forced by --chunk-size, chosen by a tiny --memory-budget): the
     streamed document has every key of the in-memory one (the validation's too), the same derivatives and estimate
     and errors; what it lacks is null with its reason in not_computed; the summary in the same form."""
-    memory = _identify(tmp_path, records, "memory", *derivatives)
-    printed_memory = capsys.readouterr().out
-    forced = _identify(tmp_path, records, "forced", "--chunk-size", "250", *derivatives)
-    printed = capsys.readouterr().out
-    budget = _identify(tmp_path, records, "budget", "--memory-budget", "1000", *derivatives)
-    assert "over the budget of 1 kB: streaming" in capsys.readouterr().err
+    memory, printed_memory, _ = identify_runs((*derivatives,), capsys)
+    forced, printed, _ = identify_runs(("--chunk-size", "250", *derivatives), capsys)
+    budget, _, error = identify_runs(("--memory-budget", "1000", *derivatives), capsys)
+    assert "over the budget of 1 kB: streaming" in error
     assert memory["identification_path"] == "in-memory" and memory["streaming"] is None
     assert memory["not_computed"] == {}
     for streamed in (forced, budget):
