@@ -18,7 +18,8 @@
   others not is no dropout, and stays an error.
 * **Lost frames written as zeros.** A fieldbus logger that misses a frame may write the row with every value ``0``
   (:func:`zero_rows`): on a robot of two joints or more, every position and torque exactly zero at once is no
-  measurement (rows without torques are not judged: a planned trajectory may start at the zero pose) (the torque sensors' noise alone forbids it), so such a row is a dropout like a blank one.
+  measurement (the torque sensors' noise alone forbids it), so such a row is a dropout like a blank one. Rows
+  without torques are not judged: a planned trajectory may start at the zero pose.
 
 Pure functions on arrays; :mod:`estimation.data.loading` turns their findings into warnings and errors.
 """
