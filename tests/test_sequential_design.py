@@ -231,7 +231,7 @@ def test_bad_input_is_named_and_nothing_is_written(files, capsys, tmp_path):
     _bad_input(files, capsys, ["--from", model, "--data", data, "--bounds", str(bounds)], "2 joints")
     bounds.unlink()
     wrong = files / "wrong.csv"
-    wrong.write_text("t,q1,q2,tau1,tau2\n0,0,0,0,0\n0.005,0,0,0,0\n0.01,0,0,0,0\n")
+    wrong.write_text("t,q1,q2,tau1,tau2\n0,0.1,0.2,0.3,0.4\n0.005,0.1,0.2,0.3,0.4\n0.01,0.1,0.2,0.3,0.4\n")  # not zeros: a lost frame
     _bad_input(files, capsys, ["--from", model, "--data", str(wrong)], "do not match the model")
     wrong.unlink()
 
