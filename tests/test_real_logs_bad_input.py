@@ -226,3 +226,14 @@ def test_a_validation_record_at_rest_is_named(files, capsys, tmp_path):
     code = main(["identify", "--robot", "puma560", "--joints", "3", "--data", str(files / "train.csv"), "--validate",
                  str(files / "val.csv"), "--out", str(tmp_path / "moves.json")])
     assert code == 0 and "hardly moves" not in capsys.readouterr().err
+
+
+def test_a_file_whose_every_row_is_a_lost_frame_is_a_named_error(tmp_path, capsys):
+    """Every row's positions and torques exactly 0 (a logger that wrote only lost frames): named, exit 2, nothing
+    written."""
+    zeros = tmp_path / "zeros.csv"
+    zeros.write_text("t,q1,q2,tau1,tau2\n0,0,0,0,0\n0.005,0,0,0,0\n0.01,0,0,0,0\n")
+    out = tmp_path / "out"
+    assert main(["identify", "--robot", "puma560", "--joints", "2", "--data", str(zeros), "--out", str(out)]) == 2
+    assert "every one of its 3 row(s) is a dropout" in capsys.readouterr().err
+    assert not out.exists()

@@ -46,6 +46,7 @@ from estimation.data.loading import (
     StallWarning,
     StillJointWarning,
     TimeBaseError,
+    TooFewSamplesError,
     UnwrappedAngleWarning,
     WrappedAngleError,
     check_angles,
@@ -312,6 +313,10 @@ def segments_from_frame(
     frame = frame.rename(columns=lambda name: str(name).strip())
     n_joints = _joint_count(frame, n_joints, model, source)
     blank = dropouts(frame, n_joints)
+    if len(frame) and blank.all():
+        raise TooFewSamplesError(
+            f"{source}: every one of its {len(frame)} row(s) is a dropout (its data cells all empty, or all exactly 0 "
+            "beside the torques: a lost frame written as zeros): no measured sample is left")
     if blank.any():
         first = int(np.flatnonzero(blank)[0])
         said_dropouts(int(blank.sum()), first, frame["t"].iloc[first] if "t" in frame.columns else None, source)
