@@ -83,7 +83,7 @@ def written(text: str) -> Path:
     """``text`` written once as a URDF file of its own (a temporary folder that outlives the test session's
     cases)."""
     path = Path(tempfile.mkdtemp(prefix="unseen-benches-")) / "description.urdf"
-    path.write_text(text)
+    path.write_text(text, encoding="utf-8")  # a vendor's joint names may hold accents
     return path
 
 

@@ -31,10 +31,8 @@ sampling spread; ``oed predict`` on the validation record reproduces the validat
 
 from __future__ import annotations
 
-import functools
 import re
 import warnings
-import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -44,7 +42,7 @@ import pytest
 from dynamics.robots import load_robot
 from dynamics.urdf_export import robot_urdf
 from tests.test_one_answer_audit import RELATIVE
-from tests.test_unseen_robot_benches import Bench
+from tests.test_unseen_robot_benches import Bench, written
 from tests.test_unseen_robot_kinds import as_well_as_the_plain_fit
 from tests.test_unseen_robot_labs import Lab, puma, run_lab
 from tests.test_unseen_robots import Log
@@ -65,15 +63,6 @@ LIGHT_ARM = """<?xml version="1.0"?>
   <link name="fore"><inertial><origin xyz="0.075 0.005 0"/><mass value="0.12"/><inertia ixx="0.00002" ixy="0" ixz="0" iyy="0.00025" iyz="0" izz="0.00025"/></inertial></link>
 </robot>
 """
-
-
-@functools.cache
-def written(text: str) -> Path:
-    """``text`` written once as a URDF file of its own (a temporary folder that outlives the test session's
-    cases)."""
-    path = Path(tempfile.mkdtemp(prefix="unseen-users-")) / "description.urdf"
-    path.write_text(text, encoding="utf-8")
-    return path
 
 
 def light_arm():
