@@ -86,6 +86,7 @@ from dynamics.measurements import Measurements
 from dynamics.codegen.compiled import SampleEvaluator
 from dynamics.models import ModelKind
 from dynamics.newton_euler import rigid_body_regressors
+from dynamics.robot import ByDescription
 from estimation.data.segments import segment_slices
 from estimation.uncertainty.wald import wald_test
 from estimation.identification.mount import mount_rpy
@@ -593,13 +594,12 @@ def rest_regressors(robot: Any, gravities: NDArray[np.float64]) -> SampleEvaluat
     ``n`` each), one compiled function (:class:`~dynamics.codegen.compiled.SampleEvaluator`, cached on disk) and no
     base-parameter reduction, which a model of each gravity would cost (:func:`dynamics.models.build_model`).
 
-    Built once per description: the function depends only on the chain's kinematics (each joint's type, axis,
-    placement and link transform; not its inertials: a regressor is linear in them) and on ``gravities``, and is
-    kept per that content (:func:`functools.lru_cache` on a key of their bytes; a robot loaded again from its
-    description, as each ``oed predict`` does, finds it). The cached value is the same function the content
-    builds, so the cache cannot change an answer."""
+    Built once per description and ``gravities`` (:class:`dynamics.robot.ByDescription`, as
+    :func:`dynamics.newton_euler.rigid_body_regressors`; a robot loaded again from its description, as each
+    ``oed predict`` does, finds it). The cached value is the same function the content builds, so the cache cannot
+    change an answer."""
     gravities = np.atleast_2d(np.asarray(gravities, dtype=float))
-    return _rest_functions(_Described(robot, gravities))[0]
+    return _rest_functions(ByDescription(robot), gravities.shape, gravities.tobytes())[0]
 
 
 def rest_loads(robot: Any, gravities: NDArray[np.float64]) -> SampleEvaluator:
@@ -607,34 +607,14 @@ def rest_loads(robot: Any, gravities: NDArray[np.float64]) -> SampleEvaluator:
     gravity along each row of ``gravities``: per sample ``[Y_1 θ_s, Y_2 θ_s, …]`` (``n`` each), the product of
     :func:`rest_regressors` with ``θ_s`` without its ``10 n`` columns per sample; built and kept alike."""
     gravities = np.atleast_2d(np.asarray(gravities, dtype=float))
-    return _rest_functions(_Described(robot, gravities))[1]
-
-
-@dataclass(frozen=True, eq=False)
-class _Described:
-    """A robot's kinematics and the gravities of :func:`rest_regressors`, compared and hashed by their content."""
-
-    robot: Any
-    gravities: NDArray[np.float64]
-
-    @property
-    def key(self) -> tuple[Any, ...]:
-        joints = tuple((joint.joint_type.value, np.asarray(joint.axis, dtype=float).tobytes(),
-                        np.asarray(joint.placement, dtype=float).tobytes(),
-                        np.asarray(joint.link_transform, dtype=float).tobytes()) for joint in self.robot.joints)
-        return joints, self.gravities.shape, self.gravities.tobytes()
-
-    def __hash__(self) -> int:
-        return hash(self.key)
-
-    def __eq__(self, other: object) -> bool:
-        return isinstance(other, _Described) and self.key == other.key
+    return _rest_functions(ByDescription(robot), gravities.shape, gravities.tobytes())[1]
 
 
 @functools.lru_cache(maxsize=16)
-def _rest_functions(described: _Described) -> tuple[SampleEvaluator, SampleEvaluator]:
+def _rest_functions(described: ByDescription, shape: tuple[int, ...], gravities_bytes: bytes
+                    ) -> tuple[SampleEvaluator, SampleEvaluator]:
     robot, blocks, q = described.robot, [], None
-    for gravity in described.gravities:
+    for gravity in np.frombuffer(gravities_bytes, dtype=float).reshape(shape):
         rigid = rigid_body_regressors(robot.with_gravity(gravity))
         joint = casadi.substitute(rigid.joint, casadi.vertcat(rigid.dq, rigid.ddq), casadi.SX.zeros(2 * robot.n_joints))
         if q is None:
