@@ -1120,8 +1120,7 @@ def diagnosis_streamed(args: DiagnoseOptions, friction: str, plan: Preprocessing
             runs.append(gravity_run[0])
             selection, taken = gravity_run[1], gravity_run[2]
             answer_run = gravity_run[0] if taken else None
-        if mount.absent and gains is None and not (checked is not None and checked[1]) and load_channels(model) \
-                and plan.method != "fourier":
+        if mount.absent and gains is None and not (checked is not None and checked[1]) and load_channels(model):
             # the exact model of a log less the description's gravity torque, a third candidate, as in memory
             subtracted_run = streamed_subtracted_diagnosis(given, friction, plan, findings, selection,
                                                            effects=effects, delay=delay)
@@ -1151,8 +1150,7 @@ def diagnosis_streamed(args: DiagnoseOptions, friction: str, plan: Preprocessing
         return replace(answer_run, diagnosis=diagnosis, messages=messages, notes=notes, friction_drift=drift,
                        selection=selection)
     diagnosis = replace(diagnosis, not_computed={**{key: reason for key, reason in diagnosis.not_computed.items()
-                                                    if key not in (*SELECTION_KEYS, "gravity")
-                                                    and (key != "subtracted" or plan.method == "fourier")},
+                                                    if key not in (*SELECTION_KEYS, "gravity", "subtracted")},
                                                     # computed now (a mount found is tried:
                                                     # streamed_gravity_diagnosis; the log less the description's
                                                     # gravity torque: streamed_subtracted_diagnosis)

@@ -465,7 +465,7 @@ def identification_streamed(args: IdentifyOptions, model: IdentificationModel, t
     unconstrained fits and the consistent refit (:func:`estimation.streaming.model_selection.summed_selection`: from
     the sums, every candidate scored on the same validation samples against the channels as recorded,
     :class:`ValidationScores`; on the Fourier path, whose sums hold averaged periods, every sample of the validation
-    files' whole periods scored, the mount and the torque gains not tried); on the validation files,
+    files' whole periods scored, the torque gains not tried); on the validation files,
     the errors against the channels as recorded, the trivial predictors' and the noise floor of their first rows
     (:func:`recorded_validation`). ``findings``: what the path decision said of the files (not said again)."""
     chunk_size = DEFAULT_CHUNK_SIZE if args.chunk_size is None else args.chunk_size
@@ -511,26 +511,26 @@ def identification_streamed(args: IdentifyOptions, model: IdentificationModel, t
         selection, sums, scores = streamed_armature_selection(
             args, selection, base=base, methods=methods, chunk_size=chunk_size, options=options, ratio=ratio,
             still=still, sums=sums, scores=scores)
-        if frequency_hz is None:  # the candidates of a found mount, a subtracted load, the gains: not on averaged periods
-            # (the checks themselves are said below on either path, streamed_description_notes)
-            # the joints' zeros and gravity's direction against the description's; a mount found is a candidate
-            checked = streamed_description_findings(
-                model, args.data, int(sums.train.n_samples), args.validate or [],
-                0 if sums.validation is None else int(sums.validation.n_samples), options=reading_options)
-            declared = selection.unconstrained.model  # the answer's model with the description's gravity
-            selection, sums, scores, gravity_taken = streamed_gravity_selection(
-                args, selection, checked.said_mount, base=base, methods=methods, chunk_size=chunk_size,
-                options=options, ratio=ratio, still=still, sums=sums, scores=scores)
-            selection, sums, scores, subtracted = streamed_subtracted_selection(
-                args, selection, declared, checked.said_mount, base=base, methods=methods, chunk_size=chunk_size,
-                options=options, ratio=ratio, still=still, sums=sums, scores=scores)
-            if subtracted is not None:  # every pass after reads the torques with the load added back, as memory's
-                options, gravity_taken = {**options, "load": subtracted}, False
-                reading_options = {**reading_options, "load": subtracted}
-            else:  # one known load at a time: the gains are not tried on a log that lacks one
-                selection, gains = streamed_torque_gains_selection(
-                    args, selection, base=base, methods=methods, chunk_size=chunk_size, options=options,
-                    ratio=ratio, still=still, sums=sums)
+        # the candidates of a found mount and of a subtracted load, on either path (the gains: not on the Fourier
+        # path, whose check fits the records, not their averaged periods); the joints' zeros and gravity's
+        # direction against the description's; a mount found is a candidate
+        checked = streamed_description_findings(
+            model, args.data, int(sums.train.n_samples), args.validate or [],
+            0 if sums.validation is None else int(sums.validation.n_samples), options=reading_options)
+        declared = selection.unconstrained.model  # the answer's model with the description's gravity
+        selection, sums, scores, gravity_taken = streamed_gravity_selection(
+            args, selection, checked.said_mount, base=base, methods=methods, chunk_size=chunk_size,
+            options=options, ratio=ratio, still=still, sums=sums, scores=scores)
+        selection, sums, scores, subtracted = streamed_subtracted_selection(
+            args, selection, declared, checked.said_mount, base=base, methods=methods, chunk_size=chunk_size,
+            options=options, ratio=ratio, still=still, sums=sums, scores=scores)
+        if subtracted is not None:  # every pass after reads the torques with the load added back, as memory's
+            options, gravity_taken = {**options, "load": subtracted}, False
+            reading_options = {**reading_options, "load": subtracted}
+        elif frequency_hz is None:  # one known load at a time: the gains are not tried on a log that lacks one
+            selection, gains = streamed_torque_gains_selection(
+                args, selection, base=base, methods=methods, chunk_size=chunk_size, options=options,
+                ratio=ratio, still=still, sums=sums)
         result = selection.unconstrained
     # a line per finding across files; those said when the path was decided (``findings``) not again
     messages = grouped_messages(caught, source_files([*args.data, *(args.validate or ())])) if findings is None \
@@ -541,9 +541,8 @@ def identification_streamed(args: IdentifyOptions, model: IdentificationModel, t
             not_computed.pop(key, None)
     if selection is not None:
         not_computed.pop("model_selection", None)
-        if frequency_hz is None:
-            not_computed.pop("gravity", None)  # a mount found is a candidate, as in memory
-            not_computed.pop("subtracted", None)  # and the log less the description's gravity torque
+        not_computed.pop("gravity", None)  # a mount found is a candidate, as in memory
+        not_computed.pop("subtracted", None)  # and the log less the description's gravity torque
         if selection.consistent is not None or args.method != "auto":
             not_computed.pop("consistent", None)
             not_computed.pop("links", None)
@@ -903,13 +902,18 @@ class ValidationScores:
                 if block_sums is not None:
                     blocks = {("theta", key): block_channel_mse(block_sums, np.asarray(theta, dtype=float))
                               for key, theta in thetas.items()}
-            elif fourier:  # averaged periods summed: every sample of the whole periods, the fit's motion there
+            elif fourier:  # averaged periods summed: every recorded sample, the fit's motion there
+                # each block of those samples too, as memory cuts the samples it compares (every row is scored: the
+                # blocks of the rows the validation files' sums read; none when the pass gives another count)
+                rows = sum(int(part.rows) for part in self.sums.validation_files)
+                squares = {("theta", key): BlockSquares(rows, model.n_channels) for key in thetas}
                 recorded, counted = counted_predicted_errors(
-                    model, theta_predictors(model, vectors), args.validate, chunk_size=self.chunk_size,
-                    decimation=self.decimation, held_torques=self.held_torques,
-                    frequency_hz=streaming["frequency_hz"], harmonics=self.harmonics)
-                # the samples scored, as memory counts its validation record (no blocks: memory holds none there)
+                    model, less_load(model, theta_predictors(model, vectors), self.load), args.validate,
+                    chunk_size=self.chunk_size, decimation=self.decimation, held_torques=self.held_torques,
+                    frequency_hz=streaming["frequency_hz"], harmonics=self.harmonics, blocks=squares)
+                # the samples scored, as memory counts its validation record
                 summed = {key: replace(errors, n_samples=counted) for key, errors in summed.items()}
+                blocks = {key: accumulated.block_mse(model.channels) for key, accumulated in squares.items()}
             else:
                 count = int(self.sums.validation.n_samples)
                 squares = {("theta", key): BlockSquares(count, model.n_channels) for key in thetas}
