@@ -465,7 +465,7 @@ def identification_streamed(args: IdentifyOptions, model: IdentificationModel, t
     unconstrained fits and the consistent refit (:func:`estimation.streaming.model_selection.summed_selection`: from
     the sums, every candidate scored on the same validation samples against the channels as recorded,
     :class:`ValidationScores`; on the Fourier path, whose sums hold averaged periods, every sample of the validation
-    files' whole periods scored, the torque gains not tried); on the validation files,
+    files' recorded samples scored); on the validation files,
     the errors against the channels as recorded, the trivial predictors' and the noise floor of their first rows
     (:func:`recorded_validation`). ``findings``: what the path decision said of the files (not said again)."""
     chunk_size = DEFAULT_CHUNK_SIZE if args.chunk_size is None else args.chunk_size
@@ -511,9 +511,9 @@ def identification_streamed(args: IdentifyOptions, model: IdentificationModel, t
         selection, sums, scores = streamed_armature_selection(
             args, selection, base=base, methods=methods, chunk_size=chunk_size, options=options, ratio=ratio,
             still=still, sums=sums, scores=scores)
-        # the candidates of a found mount and of a subtracted load, on either path (the gains: not on the Fourier
-        # path, whose check fits the records, not their averaged periods); the joints' zeros and gravity's
-        # direction against the description's; a mount found is a candidate
+        # the candidates of a found mount, of a subtracted load and of torque gains, on either path (on the Fourier
+        # path the sums hold averaged periods and the checks read every recorded sample with the fit's motion); the
+        # joints' zeros and gravity's direction against the description's; a mount found is a candidate
         checked = streamed_description_findings(
             model, args.data, int(sums.train.n_samples), args.validate or [],
             0 if sums.validation is None else int(sums.validation.n_samples), options=reading_options)
@@ -527,7 +527,7 @@ def identification_streamed(args: IdentifyOptions, model: IdentificationModel, t
         if subtracted is not None:  # every pass after reads the torques with the load added back, as memory's
             options, gravity_taken = {**options, "load": subtracted}, False
             reading_options = {**reading_options, "load": subtracted}
-        elif frequency_hz is None:  # one known load at a time: the gains are not tried on a log that lacks one
+        else:  # one known load at a time: the gains are not tried on a log that lacks one
             selection, gains = streamed_torque_gains_selection(
                 args, selection, base=base, methods=methods, chunk_size=chunk_size, options=options,
                 ratio=ratio, still=still, sums=sums)
@@ -587,12 +587,6 @@ def identification_streamed(args: IdentifyOptions, model: IdentificationModel, t
         findings=checked, gravity_taken=gravity_taken, subtracted=subtracted is not None)
     notes = (*notes, *said)
     result, chosen, selection = recorded_training(args, result, chosen, selection, chunk_size, options)
-    if frequency_hz is not None and args.method == "auto" and not args.consistent and args.validate \
-            and not model_has_shapes(model) and len(model.channels) > 1 \
-            and all(map(is_joint_torque, model.channels)):
-        not_computed["torque_gains"] = ("an unknown gain on each joint's recorded torque is a candidate of the "
-                                        "default answer (estimation.consistent.torque_gains), not tried on the "
-                                        "Fourier path (its check fits the records, not their averaged periods)")
     validation_mse = None if result.validation is None else result.validation.mse
     ranges = merged_ranges([part.joint_range for part in sums.files])  # taken in the sums pass
     validation_range = merged_ranges([part.joint_range for part in sums.validation_files])
@@ -626,12 +620,15 @@ def streamed_torque_gains_selection(args: IdentifyOptions, selection: ModelSelec
         return selection, None
     reading = {"chunk_size": chunk_size, "cutoff_hz": options["cutoff_hz"], "decimation": options["decimation"],
                "held_torques": options["held_torques"]}
+    recorded = int(sums.validation.n_samples)  # the validation samples as recorded the check's pass reads
+    if options["frequency_hz"] is not None:  # the Fourier path: every recorded row, the fit's motion there
+        reading.update(frequency_hz=options["frequency_hz"], harmonics=options["harmonics"])
+        recorded = sum(int(part.rows) for part in sums.validation_files)
     with step("an unknown gain on each joint's torque fitted and checked on the validation record"):
         try:
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")  # the files' findings were said on the first pass
-                checked = streamed_gains_check(model, sums.train, args.validate, int(sums.validation.n_samples),
-                                               reading)
+                checked = streamed_gains_check(model, sums.train, args.validate, recorded, reading)
         except (ValueError, np.linalg.LinAlgError):
             return selection, None
     if checked is None:
@@ -644,8 +641,7 @@ def streamed_torque_gains_selection(args: IdentifyOptions, selection: ModelSelec
             warnings.simplefilter("ignore")
             other = summed_selection(divided_sums(sums, gains, methods), base=base,
                                      consistent=consistent_settings(args, model.robot),
-                                     score=GainsScorer(model, gains, args.validate, reading,
-                                                       n_samples=int(sums.validation.n_samples)),
+                                     score=GainsScorer(model, gains, args.validate, reading, n_samples=recorded),
                                      ratio=ratio, still=still)
     answer, taken, compared = torque_gains_answer(selection, carried_reasons(selection, other), gains)
     return answer, (gains, taken, f"{sentence}; then {compared}" if compared else sentence)
