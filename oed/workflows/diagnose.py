@@ -1045,7 +1045,7 @@ def diagnosis_streamed(args: DiagnoseOptions, friction: str, plan: Preprocessing
         check_averaged(plan, [*args.data, *args.validate], model, chunk_size=chunk_size)  # "yes" stops as in memory
         still = warned_still_motion(model, args.data, args.validate, chunk_size=chunk_size)  # said as in memory
         checked, ratio = None, None
-        if gains is None and turned is None and subtracted is None and plan.method != "fourier" and delay is None:
+        if gains is None and turned is None and subtracted is None and delay is None:
             # the torque gains checked first, as in memory (not with a declared delay; the run with a found gravity
             # takes its caller's)
             with warnings.catch_warnings():
@@ -1220,6 +1220,8 @@ def streamed_gains(args: DiagnoseOptions, model: IdentificationModel, plan: Prep
     the validation record's repeated-motion ratio."""
     reading = {"chunk_size": chunk_size, "cutoff_hz": plan.cutoff_hz if plan.method == "butterworth" else None,
                "decimation": plan.decimation, "held_torques": plan.held_torques}
+    if plan.method == "fourier":  # the averaged periods summed, every recorded validation row checked (plan_chunks)
+        reading.update(frequency_hz=plan.frequency_hz, harmonics=plan.harmonics, average=plan.average_periods)
     return streamed_gains_check(args, model, reading, ratio=ratio, still=still)
 
 
