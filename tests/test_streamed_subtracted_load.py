@@ -44,11 +44,13 @@ CHUNK = "500"
 PERIODIC_HZ = 0.25
 
 
-def periodic_compensated_records(folder):
+def periodic_compensated_records(folder, *, compensated: bool = True, gains=None):
     """The log of :func:`tests.test_subtracted_load.compensated_records` (the 6-joint PUMA, bodies ±20 % off the
     description, the logged torque less the description's gravity torque) as a Fourier excitation of
     :data:`PERIODIC_HZ` logged without velocities: training, validation and test records of three motions, each two
-    whole periods (8 s) at 250 Hz, whose periods memory and the streamed reader average (the Fourier path)."""
+    whole periods (8 s) at 250 Hz, whose periods memory and the streamed reader average (the Fourier path).
+    ``compensated`` false: the torques as the model gives them (gravity in); ``gains``: each joint's logged torque
+    times its gain."""
     from tests.test_unseen_robots import FRICTION, truth
 
     robot = load_robot("puma560", joints=6)
@@ -58,8 +60,12 @@ def periodic_compensated_records(folder):
     for seed in (11, 12, 13):
         t = np.arange(0.0, 2.0 / PERIODIC_HZ, 0.004)
         q, dq, ddq = random_fourier(robot, seed=seed, frequency_hz=PERIODIC_HZ).evaluate(t)
-        tau = model.predict(theta, q, dq, ddq) - subtracted_torque(SubtractedLoad(), robot, q)
+        tau = model.predict(theta, q, dq, ddq)
+        if compensated:
+            tau = tau - subtracted_torque(SubtractedLoad(), robot, q)
         tau = tau + np.random.default_rng(seed).normal(0.0, 1.0, tau.shape) * 0.02 * tau.std(axis=0)
+        if gains is not None:
+            tau = tau * np.asarray(gains, dtype=float)
         frame = pd.DataFrame({"t": t, **{f"q{j + 1}": q[:, j] for j in range(6)},
                               **{f"tau{j + 1}": tau[:, j] for j in range(6)}})
         paths.append(folder / f"periodic{seed}.csv")
