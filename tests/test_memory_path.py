@@ -383,16 +383,16 @@ def test_identify_one_document_whichever_the_path(identify_runs, capsys, derivat
         assert missing <= set(streamed["not_computed"]), missing
         # the filter path computes every key but the HAC lags (the streamed covariance is batch means, by design),
         # which the in-memory document holds when its chosen model is an unconstrained fit (the per-joint torque
-        # gains are a candidate there too, estimation.streaming.torque_gains; the Fourier path says it lacks them);
+        # gains are a candidate there too, estimation.streaming.torque_gains, on the Fourier path as well: h-streamclock);
         # the friction drift is checked on both paths, on the same samples (h-streamchecks), averaged periods too
         # (h-streamchecks2)
         assert "friction_drift" not in missing and "friction_drift" not in streamed["not_computed"]
         assert streamed["friction_drift"]["joints"].keys() == memory["friction_drift"]["joints"].keys()
         for name, joint in memory["friction_drift"]["joints"].items():
             assert streamed["friction_drift"]["joints"][name]["scale"] == pytest.approx(joint["scale"], rel=1e-6)
-        assert bool(missing - {"hac_lags"}) == (memory["preprocessing"]["method"] == "fourier")
-        if memory["preprocessing"]["method"] != "fourier":
-            assert "torque_gains" not in missing and "torque_gains" not in streamed["not_computed"]
+        assert not missing - {"hac_lags"}, missing
+        assert "torque_gains" not in streamed["not_computed"]
+        assert (streamed["torque_gains"] is None) == (memory["torque_gains"] is None)
         assert ("hac_lags" in missing) == (memory["hac_lags"] is not None)
         assert all(streamed["not_computed"].values())
         assert streamed["preprocessing"]["method"] == memory["preprocessing"]["method"]

@@ -145,9 +145,7 @@ STREAMED_NOT_COMPUTED = {
                "(estimation.consistent.mounted_gravity) made by oed diagnose, not by diagnose_files",
     "subtracted": "the diagnosis of the torques with the description's gravity torque added back (a log less that "
                   "load) is a candidate of the default answer (estimation.consistent.mounted_gravity) made by oed "
-                  "diagnose, not by diagnose_files, and not on the Fourier path of averaged periods (the load is "
-                  "added back to the chunks of the filter path or of measured derivatives): there the model file "
-                  "subtracts nothing",
+                  "diagnose, not by diagnose_files",
 }
 
 

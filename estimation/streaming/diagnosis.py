@@ -75,7 +75,7 @@ from estimation.preprocessing.plan import Preprocessing
 from dynamics.measurements import Measurements
 from estimation.preprocessing.plan import at_recorded_stamps
 from estimation.identification.subtracted_load import SubtractedLoad
-from estimation.streaming.chunks import StreamingUnsupportedError, automatic_cutoff, logged_chunks, read_chunks
+from estimation.streaming.chunks import automatic_cutoff, logged_chunks, read_chunks
 from estimation.streaming.cluster import model_payload
 from estimation.streaming.covariance import BatchScores, sandwich
 from estimation.streaming.diagnosis_passes import (FLOOR_WINDOW, LagSums, SumsPass, scores_pass, subsample_pass,
@@ -418,7 +418,8 @@ def diagnose_files_run(
     (:func:`~estimation.streaming.diagnosis_candidates.streamed_candidates`). ``load``: a load of the description
     the logged torques lack (:mod:`estimation.identification.subtracted_load`), added back to every prepared chunk
     of every pass and to the noise floor's rows (:func:`estimation.streaming.chunks.loaded_chunk`), as memory adds it
-    to its prepared records: the diagnosis of the robot's torques; not on the Fourier path.
+    to its prepared records: the diagnosis of the robot's torques (on the Fourier path at the fit's motion,
+    :func:`estimation.streaming.periods.periodic_chunks`).
     """
     paths, validate = [str(path) for path in paths], [str(path) for path in validate]
     findings = FindingsSaid([*paths, *validate]) if findings is None else findings
@@ -427,9 +428,6 @@ def diagnose_files_run(
     with findings.reading():
         settings = _checked_settings(model, paths, validate, settings if preprocessing is None else
                                      replace(settings, **plan_options(preprocessing, average=True)))
-    if load is not None and settings.frequency_hz is not None:
-        raise StreamingUnsupportedError("a load the torques lack is added back on the filter path and with measured "
-                                        "derivatives, not to averaged periods")
     options, payload, clock = settings.reading(), model_payload(model), Stopwatch()
     with step(f"first pass over {len(paths)} training file(s) (subsample)"), findings.reading():
         first = subsample_pass(executor, payload, paths, options, settings.subsample)  # pass 1 (training files)

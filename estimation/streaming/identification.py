@@ -74,13 +74,10 @@ STREAMED_NOT_COMPUTED = {
                        "memory; streamed, the model is the weighting asked for or chosen on held-out blocks "
                        "(method_selection)",
     "gravity": "the fit with the found gravity (or none) is a candidate of the answer chosen from sums "
-               "(estimation.consistent.mounted_gravity), as in memory; on the Fourier path (averaged periods, or every "
-               "sample fitted) the mount is checked and said as in memory, but the fit with the found gravity is "
-               "not tried: the model keeps the description's gravity",
+               "(estimation.consistent.mounted_gravity) by oed identify, as in memory, not by identify_files",
     "subtracted": "the fit to the torques with the description's gravity torque added back (a log less that load) "
-                  "is a candidate of the answer chosen from sums (estimation.consistent.mounted_gravity), as in "
-                  "memory; on the Fourier path (averaged periods, or every sample fitted) it is not tried, though the "
-                  "mount is checked and said: the model file subtracts nothing",
+                  "is a candidate of the answer chosen from sums (estimation.consistent.mounted_gravity) by oed "
+                  "identify, as in memory, not by identify_files",
 }
 
 
@@ -208,12 +205,9 @@ def identify_files_candidates(
     pass (one reading and one regressor a chunk for all), and the sums kept (:class:`SummedFits`). ``load``: a load
     of the description the logged torques lack (:mod:`estimation.identification.subtracted_load`), added back to
     every prepared chunk of every pass (:func:`estimation.streaming.chunks.loaded_chunk`: the robot's torques, as
-    memory fits them); not with ``frequency_hz`` (averaged periods)."""
+    memory fits them; on the Fourier path at the fit's motion, :func:`estimation.streaming.periods.periodic_chunks`)."""
     if covariance not in ("hac", "classical"):
         raise ValueError(f"covariance must be 'hac' or 'classical', got {covariance!r}")
-    if load is not None and frequency_hz is not None:
-        raise StreamingUnsupportedError("a load the torques lack is added back on the filter path and with measured "
-                                        "derivatives, not to averaged periods (frequency_hz)")
     methods = tuple(dict.fromkeys(methods))
     if not methods or not set(methods) <= {"ols", "wls"}:
         raise ValueError(f"methods must be among 'ols' and 'wls', got {methods!r}")

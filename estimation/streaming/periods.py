@@ -44,7 +44,8 @@ from estimation.preprocessing.differentiation import (
 )
 from estimation.preprocessing.fourier_series import FourierSeries, SummedFourierFit, TriangularFourierFit
 from estimation.preprocessing.plan import Preprocessing
-from estimation.streaming.chunks import FileSums, StreamingUnsupportedError, preprocessed_chunks, read_chunks
+from estimation.identification.subtracted_load import SubtractedLoad
+from estimation.streaming.chunks import FileSums, StreamingUnsupportedError, loaded_chunk, preprocessed_chunks, read_chunks
 
 __all__ = ["PeriodicFile", "average_periods_streamed", "check_averaged", "periodic_chunks", "periodic_file_sums", "periodic_prepared",
            "plan_chunks", "plan_options", "read_periodic"]
@@ -191,14 +192,15 @@ def _prepared(averaged: Measurements, frequency_hz: float, harmonics: int, decim
 
 def periodic_file_sums(path: str | Path, model: IdentificationModel, *, frequency_hz: float, harmonics: int = 5,
                        chunk_size: int = DEFAULT_CHUNK_SIZE, decimation: int = 1, held_torques: bool = False,
-                       average: str = "auto", **ignored) -> FileSums:
+                       average: str = "auto", load: SubtractedLoad | None = None, **ignored) -> FileSums:
     """Sums of one periodic file on the Fourier path: its averaged period (streamed average, then the in-memory
     fit), or its every sample with the fit's motion (module docstring) (``ignored``: the Butterworth options of
-    :func:`estimation.streaming.chunks.file_sums`)."""
+    :func:`estimation.streaming.chunks.file_sums`; ``load``: :func:`periodic_chunks`')."""
     record: dict = {}
     sums, joint_range = NormalEquations.empty(model.channels, model.base.names, model.base.expressions), None
     for chunk in periodic_chunks(path, model, frequency_hz=frequency_hz, harmonics=harmonics, chunk_size=chunk_size,
-                                 decimation=decimation, held_torques=held_torques, record=record, average=average):
+                                 decimation=decimation, held_torques=held_torques, record=record, average=average,
+                                 load=load):
         sums = accumulate(model, chunk, chunk_size=chunk_size, sums=sums)
         if chunk.n_samples:  # the samples summed: the training range, in the same pass
             joint_range = TrainingRange.of(chunk.q, chunk.dq, model.robot.joint_names).merged(joint_range)
@@ -213,14 +215,32 @@ def periodic_file_sums(path: str | Path, model: IdentificationModel, *, frequenc
 def periodic_chunks(path: str | Path, model: IdentificationModel, *, frequency_hz: float, harmonics: int = 5,
                     chunk_size: int = DEFAULT_CHUNK_SIZE, decimation: int = 1, held_torques: bool = False,
                     as_recorded: bool = False, record: dict | None = None,
-                    average: str = "auto") -> Iterator[Measurements]:
+                    average: str = "auto", load: SubtractedLoad | None = None) -> Iterator[Measurements]:
     """One periodic file on the Fourier path, chunk by chunk (module docstring): its averaged period prepared,
     or, ``as_recorded``, the rows of its whole periods with the fit's motion at their instants (held torques:
     the motion half a sample later, from the fit itself); a file whose periods are not averaged: its every row with
     the fit's motion at its instant, either way. ``record`` receives ``rows``, ``columns`` and ``metadata`` as
     :func:`estimation.streaming.chunks.preprocessed_chunks` gives them, and ``samples`` (those yielded when not
     ``as_recorded``) and ``resampled_from``. ``average``: memory's choice of averaging the periods
-    (``--average-periods``: :func:`read_periodic`'s)."""
+    (``--average-periods``: :func:`read_periodic`'s). ``load``: a load of the description the logged torques lack
+    (:class:`~estimation.identification.subtracted_load.SubtractedLoad`), added to each chunk's torques at its
+    positions, which are the fit's (:func:`estimation.streaming.chunks.loaded_chunk`), as memory adds it to the
+    prepared record, the averaged period and the recorded samples beside it
+    (:func:`~estimation.identification.subtracted_load.added_back`); ``None``: the torques as logged."""
+    chunks = _periodic_chunks(path, model, frequency_hz=frequency_hz, harmonics=harmonics, chunk_size=chunk_size,
+                              decimation=decimation, held_torques=held_torques, as_recorded=as_recorded, record=record,
+                              average=average)
+    if load is None:
+        yield from chunks
+        return
+    for chunk in chunks:
+        yield loaded_chunk(chunk, load, model)
+
+
+def _periodic_chunks(path: str | Path, model: IdentificationModel, *, frequency_hz: float, harmonics: int,
+                     chunk_size: int, decimation: int, held_torques: bool, as_recorded: bool, record: dict | None,
+                     average: str) -> Iterator[Measurements]:
+    """:func:`periodic_chunks` without a load."""
     read = read_periodic(path, model, frequency_hz, harmonics, chunk_size=chunk_size, average=average)
     averaged = read.averaged
     if decimation != 1 and (as_recorded or averaged is None):
@@ -272,18 +292,15 @@ def plan_chunks(path: str | Path, model: IdentificationModel, *, frequency_hz: f
     """One file's prepared chunks: on the Fourier path (:func:`periodic_chunks`) when ``frequency_hz`` is given
     and the file lacks ``dq``/``ddq`` (``average``: ``--average-periods``), else
     :func:`estimation.streaming.chunks.preprocessed_chunks` (``options``: its keyword arguments; its ``load``, a load
-    the logged torques lack added back, on that path only)."""
+    the logged torques lack added back, on either path)."""
     if frequency_hz is not None:
         chunk_size = options.get("chunk_size", DEFAULT_CHUNK_SIZE)
         first = next(read_chunks(path, model, chunk_size=chunk_size))
         if first.dq is None or first.ddq is None:
-            if options.get("load") is not None:
-                raise StreamingUnsupportedError(f"{path}: a load the torques lack is added back on the filter path "
-                                                "and with measured derivatives, not to averaged periods")
             yield from periodic_chunks(path, model, frequency_hz=frequency_hz, harmonics=harmonics,
                                        chunk_size=chunk_size, decimation=options.get("decimation", 1),
                                        held_torques=options.get("held_torques", False), as_recorded=as_recorded,
-                                       record=record, average=average)
+                                       record=record, average=average, load=options.get("load"))
             return
     yield from preprocessed_chunks(path, model, record=record, **options)
 

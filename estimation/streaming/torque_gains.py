@@ -77,13 +77,16 @@ def files_gains_check(model: IdentificationModel, paths: Sequence[str | Path], v
                       options: Mapping[str, Any], executor: Any = None) -> tuple[TorqueGains, bool, str] | None:
     """:func:`streamed_gains_check` of ``model`` on training files ``paths`` and validation files ``validate``, read
     with ``options`` (:func:`~estimation.streaming.cluster.sum_files`'s: ``chunk_size``, ``cutoff_hz``,
-    ``decimation``, ``held_torques``): the sums of the training files and the count of the validation files' samples
+    ``decimation``, ``held_torques``; ``frequency_hz``, ``harmonics``: the Fourier path): the sums of the training files and the count of the validation files' samples
     in one pass each, then the check's pass (as the in-memory diagnosis measures them on the prepared records,
     :func:`~estimation.consistent.torque_gains.gains_for_records`, of the plain model it passes). Memory: the sums
     (``m p²`` floats) and one chunk."""
     train, _ = sum_files(model, paths, executor=executor, **options)
-    validation, _ = sum_files(model, validate, executor=executor, **options)
-    return streamed_gains_check(model, train, validate, int(validation.n_samples), options)
+    validation, parts = sum_files(model, validate, executor=executor, **options)
+    # the samples the check's pass reads: on the Fourier path (the sums hold averaged periods) every recorded row
+    count = sum(int(part.rows) for part in parts) if options.get("frequency_hz") is not None \
+        else int(validation.n_samples)
+    return streamed_gains_check(model, train, validate, count, options)
 
 
 def _divided(sums: NormalEquations | None, factors: NDArray[np.float64]) -> NormalEquations | None:

@@ -1045,7 +1045,7 @@ def diagnosis_streamed(args: DiagnoseOptions, friction: str, plan: Preprocessing
         check_averaged(plan, [*args.data, *args.validate], model, chunk_size=chunk_size)  # "yes" stops as in memory
         still = warned_still_motion(model, args.data, args.validate, chunk_size=chunk_size)  # said as in memory
         checked, ratio = None, None
-        if gains is None and turned is None and subtracted is None and plan.method != "fourier" and delay is None:
+        if gains is None and turned is None and subtracted is None and delay is None:
             # the torque gains checked first, as in memory (not with a declared delay; the run with a found gravity
             # takes its caller's)
             with warnings.catch_warnings():
@@ -1120,8 +1120,7 @@ def diagnosis_streamed(args: DiagnoseOptions, friction: str, plan: Preprocessing
             runs.append(gravity_run[0])
             selection, taken = gravity_run[1], gravity_run[2]
             answer_run = gravity_run[0] if taken else None
-        if mount.absent and gains is None and not (checked is not None and checked[1]) and load_channels(model) \
-                and plan.method != "fourier":
+        if mount.absent and gains is None and not (checked is not None and checked[1]) and load_channels(model):
             # the exact model of a log less the description's gravity torque, a third candidate, as in memory
             subtracted_run = streamed_subtracted_diagnosis(given, friction, plan, findings, selection,
                                                            effects=effects, delay=delay)
@@ -1151,8 +1150,7 @@ def diagnosis_streamed(args: DiagnoseOptions, friction: str, plan: Preprocessing
         return replace(answer_run, diagnosis=diagnosis, messages=messages, notes=notes, friction_drift=drift,
                        selection=selection)
     diagnosis = replace(diagnosis, not_computed={**{key: reason for key, reason in diagnosis.not_computed.items()
-                                                    if key not in (*SELECTION_KEYS, "gravity")
-                                                    and (key != "subtracted" or plan.method == "fourier")},
+                                                    if key not in (*SELECTION_KEYS, "gravity", "subtracted")},
                                                     # computed now (a mount found is tried:
                                                     # streamed_gravity_diagnosis; the log less the description's
                                                     # gravity torque: streamed_subtracted_diagnosis)
@@ -1222,6 +1220,8 @@ def streamed_gains(args: DiagnoseOptions, model: IdentificationModel, plan: Prep
     the validation record's repeated-motion ratio."""
     reading = {"chunk_size": chunk_size, "cutoff_hz": plan.cutoff_hz if plan.method == "butterworth" else None,
                "decimation": plan.decimation, "held_torques": plan.held_torques}
+    if plan.method == "fourier":  # the averaged periods summed, every recorded validation row checked (plan_chunks)
+        reading.update(frequency_hz=plan.frequency_hz, harmonics=plan.harmonics, average=plan.average_periods)
     return streamed_gains_check(args, model, reading, ratio=ratio, still=still)
 
 

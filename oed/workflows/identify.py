@@ -465,7 +465,7 @@ def identification_streamed(args: IdentifyOptions, model: IdentificationModel, t
     unconstrained fits and the consistent refit (:func:`estimation.streaming.model_selection.summed_selection`: from
     the sums, every candidate scored on the same validation samples against the channels as recorded,
     :class:`ValidationScores`; on the Fourier path, whose sums hold averaged periods, every sample of the validation
-    files' whole periods scored, the mount and the torque gains not tried); on the validation files,
+    files' recorded samples scored); on the validation files,
     the errors against the channels as recorded, the trivial predictors' and the noise floor of their first rows
     (:func:`recorded_validation`). ``findings``: what the path decision said of the files (not said again)."""
     chunk_size = DEFAULT_CHUNK_SIZE if args.chunk_size is None else args.chunk_size
@@ -511,26 +511,26 @@ def identification_streamed(args: IdentifyOptions, model: IdentificationModel, t
         selection, sums, scores = streamed_armature_selection(
             args, selection, base=base, methods=methods, chunk_size=chunk_size, options=options, ratio=ratio,
             still=still, sums=sums, scores=scores)
-        if frequency_hz is None:  # the candidates of a found mount, a subtracted load, the gains: not on averaged periods
-            # (the checks themselves are said below on either path, streamed_description_notes)
-            # the joints' zeros and gravity's direction against the description's; a mount found is a candidate
-            checked = streamed_description_findings(
-                model, args.data, int(sums.train.n_samples), args.validate or [],
-                0 if sums.validation is None else int(sums.validation.n_samples), options=reading_options)
-            declared = selection.unconstrained.model  # the answer's model with the description's gravity
-            selection, sums, scores, gravity_taken = streamed_gravity_selection(
-                args, selection, checked.said_mount, base=base, methods=methods, chunk_size=chunk_size,
-                options=options, ratio=ratio, still=still, sums=sums, scores=scores)
-            selection, sums, scores, subtracted = streamed_subtracted_selection(
-                args, selection, declared, checked.said_mount, base=base, methods=methods, chunk_size=chunk_size,
-                options=options, ratio=ratio, still=still, sums=sums, scores=scores)
-            if subtracted is not None:  # every pass after reads the torques with the load added back, as memory's
-                options, gravity_taken = {**options, "load": subtracted}, False
-                reading_options = {**reading_options, "load": subtracted}
-            else:  # one known load at a time: the gains are not tried on a log that lacks one
-                selection, gains = streamed_torque_gains_selection(
-                    args, selection, base=base, methods=methods, chunk_size=chunk_size, options=options,
-                    ratio=ratio, still=still, sums=sums)
+        # the candidates of a found mount, of a subtracted load and of torque gains, on either path (on the Fourier
+        # path the sums hold averaged periods and the checks read every recorded sample with the fit's motion); the
+        # joints' zeros and gravity's direction against the description's; a mount found is a candidate
+        checked = streamed_description_findings(
+            model, args.data, int(sums.train.n_samples), args.validate or [],
+            0 if sums.validation is None else int(sums.validation.n_samples), options=reading_options)
+        declared = selection.unconstrained.model  # the answer's model with the description's gravity
+        selection, sums, scores, gravity_taken = streamed_gravity_selection(
+            args, selection, checked.said_mount, base=base, methods=methods, chunk_size=chunk_size,
+            options=options, ratio=ratio, still=still, sums=sums, scores=scores)
+        selection, sums, scores, subtracted = streamed_subtracted_selection(
+            args, selection, declared, checked.said_mount, base=base, methods=methods, chunk_size=chunk_size,
+            options=options, ratio=ratio, still=still, sums=sums, scores=scores)
+        if subtracted is not None:  # every pass after reads the torques with the load added back, as memory's
+            options, gravity_taken = {**options, "load": subtracted}, False
+            reading_options = {**reading_options, "load": subtracted}
+        else:  # one known load at a time: the gains are not tried on a log that lacks one
+            selection, gains = streamed_torque_gains_selection(
+                args, selection, base=base, methods=methods, chunk_size=chunk_size, options=options,
+                ratio=ratio, still=still, sums=sums)
         result = selection.unconstrained
     # a line per finding across files; those said when the path was decided (``findings``) not again
     messages = grouped_messages(caught, source_files([*args.data, *(args.validate or ())])) if findings is None \
@@ -541,9 +541,8 @@ def identification_streamed(args: IdentifyOptions, model: IdentificationModel, t
             not_computed.pop(key, None)
     if selection is not None:
         not_computed.pop("model_selection", None)
-        if frequency_hz is None:
-            not_computed.pop("gravity", None)  # a mount found is a candidate, as in memory
-            not_computed.pop("subtracted", None)  # and the log less the description's gravity torque
+        not_computed.pop("gravity", None)  # a mount found is a candidate, as in memory
+        not_computed.pop("subtracted", None)  # and the log less the description's gravity torque
         if selection.consistent is not None or args.method != "auto":
             not_computed.pop("consistent", None)
             not_computed.pop("links", None)
@@ -588,12 +587,6 @@ def identification_streamed(args: IdentifyOptions, model: IdentificationModel, t
         findings=checked, gravity_taken=gravity_taken, subtracted=subtracted is not None)
     notes = (*notes, *said)
     result, chosen, selection = recorded_training(args, result, chosen, selection, chunk_size, options)
-    if frequency_hz is not None and args.method == "auto" and not args.consistent and args.validate \
-            and not model_has_shapes(model) and len(model.channels) > 1 \
-            and all(map(is_joint_torque, model.channels)):
-        not_computed["torque_gains"] = ("an unknown gain on each joint's recorded torque is a candidate of the "
-                                        "default answer (estimation.consistent.torque_gains), not tried on the "
-                                        "Fourier path (its check fits the records, not their averaged periods)")
     validation_mse = None if result.validation is None else result.validation.mse
     ranges = merged_ranges([part.joint_range for part in sums.files])  # taken in the sums pass
     validation_range = merged_ranges([part.joint_range for part in sums.validation_files])
@@ -627,12 +620,15 @@ def streamed_torque_gains_selection(args: IdentifyOptions, selection: ModelSelec
         return selection, None
     reading = {"chunk_size": chunk_size, "cutoff_hz": options["cutoff_hz"], "decimation": options["decimation"],
                "held_torques": options["held_torques"]}
+    recorded = int(sums.validation.n_samples)  # the validation samples as recorded the check's pass reads
+    if options["frequency_hz"] is not None:  # the Fourier path: every recorded row, the fit's motion there
+        reading.update(frequency_hz=options["frequency_hz"], harmonics=options["harmonics"])
+        recorded = sum(int(part.rows) for part in sums.validation_files)
     with step("an unknown gain on each joint's torque fitted and checked on the validation record"):
         try:
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")  # the files' findings were said on the first pass
-                checked = streamed_gains_check(model, sums.train, args.validate, int(sums.validation.n_samples),
-                                               reading)
+                checked = streamed_gains_check(model, sums.train, args.validate, recorded, reading)
         except (ValueError, np.linalg.LinAlgError):
             return selection, None
     if checked is None:
@@ -645,8 +641,7 @@ def streamed_torque_gains_selection(args: IdentifyOptions, selection: ModelSelec
             warnings.simplefilter("ignore")
             other = summed_selection(divided_sums(sums, gains, methods), base=base,
                                      consistent=consistent_settings(args, model.robot),
-                                     score=GainsScorer(model, gains, args.validate, reading,
-                                                       n_samples=int(sums.validation.n_samples)),
+                                     score=GainsScorer(model, gains, args.validate, reading, n_samples=recorded),
                                      ratio=ratio, still=still)
     answer, taken, compared = torque_gains_answer(selection, carried_reasons(selection, other), gains)
     return answer, (gains, taken, f"{sentence}; then {compared}" if compared else sentence)
@@ -903,13 +898,18 @@ class ValidationScores:
                 if block_sums is not None:
                     blocks = {("theta", key): block_channel_mse(block_sums, np.asarray(theta, dtype=float))
                               for key, theta in thetas.items()}
-            elif fourier:  # averaged periods summed: every sample of the whole periods, the fit's motion there
+            elif fourier:  # averaged periods summed: every recorded sample, the fit's motion there
+                # each block of those samples too, as memory cuts the samples it compares (every row is scored: the
+                # blocks of the rows the validation files' sums read; none when the pass gives another count)
+                rows = sum(int(part.rows) for part in self.sums.validation_files)
+                squares = {("theta", key): BlockSquares(rows, model.n_channels) for key in thetas}
                 recorded, counted = counted_predicted_errors(
-                    model, theta_predictors(model, vectors), args.validate, chunk_size=self.chunk_size,
-                    decimation=self.decimation, held_torques=self.held_torques,
-                    frequency_hz=streaming["frequency_hz"], harmonics=self.harmonics)
-                # the samples scored, as memory counts its validation record (no blocks: memory holds none there)
+                    model, less_load(model, theta_predictors(model, vectors), self.load), args.validate,
+                    chunk_size=self.chunk_size, decimation=self.decimation, held_torques=self.held_torques,
+                    frequency_hz=streaming["frequency_hz"], harmonics=self.harmonics, blocks=squares)
+                # the samples scored, as memory counts its validation record
                 summed = {key: replace(errors, n_samples=counted) for key, errors in summed.items()}
+                blocks = {key: accumulated.block_mse(model.channels) for key, accumulated in squares.items()}
             else:
                 count = int(self.sums.validation.n_samples)
                 squares = {("theta", key): BlockSquares(count, model.n_channels) for key in thetas}
