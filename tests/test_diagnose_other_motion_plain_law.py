@@ -99,7 +99,11 @@ def capped_in_memory(friction):
     return json.loads(out.read_text())
 
 
-@pytest.mark.parametrize("options", [("--chunk-size", "250"), ("--memory-budget", "1KB")],
+#: past ``--memory-budget`` the run streams as with ``--chunk-size`` (that route's own findings and answers are checked in
+#: ``make test`` by tests/test_streamed_reader_parity.py and tests/test_one_answer_audit.py's jittered budget cases):
+#: the budget case runs in ``make test-slow``, as in tests/test_diagnose_repeat_plain_law.py
+@pytest.mark.parametrize("options", [("--chunk-size", "250"), pytest.param(("--memory-budget", "1KB"),
+                                                                           marks=pytest.mark.slow)],
                          ids=["chunk-size", "memory-budget"])
 def test_the_streamed_diagnosis_completes_the_plain_law_as_in_memory(friction, capped_in_memory, tmp_path, options):
     """A log streamed (``--chunk-size``, or past ``--memory-budget``) answers another motion as in memory: the same

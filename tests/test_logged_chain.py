@@ -53,8 +53,12 @@ def test_the_log_s_joints_determine_the_chain_of_a_gripper_urdf(records, tmp_pat
     assert tuple(arm.joint_names) == ARM
 
 
-@pytest.mark.parametrize("streamed", [False, True], ids=["in-memory", "streamed"])
-@pytest.mark.parametrize("mimic", [False, True], ids=["branching", "mimic"])
+#: the chain is read from the description before any record (:func:`logged_chain`, the same on either path): the mimic
+#: gripper streamed runs in ``make test-slow``, ``make test`` reads it in memory and streams the branching one
+@pytest.mark.parametrize(("mimic", "streamed"), [
+    pytest.param(mimic, streamed, id=f"{'mimic' if mimic else 'branching'}-{'streamed' if streamed else 'in-memory'}",
+                 marks=[pytest.mark.slow] if mimic and streamed else [])
+    for mimic in (False, True) for streamed in (False, True)])
 def test_identify_on_the_defaults_reads_the_logged_chain_and_predict_reads_the_same(records, tmp_path, mimic,
                                                                                     streamed):
     urdf, files = records

@@ -60,16 +60,21 @@ IN_MEMORY_ONLY = ("identify --consistent", "diagnose --test")
 #: the options a record needs: the period of the periodic one
 RECORD_OPTIONS = {"periodic": ["--frequency", "0.2"]}
 #: ``--memory-budget`` is the defaults' own route to the streamed path, the reading and the result as with
-#: ``--chunk-size``: ``make test`` takes that route on the jittered record (every verb it streams); on the arm and the
+#: ``--chunk-size``: ``make test`` takes that route on the jittered record (with the defaults); on the arm and the
 #: periodic records, whose streamed path the chunks cases take, it runs in ``make test-slow``
 SLOW_BUDGET_RECORDS = ("arm", "periodic")
+#: on the jittered record too, the budget route with an option beside the defaults (``--method ols``,
+#: ``--consistent``) runs in ``make test-slow``: ``make test`` streams each option there with ``--chunk-size``, and takes
+#: the budget route with the default ``identify`` and ``diagnose``
+SLOW_BUDGET_VERBS = ("identify --method ols", "diagnose --consistent")
 
 
 def slow_case(verb: str, path: str, record: str) -> bool:
-    """The cases ``make test-slow`` runs: the budget route on the arm and periodic records, and the in-memory
-    ``diagnose`` without ``--test`` (``diagnose --test`` makes the same diagnosis, every check of this case on it,
-    and scores the test record beside)."""
-    return (path == "budget" and record in SLOW_BUDGET_RECORDS) or (verb == "diagnose" and path == "in-memory")
+    """The cases ``make test-slow`` runs: the budget route on the arm and periodic records, and with an option
+    (:data:`SLOW_BUDGET_VERBS`) on the jittered one; the in-memory ``diagnose`` without ``--test`` (``diagnose
+    --test`` makes the same diagnosis, every check of this case on it, and scores the test record beside)."""
+    return (path == "budget" and (record in SLOW_BUDGET_RECORDS or verb in SLOW_BUDGET_VERBS)) or \
+        (verb == "diagnose" and path == "in-memory")
 
 
 CASES = [pytest.param(verb, path, record, id=f"{record}-{verb}-{path}",

@@ -167,7 +167,11 @@ def test_the_streamed_identify_says_a_repeat_as_in_memory(records):
     assert len(said["memory"]) == 1 and said["streamed"] == said["memory"]
 
 
-@pytest.mark.parametrize("verb", ["identify", "diagnose"])
+#: ``identify`` runs in ``make test-slow``: ``make test`` streams ``oed identify`` with ``--transmission`` and
+#: ``--joint-offsets`` on both routes (``--chunk-size`` and past ``--memory-budget``) against the in-memory estimate in
+#: tests/test_streamed_motor_side.py (``test_identify_streamed_with_transmission_and_joint_offsets``), and keeps
+#: ``diagnose`` here (the streamed diagnosis's joint-side copies with ``--joint-offsets``, tested nowhere else)
+@pytest.mark.parametrize("verb", [pytest.param("identify", marks=pytest.mark.slow), "diagnose"])
 def test_joint_offsets_and_transmission_streamed(zeroed, verb):
     """``--joint-offsets`` and ``--transmission`` on the streamed path (``--chunk-size``, or past ``--memory-budget``):
     read through joint-side copies (:mod:`oed.workflows.joint_side`; was: exit 2 with ``--chunk-size``, in memory past
