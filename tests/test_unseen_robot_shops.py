@@ -39,10 +39,8 @@ import pytest
 
 from dynamics.models import build_model
 from dynamics.robots import load_robot
-from tests.test_one_answer_audit import RELATIVE
-from tests.test_unseen_robot_benches import Bench, written
-from tests.test_unseen_robot_kinds import as_well_as_the_plain_fit
-from tests.test_unseen_robot_labs import Lab, puma, run_lab
+from tests.test_unseen_robot_benches import Bench, judged, marks, written
+from tests.test_unseen_robot_labs import Lab, puma
 from tests.test_unseen_robot_rigs import seven_joint_urdf
 from tests.test_unseen_robots import Log
 
@@ -248,24 +246,10 @@ SHOPS = (
 )
 
 
-def marks(bench: Bench) -> list[pytest.MarkDecorator]:
-    chosen = [pytest.mark.slow] if bench.lab.slow else []
-    if bench.lab.xfail:
-        chosen.append(pytest.mark.xfail(strict=True, reason=bench.lab.xfail))
-    return chosen
-
-
 @pytest.mark.parametrize("bench, rewritten", [pytest.param(bench, rewritten, id=bench.name, marks=marks(bench))
                                               for bench, rewritten in SHOPS])
 def test_the_defaults_run_and_predict_a_shops_log_as_well_as_a_plain_fit(bench, rewritten, tmp_path):
-    outcome = run_lab(bench.lab, tmp_path, rewritten=rewritten)
-    print(f"\nreproduced validation error (relative): {outcome['reproduced']}")
-    as_well_as_the_plain_fit(bench.name, outcome, f"chosen {outcome['selections']}; ")
-    for label, error in outcome["reproduced"].items():
-        assert error < RELATIVE, (label, error)
-    for label, named in outcome["effects"].items():
-        false = [effect for effect in named if effect.split(" on ")[0].split(":")[0] not in bench.may_name]
-        assert not false, (label, false)
+    judged(bench, tmp_path, rewritten)
 
 
 def test_negative_axes_and_a_placed_base_predict_as_pinocchio_does():
