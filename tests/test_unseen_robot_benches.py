@@ -182,9 +182,11 @@ def marks(bench: Bench) -> list[pytest.MarkDecorator]:
     return chosen
 
 
-@pytest.mark.parametrize("bench", [pytest.param(bench, id=bench.name, marks=marks(bench)) for bench in BENCHES])
-def test_the_defaults_run_and_predict_a_benchs_log_as_well_as_a_plain_fit(bench, tmp_path):
-    outcome = run_lab(bench.lab, tmp_path)
+def judged(bench: Bench, folder: Path, rewritten=None) -> None:
+    """Run ``bench`` (:func:`tests.test_unseen_robot_labs.run_lab`, each file rewritten by ``rewritten``) and check
+    it: every verb within the plain fit's margins, ``oed predict`` reproducing each reported validation error, no
+    effect named beyond ``bench.may_name``."""
+    outcome = run_lab(bench.lab, folder, rewritten=rewritten)
     print(f"\nreproduced validation error (relative): {outcome['reproduced']}")
     as_well_as_the_plain_fit(bench.name, outcome, f"chosen {outcome['selections']}; ")
     for label, error in outcome["reproduced"].items():
@@ -192,6 +194,11 @@ def test_the_defaults_run_and_predict_a_benchs_log_as_well_as_a_plain_fit(bench,
     for label, named in outcome["effects"].items():
         false = [effect for effect in named if effect.split(" on ")[0].split(":")[0] not in bench.may_name]
         assert not false, (label, false)
+
+
+@pytest.mark.parametrize("bench", [pytest.param(bench, id=bench.name, marks=marks(bench)) for bench in BENCHES])
+def test_the_defaults_run_and_predict_a_benchs_log_as_well_as_a_plain_fit(bench, tmp_path):
+    judged(bench, tmp_path)
 
 
 def test_the_pendulums_description_reads_as_one_joint_under_gravity():

@@ -66,7 +66,9 @@ class Lab:
     train: Log
     validate: Log
     test: Log
-    test_motion: str = "fourier"  # "point-to-point", or "jog": a teach pendant's slow moves, one joint at a time
+    test_motion: str | Callable[[SimpleNamespace, int, np.ndarray], tuple[np.ndarray, ...]] = "fourier"
+    # "point-to-point", "jog" (a teach pendant's slow moves, one joint at a time), or a motion of its own
+    # ``(limits, seed, t) -> (q, dq, ddq)``
     validate_motion: str = "fourier"  # the validation record's: "fourier" (the training's kind) or "point-to-point"
     rest: float = 0.4  # the rests between point-to-point moves (s)
     armature: tuple[float, ...] = ()  # each joint's reflected rotor inertia (kg m²), not in the description
@@ -218,7 +220,9 @@ def write_records(case: Lab, folder: Path) -> tuple[Path, dict, dict, np.ndarray
         t = times(log, generator)
         motion = {"test": case.test_motion, "validate": case.validate_motion}.get(role, "fourier")
         within = confined(limits, *case.trained_range) if case.trained_range and role != "test" else limits
-        if motion == "point-to-point":
+        if callable(motion):
+            q, dq, ddq = motion(limits, seed, t)
+        elif motion == "point-to-point":
             q, dq, ddq = point_to_point(limits, seed, t, rest=case.rest)
         elif motion == "jog":
             q, dq, ddq = jog(limits, seed, t)

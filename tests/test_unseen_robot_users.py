@@ -41,10 +41,8 @@ import pytest
 
 from dynamics.robots import load_robot
 from dynamics.urdf_export import robot_urdf
-from tests.test_one_answer_audit import RELATIVE
-from tests.test_unseen_robot_benches import Bench, written
-from tests.test_unseen_robot_kinds import as_well_as_the_plain_fit
-from tests.test_unseen_robot_labs import Lab, puma, run_lab
+from tests.test_unseen_robot_benches import Bench, judged, marks, written
+from tests.test_unseen_robot_labs import Lab, puma
 from tests.test_unseen_robots import Log
 
 #: the joints' names in the vendor's description (a space, a dot, an accent)
@@ -256,24 +254,10 @@ USERS = (
 )
 
 
-def marks(bench: Bench) -> list[pytest.MarkDecorator]:
-    chosen = [pytest.mark.slow] if bench.lab.slow else []
-    if bench.lab.xfail:
-        chosen.append(pytest.mark.xfail(strict=True, reason=bench.lab.xfail))
-    return chosen
-
-
 @pytest.mark.parametrize("bench, rewritten", [pytest.param(bench, rewritten, id=bench.name, marks=marks(bench))
                                               for bench, rewritten in USERS])
 def test_the_defaults_run_and_predict_a_new_users_log_as_well_as_a_plain_fit(bench, rewritten, tmp_path):
-    outcome = run_lab(bench.lab, tmp_path, rewritten=rewritten)
-    print(f"\nreproduced validation error (relative): {outcome['reproduced']}")
-    as_well_as_the_plain_fit(bench.name, outcome, f"chosen {outcome['selections']}; ")
-    for label, error in outcome["reproduced"].items():
-        assert error < RELATIVE, (label, error)
-    for label, named in outcome["effects"].items():
-        false = [effect for effect in named if effect.split(" on ")[0].split(":")[0] not in bench.may_name]
-        assert not false, (label, false)
+    judged(bench, tmp_path, rewritten)
 
 
 def test_a_header_written_again_and_a_row_of_zeros_are_dropped_alike_in_memory_and_streamed(tmp_path):

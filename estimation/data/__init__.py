@@ -21,6 +21,7 @@ _EXPORTS: dict[str, str] = {
     "DEGREES_THRESHOLD": "estimation.data.loading",
     "GAP_FACTOR": "estimation.data.loading",
     "DuplicatedTimesWarning": "estimation.data.loading",
+    "QuantisedStampsWarning": "estimation.data.loading",
     "DelimiterWarning": "estimation.data.loading",
     "UnitsRowWarning": "estimation.data.loading",
     "HoleError": "estimation.data.loading",

@@ -144,6 +144,12 @@ class StallWarning(MeasurementWarning):
     """Short stalls of the logger (samples missing) were bridged by interpolation."""
 
 
+class QuantisedStampsWarning(MeasurementWarning):
+    """A time column whose resolution is as coarse as the samples' step (whole milliseconds at 1 kHz): rows sharing
+    a stamp are samples the clock does not tell apart, every row kept on the regular clock through the stamps
+    (:func:`estimation.data.sampling_clock.quantised_clock`)."""
+
+
 class CoarseStampsWarning(MeasurementWarning):
     """Time stamps stored as float32 so far from zero that their rounding reaches a good part of the sampling step:
     the samples' instants are lost."""

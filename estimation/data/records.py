@@ -33,6 +33,7 @@ from estimation.data.loading import (
     COLUMN_GROUPS,
     DelimiterWarning,
     DuplicatedTimesWarning,
+    QuantisedStampsWarning,
     UnitsRowWarning,
     without_repeated_headers,
     GROUP_MEANING,
@@ -74,7 +75,7 @@ from estimation.data.log_formats import (
     read_log_frame,
     time_column,
 )
-from estimation.data.sampling_clock import clock_roughness, said_receive_times
+from estimation.data.sampling_clock import clock_instants, clock_roughness, quantised_clock, said_receive_times
 from estimation.data.log_cleaning import (DEFAULT_MAX_GAP, ZERO_ROW_JOINTS, Gap, blank_rows, describe, find_gaps,
                                           repeated_rows, split_rows, time_stamps_jump, zero_rows)
 from dynamics.measurements import Measurements, joint_columns
@@ -512,6 +513,9 @@ class CleanedTimes:
         The gaps longer than ``max_gap`` (the record is split there) and the shorter ones (bridged), by row of ``t``.
     repeated_rows_dropped, duplicated_times_dropped
         Rows dropped of each kind.
+    clock
+        ``(t0, step)``: the rows kept were placed on the regular clock ``t0 + step * k`` (``k`` the kept row's index),
+        their time column as coarse as the samples' step (:func:`_on_quantised_clock`); ``None``: at their stamps.
     """
 
     keep: NDArray[np.bool_]
@@ -521,6 +525,7 @@ class CleanedTimes:
     stalls: list
     repeated_rows_dropped: int
     duplicated_times_dropped: int
+    clock: tuple[float, float] | None = None
 
     @property
     def bridged(self) -> bool:
@@ -536,11 +541,15 @@ def clean_time_base(t: NDArray[np.float64], repeated: NDArray[np.bool_], source:
     time (:class:`DuplicatedTimesWarning`), the time base checked (:func:`check_time`), ``check`` called with the
     mask of the rows kept (the units of the angles), and the gaps found (:func:`_holes_and_stalls`); with ``split``,
     a clock that starts again (:func:`clock_restarts`) splits the record there as a hole does (a
-    :class:`SplitWarning`)."""
+    :class:`SplitWarning`). Before the repeated stamps are looked at, a time column as coarse as the samples' step
+    whose rows share stamps puts the rows kept on the regular clock through it, every row kept
+    (:func:`_on_quantised_clock`; :attr:`CleanedTimes.clock`, which the streamed reader's blocks take their
+    instants from)."""
     recorded = t
     keep = _unrepeated(t, repeated, source)
     dropped = int(t.shape[0] - np.count_nonzero(keep))
     kept_rows = np.flatnonzero(keep)
+    t, clock = _on_quantised_clock(t, kept_rows, source)
     later = _duplicated_times(t[kept_rows], source, max_gap if split else None)
     keep[kept_rows[later]] = False
     t = t[keep]
@@ -558,7 +567,29 @@ def clean_time_base(t: NDArray[np.float64], repeated: NDArray[np.bool_], source:
             f"one after the other into one file, read as {len(restarts) + 1} segments (split there, each preprocessed "
             "on its own and each keeping its own time stamps)", SplitWarning, stacklevel=4)
         holes = sorted([*holes, *restarts], key=lambda gap: gap.row)
-    return CleanedTimes(keep, t, step, holes, stalls, dropped, int(later.size))
+    return CleanedTimes(keep, t, step, holes, stalls, dropped, int(later.size), clock)
+
+
+def _on_quantised_clock(t: NDArray[np.float64], kept_rows: NDArray[np.int_], source: str
+                        ) -> tuple[NDArray[np.float64], tuple[float, float] | None]:
+    """``t`` with the stamps of ``kept_rows`` on the regular clock through them where they are as coarse as the
+    samples' step and some share a stamp (:func:`~estimation.data.sampling_clock.quantised_clock`), said in a
+    :class:`QuantisedStampsWarning`, and the clock's ``(t0, step)``; ``(t, None)`` elsewhere."""
+    found = quantised_clock(t[kept_rows])
+    if found is None:
+        return t, None
+    t0, step, resolution = found
+    clock = clock_instants(t0, step, 0, kept_rows.shape[0])
+    shared = int(np.count_nonzero(np.diff(t[kept_rows]) == 0))
+    warnings.warn(
+        f"{source}: the stamps of column t advance by ticks of {resolution:.6g} s, as coarse as the samples' step "
+        f"({step:.6g} s): {shared} row(s) share their stamp with the row before (new values: samples the clock "
+        "does not tell apart, not a clock that did not tick); read on the regular clock through the stamps "
+        f"(t = {clock[0]:.6g} + k * {step:.6g} s, every stamp within its resolution of it), every row kept",
+        QuantisedStampsWarning, stacklevel=5)
+    out = t.copy()
+    out[kept_rows] = clock
+    return out, (t0, step)
 
 
 def clock_restarts(t: NDArray[np.float64], max_gap: float) -> list[Gap]:

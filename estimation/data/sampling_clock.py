@@ -36,8 +36,8 @@ from dynamics.measurements import Measurements
 from estimation.data.loading import ReceiveTimesWarning
 from estimation.data.log_cleaning import STALL_FACTOR
 
-__all__ = ["CLOCK_TOLERANCE", "RECEIVE_TIMES_RATIO", "ClockSums", "clock_roughness", "on_regular_clock",
-           "receive_times_ratio", "regular_clock", "said_receive_times"]
+__all__ = ["CLOCK_TOLERANCE", "QUANTUM_STEPS", "RECEIVE_TIMES_RATIO", "ClockSums", "clock_instants",
+           "clock_roughness", "on_regular_clock", "quantised_clock", "receive_times_ratio", "regular_clock", "said_receive_times"]
 
 #: the positions are said to follow a regular clock rather than the stamps when their interpolation residuals at
 #: the stamps are at least this many times those on a regular clock (root mean square, median over the joints)
@@ -168,6 +168,80 @@ def regular_clock(t: NDArray[np.float64]) -> NDArray[np.float64] | None:
     if np.max(np.abs(t - clock)) >= CLOCK_TOLERANCE * step:
         return None
     return clock
+
+
+#: a time column's resolution at most this many samples' steps is read as the clock of the samples it cannot tell
+#: apart (:func:`quantised_clock`); a coarser one (whole seconds at 100 Hz) says too little of the instants
+QUANTUM_STEPS = 2.0
+#: ternary steps of the narrowest band's slope search (each keeps two thirds of the bracket: (2/3)^80 ~ 1e-14)
+NARROWEST_ITERATIONS = 80
+
+
+def quantised_clock(t: NDArray[np.float64]) -> tuple[float, float, float] | None:
+    """The regular clock ``t0 + k * step`` through stamps ``t`` of a resolution as coarse as the samples' step (a
+    1 kHz controller's millisecond counter): ``(t0, step, resolution)``; ``None`` elsewhere.
+
+    Such a clock writes the same stamp on two samples now and then (the counter and the sampling clock a little
+    apart): new values at a repeated stamp, which the loader otherwise drops as a clock that did not tick, losing
+    a sample and putting the next one a whole step early. Each stamp is its sample's instant truncated or rounded to
+    the resolution ``r``: the instants lie on a regular clock when the stamps' deviations from the narrowest line
+    through them (on the sample's index ``k``) span at most ``r``; that line places every row, each within its
+    stamp's resolution. Only when some row repeats the previous stamp and every other step is one tick ``r`` (the
+    samples at least as frequent as the ticks: a clock that did not tick once, its next stamp two ticks on, is the
+    loader's dropped row), ``r`` is at most :data:`QUANTUM_STEPS` fitted steps and the deviations span at most ``r``
+    (a lost row or a stall spans a step more). ``t``: the stamps as recorded."""
+    count = t.shape[0]
+    if count < MIN_COMPARED:
+        return None
+    steps = np.diff(t)
+    if np.any(steps < 0) or not np.any(steps == 0) or not np.any(steps > 0):
+        return None
+    positive = steps[steps > 0]
+    resolution = float(np.min(positive))
+    if float(np.max(positive)) > resolution * (1.0 + 1e-6):  # a stamp skipped: a clock that did not tick, the
+        return None  # next stamp two ticks on (the loader drops the row), or stamps not quantised
+    fitted = _narrowest_line(t)
+    if fitted is None:
+        return None
+    t0, step, width = fitted
+    if not step > 0 or resolution > QUANTUM_STEPS * step or width > resolution * (1.0 + 1e-6):
+        return None
+    return t0, step, resolution
+
+
+def clock_instants(t0: float, step: float, first: int, count: int) -> NDArray[np.float64]:
+    """The instants ``t0 + step * k`` of rows ``k = first .. first + count - 1`` on a regular clock (one formula for
+    a whole record and for a streamed block of it, so that both give the same numbers)."""
+    return t0 + step * (first + np.arange(count, dtype=float))
+
+
+def _narrowest_line(t: NDArray[np.float64]) -> tuple[float, float, float] | None:
+    """The line ``t0 + step * k`` (``k`` the row's index) whose band holds every stamp of ``t`` narrowest (the
+    Chebyshev fit: least maximal deviation), and the band's width (``max − min`` of the deviations). The width is a
+    convex function of the slope alone (the offset centres the band), minimised by a ternary search within
+    ``±2 w / (N − 1)`` of the least-squares slope (``w`` its width: no slope farther can do better). ``None`` for
+    fewer than three stamps."""
+    count = t.shape[0]
+    if count < 3:
+        return None
+    k = np.arange(count, dtype=float)
+    centred = t - t[0]
+
+    def width(slope: float) -> float:
+        return float(np.ptp(centred - slope * k))
+
+    slope = float(np.polyfit(k, centred, 1)[0])
+    reach = 2.0 * width(slope) / (count - 1)
+    low, high = slope - reach, slope + reach
+    for _ in range(NARROWEST_ITERATIONS):
+        first, second = low + (high - low) / 3.0, high - (high - low) / 3.0
+        if width(first) <= width(second):
+            high = second
+        else:
+            low = first
+    slope = 0.5 * (low + high)
+    deviations = centred - slope * k
+    return float(t[0] + 0.5 * (deviations.max() + deviations.min())), slope, float(np.ptp(deviations))
 
 
 def receive_times_ratio(segment: Measurements) -> float | None:

@@ -62,7 +62,7 @@ from estimation.data.loading import (
 )
 from estimation.data.records import (AngleTurns, csv_options, csv_units, measurements_from_frame, said_unwrapped,
                                      unwrap_angles)
-from estimation.data.sampling_clock import ClockSums, said_receive_times
+from estimation.data.sampling_clock import ClockSums, clock_instants, said_receive_times
 from dynamics.measurements import Measurements, joint_columns
 from estimation.estimators.identification_problem import BandWindow, ResidualBand, decay_length
 from estimation.estimators.normal_equations import DEFAULT_CHUNK_SIZE, NormalEquations, accumulate, check_chunk_size
@@ -399,6 +399,9 @@ class _ChunkChecks:
         rows = len(frame)
         frame, self.turns, wraps = _unwrapped(frame, self.model, source, self.turns, self.row)
         self.wraps = self.wraps + wraps
+        if self.scan is not None and self.scan.clock is not None and "t" in frame.columns:  # a quantised time
+            t0, step, first = self.scan.clock  # column: the rows' instants on the whole record's regular clock
+            frame = frame.assign(t=clock_instants(t0, step, first + self.row, rows))
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", MeasurementWarning)  # the time base's findings: said once for the file
             if self.resampler is not None:

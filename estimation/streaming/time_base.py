@@ -65,6 +65,9 @@ class TimeScan:
     rows: int
     keep: NDArray[np.bool_] | None = None
     resampled: bool = False
+    clock: tuple[float, float, int] | None = None  # ``(t0, step, first)``: the rows kept on the regular clock
+    # ``t0 + step * k`` of a time column as coarse as the samples' step (``k`` from ``first`` for the rows scanned;
+    # :attr:`estimation.data.records.CleanedTimes.clock`): each block's instants are taken from it
 
     @property
     def irregular(self) -> bool:
@@ -89,7 +92,7 @@ def scan_time(frames, path: str | Path, model: IdentificationModel, *, max_gap: 
     times = _cleaned(frames, path, model, max_gap=max_gap, split=segment is not None, positions=positions)
     if times is None:
         return None
-    keep, kept, name = times.keep, times.t, str(path)
+    keep, kept, name, first = times.keep, times.t, str(path), 0
     if isinstance(segment, Part):  # a training file's part between its holes and holds
         found = _held_parts(times, positions, max_gap)
         if found is None or not 1 <= segment.index <= len(found.parts):
@@ -98,6 +101,7 @@ def scan_time(frames, path: str | Path, model: IdentificationModel, *, max_gap: 
         rows = np.flatnonzero(keep)[found.parts[segment.index - 1]]
         keep = np.zeros_like(keep)
         keep[rows] = True
+        first = int(np.arange(kept.shape[0])[found.parts[segment.index - 1]][0])
         kept = kept[found.parts[segment.index - 1]]
         name = f"{path} (part {segment.index})"
         if kept.shape[0] < 3:
@@ -110,6 +114,7 @@ def scan_time(frames, path: str | Path, model: IdentificationModel, *, max_gap: 
         rows = np.flatnonzero(keep)[pieces[segment - 1]]
         keep = np.zeros_like(keep)
         keep[rows] = True
+        first = int(np.arange(kept.shape[0])[pieces[segment - 1]][0])
         kept = kept[pieces[segment - 1]]
         if times.holes:
             name = f"{path} (segment {segment})"
@@ -118,8 +123,10 @@ def scan_time(frames, path: str | Path, model: IdentificationModel, *, max_gap: 
                                            "too few for a time series; cut them from the file")
     grid = resampling_grid(kept, True, name, bridged=times.bridged, stacklevel=4)
     keep = None if keep.all() else keep
+    clock = None if times.clock is None else (*times.clock, first)
     if grid is None:
-        return TimeScan(float(kept[0]), float(kept[-1]), float(np.median(np.diff(kept))), int(kept.shape[0]), keep)
+        return TimeScan(float(kept[0]), float(kept[-1]), float(np.median(np.diff(kept))), int(kept.shape[0]), keep,
+                        clock=clock)
     step = float(kept[-1] - kept[0]) / (grid.shape[0] - 1)
     return TimeScan(float(kept[0]), float(kept[-1]), step, int(kept.shape[0]), keep, resampled=True)
 
