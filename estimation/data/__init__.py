@@ -37,6 +37,7 @@ _EXPORTS: dict[str, str] = {
     "RepeatedRowsWarning": "estimation.data.loading",
     "RepeatedHeaderWarning": "estimation.data.loading",
     "BlankRowsWarning": "estimation.data.loading",
+    "EncoderGlitchWarning": "estimation.data.loading",
     "ResampledWarning": "estimation.data.loading",
     "ReceiveTimesWarning": "estimation.data.loading",
     "clock_roughness": "estimation.data.sampling_clock",

@@ -135,6 +135,11 @@ class BlankRowsWarning(MeasurementWarning):
     is a gap like any other."""
 
 
+class EncoderGlitchWarning(MeasurementWarning):
+    """Samples where one joint's position left and came back by more than the joint can travel in a sample period
+    (an encoder's read error) were dropped as dropouts; the message names their rows and joints."""
+
+
 class StillJointWarning(MeasurementWarning):
     """A joint whose position never changes in a record (a brake held it): the record does not determine its
     parameters; the message names the lock that leaves it out of the model."""

@@ -20,6 +20,14 @@
   (:func:`zero_rows`): on a robot of two joints or more, every position and torque exactly zero at once is no
   measurement (the torque sensors' noise alone forbids it), so such a row is a dropout like a blank one. Rows
   without torques are not judged: a planned trajectory may start at the zero pose.
+* **Encoder read errors.** One sample of one joint's position off, the next right again (a bit error on the
+  encoder's bus): a step into that value and a step out of it, each longer than the joint could travel in a sample
+  period (twice its velocity limit in the description; without one, :data:`GLITCH_RECORD_FACTOR` times the speed
+  under which :data:`GLITCH_QUANTILE` of the record's steps lie) and than :data:`GLITCH_COUNTS` of the channel's
+  smallest step (its encoder count: a quantised encoder flickering between counts is no error), the samples around
+  it agreeing (:func:`position_steps`, :func:`encoder_glitches`). Steps are taken modulo a whole turn (an angle
+  wrapped at ±π is no error). Such a row is a dropout: dropped, its time bridged as any gap. A true motion never
+  leaves and comes back within one sample by more than its velocity allows.
 
 Pure functions on arrays; :mod:`estimation.data.loading` turns their findings into warnings and errors.
 """
@@ -79,6 +87,121 @@ def zero_rows(data: NDArray[np.float64], n_joints: int) -> NDArray[np.bool_]:
     if n_joints < ZERO_ROW_JOINTS or data.shape[1] == 0:
         return np.zeros(data.shape[0], dtype=bool)
     return np.all(data == 0.0, axis=1)
+
+
+#: how many times the joint's velocity limit a step must pass to be no motion (the limit is what the joint can do;
+#: the position's noise and the stamps' jitter are the margin)
+GLITCH_SPEED_MARGIN = 2.0
+#: without a velocity limit, how many times the record's own fast speed (:data:`GLITCH_QUANTILE`) a step must pass
+GLITCH_RECORD_FACTOR = 4.0
+#: the share of a joint's steps whose speed defines its fast speed when the description gives no limit
+GLITCH_QUANTILE = 0.99
+#: how many of the channel's smallest step (an encoder's count) a step must pass: a quantised encoder flickers
+#: between neighbouring counts, and its noise by a few
+GLITCH_COUNTS = 4.0
+#: the speed bins (rad/s or m/s) of :class:`PositionSteps`: log-spaced, 20 a decade
+SPEED_EDGES = np.logspace(-6.0, 6.0, 241)
+
+
+@dataclass(frozen=True)
+class PositionSteps:
+    """What a record's position steps say about encoder read errors, summed block by block (:meth:`merged`): the
+    same for a record read whole and one streamed in chunks.
+
+    Attributes
+    ----------
+    counts
+        ``(n, len(SPEED_EDGES) + 1)`` steps per joint and speed bin (``|Δq| / Δt``; below the first edge and above
+        the last in the end bins).
+    smallest
+        ``(n,)`` each joint's smallest step that is not zero (``inf`` when none).
+    rows, joints
+        The samples that leave and come back (the two steps opposite, the samples around them agreeing within half
+        the shorter step): their row among those read, and the joint.
+    steps, spans
+        The shorter of each such sample's two steps, and the time of a sample around it (half the time between its
+        neighbours), s.
+    """
+
+    counts: NDArray[np.int64]
+    smallest: NDArray[np.float64]
+    rows: NDArray[np.int64]
+    joints: NDArray[np.int64]
+    steps: NDArray[np.float64]
+    spans: NDArray[np.float64]
+
+    def merged(self, other: PositionSteps) -> PositionSteps:
+        """Both blocks' steps (``other`` read after this one)."""
+        return PositionSteps(self.counts + other.counts, np.minimum(self.smallest, other.smallest),
+                             np.concatenate([self.rows, other.rows]), np.concatenate([self.joints, other.joints]),
+                             np.concatenate([self.steps, other.steps]), np.concatenate([self.spans, other.spans]))
+
+
+def _turn_wrapped(step: NDArray[np.float64]) -> NDArray[np.float64]:
+    """``step`` modulo a whole turn, in ``[-π, π)``: an angle logged wrapped at ±π steps by a turn there."""
+    return np.mod(step + np.pi, 2.0 * np.pi) - np.pi
+
+
+def position_steps(q: NDArray[np.float64], t: NDArray[np.float64], *, first_row: int = 0, carried: int = 0
+                   ) -> PositionSteps:
+    """The :class:`PositionSteps` of the rows ``q (m, n)`` stamped ``t (m,)``, the first ``carried`` of them the
+    last rows of the block before (at most 2; their step and their samples already counted), the others numbered
+    from ``first_row``. A sample is judged once the sample after it is read: the last row of a block is judged with
+    the next block, which carries it (and the one before it). Rows with a non-finite value or stamp, and steps of no
+    time, count for nothing; steps are taken modulo a whole turn (:func:`_turn_wrapped`)."""
+    m, n = q.shape
+    counts = np.zeros((n, SPEED_EDGES.shape[0] + 1), dtype=np.int64)
+    smallest = np.full(n, np.inf)
+    none = np.zeros(0, dtype=np.int64)
+    if m < 2:
+        return PositionSteps(counts, smallest, none, none, np.zeros(0), np.zeros(0))
+    with np.errstate(invalid="ignore"):
+        step = _turn_wrapped(np.diff(q, axis=0))
+        size = np.abs(step)
+        dt = np.diff(t)[:, None]
+        new = slice(max(carried - 1, 0), None)
+        speed = np.where(dt > 0, size / np.where(dt > 0, dt, 1.0), np.nan)[new]
+        for joint in range(n):
+            finite = speed[:, joint][np.isfinite(speed[:, joint])]
+            counts[joint] = np.bincount(np.searchsorted(SPEED_EDGES, finite, side="right"),
+                                        minlength=counts.shape[1])
+            moved = size[new, joint][size[new, joint] > 0]
+            smallest[joint] = moved.min() if moved.size else np.inf
+        if m < 3:
+            return PositionSteps(counts, smallest, none, none, np.zeros(0), np.zeros(0))
+        into, out = step[:-1], step[1:]
+        through = np.abs(_turn_wrapped(q[2:] - q[:-2]))
+        shorter = np.minimum(np.abs(into), np.abs(out))
+        span = ((t[2:] - t[:-2]) / 2.0)[:, None]
+        found = (through < 0.5 * shorter) & (shorter > 0) & (span > 0)
+    row, joint = np.nonzero(found)
+    return PositionSteps(counts, smallest, (first_row - carried + 1 + row).astype(np.int64), joint.astype(np.int64),
+                         shorter[row, joint], np.broadcast_to(span, shorter.shape)[row, joint])
+
+
+def fast_speeds(steps: PositionSteps) -> NDArray[np.float64]:
+    """``(n,)`` the speed under which :data:`GLITCH_QUANTILE` of each joint's steps lie (the upper edge of its bin
+    in :data:`SPEED_EDGES`; ``inf`` for a joint without steps or with its quantile past the last edge)."""
+    totals = steps.counts.sum(axis=1)
+    bins = np.array([np.searchsorted(np.cumsum(row), GLITCH_QUANTILE * total, side="left") if total else
+                     SPEED_EDGES.shape[0] for row, total in zip(steps.counts, totals)])
+    return np.where(bins < SPEED_EDGES.shape[0], SPEED_EDGES[np.minimum(bins, SPEED_EDGES.shape[0] - 1)], np.inf)
+
+
+def encoder_glitches(steps: PositionSteps, velocity_limit: NDArray[np.float64]) -> tuple[NDArray[np.int64],
+                                                                                          NDArray[np.int64]]:
+    """The encoder read errors among ``steps``' samples that leave and come back: their rows and joints (sorted by
+    row, then joint). A step no joint may make: longer than :data:`GLITCH_SPEED_MARGIN` times ``velocity_limit``
+    (``(n,)``, rad/s or m/s; ``inf`` where the description gives none: :data:`GLITCH_RECORD_FACTOR` times
+    :func:`fast_speeds` instead) over the sample's time, and than :data:`GLITCH_COUNTS` of the joint's smallest
+    step."""
+    limit = np.asarray(velocity_limit, dtype=float)
+    speed = np.where(np.isfinite(limit) & (limit > 0), GLITCH_SPEED_MARGIN * limit,
+                     GLITCH_RECORD_FACTOR * fast_speeds(steps))
+    joints = steps.joints
+    glitch = ((steps.steps > speed[joints] * steps.spans) & (steps.steps > GLITCH_COUNTS * steps.smallest[joints]))
+    order = np.lexsort((joints[glitch], steps.rows[glitch]))
+    return steps.rows[glitch][order], joints[glitch][order]
 
 
 def repeated_rows(data: NDArray[np.float64]) -> NDArray[np.bool_]:

@@ -31,6 +31,7 @@ from estimation.data.loading import (
     AbsurdValueError,
     BlankRowsWarning,
     COLUMN_GROUPS,
+    EncoderGlitchWarning,
     DelimiterWarning,
     DuplicatedTimesWarning,
     UnitsRowWarning,
@@ -75,8 +76,9 @@ from estimation.data.log_formats import (
     time_column,
 )
 from estimation.data.sampling_clock import clock_roughness, said_receive_times
-from estimation.data.log_cleaning import (DEFAULT_MAX_GAP, ZERO_ROW_JOINTS, Gap, blank_rows, describe, find_gaps,
-                                          repeated_rows, split_rows, time_stamps_jump, zero_rows)
+from estimation.data.log_cleaning import (DEFAULT_MAX_GAP, ZERO_ROW_JOINTS, Gap, PositionSteps, blank_rows, describe,
+                                          encoder_glitches, find_gaps, position_steps, repeated_rows, split_rows,
+                                          time_stamps_jump, zero_rows)
 from dynamics.measurements import Measurements, joint_columns
 
 
@@ -133,10 +135,12 @@ def measurements_from_frame(
     resample: bool = True,
     source: str = "data",
     max_gap: float = DEFAULT_MAX_GAP,
+    glitches: bool = True,
 ) -> Measurements:
-    """The checks of :func:`read_measurements` on a ``DataFrame`` already in memory."""
+    """The checks of :func:`read_measurements` on a ``DataFrame`` already in memory (``glitches`` false: its
+    encoder read errors not judged, as for a chunk of a streamed file whose scan judged them on the whole record)."""
     return segments_from_frame(frame, n_joints=n_joints, model=model, require=require, resample=resample,
-                               source=source, max_gap=max_gap, split=False)[0]
+                               source=source, max_gap=max_gap, split=False, glitches=glitches)[0]
 
 
 def read_record(
@@ -305,8 +309,10 @@ def segments_from_frame(
     source: str = "data",
     max_gap: float = DEFAULT_MAX_GAP,
     split: bool = True,
+    glitches: bool = True,
 ) -> tuple[Measurements, ...]:
-    """The checks of :func:`read_record` on a ``DataFrame`` already in memory."""
+    """The checks of :func:`read_record` on a ``DataFrame`` already in memory; with ``glitches``, its encoder read
+    errors dropped as dropouts (:func:`glitch_rows`, said in an :class:`EncoderGlitchWarning`)."""
     if isinstance(max_gap, bool) or not isinstance(max_gap, (int, float, np.floating)) or not max_gap > 0 \
             or not np.isfinite(max_gap):
         raise ValueError(f"max_gap must be a positive number of seconds, got {max_gap!r}")
@@ -335,7 +341,15 @@ def segments_from_frame(
     _check_absurd(t, arrays, n_joints, source)
     _said_still_joints(arrays["q"], model, source)
     data = np.hstack([values for values in arrays.values() if values is not None])
-    times = clean_time_base(t, repeated_rows(data), source, max_gap=max_gap, split=split,
+    repeated = repeated_rows(data)
+    found = glitch_rows(position_steps(arrays["q"], t), model, n_joints) if glitches else None
+    if found is not None and found[0].size:
+        said_glitches(np.flatnonzero(~blank)[found[0]], found[1], t[found[0]], model, source)
+        kept = np.ones(t.shape[0], dtype=bool)
+        kept[found[0]] = False
+        t, repeated = t[kept], repeated[kept]
+        arrays = {key: None if values is None else values[kept] for key, values in arrays.items()}
+    times = clean_time_base(t, repeated, source, max_gap=max_gap, split=split,
                             check=lambda keep: check_angles(arrays["q"][keep], model, source))
     t, holes = times.t, times.holes
     dropped, duplicated = times.repeated_rows_dropped, times.duplicated_times_dropped
@@ -399,6 +413,34 @@ def lost_frames(frame: pd.DataFrame, n_joints: int, cells: list[str]) -> NDArray
     return zero_rows(np.column_stack([
         frame[column].to_numpy(dtype=float) if pd.api.types.is_numeric_dtype(frame[column])
         else pd.to_numeric(frame[column], errors="coerce").to_numpy(dtype=float) for column in cells]), n_joints)
+
+
+def glitch_rows(steps: PositionSteps, model, n_joints: int) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """The rows and joints of ``steps``' encoder read errors (:func:`estimation.data.log_cleaning.encoder_glitches`),
+    judged by the velocity limits of the model's robot (none without a model: the record's own fast speed)."""
+    limit = (np.asarray(model.robot.velocity_limit, dtype=float) if isinstance(model, IdentificationModel)
+             else np.full(n_joints, np.inf))
+    return encoder_glitches(steps, limit)
+
+
+def said_glitches(rows: NDArray[np.int64], joints: NDArray[np.int64], stamps: NDArray[np.float64], model,
+                  source: str, limit: int = 6) -> None:
+    """The :class:`EncoderGlitchWarning` naming the rows of the file (``rows``, as :func:`said_dropouts` counts
+    them), their joints and time stamps."""
+    names = ([joint.name for joint in model.robot.joints] if isinstance(model, IdentificationModel)
+             else [f"q{j + 1}" for j in range(int(joints.max()) + 1)])
+    unique = np.unique(rows)
+    shown = ", ".join(f"row {int(row)} (t = {float(stamp):.6g} s, "
+                      + "/".join(f"q{int(j) + 1}" + ("" if names[j] == f"q{int(j) + 1}" else f" {names[j]!r}")
+                                 for j in joints[rows == row]) + ")"
+                      for row, stamp in zip(unique[:limit], [stamps[np.flatnonzero(rows == row)[0]]
+                                                             for row in unique[:limit]]))
+    more = f" and {unique.size - limit} more" if unique.size > limit else ""
+    warnings.warn(
+        f"{source}: dropped {unique.size} row(s) where a joint's position leaves and comes back within one sample by "
+        "more than the joint can travel in it (an encoder's read error: twice its velocity limit, or without one four "
+        f"times the record's fast speed, and more than four of its counts): {shown}{more}; read as dropouts, the "
+        "time they leave bridged by interpolation as any gap", EncoderGlitchWarning, stacklevel=5)
 
 
 def said_dropouts(count: int, first_row: int, first_stamp: object, source: str) -> None:
