@@ -28,6 +28,13 @@
   it agreeing (:func:`position_steps`, :func:`encoder_glitches`). Steps are taken modulo a whole turn (an angle
   wrapped at ±π is no error). Such a row is a dropout: dropped, its time bridged as any gap. A true motion never
   leaves and comes back within one sample by more than its velocity allows.
+* **A torque sensor past its range.** A channel that holds its largest (or smallest) value on a run of samples
+  while the joint moves, where its values elsewhere vary, is clipped there (:func:`saturated_samples`): its reading
+  is the sensor's limit, not the torque. A quantised channel repeats its extremes too, but no more than its other
+  values: the extreme must be held :data:`SATURATION_FACTOR` times as often as the channel's values are on average;
+  a joint at rest against a hard stop holds its torque while its position holds too, and is left alone. Such samples
+  are no measurement: the reader leaves them out of the samples as recorded (the fit and every error), the
+  positions kept for the derivatives.
 
 Pure functions on arrays; :mod:`estimation.data.loading` turns their findings into warnings and errors.
 """
@@ -202,6 +209,38 @@ def encoder_glitches(steps: PositionSteps, velocity_limit: NDArray[np.float64]) 
     glitch = ((steps.steps > speed[joints] * steps.spans) & (steps.steps > GLITCH_COUNTS * steps.smallest[joints]))
     order = np.lexsort((joints[glitch], steps.rows[glitch]))
     return steps.rows[glitch][order], joints[glitch][order]
+
+
+#: how many times as often as the channel's values are on average (samples over distinct values) its extreme must
+#: be held to be a sensor's limit: a quantised channel's extremes are held no more often than its other values
+SATURATION_FACTOR = 10.0
+#: the fewest samples at a channel's extreme that make it clipped
+SATURATION_LEAST = 5
+
+
+def saturated_samples(tau: NDArray[np.float64], q: NDArray[np.float64]) -> NDArray[np.bool_]:
+    """``(N, n)`` true where torque channel ``j`` of ``tau (N, n)`` holds its largest or smallest value on a run of
+    samples while joint ``j``'s position ``q (N, n)`` changes within the run, the extreme held on at least
+    :data:`SATURATION_LEAST` samples and :data:`SATURATION_FACTOR` times as often as the channel's values on average
+    (a quantised channel holds its extremes no more often than its other values). A run where the position holds
+    too (a joint at rest against a hard stop) is left alone. Non-finite values count for nothing."""
+    found = np.zeros(tau.shape, dtype=bool)
+    for joint in range(tau.shape[1]):
+        channel = tau[:, joint]
+        finite = channel[np.isfinite(channel)]
+        if finite.size < SATURATION_LEAST:
+            continue
+        values, counts = np.unique(finite, return_counts=True)
+        typical = finite.size / values.size
+        for index in (0, -1):
+            if values.size < 2 or counts[index] < SATURATION_LEAST or counts[index] <= SATURATION_FACTOR * typical:
+                continue
+            at = channel == values[index]
+            edges = np.flatnonzero(np.diff(np.r_[0, at.astype(np.int8), 0]))
+            for start, stop in zip(edges[::2], edges[1::2]):
+                if stop - start >= 2 and np.ptp(q[start:stop, joint]) > 0:
+                    found[start:stop, joint] = True
+    return found
 
 
 def repeated_rows(data: NDArray[np.float64]) -> NDArray[np.bool_]:

@@ -32,6 +32,7 @@ from estimation.data.loading import (
     BlankRowsWarning,
     COLUMN_GROUPS,
     EncoderGlitchWarning,
+    SaturatedTorqueWarning,
     DelimiterWarning,
     DuplicatedTimesWarning,
     UnitsRowWarning,
@@ -77,8 +78,8 @@ from estimation.data.log_formats import (
 )
 from estimation.data.sampling_clock import clock_roughness, said_receive_times
 from estimation.data.log_cleaning import (DEFAULT_MAX_GAP, ZERO_ROW_JOINTS, Gap, PositionSteps, blank_rows, describe,
-                                          encoder_glitches, find_gaps, position_steps, repeated_rows, split_rows,
-                                          time_stamps_jump, zero_rows)
+                                          encoder_glitches, find_gaps, position_steps, repeated_rows,
+                                          saturated_samples, split_rows, time_stamps_jump, zero_rows)
 from dynamics.measurements import Measurements, joint_columns
 
 
@@ -138,7 +139,8 @@ def measurements_from_frame(
     glitches: bool = True,
 ) -> Measurements:
     """The checks of :func:`read_measurements` on a ``DataFrame`` already in memory (``glitches`` false: its
-    encoder read errors not judged, as for a chunk of a streamed file whose scan judged them on the whole record)."""
+    encoder read errors and clipped torques not judged, as for a chunk of a streamed file, which holds part of the
+    record only)."""
     return segments_from_frame(frame, n_joints=n_joints, model=model, require=require, resample=resample,
                                source=source, max_gap=max_gap, split=False, glitches=glitches)[0]
 
@@ -312,7 +314,8 @@ def segments_from_frame(
     glitches: bool = True,
 ) -> tuple[Measurements, ...]:
     """The checks of :func:`read_record` on a ``DataFrame`` already in memory; with ``glitches``, its encoder read
-    errors dropped as dropouts (:func:`glitch_rows`, said in an :class:`EncoderGlitchWarning`)."""
+    errors dropped as dropouts (:func:`glitch_rows`, said in an :class:`EncoderGlitchWarning`) and a torque sensor's
+    clipped samples left out of the samples as recorded (:func:`clipped_torques`)."""
     if isinstance(max_gap, bool) or not isinstance(max_gap, (int, float, np.floating)) or not max_gap > 0 \
             or not np.isfinite(max_gap):
         raise ValueError(f"max_gap must be a positive number of seconds, got {max_gap!r}")
@@ -355,6 +358,7 @@ def segments_from_frame(
     dropped, duplicated = times.repeated_rows_dropped, times.duplicated_times_dropped
     if dropped or duplicated:
         arrays = {key: None if values is None else values[times.keep] for key, values in arrays.items()}
+    clipped = clipped_torques(arrays, t, model, source) if glitches else None
     segments = []
     for index, rows in enumerate(split_rows(t.shape[0], holes), start=1):
         name = source if len(holes) == 0 else f"{source} (segment {index})"
@@ -371,8 +375,12 @@ def segments_from_frame(
         if "resampled_from" in metadata:  # resampled by its stamps: were they the samples' instants?
             said_receive_times(clock_roughness(stamps, piece["q"], (stamps[-1] - stamps[0]) / (segment_t.shape[0] - 1)),
                                float(stamps[0]), float(stamps[-1]), stamps.shape[0], name)
+        valid = None if clipped is None or not clipped[rows].any() else ~clipped[rows].any(axis=1)
+        if valid is not None:
+            metadata["saturated_samples"] = {f"tau{j + 1}": int(count) for j, count in
+                                             enumerate(clipped[rows].sum(axis=0)) if count}
         segments.append(Measurements(segment_t, grid["q"], grid["dq"], grid["ddq"], grid["tau"], grid["wrench"],
-                                     metadata, *_as_recorded(stamps, piece, segment_t, metadata)))
+                                     metadata, *_as_recorded(stamps, piece, segment_t, metadata, valid)))
     if isinstance(model, IdentificationModel):
         check_sample_count(segments, model)
     return tuple(segments)
@@ -456,19 +464,49 @@ def said_dropouts(count: int, first_row: int, first_stamp: object, source: str) 
         BlankRowsWarning, stacklevel=5)
 
 
-def _as_recorded(t: NDArray[np.float64], piece: dict, grid: NDArray[np.float64], metadata: dict
-                 ) -> tuple[Measurements | None, NDArray[np.int_] | None]:
+def _as_recorded(t: NDArray[np.float64], piece: dict, grid: NDArray[np.float64], metadata: dict,
+                 valid: NDArray[np.bool_] | None = None) -> tuple[Measurements | None, NDArray[np.int_] | None]:
     """The samples as recorded beside a resampled segment (``Measurements.recorded``, each beside its nearest grid
     sample: ``recorded_rows``), or ``(None, None)`` when the segment was not resampled. Errors are taken on them:
     the torques are never interpolated (the motion derived on the grid is, at their time stamps,
-    :func:`estimation.preprocessing.plan.prepare`)."""
-    if grid is t:
+    :func:`estimation.preprocessing.plan.prepare`). ``valid``: the samples whose torques are measurements (a clipped
+    sensor's samples false, :func:`clipped_torques`): the others are left out of the samples as recorded, of a
+    segment resampled or not."""
+    if grid is t and valid is None:
         return None, None
     step = (grid[-1] - grid[0]) / max(grid.shape[0] - 1, 1)
-    rows = np.clip(np.rint((t - grid[0]) / step), 0, grid.shape[0] - 1).astype(np.int_)
-    recorded = Measurements(t, piece["q"], piece["dq"], piece["ddq"], piece["tau"], piece["wrench"],
+    rows = (np.arange(t.shape[0]) if grid is t
+            else np.clip(np.rint((t - grid[0]) / step), 0, grid.shape[0] - 1).astype(np.int_))
+    keep = slice(None) if valid is None else valid
+    recorded = Measurements(t[keep], *(None if piece[key] is None else piece[key][keep]
+                                       for key in ("q", "dq", "ddq", "tau", "wrench")),
                             dict(metadata, recorded_stamps=True))
-    return recorded, rows
+    return recorded, rows[keep]
+
+
+def clipped_torques(arrays: dict, t: NDArray[np.float64], model, source: str) -> NDArray[np.bool_] | None:
+    """``(N, n)`` the samples of each torque channel held at a sensor's limit
+    (:func:`estimation.data.log_cleaning.saturated_samples`), said in a :class:`SaturatedTorqueWarning` naming the
+    channels; ``None`` when there are none (or no torques)."""
+    if arrays.get("tau") is None or arrays.get("q") is None:
+        return None
+    found = saturated_samples(arrays["tau"], arrays["q"])
+    if not found.any():
+        return None
+    names = ([joint.name for joint in model.robot.joints] if isinstance(model, IdentificationModel)
+             else [f"tau{j + 1}" for j in range(found.shape[1])])
+    said = []
+    for j in np.flatnonzero(found.any(axis=0)):
+        rows = np.flatnonzero(found[:, j])
+        said.append(f"tau{j + 1}" + ("" if names[j] == f"tau{j + 1}" else f" ({names[j]})")
+                    + f" at {arrays['tau'][rows[0], j]:.6g} on {rows.size} sample(s) from t = {t[rows[0]]:.6g} s to "
+                    f"{t[rows[-1]]:.6g} s")
+    warnings.warn(
+        f"{source}: a torque sensor past its range: {'; '.join(said)}, its extreme value held while the joint moves "
+        "(and held far more often than its other values): clipped, not measured; these samples are left out of the "
+        "fit and of every error (taken against what was recorded where the recording is valid), the positions kept "
+        "for the derivatives", SaturatedTorqueWarning, stacklevel=5)
+    return found
 
 
 def _joint_count(frame: pd.DataFrame, n_joints: int | None, model: IdentificationModel | ModelKind | str | None,
