@@ -220,7 +220,8 @@ SATURATION_LEAST = 5
 
 def saturated_samples(tau: NDArray[np.float64], q: NDArray[np.float64]) -> NDArray[np.bool_]:
     """``(N, n)`` true where torque channel ``j`` of ``tau (N, n)`` holds its largest or smallest value on a run of
-    samples while joint ``j``'s position ``q (N, n)`` changes within the run, the extreme held on at least
+    samples while joint ``j``'s position ``q (N, n)`` changes within the run (a lone sample at the extreme: between
+    its neighbours, the noise taking the reading in and out of the limit), the extreme held on at least
     :data:`SATURATION_LEAST` samples and :data:`SATURATION_FACTOR` times as often as the channel's values on average
     (a quantised channel holds its extremes no more often than its other values). A run where the position holds
     too (a joint at rest against a hard stop) is left alone. Non-finite values count for nothing."""
@@ -238,7 +239,8 @@ def saturated_samples(tau: NDArray[np.float64], q: NDArray[np.float64]) -> NDArr
             at = channel == values[index]
             edges = np.flatnonzero(np.diff(np.r_[0, at.astype(np.int8), 0]))
             for start, stop in zip(edges[::2], edges[1::2]):
-                if stop - start >= 2 and np.ptp(q[start:stop, joint]) > 0:
+                around = slice(start, stop) if stop - start >= 2 else slice(max(start - 1, 0), stop + 1)
+                if np.ptp(q[around, joint]) > 0:  # the joint moves while the torque holds (a lone sample: moves there)
                     found[start:stop, joint] = True
     return found
 
