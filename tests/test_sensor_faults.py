@@ -31,9 +31,12 @@ from tests.test_unseen_robots import Log
 
 #: the rows given an encoder read error: the last row of the first 250-row chunk, the first of the next, one inside
 GLITCHES = ((249, 1, 0.2), (250, 0, -0.2), (611, 2, 0.15))
+#: the chunk sizes the streamed reader is tried with: a glitch on a chunk's last row and the next one's first (250),
+#: on the last row of one and in the middle of the next (251)
+CHUNK_SIZES = (250, 251)
 
 
-def _puma_record(tmp_path: Path, name: str = "clean.csv", seconds: float = 4.0):
+def _puma_record(tmp_path: Path, name: str = "clean.csv", seconds: float = 3.0):
     from dynamics.models import build_model
     from dynamics.robots import load_robot
     from tests.test_unseen_robots import FRICTION, truth, urdf_of, write_record
@@ -74,7 +77,7 @@ def test_an_encoder_read_error_is_a_dropout_named_by_row_and_joint_alike_in_memo
     truth = pd.read_csv(clean)[["q1", "q2", "q3"]].to_numpy()
     on_grid = np.searchsorted(memory.t, table["t"].to_numpy()[[row for row, _, _ in GLITCHES]])
     assert np.abs(memory.q[on_grid] - truth[[row for row, _, _ in GLITCHES]]).max() < 0.01
-    for chunk_size in (250, 249, 251, 612):  # the glitches on a chunk's last row, its first, one after
+    for chunk_size in CHUNK_SIZES:
         streamed, said_streamed = _caught(EncoderGlitchWarning, lambda size=chunk_size: list(read_chunks(
             tmp_path / "glitches.csv", model, chunk_size=size)))
         assert said_streamed == said, (chunk_size, said_streamed)
@@ -96,7 +99,7 @@ def test_an_encoder_read_error_is_a_dropout_named_by_row_and_joint_alike_in_memo
 def _judged(q, t, limit):
     from estimation.data.log_cleaning import encoder_glitches, position_steps
 
-    return encoder_glitches(position_steps(q, t), np.asarray(limit, dtype=float))
+    return encoder_glitches(position_steps(q, t, np.asarray(limit, dtype=float)), np.asarray(limit, dtype=float))
 
 
 def test_a_fast_motion_a_wrapped_angle_and_a_quantised_encoder_are_no_read_errors():
@@ -182,8 +185,8 @@ def test_the_real_robots_logs_hold_no_read_error_and_no_clipped_torque(robot, tm
     from benchmarks.bench_real_robots import ROBOTS
     from dynamics.robots import load_robot
     from estimation.data.log_cleaning import saturated_samples
-    from estimation.data.records import glitch_rows
-    from estimation.data.log_cleaning import position_steps
+    from estimation.data.records import velocity_limits
+    from estimation.data.log_cleaning import encoder_glitches, position_steps
     from dynamics.models import build_model
 
     case = ROBOTS[robot](tmp_path)
@@ -191,6 +194,7 @@ def test_the_real_robots_logs_hold_no_read_error_and_no_clipped_torque(robot, tm
     description = load_robot(urdf=options["--urdf"]) if "--urdf" in options else load_robot(options["--robot"])
     model = build_model(description, "internal")
     for role, record in case.records.items():
-        rows, joints = glitch_rows(position_steps(record.q, record.t), model, description.n_joints)
-        assert rows.size == 0, (role, rows[:5], joints[:5])
+        for limit in (velocity_limits(model, description.n_joints), np.full(description.n_joints, np.inf)):
+            rows, joints = encoder_glitches(position_steps(record.q, record.t, limit), limit)
+            assert rows.size == 0, (role, rows[:5], joints[:5])
         assert not saturated_samples(record.tau, record.q).any(), role

@@ -145,45 +145,58 @@ class PositionSteps:
 
 
 def _turn_wrapped(step: NDArray[np.float64]) -> NDArray[np.float64]:
-    """``step`` modulo a whole turn, in ``[-π, π)``: an angle logged wrapped at ±π steps by a turn there."""
-    return np.mod(step + np.pi, 2.0 * np.pi) - np.pi
+    """``step`` modulo a whole turn, in ``[-π, π)`` where it is longer than half a turn (an angle logged wrapped at
+    ±π steps by a turn there), as it is elsewhere."""
+    far = np.abs(step) > np.pi
+    if not far.any():
+        return step
+    wrapped = step.copy()
+    wrapped[far] = np.mod(step[far] + np.pi, 2.0 * np.pi) - np.pi
+    return wrapped
 
 
-def position_steps(q: NDArray[np.float64], t: NDArray[np.float64], *, first_row: int = 0, carried: int = 0
-                   ) -> PositionSteps:
+def position_steps(q: NDArray[np.float64], t: NDArray[np.float64], velocity_limit: NDArray[np.float64], *,
+                   first_row: int = 0, carried: int = 0) -> PositionSteps:
     """The :class:`PositionSteps` of the rows ``q (m, n)`` stamped ``t (m,)``, the first ``carried`` of them the
     last rows of the block before (at most 2; their step and their samples already counted), the others numbered
     from ``first_row``. A sample is judged once the sample after it is read: the last row of a block is judged with
     the next block, which carries it (and the one before it). Rows with a non-finite value or stamp, and steps of no
-    time, count for nothing; steps are taken modulo a whole turn (:func:`_turn_wrapped`)."""
+    time, count for nothing; steps are taken modulo a whole turn (:func:`_turn_wrapped`). ``velocity_limit``
+    (``(n,)``, the description's; ``inf`` where it gives none): the speeds are counted for the joints without one
+    only (:func:`fast_speeds` bounds those), and a sample that leaves and comes back is kept as a candidate only
+    when it is faster than :data:`GLITCH_SPEED_MARGIN` times the joint's limit (what :func:`encoder_glitches`
+    asks)."""
     m, n = q.shape
     counts = np.zeros((n, SPEED_EDGES.shape[0] + 1), dtype=np.int64)
     smallest = np.full(n, np.inf)
     none = np.zeros(0, dtype=np.int64)
     if m < 2:
         return PositionSteps(counts, smallest, none, none, np.zeros(0), np.zeros(0))
-    with np.errstate(invalid="ignore"):
+    limit = np.asarray(velocity_limit, dtype=float)
+    bounded = np.isfinite(limit) & (limit > 0)
+    with np.errstate(invalid="ignore", divide="ignore"):
         step = _turn_wrapped(np.diff(q, axis=0))
         size = np.abs(step)
-        dt = np.diff(t)[:, None]
         new = slice(max(carried - 1, 0), None)
-        speed = np.where(dt > 0, size / np.where(dt > 0, dt, 1.0), np.nan)[new]
-        for joint in range(n):
-            finite = speed[:, joint][np.isfinite(speed[:, joint])]
-            counts[joint] = np.bincount(np.searchsorted(SPEED_EDGES, finite, side="right"),
-                                        minlength=counts.shape[1])
-            moved = size[new, joint][size[new, joint] > 0]
-            smallest[joint] = moved.min() if moved.size else np.inf
+        smallest = np.where(size[new] > 0, size[new], np.inf).min(axis=0) if size[new].size else smallest
+        if not bounded.all():
+            dt = np.diff(t)[new]
+            for joint in np.flatnonzero(~bounded):
+                speed = size[new, joint][dt > 0] / dt[dt > 0]
+                counts[joint] = np.bincount(np.searchsorted(SPEED_EDGES, speed[np.isfinite(speed)], side="right"),
+                                            minlength=counts.shape[1])
         if m < 3:
             return PositionSteps(counts, smallest, none, none, np.zeros(0), np.zeros(0))
-        into, out = step[:-1], step[1:]
-        through = np.abs(_turn_wrapped(q[2:] - q[:-2]))
-        shorter = np.minimum(np.abs(into), np.abs(out))
-        span = ((t[2:] - t[:-2]) / 2.0)[:, None]
-        found = (through < 0.5 * shorter) & (shorter > 0) & (span > 0)
-    row, joint = np.nonzero(found)
+        shorter = np.minimum(size[:-1], size[1:])
+        span = (t[2:] - t[:-2]) / 2.0
+        floor = np.where(bounded, GLITCH_SPEED_MARGIN * np.where(bounded, limit, 0.0), 0.0)
+        maybe = (shorter > floor * np.where(span > 0, span, 0.0)[:, None]) & (shorter > 0) & (span > 0)[:, None]
+        row, joint = np.nonzero(maybe)
+        through = np.abs(_turn_wrapped(q[row + 2, joint] - q[row, joint]))
+        keep = through < 0.5 * shorter[row, joint]
+        row, joint = row[keep], joint[keep]
     return PositionSteps(counts, smallest, (first_row - carried + 1 + row).astype(np.int64), joint.astype(np.int64),
-                         shorter[row, joint], np.broadcast_to(span, shorter.shape)[row, joint])
+                         shorter[row, joint], span[row])
 
 
 def fast_speeds(steps: PositionSteps) -> NDArray[np.float64]:

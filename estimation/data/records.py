@@ -345,7 +345,7 @@ def segments_from_frame(
     _said_still_joints(arrays["q"], model, source)
     data = np.hstack([values for values in arrays.values() if values is not None])
     repeated = repeated_rows(data)
-    found = glitch_rows(position_steps(arrays["q"], t), model, n_joints) if glitches else None
+    found = glitch_rows(position_steps(arrays["q"], t, velocity_limits(model, n_joints)), model, n_joints) if glitches else None
     if found is not None and found[0].size:
         said_glitches(np.flatnonzero(~blank)[found[0]], found[1], t[found[0]], model, source)
         kept = np.ones(t.shape[0], dtype=bool)
@@ -423,12 +423,17 @@ def lost_frames(frame: pd.DataFrame, n_joints: int, cells: list[str]) -> NDArray
         else pd.to_numeric(frame[column], errors="coerce").to_numpy(dtype=float) for column in cells]), n_joints)
 
 
+def velocity_limits(model, n_joints: int) -> NDArray[np.float64]:
+    """``(n,)`` the velocity limits of the model's robot (``inf`` without a model or a limit: the record's own fast
+    speed then bounds the steps, :func:`estimation.data.log_cleaning.fast_speeds`)."""
+    return (np.asarray(model.robot.velocity_limit, dtype=float) if isinstance(model, IdentificationModel)
+            else np.full(n_joints, np.inf))
+
+
 def glitch_rows(steps: PositionSteps, model, n_joints: int) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
     """The rows and joints of ``steps``' encoder read errors (:func:`estimation.data.log_cleaning.encoder_glitches`),
-    judged by the velocity limits of the model's robot (none without a model: the record's own fast speed)."""
-    limit = (np.asarray(model.robot.velocity_limit, dtype=float) if isinstance(model, IdentificationModel)
-             else np.full(n_joints, np.inf))
-    return encoder_glitches(steps, limit)
+    judged by the velocity limits of the model's robot (:func:`velocity_limits`)."""
+    return encoder_glitches(steps, velocity_limits(model, n_joints))
 
 
 def said_glitches(rows: NDArray[np.int64], joints: NDArray[np.int64], stamps: NDArray[np.float64], model,

@@ -29,7 +29,8 @@ from dynamics.models import IdentificationModel
 from dynamics.runtime.memory import check_allocation
 from estimation.data.loading import SegmentTooShortError, resampling_grid
 from estimation.data.log_cleaning import DEFAULT_MAX_GAP, PositionSteps, position_steps, repeated_rows, split_rows
-from estimation.data.records import clean_time_base, dropouts, glitch_rows, said_dropouts, said_glitches
+from estimation.data.records import (clean_time_base, dropouts, glitch_rows, said_dropouts, said_glitches,
+                                     velocity_limits)
 from estimation.data.rest import between_holds, held_runs
 
 __all__ = ["HeldParts", "Part", "Resampler", "TimeScan", "file_parts", "file_segments", "scan_time"]
@@ -212,7 +213,7 @@ def _cleaned(frames, path: str | Path, model: IdentificationModel, *, max_gap: f
             if positions is not None:
                 prints.append(_fingerprints(data[:, :n_joints]))
             block = position_steps(np.vstack([carry_q, data[:, :n_joints]]), np.concatenate([carry_t, t]),
-                                   first_row=count - t.shape[0], carried=carry_t.shape[0])
+                                   velocity_limits(model, n_joints), first_row=count - t.shape[0], carried=carry_t.shape[0])
             steps = block if steps is None else steps.merged(block)
             judged += t.shape[0]
             carry_q, carry_t = np.vstack([carry_q, data[:, :n_joints]])[-2:], np.concatenate([carry_t, t])[-2:]
