@@ -161,7 +161,8 @@ def position_steps(q: NDArray[np.float64], t: NDArray[np.float64], velocity_limi
     last rows of the block before (at most 2; their step and their samples already counted), the others numbered
     from ``first_row``. A sample is judged once the sample after it is read: the last row of a block is judged with
     the next block, which carries it (and the one before it). Rows with a non-finite value or stamp, and steps of no
-    time, count for nothing; steps are taken modulo a whole turn (:func:`_turn_wrapped`). ``velocity_limit``
+    time, count for nothing, and a sample is judged only between its neighbours in time; steps are taken modulo a
+    whole turn (:func:`_turn_wrapped`). ``velocity_limit``
     (``(n,)``, the description's; ``inf`` where it gives none): the speeds are counted for the joints without one
     only (:func:`fast_speeds` bounds those), and a sample that leaves and comes back is kept as a candidate only
     when it is faster than :data:`GLITCH_SPEED_MARGIN` times the joint's limit (what :func:`encoder_glitches`
@@ -188,7 +189,8 @@ def position_steps(q: NDArray[np.float64], t: NDArray[np.float64], velocity_limi
         if m < 3:
             return PositionSteps(counts, smallest, none, none, np.zeros(0), np.zeros(0))
         shorter = np.minimum(size[:-1], size[1:])
-        span = (t[2:] - t[:-2]) / 2.0
+        forward = (t[1:-1] > t[:-2]) & (t[2:] > t[1:-1])  # a sample between its neighbours in time
+        span = np.where(forward, (t[2:] - t[:-2]) / 2.0, 0.0)
         floor = np.where(bounded, GLITCH_SPEED_MARGIN * np.where(bounded, limit, 0.0), 0.0)
         maybe = (shorter > floor * np.where(span > 0, span, 0.0)[:, None]) & (shorter > 0) & (span > 0)[:, None]
         row, joint = np.nonzero(maybe)

@@ -346,14 +346,17 @@ def segments_from_frame(
     data = np.hstack([values for values in arrays.values() if values is not None])
     repeated = repeated_rows(data)
     found = glitch_rows(position_steps(arrays["q"], t, velocity_limits(model, n_joints)), model, n_joints) if glitches else None
+    glitched = None  # said once the time base holds (a shuffled file is an error, not read errors)
     if found is not None and found[0].size:
-        said_glitches(np.flatnonzero(~blank)[found[0]], found[1], t[found[0]], model, source)
+        glitched = (np.flatnonzero(~blank)[found[0]], found[1], t[found[0]])
         kept = np.ones(t.shape[0], dtype=bool)
         kept[found[0]] = False
         t, repeated = t[kept], repeated[kept]
         arrays = {key: None if values is None else values[kept] for key, values in arrays.items()}
     times = clean_time_base(t, repeated, source, max_gap=max_gap, split=split,
                             check=lambda keep: check_angles(arrays["q"][keep], model, source))
+    if glitched is not None:
+        said_glitches(*glitched, model, source)
     t, holes = times.t, times.holes
     dropped, duplicated = times.repeated_rows_dropped, times.duplicated_times_dropped
     if dropped or duplicated:

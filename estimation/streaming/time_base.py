@@ -236,8 +236,9 @@ def _cleaned(frames, path: str | Path, model: IdentificationModel, *, max_gap: f
     if first_blank is not None:
         said_dropouts(int(np.count_nonzero(~rows)), *first_blank, str(path))
     found = glitch_rows(steps, model, n_joints) if steps is not None and judged == t.shape[0] else None
+    glitched = None  # said once the time base holds, as in memory
     if found is not None and found[0].size:  # encoder read errors: dropouts, as in memory
-        said_glitches(np.flatnonzero(rows)[found[0]], found[1], t[found[0]], model, str(path))
+        glitched = (np.flatnonzero(rows)[found[0]], found[1], t[found[0]])
         kept = np.ones(t.shape[0], dtype=bool)
         kept[found[0]] = False
         t, same = t[kept], same[kept]
@@ -245,6 +246,8 @@ def _cleaned(frames, path: str | Path, model: IdentificationModel, *, max_gap: f
             prints = [np.concatenate(prints)[kept]]
         rows[np.flatnonzero(rows)[found[0]]] = False
     times = clean_time_base(t, same, str(path), max_gap=max_gap, split=split)
+    if glitched is not None:
+        said_glitches(*glitched, model, str(path))
     if positions is not None and prints and sum(part.shape[0] for part in prints) == t.shape[0]:
         positions.append(np.concatenate(prints)[times.keep])
     if rows.all():
