@@ -17,8 +17,10 @@
   training record, at 200 Hz;
 - torque noise with heavy tails (Student's t, the drives' interference);
 - lost frames a fieldbus logger writes as rows of zeros (at 4d50ebf 805x the plain fit; now dropouts);
-- encoder read errors (one sample 0.2 rad off) and a torque sensor clipped past its range: strict xfails, their
-  figures and what would mend them in their reasons.
+- encoder read errors (one sample 0.2 rad off; at 93a9290 2.68x the plain fit, a strict xfail: now dropouts,
+  :func:`estimation.data.log_cleaning.encoder_glitches`) and a torque sensor clipped past its range (at 93a9290
+  50.9x, a strict xfail: now its clipped samples left out of the fit and the errors,
+  :func:`estimation.data.log_cleaning.saturated_samples`); the readers' own tests in ``tests/test_sensor_faults.py``.
 
 No data are copied; every record is simulated as :mod:`tests.test_unseen_robot_labs` does (the plain fit's model
 class, :func:`tests.test_unseen_robots.truth`, each case's effect, white torque noise of 2 % of each channel's
@@ -234,22 +236,10 @@ USERS = (
                "250 Hz, no dq", puma(3), *logs(), slow=True)),
      zero_rows),
     (Bench(Lab("PUMA 3 joints, 6 encoder read errors (one sample 0.2 rad off) in the training record, 10 s / 4 s / "
-               "6 s at 250 Hz, no dq", puma(3), *logs(), slow=True,
-               xfail="identify 2.679 in total (joints 2.79x, 2.08x, 3.27x), diagnose 2.642: each spike, read as a "
-                     "sample, turns through the derivative filter into an acceleration burst of about 0.1 s, and "
-                     "the cut-off chosen falls to 2.5 Hz (the plain fit, reading the record before the glitches, "
-                     "80 Hz); nothing false named. A step no joint's velocity limit allows, in and out of one "
-                     "sample, could be read as a dropout; not built: the streamed reader's chunk edges need it "
-                     "alike")),
+               "6 s at 250 Hz, no dq", puma(3), *logs(), slow=True)),
      encoder_glitches),
     (Bench(Lab("PUMA 3 joints, joint 2's torque sensor clipped at 80 % of its peak in the training record, 10 s / "
-               "4 s / 6 s at 250 Hz, no dq", puma(3), *logs(), slow=True,
-               xfail="identify and diagnose 50.9 in total, joint 2 157.6x the plain fit (which reads the record "
-                     "before the clipping, at its noise floor; joints 1 and 3 1.02x and 0.99x): the clipped "
-                     "samples are read as measurements and bend joint 2's gravity and friction; nothing false "
-                     "named, no warning. A channel holding its extreme value on many samples while the noise "
-                     "makes every other value unique is a saturated sensor; not built (a quantised channel "
-                     "repeats its extremes too)")),
+               "4 s / 6 s at 250 Hz, no dq", puma(3), *logs(), slow=True)),
      clipped),
 )
 

@@ -38,6 +38,8 @@ _EXPORTS: dict[str, str] = {
     "RepeatedRowsWarning": "estimation.data.loading",
     "RepeatedHeaderWarning": "estimation.data.loading",
     "BlankRowsWarning": "estimation.data.loading",
+    "EncoderGlitchWarning": "estimation.data.loading",
+    "SaturatedTorqueWarning": "estimation.data.loading",
     "ResampledWarning": "estimation.data.loading",
     "ReceiveTimesWarning": "estimation.data.loading",
     "clock_roughness": "estimation.data.sampling_clock",

@@ -135,6 +135,16 @@ class BlankRowsWarning(MeasurementWarning):
     is a gap like any other."""
 
 
+class EncoderGlitchWarning(MeasurementWarning):
+    """Samples where one joint's position left and came back by more than the joint can travel in a sample period
+    (an encoder's read error) were dropped as dropouts; the message names their rows and joints."""
+
+
+class SaturatedTorqueWarning(MeasurementWarning):
+    """A torque channel holds its extreme value on runs of samples while its joint moves (a sensor past its range):
+    those samples are left out of the samples as recorded (the fit and every error)."""
+
+
 class StillJointWarning(MeasurementWarning):
     """A joint whose position never changes in a record (a brake held it): the record does not determine its
     parameters; the message names the lock that leaves it out of the model."""

@@ -20,6 +20,21 @@
   (:func:`zero_rows`): on a robot of two joints or more, every position and torque exactly zero at once is no
   measurement (the torque sensors' noise alone forbids it), so such a row is a dropout like a blank one. Rows
   without torques are not judged: a planned trajectory may start at the zero pose.
+* **Encoder read errors.** One sample of one joint's position off, the next right again (a bit error on the
+  encoder's bus): a step into that value and a step out of it, each longer than the joint could travel in a sample
+  period (twice its velocity limit in the description; without one, :data:`GLITCH_RECORD_FACTOR` times the speed
+  under which :data:`GLITCH_QUANTILE` of the record's steps lie) and than :data:`GLITCH_COUNTS` of the channel's
+  smallest step (its encoder count: a quantised encoder flickering between counts is no error), the samples around
+  it agreeing (:func:`position_steps`, :func:`encoder_glitches`). Steps are taken modulo a whole turn (an angle
+  wrapped at ±π is no error). Such a row is a dropout: dropped, its time bridged as any gap. A true motion never
+  leaves and comes back within one sample by more than its velocity allows.
+* **A torque sensor past its range.** A channel that holds its largest (or smallest) value on a run of samples
+  while the joint moves, where its values elsewhere vary, is clipped there (:func:`saturated_samples`): its reading
+  is the sensor's limit, not the torque. A quantised channel repeats its extremes too, but no more than its other
+  values: the extreme must be held :data:`SATURATION_FACTOR` times as often as the channel's values are on average;
+  a joint at rest against a hard stop holds its torque while its position holds too, and is left alone. Such samples
+  are no measurement: the reader leaves them out of the samples as recorded (the fit and every error), the
+  positions kept for the derivatives.
 
 Pure functions on arrays; :mod:`estimation.data.loading` turns their findings into warnings and errors.
 """
@@ -79,6 +94,170 @@ def zero_rows(data: NDArray[np.float64], n_joints: int) -> NDArray[np.bool_]:
     if n_joints < ZERO_ROW_JOINTS or data.shape[1] == 0:
         return np.zeros(data.shape[0], dtype=bool)
     return np.all(data == 0.0, axis=1)
+
+
+#: how many times the joint's velocity limit a step must pass to be no motion (the limit is what the joint can do;
+#: the position's noise and the stamps' jitter are the margin)
+GLITCH_SPEED_MARGIN = 2.0
+#: without a velocity limit, how many times the record's own fast speed (:data:`GLITCH_QUANTILE`) a step must pass
+GLITCH_RECORD_FACTOR = 4.0
+#: the share of a joint's steps whose speed defines its fast speed when the description gives no limit
+GLITCH_QUANTILE = 0.99
+#: how many of the channel's smallest step (an encoder's count) a step must pass: a quantised encoder flickers
+#: between neighbouring counts, and its noise by a few
+GLITCH_COUNTS = 4.0
+#: the speed bins (rad/s or m/s) of :class:`PositionSteps`: log-spaced, 20 a decade
+SPEED_EDGES = np.logspace(-6.0, 6.0, 241)
+
+
+@dataclass(frozen=True)
+class PositionSteps:
+    """What a record's position steps say about encoder read errors, summed block by block (:meth:`merged`): the
+    same for a record read whole and one streamed in chunks.
+
+    Attributes
+    ----------
+    counts
+        ``(n, len(SPEED_EDGES) + 1)`` steps per joint and speed bin (``|Δq| / Δt``; below the first edge and above
+        the last in the end bins).
+    smallest
+        ``(n,)`` each joint's smallest step that is not zero (``inf`` when none).
+    rows, joints
+        The samples that leave and come back (the two steps opposite, the samples around them agreeing within half
+        the shorter step): their row among those read, and the joint.
+    steps, spans
+        The shorter of each such sample's two steps, and the time of a sample around it (half the time between its
+        neighbours), s.
+    """
+
+    counts: NDArray[np.int64]
+    smallest: NDArray[np.float64]
+    rows: NDArray[np.int64]
+    joints: NDArray[np.int64]
+    steps: NDArray[np.float64]
+    spans: NDArray[np.float64]
+
+    def merged(self, other: PositionSteps) -> PositionSteps:
+        """Both blocks' steps (``other`` read after this one)."""
+        return PositionSteps(self.counts + other.counts, np.minimum(self.smallest, other.smallest),
+                             np.concatenate([self.rows, other.rows]), np.concatenate([self.joints, other.joints]),
+                             np.concatenate([self.steps, other.steps]), np.concatenate([self.spans, other.spans]))
+
+
+def _turn_wrapped(step: NDArray[np.float64]) -> NDArray[np.float64]:
+    """``step`` modulo a whole turn, in ``[-π, π)`` where it is longer than half a turn (an angle logged wrapped at
+    ±π steps by a turn there), as it is elsewhere."""
+    far = np.abs(step) > np.pi
+    if not far.any():
+        return step
+    wrapped = step.copy()
+    wrapped[far] = np.mod(step[far] + np.pi, 2.0 * np.pi) - np.pi
+    return wrapped
+
+
+def position_steps(q: NDArray[np.float64], t: NDArray[np.float64], velocity_limit: NDArray[np.float64], *,
+                   first_row: int = 0, carried: int = 0) -> PositionSteps:
+    """The :class:`PositionSteps` of the rows ``q (m, n)`` stamped ``t (m,)``, the first ``carried`` of them the
+    last rows of the block before (at most 2; their step and their samples already counted), the others numbered
+    from ``first_row``. A sample is judged once the sample after it is read: the last row of a block is judged with
+    the next block, which carries it (and the one before it). Rows with a non-finite value or stamp, and steps of no
+    time, count for nothing, and a sample is judged only between its neighbours in time; steps are taken modulo a
+    whole turn (:func:`_turn_wrapped`). ``velocity_limit``
+    (``(n,)``, the description's; ``inf`` where it gives none): the speeds are counted for the joints without one
+    only (:func:`fast_speeds` bounds those), and a sample that leaves and comes back is kept as a candidate only
+    when it is faster than :data:`GLITCH_SPEED_MARGIN` times the joint's limit (what :func:`encoder_glitches`
+    asks)."""
+    m, n = q.shape
+    counts = np.zeros((n, SPEED_EDGES.shape[0] + 1), dtype=np.int64)
+    smallest = np.full(n, np.inf)
+    none = np.zeros(0, dtype=np.int64)
+    if m < 2:
+        return PositionSteps(counts, smallest, none, none, np.zeros(0), np.zeros(0))
+    limit = np.asarray(velocity_limit, dtype=float)
+    bounded = np.isfinite(limit) & (limit > 0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        step = _turn_wrapped(np.diff(q, axis=0))
+        size = np.abs(step)
+        new = slice(max(carried - 1, 0), None)
+        smallest = np.where(size[new] > 0, size[new], np.inf).min(axis=0) if size[new].size else smallest
+        if not bounded.all():
+            dt = np.diff(t)[new]
+            for joint in np.flatnonzero(~bounded):
+                speed = size[new, joint][dt > 0] / dt[dt > 0]
+                counts[joint] = np.bincount(np.searchsorted(SPEED_EDGES, speed[np.isfinite(speed)], side="right"),
+                                            minlength=counts.shape[1])
+        if m < 3:
+            return PositionSteps(counts, smallest, none, none, np.zeros(0), np.zeros(0))
+        shorter = np.minimum(size[:-1], size[1:])
+        forward = (t[1:-1] > t[:-2]) & (t[2:] > t[1:-1])  # a sample between its neighbours in time
+        span = np.where(forward, (t[2:] - t[:-2]) / 2.0, 0.0)
+        floor = np.where(bounded, GLITCH_SPEED_MARGIN * np.where(bounded, limit, 0.0), 0.0)
+        maybe = (shorter > floor * np.where(span > 0, span, 0.0)[:, None]) & (shorter > 0) & (span > 0)[:, None]
+        row, joint = np.nonzero(maybe)
+        through = np.abs(_turn_wrapped(q[row + 2, joint] - q[row, joint]))
+        keep = through < 0.5 * shorter[row, joint]
+        row, joint = row[keep], joint[keep]
+    return PositionSteps(counts, smallest, (first_row - carried + 1 + row).astype(np.int64), joint.astype(np.int64),
+                         shorter[row, joint], span[row])
+
+
+def fast_speeds(steps: PositionSteps) -> NDArray[np.float64]:
+    """``(n,)`` the speed under which :data:`GLITCH_QUANTILE` of each joint's steps lie (the upper edge of its bin
+    in :data:`SPEED_EDGES`; ``inf`` for a joint without steps or with its quantile past the last edge)."""
+    totals = steps.counts.sum(axis=1)
+    bins = np.array([np.searchsorted(np.cumsum(row), GLITCH_QUANTILE * total, side="left") if total else
+                     SPEED_EDGES.shape[0] for row, total in zip(steps.counts, totals)])
+    return np.where(bins < SPEED_EDGES.shape[0], SPEED_EDGES[np.minimum(bins, SPEED_EDGES.shape[0] - 1)], np.inf)
+
+
+def encoder_glitches(steps: PositionSteps, velocity_limit: NDArray[np.float64]) -> tuple[NDArray[np.int64],
+                                                                                          NDArray[np.int64]]:
+    """The encoder read errors among ``steps``' samples that leave and come back: their rows and joints (sorted by
+    row, then joint). A step no joint may make: longer than :data:`GLITCH_SPEED_MARGIN` times ``velocity_limit``
+    (``(n,)``, rad/s or m/s; ``inf`` where the description gives none: :data:`GLITCH_RECORD_FACTOR` times
+    :func:`fast_speeds` instead) over the sample's time, and than :data:`GLITCH_COUNTS` of the joint's smallest
+    step."""
+    limit = np.asarray(velocity_limit, dtype=float)
+    speed = np.where(np.isfinite(limit) & (limit > 0), GLITCH_SPEED_MARGIN * limit,
+                     GLITCH_RECORD_FACTOR * fast_speeds(steps))
+    joints = steps.joints
+    glitch = ((steps.steps > speed[joints] * steps.spans) & (steps.steps > GLITCH_COUNTS * steps.smallest[joints]))
+    order = np.lexsort((joints[glitch], steps.rows[glitch]))
+    return steps.rows[glitch][order], joints[glitch][order]
+
+
+#: how many times as often as the channel's values are on average (samples over distinct values) its extreme must
+#: be held to be a sensor's limit: a quantised channel's extremes are held no more often than its other values
+SATURATION_FACTOR = 10.0
+#: the fewest samples at a channel's extreme that make it clipped
+SATURATION_LEAST = 5
+
+
+def saturated_samples(tau: NDArray[np.float64], q: NDArray[np.float64]) -> NDArray[np.bool_]:
+    """``(N, n)`` true where torque channel ``j`` of ``tau (N, n)`` holds its largest or smallest value on a run of
+    samples while joint ``j``'s position ``q (N, n)`` changes within the run (a lone sample at the extreme: between
+    its neighbours, the noise taking the reading in and out of the limit), the extreme held on at least
+    :data:`SATURATION_LEAST` samples and :data:`SATURATION_FACTOR` times as often as the channel's values on average
+    (a quantised channel holds its extremes no more often than its other values). A run where the position holds
+    too (a joint at rest against a hard stop) is left alone. Non-finite values count for nothing."""
+    found = np.zeros(tau.shape, dtype=bool)
+    for joint in range(tau.shape[1]):
+        channel = tau[:, joint]
+        finite = channel[np.isfinite(channel)]
+        if finite.size < SATURATION_LEAST:
+            continue
+        values, counts = np.unique(finite, return_counts=True)
+        typical = finite.size / values.size
+        for index in (0, -1):
+            if values.size < 2 or counts[index] < SATURATION_LEAST or counts[index] <= SATURATION_FACTOR * typical:
+                continue
+            at = channel == values[index]
+            edges = np.flatnonzero(np.diff(np.r_[0, at.astype(np.int8), 0]))
+            for start, stop in zip(edges[::2], edges[1::2]):
+                around = slice(start, stop) if stop - start >= 2 else slice(max(start - 1, 0), stop + 1)
+                if np.ptp(q[around, joint]) > 0:  # the joint moves while the torque holds (a lone sample: moves there)
+                    found[start:stop, joint] = True
+    return found
 
 
 def repeated_rows(data: NDArray[np.float64]) -> NDArray[np.bool_]:

@@ -31,6 +31,8 @@ from estimation.data.loading import (
     AbsurdValueError,
     BlankRowsWarning,
     COLUMN_GROUPS,
+    EncoderGlitchWarning,
+    SaturatedTorqueWarning,
     DelimiterWarning,
     DuplicatedTimesWarning,
     QuantisedStampsWarning,
@@ -76,8 +78,9 @@ from estimation.data.log_formats import (
     time_column,
 )
 from estimation.data.sampling_clock import clock_instants, clock_roughness, quantised_clock, said_receive_times
-from estimation.data.log_cleaning import (DEFAULT_MAX_GAP, ZERO_ROW_JOINTS, Gap, blank_rows, describe, find_gaps,
-                                          repeated_rows, split_rows, time_stamps_jump, zero_rows)
+from estimation.data.log_cleaning import (DEFAULT_MAX_GAP, ZERO_ROW_JOINTS, Gap, PositionSteps, blank_rows, describe,
+                                          encoder_glitches, find_gaps, position_steps, repeated_rows,
+                                          saturated_samples, split_rows, time_stamps_jump, zero_rows)
 from dynamics.measurements import Measurements, joint_columns
 
 
@@ -134,10 +137,13 @@ def measurements_from_frame(
     resample: bool = True,
     source: str = "data",
     max_gap: float = DEFAULT_MAX_GAP,
+    glitches: bool = True,
 ) -> Measurements:
-    """The checks of :func:`read_measurements` on a ``DataFrame`` already in memory."""
+    """The checks of :func:`read_measurements` on a ``DataFrame`` already in memory (``glitches`` false: its
+    encoder read errors and clipped torques not judged, as for a chunk of a streamed file, which holds part of the
+    record only)."""
     return segments_from_frame(frame, n_joints=n_joints, model=model, require=require, resample=resample,
-                               source=source, max_gap=max_gap, split=False)[0]
+                               source=source, max_gap=max_gap, split=False, glitches=glitches)[0]
 
 
 def read_record(
@@ -306,8 +312,11 @@ def segments_from_frame(
     source: str = "data",
     max_gap: float = DEFAULT_MAX_GAP,
     split: bool = True,
+    glitches: bool = True,
 ) -> tuple[Measurements, ...]:
-    """The checks of :func:`read_record` on a ``DataFrame`` already in memory."""
+    """The checks of :func:`read_record` on a ``DataFrame`` already in memory; with ``glitches``, its encoder read
+    errors dropped as dropouts (:func:`glitch_rows`, said in an :class:`EncoderGlitchWarning`) and a torque sensor's
+    clipped samples left out of the samples as recorded (:func:`clipped_torques`)."""
     if isinstance(max_gap, bool) or not isinstance(max_gap, (int, float, np.floating)) or not max_gap > 0 \
             or not np.isfinite(max_gap):
         raise ValueError(f"max_gap must be a positive number of seconds, got {max_gap!r}")
@@ -336,12 +345,24 @@ def segments_from_frame(
     _check_absurd(t, arrays, n_joints, source)
     _said_still_joints(arrays["q"], model, source)
     data = np.hstack([values for values in arrays.values() if values is not None])
-    times = clean_time_base(t, repeated_rows(data), source, max_gap=max_gap, split=split,
+    repeated = repeated_rows(data)
+    found = glitch_rows(position_steps(arrays["q"], t, velocity_limits(model, n_joints)), model, n_joints) if glitches else None
+    glitched = None  # said once the time base holds (a shuffled file is an error, not read errors)
+    if found is not None and found[0].size:
+        glitched = (np.flatnonzero(~blank)[found[0]], found[1], t[found[0]])
+        kept = np.ones(t.shape[0], dtype=bool)
+        kept[found[0]] = False
+        t, repeated = t[kept], repeated[kept]
+        arrays = {key: None if values is None else values[kept] for key, values in arrays.items()}
+    times = clean_time_base(t, repeated, source, max_gap=max_gap, split=split,
                             check=lambda keep: check_angles(arrays["q"][keep], model, source))
+    if glitched is not None:
+        said_glitches(*glitched, model, source)
     t, holes = times.t, times.holes
     dropped, duplicated = times.repeated_rows_dropped, times.duplicated_times_dropped
     if dropped or duplicated:
         arrays = {key: None if values is None else values[times.keep] for key, values in arrays.items()}
+    clipped = clipped_torques(arrays, t, model, source) if glitches else None
     segments = []
     for index, rows in enumerate(split_rows(t.shape[0], holes), start=1):
         name = source if len(holes) == 0 else f"{source} (segment {index})"
@@ -358,8 +379,12 @@ def segments_from_frame(
         if "resampled_from" in metadata:  # resampled by its stamps: were they the samples' instants?
             said_receive_times(clock_roughness(stamps, piece["q"], (stamps[-1] - stamps[0]) / (segment_t.shape[0] - 1)),
                                float(stamps[0]), float(stamps[-1]), stamps.shape[0], name)
+        valid = None if clipped is None or not clipped[rows].any() else ~clipped[rows].any(axis=1)
+        if valid is not None:
+            metadata["saturated_samples"] = {f"tau{j + 1}": int(count) for j, count in
+                                             enumerate(clipped[rows].sum(axis=0)) if count}
         segments.append(Measurements(segment_t, grid["q"], grid["dq"], grid["ddq"], grid["tau"], grid["wrench"],
-                                     metadata, *_as_recorded(stamps, piece, segment_t, metadata)))
+                                     metadata, *_as_recorded(stamps, piece, segment_t, metadata, valid)))
     if isinstance(model, IdentificationModel):
         check_sample_count(segments, model)
     return tuple(segments)
@@ -402,6 +427,39 @@ def lost_frames(frame: pd.DataFrame, n_joints: int, cells: list[str]) -> NDArray
         else pd.to_numeric(frame[column], errors="coerce").to_numpy(dtype=float) for column in cells]), n_joints)
 
 
+def velocity_limits(model, n_joints: int) -> NDArray[np.float64]:
+    """``(n,)`` the velocity limits of the model's robot (``inf`` without a model or a limit: the record's own fast
+    speed then bounds the steps, :func:`estimation.data.log_cleaning.fast_speeds`)."""
+    return (np.asarray(model.robot.velocity_limit, dtype=float) if isinstance(model, IdentificationModel)
+            else np.full(n_joints, np.inf))
+
+
+def glitch_rows(steps: PositionSteps, model, n_joints: int) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """The rows and joints of ``steps``' encoder read errors (:func:`estimation.data.log_cleaning.encoder_glitches`),
+    judged by the velocity limits of the model's robot (:func:`velocity_limits`)."""
+    return encoder_glitches(steps, velocity_limits(model, n_joints))
+
+
+def said_glitches(rows: NDArray[np.int64], joints: NDArray[np.int64], stamps: NDArray[np.float64], model,
+                  source: str, limit: int = 6) -> None:
+    """The :class:`EncoderGlitchWarning` naming the rows of the file (``rows``, as :func:`said_dropouts` counts
+    them), their joints and time stamps."""
+    names = ([joint.name for joint in model.robot.joints] if isinstance(model, IdentificationModel)
+             else [f"q{j + 1}" for j in range(int(joints.max()) + 1)])
+    unique = np.unique(rows)
+    shown = ", ".join(f"row {int(row)} (t = {float(stamp):.6g} s, "
+                      + "/".join(f"q{int(j) + 1}" + ("" if names[j] == f"q{int(j) + 1}" else f" {names[j]!r}")
+                                 for j in joints[rows == row]) + ")"
+                      for row, stamp in zip(unique[:limit], [stamps[np.flatnonzero(rows == row)[0]]
+                                                             for row in unique[:limit]]))
+    more = f" and {unique.size - limit} more" if unique.size > limit else ""
+    warnings.warn(
+        f"{source}: dropped {unique.size} row(s) where a joint's position leaves and comes back within one sample by "
+        "more than the joint can travel in it (an encoder's read error: twice its velocity limit, or without one four "
+        f"times the record's fast speed, and more than four of its counts): {shown}{more}; read as dropouts, the "
+        "time they leave bridged by interpolation as any gap", EncoderGlitchWarning, stacklevel=5)
+
+
 def said_dropouts(count: int, first_row: int, first_stamp: object, source: str) -> None:
     """The :class:`BlankRowsWarning` for ``count`` rows dropped as dropouts, the first at row ``first_row`` of the
     file, stamped ``first_stamp`` (as written)."""
@@ -415,19 +473,49 @@ def said_dropouts(count: int, first_row: int, first_stamp: object, source: str) 
         BlankRowsWarning, stacklevel=5)
 
 
-def _as_recorded(t: NDArray[np.float64], piece: dict, grid: NDArray[np.float64], metadata: dict
-                 ) -> tuple[Measurements | None, NDArray[np.int_] | None]:
+def _as_recorded(t: NDArray[np.float64], piece: dict, grid: NDArray[np.float64], metadata: dict,
+                 valid: NDArray[np.bool_] | None = None) -> tuple[Measurements | None, NDArray[np.int_] | None]:
     """The samples as recorded beside a resampled segment (``Measurements.recorded``, each beside its nearest grid
     sample: ``recorded_rows``), or ``(None, None)`` when the segment was not resampled. Errors are taken on them:
     the torques are never interpolated (the motion derived on the grid is, at their time stamps,
-    :func:`estimation.preprocessing.plan.prepare`)."""
-    if grid is t:
+    :func:`estimation.preprocessing.plan.prepare`). ``valid``: the samples whose torques are measurements (a clipped
+    sensor's samples false, :func:`clipped_torques`): the others are left out of the samples as recorded, of a
+    segment resampled or not."""
+    if grid is t and valid is None:
         return None, None
     step = (grid[-1] - grid[0]) / max(grid.shape[0] - 1, 1)
-    rows = np.clip(np.rint((t - grid[0]) / step), 0, grid.shape[0] - 1).astype(np.int_)
-    recorded = Measurements(t, piece["q"], piece["dq"], piece["ddq"], piece["tau"], piece["wrench"],
+    rows = (np.arange(t.shape[0]) if grid is t
+            else np.clip(np.rint((t - grid[0]) / step), 0, grid.shape[0] - 1).astype(np.int_))
+    keep = slice(None) if valid is None else valid
+    recorded = Measurements(t[keep], *(None if piece[key] is None else piece[key][keep]
+                                       for key in ("q", "dq", "ddq", "tau", "wrench")),
                             dict(metadata, recorded_stamps=True))
-    return recorded, rows
+    return recorded, rows[keep]
+
+
+def clipped_torques(arrays: dict, t: NDArray[np.float64], model, source: str) -> NDArray[np.bool_] | None:
+    """``(N, n)`` the samples of each torque channel held at a sensor's limit
+    (:func:`estimation.data.log_cleaning.saturated_samples`), said in a :class:`SaturatedTorqueWarning` naming the
+    channels; ``None`` when there are none (or no torques)."""
+    if arrays.get("tau") is None or arrays.get("q") is None:
+        return None
+    found = saturated_samples(arrays["tau"], arrays["q"])
+    if not found.any():
+        return None
+    names = ([joint.name for joint in model.robot.joints] if isinstance(model, IdentificationModel)
+             else [f"tau{j + 1}" for j in range(found.shape[1])])
+    said = []
+    for j in np.flatnonzero(found.any(axis=0)):
+        rows = np.flatnonzero(found[:, j])
+        said.append(f"tau{j + 1}" + ("" if names[j] == f"tau{j + 1}" else f" ({names[j]})")
+                    + f" at {arrays['tau'][rows[0], j]:.6g} on {rows.size} sample(s) from t = {t[rows[0]]:.6g} s to "
+                    f"{t[rows[-1]]:.6g} s")
+    warnings.warn(
+        f"{source}: a torque sensor past its range: {'; '.join(said)}, its extreme value held while the joint moves "
+        "(and held far more often than its other values): clipped, not measured; these samples are left out of the "
+        "fit and of every error (taken against what was recorded where the recording is valid), the positions kept "
+        "for the derivatives", SaturatedTorqueWarning, stacklevel=5)
+    return found
 
 
 def _joint_count(frame: pd.DataFrame, n_joints: int | None, model: IdentificationModel | ModelKind | str | None,

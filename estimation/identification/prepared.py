@@ -237,6 +237,21 @@ class PreparedRecords:
     test: PreparedRecord | None = None
 
 
+def saturated_sample_counts(records: PreparedRecords | None) -> dict[str, list[dict]] | None:
+    """``result.json``'s ``saturated_samples``: for each record (``train``, ``validation``, ``test``) the segments
+    whose torque sensor was clipped (:func:`estimation.data.records.clipped_torques`) with the samples left out of
+    the fit and of the errors, per channel; ``None`` when no record holds any (or the records were streamed)."""
+    if records is None:
+        return None
+    found = {role: [{"file": str(file.path), "segment": int(segment.metadata.get("segment", 1)),
+                     "samples": dict(segment.metadata["saturated_samples"])}
+                    for file in record.files for segment in file.segments
+                    if segment.metadata.get("saturated_samples")]
+             for role, record in (("train", records.train), ("validation", records.validation),
+                                  ("test", records.test)) if record is not None}
+    return {role: entries for role, entries in found.items() if entries} or None
+
+
 def read_files(paths: Sequence[str | Path], model: IdentificationModel, *, split: bool,
                max_gap: float = DEFAULT_MAX_GAP, transmission: Transmission | None = None,
                joint_offsets: tuple[float, ...] | None = None,

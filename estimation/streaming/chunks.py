@@ -374,7 +374,8 @@ def logged_chunks(path: str | Path, model: IdentificationModel, *, chunk_size: i
             row += len(pending)
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")  # said when the file was read for its sums
-                chunk = measurements_from_frame(pending, model=model, resample=True, source=str(path)).as_recorded
+                chunk = measurements_from_frame(pending, model=model, resample=True, source=str(path),
+                                                glitches=False).as_recorded
             if chunk.n_samples:  # the samples kept as logged, when the block was resampled
                 yield chunk if load is None else loaded_chunk(chunk, load, model)
         pending = frame
@@ -408,7 +409,8 @@ class _ChunkChecks:
                 measurements = self.resampled(frame, source)
                 self.row += rows
                 return measurements
-            measurements = measurements_from_frame(frame, model=self.model, resample=False, source=source)
+            measurements = measurements_from_frame(frame, model=self.model, resample=False, source=source,
+                                                   glitches=False)
         step = float(np.median(np.diff(measurements.t)))
         if previous is not None:
             gap = measurements.t[0] - previous[0]
@@ -425,7 +427,8 @@ class _ChunkChecks:
     def resampled(self, frame: pd.DataFrame, source: str) -> Measurements:
         """The chunk checked as the loader checks it, then put on the whole file's grid."""
         path, previous, scan, n_joints = self.path, self.previous, self.scan, self.model.robot.n_joints
-        checked_chunk = measurements_from_frame(frame, model=self.model, resample=True, source=source)
+        checked_chunk = measurements_from_frame(frame, model=self.model, resample=True, source=source,
+                                                glitches=False)
         frame = frame.rename(columns=lambda name: str(name).strip())
         t = pd.to_numeric(frame["t"], errors="coerce").to_numpy(dtype=float)
         if previous is not None:

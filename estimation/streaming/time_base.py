@@ -28,8 +28,9 @@ from dynamics.measurements import joint_columns
 from dynamics.models import IdentificationModel
 from dynamics.runtime.memory import check_allocation
 from estimation.data.loading import SegmentTooShortError, resampling_grid
-from estimation.data.log_cleaning import DEFAULT_MAX_GAP, repeated_rows, split_rows
-from estimation.data.records import clean_time_base, dropouts, said_dropouts
+from estimation.data.log_cleaning import DEFAULT_MAX_GAP, PositionSteps, position_steps, repeated_rows, split_rows
+from estimation.data.records import (clean_time_base, dropouts, glitch_rows, said_dropouts, said_glitches,
+                                     velocity_limits)
 from estimation.data.rest import between_holds, held_runs
 
 __all__ = ["HeldParts", "Part", "Resampler", "TimeScan", "file_parts", "file_segments", "scan_time"]
@@ -194,7 +195,9 @@ def _cleaned(frames, path: str | Path, model: IdentificationModel, *, max_gap: f
     present: list[NDArray[np.bool_]] = []  # the rows not dropouts (:func:`estimation.data.records.dropouts`)
     first_blank: tuple[int, object] | None = None  # the first dropout's row and time stamp
     previous: NDArray[np.float64] | None = None
+    steps: PositionSteps | None = None  # the position steps so far (encoder read errors: judged on the whole record)
     count, n_joints = 0, model.robot.n_joints
+    carry_q, carry_t, judged = np.zeros((0, n_joints)), np.zeros(0), 0  # the last two rows read; rows judged
     for frame in frames:
         frame = frame.rename(columns=lambda name: str(name).strip())
         if "t" not in frame.columns:
@@ -213,8 +216,15 @@ def _cleaned(frames, path: str | Path, model: IdentificationModel, *, max_gap: f
         count += t.shape[0]
         check_allocation(8.0 * (3 if positions is None else 5) * count, f"the time column of {path} ({count} samples)")
         parts.append(t)
-        if positions is not None and columns and columns[0] == _columns("q", n_joints):
-            prints.append(_fingerprints(data[:, :n_joints]))
+        if columns and columns[0] == _columns("q", n_joints):
+            if positions is not None:
+                prints.append(_fingerprints(data[:, :n_joints]))
+            block = position_steps(np.vstack([carry_q, data[:, :n_joints]]), np.concatenate([carry_t, t]),
+                                   velocity_limits(model, n_joints), first_row=count - t.shape[0], carried=carry_t.shape[0])
+            steps = block if steps is None else steps.merged(block)
+            judged += t.shape[0]
+            carry_q, carry_t = np.vstack([carry_q, data[:, :n_joints]])[-2:], np.concatenate([carry_t, t])[-2:]
+            check_allocation(24.0 * steps.rows.shape[0], f"the steps of {path}'s positions")
         if previous is not None and previous.shape[1] == data.shape[1] and data.shape[0]:
             data = np.vstack([previous, data])
             repeated.append(repeated_rows(data)[1:])
@@ -232,7 +242,19 @@ def _cleaned(frames, path: str | Path, model: IdentificationModel, *, max_gap: f
     rows = np.concatenate(present)
     if first_blank is not None:
         said_dropouts(int(np.count_nonzero(~rows)), *first_blank, str(path))
+    found = glitch_rows(steps, model, n_joints) if steps is not None and judged == t.shape[0] else None
+    glitched = None  # said once the time base holds, as in memory
+    if found is not None and found[0].size:  # encoder read errors: dropouts, as in memory
+        glitched = (np.flatnonzero(rows)[found[0]], found[1], t[found[0]])
+        kept = np.ones(t.shape[0], dtype=bool)
+        kept[found[0]] = False
+        t, same = t[kept], same[kept]
+        if positions is not None and prints and sum(part.shape[0] for part in prints) == kept.shape[0]:
+            prints = [np.concatenate(prints)[kept]]
+        rows[np.flatnonzero(rows)[found[0]]] = False
     times = clean_time_base(t, same, str(path), max_gap=max_gap, split=split)
+    if glitched is not None:
+        said_glitches(*glitched, model, str(path))
     if positions is not None and prints and sum(part.shape[0] for part in prints) == t.shape[0]:
         positions.append(np.concatenate(prints)[times.keep])
     if rows.all():

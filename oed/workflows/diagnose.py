@@ -52,7 +52,7 @@ from estimation.diagnosis.results import Diagnosis, SummedFit, runner_up_line
 from estimation.diagnosis.search import default_candidates
 from estimation.diagnosis.search import diagnose as diagnose_model
 from estimation.diagnosis.untouched import UntouchedErrors, recorded_comparison, recorded_mse, untouched_errors
-from estimation.identification.prepared import InMemoryBudget, PreparedRecords, prepare_records
+from estimation.identification.prepared import InMemoryBudget, PreparedRecords, prepare_records, saturated_sample_counts
 from estimation.identification.repeated_motion import repeat_note, repeated_motion_note
 from estimation.identification.undetermined import fitted_without_undetermined
 from estimation.preprocessing.delay import DelayBounds, split_delay
@@ -337,6 +337,8 @@ def run_diagnose(args: DiagnoseOptions, *, say: Callable[[str], None]) -> Diagno
             said = tuple(column.statement() for column in merged)
             diagnosed = replace(diagnosed, messages=(*said, *diagnosed.messages), notes=(*said, *diagnosed.notes))
         document, messages = diagnose_document(args, diagnosed)
+        # a torque sensor past its range: the samples left out of the fit and of the errors (said when read)
+        document["saturated_samples"] = saturated_sample_counts(diagnosed.records)
         if merged:
             document["not_determined"] = [column.to_dict() for column in merged]
         if chain is not None:

@@ -41,7 +41,7 @@ from estimation.uncertainty.noise_floor import NoiseFloor
 from estimation.estimators.least_squares import IdentifiabilityError
 from estimation.estimators.normal_equations import DEFAULT_CHUNK_SIZE, NormalEquations
 from estimation.identification.fit import IdentificationResult
-from estimation.identification.prepared import InMemoryBudget, PreparedRecords, prepare_records
+from estimation.identification.prepared import InMemoryBudget, PreparedRecords, prepare_records, saturated_sample_counts
 from estimation.identification.preprocessing_choice import ChoiceWindow
 from estimation.identification.repeated_motion import repeat_note, repeated_motion_note
 from estimation.identification.model_file import summed_model_file_document
@@ -423,6 +423,8 @@ def identify_document(args: IdentifyOptions, identified: Identified) -> tuple[di
         document["method_selection"] = identified.weighting.to_dict()
     selection = identified.selection
     document["model_selection"] = None if selection is None else selection.to_dict()
+    # a torque sensor past its range: the samples left out of the fit and of the errors (said when read)
+    document["saturated_samples"] = saturated_sample_counts(identified.records)
     if identified.records is not None:
         messages += add_model_file(document, result, args, identified.records.preprocessing, identified.transmission,
                                    consistent=identified.consistent, selection=selection)
