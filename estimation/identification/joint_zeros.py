@@ -528,14 +528,6 @@ def _nominal_mse(model: IdentificationModel, nominal: NDArray, samples: tuple[ND
     ``signs``, ``torque_signs`` at ``offsets``, the effects' parameters (friction, torque offsets) fitted by least
     squares to what the bodies leave: the errors against the recorded channels. With ``gained``, the bodies' torque
     of each ``gained`` channel times a positive gain fitted with the effects (:func:`_gained_bodies`)."""
-    residual = _nominal_residual(model, nominal, samples, offsets, signs, torque_signs, gained)
-    return float(np.sum(np.mean(residual ** 2, axis=0)))
-
-
-def _nominal_residual(model: IdentificationModel, nominal: NDArray,
-                      samples: tuple[NDArray, NDArray, NDArray, NDArray], offsets: NDArray, signs: NDArray,
-                      torque_signs: NDArray, gained: NDArray | None = None) -> NDArray:
-    """The residual ``(N, channels)`` of :func:`_nominal_mse` (in the description's directions)."""
     q, dq, ddq, target = samples
     target = target * channel_signs(model, torque_signs)
     Y = model.evaluate(q * signs + offsets, dq * signs, ddq * signs)
@@ -545,11 +537,11 @@ def _nominal_residual(model: IdentificationModel, nominal: NDArray,
     residual = target - Y[:, :, :bodies] @ nominal[:bodies]
     if bodies < Y.shape[2]:
         residual = residual - Y[:, :, bodies:] @ _least_squares(Y[:, :, bodies:], residual)
-    return residual
+    return float(np.sum(np.mean(residual ** 2, axis=0)))
 
 
-def _gained_bodies(body: NDArray, effects: NDArray, target: NDArray, gained: NDArray) -> NDArray:
-    """The residual of ``target (N, m)`` fitted by ``body (N, m)``, the description's bodies' torque, times a gain on
+def _gained_bodies(body: NDArray, effects: NDArray, target: NDArray, gained: NDArray) -> float:
+    """The total MSE of ``target (N, m)`` fitted by ``body (N, m)``, the description's bodies' torque, times a gain on
     each ``gained`` channel (``1`` on the others) and the columns ``effects (N, m, k)``, by least squares; a gain
     that comes out negative or zero is held at zero (a reversed torque is the directions' to say, not a gain's)."""
     fixed = np.where(gained, 0.0, 1.0)
@@ -565,7 +557,7 @@ def _gained_bodies(body: NDArray, effects: NDArray, target: NDArray, gained: NDA
         if np.all(gains > 0.0):
             break
         active = active[gains > 0.0]
-    return residual - (A @ coefficients if A.shape[2] else 0.0)
+    return float(np.sum(np.mean((residual - (A @ coefficients if A.shape[2] else 0.0)) ** 2, axis=0)))
 
 
 def gains_in_question(model: IdentificationModel, found: _Problem, scored: tuple[NDArray, NDArray, NDArray, NDArray],
