@@ -2,7 +2,7 @@
 
 A 6-joint PUMA (viscous, Coulomb and offset per joint), a training and a validation record of other Fourier motions,
 2 % white torque noise; each seed draws the parameters, the motions, the noise and the gains (0.3–1.8, joint 2's or
-3's sign flipped: a true torque reversal), as ``tests/test_joint_zero_gains.py`` does. Four logs a seed:
+3's sign flipped: a true torque reversal), the logs of ``tests/test_joint_zero_gains.py``. Four logs a seed:
 
 - ``gains``: the torques times the gains, the zeros as the description's;
 - ``gains+offset``: the same with joint 2's zero 0.8 rad off;
@@ -38,7 +38,7 @@ OFFSETS = np.array([0.0, 0.8, 0.0, 0.0, 0.0, 0.0])
 
 
 def records(model, robot, seed: int):
-    """The training and validation records and the gains of a seed (``tests/test_joint_zero_gains.logs``)."""
+    """The training and validation records and the gains of a seed (also those of ``tests/test_joint_zero_gains.py``)."""
     generator = np.random.default_rng(seed)
     gains = generator.uniform(0.3, 1.8, 6)
     gains[generator.integers(1, 3)] *= -1

@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 import scipy.signal
 
+from benchmarks.bench_joint_zero_gains import records as logs
 from dynamics.models import build_model
 from dynamics.robots import load_robot
 from dynamics.simulation.synthetic import simulate, true_parameters
@@ -65,21 +66,6 @@ def test_the_paired_test_holds_its_level_and_sees_a_fall():
             seen += paired_test(draws[1] + 0.45 * draws[2], draws[1], weights).significant
         assert rejected <= 3 * PAIRED_ALPHA * 1000, (rho, rejected)
         assert seen >= power * 1000, (rho, seen)
-
-
-def logs(model, robot, seed: int) -> tuple[list, np.ndarray]:
-    """A training and a validation record (Fourier motions of different seeds, 2 % white torque noise) and the
-    per-joint gains of the seed (0.3–1.8, joint 2's or 3's sign flipped)."""
-    generator = np.random.default_rng(seed)
-    gains = generator.uniform(0.3, 1.8, 6)
-    gains[generator.integers(1, 3)] *= -1
-    theta = true_parameters(model, seed=seed)
-    records = []
-    for k in range(2):
-        record = simulate(model, theta, random_fourier(robot, 50 + 2 * seed + k), seed=500 + 2 * seed + k)
-        records.append(replace(record, tau=record.tau + generator.normal(size=record.tau.shape) * 0.02
-                               * record.tau.std(axis=0)))
-    return records, gains
 
 
 @pytest.mark.slow
