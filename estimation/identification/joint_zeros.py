@@ -23,9 +23,12 @@ matter by themselves (:data:`MIN_OFFSET`, and removing the offset alone raises t
 held-out MSE ratio, and the total held-out MSE, both at most ``1 −`` it). A named joint's offset must also lower
 by itself the held-out error, with and without a free gain on each joint's torque
 (:func:`_apart_from_gains`): torques logged with an unknown gain per joint are otherwise read as joint zeros. When
-such gains are in question (:func:`gains_in_question`), steps 1–3 and the tests run with a gain on each joint's torque
-fitted beside ``θ`` (kept positive when the directions are scanned: a reversed torque is theirs to say), so that a true
-offset is found where the records tell it from a gain, and nothing is said where they do not. A correctly zeroed log whose model lacks
+such gains are in question (:func:`gains_in_question`: they lower the held-out error by a one-sided paired test over
+blocks of the held-out samples at the level :data:`PAIRED_ALPHA`, :func:`paired_test`), steps 1–3 and the tests run
+with a gain on each joint's torque fitted beside ``θ`` (kept positive when the directions are scanned: a reversed torque
+is theirs to say), so that a true offset is found where the records tell it from a gain, and nothing is said where they
+do not; the gains must still pass the same test at the offsets and directions found, else they stood in for these and
+the check runs without them. A correctly zeroed log whose model lacks
 something (a spring, a cable, a joint's friction the laws miss) must not be told its zeros are wrong: on such logs
 (the KUKA LWR4+, the Panda, the TX40 of ``benchmarks/bench_real_robots.py``) the steps find offsets up to a half turn
 that lower the held-out error by up to 17 %, but they differ from one record to the other. When the training
@@ -42,6 +45,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.stats
 from numpy.typing import NDArray
 
 from dynamics.channels import is_joint_torque, torque_joint
@@ -51,6 +55,7 @@ from dynamics.models import IdentificationModel, ModelKind, build_model
 from dynamics.robot import JointType
 from estimation.estimators.channel_gains import GainSign
 from estimation.identification.channel_gains import ChannelGains, determined_channels, fit_channel_gains
+from estimation.identification.preprocessing_on_validation import paired_difference
 
 #: the held-out error must fall by at least this fraction (mean of the channels' ratios and total) to be reported
 MARKED_GAIN = 0.10
@@ -79,6 +84,10 @@ REVERSAL_TURNS: tuple[float, ...] = (0.0, *TURNS)
 REVERSAL_MARK = 0.5
 #: Levenberg–Marquardt's steps of the fit with every joint's gain free that tells which gains the samples determine
 SURVEY_ITERATIONS = 20
+#: the level of the one-sided paired test by which the gains are in question (:func:`paired_test`)
+PAIRED_ALPHA = 0.01
+#: contiguous blocks of the held-out samples whose errors give the paired test's standard error (:func:`paired_test`)
+PAIRED_BLOCKS = 10
 #: Gauss–Newton iterations and the forward-difference step (rad, or m)
 ITERATIONS = 8
 STEP = 1e-5
@@ -496,6 +505,13 @@ def _held_out_mse(model: IdentificationModel, theta: NDArray, samples: tuple[NDA
                   gains: NDArray | None = None) -> NDArray:
     """Each channel's MSE of the prediction at ``signs q + offsets`` (times ``gains``, one a channel; its torque
     channels times ``torque_signs``: the errors are those against the recorded channels)."""
+    return np.mean(_held_out_residual(model, theta, samples, offsets, signs, torque_signs, gains) ** 2, axis=0)
+
+
+def _held_out_residual(model: IdentificationModel, theta: NDArray, samples: tuple[NDArray, NDArray, NDArray, NDArray],
+                       offsets: NDArray, signs: NDArray | None = None, torque_signs: NDArray | None = None,
+                       gains: NDArray | None = None) -> NDArray:
+    """The residual ``(N, channels)`` of :func:`_held_out_mse`."""
     q, dq, ddq, target = samples
     signs = np.ones(q.shape[1]) if signs is None else signs
     predicted = model.evaluate_base(q * signs + offsets, dq * signs, ddq * signs) @ theta
@@ -503,7 +519,7 @@ def _held_out_mse(model: IdentificationModel, theta: NDArray, samples: tuple[NDA
         predicted = predicted * gains
     if torque_signs is not None:
         predicted = predicted * channel_signs(model, torque_signs)
-    return np.mean((target - predicted) ** 2, axis=0)
+    return target - predicted
 
 
 def _nominal_mse(model: IdentificationModel, nominal: NDArray, samples: tuple[NDArray, NDArray, NDArray, NDArray],
@@ -546,19 +562,19 @@ def _gained_bodies(body: NDArray, effects: NDArray, target: NDArray, gained: NDA
 
 def gains_in_question(model: IdentificationModel, found: _Problem, scored: tuple[NDArray, NDArray, NDArray, NDArray],
                       signs: NDArray, torque_signs: NDArray, sign: GainSign) -> NDArray | None:
-    """The joint-torque channels to give a free gain, when a gain on each lowers the held-out error markedly.
+    """The joint-torque channels to give a free gain, when a gain on each lowers the held-out error significantly.
 
     Torques logged with an unknown gain per joint (currents and a torque constant nobody gave) are a fault a linear
     fit of ``θ`` cannot take up, and a joint's zero moved takes part of it up (:func:`_apart_from_gains`); with the
     gains and a true offset together, a scan without the gains misses the offset or finds another (a 6-joint PUMA, 0.8
     rad on joint 2: found on 3 of 8 logs, one at −172°). The gains are in question when the fit with them, on the
     training samples ``found`` at the description's zeros in the directions found, predicts the held-out samples
-    ``scored`` with at most ``1 −`` :data:`MARKED_GAIN` of the weighted error of the fit without (the criterion of
-    the check's own warning): then the scan, the held-out estimate and the tests run with them. Only the gains the
+    ``scored`` better than the fit without, by the one-sided paired test of :func:`paired_test` at the level
+    :data:`PAIRED_ALPHA`: then the scan, the held-out estimate and the tests run with them. Only the gains the
     training samples determine are freed (:func:`~estimation.identification.channel_gains.determined_channels`, after
     :data:`SURVEY_ITERATIONS` steps with every gain free): the others wander along a valley of the cost (a PUMA's
     wrist at the noise: gains of 100 and more for a fall of 2 %, as large as the offsets' tests). Returns the
-    channels' mask, or ``None`` (fewer than two gains determined, or they do not lower the error markedly)."""
+    channels' mask, or ``None`` (fewer than two gains determined, or they do not lower the error significantly)."""
     gained = np.array([is_joint_torque(channel) for channel in model.channels])
     if gained.sum() < 2:
         return None
@@ -567,20 +583,62 @@ def gains_in_question(model: IdentificationModel, found: _Problem, scored: tuple
     Y = model.evaluate_base(q * signs, dq * signs, ddq * signs)
     target = target * channel_signs(model, torque_signs)
     theta, _ = found.fit(np.zeros(n))
-    plain = np.mean(((target - Y @ theta) * found.weights) ** 2)
-
-    def held_out(fitted: ChannelGains) -> float:
-        return float(np.mean(((target - fitted.predicted(Y)) * found.weights) ** 2))
-
+    plain = target - Y @ theta
     at_zero = found.regressor(np.zeros(n))
     survey = fit_channel_gains(at_zero, found.target, found.weights, gained, sign=sign, max_iterations=SURVEY_ITERATIONS)
-    if not held_out(survey) < plain:  # every gain free does not lower it at all (a log without gains: the real robots')
-        return None
+    if not np.mean(((target - survey.predicted(Y)) * found.weights) ** 2) < np.mean((plain * found.weights) ** 2):
+        return None  # every gain free does not lower it at all (a log without gains: the real robots')
     gained = determined_channels(at_zero, found.target, found.weights, gained, survey)
     if gained.sum() < 2:
         return None
-    return gained if held_out(found.with_gains(gained, sign).gains_fit(np.zeros(n))) <= (1 - MARKED_GAIN) * plain \
-        else None
+    test = paired_test(plain, target - found.with_gains(gained, sign).gains_fit(np.zeros(n)).predicted(Y),
+                      found.weights)
+    return gained if test.significant else None
+
+
+@dataclass(frozen=True)
+class PairedTest:
+    """What :func:`paired_test` found: the score's fall (``without`` less ``with_``), its standard error, and the
+    one-sided Student ``t`` limit at the level :data:`PAIRED_ALPHA` with ``PAIRED_BLOCKS − 1`` degrees of freedom."""
+
+    difference: float
+    standard_error: float
+    limit: float
+
+    @property
+    def t(self) -> float:
+        """``difference / standard_error``."""
+        return self.difference / self.standard_error if self.standard_error > 0 else \
+            (np.inf if self.difference > 0 else 0.0)
+
+    @property
+    def significant(self) -> bool:
+        """Whether ``with_`` is smaller at the level: ``t`` above the limit."""
+        return bool(self.t > self.limit)
+
+
+def paired_test(without: NDArray, with_: NDArray, weights: NDArray) -> PairedTest:
+    """Whether the residuals ``with_`` (``(N, channels)``, the samples in time order) are smaller than ``without`` on the
+    same samples beyond the record's sampling error. The score is the mean over channels of the MSE times the
+    channel's ``weights`` squared (the check's cost); its difference on :data:`PAIRED_BLOCKS` contiguous blocks has
+    a mean and a standard error as a mean of batch means
+    (:func:`~estimation.identification.preprocessing_on_validation.paired_difference`, the validation record's test
+    of two preprocessing candidates, each channel's floor ``1 / weight²``). One sided: ``with_`` is smaller when
+    ``t = mean / se`` exceeds Student's ``t`` quantile ``1 −`` :data:`PAIRED_ALPHA` with ``PAIRED_BLOCKS − 1``
+    degrees of freedom (the blocks' means nearly independent where a record's samples are correlated in time; on
+    draws of known law it rejects 2.1 % of white pairs and 1.1 % of strongly correlated ones at 1 %,
+    ``tests/test_joint_zero_gains.py``)."""
+    channels = [str(index) for index in range(without.shape[1])]
+    parts = np.array_split(np.arange(without.shape[0]), PAIRED_BLOCKS)
+    sizes = np.array([part.size for part in parts], dtype=float)
+
+    def blocks(residual: NDArray) -> dict[str, tuple[float, ...]]:
+        return {channel: tuple(float(np.mean(residual[part, index] ** 2)) for part in parts)
+                for index, channel in enumerate(channels)}
+
+    floors = 1.0 / np.asarray(weights, dtype=float) ** 2
+    difference, error = paired_difference(blocks(without), blocks(with_), floors, channels, sizes)
+    return PairedTest(difference, error, float(scipy.stats.t.ppf(1 - PAIRED_ALPHA, PAIRED_BLOCKS - 1)))
 
 
 def check_joint_zeros(model: IdentificationModel, train: Measurements, held_out: Measurements | None = None, *,
@@ -721,9 +779,11 @@ def _gained_offsets(problem: _Problem, offsets: NDArray, joints: NDArray, gained
 
 
 def _checked(model: IdentificationModel, train: Measurements, held_out: Measurements | None, max_samples: int,
-             directions: bool, label: str) -> tuple[JointZeroCheck | None, bool]:
+             directions: bool, label: str, *, gains: bool = True) -> tuple[JointZeroCheck | None, bool]:
     """The check (:func:`check_joint_zeros`), and whether the scan of directions found a reversal on the training
-    samples."""
+    samples. ``gains``: whether the gains may be in question (:func:`gains_in_question`); when they are, they must
+    still lower the held-out error significantly at the offsets and directions found (:func:`paired_test`), else the
+    check runs again without them."""
     if held_out is None:
         half = train.n_samples // 2
         if half < 20:
@@ -743,7 +803,7 @@ def _checked(model: IdentificationModel, train: Measurements, held_out: Measurem
         signs, torque = estimate_signs(model, problem) if directions else (np.ones(n), np.ones(n))
         reversed_ = (signs < 0) | (torque < 0)
         found = problem.flipped(signs, torque) if np.any(reversed_) else problem
-        gained = gains_in_question(model, found, scored, signs, torque, sign)
+        gained = gains_in_question(model, found, scored, signs, torque, sign) if gains else None
         if gained is not None:  # every cost from here on with a gain on each joint's torque
             problem, found = problem.with_gains(gained, sign), found.with_gains(gained, sign)
         offsets = estimate_offsets(model, found)
@@ -804,9 +864,18 @@ def _checked(model: IdentificationModel, train: Measurements, held_out: Measurem
         after = _held_out_mse(model, theta_offset, scored, kept, kept_signs, kept_torque)
     else:  # both with the gains: what the offsets and directions do beside them
         zero_fit = problem.gains_fit(np.zeros(n))
-        offset_fit = (problem.flipped(kept_signs, kept_torque) if flips else problem).gains_fit(kept)
+        directed = problem.flipped(kept_signs, kept_torque) if flips else problem
+        offset_fit = directed.gains_fit(kept)
+        residual = _held_out_residual(model, offset_fit.theta, scored, kept, kept_signs, kept_torque,
+                                      gains=offset_fit.gains)
+        theta_plain, _ = directed.with_gains(None).fit(kept)
+        if not paired_test(_held_out_residual(model, theta_plain, scored, kept, kept_signs, kept_torque), residual,
+                          problem.weights).significant:
+            # at the offsets and directions found, the gains no longer lower the held-out error: they stood in for
+            # these (a true offset, no gains), and the check is the one without them
+            return _checked(model, train, held_out, max_samples, directions, label, gains=False)
         before = _held_out_mse(model, zero_fit.theta, scored, np.zeros(n), gains=zero_fit.gains)
-        after = _held_out_mse(model, offset_fit.theta, scored, kept, kept_signs, kept_torque, gains=offset_fit.gains)
+        after = np.mean(residual ** 2, axis=0)
     ratio = {channel: float(a / b) if b > 0 else 1.0 for channel, a, b in zip(model.channels, after, before)}
     total = float(after.sum() / before.sum()) if before.sum() > 0 else 1.0
     check = JointZeroCheck(kept, tuple(named), ratio, total, label, again, tuple(bool(value) for value in ~revolute),
