@@ -250,9 +250,12 @@ def test_the_rounds_predict_in_the_regressor_they_were_given_bit_for_bit(robot, 
     base = model.evaluate_base(train.q, train.dq, train.ddq)
     work = base.copy()
     kept = list(fit.kept)
-    for _ in range(2):  # written twice: the same values, the kept columns untouched
-        np.testing.assert_array_equal(fit.predict(train, work, overwrite=True), fit.predict(train, base))
+    for rewritten in (False, True, True):  # written three times: the same values, the kept columns untouched
+        # rewritten: the shaped columns written again on their blocks' rows alone, the rest zero from the first write
+        np.testing.assert_array_equal(fit.predict(train, work, overwrite=True, rewritten=rewritten),
+                                      fit.predict(train, base))
         np.testing.assert_array_equal(work[:, :, kept], base[:, :, kept])
+        np.testing.assert_array_equal(work, fit.regressor(train))
     np.testing.assert_array_equal(base, model.evaluate_base(train.q, train.dq, train.ddq))  # the copy path: untouched
     np.testing.assert_array_equal(fit.predict(train), fit.predict(train, base))  # evaluated: written in place
     taken = FixedPart.from_arrays(np.take(base, kept, axis=2), train.tau)  # the fixed part from a C-ordered copy
@@ -264,7 +267,8 @@ def test_the_rounds_predict_in_the_regressor_they_were_given_bit_for_bit(robot, 
         np.testing.assert_array_equal(getattr(taken, name), getattr(indexed, name))
     copied = shaped_module.ShapedFit.predict
     monkeypatch.setattr(shaped_module.ShapedFit, "predict",
-                        lambda self, measurements, base=None, overwrite=False: copied(self, measurements, base))
+                        lambda self, measurements, base=None, overwrite=False, rewritten=False:
+                        copied(self, measurements, base))
     reference_fit, reference = shaped_module.fit_shaped_model(model, train)
     np.testing.assert_array_equal(fit.fit.shape, reference_fit.fit.shape)
     for name in ("values", "cov", "residuals", "weights"):

@@ -70,7 +70,9 @@ class FixedPart:
         m, _, p0 = A.shape
         own, where = [], []
         gram, moment = np.zeros((m, p0, p0)), np.zeros((m, p0))
-        support = np.any(A != 0, axis=1)  # (m, p0)
+        # (m, p0): ``A.any`` reads the strided view in place; ``np.any(A != 0)`` first wrote a boolean copy of all
+        # of ``A`` (the same booleans: NaN counts as nonzero, −0.0 as zero, in both)
+        support = A.any(axis=1)
         for channel in range(m):
             columns = np.flatnonzero(support[channel])
             stored = np.compress(support[channel], A[channel], axis=1)  # a C-contiguous copy

@@ -100,18 +100,22 @@ class ShapedFit:
         return theta
 
     def predict(self, measurements: Measurements, base: np.ndarray | None = None, *,
-                overwrite: bool = False) -> np.ndarray:
-        """``(N, m)`` predicted channels at the fitted shapes (``base``, ``overwrite``: see :meth:`regressor`)."""
-        Y = self.regressor(measurements, base, overwrite=overwrite)
+                overwrite: bool = False, rewritten: bool = False) -> np.ndarray:
+        """``(N, m)`` predicted channels at the fitted shapes (``base``, ``overwrite``, ``rewritten``: see
+        :meth:`regressor`)."""
+        Y = self.regressor(measurements, base, overwrite=overwrite, rewritten=rewritten)
         return Y @ self.theta_base()
 
     def regressor(self, measurements: Measurements, base: np.ndarray | None = None, *,
-                  overwrite: bool = False) -> np.ndarray:
+                  overwrite: bool = False, rewritten: bool = False) -> np.ndarray:
         """The base regressor ``(N, m, r)`` with the shaped columns at the fitted shapes; ``base``: the model's base
         regressor along ``measurements`` when the caller has it (copied, not evaluated again). ``overwrite``: the
         shaped columns written into ``base`` itself when it is a writable C-ordered float array (the same values as
         the copy: only the shaped columns change, each call writes them all), which spares a copy of the whole
-        regressor each round of :func:`fit_shaped_model`."""
+        regressor each round of :func:`fit_shaped_model`. ``rewritten``: ``base`` is the array an earlier call of
+        this fit's blocks overwrote (a round of :func:`fit_shaped_model_predicting` after the first), whose shaped
+        columns are zero already off their blocks' rows: only those rows are written again (the same values; the
+        zeroing of a column reads and writes every sample of every channel, ~1.4 ms a column on the Panda)."""
         if base is None:  # a new array of its own, written in place
             Y = self.model.evaluate_base(measurements.q, measurements.dq, measurements.ddq)
         elif overwrite and isinstance(base, np.ndarray) and base.dtype == np.float64 and base.flags.c_contiguous \
@@ -126,7 +130,8 @@ class ShapedFit:
             start += block.n_shape
             indices = list(self.replaced[position:position + block.n_linear])
             position += block.n_linear
-            Y[:, :, indices] = 0.0
+            if not (rewritten and Y is base):
+                Y[:, :, indices] = 0.0
             for row_position, row in enumerate(block.rows):
                 Y[:, row, indices] = columns[:, row_position, :]
         return Y
@@ -178,6 +183,7 @@ def fit_shaped_model_predicting(model: IdentificationModel, train: Measurements,
     segments = [(piece.start, piece.stop) for piece in segment_slices(train)]
     band = ResidualBand.of(train)
     fit = None
+    written = False  # whether Y's shaped columns were written by a round (then zero off their blocks' rows)
     first = None
     if starts is not None:
         first = np.array([[starts.get(parameter.name, parameter.reference) for block in blocks
@@ -190,7 +196,9 @@ def fit_shaped_model_predicting(model: IdentificationModel, train: Measurements,
         fit = fit_shapes(fixed, blocks, states, weights, starts=start_points, max_iter=60 if search else 0,
                          covariance=settling, segments=segments)
         shaped = ShapedFit(model, tuple(blocks), tuple(kept), tuple(replaced), fit, weights)
-        residual = y - shaped.predict(train, Y, overwrite=True)  # Y's shaped columns only are rewritten
+        # Y's shaped columns only are rewritten; from the second round on, on their blocks' rows alone
+        residual = y - shaped.predict(train, Y, overwrite=True, rewritten=written)
+        written = True
         variance = np.maximum(in_band_variance(residual, model.n_base + len(fit.names), band),
                               1e-14 * np.mean(y**2, axis=0))  # the residual in the motion's band
         if not weighted:
@@ -204,7 +212,7 @@ def fit_shaped_model_predicting(model: IdentificationModel, train: Measurements,
         fit = fit_shapes(fixed, blocks, states, weights, starts=fit.shape[None, :], max_iter=60 if search else 0,
                          covariance=covariance, segments=segments)
     shaped = ShapedFit(model, tuple(blocks), tuple(kept), tuple(replaced), fit, weights)
-    predicted = shaped.predict(train, Y, overwrite=True)
+    predicted = shaped.predict(train, Y, overwrite=True, rewritten=written)
     residual = y - predicted
     order = list(kept) + list(replaced)
     n_linear = len(order)
