@@ -198,3 +198,37 @@ def test_the_real_robots_logs_hold_no_read_error_and_no_clipped_torque(robot, tm
             rows, joints = encoder_glitches(position_steps(record.q, record.t, limit), limit)
             assert rows.size == 0, (role, rows[:5], joints[:5])
         assert not saturated_samples(record.tau, record.q).any(), role
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("verb", ["identify", "diagnose"])
+def test_result_json_counts_the_clipped_samples_in_memory_and_says_streamed_that_it_did_not_look(verb, tmp_path):
+    """``result.json``'s ``saturated_samples`` (h-sensorfaults) holds the clipped samples of each record left out of
+    the fit and the errors, per channel; streamed (``--chunk-size``), where the rule cannot be applied (it counts a
+    channel's distinct values over the whole record), it is null and ``not_computed.saturated_samples`` says why,
+    never a silent null that reads as "none clipped"."""
+    import json
+
+    from oed.cli import main
+    from tests.test_unseen_robots import urdf_of
+
+    _, clean = _puma_record(tmp_path)
+    _, validation = _puma_record(tmp_path, "validation.csv", seconds=2.0)
+    table = pd.read_csv(clean)
+    limit = 0.8 * float(np.abs(table["tau2"]).max())
+    table.assign(tau2=np.clip(table["tau2"], -limit, limit)).to_csv(tmp_path / "clipped.csv", index=False,
+                                                                      float_format="%.10g")
+    at_limit = int(np.count_nonzero(np.abs(pd.read_csv(tmp_path / "clipped.csv")["tau2"]) >= limit * (1 - 1e-9)))
+    friction = ["--friction", "viscous,coulomb,offset"] if verb == "identify" else []
+    documents = {}
+    for path, options in (("memory", ()), ("streamed", ("--chunk-size", "250"))):
+        out = tmp_path / f"{verb}-{path}.json"
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            assert main([verb, "--urdf", str(urdf_of("puma560:3", tmp_path)), "--data", str(tmp_path / "clipped.csv"),
+                         "--validate", str(validation), *friction, *options, "--out", str(out)]) == 0
+        documents[path] = json.loads(out.read_text())
+    memory, streamed = documents["memory"], documents["streamed"]
+    assert [entry["samples"] for entry in memory["saturated_samples"]["train"]] == [{"tau2": at_limit}]
+    assert "validation" not in memory["saturated_samples"] and "saturated_samples" not in memory["not_computed"]
+    assert streamed["saturated_samples"] is None and "memory only" in streamed["not_computed"]["saturated_samples"]

@@ -78,6 +78,10 @@ STREAMED_NOT_COMPUTED = {
     "subtracted": "the fit to the torques with the description's gravity torque added back (a log less that load) "
                   "is a candidate of the answer chosen from sums (estimation.consistent.mounted_gravity) by oed "
                   "identify, as in memory, not by identify_files",
+    "saturated_samples": "a torque sensor past its range (a channel held at its extreme while the joint moves) is "
+                         "looked for in memory only (estimation.data.log_cleaning.saturated_samples counts each "
+                         "channel's distinct values over the whole record, which the streamed passes do not keep): "
+                         "streamed, clipped samples are read as measurements",
 }
 
 
