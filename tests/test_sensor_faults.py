@@ -133,6 +133,77 @@ def test_a_fast_motion_a_wrapped_angle_and_a_quantised_encoder_are_no_read_error
     assert rows.tolist() == [1234] and joints.tolist() == [1], (rows, joints)
 
 
+#: read errors lasting several samples: (first row, joint, samples, jump); the first across the 250-row chunks' edge,
+#: the last ending on the 251-row chunks' last row
+READ_RUNS = ((247, 1, 4, 0.2), (400, 0, 2, -0.2), (600, 2, 5, 0.15), (498, 1, 3, -0.25))
+
+
+def test_read_errors_lasting_several_samples_are_dropouts_alike_in_memory_and_streamed(tmp_path):
+    """Two to five samples of one joint off, then right again (a stale or corrupted reading held a few samples):
+    each of their rows a dropout, named, as one sample's read error is; the streamed scan, its runs across a chunk's
+    edge, alike."""
+    from estimation.data import EncoderGlitchWarning
+    from estimation.data.records import read_measurements
+    from estimation.streaming.chunks import read_chunks
+
+    model, clean = _puma_record(tmp_path)
+    table = pd.read_csv(clean)
+    for row, joint, length, jump in READ_RUNS:
+        table.loc[row:row + length - 1, f"q{joint + 1}"] += jump
+    table.to_csv(tmp_path / "runs.csv", index=False, float_format="%.10g")
+    table = pd.read_csv(tmp_path / "runs.csv")
+    off = sorted(row + k for row, _, length, _ in READ_RUNS for k in range(length))
+    memory, said = _caught(EncoderGlitchWarning, lambda: read_measurements(tmp_path / "runs.csv", model=model))
+    assert len(said) == 1 and f"dropped {len(off)} row(s)" in said[0], said
+    kept = np.setdiff1d(np.arange(len(table)), off)
+    recorded = memory.as_recorded
+    assert np.allclose(recorded.t, table["t"].to_numpy()[kept], rtol=0, atol=1e-12)  # those rows, no other
+    truth = pd.read_csv(clean)[["q1", "q2", "q3"]].to_numpy()
+    on_grid = np.searchsorted(memory.t, table["t"].to_numpy()[off])
+    assert np.abs(memory.q[on_grid] - truth[off]).max() < 0.02  # bridged from the samples around: near the truth
+    for chunk_size in CHUNK_SIZES:
+        streamed, said_streamed = _caught(EncoderGlitchWarning, lambda size=chunk_size: list(read_chunks(
+            tmp_path / "runs.csv", model, chunk_size=size)))
+        assert said_streamed == said, (chunk_size, said_streamed)
+        for name in ("t", "q", "tau"):
+            joined = np.concatenate([getattr(chunk, name) for chunk in streamed])
+            assert joined.shape == getattr(memory, name).shape
+            assert np.max(np.abs(joined - getattr(memory, name))) < 1e-9, (chunk_size, name)
+
+
+def test_runs_of_samples_a_hard_stop_a_step_that_stays_and_a_quantised_encoder_are_judged_apart():
+    """What a run of samples off is not: a joint stopped hard (its speed falls from the limit to nothing in a
+    sample), one bouncing off a stop, a position that steps and stays (a re-referenced zero), a quantised encoder
+    flickering for a few samples; and a run longer than five samples is not judged (a stall, a motion)."""
+    generator = np.random.default_rng(4)
+    t = np.arange(3000) / 1000.0
+    noise = 1e-5 * generator.standard_normal(t.shape)
+    # moving at 0.95 of a 2 rad/s limit, stopped hard at t = 1 s, then back out at t = 2 s
+    stopped = np.where(t < 1.0, 1.9 * t, np.where(t < 2.0, 1.9, 1.9 - 1.9 * (t - 2.0))) + noise
+    # bouncing off a stop: in at 1.9 rad/s (0.95 of the limit), out at 1.5 rad/s, each sample
+    bounce = np.where(t < 1.0, 1.9 * t, 1.9 - 1.5 * (t - 1.0)) + noise
+    # a step that stays: the position re-referenced by 0.3 rad at t = 1.5 s
+    stepped = 0.2 * np.sin(2 * np.pi * 0.5 * t) + np.where(t >= 1.5, 0.3, 0.0) + noise
+    for limit in (2.0, np.inf):
+        rows, joints = _judged(np.column_stack([stopped, bounce, stepped]), t, [limit] * 3)
+        assert rows.size == 0, (limit, rows, joints)
+    # a quantised encoder at rest whose count flickers for runs of two to five samples
+    count = np.deg2rad(0.3)
+    flicker = np.zeros(t.shape)
+    for start in range(100, 2900, 97):
+        flicker[start:start + 2 + start % 4] = count
+    for limit in (2.0, np.inf):
+        rows, _ = _judged(flicker[:, None], t, [limit])
+        assert rows.size == 0, (limit, rows)
+    # the same encoder with read errors of 2, 5 and 6 samples: the first two found, the third not (longer than five)
+    read = flicker.copy()
+    read[500:502] += 0.2
+    read[1500:1505] -= 0.2
+    read[2500:2506] += 0.2
+    rows, joints = _judged(read[:, None], t, [2.0])
+    assert rows.tolist() == [500, 501, *range(1500, 1505)] and set(joints.tolist()) == {0}, rows
+
+
 def test_a_clipped_torque_sensor_is_named_and_its_samples_left_out_of_the_samples_as_recorded(tmp_path):
     from estimation.data import SaturatedTorqueWarning
     from estimation.data.records import read_measurements

@@ -175,6 +175,21 @@ def encoder_glitches(path: Path, count: int = 6, jump: float = 0.2) -> None:
     table.to_csv(path, index=False, float_format="%.10g")
 
 
+def encoder_read_runs(path: Path, count: int = 6, jump: float = 0.2) -> None:
+    """The training record with ``count`` encoder read errors lasting several samples: 2, 3, 4, 5, 2, 3 samples of
+    one joint's position off by ``jump`` rad (the joints in turn, the sign alternating), the next sample right
+    again."""
+    if path.stem != "train":
+        return
+    table = pd.read_csv(path)
+    rows = np.random.default_rng(9).choice(np.arange(10, len(table) - 20, 13), count, replace=False)
+    joints = [column for column in table.columns if re.fullmatch(r"q\d+", column)]
+    for index, row in enumerate(rows):
+        length = 2 + index % 4
+        table.loc[row:row + length - 1, joints[index % len(joints)]] += jump * (-1.0) ** index
+    table.to_csv(path, index=False, float_format="%.10g")
+
+
 def clipped(path: Path, share: float = 0.8) -> None:
     """The training record with joint 2's torque sensor past its range: its readings clipped at ``share`` of the
     largest magnitude it logged."""
@@ -238,6 +253,9 @@ USERS = (
     (Bench(Lab("PUMA 3 joints, 6 encoder read errors (one sample 0.2 rad off) in the training record, 10 s / 4 s / "
                "6 s at 250 Hz, no dq", puma(3), *logs(), slow=True)),
      encoder_glitches),
+    (Bench(Lab("PUMA 3 joints, 6 encoder read errors lasting 2 to 5 samples (0.2 rad off) in the training record, "
+               "10 s / 4 s / 6 s at 250 Hz, no dq", puma(3), *logs(), slow=True)),
+     encoder_read_runs),
     (Bench(Lab("PUMA 3 joints, joint 2's torque sensor clipped at 80 % of its peak in the training record, 10 s / "
                "4 s / 6 s at 250 Hz, no dq", puma(3), *logs(), slow=True)),
      clipped),

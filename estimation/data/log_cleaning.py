@@ -20,14 +20,15 @@
   (:func:`zero_rows`): on a robot of two joints or more, every position and torque exactly zero at once is no
   measurement (the torque sensors' noise alone forbids it), so such a row is a dropout like a blank one. Rows
   without torques are not judged: a planned trajectory may start at the zero pose.
-* **Encoder read errors.** One sample of one joint's position off, the next right again (a bit error on the
-  encoder's bus): a step into that value and a step out of it, each longer than the joint could travel in a sample
+* **Encoder read errors.** One sample of one joint's position off, or a run of up to :data:`GLITCH_RUN`, the next
+  right again (a bit error on the encoder's bus, a stale reading held a few samples): a step into that value and a
+  step out of it, each longer than the joint could travel in a sample
   period (twice its velocity limit in the description; without one, :data:`GLITCH_RECORD_FACTOR` times the speed
   under which :data:`GLITCH_QUANTILE` of the record's steps lie) and than :data:`GLITCH_COUNTS` of the channel's
   smallest step (its encoder count: a quantised encoder flickering between counts is no error), the samples around
-  it agreeing (:func:`position_steps`, :func:`encoder_glitches`). Steps are taken modulo a whole turn (an angle
+  it agreeing and the run's own steps short beside them (:func:`position_steps`, :func:`encoder_glitches`). Steps are taken modulo a whole turn (an angle
   wrapped at ±π is no error). Such a row is a dropout: dropped, its time bridged as any gap. A true motion never
-  leaves and comes back within one sample by more than its velocity allows.
+  leaves and comes back within a few samples by more than its velocity allows.
 * **A torque sensor past its range.** A channel that holds its largest (or smallest) value on a run of samples
   while the joint moves, where its values elsewhere vary, is clipped there (:func:`saturated_samples`): its reading
   is the sensor's limit, not the torque. A quantised channel repeats its extremes too, but no more than its other
@@ -106,6 +107,8 @@ GLITCH_QUANTILE = 0.99
 #: how many of the channel's smallest step (an encoder's count) a step must pass: a quantised encoder flickers
 #: between neighbouring counts, and its noise by a few
 GLITCH_COUNTS = 4.0
+#: the most samples an encoder read error lasts (a run of samples off, then right again; h-sensorfaults' rule was one)
+GLITCH_RUN = 5
 #: the speed bins (rad/s or m/s) of :class:`PositionSteps`: log-spaced, 20 a decade
 SPEED_EDGES = np.logspace(-6.0, 6.0, 241)
 
@@ -123,11 +126,13 @@ class PositionSteps:
     smallest
         ``(n,)`` each joint's smallest step that is not zero (``inf`` when none).
     rows, joints
-        The samples that leave and come back (the two steps opposite, the samples around them agreeing within half
-        the shorter step): their row among those read, and the joint.
+        The runs of samples that leave and come back (:func:`position_steps`): their first row among those read, and
+        the joint.
     steps, spans
-        The shorter of each such sample's two steps, and the time of a sample around it (half the time between its
-        neighbours), s.
+        The shorter of each such run's two steps (in and out), and the time of a sample around it (the time from the
+        sample before the run to the one after it over the run's samples and one), s.
+    lengths
+        Each run's samples (1 to :data:`GLITCH_RUN`).
     """
 
     counts: NDArray[np.int64]
@@ -136,12 +141,14 @@ class PositionSteps:
     joints: NDArray[np.int64]
     steps: NDArray[np.float64]
     spans: NDArray[np.float64]
+    lengths: NDArray[np.int64]
 
     def merged(self, other: PositionSteps) -> PositionSteps:
         """Both blocks' steps (``other`` read after this one)."""
         return PositionSteps(self.counts + other.counts, np.minimum(self.smallest, other.smallest),
                              np.concatenate([self.rows, other.rows]), np.concatenate([self.joints, other.joints]),
-                             np.concatenate([self.steps, other.steps]), np.concatenate([self.spans, other.spans]))
+                             np.concatenate([self.steps, other.steps]), np.concatenate([self.spans, other.spans]),
+                             np.concatenate([self.lengths, other.lengths]))
 
 
 def _turn_wrapped(step: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -158,21 +165,29 @@ def _turn_wrapped(step: NDArray[np.float64]) -> NDArray[np.float64]:
 def position_steps(q: NDArray[np.float64], t: NDArray[np.float64], velocity_limit: NDArray[np.float64], *,
                    first_row: int = 0, carried: int = 0) -> PositionSteps:
     """The :class:`PositionSteps` of the rows ``q (m, n)`` stamped ``t (m,)``, the first ``carried`` of them the
-    last rows of the block before (at most 2; their step and their samples already counted), the others numbered
-    from ``first_row``. A sample is judged once the sample after it is read: the last row of a block is judged with
-    the next block, which carries it (and the one before it). Rows with a non-finite value or stamp, and steps of no
-    time, count for nothing, and a sample is judged only between its neighbours in time; steps are taken modulo a
-    whole turn (:func:`_turn_wrapped`). ``velocity_limit``
-    (``(n,)``, the description's; ``inf`` where it gives none): the speeds are counted for the joints without one
-    only (:func:`fast_speeds` bounds those), and a sample that leaves and comes back is kept as a candidate only
-    when it is faster than :data:`GLITCH_SPEED_MARGIN` times the joint's limit (what :func:`encoder_glitches`
-    asks)."""
+    last rows of the block before (at most :data:`GLITCH_RUN` + 1; their steps and their runs already counted), the
+    others numbered from ``first_row``. A run is judged once the sample after it is read: the runs ending on a
+    block's last rows are judged with the next block, which carries them (and the sample before them). Rows with a
+    non-finite value or stamp, and steps of no time, count for nothing, and a run is judged only where its samples
+    and those around it follow each other in time; steps are taken modulo a whole turn (:func:`_turn_wrapped`).
+    ``velocity_limit`` (``(n,)``, the description's; ``inf`` where it gives none): the speeds are counted for the
+    joints without one only (:func:`fast_speeds` bounds those), and a run that leaves and comes back is kept as a
+    candidate only when it is faster than :data:`GLITCH_SPEED_MARGIN` times the joint's limit (what
+    :func:`encoder_glitches` asks).
+
+    A run of ``k`` samples (1 to :data:`GLITCH_RUN`) leaves and comes back when the step into its first sample and
+    the step out of its last are each longer than twice every step within it and than twice the step across it
+    (from the sample before the run to the sample after it): the samples around the run agree, and the run's own
+    samples follow each other as the motion does, all of them off by about the same. A true motion cannot do that
+    faster than its velocity allows: the steps in and out are each judged over the time of a sample around the run
+    (the time from the sample before it to the sample after it over ``k + 1``; half the time between the
+    neighbours for one sample, h-sensorfaults' rule). Of the runs found at a sample, the shortest is kept."""
     m, n = q.shape
     counts = np.zeros((n, SPEED_EDGES.shape[0] + 1), dtype=np.int64)
     smallest = np.full(n, np.inf)
     none = np.zeros(0, dtype=np.int64)
     if m < 2:
-        return PositionSteps(counts, smallest, none, none, np.zeros(0), np.zeros(0))
+        return PositionSteps(counts, smallest, none, none, np.zeros(0), np.zeros(0), none)
     limit = np.asarray(velocity_limit, dtype=float)
     bounded = np.isfinite(limit) & (limit > 0)
     with np.errstate(invalid="ignore", divide="ignore"):
@@ -186,19 +201,44 @@ def position_steps(q: NDArray[np.float64], t: NDArray[np.float64], velocity_limi
                 speed = size[new, joint][dt > 0] / dt[dt > 0]
                 counts[joint] = np.bincount(np.searchsorted(SPEED_EDGES, speed[np.isfinite(speed)], side="right"),
                                             minlength=counts.shape[1])
-        if m < 3:
-            return PositionSteps(counts, smallest, none, none, np.zeros(0), np.zeros(0))
-        shorter = np.minimum(size[:-1], size[1:])
-        forward = (t[1:-1] > t[:-2]) & (t[2:] > t[1:-1])  # a sample between its neighbours in time
-        span = np.where(forward, (t[2:] - t[:-2]) / 2.0, 0.0)
         floor = np.where(bounded, GLITCH_SPEED_MARGIN * np.where(bounded, limit, 0.0), 0.0)
-        maybe = (shorter > floor * np.where(span > 0, span, 0.0)[:, None]) & (shorter > 0) & (span > 0)[:, None]
-        row, joint = np.nonzero(maybe)
-        through = np.abs(_turn_wrapped(q[row + 2, joint] - q[row, joint]))
-        keep = through < 0.5 * shorter[row, joint]
-        row, joint = row[keep], joint[keep]
-    return PositionSteps(counts, smallest, (first_row - carried + 1 + row).astype(np.int64), joint.astype(np.int64),
-                         shorter[row, joint], span[row])
+        forward = np.r_[False, np.diff(t) > 0]  # forward[i]: row i after row i - 1 in time
+        found_rows, found_joints, found_steps, found_spans, found_lengths = [], [], [], [], []
+        taken = np.zeros((m, n), dtype=bool)  # a run already kept starting at that row and joint (a shorter one)
+        within = np.zeros((max(m - 2, 0), n))  # the longest step within the runs of each start, so far
+        ordered = np.ones(max(m - 2, 0), dtype=bool)  # the run's rows and the row after it in order, so far
+        for length in range(1, GLITCH_RUN + 1):
+            starts = m - length - 1  # runs from row 1 to row m - length - 1 (a sample before and after each)
+            if starts < 1:
+                break
+            first = np.arange(1, starts + 1)  # the run's first row
+            last = first + length - 1
+            if length > 1:
+                within[:starts] = np.maximum(within[:starts], size[last - 1])  # the step into the run's last row
+            ordered[:starts] &= forward[first + length - 1] & forward[first + length] if length > 1 else \
+                forward[first] & forward[first + 1]
+            into, out = size[first - 1], size[last]
+            shorter = np.minimum(into, out)
+            span = np.where(ordered[:starts], (t[last + 1] - t[first - 1]) / (length + 1), 0.0)
+            judged = (last + 1 >= carried)[:, None]  # the sample after the run was read in this block
+            maybe = ((shorter > floor * np.where(span > 0, span, 0.0)[:, None]) & (shorter > 0)
+                     & (span > 0)[:, None] & judged & ~taken[first] & (within[:starts] < 0.5 * shorter))
+            row, joint = np.nonzero(maybe)
+            through = np.abs(_turn_wrapped(q[row + length + 1, joint] - q[row, joint]))
+            keep = through < 0.5 * shorter[row, joint]
+            row, joint = row[keep], joint[keep]
+            taken[first[row], joint] = True
+            found_rows.append(first[row])
+            found_joints.append(joint)
+            found_steps.append(shorter[row, joint])
+            found_spans.append(span[row])
+            found_lengths.append(np.full(row.shape[0], length))
+    if not found_rows:
+        return PositionSteps(counts, smallest, none, none, np.zeros(0), np.zeros(0), none)
+    rows = np.concatenate(found_rows)
+    return PositionSteps(counts, smallest, (first_row - carried + rows).astype(np.int64),
+                         np.concatenate(found_joints).astype(np.int64), np.concatenate(found_steps),
+                         np.concatenate(found_spans), np.concatenate(found_lengths).astype(np.int64))
 
 
 def fast_speeds(steps: PositionSteps) -> NDArray[np.float64]:
@@ -212,18 +252,22 @@ def fast_speeds(steps: PositionSteps) -> NDArray[np.float64]:
 
 def encoder_glitches(steps: PositionSteps, velocity_limit: NDArray[np.float64]) -> tuple[NDArray[np.int64],
                                                                                           NDArray[np.int64]]:
-    """The encoder read errors among ``steps``' samples that leave and come back: their rows and joints (sorted by
-    row, then joint). A step no joint may make: longer than :data:`GLITCH_SPEED_MARGIN` times ``velocity_limit``
-    (``(n,)``, rad/s or m/s; ``inf`` where the description gives none: :data:`GLITCH_RECORD_FACTOR` times
-    :func:`fast_speeds` instead) over the sample's time, and than :data:`GLITCH_COUNTS` of the joint's smallest
-    step."""
+    """The encoder read errors among ``steps``' runs of samples that leave and come back: the rows and joints of
+    their samples (sorted by row, then joint; each once). A step no joint may make: longer than
+    :data:`GLITCH_SPEED_MARGIN` times ``velocity_limit`` (``(n,)``, rad/s or m/s; ``inf`` where the description
+    gives none: :data:`GLITCH_RECORD_FACTOR` times :func:`fast_speeds` instead) over the time of a sample around the
+    run, and than :data:`GLITCH_COUNTS` of the joint's smallest step."""
     limit = np.asarray(velocity_limit, dtype=float)
     speed = np.where(np.isfinite(limit) & (limit > 0), GLITCH_SPEED_MARGIN * limit,
                      GLITCH_RECORD_FACTOR * fast_speeds(steps))
     joints = steps.joints
     glitch = ((steps.steps > speed[joints] * steps.spans) & (steps.steps > GLITCH_COUNTS * steps.smallest[joints]))
-    order = np.lexsort((joints[glitch], steps.rows[glitch]))
-    return steps.rows[glitch][order], joints[glitch][order]
+    lengths = steps.lengths[glitch]
+    rows = np.repeat(steps.rows[glitch], lengths) + (np.arange(lengths.sum()) - np.repeat(np.cumsum(lengths) - lengths,
+                                                                                            lengths))
+    joints = np.repeat(joints[glitch], lengths)
+    pairs = np.unique(np.column_stack([rows, joints]), axis=0) if rows.size else np.zeros((0, 2), dtype=np.int64)
+    return pairs[:, 0].astype(np.int64), pairs[:, 1].astype(np.int64)
 
 
 #: how many times as often as the channel's values are on average (samples over distinct values) its extreme must

@@ -79,7 +79,7 @@ from estimation.data.log_formats import (
 )
 from estimation.data.sampling_clock import clock_instants, clock_roughness, quantised_clock, said_receive_times
 from estimation.data.log_cleaning import (DEFAULT_MAX_GAP, ZERO_ROW_JOINTS, Gap, PositionSteps, blank_rows, describe,
-                                          encoder_glitches, find_gaps, position_steps, repeated_rows,
+                                          GLITCH_RUN, encoder_glitches, find_gaps, position_steps, repeated_rows,
                                           saturated_samples, split_rows, time_stamps_jump, zero_rows)
 from dynamics.measurements import Measurements, joint_columns
 
@@ -466,9 +466,10 @@ def said_glitches(rows: NDArray[np.int64], joints: NDArray[np.int64], stamps: ND
                                                              for row in unique[:limit]]))
     more = f" and {unique.size - limit} more" if unique.size > limit else ""
     warnings.warn(
-        f"{source}: dropped {unique.size} row(s) where a joint's position leaves and comes back within one sample by "
-        "more than the joint can travel in it (an encoder's read error: twice its velocity limit, or without one four "
-        f"times the record's fast speed, and more than four of its counts): {shown}{more}; read as dropouts, the "
+        f"{source}: dropped {unique.size} row(s) where a joint's position leaves and comes back within a few samples "
+        f"(up to {GLITCH_RUN}) by more than the joint can travel in that time (an encoder's read error: twice its "
+        "velocity limit, or without one four times the record's fast speed, and more than four of its counts): "
+        f"{shown}{more}; read as dropouts, the "
         "time they leave bridged by interpolation as any gap", EncoderGlitchWarning, stacklevel=5)
 
 

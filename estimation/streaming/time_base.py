@@ -28,7 +28,8 @@ from dynamics.measurements import joint_columns
 from dynamics.models import IdentificationModel
 from dynamics.runtime.memory import check_allocation
 from estimation.data.loading import SegmentTooShortError, resampling_grid
-from estimation.data.log_cleaning import DEFAULT_MAX_GAP, PositionSteps, position_steps, repeated_rows, split_rows
+from estimation.data.log_cleaning import (DEFAULT_MAX_GAP, GLITCH_RUN, PositionSteps, position_steps, repeated_rows,
+                                          split_rows)
 from estimation.data.records import (clean_time_base, dropouts, glitch_rows, said_dropouts, said_glitches,
                                      velocity_limits)
 from estimation.data.rest import between_holds, held_runs
@@ -197,7 +198,8 @@ def _cleaned(frames, path: str | Path, model: IdentificationModel, *, max_gap: f
     previous: NDArray[np.float64] | None = None
     steps: PositionSteps | None = None  # the position steps so far (encoder read errors: judged on the whole record)
     count, n_joints = 0, model.robot.n_joints
-    carry_q, carry_t, judged = np.zeros((0, n_joints)), np.zeros(0), 0  # the last two rows read; rows judged
+    carry_q, carry_t, judged = np.zeros((0, n_joints)), np.zeros(0), 0  # the last rows read (a run's and the row
+    # before it: GLITCH_RUN + 1); rows judged
     for frame in frames:
         frame = frame.rename(columns=lambda name: str(name).strip())
         if "t" not in frame.columns:
@@ -223,7 +225,8 @@ def _cleaned(frames, path: str | Path, model: IdentificationModel, *, max_gap: f
                                    velocity_limits(model, n_joints), first_row=count - t.shape[0], carried=carry_t.shape[0])
             steps = block if steps is None else steps.merged(block)
             judged += t.shape[0]
-            carry_q, carry_t = np.vstack([carry_q, data[:, :n_joints]])[-2:], np.concatenate([carry_t, t])[-2:]
+            carry_q = np.vstack([carry_q, data[:, :n_joints]])[-(GLITCH_RUN + 1):]
+            carry_t = np.concatenate([carry_t, t])[-(GLITCH_RUN + 1):]
             check_allocation(24.0 * steps.rows.shape[0], f"the steps of {path}'s positions")
         if previous is not None and previous.shape[1] == data.shape[1] and data.shape[0]:
             data = np.vstack([previous, data])
