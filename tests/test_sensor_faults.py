@@ -18,6 +18,7 @@ streamed reader against the one in memory; and, on the four real robots' logs (`
 
 from __future__ import annotations
 
+import re
 import warnings
 from dataclasses import replace
 from pathlib import Path
@@ -248,6 +249,57 @@ def test_a_quantised_torque_channel_and_a_joint_held_against_a_hard_stop_are_not
     assert np.array_equal(found[:, 0], clipped[:, 0] == 8.0) and not found[:, 1].any()
 
 
+def test_a_combined_records_clipped_torque_and_wrench_are_counted_per_channel(tmp_path):
+    """The combined model's record (joint torques and the base wrench): ``tau2`` and ``mz`` clipped at 80 % of their
+    peaks, each named and counted, the rows of either left out of the samples as recorded."""
+    from dynamics.models import build_model
+    from dynamics.robots import load_robot
+    from dynamics.simulation.synthetic import true_parameters
+    from estimation.data import SaturatedTorqueWarning
+    from estimation.data.records import read_measurements
+    from oed.fourier import random_fourier
+    from tests.test_unseen_robots import urdf_of
+
+    model = build_model(load_robot(urdf=urdf_of("puma560:3", tmp_path)), "combined")
+    t = np.arange(0.0, 4.0, 1.0 / 250.0)
+    q, dq, ddq = random_fourier(model.robot, seed=4, frequency_hz=0.25).evaluate(t)
+    values = model.predict(true_parameters(model, seed=0), q, dq, ddq)
+    values = values + np.random.default_rng(2).standard_normal(values.shape) * 0.02 * values.std(axis=0)
+    table = pd.DataFrame({"t": t, **{f"q{j + 1}": q[:, j] for j in range(3)},
+                          **{name: values[:, k] for k, name in enumerate(model.channels)}})
+    for name in ("tau2", "mz"):
+        limit = 0.8 * float(np.abs(table[name]).max())
+        table[name] = np.clip(table[name], -limit, limit)
+    table.to_csv(tmp_path / "combined.csv", index=False, float_format="%.10g")
+    table = pd.read_csv(tmp_path / "combined.csv")
+    at = {name: np.abs(table[name]).to_numpy() >= np.abs(table[name]).max() * (1 - 1e-9) for name in ("tau2", "mz")}
+    memory, said = _caught(SaturatedTorqueWarning, lambda: read_measurements(tmp_path / "combined.csv", model=model))
+    assert len(said) == 1 and "range: tau2" in said[0] and "; mz at" in said[0], said
+    assert memory.metadata["saturated_samples"] == {name: int(mask.sum()) for name, mask in at.items()}
+    assert np.allclose(memory.as_recorded.t, t[~(at["tau2"] | at["mz"])], rtol=0, atol=1e-9)
+
+
+def test_a_wrench_channel_is_clipped_while_the_robot_moves_not_at_rest_nor_when_quantised():
+    """A wrench channel (a force plate's) held at its extreme while any joint moves is clipped there; the robot at
+    rest with its wrench steady (every joint held) is not, nor a quantised channel."""
+    from estimation.data.log_cleaning import saturated_wrench
+
+    generator = np.random.default_rng(6)
+    t = np.arange(3000) / 500.0
+    q = np.column_stack([0.8 * np.sin(2 * np.pi * 0.3 * t), np.zeros(t.shape)])  # joint 2 never moves
+    wrench = np.column_stack([20 * np.sin(2 * np.pi * 0.3 * t + 0.2 * k) for k in range(6)])
+    wrench = 0.02 * np.round((wrench + 0.2 * generator.standard_normal(wrench.shape)) / 0.02)
+    assert not saturated_wrench(wrench, q).any()
+    at_rest_q, at_rest = q.copy(), wrench.copy()  # the robot at rest for 1 s, its wrench steady at a new high
+    at_rest_q[1000:1500] = q[999]
+    at_rest[1000:1500, 2] = wrench[:, 2].max() + 3.0
+    assert not saturated_wrench(at_rest, at_rest_q).any()
+    clipped = wrench.copy()
+    clipped[:, 5] = np.maximum(clipped[:, 5], -15.0)
+    found = saturated_wrench(clipped, q)
+    assert np.array_equal(found[:, 5], clipped[:, 5] == -15.0) and not found[:, :5].any()
+
+
 @pytest.mark.realdata
 @pytest.mark.slow
 @pytest.mark.parametrize("robot", ["emps", "kuka", "panda", "tx40"])
@@ -303,3 +355,70 @@ def test_result_json_counts_the_clipped_samples_in_memory_and_says_streamed_that
     assert [entry["samples"] for entry in memory["saturated_samples"]["train"]] == [{"tau2": at_limit}]
     assert "validation" not in memory["saturated_samples"] and "saturated_samples" not in memory["not_computed"]
     assert streamed["saturated_samples"] is None and "memory only" in streamed["not_computed"]["saturated_samples"]
+
+
+def _wrench_records(tmp_path: Path):
+    """A PUMA 3's base wrench (a force plate, the external model): training 10 s, validation 4 s, test 6 s at
+    250 Hz (another motion each), white noise of 2 % of each channel's spread; the positions and wrench as written."""
+    from dynamics.models import build_model
+    from dynamics.robots import load_robot
+    from dynamics.simulation.synthetic import true_parameters
+    from oed.fourier import random_fourier
+    from tests.test_unseen_robots import urdf_of
+
+    urdf = urdf_of("puma560:3", tmp_path)
+    model = build_model(load_robot(urdf=urdf), "external")
+    theta = true_parameters(model, seed=0)
+    generator, spread, motions = np.random.default_rng(21), None, {}
+    for name, seconds, seed in (("train", 10.0, 1), ("validation", 4.0, 2), ("test", 6.0, 3)):
+        t = np.arange(0.0, seconds, 1.0 / 250.0)
+        q, dq, ddq = random_fourier(model.robot, seed=seed, frequency_hz=0.2).evaluate(t)
+        wrench = model.predict(theta, q, dq, ddq)
+        spread = wrench.std(axis=0) if spread is None else spread
+        wrench = wrench + generator.standard_normal(wrench.shape) * 0.02 * spread
+        pd.DataFrame({"t": t, **{f"q{j + 1}": q[:, j] for j in range(3)},
+                      **{name: wrench[:, k] for k, name in enumerate(model.channels)}}).to_csv(
+            tmp_path / f"{name}.csv", index=False, float_format="%.10g")
+        motions[name] = (q, dq, ddq)
+    return model, urdf, motions
+
+
+@pytest.mark.slow
+def test_a_clipped_wrench_channel_is_named_and_left_out_of_the_external_fit_and_its_errors(tmp_path, capsys):
+    """A force plate's channel past its range (``mz`` clipped at 80 % of its peak in the training record): said in
+    a ``SaturatedTorqueWarning``, its samples left out of the fit and the errors, ``result.json`` counting them; the
+    default ``oed identify --model external`` then predicts the test record (``oed predict``) within 1.3x of a plain
+    least-squares fit on the record before the fault (analytic derivatives) on every channel, at most 1.0x in total
+    (allowed 2 % for the noise's sampling spread). Before (4252663, the wrench not judged): fx 1.017x, fy 1.002x,
+    fz 1.032x, mx 1.297x, my 1.017x, mz 1.328x, in total 1.088x; now 1.000 to 1.002x, in total 0.999x."""
+    import json
+
+    from oed.cli import main
+
+    model, urdf, motions = _wrench_records(tmp_path)
+    table = pd.read_csv(tmp_path / "train.csv")
+    limit = 0.8 * float(np.abs(table["mz"]).max())
+    table.assign(mz=np.clip(table["mz"], -limit, limit)).to_csv(tmp_path / "clipped.csv", index=False,
+                                                                 float_format="%.10g")
+    at_limit = int(np.count_nonzero(np.abs(pd.read_csv(tmp_path / "clipped.csv")["mz"]) >= limit * (1 - 1e-9)))
+    out, metrics = tmp_path / "result.json", tmp_path / "metrics.json"
+    assert main(["identify", "--urdf", str(urdf), "--model", "external", "--data", str(tmp_path / "clipped.csv"),
+                 "--validate", str(tmp_path / "validation.csv"), "--out", str(out)]) == 0
+    said = [line for line in capsys.readouterr().err.splitlines() if "sensor past its range" in line]
+    assert len(said) == 1 and "range: mz at" in said[0] and not re.search(r"; (f[xyz]|m[xy]) at", said[0]), said
+    assert main(["predict", "--model", str(out), "--data", str(tmp_path / "test.csv"), "--metrics", str(metrics)]) == 0
+    document = json.loads(out.read_text())
+    assert [entry["samples"] for entry in document["saturated_samples"]["train"]] == [{"mz": at_limit}]
+    # the plain fit: least squares on the training record before the fault, at its exact motion
+    clean = pd.read_csv(tmp_path / "train.csv")
+    regressor = model.evaluate_base(*motions["train"])
+    theta, *_ = np.linalg.lstsq(regressor.reshape(-1, regressor.shape[2]),
+                                clean[list(model.channels)].to_numpy().reshape(-1), rcond=None)
+    test = pd.read_csv(tmp_path / "test.csv")[list(model.channels)].to_numpy()
+    plain = np.mean((model.evaluate_base(*motions["test"]) @ theta - test) ** 2, axis=0)
+    found = json.loads(metrics.read_text())
+    mse = np.array([found["mse"][name] for name in model.channels])
+    ratio = mse / plain
+    print("test MSE over the plain fit's:", dict(zip(model.channels, ratio.round(3))),
+          f"total {mse.sum() / plain.sum():.3f}")
+    assert np.all(ratio <= 1.3) and mse.sum() <= 1.0 * plain.sum() * 1.02, ratio

@@ -35,7 +35,8 @@
   values: the extreme must be held :data:`SATURATION_FACTOR` times as often as the channel's values are on average;
   a joint at rest against a hard stop holds its torque while its position holds too, and is left alone. Such samples
   are no measurement: the reader leaves them out of the samples as recorded (the fit and every error), the
-  positions kept for the derivatives.
+  positions kept for the derivatives. A wrench channel (a force plate's, a force/torque sensor's) alike, judged
+  while any joint moves (:func:`saturated_wrench`).
 
 Pure functions on arrays; :mod:`estimation.data.loading` turns their findings into warnings and errors.
 """
@@ -286,21 +287,39 @@ def saturated_samples(tau: NDArray[np.float64], q: NDArray[np.float64]) -> NDArr
     too (a joint at rest against a hard stop) is left alone. Non-finite values count for nothing."""
     found = np.zeros(tau.shape, dtype=bool)
     for joint in range(tau.shape[1]):
-        channel = tau[:, joint]
-        finite = channel[np.isfinite(channel)]
-        if finite.size < SATURATION_LEAST:
+        found[:, joint] = _held_extremes(tau[:, joint], q[:, joint:joint + 1])
+    return found
+
+
+def saturated_wrench(wrench: NDArray[np.float64], q: NDArray[np.float64]) -> NDArray[np.bool_]:
+    """``(N, 6)`` true where a wrench channel of ``wrench (N, 6)`` (a force plate's or a force/torque sensor's
+    ``fx … mz``) is clipped: held at its largest or smallest value as :func:`saturated_samples` asks of a torque
+    channel, while any joint of ``q (N, n)`` moves within the run (every joint's motion loads the base); a run where
+    every joint holds (the robot at rest, its wrench steady) is left alone."""
+    found = np.zeros(wrench.shape, dtype=bool)
+    for channel in range(wrench.shape[1]):
+        found[:, channel] = _held_extremes(wrench[:, channel], q)
+    return found
+
+
+def _held_extremes(channel: NDArray[np.float64], q: NDArray[np.float64]) -> NDArray[np.bool_]:
+    """``(N,)`` the samples where ``channel`` holds its largest or smallest value while a position of ``q (N, k)``
+    changes within the run (:func:`saturated_samples`' rule)."""
+    found = np.zeros(channel.shape, dtype=bool)
+    finite = channel[np.isfinite(channel)]
+    if finite.size < SATURATION_LEAST:
+        return found
+    values, counts = np.unique(finite, return_counts=True)
+    typical = finite.size / values.size
+    for index in (0, -1):
+        if values.size < 2 or counts[index] < SATURATION_LEAST or counts[index] <= SATURATION_FACTOR * typical:
             continue
-        values, counts = np.unique(finite, return_counts=True)
-        typical = finite.size / values.size
-        for index in (0, -1):
-            if values.size < 2 or counts[index] < SATURATION_LEAST or counts[index] <= SATURATION_FACTOR * typical:
-                continue
-            at = channel == values[index]
-            edges = np.flatnonzero(np.diff(np.r_[0, at.astype(np.int8), 0]))
-            for start, stop in zip(edges[::2], edges[1::2]):
-                around = slice(start, stop) if stop - start >= 2 else slice(max(start - 1, 0), stop + 1)
-                if np.ptp(q[around, joint]) > 0:  # the joint moves while the torque holds (a lone sample: moves there)
-                    found[start:stop, joint] = True
+        at = channel == values[index]
+        edges = np.flatnonzero(np.diff(np.r_[0, at.astype(np.int8), 0]))
+        for start, stop in zip(edges[::2], edges[1::2]):
+            around = slice(start, stop) if stop - start >= 2 else slice(max(start - 1, 0), stop + 1)
+            if np.ptp(q[around], axis=0).max() > 0:  # a joint moves while the reading holds (a lone sample: there)
+                found[start:stop] = True
     return found
 
 

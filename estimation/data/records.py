@@ -80,7 +80,8 @@ from estimation.data.log_formats import (
 from estimation.data.sampling_clock import clock_instants, clock_roughness, quantised_clock, said_receive_times
 from estimation.data.log_cleaning import (DEFAULT_MAX_GAP, ZERO_ROW_JOINTS, Gap, PositionSteps, blank_rows, describe,
                                           GLITCH_RUN, encoder_glitches, find_gaps, position_steps, repeated_rows,
-                                          saturated_samples, split_rows, time_stamps_jump, zero_rows)
+                                          saturated_samples, saturated_wrench, split_rows, time_stamps_jump,
+                                          zero_rows)
 from dynamics.measurements import Measurements, joint_columns
 
 
@@ -381,8 +382,8 @@ def segments_from_frame(
                                float(stamps[0]), float(stamps[-1]), stamps.shape[0], name)
         valid = None if clipped is None or not clipped[rows].any() else ~clipped[rows].any(axis=1)
         if valid is not None:
-            metadata["saturated_samples"] = {f"tau{j + 1}": int(count) for j, count in
-                                             enumerate(clipped[rows].sum(axis=0)) if count}
+            metadata["saturated_samples"] = {name: int(count) for name, count in
+                                             zip(clipped_channels(arrays), clipped[rows].sum(axis=0)) if count}
         segments.append(Measurements(segment_t, grid["q"], grid["dq"], grid["ddq"], grid["tau"], grid["wrench"],
                                      metadata, *_as_recorded(stamps, piece, segment_t, metadata, valid)))
     if isinstance(model, IdentificationModel):
@@ -507,28 +508,43 @@ def _as_recorded(t: NDArray[np.float64], piece: dict, grid: NDArray[np.float64],
 
 
 def clipped_torques(arrays: dict, t: NDArray[np.float64], model, source: str) -> NDArray[np.bool_] | None:
-    """``(N, n)`` the samples of each torque channel held at a sensor's limit
-    (:func:`estimation.data.log_cleaning.saturated_samples`), said in a :class:`SaturatedTorqueWarning` naming the
-    channels; ``None`` when there are none (or no torques)."""
-    if arrays.get("tau") is None or arrays.get("q") is None:
+    """``(N, k)`` the samples of each torque channel and then each wrench channel (those present, in
+    :func:`clipped_channels`' order) held at a sensor's limit (:func:`estimation.data.log_cleaning.saturated_samples`,
+    :func:`~estimation.data.log_cleaning.saturated_wrench`), said in a :class:`SaturatedTorqueWarning` naming the
+    channels; ``None`` when there are none (or no torques nor wrench)."""
+    if arrays.get("q") is None or (arrays.get("tau") is None and arrays.get("wrench") is None):
         return None
-    found = saturated_samples(arrays["tau"], arrays["q"])
+    parts = ([saturated_samples(arrays["tau"], arrays["q"])] if arrays.get("tau") is not None else []) + (
+        [saturated_wrench(arrays["wrench"], arrays["q"])] if arrays.get("wrench") is not None else [])
+    found = np.hstack(parts)
     if not found.any():
         return None
-    names = ([joint.name for joint in model.robot.joints] if isinstance(model, IdentificationModel)
-             else [f"tau{j + 1}" for j in range(found.shape[1])])
+    values = np.hstack([arrays[key] for key in ("tau", "wrench") if arrays.get(key) is not None])
+    names = clipped_channels(arrays)
+    joint_names = ([joint.name for joint in model.robot.joints] if isinstance(model, IdentificationModel) else [])
     said = []
     for j in np.flatnonzero(found.any(axis=0)):
         rows = np.flatnonzero(found[:, j])
-        said.append(f"tau{j + 1}" + ("" if names[j] == f"tau{j + 1}" else f" ({names[j]})")
-                    + f" at {arrays['tau'][rows[0], j]:.6g} on {rows.size} sample(s) from t = {t[rows[0]]:.6g} s to "
-                    f"{t[rows[-1]]:.6g} s")
+        joint = int(names[j][3:]) - 1 if names[j].startswith("tau") else None
+        named = "" if joint is None or joint >= len(joint_names) or joint_names[joint] == names[j] else \
+            f" ({joint_names[joint]})"
+        said.append(f"{names[j]}{named} at {values[rows[0], j]:.6g} on {rows.size} sample(s) from t = "
+                    f"{t[rows[0]]:.6g} s to {t[rows[-1]]:.6g} s")
+    torques = all(names[j].startswith("tau") for j in np.flatnonzero(found.any(axis=0)))
     warnings.warn(
-        f"{source}: a torque sensor past its range: {'; '.join(said)}, its extreme value held while the joint moves "
+        f"{source}: a {'torque' if torques else 'force/torque'} sensor past its range: {'; '.join(said)}, its extreme "
+        f"value held while {'the joint moves' if torques else 'the robot moves'} "
         "(and held far more often than its other values): clipped, not measured; these samples are left out of the "
         "fit and of every error (taken against what was recorded where the recording is valid), the positions kept "
         "for the derivatives", SaturatedTorqueWarning, stacklevel=5)
     return found
+
+
+def clipped_channels(arrays: dict) -> list[str]:
+    """The channels :func:`clipped_torques` judges, in its columns' order: ``tau1 … taun`` then ``fx … mz``, those
+    present in ``arrays``."""
+    return ([f"tau{j + 1}" for j in range(arrays["tau"].shape[1])] if arrays.get("tau") is not None else []) + (
+        list(WRENCH_CHANNELS) if arrays.get("wrench") is not None else [])
 
 
 def _joint_count(frame: pd.DataFrame, n_joints: int | None, model: IdentificationModel | ModelKind | str | None,
