@@ -1,8 +1,9 @@
-"""Two sensor faults a user's log holds, read as such by the readers (h-unseen13's two strict xfails in
-``tests/test_unseen_robot_users.py``, 2.68x and 50.9x the plain fit before):
+"""Sensor faults a user's log holds, read as such by the readers (h-unseen13's two strict xfails in
+``tests/test_unseen_robot_users.py``, 2.68x and 50.9x the plain fit before; h-sensorfaults2: read errors of
+several samples, a clipped wrench channel, the streamed reader's clipped-sensor check):
 
-- **encoder read errors**: one sample of one joint's position off (a bit error on the encoder's bus), the next
-  right again. A step into that value and out of it, each longer than the joint can travel in a sample period, is
+- **encoder read errors**: one sample of one joint's position off (a bit error on the encoder's bus), or a run of
+  two to five, the next right again. A step into that value and out of it, each longer than the joint can travel in a sample period, is
   a dropout (:func:`estimation.data.log_cleaning.encoder_glitches`), said in an ``EncoderGlitchWarning`` naming the
   rows and joints; the streamed scan decides it on the whole record alike, at its chunk edges too. A fast true
   motion, an angle wrapped at ±π and a quantised encoder flickering between counts are none.
@@ -10,7 +11,8 @@
   and far more often than its other values (:func:`estimation.data.log_cleaning.saturated_samples`), is clipped
   there: said in a ``SaturatedTorqueWarning``, its samples left out of the samples as recorded (every error) and of
   the fit. A quantised channel (its extremes repeat no more than its other values) and a joint at rest against a
-  hard stop (the torque held while the position holds) are none.
+  hard stop (the torque held while the position holds) are none. A wrench channel alike (while any joint moves).
+  The streamed reader judges it block by block as memory does on the whole record, and says it.
 
 Each against something independent: the record as simulated before the fault, the rows the fault was put on, the
 streamed reader against the one in memory; and, on the four real robots' logs (``../shared/data``), nothing said.
@@ -227,6 +229,59 @@ def test_a_clipped_torque_sensor_is_named_and_its_samples_left_out_of_the_sample
     assert nothing == []
 
 
+def test_the_streamed_reader_says_a_clipped_sensor_as_memory_finds_it(tmp_path):
+    """The streamed reader (``--chunk-size``) judges a clipped sensor on the whole record block by block
+    (:class:`estimation.data.log_cleaning.HeldExtremes`): the same channel, value, samples and time span as memory,
+    at chunks of 250 and 251 rows (runs at the limit across a chunk's edge); its warning says that the samples are
+    not left out there. The clean record: nothing said."""
+    from estimation.data import SaturatedTorqueWarning
+    from estimation.data.records import read_measurements
+    from estimation.streaming.chunks import read_chunks
+
+    model, clean = _puma_record(tmp_path)
+    table = pd.read_csv(clean)
+    limit = 0.8 * float(np.abs(table["tau2"]).max())
+    table.assign(tau2=np.clip(table["tau2"], -limit, limit)).to_csv(tmp_path / "clipped.csv", index=False,
+                                                                      float_format="%.10g")
+    _, said = _caught(SaturatedTorqueWarning, lambda: read_measurements(tmp_path / "clipped.csv", model=model))
+    found = re.search(r"past its range: (.*), its extreme value", said[0]).group(1)
+    for chunk_size in CHUNK_SIZES:
+        _, streamed = _caught(SaturatedTorqueWarning, lambda size=chunk_size: list(read_chunks(
+            tmp_path / "clipped.csv", model, chunk_size=size)))
+        assert len(streamed) == 1 and f"past its range: {found}, its extreme value" in streamed[0], streamed
+        assert "NOT left out" in streamed[0]
+    _, nothing = _caught(SaturatedTorqueWarning, lambda: list(read_chunks(clean, model, chunk_size=250)))
+    assert nothing == []
+
+
+def test_held_extremes_block_by_block_equal_the_whole_record():
+    """:class:`HeldExtremes` fed in blocks of any size finds what it finds on the record whole: a clipped channel,
+    a quantised one, one whose distinct values pass :data:`DISTINCT_SKETCH` (their count then estimated, the same
+    estimate from the blocks' sketches merged, within 1 % of the true count)."""
+    from estimation.data.log_cleaning import DISTINCT_SKETCH, HeldExtremes, distinct_count, value_hashes
+
+    generator = np.random.default_rng(8)
+    n = 3 * DISTINCT_SKETCH
+    t = np.arange(n) / 1000.0
+    q = np.column_stack([np.sin(2 * np.pi * 0.05 * t), np.cos(2 * np.pi * 0.03 * t), np.sin(2 * np.pi * 0.02 * t)])
+    tau = np.column_stack([np.minimum(10 * np.sin(2 * np.pi * 0.05 * t + 0.3) + 0.1 * generator.standard_normal(n),
+                                      8.0),
+                           0.05 * np.round(5 * np.cos(2 * np.pi * 0.03 * t) / 0.05),
+                           generator.standard_normal(n)])
+    whole = HeldExtremes(3, 3, wrench=False)
+    whole.add(tau, q, t)
+    expected = whole.found(n)
+    assert expected[:, 0].sum() > 1000 and not expected[:, 1:].any()
+    for size in (997, 4096, 65537):
+        blocks = HeldExtremes(3, 3, wrench=False)
+        for start in range(0, n, size):
+            blocks.add(tau[start:start + size], q[start:start + size], t[start:start + size])
+        assert np.array_equal(blocks.found(n), expected), size
+        assert blocks.described() == whole.described(), size
+        assert [blocks.distinct(j) for j in range(3)] == [whole.distinct(j) for j in range(3)]
+    assert abs(distinct_count(value_hashes(tau[:, 2])) / n - 1) < 0.01
+
+
 def test_a_quantised_torque_channel_and_a_joint_held_against_a_hard_stop_are_not_clipped():
     from estimation.data.log_cleaning import saturated_samples
 
@@ -327,9 +382,9 @@ def test_the_real_robots_logs_hold_no_read_error_and_no_clipped_torque(robot, tm
 @pytest.mark.parametrize("verb", ["identify", "diagnose"])
 def test_result_json_counts_the_clipped_samples_in_memory_and_says_streamed_that_it_did_not_look(verb, tmp_path):
     """``result.json``'s ``saturated_samples`` (h-sensorfaults) holds the clipped samples of each record left out of
-    the fit and the errors, per channel; streamed (``--chunk-size``), where the rule cannot be applied (it counts a
-    channel's distinct values over the whole record), it is null and ``not_computed.saturated_samples`` says why,
-    never a silent null that reads as "none clipped"."""
+    the fit and the errors, per channel; streamed (``--chunk-size``), where the clipped channels are said but their
+    samples not left out, it is null and ``not_computed.saturated_samples`` says why, never a silent null that reads
+    as "none clipped"."""
     import json
 
     from oed.cli import main
@@ -355,6 +410,7 @@ def test_result_json_counts_the_clipped_samples_in_memory_and_says_streamed_that
     assert [entry["samples"] for entry in memory["saturated_samples"]["train"]] == [{"tau2": at_limit}]
     assert "validation" not in memory["saturated_samples"] and "saturated_samples" not in memory["not_computed"]
     assert streamed["saturated_samples"] is None and "memory only" in streamed["not_computed"]["saturated_samples"]
+    assert "said streamed" in streamed["not_computed"]["saturated_samples"]
 
 
 def _wrench_records(tmp_path: Path):

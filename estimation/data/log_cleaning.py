@@ -208,28 +208,35 @@ def position_steps(q: NDArray[np.float64], t: NDArray[np.float64], velocity_limi
         taken = np.zeros((m, n), dtype=bool)  # a run already kept starting at that row and joint (a shorter one)
         within = np.zeros((max(m - 2, 0), n))  # the longest step within the runs of each start, so far
         ordered = np.ones(max(m - 2, 0), dtype=bool)  # the run's rows and the row after it in order, so far
-        for length in range(1, GLITCH_RUN + 1):
+        steps_dt = np.diff(t)
+        least = float(steps_dt[steps_dt > 0].min()) if np.any(steps_dt > 0) else 0.0
+        possible = bool(np.any((size > floor * least) & (size > 0)))  # a step a run could leave or come back by
+        # (a span is at least the shortest step of time): none on a clean log of joints with limits, the runs skipped
+        for length in range(1, GLITCH_RUN + 1) if possible else ():
             starts = m - length - 1  # runs from row 1 to row m - length - 1 (a sample before and after each)
             if starts < 1:
                 break
-            first = np.arange(1, starts + 1)  # the run's first row
-            last = first + length - 1
+            # the run's first rows 1 .. starts, its last rows length .. starts + length - 1 (slices: a gather of
+            # rows costs ten times as much)
             if length > 1:
-                within[:starts] = np.maximum(within[:starts], size[last - 1])  # the step into the run's last row
-            ordered[:starts] &= forward[first + length - 1] & forward[first + length] if length > 1 else \
-                forward[first] & forward[first + 1]
-            into, out = size[first - 1], size[last]
+                within[:starts] = np.maximum(within[:starts], size[length - 1:length - 1 + starts])
+            ordered[:starts] &= forward[length:length + starts] & forward[length + 1:length + 1 + starts]
+            into, out = size[:starts], size[length:length + starts]
             shorter = np.minimum(into, out)
-            span = np.where(ordered[:starts], (t[last + 1] - t[first - 1]) / (length + 1), 0.0)
-            judged = (last + 1 >= carried)[:, None]  # the sample after the run was read in this block
+            span = np.where(ordered[:starts], (t[length + 1:length + 1 + starts] - t[:starts]) / (length + 1), 0.0)
             maybe = ((shorter > floor * np.where(span > 0, span, 0.0)[:, None]) & (shorter > 0)
-                     & (span > 0)[:, None] & judged & ~taken[first] & (within[:starts] < 0.5 * shorter))
+                     & (span > 0)[:, None] & (within[:starts] < 0.5 * shorter))
+            maybe[:max(carried - length - 1, 0)] = False  # the sample after the run read in the block before
+            if not maybe.any():
+                continue
             row, joint = np.nonzero(maybe)
+            keep = ~taken[row + 1, joint]
+            row, joint = row[keep], joint[keep]
             through = np.abs(_turn_wrapped(q[row + length + 1, joint] - q[row, joint]))
             keep = through < 0.5 * shorter[row, joint]
             row, joint = row[keep], joint[keep]
-            taken[first[row], joint] = True
-            found_rows.append(first[row])
+            taken[row + 1, joint] = True
+            found_rows.append(row + 1)
             found_joints.append(joint)
             found_steps.append(shorter[row, joint])
             found_spans.append(span[row])
@@ -284,11 +291,11 @@ def saturated_samples(tau: NDArray[np.float64], q: NDArray[np.float64]) -> NDArr
     its neighbours, the noise taking the reading in and out of the limit), the extreme held on at least
     :data:`SATURATION_LEAST` samples and :data:`SATURATION_FACTOR` times as often as the channel's values on average
     (a quantised channel holds its extremes no more often than its other values). A run where the position holds
-    too (a joint at rest against a hard stop) is left alone. Non-finite values count for nothing."""
-    found = np.zeros(tau.shape, dtype=bool)
-    for joint in range(tau.shape[1]):
-        found[:, joint] = _held_extremes(tau[:, joint], q[:, joint:joint + 1])
-    return found
+    too (a joint at rest against a hard stop) is left alone. Non-finite values count for nothing. One block of
+    :class:`HeldExtremes` (the streamed reader's rule, block by block)."""
+    scan = HeldExtremes(tau.shape[1], q.shape[1], wrench=False)
+    scan.add(tau, q)
+    return scan.found(tau.shape[0])
 
 
 def saturated_wrench(wrench: NDArray[np.float64], q: NDArray[np.float64]) -> NDArray[np.bool_]:
@@ -296,31 +303,187 @@ def saturated_wrench(wrench: NDArray[np.float64], q: NDArray[np.float64]) -> NDA
     ``fx … mz``) is clipped: held at its largest or smallest value as :func:`saturated_samples` asks of a torque
     channel, while any joint of ``q (N, n)`` moves within the run (every joint's motion loads the base); a run where
     every joint holds (the robot at rest, its wrench steady) is left alone."""
-    found = np.zeros(wrench.shape, dtype=bool)
-    for channel in range(wrench.shape[1]):
-        found[:, channel] = _held_extremes(wrench[:, channel], q)
-    return found
+    scan = HeldExtremes(wrench.shape[1], q.shape[1], wrench=True)
+    scan.add(wrench, q)
+    return scan.found(wrench.shape[0])
 
 
-def _held_extremes(channel: NDArray[np.float64], q: NDArray[np.float64]) -> NDArray[np.bool_]:
-    """``(N,)`` the samples where ``channel`` holds its largest or smallest value while a position of ``q (N, k)``
-    changes within the run (:func:`saturated_samples`' rule)."""
-    found = np.zeros(channel.shape, dtype=bool)
-    finite = channel[np.isfinite(channel)]
-    if finite.size < SATURATION_LEAST:
+#: each channel's distinct values are counted exactly up to this many, beyond it estimated from this many smallest
+#: of their hashes (a k-minimum-values sketch, relative error about 1 / sqrt of it: 0.4 %); the same count for a
+#: record read whole and one streamed in blocks (the smallest hashes of a union are those of its blocks' merged)
+DISTINCT_SKETCH = 65536
+
+
+def value_hashes(values: NDArray[np.float64]) -> NDArray[np.uint64]:
+    """The sorted distinct hashes of the finite ``values`` (``-0.0`` as ``0.0``): their 64 bits through the
+    bijective finaliser of SplitMix64 (Steele, Lea & Flood 2014), so that distinct values have distinct hashes and
+    the hashes are spread evenly over ``[0, 2⁶⁴)``."""
+    bits = np.ascontiguousarray(values[np.isfinite(values)] + 0.0, dtype=np.float64).view(np.uint64)
+    with np.errstate(over="ignore"):
+        z = (bits ^ (bits >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
+        z = (z ^ (z >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
+        z = z ^ (z >> np.uint64(31))
+    return _smallest_distinct(z)
+
+
+def _smallest_distinct(hashes: NDArray[np.uint64]) -> NDArray[np.uint64]:
+    """The :data:`DISTINCT_SKETCH` smallest distinct of ``hashes``, sorted (a sort: ``numpy.unique`` hashes
+    64-bit integers about ten times slower)."""
+    ordered = np.sort(hashes)
+    if ordered.size:
+        ordered = ordered[np.r_[True, ordered[1:] != ordered[:-1]]]
+    return ordered[:DISTINCT_SKETCH]
+
+
+def distinct_count(hashes: NDArray[np.uint64]) -> float:
+    """The distinct values whose :data:`DISTINCT_SKETCH` smallest hashes are ``hashes`` (exact below it)."""
+    if hashes.shape[0] < DISTINCT_SKETCH:
+        return float(hashes.shape[0])
+    return (DISTINCT_SKETCH - 1) / ((float(hashes[-1]) + 1.0) / 2.0**64)
+
+
+class HeldExtremes:
+    """The samples where each channel of a record is held at its extreme while the robot moves
+    (:func:`saturated_samples`, :func:`saturated_wrench`), judged block by block: the same for a record read whole
+    and one streamed (its blocks in order, :meth:`add`). For each channel it keeps its finite samples, the smallest
+    hashes of its distinct values (:func:`value_hashes`), its lowest and highest values so far, and the rows held at
+    them with the positions at each and at its neighbours (a row's next neighbour filled from the next block): memory
+    in the rows at the extremes, not in the record's length.
+
+    Parameters
+    ----------
+    channels, joints
+        The channels judged and the joints of the positions.
+    wrench
+        Whether the channels are a wrench (any joint's motion counts) or torques (channel ``j``: joint ``j``'s).
+    """
+
+    def __init__(self, channels: int, joints: int, *, wrench: bool) -> None:
+        self.wrench = wrench
+        self.rows = 0
+        self.finite = np.zeros(channels, dtype=np.int64)
+        self.seen: list[NDArray[np.float64] | None] = [np.zeros(0) for _ in range(channels)]  # distinct values,
+        # exact while fewer than DISTINCT_SKETCH; then None and the sketch in ``hashes``
+        self.hashes = [np.zeros(0, dtype=np.uint64) for _ in range(channels)]
+        width = joints if wrench else 1
+        # per channel and side (0: lowest, 1: highest): the value, the rows at it, positions before, at and after
+        self.value = np.full((channels, 2), np.nan)
+        self.held = [[np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)] for _ in range(channels)]
+        self.around = [[np.zeros((0, 3, width)), np.zeros((0, 3, width))] for _ in range(channels)]
+        self.stamps = [[np.zeros(0), np.zeros(0)] for _ in range(channels)]  # the time stamps of the rows held
+        self.last_q: NDArray[np.float64] | None = None  # the block before's last row of positions
+
+    def _positions(self, q: NDArray[np.float64], channel: int) -> NDArray[np.float64]:
+        return q if self.wrench else q[:, channel:channel + 1]
+
+    def add(self, values: NDArray[np.float64], q: NDArray[np.float64], t: NDArray[np.float64] | None = None) -> None:
+        """The next block: ``values (m, channels)``, ``q (m, joints)``, stamped ``t (m,)`` (``None``: not kept)."""
+        m = values.shape[0]
+        if m == 0:
+            return
+        for channel in range(values.shape[1]):
+            column = values[:, channel]
+            finite = np.isfinite(column)
+            self.finite[channel] += int(finite.sum())
+            if not finite.any():
+                continue
+            self._count_distinct(channel, column[finite])
+            positions = self._positions(q, channel)
+            before = (np.full((1, positions.shape[1]), np.nan) if self.last_q is None
+                      else self._positions(self.last_q, channel))
+            padded = np.vstack([before, positions, np.full((1, positions.shape[1]), np.nan)])
+            for side, extreme in enumerate((column[finite].min(), column[finite].max())):
+                held, around, stamps = self.held[channel][side], self.around[channel][side], self.stamps[channel][side]
+                if held.size and np.isnan(around[-1, 2]).all() and held[-1] == self.rows - 1:
+                    around[-1, 2] = positions[0]  # the row after the block before's last
+                current = self.value[channel, side]
+                better = np.isnan(current) or (extreme < current if side == 0 else extreme > current)
+                if better:
+                    self.value[channel, side] = extreme
+                    held, around, stamps = np.zeros(0, dtype=np.int64), np.zeros((0, 3, positions.shape[1])), np.zeros(0)
+                at = np.flatnonzero(column == self.value[channel, side])
+                if at.size:
+                    held = np.concatenate([held, self.rows + at])
+                    around = np.concatenate([around, np.stack([padded[at], padded[at + 1], padded[at + 2]], axis=1)])
+                    stamps = np.concatenate([stamps, np.full(at.size, np.nan) if t is None else t[at]])
+                self.held[channel][side], self.around[channel][side], self.stamps[channel][side] = held, around, stamps
+        self.last_q = q[-1:].copy()
+        self.rows += m
+
+    def _count_distinct(self, channel: int, values: NDArray[np.float64]) -> None:
+        """The block's finite ``values`` of ``channel`` into its distinct values: kept exactly while fewer than
+        :data:`DISTINCT_SKETCH` (a sort of floats), then as the sketch of their hashes (:func:`value_hashes`)."""
+        seen = self.seen[channel]
+        if seen is not None:
+            seen = np.unique(np.concatenate([seen, values + 0.0]))
+            if seen.size < DISTINCT_SKETCH:
+                self.seen[channel] = seen
+                return
+            self.seen[channel], values = None, seen
+        kept, new = self.hashes[channel], value_hashes(values)
+        if kept.size == DISTINCT_SKETCH:  # a full sketch takes only hashes below its largest
+            new = new[new < kept[-1]]
+        if new.size:
+            self.hashes[channel] = new if not kept.size else _smallest_distinct(np.concatenate([kept, new]))
+
+    def distinct(self, channel: int) -> float:
+        """The distinct values of ``channel`` so far: exact below :data:`DISTINCT_SKETCH`, else estimated."""
+        seen = self.seen[channel]
+        return float(seen.size) if seen is not None else distinct_count(self.hashes[channel])
+
+    def clipped_rows(self) -> list[NDArray[np.int64]]:
+        """Per channel, the rows held at a sensor's limit (sorted)."""
+        found = []
+        for channel in range(len(self.seen)):
+            distinct = self.distinct(channel)
+            rows = []
+            typical = self.finite[channel] / distinct if distinct else np.inf
+            for side in (0, 1):
+                held, around = self.held[channel][side], self.around[channel][side]
+                if (self.finite[channel] < SATURATION_LEAST or distinct < 2 or held.size < SATURATION_LEAST
+                        or held.size <= SATURATION_FACTOR * typical):
+                    continue
+                rows.append(_moving_runs(held, around))
+            found.append(np.unique(np.concatenate(rows)) if rows else np.zeros(0, dtype=np.int64))
         return found
-    values, counts = np.unique(finite, return_counts=True)
-    typical = finite.size / values.size
-    for index in (0, -1):
-        if values.size < 2 or counts[index] < SATURATION_LEAST or counts[index] <= SATURATION_FACTOR * typical:
-            continue
-        at = channel == values[index]
-        edges = np.flatnonzero(np.diff(np.r_[0, at.astype(np.int8), 0]))
-        for start, stop in zip(edges[::2], edges[1::2]):
-            around = slice(start, stop) if stop - start >= 2 else slice(max(start - 1, 0), stop + 1)
-            if np.ptp(q[around], axis=0).max() > 0:  # a joint moves while the reading holds (a lone sample: there)
-                found[start:stop] = True
-    return found
+
+    def described(self) -> list[tuple[int, float, int, float, float]]:
+        """Per channel with clipped rows: ``(channel, value at its first clipped row, rows, first and last time
+        stamp)`` (the stamps given to :meth:`add`)."""
+        said = []
+        for channel, rows in enumerate(self.clipped_rows()):
+            if not rows.size:
+                continue
+            where = [(side, np.searchsorted(self.held[channel][side], row)) for row in (rows[0], rows[-1])
+                     for side in (0, 1) if row in self.held[channel][side]]
+            (side, first), (last_side, last) = where[0], where[-1]
+            said.append((channel, float(self.value[channel, side]), int(rows.size),
+                         float(self.stamps[channel][side][first]), float(self.stamps[channel][last_side][last])))
+        return said
+
+    def found(self, rows: int) -> NDArray[np.bool_]:
+        """``(rows, channels)`` true at the clipped samples (:meth:`clipped_rows`)."""
+        mask = np.zeros((rows, len(self.seen)), dtype=bool)
+        for channel, held in enumerate(self.clipped_rows()):
+            mask[held, channel] = True
+        return mask
+
+
+def _moving_runs(held: NDArray[np.int64], around: NDArray[np.float64]) -> NDArray[np.int64]:
+    """The rows of ``held`` (sorted rows at a channel's extreme; ``around (k, 3, w)``: the positions at the row
+    before, at and after each, NaN beyond the record) on runs where a position changes: within a run of two rows or
+    more, between the neighbours of a lone row."""
+    if held.size == 0:
+        return held
+    breaks = np.flatnonzero(np.diff(held) != 1) + 1
+    kept = []
+    for start, stop in zip(np.r_[0, breaks], np.r_[breaks, held.size]):
+        block = around[start:stop, 1] if stop - start >= 2 else around[start]
+        with np.errstate(invalid="ignore"):
+            spread = np.nanmax(block, axis=0) - np.nanmin(block, axis=0)
+        if np.any(spread > 0):
+            kept.append(held[start:stop])
+    return np.concatenate(kept) if kept else np.zeros(0, dtype=np.int64)
 
 
 def repeated_rows(data: NDArray[np.float64]) -> NDArray[np.bool_]:

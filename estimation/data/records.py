@@ -521,23 +521,35 @@ def clipped_torques(arrays: dict, t: NDArray[np.float64], model, source: str) ->
         return None
     values = np.hstack([arrays[key] for key in ("tau", "wrench") if arrays.get(key) is not None])
     names = clipped_channels(arrays)
-    joint_names = ([joint.name for joint in model.robot.joints] if isinstance(model, IdentificationModel) else [])
     said = []
     for j in np.flatnonzero(found.any(axis=0)):
         rows = np.flatnonzero(found[:, j])
-        joint = int(names[j][3:]) - 1 if names[j].startswith("tau") else None
-        named = "" if joint is None or joint >= len(joint_names) or joint_names[joint] == names[j] else \
-            f" ({joint_names[joint]})"
-        said.append(f"{names[j]}{named} at {values[rows[0], j]:.6g} on {rows.size} sample(s) from t = "
-                    f"{t[rows[0]]:.6g} s to {t[rows[-1]]:.6g} s")
-    torques = all(names[j].startswith("tau") for j in np.flatnonzero(found.any(axis=0)))
-    warnings.warn(
-        f"{source}: a {'torque' if torques else 'force/torque'} sensor past its range: {'; '.join(said)}, its extreme "
-        f"value held while {'the joint moves' if torques else 'the robot moves'} "
-        "(and held far more often than its other values): clipped, not measured; these samples are left out of the "
-        "fit and of every error (taken against what was recorded where the recording is valid), the positions kept "
-        "for the derivatives", SaturatedTorqueWarning, stacklevel=5)
+        said.append((names[j], float(values[rows[0], j]), int(rows.size), float(t[rows[0]]), float(t[rows[-1]])))
+    said_clipped(said, model, source)
     return found
+
+
+def said_clipped(said: list[tuple[str, float, int, float, float]], model, source: str, *,
+                 left_out: bool = True) -> None:
+    """The :class:`SaturatedTorqueWarning` naming each clipped channel: ``(name, value, samples, first and last time
+    stamp)``; ``left_out``: whether its samples are left out of the fit and the errors (in memory), else said only
+    (the streamed path, :mod:`estimation.streaming.chunks`)."""
+    joint_names = [joint.name for joint in model.robot.joints] if isinstance(model, IdentificationModel) else []
+    parts = []
+    for name, value, count, first, last in said:
+        joint = int(name[3:]) - 1 if name.startswith("tau") else None
+        named = "" if joint is None or joint >= len(joint_names) or joint_names[joint] == name else \
+            f" ({joint_names[joint]})"
+        parts.append(f"{name}{named} at {value:.6g} on {count} sample(s) from t = {first:.6g} s to {last:.6g} s")
+    torques = all(name.startswith("tau") for name, *_ in said)
+    what = ("these samples are left out of the fit and of every error (taken against what was recorded where the "
+            "recording is valid), the positions kept for the derivatives" if left_out else
+            "on the streamed path these samples are NOT left out of the fit and the errors (read the record in "
+            "memory, without --chunk-size, to leave them out)")
+    warnings.warn(
+        f"{source}: a {'torque' if torques else 'force/torque'} sensor past its range: {'; '.join(parts)}, its extreme "
+        f"value held while {'the joint moves' if torques else 'the robot moves'} (and held far more often than its "
+        f"other values): clipped, not measured; {what}", SaturatedTorqueWarning, stacklevel=6)
 
 
 def clipped_channels(arrays: dict) -> list[str]:

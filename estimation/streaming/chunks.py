@@ -60,8 +60,9 @@ from estimation.data.loading import (
     in_si_units,
     without_repeated_headers,
 )
-from estimation.data.records import (AngleTurns, csv_options, csv_units, measurements_from_frame, said_unwrapped,
-                                     unwrap_angles)
+from estimation.data.log_cleaning import HeldExtremes
+from estimation.data.records import (AngleTurns, csv_options, csv_units, measurements_from_frame, said_clipped,
+                                     said_unwrapped, unwrap_angles)
 from estimation.data.sampling_clock import ClockSums, clock_instants, said_receive_times
 from dynamics.measurements import Measurements, joint_columns
 from estimation.estimators.identification_problem import BandWindow, ResidualBand, decay_length
@@ -308,6 +309,40 @@ class _ClockEvidence:
                            source, stacklevel=5)
 
 
+class _ClippedEvidence:
+    """The whole record's clipped sensors (:class:`~estimation.data.log_cleaning.HeldExtremes`, torques and wrench),
+    block by block over the rows the loader keeps, as memory judges them on the whole record
+    (:func:`estimation.data.records.clipped_torques`); said once the file is read. The samples are not left out
+    here (the streamed sums and errors take every sample): the warning says so."""
+
+    def __init__(self, model: IdentificationModel) -> None:
+        n_joints = model.robot.n_joints
+        self.q = _group_columns("q", n_joints)
+        self.groups = {name: _group_columns(name, n_joints) for name in ("tau", "wrench")}
+        self.scans: dict[str, HeldExtremes] = {}
+
+    def add(self, frame: pd.DataFrame) -> None:
+        frame = frame.rename(columns=lambda name: str(name).strip())
+        if not set(self.q) | {"t"} <= set(frame.columns) or not len(frame):
+            return
+        numeric = functools.partial(pd.to_numeric, errors="coerce")
+        q = np.column_stack([numeric(frame[column]).to_numpy(dtype=float) for column in self.q])
+        t = numeric(frame["t"]).to_numpy(dtype=float)
+        for name, columns in self.groups.items():
+            if not set(columns) <= set(frame.columns):
+                continue
+            if name not in self.scans:
+                self.scans[name] = HeldExtremes(len(columns), len(self.q), wrench=name == "wrench")
+            values = np.column_stack([numeric(frame[column]).to_numpy(dtype=float) for column in columns])
+            self.scans[name].add(values, q, t)
+
+    def say(self, model: IdentificationModel, source: str) -> None:
+        said = [(self.groups[name][channel], value, count, first, last) for name in ("tau", "wrench")
+                if name in self.scans for channel, value, count, first, last in self.scans[name].described()]
+        if said:
+            said_clipped(said, model, source, left_out=False)
+
+
 def read_chunks(path: str | Path, model: IdentificationModel, *, chunk_size: int = DEFAULT_CHUNK_SIZE
                 ) -> Iterator[Measurements]:
     """The checked measurements of ``path``, ``chunk_size`` rows at a time (a short last chunk is
@@ -326,9 +361,11 @@ def read_chunks(path: str | Path, model: IdentificationModel, *, chunk_size: int
     checked = _ChunkChecks(path, model, scan, resampler)
     emitted = 0
     clock = _ClockEvidence(model, scan) if resampler is not None else None
+    clipped = _ClippedEvidence(model)
     for frame in _kept_frames(file, chunk_size, None if scan is None else scan.keep):
         if clock is not None:
             clock.add(frame)
+        clipped.add(frame)
         if pending is not None and len(frame) < least:
             pending = pd.concat([pending, frame], ignore_index=True)
             continue
@@ -345,6 +382,7 @@ def read_chunks(path: str | Path, model: IdentificationModel, *, chunk_size: int
     said_unwrapped(checked.wraps, model, str(path))
     if clock is not None:
         clock.say(str(path))
+    clipped.say(model, str(path))
     if resampler is not None and emitted != scan.grid_count:
         raise TimeBaseError(f"{path}: {emitted} samples resampled of the {scan.grid_count} of the grid (did the file "
                             "change while it was read?)")

@@ -78,10 +78,11 @@ STREAMED_NOT_COMPUTED = {
     "subtracted": "the fit to the torques with the description's gravity torque added back (a log less that load) "
                   "is a candidate of the answer chosen from sums (estimation.consistent.mounted_gravity) by oed "
                   "identify, as in memory, not by identify_files",
-    "saturated_samples": "a torque sensor past its range (a channel held at its extreme while the joint moves) is "
-                         "looked for in memory only (estimation.data.log_cleaning.saturated_samples counts each "
-                         "channel's distinct values over the whole record, which the streamed passes do not keep): "
-                         "streamed, clipped samples are read as measurements",
+    "saturated_samples": "a torque or wrench sensor past its range (a channel held at its extreme while the robot moves) is "
+                         "said streamed (SaturatedTorqueWarning: the whole record judged block by block, as in memory) "
+                         "but its samples are left out of the fit and the errors in memory only (the streamed sums "
+                         "and errors take every sample): streamed, clipped samples are read as measurements; read "
+                         "the record without --chunk-size to leave them out",
 }
 
 
