@@ -60,7 +60,6 @@ def _caught(category, call):
 def test_an_encoder_read_error_is_a_dropout_named_by_row_and_joint_alike_in_memory_and_streamed(tmp_path):
     from estimation.data import EncoderGlitchWarning
     from estimation.data.records import read_measurements
-    from estimation.streaming.chunks import read_chunks
 
     model, clean = _puma_record(tmp_path)
     table = pd.read_csv(clean)
@@ -80,14 +79,7 @@ def test_an_encoder_read_error_is_a_dropout_named_by_row_and_joint_alike_in_memo
     truth = pd.read_csv(clean)[["q1", "q2", "q3"]].to_numpy()
     on_grid = np.searchsorted(memory.t, table["t"].to_numpy()[[row for row, _, _ in GLITCHES]])
     assert np.abs(memory.q[on_grid] - truth[[row for row, _, _ in GLITCHES]]).max() < 0.01
-    for chunk_size in CHUNK_SIZES:
-        streamed, said_streamed = _caught(EncoderGlitchWarning, lambda size=chunk_size: list(read_chunks(
-            tmp_path / "glitches.csv", model, chunk_size=size)))
-        assert said_streamed == said, (chunk_size, said_streamed)
-        for name in ("t", "q", "tau"):
-            joined = np.concatenate([getattr(chunk, name) for chunk in streamed])
-            assert joined.shape == getattr(memory, name).shape
-            assert np.max(np.abs(joined - getattr(memory, name))) < 1e-9, (chunk_size, name)
+    _streamed_as_memory(tmp_path / "glitches.csv", model, memory, said)
     # a description without velocity limits: the record's own fast speed bounds the steps; the same rows
     unlimited = replace(model.robot, joints=tuple(replace(joint, velocity=np.inf) for joint in model.robot.joints))
     from dynamics.models import build_model
@@ -97,6 +89,21 @@ def test_an_encoder_read_error_is_a_dropout_named_by_row_and_joint_alike_in_memo
     assert len(said_bare) == 1 and all(f"row {row} " in said_bare[0] for row, _, _ in GLITCHES), said_bare
     _, nothing = _caught(EncoderGlitchWarning, lambda: read_measurements(clean, model=model))
     assert nothing == []
+
+
+def _streamed_as_memory(path: Path, model, memory, said: list[str]) -> None:
+    """The streamed reader at :data:`CHUNK_SIZES` says what memory said (``said``) and gives its t, q and tau."""
+    from estimation.data import EncoderGlitchWarning
+    from estimation.streaming.chunks import read_chunks
+
+    for chunk_size in CHUNK_SIZES:
+        streamed, said_streamed = _caught(EncoderGlitchWarning, lambda size=chunk_size: list(read_chunks(
+            path, model, chunk_size=size)))
+        assert said_streamed == said, (chunk_size, said_streamed)
+        for name in ("t", "q", "tau"):
+            joined = np.concatenate([getattr(chunk, name) for chunk in streamed])
+            assert joined.shape == getattr(memory, name).shape
+            assert np.max(np.abs(joined - getattr(memory, name))) < 1e-9, (chunk_size, name)
 
 
 def _judged(q, t, limit):
@@ -147,7 +154,6 @@ def test_read_errors_lasting_several_samples_are_dropouts_alike_in_memory_and_st
     edge, alike."""
     from estimation.data import EncoderGlitchWarning
     from estimation.data.records import read_measurements
-    from estimation.streaming.chunks import read_chunks
 
     model, clean = _puma_record(tmp_path)
     table = pd.read_csv(clean)
@@ -164,14 +170,7 @@ def test_read_errors_lasting_several_samples_are_dropouts_alike_in_memory_and_st
     truth = pd.read_csv(clean)[["q1", "q2", "q3"]].to_numpy()
     on_grid = np.searchsorted(memory.t, table["t"].to_numpy()[off])
     assert np.abs(memory.q[on_grid] - truth[off]).max() < 0.02  # bridged from the samples around: near the truth
-    for chunk_size in CHUNK_SIZES:
-        streamed, said_streamed = _caught(EncoderGlitchWarning, lambda size=chunk_size: list(read_chunks(
-            tmp_path / "runs.csv", model, chunk_size=size)))
-        assert said_streamed == said, (chunk_size, said_streamed)
-        for name in ("t", "q", "tau"):
-            joined = np.concatenate([getattr(chunk, name) for chunk in streamed])
-            assert joined.shape == getattr(memory, name).shape
-            assert np.max(np.abs(joined - getattr(memory, name))) < 1e-9, (chunk_size, name)
+    _streamed_as_memory(tmp_path / "runs.csv", model, memory, said)
 
 
 def test_runs_of_samples_a_hard_stop_a_step_that_stays_and_a_quantised_encoder_are_judged_apart():
