@@ -477,3 +477,35 @@ def test_a_clipped_wrench_channel_is_named_and_left_out_of_the_external_fit_and_
     print("test MSE over the plain fit's:", dict(zip(model.channels, ratio.round(3))),
           f"total {mse.sum() / plain.sum():.3f}")
     assert np.all(ratio <= 1.3) and mse.sum() <= 1.0 * plain.sum() * 1.02, ratio
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason="the streamed path says a clipped sensor but takes its samples in its sums and "
+                   "errors (h-sensorfaults2): on the clipped PUMA 3 (tau2 at 80 % of its peak) the streamed oed identify "
+                   "(--chunk-size 250) predicts the validation record's tau2 with an MSE of 1.661 against memory's "
+                   "0.00852 (195x); tau1 0.009469 against 0.009414, tau3 0.005800 against 0.005770")
+def test_the_streamed_identify_of_a_clipped_record_is_memorys(tmp_path):
+    """The streamed ``oed identify`` of a record whose torque sensor was clipped gives memory's validation errors
+    (relative 1e-6): the clipped samples left out of the streamed sums and errors as memory leaves them out."""
+    import json
+
+    from oed.cli import main
+    from tests.test_unseen_robots import urdf_of
+
+    _, clean = _puma_record(tmp_path)
+    _, validation = _puma_record(tmp_path, "validation.csv", seconds=2.0)
+    table = pd.read_csv(clean)
+    limit = 0.8 * float(np.abs(table["tau2"]).max())
+    table.assign(tau2=np.clip(table["tau2"], -limit, limit)).to_csv(tmp_path / "clipped.csv", index=False,
+                                                                      float_format="%.10g")
+    errors = {}
+    for path, options in (("memory", ()), ("streamed", ("--chunk-size", "250"))):
+        out = tmp_path / f"{path}.json"
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            assert main(["identify", "--urdf", str(urdf_of("puma560:3", tmp_path)), "--data",
+                         str(tmp_path / "clipped.csv"), "--validate", str(validation), "--friction",
+                         "viscous,coulomb,offset", *options, "--out", str(out)]) == 0
+        errors[path] = json.loads(out.read_text())["validation"]["mse"]
+    for channel, value in errors["memory"].items():
+        assert errors["streamed"][channel] == pytest.approx(value, rel=1e-6), (channel, errors)
