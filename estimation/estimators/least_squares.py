@@ -309,7 +309,10 @@ class WeightedLeastSquares(LeastSquares):
         problem = _as_problem(problem, measurements)
         _check_size(problem)
         mean_square = np.mean(problem.y**2, axis=0)
-        dead = [channel for channel, value in zip(problem.channels, mean_square) if value == 0]
+        dead = [channel for channel, value in zip(problem.channels, mean_square)
+                if value == 0 and channel not in problem.passive]
+        # a passive joint's zero torque is a measurement: its floor from the channels that carry a torque
+        mean_square = np.where(mean_square == 0, np.max(mean_square), mean_square)
         if dead:
             raise ValueError(f"channel(s) {', '.join(dead)} read zero in every sample (a dead sensor, or a column "
                              "left empty?): weighted least squares cannot weight them; check the data, or use ordinary "

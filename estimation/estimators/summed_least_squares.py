@@ -16,6 +16,7 @@ import scipy.linalg
 from numpy.typing import NDArray
 
 from dynamics.runtime.threads import single_threaded_blas
+from estimation.data.passive import floor_scale
 from estimation.estimators.estimator import Estimator
 from estimation.estimators.least_squares import IDENTIFIABILITY_TOLERANCE, IdentifiabilityError, ParameterRecords, freeze_arrays
 from estimation.estimators.normal_equations import NormalEquations, stacked_factor
@@ -108,13 +109,15 @@ class SummedLeastSquares(Estimator):
     ``n_shape``: parameters fitted beside the columns (shaped laws' shape parameters, the columns summed at their
     fitted values) counted in each channel's degrees of freedom, ``N − (r + n_shape)/m``, as the in-memory
     variable-projection fit counts them (:func:`estimation.identification.shaped.fit_shaped_model`; with the
-    weights iterated as there: :func:`summed_estimator`).
+    weights iterated as there: :func:`summed_estimator`). ``passive``: the channels of passive joints
+    (:mod:`estimation.data.passive`), whose zero is a measurement, weighted by their residual as in memory.
     ``fit(sums)`` returns ``self``; fitted attributes ``estimate_``, ``theta_``, ``cov_``, ``std_``.
     """
 
     def __init__(self, *, method: Literal["ols", "wls"] = "wls", max_iter: int = 20, tol: float = 1e-6,
-                 variance_floor: float = 1e-14, n_shape: int = 0) -> None:
+                 variance_floor: float = 1e-14, n_shape: int = 0, passive: tuple[str, ...] = ()) -> None:
         self.method = method
+        self.passive = passive
         self.max_iter = max_iter
         self.tol = tol
         self.variance_floor = variance_floor
@@ -139,12 +142,12 @@ class SummedLeastSquares(Estimator):
         weights = np.ones(m)
         iterations = 1
         if self.method == "wls":
-            dead = [c for c, value in zip(sums.channels, sums.power) if value == 0]
+            dead = [c for c, value in zip(sums.channels, sums.power) if value == 0 and c not in self.passive]
             if dead:
                 raise ValueError(f"channel(s) {', '.join(dead)} read zero in every sample (a dead sensor, or a column "
                                  "left empty?): weighted least squares cannot weight them; check the data, or use "
                                  "ordinary least squares (--method ols)")
-            floor = self.variance_floor * sums.power / N
+            floor = self.variance_floor * floor_scale(sums.power) / N  # a passive joint's zero: the others' scale
             variance = None
             iterations = 0
             for _ in range(int(self.max_iter) + 1):

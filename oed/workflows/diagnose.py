@@ -116,6 +116,7 @@ from oed.workflows.options import (
     preparation_settings,
     robot_of,
     with_logged_chain,
+    with_passive_joints,
     streaming_requested,
 )
 
@@ -320,6 +321,10 @@ def run_diagnose(args: DiagnoseOptions, *, say: Callable[[str], None]) -> Diagno
     if streaming_requested(args):  # bounded memory (estimation.streaming.diagnosis)
         check_streamed_request(args, delay)
     args, chain = with_logged_chain(args)  # a branching or mimic URDF read as the log's chain
+    args, passive = with_passive_joints(args)  # named, or the description's joints without a motor the log lacks
+    if passive is not None and streaming_requested(args):
+        raise ValueError(f"{passive['statement']}: the streamed path (--chunk-size, --workers, --cluster) does not "
+                         "read passive joints yet; drop the streaming options (the record is read in memory)")
     robot = robot_of(args)
     transmission = resolve_transmission(args, robot)
     effects = model_effects(args, friction, robot, transmission)
@@ -343,7 +348,9 @@ def run_diagnose(args: DiagnoseOptions, *, say: Callable[[str], None]) -> Diagno
             document["not_determined"] = [column.to_dict() for column in merged]
         if chain is not None:
             document["logged_chain"] = chain
-        summary = tuple(summary_lines(args, diagnosed, document))
+        if passive is not None:
+            document["passive_joints"] = passive
+        summary = tuple(summary_lines(args, diagnosed, document)) + (() if passive is None else (passive["statement"],))
     if names:  # the files as given, not their joint-side copies
         document, messages, summary = (named_as_given(value, names) for value in (document, messages, summary))
     return DiagnoseRun(document, summary, messages, diagnosed.diagnosis, diagnosed.records, diagnosed.untouched)
