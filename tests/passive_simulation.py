@@ -37,12 +37,13 @@ class Passive:
     seconds: tuple[float, float, float] = (12.0, 5.0, 8.0)
     rate_hz: float = 250.0
     passive_coulomb: float = 0.05  # the passive joint's Coulomb friction (N m): a free joint's bearing
+    passive_viscous: float | None = None  # its viscous friction (N m s); ``None``: the truth's draw
 
 
 def true_parameters(case: Passive, folder: Path) -> tuple[object, np.ndarray]:
     """The truth's robot (bodies ±20 % in the frames of the description written as URDF) and its parameters:
-    :func:`tests.test_unseen_robots.truth`, the passive joint's offset zero and its Coulomb friction
-    ``case.passive_coulomb``."""
+    :func:`tests.test_unseen_robots.truth`, the passive joint's offset zero, its Coulomb friction
+    ``case.passive_coulomb`` and its viscous friction ``case.passive_viscous`` (when given)."""
     urdf = folder / "true_bodies.urdf"
     urdf.write_text(robot_urdf(case.robot()))
     robot = load_robot(urdf=urdf)
@@ -52,6 +53,8 @@ def true_parameters(case: Passive, folder: Path) -> tuple[object, np.ndarray]:
     p = case.passive + 1
     theta[names.index(f"off{p}")] = 0.0
     theta[names.index(f"fc{p}")] = case.passive_coulomb
+    if case.passive_viscous is not None:
+        theta[names.index(f"fv{p}")] = case.passive_viscous
     return robot, theta
 
 

@@ -20,7 +20,7 @@ import warnings
 import numpy as np
 import pandas as pd
 
-__all__ = ["PassiveJointWarning", "floor_scale", "passive_channels", "with_passive_torques"]
+__all__ = ["PassiveJointWarning", "floored_variance", "passive_channels", "with_passive_torques"]
 
 
 class PassiveJointWarning(UserWarning):
@@ -60,9 +60,17 @@ def with_passive_torques(frame: pd.DataFrame, model, source: str) -> pd.DataFram
     return frame
 
 
-def floor_scale(mean_square):
-    """Each channel's mean square for a variance floor (``floor = 1e-14 × it``, keeping a noise-free channel's weight
-    finite), a channel that reads zero in every sample (a passive joint's) taking the largest of the others': its
-    weight then comes from its residual, the model's error on ``0 = Y_j θ``, and never from a floor of zero."""
-    mean_square = np.asarray(mean_square, dtype=float)
-    return np.where(mean_square == 0, np.max(mean_square, initial=0.0), mean_square)
+
+def floored_variance(variance, floor, zero):
+    """Each channel's residual variance for a weighted fit's weight ``1/σ²``: at least its ``floor`` (a noise-free
+    channel's weight kept finite), and for a channel of zeros (``zero``: a passive joint's torque) at least the
+    smallest variance of the channels that carry a torque. A passive joint's zero has no sensor noise, but its
+    equation ``0 = Y_j θ`` holds only up to the derivatives' and the model's errors, and it is homogeneous: a weight
+    without bound would let the iterated fit meet it by parameters near zero (the bodies it shares with the other
+    rows collapsed, their torques the worse). It is trusted as much as the most precise torque sensor of the robot,
+    never more. Without a channel of zeros: ``numpy.maximum(variance, floor)``, bit for bit."""
+    floored = np.maximum(variance, floor)
+    zero = np.asarray(zero, dtype=bool)
+    if zero.any() and (~zero).any():
+        floored[zero] = np.maximum(floored[zero], np.min(floored[~zero]))
+    return floored

@@ -16,7 +16,7 @@ import scipy.linalg
 from numpy.typing import NDArray
 
 from dynamics.runtime.threads import single_threaded_blas
-from estimation.data.passive import floor_scale
+from estimation.data.passive import floored_variance
 from estimation.estimators.estimator import Estimator
 from estimation.estimators.least_squares import IDENTIFIABILITY_TOLERANCE, IdentifiabilityError, ParameterRecords, freeze_arrays
 from estimation.estimators.normal_equations import NormalEquations, stacked_factor
@@ -147,14 +147,15 @@ class SummedLeastSquares(Estimator):
                 raise ValueError(f"channel(s) {', '.join(dead)} read zero in every sample (a dead sensor, or a column "
                                  "left empty?): weighted least squares cannot weight them; check the data, or use "
                                  "ordinary least squares (--method ols)")
-            floor = self.variance_floor * floor_scale(sums.power) / N  # a passive joint's zero: the others' scale
+            floor = self.variance_floor * sums.power / N
             variance = None
             iterations = 0
             for _ in range(int(self.max_iter) + 1):
                 theta = _solved(sums, weights)[0]  # only θ: the inverse and cond at the settled weights
                 iterations += 1
                 # the variances of the residual in the motion's band when the sums hold it (NormalEquations.band)
-                updated = np.maximum(sums.in_band_rss(theta) / dof_channel, floor)
+                updated = floored_variance(sums.in_band_rss(theta) / dof_channel, floor,
+                                           sums.power == 0)  # a passive joint's channel too
                 change = np.inf if variance is None else np.max(np.abs(updated - variance) / variance)
                 variance = updated
                 weights = 1.0 / variance
