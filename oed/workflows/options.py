@@ -237,17 +237,15 @@ def with_passive_joints(args: Any) -> tuple[Any, dict[str, Any] | None]:
     not passive: its torque is unknown, not zero)."""
     named = tuple(args.passive or ())
     described: tuple[str, ...] = ()
-    if args.urdf is not None and getattr(args, "data", None):
-        frame = logged_frame_head(args.data[0])
-        robot = None if frame is None else robot_of(dataclasses.replace(args, passive=None))
-        if robot is not None:
-            taus = [f"tau{j + 1}" for j in range(robot.n_joints)]
-            missing = [j for j, column in enumerate(taus) if column not in frame.columns]
-            if missing and len(missing) < len(taus):
-                chosen = {robot.joint_names[j] for j in passive_joint_indices(robot, named)} if named else set()
-                unactuated = set(described_unactuated(args.urdf, robot))
-                described = tuple(robot.joint_names[j] for j in missing
-                                  if robot.joint_names[j] in unactuated and robot.joint_names[j] not in chosen)
+    frame = logged_frame_head(args.data[0]) if args.urdf is not None and getattr(args, "data", None) else None
+    n_logged = 0 if frame is None else count_joint_columns(frame, "q")
+    missing = [j for j in range(n_logged) if f"tau{j + 1}" not in frame.columns]
+    if missing and len(missing) < n_logged:  # some torques logged, not all: the description is read (no cost else)
+        robot = robot_of(dataclasses.replace(args, passive=None))
+        chosen = {robot.joint_names[j] for j in passive_joint_indices(robot, named)} if named else set()
+        unactuated = set(described_unactuated(args.urdf, robot))
+        described = tuple(robot.joint_names[j] for j in missing if j < robot.n_joints
+                          and robot.joint_names[j] in unactuated and robot.joint_names[j] not in chosen)
     if described:
         warnings.warn(
             f"{', '.join(described)}: read as passive (unactuated; torque zero by physics, its friction in the model): "
