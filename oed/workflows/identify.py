@@ -269,9 +269,6 @@ def run_identify(args: IdentifyOptions, *, say: Callable[[str], None]) -> Identi
     check_consistent_arguments(args)
     args, chain = with_logged_chain(args)  # a branching or mimic URDF read as the log's chain
     args, passive = with_passive_joints(args)  # named, or the description's joints without a motor the log lacks
-    if passive is not None and streaming_requested(args):
-        raise ValueError(f"{passive['statement']}: the streamed path (--chunk-size, --workers, --cluster) does not "
-                         "read passive joints yet; drop the streaming options (the record is read in memory)")
     robot = robot_of(args)
     transmission = resolve_transmission(args, robot)
     friction, delay = split_delay(args.friction)  # the delay moves the motion: not a column effect
@@ -1035,6 +1032,9 @@ def check_streamed_request(args: IdentifyOptions, model: IdentificationModel) ->
     """Options the streamed identification does not have: an error naming them, before anything is read."""
     if args.plot:  # the report is written on both paths (streamed: without figures, saying what it lacks)
         raise ValueError(f"--plot draws every sample: not with {STREAMED}")
+    if model.robot.passive_joints:  # read in memory, whatever the records' size (in_memory_only)
+        raise ValueError(f"passive joint(s) {', '.join(model.robot.passive_joints)} are read in memory: not with "
+                         f"{STREAMED}; drop the streaming options")
     if args.min_speed is not None:
         raise ValueError(f"--min-speed drops rows of the whole record: not with {STREAMED}")
     if model_has_shapes(model):
