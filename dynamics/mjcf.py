@@ -60,7 +60,7 @@ from dynamics.robot import DEFAULT_GRAVITY, Joint, JointType, RobotModel, inerti
 from dynamics.transmission import Transmission, TransmissionError
 
 __all__ = ["MjcfIgnoredWarning", "MjcfLayout", "is_mjcf", "is_mjcf_text", "mjcf_text", "mjcf_joint_terms", "mjcf_logged_chain",
-           "mjcf_layout", "robot_from_mjcf", "transmission_from_mjcf"]
+           "mjcf_actuated_joints", "mjcf_layout", "robot_from_mjcf", "transmission_from_mjcf"]
 
 #: the joint terms read (MuJoCo's names) and the toolkit's names of what they are
 READ_JOINT_TERMS: dict[str, str] = {"damping": "viscous", "frictionloss": "coulomb"}
@@ -831,6 +831,27 @@ def transmission_from_mjcf(path: str | Path, robot: RobotModel) -> Transmission 
                   for index, name in enumerate(robot.joint_names))
     return Transmission(np.array([ratios[name][0] if name in ratios else 1.0 for name in robot.joint_names]), names,
                         source=f"MJCF {path.name} <actuator> gears")
+
+
+def mjcf_actuated_joints(path: str | Path) -> frozenset[str] | None:
+    """The joints an MJCF file's ``<actuator>`` elements drive, or ``None`` when it has no actuator (it says nothing
+    then): the joint of a joint transmission (``joint``, ``jointinparent``) and the joints of a fixed tendon an
+    actuator pulls. A joint of a file with actuators that none drives has no motor: the verbs read it as passive when
+    the log has no torque column for it (:func:`dynamics.urdf.urdf_actuated_joints`, the same rule)."""
+    model = _read(Path(path))
+    if not model.actuators:
+        return None
+    tendons = {tendon.get("name"): tendon for section in (model.root.findall("tendon") if model.root is not None else [])
+               for tendon in section}
+    driven: set[str] = set()
+    for actuator in model.actuators:
+        if actuator.kind in ("joint", "jointinparent"):
+            driven.add(actuator.target)
+        elif actuator.kind == "tendon" and actuator.target in tendons:
+            driven |= {child.get("joint") for child in tendons[actuator.target].findall("joint")} - {None}
+        else:  # a site, body or slider-crank actuator: what it drives is not one joint; say nothing
+            return None
+    return frozenset(driven)
 
 
 def mjcf_logged_chain(path: str | Path, n_logged: int) -> tuple[tuple[str, ...], tuple[str, ...]] | None:

@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import enum
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field, fields, is_dataclass
+from dataclasses import dataclass, field, fields, is_dataclass, replace
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -85,6 +85,10 @@ class Joint:
         The description's joint terms where it gives them (0: not given): the rotor's reflected inertia
         (kg·m², ``I_a q̈``), viscous (``f_v q̇``) and Coulomb (``f_c sign q̇``) friction; an MJCF model's ``armature``,
         ``damping`` and ``frictionloss`` (:mod:`dynamics.mjcf`), the consistent fit's prior for those laws.
+    actuated
+        ``False`` for a passive (unactuated) joint: no motor drives it, so its torque is zero by physics
+        (``τ_j = 0 = Y_j θ``, its own friction in ``Y_j``): a measurement of zero, not a channel that was not logged
+        (:meth:`RobotModel.with_passive`; the verbs' ``--passive``).
     """
 
     name: str
@@ -100,8 +104,12 @@ class Joint:
     armature: float = 0.0
     damping: float = 0.0
     friction: float = 0.0
+    actuated: bool = True
 
     def __post_init__(self) -> None:
+        if not isinstance(self.actuated, (bool, np.bool_)):
+            raise TypeError(f"joint {self.name!r}: actuated must be a bool, got {type(self.actuated).__name__}")
+        object.__setattr__(self, "actuated", bool(self.actuated))
         for term in ("armature", "damping", "friction"):
             value = float(getattr(self, term))
             if not (np.isfinite(value) and value >= 0):
@@ -210,6 +218,22 @@ class RobotModel:
     def velocity_limit(self) -> NDArray[np.float64]:
         return np.array([joint.velocity for joint in self.joints])
 
+    @property
+    def passive_joints(self) -> tuple[str, ...]:
+        """The names of the passive (unactuated) joints, base to tip (:attr:`Joint.actuated` false)."""
+        return tuple(joint.name for joint in self.joints if not joint.actuated)
+
+    def with_passive(self, joints: Sequence[str]) -> RobotModel:
+        """Return a copy whose ``joints`` (names, or numbers from 1 base to tip) are passive (unactuated: their torque
+        is zero by physics, :attr:`Joint.actuated`); the others as they are. A name or number of no joint of the chain
+        is a :class:`~dynamics.errors.RobotDescriptionError` naming the chain's joints."""
+        chosen = set(passive_joint_indices(self, joints))
+        if not chosen:
+            return self
+        updated = tuple(replace(joint, actuated=False) if index in chosen else joint
+                        for index, joint in enumerate(self.joints))
+        return RobotModel(self.name, updated, self.gravity, self.geometry)
+
     def with_gravity(self, gravity: ArrayLike) -> RobotModel:
         """Return a copy with another gravity vector."""
         return RobotModel(self.name, self.joints, np.asarray(gravity, dtype=float), self.geometry)
@@ -225,10 +249,30 @@ class RobotModel:
                 joint.name, joint.joint_type, joint.axis, joint.placement, joint.link_transform,
                 theta[N_LINK_PARAMETERS * index : N_LINK_PARAMETERS * (index + 1)],
                 joint.lower, joint.upper, joint.velocity, joint.effort, joint.armature, joint.damping, joint.friction,
+                joint.actuated,
             )
             for index, joint in enumerate(self.joints)
         )
         return RobotModel(self.name, joints, self.gravity, self.geometry)
+
+
+def passive_joint_indices(robot: RobotModel, joints: Sequence[str]) -> tuple[int, ...]:
+    """The 0-based indices of ``joints`` (each a joint's name, or its number from 1, base to tip), sorted and without
+    repeats; a name or number of no joint of ``robot`` is a :class:`~dynamics.errors.RobotDescriptionError` naming the
+    chain's joints."""
+    names = [joint.name for joint in robot.joints]
+    found = set()
+    for given in joints:
+        text = str(given).strip()
+        if text in names:
+            found.add(names.index(text))
+        elif text.isdigit() and 1 <= int(text) <= len(names):
+            found.add(int(text) - 1)
+        else:
+            raise RobotDescriptionError(
+                f"passive joint {text!r}: no joint of {robot.name} has that name or number (its joints, 1 to "
+                f"{len(names)} base to tip: {', '.join(names)})")
+    return tuple(sorted(found))
 
 
 def description_key(robot: RobotModel) -> tuple:

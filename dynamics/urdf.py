@@ -199,6 +199,23 @@ def robot_from_urdf(path: str | Path, *, gravity: np.ndarray | None = None, join
     )
 
 
+def urdf_actuated_joints(path: str | Path) -> frozenset[str] | None:
+    """The joints a URDF file declares driven, or ``None`` when it declares none (it says nothing then).
+
+    A joint is declared driven by a ``<transmission>`` naming it (``<joint name=…>``, ROS 1 and ``gazebo_ros_control``;
+    the ``transmission_interface`` types, one joint or several) or by a ``<ros2_control>`` block whose
+    ``<joint name=…>`` has a ``<command_interface>``. A file that declares some joints driven and not another leaves
+    that one without a motor: the verbs read it as passive when the log has no torque column for it
+    (``oed identify --passive``, docs/guides/robots-and-logs.md)."""
+    root = ElementTree.parse(Path(path)).getroot()
+    driven = {joint.get("name") for transmission in root.iter("transmission")
+              for joint in transmission.findall("joint")}
+    driven |= {joint.get("name") for block in root.iter("ros2_control") for joint in block.findall("joint")
+               if joint.find("command_interface") is not None}
+    driven.discard(None)
+    return frozenset(driven) if driven else None
+
+
 def logged_chain(path: str | Path, n_logged: int) -> tuple[tuple[str, ...], tuple[str, ...]] | None:
     """The chain a log of ``n_logged`` joints (columns ``q1..qn``) determines in a URDF that is not a plain
     serial chain (it branches, or holds a ``<mimic>`` joint): the one path of ``n_logged`` movable joints

@@ -13,10 +13,10 @@ from importlib import resources
 
 from dynamics.robots.puma560 import puma560
 from dynamics.robots.servo_arm import servo_arm
-from dynamics.mjcf import is_mjcf, robot_from_mjcf
-from dynamics.urdf import robot_from_urdf
+from dynamics.mjcf import is_mjcf, mjcf_actuated_joints, robot_from_mjcf
+from dynamics.urdf import robot_from_urdf, urdf_actuated_joints
 
-__all__ = ["BUILT_IN_ROBOTS", "emps", "load_robot", "truncate"]
+__all__ = ["BUILT_IN_ROBOTS", "described_unactuated", "emps", "load_robot", "truncate"]
 
 
 def emps() -> RobotModel:
@@ -50,7 +50,7 @@ def truncate(robot: RobotModel, joints: int) -> RobotModel:
 
 def load_robot(name: str | None = None, *, urdf: str | Path | None = None, joints: int | None = None,
                joint_names: Sequence[str] | None = None, locked_at: Mapping[str, float] | None = None,
-               mjcf: str | Path | None = None) -> RobotModel:
+               mjcf: str | Path | None = None, passive: Sequence[str] | None = None) -> RobotModel:
     """Return a built-in robot by name, or one read from a URDF or MuJoCo MJCF file.
 
     Parameters
@@ -67,6 +67,9 @@ def load_robot(name: str | None = None, *, urdf: str | Path | None = None, joint
         ``locked_at`` (default 0), see :func:`dynamics.urdf.robot_from_urdf`.
     mjcf
         Path of a MuJoCo MJCF file (:func:`dynamics.mjcf.robot_from_mjcf`); not with ``urdf``.
+    passive
+        The passive (unactuated) joints, by name or number from 1 (:meth:`dynamics.robot.RobotModel.with_passive`):
+        their torque is zero by physics. Default none.
     """
     if urdf is not None and mjcf is not None:
         raise RobotDescriptionError("give a URDF or an MJCF file, not both")
@@ -88,4 +91,19 @@ def load_robot(name: str | None = None, *, urdf: str | Path | None = None, joint
                 "(or pass a URDF file)"
             )
         robot = BUILT_IN_ROBOTS[key]()
-    return robot if joints is None else truncate(robot, joints)
+    robot = robot if joints is None else truncate(robot, joints)
+    return robot.with_passive(passive) if passive else robot
+
+
+def described_unactuated(path: str | Path | None, robot: RobotModel) -> tuple[str, ...]:
+    """The joints of ``robot`` that its description file ``path`` (URDF or MJCF) leaves without a motor, base to tip:
+    the file declares some joints driven (a URDF's ``<transmission>`` or ``<ros2_control>`` command interfaces,
+    :func:`dynamics.urdf.urdf_actuated_joints`; an MJCF's ``<actuator>`` elements,
+    :func:`dynamics.mjcf.mjcf_actuated_joints`) and not these. Empty when the file declares none (it says nothing),
+    or for a built-in robot (``path`` ``None``)."""
+    if path is None:
+        return ()
+    driven = mjcf_actuated_joints(path) if is_mjcf(path) else urdf_actuated_joints(path)
+    if driven is None:
+        return ()
+    return tuple(name for name in robot.joint_names if name not in driven)

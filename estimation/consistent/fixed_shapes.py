@@ -33,6 +33,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from dynamics.measurements import Measurements
+from estimation.data.passive import passive_channels
 from estimation.data.segments import concatenate, segment_slices
 from estimation.estimators.identification_problem import IdentificationProblem
 from estimation.identification.fit import IdentificationResult
@@ -75,7 +76,7 @@ def fixed_problem(result: IdentificationResult, measurements: Measurements) -> I
     pieces = segment_slices(measurements)
     bounds = tuple((piece.start, piece.stop) for piece in pieces) if len(pieces) > 1 else ()
     return IdentificationProblem(Y, measurements.channels(model.channels), model.channels, model.base.names,
-                                 model.base.expressions, bounds)
+                                 model.base.expressions, bounds, passive=passive_channels(model))
 
 
 def fixed_comparison(result: IdentificationResult, values: ArrayLike, measurements: Measurements, *,

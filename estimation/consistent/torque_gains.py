@@ -35,6 +35,7 @@ from numpy.typing import NDArray
 from dynamics.channels import is_joint_torque, torque_joint
 from dynamics.measurements import Measurements
 from dynamics.models import IdentificationModel
+from estimation.data.passive import passive_channels
 from estimation.consistent.identification import ConsistentResult
 from estimation.consistent.model_selection import ModelSelection, answers_scored
 from estimation.estimators.channel_gains import (DETERMINED_RELATIVE_STD, channel_residuals, fit_channel_gains_on_sums,
@@ -398,11 +399,11 @@ def divided_records(records: PreparedRecords, gains: TorqueGains) -> PreparedRec
 def gains_for_records(model: IdentificationModel, records: PreparedRecords) -> tuple[TorqueGains, bool, str] | None:
     """:func:`gains_on_validation` of the prepared records, or ``None`` when nothing can measure the gains: no
     validation record of another motion (none, a repeat of the training motion, or one that hardly moves), a model
-    with channels other than joint torques, or the fit fails."""
+    with channels other than joint torques or with a passive joint's (its zero has no gain), or the fit fails."""
     channels = model.channels
     validation = None if records.validation is None else records.validation.measurements
     train = records.train.measurements
-    if validation is None or len(channels) < 2 \
+    if validation is None or len(channels) < 2 or passive_channels(model) \
             or not all(map(is_joint_torque, channels)) \
             or repeated_motion(train, validation) <= REPEAT_FRACTION or still_motion(train, validation):
         return None

@@ -66,6 +66,7 @@ from estimation.data.loading import (
     required_groups,
     uniform_grid,
 )
+from estimation.data.passive import with_passive_torques
 from estimation.data.log_formats import (
     JointNamedColumnsWarning,
     JointStateTableWarning,
@@ -323,6 +324,7 @@ def segments_from_frame(
         raise ValueError(f"max_gap must be a positive number of seconds, got {max_gap!r}")
     frame = frame.rename(columns=lambda name: str(name).strip())
     n_joints = _joint_count(frame, n_joints, model, source)
+    frame = with_passive_torques(frame, model, source)  # a passive joint's torque: zero by physics
     blank = dropouts(frame, n_joints)
     if len(frame) and blank.all():
         raise TooFewSamplesError(
@@ -585,6 +587,14 @@ def _group_arrays(frame: pd.DataFrame, groups: set[str], n_joints: int, source: 
     for group in ("q", "dq", "ddq", "tau", "wrench"):
         columns = list(WRENCH_CHANNELS) if group == "wrench" else joint_columns(group, n_joints)
         present = [column for column in columns if column in frame.columns]
+        if group == "tau" and present and len(present) != len(columns):  # before the group's own message
+            missing = [column for column in columns if column not in frame.columns]
+            raise MissingColumnError(
+                f"{source}: no torque column {', '.join(missing)} (the other joints' torques are logged): a passive "
+                "(unactuated) joint's torque is zero by physics, and --passive JOINT reads it so (name or number; "
+                "or a description that declares motors on the other joints only); a driven joint whose torque was "
+                "not logged is not passive (its torque is unknown, not zero): give its column "
+                "(docs/guides/robots-and-logs.md)")
         if group in groups:
             require_columns(frame, columns, GROUP_MEANING[group], source)
         elif present and len(present) != len(columns):

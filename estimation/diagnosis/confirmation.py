@@ -40,6 +40,7 @@ from dynamics.models import IdentificationModel, build_model
 from dynamics.effects.shaped import ShapedStribeckFriction, shape_parameters
 from estimation.diagnosis.candidates.trials import SIGNIFICANT_TERM, Trial, weighted_error
 from estimation.identification.fit import IdentificationResult, identify
+from estimation.data.passive import floored_variance
 from estimation.estimators.identification_problem import in_band_variance
 from estimation.estimators.effect_blocks import Block, ShapeSearchError, States
 from estimation.estimators.separable_least_squares import FixedPart, residuals, solve_linear
@@ -139,11 +140,13 @@ def settled_weights(fixed: FixedPart, blocks, states: States, shapes, weights: N
     ``shapes``, iterated ``passes`` times (PUMA paper, eq. 21, as :class:`WeightedLeastSquares`: the variances of
     the residual in ``fixed.band``, the motion's band, when it has one)."""
     n_parameters = fixed.n_fixed + sum(block.n_linear + block.n_shape for block in blocks)
-    floor = 1e-14 * np.mean(fixed.y**2, axis=1) + np.finfo(float).tiny
+    mean_square = np.mean(fixed.y**2, axis=1)
+    floor = 1e-14 * mean_square + np.finfo(float).tiny
     for _ in range(passes):
         solution = solve_linear(fixed, blocks, states, shapes, weights)
         residual = residuals(fixed, blocks, solution)
-        weights = 1.0 / np.maximum(in_band_variance(residual.T, n_parameters, fixed.band), floor)
+        weights = 1.0 / floored_variance(in_band_variance(residual.T, n_parameters, fixed.band), floor,
+                                         mean_square == 0)  # a passive joint's channel too
     return weights
 
 

@@ -19,6 +19,7 @@ from numpy.typing import ArrayLike, NDArray
 from dynamics.models import IdentificationModel
 from dynamics.measurements import Measurements
 from estimation.uncertainty.covariance import segment_bounds
+from estimation.data.passive import passive_channels
 from estimation.data.segments import concatenate, segment_slices
 
 
@@ -238,6 +239,9 @@ class IdentificationProblem:
     band
         The band the motion was low-passed to (:class:`ResidualBand`): a weighted fit's channel weights come from
         the residual in it; ``None``: from the residual as it is.
+    passive
+        The channels of passive (unactuated) joints (:mod:`estimation.data.passive`): their zero is a measurement
+        (``0 = Y_j θ``), not a dead sensor; a weighted fit weights them by their residual.
     """
 
     Y: NDArray[np.float64]
@@ -247,6 +251,7 @@ class IdentificationProblem:
     expressions: tuple[str, ...] = ()
     segments: tuple[tuple[int, int], ...] = ()
     band: ResidualBand | None = None
+    passive: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         Y, y = np.asarray(self.Y, dtype=float), np.asarray(self.y, dtype=float)
@@ -312,7 +317,7 @@ class IdentificationProblem:
         return IdentificationProblem(
             np.concatenate([self.Y, columns], axis=2), self.y, self.channels,
             self.names + tuple(names), self.expressions + (tuple(expressions) or tuple(names)), self.segments,
-            self.band,
+            self.band, self.passive,
         )
 
     def select_channels(self, channels: tuple[str, ...] | list[str]) -> IdentificationProblem:
@@ -321,7 +326,8 @@ class IdentificationProblem:
         if missing:
             raise ValueError(f"no channel(s) {missing} in this problem; it has {self.channels}")
         index = [self.channels.index(channel) for channel in channels]
-        return replace(self, Y=self.Y[:, index], y=self.y[:, index], channels=tuple(channels))
+        return replace(self, Y=self.Y[:, index], y=self.y[:, index], channels=tuple(channels),
+                       passive=tuple(channel for channel in self.passive if channel in channels))
 
 
 def stack(model: IdentificationModel, measurements: Measurements | Sequence[Measurements]) -> IdentificationProblem:
@@ -339,7 +345,7 @@ def stack(model: IdentificationModel, measurements: Measurements | Sequence[Meas
     segments = segment_slices(measurements)
     bounds = tuple((piece.start, piece.stop) for piece in segments) if len(segments) > 1 else ()
     return IdentificationProblem(Y, measured, model.channels, model.base.names, model.base.expressions, bounds,
-                                 ResidualBand.of(measurements))
+                                 ResidualBand.of(measurements), passive_channels(model))
 
 
 def _check_theta(theta: ArrayLike, count: int) -> NDArray[np.float64]:

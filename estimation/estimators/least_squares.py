@@ -27,6 +27,7 @@ from numpy.typing import NDArray
 
 from dynamics.models import IdentificationModel
 from dynamics.runtime.threads import single_threaded_blas
+from estimation.data.passive import floored_variance
 from estimation.uncertainty.covariance import CovarianceLabel, CovarianceMethod, check_method, hac_covariance
 from estimation.estimators.errors import NotFittedError
 from estimation.estimators.estimator import Estimator
@@ -309,14 +310,15 @@ class WeightedLeastSquares(LeastSquares):
         problem = _as_problem(problem, measurements)
         _check_size(problem)
         mean_square = np.mean(problem.y**2, axis=0)
-        dead = [channel for channel, value in zip(problem.channels, mean_square) if value == 0]
+        dead = [channel for channel, value in zip(problem.channels, mean_square)
+                if value == 0 and channel not in problem.passive]
         if dead:
             raise ValueError(f"channel(s) {', '.join(dead)} read zero in every sample (a dead sensor, or a column "
                              "left empty?): weighted least squares cannot weight them; check the data, or use ordinary "
                              "least squares (--method ols)")
-        floor = self.variance_floor * mean_square
         # The weights are iterated on per-channel Gram matrices (r x r each, formed once): every
         # iteration costs O(m r²). The final solve refines on the exact residuals (see solve).
+        floor = self.variance_floor * mean_square
         gram, moment = channel_gram(problem)  # (m, r, r), (m, r)
         power = np.sum(problem.y**2, axis=0)  # (m,)
         dof = problem.n_samples - problem.n_parameters / problem.n_channels
@@ -331,7 +333,7 @@ class WeightedLeastSquares(LeastSquares):
             else:  # the residual in the motion's band (problem.band): the (N, m) residual filtered at each
                 # iteration, cheaper than the (N, m, r) regressor filtered once for the few iterations a fit takes
                 in_band = in_band_variance(problem.residuals(theta), problem.n_parameters, problem.band)
-            updated = np.maximum(in_band, floor)
+            updated = floored_variance(in_band, floor, mean_square == 0)  # a passive joint's channel too
             change = np.inf if variance is None else np.max(np.abs(updated - variance) / variance)
             variance = updated
             weights = 1.0 / variance

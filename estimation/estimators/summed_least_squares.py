@@ -16,6 +16,7 @@ import scipy.linalg
 from numpy.typing import NDArray
 
 from dynamics.runtime.threads import single_threaded_blas
+from estimation.data.passive import floored_variance
 from estimation.estimators.estimator import Estimator
 from estimation.estimators.least_squares import IDENTIFIABILITY_TOLERANCE, IdentifiabilityError, ParameterRecords, freeze_arrays
 from estimation.estimators.normal_equations import NormalEquations, stacked_factor
@@ -108,13 +109,15 @@ class SummedLeastSquares(Estimator):
     ``n_shape``: parameters fitted beside the columns (shaped laws' shape parameters, the columns summed at their
     fitted values) counted in each channel's degrees of freedom, ``N − (r + n_shape)/m``, as the in-memory
     variable-projection fit counts them (:func:`estimation.identification.shaped.fit_shaped_model`; with the
-    weights iterated as there: :func:`summed_estimator`).
+    weights iterated as there: :func:`summed_estimator`). ``passive``: the channels of passive joints
+    (:mod:`estimation.data.passive`), whose zero is a measurement, weighted by their residual as in memory.
     ``fit(sums)`` returns ``self``; fitted attributes ``estimate_``, ``theta_``, ``cov_``, ``std_``.
     """
 
     def __init__(self, *, method: Literal["ols", "wls"] = "wls", max_iter: int = 20, tol: float = 1e-6,
-                 variance_floor: float = 1e-14, n_shape: int = 0) -> None:
+                 variance_floor: float = 1e-14, n_shape: int = 0, passive: tuple[str, ...] = ()) -> None:
         self.method = method
+        self.passive = passive
         self.max_iter = max_iter
         self.tol = tol
         self.variance_floor = variance_floor
@@ -139,7 +142,7 @@ class SummedLeastSquares(Estimator):
         weights = np.ones(m)
         iterations = 1
         if self.method == "wls":
-            dead = [c for c, value in zip(sums.channels, sums.power) if value == 0]
+            dead = [c for c, value in zip(sums.channels, sums.power) if value == 0 and c not in self.passive]
             if dead:
                 raise ValueError(f"channel(s) {', '.join(dead)} read zero in every sample (a dead sensor, or a column "
                                  "left empty?): weighted least squares cannot weight them; check the data, or use "
@@ -151,7 +154,8 @@ class SummedLeastSquares(Estimator):
                 theta = _solved(sums, weights)[0]  # only θ: the inverse and cond at the settled weights
                 iterations += 1
                 # the variances of the residual in the motion's band when the sums hold it (NormalEquations.band)
-                updated = np.maximum(sums.in_band_rss(theta) / dof_channel, floor)
+                updated = floored_variance(sums.in_band_rss(theta) / dof_channel, floor,
+                                           sums.power == 0)  # a passive joint's channel too
                 change = np.inf if variance is None else np.max(np.abs(updated - variance) / variance)
                 variance = updated
                 weights = 1.0 / variance

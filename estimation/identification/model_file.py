@@ -7,6 +7,7 @@
         "robot": {"name": "puma560[3]", "builtin": "puma560", "joints": 3,
                   "urdf": {"path": "/abs/arm.urdf", "sha256": "…", "text": "<robot …>" | null} | null,
                   "joint_names": ["torso_lift_joint", …], "locked_at": {"head_1_joint": 0.3}},  # when named
+                  # "passive": ["elbow"]: the passive (unactuated) joints, their torque zero by physics (when any)
         "model": "internal", "channels": ["tau1", …], "joint_names": ["joint1", …],
         "effects": "viscous,coulomb:tanh",                   # the spec that rebuilds the model's columns
         "effect_values": [{"spec": "coulomb:tanh", "coefficients": {"fc1": 0.4, …}, "shape": {"vc1": 0.05}}],
@@ -107,6 +108,7 @@ class RobotSource:
     urdf_text: str | None = None
     joint_names: tuple[str, ...] | None = None
     locked_at: Mapping[str, float] | None = None
+    passive: tuple[str, ...] = ()  # the passive (unactuated) joints' names (their torque zero by physics)
 
     @classmethod
     def from_description(cls, robot: RobotModel, *, builtin: str | None, urdf: str | Path | None,
@@ -114,8 +116,9 @@ class RobotSource:
                          locked_at: Mapping[str, float] | None = None) -> RobotSource:
         """The source of ``robot``, read from ``builtin`` (a name of :data:`dynamics.robots.BUILT_IN_ROBOTS`) or ``urdf``
         (with the logged ``joint_names`` and the ``locked_at`` positions of the others, when given)."""
+        passive = tuple(robot.passive_joints)
         if urdf is None:
-            return cls(robot.name, builtin, joints)
+            return cls(robot.name, builtin, joints, passive=passive)
         path = Path(urdf).expanduser().resolve()
         data = path.read_bytes()
         text = data.decode("utf-8", errors="replace") if len(data) <= MAX_EMBEDDED_URDF_BYTES else None
@@ -124,10 +127,11 @@ class RobotSource:
             text = text if len(text.encode()) <= MAX_EMBEDDED_URDF_BYTES else None
         return cls(robot.name, None, joints, str(path), hashlib.sha256(data).hexdigest(), text,
                    None if joint_names is None else tuple(joint_names),
-                   None if not locked_at else {name: float(value) for name, value in locked_at.items()})
+                   None if not locked_at else {name: float(value) for name, value in locked_at.items()}, passive)
 
     def _load_urdf(self, path: Path) -> RobotModel:
-        return load_robot(urdf=path, joints=self.joints, joint_names=self.joint_names, locked_at=self.locked_at)
+        return load_robot(urdf=path, joints=self.joints, joint_names=self.joint_names, locked_at=self.locked_at,
+                          passive=self.passive)
 
     def load(self) -> RobotModel:
         """The robot again: the embedded URDF text, else the file at ``urdf_path`` if its hash matches,
@@ -135,7 +139,7 @@ class RobotSource:
         if self.urdf_sha256 is None:
             if self.builtin is None:
                 raise ModelFileError(f"the model file names robot {self.name!r} without a built-in name or a URDF")
-            return load_robot(self.builtin, joints=self.joints)
+            return load_robot(self.builtin, joints=self.joints, passive=self.passive)
         if self.urdf_text is not None:
             with tempfile.TemporaryDirectory() as folder:
                 path = Path(folder) / "robot.urdf"
@@ -159,6 +163,8 @@ class RobotSource:
             document["joint_names"] = list(self.joint_names)
         if self.locked_at:
             document["locked_at"] = dict(self.locked_at)
+        if self.passive:
+            document["passive"] = list(self.passive)
         return document
 
     @classmethod
@@ -167,7 +173,7 @@ class RobotSource:
         names = document.get("joint_names")
         return cls(str(document["name"]), document.get("builtin"), document.get("joints"), urdf.get("path"),
                    urdf.get("sha256"), urdf.get("text"), None if names is None else tuple(names),
-                   document.get("locked_at") or None)
+                   document.get("locked_at") or None, tuple(str(name) for name in document.get("passive") or ()))
 
 
 @dataclass(frozen=True)

@@ -38,6 +38,7 @@ from estimation.data.input_findings import reading_findings
 from estimation.data.loading import HoldWarning
 from estimation.data.log_cleaning import DEFAULT_MAX_GAP
 from estimation.data.motor_side import read_record_with_transmission
+from estimation.data.passive import passive_channels
 from estimation.data.segments import check_varying_channels
 from estimation.data.rest import (
     RestHandling,
@@ -325,8 +326,9 @@ def prepare_records(model: IdentificationModel, train: Sequence[str | Path], val
         train_files = training_without_holds(train_files, settings.max_gap)
     for role, files in (("training", train_files), *held_out.items()):
         if files is not None:
-            check_varying_channels([segment for file in files for segment in file.segments], model.channels,
-                                   f"{role} data")
+            check_varying_channels([segment for file in files for segment in file.segments],
+                                   [channel for channel in model.channels if channel not in passive_channels(model)],
+                                   f"{role} data")  # a passive joint's zero torque is a measurement of zero
     if held_out["validation"]:
         note = still_record_note(train_files, held_out["validation"])
         if note is not None:

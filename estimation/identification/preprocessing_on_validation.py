@@ -89,6 +89,7 @@ from dynamics.runtime.processes import run_tasks, worker_count
 from dynamics.runtime.progress import SECONDS as PROGRESS_SECONDS
 from dynamics.runtime.progress import report
 from dynamics.runtime.threads import single_threaded_blas
+from estimation.data.passive import passive_channels
 from estimation.data.segments import concatenate
 from estimation.estimators.normal_equations import DEFAULT_CHUNK_SIZE, NormalEquations, accumulate
 from estimation.estimators.summed_least_squares import SummedLeastSquares
@@ -170,7 +171,7 @@ class ValidationScore:
                     sums = accumulate(self.model, concatenate(prepared_train), gram=False,  # the fits use the factors
                                       band=weighted)
                 del prepared_train
-                estimates = {fit: SummedLeastSquares(method=fit).fit(sums).estimate_.values
+                estimates = {fit: SummedLeastSquares(method=fit, passive=passive_channels(self.model)).fit(sums).estimate_.values
                              for fit in FITS if fit in self.fits}
                 comparisons = compare_recorded(self.model, estimates, prepared_validation, label="validation")
         except (SegmentTooShortForFilterError, ValueError, np.linalg.LinAlgError) as error:

@@ -24,6 +24,7 @@ from dynamics.effects.shaped import ShapedPerJointEffect, is_shaped
 from estimation.estimators.identification_problem import ResidualBand, in_band_variance
 from estimation.estimators.least_squares import Estimate, channel_variance
 from dynamics.measurements import Measurements
+from estimation.data.passive import floored_variance
 from estimation.data.segments import segment_slices
 from estimation.identification.validation import Comparison
 from estimation.estimators.effect_blocks import Block, States
@@ -199,8 +200,9 @@ def fit_shaped_model_predicting(model: IdentificationModel, train: Measurements,
         # Y's shaped columns only are rewritten; from the second round on, on their blocks' rows alone
         residual = y - shaped.predict(train, Y, overwrite=True, rewritten=written)
         written = True
-        variance = np.maximum(in_band_variance(residual, model.n_base + len(fit.names), band),
-                              1e-14 * np.mean(y**2, axis=0))  # the residual in the motion's band
+        mean_square = np.mean(y**2, axis=0)
+        variance = floored_variance(in_band_variance(residual, model.n_base + len(fit.names), band),
+                                    1e-14 * mean_square, mean_square == 0)  # the residual in the motion's band
         if not weighted:
             break
         updated = 1.0 / variance

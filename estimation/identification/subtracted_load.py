@@ -31,6 +31,7 @@ from dynamics.channels import is_joint_torque, torque_joint
 from dynamics.measurements import Measurements
 from dynamics.models import IdentificationModel, ModelKind, build_model
 from dynamics.robot import RobotModel
+from estimation.data.passive import passive_channels
 from estimation.identification.prepared import PreparedRecord, PreparedRecords
 
 __all__ = ["DESCRIPTION_GRAVITY", "SUBTRACTED_KINDS", "SubtractedLoad", "added_back", "added_back_records",
@@ -89,10 +90,11 @@ def subtracted_torque(load: SubtractedLoad, robot: RobotModel, q: ArrayLike) -> 
 
 def load_channels(model: IdentificationModel) -> tuple[int, ...]:
     """The joint index (0-based) of each of ``model``'s channels, or ``()`` when a channel is not a joint torque
-    (``tau<k>``): only a model of the joint torques can carry a subtracted load."""
+    (``tau<k>``): only a model of the joint torques can carry a subtracted load; nor a model with a passive joint's
+    channel (its zero is physics, not a logger's subtraction: :mod:`estimation.data.passive`)."""
     indices = []
     for channel in model.channels:
-        if not is_joint_torque(channel):
+        if not is_joint_torque(channel) or channel in passive_channels(model):
             return ()
         indices.append(torque_joint(channel))
     return tuple(indices)

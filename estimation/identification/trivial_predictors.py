@@ -48,6 +48,8 @@ def trivial_warnings(mse: Mapping[str, float], trivial: Mapping[str, Mapping[str
     exceeds the zero predictor's or the nominal model's."""
     messages = []
     for channel, value in mse.items():
+        if trivial.get("zero_mse", {}).get(channel, None) == 0:  # a channel of zeros (a passive joint's): no
+            continue  # prediction beats zero there, and the model's error on it is its equation's, reported as such
         worse = [(name, trivial[key][channel]) for key, name in (("zero_mse", "a zero prediction"),
                                                                  ("nominal_mse", "the nominal model"))
                  if channel in trivial.get(key, {}) and value > trivial[key][channel]]

@@ -133,7 +133,7 @@ def held_out_squares(problem: IdentificationProblem, estimator: type[LeastSquare
     blocks: list[tuple[NDArray[np.float64], int] | str] = []
     for held, kept in blocked_folds(problem.n_samples, folds):
         part = IdentificationProblem(problem.Y[kept], problem.y[kept], problem.channels, problem.names,
-                                     problem.expressions, band=_kept_band(problem, held))
+                                     problem.expressions, band=_kept_band(problem, held), passive=problem.passive)
         try:
             theta = estimator().fit(part).theta_
         except IdentifiabilityError as error:

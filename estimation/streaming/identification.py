@@ -46,6 +46,7 @@ from dynamics.measurements import Measurements
 from dynamics.models import IdentificationModel
 from dynamics.runtime.progress import step
 from dynamics.runtime.threads import single_threaded_blas
+from estimation.data.passive import passive_channels
 from estimation.estimators.normal_equations import DEFAULT_CHUNK_SIZE, NormalEquations
 from estimation.estimators.summed_least_squares import SummedLeastSquares
 from estimation.identification.fit import IdentificationResult, ImplausibleEstimateWarning, implausible_estimates
@@ -240,7 +241,8 @@ def identify_files_candidates(
         validation, validation_files = (None, ()) if not validate else sum_files(model, validate, executor=executor,
                                                                                  **options)
     clock = time.perf_counter()
-    estimates = {name: SummedLeastSquares(method=name).fit(train).estimate_ for name in methods}
+    estimates = {name: SummedLeastSquares(method=name, passive=passive_channels(model)).fit(train).estimate_
+                 for name in methods}
     seconds["solve"] = time.perf_counter() - clock
     cov_method, batches, classical_std = "classical", dict.fromkeys(methods), dict.fromkeys(methods)
     if covariance == "hac":

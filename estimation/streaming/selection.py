@@ -41,6 +41,7 @@ from numpy.typing import NDArray
 from dynamics.effects.linear import CoulombFriction, Effect
 from dynamics.effects.shaped import ShapedStribeckFriction
 from dynamics.models import IdentificationModel, build_model
+from estimation.data.passive import floored_variance
 from estimation.diagnosis.candidates.trials import SIGNIFICANT_TERM, Trial, nested_test
 from estimation.diagnosis.confirmation import REWEIGHTING_PASSES, CandidateComparison
 from estimation.diagnosis.candidates.delay import DelayTrial
@@ -222,7 +223,8 @@ class SummedFits:
         floor = 1e-14 * self.train.power[:, 0] / n + np.finfo(float).tiny
         for _ in range(REWEIGHTING_PASSES):
             theta, _ = self.train.solve(columns, weights)
-            weights = 1.0 / np.maximum(self.train.in_band_rss(columns, theta) / (n - n_parameters / m), floor)
+            weights = 1.0 / floored_variance(self.train.in_band_rss(columns, theta) / (n - n_parameters / m), floor,
+                                             self.train.power[:, 0] == 0)  # a passive joint's channel too
         return weights
 
     def _comparison(self, columns: list[int], n_parameters: int, weights: NDArray[np.float64]) -> CandidateComparison:

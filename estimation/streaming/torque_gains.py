@@ -25,6 +25,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from dynamics.models import IdentificationModel
+from estimation.data.passive import passive_channels
 from estimation.consistent.torque_gains import (SIGNIFICANCE_BLOCKS, TorqueGains, block_labels, channel_factors,
                                                 gains_checked, gains_from_sums)
 from estimation.estimators.normal_equations import NormalEquations
@@ -44,7 +45,10 @@ def streamed_gains_check(model: IdentificationModel, train: NormalEquations, pat
     """:func:`~estimation.consistent.torque_gains.gains_on_validation` of files read in blocks: the gains from the
     training sums ``train`` and the check on the validation files ``paths`` (``n_validation`` samples as recorded;
     ``options``: how they were read and prepared, :func:`estimation.streaming.periods.plan_chunks`'s), in one pass.
-    ``None`` when the pass does not read ``n_validation`` samples (the blocks would not be the record's)."""
+    ``None`` when the pass does not read ``n_validation`` samples (the blocks would not be the record's), or for a
+    model with a passive joint's channel (its zero has no gain)."""
+    if passive_channels(model):
+        return None
     fitted = gains_from_sums(model, (np.asarray(train.gram), np.asarray(train.moment), np.asarray(train.power)),
                              int(train.n_samples))
     if isinstance(fitted[1], str):

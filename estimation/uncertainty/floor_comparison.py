@@ -34,6 +34,9 @@ class FloorComparison:
 
     def statement(self) -> str:
         """``"at its floor"`` or ``"N x above its floor"`` in plain words."""
+        if self.floor == 0 and not self.above:
+            return (f"{self.channel}: reads zero in every sample (a passive joint's torque): no noise, no floor; its "
+                    f"error (MSE {self.mse:.3g}) is the model's on the joint's equation 0 = Y_j θ")
         if not self.above:
             return f"{self.channel}: at its floor (validation MSE / floor = {self.ratio:.3g})"
         return f"{self.channel}: {self.ratio:.3g} x above its floor (p = {self.p_value:.2g})"
@@ -51,7 +54,8 @@ def compare_with_floor(mse: Mapping[str, float], floor: NoiseFloor, n_samples: i
     ``ν σ̂²/σ² ~ χ²_ν``, so ``MSE / σ̂² ~ F(N, ν)``; the channel is above its floor when the
     one-sided p-value is below ``alpha``. When the floor comes from the validation record itself
     the two are positively correlated, which makes the test conservative (fewer channels called
-    above). The ratio ``MSE / σ̂²`` is ``1 + (model error)/σ²``.
+    above). The ratio ``MSE / σ̂²`` is ``1 + (model error)/σ²``. A floor of zero (a channel of zeros: a passive joint's
+    torque) is not tested: the channel is not called above, and its statement says why.
     """
     if not 0 < alpha < 1:
         raise ValueError(f"alpha must lie in (0, 1), got {alpha}")
@@ -64,8 +68,9 @@ def compare_with_floor(mse: Mapping[str, float], floor: NoiseFloor, n_samples: i
     comparisons = {}
     for channel, value in mse.items():
         value, reference = float(value), floors[channel]
-        if reference == 0:
-            ratio, p_value = (np.inf if value > 0 else 1.0), (0.0 if value > 0 else 1.0)
+        if reference == 0:  # a channel of zeros (a passive joint's torque, estimation.data.passive): no noise to
+            # test against; not "above" (the stopping rule would never stop), its error said as the model's
+            ratio, p_value = (np.inf if value > 0 else 1.0), 1.0
         else:
             ratio = value / reference
             p_value = float(scipy.stats.f.sf(ratio, int(n_samples), floor.dof))

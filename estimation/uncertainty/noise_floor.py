@@ -186,6 +186,8 @@ def difference_variance(values: ArrayLike, *, order: int = DIFFERENCE_ORDER,
     # measure the filter, not the noise: refuse rather than report a floor that is far too low
     expected = -comb(2 * order, order - 1) / gain
     for column in range(values.shape[1]):
+        if not np.any(values[:, column]):  # a channel of zeros (a passive joint's torque): no noise, floor 0
+            continue
         kept = differences[:, column]
         kept = kept[np.abs(kept - np.median(kept)) <= 5 * 1.4826 * max(deviation[column], np.finfo(float).tiny)]
         centred = kept - kept.mean()

@@ -31,7 +31,7 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
 
 def run(args: argparse.Namespace) -> int:
     result = model(friction=args.friction, robot=args.robot, urdf=args.urdf, joints=args.joints,
-                   joint_names=args.joint_names, locked_at=args.locked_at)
+                   joint_names=args.joint_names, locked_at=args.locked_at, passive=args.passive)
     if args.json:
         print(json_text(result.to_dict()), end="")
         return 0

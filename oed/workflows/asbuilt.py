@@ -37,6 +37,7 @@ from dynamics.transmission_files import (
     transmission_from_json,
     transmission_from_urdf,
 )
+from estimation.data.passive import passive_channels
 from estimation.data.rest import check_min_speed, smooth_coulomb
 from estimation.diagnosis.plain_laws import plain_model
 from estimation.diagnosis.search import effect_channels
@@ -143,9 +144,13 @@ def finish_document(document: dict[str, Any], result: IdentificationResult, *, t
 
 def worse_after(diagnosis: Any) -> tuple[str, ...]:
     """Channels whose validation MSE the diagnosis raised by more than 1 % (an added effect that
-    helps the total but harms one channel)."""
+    helps the total but harms one channel); a passive joint's channel is not judged (its equation ``0 = Y_j θ`` is
+    homogeneous: a fit meets it by parameters near zero, which is no better model)."""
     before = diagnosis.before.validation.mse if diagnosis.before.validation else {}
     after = diagnosis.after.validation.mse if diagnosis.after.validation else {}
+    passive = passive_channels(diagnosis.after.model)  # 0 = Y_j θ is homogeneous: a fit can meet it by parameters
+    # of the joint's bodies and friction near zero, which is no better model
+    before = {channel: value for channel, value in before.items() if channel not in passive}
     return tuple(f"{channel}: the diagnosis raised its validation MSE from {before[channel]:.4g} to {after[channel]:.4g} "
                  f"({100 * (after[channel] / before[channel] - 1):.0f} % worse)"
                  for channel in before if channel in after and before[channel] > 0 and after[channel] > 1.01 * before[channel])

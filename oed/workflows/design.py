@@ -27,6 +27,7 @@ from typing import Any
 
 import numpy as np
 
+from dynamics.robot import RobotModel
 from dynamics.runtime.output_files import OutputFiles, json_text, save_figure
 from estimation.identification.identified_model import IdentifiedModel
 from estimation.streaming.cluster import connect, scheduler_address
@@ -212,6 +213,7 @@ def design_plain(args: DesignOptions, say: Callable[[str], None]) -> DesignRun:
     friction = args.friction or "viscous"
     check_hertz(args, "frequency")
     robot = robot_of(args)
+    check_commanded(robot)
     bounds = bounds_of(args, robot)
     settings = DesignSettings(
         frequency_hz=args.frequency, harmonics=args.harmonics, cost_samples=args.samples,
@@ -334,8 +336,21 @@ def sequential_requested(args: DesignOptions) -> bool:
     return True
 
 
+def check_commanded(robot: RobotModel) -> None:
+    """Refuse a robot with a passive (unactuated) joint, naming it: the design commands every joint's motion (a
+    Fourier series per joint), and a passive joint's motion is a consequence of the others' (its dynamics with zero
+    torque), not a command; designing one would give a motion the robot cannot run."""
+    if robot.passive_joints:
+        raise ValueError(
+            f"passive joint(s) {', '.join(robot.passive_joints)}: the design commands every joint's motion, and a "
+            "passive joint's motion is a consequence of the others' (no motor drives it), so a designed motion could "
+            "not be run; excite the robot through its driven joints (a motion of your own: the identification reads "
+            "the passive joint's torque as zero, its motion as logged)")
+
+
 def check_sequential_options(args: DesignOptions, model: IdentifiedModel) -> None:
     """The options of a sequential design against one another and the model."""
+    check_commanded(model.robot)
     fixed = [f"--{name}" for name in FIXED_BY_MODEL if getattr(args, name) is not None]
     if fixed:
         raise SequentialDesignError(f"{', '.join(fixed)}: the model file (--from) fixes the model and its effects; "

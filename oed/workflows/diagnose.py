@@ -116,6 +116,7 @@ from oed.workflows.options import (
     preparation_settings,
     robot_of,
     with_logged_chain,
+    with_passive_joints,
     streaming_requested,
 )
 
@@ -320,6 +321,9 @@ def run_diagnose(args: DiagnoseOptions, *, say: Callable[[str], None]) -> Diagno
     if streaming_requested(args):  # bounded memory (estimation.streaming.diagnosis)
         check_streamed_request(args, delay)
     args, chain = with_logged_chain(args)  # a branching or mimic URDF read as the log's chain
+    args, passive = with_passive_joints(args)  # named, or the description's joints without a motor the log lacks
+    if passive is not None and streaming_requested(args):  # those the description gave (named ones: above)
+        check_streamed_request(args, delay)
     robot = robot_of(args)
     transmission = resolve_transmission(args, robot)
     effects = model_effects(args, friction, robot, transmission)
@@ -343,7 +347,9 @@ def run_diagnose(args: DiagnoseOptions, *, say: Callable[[str], None]) -> Diagno
             document["not_determined"] = [column.to_dict() for column in merged]
         if chain is not None:
             document["logged_chain"] = chain
-        summary = tuple(summary_lines(args, diagnosed, document))
+        if passive is not None:
+            document["passive_joints"] = passive
+        summary = tuple(summary_lines(args, diagnosed, document)) + (() if passive is None else (passive["statement"],))
     if names:  # the files as given, not their joint-side copies
         document, messages, summary = (named_as_given(value, names) for value in (document, messages, summary))
     return DiagnoseRun(document, summary, messages, diagnosed.diagnosis, diagnosed.records, diagnosed.untouched)
@@ -422,11 +428,14 @@ class Diagnosed:
 
 
 def check_streamed_request(args: DiagnoseOptions, delay: DelayBounds | None) -> None:
-    """``--test`` is in-memory only: an error when the streamed path was asked for (a delay, ``delay``, is searched on
-    both paths)."""
+    """``--test`` and passive joints are in-memory only: an error when the streamed path was asked for (a delay,
+    ``delay``, is searched on both paths)."""
     if args.test:
         raise ValueError("--test is read in memory: not with the streamed path (--chunk-size, --scheduler or "
                          "--workers)")
+    if args.passive:  # read in memory, whatever the records' size (in_memory_only)
+        raise ValueError(f"passive joint(s) {', '.join(args.passive)} are read in memory: not with the streamed path "
+                         "(--chunk-size, --scheduler or --workers); drop the streaming options")
 
 
 def in_memory_only(args: DiagnoseOptions, model: IdentificationModel, delay: DelayBounds | None) -> str | None:

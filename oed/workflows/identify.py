@@ -32,6 +32,7 @@ from dynamics.runtime.output_files import OutputFiles, check_figure_path, json_t
 from dynamics.runtime.progress import step
 from dynamics.runtime.report_document import Report
 from dynamics.transmission import Transmission
+from estimation.data.passive import passive_channels
 from estimation.data.input_findings import FindingsSaid, grouped_messages
 from estimation.data.log_cleaning import DEFAULT_MAX_GAP
 from estimation.data.rest import smooth_coulomb
@@ -127,6 +128,7 @@ from oed.workflows.options import (
     preparation_settings,
     robot_of,
     with_logged_chain,
+    with_passive_joints,
     streaming_requested,
 )
 
@@ -266,6 +268,7 @@ def run_identify(args: IdentifyOptions, *, say: Callable[[str], None]) -> Identi
     differentiation(args)  # contradicting derivative options are an error even when the data hold dq, ddq
     check_consistent_arguments(args)
     args, chain = with_logged_chain(args)  # a branching or mimic URDF read as the log's chain
+    args, passive = with_passive_joints(args)  # named, or the description's joints without a motor the log lacks
     robot = robot_of(args)
     transmission = resolve_transmission(args, robot)
     friction, delay = split_delay(args.friction)  # the delay moves the motion: not a column effect
@@ -291,7 +294,9 @@ def run_identify(args: IdentifyOptions, *, say: Callable[[str], None]) -> Identi
             document["not_determined"] = [column.to_dict() for column in merged]
         if chain is not None:
             document["logged_chain"] = chain
-        summary = tuple(summary_lines(args, identified))
+        if passive is not None:
+            document["passive_joints"] = passive
+        summary = tuple(summary_lines(args, identified)) + (() if passive is None else (passive["statement"],))
     if names:  # the files as given, not their joint-side copies
         document, messages, summary = (named_as_given(value, names) for value in (document, messages, summary))
         identified = replace(identified, result=replace(identified.result, streaming=named_as_given(
@@ -1027,6 +1032,9 @@ def check_streamed_request(args: IdentifyOptions, model: IdentificationModel) ->
     """Options the streamed identification does not have: an error naming them, before anything is read."""
     if args.plot:  # the report is written on both paths (streamed: without figures, saying what it lacks)
         raise ValueError(f"--plot draws every sample: not with {STREAMED}")
+    if model.robot.passive_joints:  # read in memory, whatever the records' size (in_memory_only)
+        raise ValueError(f"passive joint(s) {', '.join(model.robot.passive_joints)} are read in memory: not with "
+                         f"{STREAMED}; drop the streaming options")
     if args.min_speed is not None:
         raise ValueError(f"--min-speed drops rows of the whole record: not with {STREAMED}")
     if model_has_shapes(model):
@@ -1222,7 +1230,7 @@ def torque_gains_selection(args: IdentifyOptions, selection: ModelSelection, tra
     channels = model.channels
     if given is not None or delay is not None or model_has_shapes(model) or validation is None \
             or selection.selection != "validation" or len(channels) < 2 \
-            or not all(map(is_joint_torque, channels)):
+            or not all(map(is_joint_torque, channels)) or passive_channels(model):  # a passive joint's 0: no gain
         return selection, None
     with step("an unknown gain on each joint's torque fitted and checked on the validation record"):
         try:

@@ -25,13 +25,15 @@ from dynamics.effects.linear import parse_effects
 from dynamics.effects.shaped import is_shaped
 from dynamics.models import IdentificationModel, ModelKind
 from dynamics.robot import RobotModel
-from dynamics.robots import load_robot
+from dynamics.robot import passive_joint_indices
+from dynamics.robots import described_unactuated, load_robot
 from dynamics.mjcf import is_mjcf, mjcf_logged_chain
 from dynamics.urdf import logged_chain
 from dynamics.transmission import Transmission
 from dynamics.runtime.report_document import HTML_SUFFIXES, MARKDOWN_SUFFIXES
 from estimation.data.log_cleaning import DEFAULT_MAX_GAP
 from estimation.data.loading import count_joint_columns
+from estimation.data.passive import PassiveJointWarning
 from estimation.data.log_formats import BAG_SUFFIXES, DEFAULT_TOPIC, LogSource, apply_column_map, is_log_file, read_log_frame
 from estimation.estimators.effect_blocks import NoRowsError
 from estimation.identification.prepared import InMemoryBudget, PreparationSettings
@@ -46,7 +48,7 @@ __all__ = [
     "NOT_CSV_SUFFIXES", "OutputPathError", "RecordOptions", "RobotOptions", "caught_messages", "check_choice",
     "check_csv_path", "check_hertz", "check_json_path", "check_markdown_path", "check_mjcf_path", "check_report_path",
     "check_urdf_path", "check_shaped_effects_kept", "differentiation", "executor_for", "LoggedChainWarning",
-    "with_logged_chain",
+    "with_logged_chain", "with_passive_joints",
     "model_has_shapes", "paths", "preparation_settings", "robot_of", "streaming_requested",
 ]
 
@@ -139,24 +141,28 @@ def check_report_path(path: str | Path | None, option: str = "--report") -> None
 @dataclass(frozen=True, kw_only=True)
 class RobotOptions:
     """``--robot NAME``, ``--urdf FILE`` (which wins), ``--joints N``, and with ``--urdf`` the logged joints
-    ``--joint-names A,B,C`` (every other joint locked at ``--locked-at NAME=VALUE,...``, default 0)."""
+    ``--joint-names A,B,C`` (every other joint locked at ``--locked-at NAME=VALUE,...``, default 0); ``--passive
+    JOINT,...`` the passive (unactuated) joints, by name or number (their torque zero by physics)."""
 
     robot: str | None = "puma560"
     urdf: Path | None = None
     joints: int | None = None
     joint_names: tuple[str, ...] | None = None
     locked_at: dict[str, float] | None = None
+    passive: tuple[str, ...] | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "urdf", optional_path(self.urdf))
         if self.joint_names is not None:
             object.__setattr__(self, "joint_names", tuple(self.joint_names))
+        if self.passive is not None:
+            object.__setattr__(self, "passive", tuple(self.passive))
 
 
 def robot_of(options: RobotOptions) -> RobotModel:
     """The robot the options name."""
     return load_robot(options.robot, urdf=options.urdf, joints=options.joints, joint_names=options.joint_names,
-                      locked_at=options.locked_at)
+                      locked_at=options.locked_at, passive=options.passive)
 
 
 class LoggedChainWarning(UserWarning):
@@ -166,16 +172,8 @@ class LoggedChainWarning(UserWarning):
 def logged_joint_count(source: Path) -> int | None:
     """The number of joints a record's columns ``q1..qn`` give (after its column map); ``None`` when its header
     does not say (a ROS bag: read by joint name; a file that cannot be read: the reader names the problem)."""
-    log = source if isinstance(source, LogSource) else LogSource(source)
-    suffix = log.path.suffix.lower()
-    try:
-        if suffix in BAG_SUFFIXES or log.path.is_dir():
-            return None
-        if suffix in (".npz", ".mat", ".parquet"):
-            frame = read_log_frame(log)
-        else:
-            frame = apply_column_map(pd.read_csv(log.path, nrows=2), log.columns, str(log.path))
-    except (ValueError, OSError, ImportError, KeyError):
+    frame = logged_frame_head(source)
+    if frame is None:
         return None
     count = count_joint_columns(frame, "q")
     return count or None
@@ -209,6 +207,64 @@ def with_logged_chain(args: Any) -> tuple[Any, dict[str, Any] | None]:
     warnings.warn(reason, LoggedChainWarning, stacklevel=2)
     return dataclasses.replace(args, joint_names=chain), {"joint_names": list(chain), "held_fixed": list(held),
                                                           "reason": reason}
+
+
+def logged_frame_head(source: Path) -> pd.DataFrame | None:
+    """The first rows of a record's table (after its column map), or ``None`` when its header does not say (a ROS
+    bag: read by joint name; a file that cannot be read: the reader names the problem)."""
+    log = source if isinstance(source, LogSource) else LogSource(source)
+    suffix = log.path.suffix.lower()
+    try:
+        if suffix in BAG_SUFFIXES or log.path.is_dir():
+            return None
+        if suffix in (".npz", ".mat", ".parquet"):
+            return read_log_frame(log)
+        return apply_column_map(pd.read_csv(log.path, nrows=2), log.columns, str(log.path))
+    except (ValueError, OSError, ImportError, KeyError):
+        return None
+
+
+def with_passive_joints(args: Any) -> tuple[Any, dict[str, Any] | None]:
+    """``args`` with ``passive`` (the passive joints, :mod:`estimation.data.passive`) completed by the description
+    where the log is silent, and the document's ``passive_joints`` (``{joints, named, described, statement}``;
+    ``None`` when no joint is passive).
+
+    A joint is passive when the user names it (``--passive``), or when the training log has no torque column for it
+    (the other joints' torques logged) and the robot's description declares motors on other joints and none on it
+    (:func:`dynamics.robots.described_unactuated`: a URDF's ``<transmission>``, an MJCF's ``<actuator>``); the latter
+    said in a :class:`~estimation.data.passive.PassiveJointWarning`. A missing torque column the description does
+    not explain stays the reader's error, which names ``--passive`` (a driven joint whose torque was not logged is
+    not passive: its torque is unknown, not zero)."""
+    named = tuple(args.passive or ())
+    described: tuple[str, ...] = ()
+    frame = logged_frame_head(args.data[0]) if args.urdf is not None and getattr(args, "data", None) else None
+    n_logged = 0 if frame is None else count_joint_columns(frame, "q")
+    missing = [j for j in range(n_logged) if f"tau{j + 1}" not in frame.columns]
+    if missing and len(missing) < n_logged:  # some torques logged, not all: the description is read (no cost else)
+        robot = robot_of(dataclasses.replace(args, passive=None))
+        chosen = {robot.joint_names[j] for j in passive_joint_indices(robot, named)} if named else set()
+        unactuated = set(described_unactuated(args.urdf, robot))
+        described = tuple(robot.joint_names[j] for j in missing if j < robot.n_joints
+                          and robot.joint_names[j] in unactuated and robot.joint_names[j] not in chosen)
+    if described:
+        warnings.warn(
+            f"{', '.join(described)}: read as passive (unactuated; torque zero by physics, its friction in the model): "
+            f"{args.urdf} declares motors on other joints (<transmission> or <actuator>) and none on "
+            f"{'it' if len(described) == 1 else 'them'}, and the log has no torque column for "
+            f"{'it' if len(described) == 1 else 'them'}; say so with --passive {','.join(described)}",
+            PassiveJointWarning, stacklevel=2)
+    if not named and not described:
+        return args, None
+    args = dataclasses.replace(args, passive=named + described)
+    robot = robot_of(args)
+    statement = (f"passive joint(s): {', '.join(robot.passive_joints)} (unactuated: torque zero by physics, "
+                 "0 = Y_j theta with the joint's own friction an equation of the fit; "
+                 + ("named with --passive" if named else "")
+                 + (" and " if named and described else "")
+                 + (f"{', '.join(described)} from the description (no motor, no torque column)" if described else "")
+                 + ")")
+    return args, {"joints": list(robot.passive_joints), "named": list(named), "described": list(described),
+                  "statement": statement}
 
 
 @dataclass(frozen=True, kw_only=True)

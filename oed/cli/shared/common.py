@@ -60,6 +60,10 @@ def add_joint_selection_arguments(group: Any) -> None:
                             "order); every other joint of the file is locked")
     group.add_argument("--locked-at", type=locked_positions, default=None, metavar="NAME=VALUE,...",
                        help="with --joint-names: positions of locked joints, rad or m (default 0)")
+    group.add_argument("--passive", type=joint_name_list, default=None, metavar="JOINT,...",
+                       help="passive (unactuated) joints, by name or number from 1: no motor drives them, their torque "
+                            "is zero by physics (0 = Y_j theta, their own friction in the model), a measurement of zero "
+                            "that the fit uses; the log needs no torque column for them (docs/guides/robots-and-logs.md)")
 
 
 def joint_name_list(text: str) -> tuple[str, ...]:
