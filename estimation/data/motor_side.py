@@ -41,7 +41,7 @@ from estimation.data.loading import (MeasurementError, MissingColumnError, in_si
                                      without_repeated_headers)
 from estimation.data.log_cleaning import DEFAULT_MAX_GAP
 from estimation.data.log_formats import is_log_file
-from estimation.data.records import (csv_options, csv_units, read_csv_frame, read_parquet_frame, read_record,
+from estimation.data.records import (csv_options, csv_units, in_the_format, read_csv_frame, read_parquet_frame, read_record,
                                      segments_from_frame)
 from dynamics.measurements import Measurements
 
@@ -208,9 +208,14 @@ def _read_record(path: str | Path, *, model: IdentificationModel, transmission: 
     if path.suffix.lower() not in (".csv", ".parquet") or not path.is_file() or is_log_file(source):
         return read_record(source, model=model, max_gap=max_gap, split=split)  # its messages for a folder, a format
     header = _csv_header(path) if path.suffix.lower() == ".csv" else _read_frame(path).columns
-    if not motor_columns(header):
+    if not motor_columns(header) and "q1" in {str(name).strip() for name in header}:
         return read_record(path, model=model, max_gap=max_gap, split=split)
-    frame = joint_side_frame(_read_frame(path), transmission, model.robot.n_joints, source=str(path))
+    frame = _read_frame(path)
+    if not motor_columns(header):  # a controller's log may hold motor currents (actual_current_0..: im1..)
+        frame = in_the_format(frame, path, model)
+        if not motor_columns(frame.columns):
+            return segments_from_frame(frame, model=model, source=str(path), max_gap=max_gap, split=split)
+    frame = joint_side_frame(frame, transmission, model.robot.n_joints, source=str(path))
     return segments_from_frame(frame, model=model, source=str(path), max_gap=max_gap, split=split)
 
 
