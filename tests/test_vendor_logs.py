@@ -31,6 +31,8 @@ UR = [f"{name}_joint" for name in ("shoulder_pan", "shoulder_lift", "elbow", "wr
 PANDA = [f"panda_joint{j}" for j in range(1, 8)]
 #: a UR's current to joint torque, N·m/A (the motor's constant times the gear ratio), for the tests' logs
 CURRENT_TO_TORQUE = (13.0, 13.0, 10.0, 4.0, 4.0, 4.0)
+#: RTDE's ``timestamp``: seconds since the controller started
+RTDE_START = 1834.5
 
 
 def signals(n: int, rows: int = 50) -> dict[str, np.ndarray]:
@@ -44,7 +46,7 @@ def signals(n: int, rows: int = 50) -> dict[str, np.ndarray]:
 
 def rtde(values: dict[str, np.ndarray], n: int = 6) -> pd.DataFrame:
     """What UR's RTDE recorder (``record.py``) writes for the usual recipe: one column a vector element, from 0."""
-    table = {"timestamp": 1834.5 + values["t"]}
+    table = {"timestamp": RTDE_START + values["t"]}
     for name, source, change in (("target_q", "q", 0.01), ("actual_q", "q", 0.0), ("target_qd", "dq", 0.0),
                                  ("actual_qd", "dq", 0.0), ("target_qdd", "dq", 0.0)):
         table.update({f"{name}_{j}": values[f"{source}{j + 1}"] + change for j in range(n)})
@@ -252,3 +254,75 @@ def test_ur_rtde_currents_through_the_transmission_give_the_joint_torques(tmp_pa
     with pytest.raises(TransmissionError, match="need the transmission: --transmission"), warnings.catch_warnings():
         warnings.simplefilter("ignore")
         read_record_with_transmission(tmp_path / "ur.csv", model=model, transmission=None)
+
+
+# ---------------------------------------------------------------- the verbs on each vendor's export (slow)
+
+
+def _values(path: Path) -> dict[str, np.ndarray]:
+    table = pd.read_csv(path)
+    return {str(column): table[column].to_numpy(dtype=float) for column in table.columns}
+
+
+def as_rtde(path: Path) -> None:
+    """The lab's record as UR's RTDE recorder writes it (:func:`rtde`): currents, no joint torque."""
+    rtde(_values(path)).to_csv(path, index=False, float_format="%.12g")
+
+
+def as_libfranka(path: Path) -> None:
+    """The lab's record as a libfranka robot-state log (:func:`libfranka`), ``", "`` between the header's names."""
+    libfranka(_values(path)).to_csv(path, index=False, float_format="%.12g")
+
+
+def as_lbr_state(path: Path) -> None:
+    """The lab's record as KUKA FRI's ``LBRState`` exported with its arrays in cells (:func:`lbr_state`)."""
+    lbr_state(_values(path)).to_csv(path, index=False, float_format="%.12g")
+
+
+def vendors():
+    from tests.test_unseen_robot_benches import Bench
+    from tests.test_unseen_robot_labs import Lab, puma
+    from tests.test_unseen_robot_shops import seven_joints
+    from tests.test_unseen_robots import Log
+
+    return (
+        (Bench(Lab("Universal Robots RTDE recorder (6 joints): actual_q/qd, motor currents through the transmission's "
+                   "torque constants, target_moment and target_current beside, 10 s / 4 s / 6 s at 500 Hz", puma(6),
+                   *(Log(seconds, 500.0) for seconds in (10.0, 4.0, 6.0)), slow=True)), as_rtde, True),
+        (Bench(Lab("libfranka robot state (7 joints): q, dq, tau_J beside tau_J_d, tau_ext_hat_filtered, theta, "
+                   "8 s / 3 s / 4 s at 1 kHz", seven_joints, *(Log(seconds, 1000.0) for seconds in (8.0, 3.0, 4.0)),
+                   slow=True)), as_libfranka, False),
+        (Bench(Lab("KUKA FRI LBRState (7 joints) with arrays in cells: measured position and torque beside the "
+                   "commanded, interpolated and external ones, no velocity, 10 s / 4 s / 6 s at 500 Hz", seven_joints,
+                   *(Log(seconds, 500.0, velocity=False) for seconds in (10.0, 4.0, 6.0)), slow=True)),
+         as_lbr_state, False),
+    )
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("index", range(3), ids=("ur-rtde", "libfranka", "kuka-fri"))
+def test_the_defaults_read_a_vendors_export_and_predict_as_well_as_a_plain_fit(index, tmp_path):
+    """Each vendor's export of the lab's records, read without a column map by every verb: the default
+    ``oed identify`` and ``oed diagnose``, then ``oed predict`` on the test record, per joint within 1.3x the plain
+    fit and in total at most 1.0x (the noise floor's allowance), ``oed predict`` reproducing each verb's reported
+    validation error (relative 1e-6), no effect named beyond the truth's. The RTDE export's torques are its
+    currents, read through ``--transmission`` (the torque constants) as a motor-side log's."""
+    from tests.test_one_answer_audit import RELATIVE
+    from tests.test_unseen_robot_kinds import as_well_as_the_plain_fit
+    from tests.test_unseen_robot_labs import run_lab
+
+    bench, rewritten, currents = vendors()[index]
+    options: tuple[str, ...] = ()
+    if currents:
+        transmission = tmp_path / "transmission.json"
+        transmission.write_text(json.dumps({"ratios": [1.0] * 6, "torque_constants": list(CURRENT_TO_TORQUE)}))
+        options = ("--transmission", str(transmission))
+    outcome = run_lab(bench.lab, tmp_path, rewritten=rewritten, options=options,
+                      seconds=(lambda stamps: stamps - RTDE_START) if currents else None)
+    print(f"\nreproduced validation error (relative): {outcome['reproduced']}")
+    as_well_as_the_plain_fit(bench.name, outcome, f"chosen {outcome['selections']}; ")
+    for label, error in outcome["reproduced"].items():
+        assert error < RELATIVE, (label, error)
+    for label, named in outcome["effects"].items():
+        false = [effect for effect in named if effect.split(" on ")[0].split(":")[0] not in bench.may_name]
+        assert not false, (label, false)
