@@ -34,7 +34,6 @@ import re
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-import numpy as np
 import pandas as pd
 
 from estimation.data.loading import CONVERTED_UNITS, MeasurementWarning, MissingColumnError
