@@ -17,6 +17,7 @@ record no choice saw, against the plain least-squares fit (:mod:`tests.test_unse
 from __future__ import annotations
 
 import json
+import shlex
 import warnings
 from pathlib import Path
 
@@ -202,7 +203,8 @@ def test_two_measured_torques_are_an_error_naming_both_and_the_maps():
                          | {f"effort_{j}": values[f"tau{j + 1}"] for j in range(6)}
                          | {f"torque_{j}": values[f"tau{j + 1}"] for j in range(6)})
     with pytest.raises(AmbiguousColumnsError, match=r"effort_0..effort_5 and torque_0..torque_5 could each be the "
-                       r"measured joint torques.*--columns tau=effort_ or --columns tau=torque_"):
+                       r"measured joint torques.*--columns q=position_,tau=effort_ or "
+                       r"--columns q=position_,tau=torque_"):
         read(table, UR, 6)
 
 
@@ -212,7 +214,8 @@ def test_a_commanded_torque_alone_is_refused_naming_the_map_that_reads_it():
     frame = rtde(signals(6)).drop(columns=[f"{name}_{j}" for name in ("actual_current", "target_current")
                                            for j in range(6)])
     with pytest.raises(MissingColumnError, match=r"no measured joint torque: the torques logged are "
-                       r"target_moment_0..target_moment_5 \(commanded\).*--columns tau=target_moment_"):
+                       r"target_moment_0..target_moment_5 \(commanded\).*"
+                       r"--columns q=actual_q_,dq=actual_qd_,tau=target_moment_$"):
         read(frame, UR, 6)
     assert read(frame, UR, 6, torque=False).columns == {"q": "actual_q_", "dq": "actual_qd_"}
 
@@ -234,6 +237,7 @@ def test_ur_rtde_currents_through_the_transmission_give_the_joint_torques(tmp_pa
     from dynamics.robots import load_robot
     from dynamics.transmission import TransmissionError
     from dynamics.transmission_files import transmission_from_json
+    from estimation.data.log_formats import LogSource, parse_column_map
     from estimation.data.motor_side import read_record_with_transmission
     from estimation.data.vendor_logs import VendorColumnsWarning
 
@@ -242,15 +246,23 @@ def test_ur_rtde_currents_through_the_transmission_give_the_joint_torques(tmp_pa
     model = build_model(load_robot("puma560"), "internal")
     transmission = transmission_from_json({"ratios": [1.0] * 6, "torque_constants": list(CURRENT_TO_TORQUE)},
                                           model.robot)
-    with pytest.warns(VendorColumnsWarning, match="im from actual_current_0..actual_current_5"), \
-            warnings.catch_warnings():
-        warnings.simplefilter("ignore", category=UserWarning)
-        warnings.simplefilter("always", category=VendorColumnsWarning)
+    with warnings.catch_warnings(record=True) as said_warnings:
+        warnings.simplefilter("always")
         (segment,) = read_record_with_transmission(tmp_path / "ur.csv", model=model, transmission=transmission)
+    assert any("im from actual_current_0..actual_current_5" in str(item.message) for item in said_warnings)
     recorded = segment.as_recorded if segment.as_recorded is not None else segment
     expected = np.column_stack([values[f"tau{j}"] for j in range(1, 7)])
     assert np.allclose(recorded.tau, expected, rtol=1e-9, atol=1e-9)
     assert np.allclose(recorded.q, np.column_stack([values[f"q{j}"] for j in range(1, 7)]), atol=1e-11)
+    said = str(caught[0].message) if (caught := [item for item in said_warnings if item.category is
+                                                  VendorColumnsWarning]) else ""
+    columns = shlex.split(said[said.rindex("(--columns ") + len("(--columns "):-1])[0]
+    assert columns.startswith("t=timestamp,q=actual_q_,dq=actual_qd_,im1=actual_current_0,"), columns
+    with warnings.catch_warnings():  # the map the warning gives reads the file alike
+        warnings.simplefilter("ignore")
+        (mapped,) = read_record_with_transmission(LogSource(tmp_path / "ur.csv", columns=parse_column_map(columns)),
+                                                  model=model, transmission=transmission)
+    assert np.array_equal(mapped.tau, segment.tau) and np.array_equal(mapped.q, segment.q)
     with pytest.raises(TransmissionError, match="need the transmission: --transmission"), warnings.catch_warnings():
         warnings.simplefilter("ignore")
         read_record_with_transmission(tmp_path / "ur.csv", model=model, transmission=None)

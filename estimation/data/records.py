@@ -226,7 +226,7 @@ def in_the_format(frame: pd.DataFrame, path: Path, model: IdentificationModel | 
     if robot is not None and echo is None and not {"q1", "qm1"} & {str(column) for column in frame.columns}:
         frame = array_cells(frame)
         torque = "tau" in set(require) | set(required_groups(model))
-        reading = vendor_columns(frame, robot.joint_names, robot.n_joints, str(path), torque=torque)
+        reading = vendor_columns(frame, robot.joint_names, robot.n_joints, str(path), torque=torque, time=time)
         if reading is not None:  # a controller's log: actual_q_0.., tau_J[0].., measured_torque..
             frame = apply_column_map(frame, reading.columns, str(path))
             warnings.warn(VendorColumnsWarning(reading.message), stacklevel=2)

@@ -31,6 +31,7 @@ that reads the file so.
 from __future__ import annotations
 
 import re
+import shlex
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -286,24 +287,12 @@ def _entries(group: JointGroup, key: str, frame: pd.DataFrame) -> dict[str, str]
 SHOWN = {"q": "positions", "dq": "velocities", "ddq": "accelerations", "tau": "torques", "current": "currents", "": ""}
 
 
-def _mapped(group: JointGroup, key: str, frame: pd.DataFrame) -> str:
-    """``--columns ...`` reading ``group`` as ``key``."""
-    return "--columns " + ",".join(f"{name}={value}" for name, value in _entries(group, key, frame).items())
-
-
-def _choose(groups: list[JointGroup], quantity: str, source: str, key: str, frame: pd.DataFrame) -> JointGroup | None:
-    """The one measured group of ``quantity``; ``None`` without one; :class:`AmbiguousColumnsError` for two."""
-    measured = [group for group in groups if group.quantity == quantity and group.role == MEASURED]
-    if len(measured) > 1:
-        raise AmbiguousColumnsError(
-            f"{source}: {' and '.join(group.shown for group in measured)} could each be the measured joint "
-            f"{SHOWN[quantity]}, and no rule chooses between them: name yours, "
-            + " or ".join(_mapped(group, key, frame) for group in measured[:2]))
-    return measured[0] if measured else None
+def _measured(groups: list[JointGroup], quantity: str) -> list[JointGroup]:
+    return [group for group in groups if group.quantity == quantity and group.role == MEASURED]
 
 
 def vendor_columns(frame: pd.DataFrame, joint_names: Sequence[str] | None, n_joints: int, source: str, *,
-                   torque: bool = True) -> VendorReading | None:
+                   torque: bool = True, time: str | None = None) -> VendorReading | None:
     """The column map that reads ``frame`` as a controller's log (module docstring), for the format's groups it
     lacks (no ``q1``...); ``None`` where it lacks none or no joint group of its names is measured.
 
@@ -320,6 +309,9 @@ def vendor_columns(frame: pd.DataFrame, joint_names: Sequence[str] | None, n_joi
     torque
         Whether the joint torques are needed (an internal model): only then are commanded or external torques
         without a measured one an error.
+    time
+        The column map's entry of the time where the file names it otherwise (``timestamp``): the maps the messages
+        give read the whole file.
 
     Raises
     ------
@@ -334,29 +326,50 @@ def vendor_columns(frame: pd.DataFrame, joint_names: Sequence[str] | None, n_joi
         return None
     groups = joint_groups(frame, joint_names, n_joints)
     chosen: dict[str, JointGroup] = {}
+    ambiguous: dict[str, list[JointGroup]] = {}
     for quantity in lacking:
-        group = _choose(groups, quantity, source, quantity, frame)
+        measured = _measured(groups, quantity)
+        if len(measured) > 1:
+            ambiguous[quantity] = measured
+        elif measured:
+            chosen[quantity] = measured[0]
+    if "tau" in lacking and "tau" not in chosen and "tau" not in ambiguous and not {"im1", "taum1"} & present:
+        currents = _measured(groups, "current")
+        if len(currents) > 1:
+            ambiguous["current"] = currents
+        elif currents:
+            chosen["current"] = currents[0]
+
+    def mapped(quantity: str | None = None, group: JointGroup | None = None) -> str:
+        """``--columns`` reading the chosen groups (and ``group`` as ``quantity``), quoted for a shell."""
+        entries = {"t": time} if time else {}
+        for key, value in chosen.items():
+            entries.update(_entries(value, READ_AS[key], frame))
         if group is not None:
-            chosen[quantity] = group
-    if "tau" in lacking and "tau" not in chosen and not {"im1", "taum1"} & present:
-        current = _choose(groups, "current", source, "im", frame)
-        if current is not None:
-            chosen["current"] = current
-        elif torque:
-            others = [group for group in groups if group.quantity == "tau"]
-            if others and ("q" in chosen or "q" not in lacking):
-                raise MissingColumnError(
-                    f"{source}: no measured joint torque: the torques logged are "
-                    + ", ".join(f"{group.shown} ({group.role})" for group in others)
-                    + ", and a commanded, external or estimated torque is not the torque the joint measured; if one is"
-                    " (a controller that logs its measurement so), read it with " + _mapped(others[0], "tau", frame))
+            entries.update(_entries(group, READ_AS[quantity], frame))
+        return "--columns " + shlex.quote(",".join(f"{key}={value}" for key, value in entries.items()))
+
+    if ambiguous:
+        quantity, measured = next(iter(ambiguous.items()))
+        raise AmbiguousColumnsError(
+            f"{source}: {' and '.join(group.shown for group in measured)} could each be the measured joint "
+            f"{SHOWN[quantity]}, and no rule chooses between them: name yours, "
+            + " or ".join(mapped(quantity, group) for group in measured[:2]))
+    if "tau" in lacking and torque and not {"tau", "current"} & set(chosen) and not {"im1", "taum1"} & present:
+        others = [group for group in groups if group.quantity == "tau"]
+        if others and ("q" in chosen or "q" not in lacking):
+            raise MissingColumnError(
+                f"{source}: no measured joint torque: the torques logged are "
+                + ", ".join(f"{group.shown} ({group.role})" for group in others)
+                + ", and a commanded, external or estimated torque is not the torque the joint measured; if one is"
+                " (a controller that logs its measurement so), read it with " + mapped("tau", others[0]))
     if "q" in lacking and "q" not in chosen:
         commanded = [group for group in groups if group.quantity == "q"]
         if commanded and chosen:
             raise MissingColumnError(
                 f"{source}: no measured joint positions: the positions logged are "
                 + ", ".join(f"{group.shown} ({group.role})" for group in commanded)
-                + "; the motion the joints made is needed (if one is it: " + _mapped(commanded[0], "q", frame) + ")")
+                + "; the motion the joints made is needed (if one is it: " + mapped("q", commanded[0]) + ")")
     if "q" not in chosen and ("q" in lacking or not chosen):
         return None
     columns: dict[str, str] = {}
@@ -371,9 +384,6 @@ def vendor_columns(frame: pd.DataFrame, joint_names: Sequence[str] | None, n_joi
             "position, velocity, torque or current)" for group in aside]
     if "tau" in chosen and any(group.quantity == "current" for group in aside):
         left.append("the currents: a measured joint torque is read rather than a current")
-    mapped = ",".join(f"{key}={value}" for key, value in columns.items())
-    message = (f"{source}: no columns {', '.join(f'{key}1' for key in lacking)}; read as a controller's log: "
-               + "; ".join(said) + (". Left aside: " + "; ".join(left) if left else "")
-               + f" (--columns {mapped})")
+    message = (f"{source}: no columns " + ", ".join(f"{key}1.." for key in lacking) + "; read as a controller's log: "
+               + "; ".join(said) + (". Left aside: " + "; ".join(left) if left else "") + f" ({mapped()})")
     return VendorReading(columns, tuple(chosen.values()), aside, message)
-
