@@ -319,9 +319,7 @@ def test_the_defaults_read_a_vendors_export_and_predict_as_well_as_a_plain_fit(i
     fit and in total at most 1.0x (the noise floor's allowance), ``oed predict`` reproducing each verb's reported
     validation error (relative 1e-6), no effect named beyond the truth's. The RTDE export's torques are its
     currents, read through ``--transmission`` (the torque constants) as a motor-side log's."""
-    from tests.test_one_answer_audit import RELATIVE
-    from tests.test_unseen_robot_kinds import as_well_as_the_plain_fit
-    from tests.test_unseen_robot_labs import run_lab
+    from tests.test_unseen_robot_benches import judged
 
     bench, rewritten, currents = vendors()[index]
     options: tuple[str, ...] = ()
@@ -329,12 +327,5 @@ def test_the_defaults_read_a_vendors_export_and_predict_as_well_as_a_plain_fit(i
         transmission = tmp_path / "transmission.json"
         transmission.write_text(json.dumps({"ratios": [1.0] * 6, "torque_constants": list(CURRENT_TO_TORQUE)}))
         options = ("--transmission", str(transmission))
-    outcome = run_lab(bench.lab, tmp_path, rewritten=rewritten, options=options,
-                      seconds=(lambda stamps: stamps - RTDE_START) if currents else None)
-    print(f"\nreproduced validation error (relative): {outcome['reproduced']}")
-    as_well_as_the_plain_fit(bench.name, outcome, f"chosen {outcome['selections']}; ")
-    for label, error in outcome["reproduced"].items():
-        assert error < RELATIVE, (label, error)
-    for label, named in outcome["effects"].items():
-        false = [effect for effect in named if effect.split(" on ")[0].split(":")[0] not in bench.may_name]
-        assert not false, (label, false)
+    judged(bench, tmp_path, rewritten, options=options,
+           seconds=(lambda stamps: stamps - RTDE_START) if currents else None)
