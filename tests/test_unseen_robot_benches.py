@@ -182,11 +182,11 @@ def marks(bench: Bench) -> list[pytest.MarkDecorator]:
     return chosen
 
 
-def judged(bench: Bench, folder: Path, rewritten=None) -> None:
-    """Run ``bench`` (:func:`tests.test_unseen_robot_labs.run_lab`, each file rewritten by ``rewritten``) and check
-    it: every verb within the plain fit's margins, ``oed predict`` reproducing each reported validation error, no
-    effect named beyond ``bench.may_name``."""
-    outcome = run_lab(bench.lab, folder, rewritten=rewritten)
+def judged(bench: Bench, folder: Path, rewritten=None, **running) -> None:
+    """Run ``bench`` (:func:`tests.test_unseen_robot_labs.run_lab`, each file rewritten by ``rewritten``, with
+    ``running``: its ``reading``, ``options``, ``seconds``) and check it: every verb within the plain fit's margins,
+    ``oed predict`` reproducing each reported validation error, no effect named beyond ``bench.may_name``."""
+    outcome = run_lab(bench.lab, folder, rewritten=rewritten, **running)
     print(f"\nreproduced validation error (relative): {outcome['reproduced']}")
     as_well_as_the_plain_fit(bench.name, outcome, f"chosen {outcome['selections']}; ")
     for label, error in outcome["reproduced"].items():

@@ -260,11 +260,14 @@ def write_records(case: Lab, folder: Path) -> tuple[Path, dict, dict, np.ndarray
 
 
 def run_lab(case: Lab, folder: Path, *, rewritten: Callable[[Path], None] | None = None,
-            reading: tuple[str, ...] = ()) -> dict:
+            reading: tuple[str, ...] = (), options: tuple[str, ...] = (),
+            seconds: Callable[[np.ndarray], np.ndarray] | None = None) -> dict:
     """Write the records, run the verbs and the plain fit: per joint test MSE of each on the same samples; check
     that ``oed predict`` reproduces each verb's reported validation error. ``rewritten``: what a logger does to
     each file after the plain fit's records are kept (e.g. angles written in degrees), ``reading`` the options
-    every verb is given to read the files so written."""
+    every verb is given to read the files so written, ``options`` those of the fitting verbs only (a
+    ``--transmission``: the result holds it for ``oed predict``), ``seconds`` what maps the predictions' time stamps
+    to the simulation's (a logger's clock that does not start at zero)."""
     from benchmarks.bench_real_robots import PlainFit
 
     urdf, records, files, spread = write_records(case, folder)
@@ -275,7 +278,7 @@ def run_lab(case: Lab, folder: Path, *, rewritten: Callable[[Path], None] | None
     cutoff, plain_theta = plain.fit(records["train"], records["validate"], rate_hz=rate)
     predicted_plain, kept = plain.predict(records["test"], cutoff, plain_theta)
     outcome = verbs_against_the_plain_fit(urdf, files, records["test"], kept, predicted_plain, folder,
-                                          reading=reading)
+                                          reading=reading, options=options, seconds=seconds)
     return {**outcome, "cutoff": cutoff, "floor": (NOISE * spread) ** 2}
 
 

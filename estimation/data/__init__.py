@@ -1,6 +1,6 @@
 """Measured records read with checks: columns, time base, units, log cleaning, motor-side channels, rows at rest, segments.
 
-Modules: :mod:`~estimation.data.loading`, :mod:`~estimation.data.log_cleaning`, :mod:`~estimation.data.motor_side`, :mod:`~estimation.data.records`, :mod:`~estimation.data.rest`, :mod:`~estimation.data.segments`.
+Modules: :mod:`~estimation.data.loading`, :mod:`~estimation.data.log_cleaning`, :mod:`~estimation.data.motor_side`, :mod:`~estimation.data.records`, :mod:`~estimation.data.rest`, :mod:`~estimation.data.segments`, :mod:`~estimation.data.vendor_logs`.
 """
 
 from __future__ import annotations
@@ -17,6 +17,9 @@ _EXPORTS: dict[str, str] = {
     "WrappedAngleError": "estimation.data.loading",
     "ConstantChannelError": "estimation.data.segments",
     "DEFAULT_MAX_GAP": "estimation.data.log_cleaning",
+    "AmbiguousColumnsError": "estimation.data.vendor_logs",
+    "VendorColumnsWarning": "estimation.data.vendor_logs",
+    "vendor_columns": "estimation.data.vendor_logs",
     "DEFAULT_TOPIC": "estimation.data.log_formats",
     "DEGREES_THRESHOLD": "estimation.data.loading",
     "GAP_FACTOR": "estimation.data.loading",

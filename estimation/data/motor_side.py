@@ -40,8 +40,8 @@ from dynamics.transmission import (
 from estimation.data.loading import (MeasurementError, MissingColumnError, in_si_units, other_delimiter,
                                      without_repeated_headers)
 from estimation.data.log_cleaning import DEFAULT_MAX_GAP
-from estimation.data.log_formats import is_log_file
-from estimation.data.records import (csv_options, csv_units, read_csv_frame, read_parquet_frame, read_record,
+from estimation.data.log_formats import is_log_file, read_log_frame
+from estimation.data.records import (csv_options, csv_units, in_the_format, read_csv_frame, read_parquet_frame, read_record,
                                      segments_from_frame)
 from dynamics.measurements import Measurements
 
@@ -205,12 +205,22 @@ def directed(segment: Measurements, directions: JointDirections) -> Measurements
 def _read_record(path: str | Path, *, model: IdentificationModel, transmission: Transmission | None,
                  max_gap: float, split: bool) -> tuple[Measurements, ...]:
     source, path = path, Path(os.fspath(path))
-    if path.suffix.lower() not in (".csv", ".parquet") or not path.is_file() or is_log_file(source):
+    if path.suffix.lower() not in (".csv", ".parquet") or not path.is_file():
         return read_record(source, model=model, max_gap=max_gap, split=split)  # its messages for a folder, a format
+    if is_log_file(source):  # a table read through a column map: motor columns it maps (im1=...) converted too
+        frame = read_log_frame(source, joint_names=model.robot.joint_names, n_joints=model.robot.n_joints)
+        if motor_columns(frame.columns):
+            frame = joint_side_frame(frame, transmission, model.robot.n_joints, source=str(path))
+        return segments_from_frame(frame, model=model, source=str(path), max_gap=max_gap, split=split)
     header = _csv_header(path) if path.suffix.lower() == ".csv" else _read_frame(path).columns
-    if not motor_columns(header):
+    if not motor_columns(header) and "q1" in {str(name).strip() for name in header}:
         return read_record(path, model=model, max_gap=max_gap, split=split)
-    frame = joint_side_frame(_read_frame(path), transmission, model.robot.n_joints, source=str(path))
+    frame = _read_frame(path)
+    if not motor_columns(header):  # a controller's log may hold motor currents (actual_current_0..: im1..)
+        frame = in_the_format(frame, path, model)
+        if not motor_columns(frame.columns):
+            return segments_from_frame(frame, model=model, source=str(path), max_gap=max_gap, split=split)
+    frame = joint_side_frame(frame, transmission, model.robot.n_joints, source=str(path))
     return segments_from_frame(frame, model=model, source=str(path), max_gap=max_gap, split=split)
 
 

@@ -78,6 +78,7 @@ from estimation.data.log_formats import (
     read_log_frame,
     time_column,
 )
+from estimation.data.vendor_logs import VendorColumnsWarning, array_cells, vendor_columns
 from estimation.data.sampling_clock import clock_instants, clock_roughness, quantised_clock, said_receive_times
 from estimation.data.log_cleaning import (DEFAULT_MAX_GAP, ZERO_ROW_JOINTS, Gap, PositionSteps, blank_rows, describe,
                                           GLITCH_RUN, encoder_glitches, find_gaps, position_steps, repeated_rows,
@@ -192,9 +193,23 @@ def read_record(
         raise
     except (ValueError, OSError, pd.errors.ParserError) as error:
         raise MeasurementError(f"cannot read {path}: {str(error).strip()}{_delimiter_note(path)}") from None
+    frame = in_the_format(frame, path, model, require=require)
+    return segments_from_frame(frame, n_joints=n_joints, model=model, require=require, resample=resample,
+                               source=str(path), max_gap=max_gap, split=split)
+
+
+def in_the_format(frame: pd.DataFrame, path: Path, model: IdentificationModel | ModelKind | str | None, *,
+                  require: Iterable[str] = ("q",)) -> pd.DataFrame:
+    """A CSV or Parquet table with its columns under the format's names where it names them otherwise, each said
+    in a warning giving the ``--columns`` map that reads it so: ``rostopic echo -p`` of ``JointState`` messages
+    (:func:`~estimation.data.log_formats.joint_state_echo`), the time under another name
+    (:func:`~estimation.data.log_formats.time_column`), joint columns named by the robot's joints
+    (:func:`~estimation.data.log_formats.joint_named_columns`), then a controller's or driver's log
+    (:func:`~estimation.data.vendor_logs.vendor_columns`: ``actual_q_0``, ``q[0]``, ``measured_torque``…, cells
+    holding arrays split). One rule for the in-memory reader and the motor-side one."""
+    robot = model.robot if isinstance(model, IdentificationModel) else None
     echo = joint_state_echo(frame)
     if echo is not None:  # rostopic echo -p of JointState messages: read as the column map that reads it
-        robot = model.robot if isinstance(model, IdentificationModel) else None
         frame = apply_column_map(frame, echo, str(path), joint_names=None if robot is None else robot.joint_names)
         warnings.warn(JointStateTableWarning(
             f"{path}: read as `rostopic echo -p` of JointState messages, the joints matched by field.name0.. "
@@ -204,15 +219,20 @@ def read_record(
         frame = apply_column_map(frame, {"t": time}, str(path))
         warnings.warn(TimeColumnWarning(f"{path}: no column t; the time read as --columns t={time}"),
                       stacklevel=2)
-    robot = model.robot if isinstance(model, IdentificationModel) else None
     named = None if echo is not None or robot is None else joint_named_columns(frame, robot.joint_names)
     if named is not None:  # joint columns named by the robot's joints (shoulder_pan_joint_effort), not tau1..
         frame = apply_column_map(frame, named, str(path))
         warnings.warn(JointNamedColumnsWarning(
             f"{path}: the joint columns read by the robot's joint names "
             f"(--columns {shlex.quote(','.join(f'{key}={value}' for key, value in named.items()))})"), stacklevel=2)
-    return segments_from_frame(frame, n_joints=n_joints, model=model, require=require, resample=resample,
-                               source=str(path), max_gap=max_gap, split=split)
+    if robot is not None and echo is None and not {"q1", "qm1"} & {str(column) for column in frame.columns}:
+        frame = array_cells(frame)
+        torque = "tau" in set(require) | set(required_groups(model))
+        reading = vendor_columns(frame, robot.joint_names, robot.n_joints, str(path), torque=torque, time=time)
+        if reading is not None:  # a controller's log: actual_q_0.., tau_J[0].., measured_torque..
+            frame = apply_column_map(frame, reading.columns, str(path))
+            warnings.warn(VendorColumnsWarning(reading.message), stacklevel=2)
+    return frame
 
 
 #: the data rows read to tell a CSV file's separator and decimal mark
