@@ -82,28 +82,28 @@ class PredictRun:
 PREDICT_BYTES_PER_VALUE = 2 * 8
 
 
+#: what the streamed ``oed predict`` says of the per-sample outputs
+PER_SAMPLE_REFUSED = ("--out and --plot write every sample's prediction: not with the streamed path (--chunk-size); "
+                      "leave out --chunk-size to predict the record in memory")
+
+
 @dataclass(frozen=True)
-class StreamedPredictRun:
+class StreamedPredictRun(PredictRun):
     """What the streamed ``oed predict`` computed (:func:`estimation.streaming.prediction.streamed_evaluation`):
-    the errors, the yardsticks and the training range, not the per-sample predictions (``not_computed``)."""
+    the errors, the yardsticks and the training range, not the per-sample predictions (``not_computed``; the
+    metrics JSON holds the in-memory keys, those not computed null)."""
 
-    evaluation: Any = field(repr=False)
-    lines: tuple[str, ...]
-    warnings: tuple[str, ...]
+    def columns(self) -> dict[str, Any]:
+        raise ValueError(PER_SAMPLE_REFUSED)
 
-    def to_dict(self) -> dict[str, Any]:
-        """The metrics JSON (``--metrics``): the in-memory keys, those not computed null and named."""
-        return copy.deepcopy(self.evaluation.to_dict())
-
-    def summary(self) -> list[str]:
-        return list(self.lines)
+    def plot(self, path: str | Path | None = None) -> Any:
+        raise ValueError(PER_SAMPLE_REFUSED)
 
     def write(self, *, out: str | Path | None = None, metrics: str | Path | None = None,
               plot: str | Path | None = None) -> None:
         """The metrics JSON at ``metrics``; ``out`` and ``plot`` (every sample) are refused."""
         if out is not None or plot is not None:
-            raise ValueError("--out and --plot write every sample's prediction: not with the streamed path "
-                             "(--chunk-size); leave out --chunk-size to predict the record in memory")
+            raise ValueError(PER_SAMPLE_REFUSED)
         if metrics is not None:
             with OutputFiles() as outputs, outputs.open(metrics) as stream:
                 stream.write(json_text(self.to_dict()))
@@ -112,7 +112,7 @@ class StreamedPredictRun:
 def predict(*, model: str | Path, data: Any, consistent: bool = False, alternative: str | None = None,
             topic: str = DEFAULT_TOPIC, columns: dict[str, str] | None = None, chunk_size: int | None = None,
             memory_budget: str | None = None, per_sample: bool = False,
-            say: Callable[[str], None] | None = None) -> PredictRun | StreamedPredictRun:
+            say: Callable[[str], None] | None = None) -> PredictRun:
     """``oed predict``: the model of ``model`` (a result.json or report.json) on the record ``data`` (a path or
     the list of its segments; a ROS bag read on ``topic``, an ``.npz`` or ``.mat`` file, any with the column map
     ``columns``): the model the verb chose, or the ``alternative`` the file holds beside it (``ols``, ``wls``,
@@ -130,8 +130,7 @@ def predict(*, model: str | Path, data: Any, consistent: bool = False, alternati
     if chunk_size is not None:
         check_chunk_size(chunk_size, identified.model)
         if per_sample:
-            raise ValueError("--out and --plot write every sample's prediction: not with --chunk-size (the streamed "
-                             "path); leave out --chunk-size to predict the record in memory")
+            raise ValueError(PER_SAMPLE_REFUSED)
         return streamed_predict(identified, paths(data), chunk_size)
     streamed = streaming_decided(identified, data, memory_budget, per_sample)
     if streamed is not None:
