@@ -13,8 +13,11 @@ from __future__ import annotations
 import json
 import warnings
 
+import numpy as np
 import pytest
 
+from estimation.identification.training_range import TrainingRange
+from estimation.streaming.prediction import pooled_range
 from oed.cli import main
 from tests.test_time_base_choice import simulated
 
@@ -56,6 +59,22 @@ def _assert_alike(streamed: dict, memory: dict) -> None:
     assert set(streamed["not_computed"]) == {"predictions", "noise_floor", "changed"}
     assert streamed["noise_floor_mse"] is None and streamed["changed"] is None
     assert memory["noise_floor_mse"] is not None  # in memory it is measured
+
+
+def test_the_training_range_checked_chunk_by_chunk_is_the_whole_record_s():
+    """The pooled check of a record's chunks: each joint's largest excursions and its share of samples outside, as
+    :meth:`TrainingRange.check` of the whole record gives them."""
+    rng = np.random.default_rng(7)
+    ranges = TrainingRange(("joint1", "joint2"), np.array([-1.0, -0.5]), np.array([1.0, 0.5]), np.array([2.0, 1.0]),
+                           1000)
+    q, dq = rng.normal(0.0, 0.6, (1000, 2)), rng.normal(0.0, 0.8, (1000, 2))
+    whole = ranges.check(q, dq)
+    pooled = pooled_range([ranges.check(q[start:start + 170], dq[start:start + 170]) for start in range(0, 1000, 170)])
+    assert pooled is not None and pooled.n_samples == whole.n_samples
+    for left, right in zip(pooled.joints, whole.joints):
+        assert left.outside == right.outside and left.below == right.below and left.above == right.above
+        assert left.speed_above == right.speed_above and left.fraction == pytest.approx(right.fraction, rel=1e-12)
+    assert any(joint.outside for joint in whole.joints)  # the check has something to pool
 
 
 @pytest.mark.slow  # two identify runs and six predictions on a 3-joint arm (about 40 s)

@@ -16,10 +16,17 @@ import json
 import warnings
 
 import numpy as np
+import pandas as pd
 import pytest
 
+from dynamics.models import build_model
+from dynamics.robots import load_robot
+from estimation.data.records import read_record
+from estimation.data.sampling_clock import on_regular_clock
+from estimation.streaming.chunks import clock_source, read_chunks, source_file
+from estimation.streaming.time_base import RegularClock
 from oed.cli import main
-from tests.test_time_base_choice import simulated
+from tests.test_time_base_choice import RATE, moved, simulated
 
 #: the streamed answer against memory's (sums of another order; measured: parameters 2e-9 of the largest,
 #: validation and test errors 1e-11)
@@ -54,6 +61,36 @@ def _answer(document: dict) -> dict[str, float]:
 
 def _close(measured: dict[str, float], expected: dict[str, float]) -> float:
     return max(abs(measured[channel] / expected[channel] - 1.0) for channel in expected)
+
+
+def _jittered_file(folder, rows: int = 1200) -> str:
+    """A 3-joint record whose stamps jitter by up to 40 % of a step around a regular clock (receive times)."""
+    truth = np.arange(rows) / RATE
+    stamps = truth + moved(rows, 0.4, seed=5)
+    frame = {"t": stamps}
+    for joint in range(1, 4):
+        frame[f"q{joint}"] = np.sin((joint + 1) * truth)
+        frame[f"tau{joint}"] = np.cos(joint * truth) + 0.01 * joint
+    path = folder / "jittered.csv"
+    pd.DataFrame(frame).to_csv(path, index=False, float_format="%.17g")
+    return str(path)
+
+
+def test_a_source_on_its_regular_clock_reads_memory_s_samples_on_that_clock(tmp_path):
+    """``run.csv (regular clock)`` read in chunks gives the rows memory's ``on_regular_clock`` places (instants to
+    the bit, values as recorded, nothing interpolated)."""
+    path = _jittered_file(tmp_path)
+    model = build_model(load_robot("puma560", joints=3), "internal", ())
+    assert source_file(clock_source(path)) == (source_file(path)[0], RegularClock(None))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        memory = on_regular_clock(read_record(path, model=model)[0])
+        chunks = list(read_chunks(clock_source(path), model, chunk_size=250))
+    assert memory is not None and all("resampled_from" not in chunk.metadata for chunk in chunks)
+    t = np.concatenate([chunk.t for chunk in chunks])
+    np.testing.assert_array_equal(t, memory.t)
+    np.testing.assert_array_equal(np.vstack([chunk.q for chunk in chunks]), memory.q)
+    np.testing.assert_array_equal(np.vstack([chunk.tau for chunk in chunks]), memory.tau)
 
 
 @pytest.mark.slow  # each verb twice, in memory and streamed, on a 3-joint arm (about 20 s a verb)
