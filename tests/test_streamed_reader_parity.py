@@ -172,11 +172,11 @@ def test_identify_streamed_reads_a_defective_log_as_in_memory(logs, in_memory, k
 
 
 @pytest.mark.slow
-def test_receive_time_stamps_the_regular_clock_in_memory_the_stamps_streamed_and_said(logs, tmp_path, capsys):
+def test_receive_time_stamps_the_regular_clock_on_both_paths_and_said(logs, tmp_path, capsys):
     """Where the stamps are receive times, the in-memory path scores the regular clock on the validation record and
-    takes it (tests/test_time_base_choice.py); the streamed path keeps the stamps and says so
-    (``not_computed.time_base``): the one known difference of the two readers, written in the result. Both say the
-    same findings, the receive-times warning among them."""
+    takes it (tests/test_time_base_choice.py); the streamed path reads its sources on that clock and takes it too
+    (tests/test_streamed_time_base.py holds the answers alike): nothing left in ``not_computed.time_base``. Both
+    say the same findings, the receive-times warning among them."""
     documents, said = {}, {}
     for mode, options in (("memory", ()), ("streamed", ("--chunk-size", CHUNK))):
         out = tmp_path / f"{mode}.json"
@@ -185,9 +185,10 @@ def test_receive_time_stamps_the_regular_clock_in_memory_the_stamps_streamed_and
         documents[mode] = json.loads(out.read_text())
     assert said["streamed"] == said["memory"] and any("look like a logger's receive times" in line
                                                       for line in said["memory"])
-    assert documents["memory"]["preprocessing"]["time_base"] == "regular"
-    assert "time_base" not in documents["streamed"]["preprocessing"]
-    assert "regular clock is scored in memory only" in documents["streamed"]["not_computed"]["time_base"]
+    for document in documents.values():
+        assert document["preprocessing"]["time_base"] == "regular"
+        assert document["model_file"]["preprocessing"]["time_base"] == "regular"
+    assert "time_base" not in documents["streamed"]["not_computed"]
 
 
 @pytest.mark.parametrize("kind", ["hole", "duplicated", "jitter"])

@@ -37,7 +37,7 @@ from estimation.data.loading import ReceiveTimesWarning
 from estimation.data.log_cleaning import STALL_FACTOR
 
 __all__ = ["CLOCK_TOLERANCE", "QUANTUM_STEPS", "RECEIVE_TIMES_RATIO", "ClockSums", "clock_instants",
-           "clock_roughness", "on_regular_clock", "quantised_clock", "receive_times_ratio", "regular_clock", "said_receive_times"]
+           "clock_roughness", "on_regular_clock", "quantised_clock", "receive_times_ratio", "regular_clock", "regular_clock_line", "said_receive_times"]
 
 #: the positions are said to follow a regular clock rather than the stamps when their interpolation residuals at
 #: the stamps are at least this many times those on a regular clock (root mean square, median over the joints)
@@ -157,6 +157,13 @@ def regular_clock(t: NDArray[np.float64]) -> NDArray[np.float64] | None:
     and last alone, whose own errors would tilt it). ``None`` when a stamp lies :data:`CLOCK_TOLERANCE` of a step
     or more from its instant (a row dropped or a stall inside the segment: the sample's index is then not its
     instant) or the fit's step is not positive."""
+    line = regular_clock_line(t)
+    return None if line is None else clock_instants(*line, 0, t.shape[0])
+
+
+def regular_clock_line(t: NDArray[np.float64]) -> tuple[float, float] | None:
+    """``(t0, step)`` of :func:`regular_clock` (its instants are :func:`clock_instants` of them from row 0: one
+    formula for a whole record and for a streamed block of it); ``None`` where :func:`regular_clock` is."""
     count = t.shape[0]
     if count < 3:
         return None
@@ -164,10 +171,9 @@ def regular_clock(t: NDArray[np.float64]) -> NDArray[np.float64] | None:
     step, t0 = np.polyfit(k, t, 1)
     if not step > 0:
         return None
-    clock = t0 + step * k
-    if np.max(np.abs(t - clock)) >= CLOCK_TOLERANCE * step:
+    if np.max(np.abs(t - (t0 + step * k))) >= CLOCK_TOLERANCE * step:
         return None
-    return clock
+    return float(t0), float(step)
 
 
 #: a time column's resolution at most this many samples' steps is read as the clock of the samples it cannot tell

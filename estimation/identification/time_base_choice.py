@@ -28,7 +28,9 @@ candidates). The smallest score wins; an exact tie keeps the stamps (what the fi
 a dropped row or a stall inside the segment; :func:`~estimation.data.sampling_clock.regular_clock`), or when the
 derivatives are not chosen on a validation record of another motion (measured derivatives, the user's
 ``--cutoff``, no validation record): the stamps are then kept, as before. The streamed path (files read in blocks)
-keeps the stamps.
+makes the same choice (:func:`oed.workflows.memory_path.streamed_time_base`: the sources read on their regular
+clock, :class:`estimation.streaming.time_base.RegularClock`), but where a training file is cut at its holds
+(:data:`STREAMED_TIME_BASE`).
 """
 
 from __future__ import annotations
@@ -45,10 +47,12 @@ from estimation.preprocessing.plan import Preprocessing
 
 __all__ = ["STREAMED_TIME_BASE", "choose_time_base", "receive_times_evidence", "regular_segments"]
 
-#: what the streamed path (files read in blocks) says of the time base (``not_computed.time_base``)
-STREAMED_TIME_BASE = ("the samples at their stamps: the regular clock is scored in memory only (where the stamps "
-                      "look like receive times, said by a ReceiveTimesWarning; the streamed reader fixes its grid "
-                      "from the stamps before the blocks are read)")
+#: what the streamed path (files read in blocks) says of the time base (``not_computed.time_base``) where a training
+#: file is cut at its holds: there it keeps the stamps (elsewhere it scores the regular clock as memory does,
+#: :func:`oed.workflows.memory_path.streamed_time_base`)
+STREAMED_TIME_BASE = ("the samples at their stamps: a training file cut at its holds is read in parts, and the "
+                      "regular clock of a part is scored in memory only (where the stamps look like receive times, "
+                      "said by a ReceiveTimesWarning)")
 
 
 def receive_times_evidence(segments: Sequence[Measurements]) -> float | None:

@@ -70,11 +70,12 @@ from estimation.estimators.normal_equations import DEFAULT_CHUNK_SIZE, NormalEqu
 from estimation.identification.subtracted_load import SubtractedLoad, added_back
 from estimation.identification.training_range import TrainingRange
 from estimation.preprocessing.differentiation import ButterworthDifferentiation, compensate_hold, decimate
-from estimation.streaming.time_base import Part, Resampler, TimeScan, file_parts, file_segments, scan_time
+from estimation.streaming.time_base import (Part, RegularClock, Resampler, TimeScan, file_parts, file_segments,
+                                            scan_time)
 
 __all__ = [
-    "FileSums", "MARGIN_TOLERANCE", "StreamingUnsupportedError", "automatic_cutoff", "file_sums", "filter_margin",
-    "loaded_chunk", "logged_chunks", "preprocessed_chunks", "read_chunks", "segment_sources", "source_file", "source_files", "source_rows",
+    "CLOCK_SUFFIX", "FileSums", "MARGIN_TOLERANCE", "clock_source", "StreamingUnsupportedError", "automatic_cutoff", "file_sums", "filter_margin",
+    "loaded_chunk", "logged_chunks", "preprocessed_chunks", "read_chunks", "receive_times_evidence_of", "segment_sources", "source_file", "source_files", "source_rows",
     "source_step",
 ]
 
@@ -157,12 +158,29 @@ def _raw_frames(path: Path, chunk_size: int, only_time: bool = False) -> Iterato
 _SEGMENT = re.compile(r"^(?P<file>.*) \((?P<kind>segment|part) (?P<index>[0-9]+)\)$")
 
 
-def source_file(path: str | Path) -> tuple[Path, int | Part | None]:
+#: the end of a streamed source read on the regular clock its stamps jitter around (:func:`clock_source`)
+CLOCK_SUFFIX = " (regular clock)"
+
+
+def clock_source(path):
+    """The streamed source of ``path`` (a file or a segment's source) read on the regular clock its stamps jitter
+    around (a :class:`~estimation.streaming.time_base.RegularClock`): ``run.csv (regular clock)``,
+    ``run.csv (segment 2) (regular clock)``; of the same type as ``path``."""
+    return type(path)(f"{path}{CLOCK_SUFFIX}") if isinstance(path, Path) else f"{path}{CLOCK_SUFFIX}"
+
+
+def source_file(path: str | Path) -> tuple[Path, int | Part | RegularClock | None]:
     """The file and segment (1-based; ``None``: the whole file) of a streamed source: ``run.csv (segment 2)`` (the
     name the loader gives the second segment of a file split at a hole longer than ``max_gap``,
     :func:`segment_sources`) is the second segment of ``run.csv``; ``run.csv (part 2)`` its second part between its
-    holes and holds (a :class:`~estimation.streaming.time_base.Part`, training files only)."""
+    holes and holds (a :class:`~estimation.streaming.time_base.Part`, training files only); a source ending in
+    :data:`CLOCK_SUFFIX` is the file or segment before it on its regular clock
+    (:class:`~estimation.streaming.time_base.RegularClock`, :func:`clock_source`)."""
     file = Path(path)
+    if not file.exists() and str(path).endswith(CLOCK_SUFFIX):
+        inner, segment = source_file(str(path)[:-len(CLOCK_SUFFIX)])
+        if inner.is_file() and not isinstance(segment, (Part, RegularClock)):
+            return inner, RegularClock(segment)
     if not file.exists():
         match = _SEGMENT.match(str(path))
         if match is not None and Path(match["file"]).is_file():
@@ -409,6 +427,10 @@ def logged_chunks(path: str | Path, model: IdentificationModel, *, chunk_size: i
             continue
         if pending is not None:
             pending, turns, _ = _unwrapped(pending, model, f"{path} (rows {row + 1}-{row + len(pending)})", turns, row)
+            if isinstance(segment, RegularClock) and scan is not None and scan.clock is not None \
+                    and "t" in pending.columns:  # the rows' instants on the regular clock, as read_chunks has them
+                pending = pending.assign(t=clock_instants(scan.clock[0], scan.clock[1], scan.clock[2] + row,
+                                                          len(pending)))
             row += len(pending)
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")  # said when the file was read for its sums
@@ -417,6 +439,27 @@ def logged_chunks(path: str | Path, model: IdentificationModel, *, chunk_size: i
             if chunk.n_samples:  # the samples kept as logged, when the block was resampled
                 yield chunk if load is None else loaded_chunk(chunk, load, model)
         pending = frame
+
+
+def receive_times_evidence_of(path: str | Path, model: IdentificationModel, *,
+                               chunk_size: int = DEFAULT_CHUNK_SIZE) -> float | None:
+    """How many times smoother the positions of a streamed source are on a regular clock than at its stamps (the
+    :class:`~estimation.data.sampling_clock.ClockSums` ratio of its kept rows as logged, summed block by block as
+    :func:`read_chunks` sums them for its :class:`~estimation.data.loading.ReceiveTimesWarning`), memory's
+    :func:`~estimation.data.sampling_clock.receive_times_ratio` of the segment; ``None`` when the source is not
+    resampled by its stamps or the evidence is too thin."""
+    file, segment = source_file(path)
+    if isinstance(segment, RegularClock):
+        segment = segment.of
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # said when the source is read
+        scan = scan_time(_raw_frames(file, chunk_size), file, model, segment=segment)
+    if scan is None or not scan.irregular:
+        return None
+    evidence = _ClockEvidence(model, scan)
+    for frame in _kept_frames(file, chunk_size, scan.keep):
+        evidence.add(frame)
+    return None if evidence.sums is None else evidence.sums.ratio
 
 
 class _ChunkChecks:

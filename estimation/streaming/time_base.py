@@ -33,8 +33,9 @@ from estimation.data.log_cleaning import (DEFAULT_MAX_GAP, GLITCH_RUN, PositionS
 from estimation.data.records import (clean_time_base, dropouts, glitch_rows, said_dropouts, said_glitches,
                                      velocity_limits)
 from estimation.data.rest import between_holds, held_runs
+from estimation.data.sampling_clock import clock_instants, regular_clock_line
 
-__all__ = ["HeldParts", "Part", "Resampler", "TimeScan", "file_parts", "file_segments", "scan_time"]
+__all__ = ["HeldParts", "NoRegularClockError", "Part", "RegularClock", "Resampler", "TimeScan", "file_parts", "file_segments", "scan_time"]
 
 
 @dataclass(frozen=True)
@@ -44,6 +45,22 @@ class Part:
     record (:func:`estimation.identification.prepared.training_without_holds`)."""
 
     index: int
+
+
+@dataclass(frozen=True)
+class RegularClock:
+    """A file (``of`` ``None``) or its ``of``-th segment (1-based) read on the regular clock its stamps jitter around
+    (:func:`estimation.data.sampling_clock.regular_clock`, the least-squares line of the kept rows' stamps on their
+    index) instead of resampled by the stamps: each kept row keeps its values, its instant on the clock, as memory's
+    :func:`~estimation.data.sampling_clock.on_regular_clock` places a segment's recorded samples
+    (:mod:`estimation.identification.time_base_choice`: a logger's receive times). A file whose stamps need no
+    resampling is read as it is, as in memory."""
+
+    of: int | None = None
+
+
+class NoRegularClockError(ValueError):
+    """A source's stamps give no regular clock (a stamp half a step or more from it: a row dropped or a stall)."""
 
 
 @dataclass(frozen=True)
@@ -83,13 +100,17 @@ class TimeScan:
 
 
 def scan_time(frames, path: str | Path, model: IdentificationModel, *, max_gap: float = DEFAULT_MAX_GAP,
-              segment: int | None = None) -> TimeScan | None:
+              segment: int | Part | RegularClock | None = None) -> TimeScan | None:
     """Scan the rows of ``frames`` (an iterator of the file's blocks) with the loader's rules on the whole record
     (module docstring; :class:`~estimation.data.loading.TimeBaseError`: many duplicated or decreasing times). A hole
     longer than ``max_gap`` splits the record into segments as in memory: ``segment`` (1-based) is the one scanned
     (its rows alone kept, its own grid); without one, a hole is a :class:`~estimation.data.loading.HoleError`
-    (:func:`file_segments` names the segments). ``None`` when column ``t`` is absent or not numeric (the per-chunk
-    checks then name the fault)."""
+    (:func:`file_segments` names the segments); a :class:`RegularClock`: the file or segment it names, its kept
+    rows on their regular clock where the loader would resample them (:class:`NoRegularClockError` when there is
+    none). ``None`` when column ``t`` is absent or not numeric (the per-chunk checks then name the fault)."""
+    on_clock = isinstance(segment, RegularClock)
+    if on_clock:
+        segment = segment.of
     positions: list[NDArray[np.uint64]] = []
     times = _cleaned(frames, path, model, max_gap=max_gap, split=segment is not None, positions=positions)
     if times is None:
@@ -126,6 +147,14 @@ def scan_time(frames, path: str | Path, model: IdentificationModel, *, max_gap: 
     grid = resampling_grid(kept, True, name, bridged=times.bridged, stacklevel=4)
     keep = None if keep.all() else keep
     clock = None if times.clock is None else (*times.clock, first)
+    if on_clock and grid is not None:  # the kept rows on the regular clock of their stamps, none resampled
+        line = regular_clock_line(kept)
+        if line is None:
+            raise NoRegularClockError(f"{name}: its stamps give no regular clock (a stamp half a step or more from "
+                                      "it: a row dropped or a stall)")
+        t0, step = line
+        return TimeScan(t0, float(clock_instants(t0, step, kept.shape[0] - 1, 1)[0]), step, int(kept.shape[0]), keep,
+                        clock=(t0, step, 0))
     if grid is None:
         return TimeScan(float(kept[0]), float(kept[-1]), float(np.median(np.diff(kept))), int(kept.shape[0]), keep,
                         clock=clock)

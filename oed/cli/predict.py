@@ -7,7 +7,7 @@ import argparse
 from pathlib import Path
 
 from dynamics.runtime.output_files import check_figure_path
-from oed.cli.shared.common import add_log_arguments, print_lines, print_warnings
+from oed.cli.shared.common import add_log_arguments, print_lines, print_warnings, stderr_say
 from oed.cli.shared.verbs import verb_summary
 from oed.workflows.options import check_csv_path, check_json_path
 from oed.workflows.predict import predict
@@ -42,6 +42,16 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
                                                      "nominal_mse, noise_floor_mse, reported_validation_mse, "
                                                      "outside_training_range (per joint), changed (a payload on the "
                                                      "last link or gravity turned, tested on this record)")
+    streaming = parser.add_argument_group(
+        "bounded memory (estimation.streaming.prediction)",
+        "read and predict the record chunk by chunk (peak memory set by the chunk, not the record): the errors, the "
+        "zero and nominal predictors' and the training range as in memory; not the per-sample predictions (--out, "
+        "--plot), the record's noise floor or the record-change check (the metrics' not_computed says so)")
+    streaming.add_argument("--chunk-size", type=int, help="rows a chunk (selects this path)")
+    streaming.add_argument("--memory-budget", metavar="SIZE",
+                           help="memory the in-memory prediction may take (2GB, 500MB, 1.5GiB or bytes; default 1GB, "
+                                "as identify's): past it, estimated from the files' rows, a record of .csv or .parquet "
+                                "files is streamed unless --out or --plot is given (one line on stderr says so)")
     return parser
 
 
@@ -66,8 +76,9 @@ def run(args: argparse.Namespace) -> int:
     if args.metrics is not None:
         check_json_path(args.metrics, "--metrics")
     result = predict(model=args.model, data=args.data, consistent=args.consistent, alternative=args.alternative,
-                     topic=args.topic,
-                     columns=args.columns)
+                     topic=args.topic, columns=args.columns, chunk_size=args.chunk_size,
+                     memory_budget=args.memory_budget, per_sample=args.out is not None or args.plot is not None,
+                     say=stderr_say("predict"))
     print_warnings("predict", result.warnings)
     result.write(out=args.out, metrics=args.metrics, plot=args.plot)
     print_lines(result.summary())

@@ -89,7 +89,8 @@ from oed.workflows.asbuilt import (
 from oed.workflows.chosen_model import ChosenModel, answer_diagnosis, mse_line
 from oed.workflows.diagnosis_training import averaged_errors, averaged_sums, recorded_training, summed_unconstrained
 from oed.workflows.joint_side import named_as_given, records_to_read
-from oed.workflows.memory_path import IN_MEMORY_ROUTE, decide_path, streamed_choice, streamed_records
+from oed.workflows.memory_path import (IN_MEMORY_ROUTE, decide_path, on_time_base, stamps_kept, streamed_choice,
+                                      streamed_records, with_time_base)
 from oed.workflows.consistent import check_consistent_arguments, consistent_lines, consistent_settings
 from oed.workflows.model_files import (
     add_model_file,
@@ -1053,6 +1054,7 @@ def diagnosis_streamed(args: DiagnoseOptions, friction: str, plan: Preprocessing
         if plan is None:
             with findings.reading():
                 plan = streamed_choice(args, model, **derivatives_on_validation(model, None)).chosen
+        args = on_time_base(args, plan)  # the regular clock chosen: every pass reads the sources on it, as memory
         check_averaged(plan, [*args.data, *args.validate], model, chunk_size=chunk_size)  # "yes" stops as in memory
         still = warned_still_motion(model, args.data, args.validate, chunk_size=chunk_size)  # said as in memory
         checked, ratio = None, None
@@ -1103,7 +1105,7 @@ def diagnosis_streamed(args: DiagnoseOptions, friction: str, plan: Preprocessing
                                    held_torques=plan.held_torques, chunk_size=chunk_size)
         if resampled_validation({"streaming": diagnosis.streaming}):  # the errors on the samples as recorded
             diagnosis = recorded_errors(diagnosis, args, model_plan, load=subtracted)
-        model_file = model_plan, diagnosis.after.validation.mse
+        model_file = with_time_base(model_plan, plan), diagnosis.after.validation.mse
     if ratio is None:  # else measured before the gains' check
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # the files' findings were said on the diagnosis's passes
@@ -1165,7 +1167,8 @@ def diagnosis_streamed(args: DiagnoseOptions, friction: str, plan: Preprocessing
                                                     # computed now (a mount found is tried:
                                                     # streamed_gravity_diagnosis; the log less the description's
                                                     # gravity torque: streamed_subtracted_diagnosis)
-                                                 "time_base": STREAMED_TIME_BASE})
+                                                 **({"time_base": STREAMED_TIME_BASE}
+                                                    if stamps_kept(args.data) else {})})
     if gains_note is not None:  # said above
         diagnosis = replace(diagnosis, not_computed={**diagnosis.not_computed, "torque_gains": gains_note})
     # the training errors against the recording where the sums hold averaged periods or a resampled grid

@@ -104,7 +104,8 @@ from estimation.consistent.torque_gains import (
 from oed.workflows.consistent import check_consistent_arguments, consistent_lines, consistent_settings
 from oed.workflows.chosen_model import ChosenModel, answer_identification, chosen_messages, mse_line
 from oed.workflows.joint_side import named_as_given, records_to_read
-from oed.workflows.memory_path import IN_MEMORY_ROUTE, decide_path, streamed_choice, streamed_records
+from oed.workflows.memory_path import (IN_MEMORY_ROUTE, decide_path, on_time_base, stamps_kept, streamed_choice,
+                                      streamed_records, with_time_base)
 from oed.workflows.model_files import (
     add_model_file,
     add_summed_model_file,
@@ -456,8 +457,6 @@ def identify_document(args: IdentifyOptions, identified: Identified) -> tuple[di
         document["validation"]["mse_over_floor"] = None  # no floor, or no error against the recording
     drift = identified.friction_drift
     document["friction_drift"] = None if drift is None else drift.to_dict()
-    if result.path == "streamed" and args.validate:
-        document["not_computed"]["time_base"] = STREAMED_TIME_BASE
     said = add_training_range(document, identified.training_range, identified.range_checks)
     if said:  # a validation record beyond the training range: the choice measured some extrapolation
         messages += said
@@ -482,6 +481,7 @@ def identification_streamed(args: IdentifyOptions, model: IdentificationModel, t
         args = streamed_records(args, model)  # a file with holes: its segments, each on its own as in memory
         if plan is None:
             plan = streamed_choice(args, model, validation_fits=validation_fits(args, model, None)).chosen
+        args = on_time_base(args, plan)  # the regular clock chosen: every pass reads the sources on it, as memory
         options = plan_options(plan)
         weighting = choose_weighting(model, weighting_samples(streamed_window(args.data, model), plan)) \
             if args.method == "auto" else None  # on the samples the in-memory path chooses it on
@@ -563,6 +563,9 @@ def identification_streamed(args: IdentifyOptions, model: IdentificationModel, t
     else:
         model_plan = streamed_plan(args.data[0], model, cutoff_hz=cutoff_hz, decimation=options["decimation"],
                                    held_torques=bool(options["held_torques"]), chunk_size=chunk_size)  # as summed
+    model_plan = with_time_base(model_plan, plan)  # oed predict reads a record on the clock the fit read
+    if args.validate and stamps_kept(args.data):  # a training file cut at its holds: the stamps kept
+        not_computed["time_base"] = STREAMED_TIME_BASE
     chosen = ChosenModel(result.estimate.method, result) if selection is None else ChosenModel.of(selection)
     trivial, floor, floor_note, notes = None, None, None, ()
     if result.validation is not None:

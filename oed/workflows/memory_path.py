@@ -17,7 +17,9 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 
 from dynamics.models import IdentificationModel
+from estimation.data.sampling_clock import RECEIVE_TIMES_RATIO
 from estimation.identification.preprocessing_choice import SCORED_SAMPLES, PreprocessingChoice
+from estimation.identification.time_base_choice import choose_time_base
 from estimation.preprocessing.differentiation import whole_periods
 from estimation.preprocessing.plan import Preprocessing
 from estimation.data.input_findings import FindingsSaid, grouped_messages
@@ -31,7 +33,8 @@ from estimation.data.memory_budget import (
 )
 from oed.workflows.options import RecordOptions, streaming_requested
 
-__all__ = ["IN_MEMORY_ROUTE", "PathDecision", "decide_path", "streamed_choice", "streamed_records"]
+__all__ = ["IN_MEMORY_ROUTE", "PathDecision", "decide_path", "on_time_base", "stamps_kept", "streamed_choice",
+           "streamed_records", "streamed_time_base", "with_time_base"]
 
 #: what an option the streamed path lacks leaves the user (:func:`decide_path` reads such a run in memory whatever
 #: the records' size): said where ``--chunk-size``, ``--scheduler`` or ``--workers`` asked for the streamed path
@@ -82,11 +85,83 @@ def streamed_choice(args: RecordOptions, model: IdentificationModel,
         data = segment_sources(args.data, model, holds_cut=holds_cut(args))  # a file split at its holes, as in memory
     validation = segment_sources(getattr(args, "validate", None) or (), model)
     rows = rows if len(data) == len(args.data) else None
-    return choose_streamed_preprocessing(data, model, frequency_hz=args.frequency, harmonics=args.harmonics,
-                                         cutoff_hz=args.cutoff, average_periods=args.average_periods,
-                                         decimation=args.decimate, held_torques=args.held_torques, rows=rows,
-                                         held_out=validation, validation=validation, validation_fits=validation_fits,
-                                         validation_model=validation_model)
+    options = {"frequency_hz": args.frequency, "harmonics": args.harmonics, "cutoff_hz": args.cutoff,
+               "average_periods": args.average_periods, "decimation": args.decimate,
+               "held_torques": args.held_torques, "validation_fits": validation_fits,
+               "validation_model": validation_model}
+    choice = choose_streamed_preprocessing(data, model, rows=rows, held_out=validation, validation=validation,
+                                           **options)
+    chosen = choice.chosen
+    if not (validation_fits and validation) or chosen.evidence is None or chosen.evidence.selection != "validation":
+        return choice  # the time base is a candidate where the derivatives are chosen on another motion, as in memory
+    return streamed_time_base(choice, data, validation, segment_sources(getattr(args, "test", None) or (), model),
+                              model, options)
+
+
+def streamed_time_base(choice: PreprocessingChoice, data: Sequence, validation: Sequence, test: Sequence,
+                       model: IdentificationModel, options: dict) -> PreprocessingChoice:
+    """``choice`` (made on the sources at their stamps, on a validation record of another motion) against the same
+    choice on the sources' regular clock, as memory chooses the time base
+    (:mod:`estimation.identification.time_base_choice`): only where the positions of a training or validation
+    source are :data:`~estimation.data.sampling_clock.RECEIVE_TIMES_RATIO` times smoother on a regular clock (the
+    ratio summed over every kept row, :func:`~estimation.streaming.chunks.receive_times_evidence_of`), every
+    source has one, and no training source is a part between holds (those keep the stamps,
+    :data:`~estimation.identification.time_base_choice.STREAMED_PARTS_TIME_BASE`); both clocks' validation
+    candidates rescored together (:func:`~estimation.identification.time_base_choice.choose_time_base`). The plan
+    chosen says its :attr:`~estimation.preprocessing.plan.Preprocessing.time_base`; :func:`on_time_base` then
+    reads the sources on it."""
+    from estimation.streaming.chunks import clock_source, receive_times_evidence_of, source_rows
+    from estimation.streaming.cutoff_choice import choose_streamed_preprocessing
+    from estimation.streaming.time_base import NoRegularClockError
+
+    if stamps_kept(data):
+        return choice
+    ratios = [ratio for ratio in (receive_times_evidence_of(path, model) for path in (*data, *validation))
+              if ratio is not None]
+    if not ratios or max(ratios) < RECEIVE_TIMES_RATIO:
+        return choice
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # said when the sources were read at their stamps
+        try:
+            for path in (*data, *validation, *test):
+                source_rows(clock_source(path), model)  # a scan on the clock: none when a stamp lies off it
+        except NoRegularClockError:
+            return choice
+        on_clock = choose_streamed_preprocessing(
+            [clock_source(path) for path in data], model, held_out=[clock_source(path) for path in validation],
+            validation=[clock_source(path) for path in validation], **options).chosen
+    chooser = options["validation_model"] or model
+    chosen = choose_time_base(choice.chosen, on_clock, chooser.channels, max(ratios))
+    return PreprocessingChoice(chosen, chosen)
+
+
+def stamps_kept(data: Sequence) -> bool:
+    """Whether a training source is a part between holds, whose regular clock the streamed path does not score
+    (:func:`streamed_time_base`; ``not_computed.time_base``)."""
+    from estimation.streaming.chunks import source_file
+    from estimation.streaming.time_base import Part
+
+    return any(isinstance(source_file(path)[1], Part) for path in data)
+
+
+def with_time_base(model_plan: dict, plan: Preprocessing) -> dict:
+    """A streamed model file's preprocessing (``Preprocessing.to_dict`` keys) with ``plan``'s time base: ``oed
+    predict`` reads a record on the regular clock when the fit read its sources on it (:func:`on_time_base`)."""
+    return {**model_plan, "time_base": "regular"} if plan.time_base == "regular" else model_plan
+
+
+def on_time_base(args, plan: Preprocessing | None):
+    """``args`` with the sources of ``--data`` and ``--validate`` read on the regular clock their stamps
+    jitter around (:func:`estimation.streaming.chunks.clock_source`) when ``plan`` chose it
+    (:func:`streamed_time_base`), else ``args``: every pass then reads the same samples as memory's records on that
+    clock."""
+    from estimation.streaming.chunks import clock_source
+
+    if plan is None or plan.time_base != "regular":
+        return args
+    changes = {name: [clock_source(path) for path in getattr(args, name)]
+               for name in ("data", "validate") if getattr(args, name, None)}
+    return replace(args, **changes)
 
 
 def averaged_rows(plan: Preprocessing, args: RecordOptions, model: IdentificationModel,

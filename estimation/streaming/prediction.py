@@ -1,0 +1,226 @@
+"""``oed predict`` on a record read in blocks: the errors of an identified model on a record larger than memory.
+
+The in-memory :meth:`~estimation.identification.identified_model.IdentifiedModel.evaluate` reads the record whole,
+prepares it as the model file's preprocessing says, predicts and compares with the channels as recorded. Here the
+same record is read and prepared chunk by chunk (:func:`estimation.streaming.periods.plan_chunks`: the filter path's
+overlapping windows, equal to the whole record's samples to
+:data:`~estimation.streaming.chunks.MARGIN_TOLERANCE`; the Fourier path's periods) and the squared errors summed:
+at the recorded time stamps of a resampled (jittered) record, its motion interpolated there and its channels never
+(:func:`~estimation.streaming.recorded_errors.counted_errors_at_stamps`), the motion moved by the file's delay among
+the scored samples, on the regular clock when the model file's ``time_base`` says so
+(:class:`~estimation.streaming.time_base.RegularClock`, as
+:meth:`~estimation.identification.identified_model.IdentifiedModel.on_time_base`). The model's prediction is the
+file's own (:meth:`~estimation.identification.identified_model.IdentifiedModel.predict`: shaped laws at their
+shapes, a payload, the subtracted load, torque gains); the zero and nominal predictors are scored on the torques the
+model holds, as memory's :func:`~estimation.identification.trivial_predictors.trivial_mse` of the prepared record.
+Each joint's training range is checked chunk by chunk on the prepared samples (the largest excursions, the share of
+samples outside pooled; :meth:`~estimation.identification.training_range.TrainingRange.check`).
+
+What needs every sample of the record at once is not computed, and :attr:`StreamedEvaluation.not_computed` says
+so: the per-sample predictions and their bands (``--out``, ``--plot``), the record's noise floor (its estimator
+reads each segment whole) and the record-change check
+(:mod:`estimation.identification.record_changes`: its payload and gravity families are fitted on evenly spaced
+samples of the whole record with a prewhitened Newey–West covariance of their residuals, and weighted by the
+record's noise floor). A model file whose reading the streamed reader does not make (rows at rest dropped, a
+trimmed filter or one of another order, logged velocities replaced) is
+refused with :class:`~estimation.streaming.chunks.StreamingUnsupportedError`, naming the in-memory route; motor-side
+columns, joint zeros and reversed joint directions are read from joint-side copies of the files the caller makes
+(:func:`needs_joint_side`).
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from numpy.typing import NDArray
+
+from estimation.estimators.normal_equations import DEFAULT_CHUNK_SIZE
+from estimation.identification.training_range import UNKNOWN_RANGE, JointExcursion, RangeCheck
+from estimation.preprocessing.differentiation import ButterworthDifferentiation
+from estimation.streaming.chunks import StreamingUnsupportedError, clock_source, segment_sources, source_rows
+from estimation.streaming.periods import plan_chunks
+from estimation.streaming.recorded_errors import counted_errors_at_stamps
+from estimation.streaming.time_base import NoRegularClockError
+
+if TYPE_CHECKING:
+    from estimation.identification.identified_model import IdentifiedModel
+
+__all__ = ["STREAMED_PREDICT_NOT_COMPUTED", "StreamedEvaluation", "check_streamable", "needs_joint_side",
+           "pooled_range", "streamed_evaluation"]
+
+#: what the streamed ``oed predict`` leaves out (the metrics' ``not_computed``), each with its reason
+STREAMED_PREDICT_NOT_COMPUTED = {
+    "predictions": "the per-sample predictions, their 95 % bands and the figure (--out, --plot) are written by the "
+                   "in-memory path only (leave out --chunk-size; the record must then fit in memory)",
+    "noise_floor": "the record's noise floor is estimated on each segment whole, in memory only",
+    "changed": "the record-change check (a payload, gravity turned) fits evenly spaced samples of the whole record "
+               "with a prewhitened Newey-West covariance of their residuals, weighted by the record's noise floor: "
+               "in memory only",
+}
+
+#: the route where the streamed reading cannot be made
+IN_MEMORY = "leave out --chunk-size to predict the record in memory"
+
+
+@dataclass(frozen=True)
+class StreamedEvaluation:
+    """What the streamed ``oed predict`` measured (the keys of the in-memory
+    :class:`~estimation.identification.identified_model.Evaluation`'s ``to_dict``, those it cannot compute
+    ``None`` and named in :attr:`not_computed`)."""
+
+    mse: dict[str, float]
+    n_samples: int
+    zero_mse: dict[str, float]
+    nominal_mse: dict[str, float]
+    reported_validation_mse: dict[str, float] | None
+    model: str
+    range_check: RangeCheck | None
+    not_computed: dict[str, str] = field(default_factory=lambda: dict(STREAMED_PREDICT_NOT_COMPUTED))
+    chunk_size: int = DEFAULT_CHUNK_SIZE
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"mse": dict(self.mse), "mse_over_floor": None, "n_samples": int(self.n_samples),
+                "zero_mse": dict(self.zero_mse), "nominal_mse": dict(self.nominal_mse), "noise_floor_mse": None,
+                "reported_validation_mse": self.reported_validation_mse, "model": self.model,
+                "outside_training_range": None if self.range_check is None else self.range_check.to_dict(),
+                "training_range_note": UNKNOWN_RANGE if self.range_check is None else None,
+                "changed": None, "prediction_path": "streamed",
+                "streaming": {"chunk_size": int(self.chunk_size)}, "not_computed": dict(self.not_computed)}
+
+
+def needs_joint_side(identified: IdentifiedModel) -> bool:
+    """Whether the model file reads a record through a transmission (motor-side columns), joint zeros or reversed
+    joint directions: the streamed reader then reads joint-side copies of the files
+    (:func:`estimation.data.motor_side.joint_side_copies`, made chunk by chunk), as the streamed verbs do."""
+    file = identified.file
+    return identified.transmission is not None or file.joint_offsets is not None or (
+        file.joint_directions is not None and file.joint_directions.reversed)
+
+
+def check_streamable(identified: IdentifiedModel) -> None:
+    """:class:`StreamingUnsupportedError` naming what of the model file's reading the streamed reader does not make
+    (module docstring); nothing when it makes it all (the joint side: :func:`needs_joint_side`)."""
+    file, plan = identified.file, identified.preprocessing
+    reasons = []
+    if file.rest is not None and file.rest.get("rest") == "drop" and file.rest.get("min_speed"):
+        reasons.append("rows at rest dropped (--min-speed)")
+    if plan.method not in ("butterworth", "measured", "fourier"):
+        reasons.append(f"the {plan.method} preprocessing")
+    if plan.method == "butterworth" and plan.order != ButterworthDifferentiation().order:
+        reasons.append(f"a Butterworth filter of order {plan.order}")
+    if plan.trimmed_s:
+        reasons.append(f"{plan.trimmed_s:g} s trimmed at each end")
+    if plan.velocity_from_positions:
+        reasons.append("the logged velocities replaced by the positions' derivative")
+    if reasons:
+        raise StreamingUnsupportedError(f"the model file's reading holds {', '.join(reasons)}: the streamed "
+                                        f"`oed predict` does not make it; {IN_MEMORY}")
+
+
+def _sources(identified: IdentifiedModel, paths: Sequence[str | Path], chunk_size: int) -> list:
+    """The record's streamed sources: each file's segments (split at its holes, as memory reads it), each on its
+    regular clock when the model file's time base is ``regular`` and its stamps give one (else at its stamps, said
+    as memory says it)."""
+    model = identified.model
+    for path in paths:
+        if not Path(path).is_file():
+            raise StreamingUnsupportedError(f"{path}: the streamed `oed predict` reads .csv and .parquet files")
+    sources = segment_sources(list(paths), model, chunk_size=chunk_size)
+    if identified.preprocessing.time_base != "regular":
+        return sources
+    placed = []
+    for source in sources:
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")  # said when the source is read
+                source_rows(clock_source(source), model)
+            placed.append(clock_source(source))
+        except NoRegularClockError:
+            warnings.warn(f"{source}: the model was identified with the samples on a regular clock, but this "
+                          "record's stamps give none (a dropped row or a stall inside a segment): its samples are "
+                          "taken at their stamps", stacklevel=3)
+            placed.append(source)
+    return placed
+
+
+def _range(identified: IdentifiedModel, sources: Sequence, reading: dict[str, Any]) -> RangeCheck | None:
+    """Each joint's training range against the prepared samples of ``sources``, checked chunk by chunk and pooled:
+    the largest excursions and the share of samples outside, as the check of the whole record gives them."""
+    ranges = identified.file.training_range
+    if ranges is None:
+        return None
+    checks: list[RangeCheck] = []
+    for source in sources:
+        for chunk in plan_chunks(source, identified.model, **reading):
+            checks.append(ranges.check(chunk.q, chunk.dq))
+    return pooled_range(checks)
+
+
+def pooled_range(checks: Sequence[RangeCheck]) -> RangeCheck | None:
+    """The :class:`RangeCheck` of the samples of several checks together (the same ranges): each joint's largest
+    excursions, its share of samples outside weighted by the samples, outside when it is in one."""
+    if not checks:
+        return None
+    total = sum(check.n_samples for check in checks)
+    joints = []
+    for index, first in enumerate(checks[0].joints):
+        items = [check.joints[index] for check in checks]
+        speeds = [item.speed_above for item in items if item.speed_above is not None]
+        share = sum((item.fraction or 0.0) * check.n_samples for item, check in zip(items, checks))
+        joints.append(JointExcursion(first.joint, max(item.below for item in items),
+                                     max(item.above for item in items), max(speeds) if speeds else None,
+                                     float(share / total) if total else 0.0, any(item.outside for item in items),
+                                     first.training, first.tolerance))
+    return RangeCheck(tuple(joints), int(total))
+
+
+def streamed_evaluation(identified: IdentifiedModel, paths: Sequence[str | Path], *,
+                        chunk_size: int = DEFAULT_CHUNK_SIZE) -> StreamedEvaluation:
+    """``oed predict`` of ``identified`` on the record of ``paths`` (its segments), read ``chunk_size`` rows at a
+    time (module docstring); read as they are: motor-side columns, joint zeros and reversed directions already
+    turned to the joint side (:func:`needs_joint_side`).
+
+    Raises
+    ------
+    StreamingUnsupportedError
+        The model file's reading is one the streamed reader does not make (:func:`check_streamable`), a file is not
+        a .csv or .parquet one, or the loader drops rows of a resampled file the streamed grid interpolates.
+    """
+    check_streamable(identified)
+    model, plan = identified.model, identified.preprocessing
+    sources = _sources(identified, paths, chunk_size)
+    fourier = plan.method == "fourier"
+    reading: dict[str, Any] = {"chunk_size": chunk_size, "decimation": plan.decimation,
+                               "held_torques": bool(plan.held_torques)}
+    if fourier:
+        reading.update(frequency_hz=plan.frequency_hz, harmonics=plan.harmonics or 5,
+                       average=plan.average_periods or "auto")
+    else:
+        reading["cutoff_hz"] = plan.cutoff_hz if plan.method == "butterworth" else None
+    nominal_theta = model.nominal_parameters()
+
+    def zero(q: NDArray, dq: NDArray, ddq: NDArray) -> NDArray:  # against the torques the model holds
+        return -identified.subtracted_load(q)
+
+    def nominal(q: NDArray, dq: NDArray, ddq: NDArray) -> NDArray:
+        return model.predict(nominal_theta, q, dq, ddq) - identified.subtracted_load(q)
+
+    predictors = {"model": identified.predict, "zero_mse": zero, "nominal_mse": nominal}
+    counted = counted_errors_at_stamps(model, {}, sources, predictors=predictors,
+                                       delays={"model": identified.delay}, **reading)
+    if counted is None:
+        raise StreamingUnsupportedError(f"{', '.join(map(str, paths))}: the loader drops rows of a resampled file "
+                                        f"that the streamed grid interpolates; {IN_MEMORY}")
+    errors, count = counted
+    range_options = {key: value for key, value in reading.items() if key != "average"}
+    if fourier:
+        range_options["average"] = reading["average"]
+    check = _range(identified, sources, range_options)
+    return StreamedEvaluation(errors["model"], count, errors["zero_mse"], errors["nominal_mse"],
+                              identified.reported_validation_mse, identified.estimate, check,
+                              chunk_size=chunk_size)
+
