@@ -240,7 +240,8 @@ def logged_chain(path: str | Path, n_logged: int) -> tuple[tuple[str, ...], tupl
         raise RobotDescriptionError(
             f"URDF {path}: the tree branches or holds <mimic> joints, and the log's {n_logged} joint column(s) "
             f"determine {what}" + (" (" + "; ".join(",".join(chain) for chain in chains[:4]) + ")" if chains else "")
-            + ": name the logged joints, base to tip (joint_names, --joint-names A,B,C); the others are locked")
+            + ": name the logged joints, base to tip (joint_names, --joint-names A,B,C); the others are locked"
+            + ("" if chains else "; " + _said_chains(model, frozenset(mimics))))
     held = tuple(names[joint_id] for joint_id in range(1, model.njoints) if names[joint_id] not in chains[0])
     return chains[0], held
 
@@ -375,17 +376,51 @@ def _pinocchio_model(path: Path, root: ElementTree.Element) -> Any:
 
 
 def _check_serial_chain(path: Path, model: Any) -> None:
-    """Refuse a branching chain: every joint of Pinocchio's ``model`` must hang from the one before."""
+    """Refuse a branching chain: every joint of Pinocchio's ``model`` must hang from the one before. The message
+    names the chain from the base to the branch (when the branch is above the base) and the description's
+    chains from the base to each tip (:func:`_chains_from_base`)."""
     for joint_id in range(1, model.njoints):
         parent = model.parents[joint_id]
         if parent != joint_id - 1:
+            to_branch = (" (the chain from the base to the branch: --joint-names "
+                         + ",".join(model.names[index] for index in range(1, parent + 1)) + ")") if parent > 0 else ""
             raise RobotDescriptionError(
                 f"URDF {path}: joint {model.names[joint_id]!r} hangs from {model.names[parent]!r}, "
                 "not from the previous joint: branching chains are not supported (serial chains only); name the "
-                "logged joints, base to tip (joint_names, --joint-names), and the others are locked (the chain "
-                "from the base to the branch: --joint-names "
-                + ",".join(model.names[index] for index in range(1, parent + 1)) + ")"
+                "logged joints, base to tip (joint_names, --joint-names), and the others are locked" + to_branch
+                + "; " + _said_chains(model)
             )
+
+
+def _chains_from_base(model: Any, excluded: frozenset[str] = frozenset()) -> list[tuple[str, ...]]:
+    """The chains of Pinocchio's ``model`` from the base to each tip: every path of one-degree-of-freedom joints,
+    each hanging from the one before, from a joint on the base to a joint no such joint hangs from (a branch
+    starts a chain of its own), in the description's joint order; the joints named in ``excluded`` (``<mimic>``
+    joints) left out."""
+    usable = [joint_id for joint_id in range(1, model.njoints)
+              if model.joints[joint_id].nv == 1 and model.names[joint_id] not in excluded]
+    children = {joint_id: [child for child in usable if model.parents[child] == joint_id] for joint_id in usable}
+    chains: list[tuple[str, ...]] = []
+
+    def grow(chain: list[int]) -> None:
+        below = children[chain[-1]]
+        if not below:
+            chains.append(tuple(model.names[joint_id] for joint_id in chain))
+        for child in below:
+            grow([*chain, child])
+
+    for joint_id in usable:
+        if model.parents[joint_id] == 0:
+            grow([joint_id])
+    return chains
+
+
+def _said_chains(model: Any, excluded: frozenset[str] = frozenset(), limit: int = 6) -> str:
+    """The description's chains from the base (:func:`_chains_from_base`) as the options that read each."""
+    chains = _chains_from_base(model, excluded)
+    said = "; ".join(f"--joint-names {','.join(chain)}" for chain in chains[:limit])
+    more = f" and {len(chains) - limit} more" if len(chains) > limit else ""
+    return f"the description's {len(chains)} chain(s) from the base to a tip: {said}{more}"
 
 
 def _joint(path: Path, model: Any, joint_id: int) -> Joint:
