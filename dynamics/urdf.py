@@ -53,6 +53,10 @@ def _urdf_numbers(text: str, *, vector: bool) -> bool:
         return False
     return all(_NUMBER.fullmatch(token) and np.isfinite(float(token)) for token in tokens)
 
+#: what a message adds where a file holds xacro's macros or expressions, not yet expanded
+_XACRO_HINT = (": a xacro file, not yet expanded; expand it first (`xacro robot.urdf.xacro > robot.urdf`, "
+               "its arguments given) and read the URDF it writes")
+
 
 def _check_numbers(path: Path) -> ElementTree.Element:
     """The file's XML root, after checking that every number of the links' inertial elements and of
@@ -65,7 +69,13 @@ def _check_numbers(path: Path) -> ElementTree.Element:
     try:
         root = ElementTree.parse(path).getroot()
     except ElementTree.ParseError as error:
-        raise RobotDescriptionError(f"cannot parse URDF {path}: not well-formed XML ({error})") from None
+        raise RobotDescriptionError(f"cannot parse URDF {path}: not well-formed XML ({error})"
+                                    + (_XACRO_HINT if "xacro" in path.read_text(errors="replace") else "")) from None
+    macros = sorted({element.tag.split("}")[-1] for element in root.iter()
+                     if isinstance(element.tag, str) and "xacro" in element.tag.split("}")[0]})
+    if macros:  # urdfdom skips what it does not know: the links and joints inside a macro would be lost unsaid
+        raise RobotDescriptionError(f"URDF {path} holds xacro elements ({', '.join(f'xacro:{tag}' for tag in macros)})"
+                                    + _XACRO_HINT)
     for kind in ("link", "joint"):
         for element in root.iter(kind):
             owner = f"{kind} {element.get('name')!r}"
@@ -82,7 +92,8 @@ def _check_numbers(path: Path) -> ElementTree.Element:
                             raise RobotDescriptionError(
                                 f"URDF {path}: {owner}: <{tag} {attribute}=\"{text}\"> is not "
                                 + ("three finite numbers" if attribute in ("xyz", "rpy") else "one finite number")
-                                + " (plain decimal numbers, separated by single spaces)")
+                                + " (plain decimal numbers, separated by single spaces)"
+                                + (_XACRO_HINT if "${" in text or "$(" in text else ""))
             limit = element.find("limit") if kind == "joint" else None
             if limit is not None and limit.get("lower") is not None and limit.get("upper") is not None:
                 if float(limit.get("lower")) > float(limit.get("upper")):

@@ -372,3 +372,29 @@ def test_a_log_numbering_both_arms_is_read_for_the_first_arm_by_its_names(tmp_pa
     model = build_model(load_robot(urdf=written(DUAL_ARM), joint_names=ARMS["left"]), "internal", "viscous")
     read = read_measurements(tmp_path / "both_arms.csv", model=model)
     assert np.array_equal(read.as_recorded.tau, table[["tau1", "tau2", "tau3"]].to_numpy())
+
+
+@pytest.mark.parametrize("leftover", ["expression", "macro", "unbound prefix"])
+def test_a_description_with_xacro_leftovers_is_refused_naming_xacro(leftover, tmp_path):
+    """A description handed over before xacro expanded it: an expression left in a number (``${pi/2}``), xacro
+    elements in a file declaring xacro's namespace, or the same without the declaration. Each is refused naming
+    xacro and the command that expands it. At 4252663 the first was refused as "not three finite numbers" (xacro
+    unnamed), the third as XML not well-formed, and the second read without a word, the elements inside its macro
+    (an arm's links and joints, where a macro holds them) left out."""
+    from dynamics.errors import RobotDescriptionError
+    from dynamics.robots import load_robot
+
+    if leftover == "expression":
+        text = DUAL_ARM.replace('rpy="-1.5708 0 0"', 'rpy="-${pi/2} 0 0"')
+    else:
+        declared = ' xmlns:xacro="http://www.ros.org/wiki/xacro"' if leftover == "macro" else ""
+        text = DUAL_ARM.replace('<robot name="dual_arm">', f'<robot name="dual_arm"{declared}>\n'
+                                '  <xacro:property name="reach" value="0.32"/>\n'
+                                '  <xacro:macro name="finger" params="side"><link name="${side}_finger"/></xacro:macro>')
+    path = tmp_path / "dual_arm.urdf"
+    path.write_text(text, encoding="utf-8")
+    with pytest.raises(RobotDescriptionError, match=r"a xacro file, not yet expanded.*xacro robot\.urdf\.xacro"):
+        load_robot(urdf=path, joint_names=ARMS["left"])
+    path.write_text(DUAL_ARM.replace('<robot name="dual_arm">',
+                                     '<robot name="dual_arm" xmlns:xacro="http://www.ros.org/wiki/xacro">'))
+    assert load_robot(urdf=path, joint_names=ARMS["left"]).n_joints == 3  # the declaration alone is no leftover
