@@ -203,11 +203,32 @@ def robot_from_urdf(path: str | Path, *, gravity: np.ndarray | None = None, join
         _check_serial_chain(path, model)
     else:
         model = _named_joints_model(path, root, _checked_names(path, joint_names), dict(locked_at or {}))
-    return RobotModel(
+    robot = RobotModel(
         name=model.name or path.stem,
         joints=tuple(_joint(path, model, joint_id) for joint_id in range(1, model.njoints)),
         gravity=np.asarray(DEFAULT_GRAVITY if gravity is None else gravity, dtype=float),
     )
+    _check_lengths(path, robot)
+    return robot
+
+
+#: the longest chain of joints a description may span, m (the largest serial manipulators reach under 5 m, a
+#: gantry's beam and column a few metres more): beyond it the file's lengths are not metres
+LONGEST_CHAIN_M = 50.0
+
+
+def _check_lengths(path: Path, robot: RobotModel) -> None:
+    """Refuse a description whose lengths are not metres (a CAD export in millimetres): the chain's span, the sum of
+    the distances from each joint to the next and to its link's frame (the base's mount included), above
+    :data:`LONGEST_CHAIN_M`. URDF lengths are metres (ROS REP 103); a file in millimetres reads as a robot 1000
+    times larger, whose dynamics no fit of the log's torques can match, and nothing else would say so."""
+    span = sum(float(np.linalg.norm(joint.placement[:3, 3])) + float(np.linalg.norm(joint.link_transform[:3, 3]))
+               for joint in robot.joints)
+    if span > LONGEST_CHAIN_M:
+        raise RobotDescriptionError(
+            f"URDF {path}: its joints span {span:.4g} m from the base to the tip (above {LONGEST_CHAIN_M:g} m for "
+            "any robot arm): URDF lengths are metres; a file in millimetres must have its lengths (every <origin "
+            "xyz>, a prismatic joint's limits) divided by 1000 and its inertias in kg m^2")
 
 
 def logged_chain(path: str | Path, n_logged: int) -> tuple[tuple[str, ...], tuple[str, ...]] | None:
