@@ -39,6 +39,7 @@ import pandas as pd
 import pytest
 
 from tests.test_one_answer_audit import RELATIVE
+from tests.test_unseen_robot_benches import marks  # a Day has its Lab as a Bench does
 from tests.test_unseen_robot_kinds import as_well_as_the_plain_fit, ur10e
 from tests.test_unseen_robot_labs import Lab, puma, verbs_against_the_plain_fit, write_records
 from tests.test_unseen_robots import Log
@@ -61,13 +62,6 @@ class Day:
     @property
     def name(self) -> str:
         return self.lab.name
-
-
-def marks(day: Day) -> list[pytest.MarkDecorator]:
-    chosen = [pytest.mark.slow] if day.lab.slow else []
-    if day.lab.xfail:
-        chosen.append(pytest.mark.xfail(strict=True, reason=day.lab.xfail))
-    return chosen
 
 
 def run_day(day: Day, folder: Path) -> dict:
@@ -93,15 +87,20 @@ def run_day(day: Day, folder: Path) -> dict:
     return {**outcome, "cutoff": cutoff, "floor": (0.02 * spread) ** 2}
 
 
-def judged(day: Day, folder: Path) -> None:
-    outcome = run_day(day, folder)
+def checked(name: str, outcome: dict, may_name: tuple[str, ...] = ("coulomb", "viscous", "offset")) -> None:
+    """Every verb within the plain fit's margins, ``oed predict`` reproducing each reported validation error, no
+    effect named beyond ``may_name``."""
     print(f"\nreproduced validation error (relative): {outcome['reproduced']}")
-    as_well_as_the_plain_fit(day.name, outcome, f"chosen {outcome['selections']}; ")
+    as_well_as_the_plain_fit(name, outcome, f"chosen {outcome['selections']}; ")
     for label, error in outcome["reproduced"].items():
         assert error < RELATIVE, (label, error)
     for label, named in outcome["effects"].items():
-        false = [effect for effect in named if effect.split(" on ")[0].split(":")[0] not in day.may_name]
+        false = [effect for effect in named if effect.split(" on ")[0].split(":")[0] not in may_name]
         assert not false, (label, false)
+
+
+def judged(day: Day, folder: Path) -> None:
+    checked(day.name, run_day(day, folder), day.may_name)
 
 
 def by_direction(q: np.ndarray, dq: np.ndarray) -> np.ndarray:
@@ -318,15 +317,7 @@ def test_a_dual_arms_log_exits_naming_each_arm_and_each_arm_predicts_as_well_as_
         predicted_plain, kept = plain.predict(records["test"], cutoff, plain_theta)
         outcome = verbs_against_the_plain_fit(description, files, records["test"], kept, predicted_plain,
                                               tmp_path / side, options=("--joint-names", ",".join(names)))
-        outcome = {**outcome, "cutoff": cutoff, "floor": (0.02 * spread) ** 2}
-        print(f"\nreproduced validation error (relative): {outcome['reproduced']}")
-        as_well_as_the_plain_fit(f"the dual arm's {side} arm", outcome, f"chosen {outcome['selections']}; ")
-        for label, error in outcome["reproduced"].items():
-            assert error < RELATIVE, (label, error)
-        for label, named in outcome["effects"].items():
-            false = [effect for effect in named if effect.split(" on ")[0].split(":")[0] not in
-                     ("coulomb", "viscous", "offset")]
-            assert not false, (label, false)
+        checked(f"the dual arm's {side} arm", {**outcome, "cutoff": cutoff, "floor": (0.02 * spread) ** 2})
 
 
 def test_a_dual_arms_description_names_each_arm_whatever_the_log_holds():
