@@ -53,6 +53,10 @@ def _urdf_numbers(text: str, *, vector: bool) -> bool:
         return False
     return all(_NUMBER.fullmatch(token) and np.isfinite(float(token)) for token in tokens)
 
+#: what a message adds where a file holds xacro's macros or expressions, not yet expanded
+_XACRO_HINT = (": a xacro file, not yet expanded; expand it first (`xacro robot.urdf.xacro > robot.urdf`, "
+               "its arguments given) and read the URDF it writes")
+
 
 def _check_numbers(path: Path) -> ElementTree.Element:
     """The file's XML root, after checking that every number of the links' inertial elements and of
@@ -65,7 +69,13 @@ def _check_numbers(path: Path) -> ElementTree.Element:
     try:
         root = ElementTree.parse(path).getroot()
     except ElementTree.ParseError as error:
-        raise RobotDescriptionError(f"cannot parse URDF {path}: not well-formed XML ({error})") from None
+        raise RobotDescriptionError(f"cannot parse URDF {path}: not well-formed XML ({error})"
+                                    + (_XACRO_HINT if "xacro" in path.read_text(errors="replace") else "")) from None
+    macros = sorted({element.tag.split("}")[-1] for element in root.iter()
+                     if isinstance(element.tag, str) and "xacro" in element.tag.split("}")[0]})
+    if macros:  # urdfdom skips what it does not know: the links and joints inside a macro would be lost unsaid
+        raise RobotDescriptionError(f"URDF {path} holds xacro elements ({', '.join(f'xacro:{tag}' for tag in macros)})"
+                                    + _XACRO_HINT)
     for kind in ("link", "joint"):
         for element in root.iter(kind):
             owner = f"{kind} {element.get('name')!r}"
@@ -82,7 +92,8 @@ def _check_numbers(path: Path) -> ElementTree.Element:
                             raise RobotDescriptionError(
                                 f"URDF {path}: {owner}: <{tag} {attribute}=\"{text}\"> is not "
                                 + ("three finite numbers" if attribute in ("xyz", "rpy") else "one finite number")
-                                + " (plain decimal numbers, separated by single spaces)")
+                                + " (plain decimal numbers, separated by single spaces)"
+                                + (_XACRO_HINT if "${" in text or "$(" in text else ""))
             limit = element.find("limit") if kind == "joint" else None
             if limit is not None and limit.get("lower") is not None and limit.get("upper") is not None:
                 if float(limit.get("lower")) > float(limit.get("upper")):
@@ -192,11 +203,32 @@ def robot_from_urdf(path: str | Path, *, gravity: np.ndarray | None = None, join
         _check_serial_chain(path, model)
     else:
         model = _named_joints_model(path, root, _checked_names(path, joint_names), dict(locked_at or {}))
-    return RobotModel(
+    robot = RobotModel(
         name=model.name or path.stem,
         joints=tuple(_joint(path, model, joint_id) for joint_id in range(1, model.njoints)),
         gravity=np.asarray(DEFAULT_GRAVITY if gravity is None else gravity, dtype=float),
     )
+    _check_lengths(path, robot)
+    return robot
+
+
+#: the longest chain of joints a description may span, m (the largest serial manipulators reach under 5 m, a
+#: gantry's beam and column a few metres more): beyond it the file's lengths are not metres
+LONGEST_CHAIN_M = 50.0
+
+
+def _check_lengths(path: Path, robot: RobotModel) -> None:
+    """Refuse a description whose lengths are not metres (a CAD export in millimetres): the chain's span, the sum of
+    the distances from each joint to the next and to its link's frame (the base's mount included), above
+    :data:`LONGEST_CHAIN_M`. URDF lengths are metres (ROS REP 103); a file in millimetres reads as a robot 1000
+    times larger, whose dynamics no fit of the log's torques can match, and nothing else would say so."""
+    span = sum(float(np.linalg.norm(joint.placement[:3, 3])) + float(np.linalg.norm(joint.link_transform[:3, 3]))
+               for joint in robot.joints)
+    if span > LONGEST_CHAIN_M:
+        raise RobotDescriptionError(
+            f"URDF {path}: its joints span {span:.4g} m from the base to the tip (above {LONGEST_CHAIN_M:g} m for "
+            "any robot arm): URDF lengths are metres; a file in millimetres must have its lengths (every <origin "
+            "xyz>, a prismatic joint's limits) divided by 1000 and its inertias in kg m^2")
 
 
 def urdf_actuated_joints(path: str | Path) -> frozenset[str] | None:
@@ -257,7 +289,8 @@ def logged_chain(path: str | Path, n_logged: int) -> tuple[tuple[str, ...], tupl
         raise RobotDescriptionError(
             f"URDF {path}: the tree branches or holds <mimic> joints, and the log's {n_logged} joint column(s) "
             f"determine {what}" + (" (" + "; ".join(",".join(chain) for chain in chains[:4]) + ")" if chains else "")
-            + ": name the logged joints, base to tip (joint_names, --joint-names A,B,C); the others are locked")
+            + ": name the logged joints, base to tip (joint_names, --joint-names A,B,C); the others are locked"
+            + ("" if chains else "; " + _said_chains(model, frozenset(mimics))))
     held = tuple(names[joint_id] for joint_id in range(1, model.njoints) if names[joint_id] not in chains[0])
     return chains[0], held
 
@@ -392,17 +425,51 @@ def _pinocchio_model(path: Path, root: ElementTree.Element) -> Any:
 
 
 def _check_serial_chain(path: Path, model: Any) -> None:
-    """Refuse a branching chain: every joint of Pinocchio's ``model`` must hang from the one before."""
+    """Refuse a branching chain: every joint of Pinocchio's ``model`` must hang from the one before. The message
+    names the chain from the base to the branch (when the branch is above the base) and the description's
+    chains from the base to each tip (:func:`_chains_from_base`)."""
     for joint_id in range(1, model.njoints):
         parent = model.parents[joint_id]
         if parent != joint_id - 1:
+            to_branch = (" (the chain from the base to the branch: --joint-names "
+                         + ",".join(model.names[index] for index in range(1, parent + 1)) + ")") if parent > 0 else ""
             raise RobotDescriptionError(
                 f"URDF {path}: joint {model.names[joint_id]!r} hangs from {model.names[parent]!r}, "
                 "not from the previous joint: branching chains are not supported (serial chains only); name the "
-                "logged joints, base to tip (joint_names, --joint-names), and the others are locked (the chain "
-                "from the base to the branch: --joint-names "
-                + ",".join(model.names[index] for index in range(1, parent + 1)) + ")"
+                "logged joints, base to tip (joint_names, --joint-names), and the others are locked" + to_branch
+                + "; " + _said_chains(model)
             )
+
+
+def _chains_from_base(model: Any, excluded: frozenset[str] = frozenset()) -> list[tuple[str, ...]]:
+    """The chains of Pinocchio's ``model`` from the base to each tip: every path of one-degree-of-freedom joints,
+    each hanging from the one before, from a joint on the base to a joint no such joint hangs from (a branch
+    starts a chain of its own), in the description's joint order; the joints named in ``excluded`` (``<mimic>``
+    joints) left out."""
+    usable = [joint_id for joint_id in range(1, model.njoints)
+              if model.joints[joint_id].nv == 1 and model.names[joint_id] not in excluded]
+    children = {joint_id: [child for child in usable if model.parents[child] == joint_id] for joint_id in usable}
+    chains: list[tuple[str, ...]] = []
+
+    def grow(chain: list[int]) -> None:
+        below = children[chain[-1]]
+        if not below:
+            chains.append(tuple(model.names[joint_id] for joint_id in chain))
+        for child in below:
+            grow([*chain, child])
+
+    for joint_id in usable:
+        if model.parents[joint_id] == 0:
+            grow([joint_id])
+    return chains
+
+
+def _said_chains(model: Any, excluded: frozenset[str] = frozenset(), limit: int = 6) -> str:
+    """The description's chains from the base (:func:`_chains_from_base`) as the options that read each."""
+    chains = _chains_from_base(model, excluded)
+    said = "; ".join(f"--joint-names {','.join(chain)}" for chain in chains[:limit])
+    more = f" and {len(chains) - limit} more" if len(chains) > limit else ""
+    return f"the description's {len(chains)} chain(s) from the base to a tip: {said}{more}"
 
 
 def _joint(path: Path, model: Any, joint_id: int) -> Joint:
