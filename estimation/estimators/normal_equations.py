@@ -197,7 +197,9 @@ class NormalEquations:
         # place (allocation churn made this 3x slower in dask workers, which return freed memory eagerly)
         buffer = np.empty((width + Y.shape[0]) * width)
         factor = np.zeros((self.n_channels, width, width))
-        support = np.any(Y != 0, axis=0)  # (m, k): a distal joint's torque reaches few of the base parameters
+        # (m, k): a distal joint's torque reaches few of the base parameters (``Y.any`` reads ``Y`` in place;
+        # ``np.any(Y != 0)`` wrote a boolean copy of it first: the same booleans, NaN nonzero in both)
+        support = Y.any(axis=0)
         for c in range(self.n_channels):
             columns = channel_columns(self.factor[c], support[c])
             narrow = columns.shape[0]

@@ -190,8 +190,10 @@ class HeldOutScore:
         scale[scale == 0] = 1.0
         squared = np.zeros(y.shape[1])
         blocks = [held for held, _ in blocked_folds(y.shape[0], self.folds)]
-        support = np.any(Y != 0, axis=0)  # (m, p): the columns each channel has
-        factors = [block_factor(Y[held] / scale[None, :, None], y[held] / scale, support) for held in blocks]
+        # (m, p): the columns each channel has (``Y.any`` reads ``Y`` in place; ``np.any(Y != 0)`` wrote a boolean copy
+        # of it first: the same booleans, NaN nonzero in both)
+        support = Y.any(axis=0)
+        factors = [block_factor(Y[held], y[held], support, scale) for held in blocks]
         p = Y.shape[2]
         for index, held in enumerate(blocks):
             kept = np.concatenate(factors[:index] + factors[index + 1:], axis=0)
@@ -294,16 +296,22 @@ def blocked_folds(n_samples: int, folds: int) -> Iterator[tuple[slice, NDArray[n
         yield slice(start, stop), kept
 
 
-def block_factor(Y: NDArray[np.float64], y: NDArray[np.float64], support: NDArray[np.bool_]) -> NDArray[np.float64]:
+def block_factor(Y: NDArray[np.float64], y: NDArray[np.float64], support: NDArray[np.bool_],
+                 scale: NDArray[np.float64] | None = None) -> NDArray[np.float64]:
     """Triangular factors ``[R, Qᵀy]`` of the rows ``[Y, y]`` of a block ``Y (N, m, p)``, ``y (N, m)``, one per
     channel on the columns it has (``support (m, p)``, zero elsewhere), stacked: least squares on several blocks'
     factors stacked is least squares on their rows. A channel reaches few of the columns (a distal joint's torque,
-    its own friction): its factor costs a fraction of the whole block's."""
+    its own friction): its factor costs a fraction of the whole block's. ``scale (m,)``: each channel's rows
+    ``[Y_c, y_c]`` divided by ``scale[c]`` first (the block's own columns only: the same quotients as dividing the
+    whole block, without the division and the copy of the columns a channel does not have)."""
     n_columns = Y.shape[2]
     factors = []
     for channel, columns in enumerate(support):
         where = np.append(np.flatnonzero(columns), n_columns)
-        triangular = np.linalg.qr(np.concatenate([Y[:, channel, columns], y[:, channel, None]], axis=1), mode="r")
+        rows = np.concatenate([Y[:, channel, columns], y[:, channel, None]], axis=1)
+        if scale is not None:
+            rows /= scale[channel]
+        triangular = np.linalg.qr(rows, mode="r")
         factor = np.zeros((triangular.shape[0], n_columns + 1))
         factor[:, where] = triangular
         factors.append(factor)
