@@ -123,9 +123,9 @@ def test_a_reversed_torque_among_gains_is_said_on_the_seeds_the_scan_without_gai
     seed 16: joint 2's, −0.95), the zeros as the description's. Before (h-gains2), the directions were scanned
     without the gains, and the scan took the neighbouring joint's torque (training cost 0.116 against 0.127 for the
     true joint on seed 8, 0.248 against 0.280 on seed 16); at that wrong joint the positive gains no longer lowered the
-    held-out error, the description's bodies refused it, and nothing was said. Now the gains are put in question at
-    the recorded directions, of either sign, and the directions are scanned with them kept positive: the true joint's
-    torque is said reversed, with the gains, and nothing else."""
+    held-out error, the description's bodies refused it, and nothing was said. Now, the scan having taken a reversal
+    without the gains, the gains are asked again at the recorded directions, of either sign, and the directions are
+    scanned with them kept positive: the true joint's torque is said reversed, with the gains, and nothing else."""
     robot, model = puma6
     (train, validate), gains = logs(model, robot, seed)
     check = check_joint_zeros(model, replace(train, tau=train.tau * gains), replace(validate, tau=validate.tau * gains),
