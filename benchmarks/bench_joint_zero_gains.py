@@ -2,12 +2,14 @@
 
 A 6-joint PUMA (viscous, Coulomb and offset per joint), a training and a validation record of other Fourier motions,
 2 % white torque noise; each seed draws the parameters, the motions, the noise and the gains (0.3–1.8, joint 2's or
-3's sign flipped: a true torque reversal), the logs of ``tests/test_joint_zero_gains.py``. Four logs a seed:
+3's sign flipped: a true torque reversal), the logs of ``tests/test_joint_zero_gains.py``. Six logs a seed:
 
 - ``gains``: the torques times the gains, the zeros as the description's;
 - ``gains+offset``: the same with joint 2's zero 0.8 rad off;
 - ``offset``: joint 2's zero 0.8 rad off, no gains;
-- ``plain``: neither.
+- ``plain``: neither;
+- ``positive-gains``: the same gains kept positive (no reversal), the zeros as the description's (h-gains3);
+- ``reversal``: the flipped joint's torque reversed alone, no gains, the zeros as the description's (h-gains3).
 
 For each, :func:`~estimation.identification.joint_zeros.check_joint_zeros` (the verbs' call, directions scanned) and
 what it said: whether marked, the joints named and their offsets, the signs, whether it ran with the gains. A row is
@@ -33,7 +35,7 @@ from dynamics.simulation.synthetic import simulate, true_parameters
 from estimation.identification.joint_zeros import check_joint_zeros
 from oed.fourier import random_fourier
 
-LOGS = ("gains", "gains+offset", "offset", "plain")
+LOGS = ("gains", "gains+offset", "offset", "plain", "positive-gains", "reversal")
 OFFSETS = np.array([0.0, 0.8, 0.0, 0.0, 0.0, 0.0])
 
 
@@ -57,7 +59,7 @@ def one(task: tuple[int, str]) -> dict:
     model = build_model(robot, "internal", "viscous,coulomb,offset")
     (train, validate), gains = records(model, robot, seed)
     offsets = OFFSETS if "offset" in log else np.zeros(6)
-    scale = gains if "gains" in log else np.ones(6)
+    scale = {"positive-gains": np.abs(gains), "reversal": np.sign(gains)}.get(log, gains if "gains" in log else np.ones(6))
     started = time.process_time()
     check = check_joint_zeros(model, replace(train, q=train.q - offsets, tau=train.tau * scale),
                               replace(validate, q=validate.q - offsets, tau=validate.tau * scale), warn=False)

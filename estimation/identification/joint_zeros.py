@@ -24,9 +24,12 @@ held-out MSE ratio, and the total held-out MSE, both at most ``1 −`` it). A na
 by itself the held-out error, with and without a free gain on each joint's torque
 (:func:`_apart_from_gains`): torques logged with an unknown gain per joint are otherwise read as joint zeros. When
 such gains are in question (:func:`gains_in_question`: they lower the held-out error by a one-sided paired test over
-blocks of the held-out samples at the level :data:`PAIRED_ALPHA`, :func:`paired_test`), steps 1–3 and the tests run
-with a gain on each joint's torque fitted beside ``θ`` (kept positive when the directions are scanned: a reversed torque
-is theirs to say), so that a true offset is found where the records tell it from a gain, and nothing is said where they
+blocks of the held-out samples at the level :data:`PAIRED_ALPHA`, :func:`paired_test`; asked at the directions the
+scan found without them, and, when not in question there and the scan took a reversal, again at the recorded
+directions with gains of either sign, a reversed torque being a negative gain: the directions are then scanned again
+with the gains), steps 1–3 and the tests run with a gain on each joint's torque fitted beside ``θ`` (kept positive
+when the directions are scanned: a reversed torque is theirs to say; scanned without the gains, a reversed torque among
+gains is taken for the neighbouring joint's on some logs), so that a true offset is found where the records tell it from a gain, and nothing is said where they
 do not; the gains must still pass the same test at the offsets and directions found, else they stood in for these and
 the check runs without them. A correctly zeroed log whose model lacks
 something (a spring, a cable, a joint's friction the laws miss) must not be told its zeros are wrong: on such logs
@@ -308,8 +311,12 @@ class _Problem:
 
     def scored(self, Y: NDArray, signs: NDArray, normal: _Normal | None = None) -> float:
         """The cost of the fit of ``Y`` to the target times ``signs`` (one a channel); ``normal``: the normal equations
-        of ``Y`` with these weights (:meth:`normal`), formed once for the targets of several signs."""
+        of ``Y`` with these weights (:meth:`normal`), formed once for the targets of several signs. With a gain on
+        each :attr:`gained` channel, the fit with the gains (:func:`fit_channel_gains`, :attr:`sign`; ``normal``
+        unused)."""
         target = self.target * signs
+        if self.gained is not None:
+            return fit_channel_gains(Y, target, self.weights, self.gained, sign=self.sign).cost
         normal = self.normal(Y) if normal is None else normal
         theta = normal.solve(target * self.weights)
         return float(np.mean(((target - Y @ theta) * self.weights) ** 2))
@@ -458,7 +465,7 @@ def estimate_signs(model: IdentificationModel, problem: _Problem) -> tuple[NDArr
                 Y = model.evaluate_base(base.q * np.where(np.arange(n) == joint, -1.0, 1.0) + offsets,
                                         base.dq * np.where(np.arange(n) == joint, -1.0, 1.0),
                                         base.ddq * np.where(np.arange(n) == joint, -1.0, 1.0))
-                normal = problem.normal(Y)  # one for both torque signs
+                normal = None if problem.gained is not None else problem.normal(Y)  # one for both torque signs
                 for reversed_torque in (True, False) if measured[joint] else (False,):
                     flipped_torque = torque.copy()
                     if reversed_torque:
@@ -470,7 +477,7 @@ def estimate_signs(model: IdentificationModel, problem: _Problem) -> tuple[NDArr
                 flipped_torque = torque.copy()
                 flipped_torque[joint] = -1.0
                 Y = base.regressor(np.zeros(n))
-                unflipped = problem.normal(Y) if unflipped is None else unflipped
+                unflipped = problem.normal(Y) if unflipped is None and problem.gained is None else unflipped
                 trial_cost = problem.scored(Y, channel_signs(model, flipped_torque), unflipped)
                 if trial_cost < cost * (1 - REVERSAL_GAIN) and (best is None or trial_cost < best[0]):
                     best = (trial_cost, signs.copy(), flipped_torque)
@@ -568,9 +575,15 @@ def gains_in_question(model: IdentificationModel, found: _Problem, scored: tuple
     fit of ``θ`` cannot take up, and a joint's zero moved takes part of it up (:func:`_apart_from_gains`); with the
     gains and a true offset together, a scan without the gains misses the offset or finds another (a 6-joint PUMA, 0.8
     rad on joint 2: found on 3 of 8 logs, one at −172°). The gains are in question when the fit with them, on the
-    training samples ``found`` at the description's zeros in the directions found, predicts the held-out samples
-    ``scored`` better than the fit without, by the one-sided paired test of :func:`paired_test` at the level
-    :data:`PAIRED_ALPHA`: then the scan, the held-out estimate and the tests run with them. Only the gains the
+    training samples ``found`` at the description's zeros in the directions ``signs``, ``torque_signs``, predicts the
+    held-out samples ``scored`` better than the fit without, by the one-sided paired test of :func:`paired_test` at
+    the level :data:`PAIRED_ALPHA`: then the scan of offsets, the held-out estimate and the tests run with them. The
+    check asks at the directions its scan found without gains (``sign="held"``); when the scan took a reversal and the
+    gains are not in question there, it asks again at the recorded directions with ``sign="free"`` (a reversed torque
+    is a negative gain) and, when in question, scans the directions again with the gains kept positive: a 6-joint
+    PUMA whose torques were logged with gains and joint 3's reversed took joint 2's reversal without the gains (its
+    training cost 0.116 against 0.127), where the positive gains no longer lowered the held-out error (t = −1.0), and
+    nothing was said, on 2 of 20 logs (``benchmarks/README.md``, h-gains3). Only the gains the
     training samples determine are freed (:func:`~estimation.identification.channel_gains.determined_channels`, after
     :data:`SURVEY_ITERATIONS` steps with every gain free): the others wander along a valley of the cost (a PUMA's
     wrist at the noise: gains of 100 and more for a fall of 2 %, as large as the offsets' tests). Returns the
@@ -799,11 +812,21 @@ def _checked(model: IdentificationModel, train: Measurements, held_out: Measurem
     n = model.robot.n_joints
     # the gains kept positive when the directions are scanned (a reversed torque is theirs to say), else either sign
     sign: GainSign = "held" if directions else "free"
+    ones = np.ones(n)
     with np.errstate(all="ignore"):
-        signs, torque = estimate_signs(model, problem) if directions else (np.ones(n), np.ones(n))
+        signs, torque = estimate_signs(model, problem) if directions else (ones, ones)
         reversed_ = (signs < 0) | (torque < 0)
         found = problem.flipped(signs, torque) if np.any(reversed_) else problem
         gained = gains_in_question(model, found, scored, signs, torque, sign) if gains else None
+        if gained is None and gains and np.any(reversed_):
+            # the scan's reversal, taken without the gains, may be theirs (the neighbouring joint's torque reversed
+            # in place of the true one's): the gains asked again at the recorded directions, of either sign (a
+            # reversed torque is a negative gain), and when in question the directions scanned with them
+            gained = gains_in_question(model, problem, scored, ones, ones, "free")
+            if gained is not None:
+                signs, torque = estimate_signs(model, problem.with_gains(gained, sign))
+                reversed_ = (signs < 0) | (torque < 0)
+                found = problem.flipped(signs, torque) if np.any(reversed_) else problem
         if gained is not None:  # every cost from here on with a gain on each joint's torque
             problem, found = problem.with_gains(gained, sign), found.with_gains(gained, sign)
         offsets = estimate_offsets(model, found)
