@@ -10,6 +10,10 @@ Two ways, one result for the dynamics:
   joint ``i``'s origin in link ``i−1`` is ``B_{i−1} A_i`` and link ``i``'s frame is the joint frame,
   so the parameters given in ``F_i = L_i B_i`` are moved by ``B_i`` (module :mod:`dynamics.robot`).
 
+A robot with passive (unactuated) joints keeps them so in either file: a ``<transmission>`` is written for each
+driven joint (:func:`declare_motors`), the declaration :func:`dynamics.urdf.urdf_actuated_joints` reads, when the file
+does not already declare its motors.
+
 An ``<inertial>`` holds the mass, the centre of mass ``c`` (``origin xyz``) and the inertia about
 ``c`` (``I_c = I_O − m (cᵀc 𝟙 − c cᵀ)``, the parallel-axis theorem), here with ``rpy = 0``.
 """
@@ -25,7 +29,7 @@ from numpy.typing import ArrayLike, NDArray
 from dynamics.errors import RobotDescriptionError
 from dynamics.robot import N_LINK_PARAMETERS, RobotModel
 
-__all__ = ["inertial_element", "robot_urdf", "urdf_with_inertials"]
+__all__ = ["declare_motors", "inertial_element", "robot_urdf", "urdf_with_inertials"]
 
 
 def _rotational(parameters: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -98,6 +102,7 @@ def robot_urdf(robot: RobotModel, link_parameters: ArrayLike | None = None, *, b
         ElementTree.SubElement(element, "limit", lower=_finite_limit(joint.lower, -1e3), upper=_finite_limit(joint.upper, 1e3),
                                velocity=_finite_limit(joint.velocity, 1e3), effort=_finite_limit(joint.effort, 1e6))
         parent, previous = child, joint.link_transform
+    declare_motors(root, robot)
     ElementTree.indent(root)
     return ElementTree.tostring(root, encoding="unicode") + "\n"
 
@@ -136,7 +141,35 @@ def urdf_with_inertials(urdf_text: str, robot: RobotModel, link_parameters: Arra
             link = links[fixed.find("child").get("link")]
             _replace_inertial(link, None)
             pending.extend(children.get(link.get("name"), []))
+    if declare_motors(root, robot):
+        ElementTree.indent(root)
     return ElementTree.tostring(root, encoding="unicode") + "\n"
+
+
+def declare_motors(root: ElementTree.Element, robot: RobotModel) -> bool:
+    """Append to the URDF ``root`` a ``<transmission>`` (``transmission_interface/SimpleTransmission``, one joint, one
+    actuator) for each of ``robot``'s driven joints, when ``robot`` has a passive (unactuated) joint and ``root``
+    declares no motor (no ``<transmission>`` and no ``<ros2_control>`` joint with a ``<command_interface>``): the file
+    read again says which joints have no motor (:func:`dynamics.urdf.urdf_actuated_joints`), as the model it was
+    written from did. A file that declares its motors is left as it is (it is the user's word). Returns whether
+    anything was appended."""
+    if not robot.passive_joints:
+        return False
+    declared = any(transmission.find("joint") is not None for transmission in root.iter("transmission")) or any(
+        joint.find("command_interface") is not None for block in root.iter("ros2_control")
+        for joint in block.findall("joint"))
+    if declared:
+        return False
+    for joint in robot.joints:
+        if not joint.actuated:
+            continue
+        transmission = ElementTree.SubElement(root, "transmission", name=f"{joint.name}_transmission")
+        ElementTree.SubElement(transmission, "type").text = "transmission_interface/SimpleTransmission"
+        driven = ElementTree.SubElement(transmission, "joint", name=joint.name)
+        ElementTree.SubElement(driven, "hardwareInterface").text = "hardware_interface/EffortJointInterface"
+        actuator = ElementTree.SubElement(transmission, "actuator", name=f"{joint.name}_motor")
+        ElementTree.SubElement(actuator, "mechanicalReduction").text = "1"
+    return True
 
 
 def _replace_inertial(link: ElementTree.Element, inertial: ElementTree.Element | None) -> None:

@@ -237,3 +237,24 @@ def test_a_streamed_request_with_a_passive_joint_is_refused_naming_what_works(tm
         code, message = quiet(["identify", "--robot", "puma560", "--joints", "3", "--passive", "3", "--data",
                                str(path), "--chunk-size", "200", "--out", str(tmp_path / "r.json")])
     assert code == 2 and "drop the streaming options" in message, message
+
+
+def test_an_exported_urdf_keeps_the_passive_joints_without_a_motor(tmp_path):
+    """The URDF written from a robot with a passive joint (:func:`dynamics.urdf_export.robot_urdf`, or the user's file
+    with the identified bodies, :func:`~dynamics.urdf_export.urdf_with_inertials`) declares a motor on each driven joint
+    only, so that reading it again says which joint has none; a robot without a passive joint, or a file that declares
+    its motors, is written as before."""
+    from dynamics.urdf_export import robot_urdf, urdf_with_inertials
+
+    passive = load_robot("puma560", joints=3, passive=["joint3"])
+    written_back = tmp_path / "puma.urdf"
+    written_back.write_text(robot_urdf(passive))
+    assert described_unactuated(written_back, load_robot(urdf=written_back)) == ("joint3",)
+    assert "<transmission" not in robot_urdf(load_robot("puma560", joints=3))
+    plain = PENDUBOT[:PENDUBOT.index("  <transmission")] + "</robot>\n"
+    free_elbow = load_robot(urdf=written(plain), passive=["elbow"])
+    merged = tmp_path / "pendubot.urdf"
+    merged.write_text(urdf_with_inertials(plain, free_elbow, free_elbow.standard_parameters))
+    assert described_unactuated(merged, load_robot(urdf=merged)) == ("elbow",)
+    assert urdf_with_inertials(PENDUBOT, free_elbow, free_elbow.standard_parameters).count("<transmission") == 1
+    np.testing.assert_allclose(load_robot(urdf=merged).standard_parameters, free_elbow.standard_parameters, atol=1e-12)
