@@ -141,8 +141,7 @@ def urdf_with_inertials(urdf_text: str, robot: RobotModel, link_parameters: Arra
             link = links[fixed.find("child").get("link")]
             _replace_inertial(link, None)
             pending.extend(children.get(link.get("name"), []))
-    if declare_motors(root, robot):
-        ElementTree.indent(root)
+    declare_motors(root, robot)
     return ElementTree.tostring(root, encoding="unicode") + "\n"
 
 
@@ -153,13 +152,16 @@ def declare_motors(root: ElementTree.Element, robot: RobotModel) -> bool:
     read again says which joints have no motor (:func:`dynamics.urdf.urdf_actuated_joints`), as the model it was
     written from did. A file that declares its motors is left as it is (it is the user's word). Returns whether
     anything was appended."""
-    if not robot.passive_joints:
-        return False
+    if not robot.passive_joints or all(not joint.actuated for joint in robot.joints):
+        return False  # no passive joint, or no driven one to declare
     declared = any(transmission.find("joint") is not None for transmission in root.iter("transmission")) or any(
         joint.find("command_interface") is not None for block in root.iter("ros2_control")
         for joint in block.findall("joint"))
     if declared:
         return False
+    children = list(root)
+    if children and (children[-1].tail is None or not children[-1].tail.strip()):
+        children[-1].tail = "\n  "  # the appended elements indented as a URDF's top level, the rest as it was
     for joint in robot.joints:
         if not joint.actuated:
             continue
@@ -169,6 +171,9 @@ def declare_motors(root: ElementTree.Element, robot: RobotModel) -> bool:
         ElementTree.SubElement(driven, "hardwareInterface").text = "hardware_interface/EffortJointInterface"
         actuator = ElementTree.SubElement(transmission, "actuator", name=f"{joint.name}_motor")
         ElementTree.SubElement(actuator, "mechanicalReduction").text = "1"
+        ElementTree.indent(transmission, space="  ", level=1)
+        transmission.tail = "\n  "
+    transmission.tail = "\n"
     return True
 
 
