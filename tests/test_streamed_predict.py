@@ -118,3 +118,15 @@ def test_predict_past_the_memory_budget_streams_and_refuses_per_sample_outputs(t
     assert code != 0
     assert "--out and --plot write every sample" in capsys.readouterr().err
     assert not (tmp_path / "refused.csv").exists()
+
+
+def test_a_streamed_run_refuses_every_samples_outputs_naming_the_in_memory_route_in_python_too():
+    """A notebook's ``predict(...)`` past the memory budget returns a streamed run: its ``columns()``, ``plot()`` and
+    ``write(out=...)`` are refused with a message naming the route that keeps every sample, for the command line and
+    for Python (``per_sample=True``), and nothing is written."""
+    from oed.workflows.predict import StreamedPredictRun
+
+    run = StreamedPredictRun(evaluation=None, lines=("robot: model",), warnings=())
+    for call in (run.columns, run.plot, lambda: run.write(out="never.csv")):
+        with pytest.raises(ValueError, match=r"columns\(\) and plot\(\).*per_sample=True"):
+            call()

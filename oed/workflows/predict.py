@@ -83,8 +83,9 @@ PREDICT_BYTES_PER_VALUE = 2 * 8
 
 
 #: what the streamed ``oed predict`` says of the per-sample outputs
-PER_SAMPLE_REFUSED = ("--out and --plot write every sample's prediction: not with the streamed path (--chunk-size); "
-                      "leave out --chunk-size to predict the record in memory")
+PER_SAMPLE_REFUSED = ("--out and --plot write every sample's prediction (the result's columns() and plot()): not kept "
+                      "on the streamed path (--chunk-size, or a record past the memory budget); leave out --chunk-size "
+                      "to predict the record in memory (in Python: predict(..., per_sample=True) without chunk_size)")
 
 
 @dataclass(frozen=True)
