@@ -164,12 +164,21 @@ class RobotModel:
     geometry
         Named lengths of the description (``a2``, ``d3``…), used only to print base-parameter
         groupings as readable expressions.
+    description_joints
+        Where the chain was read out of a larger description (a URDF's tree, by joint names): every movable joint of
+        that description in the order the file declares them, the numbering of a log of the whole description
+        (``q1..qN``); empty where the chain is its description.
+    apart_joints
+        Those of ``description_joints`` neither on the chain's path from the base nor carried by it (another arm on
+        a torso the chain shares no joint with): their motion moves nothing of the chain, nor loads its joints.
     """
 
     name: str
     joints: tuple[Joint, ...]
     gravity: NDArray[np.float64] = field(default_factory=lambda: np.array(DEFAULT_GRAVITY))
     geometry: Mapping[str, float] = field(default_factory=dict)
+    description_joints: tuple[str, ...] = ()
+    apart_joints: frozenset[str] = frozenset()
 
     def __post_init__(self) -> None:
         joints = tuple(self.joints)
@@ -186,6 +195,13 @@ class RobotModel:
             raise RobotDescriptionError("gravity must be a finite 3-vector")
         object.__setattr__(self, "gravity", gravity)
         object.__setattr__(self, "geometry", dict(self.geometry))
+        described = tuple(str(name) for name in self.description_joints)
+        apart = frozenset(str(name) for name in self.apart_joints)
+        if described and not set(names) <= set(described) or not apart <= set(described) or apart & set(names):
+            raise RobotDescriptionError(f"robot {self.name!r}: description joints {list(described)} must hold the "
+                                        f"chain's {names}, and the joints apart from it none of them")
+        object.__setattr__(self, "description_joints", described)
+        object.__setattr__(self, "apart_joints", apart)
 
     @property
     def n_joints(self) -> int:
@@ -232,11 +248,11 @@ class RobotModel:
             return self
         updated = tuple(replace(joint, actuated=False) if index in chosen else joint
                         for index, joint in enumerate(self.joints))
-        return RobotModel(self.name, updated, self.gravity, self.geometry)
+        return replace(self, joints=updated)
 
     def with_gravity(self, gravity: ArrayLike) -> RobotModel:
         """Return a copy with another gravity vector."""
-        return RobotModel(self.name, self.joints, np.asarray(gravity, dtype=float), self.geometry)
+        return replace(self, gravity=np.asarray(gravity, dtype=float))
 
     def with_parameters(self, theta: ArrayLike) -> RobotModel:
         """Return a copy whose links carry the standard parameters ``theta`` (``10 n`` values)."""
@@ -253,7 +269,7 @@ class RobotModel:
             )
             for index, joint in enumerate(self.joints)
         )
-        return RobotModel(self.name, joints, self.gravity, self.geometry)
+        return replace(self, joints=joints)
 
 
 def passive_joint_indices(robot: RobotModel, joints: Sequence[str]) -> tuple[int, ...]:

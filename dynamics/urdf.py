@@ -203,10 +203,13 @@ def robot_from_urdf(path: str | Path, *, gravity: np.ndarray | None = None, join
         _check_serial_chain(path, model)
     else:
         model = _named_joints_model(path, root, _checked_names(path, joint_names), dict(locked_at or {}))
+    described, apart = ((), frozenset()) if joint_names is None else _description_joints(root, list(model.names[1:]))
     robot = RobotModel(
         name=model.name or path.stem,
         joints=tuple(_joint(path, model, joint_id) for joint_id in range(1, model.njoints)),
         gravity=np.asarray(DEFAULT_GRAVITY if gravity is None else gravity, dtype=float),
+        description_joints=described,
+        apart_joints=apart,
     )
     _check_lengths(path, robot)
     return robot
@@ -293,6 +296,44 @@ def logged_chain(path: str | Path, n_logged: int) -> tuple[tuple[str, ...], tupl
             + ("" if chains else "; " + _said_chains(model, frozenset(mimics))))
     held = tuple(names[joint_id] for joint_id in range(1, model.njoints) if names[joint_id] not in chains[0])
     return chains[0], held
+
+
+#: the URDF joint types of one degree of freedom (a log's joint columns)
+MOVABLE_TYPES = ("revolute", "continuous", "prismatic")
+
+
+def _description_joints(root: ElementTree.Element, chain: list[str]) -> tuple[tuple[str, ...], frozenset[str]]:
+    """The file's movable joints (:data:`MOVABLE_TYPES`, ``<mimic>`` joints left out: they follow another) in the
+    order it declares them, and those of them apart from ``chain`` (:attr:`RobotModel.apart_joints`): neither an
+    ancestor of a chain joint (on its path from the root) nor a descendant of one (carried by the chain).
+    ``((), frozenset())`` where the file's movable joints are the chain's."""
+    mimics = _mimics(root)
+    declared = [joint for joint in root.findall("joint")
+                if joint.get("type") in MOVABLE_TYPES and joint.get("name") not in mimics]
+    described = tuple(str(joint.get("name")) for joint in declared)
+    if set(described) <= set(chain):
+        return (), frozenset()
+    by_child: dict[str, ElementTree.Element] = {}
+    for joint in root.findall("joint"):
+        child = joint.find("child")
+        if child is not None:
+            by_child[str(child.get("link"))] = joint
+
+    def ancestors(joint: ElementTree.Element) -> set[str]:
+        found: set[str] = set()
+        parent = joint.find("parent")
+        link = None if parent is None else parent.get("link")
+        while link in by_child and len(found) <= len(by_child):
+            above = by_child[link]
+            found.add(str(above.get("name")))
+            parent = above.find("parent")
+            link = None if parent is None else parent.get("link")
+        return found
+
+    above_chain = set().union(*(ancestors(joint) for joint in declared if joint.get("name") in chain))
+    apart = frozenset(str(joint.get("name")) for joint in declared if joint.get("name") not in chain
+                      and joint.get("name") not in above_chain and not ancestors(joint) & set(chain))
+    return described, apart
 
 
 def _checked_names(path: Path, joint_names: Sequence[str]) -> list[str]:

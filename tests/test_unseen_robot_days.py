@@ -320,6 +320,84 @@ def test_a_dual_arms_log_exits_naming_each_arm_and_each_arm_predicts_as_well_as_
         checked(f"the dual arm's {side} arm", {**outcome, "cutoff": cutoff, "floor": (0.02 * spread) ** 2})
 
 
+def numbered_export(tables: dict[str, pd.DataFrame]) -> pd.DataFrame:
+    """Both arms' records in one table numbering the description's joints in its order: ``t``, then ``q1..q6``
+    (the left arm's three, then the right arm's), ``tau1..tau6`` and the other groups alike."""
+    out = pd.DataFrame({"t": next(iter(tables.values()))["t"]})
+    for group in ("q", "dq", "tau"):
+        for offset, side in enumerate(ARMS):
+            for index in range(1, len(ARMS[side]) + 1):
+                if f"{group}{index}" in tables[side]:
+                    out[f"{group}{3 * offset + index}"] = tables[side][f"{group}{index}"].to_numpy()
+    return out
+
+
+@pytest.mark.slow
+def test_a_log_numbering_both_arms_predicts_each_arm_as_well_as_a_plain_fit(tmp_path):
+    """The dual arm's records (:func:`test_a_dual_arms_log_exits_naming_each_arm_and_each_arm_predicts_as_well_as_a_plain_fit`'s
+    motions) in one table numbering both arms' joints in the description's order (``q1..q6``, ``tau1..tau6``):
+    each arm's ``--joint-names`` alone reads its own columns; ``oed identify`` and ``oed diagnose`` then ``oed
+    predict`` do as well as the plain fit of that arm on the test record, and ``oed predict`` reproduces each
+    reported validation error. At 6ee74d4 the left arm exited on every verb ("column(s) q4, q5, q6, tau4, tau5,
+    tau6 beyond the robot's 3 joint(s)"), the right arm needed ``--columns q1=q4,...``."""
+    from benchmarks.bench_real_robots import PlainFit
+
+    tables, written_arms = {}, {}
+    for side, names in ARMS.items():
+        lab = Lab(f"the dual arm's {side} arm", arm(names), *logs(), test_motion="point-to-point")
+        (tmp_path / side).mkdir()
+        written_arms[side] = write_records(lab, tmp_path / side)
+        tables[side] = {role: pd.read_csv(path) for role, path in written_arms[side][2].items()}
+    description = tmp_path / "dual_arm.urdf"
+    description.write_text(DUAL_ARM, encoding="utf-8")
+    files = {}
+    for role in ("train", "validate", "test"):
+        files[role] = tmp_path / f"{role}.csv"
+        numbered_export({side: tables[side][role] for side in ARMS}).to_csv(files[role], index=False,
+                                                                          float_format="%.10g")
+    for side, names in ARMS.items():
+        urdf, records, _, spread = written_arms[side]
+        plain = PlainFit(["--urdf", str(urdf)])
+        cutoff, plain_theta = plain.fit(records["train"], records["validate"], rate_hz=250.0)
+        predicted_plain, kept = plain.predict(records["test"], cutoff, plain_theta)
+        outcome = verbs_against_the_plain_fit(description, files, records["test"], kept, predicted_plain,
+                                              tmp_path / side, options=("--joint-names", ",".join(names)),
+                                              reading=())
+        checked(f"the dual arm's {side} arm, a log numbering both arms", {**outcome, "cutoff": cutoff,
+                                                                          "floor": (0.02 * spread) ** 2})
+
+
+@pytest.mark.slow
+def test_a_log_numbering_both_arms_is_streamed_as_memory_reads_it(tmp_path):
+    """The right arm of a log numbering both arms' joints (``q4..q6``, ``tau4..tau6`` its own), ``oed identify`` in
+    memory and streamed (``--chunk-size 500``): the same columns read, the parameters and the training error equal
+    (relative 1e-9). At 6ee74d4 both paths exited naming the columns beyond the robot's 3 joints."""
+    import json
+
+    from tests.test_unseen_robot_kinds import quiet
+
+    t = np.arange(0.0, 8.0, 0.004)
+    rng = np.random.default_rng(3)
+    table = pd.DataFrame({"t": t} | {f"q{j}": 0.5 * np.sin(0.6 * np.pi * j * t + j) + 0.2 * np.sin(1.4 * np.pi * j * t)
+                                     for j in range(1, 7)}
+                         | {f"tau{j}": np.cos(0.8 * np.pi * t + j) + 0.01 * rng.standard_normal(t.size)
+                            for j in range(1, 7)})
+    table.to_csv(tmp_path / "both.csv", index=False)
+    (tmp_path / "dual_arm.urdf").write_text(DUAL_ARM, encoding="utf-8")
+    results = {}
+    for label, more in (("memory", ()), ("streamed", ("--chunk-size", "500"))):
+        code, message = quiet(["identify", "--urdf", str(tmp_path / "dual_arm.urdf"), "--joint-names",
+                               ",".join(ARMS["right"]), "--data", str(tmp_path / "both.csv"), "--friction", "viscous",
+                               *more, "--out", str(tmp_path / f"{label}.json")])
+        assert code == 0, message
+        results[label] = json.loads((tmp_path / f"{label}.json").read_text())
+    assert [results[label]["identification_path"] for label in results] == ["in-memory", "streamed"]
+    values = {label: np.array([entry["value"] for entry in result["parameters"]]) for label, result in results.items()}
+    assert np.allclose(values["streamed"], values["memory"], rtol=1e-9, atol=1e-9 * np.abs(values["memory"]).max())
+    for channel, mse in results["memory"]["train"]["mse"].items():
+        assert results["streamed"]["train"]["mse"][channel] == pytest.approx(mse, rel=1e-9)
+
+
 def test_a_dual_arms_description_names_each_arm_whatever_the_log_holds():
     """The dual-arm description read without joint names names each arm's ``--joint-names``: read as a serial
     chain (a log whose columns name the joints), for a log numbering all six joints (no chain of six from the
@@ -343,16 +421,18 @@ def test_a_dual_arms_description_names_each_arm_whatever_the_log_holds():
     assert load_robot(urdf=path, joint_names=ARMS["right"]).n_joints == 3
 
 
-@pytest.mark.xfail(strict=True, reason="a log numbering both arms' joints (q1..q6, tau1..tau6, the description's "
-                   "order) read for the left arm with --joint-names left_j1,left_j2,left_j3 exits: 'column(s) q4, q5, "
-                   "q6, tau4, tau5, tau6 beyond the robot's 3 joint(s)' (the right arm reads with --columns "
-                   "q1=q4,...,tau3=tau6, which consumes them; no option leaves columns out), though on a fixed torso "
-                   "the other arm's joints move nothing of this one; measured at 4252663")
-def test_a_log_numbering_both_arms_is_read_for_the_first_arm_by_its_names(tmp_path):
-    """The left arm of a dual-arm log whose columns number all six joints in the description's order: read with the
-    arm's ``--joint-names``, its own columns ``q1..q3``, ``tau1..tau3``."""
+def test_a_log_numbering_both_arms_is_read_for_each_arm_by_its_names(tmp_path):
+    """A dual-arm log whose columns number all six joints in the description's order (``q1..q6``, ``tau1..tau6``):
+    each arm read with its ``--joint-names``, its own columns (the left arm's ``q1..q3``, the right arm's
+    ``q4..q6``), the other arm's left out and said (on a fixed torso its motion moves nothing of this one). At
+    4252663 the left arm could not be read with any option: "column(s) q4, q5, q6, tau4, tau5, tau6 beyond the
+    robot's 3 joint(s)" (the right arm read with ``--columns q1=q4,...``, which still reads as before). A chain
+    whose other joints it carries (a PUMA's first three of six) keeps that error."""
     from dynamics.models import build_model
     from dynamics.robots import load_robot
+    from dynamics.urdf_export import robot_urdf
+    from estimation.data.loading import JointCountError
+    from estimation.data.log_formats import DescriptionOrderWarning, LogSource
     from estimation.data.records import read_measurements
     from tests.test_unseen_robot_benches import written
 
@@ -360,9 +440,23 @@ def test_a_log_numbering_both_arms_is_read_for_the_first_arm_by_its_names(tmp_pa
     table = pd.DataFrame({"t": t} | {f"q{j}": 0.3 * np.sin(2 * np.pi * 0.4 * t + j) for j in range(1, 7)}
                          | {f"tau{j}": np.cos(2 * np.pi * 0.4 * t + j) for j in range(1, 7)})
     table.to_csv(tmp_path / "both_arms.csv", index=False)
-    model = build_model(load_robot(urdf=written(DUAL_ARM), joint_names=ARMS["left"]), "internal", "viscous")
-    read = read_measurements(tmp_path / "both_arms.csv", model=model)
-    assert np.array_equal(read.as_recorded.tau, table[["tau1", "tau2", "tau3"]].to_numpy())
+    description = written(DUAL_ARM)
+    for side, columns in (("left", ["tau1", "tau2", "tau3"]), ("right", ["tau4", "tau5", "tau6"])):
+        model = build_model(load_robot(urdf=description, joint_names=ARMS[side]), "internal", "viscous")
+        with pytest.warns(DescriptionOrderWarning, match=r"number the description's 6 joints in its order.*left "
+                          r"out \(the joints (right|left)_j1"):
+            read = read_measurements(tmp_path / "both_arms.csv", model=model)
+        assert np.array_equal(read.as_recorded.tau, table[columns].to_numpy())
+        assert np.array_equal(read.as_recorded.q, table[[column.replace("tau", "q") for column in columns]].to_numpy())
+    mapped = LogSource(tmp_path / "both_arms.csv", columns={"q1": "q4", "q2": "q5", "q3": "q6", "tau1": "tau4",
+                                                           "tau2": "tau5", "tau3": "tau6"})
+    model = build_model(load_robot(urdf=description, joint_names=ARMS["right"]), "internal", "viscous")
+    assert np.array_equal(read_measurements(mapped, model=model).as_recorded.tau, table[["tau4", "tau5", "tau6"]].to_numpy())
+    puma = tmp_path / "puma.urdf"
+    puma.write_text(robot_urdf(load_robot("puma560", joints=6)))
+    first_three = load_robot(urdf=puma, joint_names=load_robot("puma560", joints=6).joint_names[:3])
+    with pytest.raises(JointCountError, match="beyond the robot's 3 joint"):
+        read_measurements(tmp_path / "both_arms.csv", model=build_model(first_three, "internal", "viscous"))
 
 
 @pytest.mark.parametrize("leftover", ["expression", "macro", "unbound prefix"])

@@ -268,6 +268,135 @@ def test_ur_rtde_currents_through_the_transmission_give_the_joint_torques(tmp_pa
         read_record_with_transmission(tmp_path / "ur.csv", model=model, transmission=None)
 
 
+#: a ROS 2 or EGM clock's seconds since 1970 at the start of a test's log, with a part of a second: the joined time
+#: is counted from the first row's whole second (``STAMP_START - floor(STAMP_START)`` at the first row)
+STAMP_START = 1764300000.25
+
+
+def split_seconds(t: np.ndarray, per_second: float) -> tuple[np.ndarray, np.ndarray]:
+    """``t`` (s from the log's start) as a clock's whole seconds since 1970 and the fraction in ``1/per_second``
+    (1e9: ROS 2's ``nanosec``; 1e6: EGM's ``usec``), integers as the messages hold them."""
+    ticks = np.round((STAMP_START + t) * per_second).astype(np.int64)
+    return ticks // int(per_second), ticks % int(per_second)
+
+
+def abb_egm(values: dict[str, np.ndarray], n: int = 6, torques: bool = True) -> pd.DataFrame:
+    """An ABB EGM ``EgmRobot`` stream flattened to a table (egm.proto: ``header``, ``feedBack`` and ``planned``
+    with their ``joints`` in degrees and ``time`` an ``EgmClock`` of seconds and microseconds, the additional axes'
+    ``externalJoints``, ``mciState``); EGM carries no torque: the lab's drive torques joined as ``tau1..``."""
+    sec, usec = split_seconds(values["t"], 1e6)
+    table = {"header.seqno": np.arange(len(values["t"])), "header.tm": np.round(1e3 * values["t"]).astype(int),
+             "header.mtype": np.full(len(values["t"]), 2)}
+    table |= {"feedBack.time.sec": sec, "feedBack.time.usec": usec}
+    table |= {f"feedBack.joints.joints[{k}]": np.degrees(values[f"q{k + 1}"]) for k in range(n)}
+    table |= {f"feedBack.externalJoints.joints[{k}]": 500.0 + 10.0 * values["t"] for k in range(6)}
+    table |= {f"feedBack.cartesian.pos.{axis}": 800.0 + values["q1"] for axis in "xyz"}
+    table |= {"planned.time.sec": sec, "planned.time.usec": usec}
+    table |= {f"planned.joints.joints[{k}]": np.degrees(values[f"q{k + 1}"]) + 0.05 for k in range(n)}
+    table |= {"mciState.state": np.full(len(values["t"]), 3), "utilizationRate": np.full(len(values["t"]), 12.5)}
+    if torques:
+        table |= {f"tau{j}": values[f"tau{j}"] for j in range(1, n + 1)}
+    return pd.DataFrame(table)
+
+
+def ros2_joint_state(values: dict[str, np.ndarray], names: list[str], n: int) -> pd.DataFrame:
+    """A ROS 2 ``sensor_msgs/JointState`` topic exported to CSV with the message's fields as columns: the header's
+    ``builtin_interfaces/Time`` split in ``header.stamp.sec`` and ``header.stamp.nanosec``, ``header.frame_id``, and
+    ``name``, ``position``, ``velocity``, ``effort`` arrays in cells, the publisher's order (joint 2 first, a
+    gripper's finger among them)."""
+    sec, nanosec = split_seconds(values["t"], 1e9)
+    order = [1, 0, n] + list(range(2, n))  # the finger (index n) third
+    logged = [names[index] if index < n else "gripper_finger_joint" for index in order]
+    def of(source, index):
+        return values[f"{source}{index + 1}"] if index < n else np.full_like(values["t"], 0.01)
+    return pd.DataFrame({"header.stamp.sec": sec, "header.stamp.nanosec": nanosec,
+                         "header.frame_id": [""] * len(sec),
+                         "name": ["[" + ", ".join(f"'{name}'" for name in logged) + "]"] * len(sec),
+                         "position": in_cells([of("q", index) for index in order]),
+                         "velocity": in_cells([of("dq", index) if "dq1" in values else np.zeros_like(values["t"])
+                                               for index in order]),
+                         "effort": in_cells([of("tau", index) for index in order])})
+
+
+def read_file(frame: pd.DataFrame, path: Path, robot, columns: str | None = None):
+    """The table written to ``path`` read by the in-memory reader for ``robot`` (a viscous internal model), with
+    the warnings it gave; ``columns`` a ``--columns`` map to read it with instead."""
+    from dynamics.models import build_model
+    from estimation.data.log_formats import LogSource, parse_column_map
+    from estimation.data.records import read_measurements
+
+    frame.to_csv(path, index=False, float_format="%.12g")
+    source = path if columns is None else LogSource(path, columns=parse_column_map(columns))
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        read = read_measurements(source, model=build_model(robot, "internal", "viscous"))
+    return read.as_recorded, [str(warning.message) for warning in caught]
+
+
+def said_map(messages: list[str], kind: str) -> str:
+    """The ``--columns`` map the reader's warning of ``kind`` gives (unquoted)."""
+    said = next(message for message in messages if kind in message)
+    return shlex.split(said[said.rindex("--columns"):].rstrip(")"))[1]
+
+
+def test_abb_egm_reads_the_feedback_joints_in_degrees_and_its_clock(tmp_path):
+    """EGM: ``feedBack.joints.joints[k]`` read as the joint angles, in degrees as the protocol sends them (said),
+    the time joined from ``feedBack.time.sec`` and ``usec`` (``planned.time`` is the plan's); ``planned.joints``
+    (the command) and ``externalJoints`` (the additional axes) left aside. The maps the warnings give read the same
+    values. At 6ee74d4 the file was refused: no column t."""
+    from dynamics.robots import load_robot
+
+    values = signals(6, rows=200)
+    robot = load_robot("puma560", joints=6)
+    read, said = read_file(abb_egm(values), tmp_path / "egm.csv", robot)
+    assert np.allclose(read.q, np.column_stack([values[f"q{j}"] for j in range(1, 7)]), atol=1e-12)
+    assert np.allclose(read.t, values["t"] + 0.25, atol=1e-9) and np.allclose(read.tau[:, 2], values["tau3"])
+    vendor = next(message for message in said if "controller's log" in message)
+    for part in ("q from feedBack.joints.joints[0]..feedBack.joints.joints[5]", "degrees by its protocol",
+                 "planned.joints.joints[0]..planned.joints.joints[5] (commanded positions)",
+                 "feedBack.externalJoints.joints[0]"):
+        assert part in vendor, (part, vendor)
+    assert "tau1..tau6" not in vendor  # the format's own columns are read, not left aside
+    assert any("feedBack.time.sec+1e-06*feedBack.time.usec" in message for message in said), said
+    mapped, _ = read_file(abb_egm(values), tmp_path / "egm.csv", robot, columns=said_map(said, "controller's log"))
+    assert np.array_equal(mapped.q, read.q) and np.array_equal(mapped.t, read.t)
+
+
+def test_abb_egm_with_its_plan_alone_is_refused_naming_the_map(tmp_path):
+    """An EGM table holding only ``planned.joints`` (the positions the controller planned, not those the joints
+    reached) is refused as the measured motion, naming the map that would read it."""
+    from dynamics.robots import load_robot
+
+    table = abb_egm(signals(6, rows=100)).drop(columns=[f"feedBack.joints.joints[{k}]" for k in range(6)])
+    with pytest.raises(MissingColumnError, match=r"no measured joint positions: the positions logged are "
+                       r"planned.joints.joints\[0\]..planned.joints.joints\[5\] \(commanded\)"):
+        read_file(table, tmp_path / "planned.csv", load_robot("puma560", joints=6))
+
+
+def test_a_ros2_joint_state_export_with_its_stamp_split_is_read_by_its_names(tmp_path):
+    """A ROS 2 ``JointState`` export: ``header.stamp.sec`` and ``header.stamp.nanosec`` joined into the time (to the
+    nanosecond: counted from the first row's second), the arrays in cells matched to the robot's joints by the
+    ``name`` cell (the publisher's order, a finger among them). At 6ee74d4: refused, no column t. The same stamp as
+    bare ``sec`` and ``nanosec`` columns reads alike; two split stamps are an error naming a map for each."""
+    from dynamics.robots import load_robot
+
+    values = signals(6, rows=300)
+    robot = load_robot("puma560", joints=6)
+    table = ros2_joint_state(values, robot.joint_names, 6)
+    read, said = read_file(table, tmp_path / "joint_states.csv", robot)
+    assert np.allclose(read.t, values["t"] + 0.25, atol=1e-9)
+    assert np.allclose(read.tau, np.column_stack([values[f"tau{j}"] for j in range(1, 7)]), rtol=1e-9)
+    assert any("header.stamp.sec+1e-09*header.stamp.nanosec" in message for message in said), said
+    bare, _ = read_file(table.rename(columns={"header.stamp.sec": "sec", "header.stamp.nanosec": "nanosec"}),
+                        tmp_path / "bare.csv", robot)
+    assert np.array_equal(bare.t, read.t)
+    twice = table.assign(**{"receive.sec": table["header.stamp.sec"], "receive.nanosec": table["header.stamp.nanosec"]})
+    with pytest.raises(AmbiguousColumnsError, match=r"could each be the time.*--columns "
+                       r"'t=header.stamp.sec\+1e-09\*header.stamp.nanosec' or --columns "
+                       r"'t=receive.sec\+1e-09\*receive.nanosec'"):
+        read_file(twice, tmp_path / "twice.csv", robot)
+
+
 # ---------------------------------------------------------------- the verbs on each vendor's export (slow)
 
 
@@ -291,6 +420,21 @@ def as_lbr_state(path: Path) -> None:
     lbr_state(_values(path)).to_csv(path, index=False, float_format="%.12g")
 
 
+def as_abb_egm(path: Path) -> None:
+    """The lab's record as an ABB EGM stream flattened to a table (:func:`abb_egm`): angles in degrees, the clock
+    in seconds and microseconds since 1970, the plan and the additional axes beside."""
+    abb_egm(_values(path)).to_csv(path, index=False, float_format="%.12g")
+
+
+def as_ros2_joint_state(path: Path) -> None:
+    """The lab's record as a ROS 2 ``JointState`` export (:func:`ros2_joint_state`): the stamp split, the arrays in
+    cells in the publisher's order, a finger among the joints."""
+    from dynamics.robots import load_robot
+
+    ros2_joint_state(_values(path), load_robot("puma560", joints=6).joint_names, 6).to_csv(
+        path, index=False, float_format="%.12g")
+
+
 def vendors():
     from tests.test_unseen_robot_benches import Bench
     from tests.test_unseen_robot_labs import Lab, puma
@@ -308,11 +452,19 @@ def vendors():
                    "commanded, interpolated and external ones, no velocity, 10 s / 4 s / 6 s at 500 Hz", seven_joints,
                    *(Log(seconds, 500.0, velocity=False) for seconds in (10.0, 4.0, 6.0)), slow=True)),
          as_lbr_state, False),
+        (Bench(Lab("ABB EGM stream (6 joints): feedBack.joints in degrees, its EgmClock in seconds and microseconds, "
+                   "planned.joints and externalJoints beside, torques joined as tau1..tau6, no velocity, "
+                   "10 s / 4 s / 6 s at 250 Hz", puma(6),
+                   *(Log(seconds, 250.0, velocity=False) for seconds in (10.0, 4.0, 6.0)), slow=True)),
+         as_abb_egm, False),
+        (Bench(Lab("ROS 2 JointState export (6 joints): header.stamp.sec and nanosec, arrays in cells in the "
+                   "publisher's order with a finger, 10 s / 4 s / 6 s at 250 Hz", puma(6),
+                   *(Log(seconds, 250.0) for seconds in (10.0, 4.0, 6.0)), slow=True)), as_ros2_joint_state, False),
     )
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("index", range(3), ids=("ur-rtde", "libfranka", "kuka-fri"))
+@pytest.mark.parametrize("index", range(5), ids=("ur-rtde", "libfranka", "kuka-fri", "abb-egm", "ros2-split-stamp"))
 def test_the_defaults_read_a_vendors_export_and_predict_as_well_as_a_plain_fit(index, tmp_path):
     """Each vendor's export of the lab's records, read without a column map by every verb: the default
     ``oed identify`` and ``oed diagnose``, then ``oed predict`` on the test record, per joint within 1.3x the plain
@@ -327,5 +479,5 @@ def test_the_defaults_read_a_vendors_export_and_predict_as_well_as_a_plain_fit(i
         transmission = tmp_path / "transmission.json"
         transmission.write_text(json.dumps({"ratios": [1.0] * 6, "torque_constants": list(CURRENT_TO_TORQUE)}))
         options = ("--transmission", str(transmission))
-    judged(bench, tmp_path, rewritten, options=options,
-           seconds=(lambda stamps: stamps - RTDE_START) if currents else None)
+    shift = RTDE_START if currents else (STAMP_START - np.floor(STAMP_START) if index >= 3 else 0.0)
+    judged(bench, tmp_path, rewritten, options=options, seconds=(lambda stamps: stamps - shift) if shift else None)

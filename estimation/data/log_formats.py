@@ -35,7 +35,9 @@ from dynamics.channels import WRENCH_CHANNELS
 from estimation.data.loading import MeasurementError, MeasurementWarning, MissingColumnError, without_repeated_headers
 
 __all__ = ["BAG_SUFFIXES", "DEFAULT_TOPIC", "DroppedStampsWarning", "LogSource", "RosSupportError", "UnknownTopicError",
-           "JointStateTableWarning", "JointNamedColumnsWarning", "TimeColumnWarning", "apply_column_map", "is_log_file", "joint_state_echo", "logged_joints", "parse_column_map", "read_log_frame"]
+           "DescribedColumns", "DescriptionOrderWarning",
+           "JointStateTableWarning", "JointNamedColumnsWarning", "description_numbered", "TimeColumnWarning", "apply_column_map", "is_log_file", "joint_state_echo", "logged_joints", "parse_column_map", "read_log_frame",
+           "split_stamps"]
 
 #: the topic of ``sensor_msgs/JointState`` read by default
 DEFAULT_TOPIC = "/joint_states"
@@ -126,6 +128,58 @@ def joint_named_columns(frame: pd.DataFrame, joint_names: Sequence[str] | None) 
     return found or None
 
 
+class DescriptionOrderWarning(MeasurementWarning):
+    """A table numbering every joint of the description the robot's chain was read from (``q1..q6`` of a dual arm,
+    in the file's order) was read for the chain's joints alone: which columns, and which were left out (joints on
+    other branches, whose motion moves nothing of the chain)."""
+
+
+@dataclass(frozen=True)
+class DescribedColumns:
+    """What :func:`description_numbered` read: ``renamed`` the table's columns under the chain's numbers
+    (``{"q1": "q4", ...}``), ``left_out`` the other joints' columns, ``message`` what the warning says."""
+
+    renamed: dict[str, str]
+    left_out: tuple[str, ...]
+    message: str
+
+
+def description_numbered(frame: pd.DataFrame, robot: Any, source: str) -> DescribedColumns | None:
+    """For a robot read as one chain of a larger description (:attr:`~dynamics.robot.RobotModel.description_joints`:
+    another arm of a dual-arm robot beside it), a table whose joint columns number every joint of the description
+    in its order (``q1..qN``, ``tau1..tauN``, N the description's movable joints, more than the chain's): the
+    chain's joints read from their own numbers, the others' columns left out where every one of them is apart from
+    the chain (:attr:`~dynamics.robot.RobotModel.apart_joints`: on another branch of a fixed base, its motion moves
+    and loads nothing of the chain). ``None`` otherwise: a table of the chain's joints, or one whose other joints
+    drive or load the chain (the reader's :class:`~estimation.data.loading.JointCountError` then)."""
+    described = tuple(getattr(robot, "description_joints", ()) or ())
+    if not described or len(described) <= robot.n_joints:
+        return None
+    columns = {str(column) for column in frame.columns}
+    numbered = sorted(int(found.group(1)) for column in columns if (found := re.fullmatch(r"q(\d+)", column)))
+    if numbered != list(range(1, len(described) + 1)):
+        return None
+    others = [name for name in described if name not in robot.joint_names]
+    if not set(others) <= set(robot.apart_joints):
+        return None
+    places = [described.index(name) + 1 for name in robot.joint_names]
+    renamed: dict[str, str] = {}
+    left_out: list[str] = []
+    for group in JOINT_GROUPS:
+        held = [index for index in range(1, len(described) + 1) if f"{group}{index}" in columns]
+        if not held:
+            continue
+        renamed.update({f"{group}{joint}": f"{group}{place}" for joint, place in enumerate(places, start=1)
+                        if f"{group}{place}" in columns})
+        left_out.extend(f"{group}{index}" for index in held if index not in places)
+    read = ", ".join(f"{key}={value}" for key, value in renamed.items() if key != value) or "their own numbers"
+    message = (f"{source}: the joint columns number the description's {len(described)} joints in its order "
+               f"({', '.join(described)}): the chain's {', '.join(robot.joint_names)} read as {read}; "
+               f"{', '.join(left_out)} left out (the joints {', '.join(others)}, on other branches from the base: "
+               "their motion moves nothing of the chain's)")
+    return DescribedColumns(renamed, tuple(left_out), message)
+
+
 class TimeColumnWarning(MeasurementWarning):
     """A table without a ``t`` column was read with its time column under another name (``time``, ``timestamp``,
     ``time_ms``...); the message gives the column map that reads it so."""
@@ -164,6 +218,52 @@ def time_column(frame: pd.DataFrame) -> str | None:
     if steps.size == 0 or not PLAUSIBLE_STEP[0] <= float(np.median(steps)) < PLAUSIBLE_STEP[1]:
         return None
     return column if factor == 1.0 else f"{factor:g}*{column}"
+
+
+#: the second's column of a stamp split in two, by its name's last word, and the fraction's columns beside it with
+#: their factor to seconds: ROS 2's ``builtin_interfaces/Time`` (``sec``, ``nanosec``), ROS 1's ``time``
+#: (``secs``, ``nsecs``), ABB EGM's ``EgmClock`` (``sec``, ``usec``: egm.proto)
+STAMP_SECONDS = ("sec", "secs")
+STAMP_FRACTIONS = {"nanosec": 1e-9, "nanosecs": 1e-9, "nsec": 1e-9, "nsecs": 1e-9, "usec": 1e-6, "usecs": 1e-6}
+#: the words of a split stamp's name that make it the time of a command (EGM's ``planned.time``), not of the sample
+_COMMAND_STAMP_WORDS = frozenset({"planned", "target", "command", "commanded", "cmd", "desired", "goal", "ref"})
+_STAMP_PART = re.compile(r"^(?P<prefix>.*?)(?P<word>[A-Za-z]+)\s*$")
+
+
+def split_stamps(frame: pd.DataFrame) -> list[str]:
+    """The time stamps of ``frame`` split into a seconds column and a fraction column beside it (ROS 2's
+    ``header.stamp.sec`` and ``header.stamp.nanosec``, or ``sec`` and ``nanosec``; ROS 1's ``secs``/``nsecs``; ABB
+    EGM's ``feedBack.time.sec``/``usec``: :data:`STAMP_FRACTIONS`), each as the column map's entry that joins it
+    (``"header.stamp.sec+1e-09*header.stamp.nanosec"``, :func:`apply_column_map`); stamps of a command
+    (``planned.time``) left out, and pairs whose fraction is not below one second or whose joined steps are not a
+    robot log's (:data:`PLAUSIBLE_STEP`)."""
+    columns = [str(column) for column in frame.columns]
+    found = []
+    for column in columns:
+        part = _STAMP_PART.match(column)
+        if part is None or part.group("word").lower() not in STAMP_SECONDS:
+            continue
+        prefix = part.group("prefix")
+        if set(re.findall(r"[a-z]+", prefix.lower())) & _COMMAND_STAMP_WORDS:
+            continue
+        for fraction_column in columns:
+            fraction = _STAMP_PART.match(fraction_column)
+            if fraction is None or fraction.group("prefix") != prefix:
+                continue
+            factor = STAMP_FRACTIONS.get(fraction.group("word").lower())
+            if factor is None:
+                continue
+            seconds = pd.to_numeric(frame[column], errors="coerce").to_numpy(dtype=float)
+            parts = pd.to_numeric(frame[fraction_column], errors="coerce").to_numpy(dtype=float)
+            kept = np.isfinite(seconds) & np.isfinite(parts)
+            if not kept.any() or np.any(parts[kept] < 0) or np.any(parts[kept] * factor >= 1.0):
+                continue
+            joined = (seconds[kept] - seconds[kept][0]) + factor * parts[kept]
+            steps = np.diff(joined)
+            steps = steps[steps > 0]
+            if steps.size and PLAUSIBLE_STEP[0] <= float(np.median(steps)) < PLAUSIBLE_STEP[1]:
+                found.append(f"{column}+{factor:g}*{fraction_column}")
+    return found
 
 
 @dataclass(frozen=True)
@@ -307,6 +407,10 @@ def apply_column_map(frame: pd.DataFrame, columns: Mapping[str, str], source: st
     used: set[str] = set()
     for key, value in columns.items():
         factor, name = _scaled(value)
+        if key == "t" and name not in frame.columns and value not in frame.columns and "+" in value:
+            renamed[key] = _summed_time(frame, value, source)  # a stamp split in two: sec+1e-09*nanosec
+            used.update(_scaled(term)[1] for term in value.split("+"))
+            continue
         if name in frame.columns:
             renamed[f"{key}1" if key in JOINT_GROUPS else key] = factor * pd.to_numeric(frame[name], errors="coerce") if factor != 1.0 else frame[name]
             used.add(name)
@@ -327,6 +431,24 @@ def apply_column_map(frame: pd.DataFrame, columns: Mapping[str, str], source: st
                                  + ", ".join(map(str, frame.columns)) + ")")
     kept = frame[[column for column in frame.columns if column not in used and column not in renamed]]
     return pd.concat([pd.DataFrame(renamed, index=frame.index), kept], axis=1)
+
+
+def _summed_time(frame: pd.DataFrame, value: str, source: str) -> pd.Series:
+    """The time of a column map's sum ``t=SECONDS+FACTOR*FRACTION`` (a stamp split in two, :func:`split_stamps`),
+    counted from the first row's value of its first term: seconds since 1970 (1.7e9) and their nanoseconds do not
+    both fit in a double (its step there is 2.4e-7 s), their differences do."""
+    total = None
+    for index, term in enumerate(value.split("+")):
+        factor, name = _scaled(term)
+        if name not in frame.columns:
+            raise MissingColumnError(f"{source}: column map t={value}: no column {name!r} (columns: "
+                                     + ", ".join(map(str, frame.columns)) + ")")
+        values = pd.to_numeric(frame[name], errors="coerce").astype(float)
+        if index == 0:
+            finite = values[np.isfinite(values)]
+            values = values - (float(finite.iloc[0]) if len(finite) else 0.0)
+        total = factor * values if total is None else total + factor * values
+    return total
 
 
 def logged_joints(frame: pd.DataFrame, prefix: str, prefixed: Sequence[str], joint_names: Sequence[str] | None,

@@ -68,17 +68,20 @@ from estimation.data.loading import (
 )
 from estimation.data.passive import with_passive_torques
 from estimation.data.log_formats import (
+    DescriptionOrderWarning,
     JointNamedColumnsWarning,
     JointStateTableWarning,
     TimeColumnWarning,
     apply_column_map,
+    description_numbered,
     is_log_file,
     joint_named_columns,
     joint_state_echo,
     read_log_frame,
+    split_stamps,
     time_column,
 )
-from estimation.data.vendor_logs import VendorColumnsWarning, array_cells, vendor_columns
+from estimation.data.vendor_logs import AmbiguousColumnsError, VendorColumnsWarning, array_cells, vendor_columns
 from estimation.data.sampling_clock import clock_instants, clock_roughness, quantised_clock, said_receive_times
 from estimation.data.log_cleaning import (DEFAULT_MAX_GAP, ZERO_ROW_JOINTS, Gap, PositionSteps, blank_rows, describe,
                                           GLITCH_RUN, encoder_glitches, find_gaps, position_steps, repeated_rows,
@@ -219,6 +222,19 @@ def in_the_format(frame: pd.DataFrame, path: Path, model: IdentificationModel | 
         frame = apply_column_map(frame, {"t": time}, str(path))
         warnings.warn(TimeColumnWarning(f"{path}: no column t; the time read as --columns t={time}"),
                       stacklevel=2)
+    elif echo is None and "t" not in frame.columns:
+        time = split_stamp(frame, path)
+        if time is not None:  # a stamp split in two: header.stamp.sec and header.stamp.nanosec
+            first = pd.to_numeric(frame[time.split("+")[0]], errors="coerce").dropna()
+            frame = apply_column_map(frame, {"t": time}, str(path))
+            warnings.warn(TimeColumnWarning(
+                f"{path}: no column t; the time joined from its stamp split in two, counted from the first row's "
+                f"{first.iloc[0]:.0f} s (--columns {shlex.quote('t=' + time)})"), stacklevel=2)
+    described = None if robot is None else description_numbered(frame, robot, str(path))
+    if described is not None:  # q1..q6 of a dual arm's log, the description's order: one arm's own columns read
+        frame = frame.drop(columns=list(described.left_out)).rename(
+            columns={value: key for key, value in described.renamed.items()})
+        warnings.warn(DescriptionOrderWarning(described.message), stacklevel=2)
     named = None if echo is not None or robot is None else joint_named_columns(frame, robot.joint_names)
     if named is not None:  # joint columns named by the robot's joints (shoulder_pan_joint_effort), not tau1..
         frame = apply_column_map(frame, named, str(path))
@@ -233,6 +249,23 @@ def in_the_format(frame: pd.DataFrame, path: Path, model: IdentificationModel | 
             frame = apply_column_map(frame, reading.columns, str(path))
             warnings.warn(VendorColumnsWarning(reading.message), stacklevel=2)
     return frame
+
+
+def split_stamp(frame: pd.DataFrame, path: Path) -> str | None:
+    """The column map's entry of a table's time stamped in two columns (:func:`~estimation.data.log_formats.
+    split_stamps`: ``header.stamp.sec`` and ``header.stamp.nanosec``), or ``None`` without one.
+
+    Raises
+    ------
+    AmbiguousColumnsError
+        Two such stamps (a message's header and another clock's): the message names the map that reads each."""
+    stamps = split_stamps(frame)
+    if len(stamps) > 1:
+        raise AmbiguousColumnsError(
+            f"{path}: the split stamps " + " and ".join(stamp.replace("+", " with ") for stamp in stamps[:2])
+            + " could each be the time of the samples, and no rule chooses between them: name yours, "
+            + " or ".join(f"--columns {shlex.quote('t=' + stamp)}" for stamp in stamps[:2]))
+    return stamps[0] if stamps else None
 
 
 #: the data rows read to tell a CSV file's separator and decimal mark

@@ -65,6 +65,14 @@ OTHER_WORDS = frozenset({"tcp", "tool", "cartesian", "cart", "ee", "flange", "el
 #: words that make a position, velocity or torque the motor's (a rotor's angle: not the joint's); a motor's current
 #: is the current read
 MOTOR_WORDS = frozenset({"motor", "motors", "rotor"})
+#: ABB EGM's ``EgmJoints`` (egm.proto): a group named ``joints`` within the robot's feedback (``feedBack.joints``, the
+#: measured position) or its plan (``planned.joints``, a command), no quantity word: joint angles, in degrees by the
+#: protocol ("Array of 6 joint values for TCP robot in degrees"); ``externalJoints`` are the additional axes (a
+#: track's, in mm or degrees), no joint of the robot's
+EGM_JOINT_WORDS = frozenset({"joints"})
+EGM_MESSAGE_WORDS = (frozenset({"feedback"}), frozenset({"feed", "back"}), frozenset({"planned"}))
+#: the factor that turns EGM's joint angles (degrees) into radians
+EGM_DEGREES = float(CONVERTED_UNITS["q"]["deg"])
 #: words naming the joints by index (a ``JointState``'s ``name[0..]``)
 NAME_WORDS = frozenset({"name", "names"})
 #: the roles of a group, from its words
@@ -108,6 +116,8 @@ class JointGroup:
     numbering
         How the joints are told: ``"numbered from 0"``, ``"numbered from 1"``, ``"by the robot's joint names"``,
         ``"by the joint names logged beside"``.
+    note
+        What the reading took from the format rather than the name (EGM's degrees), for the messages; ``""``.
     """
 
     pattern: str
@@ -116,6 +126,7 @@ class JointGroup:
     role: str
     factor: float
     numbering: str
+    note: str = ""
 
     @property
     def shown(self) -> str:
@@ -184,15 +195,36 @@ def _unit_factor(pattern: str, quantity: str) -> float | None:
     return 1.0 if unit in {"rad", "m", "rad/s", "m/s", "rad/s2", "rad/s²", "m/s2", "nm", "n"} else None
 
 
-def _described(pattern: str) -> tuple[str, str, float]:
-    """``(quantity, role, factor)`` of a group's pattern by its words (module docstring, 2)."""
+def _egm_joints(pattern: str, words: set[str]) -> tuple[str, str, float, str] | None:
+    """``(quantity, role, factor, note)`` of ABB EGM's joint angles (:data:`EGM_JOINT_WORDS`): ``feedBack.joints``
+    measured, ``planned.joints`` commanded, in degrees unless the name's unit says otherwise; ``None`` for any other
+    group (``externalJoints``: the additional axes)."""
+    if not words & EGM_JOINT_WORDS or words & EXTERNAL_WORDS or words & OTHER_WORDS or words & MOTOR_WORDS:
+        return None
+    if not any(message <= words for message in EGM_MESSAGE_WORDS):
+        return None
+    unit = _UNIT.search(pattern.replace("{}", ""))
+    named = unit is not None and bool(unit.group(1).strip())
+    factor = _unit_factor(pattern, "q") if named else EGM_DEGREES
+    if factor is None:
+        return None
+    role = COMMAND if words & COMMAND_WORDS else MEASURED
+    return "q", role, factor, "" if named else "ABB EGM's joint angles, degrees by its protocol"
+
+
+def _described(pattern: str) -> tuple[str, str, float, str]:
+    """``(quantity, role, factor, note)`` of a group's pattern by its words (module docstring, 2)."""
     words = set(name_words(_UNIT.sub("", pattern.replace("{}", " "))))
     quantities = {quantity for quantity, names in QUANTITY_WORDS.items() if words & set(names)}
+    if not quantities:
+        egm = _egm_joints(pattern, words)
+        if egm is not None:
+            return egm
     if len(quantities) != 1 or words & OTHER_WORDS:
-        return "", MEASURED, 1.0
+        return "", MEASURED, 1.0, ""
     quantity = quantities.pop()
     if quantity != "current" and words & MOTOR_WORDS:
-        return "", MEASURED, 1.0
+        return "", MEASURED, 1.0, ""
     role = MEASURED
     if words & COMMAND_WORDS:
         role = COMMAND
@@ -201,7 +233,7 @@ def _described(pattern: str) -> tuple[str, str, float]:
     elif quantity in ("tau", "current") and words & ESTIMATE_WORDS:
         role = ESTIMATE
     factor = _unit_factor(pattern, quantity)
-    return (quantity, role, factor) if factor is not None else ("", MEASURED, 1.0)
+    return (quantity, role, factor, "") if factor is not None else ("", MEASURED, 1.0, "")
 
 
 def _named_indices(frame: pd.DataFrame, by_pattern: dict[str, dict[int, str]],
@@ -265,8 +297,8 @@ def joint_groups(frame: pd.DataFrame, joint_names: Sequence[str] | None, n_joint
         values = frame[list(group_columns)]
         if not all(pd.api.types.is_numeric_dtype(values[column]) for column in group_columns):
             continue  # text (joint names, modes)
-        quantity, role, factor = _described(pattern)
-        groups.append(JointGroup(pattern, group_columns, quantity, role, factor, numbering))
+        quantity, role, factor, note = _described(pattern)
+        groups.append(JointGroup(pattern, group_columns, quantity, role, factor, numbering, note))
         taken.update(group_columns)
     return sorted(groups, key=lambda group: columns.index(group.columns[0]))
 
@@ -365,7 +397,7 @@ def vendor_columns(frame: pd.DataFrame, joint_names: Sequence[str] | None, n_joi
                 " (a controller that logs its measurement so), read it with " + mapped("tau", others[0]))
     if "q" in lacking and "q" not in chosen:
         commanded = [group for group in groups if group.quantity == "q"]
-        if commanded and chosen:
+        if commanded and (chosen or "tau" not in lacking):
             raise MissingColumnError(
                 f"{source}: no measured joint positions: the positions logged are "
                 + ", ".join(f"{group.shown} ({group.role})" for group in commanded)
@@ -375,9 +407,11 @@ def vendor_columns(frame: pd.DataFrame, joint_names: Sequence[str] | None, n_joi
     columns: dict[str, str] = {}
     for quantity, group in chosen.items():
         columns.update(_entries(group, READ_AS[quantity], frame))
-    aside = tuple(group for group in groups if group not in chosen.values())
+    aside = tuple(group for group in groups if group not in chosen.values()  # the format's own columns are read
+                  and not re.fullmatch(r"(q|dq|ddq|tau|im|taum)\{\}", group.pattern))
     said = [f"{READ_AS[quantity]} from {group.shown} ({group.numbering}"
             + (f", x{group.factor:g} to SI" if group.factor != 1.0 else "")
+            + (f": {group.note}" if group.note else "")
             + (", motor currents: turned into joint torques by the transmission's torque constants, --transmission"
                if quantity == "current" else "") + ")" for quantity, group in chosen.items()]
     left = [f"{group.shown} ({group.role} {SHOWN[group.quantity]})" if group.quantity else f"{group.shown} (no joint "
