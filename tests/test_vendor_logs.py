@@ -397,6 +397,91 @@ def test_a_ros2_joint_state_export_with_its_stamp_split_is_read_by_its_names(tmp
         read_file(twice, tmp_path / "twice.csv", robot)
 
 
+#: a horizontal 3-joint arm (every joint about the vertical, damping 4 N m s/rad: the drives do work on average)
+#: in MuJoCo's MJCF driven by servos: a ``<position>`` servo (kp, kv) with a gear, a ``<velocity>`` servo, a
+#: ``<general>`` servo written with its gain and bias (a position servo's ``gainprm``/``biasprm``)
+SERVO_ARM = """<mujoco model="servo_arm">
+  <compiler angle="radian" autolimits="true"/>
+  <option gravity="0 0 -9.81" timestep="0.002" integrator="implicitfast"/>
+  <worldbody>
+    <body name="link1" pos="0 0 0.3">
+      <inertial pos="0 0 0.1" mass="3" diaginertia="0.03 0.03 0.01"/>
+      <joint name="j1" type="hinge" axis="0 0 1" damping="4"/>
+      <body name="link2" pos="0 0 0.2">
+        <inertial pos="0.15 0 0" mass="2" diaginertia="0.004 0.02 0.02"/>
+        <joint name="j2" type="hinge" axis="0 0 1" damping="4"/>
+        <body name="link3" pos="0.3 0 0">
+          <inertial pos="0.12 0 0" mass="1.2" diaginertia="0.002 0.01 0.01"/>
+          <joint name="j3" type="hinge" axis="0 0 1" damping="4"/>
+        </body>
+      </body>
+    </body>
+  </worldbody>
+  <actuator>
+    <position name="a1" joint="j1" kp="400" kv="20" gear="2"/>
+    <velocity name="a2" joint="j2" kv="30"/>
+    <general name="a3" joint="j3" gear="3" gainprm="20" biastype="affine" biasprm="0 -20 -0.5"/>
+  </actuator>
+</mujoco>
+"""
+
+
+def mujoco_log(path: Path, rows: int = 1500) -> pd.DataFrame:
+    """The servo arm (:data:`SERVO_ARM`) simulated by MuJoCo itself, its ``mjData`` arrays logged as a user's script
+    writes them (``time``, ``qpos[k]``, ``qvel[k]``, ``qacc[k]``, ``ctrl[k]``, ``actuator_force[k]``,
+    ``qfrc_actuator[k]``, ``qfrc_bias[k]``, ``qfrc_passive[k]``)."""
+    import mujoco
+
+    model = mujoco.MjModel.from_xml_path(str(path))
+    data = mujoco.MjData(model)
+    logged = []
+    for step in range(rows):
+        t = step * model.opt.timestep
+        data.ctrl[:] = [0.8 * np.sin(2.0 * t), 0.6 * np.cos(3.0 * t), 0.5 * np.sin(1.5 * t + 0.3)]
+        mujoco.mj_step(model, data)
+        logged.append({"time": data.time} | {f"{name}[{k}]": float(getattr(data, name)[k]) for k in range(3)
+                                             for name in ("qpos", "qvel", "qacc", "ctrl", "actuator_force",
+                                                          "qfrc_actuator", "qfrc_bias", "qfrc_passive")})
+    return pd.DataFrame(logged)
+
+
+def test_a_mujoco_log_of_servos_reads_the_actuators_torques_never_their_controls(tmp_path):
+    """MuJoCo's own simulation of an arm driven by servos (position, velocity, general with a bias; gears 2, 1, 3)
+    logged as ``mjData`` arrays: ``qpos``/``qvel`` read, the torque from ``qfrc_actuator``; without it from
+    ``actuator_force`` through the MJCF's gears (equal to MuJoCo's ``qfrc_actuator``, 1e-9); with the controls alone
+    the reader refuses (a servo's ``ctrl`` is a setpoint: here far from the force) naming both arrays. At 6ee74d4
+    every one was refused naming no column (``qpos`` no quantity)."""
+    from dynamics.mjcf import robot_from_mjcf, transmission_from_mjcf
+    from dynamics.models import build_model
+    from estimation.data.motor_side import read_record_with_transmission
+
+    description = tmp_path / "servo_arm.xml"
+    description.write_text(SERVO_ARM)
+    robot = robot_from_mjcf(description)
+    table = mujoco_log(description)
+    torques = table[[f"qfrc_actuator[{k}]" for k in range(3)]].to_numpy()
+    assert np.allclose(torques, table[[f"actuator_force[{k}]" for k in range(3)]].to_numpy() * [2.0, 1.0, 3.0])
+    assert not np.allclose(torques, table[[f"ctrl[{k}]" for k in range(3)]].to_numpy() * [2.0, 1.0, 3.0], atol=1.0)
+    read, said = read_file(table, tmp_path / "mujoco.csv", robot)
+    assert np.allclose(read.tau, torques, atol=1e-12) and np.allclose(read.q, table[["qpos[0]", "qpos[1]", "qpos[2]"]])
+    vendor = next(message for message in said if "controller's log" in message)
+    for part in ("tau from qfrc_actuator[0]..qfrc_actuator[2]", "ctrl[0]..ctrl[2] (commanded controls)",
+                 "qfrc_bias[0]..qfrc_bias[2] (no joint", "a measured joint torque is read rather than an actuator"):
+        assert part in vendor, (part, vendor)
+    forces_only = table.drop(columns=[f"qfrc_actuator[{k}]" for k in range(3)])
+    forces_only.to_csv(tmp_path / "forces.csv", index=False, float_format="%.17g")
+    model = build_model(robot, "internal", "viscous")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        (segment,) = read_record_with_transmission(tmp_path / "forces.csv", model=model,
+                                                   transmission=transmission_from_mjcf(description, robot))
+    assert np.allclose(segment.as_recorded.tau, torques, rtol=1e-9, atol=1e-9)
+    controls_only = forces_only.drop(columns=[f"actuator_force[{k}]" for k in range(3)])
+    with pytest.raises(MissingColumnError, match=r"ctrl\[0\]..ctrl\[2\] are MuJoCo's controls, not forces.*"
+                       r"data.qfrc_actuator.*data.actuator_force"):
+        read_file(controls_only, tmp_path / "controls.csv", robot)
+
+
 # ---------------------------------------------------------------- the verbs on each vendor's export (slow)
 
 
@@ -481,3 +566,65 @@ def test_the_defaults_read_a_vendors_export_and_predict_as_well_as_a_plain_fit(i
         options = ("--transmission", str(transmission))
     shift = RTDE_START if currents else (STAMP_START - np.floor(STAMP_START) if index >= 3 else 0.0)
     judged(bench, tmp_path, rewritten, options=options, seconds=(lambda stamps: stamps - shift) if shift else None)
+
+
+#: the position servos of the slow MJCF case: each joint's gear and the servo's ``kp``, ``kv`` (actuator units)
+SERVO_GEARS = (100.0, 100.0, 80.0, 50.0, 50.0, 40.0)
+SERVO_KP, SERVO_KV = 40.0, 0.8
+
+
+def servo_description(urdf: Path, folder: Path) -> Path:
+    """The lab's description (its URDF) written as an MJCF with a ``<position>`` servo on each joint
+    (:data:`SERVO_GEARS`, ``kp`` :data:`SERVO_KP`, ``kv`` :data:`SERVO_KV`)."""
+    from dynamics.mjcf_export import robot_mjcf
+    from dynamics.robots import load_robot
+
+    robot = load_robot(urdf=urdf)
+    text = robot_mjcf(robot, robot.standard_parameters.reshape(robot.n_joints, -1))
+    servos = "".join(f'    <position name="servo{j}" joint="{name}" gear="{gear:g}" kp="{SERVO_KP:g}" kv="{SERVO_KV:g}"/>\n'
+                     for j, (name, gear) in enumerate(zip(robot.joint_names, SERVO_GEARS), start=1))
+    path = folder / "robot.xml"
+    path.write_text(text.replace("</mujoco>", f"  <actuator>\n{servos}  </actuator>\n</mujoco>"))
+    return path
+
+
+def as_mujoco_servos(path: Path) -> None:
+    """The lab's record as a script logging MuJoCo's ``mjData`` writes it for the servo description
+    (:func:`servo_description`): ``time``, ``qpos[k]``, ``qvel[k]``, ``actuator_force[k]`` (the joint torque over
+    the gear) and ``ctrl[k]`` (the setpoint that makes that force: ``kp (ctrl - g q) - kv g q̇ = f``); no
+    ``qfrc_actuator``."""
+    values = _values(path)
+    table = {"time": values["t"]}
+    for k, gear in enumerate(SERVO_GEARS):
+        q, dq, tau = values[f"q{k + 1}"], values[f"dq{k + 1}"], values[f"tau{k + 1}"]
+        table |= {f"qpos[{k}]": q, f"qvel[{k}]": dq, f"actuator_force[{k}]": tau / gear,
+                  f"ctrl[{k}]": gear * q + (tau / gear + SERVO_KV * gear * dq) / SERVO_KP}
+    frame = pd.DataFrame(table)
+    frame.to_csv(path, index=False, float_format="%.12g")
+
+
+@pytest.mark.slow
+def test_a_mujoco_log_of_position_servos_predicts_as_well_as_a_plain_fit(tmp_path):
+    """A PUMA 6 described in MJCF with a ``<position>`` servo on each joint (gears 100 to 40), its records logged as
+    MuJoCo's ``mjData`` (``qpos``, ``qvel``, ``ctrl`` the setpoints, ``actuator_force`` the servos' forces; 10 s /
+    4 s / 6 s at 250 Hz): the default ``oed identify`` and ``oed diagnose`` read the actuator forces through the
+    gears, never the controls, then ``oed predict`` on the test record does as well as the plain fit on the joint
+    torques, reproducing each reported validation error. At 6ee74d4 every verb exited: no column ``q1`` (``qpos``
+    named no quantity)."""
+    from benchmarks.bench_real_robots import PlainFit
+    from tests.test_unseen_robot_days import checked
+    from tests.test_unseen_robot_labs import Lab, puma, verbs_against_the_plain_fit, write_records
+    from tests.test_unseen_robots import Log
+
+    lab = Lab("PUMA 6 with position servos in MJCF, a MuJoCo log", puma(6),
+              *(Log(seconds, 250.0) for seconds in (10.0, 4.0, 6.0)), slow=True)
+    urdf, records, files, spread = write_records(lab, tmp_path)
+    plain = PlainFit(["--urdf", str(urdf)])
+    cutoff, plain_theta = plain.fit(records["train"], records["validate"], rate_hz=250.0)
+    predicted_plain, kept = plain.predict(records["test"], cutoff, plain_theta)
+    description = servo_description(urdf, tmp_path)
+    for role in ("train", "validate", "test"):
+        as_mujoco_servos(files[role])
+    outcome = verbs_against_the_plain_fit(description, files, records["test"], kept, predicted_plain, tmp_path)
+    checked(lab.name, {**outcome, "cutoff": cutoff, "floor": (0.02 * spread) ** 2})
+

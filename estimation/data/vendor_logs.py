@@ -16,13 +16,19 @@ libfranka's ``q[0]..q[6]``, ``tau_J[0]..``, ``tau_J_d[0]..``, ``tau_ext_hat_filt
    :data:`QUANTITY_WORDS` (a position, velocity, acceleration, torque or current); :data:`COMMAND_WORDS` make it
    a command (``target``, ``cmd``, ``desired``, franka's ``_d``...), :data:`EXTERNAL_WORDS` an external torque,
    :data:`ESTIMATE_WORDS` a torque estimate (franka's ``_hat``); :data:`OTHER_WORDS` make it no joint quantity
-   (the tool's speed, a temperature). A unit in brackets (``[deg]``, ``(mA)``) is turned into SI units.
+   (the tool's speed, a temperature). A unit in brackets (``[deg]``, ``(mA)``) is turned into SI units. Two
+   formats name the quantity by the message rather than a word: ABB EGM's ``feedBack.joints`` (measured) and
+   ``planned.joints`` (a command) are joint angles in degrees by the protocol (:data:`EGM_JOINT_WORDS`), MuJoCo's
+   ``mjData`` arrays ``qpos``/``qvel``/``qacc``, ``qfrc_actuator`` (a measured joint torque), ``actuator_force``
+   (actuator forces, motor side) and ``ctrl`` (controls: never a force) (:data:`MUJOCO_WORDS`).
 3. **What is read**: the measured group of each quantity. Two measured groups of one quantity are a
    :class:`AmbiguousColumnsError` naming both and the map that chooses (never a guess). A measured joint torque
    is read as ``tau``; without one, measured currents as the motor currents ``im1..imn`` (turned into joint
    torques through the transmission's torque constants, ``--transmission``, as a motor-side log's: never read as
-   torques in N·m). Commanded, external and estimated torques are never read as the measured torque: where they
-   are the only torques, the error names them and the map that reads one if it is the measured torque.
+   torques in N·m); MuJoCo's actuator forces come before currents, as the motor-side ``taum1..taumn`` (joint torques
+   through the gears of the MJCF's ``<actuator>``). Commanded, external and estimated torques are never read as
+   the measured torque: where they are the only torques, the error names them and the map that reads one if it is
+   the measured torque; MuJoCo's controls alone are refused naming the arrays that hold the force.
 
 The reader says what it chose and what it left aside (:class:`VendorColumnsWarning`), with the ``--columns`` map
 that reads the file so.
@@ -77,8 +83,20 @@ EGM_DEGREES = float(CONVERTED_UNITS["q"]["deg"])
 NAME_WORDS = frozenset({"name", "names"})
 #: the roles of a group, from its words
 MEASURED, COMMAND, EXTERNAL, ESTIMATE = "measured", "commanded", "external", "estimated"
-#: the format's column group each quantity is read as
-READ_AS = {"q": "q", "dq": "dq", "ddq": "ddq", "tau": "tau", "current": "im"}
+#: MuJoCo's ``mjData`` arrays of a joint chain (MuJoCo's API reference, ``mjData``): ``qpos``, ``qvel``, ``qacc`` the
+#: joints' positions, velocities, accelerations; ``qfrc_actuator`` the actuators' joint torques (gear and
+#: transmission applied: what a joint torque sensor measures of the drives), the other ``qfrc_*`` arrays not a
+#: drive's (``qfrc_bias`` the model's own Coriolis and gravity, ``qfrc_passive`` its springs and damping);
+#: ``actuator_force`` each actuator's force, the joint's torque through its gear (the MJCF's ``<actuator>``, read as
+#: the motor-side ``taum`` through the transmission); ``ctrl`` the controls: a ``<motor>``'s force, but a
+#: servo's setpoint (``<position>``: ``kp (ctrl - gear q) - kv gear q̇``; ``<velocity>``, ``<general>`` with a bias):
+#: never read as a force
+MUJOCO_WORDS = {"qpos": "q", "qvel": "dq", "qacc": "ddq"}
+MUJOCO_FORCE = "qfrc"
+ACTUATOR_FORCE_WORDS = frozenset({"actuator", "force"})
+CONTROL_WORDS = frozenset({"ctrl", "control", "controls"})
+#: the format's column group each quantity is read as (``actuator``: an actuator's force, motor side)
+READ_AS = {"q": "q", "dq": "dq", "ddq": "ddq", "tau": "tau", "current": "im", "actuator": "taum"}
 #: units a current's name may carry, with their factor to A
 CURRENT_UNITS = {"a": 1.0, "amp": 1.0, "amps": 1.0, "ma": 1e-3}
 _WORD = re.compile(r"[A-Z]+(?![a-z])|[A-Z]?[a-z]+")
@@ -212,9 +230,31 @@ def _egm_joints(pattern: str, words: set[str]) -> tuple[str, str, float, str] | 
     return "q", role, factor, "" if named else "ABB EGM's joint angles, degrees by its protocol"
 
 
+def _mujoco_group(words: set[str]) -> tuple[str, str, float, str] | None:
+    """``(quantity, role, factor, note)`` of MuJoCo's ``mjData`` arrays (:data:`MUJOCO_WORDS`): ``qpos``/``qvel``/
+    ``qacc`` measured, ``qfrc_actuator`` a measured joint torque, ``actuator_force`` actuator forces, ``ctrl`` the
+    controls (``control``, commanded), any other ``qfrc_*`` no joint quantity; ``None`` for other names."""
+    if words & OTHER_WORDS - {"force"} or words & MOTOR_WORDS:
+        return None
+    named = [MUJOCO_WORDS[word] for word in words if word in MUJOCO_WORDS]
+    if len(named) == 1 and len(words) == 1:
+        return named[0], MEASURED, 1.0, ""
+    if MUJOCO_FORCE in words:
+        return ("tau", MEASURED, 1.0, "MuJoCo's actuators' joint torques") if "actuator" in words \
+            else ("", MEASURED, 1.0, "")
+    if words == ACTUATOR_FORCE_WORDS:
+        return "actuator", MEASURED, 1.0, ""
+    if words & CONTROL_WORDS and len(words) == 1:
+        return "control", COMMAND, 1.0, ""
+    return None
+
+
 def _described(pattern: str) -> tuple[str, str, float, str]:
     """``(quantity, role, factor, note)`` of a group's pattern by its words (module docstring, 2)."""
     words = set(name_words(_UNIT.sub("", pattern.replace("{}", " "))))
+    mujoco = _mujoco_group(words)
+    if mujoco is not None:
+        return mujoco
     quantities = {quantity for quantity, names in QUANTITY_WORDS.items() if words & set(names)}
     if not quantities:
         egm = _egm_joints(pattern, words)
@@ -308,7 +348,7 @@ def _entries(group: JointGroup, key: str, frame: pd.DataFrame) -> dict[str, str]
     ends the name and no other column shares the prefix, else one a joint."""
     scale = "" if group.factor == 1.0 else f"{group.factor!r}*"
     prefix = group.pattern[:-2] if group.pattern.endswith("{}") else None
-    if prefix and group.numbering in ("numbered from 0", "numbered from 1") and key != "im":
+    if prefix and group.numbering in ("numbered from 0", "numbered from 1") and key not in ("im", "taum"):
         sharing = [column for column in frame.columns if re.fullmatch(re.escape(prefix) + r"\d+", str(column))]
         if len(sharing) == len(group.columns):
             return {key: f"{scale}{prefix}"}
@@ -316,7 +356,8 @@ def _entries(group: JointGroup, key: str, frame: pd.DataFrame) -> dict[str, str]
 
 
 #: what each quantity's group holds, for messages
-SHOWN = {"q": "positions", "dq": "velocities", "ddq": "accelerations", "tau": "torques", "current": "currents", "": ""}
+SHOWN = {"q": "positions", "dq": "velocities", "ddq": "accelerations", "tau": "torques", "current": "currents",
+         "actuator": "actuator forces", "control": "controls", "": ""}
 
 
 def _measured(groups: list[JointGroup], quantity: str) -> list[JointGroup]:
@@ -366,11 +407,14 @@ def vendor_columns(frame: pd.DataFrame, joint_names: Sequence[str] | None, n_joi
         elif measured:
             chosen[quantity] = measured[0]
     if "tau" in lacking and "tau" not in chosen and "tau" not in ambiguous and not {"im1", "taum1"} & present:
-        currents = _measured(groups, "current")
-        if len(currents) > 1:
-            ambiguous["current"] = currents
-        elif currents:
-            chosen["current"] = currents[0]
+        for motor_side in ("actuator", "current"):  # an actuator's force (a gear from the torque), else a current
+            measured = _measured(groups, motor_side)
+            if len(measured) > 1:
+                ambiguous[motor_side] = measured
+            elif measured:
+                chosen[motor_side] = measured[0]
+            if measured:
+                break
 
     def mapped(quantity: str | None = None, group: JointGroup | None = None) -> str:
         """``--columns`` reading the chosen groups (and ``group`` as ``quantity``), quoted for a shell."""
@@ -387,7 +431,17 @@ def vendor_columns(frame: pd.DataFrame, joint_names: Sequence[str] | None, n_joi
             f"{source}: {' and '.join(group.shown for group in measured)} could each be the measured joint "
             f"{SHOWN[quantity]}, and no rule chooses between them: name yours, "
             + " or ".join(mapped(quantity, group) for group in measured[:2]))
-    if "tau" in lacking and torque and not {"tau", "current"} & set(chosen) and not {"im1", "taum1"} & present:
+    if "tau" in lacking and torque and not {"tau", "current", "actuator"} & set(chosen) \
+            and not {"im1", "taum1"} & present:
+        controls = [group for group in groups if group.quantity == "control"]
+        if controls and ("q" in chosen or "q" not in lacking):
+            raise MissingColumnError(
+                f"{source}: no measured joint torque: {controls[0].shown} are MuJoCo's controls, not forces: a "
+                "servo's (<position>, <velocity>, a <general> with a bias) is its setpoint, the force it makes "
+                "depends on the state and its gains; log data.qfrc_actuator (the actuators' joint torques) or "
+                "data.actuator_force (their forces, read through the gears of the MJCF's <actuator>); if every "
+                "actuator is a <motor> (gain 1, no bias, its ctrl its force), read the controls as the actuator "
+                "forces with " + mapped("actuator", controls[0]))
         others = [group for group in groups if group.quantity == "tau"]
         if others and ("q" in chosen or "q" not in lacking):
             raise MissingColumnError(
@@ -413,11 +467,15 @@ def vendor_columns(frame: pd.DataFrame, joint_names: Sequence[str] | None, n_joi
             + (f", x{group.factor:g} to SI" if group.factor != 1.0 else "")
             + (f": {group.note}" if group.note else "")
             + (", motor currents: turned into joint torques by the transmission's torque constants, --transmission"
-               if quantity == "current" else "") + ")" for quantity, group in chosen.items()]
+               if quantity == "current" else "")
+            + (", actuator forces: turned into joint torques by the actuators' gears (the MJCF's <actuator>, or "
+               "--transmission)" if quantity == "actuator" else "") + ")" for quantity, group in chosen.items()]
     left = [f"{group.shown} ({group.role} {SHOWN[group.quantity]})" if group.quantity else f"{group.shown} (no joint "
             "position, velocity, torque or current)" for group in aside]
     if "tau" in chosen and any(group.quantity == "current" for group in aside):
         left.append("the currents: a measured joint torque is read rather than a current")
+    if "tau" in chosen and any(group.quantity == "actuator" for group in aside):
+        left.append("the actuator forces: a measured joint torque is read rather than an actuator's force")
     message = (f"{source}: no columns " + ", ".join(f"{key}1.." for key in lacking) + "; read as a controller's log: "
                + "; ".join(said) + (". Left aside: " + "; ".join(left) if left else "") + f" ({mapped()})")
     return VendorReading(columns, tuple(chosen.values()), aside, message)
