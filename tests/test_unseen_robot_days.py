@@ -280,6 +280,35 @@ def joint_state_export(tables: dict[str, pd.DataFrame]) -> pd.DataFrame:
     return out
 
 
+def both_arms_written(folder: Path, export: Callable[[dict[str, pd.DataFrame]], pd.DataFrame]) -> tuple:
+    """Each arm's lab records (training and validation Fourier motions, the test point-to-point moves: 10 s / 4 s /
+    8 s at 250 Hz, no dq) written under ``folder/<side>``, and both arms' records in one table a role as ``export``
+    writes it: ``(description, files, written)``, ``written[side]`` what :func:`write_records` returned."""
+    tables, written = {}, {}
+    for side, names in ARMS.items():
+        lab = Lab(f"the dual arm's {side} arm", arm(names), *logs(), test_motion="point-to-point")
+        (folder / side).mkdir()
+        written[side] = write_records(lab, folder / side)
+        tables[side] = {role: pd.read_csv(path) for role, path in written[side][2].items()}
+    description = folder / "dual_arm.urdf"
+    description.write_text(DUAL_ARM, encoding="utf-8")
+    files = {}
+    for role in ("train", "validate", "test"):
+        files[role] = folder / f"{role}.csv"
+        export({side: tables[side][role] for side in ARMS}).to_csv(files[role], index=False, float_format="%.10g")
+    return description, files, written
+
+
+def plain_fit_of(urdf: Path, records: dict) -> tuple:
+    """The plain fit of one arm (its own URDF and records): ``(cutoff, kept, predicted)`` on the test record."""
+    from benchmarks.bench_real_robots import PlainFit
+
+    plain = PlainFit(["--urdf", str(urdf)])
+    cutoff, plain_theta = plain.fit(records["train"], records["validate"], rate_hz=250.0)
+    predicted_plain, kept = plain.predict(records["test"], cutoff, plain_theta)
+    return cutoff, kept, predicted_plain
+
+
 @pytest.mark.slow
 def test_a_dual_arms_log_exits_naming_each_arm_and_each_arm_predicts_as_well_as_a_plain_fit(tmp_path):
     """A dual-arm robot (two 3-joint arms on a fixed torso, :data:`DUAL_ARM`), one log holding both arms' joints
@@ -289,22 +318,9 @@ def test_a_dual_arms_log_exits_naming_each_arm_and_each_arm_predicts_as_well_as_
     from the base to the branch" being empty when the branch is the base); with each arm's option, ``oed identify``
     and ``oed diagnose`` then ``oed predict`` do as well as the plain fit of that arm on the test record, and
     ``oed predict`` reproduces each reported validation error."""
-    from benchmarks.bench_real_robots import PlainFit
     from tests.test_unseen_robot_kinds import quiet
 
-    tables, written_arms = {}, {}
-    for side, names in ARMS.items():
-        lab = Lab(f"the dual arm's {side} arm", arm(names), *logs(), test_motion="point-to-point")
-        (tmp_path / side).mkdir()
-        written_arms[side] = write_records(lab, tmp_path / side)
-        tables[side] = {role: pd.read_csv(path) for role, path in written_arms[side][2].items()}
-    description = tmp_path / "dual_arm.urdf"
-    description.write_text(DUAL_ARM, encoding="utf-8")
-    files = {}
-    for role in ("train", "validate", "test"):
-        files[role] = tmp_path / f"{role}.csv"
-        joint_state_export({side: tables[side][role] for side in ARMS}).to_csv(files[role], index=False,
-                                                                                float_format="%.10g")
+    description, files, written_arms = both_arms_written(tmp_path, joint_state_export)
     code, message = quiet(["identify", "--urdf", str(description), "--data", str(files["train"]), "--validate",
                            str(files["validate"]), "--out", str(tmp_path / "refused.json")])
     assert code == 2 and "Traceback" not in message, message
@@ -312,9 +328,7 @@ def test_a_dual_arms_log_exits_naming_each_arm_and_each_arm_predicts_as_well_as_
         assert f"--joint-names {','.join(names)}" in message, message
     for side, names in ARMS.items():
         urdf, records, _, spread = written_arms[side]
-        plain = PlainFit(["--urdf", str(urdf)])
-        cutoff, plain_theta = plain.fit(records["train"], records["validate"], rate_hz=250.0)
-        predicted_plain, kept = plain.predict(records["test"], cutoff, plain_theta)
+        cutoff, kept, predicted_plain = plain_fit_of(urdf, records)
         outcome = verbs_against_the_plain_fit(description, files, records["test"], kept, predicted_plain,
                                               tmp_path / side, options=("--joint-names", ",".join(names)))
         checked(f"the dual arm's {side} arm", {**outcome, "cutoff": cutoff, "floor": (0.02 * spread) ** 2})
@@ -340,26 +354,10 @@ def test_a_log_numbering_both_arms_predicts_each_arm_as_well_as_a_plain_fit(tmp_
     predict`` do as well as the plain fit of that arm on the test record, and ``oed predict`` reproduces each
     reported validation error. At 6ee74d4 the left arm exited on every verb ("column(s) q4, q5, q6, tau4, tau5,
     tau6 beyond the robot's 3 joint(s)"), the right arm needed ``--columns q1=q4,...``."""
-    from benchmarks.bench_real_robots import PlainFit
-
-    tables, written_arms = {}, {}
-    for side, names in ARMS.items():
-        lab = Lab(f"the dual arm's {side} arm", arm(names), *logs(), test_motion="point-to-point")
-        (tmp_path / side).mkdir()
-        written_arms[side] = write_records(lab, tmp_path / side)
-        tables[side] = {role: pd.read_csv(path) for role, path in written_arms[side][2].items()}
-    description = tmp_path / "dual_arm.urdf"
-    description.write_text(DUAL_ARM, encoding="utf-8")
-    files = {}
-    for role in ("train", "validate", "test"):
-        files[role] = tmp_path / f"{role}.csv"
-        numbered_export({side: tables[side][role] for side in ARMS}).to_csv(files[role], index=False,
-                                                                          float_format="%.10g")
+    description, files, written_arms = both_arms_written(tmp_path, numbered_export)
     for side, names in ARMS.items():
         urdf, records, _, spread = written_arms[side]
-        plain = PlainFit(["--urdf", str(urdf)])
-        cutoff, plain_theta = plain.fit(records["train"], records["validate"], rate_hz=250.0)
-        predicted_plain, kept = plain.predict(records["test"], cutoff, plain_theta)
+        cutoff, kept, predicted_plain = plain_fit_of(urdf, records)
         outcome = verbs_against_the_plain_fit(description, files, records["test"], kept, predicted_plain,
                                               tmp_path / side, options=("--joint-names", ",".join(names)),
                                               reading=())
