@@ -49,7 +49,7 @@ import re
 import warnings
 import xml.etree.ElementTree as ElementTree
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -701,7 +701,25 @@ def robot_from_mjcf(path: str | Path, *, gravity: np.ndarray | None = None, join
     if ignored:
         warnings.warn(f"MJCF {path}: the joints' {' and '.join(ignored)} values are not read (the identification fits "
                       "its own spring effects when asked: --friction ...,spring)", MjcfIgnoredWarning, stacklevel=2)
-    return _chain_model(model, chain, dict(locked_at or {}), gravity)
+    robot = _chain_model(model, chain, dict(locked_at or {}), gravity)
+    if joint_names is None:
+        return robot
+    described, apart = _description_joints(model, chain)
+    return replace(robot, description_joints=described, apart_joints=apart)
+
+
+def _description_joints(model: _Model, chain: Sequence[str]) -> tuple[tuple[str, ...], frozenset[str]]:
+    """The file's joints in document order (MuJoCo's ``qpos`` order) and those apart from ``chain``
+    (:attr:`~dynamics.robot.RobotModel.apart_joints`: neither on its path from the world nor carried by it), as
+    :func:`dynamics.urdf.robot_from_urdf` gives them; ``((), frozenset())`` where the file holds a free or ball
+    joint (more than one number a joint in a log) or its joints are the chain's."""
+    described = tuple(model.joints)
+    if any(joint.kind not in ("hinge", "slide") for joint in model.joints.values()) or set(described) <= set(chain):
+        return (), frozenset()
+    above = set().union(*(_chain_ancestry(model, name) for name in chain))
+    apart = frozenset(name for name in described if name not in above
+                      and not set(_chain_ancestry(model, name)) & set(chain))
+    return described, apart
 
 
 @dataclass(frozen=True, eq=False)

@@ -457,6 +457,31 @@ def test_a_log_numbering_both_arms_is_read_for_each_arm_by_its_names(tmp_path):
         read_measurements(tmp_path / "both_arms.csv", model=build_model(first_three, "internal", "viscous"))
 
 
+def test_an_mjcf_dual_arms_numbered_log_is_read_for_each_arm(tmp_path):
+    """The dual arm as MuJoCo writes it from the URDF (MuJoCo 4's own import and ``mj_saveLastXML``: the torso
+    fused into the world) and a log numbering its six joints in MuJoCo's ``qpos`` order: each arm read by its
+    ``--joint-names`` from its own columns, as with the URDF. At 6ee74d4: the columns beyond the robot's 3 joints."""
+    import mujoco
+
+    from dynamics.mjcf import robot_from_mjcf
+    from dynamics.models import build_model
+    from estimation.data.log_formats import DescriptionOrderWarning
+    from estimation.data.records import read_measurements
+
+    (tmp_path / "dual_arm.urdf").write_text(DUAL_ARM, encoding="utf-8")
+    mujoco.mj_saveLastXML(str(tmp_path / "dual_arm.xml"),
+                          mujoco.MjModel.from_xml_path(str(tmp_path / "dual_arm.urdf")))
+    t = np.arange(0.0, 2.0, 0.004)
+    table = pd.DataFrame({"t": t} | {f"q{j}": 0.3 * np.sin(2 * np.pi * 0.4 * t + j) for j in range(1, 7)}
+                         | {f"tau{j}": np.cos(2 * np.pi * 0.4 * t + j) for j in range(1, 7)})
+    table.to_csv(tmp_path / "both_arms.csv", index=False)
+    for side, columns in (("left", ["tau1", "tau2", "tau3"]), ("right", ["tau4", "tau5", "tau6"])):
+        robot = robot_from_mjcf(tmp_path / "dual_arm.xml", joint_names=ARMS[side])
+        with pytest.warns(DescriptionOrderWarning):
+            read = read_measurements(tmp_path / "both_arms.csv", model=build_model(robot, "internal", "viscous"))
+        assert np.array_equal(read.as_recorded.tau, table[columns].to_numpy())
+
+
 @pytest.mark.parametrize("leftover", ["expression", "macro", "unbound prefix"])
 def test_a_description_with_xacro_leftovers_is_refused_naming_xacro(leftover, tmp_path):
     """A description handed over before xacro expanded it: an expression left in a number (``${pi/2}``), xacro
