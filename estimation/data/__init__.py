@@ -21,6 +21,7 @@ _EXPORTS: dict[str, str] = {
     "VendorColumnsWarning": "estimation.data.vendor_logs",
     "vendor_columns": "estimation.data.vendor_logs",
     "DEFAULT_TOPIC": "estimation.data.log_formats",
+    "DescriptionOrderWarning": "estimation.data.log_formats",
     "DEGREES_THRESHOLD": "estimation.data.loading",
     "GAP_FACTOR": "estimation.data.loading",
     "DuplicatedTimesWarning": "estimation.data.loading",
