@@ -34,6 +34,8 @@ class DateTimeStampsWarning(MeasurementWarning):
 def time_column_name(frame: pd.DataFrame) -> str | None:
     """The column of ``frame`` that holds its time: ``t``, else the one column named ``time``, ``timestamp``,
     ``stamp`` or ``times`` (case, spaces, brackets and ``_`` ignored, no unit: a date-time has none)."""
+    if "t" in frame.columns:
+        return "t"
     names = [str(column) for column in frame.columns]
     if "t" in [name.strip() for name in names]:
         return next(name for name in names if name.strip() == "t")
@@ -47,7 +49,7 @@ def as_instants(column: pd.Series) -> pd.Series | None:
     before)."""
     if pd.api.types.is_datetime64_any_dtype(column):
         return pd.to_datetime(column, utc=True)
-    if pd.api.types.is_numeric_dtype(column) or pd.api.types.is_bool_dtype(column):
+    if pd.api.types.is_numeric_dtype(column.dtype) or pd.api.types.is_bool_dtype(column.dtype):
         return None
     cells = column.astype("string").str.strip()
     present = cells.notna() & (cells != "")
@@ -66,9 +68,9 @@ def seconds_of_date_times(frame: pd.DataFrame, source: str, origin: pd.Timestamp
     count from (``origin``, else the column's first stamp: said in a :class:`DateTimeStampsWarning`); ``frame`` as
     it is and ``origin`` otherwise. A blank cell stays blank (a dropout, as the readers take it)."""
     name = time_column_name(frame)
-    if name is None:
-        return frame, origin
-    column = frame[name]
+    column = None if name is None else frame[name]
+    if not isinstance(column, pd.Series) or pd.api.types.is_float_dtype(column.dtype):  # none, a name twice, or
+        return frame, origin  # seconds already (the common case)
     if pd.api.types.is_timedelta64_dtype(column):
         if origin is None:  # said once: the epoch stands for the origin durations count from
             warnings.warn(DateTimeStampsWarning(f"{source}: column {name} holds durations: read as their seconds"),
