@@ -45,6 +45,7 @@ import pytest
 
 from dynamics.models import build_model
 from dynamics.robots import load_robot
+from tests.test_unseen_robot_benches import written
 from tests.test_unseen_robot_days import Day, Logger, checked, logs
 from tests.test_unseen_robot_kinds import ur10e
 from tests.test_unseen_robot_labs import Lab, puma, true_theta
@@ -76,13 +77,6 @@ STANFORD = """<?xml version="1.0"?>
   <link name="flange"><inertial><origin xyz="0.03 0.02 0.01"/><mass value="0.6"/><inertia ixx="0.0008" ixy="0" ixz="0" iyy="0.0008" iyz="0" izz="0.0006"/></inertial></link>
 </robot>
 """
-
-
-def written(text: str) -> Path:
-    """``text`` written as a URDF file of its own (a temporary folder that outlives the case)."""
-    path = Path(tempfile.mkdtemp(prefix="unseen-plants-")) / "description.urdf"
-    path.write_text(text, encoding="utf-8")
-    return path
 
 
 def stanford():
