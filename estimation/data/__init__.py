@@ -1,6 +1,6 @@
 """Measured records read with checks: columns, time base, units, log cleaning, motor-side channels, rows at rest, segments.
 
-Modules: :mod:`~estimation.data.loading`, :mod:`~estimation.data.log_cleaning`, :mod:`~estimation.data.motor_side`, :mod:`~estimation.data.records`, :mod:`~estimation.data.rest`, :mod:`~estimation.data.segments`, :mod:`~estimation.data.vendor_logs`.
+Modules: :mod:`~estimation.data.date_times`, :mod:`~estimation.data.loading`, :mod:`~estimation.data.log_cleaning`, :mod:`~estimation.data.motor_side`, :mod:`~estimation.data.records`, :mod:`~estimation.data.rest`, :mod:`~estimation.data.segments`, :mod:`~estimation.data.vendor_logs`.
 """
 
 from __future__ import annotations
@@ -28,6 +28,7 @@ _EXPORTS: dict[str, str] = {
     "QuantisedStampsWarning": "estimation.data.loading",
     "DelimiterWarning": "estimation.data.loading",
     "UnitsRowWarning": "estimation.data.loading",
+    "DateTimeStampsWarning": "estimation.data.date_times",
     "HoleError": "estimation.data.loading",
     "IRREGULAR_TOLERANCE": "estimation.data.loading",
     "InMemoryNeed": "estimation.data.memory_budget",

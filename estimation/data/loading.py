@@ -34,6 +34,9 @@ IRREGULAR_TOLERANCE = 1e-3
 
 #: a median sample time of this (s) or more is not seconds
 MAX_SAMPLE_TIME = 1.0
+#: a median sample time below this (s) is not seconds either: 1 MHz, beyond any robot's logger (a drive's current
+#: loop logs at 10-40 kHz); a spreadsheet's date serial in days steps 4.6e-8 a sample at 250 Hz, hours 1.1e-6
+MIN_SAMPLE_TIME = 1e-6
 #: from this (s) on the time unit is questioned with a warning (10 Hz)
 SLOW_SAMPLE_TIME = 0.1
 #: a step this many times the median, with as many samples missing around it, is a gap in the record
@@ -450,7 +453,7 @@ def check_time(t: NDArray[np.float64], source: str) -> float:
     """The median sampling step of ``t`` (s), after checking that ``t`` is a time series in seconds.
 
     Raises :class:`TooFewSamplesError` (fewer than two samples) or :class:`TimeBaseError` (duplicated
-    or decreasing times, steps of a second or more); warns (:class:`MeasurementWarning`) for slow
+    or decreasing times, steps of a second or more, or under a microsecond: :data:`MIN_SAMPLE_TIME`); warns (:class:`MeasurementWarning`) for slow
     sampling and for stalls followed by a burst (receive times rather than sampling times).
     """
     if t.shape[0] < 2:
@@ -477,6 +480,11 @@ def check_time(t: NDArray[np.float64], source: str) -> float:
                       f"rounded to {rounding * 1e3:.3g} ms, {rounding / step:.0%} of the sampling step, so the "
                       "samples' instants are lost and the derivatives and errors with them; log the time as float64, "
                       "or from the record's start", CoarseStampsWarning, stacklevel=4)
+    if 0 < step < MIN_SAMPLE_TIME:
+        raise TimeBaseError(f"{source}: column t advances by {step:.4g} a sample ({1 / step:.3g} samples a second "
+                            "if these were seconds): the format wants seconds, and these look like days (a "
+                            "spreadsheet's date serial: read as --columns t=86400*t, or multiply t by 86400) or hours "
+                            "(--columns t=3600*t)")
     if step >= MAX_SAMPLE_TIME:
         raise TimeBaseError(f"{source}: column t advances by {step:.4g} a sample: the format wants seconds, "
                             "and these look like milliseconds or nanoseconds (divide t by 1e3 or 1e9)")

@@ -48,7 +48,6 @@ from estimation.data.loading import (
     SplitWarning,
     StallWarning,
     StillJointWarning,
-    TimeBaseError,
     TooFewSamplesError,
     UnwrappedAngleWarning,
     WrappedAngleError,
@@ -66,6 +65,7 @@ from estimation.data.loading import (
     required_groups,
     uniform_grid,
 )
+from estimation.data.date_times import seconds_of_date_times
 from estimation.data.passive import with_passive_torques
 from estimation.data.log_formats import (
     DescriptionOrderWarning,
@@ -275,7 +275,8 @@ DIALECT_ROWS = 20
 def read_csv_frame(path: Path) -> pd.DataFrame:
     """The CSV file as a table: comma-separated with ``.`` decimals, or as :func:`csv_options` says, lines repeating
     its header dropped (:func:`without_repeated_headers`), its columns in the format's SI units (:func:`csv_units`)."""
-    return in_si_units(without_repeated_headers(pd.read_csv(path, **csv_options(path)), str(path)), csv_units(path))
+    frame = in_si_units(without_repeated_headers(pd.read_csv(path, **csv_options(path)), str(path)), csv_units(path))
+    return seconds_of_date_times(frame, str(path))[0]
 
 
 def _units_row(path: Path) -> tuple[str, list[str], list[str]] | None:
@@ -354,7 +355,7 @@ def read_parquet_frame(path: Path) -> pd.DataFrame:
         raise ParquetSupportError(
             f"cannot read {path}: Parquet needs the pyarrow package (pip install pyarrow); or save the data as CSV"
         ) from None
-    return pd.read_parquet(path)
+    return seconds_of_date_times(pd.read_parquet(path), str(path))[0]
 
 
 def segments_from_frame(
@@ -394,9 +395,7 @@ def segments_from_frame(
 
     require_columns(frame, ["t"], "the time", source)
     arrays = _group_arrays(frame, groups, n_joints, source)
-    if pd.api.types.is_datetime64_any_dtype(frame["t"]) or pd.api.types.is_timedelta64_dtype(frame["t"]):
-        raise TimeBaseError(f"{source}: column t holds {frame['t'].dtype} dates or durations; "
-                            "the format wants seconds as numbers (e.g. (t - t[0]).dt.total_seconds())")
+    frame = seconds_of_date_times(frame, source)[0]  # a table handed over as it is: its date-times read alike
     t = numeric_columns(frame, ["t"], source)[:, 0]
     _check_absurd(t, arrays, n_joints, source)
     _said_still_joints(arrays["q"], model, source)

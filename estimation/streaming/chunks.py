@@ -62,6 +62,7 @@ from estimation.data.loading import (
     without_repeated_headers,
 )
 from estimation.data.log_cleaning import HeldExtremes
+from estimation.data.date_times import seconds_of_date_times
 from estimation.data.records import (AngleTurns, csv_options, csv_units, measurements_from_frame, said_clipped,
                                      said_unwrapped, unwrap_angles)
 from estimation.data.sampling_clock import ClockSums, clock_instants, said_receive_times
@@ -148,13 +149,16 @@ def _file_frames(path: Path, chunk_size: int, only_time: bool = False) -> Iterat
         raise MeasurementError(f"unknown data format {path.suffix!r} for {path}: use .csv or .parquet")
     if not path.is_file():
         raise MeasurementError(f"data file not found: {path}")
+    origin = None  # the first stamp of a time column of date-times (estimation.data.date_times)
     try:
         if suffix == ".csv":
             usecols = (lambda name: str(name).strip() == "t") if only_time else None
             factors = csv_units(path)  # a units row's other units turned into SI, as in memory
             with pd.read_csv(path, chunksize=chunk_size, usecols=usecols, **csv_options(path)) as reader:
-                for frame in reader:
-                    yield in_si_units(without_repeated_headers(frame, str(path)), factors)
+                for frame in reader:  # date-times as seconds since the file's first stamp, as in memory
+                    frame, origin = seconds_of_date_times(in_si_units(without_repeated_headers(frame, str(path)),
+                                                                      factors), str(path), origin)
+                    yield frame
         else:
             try:
                 import pyarrow.parquet
@@ -164,7 +168,8 @@ def _file_frames(path: Path, chunk_size: int, only_time: bool = False) -> Iterat
             parquet = pyarrow.parquet.ParquetFile(path, pre_buffer=False, buffer_size=1 << 20)
             columns = [name for name in parquet.schema_arrow.names if name.strip() == "t"] if only_time else None
             for batch in parquet.iter_batches(batch_size=chunk_size, columns=columns, use_threads=False):
-                yield batch.to_pandas()
+                frame, origin = seconds_of_date_times(batch.to_pandas(), str(path), origin)
+                yield frame
     except (ValueError, OSError, pd.errors.ParserError, UnicodeDecodeError) as error:
         if isinstance(error, MeasurementError):
             raise
