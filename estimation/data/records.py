@@ -80,6 +80,7 @@ from estimation.data.log_formats import (
 )
 from estimation.data.vendor_logs import VendorColumnsWarning, array_cells, vendor_columns
 from estimation.data.sampling_clock import clock_instants, clock_roughness, quantised_clock, said_receive_times
+from estimation.data.channel_mask import masked_channels
 from estimation.data.log_cleaning import (DEFAULT_MAX_GAP, ZERO_ROW_JOINTS, Gap, PositionSteps, blank_rows, describe,
                                           GLITCH_RUN, encoder_glitches, find_gaps, position_steps, repeated_rows,
                                           saturated_samples, saturated_wrench, split_rows, time_stamps_jump,
@@ -397,17 +398,17 @@ def segments_from_frame(
                                        "too few for a time series; cut them from the file")
         metadata: dict[str, object] = {"source": source, "segment": index, "segments_in_file": len(holes) + 1,
                                        "repeated_rows_dropped": dropped, "duplicated_times_dropped": duplicated}
+        if clipped is not None and clipped[rows].any():  # a clipped channel's samples masked, that channel's only
+            metadata["saturated_samples"] = {name: int(count) for name, count in
+                                             zip(clipped_channels(arrays), clipped[rows].sum(axis=0)) if count}
+            piece = masked_channels(piece, clipped[rows])
         stamps = t[rows]
         segment_t, grid = uniform_grid(stamps, piece, resample, name, metadata, bridged=times.bridged)
         if "resampled_from" in metadata:  # resampled by its stamps: were they the samples' instants?
             said_receive_times(clock_roughness(stamps, piece["q"], (stamps[-1] - stamps[0]) / (segment_t.shape[0] - 1)),
                                float(stamps[0]), float(stamps[-1]), stamps.shape[0], name)
-        valid = None if clipped is None or not clipped[rows].any() else ~clipped[rows].any(axis=1)
-        if valid is not None:
-            metadata["saturated_samples"] = {name: int(count) for name, count in
-                                             zip(clipped_channels(arrays), clipped[rows].sum(axis=0)) if count}
         segments.append(Measurements(segment_t, grid["q"], grid["dq"], grid["ddq"], grid["tau"], grid["wrench"],
-                                     metadata, *_as_recorded(stamps, piece, segment_t, metadata, valid)))
+                                     metadata, *_as_recorded(stamps, piece, segment_t, metadata)))
     if isinstance(model, IdentificationModel):
         check_sample_count(segments, model)
     return tuple(segments)

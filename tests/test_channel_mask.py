@@ -1,0 +1,105 @@
+"""A per-channel sample mask (:mod:`estimation.data.channel_mask`): a sample whose reading on one channel is no
+measurement (a clipped torque sensor) leaves that channel's equation out of the fit and that channel's error only;
+the other channels' equations of that sample stay. Checked against independent sums: a plain least-squares fit on
+the valid equations alone (``numpy.linalg.lstsq``) and the errors summed by hand over each channel's valid samples.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from estimation.data.channel_mask import channel_counts, channel_mean, masked_channels, masked_equations
+from estimation.estimators.identification_problem import IdentificationProblem
+from estimation.estimators.least_squares import LeastSquares, WeightedLeastSquares
+from estimation.identification.validation import Comparison, channel_mse
+
+
+def _problem(seed: int = 0, n: int = 400, m: int = 3, r: int = 5):
+    generator = np.random.default_rng(seed)
+    Y = generator.standard_normal((n, m, r))
+    theta = generator.standard_normal(r)
+    noise = generator.standard_normal((n, m)) * np.array([0.01, 0.1, 0.03])[:m]
+    y = Y @ theta + noise
+    masked = np.zeros((n, m), dtype=bool)
+    masked[50:170, 1] = True  # one channel's stretch, the others' equations of those samples kept
+    masked[300:305, 2] = True
+    y[masked] = 1e3  # what a clipped sensor read: far off, so that keeping it would show
+    return Y, y, masked, theta
+
+
+def test_the_masked_equations_leave_the_fit_and_the_others_of_that_sample_stay():
+    Y, y, masked, _ = _problem()
+    problem = IdentificationProblem(*masked_equations(Y, np.where(masked, np.nan, y))[:2], ("tau1", "tau2", "tau3"),
+                                    tuple(f"p{k}" for k in range(Y.shape[2])), mask=~masked)
+    valid = ~masked.reshape(-1)
+    expected = np.linalg.lstsq(Y.reshape(-1, Y.shape[2])[valid], y.reshape(-1)[valid], rcond=None)[0]
+    ols = LeastSquares().fit(problem)
+    assert np.allclose(ols.theta_, expected, rtol=1e-10, atol=1e-12)
+    assert problem.n_equations == int(valid.sum())
+    assert np.array_equal(problem.channel_samples, (~masked).sum(axis=0))
+    # a row-wise drop (the whole sample out wherever one channel is masked) is another, poorer answer
+    rows = ~masked.any(axis=1)
+    by_row = np.linalg.lstsq(Y[rows].reshape(-1, Y.shape[2]), y[rows].reshape(-1), rcond=None)[0]
+    assert not np.allclose(by_row, expected, rtol=1e-10, atol=1e-12)
+    # the channel variances over each channel's own valid samples: ‖ρ_c‖² / (N_c − r/m)
+    residual = y - Y @ ols.theta_
+    counts = (~masked).sum(axis=0)
+    by_hand = np.array([np.sum(residual[~masked[:, c], c] ** 2) for c in range(3)]) / (counts - Y.shape[2] / 3)
+    assert np.allclose(ols.channel_variance_, by_hand, rtol=1e-10)
+
+
+def test_a_weighted_fit_weights_each_channel_by_its_valid_samples_only():
+    Y, y, masked, _ = _problem(1)
+    y_masked = np.where(masked, np.nan, y)
+    stacked = masked_equations(Y, y_masked)
+    problem = IdentificationProblem(stacked[0], stacked[1], ("tau1", "tau2", "tau3"),
+                                    tuple(f"p{k}" for k in range(Y.shape[2])), mask=stacked[2])
+    wls = WeightedLeastSquares().fit(problem)
+    # independent: iterate the weights by hand on the valid equations alone
+    weights, counts = np.ones(3), (~masked).sum(axis=0)
+    for _ in range(50):
+        scale = np.sqrt(np.broadcast_to(weights, y.shape))[~masked]
+        theta = np.linalg.lstsq(Y[~masked] * scale[:, None], y[~masked] * scale, rcond=None)[0]
+        residual = np.where(masked, 0.0, y - Y @ theta)
+        weights = 1.0 / (np.sum(residual**2, axis=0) / (counts - Y.shape[2] / 3))
+    assert np.allclose(wls.theta_, theta, rtol=1e-6, atol=1e-9)
+    # nothing masked: the problem is the one given, no copy, no mask
+    same = masked_equations(Y, y)
+    assert same[0] is Y and same[1] is y and same[2] is None
+
+
+def test_each_channels_error_is_over_its_valid_samples_and_the_counts_are_said():
+    generator = np.random.default_rng(2)
+    measured = generator.standard_normal((200, 3))
+    predicted = measured + generator.standard_normal((200, 3)) * 0.1
+    masked = np.zeros_like(measured, dtype=bool)
+    masked[20:80, 0] = True
+    recorded = np.where(masked, np.nan, measured)
+    mse = channel_mse(recorded, predicted, ("tau1", "tau2", "tau3"))
+    by_hand = [np.mean((measured[~masked[:, c], c] - predicted[~masked[:, c], c]) ** 2) for c in range(3)]
+    assert np.allclose(list(mse.values()), by_hand, rtol=1e-12)
+    comparison = Comparison(np.arange(200.0), recorded, predicted, ("tau1", "tau2", "tau3"))
+    assert comparison.channel_samples == {"tau1": 140, "tau2": 200, "tau3": 200}
+    power = np.mean(measured[~masked[:, 0], 0] ** 2)
+    assert np.isclose(comparison.relative_mse["tau1"], by_hand[0] / power, rtol=1e-12)
+    clean = Comparison(np.arange(200.0), measured, predicted, ("tau1", "tau2", "tau3"))
+    assert clean.channel_samples is None
+    # a prediction that failed (NaN where the recording is valid) stays NaN: it is no mask
+    failed = predicted.copy()
+    failed[5, 1] = np.nan
+    assert np.isnan(channel_mse(recorded, failed, ("tau1", "tau2", "tau3"))["tau2"])
+    assert np.array_equal(channel_counts(recorded), [140, 200, 200])
+    assert np.allclose(channel_mean(recorded), [np.mean(measured[~masked[:, 0], 0]), *measured[:, 1:].mean(axis=0)])
+
+
+def test_the_readers_mask_puts_nan_in_the_masked_channel_only():
+    tau, wrench = np.ones((5, 2)), np.ones((5, 6))
+    found = np.zeros((5, 8), dtype=bool)
+    found[1, 1] = found[3, 7] = True
+    masked = masked_channels({"q": np.zeros((5, 2)), "tau": tau, "wrench": wrench}, found)
+    assert np.isnan(masked["tau"][1, 1]) and np.isnan(masked["wrench"][3, 5])
+    assert np.count_nonzero(np.isnan(masked["tau"])) == 1 and np.count_nonzero(np.isnan(masked["wrench"])) == 1
+    assert np.all(tau == 1) and masked["q"] is not None
+    with pytest.raises(ValueError, match="mask has shape"):
+        IdentificationProblem(np.zeros((5, 2, 1)), np.zeros((5, 2)), ("a", "b"), ("p",), mask=np.ones((5, 3), bool))
