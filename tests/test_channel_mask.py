@@ -103,3 +103,34 @@ def test_the_readers_mask_puts_nan_in_the_masked_channel_only():
     assert np.all(tau == 1) and masked["q"] is not None
     with pytest.raises(ValueError, match="mask has shape"):
         IdentificationProblem(np.zeros((5, 2, 1)), np.zeros((5, 2)), ("a", "b"), ("p",), mask=np.ones((5, 3), bool))
+
+
+def test_a_driven_joints_unlogged_torque_is_refused_naming_what_only_its_equations_hold(tmp_path):
+    """A log without ``tau3`` for a robot whose joint 3 is driven: the refusal (h-passive's) now names the base
+    parameters that no other joint's equation holds. Checked independently: each named parameter's column is zero on
+    tau1 and tau2 at other random states, and the others' equations alone leave exactly those undetermined (the
+    rank of the regressor stacked over tau1 and tau2 falls short by their count)."""
+    import pandas as pd
+
+    from dynamics.models import build_model
+    from dynamics.robots import load_robot
+    from estimation.data import read_record
+    from estimation.data.channel_mask import channel_only_parameters
+    from estimation.data.loading import MissingColumnError
+
+    model = build_model(load_robot("puma560", joints=3), "internal", "viscous,coulomb,offset")
+    alone = channel_only_parameters(model, ["tau3"])
+    assert {"fv3", "fc3"} <= set(alone) and not {"fv1", "fv2"} & set(alone), alone
+    generator = np.random.default_rng(7)
+    states = [generator.uniform(-3, 3, (300, 3)), generator.standard_normal((300, 3)), generator.standard_normal((300, 3))]
+    Y = model.evaluate_base(*states)
+    others = Y[:, :2, :].reshape(-1, Y.shape[2])
+    index = [model.base.names.index(name) for name in alone]
+    assert np.all(others[:, index] == 0)
+    assert np.linalg.matrix_rank(others) == np.linalg.matrix_rank(Y.reshape(-1, Y.shape[2])) - len(alone)
+    t = np.arange(0.0, 2.0, 0.01)
+    pd.DataFrame({"t": t, "q1": np.sin(t), "q2": np.cos(t), "q3": np.sin(2 * t), "tau1": np.cos(t),
+                  "tau2": np.sin(t)}).to_csv(tmp_path / "log.csv", index=False)
+    with pytest.raises(MissingColumnError, match=r"no torque column tau3 .*unknown, not zero.*without tau3 no other "
+                       r"joint's equation holds .*fv3.*cannot be identified"):
+        read_record(tmp_path / "log.csv", model=model)

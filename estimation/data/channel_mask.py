@@ -109,3 +109,23 @@ def _any_masked(measurements: Measurements) -> NDArray[np.bool_] | None:
     if not parts:
         return None
     return np.logical_or.reduce(parts)
+
+
+#: random states at which a channel's share of the base regressor is judged (:func:`channel_only_parameters`)
+STATES_JUDGED = 64
+
+
+def channel_only_parameters(model, channels: list[str]) -> list[str]:
+    """The base parameters of ``model`` (an :class:`~dynamics.models.IdentificationModel`) whose column is zero on
+    every channel but ``channels`` at :data:`STATES_JUDGED` random states (positions uniform over a turn,
+    velocities and accelerations standard normal, seeded): with those channels masked on every sample (a driven
+    joint whose torque was not logged), no other equation holds them, and they cannot be identified (its own
+    friction and offset always; inertial combinations that only its torque sees)."""
+    others = [index for index, channel in enumerate(model.channels) if channel not in channels]
+    generator = np.random.default_rng(0)
+    n = model.robot.n_joints
+    q = generator.uniform(-np.pi, np.pi, (STATES_JUDGED, n))
+    dq, ddq = generator.standard_normal((STATES_JUDGED, n)), generator.standard_normal((STATES_JUDGED, n))
+    Y = model.evaluate_base(q, dq, ddq)[:, others, :]
+    seen = np.any(np.abs(Y) > 1e-12 * max(float(np.max(np.abs(Y))), 1.0), axis=(0, 1))
+    return [name for name, found in zip(model.base.names, seen) if not found]

@@ -80,7 +80,7 @@ from estimation.data.log_formats import (
 )
 from estimation.data.vendor_logs import VendorColumnsWarning, array_cells, vendor_columns
 from estimation.data.sampling_clock import clock_instants, clock_roughness, quantised_clock, said_receive_times
-from estimation.data.channel_mask import masked_channels
+from estimation.data.channel_mask import channel_only_parameters, masked_channels
 from estimation.data.log_cleaning import (DEFAULT_MAX_GAP, ZERO_ROW_JOINTS, Gap, PositionSteps, blank_rows, describe,
                                           GLITCH_RUN, encoder_glitches, find_gaps, position_steps, repeated_rows,
                                           saturated_samples, saturated_wrench, split_rows, time_stamps_jump,
@@ -361,7 +361,7 @@ def segments_from_frame(
         raise ValueError(f"unknown column groups {sorted(unknown)}; expected some of {COLUMN_GROUPS}")
 
     require_columns(frame, ["t"], "the time", source)
-    arrays = _group_arrays(frame, groups, n_joints, source)
+    arrays = _group_arrays(frame, groups, n_joints, source, model)
     if pd.api.types.is_datetime64_any_dtype(frame["t"]) or pd.api.types.is_timedelta64_dtype(frame["t"]):
         raise TimeBaseError(f"{source}: column t holds {frame['t'].dtype} dates or durations; "
                             "the format wants seconds as numbers (e.g. (t - t[0]).dt.total_seconds())")
@@ -600,10 +600,11 @@ def _joint_count(frame: pd.DataFrame, n_joints: int | None, model: Identificatio
     return n_joints
 
 
-def _group_arrays(frame: pd.DataFrame, groups: set[str], n_joints: int, source: str
+def _group_arrays(frame: pd.DataFrame, groups: set[str], n_joints: int, source: str, model=None
                   ) -> dict[str, NDArray[np.float64] | None]:
     """The numeric columns of each group (``q, dq, ddq, tau, wrench``), ``None`` for a group absent;
-    the ``groups`` required, and a group present in part, are errors naming the columns."""
+    the ``groups`` required, and a group present in part, are errors naming the columns (a torque column missing:
+    with ``model``, the base parameters that only its equations hold, :func:`unlogged_torque_parameters`)."""
     arrays: dict[str, NDArray[np.float64] | None] = {}
     for group in ("q", "dq", "ddq", "tau", "wrench"):
         columns = list(WRENCH_CHANNELS) if group == "wrench" else joint_columns(group, n_joints)
@@ -615,7 +616,7 @@ def _group_arrays(frame: pd.DataFrame, groups: set[str], n_joints: int, source: 
                 "(unactuated) joint's torque is zero by physics, and --passive JOINT reads it so (name or number; "
                 "or a description that declares motors on the other joints only); a driven joint whose torque was "
                 "not logged is not passive (its torque is unknown, not zero): give its column "
-                "(docs/guides/robots-and-logs.md)")
+                f"(docs/guides/robots-and-logs.md){unlogged_torque_parameters(model, missing)}")
         if group in groups:
             require_columns(frame, columns, GROUP_MEANING[group], source)
         elif present and len(present) != len(columns):
@@ -623,6 +624,21 @@ def _group_arrays(frame: pd.DataFrame, groups: set[str], n_joints: int, source: 
             raise MissingColumnError(f"{source}: column(s) {', '.join(missing)} missing (the others of {group} are present)")
         arrays[group] = numeric_columns(frame, columns, source) if len(present) == len(columns) else None
     return arrays
+
+
+def unlogged_torque_parameters(model, missing: list[str]) -> str:
+    """The sentence of the missing-torque error naming the base parameters that only the ``missing`` torques'
+    equations hold (:func:`estimation.data.channel_mask.channel_only_parameters`): without those columns they
+    cannot be identified, so the fit is not run on the others' equations alone; empty without a model (or when
+    none is only theirs)."""
+    if not isinstance(model, IdentificationModel) or not all(name in model.channels for name in missing):
+        return ""
+    alone = channel_only_parameters(model, missing)
+    if not alone:
+        return ""
+    return (f"; without {', '.join(missing)} no other joint's equation holds {', '.join(alone)} (the base parameters "
+            "only its torque sees: its friction and offset among them), so they cannot be identified from the "
+            "others' torques")
 
 
 def _holes_and_stalls(t: NDArray[np.float64], step: float, max_gap: float, split: bool, source: str,
