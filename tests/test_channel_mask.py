@@ -134,3 +134,36 @@ def test_a_driven_joints_unlogged_torque_is_refused_naming_what_only_its_equatio
     with pytest.raises(MissingColumnError, match=r"no torque column tau3 .*unknown, not zero.*without tau3 no other "
                        r"joint's equation holds .*fv3.*cannot be identified"):
         read_record(tmp_path / "log.csv", model=model)
+
+
+def test_a_jittered_clipped_record_masks_the_recorded_samples_and_the_grid_beside_them(tmp_path):
+    """A record resampled by its jittered stamps, its tau2 clipped: the samples as recorded hold tau2 masked exactly
+    at its clipped samples (the errors' samples), the uniform grid (the fit's) at those and the few grid points
+    interpolated from them; tau1 and tau3 masked nowhere."""
+    import warnings
+
+    import pandas as pd
+
+    from dynamics.models import build_model
+    from dynamics.robots import load_robot
+    from estimation.data.records import read_measurements
+    from tests.test_unseen_robots import FRICTION, Log, truth, urdf_of, write_record
+
+    model = build_model(load_robot(urdf=urdf_of("puma560:3", tmp_path)), "internal", FRICTION)
+    write_record(model, truth(model), Log(4.0, 250.0, velocity=False), 11, tmp_path / "clean.csv")
+    table = pd.read_csv(tmp_path / "clean.csv")
+    table.loc[1:, "t"] += np.random.default_rng(0).uniform(-1e-4, 1e-4, len(table) - 1)
+    limit = 0.8 * float(np.abs(table["tau2"]).max())
+    table["tau2"] = np.clip(table["tau2"], -limit, limit)
+    table.to_csv(tmp_path / "jittered.csv", index=False, float_format="%.10g")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        read = read_measurements(tmp_path / "jittered.csv", model=model)
+    written = pd.read_csv(tmp_path / "jittered.csv")["tau2"].to_numpy()
+    at_limit = np.abs(written) >= limit * (1 - 1e-9)
+    assert read.metadata["resampled_from"] == len(table) and read.metadata["saturated_samples"] == {
+        "tau2": int(at_limit.sum())}
+    assert np.array_equal(np.isnan(read.as_recorded.tau[:, 1]), at_limit)
+    assert not np.isnan(read.as_recorded.tau[:, [0, 2]]).any() and not np.isnan(read.tau[:, [0, 2]]).any()
+    grid_masked = np.isnan(read.tau[:, 1])
+    assert at_limit.sum() <= grid_masked.sum() <= at_limit.sum() + 2 * np.count_nonzero(np.diff(at_limit.astype(int)))

@@ -510,24 +510,20 @@ def said_dropouts(count: int, first_row: int, first_stamp: object, source: str) 
         BlankRowsWarning, stacklevel=5)
 
 
-def _as_recorded(t: NDArray[np.float64], piece: dict, grid: NDArray[np.float64], metadata: dict,
-                 valid: NDArray[np.bool_] | None = None) -> tuple[Measurements | None, NDArray[np.int_] | None]:
+def _as_recorded(t: NDArray[np.float64], piece: dict, grid: NDArray[np.float64], metadata: dict
+                 ) -> tuple[Measurements | None, NDArray[np.int_] | None]:
     """The samples as recorded beside a resampled segment (``Measurements.recorded``, each beside its nearest grid
     sample: ``recorded_rows``), or ``(None, None)`` when the segment was not resampled. Errors are taken on them:
     the torques are never interpolated (the motion derived on the grid is, at their time stamps,
-    :func:`estimation.preprocessing.plan.prepare`). ``valid``: the samples whose torques are measurements (a clipped
-    sensor's samples false, :func:`clipped_torques`): the others are left out of the samples as recorded, of a
-    segment resampled or not."""
-    if grid is t and valid is None:
+    :func:`estimation.preprocessing.plan.prepare`). A clipped sensor's samples are masked in ``piece`` (NaN in that
+    channel, :mod:`estimation.data.channel_mask`), here as in the grid."""
+    if grid is t:
         return None, None
     step = (grid[-1] - grid[0]) / max(grid.shape[0] - 1, 1)
-    rows = (np.arange(t.shape[0]) if grid is t
-            else np.clip(np.rint((t - grid[0]) / step), 0, grid.shape[0] - 1).astype(np.int_))
-    keep = slice(None) if valid is None else valid
-    recorded = Measurements(t[keep], *(None if piece[key] is None else piece[key][keep]
-                                       for key in ("q", "dq", "ddq", "tau", "wrench")),
+    rows = np.clip(np.rint((t - grid[0]) / step), 0, grid.shape[0] - 1).astype(np.int_)
+    recorded = Measurements(t, *(piece[key] for key in ("q", "dq", "ddq", "tau", "wrench")),
                             dict(metadata, recorded_stamps=True))
-    return recorded, rows[keep]
+    return recorded, rows
 
 
 def clipped_torques(arrays: dict, t: NDArray[np.float64], model, source: str) -> NDArray[np.bool_] | None:
