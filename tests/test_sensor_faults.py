@@ -206,7 +206,7 @@ def test_runs_of_samples_a_hard_stop_a_step_that_stays_and_a_quantised_encoder_a
     assert rows.tolist() == [500, 501, *range(1500, 1505)] and set(joints.tolist()) == {0}, rows
 
 
-def test_a_clipped_torque_sensor_is_named_and_its_samples_left_out_of_the_samples_as_recorded(tmp_path):
+def test_a_clipped_torque_sensor_is_named_and_its_samples_masked_in_that_channel_only(tmp_path):
     from estimation.data import SaturatedTorqueWarning
     from estimation.data.records import read_measurements
 
@@ -221,7 +221,13 @@ def test_a_clipped_torque_sensor_is_named_and_its_samples_left_out_of_the_sample
     memory, said = _caught(SaturatedTorqueWarning, lambda: read_measurements(tmp_path / "clipped.csv", model=model))
     assert len(said) == 1 and "tau2" in said[0] and "tau1" not in said[0] and "tau3" not in said[0], said
     recorded = memory.as_recorded
-    assert np.allclose(recorded.t, np.delete(table["t"].to_numpy(), at_limit), rtol=0, atol=1e-12)  # those out
+    # tau2's clipped samples masked (NaN: estimation.data.channel_mask), tau2's only: tau1's and tau3's readings of
+    # those samples kept, as every position
+    assert np.allclose(recorded.t, table["t"].to_numpy(), rtol=0, atol=1e-12)
+    assert np.array_equal(np.flatnonzero(np.isnan(recorded.tau[:, 1])), at_limit)
+    assert not np.isnan(recorded.tau[:, [0, 2]]).any()
+    assert np.allclose(np.delete(recorded.tau[:, 1], at_limit), np.delete(clipped["tau2"].to_numpy(), at_limit),
+                       rtol=1e-12, atol=0)
     assert np.allclose(memory.t, table["t"].to_numpy(), rtol=0, atol=1e-12)  # the positions all kept
     assert memory.metadata["saturated_samples"] == {"tau2": at_limit.size}
     _, nothing = _caught(SaturatedTorqueWarning, lambda: read_measurements(clean, model=model))
@@ -305,7 +311,7 @@ def test_a_quantised_torque_channel_and_a_joint_held_against_a_hard_stop_are_not
 
 def test_a_combined_records_clipped_torque_and_wrench_are_counted_per_channel(tmp_path):
     """The combined model's record (joint torques and the base wrench): ``tau2`` and ``mz`` clipped at 80 % of their
-    peaks, each named and counted, the rows of either left out of the samples as recorded."""
+    peaks, each named and counted, each one's samples masked in that channel only."""
     from dynamics.models import build_model
     from dynamics.robots import load_robot
     from dynamics.simulation.synthetic import true_parameters
@@ -330,7 +336,12 @@ def test_a_combined_records_clipped_torque_and_wrench_are_counted_per_channel(tm
     memory, said = _caught(SaturatedTorqueWarning, lambda: read_measurements(tmp_path / "combined.csv", model=model))
     assert len(said) == 1 and "range: tau2" in said[0] and "; mz at" in said[0], said
     assert memory.metadata["saturated_samples"] == {name: int(mask.sum()) for name, mask in at.items()}
-    assert np.allclose(memory.as_recorded.t, t[~(at["tau2"] | at["mz"])], rtol=0, atol=1e-9)
+    recorded = memory.as_recorded  # each clipped channel's samples masked in that channel only
+    assert np.allclose(recorded.t, t, rtol=0, atol=1e-9)
+    assert np.array_equal(np.isnan(recorded.tau[:, 1]), at["tau2"]) and np.array_equal(np.isnan(recorded.wrench[:, 5]),
+                                                                                        at["mz"])
+    assert np.count_nonzero(np.isnan(recorded.tau)) + np.count_nonzero(np.isnan(recorded.wrench)) == sum(
+        int(mask.sum()) for mask in at.values())
 
 
 def test_a_wrench_channel_is_clipped_while_the_robot_moves_not_at_rest_nor_when_quantised():

@@ -33,6 +33,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from dynamics.measurements import Measurements
+from estimation.data.channel_mask import masked_equations
 from estimation.data.passive import passive_channels
 from estimation.data.segments import concatenate, segment_slices
 from estimation.estimators.identification_problem import IdentificationProblem
@@ -75,8 +76,9 @@ def fixed_problem(result: IdentificationResult, measurements: Measurements) -> I
     Y = fixed_regressor(result, measurements)
     pieces = segment_slices(measurements)
     bounds = tuple((piece.start, piece.stop) for piece in pieces) if len(pieces) > 1 else ()
-    return IdentificationProblem(Y, measurements.channels(model.channels), model.channels, model.base.names,
-                                 model.base.expressions, bounds, passive=passive_channels(model))
+    Y, measured, mask = masked_equations(Y, measurements.channels(model.channels))  # masked samples: out
+    return IdentificationProblem(Y, measured, model.channels, model.base.names, model.base.expressions, bounds,
+                                 passive=passive_channels(model), mask=mask)
 
 
 def fixed_comparison(result: IdentificationResult, values: ArrayLike, measurements: Measurements, *,

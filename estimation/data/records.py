@@ -83,6 +83,7 @@ from estimation.data.log_formats import (
 )
 from estimation.data.vendor_logs import AmbiguousColumnsError, VendorColumnsWarning, array_cells, vendor_columns
 from estimation.data.sampling_clock import clock_instants, clock_roughness, quantised_clock, said_receive_times
+from estimation.data.channel_mask import channel_only_parameters, masked_channels
 from estimation.data.log_cleaning import (DEFAULT_MAX_GAP, ZERO_ROW_JOINTS, Gap, PositionSteps, blank_rows, describe,
                                           GLITCH_RUN, encoder_glitches, find_gaps, position_steps, repeated_rows,
                                           saturated_samples, saturated_wrench, split_rows, time_stamps_jump,
@@ -394,7 +395,7 @@ def segments_from_frame(
         raise ValueError(f"unknown column groups {sorted(unknown)}; expected some of {COLUMN_GROUPS}")
 
     require_columns(frame, ["t"], "the time", source)
-    arrays = _group_arrays(frame, groups, n_joints, source)
+    arrays = _group_arrays(frame, groups, n_joints, source, model)
     frame = seconds_of_date_times(frame, source)[0]  # a table handed over as it is: its date-times read alike
     t = numeric_columns(frame, ["t"], source)[:, 0]
     _check_absurd(t, arrays, n_joints, source)
@@ -429,17 +430,17 @@ def segments_from_frame(
                                        "too few for a time series; cut them from the file")
         metadata: dict[str, object] = {"source": source, "segment": index, "segments_in_file": len(holes) + 1,
                                        "repeated_rows_dropped": dropped, "duplicated_times_dropped": duplicated}
+        if clipped is not None and clipped[rows].any():  # a clipped channel's samples masked, that channel's only
+            metadata["saturated_samples"] = {name: int(count) for name, count in
+                                             zip(clipped_channels(arrays), clipped[rows].sum(axis=0)) if count}
+            piece = masked_channels(piece, clipped[rows])
         stamps = t[rows]
         segment_t, grid = uniform_grid(stamps, piece, resample, name, metadata, bridged=times.bridged)
         if "resampled_from" in metadata:  # resampled by its stamps: were they the samples' instants?
             said_receive_times(clock_roughness(stamps, piece["q"], (stamps[-1] - stamps[0]) / (segment_t.shape[0] - 1)),
                                float(stamps[0]), float(stamps[-1]), stamps.shape[0], name)
-        valid = None if clipped is None or not clipped[rows].any() else ~clipped[rows].any(axis=1)
-        if valid is not None:
-            metadata["saturated_samples"] = {name: int(count) for name, count in
-                                             zip(clipped_channels(arrays), clipped[rows].sum(axis=0)) if count}
         segments.append(Measurements(segment_t, grid["q"], grid["dq"], grid["ddq"], grid["tau"], grid["wrench"],
-                                     metadata, *_as_recorded(stamps, piece, segment_t, metadata, valid)))
+                                     metadata, *_as_recorded(stamps, piece, segment_t, metadata)))
     if isinstance(model, IdentificationModel):
         check_sample_count(segments, model)
     return tuple(segments)
@@ -541,24 +542,20 @@ def said_dropouts(count: int, first_row: int, first_stamp: object, source: str) 
         BlankRowsWarning, stacklevel=5)
 
 
-def _as_recorded(t: NDArray[np.float64], piece: dict, grid: NDArray[np.float64], metadata: dict,
-                 valid: NDArray[np.bool_] | None = None) -> tuple[Measurements | None, NDArray[np.int_] | None]:
+def _as_recorded(t: NDArray[np.float64], piece: dict, grid: NDArray[np.float64], metadata: dict
+                 ) -> tuple[Measurements | None, NDArray[np.int_] | None]:
     """The samples as recorded beside a resampled segment (``Measurements.recorded``, each beside its nearest grid
     sample: ``recorded_rows``), or ``(None, None)`` when the segment was not resampled. Errors are taken on them:
     the torques are never interpolated (the motion derived on the grid is, at their time stamps,
-    :func:`estimation.preprocessing.plan.prepare`). ``valid``: the samples whose torques are measurements (a clipped
-    sensor's samples false, :func:`clipped_torques`): the others are left out of the samples as recorded, of a
-    segment resampled or not."""
-    if grid is t and valid is None:
+    :func:`estimation.preprocessing.plan.prepare`). A clipped sensor's samples are masked in ``piece`` (NaN in that
+    channel, :mod:`estimation.data.channel_mask`), here as in the grid."""
+    if grid is t:
         return None, None
     step = (grid[-1] - grid[0]) / max(grid.shape[0] - 1, 1)
-    rows = (np.arange(t.shape[0]) if grid is t
-            else np.clip(np.rint((t - grid[0]) / step), 0, grid.shape[0] - 1).astype(np.int_))
-    keep = slice(None) if valid is None else valid
-    recorded = Measurements(t[keep], *(None if piece[key] is None else piece[key][keep]
-                                       for key in ("q", "dq", "ddq", "tau", "wrench")),
+    rows = np.clip(np.rint((t - grid[0]) / step), 0, grid.shape[0] - 1).astype(np.int_)
+    recorded = Measurements(t, *(piece[key] for key in ("q", "dq", "ddq", "tau", "wrench")),
                             dict(metadata, recorded_stamps=True))
-    return recorded, rows[keep]
+    return recorded, rows
 
 
 def clipped_torques(arrays: dict, t: NDArray[np.float64], model, source: str) -> NDArray[np.bool_] | None:
@@ -631,10 +628,11 @@ def _joint_count(frame: pd.DataFrame, n_joints: int | None, model: Identificatio
     return n_joints
 
 
-def _group_arrays(frame: pd.DataFrame, groups: set[str], n_joints: int, source: str
+def _group_arrays(frame: pd.DataFrame, groups: set[str], n_joints: int, source: str, model=None
                   ) -> dict[str, NDArray[np.float64] | None]:
     """The numeric columns of each group (``q, dq, ddq, tau, wrench``), ``None`` for a group absent;
-    the ``groups`` required, and a group present in part, are errors naming the columns."""
+    the ``groups`` required, and a group present in part, are errors naming the columns (a torque column missing:
+    with ``model``, the base parameters that only its equations hold, :func:`unlogged_torque_parameters`)."""
     arrays: dict[str, NDArray[np.float64] | None] = {}
     for group in ("q", "dq", "ddq", "tau", "wrench"):
         columns = list(WRENCH_CHANNELS) if group == "wrench" else joint_columns(group, n_joints)
@@ -646,7 +644,7 @@ def _group_arrays(frame: pd.DataFrame, groups: set[str], n_joints: int, source: 
                 "(unactuated) joint's torque is zero by physics, and --passive JOINT reads it so (name or number; "
                 "or a description that declares motors on the other joints only); a driven joint whose torque was "
                 "not logged is not passive (its torque is unknown, not zero): give its column "
-                "(docs/guides/robots-and-logs.md)")
+                f"(docs/guides/robots-and-logs.md){unlogged_torque_parameters(model, missing)}")
         if group in groups:
             require_columns(frame, columns, GROUP_MEANING[group], source)
         elif present and len(present) != len(columns):
@@ -654,6 +652,21 @@ def _group_arrays(frame: pd.DataFrame, groups: set[str], n_joints: int, source: 
             raise MissingColumnError(f"{source}: column(s) {', '.join(missing)} missing (the others of {group} are present)")
         arrays[group] = numeric_columns(frame, columns, source) if len(present) == len(columns) else None
     return arrays
+
+
+def unlogged_torque_parameters(model, missing: list[str]) -> str:
+    """The sentence of the missing-torque error naming the base parameters that only the ``missing`` torques'
+    equations hold (:func:`estimation.data.channel_mask.channel_only_parameters`): without those columns they
+    cannot be identified, so the fit is not run on the others' equations alone; empty without a model (or when
+    none is only theirs)."""
+    if not isinstance(model, IdentificationModel) or not all(name in model.channels for name in missing):
+        return ""
+    alone = channel_only_parameters(model, missing)
+    if not alone:
+        return ""
+    return (f"; without {', '.join(missing)} no other joint's equation holds {', '.join(alone)} (the base parameters "
+            "only its torque sees: its friction and offset among them), so they cannot be identified from the "
+            "others' torques")
 
 
 def _holes_and_stalls(t: NDArray[np.float64], step: float, max_gap: float, split: bool, source: str,

@@ -70,6 +70,7 @@ from dynamics.measurements import Measurements
 from dynamics.models import IdentificationModel, ModelKind, build_model
 from dynamics.runtime.processes import run_tasks, worker_count
 from dynamics.runtime.threads import single_threaded_blas
+from estimation.data.channel_mask import whole_rows
 from estimation.diagnosis.candidates.trials import candidate_label
 from estimation.diagnosis.candidates.coupling import coupling_candidates
 from estimation.diagnosis.candidates.delay_search import DelaySearch
@@ -212,6 +213,8 @@ def diagnose(
     validation channels as recorded (``validate.recorded`` when preprocessing filtered or averaged
     them), along the derived motion.
     """
+    # the search's candidate columns have no per-channel mask: a sample with a masked channel leaves it whole
+    train, validate = whole_rows(train), whole_rows(validate)
     candidates = _checked_candidates(model, train, validate, candidates, alpha, min_improvement)
     floor_for_validation(validate, model.channels, noise_floor)  # a floor of the wrong kind refused before the search
     worker_count(jobs, 0)  # so is a wrong number of processes

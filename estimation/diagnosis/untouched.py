@@ -14,13 +14,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-import numpy as np
 
 from dynamics.measurements import Measurements
 from estimation.diagnosis.results import Diagnosis
 from estimation.data.segments import segment_slices
 from estimation.identification.fit import IdentificationResult
-from estimation.identification.validation import Comparison
+from estimation.identification.validation import Comparison, channel_mse
 from estimation.uncertainty.noise_floor import NoiseFloor
 
 __all__ = ["UntouchedErrors", "recorded_comparison", "recorded_mse", "untouched_errors"]
@@ -65,8 +64,7 @@ class UntouchedErrors:
 def recorded_mse(result: IdentificationResult, measurements: Measurements) -> dict[str, float]:
     """``{channel: MSE}`` of ``result`` predicting ``measurements`` (prepared), against the channels as recorded."""
     recorded = measurements.as_recorded
-    residual = recorded.channels(result.model.channels) - result.predict(recorded)
-    return {channel: float(value) for channel, value in zip(result.model.channels, np.mean(residual**2, axis=0))}
+    return channel_mse(recorded.channels(result.model.channels), result.predict(recorded), result.model.channels)
 
 
 def recorded_comparison(result: IdentificationResult, measurements: Measurements, label: str = "") -> Comparison:

@@ -19,6 +19,7 @@ from numpy.typing import ArrayLike, NDArray
 from dynamics.models import IdentificationModel
 from dynamics.measurements import Measurements
 from estimation.uncertainty.covariance import segment_bounds
+from estimation.data.channel_mask import masked_equations
 from estimation.data.passive import passive_channels
 from estimation.data.segments import concatenate, segment_slices
 
@@ -208,12 +209,14 @@ def _rate(t: NDArray[np.float64]) -> float | None:
 
 
 def in_band_variance(residuals: NDArray[np.float64], n_parameters: int,
-                     band: ResidualBand | None) -> NDArray[np.float64]:
+                     band: ResidualBand | None, samples: NDArray[np.int_] | None = None) -> NDArray[np.float64]:
     """Per channel, the variance of the residuals ``(N, m)`` in ``band`` (as recorded when ``None``),
-    ``‖ρ_c‖² / (N − r/m)``: the variance channel weights ``1/σ_c²`` are taken from."""
+    ``‖ρ_c‖² / (N_c − r/m)``: the variance channel weights ``1/σ_c²`` are taken from. ``samples``: ``N_c``, each
+    channel's valid samples when some are masked (:attr:`IdentificationProblem.channel_samples`; their residual
+    is 0 there), else ``N`` for all."""
     n_samples, n_channels = residuals.shape
-    dof = n_samples - n_parameters / n_channels
-    if dof <= 0:
+    dof = (n_samples if samples is None else np.asarray(samples, dtype=float)) - n_parameters / n_channels
+    if np.any(dof <= 0):
         raise ValueError(f"{n_samples} samples leave no degrees of freedom for {n_parameters} parameters")
     values = residuals if band is None else band.apply(residuals)
     return np.sum(values**2, axis=0) / dof
@@ -242,6 +245,10 @@ class IdentificationProblem:
     passive
         The channels of passive (unactuated) joints (:mod:`estimation.data.passive`): their zero is a measurement
         (``0 = Y_j θ``), not a dead sensor; a weighted fit weights them by their residual.
+    mask
+        ``(N, m)`` true where the equation is a measurement, false where the channel's sample is masked
+        (:mod:`estimation.data.channel_mask`: its row of ``Y`` and its ``y`` are zero, so it adds nothing to the fit);
+        ``None``: every equation is.
     """
 
     Y: NDArray[np.float64]
@@ -252,6 +259,7 @@ class IdentificationProblem:
     segments: tuple[tuple[int, int], ...] = ()
     band: ResidualBand | None = None
     passive: tuple[str, ...] = ()
+    mask: NDArray[np.bool_] | None = None
 
     def __post_init__(self) -> None:
         Y, y = np.asarray(self.Y, dtype=float), np.asarray(self.y, dtype=float)
@@ -277,6 +285,16 @@ class IdentificationProblem:
         object.__setattr__(self, "names", tuple(self.names))
         object.__setattr__(self, "expressions", tuple(self.expressions) or tuple(self.names))
         object.__setattr__(self, "segments", tuple(segment_bounds(Y.shape[0], self.segments)) if self.segments else ())
+        if self.mask is not None:
+            mask = np.asarray(self.mask, dtype=bool)
+            if mask.shape != y.shape:
+                raise ValueError(f"mask has shape {mask.shape}, expected {y.shape} (samples, channels)")
+            object.__setattr__(self, "mask", None if mask.all() else mask)
+
+    @property
+    def channel_samples(self) -> NDArray[np.int_] | None:
+        """``(m,)`` each channel's valid samples (equations) when some are masked, else ``None`` (``N`` each)."""
+        return None if self.mask is None else np.sum(self.mask, axis=0)
 
     @property
     def n_samples(self) -> int:
@@ -289,6 +307,11 @@ class IdentificationProblem:
     @property
     def n_parameters(self) -> int:
         return self.Y.shape[2]
+
+    @property
+    def n_equations(self) -> int:
+        """The equations that are measurements: ``N m`` less the masked ones (:attr:`mask`)."""
+        return self.Y.shape[0] * self.Y.shape[1] if self.mask is None else int(np.count_nonzero(self.mask))
 
     def stacked(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """``Y (N·m, r)`` and ``y (N·m,)``, sample-major (views, no copy)."""
@@ -317,7 +340,7 @@ class IdentificationProblem:
         return IdentificationProblem(
             np.concatenate([self.Y, columns], axis=2), self.y, self.channels,
             self.names + tuple(names), self.expressions + (tuple(expressions) or tuple(names)), self.segments,
-            self.band, self.passive,
+            self.band, self.passive, self.mask,
         )
 
     def select_channels(self, channels: tuple[str, ...] | list[str]) -> IdentificationProblem:
@@ -327,7 +350,8 @@ class IdentificationProblem:
             raise ValueError(f"no channel(s) {missing} in this problem; it has {self.channels}")
         index = [self.channels.index(channel) for channel in channels]
         return replace(self, Y=self.Y[:, index], y=self.y[:, index], channels=tuple(channels),
-                       passive=tuple(channel for channel in self.passive if channel in channels))
+                       passive=tuple(channel for channel in self.passive if channel in channels),
+                       mask=None if self.mask is None else self.mask[:, index])
 
 
 def stack(model: IdentificationModel, measurements: Measurements | Sequence[Measurements]) -> IdentificationProblem:
@@ -342,10 +366,11 @@ def stack(model: IdentificationModel, measurements: Measurements | Sequence[Meas
         raise ValueError(f"the data have {measurements.n_joints} joints, the robot {model.robot.n_joints}")
     measured = measurements.channels(model.channels)
     Y = model.evaluate_base(measurements.q, measurements.dq, measurements.ddq)  # compiled, zero-copy
+    Y, measured, mask = masked_equations(Y, measured)  # a masked channel's samples: out (nothing copied if none)
     segments = segment_slices(measurements)
     bounds = tuple((piece.start, piece.stop) for piece in segments) if len(segments) > 1 else ()
     return IdentificationProblem(Y, measured, model.channels, model.base.names, model.base.expressions, bounds,
-                                 ResidualBand.of(measurements), passive_channels(model))
+                                 ResidualBand.of(measurements), passive_channels(model), mask)
 
 
 def _check_theta(theta: ArrayLike, count: int) -> NDArray[np.float64]:

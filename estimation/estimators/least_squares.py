@@ -182,11 +182,13 @@ def solve(
     return theta, inverse, float(np.sqrt(extremes[1] / max(extremes[0], np.finfo(float).tiny)))
 
 
-def channel_variance(residuals: NDArray[np.float64], n_parameters: int) -> NDArray[np.float64]:
-    """Residual variance per channel, ``‖ρ_c‖² / (N − r/m)`` (the ``N m − r`` degrees of freedom shared evenly)."""
+def channel_variance(residuals: NDArray[np.float64], n_parameters: int,
+                     samples: NDArray[np.int_] | None = None) -> NDArray[np.float64]:
+    """Residual variance per channel, ``‖ρ_c‖² / (N_c − r/m)`` (the ``N m − r`` degrees of freedom shared evenly;
+    ``samples``: ``N_c``, each channel's valid samples when some are masked, their residual 0, else ``N``)."""
     n_samples, n_channels = residuals.shape
-    dof = n_samples - n_parameters / n_channels
-    if dof <= 0:
+    dof = (n_samples if samples is None else np.asarray(samples, dtype=float)) - n_parameters / n_channels
+    if np.any(dof <= 0):
         raise ValueError(f"{n_samples} samples leave no degrees of freedom for {n_parameters} parameters")
     return np.sum(residuals**2, axis=0) / dof
 
@@ -219,7 +221,7 @@ class LeastSquares(Estimator):
         weights = np.ones(problem.n_channels)
         theta, unscaled, cond = solve(problem, weights)
         residuals = problem.residuals(theta)
-        dof = problem.n_samples * problem.n_channels - problem.n_parameters
+        dof = problem.n_equations - problem.n_parameters
         sigma2 = float(np.sum(residuals**2)) / dof
         self._store(problem, theta, sigma2 * unscaled, cond, residuals, weights, 1, unscaled)
         return self
@@ -233,7 +235,8 @@ class LeastSquares(Estimator):
             relative = np.where(theta != 0, 100.0 * std / np.abs(theta), np.inf)
         self.estimate_ = Estimate(
             values=theta, cov=cov, std=std, relative_std=relative, cond=cond, residuals=residuals,
-            channel_variance=channel_variance(residuals, problem.n_parameters), weights=weights,
+            channel_variance=channel_variance(residuals, problem.n_parameters, problem.channel_samples),
+            weights=weights,
             names=problem.names, expressions=problem.expressions, channels=problem.channels,
             method=self.method, n_iterations=iterations, cov_method=cov_method, hac_lags=lags,
         )
@@ -309,7 +312,8 @@ class WeightedLeastSquares(LeastSquares):
             raise ValueError(f"variance_floor must be a non-negative number, got {self.variance_floor}")
         problem = _as_problem(problem, measurements)
         _check_size(problem)
-        mean_square = np.mean(problem.y**2, axis=0)
+        samples = problem.channel_samples  # each channel's valid samples when some are masked (their y is 0)
+        mean_square = np.mean(problem.y**2, axis=0) if samples is None else np.sum(problem.y**2, axis=0) / samples
         dead = [channel for channel, value in zip(problem.channels, mean_square)
                 if value == 0 and channel not in problem.passive]
         if dead:
@@ -321,7 +325,7 @@ class WeightedLeastSquares(LeastSquares):
         floor = self.variance_floor * mean_square
         gram, moment = channel_gram(problem)  # (m, r, r), (m, r)
         power = np.sum(problem.y**2, axis=0)  # (m,)
-        dof = problem.n_samples - problem.n_parameters / problem.n_channels
+        dof = (problem.n_samples if samples is None else samples) - problem.n_parameters / problem.n_channels
         weights = np.ones(problem.n_channels)
         variance = None
         iterations = 0
@@ -332,7 +336,8 @@ class WeightedLeastSquares(LeastSquares):
                 in_band = (power - 2 * moment @ theta + np.einsum("r,mrs,s->m", theta, gram, theta)) / dof
             else:  # the residual in the motion's band (problem.band): the (N, m) residual filtered at each
                 # iteration, cheaper than the (N, m, r) regressor filtered once for the few iterations a fit takes
-                in_band = in_band_variance(problem.residuals(theta), problem.n_parameters, problem.band)
+                in_band = in_band_variance(problem.residuals(theta), problem.n_parameters, problem.band,
+                                           problem.channel_samples)
             updated = floored_variance(in_band, floor, mean_square == 0)  # a passive joint's channel too
             change = np.inf if variance is None else np.max(np.abs(updated - variance) / variance)
             variance = updated
@@ -341,7 +346,7 @@ class WeightedLeastSquares(LeastSquares):
                 break
         theta, unscaled, cond = solve(problem, weights, (gram, moment))
         residuals = problem.residuals(theta)
-        dof = problem.n_samples * problem.n_channels - problem.n_parameters
+        dof = problem.n_equations - problem.n_parameters
         # ≈ 1 once the weights are the inverse variances; above 1 with a band, by the recording's out-of-band noise,
         # which the covariance of a fit to the recorded torques must hold
         scale = float(np.sum(residuals**2 * weights)) / dof

@@ -31,6 +31,7 @@ from scipy.stats import norm
 from dynamics.channels import is_joint_torque
 from dynamics.measurements import Measurements
 from dynamics.models import IdentificationModel, ModelKind
+from estimation.data.channel_mask import channel_mean, masked_equations
 from estimation.data.segments import segment_slices
 from estimation.uncertainty.batch_means import batch_length, batch_means
 
@@ -183,14 +184,18 @@ def check_friction_drift(model: IdentificationModel, train: Measurements, valida
     joints = sorted(columns)
     regressors, torques, segments = [], [], []
     offset = 0
+    scale = None
     for record in (train, validation):
         rows = _rows(record)
-        regressors.append(model.evaluate(record.q[rows], record.dq[rows], record.ddq[rows]))
-        torques.append(record.channels(channels)[rows])
+        measured = record.channels(channels)[rows]
+        scale = np.sqrt(channel_mean((measured - channel_mean(measured)) ** 2, measured)) if scale is None else scale
+        # a channel's masked samples (estimation.data.channel_mask): their equations out, the others' kept
+        Y, measured, _ = masked_equations(model.evaluate(record.q[rows], record.dq[rows], record.ddq[rows]), measured)
+        regressors.append(Y)
+        torques.append(measured)
         segments += [(offset + start, offset + stop) for start, stop in _segments(record, rows)]
         offset += rows.shape[0]
     Y_train, Y_valid = regressors
-    scale = np.std(torques[0], axis=0)
     weights = 1.0 / np.where(scale > 0, scale, 1.0) ** 2  # each channel in its own units: no joint dominates
     n_params = Y_train.shape[2]
     theta = _weighted_lstsq(Y_train, torques[0], weights)[0]

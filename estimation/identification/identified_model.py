@@ -38,6 +38,7 @@ from dynamics.measurements import Measurements
 from dynamics.models import IdentificationModel, build_model, check_states
 from dynamics.runtime.output_files import save_figure
 from dynamics.transmission_files import transmission_from_json
+from estimation.data.channel_mask import channel_counts
 from estimation.data.log_cleaning import DEFAULT_MAX_GAP
 from estimation.data.motor_side import read_record_with_transmission
 from estimation.data.rest import coulomb_combinations, drop_rest
@@ -248,10 +249,22 @@ class Evaluation:
         return {channel: value / self.floor_mse[channel] if self.floor_mse[channel] > 0 else float("inf")
                 for channel, value in self.prediction.mse.items()}
 
+    @property
+    def channel_samples(self) -> dict[str, int] | None:
+        """Each channel's valid samples, its error's, where they differ by channel (a channel's masked samples
+        left out: :mod:`estimation.data.channel_mask`); ``None``: every channel's over ``n_samples``."""
+        measured = self.prediction.measured
+        if measured is None:
+            return None
+        counts = channel_counts(measured)
+        if np.all(counts == measured.shape[0]):
+            return None
+        return {channel: int(count) for channel, count in zip(self.prediction.channels, counts)}
+
     def to_dict(self) -> dict[str, Any]:
         return {"mse": self.prediction.mse, "mse_over_floor": self.mse_over_floor,
-                "n_samples": int(self.prediction.t.shape[0]), "zero_mse": self.zero_mse,
-                "nominal_mse": self.nominal_mse, "noise_floor_mse": self.floor_mse,
+                "n_samples": int(self.prediction.t.shape[0]), "channel_samples": self.channel_samples,
+                "zero_mse": self.zero_mse, "nominal_mse": self.nominal_mse, "noise_floor_mse": self.floor_mse,
                 "reported_validation_mse": self.reported_validation_mse, "model": self.model,
                 "outside_training_range": None if self.range_check is None else self.range_check.to_dict(),
                 "training_range_note": UNKNOWN_RANGE if self.range_check is None else None,

@@ -29,11 +29,13 @@ from typing import Literal
 
 import numpy as np
 
+from dynamics.channels import WRENCH_CHANNELS
 from dynamics.measurements import Measurements
 from dynamics.models import IdentificationModel
 from dynamics.runtime.memory import check_allocation
 from dynamics.runtime.progress import step
 from dynamics.transmission import JointDirections, Transmission
+from estimation.data.channel_mask import channel_counts
 from estimation.data.input_findings import reading_findings
 from estimation.data.loading import HoldWarning
 from estimation.data.log_cleaning import DEFAULT_MAX_GAP
@@ -251,6 +253,42 @@ def saturated_sample_counts(records: PreparedRecords | None) -> dict[str, list[d
              for role, record in (("train", records.train), ("validation", records.validation),
                                   ("test", records.test)) if record is not None}
     return {role: entries for role, entries in found.items() if entries} or None
+
+
+def channel_sample_counts(records: PreparedRecords | None) -> dict[str, dict] | None:
+    """``result.json``'s ``channel_samples``: for each record (``train``, ``validation``, ``test``) whose channels'
+    errors are taken over different samples (a channel's masked samples left out of its error only,
+    :mod:`estimation.data.channel_mask`), the samples as recorded (``samples``) and each channel's valid ones
+    (``channels``); ``None`` when every channel's error is over every sample (or the records were streamed)."""
+    if records is None:
+        return None
+    found = {}
+    for role, record in (("train", records.train), ("validation", records.validation), ("test", records.test)):
+        if record is None:
+            continue
+        recorded = record.measurements.as_recorded
+        names = ([f"tau{j + 1}" for j in range(recorded.n_joints)] if recorded.tau is not None else []) + (
+            list(WRENCH_CHANNELS) if recorded.wrench is not None else [])
+        values = [part for part in (recorded.tau, recorded.wrench) if part is not None]
+        if not values:
+            continue
+        counts = channel_counts(np.hstack(values))
+        if np.all(counts == recorded.n_samples):
+            continue
+        found[role] = {"samples": int(recorded.n_samples),
+                       "channels": {name: int(count) for name, count in zip(names, counts)}}
+    return found or None
+
+
+def channel_sample_line(counts: dict[str, dict] | None) -> str | None:
+    """The summary's line for :func:`channel_sample_counts`: the channels whose errors are over fewer samples."""
+    if not counts:
+        return None
+    parts = [f"{role} " + ", ".join(f"{name} {count} of {entry['samples']}"
+                                    for name, count in entry["channels"].items() if count < entry["samples"])
+             for role, entry in counts.items()]
+    return ("errors per channel over its valid samples (a clipped sensor's samples masked in that channel only, "
+            "the other channels' kept): " + "; ".join(parts))
 
 
 def read_files(paths: Sequence[str | Path], model: IdentificationModel, *, split: bool,

@@ -92,6 +92,7 @@ from dynamics.codegen.compiled import SampleEvaluator
 from dynamics.models import ModelKind
 from dynamics.newton_euler import rigid_body_regressors
 from dynamics.robot import ByDescription
+from estimation.data.channel_mask import masked_rows
 from estimation.data.segments import segment_slices
 from estimation.uncertainty.wald import wald_test
 from estimation.identification.mount import mount_rpy
@@ -674,6 +675,11 @@ def check_record_changes(identified: IdentifiedModel, prepared: Measurements, pr
     if not np.all(floors > 0):
         return None
     rows = _rows(record.n_samples)
+    masked = masked_rows(residual[rows])  # a channel's masked samples (a clipped sensor's): this check takes whole rows
+    if masked is not None:
+        rows = rows[~masked]
+        if rows.shape[0] < 20:
+            return None
     q, dq, ddq = record.q[rows], record.dq[rows], record.ddq[rows]
     target = residual[rows]
     segments = _segments(record, rows)

@@ -17,10 +17,10 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
-import numpy as np
 
 from dynamics.models import IdentificationModel
 from dynamics.measurements import Measurements
+from estimation.data.channel_mask import channel_mean
 
 
 class TrivialPredictorWarning(UserWarning):
@@ -33,9 +33,9 @@ def trivial_mse(model: IdentificationModel, measurements: Measurements) -> dict[
     as the identified model's validation MSE is."""
     measurements = measurements.as_recorded
     measured = measurements.channels(model.channels)
-    zero = np.mean(measured**2, axis=0)
+    zero = channel_mean(measured**2)  # each channel over its valid samples (estimation.data.channel_mask)
     predicted = model.predict(model.nominal_parameters(), measurements.q, measurements.dq, measurements.ddq)
-    nominal = np.mean((measured - predicted) ** 2, axis=0)
+    nominal = channel_mean((measured - predicted) ** 2, measured)
     return {
         "zero_mse": {channel: float(value) for channel, value in zip(model.channels, zero)},
         "nominal_mse": {channel: float(value) for channel, value in zip(model.channels, nominal)},

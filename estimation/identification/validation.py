@@ -17,6 +17,7 @@ from numpy.typing import ArrayLike, NDArray
 from dynamics.models import IdentificationModel
 from dynamics.measurements import Measurements
 from dynamics.runtime.output_files import save_figure
+from estimation.data.channel_mask import channel_counts, channel_mean
 from estimation.data.segments import segment_slices
 
 
@@ -75,19 +76,29 @@ class Comparison:
         return int(self.t.shape[0])
 
     @property
+    def channel_samples(self) -> dict[str, int] | None:
+        """The samples each channel's error is taken over where they differ by channel (a channel's masked samples
+        left out: :mod:`estimation.data.channel_mask`), else ``None`` (every channel over :attr:`n_samples`)."""
+        counts = channel_counts(self.measured)
+        if np.all(counts == self.n_samples):
+            return None
+        return {channel: int(count) for channel, count in zip(self.channels, counts)}
+
+    @property
     def relative_mse(self) -> dict[str, float]:
         """MSE divided by the measured channel's mean square (0 perfect, 1 no better than zero)."""
-        power = np.mean(self.measured**2, axis=0)
+        power = channel_mean(self.measured**2)
         return {channel: value / power[index] if power[index] > 0 else float("inf")
                 for index, (channel, value) in enumerate(self.mse.items())}
 
 
 def channel_mse(measured: ArrayLike, predicted: ArrayLike, channels: Sequence[str]) -> dict[str, float]:
-    """``mean((measured − predicted)²)`` per channel."""
+    """``mean((measured − predicted)²)`` per channel, over its valid samples (a masked sample of a channel, NaN in
+    ``measured``, left out of that channel's mean only: :mod:`estimation.data.channel_mask`)."""
     measured, predicted = np.asarray(measured, dtype=float), np.asarray(predicted, dtype=float)
     if measured.shape != predicted.shape or measured.ndim != 2 or measured.shape[1] != len(channels):
         raise ValueError(f"measured {measured.shape} and predicted {predicted.shape} must be (N, {len(channels)})")
-    return {channel: float(value) for channel, value in zip(channels, np.mean((measured - predicted) ** 2, axis=0))}
+    return {channel: float(value) for channel, value in zip(channels, channel_mean((measured - predicted) ** 2, measured))}
 
 
 def compare(model: IdentificationModel, theta: ArrayLike, measurements: Measurements, *, label: str = "",

@@ -133,13 +133,16 @@ def held_out_squares(problem: IdentificationProblem, estimator: type[LeastSquare
     blocks: list[tuple[NDArray[np.float64], int] | str] = []
     for held, kept in blocked_folds(problem.n_samples, folds):
         part = IdentificationProblem(problem.Y[kept], problem.y[kept], problem.channels, problem.names,
-                                     problem.expressions, band=_kept_band(problem, held), passive=problem.passive)
+                                     problem.expressions, band=_kept_band(problem, held), passive=problem.passive,
+                                     mask=None if problem.mask is None else problem.mask[kept])
         try:
             theta = estimator().fit(part).theta_
         except IdentifiabilityError as error:
             blocks.append(str(error).split(": the regressor")[0].removeprefix("the data do not determine "))
             continue
-        blocks.append((np.sum((problem.y[held] - problem.Y[held] @ theta) ** 2, axis=0), held.stop - held.start))
+        # a masked equation's residual is 0 (Y and y zeroed): each channel's block counts its valid samples
+        blocks.append((np.sum((problem.y[held] - problem.Y[held] @ theta) ** 2, axis=0),
+                       held.stop - held.start if problem.mask is None else np.sum(problem.mask[held], axis=0)))
     return blocks
 
 

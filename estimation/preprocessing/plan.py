@@ -417,9 +417,9 @@ def prepare(data: Measurements | Sequence[Measurements], preprocessing: Preproce
 
     The result's ``metadata["preprocessing"]`` is ``preprocessing.to_dict()``; its ``recorded``
     holds the torques/wrench as recorded (:class:`~dynamics.measurements.Measurements`). A segment whose torque
-    sensor was clipped (``metadata["saturated_samples"]``, :func:`estimation.data.records.clipped_torques`: those
-    samples left out of its recorded ones) keeps only the samples beside a recorded one: the clipped samples are out
-    of the fit as of the errors, their positions used for the derivatives.
+    sensor was clipped (``metadata["saturated_samples"]``, :func:`estimation.data.records.clipped_torques`) holds
+    those samples of that channel masked (NaN, :mod:`estimation.data.channel_mask`), here as recorded: they are out
+    of the fit and of the errors, the other channels' readings of those samples and every position kept.
 
     Raises
     ------
@@ -451,8 +451,6 @@ def prepare(data: Measurements | Sequence[Measurements], preprocessing: Preproce
         if stamps is not None:
             derived = at_recorded_stamps(derived, stamps, measured=preprocessing.method == "measured"
                                          and preprocessing.decimation == 1)
-            if segment.metadata.get("saturated_samples"):  # a clipped torque sensor's samples: out of the fit too
-                derived = derived.select(np.unique(derived.recorded_rows))
         metadata = dict(derived.metadata, preprocessing=preprocessing.to_dict())
         recorded = derived.recorded
         prepared.append(replace(derived, metadata=metadata,

@@ -84,6 +84,7 @@ class StreamedEvaluation:
 
     def to_dict(self) -> dict[str, Any]:
         return {"mse": dict(self.mse), "mse_over_floor": None, "n_samples": int(self.n_samples),
+                "channel_samples": None,  # the streamed path masks no sample (its clipped ones are said, not masked)
                 "zero_mse": dict(self.zero_mse), "nominal_mse": dict(self.nominal_mse), "noise_floor_mse": None,
                 "reported_validation_mse": self.reported_validation_mse, "model": self.model,
                 "outside_training_range": None if self.range_check is None else self.range_check.to_dict(),

@@ -170,8 +170,10 @@ def fourier_residual_variance(t: ArrayLike, values: ArrayLike, frequency_hz: flo
 
 def difference_variance(values: ArrayLike, *, order: int = DIFFERENCE_ORDER,
                         names: Sequence[str] | None = None) -> tuple[NDArray[np.float64], float]:
-    """Robust difference-based noise variance of ``values (N, m)`` (module docstring); ``(σ̂², ν)``."""
-    values = _as_2d(values)
+    """Robust difference-based noise variance of ``values (N, m)`` (module docstring); ``(σ̂², ν)``. A channel's
+    masked samples (NaN, :mod:`estimation.data.channel_mask`) leave out the differences that reach them: each
+    channel's scale from its own valid differences, ``ν`` that of the channel with the fewest."""
+    values = _as_2d(values, masked=True)
     order = int(order)
     if order < 1:
         raise ValueError(f"the difference order must be at least 1, got {order}")
@@ -179,7 +181,15 @@ def difference_variance(values: ArrayLike, *, order: int = DIFFERENCE_ORDER,
         raise NoiseFloorError(f"{values.shape[0]} samples are too few for a difference estimate of the noise")
     differences = np.diff(values, n=order, axis=0)
     gain = comb(2 * order, order)  # Σ of the squared binomial coefficients
-    deviation = np.median(np.abs(differences - np.median(differences, axis=0)), axis=0)
+    counts = None
+    if np.isnan(np.sum(differences)):  # masked samples: each channel's valid differences alone
+        counts = np.sum(~np.isnan(differences), axis=0)
+        if np.any(counts < 10):
+            raise NoiseFloorError(f"{int(counts.min())} differences of a channel reach no masked sample: too few "
+                                  "for a difference estimate of the noise")
+        deviation = np.nanmedian(np.abs(differences - np.nanmedian(differences, axis=0)), axis=0)
+    else:
+        deviation = np.median(np.abs(differences - np.median(differences, axis=0)), axis=0)
     variance = (1.482602218505602 * deviation) ** 2 / gain
     # white noise gives differences whose lag-1 correlation is −C(2d, d−1)/C(2d, d) (−0.8 for d = 4);
     # a channel filtered or interpolated before it was recorded does not, and its differences then
@@ -189,6 +199,8 @@ def difference_variance(values: ArrayLike, *, order: int = DIFFERENCE_ORDER,
         if not np.any(values[:, column]):  # a channel of zeros (a passive joint's torque): no noise, floor 0
             continue
         kept = differences[:, column]
+        if counts is not None:
+            kept = kept[~np.isnan(kept)]
         kept = kept[np.abs(kept - np.median(kept)) <= 5 * 1.4826 * max(deviation[column], np.finfo(float).tiny)]
         centred = kept - kept.mean()
         energy = float(centred @ centred)
@@ -200,7 +212,8 @@ def difference_variance(values: ArrayLike, *, order: int = DIFFERENCE_ORDER,
                 f"channel {names[column] if names else column + 1}: its {order}th differences are not those of white noise (lag-1 correlation "
                 f"{lag1:.2f}, white noise {expected:.2f}): it was probably filtered, interpolated or resampled before "
                 "it was recorded, and no model-free floor can be read from it (a periodic record can give one)")
-    return variance, float(MAD_EFFICIENCY * differences.shape[0] / _difference_correlation_sum(order))
+    used = differences.shape[0] if counts is None else int(counts.min())
+    return variance, float(MAD_EFFICIENCY * used / _difference_correlation_sum(order))
 
 
 def _difference_correlation_sum(order: int) -> float:
@@ -211,13 +224,14 @@ def _difference_correlation_sum(order: int) -> float:
     return float(np.sum(rho**2))
 
 
-def _as_2d(values: ArrayLike) -> NDArray[np.float64]:
+def _as_2d(values: ArrayLike, *, masked: bool = False) -> NDArray[np.float64]:
+    """``values`` as ``(samples, channels)``; NaN or inf refused, except NaN where ``masked`` (masked samples)."""
     values = np.asarray(values, dtype=float)
     if values.ndim == 1:
         values = values[:, None]
     if values.ndim != 2:
         raise ValueError(f"channel values must be (samples, channels), got shape {values.shape}")
-    if not np.all(np.isfinite(values)):
+    if not np.all(np.isfinite(values)) and not (masked and not np.any(np.isinf(values))):
         raise NoiseFloorError("the channels hold NaN or inf: no noise floor")
     return values
 
@@ -263,6 +277,11 @@ def noise_floor(
     if frequency_hz is None and method != "differences":
         frequency_hz = measurements.metadata.get("frequency_hz")
     t = measurements.t
+    if frequency_hz is not None and method != "differences" and np.isnan(np.sum(values)):
+        if method == "periods":  # a period's samples are compared phase by phase: a masked one breaks them
+            raise NoiseFloorError("a channel holds masked samples (a clipped sensor's): the period-to-period "
+                                  "variance needs every sample of every period; the differences can give a floor")
+        frequency_hz = None  # masked samples (estimation.data.channel_mask): the differences, channel by channel
     if frequency_hz is not None and method != "differences":
         frequency_hz = float(frequency_hz)
         if not (np.isfinite(frequency_hz) and frequency_hz > 0):

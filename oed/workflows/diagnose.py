@@ -52,7 +52,8 @@ from estimation.diagnosis.results import Diagnosis, SummedFit, runner_up_line
 from estimation.diagnosis.search import default_candidates
 from estimation.diagnosis.search import diagnose as diagnose_model
 from estimation.diagnosis.untouched import UntouchedErrors, recorded_comparison, recorded_mse, untouched_errors
-from estimation.identification.prepared import InMemoryBudget, PreparedRecords, prepare_records, saturated_sample_counts
+from estimation.identification.prepared import (InMemoryBudget, PreparedRecords, channel_sample_counts,
+                                                channel_sample_line, prepare_records, saturated_sample_counts)
 from estimation.identification.repeated_motion import repeat_note, repeated_motion_note
 from estimation.identification.undetermined import fitted_without_undetermined
 from estimation.preprocessing.delay import DelayBounds, split_delay
@@ -344,6 +345,8 @@ def run_diagnose(args: DiagnoseOptions, *, say: Callable[[str], None]) -> Diagno
         document, messages = diagnose_document(args, diagnosed)
         # a torque sensor past its range: the samples left out of the fit and of the errors (said when read)
         document["saturated_samples"] = saturated_sample_counts(diagnosed.records)
+        # each channel's errors over its valid samples where they differ by channel (its masked samples out)
+        document["channel_samples"] = channel_sample_counts(diagnosed.records)
         if merged:
             document["not_determined"] = [column.to_dict() for column in merged]
         if chain is not None:
@@ -937,6 +940,8 @@ def summary_lines(args: DiagnoseOptions, diagnosed: Diagnosed, document: dict[st
     lines += floor_lines(diagnosis)
     selection = diagnosed.selection
     if diagnosed.records is not None:  # in memory
+        counted = channel_sample_line(channel_sample_counts(diagnosed.records))
+        lines += [counted] if counted else []
         lines += test_lines(diagnosed.untouched)
     if selection is not None:
         consistent = selection.consistent

@@ -42,7 +42,8 @@ from estimation.uncertainty.noise_floor import NoiseFloor
 from estimation.estimators.least_squares import IdentifiabilityError
 from estimation.estimators.normal_equations import DEFAULT_CHUNK_SIZE, NormalEquations
 from estimation.identification.fit import IdentificationResult
-from estimation.identification.prepared import InMemoryBudget, PreparedRecords, prepare_records, saturated_sample_counts
+from estimation.identification.prepared import (InMemoryBudget, PreparedRecords, channel_sample_counts,
+                                                channel_sample_line, prepare_records, saturated_sample_counts)
 from estimation.identification.preprocessing_choice import ChoiceWindow
 from estimation.identification.repeated_motion import repeat_note, repeated_motion_note
 from estimation.identification.model_file import summed_model_file_document
@@ -431,6 +432,8 @@ def identify_document(args: IdentifyOptions, identified: Identified) -> tuple[di
     document["model_selection"] = None if selection is None else selection.to_dict()
     # a torque sensor past its range: the samples left out of the fit and of the errors (said when read)
     document["saturated_samples"] = saturated_sample_counts(identified.records)
+    # each channel's errors over its valid samples where they differ by channel (its masked samples out)
+    document["channel_samples"] = channel_sample_counts(identified.records)
     if identified.records is not None:
         messages += add_model_file(document, result, args, identified.records.preprocessing, identified.transmission,
                                    consistent=identified.consistent, selection=selection)
@@ -1342,6 +1345,9 @@ def summary_lines(args: IdentifyOptions, identified: Identified) -> list[str]:
         if errors.mse_filtered is not None:
             against = "vs filtered" if errors.mse is not None else "vs filtered: not against the recording"
             lines.append(mse_line(f"{label} MSE ({against})", errors.mse_filtered))
+    counted = channel_sample_line(channel_sample_counts(identified.records))
+    if counted:
+        lines.append(counted)
     message = rest_message("identify", identified.rest)
     if message:
         lines.append(message)
