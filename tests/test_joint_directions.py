@@ -209,7 +209,13 @@ def test_diagnose_reads_the_directions_too(logs):
     assert declared["model_file"]["joint_directions"]["signs"] == [1, -1, 1]
 
 
-@pytest.mark.parametrize("kinematic, torque", [(-1.0, -1.0), (1.0, -1.0)])
+#: the torque reversed alone runs in ``make test-slow``: the check then asks whether the torque channels carry gains
+#: (a reversed torque is a gain of -1), and each fit with gains is an iterative one the shared normal equations do not
+#: enter (``_Problem.scored`` leaves ``normal`` unused): two whole checks of 14 s of CPU each, where the reversed axis
+#: (both signs) takes 1 s. That case still scores every trial of the scan, the torques reversed alone among them, with
+#: the shared normal equations, and compares them bit for bit; the torque reversed alone is still found and said in
+#: ``make test`` (``test_an_encoder_or_a_torque_reversed_alone``, on a validation record and on the halves)
+@pytest.mark.parametrize("kinematic, torque", [(-1.0, -1.0), pytest.param(1.0, -1.0, marks=pytest.mark.slow)])
 def test_the_scan_forms_the_normal_equations_once_per_regressor_and_scores_bit_for_bit(puma6, monkeypatch,
                                                                                          kinematic, torque):
     """The direction scan forms one regressor's normal equations once for both torque signs (and once a round for

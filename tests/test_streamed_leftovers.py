@@ -167,12 +167,22 @@ def test_the_streamed_identify_says_a_repeat_as_in_memory(records):
     assert len(said["memory"]) == 1 and said["streamed"] == said["memory"]
 
 
+#: the two streamed routes: blocks asked for, and the record past the memory budget
+ROUTES = {"chunk": ["--chunk-size", "250"], "budget": ["--memory-budget", "1KB"]}
+
+
 #: ``identify`` runs in ``make test-slow``: ``make test`` streams ``oed identify`` with ``--transmission`` and
 #: ``--joint-offsets`` on both routes (``--chunk-size`` and past ``--memory-budget``) against the in-memory estimate in
 #: tests/test_streamed_motor_side.py (``test_identify_streamed_with_transmission_and_joint_offsets``), and keeps
-#: ``diagnose`` here (the streamed diagnosis's joint-side copies with ``--joint-offsets``, tested nowhere else)
-@pytest.mark.parametrize("verb", [pytest.param("identify", marks=pytest.mark.slow), "diagnose"])
-def test_joint_offsets_and_transmission_streamed(zeroed, verb):
+#: ``diagnose`` here (the streamed diagnosis's joint-side copies with ``--joint-offsets``, tested nowhere else) on the
+#: ``--chunk-size`` route; past ``--memory-budget`` it runs in ``make test-slow`` (the same streamed diagnosis once
+#: the route is decided: the budget route itself stays in ``make test`` in tests/test_one_answer_audit.py's
+#: ``jittered-diagnose-budget`` and tests/test_memory_path.py's budget cases)
+@pytest.mark.parametrize(("verb", "route"), [pytest.param("identify", "chunk", marks=pytest.mark.slow),
+                                             pytest.param("identify", "budget", marks=pytest.mark.slow),
+                                             ("diagnose", "chunk"),
+                                             pytest.param("diagnose", "budget", marks=pytest.mark.slow)])
+def test_joint_offsets_and_transmission_streamed(zeroed, verb, route):
     """``--joint-offsets`` and ``--transmission`` on the streamed path (``--chunk-size``, or past ``--memory-budget``):
     read through joint-side copies (:mod:`oed.workflows.joint_side`; was: exit 2 with ``--chunk-size``, in memory past
     the budget). The records logged in other zeros with ``--joint-offsets`` give what the same path gives on the
@@ -190,17 +200,17 @@ def test_joint_offsets_and_transmission_streamed(zeroed, verb):
         assert main([*common, *options, "--out", str(out)]) == 0
         return json.loads(out.read_text())
 
-    for path, extra in (("chunk", ["--chunk-size", "250"]), ("budget", ["--memory-budget", "1KB"])):
-        reference = run(f"reference_{path}", *right, *extra)
-        shifted = run(f"offsets_{path}", *given, "--joint-offsets", str(zeroed / "offsets.json"), *extra)
-        geared = run(f"transmission_{path}", *right, "--transmission", str(zeroed / "transmission.json"), *extra)
-        for document in (reference, shifted, geared):
-            assert document.get("identification_path", document.get("diagnosis_path")) == "streamed"
-        assert shifted["model_file"]["joint_offsets"] == pytest.approx(OFFSETS)
-        for document in (shifted, geared):
-            np.testing.assert_allclose(document["model_file"]["theta"], reference["model_file"]["theta"], rtol=1e-6,
-                                       atol=1e-8)
-        assert geared["model_file"]["transmission"]["matrix"] == np.eye(3).tolist()
+    extra = ROUTES[route]
+    reference = run(f"reference_{route}", *right, *extra)
+    shifted = run(f"offsets_{route}", *given, "--joint-offsets", str(zeroed / "offsets.json"), *extra)
+    geared = run(f"transmission_{route}", *right, "--transmission", str(zeroed / "transmission.json"), *extra)
+    for document in (reference, shifted, geared):
+        assert document.get("identification_path", document.get("diagnosis_path")) == "streamed"
+    assert shifted["model_file"]["joint_offsets"] == pytest.approx(OFFSETS)
+    for document in (shifted, geared):
+        np.testing.assert_allclose(document["model_file"]["theta"], reference["model_file"]["theta"], rtol=1e-6,
+                                   atol=1e-8)
+    assert geared["model_file"]["transmission"]["matrix"] == np.eye(3).tolist()
     if verb == "identify":
         memory = run("offsets_memory", *given, "--joint-offsets", str(zeroed / "offsets.json"))
         np.testing.assert_allclose(shifted["model_file"]["theta"], memory["model_file"]["theta"], rtol=1e-6, atol=1e-8)
