@@ -1459,5 +1459,5 @@ def recorded_errors(diagnosis: Diagnosis, args: DiagnoseOptions, plan: dict[str,
         rival = with_load(summed_model_file_document(runner_up.model, runner_up.fit, robot=robot, preprocessing=plan,
                                                      shape=diagnosis.runner_up_shape(),
                                                      recorded_mse=runner_up.train_mse), load)
-        runner_up = replace(runner_up, validation_mse=recorded_validation_mse(rival, args.validate))
+        runner_up = replace(runner_up, validation_mse=recorded_validation_mse(rival, source_files(args.validate)))
     return replace(diagnosis, before=fits["before"], after=fits["after"], statistics=statistics, runner_up=runner_up)
