@@ -765,9 +765,9 @@ def sampled_record_changes(identified: IdentifiedModel, sample: RecordSample, fl
     searched = {family.name: identified.robot.n_joints if isinstance(family, _Payload) else 1 for family in families}
     fitted = [_estimated(family, sample, weights) for family in families]
     if sample.whole:  # the error with the change fitted, on every sample: the fit's own
-        totals = [np.sum(after ** 2, axis=0) for _, _, after in fitted]
+        totals = [np.sum(after ** 2, axis=0) for _, _, after, _ in fitted]
     else:
-        totals = squared([(family, beta) for family, (beta, _, _) in zip(families, fitted)])
+        totals = squared([(family, estimate[0]) for family, estimate in zip(families, fitted)])
     fits = [_fitted(family, identified, sample, estimate, total, weights, jacobian, model_variance, floors, channels,
                     len(families), searched[family.name])
             for family, estimate, total in zip(families, fitted, totals)]
@@ -914,24 +914,23 @@ def _together_link(identified: IdentifiedModel, standard: _StandardColumns, grav
 
 
 def _estimated(family: _Family, sample: RecordSample, weights: NDArray
-               ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
-    """``family`` fitted on the rows of ``sample``: its coefficients, the inverse of its normal matrix and the
-    residual with the change removed."""
+               ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """``family`` fitted on the rows of ``sample``: its coefficients, the inverse of its normal matrix, the
+    residual with the change removed and the family's columns there."""
     columns = family.columns(sample.q, sample.dq, sample.ddq)
     beta, inverse = family.refine(np.zeros(columns.shape[-1]), sample.target, columns, weights, sample.q)
-    return beta, inverse, sample.target - family.change(beta, sample.q, sample.dq, sample.ddq)
+    return beta, inverse, sample.target - family.change(beta, sample.q, sample.dq, sample.ddq), columns
 
 
 def _fitted(family: _Family, identified: IdentifiedModel, sample: RecordSample,
-            estimate: tuple[NDArray, NDArray, NDArray], total: NDArray, weights: NDArray, jacobian: NDArray,
+            estimate: tuple[NDArray, NDArray, NDArray, NDArray], total: NDArray, weights: NDArray, jacobian: NDArray,
             model_variance: NDArray, floors: NDArray, channels: tuple[str, ...], n_families: int,
             searched: int = 1) -> FamilyFit:
     """``family`` tested (module docstring) at its fit ``estimate`` (:func:`_estimated`); ``total``: the squared
     error with its change over every sample of the record; ``searched``: how many variants the family was chosen
     among (a payload's links): its p-value multiplied by it (Bonferroni)."""
     q, dq, ddq, target = sample.q, sample.dq, sample.ddq, sample.target
-    beta, inverse, after = estimate
-    columns = family.columns(q, dq, ddq)
+    beta, inverse, after, columns = estimate
     # the record's noise, correlated in time (HAC), and the model's own uncertainty through the target
     cov_noise, _ = hac_covariance(columns, after, weights, inverse, segments=sample.segments)
     sensitivity = inverse @ _gram(columns, weights, jacobian)
