@@ -323,8 +323,6 @@ def run_diagnose(args: DiagnoseOptions, *, say: Callable[[str], None]) -> Diagno
         check_streamed_request(args, delay)
     args, chain = with_logged_chain(args)  # a branching or mimic URDF read as the log's chain
     args, passive = with_passive_joints(args)  # named, or the description's joints without a motor the log lacks
-    if passive is not None and streaming_requested(args):  # those the description gave (named ones: above)
-        check_streamed_request(args, delay)
     robot = robot_of(args)
     transmission = resolve_transmission(args, robot)
     effects = model_effects(args, friction, robot, transmission)
@@ -429,14 +427,11 @@ class Diagnosed:
 
 
 def check_streamed_request(args: DiagnoseOptions, delay: DelayBounds | None) -> None:
-    """``--test`` and passive joints are in-memory only: an error when the streamed path was asked for (a delay,
-    ``delay``, is searched on both paths)."""
+    """``--test`` is in-memory only: an error when the streamed path was asked for (a delay, ``delay``, is searched
+    on both paths; passive joints are read on both)."""
     if args.test:
         raise ValueError("--test is read in memory: not with the streamed path (--chunk-size, --scheduler or "
                          "--workers)")
-    if args.passive:  # read in memory, whatever the records' size (in_memory_only)
-        raise ValueError(f"passive joint(s) {', '.join(args.passive)} are read in memory: not with the streamed path "
-                         "(--chunk-size, --scheduler or --workers); drop the streaming options")
 
 
 def in_memory_only(args: DiagnoseOptions, model: IdentificationModel, delay: DelayBounds | None) -> str | None:

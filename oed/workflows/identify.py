@@ -1035,9 +1035,6 @@ def check_streamed_request(args: IdentifyOptions, model: IdentificationModel) ->
     """Options the streamed identification does not have: an error naming them, before anything is read."""
     if args.plot:  # the report is written on both paths (streamed: without figures, saying what it lacks)
         raise ValueError(f"--plot draws every sample: not with {STREAMED}")
-    if model.robot.passive_joints:  # read in memory, whatever the records' size (in_memory_only)
-        raise ValueError(f"passive joint(s) {', '.join(model.robot.passive_joints)} are read in memory: not with "
-                         f"{STREAMED}; drop the streaming options")
     if args.min_speed is not None:
         raise ValueError(f"--min-speed drops rows of the whole record: not with {STREAMED}")
     if model_has_shapes(model):
