@@ -328,9 +328,11 @@ def run_diagnose(args: DiagnoseOptions, *, say: Callable[[str], None]) -> Diagno
     effects = model_effects(args, friction, robot, transmission)
     model = build_model(robot, args.model, effects)
     with ExitStack() as copies:
-        read, names = copies.enter_context(records_to_read(  # joint-side copies of motor-side, zeroed records
-            args, model, transmission, bytes_per_value=IN_MEMORY.bytes_per_value,
-            in_memory_only=lambda: in_memory_only(args, model, delay)))
+        with warnings.catch_warnings(record=True) as copying:  # what the copies' reading said (a controller's log)
+            warnings.simplefilter("always")
+            read, names = copies.enter_context(records_to_read(  # joint-side copies of motor-side, zeroed records
+                args, model, transmission, bytes_per_value=IN_MEMORY.bytes_per_value,
+                in_memory_only=lambda: in_memory_only(args, model, delay)))
         # a Coulomb column one with the offset merged, a still joint's left out: said (both paths)
         diagnosed, merged = fitted_without_undetermined(
             lambda effects, model, merged: diagnosis_by_path(read, friction, effects, model, transmission, delay, say,
@@ -339,6 +341,9 @@ def run_diagnose(args: DiagnoseOptions, *, say: Callable[[str], None]) -> Diagno
         if merged:
             said = tuple(column.statement() for column in merged)
             diagnosed = replace(diagnosed, messages=(*said, *diagnosed.messages), notes=(*said, *diagnosed.notes))
+        copied = tuple(dict.fromkeys(str(item.message) for item in copying))
+        if copied:
+            diagnosed = replace(diagnosed, messages=(*copied, *diagnosed.messages))  # said as the reader says it
         document, messages = diagnose_document(args, diagnosed)
         # a torque sensor past its range: the samples left out of the fit and of the errors (said when read)
         document["saturated_samples"] = saturated_sample_counts(diagnosed.records)

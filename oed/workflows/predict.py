@@ -192,7 +192,8 @@ def streamed_predict(identified: IdentifiedModel, files: list, chunk_size: int) 
             file = identified.file
             read = joint_side_copies(files, folder, n_joints=identified.robot.n_joints,
                                      transmission=identified.transmission, joint_offsets=file.joint_offsets,
-                                     joint_directions=file.joint_directions, chunk_size=chunk_size)
+                                     joint_directions=file.joint_directions, chunk_size=chunk_size,
+                                     model=identified.model)
         evaluation = streamed_evaluation(identified, read, chunk_size=chunk_size)
     notes = trivial_warnings(evaluation.mse, {"zero_mse": evaluation.zero_mse, "nominal_mse": evaluation.nominal_mse},
                              label="model", record="this record")
