@@ -55,6 +55,7 @@ from estimation.streaming.periods import plan_chunks
 from estimation.streaming.record_floor import record_floor
 from estimation.streaming.recorded_errors import counted_errors_at_stamps, scored_records
 from estimation.streaming.time_base import NoRegularClockError
+from estimation.uncertainty.floor_comparison import mse_over_floor
 
 if TYPE_CHECKING:
     from estimation.identification.identified_model import IdentifiedModel
@@ -97,10 +98,7 @@ class StreamedEvaluation:
 
     @property
     def mse_over_floor(self) -> dict[str, float] | None:
-        if self.floor_mse is None:
-            return None
-        return {channel: value / self.floor_mse[channel] if self.floor_mse[channel] > 0 else float("inf")
-                for channel, value in self.mse.items()}
+        return mse_over_floor(self.mse, self.floor_mse)
 
     def to_dict(self) -> dict[str, Any]:
         return {"mse": dict(self.mse), "mse_over_floor": self.mse_over_floor, "n_samples": int(self.n_samples),
