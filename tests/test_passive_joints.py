@@ -21,7 +21,6 @@ reader, the missing column's message, the descriptions' motors, the weighted fit
 from __future__ import annotations
 
 import json
-import warnings
 from pathlib import Path
 
 import numpy as np
@@ -226,17 +225,6 @@ def test_design_refuses_a_passive_joint_by_name(tmp_path):
     code, message = quiet(["design", "--robot", "puma560", "--joints", "3", "--passive", "joint3", "--out",
                            str(tmp_path / "design.json")])
     assert code == 2 and "passive joint(s) joint3" in message and "Traceback" not in message, message
-
-
-def test_a_streamed_request_with_a_passive_joint_is_refused_naming_what_works(tmp_path):
-    """The streamed path does not read passive joints yet: ``--chunk-size`` with ``--passive`` exits naming the
-    in-memory path (no silent wrong answer)."""
-    path = _log(tmp_path / "log.csv")
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        code, message = quiet(["identify", "--robot", "puma560", "--joints", "3", "--passive", "3", "--data",
-                               str(path), "--chunk-size", "200", "--out", str(tmp_path / "r.json")])
-    assert code == 2 and "drop the streaming options" in message, message
 
 
 def test_an_exported_urdf_keeps_the_passive_joints_without_a_motor(tmp_path):

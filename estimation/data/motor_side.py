@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import os
 import re
+import warnings
 from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import replace
 from pathlib import Path
@@ -303,13 +304,16 @@ def _directed_frame(frame: pd.DataFrame, n_joints: int, offsets: np.ndarray | No
 
 def joint_side_copies(paths: Sequence[str | Path], folder: str | Path, *, n_joints: int,
                       transmission: Transmission | None, joint_offsets: ArrayLike | None = None,
-                      joint_directions: JointDirections | None = None, chunk_size: int = 100_000) -> list[Path]:
+                      joint_directions: JointDirections | None = None, chunk_size: int = 100_000,
+                      model: IdentificationModel | None = None) -> list[Path]:
     """Joint-side copies of ``paths`` in ``folder`` (section comment above), one a file, in order: each .csv or
     .parquet file with motor-side columns converted by ``transmission``, then ``joint_directions`` and
     ``joint_offsets`` applied to its joint-side columns, written as Parquet (float64: exact) under
     ``folder/<index>/<the file's name>.parquet``, read and written ``chunk_size`` rows at a time; the power-sign check
     of :func:`joint_side_frame` on each whole file (:class:`_PowerSums`). A file that needs nothing converted is
-    returned as it is."""
+    returned as it is. ``model``: a file without the format's joint columns read as the in-memory reader reads it
+    (:func:`~estimation.data.records.in_the_format`: a controller's log, whose motor currents are motor-side
+    columns), block by block, said with its first block."""
     folder = Path(folder)
     offsets = None if joint_offsets is None else np.asarray(joint_offsets, dtype=float).reshape(-1)
     if offsets is not None and offsets.shape != (n_joints,):
@@ -323,6 +327,9 @@ def joint_side_copies(paths: Sequence[str | Path], folder: str | Path, *, n_join
             continue
         header = _csv_header(path) if path.suffix.lower() == ".csv" else \
             next(_frames(path, 1)).columns
+        formatted = model is not None and not motor_columns(header) and not _in_format(header)
+        if formatted:  # a controller's log: its columns as the in-memory reader names them (currents: im1..)
+            header = formatted_header(path, model)
         if not motor_columns(header) and not directed:
             copies.append(source)
             continue
@@ -330,7 +337,12 @@ def joint_side_copies(paths: Sequence[str | Path], folder: str | Path, *, n_join
         target.parent.mkdir(parents=True, exist_ok=True)
         power, writer = _PowerSums(n_joints), None
         try:
-            for frame in _frames(path, chunk_size):
+            for block, frame in enumerate(_frames(path, chunk_size)):
+                if formatted:
+                    with warnings.catch_warnings():
+                        if block:
+                            warnings.simplefilter("ignore")  # said with the first block
+                        frame = in_the_format(frame, path, model)
                 frame = joint_side_frame(frame, transmission, n_joints, source=str(path), check_signs=False)
                 if any(str(column).startswith(("taum", "im")) for column in motor_columns(header)):
                     power.add(frame, n_joints)
@@ -343,6 +355,30 @@ def joint_side_copies(paths: Sequence[str | Path], folder: str | Path, *, n_join
         power.check(transmission, str(path))
         copies.append(target)
     return copies
+
+
+def _in_format(header: Sequence[Any]) -> bool:
+    return bool({"q1", "qm1"} & {str(name).strip() for name in header})
+
+
+#: the rows of a file read to name its columns as the in-memory reader names them (:func:`formatted_header`)
+HEADER_ROWS = 200
+
+
+def formatted_header(path: str | Path, model: IdentificationModel) -> list[str]:
+    """The columns of the .csv or .parquet file ``path`` once named as the in-memory reader names the whole table
+    (:func:`~estimation.data.records.in_the_format`, read from its first :data:`HEADER_ROWS` rows, nothing said):
+    a controller's log's columns under the format's names (its motor currents as ``im1``..)."""
+    path = Path(os.fspath(path))
+    header = _csv_header(path) if path.suffix.lower() == ".csv" else next(_frames(path, 1)).columns
+    if _in_format(header):
+        return [str(name) for name in header]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # said when the file is read
+        try:
+            return [str(name) for name in in_the_format(next(_frames(path, HEADER_ROWS)), path, model).columns]
+        except (ValueError, KeyError, MeasurementError):
+            return [str(name) for name in header]  # the reader names the fault
 
 
 def divided_torque_copies(paths: Sequence[str | Path], folder: str | Path, gains: Mapping[str, float], *,

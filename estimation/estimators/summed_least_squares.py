@@ -189,13 +189,16 @@ SHAPED_ROUNDS = 4
 SHAPED_TOL = 1e-4
 
 
-def summed_estimator(method: Literal["ols", "wls"], n_shape: int = 0) -> SummedLeastSquares:
+def summed_estimator(method: Literal["ols", "wls"], n_shape: int = 0, passive: tuple[str, ...] = ()
+                     ) -> SummedLeastSquares:
     """The estimator from sums that fits as the in-memory ``identify`` fits the same model: without shaped laws
     (``n_shape == 0``) :class:`SummedLeastSquares` as :class:`~estimation.estimators.least_squares.
     WeightedLeastSquares`; with ``n_shape`` shape parameters held at their fitted values (the sums' columns at those
     shapes), the variable-projection fit's weighting (:data:`SHAPED_ROUNDS` rounds at most, :data:`SHAPED_TOL`, the
     shape parameters counted in the degrees of freedom), whose weights at the final solve may not have settled:
-    the same estimate on the same samples."""
+    the same estimate on the same samples. ``passive``: the channels of passive joints (their zero a measurement,
+    :class:`SummedLeastSquares`)."""
     if n_shape:
-        return SummedLeastSquares(method=method, max_iter=SHAPED_ROUNDS - 1, tol=SHAPED_TOL, n_shape=n_shape)
-    return SummedLeastSquares(method=method)
+        return SummedLeastSquares(method=method, max_iter=SHAPED_ROUNDS - 1, tol=SHAPED_TOL, n_shape=n_shape,
+                                  passive=passive)
+    return SummedLeastSquares(method=method, passive=passive)

@@ -56,6 +56,7 @@ from estimation.identification.trivial_predictors import trivial_mse
 from estimation.identification.validation import channel_mse
 from estimation.preprocessing.delay import delayed
 from estimation.preprocessing.plan import Preprocessing, best_filter, check_frequency, prepare_unseen
+from estimation.uncertainty.floor_comparison import mse_over_floor
 from estimation.uncertainty.noise_floor import NoiseFloorError, noise_floor, pooled_floor
 
 __all__ = ["Z_95", "Evaluation", "IdentifiedModel", "Prediction", "alternative_names", "preprocessing_from_dict"]
@@ -244,10 +245,7 @@ class Evaluation:
 
     @property
     def mse_over_floor(self) -> dict[str, float] | None:
-        if self.floor_mse is None:
-            return None
-        return {channel: value / self.floor_mse[channel] if self.floor_mse[channel] > 0 else float("inf")
-                for channel, value in self.prediction.mse.items()}
+        return mse_over_floor(self.prediction.mse, self.floor_mse)
 
     @property
     def channel_samples(self) -> dict[str, int] | None:

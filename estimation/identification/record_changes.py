@@ -80,6 +80,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 from dataclasses import dataclass, field
+from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, Any
 
 import casadi
@@ -103,7 +104,8 @@ if TYPE_CHECKING:
     from estimation.identification.identified_model import IdentifiedModel, Prediction
 
 __all__ = ["ALPHA", "FITTED_LABEL", "MARK", "MIN_FLOORS", "WORSE_FLOORS", "WORSE_LIMIT", "FamilyFit", "RecordChanges",
-           "check_record_changes", "rest_loads", "rest_regressors"]
+           "RecordSample", "check_record_changes", "checked_channels", "record_segments", "rest_loads",
+           "rest_regressors", "sampled_record_changes", "sampled_rows"]
 
 #: the family-wise level of the test over the families (Bonferroni)
 ALPHA = 1e-3
@@ -229,12 +231,7 @@ def _rows(n_samples: int) -> NDArray[np.int64]:
 
 def _segments(record: Measurements, rows: NDArray[np.int64]) -> list[tuple[int, int]]:
     """``(start, stop)`` in ``rows`` of each segment of ``record``."""
-    bounds = []
-    for piece in segment_slices(record):
-        start, stop = np.searchsorted(rows, [piece.start, piece.stop])
-        if stop > start:
-            bounds.append((int(start), int(stop)))
-    return bounds or [(0, rows.shape[0])]
+    return record_segments([(piece.start, piece.stop) for piece in segment_slices(record)], rows)
 
 
 def _gram(left: NDArray, weights: NDArray, right: NDArray) -> NDArray[np.float64]:
@@ -648,21 +645,108 @@ def _rest_functions(described: ByDescription, shape: tuple[int, ...], gravities_
     return SampleEvaluator(regressors), SampleEvaluator(loads)
 
 
+@dataclass(frozen=True)
+class RecordSample:
+    """The samples of a record the check fits its families on (:func:`sampled_rows` of the record's samples in
+    their order, the motion moved by the model's delay as the prediction moves it) and how many the record holds.
+
+    Attributes
+    ----------
+    q, dq, ddq
+        ``(n, joints)`` the motion at those samples.
+    target
+        ``(n, channels)`` the residual of the model's prediction there (as recorded minus predicted, in the log's
+        directions).
+    segments
+        ``(start, stop)`` in the rows of each segment of the record (:func:`record_segments`).
+    n_samples
+        The samples of the whole record the errors are taken on (those with no masked channel: the check takes
+        whole rows); the rows are all of them when it holds at most :data:`MAX_SAMPLES`.
+    """
+
+    q: NDArray[np.float64]
+    dq: NDArray[np.float64]
+    ddq: NDArray[np.float64]
+    target: NDArray[np.float64]
+    segments: list[tuple[int, int]]
+    n_samples: int
+
+    @property
+    def whole(self) -> bool:
+        """Whether the rows are every sample of the record."""
+        return self.q.shape[0] == self.n_samples
+
+
+#: the squared errors over every sample of the record, summed per channel, with each ``(family, coefficients)``'s
+#: change removed from the residual (the families' ``change``): one ``(channels,)`` array each
+SquaredWithChanges = Callable[[list[tuple[Any, NDArray[np.float64]]]], list[NDArray[np.float64]]]
+
+
+def sampled_rows(n_samples: int) -> NDArray[np.int64]:
+    """The rows of a record of ``n_samples`` samples the families are fitted on: at most :data:`MAX_SAMPLES`,
+    evenly spaced (every one of a shorter record)."""
+    return _rows(n_samples)
+
+
+def record_segments(bounds: Sequence[tuple[int, int]], rows: NDArray[np.int64]) -> list[tuple[int, int]]:
+    """``(start, stop)`` in ``rows`` of each segment whose samples are ``bounds`` (``(start, stop)`` in the
+    record)."""
+    segments = []
+    for first, stop_at in bounds:
+        start, stop = np.searchsorted(rows, [first, stop_at])
+        if stop > start:
+            segments.append((int(start), int(stop)))
+    return segments or [(0, rows.shape[0])]
+
+
+def checked_channels(identified: IdentifiedModel) -> bool:
+    """Whether the check applies to the model's channels (an internal model, every channel a joint torque)."""
+    return identified.model.kind is not ModelKind.EXTERNAL and all(is_joint_torque(channel)
+                                                                   for channel in identified.channels)
+
+
 def check_record_changes(identified: IdentifiedModel, prepared: Measurements, prediction: Prediction,
                          floor: dict[str, float] | None) -> RecordChanges | None:
     """Test the residual of ``prediction`` (the model's along the prepared record ``prepared``) against a payload on
     the last link and gravity turned (module docstring); ``floor``: each channel's noise floor on the record (MSE;
     ``None``: the model's residual variance on its training record stands in). ``None``: nothing to check (the
     record holds no channels, or they are not all joint torques, or the model knows no gravity)."""
-    channels = tuple(identified.channels)
-    if prediction.measured is None or identified.model.kind is ModelKind.EXTERNAL \
-            or not all(is_joint_torque(channel) for channel in channels):
+    if prediction.measured is None or not checked_channels(identified):
         return None
     record = prepared if identified.delay is None else delayed(prepared, identified.delay)
     record = record.as_recorded
     if record.n_samples != prediction.t.shape[0] or record.n_samples < 20:
         return None
     residual = prediction.measured - prediction.predicted
+    rows = _rows(record.n_samples)
+    masked = masked_rows(residual)  # a channel's masked samples (a clipped sensor's): this check takes whole rows
+    if masked is not None:
+        rows = rows[~masked[rows]]
+        if rows.shape[0] < 20:
+            return None
+    valid = record.n_samples if masked is None else int(np.sum(~masked))  # the samples the errors are taken on
+    sample = RecordSample(record.q[rows], record.dq[rows], record.ddq[rows], residual[rows],
+                          _segments(record, rows), valid)
+
+    def squared(changes: list[tuple[Any, NDArray[np.float64]]]) -> list[NDArray[np.float64]]:
+        totals = [np.zeros(residual.shape[1]) for _ in changes]
+        for start in range(0, record.n_samples, CHUNK):
+            piece = slice(start, min(start + CHUNK, record.n_samples))
+            for total, (family, beta) in zip(totals, changes):
+                error = (residual[piece] - family.change(beta, record.q[piece], record.dq[piece],
+                                                         record.ddq[piece])) ** 2
+                total += np.sum(error if masked is None else error[~masked[piece]], axis=0)
+        return totals
+
+    return sampled_record_changes(identified, sample, floor, squared)
+
+
+def sampled_record_changes(identified: IdentifiedModel, sample: RecordSample, floor: dict[str, float] | None,
+                           squared: SquaredWithChanges) -> RecordChanges | None:
+    """:func:`check_record_changes` on the rows of ``sample`` (a record read whole, or read in blocks:
+    :mod:`estimation.streaming.prediction`); ``squared``: the error with each family's change on every sample of the
+    record (not called when the rows are every sample: the fit's own residual then)."""
+    channels = tuple(identified.channels)
     # the families' columns in the log's units and directions, as the prediction: times each channel's torque gain
     # and the sign it was read with
     factors = identified.file.channel_gains() * identified.channel_signs()
@@ -674,15 +758,7 @@ def check_record_changes(identified: IdentifiedModel, prepared: Measurements, pr
     floors = np.array([float(floor[channel]) for channel in channels])
     if not np.all(floors > 0):
         return None
-    rows = _rows(record.n_samples)
-    masked = masked_rows(residual[rows])  # a channel's masked samples (a clipped sensor's): this check takes whole rows
-    if masked is not None:
-        rows = rows[~masked]
-        if rows.shape[0] < 20:
-            return None
-    q, dq, ddq = record.q[rows], record.dq[rows], record.ddq[rows]
-    target = residual[rows]
-    segments = _segments(record, rows)
+    q, dq, ddq, target, segments = sample.q, sample.dq, sample.ddq, sample.target, sample.segments
     weights = 1.0 / floors
     jacobian = identified.regressor(q, dq, ddq) * factors[None, :, None]  # the prediction's in the model's θ
     standard = _StandardColumns(identified, factors)
@@ -696,8 +772,14 @@ def check_record_changes(identified: IdentifiedModel, prepared: Measurements, pr
         families += [gravity, _together_link(identified, standard, gravity, payload, q, dq, ddq, target, weights,
                                              floors, segments, jacobian, model_variance)]
     searched = {family.name: identified.robot.n_joints if isinstance(family, _Payload) else 1 for family in families}
-    fits = [_fitted(family, identified, record, residual, rows, target, weights, segments, jacobian, model_variance,
-                    floors, channels, len(families), searched[family.name]) for family in families]
+    fitted = [_estimated(family, sample, weights) for family in families]
+    if sample.whole:  # the error with the change fitted, on every sample: the fit's own
+        totals = [np.sum(after ** 2, axis=0) for _, _, after, _ in fitted]
+    else:
+        totals = squared([(family, estimate[0]) for family, estimate in zip(families, fitted)])
+    fits = [_fitted(family, identified, sample, estimate, total, weights, jacobian, model_variance, floors, channels,
+                    len(families), searched[family.name])
+            for family, estimate, total in zip(families, fitted, totals)]
     fits = [_each_part_seen(fit, fits, floors) if fit.name == _Together.name else fit for fit in fits]
     if any(fit.said for fit in fits if fit.name == _Together.name):  # both needed: said together, not each alone
         fits = [fit if fit.name == _Together.name else dataclasses.replace(fit, said=False) for fit in fits]
@@ -840,19 +922,26 @@ def _together_link(identified: IdentifiedModel, standard: _StandardColumns, grav
     return together
 
 
-def _fitted(family: _Family, identified: IdentifiedModel, record: Measurements, residual: NDArray,
-            rows: NDArray, target: NDArray, weights: NDArray, segments: list[tuple[int, int]], jacobian: NDArray,
+def _estimated(family: _Family, sample: RecordSample, weights: NDArray
+               ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """``family`` fitted on the rows of ``sample``: its coefficients, the inverse of its normal matrix, the
+    residual with the change removed and the family's columns there."""
+    columns = family.columns(sample.q, sample.dq, sample.ddq)
+    beta, inverse = family.refine(np.zeros(columns.shape[-1]), sample.target, columns, weights, sample.q)
+    return beta, inverse, sample.target - family.change(beta, sample.q, sample.dq, sample.ddq), columns
+
+
+def _fitted(family: _Family, identified: IdentifiedModel, sample: RecordSample,
+            estimate: tuple[NDArray, NDArray, NDArray, NDArray], total: NDArray, weights: NDArray, jacobian: NDArray,
             model_variance: NDArray, floors: NDArray, channels: tuple[str, ...], n_families: int,
             searched: int = 1) -> FamilyFit:
-    """``family`` fitted and tested (module docstring); ``searched``: how many variants the family was chosen among
-    (a payload's links): its p-value multiplied by it (Bonferroni)."""
-    q, dq, ddq = record.q[rows], record.dq[rows], record.ddq[rows]
-    columns = family.columns(q, dq, ddq)
-    beta, inverse = family.refine(np.zeros(columns.shape[-1]), target, columns, weights, q)
-    explained = family.change(beta, q, dq, ddq)
-    after = target - explained
+    """``family`` tested (module docstring) at its fit ``estimate`` (:func:`_estimated`); ``total``: the squared
+    error with its change over every sample of the record; ``searched``: how many variants the family was chosen
+    among (a payload's links): its p-value multiplied by it (Bonferroni)."""
+    q, dq, ddq, target = sample.q, sample.dq, sample.ddq, sample.target
+    beta, inverse, after, columns = estimate
     # the record's noise, correlated in time (HAC), and the model's own uncertainty through the target
-    cov_noise, _ = hac_covariance(columns, after, weights, inverse, segments=segments)
+    cov_noise, _ = hac_covariance(columns, after, weights, inverse, segments=sample.segments)
     sensitivity = inverse @ _gram(columns, weights, jacobian)
     scale = _model_scale(after, floors, model_variance)
     cov = cov_noise + scale * sensitivity @ identified.cov @ sensitivity.T + family.bodies_cov(beta, columns, weights,
@@ -862,16 +951,8 @@ def _fitted(family: _Family, identified: IdentifiedModel, record: Measurements, 
     crossed = _crossed(family, target, columns, weights, q, dq, ddq)
     model_mse = _mse(target, channels)
     cross_mse = _mse(crossed, channels)
-    # the error with the change fitted, on every sample of the record (the fit's own when it took them all)
-    if rows.shape[0] == record.n_samples:
-        total = np.sum(after ** 2, axis=0)
-    else:
-        total = np.zeros(len(channels))
-        for start in range(0, record.n_samples, CHUNK):
-            piece = slice(start, min(start + CHUNK, record.n_samples))
-            total += np.sum((residual[piece] - family.change(beta, record.q[piece], record.dq[piece],
-                                                             record.ddq[piece])) ** 2, axis=0)
-    fitted_mse = dict(zip(channels, map(float, total / record.n_samples)))
+    fitted_mse = dict(zip(channels, map(float, total / sample.n_samples)))
+
     model = np.array(list(model_mse.values()))
     crossed_values = np.array(list(cross_mse.values()))
     explains = np.any((crossed_values <= MARK * model) & (model - crossed_values >= MIN_FLOORS * floors))

@@ -46,10 +46,9 @@ import scipy.signal
 from numpy.typing import NDArray
 
 from dynamics.models import IdentificationModel
-from dynamics.robot import RobotModel
 from dynamics.runtime.threads import single_threaded_blas
 from dynamics.channels import WRENCH_CHANNELS
-from estimation.data.log_formats import DescriptionOrderWarning, LogSource, description_numbered, is_log_file
+from estimation.data.log_formats import LogSource, is_log_file
 from estimation.data.memory_budget import count_rows
 from estimation.data.log_cleaning import DEFAULT_MAX_GAP
 from estimation.data.loading import (
@@ -63,7 +62,8 @@ from estimation.data.loading import (
 )
 from estimation.data.log_cleaning import HeldExtremes
 from estimation.data.date_times import seconds_of_date_times
-from estimation.data.records import (AngleTurns, csv_options, csv_units, measurements_from_frame, said_clipped,
+from estimation.data.records import (AngleTurns, csv_options, csv_units, in_the_format, measurements_from_frame,
+                                     said_clipped,
                                      said_unwrapped, unwrap_angles)
 from estimation.data.sampling_clock import ClockSums, clock_instants, said_receive_times
 from dynamics.measurements import Measurements, joint_columns
@@ -115,29 +115,42 @@ class FileSums:
         return -(-self.rows // int(self.metadata.get("decimation", 1)))
 
 
-def _raw_frames(path: Path, chunk_size: int, only_time: bool = False,
-                robot: RobotModel | None = None) -> Iterator[pd.DataFrame]:
-    """The file's rows as frames of ``chunk_size`` (with ``only_time``: column ``t`` alone, if any); for ``robot``
-    one chain of a larger description, a table numbering the description's joints read for the chain's
-    (:func:`~estimation.data.log_formats.description_numbered`, as the in-memory reader)."""
-    frames = _file_frames(path, chunk_size, only_time)
-    if robot is None or only_time:
+def _raw_frames(path: Path, chunk_size: int, model: IdentificationModel | None = None, *,
+                say: bool = True) -> Iterator[pd.DataFrame]:
+    """The file's rows as frames of ``chunk_size``; with ``model``, each frame's columns under the format's names as
+    the in-memory reader names the whole table's (:func:`_in_the_format`; ``say``: its reading said)."""
+    frames = _file_frames(path, chunk_size)
+    if model is None:
         yield from frames
-        return
-    described = None
+    else:
+        yield from _in_the_format(frames, path, model, say)
+
+
+def _in_the_format(frames: Iterator[pd.DataFrame], path: Path, model: IdentificationModel,
+                   say: bool = True) -> Iterator[pd.DataFrame]:
+    """``frames`` read as :func:`estimation.data.records.in_the_format` reads the whole table: a controller's or
+    driver's log (``actual_q_0``, ``q[0]``, ``measured_torque`` with arrays in cells…), ``rostopic echo -p`` of
+    ``JointState`` messages, the time or the joints under other names, each block by the same rule (the same
+    refusals: commanded, external or estimated torques never read as measured). The first block's reading is said
+    (the in-memory reader's warning); a later block read with other columns is an error naming the in-memory
+    route (never met on a log whose header and cells keep their meaning)."""
+    columns = None
     for index, frame in enumerate(frames):
-        if index == 0:
-            described = description_numbered(frame, robot, str(path))
-            if described is not None:
-                warnings.warn(DescriptionOrderWarning(described.message), stacklevel=2)
-        if described is not None:
-            frame = frame.drop(columns=list(described.left_out)).rename(
-                columns={value: key for key, value in described.renamed.items()})
-        yield frame
+        with warnings.catch_warnings():
+            if index or not say:
+                warnings.simplefilter("ignore")  # said once, with the first block (of the scan)
+            formatted = in_the_format(frame, path, model)
+        if columns is None:
+            columns = list(formatted.columns)
+        elif list(formatted.columns) != columns:
+            raise MeasurementError(f"{path}: its rows {index * len(frame) + 1}.. are read with other columns than "
+                                   "the first ones (a log whose cells change their layout): read it in memory (drop "
+                                   "the streaming options)")
+        yield formatted
 
 
 def _file_frames(path: Path, chunk_size: int, only_time: bool = False) -> Iterator[pd.DataFrame]:
-    """The file's rows as frames of ``chunk_size``, as written (:func:`_raw_frames`)."""
+    """The file's rows as frames of ``chunk_size`` (with ``only_time``: column ``t`` alone, if any)."""
     suffix = path.suffix.lower()
     if is_log_file(path) or isinstance(path, LogSource):
         raise MeasurementError(f"{path}: the streamed path (chunks, workers, a cluster) reads .csv and .parquet files; "
@@ -232,7 +245,7 @@ def segment_sources(paths, model: IdentificationModel, *, chunk_size: int = DEFA
         if segment is not None or file.suffix.lower() not in (".csv", ".parquet") or not file.is_file():
             sources.append(path)
             continue
-        held = file_parts(_raw_frames(file, max(int(chunk_size), 1), robot=model.robot), file, model) if holds_cut else None
+        held = file_parts(_raw_frames(file, max(int(chunk_size), 1), model), file, model) if holds_cut else None
         if held is not None and held.parts:
             warnings.warn(HoldWarning(
                 f"{path}: the robot is held still (every joint's position unchanged for more than "
@@ -242,7 +255,7 @@ def segment_sources(paths, model: IdentificationModel, *, chunk_size: int = DEFA
             sources.extend(type(path)(f"{path} (part {index})") if isinstance(path, Path) else f"{path} (part {index})"
                            for index in range(1, len(held.parts) + 1))
             continue
-        count = file_segments(_raw_frames(file, max(int(chunk_size), 1), robot=model.robot), file, model)
+        count = file_segments(_raw_frames(file, max(int(chunk_size), 1), model), file, model)
         sources.extend([path] if count == 1 else [type(path)(f"{path} (segment {index})") if isinstance(path, Path)
                                                   else f"{path} (segment {index})" for index in range(1, count + 1)])
     return sources
@@ -268,7 +281,7 @@ def source_rows(path: str | Path, model: IdentificationModel) -> int:
         return count_rows(file)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # said when the segment is read
-        scan = scan_time(_raw_frames(file, DEFAULT_CHUNK_SIZE, robot=model.robot), file, model, segment=segment)
+        scan = scan_time(_raw_frames(file, DEFAULT_CHUNK_SIZE, model), file, model, segment=segment)
     return count_rows(file) if scan is None or scan.keep is None else int(np.count_nonzero(scan.keep))
 
 
@@ -279,18 +292,19 @@ def source_step(path: str | Path, model: IdentificationModel) -> float | None:
     file, segment = source_file(path)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # said when the file is read
-        scan = scan_time(_raw_frames(file, DEFAULT_CHUNK_SIZE, robot=model.robot), file, model, segment=segment)
+        scan = scan_time(_raw_frames(file, DEFAULT_CHUNK_SIZE, model), file, model, segment=segment)
     return None if scan is None else float(scan.step)
 
 
-def _kept_frames(path: Path, chunk_size: int, keep: NDArray[np.bool_] | None,
-                 robot: RobotModel | None = None) -> Iterator[pd.DataFrame]:
-    """The rows of the file the loader keeps (``keep``, by row; ``None``: every row), ``chunk_size`` at a time."""
+def _kept_frames(path: Path, chunk_size: int, keep: NDArray[np.bool_] | None, model: IdentificationModel
+                 ) -> Iterator[pd.DataFrame]:
+    """The rows of the file the loader keeps (``keep``, by row; ``None``: every row), ``chunk_size`` at a time, in
+    the format (:func:`_in_the_format`; its reading said by the scan of the file before)."""
     if keep is None:
-        yield from _raw_frames(path, chunk_size, robot=robot)
+        yield from _raw_frames(path, chunk_size, model, say=False)
         return
     row, held, count = 0, [], 0
-    for frame in _raw_frames(path, chunk_size, robot=robot):
+    for frame in _raw_frames(path, chunk_size, model, say=False):
         part = frame[keep[row:row + len(frame)]]
         row += len(frame)
         if len(part):
@@ -402,13 +416,13 @@ def read_chunks(path: str | Path, model: IdentificationModel, *, chunk_size: int
                          f"with ({model.n_base} base parameters): give at least {least} (10 000 is a good size)")
     pending: pd.DataFrame | None = None
     file, segment = source_file(path)
-    scan = scan_time(_raw_frames(file, chunk_size, robot=model.robot), file, model, segment=segment)  # the loader's findings, said once
+    scan = scan_time(_raw_frames(file, chunk_size, model), file, model, segment=segment)  # the loader's findings, said once
     resampler = Resampler(scan) if scan is not None and scan.irregular else None
     checked = _ChunkChecks(path, model, scan, resampler)
     emitted = 0
     clock = _ClockEvidence(model, scan) if resampler is not None else None
     clipped = _ClippedEvidence(model)
-    for frame in _kept_frames(file, chunk_size, None if scan is None else scan.keep, model.robot):
+    for frame in _kept_frames(file, chunk_size, None if scan is None else scan.keep, model):
         if clock is not None:
             clock.add(frame)
         clipped.add(frame)
@@ -447,9 +461,9 @@ def logged_chunks(path: str | Path, model: IdentificationModel, *, chunk_size: i
     file, segment = source_file(path)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # said when the file was read for its sums
-        scan = scan_time(_raw_frames(file, chunk_size, robot=model.robot), file, model, segment=segment)
+        scan = scan_time(_raw_frames(file, chunk_size, model), file, model, segment=segment)
     turns, row = AngleTurns(), 0
-    for frame in itertools.chain(_kept_frames(file, chunk_size, None if scan is None else scan.keep, model.robot), [None]):
+    for frame in itertools.chain(_kept_frames(file, chunk_size, None if scan is None else scan.keep, model), [None]):
         if frame is not None and pending is not None and len(frame) < least:
             pending = pd.concat([pending, frame], ignore_index=True)
             continue
@@ -481,11 +495,11 @@ def receive_times_evidence_of(path: str | Path, model: IdentificationModel, *,
         segment = segment.of
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # said when the source is read
-        scan = scan_time(_raw_frames(file, chunk_size, robot=model.robot), file, model, segment=segment)
+        scan = scan_time(_raw_frames(file, chunk_size, model), file, model, segment=segment)
     if scan is None or not scan.irregular:
         return None
     evidence = _ClockEvidence(model, scan)
-    for frame in _kept_frames(file, chunk_size, scan.keep, model.robot):
+    for frame in _kept_frames(file, chunk_size, scan.keep, model):
         evidence.add(frame)
     return None if evidence.sums is None else evidence.sums.ratio
 

@@ -65,6 +65,7 @@ from dynamics.effects.linear import Effect
 from dynamics.runtime.progress import step
 from dynamics.models import IdentificationModel
 from dynamics.transmission import Transmission
+from estimation.data.passive import passive_channels
 from estimation.data.input_findings import FindingsSaid
 from dynamics.models import build_model
 from estimation.diagnosis.forward_selection import SearchOutcome, SearchSettings
@@ -148,7 +149,7 @@ def _refit(model: IdentificationModel, train: ChannelSums, found: StreamedCandid
     names = list(declared.base.names) + [name for index in indices for name in found.blocks[index].names]
     expressions = list(declared.base.expressions) + names[declared.n_base:]
     n_shape = sum(found.blocks[index].n_shape for index in indices)  # weighted as in memory (summed_estimator)
-    return columns, summed_estimator("wls", n_shape).fit(normal_equations(train, columns, names, expressions)).estimate_
+    return columns, summed_estimator("wls", n_shape, passive_channels(model)).fit(normal_equations(train, columns, names, expressions)).estimate_
 
 
 def _held_signs(model: IdentificationModel, train: ChannelSums, found: StreamedCandidates, chosen: list[int],
@@ -332,7 +333,7 @@ def _at_recorded_stamps(sample: Measurements, validate: Sequence[str], model: Id
 def _declared(model: IdentificationModel, sums: SumsPass) -> SummedEstimate:
     """The declared model estimated from the training sums (channel-weighted least squares)."""
     base = list(range(model.n_base))
-    return SummedLeastSquares(method="wls").fit(normal_equations(sums.train, base, model.base.names,
+    return SummedLeastSquares(method="wls", passive=passive_channels(model)).fit(normal_equations(sums.train, base, model.base.names,
                                                                  model.base.expressions)).estimate_
 
 

@@ -44,6 +44,7 @@ import numpy as np
 
 from dynamics.effects.linear import Effect
 from dynamics.models import build_model
+from estimation.data.passive import passive_channels
 from estimation.consistent.identification import Scorer, consistent_fit_sums
 from estimation.consistent.model_selection import (
     CONSISTENT_FAILURES,
@@ -236,7 +237,7 @@ def streamed_completion(diagnosis: Diagnosis, run: StreamedRun, score: Scorer | 
     sums = run.sums
     try:
         n_shape = sum(run.found.blocks[index].n_shape for index in run.chosen)  # weighted as in memory
-        estimate = summed_estimator(after.estimate.method, n_shape).fit(
+        estimate = summed_estimator(after.estimate.method, n_shape, passive_channels(model)).fit(
             normal_equations(sums.train, columns, names, expressions)).estimate_
     except (ValueError, np.linalg.LinAlgError):
         return None

@@ -16,13 +16,16 @@ model holds, as memory's :func:`~estimation.identification.trivial_predictors.tr
 Each joint's training range is checked chunk by chunk on the prepared samples (the largest excursions, the share of
 samples outside pooled; :meth:`~estimation.identification.training_range.TrainingRange.check`).
 
-What needs every sample of the record at once is not computed, and :attr:`StreamedEvaluation.not_computed` says
-so: the per-sample predictions and their bands (``--out``, ``--plot``), the record's noise floor (its estimator
-reads each segment whole) and the record-change check
-(:mod:`estimation.identification.record_changes`: its payload and gravity families are fitted on evenly spaced
-samples of the whole record with a prewhitened Newey–West covariance of their residuals, and weighted by the
-record's noise floor). A model file whose reading the streamed reader does not make (rows at rest dropped, a
-trimmed filter or one of another order, logged velocities replaced) is
+The record's noise floor is memory's (:func:`~estimation.streaming.record_floor.record_floor`: each segment's
+difference estimate by exact selection over passes, pooled), and so is the record-change check
+(:mod:`estimation.identification.record_changes`: a payload, gravity turned): one more pass gathers the evenly
+spaced samples its families are fitted on (:func:`~estimation.identification.record_changes.sampled_rows` of the
+record's scored samples, the motion moved by the delay) with the model's residual there; the fits, the HAC
+covariance and the cross-fitted halves are then memory's own
+(:func:`~estimation.identification.record_changes.sampled_record_changes`), and one more pass sums the error with
+each family's change over every sample. Only the per-sample predictions and their bands (``--out``, ``--plot``)
+are not kept, and :attr:`StreamedEvaluation.not_computed` says so. A model file whose reading the streamed reader
+does not make (rows at rest dropped, a trimmed filter or one of another order, logged velocities replaced) is
 refused with :class:`~estimation.streaming.chunks.StreamingUnsupportedError`, naming the in-memory route; motor-side
 columns, joint zeros and reversed joint directions are read from joint-side copies of the files the caller makes
 (:func:`needs_joint_side`).
@@ -30,21 +33,29 @@ columns, joint zeros and reversed joint directions are read from joint-side copi
 
 from __future__ import annotations
 
+import functools
 import warnings
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+import numpy as np
 from numpy.typing import NDArray
 
+from dynamics.measurements import Measurements
+
 from estimation.estimators.normal_equations import DEFAULT_CHUNK_SIZE
+from estimation.identification.record_changes import (RecordChanges, RecordSample, checked_channels, record_segments,
+                                                      sampled_record_changes, sampled_rows)
 from estimation.identification.training_range import UNKNOWN_RANGE, JointExcursion, RangeCheck
 from estimation.preprocessing.differentiation import ButterworthDifferentiation
 from estimation.streaming.chunks import StreamingUnsupportedError, clock_source, segment_sources, source_rows
 from estimation.streaming.periods import plan_chunks
-from estimation.streaming.recorded_errors import counted_errors_at_stamps
+from estimation.streaming.record_floor import record_floor
+from estimation.streaming.recorded_errors import counted_errors_at_stamps, scored_records
 from estimation.streaming.time_base import NoRegularClockError
+from estimation.uncertainty.floor_comparison import mse_over_floor
 
 if TYPE_CHECKING:
     from estimation.identification.identified_model import IdentifiedModel
@@ -56,11 +67,10 @@ __all__ = ["STREAMED_PREDICT_NOT_COMPUTED", "StreamedEvaluation", "check_streama
 STREAMED_PREDICT_NOT_COMPUTED = {
     "predictions": "the per-sample predictions, their 95 % bands and the figure (--out, --plot) are written by the "
                    "in-memory path only (leave out --chunk-size; the record must then fit in memory)",
-    "noise_floor": "the record's noise floor is estimated on each segment whole, in memory only",
-    "changed": "the record-change check (a payload, gravity turned) fits evenly spaced samples of the whole record "
-               "with a prewhitened Newey-West covariance of their residuals, weighted by the record's noise floor: "
-               "in memory only",
 }
+#: why the record-change check is not made on a record whose scored samples come out of their order
+OUT_OF_ORDER = ("changed", "the record-change check gathers the record's samples in their order, and stamps before a "
+                           "resampled file's grid come last on the streamed path: predict it in memory")
 
 #: the route where the streamed reading cannot be made
 IN_MEMORY = "leave out --chunk-size to predict the record in memory"
@@ -81,15 +91,24 @@ class StreamedEvaluation:
     range_check: RangeCheck | None
     not_computed: dict[str, str] = field(default_factory=lambda: dict(STREAMED_PREDICT_NOT_COMPUTED))
     chunk_size: int = DEFAULT_CHUNK_SIZE
+    #: the record's noise floor per channel (memory's), ``None`` when no segment gives one
+    floor_mse: dict[str, float] | None = None
+    #: the record-change check (memory's), ``None`` when not checked
+    changes: RecordChanges | None = None
+
+    @property
+    def mse_over_floor(self) -> dict[str, float] | None:
+        return mse_over_floor(self.mse, self.floor_mse)
 
     def to_dict(self) -> dict[str, Any]:
-        return {"mse": dict(self.mse), "mse_over_floor": None, "n_samples": int(self.n_samples),
+        return {"mse": dict(self.mse), "mse_over_floor": self.mse_over_floor, "n_samples": int(self.n_samples),
                 "channel_samples": None,  # the streamed path masks no sample (its clipped ones are said, not masked)
-                "zero_mse": dict(self.zero_mse), "nominal_mse": dict(self.nominal_mse), "noise_floor_mse": None,
+                "zero_mse": dict(self.zero_mse), "nominal_mse": dict(self.nominal_mse),
+                "noise_floor_mse": None if self.floor_mse is None else dict(self.floor_mse),
                 "reported_validation_mse": self.reported_validation_mse, "model": self.model,
                 "outside_training_range": None if self.range_check is None else self.range_check.to_dict(),
                 "training_range_note": UNKNOWN_RANGE if self.range_check is None else None,
-                "changed": None, "prediction_path": "streamed",
+                "changed": None if self.changes is None else self.changes.to_dict(), "prediction_path": "streamed",
                 "streaming": {"chunk_size": int(self.chunk_size)}, "not_computed": dict(self.not_computed)}
 
 
@@ -221,7 +240,66 @@ def streamed_evaluation(identified: IdentifiedModel, paths: Sequence[str | Path]
     if fourier:
         range_options["average"] = reading["average"]
     check = _range(identified, sources, range_options)
+    floor = record_floor(sources, model, chunk_size=chunk_size, frequency_hz=plan.frequency_hz if fourier else None)
+    not_computed = dict(STREAMED_PREDICT_NOT_COMPUTED)
+    changes = None
+    if checked_channels(identified) and count >= 20:
+        sample = _sample(identified, sources, count, reading)
+        if sample is None:
+            not_computed.update([OUT_OF_ORDER])
+        else:
+            changes = sampled_record_changes(identified, sample, floor,
+                                             functools.partial(_squared_with_changes, identified, sources, reading))
     return StreamedEvaluation(errors["model"], count, errors["zero_mse"], errors["nominal_mse"],
-                              identified.reported_validation_mse, identified.estimate, check,
-                              chunk_size=chunk_size)
+                              identified.reported_validation_mse, identified.estimate, check, not_computed,
+                              chunk_size=chunk_size, floor_mse=floor, changes=changes)
 
+
+def _residuals(identified: IdentifiedModel, sources: Sequence, reading: dict[str, Any]
+               ) -> Iterator[tuple[int, Measurements | None, NDArray[np.float64] | None]]:
+    """The record's scored samples block by block (the motion moved by the model's delay) with the model's residual
+    there in the log's directions (as :meth:`IdentifiedModel.predict_record` pairs them), each with its source's
+    index; ``(index, None, None)`` for samples out of their order."""
+    signs = identified.channel_signs()
+    for index, record, late in scored_records(identified.model, sources, delay=identified.delay, **reading):
+        if record is None or late:
+            yield index, None, None
+            return
+        predicted = identified.predict(record.q, record.dq, record.ddq)
+        yield index, record, (record.channels(identified.channels) - predicted) * signs
+
+
+def _sample(identified: IdentifiedModel, sources: Sequence, count: int, reading: dict[str, Any]
+            ) -> RecordSample | None:
+    """The samples the record-change check fits its families on, gathered in one pass (memory's rows of the
+    record's ``count`` scored samples); ``None`` when samples come out of their order."""
+    rows = sampled_rows(count)
+    parts: list[tuple[NDArray, ...]] = []
+    bounds: list[list[int]] = []
+    offset = 0
+    for index, record, residual in _residuals(identified, sources, reading):
+        if record is None or residual is None:
+            return None
+        while len(bounds) <= index:
+            bounds.append([offset, offset])
+        bounds[index][1] = offset + record.n_samples
+        inside = rows[(rows >= offset) & (rows < offset + record.n_samples)] - offset
+        parts.append((record.q[inside], record.dq[inside], record.ddq[inside], residual[inside]))
+        offset += record.n_samples
+    if offset != count:
+        return None
+    q, dq, ddq, target = (np.concatenate([part[k] for part in parts]) for k in range(4))
+    return RecordSample(q, dq, ddq, target, record_segments([(start, stop) for start, stop in bounds if stop > start],
+                                                            rows), count)
+
+
+def _squared_with_changes(identified: IdentifiedModel, sources: Sequence, reading: dict[str, Any],
+                          changes: list[tuple[Any, NDArray[np.float64]]]) -> list[NDArray[np.float64]]:
+    """The squared error with each family's change over every scored sample, summed per channel: one pass."""
+    totals = [np.zeros(len(identified.channels)) for _ in changes]
+    for _, record, residual in _residuals(identified, sources, reading):
+        if record is None or residual is None:
+            raise StreamingUnsupportedError(OUT_OF_ORDER[1])
+        for total, (family, beta) in zip(totals, changes):
+            total += np.sum((residual - family.change(beta, record.q, record.dq, record.ddq)) ** 2, axis=0)
+    return totals

@@ -35,7 +35,7 @@ from estimation.streaming.delayed_chunks import moved_chunks
 from estimation.streaming.periods import plan_chunks
 
 __all__ = ["Predictor", "counted_errors_at_stamps", "counted_predicted_errors", "counted_recorded_errors",
-           "delay_groups", "less_load", "recorded_training_errors", "streamed_errors_at_stamps", "streamed_plan", "streamed_recorded_errors",
+           "delay_groups", "less_load", "recorded_training_errors", "scored_records", "streamed_errors_at_stamps", "streamed_plan", "streamed_recorded_errors",
            "streamed_recorded_mse", "theta_predictors"]
 
 
@@ -216,27 +216,41 @@ def counted_errors_at_stamps(model: IdentificationModel, thetas: Mapping[Any, Ar
     count = 0  # the samples of one pass: every pass scores the same (moving the motion drops none)
     for delay, named in delay_groups(predictors, delays):
         count = 0
-        for path in paths:
-            scored = _scored_samples(model, path, chunk_size=chunk_size, cutoff_hz=cutoff_hz, decimation=decimation,
-                                     held_torques=held_torques, frequency_hz=frequency_hz, harmonics=harmonics,
-                                     average=average)
-            if delay is not None and delay != 0.0:
-                scored = _moved(scored, delay)
-            for record, late in scored:
-                if record is None:
-                    return None
-                measured = record.channels(model.channels)
-                for name, predict in named.items():
-                    squared = (measured - predict(record.q, record.dq, record.ddq)) ** 2
-                    squares[name] += np.sum(squared, axis=0)
-                    if blocks is not None and name in blocks:
-                        if late:  # out of the samples' order: no blocks
-                            blocks[name].spoil()
-                        blocks[name].add(squared)
-                count += measured.shape[0]
+        for _, record, late in scored_records(model, paths, delay=delay, chunk_size=chunk_size, cutoff_hz=cutoff_hz,
+                                              decimation=decimation, held_torques=held_torques,
+                                              frequency_hz=frequency_hz, harmonics=harmonics, average=average):
+            if record is None:
+                return None
+            measured = record.channels(model.channels)
+            for name, predict in named.items():
+                squared = (measured - predict(record.q, record.dq, record.ddq)) ** 2
+                squares[name] += np.sum(squared, axis=0)
+                if blocks is not None and name in blocks:
+                    if late:  # out of the samples' order: no blocks
+                        blocks[name].spoil()
+                    blocks[name].add(squared)
+            count += measured.shape[0]
     if count == 0:
         raise ValueError("the files hold no samples once preprocessed")
     return {name: dict(zip(model.channels, map(float, total / count))) for name, total in squares.items()}, count
+
+
+def scored_records(model: IdentificationModel, paths: Sequence[str | Path], *, delay: float | None = None,
+                   chunk_size: int, cutoff_hz: float | None = None, decimation: int = 1, held_torques: bool = False,
+                   frequency_hz: float | None = None, harmonics: int = 5, average: str = "auto"
+                   ) -> Iterator[tuple[int, Measurements | None, bool]]:
+    """The samples :func:`counted_errors_at_stamps` scores, block by block in the files' order: each block with the
+    index of its file in ``paths`` and whether it comes out of the samples' order (stamps before a grid's start,
+    scored last), its motion moved by ``delay``; a block ``None`` ends the pass (a file whose rows the loader drops,
+    or samples out of their order on a pass with a delay: the files are then measured whole)."""
+    for index, path in enumerate(paths):
+        scored = _scored_samples(model, path, chunk_size=chunk_size, cutoff_hz=cutoff_hz, decimation=decimation,
+                                 held_torques=held_torques, frequency_hz=frequency_hz, harmonics=harmonics,
+                                 average=average)
+        if delay is not None and delay != 0.0:
+            scored = _moved(scored, delay)
+        for record, late in scored:
+            yield index, record, late
 
 
 #: the samples one file is scored on, block by block: each with whether it comes out of the samples' order (stamps

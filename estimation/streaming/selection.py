@@ -41,7 +41,7 @@ from numpy.typing import NDArray
 from dynamics.effects.linear import CoulombFriction, Effect
 from dynamics.effects.shaped import ShapedStribeckFriction
 from dynamics.models import IdentificationModel, build_model
-from estimation.data.passive import floored_variance
+from estimation.data.passive import floored_variance, passive_channels
 from estimation.diagnosis.candidates.trials import SIGNIFICANT_TERM, Trial, nested_test
 from estimation.diagnosis.confirmation import REWEIGHTING_PASSES, CandidateComparison
 from estimation.diagnosis.candidates.delay import DelayTrial
@@ -317,7 +317,7 @@ def summed_rival_fitter(model: IdentificationModel, train: ChannelSums, validati
         names = list(model.base.names) + [name for index in indices for name in blocks[index].names]
         expressions = list(model.base.expressions) + names[model.n_base:]
         n_shape = sum(blocks[index].n_shape for index in indices)  # weighted as the in-memory fit of shaped laws
-        estimate = summed_estimator("wls", n_shape).fit(normal_equations(train, selection, names, expressions)).estimate_
+        estimate = summed_estimator("wls", n_shape, passive_channels(model)).fit(normal_equations(train, selection, names, expressions)).estimate_
         fixed = {parameter.name: float(value) for index in indices
                  for parameter, value in zip(blocks[index].parameters, shapes[index])}
         return RivalFit(estimate, dict(zip(model.channels, map(float, train.channel_mse(selection, estimate.values)))),

@@ -18,7 +18,7 @@ import scipy.stats
 
 from estimation.uncertainty.noise_floor import NoiseFloor
 
-__all__ = ["FloorComparison", "above_floor", "compare_with_floor", "floor_ratios"]
+__all__ = ["FloorComparison", "above_floor", "compare_with_floor", "floor_ratios", "mse_over_floor"]
 
 
 @dataclass(frozen=True)
@@ -88,4 +88,13 @@ def floor_ratios(mse: Mapping[str, float], floor: NoiseFloor) -> dict[str, float
     """``validation MSE / floor`` per channel."""
     floors = floor.mse()
     return {channel: float(value) / floors[channel] if floors[channel] > 0 else float("inf")
+            for channel, value in mse.items()}
+
+
+def mse_over_floor(mse: Mapping[str, float], floor_mse: Mapping[str, float] | None) -> dict[str, float] | None:
+    """``MSE / floor`` per channel of ``mse`` against each channel's floor MSE (infinite over a floor of zero: a
+    channel of zeros), ``None`` without a floor (the ``mse_over_floor`` of ``oed predict``'s metrics)."""
+    if floor_mse is None:
+        return None
+    return {channel: value / floor_mse[channel] if floor_mse[channel] > 0 else float("inf")
             for channel, value in mse.items()}

@@ -174,13 +174,8 @@ def difference_variance(values: ArrayLike, *, order: int = DIFFERENCE_ORDER,
     masked samples (NaN, :mod:`estimation.data.channel_mask`) leave out the differences that reach them: each
     channel's scale from its own valid differences, ``ν`` that of the channel with the fewest."""
     values = _as_2d(values, masked=True)
-    order = int(order)
-    if order < 1:
-        raise ValueError(f"the difference order must be at least 1, got {order}")
-    if values.shape[0] < 10 * (order + 1):
-        raise NoiseFloorError(f"{values.shape[0]} samples are too few for a difference estimate of the noise")
+    order = check_difference_count(values.shape[0], order)
     differences = np.diff(values, n=order, axis=0)
-    gain = comb(2 * order, order)  # Σ of the squared binomial coefficients
     counts = None
     if np.isnan(np.sum(differences)):  # masked samples: each channel's valid differences alone
         counts = np.sum(~np.isnan(differences), axis=0)
@@ -190,30 +185,63 @@ def difference_variance(values: ArrayLike, *, order: int = DIFFERENCE_ORDER,
         deviation = np.nanmedian(np.abs(differences - np.nanmedian(differences, axis=0)), axis=0)
     else:
         deviation = np.median(np.abs(differences - np.median(differences, axis=0)), axis=0)
-    variance = (1.482602218505602 * deviation) ** 2 / gain
     # white noise gives differences whose lag-1 correlation is −C(2d, d−1)/C(2d, d) (−0.8 for d = 4);
     # a channel filtered or interpolated before it was recorded does not, and its differences then
     # measure the filter, not the noise: refuse rather than report a floor that is far too low
-    expected = -comb(2 * order, order - 1) / gain
     for column in range(values.shape[1]):
         if not np.any(values[:, column]):  # a channel of zeros (a passive joint's torque): no noise, floor 0
             continue
         kept = differences[:, column]
         if counts is not None:
             kept = kept[~np.isnan(kept)]
-        kept = kept[np.abs(kept - np.median(kept)) <= 5 * 1.4826 * max(deviation[column], np.finfo(float).tiny)]
+        kept = kept[np.abs(kept - np.median(kept)) <= kept_deviation(deviation[column])]
         centred = kept - kept.mean()
         energy = float(centred @ centred)
         lag1 = float(centred[1:] @ centred[:-1]) / energy if energy > 0 else 1.0
-        # sampling spread of a lag-1 correlation of the differences: about √(Σ ρ_k² / N) (Bartlett)
-        tolerance = max(WHITENESS_TOLERANCE, 4 * np.sqrt(_difference_correlation_sum(order) / max(kept.shape[0], 1)))
-        if abs(lag1 - expected) > tolerance:
-            raise NoiseFloorError(
-                f"channel {names[column] if names else column + 1}: its {order}th differences are not those of white noise (lag-1 correlation "
-                f"{lag1:.2f}, white noise {expected:.2f}): it was probably filtered, interpolated or resampled before "
-                "it was recorded, and no model-free floor can be read from it (a periodic record can give one)")
+        check_white(lag1, kept.shape[0], order, names[column] if names else column + 1)
     used = differences.shape[0] if counts is None else int(counts.min())
-    return variance, float(MAD_EFFICIENCY * used / _difference_correlation_sum(order))
+    return difference_scale(deviation, order), difference_dof(used, order)
+
+
+def check_difference_count(n_samples: int, order: int) -> int:
+    """``order`` as an integer, checked, and :class:`NoiseFloorError` when ``n_samples`` are too few for the
+    difference estimate (:func:`difference_variance`)."""
+    order = int(order)
+    if order < 1:
+        raise ValueError(f"the difference order must be at least 1, got {order}")
+    if n_samples < 10 * (order + 1):
+        raise NoiseFloorError(f"{n_samples} samples are too few for a difference estimate of the noise")
+    return order
+
+
+def kept_deviation(deviation: float) -> float:
+    """The largest distance from their median of the differences the whiteness check keeps: 5 scaled MADs (a jump
+    of the signal itself, a Coulomb reversal or a contact, left out)."""
+    return 5 * 1.4826 * max(float(deviation), np.finfo(float).tiny)
+
+
+def difference_scale(deviation: ArrayLike, order: int) -> NDArray[np.float64]:
+    """The noise variance from the median absolute deviation of the ``order``-th differences:
+    ``(1.4826 MAD)² / C(2d, d)`` (Gaussian noise; module docstring)."""
+    return (1.482602218505602 * np.asarray(deviation, dtype=float)) ** 2 / comb(2 * order, order)
+
+
+def difference_dof(n_differences: int, order: int) -> float:
+    """The degrees of freedom of the difference estimate from ``n_differences`` differences (module docstring)."""
+    return float(MAD_EFFICIENCY * n_differences / _difference_correlation_sum(order))
+
+
+def check_white(lag1: float, n_kept: int, order: int, name: object) -> None:
+    """:class:`NoiseFloorError` when the lag-1 correlation ``lag1`` of ``n_kept`` differences of channel ``name``
+    departs from white noise's by more than its sampling spread (the channel was filtered before it was recorded)."""
+    expected = -comb(2 * order, order - 1) / comb(2 * order, order)
+    # sampling spread of a lag-1 correlation of the differences: about √(Σ ρ_k² / N) (Bartlett)
+    tolerance = max(WHITENESS_TOLERANCE, 4 * np.sqrt(_difference_correlation_sum(order) / max(n_kept, 1)))
+    if abs(lag1 - expected) > tolerance:
+        raise NoiseFloorError(
+            f"channel {name}: its {order}th differences are not those of white noise (lag-1 correlation "
+            f"{lag1:.2f}, white noise {expected:.2f}): it was probably filtered, interpolated or resampled before "
+            "it was recorded, and no model-free floor can be read from it (a periodic record can give one)")
 
 
 def _difference_correlation_sum(order: int) -> float:

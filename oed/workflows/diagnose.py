@@ -324,16 +324,16 @@ def run_diagnose(args: DiagnoseOptions, *, say: Callable[[str], None]) -> Diagno
         check_streamed_request(args, delay)
     args, chain = with_logged_chain(args)  # a branching or mimic URDF read as the log's chain
     args, passive = with_passive_joints(args)  # named, or the description's joints without a motor the log lacks
-    if passive is not None and streaming_requested(args):  # those the description gave (named ones: above)
-        check_streamed_request(args, delay)
     robot = robot_of(args)
     transmission = resolve_transmission(args, robot)
     effects = model_effects(args, friction, robot, transmission)
     model = build_model(robot, args.model, effects)
     with ExitStack() as copies:
-        read, names = copies.enter_context(records_to_read(  # joint-side copies of motor-side, zeroed records
-            args, model, transmission, bytes_per_value=IN_MEMORY.bytes_per_value,
-            in_memory_only=lambda: in_memory_only(args, model, delay)))
+        with warnings.catch_warnings(record=True) as copying:  # what the copies' reading said (a controller's log)
+            warnings.simplefilter("always")
+            read, names = copies.enter_context(records_to_read(  # joint-side copies of motor-side, zeroed records
+                args, model, transmission, bytes_per_value=IN_MEMORY.bytes_per_value,
+                in_memory_only=lambda: in_memory_only(args, model, delay)))
         # a Coulomb column one with the offset merged, a still joint's left out: said (both paths)
         diagnosed, merged = fitted_without_undetermined(
             lambda effects, model, merged: diagnosis_by_path(read, friction, effects, model, transmission, delay, say,
@@ -342,6 +342,9 @@ def run_diagnose(args: DiagnoseOptions, *, say: Callable[[str], None]) -> Diagno
         if merged:
             said = tuple(column.statement() for column in merged)
             diagnosed = replace(diagnosed, messages=(*said, *diagnosed.messages), notes=(*said, *diagnosed.notes))
+        copied = tuple(dict.fromkeys(str(item.message) for item in copying))
+        if copied:
+            diagnosed = replace(diagnosed, messages=(*copied, *diagnosed.messages))  # said as the reader says it
         document, messages = diagnose_document(args, diagnosed)
         # a torque sensor past its range: the samples left out of the fit and of the errors (said when read)
         document["saturated_samples"] = saturated_sample_counts(diagnosed.records)
@@ -432,14 +435,11 @@ class Diagnosed:
 
 
 def check_streamed_request(args: DiagnoseOptions, delay: DelayBounds | None) -> None:
-    """``--test`` and passive joints are in-memory only: an error when the streamed path was asked for (a delay,
-    ``delay``, is searched on both paths)."""
+    """``--test`` is in-memory only: an error when the streamed path was asked for (a delay, ``delay``, is searched
+    on both paths; passive joints are read on both)."""
     if args.test:
         raise ValueError("--test is read in memory: not with the streamed path (--chunk-size, --scheduler or "
                          "--workers)")
-    if args.passive:  # read in memory, whatever the records' size (in_memory_only)
-        raise ValueError(f"passive joint(s) {', '.join(args.passive)} are read in memory: not with the streamed path "
-                         "(--chunk-size, --scheduler or --workers); drop the streaming options")
 
 
 def in_memory_only(args: DiagnoseOptions, model: IdentificationModel, delay: DelayBounds | None) -> str | None:

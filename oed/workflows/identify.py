@@ -281,9 +281,11 @@ def run_identify(args: IdentifyOptions, *, say: Callable[[str], None]) -> Identi
     if streaming_requested(args):
         check_streamed_request(args, model)
     with ExitStack() as copies:
-        read, names = copies.enter_context(records_to_read(  # joint-side copies of motor-side, zeroed records
-            args, model, transmission, bytes_per_value=IN_MEMORY.bytes_per_value,
-            in_memory_only=lambda: in_memory_only(args, model, delay)))
+        with warnings.catch_warnings(record=True) as copying:  # what the copies' reading said (a controller's log)
+            warnings.simplefilter("always")
+            read, names = copies.enter_context(records_to_read(  # joint-side copies of motor-side, zeroed records
+                args, model, transmission, bytes_per_value=IN_MEMORY.bytes_per_value,
+                in_memory_only=lambda: in_memory_only(args, model, delay)))
         # a Coulomb column the record cannot tell from the offset merged, a still joint's left out: said
         identified, merged = fitted_without_undetermined(
             lambda effects, model, merged: identification_by_path(read, robot, model, transmission, delay, say),
@@ -291,6 +293,9 @@ def run_identify(args: IdentifyOptions, *, say: Callable[[str], None]) -> Identi
         if merged:
             said = tuple(column.statement() for column in merged)
             identified = replace(identified, messages=(*said, *identified.messages), notes=(*said, *identified.notes))
+        copied = tuple(dict.fromkeys(str(item.message) for item in copying))
+        if copied:
+            identified = replace(identified, messages=(*copied, *identified.messages))  # said as the reader says it
         document, messages = identify_document(args, identified)
         if merged:
             document["not_determined"] = [column.to_dict() for column in merged]
@@ -1038,9 +1043,6 @@ def check_streamed_request(args: IdentifyOptions, model: IdentificationModel) ->
     """Options the streamed identification does not have: an error naming them, before anything is read."""
     if args.plot:  # the report is written on both paths (streamed: without figures, saying what it lacks)
         raise ValueError(f"--plot draws every sample: not with {STREAMED}")
-    if model.robot.passive_joints:  # read in memory, whatever the records' size (in_memory_only)
-        raise ValueError(f"passive joint(s) {', '.join(model.robot.passive_joints)} are read in memory: not with "
-                         f"{STREAMED}; drop the streaming options")
     if args.min_speed is not None:
         raise ValueError(f"--min-speed drops rows of the whole record: not with {STREAMED}")
     if model_has_shapes(model):

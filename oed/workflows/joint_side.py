@@ -22,7 +22,7 @@ from typing import Any
 from dynamics.models import IdentificationModel
 from dynamics.transmission import Transmission
 from estimation.data.memory_budget import count_rows, estimate_in_memory
-from estimation.data.motor_side import joint_side_copies, motor_columns
+from estimation.data.motor_side import formatted_header, joint_side_copies, motor_columns
 from oed.workflows.asbuilt import resolve_joint_directions, resolve_joint_offsets
 from oed.workflows.memory_path import budget_of
 from oed.workflows.options import RecordOptions, streaming_requested
@@ -37,21 +37,17 @@ def _files(args: RecordOptions) -> list[Any]:
     return [path for role in ROLES for path in (getattr(args, role, None) or ())]
 
 
-def _needs_copies(args: RecordOptions) -> bool:
-    """Whether a file of ``args`` holds motor-side columns, or ``--joint-offsets`` is given."""
+def _needs_copies(args: RecordOptions, model: IdentificationModel) -> bool:
+    """Whether a file of ``args`` holds motor-side columns (a controller's log its currents, named as the in-memory
+    reader names them: :func:`~estimation.data.motor_side.formatted_header`), or ``--joint-offsets`` is given."""
     if getattr(args, "joint_offsets", None) is not None:
         return True
     for path in _files(args):
         path = Path(path)
         try:
-            if path.suffix.lower() == ".csv" and path.is_file():
-                import pandas as pd
-                if motor_columns(pd.read_csv(path, nrows=0).columns):
-                    return True
-            elif path.suffix.lower() == ".parquet" and path.is_file():
-                import pyarrow.parquet
-                if motor_columns(pyarrow.parquet.ParquetFile(path).schema_arrow.names):
-                    return True
+            if path.suffix.lower() in (".csv", ".parquet") and path.is_file() \
+                    and motor_columns(formatted_header(path, model)):
+                return True
         except (OSError, ValueError, ImportError):
             continue  # the reader names the fault
     return False
@@ -61,7 +57,7 @@ def streams_converted(args: RecordOptions, model: IdentificationModel, *, bytes_
                       in_memory_only: Callable[[], str | None]) -> bool:
     """Whether this run streams (as :func:`oed.workflows.memory_path.decide_path` decides) and reads motor-side
     columns or ``--joint-offsets``: then it reads joint-side copies (:func:`joint_side_records`)."""
-    if not _needs_copies(args):
+    if not _needs_copies(args, model):
         return False
     if streaming_requested(args):
         return True
@@ -91,7 +87,7 @@ def joint_side_records(args: RecordOptions, model: IdentificationModel, transmis
             if not paths:
                 continue
             copies = joint_side_copies(paths, folder / role, n_joints=robot.n_joints, transmission=transmission,
-                                       joint_offsets=offsets, joint_directions=directions)
+                                       joint_offsets=offsets, joint_directions=directions, model=model)
             names.update({str(copy): str(path) for copy, path in zip(copies, paths) if str(copy) != str(path)})
             changes[role] = type(paths)(type(path)(copy) if isinstance(path, Path) else str(copy)
                                         for copy, path in zip(copies, paths))

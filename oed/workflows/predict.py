@@ -91,8 +91,8 @@ PER_SAMPLE_REFUSED = ("--out and --plot write every sample's prediction (the res
 @dataclass(frozen=True)
 class StreamedPredictRun(PredictRun):
     """What the streamed ``oed predict`` computed (:func:`estimation.streaming.prediction.streamed_evaluation`):
-    the errors, the yardsticks and the training range, not the per-sample predictions (``not_computed``; the
-    metrics JSON holds the in-memory keys, those not computed null)."""
+    the errors, the yardsticks, the training range, the record's noise floor and the record-change check, memory's;
+    not the per-sample predictions (``not_computed``; the metrics JSON holds the in-memory keys)."""
 
     def columns(self) -> dict[str, Any]:
         raise ValueError(PER_SAMPLE_REFUSED)
@@ -121,8 +121,8 @@ def predict(*, model: str | Path, data: Any, consistent: bool = False, alternati
     ``alternative="consistent"`` (the physically consistent estimate, what ``oed export`` writes).
 
     ``chunk_size``: the record read and predicted in chunks of that many rows
-    (:func:`estimation.streaming.prediction.streamed_evaluation`: the errors, the yardsticks and the training
-    range, not the per-sample predictions). Without it, a record of .csv or .parquet files whose in-memory
+    (:func:`estimation.streaming.prediction.streamed_evaluation`: the errors, the yardsticks, the training range,
+    the noise floor and the record-change check, memory's; not the per-sample predictions). Without it, a record of .csv or .parquet files whose in-memory
     prediction would pass ``memory_budget`` (default 1 GB, as identify's) is streamed too, said in one line
     (``say``), unless ``per_sample`` (the predictions CSV or the figure asked for)."""
     if consistent and alternative not in (None, "consistent"):
@@ -192,7 +192,8 @@ def streamed_predict(identified: IdentifiedModel, files: list, chunk_size: int) 
             file = identified.file
             read = joint_side_copies(files, folder, n_joints=identified.robot.n_joints,
                                      transmission=identified.transmission, joint_offsets=file.joint_offsets,
-                                     joint_directions=file.joint_directions, chunk_size=chunk_size)
+                                     joint_directions=file.joint_directions, chunk_size=chunk_size,
+                                     model=identified.model)
         evaluation = streamed_evaluation(identified, read, chunk_size=chunk_size)
     notes = trivial_warnings(evaluation.mse, {"zero_mse": evaluation.zero_mse, "nominal_mse": evaluation.nominal_mse},
                              label="model", record="this record")
@@ -204,9 +205,12 @@ def streamed_predict(identified: IdentifiedModel, files: list, chunk_size: int) 
              + f"), {evaluation.n_samples} samples read in chunks of {chunk_size} rows; "
              f"{identified.preprocessing.describe(applied=True).removeprefix('preprocessing: ')}",
              *mse_table(evaluation.mse, [("model", evaluation.mse), ("zero", evaluation.zero_mse),
-                                         ("nominal", evaluation.nominal_mse)]),
-             range_line(evaluation),
-             "not computed on the streamed path: " + ", ".join(evaluation.not_computed)]
+                                         ("nominal", evaluation.nominal_mse)]
+                        + ([] if evaluation.floor_mse is None else [("noise floor", evaluation.floor_mse)])),
+             range_line(evaluation)]
+    if evaluation.changes is not None:  # a load or a mount changed since the training (the prediction unchanged)
+        lines.append(evaluation.changes.line())
+    lines.append("not computed on the streamed path: " + ", ".join(evaluation.not_computed))
     return StreamedPredictRun(evaluation, tuple(lines), messages)
 
 

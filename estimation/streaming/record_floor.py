@@ -1,0 +1,261 @@
+"""The noise floor of a record read in blocks, memory's to the last digits: exact order statistics in a few passes.
+
+The in-memory floor of a record (:meth:`estimation.identification.identified_model.IdentifiedModel.floor`) is each
+segment's :func:`~estimation.uncertainty.noise_floor.noise_floor` as recorded, pooled over the segments
+(:func:`~estimation.uncertainty.noise_floor.pooled_floor`). Its difference estimator is no sum: it takes the median
+of each channel's ``d``-th differences, then the median of their absolute deviations from it (the MAD), then a
+whiteness check on the differences within five scaled MADs of the median. Here each median is found exactly by
+selection over passes of the file (:func:`order_statistics`: the values gathered when they fit in
+``capacity`` rows, else a histogram of the interval known to hold the rank, narrowed pass by pass to the values of
+one bin until they fit; at most a few passes on any record), the differences made block by block with the last
+``d`` rows carried over (each difference the same floating-point operations as ``numpy.diff`` of the whole), and
+the whiteness check's sums gathered in one more pass. The variance, degrees of freedom and refusals are then the
+in-memory estimator's own (:func:`~estimation.uncertainty.noise_floor.difference_scale`,
+:func:`~estimation.uncertainty.noise_floor.difference_dof`, :func:`~estimation.uncertainty.noise_floor.check_white`):
+the same floor, its lag-1 correlation to rounding (its sums taken in another order).
+
+A periodic record (the Fourier path's model, its frequency known) takes the period-to-period or the Fourier-residual
+estimate in memory; :func:`record_floor` reads such a segment whole when it fits in ``capacity`` rows (memory's own
+call on it) and says otherwise that no floor is had from it, as memory says it of a segment that gives none.
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Callable, Iterable, Iterator, Sequence
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from dynamics.measurements import Measurements
+from dynamics.models import IdentificationModel
+from estimation.streaming.chunks import logged_chunks
+from estimation.streaming.diagnosis_sums import concatenate
+from estimation.uncertainty.noise_floor import (DIFFERENCE_ORDER, NoiseFloor, NoiseFloorError, check_difference_count,
+                                                check_white, difference_dof, difference_scale, kept_deviation,
+                                                noise_floor, pooled_floor)
+
+__all__ = ["FLOOR_CAPACITY", "difference_floor", "order_statistics", "record_floor"]
+
+#: most rows of a channel block gathered at once by the selection (and a periodic segment read whole): 2^18 rows,
+#: 2 MB a channel
+FLOOR_CAPACITY = 1 << 18
+#: bins of each pass's histogram when the values do not fit
+BINS = 4096
+
+
+def order_statistics(passes: Callable[[], Iterable[NDArray[np.float64]]], ranks: Sequence[int], *,
+                     capacity: int = FLOOR_CAPACITY, bins: int = BINS) -> NDArray[np.float64]:
+    """The values of rank ``ranks`` (0 the smallest) of each column of the blocks ``passes()`` yields (each call a
+    new pass over the same ``(n, m)`` blocks, in any order), exactly: ``(len(ranks), m)``.
+
+    First pass: the blocks gathered while they hold at most ``capacity`` rows (then ``numpy.partition``), each
+    column's least and largest value. Then, for each rank and column not found, the interval ``[lo, hi]`` known to
+    hold it and the count below it: a pass histograms the values inside into ``bins`` bins (each bin's count, least
+    and largest value; a bin's values are contiguous in sorted order, the index being monotone in the value) and
+    gathers them while they fit; the rank is then selected among those gathered, or the interval narrowed to its
+    bin's least and largest values. The bin holding the rank never holds every value inside (the least falls in the
+    first bin, the largest in the last), so each pass excludes some, and an interval of one value ends it.
+    """
+    ranks = [int(rank) for rank in ranks]
+    gathered: list[NDArray[np.float64]] | None = []
+    rows, low, high = 0, None, None
+    for block in passes():
+        block = np.asarray(block, dtype=float)
+        if block.shape[0] == 0:
+            continue
+        low = block.min(axis=0) if low is None else np.minimum(low, block.min(axis=0))
+        high = block.max(axis=0) if high is None else np.maximum(high, block.max(axis=0))
+        rows += block.shape[0]
+        if gathered is not None:
+            gathered.append(np.array(block))
+            if rows > capacity:
+                gathered = None
+    if low is None or high is None:
+        raise ValueError("no values to select from")
+    if any(rank < 0 or rank >= rows for rank in ranks):
+        raise ValueError(f"ranks {ranks} outside the {rows} values")
+    if gathered is not None:
+        values = np.concatenate(gathered)
+        return np.array([np.partition(values, rank, axis=0)[rank] for rank in ranks])
+    m = low.shape[0]
+    found = np.full((len(ranks), m), np.nan)
+    state = {(index, column): [float(low[column]), float(high[column]), 0]
+             for index in range(len(ranks)) for column in range(m)}
+    while state:
+        for key, (lo, hi, _) in list(state.items()):
+            if lo == hi:
+                found[key] = lo
+                del state[key]
+        if not state:
+            break
+        counts = {key: np.zeros(bins, dtype=np.int64) for key in state}
+        least = {key: np.full(bins, np.inf) for key in state}
+        largest = {key: np.full(bins, -np.inf) for key in state}
+        inside: dict[tuple[int, int], list[NDArray[np.float64]] | None] = {key: [] for key in state}
+        sizes = dict.fromkeys(state, 0)
+        for block in passes():
+            block = np.asarray(block, dtype=float)
+            for key, (lo, hi, _) in state.items():
+                column = block[:, key[1]]
+                values = column[(column >= lo) & (column <= hi)]
+                if values.shape[0] == 0:
+                    continue
+                index = np.minimum(((values - lo) / (hi - lo) * bins).astype(np.int64), bins - 1)
+                counts[key] += np.bincount(index, minlength=bins)
+                np.minimum.at(least[key], index, values)
+                np.maximum.at(largest[key], index, values)
+                sizes[key] += values.shape[0]
+                kept = inside[key]
+                if kept is not None:
+                    kept.append(values)
+                    if sizes[key] > capacity:
+                        inside[key] = None
+        for key in list(state):
+            lo, hi, below = state[key]
+            rank = ranks[key[0]] - below
+            kept = inside[key]
+            if kept is not None:
+                found[key] = np.partition(np.concatenate(kept), rank)[rank]
+                del state[key]
+                continue
+            cumulative = np.cumsum(counts[key])
+            bin_ = int(np.searchsorted(cumulative, rank, side="right"))
+            state[key] = [float(least[key][bin_]), float(largest[key][bin_]),
+                          below + (int(cumulative[bin_ - 1]) if bin_ else 0)]
+    return found
+
+
+def _medians(passes: Callable[[], Iterable[NDArray[np.float64]]], count: int, *,
+             capacity: int) -> NDArray[np.float64]:
+    """Each column's median of ``count`` values, as ``numpy.median`` gives it (the middle value, or the mean of the
+    two middle ones)."""
+    middle = [count // 2] if count % 2 else [count // 2 - 1, count // 2]
+    chosen = order_statistics(passes, middle, capacity=capacity)
+    return np.mean(chosen, axis=0)
+
+
+def _differences(blocks: Callable[[], Iterable[NDArray[np.float64]]], order: int
+                 ) -> Callable[[], Iterator[NDArray[np.float64]]]:
+    """A pass over the ``order``-th differences of the rows ``blocks()`` yields in order, the last ``order`` rows of
+    each block carried to the next (the same operations as ``numpy.diff`` of the whole)."""
+    def differences() -> Iterator[NDArray[np.float64]]:
+        carried = None
+        for block in blocks():
+            rows = block if carried is None else np.concatenate([carried, block])
+            if rows.shape[0] > order:
+                yield np.diff(rows, n=order, axis=0)
+            carried = rows[-order:]
+    return differences
+
+
+def difference_floor(blocks: Callable[[], Iterable[NDArray[np.float64]]], channels: Sequence[str], *,
+                     order: int = DIFFERENCE_ORDER, capacity: int = FLOOR_CAPACITY) -> NoiseFloor:
+    """:func:`~estimation.uncertainty.noise_floor.noise_floor`'s difference estimate of the channels whose rows
+    ``blocks()`` yields in order (each call a new pass over one segment as recorded), by passes (module docstring).
+
+    Raises
+    ------
+    NoiseFloorError
+        As memory: too few samples, a value not finite, a channel whose differences are not those of white noise.
+    """
+    channels = tuple(channels)
+    rows, nonzero = 0, np.zeros(len(channels), dtype=bool)
+    for block in blocks():
+        if not np.all(np.isfinite(block)):
+            raise NoiseFloorError("the channels hold NaN or inf: no noise floor")
+        rows += block.shape[0]
+        nonzero |= np.any(block != 0, axis=0)
+    order = check_difference_count(rows, order)
+    differences = _differences(blocks, order)
+    count = rows - order
+    median = _medians(differences, count, capacity=capacity)
+
+    def deviations() -> Iterator[NDArray[np.float64]]:
+        for block in differences():
+            yield np.abs(block - median)
+
+    deviation = _medians(deviations, count, capacity=capacity)
+    # the whiteness check's sums over the differences kept (within five scaled MADs of the median), in their order
+    reach = np.array([kept_deviation(value) for value in deviation])
+    kept_count = np.zeros(len(channels), dtype=np.int64)
+    total, squares, products = (np.zeros(len(channels)) for _ in range(3))
+    first, last = np.full(len(channels), np.nan), np.full(len(channels), np.nan)
+    for block in differences():
+        for column in range(len(channels)):
+            kept = block[np.abs(block[:, column] - median[column]) <= reach[column], column]
+            if kept.shape[0] == 0:
+                continue
+            if kept_count[column] == 0:
+                first[column] = kept[0]
+            else:
+                products[column] += last[column] * kept[0]
+            products[column] += float(kept[1:] @ kept[:-1])
+            total[column] += kept.sum()
+            squares[column] += float(kept @ kept)
+            kept_count[column] += kept.shape[0]
+            last[column] = kept[-1]
+    for column, name in enumerate(channels):
+        if not nonzero[column]:  # a channel of zeros (a passive joint's torque): no noise, floor 0
+            continue
+        n = int(kept_count[column])
+        mean = total[column] / n
+        energy = squares[column] - n * mean ** 2
+        lagged = products[column] - mean * (2 * total[column] - first[column] - last[column]) + (n - 1) * mean ** 2
+        check_white(lagged / energy if energy > 0 else 1.0, n, order, name)
+    return NoiseFloor(channels, difference_scale(deviation, order), "differences", difference_dof(count, order),
+                      rows, {"order": order})
+
+
+def _logged(source: str | Path, model: IdentificationModel, chunk_size: int
+            ) -> Callable[[], Iterator[Measurements]]:
+    def chunks() -> Iterator[Measurements]:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # said when the source was read for its errors
+            yield from logged_chunks(source, model, chunk_size=chunk_size)
+    return chunks
+
+
+def _channel_blocks(chunks: Callable[[], Iterator[Measurements]], channels: Sequence[str]
+                    ) -> Callable[[], Iterator[NDArray[np.float64]]]:
+    def blocks() -> Iterator[NDArray[np.float64]]:
+        for chunk in chunks():
+            yield chunk.channels(channels)
+    return blocks
+
+
+def record_floor(sources: Sequence[str | Path], model: IdentificationModel, *, chunk_size: int,
+                 frequency_hz: float | None = None, capacity: int = FLOOR_CAPACITY) -> dict[str, float] | None:
+    """The noise floor per channel of the record whose segments are ``sources`` (the streamed reader's, each as
+    recorded: a resampled one's logged samples), pooled over them as memory pools its segments; ``None`` when no
+    segment gives one. A segment that gives none is said in a warning naming it, as memory says it.
+    ``frequency_hz``: the Fourier path's fundamental (the periodic estimates, module docstring)."""
+    floors = []
+    for source in sources:
+        chunks = _logged(source, model, chunk_size)
+        try:
+            if frequency_hz is not None:
+                floors.append(_periodic_floor(chunks, model, frequency_hz, capacity))
+            else:
+                floors.append(difference_floor(_channel_blocks(chunks, model.channels), model.channels,
+                                               capacity=capacity))
+        except NoiseFloorError as error:
+            warnings.warn(f"no noise floor from {source}: {error}", stacklevel=2)
+    pooled = pooled_floor(floors)
+    return None if pooled is None else dict(pooled.mse())
+
+
+def _periodic_floor(chunks: Callable[[], Iterator[Measurements]], model: IdentificationModel, frequency_hz: float,
+                    capacity: int) -> NoiseFloor:
+    """Memory's estimate of a segment of a periodic record, read whole when it holds at most ``capacity`` rows."""
+    parts, rows = [], 0
+    for chunk in chunks():
+        rows += chunk.n_samples
+        if rows > capacity:
+            raise NoiseFloorError(f"a periodic segment of more than {capacity} rows: its period-to-period or Fourier "
+                                  "residual estimate is made in memory only")
+        parts.append(chunk)
+    if not parts:
+        raise NoiseFloorError("no samples")
+    return noise_floor(concatenate(parts), model.channels, frequency_hz=frequency_hz)
