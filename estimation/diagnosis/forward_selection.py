@@ -2,9 +2,9 @@
 on each, move by move.
 
 The model is a choice, per joint (and joint combination), among the friction law families (none, the
-sign law, ``coulomb:tanh``, ``stribeck:velocity``, ``sigmoid``) plus offset, spring, armature, ripple
-and the delay. :class:`DiagnosisSearch` moves between such models (steps 2–4 of
-:mod:`estimation.diagnosis.search`):
+sign law, ``coulomb:tanh``, ``stribeck:velocity``, ``sigmoid``) plus offset, spring, armature, ripple, a viscous
+slope differing by direction (``viscous:direction``) and the delay. :class:`DiagnosisSearch` moves between such
+models (steps 2–4 of :mod:`estimation.diagnosis.search`):
 
 * **remove** an adopted effect whose coefficients are within their noise in the current model
   (:func:`estimation.diagnosis.search_moves.removable`) unless removing it raises the validation error of a
