@@ -101,3 +101,23 @@ def test_identify_recovers_the_slopes_and_export_reproduces_predict(by_direction
     predicted = pd.read_csv(predictions)[["tau1", "tau2", "tau3"]].to_numpy()
     assert np.max(np.abs(tau - predicted)) / np.max(np.abs(predicted)) < 1e-6
     assert all(f"joint{j}: viscous_direction" in mjcf.read_text() for j in (1, 2, 3))
+
+
+@pytest.mark.slow
+def test_diagnose_refuses_a_direction_law_whose_slope_is_negative_one_way():
+    """The corpus's PUMA (:mod:`tests.corpus.records`) with ``fvd2 |dq2|`` beyond joint 2's true viscous slope
+    (``fvd2 = fv2 + 3``: turning one way the joint is pushed along, no friction): the direction law fits the record,
+    but the diagnosis refuses it as a non-physical slope and names nothing on tau2 (on the KUKA LWR4+ before the
+    check it adopted ``fv7 = 0.086, fvd7 = 0.33`` on joint 7, and predicted the test 8.6x worse there)."""
+    from tests.corpus.cases import Case, TrueTerm, named
+    from tests.corpus.records import declared_model, run
+
+    model = declared_model()
+    fv2 = true_parameters(model, seed=0)[model.parameter_names.index("fv2")]
+    case = Case("viscous by direction beyond the slope, tau2",
+                (TrueTerm(DirectionalViscousFriction(joints=(1,)), (fv2 + 3.0,)),), named())
+    diagnosis, outcome = run(case)
+    assert not any(pair[0] == "viscous:direction" for pair in outcome.named), outcome.summary()
+    reasons = [rejected.reason for rejected in diagnosis.rejected if rejected.name == "viscous:direction"
+               and rejected.channels == ("tau2",)]
+    assert any("non-physical slope" in reason for reason in reasons), reasons

@@ -56,7 +56,8 @@ from dynamics.runtime.progress import step
 from dynamics.effects.linear import Effect
 from dynamics.effects.shaped import FRICTION_LAWS
 from dynamics.models import IdentificationModel
-from estimation.diagnosis.candidates.trials import Trial, candidate_label, joints_of, nested_test, wrong_sign
+from estimation.diagnosis.candidates.trials import (Trial, candidate_label, direction_slopes, joints_of, nested_test,
+                                                    wrong_sign)
 from estimation.diagnosis.confirmation import CandidateComparison, channels_made_worse, own_rows_gain
 from estimation.diagnosis.candidates.coupling import combination_groups
 from estimation.diagnosis.candidates.delay import DelayTrial
@@ -415,11 +416,10 @@ class DiagnosisSearch:
         return (f"explains nothing significant beyond its joints' own laws of its kind ({own_laws}; F test p = "
                 f"{p_value:.2g} at the level {self.settings.threshold:.2g}): {rule}")
 
-    @staticmethod
-    def screened(trial: Trial, springs_beaten: dict[tuple[int, ...], str]) -> str | None:
-        """Why a trial is refused before any comparison (a non-physical estimate, a spring an offset beats), or
-        ``None``."""
-        return wrong_sign(trial) or springs_beaten.get(trial.group)
+    def screened(self, trial: Trial, springs_beaten: dict[tuple[int, ...], str]) -> str | None:
+        """Why a trial is refused before any comparison (a non-physical estimate, a viscous slope negative one way, a
+        spring an offset beats), or ``None``."""
+        return wrong_sign(trial) or direction_slopes(trial, self.model) or springs_beaten.get(trial.group)
 
     def beaten_by_baseline(self, trial: Trial, ratio: float) -> str | None:
         """Why a replacement is not confirmed against the law it replaces refitted in its place (its

@@ -227,6 +227,26 @@ def wrong_sign(trial: Trial, std: NDArray[np.float64] | None = None) -> str | No
     return None
 
 
+def direction_slopes(trial: Trial, model: IdentificationModel) -> str | None:
+    """Why a viscous slope differing by direction (``viscous:direction``) is not that law, or ``None``: each
+    direction's slope ``fv_j ± fvd_j`` must be positive (a friction that pushes a joint along one way is no
+    friction), so ``|fvd_j| < fv_j`` with ``fv_j`` the joint's viscous coefficient fitted beside it in the trial (the
+    declared model's base column ``fv{j}``, first among the trial's coefficients); a joint without a viscous law
+    has slopes ``±fvd_j``, one of them negative."""
+    names = model.base.names
+    for position, block in enumerate(trial.blocks):
+        if block.effect.name != "viscous:direction":
+            continue
+        for joint, direction in zip(joints_of(block, model), trial.coefficients(position)):
+            name = f"fv{joint + 1}"
+            viscous = float(trial.fit.theta[names.index(name)]) if name in names else 0.0
+            if abs(direction) >= viscous:
+                return (f"{candidate_label(block.effect)} on tau{joint + 1} is estimated with a non-physical slope "
+                        f"({name} = {viscous:.3g}, fvd{joint + 1} = {float(direction):.3g}: one direction's viscous "
+                        "slope fv - |fvd| at or below zero)")
+    return None
+
+
 def joints_of(block: Block, model: IdentificationModel) -> tuple[int, ...]:
     """The joints (0-based) whose torque rows a block reaches."""
     joints = []
