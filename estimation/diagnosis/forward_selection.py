@@ -369,7 +369,8 @@ class DiagnosisSearch:
         if tested.wald.p_value >= self.settings.threshold:
             return (f"not significant: its coefficients are within their noise (Wald p = {tested.wald.p_value:.2g} "
                     f"from the HAC covariance; the F test of white residuals gave p = {trial.p_value:.2g})")
-        reason = wrong_sign(trial, tested.std)  # each term of a several-term law, against its HAC standard deviation
+        # each term of a several-term law, and each direction's viscous slope, against the HAC standard deviations
+        reason = wrong_sign(trial, tested.std) or direction_slopes(trial, self.model, tested.std)
         if reason is not None:
             return text + reason
         return comparison, tested.wald
