@@ -89,7 +89,10 @@ def masked_rows(values: NDArray[np.float64] | None) -> NDArray[np.bool_] | None:
 def whole_rows(measurements: Measurements) -> Measurements:
     """``measurements`` without the samples where any channel is masked (the row-wise rule, for the passes that
     take a sample's channels together: the diagnosis's search, whose candidate columns have no per-channel mask),
-    in its samples as recorded too; ``measurements`` itself when nothing is masked."""
+    in its samples as recorded too; ``measurements`` itself when nothing is masked, or when it is not
+    :class:`~dynamics.measurements.Measurements` at all (the caller's own check then names what it got)."""
+    if not isinstance(measurements, Measurements):
+        return measurements
     rows = _any_masked(measurements)
     if rows is not None:
         measurements = measurements.select(np.flatnonzero(~rows))
