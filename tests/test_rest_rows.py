@@ -38,14 +38,14 @@ def test_rows_at_rest_are_kept_and_make_no_hole(tmp_path, rest_rows):
     np.testing.assert_allclose(segment.t, frame["t"].to_numpy(), atol=1e-12)
     # the rows at rest interpolated from the first row at rest to the first row moving again: the record as
     # logged to within one sample's motion (a stale packet and a rest are the same rows in a log)
-    # (a torque sample the reader masks is NaN: here tau1's quantised peak, held ~90 samples, is read as a clipped
-    # sensor, SaturatedTorqueWarning; that rule is tests/test_sensor_faults.py's, the rows at rest are this test's)
+    # every sample kept: tau1's quantised peak (0.01 N·m steps, held ~90 samples) is no clipped sensor
+    # (estimation.data.log_cleaning.quantised_peak; h-streammask), so no sample is masked (NaN)
     for name, columns in (("q", ["q1", "q2"]), ("tau", ["tau1", "tau2"])):
         logged = frame[columns].to_numpy()
         one_step = np.max(np.abs(np.diff(logged, axis=0)), axis=0)
         read = getattr(segment, name)
         kept = ~np.isnan(read)
-        assert np.mean(kept) > 0.95, name
+        assert np.all(kept), name
         assert np.all((np.abs(read - logged) <= one_step + 1e-12)[kept]), name
 
 

@@ -520,3 +520,30 @@ def test_the_streamed_identify_of_a_clipped_record_is_memorys(tmp_path):
         errors[path] = json.loads(out.read_text())["validation"]["mse"]
     for channel, value in errors["memory"].items():
         assert errors["streamed"][channel] == pytest.approx(value, rel=1e-6), (channel, errors)
+
+
+def test_a_quantised_peak_is_kept_and_a_clip_of_the_same_channel_caught_whole_and_in_blocks():
+    """A coarsely quantised torque (0.01 N·m steps at 1 kHz) holds its smooth peak some 90 samples, ten times as
+    often as its other levels: no clipped sensor, since the samples on both sides step away by whole quanta and their
+    trend stays within a quantum of the hold (:func:`estimation.data.log_cleaning.quantised_peak`); the same channel
+    cut ten quanta below its peak is clipped there and only there. Block by block as on the record whole (the
+    streamed reader's scan), the peak cut across blocks."""
+    from estimation.data.log_cleaning import HeldExtremes, saturated_samples
+
+    t = np.arange(3000) / 1000.0
+    q = np.column_stack([np.sin(2 * np.pi * 0.5 * t), 0.5 * np.cos(2 * np.pi * 0.3 * t)])
+    tau = np.round((2.0 * q + 0.3) / 1e-2) * 1e-2
+    peak = np.flatnonzero(tau[:, 0] == tau[:, 0].max())
+    assert peak.size > 80  # held ~90 samples: past the frequency rule alone (SATURATION_FACTOR)
+    assert not saturated_samples(tau, q).any()
+    clipped = tau.copy()
+    clipped[:, 0] = np.minimum(clipped[:, 0], tau[:, 0].max() - 0.1)
+    found = saturated_samples(clipped, q)
+    assert np.array_equal(found[:, 0], clipped[:, 0] == clipped[:, 0].max()) and not found[:, 1].any()
+    for values in (tau, clipped):
+        whole = saturated_samples(values, q)
+        for size in (7, 45, 997):
+            blocks = HeldExtremes(2, 2, wrench=False)
+            for start in range(0, t.size, size):
+                blocks.add(values[start:start + size], q[start:start + size])
+            assert np.array_equal(blocks.found(t.size), whole), size

@@ -32,7 +32,9 @@
 * **A torque sensor past its range.** A channel that holds its largest (or smallest) value on a run of samples
   while the joint moves, where its values elsewhere vary, is clipped there (:func:`saturated_samples`): its reading
   is the sensor's limit, not the torque. A quantised channel repeats its extremes too, but no more than its other
-  values: the extreme must be held :data:`SATURATION_FACTOR` times as often as the channel's values are on average;
+  values: the extreme must be held :data:`SATURATION_FACTOR` times as often as the channel's values are on average,
+  and a coarsely quantised signal's smooth peak, held long because its slope vanishes there, is told from a clip by
+  the samples around the hold (:func:`quantised_peak`: whole quanta away, their trend within a quantum of the hold);
   a joint at rest against a hard stop holds its torque while its position holds too, and is left alone. Such samples
   are no measurement: the reader leaves them out of the samples as recorded (the fit and every error), the
   positions kept for the derivatives. A wrench channel (a force plate's, a force/torque sensor's) alike, judged
@@ -283,6 +285,16 @@ def encoder_glitches(steps: PositionSteps, velocity_limit: NDArray[np.float64]) 
 SATURATION_FACTOR = 10.0
 #: the fewest samples at a channel's extreme that make it clipped
 SATURATION_LEAST = 5
+#: the most samples kept on each side of a held extreme, in which the signal's trend through the hold is judged
+#: (:func:`quantised_peak`): a hold of ``L`` samples is judged on ``L`` samples on each side, at least
+#: :data:`PEAK_WINDOW_LEAST`, at most this many
+PEAK_WINDOW = 256
+#: the fewest samples on each side of a hold in which its trend is judged; holds closer than this are one hold
+PEAK_WINDOW_LEAST = 16
+#: the fewest levels of the channel's quantum (the hold's own included) around a hold that make it quantised
+PEAK_LEVELS = 3
+#: how far off a whole number of quanta a value around the hold may lie, in quanta (a log's decimal rounding)
+PEAK_GRID_TOLERANCE = 0.05
 
 
 def saturated_samples(tau: NDArray[np.float64], q: NDArray[np.float64]) -> NDArray[np.bool_]:
@@ -372,6 +384,12 @@ class HeldExtremes:
         self.around = [[np.zeros((0, 3, width)), np.zeros((0, 3, width))] for _ in range(channels)]
         self.stamps = [[np.zeros(0), np.zeros(0)] for _ in range(channels)]  # the time stamps of the rows held
         self.last_q: NDArray[np.float64] | None = None  # the block before's last row of positions
+        # per channel and side: the rows within PEAK_WINDOW of a row held at the extreme and their values (the
+        # signal's trend through each hold, :func:`quantised_peak`), and the last row whose values are still wanted
+        self.near_rows = [[np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)] for _ in range(channels)]
+        self.near_values = [[np.zeros(0), np.zeros(0)] for _ in range(channels)]
+        self.wanted = np.full((channels, 2), -1, dtype=np.int64)
+        self.tail = np.zeros((0, channels))  # the last PEAK_WINDOW rows of values before the block
 
     def _positions(self, q: NDArray[np.float64], channel: int) -> NDArray[np.float64]:
         return q if self.wrench else q[:, channel:channel + 1]
@@ -407,8 +425,40 @@ class HeldExtremes:
                     around = np.concatenate([around, np.stack([padded[at], padded[at + 1], padded[at + 2]], axis=1)])
                     stamps = np.concatenate([stamps, np.full(at.size, np.nan) if t is None else t[at]])
                 self.held[channel][side], self.around[channel][side], self.stamps[channel][side] = held, around, stamps
+                self._keep_near(channel, side, column, at, better)
+        self.tail = np.vstack([self.tail, values])[-PEAK_WINDOW:].copy()
         self.last_q = q[-1:].copy()
         self.rows += m
+
+    def _keep_near(self, channel: int, side: int, column: NDArray[np.float64], at: NDArray[np.int64],
+                   better: bool) -> None:
+        """The values of ``channel`` within :data:`PEAK_WINDOW` rows of its rows held at ``side``'s extreme: the
+        block's ``column`` (held at its rows ``at``) with the block before's last rows; forgotten when the extreme
+        moved (``better``)."""
+        if better:
+            self.near_rows[channel][side] = np.zeros(0, dtype=np.int64)
+            self.near_values[channel][side] = np.zeros(0)
+            self.wanted[channel, side] = -1
+        if not at.size and self.wanted[channel, side] < self.rows:
+            return  # no hold in the block nor just before it
+        before = self.tail[:, channel]
+        values = np.concatenate([before, column])
+        rows = np.arange(self.rows - before.size, self.rows + column.size)
+        marks = np.zeros(values.size + 2 * PEAK_WINDOW + 1, dtype=np.int64)
+        marks[at + before.size] = 1
+        counted = np.cumsum(marks)  # held rows at or before each position (and PEAK_WINDOW past the end)
+        start = np.maximum(np.arange(values.size) - PEAK_WINDOW - 1, -1)
+        ahead = counted[np.arange(values.size) + PEAK_WINDOW]
+        near = (ahead - np.where(start >= 0, counted[np.maximum(start, 0)], 0)) > 0
+        near |= rows <= self.wanted[channel, side]
+        if at.size:
+            self.wanted[channel, side] = max(self.wanted[channel, side], self.rows + int(at[-1]) + PEAK_WINDOW)
+        if not near.any():
+            return
+        kept_rows = np.concatenate([self.near_rows[channel][side], rows[near]])
+        kept_values = np.concatenate([self.near_values[channel][side], values[near]])
+        kept_rows, first = np.unique(kept_rows, return_index=True)
+        self.near_rows[channel][side], self.near_values[channel][side] = kept_rows, kept_values[first]
 
     def _count_distinct(self, channel: int, values: NDArray[np.float64]) -> None:
         """The block's finite ``values`` of ``channel`` into its distinct values: kept exactly while fewer than
@@ -443,7 +493,11 @@ class HeldExtremes:
                 if (self.finite[channel] < SATURATION_LEAST or distinct < 2 or held.size < SATURATION_LEAST
                         or held.size <= SATURATION_FACTOR * typical):
                     continue
-                rows.append(_moving_runs(held, around))
+                moving = _moving_runs(held, around)
+                if moving.size and quantised_peak(moving, self.value[channel, side], side,
+                                                  self.near_rows[channel][side], self.near_values[channel][side]):
+                    continue
+                rows.append(moving)
             found.append(np.unique(np.concatenate(rows)) if rows else np.zeros(0, dtype=np.int64))
         return found
 
@@ -484,6 +538,62 @@ def _moving_runs(held: NDArray[np.int64], around: NDArray[np.float64]) -> NDArra
         if np.any(spread > 0):
             kept.append(held[start:stop])
     return np.concatenate(kept) if kept else np.zeros(0, dtype=np.int64)
+
+
+def quantised_peak(held: NDArray[np.int64], value: float, side: int, rows: NDArray[np.int64],
+                   values: NDArray[np.float64]) -> bool:
+    """Whether a channel's extreme ``value`` (``side`` 0: its lowest, 1: its highest), held at ``held`` (sorted
+    rows), is a quantised signal's peak and not a sensor's limit; ``rows``, ``values``: the channel's samples around
+    the holds (within :data:`PEAK_WINDOW`).
+
+    A clip cuts the signal: the signal approaches the limit with a slope and would go past it, so its trend through
+    the samples on both sides of the hold passes beyond the held value, and it reaches the limit again and again. A
+    quantised signal's smooth peak is held because the signal's slope vanishes there: the hold is one level of the
+    channel's quantum among others, the samples on both sides step away from it by whole quanta, and their trend
+    (a parabola fitted by least squares on ``L / 2`` samples on each side of a hold of ``L`` samples, at least
+    :data:`PEAK_WINDOW_LEAST`, widened until each side holds :data:`PEAK_LEVELS` ``- 1`` levels, at most
+    :data:`PEAK_WINDOW`) stays within one quantum of the held value over the
+    hold (the true peak lies within half a quantum of the level it was rounded to). Holds closer than
+    :data:`PEAK_WINDOW_LEAST` rows are one hold (a reading flickering at a level's edge).
+
+    A quantised peak is said only when every hold with samples on both sides is one: the values around it lie on
+    the held value's grid (its quantum the step to the nearest other value there; at least :data:`PEAK_LEVELS`
+    levels), no other sample there is at the held value, and the trend exceeds it by at most a quantum. A clip that
+    cuts less than a quantum off the signal is read as the quantisation it is indistinguishable from (the error
+    it leaves is under a quantum)."""
+    breaks = np.flatnonzero(np.diff(held) > PEAK_WINDOW_LEAST) + 1
+    sign = 1.0 if side == 1 else -1.0
+    judged = 0
+    for start, stop in zip(np.r_[0, breaks], np.r_[breaks, held.size]):
+        first, last = int(held[start]), int(held[stop - 1])
+        width = int(np.clip((last - first + 1) // 2, PEAK_WINDOW_LEAST, PEAK_WINDOW))
+        while True:  # widened until the samples on each side step PEAK_LEVELS - 1 levels away (a flat peak)
+            before = (rows >= first - width) & (rows < first)
+            after = (rows > last) & (rows <= last + width)
+            window = before | after
+            around = values[window]
+            if not np.all(np.isfinite(around)) or np.any(around == value):
+                return False  # the limit reached again, or a sample unread: not a lone peak
+            sides = [np.unique(values[part]).size for part in (before, after)]
+            if min(sides) >= PEAK_LEVELS - 1 or width == PEAK_WINDOW:
+                break
+            width = min(2 * width, PEAK_WINDOW)
+        if before.sum() < PEAK_LEVELS or after.sum() < PEAK_LEVELS:
+            continue  # at the record's edge: no trend on one side, nothing said by this hold
+        judged += 1
+        steps = sign * (value - around)  # > 0: every value lies inside the extreme
+        quantum = float(steps.min())
+        levels = steps / quantum
+        if (np.max(np.abs(levels - np.round(levels))) > PEAK_GRID_TOLERANCE
+                or np.unique(np.round(levels)).size + 1 < PEAK_LEVELS):
+            return False  # not one quantum's levels: a held value on an unquantised signal is a limit
+        x = rows[window].astype(np.float64)
+        centre, scale = 0.5 * (first + last), max(0.5 * (last - first), 1.0) + width
+        trend = np.polynomial.polynomial.polyfit((x - centre) / scale, around, 2)
+        over = np.polynomial.polynomial.polyval((np.arange(first, last + 1) - centre) / scale, trend)
+        if sign * (over - value).max() > quantum:
+            return False
+    return judged > 0
 
 
 def repeated_rows(data: NDArray[np.float64]) -> NDArray[np.bool_]:
