@@ -18,6 +18,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 import scipy.stats
@@ -29,7 +31,7 @@ from dynamics.simulation.synthetic import simulate
 from estimation.identification.fit import identify
 from estimation.identification.identified_model import IdentifiedModel
 from estimation.identification.model_file import ModelFile, RobotSource, model_file_document
-from estimation.identification.record_changes import check_record_changes
+from estimation.identification.record_changes import MAX_SAMPLES, check_record_changes
 from oed.fourier import random_fourier
 from tests.test_unseen_robot_mounts import rotation
 
@@ -204,3 +206,29 @@ def test_the_prediction_is_the_models_own_with_the_check_or_without(puma, tmp_pa
     np.testing.assert_array_equal(with_check.prediction.predicted, without.prediction.predicted)
     assert with_check.prediction.mse == without.prediction.mse
     assert with_check.to_dict()["changed"]["said"][0]["change"] == "payload"
+
+
+def test_a_masked_channel_drops_its_own_equations_only(puma):
+    """A clipped sensor's samples (NaN in that channel, :mod:`estimation.data.channel_mask`) leave that channel's
+    equations of the check, not the other channels' at those samples: on the payload record with tau2 masked on its
+    first third, each channel's model error is the mean over its own valid samples (every sample of the others), and
+    the payload is still said within three standard deviations (h-streammask)."""
+    loaded = puma["theta"].copy()
+    loaded[50:60] += PAYLOAD
+    record = simulate(puma["model"], loaded, random_fourier(puma["model"].robot, seed=21, frequency_hz=FREQUENCY_HZ),
+                      rate_hz=RATE_HZ, noise=puma["noise"], seed=121)
+    identified = puma["identified"]
+    floor = {channel: value ** 2 for channel, value in puma["noise"].items()}
+    tau = record.tau.copy()
+    tau[:record.n_samples // 3, 1] = np.nan
+    masked = dataclasses.replace(record, tau=tau)
+    prediction = identified.predict_record(masked)
+    changes = check_record_changes(identified, masked, prediction, floor)
+    assert [fit.name for fit in changes.said] == ["payload"], changes.to_dict()["summary"]
+    found = family(changes, "payload").to_dict()
+    assert abs(found["mass"] - 1.2) <= 3 * found["mass_std"], (found["mass"], found["mass_std"])
+    # the record's 2000 samples are all fitted (at most MAX_SAMPLES): each channel's model error is the mean of its
+    # residual's square over every valid sample, tau2's over its last two thirds, the others' over all
+    residual = prediction.measured - prediction.predicted
+    assert record.n_samples <= MAX_SAMPLES
+    np.testing.assert_allclose(list(found["model_mse"].values()), np.nanmean(residual ** 2, axis=0), rtol=1e-12)

@@ -236,8 +236,9 @@ def _segments(record: Measurements, rows: NDArray[np.int64]) -> list[tuple[int, 
 
 def _gram(left: NDArray, weights: NDArray, right: NDArray) -> NDArray[np.float64]:
     """``Σ_n Σ_c w_c L_ncᵀ R_nc`` of columns ``(N, m, a)`` and ``(N, m, b)`` (or targets ``(N, m)``), one matrix
-    product."""
-    left = left.reshape(left.shape[0], left.shape[1], -1) * weights[None, :, None]
+    product; ``weights`` ``(m,)``, or ``(N, m)`` with a masked sample's equation weighted 0 (:func:`_masked_weights`)."""
+    left = left.reshape(left.shape[0], left.shape[1], -1) * (weights[:, :, None] if weights.ndim == 2
+                                                             else weights[None, :, None])
     right = right.reshape(right.shape[0], right.shape[1], -1)
     return left.reshape(-1, left.shape[2]).T @ right.reshape(-1, right.shape[2])
 
@@ -257,15 +258,58 @@ def _solve(columns: NDArray, target: NDArray, weights: NDArray, scales: NDArray,
     return inverse @ b, inverse
 
 
-def _model_variance(jacobian: NDArray, cov: NDArray) -> NDArray[np.float64]:
+def _model_variance(jacobian: NDArray, cov: NDArray, weights: NDArray) -> NDArray[np.float64]:
     """``(m,)``: the variance of each channel's prediction the model's covariance gives, averaged over the samples
-    (``y_bᵀ Σ_θ y_b``, the band's share of the parameters)."""
+    (each channel's valid ones: ``weights``) (``y_bᵀ Σ_θ y_b``, the band's share of the parameters)."""
     values, vectors = np.linalg.eigh(0.5 * (cov + cov.T))
     root = vectors * np.sqrt(np.clip(values, 0.0, None))[None, :]
-    return np.mean(np.sum((jacobian @ root) ** 2, axis=2), axis=0)
+    return _channel_mean(np.sum((jacobian @ root) ** 2, axis=2), weights)
 
 
-def _model_scale(after: NDArray, floors: NDArray, model_variance: NDArray) -> float:
+def _masked_weights(target: NDArray, floors: NDArray) -> tuple[NDArray, NDArray]:
+    """``(target, weights)`` of the families' weighted fits: ``1 / floors`` per channel and ``target`` as given
+    when no sample is masked (the default path: nothing copied); else a sample's masked channel (NaN in ``target``:
+    a clipped sensor's, :mod:`estimation.data.channel_mask`) weighted 0 in ``(N, m)`` weights and its target 0,
+    which removes that equation, and that one only, from every weighted sum (the other channels of the sample
+    stay)."""
+    weights = 1.0 / floors
+    valid = ~np.isnan(target)
+    if valid.all():
+        return target, weights
+    return np.where(valid, target, 0.0), valid * weights[None, :]
+
+
+def _valid(values: NDArray, weights: NDArray) -> NDArray:
+    """``values`` ``(N, m)`` zero at the masked samples of ``weights`` (``(N, m)``; as given when ``(m,)``)."""
+    return values if weights.ndim == 1 else np.where(weights > 0, values, 0.0)
+
+
+def _channel_mean(values: NDArray, weights: NDArray) -> NDArray[np.float64]:
+    """``(m,)`` each channel's mean of ``values`` ``(N, m)`` over its valid samples (``weights`` ``(N, m)`` above
+    0; every sample when ``(m,)``)."""
+    if weights.ndim == 1:
+        return np.mean(values, axis=0)
+    valid = weights > 0
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(valid, values, 0.0).sum(axis=0) / valid.sum(axis=0)
+
+
+def _rows_of(weights: NDArray, part: slice) -> NDArray:
+    """``weights`` of the rows ``part`` (per channel when ``(m,)``: the same)."""
+    return weights if weights.ndim == 1 else weights[part]
+
+
+def _hac(columns: NDArray, after: NDArray, weights: NDArray, inverse: NDArray, segments: list[tuple[int, int]]
+         ) -> NDArray[np.float64]:
+    """:func:`~estimation.uncertainty.covariance.hac_covariance` of a fit with ``weights`` (``(N, m)``: a masked
+    sample's equation adds no score, its residual taken as 0 beside the channel's weight)."""
+    if weights.ndim == 2:
+        after, weights = _valid(after, weights), weights.max(axis=0)
+    cov, _ = hac_covariance(columns, after, weights, inverse, segments=segments)
+    return cov
+
+
+def _model_scale(after: NDArray, floors: NDArray, model_variance: NDArray, weights: NDArray) -> float:
     """``κ ≥ 1``, the model's covariance scaled so that the error it predicts on this record holds what the record
     shows above its noise floor once the change is fitted: ``κ = Σ_c (MSE_c − σ_c²)/σ_c² / Σ_c v_c/σ_c²`` (``v_c``:
     :func:`_model_variance`). A model's error on a motion it did not see is smooth and does not average out over
@@ -275,7 +319,7 @@ def _model_scale(after: NDArray, floors: NDArray, model_variance: NDArray) -> fl
     predicted = float(np.sum(model_variance / floors))
     if predicted <= 0.0:
         return 1.0
-    excess = float(np.sum((np.mean(after ** 2, axis=0) - floors) / floors))
+    excess = float(np.sum((_channel_mean(after ** 2, weights) - floors) / floors))
     return max(1.0, excess / predicted)
 
 
@@ -301,14 +345,14 @@ def _adds_to(extra: NDArray, extra_scales: NDArray, base: NDArray, base_scales: 
     inverse = np.diag(1.0 / values[kept])
     gamma = inverse @ _gram(directions, weights, after_base)[:, 0]
     after = after_base - directions @ gamma
-    cov_noise, _ = hac_covariance(directions, after, weights, inverse, segments=segments)
+    cov_noise = _hac(directions, after, weights, inverse, segments)
     sensitivity = inverse @ _gram(directions, weights, jacobian)
     test = wald_test(gamma, cov_noise + sensitivity @ model_cov @ sensitivity.T)
     return test.p_value, int(kept.sum())
 
 
-def _mse(residual: NDArray, channels: tuple[str, ...]) -> dict[str, float]:
-    return dict(zip(channels, map(float, np.mean(residual ** 2, axis=0))))
+def _mse(residual: NDArray, channels: tuple[str, ...], weights: NDArray) -> dict[str, float]:
+    return dict(zip(channels, map(float, _channel_mean(residual ** 2, weights))))
 
 
 class _Family:
@@ -660,8 +704,10 @@ class RecordSample:
     segments
         ``(start, stop)`` in the rows of each segment of the record (:func:`record_segments`).
     n_samples
-        The samples of the whole record the errors are taken on (those with no masked channel: the check takes
-        whole rows); the rows are all of them when it holds at most :data:`MAX_SAMPLES`.
+        The samples of the whole record; the rows are all of them when it holds at most :data:`MAX_SAMPLES`.
+    channel_samples
+        ``(channels,)`` the samples of the whole record each channel's errors are taken on (its valid ones: a
+        masked sample, NaN in ``target``, drops that channel's equation only); ``None``: every sample.
     """
 
     q: NDArray[np.float64]
@@ -670,6 +716,7 @@ class RecordSample:
     target: NDArray[np.float64]
     segments: list[tuple[int, int]]
     n_samples: int
+    channel_samples: NDArray[np.int64] | None = None
 
     @property
     def whole(self) -> bool:
@@ -719,14 +766,13 @@ def check_record_changes(identified: IdentifiedModel, prepared: Measurements, pr
         return None
     residual = prediction.measured - prediction.predicted
     rows = _rows(record.n_samples)
-    masked = masked_rows(residual)  # a channel's masked samples (a clipped sensor's): this check takes whole rows
-    if masked is not None:
-        rows = rows[~masked[rows]]
-        if rows.shape[0] < 20:
-            return None
-    valid = record.n_samples if masked is None else int(np.sum(~masked))  # the samples the errors are taken on
+    # a channel's masked samples (a clipped sensor's, NaN): that channel's equation of the sample left out only
+    masked = masked_rows(residual)
+    counts = None if masked is None else np.sum(~np.isnan(residual), axis=0)
+    if counts is not None and np.any(np.sum(~np.isnan(residual[rows]), axis=0) < 20):
+        return None
     sample = RecordSample(record.q[rows], record.dq[rows], record.ddq[rows], residual[rows],
-                          _segments(record, rows), valid)
+                          _segments(record, rows), record.n_samples, counts)
 
     def squared(changes: list[tuple[Any, NDArray[np.float64]]]) -> list[NDArray[np.float64]]:
         totals = [np.zeros(residual.shape[1]) for _ in changes]
@@ -735,7 +781,7 @@ def check_record_changes(identified: IdentifiedModel, prepared: Measurements, pr
             for total, (family, beta) in zip(totals, changes):
                 error = (residual[piece] - family.change(beta, record.q[piece], record.dq[piece],
                                                          record.ddq[piece])) ** 2
-                total += np.sum(error if masked is None else error[~masked[piece]], axis=0)
+                total += np.sum(error if masked is None else np.where(np.isnan(residual[piece]), 0.0, error), axis=0)
         return totals
 
     return sampled_record_changes(identified, sample, floor, squared)
@@ -758,11 +804,12 @@ def sampled_record_changes(identified: IdentifiedModel, sample: RecordSample, fl
     floors = np.array([float(floor[channel]) for channel in channels])
     if not np.all(floors > 0):
         return None
-    q, dq, ddq, target, segments = sample.q, sample.dq, sample.ddq, sample.target, sample.segments
-    weights = 1.0 / floors
+    target, weights = _masked_weights(sample.target, floors)
+    sample = dataclasses.replace(sample, target=target)
+    q, dq, ddq, segments = sample.q, sample.dq, sample.ddq, sample.segments
     jacobian = identified.regressor(q, dq, ddq) * factors[None, :, None]  # the prediction's in the model's θ
     standard = _StandardColumns(identified, factors)
-    model_variance = _model_variance(jacobian, identified.cov)
+    model_variance = _model_variance(jacobian, identified.cov, weights)
     payload = _payload_link(identified, standard, q, dq, ddq, target, weights, floors, segments, jacobian,
                             model_variance)
     families: list[_Family] = [payload]
@@ -774,7 +821,7 @@ def sampled_record_changes(identified: IdentifiedModel, sample: RecordSample, fl
     searched = {family.name: identified.robot.n_joints if isinstance(family, _Payload) else 1 for family in families}
     fitted = [_estimated(family, sample, weights) for family in families]
     if sample.whole:  # the error with the change fitted, on every sample: the fit's own
-        totals = [np.sum(after ** 2, axis=0) for _, _, after, _ in fitted]
+        totals = [np.sum(_valid(after, weights) ** 2, axis=0) for _, _, after, _ in fitted]
     else:
         totals = squared([(family, estimate[0]) for family, estimate in zip(families, fitted)])
     fits = [_fitted(family, identified, sample, estimate, total, weights, jacobian, model_variance, floors, channels,
@@ -818,12 +865,12 @@ def _crossed(family: _Family, target: NDArray, columns: NDArray, weights: NDArra
     half = target.shape[0] // 2
     crossed = np.empty_like(target)
     for fit_part, held_part in ((slice(half, None), slice(0, half)), (slice(0, half), slice(half, None))):
-        part_beta, _ = family.refine(np.zeros(columns.shape[-1]), target[fit_part], columns[fit_part], weights,
-                                     q[fit_part], DETERMINED)
+        part_beta, _ = family.refine(np.zeros(columns.shape[-1]), target[fit_part], columns[fit_part],
+                                     _rows_of(weights, fit_part), q[fit_part], DETERMINED)
         crossed[held_part] = target[held_part] - (columns[held_part] @ part_beta if isinstance(family, _Payload)
                                                   else family.change(part_beta, q[held_part], dq[held_part],
                                                                      ddq[held_part]))
-    return crossed
+    return _valid(crossed, weights)
 
 
 def _payload_link(identified: IdentifiedModel, standard: _StandardColumns, q: NDArray, dq: NDArray, ddq: NDArray,
@@ -839,13 +886,13 @@ def _payload_link(identified: IdentifiedModel, standard: _StandardColumns, q: ND
     and its words name the others. The order the links are tried in does not change the answer."""
     links = [_Payload(identified, link, standard) for link in range(1, identified.robot.n_joints + 1)]
     columns = [link.columns(q, dq, ddq) for link in links]
-    errors = [np.mean(_crossed(link, target, link_columns, weights, q, dq, ddq) ** 2, axis=0)
+    errors = [_channel_mean(_crossed(link, target, link_columns, weights, q, dq, ddq) ** 2, weights)
               for link, link_columns in zip(links, columns)]
     scores = [float(np.sum(error / floors)) for error in errors]
     best = int(np.argmin(scores))
     beta, _ = links[best].refine(np.zeros(10), target, columns[best], weights, q)
-    scale = _model_scale(target - columns[best] @ beta, floors, model_variance)
-    model = np.mean(target ** 2, axis=0)
+    scale = _model_scale(target - columns[best] @ beta, floors, model_variance, weights)
+    model = _channel_mean(target ** 2, weights)
     # where no link's payload explains most of some channel's error (condition 2 of the module docstring) none is
     # said, whichever the link: the links are not told apart (every one a candidate, none tested)
     explains = bool(np.any((errors[best] <= MARK * model) & (model - errors[best] >= MIN_FLOORS * floors)))
@@ -881,10 +928,11 @@ def _together_link(identified: IdentifiedModel, standard: _StandardColumns, grav
     explains most of some channel's error (condition 2 of the module docstring, cross-fitted), as the payload's
     links are tested only where it explains; elsewhere the payload alone's link is kept. The order the links are
     tried in does not change the answer."""
-    model = np.mean(target ** 2, axis=0)
+    model = _channel_mean(target ** 2, weights)
 
     def scored(family: _Family) -> tuple[float, bool]:
-        error = np.mean(_crossed(family, target, family.columns(q, dq, ddq), weights, q, dq, ddq) ** 2, axis=0)
+        error = _channel_mean(_crossed(family, target, family.columns(q, dq, ddq), weights, q, dq, ddq) ** 2,
+                              weights)
         explains = bool(np.any((error <= MARK * model) & (model - error >= MIN_FLOORS * floors)))
         return float(np.sum(error / floors)), explains
 
@@ -900,7 +948,7 @@ def _together_link(identified: IdentifiedModel, standard: _StandardColumns, grav
         beta, _ = family.refine(np.zeros(columns.shape[-1]), target, columns, weights, q)
         linear, value = family.linearised(beta, columns, q)
         fits[link] = (linear, target - value)
-    scale = _model_scale(fits[best][1], floors, model_variance)
+    scale = _model_scale(fits[best][1], floors, model_variance, weights)
     extra = fits[best][0][:, :, :families[best].split]  # the best link's payload columns, turned with its gravity
     evidence, candidates = {}, []
     for link, family in families.items():
@@ -928,7 +976,8 @@ def _estimated(family: _Family, sample: RecordSample, weights: NDArray
     residual with the change removed and the family's columns there."""
     columns = family.columns(sample.q, sample.dq, sample.ddq)
     beta, inverse = family.refine(np.zeros(columns.shape[-1]), sample.target, columns, weights, sample.q)
-    return beta, inverse, sample.target - family.change(beta, sample.q, sample.dq, sample.ddq), columns
+    return beta, inverse, _valid(sample.target - family.change(beta, sample.q, sample.dq, sample.ddq), weights), \
+        columns
 
 
 def _fitted(family: _Family, identified: IdentifiedModel, sample: RecordSample,
@@ -941,17 +990,18 @@ def _fitted(family: _Family, identified: IdentifiedModel, sample: RecordSample,
     q, dq, ddq, target = sample.q, sample.dq, sample.ddq, sample.target
     beta, inverse, after, columns = estimate
     # the record's noise, correlated in time (HAC), and the model's own uncertainty through the target
-    cov_noise, _ = hac_covariance(columns, after, weights, inverse, segments=sample.segments)
+    cov_noise = _hac(columns, after, weights, inverse, sample.segments)
     sensitivity = inverse @ _gram(columns, weights, jacobian)
-    scale = _model_scale(after, floors, model_variance)
+    scale = _model_scale(after, floors, model_variance, weights)
     cov = cov_noise + scale * sensitivity @ identified.cov @ sensitivity.T + family.bodies_cov(beta, columns, weights,
                                                                                                inverse, q)
     test = wald_test(beta, cov)
     p_value = min(1.0, test.p_value * searched)
     crossed = _crossed(family, target, columns, weights, q, dq, ddq)
-    model_mse = _mse(target, channels)
-    cross_mse = _mse(crossed, channels)
-    fitted_mse = dict(zip(channels, map(float, total / sample.n_samples)))
+    model_mse = _mse(target, channels, weights)
+    cross_mse = _mse(crossed, channels, weights)
+    counts = sample.n_samples if sample.channel_samples is None else sample.channel_samples
+    fitted_mse = dict(zip(channels, map(float, total / counts)))
 
     model = np.array(list(model_mse.values()))
     crossed_values = np.array(list(cross_mse.values()))
