@@ -15,8 +15,9 @@ from estimation.consistent.model_selection import (
     Candidate,
     paired_difference,
     select_scored,
+    weighting_difference,
 )
-from estimation.identification.preprocessing_on_validation import BLOCKS
+from estimation.identification.preprocessing_on_validation import BLOCKS, block_mse
 from estimation.identification.validation import ChannelErrors, Comparison
 
 CHANNELS = ("tau1", "tau2")
@@ -99,3 +100,30 @@ def test_a_five_percent_test_rejects_about_five_percent_of_equal_candidates():
 
     first, second = rejections(150, seconds=2.0, rate=1000.0, correlation=0.02, mismatch=0.0, seed=7)
     assert 0.01 <= (first + second) / 2 <= 0.10, (first, second)
+
+
+@pytest.mark.parametrize("gap, within", [(0.002, True), (0.5, False)])
+def test_the_weighted_fit_is_chosen_only_beyond_the_records_sampling_error(gap, within):
+    """The channel-weighted fit scoring lowest is chosen only when it beats ordinary least squares by more than
+    the paired difference's noise; within it, the smallest score of the others is (module docstring: *The
+    weighting*)."""
+    generator, t, measured = record(4)
+    wls = measured + generator.normal(0, 0.05, measured.shape)
+    ols = wls + generator.normal(0, gap, measured.shape)
+    consistent = wls + generator.normal(0, 1.0, measured.shape)
+    candidates = (candidate("ols", t, measured, ols), candidate("wls", t, measured, wls),
+                  candidate("consistent", t, measured, consistent))
+    selection = select_scored(candidates, base="wls", ratio=1.0)
+    scores = selection.scores
+    assert min(scores, key=scores.get) == "wls" and scores["consistent"] > scores["ols"]
+    weighting = weighting_difference(candidates)
+    assert weighting.best == "wls" and weighting.regularised == "ols" and weighting.within_noise == within
+    assert selection.chosen == ("ols" if within else "wls")
+    assert ("wls not taken" in selection.reason) == within
+    # ordinary least squares scoring lowest: nothing to test, the smallest score chosen
+    assert weighting_difference(candidates[:1] + (candidate("wls", t, measured, ols),)) is None
+    # the streamed path's errors from block sums give the same choice
+    summed = [Candidate(c.name, SimpleNamespace(validation=ChannelErrors(
+        c.validation.mse, c.validation.n_samples, block_mse=block_mse(c.validation)), train=None))
+        for c in candidates]
+    assert select_scored(summed, base="wls", ratio=1.0).chosen == selection.chosen
