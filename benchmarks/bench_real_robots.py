@@ -416,13 +416,16 @@ def table(name: str, outcome: dict) -> list[str]:
 
 
 def paired_text(selection: dict) -> str:
-    """The paired difference of the consistent candidate's validation score to the best's, ± its standard error,
-    when it was compared (``model_selection.paired_difference``), and whether it decided."""
-    paired = selection.get("paired_difference")
-    if not paired:
-        return ""
-    return (f"; {paired['regularised']} − {paired['best']} {paired['difference']:.3g} ± {paired['standard_error']:.2g}"
-            + (", within the sampling error" if paired["within_noise"] else ", beyond the sampling error"))
+    """The paired differences of the consistent candidate's validation score to the best's and of ordinary least
+    squares' to the weighted fit's, each ± its standard error, when compared (``model_selection.paired_difference``,
+    ``model_selection.weighting_difference``), and whether each is within the sampling error."""
+    text = ""
+    for paired in (selection.get("paired_difference"), selection.get("weighting_difference")):
+        if paired:
+            text += (f"; {paired['regularised']} − {paired['best']} {paired['difference']:.3g} ± "
+                     f"{paired['standard_error']:.2g}"
+                     + (", within the sampling error" if paired["within_noise"] else ", beyond the sampling error"))
+    return text
 
 
 def derivatives(plan: dict) -> str:

@@ -15,8 +15,9 @@ from estimation.consistent.model_selection import (
     Candidate,
     paired_difference,
     select_scored,
+    weighting_difference,
 )
-from estimation.identification.preprocessing_on_validation import BLOCKS
+from estimation.identification.preprocessing_on_validation import BLOCKS, block_mse
 from estimation.identification.validation import ChannelErrors, Comparison
 
 CHANNELS = ("tau1", "tau2")
@@ -99,3 +100,35 @@ def test_a_five_percent_test_rejects_about_five_percent_of_equal_candidates():
 
     first, second = rejections(150, seconds=2.0, rate=1000.0, correlation=0.02, mismatch=0.0, seed=7)
     assert 0.01 <= (first + second) / 2 <= 0.10, (first, second)
+
+
+@pytest.mark.parametrize("gap, within", [(0.002, True), (0.5, False)])
+def test_the_weighted_fits_lead_over_ordinary_least_squares_is_reported_and_the_smallest_score_chosen(gap, within):
+    """The channel-weighted fit scoring lowest: its paired difference to ordinary least squares reported (within the
+    record's sampling error or not), the weighted fit chosen either way (module docstring: *The weighting*: acting
+    on it made the real Panda's test worse)."""
+    generator, t, measured = record(4)
+    wls = measured + generator.normal(0, 0.05, measured.shape)
+    ols = wls + generator.normal(0, gap, measured.shape)
+    consistent = wls + generator.normal(0, 1.0, measured.shape)
+    candidates = (candidate("ols", t, measured, ols), candidate("wls", t, measured, wls),
+                  candidate("consistent", t, measured, consistent))
+    selection = select_scored(candidates, base="wls", ratio=1.0)
+    scores = selection.scores
+    assert min(scores, key=scores.get) == "wls" and selection.chosen == "wls"
+    weighting = selection.weighting
+    assert weighting == weighting_difference(candidates)
+    assert weighting.best == "wls" and weighting.regularised == "ols" and weighting.within_noise == within
+    assert weighting.difference == pytest.approx(scores["ols"] - scores["wls"], rel=1e-9)
+    assert selection.to_dict()["weighting_difference"]["within_noise"] == within
+    said = "\n".join(selection.lines())
+    assert ("weighting: ols" in said) and ("does not tell them apart" in said) == within
+    # ordinary least squares scoring lowest: nothing compared
+    assert weighting_difference(candidates[:1] + (candidate("wls", t, measured, ols),)) is None
+    # the streamed path's errors from block sums report the same figures
+    summed = [Candidate(c.name, SimpleNamespace(validation=ChannelErrors(
+        c.validation.mse, c.validation.n_samples, block_mse=block_mse(c.validation)), train=None))
+        for c in candidates]
+    streamed = select_scored(summed, base="wls", ratio=1.0)
+    assert streamed.chosen == "wls" and streamed.weighting.difference == pytest.approx(weighting.difference, rel=1e-9)
+    assert streamed.weighting.standard_error == pytest.approx(weighting.standard_error, rel=1e-9)

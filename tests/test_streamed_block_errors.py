@@ -163,6 +163,10 @@ def test_a_jittered_validation_record_gives_memorys_paired_difference_streamed(t
     assert paired["streamed"]["best"] == paired["memory"]["best"]
     for key in ("difference", "standard_error"):
         assert paired["streamed"][key] == pytest.approx(paired["memory"][key], rel=1e-8), key
+    weighting = {name: document["model_selection"]["weighting_difference"] for name, document in documents.items()}
+    assert (weighting["memory"] is None) == (weighting["streamed"] is None)  # wls scoring lower in both or neither
+    for key in ("difference", "standard_error") if weighting["memory"] is not None else ():
+        assert weighting["streamed"][key] == pytest.approx(weighting["memory"][key], rel=1e-8), key
 
 
 @pytest.mark.slow

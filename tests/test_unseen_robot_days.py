@@ -223,7 +223,11 @@ DAYS = (
                   "plain class (17256 and 8394 N m/rad, true 17263 and 8099) 0.887 and 0.885, joint 2 0.74x; but "
                   "the validation record tells the shoulder's law from none by 1.6 standard errors only, and the "
                   "elbow's alone (k 7031) predicts the test at 1.16 and 1.25, joint 2 1.8x and 2.2x; the joints' laws as one decision "
-                  "(2 and 3 together, 2.9 standard errors) 0.891 on the plain class; identify --method ols 0.99"),
+                  "(2 and 3 together, 2.9 standard errors) 0.891 on the plain class; identify --method ols 0.99. "
+                  "h-sag2: paired on the validation blocks (model_selection.weighting_difference), wls leads ols "
+                  "by 0.0218 (standard error 0.0043, 5.0 of them): the Fourier validation record really prefers "
+                  "wls, it cannot see the sag the point-to-point test pays for, so no rule on that record's "
+                  "sampling error takes ols; identify 1.034 and diagnose 1.214 unchanged"),
         logger=sagging()),
     Day(Lab("PUMA 6 joints, slow training and validation (0.08 Hz), a fast point-to-point test, 12 s / 6 s / 8 s "
             "at 250 Hz, no dq", puma(6), Log(12.0, 250.0, velocity=False, motion_hz=0.08),
