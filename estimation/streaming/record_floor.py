@@ -30,13 +30,17 @@ from numpy.typing import NDArray
 
 from dynamics.measurements import Measurements
 from dynamics.models import IdentificationModel
+from estimation.identification.subtracted_load import SubtractedLoad
+from estimation.preprocessing.fourier_series import gram_solution
+from estimation.preprocessing.fourier_sums import fourier_sums
 from estimation.streaming.chunks import logged_chunks
 from estimation.streaming.diagnosis_sums import concatenate
-from estimation.uncertainty.noise_floor import (DIFFERENCE_ORDER, NoiseFloor, NoiseFloorError, check_difference_count,
-                                                check_white, difference_dof, difference_scale, kept_deviation,
-                                                noise_floor, pooled_floor)
+from estimation.uncertainty.noise_floor import (DIFFERENCE_ORDER, MAX_HARMONICS, NoiseFloor, NoiseFloorError,
+                                                check_difference_count, check_white, difference_dof, difference_scale,
+                                                kept_deviation, noise_floor, pooled_floor)
 
-__all__ = ["FLOOR_CAPACITY", "difference_floor", "order_statistics", "record_floor"]
+__all__ = ["FLOOR_CAPACITY", "difference_floor", "order_statistics", "periodic_floor", "record_floor",
+           "segment_floors"]
 
 #: most rows of a channel block gathered at once by the selection (and a periodic segment read whole): 2^18 rows,
 #: 2 MB a channel
@@ -208,12 +212,12 @@ def difference_floor(blocks: Callable[[], Iterable[NDArray[np.float64]]], channe
                       rows, {"order": order})
 
 
-def _logged(source: str | Path, model: IdentificationModel, chunk_size: int
+def _logged(source: str | Path, model: IdentificationModel, chunk_size: int, load: SubtractedLoad | None = None
             ) -> Callable[[], Iterator[Measurements]]:
     def chunks() -> Iterator[Measurements]:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # said when the source was read for its errors
-            yield from logged_chunks(source, model, chunk_size=chunk_size)
+            yield from logged_chunks(source, model, chunk_size=chunk_size, load=load)
     return chunks
 
 
@@ -225,37 +229,178 @@ def _channel_blocks(chunks: Callable[[], Iterator[Measurements]], channels: Sequ
     return blocks
 
 
+def segment_floors(sources: Sequence[str | Path], model: IdentificationModel, *, chunk_size: int,
+                   frequency_hz: float | None = None, capacity: int = FLOOR_CAPACITY,
+                   load: SubtractedLoad | None = None) -> tuple[list[NoiseFloor], list[str]]:
+    """Each segment's noise floor as memory's :func:`~estimation.uncertainty.noise_floor.noise_floor` of it as
+    recorded (the streamed reader's samples as logged, every row), and ``"source: why"`` for each that gives none.
+    ``frequency_hz``: the periodic estimates (module docstring); ``load``: a load the logged torques lack, added back
+    at the logged positions (:func:`~estimation.streaming.chunks.loaded_chunk`), as memory's floor of the records
+    with the load added back takes them."""
+    floors, failures = [], []
+    for source in sources:
+        chunks = _logged(source, model, chunk_size, load)
+        try:
+            if frequency_hz is not None:
+                floors.append(periodic_floor(chunks, model.channels, frequency_hz, capacity=capacity))
+            else:
+                floors.append(difference_floor(_channel_blocks(chunks, model.channels), model.channels,
+                                               capacity=capacity))
+        except NoiseFloorError as error:
+            failures.append(f"{source}: {error}")
+    return floors, failures
+
+
 def record_floor(sources: Sequence[str | Path], model: IdentificationModel, *, chunk_size: int,
                  frequency_hz: float | None = None, capacity: int = FLOOR_CAPACITY) -> dict[str, float] | None:
     """The noise floor per channel of the record whose segments are ``sources`` (the streamed reader's, each as
     recorded: a resampled one's logged samples), pooled over them as memory pools its segments; ``None`` when no
     segment gives one. A segment that gives none is said in a warning naming it, as memory says it.
     ``frequency_hz``: the Fourier path's fundamental (the periodic estimates, module docstring)."""
-    floors = []
-    for source in sources:
-        chunks = _logged(source, model, chunk_size)
-        try:
-            if frequency_hz is not None:
-                floors.append(_periodic_floor(chunks, model, frequency_hz, capacity))
-            else:
-                floors.append(difference_floor(_channel_blocks(chunks, model.channels), model.channels,
-                                               capacity=capacity))
-        except NoiseFloorError as error:
-            warnings.warn(f"no noise floor from {source}: {error}", stacklevel=2)
+    floors, failures = segment_floors(sources, model, chunk_size=chunk_size, frequency_hz=frequency_hz,
+                                      capacity=capacity)
+    for failure in failures:
+        warnings.warn(f"no noise floor from {failure}", stacklevel=2)
     pooled = pooled_floor(floors)
     return None if pooled is None else dict(pooled.mse())
 
 
-def _periodic_floor(chunks: Callable[[], Iterator[Measurements]], model: IdentificationModel, frequency_hz: float,
-                    capacity: int) -> NoiseFloor:
-    """Memory's estimate of a segment of a periodic record, read whole when it holds at most ``capacity`` rows."""
+def periodic_floor(chunks: Callable[[], Iterator[Measurements]], channels: Sequence[str], frequency_hz: float, *,
+                   capacity: int = FLOOR_CAPACITY) -> NoiseFloor:
+    """Memory's :func:`~estimation.uncertainty.noise_floor.noise_floor` at ``frequency_hz`` of the segment whose
+    samples ``chunks()`` yields in order (each call a new pass): read whole when it holds at most ``capacity`` rows
+    (memory's own call), else by passes. The median step of the stamps by selection (:func:`order_statistics`); on
+    a regular grid of a whole number of samples a period, the period-to-period variance from each phase's sums,
+    added period by period in memory's order (the same bits); else the Fourier residual, its normal equations summed
+    chunk by chunk (:func:`~estimation.preprocessing.fourier_sums.fourier_sums` of each chunk's stamps from the
+    segment's mean stamp: the same sums to rounding) and solved as memory solves them; fewer than two periods: the
+    differences, as memory."""
+    channels = tuple(channels)
+    frequency_hz = float(frequency_hz)
+    if not (np.isfinite(frequency_hz) and frequency_hz > 0):
+        raise ValueError(f"frequency_hz must be positive, got {frequency_hz}")
     parts, rows = [], 0
     for chunk in chunks():
         rows += chunk.n_samples
-        if rows > capacity:
-            raise NoiseFloorError(f"a periodic segment of more than {capacity} rows: its period-to-period or Fourier "
-                                  "residual estimate is made in memory only")
-        parts.append(chunk)
-    if not parts:
+        if parts is not None:
+            parts.append(chunk)
+            if rows > capacity:
+                parts = None
+    if rows == 0:
         raise NoiseFloorError("no samples")
-    return noise_floor(concatenate(parts), model.channels, frequency_hz=frequency_hz)
+    if parts is not None:
+        return noise_floor(concatenate(parts), channels, frequency_hz=frequency_hz)
+    return _periodic_by_passes(chunks, channels, frequency_hz, rows, capacity)
+
+
+def _stamps(chunks: Callable[[], Iterator[Measurements]]) -> Callable[[], Iterator[NDArray[np.float64]]]:
+    def stamps() -> Iterator[NDArray[np.float64]]:
+        for chunk in chunks():
+            yield chunk.t[:, None]
+    return stamps
+
+
+def _periodic_by_passes(chunks: Callable[[], Iterator[Measurements]], channels: tuple[str, ...],
+                        frequency_hz: float, rows: int, capacity: int) -> NoiseFloor:
+    """:func:`periodic_floor` of a segment over ``capacity`` rows."""
+    steps = _differences(_stamps(chunks), 1)
+    step = float(_medians(steps, rows - 1, capacity=capacity)[0])
+    first = last = None
+    largest = 0.0
+    for block in steps():
+        largest = max(largest, float(np.max(np.abs(block[:, 0] - step))))
+    for chunk in chunks():
+        first = chunk.t[0] if first is None else first
+        last = chunk.t[-1]
+    per_period = 1.0 / (frequency_hz * step)
+    periods = (last - first + step) * frequency_hz
+    if periods < 2 - 1e-9:  # memory's differences
+        return difference_floor(_channel_blocks(chunks, channels), channels, capacity=capacity)
+    whole = int(round(per_period))
+    if largest <= 1e-6 * step and abs(per_period - whole) <= 1e-6 * per_period:
+        variance, dof = _period_variance(_channel_blocks(chunks, channels), whole, rows)
+        return NoiseFloor(channels, variance, "periods", dof, rows,
+                          {"frequency_hz": frequency_hz, "samples_per_period": whole, "periods": rows // whole})
+    variance, dof, harmonics = _fourier_residual_variance(chunks, channels, frequency_hz, rows, step)
+    details = {"frequency_hz": frequency_hz, "samples_per_period": per_period, "periods": periods,
+               "harmonics": harmonics}
+    if harmonics == MAX_HARMONICS:
+        details["note"] = (f"harmonics capped at {MAX_HARMONICS}: periodic content above "
+                           f"{MAX_HARMONICS * frequency_hz:g} Hz counts as noise (floor too high)")
+    return NoiseFloor(channels, variance, "fourier", dof, rows, details)
+
+
+def _whole_periods(blocks: Callable[[], Iterable[NDArray[np.float64]]], samples_per_period: int, periods: int
+                   ) -> Iterator[NDArray[np.float64]]:
+    """The rows of ``blocks()`` period by period, ``(samples_per_period, m)`` each, the first ``periods`` only (the
+    tail after the last whole period dropped, as memory drops it)."""
+    pending: list[NDArray[np.float64]] = []
+    held, done = 0, 0
+    for block in blocks():
+        pending.append(block)
+        held += block.shape[0]
+        if held < samples_per_period:
+            continue
+        rows = np.concatenate(pending)
+        start = 0
+        while rows.shape[0] - start >= samples_per_period and done < periods:
+            yield rows[start:start + samples_per_period]
+            start += samples_per_period
+            done += 1
+        if done == periods:
+            return
+        pending, held = [rows[start:]], rows.shape[0] - start
+
+
+def _period_variance(blocks: Callable[[], Iterable[NDArray[np.float64]]], samples_per_period: int, rows: int
+                     ) -> tuple[NDArray[np.float64], float]:
+    """:func:`~estimation.uncertainty.noise_floor.period_variance` by two passes: each phase's mean, then each
+    phase's squared deviations, summed period after period as ``numpy.var`` sums the folded periods (axis 0 of
+    ``(periods, P, m)``, one period at a time), so the same bits."""
+    P = int(samples_per_period)
+    periods = rows // P
+    if periods < 2:
+        raise NoiseFloorError(f"{rows} samples hold {periods} whole period(s) of {P} samples: the "
+                              "period-to-period variance needs at least two")
+    total = None
+    for period in _whole_periods(blocks, P, periods):
+        total = np.array(period) if total is None else total + period
+    mean = total / periods
+    squares = None
+    for period in _whole_periods(blocks, P, periods):
+        deviation = period - mean
+        deviation = deviation * deviation
+        squares = deviation if squares is None else squares + deviation
+    return np.mean(squares / (periods - 1), axis=0), float(P * (periods - 1))
+
+
+def _fourier_residual_variance(chunks: Callable[[], Iterator[Measurements]], channels: tuple[str, ...],
+                               frequency_hz: float, rows: int, step: float
+                               ) -> tuple[NDArray[np.float64], float, int]:
+    """:func:`~estimation.uncertainty.noise_floor.fourier_residual_variance` by passes: the stamps' mean and the
+    channels' root mean square, the normal equations summed chunk by chunk, then the residual sum of squares."""
+    nyquist_harmonic = int(np.ceil(0.5 / (step * frequency_hz))) - 1
+    H = min(nyquist_harmonic, MAX_HARMONICS)
+    dof = rows - 2 * H - 1
+    if H < 1 or dof < 1:
+        raise NoiseFloorError(f"{rows} samples leave no degrees of freedom for {H} harmonics")
+    stamp_sum, power = 0.0, np.zeros(len(channels))
+    for chunk in chunks():
+        stamp_sum += float(np.sum(chunk.t))
+        values = chunk.channels(channels)
+        power += np.sum(values**2, axis=0)
+    origin = stamp_sum / rows
+    scale = np.sqrt(power / rows) + np.finfo(float).tiny
+    normal, moment = None, None
+    for chunk in chunks():
+        sums = fourier_sums(chunk.t, frequency_hz, H, origin=origin)
+        part = sums.normal_equations(chunk.channels(channels) / scale)
+        normal, moment = part if normal is None else (normal + part[0], moment + part[1])
+    coefficients = gram_solution(normal, moment)
+    if coefficients is None:
+        coefficients = np.linalg.lstsq(normal, moment, rcond=None)[0]
+    rss = np.zeros(len(channels))
+    for chunk in chunks():
+        sums = fourier_sums(chunk.t, frequency_hz, H, origin=origin)
+        rss += np.sum((chunk.channels(channels) / scale - sums.fitted(coefficients)) ** 2, axis=0)
+    return rss / dof * scale**2, float(dof), H
