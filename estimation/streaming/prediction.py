@@ -25,7 +25,7 @@ covariance and the cross-fitted halves are then memory's own
 (:func:`~estimation.identification.record_changes.sampled_record_changes`), and one more pass sums the error with
 each family's change over every sample. Only the per-sample predictions and their bands (``--out``, ``--plot``)
 are not kept, and :attr:`StreamedEvaluation.not_computed` says so. A model file whose reading the streamed reader
-does not make (rows at rest dropped, a trimmed filter or one of another order, logged velocities replaced) is
+does not make (rows at rest dropped, a trimmed filter or one of another order) is
 refused with :class:`~estimation.streaming.chunks.StreamingUnsupportedError`, naming the in-memory route; motor-side
 columns, joint zeros and reversed joint directions are read from joint-side copies of the files the caller makes
 (:func:`needs_joint_side`).

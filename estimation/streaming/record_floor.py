@@ -15,8 +15,11 @@ in-memory estimator's own (:func:`~estimation.uncertainty.noise_floor.difference
 the same floor, its lag-1 correlation to rounding (its sums taken in another order).
 
 A periodic record (the Fourier path's model, its frequency known) takes the period-to-period or the Fourier-residual
-estimate in memory; :func:`record_floor` reads such a segment whole when it fits in ``capacity`` rows (memory's own
-call on it) and says otherwise that no floor is had from it, as memory says it of a segment that gives none.
+estimate in memory; :func:`periodic_floor` reads such a segment whole when it fits in ``capacity`` rows (memory's own
+call on it), else by passes: the stamps' median step by selection, then on a regular grid of a whole number of
+samples a period each phase's mean and squared deviations summed period after period, as ``numpy.var`` sums the
+folded periods (the same bits), or the Fourier residual with its normal equations summed chunk by chunk (each
+chunk's chirp or block sums from the segment's mean stamp, memory's solver; the same floor to rounding, 1e-12).
 """
 
 from __future__ import annotations
