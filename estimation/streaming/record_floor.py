@@ -35,7 +35,8 @@ from dynamics.measurements import Measurements
 from dynamics.models import IdentificationModel
 from estimation.identification.subtracted_load import SubtractedLoad
 from estimation.preprocessing.fourier_series import gram_solution
-from estimation.preprocessing.fourier_sums import fourier_sums
+from estimation.preprocessing.fourier_sums import (BLOCK_ROWS, GRID_TOLERANCE, BlockFourierSums,
+                                                    UniformFourierSums, fractional_turns)
 from estimation.streaming.chunks import logged_chunks
 from estimation.streaming.diagnosis_sums import concatenate
 from estimation.uncertainty.noise_floor import (DIFFERENCE_ORDER, MAX_HARMONICS, NoiseFloor, NoiseFloorError,
@@ -377,33 +378,142 @@ def _period_variance(blocks: Callable[[], Iterable[NDArray[np.float64]]], sample
     return np.mean(squares / (periods - 1), axis=0), float(P * (periods - 1))
 
 
+#: numpy's pairwise summation: blocks of at most this many values summed by its unrolled loop (numpy's
+#: ``PW_BLOCKSIZE``), larger ones split in two halves (the first a multiple of 8)
+PAIRWISE_BLOCK = 128
+
+
+def _pairwise_leaves(start: int, count: int) -> Iterator[tuple[int, int]]:
+    """The blocks ``(start, count)`` numpy's pairwise summation of ``count`` contiguous values adds by its loop, in
+    order (``numpy/_core/src/umath/loops_utils.h.src``, ``pairwise_sum``)."""
+    if count <= PAIRWISE_BLOCK:
+        yield start, count
+        return
+    half = count // 2
+    half -= half % 8
+    yield from _pairwise_leaves(start, half)
+    yield from _pairwise_leaves(start + half, count - half)
+
+
+def _pairwise_total(leaves: dict[int, float], start: int, count: int) -> float:
+    """``numpy.sum`` of ``count`` values from ``start`` from the sums of its blocks (:func:`_pairwise_leaves`)."""
+    if count <= PAIRWISE_BLOCK:
+        return leaves[start]
+    half = count // 2
+    half -= half % 8
+    return _pairwise_total(leaves, start, half) + _pairwise_total(leaves, start + half, count - half)
+
+
+def _stamp_mean_gathered(chunks: Callable[[], Iterator[Measurements]], rows: int,
+                         bounds: list[tuple[int, int]]) -> float:
+    """``numpy.mean`` of the stamps of every row, the same bits: numpy's pairwise blocks ``bounds``
+    (:func:`_pairwise_leaves`) summed as they come, then combined as numpy combines them."""
+    leaves: dict[int, float] = {}
+    carried, first_row, index = np.empty(0), 0, 0  # carried: stamps from row first_row not yet summed
+    for chunk in chunks():
+        carried = np.concatenate([carried, chunk.t])
+        while index < len(bounds) and bounds[index][0] + bounds[index][1] <= first_row + carried.shape[0]:
+            start, count = bounds[index]
+            leaves[start] = float(np.add.reduce(carried[start - first_row:start - first_row + count]))
+            index += 1
+        if index < len(bounds):
+            cut = bounds[index][0] - first_row
+            carried, first_row = carried[cut:], bounds[index][0]
+    return _pairwise_total(leaves, 0, rows) / rows
+
+
+def _sequential_sum(total: NDArray[np.float64] | None, block: NDArray[np.float64]) -> NDArray[np.float64]:
+    """``total`` plus the rows of ``block`` added one after the other, as ``numpy.sum(axis=0)`` adds the rows of a
+    C-ordered array (the same bits as the sum of the whole)."""
+    if total is None:
+        return np.sum(block, axis=0)
+    return np.sum(np.vstack([total[None, :], block]), axis=0)
+
+
 def _fourier_residual_variance(chunks: Callable[[], Iterator[Measurements]], channels: tuple[str, ...],
                                frequency_hz: float, rows: int, step: float
                                ) -> tuple[NDArray[np.float64], float, int]:
-    """:func:`~estimation.uncertainty.noise_floor.fourier_residual_variance` by passes: the stamps' mean and the
-    channels' root mean square, the normal equations summed chunk by chunk, then the residual sum of squares."""
+    """:func:`~estimation.uncertainty.noise_floor.fourier_residual_variance` by passes: the stamps' mean (numpy's
+    pairwise sum, the same bits) and the channels' root mean square; then the normal equations and the residual sum
+    of squares. Stamps off a regular grid: the design's blocks of
+    :data:`~estimation.preprocessing.fourier_sums.BLOCK_ROWS` rows from the segment's first, as memory's
+    :class:`~estimation.preprocessing.fourier_sums.BlockFourierSums` forms them (the same bits); on a grid, each
+    chunk's chirp sums on memory's grid (its first stamp and step from the segment's ends), the same sums to
+    rounding."""
     nyquist_harmonic = int(np.ceil(0.5 / (step * frequency_hz))) - 1
     H = min(nyquist_harmonic, MAX_HARMONICS)
     dof = rows - 2 * H - 1
     if H < 1 or dof < 1:
         raise NoiseFloorError(f"{rows} samples leave no degrees of freedom for {H} harmonics")
-    stamp_sum, power = 0.0, np.zeros(len(channels))
+    origin = _stamp_mean_gathered(chunks, rows, list(_pairwise_leaves(0, rows)))
+    power, first, last = None, None, None
     for chunk in chunks():
-        stamp_sum += float(np.sum(chunk.t))
-        values = chunk.channels(channels)
-        power += np.sum(values**2, axis=0)
-    origin = stamp_sum / rows
+        power = _sequential_sum(power, chunk.channels(channels) ** 2)
+        first = chunk.t[0] if first is None else first
+        last = chunk.t[-1]
     scale = np.sqrt(power / rows) + np.finfo(float).tiny
+    grid_step = (last - first) / (rows - 1)
+    on_grid = grid_step > 0
+    row = 0
+    for chunk in chunks():  # memory's UniformFourierSums.of on the whole segment
+        grid = first + grid_step * np.arange(row, row + chunk.n_samples)
+        on_grid = on_grid and not np.max(np.abs(chunk.t - grid)) > GRID_TOLERANCE * grid_step
+        row += chunk.n_samples
+    parts = (_grid_parts(chunks, channels, frequency_hz, H, origin, first, grid_step) if on_grid else
+             _block_parts(chunks, channels, frequency_hz, H, origin))
     normal, moment = None, None
-    for chunk in chunks():
-        sums = fourier_sums(chunk.t, frequency_hz, H, origin=origin)
-        part = sums.normal_equations(chunk.channels(channels) / scale)
+    for sums, values in parts():
+        part = sums.normal_equations(values / scale)
         normal, moment = part if normal is None else (normal + part[0], moment + part[1])
     coefficients = gram_solution(normal, moment)
     if coefficients is None:
         coefficients = np.linalg.lstsq(normal, moment, rcond=None)[0]
-    rss = np.zeros(len(channels))
-    for chunk in chunks():
-        sums = fourier_sums(chunk.t, frequency_hz, H, origin=origin)
-        rss += np.sum((chunk.channels(channels) / scale - sums.fitted(coefficients)) ** 2, axis=0)
+    rss = None
+    for sums, values in parts():
+        rss = _sequential_sum(rss, (values / scale - sums.fitted(coefficients)) ** 2)
     return rss / dof * scale**2, float(dof), H
+
+
+def _block_parts(chunks: Callable[[], Iterator[Measurements]], channels: tuple[str, ...], frequency_hz: float,
+                 harmonics: int, origin: float
+                 ) -> Callable[[], Iterator[tuple[BlockFourierSums, NDArray[np.float64]]]]:
+    """A pass over the segment in blocks of :data:`BLOCK_ROWS` rows from its first (the last one shorter), each with
+    its design's sums (memory's blocks)."""
+    def parts() -> Iterator[tuple[BlockFourierSums, NDArray[np.float64]]]:
+        t_held: list[NDArray[np.float64]] = []
+        values_held: list[NDArray[np.float64]] = []
+        held = 0
+        for chunk in chunks():
+            t_held.append(chunk.t)
+            values_held.append(chunk.channels(channels))
+            held += chunk.n_samples
+            if held < BLOCK_ROWS:
+                continue
+            t, values = np.concatenate(t_held), np.concatenate(values_held)
+            whole = (held // BLOCK_ROWS) * BLOCK_ROWS
+            for start in range(0, whole, BLOCK_ROWS):
+                rows = slice(start, start + BLOCK_ROWS)
+                yield BlockFourierSums(t[rows], frequency_hz, harmonics, origin), values[rows]
+            t_held, values_held, held = [t[whole:]], [values[whole:]], held - whole
+        if held:
+            t, values = np.concatenate(t_held), np.concatenate(values_held)
+            yield BlockFourierSums(t, frequency_hz, harmonics, origin), values
+    return parts
+
+
+def _grid_parts(chunks: Callable[[], Iterator[Measurements]], channels: tuple[str, ...], frequency_hz: float,
+                harmonics: int, origin: float, first: float, step: float
+                ) -> Callable[[], Iterator[tuple[UniformFourierSums, NDArray[np.float64]]]]:
+    """A pass over the chunks, each with its chirp sums on memory's grid: its first sample's phase
+    ``τ + r ν`` (``r`` its first row; the turns reduced exactly, :func:`fractional_turns`)."""
+    start_turns = frequency_hz * (first - origin)
+    per_sample = frequency_hz * step
+
+    def parts() -> Iterator[tuple[UniformFourierSums, NDArray[np.float64]]]:
+        row = 0
+        for chunk in chunks():
+            turns = (start_turns - np.floor(start_turns)) + float(fractional_turns(per_sample, np.array([row]))[0])
+            yield (UniformFourierSums(turns - np.floor(turns), per_sample, chunk.n_samples, harmonics),
+                   chunk.channels(channels))
+            row += chunk.n_samples
+    return parts
