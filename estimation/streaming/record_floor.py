@@ -404,7 +404,7 @@ def _pairwise_total(leaves: dict[int, float], start: int, count: int) -> float:
     return _pairwise_total(leaves, start, half) + _pairwise_total(leaves, start + half, count - half)
 
 
-def _stamp_mean_gathered(chunks: Callable[[], Iterator[Measurements]], rows: int,
+def _stamp_mean(chunks: Callable[[], Iterator[Measurements]], rows: int,
                          bounds: list[tuple[int, int]]) -> float:
     """``numpy.mean`` of the stamps of every row, the same bits: numpy's pairwise blocks ``bounds``
     (:func:`_pairwise_leaves`) summed as they come, then combined as numpy combines them."""
@@ -445,7 +445,7 @@ def _fourier_residual_variance(chunks: Callable[[], Iterator[Measurements]], cha
     dof = rows - 2 * H - 1
     if H < 1 or dof < 1:
         raise NoiseFloorError(f"{rows} samples leave no degrees of freedom for {H} harmonics")
-    origin = _stamp_mean_gathered(chunks, rows, list(_pairwise_leaves(0, rows)))
+    origin = _stamp_mean(chunks, rows, list(_pairwise_leaves(0, rows)))
     power, first, last = None, None, None
     for chunk in chunks():
         power = _sequential_sum(power, chunk.channels(channels) ** 2)
