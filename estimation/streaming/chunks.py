@@ -76,7 +76,7 @@ from estimation.streaming.time_base import (Part, RegularClock, Resampler, TimeS
                                             scan_time)
 
 __all__ = [
-    "CLOCK_SUFFIX", "FileSums", "MARGIN_TOLERANCE", "clock_source", "StreamingUnsupportedError", "automatic_cutoff", "file_sums", "filter_margin",
+    "CLOCK_SUFFIX", "POSITIONS_SUFFIX", "FileSums", "from_positions", "positions_source", "MARGIN_TOLERANCE", "clock_source", "StreamingUnsupportedError", "automatic_cutoff", "file_sums", "filter_margin",
     "loaded_chunk", "logged_chunks", "preprocessed_chunks", "read_chunks", "receive_times_evidence_of", "segment_sources", "source_file", "source_files", "source_rows",
     "source_step",
 ]
@@ -209,6 +209,24 @@ def clock_source(path):
     return type(path)(f"{path}{CLOCK_SUFFIX}") if isinstance(path, Path) else f"{path}{CLOCK_SUFFIX}"
 
 
+#: the end of a streamed source whose logged velocities are left unread: ``dq`` made from the positions, as the
+#: in-memory plan's ``velocity_from_positions`` makes it (:func:`positions_source`)
+POSITIONS_SUFFIX = " (velocity from positions)"
+
+
+def positions_source(path):
+    """The streamed source of ``path`` (a file, a segment's or a clock's source) whose logged ``dq`` is left unread
+    (each chunk read without it, :func:`read_chunks`): the filter then derives ``dq`` from the positions, bit for bit
+    as memory's ``ButterworthDifferentiation(logged_velocity=False)`` (whose output ignores the logged ``dq``);
+    ``run.csv (velocity from positions)``; of the same type as ``path``."""
+    return type(path)(f"{path}{POSITIONS_SUFFIX}") if isinstance(path, Path) else f"{path}{POSITIONS_SUFFIX}"
+
+
+def from_positions(path: str | Path) -> bool:
+    """Whether the streamed source ``path`` is read without its logged velocities (:func:`positions_source`)."""
+    return not Path(path).exists() and str(path).endswith(POSITIONS_SUFFIX)
+
+
 def source_file(path: str | Path) -> tuple[Path, int | Part | RegularClock | None]:
     """The file and segment (1-based; ``None``: the whole file) of a streamed source: ``run.csv (segment 2)`` (the
     name the loader gives the second segment of a file split at a hole longer than ``max_gap``,
@@ -217,6 +235,8 @@ def source_file(path: str | Path) -> tuple[Path, int | Part | RegularClock | Non
     :data:`CLOCK_SUFFIX` is the file or segment before it on its regular clock
     (:class:`~estimation.streaming.time_base.RegularClock`, :func:`clock_source`)."""
     file = Path(path)
+    if from_positions(path):  # the velocities left unread: the same file and segment (read_chunks drops dq)
+        return source_file(str(path)[:-len(POSITIONS_SUFFIX)])
     if not file.exists() and str(path).endswith(CLOCK_SUFFIX):
         inner, segment = source_file(str(path)[:-len(CLOCK_SUFFIX)])
         if inner.is_file() and not isinstance(segment, (Part, RegularClock)):
@@ -409,6 +429,11 @@ def read_chunks(path: str | Path, model: IdentificationModel, *, chunk_size: int
     joined to the one before, so that each has more samples than base parameters). Raises the
     errors of :func:`estimation.data.records.read_measurements`, naming the file and rows, and a
     :class:`~estimation.data.loading.TimeBaseError` when the time does not run on across chunks."""
+    if from_positions(path):  # dq from the positions: the chunks read without the logged velocities
+        for chunk in read_chunks(str(path)[:-len(POSITIONS_SUFFIX)], model, chunk_size=chunk_size):
+            recorded = chunk.recorded
+            yield replace(chunk, dq=None, recorded=None if recorded is None else replace(recorded, dq=None))
+        return
     path = Path(path)
     least = model.n_base + 1
     if chunk_size < least:

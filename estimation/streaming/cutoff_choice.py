@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import warnings
 from collections.abc import Sequence
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -32,7 +33,7 @@ from estimation.identification.preprocessing_choice import (
 )
 from estimation.identification.preprocessing_on_validation import on_validation
 from estimation.preprocessing.plan import Preprocessing, PreprocessingWarning
-from estimation.streaming.chunks import read_chunks, source_file, source_rows
+from estimation.streaming.chunks import from_positions, read_chunks, source_file, source_rows
 from estimation.streaming.time_base import Part
 from estimation.data.records import read_record
 
@@ -51,7 +52,11 @@ def first_rows(path: str | Path, model: IdentificationModel, rows: int) -> Measu
         file, segment = source_file(path)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # said by read_chunks
-            return read_record(file, model=model, split=segment is not None)[0 if segment is None else segment - 1]
+            whole = read_record(file, model=model, split=segment is not None)[0 if segment is None else segment - 1]
+            if from_positions(path):  # read without its logged velocities, as read_chunks reads it
+                whole = replace(whole, dq=None, recorded=None if whole.recorded is None else
+                                replace(whole.recorded, dq=None))
+            return whole
     return first if first.n_samples <= rows else first.select(slice(0, int(rows)))
 
 
@@ -97,7 +102,7 @@ def choose_streamed_preprocessing(paths: Sequence[str | Path], model: Identifica
     choice = choose_by_evidence(model, window, frequency_hz=frequency_hz,
                                 harmonics=harmonics, cutoff_hz=cutoff_hz, average_periods=average_periods,
                                 decimation=decimation, held_torques=held_torques,
-                                held_out=tuple(windows[Path(path)] for path in held_out), velocity_variants=False)
+                                held_out=tuple(windows[Path(path)] for path in held_out))
     if not (validation_fits and validation):
         return choice
     chooser = model if validation_model is None else validation_model

@@ -40,10 +40,10 @@ in-memory diagnosis measures them. :func:`robust_covariance` and :class:`~estima
 are the search from sums alone (every sample of the record in each test, the shapes fixed where the subsample's
 first round left them): on the KUKA LWR4+ it named 15 effects against the in-memory 14 (benchmarks/README.md).
 
-The noise floor: the model-free estimators of :mod:`estimation.uncertainty.noise_floor` are not sums (the
-difference estimator takes a median); the floor is computed on a bounded window, the first
-``floor_window`` rows of each validation file as recorded, pooled over the files
-(:func:`estimation.uncertainty.noise_floor.pooled_floor`), and the report says so.
+The noise floor: memory's, of every row of each validation file (segment) as recorded, pooled over them
+(:func:`estimation.streaming.record_floor.segment_floors`: the difference estimator's medians found exactly by
+selection over passes, a long periodic segment's estimate from sums); ``floor_window`` rows: the first rows of each
+file alone (the report's ``streaming.floor_window`` says which).
 
 Not on this path (the report's ``streaming.not_on_this_path``): residual tracing, whiteness and
 per-sample residual statistics (they need the residuals sample by sample), the search over every sample (it runs on the
@@ -79,7 +79,7 @@ from estimation.identification.subtracted_load import SubtractedLoad
 from estimation.streaming.chunks import automatic_cutoff, logged_chunks, read_chunks
 from estimation.streaming.cluster import model_payload
 from estimation.streaming.covariance import BatchScores, sandwich
-from estimation.streaming.diagnosis_passes import (FLOOR_WINDOW, LagSums, SumsPass, scores_pass, subsample_pass,
+from estimation.streaming.diagnosis_passes import (LagSums, SumsPass, scores_pass, subsample_pass,
                                                   sums_pass, window_floor)
 from estimation.streaming.diagnosis_candidates import StreamedCandidates, streamed_candidates
 from estimation.diagnosis.results import Diagnosis, RejectedEffect
@@ -380,7 +380,7 @@ def diagnose_files_run(
     max_effects: int = 20,
     noise_floor: NoiseFloor | None = None,
     subsample: int = DEFAULT_SUBSAMPLE,
-    floor_window: int = FLOOR_WINDOW,
+    floor_window: int | None = None,
     executor: Any = None,
     preprocessing: Preprocessing | None = None,
     findings: FindingsSaid | None = None,
@@ -398,8 +398,8 @@ def diagnose_files_run(
     The settings are those of :func:`estimation.diagnosis.search.diagnose`; ``chunk_size``, ``cutoff_hz``,
     ``decimation``, ``held_torques`` and ``executor`` those of
     :func:`estimation.streaming.identification.identify_files`; ``subsample`` and ``floor_window``:
-    module docstring. ``noise_floor``: the floor of the validation record as recorded (default: on
-    the window). ``preprocessing``: a plan chosen beforehand (as the in-memory path chooses it,
+    module docstring. ``noise_floor``: the floor of the validation record as recorded (default: memory's, of
+    every row, or of the first ``floor_window`` rows of each file). ``preprocessing``: a plan chosen beforehand (as the in-memory path chooses it,
     :func:`estimation.streaming.cutoff_choice.choose_streamed_preprocessing`) sets the derivatives instead of
     ``cutoff_hz``, ``decimation`` and ``held_torques``: a filter, or a Fourier fit of averaged periods
     (:func:`estimation.streaming.periods.plan_chunks`). ``findings``: what the run has said about its files
@@ -448,7 +448,7 @@ def diagnose_files_run(
     if noise_floor is None:
         with findings.reading():
             floor, floor_note = window_floor(validate, model, window=floor_window, frequency_hz=settings.frequency_hz,
-                                             load=load)
+                                             load=load, chunk_size=chunk_size)
     else:
         floor, floor_note = noise_floor, f"given ({noise_floor.method})"
     with step("the declared model from the sums"):

@@ -34,7 +34,8 @@ from estimation.streaming.cluster import caught_warnings, file_stamp, model_from
 from estimation.streaming.diagnosis_sums import ChannelSums, ColumnLayout, EvenSubsample, chunk_sums, concatenate
 from estimation.data.loading import MeasurementError
 from estimation.uncertainty.noise_floor import NoiseFloor, NoiseFloorError, noise_floor, pooled_floor
-from estimation.streaming.chunks import logged_chunks
+from estimation.streaming.chunks import DEFAULT_CHUNK_SIZE, logged_chunks
+from estimation.streaming.record_floor import segment_floors
 from estimation.streaming.periods import plan_chunks
 from estimation.streaming.covariance import BatchScores, chunk_scores
 from estimation.streaming.delayed_chunks import moved_chunks
@@ -416,23 +417,31 @@ def scores_pass(executor, payload: bytes, plan: bytes, paths: Sequence[str], opt
                                                                  file_stamp(path)))
 
 
-def window_floor(paths: Sequence[str | Path], model: IdentificationModel, *, window: int = FLOOR_WINDOW,
-                 frequency_hz: float | None = None, load: SubtractedLoad | None = None
-                 ) -> tuple[NoiseFloor | None, str]:
-    """The noise floor of the first ``window`` rows of each file as recorded (no filtering), pooled
-    over the files; ``None`` and why when none can be had. ``load``: a load the logged torques lack, added back at
-    the logged positions (the torques the model holds, as memory's floor takes them)."""
-    floors, failures = [], []
-    for path in paths:
-        # as logged: a resampled file's own samples, as the in-memory floor takes them (interpolation smooths noise)
-        first = next(logged_chunks(path, model, chunk_size=max(int(window), model.n_base + 1), load=load))
-        try:
-            floors.append(noise_floor(first, model.channels, frequency_hz=frequency_hz))
-        except NoiseFloorError as error:
-            failures.append(f"{path}: {error}")
+def window_floor(paths: Sequence[str | Path], model: IdentificationModel, *, window: int | None = None,
+                 frequency_hz: float | None = None, load: SubtractedLoad | None = None,
+                 chunk_size: int = DEFAULT_CHUNK_SIZE) -> tuple[NoiseFloor | None, str]:
+    """The noise floor of each file (or segment) as recorded (no filtering), pooled over them; ``None`` and why when
+    none can be had. ``window=None``: every row, memory's floor of the validation record
+    (:func:`~estimation.streaming.record_floor.segment_floors`: exact medians by passes, the periodic estimates of a
+    long segment by sums; the same floor as ``PreparedRecord.noise_floor``); else the first ``window`` rows of each
+    (``--floor-window``). ``load``: a load the logged torques lack, added back at the logged positions (the torques
+    the model holds, as memory's floor takes them)."""
+    if window is None:
+        floors, failures = segment_floors(paths, model, chunk_size=chunk_size, frequency_hz=frequency_hz, load=load)
+    else:
+        floors, failures = [], []
+        for path in paths:
+            # as logged: a resampled file's own samples, as the in-memory floor takes them (interpolation smooths
+            # noise)
+            first = next(logged_chunks(path, model, chunk_size=max(int(window), model.n_base + 1), load=load))
+            try:
+                floors.append(noise_floor(first, model.channels, frequency_hz=frequency_hz))
+            except NoiseFloorError as error:
+                failures.append(f"{path}: {error}")
     floor = pooled_floor(floors)
     if floor is None:
         return None, "no noise floor: " + "; ".join(failures)
-    note = (f"estimated from the first {window} rows of each validation file as recorded "
+    what = "every row" if window is None else f"the first {window} rows"
+    note = (f"estimated from {what} of each validation file as recorded "
             f"({len(floors)} of {len(list(paths))} file(s))")
     return floor, note + ("; none from " + "; ".join(failures) if failures else "")

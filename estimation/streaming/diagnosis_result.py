@@ -67,7 +67,7 @@ class StreamedSettings:
     max_effects: int
     noise_floor: NoiseFloor | None
     subsample: int
-    floor_window: int
+    floor_window: int | None
     frequency_hz: float | None = None
     harmonics: int = 5
     order: int = 4
@@ -153,7 +153,8 @@ def streaming_record(run: StreamedRun, covariance: dict[str, Any], seconds: dict
                              for path, (part, record) in zip(run.validate, sums.validate_parts)],
         "subsample": {"samples": run.first.sample.n_samples, "of": run.first.seen, "requested": int(settings.subsample),
                       "used_for": "shape search of shaped laws, coupling-pair tracing"},
-        "floor_window": int(settings.floor_window) if settings.noise_floor is None else None,
+        "floor_window": (None if settings.floor_window is None else int(settings.floor_window))
+        if settings.noise_floor is None else None,
         "stopped_at_floor": run.outcome.stopped_at_floor,
         "covariance": covariance,
         "seconds": seconds,

@@ -25,7 +25,7 @@ covariance and the cross-fitted halves are then memory's own
 (:func:`~estimation.identification.record_changes.sampled_record_changes`), and one more pass sums the error with
 each family's change over every sample. Only the per-sample predictions and their bands (``--out``, ``--plot``)
 are not kept, and :attr:`StreamedEvaluation.not_computed` says so. A model file whose reading the streamed reader
-does not make (rows at rest dropped, a trimmed filter or one of another order, logged velocities replaced) is
+does not make (rows at rest dropped, a trimmed filter or one of another order) is
 refused with :class:`~estimation.streaming.chunks.StreamingUnsupportedError`, naming the in-memory route; motor-side
 columns, joint zeros and reversed joint directions are read from joint-side copies of the files the caller makes
 (:func:`needs_joint_side`).
@@ -50,7 +50,8 @@ from estimation.identification.record_changes import (RecordChanges, RecordSampl
                                                       sampled_record_changes, sampled_rows)
 from estimation.identification.training_range import UNKNOWN_RANGE, JointExcursion, RangeCheck
 from estimation.preprocessing.differentiation import ButterworthDifferentiation
-from estimation.streaming.chunks import StreamingUnsupportedError, clock_source, segment_sources, source_rows
+from estimation.streaming.chunks import (StreamingUnsupportedError, clock_source, positions_source, segment_sources,
+                                        source_rows)
 from estimation.streaming.periods import plan_chunks
 from estimation.streaming.record_floor import record_floor
 from estimation.streaming.recorded_errors import counted_errors_at_stamps, scored_records
@@ -134,8 +135,6 @@ def check_streamable(identified: IdentifiedModel) -> None:
         reasons.append(f"a Butterworth filter of order {plan.order}")
     if plan.trimmed_s:
         reasons.append(f"{plan.trimmed_s:g} s trimmed at each end")
-    if plan.velocity_from_positions:
-        reasons.append("the logged velocities replaced by the positions' derivative")
     if reasons:
         raise StreamingUnsupportedError(f"the model file's reading holds {', '.join(reasons)}: the streamed "
                                         f"`oed predict` does not make it; {IN_MEMORY}")
@@ -150,6 +149,14 @@ def _sources(identified: IdentifiedModel, paths: Sequence[str | Path], chunk_siz
         if not Path(path).is_file():
             raise StreamingUnsupportedError(f"{path}: the streamed `oed predict` reads .csv and .parquet files")
     sources = segment_sources(list(paths), model, chunk_size=chunk_size)
+    if identified.preprocessing.velocity_from_positions:  # dq made from the positions, as memory's plan makes it
+        return [positions_source(source) for source in _clocked(identified, sources)]
+    return _clocked(identified, sources)
+
+
+def _clocked(identified: IdentifiedModel, sources: list) -> list:
+    """``sources`` each on its regular clock when the model file's time base is ``regular`` (:func:`_sources`)."""
+    model = identified.model
     if identified.preprocessing.time_base != "regular":
         return sources
     placed = []
@@ -162,7 +169,7 @@ def _sources(identified: IdentifiedModel, paths: Sequence[str | Path], chunk_siz
         except NoRegularClockError:
             warnings.warn(f"{source}: the model was identified with the samples on a regular clock, but this "
                           "record's stamps give none (a dropped row or a stall inside a segment): its samples are "
-                          "taken at their stamps", stacklevel=3)
+                          "taken at their stamps", stacklevel=4)
             placed.append(source)
     return placed
 

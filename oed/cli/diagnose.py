@@ -25,7 +25,7 @@ from oed.cli.identify_consistent import add_consistent_arguments
 from oed.cli.shared.verbs import verb_summary
 from oed.workflows.diagnose import DiagnoseOptions, diagnose, residual_figure, trace_figure
 from oed.workflows.options import check_json_path, check_report_path
-from estimation.streaming.settings import DEFAULT_SUBSAMPLE, FLOOR_WINDOW
+from estimation.streaming.settings import DEFAULT_SUBSAMPLE
 
 
 def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -71,8 +71,9 @@ def add_streamed_diagnosis_arguments(parser: argparse.ArgumentParser) -> None:
     group.add_argument("--subsample", type=int, default=DEFAULT_SUBSAMPLE, metavar="N",
                        help=f"training samples, spread evenly, on which shaped laws' shapes are searched and coupling "
                             f"pairs traced (default {DEFAULT_SUBSAMPLE}; up to twice that are kept)")
-    group.add_argument("--floor-window", type=int, default=FLOOR_WINDOW, metavar="N",
-                       help=f"rows of each validation file the noise floor is estimated on (default {FLOOR_WINDOW})")
+    group.add_argument("--floor-window", type=int, default=None, metavar="N",
+                       help="rows of each validation file the noise floor is estimated on (default: every row, "
+                            "memory's floor)")
 
 
 def derived_outputs(args: argparse.Namespace) -> dict[str, Path]:

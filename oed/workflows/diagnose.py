@@ -58,7 +58,7 @@ from estimation.identification.repeated_motion import repeat_note, repeated_moti
 from estimation.identification.undetermined import fitted_without_undetermined
 from estimation.preprocessing.delay import DelayBounds, split_delay
 from estimation.preprocessing.plan import Preprocessing
-from estimation.streaming.settings import DEFAULT_SUBSAMPLE, FLOOR_WINDOW
+from estimation.streaming.settings import DEFAULT_SUBSAMPLE
 from estimation.identification.model_file import summed_model_file_document
 from estimation.identification.friction_drift import FrictionDrift, check_friction_drift
 from estimation.identification.time_base_choice import STREAMED_TIME_BASE
@@ -151,7 +151,7 @@ class DiagnoseOptions(RecordOptions):
     alpha: float = 1e-3
     max_effects: int = 20
     subsample: int = DEFAULT_SUBSAMPLE
-    floor_window: int = FLOOR_WINDOW
+    floor_window: int | None = None
     unseen_stretches: bool = False
     consistent: bool = False
     prior_weight: float | str | None = None
@@ -1003,6 +1003,8 @@ def check_streamed_arguments(args: DiagnoseOptions, model: IdentificationModel) 
                          f"{STREAMED}; declare their plain forms, or let the diagnosis find them")
     for option in ("subsample", "floor_window"):
         value = getattr(args, option)
+        if value is None and option == "floor_window":  # every row: memory's floor
+            continue
         if isinstance(value, bool) or value < 1:
             raise ValueError(f"--{option.replace('_', '-')} must be a positive integer, got {value}")
 

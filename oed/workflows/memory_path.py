@@ -147,6 +147,8 @@ def stamps_kept(data: Sequence) -> bool:
 def with_time_base(model_plan: dict, plan: Preprocessing) -> dict:
     """A streamed model file's preprocessing (``Preprocessing.to_dict`` keys) with ``plan``'s time base: ``oed
     predict`` reads a record on the regular clock when the fit read its sources on it (:func:`on_time_base`)."""
+    if plan.velocity_from_positions:  # oed predict makes dq from the positions too (on_time_base)
+        model_plan = {**model_plan, "velocity_from_positions": True}
     return {**model_plan, "time_base": "regular"} if plan.time_base == "regular" else model_plan
 
 
@@ -154,12 +156,18 @@ def on_time_base(args, plan: Preprocessing | None):
     """``args`` with the sources of ``--data`` and ``--validate`` read on the regular clock their stamps
     jitter around (:func:`estimation.streaming.chunks.clock_source`) when ``plan`` chose it
     (:func:`streamed_time_base`), else ``args``: every pass then reads the same samples as memory's records on that
-    clock."""
-    from estimation.streaming.chunks import clock_source
+    clock. Where ``plan`` makes ``dq`` from the positions though the files log it (``velocity_from_positions``,
+    a candidate of memory's choice), the sources are read without their logged velocities
+    (:func:`estimation.streaming.chunks.positions_source`): every pass derives ``dq`` as memory's filter does."""
+    from estimation.streaming.chunks import clock_source, positions_source
 
-    if plan is None or plan.time_base != "regular":
+    if plan is None or (plan.time_base != "regular" and not plan.velocity_from_positions):
         return args
-    changes = {name: [clock_source(path) for path in getattr(args, name)]
+
+    def placed(path):
+        path = clock_source(path) if plan.time_base == "regular" else path
+        return positions_source(path) if plan.velocity_from_positions else path
+    changes = {name: [placed(path) for path in getattr(args, name)]
                for name in ("data", "validate") if getattr(args, name, None)}
     return replace(args, **changes)
 
