@@ -43,6 +43,8 @@ _EXPORTS: dict[str, str] = {
     "RepeatedRowsWarning": "estimation.data.loading",
     "RepeatedHeaderWarning": "estimation.data.loading",
     "BlankRowsWarning": "estimation.data.loading",
+    "NewestFirstWarning": "estimation.data.loading",
+    "HeldChannelWarning": "estimation.data.loading",
     "EncoderGlitchWarning": "estimation.data.loading",
     "SaturatedTorqueWarning": "estimation.data.loading",
     "ResampledWarning": "estimation.data.loading",

@@ -56,6 +56,7 @@ from estimation.data.loading import (
     check_sample_count,
     check_time,
     count_joint_columns,
+    newest_first,
     csv_dialect,
     in_si_units,
     units_row_factors,
@@ -377,7 +378,7 @@ def segments_from_frame(
     if isinstance(max_gap, bool) or not isinstance(max_gap, (int, float, np.floating)) or not max_gap > 0 \
             or not np.isfinite(max_gap):
         raise ValueError(f"max_gap must be a positive number of seconds, got {max_gap!r}")
-    frame = frame.rename(columns=lambda name: str(name).strip())
+    frame = newest_first(frame.rename(columns=lambda name: str(name).strip()), source)
     n_joints = _joint_count(frame, n_joints, model, source)
     frame = with_passive_torques(frame, model, source)  # a passive joint's torque: zero by physics
     blank = dropouts(frame, n_joints)
