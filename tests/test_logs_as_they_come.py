@@ -60,3 +60,27 @@ def test_a_log_written_newest_first_is_read_reversed_and_said(puma3, tmp_path):
         read_measurements(tmp_path / "shuffled.csv", model=model)
     with pytest.raises(TimeBaseError, match="a log written newest first; the in-memory reader reads it reversed"):
         segment_sources([tmp_path / "newest_first.csv"], model, chunk_size=100)
+
+
+def test_abb_egm_header_tm_alone_is_read_as_milliseconds(tmp_path):
+    """An EGM table whose only clock is the message header's ``tm`` (egm.proto: milliseconds; no ``EgmClock``
+    ``feedBack.time``): read as the time in seconds, said with the map that reads it so (which reads the same
+    values). At 6d10335 it was refused: "missing column(s) t". A plan's header (``planned.header.tm``) is no clock of
+    the samples."""
+    from dynamics.robots import load_robot
+    from estimation.data import MissingColumnError
+    from tests.test_vendor_logs import abb_egm, read_file, said_map, signals
+
+    values = signals(6, rows=200)
+    robot = load_robot("puma560", joints=6)
+    table = abb_egm(values).drop(columns=["feedBack.time.sec", "feedBack.time.usec", "planned.time.sec",
+                                          "planned.time.usec"])
+    table["header.tm"] += 7_200_000  # two hours since the controller started
+    read, said = read_file(table, tmp_path / "egm.csv", robot)
+    assert np.allclose(read.t, values["t"] + 7200.0, atol=1e-9) and np.allclose(read.tau[:, 2], values["tau3"])
+    assert any("ABB EGM's header stamp header.tm, milliseconds by its protocol (--columns 't=0.001*header.tm')"
+               in message for message in said), said
+    mapped, _ = read_file(table, tmp_path / "egm.csv", robot, columns=said_map(said, "controller's log"))
+    assert np.array_equal(mapped.t, read.t) and np.array_equal(mapped.q, read.q)
+    with pytest.raises(MissingColumnError, match="missing column"):
+        read_file(table.rename(columns={"header.tm": "planned.header.tm"}), tmp_path / "plan.csv", robot)

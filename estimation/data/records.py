@@ -80,6 +80,7 @@ from estimation.data.log_formats import (
     joint_state_echo,
     read_log_frame,
     split_stamps,
+    header_milliseconds,
     time_column,
 )
 from estimation.data.vendor_logs import AmbiguousColumnsError, VendorColumnsWarning, array_cells, vendor_columns
@@ -232,6 +233,13 @@ def in_the_format(frame: pd.DataFrame, path: Path, model: IdentificationModel | 
             warnings.warn(TimeColumnWarning(
                 f"{path}: no column t; the time joined from its stamp split in two, counted from the first row's "
                 f"{first.iloc[0]:.0f} s (--columns {shlex.quote('t=' + time)})"), stacklevel=2)
+        else:
+            time = header_milliseconds(frame)
+            if time is not None:  # ABB EGM's header.tm alone: milliseconds by its protocol
+                frame = apply_column_map(frame, {"t": time}, str(path))
+                warnings.warn(TimeColumnWarning(
+                    f"{path}: no column t; the time read from ABB EGM's header stamp {time.split('*', 1)[1]}, "
+                    f"milliseconds by its protocol (--columns {shlex.quote('t=' + time)})"), stacklevel=2)
     described = None if robot is None else description_numbered(frame, robot, str(path))
     if described is not None:  # q1..q6 of a dual arm's log, the description's order: one arm's own columns read
         frame = frame.drop(columns=list(described.left_out)).rename(
