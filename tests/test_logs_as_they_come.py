@@ -84,3 +84,62 @@ def test_abb_egm_header_tm_alone_is_read_as_milliseconds(tmp_path):
     assert np.array_equal(mapped.t, read.t) and np.array_equal(mapped.q, read.q)
     with pytest.raises(MissingColumnError, match="missing column"):
         read_file(table.rename(columns={"header.tm": "planned.header.tm"}), tmp_path / "plan.csv", robot)
+
+
+def held_torques(table: pd.DataFrame, every: int) -> pd.DataFrame:
+    """``table`` with its torques sampled at ``1/every`` of the positions' rate and each value repeated on the rows
+    up to the next sample (a drive's slower channel merged by holding its last value, not by blanks)."""
+    rows = np.arange(len(table))
+    held = table.copy()
+    columns = [column for column in table.columns if column.startswith("tau")]
+    held[columns] = table[columns].to_numpy()[rows - rows % every]
+    return held
+
+
+@pytest.mark.parametrize("every", [2, 3])
+def test_torques_held_at_a_lower_rate_are_read_as_that_rate_in_memory_and_streamed(puma3, tmp_path, every):
+    """Torques sampled at a half (a third) of the positions' rate, each value repeated until the next (h-unseen16's
+    ``held`` logger): the repeats are read as the channel's blanks, each hold's first row its sample, in a
+    ``HeldChannelWarning``, in memory and chunk by chunk alike (chunks of 100 rows: the hold across their edges).
+    At 6d10335 every repeat was read as a sample (a lag of half a hold the diagnosis then explained)."""
+    from estimation.data import HeldChannelWarning
+    from estimation.streaming.chunks import read_chunks
+
+    model, clean = puma3
+    table = held_torques(pd.read_csv(clean), every)
+    table.to_csv(tmp_path / "held.csv", index=False, float_format="%.17g")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        from estimation.data.records import read_measurements
+
+        memory = read_measurements(tmp_path / "held.csv", model=model)
+        chunks = list(read_chunks(tmp_path / "held.csv", model, chunk_size=100))
+    said = [str(item.message) for item in caught if issubclass(item.category, HeldChannelWarning)]
+    dropped = len(table) - len(range(0, len(table), every))
+    assert len(said) == 2 and all(f"joint torques (tau) new every {every} rows" in text and
+                                  f"the {dropped} row(s) of {len(table)}" in text for text in said), said
+    kept = np.arange(0, len(table), every)
+    assert np.array_equal(memory.as_recorded.t, table["t"].to_numpy()[kept])
+    assert np.array_equal(memory.as_recorded.tau, table[["tau1", "tau2", "tau3"]].to_numpy()[kept])
+    assert np.allclose(np.concatenate([chunk.t for chunk in chunks]), memory.t, rtol=0, atol=1e-12)
+    assert np.allclose(np.vstack([chunk.tau for chunk in chunks]), memory.tau, rtol=0, atol=1e-12)
+
+
+def test_a_quantised_torque_or_stale_rows_are_no_hold(puma3, tmp_path):
+    """What repeats without a hold is read as before: a torque quantised coarsely (0.5 N·m: its values repeat on
+    runs of irregular length as the signal crosses its levels) and a few stale rows (the Panda's logger: 92 rows of
+    20 544 whose torques repeat the previous row's while the positions moved)."""
+    from estimation.data.held_channels import held_rows
+
+    model, clean = puma3
+    table = pd.read_csv(clean)
+    n = model.robot.n_joints
+    quantised = table.copy()
+    quantised[["tau1", "tau2", "tau3"]] = np.round(table[["tau1", "tau2", "tau3"]] / 0.5) * 0.5
+    found = held_rows(quantised, n)
+    assert not found.holds and not found.rows.any()
+    stale = table.copy()
+    rows = np.arange(5, len(table), 23)
+    stale.loc[rows, ["tau1", "tau2", "tau3"]] = table.loc[rows - 1, ["tau1", "tau2", "tau3"]].to_numpy()
+    assert not held_rows(stale, n).holds
+    assert held_rows(held_torques(table, 2), n).holds == (("tau", 2),)

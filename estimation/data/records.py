@@ -32,6 +32,7 @@ from estimation.data.loading import (
     BlankRowsWarning,
     COLUMN_GROUPS,
     EncoderGlitchWarning,
+    HeldChannelWarning,
     SaturatedTorqueWarning,
     DelimiterWarning,
     DuplicatedTimesWarning,
@@ -85,6 +86,7 @@ from estimation.data.log_formats import (
 )
 from estimation.data.vendor_logs import AmbiguousColumnsError, VendorColumnsWarning, array_cells, vendor_columns
 from estimation.data.sampling_clock import clock_instants, clock_roughness, quantised_clock, said_receive_times
+from estimation.data.held_channels import HeldChannels, held_rows
 from estimation.data.channel_mask import channel_only_parameters, masked_channels
 from estimation.data.log_cleaning import (DEFAULT_MAX_GAP, ZERO_ROW_JOINTS, Gap, PositionSteps, blank_rows, describe,
                                           GLITCH_RUN, encoder_glitches, find_gaps, position_steps, repeated_rows,
@@ -397,6 +399,11 @@ def segments_from_frame(
     if blank.any():
         first = int(np.flatnonzero(blank)[0])
         said_dropouts(int(blank.sum()), first, frame["t"].iloc[first] if "t" in frame.columns else None, source)
+    held = held_rows(frame, n_joints)
+    if held.holds:  # a channel at a lower rate, its value repeated between its samples: the repeats are blanks
+        said_held(held, int(np.count_nonzero(held.rows & ~blank)), len(frame), source)
+        blank = blank | held.rows
+    if blank.any():
         frame = frame[~blank].reset_index(drop=True)
     groups = set(require) | set(required_groups(model)) | {"q"}
     unknown = groups - set(COLUMN_GROUPS)
@@ -536,6 +543,18 @@ def said_glitches(rows: NDArray[np.int64], joints: NDArray[np.int64], stamps: ND
         "velocity limit, or without one four times the record's fast speed, and more than four of its counts): "
         f"{shown}{more}; read as dropouts, the "
         "time they leave bridged by interpolation as any gap", EncoderGlitchWarning, stacklevel=5)
+
+
+def said_held(held: HeldChannels, count: int, rows: int, source: str) -> None:
+    """The :class:`HeldChannelWarning` for the channels of ``held`` (:func:`estimation.data.held_channels.held_rows`),
+    ``count`` of the file's ``rows`` rows dropped as their repeats."""
+    groups = "; ".join(f"{GROUP_MEANING.get(group, group).split(' (')[0]} ({group}) new every {every} rows, repeated between"
+                       for group, every in held.holds)
+    warnings.warn(
+        f"{source}: a channel logged at a lower rate than the positions, its last value repeated on the rows between "
+        f"its samples (a hold, not a measurement of those instants): {groups}; the {count} row(s) of {rows} where it "
+        "repeats are read as that channel's blanks (dropped, as a lower-rate channel's empty cells are), each hold's "
+        "first row its sample", HeldChannelWarning, stacklevel=5)
 
 
 def said_dropouts(count: int, first_row: int, first_stamp: object, source: str) -> None:
