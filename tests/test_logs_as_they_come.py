@@ -143,3 +143,70 @@ def test_a_quantised_torque_or_stale_rows_are_no_hold(puma3, tmp_path):
     stale.loc[rows, ["tau1", "tau2", "tau3"]] = table.loc[rows - 1, ["tau1", "tau2", "tau3"]].to_numpy()
     assert not held_rows(stale, n).holds
     assert held_rows(held_torques(table, 2), n).holds == (("tau", 2),)
+
+
+def servo_log(path, rows: int = 1500) -> pd.DataFrame:
+    """The servo arm of ``path`` (an MJCF) simulated by MuJoCo itself, each row its state, controls and MuJoCo's
+    own forces at that state (``mj_forward`` before each step: the force the step applies), as ``mjData`` names."""
+    import mujoco
+
+    model = mujoco.MjModel.from_xml_path(str(path))
+    data = mujoco.MjData(model)
+    logged = []
+    for step in range(rows):
+        t = step * model.opt.timestep
+        data.ctrl[:] = [0.8 * np.sin(2.0 * t), 0.6 * np.cos(3.0 * t), 0.5 * np.sin(1.5 * t + 0.3)]
+        mujoco.mj_forward(model, data)
+        logged.append({"time": data.time} | {f"{name}[{k}]": float(getattr(data, name)[k]) for k in range(3)
+                                             for name in ("qpos", "qvel", "ctrl", "actuator_force", "qfrc_actuator")})
+        mujoco.mj_step(model, data)
+    return pd.DataFrame(logged)
+
+
+def test_a_mujoco_servos_force_is_computed_from_its_controls_with_the_mjcf(tmp_path):
+    """A MuJoCo log of a servo arm's controls and state only (``qpos``, ``qvel``, ``ctrl``: no ``actuator_force``
+    nor ``qfrc_actuator``): with the MJCF given (its transmission from the ``<actuator>`` elements) the joint torques
+    are computed by the actuators' laws (a ``<position>`` servo with gear 2, its control and force clamped to their
+    ranges; a ``<velocity>`` servo; a ``<general>`` with an affine bias, gear 3) and equal MuJoCo's
+    ``qfrc_actuator`` (1e-9), said in a ``ServoForcesWarning``; the laws survive a model file's transmission (JSON).
+    Without the MJCF the log stays refused naming the force arrays; a servo whose control is filtered
+    (``timeconst``: an activation state) is refused with the MJCF too. At 6d10335 every one was refused."""
+    from dynamics.mjcf import robot_from_mjcf, transmission_from_mjcf
+    from dynamics.transmission_files import transmission_from_json
+    from estimation.data import MissingColumnError, ServoForcesWarning
+    from estimation.data.motor_side import read_record_with_transmission
+    from tests.test_vendor_logs import SERVO_ARM, read_file
+
+    description = tmp_path / "servo_arm.xml"
+    description.write_text(SERVO_ARM.replace('kv="20" gear="2"', 'kv="20" gear="2" ctrlrange="-0.5 0.5" '
+                                             'forcerange="-5 5"'))
+    robot = robot_from_mjcf(description)
+    table = servo_log(description)
+    torques = table[[f"qfrc_actuator[{k}]" for k in range(3)]].to_numpy()
+    controls_only = table.drop(columns=[f"{name}[{k}]" for name in ("actuator_force", "qfrc_actuator")
+                                        for k in range(3)])
+    controls_only.to_csv(tmp_path / "controls.csv", index=False, float_format="%.17g")
+    forces = table[[f"actuator_force[{k}]" for k in range(3)]].to_numpy()
+    assert np.abs(forces[:, 0]).max() == 5.0  # the position servo's force clamped at its range
+    model = build_model(robot, "internal", "viscous")
+    transmission = transmission_from_mjcf(description, robot)
+    for given in (transmission, transmission_from_json(transmission.to_dict(), robot)):
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            (segment,) = read_record_with_transmission(tmp_path / "controls.csv", model=model, transmission=given)
+        said = [str(item.message) for item in caught if issubclass(item.category, ServoForcesWarning)]
+        assert len(said) == 1 and "computed from the servos' controls ctrl1..ctrl3" in said[0], said
+        assert np.allclose(segment.as_recorded.tau, torques, rtol=1e-9, atol=1e-9)
+    with pytest.raises(MissingColumnError, match=r"ctrl\[0\]..ctrl\[2\] are MuJoCo's controls, not forces.*"
+                       r"data.qfrc_actuator.*data.actuator_force"):
+        read_file(controls_only, tmp_path / "alone.csv", robot)
+    no_velocity = controls_only.drop(columns=[f"qvel[{k}]" for k in range(3)])
+    no_velocity.to_csv(tmp_path / "no_velocity.csv", index=False, float_format="%.17g")
+    warnings.simplefilter("ignore")  # (the reader's notes on the time column: said in the cases above)
+    with pytest.raises(MissingColumnError, match="depend on the joints' velocities .* log data.qvel"):
+        read_record_with_transmission(tmp_path / "no_velocity.csv", model=model, transmission=transmission)
+    filtered = tmp_path / "filtered.xml"
+    filtered.write_text(SERVO_ARM.replace('kv="20" gear="2"', 'kv="20" gear="2" timeconst="0.05"'))
+    with pytest.raises(MissingColumnError, match="MuJoCo's controls, not forces"):
+        read_record_with_transmission(tmp_path / "controls.csv", model=model,
+                                      transmission=transmission_from_mjcf(filtered, robot_from_mjcf(filtered)))

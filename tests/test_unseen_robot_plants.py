@@ -252,7 +252,7 @@ PLANTS = (
     Plant(Day(Lab("PUMA 6 joints, torques sampled and held at half the positions' rate (each value on two rows), "
                   "10 s / 4 s / 8 s at 250 Hz, no dq, point-to-point test", puma(6), *logs(),
                   test_motion="point-to-point", slow=True),
-              logger=held(), may_name=("coulomb", "viscous", "offset", "delay"))),  # the hold's lag: its truth
+              logger=held())),  # the repeats read as the channel's blanks (h-logs3): no lag left to name
     Plant(Day(Lab("UR10e-like, torques logged in kN m (no units row), 10 s / 4 s / 8 s at 500 Hz, logged dq, "
                   "point-to-point test", ur10e, *logs(rate=500.0, velocity=True, motion_hz=0.1),
                   test_motion="point-to-point", slow=True),

@@ -19,6 +19,7 @@ _EXPORTS: dict[str, str] = {
     "DEFAULT_MAX_GAP": "estimation.data.log_cleaning",
     "AmbiguousColumnsError": "estimation.data.vendor_logs",
     "VendorColumnsWarning": "estimation.data.vendor_logs",
+    "ServoForcesWarning": "estimation.data.vendor_logs",
     "vendor_columns": "estimation.data.vendor_logs",
     "DEFAULT_TOPIC": "estimation.data.log_formats",
     "DescriptionOrderWarning": "estimation.data.log_formats",

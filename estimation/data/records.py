@@ -26,6 +26,7 @@ from numpy.typing import NDArray
 from dynamics.channels import WRENCH_CHANNELS
 from dynamics.models import IdentificationModel, ModelKind
 from dynamics.robot import JointType
+from dynamics.servos import ServoLaws
 from estimation.data.loading import (
     ABSURD_VALUE,
     AbsurdValueError,
@@ -84,7 +85,8 @@ from estimation.data.log_formats import (
     header_milliseconds,
     time_column,
 )
-from estimation.data.vendor_logs import AmbiguousColumnsError, VendorColumnsWarning, array_cells, vendor_columns
+from estimation.data.vendor_logs import (AmbiguousColumnsError, ServoForcesWarning, VendorColumnsWarning, array_cells,
+                                        vendor_columns, with_servo_torques)
 from estimation.data.sampling_clock import clock_instants, clock_roughness, quantised_clock, said_receive_times
 from estimation.data.held_channels import HeldChannels, held_rows
 from estimation.data.channel_mask import channel_only_parameters, masked_channels
@@ -207,14 +209,16 @@ def read_record(
 
 
 def in_the_format(frame: pd.DataFrame, path: Path, model: IdentificationModel | ModelKind | str | None, *,
-                  require: Iterable[str] = ("q",)) -> pd.DataFrame:
+                  require: Iterable[str] = ("q",), servos: ServoLaws | None = None) -> pd.DataFrame:
     """A CSV or Parquet table with its columns under the format's names where it names them otherwise, each said
     in a warning giving the ``--columns`` map that reads it so: ``rostopic echo -p`` of ``JointState`` messages
     (:func:`~estimation.data.log_formats.joint_state_echo`), the time under another name
     (:func:`~estimation.data.log_formats.time_column`), joint columns named by the robot's joints
     (:func:`~estimation.data.log_formats.joint_named_columns`), then a controller's or driver's log
     (:func:`~estimation.data.vendor_logs.vendor_columns`: ``actual_q_0``, ``q[0]``, ``measured_torque``…, cells
-    holding arrays split). One rule for the in-memory reader and the motor-side one."""
+    holding arrays split). One rule for the in-memory reader and the motor-side one. ``servos``: the MJCF's actuator
+    laws (a transmission's, :func:`dynamics.mjcf.mjcf_servos`): a MuJoCo log of the servos' controls without a force
+    is read through them (:func:`~estimation.data.vendor_logs.with_servo_torques`), else refused."""
     robot = model.robot if isinstance(model, IdentificationModel) else None
     echo = joint_state_echo(frame)
     if echo is not None:  # rostopic echo -p of JointState messages: read as the column map that reads it
@@ -256,10 +260,14 @@ def in_the_format(frame: pd.DataFrame, path: Path, model: IdentificationModel | 
     if robot is not None and echo is None and not {"q1", "qm1"} & {str(column) for column in frame.columns}:
         frame = array_cells(frame)
         torque = "tau" in set(require) | set(required_groups(model))
-        reading = vendor_columns(frame, robot.joint_names, robot.n_joints, str(path), torque=torque, time=time)
+        reading = vendor_columns(frame, robot.joint_names, robot.n_joints, str(path), torque=torque, time=time,
+                                 controls=servos is not None)
         if reading is not None:  # a controller's log: actual_q_0.., tau_J[0].., measured_torque..
             frame = apply_column_map(frame, reading.columns, str(path))
             warnings.warn(VendorColumnsWarning(reading.message), stacklevel=2)
+            if servos is not None and "ctrl1" in frame.columns:  # a servo's setpoint: its force by the MJCF's law
+                frame, said = with_servo_torques(frame, servos, robot.n_joints, str(path))
+                warnings.warn(ServoForcesWarning(said), stacklevel=2)
     return frame
 
 
