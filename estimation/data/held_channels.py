@@ -99,15 +99,21 @@ def held_rows(frame: pd.DataFrame, n_joints: int, before: pd.DataFrame | None = 
         return none
     context = before is not None and len(before) > 0 and all(column in before.columns for column in positions)
     joined = pd.concat([before.iloc[-1:], frame]) if context else frame
+    candidates = []
+    for group in HELD_GROUPS:  # a group's first column must repeat often enough first (one column read: cheap)
+        columns = list(WRENCH_CHANNELS) if group == "wrench" else joint_columns(group, n_joints)
+        if all(column in joined.columns for column in columns):
+            first = _numbers(joined, columns[:1])[:, 0]
+            if np.count_nonzero(first[1:] == first[:-1]) >= HELD_SHARE * HELD_LEAST:
+                candidates.append((group, columns))
+    if not candidates:
+        return none
     q = _numbers(joined, positions)
     moved = np.zeros(q.shape[0], dtype=bool)
     moved[1:] = np.any(q[1:] != q[:-1], axis=1)
     rows = np.zeros(len(joined), dtype=bool)
     holds = []
-    for group in HELD_GROUPS:
-        columns = list(WRENCH_CHANNELS) if group == "wrench" else joint_columns(group, n_joints)
-        if not all(column in joined.columns for column in columns):
-            continue
+    for group, columns in candidates:
         repeats, hold = held_samples(_numbers(joined, columns), moved)
         if hold:
             rows |= repeats
