@@ -57,10 +57,11 @@ from numpy.typing import NDArray
 
 from dynamics.errors import RobotDescriptionError
 from dynamics.robot import DEFAULT_GRAVITY, Joint, JointType, RobotModel, inertial_parameters
+from dynamics.servos import ServoLaws
 from dynamics.transmission import Transmission, TransmissionError
 
 __all__ = ["MjcfIgnoredWarning", "MjcfLayout", "is_mjcf", "is_mjcf_text", "mjcf_text", "mjcf_joint_terms", "mjcf_logged_chain",
-           "mjcf_actuated_joints", "mjcf_layout", "robot_from_mjcf", "transmission_from_mjcf"]
+           "mjcf_actuated_joints", "mjcf_layout", "mjcf_servos", "robot_from_mjcf", "transmission_from_mjcf"]
 
 #: the joint terms read (MuJoCo's names) and the toolkit's names of what they are
 READ_JOINT_TERMS: dict[str, str] = {"damping": "viscous", "frictionloss": "coulomb"}
@@ -144,6 +145,8 @@ class _ActuatorElement:
     kind: str  # joint, jointinparent, tendon, site, body, slidercrank
     target: str  # the joint, tendon, site, body or crank site it acts through
     gear: float  # the first number of ``gear``: a joint's torque per unit of actuator force
+    tag: str = ""  # motor, position, velocity, general...
+    attributes: Mapping[str, str] = field(default_factory=dict)  # the element's, its class's defaults merged in
 
 
 @dataclass
@@ -462,7 +465,8 @@ def _read(path: Path) -> _Model:
             gear = _floats(path, ElementTree.Element(element.tag, values), "gear", None, (1.0,))
             kind = ("slidercrank" if given[0] == "cranksite" else given[0]) if len(given) == 1 else ", ".join(given)
             model.actuators.append(_ActuatorElement(label, values.get("name"), kind,
-                                                    values[given[0]] if len(given) == 1 else "", float(gear[0])))
+                                                    values[given[0]] if len(given) == 1 else "", float(gear[0]),
+                                                    element.tag, dict(values)))
     for section in root.findall("equality"):
         for equality in section:
             if equality.get("active", "true") == "false":
@@ -848,7 +852,7 @@ def transmission_from_mjcf(path: str | Path, robot: RobotModel) -> Transmission 
     names = tuple((ratios[name][1].name if name in ratios else None) or f"m{index + 1}"
                   for index, name in enumerate(robot.joint_names))
     return Transmission(np.array([ratios[name][0] if name in ratios else 1.0 for name in robot.joint_names]), names,
-                        source=f"MJCF {path.name} <actuator> gears")
+                        source=f"MJCF {path.name} <actuator> gears", servos=_servos_or_none(path, robot))
 
 
 def mjcf_actuated_joints(path: str | Path) -> frozenset[str] | None:
@@ -909,3 +913,114 @@ def mjcf_logged_chain(path: str | Path, n_logged: int) -> tuple[tuple[str, ...],
                           + ": name the logged joints, base to tip (joint_names, --joint-names A,B,C); the others "
                           "are locked")
     return chains[0], tuple(name for name in model.joints if name not in chains[0])
+
+
+#: the actuator elements whose force is a law of the control and the state (no activation state of their own)
+SERVO_TAGS = ("motor", "position", "velocity", "damper", "general")
+
+
+def _limits(path: Path, values: Mapping[str, str], tag: str, attribute: str, limited: str,
+            autolimits: bool) -> NDArray[np.float64]:
+    """``(2,)`` an actuator's (or joint's) ``attribute`` range where ``limited`` says it applies (``auto``: given and
+    the compiler's ``autolimits``), else ``(-inf, inf)``."""
+    bounds = _floats(path, ElementTree.Element(tag, dict(values)), attribute, 2)
+    flag = values.get(limited, "auto")
+    if bounds is None or not (flag == "true" or (flag == "auto" and autolimits)):
+        return np.array([-np.inf, np.inf])
+    return np.asarray(bounds, dtype=float)
+
+
+def _servo_law(path: Path, actuator: _ActuatorElement) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """``(gain (3,), bias (3,))`` of one actuator (:mod:`dynamics.servos`), or a :class:`RobotDescriptionError`
+    naming what gives it a state of its own (activation dynamics) or needs the model's mass (``dampratio``)."""
+    values = actuator.attributes
+    element = ElementTree.Element(actuator.tag, dict(values))
+    where = f"MJCF {path}: actuator {actuator.label}"
+    if actuator.tag not in SERVO_TAGS:
+        raise RobotDescriptionError(f"{where}: a <{actuator.tag}> has an activation state of its own (or a plugin's "
+                                    "law): its force is not a law of the control and the joints' state")
+    number = lambda name, default: float(_floats(path, element, name, 1, (default,))[0])  # noqa: E731
+    if actuator.tag == "motor":
+        return np.array([1.0, 0.0, 0.0]), np.zeros(3)
+    if actuator.tag == "position":
+        if number("timeconst", 0.0) > 0:
+            raise RobotDescriptionError(f"{where}: timeconst > 0 filters the control (an activation state the log "
+                                        "does not hold)")
+        if values.get("dampratio") is not None:
+            raise RobotDescriptionError(f"{where}: dampratio sets kv from the joint's inertia at the reference pose "
+                                        "(MuJoCo's compiler); write kv")
+        if number("inheritrange", 0.0) > 0:
+            raise RobotDescriptionError(f"{where}: inheritrange sets ctrlrange from the joint's range; write ctrlrange")
+        kp, kv = number("kp", 1.0), number("kv", 0.0)
+        return np.array([kp, 0.0, 0.0]), np.array([0.0, -kp, -kv])
+    if actuator.tag == "velocity":
+        kv = number("kv", 1.0)
+        return np.array([kv, 0.0, 0.0]), np.array([0.0, 0.0, -kv])
+    if actuator.tag == "damper":
+        return np.array([0.0, 0.0, -number("kv", 0.0)]), np.zeros(3)
+    dynamics = values.get("dyntype", "none")
+    if dynamics != "none":
+        raise RobotDescriptionError(f"{where}: dyntype {dynamics!r} gives it an activation state the log does not hold")
+    gain_type, bias_type = values.get("gaintype", "fixed"), values.get("biastype", "none")
+    if gain_type not in ("fixed", "affine") or bias_type not in ("none", "affine"):
+        raise RobotDescriptionError(f"{where}: gaintype {gain_type!r}, biastype {bias_type!r}: only fixed or affine "
+                                    "laws are computed here")
+    gain = np.zeros(3)
+    given = _floats(path, element, "gainprm", None, (1.0,))
+    gain[:min(3, given.size)] = given[:3]
+    if gain_type == "fixed":
+        gain[1:] = 0.0
+    bias = np.zeros(3)
+    if bias_type == "affine":
+        given = _floats(path, element, "biasprm", None, (0.0,))
+        bias[:min(3, given.size)] = given[:3]
+    return gain, bias
+
+
+def _servos_or_none(path: Path, robot: RobotModel) -> ServoLaws | None:
+    """:func:`mjcf_servos`, or ``None`` where an actuator's force is no law of its control and the state: the
+    transmission's gears stand without them (a log of the controls alone is then refused, naming the forces)."""
+    try:
+        return mjcf_servos(path, robot)
+    except RobotDescriptionError:
+        return None
+
+
+def mjcf_servos(path: str | Path, robot: RobotModel) -> ServoLaws | None:
+    """The laws by which the MJCF file's actuators make their force from their controls and the state
+    (:class:`dynamics.servos.ServoLaws`, MuJoCo's actuator model), one a joint of ``robot``; ``None`` when a joint
+    of the chain has no actuator with a joint transmission, or one has several (which one's control is logged?),
+    or the file's option disables control clamping in a way not read here.
+
+    Raises
+    ------
+    RobotDescriptionError
+        Naming the actuator: activation dynamics (``timeconst``, ``dyntype``, ``<intvelocity>``, ``<cylinder>``,
+        ``<muscle>``), ``dampratio`` or ``inheritrange`` (set from the model by MuJoCo's compiler), a gain or
+        bias law other than fixed or affine.
+    """
+    path = Path(path)
+    model = _read(path)
+    compiler = _compiler(path, model.root) if model.root is not None else None
+    autolimits = True if compiler is None else compiler.autolimits
+    driving: dict[str, list[_ActuatorElement]] = {}
+    for actuator in model.actuators:
+        if actuator.kind in ("joint", "jointinparent") and actuator.target in robot.joint_names:
+            driving.setdefault(actuator.target, []).append(actuator)
+    if set(driving) != set(robot.joint_names) or any(len(found) != 1 for found in driving.values()):
+        return None
+    gear, gain, bias, ctrl, force, torque, labels = [], [], [], [], [], [], []
+    for name in robot.joint_names:
+        (actuator,) = driving[name]
+        law = _servo_law(path, actuator)
+        gear.append(actuator.gear)
+        gain.append(law[0])
+        bias.append(law[1])
+        ctrl.append(_limits(path, actuator.attributes, actuator.tag, "ctrlrange", "ctrllimited", autolimits))
+        force.append(_limits(path, actuator.attributes, actuator.tag, "forcerange", "forcelimited", autolimits))
+        joint = model.joint_elements.get(name)
+        torque.append(np.array([-np.inf, np.inf]) if joint is None else
+                      _limits(path, joint.attrib, joint.tag, "actuatorfrcrange", "actuatorfrclimited", autolimits))
+        labels.append(actuator.label)
+    return ServoLaws(np.array(gear), np.array(gain), np.array(bias), np.array(ctrl), np.array(force),
+                     np.array(torque), tuple(labels), source=f"MJCF {path.name} <actuator>")

@@ -35,6 +35,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from dynamics.robot import RobotModel
+from dynamics.servos import ServoLaws
 
 #: a coupling matrix whose condition number exceeds this is singular for our purposes
 MAX_CONDITION = 1e10
@@ -78,6 +79,9 @@ class Transmission:
     offsets
         Joint offsets ``q₀`` (rad, or m for a prismatic joint), one per joint: ``q = R⁻¹ θ_m + q₀``; ``None``
         when all are zero (the encoders' zeros are the description's).
+    servos
+        The laws by which each joint's actuator makes its force from its control and the state (an MJCF's
+        servos, :func:`dynamics.mjcf.mjcf_servos`): a log of the controls alone read through them; ``None``.
     """
 
     matrix: NDArray[np.float64]
@@ -85,6 +89,7 @@ class Transmission:
     torque_constants: tuple[float, ...] | None = None
     source: str = ""
     offsets: tuple[float, ...] | None = None
+    servos: ServoLaws | None = None
 
     def __post_init__(self) -> None:
         try:
@@ -164,7 +169,7 @@ class Transmission:
         constants = None if self.torque_constants is None else self.torque_constants[:n_joints]
         offsets = None if self.offsets is None else self.offsets[:n_joints]
         return Transmission(self.matrix[:n_joints, :n_joints], self.motor_names[:n_joints], constants, self.source,
-                            offsets)
+                            offsets, None if self.servos is None else self.servos.truncated(n_joints))
 
     @property
     def joint_offsets(self) -> NDArray[np.float64]:
@@ -224,6 +229,8 @@ class Transmission:
             document["torque_constants"] = list(self.torque_constants)
         if self.offsets is not None:
             document["offsets"] = list(self.offsets)
+        if self.servos is not None:
+            document["servos"] = self.servos.to_dict()
         return document
 
 

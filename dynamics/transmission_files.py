@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from dynamics.robot import RobotModel
+from dynamics.servos import ServoLaws
 from dynamics.transmission import (
     CouplingShapeError,
     JointDirections,
@@ -66,10 +67,10 @@ def transmission_from_json(source: str | Path | Mapping[str, Any], robot: RobotM
     if not isinstance(document, dict):
         raise TransmissionError(f"{where}: expected a JSON object with 'ratios' or 'matrix'")
     unknown = sorted(set(document) - {"ratios", "matrix", "joints", "couplings", "torque_constants", "motors",
-                                      "offsets"})
+                                      "offsets", "servos"})
     if unknown:
         raise TransmissionError(f"{where}: unknown key(s) {unknown}; expected ratios, matrix, joints, couplings, "
-                                "torque_constants, motors, offsets")
+                                "torque_constants, motors, offsets, servos")
     n = robot.n_joints
     if "matrix" in document:
         if "ratios" in document:
@@ -108,8 +109,16 @@ def transmission_from_json(source: str | Path | Mapping[str, Any], robot: RobotM
         for joint_key, value in dict(row).items():
             matrix[motor, _joint_index(robot, joint_key, where)] = float(value)
     offsets = joint_offsets(document["offsets"], robot, where) if document.get("offsets") is not None else None
+    servos = None
+    if document.get("servos") is not None:  # an MJCF's servo laws, kept with a model file's transmission
+        try:
+            servos = ServoLaws.from_dict(document["servos"], f"{where}: servos")
+        except ValueError as error:
+            raise TransmissionError(str(error)) from None
+        if servos.n_joints != n:
+            raise CouplingShapeError(f"{where}: servos for {servos.n_joints} joints, the robot has {n}")
     return Transmission(matrix, tuple(document.get("motors", ())), document.get("torque_constants"),
-                        source=where, offsets=offsets).check(robot)
+                        source=where, offsets=offsets, servos=servos).check(robot)
 
 
 def joint_offsets(values: Any, robot: RobotModel, where: str = "offsets") -> tuple[float, ...]:

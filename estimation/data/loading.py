@@ -187,6 +187,17 @@ class UnwrappedAngleWarning(MeasurementWarning):
     """A revolute joint's angle logged wrapped to ±π (or to a turn) was unwrapped on reading: which joint, how many wraps."""
 
 
+class NewestFirstWarning(MeasurementWarning):
+    """A log written newest first (its time column decreasing on every row): read reversed, oldest sample first
+    (:func:`newest_first`)."""
+
+
+class HeldChannelWarning(MeasurementWarning):
+    """A channel logged at a lower rate than the positions and merged into their table by repeating its last value
+    (torques held on two rows at half the positions' rate): the repeats are no samples and were dropped as a
+    lower-rate channel's blanks are (:func:`estimation.data.log_cleaning.held_samples`)."""
+
+
 class SplitWarning(MeasurementWarning):
     """Holes longer than ``max_gap``: the record was split into segments there."""
 
@@ -449,6 +460,26 @@ def _shown(value: object) -> str:
 COARSE_STAMPS = 0.25
 
 
+def newest_first(frame: pd.DataFrame, source: str) -> pd.DataFrame:
+    """``frame`` in the order of its time column ``t``: reversed, said in a :class:`NewestFirstWarning`, where the
+    log was written newest first (no step of its stamps forward, and more steps back than repeated stamps: a ring
+    buffer dumped from its latest entry, a database query ordered by time descending); as it is otherwise (rows out of
+    order stay :func:`check_time`'s error, naming them). Blank and non-numeric stamps are left out of the test."""
+    if "t" not in frame.columns or len(frame) < 3:
+        return frame
+    column = frame["t"]
+    t = (column.to_numpy(dtype=float) if pd.api.types.is_numeric_dtype(column)
+         else pd.to_numeric(column, errors="coerce").to_numpy(dtype=float))
+    t = t[np.isfinite(t)]
+    steps = np.diff(t)
+    if steps.size < 2 or np.any(steps > 0) or np.count_nonzero(steps < 0) <= np.count_nonzero(steps == 0):
+        return frame
+    warnings.warn(f"{source}: column t decreases on every row ({t[0]:.6g} s first, {t[-1]:.6g} s last): a log "
+                  f"written newest first, read reversed ({len(frame)} rows, oldest first); the rows named in other "
+                  "messages count from the oldest", NewestFirstWarning, stacklevel=4)
+    return frame.iloc[::-1].reset_index(drop=True)
+
+
 def check_time(t: NDArray[np.float64], source: str) -> float:
     """The median sampling step of ``t`` (s), after checking that ``t`` is a time series in seconds.
 
@@ -470,8 +501,15 @@ def check_time(t: NDArray[np.float64], source: str) -> float:
             raise TimeBaseError(f"{source}: column t decreases at row {row + 1} ({t[row]} -> {t[row + 1]}) and only "
                                 "there: a logger whose clock restarted? Split the file at that row and give each part "
                                 "as a segment (--data or --validate repeated); rows out of order: sort them")
+        if decreasing.size == steps.size:  # every step back: written newest first (the streamed reader's case)
+            raise TimeBaseError(f"{source}: column t decreases on every row ({t[0]} -> {t[-1]}): a log written newest "
+                                "first; the in-memory reader reads it reversed (without --chunk-size), or reverse "
+                                "its rows")
+        shown = ", ".join(f"{int(index) + 1} ({t[index]} -> {t[index + 1]})" for index in decreasing[1:6])
+        more = f" and {decreasing.size - 6} more" if decreasing.size > 6 else ""
         raise TimeBaseError(f"{source}: column t decreases at row {row + 1} ({t[row]} -> {t[row + 1]}) and at "
-                            f"{decreasing.size - 1} other row(s); sort the samples")
+                            f"{decreasing.size - 1} other row(s): {shown}{more}, of its {steps.size + 1}: rows out of "
+                            "order (neither oldest nor newest first); sort the samples by time")
     step = float(np.median(steps))
     peak = float(np.max(np.abs(t)))
     rounding = float(np.spacing(np.float32(peak)))

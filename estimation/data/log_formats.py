@@ -37,7 +37,7 @@ from estimation.data.loading import MeasurementError, MeasurementWarning, Missin
 __all__ = ["BAG_SUFFIXES", "DEFAULT_TOPIC", "DroppedStampsWarning", "LogSource", "RosSupportError", "UnknownTopicError",
            "DescribedColumns", "DescriptionOrderWarning",
            "JointStateTableWarning", "JointNamedColumnsWarning", "description_numbered", "TimeColumnWarning", "apply_column_map", "is_log_file", "joint_state_echo", "logged_joints", "parse_column_map", "read_log_frame",
-           "split_stamps"]
+           "split_stamps", "header_milliseconds"]
 
 #: the topic of ``sensor_msgs/JointState`` read by default
 DEFAULT_TOPIC = "/joint_states"
@@ -264,6 +264,33 @@ def split_stamps(frame: pd.DataFrame) -> list[str]:
             if steps.size and PLAUSIBLE_STEP[0] <= float(np.median(steps)) < PLAUSIBLE_STEP[1]:
                 found.append(f"{column}+{factor:g}*{fraction_column}")
     return found
+
+
+#: ABB EGM's message header's time (egm.proto, ``EgmHeader``: ``optional uint32 tm = 2; // Timestamp in
+#: milliseconds``): a column whose name's last word is ``tm`` after a ``header`` word, read in milliseconds
+EGM_HEADER_TIME = ("header", "tm")
+
+
+def header_milliseconds(frame: pd.DataFrame) -> str | None:
+    """For a table without a ``t`` column nor a split stamp, ABB EGM's header stamp as the column map's entry that
+    reads it in seconds (``"0.001*header.tm"``, :data:`EGM_HEADER_TIME`): the one column named ``…header.tm`` (case
+    and separators ignored; a command's header, ``planned…``, left out) whose steps, in milliseconds, are a robot
+    log's (:data:`PLAUSIBLE_STEP`); ``None`` otherwise."""
+    if "t" in frame.columns:
+        return None
+    found = []
+    for column in frame.columns:
+        words = re.findall(r"[a-z]+", str(column).lower())
+        if len(words) >= 2 and tuple(words[-2:]) == EGM_HEADER_TIME and not set(words) & _COMMAND_STAMP_WORDS:
+            found.append(str(column))
+    if len(found) != 1:
+        return None
+    values = pd.to_numeric(frame[found[0]], errors="coerce").to_numpy(dtype=float) * 1e-3
+    steps = np.diff(values[np.isfinite(values)])
+    steps = steps[steps > 0]
+    if steps.size == 0 or not PLAUSIBLE_STEP[0] <= float(np.median(steps)) < PLAUSIBLE_STEP[1]:
+        return None
+    return f"0.001*{found[0]}"
 
 
 @dataclass(frozen=True)

@@ -218,7 +218,7 @@ def _read_record(path: str | Path, *, model: IdentificationModel, transmission: 
         return read_record(path, model=model, max_gap=max_gap, split=split)
     frame = _read_frame(path)
     if not motor_columns(header):  # a controller's log may hold motor currents (actual_current_0..: im1..)
-        frame = in_the_format(frame, path, model)
+        frame = in_the_format(frame, path, model, servos=None if transmission is None else transmission.servos)
         if not motor_columns(frame.columns):
             return segments_from_frame(frame, model=model, source=str(path), max_gap=max_gap, split=split)
     frame = joint_side_frame(frame, transmission, model.robot.n_joints, source=str(path))

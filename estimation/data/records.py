@@ -26,12 +26,14 @@ from numpy.typing import NDArray
 from dynamics.channels import WRENCH_CHANNELS
 from dynamics.models import IdentificationModel, ModelKind
 from dynamics.robot import JointType
+from dynamics.servos import ServoLaws
 from estimation.data.loading import (
     ABSURD_VALUE,
     AbsurdValueError,
     BlankRowsWarning,
     COLUMN_GROUPS,
     EncoderGlitchWarning,
+    HeldChannelWarning,
     SaturatedTorqueWarning,
     DelimiterWarning,
     DuplicatedTimesWarning,
@@ -56,6 +58,7 @@ from estimation.data.loading import (
     check_sample_count,
     check_time,
     count_joint_columns,
+    newest_first,
     csv_dialect,
     in_si_units,
     units_row_factors,
@@ -79,10 +82,13 @@ from estimation.data.log_formats import (
     joint_state_echo,
     read_log_frame,
     split_stamps,
+    header_milliseconds,
     time_column,
 )
-from estimation.data.vendor_logs import AmbiguousColumnsError, VendorColumnsWarning, array_cells, vendor_columns
+from estimation.data.vendor_logs import (AmbiguousColumnsError, ServoForcesWarning, VendorColumnsWarning, array_cells,
+                                        vendor_columns, with_servo_torques)
 from estimation.data.sampling_clock import clock_instants, clock_roughness, quantised_clock, said_receive_times
+from estimation.data.held_channels import HeldChannels, held_rows
 from estimation.data.channel_mask import channel_only_parameters, masked_channels
 from estimation.data.log_cleaning import (DEFAULT_MAX_GAP, ZERO_ROW_JOINTS, Gap, PositionSteps, blank_rows, describe,
                                           GLITCH_RUN, encoder_glitches, find_gaps, position_steps, repeated_rows,
@@ -203,14 +209,16 @@ def read_record(
 
 
 def in_the_format(frame: pd.DataFrame, path: Path, model: IdentificationModel | ModelKind | str | None, *,
-                  require: Iterable[str] = ("q",)) -> pd.DataFrame:
+                  require: Iterable[str] = ("q",), servos: ServoLaws | None = None) -> pd.DataFrame:
     """A CSV or Parquet table with its columns under the format's names where it names them otherwise, each said
     in a warning giving the ``--columns`` map that reads it so: ``rostopic echo -p`` of ``JointState`` messages
     (:func:`~estimation.data.log_formats.joint_state_echo`), the time under another name
     (:func:`~estimation.data.log_formats.time_column`), joint columns named by the robot's joints
     (:func:`~estimation.data.log_formats.joint_named_columns`), then a controller's or driver's log
     (:func:`~estimation.data.vendor_logs.vendor_columns`: ``actual_q_0``, ``q[0]``, ``measured_torque``…, cells
-    holding arrays split). One rule for the in-memory reader and the motor-side one."""
+    holding arrays split). One rule for the in-memory reader and the motor-side one. ``servos``: the MJCF's actuator
+    laws (a transmission's, :func:`dynamics.mjcf.mjcf_servos`): a MuJoCo log of the servos' controls without a force
+    is read through them (:func:`~estimation.data.vendor_logs.with_servo_torques`), else refused."""
     robot = model.robot if isinstance(model, IdentificationModel) else None
     echo = joint_state_echo(frame)
     if echo is not None:  # rostopic echo -p of JointState messages: read as the column map that reads it
@@ -231,6 +239,13 @@ def in_the_format(frame: pd.DataFrame, path: Path, model: IdentificationModel | 
             warnings.warn(TimeColumnWarning(
                 f"{path}: no column t; the time joined from its stamp split in two, counted from the first row's "
                 f"{first.iloc[0]:.0f} s (--columns {shlex.quote('t=' + time)})"), stacklevel=2)
+        else:
+            time = header_milliseconds(frame)
+            if time is not None:  # ABB EGM's header.tm alone: milliseconds by its protocol
+                frame = apply_column_map(frame, {"t": time}, str(path))
+                warnings.warn(TimeColumnWarning(
+                    f"{path}: no column t; the time read from ABB EGM's header stamp {time.split('*', 1)[1]}, "
+                    f"milliseconds by its protocol (--columns {shlex.quote('t=' + time)})"), stacklevel=2)
     described = None if robot is None else description_numbered(frame, robot, str(path))
     if described is not None:  # q1..q6 of a dual arm's log, the description's order: one arm's own columns read
         frame = frame.drop(columns=list(described.left_out)).rename(
@@ -245,10 +260,14 @@ def in_the_format(frame: pd.DataFrame, path: Path, model: IdentificationModel | 
     if robot is not None and echo is None and not {"q1", "qm1"} & {str(column) for column in frame.columns}:
         frame = array_cells(frame)
         torque = "tau" in set(require) | set(required_groups(model))
-        reading = vendor_columns(frame, robot.joint_names, robot.n_joints, str(path), torque=torque, time=time)
+        reading = vendor_columns(frame, robot.joint_names, robot.n_joints, str(path), torque=torque, time=time,
+                                 controls=servos is not None)
         if reading is not None:  # a controller's log: actual_q_0.., tau_J[0].., measured_torque..
             frame = apply_column_map(frame, reading.columns, str(path))
             warnings.warn(VendorColumnsWarning(reading.message), stacklevel=2)
+            if servos is not None and "ctrl1" in frame.columns:  # a servo's setpoint: its force by the MJCF's law
+                frame, said = with_servo_torques(frame, servos, robot.n_joints, str(path))
+                warnings.warn(ServoForcesWarning(said), stacklevel=2)
     return frame
 
 
@@ -377,7 +396,7 @@ def segments_from_frame(
     if isinstance(max_gap, bool) or not isinstance(max_gap, (int, float, np.floating)) or not max_gap > 0 \
             or not np.isfinite(max_gap):
         raise ValueError(f"max_gap must be a positive number of seconds, got {max_gap!r}")
-    frame = frame.rename(columns=lambda name: str(name).strip())
+    frame = newest_first(frame.rename(columns=lambda name: str(name).strip()), source)
     n_joints = _joint_count(frame, n_joints, model, source)
     frame = with_passive_torques(frame, model, source)  # a passive joint's torque: zero by physics
     blank = dropouts(frame, n_joints)
@@ -388,6 +407,11 @@ def segments_from_frame(
     if blank.any():
         first = int(np.flatnonzero(blank)[0])
         said_dropouts(int(blank.sum()), first, frame["t"].iloc[first] if "t" in frame.columns else None, source)
+    held = held_rows(frame, n_joints)
+    if held.holds:  # a channel at a lower rate, its value repeated between its samples: the repeats are blanks
+        said_held(held, int(np.count_nonzero(held.rows & ~blank)), len(frame), source)
+        blank = blank | held.rows
+    if blank.any():
         frame = frame[~blank].reset_index(drop=True)
     groups = set(require) | set(required_groups(model)) | {"q"}
     unknown = groups - set(COLUMN_GROUPS)
@@ -527,6 +551,18 @@ def said_glitches(rows: NDArray[np.int64], joints: NDArray[np.int64], stamps: ND
         "velocity limit, or without one four times the record's fast speed, and more than four of its counts): "
         f"{shown}{more}; read as dropouts, the "
         "time they leave bridged by interpolation as any gap", EncoderGlitchWarning, stacklevel=5)
+
+
+def said_held(held: HeldChannels, count: int, rows: int, source: str) -> None:
+    """The :class:`HeldChannelWarning` for the channels of ``held`` (:func:`estimation.data.held_channels.held_rows`),
+    ``count`` of the file's ``rows`` rows dropped as their repeats."""
+    groups = "; ".join(f"{GROUP_MEANING.get(group, group).split(' (')[0]} ({group}) new every {every} rows, repeated between"
+                       for group, every in held.holds)
+    warnings.warn(
+        f"{source}: a channel logged at a lower rate than the positions, its last value repeated on the rows between "
+        f"its samples (a hold, not a measurement of those instants): {groups}; the {count} row(s) of {rows} where it "
+        "repeats are read as that channel's blanks (dropped, as a lower-rate channel's empty cells are), each hold's "
+        "first row its sample", HeldChannelWarning, stacklevel=5)
 
 
 def said_dropouts(count: int, first_row: int, first_stamp: object, source: str) -> None:

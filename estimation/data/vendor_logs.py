@@ -41,8 +41,10 @@ import shlex
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+import numpy as np
 import pandas as pd
 
+from dynamics.servos import ServoLaws
 from estimation.data.loading import CONVERTED_UNITS, MeasurementWarning, MissingColumnError
 
 __all__ = ["AmbiguousColumnsError", "JointGroup", "VendorColumnsWarning", "VendorReading", "array_cells",
@@ -96,7 +98,7 @@ MUJOCO_FORCE = "qfrc"
 ACTUATOR_FORCE_WORDS = frozenset({"actuator", "force"})
 CONTROL_WORDS = frozenset({"ctrl", "control", "controls"})
 #: the format's column group each quantity is read as (``actuator``: an actuator's force, motor side)
-READ_AS = {"q": "q", "dq": "dq", "ddq": "ddq", "tau": "tau", "current": "im", "actuator": "taum"}
+READ_AS = {"q": "q", "dq": "dq", "ddq": "ddq", "tau": "tau", "current": "im", "actuator": "taum", "control": "ctrl"}
 #: units a current's name may carry, with their factor to A
 CURRENT_UNITS = {"a": 1.0, "amp": 1.0, "amps": 1.0, "ma": 1e-3}
 _WORD = re.compile(r"[A-Z]+(?![a-z])|[A-Z]?[a-z]+")
@@ -348,7 +350,7 @@ def _entries(group: JointGroup, key: str, frame: pd.DataFrame) -> dict[str, str]
     ends the name and no other column shares the prefix, else one a joint."""
     scale = "" if group.factor == 1.0 else f"{group.factor!r}*"
     prefix = group.pattern[:-2] if group.pattern.endswith("{}") else None
-    if prefix and group.numbering in ("numbered from 0", "numbered from 1") and key not in ("im", "taum"):
+    if prefix and group.numbering in ("numbered from 0", "numbered from 1") and key not in ("im", "taum", "ctrl"):
         sharing = [column for column in frame.columns if re.fullmatch(re.escape(prefix) + r"\d+", str(column))]
         if len(sharing) == len(group.columns):
             return {key: f"{scale}{prefix}"}
@@ -365,7 +367,7 @@ def _measured(groups: list[JointGroup], quantity: str) -> list[JointGroup]:
 
 
 def vendor_columns(frame: pd.DataFrame, joint_names: Sequence[str] | None, n_joints: int, source: str, *,
-                   torque: bool = True, time: str | None = None) -> VendorReading | None:
+                   torque: bool = True, time: str | None = None, controls: bool = False) -> VendorReading | None:
     """The column map that reads ``frame`` as a controller's log (module docstring), for the format's groups it
     lacks (no ``q1``...); ``None`` where it lacks none or no joint group of its names is measured.
 
@@ -385,6 +387,10 @@ def vendor_columns(frame: pd.DataFrame, joint_names: Sequence[str] | None, n_joi
     time
         The column map's entry of the time where the file names it otherwise (``timestamp``): the maps the messages
         give read the whole file.
+    controls
+        Whether the servos' laws are known (an MJCF's, :class:`dynamics.servos.ServoLaws`): MuJoCo's controls, where
+        no force is logged, are then read as ``ctrl1..ctrln`` for the reader to compute the force from; otherwise
+        they are refused.
 
     Raises
     ------
@@ -433,7 +439,10 @@ def vendor_columns(frame: pd.DataFrame, joint_names: Sequence[str] | None, n_joi
             + " or ".join(mapped(quantity, group) for group in measured[:2]))
     if "tau" in lacking and torque and not {"tau", "current", "actuator"} & set(chosen) \
             and not {"im1", "taum1"} & present:
-        controls = [group for group in groups if group.quantity == "control"]
+        found = [group for group in groups if group.quantity == "control"]
+        if found and controls and ("q" in chosen or "q" not in lacking):
+            chosen["control"] = found[0]  # a servo's setpoint: its force computed from the MJCF's law and the state
+        controls = [] if "control" in chosen else found
         if controls and ("q" in chosen or "q" not in lacking):
             raise MissingColumnError(
                 f"{source}: no measured joint torque: {controls[0].shown} are MuJoCo's controls, not forces: a "
@@ -469,7 +478,9 @@ def vendor_columns(frame: pd.DataFrame, joint_names: Sequence[str] | None, n_joi
             + (", motor currents: turned into joint torques by the transmission's torque constants, --transmission"
                if quantity == "current" else "")
             + (", actuator forces: turned into joint torques by the actuators' gears (the MJCF's <actuator>, or "
-               "--transmission)" if quantity == "actuator" else "") + ")" for quantity, group in chosen.items()]
+               "--transmission)" if quantity == "actuator" else "")
+            + (", the servos' controls: their joint torques computed from them and the joints' state by the MJCF's "
+               "<actuator> laws" if quantity == "control" else "") + ")" for quantity, group in chosen.items()]
     left = [f"{group.shown} ({group.role} {SHOWN[group.quantity]})" if group.quantity else f"{group.shown} (no joint "
             "position, velocity, torque or current)" for group in aside]
     if "tau" in chosen and any(group.quantity == "current" for group in aside):
@@ -479,3 +490,48 @@ def vendor_columns(frame: pd.DataFrame, joint_names: Sequence[str] | None, n_joi
     message = (f"{source}: no columns " + ", ".join(f"{key}1.." for key in lacking) + "; read as a controller's log: "
                + "; ".join(said) + (". Left aside: " + "; ".join(left) if left else "") + f" ({mapped()})")
     return VendorReading(columns, tuple(chosen.values()), aside, message)
+
+
+class ServoForcesWarning(MeasurementWarning):
+    """A MuJoCo log holding its servos' controls and no force: the joint torques were computed from the controls
+    and the joints' state by the MJCF's actuator laws (:class:`dynamics.servos.ServoLaws`)."""
+
+
+def with_servo_torques(frame: pd.DataFrame, servos: ServoLaws, n_joints: int, source: str) -> tuple[pd.DataFrame, str]:
+    """``frame`` with its servos' controls ``ctrl1..ctrln`` replaced by the joint torques ``tau1..taun`` they make
+    in the state of each row (``q1..``, ``dq1..``: :meth:`dynamics.servos.ServoLaws.joint_torques`, MuJoCo's
+    ``qfrc_actuator``), and the message that says so.
+
+    Raises
+    ------
+    MissingColumnError
+        The laws use the joints' velocities (a damping gain ``kv``, a velocity servo) and the log holds none: the
+        force is the servo's at the logged velocity, which no derivative of the positions gives back exactly."""
+    controls = [f"ctrl{joint}" for joint in range(1, n_joints + 1)]
+    positions = [f"q{joint}" for joint in range(1, n_joints + 1)]
+    rates = [f"dq{joint}" for joint in range(1, n_joints + 1)]
+    if servos.n_joints != n_joints:
+        raise MissingColumnError(f"{source}: the servo laws ({servos.source}) are for {servos.n_joints} joints, the "
+                                 f"robot has {n_joints}")
+    if not all(name in frame.columns for name in positions):
+        raise MissingColumnError(f"{source}: the servos' controls need the joints' positions beside them")
+    has_rates = all(name in frame.columns for name in rates)
+    if servos.uses_velocity and not has_rates:
+        raise MissingColumnError(
+            f"{source}: the servos' forces depend on the joints' velocities (their kv: {servos.source}) and the log "
+            "holds no velocity: log data.qvel beside data.ctrl, or data.qfrc_actuator / data.actuator_force")
+
+    def numbers(names: list[str]) -> np.ndarray:
+        return frame[names].apply(pd.to_numeric, errors="coerce").to_numpy(dtype=float)
+
+    torques = servos.joint_torques(numbers(controls), numbers(positions), numbers(rates) if has_rates else None)
+    out = frame.drop(columns=controls)
+    for joint in range(n_joints):
+        out[f"tau{joint + 1}"] = torques[:, joint]
+    laws = ", ".join(servos.actuators) if servos.actuators else "the actuators"
+    message = (f"{source}: the joint torques computed from the servos' controls ctrl1..ctrl{n_joints} and the "
+               f"joints' {'positions and velocities' if servos.uses_velocity else 'positions'} by {servos.source}'s laws "
+               f"({laws}: f = gain·ctrl + bias(gear·q, gear·dq), clamped to the ranges, tau = gear·f), as MuJoCo "
+               "computes qfrc_actuator; the force is the servo's model, not a measurement: log data.qfrc_actuator "
+               "to read the torque MuJoCo applied")
+    return out, message

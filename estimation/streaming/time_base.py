@@ -30,7 +30,8 @@ from dynamics.runtime.memory import check_allocation
 from estimation.data.loading import SegmentTooShortError, resampling_grid
 from estimation.data.log_cleaning import (DEFAULT_MAX_GAP, GLITCH_RUN, PositionSteps, position_steps, repeated_rows,
                                           split_rows)
-from estimation.data.records import (clean_time_base, dropouts, glitch_rows, said_dropouts, said_glitches,
+from estimation.data.held_channels import HeldChannels, held_rows
+from estimation.data.records import (clean_time_base, dropouts, glitch_rows, said_dropouts, said_glitches, said_held,
                                      velocity_limits)
 from estimation.data.rest import between_holds, held_runs
 from estimation.data.sampling_clock import clock_instants, regular_clock_line
@@ -227,6 +228,7 @@ def _cleaned(frames, path: str | Path, model: IdentificationModel, *, max_gap: f
     previous: NDArray[np.float64] | None = None
     steps: PositionSteps | None = None  # the position steps so far (encoder read errors: judged on the whole record)
     count, n_joints = 0, model.robot.n_joints
+    blanks, repeats, holds, last_row = 0, 0, dict[str, int](), None  # dropouts, held repeats (:func:`held_rows`)
     carry_q, carry_t, judged = np.zeros((0, n_joints)), np.zeros(0), 0  # the last rows read (a run's and the row
     # before it: GLITCH_RUN + 1); rows judged
     for frame in frames:
@@ -237,6 +239,13 @@ def _cleaned(frames, path: str | Path, model: IdentificationModel, *, max_gap: f
         if blank.any() and first_blank is None:  # said once for the file, after the scan
             first = int(np.flatnonzero(blank)[0])
             first_blank = (sum(part.shape[0] for part in present) + first, frame["t"].iloc[first])
+        blanks += int(np.count_nonzero(blank))
+        held = held_rows(frame, n_joints, before=last_row)  # a lower-rate channel's repeats: its blanks, as in memory
+        last_row = frame.iloc[-1:] if len(frame) else last_row
+        if held.holds:
+            holds.update(held.holds)
+            repeats += int(np.count_nonzero(held.rows & ~blank))
+            blank = blank | held.rows
         present.append(~blank)
         frame = frame[~blank]
         t = pd.to_numeric(frame["t"], errors="coerce").to_numpy(dtype=float)
@@ -273,7 +282,9 @@ def _cleaned(frames, path: str | Path, model: IdentificationModel, *, max_gap: f
         return None
     rows = np.concatenate(present)
     if first_blank is not None:
-        said_dropouts(int(np.count_nonzero(~rows)), *first_blank, str(path))
+        said_dropouts(blanks, *first_blank, str(path))
+    if holds:
+        said_held(HeldChannels(~rows, tuple(holds.items())), repeats, rows.shape[0], str(path))
     found = glitch_rows(steps, model, n_joints) if steps is not None and judged == t.shape[0] else None
     glitched = None  # said once the time base holds, as in memory
     if found is not None and found[0].size:  # encoder read errors: dropouts, as in memory
