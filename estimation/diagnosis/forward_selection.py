@@ -2,9 +2,9 @@
 on each, move by move.
 
 The model is a choice, per joint (and joint combination), among the friction law families (none, the
-sign law, ``coulomb:tanh``, ``stribeck:velocity``, ``sigmoid``) plus offset, spring, armature, ripple
-and the delay. :class:`DiagnosisSearch` moves between such models (steps 2–4 of
-:mod:`estimation.diagnosis.search`):
+sign law, ``coulomb:tanh``, ``stribeck:velocity``, ``sigmoid``) plus offset, spring, armature, ripple, a viscous
+slope differing by direction (``viscous:direction``) and the delay. :class:`DiagnosisSearch` moves between such
+models (steps 2–4 of :mod:`estimation.diagnosis.search`):
 
 * **remove** an adopted effect whose coefficients are within their noise in the current model
   (:func:`estimation.diagnosis.search_moves.removable`) unless removing it raises the validation error of a
@@ -56,7 +56,8 @@ from dynamics.runtime.progress import step
 from dynamics.effects.linear import Effect
 from dynamics.effects.shaped import FRICTION_LAWS
 from dynamics.models import IdentificationModel
-from estimation.diagnosis.candidates.trials import Trial, candidate_label, joints_of, nested_test, wrong_sign
+from estimation.diagnosis.candidates.trials import (Trial, candidate_label, direction_slopes, joints_of, nested_test,
+                                                    wrong_sign)
 from estimation.diagnosis.confirmation import CandidateComparison, channels_made_worse, own_rows_gain
 from estimation.diagnosis.candidates.coupling import combination_groups
 from estimation.diagnosis.candidates.delay import DelayTrial
@@ -368,7 +369,8 @@ class DiagnosisSearch:
         if tested.wald.p_value >= self.settings.threshold:
             return (f"not significant: its coefficients are within their noise (Wald p = {tested.wald.p_value:.2g} "
                     f"from the HAC covariance; the F test of white residuals gave p = {trial.p_value:.2g})")
-        reason = wrong_sign(trial, tested.std)  # each term of a several-term law, against its HAC standard deviation
+        # each term of a several-term law, and each direction's viscous slope, against the HAC standard deviations
+        reason = wrong_sign(trial, tested.std) or direction_slopes(trial, self.model, tested.std)
         if reason is not None:
             return text + reason
         return comparison, tested.wald
@@ -415,11 +417,10 @@ class DiagnosisSearch:
         return (f"explains nothing significant beyond its joints' own laws of its kind ({own_laws}; F test p = "
                 f"{p_value:.2g} at the level {self.settings.threshold:.2g}): {rule}")
 
-    @staticmethod
-    def screened(trial: Trial, springs_beaten: dict[tuple[int, ...], str]) -> str | None:
-        """Why a trial is refused before any comparison (a non-physical estimate, a spring an offset beats), or
-        ``None``."""
-        return wrong_sign(trial) or springs_beaten.get(trial.group)
+    def screened(self, trial: Trial, springs_beaten: dict[tuple[int, ...], str]) -> str | None:
+        """Why a trial is refused before any comparison (a non-physical estimate, a viscous slope negative one way, a
+        spring an offset beats), or ``None``."""
+        return wrong_sign(trial) or direction_slopes(trial, self.model) or springs_beaten.get(trial.group)
 
     def beaten_by_baseline(self, trial: Trial, ratio: float) -> str | None:
         """Why a replacement is not confirmed against the law it replaces refitted in its place (its

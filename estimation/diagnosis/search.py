@@ -6,7 +6,8 @@ Procedure (a search over nested linear models: additions, replacements, removals
    ``w_c = 1/σ_c²`` serve the tests of a round and are re-estimated from the residuals of each
    model the search adopts.
 2. For every candidate effect (one column block per joint or plate channel: ``coulomb``,
-   ``offset``, ``armature``, ``stribeck``, ``spring``, ``wrench_offset``; the shaped laws
+   ``offset``, ``armature``, ``stribeck``, ``spring``, ``viscous:direction`` (a viscous slope differing by
+   direction), ``wrench_offset``; the shaped laws
    ``coulomb:tanh``, ``stribeck:velocity``, ``sigmoid``, ``ripple``; or a user's own effect)
    find its rows at several random states, then fit it against the current columns
    (:mod:`estimation.diagnosis.candidates.trials`): plain ones by the linear solve on per-channel Gram
@@ -59,6 +60,7 @@ from dynamics.effects.linear import (
     WRENCH_CHANNELS,
     Armature,
     CoulombFriction,
+    DirectionalViscousFriction,
     Effect,
     JointOffset,
     Spring,
@@ -93,7 +95,8 @@ from estimation.uncertainty.whiteness import autocorrelation
 __all__ = ["Diagnosis", "FoundEffect", "RejectedEffect", "candidate_columns", "candidate_groups", "default_candidates",
            "diagnose", "effect_channels", "provisional_stopping_rule", "residual_statistics"]
 
-JOINT_CANDIDATES: tuple[type, ...] = (CoulombFriction, JointOffset, Armature, StribeckFriction, Spring)
+JOINT_CANDIDATES: tuple[type, ...] = (CoulombFriction, JointOffset, Armature, StribeckFriction, Spring,
+                                      DirectionalViscousFriction)
 #: candidates whose shape the data give (:mod:`dynamics.effects.shaped`)
 SHAPED_CANDIDATES: tuple[type, ...] = (TanhCoulombFriction, ShapedStribeckFriction, SigmoidFriction, PositionRipple)
 

@@ -227,6 +227,32 @@ def wrong_sign(trial: Trial, std: NDArray[np.float64] | None = None) -> str | No
     return None
 
 
+def direction_slopes(trial: Trial, model: IdentificationModel, std: NDArray[np.float64] | None = None) -> str | None:
+    """Why a viscous slope differing by direction (``viscous:direction``) is not that law, or ``None``: each
+    direction's slope ``fv_j ± fvd_j`` must be positive (a friction that pushes a joint along one way is no
+    friction), so ``|fvd_j| < fv_j`` with ``fv_j`` the joint's viscous coefficient fitted beside it in the trial (the
+    declared model's base column ``fv{j}``, first among the trial's coefficients); a joint without a viscous law
+    has slopes ``±fvd_j``, one of them negative. With ``std`` (the trial's linear coefficients' standard deviations,
+    block by block, as :func:`wrong_sign` takes them) the weaker slope must stay positive by
+    :data:`SIGNIFICANT_TERM` of ``fvd_j``'s standard deviations, as each term of a several-term law must."""
+    names = model.base.names
+    stops = np.cumsum([block.n_linear for block in trial.blocks])
+    for position, block in enumerate(trial.blocks):
+        if block.effect.name != "viscous:direction":
+            continue
+        spread = (np.zeros(block.n_linear) if std is None
+                  else np.asarray(std[stops[position] - block.n_linear: stops[position]], dtype=float))
+        for joint, direction, sigma in zip(joints_of(block, model), trial.coefficients(position), spread):
+            name = f"fv{joint + 1}"
+            viscous = float(trial.fit.theta[names.index(name)]) if name in names else 0.0
+            if abs(direction) + SIGNIFICANT_TERM * sigma >= viscous:
+                margin = "" if std is None else f" within {SIGNIFICANT_TERM:g} standard deviations ({sigma:.2g}) of"
+                return (f"{candidate_label(block.effect)} on tau{joint + 1} is estimated with a non-physical slope "
+                        f"({name} = {viscous:.3g}, fvd{joint + 1} = {float(direction):.3g}: one direction's viscous "
+                        f"slope fv - |fvd|{margin} at or below zero)")
+    return None
+
+
 def joints_of(block: Block, model: IdentificationModel) -> tuple[int, ...]:
     """The joints (0-based) whose torque rows a block reaches."""
     joints = []
