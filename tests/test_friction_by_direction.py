@@ -121,3 +121,49 @@ def test_diagnose_refuses_a_direction_law_whose_slope_is_negative_one_way():
     reasons = [rejected.reason for rejected in diagnosis.rejected if rejected.name == "viscous:direction"
                and rejected.channels == ("tau2",)]
     assert any("non-physical slope" in reason for reason in reasons), reasons
+
+
+def test_a_move_that_turns_a_held_direction_law_non_physical_is_refused():
+    """A trial (here a Coulomb law on joint 1) fitted beside an adopted ``viscous:direction`` on joint 3 is refused
+    when, in its fit, joint 3's weaker slope ``fv3 − |fvd3|`` is at or below zero: the law turned non-physical is
+    refused at that move (on the KUKA LWR4+ a law adopted mid-search turned so and was dropped only by the final
+    refit, after it had changed the search's path); beside a physical slope the trial passes."""
+    from estimation.diagnosis.candidates.trials import Trial, direction_slopes
+    from estimation.estimators.variable_projection import ShapeFit
+    from dynamics.effects.linear import CoulombFriction
+
+    robot = load_robot("puma560", joints=3)
+    model = build_model(robot, "internal", "viscous")
+    held = Block(ModelKind.INTERNAL, robot, DirectionalViscousFriction(joints=(2,)), 3)
+    tried = Block(ModelKind.INTERNAL, robot, CoulombFriction(joints=(0,)), 3)
+    names = model.base.names
+
+    def trial(fv3: float, fvd3: float) -> Trial:
+        theta = np.ones(len(names) + 2)
+        theta[names.index("fv3")], theta[len(names)] = fv3, fvd3
+        fit = ShapeFit(np.zeros(0), theta, np.full((theta.size, theta.size), np.nan), 1.0, ("fc1",), 0)
+        return Trial((7,), (tried,), fit, 1.0, 10.0, 1e-6, -5.0)
+
+    assert direction_slopes(trial(0.5, -0.3), model, held=(held,)) is None
+    reason = direction_slopes(trial(0.2, -0.3), model, held=(held,))
+    assert reason is not None and "turns the model's viscous:direction on tau3 non-physical" in reason, reason
+    assert direction_slopes(trial(0.2, -0.3), model) is None  # without the held blocks: nothing to check
+
+
+def test_a_law_even_in_speed_is_no_candidate_where_the_validation_repeats_the_training_motion():
+    """Where the validation record repeats the training motion the direction law is set aside before the search,
+    saying why (along one path ``|dq|`` is a function of the positions as an offset, a spring or a ripple is: on the
+    real EMPS it took the offset's place, on the KUKA LWR4+ joint 7's ripple's); on another motion it is a
+    candidate (a default one); ``diagnose`` measures the repeat (:func:`repeated_motion`)."""
+    from dynamics.effects.linear import JointOffset
+    from estimation.diagnosis.forward_selection import REPEATED_PATH, candidate_blocks
+    from estimation.diagnosis.search import JOINT_CANDIDATES
+
+    model = build_model(load_robot("puma560", joints=3), "internal", "viscous")
+    assert DirectionalViscousFriction in JOINT_CANDIDATES
+    candidates = (JointOffset(joints=(0,)), DirectionalViscousFriction(joints=(1,)), DirectionalViscousFriction())
+    blocks, rejected = candidate_blocks(model, candidates, repeated=True)
+    assert set(blocks) == {0} and {index: (entry.reason, entry.channels) for index, entry in rejected.items()} == {
+        1: (REPEATED_PATH, ("tau2",)), 2: (REPEATED_PATH, ("tau1", "tau2", "tau3"))}
+    blocks, rejected = candidate_blocks(model, candidates)
+    assert set(blocks) == {0, 1, 2} and not rejected

@@ -88,6 +88,7 @@ from estimation.diagnosis.statistics import floor_for_validation, residual_repor
 from estimation.diagnosis.rules.stopping_rules import SearchState, provisional_stopping_rule
 from estimation.estimators.effect_blocks import Block, States, effect_columns, effect_rows
 from estimation.identification.fit import IdentificationResult, identify
+from estimation.identification.repeated_motion import REPEAT_FRACTION, repeated_motion
 from estimation.preprocessing.delay import DelayBounds
 from estimation.uncertainty.noise_floor import NoiseFloor
 from estimation.uncertainty.whiteness import autocorrelation
@@ -229,7 +230,8 @@ def diagnose(
     # errors against the channels as recorded, along the derived motion
     fits = RecordFits(model, declared_regressor(model, before), train, validate.as_recorded, delay, stopping_rule,
                       shaped=before.shaped_fit is not None, jobs=jobs, unseen_stretches=unseen_stretches)
-    blocks, rejected = candidate_blocks(model, candidates)
+    blocks, rejected = candidate_blocks(model, candidates,  # a law even in speed needs another motion
+                                        repeated=repeated_motion(train, validate) <= REPEAT_FRACTION)
     settings = SearchSettings(alpha, min_improvement, max_effects, len(candidates) + (delay is not None),  # the delay too
                               same_effect_adopted=True)
     with step("forward selection"):
