@@ -31,7 +31,7 @@ from dynamics.robots import described_unactuated, load_robot
 from tests.passive_simulation import Passive, write_passive_records
 from tests.test_one_answer_audit import RELATIVE
 from tests.test_unseen_robot_benches import written
-from tests.test_unseen_robot_kinds import as_well_as_the_plain_fit, quiet
+from tests.test_unseen_robot_kinds import as_well_as_the_plain_fit, named_law, quiet
 from tests.test_unseen_robot_labs import puma, verbs_against_the_plain_fit
 from tests.test_unseen_robots import NOISE
 
@@ -83,8 +83,7 @@ def judged(name: str, outcome: dict) -> None:
     for label, error in outcome["reproduced"].items():
         assert error < RELATIVE, (label, error)
     for label, named in outcome["effects"].items():
-        false = [effect for effect in named if effect.split(" on ")[0].split(":")[0]
-                 not in ("coulomb", "viscous", "offset")]
+        false = [effect for effect in named if named_law(effect) not in ("coulomb", "viscous", "offset")]
         assert not false, (label, false)
 
 

@@ -40,7 +40,7 @@ import pytest
 
 from dynamics.robots import load_robot
 from tests.test_one_answer_audit import RELATIVE
-from tests.test_unseen_robot_kinds import as_well_as_the_plain_fit, quiet
+from tests.test_unseen_robot_kinds import as_well_as_the_plain_fit, named_law, quiet
 from tests.test_unseen_robot_labs import Lab, puma, run_lab, write_records
 from tests.test_unseen_robots import Log
 
@@ -192,7 +192,7 @@ def judged(bench: Bench, folder: Path, rewritten=None, **running) -> None:
     for label, error in outcome["reproduced"].items():
         assert error < RELATIVE, (label, error)
     for label, named in outcome["effects"].items():
-        false = [effect for effect in named if effect.split(" on ")[0].split(":")[0] not in bench.may_name]
+        false = [effect for effect in named if named_law(effect) not in bench.may_name]
         assert not false, (label, false)
 
 

@@ -2,8 +2,9 @@
 ``tests/test_unseen_robot*`` files (h-unseen15):
 
 - friction that differs by direction: each joint's viscous friction 40 % stronger turning one way than the other
-  (a term ``c |dq|`` beside ``fv dq``) and its Coulomb level ±30 % by direction, a truth outside every candidate
-  family but the plain class's (the Coulomb asymmetry is an offset; the viscous one is not);
+  (a term ``c |dq|`` beside ``fv dq``) and its Coulomb level ±30 % by direction: the Coulomb asymmetry is an
+  offset of the plain class, the viscous one the diagnosis's family ``viscous:direction`` (h-dirfriction), outside
+  the plain class ``oed identify`` is told;
 - a description exported for kinematics only: every link's mass, centre of mass and inertia zero, so the
   consistent candidate's prior, the description's bodies, is no body at all;
 - an event-triggered logger: a row written when any joint has moved 1 mrad since the last row, or 10 ms have passed
@@ -40,7 +41,7 @@ import pytest
 
 from tests.test_one_answer_audit import RELATIVE
 from tests.test_unseen_robot_benches import marks  # a Day has its Lab as a Bench does
-from tests.test_unseen_robot_kinds import as_well_as_the_plain_fit, ur10e
+from tests.test_unseen_robot_kinds import as_well_as_the_plain_fit, named_law, ur10e
 from tests.test_unseen_robot_labs import Lab, puma, verbs_against_the_plain_fit, write_records
 from tests.test_unseen_robots import Log
 
@@ -87,15 +88,16 @@ def run_day(day: Day, folder: Path) -> dict:
     return {**outcome, "cutoff": cutoff, "floor": (0.02 * spread) ** 2}
 
 
-def checked(name: str, outcome: dict, may_name: tuple[str, ...] = ("coulomb", "viscous", "offset")) -> None:
-    """Every verb within the plain fit's margins, ``oed predict`` reproducing each reported validation error, no
-    effect named beyond ``may_name``."""
+def checked(name: str, outcome: dict, may_name: tuple[str, ...] = ("coulomb", "viscous", "offset"),
+            verbs: tuple[str, ...] = ("default", "diagnose")) -> None:
+    """Each of ``verbs`` within the plain fit's margins, ``oed predict`` reproducing each reported validation error,
+    no effect named beyond ``may_name`` (:func:`tests.test_unseen_robot_kinds.named_law`)."""
     print(f"\nreproduced validation error (relative): {outcome['reproduced']}")
-    as_well_as_the_plain_fit(name, outcome, f"chosen {outcome['selections']}; ")
+    as_well_as_the_plain_fit(name, outcome, f"chosen {outcome['selections']}; ", verbs)
     for label, error in outcome["reproduced"].items():
-        assert error < RELATIVE, (label, error)
+        assert label not in verbs or error < RELATIVE, (label, error)
     for label, named in outcome["effects"].items():
-        false = [effect for effect in named if effect.split(" on ")[0].split(":")[0] not in may_name]
+        false = [effect for effect in named if named_law(effect) not in may_name]
         assert not false, (label, false)
 
 
@@ -185,17 +187,6 @@ def logs(seconds: tuple[float, float, float] = (10.0, 4.0, 8.0), rate: float = 2
 
 
 DAYS = (
-    Day(Lab("PUMA 6 joints, friction differing by direction (viscous up to 40 % stronger one way, Coulomb +-30 %), "
-            "10 s / 4 s / 8 s at 250 Hz, no dq, point-to-point test", puma(6), *logs(), extra=by_direction,
-            test_motion="point-to-point", slow=True,
-            xfail="identify 1.096 in total, joint 2 3.48x the plain fit (16.0 against 4.60 N m squared; its floor "
-                  "0.027: every fit 60-500x above the floors on this test); diagnose 1.166, joint 2 4.18x, and it "
-                  "names armature on tau3, which the truth does not hold. The c |dq| term is outside every "
-                  "family; each of identify's candidates predicts joint 2 worse than the plain fit on the test "
-                  "(ols 7.31, wls 23.8, consistent 16.4 N m squared) while the validation record, a Fourier "
-                  "motion like the training, scores them ols 14.2, wls 1.59, consistent 1.00 (the criterion): it "
-                  "cannot see how the unmodelled term projects on the test's moves and rests (at rest the fitted "
-                  "offsets, which carry the term's mean in motion, are wrong); measured at 4252663")),
     Day(Lab("UR10e-like, the URDF exported for kinematics only (every mass and inertia zero), 10 s / 4 s / 8 s at "
             "500 Hz, logged dq, point-to-point test", ur10e, *logs(rate=500.0, velocity=True, motion_hz=0.1),
             test_motion="point-to-point", slow=True),
@@ -239,6 +230,45 @@ DAYS = (
 @pytest.mark.parametrize("day", [pytest.param(day, id=day.name, marks=marks(day)) for day in DAYS])
 def test_the_defaults_run_and_predict_another_days_log_as_well_as_a_plain_fit(day, tmp_path):
     judged(day, tmp_path)
+
+
+#: friction differing by direction: ``oed diagnose`` may name the viscous law's direction variant (the truth holds
+#: it), never another family; ``oed identify`` is told the plain class, which cannot hold the ``c |dq|`` term
+BY_DIRECTION = Day(Lab("PUMA 6 joints, friction differing by direction (viscous up to 40 % stronger one way, Coulomb "
+                       "+-30 %), 10 s / 4 s / 8 s at 250 Hz, no dq, point-to-point test", puma(6), *logs(),
+                       extra=by_direction, test_motion="point-to-point", slow=True),
+                   may_name=("coulomb", "viscous", "offset", "viscous:direction"))
+
+
+@pytest.fixture(scope="module")
+def by_direction_outcome(tmp_path_factory) -> dict:
+    """One run of :data:`BY_DIRECTION` for both verbs' tests (each worker that runs one of them runs it once)."""
+    return run_day(BY_DIRECTION, tmp_path_factory.mktemp("by_direction"))
+
+
+@pytest.mark.slow
+def test_diagnose_names_friction_by_direction_and_predicts_as_well_as_a_plain_fit(by_direction_outcome):
+    """Friction differing by direction (:func:`by_direction`): ``oed diagnose`` on its defaults names the viscous
+    slope differing by direction (``viscous:direction``) on the joints and nothing outside the truth (no armature),
+    and predicts the point-to-point test within the plain fit's margins. Measured at 4252663, before the family
+    existed: 1.166 in total, joint 2 4.18x the plain fit, an armature named on tau3."""
+    checked(BY_DIRECTION.name, by_direction_outcome, BY_DIRECTION.may_name, verbs=("diagnose",))
+    named = by_direction_outcome["effects"]["diagnose"]
+    assert any(effect.startswith("viscous:direction on ") for effect in named), named
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason="identify (told the plain class: viscous, coulomb, offset) 1.096 in total, "
+                   "joint 2 3.48x the plain fit (16.0 against 4.60 N m squared; its floor 0.027: every plain-class fit "
+                   "60-500x above the floors on this test). The c |dq| term is outside the class it is told; each of "
+                   "identify's candidates predicts joint 2 worse than the plain fit on the test (ols 7.31, wls 23.8, "
+                   "consistent 16.4 N m squared) while the validation record, a Fourier motion like the training, "
+                   "scores them ols 14.2, wls 1.59, consistent 1.00 (the criterion): it cannot see how the unmodelled "
+                   "term projects on the test's moves and rests; with --friction viscous,viscous:direction,coulomb,"
+                   "offset the class holds the truth; measured at 4252663 and again on h-dirfriction")
+def test_identify_told_the_plain_class_predicts_friction_by_direction_as_well_as_a_plain_fit(by_direction_outcome):
+    """The same record, ``oed identify`` told the plain fit's model class."""
+    checked(BY_DIRECTION.name, by_direction_outcome, BY_DIRECTION.may_name, verbs=("default",))
 
 
 DUAL_ARM = """<?xml version="1.0"?>

@@ -13,6 +13,7 @@ _EXPORTS: dict[str, str] = {
     "Armature": "dynamics.effects.linear",
     "CombinationEffect": "dynamics.effects.motor",
     "CoulombFriction": "dynamics.effects.linear",
+    "DirectionalViscousFriction": "dynamics.effects.linear",
     "Effect": "dynamics.effects.linear",
     "EffectSpecError": "dynamics.effects.joint_lists",
     "FRICTION_LAWS": "dynamics.effects.shaped",

@@ -86,6 +86,26 @@ class ViscousFriction(_PerJointEffect):
 
 
 @dataclass(frozen=True)
+class DirectionalViscousFriction(_PerJointEffect):
+    """``tau_i += fvd_i · |dq_i|``: viscous friction whose slope differs by direction, beside ``fv_i · dq_i``.
+
+    Separate slopes for positive and negative speed, ``fv⁺ dq`` for ``dq > 0`` and ``fv⁻ dq`` for ``dq < 0``, are
+    ``(fv⁺ + fv⁻)/2 · dq + (fv⁺ − fv⁻)/2 · |dq|``: the viscous law's column and this one, linear in both
+    coefficients (``fv = (fv⁺ + fv⁻)/2``, ``fvd = (fv⁺ − fv⁻)/2``). ``fvd`` takes either sign (the stronger
+    direction); each direction's slope ``fv ± fvd`` is positive on a physical joint. Coulomb levels that differ by
+    direction need no law of their own: ``fc⁺`` and ``fc⁻`` are ``(fc⁺ + fc⁻)/2 · sign(dq)`` plus the constant
+    ``(fc⁺ − fc⁻)/2`` while moving, which is the offset on every sample whose speed is not exactly zero (a
+    differentiated speed never is).
+    """
+
+    name: ClassVar[str] = "viscous:direction"
+    symbol: ClassVar[str] = "fvd"
+
+    def term(self, q, dq, ddq):
+        return casadi.fabs(dq)
+
+
+@dataclass(frozen=True)
 class CoulombFriction(_PerJointEffect):
     """``tau_i += fc_i · sign(dq_i)``, or ``fc_i · tanh(dq_i / smoothing)`` when ``smoothing`` is set."""
 
@@ -179,7 +199,8 @@ class WrenchOffset:
 
 EFFECTS: dict[str, type] = {
     effect.name: effect
-    for effect in (ViscousFriction, CoulombFriction, JointOffset, Armature, StribeckFriction, Spring, WrenchOffset)
+    for effect in (ViscousFriction, DirectionalViscousFriction, CoulombFriction, JointOffset, Armature, StribeckFriction,
+                   Spring, WrenchOffset)
 }
 
 
@@ -199,7 +220,8 @@ def _effect_type(item: str) -> type:
 def parse_effects(spec: str | Iterable[str | Effect] | None) -> tuple[Effect, ...]:
     """Effects from a comma-separated list of names (``"viscous,coulomb"``) or a sequence.
 
-    Names: ``viscous``, ``coulomb``, ``offset``, ``armature``, ``stribeck``, ``spring``,
+    Names: ``viscous``, ``viscous:direction`` (a slope differing by direction), ``coulomb``, ``offset``,
+    ``armature``, ``stribeck``, ``spring``,
     ``wrench_offset`` (alias ``plate_offset``); ``none`` or an empty string for rigid-body only.
     ``NAME@JOINTS`` restricts a per-joint effect to 1-based joints (``coulomb@1-4``, ``offset@2+5``;
     :mod:`dynamics.effects.joint_lists`).

@@ -2,9 +2,9 @@
 on each, move by move.
 
 The model is a choice, per joint (and joint combination), among the friction law families (none, the
-sign law, ``coulomb:tanh``, ``stribeck:velocity``, ``sigmoid``) plus offset, spring, armature, ripple
-and the delay. :class:`DiagnosisSearch` moves between such models (steps 2–4 of
-:mod:`estimation.diagnosis.search`):
+sign law, ``coulomb:tanh``, ``stribeck:velocity``, ``sigmoid``) plus offset, spring, armature, ripple, a viscous
+slope differing by direction (``viscous:direction``) and the delay. :class:`DiagnosisSearch` moves between such
+models (steps 2–4 of :mod:`estimation.diagnosis.search`):
 
 * **remove** an adopted effect whose coefficients are within their noise in the current model
   (:func:`estimation.diagnosis.search_moves.removable`) unless removing it raises the validation error of a
@@ -56,7 +56,8 @@ from dynamics.runtime.progress import step
 from dynamics.effects.linear import Effect
 from dynamics.effects.shaped import FRICTION_LAWS
 from dynamics.models import IdentificationModel
-from estimation.diagnosis.candidates.trials import Trial, candidate_label, joints_of, nested_test, wrong_sign
+from estimation.diagnosis.candidates.trials import (Trial, candidate_label, direction_slopes, joints_of, nested_test,
+                                                    wrong_sign)
 from estimation.diagnosis.confirmation import CandidateComparison, channels_made_worse, own_rows_gain
 from estimation.diagnosis.candidates.coupling import combination_groups
 from estimation.diagnosis.candidates.delay import DelayTrial
@@ -111,18 +112,39 @@ class SearchOutcome:
     untested: str
 
 
-def candidate_blocks(model: IdentificationModel, candidates: Sequence[Effect]
+#: why a law even in speed is no candidate where the validation record repeats the training motion
+REPEATED_PATH = ("not a candidate: the validation record repeats the training motion, and along one path a law even in "
+                 "speed (|dq|, the same both ways) is a function of the path's positions as a position law (an offset, "
+                 "a spring, a ripple) is: only a record at other speeds over those positions tells them apart, and a "
+                 "law confirmed on the repeat would scale with speed where the effect may not; give the validation a "
+                 "record of another trajectory")
+#: the candidates even in speed: only another motion tells them from a law of the joint's position
+EVEN_IN_SPEED = ("viscous:direction",)
+
+
+def candidate_blocks(model: IdentificationModel, candidates: Sequence[Effect], repeated: bool = False
                      ) -> tuple[dict[int, Block], dict[int, RejectedEffect]]:
-    """Each candidate's column block by index, and the candidates without rows in ``model``."""
+    """Each candidate's column block by index, and the candidates without rows in ``model``; with ``repeated`` (the
+    validation record repeats the training motion:
+    :func:`estimation.identification.repeated_motion.repeated_motion`), the laws even in speed
+    (:data:`EVEN_IN_SPEED`) set aside too (:data:`REPEATED_PATH`: on the real EMPS, whose validation file repeats its
+    estimation motion, ``viscous:direction`` took the place of the offset; on the KUKA LWR4+, whose run 2 repeats run
+    1, it took that of joint 7's ripple and predicted the twice-as-fast run 3 9x worse on that joint)."""
     blocks: dict[int, Block] = {}
     rejected: dict[int, RejectedEffect] = {}
     for index, candidate in enumerate(candidates):
         if not isinstance(candidate, Effect):
             raise TypeError(f"candidate {candidate!r} is not an effect")
         try:
-            blocks[index] = Block(model.kind, model.robot, candidate, model.n_channels)
+            block = Block(model.kind, model.robot, candidate, model.n_channels)
         except NoRowsError:
             rejected[index] = RejectedEffect(candidate.name, (), "has no rows in this model", candidate_label(candidate))
+            continue
+        if repeated and candidate.name in EVEN_IN_SPEED:
+            rejected[index] = RejectedEffect(candidate.name, tuple(model.channels[row] for row in block.rows),
+                                             REPEATED_PATH, candidate_label(candidate))
+            continue
+        blocks[index] = block
     return blocks, rejected
 
 
@@ -368,7 +390,8 @@ class DiagnosisSearch:
         if tested.wald.p_value >= self.settings.threshold:
             return (f"not significant: its coefficients are within their noise (Wald p = {tested.wald.p_value:.2g} "
                     f"from the HAC covariance; the F test of white residuals gave p = {trial.p_value:.2g})")
-        reason = wrong_sign(trial, tested.std)  # each term of a several-term law, against its HAC standard deviation
+        # each term of a several-term law, and each direction's viscous slope, against the HAC standard deviations
+        reason = wrong_sign(trial, tested.std) or direction_slopes(trial, self.model, tested.std, self.held_blocks(trial))
         if reason is not None:
             return text + reason
         return comparison, tested.wald
@@ -415,11 +438,15 @@ class DiagnosisSearch:
         return (f"explains nothing significant beyond its joints' own laws of its kind ({own_laws}; F test p = "
                 f"{p_value:.2g} at the level {self.settings.threshold:.2g}): {rule}")
 
-    @staticmethod
-    def screened(trial: Trial, springs_beaten: dict[tuple[int, ...], str]) -> str | None:
-        """Why a trial is refused before any comparison (a non-physical estimate, a spring an offset beats), or
-        ``None``."""
-        return wrong_sign(trial) or springs_beaten.get(trial.group)
+    def screened(self, trial: Trial, springs_beaten: dict[tuple[int, ...], str]) -> str | None:
+        """Why a trial is refused before any comparison (a non-physical estimate, a viscous slope negative one way in
+        the trial's model, its own or a held one, a spring an offset beats), or ``None``."""
+        return (wrong_sign(trial) or direction_slopes(trial, self.model, held=self.held_blocks(trial))
+                or springs_beaten.get(trial.group))
+
+    def held_blocks(self, trial: Trial) -> tuple[Block, ...]:
+        """The adopted blocks the trial's model keeps, in the order of its columns (those it replaces left out)."""
+        return tuple(item.block for item in self.adopted if item.index not in trial.without)
 
     def beaten_by_baseline(self, trial: Trial, ratio: float) -> str | None:
         """Why a replacement is not confirmed against the law it replaces refitted in its place (its

@@ -6,7 +6,8 @@ Procedure (a search over nested linear models: additions, replacements, removals
    ``w_c = 1/σ_c²`` serve the tests of a round and are re-estimated from the residuals of each
    model the search adopts.
 2. For every candidate effect (one column block per joint or plate channel: ``coulomb``,
-   ``offset``, ``armature``, ``stribeck``, ``spring``, ``wrench_offset``; the shaped laws
+   ``offset``, ``armature``, ``stribeck``, ``spring``, ``viscous:direction`` (a viscous slope differing by
+   direction), ``wrench_offset``; the shaped laws
    ``coulomb:tanh``, ``stribeck:velocity``, ``sigmoid``, ``ripple``; or a user's own effect)
    find its rows at several random states, then fit it against the current columns
    (:mod:`estimation.diagnosis.candidates.trials`): plain ones by the linear solve on per-channel Gram
@@ -59,6 +60,7 @@ from dynamics.effects.linear import (
     WRENCH_CHANNELS,
     Armature,
     CoulombFriction,
+    DirectionalViscousFriction,
     Effect,
     JointOffset,
     Spring,
@@ -86,6 +88,7 @@ from estimation.diagnosis.statistics import floor_for_validation, residual_repor
 from estimation.diagnosis.rules.stopping_rules import SearchState, provisional_stopping_rule
 from estimation.estimators.effect_blocks import Block, States, effect_columns, effect_rows
 from estimation.identification.fit import IdentificationResult, identify
+from estimation.identification.repeated_motion import REPEAT_FRACTION, repeated_motion
 from estimation.preprocessing.delay import DelayBounds
 from estimation.uncertainty.noise_floor import NoiseFloor
 from estimation.uncertainty.whiteness import autocorrelation
@@ -93,7 +96,8 @@ from estimation.uncertainty.whiteness import autocorrelation
 __all__ = ["Diagnosis", "FoundEffect", "RejectedEffect", "candidate_columns", "candidate_groups", "default_candidates",
            "diagnose", "effect_channels", "provisional_stopping_rule", "residual_statistics"]
 
-JOINT_CANDIDATES: tuple[type, ...] = (CoulombFriction, JointOffset, Armature, StribeckFriction, Spring)
+JOINT_CANDIDATES: tuple[type, ...] = (CoulombFriction, JointOffset, Armature, StribeckFriction, Spring,
+                                      DirectionalViscousFriction)
 #: candidates whose shape the data give (:mod:`dynamics.effects.shaped`)
 SHAPED_CANDIDATES: tuple[type, ...] = (TanhCoulombFriction, ShapedStribeckFriction, SigmoidFriction, PositionRipple)
 
@@ -226,7 +230,8 @@ def diagnose(
     # errors against the channels as recorded, along the derived motion
     fits = RecordFits(model, declared_regressor(model, before), train, validate.as_recorded, delay, stopping_rule,
                       shaped=before.shaped_fit is not None, jobs=jobs, unseen_stretches=unseen_stretches)
-    blocks, rejected = candidate_blocks(model, candidates)
+    blocks, rejected = candidate_blocks(model, candidates,  # a law even in speed needs another motion
+                                        repeated=repeated_motion(train, validate) <= REPEAT_FRACTION)
     settings = SearchSettings(alpha, min_improvement, max_effects, len(candidates) + (delay is not None),  # the delay too
                               same_effect_adopted=True)
     with step("forward selection"):

@@ -9,7 +9,9 @@ that respects the sign is that of the least squares with the bound ``θ_i ≥ 0`
 active that is the model without the term. :func:`pin_wrong_signs` is that active-set step: the
 term is removed (a declared effect keeps its other joints; a found effect whose coefficient turned
 negative is dropped from the findings), the model refitted, and repeated until no positive-by-physics
-term is negative. Each pinned term is reported with the estimate it had. A term once held is not
+term is negative. Each pinned term is reported with the estimate it had. A viscous slope differing by direction
+(``viscous:direction``) is held the same way when its weaker direction's slope ``fv_j − |fvd_j|`` is at or below
+zero (:func:`negative_estimates`). A term once held is not
 re-admitted (the full bounded least squares would check its multiplier, Lawson–Hanson): a simpler,
 conservative step; terms still negative after :data:`PASSES` passes are named in the result's warnings.
 """
@@ -42,6 +44,10 @@ class PinnedTerm:
 
     @property
     def reason(self) -> str:
+        if self.effect.startswith("viscous:direction"):
+            return (f"the weaker direction's viscous slope fv - |{self.parameter}| estimated {self.value:.4g}, at or "
+                    "below zero (a friction pushing the joint along): the direction law on this joint removed and the "
+                    "model refitted")
         text = f"estimated {self.value:.4g} ± {self.std:.2g}, below zero: held at its bound 0 and the model refitted"
         if self.std > 0 and self.value < -3.0 * self.std:
             text += (f" ({-self.value / self.std:.0f} standard deviations below zero: the model lacks an effect this "
@@ -63,13 +69,25 @@ def negative_terms(result: IdentificationResult) -> dict[str, tuple[float, float
 
 
 def negative_estimates(model: IdentificationModel, estimate: Any) -> dict[str, tuple[float, float]]:
-    """:func:`negative_terms` of ``estimate`` (any estimate with ``records()``: a fit from sums too) of ``model``."""
+    """:func:`negative_terms` of ``estimate`` (any estimate with ``records()``: a fit from sums too) of ``model``,
+    with each viscous slope differing by direction whose weaker direction's slope ``fv_j − |fvd_j|`` is at or below
+    zero (``fvd_j`` -> that slope and ``fvd_j``'s standard deviation; ``fv_j`` 0 where the joint has no viscous law or
+    it is negative, held at zero in the same pass): by physics each direction's slope is positive."""
     positive = {name for effect in model.effects if _positive(effect) for name in effect.parameter_names(model.robot)}
-    negative = {}
+    directions = {name for effect in model.effects if effect.name == "viscous:direction"
+                  for name in effect.parameter_names(model.robot)}
+    negative, values, direction_records = {}, {}, []
     for record in estimate.records():
         expression = record["expression"].strip()
+        values[expression] = float(record["value"])
         if expression in positive and record["value"] < 0:
             negative[expression] = (float(record["value"]), float(record["std"]))
+        elif expression in directions:
+            direction_records.append((expression, float(record["value"]), float(record["std"])))
+    for name, value, std in direction_records:
+        slope = max(values.get("fv" + name.removeprefix("fvd"), 0.0), 0.0) - abs(value)
+        if slope <= 0:
+            negative[name] = (slope, std)
     return negative
 
 

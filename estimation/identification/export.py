@@ -3,7 +3,7 @@
 The URDF (:mod:`dynamics.urdf_export`) carries the identified bodies; ``friction.json`` the rest of
 the model, so that Pinocchio's RNEA on the URDF plus these terms is the model's prediction::
 
-    {"joints": {"<joint name>": {"viscous": fv, "coulomb": fc, "offset": off, "armature": Ia,
+    {"joints": {"<joint name>": {"viscous": fv, "viscous_direction": fvd, "coulomb": fc, "offset": off, "armature": Ia,
                                  "coulomb_smoothing": V,                       # tanh(dq / V) instead of sign
                                  "stribeck": {"fs": …, "velocity": …}, "spring": {"k": …, "reference": …},
                                  "sigmoid": {"phi1": …, "phi2": …, "phi3": …}, "ripple": {"rs": …, "rc": …, "n": …}}},
@@ -17,7 +17,8 @@ with the identified bodies, joint terms and gravity in place of its own, everyth
 (:func:`dynamics.mjcf_export.mjcf_with_inertials`; the chain's MJCF, with the reason, when a link cannot be written
 into the file's bodies); of any other robot, the chain's. It carries the bodies and the joint terms
 MuJoCo has: ``armature`` (rotor inertia), ``damping`` (viscous), ``frictionloss`` (Coulomb), ``stiffness``
-and ``springref`` (a spring), gravity; what it cannot express (an offset, a Stribeck law, a smoothed or
+and ``springref`` (a spring), gravity; what it cannot express (an offset, a viscous slope differing by
+direction, a Stribeck law, a smoothed or
 shaped Coulomb law, an effect not on one joint, a motor-side effect, a delay) is listed in a comment and
 in :attr:`MjcfExport.notes`.
 
@@ -53,12 +54,13 @@ from estimation.identification.model_file import read_model_file
 from estimation.identification.mount import mount_rpy
 from estimation.identification.plausibility import link_findings
 
-__all__ = ["LAWS", "SHAPED_ENTRIES", "ExportError", "MjcfExport", "exported_mjcf", "exported_model", "exported_urdf",
+__all__ = ["LAWS", "LAW_KEYS", "SHAPED_ENTRIES", "ExportError", "MjcfExport", "exported_mjcf", "exported_model", "exported_urdf",
            "friction_document", "gravity_note", "implausible_links"]
 
 #: the per-joint laws friction.json names, as formulas of the joint's motion
 LAWS = {
     "viscous": "fv * dq",
+    "viscous_direction": "fvd * abs(dq): with the viscous law, the slope fv + fvd for dq > 0 and fv - fvd for dq < 0",
     "coulomb": "fc * sign(dq), or fc * tanh(dq / coulomb_smoothing) when coulomb_smoothing is given",
     "offset": "off",
     "armature": "Ia * ddq",
@@ -67,6 +69,8 @@ LAWS = {
     "sigmoid": "phi1 / (1 + exp(-phi2 * (dq + phi3))) - phi1 / (1 + exp(-phi2 * phi3))",
     "ripple": "rs * sin(n * q) + rc * cos(n * q)",
 }
+#: a per-joint law whose friction.json key is not its name (a name with a variant)
+LAW_KEYS: dict[str, str] = {"viscous:direction": "viscous_direction"}
 #: a shaped per-joint law (its spec) as friction.json's entries: the key of each linear coefficient (a
 #: ``(law, field)`` pair, field ``None`` for a plain number) and of each shape parameter, by symbol
 SHAPED_ENTRIES: dict[str, dict[str, tuple[str, str | None]]] = {
@@ -147,7 +151,7 @@ def exported_urdf(model: IdentifiedModel) -> str:
 
 
 def _joint_entry(effect: Any, value: float) -> tuple[str, Any]:
-    name = effect.name
+    name = LAW_KEYS.get(effect.name, effect.name)
     if name == "coulomb" and getattr(effect, "smoothing", None) is not None:
         return name, value
     if name == "stribeck":
@@ -190,7 +194,8 @@ def friction_document(model: IdentifiedModel) -> dict[str, Any]:
         names = effect.parameter_names(robot)
         if _shaped_entries(effect, robot, values, shape, joints):
             continue
-        per_joint = getattr(effect, "symbol", "") and not getattr(effect, "motor", False) and effect.name in LAWS
+        per_joint = getattr(effect, "symbol", "") and not getattr(effect, "motor", False) and (
+            LAW_KEYS.get(effect.name, effect.name) in LAWS)
         if not per_joint:
             shape_names = [parameter.name for parameter in shape_parameters(effect, robot)]
             others.append({"spec": effect_spec(effect), "parameters": {name: values.get(name) for name in names},

@@ -37,6 +37,7 @@ from estimation.diagnosis.record_fits import RecordFits, declared_regressor
 from estimation.diagnosis.rules.robust_test import estimate_test
 from estimation.diagnosis.search_fits import AdoptedEffect
 from estimation.diagnosis.rules.stopping_rules import provisional_stopping_rule
+from estimation.identification.repeated_motion import REPEAT_FRACTION, repeated_motion
 from estimation.diagnosis.results import RejectedEffect
 from estimation.diagnosis.search import default_candidates
 from estimation.estimators.effect_blocks import Block, States
@@ -241,7 +242,9 @@ def streamed_candidates(model: IdentificationModel, candidates: Sequence[Effect]
                        if candidates is None else candidates)
     if screen is not None:
         candidates = tuple(screen(candidates, sample, validation))
-    blocks, rejected = candidate_blocks(model, candidates)
+    # a law even in speed needs another motion than the training's (as in memory; here from the subsamples)
+    blocks, rejected = candidate_blocks(model, candidates, repeated=validation is not None and repeated_motion(
+        sample, validation) <= REPEAT_FRACTION)
     lap("subsample_pass")
     outcome, failed, searched, pinned = None, {}, SearchedDelay(), ()
     if searching:

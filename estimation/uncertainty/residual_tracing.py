@@ -42,6 +42,7 @@ MIN_SHARE = 0.05
 EFFECT_VARIABLES: dict[str, tuple[str, ...]] = {
     "coulomb": ("sign_dq{j}", "dq{j}"),
     "viscous": ("dq{j}",),
+    "viscous:direction": ("abs_dq{j}",),
     "stribeck": ("dq{j}", "abs_dq{j}", "sign_dq{j}"),
     "sigmoid": ("dq{j}", "sign_dq{j}"),
     "armature": ("ddq{j}",),

@@ -227,6 +227,57 @@ def wrong_sign(trial: Trial, std: NDArray[np.float64] | None = None) -> str | No
     return None
 
 
+def direction_slopes(trial: Trial, model: IdentificationModel, std: NDArray[np.float64] | None = None,
+                     held: Sequence[Block] = ()) -> str | None:
+    """Why a viscous slope differing by direction (``viscous:direction``) is not that law, or ``None``: each
+    direction's slope ``fv_j ± fvd_j`` must be positive (a friction that pushes a joint along one way is no
+    friction), so ``|fvd_j| < fv_j`` with ``fv_j`` the joint's viscous coefficient fitted beside it in the trial (the
+    declared model's base column ``fv{j}``, first among the trial's coefficients); a joint without a viscous law
+    has slopes ``±fvd_j``, one of them negative. With ``std`` (the trial's linear coefficients' standard deviations,
+    block by block, as :func:`wrong_sign` takes them) the weaker slope must stay positive by
+    :data:`SIGNIFICANT_TERM` of ``fvd_j``'s standard deviations, as each term of a several-term law must.
+
+    ``held``: the blocks the current model holds beside the declared columns in the trial's fit (the adopted ones it
+    keeps, in their order: the trial's coefficients are the declared model's, then these, then the trial's own). A
+    direction law among them is checked at the trial's estimate too (slope above zero): a move whose model turns a
+    held direction law non-physical (its joint's ``fv`` falls below ``|fvd|`` once another law takes part of the
+    viscous column) is refused at that move, never left for the final refit to drop after it changed the search's
+    path."""
+    names = model.base.names
+    theta = np.asarray(trial.fit.theta, dtype=float)
+
+    def viscous(joint: int) -> tuple[str, float]:
+        name = f"fv{joint + 1}"
+        return name, (float(theta[names.index(name)]) if name in names else 0.0)
+
+    stops = np.cumsum([block.n_linear for block in trial.blocks])
+    for position, block in enumerate(trial.blocks):
+        if block.effect.name != "viscous:direction":
+            continue
+        spread = (np.zeros(block.n_linear) if std is None
+                  else np.asarray(std[stops[position] - block.n_linear: stops[position]], dtype=float))
+        for joint, direction, sigma in zip(joints_of(block, model), trial.coefficients(position), spread):
+            name, slope = viscous(joint)
+            if abs(direction) + SIGNIFICANT_TERM * sigma >= slope:
+                margin = "" if std is None else f" within {SIGNIFICANT_TERM:g} standard deviations ({sigma:.2g}) of"
+                return (f"{candidate_label(block.effect)} on tau{joint + 1} is estimated with a non-physical slope "
+                        f"({name} = {slope:.3g}, fvd{joint + 1} = {float(direction):.3g}: one direction's viscous "
+                        f"slope fv - |fvd|{margin} at or below zero)")
+    stop = theta.shape[0] - int(stops[-1] if len(stops) else 0)
+    start = stop - sum(block.n_linear for block in held)
+    for block in held:
+        coefficients, start = theta[start: start + block.n_linear], start + block.n_linear
+        if block.effect.name != "viscous:direction":
+            continue
+        for joint, direction in zip(joints_of(block, model), coefficients):
+            name, slope = viscous(joint)
+            if abs(direction) >= slope:
+                return (f"it turns the model's {candidate_label(block.effect)} on tau{joint + 1} non-physical ({name} "
+                        f"= {slope:.3g}, fvd{joint + 1} = {float(direction):.3g} beside it: one direction's viscous "
+                        "slope fv - |fvd| at or below zero)")
+    return None
+
+
 def joints_of(block: Block, model: IdentificationModel) -> tuple[int, ...]:
     """The joints (0-based) whose torque rows a block reaches."""
     joints = []
