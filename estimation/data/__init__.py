@@ -12,6 +12,7 @@ from dynamics.runtime.lazy import lazy_exports
 _EXPORTS: dict[str, str] = {
     "AbsurdValueError": "estimation.data.loading",
     "AngleUnitError": "estimation.data.loading",
+    "LengthUnitError": "estimation.data.loading",
     "UnwrappedAngleWarning": "estimation.data.loading",
     "HoldWarning": "estimation.data.loading",
     "WrappedAngleError": "estimation.data.loading",
@@ -43,6 +44,7 @@ _EXPORTS: dict[str, str] = {
     "RepeatedRowsWarning": "estimation.data.loading",
     "RepeatedHeaderWarning": "estimation.data.loading",
     "BlankRowsWarning": "estimation.data.loading",
+    "UnstartedChannelsWarning": "estimation.data.loading",
     "EncoderGlitchWarning": "estimation.data.loading",
     "SaturatedTorqueWarning": "estimation.data.loading",
     "ResampledWarning": "estimation.data.loading",

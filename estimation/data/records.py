@@ -30,6 +30,7 @@ from estimation.data.loading import (
     ABSURD_VALUE,
     AbsurdValueError,
     BlankRowsWarning,
+    UnstartedChannelsWarning,
     COLUMN_GROUPS,
     EncoderGlitchWarning,
     SaturatedTorqueWarning,
@@ -85,6 +86,7 @@ from estimation.data.vendor_logs import AmbiguousColumnsError, VendorColumnsWarn
 from estimation.data.sampling_clock import clock_instants, clock_roughness, quantised_clock, said_receive_times
 from estimation.data.channel_mask import channel_only_parameters, masked_channels
 from estimation.data.log_cleaning import (DEFAULT_MAX_GAP, ZERO_ROW_JOINTS, Gap, PositionSteps, blank_rows, describe,
+                                          unstarted_rows,
                                           GLITCH_RUN, encoder_glitches, find_gaps, position_steps, repeated_rows,
                                           saturated_samples, saturated_wrench, split_rows, time_stamps_jump,
                                           zero_rows)
@@ -372,8 +374,9 @@ def segments_from_frame(
     glitches: bool = True,
 ) -> tuple[Measurements, ...]:
     """The checks of :func:`read_record` on a ``DataFrame`` already in memory; with ``glitches``, its encoder read
-    errors dropped as dropouts (:func:`glitch_rows`, said in an :class:`EncoderGlitchWarning`) and a torque sensor's
-    clipped samples left out of the samples as recorded (:func:`clipped_torques`)."""
+    errors dropped as dropouts (:func:`glitch_rows`, said in an :class:`EncoderGlitchWarning`), a torque sensor's
+    clipped samples left out of the samples as recorded (:func:`clipped_torques`) and the rows before every channel
+    has reported or after one has stopped left out (:func:`_started`)."""
     if isinstance(max_gap, bool) or not isinstance(max_gap, (int, float, np.floating)) or not max_gap > 0 \
             or not np.isfinite(max_gap):
         raise ValueError(f"max_gap must be a positive number of seconds, got {max_gap!r}")
@@ -389,6 +392,8 @@ def segments_from_frame(
         first = int(np.flatnonzero(blank)[0])
         said_dropouts(int(blank.sum()), first, frame["t"].iloc[first] if "t" in frame.columns else None, source)
         frame = frame[~blank].reset_index(drop=True)
+    if glitches:  # the whole record's edges (a streamed file's chunk holds part of it: its reader refuses them)
+        frame = _started(frame, n_joints, source)
     groups = set(require) | set(required_groups(model)) | {"q"}
     unknown = groups - set(COLUMN_GROUPS)
     if unknown:
@@ -470,6 +475,45 @@ def dropouts(frame: pd.DataFrame, n_joints: int) -> NDArray[np.bool_]:
         if not unlogged.all():
             blank |= unlogged
     return blank
+
+
+def _data_cells(frame: pd.DataFrame, n_joints: int) -> list[str]:
+    """The data columns of ``frame`` (``q, dq, ddq, tau``, wrench: those present), as :func:`dropouts` reads them."""
+    return [column for group in COLUMN_GROUPS
+            for column in (list(WRENCH_CHANNELS) if group == "wrench" else joint_columns(group, n_joints))
+            if column in frame.columns]
+
+
+def _started(frame: pd.DataFrame, n_joints: int, source: str) -> pd.DataFrame:
+    """``frame`` without the rows before every data channel has reported and after one has stopped
+    (:func:`estimation.data.log_cleaning.unstarted_rows`), said in an :class:`UnstartedChannelsWarning` naming how
+    many, the time they span and the channels that lacked a value; ``frame`` itself when there are none (in memory
+    only: the streamed reader refuses such a record as it does any blank cell)."""
+    cells = _data_cells(frame, n_joints)
+    if not cells or not len(frame):
+        return frame
+    empty = _empty_cells(frame)(cells)
+    edges = unstarted_rows(empty)
+    if not edges.any():
+        return frame
+    lacking = [column for column, missing in zip(cells, empty[edges].any(axis=0)) if missing]
+    head = int(np.argmax(~edges))
+    tail = int(edges.sum()) - head
+    stamps = pd.to_numeric(frame["t"], errors="coerce").to_numpy(dtype=float) if "t" in frame.columns else None
+
+    def span(rows: slice) -> str:
+        if stamps is None or not np.isfinite(stamps[rows]).any():
+            return ""
+        return f" (t = {np.nanmin(stamps[rows]):.6g} to {np.nanmax(stamps[rows]):.6g})"
+
+    said = [f"{head} row(s) at its start{span(slice(0, head))}"] if head else []
+    said += [f"{tail} row(s) at its end{span(slice(len(frame) - tail, len(frame)))}"] if tail else []
+    warnings.warn(
+        f"{source}: dropped {' and '.join(said)} where some channels hold no value yet or no longer "
+        f"({', '.join(lacking[:8])}{' …' if len(lacking) > 8 else ''}: a logger whose channels start and stop on "
+        "their own); the record is the rows where every channel holds a value", UnstartedChannelsWarning,
+        stacklevel=5)
+    return frame[~edges].reset_index(drop=True)
 
 
 def _empty_cells(frame: pd.DataFrame) -> Callable[[list[str]], NDArray[np.bool_]]:
