@@ -13,6 +13,8 @@ _EXPORTS: dict[str, str] = {
     "AbsurdValueError": "estimation.data.loading",
     "AngleUnitError": "estimation.data.loading",
     "LengthUnitError": "estimation.data.loading",
+    "LongTableError": "estimation.data.log_formats",
+    "LongTableWarning": "estimation.data.log_formats",
     "UnwrappedAngleWarning": "estimation.data.loading",
     "HoldWarning": "estimation.data.loading",
     "WrappedAngleError": "estimation.data.loading",

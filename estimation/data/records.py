@@ -70,6 +70,9 @@ from estimation.data.date_times import seconds_of_date_times
 from estimation.data.passive import with_passive_torques
 from estimation.data.log_formats import (
     DescriptionOrderWarning,
+    LongTableError,
+    LongTableWarning,
+    long_table,
     JointNamedColumnsWarning,
     JointStateTableWarning,
     TimeColumnWarning,
@@ -189,8 +192,11 @@ def read_record(
     if path.is_dir():
         raise IsADirectoryError(f"data file {path} is a folder")
     if suffix not in (".csv", ".parquet"):
+        packed = path.suffix.lower() in COMPRESSED_SUFFIXES
         raise MeasurementError(f"unknown data format {path.suffix!r} for {path}: use .csv or .parquet, a ROS bag "
-                               "(.mcap, .db3, .bag or a rosbag2 folder), .npz or .mat")
+                               "(.mcap, .db3, .bag or a rosbag2 folder), .npz or .mat"
+                               + (f"; a compressed file: unpack it first (its inner name {path.stem!r})"
+                                  if packed else ""))
     if not path.is_file():
         raise FileNotFoundError(f"data file not found: {path}")
     try:
@@ -205,15 +211,24 @@ def read_record(
 
 
 def in_the_format(frame: pd.DataFrame, path: Path, model: IdentificationModel | ModelKind | str | None, *,
-                  require: Iterable[str] = ("q",)) -> pd.DataFrame:
+                  require: Iterable[str] = ("q",), streamed: bool = False) -> pd.DataFrame:
     """A CSV or Parquet table with its columns under the format's names where it names them otherwise, each said
-    in a warning giving the ``--columns`` map that reads it so: ``rostopic echo -p`` of ``JointState`` messages
+    in a warning giving the ``--columns`` map that reads it so: a long table, one row per joint and time stamp, put
+    side by side first (:func:`~estimation.data.log_formats.long_table`), ``rostopic echo -p`` of ``JointState`` messages
     (:func:`~estimation.data.log_formats.joint_state_echo`), the time under another name
     (:func:`~estimation.data.log_formats.time_column`), joint columns named by the robot's joints
     (:func:`~estimation.data.log_formats.joint_named_columns`), then a controller's or driver's log
     (:func:`~estimation.data.vendor_logs.vendor_columns`: ``actual_q_0``, ``q[0]``, ``measured_torque``…, cells
-    holding arrays split). One rule for the in-memory reader and the motor-side one."""
+    holding arrays split). One rule for the in-memory reader and the motor-side one (``streamed``: a block of a
+    streamed file, where a long table is refused)."""
     robot = model.robot if isinstance(model, IdentificationModel) else None
+    long = None if robot is None else long_table(frame, robot.joint_names, str(path))
+    if long is not None and streamed:  # a block of a long table may split a time stamp's rows
+        raise LongTableError(f"{path}: a long table (one row per joint and time stamp) is read in memory only: drop "
+                             "the streaming options")
+    if long is not None:  # one row per joint and time stamp: put side by side, then read by the joints' names
+        frame = long.frame
+        warnings.warn(LongTableWarning(long.message), stacklevel=2)
     echo = joint_state_echo(frame)
     if echo is not None:  # rostopic echo -p of JointState messages: read as the column map that reads it
         frame = apply_column_map(frame, echo, str(path), joint_names=None if robot is None else robot.joint_names)
@@ -359,6 +374,10 @@ def read_parquet_frame(path: Path) -> pd.DataFrame:
             f"cannot read {path}: Parquet needs the pyarrow package (pip install pyarrow); or save the data as CSV"
         ) from None
     return seconds_of_date_times(pd.read_parquet(path), str(path))[0]
+
+
+#: the endings of a compressed file: a log packed for storage, named in the unknown-format message
+COMPRESSED_SUFFIXES = (".gz", ".bz2", ".xz", ".zst", ".zip", ".7z")
 
 
 def segments_from_frame(
