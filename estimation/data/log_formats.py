@@ -150,12 +150,13 @@ def long_table(frame: pd.DataFrame, joint_names: Sequence[str] | None, source: s
     """A table of one row per joint and time stamp (a "long" table: ``t, joint, position, effort``) as one row per
     time stamp, or ``None`` when ``frame`` is not one: it has no numbered joint columns (``q1``, ``qm1``), a time
     column (``t``, or the one :func:`time_column` finds) and exactly one column of text whose values name every
-    one of the robot's joints (``joint_names``; rows of other joints, a gripper's, are left out and said). Its
+    one of the robot's joints (``joint_names``, two or more; rows of other joints, a gripper's, are left out and
+    said). Its
     other columns become ``<column>.<joint>`` for each joint, in the order the time stamps first appear (a time
     that goes back stays where it was written); a joint missing at a stamp leaves its cells empty (the loader's
     rules for blank cells apply). :class:`LongTableError` when a joint is written twice at one stamp."""
-    if not joint_names or {"q1", "qm1"} & {str(column) for column in frame.columns}:
-        return None
+    if not joint_names or len(joint_names) < 2 or {"q1", "qm1"} & {str(column) for column in frame.columns}:
+        return None  # one joint: a column naming it on every row is a label (a JointState export's name[0])
     names = [str(name) for name in joint_names]
     keys = []
     for column in frame.columns:
