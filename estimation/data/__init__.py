@@ -12,6 +12,9 @@ from dynamics.runtime.lazy import lazy_exports
 _EXPORTS: dict[str, str] = {
     "AbsurdValueError": "estimation.data.loading",
     "AngleUnitError": "estimation.data.loading",
+    "LengthUnitError": "estimation.data.loading",
+    "LongTableError": "estimation.data.log_formats",
+    "LongTableWarning": "estimation.data.log_formats",
     "UnwrappedAngleWarning": "estimation.data.loading",
     "HoldWarning": "estimation.data.loading",
     "WrappedAngleError": "estimation.data.loading",
@@ -46,6 +49,7 @@ _EXPORTS: dict[str, str] = {
     "BlankRowsWarning": "estimation.data.loading",
     "NewestFirstWarning": "estimation.data.loading",
     "HeldChannelWarning": "estimation.data.loading",
+    "UnstartedChannelsWarning": "estimation.data.loading",
     "EncoderGlitchWarning": "estimation.data.loading",
     "SaturatedTorqueWarning": "estimation.data.loading",
     "ResampledWarning": "estimation.data.loading",

@@ -43,6 +43,9 @@ SLOW_SAMPLE_TIME = 0.1
 GAP_FACTOR = 5.0
 #: a revolute joint whose |q| exceeds this (rad) most likely holds degrees (2π plus a margin)
 DEGREES_THRESHOLD = 2 * np.pi + 0.5
+#: a prismatic joint whose |q| exceeds this many times the largest |limit| its description gives most likely holds
+#: millimetres (1000 times the metres; a controller's soft limits narrower than the motion leave it within a few)
+LENGTH_UNIT_FACTOR = 20.0
 #: read as degrees, a |q| beyond this is more than two turns: motor-side angles rather than degrees
 MOTOR_SIDE_DEGREES = 720.0
 
@@ -69,6 +72,10 @@ class TimeBaseError(MeasurementError):
 
 class AngleUnitError(MeasurementError):
     """Revolute joint angles look like degrees."""
+
+
+class LengthUnitError(MeasurementError):
+    """Prismatic joint positions far beyond the description's limits: millimetres for metres."""
 
 
 class MotorSideAnglesError(AngleUnitError):
@@ -136,6 +143,12 @@ class RepeatedHeaderWarning(MeasurementWarning):
 class BlankRowsWarning(MeasurementWarning):
     """Rows whose data cells are all empty (a logger's dropouts) were dropped; the time they leave without samples
     is a gap like any other."""
+
+
+class UnstartedChannelsWarning(MeasurementWarning):
+    """Rows at the start (or the end) of a record where some channels held no value yet (or no longer: a logger
+    whose channels start and stop on their own) were dropped; the record is the rows where every channel holds one
+    (:func:`estimation.data.log_cleaning.unstarted_rows`)."""
 
 
 class EncoderGlitchWarning(MeasurementWarning):
@@ -542,7 +555,9 @@ def check_time(t: NDArray[np.float64], source: str) -> float:
 def check_angles(q: NDArray[np.float64], model, source: str) -> None:
     """Raise :class:`AngleUnitError` for revolute angles beyond ±2π (degrees), :class:`MotorSideAnglesError`
     for more turns than the joint makes even in degrees (``model``'s robot tells the joint types and limits;
-    without one every joint counts as revolute)."""
+    without one every joint counts as revolute), :class:`LengthUnitError` for a prismatic joint's positions beyond
+    :data:`LENGTH_UNIT_FACTOR` times the largest position its description allows (millimetres: the message names
+    the column map that reads the log as it is)."""
     revolute = [True] * q.shape[1]
     limits = [np.inf] * q.shape[1]
     if isinstance(model, IdentificationModel):
@@ -550,6 +565,14 @@ def check_angles(q: NDArray[np.float64], model, source: str) -> None:
         limits = [max(abs(joint.lower), abs(joint.upper)) for joint in model.robot.joints]
     for index in range(q.shape[1]):
         peak = float(np.max(np.abs(q[:, index])))
+        if not revolute[index] and isinstance(model, IdentificationModel) \
+                and 0 < limits[index] < np.inf and peak > LENGTH_UNIT_FACTOR * limits[index]:
+            column = f"q{index + 1}"
+            raise LengthUnitError(
+                f"{source}: column {column} reaches {peak:.4g}, {peak / limits[index]:.3g} x the largest position the "
+                f"description allows its prismatic joint ({limits[index]:.4g} m): millimetres? (the format is SI: "
+                f"divide by 1000, or read the log as it is: --columns {column}=0.001*{column}, a logged d{column} and "
+                f"dd{column} alike)")
         if revolute[index] and peak > DEGREES_THRESHOLD and _motor_side(peak, limits[index]):
             raise MotorSideAnglesError(
                 f"{source}: column q{index + 1} reaches {peak:.4g} rad and spans {np.ptp(q[:, index]) / (2 * np.pi):.3g} "

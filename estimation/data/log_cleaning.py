@@ -15,7 +15,12 @@
 * **Dropouts.** A row whose data columns are all blank (its time stamp written or not) is a sample the logger
   did not deliver (:func:`blank_rows`): it is dropped before anything else, and the time it leaves without a
   sample is a gap like any other, bridged up to ``max_gap`` and split beyond. A row with some cells blank and
-  others not is no dropout, and stays an error.
+  others not is no dropout, and stays an error, but at the record's edges (:func:`unstarted_rows`).
+* **Channels that start late or stop early.** A logger whose channels report on their own (a drive per joint, a
+  topic per sensor, tables merged by time) writes rows before every channel's first value, or after one's last,
+  with some cells blank: the rows before the first row that holds every channel, and after the last, are no
+  samples of the record (there is nothing to interpolate from on one side) and are left out; the record is the
+  rows between. Blanks between complete rows stay an error.
 * **Lost frames written as zeros.** A fieldbus logger that misses a frame may write the row with every value ``0``
   (:func:`zero_rows`): on a robot of two joints or more, every position and torque exactly zero at once is no
   measurement (the torque sensors' noise alone forbids it), so such a row is a dropout like a blank one. Rows
@@ -84,6 +89,21 @@ def blank_rows(empty: NDArray[np.bool_]) -> NDArray[np.bool_]:
     if empty.shape[1] == 0:
         return np.zeros(empty.shape[0], dtype=bool)
     return np.all(empty, axis=1)
+
+
+def unstarted_rows(empty: NDArray[np.bool_]) -> NDArray[np.bool_]:
+    """``(N,)`` true on the rows before the first row with no empty cell and after the last one (``empty (N, k)``:
+    the data columns' cells that hold no value): the rows a logger wrote before all its channels had reported, or
+    after one had stopped. None without a complete row (every row lacks a channel: the column checks name it), nor
+    for ``k = 0``."""
+    complete = ~np.any(empty, axis=1) if empty.shape[1] else np.ones(empty.shape[0], dtype=bool)
+    edges = np.zeros(empty.shape[0], dtype=bool)
+    if empty.shape[1] == 0 or not complete.any():
+        return edges
+    found = np.flatnonzero(complete)
+    edges[:found[0]] = True
+    edges[found[-1] + 1:] = True
+    return edges
 
 
 #: the fewest joints a robot must have for a row of zeros to be a lost frame: one axis at rest at its zero pose,

@@ -128,6 +128,73 @@ def joint_named_columns(frame: pd.DataFrame, joint_names: Sequence[str] | None) 
     return found or None
 
 
+class LongTableWarning(MeasurementWarning):
+    """A long table (one row per joint and time stamp, a column naming the joint: a database's or a time-series
+    store's export) was read as one row per time stamp (:func:`long_table`)."""
+
+
+class LongTableError(MeasurementError):
+    """A long table names one joint twice at one time stamp: its rows cannot be put side by side."""
+
+
+@dataclass(frozen=True)
+class LongTable:
+    """A long table turned into one row per time stamp: ``frame`` (the time column as it was, each value column
+    ``<value>.<joint>`` per joint, as :func:`joint_named_columns` reads them), ``message`` saying what was read."""
+
+    frame: pd.DataFrame
+    message: str
+
+
+def long_table(frame: pd.DataFrame, joint_names: Sequence[str] | None, source: str) -> LongTable | None:
+    """A table of one row per joint and time stamp (a "long" table: ``t, joint, position, effort``) as one row per
+    time stamp, or ``None`` when ``frame`` is not one: it has no numbered joint columns (``q1``, ``qm1``), a time
+    column (``t``, or the one :func:`time_column` finds) and exactly one column of text whose values name every
+    one of the robot's joints (``joint_names``, two or more; rows of other joints, a gripper's, are left out and
+    said). Its
+    other columns become ``<column>.<joint>`` for each joint, in the order the time stamps first appear (a time
+    that goes back stays where it was written); a joint missing at a stamp leaves its cells empty (the loader's
+    rules for blank cells apply). :class:`LongTableError` when a joint is written twice at one stamp."""
+    if not joint_names or len(joint_names) < 2 or {"q1", "qm1"} & {str(column) for column in frame.columns}:
+        return None  # one joint: a column naming it on every row is a label (a JointState export's name[0])
+    names = [str(name) for name in joint_names]
+    keys = []
+    for column in frame.columns:
+        values = frame[column]
+        if pd.api.types.is_numeric_dtype(values):
+            continue
+        found = set(values.dropna().astype(str).str.strip().unique())
+        if set(names) <= found:
+            keys.append(str(column))
+    time = "t" if "t" in frame.columns else time_column(frame)
+    if len(keys) != 1 or time is None:
+        return None
+    key, time = keys[0], _scaled(time)[1]
+    joint = frame[key].astype(str).str.strip()
+    own = joint.isin(names)
+    others = sorted(set(joint[~own].dropna()) - {"nan"})
+    rows = frame[own].assign(**{key: joint[own]})
+    twice = rows.duplicated(subset=[time, key])
+    if twice.any():
+        first = rows[twice].iloc[0]
+        raise LongTableError(
+            f"{source}: read as a long table (one row per joint and time stamp, column {key!r} naming the joints), "
+            f"but {int(twice.sum())} row(s) name a joint again at the same time stamp, first {first[key]!r} at "
+            f"{time} = {first[time]!r}: the rows cannot be put side by side")
+    values = [str(column) for column in frame.columns if str(column) not in (key, time)]
+    if not values:
+        return None
+    wide = rows.pivot(index=time, columns=key, values=values)
+    wide = wide.reindex(pd.unique(rows[time]))
+    wide.columns = [f"{value}.{name}" for value, name in wide.columns]
+    ordered = [f"{value}.{name}" for value in values for name in names if f"{value}.{name}" in wide.columns]
+    out = wide[ordered].reset_index(names=time)
+    left = f"; rows of {', '.join(repr(name) for name in others[:6])} left out (not the robot's joints)" if others else ""
+    return LongTable(out, f"{source}: read as a long table, one row per joint and time stamp (column {key!r} naming "
+                          f"the joints, {', '.join(repr(value) for value in values)} per joint): "
+                          f"{len(rows)} rows put side by side as {len(out)} time stamps{left}")
+
+
 class DescriptionOrderWarning(MeasurementWarning):
     """A table numbering every joint of the description the robot's chain was read from (``q1..q6`` of a dual arm,
     in the file's order) was read for the chain's joints alone: which columns, and which were left out (joints on

@@ -31,6 +31,7 @@ from estimation.data.loading import (
     ABSURD_VALUE,
     AbsurdValueError,
     BlankRowsWarning,
+    UnstartedChannelsWarning,
     COLUMN_GROUPS,
     EncoderGlitchWarning,
     HeldChannelWarning,
@@ -72,6 +73,9 @@ from estimation.data.date_times import seconds_of_date_times
 from estimation.data.passive import with_passive_torques
 from estimation.data.log_formats import (
     DescriptionOrderWarning,
+    LongTableError,
+    LongTableWarning,
+    long_table,
     JointNamedColumnsWarning,
     JointStateTableWarning,
     TimeColumnWarning,
@@ -91,6 +95,7 @@ from estimation.data.sampling_clock import clock_instants, clock_roughness, quan
 from estimation.data.held_channels import HeldChannels, held_rows
 from estimation.data.channel_mask import channel_only_parameters, masked_channels
 from estimation.data.log_cleaning import (DEFAULT_MAX_GAP, ZERO_ROW_JOINTS, Gap, PositionSteps, blank_rows, describe,
+                                          unstarted_rows,
                                           GLITCH_RUN, encoder_glitches, find_gaps, position_steps, repeated_rows,
                                           saturated_samples, saturated_wrench, split_rows, time_stamps_jump,
                                           zero_rows)
@@ -193,8 +198,11 @@ def read_record(
     if path.is_dir():
         raise IsADirectoryError(f"data file {path} is a folder")
     if suffix not in (".csv", ".parquet"):
+        packed = path.suffix.lower() in COMPRESSED_SUFFIXES
         raise MeasurementError(f"unknown data format {path.suffix!r} for {path}: use .csv or .parquet, a ROS bag "
-                               "(.mcap, .db3, .bag or a rosbag2 folder), .npz or .mat")
+                               "(.mcap, .db3, .bag or a rosbag2 folder), .npz or .mat"
+                               + (f"; a compressed file: unpack it first (its inner name {path.stem!r})"
+                                  if packed else ""))
     if not path.is_file():
         raise FileNotFoundError(f"data file not found: {path}")
     try:
@@ -209,17 +217,27 @@ def read_record(
 
 
 def in_the_format(frame: pd.DataFrame, path: Path, model: IdentificationModel | ModelKind | str | None, *,
-                  require: Iterable[str] = ("q",), servos: ServoLaws | None = None) -> pd.DataFrame:
+                  require: Iterable[str] = ("q",), servos: ServoLaws | None = None,
+                  streamed: bool = False) -> pd.DataFrame:
     """A CSV or Parquet table with its columns under the format's names where it names them otherwise, each said
-    in a warning giving the ``--columns`` map that reads it so: ``rostopic echo -p`` of ``JointState`` messages
+    in a warning giving the ``--columns`` map that reads it so: a long table, one row per joint and time stamp, put
+    side by side first (:func:`~estimation.data.log_formats.long_table`), ``rostopic echo -p`` of ``JointState`` messages
     (:func:`~estimation.data.log_formats.joint_state_echo`), the time under another name
     (:func:`~estimation.data.log_formats.time_column`), joint columns named by the robot's joints
     (:func:`~estimation.data.log_formats.joint_named_columns`), then a controller's or driver's log
     (:func:`~estimation.data.vendor_logs.vendor_columns`: ``actual_q_0``, ``q[0]``, ``measured_torque``…, cells
-    holding arrays split). One rule for the in-memory reader and the motor-side one. ``servos``: the MJCF's actuator
-    laws (a transmission's, :func:`dynamics.mjcf.mjcf_servos`): a MuJoCo log of the servos' controls without a force
-    is read through them (:func:`~estimation.data.vendor_logs.with_servo_torques`), else refused."""
+    holding arrays split). One rule for the in-memory reader and the motor-side one (``streamed``: a block of a
+    streamed file, where a long table is refused). ``servos``: the MJCF's actuator laws (a transmission's,
+    :func:`dynamics.mjcf.mjcf_servos`): a MuJoCo log of the servos' controls without a force is read through them
+    (:func:`~estimation.data.vendor_logs.with_servo_torques`), else refused."""
     robot = model.robot if isinstance(model, IdentificationModel) else None
+    long = None if robot is None else long_table(frame, robot.joint_names, str(path))
+    if long is not None and streamed:  # a block of a long table may split a time stamp's rows
+        raise LongTableError(f"{path}: a long table (one row per joint and time stamp) is read in memory only: drop "
+                             "the streaming options")
+    if long is not None:  # one row per joint and time stamp: put side by side, then read by the joints' names
+        frame = long.frame
+        warnings.warn(LongTableWarning(long.message), stacklevel=2)
     echo = joint_state_echo(frame)
     if echo is not None:  # rostopic echo -p of JointState messages: read as the column map that reads it
         frame = apply_column_map(frame, echo, str(path), joint_names=None if robot is None else robot.joint_names)
@@ -378,6 +396,10 @@ def read_parquet_frame(path: Path) -> pd.DataFrame:
     return seconds_of_date_times(pd.read_parquet(path), str(path))[0]
 
 
+#: the endings of a compressed file: a log packed for storage, named in the unknown-format message
+COMPRESSED_SUFFIXES = (".gz", ".bz2", ".xz", ".zst", ".zip", ".7z")
+
+
 def segments_from_frame(
     frame: pd.DataFrame,
     *,
@@ -391,8 +413,9 @@ def segments_from_frame(
     glitches: bool = True,
 ) -> tuple[Measurements, ...]:
     """The checks of :func:`read_record` on a ``DataFrame`` already in memory; with ``glitches``, its encoder read
-    errors dropped as dropouts (:func:`glitch_rows`, said in an :class:`EncoderGlitchWarning`) and a torque sensor's
-    clipped samples left out of the samples as recorded (:func:`clipped_torques`)."""
+    errors dropped as dropouts (:func:`glitch_rows`, said in an :class:`EncoderGlitchWarning`), a torque sensor's
+    clipped samples left out of the samples as recorded (:func:`clipped_torques`) and the rows before every channel
+    has reported or after one has stopped left out (:func:`_started`)."""
     if isinstance(max_gap, bool) or not isinstance(max_gap, (int, float, np.floating)) or not max_gap > 0 \
             or not np.isfinite(max_gap):
         raise ValueError(f"max_gap must be a positive number of seconds, got {max_gap!r}")
@@ -413,6 +436,8 @@ def segments_from_frame(
         blank = blank | held.rows
     if blank.any():
         frame = frame[~blank].reset_index(drop=True)
+    if glitches:  # the whole record's edges (a streamed file's chunk holds part of it: its reader refuses them)
+        frame = _started(frame, n_joints, source)
     groups = set(require) | set(required_groups(model)) | {"q"}
     unknown = groups - set(COLUMN_GROUPS)
     if unknown:
@@ -494,6 +519,45 @@ def dropouts(frame: pd.DataFrame, n_joints: int) -> NDArray[np.bool_]:
         if not unlogged.all():
             blank |= unlogged
     return blank
+
+
+def _data_cells(frame: pd.DataFrame, n_joints: int) -> list[str]:
+    """The data columns of ``frame`` (``q, dq, ddq, tau``, wrench: those present), as :func:`dropouts` reads them."""
+    return [column for group in COLUMN_GROUPS
+            for column in (list(WRENCH_CHANNELS) if group == "wrench" else joint_columns(group, n_joints))
+            if column in frame.columns]
+
+
+def _started(frame: pd.DataFrame, n_joints: int, source: str) -> pd.DataFrame:
+    """``frame`` without the rows before every data channel has reported and after one has stopped
+    (:func:`estimation.data.log_cleaning.unstarted_rows`), said in an :class:`UnstartedChannelsWarning` naming how
+    many, the time they span and the channels that lacked a value; ``frame`` itself when there are none (in memory
+    only: the streamed reader refuses such a record as it does any blank cell)."""
+    cells = _data_cells(frame, n_joints)
+    if not cells or not len(frame):
+        return frame
+    empty = _empty_cells(frame)(cells)
+    edges = unstarted_rows(empty)
+    if not edges.any():
+        return frame
+    lacking = [column for column, missing in zip(cells, empty[edges].any(axis=0)) if missing]
+    head = int(np.argmax(~edges))
+    tail = int(edges.sum()) - head
+    stamps = pd.to_numeric(frame["t"], errors="coerce").to_numpy(dtype=float) if "t" in frame.columns else None
+
+    def span(rows: slice) -> str:
+        if stamps is None or not np.isfinite(stamps[rows]).any():
+            return ""
+        return f" (t = {np.nanmin(stamps[rows]):.6g} to {np.nanmax(stamps[rows]):.6g})"
+
+    said = [f"{head} row(s) at its start{span(slice(0, head))}"] if head else []
+    said += [f"{tail} row(s) at its end{span(slice(len(frame) - tail, len(frame)))}"] if tail else []
+    warnings.warn(
+        f"{source}: dropped {' and '.join(said)} where some channels hold no value yet or no longer "
+        f"({', '.join(lacking[:8])}{' …' if len(lacking) > 8 else ''}: a logger whose channels start and stop on "
+        "their own); the record is the rows where every channel holds a value", UnstartedChannelsWarning,
+        stacklevel=5)
+    return frame[~edges].reset_index(drop=True)
 
 
 def _empty_cells(frame: pd.DataFrame) -> Callable[[list[str]], NDArray[np.bool_]]:

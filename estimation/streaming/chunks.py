@@ -139,7 +139,7 @@ def _in_the_format(frames: Iterator[pd.DataFrame], path: Path, model: Identifica
         with warnings.catch_warnings():
             if index or not say:
                 warnings.simplefilter("ignore")  # said once, with the first block (of the scan)
-            formatted = in_the_format(frame, path, model)
+            formatted = in_the_format(frame, path, model, streamed=True)
         if columns is None:
             columns = list(formatted.columns)
         elif list(formatted.columns) != columns:
