@@ -120,7 +120,13 @@ def gains_normal(G: NDArray, b: NDArray, gains: NDArray, theta: NDArray, free: N
     g_s = b @ theta - s * H_ss
     if sign == "held":
         H_ts, H_ss, g_s = s[:, None] * H_ts, s**2 * H_ss, s * g_s
-    return (np.block([[H_tt, H_ts[free].T], [H_ts[free], np.diag(H_ss[free])]]), np.r_[g_t, g_s[free]])
+    r, k = H_tt.shape[0], free.size
+    H = np.zeros((r + k, r + k))  # the blocks copied in place (np.block's values, without its checks)
+    H[:r, :r] = H_tt
+    H[:r, r:] = H_ts[free].T
+    H[r:, :r] = H_ts[free]
+    H[r + np.arange(k), r + np.arange(k)] = H_ss[free]
+    return H, np.concatenate((g_t, g_s[free]))
 
 
 def determined_gains(sums: tuple[NDArray, NDArray, NDArray], fitted: GainsFit, free: NDArray, n_residuals: int
@@ -176,9 +182,10 @@ def fit_channel_gains_on_sums(sums: tuple[NDArray, NDArray, NDArray], gains: NDA
         iterations += 1
         H, g = gains_normal(G, b, s, theta, free, sign)
         scale = np.sqrt(np.maximum(np.diag(H), 1e-300))
+        A, rhs = H / np.outer(scale, scale), g / scale  # the same at each damping tried
+        identity = np.eye(A.shape[0])
         while True:
-            A = H / np.outer(scale, scale)
-            step = np.linalg.lstsq(A + damping * np.eye(A.shape[0]), g / scale, rcond=None)[0] / scale
+            step = np.linalg.lstsq(A + damping * identity, rhs, rcond=None)[0] / scale
             trial_s = s.copy()
             if sign == "held":
                 trial_s[free] *= np.exp(step[r:])
