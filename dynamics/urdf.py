@@ -14,6 +14,7 @@ wrench, which the plate-offset columns absorb.
 from __future__ import annotations
 
 import contextlib
+import copy
 import os
 import re
 import sys
@@ -438,6 +439,42 @@ def _named_joints_model(path: Path, root: ElementTree.Element, names: list[str],
     return reduced
 
 
+#: joint types of a base that moves in the world (URDF's ``floating``: six degrees of freedom; ``planar``: three)
+_BASE_MOTION_TYPES = ("floating", "planar")
+#: a ``<limit>`` Pinocchio reads as no limit (:func:`_joint` takes equal bounds and a zero speed as unset)
+_NO_LIMIT = {"lower": "0", "upper": "0", "effort": "0", "velocity": "0"}
+
+
+def _as_read(path: Path, root: ElementTree.Element) -> str | None:
+    """The description as the chain's dynamics read it, when that differs from the file: ``None`` when it does not.
+
+    - A ``floating`` or ``planar`` joint from a root link (one that is no joint's child, e.g. ``world``) is the
+      base's motion in the world, which a log of the arm's joints does not hold: it is read as ``fixed`` at its
+      origin (the base still), said in a warning. Such a joint elsewhere is left to be refused.
+    - A revolute, continuous or prismatic joint without ``<limit>`` (the URDF specification asks for one on
+      revolute and prismatic joints; hand-written files leave it out, and urdfdom then refuses the whole file)
+      is read without position, speed or effort limits, as a continuous joint is, said in a warning.
+    """
+    children = {child.get("link") for joint in root.iter("joint") for child in joint.iter("child")}
+    floating, open_joints = [], []
+    read = copy.deepcopy(root)
+    for joint in read.iter("joint"):
+        parent = joint.find("parent")
+        if joint.get("type") in _BASE_MOTION_TYPES and parent is not None and parent.get("link") not in children:
+            floating.append(f"{joint.get('name')!r} ({joint.get('type')}, from {parent.get('link')!r})")
+            joint.set("type", "fixed")
+        elif joint.get("type") in ("revolute", "prismatic") and joint.find("limit") is None:
+            open_joints.append(repr(joint.get("name")))
+            ElementTree.SubElement(joint, "limit", _NO_LIMIT)
+    if floating:
+        warnings.warn(f"URDF {path}: joint {', '.join(floating)} moves the base in the world, which the log's joints "
+                      "do not hold: read as fixed at its origin (a base standing still)", stacklevel=4)
+    if open_joints:
+        warnings.warn(f"URDF {path}: joint(s) {', '.join(open_joints)} without <limit>: read without position, "
+                      "speed or effort limits", stacklevel=4)
+    return ElementTree.tostring(read, encoding="unicode") if floating or open_joints else None
+
+
 def _pinocchio_model(path: Path, root: ElementTree.Element) -> Any:
     """Pinocchio's model of the file, refused when the parser failed, read no movable joint, lost
     mass or could not read all of it; what the parser remarked on otherwise is warned about (for
@@ -446,7 +483,8 @@ def _pinocchio_model(path: Path, root: ElementTree.Element) -> Any:
 
     with _captured_stderr() as parser_output:
         try:
-            model = pin.buildModelFromUrdf(str(path))
+            text = _as_read(path, root)
+            model = pin.buildModelFromUrdf(str(path)) if text is None else pin.buildModelFromXML(text)
         except (RuntimeError, ValueError) as error:
             failure = str(error)
         else:
