@@ -445,8 +445,9 @@ _BASE_MOTION_TYPES = ("floating", "planar")
 _NO_LIMIT = {"lower": "0", "upper": "0", "effort": "0", "velocity": "0"}
 
 
-def _as_read(path: Path, root: ElementTree.Element) -> str | None:
-    """The description as the chain's dynamics read it, when that differs from the file: ``None`` when it does not.
+def _as_read(path: Path, root: ElementTree.Element) -> tuple[str | None, list[str]]:
+    """The description as the chain's dynamics read it, when that differs from the file (``None`` when it does
+    not), and the base joints read as fixed.
 
     - A ``floating`` or ``planar`` joint from a root link (one that is no joint's child, e.g. ``world``) is the
       base's motion in the world, which a log of the arm's joints does not hold: it is read as ``fixed`` at its
@@ -472,7 +473,7 @@ def _as_read(path: Path, root: ElementTree.Element) -> str | None:
     if open_joints:
         warnings.warn(f"URDF {path}: joint(s) {', '.join(open_joints)} without <limit>: read without position, "
                       "speed or effort limits", stacklevel=4)
-    return ElementTree.tostring(read, encoding="unicode") if floating or open_joints else None
+    return (ElementTree.tostring(read, encoding="unicode") if floating or open_joints else None), floating
 
 
 def _pinocchio_model(path: Path, root: ElementTree.Element) -> Any:
@@ -483,7 +484,7 @@ def _pinocchio_model(path: Path, root: ElementTree.Element) -> Any:
 
     with _captured_stderr() as parser_output:
         try:
-            text = _as_read(path, root)
+            text, floating = _as_read(path, root)
             model = pin.buildModelFromUrdf(str(path)) if text is None else pin.buildModelFromXML(text)
         except (RuntimeError, ValueError) as error:
             failure = str(error)
@@ -494,7 +495,9 @@ def _pinocchio_model(path: Path, root: ElementTree.Element) -> Any:
     if failure is not None:
         raise RobotDescriptionError(f"cannot parse URDF {path}: {details or failure}")
     if model.njoints <= 1:
-        raise RobotDescriptionError(f"URDF {path} has no movable joint")
+        raise RobotDescriptionError(f"URDF {path} has no movable joint" + (
+            f" (joint {', '.join(floating)} read as a fixed base: floating and planar joints are not identified)"
+            if floating else ""))
     _check_total_mass(path, root, sum(model.inertias[index].mass for index in range(model.njoints)), details)
     if "Error" in parser_output.text:  # urdfdom drops what it cannot read and goes on: not here
         raise RobotDescriptionError(f"URDF {path}: the parser could not read all of it: {details}")

@@ -48,6 +48,14 @@ def in_grams(text: str) -> str:
                   text)
 
 
+def in_inches(text: str) -> str:
+    """Every ``<origin xyz>`` (joints' and inertials') in inches (39.37 times the metres), masses and inertias SI."""
+    def scaled(found: re.Match) -> str:
+        return 'xyz="' + " ".join(f"{float(value) / 0.0254:.10g}" for value in found.group(1).split()) + '"'
+
+    return re.sub(r'xyz="([^"]+)"(?=\s*rpy)', scaled, text)
+
+
 #: the wrist's range (rad): ±450°, wider than a turn each way
 WIDE = np.radians(450.0)
 
@@ -153,6 +161,9 @@ DESCRIBED = (
     Day(Lab("PUMA 6 joints, the description in grams, 10 s / 4 s / 8 s at 250 Hz, no dq, point-to-point test",
             puma(6), *logs(), test_motion="point-to-point", slow=True),
         described=in_grams),
+    Day(Lab("PUMA 6 joints, the description's lengths in inches, 10 s / 4 s / 8 s at 250 Hz, no dq, point-to-point "
+            "test", puma(6), *logs(), test_motion="point-to-point", slow=True),
+        described=in_inches),
     Day(Lab("PUMA 6 joints, wrist rolls limited to +-450 degrees and moving over them, 10 s / 4 s / 8 s at 250 Hz, "
             "no dq, point-to-point test", puma_wide_wrist, *logs(), test_motion="point-to-point", slow=True)),
 )
