@@ -219,6 +219,12 @@ def robot_from_urdf(path: str | Path, *, gravity: np.ndarray | None = None, join
 #: the longest chain of joints a description may span, m (the largest serial manipulators reach under 5 m, a
 #: gantry's beam and column a few metres more): beyond it the file's lengths are not metres
 LONGEST_CHAIN_M = 50.0
+#: a chain longer than this (m) is a large robot's, which carries heavy links: below, no check of its mass
+LONG_CHAIN_M = 5.0
+#: the least mass of a robot's moving links over its span cubed (kg/m³): arms of 0.3 to 2 m weigh 1 to 200 kg/m³
+#: of it (a KUKA LWR4+ 1.0, a UR10e 5, a PUMA 22, a TX40 50), a gantry of 10 m several tonnes; a description in
+#: inches reads as a 40-times longer arm of the same mass (a PUMA: 40 m, 0.0004 kg/m³)
+LEAST_ARM_DENSITY = 0.01
 
 
 def _check_lengths(path: Path, robot: RobotModel) -> None:
@@ -233,6 +239,13 @@ def _check_lengths(path: Path, robot: RobotModel) -> None:
             f"URDF {path}: its joints span {span:.4g} m from the base to the tip (above {LONGEST_CHAIN_M:g} m for "
             "any robot arm): URDF lengths are metres; a file in millimetres must have its lengths (every <origin "
             "xyz>, a prismatic joint's limits) divided by 1000 and its inertias in kg m^2")
+    mass = sum(float(joint.inertial[0]) for joint in robot.joints)
+    if span > LONG_CHAIN_M and 0 < mass < LEAST_ARM_DENSITY * span ** 3:
+        raise RobotDescriptionError(
+            f"URDF {path}: its joints span {span:.4g} m from the base to the tip, but its moving links weigh "
+            f"{mass:.4g} kg in all ({mass / span ** 3:.2g} kg over its span cubed, m^3; a real arm that long weighs "
+            f"over {LEAST_ARM_DENSITY:g} times its span cubed): lengths in inches? URDF lengths are metres; multiply every <origin "
+            "xyz> (and a prismatic joint's limits) by 0.0254, and give masses in kg and inertias in kg m^2")
 
 
 def urdf_actuated_joints(path: str | Path) -> frozenset[str] | None:

@@ -151,6 +151,27 @@ def test_a_wrist_logged_within_its_wide_limits_is_read_as_radians():
         check_angles(q, model, "train.csv")
 
 
+def test_a_description_in_inches_is_refused_naming_the_unit(tmp_path):
+    """The PUMA's description with its lengths in inches (masses and inertias SI): ``oed identify`` exits (code 2,
+    no traceback) naming inches and the factor. Measured at 833a999 on a PUMA 6 log (10 s / 4 s / 8 s at 250 Hz,
+    point-to-point test): read without a word (a 40 m chain, under the millimetres' 50 m), identify predicted the
+    test 60.1x worse than the plain fit (joint 2 265x), diagnose 50.6x (joint 2 273x), naming a ripple on tau2 and
+    tau3 the truth does not hold. The description in metres, and real robots' (a KUKA LWR4+ of 10 kg over a 2.2 m
+    span, the lightest per span cubed), read as before."""
+    from dynamics.urdf import RobotDescriptionError, robot_from_urdf
+    from tests.test_unseen_robot_kinds import quiet
+
+    inches = tmp_path / "puma_in.urdf"
+    inches.write_text(in_inches(puma_text()))
+    with pytest.raises(RobotDescriptionError, match="inches.*0.0254"):
+        robot_from_urdf(inches)
+    code, message = quiet(["identify", "--urdf", str(inches), "--data", str(tmp_path / "absent.csv"), "--out",
+                           str(tmp_path / "result.json")])
+    assert code == 2 and "Traceback" not in message, message
+    assert "inches" in message and "0.0254" in message, message
+    read(puma_text(), tmp_path, "metres")  # the same description in metres reads
+
+
 DESCRIBED = (
     Day(Lab("PUMA 6 joints, the description's base on a floating joint from a world link, 10 s / 4 s / 8 s at "
             "250 Hz, no dq, point-to-point test", puma(6), *logs(), test_motion="point-to-point", slow=True),
@@ -161,9 +182,6 @@ DESCRIBED = (
     Day(Lab("PUMA 6 joints, the description in grams, 10 s / 4 s / 8 s at 250 Hz, no dq, point-to-point test",
             puma(6), *logs(), test_motion="point-to-point", slow=True),
         described=in_grams),
-    Day(Lab("PUMA 6 joints, the description's lengths in inches, 10 s / 4 s / 8 s at 250 Hz, no dq, point-to-point "
-            "test", puma(6), *logs(), test_motion="point-to-point", slow=True),
-        described=in_inches),
     Day(Lab("PUMA 6 joints, wrist rolls limited to +-450 degrees and moving over them, 10 s / 4 s / 8 s at 250 Hz, "
             "no dq, point-to-point test", puma_wide_wrist, *logs(), test_motion="point-to-point", slow=True)),
 )
