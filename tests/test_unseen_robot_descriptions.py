@@ -5,8 +5,8 @@
   mobile base write it) while the log holds the arm's joints only: read as a fixed base, said;
 - revolute and prismatic joints without ``<limit>`` (hand-written descriptions; the URDF spec asks for one, the
   parser refused the file): read without position or speed limits, said;
-- a wrist whose limits are wider than a turn (±450°, as many industrial wrists allow): a log within them is
-  radians, not degrees;
+- a wrist whose range is wider than a turn (0 to 720°, two turns, as a cable-free roll allows): a log within it
+  is radians, not degrees;
 - a description in grams (every ``<mass>`` and inertia 1000 times the SI value, a CAD export's unit error).
 
 Checked without a long run (the default cases): what the reader makes of each description against Pinocchio's
@@ -56,14 +56,15 @@ def in_inches(text: str) -> str:
     return re.sub(r'xyz="([^"]+)"(?=\s*rpy)', scaled, text)
 
 
-#: the wrist's range (rad): ±450°, wider than a turn each way
-WIDE = np.radians(450.0)
+#: the wrist's range (rad): 0 to 720°, two turns
+WIDE = np.radians(720.0)
 
 
 def puma_wide_wrist():
-    """The PUMA with its wrist roll joints (4 and 6) limited to ±450° (their speed limits as they were)."""
+    """The PUMA with its wrist roll joints (4 and 6) ranging from 0 to 720° (their speed limits as they were): a
+    motion within the range is centred on a turn."""
     robot = puma(6)()
-    joints = tuple(dataclasses.replace(joint, lower=-WIDE, upper=WIDE) if index in (3, 5) else joint
+    joints = tuple(dataclasses.replace(joint, lower=0.0, upper=WIDE) if index in (3, 5) else joint
                    for index, joint in enumerate(robot.joints))
     return dataclasses.replace(robot, joints=joints)
 
@@ -132,7 +133,7 @@ def test_joints_without_limits_read_unlimited_and_said(tmp_path):
 
 
 def test_a_wrist_logged_within_its_wide_limits_is_read_as_radians():
-    """A revolute joint whose description allows ±450°: its log at 7 rad is within them (at 833a999 an
+    """A revolute joint whose description allows 0 to 720°: its log at 7 rad is within them (at 833a999 an
     :class:`AngleUnitError`, degrees?); beyond them by more than the margin it is still degrees."""
     from estimation.data.loading import AngleUnitError, check_angles
     from dynamics.models import build_model
@@ -142,7 +143,7 @@ def test_a_wrist_logged_within_its_wide_limits_is_read_as_radians():
     q = np.zeros((50, 6))
     q[:, 3] = np.linspace(-7.0, 7.0, 50)
     check_angles(q, model, "train.csv")
-    q[:, 3] = np.linspace(-20.0, 20.0, 50)  # degrees of a ±20° motion: beyond ±450° read as rad
+    q[:, 3] = np.linspace(0.0, 20.0, 50)  # degrees of a 20° motion: beyond 720° read as rad
     with pytest.raises(AngleUnitError, match="q4"):
         check_angles(q, model, "train.csv")
     q[:, 3] = 0.0
@@ -182,7 +183,7 @@ DESCRIBED = (
     Day(Lab("PUMA 6 joints, the description in grams, 10 s / 4 s / 8 s at 250 Hz, no dq, point-to-point test",
             puma(6), *logs(), test_motion="point-to-point", slow=True),
         described=in_grams),
-    Day(Lab("PUMA 6 joints, wrist rolls limited to +-450 degrees and moving over them, 10 s / 4 s / 8 s at 250 Hz, "
+    Day(Lab("PUMA 6 joints, wrist rolls ranging from 0 to 720 degrees, moving about a turn, 10 s / 4 s / 8 s at 250 Hz, "
             "no dq, point-to-point test", puma_wide_wrist, *logs(), test_motion="point-to-point", slow=True)),
 )
 
