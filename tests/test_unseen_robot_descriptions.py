@@ -56,6 +56,14 @@ def in_inches(text: str) -> str:
     return re.sub(r'xyz="([^"]+)"(?=\s*rpy)', scaled, text)
 
 
+def impossible_inertia(text: str) -> str:
+    """The forearm's (link 3's) ``izz`` typed 0.3 for 0.086 kg m²: larger than ``ixx + iyy`` (0.0785), an inertia no
+    body has (the triangle inequality), as a hand-edited description may hold."""
+    old = '<inertia ixx="0.066" ixy="0.0" ixz="0.0" iyy="0.0125" iyz="0.0" izz="0.086" />'
+    assert old in text
+    return text.replace(old, old.replace('izz="0.086"', 'izz="0.3"'))
+
+
 #: the wrist's range (rad): 0 to 720°, two turns
 WIDE = np.radians(720.0)
 
@@ -183,6 +191,9 @@ DESCRIBED = (
     Day(Lab("PUMA 6 joints, the description in grams, 10 s / 4 s / 8 s at 250 Hz, no dq, point-to-point test",
             puma(6), *logs(), test_motion="point-to-point", slow=True),
         described=in_grams),
+    Day(Lab("PUMA 6 joints, the description's forearm inertia beyond the triangle inequality, 10 s / 4 s / 8 s at "
+            "250 Hz, no dq, point-to-point test", puma(6), *logs(), test_motion="point-to-point", slow=True),
+        described=impossible_inertia),
     Day(Lab("PUMA 6 joints, wrist rolls ranging from 0 to 720 degrees, moving about a turn, 10 s / 4 s / 8 s at 250 Hz, "
             "no dq, point-to-point test", puma_wide_wrist, *logs(), test_motion="point-to-point", slow=True)),
 )
