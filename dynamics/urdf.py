@@ -14,6 +14,7 @@ wrench, which the plate-offset columns absorb.
 from __future__ import annotations
 
 import contextlib
+import copy
 import os
 import re
 import sys
@@ -218,6 +219,12 @@ def robot_from_urdf(path: str | Path, *, gravity: np.ndarray | None = None, join
 #: the longest chain of joints a description may span, m (the largest serial manipulators reach under 5 m, a
 #: gantry's beam and column a few metres more): beyond it the file's lengths are not metres
 LONGEST_CHAIN_M = 50.0
+#: a chain longer than this (m) is a large robot's, which carries heavy links: below, no check of its mass
+LONG_CHAIN_M = 5.0
+#: the least mass of a robot's moving links over its span cubed (kg/m³): arms of 0.3 to 2 m weigh 1 to 200 kg/m³
+#: of it (a KUKA LWR4+ 1.0, a UR10e 5, a PUMA 22, a TX40 50), a gantry of 10 m several tonnes; a description in
+#: inches reads as a 40-times longer arm of the same mass (a PUMA: 40 m, 0.0004 kg/m³)
+LEAST_ARM_DENSITY = 0.01
 
 
 def _check_lengths(path: Path, robot: RobotModel) -> None:
@@ -232,6 +239,13 @@ def _check_lengths(path: Path, robot: RobotModel) -> None:
             f"URDF {path}: its joints span {span:.4g} m from the base to the tip (above {LONGEST_CHAIN_M:g} m for "
             "any robot arm): URDF lengths are metres; a file in millimetres must have its lengths (every <origin "
             "xyz>, a prismatic joint's limits) divided by 1000 and its inertias in kg m^2")
+    mass = sum(float(joint.inertial[0]) for joint in robot.joints)
+    if span > LONG_CHAIN_M and 0 < mass < LEAST_ARM_DENSITY * span ** 3:
+        raise RobotDescriptionError(
+            f"URDF {path}: its joints span {span:.4g} m from the base to the tip, but its moving links weigh "
+            f"{mass:.4g} kg in all ({mass / span ** 3:.2g} kg over its span cubed, m^3; a real arm that long weighs "
+            f"over {LEAST_ARM_DENSITY:g} times its span cubed): lengths in inches? URDF lengths are metres; multiply every <origin "
+            "xyz> (and a prismatic joint's limits) by 0.0254, and give masses in kg and inertias in kg m^2")
 
 
 def urdf_actuated_joints(path: str | Path) -> frozenset[str] | None:
@@ -438,6 +452,43 @@ def _named_joints_model(path: Path, root: ElementTree.Element, names: list[str],
     return reduced
 
 
+#: joint types of a base that moves in the world (URDF's ``floating``: six degrees of freedom; ``planar``: three)
+_BASE_MOTION_TYPES = ("floating", "planar")
+#: a ``<limit>`` Pinocchio reads as no limit (:func:`_joint` takes equal bounds and a zero speed as unset)
+_NO_LIMIT = {"lower": "0", "upper": "0", "effort": "0", "velocity": "0"}
+
+
+def _as_read(path: Path, root: ElementTree.Element) -> tuple[str | None, list[str]]:
+    """The description as the chain's dynamics read it, when that differs from the file (``None`` when it does
+    not), and the base joints read as fixed.
+
+    - A ``floating`` or ``planar`` joint from a root link (one that is no joint's child, e.g. ``world``) is the
+      base's motion in the world, which a log of the arm's joints does not hold: it is read as ``fixed`` at its
+      origin (the base still), said in a warning. Such a joint elsewhere is left to be refused.
+    - A revolute, continuous or prismatic joint without ``<limit>`` (the URDF specification asks for one on
+      revolute and prismatic joints; hand-written files leave it out, and urdfdom then refuses the whole file)
+      is read without position, speed or effort limits, as a continuous joint is, said in a warning.
+    """
+    children = {child.get("link") for joint in root.iter("joint") for child in joint.iter("child")}
+    floating, open_joints = [], []
+    read = copy.deepcopy(root)
+    for joint in read.iter("joint"):
+        parent = joint.find("parent")
+        if joint.get("type") in _BASE_MOTION_TYPES and parent is not None and parent.get("link") not in children:
+            floating.append(f"{joint.get('name')!r} ({joint.get('type')}, from {parent.get('link')!r})")
+            joint.set("type", "fixed")
+        elif joint.get("type") in ("revolute", "prismatic") and joint.find("limit") is None:
+            open_joints.append(repr(joint.get("name")))
+            ElementTree.SubElement(joint, "limit", _NO_LIMIT)
+    if floating:
+        warnings.warn(f"URDF {path}: joint {', '.join(floating)} moves the base in the world, which the log's joints "
+                      "do not hold: read as fixed at its origin (a base standing still)", stacklevel=4)
+    if open_joints:
+        warnings.warn(f"URDF {path}: joint(s) {', '.join(open_joints)} without <limit>: read without position, "
+                      "speed or effort limits", stacklevel=4)
+    return (ElementTree.tostring(read, encoding="unicode") if floating or open_joints else None), floating
+
+
 def _pinocchio_model(path: Path, root: ElementTree.Element) -> Any:
     """Pinocchio's model of the file, refused when the parser failed, read no movable joint, lost
     mass or could not read all of it; what the parser remarked on otherwise is warned about (for
@@ -446,7 +497,8 @@ def _pinocchio_model(path: Path, root: ElementTree.Element) -> Any:
 
     with _captured_stderr() as parser_output:
         try:
-            model = pin.buildModelFromUrdf(str(path))
+            text, floating = _as_read(path, root)
+            model = pin.buildModelFromUrdf(str(path)) if text is None else pin.buildModelFromXML(text)
         except (RuntimeError, ValueError) as error:
             failure = str(error)
         else:
@@ -456,7 +508,9 @@ def _pinocchio_model(path: Path, root: ElementTree.Element) -> Any:
     if failure is not None:
         raise RobotDescriptionError(f"cannot parse URDF {path}: {details or failure}")
     if model.njoints <= 1:
-        raise RobotDescriptionError(f"URDF {path} has no movable joint")
+        raise RobotDescriptionError(f"URDF {path} has no movable joint" + (
+            f" (joint {', '.join(floating)} read as a fixed base: floating and planar joints are not identified)"
+            if floating else ""))
     _check_total_mass(path, root, sum(model.inertias[index].mass for index in range(model.njoints)), details)
     if "Error" in parser_output.text:  # urdfdom drops what it cannot read and goes on: not here
         raise RobotDescriptionError(f"URDF {path}: the parser could not read all of it: {details}")

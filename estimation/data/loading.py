@@ -43,6 +43,9 @@ SLOW_SAMPLE_TIME = 0.1
 GAP_FACTOR = 5.0
 #: a revolute joint whose |q| exceeds this (rad) most likely holds degrees (2π plus a margin)
 DEGREES_THRESHOLD = 2 * np.pi + 0.5
+#: how far (rad) a revolute angle may pass the limit its description gives and still be radians (a controller's
+#: soft limits, the margin :data:`DEGREES_THRESHOLD` allows beyond a turn)
+DEGREES_LIMIT_MARGIN = 0.5
 #: a prismatic joint whose |q| exceeds this many times the largest |limit| its description gives most likely holds
 #: millimetres (1000 times the metres; a controller's soft limits narrower than the motion leave it within a few)
 LENGTH_UNIT_FACTOR = 20.0
@@ -80,6 +83,13 @@ class LengthUnitError(MeasurementError):
 
 class MotorSideAnglesError(AngleUnitError):
     """Revolute joint angles span more turns than the joint can, even read as degrees: motor-side angles."""
+
+
+def _radians_reach(limit: float) -> float:
+    """The largest |q| (rad) read as radians on a revolute joint whose description allows ``limit`` (its largest
+    |bound|, ``inf`` without one): :data:`DEGREES_THRESHOLD` (a turn and a margin), or the limit and
+    :data:`DEGREES_LIMIT_MARGIN` when the description allows more than a turn (a wrist of ±450°)."""
+    return max(DEGREES_THRESHOLD, limit + DEGREES_LIMIT_MARGIN) if np.isfinite(limit) else DEGREES_THRESHOLD
 
 
 def _motor_side(peak: float, limit: float) -> bool:
@@ -573,15 +583,17 @@ def check_angles(q: NDArray[np.float64], model, source: str) -> None:
                 f"description allows its prismatic joint ({limits[index]:.4g} m): millimetres? (the format is SI: "
                 f"divide by 1000, or read the log as it is: --columns {column}=0.001*{column}, a logged d{column} and "
                 f"dd{column} alike)")
-        if revolute[index] and peak > DEGREES_THRESHOLD and _motor_side(peak, limits[index]):
+        reach = _radians_reach(limits[index])
+        if revolute[index] and peak > reach and _motor_side(peak, limits[index]):
             raise MotorSideAnglesError(
                 f"{source}: column q{index + 1} reaches {peak:.4g} rad and spans {np.ptp(q[:, index]) / (2 * np.pi):.3g} "
                 "turns, more than this joint turns even in degrees: motor-side angles? gear ratio? (divide by the gear "
                 "ratio, or give them as qm1..qmn with the transmission: --transmission FILE)"
             )
-        if revolute[index] and peak > DEGREES_THRESHOLD:
+        if revolute[index] and peak > reach:
             raise AngleUnitError(
-                f"{source}: column q{index + 1} reaches {peak:.4g}, beyond ±2π rad: the angles look like degrees "
+                f"{source}: column q{index + 1} reaches {peak:.4g}, beyond ±{reach - DEGREES_LIMIT_MARGIN:.4g} rad "
+                f"({'its limits' if reach > DEGREES_THRESHOLD else '2π'}): the angles look like degrees "
                 f"(the format is SI: convert with numpy.deg2rad{degrees_option(revolute)})"
             )
 
