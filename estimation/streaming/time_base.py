@@ -284,7 +284,7 @@ def _cleaned(frames, path: str | Path, model: IdentificationModel, *, max_gap: f
     if first_blank is not None:
         said_dropouts(blanks, *first_blank, str(path))
     if holds:
-        said_held(HeldChannels(~rows, tuple(holds.items())), repeats, rows.shape[0], str(path))
+        said_held(HeldChannels(~rows, tuple(holds.items())), repeats, 0, rows.shape[0], str(path))
     found = glitch_rows(steps, model, n_joints) if steps is not None and judged == t.shape[0] else None
     glitched = None  # said once the time base holds, as in memory
     if found is not None and found[0].size:  # encoder read errors: dropouts, as in memory
