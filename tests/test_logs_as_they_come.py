@@ -246,3 +246,25 @@ def test_the_verbs_read_a_mujoco_log_of_servo_controls_with_the_mjcf(tmp_path):
             files[role], index=False, float_format="%.12g")
     outcome = verbs_against_the_plain_fit(description, files, records["test"], kept, predicted_plain, tmp_path)
     checked(lab.name, {**outcome, "cutoff": cutoff, "floor": (0.02 * spread) ** 2})
+
+
+def test_a_held_velocity_column_drops_its_repeats_rows(puma3, tmp_path):
+    """A velocity column held at half the positions' rate (``dq`` new every 2 rows): no per-channel mask holds an
+    input of the regressor, so its repeats' rows are dropped whole (positions and torques with them), as h-logs3 read
+    every held channel; the torques at full rate are no hold and nothing of them is masked."""
+    from estimation.data.held_channels import held_rows
+
+    model, clean = puma3
+    table = pd.read_csv(clean)
+    rows = np.arange(len(table))
+    t = table["t"].to_numpy()
+    for joint in range(1, 4):
+        table[f"dq{joint}"] = np.gradient(table[f"q{joint}"].to_numpy(), t)[rows - rows % 2]
+    found = held_rows(table, model.robot.n_joints)
+    assert found.holds == (("dq", 2),) and np.array_equal(found.dropped_rows, rows % 2 == 1)
+    table.to_csv(tmp_path / "held_dq.csv", index=False, float_format="%.17g")
+    read, said, _ = read_quietly(tmp_path / "held_dq.csv", model)
+    assert any("velocities (dq) new every 2 rows" in text and "read as that channel's blanks" in text
+               for text in said), said
+    record = read.as_recorded
+    assert np.array_equal(record.t, t[rows % 2 == 0]) and not np.isnan(record.tau).any()
