@@ -268,3 +268,24 @@ def test_a_held_velocity_column_drops_its_repeats_rows(puma3, tmp_path):
                for text in said), said
     record = read.as_recorded
     assert np.array_equal(record.t, t[rows % 2 == 0]) and not np.isnan(record.tau).any()
+
+
+def test_held_repeats_stay_on_their_rows_when_other_rows_are_dropped(puma3, tmp_path):
+    """The held torques' mask follows the rows the reader drops after judging the hold: a torque channel that starts
+    four rows late (the edge rows left out, :class:`UnstartedChannelsWarning`) and a dropout row (every data cell empty) leave the NaN exactly on the
+    repeats of the rows kept, each held sample's value as logged."""
+    model, clean = puma3
+    table = held_torques(pd.read_csv(clean), 2)
+    columns = ["tau1", "tau2", "tau3"]
+    table.loc[:3, "tau1"] = np.nan  # one torque channel reports from row 4: the rows before it left out
+    table.loc[101, ["q1", "q2", "q3", *columns]] = np.nan
+    table.to_csv(tmp_path / "held_edges.csv", index=False, float_format="%.17g")
+    read, said, categories = read_quietly(tmp_path / "held_edges.csv", model)
+    assert any("new every 2 rows" in text for text in said), said
+    assert {"UnstartedChannelsWarning", "BlankRowsWarning"} <= {category.__name__ for category in categories}
+    rows = np.setdiff1d(np.arange(4, len(table)), [101])
+    record = read.as_recorded
+    assert np.array_equal(record.t, table["t"].to_numpy()[rows])
+    masked = np.isnan(record.tau).all(axis=1)
+    assert np.array_equal(masked, rows % 2 == 1) and not np.isnan(record.tau[~masked]).any()
+    assert np.array_equal(record.tau[~masked], table[columns].to_numpy()[rows[~masked]])
