@@ -240,7 +240,8 @@ def _cleaned(frames, path: str | Path, model: IdentificationModel, *, max_gap: f
             first = int(np.flatnonzero(blank)[0])
             first_blank = (sum(part.shape[0] for part in present) + first, frame["t"].iloc[first])
         blanks += int(np.count_nonzero(blank))
-        held = held_rows(frame, n_joints, before=last_row)  # a lower-rate channel's repeats: its blanks, as in memory
+        held = held_rows(frame, n_joints, before=last_row)  # a lower-rate channel's repeats: rows dropped (memory masks a
+        # measured channel's repeats in that channel only; the streamed fits hold no per-channel mask)
         last_row = frame.iloc[-1:] if len(frame) else last_row
         if held.holds:
             holds.update(held.holds)
