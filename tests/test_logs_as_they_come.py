@@ -101,7 +101,10 @@ def test_torques_held_at_a_lower_rate_are_read_as_that_rate_in_memory_and_stream
     """Torques sampled at a half (a third) of the positions' rate, each value repeated until the next (h-unseen16's
     ``held`` logger): the repeats are read as the channel's blanks, each hold's first row its sample, in a
     ``HeldChannelWarning``, in memory and chunk by chunk alike (chunks of 100 rows: the hold across their edges).
-    At 6d10335 every repeat was read as a sample (a lag of half a hold the diagnosis then explained)."""
+    In memory the repeats are masked in the torques only (NaN), every row's positions kept (h-heldmask; h-logs3
+    dropped the whole rows); the streamed reader, whose fits hold no per-channel mask, drops the rows, its torques
+    those of memory's held samples. At 6d10335 every repeat was read as a sample (a lag of half a hold the diagnosis
+    then explained)."""
     from estimation.data import HeldChannelWarning
     from estimation.streaming.chunks import read_chunks
 
@@ -119,10 +122,14 @@ def test_torques_held_at_a_lower_rate_are_read_as_that_rate_in_memory_and_stream
     assert len(said) == 2 and all(f"joint torques (tau) new every {every} rows" in text and
                                   f"the {dropped} row(s) of {len(table)}" in text for text in said), said
     kept = np.arange(0, len(table), every)
-    assert np.array_equal(memory.as_recorded.t, table["t"].to_numpy()[kept])
-    assert np.array_equal(memory.as_recorded.tau, table[["tau1", "tau2", "tau3"]].to_numpy()[kept])
-    assert np.allclose(np.concatenate([chunk.t for chunk in chunks]), memory.t, rtol=0, atol=1e-12)
-    assert np.allclose(np.vstack([chunk.tau for chunk in chunks]), memory.tau, rtol=0, atol=1e-12)
+    tau = table[["tau1", "tau2", "tau3"]].to_numpy()
+    assert np.array_equal(memory.as_recorded.t, table["t"].to_numpy())
+    assert np.array_equal(memory.as_recorded.q, table[["q1", "q2", "q3"]].to_numpy())
+    samples = ~np.isnan(memory.as_recorded.tau)
+    assert np.array_equal(np.flatnonzero(samples.all(axis=1)), kept) and not samples[~samples.all(axis=1)].any()
+    assert np.array_equal(memory.as_recorded.tau[kept], tau[kept])
+    assert np.allclose(np.concatenate([chunk.t for chunk in chunks]), memory.t[kept], rtol=0, atol=1e-12)
+    assert np.allclose(np.vstack([chunk.tau for chunk in chunks]), memory.tau[kept], rtol=0, atol=1e-12)
 
 
 def test_a_quantised_torque_or_stale_rows_are_no_hold(puma3, tmp_path):
@@ -239,3 +246,46 @@ def test_the_verbs_read_a_mujoco_log_of_servo_controls_with_the_mjcf(tmp_path):
             files[role], index=False, float_format="%.12g")
     outcome = verbs_against_the_plain_fit(description, files, records["test"], kept, predicted_plain, tmp_path)
     checked(lab.name, {**outcome, "cutoff": cutoff, "floor": (0.02 * spread) ** 2})
+
+
+def test_a_held_velocity_column_drops_its_repeats_rows(puma3, tmp_path):
+    """A velocity column held at half the positions' rate (``dq`` new every 2 rows): no per-channel mask holds an
+    input of the regressor, so its repeats' rows are dropped whole (positions and torques with them), as h-logs3 read
+    every held channel; the torques at full rate are no hold and nothing of them is masked."""
+    from estimation.data.held_channels import held_rows
+
+    model, clean = puma3
+    table = pd.read_csv(clean)
+    rows = np.arange(len(table))
+    t = table["t"].to_numpy()
+    for joint in range(1, 4):
+        table[f"dq{joint}"] = np.gradient(table[f"q{joint}"].to_numpy(), t)[rows - rows % 2]
+    found = held_rows(table, model.robot.n_joints)
+    assert found.holds == (("dq", 2),) and np.array_equal(found.dropped_rows, rows % 2 == 1)
+    table.to_csv(tmp_path / "held_dq.csv", index=False, float_format="%.17g")
+    read, said, _ = read_quietly(tmp_path / "held_dq.csv", model)
+    assert any("velocities (dq) new every 2 rows" in text and "read as that channel's blanks" in text
+               for text in said), said
+    record = read.as_recorded
+    assert np.array_equal(record.t, t[rows % 2 == 0]) and not np.isnan(record.tau).any()
+
+
+def test_held_repeats_stay_on_their_rows_when_other_rows_are_dropped(puma3, tmp_path):
+    """The held torques' mask follows the rows the reader drops after judging the hold: a torque channel that starts
+    four rows late (the edge rows left out, :class:`UnstartedChannelsWarning`) and a dropout row (every data cell empty) leave the NaN exactly on the
+    repeats of the rows kept, each held sample's value as logged."""
+    model, clean = puma3
+    table = held_torques(pd.read_csv(clean), 2)
+    columns = ["tau1", "tau2", "tau3"]
+    table.loc[:3, "tau1"] = np.nan  # one torque channel reports from row 4: the rows before it left out
+    table.loc[101, ["q1", "q2", "q3", *columns]] = np.nan
+    table.to_csv(tmp_path / "held_edges.csv", index=False, float_format="%.17g")
+    read, said, categories = read_quietly(tmp_path / "held_edges.csv", model)
+    assert any("new every 2 rows" in text for text in said), said
+    assert {"UnstartedChannelsWarning", "BlankRowsWarning"} <= {category.__name__ for category in categories}
+    rows = np.setdiff1d(np.arange(4, len(table)), [101])
+    record = read.as_recorded
+    assert np.array_equal(record.t, table["t"].to_numpy()[rows])
+    masked = np.isnan(record.tau).all(axis=1)
+    assert np.array_equal(masked, rows % 2 == 1) and not np.isnan(record.tau[~masked]).any()
+    assert np.array_equal(record.tau[~masked], table[columns].to_numpy()[rows[~masked]])

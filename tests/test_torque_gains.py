@@ -5,6 +5,7 @@ measures it, and nothing taken on a robot whose torques carry no gain."""
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 import warnings
 
 import numpy as np
@@ -249,3 +250,28 @@ def test_the_streamed_diagnose_applies_the_gains_as_in_memory(with_gains, tmp_pa
     predicted = oed.predict(model=tmp_path / "streamed.json", data=folder / "validate.csv")
     reported, measured = streamed["validation"]["chosen"]["mse"], predicted.evaluation.prediction.mse
     assert all(abs(measured[c] / reported[c] - 1.0) < 1e-6 for c in reported), (measured, reported)
+
+
+def test_the_gains_and_the_mount_check_leave_a_masked_sample_out_whole():
+    """A record whose torques are masked on every other sample (a channel held at half rate, h-heldmask; a clipped
+    sensor's samples alike, h-chanmask): the gains' sums and the mount check take a sample's channels together, so
+    they leave its masked samples out whole, the same answer as on the record without those rows. Before h-heldmask
+    the NaN entered their sums (the gains' least squares on NaN, LAPACK's DLASCL complaint, the mount's solve)."""
+    from estimation.data.channel_mask import whole_rows
+    from estimation.identification.mount import check_mount
+
+    model = build_model(load_robot("puma560", joints=3), "internal", FRICTION)
+    theta = described(model)
+    train, spread = simulated(model, theta, GAINS[:3], 11, 4.0)
+    validation, _ = simulated(model, theta, GAINS[:3], 12, 2.0, spread)
+    masked = [replace(record, tau=np.where((np.arange(record.n_samples) % 2 == 1)[:, None], np.nan, record.tau))
+              for record in (train, validation)]
+    kept = [record.select(np.arange(0, record.n_samples, 2)) for record in (train, validation)]
+    assert whole_rows(masked[0]).n_samples == kept[0].n_samples
+    gains, taken, _ = gains_on_validation(model, *masked)
+    expected, expected_taken, _ = gains_on_validation(model, *kept)
+    assert np.all(np.isfinite(gains.values)) and np.allclose(gains.values, expected.values, rtol=1e-9, atol=0)
+    assert taken == expected_taken
+    found, reference = check_mount(model, *masked), check_mount(model, *kept)
+    assert found is not None and np.isfinite(found.found_mse)
+    assert np.allclose(found.found, reference.found) and found.found_mse == pytest.approx(reference.found_mse)

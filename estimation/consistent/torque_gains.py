@@ -35,6 +35,7 @@ from numpy.typing import NDArray
 from dynamics.channels import is_joint_torque, torque_joint
 from dynamics.measurements import Measurements
 from dynamics.models import IdentificationModel
+from estimation.data.channel_mask import whole_rows
 from estimation.data.passive import passive_channels
 from estimation.consistent.identification import ConsistentResult
 from estimation.consistent.model_selection import ModelSelection, answers_scored
@@ -160,7 +161,10 @@ def gains_on_validation(model: IdentificationModel, train: Measurements, validat
     channel-weighted fit without them, by the criterion of the default answer (the mean relative validation error,
     :data:`TORQUE_GAINS_TOLERANCE`) and by more than :data:`SIGNIFICANCE_Z` standard errors (the log ratio of the two
     scores over each of :data:`SIGNIFICANCE_BLOCKS` contiguous blocks, at every count): ``(gains, taken, sentence)``. A cheap check (sums, no sample held) before the
-    answer's candidates are fitted again to the torques divided by the gains."""
+    answer's candidates are fitted again to the torques divided by the gains. A sample with a masked channel
+    (:mod:`estimation.data.channel_mask`: a clipped sensor's, a held channel's repeat) is left out whole (the gains'
+    sums take a sample's channels together)."""
+    train, validation = whole_rows(train), whole_rows(validation)
     fitted = gains_from_sums(model, channel_sums(model, train), train.n_samples)
     if isinstance(fitted[1], str):
         return fitted[0], False, fitted[1]

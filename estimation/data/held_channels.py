@@ -16,8 +16,12 @@ told apart from a quantised channel that repeats by chance:
   least :data:`HELD_REGULAR` of them (a quantised channel's repeats come as the signal crosses its levels:
   irregular), over at least :data:`HELD_LEAST` new values.
 
-Then each repeat is a blank cell of that channel: the row is dropped as a lower-rate channel's (its time without a
-sample bridged as any gap), and the first row of each hold, where the value is new, is its sample.
+Then each repeat is a blank cell of that channel, and the first row of each hold, where the value is new, is its
+sample. A measured channel's repeats (``tau``, the wrench) are masked in that channel only
+(:mod:`estimation.data.channel_mask`: NaN there, their equations dropped), the row kept for the positions and the
+other channels at their full rate; an input channel's (``dq``, ``ddq``: no per-channel mask holds them) drop their
+rows, as a lower-rate channel's blank cells do (the time without a sample bridged as any gap). The streamed reader
+drops every held repeat's row (its fits hold no per-channel mask yet).
 """
 
 from __future__ import annotations
@@ -39,6 +43,8 @@ HELD_REGULAR = 0.8
 HELD_LEAST = 20
 #: the groups judged (the positions are the clock every other channel is held against)
 HELD_GROUPS = ("dq", "ddq", "tau", "wrench")
+#: the groups whose repeats are masked in their own channel (the measured ones); the others' drop their rows
+MASKED_GROUPS = ("tau", "wrench")
 
 
 @dataclass(frozen=True)
@@ -51,10 +57,26 @@ class HeldChannels:
         ``(N,)`` the rows where a held channel repeats its previous value (read as that channel's blanks).
     holds
         ``(group, k)`` for each held group: its new values every ``k`` rows.
+    repeats
+        ``(N,)`` for each group of ``holds`` (in its order), the rows where that group repeats its previous value.
     """
 
     rows: NDArray[np.bool_]
     holds: tuple[tuple[str, int], ...]
+    repeats: tuple[NDArray[np.bool_], ...] = ()
+
+    def group_rows(self, groups: tuple[str, ...]) -> NDArray[np.bool_]:
+        """``(N,)`` the rows where any of ``groups`` that is held repeats its value (none when none is)."""
+        found = np.zeros(self.rows.shape[0], dtype=bool)
+        for (group, _), rows in zip(self.holds, self.repeats):
+            if group in groups:
+                found |= rows
+        return found
+
+    @property
+    def dropped_rows(self) -> NDArray[np.bool_]:
+        """``(N,)`` the rows an input channel's repeats drop (those outside :data:`MASKED_GROUPS`)."""
+        return self.group_rows(tuple(group for group in HELD_GROUPS if group not in MASKED_GROUPS))
 
 
 def held_samples(values: NDArray[np.float64], moved: NDArray[np.bool_]) -> tuple[NDArray[np.bool_], int]:
@@ -112,10 +134,11 @@ def held_rows(frame: pd.DataFrame, n_joints: int, before: pd.DataFrame | None = 
     moved = np.zeros(q.shape[0], dtype=bool)
     moved[1:] = np.any(q[1:] != q[:-1], axis=1)
     rows = np.zeros(len(joined), dtype=bool)
-    holds = []
+    holds, found = [], []
     for group, columns in candidates:
         repeats, hold = held_samples(_numbers(joined, columns), moved)
         if hold:
             rows |= repeats
             holds.append((group, hold))
-    return HeldChannels(rows[1:] if context else rows, tuple(holds))
+            found.append(repeats[1:] if context else repeats)
+    return HeldChannels(rows[1:] if context else rows, tuple(holds), tuple(found))

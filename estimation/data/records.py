@@ -92,7 +92,7 @@ from estimation.data.log_formats import (
 from estimation.data.vendor_logs import (AmbiguousColumnsError, ServoForcesWarning, VendorColumnsWarning, array_cells,
                                         vendor_columns, with_servo_torques)
 from estimation.data.sampling_clock import clock_instants, clock_roughness, quantised_clock, said_receive_times
-from estimation.data.held_channels import HeldChannels, held_rows
+from estimation.data.held_channels import MASKED_GROUPS, HeldChannels, held_rows
 from estimation.data.channel_mask import channel_only_parameters, masked_channels
 from estimation.data.log_cleaning import (DEFAULT_MAX_GAP, ZERO_ROW_JOINTS, Gap, PositionSteps, blank_rows, describe,
                                           unstarted_rows,
@@ -431,13 +431,20 @@ def segments_from_frame(
         first = int(np.flatnonzero(blank)[0])
         said_dropouts(int(blank.sum()), first, frame["t"].iloc[first] if "t" in frame.columns else None, source)
     held = held_rows(frame, n_joints)
+    repeats = None  # a measured channel's held repeats, masked in that channel only: (N,) per group of MASKED_GROUPS
     if held.holds:  # a channel at a lower rate, its value repeated between its samples: the repeats are blanks
-        said_held(held, int(np.count_nonzero(held.rows & ~blank)), len(frame), source)
-        blank = blank | held.rows
+        dropped_rows = held.dropped_rows
+        said_held(held, int(np.count_nonzero(held.dropped_rows & ~blank)),
+                  int(np.count_nonzero(held.group_rows(MASKED_GROUPS) & ~blank & ~dropped_rows)), len(frame), source)
+        blank = blank | dropped_rows
+        repeats = {group: held.group_rows((group,)) for group in MASKED_GROUPS}
     if blank.any():
         frame = frame[~blank].reset_index(drop=True)
+        repeats = None if repeats is None else {group: rows[~blank] for group, rows in repeats.items()}
     if glitches:  # the whole record's edges (a streamed file's chunk holds part of it: its reader refuses them)
-        frame = _started(frame, n_joints, source)
+        frame, started = _started(frame, n_joints, source)
+        if started is not None and repeats is not None:
+            repeats = {group: rows[started] for group, rows in repeats.items()}
     groups = set(require) | set(required_groups(model)) | {"q"}
     unknown = groups - set(COLUMN_GROUPS)
     if unknown:
@@ -459,6 +466,7 @@ def segments_from_frame(
         kept[found[0]] = False
         t, repeated = t[kept], repeated[kept]
         arrays = {key: None if values is None else values[kept] for key, values in arrays.items()}
+        repeats = None if repeats is None else {group: rows[kept] for group, rows in repeats.items()}
     times = clean_time_base(t, repeated, source, max_gap=max_gap, split=split,
                             check=lambda keep: check_angles(arrays["q"][keep], model, source))
     if glitched is not None:
@@ -467,6 +475,9 @@ def segments_from_frame(
     dropped, duplicated = times.repeated_rows_dropped, times.duplicated_times_dropped
     if dropped or duplicated:
         arrays = {key: None if values is None else values[times.keep] for key, values in arrays.items()}
+        repeats = None if repeats is None else {group: rows[times.keep] for group, rows in repeats.items()}
+    if repeats is not None:  # the held repeats masked in their channel (NaN), the rows kept for the other channels
+        arrays = masked_channels(arrays, held_cells(arrays, repeats))
     clipped = clipped_torques(arrays, t, model, source) if glitches else None
     segments = []
     for index, rows in enumerate(split_rows(t.shape[0], holes), start=1):
@@ -528,18 +539,28 @@ def _data_cells(frame: pd.DataFrame, n_joints: int) -> list[str]:
             if column in frame.columns]
 
 
-def _started(frame: pd.DataFrame, n_joints: int, source: str) -> pd.DataFrame:
-    """``frame`` without the rows before every data channel has reported and after one has stopped
+def held_cells(arrays: dict, repeats: dict[str, NDArray[np.bool_]]) -> NDArray[np.bool_]:
+    """``(N, k)`` the cells of the measured channels of ``arrays`` (``tau`` then ``wrench``, those present: the
+    columns :func:`estimation.data.channel_mask.masked_channels` takes) that repeat a held value, every column of a
+    group at its rows of ``repeats`` (:func:`estimation.data.held_channels.held_rows`, one ``(N,)`` per group)."""
+    return np.hstack([np.repeat(repeats[key][:, None], arrays[key].shape[1], axis=1)
+                      for key in ("tau", "wrench") if arrays.get(key) is not None]
+                     or [np.zeros((len(next(iter(repeats.values()))), 0), dtype=bool)])
+
+
+def _started(frame: pd.DataFrame, n_joints: int, source: str) -> tuple[pd.DataFrame, NDArray[np.bool_] | None]:
+    """``(frame, kept)``: ``frame`` without the rows before every data channel has reported and after one has stopped
     (:func:`estimation.data.log_cleaning.unstarted_rows`), said in an :class:`UnstartedChannelsWarning` naming how
-    many, the time they span and the channels that lacked a value; ``frame`` itself when there are none (in memory
-    only: the streamed reader refuses such a record as it does any blank cell)."""
+    many, the time they span and the channels that lacked a value, and the mask of the rows kept; ``frame`` itself
+    and ``None`` when there are none (in memory only: the streamed reader refuses such a record as it does any blank
+    cell)."""
     cells = _data_cells(frame, n_joints)
     if not cells or not len(frame):
-        return frame
+        return frame, None
     empty = _empty_cells(frame)(cells)
     edges = unstarted_rows(empty)
     if not edges.any():
-        return frame
+        return frame, None
     lacking = [column for column, missing in zip(cells, empty[edges].any(axis=0)) if missing]
     head = int(np.argmax(~edges))
     tail = int(edges.sum()) - head
@@ -557,7 +578,7 @@ def _started(frame: pd.DataFrame, n_joints: int, source: str) -> pd.DataFrame:
         f"({', '.join(lacking[:8])}{' …' if len(lacking) > 8 else ''}: a logger whose channels start and stop on "
         "their own); the record is the rows where every channel holds a value", UnstartedChannelsWarning,
         stacklevel=5)
-    return frame[~edges].reset_index(drop=True)
+    return frame[~edges].reset_index(drop=True), ~edges
 
 
 def _empty_cells(frame: pd.DataFrame) -> Callable[[list[str]], NDArray[np.bool_]]:
@@ -617,15 +638,19 @@ def said_glitches(rows: NDArray[np.int64], joints: NDArray[np.int64], stamps: ND
         "time they leave bridged by interpolation as any gap", EncoderGlitchWarning, stacklevel=5)
 
 
-def said_held(held: HeldChannels, count: int, rows: int, source: str) -> None:
+def said_held(held: HeldChannels, count: int, masked: int, rows: int, source: str) -> None:
     """The :class:`HeldChannelWarning` for the channels of ``held`` (:func:`estimation.data.held_channels.held_rows`),
-    ``count`` of the file's ``rows`` rows dropped as their repeats."""
+    ``count`` of the file's ``rows`` rows dropped as their repeats and ``masked`` more whose measured channel's
+    repeat is masked in that channel only."""
     groups = "; ".join(f"{GROUP_MEANING.get(group, group).split(' (')[0]} ({group}) new every {every} rows, repeated between"
                        for group, every in held.holds)
+    dropped = f"the {count} row(s) of {rows} where it repeats are read as that channel's blanks (dropped, as a " \
+              "lower-rate channel's empty cells are)" if count else ""
+    kept = f"{'; ' if count else 'the '}{masked} row(s) of {rows} where a measured channel repeats keep their " \
+           "positions and other channels, that channel's repeat masked (no sample of it there)" if masked else ""
     warnings.warn(
         f"{source}: a channel logged at a lower rate than the positions, its last value repeated on the rows between "
-        f"its samples (a hold, not a measurement of those instants): {groups}; the {count} row(s) of {rows} where it "
-        "repeats are read as that channel's blanks (dropped, as a lower-rate channel's empty cells are), each hold's "
+        f"its samples (a hold, not a measurement of those instants): {groups}; {dropped}{kept}, each hold's "
         "first row its sample", HeldChannelWarning, stacklevel=5)
 
 

@@ -32,6 +32,7 @@ from numpy.typing import NDArray
 
 from dynamics.measurements import Measurements
 from dynamics.models import IdentificationModel, ModelKind, build_model
+from estimation.data.channel_mask import whole_rows
 
 __all__ = ["MIN_ANGLE_DEG", "MOUNT_MARK", "WORSE_LIMIT", "MountCheck", "check_mount", "mount_rpy"]
 
@@ -272,11 +273,13 @@ def check_mount(model: IdentificationModel, train: Measurements, validation: Mea
     """Gravity's direction that predicts ``validation`` best (module docstring), or ``None`` when there is nothing to
     check: no validation record, a model of the base wrench (its rows hold gravity's direction through the whole
     robot's weight, not the joints' loads), or a description without gravity. ``samples``: at most this many evenly
-    spaced samples of each record enter the sums."""
+    spaced samples of each record enter the sums. A sample with a masked channel (:mod:`estimation.data.channel_mask`:
+    a clipped sensor's, a held channel's repeat) is left out whole (its sums take a sample's channels together)."""
     robot = model.robot
     magnitude = float(np.linalg.norm(robot.gravity))
     if validation is None or model.kind is ModelKind.EXTERNAL or magnitude == 0.0:
         return None
+    train, validation = whole_rows(train), whole_rows(validation)
     declared = np.asarray(robot.gravity, dtype=float) / magnitude
     # the regressors along the declared direction and two square to it: the declared model's rigid-body columns at
     # rest are its gravity load's (no motion, no other load), and two models of the rigid body alone give the others

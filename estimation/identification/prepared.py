@@ -287,8 +287,8 @@ def channel_sample_line(counts: dict[str, dict] | None) -> str | None:
     parts = [f"{role} " + ", ".join(f"{name} {count} of {entry['samples']}"
                                     for name, count in entry["channels"].items() if count < entry["samples"])
              for role, entry in counts.items()]
-    return ("errors per channel over its valid samples (a clipped sensor's samples masked in that channel only, "
-            "the other channels' kept): " + "; ".join(parts))
+    return ("errors per channel over its valid samples (a clipped sensor's samples, a held channel's "
+            "repeats, masked in that channel only, the other channels' kept): " + "; ".join(parts))
 
 
 def read_files(paths: Sequence[str | Path], model: IdentificationModel, *, split: bool,

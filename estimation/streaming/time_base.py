@@ -240,7 +240,8 @@ def _cleaned(frames, path: str | Path, model: IdentificationModel, *, max_gap: f
             first = int(np.flatnonzero(blank)[0])
             first_blank = (sum(part.shape[0] for part in present) + first, frame["t"].iloc[first])
         blanks += int(np.count_nonzero(blank))
-        held = held_rows(frame, n_joints, before=last_row)  # a lower-rate channel's repeats: its blanks, as in memory
+        held = held_rows(frame, n_joints, before=last_row)  # a lower-rate channel's repeats: rows dropped (memory masks a
+        # measured channel's repeats in that channel only; the streamed fits hold no per-channel mask)
         last_row = frame.iloc[-1:] if len(frame) else last_row
         if held.holds:
             holds.update(held.holds)
@@ -284,7 +285,7 @@ def _cleaned(frames, path: str | Path, model: IdentificationModel, *, max_gap: f
     if first_blank is not None:
         said_dropouts(blanks, *first_blank, str(path))
     if holds:
-        said_held(HeldChannels(~rows, tuple(holds.items())), repeats, rows.shape[0], str(path))
+        said_held(HeldChannels(~rows, tuple(holds.items())), repeats, 0, rows.shape[0], str(path))
     found = glitch_rows(steps, model, n_joints) if steps is not None and judged == t.shape[0] else None
     glitched = None  # said once the time base holds, as in memory
     if found is not None and found[0].size:  # encoder read errors: dropouts, as in memory
