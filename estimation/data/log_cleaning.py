@@ -311,6 +311,9 @@ SATURATION_LEAST = 5
 PEAK_WINDOW = 256
 #: the fewest samples on each side of a hold in which its trend is judged; holds closer than this are one hold
 PEAK_WINDOW_LEAST = 16
+#: the holds judged by :func:`quantised_peak`: those within this many rows of the first row held at the extreme
+#: (the samples kept around them bounded whatever the record's length, the same rows whole or in blocks)
+PEAK_SPAN = 4096
 #: the fewest levels of the channel's quantum (the hold's own included) around a hold that make it quantised
 PEAK_LEVELS = 3
 #: how far off a whole number of quanta a value around the hold may lie, in quanta (a log's decimal rounding)
@@ -409,6 +412,7 @@ class HeldExtremes:
         self.near_rows = [[np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)] for _ in range(channels)]
         self.near_values = [[np.zeros(0), np.zeros(0)] for _ in range(channels)]
         self.wanted = np.full((channels, 2), -1, dtype=np.int64)
+        self.first_held = np.full((channels, 2), -1, dtype=np.int64)  # the first row held at the extreme
         self.tail = np.zeros((0, channels))  # the last PEAK_WINDOW rows of values before the block
 
     def _positions(self, q: NDArray[np.float64], channel: int) -> NDArray[np.float64]:
@@ -459,6 +463,11 @@ class HeldExtremes:
             self.near_rows[channel][side] = np.zeros(0, dtype=np.int64)
             self.near_values[channel][side] = np.zeros(0)
             self.wanted[channel, side] = -1
+            self.first_held[channel, side] = -1
+        if at.size:  # the holds judged: within PEAK_SPAN rows of the first (a periodic record's every period not kept)
+            if self.first_held[channel, side] < 0:
+                self.first_held[channel, side] = self.rows + int(at[0])
+            at = at[self.rows + at <= self.first_held[channel, side] + PEAK_SPAN]
         if not at.size and self.wanted[channel, side] < self.rows:
             return  # no hold in the block nor just before it
         before = self.tail[:, channel]
