@@ -12,7 +12,8 @@ __all__ = ["DEFAULT_SUBSAMPLE", "FLOOR_WINDOW", "SCHEDULER_VARIABLE", "scheduler
 #: The shape search costs what the in-memory diagnosis's first round costs on that many samples.
 DEFAULT_SUBSAMPLE = 10_000
 
-#: rows of each validation file (as recorded) the noise floor is estimated on
+#: the first rows of each validation file the streamed diagnosis took its noise floor on until every row became the
+#: default (h-streamfloor); a value for ``--floor-window N`` where reading every row costs too much
 FLOOR_WINDOW = 100_000
 
 #: environment variable holding a dask scheduler's address (``tcp://host:8786``)
