@@ -58,6 +58,8 @@ DIFFERENCE_ORDER = 4
 MAD_EFFICIENCY = 0.37
 #: largest departure of the differences' lag-1 correlation from white noise's (long records)
 WHITENESS_TOLERANCE = 0.15
+#: significance of a drift between a periodic record's periods (:func:`without_drift`)
+DRIFT_ALPHA = 1e-3
 #: a channel within this factor of its floor is "at its floor" in the plain statements
 AT_FLOOR_RATIO = 1.2
 
@@ -137,6 +139,53 @@ def period_variance(values: ArrayLike, samples_per_period: int) -> tuple[NDArray
                               "period-to-period variance needs at least two")
     folded = values[: periods * P].reshape(periods, P, -1)
     return np.mean(np.var(folded, axis=0, ddof=1), axis=0), float(P * (periods - 1))
+
+
+def without_drift(values: ArrayLike, samples_per_period: int, variance: NDArray[np.float64], dof: float,
+                  channels: Sequence[str]) -> tuple[NDArray[np.float64], float, dict[str, dict[str, float]]]:
+    """The period-to-period variance (``variance``, ``dof``: :func:`period_variance`'s) with what drifts between the
+    periods taken out: ``(variance, dof, changed)``.
+
+    The periods' differences ``d_j = x_{k+1,j} − x_{k,j}`` cancel every periodic signal; what they keep is the
+    noise (``2σ²`` for white noise) and whatever changed from one period to the next: a friction warming, a
+    sensor's bias drifting, wear. Such a change is slow along the phase ``j``, so the mean square of the
+    ``d``-th differences of ``d`` along ``j`` (:data:`DIFFERENCE_ORDER`, ``C(2d, d) · 2σ²`` for white noise, the
+    mean square and not the MAD: unbiased for any white noise) measures the noise without it. Where the period
+    variance exceeds that estimate beyond its sampling spread (one-sided F test at :data:`DRIFT_ALPHA`, the
+    estimate's degrees of freedom ``N / Σρ²``), the periods differ by more than noise: the channel's floor is the
+    differences' estimate, and ``changed[channel]`` gives both. A channel whose differences of ``d`` are not those
+    of white noise (it was filtered before it was recorded: :func:`check_white`) keeps the period variance: a
+    drift cannot be told from coloured noise there. Before (h-plants19), a Coulomb level warming over a periodic
+    record's two periods made its floor 54x the noise's variance, and a residual 38x the noise read "at its
+    floor"."""
+    values = _as_2d(values)
+    P = int(samples_per_period)
+    periods = values.shape[0] // P
+    folded = values[: periods * P].reshape(periods, P, -1)
+    steps = np.diff(folded, axis=0)  # (periods − 1, P, m): each pair of consecutive periods
+    order = DIFFERENCE_ORDER
+    if P < 10 * (order + 1):
+        return variance, dof, {}
+    differences = np.diff(steps, n=order, axis=1)  # along the phase
+    count = differences.shape[0] * differences.shape[1]
+    estimate = np.mean(differences**2, axis=(0, 1)) / (2.0 * comb(2 * order, order))
+    estimate_dof = count / _difference_correlation_sum(order)
+    threshold = float(scipy.stats.f.ppf(1.0 - DRIFT_ALPHA, dof, estimate_dof))
+    out, changed = np.array(variance, dtype=float), {}
+    for column, channel in enumerate(channels):
+        if not estimate[column] > 0.0 or variance[column] <= threshold * estimate[column]:
+            continue
+        kept = differences[:, :, column].reshape(-1)
+        centred = kept - kept.mean()
+        energy = float(centred @ centred)
+        lag1 = float(sum(row[1:] @ row[:-1] for row in differences[:, :, column] - kept.mean())) / energy
+        try:
+            check_white(lag1, kept.shape[0], order, channel)
+        except NoiseFloorError:
+            continue
+        out[column] = estimate[column]
+        changed[channel] = {"periods": float(variance[column]), "within_periods": float(estimate[column])}
+    return out, (min(dof, estimate_dof) if changed else dof), changed
 
 
 def fourier_residual_variance(t: ArrayLike, values: ArrayLike, frequency_hz: float, *,
@@ -322,9 +371,12 @@ def noise_floor(
             regular = np.max(np.abs(np.diff(t) - step)) <= 1e-6 * step
             if regular and abs(per_period - whole) <= 1e-6 * per_period:
                 variance, dof = period_variance(values, whole)
-                return NoiseFloor(channels, variance, "periods", dof, measurements.n_samples,
-                                  {"frequency_hz": frequency_hz, "samples_per_period": whole,
-                                   "periods": measurements.n_samples // whole})
+                details: dict[str, Any] = {"frequency_hz": frequency_hz, "samples_per_period": whole,
+                                           "periods": measurements.n_samples // whole}
+                variance, dof, changed = without_drift(values, whole, variance, dof, channels)
+                if changed:
+                    details["drift"] = changed
+                return NoiseFloor(channels, variance, "periods", dof, measurements.n_samples, details)
             variance, dof, harmonics = fourier_residual_variance(t, values, frequency_hz)
             details = {"frequency_hz": frequency_hz, "samples_per_period": per_period, "periods": periods,
                        "harmonics": harmonics}
