@@ -10,7 +10,7 @@ import dataclasses
 
 import pytest
 
-from tests.corpus.cases import ALONE, OUTSIDE, OUTSIDE_LONG, OUTSIDE_POSITIONS, PAIRS, Case
+from tests.corpus.cases import ALONE, OUTSIDE, OUTSIDE_LONG, OUTSIDE_PLANTS, OUTSIDE_POSITIONS, PAIRS, Case
 from tests.corpus.records import matches, run
 
 
@@ -21,7 +21,8 @@ def marks(case: Case) -> list[pytest.MarkDecorator]:
     return chosen
 
 
-@pytest.mark.parametrize("case", [pytest.param(case, id=case.name, marks=marks(case)) for case in OUTSIDE + OUTSIDE_POSITIONS + OUTSIDE_LONG])
+@pytest.mark.parametrize("case", [pytest.param(case, id=case.name, marks=marks(case)) for case in OUTSIDE + OUTSIDE_POSITIONS + OUTSIDE_LONG
+                                                   + OUTSIDE_PLANTS])
 def test_a_truth_outside_the_candidates_gets_no_false_effect_and_a_floor_warning(case):
     diagnosis, outcome = run(case)
     print(f"\n{case.name}: {outcome.summary()}")
