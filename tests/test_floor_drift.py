@@ -41,3 +41,22 @@ def test_white_noise_alone_keeps_the_period_variance():
         floor = noise_floor(record(drift=0.0, seed=seed), ("tau1", "tau2"))
         assert "drift" not in floor.details, (seed, floor.details)
         assert floor.dof == (RATE / FREQUENCY) * (PERIODS - 1)
+
+
+def test_read_in_blocks_the_drift_is_taken_out_alike():
+    """The drifting record read in blocks past the whole-record capacity (the floor by passes,
+    :func:`estimation.streaming.record_floor.periodic_floor`): memory's floor, its drift said alike."""
+    from estimation.streaming.record_floor import periodic_floor
+
+    whole = record(drift=2.4)
+
+    def chunks():
+        for start in range(0, whole.n_samples, 300):
+            rows = slice(start, start + 300)
+            yield Measurements(whole.t[rows], whole.q[rows], None, None, whole.tau[rows], None, {})
+
+    memory = noise_floor(whole, ("tau1", "tau2"))
+    streamed = periodic_floor(chunks, ("tau1", "tau2"), FREQUENCY, capacity=1000)
+    assert streamed.method == memory.method == "periods"
+    np.testing.assert_allclose(streamed.variance, memory.variance, rtol=1e-12)
+    assert streamed.dof == memory.dof and set(streamed.details["drift"]) == {"tau2"}, streamed.details

@@ -41,7 +41,8 @@ from estimation.streaming.chunks import logged_chunks
 from estimation.streaming.diagnosis_sums import concatenate
 from estimation.uncertainty.noise_floor import (DIFFERENCE_ORDER, MAX_HARMONICS, NoiseFloor, NoiseFloorError,
                                                 check_difference_count, check_white, difference_dof, difference_scale,
-                                                kept_deviation, noise_floor, pooled_floor)
+                                                drift_free, kept_deviation, noise_floor, period_step_sums,
+                                                pooled_floor)
 
 __all__ = ["FLOOR_CAPACITY", "difference_floor", "order_statistics", "periodic_floor", "record_floor",
            "segment_floors"]
@@ -323,8 +324,13 @@ def _periodic_by_passes(chunks: Callable[[], Iterator[Measurements]], channels: 
     whole = int(round(per_period))
     if largest <= 1e-6 * step and abs(per_period - whole) <= 1e-6 * per_period:
         variance, dof = _period_variance(_channel_blocks(chunks, channels), whole, rows)
-        return NoiseFloor(channels, variance, "periods", dof, rows,
-                          {"frequency_hz": frequency_hz, "samples_per_period": whole, "periods": rows // whole})
+        details = {"frequency_hz": frequency_hz, "samples_per_period": whole, "periods": rows // whole}
+        if whole >= 10 * (DIFFERENCE_ORDER + 1):  # what drifts between the periods taken out, as memory does
+            variance, dof, changed = drift_free(variance, dof, _period_step_sums(_channel_blocks(chunks, channels),
+                                                                                 whole, rows), channels)
+            if changed:
+                details["drift"] = changed
+        return NoiseFloor(channels, variance, "periods", dof, rows, details)
     variance, dof, harmonics = _fourier_residual_variance(chunks, channels, frequency_hz, rows, step)
     details = {"frequency_hz": frequency_hz, "samples_per_period": per_period, "periods": periods,
                "harmonics": harmonics}
@@ -376,6 +382,20 @@ def _period_variance(blocks: Callable[[], Iterable[NDArray[np.float64]]], sample
         deviation = deviation * deviation
         squares = deviation if squares is None else squares + deviation
     return np.mean(squares / (periods - 1), axis=0), float(P * (periods - 1))
+
+
+def _period_step_sums(blocks: Callable[[], Iterable[NDArray[np.float64]]], samples_per_period: int, rows: int
+                      ) -> tuple[NDArray[np.float64], ...]:
+    """:func:`~estimation.uncertainty.noise_floor.period_step_sums` of each pair of consecutive whole periods, added
+    in memory's order (one pass, two periods held)."""
+    periods = rows // int(samples_per_period)
+    previous, sums = None, None
+    for period in _whole_periods(blocks, int(samples_per_period), periods):
+        if previous is not None:
+            step = period_step_sums(previous, period)
+            sums = step if sums is None else tuple(total + part for total, part in zip(sums, step))
+        previous = np.array(period)
+    return sums
 
 
 #: numpy's pairwise summation: blocks of at most this many values summed by its unrolled loop (numpy's

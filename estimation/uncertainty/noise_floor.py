@@ -144,43 +144,66 @@ def period_variance(values: ArrayLike, samples_per_period: int) -> tuple[NDArray
 def without_drift(values: ArrayLike, samples_per_period: int, variance: NDArray[np.float64], dof: float,
                   channels: Sequence[str]) -> tuple[NDArray[np.float64], float, dict[str, dict[str, float]]]:
     """The period-to-period variance (``variance``, ``dof``: :func:`period_variance`'s) with what drifts between the
-    periods taken out: ``(variance, dof, changed)``.
+    periods taken out: ``(variance, dof, changed)`` (:func:`drift_free` of the sums :func:`period_step_sums` gives
+    for each pair of consecutive periods).
 
     The periods' differences ``d_j = x_{k+1,j} − x_{k,j}`` cancel every periodic signal; what they keep is the
     noise (``2σ²`` for white noise) and whatever changed from one period to the next: a friction warming, a
     sensor's bias drifting, wear. Such a change is slow along the phase ``j``, so the mean square of the
     ``d``-th differences of ``d`` along ``j`` (:data:`DIFFERENCE_ORDER`, ``C(2d, d) · 2σ²`` for white noise, the
-    mean square and not the MAD: unbiased for any white noise) measures the noise without it. Where the period
-    variance exceeds that estimate beyond its sampling spread (one-sided F test at :data:`DRIFT_ALPHA`, the
-    estimate's degrees of freedom ``N / Σρ²``), the periods differ by more than noise: the channel's floor is the
-    differences' estimate, and ``changed[channel]`` gives both. A channel whose differences of ``d`` are not those
-    of white noise (it was filtered before it was recorded: :func:`check_white`) keeps the period variance: a
-    drift cannot be told from coloured noise there. Before (h-plants19), a Coulomb level warming over a periodic
-    record's two periods made its floor 54x the noise's variance, and a residual 38x the noise read "at its
-    floor"."""
+    mean square and not the MAD: unbiased for any white noise) measures the noise without it. Before
+    (h-plants19), a Coulomb level warming over a periodic record's two periods made its floor 54x the noise's
+    variance, and a residual 38x the noise read "at its floor"."""
     values = _as_2d(values)
     P = int(samples_per_period)
     periods = values.shape[0] // P
-    folded = values[: periods * P].reshape(periods, P, -1)
-    steps = np.diff(folded, axis=0)  # (periods − 1, P, m): each pair of consecutive periods
-    order = DIFFERENCE_ORDER
-    if P < 10 * (order + 1):
+    if P < 10 * (DIFFERENCE_ORDER + 1):
         return variance, dof, {}
-    differences = np.diff(steps, n=order, axis=1)  # along the phase
-    count = differences.shape[0] * differences.shape[1]
-    estimate = np.mean(differences**2, axis=(0, 1)) / (2.0 * comb(2 * order, order))
+    folded = values[: periods * P].reshape(periods, P, -1)
+    sums = None
+    for index in range(periods - 1):
+        step = period_step_sums(folded[index], folded[index + 1])
+        sums = step if sums is None else tuple(total + part for total, part in zip(sums, step))
+    return drift_free(variance, dof, sums, channels)
+
+
+def period_step_sums(previous: NDArray[np.float64], current: NDArray[np.float64]
+                     ) -> tuple[NDArray[np.float64], ...]:
+    """Of two consecutive periods ``(P, m)``: the sums, per channel, of the squares, of the lag-1 products, of the
+    values and of the values ending and starting a lag-1 pair, of the :data:`DIFFERENCE_ORDER`-th differences along
+    the phase of their difference, and their count (:func:`without_drift`; a record read in blocks adds them period
+    by period)."""
+    differences = np.diff(np.asarray(current, dtype=float) - np.asarray(previous, dtype=float), n=DIFFERENCE_ORDER,
+                          axis=0)
+    return (np.sum(differences**2, axis=0), np.sum(differences[1:] * differences[:-1], axis=0),
+            np.sum(differences, axis=0), np.sum(differences[:-1], axis=0) + np.sum(differences[1:], axis=0),
+            int(differences.shape[0]), int(differences.shape[0]) - 1)
+
+
+def drift_free(variance: NDArray[np.float64], dof: float,
+               sums: tuple[NDArray[np.float64], ...], channels: Sequence[str]
+               ) -> tuple[NDArray[np.float64], float, dict[str, dict[str, float]]]:
+    """:func:`without_drift`'s decision from the periods' sums (:func:`period_step_sums`, added over the pairs of
+    consecutive periods): where the period variance exceeds the differences' estimate beyond its sampling spread
+    (one-sided F test at :data:`DRIFT_ALPHA`, the estimate's degrees of freedom ``N / Σρ²``), the periods differ
+    by more than noise, and the channel's floor is the differences' estimate (``changed[channel]`` gives both). A
+    channel whose differences are not those of white noise (filtered before it was recorded: :func:`check_white`,
+    the lag-1 correlation of the differences about their mean) keeps the period variance: a drift cannot be told from
+    coloured noise there."""
+    squares, lagged, total, ends, count, pairs = sums
+    order = DIFFERENCE_ORDER
+    estimate = squares / count / (2.0 * comb(2 * order, order))
     estimate_dof = count / _difference_correlation_sum(order)
     threshold = float(scipy.stats.f.ppf(1.0 - DRIFT_ALPHA, dof, estimate_dof))
     out, changed = np.array(variance, dtype=float), {}
     for column, channel in enumerate(channels):
         if not estimate[column] > 0.0 or variance[column] <= threshold * estimate[column]:
             continue
-        kept = differences[:, :, column].reshape(-1)
-        centred = kept - kept.mean()
-        energy = float(centred @ centred)
-        lag1 = float(sum(row[1:] @ row[:-1] for row in differences[:, :, column] - kept.mean())) / energy
         try:
-            check_white(lag1, kept.shape[0], order, channel)
+            mean = total[column] / count  # the lag-1 correlation of the differences about their mean
+            energy = squares[column] - count * mean**2
+            lag = lagged[column] - mean * ends[column] + pairs * mean**2
+            check_white(float(lag / energy) if energy > 0.0 else 1.0, count, order, channel)
         except NoiseFloorError:
             continue
         out[column] = estimate[column]
