@@ -238,7 +238,7 @@ def test_the_streamed_reader_says_a_clipped_sensor_as_memory_finds_it(tmp_path):
     """The streamed reader (``--chunk-size``) judges a clipped sensor on the whole record block by block
     (:class:`estimation.data.log_cleaning.HeldExtremes`): the same channel, value, samples and time span as memory,
     at chunks of 250 and 251 rows (runs at the limit across a chunk's edge); its warning says that the samples are
-    not left out there. The clean record: nothing said."""
+    left out, as they are (h-streammask2). The clean record: nothing said."""
     from estimation.data import SaturatedTorqueWarning
     from estimation.data.records import read_measurements
     from estimation.streaming.chunks import read_chunks
@@ -254,7 +254,7 @@ def test_the_streamed_reader_says_a_clipped_sensor_as_memory_finds_it(tmp_path):
         _, streamed = _caught(SaturatedTorqueWarning, lambda size=chunk_size: list(read_chunks(
             tmp_path / "clipped.csv", model, chunk_size=size)))
         assert len(streamed) == 1 and f"past its range: {found}, its extreme value" in streamed[0], streamed
-        assert "NOT left out" in streamed[0]
+        assert "left out of the fit and of every error" in streamed[0]
     _, nothing = _caught(SaturatedTorqueWarning, lambda: list(read_chunks(clean, model, chunk_size=250)))
     assert nothing == []
 
@@ -393,8 +393,8 @@ def test_the_real_robots_logs_hold_no_read_error_and_no_clipped_torque(robot, tm
 def test_result_json_counts_the_clipped_samples_in_memory_and_says_streamed_that_it_did_not_look(verb, tmp_path):
     """``result.json``'s ``saturated_samples`` (h-sensorfaults) holds the clipped samples of each record left out of
     the fit and the errors, per channel; streamed (``--chunk-size``), where the clipped channels are said but their
-    samples not left out, it is null and ``not_computed.saturated_samples`` says why, never a silent null that reads
-    as "none clipped"."""
+    samples left out as in memory (h-streammask2), it is null and ``not_computed.saturated_samples`` says why, never
+    a silent null that reads as "none clipped"."""
     import json
 
     from oed.cli import main
@@ -419,7 +419,8 @@ def test_result_json_counts_the_clipped_samples_in_memory_and_says_streamed_that
     memory, streamed = documents["memory"], documents["streamed"]
     assert [entry["samples"] for entry in memory["saturated_samples"]["train"]] == [{"tau2": at_limit}]
     assert "validation" not in memory["saturated_samples"] and "saturated_samples" not in memory["not_computed"]
-    assert streamed["saturated_samples"] is None and "memory only" in streamed["not_computed"]["saturated_samples"]
+    assert streamed["saturated_samples"] is None and "left out of the streamed sums and errors as in memory" in \
+        streamed["not_computed"]["saturated_samples"]
     assert "said streamed" in streamed["not_computed"]["saturated_samples"]
 
 
