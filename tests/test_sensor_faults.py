@@ -535,7 +535,7 @@ def test_the_streamed_identify_of_a_clipped_or_held_record_is_memorys(tmp_path, 
         documents[path] = json.loads(out.read_text())
     memory, streamed = documents["memory"], documents["streamed"]
     assert streamed["identification_path"] == "streamed" and memory["channel_samples"] is not None
-    assert streamed["chosen"] == memory["chosen"]
+    assert streamed["chosen"] == memory["chosen"] and streamed["channel_samples"] == memory["channel_samples"]
     for role in ("train", "validation"):
         for channel, value in memory[role]["mse"].items():
             assert streamed[role]["mse"][channel] == pytest.approx(value, rel=1e-9), (role, channel)
