@@ -579,22 +579,28 @@ def test_a_masked_sample_leaves_its_equation_out_of_the_sums_block_by_block():
 def test_the_streamed_reader_masks_the_cells_memory_masks(tmp_path):
     """Chunk by chunk (of 97 rows: the clip and the holds across their edges), the streamed reader gives memory's
     samples: a clipped sensor's samples NaN in that channel only, a held channel's repeats NaN with every row's
-    positions kept; the errors at the recorded samples (:func:`~estimation.streaming.chunks.logged_chunks`) alike."""
+    positions kept; the errors at the recorded samples (:func:`~estimation.streaming.chunks.logged_chunks`) alike.
+    A jittered clipped record: masked before the resampling, the grid's torques memory's."""
     from estimation.data.records import read_measurements
     from estimation.streaming.chunks import logged_chunks, read_chunks
 
     model, _ = _puma_record(tmp_path)
-    for kind in ("clipped", "held"):
-        data = _clipped_and_held(tmp_path, kind)
+    clipped = _clipped_and_held(tmp_path, "clipped")
+    jittered = pd.read_csv(clipped)
+    jittered["t"] += np.random.default_rng(1).uniform(-0.3, 0.3, len(jittered)) * 0.004
+    jittered.to_csv(tmp_path / "jittered.csv", index=False, float_format="%.17g")
+    for kind, data in (("clipped", clipped), ("held", _clipped_and_held(tmp_path, "held")),
+                       ("jittered", tmp_path / "jittered.csv")):
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             memory = read_measurements(data, model=model)
             chunks = list(read_chunks(data, model, chunk_size=97))
             logged = list(logged_chunks(data, model, chunk_size=97))
         assert np.isnan(memory.tau).any(), kind
-        for read in (chunks, logged):
-            assert np.array_equal(np.vstack([chunk.q for chunk in read]), memory.q), kind
-            assert np.array_equal(np.vstack([chunk.tau for chunk in read]), memory.tau, equal_nan=True), kind
+        assert np.allclose(np.vstack([chunk.q for chunk in chunks]), memory.q, rtol=0, atol=1e-12), kind
+        assert np.allclose(np.vstack([chunk.tau for chunk in chunks]), memory.tau, rtol=0, atol=1e-12,
+                           equal_nan=True), kind
+        assert np.array_equal(np.vstack([chunk.tau for chunk in logged]), memory.as_recorded.tau, equal_nan=True), kind
 
 
 def test_a_quantised_peak_is_kept_and_a_clip_of_the_same_channel_caught_whole_and_in_blocks():
