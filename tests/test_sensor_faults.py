@@ -628,3 +628,28 @@ def test_a_quantised_peak_is_kept_and_a_clip_of_the_same_channel_caught_whole_an
             for start in range(0, t.size, size):
                 blocks.add(values[start:start + size], q[start:start + size])
             assert np.array_equal(blocks.found(t.size), whole), size
+
+
+def test_the_streamed_difference_floor_of_a_masked_channel_is_memorys():
+    """The noise floor by passes (:func:`estimation.streaming.record_floor.difference_floor`, blocks of 61 rows, a
+    capacity of 50 values: the medians found by histogram passes) of channels with masked samples (a clipped
+    stretch on two channels, single samples on a third) equals memory's :func:`~estimation.uncertainty.noise_floor.
+    difference_variance` (each channel's valid differences, the fewest channel's degrees of freedom); before
+    (8322458) it refused the NaN ("the channels hold NaN or inf")."""
+    from estimation.streaming.record_floor import difference_floor
+    from estimation.uncertainty.noise_floor import difference_variance
+
+    generator = np.random.default_rng(5)
+    values = generator.standard_normal((900, 3)) * [0.1, 0.2, 0.05]
+    values[300:420, 1] = np.nan
+    values[600:650, 2] = np.nan
+    values[[100, 140, 777], 0] = np.nan
+
+    def blocks():
+        for start in range(0, values.shape[0], 61):
+            yield values[start:start + 61]
+
+    variance, dof = difference_variance(values)
+    floor = difference_floor(blocks, ("tau1", "tau2", "tau3"), capacity=50)
+    assert np.allclose(floor.variance, variance, rtol=1e-12, atol=0)
+    assert floor.dof == pytest.approx(dof)
