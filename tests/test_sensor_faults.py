@@ -577,10 +577,11 @@ def test_a_masked_sample_leaves_its_equation_out_of_the_sums_block_by_block():
 
 
 def test_the_streamed_reader_masks_the_cells_memory_masks(tmp_path):
-    """Chunk by chunk (of 97 rows: the clip and the holds across their edges), the streamed reader gives memory's
+    """Chunk by chunk (of 97 rows: the clip across their edges), the streamed reader gives memory's
     samples: a clipped sensor's samples NaN in that channel only, a held channel's repeats NaN with every row's
-    positions kept; the errors at the recorded samples (:func:`~estimation.streaming.chunks.logged_chunks`) alike.
-    A jittered clipped record: masked before the resampling, the grid's torques memory's."""
+    positions kept (``tests/test_logs_as_they_come.py``); the errors at the recorded samples
+    (:func:`~estimation.streaming.chunks.logged_chunks`) alike. A jittered clipped record: masked before the
+    resampling, the grid's torques memory's."""
     from estimation.data.records import read_measurements
     from estimation.streaming.chunks import logged_chunks, read_chunks
 
@@ -589,13 +590,12 @@ def test_the_streamed_reader_masks_the_cells_memory_masks(tmp_path):
     jittered = pd.read_csv(clipped)
     jittered["t"] += np.random.default_rng(1).uniform(-0.3, 0.3, len(jittered)) * 0.004
     jittered.to_csv(tmp_path / "jittered.csv", index=False, float_format="%.17g")
-    for kind, data in (("clipped", clipped), ("held", _clipped_and_held(tmp_path, "held")),
-                       ("jittered", tmp_path / "jittered.csv")):
-        with warnings.catch_warnings():
+    for kind, data, size in (("clipped", clipped, 97), ("jittered", tmp_path / "jittered.csv", 250)):  # held:
+        with warnings.catch_warnings():  # tests/test_logs_as_they_come.py
             warnings.simplefilter("ignore")
             memory = read_measurements(data, model=model)
-            chunks = list(read_chunks(data, model, chunk_size=97))
-            logged = list(logged_chunks(data, model, chunk_size=97))
+            chunks = list(read_chunks(data, model, chunk_size=size))
+            logged = list(logged_chunks(data, model, chunk_size=size))
         assert np.isnan(memory.tau).any(), kind
         assert np.allclose(np.vstack([chunk.q for chunk in chunks]), memory.q, rtol=0, atol=1e-12), kind
         assert np.allclose(np.vstack([chunk.tau for chunk in chunks]), memory.tau, rtol=0, atol=1e-12,
