@@ -79,6 +79,21 @@ def masked_equations(Y: NDArray[np.float64], y: NDArray[np.float64]
     return Y, np.where(nan, 0.0, y), ~nan
 
 
+def masked_cells(values: NDArray[np.float64]) -> NDArray[np.bool_] | None:
+    """``(N, m)`` the masked entries (NaN) of ``values``, ``None`` when there is none (one sum's test)."""
+    if not np.isnan(np.sum(values)):
+        return None
+    return np.isnan(values)
+
+
+def valid_sum(values: NDArray[np.float64], masked: NDArray[np.bool_] | None) -> NDArray[np.float64]:
+    """``(m,)`` each channel's sum of ``values`` ``(N, m)`` over its entries not ``masked``
+    (:func:`masked_cells` of the measurement; ``None``: all)."""
+    if masked is None:
+        return np.sum(values, axis=0)
+    return np.sum(np.where(masked, 0.0, values), axis=0)
+
+
 def masked_rows(values: NDArray[np.float64] | None) -> NDArray[np.bool_] | None:
     """``(N,)`` the samples of ``values`` ``(N, m)`` with a masked channel, ``None`` when there is none."""
     if values is None or not np.isnan(np.sum(values)):

@@ -705,11 +705,9 @@ def clipped_torques(arrays: dict, t: NDArray[np.float64], model, source: str) ->
     return found
 
 
-def said_clipped(said: list[tuple[str, float, int, float, float]], model, source: str, *,
-                 left_out: bool = True) -> None:
+def said_clipped(said: list[tuple[str, float, int, float, float]], model, source: str) -> None:
     """The :class:`SaturatedTorqueWarning` naming each clipped channel: ``(name, value, samples, first and last time
-    stamp)``; ``left_out``: whether its samples are left out of the fit and the errors (in memory), else said only
-    (the streamed path, :mod:`estimation.streaming.chunks`)."""
+    stamp)``; its samples are left out of the fit and the errors (in memory and streamed, masked in that channel)."""
     joint_names = [joint.name for joint in model.robot.joints] if isinstance(model, IdentificationModel) else []
     parts = []
     for name, value, count, first, last in said:
@@ -719,9 +717,7 @@ def said_clipped(said: list[tuple[str, float, int, float, float]], model, source
         parts.append(f"{name}{named} at {value:.6g} on {count} sample(s) from t = {first:.6g} s to {last:.6g} s")
     torques = all(name.startswith("tau") for name, *_ in said)
     what = ("these samples are left out of the fit and of every error (taken against what was recorded where the "
-            "recording is valid), the positions kept for the derivatives" if left_out else
-            "on the streamed path these samples are NOT left out of the fit and the errors (read the record in "
-            "memory, without --chunk-size, to leave them out)")
+            "recording is valid), the positions kept for the derivatives")
     warnings.warn(
         f"{source}: a {'torque' if torques else 'force/torque'} sensor past its range: {'; '.join(parts)}, its extreme "
         f"value held while {'the joint moves' if torques else 'the robot moves'} (and held far more often than its "

@@ -148,9 +148,9 @@ STREAMED_NOT_COMPUTED = {
                   "diagnose, not by diagnose_files",
     "saturated_samples": "a torque or wrench sensor past its range (a channel held at its extreme while the robot moves) is "
                          "said streamed (SaturatedTorqueWarning: the whole record judged block by block, as in memory) "
-                         "but its samples are left out of the fit and the errors in memory only (the streamed sums "
-                         "and errors take every sample): streamed, clipped samples are read as measurements; read "
-                         "the record without --chunk-size to leave them out",
+                         "and its samples are left out of the streamed sums and errors as in memory (masked in that "
+                         "channel only; the diagnosis's search, as memory's, leaves such a sample out whole); the "
+                         "counts per record and segment are said in the warning, not collected here",
 }
 
 

@@ -22,7 +22,7 @@ candidate columns for F tests, :mod:`estimation.streaming.candidate_screening`) 
 from __future__ import annotations
 
 from collections.abc import Iterable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import scipy.linalg
@@ -32,6 +32,7 @@ from dynamics.runtime.memory import check_allocation
 from dynamics.models import IdentificationModel
 from dynamics.runtime.threads import single_threaded_blas
 from dynamics.measurements import Measurements
+from estimation.data.channel_mask import masked_equations
 from estimation.estimators.identification_problem import in_band_blocks
 
 __all__ = ["DEFAULT_CHUNK_SIZE", "NormalEquations", "accumulate", "check_chunk_size", "reduce_sums", "stacked_factor"]
@@ -105,6 +106,11 @@ class NormalEquations:
         motion was filtered with (:class:`estimation.estimators.identification_problem.ResidualBand`), when the
         torques were fitted as recorded: the channel weights of a weighted fit come from its residual
         (:func:`~estimation.estimators.identification_problem.in_band_variance`); ``None``: from the residual.
+    channel_samples
+        ``(m,)`` each channel's valid samples summed when some were masked (NaN in the block's target: a clipped
+        sensor, a held channel's repeats; :mod:`estimation.data.channel_mask`), whose equations were left out (the
+        regressor row and target zeroed, as :func:`~estimation.data.channel_mask.masked_equations` in memory);
+        ``None``: every channel's ``n_samples``.
     """
 
     gram: NDArray[np.float64]
@@ -117,6 +123,7 @@ class NormalEquations:
     expressions: tuple[str, ...] = ()
     sources: tuple[str, ...] = ()
     band: NormalEquations | None = None
+    channel_samples: tuple[int, ...] | None = None
 
     def __post_init__(self) -> None:
         m, k = len(self.channels), len(self.names)
@@ -135,6 +142,24 @@ class NormalEquations:
                                       or self.band.channels != self.channels or self.band.names != self.names
                                       or self.band.n_samples != self.n_samples):
             raise ValueError("the band's sums must be those of the same problem (channels, columns, samples)")
+        if self.channel_samples is not None:
+            counts = tuple(int(count) for count in self.channel_samples)
+            if len(counts) != m or any(count < 0 or count > self.n_samples for count in counts):
+                raise ValueError(f"channel_samples must be {m} counts within 0..{self.n_samples}, got "
+                                 f"{self.channel_samples}")
+            object.__setattr__(self, "channel_samples", None if all(c == self.n_samples for c in counts) else counts)
+
+    @property
+    def samples(self) -> NDArray[np.float64]:
+        """``(m,)`` each channel's valid samples summed (``n_samples`` for every channel when nothing was masked)."""
+        if self.channel_samples is None:
+            return np.full(self.n_channels, float(self.n_samples))
+        return np.array(self.channel_samples, dtype=float)
+
+    @property
+    def n_equations(self) -> int:
+        """The equations summed: every channel's valid samples."""
+        return int(self.n_samples * self.n_channels if self.channel_samples is None else sum(self.channel_samples))
 
     @property
     def n_channels(self) -> int:
@@ -159,6 +184,7 @@ class NormalEquations:
         if Y.ndim != 3 or y.shape != Y.shape[:2] or Y.shape[1:] != (len(channels), len(names)):
             raise ValueError(f"Y must be (N, {len(channels)}, {len(names)}) and y (N, {len(channels)}); "
                              f"got Y {Y.shape}, y {y.shape}")
+        Y, y, valid = masked_equations(Y, y)
         by_channel = Y.transpose(1, 2, 0)  # (m, k, N)
         gram = np.matmul(by_channel, Y.transpose(1, 0, 2))
         moment = np.matmul(by_channel, y.T[:, :, None])[:, :, 0]
@@ -166,7 +192,7 @@ class NormalEquations:
         k = Y.shape[2]
         factor = np.stack([stacked_factor([np.column_stack([Y[:, c, :], y[:, c]])], k + 1) for c in range(Y.shape[1])])
         return cls(gram, moment, power, factor, Y.shape[0], tuple(channels), tuple(names), expressions,
-                   (source,) if source else ())
+                   (source,) if source else (), None, None if valid is None else tuple(valid.sum(axis=0)))
 
     def _check_compatible(self, other: NormalEquations) -> None:
         if not isinstance(other, NormalEquations):
@@ -181,16 +207,22 @@ class NormalEquations:
         factor = np.stack([stacked_factor([a, b], width) for a, b in zip(self.factor, other.factor)])
         return NormalEquations(self.gram + other.gram, self.moment + other.moment, self.power + other.power,
                                factor, self.n_samples + other.n_samples, self.channels, self.names,
-                               self.expressions, self.sources + other.sources, _added_bands(self, other))
+                               self.expressions, self.sources + other.sources, _added_bands(self, other),
+                               _added_counts(self, other))
 
     def add_block(self, Y: NDArray[np.float64], y: NDArray[np.float64], source: str = "", *,
                   gram: bool = True) -> NormalEquations:
         """These sums plus a block's, re-factoring each channel's rows under its current factor
         (one QR of ``(k+1) + N`` rows a channel rather than two). ``gram=False``: the Gram sums and moments
-        are not formed (left NaN: :func:`accumulate`), only the factors and powers."""
+        are not formed (left NaN: :func:`accumulate`), only the factors and powers. A masked sample of a channel
+        (NaN in ``y``) leaves out that channel's equation (:attr:`channel_samples`)."""
         Y, y = np.asarray(Y, dtype=float), np.asarray(y, dtype=float)
         if Y.ndim != 3 or y.shape != Y.shape[:2] or Y.shape[1:] != (self.n_channels, self.n_columns):
             raise ValueError(f"block Y {Y.shape}, y {y.shape} does not fit {self.n_channels} channels, {self.n_columns} columns")
+        Y, y, valid = masked_equations(Y, y)
+        counts = None if valid is None and self.channel_samples is None else tuple(
+            int(before) + int(added) for before, added in
+            zip(self.samples, np.full(self.n_channels, Y.shape[0]) if valid is None else valid.sum(axis=0)))
         by_channel = Y.transpose(1, 2, 0)
         width = self.n_columns + 1
         # one work buffer for every channel: [R_c; Y_c y_c] on the channel's columns, Fortran-ordered, factored in
@@ -214,7 +246,7 @@ class NormalEquations:
             self.gram + np.matmul(by_channel, Y.transpose(1, 0, 2)) if gram else np.full_like(self.gram, np.nan),
             self.moment + np.matmul(by_channel, y.T[:, :, None])[:, :, 0] if gram else np.full_like(self.moment, np.nan),
             self.power + np.einsum("nm,nm->m", y, y), factor, self.n_samples + Y.shape[0],
-            self.channels, self.names, self.expressions, self.sources + ((source,) if source else ()),
+            self.channels, self.names, self.expressions, self.sources + ((source,) if source else ()), None, counts,
         )
 
     def select(self, columns: Iterable[int]) -> NormalEquations:
@@ -226,7 +258,7 @@ class NormalEquations:
         return NormalEquations(self.gram[:, index][:, :, index], self.moment[:, index], self.power, factor,
                                self.n_samples, self.channels, tuple(self.names[i] for i in index),
                                tuple(self.expressions[i] for i in index), self.sources,
-                               None if self.band is None else self.band.select(index))
+                               None if self.band is None else self.band.select(index), self.channel_samples)
 
     def in_band_rss(self, theta: NDArray[np.float64]) -> NDArray[np.float64]:
         """``‖F(y_c − Y_c θ)‖²`` per channel, the residual in the motion's band (:attr:`band`), or
@@ -244,7 +276,14 @@ class NormalEquations:
         """Mean squared error per channel at ``θ`` (as :func:`estimation.identification.validation.channel_mse`)."""
         if self.n_samples == 0:
             raise ValueError("no samples summed")
-        return dict(zip(self.channels, map(float, self.channel_rss(theta) / self.n_samples)))
+        return dict(zip(self.channels, map(float, self.channel_rss(theta) / self.samples)))
+
+
+def _added_counts(a: NormalEquations, b: NormalEquations) -> tuple[int, ...] | None:
+    """The :attr:`NormalEquations.channel_samples` of ``a + b`` (``None`` when neither holds a masked sample)."""
+    if a.channel_samples is None and b.channel_samples is None:
+        return None
+    return tuple(int(x) + int(y) for x, y in zip(a.samples, b.samples))
 
 
 def _added_bands(a: NormalEquations, b: NormalEquations) -> NormalEquations | None:
@@ -294,9 +333,9 @@ def accumulate(model: IdentificationModel, measurements: Measurements, *, chunk_
     empty = NormalEquations.empty(model.channels, model.base.names, model.base.expressions)
     if sums is None:
         sums = empty
-    measured = measurements.channels(model.channels)
-    if not np.all(np.isfinite(measured)):
-        raise ValueError(f"{source or 'the data'}: a measured channel holds NaN or inf")
+    measured = measurements.channels(model.channels)  # NaN: a masked sample (estimation.data.channel_mask)
+    if np.any(np.isinf(measured)):
+        raise ValueError(f"{source or 'the data'}: a measured channel holds inf")
     buffer = np.empty((min(chunk_size, measurements.n_samples), model.n_channels, model.n_base))
     blocks = in_band_blocks(measurements, chunk_size) if band else None
     given = sums  # its band (add_block sums the problem as it is)
@@ -312,10 +351,15 @@ def accumulate(model: IdentificationModel, measurements: Measurements, *, chunk_
     if blocks is not None and (given.band is not None or given.n_samples == 0):
         in_band = empty if given.band is None else given.band
         for band, window, kept in blocks:
-            Y = band.window(model.evaluate_base(window.q, window.dq, window.ddq))[kept]
-            in_band = in_band.add_block(Y, band.window(window.channels(model.channels))[kept], gram=gram)
+            # the masked equations zeroed before the filter: the band of the residual that is 0 there, as in memory
+            Y, y, _ = masked_equations(model.evaluate_base(window.q, window.dq, window.ddq),
+                                       window.channels(model.channels))
+            in_band = in_band.add_block(band.window(Y)[kept], band.window(y)[kept], gram=gram)
+    if in_band is not None:  # the band's equations: those of the sums (its filtered target is no mask)
+        in_band = replace(in_band, channel_samples=sums.channel_samples)
     return NormalEquations(sums.gram, sums.moment, sums.power, sums.factor, sums.n_samples, sums.channels,
-                           sums.names, sums.expressions, sums.sources + ((source,) if source else ()), in_band)
+                           sums.names, sums.expressions, sums.sources + ((source,) if source else ()), in_band,
+                           sums.channel_samples)
 
 
 def reduce_sums(parts: Iterable[NormalEquations]) -> NormalEquations:

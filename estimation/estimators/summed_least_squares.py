@@ -138,7 +138,8 @@ class SummedLeastSquares(Estimator):
         n_shape = int(getattr(self, "n_shape", 0))
         if n_shape < 0:
             raise ValueError(f"n_shape must be a non-negative integer, got {self.n_shape}")
-        dof_channel = N - (r + n_shape) / m  # a shaped law's shape parameters counted, as in memory
+        samples = sums.samples  # each channel's valid samples (N when nothing was masked)
+        dof_channel = samples - (r + n_shape) / m  # a shaped law's shape parameters counted, as in memory
         weights = np.ones(m)
         iterations = 1
         if self.method == "wls":
@@ -147,7 +148,7 @@ class SummedLeastSquares(Estimator):
                 raise ValueError(f"channel(s) {', '.join(dead)} read zero in every sample (a dead sensor, or a column "
                                  "left empty?): weighted least squares cannot weight them; check the data, or use "
                                  "ordinary least squares (--method ols)")
-            floor = self.variance_floor * sums.power / N
+            floor = self.variance_floor * sums.power / samples
             variance = None
             iterations = 0
             for _ in range(int(self.max_iter) + 1):
@@ -163,7 +164,7 @@ class SummedLeastSquares(Estimator):
                     break
         theta, unscaled, cond = solve_sums(sums, weights)
         rss = sums.channel_rss(theta)
-        scale = float(np.sum(rss * weights)) / (N * m - r)
+        scale = float(np.sum(rss * weights)) / (sums.n_equations - r)
         cov = scale * unscaled
         std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
         with np.errstate(divide="ignore", invalid="ignore"):

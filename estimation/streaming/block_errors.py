@@ -28,6 +28,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from dynamics.models import IdentificationModel
+from estimation.data.channel_mask import masked_cells, valid_sum
 from estimation.estimators.normal_equations import NormalEquations
 from estimation.identification.preprocessing_on_validation import BLOCKS
 
@@ -69,6 +70,7 @@ class BlockSquares:
         self.n_samples = int(n_samples)
         self.bounds = block_bounds(self.n_samples, blocks)
         self.squares = np.zeros((blocks, int(n_channels)))
+        self.valid = np.zeros((blocks, int(n_channels)))  # each channel's valid samples per block
         self.count = 0
         self.spoiled = False
 
@@ -77,10 +79,13 @@ class BlockSquares:
         self.spoiled = True
 
     def add(self, squares: NDArray[np.float64]) -> None:
-        """The squared residuals ``(N, m)`` of the next ``N`` rows."""
+        """The squared residuals ``(N, m)`` of the next ``N`` rows (NaN at a masked sample: left out of its
+        channel's block, as memory's held-out blocks count each channel's valid samples)."""
         squares = np.asarray(squares, dtype=float)
+        masked = masked_cells(squares)
         for block, first, stop in _pieces(self.bounds, self.count, squares.shape[0]):
-            self.squares[block] += squares[first:stop].sum(axis=0)
+            self.squares[block] += valid_sum(squares[first:stop], None if masked is None else masked[first:stop])
+            self.valid[block] += stop - first if masked is None else np.sum(~masked[first:stop], axis=0)
         self.count += squares.shape[0]
 
     def block_mse(self, channels: Sequence[str]) -> dict[str, tuple[float, ...]] | None:
@@ -89,7 +94,8 @@ class BlockSquares:
         sizes = np.diff(self.bounds)
         if self.spoiled or self.count != self.n_samples or np.any(sizes == 0):
             return None
-        mse = self.squares / sizes[:, None]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            mse = self.squares / self.valid
         return {channel: tuple(float(value) for value in mse[:, column]) for column, channel in enumerate(channels)}
 
 
@@ -117,7 +123,7 @@ def block_normal_equations(model: IdentificationModel, chunks: Any, n_samples: i
 
 def block_channel_mse(sums: Sequence[NormalEquations], theta: NDArray[np.float64]) -> dict[str, tuple[float, ...]]:
     """Per channel, the MSE of ``theta`` on each block of :func:`block_normal_equations` (from the factors)."""
-    rss = np.array([part.channel_rss(theta) / part.n_samples for part in sums])  # (blocks, m)
+    rss = np.array([part.channel_rss(theta) / part.samples for part in sums])  # (blocks, m): each channel's valid
     return {channel: tuple(float(value) for value in rss[:, column])
             for column, channel in enumerate(sums[0].channels)}
 

@@ -77,7 +77,7 @@ from estimation.streaming.time_base import (Part, RegularClock, Resampler, TimeS
 
 __all__ = [
     "CLOCK_SUFFIX", "POSITIONS_SUFFIX", "FileSums", "from_positions", "positions_source", "MARGIN_TOLERANCE", "clock_source", "StreamingUnsupportedError", "automatic_cutoff", "file_sums", "filter_margin",
-    "loaded_chunk", "logged_chunks", "preprocessed_chunks", "read_chunks", "receive_times_evidence_of", "segment_sources", "source_file", "source_files", "source_rows",
+    "CellMask", "cell_mask", "loaded_chunk", "logged_chunks", "preprocessed_chunks", "read_chunks", "receive_times_evidence_of", "segment_sources", "source_file", "source_files", "source_rows",
     "source_step",
 ]
 
@@ -391,18 +391,22 @@ class _ClockEvidence:
 
 class _ClippedEvidence:
     """The whole record's clipped sensors (:class:`~estimation.data.log_cleaning.HeldExtremes`, torques and wrench),
-    block by block over the rows the loader keeps, as memory judges them on the whole record
-    (:func:`estimation.data.records.clipped_torques`); said once the file is read. The samples are not left out
-    here (the streamed sums and errors take every sample): the warning says so."""
+    block by block over the rows the loader keeps (a measured channel's held repeats masked: ``held``, the
+    :attr:`~estimation.streaming.time_base.TimeScan.held` of the file), as memory judges them on the whole record
+    (:func:`estimation.data.records.clipped_torques`); said once the file is read. Their samples are masked in each
+    chunk (:class:`CellMask`), as memory masks them."""
 
-    def __init__(self, model: IdentificationModel) -> None:
+    def __init__(self, model: IdentificationModel, held: dict[str, NDArray[np.bool_]] | None = None) -> None:
         n_joints = model.robot.n_joints
         self.q = _group_columns("q", n_joints)
         self.groups = {name: _group_columns(name, n_joints) for name in ("tau", "wrench")}
         self.scans: dict[str, HeldExtremes] = {}
+        self.held = held or {}
+        self.row = 0
 
     def add(self, frame: pd.DataFrame) -> None:
         frame = frame.rename(columns=lambda name: str(name).strip())
+        first, self.row = self.row, self.row + len(frame)
         if not set(self.q) | {"t"} <= set(frame.columns) or not len(frame):
             return
         numeric = functools.partial(pd.to_numeric, errors="coerce")
@@ -414,13 +418,86 @@ class _ClippedEvidence:
             if name not in self.scans:
                 self.scans[name] = HeldExtremes(len(columns), len(self.q), wrench=name == "wrench")
             values = np.column_stack([numeric(frame[column]).to_numpy(dtype=float) for column in columns])
+            if name in self.held:  # the repeats masked, as memory judges the channel after masking them
+                values[self.held[name][first:self.row]] = np.nan
             self.scans[name].add(values, q, t)
+
+    def mask(self) -> CellMask:
+        """The file's masked cells: the held repeats and the clipped samples."""
+        return CellMask(self.held, {name: tuple(scan.clipped_rows()) for name, scan in self.scans.items()})
 
     def say(self, model: IdentificationModel, source: str) -> None:
         said = [(self.groups[name][channel], value, count, first, last) for name in ("tau", "wrench")
                 if name in self.scans for channel, value, count, first, last in self.scans[name].described()]
         if said:
-            said_clipped(said, model, source, left_out=False)
+            said_clipped(said, model, source)
+
+
+@dataclass(frozen=True)
+class CellMask:
+    """The masked cells of a file's kept rows (:mod:`estimation.data.channel_mask`, as memory's reader masks them):
+    ``held``, per measured group (``tau``, ``wrench``), its held repeats ``(rows,)``; ``clipped``, per group and
+    channel, the sorted rows of a clipped sensor's samples. The rows are the kept rows' indices from the file's
+    first kept row."""
+
+    held: dict[str, NDArray[np.bool_]]
+    clipped: dict[str, tuple[NDArray[np.int64], ...]]
+
+    @property
+    def empty(self) -> bool:
+        return not self.held and not any(rows.size for found in self.clipped.values() for rows in found)
+
+    def cells(self, group: str, first: int, rows: int, width: int) -> NDArray[np.bool_] | None:
+        """``(rows, width)`` the masked cells of ``group`` on the kept rows ``first .. first + rows``; ``None``:
+        none."""
+        found = None
+        if group in self.held and self.held[group][first:first + rows].any():
+            found = np.repeat(self.held[group][first:first + rows, None], width, axis=1)
+        for channel, at in enumerate(self.clipped.get(group, ())):
+            low, high = np.searchsorted(at, [first, first + rows])
+            if high > low:
+                found = np.zeros((rows, width), dtype=bool) if found is None else found
+                found[at[low:high] - first, channel] = True
+        return found
+
+    def applied(self, arrays: dict[str, NDArray[np.float64] | None], first: int) -> dict:
+        """``arrays`` (``tau``, ``wrench`` among them, on the kept rows from ``first``) with their masked cells
+        NaN; the arrays without a masked cell as they are."""
+        masked = dict(arrays)
+        for group in ("tau", "wrench"):
+            values = arrays.get(group)
+            if values is None:
+                continue
+            found = self.cells(group, first, values.shape[0], values.shape[1])
+            if found is not None:
+                masked[group] = np.where(found, np.nan, values)
+        return masked
+
+    def on(self, measurements: Measurements, first: int) -> Measurements:
+        """``measurements`` (the kept rows from ``first``, not resampled) with their masked cells NaN."""
+        arrays = self.applied({"tau": measurements.tau, "wrench": measurements.wrench}, first)
+        if arrays["tau"] is measurements.tau and arrays["wrench"] is measurements.wrench:
+            return measurements
+        return replace(measurements, tau=arrays["tau"], wrench=arrays["wrench"])
+
+
+def cell_mask(path: str | Path, model: IdentificationModel, *, chunk_size: int = DEFAULT_CHUNK_SIZE,
+              scan: TimeScan | None = None, say: bool = False) -> CellMask:
+    """The masked cells of the rows of ``path`` the loader keeps (:class:`CellMask`): one pass over them
+    (:class:`_ClippedEvidence`, the clipped sensors judged on the whole record block by block); ``scan``: the
+    file's :func:`~estimation.streaming.time_base.scan_time` (made when not given). ``say``: the clipped sensors'
+    warning."""
+    file, segment = source_file(path)
+    if scan is None:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # said when the file is read
+            scan = scan_time(_raw_frames(file, chunk_size, model), file, model, segment=segment)
+    clipped = _ClippedEvidence(model, None if scan is None or scan.held is None else dict(scan.held))
+    for frame in _kept_frames(file, chunk_size, None if scan is None else scan.keep, model):
+        clipped.add(frame)
+    if say:
+        clipped.say(model, str(path))
+    return clipped.mask()
 
 
 def read_chunks(path: str | Path, model: IdentificationModel, *, chunk_size: int = DEFAULT_CHUNK_SIZE
@@ -443,14 +520,16 @@ def read_chunks(path: str | Path, model: IdentificationModel, *, chunk_size: int
     file, segment = source_file(path)
     scan = scan_time(_raw_frames(file, chunk_size, model), file, model, segment=segment)  # the loader's findings, said once
     resampler = Resampler(scan) if scan is not None and scan.irregular else None
-    checked = _ChunkChecks(path, model, scan, resampler)
+    clipped = _ClippedEvidence(model, None if scan is None or scan.held is None else dict(scan.held))
+    for frame in _kept_frames(file, chunk_size, None if scan is None else scan.keep, model):
+        clipped.add(frame)  # the whole record's clipped sensors, before the first chunk is masked
+    mask = clipped.mask()
+    checked = _ChunkChecks(path, model, scan, resampler, None if mask.empty else mask)
     emitted = 0
     clock = _ClockEvidence(model, scan) if resampler is not None else None
-    clipped = _ClippedEvidence(model)
     for frame in _kept_frames(file, chunk_size, None if scan is None else scan.keep, model):
         if clock is not None:
             clock.add(frame)
-        clipped.add(frame)
         if pending is not None and len(frame) < least:
             pending = pd.concat([pending, frame], ignore_index=True)
             continue
@@ -487,6 +566,8 @@ def logged_chunks(path: str | Path, model: IdentificationModel, *, chunk_size: i
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # said when the file was read for its sums
         scan = scan_time(_raw_frames(file, chunk_size, model), file, model, segment=segment)
+    mask = cell_mask(path, model, chunk_size=chunk_size, scan=scan)
+    mask = None if mask.empty else mask
     turns, row = AngleTurns(), 0
     for frame in itertools.chain(_kept_frames(file, chunk_size, None if scan is None else scan.keep, model), [None]):
         if frame is not None and pending is not None and len(frame) < least:
@@ -498,14 +579,24 @@ def logged_chunks(path: str | Path, model: IdentificationModel, *, chunk_size: i
                     and "t" in pending.columns:  # the rows' instants on the regular clock, as read_chunks has them
                 pending = pending.assign(t=clock_instants(scan.clock[0], scan.clock[1], scan.clock[2] + row,
                                                           len(pending)))
-            row += len(pending)
+            first, row = row, row + len(pending)
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")  # said when the file was read for its sums
                 chunk = measurements_from_frame(pending, model=model, resample=True, source=str(path),
                                                 glitches=False).as_recorded
+            if mask is not None:  # the masked cells of the rows as logged, as memory's samples as recorded
+                chunk = _masked_logged(chunk, mask, first, len(pending), str(path))
             if chunk.n_samples:  # the samples kept as logged, when the block was resampled
                 yield chunk if load is None else loaded_chunk(chunk, load, model)
         pending = frame
+
+
+def _masked_logged(chunk: Measurements, mask: CellMask, first: int, rows: int, source: str) -> Measurements:
+    """The logged rows ``first .. first + rows`` (``chunk``) with their masked cells NaN."""
+    if chunk.n_samples != rows:
+        raise MeasurementError(f"{source}: {chunk.n_samples} samples read of the {rows} rows kept (did the file change "
+                               "while it was read?)")
+    return mask.on(chunk, first)
 
 
 def receive_times_evidence_of(path: str | Path, model: IdentificationModel, *,
@@ -534,8 +625,9 @@ class _ChunkChecks:
     running on from the chunk before; on irregular sampling each put on the whole file's grid."""
 
     def __init__(self, path: Path, model: IdentificationModel, scan: TimeScan | None,
-                 resampler: Resampler | None) -> None:
+                 resampler: Resampler | None, mask: CellMask | None = None) -> None:
         self.path, self.model, self.scan, self.resampler = path, model, scan, resampler
+        self.mask = mask  # the masked cells of the kept rows (held repeats, clipped samples), NaN in each chunk
         self.row = 0  # rows checked so far
         self.previous: tuple[float, float] | None = None  # last time and step of the chunk before
         self.turns = AngleTurns()  # where the unwrap of a wrapped angle stands after the chunk before
@@ -559,6 +651,8 @@ class _ChunkChecks:
                 return measurements
             measurements = measurements_from_frame(frame, model=self.model, resample=False, source=source,
                                                    glitches=False)
+        if self.mask is not None:
+            measurements = _masked_logged(measurements, self.mask, self.row, rows, str(path))
         step = float(np.median(np.diff(measurements.t)))
         if previous is not None:
             gap = measurements.t[0] - previous[0]
@@ -587,6 +681,14 @@ class _ChunkChecks:
         columns = [column for name in groups for column in _group_columns(name, n_joints)]
         values = np.column_stack([pd.to_numeric(frame[column], errors="coerce").to_numpy(dtype=float)
                                   for column in columns])
+        if self.mask is not None:  # the masked cells NaN before the resampling, as memory's
+            start = 0
+            for name in groups:
+                width = len(_group_columns(name, n_joints))
+                found = self.mask.cells(name, self.row, values.shape[0], width) if name in ("tau", "wrench") else None
+                if found is not None:
+                    values[:, start:start + width][found] = np.nan
+                start += width
         grid, interpolated = self.resampler(t, values)
         arrays, start = {}, 0
         for name in groups:

@@ -40,8 +40,13 @@ def chunk_scores(model: IdentificationModel, layout: ColumnLayout, blocks: Seque
     (``Y``: the chunk's base regressor when already evaluated)."""
     Y = model.evaluate_base(chunk.q, chunk.dq, chunk.ddq) if Y is None else Y
     measured = chunk.channels(model.channels)
+    masked = np.isnan(measured)  # a masked sample's equation left out: its residual 0, as memory's zeroed equation
+    if not masked.any():
+        masked = None
     if not blocks and len(layout.names) == Y.shape[2]:  # the base columns alone, on every channel: one product each
         residual = measured - np.einsum("ncp,p->nc", Y, theta, optimize=True)
+        if masked is not None:
+            residual[masked] = 0.0
         return np.einsum("nc,ncp->np", residual * weights, Y, optimize=True), np.ascontiguousarray(residual.T)
     states = States(chunk.q, chunk.dq, chunk.ddq)
     columns = [block.evaluate(states, shape) for block, shape in zip(blocks, shapes)]
@@ -52,6 +57,8 @@ def chunk_scores(model: IdentificationModel, layout: ColumnLayout, blocks: Seque
         X = np.concatenate([Y[:, c, :]] + [values[:, rows.index(c), :] for values, rows in zip(columns, layout.rows)
                                            if c in rows], axis=1)
         residual[c] = measured[:, c] - X @ theta[where]
+        if masked is not None:
+            residual[c][masked[:, c]] = 0.0
         scores[:, where] += (weights[c] * residual[c])[:, None] * X
     return scores, residual
 

@@ -32,6 +32,7 @@ from dynamics.models import IdentificationModel
 from dynamics.runtime.threads import single_threaded_blas
 from estimation.streaming.cluster import caught_warnings, file_stamp, model_from_payload, task_result
 from estimation.streaming.diagnosis_sums import ChannelSums, ColumnLayout, EvenSubsample, chunk_sums, concatenate
+from estimation.data.channel_mask import whole_rows
 from estimation.data.loading import MeasurementError
 from estimation.uncertainty.noise_floor import NoiseFloor, NoiseFloorError, noise_floor, pooled_floor
 from estimation.streaming.chunks import DEFAULT_CHUNK_SIZE, logged_chunks
@@ -50,10 +51,22 @@ __all__ = ["FLOOR_WINDOW", "LagSums", "SubsamplePass", "SumsPass", "block_sums_t
 
 
 
+def _whole_rows(chunks):
+    """The prepared ``chunks`` without their samples where a channel is masked (a clipped sensor's, a held channel's
+    repeats: :func:`~estimation.data.channel_mask.whole_rows`), as memory's diagnosis search takes whole rows, the
+    derivatives made from every row's positions before; a chunk that lost rows loses its band window too (its
+    in-band sums are had over contiguous samples: the weights then from the residual)."""
+    for chunk in chunks:
+        kept = whole_rows(chunk)
+        if kept is not chunk and kept.metadata.get("band_window") is not None:
+            kept = replace(kept, metadata={**kept.metadata, "band_window": None})
+        yield kept
+
+
 def _subsample(path: str, model: IdentificationModel, options: dict[str, Any], cap: int):
     record: dict = {}
     subsample = EvenSubsample(cap)
-    for chunk in plan_chunks(path, model, record=record, **options):
+    for chunk in _whole_rows(plan_chunks(path, model, record=record, **options)):
         subsample.add(chunk)
     return subsample.measurements(), subsample.seen, record
 
@@ -71,7 +84,7 @@ def _chunks(path: str, model: IdentificationModel, options: dict[str, Any], reco
     options = dict(options)
     delay = options.pop("delay", None)
     extra = {} if record is None else {"record": record}
-    return moved_chunks(plan_chunks(path, model, **extra, **options), delay, pairs=pairs)
+    return moved_chunks(_whole_rows(plan_chunks(path, model, **extra, **options)), delay, pairs=pairs)
 
 
 @functools.lru_cache(maxsize=4)

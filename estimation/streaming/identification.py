@@ -81,9 +81,9 @@ STREAMED_NOT_COMPUTED = {
                   "identify, as in memory, not by identify_files",
     "saturated_samples": "a torque or wrench sensor past its range (a channel held at its extreme while the robot moves) is "
                          "said streamed (SaturatedTorqueWarning: the whole record judged block by block, as in memory) "
-                         "but its samples are left out of the fit and the errors in memory only (the streamed sums "
-                         "and errors take every sample): streamed, clipped samples are read as measurements; read "
-                         "the record without --chunk-size to leave them out",
+                         "and its samples are left out of the streamed sums and errors as in memory (masked in that "
+                         "channel only); the counts per record and segment are said in the warning, not collected "
+                         "here",
 }
 
 
@@ -126,8 +126,33 @@ def _filtered(parts: Sequence[FileSums]) -> bool:
                or part.metadata.get("decimation", 1) > 1 for part in parts)
 
 
+def streamed_channel_counts(streaming: dict[str, Any] | None) -> dict[str, dict] | None:
+    """``result.json``'s ``channel_samples`` of a streamed fit (memory's
+    :func:`~estimation.identification.prepared.channel_sample_counts`): for the training and the validation files
+    whose sums left masked samples out (``channel_samples`` of :func:`streaming_record`'s files), the samples summed
+    and each channel's valid ones; ``None`` when no channel's count differs, or when the sums hold filtered, averaged
+    or decimated samples (not the samples as recorded)."""
+    if not streaming:
+        return None
+    found = {}
+    for role, key in (("train", "files"), ("validation", "validation_files")):
+        files = streaming.get(key) or []
+        if not any(entry.get("channel_samples") for entry in files):
+            continue
+        if any(entry.get("decimation", 1) > 1 or (entry.get("periods_averaged") or 1) > 1 for entry in files):
+            continue
+        samples = sum(int(entry["samples"]) for entry in files)
+        names = next(entry["channel_samples"] for entry in files if entry.get("channel_samples"))
+        found[role] = {"samples": samples, "channels": {
+            name: sum(int(entry["channel_samples"][name] if entry.get("channel_samples") else entry["samples"])
+                      for entry in files) for name in names}}
+    return found or None
+
+
 def _file_record(part: FileSums) -> dict[str, Any]:
+    counts = part.sums.channel_samples  # each channel's valid samples where some were masked
     return {"path": part.path, "rows": part.rows, "samples": part.sums.n_samples,
+            "channel_samples": None if counts is None else dict(zip(part.sums.channels, map(int, counts))),
             "decimation": part.metadata.get("decimation", 1), "margin": part.metadata.get("margin", 0),
             "periods_averaged": part.metadata.get("periods_averaged"),
             "resampled_from": part.metadata.get("resampled_from")}

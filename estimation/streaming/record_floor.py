@@ -163,6 +163,9 @@ def difference_floor(blocks: Callable[[], Iterable[NDArray[np.float64]]], channe
                      order: int = DIFFERENCE_ORDER, capacity: int = FLOOR_CAPACITY) -> NoiseFloor:
     """:func:`~estimation.uncertainty.noise_floor.noise_floor`'s difference estimate of the channels whose rows
     ``blocks()`` yields in order (each call a new pass over one segment as recorded), by passes (module docstring).
+    A channel's masked samples (NaN, :mod:`estimation.data.channel_mask`) leave out the differences that reach them,
+    as memory's :func:`~estimation.uncertainty.noise_floor.difference_variance`: each channel's scale from its own
+    valid differences, the degrees of freedom those of the channel with the fewest.
 
     Raises
     ------
@@ -170,15 +173,43 @@ def difference_floor(blocks: Callable[[], Iterable[NDArray[np.float64]]], channe
         As memory: too few samples, a value not finite, a channel whose differences are not those of white noise.
     """
     channels = tuple(channels)
-    rows, nonzero = 0, np.zeros(len(channels), dtype=bool)
+    rows, nonzero, masked = 0, np.zeros(len(channels), dtype=bool), False
     for block in blocks():
-        if not np.all(np.isfinite(block)):
+        if np.any(np.isinf(block)):
             raise NoiseFloorError("the channels hold NaN or inf: no noise floor")
+        masked = masked or bool(np.isnan(np.sum(block)))
         rows += block.shape[0]
         nonzero |= np.any(block != 0, axis=0)
     order = check_difference_count(rows, order)
     differences = _differences(blocks, order)
     count = rows - order
+    if not masked:
+        deviation = _difference_deviation(differences, count, channels, nonzero, capacity, order)
+        return NoiseFloor(channels, difference_scale(deviation, order), "differences", difference_dof(count, order),
+                          rows, {"order": order})
+    counts = np.zeros(len(channels), dtype=np.int64)
+    for block in differences():
+        counts += np.sum(~np.isnan(block), axis=0)
+    if np.any(counts < 10):
+        raise NoiseFloorError(f"{int(counts.min())} differences of a channel reach no masked sample: too few "
+                              "for a difference estimate of the noise")
+    deviation = np.empty(len(channels))
+    for column, name in enumerate(channels):
+        def valid(column: int = column) -> Iterator[NDArray[np.float64]]:
+            for block in differences():
+                values = block[:, column:column + 1]
+                yield values[~np.isnan(values[:, 0])]
+        deviation[column] = _difference_deviation(valid, int(counts[column]), (name,), nonzero[column:column + 1],
+                                                  capacity, order)[0]
+    return NoiseFloor(channels, difference_scale(deviation, order), "differences",
+                      difference_dof(int(counts.min()), order), rows, {"order": order})
+
+
+def _difference_deviation(differences: Callable[[], Iterator[NDArray[np.float64]]], count: int,
+                          channels: tuple[str, ...], nonzero: NDArray[np.bool_], capacity: int, order: int
+                          ) -> NDArray[np.float64]:
+    """Each column's median absolute deviation of the ``count`` differences ``differences()`` yields, its whiteness
+    checked on the differences within five scaled MADs of the median (:func:`difference_floor`)."""
     median = _medians(differences, count, capacity=capacity)
 
     def deviations() -> Iterator[NDArray[np.float64]]:
@@ -213,8 +244,7 @@ def difference_floor(blocks: Callable[[], Iterable[NDArray[np.float64]]], channe
         energy = squares[column] - n * mean ** 2
         lagged = products[column] - mean * (2 * total[column] - first[column] - last[column]) + (n - 1) * mean ** 2
         check_white(lagged / energy if energy > 0 else 1.0, n, order, name)
-    return NoiseFloor(channels, difference_scale(deviation, order), "differences", difference_dof(count, order),
-                      rows, {"order": order})
+    return deviation
 
 
 def _logged(source: str | Path, model: IdentificationModel, chunk_size: int, load: SubtractedLoad | None = None

@@ -29,6 +29,7 @@ from dynamics.measurements import Measurements
 from dynamics.models import IdentificationModel
 from estimation.identification.subtracted_load import SubtractedLoad, load_channels, subtracted_torque
 from estimation.preprocessing.differentiation import ButterworthDifferentiation
+from estimation.data.channel_mask import masked_cells, valid_sum
 from estimation.streaming.block_errors import BlockSquares
 from estimation.streaming.chunks import logged_chunks
 from estimation.streaming.delayed_chunks import moved_chunks
@@ -146,22 +147,24 @@ def counted_predicted_errors(model: IdentificationModel, predictors: Mapping[Any
     squares = {name: np.zeros(model.n_channels) for name in predictors}
     count = 0  # the samples of one pass: every pass reads the same (moving the motion drops none)
     for delay, named in delay_groups(predictors, delays):
-        count = 0
+        count, valid = 0, np.zeros(model.n_channels)  # rows; each channel's valid samples (a masked one left out)
         for path in paths:
             records = (chunk.as_recorded for chunk in plan_chunks(
                 path, model, frequency_hz=frequency_hz, harmonics=harmonics, as_recorded=True, chunk_size=chunk_size,
                 cutoff_hz=cutoff_hz, decimation=decimation, held_torques=held_torques, average=average))
             for record in moved_chunks(records, delay):
                 measured = record.channels(model.channels)
+                masked = masked_cells(measured)
                 for name, predict in named.items():
                     squared = (measured - predict(record.q, record.dq, record.ddq)) ** 2
-                    squares[name] += np.sum(squared, axis=0)
+                    squares[name] += valid_sum(squared, masked)
                     if blocks is not None and name in blocks:
                         blocks[name].add(squared)
                 count += measured.shape[0]
+                valid = valid + (measured.shape[0] if masked is None else np.sum(~masked, axis=0))
     if count == 0:
         raise ValueError("the files hold no samples once preprocessed")
-    return {name: dict(zip(model.channels, map(float, total / count))) for name, total in squares.items()}, count
+    return {name: dict(zip(model.channels, map(float, total / valid))) for name, total in squares.items()}, count
 
 
 def streamed_errors_at_stamps(model: IdentificationModel, thetas: Mapping[Any, ArrayLike], paths: Sequence[str | Path],
@@ -215,24 +218,26 @@ def counted_errors_at_stamps(model: IdentificationModel, thetas: Mapping[Any, Ar
     squares = {name: np.zeros(model.n_channels) for name in predictors}
     count = 0  # the samples of one pass: every pass scores the same (moving the motion drops none)
     for delay, named in delay_groups(predictors, delays):
-        count = 0
+        count, valid = 0, np.zeros(model.n_channels)  # rows; each channel's valid samples (a masked one left out)
         for _, record, late in scored_records(model, paths, delay=delay, chunk_size=chunk_size, cutoff_hz=cutoff_hz,
                                               decimation=decimation, held_torques=held_torques,
                                               frequency_hz=frequency_hz, harmonics=harmonics, average=average):
             if record is None:
                 return None
             measured = record.channels(model.channels)
+            masked = masked_cells(measured)
             for name, predict in named.items():
                 squared = (measured - predict(record.q, record.dq, record.ddq)) ** 2
-                squares[name] += np.sum(squared, axis=0)
+                squares[name] += valid_sum(squared, masked)
                 if blocks is not None and name in blocks:
                     if late:  # out of the samples' order: no blocks
                         blocks[name].spoil()
                     blocks[name].add(squared)
             count += measured.shape[0]
+            valid = valid + (measured.shape[0] if masked is None else np.sum(~masked, axis=0))
     if count == 0:
         raise ValueError("the files hold no samples once preprocessed")
-    return {name: dict(zip(model.channels, map(float, total / count))) for name, total in squares.items()}, count
+    return {name: dict(zip(model.channels, map(float, total / valid))) for name, total in squares.items()}, count
 
 
 def scored_records(model: IdentificationModel, paths: Sequence[str | Path], *, delay: float | None = None,

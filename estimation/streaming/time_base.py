@@ -30,7 +30,7 @@ from dynamics.runtime.memory import check_allocation
 from estimation.data.loading import SegmentTooShortError, resampling_grid
 from estimation.data.log_cleaning import (DEFAULT_MAX_GAP, GLITCH_RUN, PositionSteps, position_steps, repeated_rows,
                                           split_rows)
-from estimation.data.held_channels import HeldChannels, held_rows
+from estimation.data.held_channels import MASKED_GROUPS, HeldChannels, held_rows
 from estimation.data.records import (clean_time_base, dropouts, glitch_rows, said_dropouts, said_glitches, said_held,
                                      velocity_limits)
 from estimation.data.rest import between_holds, held_runs
@@ -88,6 +88,9 @@ class TimeScan:
     clock: tuple[float, float, int] | None = None  # ``(t0, step, first)``: the rows kept on the regular clock
     # ``t0 + step * k`` of a time column as coarse as the samples' step (``k`` from ``first`` for the rows scanned;
     # :attr:`estimation.data.records.CleanedTimes.clock`): each block's instants are taken from it
+    #: a measured channel's held repeats among the rows kept (``(group, (rows,) bool)`` for ``tau``, ``wrench``:
+    #: masked in that channel only, as in memory), ``None`` when none repeats
+    held: tuple[tuple[str, NDArray[np.bool_]], ...] | None = None
 
     @property
     def irregular(self) -> bool:
@@ -113,9 +116,22 @@ def scan_time(frames, path: str | Path, model: IdentificationModel, *, max_gap: 
     if on_clock:
         segment = segment.of
     positions: list[NDArray[np.uint64]] = []
-    times = _cleaned(frames, path, model, max_gap=max_gap, split=segment is not None, positions=positions)
+    cells: list[dict[str, NDArray[np.bool_]]] = []
+    times = _cleaned(frames, path, model, max_gap=max_gap, split=segment is not None, positions=positions,
+                     held_cells=cells)
     if times is None:
         return None
+    scan = _scanned(times, positions, path, segment, on_clock, max_gap)
+    if scan is None or not cells:
+        return scan
+    keep = np.ones(next(iter(cells[0].values())).shape[0], dtype=bool) if scan.keep is None else scan.keep
+    held = tuple((group, rows[keep]) for group, rows in cells[0].items() if rows[keep].any())
+    return replace(scan, held=held or None)
+
+
+def _scanned(times, positions: list[NDArray[np.uint64]], path: str | Path, segment, on_clock: bool, max_gap: float
+             ) -> TimeScan:
+    """The :class:`TimeScan` of the rows ``times`` keeps (:func:`scan_time`)."""
     keep, kept, name, first = times.keep, times.t, str(path), 0
     if isinstance(segment, Part):  # a training file's part between its holes and holds
         found = _held_parts(times, positions, max_gap)
@@ -216,10 +232,12 @@ def _fingerprints(q: NDArray[np.float64]) -> NDArray[np.uint64]:
 
 
 def _cleaned(frames, path: str | Path, model: IdentificationModel, *, max_gap: float, split: bool,
-             positions: list[NDArray[np.uint64]] | None = None):
+             positions: list[NDArray[np.uint64]] | None = None, held_cells: list | None = None):
     """The rows the loader keeps of the file of ``frames`` (:func:`estimation.data.records.clean_time_base`), or
     ``None`` when its time column cannot be read. ``positions``: a list the fingerprints of the kept rows' positions
-    are appended to (:func:`_fingerprints`; nothing when the file has no positions)."""
+    are appended to (:func:`_fingerprints`; nothing when the file has no positions). ``held_cells``: a list the
+    measured channels' held repeats are appended to (one ``{group: (rows,) bool}`` over the file's rows, when a
+    measured channel repeats: masked in that channel, as in memory, their rows kept)."""
     prints: list[NDArray[np.uint64]] = []
     parts: list[NDArray[np.float64]] = []
     repeated: list[NDArray[np.bool_]] = []
@@ -229,6 +247,7 @@ def _cleaned(frames, path: str | Path, model: IdentificationModel, *, max_gap: f
     steps: PositionSteps | None = None  # the position steps so far (encoder read errors: judged on the whole record)
     count, n_joints = 0, model.robot.n_joints
     blanks, repeats, holds, last_row = 0, 0, dict[str, int](), None  # dropouts, held repeats (:func:`held_rows`)
+    masked_repeats, masked_count = {group: [] for group in MASKED_GROUPS}, 0  # a measured channel's repeats
     carry_q, carry_t, judged = np.zeros((0, n_joints)), np.zeros(0), 0  # the last rows read (a run's and the row
     # before it: GLITCH_RUN + 1); rows judged
     for frame in frames:
@@ -240,13 +259,17 @@ def _cleaned(frames, path: str | Path, model: IdentificationModel, *, max_gap: f
             first = int(np.flatnonzero(blank)[0])
             first_blank = (sum(part.shape[0] for part in present) + first, frame["t"].iloc[first])
         blanks += int(np.count_nonzero(blank))
-        held = held_rows(frame, n_joints, before=last_row)  # a lower-rate channel's repeats: rows dropped (memory masks a
-        # measured channel's repeats in that channel only; the streamed fits hold no per-channel mask)
+        held = held_rows(frame, n_joints, before=last_row)  # a lower-rate channel's repeats: an input channel's rows
+        # dropped, a measured channel's repeats masked in that channel only (their rows kept), as in memory
         last_row = frame.iloc[-1:] if len(frame) else last_row
+        for group in MASKED_GROUPS:
+            masked_repeats[group].append(held.group_rows((group,)) if held.holds else np.zeros(len(frame), bool))
         if held.holds:
             holds.update(held.holds)
-            repeats += int(np.count_nonzero(held.rows & ~blank))
-            blank = blank | held.rows
+            dropped = held.dropped_rows
+            repeats += int(np.count_nonzero(dropped & ~blank))
+            masked_count += int(np.count_nonzero(held.group_rows(MASKED_GROUPS) & ~blank & ~dropped))
+            blank = blank | dropped
         present.append(~blank)
         frame = frame[~blank]
         t = pd.to_numeric(frame["t"], errors="coerce").to_numpy(dtype=float)
@@ -285,7 +308,10 @@ def _cleaned(frames, path: str | Path, model: IdentificationModel, *, max_gap: f
     if first_blank is not None:
         said_dropouts(blanks, *first_blank, str(path))
     if holds:
-        said_held(HeldChannels(~rows, tuple(holds.items())), repeats, 0, rows.shape[0], str(path))
+        said_held(HeldChannels(~rows, tuple(holds.items())), repeats, masked_count, rows.shape[0], str(path))
+        if held_cells is not None and masked_count:
+            held_cells.append({group: np.concatenate(parts) for group, parts in masked_repeats.items()
+                               if parts and np.any([part.any() for part in parts])})
     found = glitch_rows(steps, model, n_joints) if steps is not None and judged == t.shape[0] else None
     glitched = None  # said once the time base holds, as in memory
     if found is not None and found[0].size:  # encoder read errors: dropouts, as in memory

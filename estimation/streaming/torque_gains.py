@@ -25,6 +25,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from dynamics.models import IdentificationModel
+from estimation.data.channel_mask import masked_rows
 from estimation.data.passive import passive_channels
 from estimation.consistent.torque_gains import (SIGNIFICANCE_BLOCKS, TorqueGains, block_labels, channel_factors,
                                                 gains_checked, gains_from_sums)
@@ -57,6 +58,7 @@ def streamed_gains_check(model: IdentificationModel, train: NormalEquations, pat
     m = model.n_channels
     labels = {count: block_labels(n_validation, count) for count in SIGNIFICANCE_BLOCKS}
     sums = {count: (np.zeros((count, m)), np.zeros((count, m))) for count in SIGNIFICANCE_BLOCKS}
+    left_out = {count: np.zeros(count, dtype=np.int64) for count in SIGNIFICANCE_BLOCKS}  # masked rows, per block
     seen = 0
     for path in paths:
         for chunk in plan_chunks(str(path), model, as_recorded=True, **options):
@@ -66,14 +68,20 @@ def streamed_gains_check(model: IdentificationModel, train: NormalEquations, pat
                 return None
             squared = ((measured - model.predict(plain, record.q, record.dq, record.ddq)) ** 2,
                        (measured - gains.values * model.predict(theta, record.q, record.dq, record.ddq)) ** 2)
+            masked = masked_rows(measured)  # a sample with a masked channel left out whole, as memory's check
+            if masked is not None:
+                squared = tuple(np.where(masked[:, None], 0.0, values) for values in squared)
             for count, (declared, with_gains) in sums.items():
                 where = labels[count][seen:seen + measured.shape[0]]
                 np.add.at(declared, where, squared[0])
                 np.add.at(with_gains, where, squared[1])
+                if masked is not None:
+                    np.add.at(left_out[count], where[masked], 1)
             seen += measured.shape[0]
     if seen != n_validation:
         return None
-    blocks = {count: (*sums[count], np.bincount(labels[count], minlength=count)) for count in SIGNIFICANCE_BLOCKS}
+    blocks = {count: (*sums[count], np.bincount(labels[count], minlength=count) - left_out[count])
+              for count in SIGNIFICANCE_BLOCKS}
     return (gains, *gains_checked(gains, model.channels, blocks))
 
 

@@ -61,7 +61,8 @@ from estimation.preprocessing.delay import DelayBounds, split_delay
 from estimation.preprocessing.plan import Preprocessing
 from estimation.streaming.chunks import source_files
 from estimation.streaming.cutoff_choice import streamed_window
-from estimation.streaming.identification import SummedFits, identify_files_candidates, prepared_chunks
+from estimation.streaming.identification import (SummedFits, identify_files_candidates, prepared_chunks,
+                                                streamed_channel_counts)
 from estimation.streaming.model_selection import streamed_repeated_motion, summed_selection, warned_still_motion
 from estimation.streaming.torque_gains import GainsScorer, divided_sums, streamed_gains_check
 from estimation.streaming.periods import plan_options
@@ -438,7 +439,8 @@ def identify_document(args: IdentifyOptions, identified: Identified) -> tuple[di
     # a torque sensor past its range: the samples left out of the fit and of the errors (said when read)
     document["saturated_samples"] = saturated_sample_counts(identified.records)
     # each channel's errors over its valid samples where they differ by channel (its masked samples out)
-    document["channel_samples"] = channel_sample_counts(identified.records)
+    document["channel_samples"] = channel_sample_counts(identified.records) if identified.records is not None else \
+        streamed_channel_counts(result.streaming)  # streamed: the sums' counts
     if identified.records is not None:
         messages += add_model_file(document, result, args, identified.records.preprocessing, identified.transmission,
                                    consistent=identified.consistent, selection=selection)
@@ -1347,7 +1349,8 @@ def summary_lines(args: IdentifyOptions, identified: Identified) -> list[str]:
         if errors.mse_filtered is not None:
             against = "vs filtered" if errors.mse is not None else "vs filtered: not against the recording"
             lines.append(mse_line(f"{label} MSE ({against})", errors.mse_filtered))
-    counted = channel_sample_line(channel_sample_counts(identified.records))
+    counted = channel_sample_line(channel_sample_counts(identified.records) if identified.records is not None else
+                                  streamed_channel_counts(identified.result.streaming))
     if counted:
         lines.append(counted)
     message = rest_message("identify", identified.rest)
