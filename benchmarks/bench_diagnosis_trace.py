@@ -7,7 +7,8 @@ For one real robot of :mod:`benchmarks.bench_real_robots` (its three records):
    given so that the records are prepared alike; ``oed identify`` (``--friction viscous,coulomb,offset``, its
    defaults) on the same files, then ``oed predict`` on the validation record.
 2. The diagnosed model rebuilt effect by effect in the order the search adopted them: the declared model, then
-   each adopted effect added (the joint refit's viscous terms, shapes started at the diagnosis's), each nested
+   each adopted effect added (the declared viscous terms, the last row with the joint refit's: the diagnosed model;
+   shapes started at the diagnosis's), each nested
    model fitted as the diagnosis fits (channel-weighted least squares on the diagnosis's prepared records), its
    validation MSE per channel and its test MSE per joint over the plain least-squares fit's on the recorded samples
    the benchmark scores (:func:`benchmarks.bench_real_robots.compare`'s window and re-sent rows).
@@ -33,6 +34,7 @@ import numpy as np
 from benchmarks.bench_real_robots import FRICTION, ROBOTS, SETTLING, PlainFit, resent, run_quiet
 from dynamics.effects.linear import Armature, CoulombFriction, JointOffset, ViscousFriction
 from dynamics.models import build_model
+from estimation.diagnosis.candidates.trials import candidate_label
 from estimation.identification.fit import identify
 from oed.workflows.diagnose import diagnose
 
@@ -85,9 +87,11 @@ def trace(robot: str, folder: Path) -> list[str]:
              f"(cut-off {cutoff:g} Hz), total · mean · worst", "",
              "| model | validation MSE | test / plain | total · mean · worst |", "|---|---|---|---|"]
     lines.append(ratios_line("declared", *fitted(list(diagnosis.before.model.effects)), plain))
-    for k, effect in enumerate(adopted, start=1):
-        label = f"+ {effect.name} on " + ",".join(str(j + 1) for j in (effect.joints or range(n)))
-        lines.append(ratios_line(label, *fitted(viscous + adopted[:k]), plain))
+    declared = list(diagnosis.before.model.effects)
+    for k, effect in enumerate(adopted, start=1):  # the search's models: the declared viscous terms, all of them
+        label = (f"+ {candidate_label(effect)} on " + ",".join(str(j + 1) for j in (effect.joints or range(n)))
+                 + ("" if k < len(adopted) else " (the joint refit's viscous terms: the diagnosed model)"))
+        lines.append(ratios_line(label, *fitted((declared if k < len(adopted) else viscous) + adopted[:k]), plain))
     with_offset = {j for effect in after.effects if isinstance(effect, JointOffset) for j in (effect.joints or range(n))}
     completion = [JointOffset(joints=(j,)) for j in range(n) if j not in with_offset]
     rows = {"diagnosed + the plain law's offsets": list(after.effects) + completion,
