@@ -89,7 +89,9 @@ def trace(robot: str, folder: Path) -> list[str]:
     lines.append(ratios_line("declared", *fitted(list(diagnosis.before.model.effects)), plain))
     declared = list(diagnosis.before.model.effects)
     for k, effect in enumerate(adopted, start=1):  # the search's models: the declared viscous terms, all of them
-        label = (f"+ {candidate_label(effect)} on " + ",".join(str(j + 1) for j in (effect.joints or range(n)))
+        joints = getattr(effect, "joints", ())  # a law on a joint combination names its joints in its label
+        label = (f"+ {candidate_label(effect)}" + ("" if joints == () else " on " + ",".join(
+            str(j + 1) for j in (joints or range(n))))
                  + ("" if k < len(adopted) else " (the joint refit's viscous terms: the diagnosed model)"))
         lines.append(ratios_line(label, *fitted((declared if k < len(adopted) else viscous) + adopted[:k]), plain))
     with_offset = {j for effect in after.effects if isinstance(effect, JointOffset) for j in (effect.joints or range(n))}
