@@ -96,8 +96,10 @@ def trace(robot: str, folder: Path) -> list[str]:
         lines.append(ratios_line(label, *fitted((declared if k < len(adopted) else viscous) + adopted[:k]), plain))
     with_offset = {j for effect in after.effects if isinstance(effect, JointOffset) for j in (effect.joints or range(n))}
     completion = [JointOffset(joints=(j,)) for j in range(n) if j not in with_offset]
+    with_armature = {j for effect in after.effects if isinstance(effect, Armature) for j in (effect.joints or range(n))}
+    armature = [Armature(joints=(j,)) for j in range(n) if j not in with_armature]
     rows = {"diagnosed + the plain law's offsets": list(after.effects) + completion,
-            "diagnosed + armature": list(after.effects) + [Armature()],
+            "diagnosed + armature (on each joint without one)": list(after.effects) + armature,
             "plain class (viscous, Coulomb, offset)": [ViscousFriction(), CoulombFriction(), JointOffset()],
             "plain class + armature": [ViscousFriction(), CoulombFriction(), JointOffset(), Armature()]}
     for label, effects in rows.items():
