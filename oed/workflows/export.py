@@ -19,6 +19,7 @@ from estimation.identification.export import (
     exported_mjcf,
     exported_model,
     exported_urdf,
+    urdf_dynamics_joints,
     friction_document,
     gravity_note,
     implausible_links,
@@ -123,6 +124,10 @@ def export(*, model: str | Path, allow_implausible: bool = False, mjcf: bool = F
     if mujoco is not None and mujoco.source is not None:
         lines = (*lines, f"the MJCF is {mujoco.source} with these bodies and joint terms, everything else kept",
                  *(f"changed from that file (listed in the MJCF): {change}" for change in mujoco.changes))
+    described = [name for name in urdf_dynamics_joints(text) if name in identified.robot.joint_names]
+    if described:  # a simulator takes a URDF's <dynamics> for the joint's friction: the identified one written there
+        lines = (*lines, "the joints' <dynamics damping friction> hold the identified viscous and Coulomb friction ("
+                 + ", ".join(described) + "; 0 where the model holds no such law), not the description's")
     gains = (identified.file.torque_gains or {}).get("channels")
     if gains:  # a property of the log's sensors, not of the bodies: the URDF holds the description's units
         lines = (*lines, "the log's torques are these gains times the model's (torque_gains, not in the URDF): "
