@@ -39,6 +39,7 @@ parameter is a sum of standard ones, and a body of unconstrained values need not
 from __future__ import annotations
 
 import tempfile
+import xml.etree.ElementTree as ElementTree
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -166,8 +167,6 @@ def urdf_friction(model: IdentifiedModel) -> dict[str, tuple[float, float]]:
 def urdf_dynamics_joints(text: str) -> tuple[str, ...]:
     """The joints of the URDF ``text`` that hold a ``<dynamics>`` element (those :func:`exported_urdf` writes the
     identified friction into)."""
-    import xml.etree.ElementTree as ElementTree
-
     return tuple(str(joint.get("name")) for joint in ElementTree.fromstring(text).findall("joint")
                  if joint.find("dynamics") is not None)
 
