@@ -48,7 +48,7 @@ from estimation.identification.validation import ChannelErrors, Comparison
 
 __all__ = ["DETERMINED_RELATIVE_STD", "SIGNIFICANCE_BLOCKS", "SIGNIFICANCE_Z", "TORQUE_GAINS_TOLERANCE", "TorqueGains", "channel_factors", "channel_sums", "description_scale",
            "block_labels", "divided_records", "divided_torques", "fit_torque_gains", "gains_checked", "gains_for_records",
-           "gains_from_sums", "gains_on_validation", "in_recorded_units", "scale_note", "torque_gains_answer", "SCALE_NOTE_FACTOR"]
+           "gains_from_sums", "gains_on_validation", "in_recorded_units", "other_scale", "scale_note", "torque_gains_answer", "SCALE_NOTE_FACTOR"]
 
 #: the relative score by which the model with the gains must beat the declared one (a tie keeps the declared)
 TORQUE_GAINS_TOLERANCE = 0.01
@@ -298,6 +298,16 @@ def fit_torque_gains(sums: tuple[NDArray, NDArray, NDArray], n_samples: int, cha
 SCALE_NOTE_FACTOR = 10.0
 
 
+def other_scale(gains: TorqueGains) -> float | None:
+    """The geometric mean of the gains the record determines when it is beyond :data:`SCALE_NOTE_FACTOR` from 1
+    (the recorded torques over those the description's bodies give: :func:`scale_note`), else ``None``."""
+    known = gains.determined & np.isfinite(gains.values) & (gains.values > 0)
+    if not np.any(known):
+        return None
+    mean = float(np.exp(np.mean(np.log(gains.values[known]))))
+    return None if 1.0 / SCALE_NOTE_FACTOR <= mean <= SCALE_NOTE_FACTOR else mean
+
+
 def scale_note(gains: TorqueGains) -> str | None:
     """A sentence when the recorded torques are on another scale than the one the description's bodies give:
     the geometric mean ``g`` of the gains the record determines beyond :data:`SCALE_NOTE_FACTOR` from 1 (``None``
@@ -307,13 +317,11 @@ def scale_note(gains: TorqueGains) -> str | None:
     do torques in kN m. Its bodies are the consistent fit's prior and the link checks' yardstick: a thousand times
     off, they pull the answer away and the checks name every link; the sentence names the units to check. Said
     whether the gains are taken or not (a common gain is not told from the description's scale)."""
+    mean = other_scale(gains)
+    if mean is None:
+        return None
     known = gains.determined & np.isfinite(gains.values) & (gains.values > 0)
-    if not np.any(known):
-        return None
     values = gains.values[known]
-    mean = float(np.exp(np.mean(np.log(values))))
-    if 1.0 / SCALE_NOTE_FACTOR <= mean <= SCALE_NOTE_FACTOR:
-        return None
     channels = [channel for channel, keep in zip(gains.channels, known) if keep]
     spread = f"{values.min():.3g} to {values.max():.3g}" if values.size > 1 else f"{values[0]:.3g}"
     if mean < 1.0:

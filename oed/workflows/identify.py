@@ -100,6 +100,7 @@ from estimation.consistent.torque_gains import (
     divided_torques,
     gains_on_validation,
     in_recorded_units,
+    other_scale,
     scale_note,
     torque_gains_answer,
 )
@@ -1246,6 +1247,15 @@ def torque_gains_selection(args: IdentifyOptions, selection: ModelSelection, tra
             gains, promising, checked = gains_on_validation(model, train, validation)
         except (ValueError, np.linalg.LinAlgError):
             return selection, None
+    scale = other_scale(gains)
+    if scale is not None and args.prior is None:
+        # the description's bodies and the torques in other units (a description in grams: 0.001): the consistent
+        # candidate's prior, the description's bodies, taken at the torques' scale (scale_note says which units)
+        with step("the answer's candidates fitted again with the description's bodies at the torques' scale"):
+            settings = replace(consistent_settings(args, model.robot), prior=scale * model.robot.standard_parameters,
+                               prior_source=f"robot description times {scale:.4g} (the recorded torques' scale)")
+            selection = carried_reasons(selection, select_model(model, train, validation, base=base,
+                                                                consistent=settings))
     if not promising:
         return selection, (gains, False, checked)
     with step("the answer's candidates fitted to the torques divided by the gains and compared"):
