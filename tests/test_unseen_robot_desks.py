@@ -141,6 +141,22 @@ def test_the_gains_scale_says_a_description_and_torques_in_other_units():
     assert scale_note(TorqueGains(channels, np.full(3, 0.001), np.full(3, 0.01))) is None  # none determined
 
 
+def test_exports_refusal_names_a_prior_taken_at_the_torques_scale(tmp_path):
+    """:func:`oed.workflows.export.prior_at_torques_scale`: a result whose consistent prior was the description's
+    bodies at the recorded torques' scale (a description in grams) gets a sentence naming the units beside the
+    refusal's prior-weight advice, which cannot mend a scale; any other result, or a file without the key, none."""
+    from oed.workflows.export import prior_at_torques_scale
+
+    result = tmp_path / "result.json"
+    result.write_text(json.dumps({"consistent": {"prior": "robot description times 0.001055 (the recorded torques' "
+                                                          "scale)"}}))
+    said = prior_at_torques_scale(result)
+    assert "0.001055" in said and "grams" in said, said
+    result.write_text(json.dumps({"consistent": {"prior": "robot description"}}))
+    assert prior_at_torques_scale(result) == ""
+    assert prior_at_torques_scale(tmp_path / "absent.json") == ""
+
+
 @pytest.mark.slow
 def test_identify_says_a_description_in_grams(tmp_path):
     """The PUMA's first three joints described in grams: the default ``oed identify`` exits 0 and its first warning
@@ -158,6 +174,8 @@ def test_identify_says_a_description_in_grams(tmp_path):
     said = [warning for warning in json.loads((tmp_path / "result.json").read_text())["warnings"]
             if "times those the description's bodies give" in warning]
     assert said and "grams" in said[0], said
+    document = json.loads((tmp_path / "result.json").read_text())
+    assert "torques' scale" in document["consistent"]["prior"], document["consistent"]["prior"]
 
 
 def test_the_identified_friction_goes_into_the_descriptions_dynamics_elements():

@@ -101,6 +101,22 @@ def chosen_prior_weight(path: Path) -> str:
     return f"; this estimate was fitted at {weight:g}" if isinstance(weight, (int, float)) else ""
 
 
+def prior_at_torques_scale(path: Path) -> str:
+    """The sentence that the estimate's prior was the description's bodies at the recorded torques' scale (a
+    result's ``consistent.prior``, :func:`oed.workflows.identify.torque_gains_selection`), for the message refusing
+    an implausible body: its bodies then differ from the description's by that scale, which no prior weight mends;
+    ``""`` when the file does not say so."""
+    try:
+        prior = json.loads(path.read_text(encoding="utf-8"))["consistent"]["prior"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return ""
+    if not isinstance(prior, str) or "torques' scale" not in prior:
+        return ""
+    return (f"\nits prior was the {prior}: the description's bodies are not in the log's units (masses in grams?), "
+            "so its bodies differ from the description's by that scale; mend the description's units and identify "
+            "again")
+
+
 def export(*, model: str | Path, allow_implausible: bool = False, mjcf: bool = False,
            alternative: str | None = None) -> ExportRun:
     """``oed export``: the consistent estimate of ``model`` (a result.json of ``oed identify --consistent``) as the
@@ -116,7 +132,7 @@ def export(*, model: str | Path, allow_implausible: bool = False, mjcf: bool = F
                          + "\n  ".join(findings) + "\nidentify again with `--consistent` and a larger --prior-weight "
                          f"(the weight toward the description's bodies where the data say little{chosen_prior_weight(Path(model))}) "
                          "or link bounds (--consistent --link-bounds FILE), or export them anyway with "
-                         "--allow-implausible")
+                         "--allow-implausible" + prior_at_torques_scale(Path(model)))
     masses = ", ".join(f"{link[0]:.4g}" for link in identified.file.consistent_links)
     line = f"{identified.robot.name}: {identified.robot.n_joints} bodies of the consistent estimate (masses {masses} kg)"
     mujoco = exported_mjcf(identified) if mjcf else None
