@@ -221,6 +221,13 @@ def robot_from_urdf(path: str | Path, *, gravity: np.ndarray | None = None, join
 LONGEST_CHAIN_M = 50.0
 #: a chain longer than this (m) is a large robot's, which carries heavy links: below, no check of its mass
 LONG_CHAIN_M = 5.0
+#: a chain from this span (m) up to :data:`LONG_CHAIN_M` is judged as well when a moving link weighs
+#: :data:`LEAST_LINK_MASS` or more: a desktop arm of 3 to 13 cm in inches spans 1 to 5 m (a 10 cm arm of 0.14 kg
+#: reads as 4.1 m, 0.002 kg/m³); placeholder masses (a gram per link, as an export for a simulator writes them)
+#: are not bodies, and are not judged there
+SMALL_ARM_CHAIN_M = 1.0
+#: the mass (kg) from which a moving link counts as a body for the judgement of a chain under :data:`LONG_CHAIN_M`
+LEAST_LINK_MASS = 0.01
 #: the least mass of a robot's moving links over its span cubed (kg/m³): arms of 0.3 to 2 m weigh 1 to 200 kg/m³
 #: of it (a KUKA LWR4+ 1.0, a UR10e 5, a PUMA 22, a TX40 50), a gantry of 10 m several tonnes; a description in
 #: inches reads as a 40-times longer arm of the same mass (a PUMA: 40 m, 0.0004 kg/m³)
@@ -231,7 +238,11 @@ def _check_lengths(path: Path, robot: RobotModel) -> None:
     """Refuse a description whose lengths are not metres (a CAD export in millimetres): the chain's span, the sum of
     the distances from each joint to the next and to its link's frame (the base's mount included), above
     :data:`LONGEST_CHAIN_M`. URDF lengths are metres (ROS REP 103); a file in millimetres reads as a robot 1000
-    times larger, whose dynamics no fit of the log's torques can match, and nothing else would say so."""
+    times larger, whose dynamics no fit of the log's torques can match, and nothing else would say so. A file in
+    inches (39.37 times longer, masses in kg) is refused by its mass: a chain over :data:`LONG_CHAIN_M`, or over
+    :data:`SMALL_ARM_CHAIN_M` with a moving link of :data:`LEAST_LINK_MASS` or more, whose moving links weigh under
+    :data:`LEAST_ARM_DENSITY` times its span cubed (a desktop arm of 10 cm in inches: 4.1 m, read before at 3.4
+    times the error of its description in metres on a joint, with no word)."""
     span = sum(float(np.linalg.norm(joint.placement[:3, 3])) + float(np.linalg.norm(joint.link_transform[:3, 3]))
                for joint in robot.joints)
     if span > LONGEST_CHAIN_M:
@@ -239,8 +250,10 @@ def _check_lengths(path: Path, robot: RobotModel) -> None:
             f"URDF {path}: its joints span {span:.4g} m from the base to the tip (above {LONGEST_CHAIN_M:g} m for "
             "any robot arm): URDF lengths are metres; a file in millimetres must have its lengths (every <origin "
             "xyz>, a prismatic joint's limits) divided by 1000 and its inertias in kg m^2")
-    mass = sum(float(joint.inertial[0]) for joint in robot.joints)
-    if span > LONG_CHAIN_M and 0 < mass < LEAST_ARM_DENSITY * span ** 3:
+    masses = [float(joint.inertial[0]) for joint in robot.joints]
+    mass = sum(masses)
+    judged = span > LONG_CHAIN_M or (span > SMALL_ARM_CHAIN_M and max(masses) >= LEAST_LINK_MASS)
+    if judged and 0 < mass < LEAST_ARM_DENSITY * span ** 3:
         raise RobotDescriptionError(
             f"URDF {path}: its joints span {span:.4g} m from the base to the tip, but its moving links weigh "
             f"{mass:.4g} kg in all ({mass / span ** 3:.2g} kg over its span cubed, m^3; a real arm that long weighs "

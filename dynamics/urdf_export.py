@@ -29,7 +29,7 @@ from numpy.typing import ArrayLike, NDArray
 from dynamics.errors import RobotDescriptionError
 from dynamics.robot import N_LINK_PARAMETERS, RobotModel
 
-__all__ = ["declare_motors", "inertial_element", "robot_urdf", "urdf_with_inertials"]
+__all__ = ["declare_motors", "inertial_element", "robot_urdf", "urdf_with_inertials", "with_joint_friction"]
 
 
 def _rotational(parameters: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -143,6 +143,29 @@ def urdf_with_inertials(urdf_text: str, robot: RobotModel, link_parameters: Arra
             pending.extend(children.get(link.get("name"), []))
     declare_motors(root, robot)
     return ElementTree.tostring(root, encoding="unicode") + "\n"
+
+
+def with_joint_friction(urdf_text: str, friction: dict[str, tuple[float, float]]) -> tuple[str, tuple[str, ...]]:
+    """``urdf_text`` with each ``<dynamics>`` element of the joints named in ``friction`` holding ``damping`` and
+    ``friction`` (the viscous, N m s/rad or N s/m, and Coulomb, N m or N, friction given), and the names of those
+    joints. A URDF's ``<dynamics damping friction>`` is what a simulator (Gazebo) takes for the joint's friction:
+    left as the description had it, it would contradict the identified model beside it. A joint without such an
+    element is left as it is (the friction JSON holds every joint's laws). ``(urdf_text, ())`` when no named joint
+    has one."""
+    root = ElementTree.fromstring(urdf_text)
+    changed = []
+    for joint in root.findall("joint"):
+        name = joint.get("name")
+        element = joint.find("dynamics")
+        if element is None or name not in friction:
+            continue
+        damping, coulomb = friction[name]
+        element.set("damping", _number(damping))
+        element.set("friction", _number(coulomb))
+        changed.append(str(name))
+    if not changed:
+        return urdf_text, ()
+    return ElementTree.tostring(root, encoding="unicode") + "\n", tuple(changed)
 
 
 def declare_motors(root: ElementTree.Element, robot: RobotModel) -> bool:

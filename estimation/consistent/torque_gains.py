@@ -48,7 +48,7 @@ from estimation.identification.validation import ChannelErrors, Comparison
 
 __all__ = ["DETERMINED_RELATIVE_STD", "SIGNIFICANCE_BLOCKS", "SIGNIFICANCE_Z", "TORQUE_GAINS_TOLERANCE", "TorqueGains", "channel_factors", "channel_sums", "description_scale",
            "block_labels", "divided_records", "divided_torques", "fit_torque_gains", "gains_checked", "gains_for_records",
-           "gains_from_sums", "gains_on_validation", "in_recorded_units", "torque_gains_answer"]
+           "gains_from_sums", "gains_on_validation", "in_recorded_units", "other_scale", "scale_note", "torque_gains_answer", "SCALE_NOTE_FACTOR"]
 
 #: the relative score by which the model with the gains must beat the declared one (a tie keeps the declared)
 TORQUE_GAINS_TOLERANCE = 0.01
@@ -289,6 +289,51 @@ def fit_torque_gains(sums: tuple[NDArray, NDArray, NDArray], n_samples: int, cha
     values = s * scale
     return TorqueGains(tuple(channels), values, values * log_std, iterations=iterations,
                        held=None if held is None else np.asarray(held, dtype=bool)), theta / scale
+
+
+#: the factor from 1 beyond which the determined gains' geometric mean says the description's bodies and the recorded
+#: torques are not in the same units (:func:`scale_note`): real descriptions in SI and torques in N m give 0.9 to
+#: 1.1 (the Franka Panda's log 0.93 to 1.07); a description in grams 0.001, torques in kN m 0.001, a motor's torque
+#: before a gear of ratio 50 about 0.02
+SCALE_NOTE_FACTOR = 10.0
+
+
+def other_scale(gains: TorqueGains) -> float | None:
+    """The geometric mean of the gains the record determines when it is beyond :data:`SCALE_NOTE_FACTOR` from 1
+    (the recorded torques over those the description's bodies give: :func:`scale_note`), else ``None``."""
+    known = gains.determined & np.isfinite(gains.values) & (gains.values > 0)
+    if not np.any(known):
+        return None
+    mean = float(np.exp(np.mean(np.log(gains.values[known]))))
+    return None if 1.0 / SCALE_NOTE_FACTOR <= mean <= SCALE_NOTE_FACTOR else mean
+
+
+def scale_note(gains: TorqueGains) -> str | None:
+    """A sentence when the recorded torques are on another scale than the one the description's bodies give:
+    the geometric mean ``g`` of the gains the record determines beyond :data:`SCALE_NOTE_FACTOR` from 1 (``None``
+    otherwise, or when no gain is determined). The gains' overall scale is the description's
+    (:func:`description_scale`), so ``g`` is the recorded torque over the description's for the same motion: a
+    description whose masses and inertias are in grams and g m² (a CAD export's unit) gives ``g ≈ 0.001``, and so
+    do torques in kN m. Its bodies are the consistent fit's prior and the link checks' yardstick: a thousand times
+    off, they pull the answer away and the checks name every link; the sentence names the units to check. Said
+    whether the gains are taken or not (a common gain is not told from the description's scale)."""
+    mean = other_scale(gains)
+    if mean is None:
+        return None
+    known = gains.determined & np.isfinite(gains.values) & (gains.values > 0)
+    values = gains.values[known]
+    channels = [channel for channel, keep in zip(gains.channels, known) if keep]
+    spread = f"{values.min():.3g} to {values.max():.3g}" if values.size > 1 else f"{values[0]:.3g}"
+    if mean < 1.0:
+        units = (f"the description's masses and inertias {1 / mean:.3g} times too large (in grams and g m^2: 1000)? "
+                 "or the torques in larger units (kN m: 0.001), or a motor's before its gear")
+    else:
+        units = (f"the description's masses and inertias {mean:.3g} times too small (in tonnes: 1000)? or the torques "
+                 "in smaller units (N mm, mN m: 1000), or a current")
+    return (f"the recorded torques are {mean:.3g} times those the description's bodies give for the same motion "
+            f"({', '.join(channels)}: {spread}, the gains the records determine): {units}? URDF masses are kg and "
+            "inertias kg m^2; the description's bodies are the consistent fit's prior and the yardstick of its link "
+            "checks, so mend whichever is not in SI")
 
 
 def description_scale(theta: NDArray, cov: NDArray, rigid: NDArray[np.bool_], description: NDArray

@@ -1,6 +1,7 @@
 """A physically consistent identified model written out for other tools: a URDF and ``friction.json``, or MuJoCo's MJCF.
 
-The URDF (:mod:`dynamics.urdf_export`) carries the identified bodies; ``friction.json`` the rest of
+The URDF (:mod:`dynamics.urdf_export`) carries the identified bodies (and, in the ``<dynamics damping friction>``
+the description holds on a joint, its identified viscous and Coulomb friction); ``friction.json`` the rest of
 the model, so that Pinocchio's RNEA on the URDF plus these terms is the model's prediction::
 
     {"joints": {"<joint name>": {"viscous": fv, "viscous_direction": fvd, "coulomb": fc, "offset": off, "armature": Ia,
@@ -38,6 +39,7 @@ parameter is a sum of standard ones, and a body of unconstrained values need not
 from __future__ import annotations
 
 import tempfile
+import xml.etree.ElementTree as ElementTree
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -48,14 +50,14 @@ from dynamics.effects.shaped import shape_parameters
 from dynamics.effects.specs import effect_spec
 from dynamics.mjcf import is_mjcf, is_mjcf_text
 from dynamics.mjcf_export import MjcfBodyError, mjcf_with_inertials, robot_mjcf
-from dynamics.urdf_export import robot_urdf, urdf_with_inertials
+from dynamics.urdf_export import robot_urdf, urdf_with_inertials, with_joint_friction
 from estimation.identification.identified_model import IdentifiedModel
 from estimation.identification.model_file import read_model_file
 from estimation.identification.mount import mount_rpy
 from estimation.identification.plausibility import link_findings
 
 __all__ = ["LAWS", "LAW_KEYS", "SHAPED_ENTRIES", "ExportError", "MjcfExport", "exported_mjcf", "exported_model", "exported_urdf",
-           "friction_document", "gravity_note", "implausible_links"]
+           "friction_document", "gravity_note", "implausible_links", "urdf_dynamics_joints", "urdf_friction"]
 
 #: the per-joint laws friction.json names, as formulas of the joint's motion
 LAWS = {
@@ -146,8 +148,27 @@ def exported_urdf(model: IdentifiedModel) -> str:
         with open(source.urdf_path) as stream:  # the hash was checked when the model was loaded
             text = stream.read()
     if text is not None and not is_mjcf_text(text):
-        return urdf_with_inertials(text, model.robot, links, merge_locked=merged)
+        return with_joint_friction(urdf_with_inertials(text, model.robot, links, merge_locked=merged),
+                                   urdf_friction(model))[0]
     return robot_urdf(model.robot, links)
+
+
+def urdf_friction(model: IdentifiedModel) -> dict[str, tuple[float, float]]:
+    """Each chain joint's ``(viscous, Coulomb)`` friction of the consistent estimate (:func:`friction_document`;
+    0 for a law the model does not hold on that joint), the values a URDF's ``<dynamics damping friction>`` holds
+    (:func:`dynamics.urdf_export.with_joint_friction`)."""
+    def number(value: Any) -> float:
+        return float(value) if isinstance(value, (int, float)) else 0.0
+
+    return {name: (number(entry.get("viscous", 0.0)), number(entry.get("coulomb", 0.0)))
+            for name, entry in friction_document(model)["joints"].items()}
+
+
+def urdf_dynamics_joints(text: str) -> tuple[str, ...]:
+    """The joints of the URDF ``text`` that hold a ``<dynamics>`` element (those :func:`exported_urdf` writes the
+    identified friction into)."""
+    return tuple(str(joint.get("name")) for joint in ElementTree.fromstring(text).findall("joint")
+                 if joint.find("dynamics") is not None)
 
 
 def _joint_entry(effect: Any, value: float) -> tuple[str, Any]:

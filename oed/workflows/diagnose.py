@@ -38,6 +38,7 @@ from estimation.consistent.torque_gains import (
     divided_records,
     gains_for_records,
     in_recorded_units,
+    scale_note,
 )
 from estimation.identification.mount import MountCheck
 from estimation.identification.subtracted_load import SubtractedLoad, added_back_records, load_channels
@@ -467,6 +468,8 @@ def diagnosis_in_memory(args: DiagnoseOptions, model: IdentificationModel, trans
         # the torques divided by the gains, its answer's errors in the log's units (estimation.consistent.torque_gains)
         gains = None if args.consistent or delay is not None or model_has_shapes(model) \
             else gains_for_records(plain_model(model), records)
+        # the description's bodies and the torques in other units (grams, kN m): said, the gains taken or not
+        scale = () if gains is None or (note := scale_note(gains[0])) is None else (note,)
         gains = gains if gains is not None and gains[1] else None
         if gains is not None:
             records = divided_records(records, gains[0])
@@ -519,6 +522,7 @@ def diagnosis_in_memory(args: DiagnoseOptions, model: IdentificationModel, trans
             if gains is not None:
                 selection = in_recorded_units(selection, gains[0])
                 notes += (gains[2],)
+            notes += scale
             zeros, drift = beside_checks() if checked is None else checked
             notes += diagnosis_mount_notes(model, zeros, mount, gravity_taken=gravity_taken,
                                            subtracted=subtracted is not None)

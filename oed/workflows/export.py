@@ -19,6 +19,7 @@ from estimation.identification.export import (
     exported_mjcf,
     exported_model,
     exported_urdf,
+    urdf_dynamics_joints,
     friction_document,
     gravity_note,
     implausible_links,
@@ -100,6 +101,22 @@ def chosen_prior_weight(path: Path) -> str:
     return f"; this estimate was fitted at {weight:g}" if isinstance(weight, (int, float)) else ""
 
 
+def prior_at_torques_scale(path: Path) -> str:
+    """The sentence that the estimate's prior was the description's bodies at the recorded torques' scale (a
+    result's ``consistent.prior``, :func:`oed.workflows.identify.torque_gains_selection`), for the message refusing
+    an implausible body: its bodies then differ from the description's by that scale, which no prior weight mends;
+    ``""`` when the file does not say so."""
+    try:
+        prior = json.loads(path.read_text(encoding="utf-8"))["consistent"]["prior"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return ""
+    if not isinstance(prior, str) or "torques' scale" not in prior:
+        return ""
+    return (f"\nits prior was the {prior}: the description's bodies are not in the log's units (masses in grams?), "
+            "so its bodies differ from the description's by that scale; mend the description's units and identify "
+            "again")
+
+
 def export(*, model: str | Path, allow_implausible: bool = False, mjcf: bool = False,
            alternative: str | None = None) -> ExportRun:
     """``oed export``: the consistent estimate of ``model`` (a result.json of ``oed identify --consistent``) as the
@@ -115,7 +132,7 @@ def export(*, model: str | Path, allow_implausible: bool = False, mjcf: bool = F
                          + "\n  ".join(findings) + "\nidentify again with `--consistent` and a larger --prior-weight "
                          f"(the weight toward the description's bodies where the data say little{chosen_prior_weight(Path(model))}) "
                          "or link bounds (--consistent --link-bounds FILE), or export them anyway with "
-                         "--allow-implausible")
+                         "--allow-implausible" + prior_at_torques_scale(Path(model)))
     masses = ", ".join(f"{link[0]:.4g}" for link in identified.file.consistent_links)
     line = f"{identified.robot.name}: {identified.robot.n_joints} bodies of the consistent estimate (masses {masses} kg)"
     mujoco = exported_mjcf(identified) if mjcf else None
@@ -123,6 +140,10 @@ def export(*, model: str | Path, allow_implausible: bool = False, mjcf: bool = F
     if mujoco is not None and mujoco.source is not None:
         lines = (*lines, f"the MJCF is {mujoco.source} with these bodies and joint terms, everything else kept",
                  *(f"changed from that file (listed in the MJCF): {change}" for change in mujoco.changes))
+    described = [name for name in urdf_dynamics_joints(text) if name in identified.robot.joint_names]
+    if described:  # a simulator takes a URDF's <dynamics> for the joint's friction: the identified one written there
+        lines = (*lines, "the joints' <dynamics damping friction> hold the identified viscous and Coulomb friction ("
+                 + ", ".join(described) + "; 0 where the model holds no such law), not the description's")
     gains = (identified.file.torque_gains or {}).get("channels")
     if gains:  # a property of the log's sensors, not of the bodies: the URDF holds the description's units
         lines = (*lines, "the log's torques are these gains times the model's (torque_gains, not in the URDF): "

@@ -101,6 +101,8 @@ from estimation.consistent.torque_gains import (
     divided_torques,
     gains_on_validation,
     in_recorded_units,
+    other_scale,
+    scale_note,
     torque_gains_answer,
 )
 from oed.workflows.consistent import check_consistent_arguments, consistent_lines, consistent_settings
@@ -605,7 +607,7 @@ def identification_streamed(args: IdentifyOptions, model: IdentificationModel, t
         model, args.data, int(sums.train.n_samples), args.validate or [],
         0 if sums.validation is None else int(sums.validation.n_samples), options=reading_options,
         findings=checked, gravity_taken=gravity_taken, subtracted=subtracted is not None)
-    notes = (*notes, *said)
+    notes = (*notes, *said, *scale_notes(gains))
     result, chosen, selection = recorded_training(args, result, chosen, selection, chunk_size, options)
     validation_mse = None if result.validation is None else result.validation.mse
     ranges = merged_ranges([part.joint_range for part in sums.files])  # taken in the sums pass
@@ -1112,7 +1114,7 @@ def identification_in_memory(args: IdentifyOptions, robot: RobotModel, model: Id
         repeat = None if validation is None else repeated_motion_note(train, validation)
         notes = notes if repeat is None else (*notes, repeat)
         notes = (*notes, *description_notes(model, checks, gravity_taken=gravity_taken,
-                                            subtracted=subtracted is not None))
+                                            subtracted=subtracted is not None), *scale_notes(gains))
         drift = None if delay is not None or model_has_shapes(model) else check_friction_drift(model, train, validation)
         notes = notes if drift is None or drift.message() is None else (*notes, drift.message())
     ranges = TrainingRange.of(train.q, train.dq, model.robot.joint_names)  # the samples fitted
@@ -1247,6 +1249,15 @@ def torque_gains_selection(args: IdentifyOptions, selection: ModelSelection, tra
             gains, promising, checked = gains_on_validation(model, train, validation)
         except (ValueError, np.linalg.LinAlgError):
             return selection, None
+    scale = other_scale(gains)
+    if scale is not None and args.prior is None:
+        # the description's bodies and the torques in other units (a description in grams: 0.001): the consistent
+        # candidate's prior, the description's bodies, taken at the torques' scale (scale_note says which units)
+        with step("the answer's candidates fitted again with the description's bodies at the torques' scale"):
+            settings = replace(consistent_settings(args, model.robot), prior=scale * model.robot.standard_parameters,
+                               prior_source=f"robot description times {scale:.4g} (the recorded torques' scale)")
+            selection = carried_reasons(selection, select_model(model, train, validation, base=base,
+                                                                consistent=settings))
     if not promising:
         return selection, (gains, False, checked)
     with step("the answer's candidates fitted to the torques divided by the gains and compared"):
@@ -1255,6 +1266,13 @@ def torque_gains_selection(args: IdentifyOptions, selection: ModelSelection, tra
     answer, taken, compared = torque_gains_answer(selection, carried_reasons(selection, in_recorded_units(other, gains)),
                                                   gains)
     return answer, (gains, taken, f"{checked}; then {compared}" if compared else checked)
+
+
+def scale_notes(gains: tuple[TorqueGains, bool, str] | None) -> tuple[str, ...]:
+    """The sentence of :func:`~estimation.consistent.torque_gains.scale_note` when the fitted gains (taken or not)
+    say the recorded torques and the description's bodies are in different units; ``()`` otherwise."""
+    note = None if gains is None else scale_note(gains[0])
+    return () if note is None else (note,)
 
 
 #: the sentences the candidates of the default answer append to its reason (motor-side friction, the armature, the
