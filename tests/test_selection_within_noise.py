@@ -132,3 +132,23 @@ def test_the_weighted_fits_lead_over_ordinary_least_squares_is_reported_and_the_
     streamed = select_scored(summed, base="wls", ratio=1.0)
     assert streamed.chosen == "wls" and streamed.weighting.difference == pytest.approx(weighting.difference, rel=1e-9)
     assert streamed.weighting.standard_error == pytest.approx(weighting.standard_error, rel=1e-9)
+
+
+def test_a_masked_channel_keeps_its_blocks_and_the_paired_difference_is_reported():
+    """A validation record whose torque channel is masked on every other sample (a held channel's repeats, a
+    clipped sensor's samples: NaN in ``measured``): each block's MSE is over that channel's valid samples, as the
+    comparison's MSE is, and the paired difference is reported. Before h-prior3 every block of the masked channel was
+    NaN and ``paired_difference`` returned ``None``."""
+    generator, t, measured = record(3)
+    first = measured + generator.normal(0, [0.05, 0.005], measured.shape)
+    second = measured + generator.normal(0, [0.06, 0.004], measured.shape)
+    masked = measured.copy()
+    masked[1::2, 0] = np.nan
+    blocks = block_mse(Comparison(t, masked, first, CHANNELS))
+    parts = np.array_split(np.arange(t.shape[0]), BLOCKS)
+    assert blocks["tau1"] == pytest.approx([np.mean((measured[part, 0] - first[part, 0])[part % 2 == 0] ** 2)
+                                            for part in parts], rel=1e-12)
+    assert blocks["tau2"] == tuple(float(((measured[part, 1] - first[part, 1]) ** 2).mean()) for part in parts)
+    candidates = [candidate("wls", t, masked, first), candidate("consistent", t, masked, second)]
+    paired = paired_difference(candidates, "wls")
+    assert paired is not None and np.isfinite(paired.difference) and paired.standard_error > 0

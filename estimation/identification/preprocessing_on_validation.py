@@ -192,13 +192,24 @@ class ValidationScore:
 def block_mse(comparison: Comparison) -> dict[str, tuple[float, ...]]:
     """Per channel, the MSE on each of :data:`BLOCKS` contiguous blocks of the compared samples (as
     :func:`numpy.array_split` cuts them: sizes differ by one sample at most); none when there are fewer samples
-    than blocks."""
+    than blocks. A masked sample (NaN: a clipped sensor's, a held channel's repeat) is left out of its channel's
+    block, as the comparison's MSE leaves it out (over each channel's valid samples); a block with no valid sample
+    of a channel is NaN there."""
     residual = np.asarray(comparison.measured, dtype=float) - np.asarray(comparison.predicted, dtype=float)
     if residual.shape[0] < BLOCKS:
         return {}
     parts = np.array_split(residual ** 2, BLOCKS, axis=0)
-    return {channel: tuple(float(part[:, column].mean()) for part in parts)
+    return {channel: tuple(_valid_mean(part[:, column]) for part in parts)
             for column, channel in enumerate(comparison.channels)}
+
+
+def _valid_mean(squares: NDArray[np.float64]) -> float:
+    """The mean of the finite squares (the plain mean when every one is: the same figure to the last digit); NaN
+    when none is."""
+    valid = ~np.isnan(squares)
+    if np.all(valid):
+        return float(squares.mean())
+    return float(squares[valid].mean()) if np.any(valid) else float("nan")
 
 
 def finite_on(mse: dict[str, float], channels: Sequence[str]) -> bool:
