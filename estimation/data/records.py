@@ -69,6 +69,7 @@ from estimation.data.loading import (
     required_groups,
     uniform_grid,
 )
+from estimation.data.compressed_logs import COMPRESSIONS, csv_input, open_text, packed_format, packer_named
 from estimation.data.date_times import seconds_of_date_times
 from estimation.data.passive import with_passive_torques
 from estimation.data.log_formats import (
@@ -189,6 +190,8 @@ def read_record(
     """
     source, path = path, Path(os.fspath(path))
     suffix = path.suffix.lower()
+    if suffix in COMPRESSIONS:  # a CSV file packed whole: read as the file it packs
+        suffix = packed_format(path)
     if is_log_file(source):  # a ROS bag, .npz, .mat, or a column map (estimation.data.log_formats)
         robot = model.robot if isinstance(model, IdentificationModel) else None
         frame = read_log_frame(source, joint_names=None if robot is None else robot.joint_names,
@@ -198,11 +201,9 @@ def read_record(
     if path.is_dir():
         raise IsADirectoryError(f"data file {path} is a folder")
     if suffix not in (".csv", ".parquet"):
-        packed = path.suffix.lower() in COMPRESSED_SUFFIXES
-        raise MeasurementError(f"unknown data format {path.suffix!r} for {path}: use .csv or .parquet, a ROS bag "
-                               "(.mcap, .db3, .bag or a rosbag2 folder), .npz or .mat"
-                               + (f"; a compressed file: unpack it first (its inner name {path.stem!r})"
-                                  if packed else ""))
+        raise MeasurementError(f"unknown data format {path.suffix!r} for {path}: use .csv or .parquet (either "
+                               "packed by gzip, bzip2, xz or in a one-file ZIP archive), a ROS bag (.mcap, .db3, .bag "
+                               "or a rosbag2 folder), .npz or .mat" + packer_named(path))
     if not path.is_file():
         raise FileNotFoundError(f"data file not found: {path}")
     try:
@@ -313,14 +314,16 @@ DIALECT_ROWS = 20
 def read_csv_frame(path: Path) -> pd.DataFrame:
     """The CSV file as a table: comma-separated with ``.`` decimals, or as :func:`csv_options` says, lines repeating
     its header dropped (:func:`without_repeated_headers`), its columns in the format's SI units (:func:`csv_units`)."""
-    frame = in_si_units(without_repeated_headers(pd.read_csv(path, **csv_options(path)), str(path)), csv_units(path))
+    options = csv_options(path)
+    with csv_input(path) as source:
+        frame = in_si_units(without_repeated_headers(pd.read_csv(source, **options), str(path)), csv_units(path))
     return seconds_of_date_times(frame, str(path))[0]
 
 
 def _units_row(path: Path) -> tuple[str, list[str], list[str]] | None:
     """``(delimiter, header fields, second line's fields)`` of a CSV file (``None`` where it cannot be read)."""
     try:
-        with open(path, errors="replace") as stream:
+        with open_text(path) as stream:
             header, row = stream.readline(), stream.readline()
     except OSError:
         return None
@@ -347,7 +350,7 @@ def csv_options(path: Path) -> dict[str, object]:
     the format's are converted by the reader, :func:`csv_units`), said in a :class:`UnitsRowWarning`; ``{}`` for a plain file or where nothing can be told (the reader's error then names
     the separator, or the text beneath the names)."""
     try:
-        with open(path, errors="replace") as stream:
+        with open_text(path) as stream:
             header, rows = stream.readline(), [stream.readline() for _ in range(DIALECT_ROWS + 1)]
     except OSError:
         return {}
@@ -375,7 +378,7 @@ def csv_options(path: Path) -> dict[str, object]:
 def _delimiter_note(path: Path) -> str:
     """``" (…separated by ';'…)"`` when the file's header is not separated by commas, else ``""``."""
     try:
-        with open(path, errors="replace") as stream:
+        with open_text(path) as stream:
             header = stream.readline()
     except OSError:
         return ""
@@ -394,10 +397,6 @@ def read_parquet_frame(path: Path) -> pd.DataFrame:
             f"cannot read {path}: Parquet needs the pyarrow package (pip install pyarrow); or save the data as CSV"
         ) from None
     return seconds_of_date_times(pd.read_parquet(path), str(path))[0]
-
-
-#: the endings of a compressed file: a log packed for storage, named in the unknown-format message
-COMPRESSED_SUFFIXES = (".gz", ".bz2", ".xz", ".zst", ".zip", ".7z")
 
 
 def segments_from_frame(

@@ -48,6 +48,7 @@ from numpy.typing import NDArray
 from dynamics.models import IdentificationModel
 from dynamics.runtime.threads import single_threaded_blas
 from dynamics.channels import WRENCH_CHANNELS
+from estimation.data.compressed_logs import csv_input, data_suffix, packed_format, packer_named
 from estimation.data.log_formats import LogSource, is_log_file
 from estimation.data.memory_budget import count_rows
 from estimation.data.log_cleaning import DEFAULT_MAX_GAP
@@ -151,7 +152,7 @@ def _in_the_format(frames: Iterator[pd.DataFrame], path: Path, model: Identifica
 
 def _file_frames(path: Path, chunk_size: int, only_time: bool = False) -> Iterator[pd.DataFrame]:
     """The file's rows as frames of ``chunk_size`` (with ``only_time``: column ``t`` alone, if any)."""
-    suffix = path.suffix.lower()
+    suffix = packed_format(path)  # a CSV file packed whole: read as the file it packs, decompressed block by block
     if is_log_file(path) or isinstance(path, LogSource):
         raise MeasurementError(f"{path}: the streamed path (chunks, workers, a cluster) reads .csv and .parquet files; "
                                "a ROS bag, an .npz or .mat file or a column map is read in memory (drop the streaming "
@@ -159,7 +160,8 @@ def _file_frames(path: Path, chunk_size: int, only_time: bool = False) -> Iterat
     if path.is_dir():
         raise MeasurementError(f"data file {path} is a folder")
     if suffix not in (".csv", ".parquet"):
-        raise MeasurementError(f"unknown data format {path.suffix!r} for {path}: use .csv or .parquet")
+        raise MeasurementError(f"unknown data format {path.suffix!r} for {path}: use .csv or .parquet (either "
+                               "packed by gzip, bzip2, xz or in a one-file ZIP archive)" + packer_named(path))
     if not path.is_file():
         raise MeasurementError(f"data file not found: {path}")
     origin = None  # the first stamp of a time column of date-times (estimation.data.date_times)
@@ -167,7 +169,9 @@ def _file_frames(path: Path, chunk_size: int, only_time: bool = False) -> Iterat
         if suffix == ".csv":
             usecols = (lambda name: str(name).strip() == "t") if only_time else None
             factors = csv_units(path)  # a units row's other units turned into SI, as in memory
-            with pd.read_csv(path, chunksize=chunk_size, usecols=usecols, **csv_options(path)) as reader:
+            options = csv_options(path)
+            with csv_input(path) as source, pd.read_csv(source, chunksize=chunk_size, usecols=usecols,
+                                                         **options) as reader:
                 for frame in reader:  # date-times as seconds since the file's first stamp, as in memory
                     frame, origin = seconds_of_date_times(in_si_units(without_repeated_headers(frame, str(path)),
                                                                       factors), str(path), origin)
@@ -262,7 +266,7 @@ def segment_sources(paths, model: IdentificationModel, *, chunk_size: int = DEFA
     sources = []
     for path in paths:
         file, segment = source_file(path)
-        if segment is not None or file.suffix.lower() not in (".csv", ".parquet") or not file.is_file():
+        if segment is not None or not file.is_file() or data_suffix(file) not in (".csv", ".parquet"):
             sources.append(path)
             continue
         held = file_parts(_raw_frames(file, max(int(chunk_size), 1), model), file, model) if holds_cut else None
