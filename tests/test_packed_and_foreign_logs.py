@@ -36,8 +36,9 @@ def puma3(tmp_path_factory):
     return model, folder / "clean.csv"
 
 
-def read_both(path, model, chunk_size: int = 100):
-    """The record read in memory and streamed (its blocks joined), and the warnings said."""
+def read_both(path, model, chunk_size: int = 100, kinds: bool = False):
+    """The record read in memory and streamed (its blocks joined), and the warnings said (``kinds``: and their
+    classes)."""
     from estimation.data.records import read_measurements
     from estimation.streaming.chunks import read_chunks, segment_sources
 
@@ -47,7 +48,8 @@ def read_both(path, model, chunk_size: int = 100):
         sources = segment_sources([path], model, chunk_size=chunk_size)
         chunks = [chunk for source in sources for chunk in read_chunks(source, model, chunk_size=chunk_size)]
     streamed = {name: np.concatenate([getattr(chunk, name) for chunk in chunks]) for name in ("t", "q", "tau")}
-    return memory, streamed, [str(warning.message) for warning in caught]
+    said = [str(warning.message) for warning in caught]
+    return (memory, streamed, said, [warning.category for warning in caught]) if kinds else (memory, streamed, said)
 
 
 def packed(path: Path, how: str) -> Path:
@@ -108,4 +110,150 @@ def test_packed_files_the_readers_cannot_read_are_named(puma3, tmp_path):
             with pytest.raises(MeasurementError, match=said):
                 read_measurements(path, model=model)
             with pytest.raises(MeasurementError, match=said):
+                list(read_chunks(path, model, chunk_size=100))
+
+
+def _table(path: Path) -> pd.DataFrame:
+    return pd.read_csv(path)
+
+
+def european(path: Path, target: Path) -> None:
+    _table(path).to_csv(target, sep=";", decimal=",", index=False, float_format="%.17g")
+
+
+def units_in_names(path: Path, target: Path) -> None:
+    """``t [s]``, ``q1 [rad]``, ``tau1 (Nm)``: each column's unit in its name."""
+    table = _table(path)
+    unit = {"t": "[s]", "q": "[rad]", "tau": "(Nm)"}
+    table.rename(columns={name: f"{name} {unit[name.rstrip('0123456789')]}" for name in table.columns}).to_csv(
+        target, index=False, float_format="%.17g")
+
+
+def nanoseconds_since_1970(path: Path, target: Path) -> None:
+    table = _table(path)
+    table["t"] = 1_732_000_000_000_000_000 + np.round(table["t"].to_numpy() * 1e9).astype(np.int64)
+    table.to_csv(target, index=False, float_format="%.17g")
+
+
+def microseconds_since_start(path: Path, target: Path) -> None:
+    table = _table(path)
+    table["t"] = np.round(table["t"].to_numpy() * 1e6).astype(np.int64)
+    table.to_csv(target, index=False, float_format="%.17g")
+
+
+def duplicated_stamps(path: Path, target: Path) -> None:
+    """Every 97th row written again under its stamp with other values (a clock that did not tick)."""
+    table = _table(path)
+    again = table.iloc[np.arange(50, len(table) - 50, 97)].copy()
+    again[[name for name in table.columns if name != "t"]] += 1e-3
+    pd.concat([table, again]).sort_index(kind="stable").to_csv(target, index=False, float_format="%.17g")
+
+
+def header_mid_file(path: Path, target: Path) -> None:
+    """Two logs concatenated: the header written again in the middle."""
+    lines = path.read_text().splitlines(keepends=True)
+    target.write_text("".join([*lines[:len(lines) // 2], lines[0], *lines[len(lines) // 2:]]))
+
+
+def trailing_empty_columns(path: Path, target: Path) -> None:
+    """A spreadsheet's export: two empty columns after the last on every line."""
+    target.write_text("".join(f"{line},,\n" for line in path.read_text().splitlines()))
+
+
+HABITS = {"european": european, "units in names": units_in_names, "ns since 1970": nanoseconds_since_1970,
+          "us since start": microseconds_since_start, "duplicated stamps": duplicated_stamps,
+          "header mid-file": header_mid_file, "trailing empty columns": trailing_empty_columns}
+
+
+@pytest.mark.parametrize("habit", list(HABITS))
+def test_other_loggers_habits_read_alike_in_memory_and_streamed(puma3, tmp_path, habit):
+    """Each habit read in memory and block by block to the plain file's samples (the stamps to 1e-12 s where counted
+    in integers; the rows written again under a stamp read by the stamps' rule, memory's and the streamed alike). At 8322458, units in the names exited ("missing
+    column(s) t": ``t [s]`` was not read as the time) and integer nanoseconds or microseconds ("column t advances by
+    4e+06 a sample … divide t by 1e3 or 1e9"); the others were read."""
+    model, clean = puma3
+    plain, _, _ = read_both(clean, model, chunk_size=250)
+    path = tmp_path / "log.csv"
+    HABITS[habit](clean, path)
+    memory, streamed, said = read_both(path, model, chunk_size=250)
+    assert np.allclose(streamed["t"], memory.t, rtol=0, atol=1e-12)
+    if habit == "duplicated stamps":  # the rule of 8322458 on the stamps (here: samples on a clock as coarse as the
+        for name in ("q", "tau"):  # step, h-unseen14), the same streamed
+            assert np.array_equal(streamed[name], getattr(memory, name)), name
+        return
+    assert np.allclose(memory.t, plain.t - plain.t[0], rtol=0, atol=1e-12), said
+    for name in ("q", "tau"):
+        assert np.array_equal(getattr(memory, name), getattr(plain, name)), (name, said)
+        assert np.array_equal(streamed[name], getattr(plain, name)), name
+
+
+def test_an_integer_count_whose_unit_two_readings_fit_is_refused(puma3, tmp_path):
+    """Stamps stepping by 100 a sample: 0.1 s in milliseconds or 100 µs in microseconds; nothing is guessed: the
+    reader refuses naming the factors (as at 8322458)."""
+    from estimation.data import TimeBaseError
+    from estimation.data.date_times import integer_unit
+    from estimation.data.records import read_measurements
+
+    model, clean = puma3
+    table = _table(clean)
+    table["t"] = np.arange(len(table), dtype=np.int64) * 100
+    table.to_csv(tmp_path / "ambiguous.csv", index=False)
+    assert integer_unit(table["t"].to_numpy(dtype=float)) is None
+    assert integer_unit(np.arange(10.0) * 4) == "ms" and integer_unit(np.arange(10.0) * 4e6) == "ns"
+    with pytest.raises(TimeBaseError, match="advances by 100 a sample"), warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        read_measurements(tmp_path / "ambiguous.csv", model=model)
+
+
+def test_unstarted_edges_long_tables_and_newest_first_logs_streamed_as_in_memory(puma3, tmp_path):
+    """Channels starting late and stopping early, a long table (a gripper's rows among it) and a newest-first log:
+    the streamed reader (blocks of 100 rows, the edges and stamps across their boundaries) reads the samples memory
+    reads, exactly, and says each once. At 8322458 it refused all three (a blank cell; "a long table … is read in
+    memory only"; "written newest first; the in-memory reader reads it reversed")."""
+    from estimation.data import LongTableWarning, NewestFirstWarning, UnstartedChannelsWarning
+    from tests.test_unseen_robot_fleets import long_format
+
+    model, clean = puma3
+    table = _table(clean)
+    late = table.copy()
+    late.loc[:104, "q2"] = np.nan  # the first block and a few rows of the second lack q2
+    late.loc[:12, "tau3"] = np.nan
+    late.loc[len(late) - 9:, "tau1"] = np.nan
+    late.to_csv(tmp_path / "late.csv", index=False, float_format="%.17g")
+    table.to_csv(tmp_path / "long.csv", index=False, float_format="%.17g")
+    long_format(tmp_path / "long.csv")
+    table.iloc[::-1].to_csv(tmp_path / "newest.csv", index=False, float_format="%.17g")
+    for name, kind in (("late", UnstartedChannelsWarning), ("long", LongTableWarning), ("newest", NewestFirstWarning)):
+        memory, streamed, said, kinds = read_both(tmp_path / f"{name}.csv", model, chunk_size=100, kinds=True)
+        for column in ("t", "q", "tau"):
+            assert np.array_equal(streamed[column], getattr(memory, column)), (name, column)
+        assert len(memory.t) == len(table) - (105 + 9 if name == "late" else 0), name
+        assert {kind} <= set(kinds), (name, kinds)
+        if name == "late":  # said alike by both readers
+            assert sum("dropped 105 row(s) at its start" in text and "9 row(s) at its end" in text
+                       for text in said) == 2, said
+
+
+def test_what_the_streamed_reader_cannot_read_in_bounded_memory_names_the_memory_route(puma3, tmp_path):
+    """A long table sorted by joint (its stamps go back), a newest-first log packed by gzip: refused by the streamed
+    reader, naming the in-memory route (which reads both)."""
+    from estimation.data import MeasurementError
+    from estimation.data.records import read_measurements
+    from estimation.streaming.chunks import read_chunks
+    from tests.test_unseen_robot_fleets import long_format
+
+    model, clean = puma3
+    table = _table(clean)
+    table.to_csv(tmp_path / "long.csv", index=False, float_format="%.17g")
+    long_format(tmp_path / "long.csv")
+    by_joint = _table(tmp_path / "long.csv").sort_values("joint", kind="stable", ascending=False)  # joint3 first
+    by_joint.to_csv(tmp_path / "by_joint.csv", index=False, float_format="%.17g")
+    table.iloc[::-1].to_csv(tmp_path / "newest.csv", index=False, float_format="%.17g")
+    packed_newest = packed(tmp_path / "newest.csv", "gzip")
+    for path, said in ((tmp_path / "by_joint.csv", "a long table whose first 100 rows do not name every joint"),
+                       (packed_newest, "a log written newest first in a packed file")):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            read_measurements(path, model=model)  # memory reads it
+            with pytest.raises(MeasurementError, match=rf"{said}.*read it in memory \(drop the streaming options\)"):
                 list(read_chunks(path, model, chunk_size=100))

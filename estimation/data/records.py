@@ -31,7 +31,6 @@ from estimation.data.loading import (
     ABSURD_VALUE,
     AbsurdValueError,
     BlankRowsWarning,
-    UnstartedChannelsWarning,
     COLUMN_GROUPS,
     EncoderGlitchWarning,
     HeldChannelWarning,
@@ -69,6 +68,7 @@ from estimation.data.loading import (
     required_groups,
     uniform_grid,
 )
+from estimation.data.unstarted_edges import data_cells, said_unstarted, span
 from estimation.data.compressed_logs import COMPRESSIONS, csv_input, open_text, packed_format, packer_named
 from estimation.data.date_times import seconds_of_date_times
 from estimation.data.passive import with_passive_torques
@@ -248,7 +248,7 @@ def in_the_format(frame: pd.DataFrame, path: Path, model: IdentificationModel | 
     time = None if echo is not None else time_column(frame)
     if time is not None:  # the time under another name (time, timestamp_ns, time [ms]), not t
         frame = apply_column_map(frame, {"t": time}, str(path))
-        warnings.warn(TimeColumnWarning(f"{path}: no column t; the time read as --columns t={time}"),
+        warnings.warn(TimeColumnWarning(f"{path}: no column t; the time read as --columns {shlex.quote('t=' + time)}"),
                       stacklevel=2)
     elif echo is None and "t" not in frame.columns:
         time = split_stamp(frame, path)
@@ -531,13 +531,6 @@ def dropouts(frame: pd.DataFrame, n_joints: int) -> NDArray[np.bool_]:
     return blank
 
 
-def _data_cells(frame: pd.DataFrame, n_joints: int) -> list[str]:
-    """The data columns of ``frame`` (``q, dq, ddq, tau``, wrench: those present), as :func:`dropouts` reads them."""
-    return [column for group in COLUMN_GROUPS
-            for column in (list(WRENCH_CHANNELS) if group == "wrench" else joint_columns(group, n_joints))
-            if column in frame.columns]
-
-
 def held_cells(arrays: dict, repeats: dict[str, NDArray[np.bool_]]) -> NDArray[np.bool_]:
     """``(N, k)`` the cells of the measured channels of ``arrays`` (``tau`` then ``wrench``, those present: the
     columns :func:`estimation.data.channel_mask.masked_channels` takes) that repeat a held value, every column of a
@@ -551,9 +544,9 @@ def _started(frame: pd.DataFrame, n_joints: int, source: str) -> tuple[pd.DataFr
     """``(frame, kept)``: ``frame`` without the rows before every data channel has reported and after one has stopped
     (:func:`estimation.data.log_cleaning.unstarted_rows`), said in an :class:`UnstartedChannelsWarning` naming how
     many, the time they span and the channels that lacked a value, and the mask of the rows kept; ``frame`` itself
-    and ``None`` when there are none (in memory only: the streamed reader refuses such a record as it does any blank
-    cell)."""
-    cells = _data_cells(frame, n_joints)
+    and ``None`` when there are none (the streamed reader drops the same rows block by block:
+    :func:`estimation.data.unstarted_edges.started_blocks`)."""
+    cells = data_cells(frame, n_joints)
     if not cells or not len(frame):
         return frame, None
     empty = _empty_cells(frame)(cells)
@@ -563,20 +556,10 @@ def _started(frame: pd.DataFrame, n_joints: int, source: str) -> tuple[pd.DataFr
     lacking = [column for column, missing in zip(cells, empty[edges].any(axis=0)) if missing]
     head = int(np.argmax(~edges))
     tail = int(edges.sum()) - head
-    stamps = pd.to_numeric(frame["t"], errors="coerce").to_numpy(dtype=float) if "t" in frame.columns else None
-
-    def span(rows: slice) -> str:
-        if stamps is None or not np.isfinite(stamps[rows]).any():
-            return ""
-        return f" (t = {np.nanmin(stamps[rows]):.6g} to {np.nanmax(stamps[rows]):.6g})"
-
-    said = [f"{head} row(s) at its start{span(slice(0, head))}"] if head else []
-    said += [f"{tail} row(s) at its end{span(slice(len(frame) - tail, len(frame)))}"] if tail else []
-    warnings.warn(
-        f"{source}: dropped {' and '.join(said)} where some channels hold no value yet or no longer "
-        f"({', '.join(lacking[:8])}{' …' if len(lacking) > 8 else ''}: a logger whose channels start and stop on "
-        "their own); the record is the rows where every channel holds a value", UnstartedChannelsWarning,
-        stacklevel=5)
+    stamps = pd.to_numeric(frame["t"], errors="coerce").to_numpy(dtype=float) if "t" in frame.columns else \
+        np.zeros(len(frame))
+    said_unstarted(head, tail, span(stamps[:head]) if "t" in frame.columns else "",
+                   span(stamps[len(frame) - tail:]) if "t" in frame.columns else "", lacking, source, stacklevel=5)
     return frame[~edges].reset_index(drop=True), ~edges
 
 
