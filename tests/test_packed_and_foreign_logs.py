@@ -36,6 +36,17 @@ def puma3(tmp_path_factory):
     return model, folder / "clean.csv"
 
 
+@pytest.fixture(scope="module")
+def plain(puma3):
+    """The clean record read in memory (its samples: what every habit must read)."""
+    model, clean = puma3
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        from estimation.data.records import read_measurements
+
+        return read_measurements(clean, model=model)
+
+
 def read_both(path, model, chunk_size: int = 100, kinds: bool = False):
     """The record read in memory and streamed (its blocks joined), and the warnings said (``kinds``: and their
     classes)."""
@@ -67,16 +78,15 @@ def packed(path: Path, how: str) -> Path:
 
 
 @pytest.mark.parametrize("how", ["gzip", "bzip2", "xz", "zip"])
-def test_a_packed_csv_file_is_read_as_the_file_it_packs_in_memory_and_streamed(puma3, tmp_path, how):
+def test_a_packed_csv_file_is_read_as_the_file_it_packs_in_memory_and_streamed(puma3, plain, tmp_path, how):
     """``train.csv.gz``, ``.bz2``, ``.xz`` or a ZIP archive holding one CSV file: read as the file it packs, in
     memory and block by block (the same samples, exactly), its rows counted for the memory budget as the plain
     file's. At 8322458 each was refused ("unknown data format '.gz' … unpack it first")."""
     from estimation.data.memory_budget import count_rows
 
     model, clean = puma3
-    plain, _, _ = read_both(clean, model)
     path = packed(clean, how)
-    memory, streamed, _ = read_both(path, model)
+    memory, streamed, _ = read_both(path, model, chunk_size=250)
     for name in ("t", "q", "tau"):
         assert np.array_equal(getattr(memory, name), getattr(plain, name)), name
         assert np.array_equal(streamed[name], getattr(plain, name)), name
@@ -166,13 +176,12 @@ HABITS = {"european": european, "units in names": units_in_names, "ns since 1970
 
 
 @pytest.mark.parametrize("habit", list(HABITS))
-def test_other_loggers_habits_read_alike_in_memory_and_streamed(puma3, tmp_path, habit):
+def test_other_loggers_habits_read_alike_in_memory_and_streamed(puma3, plain, tmp_path, habit):
     """Each habit read in memory and block by block to the plain file's samples (the stamps to 1e-12 s where counted
     in integers; the rows written again under a stamp read by the stamps' rule, memory's and the streamed alike). At 8322458, units in the names exited ("missing
     column(s) t": ``t [s]`` was not read as the time) and integer nanoseconds or microseconds ("column t advances by
     4e+06 a sample … divide t by 1e3 or 1e9"); the others were read."""
     model, clean = puma3
-    plain, _, _ = read_both(clean, model, chunk_size=250)
     path = tmp_path / "log.csv"
     HABITS[habit](clean, path)
     memory, streamed, said = read_both(path, model, chunk_size=250)
@@ -207,7 +216,7 @@ def test_an_integer_count_whose_unit_two_readings_fit_is_refused(puma3, tmp_path
 
 def test_unstarted_edges_long_tables_and_newest_first_logs_streamed_as_in_memory(puma3, tmp_path):
     """Channels starting late and stopping early, a long table (a gripper's rows among it) and a newest-first log:
-    the streamed reader (blocks of 100 rows, the edges and stamps across their boundaries) reads the samples memory
+    the streamed reader (blocks of 100 to 500 rows, the edges and stamps across their boundaries) reads the samples memory
     reads, exactly, and says each once. At 8322458 it refused all three (a blank cell; "a long table … is read in
     memory only"; "written newest first; the in-memory reader reads it reversed")."""
     from estimation.data import LongTableWarning, NewestFirstWarning, UnstartedChannelsWarning
@@ -224,7 +233,8 @@ def test_unstarted_edges_long_tables_and_newest_first_logs_streamed_as_in_memory
     long_format(tmp_path / "long.csv")
     table.iloc[::-1].to_csv(tmp_path / "newest.csv", index=False, float_format="%.17g")
     for name, kind in (("late", UnstartedChannelsWarning), ("long", LongTableWarning), ("newest", NewestFirstWarning)):
-        memory, streamed, said, kinds = read_both(tmp_path / f"{name}.csv", model, chunk_size=100, kinds=True)
+        memory, streamed, said, kinds = read_both(tmp_path / f"{name}.csv", model, kinds=True,
+                                                  chunk_size={"late": 100, "long": 500}.get(name, 250))
         for column in ("t", "q", "tau"):
             assert np.array_equal(streamed[column], getattr(memory, column)), (name, column)
         assert len(memory.t) == len(table) - (105 + 9 if name == "late" else 0), name

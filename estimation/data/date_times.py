@@ -88,13 +88,12 @@ def seconds_of_integer_stamps(frame: pd.DataFrame, name: str, source: str, origi
     """``frame`` with its time column ``name`` in seconds since ``origin`` (else its first stamp, said) where it
     holds integer counts of a unit :func:`integer_unit` tells; as it is otherwise."""
     column = frame[name]
-    if not pd.api.types.is_numeric_dtype(column.dtype) or pd.api.types.is_bool_dtype(column.dtype):
-        return frame, origin
+    if not pd.api.types.is_numeric_dtype(column.dtype) or pd.api.types.is_bool_dtype(column.dtype) \
+            or origin is None and not pd.api.types.is_integer_dtype(column.dtype):
+        return frame, origin  # written as integers only (seconds as floats: the common case, nothing read twice)
     values = column.to_numpy()
     present = np.isfinite(values.astype(float))
     if origin is None:
-        if not pd.api.types.is_integer_dtype(column.dtype):  # written as integers (seconds as floats: the common case)
-            return frame, origin
         unit = integer_unit(values[present].astype(float))
         if unit is None:
             return frame, origin
