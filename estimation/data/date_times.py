@@ -1,4 +1,4 @@
-"""Time columns written as date-times, read as seconds.
+"""Time columns written as date-times, or as integer counts of milli-, micro- or nanoseconds, read as seconds.
 
 A database's, a spreadsheet's or pandas' export writes a log's time as ISO 8601 date-times
 (``2026-11-28 10:00:00.004``, ``2026-11-28T10:00:00.004+01:00``) and a Parquet file as a timestamp type. The
@@ -7,13 +7,23 @@ record's own clock from zero; stamps with UTC offsets on the same time line, so 
 record moves no sample), each stamp to the nanosecond. The absolute date matters to no model. One rule for the
 in-memory readers (:func:`estimation.data.records.read_csv_frame`, ``read_parquet_frame``) and the streamed one
 (:mod:`estimation.streaming.chunks`), which carries the first chunk's first stamp as the origin of the others.
+
+A logger that stamps its samples with an integer count written as one (``t`` = 1732000000004000000, nanoseconds since 1970, as a
+ROS or a Linux clock gives them; or microseconds since the controller started) writes a time the format's seconds
+would step by a million a sample. Its unit is the one of milli-, micro- and nanoseconds that puts the first stamp
+between 2000 and 2100 since 1970 (an epoch count), else the only one that puts the median step within a robot log's
+(:data:`INTEGER_STEP`); such a column is read as the seconds since its first stamp, subtracted as integers (no
+rounding of a nanosecond count near 2e18 by float64), said in an :class:`IntegerStampsWarning`. Where two units fit
+(a step of 100: 0.1 s in milliseconds or 100 µs), nothing is guessed: the reader's refusal names the maps.
 """
 
 from __future__ import annotations
 
 import re
 import warnings
+from dataclasses import dataclass
 
+import numpy as np
 import pandas as pd
 
 from estimation.data.loading import MeasurementWarning
@@ -25,10 +35,80 @@ DATE_TIME = re.compile(r"^\s*\d{4}-\d{2}-\d{2}[T ]\d{2}:\d{2}")
 
 #: the origin of durations (a timedelta type): their seconds as they are
 EPOCH = pd.Timestamp(0, tz="UTC")
+#: the units an integer time count may be in, with their factor to seconds
+INTEGER_UNITS = {"ms": 1e-3, "us": 1e-6, "ns": 1e-9}
+#: an integer count's first stamp read in a unit as seconds since 1970 within these (2000 to 2100): an epoch count
+EPOCH_SPAN = (946_684_800.0, 4_102_444_800.0)
+#: the sampling steps (s) a robot's log has, for an integer count's unit: 40 kHz (a drive's current loop) to 2 Hz
+INTEGER_STEP = (2.5e-5, 0.5)
+
+
+@dataclass(frozen=True)
+class IntegerOrigin:
+    """The first stamp of an integer time count and its unit, the origin its seconds count from (a streamed reader
+    carries it from the first chunk to the others)."""
+
+    first: int
+    unit: str
+
+    @property
+    def factor(self) -> float:
+        return INTEGER_UNITS[self.unit]
 
 
 class DateTimeStampsWarning(MeasurementWarning):
     """A time column of date-times (ISO 8601 text, or a timestamp type) was read as seconds since its first stamp."""
+
+
+class IntegerStampsWarning(MeasurementWarning):
+    """A time column of integer counts of milli-, micro- or nanoseconds was read as seconds since its first stamp."""
+
+
+def integer_unit(values: np.ndarray) -> str | None:
+    """The unit of a time column holding integer counts (``values``, finite, in the order written): ``"ms"``,
+    ``"us"`` or ``"ns"``, by the epoch rule then the step rule (the module's note); ``None`` where the values are not
+    integers stepping by one or more (seconds, the common case), or where no unit or two fit."""
+    if values.size < 2 or not np.all(np.mod(values[:64], 1.0) == 0) or not np.all(np.mod(values, 1.0) == 0):
+        return None  # seconds (the common case: told by the first values)
+    steps = np.diff(values)
+    steps = steps[steps > 0]
+    if steps.size == 0 or float(np.median(steps)) < 1.0:
+        return None
+    step = float(np.median(steps))
+    epoch = [unit for unit, factor in INTEGER_UNITS.items() if EPOCH_SPAN[0] <= abs(float(values[0])) * factor
+             <= EPOCH_SPAN[1] and INTEGER_STEP[0] <= step * factor < INTEGER_STEP[1]]
+    if len(epoch) == 1:
+        return epoch[0]
+    fits = [unit for unit, factor in INTEGER_UNITS.items() if INTEGER_STEP[0] <= step * factor < INTEGER_STEP[1]]
+    return fits[0] if len(fits) == 1 else None
+
+
+def seconds_of_integer_stamps(frame: pd.DataFrame, name: str, source: str, origin: IntegerOrigin | None
+                              ) -> tuple[pd.DataFrame, IntegerOrigin | None]:
+    """``frame`` with its time column ``name`` in seconds since ``origin`` (else its first stamp, said) where it
+    holds integer counts of a unit :func:`integer_unit` tells; as it is otherwise."""
+    column = frame[name]
+    if not pd.api.types.is_numeric_dtype(column.dtype) or pd.api.types.is_bool_dtype(column.dtype) \
+            or origin is None and not pd.api.types.is_integer_dtype(column.dtype):
+        return frame, origin  # written as integers only (seconds as floats: the common case, nothing read twice)
+    values = column.to_numpy()
+    present = np.isfinite(values.astype(float))
+    if origin is None:
+        unit = integer_unit(values[present].astype(float))
+        if unit is None:
+            return frame, origin
+        first = values[present][0]
+        origin = IntegerOrigin(int(first), unit)
+        warnings.warn(IntegerStampsWarning(
+            f"{source}: column {name} holds integer counts stepping by {float(np.median(np.diff(values[present]))):.6g}"
+            f" a sample: read as {unit} (" + ("since 1970, " if EPOCH_SPAN[0] <= abs(float(first)) * origin.factor
+                                               <= EPOCH_SPAN[1] else "")
+            + f"x{origin.factor:g} s), the seconds since the first stamp {int(first)}"), stacklevel=4)
+    if pd.api.types.is_integer_dtype(column.dtype):  # exact: the difference of two integers
+        seconds = (column.to_numpy(dtype=np.int64) - np.int64(origin.first)).astype(float) * origin.factor
+    else:  # a count with blank cells, read as floats
+        seconds = (column.to_numpy(dtype=float) - float(origin.first)) * origin.factor
+    return frame.assign(**{name: seconds}), origin
 
 
 def time_column_name(frame: pd.DataFrame) -> str | None:
@@ -61,14 +141,17 @@ def as_instants(column: pd.Series) -> pd.Series | None:
     return instants
 
 
-def seconds_of_date_times(frame: pd.DataFrame, source: str, origin: pd.Timestamp | None = None
-                          ) -> tuple[pd.DataFrame, pd.Timestamp | None]:
+def seconds_of_date_times(frame: pd.DataFrame, source: str, origin: pd.Timestamp | IntegerOrigin | None = None
+                          ) -> tuple[pd.DataFrame, pd.Timestamp | IntegerOrigin | None]:
     """``frame`` with its time column (:func:`time_column_name`) in seconds where it holds date-times
     (:func:`as_instants`) or durations (a timedelta type: their seconds as they are), and the origin its seconds
     count from (``origin``, else the column's first stamp: said in a :class:`DateTimeStampsWarning`); ``frame`` as
     it is and ``origin`` otherwise. A blank cell stays blank (a dropout, as the readers take it)."""
     name = time_column_name(frame)
     column = None if name is None else frame[name]
+    if isinstance(column, pd.Series) and (isinstance(origin, IntegerOrigin) or origin is None
+                                          and pd.api.types.is_numeric_dtype(column.dtype)):
+        return seconds_of_integer_stamps(frame, name, source, origin)  # counts of ms, us or ns (or seconds: as is)
     if not isinstance(column, pd.Series) or pd.api.types.is_float_dtype(column.dtype):  # none, a name twice, or
         return frame, origin  # seconds already (the common case)
     if pd.api.types.is_timedelta64_dtype(column):

@@ -494,13 +494,19 @@ def newest_first(frame: pd.DataFrame, source: str) -> pd.DataFrame:
     t = (column.to_numpy(dtype=float) if pd.api.types.is_numeric_dtype(column)
          else pd.to_numeric(column, errors="coerce").to_numpy(dtype=float))
     t = t[np.isfinite(t)]
-    steps = np.diff(t)
-    if steps.size < 2 or np.any(steps > 0) or np.count_nonzero(steps < 0) <= np.count_nonzero(steps == 0):
+    if not written_newest_first(t):
         return frame
     warnings.warn(f"{source}: column t decreases on every row ({t[0]:.6g} s first, {t[-1]:.6g} s last): a log "
                   f"written newest first, read reversed ({len(frame)} rows, oldest first); the rows named in other "
                   "messages count from the oldest", NewestFirstWarning, stacklevel=4)
     return frame.iloc[::-1].reset_index(drop=True)
+
+
+def written_newest_first(t: NDArray[np.float64]) -> bool:
+    """Whether the finite stamps ``t`` (in the order written) are a newest-first log's: no step forward, and more
+    steps back than repeated stamps (:func:`newest_first`; the streamed reader asks it of a file's first block)."""
+    steps = np.diff(t)
+    return not (steps.size < 2 or np.any(steps > 0) or np.count_nonzero(steps < 0) <= np.count_nonzero(steps == 0))
 
 
 def check_time(t: NDArray[np.float64], source: str) -> float:

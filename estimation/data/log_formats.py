@@ -144,6 +144,7 @@ class LongTable:
 
     frame: pd.DataFrame
     message: str
+    layout: LongLayout | None = None
 
 
 def long_table(frame: pd.DataFrame, joint_names: Sequence[str] | None, source: str) -> LongTable | None:
@@ -170,6 +171,32 @@ def long_table(frame: pd.DataFrame, joint_names: Sequence[str] | None, source: s
     if len(keys) != 1 or time is None:
         return None
     key, time = keys[0], _scaled(time)[1]
+    values = [str(column) for column in frame.columns if str(column) not in (key, time)]
+    if not values:
+        return None
+    out, rows, others = side_by_side(frame, LongLayout(key, time, tuple(names), tuple(values)), source)
+    return LongTable(out, long_table_message(source, key, values, rows, len(out), others),
+                     LongLayout(key, time, tuple(names), tuple(values)))
+
+
+@dataclass(frozen=True)
+class LongLayout:
+    """How a long table is laid out: its column naming the joints (``key``), its time column, the robot's joint
+    names and the value columns (``position``, ``effort``…)."""
+
+    key: str
+    time: str
+    names: tuple[str, ...]
+    values: tuple[str, ...]
+
+
+def side_by_side(frame: pd.DataFrame, layout: LongLayout, source: str) -> tuple[pd.DataFrame, int, list[str]]:
+    """``(wide, rows, others)``: the rows of ``frame`` (a long table laid out as ``layout`` says, or a block of one
+    holding whole time stamps) one row per time stamp, in the order the stamps first appear, every column
+    ``<value>.<joint>`` of the layout (a joint missing at a stamp leaves its cells empty); the rows of the robot's
+    joints put side by side and the other names left out. :class:`LongTableError` when a joint is written twice at
+    one stamp."""
+    key, time, names = layout.key, layout.time, list(layout.names)
     joint = frame[key].astype(str).str.strip()
     own = joint.isin(names)
     others = sorted(set(joint[~own].dropna()) - {"nan"})
@@ -181,18 +208,23 @@ def long_table(frame: pd.DataFrame, joint_names: Sequence[str] | None, source: s
             f"{source}: read as a long table (one row per joint and time stamp, column {key!r} naming the joints), "
             f"but {int(twice.sum())} row(s) name a joint again at the same time stamp, first {first[key]!r} at "
             f"{time} = {first[time]!r}: the rows cannot be put side by side")
-    values = [str(column) for column in frame.columns if str(column) not in (key, time)]
-    if not values:
-        return None
+    values = list(layout.values)
     wide = rows.pivot(index=time, columns=key, values=values)
     wide = wide.reindex(pd.unique(rows[time]))
     wide.columns = [f"{value}.{name}" for value, name in wide.columns]
-    ordered = [f"{value}.{name}" for value in values for name in names if f"{value}.{name}" in wide.columns]
-    out = wide[ordered].reset_index(names=time)
-    left = f"; rows of {', '.join(repr(name) for name in others[:6])} left out (not the robot's joints)" if others else ""
-    return LongTable(out, f"{source}: read as a long table, one row per joint and time stamp (column {key!r} naming "
-                          f"the joints, {', '.join(repr(value) for value in values)} per joint): "
-                          f"{len(rows)} rows put side by side as {len(out)} time stamps{left}")
+    ordered = [f"{value}.{name}" for value in values for name in names]
+    return wide.reindex(columns=ordered).reset_index(names=time), len(rows), others
+
+
+def long_table_message(source: str, key: str, values: Sequence[str], rows: int, stamps: int,
+                       others: Sequence[str]) -> str:
+    """What a :class:`LongTableWarning` says of a long table read: the column naming the joints, the value columns,
+    the rows put side by side as how many stamps, the other names' rows left out."""
+    left = f"; rows of {', '.join(repr(name) for name in list(others)[:6])} left out (not the robot's joints)" \
+        if others else ""
+    return (f"{source}: read as a long table, one row per joint and time stamp (column {key!r} naming the joints, "
+            f"{', '.join(repr(value) for value in values)} per joint): {rows} rows put side by side as {stamps} time "
+            f"stamps{left}")
 
 
 class DescriptionOrderWarning(MeasurementWarning):
@@ -254,7 +286,7 @@ class TimeColumnWarning(MeasurementWarning):
 
 #: a time column's name without its unit (lower case, spaces, brackets and ``_`` removed) and the units a name may
 #: carry, with their factor to seconds
-TIME_NAMES = ("time", "timestamp", "stamp", "times")
+TIME_NAMES = ("time", "timestamp", "stamp", "times", "t")  # "t" with a unit: ``t [s]``, ``t (ms)``
 TIME_UNITS = {"": 1.0, "s": 1.0, "sec": 1.0, "ms": 1e-3, "us": 1e-6, "µs": 1e-6, "ns": 1e-9}
 #: the sampling steps (s) a robot's log plausibly has: a name without a unit is read as seconds only within them
 PLAUSIBLE_STEP = (1e-5, 0.5)

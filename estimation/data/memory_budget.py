@@ -28,6 +28,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from dynamics.models import IdentificationModel
+from estimation.data.compressed_logs import open_binary, packed_format
 from estimation.data.log_formats import is_log_file
 
 __all__ = ["DEFAULT_BUDGET", "InMemoryNeed", "MemorySizeError", "READ_BYTES", "count_rows", "default_budget",
@@ -101,7 +102,7 @@ def count_rows(path: str | Path, *, block: int = 1 << 20) -> int:
         raise ValueError(f"{path}: the streamed path (chunks, workers, a cluster) reads .csv and .parquet files; a ROS "
                          "bag, an .npz or .mat file or a column map is read in memory (drop the streaming options)")
     path = Path(path)
-    suffix = path.suffix.lower()
+    suffix = packed_format(path)  # a packed CSV file: its lines counted as they are decompressed
     if suffix not in (".csv", ".parquet"):
         raise ValueError(f"unknown data format {path.suffix!r} for {path}: use .csv or .parquet")
     if not path.is_file():
@@ -111,7 +112,7 @@ def count_rows(path: str | Path, *, block: int = 1 << 20) -> int:
 
         return int(pyarrow.parquet.ParquetFile(path).metadata.num_rows)
     lines, last = 0, b"\n"
-    with path.open("rb") as stream:
+    with open_binary(path) as stream:
         while chunk := stream.read(block):
             lines += chunk.count(b"\n")
             last = chunk[-1:]

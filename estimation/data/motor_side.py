@@ -40,6 +40,7 @@ from dynamics.transmission import (
 )
 from estimation.data.loading import (MeasurementError, MissingColumnError, in_si_units, other_delimiter,
                                      without_repeated_headers)
+from estimation.data.compressed_logs import csv_input, data_suffix, open_text
 from estimation.data.log_cleaning import DEFAULT_MAX_GAP
 from estimation.data.log_formats import is_log_file, read_log_frame
 from estimation.data.records import (csv_options, csv_units, in_the_format, read_csv_frame, read_parquet_frame, read_record,
@@ -59,7 +60,7 @@ def _csv_header(path: Path) -> list[str]:
     """The column names of a CSV file, split by its delimiter (a comma, or the other one a header without commas
     holds: :func:`estimation.data.loading.other_delimiter`), as :func:`read_csv_frame` reads them."""
     try:
-        with open(path, errors="replace") as stream:
+        with open_text(path) as stream:
             header = stream.readline().rstrip("\r\n")
     except OSError as error:
         raise MeasurementError(f"cannot read {path}: {error}") from None
@@ -68,7 +69,7 @@ def _csv_header(path: Path) -> list[str]:
 
 def _read_frame(path: Path) -> pd.DataFrame:
     try:
-        return read_parquet_frame(path) if path.suffix.lower() == ".parquet" else read_csv_frame(path)
+        return read_parquet_frame(path) if data_suffix(path) == ".parquet" else read_csv_frame(path)
     except (ValueError, OSError, pd.errors.ParserError) as error:
         raise MeasurementError(f"cannot read {path}: {error}") from None
 
@@ -206,14 +207,14 @@ def directed(segment: Measurements, directions: JointDirections) -> Measurements
 def _read_record(path: str | Path, *, model: IdentificationModel, transmission: Transmission | None,
                  max_gap: float, split: bool) -> tuple[Measurements, ...]:
     source, path = path, Path(os.fspath(path))
-    if path.suffix.lower() not in (".csv", ".parquet") or not path.is_file():
+    if data_suffix(path) not in (".csv", ".parquet") or not path.is_file():
         return read_record(source, model=model, max_gap=max_gap, split=split)  # its messages for a folder, a format
     if is_log_file(source):  # a table read through a column map: motor columns it maps (im1=...) converted too
         frame = read_log_frame(source, joint_names=model.robot.joint_names, n_joints=model.robot.n_joints)
         if motor_columns(frame.columns):
             frame = joint_side_frame(frame, transmission, model.robot.n_joints, source=str(path))
         return segments_from_frame(frame, model=model, source=str(path), max_gap=max_gap, split=split)
-    header = _csv_header(path) if path.suffix.lower() == ".csv" else _read_frame(path).columns
+    header = _csv_header(path) if data_suffix(path) == ".csv" else _read_frame(path).columns
     if not motor_columns(header) and "q1" in {str(name).strip() for name in header}:
         return read_record(path, model=model, max_gap=max_gap, split=split)
     frame = _read_frame(path)
@@ -238,9 +239,10 @@ def _read_record(path: str | Path, *, model: IdentificationModel, transmission: 
 def _frames(path: Path, chunk_size: int) -> Iterator[pd.DataFrame]:
     """The rows of a .csv or .parquet file as frames of ``chunk_size`` rows."""
     try:
-        if path.suffix.lower() == ".csv":
+        if data_suffix(path) == ".csv":
             factors = csv_units(path)  # a units row (its units converted), ';' as the joint side
-            with pd.read_csv(path, chunksize=chunk_size, **csv_options(path)) as reader:
+            options = csv_options(path)
+            with csv_input(path) as source, pd.read_csv(source, chunksize=chunk_size, **options) as reader:
                 for frame in reader:
                     yield in_si_units(without_repeated_headers(frame, str(path)), factors)
             return
@@ -322,10 +324,10 @@ def joint_side_copies(paths: Sequence[str | Path], folder: str | Path, *, n_join
     copies: list[Path] = []
     for index, source in enumerate(paths):
         path = Path(os.fspath(source))
-        if path.suffix.lower() not in (".csv", ".parquet") or not path.is_file() or is_log_file(source):
+        if data_suffix(path) not in (".csv", ".parquet") or not path.is_file() or is_log_file(source):
             copies.append(source)  # the streamed reader names what it cannot read
             continue
-        header = _csv_header(path) if path.suffix.lower() == ".csv" else \
+        header = _csv_header(path) if data_suffix(path) == ".csv" else \
             next(_frames(path, 1)).columns
         formatted = model is not None and not motor_columns(header) and not _in_format(header)
         if formatted:  # a controller's log: its columns as the in-memory reader names them (currents: im1..)
@@ -370,7 +372,7 @@ def formatted_header(path: str | Path, model: IdentificationModel) -> list[str]:
     (:func:`~estimation.data.records.in_the_format`, read from its first :data:`HEADER_ROWS` rows, nothing said):
     a controller's log's columns under the format's names (its motor currents as ``im1``..)."""
     path = Path(os.fspath(path))
-    header = _csv_header(path) if path.suffix.lower() == ".csv" else next(_frames(path, 1)).columns
+    header = _csv_header(path) if data_suffix(path) == ".csv" else next(_frames(path, 1)).columns
     if _in_format(header):
         return [str(name) for name in header]
     with warnings.catch_warnings():
@@ -398,7 +400,7 @@ def divided_torque_copies(paths: Sequence[str | Path], folder: str | Path, gains
     copies: list[Path] = []
     for index, source in enumerate(paths):
         path = Path(os.fspath(source))
-        if path.suffix.lower() not in (".csv", ".parquet") or not path.is_file() or is_log_file(source):
+        if data_suffix(path) not in (".csv", ".parquet") or not path.is_file() or is_log_file(source):
             raise ValueError(f"{source}: only .csv and .parquet files are copied with their torques divided")
         target = folder / str(index) / f"{path.stem}.parquet"
         target.parent.mkdir(parents=True, exist_ok=True)

@@ -31,7 +31,6 @@ from estimation.data.loading import (
     ABSURD_VALUE,
     AbsurdValueError,
     BlankRowsWarning,
-    UnstartedChannelsWarning,
     COLUMN_GROUPS,
     EncoderGlitchWarning,
     HeldChannelWarning,
@@ -69,6 +68,8 @@ from estimation.data.loading import (
     required_groups,
     uniform_grid,
 )
+from estimation.data.unstarted_edges import data_cells, said_unstarted, span
+from estimation.data.compressed_logs import COMPRESSIONS, csv_input, open_text, packed_format, packer_named
 from estimation.data.date_times import seconds_of_date_times
 from estimation.data.passive import with_passive_torques
 from estimation.data.log_formats import (
@@ -189,6 +190,8 @@ def read_record(
     """
     source, path = path, Path(os.fspath(path))
     suffix = path.suffix.lower()
+    if suffix in COMPRESSIONS:  # a CSV file packed whole: read as the file it packs
+        suffix = packed_format(path)
     if is_log_file(source):  # a ROS bag, .npz, .mat, or a column map (estimation.data.log_formats)
         robot = model.robot if isinstance(model, IdentificationModel) else None
         frame = read_log_frame(source, joint_names=None if robot is None else robot.joint_names,
@@ -198,11 +201,9 @@ def read_record(
     if path.is_dir():
         raise IsADirectoryError(f"data file {path} is a folder")
     if suffix not in (".csv", ".parquet"):
-        packed = path.suffix.lower() in COMPRESSED_SUFFIXES
-        raise MeasurementError(f"unknown data format {path.suffix!r} for {path}: use .csv or .parquet, a ROS bag "
-                               "(.mcap, .db3, .bag or a rosbag2 folder), .npz or .mat"
-                               + (f"; a compressed file: unpack it first (its inner name {path.stem!r})"
-                                  if packed else ""))
+        raise MeasurementError(f"unknown data format {path.suffix!r} for {path}: use .csv or .parquet (either "
+                               "packed by gzip, bzip2, xz or in a one-file ZIP archive), a ROS bag (.mcap, .db3, .bag "
+                               "or a rosbag2 folder), .npz or .mat" + packer_named(path))
     if not path.is_file():
         raise FileNotFoundError(f"data file not found: {path}")
     try:
@@ -247,7 +248,7 @@ def in_the_format(frame: pd.DataFrame, path: Path, model: IdentificationModel | 
     time = None if echo is not None else time_column(frame)
     if time is not None:  # the time under another name (time, timestamp_ns, time [ms]), not t
         frame = apply_column_map(frame, {"t": time}, str(path))
-        warnings.warn(TimeColumnWarning(f"{path}: no column t; the time read as --columns t={time}"),
+        warnings.warn(TimeColumnWarning(f"{path}: no column t; the time read as --columns {shlex.quote('t=' + time)}"),
                       stacklevel=2)
     elif echo is None and "t" not in frame.columns:
         time = split_stamp(frame, path)
@@ -313,14 +314,16 @@ DIALECT_ROWS = 20
 def read_csv_frame(path: Path) -> pd.DataFrame:
     """The CSV file as a table: comma-separated with ``.`` decimals, or as :func:`csv_options` says, lines repeating
     its header dropped (:func:`without_repeated_headers`), its columns in the format's SI units (:func:`csv_units`)."""
-    frame = in_si_units(without_repeated_headers(pd.read_csv(path, **csv_options(path)), str(path)), csv_units(path))
+    options = csv_options(path)
+    with csv_input(path) as source:
+        frame = in_si_units(without_repeated_headers(pd.read_csv(source, **options), str(path)), csv_units(path))
     return seconds_of_date_times(frame, str(path))[0]
 
 
 def _units_row(path: Path) -> tuple[str, list[str], list[str]] | None:
     """``(delimiter, header fields, second line's fields)`` of a CSV file (``None`` where it cannot be read)."""
     try:
-        with open(path, errors="replace") as stream:
+        with open_text(path) as stream:
             header, row = stream.readline(), stream.readline()
     except OSError:
         return None
@@ -347,7 +350,7 @@ def csv_options(path: Path) -> dict[str, object]:
     the format's are converted by the reader, :func:`csv_units`), said in a :class:`UnitsRowWarning`; ``{}`` for a plain file or where nothing can be told (the reader's error then names
     the separator, or the text beneath the names)."""
     try:
-        with open(path, errors="replace") as stream:
+        with open_text(path) as stream:
             header, rows = stream.readline(), [stream.readline() for _ in range(DIALECT_ROWS + 1)]
     except OSError:
         return {}
@@ -375,7 +378,7 @@ def csv_options(path: Path) -> dict[str, object]:
 def _delimiter_note(path: Path) -> str:
     """``" (…separated by ';'…)"`` when the file's header is not separated by commas, else ``""``."""
     try:
-        with open(path, errors="replace") as stream:
+        with open_text(path) as stream:
             header = stream.readline()
     except OSError:
         return ""
@@ -394,10 +397,6 @@ def read_parquet_frame(path: Path) -> pd.DataFrame:
             f"cannot read {path}: Parquet needs the pyarrow package (pip install pyarrow); or save the data as CSV"
         ) from None
     return seconds_of_date_times(pd.read_parquet(path), str(path))[0]
-
-
-#: the endings of a compressed file: a log packed for storage, named in the unknown-format message
-COMPRESSED_SUFFIXES = (".gz", ".bz2", ".xz", ".zst", ".zip", ".7z")
 
 
 def segments_from_frame(
@@ -532,13 +531,6 @@ def dropouts(frame: pd.DataFrame, n_joints: int) -> NDArray[np.bool_]:
     return blank
 
 
-def _data_cells(frame: pd.DataFrame, n_joints: int) -> list[str]:
-    """The data columns of ``frame`` (``q, dq, ddq, tau``, wrench: those present), as :func:`dropouts` reads them."""
-    return [column for group in COLUMN_GROUPS
-            for column in (list(WRENCH_CHANNELS) if group == "wrench" else joint_columns(group, n_joints))
-            if column in frame.columns]
-
-
 def held_cells(arrays: dict, repeats: dict[str, NDArray[np.bool_]]) -> NDArray[np.bool_]:
     """``(N, k)`` the cells of the measured channels of ``arrays`` (``tau`` then ``wrench``, those present: the
     columns :func:`estimation.data.channel_mask.masked_channels` takes) that repeat a held value, every column of a
@@ -552,9 +544,9 @@ def _started(frame: pd.DataFrame, n_joints: int, source: str) -> tuple[pd.DataFr
     """``(frame, kept)``: ``frame`` without the rows before every data channel has reported and after one has stopped
     (:func:`estimation.data.log_cleaning.unstarted_rows`), said in an :class:`UnstartedChannelsWarning` naming how
     many, the time they span and the channels that lacked a value, and the mask of the rows kept; ``frame`` itself
-    and ``None`` when there are none (in memory only: the streamed reader refuses such a record as it does any blank
-    cell)."""
-    cells = _data_cells(frame, n_joints)
+    and ``None`` when there are none (the streamed reader drops the same rows block by block:
+    :func:`estimation.data.unstarted_edges.started_blocks`)."""
+    cells = data_cells(frame, n_joints)
     if not cells or not len(frame):
         return frame, None
     empty = _empty_cells(frame)(cells)
@@ -564,20 +556,10 @@ def _started(frame: pd.DataFrame, n_joints: int, source: str) -> tuple[pd.DataFr
     lacking = [column for column, missing in zip(cells, empty[edges].any(axis=0)) if missing]
     head = int(np.argmax(~edges))
     tail = int(edges.sum()) - head
-    stamps = pd.to_numeric(frame["t"], errors="coerce").to_numpy(dtype=float) if "t" in frame.columns else None
-
-    def span(rows: slice) -> str:
-        if stamps is None or not np.isfinite(stamps[rows]).any():
-            return ""
-        return f" (t = {np.nanmin(stamps[rows]):.6g} to {np.nanmax(stamps[rows]):.6g})"
-
-    said = [f"{head} row(s) at its start{span(slice(0, head))}"] if head else []
-    said += [f"{tail} row(s) at its end{span(slice(len(frame) - tail, len(frame)))}"] if tail else []
-    warnings.warn(
-        f"{source}: dropped {' and '.join(said)} where some channels hold no value yet or no longer "
-        f"({', '.join(lacking[:8])}{' …' if len(lacking) > 8 else ''}: a logger whose channels start and stop on "
-        "their own); the record is the rows where every channel holds a value", UnstartedChannelsWarning,
-        stacklevel=5)
+    stamps = pd.to_numeric(frame["t"], errors="coerce").to_numpy(dtype=float) if "t" in frame.columns else \
+        np.zeros(len(frame))
+    said_unstarted(head, tail, span(stamps[:head]) if "t" in frame.columns else "",
+                   span(stamps[len(frame) - tail:]) if "t" in frame.columns else "", lacking, source, stacklevel=5)
     return frame[~edges].reset_index(drop=True), ~edges
 
 

@@ -51,6 +51,7 @@ from dynamics.measurements import Measurements
 from dynamics.physical_parameters import consistency_margin, link_from_psi, log_cholesky_from_link, project_link
 from dynamics.robot import LINK_PARAMETER_NAMES
 from estimation.identification.identified_model import IdentifiedModel
+from estimation.data.compressed_logs import csv_input, data_suffix
 from estimation.data.segments import segment_slices
 from estimation.preprocessing.delay import delayed
 from estimation.uncertainty.covariance import CovarianceMethod, check_method, hac_covariance
@@ -162,9 +163,13 @@ class PayloadRows:
 
 def _check_joint_columns(model: IdentifiedModel, path: Path) -> None:
     """Refuse a CSV/Parquet record of a robot with more joints than the model's."""
-    if path.suffix.lower() not in (".csv", ".parquet") or not path.is_file():
+    if not path.is_file() or data_suffix(path) not in (".csv", ".parquet"):
         return
-    header = pd.read_csv(path, nrows=0).columns if path.suffix.lower() == ".csv" else pd.read_parquet(path).columns
+    if data_suffix(path) == ".csv":
+        with csv_input(path) as stream:  # a packed CSV file's header, decompressed
+            header = pd.read_csv(stream, nrows=0).columns
+    else:
+        header = pd.read_parquet(path).columns
     n = model.robot.n_joints
     extra = [column for column in header if column in (f"q{n + 1}", f"tau{n + 1}")]
     if extra:

@@ -32,6 +32,7 @@ pass over the file keeps column ``t`` and a mask of the rows kept). A hole longe
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import itertools
 import re
@@ -48,21 +49,27 @@ from numpy.typing import NDArray
 from dynamics.models import IdentificationModel
 from dynamics.runtime.threads import single_threaded_blas
 from dynamics.channels import WRENCH_CHANNELS
+from estimation.data.compressed_logs import csv_input, data_suffix, packed_format, packer_named
 from estimation.data.log_formats import LogSource, is_log_file
+from estimation.data.long_blocks import long_blocks
+from estimation.data.reversed_csv import ReversedReadError, reversed_csv_frames
+from estimation.data.unstarted_edges import started_blocks
 from estimation.data.memory_budget import count_rows
 from estimation.data.log_cleaning import DEFAULT_MAX_GAP
 from estimation.data.loading import (
     HoldWarning,
     MeasurementError,
+    NewestFirstWarning,
     MeasurementWarning,
     TimeBaseError,
     TooFewSamplesError,
     in_si_units,
     without_repeated_headers,
+    written_newest_first,
 )
 from estimation.data.log_cleaning import HeldExtremes
 from estimation.data.date_times import seconds_of_date_times
-from estimation.data.records import (AngleTurns, csv_options, csv_units, in_the_format, measurements_from_frame,
+from estimation.data.records import (AngleTurns, csv_options, dropouts, csv_units, in_the_format, measurements_from_frame,
                                      said_clipped,
                                      said_unwrapped, unwrap_angles)
 from estimation.data.sampling_clock import ClockSums, clock_instants, said_receive_times
@@ -122,12 +129,38 @@ def _raw_frames(path: Path, chunk_size: int, model: IdentificationModel | None =
     frames = _file_frames(path, chunk_size)
     if model is None:
         yield from frames
-    else:
-        yield from _in_the_format(frames, path, model, say)
+        return
+    formatted = _in_the_format(frames, path, model, say, chunk_size)
+    first = next(formatted, None)
+    if first is not None and _newest_first(first):  # read from the file's end, oldest row first, as memory reverses it
+        formatted.close()
+        if say:
+            warnings.warn(NewestFirstWarning(
+                f"{path}: column t decreases on every row of its first block: a log written newest first, read from "
+                "its end (oldest first); the rows named in other messages count from the oldest"), stacklevel=2)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # the reading said with the first block
+            formatted = _in_the_format(_file_frames(path, chunk_size, reverse=True), path, model, say=False,
+                                       chunk_size=chunk_size)
+            yield from started_blocks(formatted, model.robot.n_joints, str(path), say=say,
+                                      dropouts=functools.partial(dropouts, n_joints=model.robot.n_joints))
+        return
+    # the rows before every channel has reported and after one has stopped left out, as in memory
+    yield from started_blocks(itertools.chain([] if first is None else [first], formatted), model.robot.n_joints,
+                              str(path), say=say, dropouts=functools.partial(dropouts, n_joints=model.robot.n_joints))
+
+
+def _newest_first(frame: pd.DataFrame) -> bool:
+    """Whether a file's first block (in the format's columns) is a newest-first log's
+    (:func:`estimation.data.loading.written_newest_first`)."""
+    if "t" not in frame.columns:
+        return False
+    t = pd.to_numeric(frame["t"], errors="coerce").to_numpy(dtype=float)
+    return written_newest_first(t[np.isfinite(t)])
 
 
 def _in_the_format(frames: Iterator[pd.DataFrame], path: Path, model: IdentificationModel,
-                   say: bool = True) -> Iterator[pd.DataFrame]:
+                   say: bool = True, chunk_size: int = DEFAULT_CHUNK_SIZE) -> Iterator[pd.DataFrame]:
     """``frames`` read as :func:`estimation.data.records.in_the_format` reads the whole table: a controller's or
     driver's log (``actual_q_0``, ``q[0]``, ``measured_torque`` with arrays in cells…), ``rostopic echo -p`` of
     ``JointState`` messages, the time or the joints under other names, each block by the same rule (the same
@@ -135,6 +168,8 @@ def _in_the_format(frames: Iterator[pd.DataFrame], path: Path, model: Identifica
     (the in-memory reader's warning); a later block read with other columns is an error naming the in-memory
     route (never met on a log whose header and cells keep their meaning)."""
     columns = None
+    frames = long_blocks(frames, model.robot.joint_names, str(path), chunk_size=chunk_size, say=say)  # a long
+    # table put side by side
     for index, frame in enumerate(frames):
         with warnings.catch_warnings():
             if index or not say:
@@ -149,9 +184,11 @@ def _in_the_format(frames: Iterator[pd.DataFrame], path: Path, model: Identifica
         yield formatted
 
 
-def _file_frames(path: Path, chunk_size: int, only_time: bool = False) -> Iterator[pd.DataFrame]:
-    """The file's rows as frames of ``chunk_size`` (with ``only_time``: column ``t`` alone, if any)."""
-    suffix = path.suffix.lower()
+def _file_frames(path: Path, chunk_size: int, only_time: bool = False, reverse: bool = False
+                 ) -> Iterator[pd.DataFrame]:
+    """The file's rows as frames of ``chunk_size`` (with ``only_time``: column ``t`` alone, if any; ``reverse``: the
+    last row first, :func:`estimation.data.reversed_csv.reversed_csv_frames`)."""
+    suffix = packed_format(path)  # a CSV file packed whole: read as the file it packs, decompressed block by block
     if is_log_file(path) or isinstance(path, LogSource):
         raise MeasurementError(f"{path}: the streamed path (chunks, workers, a cluster) reads .csv and .parquet files; "
                                "a ROS bag, an .npz or .mat file or a column map is read in memory (drop the streaming "
@@ -159,7 +196,8 @@ def _file_frames(path: Path, chunk_size: int, only_time: bool = False) -> Iterat
     if path.is_dir():
         raise MeasurementError(f"data file {path} is a folder")
     if suffix not in (".csv", ".parquet"):
-        raise MeasurementError(f"unknown data format {path.suffix!r} for {path}: use .csv or .parquet")
+        raise MeasurementError(f"unknown data format {path.suffix!r} for {path}: use .csv or .parquet (either "
+                               "packed by gzip, bzip2, xz or in a one-file ZIP archive)" + packer_named(path))
     if not path.is_file():
         raise MeasurementError(f"data file not found: {path}")
     origin = None  # the first stamp of a time column of date-times (estimation.data.date_times)
@@ -167,7 +205,14 @@ def _file_frames(path: Path, chunk_size: int, only_time: bool = False) -> Iterat
         if suffix == ".csv":
             usecols = (lambda name: str(name).strip() == "t") if only_time else None
             factors = csv_units(path)  # a units row's other units turned into SI, as in memory
-            with pd.read_csv(path, chunksize=chunk_size, usecols=usecols, **csv_options(path)) as reader:
+            options = csv_options(path)
+            with contextlib.ExitStack() as stack:
+                if reverse:
+                    reader = reversed_csv_frames(path, chunk_size, {**options, "usecols": usecols})
+                else:
+                    source = stack.enter_context(csv_input(path))
+                    reader = stack.enter_context(pd.read_csv(source, chunksize=chunk_size, usecols=usecols,
+                                                             **options))
                 for frame in reader:  # date-times as seconds since the file's first stamp, as in memory
                     frame, origin = seconds_of_date_times(in_si_units(without_repeated_headers(frame, str(path)),
                                                                       factors), str(path), origin)
@@ -177,6 +222,10 @@ def _file_frames(path: Path, chunk_size: int, only_time: bool = False) -> Iterat
                 import pyarrow.parquet
             except ImportError:
                 raise MeasurementError(f"{path}: reading Parquet needs pyarrow (pip install pyarrow)") from None
+            if reverse:
+                raise ReversedReadError(f"{path}: a log written newest first in a Parquet file: the streamed reader "
+                                        "reads a newest-first log from the end of a plain CSV file; read it in memory "
+                                        "(drop the streaming options)")
             # without pre-buffering and threads: the default read grew by ~120 MB over a 1 M-sample file
             parquet = pyarrow.parquet.ParquetFile(path, pre_buffer=False, buffer_size=1 << 20)
             columns = [name for name in parquet.schema_arrow.names if name.strip() == "t"] if only_time else None
@@ -262,7 +311,7 @@ def segment_sources(paths, model: IdentificationModel, *, chunk_size: int = DEFA
     sources = []
     for path in paths:
         file, segment = source_file(path)
-        if segment is not None or file.suffix.lower() not in (".csv", ".parquet") or not file.is_file():
+        if segment is not None or not file.is_file() or data_suffix(file) not in (".csv", ".parquet"):
             sources.append(path)
             continue
         held = file_parts(_raw_frames(file, max(int(chunk_size), 1), model), file, model) if holds_cut else None

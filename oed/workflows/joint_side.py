@@ -21,6 +21,7 @@ from typing import Any
 
 from dynamics.models import IdentificationModel
 from dynamics.transmission import Transmission
+from estimation.data.compressed_logs import data_suffix
 from estimation.data.memory_budget import count_rows, estimate_in_memory
 from estimation.data.motor_side import formatted_header, joint_side_copies, motor_columns
 from oed.workflows.asbuilt import resolve_joint_directions, resolve_joint_offsets
@@ -45,7 +46,7 @@ def _needs_copies(args: RecordOptions, model: IdentificationModel) -> bool:
     for path in _files(args):
         path = Path(path)
         try:
-            if path.suffix.lower() in (".csv", ".parquet") and path.is_file() \
+            if path.is_file() and data_suffix(path) in (".csv", ".parquet") \
                     and motor_columns(formatted_header(path, model)):
                 return True
         except (OSError, ValueError, ImportError):

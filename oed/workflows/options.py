@@ -32,6 +32,7 @@ from dynamics.urdf import logged_chain
 from dynamics.transmission import Transmission
 from dynamics.runtime.report_document import HTML_SUFFIXES, MARKDOWN_SUFFIXES
 from estimation.data.log_cleaning import DEFAULT_MAX_GAP
+from estimation.data.compressed_logs import csv_input
 from estimation.data.loading import count_joint_columns
 from estimation.data.passive import PassiveJointWarning
 from estimation.data.log_formats import BAG_SUFFIXES, DEFAULT_TOPIC, LogSource, apply_column_map, is_log_file, read_log_frame
@@ -219,7 +220,8 @@ def logged_frame_head(source: Path) -> pd.DataFrame | None:
             return None
         if suffix in (".npz", ".mat", ".parquet"):
             return read_log_frame(log)
-        return apply_column_map(pd.read_csv(log.path, nrows=2), log.columns, str(log.path))
+        with csv_input(log.path) as stream:  # a packed CSV file's first rows, decompressed
+            return apply_column_map(pd.read_csv(stream, nrows=2), log.columns, str(log.path))
     except (ValueError, OSError, ImportError, KeyError):
         return None
 

@@ -21,6 +21,7 @@ from estimation.identification.identified_model import IdentifiedModel
 from estimation.identification.training_range import UNKNOWN_RANGE
 from estimation.identification.trivial_predictors import trivial_warnings
 from estimation.data.input_findings import grouped_messages
+from estimation.data.compressed_logs import data_suffix
 from estimation.data.log_formats import DEFAULT_TOPIC
 from estimation.data.motor_side import joint_side_copies
 from estimation.data.memory_budget import count_rows, default_budget, estimate_in_memory, parse_memory_size
@@ -165,8 +166,8 @@ def streaming_decided(identified: IdentifiedModel, data: Any, memory_budget: str
     ``None``: in memory, as before."""
     budget = default_budget() if memory_budget is None else parse_memory_size(memory_budget)
     files = paths(data)
-    if per_sample or not all(isinstance(path, (str, Path)) and Path(path).suffix.lower() in (".csv", ".parquet")
-                             and Path(path).is_file() for path in files):
+    if per_sample or not all(isinstance(path, (str, Path)) and Path(path).is_file()
+                             and data_suffix(path) in (".csv", ".parquet") for path in files):
         return None
     try:
         rows = [count_rows(path) for path in files]

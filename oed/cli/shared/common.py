@@ -123,7 +123,7 @@ def add_data_arguments(parser: argparse.ArgumentParser, *, validate_required: bo
     """``--data`` and ``--validate`` (each repeatable: the segments of one record), ``--max-gap``, and the options
     of :func:`add_log_arguments`."""
     parser.add_argument("--data", type=Path, required=True, action="append",
-                        help="identification data (.csv or .parquet; a ROS bag: .mcap, .db3, .bag or a rosbag2 "
+                        help="identification data (.csv or .parquet, a .csv packed as .gz, .bz2, .xz or a one-file .zip; a ROS bag: .mcap, .db3, .bag or a rosbag2 "
                              "folder; .npz or .mat with --columns); repeat for several segments (files), each "
                              "preprocessed on its own and stacked")
     parser.add_argument("--validate", type=Path, required=validate_required, action="append",
