@@ -129,10 +129,13 @@ def capped_in_memory(friction):
 
 #: past ``--memory-budget`` the run streams as with ``--chunk-size`` (that route's own findings and answers are checked in
 #: ``make test`` by tests/test_streamed_reader_parity.py and tests/test_one_answer_audit.py's jittered budget cases):
-#: the budget case runs in ``make test-slow``
-@pytest.mark.parametrize("options", [("--chunk-size", "250"), pytest.param(("--memory-budget", "1KB"), marks=pytest.mark.slow), ("jittered",)],
+#: the budget case runs in ``make test-slow``; so does the clean validation log with ``--chunk-size``: the jittered case,
+#: which stays, streams the same training file with the same options and makes every check of it (effects, the plain
+#: law completed and taken, the model file, the errors, ``oed predict``) against memory's run on its own validation log
+@pytest.mark.parametrize("options", [pytest.param(("--chunk-size", "250"), marks=pytest.mark.slow),
+                                     pytest.param(("--memory-budget", "1KB"), marks=pytest.mark.slow), ("jittered",)],
                          ids=["chunk-size", "memory-budget", "jittered-validation"])
-def test_the_streamed_diagnosis_completes_the_plain_law_as_in_memory(friction, capped_in_memory, tmp_path, options):
+def test_the_streamed_diagnosis_completes_the_plain_law_as_in_memory(friction, request, tmp_path, options):
     """A log streamed (``--chunk-size``, or past ``--memory-budget``) answers the repeat as in memory: the same
     effects, the plain law completed and taken with the same scores, the same model file's parameters, the same
     validation errors of the chosen model; ``oed predict`` reproduces them. On a jittered validation log (resampled by
@@ -140,8 +143,10 @@ def test_the_streamed_diagnosis_completes_the_plain_law_as_in_memory(friction, c
     import pandas as pd
 
     folder, paths = friction
-    memory, validate = capped_in_memory, paths["repeat"]
-    if options == ("jittered",):  # every stamp moved by up to ±30 % of a step, the readings those of the true instant
+    validate = paths["repeat"]
+    if options != ("jittered",):  # the jittered case runs memory on its own validation log, not this one
+        memory = request.getfixturevalue("capped_in_memory")
+    else:  # every stamp moved by up to ±30 % of a step, the readings those of the true instant
         validate = tmp_path / "jittered_repeat.csv"
         frame = pd.read_csv(paths["repeat"])
         step = float(np.median(np.diff(frame.t)))

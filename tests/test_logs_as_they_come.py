@@ -233,25 +233,10 @@ def test_the_verbs_read_a_mujoco_log_of_servo_controls_with_the_mjcf(tmp_path):
     ``--urdf``: the default ``oed identify`` and ``oed diagnose`` compute the joint torques from the controls by the
     servos' laws and, then ``oed predict`` on the test record, do as well as the plain fit on the joint torques,
     reproducing each reported validation error. At 6d10335 every verb exited naming the force arrays."""
-    from benchmarks.bench_real_robots import PlainFit
-    from tests.test_unseen_robot_days import checked
-    from tests.test_unseen_robot_labs import Lab, puma, verbs_against_the_plain_fit, write_records
-    from tests.test_vendor_logs import as_mujoco_servos, servo_description
+    from tests.test_vendor_logs import servo_lab_against_the_plain_fit
 
-    lab = Lab("PUMA 6 with position servos in MJCF, a MuJoCo log of the controls", puma(6),
-              *(Log(seconds, 250.0) for seconds in (10.0, 4.0, 6.0)), slow=True)
-    urdf, records, files, spread = write_records(lab, tmp_path)
-    plain = PlainFit(["--urdf", str(urdf)])
-    cutoff, plain_theta = plain.fit(records["train"], records["validate"], rate_hz=250.0)
-    predicted_plain, kept = plain.predict(records["test"], cutoff, plain_theta)
-    description = servo_description(urdf, tmp_path)
-    for role in ("train", "validate", "test"):
-        as_mujoco_servos(files[role])
-        table = pd.read_csv(files[role])
-        table.drop(columns=[column for column in table.columns if column.startswith("actuator_force")]).to_csv(
-            files[role], index=False, float_format="%.12g")
-    outcome = verbs_against_the_plain_fit(description, files, records["test"], kept, predicted_plain, tmp_path)
-    checked(lab.name, {**outcome, "cutoff": cutoff, "floor": (0.02 * spread) ** 2})
+    servo_lab_against_the_plain_fit("PUMA 6 with position servos in MJCF, a MuJoCo log of the controls", tmp_path,
+                                    controls_only=True)
 
 
 def test_a_held_velocity_column_drops_its_repeats_rows(puma3, tmp_path):

@@ -118,7 +118,11 @@ def test_without_a_delay_the_streamed_diagnosis_says_why_as_in_memory(robot, tmp
     assert streamed.after.delay is None and "delay" not in [e.spec for e in streamed.effects]
 
 
-@pytest.mark.parametrize("jittered", [False, True])
+#: the unjittered case (its memory run compared to 1e-9) is `slow`: memory's delay to 1e-9 is held in ``make test`` by
+#: test_the_streamed_diagnosis_finds_the_delay_of_memory (these files, the library's paths) and, through the CLI, by
+#: test_a_declared_delay_bound_is_searched_streamed_as_in_memory; the model file's delay and ``oed predict`` of the
+#: chosen model and of every alternative by the jittered case, which stays
+@pytest.mark.parametrize("jittered", [pytest.param(False, marks=pytest.mark.slow), True])
 def test_the_streamed_cli_writes_the_delay_that_predict_uses(files, tmp_path, capsys, jittered):
     """The model file holds the adopted delay (memory's, to 1e-9: the records are their own subsamples), and ``oed
     predict`` of the chosen model and of every alternative measures the errors the run reported; on a jittered

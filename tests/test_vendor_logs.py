@@ -611,13 +611,22 @@ def test_a_mujoco_log_of_position_servos_predicts_as_well_as_a_plain_fit(tmp_pat
     gears, never the controls, then ``oed predict`` on the test record does as well as the plain fit on the joint
     torques, reproducing each reported validation error. At 6ee74d4 every verb exited: no column ``q1`` (``qpos``
     named no quantity)."""
+    servo_lab_against_the_plain_fit("PUMA 6 with position servos in MJCF, a MuJoCo log", tmp_path)
+
+
+def servo_lab_against_the_plain_fit(name: str, tmp_path: Path, *, controls_only: bool = False) -> None:
+    """The slow MJCF servo cases' run: a PUMA 6 lab (10 s / 4 s / 6 s at 250 Hz) fitted plainly, its description
+    written with :func:`servo_description` and its records as :func:`as_mujoco_servos` logs them (``controls_only``:
+    without the ``actuator_force`` columns, the torques left to the servos' laws), then the default verbs against the
+    plain fit (:func:`tests.test_unseen_robot_labs.verbs_against_the_plain_fit`, judged by
+    :func:`tests.test_unseen_robot_days.checked`). Shared by this file's case and
+    :func:`tests.test_logs_as_they_come.test_the_verbs_read_a_mujoco_log_of_servo_controls_with_the_mjcf`."""
     from benchmarks.bench_real_robots import PlainFit
     from tests.test_unseen_robot_days import checked
     from tests.test_unseen_robot_labs import Lab, puma, verbs_against_the_plain_fit, write_records
     from tests.test_unseen_robots import Log
 
-    lab = Lab("PUMA 6 with position servos in MJCF, a MuJoCo log", puma(6),
-              *(Log(seconds, 250.0) for seconds in (10.0, 4.0, 6.0)), slow=True)
+    lab = Lab(name, puma(6), *(Log(seconds, 250.0) for seconds in (10.0, 4.0, 6.0)), slow=True)
     urdf, records, files, spread = write_records(lab, tmp_path)
     plain = PlainFit(["--urdf", str(urdf)])
     cutoff, plain_theta = plain.fit(records["train"], records["validate"], rate_hz=250.0)
@@ -625,6 +634,9 @@ def test_a_mujoco_log_of_position_servos_predicts_as_well_as_a_plain_fit(tmp_pat
     description = servo_description(urdf, tmp_path)
     for role in ("train", "validate", "test"):
         as_mujoco_servos(files[role])
+        if controls_only:
+            table = pd.read_csv(files[role])
+            table.drop(columns=[column for column in table.columns if column.startswith("actuator_force")]).to_csv(
+                files[role], index=False, float_format="%.12g")
     outcome = verbs_against_the_plain_fit(description, files, records["test"], kept, predicted_plain, tmp_path)
     checked(lab.name, {**outcome, "cutoff": cutoff, "floor": (0.02 * spread) ** 2})
-

@@ -451,6 +451,16 @@ def _is_number(text: str) -> bool:
     return True
 
 
+def column_floats(column: pd.Series) -> NDArray[np.float64]:
+    """``(N,)`` the column's values as floats, a cell that is not a number as NaN: ``pd.to_numeric(column,
+    errors="coerce").to_numpy(dtype=float)``, bit for bit. A column NumPy already holds as floats or integers is
+    converted directly (``pd.to_numeric`` returns such a column unchanged; its call costs a Series a call, and the
+    streamed reader converts every data column of every block in each pass)."""
+    if isinstance(column.dtype, np.dtype) and column.dtype.kind in "fiu":
+        return column.to_numpy(dtype=float)
+    return pd.to_numeric(column, errors="coerce").to_numpy(dtype=float)
+
+
 def numeric_columns(frame: pd.DataFrame, columns: list[str], source: str) -> NDArray[np.float64]:
     """``(N, len(columns))`` floats of ``frame``'s ``columns``; :class:`NonFiniteError` naming the first
     NaN, inf or non-numeric cell."""

@@ -63,6 +63,7 @@ from estimation.data.loading import (
     MeasurementWarning,
     TimeBaseError,
     TooFewSamplesError,
+    column_floats,
     in_si_units,
     without_repeated_headers,
     written_newest_first,
@@ -396,7 +397,7 @@ def _unwrapped(frame: pd.DataFrame, model: IdentificationModel, source: str, bef
     columns = _group_columns("q", model.robot.n_joints)
     if not set(columns) <= set(frame.columns):  # the chunk's checks name the missing column
         return frame, before, np.zeros(len(columns), dtype=np.int_)
-    q = np.column_stack([pd.to_numeric(frame[column], errors="coerce").to_numpy(dtype=float) for column in columns])
+    q = np.column_stack([column_floats(frame[column]) for column in columns])
     unwrapped, after, wraps = unwrap_angles(q, model, source, before, first_row=first_row)
     if unwrapped is not q:
         frame = frame.assign(**{column: unwrapped[:, j] for j, column in enumerate(columns)})
@@ -419,9 +420,8 @@ class _ClockEvidence:
         frame = frame.rename(columns=lambda name: str(name).strip())
         if not set(self.columns) | {"t"} <= set(frame.columns) or not len(frame):
             return
-        t = pd.to_numeric(frame["t"], errors="coerce").to_numpy(dtype=float)
-        q = np.column_stack([pd.to_numeric(frame[column], errors="coerce").to_numpy(dtype=float)
-                             for column in self.columns])
+        t = column_floats(frame["t"])
+        q = np.column_stack([column_floats(frame[column]) for column in self.columns])
         if not self.samples:
             self.first = float(t[0])
         self.samples += t.shape[0]
@@ -458,15 +458,14 @@ class _ClippedEvidence:
         first, self.row = self.row, self.row + len(frame)
         if not set(self.q) | {"t"} <= set(frame.columns) or not len(frame):
             return
-        numeric = functools.partial(pd.to_numeric, errors="coerce")
-        q = np.column_stack([numeric(frame[column]).to_numpy(dtype=float) for column in self.q])
-        t = numeric(frame["t"]).to_numpy(dtype=float)
+        q = np.column_stack([column_floats(frame[column]) for column in self.q])
+        t = column_floats(frame["t"])
         for name, columns in self.groups.items():
             if not set(columns) <= set(frame.columns):
                 continue
             if name not in self.scans:
                 self.scans[name] = HeldExtremes(len(columns), len(self.q), wrench=name == "wrench")
-            values = np.column_stack([numeric(frame[column]).to_numpy(dtype=float) for column in columns])
+            values = np.column_stack([column_floats(frame[column]) for column in columns])
             if name in self.held:  # the repeats masked, as memory judges the channel after masking them
                 values[self.held[name][first:self.row]] = np.nan
             self.scans[name].add(values, q, t)
@@ -721,15 +720,14 @@ class _ChunkChecks:
         checked_chunk = measurements_from_frame(frame, model=self.model, resample=True, source=source,
                                                 glitches=False)
         frame = frame.rename(columns=lambda name: str(name).strip())
-        t = pd.to_numeric(frame["t"], errors="coerce").to_numpy(dtype=float)
+        t = column_floats(frame["t"])
         if previous is not None:
             if not t[0] > previous[0]:
                 raise TimeBaseError(f"{path}: column t does not increase at row {self.row + 1} ({previous[0]:.9g} -> "
                                     f"{t[0]:.9g}); sort the samples")
         groups = [name for name in _GROUPS if getattr(checked_chunk, name) is not None]
         columns = [column for name in groups for column in _group_columns(name, n_joints)]
-        values = np.column_stack([pd.to_numeric(frame[column], errors="coerce").to_numpy(dtype=float)
-                                  for column in columns])
+        values = np.column_stack([column_floats(frame[column]) for column in columns])
         if self.mask is not None:  # the masked cells NaN before the resampling, as memory's
             start = 0
             for name in groups:

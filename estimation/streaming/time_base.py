@@ -20,14 +20,13 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
 from numpy.typing import NDArray
 
 from dynamics.channels import WRENCH_CHANNELS
 from dynamics.measurements import joint_columns
 from dynamics.models import IdentificationModel
 from dynamics.runtime.memory import check_allocation
-from estimation.data.loading import SegmentTooShortError, resampling_grid
+from estimation.data.loading import SegmentTooShortError, column_floats, resampling_grid
 from estimation.data.log_cleaning import (DEFAULT_MAX_GAP, GLITCH_RUN, PositionSteps, position_steps, repeated_rows,
                                           split_rows)
 from estimation.data.held_channels import MASKED_GROUPS, HeldChannels, held_rows
@@ -272,11 +271,11 @@ def _cleaned(frames, path: str | Path, model: IdentificationModel, *, max_gap: f
             blank = blank | dropped
         present.append(~blank)
         frame = frame[~blank]
-        t = pd.to_numeric(frame["t"], errors="coerce").to_numpy(dtype=float)
+        t = column_floats(frame["t"])
         columns = [column for group in ("q", "dq", "ddq", "tau", "wrench")
                    for column in [_columns(group, n_joints)] if all(name in frame.columns for name in column)]
-        data = np.column_stack([pd.to_numeric(frame[name], errors="coerce").to_numpy(dtype=float)
-                                for column in columns for name in column]) if columns else np.zeros((len(frame), 0))
+        data = np.column_stack([column_floats(frame[name]) for column in columns for name in column]) if columns \
+            else np.zeros((len(frame), 0))
         count += t.shape[0]
         check_allocation(8.0 * (3 if positions is None else 5) * count, f"the time column of {path} ({count} samples)")
         parts.append(t)
