@@ -275,3 +275,29 @@ def test_the_gains_and_the_mount_check_leave_a_masked_sample_out_whole():
     found, reference = check_mount(model, *masked), check_mount(model, *kept)
     assert found is not None and np.isfinite(found.found_mse)
     assert np.allclose(found.found, reference.found) and found.found_mse == pytest.approx(reference.found_mse)
+
+
+@pytest.mark.slow
+def test_the_diagnosis_drops_gains_its_answer_does_not_confirm(tmp_path, puma3, monkeypatch):
+    """``oed diagnose`` keeps the gains its quick check took only when its answer with them validates better than the
+    adopted model fitted to the torques as recorded (identify's rule, h-gains2): the true gains of this log are
+    confirmed and kept; with the comparison made to refuse them, the records are diagnosed again as logged, the
+    summary holds no gains, the refusal is said, and ``oed predict`` reproduces the error the run reports."""
+    import oed
+    import oed.workflows.diagnose as diagnose_module
+
+    folder, urdf, _ = puma3(True)
+    kept = oed.diagnose(urdf=urdf, data=folder / "train.csv", validate=folder / "validate.csv", friction=FRICTION)
+    kept.write(tmp_path / "kept.json")
+    document = json.loads((tmp_path / "kept.json").read_text())
+    assert document["torque_gains"] is not None and "torque_gains" in document["model_file"]
+    assert "without them (" in document["model_selection"]["reason"] and ", kept" in document["model_selection"]["reason"]
+    monkeypatch.setattr(diagnose_module, "diagnosed_gains_answer", lambda *_: (False, "refused by the test"))
+    refused = oed.diagnose(urdf=urdf, data=folder / "train.csv", validate=folder / "validate.csv", friction=FRICTION)
+    refused.write(tmp_path / "refused.json")
+    document = json.loads((tmp_path / "refused.json").read_text())
+    assert document["torque_gains"] is None and "torque_gains" not in document["model_file"]
+    assert any("refused by the test" in text for text in refused.warnings)
+    predicted = oed.predict(model=tmp_path / "refused.json", data=folder / "validate.csv")
+    reported, measured = document["validation"]["chosen"]["mse"], predicted.evaluation.prediction.mse
+    assert all(abs(measured[c] / reported[c] - 1.0) < 1e-6 for c in reported), (measured, reported)

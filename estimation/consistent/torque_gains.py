@@ -47,7 +47,7 @@ from estimation.identification.repeated_motion import REPEAT_FRACTION, repeated_
 from estimation.identification.validation import ChannelErrors, Comparison
 
 __all__ = ["DETERMINED_RELATIVE_STD", "SIGNIFICANCE_BLOCKS", "SIGNIFICANCE_Z", "TORQUE_GAINS_TOLERANCE", "TorqueGains", "channel_factors", "channel_sums", "description_scale",
-           "block_labels", "divided_records", "divided_torques", "fit_torque_gains", "gains_checked", "gains_for_records",
+           "block_labels", "diagnosed_gains_answer", "divided_records", "divided_torques", "fit_torque_gains", "gains_checked", "gains_for_records",
            "gains_from_sums", "gains_on_validation", "in_recorded_units", "other_scale", "scale_note", "torque_gains_answer", "SCALE_NOTE_FACTOR"]
 
 #: the relative score by which the model with the gains must beat the declared one (a tie keeps the declared)
@@ -371,6 +371,25 @@ def torque_gains_answer(selection: ModelSelection, other: ModelSelection, gains:
            + selection.chosen + "; the mean relative validation error), " + ("taken" if taken else "not taken"))
     return (replace(other, reason=f"{other.reason}; {why}"), True, why) if taken \
         else (replace(selection, reason=f"{selection.reason}; {why}"), False, why)
+
+
+def diagnosed_gains_answer(without: ModelSelection, with_gains: ModelSelection, gains: TorqueGains
+                           ) -> tuple[bool, str]:
+    """Whether ``oed diagnose`` keeps the gains its quick check took, by :func:`torque_gains_answer`'s rule:
+    ``with_gains`` (the default answer of the diagnosis of the torques divided by ``gains``, its validation errors
+    in the recorded units) must score lower on the validation record than ``without`` (the same adopted model
+    fitted again to the torques as recorded, its answer chosen alike) by more than :data:`TORQUE_GAINS_TOLERANCE`.
+    ``(taken, why)``; kept (``why`` empty) when the two were not both chosen on a validation record of another
+    motion. Gains that soak up model error (a payload read as a scale) pass the quick check with the plain model
+    yet do not make the diagnosed model's answer predict better."""
+    scored = answers_scored(without, with_gains)
+    if scored is None:
+        return True, ""
+    plain, divided = scored
+    taken = (1.0 + TORQUE_GAINS_TOLERANCE) * divided < plain
+    return taken, (f"the diagnosed model's answer with them ({with_gains.chosen}) validates {divided:.4g} against "
+                   f"{plain:.4g} without them ({without.chosen}, the same laws fitted to the torques as recorded; the "
+                   "mean relative validation error), " + ("kept" if taken else "not taken"))
 
 
 def divided_torques(measurements: Measurements, gains: TorqueGains) -> Measurements:

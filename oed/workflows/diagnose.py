@@ -23,6 +23,8 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+import numpy as np
+
 from dynamics.channels import is_joint_torque
 from dynamics.effects.linear import ViscousFriction
 from dynamics.measurements import Measurements
@@ -35,11 +37,13 @@ from estimation.consistent.model_selection import ModelSelection, select_refit
 from estimation.consistent.torque_gains import (
     TorqueGains,
     channel_factors,
+    diagnosed_gains_answer,
     divided_records,
     gains_for_records,
     in_recorded_units,
     scale_note,
 )
+from estimation.identification.fit import identify as identify_model
 from estimation.identification.mount import MountCheck
 from estimation.identification.subtracted_load import SubtractedLoad, added_back_records, load_channels
 from estimation.consistent.mounted_gravity import gravity_answer, subtracted_answer, turned_model
@@ -454,9 +458,15 @@ def in_memory_only(args: DiagnoseOptions, model: IdentificationModel, delay: Del
 
 
 def diagnosis_in_memory(args: DiagnoseOptions, model: IdentificationModel, transmission: Transmission | None,
-                        delay: DelayBounds | None, plan: Preprocessing | None) -> Diagnosed:
+                        delay: DelayBounds | None, plan: Preprocessing | None, *,
+                        refused: str | None = None) -> Diagnosed:
     """Read and prepare the records whole (``plan``: the derivatives chosen before reading), diagnose, and choose
-    the default answer."""
+    the default answer.
+
+    Torque gains the quick check takes (:func:`~estimation.consistent.torque_gains.gains_for_records`, the plain
+    model's) are kept only when the answer of the diagnosis of the torques divided by them predicts the validation
+    record better than the adopted model fitted again to the torques as recorded (:func:`confirmed_gains`, the rule
+    of ``oed identify``); otherwise the diagnosis is made again without them, ``refused`` the sentence saying why."""
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         records = prepare_records(model, args.data, args.validate, args.test or (),  # reports its steps
@@ -470,7 +480,8 @@ def diagnosis_in_memory(args: DiagnoseOptions, model: IdentificationModel, trans
             else gains_for_records(plain_model(model), records)
         # the description's bodies and the torques in other units (grams, kN m): said, the gains taken or not
         scale = () if gains is None or (note := scale_note(gains[0])) is None else (note,)
-        gains = gains if gains is not None and gains[1] else None
+        gains = gains if gains is not None and gains[1] and refused is None else None
+        recorded, refusal = records, None  # the records as logged: the gains confirmed against them (below)
         if gains is not None:
             records = divided_records(records, gains[0])
         # the joint-zero check reads the prepared records only: it runs beside the diagnosis and the default answer,
@@ -521,12 +532,19 @@ def diagnosis_in_memory(args: DiagnoseOptions, model: IdentificationModel, trans
             notes += () if repeat is None else (repeat,)
             if gains is not None:
                 selection = in_recorded_units(selection, gains[0])
-                notes += (gains[2],)
-            notes += scale
+                with step("the torque gains confirmed: the adopted model fitted to the torques as recorded, compared"):
+                    taken, why = confirmed_gains(args, diagnosis, recorded, selection, gains[0])
+                said = f"{gains[2]}; then {why}" if why else gains[2]
+                refusal = None if taken else said
+                selection = replace(selection, reason=f"{selection.reason}; {why}") if why else selection
+                notes += (said,)
+            notes += scale + (() if refused is None else (refused,))
             zeros, drift = beside_checks() if checked is None else checked
             notes += diagnosis_mount_notes(model, zeros, mount, gravity_taken=gravity_taken,
                                            subtracted=subtracted is not None)
             notes += () if drift is None or drift.message() is None else (drift.message(),)
+    if refusal is not None:  # the gains refused: the diagnosis of the torques as recorded, the refusal said
+        return diagnosis_in_memory(args, model, transmission, delay, plan, refused=refusal)
     train = records.train.measurements  # the samples fitted: the training range, and the held-out records against it
     ranges = TrainingRange.of(train.q, train.dq, model.robot.joint_names)
     checks = {key: ranges.check(held.measurements.q, held.measurements.dq)
@@ -535,6 +553,28 @@ def diagnosis_in_memory(args: DiagnoseOptions, model: IdentificationModel, trans
                      (*caught_messages(caught), *notes), records=records, untouched=untouched, selection=selection,
                      transmission=transmission, notes=notes, torque_gains=None if gains is None else gains[0],
                      training_range=ranges, range_checks=checks, friction_drift=drift, subtracted=subtracted)
+
+
+def confirmed_gains(args: DiagnoseOptions, diagnosis: Diagnosis, records: PreparedRecords,
+                    selection: ModelSelection, gains: TorqueGains) -> tuple[bool, str]:
+    """Whether the gains of the diagnosis of the torques divided by them stay (``(taken, why)``,
+    :func:`~estimation.consistent.torque_gains.diagnosed_gains_answer`): its default answer ``selection`` (in the
+    recorded units) against the same choice (:func:`diagnosis_selection`) for the adopted model fitted again to
+    ``records`` as logged, its shaped laws at their fitted values (no second search). Kept, unsaid, when the adopted
+    model carries a delay or the refit fails."""
+    after = diagnosis.after
+    if after.delay is not None:
+        return True, ""
+    starts = {value.name: value.value for value in after.shapes} or None
+    try:
+        with warnings.catch_warnings():  # a comparator only: what it warns of is no part of the answer
+            warnings.simplefilter("ignore")
+            refit = identify_model(after.model, records.train.measurements, records.validation.measurements,
+                                   weighted=after.estimate.method == "wls", shape_starts=starts, shape_search=False)
+            without = diagnosis_selection(args, replace(diagnosis, after=refit), records)
+    except (ValueError, np.linalg.LinAlgError) as error:
+        return True, f"the answer without them not fitted ({error}): kept"
+    return diagnosed_gains_answer(without, selection, gains)
 
 
 def answered_diagnosis(args: DiagnoseOptions, model: IdentificationModel, transmission: Transmission | None,
