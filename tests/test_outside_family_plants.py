@@ -237,7 +237,11 @@ PAYLOAD_XFAIL = (
     "validation error 0.3 % below weight 0's (13.109 against 13.148) where tau2 stays 1060x above its floor; "
     "identify --consistent at weights 0, 0.1, 1, 10, 100 predicts the test's tau2 at 13.27, 13.71, 15.69, 17.56, "
     "18.32 while validating within 0.9 % (17.67 to 17.82): the Fourier validation record, which holds the payload "
-    "as the test does, cannot rank what the point-to-point test pays for; measured at 8322458")
+    "as the test does, cannot rank what the point-to-point test pays for; measured at 8322458. h-gains2: diagnose "
+    "now confirms the gains by identify's rule on its own answer, and keeps them: its answer with them validates 1 "
+    "against 1.012 without (the adopted laws fitted to the torques as recorded; tau1 0.1303 against 0.1344, tau2 "
+    "17.75 against 17.82 N m squared), past the 1 % tolerance: the validation record, which holds the payload, "
+    "prefers them; the test figures unchanged")
 PLANTS = (
     Plant("PUMA 3 joints, hysteresis in joint 2 (elastic-plastic: 2 N m past a play of 0.01 rad)",
           reality=hysteresis(1, 2.0, 0.01), above_floor=("tau2",)),
