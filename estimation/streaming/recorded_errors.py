@@ -31,7 +31,7 @@ from estimation.identification.subtracted_load import SubtractedLoad, load_chann
 from estimation.preprocessing.differentiation import ButterworthDifferentiation
 from estimation.data.channel_mask import masked_cells, valid_sum
 from estimation.streaming.block_errors import BlockSquares
-from estimation.streaming.chunks import logged_chunks
+from estimation.streaming.chunks import FileScans, logged_chunks
 from estimation.streaming.delayed_chunks import moved_chunks
 from estimation.streaming.periods import plan_chunks
 
@@ -267,10 +267,12 @@ def _scored_samples(model: IdentificationModel, path: str | Path, *, chunk_size:
                     decimation: int, held_torques: bool, frequency_hz: float | None, harmonics: int,
                     average: str = "auto") -> _Scored:
     """The samples of one file :func:`counted_errors_at_stamps` scores, block by block: the motion there beside the
-    channels as recorded."""
+    channels as recorded. The file is scanned once for both of its readings (the grid's, the samples as logged): the
+    scan its first reading makes handed to the second (:class:`~estimation.streaming.chunks.FileScans`)."""
+    scans = FileScans()
     grid = (chunk.as_recorded for chunk in plan_chunks(
         path, model, frequency_hz=frequency_hz, harmonics=harmonics, as_recorded=True, chunk_size=chunk_size,
-        cutoff_hz=cutoff_hz, decimation=decimation, held_torques=held_torques, average=average))
+        cutoff_hz=cutoff_hz, decimation=decimation, held_torques=held_torques, average=average, scans=scans))
     first = next(grid, None)
     if first is None:
         return
@@ -279,7 +281,7 @@ def _scored_samples(model: IdentificationModel, path: str | Path, *, chunk_size:
             yield chunk, False
         return
     stamps: list[NDArray[np.float64]] = []
-    logged = _watched(logged_chunks(path, model, chunk_size=chunk_size), model, stamps)
+    logged = _watched(logged_chunks(path, model, chunk_size=chunk_size, scans=scans), model, stamps)
     opening = next(logged)
     # the logged derivatives where the path uses them (no filter, no Fourier fit of the file's positions)
     measured = cutoff_hz is None and decimation == 1 and opening.dq is not None and opening.ddq is not None
