@@ -71,7 +71,7 @@ def test_later_passes_take_the_first_pass_scan_and_give_the_same_chunks(jittered
         second = list(read_chunks(jittered, model, chunk_size=128, scans=scans))
         logged = list(logged_chunks(jittered, model, chunk_size=128, scans=scans))
     assert len(calls) == 1  # the later passes took it
-    assert not any("re-sending" in str(warning.message) for warning in again)  # the findings said once
+    assert not any("irregular sampling" in str(warning.message) for warning in again)  # the findings said once
     _same(alone, first)
     _same(alone, second)
     _same(logged_alone, logged)
@@ -82,3 +82,22 @@ def test_later_passes_take_the_first_pass_scan_and_give_the_same_chunks(jittered
         list(read_chunks(jittered, model, chunk_size=100, scans=scans))  # another block size: scanned anew
         list(read_chunks(jittered, other, chunk_size=128, scans=scans))  # another model: scanned anew
     assert len(calls) == 3
+
+
+def test_a_logged_pass_holds_its_scan_for_logged_passes_not_for_a_pass_that_says_the_findings(jittered, monkeypatch):
+    from estimation.streaming.chunks import FileScans, logged_chunks, read_chunks
+
+    model = build_model(load_robot("puma560", joints=2), "internal", "viscous,coulomb,offset")
+    calls = _counted(monkeypatch)
+    scans = FileScans()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        first = list(logged_chunks(jittered, model, chunk_size=128, scans=scans))
+        second = list(logged_chunks(jittered, model, chunk_size=128, scans=scans))
+    assert len(calls) == 1
+    _same(first, second)
+    with warnings.catch_warnings(record=True) as said:
+        warnings.simplefilter("always")
+        list(read_chunks(jittered, model, chunk_size=128, scans=scans))
+    assert len(calls) == 2  # its findings said: scanned anew
+    assert any("irregular sampling" in str(warning.message) for warning in said)

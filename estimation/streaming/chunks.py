@@ -540,22 +540,24 @@ class FileScans:
     held-repeat masks (a byte a row) and its clipped rows, for the run's length."""
 
     def __init__(self) -> None:
-        self._found: dict[tuple, tuple[IdentificationModel, TimeScan | None, _ClippedEvidence]] = {}
+        self._found: dict[tuple, tuple[IdentificationModel, bool, TimeScan | None, _ClippedEvidence]] = {}
 
     @staticmethod
     def _key(file: Path, chunk_size: int, segment, model: IdentificationModel) -> tuple:
         return str(file), int(chunk_size), segment, id(model)
 
-    def taken(self, file: Path, chunk_size: int, segment, model: IdentificationModel
+    def taken(self, file: Path, chunk_size: int, segment, model: IdentificationModel, *, said: bool = False
               ) -> tuple[TimeScan | None, _ClippedEvidence] | None:
-        """The scan and clipped sensors held for these keys; ``None``: not scanned yet in this run."""
+        """The scan and clipped sensors held for these keys; ``None``: not scanned yet in this run (``said``: or
+        scanned by a pass that does not say the file's findings, :func:`logged_chunks`)."""
         found = self._found.get(self._key(file, chunk_size, segment, model))
-        return None if found is None or found[0] is not model else found[1:]
+        return None if found is None or found[0] is not model or (said and not found[1]) else found[2:]
 
     def hold(self, file: Path, chunk_size: int, segment, model: IdentificationModel, scan: TimeScan | None,
-             clipped: _ClippedEvidence) -> None:
-        """Hold a file's scan and judged clipped sensors (the model kept, so that its id names it)."""
-        self._found[self._key(file, chunk_size, segment, model)] = (model, scan, clipped)
+             clipped: _ClippedEvidence, *, said: bool = True) -> None:
+        """Hold a file's scan and judged clipped sensors (the model kept, so that its id names it; ``said``: by a
+        pass that says the file's findings)."""
+        self._found[self._key(file, chunk_size, segment, model)] = (model, said, scan, clipped)
 
 
 def cell_mask(path: str | Path, model: IdentificationModel, *, chunk_size: int = DEFAULT_CHUNK_SIZE,
@@ -597,7 +599,7 @@ def read_chunks(path: str | Path, model: IdentificationModel, *, chunk_size: int
                          f"with ({model.n_base} base parameters): give at least {least} (10 000 is a good size)")
     pending: pd.DataFrame | None = None
     file, segment = source_file(path)
-    taken = None if scans is None else scans.taken(file, chunk_size, segment, model)
+    taken = None if scans is None else scans.taken(file, chunk_size, segment, model, said=True)
     if taken is None:
         scan = scan_time(_raw_frames(file, chunk_size, model), file, model, segment=segment)  # the loader's findings, said once
         clipped = _ClippedEvidence(model, None if scan is None or scan.held is None else dict(scan.held))
@@ -655,7 +657,14 @@ def logged_chunks(path: str | Path, model: IdentificationModel, *, chunk_size: i
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # said when the file was read for its sums
             scan = scan_time(_raw_frames(file, chunk_size, model), file, model, segment=segment)
-        mask = cell_mask(path, model, chunk_size=chunk_size, scan=scan)
+        if scans is None:
+            mask = cell_mask(path, model, chunk_size=chunk_size, scan=scan)
+        else:  # cell_mask's pass, its evidence held for the run's later passes (its findings not said here)
+            clipped = _ClippedEvidence(model, None if scan is None or scan.held is None else dict(scan.held))
+            for frame in _kept_frames(file, chunk_size, None if scan is None else scan.keep, model):
+                clipped.add(frame)
+            scans.hold(file, chunk_size, segment, model, scan, clipped, said=False)
+            mask = clipped.mask()
     else:  # the scan and the clipped sensors judged by the run's read_chunks of the file
         scan, mask = taken[0], taken[1].mask()
     mask = None if mask.empty else mask
