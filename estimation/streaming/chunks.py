@@ -85,7 +85,7 @@ from estimation.streaming.time_base import (Part, RegularClock, Resampler, TimeS
 
 __all__ = [
     "CLOCK_SUFFIX", "POSITIONS_SUFFIX", "FileSums", "from_positions", "positions_source", "MARGIN_TOLERANCE", "clock_source", "StreamingUnsupportedError", "automatic_cutoff", "file_sums", "filter_margin",
-    "CellMask", "cell_mask", "loaded_chunk", "logged_chunks", "preprocessed_chunks", "read_chunks", "receive_times_evidence_of", "segment_sources", "source_file", "source_files", "source_rows",
+    "CellMask", "FileScans", "cell_mask", "loaded_chunk", "logged_chunks", "preprocessed_chunks", "read_chunks", "receive_times_evidence_of", "segment_sources", "source_file", "source_files", "source_rows",
     "source_step",
 ]
 
@@ -529,6 +529,37 @@ class CellMask:
         return replace(measurements, tau=arrays["tau"], wrench=arrays["wrench"])
 
 
+class FileScans:
+    """The scans of the files one run reads, held by the run and handed to its passes (no process-wide store): the
+    first :func:`read_chunks` of a file, block size, segment and model scans its rows
+    (:func:`~estimation.streaming.time_base.scan_time`, its findings said there) and judges its clipped sensors
+    (:class:`_ClippedEvidence`, one more pass); each later pass of the same file, block size, segment and model given
+    the same object takes both instead of reading the file twice again (:func:`read_chunks`, :func:`logged_chunks`).
+    A scan is a function of the file's bytes and those keys, so the one taken is the one that would be made anew,
+    bit for bit; the time base's findings are said once, by the pass that scans. Memory: each file's ``keep`` and
+    held-repeat masks (a byte a row) and its clipped rows, for the run's length."""
+
+    def __init__(self) -> None:
+        self._found: dict[tuple, tuple[IdentificationModel, bool, TimeScan | None, _ClippedEvidence]] = {}
+
+    @staticmethod
+    def _key(file: Path, chunk_size: int, segment, model: IdentificationModel) -> tuple:
+        return str(file), int(chunk_size), segment, id(model)
+
+    def taken(self, file: Path, chunk_size: int, segment, model: IdentificationModel, *, said: bool = False
+              ) -> tuple[TimeScan | None, _ClippedEvidence] | None:
+        """The scan and clipped sensors held for these keys; ``None``: not scanned yet in this run (``said``: or
+        scanned by a pass that does not say the file's findings, :func:`logged_chunks`)."""
+        found = self._found.get(self._key(file, chunk_size, segment, model))
+        return None if found is None or found[0] is not model or (said and not found[1]) else found[2:]
+
+    def hold(self, file: Path, chunk_size: int, segment, model: IdentificationModel, scan: TimeScan | None,
+             clipped: _ClippedEvidence, *, said: bool = True) -> None:
+        """Hold a file's scan and judged clipped sensors (the model kept, so that its id names it; ``said``: by a
+        pass that says the file's findings)."""
+        self._found[self._key(file, chunk_size, segment, model)] = (model, said, scan, clipped)
+
+
 def cell_mask(path: str | Path, model: IdentificationModel, *, chunk_size: int = DEFAULT_CHUNK_SIZE,
               scan: TimeScan | None = None, say: bool = False) -> CellMask:
     """The masked cells of the rows of ``path`` the loader keeps (:class:`CellMask`): one pass over them
@@ -548,14 +579,16 @@ def cell_mask(path: str | Path, model: IdentificationModel, *, chunk_size: int =
     return clipped.mask()
 
 
-def read_chunks(path: str | Path, model: IdentificationModel, *, chunk_size: int = DEFAULT_CHUNK_SIZE
-                ) -> Iterator[Measurements]:
+def read_chunks(path: str | Path, model: IdentificationModel, *, chunk_size: int = DEFAULT_CHUNK_SIZE,
+                scans: FileScans | None = None) -> Iterator[Measurements]:
     """The checked measurements of ``path``, ``chunk_size`` rows at a time (a short last chunk is
     joined to the one before, so that each has more samples than base parameters). Raises the
     errors of :func:`estimation.data.records.read_measurements`, naming the file and rows, and a
-    :class:`~estimation.data.loading.TimeBaseError` when the time does not run on across chunks."""
+    :class:`~estimation.data.loading.TimeBaseError` when the time does not run on across chunks. ``scans``: the
+    run's :class:`FileScans`, the file's scan taken from it when an earlier pass of the run made it (else made and
+    held there)."""
     if from_positions(path):  # dq from the positions: the chunks read without the logged velocities
-        for chunk in read_chunks(str(path)[:-len(POSITIONS_SUFFIX)], model, chunk_size=chunk_size):
+        for chunk in read_chunks(str(path)[:-len(POSITIONS_SUFFIX)], model, chunk_size=chunk_size, scans=scans):
             recorded = chunk.recorded
             yield replace(chunk, dq=None, recorded=None if recorded is None else replace(recorded, dq=None))
         return
@@ -566,11 +599,17 @@ def read_chunks(path: str | Path, model: IdentificationModel, *, chunk_size: int
                          f"with ({model.n_base} base parameters): give at least {least} (10 000 is a good size)")
     pending: pd.DataFrame | None = None
     file, segment = source_file(path)
-    scan = scan_time(_raw_frames(file, chunk_size, model), file, model, segment=segment)  # the loader's findings, said once
+    taken = None if scans is None else scans.taken(file, chunk_size, segment, model, said=True)
+    if taken is None:
+        scan = scan_time(_raw_frames(file, chunk_size, model), file, model, segment=segment)  # the loader's findings, said once
+        clipped = _ClippedEvidence(model, None if scan is None or scan.held is None else dict(scan.held))
+        for frame in _kept_frames(file, chunk_size, None if scan is None else scan.keep, model):
+            clipped.add(frame)  # the whole record's clipped sensors, before the first chunk is masked
+        if scans is not None:
+            scans.hold(file, chunk_size, segment, model, scan, clipped)
+    else:  # scanned and judged by an earlier pass of the run (its findings said there)
+        scan, clipped = taken
     resampler = Resampler(scan) if scan is not None and scan.irregular else None
-    clipped = _ClippedEvidence(model, None if scan is None or scan.held is None else dict(scan.held))
-    for frame in _kept_frames(file, chunk_size, None if scan is None else scan.keep, model):
-        clipped.add(frame)  # the whole record's clipped sensors, before the first chunk is masked
     mask = clipped.mask()
     checked = _ChunkChecks(path, model, scan, resampler, None if mask.empty else mask)
     emitted = 0
@@ -603,18 +642,31 @@ def read_chunks(path: str | Path, model: IdentificationModel, *, chunk_size: int
 
 
 def logged_chunks(path: str | Path, model: IdentificationModel, *, chunk_size: int = DEFAULT_CHUNK_SIZE,
-                  load: SubtractedLoad | None = None) -> Iterator[Measurements]:
+                  load: SubtractedLoad | None = None, scans: FileScans | None = None) -> Iterator[Measurements]:
     """The samples of ``path`` as logged, ``chunk_size`` rows at a time, before any resampling (rows repeating the
     previous one dropped, as the loader drops them): the recorded time stamps and channels a resampled file's errors
     are measured at (:func:`estimation.streaming.recorded_errors.streamed_errors_at_stamps`). ``load``: a load the
-    logged torques lack, added back at the logged positions (:func:`loaded_chunk`)."""
+    logged torques lack, added back at the logged positions (:func:`loaded_chunk`). ``scans``: the run's
+    :class:`FileScans`, the file's scan and masked cells taken from it when a :func:`read_chunks` of the run made
+    them."""
     least = model.n_base + 1  # a short last block is joined to the one before, as read_chunks joins it
     pending: pd.DataFrame | None = None
     file, segment = source_file(path)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # said when the file was read for its sums
-        scan = scan_time(_raw_frames(file, chunk_size, model), file, model, segment=segment)
-    mask = cell_mask(path, model, chunk_size=chunk_size, scan=scan)
+    taken = None if scans is None else scans.taken(file, chunk_size, segment, model)
+    if taken is None:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # said when the file was read for its sums
+            scan = scan_time(_raw_frames(file, chunk_size, model), file, model, segment=segment)
+        if scans is None:
+            mask = cell_mask(path, model, chunk_size=chunk_size, scan=scan)
+        else:  # cell_mask's pass, its evidence held for the run's later passes (its findings not said here)
+            clipped = _ClippedEvidence(model, None if scan is None or scan.held is None else dict(scan.held))
+            for frame in _kept_frames(file, chunk_size, None if scan is None else scan.keep, model):
+                clipped.add(frame)
+            scans.hold(file, chunk_size, segment, model, scan, clipped, said=False)
+            mask = clipped.mask()
+    else:  # the scan and the clipped sensors judged by the run's read_chunks of the file
+        scan, mask = taken[0], taken[1].mask()
     mask = None if mask.empty else mask
     turns, row = AngleTurns(), 0
     for frame in itertools.chain(_kept_frames(file, chunk_size, None if scan is None else scan.keep, model), [None]):
@@ -813,7 +865,8 @@ def loaded_chunk(chunk: Measurements, load: SubtractedLoad, model: Identificatio
 def preprocessed_chunks(path: str | Path, model: IdentificationModel, *, chunk_size: int = DEFAULT_CHUNK_SIZE,
                         cutoff_hz: float | None = None, order: int = 4, decimation: int = 1,
                         held_torques: bool = False, trim: bool = False, record: dict | None = None,
-                        band: bool = False, load: SubtractedLoad | None = None) -> Iterator[Measurements]:
+                        band: bool = False, load: SubtractedLoad | None = None, scans: FileScans | None = None
+                        ) -> Iterator[Measurements]:
     """The preprocessed samples of one file, chunk by chunk (overlapping windows: module docstring).
 
     The arguments are those of :func:`file_sums`. ``trim``: on the filter path without decimation,
@@ -830,6 +883,7 @@ def preprocessed_chunks(path: str | Path, model: IdentificationModel, *, chunk_s
     ``None`` on the filter path (no chunk is low-passed on its own). ``load``: a load of the description the logged
     torques lack (:class:`~estimation.identification.subtracted_load.SubtractedLoad`), added back to each prepared
     chunk as memory adds it to the prepared record (:func:`loaded_chunk`); ``None``: the torques as logged.
+    ``scans``: the run's :class:`FileScans` (:func:`read_chunks`).
     """
     path = Path(path)
     chunk_size = check_chunk_size(chunk_size, model)
@@ -838,7 +892,7 @@ def preprocessed_chunks(path: str | Path, model: IdentificationModel, *, chunk_s
     chunk_size = -(-chunk_size // decimation) * decimation
     if record is not None:
         record["chunk_size"] = chunk_size
-    chunks = read_chunks(path, model, chunk_size=chunk_size)
+    chunks = read_chunks(path, model, chunk_size=chunk_size, scans=scans)
     first = next(chunks)  # here, so that a warning of read_chunks points at the caller
     windows = _OverlappingWindows(path, first, chunks, chunk_size, cutoff_hz, order, decimation, held_torques, trim,
                                   band)
@@ -971,7 +1025,8 @@ class _OverlappingWindows:
 @single_threaded_blas()  # threaded OpenBLAS takes 30x longer on tall, thin QR (0.7 against 0.024 s, 10 051 x 51)
 def file_sums(path: str | Path, model: IdentificationModel, *, chunk_size: int = DEFAULT_CHUNK_SIZE,
               cutoff_hz: float | None = None, order: int = 4, decimation: int = 1,
-              held_torques: bool = False, load: SubtractedLoad | None = None) -> FileSums:
+              held_torques: bool = False, load: SubtractedLoad | None = None,
+              scans: FileScans | None = None) -> FileSums:
     """Read, preprocess and sum one file chunk by chunk.
 
     Parameters
@@ -990,13 +1045,15 @@ def file_sums(path: str | Path, model: IdentificationModel, *, chunk_size: int =
     load
         A load of the description the logged torques lack, added back to each prepared chunk
         (:func:`loaded_chunk`); ``None``: the torques as logged.
+    scans
+        The run's :class:`FileScans` (:func:`read_chunks`): the file's scan made once a run.
     """
     sums = NormalEquations.empty(model.channels, model.base.names, model.base.expressions)
     record: dict = {}
     joint_range = None
     for kept in preprocessed_chunks(path, model, chunk_size=chunk_size, cutoff_hz=cutoff_hz, order=order,
                                     decimation=decimation, held_torques=held_torques, record=record, band=True,
-                                    load=load):
+                                    load=load, scans=scans):
         sums = accumulate(model, kept, chunk_size=record["chunk_size"], sums=sums)
         if kept.n_samples:  # the samples summed: the training range, in the same pass
             joint_range = TrainingRange.of(kept.q, kept.dq, model.robot.joint_names).merged(joint_range)

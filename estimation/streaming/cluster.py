@@ -31,7 +31,7 @@ from typing import Any
 from dynamics.models import IdentificationModel, build_model
 from estimation.data.loading import MeasurementError
 from estimation.estimators.normal_equations import DEFAULT_CHUNK_SIZE, NormalEquations, reduce_sums
-from estimation.streaming.chunks import FileSums, file_sums, read_chunks
+from estimation.streaming.chunks import FileScans, FileSums, file_sums, read_chunks
 from estimation.streaming.periods import periodic_file_sums
 from estimation.streaming.settings import SCHEDULER_VARIABLE, scheduler_address
 
@@ -89,15 +89,16 @@ def caught_warnings(call: Any, *args: Any, **kwargs: Any) -> tuple[Any, tuple[tu
 
 
 def sums_of_file(path: str | Path, model: IdentificationModel, *, frequency_hz: float | None = None,
-                 harmonics: int = 5, **options: Any) -> FileSums:
+                 harmonics: int = 5, scans: FileScans | None = None, **options: Any) -> FileSums:
     """One file's sums: the Fourier path (:func:`estimation.streaming.periods.periodic_file_sums`) when a
     ``frequency_hz`` is given and the file lacks ``dq``/``ddq``, else :func:`estimation.streaming.chunks.file_sums`
-    (the frequency is then unused, as in memory)."""
+    (the frequency is then unused, as in memory). ``scans``: the run's
+    :class:`~estimation.streaming.chunks.FileScans`."""
     if frequency_hz is not None:
-        first = next(read_chunks(path, model, chunk_size=options.get("chunk_size", DEFAULT_CHUNK_SIZE)))
+        first = next(read_chunks(path, model, chunk_size=options.get("chunk_size", DEFAULT_CHUNK_SIZE), scans=scans))
         if first.dq is None or first.ddq is None:
             return periodic_file_sums(path, model, frequency_hz=frequency_hz, harmonics=harmonics, **options)
-    return file_sums(path, model, **options)
+    return file_sums(path, model, scans=scans, **options)
 
 
 def sum_files(
@@ -105,6 +106,7 @@ def sum_files(
     paths: Sequence[str | Path],
     *,
     executor: Any = None,
+    scans: FileScans | None = None,
     **options: Any,
 ) -> tuple[NormalEquations, tuple[FileSums, ...]]:
     """Sums of ``model``'s problem over every file, and each file's own.
@@ -118,6 +120,9 @@ def sum_files(
     executor
         Any ``concurrent.futures.Executor`` (a process pool, ``dask.distributed.Client.get_executor()``);
         ``None``: the files in turn, in this process.
+    scans
+        The run's :class:`~estimation.streaming.chunks.FileScans` (in this process only: a worker scans its file):
+        each file's scan taken from it, or made and held there.
     options
         For :func:`sums_of_file` (``chunk_size``, ``cutoff_hz``, ``decimation``, ``frequency_hz``…).
 
@@ -135,7 +140,7 @@ def sum_files(
     if len(set(paths)) != len(paths):
         raise ValueError(f"a data file is given twice: {sorted({p for p in paths if paths.count(p) > 1})}")
     if executor is None:
-        parts = [sums_of_file(path, model, **options) for path in paths]
+        parts = [sums_of_file(path, model, scans=scans, **options) for path in paths]
     else:
         if not callable(getattr(executor, "submit", None)):
             raise TypeError(f"executor must be a concurrent.futures.Executor (with submit), got {type(executor).__name__}")

@@ -52,7 +52,7 @@ from estimation.estimators.summed_least_squares import SummedLeastSquares
 from estimation.identification.fit import IdentificationResult, ImplausibleEstimateWarning, implausible_estimates
 from estimation.identification.subtracted_load import SubtractedLoad
 from estimation.identification.validation import ChannelErrors
-from estimation.streaming.chunks import (FileSums, StreamingUnsupportedError, automatic_cutoff, read_chunks)
+from estimation.streaming.chunks import (FileScans, FileSums, StreamingUnsupportedError, automatic_cutoff, read_chunks)
 from estimation.streaming.cluster import (IncompleteSumError, caught_warnings, file_stamp, model_from_payload,
                                           model_payload, sum_files)
 from estimation.streaming.covariance import BatchScores, chunk_scores, sandwich
@@ -258,13 +258,16 @@ def identify_files_candidates(
         options.update(frequency_hz=frequency_hz, harmonics=harmonics)
     if load is not None:  # every pass below reads through these options (the sums, the covariance's)
         options["load"] = load
+    # each file scanned once for this call's passes (the sums', the covariance's), in this process: the run's
+    # FileScans handed to them (a worker scans its own file)
+    scans = FileScans() if executor is None else None
     clock = time.perf_counter()
     with step(f"sums pass over {len(paths)} training file(s)"):
-        train, files = sum_files(model, paths, executor=executor, **options)
+        train, files = sum_files(model, paths, executor=executor, scans=scans, **options)
     seconds = {"sums_pass": time.perf_counter() - clock}
     with step(f"sums pass over {len(validate)} validation file(s)"):
         validation, validation_files = (None, ()) if not validate else sum_files(model, validate, executor=executor,
-                                                                                 **options)
+                                                                                 scans=scans, **options)
     clock = time.perf_counter()
     estimates = {name: SummedLeastSquares(method=name, passive=passive_channels(model)).fit(train).estimate_
                  for name in methods}
@@ -276,7 +279,7 @@ def identify_files_candidates(
             covariances = batch_means_covariance(
                 model, files, train, options, [estimates[name].values for name in methods],
                 [estimates[name].weights for name in methods], [estimates[name].cov for name in methods],
-                executor=executor)
+                executor=executor, scans=scans)
         seconds["covariance_pass"] = time.perf_counter() - clock
         cov_method = "batch_means"
         for name, (cov, batch) in zip(methods, covariances):
@@ -364,10 +367,13 @@ def scores_task(payload: bytes, path: str, options: dict[str, Any], theta, weigh
 def batch_means_covariance(model: IdentificationModel, files: Sequence[FileSums], train: NormalEquations,
                            options: dict[str, Any], theta: Sequence[NDArray[np.float64]],
                            weights: Sequence[NDArray[np.float64]], classical: Sequence[NDArray[np.float64]], *,
-                           executor: Any = None) -> list[tuple[NDArray[np.float64], int]]:
+                           executor: Any = None, scans: FileScans | None = None
+                           ) -> list[tuple[NDArray[np.float64], int]]:
     """The batch-means covariance of each estimate ``theta[i]`` (fitted with channel ``weights[i]``, its classical
     covariance ``classical[i]``) from one more pass over the training ``files`` (their sums ``train``, the reading
     ``options`` of :func:`estimation.streaming.cluster.sum_files`), and the batch length used, by estimate.
+    ``scans``: the run's :class:`~estimation.streaming.chunks.FileScans` (in this process only), each file's scan
+    taken from the sums pass.
 
     Raises
     ------
@@ -379,7 +385,7 @@ def batch_means_covariance(model: IdentificationModel, files: Sequence[FileSums]
     paths = [part.path for part in files]
     if executor is None:  # in this process: the model as it is (rebuilding it from its payload costs seconds)
         def task(payload, path, options, theta, weights, stamp=None):
-            return caught_warnings(file_scores, path, model, options, theta, weights)
+            return caught_warnings(file_scores, path, model, dict(options, scans=scans), theta, weights)
         payload = b""
     else:
         task, payload = scores_task, model_payload(model)

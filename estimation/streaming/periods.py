@@ -292,10 +292,11 @@ def plan_chunks(path: str | Path, model: IdentificationModel, *, frequency_hz: f
     """One file's prepared chunks: on the Fourier path (:func:`periodic_chunks`) when ``frequency_hz`` is given
     and the file lacks ``dq``/``ddq`` (``average``: ``--average-periods``), else
     :func:`estimation.streaming.chunks.preprocessed_chunks` (``options``: its keyword arguments; its ``load``, a load
-    the logged torques lack added back, on either path)."""
+    the logged torques lack added back, on either path; its ``scans``, the run's
+    :class:`~estimation.streaming.chunks.FileScans`)."""
     if frequency_hz is not None:
         chunk_size = options.get("chunk_size", DEFAULT_CHUNK_SIZE)
-        first = next(read_chunks(path, model, chunk_size=chunk_size))
+        first = next(read_chunks(path, model, chunk_size=chunk_size, scans=options.get("scans")))
         if first.dq is None or first.ddq is None:
             yield from periodic_chunks(path, model, frequency_hz=frequency_hz, harmonics=harmonics,
                                        chunk_size=chunk_size, decimation=options.get("decimation", 1),

@@ -37,7 +37,7 @@ from estimation.identification.subtracted_load import SubtractedLoad
 from estimation.preprocessing.fourier_series import gram_solution
 from estimation.preprocessing.fourier_sums import (BLOCK_ROWS, GRID_TOLERANCE, BlockFourierSums,
                                                     UniformFourierSums, fractional_turns)
-from estimation.streaming.chunks import logged_chunks
+from estimation.streaming.chunks import FileScans, logged_chunks
 from estimation.streaming.diagnosis_sums import concatenate
 from estimation.uncertainty.noise_floor import (DIFFERENCE_ORDER, MAX_HARMONICS, NoiseFloor, NoiseFloorError,
                                                 check_difference_count, check_white, difference_dof, difference_scale,
@@ -249,10 +249,14 @@ def _difference_deviation(differences: Callable[[], Iterator[NDArray[np.float64]
 
 def _logged(source: str | Path, model: IdentificationModel, chunk_size: int, load: SubtractedLoad | None = None
             ) -> Callable[[], Iterator[Measurements]]:
+    """The source's samples as logged, read again at each call; the file scanned by the first call only (its scan
+    handed to the later ones, :class:`~estimation.streaming.chunks.FileScans`)."""
+    scans = FileScans()
+
     def chunks() -> Iterator[Measurements]:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # said when the source was read for its errors
-            yield from logged_chunks(source, model, chunk_size=chunk_size, load=load)
+            yield from logged_chunks(source, model, chunk_size=chunk_size, load=load, scans=scans)
     return chunks
 
 

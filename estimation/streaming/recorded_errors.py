@@ -31,7 +31,7 @@ from estimation.identification.subtracted_load import SubtractedLoad, load_chann
 from estimation.preprocessing.differentiation import ButterworthDifferentiation
 from estimation.data.channel_mask import masked_cells, valid_sum
 from estimation.streaming.block_errors import BlockSquares
-from estimation.streaming.chunks import logged_chunks
+from estimation.streaming.chunks import FileScans, logged_chunks
 from estimation.streaming.delayed_chunks import moved_chunks
 from estimation.streaming.periods import plan_chunks
 
@@ -133,17 +133,20 @@ def counted_predicted_errors(model: IdentificationModel, predictors: Mapping[Any
                              paths: Sequence[str | Path], *, chunk_size: int, cutoff_hz: float | None = None,
                              decimation: int = 1, held_torques: bool = False, frequency_hz: float | None = None,
                              harmonics: int = 5, blocks: Mapping[Any, BlockSquares] | None = None,
-                             delays: Mapping[Any, float | None] | None = None, average: str = "auto"
-                             ) -> tuple[dict[Any, dict[str, float]], int]:
+                             delays: Mapping[Any, float | None] | None = None, average: str = "auto",
+                             scans: FileScans | None = None) -> tuple[dict[Any, dict[str, float]], int]:
     """:func:`counted_recorded_errors` of any predictions (``predictors``: e.g. a model file's, shaped laws at its
     shapes); ``model`` reads the files (its joints and channels). ``blocks``: by predictor name, the accumulators
     of each validation block's squared residuals, filled as the rows pass (:mod:`estimation.streaming.block_errors`).
     ``delays``: by predictor name, the delay between torques and motion its model file holds (absent or ``None``:
     none); the motion of the samples as recorded is then moved to ``t − delay`` block by block
     (:func:`~estimation.streaming.delayed_chunks.moved_chunks`), as ``oed predict`` moves the whole record, the
-    channels untouched: one pass for each delay. ``average``: ``--average-periods`` on the Fourier path."""
+    channels untouched: one pass for each delay. ``average``: ``--average-periods`` on the Fourier path. ``scans``:
+    the run's :class:`~estimation.streaming.chunks.FileScans` (made here when not given: each file scanned once for
+    all the passes)."""
     if not paths:
         raise ValueError("no files to measure the error on")
+    scans = FileScans() if scans is None else scans
     squares = {name: np.zeros(model.n_channels) for name in predictors}
     count = 0  # the samples of one pass: every pass reads the same (moving the motion drops none)
     for delay, named in delay_groups(predictors, delays):
@@ -151,7 +154,8 @@ def counted_predicted_errors(model: IdentificationModel, predictors: Mapping[Any
         for path in paths:
             records = (chunk.as_recorded for chunk in plan_chunks(
                 path, model, frequency_hz=frequency_hz, harmonics=harmonics, as_recorded=True, chunk_size=chunk_size,
-                cutoff_hz=cutoff_hz, decimation=decimation, held_torques=held_torques, average=average))
+                cutoff_hz=cutoff_hz, decimation=decimation, held_torques=held_torques, average=average,
+                scans=scans))
             for record in moved_chunks(records, delay):
                 measured = record.channels(model.channels)
                 masked = masked_cells(measured)
@@ -181,8 +185,8 @@ def counted_errors_at_stamps(model: IdentificationModel, thetas: Mapping[Any, Ar
                              held_torques: bool = False, predictors: Mapping[Any, Predictor] | None = None,
                              frequency_hz: float | None = None, harmonics: int = 5,
                              blocks: Mapping[Any, BlockSquares] | None = None,
-                             delays: Mapping[Any, float | None] | None = None, average: str = "auto"
-                             ) -> tuple[dict[Any, dict[str, float]], int] | None:
+                             delays: Mapping[Any, float | None] | None = None, average: str = "auto",
+                             scans: FileScans | None = None) -> tuple[dict[Any, dict[str, float]], int] | None:
     """:func:`streamed_recorded_errors` at the samples as logged, block by block: on a file the streamed path
     resampled onto a uniform grid (jittered stamps), the derived motion of its grid blocks
     (:func:`~estimation.streaming.chunks.preprocessed_chunks`) is interpolated linearly at the recorded time stamps
@@ -209,7 +213,11 @@ def counted_errors_at_stamps(model: IdentificationModel, thetas: Mapping[Any, Ar
     (:func:`estimation.preprocessing.delay.delayed` of the prepared record moves its samples at the recorded stamps
     among themselves), the channels untouched. ``None`` too when stamps before a grid's start would be scored on a
     pass with a delay (never met: a grid starts at the first sample kept): they come last, out of the order a move
-    needs."""
+    needs.
+
+    ``scans``: the run's :class:`~estimation.streaming.chunks.FileScans` (made here when not given): each file
+    scanned once for every pass, its grid's reading and its samples as logged."""
+    scans = FileScans() if scans is None else scans
     if predictors is None:
         predictors = {name: functools.partial(model.predict, np.asarray(theta, dtype=float))
                       for name, theta in thetas.items()}
@@ -221,7 +229,8 @@ def counted_errors_at_stamps(model: IdentificationModel, thetas: Mapping[Any, Ar
         count, valid = 0, np.zeros(model.n_channels)  # rows; each channel's valid samples (a masked one left out)
         for _, record, late in scored_records(model, paths, delay=delay, chunk_size=chunk_size, cutoff_hz=cutoff_hz,
                                               decimation=decimation, held_torques=held_torques,
-                                              frequency_hz=frequency_hz, harmonics=harmonics, average=average):
+                                              frequency_hz=frequency_hz, harmonics=harmonics, average=average,
+                                              scans=scans):
             if record is None:
                 return None
             measured = record.channels(model.channels)
@@ -242,16 +251,18 @@ def counted_errors_at_stamps(model: IdentificationModel, thetas: Mapping[Any, Ar
 
 def scored_records(model: IdentificationModel, paths: Sequence[str | Path], *, delay: float | None = None,
                    chunk_size: int, cutoff_hz: float | None = None, decimation: int = 1, held_torques: bool = False,
-                   frequency_hz: float | None = None, harmonics: int = 5, average: str = "auto"
-                   ) -> Iterator[tuple[int, Measurements | None, bool]]:
+                   frequency_hz: float | None = None, harmonics: int = 5, average: str = "auto",
+                   scans: FileScans | None = None) -> Iterator[tuple[int, Measurements | None, bool]]:
     """The samples :func:`counted_errors_at_stamps` scores, block by block in the files' order: each block with the
     index of its file in ``paths`` and whether it comes out of the samples' order (stamps before a grid's start,
     scored last), its motion moved by ``delay``; a block ``None`` ends the pass (a file whose rows the loader drops,
-    or samples out of their order on a pass with a delay: the files are then measured whole)."""
+    or samples out of their order on a pass with a delay: the files are then measured whole). ``scans``: the run's
+    :class:`~estimation.streaming.chunks.FileScans` (made here when not given)."""
+    scans = FileScans() if scans is None else scans
     for index, path in enumerate(paths):
         scored = _scored_samples(model, path, chunk_size=chunk_size, cutoff_hz=cutoff_hz, decimation=decimation,
                                  held_torques=held_torques, frequency_hz=frequency_hz, harmonics=harmonics,
-                                 average=average)
+                                 average=average, scans=scans)
         if delay is not None and delay != 0.0:
             scored = _moved(scored, delay)
         for record, late in scored:
@@ -265,12 +276,15 @@ _Scored = Iterator[tuple[Measurements | None, bool]]
 
 def _scored_samples(model: IdentificationModel, path: str | Path, *, chunk_size: int, cutoff_hz: float | None,
                     decimation: int, held_torques: bool, frequency_hz: float | None, harmonics: int,
-                    average: str = "auto") -> _Scored:
+                    average: str = "auto", scans: FileScans | None = None) -> _Scored:
     """The samples of one file :func:`counted_errors_at_stamps` scores, block by block: the motion there beside the
-    channels as recorded."""
+    channels as recorded. The file is scanned once for both of its readings (the grid's, the samples as logged): the
+    scan its first reading makes handed to the second (:class:`~estimation.streaming.chunks.FileScans`; ``scans``,
+    the run's, made here when not given)."""
+    scans = FileScans() if scans is None else scans
     grid = (chunk.as_recorded for chunk in plan_chunks(
         path, model, frequency_hz=frequency_hz, harmonics=harmonics, as_recorded=True, chunk_size=chunk_size,
-        cutoff_hz=cutoff_hz, decimation=decimation, held_torques=held_torques, average=average))
+        cutoff_hz=cutoff_hz, decimation=decimation, held_torques=held_torques, average=average, scans=scans))
     first = next(grid, None)
     if first is None:
         return
@@ -279,7 +293,7 @@ def _scored_samples(model: IdentificationModel, path: str | Path, *, chunk_size:
             yield chunk, False
         return
     stamps: list[NDArray[np.float64]] = []
-    logged = _watched(logged_chunks(path, model, chunk_size=chunk_size), model, stamps)
+    logged = _watched(logged_chunks(path, model, chunk_size=chunk_size, scans=scans), model, stamps)
     opening = next(logged)
     # the logged derivatives where the path uses them (no filter, no Fourier fit of the file's positions)
     measured = cutoff_hz is None and decimation == 1 and opening.dq is not None and opening.ddq is not None

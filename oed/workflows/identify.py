@@ -59,7 +59,7 @@ from estimation.identification.validation import ChannelErrors, plot_comparison
 from estimation.identification.weighting_choice import choose_weighting, weighting_samples
 from estimation.preprocessing.delay import DelayBounds, split_delay
 from estimation.preprocessing.plan import Preprocessing
-from estimation.streaming.chunks import source_files
+from estimation.streaming.chunks import FileScans, source_files
 from estimation.streaming.cutoff_choice import streamed_window
 from estimation.streaming.identification import (SummedFits, identify_files_candidates, prepared_chunks,
                                                 streamed_channel_counts)
@@ -871,6 +871,9 @@ class ValidationScores:
         self._block_sums: list[NormalEquations] | None = None
         self._block_sums_made = False
         self._stamp_count: int | None = None  # the recorded samples of a resampled validation file
+        #: each validation file scanned once for the scorer's passes (every one under an ignoring warnings filter:
+        #: the files' findings were said on the sums pass), the scan handed to the later ones
+        self.scans = FileScans()
 
     def block_sums(self) -> list[NormalEquations] | None:
         """Each validation block's normal equations, summed on one pass the first time they are asked for
@@ -880,7 +883,8 @@ class ValidationScores:
             model, streaming = self.result.model, self.result.streaming
             options = {"chunk_size": self.chunk_size, "cutoff_hz": streaming["cutoff_hz"],
                        "decimation": self.decimation, "held_torques": self.held_torques, "load": self.load}
-            chunks = (chunk for path in self.args.validate for chunk in prepared_chunks(str(path), model, **options))
+            chunks = (chunk for path in self.args.validate
+                      for chunk in prepared_chunks(str(path), model, scans=self.scans, **options))
             with step("the validation record's blocks summed (the paired difference of the candidates)"):
                 self._block_sums = block_normal_equations(model, chunks, int(self.sums.validation.n_samples))
         return self._block_sums
@@ -928,7 +932,8 @@ class ValidationScores:
                 recorded, counted = counted_predicted_errors(
                     model, less_load(model, theta_predictors(model, vectors), self.load), args.validate,
                     chunk_size=self.chunk_size, decimation=self.decimation, held_torques=self.held_torques,
-                    frequency_hz=streaming["frequency_hz"], harmonics=self.harmonics, blocks=squares)
+                    frequency_hz=streaming["frequency_hz"], harmonics=self.harmonics, blocks=squares,
+                    scans=self.scans)
                 # the samples scored, as memory counts its validation record
                 summed = {key: replace(errors, n_samples=counted) for key, errors in summed.items()}
                 blocks = {key: accumulated.block_mse(model.channels) for key, accumulated in squares.items()}
@@ -938,7 +943,7 @@ class ValidationScores:
                 recorded, _ = counted_predicted_errors(
                     model, less_load(model, theta_predictors(model, vectors), self.load), args.validate,
                     chunk_size=self.chunk_size, cutoff_hz=streaming["cutoff_hz"], decimation=self.decimation,
-                    held_torques=self.held_torques, blocks=squares)
+                    held_torques=self.held_torques, blocks=squares, scans=self.scans)
                 blocks = {key: accumulated.block_mse(model.channels) for key, accumulated in squares.items()}
         if self.trivial is None:
             self.trivial = {name: dict(recorded[("trivial", name)]) for name in ("zero_mse", "nominal_mse")}
@@ -966,7 +971,7 @@ class ValidationScores:
         accumulated = squares(self._stamp_count)
         predictors = less_load(model, theta_predictors(model, vectors), self.load)
         counted = counted_errors_at_stamps(model, {}, self.args.validate, blocks=accumulated, predictors=predictors,
-                                           **reading)
+                                           scans=self.scans, **reading)
         if counted is None:
             return None, {}, None
         recorded, count = counted
@@ -976,7 +981,8 @@ class ValidationScores:
             self._stamp_count = count
             accumulated = squares(count)
             again = counted_errors_at_stamps(model, {}, self.args.validate, blocks=accumulated,
-                                             predictors={key: predictors[key] for key in keys}, **reading)
+                                             predictors={key: predictors[key] for key in keys}, scans=self.scans,
+                                             **reading)
             if again is None or accumulated is None:
                 return recorded, {}, None
         return recorded, {key: item.block_mse(model.channels) for key, item in accumulated.items()}, count
