@@ -156,7 +156,7 @@ def _newest_first(frame: pd.DataFrame) -> bool:
     (:func:`estimation.data.loading.written_newest_first`)."""
     if "t" not in frame.columns:
         return False
-    t = pd.to_numeric(frame["t"], errors="coerce").to_numpy(dtype=float)
+    t = column_floats(frame["t"])
     return written_newest_first(t[np.isfinite(t)])
 
 
