@@ -70,7 +70,7 @@ from estimation.data.loading import (
 )
 from estimation.data.unstarted_edges import data_cells, said_unstarted, span
 from estimation.data.compressed_logs import COMPRESSIONS, csv_input, open_text, packed_format, packer_named
-from estimation.data.date_times import seconds_of_date_times
+from estimation.data.date_times import counted_time, integers_of_text, seconds_of_date_times
 from estimation.data.passive import with_passive_torques
 from estimation.data.log_formats import (
     DescriptionOrderWarning,
@@ -202,7 +202,7 @@ def read_record(
         raise IsADirectoryError(f"data file {path} is a folder")
     if suffix not in (".csv", ".parquet"):
         raise MeasurementError(f"unknown data format {path.suffix!r} for {path}: use .csv or .parquet (either "
-                               "packed by gzip, bzip2, xz or in a one-file ZIP archive), a ROS bag (.mcap, .db3, .bag "
+                               "packed by gzip, bzip2, xz, zstd or in a one-file ZIP archive), a ROS bag (.mcap, .db3, .bag "
                                "or a rosbag2 folder), .npz or .mat" + packer_named(path))
     if not path.is_file():
         raise FileNotFoundError(f"data file not found: {path}")
@@ -316,7 +316,15 @@ def read_csv_frame(path: Path) -> pd.DataFrame:
     its header dropped (:func:`without_repeated_headers`), its columns in the format's SI units (:func:`csv_units`)."""
     options = csv_options(path)
     with csv_input(path) as source:
-        frame = in_si_units(without_repeated_headers(pd.read_csv(source, **options), str(path)), csv_units(path))
+        frame = pd.read_csv(source, **options)
+    counted = counted_time(frame)
+    if counted is not None and not pd.api.types.is_integer_dtype(frame[counted].dtype):  # integer counts with a
+        with csv_input(path) as source:  # blank cell, parsed as floats (rounded past 2**53): read again as text
+            text = pd.read_csv(source, **options, dtype={counted: str})
+        integers = integers_of_text(text[counted])
+        if integers is not None:  # else written as floats (1.0): as parsed
+            frame = text.assign(**{counted: integers})
+    frame = in_si_units(without_repeated_headers(frame, str(path)), csv_units(path))
     return seconds_of_date_times(frame, str(path))[0]
 
 
