@@ -155,3 +155,125 @@ def test_an_integer_count_missing_one_stamp_is_refused_alike(puma3, tmp_path):  
         with pytest.raises(MeasurementError, match=r"holds integer counts in its first rows and '1732.*\.5', not an "
                                                    "integer, at row 320"):
             list(read_chunks(tmp_path / "mixed.csv", model, chunk_size=100))
+
+
+def _text(table: pd.DataFrame, **options) -> str:
+    return table.to_csv(index=False, float_format="%.17g", **options)
+
+
+def _instants(table: pd.DataFrame, form: str) -> pd.Series:
+    stamps = pd.Timestamp("2026-11-28 10:00:00") + pd.to_timedelta(np.round(table["t"] * 1e9).astype(np.int64),
+                                                                      unit="ns")
+    return stamps.dt.strftime(form)
+
+
+def numpy_savetxt(table, folder):
+    """NumPy's ``savetxt(header=…)`` of a ``.txt`` file: ``# t q1 …`` above numbers separated by a space."""
+    path = folder / "log.txt"
+    np.savetxt(path, table.to_numpy(), header=" ".join(table.columns), fmt="%.17g")
+    return path
+
+
+def tab_separated(table, folder):
+    """A ``.tsv`` export (a tab between the fields)."""
+    path = folder / "log.tsv"
+    path.write_text(_text(table, sep="\t"))
+    return path
+
+
+def notes_above_the_header(table, folder):
+    """A logger's notes above its header (``# robot: …``, ``# rate: 250 Hz``)."""
+    path = folder / "log.csv"
+    path.write_text("# robot: puma560, 3 joints\n# rate: 250 Hz\n# started 2026-11-28 10:00:00\n" + _text(table))
+    return path
+
+
+def logging_date_times(table, folder):
+    """Date-times as Python's ``logging`` writes them (``2026-11-28 10:00:00,004``: a comma before the fraction)."""
+    path = folder / "log.csv"
+    path.write_text(_text(table.assign(t=_instants(table, "%Y-%m-%d %H:%M:%S,%f"))))
+    return path
+
+
+def european_date_times(table, folder):
+    """A European spreadsheet's export (``;``, decimal commas) whose time is ISO date-times with a point before the
+    fraction (its point no decimal mark)."""
+    path = folder / "log.csv"
+    path.write_text(_text(table.assign(t=_instants(table, "%Y-%m-%d %H:%M:%S.%f")), sep=";", decimal=","))
+    return path
+
+
+FORMS = {"numpy savetxt .txt": numpy_savetxt, ".tsv": tab_separated, "notes above the header": notes_above_the_header,
+         "logging's date-times": logging_date_times, "European date-times": european_date_times}
+
+
+@pytest.mark.parametrize("form", list(FORMS))
+def test_further_forms_are_read_as_the_plain_file_in_memory_and_streamed(puma3, plain, tmp_path, form):  # noqa: F811
+    """Each form read in memory and block by block to the plain file's samples (the stamps to 1e-9 s, the samples to
+    1e-12 relative: ``%.17g`` writes each float exactly, so they are equal), said in a warning. At 2d5c469 every one
+    was refused on both paths: ``.txt`` and ``.tsv`` ("unknown data format"), the notes ("Error tokenizing data"),
+    logging's date-times ("row 0 holds text in every column"), the European date-times ("the columns are separated
+    by ';'")."""
+    model, clean = puma3
+    path = FORMS[form](pd.read_csv(clean), tmp_path)
+    memory, streamed, said = read_both(path, model, chunk_size=150)
+    assert said, form
+    for reading in (memory, streamed):
+        t = reading.t if reading is memory else reading["t"]
+        assert len(t) == len(plain.t) and np.allclose(t - t[0], plain.t - plain.t[0], rtol=0, atol=1e-9), said
+        for name in ("q", "tau"):
+            values = getattr(reading, name) if reading is memory else reading[name]
+            assert np.allclose(values, getattr(plain, name), rtol=1e-12, atol=0), (name, said)
+
+
+def zstd_log(table, folder):
+    path = folder / "plain.csv"
+    path.write_text(_text(table))
+    return zstd_packed(path, folder / "log.csv.zst")
+
+
+def nanoseconds_with_blank_rows(table, folder):
+    """Nanoseconds since 1970 with two rows left blank (a logger's dropouts)."""
+    path = folder / "log.csv"
+    rows = [len(table) // 7, len(table) // 2]
+    with_blanks(counted(table, "ns"), rows).to_csv(path, index=False, float_format="%.17g")
+    return path
+
+
+VERB_FORMS = {"zstd": zstd_log, "ns with blank rows": nanoseconds_with_blank_rows, **FORMS}
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("streamed", [False, True], ids=["in memory", "streamed"])
+@pytest.mark.parametrize("form", list(VERB_FORMS))
+def test_the_verbs_read_each_form_and_predict_as_well_as_a_plain_fit(form, streamed, tmp_path):
+    """The default ``oed identify`` (told the plain class) and ``oed diagnose`` on a PUMA 3's records (8 s / 3 s /
+    5 s at 250 Hz, no dq) written in the form, in memory or streamed (``--chunk-size 300``), then ``oed predict`` on
+    the test record (written alike): within the plain fit's figures (total at most 1.0x, each joint 1.3x), the
+    validation error reproduced (1e-6); as ``tests/test_packed_and_foreign_logs.py`` runs the habits of h-logs4."""
+    from benchmarks.bench_real_robots import PlainFit
+    from tests.test_one_answer_audit import RELATIVE
+    from tests.test_unseen_robot_labs import Lab, puma, verbs_against_the_plain_fit, write_records
+    from tests.test_unseen_robots import Log
+
+    lab = Lab("PUMA 3", puma(3), Log(8.0, 250.0, velocity=False), Log(3.0, 250.0, velocity=False),
+              Log(5.0, 250.0, velocity=False))
+    urdf, records, files, _ = write_records(lab, tmp_path)
+    plain_fit = PlainFit(["--urdf", str(urdf)])
+    cutoff, theta = plain_fit.fit(records["train"], records["validate"], rate_hz=250.0)
+    predicted, kept = plain_fit.predict(records["test"], cutoff, theta)
+    written = {}
+    for role, path in files.items():
+        folder = tmp_path / f"form_{role}"
+        folder.mkdir()
+        written[role] = VERB_FORMS[form](pd.read_csv(path), folder)
+    outcome = verbs_against_the_plain_fit(urdf, written, records["test"], kept, predicted, tmp_path,
+                                          options=("--chunk-size", "300") if streamed else ())
+    assert not outcome["exits"], outcome["exits"]
+    for label in ("default", "diagnose"):
+        mse = np.asarray(outcome["mse"][label])
+        reference = np.asarray(outcome["mse"][f"plain OLS ({label}'s samples)"])
+        print(f"\n{form}, {'streamed' if streamed else 'in memory'}, {label}: {mse.sum() / reference.sum():.4f} "
+              f"worst {np.max(mse / reference):.3f}")
+        assert mse.sum() <= reference.sum() and np.all(mse <= 1.3 * reference), (label, mse, reference)
+        assert outcome["reproduced"][label] < RELATIVE, (label, outcome["reproduced"])

@@ -74,17 +74,25 @@ def zip_member(path: str | os.PathLike[str]) -> str:
     return names[0]
 
 
+#: the endings of a delimited text table read as a CSV file (its delimiter told from its lines: a tab, ``;``, ``|``,
+#: spaces): a tab-separated export, a MATLAB ``writematrix``'s or NumPy ``savetxt``'s text file
+TEXT_TABLES: tuple[str, ...] = (".csv", ".tsv", ".txt")
+
+
 def data_suffix(path: str | os.PathLike[str]) -> str:
-    """The format's ending of the table a file holds, lower case: its own (``.csv``, ``.parquet``), or for a packed
-    file that of the file it packs (``.csv`` for ``run.csv.gz``, or for a ZIP archive holding ``run.csv``), CSV's
-    where its name says no format (``run.gz``, ``run.txt.gz``)."""
+    """The format's ending of the table a file holds, lower case: its own (``.csv``, ``.parquet``; ``.csv`` for a
+    delimited text table, :data:`TEXT_TABLES`), or for a packed file that of the file it packs (``.csv`` for
+    ``run.csv.gz``, or for a ZIP archive holding ``run.csv``), CSV's where its name says no format (``run.gz``,
+    ``run.txt.gz``)."""
     path = Path(path)
     suffix = path.suffix.lower()
+    if suffix in TEXT_TABLES:
+        return ".csv"
     if suffix not in COMPRESSIONS:
         return suffix
     inner = Path(zip_member(path)).suffix.lower() if suffix == ".zip" and path.is_file() else \
         "" if suffix == ".zip" else Path(path.stem).suffix.lower()
-    return ".csv" if inner in ("", ".csv", ".txt", ".tsv") else inner
+    return ".csv" if inner in ("", *TEXT_TABLES) else inner
 
 
 def packed_format(path: str | os.PathLike[str]) -> str:

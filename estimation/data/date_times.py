@@ -34,11 +34,11 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from estimation.data.loading import MeasurementWarning
+from estimation.data.loading import DATE_TIME, MeasurementWarning
 from estimation.data.log_formats import TIME_NAMES
 
-#: a cell holding a date and a time of day as ISO 8601 writes them (``YYYY-MM-DD`` then ``T`` or a space, ``hh:mm``)
-DATE_TIME = re.compile(r"^\s*\d{4}-\d{2}-\d{2}[T ]\d{2}:\d{2}")
+#: a comma before the fractions of a second (ISO 8601 allows it; Python's ``logging`` writes ``10:00:00,004``)
+DECIMAL_COMMA = r"(?<=\d{2}:\d{2}:\d{2}),(?=\d)"
 
 
 #: a cell of an integer count written as text: an integer written as one (a sign, digits; spaces around)
@@ -170,8 +170,8 @@ def time_column_name(frame: pd.DataFrame) -> str | None:
 
 def as_instants(column: pd.Series) -> pd.Series | None:
     """``column`` as UTC instants where it holds date-times: a timestamp type, or text whose every non-blank cell
-    is an ISO 8601 date and time of day that pandas reads; ``None`` otherwise (numbers, other text: read as
-    before)."""
+    is an ISO 8601 date and time of day that pandas reads (a comma before the fractions of a second read as a
+    point); ``None`` otherwise (numbers, other text: read as before)."""
     if pd.api.types.is_datetime64_any_dtype(column):
         return pd.to_datetime(column, utc=True)
     if pd.api.types.is_numeric_dtype(column.dtype) or pd.api.types.is_bool_dtype(column.dtype):
@@ -180,6 +180,8 @@ def as_instants(column: pd.Series) -> pd.Series | None:
     present = cells.notna() & (cells != "")
     if not present.any() or not cells[present].str.match(DATE_TIME).all():
         return None
+    if cells[present].str.contains(",", regex=False).any():  # 10:00:00,004: the fraction's comma as ISO allows it
+        cells = cells.str.replace(DECIMAL_COMMA, ".", regex=True)
     instants = pd.to_datetime(cells.where(present), format="ISO8601", utc=True, errors="coerce")
     if instants[present].isna().any():
         return None
