@@ -193,8 +193,8 @@ def test_too_few_samples_for_the_parameter_count(tmp_path, model):
 
 
 def test_unknown_format_and_missing_file(tmp_path):
-    with pytest.raises(ValueError, match="use .csv or .parquet"):
-        read_measurements(tmp_path / "data.txt")
+    with pytest.raises(ValueError, match="use .csv or .parquet"):  # a .txt table is read as CSV since h-logs5
+        read_measurements(tmp_path / "data.xlsx")
     with pytest.raises(FileNotFoundError):
         read_measurements(tmp_path / "absent.csv")
 

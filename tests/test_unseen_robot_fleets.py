@@ -233,13 +233,14 @@ def test_the_defaults_run_and_predict_a_fleets_log_as_well_as_a_plain_fit(lab, r
 
 
 def test_a_compressed_log_is_named_with_what_to_do(tmp_path):
-    """A log packed by a packer the readers do not unpack (``train.csv.zst``): the verbs exit (code 2) saying it is
+    """A log packed by a packer the readers do not unpack (``train.csv.7z``): the verbs exit (code 2) saying it is
     compressed and naming the file to unpack; at 6d10335 the message named only the formats read. (Since h-logs4 a
-    gzip, bzip2, xz or one-file ZIP log is read: ``tests/test_packed_and_foreign_logs.py``.)"""
+    gzip, bzip2, xz or one-file ZIP log is read, since h-logs5 a zstd one: ``tests/test_packed_and_foreign_logs.py``
+    and ``tests/test_logs_round_five.py``.)"""
     from tests.test_unseen_robot_kinds import quiet
 
-    path = tmp_path / "train.csv.zst"
-    path.write_bytes(b"(\xb5/\xfd")  # zstd's magic number: what it packs is not looked at
+    path = tmp_path / "train.csv.7z"
+    path.write_bytes(b"7z\xbc\xaf\x27\x1c")  # 7-Zip's magic number: what it packs is not looked at
     code, message = quiet(["identify", "--robot", "puma560", "--joints", "3", "--data", str(path), "--out",
                            str(tmp_path / "result.json")])
     assert code == 2 and "Traceback" not in message, message

@@ -31,6 +31,7 @@ _EXPORTS: dict[str, str] = {
     "DuplicatedTimesWarning": "estimation.data.loading",
     "QuantisedStampsWarning": "estimation.data.loading",
     "DelimiterWarning": "estimation.data.loading",
+    "CommentLinesWarning": "estimation.data.loading",
     "UnitsRowWarning": "estimation.data.loading",
     "DateTimeStampsWarning": "estimation.data.date_times",
     "HoleError": "estimation.data.loading",

@@ -15,6 +15,14 @@ between 2000 and 2100 since 1970 (an epoch count), else the only one that puts t
 (:data:`INTEGER_STEP`); such a column is read as the seconds since its first stamp, subtracted as integers (no
 rounding of a nanosecond count near 2e18 by float64), said in an :class:`IntegerStampsWarning`. Where two units fit
 (a step of 100: 0.1 s in milliseconds or 100 µs), nothing is guessed: the reader's refusal names the maps.
+
+Such a count with a blank cell (a row the logger left empty) is parsed by pandas as floats, rounded past 2**53 (a
+nanosecond count since 1970 to 256 ns) and no longer an integer column: the readers look at the time column as read
+(:func:`counted_time`: integers, or floats with a blank whose other values are whole numbers a unit fits) and read it
+again as text, each cell an integer exactly (:func:`integers_of_text`; the blank stays blank: a dropout row, or a
+missing stamp the column checks refuse, as for a time in seconds). The in-memory reader reads the file again so when
+its column came out as floats; the streamed one starts again from its first block whenever that block's time is
+counted in integers, so that no later block with a blank is rounded: both read the same stamps.
 """
 
 from __future__ import annotations
@@ -26,12 +34,15 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from estimation.data.loading import MeasurementWarning
+from estimation.data.loading import DATE_TIME, MeasurementWarning
 from estimation.data.log_formats import TIME_NAMES
 
-#: a cell holding a date and a time of day as ISO 8601 writes them (``YYYY-MM-DD`` then ``T`` or a space, ``hh:mm``)
-DATE_TIME = re.compile(r"^\s*\d{4}-\d{2}-\d{2}[T ]\d{2}:\d{2}")
+#: a comma before the fractions of a second (ISO 8601 allows it; Python's ``logging`` writes ``10:00:00,004``)
+DECIMAL_COMMA = r"(?<=\d{2}:\d{2}:\d{2}),(?=\d)"
 
+
+#: a cell of an integer count written as text: an integer written as one (a sign, digits; spaces around)
+INTEGER_CELL = r"\s*[+-]?\d+\s*"
 
 #: the origin of durations (a timedelta type): their seconds as they are
 EPOCH = pd.Timestamp(0, tz="UTC")
@@ -83,6 +94,38 @@ def integer_unit(values: np.ndarray) -> str | None:
     return fits[0] if len(fits) == 1 else None
 
 
+def counted_time(frame: pd.DataFrame) -> str | None:
+    """The name of the time column (:func:`time_column_name`) of a table as pandas parsed it, where its cells may be
+    integer counts the parser did not keep as integers, or may not in a later block: integers, or floats with a
+    blank cell whose other values are whole numbers :func:`integer_unit` reads in a unit; ``None`` otherwise (seconds
+    written as floats, the common case: one look at the dtype, and one for blanks). The readers read that column
+    again as text (:func:`integers_of_text`)."""
+    name = time_column_name(frame)
+    column = None if name is None else frame[name]
+    if not isinstance(column, pd.Series) or pd.api.types.is_bool_dtype(column.dtype):
+        return None
+    if pd.api.types.is_integer_dtype(column.dtype):
+        return name
+    if not pd.api.types.is_float_dtype(column.dtype):
+        return None
+    values = column.to_numpy(dtype=float)
+    blank = np.isnan(values)
+    if not blank.any() or blank.all():
+        return None
+    return name if integer_unit(values[~blank]) is not None else None
+
+
+def integers_of_text(column: pd.Series) -> pd.Series | None:
+    """``column``, read as text, as integers exactly (a nullable ``Int64`` column, a blank cell missing) where every
+    cell not blank is an integer written as one (:data:`INTEGER_CELL`); ``None`` otherwise (a decimal point, a
+    number written ``1.0``: not a count)."""
+    cells = column.astype("string").str.strip()
+    present = cells.notna() & (cells != "")
+    if not cells[present].str.fullmatch(INTEGER_CELL).all():
+        return None
+    return cells.where(present).astype("Int64")
+
+
 def seconds_of_integer_stamps(frame: pd.DataFrame, name: str, source: str, origin: IntegerOrigin | None
                               ) -> tuple[pd.DataFrame, IntegerOrigin | None]:
     """``frame`` with its time column ``name`` in seconds since ``origin`` (else its first stamp, said) where it
@@ -91,21 +134,23 @@ def seconds_of_integer_stamps(frame: pd.DataFrame, name: str, source: str, origi
     if not pd.api.types.is_numeric_dtype(column.dtype) or pd.api.types.is_bool_dtype(column.dtype) \
             or origin is None and not pd.api.types.is_integer_dtype(column.dtype):
         return frame, origin  # written as integers only (seconds as floats: the common case, nothing read twice)
-    values = column.to_numpy()
-    present = np.isfinite(values.astype(float))
+    values = column.to_numpy(dtype=float, na_value=np.nan)  # a nullable column's blanks as NaN
+    present = np.isfinite(values)
     if origin is None:
-        unit = integer_unit(values[present].astype(float))
+        unit = integer_unit(values[present])
         if unit is None:
             return frame, origin
-        first = values[present][0]
+        first = column[present].iloc[0]  # as written (a float's rounding of a count past 2**53 left out)
         origin = IntegerOrigin(int(first), unit)
         warnings.warn(IntegerStampsWarning(
             f"{source}: column {name} holds integer counts stepping by {float(np.median(np.diff(values[present]))):.6g}"
             f" a sample: read as {unit} (" + ("since 1970, " if EPOCH_SPAN[0] <= abs(float(first)) * origin.factor
                                                <= EPOCH_SPAN[1] else "")
             + f"x{origin.factor:g} s), the seconds since the first stamp {int(first)}"), stacklevel=4)
-    if pd.api.types.is_integer_dtype(column.dtype):  # exact: the difference of two integers
+    if pd.api.types.is_integer_dtype(column.dtype) and not column.hasnans:  # exact: the difference of two integers
         seconds = (column.to_numpy(dtype=np.int64) - np.int64(origin.first)).astype(float) * origin.factor
+    elif pd.api.types.is_integer_dtype(column.dtype):  # read as text (integers_of_text): a blank cell stays blank
+        seconds = (column - origin.first).to_numpy(dtype=float, na_value=np.nan) * origin.factor
     else:  # a count with blank cells, read as floats
         seconds = (column.to_numpy(dtype=float) - float(origin.first)) * origin.factor
     return frame.assign(**{name: seconds}), origin
@@ -125,8 +170,8 @@ def time_column_name(frame: pd.DataFrame) -> str | None:
 
 def as_instants(column: pd.Series) -> pd.Series | None:
     """``column`` as UTC instants where it holds date-times: a timestamp type, or text whose every non-blank cell
-    is an ISO 8601 date and time of day that pandas reads; ``None`` otherwise (numbers, other text: read as
-    before)."""
+    is an ISO 8601 date and time of day that pandas reads (a comma before the fractions of a second read as a
+    point); ``None`` otherwise (numbers, other text: read as before)."""
     if pd.api.types.is_datetime64_any_dtype(column):
         return pd.to_datetime(column, utc=True)
     if pd.api.types.is_numeric_dtype(column.dtype) or pd.api.types.is_bool_dtype(column.dtype):
@@ -135,6 +180,8 @@ def as_instants(column: pd.Series) -> pd.Series | None:
     present = cells.notna() & (cells != "")
     if not present.any() or not cells[present].str.match(DATE_TIME).all():
         return None
+    if cells[present].str.contains(",", regex=False).any():  # 10:00:00,004: the fraction's comma as ISO allows it
+        cells = cells.str.replace(DECIMAL_COMMA, ".", regex=True)
     instants = pd.to_datetime(cells.where(present), format="ISO8601", utc=True, errors="coerce")
     if instants[present].isna().any():
         return None

@@ -201,6 +201,12 @@ class DelimiterWarning(MeasurementWarning):
     mark perhaps a comma (a European spreadsheet's export), was read so: the message says how."""
 
 
+class CommentLinesWarning(MeasurementWarning):
+    """A CSV file's first lines were comments (``#`` first: a logger's notes above its header, or NumPy's
+    ``savetxt`` header ``# t q1 …`` above the numbers): skipped (the last one read as the header where it names the
+    columns), said with their count."""
+
+
 class UnitsRowWarning(MeasurementWarning):
     """A CSV file's second line named each column's unit: it was skipped, and the columns in other units of the same
     quantity (``ms``, ``deg``, ``mN·m``) were turned into the format's SI units (the message says which, by what)."""
@@ -313,28 +319,46 @@ def require_columns(frame: pd.DataFrame, columns: list[str], meaning: str, sourc
             "table's columns NAME1..NAMEn; docs/guides/robots-and-logs.md)")
 
 
+#: a cell holding a date and a time of day as ISO 8601 writes them (``YYYY-MM-DD`` then ``T`` or a space, ``hh:mm``):
+#: its ``.`` or ``,`` before the fractions of a second is no decimal mark of the table's numbers
+DATE_TIME = re.compile(r"^\s*\d{4}-\d{2}-\d{2}[T ]\d{2}:\d{2}")
+
 #: delimiters of files written as "CSV" by spreadsheets and loggers of other locales
 OTHER_DELIMITERS = (";", "\t", "|")
+#: the delimiter of a table whose fields are separated by runs of spaces (NumPy's ``savetxt``, MATLAB's
+#: ``writematrix`` of a ``.txt`` file, a column-aligned export), as ``pandas.read_csv`` takes it
+WHITESPACE = r"\s+"
 
 
 def other_delimiter(header: str) -> str | None:
-    """The delimiter of a header line that holds no comma but another delimiter, or ``None``."""
+    """The delimiter of a header line that holds no comma but another delimiter (:data:`OTHER_DELIMITERS`, else
+    runs of spaces between two names or more: :data:`WHITESPACE`), or ``None``."""
     if "," in header:
         return None
-    return next((delimiter for delimiter in OTHER_DELIMITERS if delimiter in header), None)
+    found = next((delimiter for delimiter in OTHER_DELIMITERS if delimiter in header), None)
+    return WHITESPACE if found is None and len(header.split()) > 1 else found
+
+
+def split_fields(line: str, delimiter: str) -> list[str]:
+    """The fields of a table's ``line`` (its line end aside) split by ``delimiter`` (runs of spaces for
+    :data:`WHITESPACE`, spaces at the ends aside)."""
+    line = line.rstrip("\r\n")
+    return line.split() if delimiter == WHITESPACE else line.split(delimiter)
 
 
 def csv_dialect(header: str, rows: Sequence[str]) -> tuple[str, str] | None:
     """``(separator, decimal mark)`` of a CSV file whose header holds no comma but another delimiter
     (:func:`other_delimiter`) that also splits each of its first data ``rows`` into as many fields; the decimal mark is
-    the comma where those rows hold one (it separates nothing else there), else the point. ``None`` for a
+    the comma where those rows' numbers hold one (it separates nothing else there; a date-time's cells,
+    :data:`DATE_TIME`, are not looked at), else the point. ``None`` for a
     comma-separated file, or where the rows do not agree with the header (nothing is guessed)."""
     delimiter = other_delimiter(header)
     if delimiter is None:
         return None
-    count = len(header.rstrip("\r\n").split(delimiter))
-    values = [value for row in rows if row.strip() for value in row.rstrip("\r\n").split(delimiter)]
-    if count < 2 or any(len(row.rstrip("\r\n").split(delimiter)) != count for row in rows if row.strip()):
+    count = len(split_fields(header, delimiter))
+    values = [value for row in rows if row.strip() for value in split_fields(row, delimiter)
+              if not DATE_TIME.match(value)]  # a date-time's fraction of a second tells no decimal mark
+    if count < 2 or any(len(split_fields(row, delimiter)) != count for row in rows if row.strip()):
         return None
     decimal = "," if any("," in value for value in values) else "."
     if decimal == "," and any(value.count(",") > 1 or "." in value for value in values):

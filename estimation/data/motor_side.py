@@ -40,10 +40,10 @@ from dynamics.transmission import (
 )
 from estimation.data.loading import (MeasurementError, MissingColumnError, in_si_units, other_delimiter,
                                      without_repeated_headers)
-from estimation.data.compressed_logs import csv_input, data_suffix, open_text
+from estimation.data.compressed_logs import csv_input, data_suffix
 from estimation.data.log_cleaning import DEFAULT_MAX_GAP
 from estimation.data.log_formats import is_log_file, read_log_frame
-from estimation.data.records import (csv_options, csv_units, in_the_format, read_csv_frame, read_parquet_frame, read_record,
+from estimation.data.records import (csv_head, csv_options, csv_units, in_the_format, read_csv_frame, read_parquet_frame, read_record,
                                      segments_from_frame)
 from dynamics.measurements import Measurements
 
@@ -60,11 +60,11 @@ def _csv_header(path: Path) -> list[str]:
     """The column names of a CSV file, split by its delimiter (a comma, or the other one a header without commas
     holds: :func:`estimation.data.loading.other_delimiter`), as :func:`read_csv_frame` reads them."""
     try:
-        with open_text(path) as stream:
-            header = stream.readline().rstrip("\r\n")
+        head = csv_head(path)  # comment lines above the header skipped, a commented header read
     except OSError as error:
         raise MeasurementError(f"cannot read {path}: {error}") from None
-    return [name.strip().strip('"\'') for name in header.split(other_delimiter(header) or ",")]
+    header = head.header.lstrip("\ufeff \t")[1:] if head.commented_header else head.header
+    return [name.strip().strip('"\'') for name in head.names(other_delimiter(header) or ",")]
 
 
 def _read_frame(path: Path) -> pd.DataFrame:

@@ -35,6 +35,7 @@ from estimation.data.loading import (
     EncoderGlitchWarning,
     HeldChannelWarning,
     SaturatedTorqueWarning,
+    CommentLinesWarning,
     DelimiterWarning,
     DuplicatedTimesWarning,
     QuantisedStampsWarning,
@@ -64,13 +65,15 @@ from estimation.data.loading import (
     units_row_factors,
     numeric_columns,
     require_columns,
+    WHITESPACE,
     other_delimiter,
+    split_fields,
     required_groups,
     uniform_grid,
 )
 from estimation.data.unstarted_edges import data_cells, said_unstarted, span
-from estimation.data.compressed_logs import COMPRESSIONS, csv_input, open_text, packed_format, packer_named
-from estimation.data.date_times import seconds_of_date_times
+from estimation.data.compressed_logs import COMPRESSIONS, TEXT_TABLES, csv_input, open_text, packed_format, packer_named
+from estimation.data.date_times import counted_time, integers_of_text, seconds_of_date_times
 from estimation.data.passive import with_passive_torques
 from estimation.data.log_formats import (
     DescriptionOrderWarning,
@@ -190,7 +193,7 @@ def read_record(
     """
     source, path = path, Path(os.fspath(path))
     suffix = path.suffix.lower()
-    if suffix in COMPRESSIONS:  # a CSV file packed whole: read as the file it packs
+    if suffix in COMPRESSIONS or suffix in TEXT_TABLES:  # a CSV file packed whole, a .tsv or .txt table: read as CSV
         suffix = packed_format(path)
     if is_log_file(source):  # a ROS bag, .npz, .mat, or a column map (estimation.data.log_formats)
         robot = model.robot if isinstance(model, IdentificationModel) else None
@@ -201,9 +204,10 @@ def read_record(
     if path.is_dir():
         raise IsADirectoryError(f"data file {path} is a folder")
     if suffix not in (".csv", ".parquet"):
-        raise MeasurementError(f"unknown data format {path.suffix!r} for {path}: use .csv or .parquet (either "
-                               "packed by gzip, bzip2, xz or in a one-file ZIP archive), a ROS bag (.mcap, .db3, .bag "
-                               "or a rosbag2 folder), .npz or .mat" + packer_named(path))
+        raise MeasurementError(f"unknown data format {path.suffix!r} for {path}: use .csv or .parquet (a .tsv or "
+                               ".txt table read as .csv; either packed by gzip, bzip2, xz, zstd or in a one-file ZIP "
+                               "archive), a ROS bag (.mcap, .db3, .bag or a rosbag2 folder), .npz or .mat"
+                               + packer_named(path))
     if not path.is_file():
         raise FileNotFoundError(f"data file not found: {path}")
     try:
@@ -316,19 +320,94 @@ def read_csv_frame(path: Path) -> pd.DataFrame:
     its header dropped (:func:`without_repeated_headers`), its columns in the format's SI units (:func:`csv_units`)."""
     options = csv_options(path)
     with csv_input(path) as source:
-        frame = in_si_units(without_repeated_headers(pd.read_csv(source, **options), str(path)), csv_units(path))
+        frame = pd.read_csv(source, **options)
+    counted = counted_time(frame)
+    if counted is not None and not pd.api.types.is_integer_dtype(frame[counted].dtype):  # integer counts with a
+        with csv_input(path) as source:  # blank cell, parsed as floats (rounded past 2**53): read again as text
+            text = pd.read_csv(source, **options, dtype={counted: str})
+        integers = integers_of_text(text[counted])
+        if integers is not None:  # else written as floats (1.0): as parsed
+            frame = text.assign(**{counted: integers})
+    frame = in_si_units(without_repeated_headers(frame, str(path)), csv_units(path))
     return seconds_of_date_times(frame, str(path))[0]
+
+
+#: the comment lines (``#`` first) read at most at the head of a CSV file before its header: a logger's notes
+COMMENT_LINES = 1000
+
+
+def _comment(line: str) -> bool:
+    return line.lstrip("\ufeff \t").startswith("#")
+
+
+def _is_number(field: str) -> bool:
+    try:
+        float(field.strip().replace(",", "."))
+    except ValueError:
+        return False
+    return True
+
+
+@dataclass(frozen=True)
+class CsvHead:
+    """The head of a CSV file: the comment lines (``#`` first: a logger's notes, the date, the rate) before its
+    header, the header line, the lines after it (up to ``rows``), and whether the header is the last comment line
+    (NumPy's ``savetxt(header=...)`` writes ``# t q1 q2 …`` above the numbers)."""
+
+    comments: int
+    header: str
+    rows: list[str]
+    commented_header: bool = False
+
+    @property
+    def header_line(self) -> int:
+        """The header's line (0-based)."""
+        return self.comments - 1 if self.commented_header else self.comments
+
+    def names(self, delimiter: str) -> list[str]:
+        """The header's fields (a commented header's ``#`` left out)."""
+        header = self.header.lstrip("\ufeff \t")[1:] if self.commented_header else self.header
+        return split_fields(header.strip() if delimiter == WHITESPACE else header, delimiter)
+
+
+def csv_head(path: Path, rows: int = 1) -> CsvHead:
+    """The head of the CSV file ``path`` (:class:`CsvHead`): its comment lines (at most :data:`COMMENT_LINES`), its
+    header line and the ``rows`` lines after it; the header is the last comment line where the first line after the
+    comments is numbers only and that comment holds as many fields, names (NumPy's ``savetxt``).
+
+    Raises
+    ------
+    OSError
+        The file cannot be read."""
+    comments = 0
+    with open_text(path) as stream:
+        line = stream.readline()
+        last = ""
+        while line and _comment(line) and comments < COMMENT_LINES:
+            comments, last = comments + 1, line
+            line = stream.readline()
+        following = [stream.readline() for _ in range(rows)]
+    if comments and line.strip():
+        delimiter = other_delimiter(line) or ","
+        fields = split_fields(line.strip() if delimiter == WHITESPACE else line, delimiter)
+        named = last.lstrip("\ufeff \t")[1:].strip()
+        names = split_fields(named, delimiter) if delimiter == WHITESPACE or delimiter in named else []
+        if all(_is_number(field) for field in fields) and len(names) == len(fields) \
+                and not any(_is_number(name) for name in names):
+            return CsvHead(comments, last, [line, *following[:-1]] if rows else [], commented_header=True)
+    return CsvHead(comments, line, following)
 
 
 def _units_row(path: Path) -> tuple[str, list[str], list[str]] | None:
     """``(delimiter, header fields, second line's fields)`` of a CSV file (``None`` where it cannot be read)."""
     try:
-        with open_text(path) as stream:
-            header, row = stream.readline(), stream.readline()
+        head = csv_head(path)
     except OSError:
         return None
-    delimiter = other_delimiter(header) or ","
-    return delimiter, header.rstrip("\r\n").split(delimiter), row.rstrip("\r\n").split(delimiter)
+    if head.commented_header:
+        return None  # numbers right beneath
+    delimiter = other_delimiter(head.header) or ","
+    return delimiter, head.names(delimiter), split_fields(head.rows[0], delimiter)
 
 
 def csv_units(path: Path) -> dict[str, float]:
@@ -350,18 +429,28 @@ def csv_options(path: Path) -> dict[str, object]:
     the format's are converted by the reader, :func:`csv_units`), said in a :class:`UnitsRowWarning`; ``{}`` for a plain file or where nothing can be told (the reader's error then names
     the separator, or the text beneath the names)."""
     try:
-        with open_text(path) as stream:
-            header, rows = stream.readline(), [stream.readline() for _ in range(DIALECT_ROWS + 1)]
+        head = csv_head(path, DIALECT_ROWS + 1)
     except OSError:
         return {}
+    header = head.header.lstrip("\ufeff \t")[1:] if head.commented_header else head.header
+    rows = head.rows
     options: dict[str, object] = {}
     delimiter = other_delimiter(header) or ","
-    factors = units_row_factors(header.rstrip("\r\n").split(delimiter), rows[0].rstrip("\r\n").split(delimiter)) \
-        if rows else None
+    if head.comments:  # a logger's notes above the header (# rate: 250 Hz), or the header commented (savetxt)
+        options["skiprows"] = list(range(head.comments))
+        warnings.warn(CommentLinesWarning(
+            f"{path}: its first {head.comments} line(s) are comments (# first): skipped"
+            + (f", the last one read as the header ({head.header.strip()[:80]})" if head.commented_header else "")),
+            stacklevel=3)
+    if head.commented_header:
+        options.update(header=None, names=[name.strip() for name in head.names(delimiter)])
+    factors = None if head.commented_header or not rows else \
+        units_row_factors(split_fields(header, delimiter), split_fields(rows[0], delimiter))
     if factors is not None:
-        options["skiprows"] = [1]
+        options["skiprows"] = [*options.get("skiprows", []), head.header_line + 1]
         converted = "".join(f"; {name} read as SI units (x{factor:g})" for name, factor in factors.items())
-        warnings.warn(UnitsRowWarning(f"{path}: its second line names the columns' units ({rows[0].strip()})"
+        line = f"line {head.header_line + 2}" if head.comments else "second line"
+        warnings.warn(UnitsRowWarning(f"{path}: its {line} names the columns' units ({rows[0].strip()})"
                                       + (converted if factors else ", the format's SI units") + ": skipped"),
                       stacklevel=3)
         rows = rows[1:]
@@ -370,7 +459,8 @@ def csv_options(path: Path) -> dict[str, object]:
         return options
     separator, decimal = dialect
     warnings.warn(DelimiterWarning(
-        f"{path}: columns separated by {separator!r}" + (", ',' the decimal mark" if decimal == "," else "")
+        f"{path}: columns separated by {'spaces' if separator == WHITESPACE else repr(separator)}"
+        + (", ',' the decimal mark" if decimal == "," else "")
         + ": read so"), stacklevel=3)
     return {**options, "sep": separator, "decimal": decimal}
 
@@ -378,14 +468,14 @@ def csv_options(path: Path) -> dict[str, object]:
 def _delimiter_note(path: Path) -> str:
     """``" (…separated by ';'…)"`` when the file's header is not separated by commas, else ``""``."""
     try:
-        with open_text(path) as stream:
-            header = stream.readline()
+        header = csv_head(path).header
     except OSError:
         return ""
     delimiter = other_delimiter(header)
     if delimiter is None:
         return ""
-    return (f" (its columns are separated by {delimiter!r}, not by commas: write the file comma-separated, "
+    return (f" (its columns are separated by {'spaces' if delimiter == WHITESPACE else repr(delimiter)}, not by "
+            "commas: write the file comma-separated, "
             "with '.' as the decimal mark)")
 
 

@@ -60,8 +60,8 @@ def reversed_lines(path: Path, skip: int = 1) -> Iterator[bytes]:
 
 def reversed_csv_frames(path: Path, chunk_size: int, options: dict) -> Iterator[pd.DataFrame]:
     """The rows of the CSV file ``path`` (a log written newest first) as frames of ``chunk_size`` rows, its last row
-    first, each parsed under its header with ``pandas.read_csv``'s ``options`` (``skiprows=[1]``: a units row, left
-    out); the frames' index counts the rows so read (the oldest row 0), as the in-memory reader's reversed table.
+    first, each parsed under its header with ``pandas.read_csv``'s ``options`` (``skiprows``: comment lines above
+    the header and a units row beneath it, left out; ``names``: a commented header's); the frames' index counts the rows so read (the oldest row 0), as the in-memory reader's reversed table.
 
     Raises
     ------
@@ -72,9 +72,15 @@ def reversed_csv_frames(path: Path, chunk_size: int, options: dict) -> Iterator[
                                 "newest-first log from the end of a plain CSV file; read it in memory (drop the "
                                 "streaming options), or unpack it")
     options = dict(options)
-    skip = 1 + len(options.pop("skiprows", None) or ())
+    skipped = set(options.pop("skiprows", None) or ())  # comment lines above the header, a units row beneath it
+    named = "names" in options  # a header commented (savetxt): the names given, no header line to parse
+    skip = len(skipped) + (0 if named else 1)
     with open(path, "rb") as stream:
-        header = stream.readline().rstrip(b"\r\n")
+        line = 0
+        while line in skipped:
+            stream.readline()
+            line += 1
+        header = b"" if named else stream.readline().rstrip(b"\r\n")
     batch: list[bytes] = []
     row = 0
 
@@ -83,7 +89,7 @@ def reversed_csv_frames(path: Path, chunk_size: int, options: dict) -> Iterator[
             raise ReversedReadError(f"{path}: a log written newest first whose rows hold quoted fields (a field may "
                                     "span lines, so its lines cannot be read from the end); read it in memory (drop "
                                     "the streaming options)")
-        frame = pd.read_csv(io.BytesIO(header + b"\n" + b"\n".join(lines) + b"\n"), **options)
+        frame = pd.read_csv(io.BytesIO((header + b"\n" if header else b"") + b"\n".join(lines) + b"\n"), **options)
         frame.index = pd.RangeIndex(row, row + len(frame))
         return frame
 

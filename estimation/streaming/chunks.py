@@ -32,7 +32,6 @@ pass over the file keeps column ``t`` and a mask of the rows kept). A hole longe
 
 from __future__ import annotations
 
-import contextlib
 import functools
 import itertools
 import re
@@ -69,7 +68,7 @@ from estimation.data.loading import (
     written_newest_first,
 )
 from estimation.data.log_cleaning import HeldExtremes
-from estimation.data.date_times import seconds_of_date_times
+from estimation.data.date_times import INTEGER_CELL, counted_time, integers_of_text, seconds_of_date_times
 from estimation.data.records import (AngleTurns, csv_options, dropouts, csv_units, in_the_format, measurements_from_frame,
                                      said_clipped,
                                      said_unwrapped, unwrap_angles)
@@ -198,7 +197,7 @@ def _file_frames(path: Path, chunk_size: int, only_time: bool = False, reverse: 
         raise MeasurementError(f"data file {path} is a folder")
     if suffix not in (".csv", ".parquet"):
         raise MeasurementError(f"unknown data format {path.suffix!r} for {path}: use .csv or .parquet (either "
-                               "packed by gzip, bzip2, xz or in a one-file ZIP archive)" + packer_named(path))
+                               "packed by gzip, bzip2, xz, zstd or in a one-file ZIP archive)" + packer_named(path))
     if not path.is_file():
         raise MeasurementError(f"data file not found: {path}")
     origin = None  # the first stamp of a time column of date-times (estimation.data.date_times)
@@ -206,18 +205,11 @@ def _file_frames(path: Path, chunk_size: int, only_time: bool = False, reverse: 
         if suffix == ".csv":
             usecols = (lambda name: str(name).strip() == "t") if only_time else None
             factors = csv_units(path)  # a units row's other units turned into SI, as in memory
-            options = csv_options(path)
-            with contextlib.ExitStack() as stack:
-                if reverse:
-                    reader = reversed_csv_frames(path, chunk_size, {**options, "usecols": usecols})
-                else:
-                    source = stack.enter_context(csv_input(path))
-                    reader = stack.enter_context(pd.read_csv(source, chunksize=chunk_size, usecols=usecols,
-                                                             **options))
-                for frame in reader:  # date-times as seconds since the file's first stamp, as in memory
-                    frame, origin = seconds_of_date_times(in_si_units(without_repeated_headers(frame, str(path)),
-                                                                      factors), str(path), origin)
-                    yield frame
+            options = {**csv_options(path), "usecols": usecols}
+            for frame in _counted_frames(path, chunk_size, options, reverse):  # date-times as seconds since the
+                frame, origin = seconds_of_date_times(in_si_units(without_repeated_headers(frame, str(path)),
+                                                                  factors), str(path), origin)  # first stamp
+                yield frame
         else:
             try:
                 import pyarrow.parquet
@@ -241,6 +233,50 @@ def _file_frames(path: Path, chunk_size: int, only_time: bool = False, reverse: 
         if type(error).__module__.startswith("pyarrow"):
             raise MeasurementError(f"cannot read {path}: {error}") from None
         raise
+
+
+def _csv_blocks(path: Path, chunk_size: int, options: dict, reverse: bool) -> Iterator[pd.DataFrame]:
+    """The CSV file's rows as parsed by ``pandas.read_csv`` with ``options``, ``chunk_size`` rows a block (``reverse``:
+    the last row first)."""
+    if reverse:
+        yield from reversed_csv_frames(path, chunk_size, options)
+        return
+    with csv_input(path) as source, pd.read_csv(source, chunksize=chunk_size, **options) as reader:
+        yield from reader
+
+
+def _counted_frames(path: Path, chunk_size: int, options: dict, reverse: bool) -> Iterator[pd.DataFrame]:
+    """:func:`_csv_blocks`, a time column of integer counts (:func:`~estimation.data.date_times.counted_time` on the
+    first block) read as text and each block's cells as integers exactly
+    (:func:`~estimation.data.date_times.integers_of_text`): a later block with a blank cell is not rounded, as the
+    in-memory reader reads such a column (the first block read again: integer counts only).
+
+    Raises
+    ------
+    TimeBaseError
+        A later block's cell of such a column not written as an integer (a decimal): the row named."""
+    blocks = _csv_blocks(path, chunk_size, options, reverse)
+    first = next(blocks, None)
+    counted = None if first is None else counted_time(first)
+    if counted is None:
+        yield from itertools.chain([] if first is None else [first], blocks)
+        return
+    blocks.close()
+    blocks = _csv_blocks(path, chunk_size, {**options, "dtype": {counted: str}}, reverse)
+    for index, frame in enumerate(blocks):
+        integers = integers_of_text(frame[counted])
+        if integers is None and index == 0:  # written as floats (1.0): read as parsed, as in memory
+            blocks.close()
+            yield from _csv_blocks(path, chunk_size, options, reverse)
+            return
+        if integers is None:
+            cells = frame[counted].astype("string").str.strip()
+            bad = cells.notna() & (cells != "") & ~cells.str.fullmatch(INTEGER_CELL).fillna(False)
+            row = int(frame.index[int(np.flatnonzero(bad.to_numpy(dtype=bool))[0])])
+            raise TimeBaseError(f"{path}: column {counted} holds integer counts in its first rows and "
+                                f"{cells[bad].iloc[0]!r}, not an integer, at row {row}: a time column written one way "
+                                "throughout is read")
+        yield frame.assign(**{counted: integers})
 
 
 #: a streamed source naming one segment of a file split at its holes, as the loader names it, or one part of a

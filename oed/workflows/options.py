@@ -33,6 +33,7 @@ from dynamics.transmission import Transmission
 from dynamics.runtime.report_document import HTML_SUFFIXES, MARKDOWN_SUFFIXES
 from estimation.data.log_cleaning import DEFAULT_MAX_GAP
 from estimation.data.compressed_logs import csv_input
+from estimation.data.records import csv_options
 from estimation.data.loading import count_joint_columns
 from estimation.data.passive import PassiveJointWarning
 from estimation.data.log_formats import BAG_SUFFIXES, DEFAULT_TOPIC, LogSource, apply_column_map, is_log_file, read_log_frame
@@ -220,8 +221,11 @@ def logged_frame_head(source: Path) -> pd.DataFrame | None:
             return None
         if suffix in (".npz", ".mat", ".parquet"):
             return read_log_frame(log)
+        with warnings.catch_warnings():  # said by the reader
+            warnings.simplefilter("ignore")
+            options = csv_options(log.path)  # another delimiter, comment lines above the header, a units row
         with csv_input(log.path) as stream:  # a packed CSV file's first rows, decompressed
-            return apply_column_map(pd.read_csv(stream, nrows=2), log.columns, str(log.path))
+            return apply_column_map(pd.read_csv(stream, nrows=2, **options), log.columns, str(log.path))
     except (ValueError, OSError, ImportError, KeyError):
         return None
 
