@@ -41,7 +41,7 @@ from estimation.consistent.torque_gains import (
     divided_records,
     gains_for_records,
     in_recorded_units,
-    scale_note,
+    scale_notes,
 )
 from estimation.identification.fit import identify as identify_model
 from estimation.identification.mount import MountCheck
@@ -479,7 +479,7 @@ def diagnosis_in_memory(args: DiagnoseOptions, model: IdentificationModel, trans
         gains = None if args.consistent or delay is not None or model_has_shapes(model) \
             else gains_for_records(plain_model(model), records)
         # the description's bodies and the torques in other units (grams, kN m): said, the gains taken or not
-        scale = () if gains is None or (note := scale_note(gains[0])) is None else (note,)
+        scale = scale_notes(None if gains is None else gains[0])
         gains = gains if gains is not None and gains[1] and refused is None else None
         recorded, refusal = records, None  # the records as logged: the gains confirmed against them (below)
         if gains is not None:
