@@ -143,3 +143,35 @@ def test_a_description_in_grams_identified_streamed_as_in_memory_and_exported(tm
     written = robot_from_urdf(tmp_path / "out.urdf")
     links = np.array(documents["memory"]["model_file"]["consistent"]["links"], dtype=float)
     assert np.allclose(written.standard_parameters, links.reshape(-1), rtol=1e-9, atol=1e-12)
+
+
+def scaled_arm(text: str, length: float, mass: float) -> str:
+    """``text`` with every ``<origin xyz>`` times ``length``, every mass times ``mass`` and every inertia times
+    ``mass length²`` (a similar arm of another size)."""
+    import re
+
+    def xyz(found: re.Match) -> str:
+        return 'xyz="' + " ".join(f"{float(value) * length:.10g}" for value in found.group(1).split()) + '"'
+
+    text = re.sub(r'xyz="([^"]+)"(?=\s*rpy)', xyz, text)
+    text = re.sub(r'<mass value="([^"]+)"', lambda found: f'<mass value="{float(found.group(1)) * mass:.10g}"', text)
+    return re.sub(r'\b(i[xyz]{2})="([^"]+)"',
+                  lambda found: f'{found.group(1)}="{float(found.group(2)) * mass * length ** 2:.10g}"', text)
+
+
+def test_a_tiny_arm_or_light_links_in_inches_are_said(tmp_path):
+    """Descriptions in inches the reader's refusal does not judge: the desk arm at a fifth of its size (2.1 cm,
+    1.1 g moving: a 0.83 m chain in inches) and with every link under 10 g (8.1 g moving: 4.1 m in inches) weigh
+    0.0019 and 0.00011 kg over their span cubed, where robots' descriptions weigh 0.8 to 50: read with a warning
+    naming placeholders and inches (at f91f2fe: without a word). The same arms in metres (117 and 7.0) are not
+    said; a simulator's placeholders (a gram a link on the PUMA: 0.006) are."""
+    from tests.test_unseen_robot_desks import DESK_ARM, placeholder_masses
+    from tests.test_unseen_robot_descriptions import in_inches, read
+
+    for name, text in (("tiny", scaled_arm(DESK_ARM, 0.2, 0.008)), ("light", scaled_arm(DESK_ARM, 1.0, 0.06))):
+        _, said = read(text, tmp_path, f"{name}_metres")
+        assert not [message for message in said if "weigh" in message], said
+        _, said = read(in_inches(text), tmp_path, f"{name}_inches")
+        assert any("inches" in message and "0.0254" in message and "placeholder" in message for message in said), said
+    _, said = read(placeholder_masses(puma_text()), tmp_path, "placeholders")
+    assert any("placeholder" in message for message in said), said
