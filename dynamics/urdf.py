@@ -638,4 +638,3 @@ def _joint(path: Path, model: Any, joint_id: int) -> Joint:
         velocity=velocity if 0 < velocity < 1e30 else np.inf,
         effort=effort if 0 < effort < 1e30 else np.inf,
     )
-
