@@ -175,3 +175,65 @@ def test_a_tiny_arm_or_light_links_in_inches_are_said(tmp_path):
         assert any("inches" in message and "0.0254" in message and "placeholder" in message for message in said), said
     _, said = read(placeholder_masses(puma_text()), tmp_path, "placeholders")
     assert any("placeholder" in message for message in said), said
+
+
+def with_dynamics(text: str, damping, friction) -> str:
+    """Each ``<limit>`` followed by ``<dynamics damping friction>`` of the joint's values (a ROS description's)."""
+    import re
+
+    values = iter(zip(damping, friction))
+
+    def put(found: re.Match) -> str:
+        viscous, coulomb = next(values)
+        return f'{found.group(1)}\n    <dynamics damping="{viscous:.6g}" friction="{coulomb:.6g}" />'
+
+    return re.sub(r"(<limit [^>]*/>)", put, text)
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason="measured (h-units20): the URDF's <dynamics> as the consistent fit's friction "
+                   "prior, its values a fifth of the truth's, makes the default oed diagnose predict the test record "
+                   "1.47x worse (joint 2 2.0x), where the true values gain nothing (0.0272 with and without): not read "
+                   "as a prior")
+def test_a_urdfs_dynamics_as_the_friction_prior_never_costs(tmp_path, monkeypatch):
+    """Should a URDF's ``<dynamics damping friction>`` be the consistent fit's prior for each joint's viscous and
+    Coulomb friction (:mod:`estimation.consistent.effect_prior`, as an MJCF's ``damping`` and ``frictionloss`` are,
+    weighted with the bodies by the held-out prior weight)? Measured with the reader patched to read them: the PUMA 3
+    (3 s / 2 s / 8 s at 250 Hz, no dq, a point-to-point test) with the truth's values gains nothing (identify and
+    diagnose 0.0272 of the plain fit, as without), and with values a fifth of the truth's the default ``oed
+    diagnose`` predicts the test 0.0399 (joint 2 0.086 against 0.043): a description's friction is often a
+    simulator's guess, so it stays unread (the export writes the identified friction into it). The PUMA 6 (10 s /
+    4 s / 8 s), true, 5x, a fifth and the KUKA-like guess (1.0 / 10.0): 0.0950 to 0.0958 against 0.0958."""
+    import dataclasses
+
+    import dynamics.urdf as urdf
+    from dynamics.models import build_model
+    from tests.test_unseen_robot_days import Day, logs, run_day
+    from tests.test_unseen_robot_labs import Lab, puma, true_theta
+
+    original = urdf._joint
+
+    def reading(path, model, joint_id):  # the reader as it would read them
+        joint, index = original(path, model, joint_id), model.joints[joint_id].idx_v
+        return dataclasses.replace(joint, damping=max(float(model.damping[index]), 0.0),
+                                   friction=max(float(model.friction[index]), 0.0))
+
+    monkeypatch.setattr(urdf, "_joint", reading)
+    lab = Lab("PUMA 3, <dynamics> a fifth of the truth's", puma(3), *logs((3.0, 2.0, 8.0)),
+              test_motion="point-to-point")
+    theta = true_theta(lab, tmp_path)
+    names = list(build_model(lab.robot(), "internal", "viscous,coulomb,offset").parameter_names)
+    fv, fc = ([0.2 * theta[names.index(f"{law}{j}")] for j in (1, 2, 3)] for law in ("fv", "fc"))
+    totals = {}
+    for label, described in (("without", None), ("a fifth", lambda text: with_dynamics(text, fv, fc))):
+        folder = tmp_path / label.replace(" ", "_")
+        folder.mkdir()
+        mse = run_day(Day(lab, described=described), folder)["mse"]
+        totals[label] = {verb: (sum(mse[verb]) / sum(mse[f"plain OLS ({verb}'s samples)"]),
+                                np.array(mse[verb]) / np.array(mse[f"plain OLS ({verb}'s samples)"]))
+                         for verb in ("default", "diagnose")}
+    print(totals)
+    for verb in ("default", "diagnose"):
+        total, joints = totals["a fifth"][verb]
+        assert total <= 1.02 * totals["without"][verb][0], (verb, totals)
+        assert np.all(joints <= 1.05 * totals["without"][verb][1]), (verb, totals)
