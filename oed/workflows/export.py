@@ -135,19 +135,23 @@ def prior_at_torques_scale(path: Path) -> str:
 
 def scale_line(text: str, robot: Any, scale: float) -> str:
     """What ``oed export`` says when the description's bodies were read at the recorded torques' ``scale`` (a
-    description in grams): the URDF ``text`` holds the identified bodies in SI, the log's units (a URDF is SI by
-    specification, ROS REP 103), and the links it did not identify keep the description's ``<inertial>``, named."""
+    description in grams): the URDF ``text`` holds the identified bodies in the log's units, SI when its torques are
+    N m (a URDF is SI by specification, ROS REP 103; were the torques in kN m or a motor's, the bodies are ``scale``
+    times the robot's: said, as the scale alone does not tell the two apart), and the links it did not identify keep
+    the description's ``<inertial>``, named."""
     root = ElementTree.fromstring(text)
     children = {joint.get("name"): joint.find("child").get("link") for joint in root.findall("joint")
                 if joint.find("child") is not None}
     identified = {children.get(name) for name in robot.joint_names}
     kept = [str(link.get("name")) for link in root.findall("link")
             if link.find("inertial") is not None and link.get("name") not in identified]
-    units = "grams and g m^2" if 1e-4 <= scale < 1 else "other units"
-    return (f"the description's bodies were read at the recorded torques' scale (x{scale:.4g}: {units}?): the URDF "
-            "holds the identified bodies in SI (kg, kg m^2, the log's units), as URDF specifies, not in the "
-            "description's units" + ("; the links not identified keep the description's <inertial> ("
-                                     + ", ".join(kept) + "): mend their units" if kept else ""))
+    return (f"the description's bodies were read at the recorded torques' scale (x{scale:.4g}: the description's "
+            "masses and inertias in other units, such as grams and g m^2, or the torques?): the URDF holds the "
+            "identified bodies in the log's units, SI (kg, kg m^2) when the log's torques are N m, as URDF specifies, "
+            "not in the description's units; were the torques in other units (kN m, a motor's before its gear), "
+            f"these bodies would be {scale:.4g} times the robot's" + (
+                "; the links not identified keep the description's <inertial> (" + ", ".join(kept) + "): mend their "
+                "units" if kept else ""))
 
 
 def export(*, model: str | Path, allow_implausible: bool = False, mjcf: bool = False,
