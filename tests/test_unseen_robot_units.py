@@ -39,6 +39,8 @@ def test_the_streamed_identify_takes_the_prior_at_the_torques_scale(monkeypatch)
     the same sums with the description's bodies times that scale as the consistent candidate's prior, scored as the
     first choice was, as memory's ``torque_gains_selection`` does; at f91f2fe the streamed path only said it (its
     prior the description's, 1000 times too heavy). The gains' check and the choice are stubbed: this is the rule."""
+    import dataclasses
+
     import oed.workflows.identify as identify
     from dynamics.models import build_model
     from dynamics.robots import load_robot
@@ -55,8 +57,17 @@ def test_the_streamed_identify_takes_the_prior_at_the_torques_scale(monkeypatch)
 
     monkeypatch.setattr(identify, "summed_selection", summed_selection)
     first = SimpleNamespace(unconstrained=SimpleNamespace(model=model), selection="validation", reason="chosen")
-    args = SimpleNamespace(method="auto", consistent=False, validate=["validate.csv"], prior=None, prior_weight=None,
-                           link_bounds=None)
+    @dataclasses.dataclass(frozen=True)
+    class Args:  # the options the rule reads (IdentifyOptions checks its files)
+        method: str = "auto"
+        consistent: bool = False
+        validate: tuple[str, ...] = ("validate.csv",)
+        prior: str | None = None
+        prior_weight: float | None = None
+        link_bounds: str | None = None
+        prior_scale: float | None = None
+
+    args = Args()
     sums = SimpleNamespace(validation=SimpleNamespace(n_samples=100), train=None)
     scores = object()
     options = {"cutoff_hz": None, "decimation": None, "held_torques": None, "frequency_hz": None, "harmonics": None}
@@ -72,9 +83,28 @@ def test_the_streamed_identify_takes_the_prior_at_the_torques_scale(monkeypatch)
     assert chosen[0]["score"] is scores and chosen[0]["base"] == "wls"
     chosen.clear()  # a prior the user gave is kept
     identify.streamed_torque_gains_selection(
-        SimpleNamespace(**{**vars(args), "prior": "prior.json"}), first, base="wls", methods=("wls", "ols"),
+        dataclasses.replace(args, prior="prior.json"), first, base="wls", methods=("wls", "ols"),
         chunk_size=500, options=options, ratio=None, still=False, sums=sums, scores=scores)
     assert chosen == []
+
+
+def test_the_prior_at_the_torques_scale_is_one_setting_for_both_verbs():
+    """:func:`oed.workflows.consistent.consistent_settings` with ``prior_scale`` (set by ``oed identify`` and, from
+    this round, ``oed diagnose`` when the gains say the torques' scale): the description's bodies times it, its
+    source a sentence :func:`~oed.workflows.consistent.prior_source_scale` reads back (``oed export`` judges the
+    bodies at that scale); a ``--prior`` the user gave wins, and without the scale the description's bodies."""
+    from dynamics.robots import load_robot
+    from oed.workflows.consistent import consistent_settings, prior_source_scale, scaled_prior_source
+
+    robot = load_robot("puma560", joints=3)
+    args = SimpleNamespace(prior_weight=None, prior=None, link_bounds=None, prior_scale=0.00105493)
+    settings = consistent_settings(args, robot)
+    assert np.allclose(settings.prior, 0.00105493 * robot.standard_parameters, rtol=1e-12)
+    assert prior_source_scale(settings.prior_source) == pytest.approx(0.00105493, rel=1e-6)
+    assert prior_source_scale(scaled_prior_source(2.5e-5)) == pytest.approx(2.5e-5, rel=1e-6)
+    assert consistent_settings(SimpleNamespace(**{**vars(args), "prior_scale": None}), robot).prior is None
+    for other in ("robot description", "prior.json", None, "robot description times x (the recorded torques' scale)"):
+        assert prior_source_scale(other) is None
 
 
 def test_export_judges_the_bodies_at_the_torques_scale(tmp_path):
@@ -118,7 +148,8 @@ def test_a_description_in_grams_identified_streamed_as_in_memory_and_exported(tm
     """The PUMA's first three joints described in grams (8 s / 3 s / 5 s at 250 Hz, 2 % noise): the streamed
     ``oed identify`` (``--chunk-size 500``) takes the prior at the torques' scale as memory does, and the consistent
     alternatives of both predict the test record alike (relative 1e-9; measured 2e-10); ``oed export`` of the answer
-    exits 0 writing the identified bodies in SI and saying so, and the written URDF reads back those bodies."""
+    exits 0 writing the identified bodies in SI and saying so, and the written URDF reads back those bodies; the
+    default ``oed diagnose`` takes the same prior and its answer exports alike."""
     import oed
     from dynamics.urdf import robot_from_urdf
     from tests.test_unseen_robot_kinds import quiet
@@ -143,6 +174,14 @@ def test_a_description_in_grams_identified_streamed_as_in_memory_and_exported(tm
     written = robot_from_urdf(tmp_path / "out.urdf")
     links = np.array(documents["memory"]["model_file"]["consistent"]["links"], dtype=float)
     assert np.allclose(written.standard_parameters, links.reshape(-1), rtol=1e-9, atol=1e-12)
+    # oed diagnose takes the same prior (at f91f2fe the description's: joint 2's body 1041 kg, export exit 2)
+    code, message = quiet(["diagnose", "--urdf", str(urdf), "--data", str(tmp_path / "train.csv"), "--validate",
+                           str(tmp_path / "validate.csv"), "--out", str(tmp_path / "diagnose.json")])
+    assert code == 0, message
+    diagnosed = json.loads((tmp_path / "diagnose.json").read_text())
+    assert "torques' scale" in diagnosed["consistent"]["prior"], diagnosed["consistent"]["prior"]
+    code, message = quiet(["export", "--model", str(tmp_path / "diagnose.json"), "--urdf", str(tmp_path / "d.urdf")])
+    assert code == 0 and "the identified bodies in the log's units, SI" in message, message
 
 
 def scaled_arm(text: str, length: float, mass: float) -> str:

@@ -25,7 +25,7 @@ from estimation.identification.export import (
     gravity_note,
     implausible_links,
 )
-from estimation.consistent.torque_gains import TorqueGains, other_scale
+from oed.workflows.consistent import prior_source_scale
 from oed.workflows.options import check_json_path, check_mjcf_path, check_urdf_path
 
 __all__ = ["ExportRun", "check_outputs", "export"]
@@ -105,15 +105,11 @@ def chosen_prior_weight(path: Path) -> str:
 
 def torques_scale(path: Path) -> float | None:
     """The scale at which the estimate's prior took the description's bodies, when it was the recorded torques'
-    (a result's ``consistent.prior`` saying so, :func:`oed.workflows.identify.prior_at_scale`: a description in
-    grams gives about 0.001): :func:`~estimation.consistent.torque_gains.other_scale` of the result's
-    ``torque_gains``, the rule that took it; ``None`` otherwise, or when the file does not say."""
+    (a result's ``consistent.prior``, :func:`oed.workflows.consistent.scaled_prior_source`, written by ``oed
+    identify`` and ``oed diagnose`` alike: a description in grams gives about 0.001); ``None`` otherwise, or when the
+    file does not say."""
     try:
-        document = json.loads(path.read_text(encoding="utf-8"))
-        prior, gains = document["consistent"]["prior"], document["torque_gains"]
-        if not isinstance(prior, str) or "torques' scale" not in prior or not isinstance(gains, dict):
-            return None
-        return other_scale(TorqueGains.from_dict(gains))
+        return prior_source_scale(json.loads(path.read_text(encoding="utf-8"))["consistent"]["prior"])
     except (OSError, ValueError, KeyError, TypeError):
         return None
 

@@ -160,6 +160,10 @@ class IdentifyOptions(RecordOptions):
     prior_weight: float | str | None = None
     prior: str | None = None
     link_bounds: str | None = None
+    #: not an option: the description's bodies times this as the consistent candidate's prior, set by the verb when
+    #: the fitted torque gains say the recorded torques are in other units (a description in grams: 0.001;
+    #: :func:`oed.workflows.consistent.consistent_settings`)
+    prior_scale: float | None = None
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -1244,8 +1248,7 @@ def prior_at_scale(args: IdentifyOptions, model: IdentificationModel, scale: flo
     """The consistent candidate's settings with the description's bodies times ``scale`` as its prior (the recorded
     torques' scale, :func:`~estimation.consistent.torque_gains.other_scale`: a description in grams gives 0.001),
     ``prior_source`` saying so; the same for the in-memory and the streamed ``oed identify``."""
-    return replace(consistent_settings(args, model.robot), prior=scale * model.robot.standard_parameters,
-                   prior_source=f"robot description times {scale:.4g} (the recorded torques' scale)")
+    return consistent_settings(replace(args, prior_scale=scale), model.robot)
 
 
 def torque_gains_selection(args: IdentifyOptions, selection: ModelSelection, train: Measurements,
