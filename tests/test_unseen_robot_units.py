@@ -136,6 +136,15 @@ def test_export_judges_the_bodies_at_the_torques_scale(tmp_path):
     scale = torques_scale(result)
     assert scale == pytest.approx(0.00105, rel=1e-3)
     assert against(scale) == []
+    # the verbs' link checks alike (result.json's plausibility.consistent_links and the warnings)
+    from oed.workflows.model_files import consistent_link_findings
+
+    estimate = SimpleNamespace(link_parameters=lambda: links)
+    scaled = SimpleNamespace(prior_source="robot description times 0.00105 (the recorded torques' scale)",
+                             estimate=estimate)
+    assert not [text for text in consistent_link_findings(robot, scaled) if "in the description" in text]
+    plain = SimpleNamespace(prior_source="robot description", estimate=estimate)
+    assert len([text for text in consistent_link_findings(robot, plain) if "in the description" in text]) >= 4
     said = scale_line(path.read_text(), robot, scale)
     assert "SI" in said and "grams" in said and "base_link" in said, said
     result.write_text(json.dumps({"consistent": {"prior": "robot description"}, "torque_gains": gains}))
@@ -163,6 +172,8 @@ def test_a_description_in_grams_identified_streamed_as_in_memory_and_exported(tm
                      friction="viscous,coulomb,offset", **options).write(tmp_path / f"{name}.json")
         documents[name] = json.loads((tmp_path / f"{name}.json").read_text())
         assert "torques' scale" in documents[name]["consistent"]["prior"], documents[name]["consistent"]["prior"]
+        assert not [text for text in documents[name]["plausibility"]["consistent_links"] if "in the description" in
+                    text], documents[name]["plausibility"]
         errors[name] = oed.predict(model=tmp_path / f"{name}.json", data=tmp_path / "test.csv",
                                    alternative="consistent").evaluation.prediction.mse
     assert documents["streamed"]["identification_path"] == "streamed"
