@@ -232,6 +232,11 @@ LEAST_LINK_MASS = 0.01
 #: of it (a KUKA LWR4+ 1.0, a UR10e 5, a PUMA 22, a TX40 50), a gantry of 10 m several tonnes; a description in
 #: inches reads as a 40-times longer arm of the same mass (a PUMA: 40 m, 0.0004 kg/m³)
 LEAST_ARM_DENSITY = 0.01
+#: below this mass over its span cubed (kg/m³) a description not refused by :data:`LEAST_ARM_DENSITY`'s rule (a chain
+#: under :data:`SMALL_ARM_CHAIN_M`, or every moving link under :data:`LEAST_LINK_MASS`) is said to weigh too little:
+#: the lightest description measured weighs 0.8 (a pendubot), a desktop arm of 2 cm or of 8 g in inches 0.002 and
+#: 0.0001, a simulator's placeholders of a gram a link on a PUMA (1.0 m) 0.006
+LIGHT_ARM_DENSITY = 0.1
 
 
 def _check_lengths(path: Path, robot: RobotModel) -> None:
@@ -242,7 +247,10 @@ def _check_lengths(path: Path, robot: RobotModel) -> None:
     inches (39.37 times longer, masses in kg) is refused by its mass: a chain over :data:`LONG_CHAIN_M`, or over
     :data:`SMALL_ARM_CHAIN_M` with a moving link of :data:`LEAST_LINK_MASS` or more, whose moving links weigh under
     :data:`LEAST_ARM_DENSITY` times its span cubed (a desktop arm of 10 cm in inches: 4.1 m, read before at 3.4
-    times the error of its description in metres on a joint, with no word)."""
+    times the error of its description in metres on a joint, with no word). A description not judged so (a chain
+    under 1 m, or every moving link under 10 g) whose moving links weigh under :data:`LIGHT_ARM_DENSITY` times its
+    span cubed is read with a warning naming placeholders and inches (a 2 cm arm in inches, a 10 cm arm of 8 g links
+    in inches: read without a word before)."""
     span = sum(float(np.linalg.norm(joint.placement[:3, 3])) + float(np.linalg.norm(joint.link_transform[:3, 3]))
                for joint in robot.joints)
     if span > LONGEST_CHAIN_M:
@@ -259,6 +267,12 @@ def _check_lengths(path: Path, robot: RobotModel) -> None:
             f"{mass:.4g} kg in all ({mass / span ** 3:.2g} kg over its span cubed, m^3; a real arm that long weighs "
             f"over {LEAST_ARM_DENSITY:g} times its span cubed): lengths in inches? URDF lengths are metres; multiply every <origin "
             "xyz> (and a prismatic joint's limits) by 0.0254, and give masses in kg and inertias in kg m^2")
+    if 0 < mass < LIGHT_ARM_DENSITY * span ** 3:  # not judged above (under 1 m, or links under 10 g): said
+        warnings.warn(
+            f"URDF {path}: its moving links weigh {mass:.3g} kg in all over a {span:.3g} m chain "
+            f"({mass / span ** 3:.2g} kg over its span cubed, m^3; robots' descriptions weigh 0.8 to 50): placeholder "
+            "bodies (a simulator's), or a small arm's lengths in inches (multiply every <origin xyz> by 0.0254)? The "
+            "description's bodies are the consistent fit's prior and the yardstick of its link checks", stacklevel=3)
 
 
 def urdf_actuated_joints(path: str | Path) -> frozenset[str] | None:

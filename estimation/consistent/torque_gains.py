@@ -48,7 +48,7 @@ from estimation.identification.validation import ChannelErrors, Comparison
 
 __all__ = ["DETERMINED_RELATIVE_STD", "SIGNIFICANCE_BLOCKS", "SIGNIFICANCE_Z", "TORQUE_GAINS_TOLERANCE", "TorqueGains", "channel_factors", "channel_sums", "description_scale",
            "block_labels", "diagnosed_gains_answer", "divided_records", "divided_torques", "fit_torque_gains", "gains_checked", "gains_for_records",
-           "gains_from_sums", "gains_on_validation", "in_recorded_units", "other_scale", "scale_note", "torque_gains_answer", "SCALE_NOTE_FACTOR"]
+           "gains_from_sums", "gains_on_validation", "in_recorded_units", "other_scale", "scale_note", "scale_notes", "torque_gains_answer", "SCALE_NOTE_FACTOR"]
 
 #: the relative score by which the model with the gains must beat the declared one (a tie keeps the declared)
 TORQUE_GAINS_TOLERANCE = 0.01
@@ -334,6 +334,14 @@ def scale_note(gains: TorqueGains) -> str | None:
             f"({', '.join(channels)}: {spread}, the gains the records determine): {units}? URDF masses are kg and "
             "inertias kg m^2; the description's bodies are the consistent fit's prior and the yardstick of its link "
             "checks, so mend whichever is not in SI")
+
+
+def scale_notes(gains: TorqueGains | None) -> tuple[str, ...]:
+    """The sentence of :func:`scale_note` as the verbs' notes (``oed identify``, memory and streamed, and
+    ``oed diagnose`` say it alike): one sentence when the fitted gains (taken or not) say the recorded torques and
+    the description's bodies are in different units; ``()`` otherwise, or without gains."""
+    note = None if gains is None else scale_note(gains)
+    return () if note is None else (note,)
 
 
 def description_scale(theta: NDArray, cov: NDArray, rigid: NDArray[np.bool_], description: NDArray

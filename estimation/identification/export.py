@@ -120,11 +120,14 @@ def exported_model(path: str | Path, *, alternative: str | None = None) -> tuple
     return IdentifiedModel(model_file, estimate="consistent"), note
 
 
-def implausible_links(model: IdentifiedModel) -> tuple[str, ...]:
+def implausible_links(model: IdentifiedModel, *, scale: float | None = None) -> tuple[str, ...]:
     """One message per exported body that is degenerate or far from the description
-    (:func:`estimation.identification.plausibility.link_findings`)."""
+    (:func:`estimation.identification.plausibility.link_findings`); ``scale``: the description's bodies judged at
+    that scale (the recorded torques' over the description's, when the estimate's prior was taken there: a
+    description in grams, ``oed.workflows.identify.prior_at_scale``)."""
     _check_consistent(model)
-    return link_findings(model.robot, model.file.consistent_links)
+    robot = model.robot if scale is None else model.robot.with_parameters(scale * model.robot.standard_parameters)
+    return link_findings(robot, model.file.consistent_links)
 
 
 def exported_links(model: IdentifiedModel) -> np.ndarray:

@@ -4,6 +4,8 @@ chosen in :mod:`estimation.consistent.identification`: :data:`PRIOR_WEIGHT_GRID`
 
 from __future__ import annotations
 
+import re
+
 from typing import Any
 
 import numpy as np
@@ -51,12 +53,38 @@ def consistent_refit(args: Any, result, train, validation) -> ConsistentResult |
                           prior_source=args.prior or "robot description", bounds=bounds)
 
 
+def scaled_prior_source(scale: float) -> str:
+    """The ``prior_source`` (``consistent.prior`` of ``result.json``) of the description's bodies taken at the recorded
+    torques' ``scale``; :func:`prior_source_scale` reads it back."""
+    return f"robot description times {scale:.6g} (the recorded torques' scale)"
+
+
+def prior_source_scale(source: Any) -> float | None:
+    """The scale of a ``prior_source`` written by :func:`scaled_prior_source` (a result's ``consistent.prior``: the
+    description's bodies at the recorded torques' scale, a description in grams giving about 0.001), else ``None``."""
+    found = re.fullmatch(r"robot description times (\S+) \(the recorded torques' scale\)", source) \
+        if isinstance(source, str) else None
+    if found is None:
+        return None
+    try:
+        value = float(found.group(1))
+    except ValueError:
+        return None
+    return value if np.isfinite(value) and value > 0 else None
+
+
 def consistent_settings(args: Any, robot: Any) -> ConsistentSettings:
     """How the consistent candidate of the default choice is fitted: ``prior_weight``, ``prior``, ``link_bounds``
-    (:class:`estimation.consistent.model_selection.ConsistentSettings`)."""
-    return ConsistentSettings(prior_weight=args.prior_weight,
-                              prior=None if args.prior is None else load_prior(args.prior, robot),
-                              prior_source=args.prior or "robot description",
+    (:class:`estimation.consistent.model_selection.ConsistentSettings`); without ``prior``, the description's bodies
+    times ``prior_scale`` when the verb set it (the recorded torques' scale: a description in grams), said in
+    ``prior_source``."""
+    scale = getattr(args, "prior_scale", None)
+    if args.prior is None and scale is not None:
+        prior, source = scale * robot.standard_parameters, scaled_prior_source(scale)
+    else:
+        prior = None if args.prior is None else load_prior(args.prior, robot)
+        source = args.prior or "robot description"
+    return ConsistentSettings(prior_weight=args.prior_weight, prior=prior, prior_source=source,
                               bounds=None if args.link_bounds is None else load_link_bounds(args.link_bounds, robot))
 
 

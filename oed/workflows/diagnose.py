@@ -41,7 +41,8 @@ from estimation.consistent.torque_gains import (
     divided_records,
     gains_for_records,
     in_recorded_units,
-    scale_note,
+    other_scale,
+    scale_notes,
 )
 from estimation.identification.fit import identify as identify_model
 from estimation.identification.mount import MountCheck
@@ -162,6 +163,10 @@ class DiagnoseOptions(RecordOptions):
     prior_weight: float | str | None = None
     prior: str | None = None
     link_bounds: str | None = None
+    #: not an option: the description's bodies times this as the consistent candidate's prior, set by the verb when
+    #: the fitted torque gains say the recorded torques are in other units (a description in grams: 0.001;
+    #: :func:`oed.workflows.consistent.consistent_settings`)
+    prior_scale: float | None = None
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -479,8 +484,13 @@ def diagnosis_in_memory(args: DiagnoseOptions, model: IdentificationModel, trans
         gains = None if args.consistent or delay is not None or model_has_shapes(model) \
             else gains_for_records(plain_model(model), records)
         # the description's bodies and the torques in other units (grams, kN m): said, the gains taken or not
-        scale = () if gains is None or (note := scale_note(gains[0])) is None else (note,)
+        scale = scale_notes(None if gains is None else gains[0])
+        factor = None if gains is None else other_scale(gains[0])
         gains = gains if gains is not None and gains[1] and refused is None else None
+        if gains is None and factor is not None and args.prior is None:
+            # the torques diagnosed as recorded: the consistent candidate's prior the description's bodies at their
+            # scale, as oed identify's (torque_gains_selection; known here before any candidate is fitted)
+            args = replace(args, prior_scale=factor)
         recorded, refusal = records, None  # the records as logged: the gains confirmed against them (below)
         if gains is not None:
             records = divided_records(records, gains[0])

@@ -9,6 +9,7 @@ the friction JSON (``to_dict()``), ``summary()`` the lines ``oed export`` prints
 from __future__ import annotations
 
 import json
+import xml.etree.ElementTree as ElementTree
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -24,6 +25,7 @@ from estimation.identification.export import (
     gravity_note,
     implausible_links,
 )
+from oed.workflows.consistent import prior_source_scale
 from oed.workflows.options import check_json_path, check_mjcf_path, check_urdf_path
 
 __all__ = ["ExportRun", "check_outputs", "export"]
@@ -101,10 +103,21 @@ def chosen_prior_weight(path: Path) -> str:
     return f"; this estimate was fitted at {weight:g}" if isinstance(weight, (int, float)) else ""
 
 
+def torques_scale(path: Path) -> float | None:
+    """The scale at which the estimate's prior took the description's bodies, when it was the recorded torques'
+    (a result's ``consistent.prior``, :func:`oed.workflows.consistent.scaled_prior_source`, written by ``oed
+    identify`` and ``oed diagnose`` alike: a description in grams gives about 0.001); ``None`` otherwise, or when the
+    file does not say."""
+    try:
+        return prior_source_scale(json.loads(path.read_text(encoding="utf-8"))["consistent"]["prior"])
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+
+
 def prior_at_torques_scale(path: Path) -> str:
     """The sentence that the estimate's prior was the description's bodies at the recorded torques' scale (a
     result's ``consistent.prior``, :func:`oed.workflows.identify.torque_gains_selection`), for the message refusing
-    an implausible body: its bodies then differ from the description's by that scale, which no prior weight mends;
+    an implausible body: the bodies were judged against the description's at that scale (:func:`torques_scale`);
     ``""`` when the file does not say so."""
     try:
         prior = json.loads(path.read_text(encoding="utf-8"))["consistent"]["prior"]
@@ -112,9 +125,29 @@ def prior_at_torques_scale(path: Path) -> str:
         return ""
     if not isinstance(prior, str) or "torques' scale" not in prior:
         return ""
-    return (f"\nits prior was the {prior}: the description's bodies are not in the log's units (masses in grams?), "
-            "so its bodies differ from the description's by that scale; mend the description's units and identify "
-            "again")
+    return (f"\nits prior was the {prior}: the description's bodies are not in the log's units (masses in grams?); "
+            "the bodies above were judged against the description's at that scale")
+
+
+def scale_line(text: str, robot: Any, scale: float) -> str:
+    """What ``oed export`` says when the description's bodies were read at the recorded torques' ``scale`` (a
+    description in grams): the URDF ``text`` holds the identified bodies in the log's units, SI when its torques are
+    N m (a URDF is SI by specification, ROS REP 103; were the torques in kN m or a motor's, the bodies are ``scale``
+    times the robot's: said, as the scale alone does not tell the two apart), and the links it did not identify keep
+    the description's ``<inertial>``, named."""
+    root = ElementTree.fromstring(text)
+    children = {joint.get("name"): joint.find("child").get("link") for joint in root.findall("joint")
+                if joint.find("child") is not None}
+    identified = {children.get(name) for name in robot.joint_names}
+    kept = [str(link.get("name")) for link in root.findall("link")
+            if link.find("inertial") is not None and link.get("name") not in identified]
+    return (f"the description's bodies were read at the recorded torques' scale (x{scale:.4g}: the description's "
+            "masses and inertias in other units, such as grams and g m^2, or the torques?): the URDF holds the "
+            "identified bodies in the log's units, SI (kg, kg m^2) when the log's torques are N m, as URDF specifies, "
+            "not in the description's units; were the torques in other units (kN m, a motor's before its gear), "
+            f"these bodies would be {scale:.4g} times the robot's" + (
+                "; the links not identified keep the description's <inertial> (" + ", ".join(kept) + "): mend their "
+                "units" if kept else ""))
 
 
 def export(*, model: str | Path, allow_implausible: bool = False, mjcf: bool = False,
@@ -126,7 +159,8 @@ def export(*, model: str | Path, allow_implausible: bool = False, mjcf: bool = F
     reach), unless ``allow_implausible``."""
     identified, note = exported_model(Path(model), alternative=alternative)  # refuses a model without bodies
     text = exported_urdf(identified)
-    findings = implausible_links(identified)
+    scale = torques_scale(Path(model))  # a description in grams: its bodies judged at the torques' scale
+    findings = implausible_links(identified, scale=scale)
     if findings and not allow_implausible:
         raise ValueError("not exported: the consistent estimate holds bodies that are not plausible:\n  "
                          + "\n  ".join(findings) + "\nidentify again with `--consistent` and a larger --prior-weight "
@@ -140,6 +174,8 @@ def export(*, model: str | Path, allow_implausible: bool = False, mjcf: bool = F
     if mujoco is not None and mujoco.source is not None:
         lines = (*lines, f"the MJCF is {mujoco.source} with these bodies and joint terms, everything else kept",
                  *(f"changed from that file (listed in the MJCF): {change}" for change in mujoco.changes))
+    if scale is not None:  # the identified bodies are the log's units (SI): the URDF says SI whatever the description
+        lines = (*lines, scale_line(text, identified.robot, scale))
     described = [name for name in urdf_dynamics_joints(text) if name in identified.robot.joint_names]
     if described:  # a simulator takes a URDF's <dynamics> for the joint's friction: the identified one written there
         lines = (*lines, "the joints' <dynamics damping friction> hold the identified viscous and Coulomb friction ("

@@ -91,8 +91,8 @@ from oed.workflows.asbuilt import (
     rest_records,
     trivial_predictors,
 )
-from estimation.consistent.identification import ConsistentResult
-from estimation.consistent.model_selection import ModelSelection, select_model
+from estimation.consistent.identification import ConsistentResult, Scorer
+from estimation.consistent.model_selection import ConsistentSettings, ModelSelection, select_model
 from estimation.consistent.motor_friction import motor_friction_answer, motor_friction_laws
 from estimation.consistent.armature import armature_answer, armature_laws
 from estimation.consistent.mounted_gravity import gravity_answer, subtracted_answer, turned_model
@@ -102,7 +102,7 @@ from estimation.consistent.torque_gains import (
     gains_on_validation,
     in_recorded_units,
     other_scale,
-    scale_note,
+    scale_notes,
     torque_gains_answer,
 )
 from oed.workflows.consistent import check_consistent_arguments, consistent_lines, consistent_settings
@@ -160,6 +160,10 @@ class IdentifyOptions(RecordOptions):
     prior_weight: float | str | None = None
     prior: str | None = None
     link_bounds: str | None = None
+    #: not an option: the description's bodies times this as the consistent candidate's prior, set by the verb when
+    #: the fitted torque gains say the recorded torques are in other units (a description in grams: 0.001;
+    #: :func:`oed.workflows.consistent.consistent_settings`)
+    prior_scale: float | None = None
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -549,7 +553,7 @@ def identification_streamed(args: IdentifyOptions, model: IdentificationModel, t
         else:  # one known load at a time: the gains are not tried on a log that lacks one
             selection, gains = streamed_torque_gains_selection(
                 args, selection, base=base, methods=methods, chunk_size=chunk_size, options=options,
-                ratio=ratio, still=still, sums=sums)
+                ratio=ratio, still=still, sums=sums, scores=scores)
         result = selection.unconstrained
     # a line per finding across files; those said when the path was decided (``findings``) not again
     messages = grouped_messages(caught, source_files([*args.data, *(args.validate or ())])) if findings is None \
@@ -607,7 +611,7 @@ def identification_streamed(args: IdentifyOptions, model: IdentificationModel, t
         model, args.data, int(sums.train.n_samples), args.validate or [],
         0 if sums.validation is None else int(sums.validation.n_samples), options=reading_options,
         findings=checked, gravity_taken=gravity_taken, subtracted=subtracted is not None)
-    notes = (*notes, *said, *scale_notes(gains))
+    notes = (*notes, *said, *scale_notes(None if gains is None else gains[0]))
     result, chosen, selection = recorded_training(args, result, chosen, selection, chunk_size, options)
     validation_mse = None if result.validation is None else result.validation.mse
     ranges = merged_ranges([part.joint_range for part in sums.files])  # taken in the sums pass
@@ -624,7 +628,8 @@ def identification_streamed(args: IdentifyOptions, model: IdentificationModel, t
 
 def streamed_torque_gains_selection(args: IdentifyOptions, selection: ModelSelection, *, base: str,
                                     methods: tuple[str, ...], chunk_size: int, options: Mapping[str, Any],
-                                    ratio: float | None, still: bool, sums: SummedFits
+                                    ratio: float | None, still: bool, sums: SummedFits,
+                                    scores: Scorer | None = None
                                     ) -> tuple[ModelSelection, tuple[TorqueGains, bool, str] | None]:
     """:func:`torque_gains_selection` of files read in blocks, under the same conditions: the gains fitted from the
     training sums and checked on the validation files in one pass
@@ -656,6 +661,12 @@ def streamed_torque_gains_selection(args: IdentifyOptions, selection: ModelSelec
     if checked is None:
         return selection, None
     gains, promising, sentence = checked
+    scale = other_scale(gains)
+    if scale is not None and args.prior is None:  # as in memory (torque_gains_selection): the prior at that scale
+        with step("the answer's candidates fitted again with the description's bodies at the torques' scale"):
+            selection = carried_reasons(selection, summed_selection(
+                sums, base=base, consistent=prior_at_scale(args, model, scale), score=scores, ratio=ratio,
+                still=still))
     if not promising:
         return selection, (gains, False, sentence)
     with step("the answer's candidates fitted to the torques divided by the gains and compared"):
@@ -1120,7 +1131,8 @@ def identification_in_memory(args: IdentifyOptions, robot: RobotModel, model: Id
         repeat = None if validation is None else repeated_motion_note(train, validation)
         notes = notes if repeat is None else (*notes, repeat)
         notes = (*notes, *description_notes(model, checks, gravity_taken=gravity_taken,
-                                            subtracted=subtracted is not None), *scale_notes(gains))
+                                            subtracted=subtracted is not None),
+                 *scale_notes(None if gains is None else gains[0]))
         drift = None if delay is not None or model_has_shapes(model) else check_friction_drift(model, train, validation)
         notes = notes if drift is None or drift.message() is None else (*notes, drift.message())
     ranges = TrainingRange.of(train.q, train.dq, model.robot.joint_names)  # the samples fitted
@@ -1232,6 +1244,13 @@ def subtracted_selection(args: IdentifyOptions, selection: ModelSelection, decla
     return answer, added if taken else None
 
 
+def prior_at_scale(args: IdentifyOptions, model: IdentificationModel, scale: float) -> ConsistentSettings:
+    """The consistent candidate's settings with the description's bodies times ``scale`` as its prior (the recorded
+    torques' scale, :func:`~estimation.consistent.torque_gains.other_scale`: a description in grams gives 0.001),
+    ``prior_source`` saying so; the same for the in-memory and the streamed ``oed identify``."""
+    return consistent_settings(replace(args, prior_scale=scale), model.robot)
+
+
 def torque_gains_selection(args: IdentifyOptions, selection: ModelSelection, train: Measurements,
                            validation: Measurements | None, *, base: str, given: str | None,
                            delay: DelayBounds | None) -> tuple[ModelSelection, tuple[TorqueGains, bool, str] | None]:
@@ -1260,10 +1279,8 @@ def torque_gains_selection(args: IdentifyOptions, selection: ModelSelection, tra
         # the description's bodies and the torques in other units (a description in grams: 0.001): the consistent
         # candidate's prior, the description's bodies, taken at the torques' scale (scale_note says which units)
         with step("the answer's candidates fitted again with the description's bodies at the torques' scale"):
-            settings = replace(consistent_settings(args, model.robot), prior=scale * model.robot.standard_parameters,
-                               prior_source=f"robot description times {scale:.4g} (the recorded torques' scale)")
             selection = carried_reasons(selection, select_model(model, train, validation, base=base,
-                                                                consistent=settings))
+                                                                consistent=prior_at_scale(args, model, scale)))
     if not promising:
         return selection, (gains, False, checked)
     with step("the answer's candidates fitted to the torques divided by the gains and compared"):
@@ -1272,13 +1289,6 @@ def torque_gains_selection(args: IdentifyOptions, selection: ModelSelection, tra
     answer, taken, compared = torque_gains_answer(selection, carried_reasons(selection, in_recorded_units(other, gains)),
                                                   gains)
     return answer, (gains, taken, f"{checked}; then {compared}" if compared else checked)
-
-
-def scale_notes(gains: tuple[TorqueGains, bool, str] | None) -> tuple[str, ...]:
-    """The sentence of :func:`~estimation.consistent.torque_gains.scale_note` when the fitted gains (taken or not)
-    say the recorded torques and the description's bodies are in different units; ``()`` otherwise."""
-    note = None if gains is None else scale_note(gains[0])
-    return () if note is None else (note,)
 
 
 #: the sentences the candidates of the default answer append to its reason (motor-side friction, the armature, the

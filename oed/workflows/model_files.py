@@ -27,6 +27,7 @@ from estimation.identification.plausibility import assess_plausibility, link_fin
 from estimation.preprocessing.delay import delayed
 from oed.workflows.asbuilt import resolve_joint_directions, resolve_joint_offsets
 from oed.workflows.chosen_model import ChosenModel
+from oed.workflows.consistent import prior_source_scale
 from oed.workflows.options import RecordOptions
 
 
@@ -130,7 +131,7 @@ def add_model_file(document: dict[str, Any], result: IdentificationResult, args:
                                        validation_mse=None if answer.validation is None else answer.validation.mse,
                                        nominal_mse=validation.get("nominal_mse"), zero_mse=validation.get("zero_mse"))
     document["plausibility"] = plausibility.to_dict()
-    links = () if consistent is None else link_findings(result.model.robot, consistent.estimate.link_parameters())
+    links = () if consistent is None else consistent_link_findings(result.model.robot, consistent)
     document["plausibility"]["consistent_links"] = list(links)
     return tuple(plausibility.messages()) + tuple(links)
 
@@ -202,9 +203,18 @@ def add_summed_model_file(document: dict[str, Any], model: Any, estimate: Any, a
     plausibility = assess_plausibility(model, records, validation_mse=validation_mse,
                                        nominal_mse=validation.get("nominal_mse"), zero_mse=validation.get("zero_mse"))
     document["plausibility"] = plausibility.to_dict()
-    links = () if consistent is None else link_findings(model.robot, consistent.estimate.link_parameters())
+    links = () if consistent is None else consistent_link_findings(model.robot, consistent)
     document["plausibility"]["consistent_links"] = list(links)
     return tuple(plausibility.messages()) + tuple(links)
+
+
+def consistent_link_findings(robot: Any, consistent: Any) -> tuple[str, ...]:
+    """The link checks of a consistent estimate (:func:`~estimation.identification.plausibility.link_findings`),
+    against the description's bodies at the scale its prior took them (a description in grams read at the recorded
+    torques' scale: :func:`oed.workflows.consistent.prior_source_scale`), as ``oed export`` judges them."""
+    scale = prior_source_scale(getattr(consistent, "prior_source", None))
+    reference = robot if scale is None else robot.with_parameters(scale * robot.standard_parameters)
+    return link_findings(reference, consistent.estimate.link_parameters())
 
 
 def recorded_validation_mse(model_file: dict[str, Any], validate: Sequence[str | Path]) -> dict[str, float] | None:
