@@ -252,3 +252,22 @@ def test_information_constraints_follow_the_pointwise_ones(robot_json):
     with pytest.raises(ValueError, match="takes the information of"):
         PayloadDesign(robot, model.file.model, limits, MassAndCentre(), (), settings,
                       regressor=payload_regressor(model, 6), information_constraints=(bound,))
+
+
+def test_a_mapped_output_found_once_is_the_output_casadi_gives():
+    """oed.payload_design.design.evaluated: a sparse per-sample output mapped over samples, written into a dense array
+    at the nonzero positions found once (nonzero_positions, read-only) or found at the call: both bit for bit the
+    dense value CasADi gives."""
+    from oed.payload_design.design import evaluated, nonzero_positions
+
+    q, dq, ddq = (casadi.SX.sym(name, 2) for name in ("q", "dq", "ddq"))
+    Y = casadi.SX(3, 4)  # structural zeros in every column but the last
+    Y[0, 0], Y[1, 1], Y[2, 1] = casadi.sin(q[0]) * dq[1], q[1] * ddq[0], casadi.cos(dq[0])
+    Y[:, 3] = casadi.vertcat(q[0], dq[1], ddq[1])
+    mapped = casadi.Function("Y", [q, dq, ddq], [Y]).map(5)
+    samples = [np.random.default_rng(seed).normal(size=(5, 2)) for seed in range(3)]
+    expected = np.asarray(casadi.densify(mapped(*(values.T for values in samples))))
+    positions = nonzero_positions(mapped)
+    assert positions.size == mapped.sparsity_out(0).nnz() < expected.size and not positions.flags.writeable
+    for given in (positions, None):
+        assert np.array_equal(evaluated(mapped, *samples, positions=given), expected)

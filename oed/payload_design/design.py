@@ -220,8 +220,10 @@ class PayloadDesign(ExcitationDesign):
         columns, on ``(π, θ_b)``)."""
         key = "mapped", np.shape(q)[0]
         if key not in self._payload_cache:
-            self._payload_cache[key] = self.regressor.map(np.shape(q)[0])
-        stacked = evaluated(self._payload_cache[key], q, dq, ddq)
+            mapped = self.regressor.map(np.shape(q)[0])
+            self._payload_cache[key] = mapped, nonzero_positions(mapped)
+        mapped, positions = self._payload_cache[key]
+        stacked = evaluated(mapped, q, dq, ddq, positions=positions)
         width = self.regressor.size2_out(0)
         Y = stacked.reshape(stacked.shape[0], -1, width).transpose(1, 0, 2).reshape(-1, width)  # [Y_1, Y_2, …]
         return Y.T @ Y
@@ -250,11 +252,25 @@ class PayloadDesign(ExcitationDesign):
                 "robot_model": described(robot) if self.criterion.robot_cov is not None else None}
 
 
-def evaluated(mapped: casadi.Function, *samples: NDArray[np.float64]) -> NDArray[np.float64]:
+def nonzero_positions(mapped: casadi.Function) -> NDArray[np.int64]:
+    """Where the structural nonzeros of ``mapped``'s output sit in its dense column-major array (read-only).
+
+    ``Sparsity.find`` builds a Python list of every nonzero's position (about 0.1 s for the 6-joint PUMA's
+    regressor with its robot columns over one 500 Hz period): a property of the function, so found once per
+    mapped function and handed to :func:`evaluated`.
+    """
+    positions = np.asarray(mapped.sparsity_out(0).find(), dtype=np.int64)
+    positions.flags.writeable = False
+    return positions
+
+
+def evaluated(mapped: casadi.Function, *samples: NDArray[np.float64],
+              positions: NDArray[np.int64] | None = None) -> NDArray[np.float64]:
     """The output of ``mapped`` (a per-sample function mapped over ``N`` samples) at ``samples`` (each ``(N, n)``),
     as a dense array: the value ``np.asarray(mapped(q.T, dq.T, ddq.T))`` gives, without the conversion of a casadi
     ``DM`` element by element (a Python list of every element: about 1 s for the 6-joint PUMA's regressor with
-    its robot columns over one 500 Hz period, against 0.03 s written straight into the array here)."""
+    its robot columns over one 500 Hz period, against 0.03 s written straight into the array here).
+    ``positions``: :func:`nonzero_positions` of ``mapped`` when already found (found here otherwise)."""
     # (N, n) in C order is the (n, N) input in CasADi's column-major order
     inputs = [np.ascontiguousarray(values, dtype=float) for values in samples]
     sparsity = mapped.sparsity_out(0)
@@ -265,7 +281,7 @@ def evaluated(mapped: casadi.Function, *samples: NDArray[np.float64]) -> NDArray
     buffer.set_res(0, memoryview(nonzeros))
     trigger()
     dense = np.zeros(sparsity.numel())  # column-major
-    dense[np.asarray(sparsity.find(), dtype=np.int64)] = nonzeros
+    dense[nonzero_positions(mapped) if positions is None else positions] = nonzeros
     return dense.reshape(sparsity.size2(), sparsity.size1()).T
 
 
