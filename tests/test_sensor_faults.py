@@ -391,7 +391,7 @@ def test_the_real_robots_logs_hold_no_read_error_and_no_clipped_torque(robot, tm
 @pytest.mark.slow
 @pytest.mark.parametrize("verb", ["identify", "diagnose"])
 def test_result_json_counts_the_clipped_samples_in_memory_and_says_streamed_that_it_did_not_look(verb, tmp_path):
-    """``result.json``'s ``saturated_samples`` (h-sensorfaults) holds the clipped samples of each record left out of
+    """The streamed ``oed diagnose`` writes memory's counts (h-cellmask20). ``result.json``'s ``saturated_samples`` (h-sensorfaults) holds the clipped samples of each record left out of
     the fit and the errors, per channel; streamed (``--chunk-size``), where the clipped channels are said but their
     samples left out as in memory (h-streammask2), it is null and ``not_computed.saturated_samples`` says why, never
     a silent null that reads as "none clipped"."""
@@ -419,6 +419,11 @@ def test_result_json_counts_the_clipped_samples_in_memory_and_says_streamed_that
     memory, streamed = documents["memory"], documents["streamed"]
     assert [entry["samples"] for entry in memory["saturated_samples"]["train"]] == [{"tau2": at_limit}]
     assert "validation" not in memory["saturated_samples"] and "saturated_samples" not in memory["not_computed"]
+    if verb == "diagnose":  # the streamed diagnose counts the files' masked cells as memory (h-cellmask20)
+        assert streamed["saturated_samples"] == memory["saturated_samples"]
+        assert streamed["channel_samples"] == memory["channel_samples"] is not None
+        assert "saturated_samples" not in streamed["not_computed"]
+        return
     assert streamed["saturated_samples"] is None and "left out of the streamed sums and errors as in memory" in \
         streamed["not_computed"]["saturated_samples"]
     assert "said streamed" in streamed["not_computed"]["saturated_samples"]
@@ -601,6 +606,37 @@ def test_the_streamed_reader_masks_the_cells_memory_masks(tmp_path):
         assert np.allclose(np.vstack([chunk.tau for chunk in chunks]), memory.tau, rtol=0, atol=1e-12,
                            equal_nan=True), kind
         assert np.array_equal(np.vstack([chunk.tau for chunk in logged]), memory.as_recorded.tau, equal_nan=True), kind
+
+
+def test_the_streamed_counts_of_masked_cells_are_memorys(tmp_path):
+    """``result.json``'s ``saturated_samples`` and ``channel_samples`` of a streamed run
+    (:func:`~estimation.streaming.masked_counts.streamed_mask_counts`, h-cellmask20) hold memory's counts: the
+    clipped sensor's samples (memory's ``metadata["saturated_samples"]``) and each channel's valid samples of the
+    record as recorded (memory's ``channel_counts``), on a clipped, a jittered clipped and a held record; a clean
+    record: ``None`` for both, as memory writes."""
+    from estimation.data.channel_mask import channel_counts
+    from estimation.data.records import read_measurements
+    from estimation.streaming.masked_counts import streamed_mask_counts
+
+    model, clean = _puma_record(tmp_path)
+    clipped = _clipped_and_held(tmp_path, "clipped")
+    held = _clipped_and_held(tmp_path, "held")
+    jittered = pd.read_csv(clipped)
+    jittered["t"] += np.random.default_rng(1).uniform(-0.3, 0.3, len(jittered)) * 0.004
+    jittered.to_csv(tmp_path / "jittered.csv", index=False, float_format="%.17g")
+    for data in (clipped, tmp_path / "jittered.csv", held):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            memory = read_measurements(data, model=model)
+        recorded = memory.as_recorded
+        counts = channel_counts(recorded.tau)
+        saturated, channels = streamed_mask_counts({"train": [data]}, model, chunk_size=97)
+        expected = memory.metadata.get("saturated_samples")
+        assert (None if saturated is None else saturated["train"][0]["samples"]) == (
+            dict(expected) if expected else None), data.name
+        assert channels == {"train": {"samples": int(recorded.n_samples), "channels": {
+            f"tau{j + 1}": int(count) for j, count in enumerate(counts)}}}, data.name
+    assert streamed_mask_counts({"train": [clean], "validation": [clean]}, model, chunk_size=97) == (None, None)
 
 
 def test_a_quantised_peak_is_kept_and_a_clip_of_the_same_channel_caught_whole_and_in_blocks():
