@@ -391,7 +391,7 @@ def test_the_real_robots_logs_hold_no_read_error_and_no_clipped_torque(robot, tm
 @pytest.mark.slow
 @pytest.mark.parametrize("verb", ["identify", "diagnose"])
 def test_result_json_counts_the_clipped_samples_in_memory_and_says_streamed_that_it_did_not_look(verb, tmp_path):
-    """The streamed ``oed diagnose`` writes memory's counts (h-cellmask20). ``result.json``'s ``saturated_samples`` (h-sensorfaults) holds the clipped samples of each record left out of
+    """Streamed, both verbs write memory's counts (h-cellmask20). ``result.json``'s ``saturated_samples`` (h-sensorfaults) holds the clipped samples of each record left out of
     the fit and the errors, per channel; streamed (``--chunk-size``), where the clipped channels are said but their
     samples left out as in memory (h-streammask2), it is null and ``not_computed.saturated_samples`` says why, never
     a silent null that reads as "none clipped"."""
@@ -419,14 +419,10 @@ def test_result_json_counts_the_clipped_samples_in_memory_and_says_streamed_that
     memory, streamed = documents["memory"], documents["streamed"]
     assert [entry["samples"] for entry in memory["saturated_samples"]["train"]] == [{"tau2": at_limit}]
     assert "validation" not in memory["saturated_samples"] and "saturated_samples" not in memory["not_computed"]
-    if verb == "diagnose":  # the streamed diagnose counts the files' masked cells as memory (h-cellmask20)
-        assert streamed["saturated_samples"] == memory["saturated_samples"]
-        assert streamed["channel_samples"] == memory["channel_samples"] is not None
-        assert "saturated_samples" not in streamed["not_computed"]
-        return
-    assert streamed["saturated_samples"] is None and "left out of the streamed sums and errors as in memory" in \
-        streamed["not_computed"]["saturated_samples"]
-    assert "said streamed" in streamed["not_computed"]["saturated_samples"]
+    # streamed, the files' masked cells counted as memory counts them (h-cellmask20)
+    assert streamed["saturated_samples"] == memory["saturated_samples"]
+    assert streamed["channel_samples"] == memory["channel_samples"] is not None
+    assert "saturated_samples" not in streamed["not_computed"]
 
 
 def _wrench_records(tmp_path: Path):
@@ -541,6 +537,7 @@ def test_the_streamed_identify_of_a_clipped_or_held_record_is_memorys(tmp_path, 
     memory, streamed = documents["memory"], documents["streamed"]
     assert streamed["identification_path"] == "streamed" and memory["channel_samples"] is not None
     assert streamed["chosen"] == memory["chosen"] and streamed["channel_samples"] == memory["channel_samples"]
+    assert streamed["saturated_samples"] == memory["saturated_samples"]  # counted streamed too (h-cellmask20)
     for role in ("train", "validation"):
         for channel, value in memory[role]["mse"].items():
             assert streamed[role]["mse"][channel] == pytest.approx(value, rel=1e-9), (role, channel)
