@@ -610,9 +610,10 @@ def test_the_streamed_counts_of_masked_cells_are_memorys(tmp_path):
     (:func:`~estimation.streaming.masked_counts.streamed_mask_counts`, h-cellmask20) hold memory's counts: the
     clipped sensor's samples (memory's ``metadata["saturated_samples"]``) and each channel's valid samples of the
     record as recorded (memory's ``channel_counts``), on a clipped, a jittered clipped and a held record; a clean
-    record: ``None`` for both, as memory writes."""
+    record: ``None`` for both, as memory writes; a clipped file with a hole: its segments' counts, as memory's
+    segments hold them."""
     from estimation.data.channel_mask import channel_counts
-    from estimation.data.records import read_measurements
+    from estimation.data.records import read_measurements, read_record
     from estimation.streaming.masked_counts import streamed_mask_counts
 
     model, clean = _puma_record(tmp_path)
@@ -634,6 +635,15 @@ def test_the_streamed_counts_of_masked_cells_are_memorys(tmp_path):
         assert channels == {"train": {"samples": int(recorded.n_samples), "channels": {
             f"tau{j + 1}": int(count) for j, count in enumerate(counts)}}}, data.name
     assert streamed_mask_counts({"train": [clean], "validation": [clean]}, model, chunk_size=97) == (None, None)
+    holed = pd.read_csv(clipped)  # a hole of 5 s: memory reads two segments, each with its clipped samples
+    holed.loc[400:, "t"] += 5.0
+    holed.to_csv(tmp_path / "holed.csv", index=False, float_format="%.17g")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        segments = read_record(tmp_path / "holed.csv", model=model)
+    saturated, _ = streamed_mask_counts({"train": [str(tmp_path / "holed.csv")]}, model, chunk_size=97)
+    assert [(entry["segment"], entry["samples"]) for entry in saturated["train"]] == [
+        (segment.metadata.get("segment", 1), dict(segment.metadata["saturated_samples"])) for segment in segments]
 
 
 def test_a_quantised_peak_is_kept_and_a_clip_of_the_same_channel_caught_whole_and_in_blocks():

@@ -2,16 +2,18 @@
 (:func:`~estimation.identification.prepared.saturated_sample_counts`,
 :func:`~estimation.identification.prepared.channel_sample_counts`): each file's masked cells counted by one pass
 over its kept rows (:func:`~estimation.streaming.chunks.masked_cells`), the same clipped sensors and held repeats
-the streamed reader masks in its chunks."""
+the streamed reader masks in its chunks; a file split at its holes counted segment by segment, as each segment is
+read (:func:`~estimation.streaming.chunks.segment_sources`)."""
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 from dynamics.models import IdentificationModel
 from estimation.estimators.normal_equations import DEFAULT_CHUNK_SIZE
-from estimation.streaming.chunks import MaskedCells, masked_cells, source_file
+from estimation.streaming.chunks import MaskedCells, masked_cells, segment_sources, source_file
 
 __all__ = ["streamed_mask_counts"]
 
@@ -26,9 +28,12 @@ def streamed_mask_counts(records: Mapping[str, Sequence[str | Path]], model: Ide
     saturated: dict[str, list[dict]] = {}
     channels: dict[str, dict] = {}
     for role, paths in records.items():
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # said when the files are read
+            sources = segment_sources(list(paths), model, chunk_size=chunk_size)  # a file with holes: its segments
         found: list[tuple[str | Path, MaskedCells]] = [(path, masked_cells(path, model, chunk_size=chunk_size))
-                                                       for path in paths]
-        entries = [{"file": str(path), "segment": _segment(path), "samples": dict(cells.clipped)}
+                                                       for path in sources]
+        entries = [{"file": str(source_file(path)[0]), "segment": _segment(path), "samples": dict(cells.clipped)}
                    for path, cells in found if cells.clipped]
         if entries:
             saturated[role] = entries
