@@ -150,7 +150,8 @@ STREAMED_NOT_COMPUTED = {
                          "said streamed (SaturatedTorqueWarning: the whole record judged block by block, as in memory) "
                          "and its samples are left out of the streamed sums and errors as in memory (masked in that "
                          "channel only; the diagnosis's search, as memory's, leaves such a sample out whole); the "
-                         "counts per record and segment are said in the warning, not collected here",
+                         "counts per record and segment are said in the warning, not collected by diagnose_files "
+                         "(oed diagnose counts them: estimation.streaming.masked_counts)",
 }
 
 

@@ -84,7 +84,7 @@ from estimation.streaming.time_base import (Part, RegularClock, Resampler, TimeS
 
 __all__ = [
     "CLOCK_SUFFIX", "POSITIONS_SUFFIX", "FileSums", "from_positions", "positions_source", "MARGIN_TOLERANCE", "clock_source", "StreamingUnsupportedError", "automatic_cutoff", "file_sums", "filter_margin",
-    "CellMask", "FileScans", "cell_mask", "loaded_chunk", "logged_chunks", "preprocessed_chunks", "read_chunks", "receive_times_evidence_of", "segment_sources", "source_file", "source_files", "source_rows",
+    "CellMask", "FileScans", "MaskedCells", "cell_mask", "masked_cells", "loaded_chunk", "logged_chunks", "preprocessed_chunks", "read_chunks", "receive_times_evidence_of", "segment_sources", "source_file", "source_files", "source_rows",
     "source_step",
 ]
 
@@ -602,6 +602,16 @@ def cell_mask(path: str | Path, model: IdentificationModel, *, chunk_size: int =
     (:class:`_ClippedEvidence`, the clipped sensors judged on the whole record block by block); ``scan``: the
     file's :func:`~estimation.streaming.time_base.scan_time` (made when not given). ``say``: the clipped sensors'
     warning."""
+    clipped = _cell_evidence(path, model, chunk_size, scan)
+    if say:
+        clipped.say(model, str(path))
+    return clipped.mask()
+
+
+def _cell_evidence(path: str | Path, model: IdentificationModel, chunk_size: int,
+                   scan: TimeScan | None = None) -> _ClippedEvidence:
+    """:func:`cell_mask`'s pass: the clipped sensors of the rows of ``path`` the loader keeps, judged block by
+    block (their held repeats masked first)."""
     file, segment = source_file(path)
     if scan is None:
         with warnings.catch_warnings():
@@ -610,9 +620,42 @@ def cell_mask(path: str | Path, model: IdentificationModel, *, chunk_size: int =
     clipped = _ClippedEvidence(model, None if scan is None or scan.held is None else dict(scan.held))
     for frame in _kept_frames(file, chunk_size, None if scan is None else scan.keep, model):
         clipped.add(frame)
-    if say:
-        clipped.say(model, str(path))
-    return clipped.mask()
+    return clipped
+
+
+@dataclass(frozen=True)
+class MaskedCells:
+    """The counts of a streamed source's masked cells, as memory's reader has them: ``rows``, the rows the loader
+    keeps (the samples as recorded); ``clipped``, each clipped channel's samples left out (memory's
+    ``metadata["saturated_samples"]``, :func:`estimation.data.records.clipped_torques`); ``channels``, each
+    measured channel's valid samples (its held repeats and clipped samples out; memory's
+    :func:`~estimation.data.channel_mask.channel_counts` of the record as recorded)."""
+
+    rows: int
+    clipped: dict[str, int]
+    channels: dict[str, int]
+
+
+def masked_cells(path: str | Path, model: IdentificationModel, *, chunk_size: int = DEFAULT_CHUNK_SIZE) -> MaskedCells:
+    """The :class:`MaskedCells` of ``path`` (a file or one of its segments or parts): one scan of its time base and
+    one pass over its kept rows (:func:`cell_mask`'s), nothing said."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # said when the file is read
+        evidence = _cell_evidence(path, model, chunk_size)
+    mask, rows = evidence.mask(), evidence.row
+    clipped: dict[str, int] = {}
+    channels: dict[str, int] = {}
+    for group in ("tau", "wrench"):  # memory's order: the torques, then the wrench
+        if group not in evidence.scans:
+            continue
+        names = evidence.groups[group]
+        for name, at in zip(names, mask.clipped.get(group, ())):
+            if at.size:
+                clipped[name] = int(at.size)
+        found = mask.cells(group, 0, rows, len(names))
+        lost = np.zeros(len(names), dtype=int) if found is None else found.sum(axis=0)
+        channels.update({name: int(rows - count) for name, count in zip(names, lost)})
+    return MaskedCells(int(rows), clipped, channels)
 
 
 def read_chunks(path: str | Path, model: IdentificationModel, *, chunk_size: int = DEFAULT_CHUNK_SIZE,

@@ -83,7 +83,7 @@ STREAMED_NOT_COMPUTED = {
                          "said streamed (SaturatedTorqueWarning: the whole record judged block by block, as in memory) "
                          "and its samples are left out of the streamed sums and errors as in memory (masked in that "
                          "channel only); the counts per record and segment are said in the warning, not collected "
-                         "here",
+                         "by identify_files (oed identify counts them: estimation.streaming.masked_counts)",
 }
 
 

@@ -65,6 +65,7 @@ from estimation.identification.undetermined import fitted_without_undetermined
 from estimation.preprocessing.delay import DelayBounds, split_delay
 from estimation.preprocessing.plan import Preprocessing
 from estimation.streaming.settings import DEFAULT_SUBSAMPLE
+from estimation.streaming.masked_counts import streamed_mask_counts
 from estimation.identification.model_file import summed_model_file_document
 from estimation.identification.friction_drift import FrictionDrift, check_friction_drift
 from estimation.identification.time_base_choice import STREAMED_TIME_BASE
@@ -360,6 +361,12 @@ def run_diagnose(args: DiagnoseOptions, *, say: Callable[[str], None]) -> Diagno
         document["saturated_samples"] = saturated_sample_counts(diagnosed.records)
         # each channel's errors over its valid samples where they differ by channel (its masked samples out)
         document["channel_samples"] = channel_sample_counts(diagnosed.records)
+        if diagnosed.records is None:  # streamed: the files' masked cells counted as the streamed reader masks them
+            document["saturated_samples"], document["channel_samples"] = streamed_mask_counts(
+                {role: paths for role, paths in (("train", read.data), ("validation", read.validate),
+                                                 ("test", read.test)) if paths}, model,
+                chunk_size=DEFAULT_CHUNK_SIZE if read.chunk_size is None else read.chunk_size)
+            (document.get("not_computed") or {}).pop("saturated_samples", None)
         if merged:
             document["not_determined"] = [column.to_dict() for column in merged]
         if chain is not None:

@@ -60,6 +60,7 @@ from estimation.identification.weighting_choice import choose_weighting, weighti
 from estimation.preprocessing.delay import DelayBounds, split_delay
 from estimation.preprocessing.plan import Preprocessing
 from estimation.streaming.chunks import FileScans, source_files
+from estimation.streaming.masked_counts import streamed_mask_counts
 from estimation.streaming.cutoff_choice import streamed_window
 from estimation.streaming.identification import (SummedFits, identify_files_candidates, prepared_chunks,
                                                 streamed_channel_counts)
@@ -304,6 +305,14 @@ def run_identify(args: IdentifyOptions, *, say: Callable[[str], None]) -> Identi
         if copied:
             identified = replace(identified, messages=(*copied, *identified.messages))  # said as the reader says it
         document, messages = identify_document(args, identified)
+        if identified.records is None and _masked_sums(identified.result.streaming):
+            # streamed with masked samples in its sums: the clipped ones counted as memory counts them, from the
+            # files read (one more pass each; none on a record without a masked sample)
+            document["saturated_samples"] = streamed_mask_counts(
+                {role: paths for role, paths in (("train", read.data), ("validation", read.validate)) if paths},
+                identified.result.model,
+                chunk_size=DEFAULT_CHUNK_SIZE if identified.chunk_size is None else identified.chunk_size)[0]
+            (document.get("not_computed") or {}).pop("saturated_samples", None)
         if merged:
             document["not_determined"] = [column.to_dict() for column in merged]
         if chain is not None:
@@ -418,6 +427,12 @@ class Identified:
         if self.records is None:
             return {"train": None, "validation": None}
         return rest_records(self.records)
+
+
+def _masked_sums(streaming: dict[str, Any] | None) -> bool:
+    """Whether a streamed fit's sums left a masked sample out (a file's ``channel_samples``)."""
+    return bool(streaming) and any(entry.get("channel_samples") for key in ("files", "validation_files")
+                                   for entry in streaming.get(key) or [])
 
 
 def identify_document(args: IdentifyOptions, identified: Identified) -> tuple[dict[str, Any], tuple[str, ...]]:
