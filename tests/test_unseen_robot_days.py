@@ -218,7 +218,7 @@ DAYS = (
                   "h-sag2: paired on the validation blocks (model_selection.weighting_difference), wls leads ols "
                   "by 0.0218 (standard error 0.0043, 5.0 of them): the Fourier validation record really prefers "
                   "wls, it cannot see the sag the point-to-point test pays for, so no rule on that record's "
-                  "sampling error takes ols; identify 1.034 and diagnose 1.214 unchanged"),
+                  "sampling error takes ols; identify 1.034 and diagnose 1.214 unchanged there (diagnose 1.034 since h-tie20)"),
         logger=sagging()),
     Day(Lab("PUMA 6 joints, slow training and validation (0.08 Hz), a fast point-to-point test, 12 s / 6 s / 8 s "
             "at 250 Hz, no dq", puma(6), Log(12.0, 250.0, velocity=False, motion_hz=0.08),
