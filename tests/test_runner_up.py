@@ -31,8 +31,8 @@ QUICK = ["--starts", "1", "--max-iter", "15", "--samples", "60", "--constraint-p
          "--quiet"]
 #: ``--consistent``: the answer is the adopted model's consistent refit and the plain law's completion is not judged,
 #: so the report's model file is the model the runner-up is the rival of. On its defaults the completion (Coulomb
-#: friction and offsets the truth does not hold) validates 1.000 against 1.0034 here, a tie that keeps the plain
-#: class since h-tie20: the model file then holds the completed laws while the runner-up's BIC gap and the
+#: friction and offsets the truth does not hold) validates 1.000 against 1.0034 here, taken since h-tie20 (the lower
+#: score decides): the model file then holds the completed laws while the runner-up's BIC gap and the
 #: discrimination's rival stay against the adopted model (``benchmarks/README.md``, h-tie20)
 DIAGNOSE = ["diagnose", "--robot", "puma560", "--joints", "3", "--consistent"]
 

@@ -145,18 +145,24 @@ BENCHES = (
               "point-to-point test", planar, *no_servo((10.0, 4.0, 8.0), 250.0), test_motion="point-to-point",
               slow=True)),
     # until h-tie20 a strict xfail: diagnose 38.8x the plain fit (the offset, 'not significant' on the short swing,
-    # left out; the plain law completed validating 1.000 against 1.008, within the 1 % tie then kept by the model
-    # with fewer laws); the tie now keeps the plain class: diagnose 1.045, as identify
+    # left out; the plain law completed validating 1.000 against 1.008, within the 1 % band then kept by the model
+    # with fewer laws); the lower score now decides: diagnose 1.045, as identify
     Bench(Lab("the pendulum trained and validated on its lowest 35 % of swing (-2.6 to -0.78 rad), tested over the "
               "whole swing, 10 s / 4 s / 8 s at 250 Hz, no dq", pendulum, *no_servo((10.0, 4.0, 8.0), 250.0),
               trained_range=(0, 0.35), slow=True)),
     Bench(Lab("the four-joint servo arm logged at 25 Hz, 0.3° encoders, no dq, 16 s / 6 s / 8 s, point-to-point "
               "test", servo_arm, *no_servo((16.0, 6.0, 8.0), 25.0, quantum=SERVO_QUANTUM),
               test_motion="point-to-point", slow=True)),
-    # until h-tie20 a strict xfail: diagnose 1.028 (joint 2 1.074x; the plain law completed validating 1.011
-    # against 1.002, within the tie, not taken); the tie now keeps the plain class: 0.979, joint 2 1.008x, as identify
     Bench(Lab("PUMA 3 joints, joint 2's torque sensor with hysteresis (a play of 8 % of its spread), 10 s / 4 s / "
-              "6 s at 250 Hz, no dq", puma(3), *no_servo((10.0, 4.0, 6.0), 250.0), sensed=played, slow=True)),
+              "6 s at 250 Hz, no dq", puma(3), *no_servo((10.0, 4.0, 6.0), 250.0), sensed=played, slow=True,
+              xfail="diagnose 1.028 in total (joint 2 1.074x; identify 0.979, joint 2 1.008x): the offset on "
+                    "tau2, significant on training (p = 2e-17), raised the validation error 4.143 -> 4.18 and "
+                    "was rejected; the plain law completed validates 1.011 against 1.002, not taken; on the test "
+                    "it would have lowered joint 2's error; nothing false named, and tau2 said 6.8x above its "
+                    "floor, following none of the traced variables. h-tie20: a tie band that keeps the plain class "
+                    "(the completion taken unless the adopted model validates more than 1 % lower) passes it "
+                    "(0.979, joint 2 1.008x) but makes the TX40's diagnose 0.418 -> 0.424 (joint 1 0.897 -> 0.918; "
+                    "its completion 1.0131 against 1.0084): not kept")),
 )
 
 

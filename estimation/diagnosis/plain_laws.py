@@ -51,8 +51,7 @@ on the joint, an offset where none does), when its consistent refit predicts the
 diagnosed model's (:func:`oed.workflows.diagnose.completed_selection`): the model class of a plain least-squares fit is the least the answer holds when nothing
 measured the extrapolation of what the search left out. The added laws are not named as findings. On a validation
 record of another motion the completed model is a candidate too: its answer (the better of as fitted and its
-consistent refit) replaces the adopted model's unless the adopted model predicts the validation record better
-beyond the tie of :data:`~estimation.consistent.completion.COMPLETION_TOLERANCE` (the KUKA LWR4+
+consistent refit) replaces the adopted model's when it predicts the validation record better (the KUKA LWR4+
 trained on run 2 and validated on run 3: no law on tau3 left its test error 1.5x the plain fit's, 0.9x completed).
 
 **Refused on the fits, judged on the answer.** The comparison above is between the two unconstrained fits, but the
