@@ -29,7 +29,12 @@ from oed.sequential.rivals import NoRunnerUpError, runner_up_file
 CASE = StribeckCase()
 QUICK = ["--starts", "1", "--max-iter", "15", "--samples", "60", "--constraint-points", "30", "--frequency", "1",
          "--quiet"]
-DIAGNOSE = ["diagnose", "--robot", "puma560", "--joints", "3"]
+#: ``--consistent``: the answer is the adopted model's consistent refit and the plain law's completion is not judged,
+#: so the report's model file is the model the runner-up is the rival of. On its defaults the completion (Coulomb
+#: friction and offsets the truth does not hold) validates 1.000 against 1.0034 here, taken since h-tie20 (the lower
+#: score decides): the model file then holds the completed laws while the runner-up's BIC gap and the
+#: discrimination's rival stay against the adopted model (``benchmarks/README.md``, h-tie20)
+DIAGNOSE = ["diagnose", "--robot", "puma560", "--joints", "3", "--consistent"]
 
 
 @pytest.fixture(scope="module")

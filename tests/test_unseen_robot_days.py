@@ -203,10 +203,10 @@ DAYS = (
             "encoders on the motors), 10 s / 4 s / 8 s at 500 Hz, logged dq, point-to-point test", ur10e,
             *logs(rate=500.0, velocity=True, motion_hz=0.1), test_motion="point-to-point", slow=True,
             xfail="identify 1.034 in total (joint 2 1.146x: its wls 0.689 against the plain fit's 0.602 N m "
-                  "squared, its own ols 0.568, the wls chosen on validation 1.00 against 1.02); diagnose 1.214, "
-                  "joint 2 1.88x: the offset on tau2 left out, the plain law completed validating 1 against 1.002 "
-                  "(within the 1 % tie, kept by the model with fewer laws, as on the one-sided pendulum of "
-                  "test_unseen_robot_benches), and on the test tau2 1.13 against the default's 0.689; the sag (the "
+                  "squared, its own ols 0.568, the wls chosen on validation 1.00 against 1.02); diagnose the same "
+                  "since h-tie20, 1.034, joint 2 1.146x (until then 1.214, joint 2 1.88x: the offset on tau2 left "
+                  "out, the plain law completed validating 1 against 1.002, within the 1 % band then kept by the "
+                  "model with fewer laws; the lower score now decides); the sag (the "
                   "shoulder's torque over its stiffness read as angle) is outside every family; nothing false "
                   "named; measured at 4252663, the same at 6ee74d4. Traced (h-compliance, tests/compliance_trace.py): "
                   "the plain fit on the links' angles 0.879 of its own on the logged ones (joint 2 0.734); the "
@@ -218,7 +218,7 @@ DAYS = (
                   "h-sag2: paired on the validation blocks (model_selection.weighting_difference), wls leads ols "
                   "by 0.0218 (standard error 0.0043, 5.0 of them): the Fourier validation record really prefers "
                   "wls, it cannot see the sag the point-to-point test pays for, so no rule on that record's "
-                  "sampling error takes ols; identify 1.034 and diagnose 1.214 unchanged"),
+                  "sampling error takes ols; identify 1.034 and diagnose 1.214 unchanged there (diagnose 1.034 since h-tie20)"),
         logger=sagging()),
     Day(Lab("PUMA 6 joints, slow training and validation (0.08 Hz), a fast point-to-point test, 12 s / 6 s / 8 s "
             "at 250 Hz, no dq", puma(6), Log(12.0, 250.0, velocity=False, motion_hz=0.08),

@@ -823,10 +823,9 @@ def completed_selection(args: DiagnoseOptions, diagnosis: Diagnosis, records: Pr
     """``selection`` (the default answer of the adopted model, :func:`diagnosis_selection`), or the same choice made
     for the adopted model completed with the plain law on the joints the diagnosis left without one
     (:func:`estimation.diagnosis.plain_laws.plain_completion`; not named as findings) when that answer predicts
-    the validation record better by the criterion of the default answer (the adopted model kept on a tie; on
-    another motion, a score within :data:`~estimation.consistent.completion.COMPLETION_TOLERANCE` of the adopted
-    model's is a tie), as :func:`judged_swap` judges a plain-law swap; the selection's reason says which and the two
-    scores.
+    the validation record better by the criterion of the default answer (any lower score, on a repeat of the
+    training motion and, :data:`~estimation.consistent.completion.COMPLETION_TOLERANCE` being zero, on another
+    motion), as :func:`judged_swap` judges a plain-law swap; the selection's reason says which and the two scores.
 
     The search's refusals (a law refused by the Wald test at the search's Bonferroni threshold although it lowered
     the validation error, or never proposed beside a stronger law on another joint) leave a joint without the plain
