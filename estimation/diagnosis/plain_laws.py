@@ -245,6 +245,13 @@ def plain_law_choice(model: IdentificationModel, after: IdentificationResult, fo
     n_joints = model.robot.n_joints
     # the declared effects as the diagnosis left them (a declared term of the wrong sign held at zero stays so)
     base = tuple(effect for effect in after.model.effects if effect not in found)
+    reached: dict[Effect, tuple[int, ...]] = {}  # each effect's channels, worked out once for this choice
+
+    def rows_of(effect: Effect) -> tuple[int, ...]:
+        """The channels ``effect`` reaches (:func:`_rows`: a function of the effect and the model alone)."""
+        if effect not in reached:
+            reached[effect] = _rows(model, effect)
+        return reached[effect]
 
     fitted: dict[tuple[Effect, ...], IdentificationResult | None] = {}  # a swap of one joint is the mixed model
 
@@ -273,13 +280,13 @@ def plain_law_choice(model: IdentificationModel, after: IdentificationResult, fo
 
     def closure(rows: set[int]) -> set[int]:  # a dropped coupled law leaves its other joints: they take the plain law
         while True:
-            touched = set().union(*(set(_rows(model, effect)) for effect in found if set(_rows(model, effect)) & rows))
+            touched = set().union(*(set(rows_of(effect)) for effect in found if set(rows_of(effect)) & rows))
             grown = rows | {row for row in touched if row < n_joints}
             if grown == rows:
                 return rows
             rows = grown
 
-    shaped = {row for effect in found if _shaped_law(model, effect) for row in _rows(model, effect) if row < n_joints}
+    shaped = {row for effect in found if _shaped_law(model, effect) for row in rows_of(effect) if row < n_joints}
 
     def plain_laws(rows: set[int], levels: set[int]) -> tuple[Effect, ...]:
         # the plain law, Coulomb friction and an offset; a shaped row not in ``levels`` takes its simplest limit,
@@ -290,13 +297,13 @@ def plain_law_choice(model: IdentificationModel, after: IdentificationResult, fo
         return tuple(sorted(laws, key=lambda effect: (effect.joints, effect.name != "coulomb")))  # one order: one fit
 
     def swapped(rows: set[int]) -> tuple[Effect, ...]:
-        return tuple(effect for effect in found if not set(_rows(model, effect)) & rows) + plain_laws(rows, rows)
+        return tuple(effect for effect in found if not set(rows_of(effect)) & rows) + plain_laws(rows, rows)
 
     def mixed_fit(joints: set[int], levels: set[int], *, weak: bool = True
                   ) -> tuple[tuple[Effect, ...], tuple[Effect, ...], IdentificationResult] | None:
         """The diagnosed model with the plain law on ``joints`` (kept effects, plain laws, fit); ``weak``: its plain
         terms within their noise or of the wrong sign left out (``threshold``)."""
-        kept = tuple(effect for effect in found if not set(_rows(model, effect)) & joints)
+        kept = tuple(effect for effect in found if not set(rows_of(effect)) & joints)
         return laws_fit(kept, (), plain_laws(joints, levels), weak=weak)
 
     def laws_fit(kept: tuple[Effect, ...], held: tuple[Effect, ...], laws: tuple[Effect, ...], *, weak: bool = True
@@ -361,16 +368,16 @@ def plain_law_choice(model: IdentificationModel, after: IdentificationResult, fo
                 ) -> tuple[set[int], tuple[tuple[Effect, ...], tuple[Effect, ...], IdentificationResult] | None]:
         """The shaped laws acting on ``rows`` replaced by their plain limit, Coulomb friction on each joint they act on
         (with an offset on a joint of ``levels``) that the effects kept leave without it: (their joints, fit)."""
-        limits = [effect for effect in current[0] if _shaped_law(model, effect) and set(_rows(model, effect)) & rows]
+        limits = [effect for effect in current[0] if _shaped_law(model, effect) and set(rows_of(effect)) & rows]
         kept = tuple(effect for effect in current[0] if effect not in limits)
-        acted = {row for effect in limits for row in _rows(model, effect) if row < n_joints}
+        acted = {row for effect in limits for row in rows_of(effect) if row < n_joints}
         left = plain_model_effects(build_model(model.robot, model.kind, base + kept + current[1]), sorted(acted),
                                    level=True)
         laws = tuple(effect for effect in left if effect.name == "coulomb" or set(effect.joints) & levels)
         return acted, laws_fit(kept, current[1], laws, weak=weak)
 
     rows = set(screened)
-    sigmoids = {row for effect in found if effect.name == "sigmoid" for row in _rows(model, effect) if row < n_joints}
+    sigmoids = {row for effect in found if effect.name == "sigmoid" for row in rows_of(effect) if row < n_joints}
     for levels in (set(), sigmoids):  # Coulomb friction alone, then with an offset on a sigmoid's joint (its levels)
         if levels and not rows & levels:
             break
@@ -398,7 +405,7 @@ def plain_law_choice(model: IdentificationModel, after: IdentificationResult, fo
                f"the model with it instead scores {scores[1]:.4g} against {scores[0]:.4g} as fitted, but the better "
                "of it as fitted and its consistent refit validates better than the diagnosed model's "
                "(the default answer's candidates)")
-    dropped = tuple((effect, f"added, but on {', '.join(channels[row] for row in _rows(model, effect))} the plain "
+    dropped = tuple((effect, f"added, but on {', '.join(channels[row] for row in rows_of(effect))} the plain "
                              f"law (Coulomb friction and an offset) validates better (validation MSE {why}); "
                              f"{verdict}: replaced")
                     for effect in found if effect not in kept)
