@@ -51,6 +51,7 @@ from estimation.identification.mount import MountCheck
 from estimation.identification.subtracted_load import SubtractedLoad, added_back_records, load_channels
 from estimation.identification.report import identification_report
 from estimation.identification.friction_drift import FrictionDrift, check_friction_drift
+from estimation.consistent.training_halves import gains_halves
 from estimation.identification.time_base_choice import STREAMED_TIME_BASE
 from estimation.identification.training_range import RangeCheck, TrainingRange, merged_ranges
 from estimation.identification.trivial_predictors import trivial_warnings
@@ -1240,7 +1241,9 @@ def torque_gains_selection(args: IdentifyOptions, selection: ModelSelection, tra
     validation record (:func:`~estimation.consistent.torque_gains.gains_on_validation`: the channel-weighted fit with
     them must validate better, beyond the record's sampling spread); only then the declared model (as
     ``selection``'s, with the motor laws when they were taken) chosen among its candidates on the torques divided by
-    them, and taken when its answer validates better in the recorded units. ``(selection, None)`` unchanged when the
+    them, and taken when its answer validates better in the recorded units. Before that comparison the gains are
+    fitted on each half of the training record (:func:`~estimation.consistent.training_halves.gains_halves`): when
+    the halves disagree the plant changed during training, and the gains are not taken. ``(selection, None)`` unchanged when the
     user chose the estimator, with a delay search or shaped laws, without a validation record of another motion,
     or for a model with channels other than joint torques; else ``(answer, (gains, taken, reason))``, the reason the
     check's sentence (and the answers' comparison when the check let them be compared)."""
@@ -1266,6 +1269,10 @@ def torque_gains_selection(args: IdentifyOptions, selection: ModelSelection, tra
                                                                 consistent=settings))
     if not promising:
         return selection, (gains, False, checked)
+    with step("the torque gains fitted on each half of the training record, compared"):
+        halves = gains_halves(model, train)  # a sensor's gain holds over the whole record: the halves must agree
+    if halves is not None and halves.changed:  # the plant changed during training: no gain taken
+        return selection, (gains, False, f"{checked}; then {halves.message()}")
     with step("the answer's candidates fitted to the torques divided by the gains and compared"):
         other = select_model(model, divided_torques(train, gains), divided_torques(validation, gains), base=base,
                              consistent=consistent_settings(args, model.robot))
