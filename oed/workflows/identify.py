@@ -51,7 +51,7 @@ from estimation.identification.mount import MountCheck
 from estimation.identification.subtracted_load import SubtractedLoad, added_back_records, load_channels
 from estimation.identification.report import identification_report
 from estimation.identification.friction_drift import FrictionDrift, check_friction_drift
-from estimation.consistent.training_halves import gains_halves
+from estimation.consistent.training_halves import TrainingHalves, gains_halves
 from estimation.identification.time_base_choice import STREAMED_TIME_BASE
 from estimation.identification.training_range import RangeCheck, TrainingRange, merged_ranges
 from estimation.identification.trivial_predictors import trivial_warnings
@@ -405,6 +405,9 @@ class Identified:
     #: each joint's friction on the validation record against the training record's
     #: (:mod:`estimation.identification.friction_drift`; ``None``: not checked)
     friction_drift: FrictionDrift | None = None
+    #: in memory: the torque gains the check took, fitted on each half of the training record
+    #: (:mod:`estimation.consistent.training_halves`; ``None``: not checked)
+    training_stationarity: TrainingHalves | None = None
     #: the load the logged torques lack, when the answer is the model of such a log (:func:`subtracted_selection`;
     #: the result file's ``model_file.subtracted``), else ``None``
     subtracted: SubtractedLoad | None = None
@@ -470,6 +473,8 @@ def identify_document(args: IdentifyOptions, identified: Identified) -> tuple[di
         document["validation"]["mse_over_floor"] = None  # no floor, or no error against the recording
     drift = identified.friction_drift
     document["friction_drift"] = None if drift is None else drift.to_dict()
+    halves = identified.training_stationarity
+    document["training_stationarity"] = None if halves is None else halves.to_dict()
     said = add_training_range(document, identified.training_range, identified.range_checks)
     if said:  # a validation record beyond the training range: the choice measured some extrapolation
         messages += said
@@ -1108,9 +1113,9 @@ def identification_in_memory(args: IdentifyOptions, robot: RobotModel, model: Id
             records, gravity_taken = subtracted, False
             train = records.train.measurements
             validation = None if records.validation is None else records.validation.measurements
-            gains = None  # one known load at a time: the gains are not tried on a log that lacks one
+            gains, halves = None, None  # one known load at a time: the gains are not tried on a log that lacks one
         else:
-            selection, gains = torque_gains_selection(args, selection, train, validation, base=base, given=given,
+            selection, gains, halves = torque_gains_selection(args, selection, train, validation, base=base, given=given,
                                                       delay=delay)
         result, consistent = selection.unconstrained, selection.consistent
         chosen = ChosenModel.of(selection)  # the answer: what the summary, result.json, predict and export hold
@@ -1133,7 +1138,8 @@ def identification_in_memory(args: IdentifyOptions, robot: RobotModel, model: Id
                       n_samples=train.n_samples, torque_gains=gains, training_range=ranges,
                       range_checks={"validation": None if validation is None else ranges.check(validation.q,
                                                                                                validation.dq)},
-                      friction_drift=drift, subtracted=None if subtracted is None else SubtractedLoad())
+                      friction_drift=drift, subtracted=None if subtracted is None else SubtractedLoad(),
+                      training_stationarity=halves)
 
 
 def motor_friction_selection(args: IdentifyOptions, selection: ModelSelection, model: IdentificationModel,
@@ -1235,7 +1241,8 @@ def subtracted_selection(args: IdentifyOptions, selection: ModelSelection, decla
 
 def torque_gains_selection(args: IdentifyOptions, selection: ModelSelection, train: Measurements,
                            validation: Measurements | None, *, base: str, given: str | None,
-                           delay: DelayBounds | None) -> tuple[ModelSelection, tuple[TorqueGains, bool, str] | None]:
+                           delay: DelayBounds | None
+                           ) -> tuple[ModelSelection, tuple[TorqueGains, bool, str] | None, TrainingHalves | None]:
     """The default answer with an unknown gain on each joint's recorded torque a candidate
     (:mod:`estimation.consistent.torque_gains`): the gains fitted on the training record and checked on the
     validation record (:func:`~estimation.consistent.torque_gains.gains_on_validation`: the channel-weighted fit with
@@ -1243,21 +1250,23 @@ def torque_gains_selection(args: IdentifyOptions, selection: ModelSelection, tra
     ``selection``'s, with the motor laws when they were taken) chosen among its candidates on the torques divided by
     them, and taken when its answer validates better in the recorded units. Before that comparison the gains are
     fitted on each half of the training record (:func:`~estimation.consistent.training_halves.gains_halves`): when
-    the halves disagree the plant changed during training, and the gains are not taken. ``(selection, None)`` unchanged when the
-    user chose the estimator, with a delay search or shaped laws, without a validation record of another motion,
-    or for a model with channels other than joint torques; else ``(answer, (gains, taken, reason))``, the reason the
-    check's sentence (and the answers' comparison when the check let them be compared)."""
+    the halves disagree the plant changed during training, and the gains are not taken. ``(selection, None, None)``
+    unchanged when the user chose the estimator, with a delay search or shaped laws, without a validation record of
+    another motion, or for a model with channels other than joint torques; else ``(answer, (gains, taken, reason),
+    halves)``, the reason the
+    check's sentence (and the answers' comparison when the check let them be compared); the third item the
+    training record's halves compared (``None``: not checked)."""
     model = selection.unconstrained.model
     channels = model.channels
     if given is not None or delay is not None or model_has_shapes(model) or validation is None \
             or selection.selection != "validation" or len(channels) < 2 \
             or not all(map(is_joint_torque, channels)) or passive_channels(model):  # a passive joint's 0: no gain
-        return selection, None
+        return selection, None, None
     with step("an unknown gain on each joint's torque fitted and checked on the validation record"):
         try:
             gains, promising, checked = gains_on_validation(model, train, validation)
         except (ValueError, np.linalg.LinAlgError):
-            return selection, None
+            return selection, None, None
     scale = other_scale(gains)
     if scale is not None and args.prior is None:
         # the description's bodies and the torques in other units (a description in grams: 0.001): the consistent
@@ -1268,17 +1277,17 @@ def torque_gains_selection(args: IdentifyOptions, selection: ModelSelection, tra
             selection = carried_reasons(selection, select_model(model, train, validation, base=base,
                                                                 consistent=settings))
     if not promising:
-        return selection, (gains, False, checked)
+        return selection, (gains, False, checked), None
     with step("the torque gains fitted on each half of the training record, compared"):
         halves = gains_halves(model, train)  # a sensor's gain holds over the whole record: the halves must agree
     if halves is not None and halves.changed:  # the plant changed during training: no gain taken
-        return selection, (gains, False, f"{checked}; then {halves.message()}")
+        return selection, (gains, False, f"{checked}; then {halves.message()}"), halves
     with step("the answer's candidates fitted to the torques divided by the gains and compared"):
         other = select_model(model, divided_torques(train, gains), divided_torques(validation, gains), base=base,
                              consistent=consistent_settings(args, model.robot))
     answer, taken, compared = torque_gains_answer(selection, carried_reasons(selection, in_recorded_units(other, gains)),
                                                   gains)
-    return answer, (gains, taken, f"{checked}; then {compared}" if compared else checked)
+    return answer, (gains, taken, f"{checked}; then {compared}" if compared else checked), halves
 
 
 def scale_notes(gains: tuple[TorqueGains, bool, str] | None) -> tuple[str, ...]:
