@@ -136,11 +136,10 @@ def gains_halves(model: IdentificationModel, train: Measurements, *,
             gains = gains_from_sums(model, channel_sums(model, block), block.n_samples)[0]
         except (ValueError, np.linalg.LinAlgError):
             return None
-        values = gains.values
-        if not np.all(np.isfinite(values)) or np.any(values <= 0.0):
-            return None
-        logs.append(np.log(values))
-        known = np.asarray(gains.determined, dtype=bool)
+        values = np.asarray(gains.values, dtype=float)
+        usable = np.isfinite(values) & (values > 0.0)  # a gain fitted at zero or below is not one: not compared
+        logs.append(np.log(np.where(usable, values, 1.0)))
+        known = np.asarray(gains.determined, dtype=bool) & usable
         determined = known if determined is None else determined & known
     if determined is None or not determined.any():
         return None

@@ -51,7 +51,7 @@ from estimation.identification.mount import MountCheck
 from estimation.identification.subtracted_load import SubtractedLoad, added_back_records, load_channels
 from estimation.identification.report import identification_report
 from estimation.identification.friction_drift import FrictionDrift, check_friction_drift
-from estimation.consistent.training_halves import TrainingHalves, gains_halves
+from estimation.consistent.training_halves import PARTS, TrainingHalves, gains_halves, part_answer, training_part
 from estimation.identification.time_base_choice import STREAMED_TIME_BASE
 from estimation.identification.training_range import RangeCheck, TrainingRange, merged_ranges
 from estimation.identification.trivial_predictors import trivial_warnings
@@ -93,7 +93,7 @@ from oed.workflows.asbuilt import (
     trivial_predictors,
 )
 from estimation.consistent.identification import ConsistentResult
-from estimation.consistent.model_selection import ModelSelection, select_model
+from estimation.consistent.model_selection import ModelSelection, answers_scored, select_model
 from estimation.consistent.motor_friction import motor_friction_answer, motor_friction_laws
 from estimation.consistent.armature import armature_answer, armature_laws
 from estimation.consistent.mounted_gravity import gravity_answer, subtracted_answer, turned_model
@@ -1117,6 +1117,9 @@ def identification_in_memory(args: IdentifyOptions, robot: RobotModel, model: Id
         else:
             selection, gains, halves = torque_gains_selection(args, selection, train, validation, base=base, given=given,
                                                       delay=delay)
+            if halves is not None and halves.fitted_on in PARTS:  # the answer fitted on that half: its samples on
+                records = replace(records, train=replace(records.train, measurements=training_part(train, halves.fitted_on)))
+                train = records.train.measurements
         result, consistent = selection.unconstrained, selection.consistent
         chosen = ChosenModel.of(selection)  # the answer: what the summary, result.json, predict and export hold
         trivial, notes = trivial_predictors(result, validation, chosen.validation)
@@ -1127,6 +1130,8 @@ def identification_in_memory(args: IdentifyOptions, robot: RobotModel, model: Id
         notes = notes if repeat is None else (*notes, repeat)
         notes = (*notes, *description_notes(model, checks, gravity_taken=gravity_taken,
                                             subtracted=subtracted is not None), *scale_notes(gains))
+        said = None if halves is None else halves.message()  # the plant changed during training
+        notes = notes if said is None else (*notes, said)
         drift = None if delay is not None or model_has_shapes(model) else check_friction_drift(model, train, validation)
         notes = notes if drift is None or drift.message() is None else (*notes, drift.message())
     ranges = TrainingRange.of(train.q, train.dq, model.robot.joint_names)  # the samples fitted
@@ -1281,13 +1286,41 @@ def torque_gains_selection(args: IdentifyOptions, selection: ModelSelection, tra
     with step("the torque gains fitted on each half of the training record, compared"):
         halves = gains_halves(model, train)  # a sensor's gain holds over the whole record: the halves must agree
     if halves is not None and halves.changed:  # the plant changed during training: no gain taken
-        return selection, (gains, False, f"{checked}; then {halves.message()}"), halves
+        selection, halves, why = changed_plant_selection(args, selection, train, validation, base=base, halves=halves)
+        return selection, (gains, False, f"{checked}; then {halves.message()}" + (f"; {why}" if why else "")), halves
     with step("the answer's candidates fitted to the torques divided by the gains and compared"):
         other = select_model(model, divided_torques(train, gains), divided_torques(validation, gains), base=base,
                              consistent=consistent_settings(args, model.robot))
     answer, taken, compared = torque_gains_answer(selection, carried_reasons(selection, in_recorded_units(other, gains)),
                                                   gains)
     return answer, (gains, taken, f"{checked}; then {compared}" if compared else checked), halves
+
+
+def changed_plant_selection(args: IdentifyOptions, selection: ModelSelection, train: Measurements,
+                            validation: Measurements, *, base: str, halves: TrainingHalves
+                            ) -> tuple[ModelSelection, TrainingHalves, str]:
+    """The default answer when the training record's halves disagree (the plant changed during training,
+    :mod:`estimation.consistent.training_halves`): the answer's model (``selection``'s) chosen among its candidates
+    on each half of the training record too, and the whole record's answer kept unless a half's validates better by
+    more than :data:`~estimation.consistent.training_halves.PART_TOLERANCE`
+    (:func:`~estimation.consistent.training_halves.part_answer`, the same validation samples): ``(answer, halves,
+    why)``, ``halves`` holding the part chosen and the scores, ``why`` the sentence (the answer's reason ends with it)."""
+    model = selection.unconstrained.model
+    with step("the plant changed during training: the answer made on each half of the training record, compared"):
+        parts = {part: carried_reasons(selection, select_model(model, training_part(train, part), validation,
+                                                                base=base, consistent=consistent_settings(args,
+                                                                                                          model.robot)))
+                 for part in PARTS}
+    scores: dict[str, float | None] = {"whole": None}
+    for part, other in parts.items():
+        scored = answers_scored(selection, other)
+        scores["whole"] = scores["whole"] if scored is None else scored[0]
+        scores[part] = None if scored is None else scored[1]
+    fitted_on, why = part_answer(scores)
+    halves = replace(halves, fitted_on=fitted_on,
+                     scores={part: float(value) for part, value in scores.items() if value is not None} or None)
+    chosen = selection if fitted_on == "whole" else parts[fitted_on]
+    return (replace(chosen, reason=f"{chosen.reason}; {why}") if why else chosen), halves, why
 
 
 def scale_notes(gains: tuple[TorqueGains, bool, str] | None) -> tuple[str, ...]:
