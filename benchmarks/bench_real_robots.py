@@ -322,6 +322,13 @@ def toolkit(case: Case, folder: Path, label: str, options: list[str], verb: str 
         print(f"  {label}: friction scale on the validation record: " + ", ".join(
             f"{name} {entry['scale']:.3f} ± {entry['std']:.2g}{' *' if entry['marked'] else ''}"
             for name, entry in drift["joints"].items()), flush=True)
+    halves = document.get("training_stationarity")
+    if halves:  # the torque gains fitted on each half of the training record (h-payload20)
+        print(f"  {label}: torque gains on the training record's halves: " + ", ".join(
+            f"{name} {entry['first_half']:.4g} / {entry['second_half']:.4g} (t {entry['t']:.2g}, limit "
+            f"{entry['t_limit']:.2g}){' *' if entry['disagree'] else ''}" for name, entry in halves["channels"].items())
+            + f"; the answer fitted on its {halves['answer_fitted_on']}" * (halves["answer_fitted_on"] != "whole"),
+            flush=True)
     return {"t": table["t"].to_numpy(), "predicted": table[channels].to_numpy(), "result": document,
             "seconds": seconds}
 

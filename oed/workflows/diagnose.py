@@ -33,7 +33,7 @@ from dynamics.runtime.output_files import OutputFiles, json_text
 from dynamics.runtime.processes import beside, run_tasks, worker_count
 from dynamics.runtime.progress import step
 from dynamics.transmission import Transmission
-from estimation.consistent.model_selection import ModelSelection, select_refit
+from estimation.consistent.model_selection import ModelSelection, answers_scored, select_refit
 from estimation.consistent.torque_gains import (
     TorqueGains,
     channel_factors,
@@ -68,6 +68,7 @@ from estimation.streaming.settings import DEFAULT_SUBSAMPLE
 from estimation.streaming.masked_counts import streamed_mask_counts
 from estimation.identification.model_file import summed_model_file_document
 from estimation.identification.friction_drift import FrictionDrift, check_friction_drift
+from estimation.consistent.training_halves import PARTS, TrainingHalves, gains_halves, part_answer, training_part
 from estimation.identification.time_base_choice import STREAMED_TIME_BASE
 from estimation.identification.joint_zeros import JointZeroCheck
 from estimation.identification.training_range import RangeCheck, TrainingRange, merged_ranges
@@ -449,6 +450,9 @@ class Diagnosed:
     #: the load the logged torques lack, when the answer is the diagnosis of such a log (the result file's
     #: ``model_file.subtracted``: :mod:`estimation.identification.subtracted_load`), else ``None``
     subtracted: SubtractedLoad | None = None
+    #: in memory: the torque gains the quick check took, fitted on each half of the training record
+    #: (:mod:`estimation.consistent.training_halves`; ``None``: not checked)
+    training_stationarity: TrainingHalves | None = None
 
 
 def check_streamed_request(args: DiagnoseOptions, delay: DelayBounds | None) -> None:
@@ -471,14 +475,19 @@ def in_memory_only(args: DiagnoseOptions, model: IdentificationModel, delay: Del
 
 def diagnosis_in_memory(args: DiagnoseOptions, model: IdentificationModel, transmission: Transmission | None,
                         delay: DelayBounds | None, plan: Preprocessing | None, *,
-                        refused: str | None = None) -> Diagnosed:
+                        refused: str | None = None, halves: TrainingHalves | None = None,
+                        part: str | None = None) -> Diagnosed:
     """Read and prepare the records whole (``plan``: the derivatives chosen before reading), diagnose, and choose
     the default answer.
 
     Torque gains the quick check takes (:func:`~estimation.consistent.torque_gains.gains_for_records`, the plain
     model's) are kept only when the answer of the diagnosis of the torques divided by them predicts the validation
     record better than the adopted model fitted again to the torques as recorded (:func:`confirmed_gains`, the rule
-    of ``oed identify``); otherwise the diagnosis is made again without them, ``refused`` the sentence saying why."""
+    of ``oed identify``); otherwise the diagnosis is made again without them, ``refused`` the sentence saying why
+    (``halves``: the stationarity check of the first pass). Before that, the gains are fitted on each half of the
+    training record (:func:`~estimation.consistent.training_halves.gains_halves`): when the halves disagree the plant
+    changed during training, the gains are not taken, and the answer is made on each half of the training record too
+    (``part``: the half, :func:`changed_plant_answer`), the validation record choosing among the three."""
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         records = prepare_records(model, args.data, args.validate, args.test or (),  # reports its steps
@@ -486,14 +495,22 @@ def diagnosis_in_memory(args: DiagnoseOptions, model: IdentificationModel, trans
                                                    joint_offsets=resolve_joint_offsets(args, model.robot),
                                                    joint_directions=resolve_joint_directions(args, model.robot),
                                                    **derivatives_on_validation(model, delay)))
+        if part is not None:  # the plant changed during training: the answer made on this half of it
+            records = replace(records, train=replace(records.train,
+                                                     measurements=training_part(records.train.measurements, part)))
         # an unknown gain on each joint's recorded torque, measured on the validation record: the diagnosis then of
         # the torques divided by the gains, its answer's errors in the log's units (estimation.consistent.torque_gains)
-        gains = None if args.consistent or delay is not None or model_has_shapes(model) \
+        gains = None if args.consistent or delay is not None or model_has_shapes(model) or part is not None \
             else gains_for_records(plain_model(model), records)
         # the description's bodies and the torques in other units (grams, kN m): said, the gains taken or not
         scale = scale_notes(None if gains is None else gains[0])
         factor = None if gains is None else other_scale(gains[0])
         gains = gains if gains is not None and gains[1] and refused is None else None
+        if gains is not None:  # a sensor's gain holds over the whole training record: the halves must agree
+            with step("the torque gains fitted on each half of the training record, compared"):
+                halves = gains_halves(plain_model(model), records.train.measurements)
+            if halves is not None and halves.changed:  # the plant changed during training: no gain taken
+                scale, gains = (*scale, f"{gains[2]}; then {halves.message()}"), None
         if gains is None and factor is not None and args.prior is None:
             # the torques diagnosed as recorded: the consistent candidate's prior the description's bodies at their
             # scale, as oed identify's (torque_gains_selection; known here before any candidate is fitted)
@@ -561,15 +578,50 @@ def diagnosis_in_memory(args: DiagnoseOptions, model: IdentificationModel, trans
                                            subtracted=subtracted is not None)
             notes += () if drift is None or drift.message() is None else (drift.message(),)
     if refusal is not None:  # the gains refused: the diagnosis of the torques as recorded, the refusal said
-        return diagnosis_in_memory(args, model, transmission, delay, plan, refused=refusal)
+        return diagnosis_in_memory(args, model, transmission, delay, plan, refused=refusal, halves=halves)
     train = records.train.measurements  # the samples fitted: the training range, and the held-out records against it
     ranges = TrainingRange.of(train.q, train.dq, model.robot.joint_names)
     checks = {key: ranges.check(held.measurements.q, held.measurements.dq)
               for key, held in (("validation", records.validation), ("test", records.test)) if held is not None}
-    return Diagnosed(diagnosis, records.preprocessing.to_dict(), records.preprocessing.describe(),
-                     (*caught_messages(caught), *notes), records=records, untouched=untouched, selection=selection,
-                     transmission=transmission, notes=notes, torque_gains=None if gains is None else gains[0],
-                     training_range=ranges, range_checks=checks, friction_drift=drift, subtracted=subtracted)
+    diagnosed = Diagnosed(diagnosis, records.preprocessing.to_dict(), records.preprocessing.describe(),
+                          (*caught_messages(caught), *notes), records=records, untouched=untouched, selection=selection,
+                          transmission=transmission, notes=notes, torque_gains=None if gains is None else gains[0],
+                          training_range=ranges, range_checks=checks, friction_drift=drift, subtracted=subtracted,
+                          training_stationarity=halves)
+    if part is None and halves is not None and halves.changed:
+        return changed_plant_answer(args, model, transmission, delay, plan, diagnosed, halves)
+    return diagnosed
+
+
+def changed_plant_answer(args: DiagnoseOptions, model: IdentificationModel, transmission: Transmission | None,
+                         delay: DelayBounds | None, plan: Preprocessing | None, whole: Diagnosed,
+                         halves: TrainingHalves) -> Diagnosed:
+    """The default answer when the training record's halves disagree (the plant changed during training,
+    :mod:`estimation.consistent.training_halves`): the diagnosis made again on each half of the training record,
+    and the answer of the whole record's, or of a half's when it validates better by more than
+    :data:`~estimation.consistent.training_halves.PART_TOLERANCE` (:func:`~estimation.consistent.training_halves.part_answer`,
+    every answer scored on the same validation samples). The chosen diagnosis whole (its records, errors and model
+    file), the comparison said in the notes, the selection's reason and ``training_stationarity``."""
+    with step("the plant changed during training: the answer made on each half of the training record, compared"):
+        parts = {part: diagnosis_in_memory(args, model, transmission, delay, plan, halves=halves, part=part)
+                 for part in PARTS}
+    scores: dict[str, float | None] = {"whole": None}
+    for part, other in parts.items():
+        scored = None if whole.selection is None or other.selection is None \
+            else answers_scored(whole.selection, other.selection)
+        scores["whole"] = scores["whole"] if scored is None else scored[0]
+        scores[part] = None if scored is None else scored[1]
+    fitted_on, why = part_answer(scores)
+    halves = replace(halves, fitted_on=fitted_on,
+                     scores={part: float(value) for part, value in scores.items() if value is not None} or None)
+    chosen = whole if fitted_on == "whole" else parts[fitted_on]
+    said = halves.message() or ""
+    before = () if fitted_on == "whole" else tuple(note for note in whole.notes if said in note)
+    after = (why,) if why else ()
+    selection = chosen.selection if not why or chosen.selection is None else \
+        replace(chosen.selection, reason=f"{chosen.selection.reason}; {why}")
+    return replace(chosen, notes=(*before, *chosen.notes, *after), messages=(*before, *chosen.messages, *after),
+                   selection=selection, training_stationarity=halves)
 
 
 def confirmed_gains(args: DiagnoseOptions, diagnosis: Diagnosis, records: PreparedRecords,
@@ -663,6 +715,8 @@ def diagnose_document(args: DiagnoseOptions, diagnosed: Diagnosed) -> tuple[dict
     document["preprocessing"] = diagnosed.preprocessing
     drift = diagnosed.friction_drift
     document["friction_drift"] = None if drift is None else drift.to_dict()
+    halves = diagnosed.training_stationarity
+    document["training_stationarity"] = None if halves is None else halves.to_dict()
     if records is None:  # streamed: the transmission read, as in memory
         transmission = diagnosed.transmission
         document["transmission"] = None if transmission is None else {**transmission.to_dict(),

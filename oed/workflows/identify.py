@@ -51,6 +51,7 @@ from estimation.identification.mount import MountCheck
 from estimation.identification.subtracted_load import SubtractedLoad, added_back_records, load_channels
 from estimation.identification.report import identification_report
 from estimation.identification.friction_drift import FrictionDrift, check_friction_drift
+from estimation.consistent.training_halves import PARTS, TrainingHalves, gains_halves, part_answer, training_part
 from estimation.identification.time_base_choice import STREAMED_TIME_BASE
 from estimation.identification.training_range import RangeCheck, TrainingRange, merged_ranges
 from estimation.identification.trivial_predictors import trivial_warnings
@@ -93,7 +94,7 @@ from oed.workflows.asbuilt import (
     trivial_predictors,
 )
 from estimation.consistent.identification import ConsistentResult, Scorer
-from estimation.consistent.model_selection import ConsistentSettings, ModelSelection, select_model
+from estimation.consistent.model_selection import ConsistentSettings, ModelSelection, answers_scored, select_model
 from estimation.consistent.motor_friction import motor_friction_answer, motor_friction_laws
 from estimation.consistent.armature import armature_answer, armature_laws
 from estimation.consistent.mounted_gravity import gravity_answer, subtracted_answer, turned_model
@@ -417,6 +418,9 @@ class Identified:
     #: each joint's friction on the validation record against the training record's
     #: (:mod:`estimation.identification.friction_drift`; ``None``: not checked)
     friction_drift: FrictionDrift | None = None
+    #: in memory: the torque gains the check took, fitted on each half of the training record
+    #: (:mod:`estimation.consistent.training_halves`; ``None``: not checked)
+    training_stationarity: TrainingHalves | None = None
     #: the load the logged torques lack, when the answer is the model of such a log (:func:`subtracted_selection`;
     #: the result file's ``model_file.subtracted``), else ``None``
     subtracted: SubtractedLoad | None = None
@@ -488,6 +492,8 @@ def identify_document(args: IdentifyOptions, identified: Identified) -> tuple[di
         document["validation"]["mse_over_floor"] = None  # no floor, or no error against the recording
     drift = identified.friction_drift
     document["friction_drift"] = None if drift is None else drift.to_dict()
+    halves = identified.training_stationarity
+    document["training_stationarity"] = None if halves is None else halves.to_dict()
     said = add_training_range(document, identified.training_range, identified.range_checks)
     if said:  # a validation record beyond the training range: the choice measured some extrapolation
         messages += said
@@ -1133,10 +1139,13 @@ def identification_in_memory(args: IdentifyOptions, robot: RobotModel, model: Id
             records, gravity_taken = subtracted, False
             train = records.train.measurements
             validation = None if records.validation is None else records.validation.measurements
-            gains = None  # one known load at a time: the gains are not tried on a log that lacks one
+            gains, halves = None, None  # one known load at a time: the gains are not tried on a log that lacks one
         else:
-            selection, gains = torque_gains_selection(args, selection, train, validation, base=base, given=given,
+            selection, gains, halves = torque_gains_selection(args, selection, train, validation, base=base, given=given,
                                                       delay=delay)
+            if halves is not None and halves.fitted_on in PARTS:  # the answer fitted on that half: its samples on
+                records = replace(records, train=replace(records.train, measurements=training_part(train, halves.fitted_on)))
+                train = records.train.measurements
         result, consistent = selection.unconstrained, selection.consistent
         chosen = ChosenModel.of(selection)  # the answer: what the summary, result.json, predict and export hold
         trivial, notes = trivial_predictors(result, validation, chosen.validation)
@@ -1148,6 +1157,8 @@ def identification_in_memory(args: IdentifyOptions, robot: RobotModel, model: Id
         notes = (*notes, *description_notes(model, checks, gravity_taken=gravity_taken,
                                             subtracted=subtracted is not None),
                  *scale_notes(None if gains is None else gains[0]))
+        said = None if halves is None else halves.message()  # the plant changed during training
+        notes = notes if said is None else (*notes, said)
         drift = None if delay is not None or model_has_shapes(model) else check_friction_drift(model, train, validation)
         notes = notes if drift is None or drift.message() is None else (*notes, drift.message())
     ranges = TrainingRange.of(train.q, train.dq, model.robot.joint_names)  # the samples fitted
@@ -1159,7 +1170,8 @@ def identification_in_memory(args: IdentifyOptions, robot: RobotModel, model: Id
                       n_samples=train.n_samples, torque_gains=gains, training_range=ranges,
                       range_checks={"validation": None if validation is None else ranges.check(validation.q,
                                                                                                validation.dq)},
-                      friction_drift=drift, subtracted=None if subtracted is None else SubtractedLoad())
+                      friction_drift=drift, subtracted=None if subtracted is None else SubtractedLoad(),
+                      training_stationarity=halves)
 
 
 def motor_friction_selection(args: IdentifyOptions, selection: ModelSelection, model: IdentificationModel,
@@ -1268,27 +1280,32 @@ def prior_at_scale(args: IdentifyOptions, model: IdentificationModel, scale: flo
 
 def torque_gains_selection(args: IdentifyOptions, selection: ModelSelection, train: Measurements,
                            validation: Measurements | None, *, base: str, given: str | None,
-                           delay: DelayBounds | None) -> tuple[ModelSelection, tuple[TorqueGains, bool, str] | None]:
+                           delay: DelayBounds | None
+                           ) -> tuple[ModelSelection, tuple[TorqueGains, bool, str] | None, TrainingHalves | None]:
     """The default answer with an unknown gain on each joint's recorded torque a candidate
     (:mod:`estimation.consistent.torque_gains`): the gains fitted on the training record and checked on the
     validation record (:func:`~estimation.consistent.torque_gains.gains_on_validation`: the channel-weighted fit with
     them must validate better, beyond the record's sampling spread); only then the declared model (as
     ``selection``'s, with the motor laws when they were taken) chosen among its candidates on the torques divided by
-    them, and taken when its answer validates better in the recorded units. ``(selection, None)`` unchanged when the
-    user chose the estimator, with a delay search or shaped laws, without a validation record of another motion,
-    or for a model with channels other than joint torques; else ``(answer, (gains, taken, reason))``, the reason the
-    check's sentence (and the answers' comparison when the check let them be compared)."""
+    them, and taken when its answer validates better in the recorded units. Before that comparison the gains are
+    fitted on each half of the training record (:func:`~estimation.consistent.training_halves.gains_halves`): when
+    the halves disagree the plant changed during training, and the gains are not taken. ``(selection, None, None)``
+    unchanged when the user chose the estimator, with a delay search or shaped laws, without a validation record of
+    another motion, or for a model with channels other than joint torques; else ``(answer, (gains, taken, reason),
+    halves)``, the reason the
+    check's sentence (and the answers' comparison when the check let them be compared); the third item the
+    training record's halves compared (``None``: not checked)."""
     model = selection.unconstrained.model
     channels = model.channels
     if given is not None or delay is not None or model_has_shapes(model) or validation is None \
             or selection.selection != "validation" or len(channels) < 2 \
             or not all(map(is_joint_torque, channels)) or passive_channels(model):  # a passive joint's 0: no gain
-        return selection, None
+        return selection, None, None
     with step("an unknown gain on each joint's torque fitted and checked on the validation record"):
         try:
             gains, promising, checked = gains_on_validation(model, train, validation)
         except (ValueError, np.linalg.LinAlgError):
-            return selection, None
+            return selection, None, None
     scale = other_scale(gains)
     if scale is not None and args.prior is None:
         # the description's bodies and the torques in other units (a description in grams: 0.001): the consistent
@@ -1297,13 +1314,45 @@ def torque_gains_selection(args: IdentifyOptions, selection: ModelSelection, tra
             selection = carried_reasons(selection, select_model(model, train, validation, base=base,
                                                                 consistent=prior_at_scale(args, model, scale)))
     if not promising:
-        return selection, (gains, False, checked)
+        return selection, (gains, False, checked), None
+    with step("the torque gains fitted on each half of the training record, compared"):
+        halves = gains_halves(model, train)  # a sensor's gain holds over the whole record: the halves must agree
+    if halves is not None and halves.changed:  # the plant changed during training: no gain taken
+        selection, halves, why = changed_plant_selection(args, selection, train, validation, base=base, halves=halves)
+        return selection, (gains, False, f"{checked}; then {halves.message()}" + (f"; {why}" if why else "")), halves
     with step("the answer's candidates fitted to the torques divided by the gains and compared"):
         other = select_model(model, divided_torques(train, gains), divided_torques(validation, gains), base=base,
                              consistent=consistent_settings(args, model.robot))
     answer, taken, compared = torque_gains_answer(selection, carried_reasons(selection, in_recorded_units(other, gains)),
                                                   gains)
-    return answer, (gains, taken, f"{checked}; then {compared}" if compared else checked)
+    return answer, (gains, taken, f"{checked}; then {compared}" if compared else checked), halves
+
+
+def changed_plant_selection(args: IdentifyOptions, selection: ModelSelection, train: Measurements,
+                            validation: Measurements, *, base: str, halves: TrainingHalves
+                            ) -> tuple[ModelSelection, TrainingHalves, str]:
+    """The default answer when the training record's halves disagree (the plant changed during training,
+    :mod:`estimation.consistent.training_halves`): the answer's model (``selection``'s) chosen among its candidates
+    on each half of the training record too, and the whole record's answer kept unless a half's validates better by
+    more than :data:`~estimation.consistent.training_halves.PART_TOLERANCE`
+    (:func:`~estimation.consistent.training_halves.part_answer`, the same validation samples): ``(answer, halves,
+    why)``, ``halves`` holding the part chosen and the scores, ``why`` the sentence (the answer's reason ends with it)."""
+    model = selection.unconstrained.model
+    with step("the plant changed during training: the answer made on each half of the training record, compared"):
+        parts = {part: carried_reasons(selection, select_model(model, training_part(train, part), validation,
+                                                                base=base, consistent=consistent_settings(args,
+                                                                                                          model.robot)))
+                 for part in PARTS}
+    scores: dict[str, float | None] = {"whole": None}
+    for part, other in parts.items():
+        scored = answers_scored(selection, other)
+        scores["whole"] = scores["whole"] if scored is None else scored[0]
+        scores[part] = None if scored is None else scored[1]
+    fitted_on, why = part_answer(scores)
+    halves = replace(halves, fitted_on=fitted_on,
+                     scores={part: float(value) for part, value in scores.items() if value is not None} or None)
+    chosen = selection if fitted_on == "whole" else parts[fitted_on]
+    return (replace(chosen, reason=f"{chosen.reason}; {why}") if why else chosen), halves, why
 
 
 #: the sentences the candidates of the default answer append to its reason (motor-side friction, the armature, the
