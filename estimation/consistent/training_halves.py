@@ -33,11 +33,12 @@ from scipy.stats import t as student
 
 from dynamics.measurements import Measurements
 from dynamics.models import IdentificationModel
+from estimation.consistent.model_selection import ModelSelection, answers_scored
 from estimation.consistent.torque_gains import channel_sums, gains_from_sums
 from estimation.data.channel_mask import whole_rows
 
 __all__ = ["BLOCKS_PER_HALF", "HALVES_ALPHA", "MIN_BLOCK_SAMPLES", "PARTS", "PART_TOLERANCE", "TrainingHalves",
-           "gains_halves", "part_answer", "training_part"]
+           "gains_halves", "part_answer", "parts_compared", "training_part"]
 
 #: the contiguous blocks of each half whose gains are fitted (their spread the standard error of the half's mean)
 BLOCKS_PER_HALF = 4
@@ -182,3 +183,18 @@ def part_answer(scores: dict[str, float | None]) -> tuple[str, str]:
     return (best if taken else "whole"), (f"the answers made on each half of the training record validate {shown} "
                                           f"against {whole:.4g} for the whole record's (the mean relative validation "
                                           f"error): {chosen}")
+
+
+def parts_compared(whole: ModelSelection | None, parts: dict[str, ModelSelection | None]
+                   ) -> tuple[str, str, dict[str, float] | None]:
+    """The answers made on the whole training record (``whole``) and on each of its halves (``parts``, keyed by
+    :data:`PARTS`) scored on the same validation samples (:func:`~estimation.consistent.model_selection.answers_scored`)
+    and chosen among (:func:`part_answer`): ``(part chosen, sentence, scores)``, the scores ``None`` when none was
+    compared. The one comparison of ``oed identify`` and ``oed diagnose``."""
+    scores: dict[str, float | None] = {"whole": None}
+    for part, other in parts.items():
+        scored = None if whole is None or other is None else answers_scored(whole, other)
+        scores["whole"] = scores["whole"] if scored is None else scored[0]
+        scores[part] = None if scored is None else scored[1]
+    fitted_on, why = part_answer(scores)
+    return fitted_on, why, {part: float(value) for part, value in scores.items() if value is not None} or None

@@ -33,7 +33,7 @@ from dynamics.runtime.output_files import OutputFiles, json_text
 from dynamics.runtime.processes import beside, run_tasks, worker_count
 from dynamics.runtime.progress import step
 from dynamics.transmission import Transmission
-from estimation.consistent.model_selection import ModelSelection, answers_scored, select_refit
+from estimation.consistent.model_selection import ModelSelection, select_refit
 from estimation.consistent.torque_gains import (
     TorqueGains,
     channel_factors,
@@ -68,7 +68,7 @@ from estimation.streaming.settings import DEFAULT_SUBSAMPLE
 from estimation.streaming.masked_counts import streamed_mask_counts
 from estimation.identification.model_file import summed_model_file_document
 from estimation.identification.friction_drift import FrictionDrift, check_friction_drift
-from estimation.consistent.training_halves import PARTS, TrainingHalves, gains_halves, part_answer, training_part
+from estimation.consistent.training_halves import PARTS, TrainingHalves, gains_halves, parts_compared, training_part
 from estimation.identification.time_base_choice import STREAMED_TIME_BASE
 from estimation.identification.joint_zeros import JointZeroCheck
 from estimation.identification.training_range import RangeCheck, TrainingRange, merged_ranges
@@ -605,15 +605,8 @@ def changed_plant_answer(args: DiagnoseOptions, model: IdentificationModel, tran
     with step("the plant changed during training: the answer made on each half of the training record, compared"):
         parts = {part: diagnosis_in_memory(args, model, transmission, delay, plan, halves=halves, part=part)
                  for part in PARTS}
-    scores: dict[str, float | None] = {"whole": None}
-    for part, other in parts.items():
-        scored = None if whole.selection is None or other.selection is None \
-            else answers_scored(whole.selection, other.selection)
-        scores["whole"] = scores["whole"] if scored is None else scored[0]
-        scores[part] = None if scored is None else scored[1]
-    fitted_on, why = part_answer(scores)
-    halves = replace(halves, fitted_on=fitted_on,
-                     scores={part: float(value) for part, value in scores.items() if value is not None} or None)
+    fitted_on, why, scores = parts_compared(whole.selection, {part: other.selection for part, other in parts.items()})
+    halves = replace(halves, fitted_on=fitted_on, scores=scores)
     chosen = whole if fitted_on == "whole" else parts[fitted_on]
     said = halves.message() or ""
     before = () if fitted_on == "whole" else tuple(note for note in whole.notes if said in note)

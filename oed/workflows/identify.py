@@ -51,7 +51,7 @@ from estimation.identification.mount import MountCheck
 from estimation.identification.subtracted_load import SubtractedLoad, added_back_records, load_channels
 from estimation.identification.report import identification_report
 from estimation.identification.friction_drift import FrictionDrift, check_friction_drift
-from estimation.consistent.training_halves import PARTS, TrainingHalves, gains_halves, part_answer, training_part
+from estimation.consistent.training_halves import PARTS, TrainingHalves, gains_halves, parts_compared, training_part
 from estimation.identification.time_base_choice import STREAMED_TIME_BASE
 from estimation.identification.training_range import RangeCheck, TrainingRange, merged_ranges
 from estimation.identification.trivial_predictors import trivial_warnings
@@ -94,7 +94,7 @@ from oed.workflows.asbuilt import (
     trivial_predictors,
 )
 from estimation.consistent.identification import ConsistentResult, Scorer
-from estimation.consistent.model_selection import ConsistentSettings, ModelSelection, answers_scored, select_model
+from estimation.consistent.model_selection import ConsistentSettings, ModelSelection, select_model
 from estimation.consistent.motor_friction import motor_friction_answer, motor_friction_laws
 from estimation.consistent.armature import armature_answer, armature_laws
 from estimation.consistent.mounted_gravity import gravity_answer, subtracted_answer, turned_model
@@ -1343,14 +1343,8 @@ def changed_plant_selection(args: IdentifyOptions, selection: ModelSelection, tr
                                                                 base=base, consistent=consistent_settings(args,
                                                                                                           model.robot)))
                  for part in PARTS}
-    scores: dict[str, float | None] = {"whole": None}
-    for part, other in parts.items():
-        scored = answers_scored(selection, other)
-        scores["whole"] = scores["whole"] if scored is None else scored[0]
-        scores[part] = None if scored is None else scored[1]
-    fitted_on, why = part_answer(scores)
-    halves = replace(halves, fitted_on=fitted_on,
-                     scores={part: float(value) for part, value in scores.items() if value is not None} or None)
+    fitted_on, why, scores = parts_compared(selection, parts)
+    halves = replace(halves, fitted_on=fitted_on, scores=scores)
     chosen = selection if fitted_on == "whole" else parts[fitted_on]
     return (replace(chosen, reason=f"{chosen.reason}; {why}") if why else chosen), halves, why
 
