@@ -65,7 +65,6 @@ from estimation.identification.undetermined import fitted_without_undetermined
 from estimation.preprocessing.delay import DelayBounds, split_delay
 from estimation.preprocessing.plan import Preprocessing
 from estimation.streaming.settings import DEFAULT_SUBSAMPLE
-from estimation.streaming.masked_counts import streamed_mask_counts
 from estimation.identification.model_file import summed_model_file_document
 from estimation.identification.friction_drift import FrictionDrift, check_friction_drift
 from estimation.consistent.training_halves import PARTS, TrainingHalves, gains_halves, parts_compared, training_part
@@ -363,6 +362,7 @@ def run_diagnose(args: DiagnoseOptions, *, say: Callable[[str], None]) -> Diagno
         # each channel's errors over its valid samples where they differ by channel (its masked samples out)
         document["channel_samples"] = channel_sample_counts(diagnosed.records)
         if diagnosed.records is None:  # streamed: the files' masked cells counted as the streamed reader masks them
+            from estimation.streaming.masked_counts import streamed_mask_counts  # the streamed path's, imported there
             document["saturated_samples"], document["channel_samples"] = streamed_mask_counts(
                 {role: paths for role, paths in (("train", read.data), ("validation", read.validate),
                                                  ("test", read.test)) if paths}, model,
