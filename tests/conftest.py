@@ -17,43 +17,6 @@ REPOSITORY = TESTS.parent
 SHARED_DATA = REPOSITORY.parent / "shared" / "data"
 
 
-def one_core_a_worker() -> int | None:
-    """In a pytest-xdist worker, when the workers are as many as the cores or more: this worker's process held to one
-    core of its own (``gw<i>`` on the ``i``-th of the cores, cyclically), whose number is returned; ``None`` (nothing
-    changed) outside a worker, with fewer workers than cores, or where the system cannot set the affinity.
-
-    ``make test`` runs two workers on two cores: each already fills a core, so the library's own processes are
-    overhead there. :func:`dynamics.runtime.processes.worker_count` forks ``available_cores()`` workers (the process's
-    CPU affinity) for a round of independent fits (the derivative candidates' scores, the diagnosis's searches): with
-    both pytest workers busy those children only take turns on the same two cores, and pay for the fork (the page
-    tables, the copy-on-write faults of the pages either side writes, the results pickled back). Held to one core, a
-    worker runs such rounds in turn, as on a one-core machine: the same results (the library's promise: a result never
-    depends on how many processes computed it), less CPU. Tests that ask for processes (``jobs=2``, ``workers=2``)
-    still get them; the processes a test starts (``python -m oed``, a notebook's kernel) inherit the worker's core.
-    (The sample loops' threads, :data:`dynamics.models.EVALUATION_THREADS`, were counted when ``pyproject.toml``'s
-    warning filters imported the library, before this file: unchanged.)"""
-    worker = os.environ.get("PYTEST_XDIST_WORKER", "")
-    if not worker.startswith("gw") or not worker[2:].isdigit() or not hasattr(os, "sched_setaffinity"):
-        return None
-    try:
-        cores = sorted(os.sched_getaffinity(0))
-        workers = int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "0"))
-    except (OSError, ValueError):
-        return None
-    if workers < len(cores) or len(cores) < 2:
-        return None
-    core = cores[int(worker[2:]) % len(cores)]
-    try:
-        os.sched_setaffinity(0, {core})
-    except OSError:
-        return None
-    return core
-
-
-#: the core this xdist worker is held to (:func:`one_core_a_worker`; ``None``: not held)
-WORKER_CORE = one_core_a_worker()
-
-
 def shared_data(*parts: str) -> Path:
     """A path under ``../shared/data``; skips the test, saying why, when it is absent."""
     path = SHARED_DATA.joinpath(*parts)
