@@ -15,7 +15,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from tests.test_packed_and_foreign_logs import plain, puma3, read_both  # noqa: F401  (fixtures)
+from tests.test_packed_and_foreign_logs import held_to_the_plain_fit, plain, puma3, read_both  # noqa: F401  (fixtures)
 
 zstandard = pytest.importorskip("zstandard", reason="the zstd extra (pip install zstandard) packs the zstd logs")
 
@@ -252,7 +252,6 @@ def test_the_verbs_read_each_form_and_predict_as_well_as_a_plain_fit(form, strea
     the test record (written alike): within the plain fit's figures (total at most 1.0x, each joint 1.3x), the
     validation error reproduced (1e-6); as ``tests/test_packed_and_foreign_logs.py`` runs the habits of h-logs4."""
     from benchmarks.bench_real_robots import PlainFit
-    from tests.test_one_answer_audit import RELATIVE
     from tests.test_unseen_robot_labs import Lab, puma, verbs_against_the_plain_fit, write_records
     from tests.test_unseen_robots import Log
 
@@ -269,11 +268,4 @@ def test_the_verbs_read_each_form_and_predict_as_well_as_a_plain_fit(form, strea
         written[role] = VERB_FORMS[form](pd.read_csv(path), folder)
     outcome = verbs_against_the_plain_fit(urdf, written, records["test"], kept, predicted, tmp_path,
                                           options=("--chunk-size", "300") if streamed else ())
-    assert not outcome["exits"], outcome["exits"]
-    for label in ("default", "diagnose"):
-        mse = np.asarray(outcome["mse"][label])
-        reference = np.asarray(outcome["mse"][f"plain OLS ({label}'s samples)"])
-        print(f"\n{form}, {'streamed' if streamed else 'in memory'}, {label}: {mse.sum() / reference.sum():.4f} "
-              f"worst {np.max(mse / reference):.3f}")
-        assert mse.sum() <= reference.sum() and np.all(mse <= 1.3 * reference), (label, mse, reference)
-        assert outcome["reproduced"][label] < RELATIVE, (label, outcome["reproduced"])
+    held_to_the_plain_fit(outcome, form, streamed)
